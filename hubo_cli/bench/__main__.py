@@ -1,0 +1,34 @@
+"""Run every benchmark module and print a table of figures."""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+import sys
+import time
+
+import hubo_cli.bench as bench_pkg
+
+
+def main(argv: list[str]) -> int:
+    only = set(argv)
+    rows: list[tuple[str, str, str, str]] = []
+
+    def report(name: str, value: float, unit: str, note: str = "") -> None:
+        text = f"{value:,.3g}" if abs(value) < 1000 else f"{value:,.0f}"
+        rows.append((name, text, unit, note))
+        print(f"  {name:<58} {text:>12} {unit:<14} {note}", flush=True)
+
+    modules = sorted(m.name for m in pkgutil.iter_modules(bench_pkg.__path__))
+    for name in modules:
+        if only and name not in only:
+            continue
+        print(f"[{name}]", flush=True)
+        t0 = time.perf_counter()
+        importlib.import_module(f"hubo_cli.bench.{name}").run(report)
+        print(f"  ({time.perf_counter() - t0:.1f} s)", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

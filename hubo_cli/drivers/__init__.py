@@ -1,0 +1,1 @@
+"""Drivers: the robot behind one small contract (:class:`hubo_cli.drivers.base.Driver`)."""

@@ -1,0 +1,149 @@
+"""Choosing one of the eight IK candidates (paper II-E, improved), compiled with numba.
+
+Rule, per target:
+
+1. *exact*: among candidates inside the joint limits whose FK reaches the target (checked, not
+   assumed), take the one closest to the previous joints, or with the smallest sum of squares
+   when there are none;
+2. *capped*: otherwise cap every candidate to the limits, run FK, and take the one whose end
+   frame lands closest to the target position, if it is within ``hold_m`` (5 cm);
+3. *held*: otherwise keep the previous joints;
+4. *unreachable*: as 3 but with no previous joints to keep (the capped best is returned).
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+from hubo_cli.kinematics.arm_ik import arm_candidates
+from hubo_cli.kinematics.dh import JIT, chain_fk, invert4, matmul4, pose_error
+from hubo_cli.kinematics.leg_ik import leg_candidates
+
+EXACT = 0
+CAPPED = 1
+HELD = 2
+UNREACHABLE = 3
+STATUS_NAMES = ("exact", "capped", "held", "unreachable")
+
+EXACT_POS_TOL_M = 1e-6
+EXACT_ROT_TOL_RAD = 1e-6
+
+
+@nb.njit(**JIT)
+def limb_candidates(T_goal, chain, lengths, is_arm, q_prev, out, exact):
+    """All eight candidates for a goal end frame in the neck frame.
+
+    Args:
+        T_goal: goal end-effector pose T_N_E (4x4, m).
+        chain: (base, base_inv, offset, alpha, a, d, end, end_inv) of the limb.
+        lengths: the three lengths the limb's IK needs (m).
+        is_arm: arm equations if True, leg equations otherwise.
+        q_prev: previous joints (rad), used by the singular cases.
+        out, exact: (8, 6) and (8,) outputs.
+    """
+    base, base_inv, offset, alpha, a, d, end, end_inv = chain
+    tmp = np.empty((4, 4))
+    T06 = np.empty((4, 4))
+    T60 = np.empty((4, 4))
+    matmul4(base_inv, T_goal, tmp)
+    matmul4(tmp, end_inv, T06)
+    invert4(T06, T60)
+    if is_arm:
+        arm_candidates(T60, lengths[0], lengths[1], lengths[2], q_prev, out, exact)
+    else:
+        leg_candidates(T60, lengths[0], lengths[1], lengths[2], q_prev, out, exact)
+
+
+@nb.njit(**JIT)
+def _within(q, lower, upper):
+    for j in range(6):
+        if q[j] < lower[j] or q[j] > upper[j]:
+            return False
+    return True
+
+
+@nb.njit(**JIT)
+def _distance2(q, q_prev, has_prev):
+    s = 0.0
+    for j in range(6):
+        e = q[j] - q_prev[j] if has_prev else q[j]
+        s += e * e
+    return s
+
+
+@nb.njit(**JIT)
+def solve_limb(T_goal, chain, lengths, is_arm, lower, upper, q_prev, has_prev, hold_m, allow_cap,
+               q_out):
+    """Choose a solution for one goal; returns (status, position error m, rotation error rad).
+
+    ``allow_cap=False`` skips step 2-4 work for callers that only need reachability (the
+    workspace map): an unreachable goal then returns UNREACHABLE at once with infinite errors.
+    """
+    base, base_inv, offset, alpha, a, d, end, end_inv = chain
+    cands = np.empty((8, 6))
+    exact = np.zeros(8, dtype=np.bool_)
+    limb_candidates(T_goal, chain, lengths, is_arm, q_prev, cands, exact)
+    T = np.empty((4, 4))
+    usable = np.zeros(8, dtype=np.bool_)
+    for k in range(8):
+        usable[k] = exact[k] and _within(cands[k], lower, upper)
+    while True:  # best usable candidate, verified by FK; drop it if FK disagrees
+        best = -1
+        best_d = np.inf
+        for k in range(8):
+            if usable[k]:
+                dk = _distance2(cands[k], q_prev, has_prev)
+                if dk < best_d:
+                    best_d = dk
+                    best = k
+        if best < 0:
+            break
+        chain_fk(cands[best], base, offset, alpha, a, d, end, T)
+        pos, rot = pose_error(T, T_goal)
+        if pos <= EXACT_POS_TOL_M and rot <= EXACT_ROT_TOL_RAD:
+            q_out[:] = cands[best]
+            return EXACT, pos, rot
+        usable[best] = False
+    if not allow_cap:
+        q_out[:] = np.nan
+        return UNREACHABLE, np.inf, np.inf
+    best_pos = np.inf
+    best_rot = np.inf
+    capped = np.empty(6)
+    for k in range(8):
+        for j in range(6):
+            capped[j] = min(max(cands[k, j], lower[j]), upper[j])
+        chain_fk(capped, base, offset, alpha, a, d, end, T)
+        pos, rot = pose_error(T, T_goal)
+        if pos < best_pos or (pos == best_pos and rot < best_rot):
+            best_pos = pos
+            best_rot = rot
+            q_out[:] = capped
+    if best_pos <= hold_m:
+        status = EXACT if best_pos <= EXACT_POS_TOL_M and best_rot <= EXACT_ROT_TOL_RAD else CAPPED
+        return status, best_pos, best_rot
+    if has_prev:
+        q_out[:] = q_prev
+        chain_fk(q_prev, base, offset, alpha, a, d, end, T)
+        pos, rot = pose_error(T, T_goal)
+        return HELD, pos, rot
+    return UNREACHABLE, best_pos, best_rot
+
+
+@nb.njit(parallel=True, **JIT)
+def solve_limb_batch(T_goals, chain, lengths, is_arm, lower, upper, q_prevs, has_prev, hold_m,
+                     allow_cap):
+    """:func:`solve_limb` over N goals (N x 4 x 4) on all cores; q_prevs is N x 6."""
+    n = T_goals.shape[0]
+    q_out = np.empty((n, 6))
+    status = np.empty(n, dtype=np.int8)
+    pos_err = np.empty(n)
+    rot_err = np.empty(n)
+    for i in nb.prange(n):
+        s, p, r = solve_limb(T_goals[i], chain, lengths, is_arm, lower, upper, q_prevs[i],
+                             has_prev, hold_m, allow_cap, q_out[i])
+        status[i] = s
+        pos_err[i] = p
+        rot_err[i] = r
+    return q_out, status, pos_err, rot_err

@@ -1,0 +1,186 @@
+"""The HUBO 2+ robot description, read from ``robots/hubo2plus/hubo2plus.toml``.
+
+A :class:`RobotModel` holds one kinematic parameter set (lengths in metres), the four limbs with
+their joint names and limits, and the tools. Everything is immutable and cheap to pass around.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from functools import cache
+from pathlib import Path
+
+import numpy as np
+
+from hubo_cli.errors import ConfigError
+from hubo_cli.resources import data_file
+
+ARMS = ("right-arm", "left-arm")
+LEGS = ("right-leg", "left-leg")
+LIMB_NAMES = ARMS + LEGS
+TOOL_NAMES = ("none", "hand", "drill")
+
+
+@dataclass(frozen=True)
+class LimbSpec:
+    """One limb: its joint names (DH order) and per-joint limits (rad, rad/s, rad/s^2, rad/s^3)."""
+
+    name: str
+    joints: tuple[str, ...]
+    lower_rad: np.ndarray
+    upper_rad: np.ndarray
+    velocity_rad_s: np.ndarray
+    acceleration_rad_s2: np.ndarray
+    jerk_rad_s3: np.ndarray
+
+    @property
+    def is_arm(self) -> bool:
+        return self.name.endswith("arm")
+
+    @property
+    def side(self) -> int:
+        """+1 for a left limb (+y in the neck frame), -1 for a right limb."""
+        return 1 if self.name.startswith("left") else -1
+
+
+@dataclass(frozen=True)
+class RobotModel:
+    """A HUBO 2+ model for one parameter set and one limit set.
+
+    Attributes:
+        params_name: the parameter set's name (``as-built`` or ``table1``).
+        lengths_m: link lengths in metres keyed as the paper names them (lA1 ... lE).
+        limbs: limb name -> :class:`LimbSpec`.
+        joint_names: all limb joints in robot order (right arm, left arm, right leg, left leg).
+    """
+
+    params_name: str
+    limits_name: str
+    lengths_m: dict[str, float]
+    limbs: dict[str, LimbSpec]
+    tools: dict[str, dict]
+    hubo_ach: dict
+    safety: dict
+    control_period_s: float
+    source: Path
+    joint_names: tuple[str, ...] = field(init=False)
+
+    def __post_init__(self) -> None:
+        names = tuple(j for limb in LIMB_NAMES for j in self.limbs[limb].joints)
+        object.__setattr__(self, "joint_names", names)
+
+    def limb(self, name: str) -> LimbSpec:
+        """Return one limb's spec; the error lists the limbs that exist."""
+        try:
+            return self.limbs[name]
+        except KeyError:
+            raise ConfigError(f"unknown limb {name!r}",
+                              hint=f"use one of {', '.join(LIMB_NAMES)}") from None
+
+    def limb_slice(self, name: str) -> slice:
+        """Where a limb's six joints sit in :attr:`joint_names`."""
+        i = LIMB_NAMES.index(self.limb(name).name) * 6
+        return slice(i, i + 6)
+
+    def tool_transform(self, tool: str) -> np.ndarray:
+        """T_6_tool: the tool frame seen from DH frame 6 of an arm (4x4, metres)."""
+        if tool not in TOOL_NAMES:
+            raise ConfigError(f"unknown tool {tool!r}", hint=f"use one of {', '.join(TOOL_NAMES)}")
+        T = np.eye(4)
+        spec = self.tools[tool]
+        if tool == "hand":
+            c, s = np.cos(spec["rx_rad"]), np.sin(spec["rx_rad"])
+            T[1:3, 1:3] = [[c, -s], [s, c]]
+        elif tool == "drill":
+            phi = spec["phi_rad"]
+            length_m = self.lengths_m[spec["length_param"]]
+            c, s = np.cos(phi), np.sin(phi)
+            T[:3, :3] = [[c, 0, s], [0, 1, 0], [-s, 0, c]]
+            T[:3, 3] = [length_m * c, 0.0, -length_m * s]
+        return T
+
+    @property
+    def lower_rad(self) -> np.ndarray:
+        return np.concatenate([self.limbs[n].lower_rad for n in LIMB_NAMES])
+
+    @property
+    def upper_rad(self) -> np.ndarray:
+        return np.concatenate([self.limbs[n].upper_rad for n in LIMB_NAMES])
+
+    @property
+    def velocity_rad_s(self) -> np.ndarray:
+        return np.concatenate([self.limbs[n].velocity_rad_s for n in LIMB_NAMES])
+
+    @property
+    def acceleration_rad_s2(self) -> np.ndarray:
+        return np.concatenate([self.limbs[n].acceleration_rad_s2 for n in LIMB_NAMES])
+
+    @property
+    def jerk_rad_s3(self) -> np.ndarray:
+        return np.concatenate([self.limbs[n].jerk_rad_s3 for n in LIMB_NAMES])
+
+    def urdf_path(self) -> Path:
+        """Path of the robot's URDF (generated for the as-built set)."""
+        return self.source.parent / self.raw_robot["urdf"]
+
+    @property
+    def raw_robot(self) -> dict:
+        return _read_toml(self.source)["robot"]
+
+
+@cache
+def _read_toml(path: Path) -> dict:
+    try:
+        with open(path, "rb") as f:
+            return tomllib.load(f)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"not valid TOML: {exc}", path=str(path)) from None
+
+
+def _limb(name: str, raw: dict, override: dict | None, path: Path) -> LimbSpec:
+    spec = dict(raw)
+    if override:
+        spec.update(override)
+    try:
+        lower = np.asarray(spec["lower_rad"], dtype=float)
+        upper = np.asarray(spec["upper_rad"], dtype=float)
+        joints = tuple(spec["joints"])
+        ones = np.ones(6)
+        limb = LimbSpec(name, joints, lower, upper, ones * float(spec["velocity_rad_s"]),
+                        ones * float(spec["acceleration_rad_s2"]),
+                        ones * float(spec["jerk_rad_s3"]))
+    except KeyError as exc:
+        raise ConfigError("missing key", path=str(path), field=f"limbs.{name}.{exc.args[0]}") from None
+    if len(joints) != 6 or lower.shape != (6,) or upper.shape != (6,) or np.any(lower > upper):
+        raise ConfigError("needs six joints with lower <= upper limits", path=str(path),
+                          field=f"limbs.{name}")
+    return limb
+
+
+@cache
+def load_model(params: str = "as-built", limits: str = "table4",
+               path: Path | None = None) -> RobotModel:
+    """Load the HUBO 2+ model.
+
+    Args:
+        params: kinematic parameter set, ``as-built`` (default) or ``table1``.
+        limits: ``table4`` (the paper's Table IV) or ``team-code`` (arm joint 5 >= -2.0 rad).
+        path: robot TOML file; defaults to the shipped ``robots/hubo2plus/hubo2plus.toml``.
+    """
+    path = path or data_file("robots", "hubo2plus/hubo2plus.toml")
+    raw = _read_toml(path)
+    sets = raw.get("params", {})
+    if params not in sets:
+        raise ConfigError(f"unknown parameter set {params!r}", path=str(path),
+                          hint=f"use one of {', '.join(sets)}")
+    limit_sets = raw.get("limit_sets", {})
+    if limits != "table4" and limits not in limit_sets:
+        raise ConfigError(f"unknown limit set {limits!r}", path=str(path),
+                          hint=f"use one of table4, {', '.join(limit_sets)}")
+    overrides = limit_sets.get(limits, {})
+    lengths_m = {k: float(v) / 1000.0 for k, v in sets[params].items()}
+    limbs = {n: _limb(n, raw["limbs"][n], overrides.get(n), path) for n in LIMB_NAMES}
+    return RobotModel(params_name=params, limits_name=limits, lengths_m=lengths_m, limbs=limbs,
+                      tools=raw["tools"], hubo_ach=raw["hubo_ach"], safety=raw["safety"],
+                      control_period_s=float(raw["robot"]["control_period_s"]), source=path)
