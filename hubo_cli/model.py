@@ -151,7 +151,8 @@ def _limb(name: str, raw: dict, override: dict | None, path: Path) -> LimbSpec:
                         ones * float(spec["acceleration_rad_s2"]),
                         ones * float(spec["jerk_rad_s3"]))
     except KeyError as exc:
-        raise ConfigError("missing key", path=str(path), field=f"limbs.{name}.{exc.args[0]}") from None
+        raise ConfigError("missing key", path=str(path),
+                          field=f"limbs.{name}.{exc.args[0]}") from None
     if len(joints) != 6 or lower.shape != (6,) or upper.shape != (6,) or np.any(lower > upper):
         raise ConfigError("needs six joints with lower <= upper limits", path=str(path),
                           field=f"limbs.{name}")

@@ -108,7 +108,8 @@ def arm_candidates(T60, lA2, lA3, lA4, q_prev, out, exact):
                 k = i4 * 4 + i5 * 2 + i2
                 if not shoulder_singular:
                     sgn = 1.0 if C2 > 0.0 else -1.0
-                    S3 = -ax * (C6 * S4 + C4 * C5 * S6) + ay * (S4 * S6 - C4 * C5 * C6) - az * C4 * S5
+                    S3 = (-ax * (C6 * S4 + C4 * C5 * S6) + ay * (S4 * S6 - C4 * C5 * C6)
+                          - az * C4 * S5)
                     C3 = -ax * S5 * S6 - ay * C6 * S5 + az * C5
                     S1 = -nx * u + ny * v + nz * S45
                     C1 = sx * u - sy * v - sz * S45
