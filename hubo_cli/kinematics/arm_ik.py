@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 
 import numba as nb
+import numpy as np
 
 from hubo_cli.kinematics.dh import JIT
 
@@ -40,7 +41,21 @@ def _real_sqrt(x):
 
 
 @nb.njit(**JIT)
-def arm_candidates(T60, lA2, lA3, lA4, q_prev, out, exact):
+def outside(value, j, lower, upper):
+    """True when pruning is on (lower is not empty) and joint j's value is outside its limits."""
+    return lower.shape[0] == 6 and (value < lower[j] or value > upper[j])
+
+
+@nb.njit(**JIT)
+def drop_branch(out, exact, k0, count):
+    """Mark candidates k0 .. k0+count-1 as pruned (NaN joints, not exact)."""
+    for k in range(k0, k0 + count):
+        out[k, :] = np.nan
+        exact[k] = False
+
+
+@nb.njit(**JIT)
+def arm_candidates(T60, lA2, lA3, lA4, q_prev, out, exact, lower, upper):
     """Solve the arm IK from ^6T_0 into ``out`` (8 x 6); ``exact[k]`` says no root was clipped.
 
     Args:
@@ -50,6 +65,8 @@ def arm_candidates(T60, lA2, lA3, lA4, q_prev, out, exact):
         out: (8, 6) array receiving the candidates (rad).
         exact: (8,) boolean array; False where a square root had a negative argument (the
             target is out of reach for that branch and only the real part was kept).
+        lower, upper: joint limits (6,) to prune with: a branch is abandoned (NaN, not exact) as
+            soon as one of its joints is outside them. Pass empty arrays to get all eight.
     """
     nx, ny, nz = T60[0, 0], T60[1, 0], T60[2, 0]
     sx, sy, sz = T60[0, 1], T60[1, 1], T60[2, 1]
@@ -71,6 +88,9 @@ def arm_candidates(T60, lA2, lA3, lA4, q_prev, out, exact):
             S4 = 0.0
             C4 = 1.0 if C4 > 0.0 else -1.0
         th4 = math.atan2(S4, C4)
+        if outside(th4, 3, lower, upper):
+            drop_branch(out, exact, i4 * 4, 4)
+            continue
         if elbow_singular:
             S5 = 0.0
             ok5 = True
@@ -86,6 +106,10 @@ def arm_candidates(T60, lA2, lA3, lA4, q_prev, out, exact):
             C5 = root5 if i5 == 0 else -root5
             th5 = math.atan2(S5, C5)
             th6 = wrap_to_pi(math.atan2(S4 * C5 * lA2, -C4 * lA2 - lA3) - psi)
+            if outside(th6, 5, lower, upper) or (not elbow_singular
+                                                  and outside(th5, 4, lower, upper)):
+                drop_branch(out, exact, i4 * 4 + i5 * 2, 2)
+                continue
             S6, C6 = math.sin(th6), math.cos(th6)
             # u, v: the combinations of theta4..6 that recur in the orientation equations
             u = C4 * C6 - C5 * S4 * S6
@@ -106,6 +130,9 @@ def arm_candidates(T60, lA2, lA3, lA4, q_prev, out, exact):
                     S2 = 1.0 if S2 > 0.0 else -1.0
                 th2 = math.atan2(S2, C2)
                 k = i4 * 4 + i5 * 2 + i2
+                if outside(th2, 1, lower, upper):
+                    drop_branch(out, exact, k, 1)
+                    continue
                 if not shoulder_singular:
                     sgn = 1.0 if C2 > 0.0 else -1.0
                     S3 = (-ax * (C6 * S4 + C4 * C5 * S6) + ay * (S4 * S6 - C4 * C5 * C6)

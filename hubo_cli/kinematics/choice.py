@@ -42,17 +42,25 @@ def limb_candidates(T_goal, chain, lengths, is_arm, q_prev, out, exact):
         q_prev: previous joints (rad), used by the singular cases.
         out, exact: (8, 6) and (8,) outputs.
     """
-    base, base_inv, offset, alpha, a, d, end, end_inv = chain
-    tmp = np.empty((4, 4))
-    T06 = np.empty((4, 4))
-    T60 = np.empty((4, 4))
-    matmul4(base_inv, T_goal, tmp)
-    matmul4(tmp, end_inv, T06)
-    invert4(T06, T60)
+    scratch = np.empty((3, 4, 4))
+    no_limits = np.empty(0)
+    _candidates_into(T_goal, chain, lengths, is_arm, q_prev, out, exact, scratch, no_limits,
+                     no_limits)
+
+
+@nb.njit(**JIT)
+def _candidates_into(T_goal, chain, lengths, is_arm, q_prev, out, exact, scratch, lower, upper):
+    """:func:`limb_candidates` with scratch space (3 x 4 x 4) and optional pruning limits."""
+    base_inv, end_inv = chain[1], chain[7]
+    matmul4(base_inv, T_goal, scratch[0])
+    matmul4(scratch[0], end_inv, scratch[1])
+    invert4(scratch[1], scratch[2])
     if is_arm:
-        arm_candidates(T60, lengths[0], lengths[1], lengths[2], q_prev, out, exact)
+        arm_candidates(scratch[2], lengths[0], lengths[1], lengths[2], q_prev, out, exact,
+                       lower, upper)
     else:
-        leg_candidates(T60, lengths[0], lengths[1], lengths[2], q_prev, out, exact)
+        leg_candidates(scratch[2], lengths[0], lengths[1], lengths[2], q_prev, out, exact,
+                       lower, upper)
 
 
 @nb.njit(**JIT)
@@ -81,11 +89,15 @@ def solve_limb(T_goal, chain, lengths, is_arm, lower, upper, q_prev, has_prev, h
     workspace map): an unreachable goal then returns UNREACHABLE at once with infinite errors.
     """
     base, base_inv, offset, alpha, a, d, end, end_inv = chain
-    cands = np.empty((8, 6))
-    exact = np.zeros(8, dtype=np.bool_)
-    limb_candidates(T_goal, chain, lengths, is_arm, q_prev, cands, exact)
-    T = np.empty((4, 4))
-    usable = np.zeros(8, dtype=np.bool_)
+    work = np.empty((4, 4, 4))  # one allocation: 3 scratch transforms + the FK result
+    T = work[3]
+    cands = np.empty((9, 6))    # 8 candidates + the capped vector
+    capped = cands[8]
+    flags = np.zeros(16, dtype=np.bool_)
+    exact = flags[:8]
+    usable = flags[8:]
+    # first pass prunes branches as soon as a joint leaves its limits (cheap common case)
+    _candidates_into(T_goal, chain, lengths, is_arm, q_prev, cands, exact, work, lower, upper)
     for k in range(8):
         usable[k] = exact[k] and _within(cands[k], lower, upper)
     while True:  # best usable candidate, verified by FK; drop it if FK disagrees
@@ -108,9 +120,12 @@ def solve_limb(T_goal, chain, lengths, is_arm, lower, upper, q_prev, has_prev, h
     if not allow_cap:
         q_out[:] = np.nan
         return UNREACHABLE, np.inf, np.inf
+    # nothing exact within the limits: all eight candidates, unpruned, for capping
+    no_limits = np.empty(0)
+    _candidates_into(T_goal, chain, lengths, is_arm, q_prev, cands, exact, work, no_limits,
+                     no_limits)
     best_pos = np.inf
     best_rot = np.inf
-    capped = np.empty(6)
     for k in range(8):
         for j in range(6):
             capped[j] = min(max(cands[k, j], lower[j]), upper[j])

@@ -15,12 +15,19 @@ import math
 
 import numba as nb
 
-from hubo_cli.kinematics.arm_ik import ROOT_TOL, SINGULAR_EPS, _real_sqrt, wrap_to_pi
+from hubo_cli.kinematics.arm_ik import (
+    ROOT_TOL,
+    SINGULAR_EPS,
+    _real_sqrt,
+    drop_branch,
+    outside,
+    wrap_to_pi,
+)
 from hubo_cli.kinematics.dh import JIT
 
 
 @nb.njit(**JIT)
-def leg_candidates(T60, lL3, lL4, lL5, q_prev, out, exact):
+def leg_candidates(T60, lL3, lL4, lL5, q_prev, out, exact, lower, upper):
     """Solve the leg IK from ^6T_0 into ``out`` (8 x 6); ``exact[k]`` says no root was clipped.
 
     Args:
@@ -29,6 +36,7 @@ def leg_candidates(T60, lL3, lL4, lL5, q_prev, out, exact):
         q_prev: previous joints (6,), used only in the hip-roll singularity.
         out: (8, 6) array receiving the candidates (rad).
         exact: (8,) boolean array; False where a square root had a negative argument.
+        lower, upper: joint limits to prune with, as in :func:`arm_candidates` (empty: no pruning).
     """
     nx, ny = T60[0, 0], T60[1, 0]
     sx, sy = T60[0, 1], T60[1, 1]
@@ -47,6 +55,9 @@ def leg_candidates(T60, lL3, lL4, lL5, q_prev, out, exact):
     for i4 in range(2):
         S4 = root4 if i4 == 0 else -root4
         th4 = math.atan2(S4, C4)
+        if outside(th4, 3, lower, upper):
+            drop_branch(out, exact, i4 * 4, 4)
+            continue
         psi = math.atan2(S4 * lL3, C4 * lL3 + lL4)
         for i5 in range(2):
             r = rxy if i5 == 0 else -rxy
@@ -55,6 +66,9 @@ def leg_candidates(T60, lL3, lL4, lL5, q_prev, out, exact):
             th6 = th6_base
             if C45 * lL3 + math.cos(th5) * lL4 < 0.0:
                 th6 = wrap_to_pi(th6 + math.pi)
+            if outside(th5, 4, lower, upper) or outside(th6, 5, lower, upper):
+                drop_branch(out, exact, i4 * 4 + i5 * 2, 2)
+                continue
             S6, C6 = math.sin(th6), math.cos(th6)
             S2 = S6 * ax + C6 * ay
             ok2 = abs(S2) <= 1.0 + ROOT_TOL
