@@ -1,0 +1,1 @@
+"""Teleoperation: operator poses -> hand goals -> the control pipeline."""
