@@ -1,0 +1,218 @@
+"""The EmergencyStopper with motion reverting (paper eq. 15, hrpsys-base EmergencyStopper).
+
+States (hrpsys' table, plus the revert of the paper):
+
+========  ==============================================================================
+release   pass the input through
+stop      latched at t_emer: go back to the input of t_emer - T1 (``revert_s``), taking at
+          least T2 (``stop_s``), then
+hold      output that posture until :meth:`EmergencyStopper.release` is called
+recover   after release, join the live input again; re-planned every period so that it
+          arrives no sooner than ``recover_s`` (2.5 s) after the release, then ``release``
+========  ==============================================================================
+
+Every transition is a jerk-limited ruckig trajectory started from the output's own position,
+velocity and acceleration (:class:`~hubo_cli.control.otg.JointTracker`), so the revert obeys the
+joint limits: when the limits cannot turn the motion around within T2 the revert takes longer
+and still ends exactly on the posture of t_emer - T1 (no overshoot past it). The freeze preset
+(T1 = T2 = one period, hrpsys' default) brakes as hard as the limits allow and holds where it
+stopped.
+
+The flag is latched: any request from an enabled source (``cycle.estop_requests``, a call to
+:meth:`stop`, or a wrist torque above ``model.safety["wrist_torque_limit_nm"]``) stops; only an
+explicit release lets go, and a request that is still present in the next period stops again.
+The pipeline uses two instances: ``estop`` early in the chain and ``hard-estop`` after the
+balance and collision layers.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from hubo_cli.control.limits import JointLimits
+from hubo_cli.control.module import Cycle, Module
+from hubo_cli.control.otg import JointTracker
+from hubo_cli.drivers.base import RobotState
+from hubo_cli.model import RobotModel
+
+SOFT_SOURCES = ("operator", "capture-point", "wrist-torque", "stale-input")
+HARD_SOURCES = ("hard",)
+RECOVER_S = 2.5          # hrpsys default_recover_time
+WRIST_SENSORS = ("right-wrist", "left-wrist")
+
+MODES = ("release", "stop", "hold", "recover")
+MODE_CODE = {name: i for i, name in enumerate(MODES)}
+
+
+@dataclass
+class StopEvent:
+    """One latch or release of a stopper: time (s), kind (``stop``/``release``), sources."""
+
+    t_s: float
+    kind: str
+    sources: tuple[str, ...]
+
+
+class EmergencyStopper(Module):
+    """Latched emergency stop that reverts the motion (eq. 15) and holds until released.
+
+    Args:
+        model: the robot model (limits, wrist torque limit).
+        dt_s: the control period (s).
+        revert_s: T1, how far back the stop posture lies (s); default 0.5.
+        stop_s: T2, the shortest time to reach it (s); default 0.5.
+        recover_s: blend time back to the live input after release (s).
+        sources: request names this instance reacts to (see SOFT_SOURCES, HARD_SOURCES).
+        name: module name (``estop`` or ``hard-estop``); it prefixes the log column.
+        limits: override the model's limits (tests).
+
+    Flags: ``estop`` while stopping or holding, ``recovering`` while blending back.
+    Info: ``<name>_mode`` (0 release, 1 stop, 2 hold, 3 recover), ``wrist_torque_nm``.
+    """
+
+    def __init__(self, model: RobotModel, dt_s: float, revert_s: float = 0.5,
+                 stop_s: float = 0.5, recover_s: float = RECOVER_S,
+                 sources: tuple[str, ...] | set[str] = SOFT_SOURCES, name: str = "estop",
+                 limits: JointLimits | None = None) -> None:
+        self.name = name
+        self.limits = limits or JointLimits.from_model(model)
+        self.dt_s = float(dt_s)
+        self.revert_s = max(float(revert_s), self.dt_s)
+        self.stop_s = max(float(stop_s), self.dt_s)
+        self.recover_s = float(recover_s)
+        self.sources = frozenset(sources)
+        self.wrist_torque_limit_nm = float(model.safety.get("wrist_torque_limit_nm", np.inf))
+        self._key = name.replace("-", "_")
+        self.log_columns = (f"{self._key}_mode",)
+        if "wrist-torque" in self.sources:
+            self.log_columns += ("wrist_torque_nm",)
+        self.tracker = JointTracker(self.limits, self.dt_s)
+        self._history_len = max(1, int(round(self.revert_s / self.dt_s))) + 1
+        self.events: list[StopEvent] = []
+        self._clear(np.zeros(self.limits.size))
+
+    @classmethod
+    def freeze(cls, model: RobotModel, dt_s: float, **options) -> EmergencyStopper:
+        """The hrpsys default: T1 = T2 = one period (brake to a stop, hold there)."""
+        return cls(model, dt_s, revert_s=dt_s, stop_s=dt_s, **options)
+
+    @property
+    def is_freeze(self) -> bool:
+        return self.revert_s <= self.dt_s * 1.5
+
+    def _clear(self, q: np.ndarray) -> None:
+        self.mode = "release"
+        self.history: deque[np.ndarray] = deque([q.copy()] * self._history_len,
+                                                maxlen=self._history_len)
+        self.last_in = q.copy()
+        self.out1 = q.copy()
+        self.out2 = q.copy()
+        self.out3 = q.copy()
+        self.hold_rad = q.copy()
+        self.t_emer_s: float | None = None
+        self.t_recover_end_s = 0.0
+        self._pending: set[str] = set()
+        self._release = False
+        self._brake_only = False
+
+    # ------------------------------------------------------------------ commands
+    def stop(self, source: str = "operator") -> None:
+        """Request a stop from ``source`` (latched at the next period if the source is enabled)."""
+        self._pending.add(source)
+
+    def release(self) -> None:
+        """Release a latched stop: the output blends back to the live input."""
+        self._release = True
+
+    @property
+    def stopped(self) -> bool:
+        """True while stopping, holding or blending back."""
+        return self.mode != "release"
+
+    # ------------------------------------------------------------------ module
+    def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
+        """Start released, passing ``q_rad`` through (deactivation releases, as in hrpsys)."""
+        q = np.where(np.isfinite(q_rad), q_rad, state.q_rad).astype(float)
+        self._clear(q)
+        self.tracker.reset(q)
+
+    def _requests(self, state: RobotState, cycle: Cycle) -> set[str]:
+        wanted = (set(cycle.estop_requests) | self._pending) & self.sources
+        self._pending.clear()
+        if "wrist-torque" in self.sources:
+            torque = 0.0
+            for sensor in WRIST_SENSORS:
+                wrench = state.ft.get(sensor)
+                if wrench is not None:
+                    torque = max(torque, float(np.hypot(wrench[3], wrench[4])))
+            cycle.info["wrist_torque_nm"] = torque
+            if torque > self.wrist_torque_limit_nm:
+                wanted.add("wrist-torque")
+                cycle.estop_requests.add("wrist-torque")
+        return wanted
+
+    def _output_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        dt = self.dt_s
+        v = (self.out1 - self.out2) / dt
+        a = (self.out1 - 2 * self.out2 + self.out3) / dt**2
+        return self.out1.copy(), v + 0.5 * a * dt, a
+
+    def _latch(self, t_s: float, sources: set[str]) -> None:
+        recovering = self.mode == "recover"
+        self.tracker.reset(*self._output_state())
+        self.t_emer_s = t_s
+        self.events.append(StopEvent(t_s, "stop", tuple(sorted(sources))))
+        self.mode = "stop"
+        # while blending back, the input of T1 ago may be far from the output: stop in place
+        self._brake_only = self.is_freeze or recovering
+        self.hold_rad = self.history[0].copy()
+
+    def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
+        q_in = np.where(np.isfinite(q_rad), q_rad, self.last_in)
+        w_in = (q_in - self.last_in) / self.dt_s
+        self.last_in = q_in
+        self.history.append(q_in)
+        requests = self._requests(state, cycle)
+        if requests and self.mode in ("release", "recover"):
+            self._latch(cycle.t_s, requests)
+        elif self._release and self.mode in ("stop", "hold"):
+            self.mode = "recover"
+            self.t_recover_end_s = cycle.t_s + self.recover_s
+            self.events.append(StopEvent(cycle.t_s, "release", ()))
+        self._release = False
+
+        if self.mode == "release":
+            out = q_in
+        elif self.mode == "stop":
+            if self._brake_only:
+                out = self.tracker.brake()
+                if self.tracker.at_rest:
+                    self.hold_rad = out.copy()
+                    self.mode = "hold"
+            else:
+                out = self.tracker.track(self.hold_rad, min_duration_s=self.stop_s)
+                if self.tracker.finished:
+                    out = self.hold_rad.copy()
+                    self.mode = "hold"
+        elif self.mode == "hold":
+            out = self.hold_rad.copy()
+            self.tracker.reset(out)
+        else:  # recover
+            remaining = self.t_recover_end_s - cycle.t_s
+            out = self.tracker.track(q_in, min_duration_s=remaining if remaining > 0 else None,
+                                     target_v_rad_s=w_in)
+            if (remaining <= 0 and np.max(np.abs(out - q_in)) < 1e-6
+                    and np.max(np.abs(self.tracker.v - w_in)) < 1e-3):
+                out = q_in
+                self.mode = "release"
+        if self.mode in ("stop", "hold"):
+            cycle.flags.add("estop")
+        elif self.mode == "recover":
+            cycle.flags.add("recovering")
+        cycle.info[f"{self._key}_mode"] = float(MODE_CODE[self.mode])
+        out = np.array(out, dtype=float)
+        self.out3, self.out2, self.out1 = self.out2, self.out1, out
+        return out

@@ -1,0 +1,169 @@
+"""Soft error limiter (hrpsys SoftErrorLimiter, extended): the pipeline's last line of defence.
+
+Per joint and per period it picks the command's velocity v = (q - q_prev) / dt inside bands
+applied in this order, a later band winning if two cannot both hold:
+
+1. tracking error: |q - q_measured| <= 0.18 rad (hrpsys; just below the 0.2 rad servo-off limit);
+2. acceleration: |v - v_prev| <= a_max dt;
+3. velocity: |v| <= v_max;
+4. position: the command may approach a limit only as fast as it can still brake before it
+   (:func:`~hubo_cli.control.limits.brake_speed`), and never moves further out once outside.
+
+When a band clamps, the wanted velocity is also capped so that the command can stop on the
+wanted position instead of overshooting it, so a jump in the input becomes an acceleration-
+limited move that lands without ringing. NaN inputs hold the previous command.
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+from hubo_cli.control.limits import JointLimits, brake_speed
+from hubo_cli.control.module import Cycle, Module
+from hubo_cli.drivers.base import RobotState
+from hubo_cli.model import RobotModel
+
+TRACKING_ERROR_LIMIT_RAD = 0.18  # hrpsys SoftErrorLimiter default (0.2 servo-off minus 0.02)
+
+# bits of the per-joint clamp mask returned by limit_step
+CLAMP_POSITION = 1
+CLAMP_RATE = 2
+CLAMP_TRACKING = 4
+
+
+@nb.njit(cache=True, nogil=True)
+def _clip(x: float, lo: float, hi: float) -> float:
+    return lo if x < lo else (hi if x > hi else x)
+
+
+@nb.njit(cache=True, nogil=True)
+def limit_step(q_want, w_want, q1, q2, lower, upper, vmax, amax, dt, q_meas, error_limit, out,
+               mask):
+    """One limiter period for every joint (numba).
+
+    Args:
+        q_want: wanted command (rad); NaN holds q1.
+        w_want: the wanted command's own velocity (rad/s), 0 when unknown; it keeps the
+            stop-on-target cap from slowing an input that moves smoothly.
+        q1, q2: the two previous commands (rad).
+        lower, upper, vmax, amax: limits (rad, rad/s, rad/s^2).
+        dt: the period (s).
+        q_meas: measured joints (rad); NaN entries skip the tracking-error band.
+        error_limit: tracking-error limit (rad); <= 0 disables it.
+        out: the limited command (rad), written.
+        mask: per-joint CLAMP_* bits, written.
+    """
+    for i in range(q_want.shape[0]):
+        target = q_want[i]
+        if not np.isfinite(target):
+            target = q1[i]
+        v_prev = (q1[i] - q2[i]) / dt
+        v_want = (target - q1[i]) / dt
+        a_dt = amax[i] * dt
+        acc_lo, acc_hi = v_prev - a_dt, v_prev + a_dt
+        pos_lo = -brake_speed(q1[i] - lower[i], amax[i], dt)
+        pos_hi = brake_speed(upper[i] - q1[i], amax[i], dt)
+        use_err = error_limit > 0.0 and np.isfinite(q_meas[i])
+        err_lo, err_hi = -np.inf, np.inf
+        if use_err:
+            err_lo = (q_meas[i] - error_limit - q1[i]) / dt
+            err_hi = (q_meas[i] + error_limit - q1[i]) / dt
+        lo = max(max(acc_lo, -vmax[i]), max(pos_lo, err_lo))
+        hi = min(min(acc_hi, vmax[i]), min(pos_hi, err_hi))
+        bits = 0
+        v = v_want
+        slack = 1e-9 * vmax[i]
+        if v_want < lo - slack or v_want > hi + slack:
+            # clamped: aim to stop on the (moving) target rather than run through it
+            w = w_want[i]
+            v = _clip(v_want, w - brake_speed(q1[i] - target, amax[i], dt),
+                      w + brake_speed(target - q1[i], amax[i], dt))
+            v0 = v
+            if use_err:
+                v = _clip(v, err_lo, err_hi)
+                if v != v0:
+                    bits |= CLAMP_TRACKING
+            v1 = v
+            v = _clip(_clip(v, acc_lo, acc_hi), -vmax[i], vmax[i])
+            if v != v1:
+                bits |= CLAMP_RATE
+            v2 = v
+            v = _clip(v, pos_lo, pos_hi)
+            if v != v2 or (v_want > pos_hi or v_want < pos_lo):
+                bits |= CLAMP_POSITION
+            if bits == 0:
+                bits = CLAMP_RATE
+        out[i] = q1[i] + v * dt
+        mask[i] = bits
+
+
+class SoftErrorLimiter(Module):
+    """The last module: velocity, acceleration, position and tracking-error limits per joint.
+
+    Args:
+        model: the robot model (limits).
+        dt_s: the control period (s).
+        error_limit_rad: tracking-error limit (rad); 0 disables it.
+        limits: override the model's limits (tests).
+
+    Flags: ``joint-limit`` (position band clamped), ``slowing`` (velocity or acceleration band),
+    ``tracking-error``. Info: ``limiter_clamped`` (number of joints clamped).
+    """
+
+    name = "limiter"
+    log_columns = ("limiter_clamped",)
+
+    def __init__(self, model: RobotModel, dt_s: float,
+                 error_limit_rad: float = TRACKING_ERROR_LIMIT_RAD,
+                 limits: JointLimits | None = None) -> None:
+        self.limits = limits or JointLimits.from_model(model)
+        self.dt_s = float(dt_s)
+        self.error_limit_rad = float(error_limit_rad)
+        n = self.limits.size
+        self.q1 = np.zeros(n)
+        self.q2 = np.zeros(n)
+        self._out = np.zeros(n)
+        self._mask = np.zeros(n, dtype=np.int64)
+        self._nan = np.full(n, np.nan)
+        self._want_prev = np.zeros(n)
+
+    def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
+        q = np.where(np.isfinite(q_rad), q_rad, state.q_rad)
+        self.q1 = np.array(q, dtype=float)
+        self.q2 = self.q1.copy()
+        self._want_prev = self.q1.copy()
+
+    def step(self, q_want: np.ndarray, q_meas: np.ndarray | None = None) -> np.ndarray:
+        """Limit one command (rad) against the previous two; returns a new array."""
+        lim = self.limits
+        meas = self._nan if q_meas is None else np.asarray(q_meas, dtype=float)
+        want = np.asarray(q_want, dtype=float)
+        w_want = (want - self._want_prev) / self.dt_s
+        w_want[~np.isfinite(w_want)] = 0.0
+        out = np.empty_like(self.q1)
+        limit_step(want, w_want, self.q1, self.q2, lim.lower_rad, lim.upper_rad,
+                   lim.velocity_rad_s, lim.acceleration_rad_s2, self.dt_s, meas,
+                   self.error_limit_rad, out, self._mask)
+        self._want_prev = want.copy()
+        self.q2 = self.q1
+        self.q1 = out
+        return out
+
+    @property
+    def velocity_rad_s(self) -> np.ndarray:
+        """Finite-difference velocity of the last command (rad/s)."""
+        return (self.q1 - self.q2) / self.dt_s
+
+    def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
+        out = self.step(q_rad, state.q_rad)
+        mask = self._mask
+        if mask.any():
+            if (mask & CLAMP_POSITION).any():
+                cycle.flags.add("joint-limit")
+            if (mask & CLAMP_RATE).any():
+                cycle.flags.add("slowing")
+            if (mask & CLAMP_TRACKING).any():
+                cycle.flags.add("tracking-error")
+        cycle.info["limiter_clamped"] = float(np.count_nonzero(mask))
+        return out

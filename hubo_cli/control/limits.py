@@ -1,0 +1,56 @@
+"""Per-joint limits shared by the pipeline modules, and the braking rule they all respect."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numba as nb
+import numpy as np
+
+from hubo_cli.model import RobotModel
+
+
+@dataclass(frozen=True)
+class JointLimits:
+    """Position, velocity, acceleration and jerk limits for every joint of a command vector.
+
+    Attributes:
+        lower_rad, upper_rad: position limits (rad).
+        velocity_rad_s, acceleration_rad_s2, jerk_rad_s3: symmetric limits (positive).
+    """
+
+    lower_rad: np.ndarray
+    upper_rad: np.ndarray
+    velocity_rad_s: np.ndarray
+    acceleration_rad_s2: np.ndarray
+    jerk_rad_s3: np.ndarray
+
+    @classmethod
+    def from_model(cls, model: RobotModel) -> JointLimits:
+        """The 24 limb joints' limits from the robot file."""
+        return cls(model.lower_rad.copy(), model.upper_rad.copy(), model.velocity_rad_s.copy(),
+                   model.acceleration_rad_s2.copy(), model.jerk_rad_s3.copy())
+
+    @property
+    def size(self) -> int:
+        return len(self.lower_rad)
+
+    def clip(self, q_rad: np.ndarray) -> np.ndarray:
+        """``q_rad`` clamped into the position limits (rad)."""
+        return np.minimum(np.maximum(q_rad, self.lower_rad), self.upper_rad)
+
+
+@nb.njit(cache=True, nogil=True)
+def brake_speed(room_rad: float, accel_rad_s2: float, dt_s: float) -> float:
+    """Largest speed (rad/s) over the next period that can still stop within ``room_rad``.
+
+    A command stepping at v for one period then braking at ``accel_rad_s2`` per period travels
+    v dt + (v - a dt / 2)^2 / (2 a) at most; this returns the v that makes it equal to the room,
+    so a sequence that keeps to it never passes the end of the room. No room -> 0.
+    """
+    if room_rad <= 0.0:
+        return 0.0
+    if room_rad <= 0.5 * accel_rad_s2 * dt_s * dt_s:
+        return room_rad / dt_s
+    return math.sqrt(2.0 * accel_rad_s2 * room_rad) - 0.5 * accel_rad_s2 * dt_s

@@ -1,0 +1,254 @@
+"""Online trajectory generation with ruckig: the pipeline's first module and a reusable tracker.
+
+:class:`JointTracker` wraps one ruckig instance for a whole joint vector: ``track`` follows a
+position target (position interface, phase synchronisation, jerk-limited), ``brake`` stops with
+the velocity interface. It never raises: a ruckig error switches to braking, and a failure while
+braking holds the position. The emergency stopper, the collision detector and the loop's smooth
+stop use it for their own transitions so that those respect the limits too.
+
+:class:`TrajectoryGenerator` is the ``otg`` module: targets are clamped to the joint limits
+before ruckig, NaN entries keep that joint's previous target, a missing target for longer than
+``stale_timeout_s`` brakes to a stop and requests an emergency stop (source ``stale-input``).
+It is seeded from the last command, never from the measured state.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from ruckig import (
+    ControlInterface,
+    InputParameter,
+    OutputParameter,
+    Result,
+    Ruckig,
+    RuckigError,
+    Synchronization,
+)
+
+from hubo_cli.control.limits import JointLimits
+from hubo_cli.control.module import Cycle, Module
+from hubo_cli.drivers.base import RobotState
+from hubo_cli.model import RobotModel
+
+STALE_TIMEOUT_S = 0.5  # hubo-motion-rt timeOut: no fresh command for this long -> stop
+
+
+class JointTracker:
+    """A jerk-limited follower of joint targets that never raises (ruckig underneath).
+
+    Args:
+        limits: joint limits (velocity, acceleration and jerk are used).
+        dt_s: the control period (s).
+
+    Attributes:
+        q, v, a: the state of the generated trajectory at the last sample (rad, rad/s, rad/s^2).
+        finished: the last call reached its target (or standstill when braking).
+        error: the last ruckig error message, or "".
+    """
+
+    def __init__(self, limits: JointLimits, dt_s: float) -> None:
+        n = limits.size
+        self.limits = limits
+        self.dt_s = float(dt_s)
+        self._otg = Ruckig(n, self.dt_s)
+        self._inp = InputParameter(n)
+        self._out = OutputParameter(n)
+        self._inp.max_velocity = limits.velocity_rad_s
+        self._inp.max_acceleration = limits.acceleration_rad_s2
+        self._inp.max_jerk = limits.jerk_rad_s3
+        self._zeros = np.zeros(n)
+        self.q = np.zeros(n)
+        self.v = np.zeros(n)
+        self.a = np.zeros(n)
+        self.finished = True
+        self.error = ""
+        self._mode = None
+
+    def reset(self, q_rad, v_rad_s=None, a_rad_s2=None) -> None:
+        """Start from position ``q_rad`` with the given velocity and acceleration (default 0)."""
+        self.q = np.array(q_rad, dtype=float)
+        self.v = self._zeros.copy() if v_rad_s is None else np.array(v_rad_s, dtype=float)
+        self.a = self._zeros.copy() if a_rad_s2 is None else np.array(a_rad_s2, dtype=float)
+        self.finished = True
+        self.error = ""
+        self._mode = None
+
+    def _set_current(self) -> None:
+        inp = self._inp
+        inp.current_position = self.q
+        inp.current_velocity = self.v
+        inp.current_acceleration = self.a
+
+    def _run(self) -> bool:
+        try:
+            result = self._otg.update(self._inp, self._out)
+        except (RuckigError, RuntimeError, ValueError, TypeError) as exc:
+            self.error = str(exc).strip()
+            return False
+        out = self._out
+        q = np.array(out.new_position)
+        if not np.all(np.isfinite(q)):
+            self.error = "ruckig returned a non-finite sample"
+            return False
+        self.q = q
+        self.v = np.array(out.new_velocity)
+        self.a = np.array(out.new_acceleration)
+        self.finished = result == Result.Finished
+        return True
+
+    def track(self, target_rad: np.ndarray, min_duration_s: float | None = None,
+              target_v_rad_s: np.ndarray | None = None) -> np.ndarray:
+        """Advance one period toward ``target_rad`` (position interface, phase sync).
+
+        Args:
+            target_rad: target positions (rad), finite.
+            min_duration_s: reach the target no sooner than this (s), None for time-optimal.
+            target_v_rad_s: target velocities (rad/s), default 0; clipped to 90 % of the limit.
+        Returns the new sample (rad). On a ruckig error it brakes instead (see ``error``).
+        """
+        inp = self._inp
+        if self._mode != "position":
+            inp.control_interface = ControlInterface.Position
+            inp.synchronization = Synchronization.Phase
+            inp.target_acceleration = self._zeros
+            self._mode = "position"
+        self._set_current()
+        inp.target_position = target_rad
+        if target_v_rad_s is None:
+            inp.target_velocity = self._zeros
+        else:
+            vmax = 0.9 * self.limits.velocity_rad_s
+            inp.target_velocity = np.clip(np.nan_to_num(target_v_rad_s), -vmax, vmax)
+        inp.minimum_duration = min_duration_s
+        if self._run():
+            self.error = ""
+            return self.q
+        message = self.error
+        out = self.brake()
+        self.error = message
+        return out
+
+    def brake(self) -> np.ndarray:
+        """Advance one period of a velocity-interface stop (target velocity 0); returns the
+        sample (rad). If even that fails the position is held."""
+        inp = self._inp
+        if self._mode != "velocity":
+            inp.control_interface = ControlInterface.Velocity
+            inp.synchronization = Synchronization.No
+            inp.target_velocity = self._zeros
+            inp.target_acceleration = self._zeros
+            inp.minimum_duration = None
+            self._mode = "velocity"
+        self._set_current()
+        if not self._run():
+            self.v = self._zeros.copy()
+            self.a = self._zeros.copy()
+            self.finished = True
+        return self.q
+
+    @property
+    def at_rest(self) -> bool:
+        """Velocity and acceleration are (numerically) zero."""
+        return bool(np.all(np.abs(self.v) < 1e-9) and np.all(np.abs(self.a) < 1e-9))
+
+
+class TargetInput:
+    """The target side shared by the generators: clamping, NaN holding and the stale timeout.
+
+    Args:
+        limits: joint limits (positions are used).
+        stale_timeout_s: how long without any new target counts as stale (s).
+    """
+
+    def __init__(self, limits: JointLimits, stale_timeout_s: float = STALE_TIMEOUT_S) -> None:
+        self.limits = limits
+        self.stale_timeout_s = float(stale_timeout_s)
+        self.target = np.zeros(limits.size)
+        self._last_fresh_s: float | None = None
+
+    def reset(self, q_rad: np.ndarray) -> None:
+        """Hold ``q_rad`` (clamped) until the first target arrives."""
+        self.target = self.limits.clip(np.asarray(q_rad, dtype=float))
+        self._last_fresh_s = None
+
+    def take(self, q_rad: np.ndarray, cycle: Cycle) -> bool:
+        """Update the target from this period's input; return True when the input is stale.
+
+        Flags ``joint-limit`` (clamped), ``holding`` (some joints NaN) and ``stale-input`` (also
+        requested as an emergency stop).
+        """
+        if self._last_fresh_s is None:
+            self._last_fresh_s = cycle.t_s
+        fresh = np.isfinite(q_rad)
+        if fresh.any():
+            wanted = np.where(fresh, q_rad, self.target)
+            clipped = self.limits.clip(wanted)
+            if np.any(clipped != wanted):
+                cycle.flags.add("joint-limit")
+            if not fresh.all():
+                cycle.flags.add("holding")
+            self.target = clipped
+            self._last_fresh_s = cycle.t_s
+            return False
+        if cycle.t_s - self._last_fresh_s > self.stale_timeout_s:
+            cycle.flags.add("stale-input")
+            cycle.estop_requests.add("stale-input")
+            return True
+        return False
+
+
+class TrajectoryGenerator(Module):
+    """The ``otg`` module: jerk-limited motion toward the latest target (ruckig).
+
+    Args:
+        model: the robot model (limits).
+        dt_s: the control period (s).
+        stale_timeout_s: brake and request an emergency stop after this long without a target.
+        limits: override the model's limits (tests).
+
+    Input: the target (rad); NaN entries keep their last target, an all-NaN vector means
+    "no new target". Flags: ``joint-limit`` (target clamped), ``holding`` (some joints kept their
+    last target), ``stale-input``, ``slowing`` (braking after a ruckig error).
+    """
+
+    name = "otg"
+    log_columns = ("otg_error",)
+
+    def __init__(self, model: RobotModel, dt_s: float, stale_timeout_s: float = STALE_TIMEOUT_S,
+                 limits: JointLimits | None = None) -> None:
+        self.limits = limits or JointLimits.from_model(model)
+        self.dt_s = float(dt_s)
+        self.input = TargetInput(self.limits, stale_timeout_s)
+        self.tracker = JointTracker(self.limits, self.dt_s)
+        self._fault = False
+        self.errors = 0
+
+    @property
+    def target(self) -> np.ndarray:
+        """The current (clamped) target (rad)."""
+        return self.input.target
+
+    def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
+        q = np.where(np.isfinite(q_rad), q_rad, state.q_rad)
+        self.tracker.reset(q)
+        self.input.reset(q)
+        self._fault = False
+
+    def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
+        stale = self.input.take(q_rad, cycle)
+        cycle.info["otg_error"] = 0.0
+        if stale:
+            return self.tracker.brake()
+        if self._fault:
+            q = self.tracker.brake()
+            cycle.flags.add("slowing")
+            if self.tracker.at_rest:
+                self._fault = False
+            return q
+        q = self.tracker.track(self.input.target)
+        if self.tracker.error:
+            self.errors += 1
+            self._fault = True
+            cycle.flags.add("slowing")
+            cycle.info["otg_error"] = 1.0
+        return q

@@ -1,0 +1,52 @@
+"""The per-period status code: one number saying what the safety layers did this period.
+
+Modules report by adding flags to :attr:`Cycle.flags`; the loop folds the flags of one period
+into the single most serious :class:`Status` (higher value = more serious) and logs it.
+"""
+
+from __future__ import annotations
+
+from enum import IntEnum
+
+
+class Status(IntEnum):
+    """What the pipeline did in one period, most serious wins."""
+
+    OK = 0
+    SLOWING = 1        # a generator or the limiter slowed the command (rate/acceleration clamp)
+    HOLDING = 2        # no target yet, or some joints kept their last target (NaN input)
+    STALE_INPUT = 3    # no new target for longer than the stale timeout: stopping smoothly
+    JOINT_LIMIT = 4    # a target or the command was clamped at a joint position limit
+    COLLISION = 5      # the collision detector holds (or recovers from) a colliding posture
+    ESTOPPED = 6       # an emergency stopper reverts, holds or blends back after release
+    SERVO_OFF = 7      # the driver reports its servos off
+
+    @property
+    def label(self) -> str:
+        """Lower-case name with spaces (``"stale input"``)."""
+        return self.name.lower().replace("_", " ")
+
+
+# flag -> status; a period's status is the most serious status among its flags.
+FLAG_STATUS = {
+    "slowing": Status.SLOWING,
+    "recovering": Status.SLOWING,
+    "smooth-stop": Status.SLOWING,
+    "tracking-error": Status.SLOWING,
+    "holding": Status.HOLDING,
+    "stale-input": Status.STALE_INPUT,
+    "joint-limit": Status.JOINT_LIMIT,
+    "collision": Status.COLLISION,
+    "estop": Status.ESTOPPED,
+    "servo-off": Status.SERVO_OFF,
+}
+
+
+def status_from_flags(flags) -> Status:
+    """The most serious :class:`Status` named by an iterable of flag strings."""
+    best = Status.OK
+    for flag in flags:
+        status = FLAG_STATUS.get(flag)
+        if status is not None and status > best:
+            best = status
+    return best
