@@ -1,0 +1,521 @@
+"""Recording formats: the raw capture and the pose log (CSV), their readers and writers.
+
+Raw capture (``trajectories/README.md`` has the full description)::
+
+    FASTRAK-CAPTURE 1\\n
+    {"format": "binary", "output_list": [2, 11, 1], "units": "cm", "baud": 115200,
+     "stations": [1, 2], ...}\\n                      <- one line of JSON
+    then chunks, each: float64 t_s, uint32 n (little-endian), n raw bytes
+
+Each chunk is one read from the serial port as received, with its receive time in seconds since
+the recording started. A replay feeds the chunks through the same parser as the live reader.
+
+Pose log: CSV with the header ``t_s,station,x_m,y_m,z_m,qw,qx,qy,qz,status``; positions in metres
+in the transmitter frame, scalar-first unit quaternions, status empty when healthy.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import struct
+import time
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from hubo_cli.errors import InputError
+from hubo_cli.fastrak.parser import decode_stream
+from hubo_cli.fastrak.records import (
+    DEFAULT_PLAUSIBILITY,
+    UNIT_SCALE_M,
+    Plausibility,
+    RecordBatch,
+    encode_records,
+    make_layout,
+    quat_from_rotation,
+)
+from hubo_cli.fastrak.source import PoseSample, ReplaySource, SourceStats, batch_samples
+from hubo_cli.fastrak.track import PoseTrack
+
+MAGIC = b"FASTRAK-CAPTURE 1\n"
+CHUNK_HEAD = struct.Struct("<dI")
+POSE_LOG_COLUMNS = ("t_s", "station", "x_m", "y_m", "z_m", "qw", "qx", "qy", "qz", "status")
+RECORD_RATE_HZ = 120.0
+"""Records per second the device emits in continuous mode, shared by the enabled stations."""
+
+
+@dataclass
+class CaptureHeader:
+    """What a raw capture needs to be decoded.
+
+    Attributes:
+        fmt: ``ascii`` or ``binary``.
+        output_list: the ``O`` list every station was configured with.
+        units: ``cm`` or ``in``.
+        baud: serial rate the bytes were received at.
+        stations: enabled stations.
+        extra: anything else recorded (port, time, the unit's status reply, ...).
+    """
+
+    fmt: str
+    output_list: tuple[int, ...]
+    units: str
+    baud: int
+    stations: tuple[int, ...]
+    extra: dict = field(default_factory=dict)
+
+    def to_json(self) -> str:
+        """The header line (without newline)."""
+        data = {"format": self.fmt, "output_list": list(self.output_list), "units": self.units,
+                "baud": self.baud, "stations": list(self.stations), **self.extra}
+        return json.dumps(data, separators=(", ", ": "))
+
+    @staticmethod
+    def from_dict(data: dict, where: str) -> CaptureHeader:
+        """Validate a decoded header; raise InputError naming ``where`` if it is malformed."""
+        try:
+            fmt = str(data["format"])
+            output_list = tuple(int(v) for v in data["output_list"])
+            units = str(data["units"])
+            baud = int(data.get("baud", 115200))
+            stations = tuple(int(v) for v in data["stations"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InputError(f"{where}: capture header lacks or garbles {exc}",
+                             hint="the header needs format, output_list, units and stations"
+                             ) from None
+        if units not in UNIT_SCALE_M:
+            raise InputError(f"{where}: capture header has units {units!r}",
+                             hint="units must be cm or in")
+        if not stations or any(not 1 <= s <= 4 for s in stations):
+            raise InputError(f"{where}: capture header has stations {list(stations)}",
+                             hint="stations are numbered 1 to 4")
+        make_layout(fmt, output_list)
+        known = {"format", "output_list", "units", "baud", "stations"}
+        return CaptureHeader(fmt, output_list, units, baud, stations,
+                             {k: v for k, v in data.items() if k not in known})
+
+
+@dataclass
+class Capture:
+    """A raw capture in memory: the header, the bytes, and where each chunk ends and when."""
+
+    header: CaptureHeader
+    data: bytes
+    chunk_ends: np.ndarray
+    chunk_times: np.ndarray
+    truncated: bool = False
+
+    def decode(self, plausibility: Plausibility = DEFAULT_PLAUSIBILITY
+               ) -> tuple[RecordBatch, int]:
+        """Decode every record (same parser as live); return (records, bytes skipped)."""
+        h = self.header
+        layout = make_layout(h.fmt, h.output_list)
+        return decode_stream(self.data, self.chunk_ends, self.chunk_times, layout, h.units,
+                             h.stations, plausibility)
+
+
+def _read_bytes(path: str | Path) -> bytes:
+    path = Path(path)
+    try:
+        return path.read_bytes()
+    except FileNotFoundError:
+        raise InputError(f"no such recording: {path}",
+                         hint="check the path; sample recordings are in trajectories/") from None
+    except IsADirectoryError:
+        raise InputError(f"{path} is a folder, not a recording", hint="give a file") from None
+    except OSError as exc:
+        raise InputError(f"cannot read {path}: {exc.strerror}", hint="check permissions") from None
+
+
+def parse_capture(blob: bytes, where: str = "capture") -> Capture:
+    """Parse raw-capture bytes (a truncated last chunk is kept as far as it goes).
+
+    Raises:
+        InputError: not a capture, or a garbled header or chunk table.
+    """
+    if not blob.startswith(MAGIC):
+        raise InputError(f"{where} is not a FASTRAK raw capture",
+                         hint="a capture starts with the line 'FASTRAK-CAPTURE 1'")
+    end = blob.find(b"\n", len(MAGIC))
+    if end < 0:
+        raise InputError(f"{where}: the capture header line is cut off",
+                         hint="the file is truncated; record it again")
+    try:
+        header_data = json.loads(blob[len(MAGIC):end].decode("utf-8"))
+        if not isinstance(header_data, dict):
+            raise ValueError("not an object")
+    except (UnicodeDecodeError, ValueError) as exc:
+        raise InputError(f"{where}: the capture header is not valid JSON ({exc})",
+                         hint="the header is the second line; it must be one JSON object"
+                         ) from None
+    header = CaptureHeader.from_dict(header_data, where)
+    pos = end + 1
+    pieces: list[bytes] = []
+    ends: list[int] = []
+    times: list[float] = []
+    total = 0
+    truncated = False
+    size = len(blob)
+    last_t = -math.inf
+    while pos < size:
+        if pos + CHUNK_HEAD.size > size:
+            truncated = True
+            break
+        t_s, n = CHUNK_HEAD.unpack_from(blob, pos)
+        pos += CHUNK_HEAD.size
+        if not math.isfinite(t_s) or t_s < last_t - 1e-9:
+            raise InputError(f"{where}: chunk at byte {pos - CHUNK_HEAD.size} has time {t_s!r}",
+                             hint="chunk times must be finite and non-decreasing; "
+                                  "the file is garbled")
+        if pos + n > size:
+            truncated = True
+            n = size - pos
+        last_t = t_s
+        pieces.append(blob[pos:pos + n])
+        total += n
+        ends.append(total)
+        times.append(t_s)
+        pos += n
+    return Capture(header, b"".join(pieces), np.array(ends, dtype=np.int64),
+                   np.array(times, dtype=np.float64), truncated)
+
+
+def read_capture(path: str | Path) -> Capture:
+    """Read a raw capture file (see :func:`parse_capture`)."""
+    return parse_capture(_read_bytes(path), str(path))
+
+
+class CaptureWriter:
+    """Write a raw capture as bytes arrive (flushed often, so a crash loses little).
+
+    Args:
+        path: output file.
+        header: the capture header.
+        flush_every_s: flush the file at most this often, seconds of receive time.
+    """
+
+    def __init__(self, path: str | Path, header: CaptureHeader, flush_every_s: float = 0.25):
+        self.path = Path(path)
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._file = open(self.path, "wb")  # noqa: SIM115 (closed in close())
+        except OSError as exc:
+            raise InputError(f"cannot write {self.path}: {exc.strerror}",
+                             hint="choose a writable --out path") from None
+        self._file.write(MAGIC + header.to_json().encode() + b"\n")
+        self._file.flush()
+        self._flush_every_s = flush_every_s
+        self._last_flush = -math.inf
+        self.bytes_written = 0
+
+    def write(self, t_s: float, data: bytes) -> None:
+        """Append one chunk received at ``t_s`` seconds."""
+        if self._file is None or not data:
+            return
+        self._file.write(CHUNK_HEAD.pack(float(t_s), len(data)))
+        self._file.write(data)
+        self.bytes_written += len(data)
+        if t_s - self._last_flush >= self._flush_every_s:
+            self._file.flush()
+            self._last_flush = t_s
+
+    def close(self) -> None:
+        """Flush and close (idempotent)."""
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+
+    def __enter__(self) -> CaptureWriter:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def capture_bytes(header: CaptureHeader, chunks: Iterable[tuple[float, bytes]]) -> bytes:
+    """A whole raw capture file as bytes, from (receive time s, data) chunks."""
+    out = io.BytesIO()
+    out.write(MAGIC + header.to_json().encode() + b"\n")
+    for t_s, data in chunks:
+        out.write(CHUNK_HEAD.pack(float(t_s), len(data)))
+        out.write(data)
+    return out.getvalue()
+
+
+# ---------------------------------------------------------------------------------------------
+# Synthesising streams from poses (emulator, sample recordings, tests, benchmarks)
+
+
+def _as_tracks(poses) -> dict[int, PoseTrack]:
+    """Group timed poses into one :class:`PoseTrack` per station.
+
+    ``poses`` is a dict station -> PoseTrack, or an iterable of :class:`PoseSample` or of
+    (t_s, station, T 4x4) tuples.
+    """
+    if isinstance(poses, dict):
+        return {int(k): v for k, v in poses.items()}
+    rows: dict[int, list[tuple[float, np.ndarray]]] = {}
+    for p in poses:
+        if isinstance(p, PoseSample):
+            t_s, station, T = p.t_s, p.station, p.T_tracker_sensor
+        else:
+            t_s, station, T = p
+        rows.setdefault(int(station), []).append((float(t_s), np.asarray(T, dtype=np.float64)))
+    if not rows:
+        raise InputError("no poses to write", hint="give at least one timed pose")
+    tracks = {}
+    for station, items in rows.items():
+        items.sort(key=lambda r: r[0])
+        T = np.stack([r[1] for r in items])
+        tracks[station] = PoseTrack([r[0] for r in items], T[:, :3, 3],
+                                    quat_from_rotation(T[:, :3, :3]))
+    return tracks
+
+
+def synthesize_chunks(poses, fmt: str = "binary", output_list=(2, 11, 1), units: str = "cm",
+                      baud: int = 115200, rate_hz: float = RECORD_RATE_HZ,
+                      duration_s: float | None = None, status: str = " "
+                      ) -> list[tuple[float, bytes]]:
+    """Records a FASTRAK would send for timed poses: one (receive time, record bytes) per record.
+
+    Records are emitted round-robin over the stations at ``rate_hz`` in total (120 Hz shared by
+    the stations), each carrying its station's pose interpolated at the record's time; the
+    receive time adds the record's transmit time at ``baud`` (10 bits per byte).
+
+    Args:
+        poses: dict station -> PoseTrack, or an iterable of PoseSample / (t_s, station, T).
+        fmt, output_list, units: the record format to write.
+        baud: line rate used for receive-time stamps.
+        rate_hz: total record rate.
+        duration_s: how long to emit (default: from the first to the last pose).
+        status: status character put in every record.
+    """
+    tracks = _as_tracks(poses)
+    layout = make_layout(fmt, output_list)
+    stations = sorted(tracks)
+    t0 = min(tr.start_s for tr in tracks.values())
+    t1 = max(tr.end_s for tr in tracks.values())
+    span = (t1 - t0) if duration_s is None else float(duration_s)
+    n = int(math.floor(span * rate_hz + 1e-9)) + 1
+    k = np.arange(n)
+    t_rec = t0 + k / rate_hz
+    station_of = np.array(stations)[k % len(stations)]
+    positions = np.zeros((n, 3))
+    quats = np.zeros((n, 4))
+    for s in stations:
+        sel = station_of == s
+        positions[sel], quats[sel] = tracks[s].at(t_rec[sel])
+    transmit_s = layout.length * 10.0 / baud
+    records = encode_records(layout, station_of, positions, quats, units, status)
+    t_recv = (t_rec - t0 + transmit_s).tolist()
+    return list(zip(t_recv, records, strict=True))
+
+
+def poses_to_capture(poses, fmt: str = "binary", output_list=(2, 11, 1), units: str = "cm",
+                     baud: int = 115200, rate_hz: float = RECORD_RATE_HZ,
+                     duration_s: float | None = None, extra: dict | None = None) -> bytes:
+    """A raw capture file (bytes) of the records a FASTRAK would send for timed poses.
+
+    See :func:`synthesize_chunks` for the arguments; ``extra`` adds header fields.
+    """
+    tracks = _as_tracks(poses)
+    header = CaptureHeader(fmt, tuple(make_layout(fmt, output_list).output_list), units, baud,
+                           tuple(sorted(tracks)), {"source": "synthesized", **(extra or {})})
+    chunks = synthesize_chunks(tracks, fmt, output_list, units, baud, rate_hz, duration_s)
+    return capture_bytes(header, chunks)
+
+
+def write_capture(path: str | Path, poses, **kwargs) -> Path:
+    """Write :func:`poses_to_capture` output to ``path``; return the path."""
+    path = Path(path)
+    path.write_bytes(poses_to_capture(poses, **kwargs))
+    return path
+
+
+# ---------------------------------------------------------------------------------------------
+# Pose log (CSV)
+
+
+def pose_log_text(batch: RecordBatch) -> str:
+    """The pose-log CSV text of decoded records."""
+    out = io.StringIO()
+    out.write(",".join(POSE_LOG_COLUMNS) + "\n")
+    status = [("" if c == 0x20 else chr(c)) for c in batch.status.tolist()]
+    for i in range(len(batch)):
+        p = batch.position_m[i]
+        q = batch.quat_wxyz[i]
+        out.write(f"{batch.t_s[i]:.6f},{batch.station[i]},{p[0]:.6f},{p[1]:.6f},{p[2]:.6f},"
+                  f"{q[0]:.7f},{q[1]:.7f},{q[2]:.7f},{q[3]:.7f},{status[i]}\n")
+    return out.getvalue()
+
+
+def samples_batch(samples: Iterable[PoseSample]) -> RecordBatch:
+    """Pack :class:`PoseSample` objects into a :class:`RecordBatch`."""
+    samples = list(samples)
+    if not samples:
+        return RecordBatch.empty()
+    T = np.stack([s.T_tracker_sensor for s in samples])
+    return RecordBatch(
+        station=np.array([s.station for s in samples], dtype=np.int64),
+        status=np.array([ord(s.status or " ") for s in samples], dtype=np.uint8),
+        position_m=T[:, :3, 3].copy(), quat_wxyz=quat_from_rotation(T[:, :3, :3]),
+        stylus=np.array([-1 if s.stylus is None else s.stylus for s in samples], dtype=np.int8),
+        offset=np.zeros(len(samples), dtype=np.int64),
+        t_s=np.array([s.t_s for s in samples], dtype=np.float64))
+
+
+def write_pose_log(path: str | Path, records: RecordBatch | Iterable[PoseSample]) -> Path:
+    """Write a pose-log CSV from a :class:`RecordBatch` or :class:`PoseSample` objects."""
+    batch = records if isinstance(records, RecordBatch) else samples_batch(records)
+    path = Path(path)
+    try:
+        path.write_text(pose_log_text(batch))
+    except OSError as exc:
+        raise InputError(f"cannot write {path}: {exc.strerror}",
+                         hint="choose a writable output path") from None
+    return path
+
+
+def parse_pose_log(text: str, where: str = "pose log") -> RecordBatch:
+    """Parse pose-log CSV text (``#`` comment lines allowed; ``status`` column optional).
+
+    Raises:
+        InputError: missing columns or a row that is not numbers, with its line number.
+    """
+    lines = [(i + 1, line) for i, line in enumerate(text.splitlines())
+             if line.strip() and not line.lstrip().startswith("#")]
+    if not lines:
+        raise InputError(f"{where} is empty", hint="a pose log starts with the header line "
+                         + ",".join(POSE_LOG_COLUMNS))
+    reader = csv.reader([line for _, line in lines])
+    header = [h.strip() for h in next(reader)]
+    missing = [c for c in POSE_LOG_COLUMNS[:-1] if c not in header]
+    if missing:
+        raise InputError(f"{where}: line {lines[0][0]}: missing column(s) {', '.join(missing)}",
+                         hint="the header must be " + ",".join(POSE_LOG_COLUMNS))
+    col = {name: header.index(name) for name in POSE_LOG_COLUMNS if name in header}
+    numeric = POSE_LOG_COLUMNS[:-1]
+    values = np.zeros((len(lines) - 1, len(numeric)))
+    status = np.full(len(lines) - 1, 0x20, dtype=np.uint8)
+    for row_i, row in enumerate(reader):
+        line_no = lines[row_i + 1][0]
+        try:
+            values[row_i] = [float(row[col[name]]) for name in numeric]
+        except (ValueError, IndexError):
+            raise InputError(f"{where}: line {line_no}: expected numbers in columns "
+                             f"{','.join(numeric)}", hint="fix or delete that line") from None
+        if "status" in col and col["status"] < len(row):
+            text_status = row[col["status"]]
+            if len(text_status) > 1:
+                raise InputError(f"{where}: line {line_no}: status {text_status!r} is not one "
+                                 "character", hint="leave it empty when healthy")
+            if text_status:
+                status[row_i] = ord(text_status)
+    if not np.isfinite(values).all():
+        bad = int(np.flatnonzero(~np.isfinite(values).all(axis=1))[0])
+        raise InputError(f"{where}: line {lines[bad + 1][0]}: NaN or infinite value",
+                         hint="every value must be a finite number")
+    station = values[:, 1].astype(np.int64)
+    if ((station < 1) | (station > 4) | (values[:, 1] != station)).any():
+        bad = int(np.flatnonzero((station < 1) | (station > 4) | (values[:, 1] != station))[0])
+        raise InputError(f"{where}: line {lines[bad + 1][0]}: station must be 1..4",
+                         hint="FASTRAK stations are numbered 1 to 4")
+    q = values[:, 5:9]
+    norm = np.linalg.norm(q, axis=1)
+    if (norm < 1e-6).any():
+        bad = int(np.flatnonzero(norm < 1e-6)[0])
+        raise InputError(f"{where}: line {lines[bad + 1][0]}: zero quaternion",
+                         hint="qw,qx,qy,qz must be a unit quaternion (scalar first)")
+    return RecordBatch(station=station, status=status, position_m=values[:, 2:5].copy(),
+                       quat_wxyz=q / norm[:, None], stylus=np.full(len(station), -1, np.int8),
+                       offset=np.zeros(len(station), dtype=np.int64), t_s=values[:, 0].copy())
+
+
+def read_pose_log(path: str | Path) -> RecordBatch:
+    """Read a pose-log CSV file (see :func:`parse_pose_log`)."""
+    blob = _read_bytes(path)
+    try:
+        text = blob.decode("utf-8")
+    except UnicodeDecodeError:
+        raise InputError(f"{path} is neither a raw capture nor a text pose log",
+                         hint="replay a file written by `hubo record` or a pose-log CSV") from None
+    return parse_pose_log(text, str(path))
+
+
+# ---------------------------------------------------------------------------------------------
+# Replay
+
+
+@dataclass
+class Recording:
+    """A decoded recording: records, counters, and what it is."""
+
+    batch: RecordBatch
+    stats: SourceStats
+    info: dict
+
+
+def load_recording(path: str | Path, stations=None,
+                   plausibility: Plausibility = DEFAULT_PLAUSIBILITY) -> Recording:
+    """Read and decode a raw capture or a pose log (recognised from its first bytes).
+
+    Args:
+        path: the recording.
+        stations: keep only these stations (default: all in the file).
+        plausibility: limits for raw-capture records.
+
+    Raises:
+        InputError: missing, unreadable or garbled file, or no valid record in it.
+    """
+    blob = _read_bytes(path)
+    stats = SourceStats()
+    if blob.startswith(MAGIC):
+        cap = parse_capture(blob, str(path))
+        batch, bad = cap.decode(plausibility)
+        stats.add(batch, bad, len(cap.data))
+        h = cap.header
+        info = {"kind": "capture", "path": str(path), "format": h.fmt,
+                "output_list": list(h.output_list), "units": h.units, "baud": h.baud,
+                "stations": list(h.stations), "truncated": cap.truncated, **h.extra}
+        if len(batch) == 0:
+            raise InputError(f"{path}: no valid FASTRAK records in {len(cap.data)} bytes",
+                             hint=f"the header says {h.fmt} {','.join(map(str, h.output_list))} "
+                                  f"in {h.units}; check it matches what was recorded")
+    else:
+        try:
+            text = blob.decode("utf-8")
+        except UnicodeDecodeError:
+            raise InputError(f"{path} is neither a raw capture nor a text pose log",
+                             hint="replay a file written by `hubo record` or a pose-log CSV"
+                             ) from None
+        batch = parse_pose_log(text, str(path))
+        stats.add(batch, 0, len(blob))
+        info = {"kind": "pose-log", "path": str(path),
+                "stations": sorted(set(batch.station.tolist()))}
+        if len(batch) == 0:
+            raise InputError(f"{path}: the pose log has a header but no rows",
+                             hint="record some poses first")
+    if stations is not None:
+        wanted = {int(s) for s in stations}
+        batch = batch.select(np.isin(batch.station, list(wanted)))
+        if len(batch) == 0:
+            raise InputError(f"{path}: no records for station(s) {sorted(wanted)}",
+                             hint=f"the file has stations {sorted(stats.per_station)}")
+    return Recording(batch, stats, info)
+
+
+def open_replay(path: str | Path, stations=None,
+                plausibility: Plausibility = DEFAULT_PLAUSIBILITY) -> ReplaySource:
+    """A :class:`ReplaySource` over a raw capture or a pose log."""
+    rec = load_recording(path, stations, plausibility)
+    return ReplaySource(batch_samples(rec.batch), rec.info, rec.stats)
+
+
+def utc_stamp() -> str:
+    """Current UTC time as ISO 8601 text (for capture headers)."""
+    return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())

@@ -1,0 +1,247 @@
+"""One interface for operator poses, from a live FASTRAK or from a recording.
+
+``open_source(replay=...)`` or ``open_source(port=...)`` returns a :class:`PoseSource`; the
+consumer (teleoperation) calls ``read_until(t_s)`` once per control cycle and checks
+``is_stale(station, now_s)`` before trusting a station's latest pose.
+
+Replay sources deliver every sample whose receive time is at or before ``t_s``, so a replay runs
+as fast as the caller's clock (simulation time) or paced to real time. Live sources deliver
+everything received so far and never block for more than a few milliseconds.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from hubo_cli.errors import InputError
+from hubo_cli.fastrak.records import SUSPECT_STATUS, RecordBatch, rotation_from_quat
+
+
+@dataclass(frozen=True, eq=False)
+class PoseSample:
+    """One station's pose from one data record.
+
+    Attributes:
+        station: 1..4.
+        T_tracker_sensor: (4,4) sensor pose in the tracker's (transmitter) frame, metres.
+        status: the record's status character (``" "`` healthy, else the BIT error letter).
+        t_s: receive time, seconds since the source started.
+        stylus: stylus switch 0/1 when the output list carries item 16, else None.
+    """
+
+    station: int
+    T_tracker_sensor: np.ndarray
+    status: str
+    t_s: float
+    stylus: int | None = None
+
+    @property
+    def position_m(self) -> np.ndarray:
+        """Sensor position in the tracker frame, metres."""
+        return self.T_tracker_sensor[:3, 3]
+
+    @property
+    def suspect(self) -> bool:
+        """True if the status letter flags an envelope or signal problem (x, y, j, k)."""
+        return self.status in SUSPECT_STATUS
+
+
+@dataclass
+class SourceStats:
+    """Counters of what a source has read.
+
+    Attributes:
+        good_records: records accepted by the parser.
+        bad_bytes: bytes skipped while resynchronising (garbage, partial or implausible records).
+        bytes_received: bytes read from the port or the capture.
+        per_station: station -> records accepted.
+        status_letters: status character -> records carrying it (healthy records not counted).
+        reconnects: times a live reader reopened its port.
+    """
+
+    good_records: int = 0
+    bad_bytes: int = 0
+    bytes_received: int = 0
+    per_station: dict[int, int] = field(default_factory=dict)
+    status_letters: dict[str, int] = field(default_factory=dict)
+    reconnects: int = 0
+
+    def add(self, batch: RecordBatch, bad_bytes: int = 0, bytes_received: int = 0) -> None:
+        """Count a decoded batch."""
+        self.good_records += len(batch)
+        self.bad_bytes += bad_bytes
+        self.bytes_received += bytes_received
+        if len(batch):
+            stations, counts = np.unique(batch.station, return_counts=True)
+            for s, c in zip(stations.tolist(), counts.tolist(), strict=True):
+                self.per_station[s] = self.per_station.get(s, 0) + c
+            letters = batch.status[batch.status != 0x20]
+            if letters.size:
+                codes, counts = np.unique(letters, return_counts=True)
+                for code, c in zip(codes.tolist(), counts.tolist(), strict=True):
+                    self.status_letters[chr(code)] = self.status_letters.get(chr(code), 0) + c
+
+    def as_dict(self) -> dict:
+        """Plain dict for JSON reports."""
+        return {"good_records": self.good_records, "bad_bytes_skipped": self.bad_bytes,
+                "bytes_received": self.bytes_received,
+                "per_station": {str(k): v for k, v in sorted(self.per_station.items())},
+                "status_letters": dict(sorted(self.status_letters.items())),
+                "reconnects": self.reconnects}
+
+
+def batch_samples(batch: RecordBatch) -> list[PoseSample]:
+    """Turn a decoded batch into :class:`PoseSample` objects (each with its own 4x4 array)."""
+    n = len(batch)
+    if n == 0:
+        return []
+    T = np.zeros((n, 4, 4))
+    T[:, :3, :3] = rotation_from_quat(batch.quat_wxyz)
+    T[:, :3, 3] = batch.position_m
+    T[:, 3, 3] = 1.0
+    stations = batch.station.tolist()
+    statuses = [chr(c) for c in batch.status.tolist()]
+    times = batch.t_s.tolist()
+    styli = [None if s < 0 else s for s in batch.stylus.tolist()]
+    return [PoseSample(stations[i], T[i], statuses[i], times[i], styli[i]) for i in range(n)]
+
+
+class PoseSource(ABC):
+    """Where operator poses come from; a context manager.
+
+    Attributes:
+        stats: :class:`SourceStats` counters.
+        info: what the source is (kind, path or port, format, output list, units, stations).
+    """
+
+    stats: SourceStats
+    info: dict
+
+    def __init__(self) -> None:
+        self._last_seen: dict[int, float] = {}
+
+    @abstractmethod
+    def read_until(self, t_s: float) -> list[PoseSample]:
+        """New samples: up to receive time ``t_s`` (replay) or all received so far (live)."""
+
+    @abstractmethod
+    def now_s(self) -> float:
+        """The source's clock, seconds since it started (live: wall clock; replay: last t_s)."""
+
+    def _seen(self, samples: list[PoseSample]) -> None:
+        for s in samples:
+            self._last_seen[s.station] = s.t_s
+
+    def last_seen_s(self, station: int) -> float | None:
+        """Receive time of the newest sample delivered for ``station``, or None if never seen."""
+        return self._last_seen.get(station)
+
+    def is_stale(self, station: int, now_s: float, timeout_s: float = 0.25) -> bool:
+        """True if ``station`` has delivered nothing within ``timeout_s`` before ``now_s``."""
+        last = self._last_seen.get(station)
+        return last is None or now_s - last > timeout_s
+
+    def close(self) -> None:
+        """Release the port or file (idempotent)."""
+
+    def __enter__(self) -> PoseSource:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+class ReplaySource(PoseSource):
+    """Samples from a recording, released by the caller's clock.
+
+    Args:
+        samples: every sample of the recording in receive-time order.
+        info: description of the recording.
+        stats: counters of the whole recording (decoded when it was opened).
+    """
+
+    def __init__(self, samples: list[PoseSample], info: dict, stats: SourceStats) -> None:
+        super().__init__()
+        self._samples = samples
+        self._times = np.array([s.t_s for s in samples], dtype=np.float64)
+        if self._times.size and (np.diff(self._times) < 0).any():
+            order = np.argsort(self._times, kind="stable")
+            self._samples = [samples[i] for i in order]
+            self._times = self._times[order]
+        self._cursor = 0
+        self._now = float("-inf")
+        self.info = info
+        self.stats = stats
+
+    @property
+    def start_s(self) -> float:
+        """Receive time of the first sample, seconds."""
+        return float(self._times[0]) if self._times.size else 0.0
+
+    @property
+    def end_s(self) -> float:
+        """Receive time of the last sample, seconds."""
+        return float(self._times[-1]) if self._times.size else 0.0
+
+    @property
+    def done(self) -> bool:
+        """True once every sample has been delivered."""
+        return self._cursor >= len(self._samples)
+
+    @property
+    def stations(self) -> tuple[int, ...]:
+        """Stations present in the recording."""
+        return tuple(sorted({s.station for s in self._samples}))
+
+    def read_until(self, t_s: float) -> list[PoseSample]:
+        """Every not yet delivered sample with receive time <= ``t_s`` (seconds)."""
+        self._now = max(self._now, float(t_s))
+        end = int(np.searchsorted(self._times, t_s, side="right"))
+        if end <= self._cursor:
+            return []
+        out = self._samples[self._cursor:end]
+        self._cursor = end
+        self._seen(out)
+        return out
+
+    def now_s(self) -> float:
+        """The latest ``t_s`` passed to :meth:`read_until`."""
+        return self._now if self._now != float("-inf") else self.start_s
+
+    def rewind(self) -> None:
+        """Start delivering from the first sample again."""
+        self._cursor = 0
+        self._now = float("-inf")
+        self._last_seen.clear()
+
+
+def open_source(replay: str | Path | None = None, port: str | None = None,
+                **options) -> PoseSource:
+    """Open a pose source: a recording (``replay``) or a live FASTRAK on a serial ``port``.
+
+    Args:
+        replay: a raw capture (decoded through the same parser as the live path) or a pose-log
+            CSV; the kind is recognised from the file's first bytes.
+        port: serial device of a live FASTRAK (or an emulator's pty).
+        **options: for a replay, ``stations`` (keep only these) and ``plausibility``; for a
+            port, the :class:`hubo_cli.fastrak.reader.FastrakReader` options (``baud``,
+            ``fmt``, ``output_list``, ``units``, ``stations``, ``capture``, ``reconnect``, ...).
+
+    Raises:
+        InputError: neither or both of replay/port, a missing or garbled recording.
+        DeviceError: the port is absent, closed or the tracker does not answer.
+    """
+    if (replay is None) == (port is None):
+        raise InputError("give exactly one pose source: a recording or a serial port",
+                         hint="use --replay FILE or --port DEV")
+    if replay is not None:
+        from hubo_cli.fastrak.capture import open_replay
+
+        return open_replay(replay, **options)
+    from hubo_cli.fastrak.reader import FastrakReader
+
+    return FastrakReader(port, **options)
