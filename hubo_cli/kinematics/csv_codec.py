@@ -2,7 +2,9 @@
 
 Reading: one pass over the bytes; every field must be a decimal number (optional sign, digits,
 point, exponent; ``nan``/``inf`` are read as such and rejected later). The value is the decimal
-mantissa scaled by a power of ten, within one ulp of the correctly rounded value. A row with the
+mantissa scaled by a power of ten: within two ulp of the correctly rounded value for magnitudes
+1e-20 .. 1e15 (powers of ten beyond 1e22 are themselves inexact, so far outside that range the
+error grows; poses in metres never go there). A row with the
 wrong number of fields or a field that is not a number gets an error code instead of values.
 
 Writing: numbers as ``d.ddddddddddde+XX`` (12 significant digits), rows joined by commas.
