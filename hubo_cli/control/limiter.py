@@ -134,6 +134,12 @@ class SoftErrorLimiter(Module):
         self.q2 = self.q1.copy()
         self._want_prev = self.q1.copy()
 
+    def seed(self, q1_rad: np.ndarray, q2_rad: np.ndarray) -> None:
+        """Continue from the last two commands ``q1_rad`` (newest) and ``q2_rad`` (rad)."""
+        self.q1 = np.array(q1_rad, dtype=float)
+        self.q2 = np.array(q2_rad, dtype=float)
+        self._want_prev = self.q1.copy()
+
     def step(self, q_want: np.ndarray, q_meas: np.ndarray | None = None) -> np.ndarray:
         """Limit one command (rad) against the previous two; returns a new array."""
         lim = self.limits

@@ -23,7 +23,9 @@ class Status(IntEnum):
 
     @property
     def label(self) -> str:
-        """Lower-case name with spaces (``"stale input"``)."""
+        """Lower-case words (``"stale input"``, ``"e-stopped"``)."""
+        if self is Status.ESTOPPED:
+            return "e-stopped"
         return self.name.lower().replace("_", " ")
 
 

@@ -1,0 +1,250 @@
+"""Capture-point monitor (hrpsys Stabilizer's CP check): flags a coming fall, asks for an e-stop.
+
+Each period, from the *measured* joints and the torso pose in the world (the driver's
+``T_world_torso``; without one, the IMU orientation at the origin, which is enough because only
+relative positions matter):
+
+* the centre of mass x_G of the URDF (pinocchio);
+* its velocity, finite-differenced and low-passed at 4 Hz (first order, as hrpsys);
+* the capture point CP = x_G + v_G / omega with omega = sqrt(g / (z_G - z_ground)), z_ground
+  being the lowest sole in contact;
+* the support polygon: the convex hull of the soles in contact (both when the driver does not
+  say), shrunk by ``margin_m`` (3 cm, hrpsys ``cp_check_margin``).
+
+When the CP leaves the shrunk polygon while a foot touches the ground the module flags
+``cp-outside`` and requests an emergency stop from source ``capture-point``. It passes the
+command through unchanged. The reference CP is the centre of mass of the commanded posture on
+the same torso pose (a static reference); ``cp_error`` = actual CP - reference CP.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+import pinocchio as pin
+
+from hubo_cli.control.module import Cycle, Module
+from hubo_cli.control.pin_robot import PinRobot, load_pin_robot
+from hubo_cli.drivers.base import RobotState
+from hubo_cli.model import RobotModel
+from hubo_cli.urdf import FOOT_FORWARD_M, FOOT_SIZE_M
+
+GRAVITY_M_S2 = 9.80665
+CP_MARGIN_M = 0.03        # hrpsys cp_check_margin
+VELOCITY_CUTOFF_HZ = 4.0  # hrpsys CoM velocity low-pass
+SOLE_FRAMES = ("right_sole", "left_sole")
+
+
+def sole_corners_m() -> np.ndarray:
+    """The four corners (x, y, 0) of a sole in its own frame (m), counter-clockwise."""
+    length, width, _ = FOOT_SIZE_M
+    x0, x1 = FOOT_FORWARD_M - length / 2, FOOT_FORWARD_M + length / 2
+    return np.array([[x0, -width / 2, 0.0], [x1, -width / 2, 0.0], [x1, width / 2, 0.0],
+                     [x0, width / 2, 0.0]])
+
+
+@nb.njit(cache=True, nogil=True)
+def _cross(o, a, b) -> float:
+    return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+
+@nb.njit(cache=True, nogil=True)
+def convex_hull(points: np.ndarray) -> np.ndarray:
+    """Convex hull of 2-D points (N x 2), counter-clockwise, no repeated end (monotone chain)."""
+    pts = points.copy()
+    n = pts.shape[0]
+    for i in range(1, n):  # insertion sort by (x, y): the polygons here have a few points
+        x, y = pts[i, 0], pts[i, 1]
+        j = i - 1
+        while j >= 0 and (pts[j, 0] > x or (pts[j, 0] == x and pts[j, 1] > y)):
+            pts[j + 1] = pts[j]
+            j -= 1
+        pts[j + 1, 0] = x
+        pts[j + 1, 1] = y
+    hull = np.empty((2 * n, 2))
+    k = 0
+    for i in range(n):
+        while k >= 2 and _cross(hull[k - 2], hull[k - 1], pts[i]) <= 0:
+            k -= 1
+        hull[k] = pts[i]
+        k += 1
+    lower = k + 1
+    for i in range(n - 2, -1, -1):
+        while k >= lower and _cross(hull[k - 2], hull[k - 1], pts[i]) <= 0:
+            k -= 1
+        hull[k] = pts[i]
+        k += 1
+    return hull[:k - 1].copy()
+
+
+@nb.njit(cache=True, nogil=True)
+def outside_distance(hull: np.ndarray, p: np.ndarray) -> float:
+    """max over the edges of a counter-clockwise convex polygon of the signed distance of p
+    beyond the edge line (m): > 0 outside, <= 0 inside (minus the distance to the nearest edge
+    line). Shrinking the polygon by m moves every edge line in by m."""
+    best = -np.inf
+    n = hull.shape[0]
+    for i in range(n):
+        a = hull[i]
+        b = hull[(i + 1) % n]
+        ex, ey = b[0] - a[0], b[1] - a[1]
+        length = math.sqrt(ex * ex + ey * ey)
+        if length == 0.0:
+            continue
+        # outward normal of a counter-clockwise polygon: (ey, -ex) / length
+        d = ((p[0] - a[0]) * ey - (p[1] - a[1]) * ex) / length
+        if d > best:
+            best = d
+    return best
+
+
+@nb.njit(cache=True, nogil=True)
+def _support(sole_pose, right_down, left_down, corners, com, velocity, margin, gravity, cp_out,
+             box_out):
+    """Support polygon, capture point and how far it lies outside (see CapturePointMonitor).
+
+    Writes the CP (2,) and the shrunk polygon's box (4,); returns (outside m, ground z m).
+    Without a foot on the ground: CP = CoM, outside = -inf.
+    """
+    down = (right_down, left_down)
+    n = 0
+    points = np.empty((8, 2))
+    ground_z = np.inf
+    for k in range(2):
+        if not down[k]:
+            continue
+        T = sole_pose[k]
+        for c in range(4):
+            for row in range(3):
+                value = (T[row, 0] * corners[c, 0] + T[row, 1] * corners[c, 1]
+                         + T[row, 2] * corners[c, 2] + T[row, 3])
+                if row < 2:
+                    points[n, row] = value
+                else:
+                    ground_z = min(ground_z, value)
+            n += 1
+    if n == 0:
+        cp_out[0], cp_out[1] = com[0], com[1]
+        return -np.inf, ground_z
+    height = max(com[2] - ground_z, 1e-3)
+    omega = math.sqrt(gravity / height)
+    cp_out[0] = com[0] + velocity[0] / omega
+    cp_out[1] = com[1] + velocity[1] / omega
+    hull = convex_hull(points[:n])
+    box_out[0] = hull[:, 0].min() + margin
+    box_out[1] = hull[:, 0].max() - margin
+    box_out[2] = hull[:, 1].min() + margin
+    box_out[3] = hull[:, 1].max() - margin
+    return outside_distance(hull, cp_out) + margin, ground_z
+
+
+class CapturePointMonitor(Module):
+    """The ``capture-point`` module (see the module docstring).
+
+    Args:
+        model: the robot model (URDF).
+        dt_s: the control period (s).
+        margin_m: shrink of the support polygon (m).
+        cutoff_hz: low-pass cut-off of the CoM velocity (Hz).
+        request_estop: request an emergency stop when the CP leaves the polygon.
+
+    Attributes after each update: ``com_m`` (3,), ``cp_m`` (2,), ``cp_ref_m`` (2,),
+    ``outside_m`` (CP beyond the shrunk polygon, m; > 0 = flag), ``support_box_m``
+    (min x, max x, min y, max y of the shrunk polygon), ``flag``.
+    """
+
+    name = "capture-point"
+    log_columns = ("com_x_m", "com_y_m", "com_z_m", "cp_x_m", "cp_y_m", "cp_ref_x_m",
+                   "cp_ref_y_m", "cp_error_x_m", "cp_error_y_m", "cp_outside_m",
+                   "support_min_x_m", "support_max_x_m", "support_min_y_m", "support_max_y_m",
+                   "cp_flag")
+
+    def __init__(self, model: RobotModel, dt_s: float, margin_m: float = CP_MARGIN_M,
+                 cutoff_hz: float = VELOCITY_CUTOFF_HZ, request_estop: bool = True) -> None:
+        self.dt_s = float(dt_s)
+        self.margin_m = float(margin_m)
+        self.request_estop = request_estop
+        tau = 1.0 / (2 * math.pi * cutoff_hz)
+        self.alpha = self.dt_s / (self.dt_s + tau)
+        self.robot: PinRobot = load_pin_robot(model, floating=True)
+        self.data = self.robot.model.createData()
+        self._sole_ids = [self.robot.frame_id(f) for f in SOLE_FRAMES]
+        self._corners = sole_corners_m()
+        self._q = np.zeros(self.robot.model.nq)
+        self._q_ref = np.zeros(self.robot.model.nq)
+        self._sole_pose = np.zeros((2, 4, 4))
+        self._prev_com: np.ndarray | None = None
+        self.velocity_m_s = np.zeros(3)
+        self.com_m = np.zeros(3)
+        self.cp_m = np.zeros(2)
+        self.cp_ref_m = np.zeros(2)
+        self.outside_m = -np.inf
+        self.support_box_m = np.zeros(4)
+        self.flag = False
+
+    def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
+        self._prev_com = None
+        self.velocity_m_s = np.zeros(3)
+        self.flag = False
+
+    def _torso_pose(self, state: RobotState) -> np.ndarray:
+        if state.T_world_torso is not None:
+            return state.T_world_torso
+        w, x, y, z = state.imu_quat_wxyz
+        T = np.eye(4)
+        T[:3, :3] = ((1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)),
+                     (2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)),
+                     (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)))
+        return T
+
+    def measure(self, state: RobotState, q_cmd_rad: np.ndarray | None = None) -> bool:
+        """Update the estimate from ``state`` (and the reference from the command, rad);
+        return True when the CP is outside the shrunk support polygon with a foot on the
+        ground."""
+        pmodel, data = self.robot.model, self.data
+        T_world_torso = self._torso_pose(state)
+        q = self.robot.configuration(state.q_rad, T_world_torso, out=self._q)
+        com = pin.centerOfMass(pmodel, data, q, False).copy()
+        contact = state.feet_contact if state.feet_contact is not None else (True, True)
+        for k, fid in enumerate(self._sole_ids):
+            oMf = pin.updateFramePlacement(pmodel, data, fid)
+            self._sole_pose[k, :3, :3] = oMf.rotation
+            self._sole_pose[k, :3, 3] = oMf.translation
+        if self._prev_com is None:
+            self.velocity_m_s = np.zeros(3)
+        else:
+            self.velocity_m_s += self.alpha * ((com - self._prev_com) / self.dt_s
+                                               - self.velocity_m_s)
+        self._prev_com = com
+        self.com_m = com
+        if q_cmd_rad is not None:
+            q_cmd = np.where(np.isfinite(q_cmd_rad), q_cmd_rad, state.q_rad)
+            q_ref = self.robot.configuration(q_cmd, T_world_torso, out=self._q_ref)
+            self.cp_ref_m = pin.centerOfMass(pmodel, self.data, q_ref, False)[:2].copy()
+        outside, ground_z = _support(self._sole_pose, bool(contact[0]), bool(contact[1]),
+                                     self._corners, com, self.velocity_m_s, self.margin_m,
+                                     GRAVITY_M_S2, self.cp_m, self.support_box_m)
+        self.outside_m = outside
+        self.flag = bool(outside > 0.0)
+        return self.flag
+
+    def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
+        flag = self.measure(state, q_rad)
+        if flag:
+            cycle.flags.add("cp-outside")
+            if self.request_estop:
+                cycle.estop_requests.add("capture-point")
+        info = cycle.info
+        info["com_x_m"], info["com_y_m"], info["com_z_m"] = (float(v) for v in self.com_m)
+        info["cp_x_m"], info["cp_y_m"] = float(self.cp_m[0]), float(self.cp_m[1])
+        info["cp_ref_x_m"], info["cp_ref_y_m"] = float(self.cp_ref_m[0]), float(self.cp_ref_m[1])
+        info["cp_error_x_m"] = float(self.cp_m[0] - self.cp_ref_m[0])
+        info["cp_error_y_m"] = float(self.cp_m[1] - self.cp_ref_m[1])
+        info["cp_outside_m"] = float(self.outside_m)
+        box = self.support_box_m
+        info["support_min_x_m"], info["support_max_x_m"] = float(box[0]), float(box[1])
+        info["support_min_y_m"], info["support_max_y_m"] = float(box[2]), float(box[3])
+        info["cp_flag"] = 1.0 if flag else 0.0
+        return q_rad

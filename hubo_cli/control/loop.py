@@ -1,0 +1,296 @@
+"""The fixed-rate control loop: read the state, get a target, run the modules, send, step, log.
+
+Each period of ``dt`` (the model's 5 ms):
+
+1. ask the caller's target source ``target(t_s, state) -> (q_target_rad | None, info)``;
+   ``None`` (or NaN entries) means "no new target"; ``info`` may carry ``"estop"`` (a source
+   name or several), ``"release"`` (release every emergency stopper), ``"done"`` (finish after
+   this period) and numbers for the log's extra columns (declared in ``target.log_columns``);
+2. run the ordered modules on the command (a module that requests an emergency stop through
+   ``cycle.estop_requests`` must come before the stopper that should see it in that period);
+3. send the result to the driver, step it, and write one log row with the period's status.
+
+Pacing uses absolute deadlines (``next += period``), so it does not drift: ``speed=None`` runs as
+fast as possible, ``1.0`` in real time, ``x`` at x times real time. A period more than
+``max_lag_periods`` late re-anchors the schedule (counted in ``overruns``).
+
+Ctrl-C (KeyboardInterrupt) and any exception raised by the target source or a module end in a
+smooth stop: a velocity-interface ruckig brake from the last command, passed through a soft
+error limiter, sent period by period until the command is at rest; then ``driver.stop()``. A
+second Ctrl-C during the brake stops the driver at once. A failing driver is stopped at once.
+The loop never raises for these; :class:`LoopResult` says how it ended.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import Counter
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from hubo_cli.control.limiter import SoftErrorLimiter
+from hubo_cli.control.limits import JointLimits
+from hubo_cli.control.log import LOG_NAME, PeriodLog
+from hubo_cli.control.module import Cycle, Module
+from hubo_cli.control.otg import JointTracker
+from hubo_cli.control.status import Status, status_from_flags
+from hubo_cli.drivers.base import Driver, RobotState
+
+TargetSource = Callable[[float, RobotState], tuple[np.ndarray | None, dict]]
+
+ENDINGS = ("finished", "done", "interrupted", "module-error", "target-error", "driver-error")
+MAX_STOP_S = 15.0  # a brake from full speed at the slowest joint's limits takes under 2 s
+
+
+@dataclass
+class LoopResult:
+    """How a run ended.
+
+    Attributes:
+        ended: ``finished`` (duration reached), ``done`` (the target source said so),
+            ``interrupted`` (Ctrl-C), ``module-error``, ``target-error`` or ``driver-error``.
+        periods: control periods run (the smooth stop included).
+        t_end_s: loop time at the end (s).
+        error: one line describing the error or interruption, "" otherwise.
+        stop_periods: periods spent in the final smooth stop.
+        status_counts: status label -> number of periods.
+        estop_events: (module name, time s, kind, sources) for every latch and release.
+        overruns: periods that ran so late that the schedule was re-anchored.
+        log_path: the per-period log, if one was written.
+        final_command_rad: the last command sent.
+    """
+
+    ended: str
+    periods: int
+    t_end_s: float
+    error: str = ""
+    stop_periods: int = 0
+    status_counts: dict[str, int] = field(default_factory=dict)
+    estop_events: list[tuple[str, float, str, tuple[str, ...]]] = field(default_factory=list)
+    overruns: int = 0
+    log_path: Path | None = None
+    final_command_rad: np.ndarray | None = None
+    exception: BaseException | None = None
+
+    @property
+    def ok(self) -> bool:
+        """True when the run ended as planned (duration reached or the source finished)."""
+        return self.ended in ("finished", "done")
+
+
+def _as_requests(value) -> Iterable[str]:
+    if not value:
+        return ()
+    if isinstance(value, str):
+        return (value,)
+    return tuple(str(v) for v in value)
+
+
+class ControlLoop:
+    """Runs modules at a fixed rate between a target source and a driver.
+
+    Args:
+        driver: a started driver (``driver.start()`` already called).
+        modules: the ordered pipeline (see :func:`hubo_cli.control.pipeline.build_pipeline`).
+        target: the target source (see the module docstring).
+        speed: None = as fast as possible, 1.0 = real time, x = x times real time.
+        log_path: write the per-period CSV here (a folder gets ``log.csv``); None = no log.
+        clock, sleep: time functions (s); injectable for tests.
+        max_lag_periods: lateness (in periods) that re-anchors the schedule.
+    """
+
+    def __init__(self, driver: Driver, modules: list[Module], target: TargetSource, *,
+                 speed: float | None = None, log_path: str | Path | None = None,
+                 clock: Callable[[], float] = time.perf_counter,
+                 sleep: Callable[[float], None] = time.sleep,
+                 max_lag_periods: int = 20) -> None:
+        if speed is not None and speed <= 0:
+            raise ValueError("speed must be positive or None")
+        self.driver = driver
+        self.modules = list(modules)
+        self.target = target
+        self.speed = speed
+        self.dt_s = driver.period_s
+        self.clock = clock
+        self.sleep = sleep
+        self.max_lag_periods = max_lag_periods
+        self.limits = JointLimits.from_model(driver.model)
+        self.log_path = None
+        if log_path is not None:
+            path = Path(log_path)
+            self.log_path = path / LOG_NAME if path.is_dir() else path
+        self.log: PeriodLog | None = None
+        self.period = 0
+        self.overruns = 0
+        self._deadline = 0.0
+        self._statuses: Counter[str] = Counter()
+        n = len(driver.joint_names)
+        self._nan = np.full(n, np.nan)
+        self._cmd = np.zeros(n)
+        self._cmd_prev = np.zeros(n)
+        self._cmd_prev2 = np.zeros(n)
+
+    # ------------------------------------------------------------------ helpers
+    def _extra_columns(self) -> list[str]:
+        columns: list[str] = []
+        for m in self.modules:
+            columns += list(getattr(m, "log_columns", ()))
+        columns += list(getattr(self.target, "log_columns", ()))
+        return list(dict.fromkeys(columns))
+
+    def _pace(self) -> float:
+        """Wait for this period's deadline; return the lateness after waiting (s)."""
+        if self.speed is None:
+            return 0.0
+        wall_period = self.dt_s / self.speed
+        now = self.clock()
+        if self.period == 0 and self._deadline == 0.0:
+            self._deadline = now
+        wait = self._deadline - now
+        if wait > 0:
+            self.sleep(wait)
+            now = self.clock()
+        elif -wait > self.max_lag_periods * wall_period:
+            self.overruns += 1
+            self._deadline = now
+        late = now - self._deadline
+        self._deadline += wall_period
+        return late
+
+    def _remember(self, q: np.ndarray) -> None:
+        self._cmd_prev2 = self._cmd_prev
+        self._cmd_prev = self._cmd
+        self._cmd = q
+
+    def _write(self, t_s, flags, compute_s, late_s, target, cmd, state, extras) -> None:
+        status = status_from_flags(flags)
+        self._statuses[status.label] += 1
+        if self.log is not None:
+            self.log.write(self.period, t_s, status, compute_s * 1e6, late_s * 1e6, flags,
+                           target, cmd, state.q_rad, extras)
+
+    # ------------------------------------------------------------------ run
+    def run(self, duration_s: float | None = None) -> LoopResult:
+        """Run until ``duration_s`` (loop time, s), the source's ``done``, Ctrl-C or an error.
+
+        Returns a :class:`LoopResult`; the per-period log is closed when it returns.
+        """
+        driver = self.driver
+        if self.log_path is not None:
+            self.log = PeriodLog(self.log_path, driver.joint_names, self._extra_columns())
+        ended, error, exc = "finished", "", None
+        stop_periods = 0
+        t_s = 0.0
+        try:
+            state = driver.read()
+            q0 = np.array(state.q_rad, dtype=float)
+            self._cmd = self._cmd_prev = self._cmd_prev2 = q0
+            for m in self.modules:
+                m.reset(q0.copy(), state)
+            while duration_s is None or self.period * self.dt_s < duration_s - 1e-9:
+                t_s = self.period * self.dt_s
+                late_s = self._pace()
+                cycle = Cycle(t_s, self.dt_s)
+                started = self.clock()
+                stage = "target"
+                try:
+                    q_target, info = self.target(t_s, state)
+                    info = info or {}
+                    cycle.estop_requests.update(_as_requests(info.get("estop")))
+                    if info.get("release"):
+                        for m in self.modules:
+                            if hasattr(m, "release"):
+                                m.release()
+                    q = self._nan if q_target is None else np.asarray(q_target, dtype=float)
+                    target_logged = q
+                    stage = "module"
+                    for m in self.modules:
+                        q = m.update(q, state, cycle)
+                except Exception as err:  # noqa: BLE001 (any failure ends in a smooth stop)
+                    ended = f"{stage}-error"
+                    error = f"{type(err).__name__} in {stage}: {err}"
+                    exc = err
+                    break
+                if not np.all(np.isfinite(q)):
+                    q = np.where(np.isfinite(q), q, self._cmd)
+                    cycle.flags.add("holding")
+                compute_s = self.clock() - started
+                stage = "driver"
+                try:
+                    applied = driver.send(q)
+                    state = driver.step()
+                except Exception as err:  # noqa: BLE001
+                    ended, error, exc = "driver-error", f"{type(err).__name__}: {err}", err
+                    driver.stop()
+                    break
+                self._remember(np.array(q, dtype=float))
+                cycle.flags.update(state.flags)
+                extras = dict(cycle.info)
+                extras.update((k, v) for k, v in info.items() if isinstance(v, (int, float)))
+                self._write(t_s, cycle.flags, compute_s, late_s, target_logged, applied, state,
+                            extras)
+                self.period += 1
+                if info.get("done"):
+                    ended = "done"
+                    break
+        except KeyboardInterrupt as err:
+            ended, error, exc = "interrupted", "interrupted (Ctrl-C)", err
+        try:
+            if ended != "driver-error":
+                stop_periods = self._smooth_stop()
+        except KeyboardInterrupt:
+            error = (error + "; " if error else "") + "second Ctrl-C: stopped without the ramp"
+            if ended in ("finished", "done"):
+                ended = "interrupted"
+        finally:
+            driver.stop()
+            if self.log is not None:
+                self.log.close()
+        return LoopResult(
+            ended=ended, periods=self.period, t_end_s=self.period * self.dt_s, error=error,
+            stop_periods=stop_periods, status_counts=dict(self._statuses),
+            estop_events=[(m.name, e.t_s, e.kind, e.sources) for m in self.modules
+                          for e in getattr(m, "events", ())],
+            overruns=self.overruns, log_path=self.log_path, final_command_rad=self._cmd.copy(),
+            exception=exc)
+
+    def _smooth_stop(self) -> int:
+        """Brake the command to rest within the limits, sending every period. Returns periods."""
+        dt = self.dt_s
+        q1, q2, q3 = self._cmd, self._cmd_prev, self._cmd_prev2
+        v = (q1 - q2) / dt
+        a = (q1 - 2 * q2 + q3) / dt**2
+        if np.max(np.abs(v)) < 1e-9 and np.max(np.abs(a)) < 1e-9:
+            return 0
+        tracker = JointTracker(self.limits, dt)
+        tracker.reset(q1, v + 0.5 * a * dt, a)
+        limiter = SoftErrorLimiter(self.driver.model, dt, error_limit_rad=0.0, limits=self.limits)
+        limiter.seed(q1, q2)
+        periods = 0
+        for _ in range(int(MAX_STOP_S / dt)):
+            late_s = self._pace()
+            started = self.clock()
+            q = limiter.step(tracker.brake())
+            compute_s = self.clock() - started
+            try:
+                applied = self.driver.send(q)
+                state = self.driver.step()
+            except Exception:  # noqa: BLE001 (the driver is stopped by the caller)
+                break
+            self._remember(q)
+            flags = {"smooth-stop"} | set(state.flags)
+            self._write(self.period * dt, flags, compute_s, late_s, self._nan, applied, state,
+                        None)
+            self.period += 1
+            periods += 1
+            if tracker.at_rest and np.max(np.abs(limiter.velocity_rad_s)) < 1e-9:
+                break
+        return periods
+
+
+def status_name(code: int) -> str:
+    """The label of a status code (``"e-stopped"`` style words, see :class:`Status`)."""
+    return Status(int(code)).label
