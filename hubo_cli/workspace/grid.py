@@ -1,0 +1,114 @@
+"""The grid a workspace map is solved on, and the tool orientation it is solved for.
+
+All points are tool positions in the neck frame N (x forward = distance to a wall facing the
+robot, y left, z up), in metres. Grid values are integer multiples of the resolution, so grids of
+different extents but the same resolution share their points.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from hubo_cli.errors import InputError
+from hubo_cli.kinematics import Limb
+
+ORIENTATIONS = ("wall",)  # named presets; any "roll,pitch,yaw" in degrees is accepted too
+
+
+def orientation_matrix(orientation: str) -> np.ndarray:
+    """R_N_E (3x3) for a named orientation or ``"roll,pitch,yaw"`` in degrees (R = Rz Ry Rx).
+
+    ``wall``: the tool frame parallel to N, i.e. the drill bit (tool x) pointing straight
+    forward, orthogonal to a wall facing the robot (paper IV).
+    """
+    if orientation == "wall":
+        return np.eye(3)
+    try:
+        roll, pitch, yaw = (math.radians(float(v)) for v in orientation.split(","))
+    except ValueError:
+        raise InputError(f"unknown orientation {orientation!r}",
+                         hint="use 'wall' or 'roll,pitch,yaw' in degrees, e.g. 0,10,0") from None
+    cr, sr = math.cos(roll), math.sin(roll)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    Rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+    Ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+    Rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+    return Rz @ Ry @ Rx
+
+
+@dataclass(frozen=True)
+class ReachSphere:
+    """Where the tool point can be at all for a fixed orientation (joint limits ignored).
+
+    The wrist centre (DH frame 5's origin) stays within lA2 + lA3 of the shoulder, and for a
+    fixed tool orientation the tool point is the wrist centre plus a constant vector, so the tool
+    point stays inside a sphere of that radius around ``centre_m``.
+    """
+
+    centre_m: np.ndarray
+    radius_m: float
+
+
+def reach_sphere(limb: Limb, R_N_E: np.ndarray) -> ReachSphere:
+    """The :class:`ReachSphere` of an arm's tool point at orientation R_N_E."""
+    if not limb.spec.is_arm:
+        raise InputError(f"{limb.name} is not an arm", hint="workspace maps are for the arms")
+    T_E_6 = np.linalg.inv(limb.T_6_end)
+    lA2, lA3, lA4 = limb.lengths_m
+    # frame 5's origin seen from the tool frame: frame 6's origin minus lA4 along frame 6's x
+    wrist_in_E = T_E_6[:3, 3] - lA4 * T_E_6[:3, 0]
+    shoulder = limb.T_N_base[:3, 3]
+    return ReachSphere(shoulder - R_N_E @ wrist_in_E, float(lA2 + lA3))
+
+
+def _lattice(lo_m: float, hi_m: float, step_m: float) -> np.ndarray:
+    """Multiples of step_m covering [lo_m, hi_m] (inclusive, rounded outward by < 1e-9 m)."""
+    k0 = math.ceil(lo_m / step_m - 1e-9)
+    k1 = math.floor(hi_m / step_m + 1e-9)
+    return np.arange(k0, k1 + 1) * step_m
+
+
+@dataclass(frozen=True)
+class Grid:
+    """A box of tool positions: ``x_m`` (wall distances), ``y_m``, ``z_m`` (1-D, metres)."""
+
+    x_m: np.ndarray
+    y_m: np.ndarray
+    z_m: np.ndarray
+    resolution_m: float
+
+    @property
+    def shape(self) -> tuple[int, int, int]:
+        """(nx, nz, ny): the layout of every per-point array of a map."""
+        return len(self.x_m), len(self.z_m), len(self.y_m)
+
+    @property
+    def points(self) -> int:
+        return len(self.x_m) * len(self.y_m) * len(self.z_m)
+
+
+def make_grid(sphere: ReachSphere, resolution_m: float = 0.005,
+              x_range_m: tuple[float, float] = (0.30, 0.65)) -> Grid:
+    """A grid over the wall distances ``x_range_m`` and the y-z box of the reach sphere.
+
+    Args:
+        sphere: where the tool point can be at all (:func:`reach_sphere`).
+        resolution_m: grid step in all three axes (m).
+        x_range_m: first and last wall distance from the neck (m).
+    """
+    if not resolution_m > 0:
+        raise InputError(f"resolution must be positive, got {resolution_m * 1000:g} mm",
+                         hint="pass --resolution 5 (mm)")
+    lo, hi = sorted(x_range_m)
+    x = _lattice(lo, hi, resolution_m)
+    if len(x) == 0:
+        raise InputError(f"no grid point between {lo * 1000:g} and {hi * 1000:g} mm",
+                         hint="widen --x-range or make --resolution smaller")
+    c, r = sphere.centre_m, sphere.radius_m
+    y = _lattice(c[1] - r, c[1] + r, resolution_m)
+    z = _lattice(c[2] - r, c[2] + r, resolution_m)
+    return Grid(x, y, z, float(resolution_m))
