@@ -14,6 +14,7 @@ from hubo_cli.errors import HuboError
 COMMANDS = {
     "fk": "hubo_cli.cli.kinematics:fk",
     "ik": "hubo_cli.cli.kinematics:ik",
+    "workspace-map": "hubo_cli.cli.workspace:workspace_map",
 }
 
 
