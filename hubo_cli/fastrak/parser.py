@@ -45,6 +45,7 @@ class StreamParser:
         self.good_records = 0
         self.bad_bytes = 0
         self.bytes_fed = 0
+        self._last_t = 0.0
 
     @property
     def pending_bytes(self) -> int:
@@ -58,6 +59,7 @@ class StreamParser:
         offset.
         """
         self.bytes_fed += len(data)
+        self._last_t = float(t_s)
         buf = self._pending + data if self._pending else bytes(data)
         result = scan(buf, self.layout, self.units, final=False, plaus=self.plausibility,
                       station_ok=self._station_ok)
@@ -71,17 +73,30 @@ class StreamParser:
         self.bad_bytes += result.bad_bytes
         return batch, result.bad_bytes
 
-    def finish(self) -> int:
-        """End of stream: count the held-back partial record as skipped; return its size."""
-        skipped = len(self._pending)
-        self.bad_bytes += skipped
-        self._offset += skipped
-        self._pending = b""
-        return skipped
+    def finish(self) -> tuple[RecordBatch, int]:
+        """End of stream: decide the held-back bytes; return (records among them, bytes skipped).
+
+        Records found here are stamped with the time of the last feed.
+        """
+        buf, self._pending = self._pending, b""
+        result = scan(buf, self.layout, self.units, final=True, plaus=self.plausibility,
+                      station_ok=self._station_ok)
+        batch = result.batch
+        if len(batch):
+            batch.t_s = np.full(len(batch), self._last_t)
+            batch.offset += self._offset
+        self._offset += len(buf)
+        self.good_records += len(batch)
+        self.bad_bytes += result.bad_bytes
+        return batch, result.bad_bytes
 
     def reset(self) -> int:
         """Drop held-back bytes (after a reconnect); return how many were dropped."""
-        return self.finish()
+        dropped = len(self._pending)
+        self._pending = b""
+        self._offset += dropped
+        self.bad_bytes += dropped
+        return dropped
 
 
 def decode_stream(data: bytes, chunk_ends: np.ndarray, chunk_times: np.ndarray,

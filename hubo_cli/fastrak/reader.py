@@ -382,5 +382,10 @@ class FastrakReader(PoseSource):
             self._thread.join(timeout=self.settle_s + 2 * self.probe_timeout_s
                               + self.first_record_timeout_s + 1.0)
         self._close_port()
+        if self._thread is not None and not self._thread.is_alive():
+            batch, lost = self._parser.finish()
+            with self._lock:
+                self._queue.extend(batch_samples(batch))
+                self.stats.add(batch, lost)
         if self._writer is not None:
             self._writer.close()

@@ -149,6 +149,11 @@ class RecordLayout:
         else:
             self.orientation = "euler"
         self._ascii_allowed = self._ascii_table() if fmt == "ascii" else None
+        # In ASCII ending in its only CR LF, no valid record can overlap another (CR and LF
+        # never occur inside one), so the overlap tie-break of the scanner is not needed.
+        crlf_count = sum(f.item.kind == "crlf" for f in fields)
+        self.competitor_possible = not (fmt == "ascii" and fields[-1].item.kind == "crlf"
+                                        and crlf_count == 1)
 
     def _item_size(self, item: Item) -> int:
         if item.kind == "space":
@@ -534,18 +539,58 @@ def decode_candidates(layout: RecordLayout, rec: np.ndarray, scale_m: float,
     return sub_ok, position, q, stylus
 
 
-def _greedy(starts: np.ndarray, length: int) -> np.ndarray:
-    """Bool mask over sorted valid ``starts``: kept unless inside an earlier accepted record."""
-    keep = np.ones(starts.shape[0], dtype=bool)
-    if starts.size < 2 or (np.diff(starts) >= length).all():
-        return keep
+def _select(valid: np.ndarray, length: int, size: int, final: bool,
+            header: np.ndarray | None) -> tuple[np.ndarray, int | None]:
+    """Choose records among sorted valid starts, as the one-byte-at-a-time scanner would.
+
+    A valid start is taken unless it lies inside the record taken before it. When another valid
+    start ``w`` lies inside its span (binary layouts only: a record cut short followed by the
+    next record's header can pass every check), the start whose following bytes begin a record
+    header wins, i.e. the one that keeps the stream in step. Deciding that needs the bytes up to
+    two records ahead, so a non-final scan stops there and waits for them.
+
+    Args:
+        valid: sorted offsets of valid records.
+        length: record length, bytes.
+        size: bytes in the buffer.
+        final: no more bytes will come.
+        header: per offset, whether 3 header-like bytes start there (None: no competition
+            possible for this layout).
+
+    Returns:
+        (keep mask over ``valid``, offset to resume from when waiting, else None).
+    """
+    keep = np.ones(valid.size, dtype=bool)
+    inside = None
+    if header is not None and valid.size:
+        m = header.size
+        counts = np.concatenate([[0], np.cumsum(header)])
+        inside = counts[np.minimum(valid + length, m)] - counts[np.minimum(valid + 1, m)]
+        if not inside.any():
+            inside = None
+    if inside is None and (valid.size < 2 or (np.diff(valid) >= length).all()):
+        return keep, None
+    if inside is not None:
+        m = header.size
+        after = valid + length
+        confirmed = (after < m) & header[np.minimum(after, m - 1)]
+        confirmed_starts = valid[confirmed]
     nxt = -1
-    for i, s in enumerate(starts.tolist()):
-        if s >= nxt:
-            nxt = s + length
-        else:
+    for i, v in enumerate(valid.tolist()):
+        if v < nxt:
             keep[i] = False
-    return keep
+            continue
+        if inside is not None and inside[i] > 0:
+            if not final and v + 2 * length + 2 > size:
+                keep[i:] = False
+                return keep, v
+            if not confirmed[i]:
+                j = int(np.searchsorted(confirmed_starts, v, side="right"))
+                if j < confirmed_starts.size and confirmed_starts[j] < v + length:
+                    keep[i] = False
+                    continue
+        nxt = v + length
+    return keep, None
 
 
 def scan(data, layout: RecordLayout, units: str, stations=(1, 2, 3, 4), *, final: bool = False,
@@ -566,21 +611,26 @@ def scan(data, layout: RecordLayout, units: str, stations=(1, 2, 3, 4), *, final
         A :class:`ScanResult`; records carry byte offsets relative to ``data``.
     """
     buf = np.frombuffer(data, dtype=np.uint8) if not isinstance(data, np.ndarray) else data
+    size = buf.shape[0]
     length = layout.length
-    n = buf.shape[0] - length + 1
+    n = size - length + 1
     if n <= 0:
-        consumed = buf.shape[0] if final else 0
+        consumed = size if final else 0
         return ScanResult(RecordBatch.empty(), consumed, consumed)
     table = station_table(stations) if station_ok is None else station_ok
-    mask = (buf[:n] == 0x30) & table[buf[1:n + 1]] & _STATUS_OK[buf[2:n + 2]]
+    m = size - 2
+    header = (buf[:m] == 0x30) & table[buf[1:m + 1]] & _STATUS_OK[buf[2:m + 2]]
+    mask = header[:n].copy()
     for off, byte in layout.literals[1:]:
         mask &= buf[off:off + n] == byte
     cand = np.flatnonzero(mask)
+    stop = None
     if cand.size:
         rec = buf[cand[:, None] + np.arange(length)]
         ok, pos, q, stylus = decode_candidates(layout, rec, UNIT_SCALE_M[units], plaus)
         valid = cand[ok]
-        keep = _greedy(valid, length)
+        keep, stop = _select(valid, length, size, final,
+                             header if layout.competitor_possible else None)
         starts = valid[keep]
         idx = np.flatnonzero(ok)[keep]
         batch = RecordBatch(
@@ -590,7 +640,12 @@ def scan(data, layout: RecordLayout, units: str, stations=(1, 2, 3, 4), *, final
     else:
         batch = RecordBatch.empty()
     end_last = int(batch.offset[-1]) + length if len(batch) else 0
-    consumed = buf.shape[0] if final else max(end_last, n)
+    if final:
+        consumed = size
+    elif stop is not None:
+        consumed = stop
+    else:
+        consumed = max(end_last, n)
     return ScanResult(batch, consumed, consumed - len(batch) * length)
 
 
