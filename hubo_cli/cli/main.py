@@ -14,6 +14,8 @@ from hubo_cli.errors import HuboError
 COMMANDS = {
     "fk": "hubo_cli.cli.kinematics:fk",
     "ik": "hubo_cli.cli.kinematics:ik",
+    "fastrak": "hubo_cli.cli.fastrak:fastrak",
+    "record": "hubo_cli.cli.fastrak:record",
     "workspace-map": "hubo_cli.cli.workspace:workspace_map",
 }
 
