@@ -244,3 +244,15 @@ def test_best_stance_caches_and_fits_requested_holes(tmp_path, monkeypatch):
     assert hole.rectangle.z_min_m <= c.z_min_m and c.z_max_m <= hole.rectangle.z_max_m
     too_big = best_stance(size_m=(0.8, 0.5), resolution_m=0.01)
     assert not too_big.fits and too_big.cut is None
+
+
+def test_pinned_height_and_distance():
+    # the paper's height with the team's limits: the best distance is the paper's 484 mm
+    at_height = compute_map(limits="team-code", resolution_m=0.002, x_range_m=(0.44, 0.52),
+                            z_range_m=(0.0746, 0.0746))
+    assert at_height.grid.z_m.tolist() == [0.0746]
+    assert at_height.widest.z_m == pytest.approx(0.0746)
+    assert at_height.widest.wall_distance_m == pytest.approx(0.483, abs=0.003)
+    at_distance = compute_map(limits="team-code", resolution_m=0.002, x_range_m=(0.484, 0.484))
+    assert at_distance.widest.wall_distance_m == pytest.approx(0.484)
+    assert at_distance.widest.width_m > 0.390

@@ -37,10 +37,13 @@ def _print_map(wmap, paper_pts) -> None:
     out(f"  segment y {w.y_min_m * mm:+.1f} .. {w.y_max_m * mm:+.1f} mm, IK branch {w.branch}")
     out(f"  joints at min y   {fmt_q(w.q_min_rad)} rad")
     out(f"  joints at max y   {fmt_q(w.q_max_rad)} rad")
-    out(f"  largest rectangle {r.width_m * mm:.0f} x {r.height_m * mm:.0f} mm at x = "
-        f"{r.wall_distance_m * mm:.0f} mm")
-    out(f"    y {r.y_min_m * mm:+.0f} .. {r.y_max_m * mm:+.0f} mm, "
-        f"z {r.z_min_m * mm:+.0f} .. {r.z_max_m * mm:+.0f} mm, IK branch {r.branch}")
+    if r.area_m2 > 0:
+        out(f"  largest rectangle {r.width_m * mm:.0f} x {r.height_m * mm:.0f} mm at x = "
+            f"{r.wall_distance_m * mm:.0f} mm")
+        out(f"    y {r.y_min_m * mm:+.0f} .. {r.y_max_m * mm:+.0f} mm, "
+            f"z {r.z_min_m * mm:+.0f} .. {r.z_max_m * mm:+.0f} mm, IK branch {r.branch}")
+    else:
+        out("  largest rectangle: none with an area (one height or distance was mapped)")
     for name, p in zip(("far right", "far left"), paper_pts, strict=False):
         x, y, z = p["position_mm"]
         state = (f"reachable (branch {', '.join(map(str, p['branches']))})" if p["reachable"]
@@ -63,14 +66,17 @@ def _print_map(wmap, paper_pts) -> None:
 @click.option("--resolution", type=float, default=5.0, show_default=True, metavar="MM",
               help="Grid step in x, y and z (mm).")
 @click.option("--x-range", nargs=2, type=float, default=(300.0, 650.0), show_default=True,
-              metavar="A B", help="Wall distances from the neck to search (mm).")
+              metavar="A B", help="Wall distances from the neck to search (mm); A A for one.")
+@click.option("--z-range", nargs=2, type=float, default=None, metavar="A B",
+              help="Heights above the neck to search (mm); A A pins the segment to one height. "
+                   "Default: every height the arm reaches.")
 @click.option("--no-refine", is_flag=True,
               help="Report the grid's answer only (skip the sub-millimetre zoom).")
 @click.option("--out", type=click.Path(file_okay=False), default=None,
               help="Run folder (default runs/<time>-workspace-map).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
-def workspace_map(arm, tool, orientation, params, limits, resolution, x_range, no_refine, out,
-                  as_json) -> None:
+def workspace_map(arm, tool, orientation, params, limits, resolution, x_range, z_range,
+                  no_refine, out, as_json) -> None:
     """Map where the tool reaches at a fixed orientation; find the best wall distance.
 
     For every wall distance x, finds the widest horizontal segment reachable on one IK branch
@@ -97,7 +103,9 @@ def workspace_map(arm, tool, orientation, params, limits, resolution, x_range, n
         for name in arms:
             maps.append(compute_map(name, tool, orientation, params, limits, resolution / 1000.0,
                                     (x_range[0] / 1000.0, x_range[1] / 1000.0),
-                                    refine=not no_refine, progress=progress))
+                                    refine=not no_refine, progress=progress,
+                                    z_range_m=z_range and (z_range[0] / 1000.0,
+                                                           z_range[1] / 1000.0)))
     seconds = time.perf_counter() - t0
     run = make_run_dir("workspace-map", out)
     data = summary(maps, seconds)

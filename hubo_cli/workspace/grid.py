@@ -91,24 +91,36 @@ class Grid:
         return len(self.x_m) * len(self.y_m) * len(self.z_m)
 
 
+def _axis(lo_m: float, hi_m: float, step_m: float) -> np.ndarray:
+    """Grid values for a requested range: the lattice points inside it, or the range's single
+    value when it is one value (lo == hi), so a study can be pinned to one distance or height."""
+    lo_m, hi_m = sorted((lo_m, hi_m))
+    if hi_m - lo_m < 1e-9:
+        return np.array([lo_m])
+    return _lattice(lo_m, hi_m, step_m)
+
+
 def make_grid(sphere: ReachSphere, resolution_m: float = 0.005,
-              x_range_m: tuple[float, float] = (0.30, 0.65)) -> Grid:
+              x_range_m: tuple[float, float] = (0.30, 0.65),
+              z_range_m: tuple[float, float] | None = None) -> Grid:
     """A grid over the wall distances ``x_range_m`` and the y-z box of the reach sphere.
 
     Args:
         sphere: where the tool point can be at all (:func:`reach_sphere`).
         resolution_m: grid step in all three axes (m).
-        x_range_m: first and last wall distance from the neck (m).
+        x_range_m: first and last wall distance from the neck (m); one value (A, A) maps that
+            distance only.
+        z_range_m: heights to map (m); default the whole reach sphere; (A, A) maps one height.
     """
     if not resolution_m > 0:
         raise InputError(f"resolution must be positive, got {resolution_m * 1000:g} mm",
                          hint="pass --resolution 5 (mm)")
-    lo, hi = sorted(x_range_m)
-    x = _lattice(lo, hi, resolution_m)
-    if len(x) == 0:
-        raise InputError(f"no grid point between {lo * 1000:g} and {hi * 1000:g} mm",
-                         hint="widen --x-range or make --resolution smaller")
+    x = _axis(*x_range_m, resolution_m)
     c, r = sphere.centre_m, sphere.radius_m
+    z = _axis(*z_range_m, resolution_m) if z_range_m else _lattice(c[2] - r, c[2] + r,
+                                                                     resolution_m)
+    if len(x) == 0 or len(z) == 0:
+        raise InputError("no grid point in the requested range",
+                         hint="widen --x-range / --z-range or make --resolution smaller")
     y = _lattice(c[1] - r, c[1] + r, resolution_m)
-    z = _lattice(c[2] - r, c[2] + r, resolution_m)
     return Grid(x, y, z, float(resolution_m))

@@ -196,7 +196,8 @@ def compute_map(arm: str = "right", tool: str = "drill", orientation: str = "wal
                 params: str = "as-built", limits: str = "table4",
                 resolution_m: float = DEFAULT_RESOLUTION_M,
                 x_range_m: tuple[float, float] = DEFAULT_X_RANGE_M, refine: bool = True,
-                progress: Progress | None = None, cache: bool = False) -> WorkspaceMap:
+                progress: Progress | None = None, cache: bool = False,
+                z_range_m: tuple[float, float] | None = None) -> WorkspaceMap:
     """Map one arm's tool workspace at a fixed orientation and search it.
 
     Args:
@@ -206,11 +207,13 @@ def compute_map(arm: str = "right", tool: str = "drill", orientation: str = "wal
         orientation: ``wall`` (tool x straight forward) or ``"roll,pitch,yaw"`` in degrees.
         params, limits: model parameter set and joint-limit set.
         resolution_m: grid step (m), the same in x, y and z.
-        x_range_m: first and last wall distance from the neck (m).
+        x_range_m: first and last wall distance from the neck (m); (A, A) for one distance.
         refine: zoom in on the widest segment for sub-millimetre numbers (see :mod:`.refine`).
         progress: called as ``progress(stage, done, total)`` while computing.
         cache: reuse (or store) the branch masks in the user's cache folder
             (:mod:`hubo_cli.workspace.cache`).
+        z_range_m: heights to consider (m); default all the arm can reach; (A, A) pins the
+            segment to one height.
 
     Returns:
         a :class:`WorkspaceMap`. Raises :class:`InputError` if no grid point is reachable.
@@ -220,7 +223,7 @@ def compute_map(arm: str = "right", tool: str = "drill", orientation: str = "wal
     limb = arm_limb(arm, tool, params, limits)
     R = orientation_matrix(orientation)
     sphere = reach_sphere(limb, R)
-    grid = make_grid(sphere, resolution_m, x_range_m)
+    grid = make_grid(sphere, resolution_m, x_range_m, z_range_m)
     reach = BranchReach(limb, R, sphere)
     key = cache_key(limb, R, grid) if cache else None
     masks = load_masks(key, grid.shape) if cache else None
@@ -241,7 +244,9 @@ def compute_map(arm: str = "right", tool: str = "drill", orientation: str = "wal
             progress(f"{arm} arm: refining", 0, 1)
         seg = result.widest_grid
         x, z, y0, y1 = refine_widest(reach, seg.wall_distance_m, seg.z_m, seg.branch,
-                                     resolution_m, (grid.y_m[0], grid.y_m[-1]))
+                                     resolution_m, (grid.y_m[0], grid.y_m[-1]),
+                                     x_bounds_m=(grid.x_m[0], grid.x_m[-1]),
+                                     z_bounds_m=(grid.z_m[0], grid.z_m[-1]))
         result.widest = result._segment(x, z, y0, y1, seg.branch)
         if progress is not None:
             progress(f"{arm} arm: refining", 1, 1)

@@ -38,8 +38,10 @@ def _bisect_edge(reach: BranchReach, inside_m: np.ndarray, outside_m: np.ndarray
 
 
 def refine_widest(reach: BranchReach, x_m: float, z_m: float, branch: int, step_m: float,
-                  y_bounds_m: tuple[float, float], levels: int = 2,
-                  factor: int = 5) -> tuple[float, float, float, float]:
+                  y_bounds_m: tuple[float, float], levels: int = 2, factor: int = 5,
+                  x_bounds_m: tuple[float, float] = (-np.inf, np.inf),
+                  z_bounds_m: tuple[float, float] = (-np.inf, np.inf),
+                  ) -> tuple[float, float, float, float]:
     """Zoom in on the widest row of one branch near (x_m, z_m).
 
     Args:
@@ -49,6 +51,7 @@ def refine_widest(reach: BranchReach, x_m: float, z_m: float, branch: int, step_
         step_m: the grid's resolution (m).
         y_bounds_m: the y range to scan (m).
         levels, factor: number of zoom levels and the step ratio between levels.
+        x_bounds_m, z_bounds_m: the search stays within these (m).
 
     Returns:
         (x_m, z_m, y_min_m, y_max_m) of the widest row found, ends bisected.
@@ -62,12 +65,13 @@ def refine_widest(reach: BranchReach, x_m: float, z_m: float, branch: int, step_
         step_m /= factor
         ys = _lattice(y_bounds_m[0], y_bounds_m[1], step_m)
         for _ in range(MAX_MOVES):  # climb: move the window while its best row is on its edge
-            xs = x_m + offsets * step_m
-            zs = z_m + offsets * step_m
+            xs = np.clip(x_m + offsets * step_m, *x_bounds_m)
+            zs = np.clip(z_m + offsets * step_m, *z_bounds_m)
             masks = reach.grid(Grid(xs, ys, zs, step_m), chunk=len(xs))
             length, start = longest_runs(masks)
             runs = length[:, :, branch].astype(np.int64)
-            # the longest run; ties go to the candidate nearest the window's centre
+            # the longest run; ties go to the candidate nearest the window's centre (clipped
+            # duplicates at a bound tie with each other, and the nearest one wins)
             ix, iz = np.unravel_index(np.argmax(runs * 1000 - centre_dist), runs.shape)
             if runs[ix, iz] == 0:
                 break
