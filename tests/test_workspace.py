@@ -256,3 +256,16 @@ def test_pinned_height_and_distance():
     at_distance = compute_map(limits="team-code", resolution_m=0.002, x_range_m=(0.484, 0.484))
     assert at_distance.widest.wall_distance_m == pytest.approx(0.484)
     assert at_distance.widest.width_m > 0.390
+
+
+def test_best_stance_with_the_legs_uses_the_widest_segment(tmp_path, monkeypatch):
+    monkeypatch.setenv("HUBO_CACHE_DIR", str(tmp_path))
+    wmap = compute_map(resolution_m=0.01, refine=False)
+    legs = best_stance(resolution_m=0.01, vertical="legs", size_m=(0.30, 0.20))
+    seg = wmap.widest_grid
+    assert legs.fits and legs.wall_distance_m == pytest.approx(seg.wall_distance_m)
+    assert legs.rectangle.height_m == 0 and legs.rectangle.width_m == pytest.approx(seg.width_m)
+    assert legs.cut.width_m == pytest.approx(0.30) and legs.cut.height_m == pytest.approx(0.20)
+    assert not best_stance(resolution_m=0.01, vertical="legs", size_m=(0.9, 0.1)).fits
+    with pytest.raises(InputError):
+        best_stance(resolution_m=0.01, vertical="hover")

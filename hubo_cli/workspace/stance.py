@@ -5,8 +5,15 @@ stand, and which rectangle of the wall can the tool then reach on one IK branch"
 requested size it returns the stance with the largest reachable rectangle (area). With a
 requested size it returns the stance where that size fits with the most room: the largest
 rectangle of the requested aspect ratio that is reachable, with the requested hole centred in
-it. The branch masks are cached on disk (:mod:`hubo_cli.workspace.cache`), so after the first
-call for a parameter set an answer takes milliseconds.
+it.
+
+``vertical="legs"`` follows the paper's own reasoning (IV, III-A): the legs raise and lower the
+body, so the arm only has to sweep horizontally at one height. The stance is then the one with
+the widest one-branch horizontal segment, ``rectangle`` is that segment (zero height) and the
+requested hole is centred on it; its vertical extent is the legs' job.
+
+The branch masks are cached on disk (:mod:`hubo_cli.workspace.cache`), so after the first call
+for a parameter set an answer takes milliseconds.
 """
 
 from __future__ import annotations
@@ -41,6 +48,8 @@ class StanceResult:
             when it fits nowhere).
         fits: False when a size was asked for and no stance reaches it (``rectangle`` is then
             the largest rectangle of any shape).
+        vertical: ``arm`` (the arm reaches the whole hole) or ``legs`` (the arm sweeps one
+            height; the legs move the body for the rest).
         arm, tool, params, limits, orientation, resolution_m: what was asked.
     """
 
@@ -48,6 +57,7 @@ class StanceResult:
     rectangle: Rectangle
     cut: Rectangle | None
     fits: bool
+    vertical: str
     arm: str
     tool: str
     params: str
@@ -121,7 +131,7 @@ def best_stance(tool: str = "drill", arm: str = "right", size_m: tuple[float, fl
                 params: str = "as-built", limits: str = "table4", orientation: str = "wall",
                 resolution_m: float = DEFAULT_RESOLUTION_M,
                 x_range_m: tuple[float, float] = DEFAULT_X_RANGE_M,
-                cache: bool = True) -> StanceResult:
+                cache: bool = True, vertical: str = "arm") -> StanceResult:
     """The stance distance from which the tool reaches the largest rectangle of the wall.
 
     Args:
@@ -134,6 +144,8 @@ def best_stance(tool: str = "drill", arm: str = "right", size_m: tuple[float, fl
             reachable.
         x_range_m: the wall distances considered (m).
         cache: keep the underlying map's masks in the user's cache folder.
+        vertical: ``arm`` (the whole hole within the arm's reach) or ``legs`` (the arm sweeps
+            one height, the legs move the body up and down; see the module docstring).
 
     Returns:
         a :class:`StanceResult` (``fits`` False when a requested size is reachable nowhere).
@@ -141,10 +153,14 @@ def best_stance(tool: str = "drill", arm: str = "right", size_m: tuple[float, fl
     if size_m is not None and not (size_m[0] > 0 and size_m[1] > 0):
         raise InputError(f"hole size must be positive, got {size_m}",
                          hint="give width and height in metres, e.g. (0.15, 0.10)")
+    if vertical not in ("arm", "legs"):
+        raise InputError(f"unknown vertical mode {vertical!r}", hint="use 'arm' or 'legs'")
     wmap = compute_map(arm, tool, orientation, params, limits, resolution_m, x_range_m,
                        refine=False, cache=cache)
-    common = dict(arm=arm, tool=tool, params=params, limits=limits, orientation=orientation,
-                  resolution_m=resolution_m)
+    common = dict(vertical=vertical, arm=arm, tool=tool, params=params, limits=limits,
+                  orientation=orientation, resolution_m=resolution_m)
+    if vertical == "legs":
+        return _legs_stance(wmap, size_m, common)
     if size_m is not None:
         found = _fit_size(wmap, size_m)
         if found is not None:
@@ -174,3 +190,20 @@ def _fit_size(wmap: WorkspaceMap,
     _, yc, zc = rect.centre_m
     cut = Rectangle(x, yc - width_m / 2, yc + width_m / 2, zc - height_m / 2, zc + height_m / 2, b)
     return rect, cut
+
+
+def _legs_stance(wmap: WorkspaceMap, size_m: tuple[float, float] | None,
+                 common: dict) -> StanceResult:
+    """Stance by the widest one-branch segment; the hole is centred on it."""
+    seg = wmap.widest_grid
+    line = Rectangle(seg.wall_distance_m, seg.y_min_m, seg.y_max_m, seg.z_m, seg.z_m,
+                     seg.branch)
+    if size_m is None:
+        return StanceResult(seg.wall_distance_m, line, None, True, **common)
+    width_m, height_m = size_m
+    if width_m > seg.width_m + 1e-9:
+        return StanceResult(seg.wall_distance_m, line, None, False, **common)
+    yc = 0.5 * (seg.y_min_m + seg.y_max_m)
+    cut = Rectangle(seg.wall_distance_m, yc - width_m / 2, yc + width_m / 2,
+                    seg.z_m - height_m / 2, seg.z_m + height_m / 2, seg.branch)
+    return StanceResult(seg.wall_distance_m, line, cut, True, **common)
