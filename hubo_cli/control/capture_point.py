@@ -151,7 +151,8 @@ class CapturePointMonitor(Module):
         request_estop: request an emergency stop when the CP leaves the polygon.
 
     Attributes after each update: ``com_m`` (3,), ``cp_m`` (2,), ``cp_ref_m`` (2,),
-    ``outside_m`` (CP beyond the shrunk polygon, m; > 0 = flag), ``support_box_m``
+    ``outside_m`` (CP beyond the shrunk polygon, m; > 0 = flag), ``ground_z_m`` (lowest sole
+    in contact), ``support_box_m``
     (min x, max x, min y, max y of the shrunk polygon), ``flag``.
     """
 
@@ -181,6 +182,7 @@ class CapturePointMonitor(Module):
         self.cp_m = np.zeros(2)
         self.cp_ref_m = np.zeros(2)
         self.outside_m = -np.inf
+        self.ground_z_m = 0.0
         self.support_box_m = np.zeros(4)
         self.flag = False
 
@@ -227,6 +229,7 @@ class CapturePointMonitor(Module):
                                      self._corners, com, self.velocity_m_s, self.margin_m,
                                      GRAVITY_M_S2, self.cp_m, self.support_box_m)
         self.outside_m = outside
+        self.ground_z_m = ground_z
         self.flag = bool(outside > 0.0)
         return self.flag
 

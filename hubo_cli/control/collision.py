@@ -11,7 +11,8 @@ forearm that hold it. Measured on the 2-core development machine: one check of t
 ``getClosestPoints`` in a DIRECT client, so pinocchio is used.
 
 Each period the input command is checked where it would stop if it braked now (its position
-plus v|v| / 2a per joint), so the hold can start early enough to stay clear. A pair closer than
+plus the jerk-limited braking distance of its velocity and acceleration, per joint), so the hold
+can start early enough to stay clear. A pair closer than
 ``tolerance_m`` is a collision: the output goes back to the last safe input (jerk-limited,
 within the joint limits) and holds; once the input is clear again it recovers toward the live
 input, arriving no sooner than ``recover_s`` (2.5 s).
@@ -25,10 +26,11 @@ import coal
 import numpy as np
 import pinocchio as pin
 
-from hubo_cli.control.limits import JointLimits
+from hubo_cli.control.limits import JointLimits, braking_distance
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.otg import JointTracker
 from hubo_cli.control.pin_robot import PinRobot, load_pin_robot
+from hubo_cli.control.status import SafetyEvent
 from hubo_cli.drivers.base import RobotState
 from hubo_cli.model import RobotModel
 from hubo_cli.urdf import DRILL_BIT_RADIUS_M, DRILL_BODY_LENGTH_M, DRILL_BODY_RADIUS_M, DRILL_FRAME
@@ -153,7 +155,7 @@ class CollisionDetector(Module):
         self.recover_s = float(recover_s)
         self.checker = SelfCollisionChecker(model, drill=drill)
         self.tracker = JointTracker(self.limits, self.dt_s)
-        self.events: list = []
+        self.events: list[SafetyEvent] = []
         self.last_clearance: Clearance | None = None
         self._clear_state(np.zeros(self.limits.size))
 
@@ -162,6 +164,7 @@ class CollisionDetector(Module):
         self.safe_rad = q.copy()
         self.hold_rad = q.copy()
         self.last_in = q.copy()
+        self._w_last = np.zeros_like(q)
         self.out1 = q.copy()
         self.out2 = q.copy()
         self.out3 = q.copy()
@@ -181,9 +184,10 @@ class CollisionDetector(Module):
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         q_in = np.where(np.isfinite(q_rad), q_rad, self.last_in)
         w_in = (q_in - self.last_in) / self.dt_s
+        dw_in = (w_in - self._w_last) / self.dt_s
         self.last_in = q_in
-        ahead = self.limits.clip(q_in + w_in * np.abs(w_in)
-                                 / (2 * self.limits.acceleration_rad_s2))
+        self._w_last = w_in
+        ahead = self.limits.clip(q_in + braking_distance(w_in, dw_in, self.limits))
         clearance = self.checker.check(ahead)
         self.last_clearance = clearance
         cycle.info["collision_distance_m"] = clearance.distance_m
@@ -192,7 +196,7 @@ class CollisionDetector(Module):
             self._seed_tracker()
             self.hold_rad = self.safe_rad.copy() if self.mode == "safe" else self.out1.copy()
             self.mode = "hold"
-            self.events.append((cycle.t_s, "collision", clearance.pair))
+            self.events.append(SafetyEvent(cycle.t_s, "collision", clearance.pair))
         elif not colliding and self.mode == "hold":
             self.mode = "recover"
             self.t_recover_end_s = cycle.t_s + self.recover_s

@@ -28,13 +28,13 @@ balance and collision layers.
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass
 
 import numpy as np
 
 from hubo_cli.control.limits import JointLimits
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.otg import JointTracker
+from hubo_cli.control.status import SafetyEvent
 from hubo_cli.drivers.base import RobotState
 from hubo_cli.model import RobotModel
 
@@ -45,15 +45,6 @@ WRIST_SENSORS = ("right-wrist", "left-wrist")
 
 MODES = ("release", "stop", "hold", "recover")
 MODE_CODE = {name: i for i, name in enumerate(MODES)}
-
-
-@dataclass
-class StopEvent:
-    """One latch or release of a stopper: time (s), kind (``stop``/``release``), sources."""
-
-    t_s: float
-    kind: str
-    sources: tuple[str, ...]
 
 
 class EmergencyStopper(Module):
@@ -70,7 +61,7 @@ class EmergencyStopper(Module):
         limits: override the model's limits (tests).
 
     Flags: ``estop`` while stopping or holding, ``recovering`` while blending back.
-    Info: ``<name>_mode`` (0 release, 1 stop, 2 hold, 3 recover), ``wrist_torque_nm``.
+    Info: ``<name>_mode_code`` (0 release, 1 stop, 2 hold, 3 recover), ``wrist_torque_nm``.
     """
 
     def __init__(self, model: RobotModel, dt_s: float, revert_s: float = 0.5,
@@ -86,12 +77,12 @@ class EmergencyStopper(Module):
         self.sources = frozenset(sources)
         self.wrist_torque_limit_nm = float(model.safety.get("wrist_torque_limit_nm", np.inf))
         self._key = name.replace("-", "_")
-        self.log_columns = (f"{self._key}_mode",)
+        self.log_columns = (f"{self._key}_mode_code",)
         if "wrist-torque" in self.sources:
             self.log_columns += ("wrist_torque_nm",)
         self.tracker = JointTracker(self.limits, self.dt_s)
         self._history_len = max(1, int(round(self.revert_s / self.dt_s))) + 1
-        self.events: list[StopEvent] = []
+        self.events: list[SafetyEvent] = []
         self._clear(np.zeros(self.limits.size))
 
     @classmethod
@@ -164,7 +155,7 @@ class EmergencyStopper(Module):
         recovering = self.mode == "recover"
         self.tracker.reset(*self._output_state())
         self.t_emer_s = t_s
-        self.events.append(StopEvent(t_s, "stop", tuple(sorted(sources))))
+        self.events.append(SafetyEvent(t_s, "stop", tuple(sorted(sources))))
         self.mode = "stop"
         # while blending back, the input of T1 ago may be far from the output: stop in place
         self._brake_only = self.is_freeze or recovering
@@ -181,7 +172,7 @@ class EmergencyStopper(Module):
         elif self._release and self.mode in ("stop", "hold"):
             self.mode = "recover"
             self.t_recover_end_s = cycle.t_s + self.recover_s
-            self.events.append(StopEvent(cycle.t_s, "release", ()))
+            self.events.append(SafetyEvent(cycle.t_s, "release", ()))
         self._release = False
 
         if self.mode == "release":
@@ -212,7 +203,7 @@ class EmergencyStopper(Module):
             cycle.flags.add("estop")
         elif self.mode == "recover":
             cycle.flags.add("recovering")
-        cycle.info[f"{self._key}_mode"] = float(MODE_CODE[self.mode])
+        cycle.info[f"{self._key}_mode_code"] = float(MODE_CODE[self.mode])
         out = np.array(out, dtype=float)
         self.out3, self.out2, self.out1 = self.out2, self.out1, out
         return out

@@ -3,7 +3,8 @@
 Per joint and per period it picks the command's velocity v = (q - q_prev) / dt inside bands
 applied in this order, a later band winning if two cannot both hold:
 
-1. tracking error: |q - q_measured| <= 0.18 rad (hrpsys; just below the 0.2 rad servo-off limit);
+1. tracking error: |q - q_measured| <= 0.18 rad (hrpsys; just below the 0.2 rad servo-off limit),
+   approached like a position limit (see 4) and never widened once exceeded;
 2. acceleration: |v - v_prev| <= a_max dt;
 3. velocity: |v| <= v_max;
 4. position: the command may approach a limit only as fast as it can still brake before it
@@ -39,7 +40,7 @@ def _clip(x: float, lo: float, hi: float) -> float:
 
 @nb.njit(cache=True, nogil=True)
 def limit_step(q_want, w_want, q1, q2, lower, upper, vmax, amax, dt, q_meas, error_limit, out,
-               mask):
+               mask, catching):
     """One limiter period for every joint (numba).
 
     Args:
@@ -53,6 +54,7 @@ def limit_step(q_want, w_want, q1, q2, lower, upper, vmax, amax, dt, q_meas, err
         error_limit: tracking-error limit (rad); <= 0 disables it.
         out: the limited command (rad), written.
         mask: per-joint CLAMP_* bits, written.
+        catching: per-joint "still catching up after a clamp" (bool), read and written.
     """
     for i in range(q_want.shape[0]):
         target = q_want[i]
@@ -66,16 +68,17 @@ def limit_step(q_want, w_want, q1, q2, lower, upper, vmax, amax, dt, q_meas, err
         pos_hi = brake_speed(upper[i] - q1[i], amax[i], dt)
         use_err = error_limit > 0.0 and np.isfinite(q_meas[i])
         err_lo, err_hi = -np.inf, np.inf
-        if use_err:
-            err_lo = (q_meas[i] - error_limit - q1[i]) / dt
-            err_hi = (q_meas[i] + error_limit - q1[i]) / dt
+        if use_err:  # a band around the measured position, approached like a limit
+            err_lo = -brake_speed(q1[i] - (q_meas[i] - error_limit), amax[i], dt)
+            err_hi = brake_speed(q_meas[i] + error_limit - q1[i], amax[i], dt)
         lo = max(max(acc_lo, -vmax[i]), max(pos_lo, err_lo))
         hi = min(min(acc_hi, vmax[i]), min(pos_hi, err_hi))
         bits = 0
         v = v_want
         slack = 1e-9 * vmax[i]
-        if v_want < lo - slack or v_want > hi + slack:
-            # clamped: aim to stop on the (moving) target rather than run through it
+        clamped = v_want < lo - slack or v_want > hi + slack
+        if clamped or catching[i]:
+            # catching up after a clamp: aim to stop on the (moving) target, not run through it
             w = w_want[i]
             v = _clip(v_want, w - brake_speed(q1[i] - target, amax[i], dt),
                       w + brake_speed(target - q1[i], amax[i], dt))
@@ -90,12 +93,13 @@ def limit_step(q_want, w_want, q1, q2, lower, upper, vmax, amax, dt, q_meas, err
                 bits |= CLAMP_RATE
             v2 = v
             v = _clip(v, pos_lo, pos_hi)
-            if v != v2 or (v_want > pos_hi or v_want < pos_lo):
+            if v != v2 or (clamped and (v_want > pos_hi or v_want < pos_lo)):
                 bits |= CLAMP_POSITION
-            if bits == 0:
+            if bits == 0 and v != v_want:
                 bits = CLAMP_RATE
         out[i] = q1[i] + v * dt
         mask[i] = bits
+        catching[i] = (clamped or catching[i]) and abs(out[i] - target) > 1e-12
 
 
 class SoftErrorLimiter(Module):
@@ -108,11 +112,11 @@ class SoftErrorLimiter(Module):
         limits: override the model's limits (tests).
 
     Flags: ``joint-limit`` (position band clamped), ``slowing`` (velocity or acceleration band),
-    ``tracking-error``. Info: ``limiter_clamped`` (number of joints clamped).
+    ``tracking-error``. Info: ``limiter_clamped_count`` (number of joints clamped).
     """
 
     name = "limiter"
-    log_columns = ("limiter_clamped",)
+    log_columns = ("limiter_clamped_count",)
 
     def __init__(self, model: RobotModel, dt_s: float,
                  error_limit_rad: float = TRACKING_ERROR_LIMIT_RAD,
@@ -125,6 +129,7 @@ class SoftErrorLimiter(Module):
         self.q2 = np.zeros(n)
         self._out = np.zeros(n)
         self._mask = np.zeros(n, dtype=np.int64)
+        self._catching = np.zeros(n, dtype=np.bool_)
         self._nan = np.full(n, np.nan)
         self._want_prev = np.zeros(n)
 
@@ -133,12 +138,14 @@ class SoftErrorLimiter(Module):
         self.q1 = np.array(q, dtype=float)
         self.q2 = self.q1.copy()
         self._want_prev = self.q1.copy()
+        self._catching[:] = False
 
     def seed(self, q1_rad: np.ndarray, q2_rad: np.ndarray) -> None:
         """Continue from the last two commands ``q1_rad`` (newest) and ``q2_rad`` (rad)."""
         self.q1 = np.array(q1_rad, dtype=float)
         self.q2 = np.array(q2_rad, dtype=float)
         self._want_prev = self.q1.copy()
+        self._catching[:] = False
 
     def step(self, q_want: np.ndarray, q_meas: np.ndarray | None = None) -> np.ndarray:
         """Limit one command (rad) against the previous two; returns a new array."""
@@ -150,7 +157,7 @@ class SoftErrorLimiter(Module):
         out = np.empty_like(self.q1)
         limit_step(want, w_want, self.q1, self.q2, lim.lower_rad, lim.upper_rad,
                    lim.velocity_rad_s, lim.acceleration_rad_s2, self.dt_s, meas,
-                   self.error_limit_rad, out, self._mask)
+                   self.error_limit_rad, out, self._mask, self._catching)
         self._want_prev = want.copy()
         self.q2 = self.q1
         self.q1 = out
@@ -171,5 +178,5 @@ class SoftErrorLimiter(Module):
                 cycle.flags.add("slowing")
             if (mask & CLAMP_TRACKING).any():
                 cycle.flags.add("tracking-error")
-        cycle.info["limiter_clamped"] = float(np.count_nonzero(mask))
+        cycle.info["limiter_clamped_count"] = float(np.count_nonzero(mask))
         return out

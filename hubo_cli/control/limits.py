@@ -54,3 +54,22 @@ def brake_speed(room_rad: float, accel_rad_s2: float, dt_s: float) -> float:
     if room_rad <= 0.5 * accel_rad_s2 * dt_s * dt_s:
         return room_rad / dt_s
     return math.sqrt(2.0 * accel_rad_s2 * room_rad) - 0.5 * accel_rad_s2 * dt_s
+
+
+def braking_distance(v_rad_s: np.ndarray, a_rad_s2: np.ndarray, limits: JointLimits) -> np.ndarray:
+    """Signed distance (rad) a jerk-limited brake from velocity v and acceleration a covers.
+
+    First the acceleration along the motion is ramped to zero at the jerk limit (the speed still
+    grows by a^2 / 2j), then a symmetric stop at the acceleration and jerk limits follows:
+    v^2 / 2a_max + v a_max / 2j when the acceleration limit is reached, v sqrt(v / j) when not.
+    """
+    amax, jmax = limits.acceleration_rad_s2, limits.jerk_rad_s3
+    speed = np.abs(v_rad_s)
+    direction = np.sign(v_rad_s)
+    along = np.maximum(a_rad_s2 * direction, 0.0)          # acceleration pushing onward
+    lead = speed * along / jmax + along**3 / (3 * jmax**2)  # while ramping it to zero
+    speed = speed + along**2 / (2 * jmax)
+    full = speed * speed / (2 * amax) + speed * amax / (2 * jmax)
+    short = speed * np.sqrt(speed / jmax)
+    stop = np.where(speed > amax * amax / jmax, full, short)
+    return direction * (lead + stop)

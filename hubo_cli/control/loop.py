@@ -57,7 +57,8 @@ class LoopResult:
         error: one line describing the error or interruption, "" otherwise.
         stop_periods: periods spent in the final smooth stop.
         status_counts: status label -> number of periods.
-        estop_events: (module name, time s, kind, sources) for every latch and release.
+        safety_events: (module name, time s, kind, sources) for every emergency-stop latch and
+            release and every collision hold.
         overruns: periods that ran so late that the schedule was re-anchored.
         log_path: the per-period log, if one was written.
         final_command_rad: the last command sent.
@@ -69,7 +70,7 @@ class LoopResult:
     error: str = ""
     stop_periods: int = 0
     status_counts: dict[str, int] = field(default_factory=dict)
-    estop_events: list[tuple[str, float, str, tuple[str, ...]]] = field(default_factory=list)
+    safety_events: list[tuple[str, float, str, tuple[str, ...]]] = field(default_factory=list)
     overruns: int = 0
     log_path: Path | None = None
     final_command_rad: np.ndarray | None = None
@@ -252,7 +253,7 @@ class ControlLoop:
         return LoopResult(
             ended=ended, periods=self.period, t_end_s=self.period * self.dt_s, error=error,
             stop_periods=stop_periods, status_counts=dict(self._statuses),
-            estop_events=[(m.name, e.t_s, e.kind, e.sources) for m in self.modules
+            safety_events=[(m.name, e.t_s, e.kind, e.sources) for m in self.modules
                           for e in getattr(m, "events", ())],
             overruns=self.overruns, log_path=self.log_path, final_command_rad=self._cmd.copy(),
             exception=exc)

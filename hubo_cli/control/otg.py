@@ -212,7 +212,7 @@ class TrajectoryGenerator(Module):
     """
 
     name = "otg"
-    log_columns = ("otg_error",)
+    log_columns = ("otg_error_flag",)
 
     def __init__(self, model: RobotModel, dt_s: float, stale_timeout_s: float = STALE_TIMEOUT_S,
                  limits: JointLimits | None = None) -> None:
@@ -236,7 +236,7 @@ class TrajectoryGenerator(Module):
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         stale = self.input.take(q_rad, cycle)
-        cycle.info["otg_error"] = 0.0
+        cycle.info["otg_error_flag"] = 0.0
         if stale:
             return self.tracker.brake()
         if self._fault:
@@ -250,5 +250,5 @@ class TrajectoryGenerator(Module):
             self.errors += 1
             self._fault = True
             cycle.flags.add("slowing")
-            cycle.info["otg_error"] = 1.0
+            cycle.info["otg_error_flag"] = 1.0
         return q

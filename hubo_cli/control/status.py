@@ -6,6 +6,7 @@ into the single most serious :class:`Status` (higher value = more serious) and l
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from enum import IntEnum
 
 
@@ -52,3 +53,13 @@ def status_from_flags(flags) -> Status:
         if status is not None and status > best:
             best = status
     return best
+
+
+@dataclass
+class SafetyEvent:
+    """One thing a safety module did: time (s), kind (``stop``, ``release``, ``collision``)
+    and the sources or link names involved."""
+
+    t_s: float
+    kind: str
+    sources: tuple[str, ...]

@@ -1,0 +1,178 @@
+"""The emergency stopper: hrpsys' stop table, the revert oracle of eq. 15, latching rules."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from control_support import assert_within_limits, ideal
+
+from hubo_cli.control.estop import EmergencyStopper
+from hubo_cli.control.log import load_log
+from hubo_cli.control.loop import ControlLoop
+from hubo_cli.control.module import Cycle
+from hubo_cli.control.pipeline import build_pipeline, find_module
+from hubo_cli.drivers.base import RobotState
+from hubo_cli.posture import home_posture
+
+DT = 0.005
+
+
+def smooth_ramp(t_s: float, speed_rad_s: float, blend_s: float = 1.5) -> float:
+    """A ramp of ``speed_rad_s`` whose velocity rises along a minimum-jerk curve over
+    ``blend_s`` (so the input itself keeps to the arm's 0.8 rad/s^2 and 4 rad/s^3 for speeds up
+    to 0.5 rad/s); pure ramp after ``blend_s`` (rad)."""
+    if t_s < blend_s:
+        s = t_s / blend_s
+        return speed_rad_s * blend_s * s**4 * (2.5 - 3 * s + s * s)
+    return speed_rad_s * (0.5 * blend_s + t_s - blend_s)
+
+
+def _revert_run(model, speed_rad_s, t_emer_s=2.0, end_s=6.0, **options):
+    """Feed RSP a smooth ramp into an EmergencyStopper, latch at t_emer; return the input and
+    the output (RSP, rad) per period."""
+    stopper = EmergencyStopper(model, DT, **options)
+    q0 = home_posture(model)
+    state = RobotState(0.0, q0, np.zeros(24))
+    stopper.reset(q0, state)
+    inputs, outputs = [], []
+    for k in range(int(round(end_s / DT))):
+        cycle = Cycle(k * DT, DT)
+        if k == int(round(t_emer_s / DT)):
+            cycle.estop_requests.add("operator")
+        q = q0.copy()
+        q[0] += smooth_ramp(k * DT, speed_rad_s)
+        out = stopper.update(q, state, cycle)
+        inputs.append(q)
+        outputs.append(out)
+    return np.array(inputs), np.array(outputs)
+
+
+def _settled_at(values: np.ndarray, final: float) -> float:
+    """Time (s) from which ``values`` equal ``final`` for good."""
+    away = np.nonzero(np.abs(values - final) > 1e-12)[0]
+    return (away[-1] + 1) * DT if len(away) else 0.0
+
+
+def test_revert_oracle_issue_ramp(model):
+    """0.5 rad/s ramp on RSP, emergency at 2.0 s, T1 = T2 = 0.5 s: the hold is the command of
+    1.5 s, without overshoot. RSP's 0.8 rad/s^2 cannot turn 0.5 rad/s around within 0.5 s, so the
+    revert takes longer (about 2.3 s) but stays within every limit."""
+    inputs, outputs = _revert_run(model, 0.5)
+    k_emer, k_rev = 400, 300
+    hold = outputs[-1, 0]
+    assert hold == pytest.approx(inputs[k_rev, 0], abs=1e-12)
+    assert hold - home_posture(model)[0] == pytest.approx(0.375, abs=1e-9)  # 0.5*0.75
+    assert np.min(outputs[k_emer:, 0]) >= hold - 1e-12            # no overshoot below it
+    # it first brakes: jerk-limited, 0.5 rad/s stops within v/2 (v/a + a/j) = 0.206 rad
+    brake_rad = 0.5 / 2 * (0.5 / 0.8 + 0.8 / 4.0)
+    assert np.max(outputs[k_emer:, 0]) <= inputs[k_emer, 0] + brake_rad
+    settled = _settled_at(outputs[:, 0], hold)
+    assert 2.5 <= settled <= 4.5
+    assert_within_limits(model, np.vstack([outputs[:1], outputs]), DT)
+
+
+def test_revert_oracle_within_t2_on_a_slow_ramp(model):
+    """At 0.02 rad/s RSP's limits allow the full oracle: back on the command of 1.5 s by
+    t_emer + T2 = 2.5 s, then holding."""
+    inputs, outputs = _revert_run(model, 0.02)
+    hold = outputs[-1, 0]
+    assert hold == pytest.approx(inputs[300, 0], abs=1e-12)
+    assert _settled_at(outputs[:, 0], hold) <= 2.5 + 1e-9
+    assert np.min(outputs[400:, 0]) >= hold - 1e-12
+    assert_within_limits(model, np.vstack([outputs[:1], outputs]), DT)
+
+
+def test_freeze_preset_brakes_and_holds(model):
+    inputs, outputs = _revert_run(model, 0.5, revert_s=DT, stop_s=DT)
+    hold = outputs[-1, 0]
+    # it stops ahead of the emergency point by about the braking distance, then holds
+    assert inputs[400, 0] < hold < inputs[400, 0] + 0.5 / 2 * (0.5 / 0.8 + 0.8 / 4.0)
+    assert _settled_at(outputs[:, 0], hold) < 2.0 + 1.0
+    assert_within_limits(model, np.vstack([outputs[:1], outputs]), DT)
+
+
+@pytest.mark.parametrize("preset", ["freeze", "revert"])
+def test_stop_table_hrpsys(model, tmp_path, preset):
+    """hrpsys' emergency test on the whole default pipeline: a 10 s motion, stop at 4 s, the
+    command does not drift (< 1e-3 rad summed over joints) over 3 s once stopped; release at
+    8.0 s and the target is reached (< 1e-3 rad)."""
+    robot = ideal(model)
+    q0 = robot.read().q_rad.copy()
+    goal = q0.copy()
+    names = model.joint_names
+    for joint, delta in {"RSP": -0.5, "RSR": -0.3, "REB": -0.4, "LSP": -0.5, "LSR": 0.3,
+                         "LEB": -0.4, "RWY": 0.3, "LWY": -0.3}.items():
+        goal[names.index(joint)] += delta
+    options = {}
+    if preset == "freeze":
+        options["estop"] = {"revert_s": DT, "stop_s": DT}
+
+    def target(t_s, state):
+        info = {}
+        if abs(t_s - 4.0) < 1e-9:
+            info["estop"] = "operator"
+        if abs(t_s - 8.0) < 1e-9:
+            info["release"] = True
+        return q0 + (goal - q0) * min(t_s / 10.0, 1.0), info
+
+    modules = build_pipeline(model, options=options)
+    ControlLoop(robot, modules, target, log_path=tmp_path).run(duration_s=16.0)
+    log = load_log(tmp_path)
+    cmd, t = log.joints("cmd"), log["t_s"]
+    mode = log["estop_mode_code"]
+    held = np.nonzero(mode == 2)[0]
+    assert len(held) and t[held[0]] <= (4.3 if preset == "freeze" else 4.8)
+    k0 = held[0]
+    k3 = k0 + int(round(3.0 / DT))
+    assert t[k3] < 8.0
+    assert np.abs(cmd[k3] - cmd[k0]).sum() < 1e-3
+    assert np.abs(cmd[-1] - goal).max() < 1e-3
+    recovered = np.nonzero((t > 8.0) & (mode == 0))[0]
+    assert len(recovered) and t[recovered[0]] >= 8.0 + 2.5 - 1e-9
+    assert_within_limits(model, robot.commands(q0), DT)
+    assert find_module(modules, "estop").events[0].sources == ("operator",)
+
+
+def test_latch_release_and_sources(model):
+    stopper = EmergencyStopper(model, DT, sources=("operator", "wrist-torque"))
+    q0 = home_posture(model)
+    state = RobotState(0.0, q0, np.zeros(24))
+    stopper.reset(q0, state)
+
+    def step(k, requests=(), torque_nm=0.0):
+        cycle = Cycle(k * DT, DT, estop_requests=set(requests))
+        s = RobotState(k * DT, q0, np.zeros(24))
+        s.ft["left-wrist"] = np.array([0, 0, 0, torque_nm, 0, 0.0])
+        stopper.update(q0, s, cycle)
+        return cycle
+
+    step(0, ["capture-point"])           # not one of its sources
+    assert stopper.mode == "release"
+    step(1, torque_nm=1.0)               # under the 1.21 N m limit
+    assert stopper.mode == "release"
+    cycle = step(2, torque_nm=1.3)
+    assert stopper.stopped and "estop" in cycle.flags
+    assert stopper.events[-1].sources == ("wrist-torque",)
+    for k in range(3, 10):
+        step(k)                          # latched: stays stopped without requests
+    assert stopper.mode in ("stop", "hold")
+    stopper.release()
+    step(10)
+    assert stopper.mode == "recover"
+    step(11, ["operator"])               # a new request during recovery stops again
+    assert stopper.mode in ("stop", "hold") and stopper.events[-1].sources == ("operator",)
+    stopper.reset(q0, state)             # deactivation releases (hrpsys)
+    assert stopper.mode == "release"
+
+
+def test_hard_stop_reacts_only_to_hard_source(model):
+    modules = build_pipeline(model)
+    hard = find_module(modules, "hard-estop")
+    assert hard.sources == frozenset({"hard"}) and hard.is_freeze
+    q0 = home_posture(model)
+    state = RobotState(0.0, q0, np.zeros(24))
+    hard.reset(q0, state)
+    hard.update(q0, state, Cycle(0.0, DT, estop_requests={"operator", "capture-point"}))
+    assert not hard.stopped
+    hard.update(q0, state, Cycle(DT, DT, estop_requests={"hard"}))
+    assert hard.stopped

@@ -1,0 +1,199 @@
+"""The control loop: pacing without drift (fake clock), the log written as it goes, smooth
+stops on Ctrl-C and on module errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from control_support import assert_within_limits, ideal
+
+from hubo_cli.control.log import LOG_NAME, load_log
+from hubo_cli.control.loop import ControlLoop
+from hubo_cli.control.module import Module
+from hubo_cli.control.pipeline import build_pipeline
+from hubo_cli.control.status import Status
+
+DT = 0.005
+
+
+class FakeClock:
+    """Time that only moves when slept or when work is simulated."""
+
+    def __init__(self, start_s: float = 100.0) -> None:
+        self.now_s = start_s
+        self.sleeps = 0
+
+    def __call__(self) -> float:
+        return self.now_s
+
+    def sleep(self, seconds: float) -> None:
+        self.sleeps += 1
+        self.now_s += seconds
+
+
+class PassThrough(Module):
+    name = "pass"
+
+    def update(self, q_rad, state, cycle):
+        return np.where(np.isfinite(q_rad), q_rad, state.q_rad)
+
+
+def _moving_target(q0, joint=0, amplitude=0.3, period_s=4.0):
+    def target(t_s, state):
+        q = q0.copy()
+        q[joint] += amplitude * np.sin(2 * np.pi * t_s / period_s)
+        return q, {}
+    return target
+
+
+@pytest.mark.parametrize("speed", [1.0, 2.5])
+def test_paced_loop_does_not_drift(model, speed):
+    clock = FakeClock()
+    rng = np.random.default_rng(3)
+    robot = ideal(model)
+    starts = []
+
+    def target(t_s, state):
+        starts.append(clock())
+        clock.now_s += rng.uniform(0.0, 0.9) * DT / speed  # work of varying length
+        return None, {}
+
+    n = 3000
+    loop = ControlLoop(robot, [PassThrough()], target, speed=speed, clock=clock,
+                       sleep=clock.sleep)
+    result = loop.run(duration_s=n * DT)
+    assert result.periods == n and result.overruns == 0
+    expected = starts[0] + np.arange(n) * DT / speed
+    assert np.max(np.abs(np.array(starts) - expected)) < 1e-9
+
+
+def test_late_periods_catch_up_then_reanchor(model):
+    clock = FakeClock()
+    robot = ideal(model)
+    starts = []
+
+    def target(t_s, state):
+        starts.append(clock())
+        k = len(starts)
+        if k == 10:
+            clock.now_s += 3 * DT      # one slow period: the next ones run back to back
+        if k == 100:
+            clock.now_s += 1.0         # a stall far beyond max_lag_periods: re-anchor
+        return None, {}
+
+    result = ControlLoop(robot, [PassThrough()], target, speed=1.0, clock=clock,
+                         sleep=clock.sleep).run(duration_s=200 * DT)
+    starts = np.array(starts) - starts[0]
+    schedule = np.arange(len(starts)) * DT
+    assert np.allclose(starts[:10], schedule[:10], atol=1e-9)
+    assert np.all(starts[10:12] > schedule[10:12])                  # late, run back to back
+    assert np.allclose(starts[12:100], schedule[12:100], atol=1e-9)  # back on schedule
+    assert result.overruns == 1
+    assert np.allclose(np.diff(starts[100:]), DT, atol=1e-9)
+
+
+def test_unpaced_loop_never_sleeps(model):
+    clock = FakeClock()
+    robot = ideal(model)
+    ControlLoop(robot, [PassThrough()], lambda t, s: (None, {}), speed=None, clock=clock,
+                sleep=clock.sleep).run(duration_s=0.5)
+    assert clock.sleeps == 0
+
+
+def test_log_is_written_as_it_goes(model, tmp_path):
+    robot = ideal(model)
+    q0 = robot.read().q_rad.copy()
+    seen = []
+
+    def target(t_s, state):
+        k = int(round(t_s / DT))
+        if k in (1, 50, 120):
+            rows = [ln for ln in (tmp_path / LOG_NAME).read_text().splitlines()
+                    if not ln.startswith("#")]
+            seen.append((k, len(rows) - 1))  # minus the header
+        return _moving_target(q0)(t_s, state)
+
+    result = ControlLoop(robot, build_pipeline(model), target,
+                         log_path=tmp_path).run(duration_s=1.0)
+    assert seen == [(1, 1), (50, 50), (120, 120)]
+    log = load_log(tmp_path)
+    assert len(log) == result.periods
+    assert log.joints("cmd").shape == (result.periods, 24)
+    header = (tmp_path / LOG_NAME).read_text().splitlines()[1].split(",")
+    units = ("_s", "_us", "_rad", "_m", "_nm", "_count", "_code", "_flag")
+    assert all(name == "flags" or name.endswith(units) for name in header), header
+    running = np.array(["smooth-stop" not in f for f in log.flags])
+    assert np.all(np.isfinite(log["com_z_m"][running]))
+    assert np.allclose(log["t_s"], np.arange(len(log)) * DT)
+
+
+def _assert_smooth_end(model, robot, q0):
+    commands = robot.commands(q0)
+    assert_within_limits(model, commands, DT)
+    v_end = (commands[-1] - commands[-2]) / DT
+    assert np.max(np.abs(v_end)) < 1e-9
+    assert robot.stops >= 1
+
+
+def test_ctrl_c_ends_in_a_smooth_stop(model, tmp_path):
+    robot = ideal(model)
+    q0 = robot.read().q_rad.copy()
+    moving = _moving_target(q0, amplitude=0.5, period_s=3.0)
+
+    def target(t_s, state):
+        if t_s >= 0.75:
+            raise KeyboardInterrupt
+        return moving(t_s, state)
+
+    result = ControlLoop(robot, build_pipeline(model), target, log_path=tmp_path).run(5.0)
+    assert result.ended == "interrupted" and not result.ok
+    assert result.stop_periods > 10          # it was moving, so the brake took a while
+    _assert_smooth_end(model, robot, q0)
+    log = load_log(tmp_path)
+    assert len(log) == result.periods
+    assert "smooth-stop" in log.flags[-1]
+    assert log.status[-1] == Status.SLOWING
+
+
+class Exploding(Module):
+    name = "exploding"
+
+    def __init__(self, at_s):
+        self.at_s = at_s
+
+    def update(self, q_rad, state, cycle):
+        if cycle.t_s >= self.at_s:
+            raise RuntimeError("module failure")
+        return q_rad
+
+
+def test_module_error_ends_in_a_smooth_stop(model, tmp_path):
+    robot = ideal(model)
+    q0 = robot.read().q_rad.copy()
+    modules = build_pipeline(model)
+    modules.insert(1, Exploding(0.6))
+    result = ControlLoop(robot, modules, _moving_target(q0, amplitude=0.5, period_s=3.0),
+                         log_path=tmp_path).run(5.0)
+    assert result.ended == "module-error"
+    assert "RuntimeError" in result.error and "module failure" in result.error
+    assert result.stop_periods > 10
+    _assert_smooth_end(model, robot, q0)
+    assert len(load_log(tmp_path)) == result.periods
+
+
+def test_target_done_and_operator_release(model):
+    robot = ideal(model)
+    q0 = robot.read().q_rad.copy()
+
+    def target(t_s, state):
+        info = {"done": t_s >= 0.5}
+        if abs(t_s - 0.1) < 1e-9:
+            info["estop"] = ["operator"]
+        if abs(t_s - 0.2) < 1e-9:
+            info["release"] = True
+        return q0, info
+
+    result = ControlLoop(robot, build_pipeline(model), target).run()
+    assert result.ended == "done" and result.ok
+    kinds = [(name, kind) for name, _, kind, _ in result.safety_events]
+    assert kinds == [("estop", "stop"), ("estop", "release")]

@@ -1,0 +1,219 @@
+"""Unit tests of the single modules: limiter, trajectory generators, collision, capture point."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from control_support import assert_within_limits, ideal
+
+from hubo_cli.control.capture_point import CapturePointMonitor, convex_hull, outside_distance
+from hubo_cli.control.collision import SelfCollisionChecker
+from hubo_cli.control.hoff_arbib import hoff_arbib_step
+from hubo_cli.control.limiter import SoftErrorLimiter
+from hubo_cli.control.limits import JointLimits
+from hubo_cli.control.loop import ControlLoop
+from hubo_cli.control.module import Cycle
+from hubo_cli.control.otg import JointTracker, TrajectoryGenerator
+from hubo_cli.control.pipeline import build_pipeline, find_module
+from hubo_cli.drivers.base import RobotState
+from hubo_cli.posture import home_posture
+
+DT = 0.005
+
+
+def _state(model, q=None, **fields):
+    q = home_posture(model) if q is None else q
+    return RobotState(0.0, q, np.zeros(24), **fields)
+
+
+# ------------------------------------------------------------------ limiter
+def test_limiter_turns_a_jump_into_a_limited_move_without_ringing(model):
+    limiter = SoftErrorLimiter(model, DT)
+    q0 = home_posture(model)
+    limiter.reset(q0, _state(model))
+    goal = q0.copy()
+    goal[0] += 0.8
+    out = np.array([limiter.step(goal) for _ in range(800)])
+    assert_within_limits(model, np.vstack([q0, q0, out]), DT)
+    assert out[-1, 0] == pytest.approx(goal[0], abs=1e-12)
+    assert np.max(out[:, 0]) <= goal[0]            # lands without ringing around the goal
+
+
+def test_limiter_position_band_only_blocks_moving_further_out(model):
+    limiter = SoftErrorLimiter(model, DT, error_limit_rad=0.0)
+    upper = model.upper_rad[1]                     # RSR upper limit 0.3
+    q_out = home_posture(model)
+    q_out[1] = upper + 0.05                        # start outside the limit
+    limiter.reset(q_out, _state(model, q_out))
+    further = q_out.copy()
+    further[1] += 0.2
+    assert limiter.step(further)[1] == pytest.approx(q_out[1])  # no further out
+    back = q_out.copy()
+    back[1] = 0.0
+    values = [limiter.step(back)[1] for _ in range(300)]
+    assert values[-1] == 0.0 and np.all(np.diff(values) <= 0.0)
+
+
+def test_limiter_tracking_error_band(model):
+    limiter = SoftErrorLimiter(model, DT)
+    q0 = home_posture(model)
+    limiter.reset(q0, _state(model))
+    measured = q0.copy()                           # the joint is stuck at q0
+    goal = q0.copy()
+    goal[0] += 0.5
+    for _ in range(600):
+        out = limiter.step(goal, measured)
+    assert out[0] - q0[0] == pytest.approx(0.18, abs=1e-9)
+
+
+def test_limiter_holds_nan(model):
+    limiter = SoftErrorLimiter(model, DT)
+    q0 = home_posture(model)
+    limiter.reset(q0, _state(model))
+    want = q0.copy()
+    want[4] = np.nan
+    out = limiter.step(want)
+    assert np.all(np.isfinite(out)) and out[4] == q0[4]
+
+
+# ------------------------------------------------------------------ generators
+def test_tracker_never_raises_on_ruckig_errors(model):
+    limits = JointLimits.from_model(model)
+    bad = dataclasses.replace(limits, jerk_rad_s3=np.zeros(24))  # ruckig rejects zero limits
+    tracker = JointTracker(bad, DT)
+    q0 = home_posture(model)
+    tracker.reset(q0)
+    out = tracker.track(q0 + 0.1)
+    assert tracker.error and np.all(np.isfinite(out))
+    assert np.all(np.isfinite(tracker.brake()))
+
+
+def test_otg_clamps_targets_and_goes_stale(model):
+    otg = TrajectoryGenerator(model, DT, stale_timeout_s=0.1)
+    q0 = home_posture(model)
+    otg.reset(q0, _state(model))
+    far = q0.copy()
+    far[1] = 5.0                                   # RSR above its 0.3 rad limit
+    cycle = Cycle(0.0, DT)
+    otg.update(far, _state(model), cycle)
+    assert "joint-limit" in cycle.flags and otg.target[1] == model.upper_rad[1]
+    for k in range(1, 40):
+        cycle = Cycle(k * DT, DT)
+        otg.update(np.full(24, np.nan), _state(model), cycle)
+    assert "stale-input" in cycle.flags and "stale-input" in cycle.estop_requests
+
+
+def test_otg_respects_limits_on_a_step(model):
+    robot = ideal(model)
+    q0 = robot.read().q_rad.copy()
+    goal = q0.copy()
+    goal[:6] += [0.7, -0.5, 0.6, -0.8, 1.0, 0.5]
+    modules = build_pipeline(model, ["otg", "limiter"])
+    ControlLoop(robot, modules, lambda t, s: (goal, {})).run(duration_s=5.0)
+    commands = robot.commands(q0)
+    assert_within_limits(model, commands, DT)
+    assert np.abs(commands[-1] - goal).max() < 1e-9
+    # the generator alone already keeps to the limits: the limiter never had to clamp
+    assert find_module(modules, "limiter") is not None
+
+
+def test_hoff_arbib_min_jerk_oracle():
+    """0 -> 1 in 1 s from rest: peak velocity 1.875, peak acceleration 5.7735 (hrpsys)."""
+    x, v, a = np.zeros(1), np.zeros(1), np.zeros(1)
+    dt, xs, vs, accs = 0.001, [], [], []
+    for k in range(1000):
+        x, v, a = hoff_arbib_step(x, v, a, np.ones(1), 1.0 - k * dt, dt)
+        xs.append(x[0])
+        vs.append(v[0])
+        accs.append(a[0])
+    assert xs[-1] == pytest.approx(1.0, abs=1e-6)
+    assert max(vs) == pytest.approx(1.875, rel=1e-3)
+    assert max(np.abs(accs)) == pytest.approx(5.7735, rel=2e-3)
+
+
+# ------------------------------------------------------------------ collision
+def test_collision_checker_distances(model):
+    checker = SelfCollisionChecker(model)
+    q0 = home_posture(model)
+    assert checker.check(q0).distance_m > 0.01
+    q = q0.copy()
+    q[1] = 0.3                                     # right arm rolled in: forearm meets pelvis
+    clearance = checker.check(q)
+    assert clearance.distance_m < 0 and "RWY_link_0" in clearance.pair
+    with_drill = SelfCollisionChecker(model, drill=True)
+    assert len(with_drill.pair_names) > len(checker.pair_names)
+    assert with_drill.check(q0).distance_m > 0.01
+
+
+def test_collision_detector_holds_then_recovers(model):
+    robot = ideal(model)
+    q0 = robot.read().q_rad.copy()
+    inward = q0.copy()
+    inward[1] = 0.3                                # collides (see above)
+    modules = build_pipeline(model, ["otg", "collision", "limiter"])
+    collision = find_module(modules, "collision")
+
+    def target(t_s, state):
+        return (inward if t_s < 3.0 else q0), {}
+
+    result = ControlLoop(robot, modules, target).run(duration_s=8.0)
+    commands = robot.commands(q0)
+    assert_within_limits(model, commands, DT)
+    checker = SelfCollisionChecker(model)
+    assert min(checker.check(q).distance_m for q in commands[::5]) > 0.0
+    assert result.status_counts.get("collision", 0) > 0
+    assert collision.events and collision.events[0].kind == "collision"
+    assert collision.mode == "safe"
+    assert np.abs(commands[-1] - q0).max() < 1e-6
+
+
+# ------------------------------------------------------------------ capture point
+def test_hull_and_outside_distance():
+    square = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.5]], dtype=float)
+    hull = convex_hull(square)
+    assert len(hull) == 4
+    assert outside_distance(hull, np.array([0.5, 0.5])) == pytest.approx(-0.5)
+    assert outside_distance(hull, np.array([1.2, 0.5])) == pytest.approx(0.2)
+
+
+def test_capture_point_standing_still_is_inside(model):
+    monitor = CapturePointMonitor(model, DT)
+    state = _state(model)
+    monitor.reset(state.q_rad, state)
+    cycle = Cycle(0.0, DT)
+    monitor.update(state.q_rad, state, cycle)
+    assert not monitor.flag and monitor.outside_m < -0.03
+    box = monitor.support_box_m
+    assert box[0] < monitor.cp_m[0] < box[1] and box[2] < monitor.cp_m[1] < box[3]
+    assert monitor.com_m[2] - monitor.ground_z_m > 0.4   # well above the soles
+
+
+def test_capture_point_flags_a_fast_backward_motion(model):
+    monitor = CapturePointMonitor(model, DT)
+    q = home_posture(model)
+    flagged_at = None
+    for k in range(200):
+        T = np.eye(4)
+        T[0, 3] = -0.4 * k * DT                    # torso (and CoM) drifting back at 0.4 m/s
+        state = RobotState(k * DT, q, np.zeros(24), T_world_torso=T,
+                           feet_contact=(True, True))
+        cycle = Cycle(k * DT, DT)
+        monitor.update(q, state, cycle)
+        if "capture-point" in cycle.estop_requests:
+            flagged_at = k * DT
+            break
+    # feet move with the torso here, so only the CoM velocity term pushes the CP back:
+    # v / omega = 0.4 / sqrt(9.81 / ~0.6) = 0.1 m, beyond the 0.06 m rear margin once filtered
+    assert flagged_at is not None and flagged_at < 0.6
+    assert monitor.cp_m[0] < monitor.support_box_m[0]
+
+
+def test_capture_point_ignores_a_robot_in_the_air(model):
+    monitor = CapturePointMonitor(model, DT)
+    q = home_posture(model)
+    state = RobotState(0.0, q, np.zeros(24), feet_contact=(False, False))
+    cycle = Cycle(0.0, DT)
+    monitor.update(q, state, cycle)
+    assert not cycle.estop_requests and not monitor.flag
