@@ -64,9 +64,9 @@ def decode(file: Path, out: Path | None, as_json: bool) -> None:
 
     Reports good records, bytes skipped while resynchronising and per-station rates.
     """
-    from hubo_cli.fastrak.capture import MAGIC, _read_bytes, parse_capture, write_pose_log
+    from hubo_cli.fastrak.capture import MAGIC, parse_capture, read_recording_bytes, write_pose_log
 
-    blob = _read_bytes(file)
+    blob = read_recording_bytes(file)
     if not blob.startswith(MAGIC) and blob[:40].lstrip().lower().startswith((b"t_s", b"#")):
         raise InputError(f"{file} is already a pose log (CSV), not a raw capture",
                          hint="replay it directly with `hubo teleop --replay FILE`")

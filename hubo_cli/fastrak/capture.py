@@ -119,7 +119,8 @@ class Capture:
                              h.stations, plausibility)
 
 
-def _read_bytes(path: str | Path) -> bytes:
+def read_recording_bytes(path: str | Path) -> bytes:
+    """The bytes of a recording file; InputError (with a hint) if it cannot be read."""
     path = Path(path)
     try:
         return path.read_bytes()
@@ -187,7 +188,7 @@ def parse_capture(blob: bytes, where: str = "capture") -> Capture:
 
 def read_capture(path: str | Path) -> Capture:
     """Read a raw capture file (see :func:`parse_capture`)."""
-    return parse_capture(_read_bytes(path), str(path))
+    return parse_capture(read_recording_bytes(path), str(path))
 
 
 class CaptureWriter:
@@ -438,7 +439,7 @@ def parse_pose_log(text: str, where: str = "pose log") -> RecordBatch:
 
 def read_pose_log(path: str | Path) -> RecordBatch:
     """Read a pose-log CSV file (see :func:`parse_pose_log`)."""
-    blob = _read_bytes(path)
+    blob = read_recording_bytes(path)
     try:
         text = blob.decode("utf-8")
     except UnicodeDecodeError:
@@ -472,7 +473,7 @@ def load_recording(path: str | Path, stations=None,
     Raises:
         InputError: missing, unreadable or garbled file, or no valid record in it.
     """
-    blob = _read_bytes(path)
+    blob = read_recording_bytes(path)
     stats = SourceStats()
     if blob.startswith(MAGIC):
         cap = parse_capture(blob, str(path))

@@ -1,0 +1,208 @@
+"""Recordings: raw captures and pose logs, their writers, replay through open_source, errors."""
+
+import json
+
+import numpy as np
+import pytest
+
+from hubo_cli.errors import InputError
+from hubo_cli.fastrak.capture import (
+    MAGIC,
+    load_recording,
+    parse_capture,
+    poses_to_capture,
+    read_pose_log,
+    samples_batch,
+    synthesize_chunks,
+    write_capture,
+    write_pose_log,
+)
+from hubo_cli.fastrak.records import rotation_from_quat
+from hubo_cli.fastrak.source import PoseSample, ReplaySource, open_source
+from hubo_cli.fastrak.track import PoseTrack
+
+
+def two_hand_tracks(duration_s=2.0):
+    t = np.linspace(0.0, duration_s, 41)
+    right = np.c_[0.4 + 0.05 * np.sin(t), 0.2 + 0.05 * np.cos(t), 0.1 + 0 * t]
+    left = np.c_[0.4 + 0 * t, -0.2 + 0.02 * t, 0.1 + 0.01 * t]
+    yaw = 0.3 * t
+    q_right = np.c_[np.cos(yaw / 2), 0 * t, 0 * t, np.sin(yaw / 2)]
+    q_left = np.tile([1.0, 0, 0, 0], (t.size, 1))
+    return {1: PoseTrack(t, right, q_right), 2: PoseTrack(t, left, q_left)}
+
+
+@pytest.mark.parametrize("fmt,output_list,units", [
+    ("binary", "2,11,1", "cm"), ("binary", "52,61,50", "cm"), ("ascii", "2,4,1", "in"),
+    ("ascii", "2,11,1", "cm")])
+def test_capture_replays_the_written_poses_at_120_hz(tmp_path, fmt, output_list, units):
+    tracks = two_hand_tracks()
+    path = write_capture(tmp_path / "hands.fcap", tracks, fmt=fmt, output_list=output_list,
+                         units=units)
+    with open_source(replay=path) as src:
+        assert isinstance(src, ReplaySource)
+        samples = src.read_until(1e9)
+        assert src.done and src.stats.bad_bytes == 0
+    assert len(samples) == 241  # 2 s at 120 records/s, both stations sharing them
+    stations = [s.station for s in samples]
+    assert stations[:4] == [1, 2, 1, 2]
+    t = np.array([s.t_s for s in samples])
+    np.testing.assert_allclose(np.diff(t), 1 / 120, atol=1e-9)
+    tol = 1.5e-4 if fmt == "ascii" else 1e-6  # ASCII keeps 0.01 in (0.254 mm) steps
+    for s in samples[::17]:
+        p, q = tracks[s.station].at(s.t_s - t[0])
+        np.testing.assert_allclose(s.position_m, p[0], atol=tol)
+        np.testing.assert_allclose(s.T_tracker_sensor[:3, :3], rotation_from_quat(q)[0],
+                                   atol=5e-4 if fmt == "ascii" else 1e-6)
+
+
+def test_read_until_releases_samples_by_receive_time(tmp_path):
+    path = write_capture(tmp_path / "c.fcap", two_hand_tracks(1.0))
+    src = open_source(replay=path)
+    first = src.read_until(src.start_s + 0.1)
+    assert first and all(s.t_s <= src.start_s + 0.1 for s in first)
+    assert src.read_until(src.start_s + 0.1) == []  # nothing twice
+    rest = src.read_until(src.end_s)
+    assert len(first) + len(rest) == src.stats.good_records and src.done
+    assert src.last_seen_s(1) == max(s.t_s for s in rest if s.station == 1)
+    assert src.last_seen_s(3) is None and src.is_stale(3, src.end_s)
+    assert not src.is_stale(1, src.end_s) and src.is_stale(1, src.end_s + 0.3)
+    assert src.is_stale(1, src.end_s + 0.06, timeout_s=0.05)
+    src.rewind()
+    assert len(src.read_until(src.end_s)) == src.stats.good_records
+
+
+def test_pose_log_round_trip_and_same_samples_as_capture(tmp_path):
+    path = write_capture(tmp_path / "c.fcap", two_hand_tracks(0.5))
+    from_capture = open_source(replay=path).read_until(1e9)
+    log = write_pose_log(tmp_path / "c.csv", from_capture)
+    header = log.read_text().splitlines()[0]
+    assert header == "t_s,station,x_m,y_m,z_m,qw,qx,qy,qz,status"
+    with open_source(replay=log) as src:
+        from_log = src.read_until(1e9)
+        assert src.info["kind"] == "pose-log"
+    assert len(from_log) == len(from_capture)
+    for a, b in zip(from_capture, from_log, strict=True):
+        assert a.station == b.station and a.status == b.status
+        assert abs(a.t_s - b.t_s) < 1e-6
+        np.testing.assert_allclose(a.T_tracker_sensor, b.T_tracker_sensor, atol=2e-6)
+
+
+def test_status_letters_survive_capture_and_pose_log(tmp_path):
+    chunks = synthesize_chunks(two_hand_tracks(0.2), status="x")
+    blob = poses_to_capture(two_hand_tracks(0.2))
+    cap = parse_capture(blob)
+    # same header, records with status 'x'
+    from hubo_cli.fastrak.capture import capture_bytes
+    path = tmp_path / "x.fcap"
+    path.write_bytes(capture_bytes(cap.header, chunks))
+    rec = load_recording(path)
+    assert rec.stats.status_letters == {"x": len(chunks)}
+    samples = open_source(replay=path).read_until(1e9)
+    assert {s.status for s in samples} == {"x"} and all(s.suspect for s in samples)
+    log = write_pose_log(tmp_path / "x.csv", samples)
+    assert {s.status for s in open_source(replay=log).read_until(1e9)} == {"x"}
+
+
+def test_writer_accepts_pose_samples_and_tuples(tmp_path):
+    T = np.eye(4)
+    T[:3, 3] = [0.3, 0.1, 0.0]
+    samples = [PoseSample(1, T, " ", 0.0), PoseSample(1, T, " ", 1.0)]
+    blob_a = poses_to_capture(samples)
+    blob_b = poses_to_capture([(0.0, 1, T), (1.0, 1, T)])
+    assert blob_a == blob_b
+    batch, bad = parse_capture(blob_a).decode()
+    assert len(batch) == 121 and bad == 0
+    np.testing.assert_allclose(batch.position_m, np.tile([0.3, 0.1, 0.0], (121, 1)), atol=1e-7)
+    assert len(samples_batch(samples)) == 2
+
+
+def test_truncated_capture_keeps_what_is_there(tmp_path):
+    blob = poses_to_capture(two_hand_tracks(1.0))
+    path = tmp_path / "cut.fcap"
+    path.write_bytes(blob[:-50])
+    rec = load_recording(path)
+    assert rec.info["truncated"] and 0 < rec.stats.good_records < 121
+
+
+def test_capture_with_garbage_between_chunks_resynchronises(tmp_path):
+    cap = parse_capture(poses_to_capture(two_hand_tracks(0.5)))
+    chunks = []
+    ends = [0, *cap.chunk_ends.tolist()]
+    for i, (a, b) in enumerate(zip(ends[:-1], ends[1:], strict=True)):
+        data = cap.data[a:b]
+        if i % 10 == 3:
+            data = b"\x00\xffgarbage0" + data[:-5]  # noise plus a record cut short
+        chunks.append((float(cap.chunk_times[i]), data))
+    from hubo_cli.fastrak.capture import capture_bytes
+
+    path = tmp_path / "noisy.fcap"
+    path.write_bytes(capture_bytes(cap.header, chunks))
+    rec = load_recording(path)
+    lost = sum(1 for i in range(len(chunks)) if i % 10 == 3)
+    assert rec.stats.good_records == len(chunks) - lost
+    assert rec.stats.bad_bytes > 0
+
+
+@pytest.mark.parametrize("content,message", [
+    (b"", "is empty"),
+    (b"\x00\x01\x02\xff" * 10, "neither a raw capture"),
+    (MAGIC + b"{not json\n", "not valid JSON"),
+    (MAGIC + b'{"format": "binary"}\n', "lacks or garbles"),
+    (MAGIC + b'{"format": "binary", "output_list": [2, 11], "units": "cm", '
+             b'"stations": [1]}\n', "terminator"),
+    (MAGIC + b'{"format": "binary", "output_list": [2, 11, 1], "units": "mm", '
+             b'"stations": [1]}\n', "units"),
+    (MAGIC + b'{"format": "binary", "output_list": [2, 11, 1], "units": "cm", '
+             b'"stations": [1]}\n' + b"\x00" * 12 + b"garbage", "no valid FASTRAK records"),
+    (b"t_s,station,x_m\n1,2,3\n", "missing column"),
+    (b"t_s,station,x_m,y_m,z_m,qw,qx,qy,qz,status\n0,1,0,0,0,1,0,0,0,\n0.1,1,a,0,0,1,0,0,0,\n",
+     "line 3"),
+    (b"t_s,station,x_m,y_m,z_m,qw,qx,qy,qz\n0,7,0,0,0,1,0,0,0\n", "station"),
+    (b"t_s,station,x_m,y_m,z_m,qw,qx,qy,qz\n0,1,0,0,0,0,0,0,0\n", "zero quaternion"),
+    (b"t_s,station,x_m,y_m,z_m,qw,qx,qy,qz\n", "no rows"),
+])
+def test_garbled_recordings_are_input_errors(tmp_path, content, message):
+    path = tmp_path / "bad.rec"
+    path.write_bytes(content)
+    with pytest.raises(InputError, match=message) as info:
+        open_source(replay=path)
+    assert info.value.hint
+
+
+def test_missing_recording_and_bad_arguments(tmp_path):
+    with pytest.raises(InputError, match="no such recording") as info:
+        open_source(replay=tmp_path / "nope.fcap")
+    assert "trajectories" in info.value.hint
+    with pytest.raises(InputError, match="folder"):
+        open_source(replay=tmp_path)
+    with pytest.raises(InputError, match="exactly one"):
+        open_source()
+    with pytest.raises(InputError, match="exactly one"):
+        open_source(replay="a", port="b")
+
+
+def test_station_filter(tmp_path):
+    path = write_capture(tmp_path / "c.fcap", two_hand_tracks(0.5))
+    samples = open_source(replay=path, stations=[2]).read_until(1e9)
+    assert {s.station for s in samples} == {2}
+    with pytest.raises(InputError, match="no records for station"):
+        open_source(replay=path, stations=[4])
+
+
+def test_capture_header_is_one_json_line(tmp_path):
+    blob = poses_to_capture(two_hand_tracks(0.1), fmt="ascii", output_list="2,4,1", units="in")
+    lines = blob.split(b"\n", 2)
+    assert lines[0] + b"\n" == MAGIC
+    header = json.loads(lines[1])
+    assert header["format"] == "ascii" and header["output_list"] == [2, 4, 1]
+    assert header["units"] == "in" and header["stations"] == [1, 2] and header["baud"] == 115200
+
+
+def test_pose_log_reader_accepts_comments_and_no_status(tmp_path):
+    path = tmp_path / "hand.csv"
+    path.write_text("# a hand-made log\nt_s,station,x_m,y_m,z_m,qw,qx,qy,qz\n"
+                    "0.0,1,0.1,0.2,0.3,2,0,0,0\n0.5,1,0.1,0.2,0.4,1,0,0,0\n")
+    batch = read_pose_log(path)
+    assert len(batch) == 2 and batch.status.tolist() == [32, 32]
+    np.testing.assert_allclose(batch.quat_wxyz[0], [1, 0, 0, 0])
