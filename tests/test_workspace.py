@@ -269,3 +269,12 @@ def test_best_stance_with_the_legs_uses_the_widest_segment(tmp_path, monkeypatch
     assert not best_stance(resolution_m=0.01, vertical="legs", size_m=(0.9, 0.1)).fits
     with pytest.raises(InputError):
         best_stance(resolution_m=0.01, vertical="hover")
+
+
+def test_a_corrupt_cache_file_is_recomputed(tmp_path, monkeypatch):
+    monkeypatch.setenv("HUBO_CACHE_DIR", str(tmp_path))
+    fresh = best_stance(resolution_m=0.02)
+    (path,) = cache_dir().glob("*.npz")
+    path.write_bytes(b"not a zip file")
+    assert best_stance(resolution_m=0.02) == fresh
+    assert path.stat().st_size > 100  # rewritten

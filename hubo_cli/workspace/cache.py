@@ -11,6 +11,7 @@ from __future__ import annotations
 import hashlib
 import os
 import tempfile
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -45,7 +46,7 @@ def load_masks(key: str, shape: tuple[int, int, int]) -> np.ndarray | None:
     try:
         with np.load(path) as data:
             masks = data["masks"]
-    except (OSError, KeyError, ValueError):
+    except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile):
         return None
     return masks if masks.shape == shape and masks.dtype == np.uint8 else None
 
@@ -53,12 +54,16 @@ def load_masks(key: str, shape: tuple[int, int, int]) -> np.ndarray | None:
 def save_masks(key: str, masks: np.ndarray) -> Path | None:
     """Store masks under ``key`` (atomically); returns the path, or None if it could not."""
     folder = cache_dir()
+    tmp = None
     try:
         folder.mkdir(parents=True, exist_ok=True)
         with tempfile.NamedTemporaryFile(dir=folder, suffix=".npz", delete=False) as f:
+            tmp = Path(f.name)
             np.savez_compressed(f, masks=masks)
         path = folder / f"{key}.npz"
-        os.replace(f.name, path)
+        os.replace(tmp, path)
     except OSError:
+        if tmp is not None:
+            tmp.unlink(missing_ok=True)
         return None
     return path
