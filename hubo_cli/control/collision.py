@@ -120,12 +120,12 @@ class SelfCollisionChecker:
     def check(self, q_rad: np.ndarray) -> Clearance:
         """The closest checked pair for the 24 joints ``q_rad`` (rad)."""
         q = self.robot.configuration(q_rad, out=self._q)
-        pin.computeDistances(self.robot.model, self.data, self.geom, self.geom_data, q)
-        best, best_i = np.inf, 0
-        for i, result in enumerate(self.geom_data.distanceResults):
-            if result.min_distance < best:
-                best, best_i = result.min_distance, i
-        return Clearance(float(best), self.pair_names[best_i] if self.pair_names else ("", ""))
+        if not self.pair_names:
+            return Clearance(np.inf, ("", ""))
+        # pinocchio returns the index of the closest pair
+        best = pin.computeDistances(self.robot.model, self.data, self.geom, self.geom_data, q)
+        distance = self.geom_data.distanceResults[best].min_distance
+        return Clearance(float(distance), self.pair_names[best])
 
 
 class CollisionDetector(Module):

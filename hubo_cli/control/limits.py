@@ -63,13 +63,22 @@ def braking_distance(v_rad_s: np.ndarray, a_rad_s2: np.ndarray, limits: JointLim
     grows by a^2 / 2j), then a symmetric stop at the acceleration and jerk limits follows:
     v^2 / 2a_max + v a_max / 2j when the acceleration limit is reached, v sqrt(v / j) when not.
     """
-    amax, jmax = limits.acceleration_rad_s2, limits.jerk_rad_s3
-    speed = np.abs(v_rad_s)
-    direction = np.sign(v_rad_s)
-    along = np.maximum(a_rad_s2 * direction, 0.0)          # acceleration pushing onward
-    lead = speed * along / jmax + along**3 / (3 * jmax**2)  # while ramping it to zero
-    speed = speed + along**2 / (2 * jmax)
-    full = speed * speed / (2 * amax) + speed * amax / (2 * jmax)
-    short = speed * np.sqrt(speed / jmax)
-    stop = np.where(speed > amax * amax / jmax, full, short)
-    return direction * (lead + stop)
+    out = np.empty(len(v_rad_s))
+    _braking_distance(np.asarray(v_rad_s, dtype=float), np.asarray(a_rad_s2, dtype=float),
+                      limits.acceleration_rad_s2, limits.jerk_rad_s3, out)
+    return out
+
+
+@nb.njit(cache=True, nogil=True)
+def _braking_distance(v, a, amax, jmax, out) -> None:
+    for i in range(v.shape[0]):
+        speed = abs(v[i])
+        direction = 1.0 if v[i] > 0 else (-1.0 if v[i] < 0 else 0.0)
+        along = max(a[i] * direction, 0.0)           # acceleration pushing onward
+        lead = speed * along / jmax[i] + along**3 / (3 * jmax[i] ** 2)
+        speed += along * along / (2 * jmax[i])
+        if speed > amax[i] * amax[i] / jmax[i]:
+            stop = speed * speed / (2 * amax[i]) + speed * amax[i] / (2 * jmax[i])
+        else:
+            stop = speed * math.sqrt(speed / jmax[i])
+        out[i] = direction * (lead + stop)
