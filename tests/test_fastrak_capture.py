@@ -37,7 +37,7 @@ def two_hand_tracks(duration_s=2.0):
     ("ascii", "2,11,1", "cm")])
 def test_capture_replays_the_written_poses_at_120_hz(tmp_path, fmt, output_list, units):
     tracks = two_hand_tracks()
-    path = write_capture(tmp_path / "hands.fcap", tracks, fmt=fmt, output_list=output_list,
+    path = write_capture(tmp_path / "hands.fastrak", tracks, fmt=fmt, output_list=output_list,
                          units=units)
     with open_source(replay=path) as src:
         assert isinstance(src, ReplaySource)
@@ -57,7 +57,7 @@ def test_capture_replays_the_written_poses_at_120_hz(tmp_path, fmt, output_list,
 
 
 def test_read_until_releases_samples_by_receive_time(tmp_path):
-    path = write_capture(tmp_path / "c.fcap", two_hand_tracks(1.0))
+    path = write_capture(tmp_path / "c.fastrak", two_hand_tracks(1.0))
     src = open_source(replay=path)
     first = src.read_until(src.start_s + 0.1)
     assert first and all(s.t_s <= src.start_s + 0.1 for s in first)
@@ -73,7 +73,7 @@ def test_read_until_releases_samples_by_receive_time(tmp_path):
 
 
 def test_pose_log_round_trip_and_same_samples_as_capture(tmp_path):
-    path = write_capture(tmp_path / "c.fcap", two_hand_tracks(0.5))
+    path = write_capture(tmp_path / "c.fastrak", two_hand_tracks(0.5))
     from_capture = open_source(replay=path).read_until(1e9)
     log = write_pose_log(tmp_path / "c.csv", from_capture)
     header = log.read_text().splitlines()[0]
@@ -94,7 +94,7 @@ def test_status_letters_survive_capture_and_pose_log(tmp_path):
     cap = parse_capture(blob)
     # same header, records with status 'x'
     from hubo_cli.fastrak.capture import capture_bytes
-    path = tmp_path / "x.fcap"
+    path = tmp_path / "x.fastrak"
     path.write_bytes(capture_bytes(cap.header, chunks))
     rec = load_recording(path)
     assert rec.stats.status_letters == {"x": len(chunks)}
@@ -119,7 +119,7 @@ def test_writer_accepts_pose_samples_and_tuples(tmp_path):
 
 def test_truncated_capture_keeps_what_is_there(tmp_path):
     blob = poses_to_capture(two_hand_tracks(1.0))
-    path = tmp_path / "cut.fcap"
+    path = tmp_path / "cut.fastrak"
     path.write_bytes(blob[:-50])
     rec = load_recording(path)
     assert rec.info["truncated"] and 0 < rec.stats.good_records < 121
@@ -136,7 +136,7 @@ def test_capture_with_garbage_between_chunks_resynchronises(tmp_path):
         chunks.append((float(cap.chunk_times[i]), data))
     from hubo_cli.fastrak.capture import capture_bytes
 
-    path = tmp_path / "noisy.fcap"
+    path = tmp_path / "noisy.fastrak"
     path.write_bytes(capture_bytes(cap.header, chunks))
     rec = load_recording(path)
     lost = sum(1 for i in range(len(chunks)) if i % 10 == 3)
@@ -172,7 +172,7 @@ def test_garbled_recordings_are_input_errors(tmp_path, content, message):
 
 def test_missing_recording_and_bad_arguments(tmp_path):
     with pytest.raises(InputError, match="no such recording") as info:
-        open_source(replay=tmp_path / "nope.fcap")
+        open_source(replay=tmp_path / "nope.fastrak")
     assert "trajectories" in info.value.hint
     with pytest.raises(InputError, match="folder"):
         open_source(replay=tmp_path)
@@ -183,7 +183,7 @@ def test_missing_recording_and_bad_arguments(tmp_path):
 
 
 def test_station_filter(tmp_path):
-    path = write_capture(tmp_path / "c.fcap", two_hand_tracks(0.5))
+    path = write_capture(tmp_path / "c.fastrak", two_hand_tracks(0.5))
     samples = open_source(replay=path, stations=[2]).read_until(1e9)
     assert {s.station for s in samples} == {2}
     with pytest.raises(InputError, match="no records for station"):
@@ -202,7 +202,9 @@ def test_capture_header_is_one_json_line(tmp_path):
 def test_pose_log_reader_accepts_comments_and_no_status(tmp_path):
     path = tmp_path / "hand.csv"
     path.write_text("# a hand-made log\nt_s,station,x_m,y_m,z_m,qw,qx,qy,qz\n"
-                    "0.0,1,0.1,0.2,0.3,2,0,0,0\n0.5,1,0.1,0.2,0.4,1,0,0,0\n")
+                    "0.5,1,0.1,0.2,0.4,1,0,0,0\n0.0,1,0.1,0.2,0.3,2,0,0,0\n")
     batch = read_pose_log(path)
     assert len(batch) == 2 and batch.status.tolist() == [32, 32]
+    assert batch.t_s.tolist() == [0.0, 0.5]  # sorted by time
     np.testing.assert_allclose(batch.quat_wxyz[0], [1, 0, 0, 0])
+    np.testing.assert_allclose(batch.position_m[0], [0.1, 0.2, 0.3])

@@ -34,7 +34,7 @@ def test_commands_are_registered():
 
 
 def test_decode_json_reports_counts_rates_and_writes_the_pose_log(tmp_path):
-    cap = sample_capture(tmp_path / "hands.fcap")
+    cap = sample_capture(tmp_path / "hands.fastrak")
     result = run("fastrak", "decode", cap, "--json")
     assert result.exit_code == 0
     report = json.loads(result.stdout)
@@ -48,8 +48,8 @@ def test_decode_json_reports_counts_rates_and_writes_the_pose_log(tmp_path):
 
 
 def test_decode_text_report_counts_skipped_bytes(tmp_path):
-    cap = parse_capture(sample_capture(tmp_path / "a.fcap").read_bytes())
-    noisy = tmp_path / "noisy.fcap"
+    cap = parse_capture(sample_capture(tmp_path / "a.fastrak").read_bytes())
+    noisy = tmp_path / "noisy.fastrak"
     noisy.write_bytes(capture_bytes(cap.header, [(0.0, b"\x07junk"), (0.01, cap.data)]))
     out = tmp_path / "out.csv"
     result = run("fastrak", "decode", noisy, "--out", out)
@@ -59,7 +59,7 @@ def test_decode_text_report_counts_skipped_bytes(tmp_path):
 
 
 def test_decode_bad_inputs_are_one_line_errors(tmp_path):
-    result = run("fastrak", "decode", tmp_path / "missing.fcap")
+    result = run("fastrak", "decode", tmp_path / "missing.fastrak")
     assert result.exit_code == 2 and "no such recording" in result.output
     assert "hint:" in result.output and "Traceback" not in result.output
     garbage = tmp_path / "garbage.bin"
@@ -74,7 +74,7 @@ def test_decode_bad_inputs_are_one_line_errors(tmp_path):
 
 def test_record_from_the_emulator_then_decode(tmp_path):
     emu = make_emulator(stations=2).start()
-    out = tmp_path / "rec.fcap"
+    out = tmp_path / "rec.fastrak"
     csv_path = tmp_path / "rec.csv"
     try:
         result = run("record", "--port", emu.port_name, "--out", out, "--duration", "0.3",
@@ -91,10 +91,10 @@ def test_record_from_the_emulator_then_decode(tmp_path):
 
 
 def test_record_on_an_absent_port_is_a_device_error(tmp_path):
-    result = run("record", "--port", "/dev/does-not-exist", "--out", tmp_path / "x.fcap",
+    result = run("record", "--port", "/dev/does-not-exist", "--out", tmp_path / "x.fastrak",
                  "--duration", "1")
     assert result.exit_code == 3 and "no serial port" in result.output and "hint:" in result.output
-    result = run("record", "--port", "/dev/null", "--out", tmp_path / "x.fcap", "--list", "2,11")
+    result = run("record", "--port", "/dev/null", "--out", tmp_path / "x.fastrak", "--list", "2,11")
     assert result.exit_code == 2 and "terminator" in result.output
 
 
@@ -113,7 +113,7 @@ def test_emulate_pty_prints_its_path_for_a_reader(tmp_path):
     try:
         path = proc.stdout.readline().strip()
         assert path.startswith("/dev/")
-        result = run("record", "--port", path, "--out", tmp_path / "e.fcap", "--duration",
+        result = run("record", "--port", path, "--out", tmp_path / "e.fastrak", "--duration",
                      "0.2", "--json")
         assert result.exit_code == 0, result.output
         assert set(json.loads(result.stdout)["stations"]) == {"1", "2"}

@@ -106,7 +106,7 @@ def test_status_letters_reach_the_samples():
 
 
 def test_live_capture_replays_to_the_same_samples(tmp_path):
-    path = tmp_path / "live.fcap"
+    path = tmp_path / "live.fastrak"
     emu = make_emulator(stations=2).start()
     try:
         src = open_source(port=emu.port_name, capture=path, **FAST)
@@ -233,7 +233,7 @@ def test_emulator_answers_the_reader_commands():
 def test_emulator_plays_a_recording(tmp_path):
     t = np.linspace(0, 1, 11)
     track = PoseTrack(t, np.c_[0.3 + 0.1 * t, 0 * t, 0 * t], np.tile([1.0, 0, 0, 0], (11, 1)))
-    path = write_capture(tmp_path / "rec.fcap", {3: track})
+    path = write_capture(tmp_path / "rec.fastrak", {3: track})
     with pytest.raises(InputError, match="no poses for station"):
         make_emulator(stations=2, from_file=path)
     emu = make_emulator(from_file=path, keep_played=1000).start()

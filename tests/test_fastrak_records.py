@@ -12,6 +12,7 @@ from hubo_cli.fastrak.records import (
     Plausibility,
     encode_record,
     make_layout,
+    quat_from_euler_deg,
     quat_from_rotation,
     rotation_from_euler_deg,
     rotation_from_quat,
@@ -211,3 +212,10 @@ def test_quaternion_rotation_round_trip(rng):
     q /= np.linalg.norm(q, axis=1, keepdims=True)
     q[q[:, 0] < 0] *= -1
     np.testing.assert_allclose(quat_from_rotation(rotation_from_quat(q)), q, atol=1e-12)
+
+
+def test_euler_quaternion_matches_the_euler_matrix(rng):
+    angles = np.c_[rng.uniform(-180, 180, 300), rng.uniform(-90, 90, 300),
+                   rng.uniform(-180, 180, 300)]
+    np.testing.assert_allclose(rotation_from_quat(quat_from_euler_deg(angles)),
+                               rotation_from_euler_deg(angles), atol=1e-12)

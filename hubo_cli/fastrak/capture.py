@@ -385,6 +385,8 @@ def write_pose_log(path: str | Path, records: RecordBatch | Iterable[PoseSample]
 def parse_pose_log(text: str, where: str = "pose log") -> RecordBatch:
     """Parse pose-log CSV text (``#`` comment lines allowed; ``status`` column optional).
 
+    Quaternions are normalised and rows sorted by time.
+
     Raises:
         InputError: missing columns or a row that is not numbers, with its line number.
     """
@@ -432,9 +434,12 @@ def parse_pose_log(text: str, where: str = "pose log") -> RecordBatch:
         bad = int(np.flatnonzero(norm < 1e-6)[0])
         raise InputError(f"{where}: line {lines[bad + 1][0]}: zero quaternion",
                          hint="qw,qx,qy,qz must be a unit quaternion (scalar first)")
-    return RecordBatch(station=station, status=status, position_m=values[:, 2:5].copy(),
-                       quat_wxyz=q / norm[:, None], stylus=np.full(len(station), -1, np.int8),
-                       offset=np.zeros(len(station), dtype=np.int64), t_s=values[:, 0].copy())
+    batch = RecordBatch(station=station, status=status, position_m=values[:, 2:5].copy(),
+                        quat_wxyz=q / norm[:, None], stylus=np.full(len(station), -1, np.int8),
+                        offset=np.zeros(len(station), dtype=np.int64), t_s=values[:, 0].copy())
+    if len(batch) > 1 and (np.diff(batch.t_s) < 0).any():
+        batch = batch.select(np.argsort(batch.t_s, kind="stable"))
+    return batch
 
 
 def read_pose_log(path: str | Path) -> RecordBatch:

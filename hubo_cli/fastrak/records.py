@@ -274,6 +274,18 @@ def rotation_from_euler_deg(az_el_rl_deg: np.ndarray) -> np.ndarray:
     return R
 
 
+def quat_from_euler_deg(az_el_rl_deg: np.ndarray) -> np.ndarray:
+    """(N,3) azimuth, elevation, roll in degrees -> (N,4) quaternions of ``Rz Ry Rx``, w >= 0."""
+    h = np.radians(np.asarray(az_el_rl_deg, dtype=np.float64)) * 0.5
+    c, s = np.cos(h), np.sin(h)
+    ca, ce, cr = c[:, 0], c[:, 1], c[:, 2]
+    sa, se, sr = s[:, 0], s[:, 1], s[:, 2]
+    q = np.stack([ca * ce * cr + sa * se * sr, ca * ce * sr - sa * se * cr,
+                  ca * se * cr + sa * ce * sr, sa * ce * cr - ca * se * sr], axis=1)
+    q[q[:, 0] < 0] *= -1.0
+    return q
+
+
 def euler_deg_from_rotation(R: np.ndarray) -> np.ndarray:
     """(N,3,3) rotations -> (N,3) azimuth, elevation, roll in degrees (inverse of the above)."""
     R = np.asarray(R, dtype=np.float64)
@@ -523,9 +535,9 @@ def decode_candidates(layout: RecordLayout, rec: np.ndarray, scale_m: float,
             if layout.orientation == "dcos":
                 R = np.stack([values["dcos_x"][safe], values["dcos_y"][safe],
                               values["dcos_z"][safe]], axis=1)
+                q[safe] = quat_from_rotation(R)
             else:
-                R = rotation_from_euler_deg(values["euler"][safe])
-            q[safe] = quat_from_rotation(R)
+                q[safe] = quat_from_euler_deg(values["euler"][safe])
     if keep is not None:
         full_ok = np.zeros(k, dtype=bool)
         full_ok[keep] = sub_ok
