@@ -208,3 +208,10 @@ def test_pose_log_reader_accepts_comments_and_no_status(tmp_path):
     assert batch.t_s.tolist() == [0.0, 0.5]  # sorted by time
     np.testing.assert_allclose(batch.quat_wxyz[0], [1, 0, 0, 0])
     np.testing.assert_allclose(batch.position_m[0], [0.1, 0.2, 0.3])
+
+
+def test_replay_ignores_live_port_options(tmp_path):
+    path = write_capture(tmp_path / "c.fastrak", two_hand_tracks(0.2))
+    with open_source(replay=path, port=None, baud=9600, fmt="ascii", units="in") as src:
+        assert src.info["format"] == "binary" and src.info["units"] == "cm"
+        assert len(src.read_until(1e9)) == src.stats.good_records

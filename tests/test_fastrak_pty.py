@@ -5,6 +5,7 @@ depends on how fast the machine is.
 """
 
 import os
+import select
 import time
 import tty
 
@@ -250,3 +251,32 @@ def test_emulator_plays_a_recording(tmp_path):
     start = track.start_s
     for t_s, _, p, _ in played[:10]:
         np.testing.assert_allclose(p, track.at(start + t_s % 1.0)[0][0], atol=1e-6)
+
+
+def test_emulator_serves_a_serial_port():
+    from hubo_cli.fastrak.emulator import FastrakEmulator, SerialEndpoint
+
+    master, slave = os.openpty()  # the emulator opens the slave like a serial port
+    tty.setraw(slave)
+    emu = FastrakEmulator(EmulatedFastrak(stations=(1, 2)), SerialEndpoint(os.ttyname(slave)))
+    emu.start()
+    try:
+        def read_until(n):
+            got = b""
+            deadline = time.monotonic() + DEADLINE_S
+            while len(got) < n and time.monotonic() < deadline:
+                if select.select([master], [], [], 0.1)[0]:  # never block past the deadline
+                    got += os.read(master, 4096)
+            return got
+
+        os.write(master, b"S")
+        assert read_until(55).startswith(b"21S3F0")
+        os.write(master, b"C")
+        layout = make_layout("ascii", "2,4,1")
+        data = read_until(10 * layout.length)
+        res = scan(data, layout, "in", final=True)
+        assert len(res.batch) >= 9 and set(res.batch.station.tolist()) == {1, 2}
+    finally:
+        emu.close()
+        os.close(master)
+        os.close(slave)

@@ -1,0 +1,13 @@
+"""Polhemus FASTRAK input: the serial protocol, recordings, and a device emulator.
+
+- :mod:`.records`: output-list layouts, vectorised record decoding and the record encoder.
+- :mod:`.parser`: the resynchronising byte-stream parser shared by live and replayed input.
+- :mod:`.reader`: the live pyserial reader (explicit configuration, probe, staleness, reconnect).
+- :mod:`.capture`: raw captures and pose logs (CSV), their readers and writers.
+- :mod:`.emulator`: a FASTRAK on a pty or serial port, for tests and hardware-free runs.
+- :mod:`.source`: :func:`open_source`, the one interface consumers read poses through.
+"""
+
+from hubo_cli.fastrak.source import PoseSample, PoseSource, SourceStats, open_source
+
+__all__ = ["PoseSample", "PoseSource", "SourceStats", "open_source"]

@@ -347,7 +347,9 @@ class SerialEndpoint:
 
     def read(self, timeout_s: float) -> bytes:
         """Bytes the host wrote (empty after ``timeout_s`` seconds without any)."""
-        self._ser.timeout = max(0.0, timeout_s)
+        ready, _, _ = select.select([self._ser.fileno()], [], [], max(0.0, timeout_s))
+        if not ready:
+            return b""
         return self._ser.read(max(1, self._ser.in_waiting))
 
     def write(self, data: bytes) -> None:

@@ -351,6 +351,9 @@ class FastrakReader(PoseSource):
             except DeviceError as exc:
                 last = str(exc)
                 continue
+            if self._stop.is_set():  # closed while reconnecting
+                ser.close()
+                return False
             self._ser = ser
             lost = self._parser.reset()
             with self._lock:
