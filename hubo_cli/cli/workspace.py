@@ -28,12 +28,14 @@ def _print_map(wmap, paper_pts) -> None:
         f"orientation {wmap.orientation}")
     out(f"  {wmap.grid.points:,} points at {wmap.grid.resolution_m * mm:g} mm in "
         f"{wmap.seconds:.2f} s")
-    out("                          best      grid     paper")
-    for label, best, grid, paper in (
+    paper = wmap.paper_setup  # the paper's figures only apply to the drill at the wall
+    out("                          best      grid" + ("     paper" if paper else ""))
+    for label, best, grid, key in (
             ("wall distance (mm)", w.wall_distance_m, g.wall_distance_m, "wall_distance_mm"),
             ("segment width (mm)", w.width_m, g.width_m, "width_mm"),
             ("height above neck (mm)", w.z_m, g.z_m, "height_mm")):
-        out(f"  {label:<22}{best * mm:6.1f}    {grid * mm:6.1f}    {PAPER_BEST[paper]:6.0f}")
+        tail = f"    {PAPER_BEST[key]:6.0f}" if paper else ""
+        out(f"  {label:<22}{best * mm:6.1f}    {grid * mm:6.1f}{tail}")
     out(f"  segment y {w.y_min_m * mm:+.1f} .. {w.y_max_m * mm:+.1f} mm, IK branch {w.branch}")
     out(f"  joints at min y   {fmt_q(w.q_min_rad)} rad")
     out(f"  joints at max y   {fmt_q(w.q_max_rad)} rad")

@@ -68,14 +68,14 @@ def plot_fig4(wmap: WorkspaceMap, path: str | Path) -> Path:
                                      rect.height_m * mm, fill=False, ls="--", lw=2, ec="k",
                                      label=f"largest rectangle {rect.width_m * mm:.0f} x "
                                            f"{rect.height_m * mm:.0f} mm"))
-    paper = _paper_points_mm(wmap)
+    paper = _paper_points_mm(wmap) if wmap.paper_setup else None
     iz = int(np.argmin(np.abs(g.z_m - seg.z_m)))
     ax_top.imshow(cls[:, iz, :], origin="lower", extent=(*y_ext, *x_ext), cmap=_COLOURS, vmin=0,
                   vmax=3, interpolation="nearest", aspect="equal")
     ax_top.plot([seg.y_min_m * mm, seg.y_max_m * mm], [seg.wall_distance_m * mm] * 2, "k-",
                 lw=3)
     mirrored = " (mirrored)" if wmap.arm == "left" else ""
-    for ax, cols in ((ax_front, (1, 2)), (ax_top, (1, 0))):
+    for ax, cols in ((ax_front, (1, 2)), (ax_top, (1, 0))) if wmap.paper_setup else ():
         ax.plot(paper[:, cols[0]], paper[:, cols[1]], "*", color="gold", mec="k", ms=16,
                 label=f"paper IV ends{mirrored} (x = {paper[0, 0]:.0f} mm, "
                       f"z = {paper[0, 2]:.0f} mm)")
@@ -89,12 +89,14 @@ def plot_fig4(wmap: WorkspaceMap, path: str | Path) -> Path:
     fig.legend(handles=_LEGEND + ax_front.get_legend_handles_labels()[0], loc="lower center",
                ncol=4, fontsize=9, frameon=False)
     w = wmap.widest
-    fig.suptitle(f"{wmap.arm} arm, {wmap.tool}, {wmap.params} lengths, {wmap.limits} limits: "
-                 f"widest one-branch segment {w.width_m * mm:.1f} mm at x = "
-                 f"{w.wall_distance_m * mm:.1f} mm, z = {w.z_m * mm:.1f} mm "
-                 f"(paper: {PAPER_BEST['width_mm']:.0f} mm at {PAPER_BEST['wall_distance_mm']:.0f}"
-                 f" mm, z = {PAPER_BEST['height_mm']:.0f} mm)", fontsize=11)
-    fig.tight_layout(rect=(0, 0.09, 1, 0.96))
+    paper_note = (f" (paper: {PAPER_BEST['width_mm']:.0f} mm at "
+                  f"{PAPER_BEST['wall_distance_mm']:.0f} mm, z = {PAPER_BEST['height_mm']:.0f} mm)"
+                  if wmap.paper_setup else "")
+    fig.suptitle(f"{wmap.arm} arm, {wmap.tool}, {wmap.params} lengths, {wmap.limits} limits, "
+                 f"orientation {wmap.orientation}: widest one-branch segment "
+                 f"{w.width_m * mm:.1f} mm at x = {w.wall_distance_m * mm:.1f} mm, "
+                 f"z = {w.z_m * mm:.1f} mm{paper_note}", fontsize=10)
+    fig.tight_layout(rect=(0, 0.11, 1, 0.96))
     path = Path(path)
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -119,9 +121,10 @@ def plot_widths(maps: list[WorkspaceMap], path: str | Path) -> Path:
         ax.plot([w.wall_distance_m * mm], [w.width_m * mm], "o", color=col, ms=9, mec="k",
                 label=f"{wmap.arm} best: {w.width_m * mm:.0f} mm at "
                       f"{w.wall_distance_m * mm:.0f} mm")
-    ax.plot([PAPER_BEST["wall_distance_mm"]], [PAPER_BEST["width_mm"]], "*", color="gold",
-            mec="k", ms=16, label="paper IV: 390 mm at 484 mm")
     first = maps[0]
+    if first.paper_setup:
+        ax.plot([PAPER_BEST["wall_distance_mm"]], [PAPER_BEST["width_mm"]], "*", color="gold",
+                mec="k", ms=16, label="paper IV: 390 mm at 484 mm")
     ax.set(xlabel="wall distance from the neck, x (mm)", ylabel="mm",
            title=f"{first.tool}, {first.params} lengths, {first.limits} limits, "
                  f"{first.grid.resolution_m * mm:g} mm grid")

@@ -64,7 +64,9 @@ def save_npz(maps: list[WorkspaceMap], path: str | Path) -> Path:
 
 def paper_points(wmap: WorkspaceMap) -> list[dict]:
     """The paper's two segment ends (mirrored for the left arm): where they land and whether
-    the map reaches them, on which branches."""
+    the map reaches them, on which branches. Empty unless the map is the paper's set-up."""
+    if not wmap.paper_setup:
+        return []
     Q, P, masks = wmap.paper_ends()
     return [{"position_mm": p * 1000, "q_rad": q, "reachable": bool(m),
              "branches": [k for k in range(8) if m & (1 << k)]}
@@ -74,7 +76,8 @@ def paper_points(wmap: WorkspaceMap) -> list[dict]:
 def summary(maps: list[WorkspaceMap], seconds: float) -> dict:
     """summary.json: the first arm's figures at the top level, every arm under ``arms``."""
     first = maps[0].summary()
-    out = {**first, "seconds": round(seconds, 3), "paper": PAPER_BEST,
+    out = {**first, "seconds": round(seconds, 3),
+           "paper": PAPER_BEST if maps[0].paper_setup else None,
            "paper_points": paper_points(maps[0]), "arms": {}}
     for m in maps:
         out["arms"][m.arm] = {**m.summary(), "paper_points": paper_points(m)}

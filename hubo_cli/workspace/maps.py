@@ -89,10 +89,6 @@ class WorkspaceMap:
     reach: BranchReach = field(repr=False)
 
     @property
-    def limb_name(self) -> str:
-        return f"{self.arm}-arm"
-
-    @property
     def reachable(self) -> np.ndarray:
         """Reachable on any branch (bool, nx x nz x ny): what ``Limb.solve`` calls exact."""
         return self.masks != 0
@@ -114,6 +110,11 @@ class WorkspaceMap:
         """Height of the largest rectangle per wall distance (m; NaN where none)."""
         r = self.rect_cells
         return np.where(r[:, 0] >= 0, (r[:, 2] - r[:, 1]) * self.grid.resolution_m, np.nan)
+
+    @property
+    def paper_setup(self) -> bool:
+        """True for the paper's study (drill orthogonal to the wall), where its numbers apply."""
+        return self.tool == "drill" and self.orientation == "wall"
 
     def paper_ends(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The paper's two segment ends through this map's arm (mirrored for the left arm).
