@@ -17,7 +17,7 @@ from hubo_cli.fastrak.capture import (
     write_capture,
     write_pose_log,
 )
-from hubo_cli.fastrak.records import rotation_from_quat
+from hubo_cli.fastrak.rotations import rotation_from_quat
 from hubo_cli.fastrak.source import PoseSample, ReplaySource, open_source
 from hubo_cli.fastrak.track import PoseTrack
 

@@ -44,7 +44,7 @@ def assert_matches_played(got, played, pos_tol, rot_tol):
     for sample, (_, station, p, q) in zip(got, played, strict=False):
         assert sample.station == station
         np.testing.assert_allclose(sample.position_m, p, atol=pos_tol)
-        from hubo_cli.fastrak.records import rotation_from_quat
+        from hubo_cli.fastrak.rotations import rotation_from_quat
 
         np.testing.assert_allclose(sample.T_tracker_sensor[:3, :3],
                                    rotation_from_quat(q[None])[0], atol=rot_tol)

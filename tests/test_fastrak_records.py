@@ -8,15 +8,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hubo_cli.errors import InputError
-from hubo_cli.fastrak.records import (
-    Plausibility,
-    encode_record,
-    make_layout,
+from hubo_cli.fastrak.records import Plausibility, encode_record, make_layout, scan
+from hubo_cli.fastrak.rotations import (
     quat_from_euler_deg,
     quat_from_rotation,
     rotation_from_euler_deg,
     rotation_from_quat,
-    scan,
 )
 
 IN = 0.0254

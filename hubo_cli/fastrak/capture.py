@@ -37,8 +37,8 @@ from hubo_cli.fastrak.records import (
     RecordBatch,
     encode_records,
     make_layout,
-    quat_from_rotation,
 )
+from hubo_cli.fastrak.rotations import quat_from_rotation
 from hubo_cli.fastrak.source import PoseSample, ReplaySource, SourceStats, batch_samples
 from hubo_cli.fastrak.track import PoseTrack
 

@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from hubo_cli.errors import InputError
-from hubo_cli.fastrak.records import SUSPECT_STATUS, RecordBatch, rotation_from_quat
+from hubo_cli.fastrak.records import SUSPECT_STATUS, RecordBatch
+from hubo_cli.fastrak.rotations import rotation_from_quat
 
 
 @dataclass(frozen=True, eq=False)
