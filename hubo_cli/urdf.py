@@ -411,6 +411,7 @@ def _collision_shapes(model: RobotModel) -> dict[str, list[Shape]]:
         y = spec.side * (L["lA1"] if spec.is_arm else L["lL1"])
         if spec.is_arm:
             elbow, wrist = -L["lA2"], -L["lA2"] - L["lA3"]
+            shapes[f"{j[0]}_link"] = [_sphere((0, y, 0.0), 0.045)]
             shapes[f"{j[2]}_link"] = [_segment((0, y, -0.06), (0, y, elbow + 0.03), 0.045)]
             shapes[f"{j[3]}_link"] = [_sphere((0, y, elbow), 0.04)]
             shapes[f"{j[4]}_link"] = [_segment((0, y, elbow - 0.045), (0, y, wrist + 0.03),

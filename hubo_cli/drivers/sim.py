@@ -1,0 +1,544 @@
+"""The simulated HUBO 2+ in PyBullet (driver name ``sim``, the default).
+
+World
+    A floor (plane z = 0, friction 1.0) with gravity; the URDF robot (fixed links merged) stands
+    on it with both soles flat in the start posture (``home_posture`` unless given). The world
+    frame is the neck frame N at start dropped onto the floor: x forward, y left, z up, origin
+    on the floor under the neck. Before time 0 the robot settles for ``settle_s`` holding the
+    start posture, so the first state already carries its weight on both feet.
+
+Physics and control
+    1 kHz physics (``physics_dt_s``), five steps per 5 ms control period, ``solver_iterations``
+    (20) constraint-solver iterations: cheaper than PyBullet's default 50 with a joint tracking
+    error still below 2e-4 rad when standing. Joints are in position control (PyBullet motors:
+    ``position_gain``, ``velocity_gain``) with the URDF's effort limits as torque limits (tens of
+    N m in the arms, 10 N m in the wrists, 100-200 N m in the legs) and the URDF velocity limits.
+
+Sensors (:class:`~hubo_cli.drivers.base.RobotState`)
+    IMU: torso orientation in the world and its angular rate in the torso frame. Force/torque:
+    computed, not read from joint reactions: the wrench [fx, fy, fz, mx, my, mz] (N, N m) that
+    the environment applies to the foot (contacts with the floor or a wall) about the sole frame
+    origin in sole axes, and to the hand with its tool (contacts plus the drilling force) about
+    the hand frame origin in hand axes. So a wrist reading is that of a sensor zeroed with the
+    tool attached; standing, an ankle reads fz = + its share of the weight. Joint torques are the
+    motors' applied torques. Feet contacts: a foot touches anything with a positive normal force.
+
+Drilling (:class:`CuttingModel`)
+    With the drill on the right hand (``drill=True``) and a wall in the scene (:meth:`add_wall`),
+    while the middle of the bit (frame ``right_drill_bit``) is inside the wall box the wall
+    resists the bit's velocity v_t in the wall plane (y, z) with
+
+        F = -(coulomb_n * v_t / sqrt(|v_t|^2 + smooth_m_s^2) + viscous_n_s_per_m * v_t),
+
+    applied at the bit every physics step. The drill itself has no collision shape, so the bit
+    passes into the wall and only this force acts. The bit sits lE = 0.178 m from the hand point
+    along its own axis, so a force F across the bit gives a wrist moment of about 0.178 F. With the
+    defaults (0.5 N + 80 N s/m) cutting at 10 mm/s gives 1.25 N, about 0.22 N m at the wrist
+    (the paper's cut: 0.14-0.15 N m average, 0.35 N m peak), 50 mm/s about 0.8 N m and 100 mm/s
+    about 1.5 N m, past the wrist's 1.21 N m limit.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from hubo_cli.drivers import checks
+from hubo_cli.drivers.base import FT_SENSORS, Driver, RobotState, register
+from hubo_cli.errors import ConfigError, DeviceError
+from hubo_cli.kinematics.limb import Limb
+from hubo_cli.model import RobotModel
+from hubo_cli.posture import home_posture
+from hubo_cli.urdf import DRILL_FRAME, link_frames
+
+HAND_FRAMES = {"right-wrist": ("RWP_link", "right_hand"), "left-wrist": ("LWP_link", "left_hand")}
+SOLE_FRAMES = {"right-ankle": ("RAR_link", "right_sole"), "left-ankle": ("LAR_link", "left_sole")}
+FRAME_PARENTS = {"right_hand": "RWP_link", "left_hand": "LWP_link", "right_sole": "RAR_link",
+                 "left_sole": "LAR_link", DRILL_FRAME: "RWP_link"}
+
+
+def _flush_c_stdio() -> None:
+    """Flush C stdio buffers so that buffered native output lands while it is redirected."""
+    with contextlib.suppress(Exception):
+        import ctypes
+
+        ctypes.CDLL(None).fflush(None)
+
+
+@contextlib.contextmanager
+def quiet_native_output():
+    """Silence C-level stdout/stderr (PyBullet prints while importing and loading URDFs)."""
+    saved = []
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+    except OSError:
+        yield
+        return
+    try:
+        for fd in (1, 2):
+            try:
+                saved.append((fd, os.dup(fd)))
+                os.dup2(devnull, fd)
+            except OSError:
+                pass
+        yield
+    finally:
+        _flush_c_stdio()
+        for fd, copy in saved:
+            os.dup2(copy, fd)
+            os.close(copy)
+        os.close(devnull)
+
+
+def import_pybullet():
+    """Import pybullet without its banner on the terminal."""
+    with quiet_native_output():
+        import pybullet
+    return pybullet
+
+
+@dataclass(frozen=True)
+class CuttingModel:
+    """Resistance of the wall to the drill bit moving in the wall plane (see module docstring).
+
+    Attributes:
+        coulomb_n: speed-independent part (N), reached above a few mm/s.
+        viscous_n_s_per_m: part proportional to speed (N per m/s).
+        smooth_m_s: speed (m/s) below which the constant part fades smoothly to zero (the
+            position-controlled arm jitters by about 1 mm/s when holding still).
+    """
+
+    coulomb_n: float = 0.5
+    viscous_n_s_per_m: float = 80.0
+    smooth_m_s: float = 0.005
+
+    def force_n(self, v_plane_m_s: np.ndarray) -> np.ndarray:
+        """The force (N) on the bit for its in-plane velocity (m/s), opposite to it."""
+        speed = float(np.linalg.norm(v_plane_m_s))
+        return -(self.coulomb_n / math.hypot(speed, self.smooth_m_s)
+                 + self.viscous_n_s_per_m) * np.asarray(v_plane_m_s, dtype=float)
+
+
+@dataclass(frozen=True)
+class Wall:
+    """A box wall in front of the robot (world frame, m): its near face at x = distance_m."""
+
+    body_id: int
+    distance_m: float
+    height_m: float
+    width_m: float
+    thickness_m: float
+    centre_y_m: float = 0.0
+
+    def contains(self, p_world: np.ndarray) -> bool:
+        """Whether a world point lies inside the wall box."""
+        x, y, z = p_world
+        return (self.distance_m <= x <= self.distance_m + self.thickness_m
+                and abs(y - self.centre_y_m) <= self.width_m / 2 and 0.0 <= z <= self.height_m)
+
+
+@dataclass
+class _Push:
+    force_world_n: np.ndarray
+    until_s: float
+
+
+@dataclass
+class SimOptions:
+    """Tunable settings of the simulation (SI units)."""
+
+    gui: bool = False
+    drill: bool = False
+    physics_dt_s: float = 0.001
+    solver_iterations: int = 20
+    position_gain: float = 0.3
+    velocity_gain: float = 1.0
+    friction: float = 1.0
+    settle_s: float = 0.3
+    cutting: CuttingModel = field(default_factory=CuttingModel)
+
+
+def _pose(position, quat_xyzw) -> np.ndarray:
+    x, y, z, w = quat_xyzw
+    T = np.eye(4)
+    T[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                 [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                 [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
+    T[:3, 3] = position
+    return T
+
+
+def _quat_wxyz(R: np.ndarray) -> np.ndarray:
+    """Unit quaternion (w, x, y, z) of a rotation matrix."""
+    trace = R[0, 0] + R[1, 1] + R[2, 2]
+    if trace > 0:
+        s = 2.0 * math.sqrt(trace + 1.0)
+        q = [0.25 * s, (R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s, (R[1, 0] - R[0, 1]) / s]
+    else:
+        i = int(np.argmax(np.diag(R)))
+        j, k = (i + 1) % 3, (i + 2) % 3
+        s = 2.0 * math.sqrt(1.0 + R[i, i] - R[j, j] - R[k, k])
+        q = [0.0, 0.0, 0.0, 0.0]
+        q[0] = (R[k, j] - R[j, k]) / s
+        q[1 + i] = 0.25 * s
+        q[1 + j] = (R[j, i] + R[i, j]) / s
+        q[1 + k] = (R[k, i] + R[i, k]) / s
+    quat = np.array(q)
+    return quat / np.linalg.norm(quat) * (1.0 if quat[0] >= 0 else -1.0)
+
+
+class SimDriver(Driver):
+    """The HUBO 2+ in PyBullet. Options: see :class:`SimOptions` (``gui``, ``drill``, ...).
+
+    Besides the contract it offers scene objects (:meth:`add_wall`), a torso push
+    (:meth:`push_torso`), poses of named frames (:meth:`frame_pose`) and a headless
+    snapshot (:meth:`snapshot_png`).
+    """
+
+    name = "sim"
+
+    def __init__(self, model: RobotModel, **options) -> None:
+        super().__init__(model)
+        unknown = set(options) - set(SimOptions.__dataclass_fields__)
+        if unknown:
+            raise ConfigError(f"unknown sim option(s): {', '.join(sorted(unknown))}",
+                              hint=f"use {', '.join(SimOptions.__dataclass_fields__)}")
+        if isinstance(options.get("cutting"), Mapping):
+            options["cutting"] = CuttingModel(**options["cutting"])
+        self.options = SimOptions(**options)
+        substeps = self.period_s / self.options.physics_dt_s
+        if abs(substeps - round(substeps)) > 1e-9 or round(substeps) < 1:
+            raise ConfigError(f"physics_dt_s {self.options.physics_dt_s} does not divide the "
+                              f"{self.period_s} s control period")
+        self.substeps = int(round(substeps))
+        self._p = None
+        self._cid = -1
+        self._robot = -1
+        self._walls: list[Wall] = []
+        self._pending_walls: list[tuple] = []
+        self._pushes: list[_Push] = []
+        self._state: RobotState | None = None
+        self._cmd = np.zeros(len(self.joint_names))
+        self._flags: list[str] = []
+        self._stopped = False
+        self._closed = False
+        self._t = 0.0
+        self.cutting_force_n = np.zeros(3)
+        self._cutting_point = np.zeros(3)
+        self.physics_wall_s = 0.0  # wall time spent inside stepSimulation (s), for benchmarks
+        frames = link_frames(model)
+        self._T_link_frame = {child: origin for (_, kind, parent, child, origin, _)
+                              in frames.joints if kind == "fixed" and child in FRAME_PARENTS}
+
+    # ------------------------------------------------------------------ set-up
+    def _connect(self) -> None:
+        p = import_pybullet()
+        self._p = p
+        with quiet_native_output():
+            self._cid = p.connect(p.GUI if self.options.gui else p.DIRECT)
+        if self._cid < 0:
+            raise DeviceError("could not open the PyBullet window",
+                              hint="run without --gui on a machine without a display")
+        if self.options.gui:
+            p.configureDebugVisualizer(p.COV_ENABLE_GUI, 0, physicsClientId=self._cid)
+            p.resetDebugVisualizerCamera(2.2, 50, -15, [0.2, 0, 0.6], physicsClientId=self._cid)
+
+    def _build_world(self, q0: np.ndarray) -> None:
+        p, cid = self._p, self._cid
+        p.resetSimulation(physicsClientId=cid)
+        p.setGravity(0, 0, -9.81, physicsClientId=cid)
+        p.setPhysicsEngineParameter(fixedTimeStep=self.options.physics_dt_s,
+                                    numSolverIterations=self.options.solver_iterations,
+                                    physicsClientId=cid)
+        plane = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=cid)
+        floor_visual = p.createVisualShape(p.GEOM_BOX, halfExtents=[5, 5, 0.001],
+                                           visualFramePosition=[0, 0, -0.001],
+                                           rgbaColor=[0.75, 0.78, 0.8, 1], physicsClientId=cid)
+        self._floor = p.createMultiBody(0, plane, floor_visual, physicsClientId=cid)
+        p.changeDynamics(self._floor, -1, lateralFriction=self.options.friction,
+                         physicsClientId=cid)
+        urdf = self.model.urdf_path()
+        if self.options.drill:
+            urdf = urdf.with_name(urdf.stem + "-drill.urdf")
+        sole = Limb(self.model, "right-leg").fk(q0[self.model.limb_slice("right-leg")])
+        self.neck_height_m = float(-sole[2, 3])
+        flags = p.URDF_USE_INERTIA_FROM_FILE | p.URDF_MERGE_FIXED_LINKS
+        with quiet_native_output():
+            self._robot = p.loadURDF(str(urdf), basePosition=[0, 0, self.neck_height_m],
+                                     flags=flags, physicsClientId=cid)
+        joints, self._links = {}, {}
+        for i in range(p.getNumJoints(self._robot, physicsClientId=cid)):
+            info = p.getJointInfo(self._robot, i, physicsClientId=cid)
+            joints[info[1].decode()] = i
+            self._links[info[12].decode()] = i
+        self._idx = [joints[n] for n in self.joint_names]
+        self._effort = [p.getJointInfo(self._robot, j, physicsClientId=cid)[10]
+                        for j in self._idx]
+        for link in [-1, *self._links.values()]:
+            p.changeDynamics(self._robot, link, lateralFriction=self.options.friction,
+                             physicsClientId=cid)
+        # base = torso link; PyBullet poses the base by its centre of mass
+        info = p.getDynamicsInfo(self._robot, -1, physicsClientId=cid)
+        self._T_com_torso = np.linalg.inv(_pose(info[3], info[4]))
+        self._place(q0)
+        for wall in self._pending_walls:
+            self._create_wall(*wall)
+
+    def _place(self, q0: np.ndarray) -> None:
+        p, cid = self._p, self._cid
+        T_world_com = np.eye(4)
+        T_world_com[2, 3] = self.neck_height_m
+        T_world_com = T_world_com @ np.linalg.inv(self._T_com_torso)
+        p.resetBasePositionAndOrientation(self._robot, T_world_com[:3, 3].tolist(),
+                                          [0, 0, 0, 1], physicsClientId=cid)
+        for j, q in zip(self._idx, q0, strict=True):
+            p.resetJointState(self._robot, j, float(q), 0.0, physicsClientId=cid)
+        self._cmd = np.array(q0, dtype=float)
+        self._apply_command()
+        for _ in range(int(round(self.options.settle_s / self.options.physics_dt_s))):
+            p.stepSimulation(physicsClientId=cid)
+
+    def _apply_command(self) -> None:
+        n = len(self._idx)
+        self._p.setJointMotorControlArray(
+            self._robot, self._idx, self._p.POSITION_CONTROL, targetPositions=self._cmd.tolist(),
+            forces=self._effort, positionGains=[self.options.position_gain] * n,
+            velocityGains=[self.options.velocity_gain] * n, physicsClientId=self._cid)
+
+    # ------------------------------------------------------------------ contract
+    def start(self, q0_rad: np.ndarray | None = None) -> RobotState:
+        """Build the world, stand the robot in ``q0_rad`` (home posture by default), time 0."""
+        if self._closed:
+            raise DeviceError("the simulation is closed", hint="create a new driver")
+        q0 = home_posture(self.model) if q0_rad is None else np.asarray(q0_rad, dtype=float)
+        if q0.shape != (len(self.joint_names),) or not np.all(np.isfinite(q0)):
+            raise ConfigError(f"start posture must be {len(self.joint_names)} finite angles")
+        q0 = np.clip(q0, self.model.lower_rad, self.model.upper_rad)
+        if self._p is None:
+            self._connect()
+        self._walls = []
+        self._pushes = []
+        self._stopped = False
+        self._t = 0.0
+        self._build_world(q0)
+        self._state = self._measure()
+        return self._state
+
+    def read(self) -> RobotState:
+        """The state measured at the end of the last period."""
+        self._require_started()
+        return self._state
+
+    def send(self, q_cmd_rad) -> np.ndarray:
+        """Set the joint position targets; NaN entries keep their last target, targets are
+        clipped to the joint limits. After :meth:`stop` the hold is kept (flag ``stopped``)."""
+        self._require_started()
+        q = self.full_command(self._cmd, q_cmd_rad)
+        if self._stopped:
+            self._flags.append("stopped")
+            return self._cmd.copy()
+        q, flags, _ = checks.sanitize_command(self.model, self._cmd, q)
+        self._flags += flags
+        self._cmd = q
+        self._apply_command()
+        return self._cmd.copy()
+
+    def step(self) -> RobotState:
+        """Advance one control period (``substeps`` physics steps)."""
+        self._require_started()
+        p, cid = self._p, self._cid
+        t0 = time.perf_counter()
+        for k in range(self.substeps):
+            self._apply_external_forces(self._t + k * self.options.physics_dt_s)
+            p.stepSimulation(physicsClientId=cid)
+        self.physics_wall_s += time.perf_counter() - t0
+        self._t += self.period_s
+        self._state = self._measure()
+        return self._state
+
+    def stop(self) -> None:
+        """Hold the last command (the motors keep it); later commands are ignored."""
+        if self._stopped or self._p is None or self._closed:
+            self._stopped = True
+            return
+        self._stopped = True
+        with contextlib.suppress(Exception):
+            self._pushes = []
+            self._apply_command()
+
+    def close(self) -> None:
+        """Disconnect from PyBullet. Safe to call twice."""
+        if self._p is not None and not self._closed:
+            with contextlib.suppress(Exception):
+                self._p.disconnect(physicsClientId=self._cid)
+        self._closed = True
+        self._stopped = True
+
+    def _require_started(self) -> None:
+        if self._closed:
+            raise DeviceError("the simulation is closed", hint="create a new driver")
+        if self._state is None:
+            raise DeviceError("the simulation has not been started", hint=checks.NOT_STARTED_HINT)
+
+    # ------------------------------------------------------------------ scene
+    def add_wall(self, distance_m: float, height_m: float, width_m: float = 1.2,
+                 thickness_m: float = 0.01, centre_y_m: float = 0.0) -> Wall | None:
+        """Put a static box wall in front of the robot: near face at x = distance_m from the
+        neck frame at start, from the floor up to height_m, width_m wide (along y) and
+        thickness_m thick (along x). Before :meth:`start` it is created when the world is."""
+        if min(distance_m, height_m, width_m, thickness_m) <= 0:
+            raise ConfigError("wall distance, height, width and thickness must be positive")
+        spec = (distance_m, height_m, width_m, thickness_m, centre_y_m)
+        self._pending_walls.append(spec)
+        if self._p is not None and self._robot >= 0 and not self._closed:
+            return self._create_wall(*spec)
+        return None
+
+    def _create_wall(self, distance_m, height_m, width_m, thickness_m, centre_y_m) -> Wall:
+        p, cid = self._p, self._cid
+        half = [thickness_m / 2, width_m / 2, height_m / 2]
+        shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=cid)
+        visual = p.createVisualShape(p.GEOM_BOX, halfExtents=half,
+                                     rgbaColor=[0.76, 0.6, 0.42, 1], physicsClientId=cid)
+        body = p.createMultiBody(0, shape, visual, [distance_m + thickness_m / 2, centre_y_m,
+                                                    height_m / 2], physicsClientId=cid)
+        wall = Wall(body, distance_m, height_m, width_m, thickness_m, centre_y_m)
+        self._walls.append(wall)
+        return wall
+
+    def push_torso(self, force_world_n, duration_s: float) -> None:
+        """Push the torso at its centre of mass with a world-frame force (N) for duration_s."""
+        self._require_started()
+        force = np.asarray(force_world_n, dtype=float)
+        if force.shape != (3,) or not np.all(np.isfinite(force)) or duration_s < 0:
+            raise ConfigError("push needs a finite 3-vector force and a duration >= 0")
+        self._pushes.append(_Push(force, self._t + duration_s))
+
+    def _apply_external_forces(self, t_s: float) -> None:
+        p, cid = self._p, self._cid
+        self._pushes = [push for push in self._pushes if t_s < push.until_s - 1e-12]
+        if self._pushes:
+            com, _ = p.getBasePositionAndOrientation(self._robot, physicsClientId=cid)
+            total = sum(push.force_world_n for push in self._pushes)
+            p.applyExternalForce(self._robot, -1, total.tolist(), com, p.WORLD_FRAME,
+                                 physicsClientId=cid)
+        self.cutting_force_n = np.zeros(3)
+        if self._walls and self.options.drill:
+            link = self._links["RWP_link"]
+            ls = p.getLinkState(self._robot, link, computeLinkVelocity=1,
+                                computeForwardKinematics=1, physicsClientId=cid)
+            T_world_bit = _pose(ls[4], ls[5]) @ self._T_link_frame[DRILL_FRAME]
+            bit = T_world_bit[:3, 3]
+            for wall in self._walls:
+                if wall.contains(bit):
+                    v_bit = np.asarray(ls[6]) + np.cross(ls[7], bit - np.asarray(ls[0]))
+                    v_plane = np.array([0.0, v_bit[1], v_bit[2]])
+                    self.cutting_force_n = self.options.cutting.force_n(v_plane)
+                    p.applyExternalForce(self._robot, link, self.cutting_force_n.tolist(),
+                                         bit.tolist(), p.WORLD_FRAME, physicsClientId=cid)
+                    self._cutting_point = bit
+                    break
+
+    # ------------------------------------------------------------------ sensing
+    def _frames_world(self) -> dict[str, np.ndarray]:
+        p, cid = self._p, self._cid
+        names = ["RWP_link", "LWP_link", "RAR_link", "LAR_link"]
+        states = p.getLinkStates(self._robot, [self._links[n] for n in names],
+                                 computeForwardKinematics=1, physicsClientId=cid)
+        return {n: _pose(s[4], s[5]) for n, s in zip(names, states, strict=True)}
+
+    def _wrench(self, link: str, T_world_sensor: np.ndarray, extra=None) -> np.ndarray:
+        """External wrench on a link about the sensor frame origin, in sensor axes."""
+        contacts = self._p.getContactPoints(bodyA=self._robot, linkIndexA=self._links[link],
+                                            physicsClientId=self._cid)
+        origin = T_world_sensor[:3, 3]
+        rows = [(*cp[5], *cp[7], cp[9], cp[10], *cp[11], cp[12], *cp[13]) for cp in contacts]
+        if extra is not None:  # a known force (N) at a point, as one more "contact"
+            f, at = extra
+            rows.append((*at, *f, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+        if not rows:
+            return np.zeros(6)
+        a = np.array(rows)
+        f = a[:, 3:6] * a[:, 6:7] + a[:, 8:11] * a[:, 7:8] + a[:, 12:15] * a[:, 11:12]
+        r = a[:, 0:3] - origin
+        force = f.sum(axis=0)
+        moment = np.array([(r[:, 1] * f[:, 2] - r[:, 2] * f[:, 1]).sum(),
+                           (r[:, 2] * f[:, 0] - r[:, 0] * f[:, 2]).sum(),
+                           (r[:, 0] * f[:, 1] - r[:, 1] * f[:, 0]).sum()])
+        R = T_world_sensor[:3, :3]
+        return np.concatenate([R.T @ force, R.T @ moment])
+
+    def _measure(self) -> RobotState:
+        p, cid = self._p, self._cid
+        js = p.getJointStates(self._robot, self._idx, physicsClientId=cid)
+        q = np.array([s[0] for s in js])
+        dq = np.array([s[1] for s in js])
+        tau = np.array([s[3] for s in js])
+        com, orn = p.getBasePositionAndOrientation(self._robot, physicsClientId=cid)
+        T_world_torso = _pose(com, orn) @ self._T_com_torso
+        _, omega_world = p.getBaseVelocity(self._robot, physicsClientId=cid)
+        R = T_world_torso[:3, :3]
+        links = self._frames_world()
+        ft = {}
+        contact = []
+        for sensor in FT_SENSORS:
+            link, frame = (HAND_FRAMES | SOLE_FRAMES)[sensor]
+            T_world_sensor = links[link] @ self._T_link_frame[frame]
+            extra = None
+            if sensor == "right-wrist" and np.any(self.cutting_force_n):
+                extra = (self.cutting_force_n, self._cutting_point)
+            ft[sensor] = self._wrench(link, T_world_sensor, extra)
+            if sensor.endswith("ankle"):
+                contact.append(bool(ft[sensor][2] > 1e-6 or np.linalg.norm(ft[sensor][:3]) > 1e-6))
+        flags, self._flags = tuple(dict.fromkeys(self._flags)), []
+        if self._stopped:
+            flags = tuple(dict.fromkeys((*flags, "stopped")))
+        return RobotState(time_s=self._t, q_rad=q, dq_rad_s=dq,
+                          imu_quat_wxyz=_quat_wxyz(R), imu_gyro_rad_s=R.T @ np.asarray(omega_world),
+                          ft=ft, tau_nm=tau, T_world_torso=T_world_torso,
+                          feet_contact=(contact[0], contact[1]), flags=flags)
+
+    # ------------------------------------------------------------------ extras
+    def frame_pose(self, frame: str) -> np.ndarray:
+        """World pose (4x4, m) of ``torso`` or an end frame (``right_hand``, ``left_hand``,
+        ``right_sole``, ``left_sole``, ``right_drill_bit``)."""
+        self._require_started()
+        if frame == "torso":
+            return self._state.T_world_torso.copy()
+        if frame not in FRAME_PARENTS:
+            raise ConfigError(f"unknown frame {frame!r}",
+                              hint=f"use torso, {', '.join(FRAME_PARENTS)}")
+        ls = self._p.getLinkState(self._robot, self._links[FRAME_PARENTS[frame]],
+                                  computeForwardKinematics=1, physicsClientId=self._cid)
+        return _pose(ls[4], ls[5]) @ self._T_link_frame[frame]
+
+    @property
+    def walls(self) -> tuple[Wall, ...]:
+        """The walls in the scene."""
+        return tuple(self._walls)
+
+    def snapshot_png(self, path: str | Path, width: int = 640, height: int = 480) -> Path:
+        """Render the scene headless (TinyRenderer) and write it as a PNG; returns the path."""
+        self._require_started()
+        from hubo_cli.drivers.snapshot import write_png
+
+        p, cid = self._p, self._cid
+        target = self._state.T_world_torso[:3, 3] * np.array([1, 1, 0.55]) + [0.15, 0, 0]
+        # from the robot's left, a little in front, so that a wall ahead stays beside it
+        view = p.computeViewMatrixFromYawPitchRoll(target.tolist(), 2.3, 25, -14, 0, 2,
+                                                   physicsClientId=cid)
+        proj = p.computeProjectionMatrixFOV(45, width / height, 0.05, 20, physicsClientId=cid)
+        _, _, rgba, _, _ = p.getCameraImage(width, height, view, proj,
+                                            renderer=p.ER_TINY_RENDERER, physicsClientId=cid)
+        image = np.reshape(np.asarray(rgba, dtype=np.uint8), (height, width, 4))[:, :, :3]
+        return write_png(path, image)
+
+
+register("sim", SimDriver)

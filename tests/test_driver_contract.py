@@ -1,0 +1,176 @@
+"""One behaviour suite for every registered driver: sim, hardware (loopback echo) and ideal."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hubo_cli.drivers.base import FT_SENSORS, RobotState, make_driver
+from hubo_cli.drivers.registry import DRIVER_NAMES
+from hubo_cli.errors import ConfigError, DeviceError
+from hubo_cli.model import load_model
+from hubo_cli.posture import home_posture
+
+MODEL = load_model()
+N = len(MODEL.joint_names)
+PERIOD = MODEL.control_period_s
+RSP = MODEL.joint_names.index("RSP")
+REB = MODEL.joint_names.index("REB")
+
+
+def _options(name: str, tmp_path) -> dict:
+    return {"hardware": {"armed": True, "run_dir": tmp_path}}.get(name, {})
+
+
+@pytest.fixture(params=DRIVER_NAMES)
+def driver(request, tmp_path):
+    robot = make_driver(request.param, MODEL, **_options(request.param, tmp_path))
+    yield robot
+    robot.stop()
+    robot.close()
+
+
+def _check_state(state: RobotState) -> None:
+    assert isinstance(state, RobotState)
+    assert np.isfinite(state.time_s)
+    for vector in (state.q_rad, state.dq_rad_s):
+        assert vector.shape == (N,) and np.all(np.isfinite(vector))
+    assert state.imu_quat_wxyz.shape == (4,)
+    assert np.linalg.norm(state.imu_quat_wxyz) == pytest.approx(1.0, abs=1e-9)
+    assert state.imu_gyro_rad_s.shape == (3,) and np.all(np.isfinite(state.imu_gyro_rad_s))
+    assert set(state.ft) == set(FT_SENSORS)
+    for wrench in state.ft.values():
+        assert wrench.shape == (6,) and np.all(np.isfinite(wrench))
+    if state.tau_nm is not None:
+        assert state.tau_nm.shape == (N,) and np.all(np.isfinite(state.tau_nm))
+    if state.T_world_torso is not None:
+        assert state.T_world_torso.shape == (4, 4)
+    assert isinstance(state.flags, tuple) and all(isinstance(f, str) for f in state.flags)
+    roll, pitch = state.tilt_rad()
+    assert abs(roll) < 0.1 and abs(pitch) < 0.1
+
+
+def test_registry_lists_every_driver():
+    for name in DRIVER_NAMES:
+        assert make_driver(name, MODEL, **_options(name, "/tmp")).name == name
+    with pytest.raises(ConfigError, match="unknown driver"):
+        make_driver("nope", MODEL)
+
+
+def test_nothing_works_before_start(driver):
+    with pytest.raises(DeviceError):
+        driver.read()
+    with pytest.raises(DeviceError):
+        driver.step()
+    with pytest.raises(DeviceError):
+        driver.send(home_posture(MODEL))
+
+
+def test_start_in_home_posture_with_sane_state(driver):
+    state = driver.start()
+    _check_state(state)
+    assert np.allclose(state.q_rad, home_posture(MODEL), atol=2e-3)
+    assert driver.read().time_s == state.time_s
+
+
+def test_start_in_a_given_posture(driver):
+    q0 = home_posture(MODEL)
+    q0[REB] = -0.8
+    state = driver.start(q0)
+    assert state.q_rad[REB] == pytest.approx(-0.8, abs=2e-3)
+
+
+def test_step_advances_one_period_and_read_does_not(driver):
+    t0 = driver.start().time_s
+    times = [driver.step().time_s for _ in range(5)]
+    assert np.allclose(np.diff([t0, *times]), PERIOD, atol=1e-12)
+    assert driver.read().time_s == times[-1]
+    _check_state(driver.read())
+
+
+def test_send_returns_the_applied_command_and_the_robot_follows(driver):
+    start = driver.start()
+    target = start.q_rad.copy()
+    applied = None
+    for k in range(1, 201):  # 1 s of a slow ramp: 0.2 rad/s on the elbow
+        target[REB] = start.q_rad[REB] - 0.001 * min(k, 100)
+        applied = driver.send(target)
+        assert applied.shape == (N,)
+        assert applied[REB] == pytest.approx(target[REB])
+        state = driver.step()
+    _check_state(state)
+    assert state.q_rad[REB] == pytest.approx(target[REB], abs=0.01)
+    assert state.q_rad[REB] < start.q_rad[REB] - 0.08
+    applied[REB] = 5.0  # a copy: changing it changes nothing
+    assert driver.send({"RSP": float(start.q_rad[RSP])})[REB] == pytest.approx(target[REB])
+
+
+def test_partial_mapping_command_keeps_other_joints(driver):
+    start = driver.start()
+    applied = driver.send({"RSP": float(start.q_rad[RSP]) + 0.002})
+    expected = start.q_rad.copy()
+    expected[RSP] += 0.002
+    assert np.allclose(applied, expected, atol=2e-3)
+    assert applied[RSP] == pytest.approx(expected[RSP])
+
+
+def test_malformed_commands_are_refused_and_change_nothing(driver):
+    driver.start()
+    before = driver.send({})
+    with pytest.raises(ConfigError, match="unknown joint"):
+        driver.send({"XYZ": 0.1})
+    with pytest.raises(ConfigError):
+        driver.send(np.zeros(N - 1))
+    assert np.array_equal(driver.send({}), before)
+
+
+def test_nan_reference_keeps_the_joint_and_is_flagged(driver):
+    start = driver.start()
+    q = start.q_rad.copy()
+    q[RSP] = np.nan
+    q[REB] += 0.001
+    applied = driver.send(q)
+    assert np.all(np.isfinite(applied))
+    assert applied[RSP] == pytest.approx(start.q_rad[RSP], abs=2e-3)
+    assert "nan-ref" in driver.step().flags
+
+
+def test_out_of_limit_reference_is_clipped_and_flagged(driver):
+    driver.start()
+    rhr = MODEL.joint_names.index("RHR")  # home sits on its upper limit (0.0)
+    applied = driver.send({"RHR": MODEL.upper_rad[rhr] + 0.001})
+    assert applied[rhr] == pytest.approx(MODEL.upper_rad[rhr])
+    assert "limit-clip" in driver.step().flags
+
+
+def test_stop_holds_is_idempotent_and_never_raises(driver):
+    driver.stop()  # before start: nothing to do, no error
+    start = driver.start()
+    held = driver.send(start.q_rad)
+    driver.stop()
+    driver.stop()
+    q = start.q_rad.copy()
+    q[REB] += 0.002
+    assert np.allclose(driver.send(q), held)
+    state = driver.step()
+    assert "stopped" in state.flags
+    assert np.allclose(state.q_rad, held, atol=2e-3)
+
+
+def test_close_is_idempotent_and_ends_use(driver):
+    driver.start()
+    driver.close()
+    driver.close()
+    with pytest.raises(DeviceError):
+        driver.step()
+
+
+def test_context_manager_stops_and_closes_even_on_error(tmp_path):
+    for name in DRIVER_NAMES:
+        with pytest.raises(RuntimeError, match="boom"):
+            with make_driver(name, MODEL, **_options(name, tmp_path)) as robot:
+                robot.start()
+                robot.step()
+                raise RuntimeError("boom")
+        with pytest.raises(DeviceError):
+            robot.read()

@@ -1,0 +1,150 @@
+"""The PyBullet driver: standing physics, sensors and their frames, scene objects, drilling,
+snapshots."""
+
+from __future__ import annotations
+
+import struct
+
+import numpy as np
+import pytest
+
+from hubo_cli.drivers.sim import CuttingModel, SimDriver
+from hubo_cli.errors import ConfigError
+from hubo_cli.kinematics import get_limb
+from hubo_cli.model import load_model
+from hubo_cli.posture import home_posture
+from hubo_cli.urdf import total_mass_kg
+
+MODEL = load_model()
+G = 9.81
+
+
+@pytest.fixture
+def sim():
+    robot = SimDriver(MODEL)
+    yield robot
+    robot.close()
+
+
+def _hold(robot, q, periods):
+    state = None
+    for _ in range(periods):
+        robot.send(q)
+        state = robot.step()
+    return state
+
+
+def test_stands_on_both_flat_feet_carrying_its_weight(sim):
+    sim.start()
+    state = _hold(sim, home_posture(MODEL), 100)
+    assert state.feet_contact == (True, True)
+    weight = total_mass_kg(MODEL) * G
+    right, left = state.ft["right-ankle"], state.ft["left-ankle"]
+    assert right[2] + left[2] == pytest.approx(weight, rel=0.02)
+    assert 0.35 * weight < right[2] < 0.65 * weight
+    sole = get_limb("right-leg").fk(home_posture(MODEL)[MODEL.limb_slice("right-leg")])
+    assert state.T_world_torso[2, 3] == pytest.approx(-sole[2, 3], abs=0.003)
+    assert np.degrees(np.abs(state.tilt_rad())).max() < 0.1
+    assert np.abs(state.imu_gyro_rad_s).max() < 0.01
+    for name in ("right_sole", "left_sole"):
+        T = sim.frame_pose(name)
+        assert T[2, 3] == pytest.approx(0.0, abs=0.003)
+        assert T[2, 2] > np.cos(np.radians(0.2))
+    for wrist in ("right-wrist", "left-wrist"):
+        assert np.abs(state.ft[wrist]).max() < 1e-9  # nothing touches the hands
+    leg = MODEL.limb_slice("right-leg")
+    assert np.abs(state.tau_nm[leg]).max() > 1.0  # the leg motors carry the body
+    assert np.allclose(state.q_rad, home_posture(MODEL), atol=1e-3)
+
+
+def test_frames_and_signs_of_sensors_under_a_forward_push(sim):
+    sim.start()
+    before = _hold(sim, home_posture(MODEL), 20)
+    sim.push_torso([40.0, 0.0, 0.0], 0.2)
+    during = _hold(sim, home_posture(MODEL), 20)
+    for foot in ("right-ankle", "left-ankle"):
+        # the centre of pressure moves forward: the ground's moment about +y turns negative
+        assert during.ft[foot][4] < before.ft[foot][4] - 5.0
+        # and the floor holds the feet back against the push
+        assert during.ft[foot][0] < before.ft[foot][0] - 10.0
+    after = _hold(sim, home_posture(MODEL), 200)
+    assert np.degrees(np.abs(after.tilt_rad())).max() < 0.1
+
+
+def test_cutting_model_resists_in_plane_motion_growing_with_speed():
+    model = CuttingModel()
+    slow, fast = np.array([0.0, 0.01, 0.0]), np.array([0.0, 0.1, 0.0])
+    f_slow, f_fast = model.force_n(slow), model.force_n(fast)
+    assert np.dot(f_slow, slow) < 0 and np.allclose(np.cross(f_slow, slow), 0)
+    assert 1.0 < np.linalg.norm(f_slow) < 1.5
+    assert np.linalg.norm(f_fast) > 6 * np.linalg.norm(f_slow)
+    assert np.allclose(model.force_n(np.zeros(3)), 0)
+
+
+def _drill_goal():
+    """The middle of the paper's horizontal drilling span (bit along N x, 484 mm, z 75 mm)."""
+    arm = get_limb("right-arm", "drill")
+    q_far_right = np.array([-0.9914, -0.3651, -0.8339, -1.1618, -1.6542, 0.8894])
+    q_far_left = np.array([-1.1853, 0.1213, 1.1383, -1.2893, -1.8826, -1.1184])
+    T = arm.fk(q_far_right)
+    T[1, 3] = (T[1, 3] + arm.fk(q_far_left)[1, 3]) / 2
+    return arm, T, arm.solve(T, q_far_right).q_rad
+
+
+def test_drilling_wrist_torque_is_small_when_slow_and_over_the_limit_when_fast():
+    arm, T_goal, q_arm = _drill_goal()
+    q = home_posture(MODEL)
+    sl = MODEL.limb_slice("right-arm")
+    q[sl] = q_arm
+    with SimDriver(MODEL, drill=True) as robot:
+        wall = robot.add_wall(distance_m=0.479, height_m=1.5, width_m=1.2, thickness_m=0.01)
+        assert wall is None  # created with the world
+        robot.start(q)
+        assert robot.walls and robot.walls[0].contains(robot.frame_pose("right_drill_bit")[:3, 3])
+        _hold(robot, q, 40)
+        moments = {}
+        for speed in (0.01, 0.1):
+            norms = []
+            for _ in range(int(0.4 / robot.period_s)):
+                T_goal[1, 3] -= speed * robot.period_s
+                q_arm = arm.solve(T_goal, q_arm).q_rad
+                q[sl] = q_arm
+                norms.append(np.linalg.norm(_hold(robot, q, 1).ft["right-wrist"][3:]))
+            moments[speed] = float(np.mean(norms[len(norms) // 2:]))
+            assert np.linalg.norm(robot.cutting_force_n) > 0.5
+    limit = MODEL.safety["wrist_torque_limit_nm"]
+    assert 0.1 < moments[0.01] < 0.35  # the paper's cut: 0.14-0.15 N m mean, 0.35 N m peak
+    assert moments[0.1] > limit
+
+
+def test_no_cutting_force_outside_the_wall():
+    q = home_posture(MODEL)
+    with SimDriver(MODEL, drill=True) as robot:
+        robot.start(q)
+        robot.add_wall(distance_m=0.6, height_m=1.0)
+        state = _hold(robot, q, 20)
+        assert not np.any(robot.cutting_force_n)
+        assert np.abs(state.ft["right-wrist"]).max() < 1e-9
+
+
+def test_snapshot_is_a_png_of_the_requested_size(sim, tmp_path):
+    sim.start()
+    path = sim.snapshot_png(tmp_path / "snap.png", 64, 48)
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    width, height = struct.unpack(">II", data[16:24])
+    assert (width, height) == (64, 48)
+
+
+def test_bad_options_and_requests_are_refused(sim):
+    with pytest.raises(ConfigError, match="unknown sim option"):
+        SimDriver(MODEL, colour="red")
+    with pytest.raises(ConfigError, match="does not divide"):
+        SimDriver(MODEL, physics_dt_s=0.003)
+    with pytest.raises(ConfigError):
+        sim.add_wall(distance_m=-0.1, height_m=1.0)
+    sim.start()
+    with pytest.raises(ConfigError, match="unknown frame"):
+        sim.frame_pose("nose")
+    with pytest.raises(ConfigError):
+        sim.push_torso([1.0, 0.0], 0.1)
