@@ -17,6 +17,7 @@ COMMANDS = {
     "fastrak": "hubo_cli.cli.fastrak:fastrak",
     "record": "hubo_cli.cli.fastrak:record",
     "workspace-map": "hubo_cli.cli.workspace:workspace_map",
+    "sim": "hubo_cli.cli.sim:sim",
 }
 
 

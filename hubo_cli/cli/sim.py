@@ -1,0 +1,52 @@
+"""``hubo sim``: stand the simulated robot, optionally push it, and report how it copes."""
+
+from __future__ import annotations
+
+import click
+
+from hubo_cli.cli.output import console, print_json
+
+
+@click.command("sim")
+@click.option("--duration", type=float, default=5.0, show_default=True,
+              help="Simulated time to stand (s).")
+@click.option("--push", type=float, default=0.0, show_default=True,
+              help="Push the torso forward with this force (N) for 0.2 s, 1 s into the run.")
+@click.option("--no-balance", is_flag=True, help="Turn the ankle balancer (eq. 11-12) off.")
+@click.option("--gui", is_flag=True, help="Open the PyBullet window (runs in real time).")
+@click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
+@click.option("--out", type=click.Path(file_okay=False), default=None,
+              help="Run folder (default runs/<time>-sim).")
+def sim(duration: float, push: float, no_balance: bool, gui: bool, as_json: bool,
+        out: str | None) -> None:
+    """Stand the simulated HUBO 2+ in its home posture and report tilt, feet and falls.
+
+    Example: hubo sim --duration 5 --push 30
+    """
+    from hubo_cli.drivers.standing import check_standing_args, stand
+    from hubo_cli.model import load_model
+    from hubo_cli.runs import make_run_dir, write_json
+
+    check_standing_args(duration, push)
+    model = load_model()
+    run_dir = make_run_dir("sim", out)
+    result = stand(model, duration, push, balance=not no_balance, gui=gui,
+                   snapshot=run_dir / "snapshot.png")
+    summary = result.summary() | {"run_dir": str(run_dir)}
+    write_json(run_dir / "summary.json", summary)
+    if as_json:
+        print_json(summary)
+        return
+    balance = "off" if no_balance else "on (K_r 0.009 rad/s/deg, K_c 0.0015 rad/s/N m)"
+    push_text = f"{push:g} N forward for 0.2 s at t = 1 s" if push > 0 else "none"
+    console.print(f"stood             {result.simulated_s:.2f} s of {duration:g} s")
+    console.print(f"balance           {balance}")
+    console.print(f"push              {push_text}")
+    console.print(f"max tilt          {result.max_tilt_deg:.3f} deg "
+                  f"(final {result.final_tilt_deg:.3f} deg)")
+    console.print(f"feet flat         {'yes' if result.feet_flat else 'no'} "
+                  f"(max sole tilt {result.max_sole_tilt_deg:.3f} deg)")
+    console.print(f"fell              {'YES' if result.fell else 'no'}")
+    console.print(f"real-time factor  {result.realtime_factor:.2f} "
+                  f"({100 * result.physics_share:.0f} % of the time in physics)")
+    console.print(f"run folder        {run_dir} (snapshot.png, summary.json)")

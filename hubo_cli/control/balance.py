@@ -1,0 +1,139 @@
+"""Ankle balancing of the paper (III-C, eq. 11-12) as a pipeline module.
+
+Each period, per foot, the ankle roll and pitch velocities are
+
+    omega_roll  = K_r * phi_x - K_c * M_x        (11)
+    omega_pitch = K_r * phi_y - K_c * M_y        (12)
+
+integrated into offsets that are added to the ankle joints of the command. The first term
+resists the torso's tilt (so the robot stands up straight), the second complies with the moment
+at the ankle (so a foot that is not flat rotates until it is, instead of the closed chain
+through both legs building up large torques).
+
+Units (the paper gives none; these make its gains K_r = 0.009 and K_c = 0.0015 sensible)
+    phi     torso tilt in DEGREES, about the world x (roll) and y (pitch) axes, from the IMU.
+    M       moment in N m that the sole exerts on the ground, about the sole frame's x and y
+            axes (the opposite of the ground reaction in ``RobotState.ft``).
+    omega   ankle joint velocity in rad/s, per second (not per control period).
+
+So K_r = 0.009 rad/s per degree (0.52 deg/s per degree of tilt: a tilt is worked off with a time
+constant of about 2 s) and K_c = 0.0015 rad/s per N m; they balance at 6 N m per degree. Hubo's
+team used the same pair (0.5 deg/s per degree and 0.0015, per N m of the foot sensor) in their
+code of the time; in radians per control period instead, K_c alone would turn a 10 N m moment
+into 3 rad/s, and with tilt in radians K_r would take minutes to act, so neither reading makes
+the published numbers work.
+
+Signs are taken from the kinematics: a positive ankle pitch (roll) velocity turns the foot about
+the joint axis, whose direction in the sole frame is computed once, so that a forward (rightward)
+tilt drives the body back (left) over a planted foot, and the ankle yields to the moment.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from hubo_cli.control.module import Cycle, Module
+from hubo_cli.drivers.base import RobotState
+from hubo_cli.kinematics.limb import Limb
+from hubo_cli.model import RobotModel
+from hubo_cli.posture import home_posture
+
+K_R_RAD_S_PER_DEG = 0.009
+K_C_RAD_S_PER_NM = 0.0015
+FEET = (("right-leg", "right-ankle"), ("left-leg", "left-ankle"))
+
+
+def ankle_axis_signs(model: RobotModel) -> dict[str, tuple[float, float]]:
+    """Per leg, the sign of the ankle pitch axis along +y and of the ankle roll axis along +x
+    (in the sole frame, home posture)."""
+    signs = {}
+    for leg, _ in FEET:
+        limb = Limb(model, leg)
+        _, _, offset, alpha, a, d, _, _ = limb.chain
+        q = home_posture(model)[model.limb_slice(leg)]
+        T = limb.T_N_base.copy()
+        axes = []
+        for i in range(6):
+            axes.append(T[:3, 2].copy())  # joint i+1 turns about z of DH frame i
+            th = q[i] + offset[i]
+            ct, st, ca, sa = math.cos(th), math.sin(th), math.cos(alpha[i]), math.sin(alpha[i])
+            T = T @ np.array([[ct, -st * ca, st * sa, a[i] * ct],
+                              [st, ct * ca, -ct * sa, a[i] * st], [0, sa, ca, d[i]], [0, 0, 0, 1]])
+        R_N_sole = limb.fk(q)[:3, :3]
+        pitch_axis, roll_axis = R_N_sole.T @ axes[4], R_N_sole.T @ axes[5]
+        signs[leg] = (float(np.sign(pitch_axis[1])), float(np.sign(roll_axis[0])))
+    return signs
+
+
+class AnkleBalancer(Module):
+    """Adds the eq. 11-12 ankle corrections to the command.
+
+    Args:
+        model: the robot model (joint order, ankle limits, axis directions).
+        k_r: resistive gain, rad/s per degree of torso tilt.
+        k_c: compliant gain, rad/s per N m of ankle moment.
+        max_rate_rad_s: each ankle correction's velocity is clipped to this (rad/s).
+        max_offset_rad: each ankle correction is clipped to +- this (rad); the result also stays
+            within the joint limits.
+    """
+
+    name = "balance"
+
+    def __init__(self, model: RobotModel, k_r: float = K_R_RAD_S_PER_DEG,
+                 k_c: float = K_C_RAD_S_PER_NM, max_rate_rad_s: float = 0.5,
+                 max_offset_rad: float = 0.15) -> None:
+        self.model = model
+        self.k_r = float(k_r)
+        self.k_c = float(k_c)
+        self.max_rate_rad_s = float(max_rate_rad_s)
+        self.max_offset_rad = float(max_offset_rad)
+        names = model.joint_names
+        self._index = {leg: (names.index(model.limb(leg).joints[4]),
+                             names.index(model.limb(leg).joints[5])) for leg, _ in FEET}
+        self._signs = ankle_axis_signs(model)
+        self.offsets_rad = {leg: np.zeros(2) for leg, _ in FEET}  # (pitch, roll)
+
+    def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
+        """Start with no correction."""
+        self.offsets_rad = {leg: np.zeros(2) for leg, _ in FEET}
+
+    def rates_rad_s(self, state: RobotState) -> dict[str, np.ndarray]:
+        """Ankle (pitch, roll) velocities of eq. 11-12 for each leg (rad/s), before clipping."""
+        roll_rad, pitch_rad = state.tilt_rad()
+        tilt_deg = np.degrees([pitch_rad, roll_rad])
+        rates = {}
+        for leg, sensor in FEET:
+            wrench = state.ft.get(sensor)
+            m_ground = np.zeros(2) if wrench is None else np.array([wrench[4], wrench[3]])
+            m_sole_on_ground = -m_ground  # (about y, about x)
+            omega = self.k_r * tilt_deg - self.k_c * m_sole_on_ground
+            rates[leg] = np.array(self._signs[leg]) * omega
+        return rates
+
+    def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
+        """Integrate the ankle velocities over one period and add the offsets to the ankles."""
+        q = np.array(q_rad, dtype=float)
+        rates = self.rates_rad_s(state)
+        for leg, _ in FEET:
+            rate = rates[leg]
+            if not np.all(np.isfinite(rate)):
+                rate = np.zeros(2)
+                cycle.flags.add("balance-bad-sensor")
+            rate = np.clip(rate, -self.max_rate_rad_s, self.max_rate_rad_s)
+            offset = np.clip(self.offsets_rad[leg] + rate * cycle.dt_s, -self.max_offset_rad,
+                             self.max_offset_rad)
+            i_pitch, i_roll = self._index[leg]
+            for k, i in enumerate((i_pitch, i_roll)):
+                target = np.clip(q[i] + offset[k], self.model.lower_rad[i],
+                                 self.model.upper_rad[i])
+                offset[k] = target - q[i] if np.isfinite(q[i]) else offset[k]
+                q[i] = target
+            self.offsets_rad[leg] = offset
+        side = self.offsets_rad
+        cycle.info["balance.right_pitch_rad"] = float(side["right-leg"][0])
+        cycle.info["balance.right_roll_rad"] = float(side["right-leg"][1])
+        cycle.info["balance.left_pitch_rad"] = float(side["left-leg"][0])
+        cycle.info["balance.left_roll_rad"] = float(side["left-leg"][1])
+        return q

@@ -1,0 +1,133 @@
+"""The ankle balancer (paper III-C, eq. 11-12): signs and units on synthetic states, then
+standing and pushes in the simulation."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from hubo_cli.control.balance import (
+    K_C_RAD_S_PER_NM,
+    K_R_RAD_S_PER_DEG,
+    AnkleBalancer,
+    ankle_axis_signs,
+)
+from hubo_cli.control.module import Cycle
+from hubo_cli.drivers.base import RobotState
+from hubo_cli.drivers.standing import stand
+from hubo_cli.model import load_model
+from hubo_cli.posture import home_posture
+
+MODEL = load_model()
+DT = MODEL.control_period_s
+NAMES = MODEL.joint_names
+ANKLES = {leg: (NAMES.index(MODEL.limb(leg).joints[4]), NAMES.index(MODEL.limb(leg).joints[5]))
+          for leg in ("right-leg", "left-leg")}
+
+
+def _state(pitch_deg=0.0, roll_deg=0.0, moment_y=0.0, moment_x=0.0) -> RobotState:
+    """A state with the torso turned about world y then x, and the same ground moment (N m,
+    about the sole x and y axes) under both feet."""
+    R = pin.rpy.rpyToMatrix(np.radians(roll_deg), np.radians(pitch_deg), 0.0)
+    quat = pin.Quaternion(R)
+    q = home_posture(MODEL)
+    wrench = np.array([0.0, 0.0, 190.0, moment_x, moment_y, 0.0])
+    ft = {"right-ankle": wrench.copy(), "left-ankle": wrench.copy(),
+          "right-wrist": np.zeros(6), "left-wrist": np.zeros(6)}
+    return RobotState(0.0, q, np.zeros_like(q), np.array([quat.w, quat.x, quat.y, quat.z]),
+                      ft=ft)
+
+
+def _offsets_after(state, periods=1, **gains):
+    balancer = AnkleBalancer(MODEL, **gains)
+    q0 = home_posture(MODEL)
+    balancer.reset(q0, state)
+    q = q0
+    for k in range(periods):
+        q = balancer.update(q0, state, Cycle(k * DT, DT))
+    return {leg: q[list(idx)] - q0[list(idx)] for leg, idx in ANKLES.items()}
+
+
+def test_ankle_axes_point_along_sole_y_and_x():
+    assert ankle_axis_signs(MODEL) == {"right-leg": (1.0, 1.0), "left-leg": (1.0, 1.0)}
+
+
+def test_upright_and_unloaded_means_no_correction():
+    for offsets in _offsets_after(_state(), periods=50).values():
+        assert np.allclose(offsets, 0.0)
+
+
+def test_tilt_term_has_the_documented_units_and_drives_the_body_back():
+    # 1 degree forward: K_r rad/s per degree, integrated over 20 periods (0.1 s)
+    offsets = _offsets_after(_state(pitch_deg=1.0), periods=20)
+    for pitch, roll in offsets.values():
+        assert pitch == pytest.approx(K_R_RAD_S_PER_DEG * 1.0 * 20 * DT, rel=1e-6)
+        assert roll == pytest.approx(0.0, abs=1e-12)
+    # leaning right (positive roll) rolls the ankles positive, which leans the body left
+    for _pitch, roll in _offsets_after(_state(roll_deg=1.0), periods=20).values():
+        assert roll == pytest.approx(K_R_RAD_S_PER_DEG * 20 * DT, rel=1e-3)
+
+
+def test_moment_term_complies_with_the_ground_moment():
+    # the ground pushes under the toes (moment about +y negative): the ankle yields, toes up
+    offsets = _offsets_after(_state(moment_y=-10.0), periods=20)
+    for pitch, roll in offsets.values():
+        assert pitch == pytest.approx(-K_C_RAD_S_PER_NM * 10.0 * 20 * DT, rel=1e-6)
+        assert roll == 0.0
+    for _pitch, roll in _offsets_after(_state(moment_x=4.0), periods=20).values():
+        assert roll == pytest.approx(K_C_RAD_S_PER_NM * 4.0 * 20 * DT, rel=1e-6)
+
+
+def test_rates_and_offsets_are_bounded_and_stay_within_limits():
+    offsets = _offsets_after(_state(pitch_deg=25.0, roll_deg=25.0), periods=2000,
+                             max_rate_rad_s=0.2, max_offset_rad=0.1)
+    for leg, (pitch, roll) in offsets.items():
+        assert 0 < pitch <= 0.1 + 1e-12
+        i_roll = ANKLES[leg][1]
+        assert home_posture(MODEL)[i_roll] + roll <= MODEL.upper_rad[i_roll] + 1e-12
+    one_period = _offsets_after(_state(pitch_deg=25.0), periods=1, max_rate_rad_s=0.2)
+    assert one_period["right-leg"][0] == pytest.approx(0.2 * DT)
+
+
+def test_a_bad_sensor_is_flagged_and_ignored():
+    state = _state()
+    state.ft["right-ankle"][3] = np.nan
+    balancer = AnkleBalancer(MODEL)
+    cycle = Cycle(0.0, DT)
+    q = balancer.update(home_posture(MODEL), state, cycle)
+    assert np.all(np.isfinite(q))
+    assert "balance-bad-sensor" in cycle.flags
+
+
+# ------------------------------------------------------------------ in the simulation
+def test_standing_with_balance_stays_upright_with_flat_feet():
+    result = stand(MODEL, duration_s=3.0, push_n=0.0, balance=True)
+    assert not result.fell
+    assert result.feet_flat
+    assert result.max_tilt_deg < 2.0
+    # settling toward the lean where the two terms balance (about 1.07 deg after 30 s):
+    # the last second drifts less than half as fast as the first
+    first = np.ptp(result.tilts_deg[result.times_s <= 1.0])
+    last = np.ptp(result.tilts_deg[result.times_s > 2.0])
+    assert 0 < last < 0.5 * first
+
+
+@pytest.fixture(scope="module")
+def pushed():
+    return {balance: stand(MODEL, duration_s=2.5, push_n=30.0, balance=balance)
+            for balance in (True, False)}
+
+
+def test_a_30_newton_push_is_absorbed_without_a_fall(pushed):
+    for result in pushed.values():
+        assert not result.fell
+        assert result.feet_flat
+        assert result.max_tilt_deg < 2.0
+
+
+def test_balance_keeps_the_feet_evenly_loaded_through_the_push(pushed):
+    # eq. 11-12's compliance evens out the two feet: the difference of the ankle moments stays
+    # several times smaller than with the balancer off
+    on, off = pushed[True], pushed[False]
+    assert on.max_feet_moment_difference_nm < 0.5 * off.max_feet_moment_difference_nm

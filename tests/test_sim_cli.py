@@ -1,0 +1,39 @@
+"""``hubo sim``: text and JSON reports, run folder, bad input."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+from click.testing import CliRunner
+
+from hubo_cli.cli.main import main
+
+
+def test_json_report_on_a_clean_stdout(tmp_path):
+    out = tmp_path / "run"
+    done = subprocess.run([sys.executable, "-m", "hubo_cli.cli.main", "sim", "--duration", "0.3",
+                           "--push", "30", "--json", "--out", str(out)],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    report = json.loads(done.stdout)  # nothing but the JSON object on stdout
+    assert {"max_tilt_deg", "feet_flat", "fell", "realtime_factor"} <= set(report)
+    assert report["fell"] is False and report["feet_flat"] is True
+    assert 0 <= report["max_tilt_deg"] < 2 and report["realtime_factor"] > 0
+    assert (out / "snapshot.png").read_bytes()[:4] == b"\x89PNG"
+    assert json.loads((out / "summary.json").read_text())["push_n"] == 30.0
+
+
+def test_text_report(tmp_path):
+    result = CliRunner().invoke(main, ["sim", "--duration", "0.2", "--no-balance", "--out",
+                                       str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    for words in ("max tilt", "feet flat", "fell", "real-time factor", "snapshot.png"):
+        assert words in result.output
+
+
+def test_bad_duration_is_an_input_error(tmp_path):
+    result = CliRunner().invoke(main, ["sim", "--duration", "0", "--out", str(tmp_path)])
+    assert result.exit_code == 2
+    assert "duration" in result.output
