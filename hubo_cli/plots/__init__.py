@@ -1,0 +1,1 @@
+"""Plots users would rather look at than read (matplotlib, Agg backend)."""
