@@ -280,3 +280,24 @@ def test_emulator_serves_a_serial_port():
         emu.close()
         os.close(master)
         os.close(slave)
+
+
+def test_capture_write_failure_is_reported(tmp_path, monkeypatch):
+    from hubo_cli.fastrak.capture import CaptureWriter
+
+    emu = make_emulator(stations=1).start()
+    try:
+        src = open_source(port=emu.port_name, capture=tmp_path / "c.fastrak", **FAST)
+        assert collect(src, 2)
+
+        def disk_full(self, t_s, data):
+            raise OSError(28, "No space left on device")
+
+        monkeypatch.setattr(CaptureWriter, "write", disk_full)
+        with pytest.raises(InputError, match="No space left"):
+            for _ in range(2000):
+                src.read_until(0.0)
+                time.sleep(0.005)
+        src.close()
+    finally:
+        emu.close()

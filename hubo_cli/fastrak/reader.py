@@ -117,7 +117,7 @@ class FastrakReader(PoseSource):
         self.stations: tuple[int, ...] = ()
         self._lock = threading.Lock()
         self._queue: list[PoseSample] = []
-        self._error: DeviceError | None = None
+        self._error: DeviceError | InputError | None = None
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._writer: CaptureWriter | None = None
@@ -156,6 +156,7 @@ class FastrakReader(PoseSource):
         Raises:
             DeviceError: the connection is lost and could not be re-established (raised once
                 the samples received before the loss have been delivered).
+            InputError: the capture file could not be written.
         """
         with self._lock:
             out, self._queue = self._queue, []
@@ -305,6 +306,17 @@ class FastrakReader(PoseSource):
             self._writer.write(t_s, data)
 
     def _run(self) -> None:
+        try:
+            self._stream()
+        except OSError as exc:  # the capture file could not be written
+            self._fail(InputError(f"cannot write the capture: {exc.strerror or exc}",
+                                  hint="free disk space or choose another --out path"))
+        except Exception as exc:  # noqa: BLE001 (reported by read_until, never silent)
+            self._fail(DeviceError(f"the FASTRAK reader on {self.port} stopped: {exc!r}",
+                                   hint="restart; if it happens again, record with "
+                                        "`hubo record` and report the capture"))
+
+    def _stream(self) -> None:
         import serial
 
         while not self._stop.is_set():
@@ -322,7 +334,7 @@ class FastrakReader(PoseSource):
                 if not self._recover(f"no data for {self.silence_timeout_s:g} s"):
                     return
 
-    def _fail(self, error: DeviceError) -> None:
+    def _fail(self, error: DeviceError | InputError) -> None:
         with self._lock:
             self._error = error
 
