@@ -72,7 +72,7 @@ def run(report) -> None:
 
     res = scan(noisy, layout, units, final=True)
     seconds = _best_s(lambda: scan(noisy, layout, units, final=True))
-    report(f"decode noisy binary {output_list} (1% cut + garbage)", len(res.batch) / seconds,
+    report(f"resync scan binary {output_list}, 1% cut + garbage", len(res.batch) / seconds,
            "records/s", f"{res.bad_bytes:,} bytes skipped")
 
     # live path: one serial read per record through the incremental parser
