@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from hubo_cli.drivers.sim import CuttingModel, SimDriver
-from hubo_cli.errors import ConfigError
+from hubo_cli.errors import ConfigError, DeviceError
 from hubo_cli.kinematics import get_limb
 from hubo_cli.model import load_model
 from hubo_cli.posture import home_posture
@@ -136,6 +136,13 @@ def test_snapshot_is_a_png_of_the_requested_size(sim, tmp_path):
     assert (width, height) == (64, 48)
 
 
+def test_gui_without_a_display_is_a_clear_error(monkeypatch):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.setattr("sys.platform", "linux")
+    with pytest.raises(DeviceError, match="no display"):
+        SimDriver(MODEL, gui=True).start()
+
+
 def test_bad_options_and_requests_are_refused(sim):
     with pytest.raises(ConfigError, match="unknown sim option"):
         SimDriver(MODEL, colour="red")
@@ -148,3 +155,15 @@ def test_bad_options_and_requests_are_refused(sim):
         sim.frame_pose("nose")
     with pytest.raises(ConfigError):
         sim.push_torso([1.0, 0.0], 0.1)
+
+
+def test_a_jump_in_the_command_is_followed_at_the_motor_top_speed(sim):
+    q = home_posture(MODEL)
+    sim.start(q)
+    elbow = MODEL.joint_names.index("REB")
+    q[elbow] = -1.5
+    speeds = [abs(_hold(sim, q, 1).dq_rad_s[elbow]) for _ in range(150)]
+    top = sim.options.max_speed_factor * MODEL.velocity_rad_s[elbow]
+    assert max(speeds) == pytest.approx(top, rel=0.02)
+    assert sim.read().q_rad[elbow] == pytest.approx(-1.5, abs=2e-3)
+

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
+
 import click
 
 from hubo_cli.cli.output import console, print_json
+from hubo_cli.errors import HuboError
 
 
 @click.command("sim")
@@ -30,8 +33,13 @@ def sim(duration: float, push: float, no_balance: bool, gui: bool, as_json: bool
     check_standing_args(duration, push)
     model = load_model()
     run_dir = make_run_dir("sim", out)
-    result = stand(model, duration, push, balance=not no_balance, gui=gui,
-                   snapshot=run_dir / "snapshot.png")
+    try:
+        result = stand(model, duration, push, balance=not no_balance, gui=gui,
+                       snapshot=run_dir / "snapshot.png")
+    except HuboError:
+        with contextlib.suppress(OSError):
+            run_dir.rmdir()  # only if nothing was written
+        raise
     summary = result.summary() | {"run_dir": str(run_dir)}
     write_json(run_dir / "summary.json", summary)
     if as_json:

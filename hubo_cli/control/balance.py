@@ -17,11 +17,17 @@ Units (the paper gives none; these make its gains K_r = 0.009 and K_c = 0.0015 s
     omega   ankle joint velocity in rad/s, per second (not per control period).
 
 So K_r = 0.009 rad/s per degree (0.52 deg/s per degree of tilt: a tilt is worked off with a time
-constant of about 2 s) and K_c = 0.0015 rad/s per N m; they balance at 6 N m per degree. Hubo's
-team used the same pair (0.5 deg/s per degree and 0.0015, per N m of the foot sensor) in their
-code of the time; in radians per control period instead, K_c alone would turn a 10 N m moment
-into 3 rad/s, and with tilt in radians K_r would take minutes to act, so neither reading makes
-the published numbers work.
+constant of about 2 s) and K_c = 0.0015 rad/s per N m; the two terms balance at 6 N m per degree.
+The Hubo team's public balancing code of the time turns the IMU angle into an ankle velocity with
+0.5 * pi / 180 = 0.0087 (about the paper's 0.009, i.e. 0.5 deg/s per degree) and the foot moment
+with 0.0015. The other readings do not work: with velocities per 5 ms period, K_c alone would
+turn a 10 N m moment into 3 rad/s; with the tilt in radians, K_r would need minutes to act.
+
+What it does to a standing robot: with the centre of mass 2.4 cm in front of the ankles in the
+home posture, the compliant term lets the body lean forward until the two terms balance, about
+1.1 deg after ~10 s, with both feet evenly loaded. Under a short push the compliant term yields
+too (it is meant to), so the torso tilts somewhat more than on stiff ankles; what the balancer
+buys is even, flat feet (see tests/test_balance.py).
 
 Signs are taken from the kinematics: a positive ankle pitch (roll) velocity turns the foot about
 the joint axis, whose direction in the sole frame is computed once, so that a forward (rightward)

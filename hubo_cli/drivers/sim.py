@@ -12,7 +12,9 @@ Physics and control
     (20) constraint-solver iterations: cheaper than PyBullet's default 50 with a joint tracking
     error still below 2e-4 rad when standing. Joints are in position control (PyBullet motors:
     ``position_gain``, ``velocity_gain``) with the URDF's effort limits as torque limits (tens of
-    N m in the arms, 10 N m in the wrists, 100-200 N m in the legs) and the URDF velocity limits.
+    N m in the arms, 10 N m in the wrists, 100-200 N m in the legs); each motor's speed is capped
+    at ``max_speed_factor`` (3) times the model's velocity limit, as a real motor's top speed
+    (a jump in the command is followed fast and hard, as on the robot, but not in one step).
 
 Sensors (:class:`~hubo_cli.drivers.base.RobotState`)
     IMU: torso orientation in the world and its angular rate in the torso frame. Force/torque:
@@ -43,6 +45,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import sys
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -162,6 +165,7 @@ class SimOptions:
     velocity_gain: float = 1.0
     friction: float = 1.0
     settle_s: float = 0.3
+    max_speed_factor: float = 3.0
     cutting: CuttingModel = field(default_factory=CuttingModel)
 
 
@@ -239,6 +243,10 @@ class SimDriver(Driver):
 
     # ------------------------------------------------------------------ set-up
     def _connect(self) -> None:
+        if self.options.gui and sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
+            # PyBullet would end the whole process ("cannot connect to X server")
+            raise DeviceError("no display for the PyBullet window (DISPLAY is not set)",
+                              hint="run without --gui, or from a desktop session")
         p = import_pybullet()
         self._p = p
         with quiet_native_output():
@@ -248,7 +256,7 @@ class SimDriver(Driver):
                               hint="run without --gui on a machine without a display")
         if self.options.gui:
             p.configureDebugVisualizer(p.COV_ENABLE_GUI, 0, physicsClientId=self._cid)
-            p.resetDebugVisualizerCamera(2.2, 50, -15, [0.2, 0, 0.6], physicsClientId=self._cid)
+            p.resetDebugVisualizerCamera(2.3, 25, -14, [0.2, 0, 0.6], physicsClientId=self._cid)
 
     def _build_world(self, q0: np.ndarray) -> None:
         p, cid = self._p, self._cid
@@ -281,6 +289,11 @@ class SimDriver(Driver):
         self._idx = [joints[n] for n in self.joint_names]
         self._effort = [p.getJointInfo(self._robot, j, physicsClientId=cid)[10]
                         for j in self._idx]
+        top_speed = self.options.max_speed_factor * self.model.velocity_rad_s
+        for j, q, force, speed in zip(self._idx, q0, self._effort, top_speed, strict=True):
+            # the speed cap is kept by later setJointMotorControlArray calls
+            p.setJointMotorControl2(self._robot, j, p.POSITION_CONTROL, targetPosition=float(q),
+                                    force=force, maxVelocity=float(speed), physicsClientId=cid)
         for link in [-1, *self._links.values()]:
             p.changeDynamics(self._robot, link, lateralFriction=self.options.friction,
                              physicsClientId=cid)

@@ -40,7 +40,7 @@ class StandingResult:
         physics_share: fraction of the loop's wall time spent in PyBullet's stepSimulation.
         max_feet_moment_difference_nm: largest |M_right - M_left| of the ankle moments (x, y),
             how unevenly the two feet are loaded (the balancer's compliance evens them out).
-        times_s, tilts_deg: the tilt trace (one sample per control period).
+        times_s, tilts_deg, feet_moment_difference_nm: traces, one sample per control period.
     """
 
     duration_s: float
@@ -58,6 +58,8 @@ class StandingResult:
     snapshot: Path | None = None
     times_s: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
     tilts_deg: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    feet_moment_difference_nm: np.ndarray = field(default_factory=lambda: np.zeros(0),
+                                                  repr=False)
 
     def summary(self) -> dict:
         """The headline numbers as a plain dict (for JSON)."""
@@ -112,7 +114,7 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
     q_home = home_posture(model)
     balancer = AnkleBalancer(model) if balance else None
     n_periods = int(round(duration_s / model.control_period_s))
-    times, tilts = np.zeros(n_periods), np.zeros(n_periods)
+    times, tilts, differences = np.zeros(n_periods), np.zeros(n_periods), np.zeros(n_periods)
     with SimDriver(model, gui=gui, **(sim_options or {})) as robot:
         state = robot.start(q_home)
         torso_z0 = state.T_world_torso[2, 3]
@@ -134,7 +136,8 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
             times[k] = state.time_s
             tilts[k] = _tilt_deg(state.T_world_torso[:3, :3])
             difference = state.ft["right-ankle"][3:5] - state.ft["left-ankle"][3:5]
-            max_moment_difference = max(max_moment_difference, float(np.linalg.norm(difference)))
+            differences[k] = float(np.linalg.norm(difference))
+            max_moment_difference = max(max_moment_difference, differences[k])
             for sole, touching in zip(("right_sole", "left_sole"), state.feet_contact,
                                       strict=True):
                 sole_tilt = _tilt_deg(robot.frame_pose(sole)[:3, :3])
@@ -159,4 +162,5 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
         max_sole_tilt_deg=max_sole, final_tilt_deg=float(tilts[done - 1]),
         physics_share=physics_share, simulated_s=simulated,
         max_feet_moment_difference_nm=max_moment_difference, snapshot=image,
-        times_s=times[:done], tilts_deg=tilts[:done])
+        times_s=times[:done], tilts_deg=tilts[:done],
+        feet_moment_difference_nm=differences[:done])
