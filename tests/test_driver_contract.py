@@ -50,9 +50,12 @@ def _check_state(state: RobotState) -> None:
     assert abs(roll) < 0.1 and abs(pitch) < 0.1
 
 
-def test_registry_lists_every_driver():
+def test_registry_lists_every_driver(tmp_path):
+    from hubo_cli.drivers import base
+
+    assert set(base._REGISTRY) == set(DRIVER_NAMES)  # this suite covers every driver
     for name in DRIVER_NAMES:
-        assert make_driver(name, MODEL, **_options(name, "/tmp")).name == name
+        assert make_driver(name, MODEL, **_options(name, tmp_path)).name == name
     with pytest.raises(ConfigError, match="unknown driver"):
         make_driver("nope", MODEL)
 
