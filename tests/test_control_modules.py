@@ -217,3 +217,49 @@ def test_capture_point_ignores_a_robot_in_the_air(model):
     cycle = Cycle(0.0, DT)
     monitor.update(q, state, cycle)
     assert not cycle.estop_requests and not monitor.flag
+
+
+def test_capture_point_reference_matches_a_still_robot(model):
+    monitor = CapturePointMonitor(model, DT)
+    q = home_posture(model)
+    state = RobotState(0.0, q, np.zeros(24), feet_contact=(True, True))
+    monitor.reset(q, state)
+    cycle = Cycle(0.0, DT)
+    monitor.update(q, state, cycle)
+    assert abs(cycle.info["cp_error_x_m"]) < 1e-9 and abs(cycle.info["cp_error_y_m"]) < 1e-9
+
+
+def _pitched(angle_rad):
+    c, s = np.cos(angle_rad), np.sin(angle_rad)
+    T = np.eye(4)
+    T[:3, :3] = [[c, 0, s], [0, 1, 0], [-s, 0, c]]
+    return T
+
+
+def test_capture_point_flags_feet_tipping_on_their_heels(model):
+    """A robot rocking back on its heels is caught although its CoM is still over the soles."""
+    q = home_posture(model)
+    for angle_deg, expected in ((0.5, False), (3.0, True)):
+        monitor = CapturePointMonitor(model, DT)
+        state = RobotState(0.0, q, np.zeros(24), T_world_torso=_pitched(np.radians(-angle_deg)),
+                           feet_contact=(True, True))
+        monitor.reset(q, state)
+        monitor.update(q, state, Cycle(0.0, DT))
+        assert monitor.flag is expected, angle_deg
+
+
+def test_capture_point_ignores_a_one_period_contact_flicker(model):
+    monitor = CapturePointMonitor(model, DT)
+    q = home_posture(model)
+    flags = []
+    for k in range(20):
+        contact = (True, k != 10)                  # the left foot "lifts" for one period
+        state = RobotState(k * DT, q, np.zeros(24), feet_contact=contact)
+        cycle = Cycle(k * DT, DT)
+        monitor.update(q, state, cycle)
+        flags.append(monitor.flag)
+    assert not any(flags)
+    for k in range(20, 40):                        # a real lift (longer than 50 ms) counts
+        state = RobotState(k * DT, q, np.zeros(24), feet_contact=(True, False))
+        monitor.update(q, state, Cycle(k * DT, DT))
+    assert monitor.flag

@@ -18,6 +18,7 @@ COMMANDS = {
     "record": "hubo_cli.cli.fastrak:record",
     "workspace-map": "hubo_cli.cli.workspace:workspace_map",
     "sim": "hubo_cli.cli.sim:sim",
+    "task": "hubo_cli.cli.task:task",
 }
 
 

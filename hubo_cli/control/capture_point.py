@@ -8,13 +8,20 @@ relative positions matter):
 * its velocity, finite-differenced and low-passed at 4 Hz (first order, as hrpsys);
 * the capture point CP = x_G + v_G / omega with omega = sqrt(g / (z_G - z_ground)), z_ground
   being the lowest sole in contact;
-* the support polygon: the convex hull of the soles in contact (both when the driver does not
-  say), shrunk by ``margin_m`` (3 cm, hrpsys ``cp_check_margin``).
+* the support polygon: the convex hull of the sole corners that touch the ground, i.e. of the
+  feet in contact (both when the driver does not say; a lost contact counts after 50 ms)
+  the corners within 5 mm of the lowest
+  one, shrunk by ``margin_m`` (3 cm, hrpsys ``cp_check_margin``). A foot that starts to tip
+  about its heel therefore supports only along the heel edge; the hull then collapses to a
+  segment, which has no inside, and the CP is flagged as outside. (The linear-inverted-pendulum
+  capture point assumes flat feet; an external push such as a wall's reaction can tip the robot
+  while the CoM is still well inside the soles, and this is when it must be caught.)
 
 When the CP leaves the shrunk polygon while a foot touches the ground the module flags
 ``cp-outside`` and requests an emergency stop from source ``capture-point``. It passes the
 command through unchanged. The reference CP is the centre of mass of the commanded posture on
-the same torso pose (a static reference); ``cp_error`` = actual CP - reference CP.
+its feet laid flat where the measured feet are (a static reference, like AutoBalancer's
+reference CoM); ``cp_error`` = actual CP - reference CP.
 """
 
 from __future__ import annotations
@@ -33,6 +40,8 @@ from hubo_cli.urdf import FOOT_FORWARD_M, FOOT_SIZE_M
 
 GRAVITY_M_S2 = 9.80665
 CP_MARGIN_M = 0.03        # hrpsys cp_check_margin
+CORNER_TOLERANCE_M = 0.005  # a sole corner higher than this above the lowest one is lifted
+CONTACT_HOLD_S = 0.05       # a foot still counts as down this long after its last contact
 VELOCITY_CUTOFF_HZ = 4.0  # hrpsys CoM velocity low-pass
 SOLE_FRAMES = ("right_sole", "left_sole")
 
@@ -63,6 +72,8 @@ def convex_hull(points: np.ndarray) -> np.ndarray:
             j -= 1
         pts[j + 1, 0] = x
         pts[j + 1, 1] = y
+    if n <= 2:
+        return pts
     hull = np.empty((2 * n, 2))
     k = 0
     for i in range(n):
@@ -81,11 +92,21 @@ def convex_hull(points: np.ndarray) -> np.ndarray:
 
 @nb.njit(cache=True, nogil=True)
 def outside_distance(hull: np.ndarray, p: np.ndarray) -> float:
-    """max over the edges of a counter-clockwise convex polygon of the signed distance of p
-    beyond the edge line (m): > 0 outside, <= 0 inside (minus the distance to the nearest edge
-    line). Shrinking the polygon by m moves every edge line in by m."""
-    best = -np.inf
+    """How far p lies outside a counter-clockwise convex polygon (m): the largest signed
+    distance beyond an edge line, > 0 outside, <= 0 inside (minus the distance to the nearest
+    edge line); shrinking the polygon by m moves every edge line in by m. A polygon that has
+    collapsed to a segment or a point has no inside: the distance to it (>= 0)."""
     n = hull.shape[0]
+    if n < 3:
+        a = hull[0]
+        b = hull[n - 1]
+        ex, ey = b[0] - a[0], b[1] - a[1]
+        length2 = ex * ex + ey * ey
+        s = 0.0
+        if length2 > 0.0:
+            s = min(1.0, max(0.0, ((p[0] - a[0]) * ex + (p[1] - a[1]) * ey) / length2))
+        return math.hypot(p[0] - a[0] - s * ex, p[1] - a[1] - s * ey)
+    best = -np.inf
     for i in range(n):
         a = hull[i]
         b = hull[(i + 1) % n]
@@ -101,42 +122,65 @@ def outside_distance(hull: np.ndarray, p: np.ndarray) -> float:
 
 
 @nb.njit(cache=True, nogil=True)
-def _support(sole_pose, right_down, left_down, corners, com, velocity, margin, gravity, cp_out,
-             box_out):
+def _support(sole_pose, right_down, left_down, corners, com, velocity, margin, gravity,
+             corner_tolerance, cp_out, box_out, flat_out):
     """Support polygon, capture point and how far it lies outside (see CapturePointMonitor).
 
-    Writes the CP (2,) and the shrunk polygon's box (4,); returns (outside m, ground z m).
+    Writes the CP (2,), the soles laid flat on the ground (same x, y and heading; 2 x 4 x 4)
+    and the box of the flat soles in contact, shrunk (4,); returns (outside m, ground z m).
     Without a foot on the ground: CP = CoM, outside = -inf.
     """
     down = (right_down, left_down)
     n = 0
-    points = np.empty((8, 2))
-    ground_z = np.inf
+    world = np.empty((8, 3))
     for k in range(2):
         if not down[k]:
             continue
         T = sole_pose[k]
         for c in range(4):
             for row in range(3):
-                value = (T[row, 0] * corners[c, 0] + T[row, 1] * corners[c, 1]
-                         + T[row, 2] * corners[c, 2] + T[row, 3])
-                if row < 2:
-                    points[n, row] = value
-                else:
-                    ground_z = min(ground_z, value)
+                world[n, row] = (T[row, 0] * corners[c, 0] + T[row, 1] * corners[c, 1]
+                                 + T[row, 2] * corners[c, 2] + T[row, 3])
             n += 1
     if n == 0:
         cp_out[0], cp_out[1] = com[0], com[1]
-        return -np.inf, ground_z
+        return -np.inf, np.inf
+    ground_z = world[:n, 2].min()
+    points = np.empty((n, 2))
+    m = 0
+    for i in range(n):  # a corner lifted off the ground (a tipping foot) does not support
+        if world[i, 2] <= ground_z + corner_tolerance:
+            points[m, 0] = world[i, 0]
+            points[m, 1] = world[i, 1]
+            m += 1
     height = max(com[2] - ground_z, 1e-3)
     omega = math.sqrt(gravity / height)
     cp_out[0] = com[0] + velocity[0] / omega
     cp_out[1] = com[1] + velocity[1] / omega
-    hull = convex_hull(points[:n])
-    box_out[0] = hull[:, 0].min() + margin
-    box_out[1] = hull[:, 0].max() - margin
-    box_out[2] = hull[:, 1].min() + margin
-    box_out[3] = hull[:, 1].max() - margin
+    # the soles laid flat where they are, and their box shrunk: the nominal thresholds
+    box_out[0], box_out[1] = np.inf, -np.inf
+    box_out[2], box_out[3] = np.inf, -np.inf
+    for k in range(2):
+        T = sole_pose[k]
+        yaw = math.atan2(T[1, 0], T[0, 0])
+        cos_yaw, sin_yaw = math.cos(yaw), math.sin(yaw)
+        F = flat_out[k]
+        F[:, :] = 0.0
+        F[0, 0], F[0, 1], F[1, 0], F[1, 1] = cos_yaw, -sin_yaw, sin_yaw, cos_yaw
+        F[2, 2], F[3, 3] = 1.0, 1.0
+        F[0, 3], F[1, 3], F[2, 3] = T[0, 3], T[1, 3], ground_z
+        if not down[k]:
+            continue
+        for i in range(4):
+            x = F[0, 0] * corners[i, 0] + F[0, 1] * corners[i, 1] + F[0, 3]
+            y = F[1, 0] * corners[i, 0] + F[1, 1] * corners[i, 1] + F[1, 3]
+            box_out[0], box_out[1] = min(box_out[0], x), max(box_out[1], x)
+            box_out[2], box_out[3] = min(box_out[2], y), max(box_out[3], y)
+    box_out[0] += margin
+    box_out[1] -= margin
+    box_out[2] += margin
+    box_out[3] -= margin
+    hull = convex_hull(points[:m])
     return outside_distance(hull, cp_out) + margin, ground_z
 
 
@@ -147,13 +191,16 @@ class CapturePointMonitor(Module):
         model: the robot model (URDF).
         dt_s: the control period (s).
         margin_m: shrink of the support polygon (m).
+        corner_tolerance_m: a sole corner more than this above the lowest sole point no longer
+            supports (the foot is tipping on an edge), m.
+        contact_hold_s: a foot counts as in contact until it has reported none this long (s).
         cutoff_hz: low-pass cut-off of the CoM velocity (Hz).
         request_estop: request an emergency stop when the CP leaves the polygon.
 
     Attributes after each update: ``com_m`` (3,), ``cp_m`` (2,), ``cp_ref_m`` (2,),
     ``outside_m`` (CP beyond the shrunk polygon, m; > 0 = flag), ``ground_z_m`` (lowest sole
-    in contact), ``support_box_m``
-    (min x, max x, min y, max y of the shrunk polygon), ``flag``.
+    in contact), ``support_box_m`` (min x, max x, min y, max y of the soles in contact taken
+    flat, shrunk by the margin: the nominal thresholds), ``flag``.
     """
 
     name = "capture-point"
@@ -163,9 +210,14 @@ class CapturePointMonitor(Module):
                    "cp_flag")
 
     def __init__(self, model: RobotModel, dt_s: float, margin_m: float = CP_MARGIN_M,
-                 cutoff_hz: float = VELOCITY_CUTOFF_HZ, request_estop: bool = True) -> None:
+                 cutoff_hz: float = VELOCITY_CUTOFF_HZ, request_estop: bool = True,
+                 corner_tolerance_m: float = CORNER_TOLERANCE_M,
+                 contact_hold_s: float = CONTACT_HOLD_S) -> None:
         self.dt_s = float(dt_s)
+        self.contact_hold_s = float(contact_hold_s)
+        self._last_contact_s: list[float | None] = [None, None]
         self.margin_m = float(margin_m)
+        self.corner_tolerance_m = float(corner_tolerance_m)
         self.request_estop = request_estop
         tau = 1.0 / (2 * math.pi * cutoff_hz)
         self.alpha = self.dt_s / (self.dt_s + tau)
@@ -176,6 +228,7 @@ class CapturePointMonitor(Module):
         self._q = np.zeros(self.robot.model.nq)
         self._q_ref = np.zeros(self.robot.model.nq)
         self._sole_pose = np.zeros((2, 4, 4))
+        self._flat_sole = np.tile(np.eye(4), (2, 1, 1))
         self._prev_com: np.ndarray | None = None
         self.velocity_m_s = np.zeros(3)
         self.com_m = np.zeros(3)
@@ -188,6 +241,7 @@ class CapturePointMonitor(Module):
 
     def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
         self._prev_com = None
+        self._last_contact_s = [None, None]
         self.velocity_m_s = np.zeros(3)
         self.flag = False
 
@@ -201,6 +255,20 @@ class CapturePointMonitor(Module):
                      (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)))
         return T
 
+    def _debounced_contact(self, state: RobotState) -> tuple[bool, bool]:
+        """Feet contacts, each held for ``contact_hold_s`` after it was last reported (a
+        simulated or sensed contact flickers for a period now and then)."""
+        if state.feet_contact is None:
+            return True, True
+        held = []
+        for k, touching in enumerate(state.feet_contact):
+            if touching:
+                self._last_contact_s[k] = state.time_s
+            last = self._last_contact_s[k]
+            held.append(bool(touching or (last is not None
+                                          and state.time_s - last <= self.contact_hold_s)))
+        return held[0], held[1]
+
     def measure(self, state: RobotState, q_cmd_rad: np.ndarray | None = None) -> bool:
         """Update the estimate from ``state`` (and the reference from the command, rad);
         return True when the CP is outside the shrunk support polygon with a foot on the
@@ -209,7 +277,7 @@ class CapturePointMonitor(Module):
         T_world_torso = self._torso_pose(state)
         q = self.robot.configuration(state.q_rad, T_world_torso, out=self._q)
         com = pin.centerOfMass(pmodel, data, q, False).copy()
-        contact = state.feet_contact if state.feet_contact is not None else (True, True)
+        contact = self._debounced_contact(state)
         for k, fid in enumerate(self._sole_ids):
             oMf = pin.updateFramePlacement(pmodel, data, fid)
             self._sole_pose[k, :3, :3] = oMf.rotation
@@ -221,17 +289,28 @@ class CapturePointMonitor(Module):
                                                - self.velocity_m_s)
         self._prev_com = com
         self.com_m = com
-        if q_cmd_rad is not None:
-            q_cmd = np.where(np.isfinite(q_cmd_rad), q_cmd_rad, state.q_rad)
-            q_ref = self.robot.configuration(q_cmd, T_world_torso, out=self._q_ref)
-            self.cp_ref_m = pin.centerOfMass(pmodel, self.data, q_ref, False)[:2].copy()
         outside, ground_z = _support(self._sole_pose, bool(contact[0]), bool(contact[1]),
                                      self._corners, com, self.velocity_m_s, self.margin_m,
-                                     GRAVITY_M_S2, self.cp_m, self.support_box_m)
+                                     GRAVITY_M_S2, self.corner_tolerance_m, self.cp_m,
+                                     self.support_box_m, self._flat_sole)
         self.outside_m = outside
         self.ground_z_m = ground_z
+        if q_cmd_rad is not None and (contact[0] or contact[1]):
+            self.cp_ref_m = self._reference_com(q_cmd_rad, state, 0 if contact[0] else 1)
         self.flag = bool(outside > 0.0)
         return self.flag
+
+    def _reference_com(self, q_cmd_rad: np.ndarray, state: RobotState, foot: int) -> np.ndarray:
+        """x, y (m) of the commanded posture's CoM standing with sole ``foot`` flat where it is
+        (the reference CP of a static posture, as AutoBalancer's reference CoM)."""
+        pmodel, data = self.robot.model, self.data
+        q_cmd = np.where(np.isfinite(q_cmd_rad), q_cmd_rad, state.q_rad)
+        q_ref = self.robot.configuration(q_cmd, None, out=self._q_ref)
+        com_torso = pin.centerOfMass(pmodel, data, q_ref, False)  # torso at the origin
+        oMf = pin.updateFramePlacement(pmodel, data, self._sole_ids[foot])  # T_torso_sole
+        in_sole = oMf.rotation.T @ (com_torso - oMf.translation)
+        flat = self._flat_sole[foot]
+        return (flat[:2, :3] @ in_sole + flat[:2, 3]).copy()
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         flag = self.measure(state, q_rad)

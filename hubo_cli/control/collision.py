@@ -10,11 +10,12 @@ forearm that hold it. Measured on the 2-core development machine: one check of t
 (54 with the drill) costs about 30 us with pinocchio + coal against about 145 us with PyBullet's
 ``getClosestPoints`` in a DIRECT client, so pinocchio is used.
 
-Each period the input command is checked where it would stop if it braked now (its position
-plus the jerk-limited braking distance of its velocity and acceleration, per joint), so the hold
-can start early enough to stay clear. A pair closer than
-``tolerance_m`` is a collision: the output goes back to the last safe input (jerk-limited,
-within the joint limits) and holds; once the input is clear again it recovers toward the live
+Only the arm joints are held (hrpsys ``collision_mask``); the legs pass through so that the
+balancer keeps working. Each period the input command is checked where it would stop if it
+braked now (its position plus the jerk-limited braking distance of its velocity and
+acceleration, per joint), so the hold can start early enough to stay clear. A pair closer than
+``tolerance_m`` is a collision: the arms go back to the last safe input (jerk-limited, within
+the joint limits) and hold; once the input is clear again they recover toward the live
 input, arriving no sooner than ``recover_s`` (2.5 s).
 """
 
@@ -137,6 +138,8 @@ class CollisionDetector(Module):
         tolerance_m: a pair closer than this is a collision (m).
         recover_s: shortest time back to the live input once clear (s).
         drill: check the drill in the right hand too.
+        joints: the joints it holds (hrpsys ``collision_mask``); default both arms, so the
+            legs keep following the balancer while an arm is held.
         limits: override the model's limits (tests).
 
     Flags: ``collision`` while holding, ``recovering`` while going back. Info:
@@ -148,13 +151,17 @@ class CollisionDetector(Module):
 
     def __init__(self, model: RobotModel, dt_s: float, tolerance_m: float = TOLERANCE_M,
                  recover_s: float = RECOVER_S, drill: bool = False,
+                 joints: tuple[str, ...] | None = None,
                  limits: JointLimits | None = None) -> None:
         self.limits = limits or JointLimits.from_model(model)
         self.dt_s = float(dt_s)
         self.tolerance_m = float(tolerance_m)
         self.recover_s = float(recover_s)
+        if joints is None:
+            joints = model.limb("right-arm").joints + model.limb("left-arm").joints
+        self.index = np.array([model.joint_names.index(j) for j in joints], dtype=int)
         self.checker = SelfCollisionChecker(model, drill=drill)
-        self.tracker = JointTracker(self.limits, self.dt_s)
+        self.tracker = JointTracker(self.limits.subset(self.index), self.dt_s)
         self.events: list[SafetyEvent] = []
         self.last_clearance: Clearance | None = None
         self._clear_state(np.zeros(self.limits.size))
@@ -162,7 +169,7 @@ class CollisionDetector(Module):
     def _clear_state(self, q: np.ndarray) -> None:
         self.mode = "safe"
         self.safe_rad = q.copy()
-        self.hold_rad = q.copy()
+        self.hold_rad = q[self.index].copy()
         self.last_in = q.copy()
         self._w_last = np.zeros_like(q)
         self.out1 = q.copy()
@@ -173,13 +180,13 @@ class CollisionDetector(Module):
     def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
         q = np.where(np.isfinite(q_rad), q_rad, state.q_rad).astype(float)
         self._clear_state(q)
-        self.tracker.reset(q)
+        self.tracker.reset(q[self.index])
 
     def _seed_tracker(self) -> None:
-        dt = self.dt_s
-        v = (self.out1 - self.out2) / dt
-        a = (self.out1 - 2 * self.out2 + self.out3) / dt**2
-        self.tracker.reset(self.out1, v + 0.5 * a * dt, a)
+        dt, i = self.dt_s, self.index
+        v = (self.out1[i] - self.out2[i]) / dt
+        a = (self.out1[i] - 2 * self.out2[i] + self.out3[i]) / dt**2
+        self.tracker.reset(self.out1[i], v + 0.5 * a * dt, a)
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         q_in = np.where(np.isfinite(q_rad), q_rad, self.last_in)
@@ -192,31 +199,32 @@ class CollisionDetector(Module):
         self.last_clearance = clearance
         cycle.info["collision_distance_m"] = clearance.distance_m
         colliding = clearance.distance_m <= self.tolerance_m
+        i = self.index
         if colliding and self.mode != "hold":
             self._seed_tracker()
-            self.hold_rad = self.safe_rad.copy() if self.mode == "safe" else self.out1.copy()
+            self.hold_rad = (self.safe_rad if self.mode == "safe" else self.out1)[i].copy()
             self.mode = "hold"
             self.events.append(SafetyEvent(cycle.t_s, "collision", clearance.pair))
         elif not colliding and self.mode == "hold":
             self.mode = "recover"
             self.t_recover_end_s = cycle.t_s + self.recover_s
 
+        out = np.array(q_in, dtype=float)
         if self.mode == "safe":
             self.safe_rad = q_in
-            out = q_in
         elif self.mode == "hold":
-            out = self.tracker.track(self.hold_rad)
+            out[i] = self.tracker.track(self.hold_rad)
             cycle.flags.add("collision")
         else:
             remaining = self.t_recover_end_s - cycle.t_s
-            out = self.tracker.track(q_in, min_duration_s=remaining if remaining > 0 else None,
-                                     target_v_rad_s=w_in)
+            sub = self.tracker.track(q_in[i], min_duration_s=remaining if remaining > 0 else None,
+                                     target_v_rad_s=w_in[i])
+            out[i] = sub
             cycle.flags.add("recovering")
-            if (remaining <= 0 and np.max(np.abs(out - q_in)) < 1e-6
-                    and np.max(np.abs(self.tracker.v - w_in)) < 1e-3):
-                out = q_in
+            if (remaining <= 0 and np.max(np.abs(sub - q_in[i])) < 1e-6
+                    and np.max(np.abs(self.tracker.v - w_in[i])) < 1e-3):
+                out = np.array(q_in, dtype=float)
                 self.mode = "safe"
                 self.safe_rad = q_in
-        out = np.array(out, dtype=float)
         self.out3, self.out2, self.out1 = self.out2, self.out1, out
         return out

@@ -36,6 +36,12 @@ class JointLimits:
     def size(self) -> int:
         return len(self.lower_rad)
 
+    def subset(self, index) -> JointLimits:
+        """The limits of some joints only (``index``: indices or a boolean mask)."""
+        return JointLimits(self.lower_rad[index], self.upper_rad[index],
+                           self.velocity_rad_s[index], self.acceleration_rad_s2[index],
+                           self.jerk_rad_s3[index])
+
     def clip(self, q_rad: np.ndarray) -> np.ndarray:
         """``q_rad`` clamped into the position limits (rad)."""
         return np.minimum(np.maximum(q_rad, self.lower_rad), self.upper_rad)

@@ -1,0 +1,1 @@
+"""Experiments that reproduce the papers' evaluations on the simulated robot."""
