@@ -57,7 +57,10 @@ class PeriodLog:
                         + self.extra_columns)
         n_num = 5
         self._head_fmt = ",".join(["%d", "%.9g", "%d", "%.6g", "%.6g"][:n_num]) + ",%s"
-        self._body_fmt = ",".join(["%.9g"] * (3 * len(joints) + len(self.extra_columns)))
+        # joints with 15 significant digits, so that finite differences of the log (velocity,
+        # acceleration) are exact to about 1e-9 rad/s^2; the other numbers with 9
+        self._body_fmt = ",".join(["%.15g"] * (3 * len(joints))
+                                  + ["%.9g"] * len(self.extra_columns))
         self._nan_extras = [float("nan")] * len(self.extra_columns)
         self._file = open(self.path, "w", buffering=1 << 16)  # noqa: SIM115 (kept open)
         self._file.write(_legend())

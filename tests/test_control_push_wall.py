@@ -1,0 +1,76 @@
+"""The emergency-stop experiment (paper IV-C) on the simulated robot, both ways, and its CLI."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from control_support import limit_violations
+
+from hubo_cli.cli.main import main
+from hubo_cli.control.log import load_log
+from hubo_cli.experiments.push_wall import FALL_TILT_DEG, run_push_wall
+
+pytestmark = pytest.mark.slow
+
+SUMMARY_KEYS = {"estop", "fell", "max_tilt_deg", "t_emergency_s", "max_cp_error_mm"}
+
+
+def _commands_ok(model, run_dir):
+    log = load_log(run_dir)
+    commands = log.joints("cmd")
+    commands = np.vstack([commands[:1], commands[:1], commands])
+    bad = limit_violations(model, commands, model.control_period_s)
+    assert bad["nonfinite"] == 0 and bad["position"] == 0
+    assert bad["velocity"] == 0 and bad["acceleration"] == 0, bad
+    return log
+
+
+def test_push_wall_forward_with_estop_stays_up(model, tmp_path):
+    result = run_push_wall(model, "forward", estop=True, out=tmp_path, end_s=5.0)
+    s = result.summary
+    assert SUMMARY_KEYS <= set(s)
+    assert s["estop"] == "on" and not s["fell"] and s["max_tilt_deg"] < 10.0
+    assert s["t_emergency_s"] is not None and s["emergency_sources"] == ["capture-point"]
+    assert 1.0 < s["t_emergency_s"] < 4.5          # during the commanded push
+    on_disk = json.loads((tmp_path / "summary.json").read_text())
+    assert on_disk["fell"] is False and on_disk["t_emergency_s"] == s["t_emergency_s"]
+    assert (tmp_path / "cp_error.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    log = _commands_ok(model, tmp_path)
+    after = log["t_s"] >= s["t_emergency_s"]
+    assert np.all(log["estop_mode_code"][after & np.isfinite(log["estop_mode_code"])] >= 1)
+    # the push reverts: both elbows, which straighten while pushing, bend back again
+    cmd = log.joints("cmd")[after]
+    for joint in ("REB", "LEB"):
+        elbow = cmd[:, log.joint_names.index(joint)]
+        assert elbow.max() - elbow[-1] > 0.1, joint
+    assert log["tilt_deg"][np.isfinite(log["tilt_deg"])][-1] < 3.0  # standing again
+
+
+def test_push_wall_forward_without_estop_falls(model, tmp_path):
+    result = run_push_wall(model, "forward", estop=False, out=tmp_path)
+    s = result.summary
+    assert s["estop"] == "off" and s["t_emergency_s"] is None
+    assert s["fell"] and s["max_tilt_deg"] > FALL_TILT_DEG
+    assert s["t_cp_flag_s"] is not None            # the monitor saw it coming
+    assert "estop_mode_code" not in load_log(tmp_path).columns
+
+
+def test_cli_push_wall_left(tmp_path):
+    out = tmp_path / "run"
+    result = CliRunner().invoke(main, ["task", "push-wall", "--direction", "left", "--json",
+                                       "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.output)
+    assert summary["direction"] == "left" and summary["estop"] == "on"
+    assert not summary["fell"] and summary["t_emergency_s"] is not None
+    assert (out / "log.csv").exists() and (out / "cp_error.png").exists()
+
+
+def test_cli_task_group_lists_push_wall():
+    result = CliRunner().invoke(main, ["task", "--help"])
+    assert result.exit_code == 0 and "push-wall" in result.output
+    result = CliRunner().invoke(main, ["task", "push-wall", "--direction", "up"])
+    assert result.exit_code == 2 and "up" in result.output
