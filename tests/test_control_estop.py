@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import os
+import signal
+
 import numpy as np
 import pytest
 from control_support import assert_within_limits, ideal
 
-from hubo_cli.control.estop import EmergencyStopper
+from hubo_cli.control.estop import EmergencyStopper, stop_on_signal
 from hubo_cli.control.log import load_log
 from hubo_cli.control.loop import ControlLoop
 from hubo_cli.control.module import Cycle
@@ -176,3 +179,18 @@ def test_hard_stop_reacts_only_to_hard_source(model):
     assert not hard.stopped
     hard.update(q0, state, Cycle(DT, DT, estop_requests={"hard"}))
     assert hard.stopped
+
+
+def test_operator_signal_latches(model):
+    stopper = EmergencyStopper(model, DT)
+    q0 = home_posture(model)
+    state = RobotState(0.0, q0, np.zeros(24))
+    stopper.reset(q0, state)
+    restore = stop_on_signal([stopper])
+    try:
+        os.kill(os.getpid(), signal.SIGUSR1)
+        stopper.update(q0, state, Cycle(0.0, DT))
+    finally:
+        restore()
+    assert stopper.stopped and stopper.events[0].sources == ("operator",)
+    assert signal.getsignal(signal.SIGUSR1) is signal.SIG_DFL

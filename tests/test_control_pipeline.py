@@ -95,6 +95,21 @@ def test_hostile_burst_is_smoothed(model):
     assert result.status_counts.get(Status.JOINT_LIMIT.label, 0) > 0
 
 
+def test_hostile_burst_never_trips_the_hardware_servo_off(model, tmp_path):
+    """The hubo-ach driver (echo source) latches servo-off on any too-fast reference."""
+    from hubo_cli.drivers.base import make_driver
+
+    driver = make_driver("hardware", model, armed=True, run_dir=tmp_path)
+    driver.start()
+    events = [("set", 0, 5.0, 40), ("nan", 3, 0.0, 10), ("gap", 0, 0.0, 30),
+              ("set", 9, -6.0, 60), ("scatter", 7, 1.5, 60)]
+    with driver:
+        result = ControlLoop(driver, build_pipeline(model),
+                             EventTargets(model, events)).run(duration_s=10.0)
+    assert result.ok and Status.SERVO_OFF.label not in result.status_counts
+    assert not driver.servo_off
+
+
 def test_stale_input_stops_smoothly_and_requests_an_estop(model):
     robot = ideal(model)
     q0 = robot.read().q_rad.copy()

@@ -19,7 +19,8 @@ and still ends exactly on the posture of t_emer - T1 (no overshoot past it). The
 stopped.
 
 The flag is latched: any request from an enabled source (``cycle.estop_requests``, a call to
-:meth:`stop`, or a wrist torque above ``model.safety["wrist_torque_limit_nm"]``) stops; only an
+:meth:`stop` -- e.g. from the operator's key or, through :func:`stop_on_signal`, a signal -- or
+a wrist torque above ``model.safety["wrist_torque_limit_nm"]``) stops; only an
 explicit release lets go, and a request that is still present in the next period stops again.
 The pipeline uses two instances: ``estop`` early in the chain and ``hard-estop`` after the
 balance and collision layers.
@@ -27,7 +28,9 @@ balance and collision layers.
 
 from __future__ import annotations
 
+import signal
 from collections import deque
+from collections.abc import Callable, Iterable
 
 import numpy as np
 
@@ -207,3 +210,19 @@ class EmergencyStopper(Module):
         out = np.array(out, dtype=float)
         self.out3, self.out2, self.out1 = self.out2, self.out1, out
         return out
+
+
+def stop_on_signal(stoppers: Iterable[EmergencyStopper], signum: int = signal.SIGUSR1,
+                   source: str = "operator") -> Callable[[], None]:
+    """Latch ``stoppers`` from ``source`` whenever the process receives ``signum`` (the
+    operator's signal: ``kill -USR1 <pid>``). Call from the main thread; returns a function that
+    puts the previous handler back."""
+    targets = list(stoppers)
+    previous = signal.getsignal(signum)
+
+    def handler(received, frame) -> None:
+        for stopper in targets:
+            stopper.stop(source)
+
+    signal.signal(signum, handler)
+    return lambda: signal.signal(signum, previous)
