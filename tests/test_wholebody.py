@@ -53,3 +53,13 @@ def test_two_hands_share_one_height(body):
 def test_lift_range_is_sane(body):
     lo, hi = body.lift_range_m
     assert -0.3 < lo < -0.05 and 0.0 < hi < 0.05
+
+
+def test_lift_filter_is_smooth_and_speed_limited():
+    from hubo_cli.kinematics.wholebody import LiftFilter
+
+    f = LiftFilter(max_speed_m_s=0.02)
+    f.reset(0.0)
+    lifts = [f.step(-0.1, 0.005) for _ in range(2000)]
+    assert np.all(np.abs(np.diff(lifts)) <= 0.02 * 0.005 + 1e-12)
+    assert lifts[-1] == pytest.approx(-0.1, abs=1e-6)

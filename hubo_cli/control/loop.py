@@ -4,7 +4,8 @@ Each period of ``dt`` (the model's 5 ms):
 
 1. ask the caller's target source ``target(t_s, state) -> (q_target_rad | None, info)``;
    ``None`` (or NaN entries) means "no new target"; ``info`` may carry ``"estop"`` (a source
-   name or several), ``"release"`` (release every emergency stopper), ``"done"`` (finish after
+   name or several), ``"flags"`` (status flags of the source, e.g. ``"stale-input"``),
+   ``"release"`` (release every emergency stopper), ``"done"`` (finish after
    this period) and numbers for the log's extra columns (declared in ``target.log_columns``);
 2. run the ordered modules on the command (a module that requests an emergency stop through
    ``cycle.estop_requests`` must come before the stopper that should see it in that period);
@@ -201,6 +202,7 @@ class ControlLoop:
                     q_target, info = self.target(t_s, state)
                     info = info or {}
                     cycle.estop_requests.update(_as_requests(info.get("estop")))
+                    cycle.flags.update(_as_requests(info.get("flags")))
                     if info.get("release"):
                         for m in self.modules:
                             if hasattr(m, "release"):

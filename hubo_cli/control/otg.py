@@ -183,7 +183,7 @@ class TargetInput:
         if fresh.any():
             wanted = np.where(fresh, q_rad, self.target)
             clipped = self.limits.clip(wanted)
-            if np.any(clipped != wanted):
+            if np.any(np.abs(clipped - wanted) > 1e-9):  # not rounding at a limit
                 cycle.flags.add("joint-limit")
             if not fresh.all():
                 cycle.flags.add("holding")

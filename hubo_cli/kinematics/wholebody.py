@@ -55,7 +55,7 @@ class WholeBody:
 
     def __init__(self, model: RobotModel, tools: dict[str, str] | None = None,
                  working_height_m: float = 0.0,
-                 knee_range_rad: tuple[float, float] = (0.25, 1.6)) -> None:
+                 knee_range_rad: tuple[float, float] = (0.45, 1.6)) -> None:
         tools = tools or {}
         self.model = model
         self.arms = {name: Limb(model, name, tools.get(name, "hand")) for name in ARMS}
@@ -79,18 +79,34 @@ class WholeBody:
         lo, hi = knee_range_rad
         return hip_height(hi) - home, hip_height(lo) - home
 
-    def solve(self, T_S_goal: dict[str, np.ndarray], q_prev_rad: np.ndarray | None = None
-              ) -> WholeBodyResult:
+    def lift_of(self, q_rad: np.ndarray) -> float:
+        """The neck lift (m) that the leg joints of a full joint vector produce (right leg)."""
+        sl = self.model.limb_slice("right-leg")
+        return float(self.T_S_sole["right-leg"][2, 3] - self.legs["right-leg"].fk(q_rad[sl])[2, 3])
+
+    def lift_for(self, T_S_goal: dict[str, np.ndarray]) -> float:
+        """The lift (m) the legs aim for with these goals: mean goal height minus the working
+        height, within the legs' range."""
+        heights = [float(T[2, 3]) for T in T_S_goal.values()]
+        wanted = (np.mean(heights) if heights else 0.0) - self.working_height_m
+        return float(np.clip(wanted, *self.lift_range_m))
+
+    def solve(self, T_S_goal: dict[str, np.ndarray], q_prev_rad: np.ndarray | None = None,
+              lift_m: float | None = None) -> WholeBodyResult:
         """Solve goals for one or both arms (arm name -> T_S_E, 4x4 m).
 
         Args:
             T_S_goal: hand (tool) goals in the stance frame.
             q_prev_rad: previous full joint vector; home posture if None.
+            lift_m: impose the legs' lift (m, clipped to their range) instead of deriving it
+                from the goal heights (e.g. while moving between postures).
         """
         q_prev = self.q_home if q_prev_rad is None else np.asarray(q_prev_rad, dtype=float)
         q = q_prev.copy()
         heights = [float(T[2, 3]) for T in T_S_goal.values()]
         wanted = (np.mean(heights) if heights else 0.0) - self.working_height_m
+        if lift_m is not None:
+            wanted = float(lift_m)
         lo, hi = self.lift_range_m
         lift = float(np.clip(wanted, lo, hi))
         down = np.eye(4)
@@ -108,3 +124,37 @@ class WholeBody:
             arms[name] = result
             q[sl] = result.q_rad
         return WholeBodyResult(q, lift, arms, legs, lift_capped=bool(wanted != lift))
+
+
+class LiftFilter:
+    """Smooths the legs' lift so the body moves calmly while the arms take the fast part.
+
+    The arms solve the hand goal exactly for whatever lift the legs have, so the legs need not
+    follow every millimetre of the operator's height (tremor included). Moving them slowly keeps
+    each leg's joints in proportion (the sole stays flat; joint-space tracking of a fast crouch
+    tilts it) and the centre of mass still.
+
+    Args:
+        max_speed_m_s: the lift's speed limit.
+        time_constant_s: first-order smoothing of the wanted lift before the speed limit.
+    """
+
+    def __init__(self, max_speed_m_s: float = 0.02, time_constant_s: float = 0.3) -> None:
+        self.max_speed_m_s = max_speed_m_s
+        self.time_constant_s = time_constant_s
+        self.lift_m: float | None = None
+        self._smoothed: float | None = None
+
+    def reset(self, lift_m: float) -> None:
+        self.lift_m = self._smoothed = float(lift_m)
+
+    def step(self, wanted_m: float, dt_s: float) -> float:
+        """Advance one period toward ``wanted_m``; returns the lift to use (m)."""
+        if self.lift_m is None:
+            self.reset(wanted_m)
+            return self.lift_m
+        alpha = dt_s / (self.time_constant_s + dt_s)
+        self._smoothed += alpha * (wanted_m - self._smoothed)
+        step = self.max_speed_m_s * dt_s
+        self.lift_m += float(np.clip(self._smoothed - self.lift_m, -step, step))
+        return self.lift_m

@@ -1,0 +1,94 @@
+"""Timed Cartesian paths: straight lines with minimum-jerk timing and slerped orientation.
+
+Used for the teleop approach (bring the tool to its start pose without sweeping through the
+scene) and by scripted tasks (move, plunge, follow, retract). Poses are 4x4 transforms (m).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+def rotation_log(R: np.ndarray) -> np.ndarray:
+    """Rotation vector (axis * angle, rad) of a rotation matrix."""
+    cos_angle = np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)
+    w = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / 2.0
+    sin_angle = np.linalg.norm(w)
+    angle = np.arctan2(sin_angle, cos_angle)
+    if sin_angle < 1e-9:
+        if cos_angle > 0:
+            return w  # small angle: the vector part is the rotation vector
+        # half turn: axis from the largest column of R + I
+        B = R + np.eye(3)
+        axis = B[:, np.argmax(np.linalg.norm(B, axis=0))]
+        return np.pi * axis / np.linalg.norm(axis)
+    return w / sin_angle * angle
+
+
+def rotation_exp(v: np.ndarray) -> np.ndarray:
+    """Rotation matrix of a rotation vector (Rodrigues)."""
+    angle = float(np.linalg.norm(v))
+    if angle < 1e-12:
+        return np.eye(3)
+    k = v / angle
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * (K @ K)
+
+
+def min_jerk(s: float) -> float:
+    """Minimum-jerk progress 0 -> 1 for normalised time s in [0, 1]."""
+    s = min(max(s, 0.0), 1.0)
+    return s * s * s * (10 - 15 * s + 6 * s * s)
+
+
+@dataclass(frozen=True)
+class PoseSegment:
+    """A straight move from ``T_start`` to ``T_end`` in ``duration_s`` (min-jerk or constant
+    speed), orientation interpolated along the geodesic."""
+
+    T_start: np.ndarray
+    T_end: np.ndarray
+    duration_s: float
+    profile: str = "min-jerk"  # or "linear" (constant speed, for cutting)
+
+    def at(self, t_s: float) -> np.ndarray:
+        """The pose t_s seconds into the segment (clamped to its ends)."""
+        s = 1.0 if self.duration_s <= 0 else t_s / self.duration_s
+        s = min_jerk(s) if self.profile == "min-jerk" else min(max(s, 0.0), 1.0)
+        T = np.eye(4)
+        T[:3, 3] = self.T_start[:3, 3] + s * (self.T_end[:3, 3] - self.T_start[:3, 3])
+        delta = rotation_log(self.T_start[:3, :3].T @ self.T_end[:3, :3])
+        T[:3, :3] = self.T_start[:3, :3] @ rotation_exp(s * delta)
+        return T
+
+
+def segment_duration(T_start: np.ndarray, T_end: np.ndarray, speed_m_s: float,
+                     turn_rad_s: float = 0.5, minimum_s: float = 0.2) -> float:
+    """How long a min-jerk move should take so its mean speed is ``speed_m_s`` (and its mean
+    turn rate ``turn_rad_s``)."""
+    distance = float(np.linalg.norm(T_end[:3, 3] - T_start[:3, 3]))
+    turn = float(np.linalg.norm(rotation_log(T_start[:3, :3].T @ T_end[:3, :3])))
+    return max(distance / speed_m_s, turn / turn_rad_s, minimum_s)
+
+
+class PosePath:
+    """Segments played one after the other; ``at(t)`` is the pose at time t (s)."""
+
+    def __init__(self, segments: list[PoseSegment]) -> None:
+        self.segments = list(segments)
+        self.starts_s = np.cumsum([0.0] + [s.duration_s for s in self.segments])
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.starts_s[-1])
+
+    def index_at(self, t_s: float) -> int:
+        """The segment playing at time t (the last one after the end)."""
+        k = int(np.searchsorted(self.starts_s, t_s, side="right")) - 1
+        return min(max(k, 0), len(self.segments) - 1)
+
+    def at(self, t_s: float) -> np.ndarray:
+        k = self.index_at(t_s)
+        return self.segments[k].at(t_s - self.starts_s[k])
