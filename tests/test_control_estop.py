@@ -134,6 +134,8 @@ def test_stop_table_hrpsys(model, tmp_path, preset):
     assert len(recovered) and t[recovered[0]] >= 8.0 + 2.5 - 1e-9
     assert_within_limits(model, robot.commands(q0), DT)
     assert find_module(modules, "estop").events[0].sources == ("operator",)
+    # the stop, the revert and the blend back kept to the limits on their own
+    assert find_module(modules, "limiter").clamped_periods == 0
 
 
 def test_latch_release_and_sources(model):

@@ -116,7 +116,7 @@ def test_otg_respects_limits_on_a_step(model):
     assert_within_limits(model, commands, DT)
     assert np.abs(commands[-1] - goal).max() < 1e-9
     # the generator alone already keeps to the limits: the limiter never had to clamp
-    assert find_module(modules, "limiter") is not None
+    assert find_module(modules, "limiter").clamped_periods == 0
 
 
 def test_hoff_arbib_min_jerk_oracle():
@@ -167,6 +167,7 @@ def test_collision_detector_holds_then_recovers(model):
     assert collision.events and collision.events[0].kind == "collision"
     assert collision.mode == "safe"
     assert np.abs(commands[-1] - q0).max() < 1e-6
+    assert find_module(modules, "limiter").clamped_periods == 0  # hold/recover within limits
 
 
 # ------------------------------------------------------------------ capture point

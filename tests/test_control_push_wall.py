@@ -32,7 +32,7 @@ def test_push_wall_forward_with_estop_stays_up(model, tmp_path):
     result = run_push_wall(model, "forward", estop=True, out=tmp_path, end_s=5.0)
     s = result.summary
     assert SUMMARY_KEYS <= set(s)
-    assert s["estop"] == "on" and not s["fell"] and s["max_tilt_deg"] < 10.0
+    assert s["estop"] == "on" and not s["fell"] and not s["tipped"] and s["max_tilt_deg"] < 10.0
     assert s["t_emergency_s"] is not None and s["emergency_sources"] == ["capture-point"]
     assert 1.0 < s["t_emergency_s"] < 4.5          # during the commanded push
     on_disk = json.loads((tmp_path / "summary.json").read_text())
@@ -53,7 +53,7 @@ def test_push_wall_forward_without_estop_falls(model, tmp_path):
     result = run_push_wall(model, "forward", estop=False, out=tmp_path)
     s = result.summary
     assert s["estop"] == "off" and s["t_emergency_s"] is None
-    assert s["fell"] and s["max_tilt_deg"] > FALL_TILT_DEG
+    assert s["fell"] and s["tipped"] and s["max_tilt_deg"] > FALL_TILT_DEG
     assert s["t_cp_flag_s"] is not None            # the monitor saw it coming
     assert "estop_mode_code" not in load_log(tmp_path).columns
 
@@ -65,7 +65,8 @@ def test_cli_push_wall_left(tmp_path):
     assert result.exit_code == 0, result.output
     summary = json.loads(result.output)
     assert summary["direction"] == "left" and summary["estop"] == "on"
-    assert not summary["fell"] and summary["t_emergency_s"] is not None
+    assert not summary["fell"] and not summary["tipped"]
+    assert summary["t_emergency_s"] is not None
     assert (out / "log.csv").exists() and (out / "cp_error.png").exists()
 
 

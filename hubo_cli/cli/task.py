@@ -57,8 +57,7 @@ def push_wall(ctx: click.Context, direction: str, no_estop: bool, out: str | Non
 def _print_summary(summary: dict) -> None:
     flag = summary["t_emergency_s"]
     cp_flag = summary["t_cp_flag_s"]
-    outcome = ("FELL" if summary["fell"] else
-               "tipped, came back" if summary["tipped"] else "stayed up")
+    outcome = "FELL" if summary["fell"] else "tipped" if summary["tipped"] else "stayed up"
     console.print(f"push              {summary['direction']}, {summary['push_m']:g} m in "
                   f"{summary['push_s']:g} s")
     console.print(f"emergency stop    {summary['estop']}"
@@ -69,9 +68,10 @@ def _print_summary(summary: dict) -> None:
     console.print("emergency         "
                   + (f"at {flag:.3f} s ({', '.join(summary['emergency_sources'])})"
                      if flag is not None else "none"))
-    console.print(f"robot             {outcome} (max tilt {summary['max_tilt_deg']:.1f} deg)")
+    console.print(f"robot             {outcome}: max tilt {summary['max_tilt_deg']:.1f} deg, "
+                  f"sole lift {summary['max_sole_lift_mm']:.0f} mm")
     console.print(f"max CP error      {summary['max_cp_error_mm']:.1f} mm along "
                   f"{summary['cp_error_axis']}")
     console.print(f"ended             {summary['ended']} after {summary['duration_s']:.2f} s")
-    console.print(f"run folder        {summary['run_dir']} (log.csv, summary.json, "
-                  f"cp_error.png)")
+    console.print(f"run folder        {summary['run_dir']}", soft_wrap=True)
+    console.print("                  log.csv, summary.json, cp_error.png")

@@ -4,7 +4,8 @@ Per joint and per period it picks the command's velocity v = (q - q_prev) / dt i
 applied in this order, a later band winning if two cannot both hold:
 
 1. tracking error: |q - q_measured| <= 0.18 rad (hrpsys; just below the 0.2 rad servo-off limit),
-   approached like a position limit (see 4) and never widened once exceeded;
+   approached like a position limit (see 4) that moves with the measured joint's velocity, and
+   never widened once exceeded;
 2. acceleration: |v - v_prev| <= a_max dt;
 3. velocity: |v| <= v_max;
 4. position: the command may approach a limit only as fast as it can still brake before it
@@ -39,8 +40,8 @@ def _clip(x: float, lo: float, hi: float) -> float:
 
 
 @nb.njit(cache=True, nogil=True)
-def limit_step(q_want, w_want, q1, q2, lower, upper, vmax, amax, dt, q_meas, error_limit, out,
-               mask, catching):
+def limit_step(q_want, w_want, q1, q2, lower, upper, vmax, amax, dt, q_meas, v_meas,
+               error_limit, out, mask, catching):
     """One limiter period for every joint (numba).
 
     Args:
@@ -51,6 +52,7 @@ def limit_step(q_want, w_want, q1, q2, lower, upper, vmax, amax, dt, q_meas, err
         lower, upper, vmax, amax: limits (rad, rad/s, rad/s^2).
         dt: the period (s).
         q_meas: measured joints (rad); NaN entries skip the tracking-error band.
+        v_meas: measured joint velocities (rad/s); the band moves with the joint.
         error_limit: tracking-error limit (rad); <= 0 disables it.
         out: the limited command (rad), written.
         mask: per-joint CLAMP_* bits, written.
@@ -68,9 +70,10 @@ def limit_step(q_want, w_want, q1, q2, lower, upper, vmax, amax, dt, q_meas, err
         pos_hi = brake_speed(upper[i] - q1[i], amax[i], dt)
         use_err = error_limit > 0.0 and np.isfinite(q_meas[i])
         err_lo, err_hi = -np.inf, np.inf
-        if use_err:  # a band around the measured position, approached like a limit
-            err_lo = -brake_speed(q1[i] - (q_meas[i] - error_limit), amax[i], dt)
-            err_hi = brake_speed(q_meas[i] + error_limit - q1[i], amax[i], dt)
+        if use_err:  # a band around the measured joint, approached like a limit moving with it
+            w = v_meas[i] if np.isfinite(v_meas[i]) else 0.0
+            err_lo = w - brake_speed(q1[i] - (q_meas[i] - error_limit), amax[i], dt)
+            err_hi = w + brake_speed(q_meas[i] + error_limit - q1[i], amax[i], dt)
         lo = max(max(acc_lo, -vmax[i]), max(pos_lo, err_lo))
         hi = min(min(acc_hi, vmax[i]), min(pos_hi, err_hi))
         bits = 0
@@ -85,15 +88,17 @@ def limit_step(q_want, w_want, q1, q2, lower, upper, vmax, amax, dt, q_meas, err
             v0 = v
             if use_err:
                 v = _clip(v, err_lo, err_hi)
-                if v != v0:
+                if abs(v - v0) > slack:
                     bits |= CLAMP_TRACKING
             v1 = v
             v = _clip(_clip(v, acc_lo, acc_hi), -vmax[i], vmax[i])
-            if v != v1:
+            if abs(v - v1) > slack:
                 bits |= CLAMP_RATE
             v2 = v
             v = _clip(v, pos_lo, pos_hi)
-            if v != v2 or (clamped and (v_want > pos_hi or v_want < pos_lo)):
+            # (flags ignore rounding-size clips: a joint resting on its limit is not an event)
+            if abs(v - v2) > slack or (clamped and (v_want > pos_hi + slack
+                                                     or v_want < pos_lo - slack)):
                 bits |= CLAMP_POSITION
             if bits == 0 and v != v_want:
                 bits = CLAMP_RATE
@@ -112,7 +117,8 @@ class SoftErrorLimiter(Module):
         limits: override the model's limits (tests).
 
     Flags: ``joint-limit`` (position band clamped), ``slowing`` (velocity or acceleration band),
-    ``tracking-error``. Info: ``limiter_clamped_count`` (number of joints clamped).
+    ``tracking-error``. Info: ``limiter_clamped_count`` (number of joints clamped); attribute
+    ``clamped_periods`` counts the periods in which it changed the command.
     """
 
     name = "limiter"
@@ -130,7 +136,9 @@ class SoftErrorLimiter(Module):
         self._out = np.zeros(n)
         self._mask = np.zeros(n, dtype=np.int64)
         self._catching = np.zeros(n, dtype=np.bool_)
+        self.clamped_periods = 0  # periods in which the limiter changed the command
         self._nan = np.full(n, np.nan)
+        self._zeros = np.zeros(n)
         self._want_prev = np.zeros(n)
 
     def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
@@ -147,16 +155,19 @@ class SoftErrorLimiter(Module):
         self._want_prev = self.q1.copy()
         self._catching[:] = False
 
-    def step(self, q_want: np.ndarray, q_meas: np.ndarray | None = None) -> np.ndarray:
-        """Limit one command (rad) against the previous two; returns a new array."""
+    def step(self, q_want: np.ndarray, q_meas: np.ndarray | None = None,
+             v_meas: np.ndarray | None = None) -> np.ndarray:
+        """Limit one command (rad) against the previous two, with the measured joints (rad) and
+        their velocities (rad/s) for the tracking-error band; returns a new array."""
         lim = self.limits
         meas = self._nan if q_meas is None else np.asarray(q_meas, dtype=float)
+        v_meas = self._zeros if v_meas is None else np.asarray(v_meas, dtype=float)
         want = np.asarray(q_want, dtype=float)
         w_want = (want - self._want_prev) / self.dt_s
         w_want[~np.isfinite(w_want)] = 0.0
         out = np.empty_like(self.q1)
         limit_step(want, w_want, self.q1, self.q2, lim.lower_rad, lim.upper_rad,
-                   lim.velocity_rad_s, lim.acceleration_rad_s2, self.dt_s, meas,
+                   lim.velocity_rad_s, lim.acceleration_rad_s2, self.dt_s, meas, v_meas,
                    self.error_limit_rad, out, self._mask, self._catching)
         self._want_prev = want.copy()
         self.q2 = self.q1
@@ -169,7 +180,7 @@ class SoftErrorLimiter(Module):
         return (self.q1 - self.q2) / self.dt_s
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
-        out = self.step(q_rad, state.q_rad)
+        out = self.step(q_rad, state.q_rad, state.dq_rad_s)
         mask = self._mask
         if mask.any():
             if (mask & CLAMP_POSITION).any():
@@ -178,5 +189,8 @@ class SoftErrorLimiter(Module):
                 cycle.flags.add("slowing")
             if (mask & CLAMP_TRACKING).any():
                 cycle.flags.add("tracking-error")
-        cycle.info["limiter_clamped_count"] = float(np.count_nonzero(mask))
+        clamped = int(np.count_nonzero(mask))
+        if clamped:
+            self.clamped_periods += 1
+        cycle.info["limiter_clamped_count"] = float(clamped)
         return out

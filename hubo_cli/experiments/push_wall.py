@@ -9,8 +9,9 @@ on the capture-point monitor raises the flag, the stopper reverts the arms to wh
 0.5 s earlier and holds, and the robot stays up.
 
 Fall criterion (the same as hrpsys' TILT check): the torso tilts more than 30 deg from upright,
-or drops 0.2 m below its start height; the run ends 0.5 s after a fall. A tilt beyond 10 deg
-(a foot well off the ground) counts as ``tipped`` even when the robot comes back.
+or drops 0.2 m below its start height; the run ends 0.5 s after a fall.
+A sole corner rising more than 2 cm off the floor (the robot rocked onto its heels or onto one
+foot) counts as ``tipped``, even when the robot comes back down.
 
 ``run_push_wall`` writes the run folder: ``log.csv`` (the loop's per-period log plus the
 push offset, torso tilt and height), ``summary.json`` and ``cp_error.png`` (the capture-point
@@ -26,6 +27,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from hubo_cli.control.capture_point import sole_corners_m
 from hubo_cli.control.estop import EmergencyStopper
 from hubo_cli.control.log import LogData, load_log
 from hubo_cli.control.loop import ControlLoop, LoopResult
@@ -40,7 +42,7 @@ from hubo_cli.runs import make_run_dir, write_json
 
 DIRECTIONS = ("forward", "left")
 FALL_TILT_DEG = 30.0   # hrpsys Stabilizer tilt_margin default
-TIP_TILT_DEG = 10.0    # beyond this a foot is well off the ground: tipped, even if it came back
+TIP_LIFT_M = 0.02      # a sole corner this far above its start height: the robot tipped
 FALL_DROP_M = 0.2      # torso this much below its start height = on the floor
 STOP_AFTER_FALL_S = 0.5
 WALL_HEIGHT_M = 2.0
@@ -129,7 +131,7 @@ class PushTargets:
     It also watches the torso (tilt, height) and ends the run shortly after a fall.
     """
 
-    log_columns = ("push_offset_m", "tilt_deg", "torso_z_m")
+    log_columns = ("push_offset_m", "tilt_deg", "torso_z_m", "sole_lift_m")
 
     def __init__(self, model: RobotModel, spec: PushSpec, q_start: np.ndarray) -> None:
         self.model = model
@@ -144,6 +146,27 @@ class PushTargets:
         self.start_z_m: float | None = None
         self.t_fall_s: float | None = None
         self.min_z_m = math.inf
+        self.robot = load_pin_robot(model, floating=True)
+        self._data = self.robot.model.createData()
+        self._soles = [self.robot.frame_id(f) for f in ("right_sole", "left_sole")]
+        self._corners = sole_corners_m()
+        self._sole_start_z: np.ndarray | None = None
+        self.max_lift_m = 0.0
+
+    def _sole_lift_m(self, state) -> float:
+        """How far the highest sole corner has risen above its start height (m)."""
+        if state.T_world_torso is None:
+            return 0.0
+        q = self.robot.configuration(state.q_rad, state.T_world_torso)
+        pin.framesForwardKinematics(self.robot.model, self._data, q)
+        z = []
+        for fid in self._soles:
+            oMf = self._data.oMf[fid]
+            z.append(self._corners @ oMf.rotation[2] + oMf.translation[2])
+        z = np.concatenate(z)
+        if self._sole_start_z is None:
+            self._sole_start_z = z
+        return float(np.max(z - self._sole_start_z))
 
     def _watch(self, t_s: float, state) -> tuple[float, float]:
         T = state.T_world_torso
@@ -158,6 +181,8 @@ class PushTargets:
             self.start_z_m = z
         self.max_tilt_deg = max(self.max_tilt_deg, tilt_deg)
         self.min_z_m = min(self.min_z_m, z)
+        self.lift_m = self._sole_lift_m(state)
+        self.max_lift_m = max(self.max_lift_m, self.lift_m)
         fallen = tilt_deg > FALL_TILT_DEG or self.start_z_m - z > FALL_DROP_M
         if fallen and self.t_fall_s is None:
             self.t_fall_s = t_s
@@ -177,7 +202,7 @@ class PushTargets:
             q[self.slices[arm]] = result.q_rad
         done = self.t_fall_s is not None and t_s >= self.t_fall_s + STOP_AFTER_FALL_S
         return q, {"push_offset_m": offset, "tilt_deg": tilt_deg, "torso_z_m": z,
-                   "done": done}
+                   "sole_lift_m": self.lift_m, "done": done}
 
 
 @dataclass
@@ -228,7 +253,8 @@ def _summary(spec: PushSpec, estop: bool, targets: PushTargets, loop: LoopResult
         "direction": spec.direction,
         "estop": "on" if estop else "off",
         "fell": targets.t_fall_s is not None,
-        "tipped": targets.max_tilt_deg > TIP_TILT_DEG,
+        "tipped": targets.max_lift_m > TIP_LIFT_M,
+        "max_sole_lift_mm": round(targets.max_lift_m * 1000, 1),
         "t_fall_s": targets.t_fall_s,
         "max_tilt_deg": round(targets.max_tilt_deg, 2),
         "t_emergency_s": stops[0][1] if stops else None,
@@ -346,7 +372,8 @@ def plot_cp_error(log: LogData, summary: dict, path: str | Path) -> Path:
     ax.set_ylim(-span, span)
     ax.set_ylabel("CP error [mm]")
     ax.legend(loc="upper left", fontsize=8, framealpha=0.9, ncol=2)
-    outcome = "fell" if summary["fell"] else "stayed up"
+    outcome = ("fell" if summary["fell"] else "tipped (a sole off the floor)" if summary["tipped"]
+               else "stayed up")
     ax.set_title(f"push-wall {summary['direction']}, emergency stop {summary['estop']}: "
                  f"{outcome} (max tilt {summary['max_tilt_deg']:.1f} deg)")
     ax_flag.plot(t, outside_mm, color="#9467bd", lw=1.4,
@@ -357,12 +384,19 @@ def plot_cp_error(log: LogData, summary: dict, path: str | Path) -> Path:
     ax_tilt.plot(t, tilt, color="#2ca02c", lw=1.5, label="torso tilt")
     ax_tilt.axhline(FALL_TILT_DEG, color="#555555", ls=":", lw=1.0,
                     label=f"fall {FALL_TILT_DEG:.0f} deg")
-    ax_tilt.axhline(TIP_TILT_DEG, color="#999999", ls="--", lw=0.8,
-                    label=f"tip {TIP_TILT_DEG:.0f} deg")
+    ax_lift = ax_tilt.twinx()
+    ax_lift.plot(t, log["sole_lift_m"] * 1000, color="#8c564b", lw=1.1, alpha=0.8)
+    ax_lift.axhline(TIP_LIFT_M * 1000, color="#8c564b", ls="--", lw=0.8)
+    ax_lift.set_ylabel("sole lift [mm]", color="#8c564b")
+    ax_lift.tick_params(axis="y", colors="#8c564b")
+    ax_lift.set_ylim(0, max(3 * TIP_LIFT_M * 1000, float(np.nanmax(log["sole_lift_m"])) * 1100))
+    ax_tilt.plot([], [], color="#8c564b", lw=1.1, label="highest sole corner lift")
+    ax_tilt.plot([], [], color="#8c564b", ls="--", lw=0.8,
+                 label=f"tip {TIP_LIFT_M * 1000:.0f} mm")
     ax_tilt.set_ylabel("tilt [deg]")
     ax_tilt.set_xlabel("time [s]")
     ax_tilt.set_ylim(0, max(FALL_TILT_DEG * 1.2, float(np.nanmax(tilt)) * 1.1))
-    ax_tilt.legend(loc="upper left", fontsize=8, framealpha=0.9, ncol=3)
+    ax_tilt.legend(loc="upper left", fontsize=8, framealpha=0.9, ncol=4)
     fig.align_ylabels()
     fig.tight_layout()
     path = Path(path)
