@@ -19,6 +19,7 @@ COMMANDS = {
     "workspace-map": "hubo_cli.cli.workspace:workspace_map",
     "sim": "hubo_cli.cli.sim:sim",
     "task": "hubo_cli.cli.task:task",
+    "teleop": "hubo_cli.cli.teleop:teleop",
 }
 
 

@@ -32,6 +32,6 @@ def sanitize_command(model: RobotModel, last_rad: np.ndarray,
         q[frozen] = last_rad[frozen]
         flags.append(NAN_REF)
     clipped = np.clip(q, model.lower_rad, model.upper_rad)
-    if np.any(clipped != q):
+    if np.any(np.abs(clipped - q) > 1e-9):  # rounding at a limit is not worth a flag
         flags.append(LIMIT_CLIP)
     return clipped, flags, frozen

@@ -114,23 +114,26 @@ def free_session(duration_s: float = 24.0, seed: int = 11,
                  style: OperatorStyle | None = None) -> list[tuple[float, int, np.ndarray]]:
     """Two hands moving freely: reaches, a circle, wrist turns, and a pause mid-way.
 
-    Station 1 is the right hand, station 2 the left. Motions stay within about +-8 cm of the
-    starting pose, so the robot's arms can follow from their ready posture.
+    Station 1 is the right hand, station 2 the left. Motions stay within about 8 cm of the
+    starting pose and above it or level with it, so the robot's arms can follow from their ready
+    posture without reaching down to their own knees or in across the chest (the URDF's
+    primitive torso leaves the upper arms about 15 mm of room).
     """
     style = style or OperatorStyle()
     rng = np.random.default_rng(seed)
     out: list[tuple[float, int, np.ndarray]] = []
     for station, side in ((1, 1.0), (2, -1.0)):
         start = np.array([0.30, 0.20 * side, -0.10])
-        offsets = np.array([[0, 0, 0], [0.06, 0.02 * side, -0.04], [0.02, -0.05 * side, 0.03],
-                            [0.07, 0.03 * side, 0.02], [0, 0, 0]])
+        offsets = np.array([[0, 0, 0], [0.06, 0.02 * side, -0.04], [0.02, 0.05 * side, -0.01],
+                            [0.07, 0.03 * side, -0.02], [0, 0, 0]])
         speeds = 0.05 * (1 + style.speed_spread * rng.uniform(-1, 1, 4))
         pauses = np.array([1.0, 0.4, 1.5, 0.4, 0.5])
         reach = _waypoint_path(start + offsets, speeds, pauses, SAMPLE_RATE_HZ)
         n_circle = int(6.0 * SAMPLE_RATE_HZ)
         phase = np.linspace(0, 2 * np.pi, n_circle)
-        circle = start + 0.04 * np.column_stack([np.zeros(n_circle), np.sin(phase) * side,
-                                                  1 - np.cos(phase)])
+        # a circle above the start (tracker z points down): hands stay clear of the knees
+        circle = start + 0.035 * np.column_stack([np.zeros(n_circle), np.sin(phase) * side,
+                                                   np.cos(phase) - 1])
         path = np.concatenate([reach, circle])
         total = int(duration_s * SAMPLE_RATE_HZ)
         path = np.concatenate([path, np.repeat(path[-1:], max(0, total - len(path)), axis=0)])
