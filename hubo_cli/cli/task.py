@@ -25,10 +25,12 @@ def task() -> None:
 @click.option("--out", type=click.Path(file_okay=False), default=None,
               help="Run folder (default runs/<time>-push-wall-<direction>-<estop>).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
+@click.option("--interpolator", type=click.Choice(["otg", "hoff-arbib"]), default="otg",
+              show_default=True, help="Trajectory generator: ruckig or Hoff-Arbib (eq. 1).")
 @click.option("--gui", is_flag=True, help="Open the PyBullet window and run in real time.")
 @click.pass_context
 def push_wall(ctx: click.Context, direction: str, no_estop: bool, out: str | None,
-              as_json: bool, gui: bool) -> None:
+              as_json: bool, interpolator: str, gui: bool) -> None:
     """The emergency-stop experiment (multi-layer controllers paper, IV-C): push a wall.
 
     With the emergency stopper the capture-point flag reverts the push and the robot stays
@@ -40,7 +42,7 @@ def push_wall(ctx: click.Context, direction: str, no_estop: bool, out: str | Non
     from hubo_cli.model import load_model
 
     result = run_push_wall(load_model(), direction=direction, estop=not no_estop, out=out,
-                           speed=1.0 if gui else None, gui=gui)
+                           speed=1.0 if gui else None, gui=gui, interpolator=interpolator)
     summary = result.summary | {"run_dir": str(result.run_dir)}
     loop = result.loop
     if loop.ended in ("module-error", "target-error", "driver-error"):

@@ -279,7 +279,8 @@ def _summary(spec: PushSpec, estop: bool, targets: PushTargets, loop: LoopResult
 
 def run_push_wall(model: RobotModel, direction: str = "forward", estop: bool = True,
                   out: str | Path | None = None, speed: float | None = None,
-                  gui: bool = False, end_s: float | None = None) -> PushWallResult:
+                  gui: bool = False, end_s: float | None = None,
+                  interpolator: str = "otg") -> PushWallResult:
     """Run the experiment on the simulated robot and write its run folder.
 
     Args:
@@ -291,6 +292,7 @@ def run_push_wall(model: RobotModel, direction: str = "forward", estop: bool = T
         speed: None = as fast as the simulation runs, 1.0 = real time.
         gui: open the PyBullet window.
         end_s: shorten (or lengthen) the run (s).
+        interpolator: the first module, ``otg`` (ruckig) or ``hoff-arbib`` (eq. 1).
     """
     spec = push_spec(direction)
     if end_s is not None:
@@ -302,7 +304,7 @@ def run_push_wall(model: RobotModel, direction: str = "forward", estop: bool = T
     options = {"estop": {"sources": ("operator", "capture-point")}}
     if not estop:
         options = {}
-    modules = build_pipeline(model, order, options=options)
+    modules = build_pipeline(model, order, options=options, interpolator=interpolator)
     targets = PushTargets(model, spec, q_start)
     with make_driver("sim", model, gui=gui) as driver:
         driver.start(q_start)
@@ -311,6 +313,7 @@ def run_push_wall(model: RobotModel, direction: str = "forward", estop: bool = T
         result = loop.run(duration_s=spec.end_s)
     log = load_log(run_dir)
     summary = _summary(spec, estop, targets, result, log, obstacle)
+    summary["interpolator"] = interpolator
     stopper = next((m for m in modules if isinstance(m, EmergencyStopper)
                     and m.name == "estop"), None)
     if stopper is not None:
