@@ -13,7 +13,7 @@ $(STAMP): pyproject.toml
 	@touch $(STAMP)
 
 run: $(STAMP)
-	$(BIN)/hubo ik right-arm --xyz 484 -170 75 --rpy 0 0 0 --tool drill
+	$(BIN)/hubo teleop --replay trajectories/drill-rectangle.fastrak --mode drill
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

@@ -19,7 +19,8 @@ def main(argv: list[str]) -> int:
         rows.append((name, text, unit, note))
         print(f"  {name:<58} {text:>12} {unit:<14} {note}", flush=True)
 
-    modules = sorted(m.name for m in pkgutil.iter_modules(bench_pkg.__path__))
+    modules = sorted(m.name for m in pkgutil.iter_modules(bench_pkg.__path__)
+                     if not m.name.startswith("_"))
     for name in modules:
         if only and name not in only:
             continue

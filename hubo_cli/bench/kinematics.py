@@ -51,7 +51,7 @@ def _bench_batch_csv(report, limb) -> None:
     rng = np.random.default_rng(2)
     header = ",".join(f"T{i}{j}" for i in range(4) for j in range(4))
     with tempfile.TemporaryDirectory() as tmp:
-        for n in (200_000, 1_000_000):
+        for n in (1_000, 200_000, 1_000_000):  # the first run only fills the compile cache
             T = limb.fk_batch(limb.random_q(rng, n)).reshape(n, 16)
             src, out = Path(tmp) / "in.csv", Path(tmp) / "out.csv"
             np.savetxt(src, T, delimiter=",", header=header, comments="", fmt="%.12g")
@@ -60,8 +60,9 @@ def _bench_batch_csv(report, limb) -> None:
                             "--tool", limb.tool, "--batch", str(src), "--out", str(out)],
                            check=True, capture_output=True)
             seconds = time.perf_counter() - t0
-            report(f"hubo ik --batch, {n:,} rows end to end", n / seconds, "rows/s",
-                   f"{seconds:.2f} s incl. ~0.4 s start-up; target >= 200,000")
+            if n > 1_000:
+                report(f"hubo ik --batch, {n:,} rows end to end", n / seconds, "rows/s",
+                       f"{seconds:.2f} s incl. ~0.4 s start-up; target >= 200,000")
 
 
 def run(report) -> None:

@@ -41,6 +41,13 @@ def _real_sqrt(x):
 
 
 @nb.njit(**JIT)
+def unit_clip(x):
+    """(x clipped to [-1, 1], True if x was within rounding of that range): a sine or cosine
+    beyond it means the target is out of reach for that branch (only the real part is kept)."""
+    return min(max(x, -1.0), 1.0), abs(x) <= 1.0 + ROOT_TOL
+
+
+@nb.njit(**JIT)
 def outside(value, j, lower, upper):
     """True when pruning is on (lower is not empty) and joint j's value is outside its limits."""
     return lower.shape[0] == 6 and (value < lower[j] or value > upper[j])
@@ -73,12 +80,8 @@ def arm_candidates(T60, lA2, lA3, lA4, q_prev, out, exact, lower, upper):
     ax, ay, az = T60[0, 2], T60[1, 2], T60[2, 2]
     px, py, pz = T60[0, 3], T60[1, 3], T60[2, 3]
     pxl = px + lA4
-    C4 = (pxl * pxl + py * py + pz * pz - lA2 * lA2 - lA3 * lA3) / (2.0 * lA2 * lA3)
-    ok4 = abs(C4) <= 1.0 + ROOT_TOL
-    if C4 > 1.0:
-        C4 = 1.0
-    elif C4 < -1.0:
-        C4 = -1.0
+    C4, ok4 = unit_clip((pxl * pxl + py * py + pz * pz - lA2 * lA2 - lA3 * lA3)
+                        / (2.0 * lA2 * lA3))
     root4 = _real_sqrt(1.0 - C4 * C4)
     psi = math.atan2(py, pxl)
     for i4 in range(2):
@@ -95,12 +98,7 @@ def arm_candidates(T60, lA2, lA3, lA4, q_prev, out, exact, lower, upper):
             S5 = 0.0
             ok5 = True
         else:
-            S5 = pz / (S4 * lA2)
-            ok5 = abs(S5) <= 1.0 + ROOT_TOL
-            if S5 > 1.0:
-                S5 = 1.0
-            elif S5 < -1.0:
-                S5 = -1.0
+            S5, ok5 = unit_clip(pz / (S4 * lA2))
         root5 = _real_sqrt(1.0 - S5 * S5)
         for i5 in range(2):
             C5 = root5 if i5 == 0 else -root5
@@ -115,12 +113,7 @@ def arm_candidates(T60, lA2, lA3, lA4, q_prev, out, exact, lower, upper):
             u = C4 * C6 - C5 * S4 * S6
             v = C4 * S6 + C5 * C6 * S4
             S45 = S4 * S5
-            S2 = ax * u - ay * v - az * S45
-            ok2 = abs(S2) <= 1.0 + ROOT_TOL
-            if S2 > 1.0:
-                S2 = 1.0
-            elif S2 < -1.0:
-                S2 = -1.0
+            S2, ok2 = unit_clip(ax * u - ay * v - az * S45)
             root2 = _real_sqrt(1.0 - S2 * S2)
             for i2 in range(2):
                 C2 = root2 if i2 == 0 else -root2

@@ -79,26 +79,30 @@ def solve_csv(limb: Limb, in_path: str | Path, out_path: str | Path) -> BatchRep
     except OSError as exc:
         raise InputError(f"cannot read {in_path}: {exc.strerror}",
                          hint="check the path of --batch") from None
-    data = data.rstrip(b"\r\n")
+    buf = np.frombuffer(data, dtype=np.uint8)
     first_newline = data.find(b"\n")
     header_line = data if first_newline < 0 else data[:first_newline]
-    n_rows = 0 if first_newline < 0 else data.count(b"\n")
-    lines = _LazyLines(data)
     header = [h.strip() for h in header_line.decode("ascii", errors="replace").split(",")]
     missing = [c for c in POSE_COLUMNS if c not in header]
     if not header_line.strip() or missing:
         raise InputError(f"{in_path}:1: header lacks columns {', '.join(missing) or 'all'}",
                          hint="the header needs T00..T33 and optionally qprev1..qprev6")
     has_prev = all(c in header for c in PREV_COLUMNS)
-    n_cols = len(header)
-    body = data[first_newline + 1:] if n_rows else b""
-    table, errors = csv_codec.parse_rows(np.frombuffer(body, dtype=np.uint8), n_rows, n_cols)
+    if first_newline < 0:
+        starts = ends = np.zeros(0, dtype=np.int64)
+    else:
+        starts, ends = csv_codec.line_bounds(buf, first_newline + 1)
+    n_rows = len(starts)
+    table, errors = csv_codec.parse_rows(buf, starts, ends, len(header))
+
+    def line(i: int) -> str:
+        return data[starts[i]:ends[i]].rstrip(b"\r").decode("ascii", errors="replace")
+
     index = {name: k for k, name in enumerate(header)}
     poses = table[:, [index[c] for c in POSE_COLUMNS]].reshape(-1, 4, 4)
     prevs = table[:, [index[c] for c in PREV_COLUMNS]] if has_prev else None
     reasons = _check_rows(poses, prevs)
-    reasons.update({int(i): _why_bad(lines[i + 1].decode("ascii", errors="replace"), header)
-                    for i in np.flatnonzero(errors)})
+    reasons.update({int(i): _why_bad(line(i), header) for i in np.flatnonzero(errors)})
     good = np.ones(n_rows, dtype=bool)
     good[list(reasons)] = False
     q = np.full((n_rows, 6), np.nan)
@@ -121,19 +125,6 @@ for _k, _name in enumerate((*STATUS_NAMES, "invalid")):
     _STATUS_BYTES[_k, :len(_name)] = np.frombuffer(_name.encode(), dtype=np.uint8)
 
 
-class _LazyLines:
-    """Line access for the few bad rows, without splitting a large file up front."""
-
-    def __init__(self, data: bytes) -> None:
-        self._data = data
-        self._lines: list[bytes] | None = None
-
-    def __getitem__(self, i: int) -> bytes:
-        if self._lines is None:
-            self._lines = self._data.split(b"\n")
-        return self._lines[i].rstrip(b"\r")
-
-
 def _write(out_path, q, status, pos_err, rot_err) -> None:
     code = np.where(status < 0, len(STATUS_NAMES), status).astype(np.int64)
     body = csv_codec.format_rows(2, np.ascontiguousarray(q), code, pos_err, rot_err,
@@ -141,7 +132,7 @@ def _write(out_path, q, status, pos_err, rot_err) -> None:
     try:
         with open(out_path, "wb") as f:
             f.write((OUT_HEADER + "\n").encode())
-            f.write(body.tobytes())
+            f.write(body)  # the array's buffer, no copy
     except OSError as exc:
         raise InputError(f"cannot write {out_path}: {exc.strerror}",
                          hint="check the path of --out") from None

@@ -100,37 +100,55 @@ def _field(buf, i, end, pow10):
 
 
 @nb.njit(**JIT)
-def parse_rows(buf, n_rows, n_cols):
-    """Parse ``n_rows`` lines of ``n_cols`` numbers; returns (values, error code per row)."""
-    pow10 = _POW10
+def _parse_row(buf, start, end, n_cols, pow10, values_row):
+    """Parse one line buf[start:end] into values_row; returns its error code."""
+    col = 0
+    i = start
+    while True:
+        j = i
+        while j < end and buf[j] != _COMMA:
+            j += 1
+        stop = j
+        if stop > i and buf[stop - 1] == _CR:
+            stop -= 1
+        if col < n_cols:
+            v, ok = _field(buf, i, stop, pow10)
+            if not ok:
+                return NOT_A_NUMBER
+            values_row[col] = v
+        col += 1
+        if j >= end:
+            break
+        i = j + 1
+    return OK if col == n_cols else FIELD_COUNT
+
+
+@nb.njit(parallel=True, **JIT)
+def parse_rows(buf, line_starts, line_ends, n_cols):
+    """Parse the lines buf[line_starts[r]:line_ends[r]] (``n_cols`` numbers each) on all cores;
+    returns (values, error code per row)."""
+    n_rows = line_starts.shape[0]
     values = np.full((n_rows, n_cols), np.nan)
     errors = np.zeros(n_rows, dtype=np.int8)
-    n = buf.shape[0]
-    i = 0
-    for r in range(n_rows):
-        col = 0
-        start = i
-        while True:
-            j = start
-            while j < n and buf[j] != _COMMA and buf[j] != _NL:
-                j += 1
-            stop = j
-            if stop > start and buf[stop - 1] == _CR:
-                stop -= 1
-            if col < n_cols and errors[r] == OK:
-                v, ok = _field(buf, start, stop, pow10)
-                if ok:
-                    values[r, col] = v
-                else:
-                    errors[r] = NOT_A_NUMBER
-            col += 1
-            if j >= n or buf[j] == _NL:
-                i = j + 1
-                break
-            start = j + 1
-        if col != n_cols:
-            errors[r] = FIELD_COUNT
+    for r in nb.prange(n_rows):
+        code = _parse_row(buf, line_starts[r], line_ends[r], n_cols, _POW10, values[r])
+        if code != OK:
+            errors[r] = code
+            values[r, :] = np.nan
     return values, errors
+
+
+def line_bounds(buf: np.ndarray, start: int) -> tuple[np.ndarray, np.ndarray]:
+    """Start and end offsets of the lines of buf[start:] (trailing empty lines dropped)."""
+    newlines = np.flatnonzero(buf[start:] == _NL) + start
+    ends = np.append(newlines, len(buf))
+    starts = np.concatenate([[start], newlines + 1])
+    keep = ends > starts
+    # an empty line in the middle is a (bad) row; only the empty tail after the last newline goes
+    while len(keep) and not keep[-1]:
+        keep = keep[:-1]
+        starts, ends = starts[:-1], ends[:-1]
+    return starts.astype(np.int64), ends.astype(np.int64)
 
 
 @nb.njit(**JIT)

@@ -16,11 +16,11 @@ import math
 import numba as nb
 
 from hubo_cli.kinematics.arm_ik import (
-    ROOT_TOL,
     SINGULAR_EPS,
     _real_sqrt,
     drop_branch,
     outside,
+    unit_clip,
     wrap_to_pi,
 )
 from hubo_cli.kinematics.dh import JIT
@@ -43,12 +43,8 @@ def leg_candidates(T60, lL3, lL4, lL5, q_prev, out, exact, lower, upper):
     ax, ay, az = T60[0, 2], T60[1, 2], T60[2, 2]
     px, py, pz = T60[0, 3], T60[1, 3], T60[2, 3]
     pxl = px + lL5
-    C4 = (pxl * pxl + py * py + pz * pz - lL3 * lL3 - lL4 * lL4) / (2.0 * lL3 * lL4)
-    ok4 = abs(C4) <= 1.0 + ROOT_TOL
-    if C4 > 1.0:
-        C4 = 1.0
-    elif C4 < -1.0:
-        C4 = -1.0
+    C4, ok4 = unit_clip((pxl * pxl + py * py + pz * pz - lL3 * lL3 - lL4 * lL4)
+                        / (2.0 * lL3 * lL4))
     root4 = _real_sqrt(1.0 - C4 * C4)
     rxy = math.sqrt(pxl * pxl + py * py)
     th6_base = math.atan2(py, -pxl)
@@ -70,12 +66,7 @@ def leg_candidates(T60, lL3, lL4, lL5, q_prev, out, exact, lower, upper):
                 drop_branch(out, exact, i4 * 4 + i5 * 2, 2)
                 continue
             S6, C6 = math.sin(th6), math.cos(th6)
-            S2 = S6 * ax + C6 * ay
-            ok2 = abs(S2) <= 1.0 + ROOT_TOL
-            if S2 > 1.0:
-                S2 = 1.0
-            elif S2 < -1.0:
-                S2 = -1.0
+            S2, ok2 = unit_clip(S6 * ax + C6 * ay)
             root2 = _real_sqrt(1.0 - S2 * S2)
             th345 = math.atan2(az, C6 * ax - S6 * ay)
             for i2 in range(2):

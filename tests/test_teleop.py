@@ -1,0 +1,122 @@
+"""End-to-end teleoperation: replays on the simulated and ideal robots, input trouble, live pty."""
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from hubo_cli.cli.main import main
+from hubo_cli.control.log import load_log
+from hubo_cli.fastrak.capture import capture_bytes, parse_capture, read_recording_bytes
+from hubo_cli.model import load_model
+from hubo_cli.resources import data_file
+from hubo_cli.teleop.session import TeleopSettings, run_teleop
+
+RECTANGLE = data_file("trajectories", "drill-rectangle.fastrak")
+FREE = data_file("trajectories", "two-hand-free.fastrak")
+
+
+def _chunks(path):
+    cap = parse_capture(read_recording_bytes(path))
+    starts = np.concatenate([[0], cap.chunk_ends[:-1]])
+    return cap.header, [(float(t), cap.data[a:b]) for t, a, b in
+                        zip(cap.chunk_times, starts, cap.chunk_ends, strict=True)]
+
+
+def _max_step_ratio(run_dir):
+    """Largest per-period command change as a fraction of the velocity limit (no jumps)."""
+    model = load_model()
+    log = load_log(run_dir)
+    index = [model.joint_names.index(j) for j in log.joint_names]
+    steps = np.abs(np.diff(log.joints("cmd"), axis=0)) / model.control_period_s
+    return float(np.max(steps / model.velocity_rad_s[index]))
+
+
+@pytest.mark.slow
+def test_drill_rectangle_on_the_simulated_robot(tmp_path):
+    run = run_teleop(TeleopSettings(replay=RECTANGLE, mode="drill", out=tmp_path / "run"))
+    s = run.summary
+    assert s["ended"] == "done" and not s["estop_events"]
+    assert s["rms_error_mm"]["right-arm"] < 5.0
+    assert s["max_joint_velocity_ratio"] <= 1.0 + 1e-9  # the log keeps 15 digits
+    assert s["ik_status_counts"]["right-arm"]["held"] == 0
+    for name in ("log.csv", "summary.json", "path_right-arm.png", "snapshot.png"):
+        assert (run.run_dir / name).exists()
+
+
+@pytest.mark.slow
+def test_two_hand_session_through_the_cli(tmp_path):
+    result = CliRunner().invoke(main, ["teleop", "--replay", str(FREE), "--out",
+                                       str(tmp_path / "run"), "--json"])
+    assert result.exit_code == 0, result.output
+    s = json.loads(result.output)
+    assert set(s["rms_error_mm"]) == {"right-arm", "left-arm"}
+    assert s["max_joint_velocity_ratio"] <= 1.0 + 1e-9 and not s["estop_events"]
+    assert s["latency_ms"]["p99"] < 10.0
+
+
+def test_a_one_second_gap_holds_smoothly(tmp_path):
+    header, chunks = _chunks(RECTANGLE)
+    src = tmp_path / "gap.fastrak"
+    src.write_bytes(capture_bytes(header, [(t, d) for t, d in chunks if not 20.0 <= t < 21.0]))
+    run = run_teleop(TeleopSettings(replay=src, mode="drill", driver="ideal",
+                                    out=tmp_path / "run"))
+    assert run.summary["ended"] == "done"
+    assert run.summary["status_counts"].get("stale input", 0) > 100  # ~1 s flagged stale
+    assert _max_step_ratio(run.run_dir) <= 1.0 + 1e-9
+    assert run.summary["max_joint_velocity_ratio"] <= 1.0 + 1e-9
+
+
+def test_garbage_bytes_give_the_same_path(tmp_path):
+    header, chunks = _chunks(RECTANGLE)
+    rng = np.random.default_rng(5)
+    noisy = []
+    for k, (t, data) in enumerate(chunks):
+        noisy.append((t, data))
+        if k % 40 == 7:  # bursts of line noise between records
+            noisy.append((t, bytes(rng.integers(0, 256, rng.integers(1, 30), dtype=np.uint8))))
+    src = tmp_path / "noisy.fastrak"
+    src.write_bytes(capture_bytes(header, noisy))
+    clean = run_teleop(TeleopSettings(replay=RECTANGLE, mode="drill", driver="ideal",
+                                      out=tmp_path / "clean"))
+    dirty = run_teleop(TeleopSettings(replay=src, mode="drill", driver="ideal",
+                                      out=tmp_path / "dirty"))
+    assert dirty.summary["input_stats"]["bad_bytes_skipped"] > 0
+    assert (dirty.summary["input_stats"]["good_records"]
+            == clean.summary["input_stats"]["good_records"])
+    a, b = load_log(clean.run_dir).joints("cmd"), load_log(dirty.run_dir).joints("cmd")
+    assert a.shape == b.shape and np.allclose(a, b, atol=1e-12)
+
+
+def test_pose_log_replays_like_the_capture(tmp_path):
+    csv = data_file("trajectories", "drill-rectangle.csv")
+    run = run_teleop(TeleopSettings(replay=csv, mode="drill", driver="ideal",
+                                    out=tmp_path / "run"))
+    assert run.summary["ended"] == "done" and run.summary["samples_used"] > 2000
+
+
+def test_live_tracker_through_the_emulators_pty(tmp_path):
+    from hubo_cli.fastrak.emulator import make_emulator
+
+    emu = make_emulator(stations=2).start()
+    try:
+        run = run_teleop(TeleopSettings(port=emu.port_name, driver="ideal", speed=1.0,
+                                        duration_s=12.0, out=tmp_path / "run"))
+    finally:
+        emu.close()
+    s = run.summary
+    assert s["input_kind"] == "port" and s["ended"] == "finished"
+    assert s["samples_used"] > 100
+    assert s["latency_ms"]["median"] is not None
+
+
+def test_bad_inputs_are_one_line_errors(tmp_path):
+    bad = tmp_path / "bad.fastrak"
+    bad.write_bytes(b"not a capture at all \x00\xff")
+    for args in (["teleop", "--replay", str(bad)], ["teleop"],
+                 ["teleop", "--replay", str(RECTANGLE), "--speed", "fast"],
+                 ["teleop", "--port", str(tmp_path / "no-such-port"), "--driver", "ideal"]):
+        result = CliRunner().invoke(main, args)
+        assert result.exit_code in (2, 3), (args, result.output)
+        assert "Traceback" not in result.output and "error:" in result.output
