@@ -147,7 +147,7 @@ def test_latch_release_and_sources(model):
     def step(k, requests=(), torque_nm=0.0):
         cycle = Cycle(k * DT, DT, estop_requests=set(requests))
         s = RobotState(k * DT, q0, np.zeros(24))
-        s.ft["left-wrist"] = np.array([0, 0, 0, torque_nm, 0, 0.0])
+        s.ft["left-wrist"] = np.array([0, 0, 0, 0, torque_nm, 0.0])  # bending, across the forearm
         stopper.update(q0, s, cycle)
         return cycle
 

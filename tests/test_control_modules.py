@@ -245,8 +245,25 @@ def test_capture_point_flags_feet_tipping_on_their_heels(model):
         state = RobotState(0.0, q, np.zeros(24), T_world_torso=_pitched(np.radians(-angle_deg)),
                            feet_contact=(True, True))
         monitor.reset(q, state)
-        monitor.update(q, state, Cycle(0.0, DT))
+        for k in range(monitor.confirm_periods):
+            assert not monitor.flag
+            monitor.update(q, state, Cycle(k * DT, DT))
         assert monitor.flag is expected, angle_deg
+
+
+def test_capture_point_ignores_a_one_period_outlier(model):
+    """One period of tipped soles (a measurement outlier) is not a fall; three are."""
+    q = home_posture(model)
+    monitor = CapturePointMonitor(model, DT)
+    upright = RobotState(0.0, q, np.zeros(24), T_world_torso=np.eye(4),
+                         feet_contact=(True, True))
+    tipped = RobotState(0.0, q, np.zeros(24), T_world_torso=_pitched(np.radians(-3.0)),
+                        feet_contact=(True, True))
+    monitor.reset(q, upright)
+    for k, state in enumerate([upright, tipped, upright, tipped, tipped, tipped]):
+        cycle = Cycle(k * DT, DT)
+        monitor.update(q, state, cycle)
+        assert ("capture-point" in cycle.estop_requests) is (k == 5), k
 
 
 def test_capture_point_ignores_a_one_period_contact_flicker(model):

@@ -17,11 +17,13 @@ relative positions matter):
   capture point assumes flat feet; an external push such as a wall's reaction can tip the robot
   while the CoM is still well inside the soles, and this is when it must be caught.)
 
-When the CP leaves the shrunk polygon while a foot touches the ground the module flags
-``cp-outside`` and requests an emergency stop from source ``capture-point``. It passes the
-command through unchanged. The reference CP is the centre of mass of the commanded posture on
-its feet laid flat where the measured feet are (a static reference, like AutoBalancer's
-reference CoM); ``cp_error`` = actual CP - reference CP.
+When the CP stays outside the shrunk polygon for ``confirm_periods`` periods in a row (3, i.e.
+15 ms: a single period's outlier in the measured sole corners -- a simulated foot's contact
+point jumping while the legs crouch -- is not a fall) while a foot touches the ground, the
+module flags ``cp-outside`` and requests an emergency stop from source ``capture-point``. It
+passes the command through unchanged. The reference CP is the centre of mass of the commanded
+posture on its feet laid flat where the measured feet are (a static reference, like
+AutoBalancer's reference CoM); ``cp_error`` = actual CP - reference CP.
 """
 
 from __future__ import annotations
@@ -196,6 +198,7 @@ class CapturePointMonitor(Module):
         contact_hold_s: a foot counts as in contact until it has reported none this long (s).
         cutoff_hz: low-pass cut-off of the CoM velocity (Hz).
         request_estop: request an emergency stop when the CP leaves the polygon.
+        confirm_periods: periods in a row the CP must be outside before the flag.
 
     Attributes after each update: ``com_m`` (3,), ``cp_m`` (2,), ``cp_ref_m`` (2,),
     ``outside_m`` (CP beyond the shrunk polygon, m; > 0 = flag), ``ground_z_m`` (lowest sole
@@ -212,8 +215,10 @@ class CapturePointMonitor(Module):
     def __init__(self, model: RobotModel, dt_s: float, margin_m: float = CP_MARGIN_M,
                  cutoff_hz: float = VELOCITY_CUTOFF_HZ, request_estop: bool = True,
                  corner_tolerance_m: float = CORNER_TOLERANCE_M,
-                 contact_hold_s: float = CONTACT_HOLD_S) -> None:
+                 contact_hold_s: float = CONTACT_HOLD_S, confirm_periods: int = 3) -> None:
         self.dt_s = float(dt_s)
+        self.confirm_periods = max(1, int(confirm_periods))
+        self._outside_periods = 0
         self.contact_hold_s = float(contact_hold_s)
         self._last_contact_s: list[float | None] = [None, None]
         self.margin_m = float(margin_m)
@@ -244,6 +249,7 @@ class CapturePointMonitor(Module):
         self._last_contact_s = [None, None]
         self.velocity_m_s = np.zeros(3)
         self.flag = False
+        self._outside_periods = 0
 
     def _torso_pose(self, state: RobotState) -> np.ndarray:
         if state.T_world_torso is not None:
@@ -271,8 +277,8 @@ class CapturePointMonitor(Module):
 
     def measure(self, state: RobotState, q_cmd_rad: np.ndarray | None = None) -> bool:
         """Update the estimate from ``state`` (and the reference from the command, rad);
-        return True when the CP is outside the shrunk support polygon with a foot on the
-        ground."""
+        return True when the CP has been outside the shrunk support polygon with a foot on the
+        ground for ``confirm_periods`` periods."""
         pmodel, data = self.robot.model, self.data
         T_world_torso = self._torso_pose(state)
         q = self.robot.configuration(state.q_rad, T_world_torso, out=self._q)
@@ -297,7 +303,8 @@ class CapturePointMonitor(Module):
         self.ground_z_m = ground_z
         if q_cmd_rad is not None and (contact[0] or contact[1]):
             self.cp_ref_m = self._reference_com(q_cmd_rad, state, 0 if contact[0] else 1)
-        self.flag = bool(outside > 0.0)
+        self._outside_periods = self._outside_periods + 1 if outside > 0.0 else 0
+        self.flag = self._outside_periods >= self.confirm_periods
         return self.flag
 
     def _reference_com(self, q_cmd_rad: np.ndarray, state: RobotState, foot: int) -> np.ndarray:

@@ -47,6 +47,14 @@ RECOVER_S = 2.5          # hrpsys default_recover_time
 WRIST_SENSORS = ("right-wrist", "left-wrist")
 
 MODES = ("release", "stop", "hold", "recover")
+
+
+def wrist_torque_nm(state: RobotState, sensor: str) -> float:
+    """The bending moment on the wrist (N m): |(my, mz)| of the wrist wrench in the hand axes,
+    whose x runs along the forearm out through the palm (as Hubo's wrist F/T sensor reads the
+    two moments across the forearm); 0 when the sensor is absent."""
+    wrench = state.ft.get(sensor)
+    return 0.0 if wrench is None else float(np.hypot(wrench[4], wrench[5]))
 MODE_CODE = {name: i for i, name in enumerate(MODES)}
 
 
@@ -62,6 +70,7 @@ class EmergencyStopper(Module):
         sources: request names this instance reacts to (see SOFT_SOURCES, HARD_SOURCES).
         name: module name (``estop`` or ``hard-estop``); it prefixes the log column.
         limits: override the model's limits (tests).
+        wrist_torque_limit_nm: override the model's wrist torque limit (N m).
 
     Flags: ``estop`` while stopping or holding, ``recovering`` while blending back.
     Info: ``<name>_mode_code`` (0 release, 1 stop, 2 hold, 3 recover), ``wrist_torque_nm``.
@@ -70,7 +79,8 @@ class EmergencyStopper(Module):
     def __init__(self, model: RobotModel, dt_s: float, revert_s: float = 0.5,
                  stop_s: float = 0.5, recover_s: float = RECOVER_S,
                  sources: tuple[str, ...] | set[str] = SOFT_SOURCES, name: str = "estop",
-                 limits: JointLimits | None = None) -> None:
+                 limits: JointLimits | None = None,
+                 wrist_torque_limit_nm: float | None = None) -> None:
         self.name = name
         self.limits = limits or JointLimits.from_model(model)
         self.dt_s = float(dt_s)
@@ -78,7 +88,9 @@ class EmergencyStopper(Module):
         self.stop_s = max(float(stop_s), self.dt_s)
         self.recover_s = float(recover_s)
         self.sources = frozenset(sources)
-        self.wrist_torque_limit_nm = float(model.safety.get("wrist_torque_limit_nm", np.inf))
+        self.wrist_torque_limit_nm = float(
+            model.safety.get("wrist_torque_limit_nm", np.inf) if wrist_torque_limit_nm is None
+            else wrist_torque_limit_nm)
         self._key = name.replace("-", "_")
         self.log_columns = (f"{self._key}_mode_code",)
         if "wrist-torque" in self.sources:
@@ -137,11 +149,7 @@ class EmergencyStopper(Module):
         wanted = (set(cycle.estop_requests) | self._pending) & self.sources
         self._pending.clear()
         if "wrist-torque" in self.sources:
-            torque = 0.0
-            for sensor in WRIST_SENSORS:
-                wrench = state.ft.get(sensor)
-                if wrench is not None:
-                    torque = max(torque, float(np.hypot(wrench[3], wrench[4])))
+            torque = max(wrist_torque_nm(state, sensor) for sensor in WRIST_SENSORS)
             cycle.info["wrist_torque_nm"] = torque
             if torque > self.wrist_torque_limit_nm:
                 wanted.add("wrist-torque")

@@ -151,3 +151,14 @@ def load_log(path: str | Path) -> LogData:
     flags = [[w for w in text.split(";") if w] for text in table[flag_index]]
     joints = tuple(n[4:-4] for n in header if n.startswith("cmd_") and n.endswith("_rad"))
     return LogData(columns, flags, joints)
+
+
+def max_velocity_ratio(model, log: LogData) -> float:
+    """The largest joint speed of the commands in a log as a fraction of the joint's velocity
+    limit (1.0 = at the limit)."""
+    cmd = log.joints("cmd")
+    if len(cmd) < 2:
+        return 0.0
+    index = [model.joint_names.index(j) for j in log.joint_names]
+    dq = np.abs(np.diff(cmd, axis=0)) / model.control_period_s
+    return float(np.max(dq / model.velocity_rad_s[index]))

@@ -27,8 +27,9 @@ Sensors (:class:`~hubo_cli.drivers.base.RobotState`)
 
 Drilling (:class:`CuttingModel`)
     With the drill on the right hand (``drill=True``) and a wall in the scene (:meth:`add_wall`),
-    while the middle of the bit (frame ``right_drill_bit``) is inside the wall box the wall
-    resists the bit's velocity v_t in the wall plane (y, z) with
+    while the bit's flutes (``DRILL_BIT_HALF_LENGTH_M`` either side of its middle, the frame
+    ``right_drill_bit``) cross the wall, the wall resists the bit's velocity v_t in the wall
+    plane (y, z), at the point where the bit crosses the wall's mid-plane, with
 
         F = -(coulomb_n * v_t / sqrt(|v_t|^2 + smooth_m_s^2) + viscous_n_s_per_m * v_t),
 
@@ -61,6 +62,7 @@ from hubo_cli.model import RobotModel
 from hubo_cli.posture import home_posture
 from hubo_cli.urdf import DRILL_FRAME, link_frames
 
+DRILL_BIT_HALF_LENGTH_M = 0.02  # the flutes reach this far either side of the bit's middle
 HAND_FRAMES = {"right-wrist": ("RWP_link", "right_hand"), "left-wrist": ("LWP_link", "left_hand")}
 SOLE_FRAMES = {"right-ankle": ("RAR_link", "right_sole"), "left-ankle": ("LAR_link", "left_sole")}
 FRAME_PARENTS = {"right_hand": "RWP_link", "left_hand": "LWP_link", "right_sole": "RAR_link",
@@ -145,6 +147,21 @@ class Wall:
         x, y, z = p_world
         return (self.distance_m <= x <= self.distance_m + self.thickness_m
                 and abs(y - self.centre_y_m) <= self.width_m / 2 and 0.0 <= z <= self.height_m)
+
+    def bit_crossing(self, T_world_bit: np.ndarray, half_length_m: float) -> np.ndarray | None:
+        """Where a drill bit (middle at the frame origin, along its x axis, ``half_length_m``
+        each way) crosses the wall's mid-plane, or None when its flutes miss the wall."""
+        axis, middle = T_world_bit[:3, 0], T_world_bit[:3, 3]
+        if abs(axis[0]) < 1e-6:
+            return None
+        s = (self.distance_m + self.thickness_m / 2 - middle[0]) / axis[0]
+        if abs(s) > half_length_m + self.thickness_m / 2 / abs(axis[0]):
+            return None
+        point = middle + s * axis
+        _, y, z = point
+        if abs(y - self.centre_y_m) <= self.width_m / 2 and 0.0 <= z <= self.height_m:
+            return point
+        return None
 
 
 @dataclass
@@ -448,9 +465,9 @@ class SimDriver(Driver):
             ls = p.getLinkState(self._robot, link, computeLinkVelocity=1,
                                 computeForwardKinematics=1, physicsClientId=cid)
             T_world_bit = _pose(ls[4], ls[5]) @ self._T_link_frame[DRILL_FRAME]
-            bit = T_world_bit[:3, 3]
             for wall in self._walls:
-                if wall.contains(bit):
+                bit = wall.bit_crossing(T_world_bit, DRILL_BIT_HALF_LENGTH_M)
+                if bit is not None:
                     v_bit = np.asarray(ls[6]) + np.cross(ls[7], bit - np.asarray(ls[0]))
                     v_plane = np.array([0.0, v_bit[1], v_bit[2]])
                     self.cutting_force_n = self.options.cutting.force_n(v_plane)

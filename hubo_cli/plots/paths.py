@@ -15,7 +15,7 @@ AXES = {"x": 0, "y": 1, "z": 2}
 
 def plot_path_comparison(commanded_m: np.ndarray, actual_m: np.ndarray, path: str | Path, *,
                          plane: str = "yz", title: str = "", rms_error_mm: float | None = None,
-                         mirror_first_axis: bool = True) -> Path:
+                         mirror_first_axis: bool = True, frame: str = "the neck frame") -> Path:
     """Plot two 3-D paths (N x 3, metres) projected on a plane, in millimetres.
 
     Args:
@@ -26,6 +26,7 @@ def plot_path_comparison(commanded_m: np.ndarray, actual_m: np.ndarray, path: st
         rms_error_mm: printed on the plot when given.
         mirror_first_axis: draw the first axis growing to the left (so that +y, the robot's
             left, is on the left as seen from behind the robot).
+        frame: the frame the positions are in (axis labels).
     """
     i, j = AXES[plane[0]], AXES[plane[1]]
     fig, ax = plt.subplots(figsize=(7.0, 5.6), dpi=120)
@@ -39,9 +40,9 @@ def plot_path_comparison(commanded_m: np.ndarray, actual_m: np.ndarray, path: st
     ax.set_aspect("equal", adjustable="datalim")
     if mirror_first_axis:
         ax.invert_xaxis()
-    ax.set_xlabel(f"{plane[0]} in the neck frame (mm)" + (" — robot's left is left"
+    ax.set_xlabel(f"{plane[0]} in {frame} (mm)" + (" — robot's left is left"
                                                           if mirror_first_axis else ""))
-    ax.set_ylabel(f"{plane[1]} in the neck frame (mm)")
+    ax.set_ylabel(f"{plane[1]} in {frame} (mm)")
     ax.grid(True, alpha=0.3)
     heading = title
     if rms_error_mm is not None:

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hubo_cli.control.log import load_log
+from hubo_cli.control.log import load_log, max_velocity_ratio
 from hubo_cli.control.loop import ControlLoop, LoopResult
 from hubo_cli.control.pipeline import DEFAULT_ORDER, build_pipeline
 from hubo_cli.drivers.base import make_driver
@@ -197,16 +197,6 @@ def approach_paths(body: WholeBody, arms, scene: dict) -> dict[str, PosePath]:
     return paths
 
 
-def _velocity_ratio(model, run_dir: Path) -> float:
-    log = load_log(run_dir)
-    cmd = log.joints("cmd")
-    if len(cmd) < 2:
-        return 0.0
-    index = [model.joint_names.index(j) for j in log.joint_names]
-    dq = np.abs(np.diff(cmd, axis=0)) / model.control_period_s
-    return float(np.max(dq / model.velocity_rad_s[index]))
-
-
 def summarise(settings, model, target: TeleopTarget, result: LoopResult, run_dir: Path,
               source, scene: dict) -> dict:
     """The run's summary.json content; also draws the path plots into the run folder."""
@@ -244,7 +234,7 @@ def summarise(settings, model, target: TeleopTarget, result: LoopResult, run_dir
         "estop_events": [{"module": m, "t_s": t, "kind": k, "sources": list(s)}
                          for m, t, k, s in result.safety_events if k in ("stop", "release")],
         "status_counts": result.status_counts,
-        "max_joint_velocity_ratio": _velocity_ratio(model, run_dir),
+        "max_joint_velocity_ratio": max_velocity_ratio(model, load_log(run_dir)),
         "latency_ms": {"median": float(np.median(latencies)) if len(latencies) else None,
                        "p99": float(np.percentile(latencies, 99)) if len(latencies) else None},
         "samples_used": target.samples_used,

@@ -131,7 +131,8 @@ def best_stance(tool: str = "drill", arm: str = "right", size_m: tuple[float, fl
                 params: str = "as-built", limits: str = "table4", orientation: str = "wall",
                 resolution_m: float = DEFAULT_RESOLUTION_M,
                 x_range_m: tuple[float, float] = DEFAULT_X_RANGE_M,
-                cache: bool = True, vertical: str = "arm") -> StanceResult:
+                cache: bool = True, vertical: str = "arm",
+                wall_distance_m: float | None = None) -> StanceResult:
     """The stance distance from which the tool reaches the largest rectangle of the wall.
 
     Args:
@@ -146,6 +147,8 @@ def best_stance(tool: str = "drill", arm: str = "right", size_m: tuple[float, fl
         cache: keep the underlying map's masks in the user's cache folder.
         vertical: ``arm`` (the whole hole within the arm's reach) or ``legs`` (the arm sweeps
             one height, the legs move the body up and down; see the module docstring).
+        wall_distance_m: stand at this distance (m, the nearest grid slice) instead of
+            searching for the best one; ``vertical="arm"`` with a ``size_m`` only.
 
     Returns:
         a :class:`StanceResult` (``fits`` False when a requested size is reachable nowhere).
@@ -159,29 +162,44 @@ def best_stance(tool: str = "drill", arm: str = "right", size_m: tuple[float, fl
                        refine=False, cache=cache)
     common = dict(vertical=vertical, arm=arm, tool=tool, params=params, limits=limits,
                   orientation=orientation, resolution_m=resolution_m)
+    if wall_distance_m is not None and (vertical != "arm" or size_m is None):
+        raise InputError("a fixed wall distance needs a hole size and vertical='arm'",
+                         hint="pass size_m=(width, height)")
     if vertical == "legs":
         return _legs_stance(wmap, size_m, common)
     if size_m is not None:
-        found = _fit_size(wmap, size_m)
+        fixed = None if wall_distance_m is None else int(np.argmin(np.abs(wmap.grid.x_m
+                                                                          - wall_distance_m)))
+        found = _fit_size(wmap, size_m, fixed)
         if found is not None:
-            rect, cut = found
-            return StanceResult(rect.wall_distance_m, rect, cut, True, **common)
+            rect, cut, fits = found
+            return StanceResult(rect.wall_distance_m, rect, cut, fits, **common)
+        if fixed is not None:
+            empty = Rectangle(float(wmap.grid.x_m[fixed]), 0.0, 0.0, 0.0, 0.0, -1)
+            return StanceResult(empty.wall_distance_m, empty, None, False, **common)
     rect = wmap.best_rectangle
     return StanceResult(rect.wall_distance_m, rect, None, size_m is None, **common)
 
 
-def _fit_size(wmap: WorkspaceMap,
-              size_m: tuple[float, float]) -> tuple[Rectangle, Rectangle] | None:
-    """The stance where a hole of ``size_m`` fits with the most room, or None."""
+def _fit_size(wmap: WorkspaceMap, size_m: tuple[float, float],
+              fixed_index: int | None = None) -> tuple[Rectangle, Rectangle, bool] | None:
+    """The stance where a hole of ``size_m`` fits with the most room: (the largest window of
+    its shape, the hole centred in it, True), or None. At a fixed x slice (``fixed_index``) a
+    window too small for the hole still places it: (window, hole centred on it, False)."""
     width_m, height_m = size_m
     g = wmap.grid
     res = g.resolution_m
     fits = largest_fits(wmap.masks, height_m / width_m)
     steps = fits[:, 0]
     big_enough = steps * res >= width_m - 1e-9
-    if not big_enough.any():
+    if fixed_index is not None:
+        i = fixed_index
+        if steps[i] <= 0:
+            return None
+    elif not big_enough.any():
         return None
-    i = pick_best_x(np.where(big_enough, steps, -1))
+    else:
+        i = pick_best_x(np.where(big_enough, steps, -1))
     w, b, z0, y0 = (int(v) for v in fits[i])
     h = math.ceil(w * height_m / width_m - 1e-9)
     x = float(g.x_m[i])
@@ -189,7 +207,7 @@ def _fit_size(wmap: WorkspaceMap,
                      float(g.z_m[z0 + h]), b)
     _, yc, zc = rect.centre_m
     cut = Rectangle(x, yc - width_m / 2, yc + width_m / 2, zc - height_m / 2, zc + height_m / 2, b)
-    return rect, cut
+    return rect, cut, bool(big_enough[i])
 
 
 def _legs_stance(wmap: WorkspaceMap, size_m: tuple[float, float] | None,

@@ -1,0 +1,1 @@
+"""Scripted tasks: the task file format, pre-flight planning and the runner."""

@@ -1,0 +1,415 @@
+"""From a task's steps to a timed plan of tool poses and joint targets, checked before anything
+moves (pre-flight).
+
+The stance puts the wall frame W in the stance frame S (see :mod:`hubo_cli.tasks.spec`); each
+step becomes Cartesian segments of the tool pose (bit orthogonal to the wall, along S's x):
+moves, plunges and retracts with minimum-jerk timing, cuts at constant speed. The whole
+timeline is then solved period by period exactly as it will run -- the whole-body solver with
+the same lift filter, each solution seeded with the previous one -- so the joint targets are
+known before the robot starts and pre-flight checks every period's pose, not a sample of them.
+A pose whose arm solution is not exact makes pre-flight refuse the task, naming the step and
+how far the pose lies beyond the arm's reach.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hubo_cli.kinematics.interpolate import PoseSegment, segment_duration
+from hubo_cli.kinematics.wholebody import LiftFilter, WholeBody
+from hubo_cli.model import RobotModel
+from hubo_cli.posture import home_posture
+from hubo_cli.tasks.spec import Step, TaskSpec
+
+EDGE_NONE, EDGE_HORIZONTAL, EDGE_VERTICAL = 0, 1, 2
+EDGE_NAMES = {EDGE_HORIZONTAL: "horizontal", EDGE_VERTICAL: "vertical"}
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Where the work is.
+
+    Attributes:
+        wall_distance_m: neck (home) to wall face along x (m).
+        centre_m: (y, z) of the wall frame's origin in S (m).
+        working_height_m: the tool height in the neck frame the legs keep (m): they crouch
+            for what lies lower (paper III-A).
+        auto: the placement came from the workspace search.
+        room_m: auto: how far the whole task could shift sideways and stay reachable (m);
+            None when the search found no placement (pre-flight then says what misses).
+    """
+
+    wall_distance_m: float
+    centre_m: tuple[float, float]
+    working_height_m: float
+    auto: bool = False
+    room_m: float | None = None
+
+    def T_S_W(self) -> np.ndarray:
+        """The wall frame in the stance frame (4x4, m): a translation."""
+        T = np.eye(4)
+        T[:3, 3] = (self.wall_distance_m, *self.centre_m)
+        return T
+
+    def to_json(self) -> dict:
+        return {"wall_distance_mm": self.wall_distance_m * 1000,
+                "centre_mm": [v * 1000 for v in self.centre_m],
+                "working_height_mm": self.working_height_m * 1000, "auto": self.auto,
+                "room_mm": None if self.room_m is None else self.room_m * 1000}
+
+
+@dataclass(frozen=True)
+class Miss:
+    """A pose pre-flight could not reach.
+
+    Attributes:
+        step: the step it belongs to.
+        t_s: its time in the plan (s).
+        point_W_m: the tool position in the wall frame (m).
+        miss_m: how far it lies beyond the reach along the line from the work centre (m);
+            None when the work centre itself is out of reach.
+        status: the arm's IK status there.
+        legs_lag: the pose is reachable, but the legs cannot get the body there in time.
+    """
+
+    step: Step
+    t_s: float
+    point_W_m: np.ndarray
+    miss_m: float | None
+    status: str
+    legs_lag: bool = False
+
+    def message(self) -> str:
+        y, z, depth = self.point_W_m[1] * 1000, self.point_W_m[2] * 1000, self.point_W_m[0] * 1000
+        where = f"y {y:+.0f} mm, z {z:+.0f} mm, depth {depth:+.1f} mm"
+        if self.legs_lag:
+            return (f"{self.step.label} ({self.step.kind}): at {where} the legs cannot lower or "
+                    f"raise the body fast enough (at most {LEGS_SPEED_M_S * 1000:.0f} mm/s)")
+        if self.miss_m is None:
+            return (f"{self.step.label} ({self.step.kind}): the tool pose at {where} is out of "
+                    f"reach, and so is the work centre")
+        return (f"{self.step.label} ({self.step.kind}): the tool pose at {where} is out of "
+                f"reach by {self.miss_m * 1000:.0f} mm")
+
+
+@dataclass
+class Preflight:
+    """Pre-flight's verdict: ``ok`` when every pose of every step is exactly reachable."""
+
+    misses: list[Miss]
+    checked_poses: int
+
+    @property
+    def ok(self) -> bool:
+        return not self.misses
+
+    def worst_per_step(self) -> list[Miss]:
+        """One miss per failing step: the farthest out."""
+        worst: dict[int, Miss] = {}
+        for miss in self.misses:
+            best = worst.get(miss.step.number)
+            if best is None or (miss.miss_m or np.inf) > (best.miss_m or np.inf):
+                worst[miss.step.number] = miss
+        return [worst[k] for k in sorted(worst)]
+
+
+@dataclass
+class Plan:
+    """The timed plan (after the first, joint-space move), one row per control period.
+
+    Attributes:
+        spec: the task.
+        placement: the wall and work frame.
+        dt_s: the period (s).
+        q_first_rad: joint target of the first move (reached in joint space from the start).
+        T_first_S: the tool pose it reaches (4x4, in S, m).
+        t_s: (N,) plan time (s) from the end of the first move.
+        step_index: (N,) the step each period belongs to (index into spec.steps).
+        goal_S_m: (N, 3) the commanded tool position in S (m).
+        q_rad: (N, n_joints) the joint targets.
+        cutting: (N,) the tool is cutting (a follow step, bit in the wall).
+        edge: (N,) EDGE_HORIZONTAL / EDGE_VERTICAL while cutting, else EDGE_NONE.
+        step_times_s: per step (start, end) plan time (s); the first step's is (0, 0).
+        preflight: the reachability verdict.
+    """
+
+    spec: TaskSpec
+    placement: Placement
+    dt_s: float
+    q_first_rad: np.ndarray
+    T_first_S: np.ndarray
+    t_s: np.ndarray
+    step_index: np.ndarray
+    goal_S_m: np.ndarray
+    q_rad: np.ndarray
+    cutting: np.ndarray
+    edge: np.ndarray
+    step_times_s: list[tuple[float, float]]
+    preflight: Preflight
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.t_s[-1]) if len(self.t_s) else 0.0
+
+
+LEGS_SPEED_M_S = 0.1  # the lift's speed limit in tasks (m/s)
+LEGS_TIME_CONSTANT_S = 0.05
+LIFT_MARGIN_M = 0.01  # the arm's vertical room kept around the working height (legs lag)
+
+
+def place(spec: TaskSpec, model: RobotModel) -> Placement:
+    """Resolve the stance's ``auto`` parts with the workspace map (tool orthogonal to the wall).
+
+    The legs keep the tool at the working height in the neck frame and crouch for everything
+    lower, so the task's highest point is cut standing tall and the arm sees every pose at the
+    working height. The search runs over the map's masks: for each wall distance and working
+    height, the lateral positions where every sampled pose of the task (cut, approach and
+    retract, each within ``LIFT_MARGIN_M`` vertically) is reachable; it keeps the one with the
+    most room sideways and centres the task in that room.
+    """
+    from hubo_cli.workspace.maps import compute_map
+
+    stance = spec.stance
+    T_first, pieces = _pieces(spec, np.eye(4))
+    samples = _sample_positions(T_first, pieces)  # in W: (depth, y, z)
+    top_W = float(samples[:, 2].max())
+    if stance.wall_distance_m is not None and stance.centre_m is not None:
+        return Placement(stance.wall_distance_m, stance.centre_m, stance.centre_m[1] + top_W)
+    wmap = compute_map(stance.arm, stance.tool, "wall", refine=False, cache=True)
+    g = wmap.grid
+    reach = wmap.masks != 0                     # (nx, nz, ny), any branch
+    res = g.resolution_m
+    di = np.round(samples[:, 0] / res).astype(int)
+    dj = np.round(samples[:, 1] / res).astype(int)
+    offsets = np.unique(np.stack([di, dj], 1), axis=0)
+    m = int(round(LIFT_MARGIN_M / res))
+    nx, nz, ny = reach.shape
+    # a band of rows around each working height, all reachable
+    band = np.ones((nx, nz, ny), dtype=bool)
+    for dk in range(-m, m + 1):
+        band[:, max(0, -dk):nz - max(0, dk)] &= reach[:, max(0, dk):nz + min(0, dk)]
+    band[:, :m] = band[:, nz - m:] = False
+    xs = range(nx) if stance.wall_distance_m is None else [
+        int(np.argmin(np.abs(g.x_m - stance.wall_distance_m)))]
+    best = None
+    for i in xs:
+        ok = np.ones((nz, ny), dtype=bool)
+        for a, b in offsets:
+            if not 0 <= i + a < nx:
+                ok[:] = False
+                break
+            shifted = np.zeros((nz, ny), dtype=bool)
+            lo, hi = max(0, -b), min(ny, ny - b)
+            shifted[:, lo:hi] = band[i + a, :, lo + b:hi + b]
+            ok &= shifted
+        if stance.centre_m is not None:  # only the given centre's row and column
+            keep = np.zeros_like(ok)
+            k = int(np.argmin(np.abs(g.z_m - (stance.centre_m[1] + top_W))))
+            j = int(np.argmin(np.abs(g.y_m - stance.centre_m[0])))
+            keep[k, j] = ok[k, j]
+            ok = keep
+        for k in np.nonzero(ok.any(axis=1))[0]:
+            start, length = _longest_run(ok[k])
+            if best is None or length > best[0]:
+                best = (length, i, k, start)
+    if best is None:
+        return _fallback(spec, wmap, top_W)
+    length, i, k, start = best
+    y_c = float(g.y_m[start] + (length - 1) * res / 2)
+    if stance.centre_m is not None:
+        y_c = stance.centre_m[0]
+    height = float(g.z_m[k])
+    return Placement(float(g.x_m[i]), (y_c, height - top_W), height, True,
+                     (length - 1) * res)
+
+
+def _fallback(spec: TaskSpec, wmap, top_W: float) -> Placement:
+    """No placement reaches everything: the map's largest rectangle, for pre-flight to judge."""
+    rect = wmap.best_rectangle
+    distance = spec.stance.wall_distance_m or rect.wall_distance_m
+    y_c, z_c = 0.5 * (rect.y_min_m + rect.y_max_m), 0.5 * (rect.z_min_m + rect.z_max_m)
+    return Placement(float(distance), (y_c, z_c - top_W), z_c, True, None)
+
+
+def _longest_run(row: np.ndarray) -> tuple[int, int]:
+    """(start, length) of the longest run of True."""
+    best_start, best_len, start = 0, 0, None
+    for j, v in enumerate(np.append(row, False)):
+        if v and start is None:
+            start = j
+        elif not v and start is not None:
+            if j - start > best_len:
+                best_start, best_len = start, j - start
+            start = None
+    return best_start, best_len
+
+
+def _sample_positions(T_first: np.ndarray, pieces: list[_Piece], step_m: float = 0.0025
+                      ) -> np.ndarray:
+    """Tool positions along the plan (every ``step_m``), in the frame the pieces were made in."""
+    points = [T_first[:3, 3]]
+    for piece in pieces:
+        a, b = piece.segment.T_start[:3, 3], piece.segment.T_end[:3, 3]
+        n = max(1, int(np.ceil(np.linalg.norm(b - a) / step_m)))
+        points += [a + (b - a) * s for s in np.linspace(0.0, 1.0, n + 1)]
+    return np.array(points)
+
+
+def tool_pose(T_S_W: np.ndarray, y_m: float, z_m: float, depth_m: float) -> np.ndarray:
+    """T_S_E for the tool at (y, z) of the wall plane, ``depth_m`` past the face, bit along x."""
+    T = np.eye(4)
+    T[:3, 3] = T_S_W[:3, 3] + (depth_m, y_m, z_m)
+    return T
+
+
+@dataclass(frozen=True)
+class _Piece:
+    segment: PoseSegment
+    step: int
+    cutting: bool
+    edge: int
+
+
+def _pieces(spec: TaskSpec, T_S_W: np.ndarray) -> tuple[np.ndarray, list[_Piece]]:
+    """The first move's end pose and the Cartesian pieces of the following steps."""
+    steps = spec.steps
+    pieces: list[_Piece] = []
+
+    def next_path_start(k: int) -> tuple[float, float]:
+        for later in steps[k + 1:]:
+            if later.kind == "follow":
+                return later.points_m[0]
+        return (0.0, 0.0)
+
+    first = steps[0]
+    yz = first.to_m if first.to_m is not None else next_path_start(0)
+    depth = first.depth_m
+    T_first = tool_pose(T_S_W, *yz, depth)
+    T_now = T_first
+    for k, step in enumerate(steps[1:], start=1):
+        if step.kind == "wait":
+            pieces.append(_Piece(PoseSegment(T_now, T_now, step.duration_s), k, False, EDGE_NONE))
+            continue
+        if step.kind == "follow":
+            cutting = depth > 0
+            for a, b in zip(step.points_m[:-1], step.points_m[1:], strict=True):
+                T_a, T_b = tool_pose(T_S_W, *a, depth), tool_pose(T_S_W, *b, depth)
+                if np.linalg.norm(T_now[:3, 3] - T_a[:3, 3]) > 1e-9:  # join the path's start
+                    pieces.append(_line(T_now, T_a, step, k, cutting))
+                pieces.append(_line(T_a, T_b, step, k, cutting))
+                T_now = T_b
+            yz = step.points_m[-1]
+            continue
+        if step.kind == "move":
+            yz = step.to_m if step.to_m is not None else next_path_start(k)
+        depth = step.depth_m
+        T_end = tool_pose(T_S_W, *yz, depth)
+        speed = step.speed_m_s if step.speed_m_s is not None else None
+        duration = (step.duration_s if speed is None
+                    else segment_duration(T_now, T_end, speed))
+        pieces.append(_Piece(PoseSegment(T_now, T_end, duration), k, False, EDGE_NONE))
+        T_now = T_end
+    return T_first, pieces
+
+
+def _line(T_a: np.ndarray, T_b: np.ndarray, step: Step, k: int, cutting: bool) -> _Piece:
+    d = T_b[:3, 3] - T_a[:3, 3]
+    duration = float(np.linalg.norm(d)) / step.speed_m_s
+    edge = EDGE_HORIZONTAL if abs(d[1]) >= abs(d[2]) else EDGE_VERTICAL
+    return _Piece(PoseSegment(T_a, T_b, duration, profile="linear"), k, cutting,
+                  edge if cutting else EDGE_NONE)
+
+
+def make_plan(spec: TaskSpec, model: RobotModel, placement: Placement | None = None) -> Plan:
+    """Lay out the task in time and solve every period (see the module docstring).
+
+    Args:
+        spec: a task with steps.
+        model: the robot model.
+        placement: where the work is (default: resolved from the task's stance).
+    """
+    placement = placement or place(spec, model)
+    T_S_W = placement.T_S_W()
+    limb = spec.stance.limb
+    body = WholeBody(model, {limb: spec.stance.tool}, placement.working_height_m)
+    dt = model.control_period_s
+    T_first, pieces = _pieces(spec, T_S_W)
+
+    misses: list[Miss] = []
+    lift = LiftFilter(LEGS_SPEED_M_S, LEGS_TIME_CONSTANT_S)
+    lift.reset(body.lift_for({limb: T_first}))
+    first = body.solve({limb: T_first}, home_posture(model), lift_m=lift.lift_m)
+    if first.arms[limb].status != "exact":
+        misses.append(_miss(body, limb, spec.steps[0], 0.0, T_first, T_S_W, lift.lift_m,
+                            first.arms[limb].status))
+
+    starts = np.cumsum([0.0] + [p.segment.duration_s for p in pieces])
+    n = int(np.floor(starts[-1] / dt + 1e-9)) + 1
+    t = np.arange(n) * dt
+    piece_of = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, max(len(pieces) - 1, 0))
+    q = np.empty((n, len(model.joint_names)))
+    goal = np.empty((n, 3))
+    step_index = np.zeros(n, dtype=np.int64)
+    cutting = np.zeros(n, dtype=bool)
+    edge = np.zeros(n, dtype=np.int8)
+    q_prev = first.q_rad
+    failed_steps: set[int] = set()
+    for i in range(n):
+        piece = pieces[piece_of[i]] if pieces else None
+        T = T_first if piece is None else piece.segment.at(t[i] - starts[piece_of[i]])
+        lift_m = lift.step(body.lift_for({limb: T}), dt)
+        solved = body.solve({limb: T}, q_prev, lift_m=lift_m)
+        status = solved.arms[limb].status
+        if status != "exact" and piece is not None:
+            step = spec.steps[piece.step]
+            # keep the list short: every 0.1 s of a failing stretch, the rest are alike
+            if piece.step not in failed_steps or i % 20 == 0:
+                misses.append(_miss(body, limb, step, float(t[i]), T, T_S_W, lift_m, status))
+                failed_steps.add(piece.step)
+        q_prev = solved.q_rad
+        q[i] = solved.q_rad
+        goal[i] = T[:3, 3]
+        if piece is not None:
+            step_index[i] = piece.step
+            cutting[i] = piece.cutting
+            edge[i] = piece.edge
+    step_times = [(0.0, 0.0)]
+    for k in range(1, len(spec.steps)):
+        mine = [j for j, p in enumerate(pieces) if p.step == k]
+        step_times.append((float(starts[mine[0]]), float(starts[mine[-1] + 1])) if mine
+                          else (step_times[-1][1],) * 2)
+    return Plan(spec, placement, dt, first.q_rad, T_first, t, step_index, goal, q, cutting, edge,
+                step_times, Preflight(misses, n + 1))
+
+
+def _reachable(body: WholeBody, limb: str, T: np.ndarray, lift_m: float | None = None) -> bool:
+    """Exactly reachable with this lift (default: the legs at their steady lift for T)."""
+    lift = body.lift_for({limb: T}) if lift_m is None else lift_m
+    return body.solve({limb: T}, None, lift_m=lift).arms[limb].status == "exact"
+
+
+def _miss(body: WholeBody, limb: str, step: Step, t_s: float, T: np.ndarray,
+          T_S_W: np.ndarray, lift_m: float, status: str) -> Miss:
+    """How far T lies beyond the reach: bisection along the line from the work centre (at the
+    same depth) to T, the legs at their steady lift for each probe. A pose that is reachable
+    that way but not with the lift of its moment is one the legs are too slow for."""
+    point_W = T[:3, 3] - T_S_W[:3, 3]
+    if _reachable(body, limb, T):
+        return Miss(step, t_s, point_W, 0.0, status, legs_lag=True)
+    centre = T.copy()
+    centre[1:3, 3] = T_S_W[1:3, 3]
+    if not _reachable(body, limb, centre):
+        return Miss(step, t_s, point_W, None, status)
+    inside, outside = 0.0, 1.0
+    for _ in range(30):
+        mid = 0.5 * (inside + outside)
+        probe = T.copy()
+        probe[:3, 3] = centre[:3, 3] + mid * (T[:3, 3] - centre[:3, 3])
+        if _reachable(body, limb, probe):
+            inside = mid
+        else:
+            outside = mid
+    return Miss(step, t_s, point_W, float((1 - inside) * np.linalg.norm(T[:3, 3]
+                                                                        - centre[:3, 3])), status)

@@ -1,0 +1,551 @@
+"""The task file format (``tasks/*.toml``) and its loader.
+
+A task is data. Top level: ``name``, ``description`` (one line) and either ``steps`` (run by
+the step runner, :mod:`hubo_cli.tasks.runner`) or ``experiment`` (a built-in procedure such as
+``push-wall``, given its ``[parameters]``). Tables:
+
+``[parameters]``
+    Named values with their defaults. Anywhere else in the file the string ``"$name"`` stands for
+    the parameter's value; the command line overrides them (``--set name=value``).
+``[stance]``
+    ``wall_distance_mm`` (neck to wall face along x, or ``"auto"``: the workspace map's best
+    distance for the tool held orthogonal to the wall), ``centre_mm`` ([y, z] of the work frame's
+    origin in the stance frame, or ``"auto"``: centred in the reachable area), ``arm``
+    (``right``), ``tool`` (``drill``).
+``[scene.wall]``
+    ``width_mm``, ``height_mm``, ``thickness_mm`` of the wall (``[scene.cutting]``: the
+    simulated material, ``coulomb_n`` and ``viscous_n_s_per_m``; see
+    :class:`hubo_cli.drivers.sim.CuttingModel`).
+``[safety]``
+    ``estop_sources`` (of ``operator``, ``capture-point``, ``wrist-torque``,
+    ``stale-input``), ``wrist_torque_limit_nm``, ``revert_s`` (T1), ``stop_s`` (T2).
+``[[steps]]``
+    In order, each with a ``kind`` and an optional ``name``:
+
+    - ``move``: the tool to ``to_mm`` = [y, z] in the wall frame (omitted: the start of the next
+      ``follow``), ``depth_mm`` from the wall face (negative: in front of it), taking
+      ``duration_s`` or at ``speed_mm_s``. The first step must be a move; it runs in joint space
+      from the start posture and the wall appears once the robot holds the tool there.
+    - ``plunge``: straight along the bit to ``depth_mm`` at ``speed_mm_s``.
+    - ``follow``: cut along a path in the wall plane at ``speed_mm_s``: ``path = "rectangle"``
+      (``width_mm``, ``height_mm``, ``centre_mm`` = [y, z], ``start`` = ``upper-left`` |
+      ``upper-right`` | ``lower-left`` | ``lower-right``, ``direction`` = ``ccw`` | ``cw``, as
+      seen from behind the robot) or ``path = "polyline"`` (``points_mm`` = [[y, z], ...]).
+    - ``retract``: straight back along the bit to ``depth_mm`` at ``speed_mm_s``.
+    - ``wait``: hold still for ``duration_s``.
+
+Frames: the wall frame W has its origin on the wall face at ``centre_mm``, x into the wall
+(the bit's direction), y to the robot's left and z up, parallel to the stance frame S (the home
+neck frame). Lengths are in millimetres in the file and metres in the objects built from it.
+A malformed file raises :class:`~hubo_cli.errors.ConfigError` naming the file, the line and the
+field (``steps[3].speed_mm_s``: steps are numbered from 1, as ``hubo task show`` lists them).
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from hubo_cli.errors import ConfigError
+from hubo_cli.resources import data_dir
+from hubo_cli.tasks.toml_lines import field_line
+
+STEP_KINDS = ("move", "plunge", "follow", "retract", "wait")
+ESTOP_SOURCES = ("operator", "capture-point", "wrist-torque", "stale-input")
+CORNERS = {"upper-left": (1, 1), "upper-right": (-1, 1), "lower-left": (1, -1),
+           "lower-right": (-1, -1)}  # (sign of y, sign of z): the robot's left is +y
+EXPERIMENTS = ("push-wall",)
+
+
+# ---------------------------------------------------------------------------- the objects
+@dataclass(frozen=True)
+class Stance:
+    """Where the robot stands relative to the wall.
+
+    Attributes:
+        wall_distance_m: neck to wall face along x (m); None = auto.
+        centre_m: (y, z) of the wall frame's origin in S (m); None = auto.
+        arm: ``right`` or ``left``; tool: the arm's tool (``drill``, ``hand``).
+    """
+
+    wall_distance_m: float | None
+    centre_m: tuple[float, float] | None
+    arm: str = "right"
+    tool: str = "drill"
+
+    @property
+    def limb(self) -> str:
+        return f"{self.arm}-arm"
+
+
+@dataclass(frozen=True)
+class Scene:
+    """The wall (m) and the material's cutting coefficients (N, N s/m)."""
+
+    wall_width_m: float = 1.2
+    wall_height_m: float = 2.0
+    wall_thickness_m: float = 0.005
+    coulomb_n: float = 0.5
+    viscous_n_s_per_m: float = 80.0
+
+
+@dataclass(frozen=True)
+class Safety:
+    """Emergency-stop settings: enabled sources, wrist torque threshold (N m), T1 and T2 (s)."""
+
+    estop_sources: tuple[str, ...] = ("operator", "capture-point", "wrist-torque")
+    wrist_torque_limit_nm: float = 1.21
+    revert_s: float = 0.5
+    stop_s: float = 0.5
+
+
+@dataclass(frozen=True)
+class Step:
+    """One step of a task (positions in the wall frame W, m; see the module docstring).
+
+    Attributes:
+        kind: one of STEP_KINDS.
+        name: what the user calls it.
+        number: 1-based position in the task.
+        to_m: move: (y, z) target, None = the start of the next follow.
+        depth_m: move/plunge/retract: the tool's depth past the wall face (negative: before it).
+        points_m: follow: the path's corners (y, z).
+        speed_m_s: move (optional), plunge, follow, retract.
+        duration_s: move (optional), wait.
+        path: follow: ``rectangle`` or ``polyline`` (what the file said, for ``show``).
+        shape: follow rectangle: width, height, start, direction (for ``show``).
+    """
+
+    kind: str
+    name: str
+    number: int
+    to_m: tuple[float, float] | None = None
+    depth_m: float | None = None
+    points_m: tuple[tuple[float, float], ...] = ()
+    speed_m_s: float | None = None
+    duration_s: float | None = None
+    path: str = ""
+    shape: dict = field(default_factory=dict)
+
+    @property
+    def label(self) -> str:
+        return f"step {self.number} '{self.name}'"
+
+    def describe(self) -> str:
+        """One line for ``hubo task show`` (mm, mm/s, s)."""
+        def mm(v: float) -> str:
+            return f"{v * 1000:g}"
+
+        def at() -> str:
+            if self.speed_m_s is not None:
+                return f" at {mm(self.speed_m_s)} mm/s"
+            return f" in {self.duration_s:g} s"
+
+        if self.kind == "move":
+            where = ("the start of the next path" if self.to_m is None
+                     else f"y {mm(self.to_m[0])}, z {mm(self.to_m[1])} mm")
+            return f"move the tool to {where}, depth {mm(self.depth_m)} mm{at()}"
+        if self.kind in ("plunge", "retract"):
+            return f"{self.kind} to depth {mm(self.depth_m)} mm{at()}"
+        if self.kind == "follow":
+            if self.path == "rectangle":
+                s = self.shape
+                what = (f"rectangle {mm(s['width_m'])} x {mm(s['height_m'])} mm from the "
+                        f"{s['start']} corner, {s['direction']}")
+            else:
+                what = f"polyline of {len(self.points_m)} points"
+            return f"cut along a {what}{at()}"
+        return f"wait {self.duration_s:g} s"
+
+
+@dataclass(frozen=True)
+class TaskSpec:
+    """A loaded task: its source file, resolved parameters and parts (see the module docstring)."""
+
+    name: str
+    description: str
+    path: Path
+    parameters: dict
+    defaults: dict
+    stance: Stance = field(default_factory=lambda: Stance(None, None))
+    scene: Scene = field(default_factory=Scene)
+    safety: Safety = field(default_factory=Safety)
+    steps: tuple[Step, ...] = ()
+    experiment: str | None = None
+
+    @property
+    def overridden(self) -> dict:
+        """Parameters whose value differs from the file's default."""
+        return {k: v for k, v in self.parameters.items() if self.defaults.get(k) != v}
+
+
+# ---------------------------------------------------------------------------- loading
+def task_files() -> list[Path]:
+    """The shipped task files, sorted by name."""
+    return sorted(data_dir("tasks").glob("*.toml"))
+
+
+def find_task(name_or_path: str | Path) -> Path:
+    """A task file from a path or a shipped task's name (``cut-rectangle``)."""
+    path = Path(name_or_path)
+    if path.suffix == ".toml" or path.exists():
+        if not path.is_file():
+            raise ConfigError("no such task file", path=str(path),
+                              hint="give a .toml file or a shipped task's name (hubo task list)")
+        return path
+    for candidate in task_files():
+        if candidate.stem == str(name_or_path):
+            return candidate
+    names = ", ".join(p.stem for p in task_files())
+    raise ConfigError(f"no shipped task called {str(name_or_path)!r}",
+                      hint=f"shipped tasks: {names}; or give a .toml file")
+
+
+def load_task(name_or_path: str | Path, overrides: dict | None = None) -> TaskSpec:
+    """Read, check and resolve a task file.
+
+    Args:
+        name_or_path: a ``.toml`` file or the name of a shipped task.
+        overrides: parameter name -> value (strings from the command line are converted to the
+            default's type; ``auto`` stays a string).
+
+    Raises:
+        ConfigError: the file is missing or malformed (file, line, field and a hint).
+    """
+    path = find_task(name_or_path)
+    text = path.read_text()
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        line = None
+        message = str(exc)
+        if "(at line " in message:
+            line = int(message.split("(at line ")[1].split(",")[0].rstrip(")"))
+            message = message.split(" (at line ")[0]
+        raise ConfigError(f"not valid TOML: {message}", path=str(path), line=line,
+                          hint="check the quotes, brackets and '=' on that line") from None
+    return _Loader(path, text, data, overrides or {}).task()
+
+
+def parse_override(text: str) -> tuple[str, object]:
+    """``name=value`` from ``--set`` (value: number, true/false, or text)."""
+    name, sep, value = text.partition("=")
+    if not sep or not name.strip():
+        raise ConfigError(f"--set {text!r} is not NAME=VALUE",
+                          hint="e.g. --set speed_mm_s=20 (see hubo task show NAME)")
+    return name.strip(), _scalar(value.strip())
+
+
+def _scalar(value: str) -> object:
+    lowered = value.lower()
+    if lowered in ("true", "false"):
+        return lowered == "true"
+    try:
+        return float(value)
+    except ValueError:
+        return value
+
+
+class _Loader:
+    """Checks one parsed file field by field, so each error can point at its line."""
+
+    def __init__(self, path: Path, text: str, data: dict, overrides: dict) -> None:
+        self.path = path
+        self.text = text
+        self.data = data
+        self.overrides = overrides
+        self.origin: dict[str, str] = {}  # field -> parameter it came from
+
+    # ------------------------------------------------------------------ errors
+    def fail(self, field_path: str, message: str, hint: str = "") -> ConfigError:
+        parameter = self.origin.get(field_path)
+        if parameter is not None:
+            source = ("set on the command line" if parameter in self.overrides
+                      else "the file's default")
+            message += f" (from parameter {parameter}, {source})"
+        return ConfigError(message, path=str(self.path), line=field_line(self.text, field_path),
+                           field=field_path, hint=hint)
+
+    # ------------------------------------------------------------------ parameters
+    def _parameters(self) -> tuple[dict, dict]:
+        defaults = self.data.get("parameters", {})
+        if not isinstance(defaults, dict):
+            raise self.fail("parameters", "must be a table of name = default value")
+        values = dict(defaults)
+        for name, value in self.overrides.items():
+            if name not in defaults:
+                known = ", ".join(defaults) or "none"
+                raise ConfigError(f"the task has no parameter {name!r}", path=str(self.path),
+                                  hint=f"its parameters: {known}")
+            default = defaults[name]
+            if isinstance(value, str):
+                value = _scalar(value)
+            if isinstance(default, bool) and not isinstance(value, bool):
+                raise ConfigError(f"parameter {name} must be true or false, got {value!r}",
+                                  path=str(self.path), hint=f"e.g. --set {name}=false")
+            values[name] = value
+        return defaults, values
+
+    def _substitute(self, value, where: str, params: dict):
+        if isinstance(value, str) and value.startswith("$"):
+            name = value[1:]
+            if name not in params:
+                raise self.fail(where, f"refers to an unknown parameter {value!r}",
+                                hint=f"declare it under [parameters]; known: "
+                                     f"{', '.join(params) or 'none'}")
+            self.origin[where] = name
+            return params[name]
+        if isinstance(value, dict):
+            return {k: self._substitute(v, f"{where}.{k}" if where else k, params)
+                    for k, v in value.items()}
+        if isinstance(value, list):
+            return [self._substitute(v, f"{where}[{i}]" if isinstance(v, dict) else where,
+                                     params) for i, v in enumerate(value, start=1)]
+        return value
+
+    # ------------------------------------------------------------------ the whole file
+    def task(self) -> TaskSpec:
+        defaults, params = self._parameters()
+        body = {k: v for k, v in self.data.items() if k != "parameters"}
+        body = self._substitute(body, "", params)
+        table = _Table(self, "", body)
+        name = table.text("name", default=self.path.stem)
+        description = table.text("description", default="")
+        experiment = table.text("experiment", default=None)
+        if experiment is not None:
+            if experiment not in EXPERIMENTS:
+                raise self.fail("experiment", f"unknown experiment {experiment!r}",
+                                hint=f"use one of {', '.join(EXPERIMENTS)}")
+            table.finish()
+            return TaskSpec(name, description, self.path, params, defaults,
+                            experiment=experiment)
+        stance = self._stance(table.table("stance"))
+        scene = self._scene(table.table("scene"))
+        safety = self._safety(table.table("safety"))
+        steps = self._steps(table.list_of_tables("steps"))
+        table.finish()
+        return TaskSpec(name, description, self.path, params, defaults, stance, scene, safety,
+                        steps)
+
+    def _stance(self, t: _Table) -> Stance:
+        distance = t.number_or_auto("wall_distance_mm", positive=True)
+        centre = t.point_or_auto("centre_mm")
+        arm = t.choice("arm", ("right", "left"), default="right")
+        tool = t.choice("tool", ("drill", "hand"), default="drill")
+        if tool == "drill" and arm != "right":
+            raise self.fail(t.key("tool"), "the drill is mounted on the right hand",
+                            hint='use arm = "right" or tool = "hand"')
+        t.finish()
+        return Stance(None if distance is None else distance / 1000,
+                      None if centre is None else (centre[0] / 1000, centre[1] / 1000), arm, tool)
+
+    def _scene(self, t: _Table) -> Scene:
+        wall = t.table("wall")
+        cutting = t.table("cutting")
+        d = Scene()
+        scene = Scene(
+            wall_width_m=wall.number("width_mm", positive=True, default=d.wall_width_m * 1000)
+            / 1000,
+            wall_height_m=wall.number("height_mm", positive=True,
+                                      default=d.wall_height_m * 1000) / 1000,
+            wall_thickness_m=wall.number("thickness_mm", positive=True,
+                                         default=d.wall_thickness_m * 1000) / 1000,
+            coulomb_n=cutting.number("coulomb_n", minimum=0.0, default=d.coulomb_n),
+            viscous_n_s_per_m=cutting.number("viscous_n_s_per_m", minimum=0.0,
+                                             default=d.viscous_n_s_per_m))
+        wall.finish()
+        cutting.finish()
+        t.finish()
+        return scene
+
+    def _safety(self, t: _Table) -> Safety:
+        d = Safety()
+        sources = t.value("estop_sources", default=list(d.estop_sources))
+        if not isinstance(sources, list) or any(s not in ESTOP_SOURCES for s in sources):
+            raise self.fail(t.key("estop_sources"), f"must be a list of sources, got {sources!r}",
+                            hint=f"choose from {', '.join(ESTOP_SOURCES)}")
+        safety = Safety(tuple(sources),
+                        t.number("wrist_torque_limit_nm", positive=True,
+                                 default=d.wrist_torque_limit_nm),
+                        t.number("revert_s", positive=True, default=d.revert_s),
+                        t.number("stop_s", positive=True, default=d.stop_s))
+        t.finish()
+        return safety
+
+    def _steps(self, tables: list[_Table]) -> tuple[Step, ...]:
+        if not tables:
+            raise self.fail("steps", "the task has no steps",
+                            hint="add [[steps]] tables (kind = move, plunge, follow, ...)")
+        steps = []
+        for number, t in enumerate(tables, start=1):
+            kind = t.choice("kind", STEP_KINDS)
+            name = t.text("name", default=kind)
+            if number == 1 and kind != "move":
+                raise self.fail(t.key("kind"), "the first step must be a move",
+                                hint="it brings the tool up to the wall from the start posture")
+            steps.append(getattr(self, f"_{kind}")(t, kind, name, number))
+            t.finish()
+        return tuple(steps)
+
+    @staticmethod
+    def _timing(t: _Table) -> tuple[float | None, float | None]:
+        speed = t.number("speed_mm_s", positive=True, default=None)
+        duration = t.number("duration_s", positive=True, default=None)
+        if (speed is None) == (duration is None):
+            raise t.loader.fail(t.key("speed_mm_s"), "give exactly one of speed_mm_s or "
+                                                     "duration_s", hint="e.g. speed_mm_s = 20")
+        return None if speed is None else speed / 1000, duration
+
+    def _move(self, t: _Table, kind: str, name: str, number: int) -> Step:
+        to = t.point("to_mm", default=None)
+        depth = t.number("depth_mm")
+        speed, duration = self._timing(t)
+        return Step(kind, name, number, to_m=None if to is None else (to[0] / 1000, to[1] / 1000),
+                    depth_m=depth / 1000, speed_m_s=speed, duration_s=duration)
+
+    def _plunge(self, t: _Table, kind: str, name: str, number: int) -> Step:
+        return Step(kind, name, number, depth_m=t.number("depth_mm") / 1000,
+                    speed_m_s=t.number("speed_mm_s", positive=True) / 1000)
+
+    _retract = _plunge
+
+    def _wait(self, t: _Table, kind: str, name: str, number: int) -> Step:
+        return Step(kind, name, number, duration_s=t.number("duration_s", minimum=0.0))
+
+    def _follow(self, t: _Table, kind: str, name: str, number: int) -> Step:
+        path = t.choice("path", ("rectangle", "polyline"))
+        speed = t.number("speed_mm_s", positive=True) / 1000
+        if path == "polyline":
+            points = t.points("points_mm")
+            return Step(kind, name, number, points_m=tuple((y / 1000, z / 1000)
+                                                           for y, z in points),
+                        speed_m_s=speed, path=path)
+        width = t.number("width_mm", positive=True) / 1000
+        height = t.number("height_mm", positive=True) / 1000
+        centre = t.point("centre_mm", default=(0.0, 0.0))
+        start = t.choice("start", tuple(CORNERS), default="upper-left")
+        direction = t.choice("direction", ("ccw", "cw"), default="ccw")
+        points = rectangle_points(width, height, (centre[0] / 1000, centre[1] / 1000), start,
+                                  direction)
+        shape = {"width_m": width, "height_m": height, "start": start, "direction": direction}
+        return Step(kind, name, number, points_m=points, speed_m_s=speed, path=path, shape=shape)
+
+
+def rectangle_points(width_m: float, height_m: float, centre_m: tuple[float, float],
+                     start: str = "upper-left", direction: str = "ccw"
+                     ) -> tuple[tuple[float, float], ...]:
+    """The closed corner list (y, z) of a rectangle in the wall plane (m), first corner repeated
+    at the end. Directions are as seen from behind the robot (looking at the wall: its left is
+    +y): counter-clockwise from the upper-left goes down the left edge first."""
+    sy, sz = CORNERS[start]
+    hw, hh = width_m / 2, height_m / 2
+    # ccw seen from behind the robot: left edge down, bottom to the right, right edge up, ...
+    ring = [(1, 1), (1, -1), (-1, -1), (-1, 1)]
+    if direction == "cw":
+        ring = ring[::-1]
+    k = ring.index((sy, sz))
+    order = ring[k:] + ring[:k] + [ring[k]]
+    return tuple((centre_m[0] + a * hw, centre_m[1] + b * hh) for a, b in order)
+
+
+class _Table:
+    """Typed access to one table; ``finish`` rejects keys nobody asked for (typos)."""
+
+    def __init__(self, loader: _Loader, where: str, data) -> None:
+        self.loader = loader
+        self.where = where
+        if not isinstance(data, dict):
+            raise loader.fail(where, "must be a table", hint=f"write it as [{where}]")
+        self.data = data
+        self.used: set[str] = set()
+
+    def key(self, name: str) -> str:
+        return f"{self.where}.{name}" if self.where else name
+
+    def value(self, name: str, default=...):
+        self.used.add(name)
+        if name not in self.data:
+            if default is ...:
+                raise self.loader.fail(self.key(name), f"missing field {name!r}",
+                                       hint=f"add {name} = ... to [{self.where or 'top level'}]")
+            return default
+        return self.data[name]
+
+    def table(self, name: str) -> _Table:
+        return _Table(self.loader, self.key(name), self.value(name, default={}))
+
+    def list_of_tables(self, name: str) -> list[_Table]:
+        items = self.value(name, default=[])
+        if not isinstance(items, list):
+            raise self.loader.fail(self.key(name), "must be a list of tables",
+                                   hint=f"write each entry as [[{name}]]")
+        return [_Table(self.loader, f"{self.key(name)}[{i}]", item)
+                for i, item in enumerate(items, start=1)]
+
+    def text(self, name: str, default=...) -> str | None:
+        value = self.value(name, default)
+        if value is not None and not isinstance(value, str):
+            raise self.loader.fail(self.key(name), f"must be text, got {value!r}")
+        return value
+
+    def choice(self, name: str, options: tuple[str, ...], default=...) -> str:
+        value = self.value(name, default)
+        if value not in options:
+            raise self.loader.fail(self.key(name), f"must be one of {', '.join(options)}; "
+                                                   f"got {value!r}")
+        return value
+
+    def number(self, name: str, *, positive: bool = False, minimum: float | None = None,
+               default=...) -> float | None:
+        value = self.value(name, default)
+        if value is None and default is None:
+            return None
+        if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(
+                value):
+            raise self.loader.fail(self.key(name), f"must be a number, got {value!r}")
+        if positive and not value > 0:
+            raise self.loader.fail(self.key(name), f"must be positive, got {value!r}")
+        if minimum is not None and value < minimum:
+            raise self.loader.fail(self.key(name), f"must be at least {minimum:g}, got {value!r}")
+        return float(value)
+
+    def number_or_auto(self, name: str, *, positive: bool = False) -> float | None:
+        if self.data.get(name, "auto") == "auto":
+            self.used.add(name)
+            return None
+        return self.number(name, positive=positive)
+
+    def point(self, name: str, default=...) -> tuple[float, float] | None:
+        value = self.value(name, default)
+        if value is None and default is None:
+            return None
+        if not _is_point(value):
+            raise self.loader.fail(self.key(name), f"must be [y, z] in mm, got {value!r}")
+        return float(value[0]), float(value[1])
+
+    def point_or_auto(self, name: str) -> tuple[float, float] | None:
+        if self.data.get(name, "auto") == "auto":
+            self.used.add(name)
+            return None
+        return self.point(name)
+
+    def points(self, name: str) -> list[tuple[float, float]]:
+        value = self.value(name)
+        if not isinstance(value, list) or len(value) < 2 or not all(map(_is_point, value)):
+            raise self.loader.fail(self.key(name), "must be a list of at least two [y, z] "
+                                                   "points in mm", hint="e.g. [[0, 0], [50, 0]]")
+        return [(float(y), float(z)) for y, z in value]
+
+    def finish(self) -> None:
+        unknown = [k for k in self.data if k not in self.used]
+        if unknown:
+            raise self.loader.fail(self.key(unknown[0]), f"unknown field {unknown[0]!r}",
+                                   hint=f"fields here: {', '.join(sorted(self.used))}")
+
+
+def _is_point(value) -> bool:
+    return (isinstance(value, list) and len(value) == 2
+            and all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+                    for v in value))
