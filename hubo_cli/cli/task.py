@@ -1,62 +1,336 @@
-"""``hubo task``: scripted tasks and experiments, each a subcommand of this group."""
+"""``hubo task``: list, show and run scripted tasks (``tasks/*.toml``), one shortcut per task."""
 
 from __future__ import annotations
 
 import click
+from rich.live import Live
+from rich.progress_bar import ProgressBar
+from rich.table import Table
 
-from hubo_cli.cli.output import console, print_json
-from hubo_cli.errors import HuboError
+from hubo_cli.cli.output import console, err_console, interactive, print_json
+from hubo_cli.errors import HuboError, InputError, SafetyError
 
 EXIT_INTERRUPTED = 130
+EXIT_NOT_COMPLETED = 1
 
 
-@click.group("task")
+class TaskGroup(click.Group):
+    """``hubo task``: its own commands, then one generic shortcut per other shipped task."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        from hubo_cli.tasks.spec import task_files
+
+        return sorted(set(super().list_commands(ctx)) | {p.stem for p in task_files()})
+
+    def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
+        command = super().get_command(ctx, name)
+        if command is not None:
+            return command
+        from hubo_cli.tasks.spec import task_files
+
+        if any(p.stem == name for p in task_files()):
+            return _shortcut(name)
+        return None
+
+
+@click.group("task", cls=TaskGroup)
 def task() -> None:
-    """Run a scripted task or experiment on the robot (simulated by default)."""
+    """Scripted tasks on the robot (simulated by default).
+
+    Each task is a TOML file: the stance, the tool, the scene, safety settings and its steps.
+    Before anything moves every pose of every step is checked against the kinematics; an
+    unreachable task is refused. Runs write runs/<time>-task-<name>/.
+
+    Examples: hubo task list
+              hubo task cut-rectangle --speed 20
+              hubo task run my-task.toml --set width_mm=120
+    """
+
+
+# ---------------------------------------------------------------------------- options
+def run_options(function):
+    """The options every way of running a task shares."""
+    options = [
+        click.option("--set", "sets", multiple=True, metavar="NAME=VALUE",
+                     help="Override a task parameter (see hubo task show NAME)."),
+        click.option("--driver", type=click.Choice(["sim", "ideal", "hardware"]), default="sim",
+                     show_default=True, help="Robot back end."),
+        click.option("--arm", "armed", is_flag=True,
+                     help="Arm the hardware driver (required by it)."),
+        click.option("--no-estop", is_flag=True,
+                     help="Run without the soft emergency stopper and capture-point monitor."),
+        click.option("--gui", is_flag=True, help="Open the PyBullet window, run in real time."),
+        click.option("--out", type=click.Path(file_okay=False), default=None,
+                     help="Run folder (default runs/<time>-task-<name>)."),
+        click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON."),
+    ]
+    for option in reversed(options):
+        function = option(function)
+    return function
+
+
+def _overrides(sets: tuple[str, ...], named: dict | None = None) -> dict:
+    from hubo_cli.tasks.spec import parse_override
+
+    values = dict(parse_override(s) for s in sets)
+    values.update({k: v for k, v in (named or {}).items() if v is not None})
+    return values
+
+
+# ---------------------------------------------------------------------------- list / show
+@task.command("list")
+@click.option("--json", "as_json", is_flag=True, help="Print the list as JSON.")
+def list_tasks(as_json: bool) -> None:
+    """The shipped tasks, each with its one-line description."""
+    from hubo_cli.tasks.spec import load_task, task_files
+
+    tasks = [load_task(p) for p in task_files()]
+    if as_json:
+        print_json({"tasks": [{"name": t.name, "description": t.description,
+                               "file": str(t.path)} for t in tasks]})
+        return
+    table = Table(box=None, show_header=False, pad_edge=False)
+    for t in tasks:
+        table.add_row(f"[bold]{t.name}[/]", t.description)
+    console.print(table)
+
+
+@task.command("show")
+@click.argument("name")
+@click.option("--json", "as_json", is_flag=True, help="Print the task as JSON.")
+def show(name: str, as_json: bool) -> None:
+    """A task's parameters, stance, scene, safety settings and steps.
+
+    NAME is a shipped task's name or a .toml file.
+    """
+    from hubo_cli.tasks.spec import load_task
+
+    spec = load_task(name)
+    if as_json:
+        print_json({"name": spec.name, "description": spec.description, "file": spec.path,
+                    "parameters": spec.parameters, "experiment": spec.experiment,
+                    "steps": [{"kind": s.kind, "name": s.name, "description": s.describe()}
+                              for s in spec.steps]})
+        return
+    console.print(f"[bold]{spec.name}[/] — {spec.description}")
+    console.print(f"file        {spec.path}", soft_wrap=True)
+    params = ", ".join(f"{k} = {v!r}" for k, v in spec.parameters.items()) or "none"
+    console.print(f"parameters  {params}  [dim](--set NAME=VALUE)[/]")
+    if spec.experiment:
+        console.print(f"experiment  {spec.experiment} (a built-in procedure)")
+        return
+    st, sc, sa = spec.stance, spec.scene, spec.safety
+    distance = "auto" if st.wall_distance_m is None else f"{st.wall_distance_m * 1000:g} mm"
+    console.print(f"stance      wall {distance}, {st.arm} arm with the {st.tool}")
+    console.print(f"scene       wall {sc.wall_width_m * 1000:g} x {sc.wall_height_m * 1000:g} x "
+                  f"{sc.wall_thickness_m * 1000:g} mm; cutting {sc.coulomb_n:g} N + "
+                  f"{sc.viscous_n_s_per_m:g} N s/m")
+    console.print(f"safety      e-stop on {', '.join(sa.estop_sources)}; wrist torque limit "
+                  f"{sa.wrist_torque_limit_nm:g} N m; revert {sa.revert_s:g} s, "
+                  f"stop {sa.stop_s:g} s")
+    for s in spec.steps:
+        console.print(f"  {s.number}. [bold]{s.name}[/]: {s.describe()}")
+
+
+# ---------------------------------------------------------------------------- running
+@task.command("run")
+@click.argument("file")
+@run_options
+def run(file: str, **options) -> None:
+    """Run a task file (or a shipped task by name).
+
+    Example: hubo task run tasks/cut-rectangle.toml --set speed_mm_s=20
+    """
+    _run(file, _overrides(options.pop("sets")), **options)
+
+
+@task.command("cut-rectangle")
+@click.option("--width", type=float, default=None, metavar="MM",
+              help="Hole width (default 150, the paper's).")
+@click.option("--height", type=float, default=None, metavar="MM",
+              help="Hole height (default 100).")
+@click.option("--speed", type=float, default=None, metavar="MM/S",
+              help="Cutting speed along the edges (default 10).")
+@click.option("--wall-distance", default=None, metavar="MM|auto",
+              help="Neck to wall (default auto: from the workspace map).")
+@run_options
+def cut_rectangle(width, height, speed, wall_distance, **options) -> None:
+    """Drill a rectangular hole out of a cardboard wall (paper V, Fig. 5).
+
+    Counter-clockwise from the upper-left corner, as seen from behind the robot. Writes the
+    run folder with log.csv, summary.json, path.png (Fig. 5), wrist_torque.png, snapshot.png.
+
+    Example: hubo task cut-rectangle --width 120 --speed 20
+    """
+    named = {"width_mm": width, "height_mm": height, "speed_mm_s": speed,
+             "wall_distance_mm": wall_distance}
+    _run("cut-rectangle", _overrides(options.pop("sets"), named), **options)
 
 
 @task.command("push-wall")
-@click.option("--direction", type=click.Choice(["forward", "left"]), default="forward",
-              show_default=True,
+@click.option("--direction", type=click.Choice(["forward", "left"]), default=None,
               help="forward: both hands 0.25 m into a wall in 4 s; left: the left hand 0.25 m "
-                   "into a block on its left in 2 s.")
-@click.option("--no-estop", is_flag=True,
-              help="Leave the emergency stopper out of the pipeline (the robot may fall).")
-@click.option("--out", type=click.Path(file_okay=False), default=None,
-              help="Run folder (default runs/<time>-push-wall-<direction>-<estop>).")
-@click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
-@click.option("--interpolator", type=click.Choice(["otg", "hoff-arbib"]), default="otg",
-              show_default=True, help="Trajectory generator: ruckig or Hoff-Arbib (eq. 1).")
-@click.option("--gui", is_flag=True, help="Open the PyBullet window and run in real time.")
-@click.pass_context
-def push_wall(ctx: click.Context, direction: str, no_estop: bool, out: str | None,
-              as_json: bool, interpolator: str, gui: bool) -> None:
+                   "into a block on its left in 2 s (default forward).")
+@click.option("--interpolator", type=click.Choice(["otg", "hoff-arbib"]), default=None,
+              help="Trajectory generator: ruckig or Hoff-Arbib (eq. 1) (default otg).")
+@run_options
+def push_wall(direction, interpolator, **options) -> None:
     """The emergency-stop experiment (multi-layer controllers paper, IV-C): push a wall.
 
     With the emergency stopper the capture-point flag reverts the push and the robot stays
-    up; without it the robot tips over. Writes log.csv, summary.json and cp_error.png.
+    up; with --no-estop it tips over. Writes log.csv, summary.json and cp_error.png.
 
     Example: hubo task push-wall --direction left --no-estop
     """
-    from hubo_cli.experiments.push_wall import run_push_wall
-    from hubo_cli.model import load_model
+    named = {"direction": direction, "interpolator": interpolator}
+    if options["no_estop"]:
+        named["estop"] = False
+    _run("push-wall", _overrides(options.pop("sets"), named), **options)
 
-    result = run_push_wall(load_model(), direction=direction, estop=not no_estop, out=out,
-                           speed=1.0 if gui else None, gui=gui, interpolator=interpolator)
-    summary = result.summary | {"run_dir": str(result.run_dir)}
-    loop = result.loop
+
+def _shortcut(name: str) -> click.Command:
+    @click.command(name, help=f"Run the shipped task '{name}' (see hubo task show {name}).")
+    @run_options
+    def command(**options) -> None:
+        _run(name, _overrides(options.pop("sets")), **options)
+
+    return command
+
+
+def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool, gui: bool,
+         out: str | None, as_json: bool) -> None:
+    from hubo_cli.tasks.runner import check_task, run_experiment, run_task
+    from hubo_cli.tasks.spec import load_task
+
+    spec = load_task(name, overrides)
+    ctx = click.get_current_context()
+    if spec.experiment:
+        if driver != "sim":
+            raise InputError(f"the {spec.name} experiment runs on the simulated robot only",
+                             hint="leave out --driver")
+        done = run_experiment(spec, out=out, gui=gui)
+        _finish(ctx, done, as_json, lambda: _print_push_wall(done.summary, done.run_dir))
+        return
+    plan = check_task(spec)
+    if not plan.preflight.ok:
+        _refuse(ctx, plan, as_json)
+    state: dict = {}
+
+    def on_start(target) -> None:
+        if interactive() and not as_json:
+            live = Live(get_renderable=lambda: _view(target), refresh_per_second=4,
+                        console=err_console, transient=True)
+            live.start()
+            state["live"] = live
+
+    try:
+        done = run_task(plan, driver=driver, out=out, speed=1.0 if gui else None, gui=gui,
+                        estop=not no_estop, on_start=on_start,
+                        driver_options={"armed": True} if armed and driver == "hardware"
+                        else {})
+    finally:
+        if "live" in state:
+            state["live"].stop()
+    _finish(ctx, done, as_json, lambda: _print_cut(done.summary, done.run_dir))
+
+
+def _finish(ctx: click.Context, done, as_json: bool, printer) -> None:
+    loop = done.loop
     if loop.ended in ("module-error", "target-error", "driver-error"):
         raise HuboError(f"the run stopped early: {loop.error}",
-                        hint=f"the log up to the stop is in {result.run_dir / 'log.csv'}")
+                        hint=f"the log up to the stop is in {done.run_dir / 'log.csv'}")
     if as_json:
-        print_json(summary)
+        print_json({"run_dir": str(done.run_dir), **done.summary})
     else:
-        _print_summary(summary)
+        printer()
     if loop.ended == "interrupted":
         ctx.exit(EXIT_INTERRUPTED)
+    if done.summary.get("completed") is False:
+        ctx.exit(EXIT_NOT_COMPLETED)
 
 
-def _print_summary(summary: dict) -> None:
+def _refuse(ctx: click.Context, plan, as_json: bool) -> None:
+    worst = plan.preflight.worst_per_step()
+    if as_json:
+        print_json({"task": plan.spec.name, "parameters": plan.spec.parameters,
+                    "refused": True, "completed": False,
+                    "stance": plan.placement.to_json(),
+                    "misses": [{"step": m.step.name, "number": m.step.number,
+                                "kind": m.step.kind, "t_s": m.t_s,
+                                "point_mm": m.point_W_m * 1000,
+                                "miss_mm": None if m.miss_m is None else m.miss_m * 1000,
+                                "legs_too_slow": m.legs_lag} for m in worst]})
+        ctx.exit(SafetyError.exit_code)
+    err_console.print("pre-flight: these steps leave the robot's reach (the farthest pose of "
+                      "each)")
+    for miss in worst:
+        err_console.print(f"  {miss.message()}")
+    legs = any(m.legs_lag for m in worst)
+    farthest = max(worst, key=lambda m: -1.0 if m.miss_m is None else m.miss_m)
+    raise SafetyError(
+        f"{plan.spec.name} refused in pre-flight, nothing moved: {farthest.message()}",
+        hint="cut more slowly (--speed)" if legs else
+        "make the path smaller, or choose --wall-distance / the stance's centre_mm")
+
+
+def _view(target) -> Table:
+    """The live view: one progress bar per step, the safety status, error and wrist torque."""
+    plan = target.plan
+    status = {"raise": "raising the tool", "run": "running", "settle": "settling",
+              "stopped": "[bold red]EMERGENCY STOP: reverted and holding[/]"}[target.phase]
+    table = Table(title=f"hubo task {plan.spec.name} — {status}", title_justify="left",
+                  box=None, pad_edge=False)
+    table.add_column("step")
+    table.add_column("progress", width=32)
+    table.add_column("")
+    current = target.step
+    for index, step in enumerate(plan.spec.steps):
+        fraction = target.step_fraction(index)
+        marker = "[bold]>[/] " if index == current and target.phase != "settle" else "  "
+        table.add_row(f"{marker}{step.number}. {step.name}",
+                      ProgressBar(total=1.0, completed=fraction, width=30),
+                      f"{fraction:4.0%}")
+    limit = plan.spec.safety.wrist_torque_limit_nm
+    colour = "red" if target.torque_nm > limit else "green"
+    table.caption = (f"bit error {target.error_m * 1000:5.1f} mm   wrist torque "
+                     f"[{colour}]{target.torque_nm:.2f}[/] / {limit:g} N m")
+    return table
+
+
+def _print_cut(summary: dict, run_dir) -> None:
+    stance = summary["stance"]
+    outcome = "completed" if summary["completed"] else "[red]did not complete[/]"
+    console.print(f"{summary['task']} {outcome} after {summary['duration_s']:.1f} s "
+                  f"({summary['driver']})")
+    console.print(f"  stance      wall {stance['wall_distance_mm']:.0f} mm"
+                  f"{' (auto)' if stance['auto'] else ''}, work centre y "
+                  f"{stance['centre_mm'][0]:+.0f} z {stance['centre_mm'][1]:+.0f} mm")
+    if summary["rms_error_mm"] is not None:
+        hole = summary.get("hole_rms_error_mm")
+        console.print(f"  bit error   {summary['rms_error_mm']:.1f} mm rms, "
+                      f"{summary['max_error_mm']:.1f} mm max while cutting (paper: "
+                      f"{summary['paper_rms_error_mm']:g} mm)"
+                      + (f"; hole in the wall {hole:.1f} mm rms" if hole is not None else ""))
+    torque = summary["wrist_torque_nm"]
+    parts = [f"{edge} {torque[edge]['mean']:.2f} mean / {torque[edge]['max']:.2f} max"
+             for edge in ("horizontal", "vertical") if torque[edge]["samples"]]
+    if parts:
+        console.print(f"  wrist       {', '.join(parts)} N m (limit {torque['limit']:g}; "
+                      "paper 0.14 / 0.23 and 0.15 / 0.35)")
+    stop = summary["estop"]
+    if stop is None:
+        console.print("  e-stop      none")
+    else:
+        console.print(f"  e-stop      [red]{', '.join(stop['sources'])}[/] at {stop['t_s']:.2f} s "
+                      f"in step '{stop['step']}': reverted to the command of "
+                      f"{stop['reverted_to_t_s']:.2f} s"
+                      + (" and held" if stop["held"] else ""))
+    console.print(f"  velocity    {summary['max_joint_velocity_ratio']:.0%} of the limit at most")
+    console.print(f"  run folder  {run_dir}", soft_wrap=True)
+    console.print(f"              {', '.join(summary['files'])}", soft_wrap=True)
+
+
+def _print_push_wall(summary: dict, run_dir) -> None:
     flag = summary["t_emergency_s"]
     cp_flag = summary["t_cp_flag_s"]
     outcome = "FELL" if summary["fell"] else "tipped" if summary["tipped"] else "stayed up"
@@ -75,5 +349,5 @@ def _print_summary(summary: dict) -> None:
     console.print(f"max CP error      {summary['max_cp_error_mm']:.1f} mm along "
                   f"{summary['cp_error_axis']}")
     console.print(f"ended             {summary['ended']} after {summary['duration_s']:.2f} s")
-    console.print(f"run folder        {summary['run_dir']}", soft_wrap=True)
+    console.print(f"run folder        {run_dir}", soft_wrap=True)
     console.print("                  log.csv, summary.json, cp_error.png")

@@ -43,20 +43,54 @@ def min_jerk(s: float) -> float:
     return s * s * s * (10 - 15 * s + 6 * s * s)
 
 
+def trapezoid(t_s: float, duration_s: float, ramp_s: float) -> float:
+    """Progress 0 -> 1 at time t_s of a trapezoidal speed profile: constant acceleration for
+    ``ramp_s``, constant speed, constant deceleration for ``ramp_s`` (ramp_s <= duration / 2)."""
+    t = min(max(t_s, 0.0), duration_s)
+    ramp = min(ramp_s, duration_s / 2)
+    if ramp <= 0:
+        return t / duration_s
+    v = 1.0 / (duration_s - ramp)  # the peak speed of a unit distance
+    if t < ramp:
+        return 0.5 * v / ramp * t * t
+    if t <= duration_s - ramp:
+        return v * (t - ramp / 2)
+    left = duration_s - t
+    return 1.0 - 0.5 * v / ramp * left * left
+
+
+def trapezoid_timing(distance_m: float, speed_m_s: float, accel_m_s2: float
+                     ) -> tuple[float, float]:
+    """(duration s, ramp s) of a trapezoidal move over ``distance_m`` cruising at
+    ``speed_m_s`` with ``accel_m_s2`` (a triangle when the distance is too short to cruise)."""
+    ramp = speed_m_s / accel_m_s2
+    if distance_m >= speed_m_s * ramp:
+        return distance_m / speed_m_s + ramp, ramp
+    ramp = float(np.sqrt(distance_m / accel_m_s2))
+    return 2 * ramp, ramp
+
+
 @dataclass(frozen=True)
 class PoseSegment:
-    """A straight move from ``T_start`` to ``T_end`` in ``duration_s`` (min-jerk or constant
-    speed), orientation interpolated along the geodesic."""
+    """A straight move from ``T_start`` to ``T_end`` in ``duration_s``, orientation interpolated
+    along the geodesic. Profiles: ``min-jerk``, ``linear`` (constant speed) and ``trapezoid``
+    (constant speed between acceleration and deceleration ramps of ``ramp_s``, for cutting)."""
 
     T_start: np.ndarray
     T_end: np.ndarray
     duration_s: float
-    profile: str = "min-jerk"  # or "linear" (constant speed, for cutting)
+    profile: str = "min-jerk"
+    ramp_s: float = 0.0
 
     def at(self, t_s: float) -> np.ndarray:
         """The pose t_s seconds into the segment (clamped to its ends)."""
         s = 1.0 if self.duration_s <= 0 else t_s / self.duration_s
-        s = min_jerk(s) if self.profile == "min-jerk" else min(max(s, 0.0), 1.0)
+        if self.profile == "min-jerk":
+            s = min_jerk(s)
+        elif self.profile == "trapezoid" and self.duration_s > 0:
+            s = trapezoid(t_s, self.duration_s, self.ramp_s)
+        else:
+            s = min(max(s, 0.0), 1.0)
         T = np.eye(4)
         T[:3, 3] = self.T_start[:3, 3] + s * (self.T_end[:3, 3] - self.T_start[:3, 3])
         delta = rotation_log(self.T_start[:3, :3].T @ self.T_end[:3, :3])

@@ -137,16 +137,22 @@ class LiftFilter:
     Args:
         max_speed_m_s: the lift's speed limit.
         time_constant_s: first-order smoothing of the wanted lift before the speed limit.
+        max_accel_m_s2: the lift's acceleration limit (None: none); the speed then also drops
+            in time to stop on the wanted lift.
     """
 
-    def __init__(self, max_speed_m_s: float = 0.02, time_constant_s: float = 0.3) -> None:
+    def __init__(self, max_speed_m_s: float = 0.02, time_constant_s: float = 0.3,
+                 max_accel_m_s2: float | None = None) -> None:
         self.max_speed_m_s = max_speed_m_s
         self.time_constant_s = time_constant_s
+        self.max_accel_m_s2 = max_accel_m_s2
         self.lift_m: float | None = None
+        self.speed_m_s = 0.0
         self._smoothed: float | None = None
 
     def reset(self, lift_m: float) -> None:
         self.lift_m = self._smoothed = float(lift_m)
+        self.speed_m_s = 0.0
 
     def step(self, wanted_m: float, dt_s: float) -> float:
         """Advance one period toward ``wanted_m``; returns the lift to use (m)."""
@@ -155,6 +161,13 @@ class LiftFilter:
             return self.lift_m
         alpha = dt_s / (self.time_constant_s + dt_s)
         self._smoothed += alpha * (wanted_m - self._smoothed)
-        step = self.max_speed_m_s * dt_s
-        self.lift_m += float(np.clip(self._smoothed - self.lift_m, -step, step))
+        gap = self._smoothed - self.lift_m
+        speed = float(np.clip(gap / dt_s, -self.max_speed_m_s, self.max_speed_m_s))
+        if self.max_accel_m_s2 is not None:
+            a = self.max_accel_m_s2
+            stop = float(np.sqrt(2 * a * abs(gap)))  # the speed that can still stop on it
+            speed = float(np.clip(speed, -stop, stop))
+            speed = float(np.clip(speed, self.speed_m_s - a * dt_s, self.speed_m_s + a * dt_s))
+        self.speed_m_s = speed
+        self.lift_m += speed * dt_s
         return self.lift_m

@@ -3,7 +3,8 @@ moves (pre-flight).
 
 The stance puts the wall frame W in the stance frame S (see :mod:`hubo_cli.tasks.spec`); each
 step becomes Cartesian segments of the tool pose (bit orthogonal to the wall, along S's x):
-moves, plunges and retracts with minimum-jerk timing, cuts at constant speed. The whole
+moves, plunges and retracts with minimum-jerk timing, cuts at constant speed between short
+acceleration ramps at each corner. The whole
 timeline is then solved period by period exactly as it will run -- the whole-body solver with
 the same lift filter, each solution seeded with the previous one -- so the joint targets are
 known before the robot starts and pre-flight checks every period's pose, not a sample of them.
@@ -13,11 +14,11 @@ how far the pose lies beyond the arm's reach.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from hubo_cli.kinematics.interpolate import PoseSegment, segment_duration
+from hubo_cli.kinematics.interpolate import PoseSegment, segment_duration, trapezoid_timing
 from hubo_cli.kinematics.wholebody import LiftFilter, WholeBody
 from hubo_cli.model import RobotModel
 from hubo_cli.posture import home_posture
@@ -96,10 +97,16 @@ class Miss:
 
 @dataclass
 class Preflight:
-    """Pre-flight's verdict: ``ok`` when every pose of every step is exactly reachable."""
+    """Pre-flight's verdict: ``ok`` when every pose of every step is exactly reachable.
+
+    ``warnings`` name steps whose joint targets move faster or accelerate harder than the
+    joints' limits: the pipeline keeps the robot within its limits, so it lags behind the path
+    there (larger tracking error), but nothing unsafe is commanded.
+    """
 
     misses: list[Miss]
     checked_poses: int
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
@@ -154,7 +161,9 @@ class Plan:
         return float(self.t_s[-1]) if len(self.t_s) else 0.0
 
 
-LEGS_SPEED_M_S = 0.1  # the lift's speed limit in tasks (m/s)
+LEGS_SPEED_M_S = 0.06  # the lift's speed limit in tasks (m/s): the knees stay within theirs
+LEGS_ACCEL_M_S2 = 0.05  # and its acceleration limit (m/s^2), within the knees' 0.6 rad/s^2
+CUT_ACCEL_M_S2 = 0.05  # the bit's acceleration at the ends of each cut edge (joints in limits)
 LEGS_TIME_CONSTANT_S = 0.05
 LIFT_MARGIN_M = 0.01  # the arm's vertical room kept around the working height (legs lag)
 
@@ -315,11 +324,15 @@ def _pieces(spec: TaskSpec, T_S_W: np.ndarray) -> tuple[np.ndarray, list[_Piece]
 
 
 def _line(T_a: np.ndarray, T_b: np.ndarray, step: Step, k: int, cutting: bool) -> _Piece:
+    """One straight edge of a path at the step's speed, speeding up and slowing down at the
+    step's acceleration (default ``CUT_ACCEL_M_S2``) at its ends (the bit stops at each corner,
+    turns, and goes on)."""
     d = T_b[:3, 3] - T_a[:3, 3]
-    duration = float(np.linalg.norm(d)) / step.speed_m_s
+    duration, ramp = trapezoid_timing(float(np.linalg.norm(d)), step.speed_m_s,
+                                      step.accel_m_s2 or CUT_ACCEL_M_S2)
     edge = EDGE_HORIZONTAL if abs(d[1]) >= abs(d[2]) else EDGE_VERTICAL
-    return _Piece(PoseSegment(T_a, T_b, duration, profile="linear"), k, cutting,
-                  edge if cutting else EDGE_NONE)
+    return _Piece(PoseSegment(T_a, T_b, duration, profile="trapezoid", ramp_s=ramp), k,
+                  cutting, edge if cutting else EDGE_NONE)
 
 
 def make_plan(spec: TaskSpec, model: RobotModel, placement: Placement | None = None) -> Plan:
@@ -338,7 +351,7 @@ def make_plan(spec: TaskSpec, model: RobotModel, placement: Placement | None = N
     T_first, pieces = _pieces(spec, T_S_W)
 
     misses: list[Miss] = []
-    lift = LiftFilter(LEGS_SPEED_M_S, LEGS_TIME_CONSTANT_S)
+    lift = LiftFilter(LEGS_SPEED_M_S, LEGS_TIME_CONSTANT_S, LEGS_ACCEL_M_S2)
     lift.reset(body.lift_for({limb: T_first}))
     first = body.solve({limb: T_first}, home_posture(model), lift_m=lift.lift_m)
     if first.arms[limb].status != "exact":
@@ -375,13 +388,35 @@ def make_plan(spec: TaskSpec, model: RobotModel, placement: Placement | None = N
             step_index[i] = piece.step
             cutting[i] = piece.cutting
             edge[i] = piece.edge
+    warnings = _limit_warnings(spec, model, q, step_index, dt)
     step_times = [(0.0, 0.0)]
     for k in range(1, len(spec.steps)):
         mine = [j for j, p in enumerate(pieces) if p.step == k]
         step_times.append((float(starts[mine[0]]), float(starts[mine[-1] + 1])) if mine
                           else (step_times[-1][1],) * 2)
     return Plan(spec, placement, dt, first.q_rad, T_first, t, step_index, goal, q, cutting, edge,
-                step_times, Preflight(misses, n + 1))
+                step_times, Preflight(misses, n + 1, warnings))
+
+
+def _limit_warnings(spec: TaskSpec, model: RobotModel, q: np.ndarray, step_index: np.ndarray,
+                    dt: float) -> list[str]:
+    """Steps whose joint targets exceed a velocity or acceleration limit (10 % tolerance)."""
+    if len(q) < 3:
+        return []
+    v = np.abs(np.diff(q, axis=0)) / dt / model.velocity_rad_s
+    a = np.abs(np.diff(q, 2, axis=0)) / dt**2 / model.acceleration_rad_s2
+    out = []
+    for k, step in enumerate(spec.steps):
+        rows = np.nonzero(step_index[1:-1] == k)[0]
+        if not len(rows):
+            continue
+        for what, ratio in (("velocity", v[rows]), ("acceleration", a[rows])):
+            worst = np.unravel_index(np.argmax(ratio), ratio.shape)
+            if ratio[worst] > 1.1:
+                out.append(f"{step.label} needs {model.joint_names[worst[1]]} at "
+                           f"{ratio[worst]:.0%} of its {what} limit: the robot will lag behind "
+                           "the path there")
+    return out
 
 
 def _reachable(body: WholeBody, limb: str, T: np.ndarray, lift_m: float | None = None) -> bool:

@@ -27,7 +27,8 @@ the step runner, :mod:`hubo_cli.tasks.runner`) or ``experiment`` (a built-in pro
       ``duration_s`` or at ``speed_mm_s``. The first step must be a move; it runs in joint space
       from the start posture and the wall appears once the robot holds the tool there.
     - ``plunge``: straight along the bit to ``depth_mm`` at ``speed_mm_s``.
-    - ``follow``: cut along a path in the wall plane at ``speed_mm_s``: ``path = "rectangle"``
+    - ``follow``: cut along a path in the wall plane at ``speed_mm_s`` (speeding up and slowing
+      down at each corner at ``accel_mm_s2``, default 50): ``path = "rectangle"``
       (``width_mm``, ``height_mm``, ``centre_mm`` = [y, z], ``start`` = ``upper-left`` |
       ``upper-right`` | ``lower-left`` | ``lower-right``, ``direction`` = ``ccw`` | ``cw``, as
       seen from behind the robot) or ``path = "polyline"`` (``points_mm`` = [[y, z], ...]).
@@ -113,6 +114,7 @@ class Step:
         depth_m: move/plunge/retract: the tool's depth past the wall face (negative: before it).
         points_m: follow: the path's corners (y, z).
         speed_m_s: move (optional), plunge, follow, retract.
+        accel_m_s2: follow: the bit's acceleration at each corner (None: the planner's).
         duration_s: move (optional), wait.
         path: follow: ``rectangle`` or ``polyline`` (what the file said, for ``show``).
         shape: follow rectangle: width, height, start, direction (for ``show``).
@@ -125,6 +127,7 @@ class Step:
     depth_m: float | None = None
     points_m: tuple[tuple[float, float], ...] = ()
     speed_m_s: float | None = None
+    accel_m_s2: float | None = None
     duration_s: float | None = None
     path: str = ""
     shape: dict = field(default_factory=dict)
@@ -417,11 +420,13 @@ class _Loader:
     def _follow(self, t: _Table, kind: str, name: str, number: int) -> Step:
         path = t.choice("path", ("rectangle", "polyline"))
         speed = t.number("speed_mm_s", positive=True) / 1000
+        accel = t.number("accel_mm_s2", positive=True, default=None)
+        accel = None if accel is None else accel / 1000
         if path == "polyline":
             points = t.points("points_mm")
             return Step(kind, name, number, points_m=tuple((y / 1000, z / 1000)
                                                            for y, z in points),
-                        speed_m_s=speed, path=path)
+                        speed_m_s=speed, accel_m_s2=accel, path=path)
         width = t.number("width_mm", positive=True) / 1000
         height = t.number("height_mm", positive=True) / 1000
         centre = t.point("centre_mm", default=(0.0, 0.0))
@@ -430,7 +435,8 @@ class _Loader:
         points = rectangle_points(width, height, (centre[0] / 1000, centre[1] / 1000), start,
                                   direction)
         shape = {"width_m": width, "height_m": height, "start": start, "direction": direction}
-        return Step(kind, name, number, points_m=points, speed_m_s=speed, path=path, shape=shape)
+        return Step(kind, name, number, points_m=points, speed_m_s=speed, accel_m_s2=accel,
+                    path=path, shape=shape)
 
 
 def rectangle_points(width_m: float, height_m: float, centre_m: tuple[float, float],
