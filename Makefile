@@ -13,7 +13,7 @@ $(STAMP): pyproject.toml
 	@touch $(STAMP)
 
 run: $(STAMP)
-	$(BIN)/hubo teleop --replay trajectories/drill-rectangle.fastrak --mode drill
+	$(BIN)/hubo task cut-rectangle
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

@@ -35,7 +35,7 @@ def plot_wrist_torque(log, path: str | Path, *, limit_nm: float, title: str = ""
         if on.any():
             ax.fill_between(t, 0, 1, where=on, transform=ax.get_xaxis_transform(),
                             color=colour, alpha=0.7, lw=0, label=label)
-    ax.plot(t, torque, color="#1f77b4", lw=1.0, label="wrist torque |(mx, my)|")
+    ax.plot(t, torque, color="#1f77b4", lw=1.0, label="wrist bending moment |(my, mz)|")
     ax.axhline(limit_nm, color="#d62728", ls="--", lw=1.3, label=f"limit {limit_nm:g} N m")
     for i, t_stop in enumerate(stop_times_s):
         ax.axvline(t_stop, color="#c2188b", lw=1.2,

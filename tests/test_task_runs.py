@@ -1,0 +1,117 @@
+"""Scripted tasks end to end: pre-flight refusals move nothing, the rectangle is cut within the
+paper's accuracy, and a cut too fast for the wrist is reverted by the emergency stop."""
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from hubo_cli.cli.main import main
+from hubo_cli.control.log import load_log
+from hubo_cli.model import load_model
+from hubo_cli.tasks.plan import make_plan
+from hubo_cli.tasks.spec import load_task
+
+
+def _invoke(*args):
+    return CliRunner().invoke(main, ["task", *args], catch_exceptions=False)
+
+
+def test_default_plan_passes_preflight_and_follows_the_rectangle():
+    model = load_model()
+    plan = make_plan(load_task("cut-rectangle"), model)
+    assert plan.preflight.ok and not plan.preflight.warnings
+    corners = plan.placement.T_S_W()[:3, 3]
+    cut = plan.goal_S_m[plan.cutting] - corners
+    assert cut[:, 1].max() == pytest.approx(0.075) and cut[:, 1].min() == pytest.approx(-0.075)
+    assert cut[:, 2].max() == pytest.approx(0.050) and cut[:, 2].min() == pytest.approx(-0.050)
+    assert np.allclose(cut[:, 0], 0.0025)                   # the bit's middle in the cardboard
+    # every planned joint target reproduces its goal (whole-body FK)
+    from hubo_cli.kinematics.wholebody import WholeBody
+    body = WholeBody(model, {"right-arm": "drill"}, plan.placement.working_height_m)
+    sl = model.limb_slice("right-arm")
+    for k in range(0, len(plan.t_s), 250):
+        T = body.arms["right-arm"].fk(plan.q_rad[k, sl])
+        T[2, 3] += body.lift_of(plan.q_rad[k])
+        assert np.linalg.norm(T[:3, 3] - plan.goal_S_m[k]) < 1e-9
+
+
+def test_a_600_mm_rectangle_is_refused_in_preflight_and_nothing_moves(tmp_path, monkeypatch):
+    def no_driver(*args, **kwargs):
+        raise AssertionError("a driver was created: something could have moved")
+
+    from hubo_cli.tasks import runner
+
+    monkeypatch.setattr(runner, "make_driver", no_driver)
+    out = tmp_path / "run"
+    result = CliRunner().invoke(main, ["task", "cut-rectangle", "--width", "600",
+                                       "--out", str(out)])
+    assert result.exit_code == 4, result.output
+    assert "refused in pre-flight, nothing moved" in result.output
+    assert "step 3 'cut' (follow)" in result.output and "out of reach by" in result.output
+    assert not out.exists()
+    as_json = CliRunner().invoke(main, ["task", "cut-rectangle", "--width", "600", "--json"])
+    report = json.loads(as_json.output)
+    assert as_json.exit_code == 4 and report["refused"] is True
+    cut = next(m for m in report["misses"] if m["kind"] == "follow")
+    assert 50 < cut["miss_mm"] < 150  # the reach is about 445 mm wide: 600 mm misses by ~78
+
+
+def test_too_fast_for_the_legs_is_refused_with_a_hint(tmp_path):
+    """A vertical cut the legs cannot follow (the arm alone has only a few cm of height)."""
+    text = load_task("cut-slot").path.read_text()
+    path = tmp_path / "vertical.toml"
+    path.write_text(text.replace("points_mm = [[150.0, 0.0], [-150.0, 0.0]]",
+                                 "points_mm = [[0.0, 50.0], [0.0, -50.0]]")
+                    .replace("accel_mm_s2 = 100.0", "accel_mm_s2 = 2000.0"))
+    result = CliRunner().invoke(main, ["task", "run", str(path), "--set", "speed_mm_s=200"])
+    assert result.exit_code == 4
+    assert "legs cannot lower or raise the body fast enough" in result.output
+    assert "--speed" in result.output
+
+
+@pytest.mark.slow
+def test_a_small_rectangle_is_cut_accurately_with_a_full_run_folder(tmp_path):
+    out = tmp_path / "run"
+    result = _invoke("cut-rectangle", "--width", "60", "--height", "40", "--out", str(out),
+                     "--json")
+    assert result.exit_code == 0, result.output
+    s = json.loads(result.output)
+    assert s["completed"] is True and s["estop"] is None and not s["estop_events"]
+    assert s["rms_error_mm"] <= 3.0 and s["max_error_mm"] < 6.0
+    torque = s["wrist_torque_nm"]
+    assert torque["horizontal"]["samples"] and torque["vertical"]["samples"]
+    assert 0.05 < torque["horizontal"]["mean"] < torque["limit"]
+    assert torque["max_while_cutting"] < torque["limit"] and not torque["over_limit"]
+    assert s["max_joint_velocity_ratio"] <= 1.0 + 1e-9
+    for name in ("log.csv", "summary.json", "task.toml", "path.png", "wrist_torque.png",
+                 "snapshot.png"):
+        assert (out / name).is_file(), name
+    assert "--set width_mm=60.0" in (out / "task.toml").read_text()
+    assert json.loads((out / "summary.json").read_text())["parameters"]["width_mm"] == 60.0
+
+
+@pytest.mark.slow
+def test_cutting_too_fast_trips_the_wrist_torque_stop_which_reverts_and_holds(tmp_path):
+    out = tmp_path / "run"
+    slow = load_task("cut-slot")
+    assert slow.parameters["speed_mm_s"] == 10.0
+    result = _invoke("cut-slot", "--set", "speed_mm_s=150", "--out", str(out), "--json")
+    assert result.exit_code == 1, result.output              # ran, but did not complete
+    s = json.loads(result.output)
+    assert s["completed"] is False
+    stop = s["estop"]
+    assert stop["sources"] == ["wrist-torque"] and stop["step"] == "cut" and stop["held"]
+    assert stop["wrist_torque_nm"] > s["wrist_torque_nm"]["limit"]
+    assert stop["reverted_to_t_s"] == pytest.approx(stop["t_s"] - 0.5)
+    log = load_log(out)
+    model = load_model()
+    arm = [log.joint_names.index(n) for n in model.joint_names[model.limb_slice("right-arm")]]
+    cmd = log.joints("cmd")[:, arm]
+    t = log["t_s"]
+    i = int(np.searchsorted(t, stop["reverted_to_t_s"]))
+    # back where the command was T1 earlier (give or take two periods of the 150 mm/s motion)
+    assert min(np.abs(cmd[-1] - cmd[k]).max() for k in range(i - 2, i + 3)) < 1e-3
+    held = t > t[-1] - 0.5
+    assert np.abs(np.diff(cmd[held], axis=0)).max() < 1e-9   # and holding still

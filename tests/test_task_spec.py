@@ -1,0 +1,116 @@
+"""The task file format: shipped tasks load, malformed files name file, line and field."""
+
+import pytest
+from click.testing import CliRunner
+
+from hubo_cli.cli.main import main
+from hubo_cli.errors import ConfigError
+from hubo_cli.resources import data_file
+from hubo_cli.tasks.spec import load_task, parse_override, rectangle_points, task_files
+from hubo_cli.tasks.toml_lines import field_line
+
+RECTANGLE = data_file("tasks", "cut-rectangle.toml")
+
+
+def test_shipped_tasks_load():
+    names = {p.stem for p in task_files()}
+    assert {"cut-rectangle", "cut-slot", "push-wall"} <= names
+    for path in task_files():
+        spec = load_task(path)
+        assert spec.name == path.stem and spec.description
+        assert spec.experiment or spec.steps[0].kind == "move"
+
+
+def test_cut_rectangle_defaults_are_the_papers():
+    spec = load_task("cut-rectangle")
+    cut = next(s for s in spec.steps if s.kind == "follow")
+    assert cut.shape["width_m"] == pytest.approx(0.150)
+    assert cut.shape["height_m"] == pytest.approx(0.100)
+    assert cut.shape["start"] == "upper-left" and cut.shape["direction"] == "ccw"
+    assert spec.safety.wrist_torque_limit_nm == pytest.approx(1.21)
+    assert spec.stance.wall_distance_m is None  # auto
+
+
+def test_counter_clockwise_from_the_upper_left_goes_down_the_left_edge_first():
+    # seen from behind the robot, its left (+y) is on the left
+    points = rectangle_points(0.15, 0.10, (0.0, 0.0), "upper-left", "ccw")
+    assert points == ((0.075, 0.05), (0.075, -0.05), (-0.075, -0.05), (-0.075, 0.05),
+                      (0.075, 0.05))
+    cw = rectangle_points(0.15, 0.10, (0.0, 0.0), "upper-left", "cw")
+    assert cw[1] == (-0.075, 0.05)
+
+
+def test_overrides_change_parameters_and_are_typed():
+    spec = load_task("cut-rectangle", dict([parse_override("speed_mm_s=20"),
+                                            parse_override("wall_distance_mm=480")]))
+    assert spec.parameters["speed_mm_s"] == 20.0
+    assert spec.stance.wall_distance_m == pytest.approx(0.480)
+    assert next(s for s in spec.steps if s.kind == "follow").speed_m_s == pytest.approx(0.020)
+    assert spec.overridden == {"speed_mm_s": 20.0, "wall_distance_mm": 480.0}
+
+
+def _broken(tmp_path, old, new):
+    text = RECTANGLE.read_text()
+    assert old in text
+    path = tmp_path / "broken.toml"
+    path.write_text(text.replace(old, new, 1))
+    line = next(i for i, row in enumerate(path.read_text().splitlines(), 1) if new in row)
+    return path, line
+
+
+@pytest.mark.parametrize("old, new, field", [
+    ('speed_mm_s = 20.0', 'speed_mm_s = "fast"', "steps[4].speed_mm_s"),
+    ('path = "rectangle"', 'path = "circle"', "steps[3].path"),
+    ('thickness_mm = 5.0', 'thicknes_mm = 5.0', "scene.wall.thicknes_mm"),
+    ('wrist_torque_limit_nm = 1.21', 'wrist_torque_limit_nm = -1', "safety.wrist_torque_limit_nm"),
+    ('kind = "plunge"', 'kind = "hover"', "steps[2].kind"),
+])
+def test_malformed_task_names_file_line_and_field(tmp_path, old, new, field):
+    path, line = _broken(tmp_path, old, new)
+    with pytest.raises(ConfigError) as caught:
+        load_task(path)
+    error = caught.value
+    assert error.path == str(path) and error.field == field and error.line == line
+    assert str(error).startswith(f"{path}:{line}: [{field}]")
+
+
+def test_toml_syntax_error_names_the_line(tmp_path):
+    path, line = _broken(tmp_path, "height_mm = 100.0", "height_mm = = 100")
+    with pytest.raises(ConfigError) as caught:
+        load_task(path)
+    assert caught.value.line == line and "not valid TOML" in str(caught.value)
+
+
+def test_a_bad_override_names_the_parameter():
+    with pytest.raises(ConfigError, match="from parameter speed_mm_s, set on the command line"):
+        load_task("cut-rectangle", {"speed_mm_s": "-5"})
+    with pytest.raises(ConfigError, match="no parameter 'sped_mm_s'"):
+        load_task("cut-rectangle", {"sped_mm_s": 5})
+
+
+def test_malformed_file_through_the_cli_is_one_line_and_exit_2(tmp_path):
+    path, line = _broken(tmp_path, 'path = "rectangle"', 'path = "circle"')
+    result = CliRunner().invoke(main, ["task", "run", str(path)])
+    assert result.exit_code == 2
+    assert f"{path}:{line}: [steps[3].path]" in result.output
+    assert "Traceback" not in result.output
+
+
+def test_field_line_finds_keys_inside_array_tables():
+    text = "a = 1\n[[steps]]\nkind = 'x'\n[[steps]]\nkind = 'y'\nspeed = 2\n[t.u]\nv = 3\n"
+    assert field_line(text, "a") == 1
+    assert field_line(text, "steps[2].speed") == 6
+    assert field_line(text, "steps[2].missing") == 4   # the table's header
+    assert field_line(text, "t.u.v") == 8
+
+
+def test_list_and_show():
+    runner = CliRunner()
+    listed = runner.invoke(main, ["task", "list"])
+    assert listed.exit_code == 0
+    assert "cut-rectangle" in listed.output and "push-wall" in listed.output
+    shown = runner.invoke(main, ["task", "show", "cut-rectangle"])
+    assert shown.exit_code == 0
+    assert "rectangle 150 x 100 mm from the upper-left corner, ccw" in shown.output
+    assert "speed_mm_s = 10.0" in shown.output
+    assert runner.invoke(main, ["task", "show", "nope"]).exit_code == 2
