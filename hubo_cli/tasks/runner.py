@@ -28,7 +28,7 @@ from hubo_cli.posture import home_posture
 from hubo_cli.runs import make_run_dir, write_json
 from hubo_cli.tasks.plan import EDGE_NAMES, Plan, make_plan
 from hubo_cli.tasks.spec import TaskSpec
-from hubo_cli.tasks.target import TaskTarget
+from hubo_cli.tasks.target import SETTLE_TIMEOUT_S, TaskTarget
 from hubo_cli.urdf import DRILL_FRAME
 
 PAPER_TORQUE_NM = {"horizontal": {"mean": 0.14, "max": 0.23},
@@ -122,8 +122,8 @@ def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
         if on_start is not None:
             on_start(target)
         loop = ControlLoop(robot, modules, target, speed=speed, log_path=run_dir)
-        budget = plan.duration_s + 4 * 6.0 + 10.0
-        result = loop.run(budget)
+        # the plan, plus the waits for the robot to settle (raise, end, after a stop)
+        result = loop.run(plan.duration_s + 3 * SETTLE_TIMEOUT_S + 10.0)
         if hasattr(robot, "snapshot_png"):
             robot.snapshot_png(run_dir / "snapshot.png")
     summary = summarise(plan, model, target, result, stopper, run_dir, driver)

@@ -145,7 +145,7 @@ class TaskTarget:
         running = self.phase != "raise"
         k = self.k
         goal = self.plan.goal_S_m[k] if running else actual
-        cutting = running and self.phase == "run" and bool(self.plan.cutting[k])
+        cutting = self.phase == "run" and bool(self.plan.cutting[k])
         self.error_m = float(np.linalg.norm(goal - actual))
         info.update({"step_code": float(self.step), "phase_code": float(PHASES.index(self.phase)),
                      "goal_x_m": goal[0], "goal_y_m": goal[1], "goal_z_m": goal[2],
