@@ -299,8 +299,8 @@ def _view(target) -> Table:
 
 def _print_cut(summary: dict, run_dir) -> None:
     stance = summary["stance"]
-    outcome = ("completed" if summary["completed"] else
-               f"[red]did not complete[/] ({summary['ended']})")
+    why = "emergency stop" if summary["estop"] else summary["ended"]
+    outcome = "completed" if summary["completed"] else f"[red]did not complete[/] ({why})"
     console.print(f"{summary['task']} {outcome} after {summary['duration_s']:.1f} s "
                   f"({summary['driver']})")
     console.print(f"  stance      wall {stance['wall_distance_mm']:.0f} mm"
