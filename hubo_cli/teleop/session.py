@@ -12,6 +12,7 @@ from hubo_cli.control.loop import ControlLoop, LoopResult
 from hubo_cli.control.pipeline import DEFAULT_ORDER, build_pipeline
 from hubo_cli.drivers.base import make_driver
 from hubo_cli.fastrak.source import open_source
+from hubo_cli.kinematics.arm_reach import ReachSettings
 from hubo_cli.kinematics.interpolate import PosePath, PoseSegment, segment_duration
 from hubo_cli.kinematics.wholebody import WholeBody
 from hubo_cli.model import load_model
@@ -48,6 +49,7 @@ class TeleopSettings:
         duration_s: stop after this long (live mode; None = until q / Ctrl-C).
         clutch_at_s: replay times at which to re-centre.
         out: run folder (None: runs/<time>-teleop).
+        reach: how the arms behave at the edge of their reach (branch, nearest pose, paper).
         gui, baud, estop, driver_options: passed on.
     """
 
@@ -66,6 +68,7 @@ class TeleopSettings:
     baud: int = 115200
     estop: bool = True
     driver_options: dict = field(default_factory=dict)
+    reach: ReachSettings = field(default_factory=ReachSettings)
 
 
 @dataclass
@@ -160,7 +163,7 @@ def run_teleop(settings: TeleopSettings, on_ready=None) -> TeleopRun:
 
         target = TeleopTarget(model, source, HandMapper(mapping), body, approach, q_start,
                               live=live, clutch_at_s=settings.clutch_at_s,
-                              on_pre_pose=place_wall)
+                              on_pre_pose=place_wall, reach=settings.reach)
         if on_ready is not None:
             on_ready(target)
         loop = ControlLoop(driver, build_pipeline(model, order), target, speed=settings.speed,
@@ -231,6 +234,7 @@ def summarise(settings, model, target: TeleopTarget, result: LoopResult, run_dir
                                for arm, e in target.world_errors_m.items() if e},
         "max_torso_tilt_deg": float(np.degrees(target.max_tilt_rad)),
         "ik_status_counts": {arm: h.ik_counts for arm, h in target.hands.items()},
+        "reach": target.reach_report(),
         "estop_events": [{"module": m, "t_s": t, "kind": k, "sources": list(s)}
                          for m, t, k, s in result.safety_events if k in ("stop", "release")],
         "status_counts": result.status_counts,
