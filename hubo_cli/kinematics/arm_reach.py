@@ -30,10 +30,12 @@ class ReachSettings:
         orientation_weight_m_per_rad: how many metres of position error one radian of
             orientation error is worth in the nearest pose (small = position first).
         iterations: damped least-squares steps per IK call at most.
-        singular_margin: how far inside its branch the arm stays: |sin theta4| (elbow),
-            |cos theta5| (wrist yaw) and |cos theta2| (shoulder roll) at least this much, i.e.
-            the elbow 14 deg from straight (about 3 mm of reach) and the wrist yaw and shoulder
-            roll 14 deg from +-90 deg, where the arm is singular.
+        elbow_margin: |sin theta4| stays at least this: the elbow 6 deg from straight (0.4 mm
+            of reach), where the arm is singular.
+        roll_margin: |cos theta5| (wrist yaw) and |cos theta2| (shoulder roll) stay at least
+            this: 24 deg from +-90 deg, where the arm is singular too. Near there a small
+            change of the hand's orientation turns the shoulder yaw and the wrist yaw by large
+            opposite amounts; beyond the margin the orientation gives way instead.
         orientation_time_constant_s: the orientation goal is smoothed with this time constant
             (first order, on the rotation; 0 = off): the operator's involuntary wrist wobble
             (0.1-1 Hz) would otherwise make the shoulder and wrist joints oscillate faster than
@@ -47,7 +49,8 @@ class ReachSettings:
     mode: str = "nearest"
     orientation_weight_m_per_rad: float = 0.05
     iterations: int = 10
-    singular_margin: float = 0.1
+    elbow_margin: float = 0.1
+    roll_margin: float = 0.4
     orientation_time_constant_s: float = 1.0
     allow_branch_change: bool = False
     branch_move_fraction: float = 0.25
@@ -96,6 +99,8 @@ class ArmReach:
         self.settings = settings or ReachSettings()
         self.branch: int | None = None
         self._R_smooth: np.ndarray | None = None
+        self._margins = np.array([self.settings.elbow_margin, self.settings.roll_margin,
+                                  self.settings.roll_margin])
 
     def start(self, q_rad: np.ndarray) -> None:
         """Take the branch the arm is on now (call when the operator takes over)."""
@@ -135,7 +140,7 @@ class ArmReach:
         q = np.empty(6)
         status, pos, rot = choice.solve_limb_on_branch(
             np.ascontiguousarray(T_N_goal, dtype=float), limb.chain, limb.lengths_m,
-            lower, upper, q_prev, self.branch, self.settings.singular_margin, 1.0,
+            lower, upper, q_prev, self.branch, self._margins, 1.0,
             self.settings.orientation_weight_m_per_rad, self.settings.iterations, q)
         return IKResult(q, choice.STATUS_NAMES[status], pos, rot)
 

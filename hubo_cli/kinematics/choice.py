@@ -171,12 +171,12 @@ def solve_limb_batch(T_goals, chain, lengths, is_arm, lower, upper, q_prevs, has
 
 
 @nb.njit(**JIT)
-def solve_limb_on_branch(T_goal, chain, lengths, lower, upper, q_prev, branch, margin, w_pos,
+def solve_limb_on_branch(T_goal, chain, lengths, lower, upper, q_prev, branch, margins, w_pos,
                          w_rot, iterations, q_out):
     """Solve an arm goal without leaving ``branch``; returns (status, position m, rotation rad).
 
-    EXACT: the closed form's candidate on the branch (within the limits and at least ``margin``
-    inside the branch, or no closer to its boundary than ``q_prev``; FK-verified; the one
+    EXACT: the closed form's candidate on the branch (within the limits and ``margins`` inside
+    the branch, or no closer to its boundary than ``q_prev``; FK-verified; the one
     closest to ``q_prev`` if two qualify). Otherwise NEAREST: at most
     ``iterations`` damped least-squares steps from ``q_prev`` (within the limits) toward the pose
     nearest to the goal on the branch, weighted by ``w_pos`` (1/m) and ``w_rot`` (m/rad).
@@ -188,7 +188,7 @@ def solve_limb_on_branch(T_goal, chain, lengths, lower, upper, q_prev, branch, m
     exact = np.zeros(8, dtype=np.bool_)
     _candidates_into(T_goal, chain, lengths, True, q_prev, cands, exact, work, lower, upper)
     box = np.empty((2, 6))
-    branch_box(q_prev, branch, margin, lower, upper, box[0], box[1])
+    branch_box(q_prev, branch, margins, lower, upper, box[0], box[1])
     best = -1
     best_d = np.inf
     for k in range(8):
@@ -205,6 +205,6 @@ def solve_limb_on_branch(T_goal, chain, lengths, lower, upper, q_prev, branch, m
         chain_fk(q_out, base, offset, alpha, a, d, end, T)
         pos, rot = pose_error(T, T_goal)
         return EXACT, pos, rot
-    pos, rot, _ = nearest_on_branch(T_goal, chain, lower, upper, q_prev, branch, margin, w_pos,
+    pos, rot, _ = nearest_on_branch(T_goal, chain, lower, upper, q_prev, branch, margins, w_pos,
                                     w_rot, iterations, q_out)
     return NEAREST, pos, rot

@@ -15,9 +15,10 @@ the previous period's joints, the result moves continuously with the goal.
 The branch of a joint vector is the closed form's candidate index (:mod:`.arm_ik`): bit 2 set
 when sin(theta4) < 0, bit 1 when cos(theta5) < 0, bit 0 when cos(theta2) < 0 (the signs of the
 three square roots). A quantity within ``BRANCH_EPS`` of zero sits on the boundary between two
-branches and matches both. The boundaries are the arm's singular configurations (elbow straight,
-wrist yaw or shoulder roll at +-90 deg), so the search also keeps a margin from them: each of
-the three quantities stays at least ``margin`` inside its branch. Each depends on one joint
+branches and matches both. The boundaries are the arm's singular configurations (det J is
+proportional to sin^2(theta4) cos(theta5) cos(theta2): elbow straight, wrist yaw or shoulder
+roll at +-90 deg), so the search also keeps margins from them: |sin theta4|, |cos theta5| and
+|cos theta2| stay at least ``margins[0..2]`` inside the branch. Each depends on one joint
 only, so the branch's interior is a box of joint intervals (:func:`branch_box`), which the
 search treats like the joint limits; a joint already closer to a boundary is not moved closer.
 
@@ -64,20 +65,21 @@ def on_branch(q, branch):
 
 
 @nb.njit(**JIT)
-def branch_box(q, branch, margin, lower, upper, lo_out, hi_out):
-    """Joint intervals (lo_out, hi_out) that keep q's branch with ``margin``, within the limits.
+def branch_box(q, branch, margins, lower, upper, lo_out, hi_out):
+    """Joint intervals (lo_out, hi_out) that keep q's branch with ``margins``, within the limits.
 
-    sin(theta4), cos(theta5), cos(theta2) keep their branch signs with magnitude >= margin:
-    each is an interval of half-width acos(margin) around its branch's centre angle (the one
-    nearest the joint's value), widened to include the joint if it is already inside the margin.
+    sin(theta4), cos(theta5), cos(theta2) keep their branch signs with magnitudes at least
+    margins[0], margins[1], margins[2]: each is an interval of half-width acos(margin) around
+    its branch's centre angle (the one nearest the joint's value), widened to include the joint
+    if it is already inside the margin.
     """
     for j in range(6):
         lo_out[j] = lower[j]
         hi_out[j] = upper[j]
     if branch < 0:
         return
-    half = math.acos(min(max(margin, 0.0), 1.0))
-    for j in (3, 4, 1):
+    for m, j in enumerate((3, 4, 1)):
+        half = math.acos(min(max(margins[m], 0.0), 1.0))
         if j == 3:  # sin(theta4) = cos(theta4 - pi/2)
             centre = -0.5 * math.pi if branch & 4 else 0.5 * math.pi
         elif j == 4:
@@ -244,7 +246,7 @@ def _dls_step(J, e, free, w_pos, w_rot, dq):
 
 
 @nb.njit(**JIT)
-def nearest_on_branch(T_goal, chain, lower, upper, q_start, branch, margin, w_pos, w_rot,
+def nearest_on_branch(T_goal, chain, lower, upper, q_start, branch, margins, w_pos, w_rot,
                       iterations, q_out):
     """Move from ``q_start`` toward the pose nearest to ``T_goal`` on ``branch``.
 
@@ -254,7 +256,7 @@ def nearest_on_branch(T_goal, chain, lower, upper, q_start, branch, margin, w_po
         lower, upper: joint limits (6,), rad; the result stays within them.
         q_start: where the search starts (the current joints), rad, within the limits.
         branch: the branch to stay on (0..7), or -1 for none.
-        margin: how far inside the branch to stay (see :func:`branch_box`).
+        margins: how far inside the branch to stay (3,), see :func:`branch_box`.
         w_pos: weight of the position error (1/m).
         w_rot: weight of the orientation error (m/rad per 1/m of w_pos).
         iterations: the most damped least-squares steps to take.
@@ -275,7 +277,7 @@ def nearest_on_branch(T_goal, chain, lower, upper, q_start, branch, margin, w_po
     hi = np.empty(6)
     for j in range(6):
         q_out[j] = min(max(q_start[j], lower[j]), upper[j])
-    branch_box(q_out, branch, margin, lower, upper, lo, hi)
+    branch_box(q_out, branch, margins, lower, upper, lo, hi)
     jacobian(q_out, base, offset, alpha, a, d, end, T, J)
     cost = _cost(T, T_goal, w_pos, w_rot, e)
     steps = 0
