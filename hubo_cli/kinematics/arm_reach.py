@@ -50,7 +50,7 @@ class ReachSettings:
     orientation_weight_m_per_rad: float = 0.05
     iterations: int = 10
     elbow_margin: float = 0.1
-    roll_margin: float = 0.4
+    roll_margin: float = 0.55
     orientation_time_constant_s: float = 1.0
     allow_branch_change: bool = False
     branch_move_fraction: float = 0.25
