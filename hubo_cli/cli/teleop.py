@@ -10,7 +10,8 @@ from rich.table import Table
 from hubo_cli.cli.output import console, err_console, interactive, print_json
 from hubo_cli.errors import InputError
 
-KEYS_HELP = "keys: space e-stop, r release, c re-centre (clutch), q quit"
+KEYS_HELP = "keys: space e-stop, r release, c re-centre (clutch), b change branch, q quit"
+DIRECTIONS = (("fwd", "back"), ("left", "right"), ("up", "down"))  # +/- x, y, z of the stance
 
 
 def _speed(text: str) -> float | None:
@@ -39,10 +40,32 @@ def _station_map(pairs: tuple[str, ...]) -> dict[int, str] | None:
     return out
 
 
+def _direction(v) -> str:
+    """Words for a direction in the stance frame, e.g. ``fwd-down`` (components over 35 %)."""
+    unit = np.asarray(v, dtype=float) / max(float(np.linalg.norm(v)), 1e-12)
+    words = [DIRECTIONS[i][0 if unit[i] > 0 else 1] for i in range(3) if abs(unit[i]) > 0.35]
+    return "-".join(words)
+
+
+def _reach_cell(hand) -> str:
+    """The reach column: branch moves, the reach limit (missing part), slowing near singular."""
+    if hand.branch_move is not None or hand.notice.startswith("no other"):
+        return f"[cyan]{hand.notice}[/]"
+    if hand.at_limit:
+        missing = hand.missing_m
+        return (f"[yellow]at reach limit: {np.linalg.norm(missing) * 1000:.0f} mm "
+                f"{_direction(missing)}[/]")
+    if hand.speed_scale < 1.0:
+        return f"[yellow]near singular: {hand.speed_scale:.0%} speed[/]"
+    return "ok"
+
+
 def _view(target) -> Table:
-    """The live view: per hand goal, actual, error, IK status; phase, input and latency."""
+    """The live view: per hand goal, actual, position and orientation errors, IK status, reach
+    (limit and direction of the missing part, branch changes, slowing); phase, input, latency."""
     table = Table(title=f"hubo teleop — {target.phase}   ({KEYS_HELP})", title_justify="left")
-    for column in ("hand", "goal (mm)", "actual (mm)", "error (mm)", "IK", "input"):
+    for column in ("hand", "goal (mm)", "actual (mm)", "pos err (mm)", "rot err (deg)", "IK",
+                   "reach", "input"):
         table.add_column(column)
 
     def mm(p):
@@ -51,8 +74,9 @@ def _view(target) -> Table:
     for arm, hand in target.hands.items():
         error = (np.linalg.norm(hand.goal_m - hand.actual_m) * 1000
                  if hand.goal_m is not None and hand.actual_m is not None else float("nan"))
-        table.add_row(arm, mm(hand.goal_m), mm(hand.actual_m), f"{error:.1f}", hand.ik_status,
-                      "[red]stale[/]" if hand.stale else "ok")
+        table.add_row(arm, mm(hand.goal_m), mm(hand.actual_m), f"{error:.1f}",
+                      f"{np.degrees(hand.rotation_error_rad):.1f}", hand.ik_status,
+                      _reach_cell(hand), "[red]stale[/]" if hand.stale else "ok")
     latency = target.latencies_s[-1] * 1000 if target.latencies_s else float("nan")
     table.caption = (f"samples {target.samples_used}  rejected {target.mapper.rejected}  "
                      f"latency {latency:.1f} ms")
@@ -81,13 +105,25 @@ def _view(target) -> Table:
               help="Re-centre at these replay times (as the c key does live).")
 @click.option("--duration", type=float, default=None, metavar="SECONDS",
               help="Stop after this long (live mode; default: until q or Ctrl-C).")
+@click.option("--reach", "reach_mode", type=click.Choice(["nearest", "paper"]), default="nearest",
+              show_default=True,
+              help="Out of reach: nearest = stay on the IK branch, go to the nearest reachable "
+                   "pose (position first); paper = the paper's 5 cm rule (may switch branch).")
+@click.option("--orientation-weight", type=float, default=0.87, show_default=True,
+              metavar="MM_PER_DEG",
+              help="Nearest pose: millimetres of position error one degree of orientation "
+                   "error is worth (small = position first).")
+@click.option("--allow-branch-change", is_flag=True,
+              help="Change IK branch by itself (slowly, announced) when a hand rests at its "
+                   "reach limit and another branch reaches the goal; otherwise only on key b.")
 @click.option("--no-estop", is_flag=True, help="Run without the emergency stoppers.")
 @click.option("--gui", is_flag=True, help="Open the PyBullet window.")
 @click.option("--out", type=click.Path(file_okay=False), default=None,
               help="Run folder (default runs/<time>-teleop).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, wall_distance,
-           clutch_at, duration, no_estop, gui, out, as_json) -> None:
+           clutch_at, duration, reach_mode, orientation_weight, allow_branch_change, no_estop,
+           gui, out, as_json) -> None:
     """Drive the robot's hands from an operator's FASTRAK stream.
 
     Exactly one of --replay FILE or --port DEV. The first sample of each station calibrates it:
@@ -98,6 +134,7 @@ def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, w
               hubo teleop --port /dev/ttyUSB0
     """
     from hubo_cli.cli.keys import KeyReader
+    from hubo_cli.kinematics.arm_reach import ReachSettings
     from hubo_cli.teleop.session import TeleopSettings, run_teleop
 
     if (replay is None) == (port is None):
@@ -109,7 +146,9 @@ def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, w
         wall_distance_m=None if wall_distance is None else wall_distance / 1000.0,
         duration_s=duration, clutch_at_s=tuple(clutch_at), out=out, gui=gui, baud=baud,
         estop=not no_estop, driver_options={"armed": True} if armed and driver == "hardware"
-        else {})
+        else {}, reach=ReachSettings(
+            mode=reach_mode, orientation_weight_m_per_rad=orientation_weight / 1000 * 180 / np.pi,
+            allow_branch_change=allow_branch_change))
     state = {"live": None, "keys": None}
 
     def on_key(char: str) -> None:
@@ -120,6 +159,8 @@ def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, w
             target.keys.release = True
         elif char == "c":
             target.keys.clutch = True
+        elif char == "b":
+            target.keys.branch = True
         elif char in ("q", "\x1b"):
             target.keys.quit = True
 
@@ -149,6 +190,13 @@ def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, w
                            for arm, v in summary["rms_error_mm"].items()) or "no operator input"
         console.print(f"teleop {summary['ended']} after {summary['duration_s']:.1f} s "
                       f"({summary['periods']} periods): {errors}")
+        for arm, r in summary["reach"].items():
+            if r["position_rms_mm"] is not None:
+                console.print(f"  {arm}: position {r['position_rms_mm']:.1f} mm rms, orientation "
+                              f"{r['orientation_rms_deg']:.1f} deg rms, at reach limit "
+                              f"{r['at_limit_s']:.1f} s, largest excursion "
+                              f"{r['max_excursion_mm']:.0f} mm, branch changes "
+                              f"{r['branch_changes']}")
         console.print(f"  e-stops {len(summary['estop_events'])}, statuses "
                       f"{summary['status_counts']}, max velocity "
                       f"{summary['max_joint_velocity_ratio']:.0%} of limit")
