@@ -157,6 +157,7 @@ class TeleopTarget:
         self.rotation_errors_rad: dict[str, list[float]] = {arm: [] for arm in self.arms}
         self.path_times_s: dict[str, list[float]] = {arm: [] for arm in self.arms}
         self._t_solved_s: dict[str, float] = {}
+        self._q_measured = self.q_target.copy()
         self.phase = "approach"
         self.t_operate_s: float | None = None
         self.t_settle_s: float | None = None
@@ -206,6 +207,7 @@ class TeleopTarget:
         info: dict = {}
         flags: list[str] = []
         keys = self.keys.take()
+        self._q_measured = state.q_rad
         if keys.estop:
             info["estop"] = "operator"
         if keys.release:
@@ -217,6 +219,8 @@ class TeleopTarget:
         elif self.phase == "operate":
             flags += self._operate(t_s, keys.clutch, keys.branch)
         if self.phase == "settle":
+            if self.reach_settings.mode == "nearest" and self._converging():
+                self._solve_on_branches(t_s, self.body.lift_of(self.q_target), False)
             moving = np.max(np.abs(state.dq_rad_s)) if len(state.dq_rad_s) else 0.0
             at_goal = np.max(np.abs(state.q_rad - self.q_target)) < 0.02
             if (t_s - self.t_settle_s >= self.settle_s and moving < 0.02 and at_goal) or (
@@ -289,9 +293,8 @@ class TeleopTarget:
                 if self.hands[arm].stale:
                     flags.append("stale-input")
         lift = self.lift.step(self.body.lift_for(self.goals), self.dt_guard_s)
-        moving = any(h.branch_move is not None or h.at_limit or h.speed_scale < 1.0
-                     for h in self.hands.values())
-        if changed or moving or branch_key or lift != self.body.lift_of(self.q_target):
+        if changed or self._converging() or branch_key or lift != self.body.lift_of(
+                self.q_target):
             if self.reach_settings.mode == "paper":
                 solved = self.body.solve(self.goals, self.q_target, lift_m=lift)
                 self.q_target = solved.q_rad
@@ -302,6 +305,11 @@ class TeleopTarget:
             self.phase = "settle"
             self.t_settle_s = t_s
         return flags
+
+    def _converging(self) -> bool:
+        """An arm target is still on its way (nearest-pose search, slowed step, branch move)."""
+        return any(h.branch_move is not None or h.at_limit or h.speed_scale < 1.0
+                   for h in self.hands.values())
 
     def _solve_on_branches(self, t_s: float, lift_m: float, branch_key: bool) -> None:
         """Legs to the lift, each arm on its branch (nearest pose, branch moves, speed scale)."""
@@ -359,7 +367,10 @@ class TeleopTarget:
         return q_move
 
     def _speed_scaled(self, arm: str, q_now, q_next, hand: HandTrack | None) -> np.ndarray:
-        """Limit the arm's step near a singular configuration (uniform, direction kept)."""
+        """Slow the arm near a singular configuration: its target moves at most ``scale`` times
+        the speed limits (uniformly, direction kept) and leads the measured joints by at most
+        the distance from which the trajectory generator, accelerating at its limit, reaches
+        that speed, so the joints themselves stay below it."""
         limb = self.reach[arm].limb
         scale = self.singularity.scale(condition_number(limb, q_now),
                                        condition_number(limb, q_next))
@@ -367,10 +378,13 @@ class TeleopTarget:
             hand.speed_scale = scale
         if scale >= 1.0:
             return q_next
+        spec = limb.spec
         step = q_next - q_now
-        allowed = scale * limb.spec.velocity_rad_s * self.dt_guard_s
-        biggest = np.max(np.abs(step) / allowed)
-        return q_now + step / biggest if biggest > 1.0 else q_next
+        biggest = np.max(np.abs(step) / (scale * spec.velocity_rad_s * self.dt_guard_s))
+        q = q_now + step / biggest if biggest > 1.0 else q_next
+        q_measured = self._q_measured[self.slices[arm]]
+        lead = (scale * spec.velocity_rad_s) ** 2 / (2 * spec.acceleration_rad_s2)
+        return np.clip(q, q_measured - lead, q_measured + lead)
 
     def reach_report(self) -> dict[str, dict]:
         """Per hand, while operating: position and orientation RMS, time at the reach limit,
