@@ -40,6 +40,7 @@ from hubo_cli.kinematics.choice import STATUS_NAMES
 from hubo_cli.kinematics.conditioning import SingularityScale, condition_number
 from hubo_cli.kinematics.dh import pose_error
 from hubo_cli.kinematics.interpolate import PosePath
+from hubo_cli.kinematics.reach import branch_of
 from hubo_cli.kinematics.wholebody import LiftFilter, WholeBody
 from hubo_cli.model import ARMS, RobotModel
 from hubo_cli.teleop.mapping import HandMapper
@@ -70,6 +71,7 @@ class HandTrack:
     at_limit_periods: int = 0
     rest_anchor_m: np.ndarray | None = None
     rest_since_s: float = 0.0
+    last_branch: int | None = None
 
     @property
     def at_limit(self) -> bool:
@@ -199,8 +201,14 @@ class TeleopTarget:
     def _record_ik(self, solved) -> None:
         for arm, result in solved.arms.items():
             if arm in self.hands:
-                self.hands[arm].ik_status = result.status
-                self.hands[arm].ik_counts[result.status] += 1
+                hand = self.hands[arm]
+                hand.ik_status = result.status
+                hand.ik_counts[result.status] += 1
+                if self.phase == "operate":  # the paper's rule: count the branch switches
+                    branch = int(branch_of(result.q_rad))
+                    if hand.last_branch is not None and branch != hand.last_branch:
+                        hand.branch_changes += 1
+                    hand.last_branch = branch
 
     # ------------------------------------------------------------------ the loop's call
     def __call__(self, t_s: float, state) -> tuple[np.ndarray | None, dict]:
