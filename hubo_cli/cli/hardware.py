@@ -3,6 +3,8 @@ options shared by ``hubo task`` and ``hubo teleop``."""
 
 from __future__ import annotations
 
+import signal
+
 import click
 
 from hubo_cli.cli.output import err_console, print_json
@@ -104,10 +106,14 @@ def fake_daemon(ach_ref: str, ach_state: str, duration: float | None, posture: s
         created = ", ".join(daemon.created) or "none (they existed)"
         err_console.print(f"fake hubo-daemon: reading {ach_ref}, publishing {ach_state} at "
                           f"200 Hz; channels created: {created}. Ctrl-C stops.")
+        # Ctrl-C, SIGTERM (kill, systemd) and SIGHUP end the loop; the channels are removed
+        signals = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+        previous = {sig: signal.signal(sig, lambda *_: daemon.request_stop()) for sig in signals}
         try:
             daemon.run(duration)
-        except KeyboardInterrupt:
-            pass
+        finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
         stats = daemon.stats
     summary = {"periods": stats.periods, "ref_frames": stats.ref_frames,
                "frame_sizes": stats.frame_sizes, "missed_ref_frames": stats.missed_ref_frames,

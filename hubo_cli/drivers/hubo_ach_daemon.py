@@ -134,6 +134,10 @@ class FakeHuboDaemon:
         self._publish((self._filtered - previous) / self.period_s)
         self.stats.periods += 1
 
+    def request_stop(self) -> None:
+        """Ask the loop to end after the current period (safe from a signal handler)."""
+        self._stop.set()
+
     def stop(self) -> None:
         """Stop the loop thread (if any) and wait for it."""
         self._stop.set()
