@@ -65,9 +65,10 @@ def run_options(function):
                      help="Run folder (default runs/<time>-task-<name>)."),
         click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON."),
     ]
+    function = hardware_options(function)  # listed after the others
     for option in reversed(options):
         function = option(function)
-    return hardware_options(function)
+    return function
 
 
 def _overrides(sets: tuple[str, ...], named: dict | None = None) -> dict:
