@@ -190,3 +190,16 @@ def test_without_libach_the_ach_sink_says_what_to_install(tmp_path, monkeypatch)
     assert info.value.exit_code == 3
     assert "golems/ach" in info.value.hint and "HUBO_LIBACH" in info.value.hint
     driver.close()
+
+
+def test_a_library_that_is_not_libach_is_refused(monkeypatch):
+    import ctypes.util
+
+    libm = ctypes.util.find_library("m")
+    if libm is None:
+        pytest.skip("no libm to stand for a wrong library")
+    monkeypatch.setenv("HUBO_LIBACH", libm)
+    from hubo_cli.drivers.ach import LibachMissing, load_libach
+
+    with pytest.raises(LibachMissing, match="not libach"):
+        load_libach()

@@ -155,15 +155,29 @@ class StateFrame:
     ref_wait: bool = False
 
 
+def _doubles(data: bytes, offset: int, count: int, stride: int = 8) -> np.ndarray:
+    """``count`` little-endian doubles from ``offset``, ``stride`` bytes apart (a copy)."""
+    return np.ndarray((count,), "<f8", data, offset, (stride,)).copy()
+
+
+_IMU_OFFSET = HuboState.imu.offset + IMU_BODY * ctypes.sizeof(HuboImu)
+_JOINT_STRIDE = ctypes.sizeof(HuboJointState)
+
+
 def decode_state(data: bytes) -> StateFrame:
     """Unpack one ``hubo_state`` frame; refuses any size but ``sizeof(hubo_state_t)``."""
     if len(data) != STATE_SIZE:
         raise ValueError(f"a hubo_state frame is {STATE_SIZE} bytes, got {len(data)}")
-    s = np.frombuffer(data, dtype=STATE_DTYPE)[0]
-    imu = np.array([s["imu"][IMU_BODY][f] for f in IMU_FIELDS])
-    ft = np.array([[s["ft"][k][f] for f in FT_FIELDS] for k in range(FT_COUNT)])
-    return StateFrame(float(s["time"]), imu[:3], imu[3:], ft, s["joint"]["pos"].copy(),
-                      s["joint"]["vel"].copy(), bool(s["refWait"]))
+    imu = _doubles(data, _IMU_OFFSET, 6)
+    joint = HuboState.joint.offset
+    ref_wait = int.from_bytes(data[HuboState.refWait.offset:][:2], "little", signed=True)
+    return StateFrame(float(_doubles(data, HuboState.time.offset, 1)[0]), imu[:3], imu[3:],
+                      _doubles(data, HuboState.ft.offset, 3 * FT_COUNT).reshape(FT_COUNT, 3),
+                      _doubles(data, joint + HuboJointState.pos.offset, JOINT_COUNT,
+                               _JOINT_STRIDE),
+                      _doubles(data, joint + HuboJointState.vel.offset, JOINT_COUNT,
+                               _JOINT_STRIDE),
+                      bool(ref_wait))
 
 
 def encode_state(frame: StateFrame) -> bytes:
