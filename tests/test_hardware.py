@@ -178,7 +178,9 @@ def test_bad_options_are_refused(tmp_path):
 
 
 def test_the_run_folder_holds_the_file_sink(tmp_path):
-    options = HardwareDriver.run_options(tmp_path)
+    from hubo_cli.drivers.base import RunContext
+
+    options = HardwareDriver.run_options(RunContext(tmp_path, {"right": "drill"}))
     assert options == {"sink_path": tmp_path / "hubo-ref.bin"}
 
 

@@ -123,7 +123,7 @@ def test_reference_filter_is_hubo_daemons():
 
 @pytest.mark.parametrize("tilt", [(0.0, 0.0, 0.0), (0.1, -0.05, 0.0), (-0.3, 0.2, 0.7)])
 def test_imu_tilt_becomes_a_quaternion_with_the_same_roll_and_pitch(tilt):
-    from hubo_cli.drivers.base import RobotState
+    from hubo_cli.state import RobotState
 
     quat = hubo_ach.quat_from_tilt(tilt)
     assert np.linalg.norm(quat) == pytest.approx(1.0, abs=1e-12)

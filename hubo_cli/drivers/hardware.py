@@ -48,7 +48,7 @@ import numpy as np
 
 from hubo_cli.drivers import checks, hubo_ach
 from hubo_cli.drivers.ach import load_libach
-from hubo_cli.drivers.base import FT_SENSORS, Driver, RobotState, register
+from hubo_cli.drivers.base import Driver, RunContext
 from hubo_cli.drivers.hubo_ach import JOINT_COUNT, RefFrame, StateFrame
 from hubo_cli.drivers.hubo_ach_io import (
     AchRefSink,
@@ -61,6 +61,7 @@ from hubo_cli.drivers.hubo_ach_io import (
 from hubo_cli.errors import ConfigError, DeviceError, SafetyError
 from hubo_cli.model import RobotModel
 from hubo_cli.posture import home_posture
+from hubo_cli.state import FT_SENSORS, RobotState
 
 SINKS = ("ach", "file", "fifo")
 MODE_FILTERED, MODE_DIRECT = hubo_ach.MODE_REF_FILTER, hubo_ach.MODE_REF
@@ -108,6 +109,7 @@ class HardwareDriver(Driver):
     """
 
     name = "hardware"
+    real_time = True
     log_columns = ("hw_ref_seq", "hw_state_time_s", "hw_state_age_periods")
 
     def __init__(self, model: RobotModel, armed: bool = False, sink: str = "ach",
@@ -162,9 +164,9 @@ class HardwareDriver(Driver):
         self._closed = False
 
     @classmethod
-    def run_options(cls, run_dir: Path) -> dict:
+    def run_options(cls, run: RunContext) -> dict:
         """The file sink's path in the run folder (used only by the ``file``/``fifo`` sinks)."""
-        return {"sink_path": Path(run_dir) / SINK_FILE_NAME}
+        return {"sink_path": Path(run.run_dir) / SINK_FILE_NAME}
 
     # ------------------------------------------------------------------ life cycle
     def start(self, q0_rad: np.ndarray | None = None) -> RobotState:
@@ -398,5 +400,3 @@ class HardwareDriver(Driver):
                           imu_quat_wxyz=hubo_ach.quat_from_tilt(frame.imu_tilt_rad),
                           imu_gyro_rad_s=frame.imu_rate_rad_s.copy(), ft=ft, flags=tuple(flags))
 
-
-register("hardware", HardwareDriver)
