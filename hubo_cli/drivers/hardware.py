@@ -33,10 +33,12 @@ Start-up and safety, enforced here whatever the layers above do:
   :attr:`fault_message`), never a crash. Malformed commands (wrong shape, unknown joint name)
   are the caller's error: refused with :class:`~hubo_cli.errors.ConfigError`, nothing sent.
 
-What a private frame header used to carry goes to the run log: the per-period numbers in
-:attr:`HardwareDriver.log_columns` (:meth:`HardwareDriver.log_values`) and the words in
-``RobotState.flags`` (``servo-off``, ``stopped`` for the final hold, ``fault``,
-``stale-state``, ``ref-wait`` while hubo-daemon does not apply references yet).
+``hubo_ref`` has no header, so what this driver's own frames used to carry (sequence, time,
+hold/servo-off/fault bits) is reported beside it: words in ``RobotState.flags``, which the run
+log records (``servo-off``, ``stopped`` for the final hold, ``fault``, ``stale-state``,
+``ref-wait`` while hubo-daemon does not apply references yet), and per-period numbers declared
+in :attr:`HardwareDriver.log_columns` with :meth:`HardwareDriver.log_values` (frames put, the
+daemon's clock, the state's age in periods).
 """
 
 from __future__ import annotations
