@@ -370,10 +370,10 @@ class HardwareDriver(Driver):
         self._take(frame)
 
     def _take(self, frame: StateFrame) -> None:
-        for values in (frame.pos_rad, frame.vel_rad_s, frame.imu_tilt_rad, frame.imu_rate_rad_s,
-                       frame.ft_mx_my_fz, [frame.time_s]):
-            if not np.all(np.isfinite(values)):
-                raise DeviceError(f"{self.ach_state} sent a non-finite value")
+        values = np.concatenate([frame.pos_rad, frame.vel_rad_s, frame.imu_tilt_rad,
+                                 frame.imu_rate_rad_s, frame.ft_mx_my_fz.ravel(), [frame.time_s]])
+        if not np.isfinite(values).all():
+            raise DeviceError(f"{self.ach_state} sent a non-finite value")
         self._stale = 0
         self._frame = frame
 
