@@ -7,6 +7,7 @@ from rich.live import Live
 from rich.progress_bar import ProgressBar
 from rich.table import Table
 
+from hubo_cli.cli.hardware import driver_options, hardware_options
 from hubo_cli.cli.output import NO_ESTOP_HELP, console, err_console, interactive, print_json
 from hubo_cli.drivers.registry import DRIVER_NAMES
 from hubo_cli.errors import HuboError, InputError, SafetyError
@@ -64,6 +65,7 @@ def run_options(function):
                      help="Run folder (default runs/<time>-task-<name>)."),
         click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON."),
     ]
+    function = hardware_options(function)  # listed after the others
     for option in reversed(options):
         function = option(function)
     return function
@@ -198,10 +200,11 @@ def _shortcut(name: str) -> click.Command:
 
 
 def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool, gui: bool,
-         out: str | None, as_json: bool) -> None:
+         out: str | None, as_json: bool, **hardware) -> None:
     from hubo_cli.tasks.runner import check_task, run_experiment, run_task
     from hubo_cli.tasks.spec import load_task
 
+    options = driver_options(driver, armed, **hardware)
     spec = load_task(name, overrides)
     ctx = click.get_current_context()
     if spec.experiment:
@@ -225,9 +228,7 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
 
     try:
         done = run_task(plan, driver=driver, out=out, gui=gui, estop=not no_estop,
-                        on_start=on_start,
-                        driver_options={"armed": True} if armed and driver == "hardware"
-                        else {})
+                        on_start=on_start, driver_options=options)
     finally:
         if "live" in state:
             state["live"].stop()
