@@ -98,7 +98,38 @@ def test_the_dry_run_writes_462_byte_frames_into_the_run_folder(tmp_path):
                   env={"HUBO_LIBACH": str(tmp_path / "missing-libach.so")})
     assert result.exit_code == 0, result.output
     frames = (run / "hubo-ref.bin").stat().st_size
-    assert frames % 462 == 0 and frames // 462 >= len(load_log(run)) - 1
+    log = load_log(run)
+    assert frames % 462 == 0 and frames // 462 >= len(log) - 1
+    # the driver's own numbers reach the log: one frame put per period
+    seq = log["hw_ref_seq"]
+    assert np.all(np.diff(seq[np.isfinite(seq)]) >= 0) and np.nanmax(seq) >= len(log) - 50
+
+
+def test_a_live_session_on_the_hardware_driver_runs_in_real_time(tmp_path):
+    """A live tracker on the hardware driver (dry run: frames into the run folder) for 10 s of
+    wall time writes 10 s of 200 Hz frames, within 2 %, never faster than real time."""
+    from hubo_cli.fastrak.emulator import make_emulator
+
+    emu = make_emulator(stations=1).start()
+    run = tmp_path / "run"
+    try:
+        started = time.perf_counter()
+        result = _run(["teleop", "--port", emu.port_name, "--driver", "hardware", "--dry-run",
+                       "--map", "1=right-arm", "--duration", "10", "--out", str(run),
+                       "--json"], env={"HUBO_LIBACH": str(tmp_path / "missing-libach.so")})
+        wall_s = time.perf_counter() - started
+    finally:
+        emu.close()
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.output)
+    assert summary["speed"] == 1.0
+    frames = (run / "hubo-ref.bin").stat().st_size // 462
+    loop_s = frames * MODEL.control_period_s
+    assert abs(loop_s - 10.0) <= 0.2 + 0.1  # the duration, plus the smooth stop's few periods
+    assert loop_s <= wall_s * 1.02  # never ahead of the wall clock
+    refused = _run(["teleop", "--port", "/dev/null", "--driver", "hardware", "--dry-run",
+                    "--speed", "4", "--out", str(tmp_path / "r2")])
+    assert refused.exit_code == 2 and "real time" in refused.output
 
 
 def _wait_for(path: Path, timeout_s: float = 20.0) -> None:
