@@ -88,8 +88,10 @@ def test_a_walk_out_of_reach_stops_at_the_boundary_and_comes_back(tmp_path):
         excursion = np.array([np.min(np.linalg.norm(goal[np.abs(t - ti) <= 1.0] - a, axis=1))
                               for ti, a in zip(t, actual, strict=True)])
         error = np.linalg.norm(goal - actual, axis=1)
-        parked = (beyond > 0.05) & (t >= t[np.argmax(goal[:, 0])])  # from the turn, still out
-        assert np.all(error[parked] - beyond[parked] < 0.010)  # at the boundary, not swinging
+        # from 1 s after the goal's turn (the arm slows near its straight elbow) while the goal
+        # is still well out of reach: parked at the boundary, not swinging
+        parked = (beyond > 0.05) & (t >= t[np.argmax(goal[:, 0])] + 1.0)
+        assert parked.sum() > 100 and np.all(error[parked] - beyond[parked] < 0.010)
         # after the goal comes back in, the elbow (at most 1 rad/s, 0.8 rad/s^2) lags the exact
         # path out of the stretched arm by up to ~25 mm more than the goal's own excursion
         assert np.max(excursion - beyond) <= 0.035, np.max(excursion - beyond)

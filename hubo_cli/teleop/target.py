@@ -34,6 +34,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from hubo_cli.control.target import Target
+from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.fastrak.source import PoseSource
 from hubo_cli.kinematics.arm_reach import ArmReach, BranchMove, ReachSettings
 from hubo_cli.kinematics.choice import STATUS_NAMES
@@ -43,6 +45,7 @@ from hubo_cli.kinematics.interpolate import PosePath
 from hubo_cli.kinematics.reach import branch_of
 from hubo_cli.kinematics.wholebody import LiftFilter, WholeBody
 from hubo_cli.model import ARMS, RobotModel
+from hubo_cli.scene import WallPlacement
 from hubo_cli.teleop.mapping import HandMapper
 
 PHASES = ("approach", "operate", "settle")
@@ -96,7 +99,7 @@ class Keys:
         return pending
 
 
-class TeleopTarget:
+class TeleopTarget(Target):
     """Target source for :class:`hubo_cli.control.loop.ControlLoop`.
 
     Args:
@@ -112,9 +115,9 @@ class TeleopTarget:
         settle_s: after a replay ends, how long the robot may take to come to rest.
         approach_timeout_s: each approach step waits at most this long for the robot to settle.
         clutch_at_s: replay times (s) at which to re-centre (as if ``c`` was pressed).
-        on_pre_pose: called once the robot is still at the approach's first pose (the session
-            places the wall then: the robot raises its tool away from the wall, as an operator
-            would bring it up to the wall with the tool ready).
+        wall: placed once the robot is still at the approach's first pose (drill mode: the
+            robot raises its tool away from the wall, as an operator would bring it up to the
+            wall with the tool ready); in a simulator only.
         reach: how the arms behave at the edge of their reach (branch, nearest pose, paper).
         singularity: the speed scale near singular configurations (``reach="nearest"`` only).
     """
@@ -123,7 +126,7 @@ class TeleopTarget:
                  body: WholeBody, approach: dict[str, PosePath], q_start_rad: np.ndarray,
                  *, live: bool = False, stale_timeout_s: float = 0.25, settle_s: float = 1.0,
                  approach_timeout_s: float = 5.0, clutch_at_s: tuple[float, ...] = (),
-                 on_pre_pose=None, reach: ReachSettings | None = None,
+                 wall: WallPlacement | None = None, reach: ReachSettings | None = None,
                  singularity: SingularityScale | None = None) -> None:
         self.model = model
         self.source = source
@@ -150,7 +153,9 @@ class TeleopTarget:
         self.approach = approach
         self.approach_s = max((p.duration_s for p in approach.values()), default=0.0)
         self.t_path_s: float | None = None
-        self.on_pre_pose = on_pre_pose
+        self.wall = wall
+        self.world: SimulatedWorld | None = None
+        self.scene: dict = {}
         self.goals: dict[str, np.ndarray] = dict(firsts)
         self.hands = {arm: HandTrack() for arm in self.arms}
         self.reach_settings = reach or ReachSettings()
@@ -175,8 +180,10 @@ class TeleopTarget:
             f"{c}_{SHORT[a]}" for a in self.arms
             for c in ("goal_x_m", "goal_y_m", "goal_z_m", "actual_x_m", "actual_y_m",
                       "actual_z_m", "error_m", "ik_code", "rot_error_rad", "reach_limit_m",
-                      "speed_scale")) + ("phase_code", "lift_m",
-                                                             "latency_s")
+                      "speed_scale")) + ("phase_code", "lift_m", "latency_s")
+
+    def attach(self, world: SimulatedWorld | None, modules) -> None:
+        self.world = world
 
     # ------------------------------------------------------------------ measurement
     def hand_pose_measured(self, arm: str, state) -> np.ndarray:
@@ -248,8 +255,8 @@ class TeleopTarget:
             self.q_target = self.q_pre
             if self._settled(state) or t_s >= self.approach_timeout_s:
                 self.t_path_s = t_s
-                if self.on_pre_pose is not None:
-                    self.on_pre_pose()
+                if self.world is not None and self.wall is not None:
+                    self.scene = self.wall.place(self.world)
             return
         t_path = t_s - self.t_path_s
         if t_path <= self.approach_s + self.dt_guard_s:  # step 2: the Cartesian paths
@@ -309,7 +316,7 @@ class TeleopTarget:
                 self._record_ik(solved)
             else:
                 self._solve_on_branches(t_s, lift, branch_key)
-        if not self.live and getattr(self.source, "done", False):
+        if self.source.done:
             self.phase = "settle"
             self.t_settle_s = t_s
         return flags
@@ -377,8 +384,8 @@ class TeleopTarget:
     def _speed_scaled(self, arm: str, q_now, q_next, hand: HandTrack | None) -> np.ndarray:
         """Slow the arm near a singular configuration: its target moves at most ``scale`` times
         the speed limits (uniformly, direction kept) and leads the measured joints by at most
-        the distance from which the trajectory generator, accelerating at its limit, reaches
-        that speed, so the joints themselves stay below it."""
+        the distance in which the jerk-limited trajectory generator stops from that speed, so
+        the joints themselves stay near it."""
         limb = self.reach[arm].limb
         scale = self.singularity.scale(condition_number(limb, q_now),
                                        condition_number(limb, q_next))
@@ -391,7 +398,9 @@ class TeleopTarget:
         biggest = np.max(np.abs(step) / (scale * spec.velocity_rad_s * self.dt_guard_s))
         q = q_now + step / biggest if biggest > 1.0 else q_next
         q_measured = self._q_measured[self.slices[arm]]
-        lead = (scale * spec.velocity_rad_s) ** 2 / (2 * spec.acceleration_rad_s2)
+        speed = scale * spec.velocity_rad_s  # the generator stops from it within the lead:
+        lead = (speed**2 / (2 * spec.acceleration_rad_s2)
+                + speed * spec.acceleration_rad_s2 / (2 * spec.jerk_rad_s3))
         return np.clip(q, q_measured - lead, q_measured + lead)
 
     def reach_report(self) -> dict[str, dict]:
