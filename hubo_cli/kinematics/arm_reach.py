@@ -32,10 +32,12 @@ class ReachSettings:
         iterations: damped least-squares steps per IK call at most.
         elbow_margin: |sin theta4| stays at least this: the elbow 6 deg from straight (0.4 mm
             of reach), where the arm is singular.
-        roll_margin: |cos theta5| (wrist yaw) and |cos theta2| (shoulder roll) stay at least
-            this: 24 deg from +-90 deg, where the arm is singular too. Near there a small
-            change of the hand's orientation turns the shoulder yaw and the wrist yaw by large
-            opposite amounts; beyond the margin the orientation gives way instead.
+        wrist_margin: |cos theta5| stays at least this: the wrist yaw within 41 deg of zero,
+            49 deg from +-90 deg where the arm is singular. Near there a small change of the
+            hand's orientation turns the shoulder yaw and the wrist yaw by large opposite
+            amounts; beyond the margin the orientation gives way instead.
+        shoulder_margin: |cos theta2| stays at least this: the shoulder roll 33 deg from
+            +-90 deg (singular too).
         orientation_time_constant_s: the orientation goal is smoothed with this time constant
             (first order, on the rotation; 0 = off): the operator's involuntary wrist wobble
             (0.1-1 Hz) would otherwise make the shoulder and wrist joints oscillate faster than
@@ -50,7 +52,8 @@ class ReachSettings:
     orientation_weight_m_per_rad: float = 0.05
     iterations: int = 10
     elbow_margin: float = 0.1
-    roll_margin: float = 0.55
+    wrist_margin: float = 0.75
+    shoulder_margin: float = 0.55
     orientation_time_constant_s: float = 1.0
     allow_branch_change: bool = False
     branch_move_fraction: float = 0.25
@@ -99,8 +102,8 @@ class ArmReach:
         self.settings = settings or ReachSettings()
         self.branch: int | None = None
         self._R_smooth: np.ndarray | None = None
-        self._margins = np.array([self.settings.elbow_margin, self.settings.roll_margin,
-                                  self.settings.roll_margin])
+        self._margins = np.array([self.settings.elbow_margin, self.settings.wrist_margin,
+                                  self.settings.shoulder_margin])
 
     def start(self, q_rad: np.ndarray) -> None:
         """Take the branch the arm is on now (call when the operator takes over)."""
