@@ -156,9 +156,9 @@ def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, w
         wall_distance_m=None if wall_distance is None else wall_distance / 1000.0,
         duration_s=duration, clutch_at_s=tuple(clutch_at), out=out, gui=gui, baud=baud,
         estop=not no_estop, driver_options=driver_options(driver, armed, **hardware),
-        reach=ReachSettings(mode=reach_mode,
-                            orientation_weight_m_per_rad=orientation_weight / 1000 * 180 / np.pi,
-                            allow_branch_change=allow_branch_change))
+        reach=ReachSettings.for_mode(
+            mode, mode=reach_mode, allow_branch_change=allow_branch_change,
+            orientation_weight_m_per_rad=orientation_weight / 1000 * 180 / np.pi))
     state = {"live": None, "keys": None}
 
     def on_key(char: str) -> None:

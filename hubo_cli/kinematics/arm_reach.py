@@ -32,10 +32,12 @@ class ReachSettings:
         iterations: damped least-squares steps per IK call at most.
         elbow_margin: |sin theta4| stays at least this: the elbow 6 deg from straight (0.4 mm
             of reach), where the arm is singular.
-        wrist_margin: |cos theta5| stays at least this: the wrist yaw within 41 deg of zero,
-            49 deg from +-90 deg where the arm is singular. Near there a small change of the
-            hand's orientation turns the shoulder yaw and the wrist yaw by large opposite
-            amounts; beyond the margin the orientation gives way instead.
+        wrist_margin: |cos theta5| stays at least this: the wrist yaw 49 deg from +-90 deg,
+            where the arm is singular. Near there a small change of the hand's orientation
+            turns the shoulder yaw and the wrist yaw by large opposite amounts; beyond the
+            margin the orientation gives way instead. :meth:`for_mode` uses less for drill
+            mode (33 deg), whose fixed bit orientation puts the wrist yaw near its -2.5 rad
+            limit on the other wrist branch, and which has no wobble to amplify.
         shoulder_margin: |cos theta2| stays at least this: the shoulder roll 33 deg from
             +-90 deg (singular too).
         orientation_time_constant_s: the orientation goal is smoothed with this time constant
@@ -57,6 +59,13 @@ class ReachSettings:
     orientation_time_constant_s: float = 1.0
     allow_branch_change: bool = False
     branch_move_fraction: float = 0.25
+
+    @classmethod
+    def for_mode(cls, teleop_mode: str, **changes) -> ReachSettings:
+        """The settings for a teleoperation mode (``free`` or ``drill``), with changes."""
+        if teleop_mode == "drill":
+            changes = {"wrist_margin": 0.55, **changes}
+        return cls(**changes)
 
     def __post_init__(self) -> None:
         if self.mode not in REACH_MODES:

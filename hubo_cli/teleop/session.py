@@ -48,7 +48,7 @@ class TeleopSettings:
         duration_s: stop after this long (live mode; None = until q / Ctrl-C).
         clutch_at_s: replay times at which to re-centre.
         out: run folder (None: runs/<time>-teleop).
-        reach: how the arms behave at the edge of their reach (branch, nearest pose, paper).
+        reach: how the arms behave at the edge of their reach (None: the mode's defaults).
         gui, baud, estop, driver_options: passed on.
     """
 
@@ -67,7 +67,7 @@ class TeleopSettings:
     baud: int = 115200
     estop: bool = True
     driver_options: dict = field(default_factory=dict)
-    reach: ReachSettings = field(default_factory=ReachSettings)
+    reach: ReachSettings | None = None
 
 
 @dataclass

@@ -118,7 +118,8 @@ class TeleopTarget(Target):
         wall: placed once the robot is still at the approach's first pose (drill mode: the
             robot raises its tool away from the wall, as an operator would bring it up to the
             wall with the tool ready); in a simulator only.
-        reach: how the arms behave at the edge of their reach (branch, nearest pose, paper).
+        reach: how the arms behave at the edge of their reach (branch, nearest pose, paper);
+            None: the mapping mode's defaults (:meth:`ReachSettings.for_mode`).
         singularity: the speed scale near singular configurations (``reach="nearest"`` only).
     """
 
@@ -158,7 +159,7 @@ class TeleopTarget(Target):
         self.scene: dict = {}
         self.goals: dict[str, np.ndarray] = dict(firsts)
         self.hands = {arm: HandTrack() for arm in self.arms}
-        self.reach_settings = reach or ReachSettings()
+        self.reach_settings = reach or ReachSettings.for_mode(mapper.config.mode)
         self.reach = {arm: ArmReach(body.arms[arm], self.reach_settings) for arm in approach}
         self.singularity = singularity or SingularityScale()
         self.rotation_errors_rad: dict[str, list[float]] = {arm: [] for arm in self.arms}
