@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from hubo_cli.control.estop import EmergencyStopper
-from hubo_cli.control.log import load_log, max_velocity_ratio
+from hubo_cli.control.log import load_log, max_velocity_ratio, set_log_metadata
 from hubo_cli.control.loop import ControlLoop, LoopResult
 from hubo_cli.control.pipeline import DEFAULT_ORDER, build_pipeline, find_module
 from hubo_cli.drivers.base import make_driver
@@ -126,6 +126,7 @@ def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
         result = loop.run(plan.duration_s + 3 * SETTLE_TIMEOUT_S + 10.0)
         if hasattr(robot, "snapshot_png"):
             robot.snapshot_png(run_dir / "snapshot.png")
+            set_log_metadata(run_dir, "scene", robot.scene())
     summary = summarise(plan, model, target, result, stopper, run_dir, driver)
     summary["scene"] = placed
     write_json(run_dir / "summary.json", summary)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hubo_cli.control.log import load_log, max_velocity_ratio
+from hubo_cli.control.log import load_log, max_velocity_ratio, set_log_metadata
 from hubo_cli.control.loop import ControlLoop, LoopResult
 from hubo_cli.control.pipeline import DEFAULT_ORDER, build_pipeline
 from hubo_cli.drivers.base import make_driver
@@ -171,6 +171,7 @@ def run_teleop(settings: TeleopSettings, on_ready=None) -> TeleopRun:
         result = loop.run(duration)
         if hasattr(driver, "snapshot_png"):
             driver.snapshot_png(run_dir / "snapshot.png")
+            set_log_metadata(run_dir, "scene", driver.scene())
     summary = summarise(settings, model, target, result, run_dir, source, scene)
     write_json(run_dir / "summary.json", summary)
     return TeleopRun(run_dir, summary, result)
