@@ -13,7 +13,7 @@ $(STAMP): pyproject.toml
 	@touch $(STAMP)
 
 run: $(STAMP)
-	$(BIN)/hubo task cut-rectangle
+	$(BIN)/hubo task cut-rectangle --video
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

@@ -20,6 +20,8 @@ COMMANDS = {
     "sim": "hubo_cli.cli.sim:sim",
     "task": "hubo_cli.cli.task:task",
     "teleop": "hubo_cli.cli.teleop:teleop",
+    "replay": "hubo_cli.cli.replay:replay",
+    "export": "hubo_cli.cli.export:export",
 }
 
 

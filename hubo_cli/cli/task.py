@@ -63,6 +63,8 @@ def run_options(function):
         click.option("--out", type=click.Path(file_okay=False), default=None,
                      help="Run folder (default runs/<time>-task-<name>)."),
         click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON."),
+        click.option("--video", is_flag=True,
+                     help="After the run, render video.mp4 from its log (needs hubo-cli[viz])."),
     ]
     for option in reversed(options):
         function = option(function)
@@ -198,8 +200,12 @@ def _shortcut(name: str) -> click.Command:
 
 
 def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool, gui: bool,
-         out: str | None, as_json: bool) -> None:
+         out: str | None, as_json: bool, video: bool = False) -> None:
+    from hubo_cli.cli.replay import add_run_video, check_video_support
     from hubo_cli.tasks.runner import check_task, run_experiment, run_task
+
+    if video:
+        check_video_support()
     from hubo_cli.tasks.spec import load_task
 
     spec = load_task(name, overrides)
@@ -209,6 +215,8 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
             raise InputError(f"the {spec.name} experiment runs on the simulated robot only",
                              hint="leave out --driver")
         done = run_experiment(spec, out=out, gui=gui)
+        if video:
+            add_run_video(done.run_dir, done.summary)
         _finish(ctx, done, as_json, lambda: _print_push_wall(done.summary, done.run_dir))
         return
     plan = check_task(spec)
@@ -231,6 +239,8 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
     finally:
         if "live" in state:
             state["live"].stop()
+    if video:
+        add_run_video(done.run_dir, done.summary)
     _finish(ctx, done, as_json, lambda: _print_cut(done.summary, done.run_dir))
 
 

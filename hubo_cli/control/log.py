@@ -33,6 +33,7 @@ from __future__ import annotations
 import io
 import json
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -51,6 +52,14 @@ POSE_AXES = ("x_m", "y_m", "z_m", "roll_rad", "pitch_rad", "yaw_rad")
 HAND_ARMS = {"right_hand": "right-arm", "left_hand": "left-arm"}
 UNIT_LEGEND = ("units in column names: _s seconds, _us microseconds, _rad radians, _m metres, "
                "_nm newton metres, _deg degrees, _count count, _code enumeration, _flag 0/1")
+
+
+_INTEGER_TOKEN = re.compile(r"(?<=,)(-?\d+)(?=,|$)")
+
+
+def _as_floats(text: str) -> str:
+    """Comma-separated %g numbers with ``.0`` added to those that print as integers."""
+    return _INTEGER_TOKEN.sub(r"\1.0", "," + text)[1:]
 
 
 def pose_columns(frame: str) -> tuple[str, ...]:
@@ -121,7 +130,6 @@ class PeriodLog:
                         + tuple(f"cmd_{j}_rad" for j in joints)
                         + tuple(f"q_{j}_rad" for j in joints)
                         + pose_names + self.extra_columns)
-        self._head_fmt = "%d,%.9g,%d,%.6g,%.6g,%s"
         # joints with 15 significant digits, so that finite differences of the log (velocity,
         # acceleration) are exact to about 1e-9 rad/s^2; poses with 12 (sub-nanometre); the
         # other numbers with 9
@@ -175,8 +183,12 @@ class PeriodLog:
             else:
                 values += self._nan_extras
         flag_text = ";".join(sorted(flags))
-        line = (self._head_fmt % (period, t_s, int(status), compute_us, late_us, flag_text)
-                + "," + (self._body_fmt % tuple(values)) + "\n")
+        # every real-valued number carries a "." (or e/nan/inf), so that CSV readers that
+        # guess types from the first rows (polars, pandas) read its column as floats; the
+        # period count and the status code stay integers
+        line = (f"{period:d},{_as_floats('%.9g' % t_s)},{int(status):d},"
+                f"{_as_floats('%.6g,%.6g' % (compute_us, late_us))},{flag_text},"
+                f"{_as_floats(self._body_fmt % tuple(values))}\n")
         self._file.write(line)
         self._file.flush()
         self.rows += 1
@@ -193,8 +205,8 @@ class PeriodLog:
                    "parquet": self.parquet_path.name if self.parquet_path.exists() else None,
                    "units": UNIT_LEGEND, "status_codes": status_codes(),
                    "joint_names": list(self.joint_names), "rows": self.rows,
-                   "columns": list(self.columns), "metadata": self.metadata}
-        self.meta_path.write_text(json.dumps(_jsonable(sidecar), indent=1) + "\n")
+                   "columns": list(self.columns)}
+        _write_sidecar_json(self.meta_path, sidecar, self.metadata)
 
     def close(self) -> None:
         """Flush and close the CSV, write the Parquet copy and the sidecar; safe to call twice."""
@@ -217,8 +229,18 @@ def set_log_metadata(run_dir: str | Path, key: str, value) -> None:
     path = Path(run_dir)
     path = path / META_NAME if path.is_dir() else path.with_suffix(".json")
     sidecar = json.loads(path.read_text())
-    sidecar.setdefault("metadata", {})[str(key)] = _jsonable(value)
-    path.write_text(json.dumps(sidecar, indent=1) + "\n")
+    metadata = sidecar.pop("metadata", {})
+    metadata[str(key)] = _jsonable(value)
+    _write_sidecar_json(path, sidecar, metadata)
+
+
+def _write_sidecar_json(path: Path, head: dict, metadata: dict) -> None:
+    """The sidecar: its fixed part indented, the metadata (point lists) on one line each key."""
+    lines = json.dumps(_jsonable(head), indent=1)[:-2]  # without the closing "\n}"
+    items = ",\n".join(f"  {json.dumps(k)}: {json.dumps(_jsonable(v))}"
+                        for k, v in metadata.items())
+    body = f"{{\n{items}\n }}" if items else "{}"
+    path.write_text(f"{lines},\n \"metadata\": {body}\n}}\n")
 
 
 def _read_csv(path: Path):

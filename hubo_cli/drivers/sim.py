@@ -476,7 +476,7 @@ class SimDriver(Driver):
                     p.applyExternalForce(self._robot, link, self.cutting_force_n.tolist(),
                                          bit.tolist(), p.WORLD_FRAME, physicsClientId=cid)
                     self._cutting_point = bit
-                    if t_s >= self._t - 1e-12:  # the period's first physics step
+                    if t_s < self._t + 1e-12:  # the period's first physics step
                         self._cut_points.append((self._t, bit))
                     break
 
@@ -561,15 +561,15 @@ class SimDriver(Driver):
     def scene(self) -> dict:
         """What has been placed in the world, for the run's log metadata: ``walls`` (centre,
         orientation quaternion w x y z and size x y z of each box, m), ``tools`` per hand and
-        ``hole_world_m`` (where the drill bit crossed a wall, once per period, m) with
-        ``hole_t_s`` (when)."""
+        ``hole_world_m`` (where the drill bit crossed a wall, once per period, to the micrometre)
+        with ``hole_t_s`` (when)."""
         walls = [{"centre_world_m": [w.distance_m + w.thickness_m / 2, w.centre_y_m,
                                      w.height_m / 2], "quat_wxyz": [1.0, 0.0, 0.0, 0.0],
                   "size_m": [w.thickness_m, w.width_m, w.height_m]} for w in self._walls]
         return {"walls": walls, "tools": {"right-arm": "drill" if self.options.drill else "hand",
                                           "left-arm": "hand"},
-                "hole_world_m": [p.tolist() for _, p in self._cut_points],
-                "hole_t_s": [t for t, _ in self._cut_points]}
+                "hole_world_m": [np.round(p, 6).tolist() for _, p in self._cut_points],
+                "hole_t_s": [round(t, 6) for t, _ in self._cut_points]}
 
     def snapshot_png(self, path: str | Path, width: int = 640, height: int = 480) -> Path:
         """Render the scene headless from the video's camera (bit and hole marked) as a PNG."""

@@ -39,24 +39,29 @@ def _pose(position, quat_xyzw) -> np.ndarray:
     return T
 
 
-def _quat_xyzw(R: np.ndarray) -> list[float]:
-    """Unit quaternion (x, y, z, w) of a rotation matrix (Shepperd's method)."""
-    m = R
-    trace = m[0, 0] + m[1, 1] + m[2, 2]
-    if trace > 0:
-        s = 2.0 * np.sqrt(trace + 1.0)
-        q = [(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s]
-    else:
-        i = int(np.argmax(np.diag(m)))
-        j, k = (i + 1) % 3, (i + 2) % 3
-        s = 2.0 * np.sqrt(1.0 + m[i, i] - m[j, j] - m[k, k])
-        v = [0.0, 0.0, 0.0]
-        v[i] = 0.25 * s
-        v[j] = (m[j, i] + m[i, j]) / s
-        v[k] = (m[k, i] + m[i, k]) / s
-        q = [*v, (m[k, j] - m[j, k]) / s]
-    q = np.asarray(q) / np.linalg.norm(q)
-    return q.tolist()
+def quat_xyzw(R: np.ndarray) -> np.ndarray:
+    """Unit quaternions (x, y, z, w) of rotation matrices (3 x 3 or N x 3 x 3), w >= 0."""
+    R = np.asarray(R, dtype=float)
+    single = R.ndim == 2
+    R = R.reshape(-1, 3, 3)
+    m00, m11, m22 = R[:, 0, 0], R[:, 1, 1], R[:, 2, 2]
+    # the four candidates' magnitudes; take the largest for accuracy (Shepperd's method)
+    mags = np.stack([1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22,
+                     1 + m00 + m11 + m22], axis=1)
+    best = np.argmax(mags, axis=1)
+    s = 2.0 * np.sqrt(np.maximum(mags[np.arange(len(R)), best], 1e-300))
+    a = R[:, 2, 1] - R[:, 1, 2]
+    b = R[:, 0, 2] - R[:, 2, 0]
+    c = R[:, 1, 0] - R[:, 0, 1]
+    xy, xz, yz = R[:, 0, 1] + R[:, 1, 0], R[:, 0, 2] + R[:, 2, 0], R[:, 1, 2] + R[:, 2, 1]
+    q = np.empty((len(R), 4))
+    for k, row in enumerate(([s / 4, xy / s, xz / s, a / s], [xy / s, s / 4, yz / s, b / s],
+                             [xz / s, yz / s, s / 4, c / s], [a / s, b / s, c / s, s / 4])):
+        pick = best == k
+        q[pick] = np.stack(row, axis=1)[pick]
+    q *= np.where(q[:, 3:4] < 0, -1.0, 1.0)
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    return q[0] if single else q
 
 
 class KinematicReplay:
@@ -149,7 +154,8 @@ class KinematicReplay:
         p, cid = self._p, self._cid
         T_world_com = self.scene.T_world_torso[k] @ self._T_torso_com
         p.resetBasePositionAndOrientation(self._robot, T_world_com[:3, 3].tolist(),
-                                          _quat_xyzw(T_world_com[:3, :3]), physicsClientId=cid)
+                                          quat_xyzw(T_world_com[:3, :3]).tolist(),
+                                          physicsClientId=cid)
         p.resetJointStatesMultiDof(self._robot, self._idx,
                                    [[float(v)] for v in self._q[k]], physicsClientId=cid)
         self.k = k
