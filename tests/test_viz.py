@@ -70,6 +70,7 @@ def scene(run_dir):
 
 def test_log_is_plain_csv_with_sidecar_and_parquet(run_dir):
     table = pl.read_csv(run_dir / "log.csv")  # no options
+    assert [c for c, kind in table.schema.items() if not kind.is_numeric()] == ["flags"]
     sidecar = json.loads((run_dir / "log.json").read_text())
     assert table.columns == sidecar["columns"] and table.height == sidecar["rows"] > 400
     assert set(pose_columns("torso") + pose_columns("right_hand")) <= set(table.columns)

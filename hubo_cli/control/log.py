@@ -6,7 +6,8 @@ A run folder's log is three files:
   spreadsheets read it with no options). Every column name ends in its unit (``_s`` seconds,
   ``_us`` microseconds, ``_rad`` radians, ``_m`` metres, ``_nm`` newton metres, ``_count`` a
   count, ``_code`` an enumeration, ``_flag`` 0/1) except ``flags``, a ``;``-separated list of
-  words. The columns, in order: ``period_count, t_s, status_code, compute_us, late_us, flags``;
+  words; numbers always read as floats (a whole number is written ``1.0``, a missing one
+  ``NaN``). The columns, in order: ``period_count, t_s, status_code, compute_us, late_us, flags``;
   ``target_<joint>_rad`` (NaN when no target came that period), ``cmd_<joint>_rad`` (what the
   driver was sent), ``q_<joint>_rad`` (measured after the step); the torso (base) pose in the
   world ``torso_{x,y,z}_m, torso_{roll,pitch,yaw}_rad`` (URDF convention,
@@ -33,7 +34,6 @@ from __future__ import annotations
 import io
 import json
 import math
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -54,12 +54,11 @@ UNIT_LEGEND = ("units in column names: _s seconds, _us microseconds, _rad radian
                "_nm newton metres, _deg degrees, _count count, _code enumeration, _flag 0/1")
 
 
-_INTEGER_TOKEN = re.compile(r"(?<=,)(-?\d+)(?=,|$)")
-
-
-def _as_floats(text: str) -> str:
-    """Comma-separated %g numbers with ``.0`` added to those that print as integers."""
-    return _INTEGER_TOKEN.sub(r"\1.0", "," + text)[1:]
+def _float_text(value: float, spec: str) -> str:
+    """``spec % value``, written ``%.1f`` when the value is a whole number."""
+    if math.isfinite(value) and value == int(value):
+        return "%.1f" % value
+    return "NaN" if math.isnan(value) else spec % value
 
 
 def pose_columns(frame: str) -> tuple[str, ...]:
@@ -133,8 +132,9 @@ class PeriodLog:
         # joints with 15 significant digits, so that finite differences of the log (velocity,
         # acceleration) are exact to about 1e-9 rad/s^2; poses with 12 (sub-nanometre); the
         # other numbers with 9
-        self._body_fmt = ",".join(["%.15g"] * (3 * len(joints)) + ["%.12g"] * len(pose_names)
-                                  + ["%.9g"] * len(self.extra_columns))
+        self._specs = (["%.15g"] * (3 * len(joints)) + ["%.12g"] * len(pose_names)
+                       + ["%.9g"] * len(self.extra_columns))
+        self._formats: dict[bytes, str] = {}
         self._nan_poses = [math.nan] * len(pose_names)
         self._nan_extras = [math.nan] * len(self.extra_columns)
         self.metadata: dict = {}
@@ -166,6 +166,20 @@ class PeriodLog:
             values += _pose_values(T_world_torso @ limb.fk(q[index]))
         return values
 
+    def _body_format(self, values: list) -> str:
+        """The row's format: ``%.1f`` where a value is a whole number (cached per pattern)."""
+        v = np.asarray(values, dtype=float)
+        whole = np.isfinite(v) & (v == np.trunc(v))
+        key = np.packbits(whole).tobytes()
+        fmt = self._formats.get(key)
+        if fmt is None:
+            if len(self._formats) > 256:
+                self._formats.clear()
+            fmt = ",".join("%.1f" if w else spec for w, spec in zip(whole, self._specs,
+                                                                      strict=True))
+            self._formats[key] = fmt
+        return fmt
+
     def write(self, period: int, t_s: float, status: int, compute_us: float, late_us: float,
               flags, target_rad, cmd_rad, q_rad, extras: dict | None = None,
               state=None) -> None:
@@ -183,12 +197,12 @@ class PeriodLog:
             else:
                 values += self._nan_extras
         flag_text = ";".join(sorted(flags))
-        # every real-valued number carries a "." (or e/nan/inf), so that CSV readers that
-        # guess types from the first rows (polars, pandas) read its column as floats; the
-        # period count and the status code stay integers
-        line = (f"{period:d},{_as_floats('%.9g' % t_s)},{int(status):d},"
-                f"{_as_floats('%.6g,%.6g' % (compute_us, late_us))},{flag_text},"
-                f"{_as_floats(self._body_fmt % tuple(values))}\n")
+        # every real-valued number carries a "." (or is NaN/inf, written so), so that CSV
+        # readers that guess types from the first rows (polars, pandas) read its column as
+        # floats; the period count and the status code stay integers
+        line = (f"{period:d},{_float_text(t_s, '%.9g')},{int(status):d},"
+                f"{_float_text(compute_us, '%.6g')},{_float_text(late_us, '%.6g')},{flag_text},"
+                f"{(self._body_format(values) % tuple(values)).replace('nan', 'NaN')}\n")
         self._file.write(line)
         self._file.flush()
         self.rows += 1
