@@ -113,6 +113,24 @@ def test_replay_reproduces_logged_bit_and_torso_lean(scene):
     assert np.linalg.norm(np.ptp(scene.tool_world_m, axis=0)) > 0.1
 
 
+def test_a_hardware_log_without_torso_position_is_stood_on_its_soles(run_dir, tmp_path):
+    """A hardware driver knows the torso's orientation (IMU) but not its position: the replay
+    stands the robot on its lower sole under the torso, which lands where the sim had it."""
+    table = pl.read_parquet(run_dir / "log.parquet")
+    unknown = [*pose_columns("right_hand"), *pose_columns("left_hand"), "torso_x_m", "torso_y_m",
+               "torso_z_m"]
+    table.with_columns([pl.lit(float("nan")).alias(c) for c in unknown]).write_parquet(
+        tmp_path / "log.parquet")
+    (tmp_path / "log.csv").write_text("")  # a run folder: its CSV and sidecar beside
+    (tmp_path / "log.json").write_text((run_dir / "log.json").read_text())
+    hardware = load_scene(tmp_path)
+    sim = load_scene(run_dir)
+    assert hardware.torso_estimated.all() and not sim.torso_estimated.any()
+    height_error = np.abs(hardware.T_world_torso[:, 2, 3] - sim.T_world_torso[:, 2, 3])
+    assert height_error.max() < 0.01  # the sim's soles sink into the floor by millimetres
+    assert np.all(np.isfinite(hardware.tool_world_m))
+
+
 def test_a_2_s_video_decodes_to_60_frames_of_the_robot(scene, tmp_path):
     import imageio_ffmpeg
 

@@ -152,10 +152,16 @@ def _tool_world(model: RobotModel, log: LogData, T_world_torso: np.ndarray, arm:
     frame = HAND_FRAME[arm]
     if log.has_pose(frame):
         T_world_hand = log.poses(frame)
-    else:  # a log of the first format: forward kinematics through the torso pose
+    else:
+        T_world_hand = np.full((len(log), 4, 4), np.nan)
+    # not logged (a log of the first format, or an unknown torso position): forward kinematics
+    # of the measured arm through the (estimated) torso pose
+    missing = np.flatnonzero(~np.all(np.isfinite(T_world_hand[:, :3, 3]), axis=1))
+    if len(missing):
         limb, index = Limb(model, arm, "hand"), model.limb_slice(arm)
         q = log.joints("q")[:, index]
-        T_world_hand = T_world_torso @ np.array([limb.fk(row) for row in q])
+        for k in missing:
+            T_world_hand[k] = T_world_torso[k] @ limb.fk(q[k])
     return (T_world_hand @ T_hand_tool)[:, :3, 3]
 
 
