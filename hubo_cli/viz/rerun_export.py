@@ -5,9 +5,9 @@ Layout (timeline ``time``, the run's seconds):
 
 * ``robot/...``: the URDF (Rerun's URDF loader, static), moved by one transform per joint
   (``transforms/joints/<joint>``, frame ``<parent link>`` -> ``<child link>``) and the torso
-  pose (``transforms/torso``, frame ``world`` -> ``torso``);
-* ``world/walls``, ``world/hole``, ``world/goal_path``, ``world/actual_path`` (static, frame
-  ``world``) and ``world/tool`` (the measured tool point each period);
+  pose (``transforms/torso``, from the root frame ``tf#/``, the world, to ``torso``);
+* ``world/walls``, ``world/hole``, ``world/goal_path``, ``world/actual_path`` (static) and
+  ``world/tool`` (the measured tool point each period), in world coordinates;
 * ``plots/error_mm``, ``plots/wrist_torque_nm``, ``plots/cp_margin_mm`` (capture point inside its
   support polygon, shrunk by the monitor's margin; negative = outside), ``plots/torso_pitch_deg``,
   ``plots/status_code``, and ``status`` (a text entry at each change of status).
@@ -29,7 +29,7 @@ from hubo_cli.viz.replay import ACTUAL_RGB, GOAL_RGB, HOLE_RGB, WALL_RGBA, quat_
 from hubo_cli.viz.scene import ARM_SUFFIX, RunScene, _first_column
 
 APPLICATION_ID = "hubo-cli"
-WORLD_FRAME = "world"
+WORLD_FRAME = "tf#/"  # the implicit frame of the recording's root entity: the world
 
 
 @dataclass
@@ -121,22 +121,20 @@ def export_rrd(scene: RunScene, out: str | Path) -> RrdResult:
 
 
 def _log_world(rr, rec, scene: RunScene, times) -> None:
-    frame = rr.CoordinateFrame(WORLD_FRAME)
     if scene.walls:
         rec.log("world/walls", rr.Boxes3D(
             centers=[w["centre_world_m"] for w in scene.walls],
             sizes=[w["size_m"] for w in scene.walls],
             quaternions=[[*w["quat_wxyz"][1:], w["quat_wxyz"][0]] for w in scene.walls],
-            colors=[_rgb(WALL_RGBA)] * len(scene.walls), fill_mode="solid"), frame, static=True)
+            colors=[_rgb(WALL_RGBA)] * len(scene.walls), fill_mode="solid"), static=True)
     if len(scene.hole_world_m):
         rec.log("world/hole", rr.Points3D(scene.hole_world_m, radii=0.0015,
-                                          colors=_rgb(HOLE_RGB)), frame, static=True)
+                                          colors=_rgb(HOLE_RGB)), static=True)
     for name, points, rgb in (("goal_path", scene.goal_world_m, GOAL_RGB),
                               ("actual_path", scene.tool_world_m, ACTUAL_RGB)):
         strip = _finite_strip(points)
         if len(strip) > 1:
             rec.log(f"world/{name}", rr.LineStrips3D([strip], radii=0.001, colors=_rgb(rgb)),
-                    frame, static=True)
-    rec.log("world/tool", frame, static=True)
+                    static=True)
     rec.send_columns("world/tool", times,
                      rr.Points3D.columns(positions=np.nan_to_num(scene.tool_world_m)))
