@@ -13,49 +13,50 @@ import pytest
 from click.testing import CliRunner
 
 from hubo_cli.cli.main import main
-from hubo_cli.control.log import load_log, pose_columns, set_log_metadata
-from hubo_cli.control.loop import ControlLoop
-from hubo_cli.control.pipeline import DEFAULT_ORDER, build_pipeline
-from hubo_cli.drivers.base import make_driver
+from hubo_cli.control.log import load_log, pose_columns
+from hubo_cli.control.target import Target
 from hubo_cli.model import load_model
 from hubo_cli.posture import home_posture
+from hubo_cli.session import RunSetup, run
 from hubo_cli.viz.camera import DEFAULT_PRESET, camera_for
 from hubo_cli.viz.replay import KinematicReplay
 from hubo_cli.viz.scene import load_scene
 
 
+class SwayTarget(Target):
+    """The right (drill) arm raised, a wall put through the bit, then one sideways sway of the
+    shoulder yaw, at rest again by 1.8 s."""
+
+    def __init__(self, model) -> None:
+        self.q0 = home_posture(model)
+        self.arm = model.limb_slice("right-arm")
+        self.raised = self.q0.copy()
+        self.raised[self.arm] = [-0.9, 0.0, 0.0, -0.9, 0.0, -0.3]  # bit forward at chest height
+        self.world = None
+        self.walled = False
+
+    def attach(self, world, modules) -> None:
+        self.world = world
+
+    def __call__(self, t_s: float, state):
+        ramp = min(t_s / 0.8, 1.0)
+        q = self.q0 + (self.raised - self.q0) * (0.5 - 0.5 * np.cos(np.pi * ramp))
+        if t_s >= 0.8:
+            if not self.walled:  # the wall through the bit, once the arm is up
+                bit_x = self.world.frame_pose("right_drill_bit")[0, 3]
+                self.world.add_wall(bit_x - 0.005, 1.4, 1.2, 0.01)
+                self.walled = True
+            phase = min((t_s - 0.8) / 1.0, 1.0)
+            q[self.arm.start + 2] = 0.25 * (0.5 - 0.5 * np.cos(2 * np.pi * phase))
+        return q, {}
+
+
 def record_sway_run(run_dir: Path, duration_s: float = 2.0) -> Path:
-    """Run the sim for ``duration_s``: the right (drill) arm raised, then one sideways sway with
-    the bit through a wall, at rest again by 1.8 s; write the log with its scene metadata into
-    ``run_dir``."""
+    """A short simulated run through the run scaffold (log, scene metadata, snapshot)."""
     model = load_model()
-    run_dir.mkdir(parents=True, exist_ok=True)
-    q0 = home_posture(model)
-    arm = model.limb_slice("right-arm")
-    with make_driver("sim", model, drill=True) as robot:
-        robot.start(q0)
-        raised = q0.copy()
-        raised[arm] = [-0.9, 0.0, 0.0, -0.9, 0.0, -0.3]  # bit forward at chest height
-        bit_x = None
-
-        def target(t_s: float, state):
-            nonlocal bit_x
-            ramp = min(t_s / 0.8, 1.0)
-            q = q0 + (raised - q0) * (0.5 - 0.5 * np.cos(np.pi * ramp))
-            if t_s >= 0.8:
-                if bit_x is None:  # the wall through the bit, once the arm is up
-                    bit_x = robot.frame_pose("right_drill_bit")[0, 3]
-                    robot.add_wall(bit_x - 0.005, 1.4, 1.2, 0.01)
-                # one sideways sway of the shoulder yaw, back to rest by 1.8 s
-                phase = min((t_s - 0.8) / 1.0, 1.0)
-                q[arm.start + 2] = 0.25 * (0.5 - 0.5 * np.cos(2 * np.pi * phase))
-            return q, {}
-
-        loop = ControlLoop(robot, build_pipeline(model, DEFAULT_ORDER), target,
-                           log_path=run_dir)
-        loop.run(duration_s)
-        set_log_metadata(run_dir, "scene", robot.scene())
-    return run_dir
+    setup = RunSetup("sway", model, tools={"right-arm": "drill"}, out=run_dir,
+                     duration_s=duration_s)
+    return run(setup, SwayTarget(model)).run_dir
 
 
 @pytest.fixture(scope="module")

@@ -185,7 +185,7 @@ class PeriodLog:
               state=None) -> None:
         """Append one period and flush it.
 
-        ``state`` (the :class:`~hubo_cli.drivers.base.RobotState` after the step) gives the
+        ``state`` (the :class:`~hubo_cli.state.RobotState` after the step) gives the
         torso and hand poses; without it they are NaN.
         """
         if self._file.closed:

@@ -26,7 +26,7 @@ import numpy as np
 from hubo_cli.control.status import Status
 from hubo_cli.viz.deps import require
 from hubo_cli.viz.replay import ACTUAL_RGB, GOAL_RGB, HOLE_RGB, WALL_RGBA, quat_xyzw
-from hubo_cli.viz.scene import ARM_SUFFIX, RunScene, _first_column
+from hubo_cli.viz.scene import ARM_SUFFIX, RunScene, first_column
 
 APPLICATION_ID = "hubo-cli"
 WORLD_FRAME = "tf#/"  # the implicit frame of the recording's root entity: the world
@@ -52,13 +52,13 @@ def series(scene: RunScene) -> dict[str, np.ndarray]:
     log = scene.log
     suffix = ARM_SUFFIX[scene.working_arm]
     out: dict[str, np.ndarray] = {}
-    error = _first_column(log, ("error_m", f"error_m{suffix}"))
+    error = first_column(log, ("error_m", f"error_m{suffix}"))
     if error is not None:
         out["error_mm"] = error * 1000
-    torque = _first_column(log, ("task_wrist_torque_nm", "wrist_torque_nm"))
+    torque = first_column(log, ("task_wrist_torque_nm", "wrist_torque_nm"))
     if torque is not None:
         out["wrist_torque_nm"] = torque
-    outside = _first_column(log, ("cp_outside_m",))
+    outside = first_column(log, ("cp_outside_m",))
     if outside is not None:
         out["cp_margin_mm"] = -outside * 1000
     T = scene.T_world_torso

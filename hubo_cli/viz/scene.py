@@ -32,7 +32,8 @@ def _columns(log: LogData, stem: str, suffix: str) -> np.ndarray | None:
     return np.column_stack([log[n] for n in names])
 
 
-def _first_column(log: LogData, names) -> np.ndarray | None:
+def first_column(log: LogData, names) -> np.ndarray | None:
+    """The first of ``names`` that the log has, or None."""
     for name in names:
         if name in log.columns:
             return log[name]
@@ -99,14 +100,14 @@ class RunScene:
         """One line describing period ``k``: time, step, error, wrist torque, status."""
         log = self.log
         parts = [f"t {log['t_s'][k]:6.2f} s"]
-        step = _first_column(log, ("step_code",))
+        step = first_column(log, ("step_code",))
         if step is not None and np.isfinite(step[k]):
             parts.append(f"step {int(step[k]) + 1}")
         suffix = ARM_SUFFIX[self.working_arm]
-        error = _first_column(log, ("error_m", f"error_m{suffix}"))
+        error = first_column(log, ("error_m", f"error_m{suffix}"))
         if error is not None and np.isfinite(error[k]):
             parts.append(f"error {error[k] * 1000:5.1f} mm")
-        torque = _first_column(log, ("task_wrist_torque_nm", "wrist_torque_nm"))
+        torque = first_column(log, ("task_wrist_torque_nm", "wrist_torque_nm"))
         if torque is not None and np.isfinite(torque[k]):
             parts.append(f"wrist {torque[k]:4.2f} N m")
         lean = np.degrees(np.arctan2(-self.T_world_torso[k, 2, 0], self.T_world_torso[k, 2, 2]))
