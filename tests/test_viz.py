@@ -214,3 +214,15 @@ def test_replay_refuses_bad_input_without_a_traceback(run_dir, tmp_path):
         result = runner.invoke(main, args)
         assert result.exit_code == 2, (args, result.output)
         assert "Traceback" not in result.output and "error" in result.output.lower()
+
+
+def test_replay_command_writes_the_video_it_reports(run_dir, tmp_path):
+    out = tmp_path / "small.mp4"
+    result = CliRunner().invoke(main, ["replay", str(run_dir), "--video", str(out), "--size",
+                                       "96x64", "--speed", "4", "--camera", "side", "--json"])
+    assert result.exit_code == 0, result.output
+    video = json.loads(result.output)["video"]
+    run_s = len(load_log(run_dir)) * 0.005
+    assert video["frames"] == round(run_s * 30 / 4)
+    assert (video["width"], video["height"]) == (96, 64)
+    assert out.read_bytes()[4:8] == b"ftyp"  # an MP4 container
