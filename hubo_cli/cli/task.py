@@ -7,6 +7,7 @@ from rich.live import Live
 from rich.progress_bar import ProgressBar
 from rich.table import Table
 
+from hubo_cli.cli.hardware import driver_options, hardware_options
 from hubo_cli.cli.output import NO_ESTOP_HELP, console, err_console, interactive, print_json
 from hubo_cli.drivers.registry import DRIVER_NAMES
 from hubo_cli.errors import HuboError, InputError, SafetyError
@@ -66,6 +67,7 @@ def run_options(function):
         click.option("--video", is_flag=True,
                      help="After the run, render video.mp4 from its log (needs hubo-cli[viz])."),
     ]
+    function = hardware_options(function)  # listed after the others
     for option in reversed(options):
         function = option(function)
     return function
@@ -200,14 +202,14 @@ def _shortcut(name: str) -> click.Command:
 
 
 def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool, gui: bool,
-         out: str | None, as_json: bool, video: bool = False) -> None:
+         out: str | None, as_json: bool, video: bool = False, **hardware) -> None:
     from hubo_cli.cli.replay import add_run_video, check_video_support
     from hubo_cli.tasks.runner import check_task, run_experiment, run_task
+    from hubo_cli.tasks.spec import load_task
 
     if video:
         check_video_support()
-    from hubo_cli.tasks.spec import load_task
-
+    options = driver_options(driver, armed, **hardware)
     spec = load_task(name, overrides)
     ctx = click.get_current_context()
     if spec.experiment:
@@ -233,9 +235,7 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
 
     try:
         done = run_task(plan, driver=driver, out=out, gui=gui, estop=not no_estop,
-                        on_start=on_start,
-                        driver_options={"armed": True} if armed and driver == "hardware"
-                        else {})
+                        on_start=on_start, driver_options=options)
     finally:
         if "live" in state:
             state["live"].stop()
