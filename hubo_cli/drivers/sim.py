@@ -267,6 +267,7 @@ class SimDriver(Driver, SimulatedWorld):
         self._t = 0.0
         self.cutting_force_n = np.zeros(3)
         self._cutting_point = np.zeros(3)
+        self._cut_points: list[tuple] = []  # (time s, where the bit crossed a wall), per period
         self._physics_wall_s = 0.0
         frames = link_frames(model)
         self._T_link_frame = {child: origin for (_, kind, parent, child, origin, _)
@@ -368,6 +369,7 @@ class SimDriver(Driver, SimulatedWorld):
         if self._p is None:
             self._connect()
         self._walls = []
+        self._cut_points = []
         self._pushes = []
         self._stopped = False
         self._t = 0.0
@@ -488,6 +490,8 @@ class SimDriver(Driver, SimulatedWorld):
                     p.applyExternalForce(self._robot, link, self.cutting_force_n.tolist(),
                                          bit.tolist(), p.WORLD_FRAME, physicsClientId=cid)
                     self._cutting_point = bit
+                    if t_s < self._t + 1e-12:  # the period's first physics step
+                        self._cut_points.append((self._t, bit))
                     break
 
     # ------------------------------------------------------------------ sensing
@@ -573,19 +577,24 @@ class SimDriver(Driver, SimulatedWorld):
         """The walls in the scene."""
         return tuple(self._walls)
 
-    def snapshot_png(self, path: str | Path, width: int = 640, height: int = 480) -> Path:
-        """Render the scene headless (TinyRenderer) and write it as a PNG; returns the path."""
-        self._require_started()
-        from hubo_cli.drivers.snapshot import write_png
+    def scene(self) -> dict:
+        """What has been placed in the world, for the run's log metadata: ``walls`` (centre,
+        orientation quaternion w x y z and size x y z of each box, m), ``tools`` per hand and
+        ``hole_world_m`` (where the drill bit crossed a wall, once per period, to the micrometre)
+        with ``hole_t_s`` (when)."""
+        walls = [{"centre_world_m": [w.distance_m + w.thickness_m / 2, w.centre_y_m,
+                                     w.height_m / 2], "quat_wxyz": [1.0, 0.0, 0.0, 0.0],
+                  "size_m": [w.thickness_m, w.width_m, w.height_m]} for w in self._walls]
+        return {"walls": walls, "tools": {"right-arm": "drill" if self.options.drill else "hand",
+                                          "left-arm": "hand"},
+                "hole_world_m": [np.round(p, 6).tolist() for _, p in self._cut_points],
+                "hole_t_s": [round(t, 6) for t, _ in self._cut_points]}
 
-        p, cid = self._p, self._cid
-        target = self._state.T_world_torso[:3, 3] * np.array([1, 1, 0.55]) + [0.15, 0, 0]
-        # from the robot's left, a little in front, so that a wall ahead stays beside it
-        view = p.computeViewMatrixFromYawPitchRoll(target.tolist(), 2.3, 25, -14, 0, 2,
-                                                   physicsClientId=cid)
-        proj = p.computeProjectionMatrixFOV(45, width / height, 0.05, 20, physicsClientId=cid)
-        _, _, rgba, _, _ = p.getCameraImage(width, height, view, proj,
-                                            renderer=p.ER_TINY_RENDERER, physicsClientId=cid)
-        image = np.reshape(np.asarray(rgba, dtype=np.uint8), (height, width, 4))[:, :, :3]
-        return write_png(path, image)
+    def snapshot_png(self, path: str | Path, width: int = 640, height: int = 480) -> Path:
+        """Render the scene headless from the video's camera (bit and hole marked) as a PNG."""
+        self._require_started()
+        from hubo_cli.drivers.snapshot import scene_snapshot
+
+        tool = self.frame_pose(DRILL_FRAME if self.options.drill else "right_hand")[:3, 3]
+        return scene_snapshot(self._p, self._cid, path, self.scene(), tool, width, height)
 
