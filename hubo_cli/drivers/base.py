@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hubo_cli.errors import ConfigError
+from hubo_cli.geometry import roll_pitch_of_quat_wxyz
 from hubo_cli.model import RobotModel
 
 FT_SENSORS = ("right-wrist", "left-wrist", "right-ankle", "left-ankle")
@@ -57,10 +58,7 @@ class RobotState:
 
     def tilt_rad(self) -> tuple[float, float]:
         """Torso tilt about world x (roll) and y (pitch) from the IMU quaternion (rad)."""
-        w, x, y, z = self.imu_quat_wxyz
-        roll = np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
-        pitch = np.arcsin(np.clip(2 * (w * y - z * x), -1.0, 1.0))
-        return float(roll), float(pitch)
+        return roll_pitch_of_quat_wxyz(self.imu_quat_wxyz)
 
 
 class Driver(ABC):

@@ -17,12 +17,12 @@ import numpy as np
 from hubo_cli.control.balance import AnkleBalancer
 from hubo_cli.control.module import Cycle
 from hubo_cli.errors import InputError
+from hubo_cli.falls import has_fallen
+from hubo_cli.geometry import tilt_rad_of_matrix
 from hubo_cli.model import RobotModel
 from hubo_cli.posture import home_posture
 
 FLAT_TOLERANCE_DEG = 1.0  # a sole tilted more than this (or without contact) is not flat
-FALL_TILT_DEG = 30.0      # torso tilt beyond which the robot has fallen
-FALL_DROP_M = 0.2         # ... or torso lower than its start by this much
 
 
 @dataclass
@@ -33,7 +33,7 @@ class StandingResult:
         max_tilt_deg: largest torso tilt from upright (IMU) over the run.
         feet_flat: both soles flat on the floor (within FLAT_TOLERANCE_DEG, in contact) in
             every period.
-        fell: the torso tilted past FALL_TILT_DEG or dropped FALL_DROP_M (the run then ends).
+        fell: the torso fell (:func:`hubo_cli.falls.has_fallen`; the run then ends).
         realtime_factor: simulated seconds per wall-clock second of the loop.
         max_sole_tilt_deg: largest tilt of either sole.
         final_tilt_deg: torso tilt at the end.
@@ -71,11 +71,6 @@ class StandingResult:
                 "final_tilt_deg": self.final_tilt_deg, "physics_share": self.physics_share,
                 "max_feet_moment_difference_nm": self.max_feet_moment_difference_nm,
                 "snapshot": str(self.snapshot) if self.snapshot else None}
-
-
-def _tilt_deg(R: np.ndarray) -> float:
-    """Angle between a frame's z axis and the world's z axis (deg)."""
-    return math.degrees(math.acos(max(-1.0, min(1.0, float(R[2, 2])))))
 
 
 def check_standing_args(duration_s: float, push_n: float) -> None:
@@ -134,16 +129,16 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
             robot.send(q_cmd)
             state = robot.step()
             times[k] = state.time_s
-            tilts[k] = _tilt_deg(state.T_world_torso[:3, :3])
+            tilts[k] = math.degrees(tilt_rad_of_matrix(state.T_world_torso[:3, :3]))
             difference = state.ft["right-ankle"][3:5] - state.ft["left-ankle"][3:5]
             differences[k] = float(np.linalg.norm(difference))
             max_moment_difference = max(max_moment_difference, differences[k])
             for sole, touching in zip(("right_sole", "left_sole"), state.feet_contact,
                                       strict=True):
-                sole_tilt = _tilt_deg(robot.frame_pose(sole)[:3, :3])
+                sole_tilt = math.degrees(tilt_rad_of_matrix(robot.frame_pose(sole)[:3, :3]))
                 max_sole = max(max_sole, sole_tilt)
                 feet_flat &= bool(touching) and sole_tilt <= FLAT_TOLERANCE_DEG
-            if tilts[k] > FALL_TILT_DEG or state.T_world_torso[2, 3] < torso_z0 - FALL_DROP_M:
+            if has_fallen(tilts[k], torso_z0 - state.T_world_torso[2, 3]):
                 fell = True
                 break
             if realtime:

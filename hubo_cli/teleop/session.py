@@ -11,7 +11,7 @@ from hubo_cli.control.log import load_log, max_velocity_ratio
 from hubo_cli.control.loop import ControlLoop, LoopResult
 from hubo_cli.control.pipeline import DEFAULT_ORDER, build_pipeline
 from hubo_cli.drivers.base import make_driver
-from hubo_cli.fastrak.source import open_source
+from hubo_cli.fastrak.opener import open_source
 from hubo_cli.kinematics.interpolate import PosePath, PoseSegment, segment_duration
 from hubo_cli.kinematics.wholebody import WholeBody
 from hubo_cli.model import load_model
