@@ -12,8 +12,9 @@ Conventions:
     Gimbal lock: when the pitch (elevation) is +-90 deg, i.e. its cosine is below
         ``GIMBAL_LOCK_COS``, only yaw - roll (pitch +90) or yaw + roll (pitch -90) is defined;
         the roll is then 0 and the whole turn about the vertical is in yaw (azimuth), as scipy
-        does. Near the lock the yaw is taken from the matrix with the roll already removed, so
-        the angles rebuild the matrix to rounding error everywhere.
+        does. Near the lock (cosine below ``NEAR_LOCK_COS``) the yaw is taken from the matrix
+        with the roll already removed, so the angles rebuild the matrix to rounding error
+        everywhere.
     Shapes: every conversion broadcasts over leading axes: a (3, 3) matrix or (N, 3, 3)
         matrices, a (4,) quaternion or (N, 4) quaternions, (3,) or (N, 3) angles.
 """
@@ -27,6 +28,9 @@ import numpy as np
 
 GIMBAL_LOCK_COS = 1e-14
 """Below this cosine of the pitch (elevation) the roll is set to 0 (see the module docstring)."""
+NEAR_LOCK_COS = 1e-3
+"""Below this cosine of the pitch the yaw is taken from the matrix with the roll removed; above
+it ``atan2(R[1, 0], R[0, 0])`` is as accurate (error below 1e-12 rad)."""
 
 # Peaks of the minimum-jerk progress' derivatives over a unit move of unit duration: a move of
 # distance D in time T reaches a peak speed of 1.875 D / T, acceleration 5.7735 D / T^2 (at
@@ -127,13 +131,14 @@ def _rpy_to_matrix(rpy, R):
 def _matrix_to_rpy(R, rpy):
     cos_pitch = math.hypot(R[0, 0], R[1, 0])
     roll = 0.0 if cos_pitch < GIMBAL_LOCK_COS else math.atan2(R[2, 1], R[2, 2])
-    cr, sr = math.cos(roll), math.sin(roll)
-    # R Rx(roll)^T = Rz(yaw) Ry(pitch), whose second column is (-sin yaw, cos yaw, 0)
-    yaw = math.atan2(R[0, 2] * sr - R[0, 1] * cr, R[1, 1] * cr - R[1, 2] * sr)
-    # a half turn is +pi whatever the sign of the zero atan2 was given
-    rpy[0] = math.pi if roll == -math.pi else roll
+    rpy[0] = roll
     rpy[1] = math.atan2(-R[2, 0], cos_pitch)
-    rpy[2] = math.pi if yaw == -math.pi else yaw
+    if cos_pitch >= NEAR_LOCK_COS:
+        rpy[2] = math.atan2(R[1, 0], R[0, 0])
+    else:
+        # R Rx(roll)^T = Rz(yaw) Ry(pitch), whose second column is (-sin yaw, cos yaw, 0)
+        cr, sr = math.cos(roll), math.sin(roll)
+        rpy[2] = math.atan2(R[0, 2] * sr - R[0, 1] * cr, R[1, 1] * cr - R[1, 2] * sr)
 
 
 @nb.njit(**JIT)
@@ -247,7 +252,7 @@ def rpy_to_matrix(roll_rad, pitch_rad, yaw_rad) -> np.ndarray:
 
 def matrix_to_rpy(R) -> np.ndarray:
     """(..., 3) roll, pitch, yaw (rad) of rotation matrices (..., 3, 3), inverse of
-    :func:`rpy_to_matrix`: roll and yaw in (-pi, pi], pitch in [-pi/2, pi/2]; roll = 0 at the
+    :func:`rpy_to_matrix`: roll and yaw in [-pi, pi], pitch in [-pi/2, pi/2]; roll = 0 at the
     gimbal lock (see the module docstring)."""
     return _each(_matrices_to_rpys, R, (3, 3), (3,))
 
