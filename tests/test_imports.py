@@ -15,14 +15,6 @@ import pytest
 PACKAGE = "hubo_cli"
 ROOT = Path(__file__).resolve().parent.parent / PACKAGE
 
-# Known imports that the run scaffold (issue #12) removes: drivers/base imports the driver
-# registry, which imports every driver, which imports drivers/base (a cycle); the standing
-# experiment (drivers/standing.py) builds a control pipeline (an upward import). Delete these
-# two entries once the driver registry and standing have moved onto the scaffold.
-KNOWN_EDGES_ISSUE_12 = {("hubo_cli.drivers.base", "hubo_cli.drivers.registry"),
-                        ("hubo_cli.drivers.standing", "hubo_cli.control.balance"),
-                        ("hubo_cli.drivers.standing", "hubo_cli.control.module")}
-
 
 def _module_names() -> dict[str, Path]:
     """Dotted module name -> file, for every module of the package."""
@@ -54,8 +46,8 @@ def _owner(name: str, modules: dict[str, Path]) -> str | None:
     return None
 
 
-def import_graph(skip: set[tuple[str, str]] = KNOWN_EDGES_ISSUE_12) -> dict[str, set[str]]:
-    """Module -> the package modules it imports (anywhere in its body), less ``skip``."""
+def import_graph() -> dict[str, set[str]]:
+    """Module -> the package modules it imports (anywhere in its body)."""
     modules = _module_names()
     graph: dict[str, set[str]] = {name: set() for name in modules}
     for name, path in modules.items():
@@ -71,7 +63,7 @@ def import_graph(skip: set[tuple[str, str]] = KNOWN_EDGES_ISSUE_12) -> dict[str,
                            for alias in node.names]
             for target in targets:
                 owner = _owner(target, modules)
-                if owner is not None and owner != name and (name, owner) not in skip:
+                if owner is not None and owner != name:
                     graph[name].add(owner)
     return graph
 

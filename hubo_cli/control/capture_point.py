@@ -36,9 +36,9 @@ import pinocchio as pin
 
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.pin_robot import PinRobot, load_pin_robot
-from hubo_cli.drivers.base import RobotState
 from hubo_cli.geometry import quat_wxyz_to_matrix
 from hubo_cli.model import RobotModel
+from hubo_cli.state import RobotState
 
 GRAVITY_M_S2 = 9.80665
 CP_MARGIN_M = 0.03        # hrpsys cp_check_margin

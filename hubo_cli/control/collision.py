@@ -33,9 +33,9 @@ from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.otg import JointTracker
 from hubo_cli.control.pin_robot import PinRobot, load_pin_robot
 from hubo_cli.control.status import SafetyEvent
-from hubo_cli.drivers.base import RobotState
 from hubo_cli.geometry import rpy_to_matrix
 from hubo_cli.model import DrillShape, RobotModel
+from hubo_cli.state import RobotState
 from hubo_cli.urdf import DRILL_FRAME
 
 TOLERANCE_M = 0.01   # MoveIt Servo's self-collision proximity threshold
