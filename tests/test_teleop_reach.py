@@ -1,10 +1,13 @@
 """Teleoperation at the edge of reach (ideal driver): out of reach and back, a straight elbow."""
 
+import io
 from pathlib import Path
 
 import numpy as np
 import pytest
+from rich.console import Console
 
+from hubo_cli.cli.teleop import _direction, _view
 from hubo_cli.control.log import load_log
 from hubo_cli.kinematics import get_limb
 from hubo_cli.kinematics.arm_reach import ReachSettings
@@ -75,8 +78,14 @@ def test_a_walk_out_of_reach_stops_at_the_boundary_and_comes_back(tmp_path):
         return np.array([1.0, 0.0, 0.0]) * (edge[arm] + 0.3) * (out - back)
 
     src = _stream(tmp_path / "walk.csv", offset, 13.5)
-    run = run_teleop(TeleopSettings(replay=src, driver="ideal", out=tmp_path / "run"))
+    targets = []
+    run = run_teleop(TeleopSettings(replay=src, driver="ideal", out=tmp_path / "run"),
+                     on_ready=targets.append)
     assert run.summary["ended"] == "done"
+    console = Console(width=240, record=True, file=io.StringIO())
+    console.print(_view(targets[0]))   # the live view renders the reach columns
+    text = console.export_text()
+    assert "rot err" in text and "right-arm" in text, text
     log = load_log(run.run_dir)
     for arm, key in (("right-arm", "r"), ("left-arm", "l")):
         report = run.summary["reach"][arm]
@@ -140,3 +149,8 @@ def test_a_path_through_the_straight_elbow_is_slowed(tmp_path, elbow_margin):
     assert np.max(speed_ratio[near]) <= 0.5 + 0.02, np.max(speed_ratio[near])
     t, goal, actual = _operate(log, "r")
     assert np.linalg.norm(goal[-1] - actual[-1]) < 0.002   # and tracked back to the goal
+
+
+def test_the_missing_part_is_named_in_words():
+    assert _direction([0.02, 0.0, -0.02]) == "fwd-down"
+    assert _direction([0.0, -0.03, 0.001]) == "right"
