@@ -39,6 +39,7 @@ from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.otg import JointTracker
 from hubo_cli.control.status import Status, status_from_flags
 from hubo_cli.drivers.base import Driver, RobotState
+from hubo_cli.errors import HuboError
 
 TargetSource = Callable[[float, RobotState], tuple[np.ndarray | None, dict]]
 
@@ -214,7 +215,9 @@ class ControlLoop:
                         q = m.update(q, state, cycle)
                 except Exception as err:  # noqa: BLE001 (any failure ends in a smooth stop)
                     ended = f"{stage}-error"
-                    error = f"{type(err).__name__} in {stage}: {err}"
+                    # a library error is already a message for the user; anything else is a bug
+                    error = str(err) if isinstance(err, HuboError) else (
+                        f"{type(err).__name__} in {stage}: {err}")
                     exc = err
                     break
                 if not np.all(np.isfinite(q)):

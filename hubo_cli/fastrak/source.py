@@ -117,10 +117,13 @@ class PoseSource(ABC):
     Attributes:
         stats: :class:`SourceStats` counters.
         info: what the source is (kind, path or port, format, output list, units, stations).
+        stations: the stations the source delivers (a recording's, or those the tracker
+            reports active).
     """
 
     stats: SourceStats
     info: dict
+    stations: tuple[int, ...]
 
     def __init__(self) -> None:
         self._last_seen: dict[int, float] = {}

@@ -80,7 +80,8 @@ def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
         gui: open the PyBullet window (sim).
         estop: keep the soft emergency stopper and the capture-point monitor.
         driver_options: passed to the driver (e.g. ``armed`` for hardware).
-        on_start: called with the :class:`TaskTarget` once the robot has started (live view).
+        on_start: called with the :class:`TaskTarget` and the pipeline's modules once the
+            robot has started (live view).
 
     Raises:
         SafetyError: the plan did not pass pre-flight (nothing moves).
@@ -120,7 +121,7 @@ def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
 
         target = TaskTarget(plan, body, stopper, on_ready=place_wall)
         if on_start is not None:
-            on_start(target)
+            on_start(target, modules)
         loop = ControlLoop(robot, modules, target, speed=speed, log_path=run_dir)
         # the plan, plus the waits for the robot to settle (raise, end, after a stop)
         result = loop.run(plan.duration_s + 3 * SETTLE_TIMEOUT_S + 10.0)

@@ -97,7 +97,8 @@ def drill_stance(wall_distance_m: float | None = None) -> tuple[float, np.ndarra
     return wall, corner, z_mid
 
 
-def _station_map(settings: TeleopSettings) -> dict[int, str]:
+def station_map(settings: TeleopSettings) -> dict[int, str]:
+    """Tracker station -> arm: the settings' map, or the mode's default."""
     if settings.station_arm is not None:
         return dict(settings.station_arm)
     return {1: "right-arm"} if settings.mode == "drill" else {1: "right-arm", 2: "left-arm"}
@@ -111,7 +112,7 @@ def prepare(settings: TeleopSettings):
     of the reachable rectangle (drill mode).
     """
     model = load_model()
-    stations = _station_map(settings)
+    stations = station_map(settings)
     tools = {arm: "hand" for arm in stations.values()}
     scene: dict = {}
     if settings.mode == "drill":
@@ -133,8 +134,8 @@ def run_teleop(settings: TeleopSettings, on_ready=None) -> TeleopRun:
 
     Args:
         settings: what to run.
-        on_ready: called with the :class:`TeleopTarget` once the robot has started (the CLI
-            attaches its live view and key reader there).
+        on_ready: called with the :class:`TeleopTarget` and the pipeline's modules once the
+            robot has started (the CLI attaches its live view and key reader there).
 
     Raises:
         InputError / DeviceError: a bad recording, a missing port (before anything moves).
@@ -161,10 +162,10 @@ def run_teleop(settings: TeleopSettings, on_ready=None) -> TeleopRun:
         target = TeleopTarget(model, source, HandMapper(mapping), body, approach, q_start,
                               live=live, clutch_at_s=settings.clutch_at_s,
                               on_pre_pose=place_wall)
+        modules = build_pipeline(model, order)
         if on_ready is not None:
-            on_ready(target)
-        loop = ControlLoop(driver, build_pipeline(model, order), target, speed=settings.speed,
-                           log_path=run_dir)
+            on_ready(target, modules)
+        loop = ControlLoop(driver, modules, target, speed=settings.speed, log_path=run_dir)
         duration = settings.duration_s
         if duration is None and not live:
             duration = (source.end_s - source.start_s) + target.approach_timeout_s + 30.0
