@@ -16,7 +16,15 @@ braked now (its position plus the jerk-limited braking distance of its velocity 
 acceleration, per joint), so the hold can start early enough to stay clear. A pair closer than
 ``tolerance_m`` is a collision: the arms go back to the last safe input (jerk-limited, within
 the joint limits) and hold; once the input is clear again they recover toward the live
-input, arriving no sooner than ``recover_s`` (2.5 s).
+input, arriving no sooner than ``recover_s`` (2.5 s). The way back is checked too: a straight
+joint-space path between two clear postures can pass through the body, so while recovering the
+output itself is checked where it would stop, and it holds where it is if that comes within
+``BLOCK_M`` of the body (retrying when the input has moved, or after ``recover_s``).
+
+Logged: ``collision_distance_m`` is the closest pair at the posture this module passes on (what
+the robot is told: the number that must never be negative), ``collision_ahead_m`` the closest
+pair where the input would stop (what starts a hold; it goes negative while the operator's
+goal lies inside the body and the arms hold).
 """
 
 from __future__ import annotations
@@ -38,6 +46,10 @@ from hubo_cli.urdf import DRILL_BIT_RADIUS_M, DRILL_BODY_LENGTH_M, DRILL_BODY_RA
 
 TOLERANCE_M = 0.01   # MoveIt Servo's self-collision proximity threshold
 RECOVER_S = 2.5      # hrpsys default_recover_time
+BLOCK_M = 0.002      # while recovering, the output stopping this close to the body holds it
+CLOSING_M = 1e-4     # ... if it is closing in by more than this
+UNBLOCK_RAD = 0.05   # after the way back was blocked, retry once the input moved this far
+                     # (or after recover_s)
 DRILL_BODY_FRONT_M = -0.09  # the drill body ends this far behind the bit's middle (urdf.py)
 DRILL_BIT_TIP_M = 0.02
 
@@ -143,11 +155,14 @@ class CollisionDetector(Module):
         limits: override the model's limits (tests).
 
     Flags: ``collision`` while holding, ``recovering`` while going back. Info:
-    ``collision_distance_m`` (closest pair at the checked posture).
+    ``collision_distance_m`` (closest pair at the output), ``collision_ahead_m`` (closest pair
+    where the input would stop). Attributes: ``last_clearance`` (at the output),
+    ``ahead_clearance`` (where the input would stop), ``mode`` (``safe``, ``hold``,
+    ``recover``), ``events``.
     """
 
     name = "collision"
-    log_columns = ("collision_distance_m",)
+    log_columns = ("collision_distance_m", "collision_ahead_m")
 
     def __init__(self, model: RobotModel, dt_s: float, tolerance_m: float = TOLERANCE_M,
                  recover_s: float = RECOVER_S, drill: bool = False,
@@ -164,6 +179,7 @@ class CollisionDetector(Module):
         self.tracker = JointTracker(self.limits.subset(self.index), self.dt_s)
         self.events: list[SafetyEvent] = []
         self.last_clearance: Clearance | None = None
+        self.ahead_clearance: Clearance | None = None
         self._clear_state(np.zeros(self.limits.size))
 
     def _clear_state(self, q: np.ndarray) -> None:
@@ -176,6 +192,8 @@ class CollisionDetector(Module):
         self.out2 = q.copy()
         self.out3 = q.copy()
         self.t_recover_end_s = 0.0
+        self._blocked_in: np.ndarray | None = None  # input when the way back was blocked
+        self._blocked_t_s = 0.0
 
     def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
         q = np.where(np.isfinite(q_rad), q_rad, state.q_rad).astype(float)
@@ -188,6 +206,19 @@ class CollisionDetector(Module):
         a = (self.out1[i] - 2 * self.out2[i] + self.out3[i]) / dt**2
         self.tracker.reset(self.out1[i], v + 0.5 * a * dt, a)
 
+    def _hold(self, t_s: float, hold_rad: np.ndarray, pair: tuple[str, str]) -> None:
+        self._blocked_in = None
+        self._seed_tracker()
+        self.hold_rad = hold_rad[self.index].copy()
+        self.mode = "hold"
+        self.events.append(SafetyEvent(t_s, "collision", pair))
+
+    def _stopping_posture(self, q: np.ndarray, q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
+        """Where ``q`` (after q1, q2) would stop if it braked now (within the limits)."""
+        v = (q - q1) / self.dt_s
+        a = (q - 2 * q1 + q2) / self.dt_s**2
+        return self.limits.clip(q + braking_distance(v, a, self.limits))
+
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         q_in = np.where(np.isfinite(q_rad), q_rad, self.last_in)
         w_in = (q_in - self.last_in) / self.dt_s
@@ -196,16 +227,17 @@ class CollisionDetector(Module):
         self._w_last = w_in
         ahead = self.limits.clip(q_in + braking_distance(w_in, dw_in, self.limits))
         clearance = self.checker.check(ahead)
-        self.last_clearance = clearance
-        cycle.info["collision_distance_m"] = clearance.distance_m
+        self.ahead_clearance = clearance
+        cycle.info["collision_ahead_m"] = clearance.distance_m
         colliding = clearance.distance_m <= self.tolerance_m
         i = self.index
         if colliding and self.mode != "hold":
-            self._seed_tracker()
-            self.hold_rad = (self.safe_rad if self.mode == "safe" else self.out1)[i].copy()
-            self.mode = "hold"
-            self.events.append(SafetyEvent(cycle.t_s, "collision", clearance.pair))
-        elif not colliding and self.mode == "hold":
+            self._hold(cycle.t_s, self.safe_rad if self.mode == "safe" else self.out1,
+                       clearance.pair)
+        elif not colliding and self.mode == "hold" and (
+                self._blocked_in is None
+                or np.max(np.abs(q_in[i] - self._blocked_in)) > UNBLOCK_RAD
+                or cycle.t_s - self._blocked_t_s >= self.recover_s):
             self.mode = "recover"
             self.t_recover_end_s = cycle.t_s + self.recover_s
 
@@ -221,10 +253,23 @@ class CollisionDetector(Module):
                                      target_v_rad_s=w_in[i])
             out[i] = sub
             cycle.flags.add("recovering")
-            if (remaining <= 0 and np.max(np.abs(sub - q_in[i])) < 1e-6
+            back = self.checker.check(self._stopping_posture(out, self.out1, self.out2))
+            now_m = np.inf if self.last_clearance is None else self.last_clearance.distance_m
+            if back.distance_m <= BLOCK_M and back.distance_m < now_m - CLOSING_M:
+                # the way back runs into the body: hold where it is
+                self._hold(cycle.t_s, self.out1, back.pair)
+                self._blocked_in = q_in[i].copy()
+                self._blocked_t_s = cycle.t_s
+                out = np.array(q_in, dtype=float)
+                out[i] = self.tracker.track(self.hold_rad)
+                cycle.flags.discard("recovering")
+                cycle.flags.add("collision")
+            elif (remaining <= 0 and np.max(np.abs(sub - q_in[i])) < 1e-6
                     and np.max(np.abs(self.tracker.v - w_in[i])) < 1e-3):
                 out = np.array(q_in, dtype=float)
                 self.mode = "safe"
                 self.safe_rad = q_in
+        self.last_clearance = self.checker.check(out)
+        cycle.info["collision_distance_m"] = self.last_clearance.distance_m
         self.out3, self.out2, self.out1 = self.out2, self.out1, out
         return out
