@@ -6,7 +6,6 @@ import importlib
 import os
 import signal
 import sys
-import warnings
 
 import click
 
@@ -67,14 +66,11 @@ class LazyGroup(click.Group):
         return with_exit_codes(getattr(importlib.import_module(module), attr))
 
     def invoke(self, ctx: click.Context):
-        if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+        previous = signal.getsignal(signal.SIGTERM)
+        if previous is signal.SIG_DFL:
             signal.signal(signal.SIGTERM, _sigterm_as_interrupt)
         try:
-            with warnings.catch_warnings():
-                # numbers that overflow (1e300 coordinates) are refused with a message by the
-                # code that meets them; numpy's own warning would only add noise
-                warnings.simplefilter("ignore", RuntimeWarning)
-                return super().invoke(ctx)
+            return super().invoke(ctx)
         except HuboError as exc:
             report_error(exc)
             ctx.exit(exc.exit_code)
@@ -99,6 +95,9 @@ class LazyGroup(click.Group):
             click.echo("hint: please report this with the command line; HUBO_DEBUG=1 shows "
                        "the traceback", err=True)
             ctx.exit(1)
+        finally:
+            if previous is signal.SIG_DFL:
+                signal.signal(signal.SIGTERM, previous)
 
 
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]},

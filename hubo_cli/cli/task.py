@@ -30,7 +30,9 @@ class TaskGroup(click.Group):
         from hubo_cli.tasks.spec import task_files
 
         if any(p.stem == name for p in task_files()):
-            return _shortcut(name)
+            from hubo_cli.cli.main import with_exit_codes
+
+            return with_exit_codes(_shortcut(name))
         return None
 
 

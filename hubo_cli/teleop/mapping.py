@@ -28,6 +28,7 @@ from hubo_cli.errors import ConfigError, InputError
 # FASTRAK reference frame is x forward, y right, z down; a half turn about x gives S's axes.
 R_STANCE_TRACKER_DEFAULT = np.diag([1.0, -1.0, -1.0])
 MODES = ("free", "drill")
+MAX_TRACKER_RANGE_M = 100.0  # a FASTRAK reads up to ~3 m from its source; far beyond is garbage
 ARMS = ("right-arm", "left-arm")
 STATIONS = (1, 2, 3, 4)  # FASTRAK receivers
 
@@ -165,7 +166,8 @@ class HandMapper:
     def goal(self, station: int, T_K_sensor: np.ndarray, t_s: float,
              T_S_hand_now: np.ndarray) -> HandGoal | None:
         """The hand goal for one sample, or None if the station drives no arm or the sample is
-        implausible (non-finite, or a jump larger than ``max_step_m``).
+        implausible (non-finite, beyond ``MAX_TRACKER_RANGE_M``, or a jump larger than
+        ``max_step_m``).
 
         Args:
             station: tracker station of the sample.
@@ -177,7 +179,8 @@ class HandMapper:
         if arm is None:
             return None
         T_K = np.asarray(T_K_sensor, dtype=float)
-        if not np.all(np.isfinite(T_K)):
+        # non-finite, or beyond any tracker's range (and large enough to overflow in the maths)
+        if not np.all(np.isfinite(T_K)) or np.max(np.abs(T_K[:3, 3])) > MAX_TRACKER_RANGE_M:
             self.rejected += 1
             return None
         if station not in self._refs:
