@@ -99,7 +99,7 @@ def safety_text(state: SafetyState, flash: bool = False, release_key: str | None
         how = "reverting" if state.estop == "stopping" else "held"
         key = f" — press {release_key} to release" if release_key else ""
         style = "bold white on red" if flash else "bold red"
-        text.append(f"E-STOP ({sources}) — {how}{key}", style=style)
+        text.append(f"E-STOP ({sources}){key} ({how})", style=style)
     elif state.estop == "releasing":
         text.append(f"e-stop ({sources}) released — blending back", style="yellow")
     else:
@@ -153,9 +153,10 @@ class SafetyPanel:
         self.clock = clock
         self.stops_seen = 0
         self.flash_until = 0.0
+        self.last = SafetyState()
 
     def __call__(self) -> Text:
-        state = self.read()
+        state = self.last = self.read()
         now = self.clock()
         if state.stops > self.stops_seen:
             self.stops_seen = state.stops

@@ -335,6 +335,7 @@ def _progress_line(target, panel) -> str:
 def _view(target, panel) -> Group:
     """The live view: one progress bar per step, the safety state, error and wrist torque."""
     plan = target.plan
+    safety = panel()
     status = PHASE_WORDS[target.phase]
     table = Table(title=f"hubo task {plan.spec.name} — {status}", title_justify="left",
                   box=None, pad_edge=False)
@@ -352,7 +353,7 @@ def _view(target, panel) -> Group:
     colour = "red" if target.torque_nm > limit else "green"
     table.caption = (f"bit error {target.error_m * 1000:5.1f} mm   wrist torque "
                      f"[{colour}]{target.torque_nm:.2f}[/] / {limit:g} N m")
-    return Group(table, panel())
+    return Group(table, safety)
 
 
 def _print_cut(summary: dict, run_dir) -> None:

@@ -14,7 +14,7 @@ from hubo_cli.cli.checks import check_baud, check_seconds
 from hubo_cli.cli.output import ProgressLines, console, err_console, interactive, print_json
 from hubo_cli.errors import HuboError, InputError, SafetyError
 
-KEYS_HELP = "keys: space e-stop, r release, c re-centre (clutch), q quit"
+KEYS_HELP = "keys: space e-stop, r release, c clutch, q quit"
 MOSTLY_REJECTED = 0.5  # a replay with more than this share of samples rejected has failed
 ABSURD_ERROR_MM = 100.0  # an RMS error above this means the hand never followed the operator
 EXIT_BAD_INPUT = 2
@@ -57,7 +57,9 @@ def hand_safety(target) -> list:
 def _view(target, panel) -> Group:
     """The live view: the safety state; per hand goal, actual, error, IK status; input and
     latency."""
-    table = Table(title=f"hubo teleop — {target.phase}   ({KEYS_HELP})", title_justify="left")
+    safety = panel()
+    phase = "E-STOPPED" if panel.last.estop in ("stopping", "held") else target.phase
+    table = Table(title=f"hubo teleop — {phase}   ({KEYS_HELP})", title_justify="left")
     for column in ("hand", "goal (mm)", "actual (mm)", "error (mm)", "IK", "input"):
         table.add_column(column)
 
@@ -72,7 +74,7 @@ def _view(target, panel) -> Group:
     latency = target.latencies_s[-1] * 1000 if target.latencies_s else float("nan")
     table.caption = (f"samples {target.samples_used}  rejected {target.mapper.rejected}  "
                      f"latency {latency:.1f} ms")
-    return Group(panel(), table)
+    return Group(safety, table)
 
 
 @click.command()

@@ -25,6 +25,7 @@ from hubo_cli.kinematics.limb import Limb
 POSE_COLUMNS = [f"T{i}{j}" for i in range(4) for j in range(4)]
 PREV_COLUMNS = [f"qprev{k}" for k in range(1, 7)]
 OUT_HEADER = "line,q1,q2,q3,q4,q5,q6,status,pos_err_m,rot_err_rad"
+MAX_ENTRY = 1e6  # no pose entry (rotation, metres) is this large: a typo or garbage
 
 
 @dataclass
@@ -56,11 +57,16 @@ def _check_rows(poses: np.ndarray, prevs: np.ndarray | None) -> dict[int, str]:
     finite = np.isfinite(poses).all(axis=(1, 2))
     if prevs is not None:
         finite &= np.isfinite(prevs).all(axis=1)
+    # magnitudes no pose has (1e300 would overflow the checks below)
+    huge = finite & (np.abs(np.where(finite[:, None, None], poses, 0.0)) > MAX_ENTRY).any(
+        axis=(1, 2))
+    finite &= ~huge
     R = np.where(finite[:, None, None], poses[:, :3, :3], np.eye(3))
     ortho = np.abs(np.einsum("nji,njk->nik", R, R) - np.eye(3)).max(axis=(1, 2)) < 1e-6
     last_row = np.abs(np.where(finite[:, None], poses[:, 3], 0.0) - [0, 0, 0, 1]).max(axis=1)
     rigid = ortho & (last_row < 1e-9) & (np.linalg.det(R) > 0)
-    reasons = {int(i): "NaN or infinite value" for i in np.flatnonzero(~finite)}
+    reasons = {int(i): "NaN or infinite value" for i in np.flatnonzero(~finite & ~huge)}
+    reasons.update({int(i): f"a value beyond {MAX_ENTRY:g}" for i in np.flatnonzero(huge)})
     reasons.update({int(i): "pose is not a rigid transform"
                     for i in np.flatnonzero(finite & ~rigid)})
     return reasons
