@@ -71,13 +71,13 @@ def decode(file: Path, out: Path | None, force: bool, as_json: bool) -> None:
     from hubo_cli.fastrak.capture import MAGIC, parse_capture, read_recording_bytes, write_pose_log
     from hubo_cli.runs import check_new_file
 
-    if out is None:
-        out = file.with_suffix(".csv")
-    check_new_file(out, inputs=(file,), force=force)
     blob = read_recording_bytes(file)
     if not blob.startswith(MAGIC) and blob[:40].lstrip().lower().startswith((b"t_s", b"#")):
         raise InputError(f"{file} is already a pose log (CSV), not a raw capture",
                          hint="replay it directly with `hubo teleop --replay FILE`")
+    if out is None:
+        out = file.with_suffix(".csv")
+    check_new_file(out, inputs=(file,), force=force)
     cap = parse_capture(blob, str(file))
     batch, bad = cap.decode()
     write_pose_log(out, batch)

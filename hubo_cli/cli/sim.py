@@ -2,12 +2,9 @@
 
 from __future__ import annotations
 
-import contextlib
-
 import click
 
 from hubo_cli.cli.output import console, print_json
-from hubo_cli.errors import HuboError
 
 
 @click.command("sim")
@@ -28,20 +25,15 @@ def sim(duration: float, push: float, no_balance: bool, gui: bool, as_json: bool
     """
     from hubo_cli.drivers.standing import check_standing_args, stand
     from hubo_cli.model import load_model
-    from hubo_cli.runs import make_run_dir, write_json
+    from hubo_cli.runs import reserved_run_dir, write_json
 
     check_standing_args(duration, push)
     model = load_model()
-    run_dir = make_run_dir("sim", out)
-    try:
+    with reserved_run_dir("sim", out) as run_dir:  # removed again if nothing is written
         result = stand(model, duration, push, balance=not no_balance, gui=gui,
                        snapshot=run_dir / "snapshot.png")
-    except HuboError:
-        with contextlib.suppress(OSError):
-            run_dir.rmdir()  # only if nothing was written
-        raise
-    summary = result.summary() | {"run_dir": str(run_dir)}
-    write_json(run_dir / "summary.json", summary)
+        summary = result.summary() | {"run_dir": str(run_dir)}
+        write_json(run_dir / "summary.json", summary)
     if as_json:
         print_json(summary)
         return
