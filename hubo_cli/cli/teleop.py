@@ -70,7 +70,8 @@ def _view(target, panel) -> Group:
         error = (np.linalg.norm(hand.goal_m - hand.actual_m) * 1000
                  if hand.goal_m is not None and hand.actual_m is not None else float("nan"))
         table.add_row(arm, mm(hand.goal_m), mm(hand.actual_m), f"{error:.1f}", hand.ik_status,
-                      "[red]stale[/]" if hand.stale else "ok")
+                      "[red]stale[/]" if hand.stale
+                      else "[yellow]back: press c[/]" if hand.needs_clutch else "ok")
     latency = target.latencies_s[-1] * 1000 if target.latencies_s else float("nan")
     table.caption = (f"samples {target.samples_used}  rejected {target.mapper.rejected}  "
                      f"latency {latency:.1f} ms")
