@@ -134,7 +134,10 @@ CASES = {
                                     2, "both drive the left-arm"),
     "teleop-wall-5000": (lambda d: ["teleop", "--replay", str(_short_log(d / "s.csv")),
                                     "--mode", "drill", "--wall-distance", "5000", "--out",
-                                    str(d / "wall-run")], 4, "cannot reach the wall"),
+                                    str(d / "wall-run")], 2, "reaches nothing"),
+    "teleop-wall-550": (lambda d: ["teleop", "--replay", str(_short_log(d / "s.csv")),
+                                   "--mode", "drill", "--wall-distance", "550", "--out",
+                                   str(d / "wall-run")], 4, "cannot reach the wall"),
     "teleop-wall-negative": (lambda d: ["teleop", "--replay", str(_short_log(d / "s.csv")),
                                         "--mode", "drill", "--wall-distance", "-100"],
                              2, "positive distance"),
@@ -280,7 +283,7 @@ def test_collision_layer_keeps_the_commanded_posture_apart(model, tmp_path):
     from hubo_cli.control.log import load_log
     from hubo_cli.control.loop import ControlLoop
     from hubo_cli.control.pipeline import build_pipeline
-    from hubo_cli.drivers.base import make_driver
+    from hubo_cli.drivers.registry import make_driver
     from hubo_cli.posture import home_posture
 
     robot = make_driver("ideal", model)

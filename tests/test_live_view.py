@@ -67,7 +67,8 @@ def test_live_view_shows_the_operator_stop_and_counts_it_once(tmp_path):
             captured["released"] = _text(_view(target, panel))
         target.keys.quit = True
 
-    def on_ready(target, modules):
+    def on_ready(target):
+        modules = target.modules
         panel = SafetyPanel(lambda: read_safety(modules, hand_safety(target)),
                             bell=lambda: bells.append(time.monotonic()))
         captured["first"] = _text(_view(target, panel))

@@ -13,7 +13,7 @@ import numpy as np
 from click.testing import CliRunner
 
 from hubo_cli.cli.main import main
-from hubo_cli.drivers.base import make_driver
+from hubo_cli.drivers.registry import make_driver
 from hubo_cli.fastrak.emulator import make_emulator
 from hubo_cli.fastrak.source import open_source
 from hubo_cli.posture import home_posture

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from hubo_cli.cli.output import console, print_json
+from hubo_cli.cli.output import NO_ESTOP_HELP, console, print_json
 
 
 @click.command("sim")
@@ -13,27 +13,26 @@ from hubo_cli.cli.output import console, print_json
 @click.option("--push", type=float, default=0.0, show_default=True,
               help="Push the torso forward with this force (N) for 0.2 s, 1 s into the run.")
 @click.option("--no-balance", is_flag=True, help="Turn the ankle balancer (eq. 11-12) off.")
+@click.option("--no-estop", is_flag=True, help=NO_ESTOP_HELP)
 @click.option("--gui", is_flag=True, help="Open the PyBullet window (runs in real time).")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
 @click.option("--out", type=click.Path(file_okay=False), default=None,
               help="Run folder (default runs/<time>-sim).")
-def sim(duration: float, push: float, no_balance: bool, gui: bool, as_json: bool,
-        out: str | None) -> None:
+def sim(duration: float, push: float, no_balance: bool, no_estop: bool, gui: bool,
+        as_json: bool, out: str | None) -> None:
     """Stand the simulated HUBO 2+ in its home posture and report tilt, feet and falls.
 
     Example: hubo sim --duration 5 --push 30
     """
-    from hubo_cli.drivers.standing import check_standing_args, stand
+    from hubo_cli.experiments.standing import check_standing_args, stand
     from hubo_cli.model import load_model
-    from hubo_cli.runs import reserved_run_dir, write_json
+    from hubo_cli.runs import reserved_run_dir
 
     check_standing_args(duration, push)
-    model = load_model()
-    with reserved_run_dir("sim", out) as run_dir:  # removed again if nothing is written
-        result = stand(model, duration, push, balance=not no_balance, gui=gui,
-                       snapshot=run_dir / "snapshot.png")
-        summary = result.summary() | {"run_dir": str(run_dir)}
-        write_json(run_dir / "summary.json", summary)
+    with reserved_run_dir("sim", out) as run_dir:  # a bad --out fails before anything runs
+        result = stand(load_model(), duration, push, balance=not no_balance, gui=gui,
+                       out=run_dir, estop=not no_estop)
+    summary = result.summary() | {"run_dir": str(run_dir)}
     if as_json:
         print_json(summary)
         return
@@ -49,4 +48,4 @@ def sim(duration: float, push: float, no_balance: bool, gui: bool, as_json: bool
     console.print(f"fell              {'YES' if result.fell else 'no'}")
     console.print(f"real-time factor  {result.realtime_factor:.2f} "
                   f"({100 * result.physics_share:.0f} % of the time in physics)")
-    console.print(f"run folder        {run_dir} (snapshot.png, summary.json)")
+    console.print(f"run folder        {run_dir} (log.csv, snapshot.png, summary.json)")

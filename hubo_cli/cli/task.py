@@ -8,7 +8,15 @@ from rich.live import Live
 from rich.progress_bar import ProgressBar
 from rich.table import Table
 
-from hubo_cli.cli.output import ProgressLines, console, err_console, interactive, print_json
+from hubo_cli.cli.output import (
+    NO_ESTOP_HELP,
+    ProgressLines,
+    console,
+    err_console,
+    interactive,
+    print_json,
+)
+from hubo_cli.drivers.registry import DRIVER_NAMES
 from hubo_cli.errors import HuboError, InputError, SafetyError
 
 EXIT_INTERRUPTED = 130
@@ -56,12 +64,11 @@ def run_options(function):
     options = [
         click.option("--set", "sets", multiple=True, metavar="NAME=VALUE",
                      help="Override a task parameter (see hubo task show NAME)."),
-        click.option("--driver", type=click.Choice(["sim", "ideal", "hardware"]), default="sim",
+        click.option("--driver", type=click.Choice(DRIVER_NAMES), default=DRIVER_NAMES[0],
                      show_default=True, help="Robot back end."),
         click.option("--arm", "armed", is_flag=True,
                      help="Arm the hardware driver (required by it)."),
-        click.option("--no-estop", is_flag=True,
-                     help="Run without the soft emergency stopper and capture-point monitor."),
+        click.option("--no-estop", is_flag=True, help=NO_ESTOP_HELP),
         click.option("--gui", is_flag=True, help="Open the PyBullet window, run in real time."),
         click.option("--out", type=click.Path(file_okay=False), default=None,
                      help="Run folder (default runs/<time>-task-<name>)."),
@@ -239,7 +246,7 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, armed: bool, no_e
     from hubo_cli.tasks.runner import check_task, run_experiment, run_task
 
     if spec.experiment:
-        done = run_experiment(spec, out=run_dir, gui=gui)
+        done = run_experiment(spec, out=run_dir, gui=gui, estop=False if no_estop else None)
         _finish(ctx, done, as_json, lambda: _print_push_wall(done.summary, done.run_dir))
         return
     if not interactive() and not as_json:
@@ -249,9 +256,10 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, armed: bool, no_e
         _refuse(ctx, plan, as_json)
     state: dict = {}
 
-    def on_start(target, modules) -> None:
+    def on_start(target) -> None:
         if as_json:
             return
+        modules = target.modules
         panel = SafetyPanel(lambda: read_safety(modules), bell=err_console.bell,
                             release_key=None)
         if interactive():
@@ -264,8 +272,8 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, armed: bool, no_e
             state["lines"].start()
 
     try:
-        done = run_task(plan, driver=driver, out=run_dir, speed=1.0 if gui else None, gui=gui,
-                        estop=not no_estop, on_start=on_start,
+        done = run_task(plan, driver=driver, out=run_dir, gui=gui, estop=not no_estop,
+                        on_start=on_start,
                         driver_options={"armed": True} if armed and driver == "hardware"
                         else {})
     finally:
