@@ -8,6 +8,7 @@ from rich.live import Live
 from rich.progress_bar import ProgressBar
 from rich.table import Table
 
+from hubo_cli.cli.hardware import driver_options, hardware_options
 from hubo_cli.cli.output import (
     NO_ESTOP_HELP,
     ProgressLines,
@@ -74,6 +75,7 @@ def run_options(function):
                      help="Run folder (default runs/<time>-task-<name>)."),
         click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON."),
     ]
+    function = hardware_options(function)  # listed after the others
     for option in reversed(options):
         function = option(function)
     return function
@@ -226,21 +228,22 @@ def _shortcut(name: str) -> click.Command:
 
 
 def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool, gui: bool,
-         out: str | None, as_json: bool) -> None:
+         out: str | None, as_json: bool, **hardware) -> None:
     from hubo_cli.runs import reserved_run_dir
     from hubo_cli.tasks.spec import load_task
 
+    options = driver_options(driver, armed, **hardware)
     spec = load_task(name, overrides)
     ctx = click.get_current_context()
     if spec.experiment and driver != "sim":
         raise InputError(f"the {spec.name} experiment runs on the simulated robot only",
                          hint="leave out --driver")
     with reserved_run_dir(f"task-{spec.name}", out) as run_dir:
-        _run_in(ctx, spec, run_dir, driver=driver, armed=armed, no_estop=no_estop, gui=gui,
-                as_json=as_json)
+        _run_in(ctx, spec, run_dir, driver=driver, options=options, no_estop=no_estop,
+                gui=gui, as_json=as_json)
 
 
-def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, armed: bool, no_estop: bool,
+def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, no_estop: bool,
             gui: bool, as_json: bool) -> None:
     from hubo_cli.cli.safety_view import SafetyPanel, read_safety
     from hubo_cli.tasks.runner import check_task, run_experiment, run_task
@@ -273,9 +276,7 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, armed: bool, no_e
 
     try:
         done = run_task(plan, driver=driver, out=run_dir, gui=gui, estop=not no_estop,
-                        on_start=on_start,
-                        driver_options={"armed": True} if armed and driver == "hardware"
-                        else {})
+                        on_start=on_start, driver_options=options)
     finally:
         if "live" in state:
             state["live"].stop()

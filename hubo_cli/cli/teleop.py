@@ -11,6 +11,7 @@ from rich.live import Live
 from rich.table import Table
 
 from hubo_cli.cli.checks import check_baud, check_seconds
+from hubo_cli.cli.hardware import driver_options, hardware_options
 from hubo_cli.cli.output import (
     NO_ESTOP_HELP,
     ProgressLines,
@@ -115,8 +116,9 @@ def _view(target, panel) -> Group:
 @click.option("--out", type=click.Path(file_okay=False), default=None,
               help="Run folder (default runs/<time>-teleop).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
+@hardware_options
 def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, wall_distance,
-           clutch_at, duration, no_estop, gui, out, as_json) -> None:
+           clutch_at, duration, no_estop, gui, out, as_json, **hardware) -> None:
     """Drive the robot's hands from an operator's FASTRAK stream.
 
     Exactly one of --replay FILE or --port DEV. The first sample of each station calibrates it:
@@ -167,8 +169,7 @@ def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, w
         station_arm=stations,
         wall_distance_m=None if wall_distance is None else wall_distance / 1000.0,
         duration_s=duration, clutch_at_s=tuple(clutch_at), out=out, gui=gui, baud=baud,
-        estop=not no_estop, driver_options={"armed": True} if armed and driver == "hardware"
-        else {})
+        estop=not no_estop, driver_options=driver_options(driver, armed, **hardware))
     if replay is not None:
         _check_replay_stations(replay, settings)
     if wall_distance is not None:
