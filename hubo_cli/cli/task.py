@@ -230,14 +230,20 @@ def _shortcut(name: str) -> click.Command:
 def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool, gui: bool,
          out: str | None, as_json: bool, **hardware) -> None:
     from hubo_cli.runs import reserved_run_dir
+    from hubo_cli.tasks.runner import run_experiment
     from hubo_cli.tasks.spec import load_task
 
     options = driver_options(driver, armed, **hardware)
     spec = load_task(name, overrides)
     ctx = click.get_current_context()
-    if spec.experiment and driver != "sim":
-        raise InputError(f"the {spec.name} experiment runs on the simulated robot only",
-                         hint="leave out --driver")
+    if spec.experiment:
+        if driver != "sim":
+            raise InputError(f"the {spec.name} experiment runs on the simulated robot only",
+                             hint="leave out --driver")
+        # its procedure names its own run folder (direction, e-stop) and checks --out first
+        done = run_experiment(spec, out=out, gui=gui, estop=False if no_estop else None)
+        _finish(ctx, done, as_json, lambda: _print_push_wall(done.summary, done.run_dir))
+        return
     with reserved_run_dir(f"task-{spec.name}", out) as run_dir:
         _run_in(ctx, spec, run_dir, driver=driver, options=options, no_estop=no_estop,
                 gui=gui, as_json=as_json)
@@ -246,12 +252,8 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
 def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, no_estop: bool,
             gui: bool, as_json: bool) -> None:
     from hubo_cli.cli.safety_view import SafetyPanel, read_safety
-    from hubo_cli.tasks.runner import check_task, run_experiment, run_task
+    from hubo_cli.tasks.runner import check_task, run_task
 
-    if spec.experiment:
-        done = run_experiment(spec, out=run_dir, gui=gui, estop=False if no_estop else None)
-        _finish(ctx, done, as_json, lambda: _print_push_wall(done.summary, done.run_dir))
-        return
     if not interactive() and not as_json:
         err_console.print(f"{spec.name}: pre-flight (laying out and solving every period)")
     plan = check_task(spec)
