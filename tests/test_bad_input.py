@@ -302,3 +302,43 @@ def test_collision_layer_keeps_the_commanded_posture_apart(model, tmp_path):
     assert np.nanmin(columns["collision_ahead_m"]) < -0.01        # the goal went inside
     assert np.nanmin(columns["collision_distance_m"]) > -0.001    # the command never did
 
+
+
+def test_setting_a_parameter_the_task_never_uses_is_refused(tmp_path):
+    from hubo_cli.errors import ConfigError
+    from hubo_cli.tasks.spec import load_task
+
+    path = tmp_path / "t.toml"
+    path.write_text(SLOT.read_text().replace("[parameters]\n", "[parameters]\nlength_mm = 300.0\n"))
+    assert load_task(path).parameters["length_mm"] == 300.0  # declaring it is harmless
+    with pytest.raises(ConfigError, match="never uses"):
+        load_task(path, {"length_mm": 50.0})
+    assert load_task(path, {"speed_mm_s": 20.0}).steps[2].speed_m_s == pytest.approx(0.02)
+
+
+def test_the_way_back_from_a_collision_hold_does_not_cross_the_body(model):
+    """Two clear postures whose straight joint-space way between crosses the torso (the left
+    wrist through it): held at the first, the input then at the second; the recovery must hold
+    short of the body rather than pass through it (without that check it reaches -9 mm)."""
+    from hubo_cli.control.collision import CollisionDetector
+    from hubo_cli.control.module import Cycle
+    from hubo_cli.posture import home_posture
+    from hubo_cli.state import RobotState
+
+    dt = model.control_period_s
+    a, b = home_posture(model), home_posture(model)
+    a[:12] = [-1.57, -0.31, -0.64, -2.4, -1.9, 0.7, 0.42, 0.19, 0.78, -2.17, 0.53, 0.3]
+    b[:12] = [-1.98, -0.82, 0.91, -0.6, 0.68, 0.9, 1.02, 1.82, -0.34, -2.41, -1.69, -0.65]
+    detector = CollisionDetector(model, dt)
+    way = [detector.checker.check(a + s * (b - a)).distance_m for s in np.linspace(0, 1, 101)]
+    assert min(way[0], way[-1]) > 0.03 and min(way) < -0.01  # the premise
+    inside = a + np.linspace(0, 1, 101)[int(np.argmin(way))] * (b - a)
+    state = RobotState(0.0, a, np.zeros(len(a)))
+    detector.reset(a, state)
+    distances = []
+    for k in range(int(6.0 / dt)):
+        q_in = a if k < 20 else (inside if k < 60 else b)  # into the body, then beyond it
+        detector.update(q_in, state, Cycle(k * dt, dt))
+        distances.append(detector.last_clearance.distance_m)
+    assert detector.events  # it held
+    assert min(distances) > 0.0
