@@ -15,7 +15,7 @@ from click.testing import CliRunner
 from hubo_cli.cli.main import main
 from hubo_cli.drivers.registry import make_driver
 from hubo_cli.fastrak.emulator import make_emulator
-from hubo_cli.fastrak.source import open_source
+from hubo_cli.fastrak.opener import open_source
 from hubo_cli.posture import home_posture
 from hubo_cli.teleop.mapping import HandMapper
 from hubo_cli.teleop.session import TeleopSettings, approach_paths, prepare

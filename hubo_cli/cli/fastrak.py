@@ -182,7 +182,7 @@ def record(port: str, out: Path, duration: float | None, baud: int, fmt: str, ou
            as_json: bool) -> None:
     """Record a live FASTRAK to a raw capture (decode it later with `hubo fastrak decode`)."""
     from hubo_cli.fastrak.capture import samples_batch, write_pose_log
-    from hubo_cli.fastrak.source import open_source
+    from hubo_cli.fastrak.opener import open_source
     from hubo_cli.runs import check_new_file
 
     check_seconds("--duration", duration, 7 * 24 * 3600)

@@ -74,6 +74,8 @@ def run_options(function):
         click.option("--out", type=click.Path(file_okay=False), default=None,
                      help="Run folder (default runs/<time>-task-<name>)."),
         click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON."),
+        click.option("--video", is_flag=True,
+                     help="After the run, render video.mp4 from its log (needs hubo-cli[viz])."),
     ]
     function = hardware_options(function)  # listed after the others
     for option in reversed(options):
@@ -228,11 +230,14 @@ def _shortcut(name: str) -> click.Command:
 
 
 def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool, gui: bool,
-         out: str | None, as_json: bool, **hardware) -> None:
+         out: str | None, as_json: bool, video: bool = False, **hardware) -> None:
+    from hubo_cli.cli.replay import add_run_video, check_video_support
     from hubo_cli.runs import reserved_run_dir
     from hubo_cli.tasks.runner import run_experiment
     from hubo_cli.tasks.spec import load_task
 
+    if video:
+        check_video_support()
     options = driver_options(driver, armed, **hardware)
     spec = load_task(name, overrides)
     ctx = click.get_current_context()
@@ -242,15 +247,17 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
                              hint="leave out --driver")
         # its procedure names its own run folder (direction, e-stop) and checks --out first
         done = run_experiment(spec, out=out, gui=gui, estop=False if no_estop else None)
+        if video:
+            add_run_video(done.run_dir, done.summary)
         _finish(ctx, done, as_json, lambda: _print_push_wall(done.summary, done.run_dir))
         return
     with reserved_run_dir(f"task-{spec.name}", out) as run_dir:
         _run_in(ctx, spec, run_dir, driver=driver, options=options, no_estop=no_estop,
-                gui=gui, as_json=as_json)
+                gui=gui, as_json=as_json, video=video)
 
 
 def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, no_estop: bool,
-            gui: bool, as_json: bool) -> None:
+            gui: bool, as_json: bool, video: bool) -> None:
     from hubo_cli.cli.safety_view import SafetyPanel, read_safety
     from hubo_cli.tasks.runner import check_task, run_task
 
@@ -284,6 +291,10 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, no
             state["live"].stop()
         if "lines" in state:
             state["lines"].stop()
+    if video:
+        from hubo_cli.cli.replay import add_run_video
+
+        add_run_video(done.run_dir, done.summary)
     _finish(ctx, done, as_json, lambda: _print_cut(done.summary, done.run_dir))
 
 

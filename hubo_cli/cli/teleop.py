@@ -116,9 +116,11 @@ def _view(target, panel) -> Group:
 @click.option("--out", type=click.Path(file_okay=False), default=None,
               help="Run folder (default runs/<time>-teleop).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
+@click.option("--video", is_flag=True,
+              help="After the run, render video.mp4 from its log (needs hubo-cli[viz]).")
 @hardware_options
 def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, wall_distance,
-           clutch_at, duration, no_estop, gui, out, as_json, **hardware) -> None:
+           clutch_at, duration, no_estop, gui, out, as_json, video, **hardware) -> None:
     """Drive the robot's hands from an operator's FASTRAK stream.
 
     Exactly one of --replay FILE or --port DEV. The first sample of each station calibrates it:
@@ -137,8 +139,12 @@ def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, w
     Examples: hubo teleop --replay trajectories/drill-rectangle.fastrak --mode drill
               hubo teleop --port /dev/ttyUSB0
     """
+    from hubo_cli.cli.replay import check_video_support
     from hubo_cli.runs import reserved_run_dir
     from hubo_cli.teleop.session import TeleopSettings
+
+    if video:
+        check_video_support()
 
     if (replay is None) == (port is None):
         raise InputError("give exactly one of --replay FILE or --port DEV",
@@ -177,12 +183,12 @@ def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, w
     with reserved_run_dir("teleop", out) as run_dir:
         settings.out = run_dir
         run = _run(settings, as_json)
-    _report(run, as_json)
+    _report(run, as_json, video)
 
 
 def _check_replay_stations(replay: str, settings) -> None:
     """Every mapped station must be in the recording (before anything moves)."""
-    from hubo_cli.fastrak.source import open_source
+    from hubo_cli.fastrak.opener import open_source
     from hubo_cli.teleop.mapping import check_stations_present
     from hubo_cli.teleop.session import station_map
 
@@ -259,11 +265,15 @@ def _run(settings, as_json: bool):
             state["lines"].stop()
 
 
-def _report(run, as_json: bool) -> None:
+def _report(run, as_json: bool, video: bool = False) -> None:
     """Print the summary; a run that failed in substance ends with a warning and exit 1 or 2."""
     from hubo_cli.cli.output import warn
 
     summary = run.summary
+    if video:
+        from hubo_cli.cli.replay import add_run_video
+
+        add_run_video(run.run_dir, summary)
     stops = [e for e in summary["estop_events"] if e["kind"] == "stop"]
     if as_json:
         print_json({"run_dir": str(run.run_dir), **summary})
@@ -277,6 +287,8 @@ def _report(run, as_json: bool) -> None:
                       f"{summary['status_counts']}, max velocity "
                       f"{summary['max_joint_velocity_ratio']:.0%} of limit")
         console.print(f"  run folder: {run.run_dir}", soft_wrap=True)
+        if video:
+            console.print(f"  video: {summary['video']['file']}")
     exception = run.loop.exception
     if isinstance(exception, HuboError):
         raise exception
