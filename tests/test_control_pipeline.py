@@ -97,7 +97,7 @@ def test_hostile_burst_is_smoothed(model):
 
 def test_hostile_burst_never_trips_the_hardware_servo_off(model, tmp_path):
     """The hubo-ach driver (echo source) latches servo-off on any too-fast reference."""
-    from hubo_cli.drivers.base import make_driver
+    from hubo_cli.drivers.registry import make_driver
 
     driver = make_driver("hardware", model, armed=True, run_dir=tmp_path)
     driver.start()

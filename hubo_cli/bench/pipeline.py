@@ -13,7 +13,7 @@ import numpy as np
 from hubo_cli.control.log import PeriodLog
 from hubo_cli.control.module import Cycle
 from hubo_cli.control.pipeline import build_pipeline
-from hubo_cli.drivers.base import make_driver
+from hubo_cli.drivers.registry import make_driver
 from hubo_cli.kinematics import get_limb
 from hubo_cli.model import ARMS, LEGS, load_model
 

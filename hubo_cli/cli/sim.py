@@ -2,12 +2,9 @@
 
 from __future__ import annotations
 
-import contextlib
-
 import click
 
-from hubo_cli.cli.output import console, print_json
-from hubo_cli.errors import HuboError
+from hubo_cli.cli.output import NO_ESTOP_HELP, console, print_json
 
 
 @click.command("sim")
@@ -16,32 +13,24 @@ from hubo_cli.errors import HuboError
 @click.option("--push", type=float, default=0.0, show_default=True,
               help="Push the torso forward with this force (N) for 0.2 s, 1 s into the run.")
 @click.option("--no-balance", is_flag=True, help="Turn the ankle balancer (eq. 11-12) off.")
+@click.option("--no-estop", is_flag=True, help=NO_ESTOP_HELP)
 @click.option("--gui", is_flag=True, help="Open the PyBullet window (runs in real time).")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
 @click.option("--out", type=click.Path(file_okay=False), default=None,
               help="Run folder (default runs/<time>-sim).")
-def sim(duration: float, push: float, no_balance: bool, gui: bool, as_json: bool,
-        out: str | None) -> None:
+def sim(duration: float, push: float, no_balance: bool, no_estop: bool, gui: bool,
+        as_json: bool, out: str | None) -> None:
     """Stand the simulated HUBO 2+ in its home posture and report tilt, feet and falls.
 
     Example: hubo sim --duration 5 --push 30
     """
-    from hubo_cli.drivers.standing import check_standing_args, stand
+    from hubo_cli.experiments.standing import stand
     from hubo_cli.model import load_model
-    from hubo_cli.runs import make_run_dir, write_json
 
-    check_standing_args(duration, push)
-    model = load_model()
-    run_dir = make_run_dir("sim", out)
-    try:
-        result = stand(model, duration, push, balance=not no_balance, gui=gui,
-                       snapshot=run_dir / "snapshot.png")
-    except HuboError:
-        with contextlib.suppress(OSError):
-            run_dir.rmdir()  # only if nothing was written
-        raise
+    result = stand(load_model(), duration, push, balance=not no_balance, gui=gui, out=out,
+                   estop=not no_estop)
+    run_dir = result.run_dir
     summary = result.summary() | {"run_dir": str(run_dir)}
-    write_json(run_dir / "summary.json", summary)
     if as_json:
         print_json(summary)
         return
@@ -57,4 +46,4 @@ def sim(duration: float, push: float, no_balance: bool, gui: bool, as_json: bool
     console.print(f"fell              {'YES' if result.fell else 'no'}")
     console.print(f"real-time factor  {result.realtime_factor:.2f} "
                   f"({100 * result.physics_share:.0f} % of the time in physics)")
-    console.print(f"run folder        {run_dir} (snapshot.png, summary.json)")
+    console.print(f"run folder        {run_dir} (log.csv, snapshot.png, summary.json)")

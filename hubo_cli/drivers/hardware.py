@@ -55,10 +55,11 @@ from pathlib import Path
 import numpy as np
 
 from hubo_cli.drivers import checks
-from hubo_cli.drivers.base import FT_SENSORS, Driver, RobotState, register
+from hubo_cli.drivers.base import Driver, RunContext
 from hubo_cli.errors import ConfigError, DeviceError, SafetyError
 from hubo_cli.model import RobotModel
 from hubo_cli.posture import home_posture
+from hubo_cli.state import FT_SENSORS, RobotState
 
 JOINT_COUNT = 42
 REF_FRAME = struct.Struct("<4sIQdI42d42h42b")
@@ -204,6 +205,12 @@ class HardwareDriver(Driver):
     """
 
     name = "hardware"
+    real_time = True
+
+    @classmethod
+    def run_options(cls, run: RunContext) -> dict:
+        """The reference sink (and its files) live in the run folder."""
+        return {"run_dir": Path(run.run_dir)}
 
     def __init__(self, model: RobotModel, armed: bool = False, run_dir: str | Path | None = None,
                  sink: str = "file", state_source: str | Path = "echo",
@@ -454,5 +461,3 @@ class HardwareDriver(Driver):
         return RobotState(time_s=self._t, q_rad=q, dq_rad_s=dq, imu_quat_wxyz=frame.quat_wxyz,
                           imu_gyro_rad_s=frame.gyro_rad_s, ft=ft, flags=tuple(flags))
 
-
-register("hardware", HardwareDriver)

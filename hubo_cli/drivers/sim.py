@@ -56,13 +56,14 @@ from pathlib import Path
 import numpy as np
 
 from hubo_cli.drivers import checks
-from hubo_cli.drivers.base import FT_SENSORS, Driver, RobotState, register
+from hubo_cli.drivers.base import Driver, RunContext, SimulatedWorld
 from hubo_cli.errors import ConfigError, DeviceError
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.perturb import FOOT_LINKS, CommandDelay, Perturbation
 from hubo_cli.perturb import draw as draw_perturbation
 from hubo_cli.posture import home_posture
+from hubo_cli.state import FT_SENSORS, RobotState
 from hubo_cli.urdf import DRILL_FRAME, link_frames
 
 DRILL_BIT_HALF_LENGTH_M = 0.02  # the flutes reach this far either side of the bit's middle
@@ -231,7 +232,7 @@ def _quat_wxyz(R: np.ndarray) -> np.ndarray:
     return quat / np.linalg.norm(quat) * (1.0 if quat[0] >= 0 else -1.0)
 
 
-class SimDriver(Driver):
+class SimDriver(Driver, SimulatedWorld):
     """The HUBO 2+ in PyBullet. Options: see :class:`SimOptions` (``gui``, ``drill``, ...).
 
     Besides the contract it offers scene objects (:meth:`add_wall`), a torso push
@@ -240,6 +241,19 @@ class SimDriver(Driver):
     """
 
     name = "sim"
+
+    @property
+    def world(self) -> SimDriver:
+        """The simulator is its own world (scene, pushes, frames, snapshots)."""
+        return self
+
+    @classmethod
+    def run_options(cls, run: RunContext) -> dict:
+        """The window, the drill in the right hand and the wall's cutting coefficients."""
+        options = {"gui": run.gui, "drill": run.tools.get("right-arm") == "drill"}
+        if run.cutting is not None:
+            options["cutting"] = dict(run.cutting)
+        return options
 
     def __init__(self, model: RobotModel, **options) -> None:
         super().__init__(model)
@@ -269,7 +283,7 @@ class SimDriver(Driver):
         self._t = 0.0
         self.cutting_force_n = np.zeros(3)
         self._cutting_point = np.zeros(3)
-        self.physics_wall_s = 0.0  # wall time spent inside stepSimulation (s), for benchmarks
+        self._physics_wall_s = 0.0
         self.perturbation = Perturbation()  # drawn from perturb_seed when the world is built
         self._noise = self.perturbation.noise()
         self._delay: CommandDelay | None = None
@@ -436,7 +450,7 @@ class SimDriver(Driver):
             self._apply_external_forces(self._t + k * self.options.physics_dt_s)
             p.stepSimulation(physicsClientId=cid)
             self._physics_step += 1
-        self.physics_wall_s += time.perf_counter() - t0
+        self._physics_wall_s += time.perf_counter() - t0
         self._t += self.period_s
         self._state = self._measure()
         return self._state
@@ -601,6 +615,11 @@ class SimDriver(Driver):
         return _pose(ls[4], ls[5]) @ self._T_link_frame[frame]
 
     @property
+    def physics_wall_s(self) -> float:
+        """Wall-clock time spent inside stepSimulation since the driver was made (s)."""
+        return self._physics_wall_s
+
+    @property
     def walls(self) -> tuple[Wall, ...]:
         """The walls in the scene."""
         return tuple(self._walls)
@@ -621,5 +640,3 @@ class SimDriver(Driver):
         image = np.reshape(np.asarray(rgba, dtype=np.uint8), (height, width, 4))[:, :, :3]
         return write_png(path, image)
 
-
-register("sim", SimDriver)
