@@ -7,6 +7,7 @@ from rich.live import Live
 from rich.progress_bar import ProgressBar
 from rich.table import Table
 
+from hubo_cli.cli.options import perturb_option
 from hubo_cli.cli.output import NO_ESTOP_HELP, console, err_console, interactive, print_json
 from hubo_cli.drivers.registry import DRIVER_NAMES
 from hubo_cli.errors import HuboError, InputError, SafetyError
@@ -63,6 +64,7 @@ def run_options(function):
         click.option("--out", type=click.Path(file_okay=False), default=None,
                      help="Run folder (default runs/<time>-task-<name>)."),
         click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON."),
+        perturb_option,
     ]
     for option in reversed(options):
         function = option(function)
@@ -198,7 +200,7 @@ def _shortcut(name: str) -> click.Command:
 
 
 def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool, gui: bool,
-         out: str | None, as_json: bool) -> None:
+         out: str | None, as_json: bool, perturb_seed: int | None) -> None:
     from hubo_cli.tasks.runner import check_task, run_experiment, run_task
     from hubo_cli.tasks.spec import load_task
 
@@ -208,7 +210,8 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
         if driver != "sim":
             raise InputError(f"the {spec.name} experiment runs on the simulated robot only",
                              hint="leave out --driver")
-        done = run_experiment(spec, out=out, gui=gui, estop=False if no_estop else None)
+        done = run_experiment(spec, out=out, gui=gui, estop=False if no_estop else None,
+                              perturb_seed=perturb_seed)
         _finish(ctx, done, as_json, lambda: _print_push_wall(done.summary, done.run_dir))
         return
     plan = check_task(spec)
@@ -225,7 +228,7 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
 
     try:
         done = run_task(plan, driver=driver, out=out, gui=gui, estop=not no_estop,
-                        on_start=on_start,
+                        on_start=on_start, perturb_seed=perturb_seed,
                         driver_options={"armed": True} if armed and driver == "hardware"
                         else {})
     finally:

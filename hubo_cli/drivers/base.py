@@ -25,6 +25,7 @@ import numpy as np
 
 from hubo_cli.errors import ConfigError
 from hubo_cli.model import RobotModel
+from hubo_cli.perturb import Perturbation
 from hubo_cli.state import RobotState
 
 
@@ -38,12 +39,14 @@ class RunContext:
         gui: the user asked for a window.
         cutting: the wall material's cutting coefficients (``coulomb_n``,
             ``viscous_n_s_per_m``), where the scene has one.
+        perturb_seed: the seed of a perturbed simulated robot and world (None: nominal).
     """
 
     run_dir: Path
     tools: Mapping[str, str]
     gui: bool = False
     cutting: Mapping[str, float] | None = None
+    perturb_seed: int | None = None
 
 
 class SimulatedWorld(ABC):
@@ -69,6 +72,11 @@ class SimulatedWorld(ABC):
     @abstractmethod
     def snapshot_png(self, path: str | Path) -> Path:
         """Render the scene headless into a PNG; returns its path."""
+
+    @property
+    @abstractmethod
+    def perturbation(self) -> Perturbation:
+        """How the simulated robot and world differ from the nominal ones (the draws)."""
 
     @property
     @abstractmethod

@@ -253,6 +253,8 @@ class SimDriver(Driver, SimulatedWorld):
         options = {"gui": run.gui, "drill": run.tools.get("right-arm") == "drill"}
         if run.cutting is not None:
             options["cutting"] = dict(run.cutting)
+        if run.perturb_seed:
+            options["perturb_seed"] = run.perturb_seed
         return options
 
     def __init__(self, model: RobotModel, **options) -> None:
@@ -284,8 +286,8 @@ class SimDriver(Driver, SimulatedWorld):
         self.cutting_force_n = np.zeros(3)
         self._cutting_point = np.zeros(3)
         self._physics_wall_s = 0.0
-        self.perturbation = Perturbation()  # drawn from perturb_seed when the world is built
-        self._noise = self.perturbation.noise()
+        self._perturbation = Perturbation()  # drawn from perturb_seed when the world is built
+        self._noise = self._perturbation.noise()
         self._delay: CommandDelay | None = None
         self._physics_step = 0
         frames = link_frames(model)
@@ -378,8 +380,8 @@ class SimDriver(Driver, SimulatedWorld):
     def _perturb_world(self, urdf_text: str) -> str | None:
         """Draw the perturbation (:mod:`hubo_cli.perturb`), tilt the floor, restart the noise
         and the command delay; returns the URDF text to load (None: the file as it is)."""
-        self.perturbation = draw_perturbation(self.options.perturb_seed, urdf_text,
-                                              self.options.physics_dt_s)
+        self._perturbation = draw_perturbation(self.options.perturb_seed, urdf_text,
+                                               self.options.physics_dt_s)
         self._p.resetBasePositionAndOrientation(self._floor, [0, 0, 0],
                                                 self.perturbation.floor_quat_xyzw(),
                                                 physicsClientId=self._cid)
@@ -613,6 +615,11 @@ class SimDriver(Driver, SimulatedWorld):
         ls = self._p.getLinkState(self._robot, self._links[FRAME_PARENTS[frame]],
                                   computeForwardKinematics=1, physicsClientId=self._cid)
         return _pose(ls[4], ls[5]) @ self._T_link_frame[frame]
+
+    @property
+    def perturbation(self) -> Perturbation:
+        """The perturbed robot and world of ``perturb_seed`` (nominal without one)."""
+        return self._perturbation
 
     @property
     def physics_wall_s(self) -> float:
