@@ -183,7 +183,9 @@ def run(setup: RunSetup, target: Target,
         _remove_if_empty(run_dir)
         raise
     summary = common_summary(setup, speed, result, modules, run_dir)
-    summary["perturbation"] = world.perturbation.to_json() if world is not None else None
+    if world is not None:  # the simulator's draws and ground truth
+        summary["perturbation"] = world.perturbation.to_json()
+        summary["max_torso_tilt_deg"] = world.max_tilt_deg
     done = RunResult(run_dir, result, modules, summary)
     summary["max_joint_velocity_ratio"] = max_velocity_ratio(setup.model, done.log)
     write_json(run_dir / SUMMARY_NAME, summary)

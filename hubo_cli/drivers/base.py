@@ -80,6 +80,11 @@ class SimulatedWorld(ABC):
 
     @property
     @abstractmethod
+    def max_tilt_deg(self) -> float:
+        """The largest true torso tilt from upright since the start (deg)."""
+
+    @property
+    @abstractmethod
     def physics_wall_s(self) -> float:
         """Wall-clock time spent stepping the physics so far (s), for benchmarks."""
 

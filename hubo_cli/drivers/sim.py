@@ -288,6 +288,7 @@ class SimDriver(Driver, SimulatedWorld):
         self._physics_wall_s = 0.0
         self._perturbation = Perturbation()  # drawn from perturb_seed when the world is built
         self._noise = self._perturbation.noise()
+        self._max_tilt_deg = 0.0
         self._delay: CommandDelay | None = None
         self._physics_step = 0
         frames = link_frames(model)
@@ -389,6 +390,7 @@ class SimDriver(Driver, SimulatedWorld):
         steps = self.perturbation.delay_steps(self.options.physics_dt_s)
         self._delay = CommandDelay(steps) if steps else None
         self._physics_step = 0
+        self._max_tilt_deg = 0.0
         return None if self.perturbation.nominal else self.perturbation.urdf_text(urdf_text)
 
     def _apply_command(self, q_cmd_rad: np.ndarray | None = None) -> None:
@@ -600,6 +602,8 @@ class SimDriver(Driver, SimulatedWorld):
                            imu_gyro_rad_s=R.T @ np.asarray(omega_world), ft=ft, tau_nm=tau,
                            T_world_torso=T_world_torso, feet_contact=(contact[0], contact[1]),
                            flags=flags)
+        tilt_deg = math.degrees(math.acos(max(-1.0, min(1.0, float(R[2, 2])))))
+        self._max_tilt_deg = max(self._max_tilt_deg, tilt_deg)
         return self._noise.measure(state)
 
     # ------------------------------------------------------------------ extras
@@ -620,6 +624,11 @@ class SimDriver(Driver, SimulatedWorld):
     def perturbation(self) -> Perturbation:
         """The perturbed robot and world of ``perturb_seed`` (nominal without one)."""
         return self._perturbation
+
+    @property
+    def max_tilt_deg(self) -> float:
+        """The largest true torso tilt from upright since the start (deg)."""
+        return self._max_tilt_deg
 
     @property
     def physics_wall_s(self) -> float:
