@@ -15,7 +15,10 @@ What is drawn (the ranges of the project's issue, chosen as a real lab's spread)
   U(0, 0.5) deg about a random horizontal axis;
 - force/torque noise N(0, 1 N) on forces and N(0, 0.05 N m) on moments, every sensor;
 - a command-to-motion delay of U{0..10} physics steps (1 ms each at the default 1 kHz);
-- a floor tilted by U(0, 0.5) deg about a random horizontal axis through the origin.
+- a floor tilted by U(0, 0.5) deg about a random horizontal axis through the origin; the robot
+  is set down on it with both soles flat (as it would be placed), so gravity pulls 0-0.5 deg off
+  its soles' normal. (Set down level on a tilted rigid floor, the stiff legs would leave one
+  sole carrying the whole weight from a roll of 0.3 deg.)
 
 The per-period noise comes from a second stream of the same seed, restarted when the simulator
 starts, so a run is repeated exactly by the same seed on the same machine (the physics engine's
@@ -140,6 +143,16 @@ class Perturbation:
             return [0.0, 0.0, 0.0, 1.0]
         axis = rv / angle
         return [*(axis * math.sin(angle / 2)).tolist(), math.cos(angle / 2)]
+
+    def T_world_floor(self) -> np.ndarray:
+        """The floor's pose in the world (4x4): turned by the tilt about the world origin (the
+        simulator stands the robot on it with its soles flat, as it was set down)."""
+        T = np.eye(4)
+        rv = np.array(self.floor_tilt_rad)
+        angle = float(np.linalg.norm(rv))
+        if angle > 0.0:
+            T[:3, :3] = _rotation(rv / angle, angle)
+        return T
 
     def delay_steps(self, physics_dt_s: float) -> int:
         """The command delay in whole physics steps."""

@@ -368,9 +368,12 @@ class SimDriver(Driver, SimulatedWorld):
         p, cid = self._p, self._cid
         T_world_com = np.eye(4)
         T_world_com[2, 3] = self.neck_height_m
-        T_world_com = T_world_com @ np.linalg.inv(self._T_com_torso)
+        # standing on the (perturbed) floor with both soles flat on it
+        T_world_com = self.perturbation.T_world_floor() @ T_world_com @ np.linalg.inv(
+            self._T_com_torso)
         p.resetBasePositionAndOrientation(self._robot, T_world_com[:3, 3].tolist(),
-                                          [0, 0, 0, 1], physicsClientId=cid)
+                                          _quat_wxyz(T_world_com[:3, :3])[[1, 2, 3, 0]].tolist(),
+                                          physicsClientId=cid)
         for j, q in zip(self._idx, q0, strict=True):
             p.resetJointState(self._robot, j, float(q), 0.0, physicsClientId=cid)
         self._cmd = np.array(q0, dtype=float)
