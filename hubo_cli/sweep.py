@@ -19,6 +19,7 @@ import csv
 import itertools
 import json
 import math
+import os
 import re
 import time
 from collections.abc import Callable, Sequence
@@ -264,6 +265,13 @@ def run_sweep(jobs: Sequence[Job], out_dir: str | Path, *, workers: int | None =
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
+    n_workers = workers or os.cpu_count() or 1
+    if scheduler is not None:
+        where = f"the Dask cluster at {scheduler}"
+    elif workers == 0:
+        where = "this process, one job after the other"
+    else:
+        where = f"a local Dask cluster of {n_workers} worker process{'es' * (n_workers > 1)}"
     t0 = time.perf_counter()
     done: dict[int, Row] = {}
     interrupted = False
@@ -275,14 +283,12 @@ def run_sweep(jobs: Sequence[Job], out_dir: str | Path, *, workers: int | None =
 
     try:
         if scheduler is None and workers == 0:
-            where = "this process, one job after the other"
             for index, job in enumerate(jobs):
                 finished(index, run_job(job, out_dir))
         else:
-            where = _run_on_dask(jobs, out_dir, workers, scheduler, finished)
+            _run_on_dask(jobs, out_dir, n_workers, scheduler, finished)
     except KeyboardInterrupt:
         interrupted = True
-        where = "interrupted"
     rows = [done[i] for i in sorted(done)]
     result = SweepResult(rows, len(jobs), where, time.perf_counter() - t0, interrupted, out_dir)
     write_table(rows, out_dir / TABLE_NAME)
@@ -291,10 +297,8 @@ def run_sweep(jobs: Sequence[Job], out_dir: str | Path, *, workers: int | None =
     return result
 
 
-def _run_on_dask(jobs, out_dir: Path, workers: int | None, scheduler: str | None,
-                 finished: Callable[[int, Row], None]) -> str:
-    import os
-
+def _run_on_dask(jobs, out_dir: Path, n_workers: int, scheduler: str | None,
+                 finished: Callable[[int, Row], None]) -> None:
     from dask import config
     from distributed import Client, LocalCluster, as_completed
 
@@ -303,14 +307,11 @@ def _run_on_dask(jobs, out_dir: Path, workers: int | None, scheduler: str | None
         if scheduler is not None:
             cluster = None
             client = Client(scheduler, timeout="10s")
-            where = f"the Dask cluster at {scheduler}"
         else:
-            n = workers or os.cpu_count() or 1
-            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+            cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
                                    host="127.0.0.1", dashboard_address=None,
                                    silence_logs=50)
             client = Client(cluster)
-            where = f"a local Dask cluster of {n} worker process{'es' if n > 1 else ''}"
         futures = {}
         try:
             for index, job in enumerate(jobs):
@@ -332,7 +333,6 @@ def _run_on_dask(jobs, out_dir: Path, workers: int | None, scheduler: str | None
             client.close()
             if cluster is not None:
                 cluster.close()
-    return where
 
 
 COLUMNS = ("command", "seed", "completed", "estop", "hole_rms_mm", "min_support_margin_mm",
