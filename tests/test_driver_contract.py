@@ -1,4 +1,4 @@
-"""One behaviour suite for every registered driver: sim, hardware (loopback echo) and ideal."""
+"""One behaviour suite for every registered driver: sim, hardware (dry-run echo) and ideal."""
 
 from __future__ import annotations
 
@@ -19,7 +19,9 @@ REB = MODEL.joint_names.index("REB")
 
 
 def _options(name: str, tmp_path) -> dict:
-    return {"hardware": {"armed": True, "run_dir": tmp_path}}.get(name, {})
+    # the hardware driver's dry-run sink (its ach channels: tests/test_hardware_ach.py)
+    hardware = {"armed": True, "sink": "file", "sink_path": tmp_path / "hubo-ref.bin"}
+    return {"hardware": hardware}.get(name, {})
 
 
 @pytest.fixture(params=DRIVER_NAMES)

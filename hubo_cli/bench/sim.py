@@ -70,4 +70,5 @@ def run(report) -> None:
     _sim_figures(report, model)
     _driver_period(report, model, "ideal")
     with tempfile.TemporaryDirectory() as folder:
-        _driver_period(report, model, "hardware", armed=True, run_dir=folder)
+        _driver_period(report, model, "hardware", armed=True, sink="file",
+                       sink_path=f"{folder}/hubo-ref.bin")

@@ -21,6 +21,7 @@ COMMANDS = {
     "task": "hubo_cli.cli.task:task",
     "teleop": "hubo_cli.cli.teleop:teleop",
     "sweep": "hubo_cli.cli.sweep:sweep",
+    "hardware": "hubo_cli.cli.hardware:hardware",
 }
 
 

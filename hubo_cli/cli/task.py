@@ -7,6 +7,7 @@ from rich.live import Live
 from rich.progress_bar import ProgressBar
 from rich.table import Table
 
+from hubo_cli.cli.hardware import driver_options, hardware_options
 from hubo_cli.cli.options import perturb_option
 from hubo_cli.cli.output import NO_ESTOP_HELP, console, err_console, interactive, print_json
 from hubo_cli.drivers.registry import DRIVER_NAMES
@@ -66,6 +67,7 @@ def run_options(function):
         click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON."),
         perturb_option,
     ]
+    function = hardware_options(function)  # listed after the others
     for option in reversed(options):
         function = option(function)
     return function
@@ -200,10 +202,11 @@ def _shortcut(name: str) -> click.Command:
 
 
 def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool, gui: bool,
-         out: str | None, as_json: bool, perturb_seed: int | None) -> None:
+         out: str | None, as_json: bool, perturb_seed: int | None, **hardware) -> None:
     from hubo_cli.tasks.runner import check_task, run_experiment, run_task
     from hubo_cli.tasks.spec import load_task
 
+    options = driver_options(driver, armed, **hardware)
     spec = load_task(name, overrides)
     ctx = click.get_current_context()
     if spec.experiment:
@@ -229,8 +232,7 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
     try:
         done = run_task(plan, driver=driver, out=out, gui=gui, estop=not no_estop,
                         on_start=on_start, perturb_seed=perturb_seed,
-                        driver_options={"armed": True} if armed and driver == "hardware"
-                        else {})
+                        driver_options=options)
     finally:
         if "live" in state:
             state["live"].stop()

@@ -7,6 +7,7 @@ import numpy as np
 from rich.live import Live
 from rich.table import Table
 
+from hubo_cli.cli.hardware import driver_options, hardware_options
 from hubo_cli.cli.options import perturb_option
 from hubo_cli.cli.output import NO_ESTOP_HELP, console, err_console, interactive, print_json
 from hubo_cli.drivers.registry import DRIVER_NAMES, driver_class
@@ -89,9 +90,10 @@ def _view(target) -> Table:
 @click.option("--out", type=click.Path(file_okay=False), default=None,
               help="Run folder (default runs/<time>-teleop).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
+@hardware_options
 @perturb_option
 def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, wall_distance,
-           clutch_at, duration, no_estop, gui, out, as_json, perturb_seed) -> None:
+           clutch_at, duration, no_estop, gui, out, as_json, perturb_seed, **hardware) -> None:
     """Drive the robot's hands from an operator's FASTRAK stream.
 
     Exactly one of --replay FILE or --port DEV. The first sample of each station calibrates it:
@@ -118,8 +120,8 @@ def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, w
         station_arm=_station_map(station_map),
         wall_distance_m=None if wall_distance is None else wall_distance / 1000.0,
         duration_s=duration, clutch_at_s=tuple(clutch_at), out=out, gui=gui, baud=baud,
-        estop=not no_estop, driver_options={"armed": True} if armed and driver == "hardware"
-        else {}, perturb_seed=perturb_seed)
+        estop=not no_estop, driver_options=driver_options(driver, armed, **hardware),
+        perturb_seed=perturb_seed)
     state = {"live": None, "keys": None}
 
     def on_key(char: str) -> None:

@@ -153,6 +153,7 @@ class ControlLoop:
     def _extra_columns(self) -> list[str]:
         columns = [c for m in self.modules for c in m.log_columns]
         columns += self.target.log_columns
+        columns += self.driver.log_columns
         return list(dict.fromkeys(columns))
 
     def _pace(self) -> float:
@@ -245,6 +246,7 @@ class ControlLoop:
                 cycle.flags.update(state.flags)
                 extras = dict(cycle.info)
                 extras.update((k, v) for k, v in info.items() if isinstance(v, (int, float)))
+                extras.update(driver.log_values())
                 self._write(t_s, cycle.flags, compute_s, late_s, target_logged, applied, state,
                             extras)
                 self.period += 1

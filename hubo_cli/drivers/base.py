@@ -96,6 +96,7 @@ class Driver(ABC):
         name: the registry name.
         real_time: the driver moves a real robot (or feeds a process that does), so the loop
             must run at wall-clock pace whatever the caller asked for.
+        log_columns: numbers the driver adds to every log row (see :meth:`log_values`).
 
     Args:
         model: the robot model (joint names and limits).
@@ -103,11 +104,16 @@ class Driver(ABC):
 
     name = "abstract"
     real_time: ClassVar[bool] = False
+    log_columns: tuple[str, ...] = ()
 
     @property
     def world(self) -> SimulatedWorld | None:
         """The simulator's extras (scene, pushes, frames, snapshots); None on a real robot."""
         return None
+
+    def log_values(self) -> dict[str, float]:
+        """This period's values of :attr:`log_columns` (driver-level numbers for the log)."""
+        return {}
 
     @classmethod
     def run_options(cls, run: RunContext) -> dict:

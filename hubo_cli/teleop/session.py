@@ -170,15 +170,14 @@ def run_teleop(settings: TeleopSettings, on_ready=None) -> TeleopRun:
     # the wall at the stance's distance (issue #15 moves it to the bit, as tasks place it)
     wall = (WallPlacement(None, scene["wall_distance_m"], WALL) if settings.mode == "drill"
             else None)
+    teleop_setup(settings, body, None).pace()  # refuse a bad pace before opening the port
     with open_source(replay=settings.replay, port=settings.port, baud=settings.baud) as source:
         target = TeleopTarget(model, source, HandMapper(mapping), body, approach, q_start,
                               live=source.live, clutch_at_s=settings.clutch_at_s, wall=wall)
         duration = settings.duration_s
         if duration is None and source.recorded_s is not None:
             duration = source.recorded_s + target.approach_timeout_s + 30.0
-        setup = teleop_setup(settings, body, duration)
-        setup.pace()  # refuse a faster-than-real-time live session before the robot starts
-        done = run(setup, target, on_start=on_ready)
+        done = run(teleop_setup(settings, body, duration), target, on_start=on_ready)
     summary = done.save_summary(summarise(settings, target, done, source, scene))
     return TeleopRun(done.run_dir, summary, done.loop)
 
