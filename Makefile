@@ -14,7 +14,7 @@ LOCK   := requirements.lock
 $(STAMP): pyproject.toml $(LOCK)
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet -c $(LOCK) --upgrade pip
-	$(BIN)/python -m pip install --quiet -c $(LOCK) -e '.[test]'
+	$(BIN)/python -m pip install --quiet -c $(LOCK) -e '.[test,viz]'
 	@touch $(STAMP)
 
 # Resolves the newest versions pyproject.toml allows in a scratch virtualenv and writes them
@@ -23,13 +23,13 @@ update-lock:
 	rm -rf .lock-venv
 	$(PYTHON) -m venv .lock-venv
 	.lock-venv/bin/python -m pip install --quiet --upgrade pip
-	.lock-venv/bin/python -m pip install --quiet -e '.[test]'
+	.lock-venv/bin/python -m pip install --quiet -e '.[test,viz]'
 	{ echo "# hubo-cli: the versions the test suite passed with (make update-lock writes it)."; \
 	  .lock-venv/bin/python -m pip freeze --all --exclude-editable; } > $(LOCK)
 	rm -rf .lock-venv
 
 run: $(STAMP)
-	$(BIN)/hubo task cut-rectangle
+	$(BIN)/hubo task cut-rectangle --video
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
