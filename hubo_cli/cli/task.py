@@ -8,6 +8,7 @@ from rich.progress_bar import ProgressBar
 from rich.table import Table
 
 from hubo_cli.cli.hardware import driver_options, hardware_options
+from hubo_cli.cli.options import perturb_option
 from hubo_cli.cli.output import NO_ESTOP_HELP, console, err_console, interactive, print_json
 from hubo_cli.drivers.registry import DRIVER_NAMES
 from hubo_cli.errors import HuboError, InputError, SafetyError
@@ -66,6 +67,7 @@ def run_options(function):
         click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON."),
         click.option("--video", is_flag=True,
                      help="After the run, render video.mp4 from its log (needs hubo-cli[viz])."),
+        perturb_option,
     ]
     function = hardware_options(function)  # listed after the others
     for option in reversed(options):
@@ -202,7 +204,8 @@ def _shortcut(name: str) -> click.Command:
 
 
 def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool, gui: bool,
-         out: str | None, as_json: bool, video: bool = False, **hardware) -> None:
+         out: str | None, as_json: bool, perturb_seed: int | None, video: bool = False,
+         **hardware) -> None:
     from hubo_cli.cli.replay import add_run_video, check_video_support
     from hubo_cli.tasks.runner import check_task, run_experiment, run_task
     from hubo_cli.tasks.spec import load_task
@@ -216,7 +219,8 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
         if driver != "sim":
             raise InputError(f"the {spec.name} experiment runs on the simulated robot only",
                              hint="leave out --driver")
-        done = run_experiment(spec, out=out, gui=gui, estop=False if no_estop else None)
+        done = run_experiment(spec, out=out, gui=gui, estop=False if no_estop else None,
+                              perturb_seed=perturb_seed)
         if video:
             add_run_video(done.run_dir, done.summary)
         _finish(ctx, done, as_json, lambda: _print_push_wall(done.summary, done.run_dir))
@@ -235,7 +239,8 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
 
     try:
         done = run_task(plan, driver=driver, out=out, gui=gui, estop=not no_estop,
-                        on_start=on_start, driver_options=options)
+                        on_start=on_start, perturb_seed=perturb_seed,
+                        driver_options=options)
     finally:
         if "live" in state:
             state["live"].stop()

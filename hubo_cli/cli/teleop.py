@@ -8,6 +8,7 @@ from rich.live import Live
 from rich.table import Table
 
 from hubo_cli.cli.hardware import driver_options, hardware_options
+from hubo_cli.cli.options import perturb_option
 from hubo_cli.cli.output import NO_ESTOP_HELP, console, err_console, interactive, print_json
 from hubo_cli.drivers.registry import DRIVER_NAMES, driver_class
 from hubo_cli.errors import InputError
@@ -92,8 +93,10 @@ def _view(target) -> Table:
 @click.option("--video", is_flag=True,
               help="After the run, render video.mp4 from its log (needs hubo-cli[viz]).")
 @hardware_options
+@perturb_option
 def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, wall_distance,
-           clutch_at, duration, no_estop, gui, out, as_json, video, **hardware) -> None:
+           clutch_at, duration, no_estop, gui, out, as_json, video, perturb_seed,
+           **hardware) -> None:
     """Drive the robot's hands from an operator's FASTRAK stream.
 
     Exactly one of --replay FILE or --port DEV. The first sample of each station calibrates it:
@@ -124,7 +127,8 @@ def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, w
         station_arm=_station_map(station_map),
         wall_distance_m=None if wall_distance is None else wall_distance / 1000.0,
         duration_s=duration, clutch_at_s=tuple(clutch_at), out=out, gui=gui, baud=baud,
-        estop=not no_estop, driver_options=driver_options(driver, armed, **hardware))
+        estop=not no_estop, driver_options=driver_options(driver, armed, **hardware),
+        perturb_seed=perturb_seed)
     state = {"live": None, "keys": None}
 
     def on_key(char: str) -> None:
