@@ -124,7 +124,9 @@ def ik(limb, matrix, xyz, rpy, prev, show_all, batch_in, batch_out, params, limi
     """Joints that put LIMB's end frame at a goal pose in the neck frame.
 
     Prints the chosen joints, the status (exact, capped, held, unreachable) and the residual
-    error. Exit code 0 when a solution was found (exact or capped), 5 otherwise.
+    error. Exit code 0 when a solution was found (exact or capped), 5 otherwise. With
+    --batch: every row gets a line in --out (never the input file); exit code 2 when any row
+    was invalid (each is named by line and field on stderr; the others are still solved), else 0.
 
     Example: hubo ik right-arm --xyz 484 -170 75 --rpy 0 0 0 --tool drill
     """
@@ -188,3 +190,5 @@ def _batch(solver, batch_in: str, batch_out: str | None, as_json: bool) -> None:
         counts = ", ".join(f"{k} {v}" for k, v in report.status_counts.items() if v)
         console.print(f"{report.rows} rows -> {batch_out} in {report.seconds:.2f} s "
                       f"({rate:,.0f} rows/s): {counts}")
+    if report.invalid:
+        raise SystemExit(InputError.exit_code)  # the good rows are written; the bad are named

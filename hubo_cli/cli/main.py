@@ -22,6 +22,7 @@ COMMANDS = {
     "sim": "hubo_cli.cli.sim:sim",
     "task": "hubo_cli.cli.task:task",
     "teleop": "hubo_cli.cli.teleop:teleop",
+    "sweep": "hubo_cli.cli.sweep:sweep",
     "hardware": "hubo_cli.cli.hardware:hardware",
     "replay": "hubo_cli.cli.replay:replay",
     "export": "hubo_cli.cli.export:export",

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import json
+
 import click
 
+from hubo_cli.cli.options import perturb_option
 from hubo_cli.cli.output import NO_ESTOP_HELP, console, print_json
 
 
@@ -18,8 +21,9 @@ from hubo_cli.cli.output import NO_ESTOP_HELP, console, print_json
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
 @click.option("--out", type=click.Path(file_okay=False), default=None,
               help="Run folder (default runs/<time>-sim).")
+@perturb_option
 def sim(duration: float, push: float, no_balance: bool, no_estop: bool, gui: bool,
-        as_json: bool, out: str | None) -> None:
+        as_json: bool, out: str | None, perturb_seed: int | None) -> None:
     """Stand the simulated HUBO 2+ in its home posture and report tilt, feet and falls.
 
     Example: hubo sim --duration 5 --push 30
@@ -31,8 +35,9 @@ def sim(duration: float, push: float, no_balance: bool, no_estop: bool, gui: boo
     check_standing_args(duration, push)
     with reserved_run_dir("sim", out) as run_dir:  # a bad --out fails before anything runs
         result = stand(load_model(), duration, push, balance=not no_balance, gui=gui,
-                       out=run_dir, estop=not no_estop)
-    summary = result.summary() | {"run_dir": str(run_dir)}
+                       out=run_dir, estop=not no_estop, perturb_seed=perturb_seed)
+    # the run's whole summary (as in summary.json: pipeline, e-stops, perturbation draws ...)
+    summary = json.loads((run_dir / "summary.json").read_text()) | {"run_dir": str(run_dir)}
     if as_json:
         print_json(summary)
         return

@@ -12,6 +12,7 @@ from rich.table import Table
 
 from hubo_cli.cli.checks import check_baud, check_seconds
 from hubo_cli.cli.hardware import driver_options, hardware_options
+from hubo_cli.cli.options import perturb_option
 from hubo_cli.cli.output import (
     NO_ESTOP_HELP,
     ProgressLines,
@@ -119,8 +120,10 @@ def _view(target, panel) -> Group:
 @click.option("--video", is_flag=True,
               help="After the run, render video.mp4 from its log (needs hubo-cli[viz]).")
 @hardware_options
+@perturb_option
 def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, wall_distance,
-           clutch_at, duration, no_estop, gui, out, as_json, video, **hardware) -> None:
+           clutch_at, duration, no_estop, gui, out, as_json, video, perturb_seed,
+           **hardware) -> None:
     """Drive the robot's hands from an operator's FASTRAK stream.
 
     Exactly one of --replay FILE or --port DEV. The first sample of each station calibrates it:
@@ -175,7 +178,8 @@ def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, w
         station_arm=stations,
         wall_distance_m=None if wall_distance is None else wall_distance / 1000.0,
         duration_s=duration, clutch_at_s=tuple(clutch_at), out=out, gui=gui, baud=baud,
-        estop=not no_estop, driver_options=driver_options(driver, armed, **hardware))
+        estop=not no_estop, driver_options=driver_options(driver, armed, **hardware),
+        perturb_seed=perturb_seed)
     if replay is not None:
         _check_replay_stations(replay, settings)
     if wall_distance is not None:

@@ -47,6 +47,7 @@ import contextlib
 import math
 import os
 import sys
+import tempfile
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -61,6 +62,8 @@ from hubo_cli.geometry import matrix_to_quat_wxyz, quat_xyzw_to_matrix
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.kinematics.poses import make_transform
 from hubo_cli.model import RobotModel
+from hubo_cli.perturb import FOOT_LINKS, CommandDelay, Perturbation
+from hubo_cli.perturb import draw as draw_perturbation
 from hubo_cli.posture import home_posture
 from hubo_cli.state import FT_SENSORS, RobotState
 from hubo_cli.urdf import DRILL_FRAME, link_frames
@@ -186,6 +189,19 @@ class SimOptions:
     settle_s: float = 0.3
     max_speed_factor: float = 3.0
     cutting: CuttingModel = field(default_factory=CuttingModel)
+    perturb_seed: int | None = None  # hubo_cli.perturb: None or 0 = the nominal robot and world
+
+
+@contextlib.contextmanager
+def _urdf_file(path: Path, text: str):
+    """``path`` itself when ``text`` is None, else a temporary file holding ``text``."""
+    if text is None:
+        yield path
+        return
+    with tempfile.TemporaryDirectory(prefix="hubo-urdf-") as folder:
+        copy = Path(folder) / path.name
+        copy.write_text(text)
+        yield copy
 
 
 def _pose(position, quat_xyzw) -> np.ndarray:
@@ -214,6 +230,8 @@ class SimDriver(Driver, SimulatedWorld):
         options = {"gui": run.gui, "drill": run.tools.get("right-arm") == "drill"}
         if run.cutting is not None:
             options["cutting"] = dict(run.cutting)
+        if run.perturb_seed:
+            options["perturb_seed"] = run.perturb_seed
         return options
 
     def __init__(self, model: RobotModel, **options) -> None:
@@ -246,6 +264,11 @@ class SimDriver(Driver, SimulatedWorld):
         self._cutting_point = np.zeros(3)
         self._cut_points: list[tuple] = []  # (time s, where the bit crossed a wall), per period
         self._physics_wall_s = 0.0
+        self._perturbation = Perturbation()  # drawn from perturb_seed when the world is built
+        self._noise = self._perturbation.noise()
+        self._max_tilt_deg = 0.0
+        self._delay: CommandDelay | None = None
+        self._physics_step = 0
         frames = link_frames(model)
         self._T_link_frame = {child: origin for (_, kind, parent, child, origin, _)
                               in frames.joints if kind == "fixed" and child in FRAME_PARENTS}
@@ -284,11 +307,12 @@ class SimDriver(Driver, SimulatedWorld):
         urdf = self.model.urdf_path()
         if self.options.drill:
             urdf = urdf.with_name(urdf.stem + "-drill.urdf")
+        urdf_text = self._perturb_world(urdf.read_text())
         sole = Limb(self.model, "right-leg").fk(q0[self.model.limb_slice("right-leg")])
         self.neck_height_m = float(-sole[2, 3])
         flags = p.URDF_USE_INERTIA_FROM_FILE | p.URDF_MERGE_FIXED_LINKS
-        with quiet_native_output():
-            self._robot = p.loadURDF(str(urdf), basePosition=[0, 0, self.neck_height_m],
+        with quiet_native_output(), _urdf_file(urdf, urdf_text) as path:
+            self._robot = p.loadURDF(str(path), basePosition=[0, 0, self.neck_height_m],
                                      flags=flags, physicsClientId=cid)
         joints, self._links = {}, {}
         for i in range(p.getNumJoints(self._robot, physicsClientId=cid)):
@@ -306,6 +330,11 @@ class SimDriver(Driver, SimulatedWorld):
         for link in [-1, *self._links.values()]:
             p.changeDynamics(self._robot, link, lateralFriction=self.options.friction,
                              physicsClientId=cid)
+        if self.perturbation.foot_friction is not None:
+            for link in FOOT_LINKS:
+                p.changeDynamics(self._robot, self._links[link],
+                                 lateralFriction=self.perturbation.foot_friction,
+                                 physicsClientId=cid)
         # base = torso link; PyBullet poses the base by its centre of mass
         info = p.getDynamicsInfo(self._robot, -1, physicsClientId=cid)
         self._T_com_torso = np.linalg.inv(_pose(info[3], info[4]))
@@ -317,9 +346,12 @@ class SimDriver(Driver, SimulatedWorld):
         p, cid = self._p, self._cid
         T_world_com = np.eye(4)
         T_world_com[2, 3] = self.neck_height_m
-        T_world_com = T_world_com @ np.linalg.inv(self._T_com_torso)
+        # standing on the (perturbed) floor with both soles flat on it
+        T_world_com = self.perturbation.T_world_floor() @ T_world_com @ np.linalg.inv(
+            self._T_com_torso)
+        quat_xyzw = matrix_to_quat_wxyz(T_world_com[:3, :3])[[1, 2, 3, 0]]
         p.resetBasePositionAndOrientation(self._robot, T_world_com[:3, 3].tolist(),
-                                          [0, 0, 0, 1], physicsClientId=cid)
+                                          quat_xyzw.tolist(), physicsClientId=cid)
         for j, q in zip(self._idx, q0, strict=True):
             p.resetJointState(self._robot, j, float(q), 0.0, physicsClientId=cid)
         self._cmd = np.array(q0, dtype=float)
@@ -327,10 +359,27 @@ class SimDriver(Driver, SimulatedWorld):
         for _ in range(int(round(self.options.settle_s / self.options.physics_dt_s))):
             p.stepSimulation(physicsClientId=cid)
 
-    def _apply_command(self) -> None:
+    def _perturb_world(self, urdf_text: str) -> str | None:
+        """Draw the perturbation (:mod:`hubo_cli.perturb`), tilt the floor, restart the noise
+        and the command delay; returns the URDF text to load (None: the file as it is)."""
+        self._perturbation = draw_perturbation(self.options.perturb_seed, urdf_text,
+                                               self.options.physics_dt_s)
+        self._p.resetBasePositionAndOrientation(self._floor, [0, 0, 0],
+                                                self.perturbation.floor_quat_xyzw(),
+                                                physicsClientId=self._cid)
+        self._noise = self.perturbation.noise()
+        steps = self.perturbation.delay_steps(self.options.physics_dt_s)
+        self._delay = CommandDelay(steps) if steps else None
+        self._physics_step = 0
+        self._max_tilt_deg = 0.0
+        return None if self.perturbation.nominal else self.perturbation.urdf_text(urdf_text)
+
+    def _apply_command(self, q_cmd_rad: np.ndarray | None = None) -> None:
+        """Send ``q_cmd_rad`` (default: the last command) to the motors now."""
         n = len(self._idx)
+        q = self._cmd if q_cmd_rad is None else q_cmd_rad
         self._p.setJointMotorControlArray(
-            self._robot, self._idx, self._p.POSITION_CONTROL, targetPositions=self._cmd.tolist(),
+            self._robot, self._idx, self._p.POSITION_CONTROL, targetPositions=q.tolist(),
             forces=self._effort, positionGains=[self.options.position_gain] * n,
             velocityGains=[self.options.velocity_gain] * n, physicsClientId=self._cid)
 
@@ -370,7 +419,10 @@ class SimDriver(Driver, SimulatedWorld):
         q, flags, _ = checks.sanitize_command(self.model, self._cmd, q)
         self._flags += flags
         self._cmd = q
-        self._apply_command()
+        if self._delay is None:
+            self._apply_command()
+        else:
+            self._delay.push(self._physics_step, q)
         return self._cmd.copy()
 
     def step(self) -> RobotState:
@@ -379,8 +431,11 @@ class SimDriver(Driver, SimulatedWorld):
         p, cid = self._p, self._cid
         t0 = time.perf_counter()
         for k in range(self.substeps):
+            if self._delay is not None and (q := self._delay.due(self._physics_step)) is not None:
+                self._apply_command(q)
             self._apply_external_forces(self._t + k * self.options.physics_dt_s)
             p.stepSimulation(physicsClientId=cid)
+            self._physics_step += 1
         self._physics_wall_s += time.perf_counter() - t0
         self._t += self.period_s
         self._state = self._measure()
@@ -394,6 +449,8 @@ class SimDriver(Driver, SimulatedWorld):
         self._stopped = True
         with contextlib.suppress(Exception):
             self._pushes = []
+            if self._delay is not None:
+                self._delay.clear()
             self._apply_command()
 
     def close(self) -> None:
@@ -525,11 +582,14 @@ class SimDriver(Driver, SimulatedWorld):
         flags, self._flags = tuple(dict.fromkeys(self._flags)), []
         if self._stopped:
             flags = tuple(dict.fromkeys((*flags, "stopped")))
-        return RobotState(time_s=self._t, q_rad=q, dq_rad_s=dq,
-                          imu_quat_wxyz=matrix_to_quat_wxyz(R),
-                          imu_gyro_rad_s=R.T @ np.asarray(omega_world),
-                          ft=ft, tau_nm=tau, T_world_torso=T_world_torso,
-                          feet_contact=(contact[0], contact[1]), flags=flags)
+        state = RobotState(time_s=self._t, q_rad=q, dq_rad_s=dq,
+                           imu_quat_wxyz=matrix_to_quat_wxyz(R),
+                           imu_gyro_rad_s=R.T @ np.asarray(omega_world), ft=ft, tau_nm=tau,
+                           T_world_torso=T_world_torso, feet_contact=(contact[0], contact[1]),
+                           flags=flags)
+        tilt_deg = math.degrees(math.acos(max(-1.0, min(1.0, float(R[2, 2])))))
+        self._max_tilt_deg = max(self._max_tilt_deg, tilt_deg)
+        return self._noise.measure(state)
 
     # ------------------------------------------------------------------ extras
     def frame_pose(self, frame: str) -> np.ndarray:
@@ -544,6 +604,16 @@ class SimDriver(Driver, SimulatedWorld):
         ls = self._p.getLinkState(self._robot, self._links[FRAME_PARENTS[frame]],
                                   computeForwardKinematics=1, physicsClientId=self._cid)
         return _pose(ls[4], ls[5]) @ self._T_link_frame[frame]
+
+    @property
+    def perturbation(self) -> Perturbation:
+        """The perturbed robot and world of ``perturb_seed`` (nominal without one)."""
+        return self._perturbation
+
+    @property
+    def max_tilt_deg(self) -> float:
+        """The largest true torso tilt from upright since the start (deg)."""
+        return self._max_tilt_deg
 
     @property
     def physics_wall_s(self) -> float:

@@ -139,7 +139,7 @@ class StandTarget(Target):
 def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
           balance: bool = True, *, push_at_s: float = 1.0, push_duration_s: float = 0.2,
           push_direction=(1.0, 0.0, 0.0), gui: bool = False, out: str | Path | None = None,
-          estop: bool = True) -> StandingResult:
+          estop: bool = True, perturb_seed: int | None = None) -> StandingResult:
     """Stand the simulated robot for ``duration_s`` and measure how it copes.
 
     Args:
@@ -153,6 +153,7 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
         out: the run folder (default ``runs/<time>-sim``); it gets the log, the snapshot and
             ``summary.json``.
         estop: keep the soft emergency stopper (see :class:`SafetyProfile`).
+        perturb_seed: a perturbed simulated robot and world (:mod:`hubo_cli.perturb`).
     """
     check_standing_args(duration_s, push_n)
     direction = np.asarray(push_direction, dtype=float)
@@ -162,7 +163,8 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
     target = StandTarget(q_home, n_periods, push_n * direction, push_at_s, push_duration_s)
     setup = RunSetup(command="sim", model=model, driver="sim", gui=gui, out=out,
                      safety=SafetyProfile(estop=estop, balance=balance),
-                     duration_s=n_periods * model.control_period_s, q_start_rad=q_home)
+                     duration_s=n_periods * model.control_period_s, q_start_rad=q_home,
+                     perturb_seed=perturb_seed)
     done = run(setup, target)
     result = _result(target, done, duration_s, push_n, balance, model.control_period_s)
     done.save_summary(result.summary())

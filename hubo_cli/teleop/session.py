@@ -49,6 +49,7 @@ class TeleopSettings:
         clutch_at_s: replay times at which to re-centre.
         out: run folder (None: runs/<time>-teleop).
         gui, baud, estop, driver_options: passed on.
+        perturb_seed: a perturbed simulated robot and world (:mod:`hubo_cli.perturb`).
     """
 
     replay: str | Path | None = None
@@ -66,6 +67,7 @@ class TeleopSettings:
     baud: int = 115200
     estop: bool = True
     driver_options: dict = field(default_factory=dict)
+    perturb_seed: int | None = None
 
 
 @dataclass
@@ -149,7 +151,8 @@ def teleop_setup(settings: TeleopSettings, body: WholeBody, duration_s: float | 
         command="teleop", model=body.model, tools=dict(body.tools), driver=settings.driver,
         driver_options=dict(settings.driver_options), safety=SafetyProfile(estop=settings.estop),
         speed=settings.speed, live_input=settings.port is not None, gui=settings.gui,
-        out=settings.out, duration_s=duration_s, q_start_rad=home_posture(body.model))
+        out=settings.out, duration_s=duration_s, q_start_rad=home_posture(body.model),
+        perturb_seed=settings.perturb_seed)
 
 
 def run_teleop(settings: TeleopSettings, on_ready=None) -> TeleopRun:
