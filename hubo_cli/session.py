@@ -20,7 +20,6 @@ same way for all of them:
 
 from __future__ import annotations
 
-import contextlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -37,7 +36,7 @@ from hubo_cli.drivers.base import RunContext
 from hubo_cli.drivers.registry import driver_class, make_driver
 from hubo_cli.errors import HuboError, InputError
 from hubo_cli.model import RobotModel
-from hubo_cli.runs import make_run_dir, write_json
+from hubo_cli.runs import discard_if_unused, make_run_dir, write_json
 
 SUMMARY_NAME = "summary.json"
 SNAPSHOT_NAME = "snapshot.png"
@@ -194,9 +193,8 @@ def run(setup: RunSetup, target: Target,
 
 
 def _remove_if_empty(run_dir: Path) -> None:
-    """Remove the run folder again if nothing was written into it."""
-    with contextlib.suppress(OSError):
-        run_dir.rmdir()  # fails unless empty
+    """Remove the run folder again if nothing was written into it (but its marker)."""
+    discard_if_unused(run_dir)
 
 
 def common_summary(setup: RunSetup, speed: float | None, loop: LoopResult,

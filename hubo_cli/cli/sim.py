@@ -28,12 +28,14 @@ def sim(duration: float, push: float, no_balance: bool, no_estop: bool, gui: boo
 
     Example: hubo sim --duration 5 --push 30
     """
-    from hubo_cli.experiments.standing import stand
+    from hubo_cli.experiments.standing import check_standing_args, stand
     from hubo_cli.model import load_model
+    from hubo_cli.runs import reserved_run_dir
 
-    result = stand(load_model(), duration, push, balance=not no_balance, gui=gui, out=out,
-                   estop=not no_estop, perturb_seed=perturb_seed)
-    run_dir = result.run_dir
+    check_standing_args(duration, push)
+    with reserved_run_dir("sim", out) as run_dir:  # a bad --out fails before anything runs
+        result = stand(load_model(), duration, push, balance=not no_balance, gui=gui,
+                       out=run_dir, estop=not no_estop, perturb_seed=perturb_seed)
     # the run's whole summary (as in summary.json: pipeline, e-stops, perturbation draws ...)
     summary = json.loads((run_dir / "summary.json").read_text()) | {"run_dir": str(run_dir)}
     if as_json:

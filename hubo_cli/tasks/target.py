@@ -57,6 +57,7 @@ class TaskTarget(Target):
         self.body = body = plan.body
         self.stopper: EmergencyStopper | None = None
         self.world: SimulatedWorld | None = None
+        self.modules: list = []  # set by attach()
         self.scene: dict = {}
         self.limb = plan.spec.stance.limb
         self.slice = body.model.limb_slice(self.limb)
@@ -81,6 +82,7 @@ class TaskTarget(Target):
 
     def attach(self, world: SimulatedWorld | None, modules: Sequence[Module]) -> None:
         self.world = world
+        self.modules = list(modules)  # the pipeline, for the live view's safety state
         self.stopper = next((m for m in modules if isinstance(m, EmergencyStopper)
                              and m.name == "estop"), None)
 

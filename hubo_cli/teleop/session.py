@@ -112,7 +112,8 @@ def drill_stance(wall_distance_m: float | None = None) -> tuple[float, np.ndarra
     return wall, corner, z_mid
 
 
-def _station_map(settings: TeleopSettings) -> dict[int, str]:
+def station_map(settings: TeleopSettings) -> dict[int, str]:
+    """Tracker station -> arm: the settings' map, or the mode's default."""
     if settings.station_arm is not None:
         return dict(settings.station_arm)
     return {1: "right-arm"} if settings.mode == "drill" else {1: "right-arm", 2: "left-arm"}
@@ -126,7 +127,7 @@ def prepare(settings: TeleopSettings, model: RobotModel | None = None):
     of the reachable rectangle (drill mode).
     """
     model = model or load_model()
-    stations = _station_map(settings)
+    stations = station_map(settings)
     tools = {arm: "hand" for arm in stations.values()}
     scene: dict = {}
     if settings.mode == "drill":
