@@ -8,10 +8,15 @@ World
     start posture, so the first state already carries its weight on both feet.
 
 Physics and control
-    1 kHz physics (``physics_dt_s``), five steps per 5 ms control period, ``solver_iterations``
-    (20) constraint-solver iterations: cheaper than PyBullet's default 50 with a joint tracking
-    error still below 2e-4 rad when standing. Joints are in position control (PyBullet motors:
-    ``position_gain``, ``velocity_gain``) with the URDF's effort limits as torque limits (tens of
+    400 Hz physics (``physics_dt_s`` 2.5 ms), two steps per 5 ms control period, 30
+    constraint-solver iterations per step (``solver_iterations``). The physics step is what a
+    period costs (docs/profile.md); these settings keep the standing, push and cutting motion of
+    the former 1 kHz ones (``LEGACY_PHYSICS``, still selectable) within the limits that
+    tests/test_sim_credibility.py checks. Joints are in position control (PyBullet motors:
+    ``position_gain``, ``velocity_gain``): a motor removes the fraction ``position_gain`` of its
+    position error per physics step, so the gain is set per step size to keep the servo's time
+    constant (0.3 per 1 ms step = 0.59 per 2.5 ms step, see :func:`position_gain_for`).
+    The URDF's effort limits are the torque limits (tens of
     N m in the arms, 10 N m in the wrists, 100-200 N m in the legs); each motor's speed is capped
     at ``max_speed_factor`` (3) times the model's velocity limit, as a real motor's top speed
     (a jump in the command is followed fast and hard, as on the robot, but not in one step).
@@ -65,6 +70,8 @@ from hubo_cli.urdf import DRILL_FRAME, link_frames
 DRILL_BIT_HALF_LENGTH_M = 0.02  # the flutes reach this far either side of the bit's middle
 HAND_FRAMES = {"right-wrist": ("RWP_link", "right_hand"), "left-wrist": ("LWP_link", "left_hand")}
 SOLE_FRAMES = {"right-ankle": ("RAR_link", "right_sole"), "left-ankle": ("LAR_link", "left_sole")}
+SENSOR_FRAMES = HAND_FRAMES | SOLE_FRAMES
+SENSOR_LINKS = ("RWP_link", "LWP_link", "RAR_link", "LAR_link")
 FRAME_PARENTS = {"right_hand": "RWP_link", "left_hand": "LWP_link", "right_sole": "RAR_link",
                  "left_sole": "LAR_link", DRILL_FRAME: "RWP_link"}
 
@@ -170,15 +177,39 @@ class _Push:
     until_s: float
 
 
+# ---- physics settings (docs/profile.md) -------------------------------------------------
+LEGACY_PHYSICS_DT_S = 0.001    # the former settings: 1 kHz, 5 steps per period
+LEGACY_POSITION_GAIN = 0.3     # fraction of a motor's position error removed per 1 ms step
+FAST_PHYSICS_DT_S = 0.0025     # the default: 400 Hz, 2 steps per period
+
+
+def position_gain_for(physics_dt_s: float) -> float:
+    """The motor position gain that closes a joint's error as fast (per second) at step
+    ``physics_dt_s`` as 0.3 per 1 ms step does: 1 - 0.7 ** (dt / 1 ms)."""
+    steps = physics_dt_s / LEGACY_PHYSICS_DT_S
+    return 1.0 - (1.0 - LEGACY_POSITION_GAIN) ** steps
+
+
+# SimOptions values: the former 1 kHz physics (for comparisons: ``SimDriver(model,
+# **LEGACY_PHYSICS)``) and the default. 30 iterations per 2.5 ms step (60 per period, the former
+# 100; each costs about 6 us): with 20 the standing lean moves 0.1 deg away from the former
+# physics' within 2 s, with 30 0.08 deg (docs/profile.md).
+LEGACY_PHYSICS = {"physics_dt_s": LEGACY_PHYSICS_DT_S, "solver_iterations": 20,
+                  "position_gain": LEGACY_POSITION_GAIN}
+FAST_PHYSICS = {"physics_dt_s": FAST_PHYSICS_DT_S, "solver_iterations": 30,
+                "position_gain": position_gain_for(FAST_PHYSICS_DT_S)}
+
+
 @dataclass
 class SimOptions:
-    """Tunable settings of the simulation (SI units)."""
+    """Tunable settings of the simulation (SI units). The physics defaults are ``FAST_PHYSICS``;
+    ``LEGACY_PHYSICS`` holds the former 1 kHz ones."""
 
     gui: bool = False
     drill: bool = False
-    physics_dt_s: float = 0.001
-    solver_iterations: int = 20
-    position_gain: float = 0.3
+    physics_dt_s: float = FAST_PHYSICS["physics_dt_s"]
+    solver_iterations: int = FAST_PHYSICS["solver_iterations"]
+    position_gain: float = FAST_PHYSICS["position_gain"]
     velocity_gain: float = 1.0
     friction: float = 1.0
     settle_s: float = 0.3
@@ -187,13 +218,14 @@ class SimOptions:
 
 
 def _pose(position, quat_xyzw) -> np.ndarray:
+    """4x4 pose from a position and a unit quaternion (x, y, z, w), built in one array call
+    (it runs for several frames every physics step)."""
     x, y, z, w = quat_xyzw
-    T = np.eye(4)
-    T[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                 [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                 [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
-    T[:3, 3] = position
-    return T
+    px, py, pz = position
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w), px],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w), py],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y), pz],
+                     [0.0, 0.0, 0.0, 1.0]])
 
 
 def _quat_wxyz(R: np.ndarray) -> np.ndarray:
@@ -304,6 +336,7 @@ class SimDriver(Driver):
             joints[info[1].decode()] = i
             self._links[info[12].decode()] = i
         self._idx = [joints[n] for n in self.joint_names]
+        self._sensor_link_ids = [self._links[n] for n in SENSOR_LINKS]
         self._effort = [p.getJointInfo(self._robot, j, physicsClientId=cid)[10]
                         for j in self._idx]
         top_speed = self.options.max_speed_factor * self.model.velocity_rad_s
@@ -477,22 +510,31 @@ class SimDriver(Driver):
                     break
 
     # ------------------------------------------------------------------ sensing
+    # Batched reads: one getLinkStates for the four sensor links, one getContactPoints for the
+    # whole robot (grouped by link here), one getJointStates.
     def _frames_world(self) -> dict[str, np.ndarray]:
         p, cid = self._p, self._cid
-        names = ["RWP_link", "LWP_link", "RAR_link", "LAR_link"]
-        states = p.getLinkStates(self._robot, [self._links[n] for n in names],
-                                 computeForwardKinematics=1, physicsClientId=cid)
-        return {n: _pose(s[4], s[5]) for n, s in zip(names, states, strict=True)}
+        states = p.getLinkStates(self._robot, self._sensor_link_ids, computeForwardKinematics=1,
+                                 physicsClientId=cid)
+        return {n: _pose(s[4], s[5]) for n, s in zip(SENSOR_LINKS, states, strict=True)}
 
-    def _wrench(self, link: str, T_world_sensor: np.ndarray, extra=None) -> np.ndarray:
-        """External wrench on a link about the sensor frame origin, in sensor axes."""
-        contacts = self._p.getContactPoints(bodyA=self._robot, linkIndexA=self._links[link],
-                                            physicsClientId=self._cid)
+    def _contact_rows(self) -> dict[int, list[tuple]]:
+        """Contact points of the robot with anything, by robot link index: (position on the
+        robot, normal towards the robot, normal force, friction 1, dir 1, friction 2, dir 2)."""
+        rows: dict[int, list[tuple]] = {}
+        for cp in self._p.getContactPoints(bodyA=self._robot, physicsClientId=self._cid):
+            rows.setdefault(cp[3], []).append((*cp[5], *cp[7], cp[9], cp[10], *cp[11], cp[12],
+                                               *cp[13]))
+        return rows
+
+    @staticmethod
+    def _wrench(rows: list[tuple], T_world_sensor: np.ndarray, extra=None) -> np.ndarray:
+        """External wrench on a link about the sensor frame origin, in sensor axes, from its
+        contact rows (see :meth:`_contact_rows`)."""
         origin = T_world_sensor[:3, 3]
-        rows = [(*cp[5], *cp[7], cp[9], cp[10], *cp[11], cp[12], *cp[13]) for cp in contacts]
         if extra is not None:  # a known force (N) at a point, as one more "contact"
             f, at = extra
-            rows.append((*at, *f, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+            rows = [*rows, (*at, *f, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)]
         if not rows:
             return np.zeros(6)
         a = np.array(rows)
@@ -503,35 +545,34 @@ class SimDriver(Driver):
                            (r[:, 2] * f[:, 0] - r[:, 0] * f[:, 2]).sum(),
                            (r[:, 0] * f[:, 1] - r[:, 1] * f[:, 0]).sum()])
         R = T_world_sensor[:3, :3]
-        return np.concatenate([R.T @ force, R.T @ moment])
+        return np.concatenate([force @ R, moment @ R])
 
     def _measure(self) -> RobotState:
         p, cid = self._p, self._cid
         js = p.getJointStates(self._robot, self._idx, physicsClientId=cid)
-        q = np.array([s[0] for s in js])
-        dq = np.array([s[1] for s in js])
-        tau = np.array([s[3] for s in js])
+        q, dq, _, tau = (np.array(column) for column in zip(*js, strict=True))
         com, orn = p.getBasePositionAndOrientation(self._robot, physicsClientId=cid)
         T_world_torso = _pose(com, orn) @ self._T_com_torso
         _, omega_world = p.getBaseVelocity(self._robot, physicsClientId=cid)
         R = T_world_torso[:3, :3]
         links = self._frames_world()
+        contacts = self._contact_rows()
         ft = {}
         contact = []
         for sensor in FT_SENSORS:
-            link, frame = (HAND_FRAMES | SOLE_FRAMES)[sensor]
+            link, frame = SENSOR_FRAMES[sensor]
             T_world_sensor = links[link] @ self._T_link_frame[frame]
             extra = None
             if sensor == "right-wrist" and np.any(self.cutting_force_n):
                 extra = (self.cutting_force_n, self._cutting_point)
-            ft[sensor] = self._wrench(link, T_world_sensor, extra)
+            ft[sensor] = self._wrench(contacts.get(self._links[link], []), T_world_sensor, extra)
             if sensor.endswith("ankle"):
                 contact.append(bool(ft[sensor][2] > 1e-6 or np.linalg.norm(ft[sensor][:3]) > 1e-6))
         flags, self._flags = tuple(dict.fromkeys(self._flags)), []
         if self._stopped:
             flags = tuple(dict.fromkeys((*flags, "stopped")))
         return RobotState(time_s=self._t, q_rad=q, dq_rad_s=dq,
-                          imu_quat_wxyz=_quat_wxyz(R), imu_gyro_rad_s=R.T @ np.asarray(omega_world),
+                          imu_quat_wxyz=_quat_wxyz(R), imu_gyro_rad_s=np.asarray(omega_world) @ R,
                           ft=ft, tau_nm=tau, T_world_torso=T_world_torso,
                           feet_contact=(contact[0], contact[1]), flags=flags)
 
