@@ -107,36 +107,44 @@ class AnkleBalancer(Module):
 
     def rates_rad_s(self, state: RobotState) -> dict[str, np.ndarray]:
         """Ankle (pitch, roll) velocities of eq. 11-12 for each leg (rad/s), before clipping."""
-        roll_rad, pitch_rad = state.tilt_rad()
-        tilt_deg = np.degrees([pitch_rad, roll_rad])
+        return {leg: np.array(rate) for leg, rate in self._rates(state).items()}
+
+    def _rates(self, state: RobotState) -> dict[str, tuple[float, float]]:
+        w, x, y, z = (float(v) for v in state.imu_quat_wxyz)
+        roll_deg = math.degrees(math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)))
+        pitch_deg = math.degrees(math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x)))))
         rates = {}
         for leg, sensor in FEET:
             wrench = state.ft.get(sensor)
-            m_ground = np.zeros(2) if wrench is None else np.array([wrench[4], wrench[3]])
-            m_sole_on_ground = -m_ground  # (about y, about x)
-            omega = self.k_r * tilt_deg - self.k_c * m_sole_on_ground
-            rates[leg] = np.array(self._signs[leg]) * omega
+            # moment of the sole on the ground (about y, about x): minus the ground's on the sole
+            m_y, m_x = (0.0, 0.0) if wrench is None else (-float(wrench[4]), -float(wrench[3]))
+            sign_pitch, sign_roll = self._signs[leg]
+            rates[leg] = (sign_pitch * (self.k_r * pitch_deg - self.k_c * m_y),
+                          sign_roll * (self.k_r * roll_deg - self.k_c * m_x))
         return rates
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         """Integrate the ankle velocities over one period and add the offsets to the ankles."""
         q = np.array(q_rad, dtype=float)
-        rates = self.rates_rad_s(state)
+        rates = self._rates(state)
+        lower, upper = self.model.lower_rad, self.model.upper_rad
+        max_rate, max_offset = self.max_rate_rad_s, self.max_offset_rad
         for leg, _ in FEET:
             rate = rates[leg]
-            if not np.all(np.isfinite(rate)):
-                rate = np.zeros(2)
+            if not (math.isfinite(rate[0]) and math.isfinite(rate[1])):
+                rate = (0.0, 0.0)
                 cycle.flags.add("balance-bad-sensor")
-            rate = np.clip(rate, -self.max_rate_rad_s, self.max_rate_rad_s)
-            offset = np.clip(self.offsets_rad[leg] + rate * cycle.dt_s, -self.max_offset_rad,
-                             self.max_offset_rad)
-            i_pitch, i_roll = self._index[leg]
-            for k, i in enumerate((i_pitch, i_roll)):
-                target = np.clip(q[i] + offset[k], self.model.lower_rad[i],
-                                 self.model.upper_rad[i])
-                offset[k] = target - q[i] if np.isfinite(q[i]) else offset[k]
-                q[i] = target
-            self.offsets_rad[leg] = offset
+            offset = self.offsets_rad[leg]
+            for k, i in enumerate(self._index[leg]):
+                step = max(-max_rate, min(max_rate, rate[k])) * cycle.dt_s
+                wanted = max(-max_offset, min(max_offset, float(offset[k]) + step))
+                qi = float(q[i])
+                if math.isfinite(qi):
+                    target = max(float(lower[i]), min(float(upper[i]), qi + wanted))
+                    offset[k] = target - qi
+                    q[i] = target
+                else:  # no command for this joint: it stays NaN (the next modules hold it)
+                    offset[k] = wanted
         side = self.offsets_rad
         cycle.info["balance.right_pitch_rad"] = float(side["right-leg"][0])
         cycle.info["balance.right_roll_rad"] = float(side["right-leg"][1])
