@@ -19,8 +19,8 @@ Physics and control
     The soles are compliant (``sole_stiffness_n_m`` 1e6 N/m, ``sole_damping_n_s_m`` 1e4 N s/m per
     contact point, as rubber pads; the body sinks 0.06 mm): on rigid soles the closed chain
     through both legs leaves the split of the feet's horizontal forces to the solver's
-    iteration history (24 N on one foot and 5 N on the other at 400 Hz, 6 and 4 N at 1 kHz, a
-    second after start); compliant soles make it a matter of physics (2.3 and 2.4 N at either
+    iteration history (24 N on one foot and 5 N on the other at 400 Hz, 6 and 4 N at 1 kHz,
+    0.1 s after start); compliant soles make it a matter of physics (2.3 and 2.4 N at either
     rate). ``sole_stiffness_n_m=None`` gives rigid soles.
     The URDF's effort limits are the torque limits (tens of
     N m in the arms, 10 N m in the wrists, 100-200 N m in the legs); each motor's speed is capped
