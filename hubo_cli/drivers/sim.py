@@ -1,7 +1,8 @@
 """The simulated HUBO 2+ in PyBullet (driver name ``sim``, the default).
 
 World
-    A floor (plane z = 0, friction 1.0) with gravity; the URDF robot (fixed links merged) stands
+    A floor (plane z = 0, friction 1.0) with gravity; the URDF robot (its physics variant, fixed
+    links folded into their moving parents by the generator) stands
     on it with both soles flat in the start posture (``home_posture`` unless given). The world
     frame is the neck frame N at start dropped onto the floor: x forward, y left, z up, origin
     on the floor under the neck. Before time 0 the robot settles for ``settle_s`` holding the
@@ -34,7 +35,10 @@ Sensors (:class:`~hubo_cli.drivers.base.RobotState`)
     origin in sole axes, and to the hand with its tool (contacts plus the drilling force) about
     the hand frame origin in hand axes. So a wrist reading is that of a sensor zeroed with the
     tool attached; standing, an ankle reads fz = + its share of the weight. Joint torques are the
-    motors' applied torques. Feet contacts: a foot touches anything with a positive normal force.
+    motors' applied torques. Feet contacts: a foot is in contact while its ankle's F_z, low-passed
+    at ``CONTACT_CUTOFF_HZ`` (5 Hz), exceeds ``CONTACT_THRESHOLD_N`` (25 N), as hrpsys decides
+    it: a foot that only brushes the floor (a rocking sole touching with a few newtons) does not
+    count as support.
 
 Drilling (:class:`CuttingModel`)
     With the drill on the right hand (``drill=True``) and a wall in the scene (:meth:`add_wall`),
@@ -71,8 +75,10 @@ from hubo_cli.errors import ConfigError, DeviceError
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.posture import home_posture
-from hubo_cli.urdf import DRILL_FRAME, link_frames
+from hubo_cli.urdf import DRILL_FRAME, PHYSICS_DRILL_URDF, PHYSICS_URDF, link_frames
 
+CONTACT_THRESHOLD_N = 25.0  # hrpsys contact_decision_threshold
+CONTACT_CUTOFF_HZ = 5.0     # low-pass of the ankles' F_z before the threshold
 DRILL_BIT_HALF_LENGTH_M = 0.02  # the flutes reach this far either side of the bit's middle
 HAND_FRAMES = {"right-wrist": ("RWP_link", "right_hand"), "left-wrist": ("LWP_link", "left_hand")}
 SOLE_FRAMES = {"right-ankle": ("RAR_link", "right_sole"), "left-ankle": ("LAR_link", "left_sole")}
@@ -299,6 +305,9 @@ class SimDriver(Driver):
         self.cutting_force_n = np.zeros(3)
         self._cutting_point = np.zeros(3)
         self.physics_wall_s = 0.0  # wall time spent inside stepSimulation (s), for benchmarks
+        tau = 1.0 / (2.0 * math.pi * CONTACT_CUTOFF_HZ)
+        self._contact_alpha = self.period_s / (self.period_s + tau)
+        self._fz_filtered_n: list[float | None] = [None, None]
         frames = link_frames(model)
         self._T_link_frame = {child: origin for (_, kind, parent, child, origin, _)
                               in frames.joints if kind == "fixed" and child in FRAME_PARENTS}
@@ -334,12 +343,13 @@ class SimDriver(Driver):
         self._floor = p.createMultiBody(0, plane, floor_visual, physicsClientId=cid)
         p.changeDynamics(self._floor, -1, lateralFriction=self.options.friction,
                          physicsClientId=cid)
-        urdf = self.model.urdf_path()
-        if self.options.drill:
-            urdf = urdf.with_name(urdf.stem + "-drill.urdf")
+        # the physics variant: no fixed links (PyBullet's merge of fixed links misplaces the
+        # centre of mass, see hubo_cli.urdf.folded_inertials), the same bodies otherwise
+        urdf = self.model.urdf_path().with_name(PHYSICS_DRILL_URDF if self.options.drill
+                                                else PHYSICS_URDF)
         sole = Limb(self.model, "right-leg").fk(q0[self.model.limb_slice("right-leg")])
         self.neck_height_m = float(-sole[2, 3])
-        flags = p.URDF_USE_INERTIA_FROM_FILE | p.URDF_MERGE_FIXED_LINKS
+        flags = p.URDF_USE_INERTIA_FROM_FILE
         with quiet_native_output():
             self._robot = p.loadURDF(str(urdf), basePosition=[0, 0, self.neck_height_m],
                                      flags=flags, physicsClientId=cid)
@@ -378,8 +388,9 @@ class SimDriver(Driver):
         T_world_com = np.eye(4)
         T_world_com[2, 3] = self.neck_height_m
         T_world_com = T_world_com @ np.linalg.inv(self._T_com_torso)
+        w, x, y, z = _quat_wxyz(T_world_com[:3, :3])  # the base's inertial axes are its own
         p.resetBasePositionAndOrientation(self._robot, T_world_com[:3, 3].tolist(),
-                                          [0, 0, 0, 1], physicsClientId=cid)
+                                          [x, y, z, w], physicsClientId=cid)
         for j, q in zip(self._idx, q0, strict=True):
             p.resetJointState(self._robot, j, float(q), 0.0, physicsClientId=cid)
         self._cmd = np.array(q0, dtype=float)
@@ -409,6 +420,7 @@ class SimDriver(Driver):
         self._pushes = []
         self._stopped = False
         self._t = 0.0
+        self._fz_filtered_n = [None, None]
         self._build_world(q0)
         self._state = self._measure()
         return self._state
@@ -592,7 +604,12 @@ class SimDriver(Driver):
                 extra = (self.cutting_force_n, self._cutting_point)
             ft[sensor] = self._wrench(contacts.get(self._links[link], []), T_world_sensor, extra)
             if sensor.endswith("ankle"):
-                contact.append(bool(ft[sensor][2] > 1e-6 or np.linalg.norm(ft[sensor][:3]) > 1e-6))
+                k = len(contact)
+                fz = float(ft[sensor][2])
+                if self._fz_filtered_n[k] is None:  # at start: no history to filter
+                    self._fz_filtered_n[k] = fz
+                self._fz_filtered_n[k] += self._contact_alpha * (fz - self._fz_filtered_n[k])
+                contact.append(self._fz_filtered_n[k] > CONTACT_THRESHOLD_N)
         flags, self._flags = tuple(dict.fromkeys(self._flags)), []
         if self._stopped:
             flags = tuple(dict.fromkeys((*flags, "stopped")))
@@ -614,6 +631,23 @@ class SimDriver(Driver):
         ls = self._p.getLinkState(self._robot, self._links[FRAME_PARENTS[frame]],
                                   computeForwardKinematics=1, physicsClientId=self._cid)
         return _pose(ls[4], ls[5]) @ self._T_link_frame[frame]
+
+    def com_world_m(self) -> np.ndarray:
+        """The whole body's centre of mass in the world (m) as the physics has it: the masses
+        and centres of mass of PyBullet's bodies (tests compare it with the model's)."""
+        self._require_started()
+        p, cid = self._p, self._cid
+        mass = p.getDynamicsInfo(self._robot, -1, physicsClientId=cid)[0]
+        base, _ = p.getBasePositionAndOrientation(self._robot, physicsClientId=cid)
+        total, moment = mass, mass * np.asarray(base)
+        links = sorted(self._links.values())
+        for link, state in zip(links, p.getLinkStates(self._robot, links,
+                                                      computeForwardKinematics=1,
+                                                      physicsClientId=cid), strict=True):
+            mass = p.getDynamicsInfo(self._robot, link, physicsClientId=cid)[0]
+            total += mass
+            moment = moment + mass * np.asarray(state[0])
+        return moment / total
 
     @property
     def walls(self) -> tuple[Wall, ...]:

@@ -62,7 +62,8 @@ def _pipeline(plan: Plan, model: RobotModel, estop: bool):
              if estop or n not in ("estop", "capture-point")]
     options = {"estop": {"sources": tuple(sources), "revert_s": safety.revert_s,
                          "stop_s": safety.stop_s,
-                         "wrist_torque_limit_nm": safety.wrist_torque_limit_nm}}
+                         "wrist_torque_limit_nm": safety.wrist_torque_limit_nm},
+               "capture-point": {"drill": plan.spec.stance.tool == "drill"}}
     modules = build_pipeline(model, order, options=options)
     return modules, find_module(modules, "estop")
 
