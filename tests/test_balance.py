@@ -102,7 +102,7 @@ def test_a_bad_sensor_is_flagged_and_ignored():
 
 # ------------------------------------------------------------------ in the simulation
 def test_standing_with_balance_stays_upright_with_flat_feet():
-    result = stand(MODEL, duration_s=3.0, push_n=0.0, balance=True)
+    result = stand(MODEL, duration_s=3.0, push_n=0.0, balance=True, balance_mode="paper")
     assert not result.fell
     assert result.feet_flat
     assert result.max_tilt_deg < 2.0
@@ -115,7 +115,8 @@ def test_standing_with_balance_stays_upright_with_flat_feet():
 
 @pytest.fixture(scope="module")
 def pushed():
-    return {balance: stand(MODEL, duration_s=2.5, push_n=30.0, balance=balance)
+    return {balance: stand(MODEL, duration_s=2.5, push_n=30.0, balance=balance,
+                           balance_mode="paper")
             for balance in (True, False)}
 
 

@@ -15,13 +15,17 @@ from hubo_cli.errors import HuboError
               help="Simulated time to stand (s).")
 @click.option("--push", type=float, default=0.0, show_default=True,
               help="Push the torso forward with this force (N) for 0.2 s, 1 s into the run.")
-@click.option("--no-balance", is_flag=True, help="Turn the ankle balancer (eq. 11-12) off.")
+@click.option("--balance", "balance_mode", type=click.Choice(["default", "paper", "off"]),
+              default="default", show_default=True,
+              help="Ankle balancer: common + differential damping, eq. 11-12 as published, or "
+                   "none.")
+@click.option("--no-balance", is_flag=True, help="The same as --balance off.")
 @click.option("--gui", is_flag=True, help="Open the PyBullet window (runs in real time).")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
 @click.option("--out", type=click.Path(file_okay=False), default=None,
               help="Run folder (default runs/<time>-sim).")
-def sim(duration: float, push: float, no_balance: bool, gui: bool, as_json: bool,
-        out: str | None) -> None:
+def sim(duration: float, push: float, balance_mode: str, no_balance: bool, gui: bool,
+        as_json: bool, out: str | None) -> None:
     """Stand the simulated HUBO 2+ in its home posture and report tilt, feet and falls.
 
     Example: hubo sim --duration 5 --push 30
@@ -34,8 +38,10 @@ def sim(duration: float, push: float, no_balance: bool, gui: bool, as_json: bool
     model = load_model()
     run_dir = make_run_dir("sim", out)
     try:
-        result = stand(model, duration, push, balance=not no_balance, gui=gui,
-                       snapshot=run_dir / "snapshot.png")
+        on = not no_balance and balance_mode != "off"
+        result = stand(model, duration, push, balance=on, gui=gui,
+                       snapshot=run_dir / "snapshot.png",
+                       balance_mode=balance_mode if on else "default")
     except HuboError:
         with contextlib.suppress(OSError):
             run_dir.rmdir()  # only if nothing was written
@@ -45,7 +51,9 @@ def sim(duration: float, push: float, no_balance: bool, gui: bool, as_json: bool
     if as_json:
         print_json(summary)
         return
-    balance = "off" if no_balance else "on (K_r 0.009 rad/s/deg, K_c 0.0015 rad/s/N m)"
+    balance = {"default": "default (common + differential damping)",
+               "paper": "paper (eq. 11-12: K_r 0.009 rad/s/deg, K_c 0.0015 rad/s/N m)",
+               "off": "off"}["off" if no_balance else balance_mode]
     push_text = f"{push:g} N forward for 0.2 s at t = 1 s" if push > 0 else "none"
     console.print(f"stood             {result.simulated_s:.2f} s of {duration:g} s")
     console.print(f"balance           {balance}")

@@ -50,8 +50,10 @@ def _hard_estop(model, dt_s, **options):
 
 
 def _balance(model, dt_s, **options):
-    from hubo_cli.control.balance import AnkleBalancer
-    return AnkleBalancer(model, **options)  # it takes the period from each Cycle
+    from hubo_cli.control.balance import make_balancer
+    # mode "default" (common + differential damping) or "paper" (eq. 11-12 as published);
+    # it takes the period from each Cycle
+    return make_balancer(model, **options)
 
 
 def _collision(model, dt_s, **options):

@@ -2,7 +2,8 @@
 ankle balancer (paper III-C) and one push on the torso, and we watch tilt, feet and falls.
 
 Until the pipeline loop drives modules, this runs its own small loop: command = home posture,
-passed through :class:`~hubo_cli.control.balance.AnkleBalancer` when balance is on.
+passed through the balancer (:func:`~hubo_cli.control.balance.make_balancer`) when balance is
+on.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hubo_cli.control.balance import AnkleBalancer
+from hubo_cli.control.balance import make_balancer
 from hubo_cli.control.module import Cycle
 from hubo_cli.errors import InputError
 from hubo_cli.model import RobotModel
@@ -90,20 +91,22 @@ def check_standing_args(duration_s: float, push_n: float) -> None:
 def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
           balance: bool = True, *, push_at_s: float = 1.0, push_duration_s: float = 0.2,
           push_direction=(1.0, 0.0, 0.0), gui: bool = False, snapshot: str | Path | None = None,
-          realtime: bool | None = None, sim_options: dict | None = None) -> StandingResult:
+          realtime: bool | None = None, sim_options: dict | None = None,
+          balance_mode: str = "default") -> StandingResult:
     """Stand the simulated robot for ``duration_s`` and measure how it copes.
 
     Args:
         model: robot model.
         duration_s: simulated time (s).
         push_n: force (N) of one push on the torso's centre of mass, 0 for none.
-        balance: run the ankle balancer (eq. 11-12) on the command.
+        balance: run the ankle balancer on the command.
         push_at_s, push_duration_s: when the push starts and how long it lasts (s).
         push_direction: world direction of the push (normalised; default forward, +x).
         gui: open the PyBullet window.
         snapshot: if given, write a PNG of the final scene there.
         realtime: pace the loop to wall-clock time (default: only with the window).
         sim_options: extra options for the sim driver.
+        balance_mode: ``default`` or ``paper`` (eq. 11-12 as published), when balance is on.
     """
     from hubo_cli.drivers.sim import SimDriver
 
@@ -112,7 +115,7 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
     direction = direction / np.linalg.norm(direction)
     realtime = gui if realtime is None else realtime
     q_home = home_posture(model)
-    balancer = AnkleBalancer(model) if balance else None
+    balancer = make_balancer(model, balance_mode) if balance else None
     n_periods = int(round(duration_s / model.control_period_s))
     times, tilts, differences = np.zeros(n_periods), np.zeros(n_periods), np.zeros(n_periods)
     with SimDriver(model, gui=gui, **(sim_options or {})) as robot:

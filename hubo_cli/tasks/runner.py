@@ -63,7 +63,8 @@ def _pipeline(plan: Plan, model: RobotModel, estop: bool):
     options = {"estop": {"sources": tuple(sources), "revert_s": safety.revert_s,
                          "stop_s": safety.stop_s,
                          "wrist_torque_limit_nm": safety.wrist_torque_limit_nm},
-               "capture-point": {"drill": plan.spec.stance.tool == "drill"}}
+               "capture-point": {"drill": plan.spec.stance.tool == "drill"},
+               "balance": {"drill": plan.spec.stance.tool == "drill"}}
     modules = build_pipeline(model, order, options=options)
     return modules, find_module(modules, "estop")
 
