@@ -36,6 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hubo_cli.errors import ConfigError
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import LIMB_NAMES, RobotModel
 
@@ -156,6 +157,18 @@ DRILL_BIT_RADIUS_M = 0.003
 END_FRAMES = {"right-arm": ("right_hand",), "left-arm": ("left_hand",),
               "right-leg": ("right_sole",), "left-leg": ("left_sole",)}
 DRILL_FRAME = "right_drill_bit"
+
+
+def tool_frame(limb: str, tool: str) -> str:
+    """The URDF frame of the end effector ``tool`` held by ``limb`` (the drill: its bit)."""
+    if tool == "drill":
+        if limb != "right-arm":
+            raise ConfigError("the drill is modelled in the right hand only",
+                              hint="use arm = \"right\" for drill tasks")
+        return DRILL_FRAME
+    if limb not in END_FRAMES:
+        raise ConfigError(f"unknown limb {limb!r}", hint=f"use one of {', '.join(END_FRAMES)}")
+    return END_FRAMES[limb][0]
 
 _COLOURS = {"body": "0.85 0.85 0.88 1", "joint": "0.35 0.35 0.4 1", "foot": "0.2 0.2 0.25 1",
             "drill": "0.9 0.45 0.1 1"}

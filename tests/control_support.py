@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hubo_cli.drivers.base import make_driver
+from hubo_cli.drivers.registry import make_driver
 
 VEL_TOL = 1e-6   # relative tolerance on finite-difference velocity
 ACC_TOL = 1e-6   # relative tolerance on finite-difference acceleration

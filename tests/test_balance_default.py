@@ -14,10 +14,10 @@ from hubo_cli.control.balance import (
     make_balancer,
 )
 from hubo_cli.control.module import Cycle
-from hubo_cli.drivers.base import RobotState
-from hubo_cli.drivers.standing import stand
 from hubo_cli.errors import ConfigError
+from hubo_cli.experiments.standing import stand
 from hubo_cli.posture import home_posture
+from hubo_cli.state import RobotState
 
 DT = 0.005
 

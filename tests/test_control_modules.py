@@ -17,8 +17,8 @@ from hubo_cli.control.loop import ControlLoop
 from hubo_cli.control.module import Cycle
 from hubo_cli.control.otg import JointTracker, TrajectoryGenerator
 from hubo_cli.control.pipeline import build_pipeline, find_module
-from hubo_cli.drivers.base import RobotState
 from hubo_cli.posture import home_posture
+from hubo_cli.state import RobotState
 
 DT = 0.005
 

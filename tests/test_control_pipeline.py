@@ -96,10 +96,11 @@ def test_hostile_burst_is_smoothed(model):
 
 
 def test_hostile_burst_never_trips_the_hardware_servo_off(model, tmp_path):
-    """The hubo-ach driver (echo source) latches servo-off on any too-fast reference."""
-    from hubo_cli.drivers.base import make_driver
+    """The hubo-ach driver (dry run: echo source) latches servo-off on any too-fast reference."""
+    from hubo_cli.drivers.registry import make_driver
 
-    driver = make_driver("hardware", model, armed=True, run_dir=tmp_path)
+    driver = make_driver("hardware", model, armed=True, sink="file",
+                         sink_path=tmp_path / "hubo-ref.bin")
     driver.start()
     events = [("set", 0, 5.0, 40), ("nan", 3, 0.0, 10), ("gap", 0, 0.0, 30),
               ("set", 9, -6.0, 60), ("scatter", 7, 1.5, 60)]

@@ -1,15 +1,15 @@
-"""One behaviour suite for every registered driver: sim, hardware (loopback echo) and ideal."""
+"""One behaviour suite for every registered driver: sim, hardware (dry-run echo) and ideal."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from hubo_cli.drivers.base import FT_SENSORS, RobotState, make_driver
-from hubo_cli.drivers.registry import DRIVER_NAMES
+from hubo_cli.drivers.registry import DRIVER_NAMES, make_driver
 from hubo_cli.errors import ConfigError, DeviceError
 from hubo_cli.model import load_model
 from hubo_cli.posture import home_posture
+from hubo_cli.state import FT_SENSORS, RobotState
 
 MODEL = load_model()
 N = len(MODEL.joint_names)
@@ -19,7 +19,9 @@ REB = MODEL.joint_names.index("REB")
 
 
 def _options(name: str, tmp_path) -> dict:
-    return {"hardware": {"armed": True, "run_dir": tmp_path}}.get(name, {})
+    # the hardware driver's dry-run sink (its ach channels: tests/test_hardware_ach.py)
+    hardware = {"armed": True, "sink": "file", "sink_path": tmp_path / "hubo-ref.bin"}
+    return {"hardware": hardware}.get(name, {})
 
 
 @pytest.fixture(params=DRIVER_NAMES)
@@ -51,9 +53,9 @@ def _check_state(state: RobotState) -> None:
 
 
 def test_registry_lists_every_driver(tmp_path):
-    from hubo_cli.drivers import base
+    from hubo_cli.drivers.registry import DRIVERS
 
-    assert set(base._REGISTRY) == set(DRIVER_NAMES)  # this suite covers every driver
+    assert set(DRIVERS) == set(DRIVER_NAMES)  # this suite covers every driver
     for name in DRIVER_NAMES:
         assert make_driver(name, MODEL, **_options(name, tmp_path)).name == name
     with pytest.raises(ConfigError, match="unknown driver"):

@@ -41,9 +41,9 @@ def test_a_600_mm_rectangle_is_refused_in_preflight_and_nothing_moves(tmp_path, 
     def no_driver(*args, **kwargs):
         raise AssertionError("a driver was created: something could have moved")
 
-    from hubo_cli.tasks import runner
+    from hubo_cli import session
 
-    monkeypatch.setattr(runner, "make_driver", no_driver)
+    monkeypatch.setattr(session, "make_driver", no_driver)
     out = tmp_path / "run"
     result = CliRunner().invoke(main, ["task", "cut-rectangle", "--width", "600",
                                        "--out", str(out)])

@@ -13,7 +13,7 @@ import numpy as np
 from hubo_cli.control.log import PeriodLog
 from hubo_cli.control.module import Cycle
 from hubo_cli.control.pipeline import build_pipeline
-from hubo_cli.drivers.base import make_driver
+from hubo_cli.drivers.registry import make_driver
 from hubo_cli.kinematics import get_limb
 from hubo_cli.model import ARMS, LEGS, load_model
 
@@ -100,7 +100,7 @@ def run(report) -> None:
 
     with tempfile.TemporaryDirectory() as tmp:
         log = PeriodLog(Path(tmp) / "log.csv", model.joint_names,
-                        [c for m in modules for c in getattr(m, "log_columns", ())])
+                        [c for m in modules for c in m.log_columns])
         times = []
         for _ in range(1000):
             t0 = clock()

@@ -20,6 +20,7 @@ COMMANDS = {
     "sim": "hubo_cli.cli.sim:sim",
     "task": "hubo_cli.cli.task:task",
     "teleop": "hubo_cli.cli.teleop:teleop",
+    "hardware": "hubo_cli.cli.hardware:hardware",
 }
 
 

@@ -11,6 +11,9 @@ from rich.console import Console
 
 from hubo_cli.runs import _jsonable
 
+NO_ESTOP_HELP = ("Turn the soft emergency stopper off (operator key, capture point, wrist "
+                 "torque, stale input); the hard stopper, collision detector and limiter stay.")
+
 console = Console(highlight=False, soft_wrap=True)
 err_console = Console(stderr=True, highlight=False, soft_wrap=True)
 

@@ -2,12 +2,9 @@
 
 from __future__ import annotations
 
-import contextlib
-
 import click
 
-from hubo_cli.cli.output import console, print_json
-from hubo_cli.errors import HuboError
+from hubo_cli.cli.output import NO_ESTOP_HELP, console, print_json
 
 
 @click.command("sim")
@@ -20,34 +17,25 @@ from hubo_cli.errors import HuboError
               help="Ankle balancer: common + differential damping, eq. 11-12 as published, or "
                    "none.")
 @click.option("--no-balance", is_flag=True, help="The same as --balance off.")
+@click.option("--no-estop", is_flag=True, help=NO_ESTOP_HELP)
 @click.option("--gui", is_flag=True, help="Open the PyBullet window (runs in real time).")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
 @click.option("--out", type=click.Path(file_okay=False), default=None,
               help="Run folder (default runs/<time>-sim).")
-def sim(duration: float, push: float, balance_mode: str, no_balance: bool, gui: bool,
-        as_json: bool, out: str | None) -> None:
+def sim(duration: float, push: float, balance_mode: str, no_balance: bool, no_estop: bool,
+        gui: bool, as_json: bool, out: str | None) -> None:
     """Stand the simulated HUBO 2+ in its home posture and report tilt, feet and falls.
 
     Example: hubo sim --duration 5 --push 30
     """
-    from hubo_cli.drivers.standing import check_standing_args, stand
+    from hubo_cli.experiments.standing import stand
     from hubo_cli.model import load_model
-    from hubo_cli.runs import make_run_dir, write_json
 
-    check_standing_args(duration, push)
-    model = load_model()
-    run_dir = make_run_dir("sim", out)
-    try:
-        on = not no_balance and balance_mode != "off"
-        result = stand(model, duration, push, balance=on, gui=gui,
-                       snapshot=run_dir / "snapshot.png",
-                       balance_mode=balance_mode if on else "default")
-    except HuboError:
-        with contextlib.suppress(OSError):
-            run_dir.rmdir()  # only if nothing was written
-        raise
+    on = not no_balance and balance_mode != "off"
+    result = stand(load_model(), duration, push, balance=on, gui=gui, out=out,
+                   estop=not no_estop, balance_mode=balance_mode if on else "default")
+    run_dir = result.run_dir
     summary = result.summary() | {"run_dir": str(run_dir)}
-    write_json(run_dir / "summary.json", summary)
     if as_json:
         print_json(summary)
         return
@@ -65,4 +53,4 @@ def sim(duration: float, push: float, balance_mode: str, no_balance: bool, gui: 
     console.print(f"fell              {'YES' if result.fell else 'no'}")
     console.print(f"real-time factor  {result.realtime_factor:.2f} "
                   f"({100 * result.physics_share:.0f} % of the time in physics)")
-    console.print(f"run folder        {run_dir} (snapshot.png, summary.json)")
+    console.print(f"run folder        {run_dir} (log.csv, snapshot.png, summary.json)")

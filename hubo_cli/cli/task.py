@@ -7,7 +7,9 @@ from rich.live import Live
 from rich.progress_bar import ProgressBar
 from rich.table import Table
 
-from hubo_cli.cli.output import console, err_console, interactive, print_json
+from hubo_cli.cli.hardware import driver_options, hardware_options
+from hubo_cli.cli.output import NO_ESTOP_HELP, console, err_console, interactive, print_json
+from hubo_cli.drivers.registry import DRIVER_NAMES
 from hubo_cli.errors import HuboError, InputError, SafetyError
 
 EXIT_INTERRUPTED = 130
@@ -53,17 +55,17 @@ def run_options(function):
     options = [
         click.option("--set", "sets", multiple=True, metavar="NAME=VALUE",
                      help="Override a task parameter (see hubo task show NAME)."),
-        click.option("--driver", type=click.Choice(["sim", "ideal", "hardware"]), default="sim",
+        click.option("--driver", type=click.Choice(DRIVER_NAMES), default=DRIVER_NAMES[0],
                      show_default=True, help="Robot back end."),
         click.option("--arm", "armed", is_flag=True,
                      help="Arm the hardware driver (required by it)."),
-        click.option("--no-estop", is_flag=True,
-                     help="Run without the soft emergency stopper and capture-point monitor."),
+        click.option("--no-estop", is_flag=True, help=NO_ESTOP_HELP),
         click.option("--gui", is_flag=True, help="Open the PyBullet window, run in real time."),
         click.option("--out", type=click.Path(file_okay=False), default=None,
                      help="Run folder (default runs/<time>-task-<name>)."),
         click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON."),
     ]
+    function = hardware_options(function)  # listed after the others
     for option in reversed(options):
         function = option(function)
     return function
@@ -198,17 +200,18 @@ def _shortcut(name: str) -> click.Command:
 
 
 def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool, gui: bool,
-         out: str | None, as_json: bool) -> None:
+         out: str | None, as_json: bool, **hardware) -> None:
     from hubo_cli.tasks.runner import check_task, run_experiment, run_task
     from hubo_cli.tasks.spec import load_task
 
+    options = driver_options(driver, armed, **hardware)
     spec = load_task(name, overrides)
     ctx = click.get_current_context()
     if spec.experiment:
         if driver != "sim":
             raise InputError(f"the {spec.name} experiment runs on the simulated robot only",
                              hint="leave out --driver")
-        done = run_experiment(spec, out=out, gui=gui)
+        done = run_experiment(spec, out=out, gui=gui, estop=False if no_estop else None)
         _finish(ctx, done, as_json, lambda: _print_push_wall(done.summary, done.run_dir))
         return
     plan = check_task(spec)
@@ -224,10 +227,8 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
             state["live"] = live
 
     try:
-        done = run_task(plan, driver=driver, out=out, speed=1.0 if gui else None, gui=gui,
-                        estop=not no_estop, on_start=on_start,
-                        driver_options={"armed": True} if armed and driver == "hardware"
-                        else {})
+        done = run_task(plan, driver=driver, out=out, gui=gui, estop=not no_estop,
+                        on_start=on_start, driver_options=options)
     finally:
         if "live" in state:
             state["live"].stop()

@@ -7,7 +7,9 @@ import numpy as np
 from rich.live import Live
 from rich.table import Table
 
-from hubo_cli.cli.output import console, err_console, interactive, print_json
+from hubo_cli.cli.hardware import driver_options, hardware_options
+from hubo_cli.cli.output import NO_ESTOP_HELP, console, err_console, interactive, print_json
+from hubo_cli.drivers.registry import DRIVER_NAMES, driver_class
 from hubo_cli.errors import InputError
 
 KEYS_HELP = "keys: space e-stop, r release, c re-centre (clutch), q quit"
@@ -64,13 +66,14 @@ def _view(target) -> Table:
               help="Replay a raw FASTRAK capture or a pose log.")
 @click.option("--port", default=None, help="Read a live FASTRAK on this serial port.")
 @click.option("--baud", type=int, default=115200, show_default=True, help="Live port baud rate.")
-@click.option("--driver", type=click.Choice(["sim", "hardware", "ideal"]), default="sim",
+@click.option("--driver", type=click.Choice(DRIVER_NAMES), default=DRIVER_NAMES[0],
               show_default=True, help="Robot back end.")
 @click.option("--arm", "armed", is_flag=True, help="Arm the hardware driver (required by it).")
 @click.option("--mode", type=click.Choice(["free", "drill"]), default="free", show_default=True,
               help="free: follow each hand's pose; drill: bit orthogonal to the wall, y and z.")
 @click.option("--speed", default="max", show_default=True,
-              help="Replay pace: 1 = real time, X = X times, max = as fast as possible.")
+              help="Replay pace: 1 = real time, X = X times, max = as fast as possible. Live "
+                   "input, the hardware driver and --gui always run in real time.")
 @click.option("--scale", type=float, default=1.0, show_default=True,
               help="Robot metres per operator metre.")
 @click.option("--map", "station_map", multiple=True, metavar="STATION=ARM",
@@ -81,13 +84,14 @@ def _view(target) -> Table:
               help="Re-centre at these replay times (as the c key does live).")
 @click.option("--duration", type=float, default=None, metavar="SECONDS",
               help="Stop after this long (live mode; default: until q or Ctrl-C).")
-@click.option("--no-estop", is_flag=True, help="Run without the emergency stoppers.")
+@click.option("--no-estop", is_flag=True, help=NO_ESTOP_HELP)
 @click.option("--gui", is_flag=True, help="Open the PyBullet window.")
 @click.option("--out", type=click.Path(file_okay=False), default=None,
               help="Run folder (default runs/<time>-teleop).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
+@hardware_options
 def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, wall_distance,
-           clutch_at, duration, no_estop, gui, out, as_json) -> None:
+           clutch_at, duration, no_estop, gui, out, as_json, **hardware) -> None:
     """Drive the robot's hands from an operator's FASTRAK stream.
 
     Exactly one of --replay FILE or --port DEV. The first sample of each station calibrates it:
@@ -103,13 +107,18 @@ def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, w
     if (replay is None) == (port is None):
         raise InputError("give exactly one of --replay FILE or --port DEV",
                          hint="e.g. hubo teleop --replay trajectories/drill-rectangle.fastrak")
+    explicit = click.get_current_context().get_parameter_source("speed")
+    if speed == "max" and explicit is click.core.ParameterSource.COMMANDLINE and (
+            port is not None or gui or driver_class(driver).real_time):
+        raise InputError("--speed max is for replays on the sim or ideal drivers",
+                         hint="live input, the hardware driver and --gui run in real time; "
+                              "leave --speed out")
     settings = TeleopSettings(
         replay=replay, port=port, driver=driver, mode=mode, speed=_speed(speed), scale=scale,
         station_arm=_station_map(station_map),
         wall_distance_m=None if wall_distance is None else wall_distance / 1000.0,
         duration_s=duration, clutch_at_s=tuple(clutch_at), out=out, gui=gui, baud=baud,
-        estop=not no_estop, driver_options={"armed": True} if armed and driver == "hardware"
-        else {})
+        estop=not no_estop, driver_options=driver_options(driver, armed, **hardware))
     state = {"live": None, "keys": None}
 
     def on_key(char: str) -> None:

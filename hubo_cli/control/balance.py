@@ -41,10 +41,10 @@ import math
 import numpy as np
 
 from hubo_cli.control.module import Cycle, Module
-from hubo_cli.drivers.base import RobotState
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.posture import home_posture
+from hubo_cli.state import RobotState
 
 K_R_RAD_S_PER_DEG = 0.009
 K_C_RAD_S_PER_NM = 0.0015
@@ -86,6 +86,8 @@ class AnkleBalancer(Module):
     """
 
     name = "balance"
+    log_columns = ("balance.right_pitch_rad", "balance.right_roll_rad",
+                   "balance.left_pitch_rad", "balance.left_roll_rad")
 
     def __init__(self, model: RobotModel, k_r: float = K_R_RAD_S_PER_DEG,
                  k_c: float = K_C_RAD_S_PER_NM, max_rate_rad_s: float = 0.5,
@@ -197,6 +199,7 @@ class DampingBalancer(Module):
     """
 
     name = "balance"
+    log_columns = AnkleBalancer.log_columns
 
     def __init__(self, model: RobotModel, drill: bool = False,
                  damping_nm_s_per_rad: float = DAMPING_NM_S_PER_RAD,

@@ -36,8 +36,8 @@ import pinocchio as pin
 
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.pin_robot import PinRobot, load_pin_robot
-from hubo_cli.drivers.base import RobotState
 from hubo_cli.model import RobotModel
+from hubo_cli.state import RobotState
 from hubo_cli.urdf import FOOT_FORWARD_M, FOOT_SIZE_M
 
 GRAVITY_M_S2 = 9.80665

@@ -32,8 +32,8 @@ from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.otg import JointTracker
 from hubo_cli.control.pin_robot import PinRobot, load_pin_robot
 from hubo_cli.control.status import SafetyEvent
-from hubo_cli.drivers.base import RobotState
 from hubo_cli.model import RobotModel
+from hubo_cli.state import RobotState
 from hubo_cli.urdf import DRILL_BIT_RADIUS_M, DRILL_BODY_LENGTH_M, DRILL_BODY_RADIUS_M, DRILL_FRAME
 
 TOLERANCE_M = 0.01   # MoveIt Servo's self-collision proximity threshold

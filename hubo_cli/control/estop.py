@@ -38,8 +38,8 @@ from hubo_cli.control.limits import JointLimits
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.otg import JointTracker
 from hubo_cli.control.status import SafetyEvent
-from hubo_cli.drivers.base import RobotState
 from hubo_cli.model import RobotModel
+from hubo_cli.state import RobotState
 
 SOFT_SOURCES = ("operator", "capture-point", "wrist-torque", "stale-input")
 HARD_SOURCES = ("hard",)

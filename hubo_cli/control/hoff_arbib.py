@@ -19,8 +19,8 @@ import numpy as np
 from hubo_cli.control.limits import JointLimits
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.otg import STALE_TIMEOUT_S, TargetInput
-from hubo_cli.drivers.base import RobotState
 from hubo_cli.model import RobotModel
+from hubo_cli.state import RobotState
 
 MIN_JERK_PEAK_VELOCITY = 1.875        # x D / T
 MIN_JERK_PEAK_ACCELERATION = 5.7735   # x D / T^2 (10 / sqrt(3))

@@ -23,8 +23,8 @@ import numpy as np
 
 from hubo_cli.control.limits import JointLimits, brake_speed
 from hubo_cli.control.module import Cycle, Module
-from hubo_cli.drivers.base import RobotState
 from hubo_cli.model import RobotModel
+from hubo_cli.state import RobotState
 
 TRACKING_ERROR_LIMIT_RAD = 0.18  # hrpsys SoftErrorLimiter default (0.2 servo-off minus 0.02)
 

@@ -2,7 +2,8 @@
 
 Each period of ``dt`` (the model's 5 ms):
 
-1. ask the caller's target source ``target(t_s, state) -> (q_target_rad | None, info)``;
+1. ask the caller's :class:`~hubo_cli.control.target.Target` (or a plain function)
+   ``target(t_s, state) -> (q_target_rad | None, info)``;
    ``None`` (or NaN entries) means "no new target"; ``info`` may carry ``"estop"`` (a source
    name or several), ``"flags"`` (status flags of the source, e.g. ``"stale-input"``),
    ``"release"`` (release every emergency stopper), ``"done"`` (finish after
@@ -38,9 +39,12 @@ from hubo_cli.control.log import LOG_NAME, PeriodLog
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.otg import JointTracker
 from hubo_cli.control.status import Status, status_from_flags
-from hubo_cli.drivers.base import Driver, RobotState
+from hubo_cli.control.target import Target, TargetOutput, as_target
+from hubo_cli.drivers.base import Driver
+from hubo_cli.errors import ConfigError
+from hubo_cli.state import RobotState
 
-TargetSource = Callable[[float, RobotState], tuple[np.ndarray | None, dict]]
+TargetSource = Target | Callable[[float, RobotState], TargetOutput]
 
 ENDINGS = ("finished", "done", "interrupted", "module-error", "target-error", "driver-error")
 MAX_STOP_S = 15.0  # a brake from full speed at the slowest joint's limits takes under 2 s
@@ -58,6 +62,7 @@ class LoopResult:
         error: one line describing the error or interruption, "" otherwise.
         stop_periods: periods spent in the final smooth stop.
         status_counts: status label -> number of periods.
+        flag_counts: flag -> number of periods it was raised in (e.g. ``collision``).
         safety_events: (module name, time s, kind, sources) for every emergency-stop latch and
             release and every collision hold.
         overruns: periods that ran so late that the schedule was re-anchored.
@@ -71,6 +76,7 @@ class LoopResult:
     error: str = ""
     stop_periods: int = 0
     status_counts: dict[str, int] = field(default_factory=dict)
+    flag_counts: dict[str, int] = field(default_factory=dict)
     safety_events: list[tuple[str, float, str, tuple[str, ...]]] = field(default_factory=list)
     overruns: int = 0
     log_path: Path | None = None
@@ -95,7 +101,8 @@ class ControlLoop:
     """Runs modules at a fixed rate between a target source and a driver.
 
     Args:
-        driver: a started driver (``driver.start()`` already called).
+        driver: a started driver (``driver.start()`` already called). Its period is the
+            loop's: a module built for another period is refused (ConfigError).
         modules: the ordered pipeline (see :func:`hubo_cli.control.pipeline.build_pipeline`).
         target: the target source (see the module docstring).
         speed: None = as fast as possible, 1.0 = real time, x = x times real time.
@@ -113,9 +120,15 @@ class ControlLoop:
             raise ValueError("speed must be positive or None")
         self.driver = driver
         self.modules = list(modules)
-        self.target = target
+        self.target = as_target(target)
         self.speed = speed
         self.dt_s = driver.period_s
+        for m in self.modules:
+            if m.dt_s is not None and abs(m.dt_s - self.dt_s) > 1e-12:
+                raise ConfigError(
+                    f"the {m.name} module was built for a {m.dt_s * 1000:g} ms period but the "
+                    f"{driver.name} driver runs at {self.dt_s * 1000:g} ms",
+                    hint="build the pipeline with the driver's period (driver.period_s)")
         self.clock = clock
         self.sleep = sleep
         self.max_lag_periods = max_lag_periods
@@ -129,6 +142,7 @@ class ControlLoop:
         self.overruns = 0
         self._deadline = 0.0
         self._statuses: Counter[str] = Counter()
+        self._flags: Counter[str] = Counter()
         n = len(driver.joint_names)
         self._nan = np.full(n, np.nan)
         self._cmd = np.zeros(n)
@@ -137,10 +151,9 @@ class ControlLoop:
 
     # ------------------------------------------------------------------ helpers
     def _extra_columns(self) -> list[str]:
-        columns: list[str] = []
-        for m in self.modules:
-            columns += list(getattr(m, "log_columns", ()))
-        columns += list(getattr(self.target, "log_columns", ()))
+        columns = [c for m in self.modules for c in m.log_columns]
+        columns += self.target.log_columns
+        columns += self.driver.log_columns
         return list(dict.fromkeys(columns))
 
     def _pace(self) -> float:
@@ -170,6 +183,7 @@ class ControlLoop:
     def _write(self, t_s, flags, compute_s, late_s, target, cmd, state, extras) -> None:
         status = status_from_flags(flags)
         self._statuses[status.label] += 1
+        self._flags.update(flags)
         if self.log is not None:
             self.log.write(self.period, t_s, status, compute_s * 1e6, late_s * 1e6, flags,
                            target, cmd, state.q_rad, extras)
@@ -205,8 +219,7 @@ class ControlLoop:
                     cycle.flags.update(_as_requests(info.get("flags")))
                     if info.get("release"):
                         for m in self.modules:
-                            if hasattr(m, "release"):
-                                m.release()
+                            m.release()
                     q = self._nan if q_target is None else np.asarray(q_target, dtype=float)
                     target_logged = q
                     stage = "module"
@@ -233,6 +246,7 @@ class ControlLoop:
                 cycle.flags.update(state.flags)
                 extras = dict(cycle.info)
                 extras.update((k, v) for k, v in info.items() if isinstance(v, (int, float)))
+                extras.update(driver.log_values())
                 self._write(t_s, cycle.flags, compute_s, late_s, target_logged, applied, state,
                             extras)
                 self.period += 1
@@ -255,8 +269,9 @@ class ControlLoop:
         return LoopResult(
             ended=ended, periods=self.period, t_end_s=self.period * self.dt_s, error=error,
             stop_periods=stop_periods, status_counts=dict(self._statuses),
+            flag_counts=dict(self._flags),
             safety_events=[(m.name, e.t_s, e.kind, e.sources) for m in self.modules
-                          for e in getattr(m, "events", ())],
+                          for e in m.events],
             overruns=self.overruns, log_path=self.log_path, final_command_rad=self._cmd.copy(),
             exception=exc)
 

@@ -5,16 +5,23 @@ command (joint positions, rad, ``RobotModel.joint_names`` order) and the latest 
 and returns the command it passes on. It reports what it did by adding flags to the shared
 :class:`Cycle` (e.g. ``"joint-limit"``, ``"estop"``) and may request an emergency stop through
 ``cycle.estop_requests``. Modules can be added, removed or reordered without touching others.
+
+Optional behaviour is declared here with defaults, never probed: ``log_columns`` (the
+``cycle.info`` keys a module writes, logged every period), ``events`` (the safety events it
+recorded), ``release()`` (let go of a latched stop) and ``dt_s`` (the control period the module
+was built for; the loop refuses a module built for another period than its driver's).
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from hubo_cli.drivers.base import RobotState
+from hubo_cli.control.status import SafetyEvent
+from hubo_cli.state import RobotState
 
 
 @dataclass
@@ -38,9 +45,23 @@ class Cycle:
 
 
 class Module(ABC):
-    """One stage of the pipeline."""
+    """One stage of the pipeline.
+
+    Attributes:
+        name: the module's pipeline name.
+        dt_s: the control period (s) the module was built for; None when it takes the period
+            from each :class:`Cycle`.
+        log_columns: every ``cycle.info`` key the module writes (logged each period).
+        events: safety events the module recorded (stops, releases, collision holds).
+    """
 
     name = "module"
+    dt_s: float | None = None
+    log_columns: tuple[str, ...] = ()
+    events: Sequence[SafetyEvent] = ()
+
+    def release(self) -> None:
+        """Let go of a latched emergency stop; modules without one ignore it."""
 
     def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
         """Start from the command ``q_rad`` (rad) and the robot's state; called once before the

@@ -27,8 +27,8 @@ from ruckig import (
 
 from hubo_cli.control.limits import JointLimits
 from hubo_cli.control.module import Cycle, Module
-from hubo_cli.drivers.base import RobotState
 from hubo_cli.model import RobotModel
+from hubo_cli.state import RobotState
 
 STALE_TIMEOUT_S = 0.5  # hubo-motion-rt timeOut: no fresh command for this long -> stop
 

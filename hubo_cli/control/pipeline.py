@@ -11,12 +11,18 @@ second stopper (freeze preset, reacting only to the ``hard`` source) and ``limit
 error limiter. The capture-point monitor passes the command through; it sits before ``estop``
 so that its request is seen in the same period. ``hoff-arbib`` can replace ``otg``.
 The limiter must stay last: it is what guarantees the limits.
+
+A :class:`SafetyProfile` decides the order and the options of one run's pipeline; every robot
+command builds its pipeline through one, so ``--no-estop`` means the same everywhere.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
 
+from hubo_cli.control.balance import BALANCE_MODES
+from hubo_cli.control.estop import SOFT_SOURCES
 from hubo_cli.control.module import Module
 from hubo_cli.errors import ConfigError
 from hubo_cli.model import RobotModel
@@ -126,3 +132,66 @@ def find_module(modules: list[Module], name: str) -> Module | None:
         if m.name == name:
             return m
     return None
+
+
+
+@dataclass(frozen=True)
+class SafetyProfile:
+    """The safety layers of one run: which modules, in which order, with which options.
+
+    Attributes:
+        estop: the soft emergency stopper with its sources (operator key, capture point, wrist
+            torque, stale input). ``--no-estop`` turns it off: the stopper leaves the pipeline
+            and the capture-point monitor only measures (its margin is still logged); the hard
+            stopper, the collision detector and the limiter always stay.
+        sources: the stop requests the soft stopper acts on (a subset of SOFT_SOURCES).
+        revert_s, stop_s: eq. 15's T1 and T2 (s).
+        wrist_torque_limit_nm: the wrist-torque stop's limit (N m; None = the model's).
+        interpolator: ``otg`` (ruckig) or ``hoff-arbib`` (eq. 1).
+        balance: run the ankle balancer.
+        balance_mode: ``default`` (common + differential damping) or ``paper`` (eq. 11-12 as
+            published); see :func:`hubo_cli.control.balance.make_balancer`.
+    """
+
+    estop: bool = True
+    sources: tuple[str, ...] = SOFT_SOURCES
+    revert_s: float = 0.5
+    stop_s: float = 0.5
+    wrist_torque_limit_nm: float | None = None
+    interpolator: str = "otg"
+    balance: bool = True
+    balance_mode: str = "default"
+
+    def __post_init__(self) -> None:
+        if self.balance_mode not in BALANCE_MODES:
+            raise ConfigError(f"unknown balance mode {self.balance_mode!r}",
+                              hint=f"use {', '.join(BALANCE_MODES)} (or balance off)")
+        unknown = set(self.sources) - set(SOFT_SOURCES)
+        if unknown:
+            raise ConfigError(f"unknown emergency-stop source {sorted(unknown)[0]!r}",
+                              hint=f"use some of {', '.join(SOFT_SOURCES)}")
+
+    def order(self) -> tuple[str, ...]:
+        """Module names, first to last."""
+        dropped = set()
+        if not self.estop:
+            dropped.add("estop")
+        if not self.balance:
+            dropped.add("balance")
+        return tuple(n for n in DEFAULT_ORDER if n not in dropped)
+
+    def options(self, tools: Mapping[str, str]) -> dict[str, dict]:
+        """Per-module options for a robot holding ``tools`` (arm -> tool)."""
+        drill = tools.get("right-arm") == "drill"
+        return {
+            "estop": {"sources": tuple(self.sources), "revert_s": self.revert_s,
+                      "stop_s": self.stop_s,
+                      "wrist_torque_limit_nm": self.wrist_torque_limit_nm},
+            "capture-point": {"request_estop": self.estop, "drill": drill},
+            "collision": {"drill": drill},
+            "balance": {"mode": self.balance_mode, "drill": drill},
+        }
+
+    def build(self, model: RobotModel, dt_s: float, tools: Mapping[str, str]) -> list[Module]:
+        """The pipeline for a robot holding ``tools`` at control period ``dt_s`` (s)."""
+        return build_pipeline(model, self.order(), dt_s, self.options(tools), self.interpolator)

@@ -9,68 +9,103 @@ A driver is a context manager. Life cycle::
             state = robot.step()         # advance one control period (5 ms) and read back
         robot.stop()                     # safe hold; never raises (also done by __exit__)
 
+Drivers are created by name through :func:`hubo_cli.drivers.registry.make_driver`.
 Joint vectors are numpy arrays in :attr:`RobotModel.joint_names` order (24 limb joints, rad).
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
 from hubo_cli.errors import ConfigError
 from hubo_cli.model import RobotModel
+from hubo_cli.state import RobotState
 
-FT_SENSORS = ("right-wrist", "left-wrist", "right-ankle", "left-ankle")
 
-
-@dataclass
-class RobotState:
-    """What a driver knows about the robot at one instant.
+@dataclass(frozen=True)
+class RunContext:
+    """What a driver may take from the run it serves.
 
     Attributes:
-        time_s: driver time since start (s).
-        q_rad, dq_rad_s: joint positions (rad) and velocities (rad/s), joint_names order.
-        imu_quat_wxyz: torso (IMU) orientation in the world frame, unit quaternion w, x, y, z.
-        imu_gyro_rad_s: torso angular rate in the IMU frame (rad/s).
-        ft: per sensor in FT_SENSORS, the wrench [fx, fy, fz, mx, my, mz] (N, N m) in the
-            sensor frame (wrists: hand frame; ankles: sole frame).
-        tau_nm: joint torques (N m) where the driver knows them, else None.
-        T_world_torso: torso pose in the world (4x4, m) where known (simulation), else None.
-        feet_contact: (right, left) sole touches the ground, where known, else None.
-        flags: driver-level events this period (e.g. ``"nan-ref"``, ``"servo-off"``).
+        run_dir: the run folder (files a driver writes belong there).
+        tools: arm -> tool held (``hand``, ``drill``).
+        gui: the user asked for a window.
+        cutting: the wall material's cutting coefficients (``coulomb_n``,
+            ``viscous_n_s_per_m``), where the scene has one.
     """
 
-    time_s: float
-    q_rad: np.ndarray
-    dq_rad_s: np.ndarray
-    imu_quat_wxyz: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))
-    imu_gyro_rad_s: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    ft: dict[str, np.ndarray] = field(
-        default_factory=lambda: {name: np.zeros(6) for name in FT_SENSORS})
-    tau_nm: np.ndarray | None = None
-    T_world_torso: np.ndarray | None = None
-    feet_contact: tuple[bool, bool] | None = None
-    flags: tuple[str, ...] = ()
+    run_dir: Path
+    tools: Mapping[str, str]
+    gui: bool = False
+    cutting: Mapping[str, float] | None = None
 
-    def tilt_rad(self) -> tuple[float, float]:
-        """Torso tilt about world x (roll) and y (pitch) from the IMU quaternion (rad)."""
-        w, x, y, z = self.imu_quat_wxyz
-        roll = np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
-        pitch = np.arcsin(np.clip(2 * (w * y - z * x), -1.0, 1.0))
-        return float(roll), float(pitch)
+
+class SimulatedWorld(ABC):
+    """What a simulator offers beyond the driver contract: a scene, forces, frames, pictures.
+
+    A real robot has none of it: :attr:`Driver.world` is None there, so callers ask for the
+    capability once instead of probing a driver for methods.
+    """
+
+    @abstractmethod
+    def add_wall(self, distance_m: float, height_m: float, width_m: float = 1.2,
+                 thickness_m: float = 0.01, centre_y_m: float = 0.0):
+        """A static box wall: near face at x = ``distance_m`` in the world (m)."""
+
+    @abstractmethod
+    def push_torso(self, force_world_n, duration_s: float) -> None:
+        """Push the torso at its centre of mass with a world-frame force (N) for a while (s)."""
+
+    @abstractmethod
+    def frame_pose(self, frame: str) -> np.ndarray:
+        """World pose (4x4, m) of ``torso`` or a named end frame."""
+
+    @abstractmethod
+    def snapshot_png(self, path: str | Path) -> Path:
+        """Render the scene headless into a PNG; returns its path."""
+
+    @property
+    @abstractmethod
+    def physics_wall_s(self) -> float:
+        """Wall-clock time spent stepping the physics so far (s), for benchmarks."""
 
 
 class Driver(ABC):
     """One robot back end. Subclasses implement the five abstract methods.
+
+    Class attributes:
+        name: the registry name.
+        real_time: the driver moves a real robot (or feeds a process that does), so the loop
+            must run at wall-clock pace whatever the caller asked for.
+        log_columns: numbers the driver adds to every log row (see :meth:`log_values`).
 
     Args:
         model: the robot model (joint names and limits).
     """
 
     name = "abstract"
+    real_time: ClassVar[bool] = False
+    log_columns: tuple[str, ...] = ()
+
+    @property
+    def world(self) -> SimulatedWorld | None:
+        """The simulator's extras (scene, pushes, frames, snapshots); None on a real robot."""
+        return None
+
+    def log_values(self) -> dict[str, float]:
+        """This period's values of :attr:`log_columns` (driver-level numbers for the log)."""
+        return {}
+
+    @classmethod
+    def run_options(cls, run: RunContext) -> dict:
+        """Options this driver takes from the run it serves (its files, tools, window)."""
+        return {}
 
     def __init__(self, model: RobotModel) -> None:
         self.model = model
@@ -126,20 +161,3 @@ class Driver(ABC):
         if q.shape != (len(self.joint_names),):
             raise ConfigError(f"command has shape {q.shape}, expected ({len(self.joint_names)},)")
         return q
-
-
-_REGISTRY: dict[str, Callable[..., Driver]] = {}
-
-
-def register(name: str, factory: Callable[..., Driver]) -> None:
-    """Make a driver available to :func:`make_driver` under ``name``."""
-    _REGISTRY[name] = factory
-
-
-def make_driver(name: str, model: RobotModel, **options) -> Driver:
-    """Create a driver by name (``sim``, ``hardware``, ``ideal``)."""
-    import hubo_cli.drivers.registry  # noqa: F401  (registers the built-in drivers)
-
-    if name not in _REGISTRY:
-        raise ConfigError(f"unknown driver {name!r}", hint=f"use one of {', '.join(_REGISTRY)}")
-    return _REGISTRY[name](model, **options)

@@ -11,10 +11,11 @@ from __future__ import annotations
 import numpy as np
 
 from hubo_cli.drivers import checks
-from hubo_cli.drivers.base import Driver, RobotState, register
+from hubo_cli.drivers.base import Driver
 from hubo_cli.errors import ConfigError, DeviceError
 from hubo_cli.model import RobotModel
 from hubo_cli.posture import home_posture
+from hubo_cli.state import RobotState
 
 
 class IdealDriver(Driver):
@@ -97,5 +98,3 @@ class IdealDriver(Driver):
             flags.append("stopped")
         return RobotState(time_s=self._t, q_rad=self._q.copy(), dq_rad_s=dq, flags=tuple(flags))
 
-
-register("ideal", IdealDriver)

@@ -1,7 +1,30 @@
-"""Imports the built-in drivers so that each registers itself with :func:`base.register`."""
-# One import per driver module; each module calls base.register(name, factory).
-import hubo_cli.drivers.hardware  # noqa: F401  ("hardware": hubo-ach frames, echo by default)
-import hubo_cli.drivers.ideal  # noqa: F401  ("ideal": state = command, no physics)
-import hubo_cli.drivers.sim  # noqa: F401  ("sim": PyBullet, the default)
+"""The built-in drivers by name, imported only when one is made (``--driver`` choices)."""
 
-DRIVER_NAMES = ("sim", "hardware", "ideal")
+from __future__ import annotations
+
+import importlib
+
+from hubo_cli.drivers.base import Driver
+from hubo_cli.errors import ConfigError
+from hubo_cli.model import RobotModel
+
+# name -> "module:class"; the first is the default
+DRIVERS = {
+    "sim": "hubo_cli.drivers.sim:SimDriver",          # PyBullet
+    "ideal": "hubo_cli.drivers.ideal:IdealDriver",    # state = command, no physics
+    "hardware": "hubo_cli.drivers.hardware:HardwareDriver",  # hubo-ach
+}
+DRIVER_NAMES = tuple(DRIVERS)
+
+
+def driver_class(name: str) -> type[Driver]:
+    """The driver class registered under ``name``."""
+    if name not in DRIVERS:
+        raise ConfigError(f"unknown driver {name!r}", hint=f"use one of {', '.join(DRIVERS)}")
+    module, attr = DRIVERS[name].split(":")
+    return getattr(importlib.import_module(module), attr)
+
+
+def make_driver(name: str, model: RobotModel, **options) -> Driver:
+    """Create a driver by name (``sim``, ``ideal``, ``hardware``) with its options."""
+    return driver_class(name)(model, **options)

@@ -70,11 +70,12 @@ from pathlib import Path
 import numpy as np
 
 from hubo_cli.drivers import checks
-from hubo_cli.drivers.base import FT_SENSORS, Driver, RobotState, register
+from hubo_cli.drivers.base import Driver, RunContext, SimulatedWorld
 from hubo_cli.errors import ConfigError, DeviceError
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.posture import home_posture
+from hubo_cli.state import FT_SENSORS, RobotState
 from hubo_cli.urdf import DRILL_FRAME, PHYSICS_DRILL_URDF, PHYSICS_URDF, link_frames
 
 CONTACT_THRESHOLD_N = 25.0  # hrpsys contact_decision_threshold
@@ -262,7 +263,7 @@ def _quat_wxyz(R: np.ndarray) -> np.ndarray:
     return quat / np.linalg.norm(quat) * (1.0 if quat[0] >= 0 else -1.0)
 
 
-class SimDriver(Driver):
+class SimDriver(Driver, SimulatedWorld):
     """The HUBO 2+ in PyBullet. Options: see :class:`SimOptions` (``gui``, ``drill``, ...).
 
     Besides the contract it offers scene objects (:meth:`add_wall`), a torso push
@@ -271,6 +272,19 @@ class SimDriver(Driver):
     """
 
     name = "sim"
+
+    @property
+    def world(self) -> SimDriver:
+        """The simulator is its own world (scene, pushes, frames, snapshots)."""
+        return self
+
+    @classmethod
+    def run_options(cls, run: RunContext) -> dict:
+        """The window, the drill in the right hand and the wall's cutting coefficients."""
+        options = {"gui": run.gui, "drill": run.tools.get("right-arm") == "drill"}
+        if run.cutting is not None:
+            options["cutting"] = dict(run.cutting)
+        return options
 
     def __init__(self, model: RobotModel, **options) -> None:
         super().__init__(model)
@@ -304,7 +318,7 @@ class SimDriver(Driver):
         self._t = 0.0
         self.cutting_force_n = np.zeros(3)
         self._cutting_point = np.zeros(3)
-        self.physics_wall_s = 0.0  # wall time spent inside stepSimulation (s), for benchmarks
+        self._physics_wall_s = 0.0
         tau = 1.0 / (2.0 * math.pi * CONTACT_CUTOFF_HZ)
         self._contact_alpha = self.period_s / (self.period_s + tau)
         self._fz_filtered_n: list[float | None] = [None, None]
@@ -452,7 +466,7 @@ class SimDriver(Driver):
         for k in range(self.substeps):
             self._apply_external_forces(self._t + k * self.options.physics_dt_s)
             p.stepSimulation(physicsClientId=cid)
-        self.physics_wall_s += time.perf_counter() - t0
+        self._physics_wall_s += time.perf_counter() - t0
         self._t += self.period_s
         self._state = self._measure()
         return self._state
@@ -650,6 +664,11 @@ class SimDriver(Driver):
         return moment / total
 
     @property
+    def physics_wall_s(self) -> float:
+        """Wall-clock time spent inside stepSimulation since the driver was made (s)."""
+        return self._physics_wall_s
+
+    @property
     def walls(self) -> tuple[Wall, ...]:
         """The walls in the scene."""
         return tuple(self._walls)
@@ -670,5 +689,3 @@ class SimDriver(Driver):
         image = np.reshape(np.asarray(rgba, dtype=np.uint8), (height, width, 4))[:, :, :3]
         return write_png(path, image)
 
-
-register("sim", SimDriver)

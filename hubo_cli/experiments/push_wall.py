@@ -21,7 +21,7 @@ error along the push axis against time with the support-polygon thresholds, as F
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -29,16 +29,17 @@ import pinocchio as pin
 
 from hubo_cli.control.capture_point import sole_corners_m
 from hubo_cli.control.estop import EmergencyStopper
-from hubo_cli.control.log import LogData, load_log
-from hubo_cli.control.loop import ControlLoop, LoopResult
+from hubo_cli.control.log import LogData
+from hubo_cli.control.loop import LoopResult
 from hubo_cli.control.pin_robot import load_pin_robot
-from hubo_cli.control.pipeline import DEFAULT_ORDER, build_pipeline
-from hubo_cli.drivers.base import make_driver
-from hubo_cli.errors import InputError
-from hubo_cli.kinematics import get_limb
+from hubo_cli.control.pipeline import SafetyProfile
+from hubo_cli.control.target import Target
+from hubo_cli.drivers.base import SimulatedWorld
+from hubo_cli.errors import ConfigError, InputError
+from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.posture import home_posture
-from hubo_cli.runs import make_run_dir, write_json
+from hubo_cli.session import RunResult, RunSetup, run
 
 DIRECTIONS = ("forward", "left")
 FALL_TILT_DEG = 30.0   # hrpsys Stabilizer tilt_margin default
@@ -125,10 +126,11 @@ def hand_box_extent_m(model: RobotModel, q_rad: np.ndarray, arm: str) -> np.ndar
     return np.array([corners.min(axis=0), corners.max(axis=0)])
 
 
-class PushTargets:
+class PushTargets(Target):
     """The target source: goal poses along the push, through the arm IK every period.
 
-    It also watches the torso (tilt, height) and ends the run shortly after a fall.
+    It also watches the torso (tilt, height) and ends the run shortly after a fall. Once the
+    robot stands it places the obstacle (:meth:`attach`).
     """
 
     log_columns = ("push_offset_m", "tilt_deg", "torso_z_m", "sole_lift_m")
@@ -137,7 +139,7 @@ class PushTargets:
         self.model = model
         self.spec = spec
         self.q_start = q_start.copy()
-        self.limbs = {arm: get_limb(arm, "hand") for arm in spec.arms}
+        self.limbs = {arm: Limb(model, arm, "hand") for arm in spec.arms}
         self.slices = {arm: model.limb_slice(arm) for arm in spec.arms}
         self.T_start = {arm: self.limbs[arm].fk(q_start[self.slices[arm]]) for arm in spec.arms}
         self.q_prev = {arm: q_start[self.slices[arm]].copy() for arm in spec.arms}
@@ -152,6 +154,13 @@ class PushTargets:
         self._corners = sole_corners_m()
         self._sole_start_z: np.ndarray | None = None
         self.max_lift_m = 0.0
+        self.obstacle: dict = {}
+
+    def attach(self, world: SimulatedWorld | None, modules) -> None:
+        if world is None:
+            raise ConfigError("the push-wall experiment needs the simulator",
+                              hint="run it with the sim driver")
+        self.obstacle = _place_obstacle(world, self.model, self.spec, self.q_start)
 
     def _sole_lift_m(self, state) -> float:
         """How far the highest sole corner has risen above its start height (m)."""
@@ -205,36 +214,26 @@ class PushTargets:
                    "sole_lift_m": self.lift_m, "done": done}
 
 
-@dataclass
-class PushWallResult:
-    """A finished push-wall run: its summary (also in summary.json), folder and loop result."""
-
-    summary: dict
-    run_dir: Path
-    loop: LoopResult
-    plot_path: Path | None = None
-    extra: dict = field(default_factory=dict)
-
-
-def _place_obstacle(driver, model: RobotModel, spec: PushSpec, q_start: np.ndarray):
+def _place_obstacle(world: SimulatedWorld, model: RobotModel, spec: PushSpec,
+                    q_start: np.ndarray) -> dict:
     """A wall in front of both hands, or a block on the left of the left hand (world frame)."""
-    neck_height_m = float(driver.read().T_world_torso[2, 3])
+    neck_height_m = float(world.frame_pose("torso")[2, 3])
     arm = spec.arms[0]
     box = hand_box_extent_m(model, q_start, arm)
     frame = "right_hand" if arm == "right-arm" else "left_hand"
-    T_neck_hand = get_limb(arm, "hand").fk(q_start[model.limb_slice(arm)])
-    offset = driver.frame_pose(frame)[:3, 3] - T_neck_hand[:3, 3]  # neck frame -> world
+    T_neck_hand = Limb(model, arm, "hand").fk(q_start[model.limb_slice(arm)])
+    offset = world.frame_pose(frame)[:3, 3] - T_neck_hand[:3, 3]  # neck frame -> world
     lo, hi = box[0] + offset, box[1] + offset
     if spec.direction == "forward":
         distance_m = float(hi[0] + spec.wall_gap_m)
-        driver.add_wall(distance_m, WALL_HEIGHT_M, width_m=1.2, thickness_m=0.05)
+        world.add_wall(distance_m, WALL_HEIGHT_M, width_m=1.2, thickness_m=0.05)
         return {"kind": "wall", "near_face_x_m": distance_m, "height_m": WALL_HEIGHT_M}
     top_m = min(hi[2] + 0.25, neck_height_m - 0.05)  # below the shoulder
     # a block whose right face is wall_gap_m left of the left hand, spanning the hand along x
     width_m, thickness_m = 0.2, 0.3
     near_y_m = float(hi[1] + spec.wall_gap_m)
     x0_m = float(lo[0] - 0.05)
-    driver.add_wall(x0_m, top_m, width_m=width_m, thickness_m=thickness_m,
+    world.add_wall(x0_m, top_m, width_m=width_m, thickness_m=thickness_m,
                     centre_y_m=near_y_m + width_m / 2)
     return {"kind": "block", "near_face_y_m": near_y_m, "x_from_m": x0_m,
             "x_to_m": x0_m + thickness_m, "height_m": top_m}
@@ -267,61 +266,57 @@ def _summary(spec: PushSpec, estop: bool, targets: PushTargets, loop: LoopResult
         "push_s": spec.push_s,
         "push_start_s": spec.start_s,
         "obstacle": obstacle,
-        "duration_s": loop.t_end_s,
-        "ended": loop.ended,
-        "error": loop.error,
-        "status_periods": loop.status_counts,
         "ik_status_periods": targets.ik_status,
-        "log": "log.csv",
-        "plot": "cp_error.png",
     }
 
 
+def push_wall_setup(model: RobotModel, direction: str = "forward", estop: bool = True,
+                    out: str | Path | None = None, gui: bool = False,
+                    end_s: float | None = None, interpolator: str = "otg"
+                    ) -> tuple[RunSetup, PushSpec]:
+    """The experiment's run set-up (the simulated robot, both hands free, the stopper
+    listening to the operator and the capture point) and its push."""
+    spec = push_spec(direction)
+    if end_s is not None:
+        spec = PushSpec(spec.direction, spec.arms, spec.axis, spec.push_m, spec.push_s,
+                        spec.start_s, float(end_s), spec.wall_gap_m)
+    setup = RunSetup(
+        command=f"push-wall-{direction}-{'estop' if estop else 'no-estop'}", model=model,
+        tools={"right-arm": "hand", "left-arm": "hand"}, driver="sim",
+        safety=SafetyProfile(estop=estop, sources=("operator", "capture-point"),
+                             interpolator=interpolator),
+        gui=gui, out=out, duration_s=spec.end_s, q_start_rad=start_posture(model, spec))
+    return setup, spec
+
+
 def run_push_wall(model: RobotModel, direction: str = "forward", estop: bool = True,
-                  out: str | Path | None = None, speed: float | None = None,
-                  gui: bool = False, end_s: float | None = None,
-                  interpolator: str = "otg") -> PushWallResult:
+                  out: str | Path | None = None, gui: bool = False, end_s: float | None = None,
+                  interpolator: str = "otg") -> RunResult:
     """Run the experiment on the simulated robot and write its run folder.
 
     Args:
         model: the robot model.
         direction: ``forward`` or ``left``.
-        estop: keep the soft emergency stopper in the pipeline (sources: operator, capture
-            point).
+        estop: keep the soft emergency stopper (sources: operator, capture point).
         out: the run folder (default ``runs/<time>-push-wall-...``).
-        speed: None = as fast as the simulation runs, 1.0 = real time.
-        gui: open the PyBullet window.
+        gui: open the PyBullet window (real time).
         end_s: shorten (or lengthen) the run (s).
         interpolator: the first module, ``otg`` (ruckig) or ``hoff-arbib`` (eq. 1).
     """
-    spec = push_spec(direction)
-    if end_s is not None:
-        spec = PushSpec(spec.direction, spec.arms, spec.axis, spec.push_m, spec.push_s,
-                        spec.start_s, float(end_s), spec.wall_gap_m)
-    run_dir = make_run_dir(f"push-wall-{direction}-{'estop' if estop else 'no-estop'}", out)
-    q_start = start_posture(model, spec)
-    order = [n for n in DEFAULT_ORDER if estop or n != "estop"]
-    options = {"estop": {"sources": ("operator", "capture-point")}}
-    if not estop:
-        options = {}
-    modules = build_pipeline(model, order, options=options, interpolator=interpolator)
-    targets = PushTargets(model, spec, q_start)
-    with make_driver("sim", model, gui=gui) as driver:
-        driver.start(q_start)
-        obstacle = _place_obstacle(driver, model, spec, q_start)
-        loop = ControlLoop(driver, modules, targets, speed=speed, log_path=run_dir)
-        result = loop.run(duration_s=spec.end_s)
-    log = load_log(run_dir)
-    summary = _summary(spec, estop, targets, result, log, obstacle)
+    setup, spec = push_wall_setup(model, direction, estop, out, gui, end_s, interpolator)
+    targets = PushTargets(model, spec, setup.q_start_rad)
+    done = run(setup, targets)
+    summary = _summary(spec, estop, targets, done.loop, done.log, targets.obstacle)
     summary["interpolator"] = interpolator
-    stopper = next((m for m in modules if isinstance(m, EmergencyStopper)
-                    and m.name == "estop"), None)
-    if stopper is not None:
+    stopper = done.module("estop")
+    if isinstance(stopper, EmergencyStopper):
         summary["revert_s"] = stopper.revert_s
         summary["stop_s"] = stopper.stop_s
-    plot_path = plot_cp_error(log, summary, run_dir / "cp_error.png")
-    write_json(run_dir / "summary.json", summary)
-    return PushWallResult(summary, run_dir, result, plot_path)
+    done.save_summary(summary)
+    plot_cp_error(done.log, done.summary, done.run_dir / "cp_error.png")
+    done.add_file("cp_error.png")
+    done.save_summary({})
+    return done
 
 
 def plot_cp_error(log: LogData, summary: dict, path: str | Path) -> Path:

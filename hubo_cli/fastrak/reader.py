@@ -82,6 +82,8 @@ class FastrakReader(PoseSource):
         plausibility: record plausibility limits.
     """
 
+    live = True
+
     def __init__(self, port: str, baud: int = 115200, fmt: str = "binary",
                  output_list=(2, 11, 1), units: str = "cm", stations=None, capture=None,
                  reconnect: bool = True, settle_s: float = 0.2, probe_timeout_s: float = 1.0,

@@ -121,9 +121,20 @@ class PoseSource(ABC):
 
     stats: SourceStats
     info: dict
+    live = False  # a live device (its clock is the wall clock) rather than a recording
 
     def __init__(self) -> None:
         self._last_seen: dict[int, float] = {}
+
+    @property
+    def done(self) -> bool:
+        """True once a recording has delivered every sample (a live source never is)."""
+        return False
+
+    @property
+    def recorded_s(self) -> float | None:
+        """How long a recording lasts (s); None for a live source."""
+        return None
 
     @abstractmethod
     def read_until(self, t_s: float) -> list[PoseSample]:
@@ -192,6 +203,11 @@ class ReplaySource(PoseSource):
     def done(self) -> bool:
         """True once every sample has been delivered."""
         return self._cursor >= len(self._samples)
+
+    @property
+    def recorded_s(self) -> float:
+        """From the first sample to the last (s)."""
+        return self.end_s - self.start_s
 
     @property
     def stations(self) -> tuple[int, ...]:

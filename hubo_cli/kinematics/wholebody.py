@@ -58,7 +58,8 @@ class WholeBody:
                  knee_range_rad: tuple[float, float] = (0.45, 1.6)) -> None:
         tools = tools or {}
         self.model = model
-        self.arms = {name: Limb(model, name, tools.get(name, "hand")) for name in ARMS}
+        self.tools = {name: tools.get(name, "hand") for name in ARMS}  # arm -> tool held
+        self.arms = {name: Limb(model, name, self.tools[name]) for name in ARMS}
         self.legs = {name: Limb(model, name) for name in LEGS}
         self.working_height_m = working_height_m
         self.q_home = home_posture(model)

@@ -140,6 +140,8 @@ class Plan:
         edge: (N,) EDGE_HORIZONTAL / EDGE_VERTICAL while cutting, else EDGE_NONE.
         step_times_s: per step (start, end) plan time (s); the first step's is (0, 0).
         preflight: the reachability verdict.
+        body: the whole-body solver (and so the model and tool) the plan was made with; the
+            run uses the same one.
     """
 
     spec: TaskSpec
@@ -155,6 +157,7 @@ class Plan:
     edge: np.ndarray
     step_times_s: list[tuple[float, float]]
     preflight: Preflight
+    body: WholeBody
 
     @property
     def duration_s(self) -> float:
@@ -395,7 +398,7 @@ def make_plan(spec: TaskSpec, model: RobotModel, placement: Placement | None = N
         step_times.append((float(starts[mine[0]]), float(starts[mine[-1] + 1])) if mine
                           else (step_times[-1][1],) * 2)
     return Plan(spec, placement, dt, first.q_rad, T_first, t, step_index, goal, q, cutting, edge,
-                step_times, Preflight(misses, n + 1, warnings))
+                step_times, Preflight(misses, n + 1, warnings), body)
 
 
 def _limit_warnings(spec: TaskSpec, model: RobotModel, q: np.ndarray, step_index: np.ndarray,

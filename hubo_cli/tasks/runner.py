@@ -16,20 +16,15 @@ from pathlib import Path
 
 import numpy as np
 
-from hubo_cli.control.estop import EmergencyStopper
-from hubo_cli.control.log import load_log, max_velocity_ratio
-from hubo_cli.control.loop import ControlLoop, LoopResult
-from hubo_cli.control.pipeline import DEFAULT_ORDER, build_pipeline, find_module
-from hubo_cli.drivers.base import make_driver
+from hubo_cli.control.loop import LoopResult
+from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.errors import SafetyError
-from hubo_cli.kinematics.wholebody import WholeBody
 from hubo_cli.model import RobotModel, load_model
 from hubo_cli.posture import home_posture
-from hubo_cli.runs import make_run_dir, write_json
+from hubo_cli.session import RunResult, RunSetup, run
 from hubo_cli.tasks.plan import EDGE_NAMES, Plan, make_plan
 from hubo_cli.tasks.spec import TaskSpec
 from hubo_cli.tasks.target import SETTLE_TIMEOUT_S, TaskTarget
-from hubo_cli.urdf import DRILL_FRAME
 
 PAPER_TORQUE_NM = {"horizontal": {"mean": 0.14, "max": 0.23},
                    "vertical": {"mean": 0.15, "max": 0.35}}
@@ -55,32 +50,37 @@ def check_task(spec: TaskSpec, model: RobotModel | None = None) -> Plan:
     return make_plan(spec, model or load_model())
 
 
-def _pipeline(plan: Plan, model: RobotModel, estop: bool):
-    safety = plan.spec.safety
-    sources = set(safety.estop_sources)
-    order = [n for n in DEFAULT_ORDER
-             if estop or n not in ("estop", "capture-point")]
-    options = {"estop": {"sources": tuple(sources), "revert_s": safety.revert_s,
-                         "stop_s": safety.stop_s,
-                         "wrist_torque_limit_nm": safety.wrist_torque_limit_nm},
-               "capture-point": {"drill": plan.spec.stance.tool == "drill"},
-               "balance": {"drill": plan.spec.stance.tool == "drill"}}
-    modules = build_pipeline(model, order, options=options)
-    return modules, find_module(modules, "estop")
+def task_setup(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
+               gui: bool = False, estop: bool = True,
+               driver_options: dict | None = None) -> RunSetup:
+    """The run set-up of a checked plan: the plan's own model and tool, the task's safety
+    settings, a duration long enough for the plan and its settling waits."""
+    spec = plan.spec
+    safety = spec.safety
+    return RunSetup(
+        command=f"task-{spec.name}", model=plan.body.model,
+        tools=plan.body.tools, driver=driver,
+        driver_options=dict(driver_options or {}),
+        safety=SafetyProfile(estop=estop, sources=tuple(safety.estop_sources),
+                             revert_s=safety.revert_s, stop_s=safety.stop_s,
+                             wrist_torque_limit_nm=safety.wrist_torque_limit_nm),
+        gui=gui, out=out, q_start_rad=home_posture(plan.body.model),
+        duration_s=plan.duration_s + 3 * SETTLE_TIMEOUT_S + 10.0,
+        cutting={"coulomb_n": spec.scene.coulomb_n,
+                 "viscous_n_s_per_m": spec.scene.viscous_n_s_per_m})
 
 
 def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
-             speed: float | None = None, gui: bool = False, estop: bool = True,
-             driver_options: dict | None = None, on_start=None) -> TaskRun:
+             gui: bool = False, estop: bool = True, driver_options: dict | None = None,
+             on_start=None) -> TaskRun:
     """Run a checked plan and write its run folder.
 
     Args:
         plan: from :func:`check_task`; refused unless its pre-flight passed.
         driver: ``sim``, ``ideal`` or ``hardware``.
         out: the run folder (default ``runs/<time>-task-<name>``).
-        speed: None = as fast as possible, 1.0 = real time.
-        gui: open the PyBullet window (sim).
-        estop: keep the soft emergency stopper and the capture-point monitor.
+        gui: open the PyBullet window (sim; real time).
+        estop: keep the soft emergency stopper (see :class:`SafetyProfile`).
         driver_options: passed to the driver (e.g. ``armed`` for hardware).
         on_start: called with the :class:`TaskTarget` once the robot has started (live view).
 
@@ -90,48 +90,14 @@ def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
     if not plan.preflight.ok:
         raise SafetyError(plan.preflight.worst_per_step()[0].message(),
                           hint="the task was refused in pre-flight; nothing moved")
-    spec = plan.spec
-    model = load_model()
-    body = WholeBody(model, {spec.stance.limb: spec.stance.tool},
-                     plan.placement.working_height_m)
-    modules, stopper = _pipeline(plan, model, estop)
-    run_dir = make_run_dir(f"task-{spec.name}", out)
-    _write_task_copy(spec, run_dir)
-    options = dict(driver_options or {})
-    if driver == "sim":
-        options.update(gui=gui, drill=spec.stance.tool == "drill",
-                       cutting={"coulomb_n": spec.scene.coulomb_n,
-                                "viscous_n_s_per_m": spec.scene.viscous_n_s_per_m})
-    placed: dict = {}
-    with make_driver(driver, model, **options) as robot:
-        robot.start(home_posture(model))
-
-        def place_wall() -> None:
-            """The wall at the task's distance from the tool as the robot now holds it (the
-            standing robot leans a little forward under the ankle controller, eq. 11-12; an
-            operator walks it up to the wall as it stands)."""
-            if not hasattr(robot, "add_wall"):
-                return
-            distance = plan.placement.wall_distance_m
-            if spec.stance.tool == "drill" and hasattr(robot, "frame_pose"):
-                bit_x = robot.frame_pose(DRILL_FRAME)[0, 3]
-                distance = bit_x + distance - plan.T_first_S[0, 3]
-            robot.add_wall(distance, spec.scene.wall_height_m, spec.scene.wall_width_m,
-                           spec.scene.wall_thickness_m)
-            placed["wall_x_world_m"] = float(distance)
-
-        target = TaskTarget(plan, body, stopper, on_ready=place_wall)
-        if on_start is not None:
-            on_start(target)
-        loop = ControlLoop(robot, modules, target, speed=speed, log_path=run_dir)
-        # the plan, plus the waits for the robot to settle (raise, end, after a stop)
-        result = loop.run(plan.duration_s + 3 * SETTLE_TIMEOUT_S + 10.0)
-        if hasattr(robot, "snapshot_png"):
-            robot.snapshot_png(run_dir / "snapshot.png")
-    summary = summarise(plan, model, target, result, stopper, run_dir, driver)
-    summary["scene"] = placed
-    write_json(run_dir / "summary.json", summary)
-    return TaskRun(run_dir, summary, result, plan)
+    setup = task_setup(plan, driver=driver, out=out, gui=gui, estop=estop,
+                       driver_options=driver_options)
+    target = TaskTarget(plan)
+    done = run(setup, target, on_start=on_start)
+    _write_task_copy(plan.spec, done.run_dir)
+    done.add_file("task.toml")
+    summary = done.save_summary(summarise(plan, target, done))
+    return TaskRun(done.run_dir, summary, done.loop, plan)
 
 
 def _write_task_copy(spec: TaskSpec, run_dir: Path) -> None:
@@ -159,13 +125,12 @@ def _plane_rms_mm(goal_m: np.ndarray, actual_m: np.ndarray) -> float | None:
     return float(np.sqrt(np.mean(np.sum(d**2, axis=1))) * 1000)
 
 
-def summarise(plan: Plan, model: RobotModel, target: TaskTarget, result: LoopResult,
-              stopper: EmergencyStopper | None, run_dir: Path, driver: str) -> dict:
-    """The summary.json content; also draws the plots into the run folder."""
+def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
+    """The task's own summary fields; also draws the plots into the run folder."""
     from hubo_cli.plots.paths import plot_path_comparison
     from hubo_cli.plots.task import plot_wrist_torque
 
-    spec = plan.spec
+    spec, result, log, run_dir = plan.spec, done.loop, done.log, done.run_dir
     limit = spec.safety.wrist_torque_limit_nm
     goal = np.array(target.cut_goal_m).reshape(-1, 3)
     actual = np.array(target.cut_actual_m).reshape(-1, 3)
@@ -173,12 +138,10 @@ def summarise(plan: Plan, model: RobotModel, target: TaskTarget, result: LoopRes
     world = np.array(target.cut_world_m).reshape(-1, 3)
     edge = np.array(target.cut_edge, dtype=int)
     torque = np.array(target.cut_torque_nm)
-    log = load_log(run_dir)
     torque_stats = {name: _stats(torque[edge == code]) for code, name in EDGE_NAMES.items()}
     all_torque = log["task_wrist_torque_nm"]
     stops = [e for e in result.safety_events if e[2] == "stop"]
     completed = result.ok and target.phase == "settle" and target.step_stopped is None
-    files = ["log.csv", "summary.json", "task.toml"]
     T_S_W = plan.placement.T_S_W()
     if len(goal):
         rms = float(np.sqrt(np.mean(errors**2)) * 1000)
@@ -186,17 +149,16 @@ def summarise(plan: Plan, model: RobotModel, target: TaskTarget, result: LoopRes
                              plane="yz", frame="the wall frame",
                              title=f"{spec.name}: commanded vs actual drill bit while cutting",
                              rms_error_mm=rms)
-        files.append("path.png")
+        done.add_file("path.png")
     plot_wrist_torque(log, run_dir / "wrist_torque.png", limit_nm=limit,
                       title=f"{spec.name}: wrist torque (limit {limit:g} N m)",
                       stop_times_s=[e[1] for e in stops])
-    files.append("wrist_torque.png")
-    if (run_dir / "snapshot.png").exists():
-        files.append("snapshot.png")
+    done.add_file("wrist_torque.png")
     stop = None
     if stops:
         module, t_stop, _, sources = stops[0]
         step = spec.steps[target.step_stopped] if target.step_stopped is not None else None
+        stopper = target.stopper
         stop = {"t_s": t_stop, "sources": list(sources),
                 "step": None if step is None else step.name,
                 "reverted_to_t_s": t_stop - spec.safety.revert_s,
@@ -208,12 +170,7 @@ def summarise(plan: Plan, model: RobotModel, target: TaskTarget, result: LoopRes
         "task": spec.name,
         "task_file": str(spec.path),
         "parameters": spec.parameters,
-        "driver": driver,
         "completed": completed,
-        "ended": result.ended,
-        "error": result.error,
-        "duration_s": result.t_end_s,
-        "periods": result.periods,
         "stance": plan.placement.to_json(),
         "steps": [{"name": s.name, "kind": s.kind, "description": s.describe(),
                    "done": completed or (target.step_stopped is not None
@@ -235,25 +192,20 @@ def summarise(plan: Plan, model: RobotModel, target: TaskTarget, result: LoopRes
             "paper": PAPER_TORQUE_NM},
         "paper_rms_error_mm": PAPER_RMS_ERROR_MM,
         "estop": stop,
-        "estop_events": [{"module": m, "t_s": t, "kind": k, "sources": list(s)}
-                         for m, t, k, s in result.safety_events if k in ("stop", "release")],
-        "status_counts": result.status_counts,
-        "max_joint_velocity_ratio": max_velocity_ratio(model, log),
-        "overruns": result.overruns,
-        "files": files,
+        "scene": target.scene,
     }
 
 
-def run_experiment(spec: TaskSpec, *, out: str | Path | None = None, gui: bool = False
-                   ) -> TaskRun:
-    """Run an experiment task (its built-in procedure with the file's parameters)."""
+def run_experiment(spec: TaskSpec, *, out: str | Path | None = None, gui: bool = False,
+                   estop: bool | None = None) -> TaskRun:
+    """Run an experiment task (its built-in procedure with the file's parameters);
+    ``estop`` (``--no-estop``) overrides the file's."""
     from hubo_cli.experiments.push_wall import run_push_wall
 
     params = spec.parameters
+    estop = bool(params.get("estop", True)) if estop is None else estop
     result = run_push_wall(load_model(), direction=str(params.get("direction", "forward")),
-                           estop=bool(params.get("estop", True)), out=out,
-                           speed=1.0 if gui else None, gui=gui,
+                           estop=estop, out=out, gui=gui,
                            interpolator=str(params.get("interpolator", "otg")))
-    summary = {"task": spec.name, "parameters": params} | result.summary
-    write_json(result.run_dir / "summary.json", summary)
+    summary = result.save_summary({"task": spec.name, "parameters": params})
     return TaskRun(result.run_dir, summary, result.loop)

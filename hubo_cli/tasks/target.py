@@ -3,8 +3,8 @@
 Phases:
 
 1. ``raise``: the joint-space move of the first step (joint target ``plan.q_first_rad``), then
-   a wait until the robot is still; ``on_ready`` is called then (the runner places the wall:
-   the robot holds its tool in front of where the wall will be);
+   a wait until the robot is still; the wall is placed then, ahead of the tool as the robot
+   holds it (in a simulator; a real robot stands at its wall);
 2. ``run``: the plan's joint targets period by period;
 3. ``settle``: the plan has ended; wait until the robot is still;
 4. ``stopped``: an emergency stop latched; the plan is frozen where it was and the run ends
@@ -21,36 +21,43 @@ its lean included).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
-from hubo_cli.control.estop import wrist_torque_nm
-from hubo_cli.kinematics.wholebody import WholeBody
+from hubo_cli.control.estop import EmergencyStopper, wrist_torque_nm
+from hubo_cli.control.module import Module
+from hubo_cli.control.target import Target
+from hubo_cli.drivers.base import SimulatedWorld
+from hubo_cli.scene import WallPlacement, WallSize
 from hubo_cli.tasks.plan import EDGE_NONE, Plan
+from hubo_cli.urdf import tool_frame
 
 PHASES = ("raise", "run", "settle", "stopped")
 SETTLE_TIMEOUT_S = 6.0
 STOP_HOLD_S = 1.0  # after a stop, keep holding this long (still) before ending the run
 
 
-class TaskTarget:
-    """Target source for :class:`hubo_cli.control.loop.ControlLoop`.
+class TaskTarget(Target):
+    """Plays a checked plan in the control loop.
 
     Args:
-        plan: the checked plan.
-        body: the whole-body solver the plan was made with (for the measured tool pose).
-        stopper: the pipeline's soft emergency stopper (None: no stop is watched).
-        on_ready: called once, when the robot holds the first step's pose.
+        plan: the checked plan (its whole-body solver gives the measured tool pose).
+
+    After :meth:`attach`: ``stopper`` is the pipeline's soft emergency stopper (None when the
+    run has none) and ``scene`` what was placed in the simulator.
     """
 
     log_columns = ("step_code", "phase_code", "goal_x_m", "goal_y_m", "goal_z_m", "actual_x_m",
                    "actual_y_m", "actual_z_m", "error_m", "cutting", "edge_code",
                    "task_wrist_torque_nm")
 
-    def __init__(self, plan: Plan, body: WholeBody, stopper=None, on_ready=None) -> None:
+    def __init__(self, plan: Plan) -> None:
         self.plan = plan
-        self.body = body
-        self.stopper = stopper
-        self.on_ready = on_ready
+        self.body = body = plan.body
+        self.stopper: EmergencyStopper | None = None
+        self.world: SimulatedWorld | None = None
+        self.scene: dict = {}
         self.limb = plan.spec.stance.limb
         self.slice = body.model.limb_slice(self.limb)
         self.sensor = "right-wrist" if self.limb == "right-arm" else "left-wrist"
@@ -71,6 +78,25 @@ class TaskTarget:
         self.cut_t_s: list[float] = []
         self.torque_nm = 0.0
         self.error_m = float("nan")
+
+    def attach(self, world: SimulatedWorld | None, modules: Sequence[Module]) -> None:
+        self.world = world
+        self.stopper = next((m for m in modules if isinstance(m, EmergencyStopper)
+                             and m.name == "estop"), None)
+
+    def _place_wall(self) -> None:
+        """The wall at the task's distance from the tool as the robot now holds it (the
+        standing robot leans a little under the balancer; an operator walks it up to the wall
+        as it stands)."""
+        if self.world is None:
+            return
+        spec, placement = self.plan.spec, self.plan.placement
+        scene = spec.scene
+        self.scene = WallPlacement(
+            tool_frame(spec.stance.limb, spec.stance.tool),
+            placement.wall_distance_m - self.plan.T_first_S[0, 3],
+            WallSize(scene.wall_height_m, scene.wall_width_m, scene.wall_thickness_m),
+        ).place(self.world)
 
     # ------------------------------------------------------------------ progress (live view)
     @property
@@ -107,8 +133,7 @@ class TaskTarget:
             self.step_stopped = self.step
         if self.phase == "raise":
             if self._still(state) or t_s >= SETTLE_TIMEOUT_S:
-                if self.on_ready is not None:
-                    self.on_ready()
+                self._place_wall()
                 world = self._tool_world(state)
                 if world is not None:
                     self.offset_world_m = world - self.plan.T_first_S[:3, 3]

@@ -7,17 +7,17 @@ from pathlib import Path
 
 import numpy as np
 
-from hubo_cli.control.log import load_log, max_velocity_ratio
-from hubo_cli.control.loop import ControlLoop, LoopResult
-from hubo_cli.control.pipeline import DEFAULT_ORDER, build_pipeline
-from hubo_cli.drivers.base import make_driver
-from hubo_cli.fastrak.source import open_source
+from hubo_cli.control.loop import LoopResult
+from hubo_cli.control.pipeline import SafetyProfile
+from hubo_cli.errors import InputError
+from hubo_cli.fastrak.source import PoseSource, open_source
 from hubo_cli.kinematics.interpolate import PosePath, PoseSegment, segment_duration
 from hubo_cli.kinematics.wholebody import WholeBody
-from hubo_cli.model import load_model
+from hubo_cli.model import RobotModel, load_model
 from hubo_cli.plots.paths import plot_path_comparison
 from hubo_cli.posture import home_posture
-from hubo_cli.runs import make_run_dir, write_json
+from hubo_cli.scene import WallPlacement, WallSize
+from hubo_cli.session import RunResult, RunSetup, run
 from hubo_cli.teleop.mapping import HandMapper, MappingConfig
 from hubo_cli.teleop.target import TeleopTarget
 
@@ -28,8 +28,7 @@ STANDOFF_M = 0.05              # drill mode: the bit stops this far before the w
 # 92-94 % of an 8 cm cube around it is reachable at the same hand orientation
 FREE_READY_ARM_RAD = {"right-arm": (0.0, -0.15, 0.0, -1.4, 0.0, 0.0),
                       "left-arm": (0.0, 0.15, 0.0, -1.4, 0.0, 0.0)}
-WALL_SIZE_M = (1.2, 2.0)       # width, height of the simulated cardboard wall
-WALL_THICKNESS_M = 0.005
+WALL = WallSize(height_m=2.0, width_m=1.2, thickness_m=0.005)  # the simulated cardboard
 
 
 @dataclass
@@ -80,18 +79,31 @@ class TeleopRun:
 def drill_stance(wall_distance_m: float | None = None) -> tuple[float, np.ndarray, float]:
     """Where to stand and start for a drill cut of the paper's size (paper IV, III-A).
 
-    The stance is the workspace map's largest one-branch rectangle of the wall for the drill
-    held orthogonal to it, so the arm has vertical room around its working height; the legs
-    take the rest of the height (the widest single segment, the paper's criterion, is a ridge
-    a few millimetres tall: any lag of the legs would leave the arm out of reach). Returns
-    (wall distance m, the upper-left corner of a paper-size hole centred in that rectangle
-    (m, in S), the rectangle's mid height m = the working height).
+    Without a distance, the stance is the workspace map's largest one-branch rectangle of the
+    wall for the drill held orthogonal to it, so the arm has vertical room around its working
+    height; the legs take the rest of the height (the widest single segment, the paper's
+    criterion, is a ridge a few millimetres tall: any lag of the legs would leave the arm out
+    of reach). With ``wall_distance_m`` the hole goes into the reachable rectangle of that
+    distance's slice. Returns (wall distance m, the upper-left corner of a paper-size hole
+    centred in that rectangle (m, in S), the rectangle's mid height m = the working height).
+
+    Raises:
+        InputError: nothing of the wall is reachable at ``wall_distance_m``.
     """
     from hubo_cli.workspace.stance import best_stance
 
-    stance = best_stance(tool="drill", arm="right", vertical="arm")
-    rect = stance.rectangle
-    wall = stance.wall_distance_m if wall_distance_m is None else wall_distance_m
+    if wall_distance_m is None:
+        stance = best_stance(tool="drill", arm="right", vertical="arm")
+        wall, rect = stance.wall_distance_m, stance.rectangle
+    else:
+        stance = best_stance(tool="drill", arm="right", vertical="arm", size_m=PAPER_HOLE_M,
+                             wall_distance_m=wall_distance_m)
+        wall, rect = wall_distance_m, stance.rectangle
+        if rect.y_max_m <= rect.y_min_m:
+            raise InputError(f"the drill reaches nothing of a wall {wall_distance_m * 1000:.0f}"
+                             " mm from the neck",
+                             hint="leave --wall-distance out (the workspace map's best stance)"
+                                  " or see hubo workspace-map")
     y_mid, z_mid = (rect.y_min_m + rect.y_max_m) / 2, (rect.z_min_m + rect.z_max_m) / 2
     corner = np.array([wall, y_mid + PAPER_HOLE_M[0] / 2, z_mid + PAPER_HOLE_M[1] / 2])
     return wall, corner, z_mid
@@ -103,14 +115,14 @@ def _station_map(settings: TeleopSettings) -> dict[int, str]:
     return {1: "right-arm"} if settings.mode == "drill" else {1: "right-arm", 2: "left-arm"}
 
 
-def prepare(settings: TeleopSettings):
+def prepare(settings: TeleopSettings, model: RobotModel | None = None):
     """Build everything before the robot starts (errors surface before anything moves).
 
     Returns (model, whole-body solver, mapping, scene). The legs' working height is where the
     hands start (free mode: the legs follow only the operator's height changes) or the middle
     of the reachable rectangle (drill mode).
     """
-    model = load_model()
+    model = model or load_model()
     stations = _station_map(settings)
     tools = {arm: "hand" for arm in stations.values()}
     scene: dict = {}
@@ -128,6 +140,16 @@ def prepare(settings: TeleopSettings):
     return model, body, mapping, scene
 
 
+def teleop_setup(settings: TeleopSettings, body: WholeBody, duration_s: float | None
+                 ) -> RunSetup:
+    """The session's run set-up: the solver's model and tools, live input in real time."""
+    return RunSetup(
+        command="teleop", model=body.model, tools=dict(body.tools), driver=settings.driver,
+        driver_options=dict(settings.driver_options), safety=SafetyProfile(estop=settings.estop),
+        speed=settings.speed, live_input=settings.port is not None, gui=settings.gui,
+        out=settings.out, duration_s=duration_s, q_start_rad=home_posture(body.model))
+
+
 def run_teleop(settings: TeleopSettings, on_ready=None) -> TeleopRun:
     """Run one teleoperation session and write its run folder.
 
@@ -142,38 +164,19 @@ def run_teleop(settings: TeleopSettings, on_ready=None) -> TeleopRun:
     model, body, mapping, scene = prepare(settings)
     q_start = home_posture(model)
     approach = approach_paths(body, mapping.station_arm.values(), scene)
-    live = settings.port is not None
-    source = open_source(replay=settings.replay, port=settings.port, baud=settings.baud)
-    run_dir = make_run_dir("teleop", settings.out)
-    options = dict(settings.driver_options)
-    if settings.driver == "sim":
-        options.update(gui=settings.gui, drill=settings.mode == "drill")
-    order = DEFAULT_ORDER if settings.estop else tuple(
-        n for n in DEFAULT_ORDER if n not in ("estop", "hard-estop", "capture-point"))
-    with source, make_driver(settings.driver, model, **options) as driver:
-        driver.start(q_start)
-
-        def place_wall() -> None:
-            if settings.mode == "drill" and hasattr(driver, "add_wall"):
-                driver.add_wall(scene["wall_distance_m"], WALL_SIZE_M[1], WALL_SIZE_M[0],
-                                WALL_THICKNESS_M)
-
+    # the wall at the stance's distance (issue #15 moves it to the bit, as tasks place it)
+    wall = (WallPlacement(None, scene["wall_distance_m"], WALL) if settings.mode == "drill"
+            else None)
+    teleop_setup(settings, body, None).pace()  # refuse a bad pace before opening the port
+    with open_source(replay=settings.replay, port=settings.port, baud=settings.baud) as source:
         target = TeleopTarget(model, source, HandMapper(mapping), body, approach, q_start,
-                              live=live, clutch_at_s=settings.clutch_at_s,
-                              on_pre_pose=place_wall)
-        if on_ready is not None:
-            on_ready(target)
-        loop = ControlLoop(driver, build_pipeline(model, order), target, speed=settings.speed,
-                           log_path=run_dir)
+                              live=source.live, clutch_at_s=settings.clutch_at_s, wall=wall)
         duration = settings.duration_s
-        if duration is None and not live:
-            duration = (source.end_s - source.start_s) + target.approach_timeout_s + 30.0
-        result = loop.run(duration)
-        if hasattr(driver, "snapshot_png"):
-            driver.snapshot_png(run_dir / "snapshot.png")
-    summary = summarise(settings, model, target, result, run_dir, source, scene)
-    write_json(run_dir / "summary.json", summary)
-    return TeleopRun(run_dir, summary, result)
+        if duration is None and source.recorded_s is not None:
+            duration = source.recorded_s + target.approach_timeout_s + 30.0
+        done = run(teleop_setup(settings, body, duration), target, on_start=on_ready)
+    summary = done.save_summary(summarise(settings, target, done, source, scene))
+    return TeleopRun(done.run_dir, summary, done.loop)
 
 
 def approach_paths(body: WholeBody, arms, scene: dict) -> dict[str, PosePath]:
@@ -197,10 +200,10 @@ def approach_paths(body: WholeBody, arms, scene: dict) -> dict[str, PosePath]:
     return paths
 
 
-def summarise(settings, model, target: TeleopTarget, result: LoopResult, run_dir: Path,
-              source, scene: dict) -> dict:
-    """The run's summary.json content; also draws the path plots into the run folder."""
-    rms, peak, files = {}, {}, ["log.csv", "summary.json"]
+def summarise(settings: TeleopSettings, target: TeleopTarget, done: RunResult,
+              source: PoseSource, scene: dict) -> dict:
+    """The session's own summary fields; also draws the path plots into the run folder."""
+    rms, peak = {}, {}
     for arm, errors in target.errors_m.items():
         if errors:
             e = np.asarray(errors)
@@ -209,39 +212,29 @@ def summarise(settings, model, target: TeleopTarget, result: LoopResult, run_dir
             goals = np.array([g for g, _ in target.paths[arm]])
             actual = np.array([a for _, a in target.paths[arm]])
             name = f"path_{arm}.png"
-            plot_path_comparison(goals, actual, run_dir / name, plane="yz",
+            plot_path_comparison(goals, actual, done.run_dir / name, plane="yz",
                                  title=f"{arm}: operator's goal vs actual "
                                        f"({'drill bit' if settings.mode == 'drill' else 'hand'})",
                                  rms_error_mm=rms[arm])
-            files.append(name)
+            done.add_file(name)
     latencies = np.asarray(target.latencies_s) * 1000
-    if (run_dir / "snapshot.png").exists():
-        files.append("snapshot.png")
+    result = done.loop
     summary = {
-        "command": "teleop",
         "input": str(settings.replay or settings.port),
         "input_kind": "port" if settings.port else "replay",
-        "mode": settings.mode, "driver": settings.driver,
-        "speed": "max" if settings.speed is None else settings.speed,
-        "ended": result.ended, "error": result.error,
-        "duration_s": result.t_end_s, "periods": result.periods,
+        "mode": settings.mode,
         "operate_s": None if target.t_operate_s is None else result.t_end_s - target.t_operate_s,
         "rms_error_mm": rms, "max_error_mm": peak,
         "world_rms_error_mm": {arm: float(np.sqrt(np.mean(np.square(e))) * 1000)
                                for arm, e in target.world_errors_m.items() if e},
         "max_torso_tilt_deg": float(np.degrees(target.max_tilt_rad)),
         "ik_status_counts": {arm: h.ik_counts for arm, h in target.hands.items()},
-        "estop_events": [{"module": m, "t_s": t, "kind": k, "sources": list(s)}
-                         for m, t, k, s in result.safety_events if k in ("stop", "release")],
-        "status_counts": result.status_counts,
-        "max_joint_velocity_ratio": max_velocity_ratio(model, load_log(run_dir)),
         "latency_ms": {"median": float(np.median(latencies)) if len(latencies) else None,
                        "p99": float(np.percentile(latencies, 99)) if len(latencies) else None},
         "samples_used": target.samples_used,
         "samples_rejected": target.mapper.rejected,
         "input_stats": source.stats.as_dict(),
-        "overruns": result.overruns,
-        "files": files,
+        "scene": target.scene,
     }
     if scene:
         summary["wall_distance_mm"] = scene["wall_distance_m"] * 1000

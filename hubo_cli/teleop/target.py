@@ -26,11 +26,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from hubo_cli.control.target import Target
+from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.fastrak.source import PoseSource
 from hubo_cli.kinematics.choice import STATUS_NAMES
 from hubo_cli.kinematics.interpolate import PosePath
 from hubo_cli.kinematics.wholebody import LiftFilter, WholeBody
 from hubo_cli.model import ARMS, RobotModel
+from hubo_cli.scene import WallPlacement
 from hubo_cli.teleop.mapping import HandMapper
 
 PHASES = ("approach", "operate", "settle")
@@ -64,7 +67,7 @@ class Keys:
         return pending
 
 
-class TeleopTarget:
+class TeleopTarget(Target):
     """Target source for :class:`hubo_cli.control.loop.ControlLoop`.
 
     Args:
@@ -80,16 +83,16 @@ class TeleopTarget:
         settle_s: after a replay ends, how long the robot may take to come to rest.
         approach_timeout_s: each approach step waits at most this long for the robot to settle.
         clutch_at_s: replay times (s) at which to re-centre (as if ``c`` was pressed).
-        on_pre_pose: called once the robot is still at the approach's first pose (the session
-            places the wall then: the robot raises its tool away from the wall, as an operator
-            would bring it up to the wall with the tool ready).
+        wall: placed once the robot is still at the approach's first pose (drill mode: the
+            robot raises its tool away from the wall, as an operator would bring it up to the
+            wall with the tool ready); in a simulator only.
     """
 
     def __init__(self, model: RobotModel, source: PoseSource, mapper: HandMapper,
                  body: WholeBody, approach: dict[str, PosePath], q_start_rad: np.ndarray,
                  *, live: bool = False, stale_timeout_s: float = 0.25, settle_s: float = 1.0,
                  approach_timeout_s: float = 5.0, clutch_at_s: tuple[float, ...] = (),
-                 on_pre_pose=None) -> None:
+                 wall: WallPlacement | None = None) -> None:
         self.model = model
         self.source = source
         self.mapper = mapper
@@ -115,7 +118,9 @@ class TeleopTarget:
         self.approach = approach
         self.approach_s = max((p.duration_s for p in approach.values()), default=0.0)
         self.t_path_s: float | None = None
-        self.on_pre_pose = on_pre_pose
+        self.wall = wall
+        self.world: SimulatedWorld | None = None
+        self.scene: dict = {}
         self.goals: dict[str, np.ndarray] = dict(firsts)
         self.hands = {arm: HandTrack() for arm in self.arms}
         self.phase = "approach"
@@ -134,6 +139,9 @@ class TeleopTarget:
             for c in ("goal_x_m", "goal_y_m", "goal_z_m", "actual_x_m", "actual_y_m",
                       "actual_z_m", "error_m", "ik_code")) + ("phase_code", "lift_m",
                                                              "latency_s")
+
+    def attach(self, world: SimulatedWorld | None, modules) -> None:
+        self.world = world
 
     # ------------------------------------------------------------------ measurement
     def hand_pose_measured(self, arm: str, state) -> np.ndarray:
@@ -196,8 +204,8 @@ class TeleopTarget:
             self.q_target = self.q_pre
             if self._settled(state) or t_s >= self.approach_timeout_s:
                 self.t_path_s = t_s
-                if self.on_pre_pose is not None:
-                    self.on_pre_pose()
+                if self.world is not None and self.wall is not None:
+                    self.scene = self.wall.place(self.world)
             return
         t_path = t_s - self.t_path_s
         if t_path <= self.approach_s + self.dt_guard_s:  # step 2: the Cartesian paths
@@ -251,7 +259,7 @@ class TeleopTarget:
             solved = self.body.solve(self.goals, self.q_target, lift_m=lift)
             self.q_target = solved.q_rad
             self._record_ik(solved)
-        if not self.live and getattr(self.source, "done", False):
+        if self.source.done:
             self.phase = "settle"
             self.t_settle_s = t_s
         return flags

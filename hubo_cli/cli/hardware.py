@@ -1,0 +1,130 @@
+"""``hubo hardware``: the real robot's side tools (a fake hubo-daemon), and the hardware driver's
+options shared by ``hubo task`` and ``hubo teleop``."""
+
+from __future__ import annotations
+
+import signal
+
+import click
+
+from hubo_cli.cli.output import err_console, print_json
+from hubo_cli.errors import DeviceError, InputError
+
+SINK_CHOICES = ("ach", "file", "fifo")
+
+
+def hardware_options(function):
+    """The hardware driver's options (used with ``--driver hardware``)."""
+    options = [
+        click.option("--dry-run", is_flag=True,
+                     help="Hardware driver without a robot: frames to the run folder's "
+                          "hubo-ref.bin, state echoed through hubo-daemon's filter."),
+        click.option("--sink", type=click.Choice(SINK_CHOICES), default=None,
+                     help="Hardware references: ach (hubo-ach's channels through libach, the "
+                          "default), file or fifo (in the run folder; implied by --dry-run)."),
+        click.option("--ach-ref", default=None, metavar="NAME",
+                     help="hubo-ach reference channel (default hubo-ref)."),
+        click.option("--ach-state", default=None, metavar="NAME",
+                     help="hubo-ach state channel (default hubo-state)."),
+    ]
+    for option in reversed(options):
+        function = option(function)
+    return function
+
+
+def driver_options(driver: str, armed: bool, dry_run: bool, sink: str | None,
+                   ach_ref: str | None, ach_state: str | None) -> dict:
+    """The driver's options from the command line; hardware options with another driver, or a
+    dry run on the channels, are refused (exit 2).
+
+    A dry run writes a file that no robot reads, so it needs no ``--arm``; every other sink
+    reaches (or may reach) a robot and the driver refuses to start without it.
+    """
+    hardware = {"sink": sink, "ach_ref": ach_ref, "ach_state": ach_state}
+    given = [f"--{k.replace('_', '-')}" for k, v in hardware.items() if v is not None]
+    if dry_run:
+        given.append("--dry-run")
+    if driver != "hardware":
+        if given:
+            raise InputError(f"{', '.join(given)} only apply to the hardware driver",
+                             hint="add --driver hardware or leave them out")
+        return {}
+    if dry_run:
+        if sink not in (None, "file"):
+            raise InputError(f"--dry-run writes a file; --sink {sink} contradicts it",
+                             hint="leave out --sink")
+        if ach_ref or ach_state:
+            raise InputError("a dry run uses no ach channel",
+                             hint="leave out --ach-ref and --ach-state")
+        return {"armed": True, "sink": "file"}
+    options = {"armed": armed, **{k: v for k, v in hardware.items() if v is not None}}
+    return options
+
+
+@click.group("hardware")
+def hardware() -> None:
+    """The real Hubo's side: a fake hubo-daemon to run the hardware driver without a robot.
+
+    The hardware driver (--driver hardware --arm) talks to hubo-ach's hubo-ref and hubo-state
+    channels through libach. See the README's "The real Hubo".
+    """
+
+
+@hardware.command("fake-daemon")
+@click.option("--ach-ref", default="hubo-ref", show_default=True, metavar="NAME",
+              help="Reference channel to read.")
+@click.option("--ach-state", default="hubo-state", show_default=True, metavar="NAME",
+              help="State channel to publish.")
+@click.option("--duration", type=float, default=None, metavar="SECONDS",
+              help="Stop after this long (default: until Ctrl-C).")
+@click.option("--posture", type=click.Choice(["home", "zero"]), default="home", show_default=True,
+              help="Where the joints start.")
+@click.option("--json", "as_json", is_flag=True, help="Print the final statistics as JSON.")
+def fake_daemon(ach_ref: str, ach_state: str, duration: float | None, posture: str,
+                as_json: bool) -> None:
+    """Stand in for hubo-daemon: read hubo-ref, apply its reference filter, publish hubo-state
+    at 200 Hz. Channels that do not exist are created, and removed again at the end.
+
+    Example: hubo hardware fake-daemon   (then, in another terminal:
+             hubo task cut-rectangle --driver hardware --arm)
+    """
+    import numpy as np
+
+    from hubo_cli.drivers.ach import load_libach
+    from hubo_cli.drivers.hardware import hubo_ach_vector
+    from hubo_cli.drivers.hubo_ach_daemon import FakeHuboDaemon
+    from hubo_cli.model import load_model
+    from hubo_cli.posture import home_posture
+
+    if duration is not None and not 0 < duration <= 7 * 24 * 3600:
+        raise InputError(f"--duration {duration:g} s is not a duration",
+                         hint="give seconds, more than 0 and at most a week")
+    lib = load_libach()
+    model = load_model()
+    q = home_posture(model) if posture == "home" else np.zeros(len(model.joint_names))
+    with FakeHuboDaemon(lib, hubo_ach_vector(model, q), ach_ref, ach_state) as daemon:
+        created = ", ".join(daemon.created) or "none (they existed)"
+        err_console.print(f"fake hubo-daemon: reading {ach_ref}, publishing {ach_state} at "
+                          f"200 Hz; channels created: {created}. Ctrl-C stops.")
+        # Ctrl-C, SIGTERM (kill, systemd) and SIGHUP end the loop; the channels are removed
+        signals = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+        previous = {sig: signal.signal(sig, lambda *_: daemon.request_stop()) for sig in signals}
+        try:
+            daemon.run(duration)
+        finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+        stats = daemon.stats
+    summary = {"periods": stats.periods, "ref_frames": stats.ref_frames,
+               "frame_sizes": stats.frame_sizes, "missed_ref_frames": stats.missed_ref_frames,
+               "late_periods": stats.late_periods, "error": stats.error or None}
+    if as_json:
+        print_json(summary)
+    else:
+        sizes = ", ".join(f"{n} x {size} B" for size, n in sorted(stats.frame_sizes.items()))
+        err_console.print(f"{stats.periods} periods, {stats.ref_frames} reference frames "
+                          f"({sizes or 'none'}), {stats.missed_ref_frames} missed, "
+                          f"{stats.late_periods} late periods")
+    if stats.error:
+        raise DeviceError(f"the fake daemon stopped: {stats.error}",
+                         hint="the writer does not send hubo_ref_t frames")

@@ -1,0 +1,54 @@
+"""Where the loop's joint targets come from: a task's plan, an operator's stream, a standing
+posture. Every source is a :class:`Target`; its optional hooks are declared here."""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from hubo_cli.state import RobotState
+
+if TYPE_CHECKING:
+    from hubo_cli.control.module import Module
+    from hubo_cli.drivers.base import SimulatedWorld
+
+TargetOutput = tuple[np.ndarray | None, dict]
+
+
+class Target(ABC):
+    """The loop asks it once per period for the joint target (see :mod:`control.loop`).
+
+    Attributes:
+        log_columns: the numeric ``info`` keys it returns that go into the log.
+    """
+
+    log_columns: tuple[str, ...] = ()
+
+    @abstractmethod
+    def __call__(self, t_s: float, state: RobotState) -> TargetOutput:
+        """The joint target for the period starting at ``t_s`` (rad; None = hold) and info."""
+
+    def attach(self, world: SimulatedWorld | None, modules: Sequence[Module]) -> None:
+        """Called once the robot has started, before the first period: the simulator's world
+        (to place a scene in, to push; None on a real robot) and the pipeline that will run
+        (to watch a stopper)."""
+
+
+class FunctionTarget(Target):
+    """A plain function ``f(t_s, state) -> (q | None, info)`` as a target."""
+
+    def __init__(self, function: Callable[[float, RobotState], TargetOutput],
+                 log_columns: tuple[str, ...] = ()) -> None:
+        self.function = function
+        self.log_columns = tuple(log_columns)
+
+    def __call__(self, t_s: float, state: RobotState) -> TargetOutput:
+        return self.function(t_s, state)
+
+
+def as_target(source: Target | Callable[[float, RobotState], TargetOutput]) -> Target:
+    """``source`` itself, or a plain function wrapped as a :class:`Target`."""
+    return source if isinstance(source, Target) else FunctionTarget(source)

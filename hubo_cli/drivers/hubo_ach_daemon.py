@@ -1,0 +1,200 @@
+"""A stand-in for hubo-daemon: the robot side of ``hubo-ref`` / ``hubo-state`` without a robot.
+
+Every 5 ms (``HUBO_LOOP_PERIOD``, absolute deadlines on ``CLOCK_MONOTONIC``) it reads every
+frame put on ``hubo-ref`` since its last period, checks each is exactly ``sizeof(hubo_ref_t)``
+(hubo-daemon exits on a mismatch; this one stops and records why), applies the newest through
+hubo-daemon's reference filter (mode 0, ``HUBO_REF_FILTER_LENGTH`` 40) or directly (mode 1), and
+publishes ``hubo_state`` with the joints at the filtered reference (an ideal motor), their
+velocity, a level IMU, zero wrenches and ``time`` = ``CLOCK_MONOTONIC`` seconds, as hubo-daemon
+does. A controller talking to it closes its loop through real ach channels.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import threading
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hubo_cli.drivers import hubo_ach
+from hubo_cli.drivers.ach import ACH_EEXIST, ACH_MISSED_FRAME, ACH_OK, AchError, Libach
+from hubo_cli.drivers.hubo_ach import JOINT_COUNT, StateFrame
+
+REF_FRAMES = 64    # ring sizes of the channels this daemon creates
+STATE_FRAMES = 16
+
+
+@dataclass
+class DaemonStats:
+    """What the daemon saw.
+
+    Attributes:
+        periods: periods run.
+        ref_frames: ``hubo-ref`` frames read (every one, in order).
+        frame_sizes: how many frames of each size were read (bytes -> count).
+        missed_ref_frames: frames overwritten in the ring before they were read.
+        late_periods: periods that started more than one period late.
+        error: why the daemon stopped early ("" if it did not).
+    """
+
+    periods: int = 0
+    ref_frames: int = 0
+    frame_sizes: dict[int, int] = field(default_factory=dict)
+    missed_ref_frames: int = 0
+    late_periods: int = 0
+    error: str = ""
+
+
+class FakeHuboDaemon:
+    """hubo-daemon's channel behaviour in a background thread.
+
+    Args:
+        lib: libach.
+        posture_rad: the 42 joints' start positions (hubo-ach order, rad).
+        ref_channel, state_channel: channel names (``hubo-ref``, ``hubo-state``).
+        period_s: the loop period (``HUBO_LOOP_PERIOD``).
+        filter_length: ``HUBO_REF_FILTER_LENGTH``.
+        create: create the channels if they do not exist (and unlink those on :meth:`close`).
+    """
+
+    def __init__(self, lib: Libach, posture_rad, ref_channel: str = hubo_ach.CHAN_REF,
+                 state_channel: str = hubo_ach.CHAN_STATE,
+                 period_s: float = hubo_ach.LOOP_PERIOD_S,
+                 filter_length: int = hubo_ach.REF_FILTER_LENGTH, create: bool = True) -> None:
+        posture = np.asarray(posture_rad, dtype=float)
+        if posture.shape != (JOINT_COUNT,) or not np.all(np.isfinite(posture)):
+            raise ValueError(f"posture must be {JOINT_COUNT} finite angles (rad)")
+        self.lib = lib
+        self.ref_channel, self.state_channel = ref_channel, state_channel
+        self.period_s = period_s
+        self.filter_length = filter_length
+        self.stats = DaemonStats()
+        self.created: list[str] = []
+        if create:
+            for name, frames, size in ((ref_channel, REF_FRAMES, hubo_ach.REF_SIZE),
+                                       (state_channel, STATE_FRAMES, hubo_ach.STATE_SIZE)):
+                try:
+                    lib.create(name, frames, size)
+                    self.created.append(name)
+                except AchError as exc:
+                    if exc.status != ACH_EEXIST:
+                        self.unlink()
+                        raise
+        self._ref_chan = lib.open(ref_channel)
+        self._state_chan = lib.open(state_channel)
+        self._filtered = posture.copy()
+        self._ref = posture.copy()
+        self._mode = np.zeros(JOINT_COUNT, dtype=np.int16)
+        self._buffer = (ctypes.c_uint8 * (hubo_ach.REF_SIZE + 256))()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._drain()  # frames left on hubo-ref by an earlier writer are not this run's
+        self._publish(np.zeros(JOINT_COUNT))
+
+    # ------------------------------------------------------------------ running
+    def start(self) -> FakeHuboDaemon:
+        """Run the loop in a background thread (again after :meth:`stop`); returns self."""
+        self.stop()
+        self._stop.clear()
+        self._thread = threading.Thread(target=self.run, name="fake-hubo-daemon", daemon=True)
+        self._thread.start()
+        return self
+
+    def run(self, duration_s: float | None = None) -> DaemonStats:
+        """Run the loop here until :meth:`stop` (or for ``duration_s``)."""
+        next_s = time.monotonic()
+        end_s = None if duration_s is None else next_s + duration_s
+        while not self._stop.is_set() and (end_s is None or next_s < end_s):
+            self.period()
+            if self.stats.error:
+                break
+            next_s += self.period_s
+            delay = next_s - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+            elif delay < -self.period_s:
+                self.stats.late_periods += 1
+                next_s = time.monotonic()  # re-anchor rather than burst
+        return self.stats
+
+    def period(self) -> None:
+        """One daemon period: read the references, filter, publish the state. A failure stops
+        the daemon with :attr:`DaemonStats.error` set (as hubo-daemon exits)."""
+        try:
+            self._read_refs()
+        except AchError as exc:
+            self.stats.error = str(exc)
+        if self.stats.error:
+            return
+        previous = self._filtered
+        self._filtered = hubo_ach.reference_filter(previous, self._ref, self._mode,
+                                                   self.filter_length)
+        self._publish((self._filtered - previous) / self.period_s)
+        self.stats.periods += 1
+
+    def request_stop(self) -> None:
+        """Ask the loop to end after the current period (safe from a signal handler)."""
+        self._stop.set()
+
+    def stop(self) -> None:
+        """Stop the loop thread (if any) and wait for it."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+            self._thread = None
+
+    def close(self) -> None:
+        """Stop, close the channels and unlink the ones this daemon created."""
+        self.stop()
+        self._ref_chan.close()
+        self._state_chan.close()
+        self.unlink()
+
+    def unlink(self) -> None:
+        """Remove the channels this daemon created."""
+        for name in self.created:
+            self.lib.unlink(name)
+        self.created = []
+
+    def __enter__(self) -> FakeHuboDaemon:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    @property
+    def joints_rad(self) -> np.ndarray:
+        """The joints' current positions (hubo-ach order, rad)."""
+        return self._filtered.copy()
+
+    # ------------------------------------------------------------------ internals
+    def _drain(self) -> None:
+        while self._ref_chan.get(self._buffer, last=True)[0] in (ACH_OK, ACH_MISSED_FRAME):
+            pass
+
+    def _read_refs(self) -> None:
+        while True:
+            status, size = self._ref_chan.get(self._buffer, last=False)
+            if status not in (ACH_OK, ACH_MISSED_FRAME):
+                return
+            stats = self.stats
+            stats.ref_frames += 1
+            stats.frame_sizes[size] = stats.frame_sizes.get(size, 0) + 1
+            if status == ACH_MISSED_FRAME:
+                stats.missed_ref_frames += 1
+            if size != hubo_ach.REF_SIZE:
+                stats.error = (f"a {self.ref_channel} frame of {size} bytes; hubo_ref_t is "
+                               f"{hubo_ach.REF_SIZE} (hubo-daemon exits here)")
+                return
+            frame = hubo_ach.decode_ref(bytes(self._buffer)[:size])
+            if not np.all(np.isfinite(frame.ref_rad)):
+                stats.error = f"a {self.ref_channel} frame with a non-finite reference"
+                return
+            self._ref, self._mode = frame.ref_rad, frame.mode
+
+    def _publish(self, vel_rad_s: np.ndarray) -> None:
+        frame = StateFrame(time.clock_gettime(time.CLOCK_MONOTONIC), np.zeros(3), np.zeros(3),
+                           np.zeros((4, 3)), self._filtered.copy(), vel_rad_s)
+        self._state_chan.put(hubo_ach.encode_state(frame))

@@ -1,0 +1,195 @@
+"""The standing experiment: the simulated robot holds its home posture through the full
+pipeline (the ankle balancer of paper III-C unless turned off), optionally pushed once on the
+torso, and we watch tilt, feet and falls. It runs on the shared run scaffold
+(:mod:`hubo_cli.session`) like every other robot command."""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from hubo_cli.control.pipeline import SafetyProfile
+from hubo_cli.control.target import Target
+from hubo_cli.drivers.base import SimulatedWorld
+from hubo_cli.errors import ConfigError, InputError
+from hubo_cli.model import RobotModel
+from hubo_cli.posture import home_posture
+from hubo_cli.session import RunResult, RunSetup, run
+
+FLAT_TOLERANCE_DEG = 1.0  # a sole tilted more than this (or without contact) is not flat
+FALL_TILT_DEG = 30.0      # torso tilt beyond which the robot has fallen
+FALL_DROP_M = 0.2         # ... or torso lower than its start by this much
+
+
+@dataclass
+class StandingResult:
+    """What a standing run showed (angles in degrees, times in seconds).
+
+    Attributes:
+        max_tilt_deg: largest torso tilt from upright (IMU) over the run.
+        feet_flat: both soles flat on the floor (within FLAT_TOLERANCE_DEG, in contact) in
+            every period.
+        fell: the torso tilted past FALL_TILT_DEG or dropped FALL_DROP_M (the run then ends).
+        realtime_factor: simulated seconds per wall-clock second of the loop.
+        max_sole_tilt_deg: largest tilt of either sole.
+        final_tilt_deg: torso tilt at the end.
+        physics_share: fraction of the loop's wall time spent in PyBullet's stepSimulation.
+        max_feet_moment_difference_nm: largest |M_right - M_left| of the ankle moments (x, y),
+            how unevenly the two feet are loaded (the balancer's compliance evens them out).
+        times_s, tilts_deg, feet_moment_difference_nm: traces, one sample per control period.
+    """
+
+    duration_s: float
+    push_n: float
+    balance: bool
+    max_tilt_deg: float
+    feet_flat: bool
+    fell: bool
+    realtime_factor: float
+    max_sole_tilt_deg: float
+    final_tilt_deg: float
+    physics_share: float
+    simulated_s: float
+    max_feet_moment_difference_nm: float = 0.0
+    snapshot: Path | None = None
+    run_dir: Path | None = None
+    times_s: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    tilts_deg: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    feet_moment_difference_nm: np.ndarray = field(default_factory=lambda: np.zeros(0),
+                                                  repr=False)
+
+    def summary(self) -> dict:
+        """The headline numbers as a plain dict (for JSON)."""
+        return {"max_tilt_deg": self.max_tilt_deg, "feet_flat": self.feet_flat,
+                "fell": self.fell, "realtime_factor": self.realtime_factor,
+                "duration_s": self.duration_s, "simulated_s": self.simulated_s,
+                "push_n": self.push_n, "balance": self.balance,
+                "max_sole_tilt_deg": self.max_sole_tilt_deg,
+                "final_tilt_deg": self.final_tilt_deg, "physics_share": self.physics_share,
+                "max_feet_moment_difference_nm": self.max_feet_moment_difference_nm,
+                "snapshot": str(self.snapshot) if self.snapshot else None}
+
+
+def _tilt_deg(R: np.ndarray) -> float:
+    """Angle between a frame's z axis and the world's z axis (deg)."""
+    return math.degrees(math.acos(max(-1.0, min(1.0, float(R[2, 2])))))
+
+
+def check_standing_args(duration_s: float, push_n: float) -> None:
+    """Raise InputError unless 0 < duration_s <= 3600 (s) and push_n >= 0 (N)."""
+    if not (math.isfinite(duration_s) and 0 < duration_s <= 3600):
+        raise InputError(f"duration must be in (0, 3600] s, got {duration_s}",
+                         hint="e.g. --duration 5")
+    if not (math.isfinite(push_n) and push_n >= 0):
+        raise InputError(f"push must be a force >= 0 N, got {push_n}", hint="e.g. --push 30")
+
+
+class StandTarget(Target):
+    """Hold the home posture; push the torso once; watch tilt, soles and falls each period."""
+
+    log_columns = ("tilt_deg", "feet_moment_difference_nm", "max_sole_tilt_deg")
+
+    def __init__(self, q_home_rad: np.ndarray, n_periods: int, push_world_n: np.ndarray,
+                 push_at_s: float, push_duration_s: float) -> None:
+        self.q_home_rad = q_home_rad
+        self.push_world_n = push_world_n
+        self.push_at_s = push_at_s
+        self.push_duration_s = push_duration_s
+        self.world: SimulatedWorld | None = None
+        self.times_s = np.zeros(n_periods)
+        self.tilts_deg = np.zeros(n_periods)
+        self.differences_nm = np.zeros(n_periods)
+        self.k = 0
+        self.feet_flat, self.fell, self.max_sole_deg = True, False, 0.0
+        self.torso_z0_m: float | None = None
+        self.wall_start_s = self.wall_end_s = 0.0
+        self.physics_start_s = 0.0
+
+    def attach(self, world: SimulatedWorld | None, modules) -> None:
+        if world is None:
+            raise ConfigError("the standing experiment needs the simulator",
+                              hint="run it with the sim driver")
+        self.world = world
+        self.physics_start_s = world.physics_wall_s
+        self.wall_start_s = time.perf_counter()
+
+    def __call__(self, t_s: float, state) -> tuple[np.ndarray, dict]:
+        world, k = self.world, self.k
+        if np.any(self.push_world_n) and abs(t_s - self.push_at_s) < 0.0025:
+            world.push_torso(self.push_world_n, self.push_duration_s)
+        tilt = _tilt_deg(state.T_world_torso[:3, :3])
+        if self.torso_z0_m is None:
+            self.torso_z0_m = float(state.T_world_torso[2, 3])
+        difference = state.ft["right-ankle"][3:5] - state.ft["left-ankle"][3:5]
+        if k < len(self.times_s):
+            self.times_s[k], self.tilts_deg[k] = state.time_s, tilt
+            self.differences_nm[k] = float(np.linalg.norm(difference))
+            self.k += 1
+        for sole, touching in zip(("right_sole", "left_sole"), state.feet_contact, strict=True):
+            sole_tilt = _tilt_deg(world.frame_pose(sole)[:3, :3])
+            self.max_sole_deg = max(self.max_sole_deg, sole_tilt)
+            self.feet_flat &= bool(touching) and sole_tilt <= FLAT_TOLERANCE_DEG
+        if tilt > FALL_TILT_DEG or state.T_world_torso[2, 3] < self.torso_z0_m - FALL_DROP_M:
+            self.fell = True
+        self.wall_end_s = time.perf_counter()
+        return self.q_home_rad, {"tilt_deg": tilt, "feet_moment_difference_nm":
+                                 self.differences_nm[k - 1] if k else 0.0,
+                                 "max_sole_tilt_deg": self.max_sole_deg, "done": self.fell}
+
+
+def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
+          balance: bool = True, *, push_at_s: float = 1.0, push_duration_s: float = 0.2,
+          push_direction=(1.0, 0.0, 0.0), gui: bool = False, out: str | Path | None = None,
+          estop: bool = True, balance_mode: str = "default") -> StandingResult:
+    """Stand the simulated robot for ``duration_s`` and measure how it copes.
+
+    Args:
+        model: robot model.
+        duration_s: simulated time (s).
+        push_n: force (N) of one push on the torso's centre of mass, 0 for none.
+        balance: run the ankle balancer in the pipeline.
+        push_at_s, push_duration_s: when the push starts and how long it lasts (s).
+        push_direction: world direction of the push (normalised; default forward, +x).
+        gui: open the PyBullet window (real time).
+        out: the run folder (default ``runs/<time>-sim``); it gets the log, the snapshot and
+            ``summary.json``.
+        estop: keep the soft emergency stopper (see :class:`SafetyProfile`).
+        balance_mode: ``default`` or ``paper`` (eq. 11-12 as published), when balance is on.
+    """
+    check_standing_args(duration_s, push_n)
+    direction = np.asarray(push_direction, dtype=float)
+    direction = direction / np.linalg.norm(direction)
+    q_home = home_posture(model)
+    n_periods = int(round(duration_s / model.control_period_s))
+    target = StandTarget(q_home, n_periods, push_n * direction, push_at_s, push_duration_s)
+    setup = RunSetup(command="sim", model=model, driver="sim", gui=gui, out=out,
+                     safety=SafetyProfile(estop=estop, balance=balance,
+                                          balance_mode=balance_mode),
+                     duration_s=n_periods * model.control_period_s, q_start_rad=q_home)
+    done = run(setup, target)
+    result = _result(target, done, duration_s, push_n, balance, model.control_period_s)
+    done.save_summary(result.summary())
+    return result
+
+
+def _result(target: StandTarget, done: RunResult, duration_s: float, push_n: float,
+            balance: bool, period_s: float) -> StandingResult:
+    n = max(target.k, 1)
+    wall = target.wall_end_s - target.wall_start_s
+    simulated = target.k * period_s
+    physics = target.world.physics_wall_s - target.physics_start_s
+    return StandingResult(
+        duration_s=duration_s, push_n=push_n, balance=balance,
+        max_tilt_deg=float(target.tilts_deg[:n].max()),
+        feet_flat=bool(target.feet_flat and not target.fell), fell=target.fell,
+        realtime_factor=simulated / wall if wall > 0 else float("inf"),
+        max_sole_tilt_deg=target.max_sole_deg, final_tilt_deg=float(target.tilts_deg[n - 1]),
+        physics_share=min(1.0, physics / wall) if wall > 0 else 0.0, simulated_s=simulated,
+        max_feet_moment_difference_nm=float(target.differences_nm[:n].max()),
+        snapshot=done.run_dir / "snapshot.png", run_dir=done.run_dir,
+        times_s=target.times_s[:n], tilts_deg=target.tilts_deg[:n],
+        feet_moment_difference_nm=target.differences_nm[:n])

@@ -1,0 +1,216 @@
+"""One run of the robot: the typed set-up every robot command shares, and the one function
+that runs it.
+
+A use case (a task, a teleoperation session, the push-wall or standing experiment) supplies a
+:class:`RunSetup` and a :class:`~hubo_cli.control.target.Target`; :func:`run` does the rest the
+same way for all of them:
+
+1. checks the pace: a real robot (``Driver.real_time``), a live operator and the GUI run at
+   wall-clock speed; ``speed=None`` (as fast as possible) applies to replays on simulated
+   drivers only, and a different explicit speed there is refused (InputError, exit 2);
+2. makes the run folder, the driver (its run options: files in the run folder, the tools, the
+   window) and, at the driver's control period (the one owner of the period), the pipeline
+   the :class:`~hubo_cli.control.pipeline.SafetyProfile` decides;
+3. starts the robot, hands the target the simulator's world (or None on a real robot) so it
+   can place its scene, runs the :class:`~hubo_cli.control.loop.ControlLoop` with the
+   per-period log, takes a snapshot where there is a simulator;
+4. writes ``summary.json`` with the fields every run has (:func:`common_summary`) and returns a
+   :class:`RunResult`; the use case adds its own fields with :meth:`RunResult.save_summary`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+
+from hubo_cli.control.log import LOG_NAME, LogData, load_log, max_velocity_ratio
+from hubo_cli.control.loop import ControlLoop, LoopResult
+from hubo_cli.control.module import Module
+from hubo_cli.control.pipeline import SafetyProfile
+from hubo_cli.control.target import Target
+from hubo_cli.drivers.base import RunContext
+from hubo_cli.drivers.registry import driver_class, make_driver
+from hubo_cli.errors import HuboError, InputError
+from hubo_cli.model import RobotModel
+from hubo_cli.runs import make_run_dir, write_json
+
+SUMMARY_NAME = "summary.json"
+SNAPSHOT_NAME = "snapshot.png"
+
+
+@dataclass(frozen=True)
+class RunSetup:
+    """Everything a run needs to know before the robot starts.
+
+    Attributes:
+        command: names the run folder (``runs/<time>-<command>``) and the summary's command.
+        model: the robot model; the same object the use case planned with.
+        tools: arm -> tool held (``hand``, ``drill``): reaches the simulator and the collision
+            detector (the use case's whole-body solver is built from the same mapping).
+        driver: ``sim``, ``ideal`` or ``hardware`` (see :mod:`hubo_cli.drivers.registry`).
+        driver_options: the driver's own options (e.g. ``armed`` for hardware).
+        safety: the pipeline's layers and what ``--no-estop`` removes.
+        speed: None = as fast as possible (replays on simulated drivers), 1.0 = real time,
+            x = x times real time.
+        live_input: the target follows a live operator (runs in real time).
+        gui: open the simulator's window (runs in real time).
+        out: the run folder (None: ``runs/<time>-<command>``).
+        duration_s: loop time after which the run ends (None: until the target is done).
+        q_start_rad: the start posture (None: the driver's default, the home posture).
+        cutting: the wall material's cutting coefficients for the simulator (or None).
+    """
+
+    command: str
+    model: RobotModel
+    tools: Mapping[str, str] = field(default_factory=dict)
+    driver: str = "sim"
+    driver_options: Mapping[str, object] = field(default_factory=dict)
+    safety: SafetyProfile = field(default_factory=SafetyProfile)
+    speed: float | None = None
+    live_input: bool = False
+    gui: bool = False
+    out: str | Path | None = None
+    duration_s: float | None = None
+    q_start_rad: np.ndarray | None = None
+    cutting: Mapping[str, float] | None = None
+
+    def real_time_reason(self) -> str | None:
+        """Why this run must go at wall-clock pace, or None when it need not."""
+        if driver_class(self.driver).real_time:
+            return f"the {self.driver} driver moves a real robot"
+        if self.live_input:
+            return "a live operator drives the robot"
+        if self.gui:
+            return "the simulator's window is open"
+        return None
+
+    def pace(self) -> float | None:
+        """The loop's speed (None = as fast as possible), checked against real-time needs."""
+        if self.speed is not None and not (np.isfinite(self.speed) and self.speed > 0):
+            raise InputError(f"speed must be a positive number, got {self.speed}",
+                             hint="use 1 for real time")
+        reason = self.real_time_reason()
+        if reason is None:
+            return self.speed
+        if self.speed is not None and abs(self.speed - 1.0) > 1e-9:
+            raise InputError(f"this run must go in real time ({reason}); --speed "
+                             f"{self.speed:g} is refused",
+                             hint="leave --speed out: faster-than-real-time is for replays "
+                                  "on the sim or ideal drivers")
+        return 1.0
+
+
+@dataclass
+class RunResult:
+    """A finished run.
+
+    Attributes:
+        run_dir: the run folder.
+        loop: how the control loop ended.
+        modules: the pipeline that ran (to read a module's state after the run).
+        summary: the summary as written to ``summary.json``.
+    """
+
+    run_dir: Path
+    loop: LoopResult
+    modules: list[Module]
+    summary: dict
+
+    def module(self, name: str) -> Module | None:
+        """The pipeline module called ``name``, or None when it did not run."""
+        return next((m for m in self.modules if m.name == name), None)
+
+    @cached_property
+    def log(self) -> LogData:
+        """The per-period log (read once)."""
+        return load_log(self.run_dir)
+
+    def add_file(self, name: str) -> None:
+        """List a file the use case wrote into the run folder in the summary."""
+        if name not in self.summary["files"]:
+            self.summary["files"].append(name)
+
+    def save_summary(self, fields: Mapping[str, object]) -> dict:
+        """Add the use case's own fields to the summary and write it again; returns it."""
+        self.summary.update(fields)
+        write_json(self.run_dir / SUMMARY_NAME, self.summary)
+        return self.summary
+
+
+def run(setup: RunSetup, target: Target,
+        on_start: Callable[[Target], None] | None = None) -> RunResult:
+    """Run ``target`` on the robot as ``setup`` says and write the run folder.
+
+    Args:
+        setup: the run's set-up.
+        target: where the joint targets come from.
+        on_start: called with the target once the robot has started (live views, keys).
+
+    Raises:
+        HuboError: a bad set-up, or a driver that cannot start (nothing moved; an empty run
+            folder is removed again).
+    """
+    speed = setup.pace()
+    run_dir = make_run_dir(setup.command, setup.out)
+    try:
+        cls = driver_class(setup.driver)
+        context = RunContext(run_dir, dict(setup.tools), setup.gui, setup.cutting)
+        options = {**setup.driver_options, **cls.run_options(context)}
+        with make_driver(setup.driver, setup.model, **options) as driver:
+            modules = setup.safety.build(setup.model, driver.period_s, setup.tools)
+            driver.start(setup.q_start_rad)
+            world = driver.world
+            target.attach(world, modules)
+            if on_start is not None:
+                on_start(target)
+            loop = ControlLoop(driver, modules, target, speed=speed, log_path=run_dir)
+            result = loop.run(setup.duration_s)
+            if world is not None:
+                world.snapshot_png(run_dir / SNAPSHOT_NAME)
+    except HuboError:
+        _remove_if_empty(run_dir)
+        raise
+    summary = common_summary(setup, speed, result, modules, run_dir)
+    done = RunResult(run_dir, result, modules, summary)
+    summary["max_joint_velocity_ratio"] = max_velocity_ratio(setup.model, done.log)
+    write_json(run_dir / SUMMARY_NAME, summary)
+    return done
+
+
+def _remove_if_empty(run_dir: Path) -> None:
+    """Remove the run folder again if nothing was written into it."""
+    with contextlib.suppress(OSError):
+        run_dir.rmdir()  # fails unless empty
+
+
+def common_summary(setup: RunSetup, speed: float | None, loop: LoopResult,
+                   modules: list[Module], run_dir: Path) -> dict:
+    """The summary fields every run has (see the README's "Run folders")."""
+    files = [LOG_NAME, SUMMARY_NAME]
+    if (run_dir / SNAPSHOT_NAME).exists():
+        files.append(SNAPSHOT_NAME)
+    return {
+        "command": setup.command,
+        "driver": setup.driver,
+        "speed": "max" if speed is None else speed,
+        "tools": dict(setup.tools),
+        "pipeline": [m.name for m in modules],
+        "estop_enabled": setup.safety.estop,
+        "ended": loop.ended,
+        "error": loop.error,
+        "duration_s": loop.t_end_s,
+        "periods": loop.periods,
+        "status_counts": loop.status_counts,
+        "collision_periods": loop.flag_counts.get("collision", 0),
+        "collision_holds": [{"t_s": t, "pair": list(pair)}
+                            for _, t, kind, pair in loop.safety_events if kind == "collision"],
+        "estop_events": [{"module": m, "t_s": t, "kind": k, "sources": list(s)}
+                         for m, t, k, s in loop.safety_events if k in ("stop", "release")],
+        "overruns": loop.overruns,
+        "files": files,
+    }

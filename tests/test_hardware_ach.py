@@ -1,0 +1,198 @@
+"""The hardware driver on real ach channels, against the fake hubo-daemon (needs libach).
+
+Skipped with the reason when libach cannot be loaded (``HUBO_LIBACH`` or the loader path).
+Every channel is uniquely named and unlinked afterwards.
+"""
+
+from __future__ import annotations
+
+import os
+import uuid
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hubo_cli.drivers.ach import (
+    ACH_MISSED_FRAME,
+    ACH_OK,
+    ACH_STALE_FRAMES,
+    ACH_TIMEOUT,
+    libach_status,
+    load_libach,
+)
+from hubo_cli.drivers.hardware import HardwareDriver, hubo_ach_vector
+from hubo_cli.drivers.hubo_ach import REF_SIZE, STATE_SIZE, HuboRef, encode_ref
+from hubo_cli.drivers.hubo_ach_daemon import FakeHuboDaemon
+from hubo_cli.model import load_model
+from hubo_cli.posture import home_posture
+
+AVAILABLE, WHERE = libach_status()
+pytestmark = pytest.mark.skipif(not AVAILABLE, reason=f"needs libach: {WHERE}")
+
+MODEL = load_model()
+INDEX = MODEL.hubo_ach["index"]
+REB = MODEL.joint_names.index("REB")
+L = MODEL.hubo_ach["ref_filter_length"]
+SHM = Path("/dev/shm")
+
+
+def _names() -> tuple[str, str]:
+    tag = f"hubotest-{os.getpid()}-{uuid.uuid4().hex[:8]}"
+    return f"{tag}-ref", f"{tag}-state"
+
+
+def _shm_files(*names: str) -> list[Path]:
+    return [SHM / f"achshm-{n}" for n in names if (SHM / f"achshm-{n}").exists()]
+
+
+@pytest.fixture
+def channels():
+    names = _names()
+    yield names
+    lib = load_libach()
+    for name in names:  # whatever a failing test left behind
+        lib.unlink(name)
+
+
+@pytest.fixture
+def posture():
+    """A start posture off home: the right elbow bent further, the neck yawed."""
+    q = home_posture(MODEL)
+    q[REB] -= 0.3
+    pos = hubo_ach_vector(MODEL, q)
+    pos[1] = 0.1  # NKY: a joint the model does not drive
+    return pos
+
+
+def test_channel_round_trip_timeout_and_unlink(channels):
+    lib = load_libach()
+    name = channels[0]
+    lib.create(name, 8, REF_SIZE)
+    assert _shm_files(name)
+    with lib.open(name) as writer, lib.open(name) as reader:
+        buffer = HuboRef()
+        assert reader.get(buffer) == (ACH_STALE_FRAMES, 0)
+        assert reader.get(buffer, wait_s=0.01)[0] == ACH_TIMEOUT
+        writer.put(encode_ref(np.arange(42.0), np.ones(42), np.zeros(42)))
+        status, size = reader.get(buffer, wait_s=1.0)
+        assert status in (ACH_OK, ACH_MISSED_FRAME) and size == REF_SIZE
+        assert buffer.ref[41] == 41.0 and buffer.mode[0] == 1
+    lib.unlink(name)
+    assert not _shm_files(name)
+
+
+def test_start_from_the_measured_posture_without_references_for_0_8_s(channels, posture):
+    lib = load_libach()
+    with FakeHuboDaemon(lib, posture, *channels).start() as daemon:
+        with HardwareDriver(MODEL, armed=True, ach_ref=channels[0],
+                            ach_state=channels[1]) as driver:
+            state = driver.start()  # home_posture is asked for; the measured one wins
+            assert daemon.stats.ref_frames == 0
+            assert state.time_s == pytest.approx(0.8, abs=0.05)
+            assert np.allclose(state.q_rad, posture[[INDEX[n] for n in MODEL.joint_names]])
+            driver.step()
+            frame = HuboRef()
+            with lib.open(channels[0]) as ref:
+                assert ref.get(frame)[1] == REF_SIZE
+            assert np.allclose(np.array(frame.ref), posture)  # neck included: nothing jumps
+        daemon.stop()
+        daemon.period()  # read what is still on the channel
+    assert daemon.stats.frame_sizes == {REF_SIZE: 2}  # the step's frame and the final hold
+    assert not _shm_files(*channels)
+
+
+def test_the_loop_closes_through_the_channels_within_the_filter_lag(channels, posture):
+    lib = load_libach()
+    with FakeHuboDaemon(lib, posture, *channels).start() as daemon:
+        with HardwareDriver(MODEL, armed=True, ach_ref=channels[0],
+                            ach_state=channels[1]) as driver:
+            start = driver.start()
+            q = start.q_rad.copy()
+            commanded, measured = [], []
+            for k in range(300):  # 0.5 s ramp at 0.4 rad/s, then 1 s of hold
+                if k < 100:
+                    q[REB] -= 0.002
+                commanded.append(driver.send(q)[REB])
+                state = driver.step()
+                measured.append(state.q_rad[REB])
+                assert state.flags == (), state.flags
+            values = driver.log_values()
+        daemon.stop()
+        daemon.period()  # read what is still on the channel
+    stats = daemon.stats
+    assert stats.error == "" and stats.frame_sizes == {REF_SIZE: 301}  # and the final hold
+    assert stats.missed_ref_frames == 0
+    commanded, measured = np.array(commanded), np.array(measured)
+    step = np.max(np.abs(np.diff(commanded)))
+    assert step == pytest.approx(0.002)
+    # a first-order filter lags a reference moving by at most `step` per period by at most
+    # (L - 1) steps; allow 3 periods of transport between the processes' clocks
+    lag = np.abs(measured - commanded)
+    assert np.max(lag) <= (L - 1 + 3) * step
+    assert np.max(lag) >= 0.5 * (L - 1) * step  # it does lag: the filter is applied
+    assert abs(measured[-1] - commanded[-1]) < 0.02 * 0.2  # settled after 1 s of hold
+    assert values["hw_ref_seq"] == 300 and values["hw_state_age_periods"] == 0
+    assert not _shm_files(*channels)
+
+
+def test_safety_latches_hold_on_the_channels(channels, posture):
+    lib = load_libach()
+    with FakeHuboDaemon(lib, posture, *channels).start() as daemon:
+        with HardwareDriver(MODEL, armed=True, ach_ref=channels[0], ach_state=channels[1],
+                            stale_periods=10) as driver:
+            start = driver.start()
+            q = start.q_rad.copy()
+            q[REB] = np.nan  # NaN freezes the joint
+            assert driver.send(q)[REB] == start.q_rad[REB]
+            assert "nan-ref" in driver.step().flags
+            driver.release_joints()
+            jump = start.q_rad.copy()
+            jump[REB] -= 0.05  # 10 rad/s: over-speed latches servo-off and holds
+            assert driver.send(jump)[REB] == start.q_rad[REB]
+            assert "servo-off" in driver.step().flags
+            assert daemon.joints_rad[INDEX["REB"]] == pytest.approx(start.q_rad[REB])
+            driver.reset_servo()
+
+            daemon.stop()  # the daemon stops publishing: stale, then a hold
+            flags = [driver.step().flags for _ in range(12)]
+            first = min(i for i, f in enumerate(flags) if "stale-state" in f)
+            assert first in (9, 10)  # 10 periods without a state (one may have been in flight)
+            q = start.q_rad.copy()
+            q[REB] -= 0.001
+            assert driver.send(q)[REB] == start.q_rad[REB]
+            daemon.start()
+            for _ in range(20):
+                if "stale-state" not in driver.step().flags:
+                    break
+            assert driver.send(q)[REB] == pytest.approx(q[REB])
+
+            driver.sink.channel.close()  # the channel goes away underneath: a hold, no crash
+            assert "fault" in driver.step().flags
+            assert "ach channel" in driver.fault_message
+    assert not _shm_files(*channels)
+
+
+def test_no_daemon_is_a_device_error_naming_it(channels):
+    lib = load_libach()
+    for name, size in zip(channels, (REF_SIZE, STATE_SIZE), strict=True):
+        lib.create(name, 4, size)
+    driver = HardwareDriver(MODEL, armed=True, ach_ref=channels[0], ach_state=channels[1],
+                            start_timeout_s=0.05)
+    with pytest.raises(Exception, match="no .* frame within") as info:
+        driver.start()
+    assert info.value.exit_code == 3 and "hubo-daemon" in info.value.hint
+    driver.close()
+    missing = HardwareDriver(MODEL, armed=True, ach_ref="hubotest-none-ref")
+    with pytest.raises(Exception, match="ACH_ENOENT") as info:
+        missing.start()
+    assert info.value.exit_code == 3
+    missing.close()
+
+
+def test_the_fake_daemon_stops_on_a_frame_of_the_wrong_size(channels, posture):
+    lib = load_libach()
+    with FakeHuboDaemon(lib, posture, *channels) as daemon, lib.open(channels[0]) as ref:
+        ref.put(bytes(490))  # the old private frame
+        daemon.period()
+        assert "490 bytes" in daemon.stats.error
