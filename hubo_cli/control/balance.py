@@ -284,10 +284,15 @@ class DampingBalancer(Module):
             tilt_deg = np.zeros(2)
         total = moments["right-leg"] + moments["left-leg"]
         self.reference_moment_nm = np.array([self._reference_moment(q_ref), 0.0])
-        # common mode, in the "right leg" axis convention; each leg applies its own signs
+        # common mode, in the "right leg" axis convention; each leg applies its own signs.
+        # Without the body's weight on the feet sensors (a driver without force sensing, a
+        # robot in the air) there is no moment to comply with: only the tilt term acts.
+        fz = sum(float(state.ft[s][2]) for _, s in FEET if state.ft.get(s) is not None)
         mean = total / 2
-        common_rate = ((mean - self.reference_moment_nm / 2) / self.damping
-                       + self.k_r * tilt_deg - self._common / self.common_leak_s)
+        moment_error = (mean - self.reference_moment_nm / 2 if fz > 0.5 * self._weight_n
+                        else np.zeros(2))
+        common_rate = (moment_error / self.damping + self.k_r * tilt_deg
+                       - self._common / self.common_leak_s)
         self._common = self._common + common_rate * dt
         both = state.feet_contact is None or all(state.feet_contact)
         lower, upper = self.model.lower_rad, self.model.upper_rad
