@@ -9,11 +9,11 @@ STAMP  := $(VENV)/.installed-stamp
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+	$(BIN)/python -m pip install --quiet -e '.[test,viz]'
 	@touch $(STAMP)
 
 run: $(STAMP)
-	$(BIN)/hubo task cut-rectangle
+	$(BIN)/hubo task cut-rectangle --video
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

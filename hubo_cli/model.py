@@ -7,7 +7,7 @@ their joint names and limits, and the tools. Everything is immutable and cheap t
 from __future__ import annotations
 
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from functools import cache
 from pathlib import Path
 
@@ -45,6 +45,53 @@ class LimbSpec:
 
 
 @dataclass(frozen=True)
+class DrillShape:
+    """The drill along its bit axis (the drill tool frame's x), from the bit's middle (m, kg).
+
+    Attributes:
+        mass_kg: the whole drill.
+        body_length_m, body_radius_m: the motor body, a cylinder behind the bit.
+        body_front_m: where the body ends (negative: behind the bit's middle).
+        bit_radius_m: the bit, a cylinder from the body's front to its tip.
+        bit_half_length_m: the flutes reach this far either side of the bit's middle; their
+            front end is the tip.
+    """
+
+    mass_kg: float
+    body_length_m: float
+    body_radius_m: float
+    body_front_m: float
+    bit_radius_m: float
+    bit_half_length_m: float
+
+    @property
+    def bit_tip_m(self) -> float:
+        """Where the bit ends, ahead of its middle (m)."""
+        return self.bit_half_length_m
+
+
+@dataclass(frozen=True)
+class FootShape:
+    """A foot: a flat box whose bottom face is the sole plane, in the sole frame (m)."""
+
+    length_m: float
+    width_m: float
+    thickness_m: float
+    forward_m: float
+
+    @property
+    def size_m(self) -> tuple[float, float, float]:
+        """Length (x), width (y), thickness (z) of the box (m)."""
+        return self.length_m, self.width_m, self.thickness_m
+
+    def sole_corners_m(self) -> np.ndarray:
+        """The four corners (x, y, 0) of the sole in its own frame (m), counter-clockwise."""
+        x0, x1 = self.forward_m - self.length_m / 2, self.forward_m + self.length_m / 2
+        y = self.width_m / 2
+        return np.array([[x0, -y, 0.0], [x1, -y, 0.0], [x1, y, 0.0], [x0, y, 0.0]])
+
+
+@dataclass(frozen=True)
 class RobotModel:
     """A HUBO 2+ model for one parameter set and one limit set.
 
@@ -53,6 +100,8 @@ class RobotModel:
         lengths_m: link lengths in metres keyed as the paper names them (lA1 ... lE).
         limbs: limb name -> :class:`LimbSpec`.
         joint_names: all limb joints in robot order (right arm, left arm, right leg, left leg).
+        drill: the drill's shape (:class:`DrillShape`).
+        feet: the feet's shape (:class:`FootShape`).
     """
 
     params_name: str
@@ -64,6 +113,8 @@ class RobotModel:
     safety: dict
     control_period_s: float
     source: Path
+    drill: DrillShape
+    feet: FootShape
     joint_names: tuple[str, ...] = field(init=False)
 
     def __post_init__(self) -> None:
@@ -159,6 +210,25 @@ def _limb(name: str, raw: dict, override: dict | None, path: Path) -> LimbSpec:
     return limb
 
 
+def _shape(kind, raw: dict, table: str, path: Path):
+    """A shape dataclass from the TOML table ``table`` (dotted): every field a positive number
+    of metres or kilograms, except ``body_front_m`` (behind the bit's middle: negative)."""
+    spec = raw
+    for key in table.split("."):
+        spec = spec.get(key, {})
+    values = {}
+    for f in fields(kind):
+        if f.name not in spec:
+            raise ConfigError("missing key", path=str(path), field=f"{table}.{f.name}")
+        value = spec[f.name]
+        sign = -1.0 if f.name == "body_front_m" else 1.0
+        if isinstance(value, bool) or not isinstance(value, int | float) or not sign * value > 0:
+            raise ConfigError(f"must be a {'negative' if sign < 0 else 'positive'} number, "
+                              f"got {value!r}", path=str(path), field=f"{table}.{f.name}")
+        values[f.name] = float(value)
+    return kind(**values)
+
+
 @cache
 def load_model(params: str = "as-built", limits: str = "table4",
                path: Path | None = None) -> RobotModel:
@@ -184,4 +254,6 @@ def load_model(params: str = "as-built", limits: str = "table4",
     limbs = {n: _limb(n, raw["limbs"][n], overrides.get(n), path) for n in LIMB_NAMES}
     return RobotModel(params_name=params, limits_name=limits, lengths_m=lengths_m, limbs=limbs,
                       tools=raw["tools"], hubo_ach=raw["hubo_ach"], safety=raw["safety"],
-                      control_period_s=float(raw["robot"]["control_period_s"]), source=path)
+                      control_period_s=float(raw["robot"]["control_period_s"]), source=path,
+                      drill=_shape(DrillShape, raw, "tools.drill", path),
+                      feet=_shape(FootShape, raw, "feet", path))

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hubo_cli.control.log import LOG_NAME, LogData, load_log, max_velocity_ratio
+from hubo_cli.control.log import LOG_NAME, LogData, load_log, max_velocity_ratio, set_log_metadata
 from hubo_cli.control.loop import ControlLoop, LoopResult
 from hubo_cli.control.module import Module
 from hubo_cli.control.pipeline import SafetyProfile
@@ -172,6 +172,7 @@ def run(setup: RunSetup, target: Target,
             result = loop.run(setup.duration_s)
             if world is not None:
                 world.snapshot_png(run_dir / SNAPSHOT_NAME)
+                set_log_metadata(run_dir, "scene", world.scene())
     except HuboError:
         _remove_if_empty(run_dir)
         raise

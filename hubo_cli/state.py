@@ -10,6 +10,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from hubo_cli.geometry import roll_pitch_of_quat_wxyz
+
 FT_SENSORS = ("right-wrist", "left-wrist", "right-ankle", "left-ankle")
 
 
@@ -44,7 +46,4 @@ class RobotState:
 
     def tilt_rad(self) -> tuple[float, float]:
         """Torso tilt about world x (roll) and y (pitch) from the IMU quaternion (rad)."""
-        w, x, y, z = self.imu_quat_wxyz
-        roll = np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
-        pitch = np.arcsin(np.clip(2 * (w * y - z * x), -1.0, 1.0))
-        return float(roll), float(pitch)
+        return roll_pitch_of_quat_wxyz(self.imu_quat_wxyz)

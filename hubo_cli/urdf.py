@@ -37,8 +37,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from hubo_cli.errors import ConfigError
+from hubo_cli.geometry import matrix_to_rpy
 from hubo_cli.kinematics.limb import Limb
-from hubo_cli.model import LIMB_NAMES, RobotModel
+from hubo_cli.model import LIMB_NAMES, DrillShape, RobotModel
 
 # ------------------------------------------------------------------------------------ data
 # openHubo HUBO 2+ inertial numbers (see /work/shared/reference/hubo2plus-inertial.csv):
@@ -146,14 +147,6 @@ EFFORT_NM = {"SP": 60.0, "SR": 60.0, "SY": 30.0, "EB": 40.0, "WY": 10.0, "WP": 1
              "HY": 60.0, "HR": 150.0, "HP": 150.0, "KN": 200.0, "AP": 150.0, "AR": 100.0}
 JOINT_DAMPING = 0.0
 
-# Collision geometry sizes (m), [chosen] to look like Hubo 2+ and keep clearances.
-FOOT_SIZE_M = (0.22, 0.13, 0.03)      # length (x), width (y), thickness (z)
-FOOT_FORWARD_M = 0.02                 # the foot box centre sits this far forward of the ankle
-DRILL_MASS_KG = 0.6                   # [chosen] a straight-handled cordless rotary tool
-DRILL_BODY_LENGTH_M = 0.16
-DRILL_BODY_RADIUS_M = 0.025
-DRILL_BIT_RADIUS_M = 0.003
-
 END_FRAMES = {"right-arm": ("right_hand",), "left-arm": ("left_hand",),
               "right-leg": ("right_sole",), "left-leg": ("left_sole",)}
 DRILL_FRAME = "right_drill_bit"
@@ -189,14 +182,6 @@ def _trans(x: float = 0.0, y: float = 0.0, z: float = 0.0) -> np.ndarray:
     return T
 
 
-def rpy_from_rotation(R: np.ndarray) -> tuple[float, float, float]:
-    """URDF roll, pitch, yaw (rad) with R = Rz(yaw) Ry(pitch) Rx(roll)."""
-    pitch = math.atan2(-R[2, 0], math.hypot(R[0, 0], R[1, 0]))
-    if math.hypot(R[0, 0], R[1, 0]) < 1e-12:  # gimbal lock: put everything in yaw
-        return 0.0, pitch, math.atan2(-R[0, 1], R[1, 1])
-    return math.atan2(R[2, 1], R[2, 2]), pitch, math.atan2(R[1, 0], R[0, 0])
-
-
 def _num(value: float) -> str:
     value = float(value)
     if abs(value) < 1e-15:
@@ -209,7 +194,7 @@ def _vec(values) -> str:
 
 
 def _origin(T: np.ndarray) -> str:
-    return f'<origin xyz="{_vec(T[:3, 3])}" rpy="{_vec(rpy_from_rotation(T[:3, :3]))}"/>'
+    return f'<origin xyz="{_vec(T[:3, 3])}" rpy="{_vec(matrix_to_rpy(T[:3, :3]))}"/>'
 
 
 def _inertia_tensor(ixx, iyy, izz, ixy, ixz, iyz) -> np.ndarray:
@@ -371,9 +356,10 @@ def _link_inertials(model: RobotModel) -> dict[str, Inertial]:
                                                        _box_inertia(hand, (0.08, 0.04, 0.1)))
         else:
             sole_z = -L["lT"] - L["lL2"] - L["lL3"] - L["lL4"] - L["lL5"]
-            centre = np.array([FOOT_FORWARD_M, side * L["lL1"], sole_z + FOOT_SIZE_M[2] / 2])
+            foot = model.feet
+            centre = np.array([foot.forward_m, side * L["lL1"], sole_z + foot.thickness_m / 2])
             out[f"{spec.joints[-1]}_link"] += Inertial(
-                FOOT_MASS_KG, centre, _box_inertia(FOOT_MASS_KG, FOOT_SIZE_M))
+                FOOT_MASS_KG, centre, _box_inertia(FOOT_MASS_KG, foot.size_m))
     return out
 
 
@@ -437,9 +423,9 @@ def _collision_shapes(model: RobotModel) -> dict[str, list[Shape]]:
             shapes[f"{j[2]}_link"] = [_segment((0, y, hip - 0.07), (0, y, knee), 0.055)]
             shapes[f"{j[3]}_link"] = [_sphere((0, y, knee), 0.05),
                                       _segment((0, y, knee), (0, y, ankle + 0.06), 0.05)]
-            fx, fy, fz = FOOT_SIZE_M
+            fx, fy, fz = model.feet.size_m
             shapes[f"{j[5]}_link"] = [
-                _box((FOOT_FORWARD_M, y, sole + fz / 2), (fx, fy, fz), "foot"),
+                _box((model.feet.forward_m, y, sole + fz / 2), (fx, fy, fz), "foot"),
                 _box((0.0, y, (sole + fz + ankle) / 2 - 0.005), (0.07, 0.07, ankle - sole - fz
                                                                  - 0.01), "joint")]
     return shapes
@@ -470,19 +456,19 @@ def _inertial_xml(inertial: Inertial, T_N_link: np.ndarray) -> list[str]:
             f'iyz="0.0" izz="{_num(izz)}"/>', "    </inertial>"]
 
 
-def _drill_parts(T_N_bit: np.ndarray) -> tuple[Inertial, list[Shape]]:
+def _drill_parts(drill: DrillShape, T_N_bit: np.ndarray) -> tuple[Inertial, list[Shape]]:
     """The drill: a body along the bit axis behind the bit's middle, and the bit itself."""
     x_axis = T_N_bit[:3, 0]
     bit_mid = T_N_bit[:3, 3]
-    body_front = bit_mid - 0.09 * x_axis
-    body_back = body_front - DRILL_BODY_LENGTH_M * x_axis
-    body = _segment(body_back, body_front, DRILL_BODY_RADIUS_M, "drill")
-    bit = _segment(body_front, bit_mid + 0.02 * x_axis, DRILL_BIT_RADIUS_M, "joint")
-    r, length = DRILL_BODY_RADIUS_M, DRILL_BODY_LENGTH_M
-    inertia_local = DRILL_MASS_KG * np.diag([(3 * r * r + length * length) / 12] * 2
+    body_front = bit_mid + drill.body_front_m * x_axis
+    body_back = body_front - drill.body_length_m * x_axis
+    body = _segment(body_back, body_front, drill.body_radius_m, "drill")
+    bit = _segment(body_front, bit_mid + drill.bit_tip_m * x_axis, drill.bit_radius_m, "joint")
+    r, length = drill.body_radius_m, drill.body_length_m
+    inertia_local = drill.mass_kg * np.diag([(3 * r * r + length * length) / 12] * 2
                                             + [r * r / 2])
     R = body.T_N_shape[:3, :3]
-    inertial = Inertial(DRILL_MASS_KG, body.T_N_shape[:3, 3].copy(), R @ inertia_local @ R.T)
+    inertial = Inertial(drill.mass_kg, body.T_N_shape[:3, 3].copy(), R @ inertia_local @ R.T)
     return inertial, [body, bit]
 
 
@@ -514,7 +500,7 @@ def build_urdf(model: RobotModel, drill: bool = False, fold_fixed: bool = False)
         lines.append(f'  <material name="{colour}"><color rgba="{_COLOURS[colour]}"/></material>')
     visuals = {link: list(link_shapes) for link, link_shapes in shapes.items()}
     if drill:
-        drill_inertial, drill_shapes = _drill_parts(frames.T_N_link[DRILL_FRAME])
+        drill_inertial, drill_shapes = _drill_parts(model.drill, frames.T_N_link[DRILL_FRAME])
         inertials = dict(inertials, **{DRILL_FRAME: drill_inertial})
         visuals[DRILL_FRAME] = visuals.get(DRILL_FRAME, []) + drill_shapes
     joints = frames.joints
@@ -613,4 +599,4 @@ def urdf_variants(model: RobotModel) -> dict[str, str]:
 def total_mass_kg(model: RobotModel, drill: bool = False) -> float:
     """The robot's mass (kg) as the URDF carries it."""
     mass = sum(i.mass_kg for i in _link_inertials(model).values())
-    return mass + (DRILL_MASS_KG if drill else 0.0)
+    return mass + (model.drill.mass_kg if drill else 0.0)

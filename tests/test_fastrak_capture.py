@@ -17,9 +17,10 @@ from hubo_cli.fastrak.capture import (
     write_capture,
     write_pose_log,
 )
-from hubo_cli.fastrak.rotations import rotation_from_quat
-from hubo_cli.fastrak.source import PoseSample, ReplaySource, open_source
+from hubo_cli.fastrak.opener import open_source
+from hubo_cli.fastrak.source import PoseSample, ReplaySource
 from hubo_cli.fastrak.track import PoseTrack
+from hubo_cli.geometry import quat_wxyz_to_matrix
 
 
 def two_hand_tracks(duration_s=2.0):
@@ -52,7 +53,7 @@ def test_capture_replays_the_written_poses_at_120_hz(tmp_path, fmt, output_list,
     for s in samples[::17]:
         p, q = tracks[s.station].at(s.t_s - t[0])
         np.testing.assert_allclose(s.position_m, p[0], atol=tol)
-        np.testing.assert_allclose(s.T_tracker_sensor[:3, :3], rotation_from_quat(q)[0],
+        np.testing.assert_allclose(s.T_tracker_sensor[:3, :3], quat_wxyz_to_matrix(q)[0],
                                    atol=5e-4 if fmt == "ascii" else 1e-6)
 
 

@@ -15,8 +15,8 @@ import pytest
 from hubo_cli.errors import DeviceError, InputError
 from hubo_cli.fastrak.capture import write_capture
 from hubo_cli.fastrak.emulator import EmulatedFastrak, make_emulator
+from hubo_cli.fastrak.opener import open_source
 from hubo_cli.fastrak.records import make_layout, scan
-from hubo_cli.fastrak.source import open_source
 from hubo_cli.fastrak.track import PoseTrack
 
 FAST = {"settle_s": 0.05, "command_gap_s": 0.0}
@@ -44,10 +44,10 @@ def assert_matches_played(got, played, pos_tol, rot_tol):
     for sample, (_, station, p, q) in zip(got, played, strict=False):
         assert sample.station == station
         np.testing.assert_allclose(sample.position_m, p, atol=pos_tol)
-        from hubo_cli.fastrak.rotations import rotation_from_quat
+        from hubo_cli.geometry import quat_wxyz_to_matrix
 
         np.testing.assert_allclose(sample.T_tracker_sensor[:3, :3],
-                                   rotation_from_quat(q[None])[0], atol=rot_tol)
+                                   quat_wxyz_to_matrix(q[None])[0], atol=rot_tol)
 
 
 @pytest.mark.parametrize("stations,fmt,output_list,units,streaming", [

@@ -9,11 +9,11 @@ from hypothesis import strategies as st
 
 from hubo_cli.errors import InputError
 from hubo_cli.fastrak.records import Plausibility, encode_record, make_layout, scan
-from hubo_cli.fastrak.rotations import (
-    quat_from_euler_deg,
-    quat_from_rotation,
-    rotation_from_euler_deg,
-    rotation_from_quat,
+from hubo_cli.geometry import (
+    fastrak_euler_deg_to_matrix,
+    fastrak_euler_deg_to_quat_wxyz,
+    matrix_to_quat_wxyz,
+    quat_wxyz_to_matrix,
 )
 
 IN = 0.0254
@@ -56,7 +56,7 @@ def test_manual_ascii_example_is_47_bytes_and_touching_fields_decode():
     res = decode_one(MANUAL_ASCII, "ascii", "2,4,1", "in", max_elevation_deg=180.0)
     assert len(res.batch) == 1 and res.bad_bytes == 0
     np.testing.assert_allclose(res.batch.position_m[0], np.array([12.34, -5.67, 8.90]) * IN)
-    R = rotation_from_quat(res.batch.quat_wxyz)[0]
+    R = quat_wxyz_to_matrix(res.batch.quat_wxyz)[0]
     np.testing.assert_allclose(R, Rz(10.0) @ Ry(-150.25) @ Rx(1.25), atol=1e-12)
 
 
@@ -67,7 +67,7 @@ def test_ascii_fields_touching_with_valid_angles():
     b = res.batch
     assert len(b) == 1 and b.station[0] == 3 and chr(b.status[0]) == "x"
     np.testing.assert_allclose(b.position_m[0], np.array([12.34, -5.67, 8.90]) * CM)
-    np.testing.assert_allclose(rotation_from_quat(b.quat_wxyz)[0],
+    np.testing.assert_allclose(quat_wxyz_to_matrix(b.quat_wxyz)[0],
                                Rz(-150.25) @ Ry(-45.50) @ Rx(-179.99), atol=1e-12)
 
 
@@ -87,14 +87,14 @@ def test_binary_quaternion_is_scalar_first():
     c = math.sqrt(0.5)
     rec = (b"02 " + np.array([1, 2, 3, c, 0, 0, c], dtype="<f4").tobytes() + b"\r\n")
     res = decode_one(rec, "binary", "2,11,1", "cm")
-    R = rotation_from_quat(res.batch.quat_wxyz)[0]
+    R = quat_wxyz_to_matrix(res.batch.quat_wxyz)[0]
     np.testing.assert_allclose(R @ [1, 0, 0], [0, 1, 0], atol=1e-6)
     assert res.batch.station[0] == 2
 
 
 def test_euler_order_azimuth_then_elevation_then_roll():
     # azimuth turns the sensor's x axis toward +Y; elevation 90 points it along -Z
-    R = rotation_from_euler_deg(np.array([[90.0, 0, 0], [0, 90.0, 0], [0, 0, 90.0],
+    R = fastrak_euler_deg_to_matrix(np.array([[90.0, 0, 0], [0, 90.0, 0], [0, 0, 90.0],
                                           [30.0, 20.0, 10.0]]))
     np.testing.assert_allclose(R[0] @ [1, 0, 0], [0, 1, 0], atol=1e-12)
     np.testing.assert_allclose(R[1] @ [1, 0, 0], [0, 0, -1], atol=1e-12)
@@ -109,7 +109,7 @@ def test_direction_cosines_are_rows_of_the_rotation():
         rec += b"".join(f"{v:7.4f}".encode() for v in row)
     rec += b"\r\n"
     res = decode_one(rec, "ascii", "2,5,6,7,1", "cm")
-    np.testing.assert_allclose(rotation_from_quat(res.batch.quat_wxyz)[0], R, atol=2e-4)
+    np.testing.assert_allclose(quat_wxyz_to_matrix(res.batch.quat_wxyz)[0], R, atol=2e-4)
 
 
 def test_ascii_quaternion_list_is_54_bytes():
@@ -198,8 +198,8 @@ def test_encode_decode_round_trip(fmt_list, units, station, pos, q):
     ascii_std = fmt == "ascii" and not output_list.startswith("52")
     pos_tol = 0.006 * (0.0254 if units == "in" else 0.01) if ascii_std else 1e-6
     np.testing.assert_allclose(res.batch.position_m[0], pos, atol=pos_tol)
-    R_in = rotation_from_quat(q[None])[0]
-    R_out = rotation_from_quat(res.batch.quat_wxyz)[0]
+    R_in = quat_wxyz_to_matrix(q[None])[0]
+    R_out = quat_wxyz_to_matrix(res.batch.quat_wxyz)[0]
     # Euler angles with 0.01 degree steps lose a little more near gimbal lock
     np.testing.assert_allclose(R_out, R_in, atol=2e-3 if ascii_std else 1e-5)
 
@@ -208,11 +208,11 @@ def test_quaternion_rotation_round_trip(rng):
     q = rng.normal(size=(200, 4))
     q /= np.linalg.norm(q, axis=1, keepdims=True)
     q[q[:, 0] < 0] *= -1
-    np.testing.assert_allclose(quat_from_rotation(rotation_from_quat(q)), q, atol=1e-12)
+    np.testing.assert_allclose(matrix_to_quat_wxyz(quat_wxyz_to_matrix(q)), q, atol=1e-12)
 
 
 def test_euler_quaternion_matches_the_euler_matrix(rng):
     angles = np.c_[rng.uniform(-180, 180, 300), rng.uniform(-90, 90, 300),
                    rng.uniform(-180, 180, 300)]
-    np.testing.assert_allclose(rotation_from_quat(quat_from_euler_deg(angles)),
-                               rotation_from_euler_deg(angles), atol=1e-12)
+    np.testing.assert_allclose(quat_wxyz_to_matrix(fastrak_euler_deg_to_quat_wxyz(angles)),
+                               fastrak_euler_deg_to_matrix(angles), atol=1e-12)

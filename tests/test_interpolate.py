@@ -5,14 +5,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hubo_cli.kinematics.interpolate import (
-    PosePath,
-    PoseSegment,
-    rotation_exp,
-    rotation_log,
-    segment_duration,
-)
-from hubo_cli.kinematics.poses import make_transform, rpy_to_matrix
+from hubo_cli.geometry import rotation_exp, rotation_log, rpy_to_matrix
+from hubo_cli.kinematics.interpolate import PosePath, PoseSegment, segment_duration
+from hubo_cli.kinematics.poses import make_transform
 
 angles = st.floats(-3.0, 3.0)
 

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from hubo_cli.errors import ConfigError
-from hubo_cli.kinematics.poses import make_transform, rpy_to_matrix
+from hubo_cli.geometry import rpy_to_matrix
+from hubo_cli.kinematics.poses import make_transform
 from hubo_cli.teleop.mapping import HandMapper, MappingConfig
 
 T_HAND0 = make_transform(rpy_to_matrix(0.1, -0.2, 0.3), [0.40, -0.25, 0.05])

@@ -12,7 +12,7 @@ import pytest
 from hubo_cli.kinematics import get_limb
 from hubo_cli.model import load_model
 from hubo_cli.posture import home_posture
-from hubo_cli.urdf import build_urdf, rpy_from_rotation, total_mass_kg, urdf_variants
+from hubo_cli.urdf import build_urdf, total_mass_kg, urdf_variants
 
 MODEL = load_model("as-built")
 URDF_DIR = MODEL.urdf_path().parent
@@ -106,14 +106,6 @@ def test_mass_matches_the_reference_total():
     assert sum(masses) == pytest.approx(total_mass_kg(MODEL))
     assert sum(masses) == pytest.approx(38.75, abs=0.05)  # openHubo HUBO 2+ total
     assert pin.computeTotalMass(pm) > 25.0  # the limbs (the torso sits on the fixed base)
-
-
-def test_rpy_round_trip_including_gimbal_lock():
-    rng = np.random.default_rng(3)
-    angles = list(rng.uniform(-3, 3, (200, 3))) + [(0.3, np.pi / 2, -1.0), (0.0, -np.pi / 2, 2.0)]
-    for r, p, y in angles:
-        R = pin.rpy.rpyToMatrix(r, p, y)
-        assert np.allclose(pin.rpy.rpyToMatrix(*rpy_from_rotation(R)), R, atol=1e-12)
 
 
 def _link_parents() -> dict[str, str]:

@@ -42,9 +42,9 @@ def _best_s(fn, repeats: int = 3) -> float:
 def run(report) -> None:
     """Measure capture decoding, the live incremental path and replay opening."""
     from hubo_cli.fastrak.capture import parse_capture, poses_to_capture
+    from hubo_cli.fastrak.opener import open_source
     from hubo_cli.fastrak.parser import StreamParser
     from hubo_cli.fastrak.records import make_layout
-    from hubo_cli.fastrak.source import open_source
 
     tracks = _tracks()
     blobs = {}

@@ -172,7 +172,7 @@ def record(port: str, out: Path, duration: float | None, baud: int, fmt: str, ou
            units: str, stations: str | None, csv_path: Path | None, as_json: bool) -> None:
     """Record a live FASTRAK to a raw capture (decode it later with `hubo fastrak decode`)."""
     from hubo_cli.fastrak.capture import samples_batch, write_pose_log
-    from hubo_cli.fastrak.source import open_source
+    from hubo_cli.fastrak.opener import open_source
 
     if duration is not None and duration <= 0:
         raise InputError(f"--duration {duration:g} must be positive", hint="e.g. --duration 10")

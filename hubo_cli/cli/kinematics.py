@@ -23,7 +23,7 @@ NUMBERS_OK = {"ignore_unknown_options": True}
 
 
 def _pose_lines(T: np.ndarray) -> list[str]:
-    from hubo_cli.kinematics.poses import matrix_to_rpy
+    from hubo_cli.geometry import matrix_to_rpy
 
     roll, pitch, yaw = np.degrees(matrix_to_rpy(T[:3, :3]))
     x, y, z = T[:3, 3] * 1000.0
@@ -35,7 +35,7 @@ def _pose_lines(T: np.ndarray) -> list[str]:
 
 
 def _pose_json(T: np.ndarray) -> dict:
-    from hubo_cli.kinematics.poses import matrix_to_rpy
+    from hubo_cli.geometry import matrix_to_rpy
 
     return {"T": T, "position_mm": T[:3, 3] * 1000.0,
             "rpy_deg": np.degrees(matrix_to_rpy(T[:3, :3]))}
@@ -64,7 +64,8 @@ def fk(limb: str, q: tuple[float, ...], params: str, tool: str, as_json: bool) -
 
 
 def _goal_from_options(matrix, xyz, rpy) -> np.ndarray:
-    from hubo_cli.kinematics.poses import is_rigid_transform, make_transform, rpy_to_matrix
+    from hubo_cli.geometry import rpy_to_matrix
+    from hubo_cli.kinematics.poses import is_rigid_transform, make_transform
 
     if matrix:
         T = np.array(matrix, dtype=float).reshape(4, 4)

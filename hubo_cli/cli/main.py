@@ -21,6 +21,8 @@ COMMANDS = {
     "task": "hubo_cli.cli.task:task",
     "teleop": "hubo_cli.cli.teleop:teleop",
     "hardware": "hubo_cli.cli.hardware:hardware",
+    "replay": "hubo_cli.cli.replay:replay",
+    "export": "hubo_cli.cli.export:export",
 }
 
 

@@ -64,6 +64,8 @@ def run_options(function):
         click.option("--out", type=click.Path(file_okay=False), default=None,
                      help="Run folder (default runs/<time>-task-<name>)."),
         click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON."),
+        click.option("--video", is_flag=True,
+                     help="After the run, render video.mp4 from its log (needs hubo-cli[viz])."),
     ]
     function = hardware_options(function)  # listed after the others
     for option in reversed(options):
@@ -200,10 +202,13 @@ def _shortcut(name: str) -> click.Command:
 
 
 def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool, gui: bool,
-         out: str | None, as_json: bool, **hardware) -> None:
+         out: str | None, as_json: bool, video: bool = False, **hardware) -> None:
+    from hubo_cli.cli.replay import add_run_video, check_video_support
     from hubo_cli.tasks.runner import check_task, run_experiment, run_task
     from hubo_cli.tasks.spec import load_task
 
+    if video:
+        check_video_support()
     options = driver_options(driver, armed, **hardware)
     spec = load_task(name, overrides)
     ctx = click.get_current_context()
@@ -212,6 +217,8 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
             raise InputError(f"the {spec.name} experiment runs on the simulated robot only",
                              hint="leave out --driver")
         done = run_experiment(spec, out=out, gui=gui, estop=False if no_estop else None)
+        if video:
+            add_run_video(done.run_dir, done.summary)
         _finish(ctx, done, as_json, lambda: _print_push_wall(done.summary, done.run_dir))
         return
     plan = check_task(spec)
@@ -232,6 +239,8 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
     finally:
         if "live" in state:
             state["live"].stop()
+    if video:
+        add_run_video(done.run_dir, done.summary)
     _finish(ctx, done, as_json, lambda: _print_cut(done.summary, done.run_dir))
 
 

@@ -89,9 +89,11 @@ def _view(target) -> Table:
 @click.option("--out", type=click.Path(file_okay=False), default=None,
               help="Run folder (default runs/<time>-teleop).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
+@click.option("--video", is_flag=True,
+              help="After the run, render video.mp4 from its log (needs hubo-cli[viz]).")
 @hardware_options
 def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, wall_distance,
-           clutch_at, duration, no_estop, gui, out, as_json, **hardware) -> None:
+           clutch_at, duration, no_estop, gui, out, as_json, video, **hardware) -> None:
     """Drive the robot's hands from an operator's FASTRAK stream.
 
     Exactly one of --replay FILE or --port DEV. The first sample of each station calibrates it:
@@ -102,7 +104,11 @@ def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, w
               hubo teleop --port /dev/ttyUSB0
     """
     from hubo_cli.cli.keys import KeyReader
+    from hubo_cli.cli.replay import add_run_video, check_video_support
     from hubo_cli.teleop.session import TeleopSettings, run_teleop
+
+    if video:
+        check_video_support()
 
     if (replay is None) == (port is None):
         raise InputError("give exactly one of --replay FILE or --port DEV",
@@ -151,6 +157,8 @@ def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, w
         if state["live"] is not None:
             state["live"].stop()
     summary = run.summary
+    if video:
+        add_run_video(run.run_dir, summary)
     if as_json:
         print_json({"run_dir": str(run.run_dir), **summary})
     else:
@@ -162,6 +170,8 @@ def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, w
                       f"{summary['status_counts']}, max velocity "
                       f"{summary['max_joint_velocity_ratio']:.0%} of limit")
         console.print(f"  run folder: {run.run_dir}")
+        if video:
+            console.print(f"  video: {summary['video']['file']}")
         if summary["error"]:
             err_console.print(f"[yellow]{summary['error']}[/]")
     if not run.loop.ok:

@@ -36,9 +36,9 @@ import pinocchio as pin
 
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.pin_robot import PinRobot, load_pin_robot
+from hubo_cli.geometry import quat_wxyz_to_matrix
 from hubo_cli.model import RobotModel
 from hubo_cli.state import RobotState
-from hubo_cli.urdf import FOOT_FORWARD_M, FOOT_SIZE_M
 
 GRAVITY_M_S2 = 9.80665
 CP_MARGIN_M = 0.03        # hrpsys cp_check_margin
@@ -46,14 +46,6 @@ CORNER_TOLERANCE_M = 0.005  # a sole corner higher than this above the lowest on
 CONTACT_HOLD_S = 0.05       # a foot still counts as down this long after its last contact
 VELOCITY_CUTOFF_HZ = 4.0  # hrpsys CoM velocity low-pass
 SOLE_FRAMES = ("right_sole", "left_sole")
-
-
-def sole_corners_m() -> np.ndarray:
-    """The four corners (x, y, 0) of a sole in its own frame (m), counter-clockwise."""
-    length, width, _ = FOOT_SIZE_M
-    x0, x1 = FOOT_FORWARD_M - length / 2, FOOT_FORWARD_M + length / 2
-    return np.array([[x0, -width / 2, 0.0], [x1, -width / 2, 0.0], [x1, width / 2, 0.0],
-                     [x0, width / 2, 0.0]])
 
 
 @nb.njit(cache=True, nogil=True)
@@ -234,7 +226,7 @@ class CapturePointMonitor(Module):
         self.robot: PinRobot = load_pin_robot(model, floating=True, urdf_path=urdf)
         self.data = self.robot.model.createData()
         self._sole_ids = [self.robot.frame_id(f) for f in SOLE_FRAMES]
-        self._corners = sole_corners_m()
+        self._corners = model.feet.sole_corners_m()
         self._q = np.zeros(self.robot.model.nq)
         self._q_ref = np.zeros(self.robot.model.nq)
         self._sole_pose = np.zeros((2, 4, 4))
@@ -259,11 +251,8 @@ class CapturePointMonitor(Module):
     def _torso_pose(self, state: RobotState) -> np.ndarray:
         if state.T_world_torso is not None:
             return state.T_world_torso
-        w, x, y, z = state.imu_quat_wxyz
         T = np.eye(4)
-        T[:3, :3] = ((1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)),
-                     (2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)),
-                     (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)))
+        T[:3, :3] = quat_wxyz_to_matrix(state.imu_quat_wxyz)
         return T
 
     def _debounced_contact(self, state: RobotState) -> tuple[bool, bool]:

@@ -2,13 +2,14 @@
 
 Geometry: the URDF's collision primitives loaded into pinocchio + coal (boxes, cylinders,
 spheres), plus, with ``drill=True``, two capsules for the drill held in the right hand (the
-drill body and the bit, sized as in :mod:`hubo_cli.urdf`, which gives the drill no collision
-shape of its own). Pairs checked: each arm's upper arm, elbow, forearm and hand with the torso;
-forearm and hand with the head; elbow, forearm and hand with the pelvis and both thighs; every
-right-arm link with every left-arm link; and the drill with every link except the hand and
-forearm that hold it. Measured on the 2-core development machine: one check of these 46 pairs
-(54 with the drill) costs about 30 us with pinocchio + coal against about 145 us with PyBullet's
-``getClosestPoints`` in a DIRECT client, so pinocchio is used.
+drill body and the bit, sized by the model's :class:`~hubo_cli.model.DrillShape` like the
+URDF's drill, which has no collision shape of its own). Pairs checked: each arm's upper arm,
+elbow, forearm and hand with the torso; forearm and hand with the head; elbow, forearm and hand
+with the pelvis and both thighs; every right-arm link with every left-arm link; and the drill
+with every link except the hand and forearm that hold it. Measured on the 2-core development
+machine: one check of these 46 pairs (54 with the drill) costs about 30 us with pinocchio + coal
+against about 145 us with PyBullet's ``getClosestPoints`` in a DIRECT client, so pinocchio is
+used.
 
 Only the arm joints are held (hrpsys ``collision_mask``); the legs pass through so that the
 balancer keeps working. Each period the input command is checked where it would stop if it
@@ -32,14 +33,13 @@ from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.otg import JointTracker
 from hubo_cli.control.pin_robot import PinRobot, load_pin_robot
 from hubo_cli.control.status import SafetyEvent
-from hubo_cli.model import RobotModel
+from hubo_cli.geometry import rpy_to_matrix
+from hubo_cli.model import DrillShape, RobotModel
 from hubo_cli.state import RobotState
-from hubo_cli.urdf import DRILL_BIT_RADIUS_M, DRILL_BODY_LENGTH_M, DRILL_BODY_RADIUS_M, DRILL_FRAME
+from hubo_cli.urdf import DRILL_FRAME
 
 TOLERANCE_M = 0.01   # MoveIt Servo's self-collision proximity threshold
 RECOVER_S = 2.5      # hrpsys default_recover_time
-DRILL_BODY_FRONT_M = -0.09  # the drill body ends this far behind the bit's middle (urdf.py)
-DRILL_BIT_TIP_M = 0.02
 
 
 def _arm_links(side: str) -> list[str]:
@@ -86,7 +86,7 @@ class SelfCollisionChecker:
         path = str(self.robot.urdf_path)
         geom = pin.buildGeomFromUrdf(pmodel, path, pin.GeometryType.COLLISION)
         if drill:
-            self._add_drill(geom)
+            self._add_drill(geom, model.drill)
         by_link: dict[str, list[int]] = {}
         for i, obj in enumerate(geom.geometryObjects):
             link = obj.name.rsplit("_", 1)[0]
@@ -103,16 +103,16 @@ class SelfCollisionChecker:
         self.geom_data = pin.GeometryData(geom)
         self._q = np.zeros(pmodel.nq)
 
-    def _add_drill(self, geom: pin.GeometryModel) -> None:
+    def _add_drill(self, geom: pin.GeometryModel, drill: DrillShape) -> None:
         pmodel = self.robot.model
         frame = pmodel.frames[self.robot.frame_id(DRILL_FRAME)]
         # capsules along the bit axis (frame x): coal capsules lie along their local z
-        R = pin.utils.rpyToMatrix(0.0, np.pi / 2, 0.0)
-        body_mid = DRILL_BODY_FRONT_M - DRILL_BODY_LENGTH_M / 2
-        bit_mid = (DRILL_BODY_FRONT_M + DRILL_BIT_TIP_M) / 2
-        bit_half = (DRILL_BIT_TIP_M - DRILL_BODY_FRONT_M) / 2
-        parts = [("drill_0", coal.Capsule(DRILL_BODY_RADIUS_M, DRILL_BODY_LENGTH_M), body_mid),
-                 ("drill_1", coal.Capsule(DRILL_BIT_RADIUS_M, 2 * bit_half), bit_mid)]
+        R = rpy_to_matrix(0.0, np.pi / 2, 0.0)
+        body_mid = drill.body_front_m - drill.body_length_m / 2
+        bit_mid = (drill.body_front_m + drill.bit_tip_m) / 2
+        bit_length = drill.bit_tip_m - drill.body_front_m
+        parts = [("drill_0", coal.Capsule(drill.body_radius_m, drill.body_length_m), body_mid),
+                 ("drill_1", coal.Capsule(drill.bit_radius_m, bit_length), bit_mid)]
         for name, shape, x in parts:
             placement = frame.placement * pin.SE3(R, np.array([x, 0.0, 0.0]))
             obj = pin.GeometryObject(name, frame.parentJoint, placement, shape)

@@ -19,12 +19,13 @@ import numpy as np
 from hubo_cli.control.limits import JointLimits
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.otg import STALE_TIMEOUT_S, TargetInput
+from hubo_cli.geometry import (
+    MIN_JERK_PEAK_ACCELERATION,
+    MIN_JERK_PEAK_JERK,
+    MIN_JERK_PEAK_VELOCITY,
+)
 from hubo_cli.model import RobotModel
 from hubo_cli.state import RobotState
-
-MIN_JERK_PEAK_VELOCITY = 1.875        # x D / T
-MIN_JERK_PEAK_ACCELERATION = 5.7735   # x D / T^2 (10 / sqrt(3))
-MIN_JERK_PEAK_JERK = 60.0             # x D / T^3
 
 
 def hoff_arbib_step(x, v, a, goal, t_rem_s: float, dt_s: float):

@@ -1,102 +1,275 @@
 """The per-period log: one CSV row per control period, written and flushed as the loop runs.
 
-Layout of ``log.csv``:
+A run folder's log is three files:
 
-* line 1: ``# hubo-cli period log v1`` followed by the unit legend and the status codes;
-* line 2: the header; every column name ends in its unit (``_s`` seconds, ``_us``
-  microseconds, ``_rad`` radians, ``_m`` metres, ``_nm`` newton metres, ``_count`` a count,
-  ``_code`` an enumeration, ``_flag`` 0/1) except ``flags``, a ``;``-separated list of words;
-* then one row per period: ``period_count, t_s, status_code, compute_us, late_us, flags``,
+* ``log.csv``: line 1 is the header, then one row per period (plain CSV: pandas, polars and
+  spreadsheets read it with no options). Every column name ends in its unit (``_s`` seconds,
+  ``_us`` microseconds, ``_rad`` radians, ``_m`` metres, ``_nm`` newton metres, ``_count`` a
+  count, ``_code`` an enumeration, ``_flag`` 0/1) except ``flags``, a ``;``-separated list of
+  words; numbers always read as floats (a whole number is written ``1.0``, a missing one
+  ``NaN``). The columns, in order: ``period_count, t_s, status_code, compute_us, late_us, flags``;
   ``target_<joint>_rad`` (NaN when no target came that period), ``cmd_<joint>_rad`` (what the
-  driver was sent), ``q_<joint>_rad`` (measured after the step), then the modules' and the
-  caller's extra columns (NaN when not reported that period).
+  driver was sent), ``q_<joint>_rad`` (measured after the step); the torso (base) pose in the
+  world ``torso_{x,y,z}_m, torso_{roll,pitch,yaw}_rad`` (URDF convention,
+  R = Rz(yaw) Ry(pitch) Rx(roll); the position is NaN where the driver does not know it, and the
+  orientation then comes from the IMU); when the log knows the robot model, the measured hand
+  frames in the world ``{right,left}_hand_{x,y,z}_m, ..._{roll,pitch,yaw}_rad`` (forward
+  kinematics of the measured arm joints through the torso pose; NaN where the torso position is
+  unknown); then the modules' and the caller's extra columns (NaN when not reported that period;
+  e.g. a task's commanded and measured tool positions ``goal_*_m``, ``actual_*_m`` in its
+  stance frame).
+* ``log.json`` (sidecar): the format name and version, the unit legend, the status codes, the
+  joint names, the columns, the row count and the run's metadata (:meth:`PeriodLog.set_metadata`:
+  e.g. ``scene`` with the walls, the tool per hand and the hole's points as cut). Written when
+  the log opens and again when it closes.
+* ``log.parquet``: the same table, written when the log closes (smaller and faster to read).
 
-Each row is flushed to the operating system when written, so a crash loses at most the period
-being written. :func:`load_log` reads the file back into numpy arrays.
+Each CSV row is flushed to the operating system when written, so a crash loses at most the period
+being written. :func:`load_log` reads a log back into numpy arrays (the Parquet copy when there is
+one, else the CSV; logs of the first format, with a leading ``#`` line, are read too).
 """
 
 from __future__ import annotations
 
-import csv
-from dataclasses import dataclass
+import io
+import json
+import math
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from hubo_cli.control.status import Status
+from hubo_cli.runs import _jsonable
 
 LOG_NAME = "log.csv"
+META_NAME = "log.json"
+PARQUET_NAME = "log.parquet"
+FORMAT_NAME = "hubo-cli period log"
+FORMAT_VERSION = 2
 FIXED_COLUMNS = ("period_count", "t_s", "status_code", "compute_us", "late_us", "flags")
-_UNIT_LEGEND = ("units in column names: _s seconds, _us microseconds, _rad radians, _m metres, "
-                "_nm newton metres, _deg degrees, _count count, _code enumeration, _flag 0/1")
+POSE_AXES = ("x_m", "y_m", "z_m", "roll_rad", "pitch_rad", "yaw_rad")
+HAND_ARMS = {"right_hand": "right-arm", "left_hand": "left-arm"}
+UNIT_LEGEND = ("units in column names: _s seconds, _us microseconds, _rad radians, _m metres, "
+               "_nm newton metres, _deg degrees, _count count, _code enumeration, _flag 0/1")
 
 
-def _legend() -> str:
-    codes = ", ".join(f"{s.value} {s.label}" for s in Status)
-    return f"# hubo-cli period log v1; {_UNIT_LEGEND}; status_code: {codes}\n"
+def _float_text(value: float, spec: str) -> str:
+    """``spec % value``, written ``%.1f`` when the value is a whole number."""
+    if math.isfinite(value) and value == int(value):
+        return "%.1f" % value
+    return "NaN" if math.isnan(value) else spec % value
+
+
+def pose_columns(frame: str) -> tuple[str, ...]:
+    """The six column names of a frame's world pose (``torso``, ``right_hand``, ...)."""
+    return tuple(f"{frame}_{axis}" for axis in POSE_AXES)
+
+
+def rpy_from_rotation(R: np.ndarray) -> tuple[float, float, float]:
+    """Roll, pitch, yaw (rad) with R = Rz(yaw) Ry(pitch) Rx(roll) (URDF convention)."""
+    cos_pitch = math.hypot(R[0, 0], R[1, 0])
+    pitch = math.atan2(-R[2, 0], cos_pitch)
+    if cos_pitch < 1e-12:  # gimbal lock: put everything in yaw
+        return 0.0, pitch, math.atan2(-R[0, 1], R[1, 1])
+    return math.atan2(R[2, 1], R[2, 2]), pitch, math.atan2(R[1, 0], R[0, 0])
+
+
+def rotation_from_rpy(roll, pitch, yaw) -> np.ndarray:
+    """Rotation matrices Rz(yaw) Ry(pitch) Rx(roll) for scalars (3x3) or arrays (N x 3 x 3)."""
+    roll, pitch, yaw = (np.asarray(v, dtype=float) for v in (roll, pitch, yaw))
+    cr, sr, cp, sp, cy, sy = (np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch),
+                              np.cos(yaw), np.sin(yaw))
+    R = np.stack([np.stack([cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr], -1),
+                  np.stack([sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr], -1),
+                  np.stack([-sp, cp * sr, cp * cr], -1)], -2)
+    return R
+
+
+def _rotation_from_quat_wxyz(q) -> np.ndarray:
+    w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def _pose_values(T: np.ndarray) -> list[float]:
+    return [float(T[0, 3]), float(T[1, 3]), float(T[2, 3]), *rpy_from_rotation(T[:3, :3])]
+
+
+def status_codes() -> dict[int, str]:
+    """Status code -> label, as written in the sidecar."""
+    return {s.value: s.label for s in Status}
 
 
 class PeriodLog:
-    """Append-as-you-go CSV log of a control run.
+    """Append-as-you-go CSV log of a control run, with its JSON sidecar and a Parquet copy.
 
     Args:
-        path: the CSV file to create (its folder must exist).
+        path: the CSV file to create (its folder must exist); the sidecar and the Parquet copy
+            are written beside it (``log.json``, ``log.parquet`` for ``log.csv``).
         joint_names: joint names in command order.
         extra_columns: further numeric columns (names ending in their unit).
+        model: the robot model; when given (and the joints are the model's), the measured hand
+            frames' world poses are logged too.
     """
 
-    def __init__(self, path: str | Path, joint_names, extra_columns=()) -> None:
+    def __init__(self, path: str | Path, joint_names, extra_columns=(), model=None) -> None:
         self.path = Path(path)
+        self.meta_path = self.path.with_suffix(".json")
+        self.parquet_path = self.path.with_suffix(".parquet")
         self.joint_names = tuple(joint_names)
-        self.extra_columns = tuple(dict.fromkeys(extra_columns))
+        self._hands = self._hand_kinematics(model)
+        pose_names = pose_columns("torso") + sum((pose_columns(f) for f in self._hands), ())
+        self.extra_columns = tuple(c for c in dict.fromkeys(extra_columns)
+                                   if c not in pose_names)
         joints = self.joint_names
-        self.columns = (FIXED_COLUMNS[:5] + ("flags",)
+        self.columns = (FIXED_COLUMNS
                         + tuple(f"target_{j}_rad" for j in joints)
                         + tuple(f"cmd_{j}_rad" for j in joints)
                         + tuple(f"q_{j}_rad" for j in joints)
-                        + self.extra_columns)
-        n_num = 5
-        self._head_fmt = ",".join(["%d", "%.9g", "%d", "%.6g", "%.6g"][:n_num]) + ",%s"
+                        + pose_names + self.extra_columns)
         # joints with 15 significant digits, so that finite differences of the log (velocity,
-        # acceleration) are exact to about 1e-9 rad/s^2; the other numbers with 9
-        self._body_fmt = ",".join(["%.15g"] * (3 * len(joints))
-                                  + ["%.9g"] * len(self.extra_columns))
-        self._nan_extras = [float("nan")] * len(self.extra_columns)
+        # acceleration) are exact to about 1e-9 rad/s^2; poses with 12 (sub-nanometre); the
+        # other numbers with 9
+        self._specs = (["%.15g"] * (3 * len(joints)) + ["%.12g"] * len(pose_names)
+                       + ["%.9g"] * len(self.extra_columns))
+        self._formats: dict[bytes, str] = {}
+        self._nan_poses = [math.nan] * len(pose_names)
+        self._nan_extras = [math.nan] * len(self.extra_columns)
+        self.metadata: dict = {}
+        self.rows = 0
         self._file = open(self.path, "w", buffering=1 << 16)  # noqa: SIM115 (kept open)
-        self._file.write(_legend())
         self._file.write(",".join(self.columns) + "\n")
         self._file.flush()
-        self.rows = 0
+        self._write_sidecar()
+
+    def _hand_kinematics(self, model) -> dict:
+        if model is None or tuple(model.joint_names) != self.joint_names:
+            return {}
+        from hubo_cli.kinematics.limb import Limb
+
+        return {frame: (Limb(model, arm, "hand"), model.limb_slice(arm))
+                for frame, arm in HAND_ARMS.items()}
+
+    def _pose_row(self, q_rad, state) -> list[float]:
+        if state is None:
+            return self._nan_poses
+        T_world_torso = state.T_world_torso
+        if T_world_torso is None:
+            T_world_torso = np.eye(4)
+            T_world_torso[:3, :3] = _rotation_from_quat_wxyz(state.imu_quat_wxyz)
+            T_world_torso[:3, 3] = math.nan
+        values = _pose_values(T_world_torso)
+        q = np.asarray(q_rad, dtype=float)
+        for limb, index in self._hands.values():
+            values += _pose_values(T_world_torso @ limb.fk(q[index]))
+        return values
+
+    def _body_format(self, values: list) -> str:
+        """The row's format: ``%.1f`` where a value is a whole number (cached per pattern)."""
+        v = np.asarray(values, dtype=float)
+        whole = np.isfinite(v) & (v == np.trunc(v))
+        key = np.packbits(whole).tobytes()
+        fmt = self._formats.get(key)
+        if fmt is None:
+            if len(self._formats) > 256:
+                self._formats.clear()
+            fmt = ",".join("%.1f" if w else spec for w, spec in zip(whole, self._specs,
+                                                                      strict=True))
+            self._formats[key] = fmt
+        return fmt
 
     def write(self, period: int, t_s: float, status: int, compute_us: float, late_us: float,
-              flags, target_rad, cmd_rad, q_rad, extras: dict | None = None) -> None:
-        """Append one period and flush it."""
+              flags, target_rad, cmd_rad, q_rad, extras: dict | None = None,
+              state=None) -> None:
+        """Append one period and flush it.
+
+        ``state`` (the :class:`~hubo_cli.state.RobotState` after the step) gives the
+        torso and hand poses; without it they are NaN.
+        """
         if self._file.closed:
             return
-        values = list(target_rad) + list(cmd_rad) + list(q_rad)
+        values = list(target_rad) + list(cmd_rad) + list(q_rad) + self._pose_row(q_rad, state)
         if self.extra_columns:
             if extras:
-                values += [float(extras.get(c, float("nan"))) for c in self.extra_columns]
+                values += [float(extras.get(c, math.nan)) for c in self.extra_columns]
             else:
                 values += self._nan_extras
         flag_text = ";".join(sorted(flags))
-        line = (self._head_fmt % (period, t_s, int(status), compute_us, late_us, flag_text)
-                + "," + (self._body_fmt % tuple(values)) + "\n")
+        # every real-valued number carries a "." (or is NaN/inf, written so), so that CSV
+        # readers that guess types from the first rows (polars, pandas) read its column as
+        # floats; the period count and the status code stay integers
+        line = (f"{period:d},{_float_text(t_s, '%.9g')},{int(status):d},"
+                f"{_float_text(compute_us, '%.6g')},{_float_text(late_us, '%.6g')},{flag_text},"
+                f"{(self._body_format(values) % tuple(values)).replace('nan', 'NaN')}\n")
         self._file.write(line)
         self._file.flush()
         self.rows += 1
 
+    def set_metadata(self, key: str, value) -> None:
+        """Record run metadata (JSON-able: numbers, strings, lists, dicts, numpy arrays) in the
+        sidecar. Before :meth:`close` it is written at close; after, the sidecar is rewritten."""
+        self.metadata[str(key)] = _jsonable(value)
+        if self._file.closed:
+            self._write_sidecar()
+
+    def _write_sidecar(self) -> None:
+        sidecar = {"format": FORMAT_NAME, "version": FORMAT_VERSION, "csv": self.path.name,
+                   "parquet": self.parquet_path.name if self.parquet_path.exists() else None,
+                   "units": UNIT_LEGEND, "status_codes": status_codes(),
+                   "joint_names": list(self.joint_names), "rows": self.rows,
+                   "columns": list(self.columns)}
+        _write_sidecar_json(self.meta_path, sidecar, self.metadata)
+
     def close(self) -> None:
-        """Flush and close; safe to call twice."""
-        if not self._file.closed:
-            self._file.flush()
-            self._file.close()
+        """Flush and close the CSV, write the Parquet copy and the sidecar; safe to call twice."""
+        if self._file.closed:
+            return
+        self._file.flush()
+        self._file.close()
+        _read_csv(self.path).write_parquet(self.parquet_path)
+        self._write_sidecar()
 
     def __enter__(self) -> PeriodLog:
         return self
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def set_log_metadata(run_dir: str | Path, key: str, value) -> None:
+    """Add metadata to a closed run's sidecar (``log.json``), e.g. the scene after the run."""
+    path = Path(run_dir)
+    path = path / META_NAME if path.is_dir() else path.with_suffix(".json")
+    sidecar = json.loads(path.read_text())
+    metadata = sidecar.pop("metadata", {})
+    metadata[str(key)] = _jsonable(value)
+    _write_sidecar_json(path, sidecar, metadata)
+
+
+def _write_sidecar_json(path: Path, head: dict, metadata: dict) -> None:
+    """The sidecar: its fixed part indented, the metadata (point lists) on one line each key."""
+    lines = json.dumps(_jsonable(head), indent=1)[:-2]  # without the closing "\n}"
+    items = ",\n".join(f"  {json.dumps(k)}: {json.dumps(_jsonable(v))}"
+                        for k, v in metadata.items())
+    body = f"{{\n{items}\n }}" if items else "{}"
+    path.write_text(f"{lines},\n \"metadata\": {body}\n}}\n")
+
+
+def _read_csv(path: Path):
+    """The CSV as a polars DataFrame: numbers as float64, ``flags`` as text; a leading ``#``
+    line (first format) is skipped and a last row cut short by a crash is dropped."""
+    import polars as pl
+
+    data = path.read_bytes()
+    if data and not data.endswith(b"\n"):
+        data = data[:data.rfind(b"\n") + 1]
+    start = data.find(b"\n") + 1 if data.startswith(b"#") else 0
+    end = data.find(b"\n", start)
+    header = data[start:end if end >= 0 else len(data)].decode().strip().split(",")
+    schema = {name: (pl.String if name == "flags" else pl.Float64) for name in header}
+    return pl.read_csv(io.BytesIO(data[start:]), schema=schema, has_header=True)
 
 
 @dataclass
@@ -107,11 +280,13 @@ class LogData:
         columns: column name -> numpy array (float), every column except ``flags``.
         flags: the ``flags`` column, one list of words per period.
         joint_names: the joints found in the ``cmd_*`` columns, in order.
+        metadata: the run metadata from the sidecar (empty for logs without one).
     """
 
     columns: dict[str, np.ndarray]
     flags: list[list[str]]
     joint_names: tuple[str, ...]
+    metadata: dict = field(default_factory=dict)
 
     def __getitem__(self, name: str) -> np.ndarray:
         return self.columns[name]
@@ -123,34 +298,53 @@ class LogData:
         """An (N, joints) array of ``target``, ``cmd`` or ``q`` values (rad)."""
         return np.column_stack([self.columns[f"{kind}_{j}_rad"] for j in self.joint_names])
 
+    def has_pose(self, frame: str) -> bool:
+        """Whether the log has the world pose columns of ``frame`` (``torso``, ``right_hand``)."""
+        return all(c in self.columns for c in pose_columns(frame))
+
+    def poses(self, frame: str) -> np.ndarray:
+        """World poses of a logged frame (``torso``, ``right_hand``, ``left_hand``): N x 4 x 4
+        (m); NaN where unknown."""
+        x, y, z, roll, pitch, yaw = (self.columns[c] for c in pose_columns(frame))
+        T = np.zeros((len(x), 4, 4))
+        T[:, :3, :3] = rotation_from_rpy(roll, pitch, yaw)
+        T[:, :3, 3] = np.column_stack([x, y, z])
+        T[:, 3, 3] = 1.0
+        return T
+
     @property
     def status(self) -> np.ndarray:
         """Status codes (int array); see :class:`~hubo_cli.control.status.Status`."""
         return self.columns["status_code"].astype(int)
 
 
-def load_log(path: str | Path) -> LogData:
-    """Read a period log (a run folder or the CSV itself) into numpy arrays."""
+def log_paths(path: str | Path) -> tuple[Path, Path, Path]:
+    """(csv, sidecar, parquet) paths of a run folder or of any one of its log files."""
     path = Path(path)
-    if path.is_dir():
-        path = path / LOG_NAME
-    with open(path, newline="") as f:
-        lines = (line for line in f if not line.startswith("#"))
-        reader = csv.reader(lines)
-        header = next(reader)
-        rows = [row for row in reader if len(row) == len(header)]
-    flag_index = header.index("flags")
-    columns: dict[str, np.ndarray] = {}
-    if rows:
-        table = list(zip(*rows, strict=True))
-    else:
-        table = [()] * len(header)
-    for i, name in enumerate(header):
-        if i != flag_index:
-            columns[name] = np.array(table[i], dtype=float)
-    flags = [[w for w in text.split(";") if w] for text in table[flag_index]]
-    joints = tuple(n[4:-4] for n in header if n.startswith("cmd_") and n.endswith("_rad"))
-    return LogData(columns, flags, joints)
+    csv_path = path / LOG_NAME if path.is_dir() else path.with_suffix(".csv")
+    return csv_path, csv_path.with_suffix(".json"), csv_path.with_suffix(".parquet")
+
+
+def load_log(path: str | Path) -> LogData:
+    """Read a period log (a run folder, its CSV or its Parquet copy) into numpy arrays.
+
+    A run folder is read from ``log.parquet`` when the run closed its log, else from
+    ``log.csv`` (a run that crashed); the sidecar's metadata comes along where there is one.
+    """
+    import polars as pl
+
+    path = Path(path)
+    csv_path, meta_path, parquet_path = log_paths(path)
+    use_parquet = path.suffix == ".parquet" or (path.is_dir() and parquet_path.exists())
+    frame = pl.read_parquet(parquet_path) if use_parquet else _read_csv(csv_path)
+    columns = {name: frame.get_column(name).to_numpy().astype(float, copy=False)
+               for name in frame.columns if name != "flags"}
+    flags = [text.split(";") if text else [] for text in frame.get_column("flags").to_list()]
+    joints = tuple(n[4:-4] for n in frame.columns if n.startswith("cmd_") and n.endswith("_rad"))
+    metadata = {}
+    if meta_path.exists():
+        metadata = json.loads(meta_path.read_text()).get("metadata", {})
+    return LogData(columns, flags, joints, metadata)
 
 
 def max_velocity_ratio(model, log: LogData) -> float:

@@ -186,7 +186,7 @@ class ControlLoop:
         self._flags.update(flags)
         if self.log is not None:
             self.log.write(self.period, t_s, status, compute_s * 1e6, late_s * 1e6, flags,
-                           target, cmd, state.q_rad, extras)
+                           target, cmd, state.q_rad, extras, state=state)
 
     # ------------------------------------------------------------------ run
     def run(self, duration_s: float | None = None) -> LoopResult:
@@ -196,7 +196,8 @@ class ControlLoop:
         """
         driver = self.driver
         if self.log_path is not None:
-            self.log = PeriodLog(self.log_path, driver.joint_names, self._extra_columns())
+            self.log = PeriodLog(self.log_path, driver.joint_names, self._extra_columns(),
+                                 model=driver.model)
         ended, error, exc = "finished", "", None
         stop_periods = 0
         t_s = 0.0

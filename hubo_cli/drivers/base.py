@@ -70,6 +70,12 @@ class SimulatedWorld(ABC):
     def snapshot_png(self, path: str | Path) -> Path:
         """Render the scene headless into a PNG; returns its path."""
 
+    @abstractmethod
+    def scene(self) -> dict:
+        """What has been placed, for the run's log metadata (JSON-able): ``walls`` (each
+        ``centre_world_m``, ``quat_wxyz``, ``size_m``), ``tools`` (arm -> tool) and
+        ``hole_world_m`` / ``hole_t_s`` (where and when a drill bit crossed a wall)."""
+
     @property
     @abstractmethod
     def physics_wall_s(self) -> float:

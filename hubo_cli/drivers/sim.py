@@ -42,7 +42,7 @@ Sensors (:class:`~hubo_cli.drivers.base.RobotState`)
 
 Drilling (:class:`CuttingModel`)
     With the drill on the right hand (``drill=True``) and a wall in the scene (:meth:`add_wall`),
-    while the bit's flutes (``DRILL_BIT_HALF_LENGTH_M`` either side of its middle, the frame
+    while the bit's flutes (``model.drill.bit_half_length_m`` either side of its middle, the frame
     ``right_drill_bit``) cross the wall, the wall resists the bit's velocity v_t in the wall
     plane (y, z), at the point where the bit crosses the wall's mid-plane, with
 
@@ -72,7 +72,9 @@ import numpy as np
 from hubo_cli.drivers import checks
 from hubo_cli.drivers.base import Driver, RunContext, SimulatedWorld
 from hubo_cli.errors import ConfigError, DeviceError
+from hubo_cli.geometry import matrix_to_quat_wxyz, quat_xyzw_to_matrix
 from hubo_cli.kinematics.limb import Limb
+from hubo_cli.kinematics.poses import make_transform
 from hubo_cli.model import RobotModel
 from hubo_cli.posture import home_posture
 from hubo_cli.state import FT_SENSORS, RobotState
@@ -80,7 +82,6 @@ from hubo_cli.urdf import DRILL_FRAME, PHYSICS_DRILL_URDF, PHYSICS_URDF, link_fr
 
 CONTACT_THRESHOLD_N = 25.0  # hrpsys contact_decision_threshold
 CONTACT_CUTOFF_HZ = 5.0     # low-pass of the ankles' F_z before the threshold
-DRILL_BIT_HALF_LENGTH_M = 0.02  # the flutes reach this far either side of the bit's middle
 HAND_FRAMES = {"right-wrist": ("RWP_link", "right_hand"), "left-wrist": ("LWP_link", "left_hand")}
 SOLE_FRAMES = {"right-ankle": ("RAR_link", "right_sole"), "left-ankle": ("LAR_link", "left_sole")}
 SENSOR_FRAMES = HAND_FRAMES | SOLE_FRAMES
@@ -234,33 +235,8 @@ class SimOptions:
 
 
 def _pose(position, quat_xyzw) -> np.ndarray:
-    """4x4 pose from a position and a unit quaternion (x, y, z, w), built in one array call
-    (it runs for several frames every physics step)."""
-    x, y, z, w = quat_xyzw
-    px, py, pz = position
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w), px],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w), py],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y), pz],
-                     [0.0, 0.0, 0.0, 1.0]])
-
-
-def _quat_wxyz(R: np.ndarray) -> np.ndarray:
-    """Unit quaternion (w, x, y, z) of a rotation matrix."""
-    trace = R[0, 0] + R[1, 1] + R[2, 2]
-    if trace > 0:
-        s = 2.0 * math.sqrt(trace + 1.0)
-        q = [0.25 * s, (R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s, (R[1, 0] - R[0, 1]) / s]
-    else:
-        i = int(np.argmax(np.diag(R)))
-        j, k = (i + 1) % 3, (i + 2) % 3
-        s = 2.0 * math.sqrt(1.0 + R[i, i] - R[j, j] - R[k, k])
-        q = [0.0, 0.0, 0.0, 0.0]
-        q[0] = (R[k, j] - R[j, k]) / s
-        q[1 + i] = 0.25 * s
-        q[1 + j] = (R[j, i] + R[i, j]) / s
-        q[1 + k] = (R[k, i] + R[i, k]) / s
-    quat = np.array(q)
-    return quat / np.linalg.norm(quat) * (1.0 if quat[0] >= 0 else -1.0)
+    """4x4 pose from a PyBullet position and quaternion (x, y, z, w)."""
+    return make_transform(quat_xyzw_to_matrix(quat_xyzw), position)
 
 
 class SimDriver(Driver, SimulatedWorld):
@@ -318,6 +294,7 @@ class SimDriver(Driver, SimulatedWorld):
         self._t = 0.0
         self.cutting_force_n = np.zeros(3)
         self._cutting_point = np.zeros(3)
+        self._cut_points: list[tuple] = []  # (time s, where the bit crossed a wall), per period
         self._physics_wall_s = 0.0
         tau = 1.0 / (2.0 * math.pi * CONTACT_CUTOFF_HZ)
         self._contact_alpha = self.period_s / (self.period_s + tau)
@@ -402,7 +379,7 @@ class SimDriver(Driver, SimulatedWorld):
         T_world_com = np.eye(4)
         T_world_com[2, 3] = self.neck_height_m
         T_world_com = T_world_com @ np.linalg.inv(self._T_com_torso)
-        w, x, y, z = _quat_wxyz(T_world_com[:3, :3])  # the base's inertial axes are its own
+        w, x, y, z = matrix_to_quat_wxyz(T_world_com[:3, :3])  # the base's inertial axes
         p.resetBasePositionAndOrientation(self._robot, T_world_com[:3, 3].tolist(),
                                           [x, y, z, w], physicsClientId=cid)
         for j, q in zip(self._idx, q0, strict=True):
@@ -431,6 +408,7 @@ class SimDriver(Driver, SimulatedWorld):
         if self._p is None:
             self._connect()
         self._walls = []
+        self._cut_points = []
         self._pushes = []
         self._stopped = False
         self._t = 0.0
@@ -544,7 +522,7 @@ class SimDriver(Driver, SimulatedWorld):
                                 computeForwardKinematics=1, physicsClientId=cid)
             T_world_bit = _pose(ls[4], ls[5]) @ self._T_link_frame[DRILL_FRAME]
             for wall in self._walls:
-                bit = wall.bit_crossing(T_world_bit, DRILL_BIT_HALF_LENGTH_M)
+                bit = wall.bit_crossing(T_world_bit, self.model.drill.bit_half_length_m)
                 if bit is not None:
                     # in-plane velocity of the link's point at the bit: v + omega x r
                     (wx, wy, wz), (_, vy, vz) = ls[7], ls[6]
@@ -554,6 +532,8 @@ class SimDriver(Driver, SimulatedWorld):
                     p.applyExternalForce(self._robot, link, self.cutting_force_n.tolist(),
                                          bit.tolist(), p.WORLD_FRAME, physicsClientId=cid)
                     self._cutting_point = bit
+                    if t_s < self._t + 1e-12:  # the period's first physics step
+                        self._cut_points.append((self._t, bit))
                     break
 
     # ------------------------------------------------------------------ sensing
@@ -628,7 +608,8 @@ class SimDriver(Driver, SimulatedWorld):
         if self._stopped:
             flags = tuple(dict.fromkeys((*flags, "stopped")))
         return RobotState(time_s=self._t, q_rad=q, dq_rad_s=dq,
-                          imu_quat_wxyz=_quat_wxyz(R), imu_gyro_rad_s=np.asarray(omega_world) @ R,
+                          imu_quat_wxyz=matrix_to_quat_wxyz(R),
+                          imu_gyro_rad_s=R.T @ np.asarray(omega_world),
                           ft=ft, tau_nm=tau, T_world_torso=T_world_torso,
                           feet_contact=(contact[0], contact[1]), flags=flags)
 
@@ -673,19 +654,24 @@ class SimDriver(Driver, SimulatedWorld):
         """The walls in the scene."""
         return tuple(self._walls)
 
-    def snapshot_png(self, path: str | Path, width: int = 640, height: int = 480) -> Path:
-        """Render the scene headless (TinyRenderer) and write it as a PNG; returns the path."""
-        self._require_started()
-        from hubo_cli.drivers.snapshot import write_png
+    def scene(self) -> dict:
+        """What has been placed in the world, for the run's log metadata: ``walls`` (centre,
+        orientation quaternion w x y z and size x y z of each box, m), ``tools`` per hand and
+        ``hole_world_m`` (where the drill bit crossed a wall, once per period, to the micrometre)
+        with ``hole_t_s`` (when)."""
+        walls = [{"centre_world_m": [w.distance_m + w.thickness_m / 2, w.centre_y_m,
+                                     w.height_m / 2], "quat_wxyz": [1.0, 0.0, 0.0, 0.0],
+                  "size_m": [w.thickness_m, w.width_m, w.height_m]} for w in self._walls]
+        return {"walls": walls, "tools": {"right-arm": "drill" if self.options.drill else "hand",
+                                          "left-arm": "hand"},
+                "hole_world_m": [np.round(p, 6).tolist() for _, p in self._cut_points],
+                "hole_t_s": [round(t, 6) for t, _ in self._cut_points]}
 
-        p, cid = self._p, self._cid
-        target = self._state.T_world_torso[:3, 3] * np.array([1, 1, 0.55]) + [0.15, 0, 0]
-        # from the robot's left, a little in front, so that a wall ahead stays beside it
-        view = p.computeViewMatrixFromYawPitchRoll(target.tolist(), 2.3, 25, -14, 0, 2,
-                                                   physicsClientId=cid)
-        proj = p.computeProjectionMatrixFOV(45, width / height, 0.05, 20, physicsClientId=cid)
-        _, _, rgba, _, _ = p.getCameraImage(width, height, view, proj,
-                                            renderer=p.ER_TINY_RENDERER, physicsClientId=cid)
-        image = np.reshape(np.asarray(rgba, dtype=np.uint8), (height, width, 4))[:, :, :3]
-        return write_png(path, image)
+    def snapshot_png(self, path: str | Path, width: int = 640, height: int = 480) -> Path:
+        """Render the scene headless from the video's camera (bit and hole marked) as a PNG."""
+        self._require_started()
+        from hubo_cli.drivers.snapshot import scene_snapshot
+
+        tool = self.frame_pose(DRILL_FRAME if self.options.drill else "right_hand")[:3, 3]
+        return scene_snapshot(self._p, self._cid, path, self.scene(), tool, width, height)
 

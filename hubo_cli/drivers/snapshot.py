@@ -1,4 +1,5 @@
-"""Write RGB images as PNG files (used for simulation snapshots; no imaging library needed)."""
+"""Simulation snapshots: the scene from the video's camera with the bit and the hole marked, and
+PNG writing (no imaging library needed for the file itself)."""
 
 from __future__ import annotations
 
@@ -7,6 +8,9 @@ import zlib
 from pathlib import Path
 
 import numpy as np
+
+HOLE_RGB = (38, 26, 13)
+MARK_RGB = (255, 255, 255)
 
 
 def _chunk(kind: bytes, data: bytes) -> bytes:
@@ -33,3 +37,48 @@ def write_png(path: str | Path, image: np.ndarray) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_bytes(png_bytes(image))
     return path
+
+
+def mark_points(image: np.ndarray, camera, hole_world_m, tool_world_m) -> np.ndarray:
+    """The image with the hole's points (dots) and the tool (a ring) drawn over it."""
+    from PIL import Image, ImageDraw
+
+    picture = Image.fromarray(np.ascontiguousarray(image, dtype=np.uint8))
+    draw = ImageDraw.Draw(picture)
+    hole = np.asarray(hole_world_m, dtype=float).reshape(-1, 3)
+    if len(hole):
+        for x, y in camera.project(hole):
+            if np.isfinite(x):
+                draw.ellipse((x - 1.5, y - 1.5, x + 1.5, y + 1.5), fill=HOLE_RGB)
+    x, y = camera.project(tool_world_m)[0]
+    if np.isfinite(x):
+        r = max(3.0, camera.height / 80)
+        draw.ellipse((x - r, y - r, x + r, y + r), outline=MARK_RGB, width=2)
+    return np.asarray(picture)
+
+
+def scene_snapshot(p, client: int, path: str | Path, scene: dict, tool_world_m,
+                   width: int = 640, height: int = 480, preset: str = "shoulder") -> Path:
+    """Render a live PyBullet scene headless (TinyRenderer) from the video camera's preset,
+    mark the hole and the tool, and write it as PNG.
+
+    Args:
+        p, client: the pybullet module and the physics client id.
+        path: the PNG to write.
+        scene: the simulator's scene description (``walls``, ``tools``, ``hole_world_m``).
+        tool_world_m: the working tool's point in the world (m).
+        width, height: image size (pixels, even).
+        preset: a camera preset of :mod:`hubo_cli.viz.camera`.
+    """
+    from hubo_cli.viz.camera import camera_for
+
+    hole = np.asarray(scene.get("hole_world_m", []), dtype=float).reshape(-1, 3)
+    tool = np.asarray(tool_world_m, dtype=float)
+    focus = 0.5 * (hole.min(axis=0) + hole.max(axis=0)) if len(hole) else tool
+    arm = next((a for a, t in scene.get("tools", {}).items() if t == "drill"), "right-arm")
+    camera = camera_for(preset, focus, arm, width, height)
+    view, proj = camera.gl_matrices()
+    _, _, rgba, _, _ = p.getCameraImage(width, height, view, proj, renderer=p.ER_TINY_RENDERER,
+                                        shadow=0, physicsClientId=client)
+    image = np.reshape(np.asarray(rgba, dtype=np.uint8), (height, width, 4))[:, :, :3]
+    return write_png(path, mark_points(image, camera, hole, tool))

@@ -27,7 +27,6 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from hubo_cli.control.capture_point import sole_corners_m
 from hubo_cli.control.estop import EmergencyStopper
 from hubo_cli.control.log import LogData
 from hubo_cli.control.loop import LoopResult
@@ -36,15 +35,15 @@ from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.target import Target
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.errors import ConfigError, InputError
+from hubo_cli.falls import FALL_TILT_DEG, has_fallen
+from hubo_cli.geometry import min_jerk, tilt_rad_of_matrix, tilt_rad_of_quat_wxyz
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.posture import home_posture
 from hubo_cli.session import RunResult, RunSetup, run
 
 DIRECTIONS = ("forward", "left")
-FALL_TILT_DEG = 30.0   # hrpsys Stabilizer tilt_margin default
 TIP_LIFT_M = 0.02      # a sole corner this far above its start height: the robot tipped
-FALL_DROP_M = 0.2      # torso this much below its start height = on the floor
 STOP_AFTER_FALL_S = 0.5
 WALL_HEIGHT_M = 2.0
 # Elbows fully bent, hands level in front of the chest (hand x forward): from here the fixed-
@@ -106,12 +105,6 @@ def start_posture(model: RobotModel, spec: PushSpec) -> np.ndarray:
     return q
 
 
-def min_jerk(s: float) -> float:
-    """The minimum-jerk progress 10 s^3 - 15 s^4 + 6 s^5 for s clipped to [0, 1]."""
-    s = min(max(s, 0.0), 1.0)
-    return s**3 * (10 - 15 * s + 6 * s * s)
-
-
 def hand_box_extent_m(model: RobotModel, q_rad: np.ndarray, arm: str) -> np.ndarray:
     """The hand's collision box in the neck frame at ``q_rad``: (2, 3) min and max corner (m)."""
     robot = load_pin_robot(model)
@@ -151,7 +144,7 @@ class PushTargets(Target):
         self.robot = load_pin_robot(model, floating=True)
         self._data = self.robot.model.createData()
         self._soles = [self.robot.frame_id(f) for f in ("right_sole", "left_sole")]
-        self._corners = sole_corners_m()
+        self._corners = model.feet.sole_corners_m()
         self._sole_start_z: np.ndarray | None = None
         self.max_lift_m = 0.0
         self.obstacle: dict = {}
@@ -180,11 +173,10 @@ class PushTargets(Target):
     def _watch(self, t_s: float, state) -> tuple[float, float]:
         T = state.T_world_torso
         if T is None:
-            roll, pitch = state.tilt_rad()
-            tilt_deg = math.degrees(math.acos(min(1.0, math.cos(roll) * math.cos(pitch))))
+            tilt_deg = math.degrees(tilt_rad_of_quat_wxyz(state.imu_quat_wxyz))
             z = 0.0
         else:
-            tilt_deg = math.degrees(math.acos(max(-1.0, min(1.0, float(T[2, 2])))))
+            tilt_deg = math.degrees(tilt_rad_of_matrix(T[:3, :3]))
             z = float(T[2, 3])
         if self.start_z_m is None:
             self.start_z_m = z
@@ -192,7 +184,7 @@ class PushTargets(Target):
         self.min_z_m = min(self.min_z_m, z)
         self.lift_m = self._sole_lift_m(state)
         self.max_lift_m = max(self.max_lift_m, self.lift_m)
-        fallen = tilt_deg > FALL_TILT_DEG or self.start_z_m - z > FALL_DROP_M
+        fallen = has_fallen(tilt_deg, self.start_z_m - z)
         if fallen and self.t_fall_s is None:
             self.t_fall_s = t_s
         return tilt_deg, z

@@ -16,13 +16,13 @@ from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.target import Target
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.errors import ConfigError, InputError
+from hubo_cli.falls import has_fallen
+from hubo_cli.geometry import tilt_rad_of_matrix
 from hubo_cli.model import RobotModel
 from hubo_cli.posture import home_posture
 from hubo_cli.session import RunResult, RunSetup, run
 
 FLAT_TOLERANCE_DEG = 1.0  # a sole tilted more than this (or without contact) is not flat
-FALL_TILT_DEG = 30.0      # torso tilt beyond which the robot has fallen
-FALL_DROP_M = 0.2         # ... or torso lower than its start by this much
 
 
 @dataclass
@@ -33,7 +33,7 @@ class StandingResult:
         max_tilt_deg: largest torso tilt from upright (IMU) over the run.
         feet_flat: both soles flat on the floor (within FLAT_TOLERANCE_DEG, in contact) in
             every period.
-        fell: the torso tilted past FALL_TILT_DEG or dropped FALL_DROP_M (the run then ends).
+        fell: the torso fell (:func:`hubo_cli.falls.has_fallen`; the run then ends).
         realtime_factor: simulated seconds per wall-clock second of the loop.
         max_sole_tilt_deg: largest tilt of either sole.
         final_tilt_deg: torso tilt at the end.
@@ -72,11 +72,6 @@ class StandingResult:
                 "final_tilt_deg": self.final_tilt_deg, "physics_share": self.physics_share,
                 "max_feet_moment_difference_nm": self.max_feet_moment_difference_nm,
                 "snapshot": str(self.snapshot) if self.snapshot else None}
-
-
-def _tilt_deg(R: np.ndarray) -> float:
-    """Angle between a frame's z axis and the world's z axis (deg)."""
-    return math.degrees(math.acos(max(-1.0, min(1.0, float(R[2, 2])))))
 
 
 def check_standing_args(duration_s: float, push_n: float) -> None:
@@ -121,7 +116,7 @@ class StandTarget(Target):
         world, k = self.world, self.k
         if np.any(self.push_world_n) and abs(t_s - self.push_at_s) < 0.0025:
             world.push_torso(self.push_world_n, self.push_duration_s)
-        tilt = _tilt_deg(state.T_world_torso[:3, :3])
+        tilt = math.degrees(tilt_rad_of_matrix(state.T_world_torso[:3, :3]))
         if self.torso_z0_m is None:
             self.torso_z0_m = float(state.T_world_torso[2, 3])
         difference = state.ft["right-ankle"][3:5] - state.ft["left-ankle"][3:5]
@@ -130,10 +125,10 @@ class StandTarget(Target):
             self.differences_nm[k] = float(np.linalg.norm(difference))
             self.k += 1
         for sole, touching in zip(("right_sole", "left_sole"), state.feet_contact, strict=True):
-            sole_tilt = _tilt_deg(world.frame_pose(sole)[:3, :3])
+            sole_tilt = math.degrees(tilt_rad_of_matrix(world.frame_pose(sole)[:3, :3]))
             self.max_sole_deg = max(self.max_sole_deg, sole_tilt)
             self.feet_flat &= bool(touching) and sole_tilt <= FLAT_TOLERANCE_DEG
-        if tilt > FALL_TILT_DEG or state.T_world_torso[2, 3] < self.torso_z0_m - FALL_DROP_M:
+        if has_fallen(tilt, self.torso_z0_m - state.T_world_torso[2, 3]):
             self.fell = True
         self.wall_end_s = time.perf_counter()
         return self.q_home_rad, {"tilt_deg": tilt, "feet_moment_difference_nm":

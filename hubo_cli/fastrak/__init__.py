@@ -5,9 +5,11 @@
 - :mod:`.reader`: the live pyserial reader (explicit configuration, probe, staleness, reconnect).
 - :mod:`.capture`: raw captures and pose logs (CSV), their readers and writers.
 - :mod:`.emulator`: a FASTRAK on a pty or serial port, for tests and hardware-free runs.
-- :mod:`.source`: :func:`open_source`, the one interface consumers read poses through.
+- :mod:`.source`: :class:`PoseSource`, the one interface consumers read poses through.
+- :mod:`.opener`: :func:`open_source`, which opens a recording or a live port as a source.
 """
 
-from hubo_cli.fastrak.source import PoseSample, PoseSource, SourceStats, open_source
+from hubo_cli.fastrak.opener import open_source
+from hubo_cli.fastrak.source import PoseSample, PoseSource, SourceStats
 
 __all__ = ["PoseSample", "PoseSource", "SourceStats", "open_source"]

@@ -38,9 +38,9 @@ from hubo_cli.fastrak.records import (
     encode_records,
     make_layout,
 )
-from hubo_cli.fastrak.rotations import quat_from_rotation
 from hubo_cli.fastrak.source import PoseSample, ReplaySource, SourceStats, batch_samples
 from hubo_cli.fastrak.track import PoseTrack
+from hubo_cli.geometry import matrix_to_quat_wxyz
 
 MAGIC = b"FASTRAK-CAPTURE 1\n"
 CHUNK_HEAD = struct.Struct("<dI")
@@ -274,7 +274,7 @@ def _as_tracks(poses) -> dict[int, PoseTrack]:
         items.sort(key=lambda r: r[0])
         T = np.stack([r[1] for r in items])
         tracks[station] = PoseTrack([r[0] for r in items], T[:, :3, 3],
-                                    quat_from_rotation(T[:, :3, :3]))
+                                    matrix_to_quat_wxyz(T[:, :3, :3]))
     return tracks
 
 
@@ -364,7 +364,7 @@ def samples_batch(samples: Iterable[PoseSample]) -> RecordBatch:
     return RecordBatch(
         station=np.array([s.station for s in samples], dtype=np.int64),
         status=np.array([ord(s.status or " ") for s in samples], dtype=np.uint8),
-        position_m=T[:, :3, 3].copy(), quat_wxyz=quat_from_rotation(T[:, :3, :3]),
+        position_m=T[:, :3, 3].copy(), quat_wxyz=matrix_to_quat_wxyz(T[:, :3, :3]),
         stylus=np.array([-1 if s.stylus is None else s.stylus for s in samples], dtype=np.int8),
         offset=np.zeros(len(samples), dtype=np.int64),
         t_s=np.array([s.t_s for s in samples], dtype=np.float64))

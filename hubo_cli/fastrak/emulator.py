@@ -28,20 +28,12 @@ from hubo_cli.errors import DeviceError, InputError
 from hubo_cli.fastrak.capture import RECORD_RATE_HZ, load_recording
 from hubo_cli.fastrak.records import encode_record, make_layout
 from hubo_cli.fastrak.track import PoseTrack
+from hubo_cli.geometry import fastrak_euler_deg_to_quat_wxyz
 
 SINGLE_CHAR_COMMANDS = b"cCPSFfuUDdW"
 TERMINATED_COMMANDS = b"OlHRABbGxvVQerINXoT"
 FIRMWARE = "  3.00"
 SYSTEM_ID = "hubo-cli FASTRAK emulator"
-
-
-def _quat_from_euler_deg(az: float, el: float, rl: float) -> np.ndarray:
-    """Scalar-first quaternion of Rz(az) Ry(el) Rx(rl) (degrees)."""
-    a, e, r = (math.radians(v) / 2 for v in (az, el, rl))
-    ca, sa, ce, se, cr, sr = math.cos(a), math.sin(a), math.cos(e), math.sin(e), math.cos(r), \
-        math.sin(r)
-    return np.array([ca * ce * cr + sa * se * sr, ca * ce * sr - sa * se * cr,
-                     ca * se * cr + sa * ce * sr, sa * ce * cr - ca * se * sr])
 
 
 class BuiltinMotion:
@@ -65,8 +57,9 @@ class BuiltinMotion:
         base = self.BASES_M[station]
         p = np.array([base[0] + 0.02 * math.sin(phase / 2), base[1] + 0.05 * math.cos(phase),
                       base[2] + 0.05 * math.sin(phase)])
-        q = _quat_from_euler_deg(15.0 * math.sin(phase / 3), 8.0 * math.sin(phase / 2),
-                                 10.0 * math.cos(phase / 4))
+        az_el_rl_deg = (15.0 * math.sin(phase / 3), 8.0 * math.sin(phase / 2),
+                        10.0 * math.cos(phase / 4))
+        q = fastrak_euler_deg_to_quat_wxyz(az_el_rl_deg)
         return p, q
 
 

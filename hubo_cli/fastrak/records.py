@@ -24,11 +24,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from hubo_cli.errors import InputError
-from hubo_cli.fastrak.rotations import (
-    euler_deg_from_rotation,
-    quat_from_euler_deg,
-    quat_from_rotation,
-    rotation_from_quat,
+from hubo_cli.geometry import (
+    fastrak_euler_deg_to_quat_wxyz,
+    matrix_to_fastrak_euler_deg,
+    matrix_to_quat_wxyz,
+    quat_wxyz_to_matrix,
 )
 
 FORMATS = ("ascii", "binary")
@@ -314,7 +314,7 @@ class RecordBatch:
     def transforms(self) -> np.ndarray:
         """(N,4,4) homogeneous transforms ``T_tracker_sensor``, metres."""
         T = np.zeros((len(self), 4, 4))
-        T[:, :3, :3] = rotation_from_quat(self.quat_wxyz) if len(self) else np.zeros((0, 3, 3))
+        T[:, :3, :3] = quat_wxyz_to_matrix(self.quat_wxyz) if len(self) else np.zeros((0, 3, 3))
         T[:, :3, 3] = self.position_m
         T[:, 3, 3] = 1.0
         return T
@@ -444,9 +444,9 @@ def decode_candidates(layout: RecordLayout, rec: np.ndarray, scale_m: float,
             if layout.orientation == "dcos":
                 R = np.stack([values["dcos_x"][safe], values["dcos_y"][safe],
                               values["dcos_z"][safe]], axis=1)
-                q[safe] = quat_from_rotation(R)
+                q[safe] = matrix_to_quat_wxyz(R)
             else:
-                q[safe] = quat_from_euler_deg(values["euler"][safe])
+                q[safe] = fastrak_euler_deg_to_quat_wxyz(values["euler"][safe])
     if keep is not None:
         full_ok = np.zeros(k, dtype=bool)
         full_ok[keep] = sub_ok
@@ -584,8 +584,8 @@ def _record_numbers(layout: RecordLayout, position_m: np.ndarray, quat_wxyz: np.
                             else np.asarray(relative_m, dtype=np.float64).reshape(-1, 3) / scale)}
     kinds = {f.item.kind for f in layout.fields}
     if kinds & {"euler", "dcos_x", "dcos_y", "dcos_z"}:
-        R = rotation_from_quat(q)
-        numbers["euler"] = euler_deg_from_rotation(R)
+        R = quat_wxyz_to_matrix(q)
+        numbers["euler"] = matrix_to_fastrak_euler_deg(R)
         numbers["dcos_x"], numbers["dcos_y"], numbers["dcos_z"] = R[:, 0], R[:, 1], R[:, 2]
     return numbers
 

@@ -1,7 +1,7 @@
 """One interface for operator poses, from a live FASTRAK or from a recording.
 
-``open_source(replay=...)`` or ``open_source(port=...)`` returns a :class:`PoseSource`; the
-consumer (teleoperation) calls ``read_until(t_s)`` once per control cycle and checks
+:func:`hubo_cli.fastrak.opener.open_source` returns a :class:`PoseSource`; the consumer
+(teleoperation) calls ``read_until(t_s)`` once per control cycle and checks
 ``is_stale(station, now_s)`` before trusting a station's latest pose.
 
 Replay sources deliver every sample whose receive time is at or before ``t_s``, so a replay runs
@@ -13,13 +13,11 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
-from hubo_cli.errors import InputError
 from hubo_cli.fastrak.records import SUSPECT_STATUS, RecordBatch
-from hubo_cli.fastrak.rotations import rotation_from_quat
+from hubo_cli.geometry import quat_wxyz_to_matrix
 
 
 @dataclass(frozen=True, eq=False)
@@ -101,7 +99,7 @@ def batch_samples(batch: RecordBatch) -> list[PoseSample]:
     if n == 0:
         return []
     T = np.zeros((n, 4, 4))
-    T[:, :3, :3] = rotation_from_quat(batch.quat_wxyz)
+    T[:, :3, :3] = quat_wxyz_to_matrix(batch.quat_wxyz)
     T[:, :3, 3] = batch.position_m
     T[:, 3, 3] = 1.0
     stations = batch.station.tolist()
@@ -234,41 +232,3 @@ class ReplaySource(PoseSource):
         self._cursor = 0
         self._now = float("-inf")
         self._last_seen.clear()
-
-
-LIVE_ONLY_OPTIONS = frozenset({
-    "baud", "fmt", "output_list", "units", "capture", "reconnect", "settle_s", "probe_timeout_s",
-    "first_record_timeout_s", "silence_timeout_s", "reconnect_timeout_s", "read_timeout_s",
-    "command_gap_s"})
-"""Options of the live reader that a replay ignores."""
-
-
-def open_source(replay: str | Path | None = None, port: str | None = None,
-                **options) -> PoseSource:
-    """Open a pose source: a recording (``replay``) or a live FASTRAK on a serial ``port``.
-
-    Args:
-        replay: a raw capture (decoded through the same parser as the live path) or a pose-log
-            CSV; the kind is recognised from the file's first bytes.
-        port: serial device of a live FASTRAK (or an emulator's pty).
-        **options: for a replay, ``stations`` (keep only these) and ``plausibility`` (the
-            live-port options below are accepted and ignored); for a port, the
-            :class:`hubo_cli.fastrak.reader.FastrakReader` options (``baud``, ``fmt``,
-            ``output_list``, ``units``, ``stations``, ``capture``, ``reconnect``, ...).
-
-    Raises:
-        InputError: neither or both of replay/port, a missing or garbled recording.
-        DeviceError: the port is absent, closed or the tracker does not answer.
-    """
-    if (replay is None) == (port is None):
-        raise InputError("give exactly one pose source: a recording or a serial port",
-                         hint="use --replay FILE or --port DEV")
-    if replay is not None:
-        from hubo_cli.fastrak.capture import open_replay
-
-        # a recording's header says its format and units; the live-port settings do not apply
-        replay_options = {k: v for k, v in options.items() if k not in LIVE_ONLY_OPTIONS}
-        return open_replay(replay, **replay_options)
-    from hubo_cli.fastrak.reader import FastrakReader
-
-    return FastrakReader(port, **options)

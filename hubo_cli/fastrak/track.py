@@ -10,23 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from hubo_cli.errors import InputError
-
-
-def slerp(q0: np.ndarray, q1: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """Spherical interpolation between (N,4) unit quaternions at fractions ``u`` (N,) in [0, 1]."""
-    q0 = np.asarray(q0, dtype=np.float64)
-    q1 = np.array(q1, dtype=np.float64)
-    dot = np.sum(q0 * q1, axis=1)
-    q1[dot < 0] *= -1.0
-    dot = np.abs(dot)
-    u = np.asarray(u, dtype=np.float64)[:, None]
-    theta = np.arccos(np.clip(dot, -1.0, 1.0))[:, None]
-    small = theta[:, 0] < 1e-6
-    sin_t = np.where(small[:, None], 1.0, np.sin(theta))
-    w0 = np.where(small[:, None], 1.0 - u, np.sin((1.0 - u) * theta) / sin_t)
-    w1 = np.where(small[:, None], u, np.sin(u * theta) / sin_t)
-    q = w0 * q0 + w1 * q1
-    return q / np.linalg.norm(q, axis=1, keepdims=True)
+from hubo_cli.geometry import slerp_quat_wxyz
 
 
 class PoseTrack:
@@ -80,5 +64,5 @@ class PoseTrack:
         u = np.clip((t - t0) / span, 0.0, 1.0)
         u = np.where(t1 > t0, u, 1.0)
         p = self.position_m[i] + u[:, None] * (self.position_m[i + 1] - self.position_m[i])
-        q = slerp(self.quat_wxyz[i], self.quat_wxyz[i + 1], u)
+        q = slerp_quat_wxyz(self.quat_wxyz[i], self.quat_wxyz[i + 1], u)
         return p, q

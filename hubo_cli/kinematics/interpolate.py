@@ -10,37 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-
-def rotation_log(R: np.ndarray) -> np.ndarray:
-    """Rotation vector (axis * angle, rad) of a rotation matrix."""
-    cos_angle = np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)
-    w = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / 2.0
-    sin_angle = np.linalg.norm(w)
-    angle = np.arctan2(sin_angle, cos_angle)
-    if sin_angle < 1e-9:
-        if cos_angle > 0:
-            return w  # small angle: the vector part is the rotation vector
-        # half turn: axis from the largest column of R + I
-        B = R + np.eye(3)
-        axis = B[:, np.argmax(np.linalg.norm(B, axis=0))]
-        return np.pi * axis / np.linalg.norm(axis)
-    return w / sin_angle * angle
-
-
-def rotation_exp(v: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a rotation vector (Rodrigues)."""
-    angle = float(np.linalg.norm(v))
-    if angle < 1e-12:
-        return np.eye(3)
-    k = v / angle
-    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * (K @ K)
-
-
-def min_jerk(s: float) -> float:
-    """Minimum-jerk progress 0 -> 1 for normalised time s in [0, 1]."""
-    s = min(max(s, 0.0), 1.0)
-    return s * s * s * (10 - 15 * s + 6 * s * s)
+from hubo_cli.geometry import min_jerk, rotation_exp, rotation_log
 
 
 def trapezoid(t_s: float, duration_s: float, ramp_s: float) -> float:

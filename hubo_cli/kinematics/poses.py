@@ -1,28 +1,9 @@
-"""Small pose helpers: roll-pitch-yaw <-> rotation, building transforms (m, rad)."""
+"""Small pose helpers: building and checking 4x4 transforms (m); rotations are in
+:mod:`hubo_cli.geometry`."""
 
 from __future__ import annotations
 
 import numpy as np
-
-
-def rpy_to_matrix(roll_rad: float, pitch_rad: float, yaw_rad: float) -> np.ndarray:
-    """R = Rz(yaw) Ry(pitch) Rx(roll) (fixed-axis x, then y, then z)."""
-    cr, sr = np.cos(roll_rad), np.sin(roll_rad)
-    cp, sp = np.cos(pitch_rad), np.sin(pitch_rad)
-    cy, sy = np.cos(yaw_rad), np.sin(yaw_rad)
-    return np.array([
-        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-        [-sp, cp * sr, cp * cr],
-    ])
-
-
-def matrix_to_rpy(R: np.ndarray) -> tuple[float, float, float]:
-    """(roll, pitch, yaw) in rad with R = Rz(yaw) Ry(pitch) Rx(roll); yaw = 0 at gimbal lock."""
-    pitch = float(np.arctan2(-R[2, 0], np.hypot(R[0, 0], R[1, 0])))
-    if np.hypot(R[0, 0], R[1, 0]) < 1e-12:
-        return float(np.arctan2(-R[1, 2], R[1, 1])), pitch, 0.0
-    return float(np.arctan2(R[2, 1], R[2, 2])), pitch, float(np.arctan2(R[1, 0], R[0, 0]))
 
 
 def make_transform(R: np.ndarray, p_m) -> np.ndarray:

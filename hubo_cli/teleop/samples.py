@@ -14,7 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hubo_cli.kinematics.poses import make_transform, rpy_to_matrix
+from hubo_cli.geometry import min_jerk, rpy_to_matrix
+from hubo_cli.kinematics.poses import make_transform
 
 SAMPLE_RATE_HZ = 240.0  # the operator's motion is sampled finer than the tracker's 120 Hz
 
@@ -34,12 +35,6 @@ class OperatorStyle:
     drift_mm: float = 1.5
     speed_spread: float = 0.25
     wobble_deg: float = 2.0
-
-
-def _smooth_profile(n: int) -> np.ndarray:
-    """Minimum-jerk progress 0 -> 1 over n samples (how people move between two points)."""
-    s = np.linspace(0.0, 1.0, n)
-    return 10 * s**3 - 15 * s**4 + 6 * s**5
 
 
 def _noise(rng: np.random.Generator, t_s: np.ndarray, band_hz: tuple[float, float],
@@ -63,7 +58,7 @@ def _waypoint_path(waypoints_m: np.ndarray, speeds_m_s: np.ndarray, pauses_s: np
     for k in range(1, len(waypoints_m)):
         a, b = waypoints_m[k - 1], waypoints_m[k]
         n = max(2, int(np.linalg.norm(b - a) / speeds_m_s[k - 1] * rate_hz))
-        pieces.append(a + _smooth_profile(n)[:, None] * (b - a))
+        pieces.append(a + min_jerk(np.linspace(0.0, 1.0, n))[:, None] * (b - a))
         pieces.append(np.repeat(b[None], int(pauses_s[k] * rate_hz), axis=0))
     return np.concatenate(pieces)
 

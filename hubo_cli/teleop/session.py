@@ -10,7 +10,8 @@ import numpy as np
 from hubo_cli.control.loop import LoopResult
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.errors import InputError
-from hubo_cli.fastrak.source import PoseSource, open_source
+from hubo_cli.fastrak.opener import open_source
+from hubo_cli.fastrak.source import PoseSource
 from hubo_cli.kinematics.interpolate import PosePath, PoseSegment, segment_duration
 from hubo_cli.kinematics.wholebody import WholeBody
 from hubo_cli.model import RobotModel, load_model

@@ -29,6 +29,7 @@ import numpy as np
 from hubo_cli.control.target import Target
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.fastrak.source import PoseSource
+from hubo_cli.geometry import tilt_rad_of_quat_wxyz
 from hubo_cli.kinematics.choice import STATUS_NAMES
 from hubo_cli.kinematics.interpolate import PosePath
 from hubo_cli.kinematics.wholebody import LiftFilter, WholeBody
@@ -293,8 +294,8 @@ class TeleopTarget(Target):
                     if world is not None:
                         self.world_errors_m[arm].append(float(np.linalg.norm(hand.goal_m
                                                                              - world)))
-        roll, pitch = state.tilt_rad()
-        self.max_tilt_rad = max(self.max_tilt_rad, float(np.hypot(roll, pitch)))
+        self.max_tilt_rad = max(self.max_tilt_rad,
+                                float(tilt_rad_of_quat_wxyz(state.imu_quat_wxyz)))
 
     def _station_of(self, arm: str) -> int:
         return next(s for s, a in self.mapper.config.station_arm.items() if a == arm)

@@ -1,0 +1,55 @@
+"""``hubo export RUN --rrd FILE | --mcap FILE``: a run for the Rerun viewer or Foxglove Studio."""
+
+from __future__ import annotations
+
+import click
+
+from hubo_cli.cli.output import console, print_json
+
+
+@click.command("export")
+@click.argument("run", type=click.Path(exists=True))
+@click.option("--rrd", type=click.Path(dir_okay=False), default=None, metavar="FILE.rrd",
+              help="Write a Rerun recording (open with: rerun FILE.rrd).")
+@click.option("--mcap", type=click.Path(dir_okay=False), default=None, metavar="FILE.mcap",
+              help="Write an MCAP file in Foxglove's schemas (open in Foxglove Studio).")
+@click.option("--json", "as_json", is_flag=True, help="Print what was written as JSON.")
+def export(run, rrd, mcap, as_json) -> None:
+    """Export a run folder to Rerun (.rrd) and/or Foxglove (.mcap); needs hubo-cli[viz].
+
+    The .rrd holds the URDF animated, the goal and measured tool paths, the hole and the walls
+    in 3-D, and on the same timeline the tracking error, wrist torque, capture-point margin,
+    torso pitch and status. The .mcap holds joint states and frame transforms (Foxglove schemas)
+    and the scene; add the robot's URDF as a layer in Foxglove's 3D panel.
+
+    Example: hubo export runs/<run> --rrd run.rrd --mcap run.mcap
+    """
+    from hubo_cli.errors import InputError
+    from hubo_cli.viz.scene import load_scene
+
+    if rrd is None and mcap is None:
+        raise InputError("nothing to export: give --rrd FILE.rrd and/or --mcap FILE.mcap",
+                         hint="e.g. hubo export RUN --rrd run.rrd")
+    scene = load_scene(run)
+    report: dict = {"run_dir": str(scene.run_dir), "periods": len(scene)}
+    if rrd is not None:
+        from hubo_cli.viz.rerun_export import export_rrd
+
+        result = export_rrd(scene, rrd)
+        report["rrd"] = {"path": str(result.path), "joints": result.joints,
+                         "series": result.series, "wall_s": result.wall_s}
+        if not as_json:
+            console.print(f"rrd   {result.path} ({len(scene)} periods, {result.joints} joints; "
+                          f"open with: rerun {result.path})", soft_wrap=True)
+    if mcap is not None:
+        from hubo_cli.viz.mcap_export import export_mcap
+
+        result = export_mcap(scene, mcap)
+        report["mcap"] = {"path": str(result.path), "messages": result.messages,
+                          "wall_s": result.wall_s}
+        if not as_json:
+            counts = ", ".join(f"{t} {n}" for t, n in result.messages.items())
+            console.print(f"mcap  {result.path} ({counts}; open in Foxglove Studio)",
+                          soft_wrap=True)
+    if as_json:
+        print_json(report)

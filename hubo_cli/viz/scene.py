@@ -1,0 +1,213 @@
+"""What a replay shows, read from a run folder: body poses, tool paths, walls, the hole, captions.
+
+All positions are in the world frame (m). The world pose of the torso comes from the log; where
+its position is unknown (hardware) it is estimated by standing the lower sole on the floor under
+the torso, with the logged (IMU) orientation. The measured tool path is the logged hand frame
+carried to the tool's point; the goal path is the commanded tool position (logged in the task's
+stance frame S) carried into the world by the offset between the measured tool in the world and
+in S at the first period where both are known (the way a task places its wall).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from hubo_cli.control.log import LogData, load_log
+from hubo_cli.control.status import Status
+from hubo_cli.errors import InputError
+from hubo_cli.kinematics.limb import Limb
+from hubo_cli.model import ARMS, LEGS, RobotModel, load_model
+
+ARM_SUFFIX = {"right-arm": "_r", "left-arm": "_l"}
+HAND_FRAME = {"right-arm": "right_hand", "left-arm": "left_hand"}
+
+
+def _columns(log: LogData, stem: str, suffix: str) -> np.ndarray | None:
+    names = [f"{stem}_{axis}_m{suffix}" for axis in "xyz"]
+    if not all(n in log.columns for n in names):
+        return None
+    return np.column_stack([log[n] for n in names])
+
+
+def first_column(log: LogData, names) -> np.ndarray | None:
+    """The first of ``names`` that the log has, or None."""
+    for name in names:
+        if name in log.columns:
+            return log[name]
+    return None
+
+
+@dataclass
+class RunScene:
+    """A run, ready to replay.
+
+    Attributes:
+        run_dir: the run folder.
+        log: the loaded log.
+        model: the robot model.
+        T_world_torso: torso poses (N x 4 x 4, m), estimated where the log has no position.
+        torso_estimated: True where the torso position was estimated (N,).
+        tools: arm -> tool (``drill``, ``hand``, ``none``).
+        working_arm: the arm whose tool the paths follow.
+        tool_world_m: the measured tool point per period (N x 3).
+        goal_world_m: the commanded tool point per period (N x 3), NaN where none was logged.
+        walls: walls as placed (``centre_world_m``, ``quat_wxyz``, ``size_m``).
+        hole_world_m: where the bit crossed a wall (M x 3).
+    """
+
+    run_dir: Path
+    log: LogData
+    model: RobotModel
+    T_world_torso: np.ndarray
+    torso_estimated: np.ndarray
+    tools: dict[str, str]
+    working_arm: str
+    tool_world_m: np.ndarray
+    goal_world_m: np.ndarray
+    walls: list[dict] = field(default_factory=list)
+    hole_world_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+
+    @property
+    def t_s(self) -> np.ndarray:
+        return self.log["t_s"]
+
+    def __len__(self) -> int:
+        return len(self.log)
+
+    @property
+    def drill(self) -> bool:
+        """Whether the robot holds the drill (the URDF with the drill is replayed)."""
+        return self.tools.get("right-arm") == "drill"
+
+    def index_at(self, t_s: float) -> int:
+        """The last period at or before time ``t_s``."""
+        return int(np.clip(np.searchsorted(self.t_s, t_s + 1e-9, side="right") - 1, 0,
+                           len(self) - 1))
+
+    def focus_world_m(self) -> np.ndarray:
+        """The point a camera should look at: the hole's centre, else the tool's mean path,
+        else a point in front of the torso."""
+        for points in (self.hole_world_m, self.goal_world_m, self.tool_world_m):
+            finite = points[np.all(np.isfinite(points), axis=1)] if len(points) else points
+            if len(finite):
+                return 0.5 * (finite.min(axis=0) + finite.max(axis=0))
+        return self.T_world_torso[0, :3, 3] + np.array([0.35, 0.0, -0.1])
+
+    def caption(self, k: int) -> str:
+        """One line describing period ``k``: time, step, error, wrist torque, status."""
+        log = self.log
+        parts = [f"t {log['t_s'][k]:6.2f} s"]
+        step = first_column(log, ("step_code",))
+        if step is not None and np.isfinite(step[k]):
+            parts.append(f"step {int(step[k]) + 1}")
+        suffix = ARM_SUFFIX[self.working_arm]
+        error = first_column(log, ("error_m", f"error_m{suffix}"))
+        if error is not None and np.isfinite(error[k]):
+            parts.append(f"error {error[k] * 1000:5.1f} mm")
+        torque = first_column(log, ("task_wrist_torque_nm", "wrist_torque_nm"))
+        if torque is not None and np.isfinite(torque[k]):
+            parts.append(f"wrist {torque[k]:4.2f} N m")
+        lean = np.degrees(np.arctan2(-self.T_world_torso[k, 2, 0], self.T_world_torso[k, 2, 2]))
+        parts.append(f"lean {lean:+4.1f} deg")
+        parts.append(Status(int(log["status_code"][k])).label)
+        return "   ".join(parts)
+
+
+def _tools(log: LogData) -> dict[str, str]:
+    tools = {arm: "hand" for arm in ARMS}
+    tools.update(log.metadata.get("scene", {}).get("tools", {}))
+    return tools
+
+
+def _working_arm(log: LogData, tools: dict[str, str]) -> str:
+    for arm in ARMS:
+        if tools.get(arm) == "drill":
+            return arm
+    for arm in ARMS:
+        if _columns(log, "goal", ARM_SUFFIX[arm]) is not None:
+            return arm
+    return "right-arm"
+
+
+def _estimate_torso(model: RobotModel, log: LogData, T: np.ndarray) -> np.ndarray:
+    """Fill unknown torso positions: lower sole on the floor, under the torso."""
+    unknown = ~np.all(np.isfinite(T[:, :3, 3]), axis=1)
+    if not unknown.any():
+        return unknown
+    q = log.joints("q")
+    legs = [(Limb(model, leg), model.limb_slice(leg)) for leg in LEGS]
+    for k in np.flatnonzero(unknown):
+        R = T[k, :3, :3] if np.all(np.isfinite(T[k, :3, :3])) else np.eye(3)
+        soles_z = [(R @ limb.fk(q[k, index])[:3, 3])[2] for limb, index in legs]
+        T[k, :3, :3] = R
+        T[k, :3, 3] = [0.0, 0.0, -min(soles_z)]
+    return unknown
+
+
+def _tool_world(model: RobotModel, log: LogData, T_world_torso: np.ndarray, arm: str,
+                tool: str) -> np.ndarray:
+    T_hand_tool = np.linalg.inv(model.tool_transform("hand")) @ model.tool_transform(tool)
+    frame = HAND_FRAME[arm]
+    if log.has_pose(frame):
+        T_world_hand = log.poses(frame)
+    else:
+        T_world_hand = np.full((len(log), 4, 4), np.nan)
+    # not logged (a log of the first format, or an unknown torso position): forward kinematics
+    # of the measured arm through the (estimated) torso pose
+    missing = np.flatnonzero(~np.all(np.isfinite(T_world_hand[:, :3, 3]), axis=1))
+    if len(missing):
+        limb, index = Limb(model, arm, "hand"), model.limb_slice(arm)
+        q = log.joints("q")[:, index]
+        for k in missing:
+            T_world_hand[k] = T_world_torso[k] @ limb.fk(q[k])
+    return (T_world_hand @ T_hand_tool)[:, :3, 3]
+
+
+def _goal_world(log: LogData, arm: str, tool_world_m: np.ndarray) -> np.ndarray:
+    suffix = ARM_SUFFIX[arm]
+    goal, actual = _columns(log, "goal", suffix), _columns(log, "actual", suffix)
+    if goal is None:
+        goal, actual = _columns(log, "goal", ""), _columns(log, "actual", "")
+    if goal is None or actual is None:
+        return np.full_like(tool_world_m, np.nan)
+    known = np.all(np.isfinite(np.hstack([goal, actual, tool_world_m])), axis=1)
+    if not known.any():
+        return np.full_like(tool_world_m, np.nan)
+    k = int(np.argmax(known))
+    return goal + (tool_world_m[k] - actual[k])
+
+
+def load_scene(run: str | Path, model: RobotModel | None = None) -> RunScene:
+    """Read a run folder (or its log file) into a :class:`RunScene`.
+
+    Raises:
+        InputError: no log there, or an empty one.
+    """
+    path = Path(run)
+    run_dir = path if path.is_dir() else path.parent
+    if not any((run_dir / name).exists() for name in ("log.csv", "log.parquet")):
+        raise InputError(f"{run_dir} has no period log (log.csv)",
+                         hint="give a run folder written by hubo task, teleop or push-wall")
+    log = load_log(path)
+    if len(log) == 0:
+        raise InputError(f"the log in {run_dir} has no periods", hint="replay a run that ran")
+    model = model or load_model()
+    if tuple(log.joint_names) != tuple(model.joint_names):
+        raise InputError(f"the log's joints ({len(log.joint_names)}) are not the model's",
+                         hint="replay a run of the HUBO 2+ model")
+    if log.has_pose("torso"):
+        T = log.poses("torso")
+    else:
+        T = np.tile(np.eye(4), (len(log), 1, 1))
+        T[:, :3, 3] = np.nan
+    estimated = _estimate_torso(model, log, T)
+    tools = _tools(log)
+    arm = _working_arm(log, tools)
+    tool_world = _tool_world(model, log, T, arm, tools[arm])
+    scene_meta = log.metadata.get("scene", {})
+    hole = np.asarray(scene_meta.get("hole_world_m", []), dtype=float).reshape(-1, 3)
+    return RunScene(run_dir, log, model, T, estimated, tools, arm, tool_world,
+                    _goal_world(log, arm, tool_world), list(scene_meta.get("walls", [])), hole)
