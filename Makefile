@@ -6,11 +6,27 @@ STAMP  := $(VENV)/.installed-stamp
 
 .PHONY: run test bench lint clean
 
-$(STAMP): pyproject.toml
+LOCK   := requirements.lock
+
+.PHONY: update-lock
+
+# Installs exactly the versions in $(LOCK) (the ones the test suite passed with).
+$(STAMP): pyproject.toml $(LOCK)
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test,viz]'
+	$(BIN)/python -m pip install --quiet -c $(LOCK) --upgrade pip
+	$(BIN)/python -m pip install --quiet -c $(LOCK) -e '.[test,viz]'
 	@touch $(STAMP)
+
+# Resolves the newest versions pyproject.toml allows in a scratch virtualenv and writes them
+# to $(LOCK); run `make test` afterwards and commit the lock file if it passes.
+update-lock:
+	rm -rf .lock-venv
+	$(PYTHON) -m venv .lock-venv
+	.lock-venv/bin/python -m pip install --quiet --upgrade pip
+	.lock-venv/bin/python -m pip install --quiet -e '.[test,viz]'
+	{ echo "# hubo-cli: the versions the test suite passed with (make update-lock writes it)."; \
+	  .lock-venv/bin/python -m pip freeze --all --exclude-editable; } > $(LOCK)
+	rm -rf .lock-venv
 
 run: $(STAMP)
 	$(BIN)/hubo task cut-rectangle --video
@@ -25,4 +41,4 @@ lint: $(STAMP)
 	$(BIN)/ruff check hubo_cli tests tools
 
 clean:
-	rm -rf $(VENV) build dist *.egg-info .pytest_cache runs
+	rm -rf $(VENV) .lock-venv build dist *.egg-info .pytest_cache runs

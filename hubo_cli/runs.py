@@ -1,27 +1,153 @@
-"""Run folders: every command writes ``runs/<time>-<command>/`` with its log and summary."""
+"""Run folders: every command writes ``runs/<time>-<command>/`` with its log and summary.
+
+A run folder carries a small marker file (``.hubo-run``, the command's name) so that a later
+run of the same command may reuse it (``--out`` given twice), while a folder holding anything
+else (a user's own files, another command's run) is refused: a run never writes over files it
+did not make. Output files outside run folders (``hubo record --out``, ``fastrak decode``) go
+through :func:`check_new_file`.
+"""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
+import os
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 
+from hubo_cli.errors import InputError
+
+MARKER = ".hubo-run"
+
+
+def _default_dir(command: str) -> Path:
+    stamp = time.strftime("%Y%m%d-%H%M%S", time.gmtime())
+    path = Path("runs") / f"{stamp}-{command}"
+    n = 1
+    while path.exists():
+        n += 1
+        path = Path("runs") / f"{stamp}-{command}-{n}"
+    return path
+
+
+def run_dir_owner(path: str | Path) -> str | None:
+    """The command that made the run folder ``path`` (from its marker), or None."""
+    try:
+        return (Path(path) / MARKER).read_text().strip() or None
+    except (OSError, UnicodeDecodeError):
+        return None
+
+
+def check_run_dir(command: str, out: str | Path) -> None:
+    """Refuse an ``--out`` folder a run of ``command`` must not write into (nothing is created).
+
+    Raises:
+        InputError: ``out`` (or a folder above it) is a file, or ``out`` holds files that are
+            not a previous run of the same command.
+    """
+    path = Path(out)
+    for parent in (path, *path.parents):
+        if parent.exists() and not parent.is_dir():
+            where = "" if parent == path else f" ({parent} is a file)"
+            raise InputError(f"--out {path} cannot be a run folder{where}",
+                             hint="give a folder path for the run (it is created if missing)")
+    if path.is_dir():
+        try:
+            entries = [p.name for p in path.iterdir()]
+        except OSError as exc:
+            raise InputError(f"cannot read --out {path}: {exc.strerror or exc}",
+                             hint="choose a folder you can write") from None
+        owner = run_dir_owner(path)
+        if entries and entries != [MARKER] and owner != command:
+            whose = (f"a 'hubo {owner}' run" if owner
+                     else f"files that are not a hubo run ({', '.join(sorted(entries)[:3])}"
+                          f"{', ...' if len(entries) > 3 else ''})")
+            raise InputError(f"--out {path} already holds {whose}; nothing was written",
+                             hint="choose a new or empty folder, or leave out --out "
+                                  f"(runs/<time>-{command})")
+
 
 def make_run_dir(command: str, out: str | Path | None = None) -> Path:
-    """Create and return the run folder (``out`` if given, else runs/<UTC time>-<command>)."""
-    if out is None:
-        stamp = time.strftime("%Y%m%d-%H%M%S", time.gmtime())
-        path = Path("runs") / f"{stamp}-{command}"
-        n = 1
-        while path.exists():
-            n += 1
-            path = Path("runs") / f"{stamp}-{command}-{n}"
-    else:
-        path = Path(out)
-    path.mkdir(parents=True, exist_ok=True)
+    """Create and return the run folder (``out`` if given, else runs/<UTC time>-<command>).
+
+    The folder gets its marker; a folder already marked for ``command`` is reused.
+
+    Raises:
+        InputError: ``out`` is refused (see :func:`check_run_dir`) or cannot be created or
+            written (the operating system's reason).
+    """
+    path = _default_dir(command) if out is None else Path(out)
+    check_run_dir(command, path)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        (path / MARKER).write_text(command + "\n")
+    except OSError as exc:
+        raise InputError(f"cannot create the run folder {path}: {exc.strerror or exc}",
+                         hint="choose a writable --out folder") from None
+    if not os.access(path, os.W_OK | os.X_OK):
+        raise InputError(f"the run folder {path} is not writable",
+                         hint="choose a writable --out folder")
+    return path
+
+
+@contextlib.contextmanager
+def reserved_run_dir(command: str, out: str | Path | None = None) -> Iterator[Path]:
+    """Create the run folder before any work (so a bad ``--out`` fails at once) and remove it
+    again if the command ends without writing anything into it (a refused run)."""
+    path = make_run_dir(command, out)
+    try:
+        yield path
+    finally:
+        discard_if_unused(path)
+
+
+def discard_if_unused(path: str | Path) -> bool:
+    """Remove a run folder that holds nothing but its marker (a run refused before it wrote
+    anything). Returns True if it was removed."""
+    path = Path(path)
+    try:
+        entries = [p.name for p in path.iterdir()]
+    except OSError:
+        return False
+    if entries != [MARKER]:
+        return False
+    with contextlib.suppress(OSError):
+        (path / MARKER).unlink()
+        path.rmdir()
+        return True
+    return False
+
+
+def check_new_file(path: str | Path, *, inputs: tuple[str | Path, ...] = (),
+                   force: bool = False, option: str = "--out") -> Path:
+    """Refuse to write over a user's file: ``path`` must not be one of ``inputs`` and must not
+    exist (unless ``force``); its folder must exist.
+
+    Raises:
+        InputError: what is wrong and how to fix it.
+    """
+    path = Path(path)
+    for source in inputs:
+        with contextlib.suppress(OSError):
+            if path.resolve() == Path(source).resolve():
+                raise InputError(f"{option} {path} is the input file; it would be destroyed",
+                                 hint="write the output to another file")
+    if path.is_dir():
+        raise InputError(f"{option} {path} is a folder, not a file", hint="give a file name")
+    if path.exists() and not force:
+        raise InputError(f"{option} {path} exists; nothing was written",
+                         hint="choose another name, delete the file, or add --force")
+    parent = path.parent
+    if not parent.is_dir():
+        raise InputError(f"{option} {path}: the folder {parent} does not exist",
+                         hint="create it first or choose another path")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise InputError(f"{option} {path}: the folder {parent} is not writable",
+                         hint="choose a writable path")
     return path
 
 

@@ -20,7 +20,6 @@ same way for all of them:
 
 from __future__ import annotations
 
-import contextlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -37,7 +36,7 @@ from hubo_cli.drivers.base import RunContext
 from hubo_cli.drivers.registry import driver_class, make_driver
 from hubo_cli.errors import HuboError, InputError
 from hubo_cli.model import RobotModel
-from hubo_cli.runs import make_run_dir, write_json
+from hubo_cli.runs import discard_if_unused, make_run_dir, write_json
 
 SUMMARY_NAME = "summary.json"
 SNAPSHOT_NAME = "snapshot.png"
@@ -63,6 +62,8 @@ class RunSetup:
         duration_s: loop time after which the run ends (None: until the target is done).
         q_start_rad: the start posture (None: the driver's default, the home posture).
         cutting: the wall material's cutting coefficients for the simulator (or None).
+        perturb_seed: draw the simulated robot and world from this seed
+            (:mod:`hubo_cli.perturb`; None or 0: nominal); simulators only.
     """
 
     command: str
@@ -78,6 +79,7 @@ class RunSetup:
     duration_s: float | None = None
     q_start_rad: np.ndarray | None = None
     cutting: Mapping[str, float] | None = None
+    perturb_seed: int | None = None
 
     def real_time_reason(self) -> str | None:
         """Why this run must go at wall-clock pace, or None when it need not."""
@@ -159,9 +161,13 @@ def run(setup: RunSetup, target: Target,
     run_dir = make_run_dir(setup.command, setup.out)
     try:
         cls = driver_class(setup.driver)
-        context = RunContext(run_dir, dict(setup.tools), setup.gui, setup.cutting)
+        context = RunContext(run_dir, dict(setup.tools), setup.gui, setup.cutting,
+                             setup.perturb_seed)
         options = {**setup.driver_options, **cls.run_options(context)}
         with make_driver(setup.driver, setup.model, **options) as driver:
+            if setup.perturb_seed and driver.world is None:
+                raise InputError(f"--perturb needs the simulator, not the {setup.driver} driver",
+                                 hint="leave out --perturb or --driver")
             modules = setup.safety.build(setup.model, driver.period_s, setup.tools)
             driver.start(setup.q_start_rad)
             world = driver.world
@@ -177,6 +183,9 @@ def run(setup: RunSetup, target: Target,
         _remove_if_empty(run_dir)
         raise
     summary = common_summary(setup, speed, result, modules, run_dir)
+    if world is not None:  # the simulator's draws and ground truth
+        summary["perturbation"] = world.perturbation.to_json()
+        summary["max_torso_tilt_deg"] = world.max_tilt_deg
     done = RunResult(run_dir, result, modules, summary)
     summary["max_joint_velocity_ratio"] = max_velocity_ratio(setup.model, done.log)
     write_json(run_dir / SUMMARY_NAME, summary)
@@ -184,9 +193,8 @@ def run(setup: RunSetup, target: Target,
 
 
 def _remove_if_empty(run_dir: Path) -> None:
-    """Remove the run folder again if nothing was written into it."""
-    with contextlib.suppress(OSError):
-        run_dir.rmdir()  # fails unless empty
+    """Remove the run folder again if nothing was written into it (but its marker)."""
+    discard_if_unused(run_dir)
 
 
 def common_summary(setup: RunSetup, speed: float | None, loop: LoopResult,

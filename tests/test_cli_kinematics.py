@@ -101,7 +101,7 @@ def test_batch_solves_good_rows_and_reports_bad_ones(tmp_path, rng):
     src.write_text("\n".join(lines) + "\n")
     result = CliRunner().invoke(main, ["ik", "right-arm", "--batch", str(src), "--out", str(out),
                                        "--json"])
-    assert result.exit_code == 0, result.output
+    assert result.exit_code == 2, result.output
     for line in (6, 10, 13):
         assert f"in.csv:{line}:" in result.output
     rows = out.read_text().splitlines()
@@ -115,3 +115,52 @@ def test_batch_solves_good_rows_and_reports_bad_ones(tmp_path, rng):
         assert np.allclose(limb.fk(q), T[line - 2], atol=1e-9)
     invalid = [int(r.split(",")[0]) for r in rows[1:] if "invalid" in r]
     assert invalid == [6, 10, 13]
+
+
+@pytest.mark.parametrize("text", ["-", ".", "e5", "1e", "nan", "", "-.", "+", "1.5.2", "0x10"])
+def test_batch_reports_a_field_that_is_not_a_complete_number(tmp_path, rng, text):
+    limb = get_limb("right-arm", "hand")
+    Q = limb.random_q(rng, 6)
+    src, out = tmp_path / "in.csv", tmp_path / "out.csv"
+    _write_batch(src, limb.fk_batch(Q))
+    lines = src.read_text().splitlines()
+    fields = lines[3].split(",")
+    fields[7] = text  # T13, the pose's y
+    lines[3] = ",".join(fields)
+    src.write_text("\n".join(lines) + "\n")
+    result = CliRunner().invoke(main, ["ik", "right-arm", "--batch", str(src), "--out",
+                                       str(out), "--json"])
+    assert result.exit_code == 2, result.output
+    assert "in.csv:4:" in result.output and "T13" in result.output
+    rows = [r.split(",") for r in out.read_text().splitlines()[1:]]
+    assert [r[7] for r in rows] == ["exact"] * 2 + ["invalid"] + ["exact"] * 3
+    assert rows[2][1:7] == [""] * 6  # nothing solved for it
+    for r in rows[:2] + rows[3:]:
+        assert np.allclose(limb.fk(np.array(r[1:7], float)), limb.fk(Q[int(r[0]) - 2]),
+                           atol=1e-9)
+
+
+def test_batch_reports_every_kind_of_bad_row_and_solves_the_rest(tmp_path, rng):
+    limb = get_limb("right-arm", "hand")
+    src, out = tmp_path / "in.csv", tmp_path / "out.csv"
+    _write_batch(src, limb.fk_batch(limb.random_q(rng, 3)),
+                 extra_lines=["", "1,2", ",".join(["1"] * 17), ",".join(["0.0"] * 16)])
+    result = CliRunner().invoke(main, ["ik", "right-arm", "--batch", str(src), "--out",
+                                       str(out)])
+    assert result.exit_code == 2, result.output
+    output = " ".join(result.output.split())
+    for line, why in ((5, "found 1"), (6, "found 2"), (7, "found 17"), (8, "rigid")):
+        assert f"in.csv:{line}:" in output and why in output
+    assert len(out.read_text().splitlines()) == 1 + 7
+
+
+def test_batch_refuses_to_write_over_its_input(tmp_path, rng):
+    limb = get_limb("right-arm", "hand")
+    src = tmp_path / "in.csv"
+    _write_batch(src, limb.fk_batch(limb.random_q(rng, 3)))
+    before = src.read_bytes()
+    for out in (src, tmp_path / "." / "in.csv"):
+        result = CliRunner().invoke(main, ["ik", "right-arm", "--batch", str(src), "--out",
+                                           str(out)])
+        assert result.exit_code == 2 and "input file" in result.output
+    assert src.read_bytes() == before

@@ -62,9 +62,96 @@ def test_pinocchio_fk_equals_dh_fk(pin_model, limb, frame, tool):
     assert worst_rot < 1e-9
 
 
+# Generated and committed URDFs are compared by meaning, not by their text: another CPU or numpy
+# build changes the last printed digits, and the principal axes of an inertia (np.linalg.eigh)
+# may come out with other signs while describing the same body. Lengths agree to 1 nm, angles
+# to 1 nrad, masses and inertias to 1e-9 of their size; rotations are compared as matrices and
+# inertias as the tensor they describe in the link frame.
+NUMBER_RTOL = 1e-9
+NUMBER_ATOL = 1e-9
+
+
+def _rpy_matrix(text: str | None) -> np.ndarray:
+    return pin.rpy.rpyToMatrix(*(float(v) for v in (text or "0 0 0").split()))
+
+
+def _numbers(text: str) -> np.ndarray:
+    return np.array([float(v) for v in text.split()])
+
+
+def _inertial_meaning(inertial: ET.Element) -> tuple[float, np.ndarray, np.ndarray]:
+    """(mass, centre of mass, inertia tensor about it), all in the link frame."""
+    origin = inertial.find("origin")
+    R = _rpy_matrix(None if origin is None else origin.get("rpy"))
+    com = _numbers("0 0 0" if origin is None else origin.get("xyz"))
+    i = inertial.find("inertia")
+    tensor = np.array([[float(i.get(a)) for a in row] for row in
+                       (("ixx", "ixy", "ixz"), ("ixy", "iyy", "iyz"), ("ixz", "iyz", "izz"))])
+    return float(inertial.find("mass").get("value")), com, R @ tensor @ R.T
+
+
+def _close(a, b) -> bool:
+    return np.allclose(a, b, rtol=NUMBER_RTOL, atol=NUMBER_ATOL)
+
+
+def _same_element(a: ET.Element, b: ET.Element, where: str) -> list[str]:
+    """What differs between two URDF elements and their children (empty: the same)."""
+    if a.tag != b.tag:
+        return [f"{where}: <{a.tag}> vs <{b.tag}>"]
+    where = f"{where}/{a.tag}" + (f"[{a.get('name')}]" if a.get("name") else "")
+    if a.tag == "inertial":
+        (ma, ca, ia), (mb, cb, ib) = _inertial_meaning(a), _inertial_meaning(b)
+        return [] if _close(ma, mb) and _close(ca, cb) and _close(ia, ib) else [where]
+    problems = []
+    if set(a.attrib) != set(b.attrib):
+        problems.append(f"{where}: attributes {sorted(a.attrib)} vs {sorted(b.attrib)}")
+    for key in set(a.attrib) & set(b.attrib):
+        va, vb = a.get(key), b.get(key)
+        if a.tag == "origin" and key == "rpy":
+            same = _close(_rpy_matrix(va), _rpy_matrix(vb))
+        else:
+            try:
+                same = _close(_numbers(va), _numbers(vb))
+            except ValueError:  # text, not numbers
+                same = va == vb
+        if not same:
+            problems.append(f"{where} {key}: {va!r} vs {vb!r}")
+    if len(a) != len(b):
+        return [*problems, f"{where}: {len(a)} vs {len(b)} children"]
+    for ca, cb in zip(a, b, strict=True):
+        problems += _same_element(ca, cb, where)
+    return problems
+
+
 def test_committed_urdf_is_what_the_generator_writes():
+    """Every variant (plain, drill, and the physics ones) means what the generator writes now:
+    the same elements, numbers to 1e-9, rotations as matrices, inertias as tensors."""
     for name, text in urdf_variants(MODEL).items():
-        assert (URDF_DIR / name).read_text() == text, f"{name} is stale: run tools/make_urdf.py"
+        committed = ET.parse(URDF_DIR / name).getroot()
+        problems = _same_element(committed, ET.fromstring(text), name)
+        assert not problems, f"{name} is stale (run tools/make_urdf.py): {problems[:5]}"
+
+
+def test_the_comparison_sees_a_changed_number_and_ignores_the_last_digits():
+    text = urdf_variants(MODEL)["hubo2plus.urdf"]
+    root = ET.fromstring(text)
+    joint = next(j for j in root.iter("joint") if j.get("type") == "revolute")
+    limit = joint.find("limit")
+    lower = float(limit.get("lower"))
+    limit.set("lower", repr(lower * (1 + 1e-13)))  # another CPU's last bits
+    assert not _same_element(ET.fromstring(text), root, "urdf")
+    limit.set("lower", repr(lower + 1e-6))  # a real change (1 urad)
+    assert _same_element(ET.fromstring(text), root, "urdf")
+    # the same inertia with its principal axes' signs flipped (x and y turned by a half turn)
+    inertial = next(link.find("inertial") for link in root.iter("link")
+                    if link.find("inertial/origin") is not None)
+    limit.set("lower", repr(lower))
+    origin = inertial.find("origin")
+    R = _rpy_matrix(origin.get("rpy")) @ np.diag([-1.0, -1.0, 1.0])
+    origin.set("rpy", " ".join(repr(float(v)) for v in pin.rpy.matrixToRpy(R)))
+    assert not _same_element(ET.fromstring(text), root, "urdf")
+    origin.set("xyz", " ".join(repr(float(v) + 1e-6) for v in _numbers(origin.get("xyz"))))
+    assert _same_element(ET.fromstring(text), root, "urdf")
 
 
 def test_mass_matches_the_reference_total():

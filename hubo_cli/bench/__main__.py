@@ -9,6 +9,8 @@ import time
 
 import hubo_cli.bench as bench_pkg
 
+ON_REQUEST = {"robustness"}  # slow (tens of minutes): only when named, e.g. BENCH=robustness
+
 
 def main(argv: list[str]) -> int:
     only = set(argv)
@@ -22,7 +24,7 @@ def main(argv: list[str]) -> int:
     modules = sorted(m.name for m in pkgutil.iter_modules(bench_pkg.__path__)
                      if not m.name.startswith("_"))
     for name in modules:
-        if only and name not in only:
+        if (only and name not in only) or (not only and name in ON_REQUEST):
             continue
         print(f"[{name}]", flush=True)
         t0 = time.perf_counter()

@@ -7,10 +7,12 @@ from pathlib import Path
 
 import click
 
+from hubo_cli.cli.checks import check_baud, check_seconds
 from hubo_cli.cli.output import console, err_console, interactive, print_json
 from hubo_cli.errors import InputError
 
 JSON = click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
+FORCE = click.option("--force", is_flag=True, help="Write over an existing output file.")
 
 
 def _station_rates(batch) -> dict[str, dict]:
@@ -57,25 +59,27 @@ def fastrak() -> None:
 @fastrak.command("decode")
 @click.argument("file", type=click.Path(path_type=Path))
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Pose-log CSV to write (default: FILE with the suffix .csv).")
+              help="Pose-log CSV to write (default: FILE with the suffix .csv; an existing "
+                   "file is not overwritten without --force).")
+@FORCE
 @JSON
-def decode(file: Path, out: Path | None, as_json: bool) -> None:
+def decode(file: Path, out: Path | None, force: bool, as_json: bool) -> None:
     """Turn a raw capture FILE into a pose log and report what it holds.
 
     Reports good records, bytes skipped while resynchronising and per-station rates.
     """
     from hubo_cli.fastrak.capture import MAGIC, parse_capture, read_recording_bytes, write_pose_log
+    from hubo_cli.runs import check_new_file
 
     blob = read_recording_bytes(file)
     if not blob.startswith(MAGIC) and blob[:40].lstrip().lower().startswith((b"t_s", b"#")):
         raise InputError(f"{file} is already a pose log (CSV), not a raw capture",
                          hint="replay it directly with `hubo teleop --replay FILE`")
-    cap = parse_capture(blob, str(file))
-    batch, bad = cap.decode()
     if out is None:
         out = file.with_suffix(".csv")
-    if out.resolve() == file.resolve():
-        raise InputError(f"--out {out} would overwrite the capture", hint="choose another path")
+    check_new_file(out, inputs=(file,), force=force)
+    cap = parse_capture(blob, str(file))
+    batch, bad = cap.decode()
     write_pose_log(out, batch)
     h = cap.header
     letters: dict[str, int] = {}
@@ -96,12 +100,14 @@ def decode(file: Path, out: Path | None, as_json: bool) -> None:
     if cap.truncated:
         err_console.print("[yellow]warning:[/] the capture ends inside a chunk (cut short); "
                           "decoded what is there")
+    console.print(f"wrote {out}", soft_wrap=True)
 
 
 @fastrak.command("emulate")
 @click.option("--pty", "use_pty", is_flag=True, help="Create a pseudo-terminal and print its path.")
 @click.option("--port", default=None, help="Serve on this serial device instead of a pty.")
-@click.option("--baud", type=int, default=115200, show_default=True, help="Rate for --port.")
+@click.option("--baud", type=int, default=115200, show_default=True, callback=check_baud,
+              help="Rate for --port.")
 @click.option("--from", "from_file", type=click.Path(path_type=Path), default=None,
               help="Play poses from a raw capture or pose log (looped).")
 @click.option("--stations", type=int, default=None,
@@ -119,6 +125,7 @@ def emulate(use_pty: bool, port: str | None, baud: int, from_file: Path | None,
     """
     from hubo_cli.fastrak.emulator import make_emulator
 
+    check_seconds("--duration", duration, 7 * 24 * 3600)
     if use_pty == (port is not None):
         raise InputError("choose one of --pty or --port DEV",
                          hint="--pty creates a pseudo-terminal; --port serves a real serial port")
@@ -157,7 +164,8 @@ def _parse_stations(text: str | None) -> tuple[int, ...] | None:
               help="Raw capture file to write.")
 @click.option("--duration", type=float, default=None,
               help="Seconds to record (default: until Ctrl-C).")
-@click.option("--baud", type=int, default=115200, show_default=True, help="Serial rate.")
+@click.option("--baud", type=int, default=115200, show_default=True, callback=check_baud,
+              help="Serial rate.")
 @click.option("--format", "fmt", type=click.Choice(["binary", "ascii"]), default="binary",
               show_default=True, help="Record format to configure.")
 @click.option("--list", "output_list", default="2,11,1", show_default=True,
@@ -167,15 +175,20 @@ def _parse_stations(text: str | None) -> tuple[int, ...] | None:
 @click.option("--stations", default=None, help="Stations to enable, e.g. 1,2 (default: active).")
 @click.option("--csv", "csv_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Also write a pose-log CSV.")
+@FORCE
 @JSON
 def record(port: str, out: Path, duration: float | None, baud: int, fmt: str, output_list: str,
-           units: str, stations: str | None, csv_path: Path | None, as_json: bool) -> None:
+           units: str, stations: str | None, csv_path: Path | None, force: bool,
+           as_json: bool) -> None:
     """Record a live FASTRAK to a raw capture (decode it later with `hubo fastrak decode`)."""
     from hubo_cli.fastrak.capture import samples_batch, write_pose_log
     from hubo_cli.fastrak.opener import open_source
+    from hubo_cli.runs import check_new_file
 
-    if duration is not None and duration <= 0:
-        raise InputError(f"--duration {duration:g} must be positive", hint="e.g. --duration 10")
+    check_seconds("--duration", duration, 7 * 24 * 3600)
+    check_new_file(out, force=force)
+    if csv_path is not None:
+        check_new_file(csv_path, inputs=(out,), force=force, option="--csv")
     src = open_source(port=port, baud=baud, fmt=fmt, output_list=output_list, units=units,
                       stations=_parse_stations(stations), capture=out)
     samples = []

@@ -22,6 +22,16 @@ JSON = click.option("--json", "as_json", is_flag=True, help="Print JSON instead 
 NUMBERS_OK = {"ignore_unknown_options": True}
 
 
+def _finite(option: str, values) -> None:
+    """Refuse NaN, infinity and magnitudes no joint angle or length can have."""
+    array = np.asarray(values, dtype=float)
+    if not np.all(np.isfinite(array)):
+        raise InputError(f"{option} contains NaN or infinity", hint="give finite numbers")
+    if np.any(np.abs(array) > 1e6):
+        raise InputError(f"{option} contains a number beyond 1e6 ({np.max(np.abs(array)):g})",
+                         hint="joints are radians, positions millimetres")
+
+
 def _pose_lines(T: np.ndarray) -> list[str]:
     from hubo_cli.geometry import matrix_to_rpy
 
@@ -54,6 +64,7 @@ def fk(limb: str, q: tuple[float, ...], params: str, tool: str, as_json: bool) -
     """
     from hubo_cli.kinematics import get_limb
 
+    _finite("Q1..Q6", q)
     T = get_limb(limb, tool, params).fk(np.array(q))
     if as_json:
         print_json({"limb": limb, "tool": tool, "params": params, "q_rad": q, **_pose_json(T)})
@@ -67,7 +78,11 @@ def _goal_from_options(matrix, xyz, rpy) -> np.ndarray:
     from hubo_cli.geometry import rpy_to_matrix
     from hubo_cli.kinematics.poses import is_rigid_transform, make_transform
 
+    if matrix and (xyz is not None or rpy is not None):
+        raise InputError("--matrix and --xyz/--rpy both give the goal",
+                         hint="give the goal once: --matrix (16 numbers) or --xyz [--rpy]")
     if matrix:
+        _finite("--matrix", matrix)
         T = np.array(matrix, dtype=float).reshape(4, 4)
         if not is_rigid_transform(T):
             raise InputError("--matrix is not a rigid transform",
@@ -78,6 +93,8 @@ def _goal_from_options(matrix, xyz, rpy) -> np.ndarray:
         raise InputError("no goal given", hint="use --xyz X Y Z (mm) [--rpy R P Y (deg)], "
                                                "--matrix (16 numbers), or --batch IN.csv")
     rpy = rpy or (0.0, 0.0, 0.0)
+    _finite("--xyz", xyz)
+    _finite("--rpy", rpy)
     T = make_transform(rpy_to_matrix(*np.radians(rpy)), np.array(xyz) / 1000.0)
     if not np.all(np.isfinite(T)):
         raise InputError("the goal contains NaN or infinity", hint="give finite numbers")
@@ -107,13 +124,20 @@ def ik(limb, matrix, xyz, rpy, prev, show_all, batch_in, batch_out, params, limi
     """Joints that put LIMB's end frame at a goal pose in the neck frame.
 
     Prints the chosen joints, the status (exact, capped, held, unreachable) and the residual
-    error. Exit code 0 when a solution was found (exact or capped), 5 otherwise.
+    error. Exit code 0 when a solution was found (exact or capped), 5 otherwise. With
+    --batch: every row gets a line in --out (never the input file); exit code 2 when any row
+    was invalid (each is named by line and field on stderr; the others are still solved), else 0.
 
     Example: hubo ik right-arm --xyz 484 -170 75 --rpy 0 0 0 --tool drill
     """
     from hubo_cli.kinematics import get_limb
 
     solver = get_limb(limb, tool, params, limits)
+    if batch_in and (matrix or xyz is not None or rpy is not None or prev is not None):
+        raise InputError("--batch takes its goals (and previous joints) from the CSV",
+                         hint="leave out --matrix, --xyz, --rpy and --prev with --batch")
+    if prev is not None:
+        _finite("--prev", prev)
     if batch_in:
         _batch(solver, batch_in, batch_out, as_json)
         return
@@ -166,3 +190,5 @@ def _batch(solver, batch_in: str, batch_out: str | None, as_json: bool) -> None:
         counts = ", ".join(f"{k} {v}" for k, v in report.status_counts.items() if v)
         console.print(f"{report.rows} rows -> {batch_out} in {report.seconds:.2f} s "
                       f"({rate:,.0f} rows/s): {counts}")
+    if report.invalid:
+        raise SystemExit(InputError.exit_code)  # the good rows are written; the bad are named

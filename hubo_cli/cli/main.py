@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import importlib
+import os
+import signal
 import sys
 
 import click
@@ -20,10 +22,38 @@ COMMANDS = {
     "sim": "hubo_cli.cli.sim:sim",
     "task": "hubo_cli.cli.task:task",
     "teleop": "hubo_cli.cli.teleop:teleop",
+    "sweep": "hubo_cli.cli.sweep:sweep",
     "hardware": "hubo_cli.cli.hardware:hardware",
     "replay": "hubo_cli.cli.replay:replay",
     "export": "hubo_cli.cli.export:export",
 }
+
+
+EXIT_CODES = ("Exit codes: 0 success, 1 other error or a run that did not complete, 2 bad input "
+              "or configuration, 3 device trouble, 4 refused for safety (nothing moved), "
+              "5 no IK solution, 130 interrupted (Ctrl-C or SIGTERM).")
+
+
+def _sigterm_as_interrupt(signum, frame) -> None:
+    """SIGTERM ends a run like Ctrl-C: the loop's smooth stop runs and the summary is written."""
+    raise KeyboardInterrupt
+
+
+def report_error(exc: HuboError) -> None:
+    """Print a library error on one line (plus its hint) on stderr."""
+    click.secho(f"error: {exc}", fg="red", err=True)
+    if exc.hint:
+        click.echo(f"hint: {exc.hint}", err=True)
+
+
+def with_exit_codes(command: click.Command) -> click.Command:
+    """Give a command (and a group's registered subcommands) the exit codes as its epilog."""
+    if not command.epilog:
+        command.epilog = EXIT_CODES
+    if isinstance(command, click.Group):
+        for sub in command.commands.values():
+            with_exit_codes(sub)
+    return command
 
 
 class LazyGroup(click.Group):
@@ -37,22 +67,45 @@ class LazyGroup(click.Group):
         if target is None:
             return None
         module, attr = target.split(":")
-        return getattr(importlib.import_module(module), attr)
+        return with_exit_codes(getattr(importlib.import_module(module), attr))
 
     def invoke(self, ctx: click.Context):
+        previous = signal.getsignal(signal.SIGTERM)
+        if previous is signal.SIG_DFL:
+            signal.signal(signal.SIGTERM, _sigterm_as_interrupt)
         try:
             return super().invoke(ctx)
         except HuboError as exc:
-            click.secho(f"error: {exc}", fg="red", err=True)
-            if exc.hint:
-                click.echo(f"hint: {exc.hint}", err=True)
+            report_error(exc)
             ctx.exit(exc.exit_code)
         except KeyboardInterrupt:
             click.echo("interrupted", err=True)
             ctx.exit(130)
+        except MemoryError:
+            click.secho("error: out of memory: an input asks for far more than the machine "
+                        "holds", fg="red", err=True)
+            ctx.exit(2)
+        except OSError as exc:
+            where = f" ({exc.filename})" if exc.filename else ""
+            click.secho(f"error: {exc.strerror or exc}{where}", fg="red", err=True)
+            ctx.exit(2)
+        except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
+            raise
+        except Exception as exc:  # noqa: BLE001 (a bug: say so on one line, never a traceback)
+            if os.environ.get("HUBO_DEBUG"):
+                raise
+            click.secho(f"error: internal error ({type(exc).__name__}: {exc})", fg="red",
+                        err=True)
+            click.echo("hint: please report this with the command line; HUBO_DEBUG=1 shows "
+                       "the traceback", err=True)
+            ctx.exit(1)
+        finally:
+            if previous is signal.SIG_DFL:
+                signal.signal(signal.SIGTERM, previous)
 
 
-@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]},
+             epilog=EXIT_CODES)
 @click.version_option(__version__, prog_name="hubo")
 def main() -> None:
     """Teleoperation and task execution for the HUBO 2+ humanoid.

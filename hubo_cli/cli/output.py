@@ -36,3 +36,35 @@ def warn(message: str) -> None:
 def interactive() -> bool:
     """True when stdout is a terminal (progress bars and live views are shown)."""
     return sys.stdout.isatty()
+
+
+class ProgressLines:
+    """While a run goes on, print one progress line to stderr every ``every_s`` seconds (for
+    output that is not a terminal: pipes and logs get progress too, without a live view).
+
+    Args:
+        line: returns the line to print.
+        every_s: seconds between lines.
+    """
+
+    def __init__(self, line, every_s: float = 2.0) -> None:
+        import threading
+
+        self.line = line
+        self.every_s = every_s
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="progress-lines", daemon=True)
+
+    def _run(self) -> None:
+        while not self._stop.wait(self.every_s):
+            click.echo(self.line(), err=True)
+
+    def start(self) -> None:
+        """Start printing."""
+        self._thread.start()
+
+    def stop(self) -> None:
+        """Stop printing (idempotent)."""
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=1.0)

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import json
+
 import click
 
+from hubo_cli.cli.options import perturb_option
 from hubo_cli.cli.output import NO_ESTOP_HELP, console, print_json
 
 
@@ -12,29 +15,41 @@ from hubo_cli.cli.output import NO_ESTOP_HELP, console, print_json
               help="Simulated time to stand (s).")
 @click.option("--push", type=float, default=0.0, show_default=True,
               help="Push the torso forward with this force (N) for 0.2 s, 1 s into the run.")
-@click.option("--no-balance", is_flag=True, help="Turn the ankle balancer (eq. 11-12) off.")
+@click.option("--balance", "balance_mode", type=click.Choice(["default", "paper", "off"]),
+              default="default", show_default=True,
+              help="Ankle balancer: common + differential damping, eq. 11-12 as published, or "
+                   "none.")
+@click.option("--no-balance", is_flag=True, help="The same as --balance off.")
 @click.option("--no-estop", is_flag=True, help=NO_ESTOP_HELP)
 @click.option("--gui", is_flag=True, help="Open the PyBullet window (runs in real time).")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
 @click.option("--out", type=click.Path(file_okay=False), default=None,
               help="Run folder (default runs/<time>-sim).")
-def sim(duration: float, push: float, no_balance: bool, no_estop: bool, gui: bool,
-        as_json: bool, out: str | None) -> None:
+@perturb_option
+def sim(duration: float, push: float, balance_mode: str, no_balance: bool, no_estop: bool,
+        gui: bool, as_json: bool, out: str | None, perturb_seed: int | None) -> None:
     """Stand the simulated HUBO 2+ in its home posture and report tilt, feet and falls.
 
     Example: hubo sim --duration 5 --push 30
     """
-    from hubo_cli.experiments.standing import stand
+    from hubo_cli.experiments.standing import check_standing_args, stand
     from hubo_cli.model import load_model
+    from hubo_cli.runs import reserved_run_dir
 
-    result = stand(load_model(), duration, push, balance=not no_balance, gui=gui, out=out,
-                   estop=not no_estop)
-    run_dir = result.run_dir
-    summary = result.summary() | {"run_dir": str(run_dir)}
+    check_standing_args(duration, push)
+    on = not no_balance and balance_mode != "off"
+    with reserved_run_dir("sim", out) as run_dir:  # a bad --out fails before anything runs
+        result = stand(load_model(), duration, push, balance=on, gui=gui, out=run_dir,
+                       estop=not no_estop, perturb_seed=perturb_seed,
+                       balance_mode=balance_mode if on else "default")
+    # the run's whole summary (as in summary.json: pipeline, e-stops, perturbation draws ...)
+    summary = json.loads((run_dir / "summary.json").read_text()) | {"run_dir": str(run_dir)}
     if as_json:
         print_json(summary)
         return
-    balance = "off" if no_balance else "on (K_r 0.009 rad/s/deg, K_c 0.0015 rad/s/N m)"
+    balance = {"default": "default (common + differential damping)",
+               "paper": "paper (eq. 11-12: K_r 0.009 rad/s/deg, K_c 0.0015 rad/s/N m)",
+               "off": "off"}["off" if no_balance else balance_mode]
     push_text = f"{push:g} N forward for 0.2 s at t = 1 s" if push > 0 else "none"
     console.print(f"stood             {result.simulated_s:.2f} s of {duration:g} s")
     console.print(f"balance           {balance}")

@@ -3,12 +3,21 @@
 from __future__ import annotations
 
 import click
+from rich.console import Group
 from rich.live import Live
 from rich.progress_bar import ProgressBar
 from rich.table import Table
 
 from hubo_cli.cli.hardware import driver_options, hardware_options
-from hubo_cli.cli.output import NO_ESTOP_HELP, console, err_console, interactive, print_json
+from hubo_cli.cli.options import perturb_option
+from hubo_cli.cli.output import (
+    NO_ESTOP_HELP,
+    ProgressLines,
+    console,
+    err_console,
+    interactive,
+    print_json,
+)
 from hubo_cli.drivers.registry import DRIVER_NAMES
 from hubo_cli.errors import HuboError, InputError, SafetyError
 
@@ -31,7 +40,9 @@ class TaskGroup(click.Group):
         from hubo_cli.tasks.spec import task_files
 
         if any(p.stem == name for p in task_files()):
-            return _shortcut(name)
+            from hubo_cli.cli.main import with_exit_codes
+
+            return with_exit_codes(_shortcut(name))
         return None
 
 
@@ -66,6 +77,7 @@ def run_options(function):
         click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON."),
         click.option("--video", is_flag=True,
                      help="After the run, render video.mp4 from its log (needs hubo-cli[viz])."),
+        perturb_option,
     ]
     function = hardware_options(function)  # listed after the others
     for option in reversed(options):
@@ -73,11 +85,29 @@ def run_options(function):
     return function
 
 
+OPTION_OF = {"width_mm": "--width", "height_mm": "--height", "speed_mm_s": "--speed",
+             "wall_distance_mm": "--wall-distance", "direction": "--direction",
+             "interpolator": "--interpolator", "estop": "--no-estop"}
+
+
 def _overrides(sets: tuple[str, ...], named: dict | None = None) -> dict:
+    """Parameter overrides from ``--set`` and the named options; both for one name is refused."""
     from hubo_cli.tasks.spec import parse_override
 
-    values = dict(parse_override(s) for s in sets)
-    values.update({k: v for k, v in (named or {}).items() if v is not None})
+    values: dict = {}
+    for text in sets:
+        name, value = parse_override(text)
+        if name in values and values[name] != value:
+            raise InputError(f"--set {name} is given twice with different values",
+                             hint="give each parameter once")
+        values[name] = value
+    for name, value in (named or {}).items():
+        if value is None:
+            continue
+        if name in values:
+            raise InputError(f"{OPTION_OF.get(name, name)} and --set {name}=... both set "
+                             f"{name}", hint="give it once")
+        values[name] = value
     return values
 
 
@@ -202,9 +232,11 @@ def _shortcut(name: str) -> click.Command:
 
 
 def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool, gui: bool,
-         out: str | None, as_json: bool, video: bool = False, **hardware) -> None:
+         out: str | None, as_json: bool, perturb_seed: int | None, video: bool = False,
+         **hardware) -> None:
     from hubo_cli.cli.replay import add_run_video, check_video_support
-    from hubo_cli.tasks.runner import check_task, run_experiment, run_task
+    from hubo_cli.runs import reserved_run_dir
+    from hubo_cli.tasks.runner import run_experiment
     from hubo_cli.tasks.spec import load_task
 
     if video:
@@ -216,36 +248,65 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
         if driver != "sim":
             raise InputError(f"the {spec.name} experiment runs on the simulated robot only",
                              hint="leave out --driver")
-        done = run_experiment(spec, out=out, gui=gui, estop=False if no_estop else None)
+        # its procedure names its own run folder (direction, e-stop) and checks --out first
+        done = run_experiment(spec, out=out, gui=gui, estop=False if no_estop else None,
+                              perturb_seed=perturb_seed)
         if video:
             add_run_video(done.run_dir, done.summary)
         _finish(ctx, done, as_json, lambda: _print_push_wall(done.summary, done.run_dir))
         return
+    with reserved_run_dir(f"task-{spec.name}", out) as run_dir:
+        _run_in(ctx, spec, run_dir, driver=driver, options=options, no_estop=no_estop,
+                gui=gui, as_json=as_json, video=video, perturb_seed=perturb_seed)
+
+
+def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, no_estop: bool,
+            gui: bool, as_json: bool, video: bool, perturb_seed: int | None) -> None:
+    from hubo_cli.cli.safety_view import SafetyPanel, read_safety
+    from hubo_cli.tasks.runner import check_task, run_task
+
+    if not interactive() and not as_json:
+        err_console.print(f"{spec.name}: pre-flight (laying out and solving every period)")
     plan = check_task(spec)
     if not plan.preflight.ok:
         _refuse(ctx, plan, as_json)
     state: dict = {}
 
     def on_start(target) -> None:
-        if interactive() and not as_json:
-            live = Live(get_renderable=lambda: _view(target), refresh_per_second=4,
+        if as_json:
+            return
+        modules = target.modules
+        panel = SafetyPanel(lambda: read_safety(modules), bell=err_console.bell,
+                            release_key=None)
+        if interactive():
+            live = Live(get_renderable=lambda: _view(target, panel), refresh_per_second=4,
                         console=err_console, transient=True)
             live.start()
             state["live"] = live
+        else:
+            state["lines"] = ProgressLines(lambda: _progress_line(target, panel))
+            state["lines"].start()
 
     try:
-        done = run_task(plan, driver=driver, out=out, gui=gui, estop=not no_estop,
-                        on_start=on_start, driver_options=options)
+        done = run_task(plan, driver=driver, out=run_dir, gui=gui, estop=not no_estop,
+                        on_start=on_start, perturb_seed=perturb_seed,
+                        driver_options=options)
     finally:
         if "live" in state:
             state["live"].stop()
+        if "lines" in state:
+            state["lines"].stop()
     if video:
+        from hubo_cli.cli.replay import add_run_video
+
         add_run_video(done.run_dir, done.summary)
     _finish(ctx, done, as_json, lambda: _print_cut(done.summary, done.run_dir))
 
 
 def _finish(ctx: click.Context, done, as_json: bool, printer) -> None:
     loop = done.loop
+    if isinstance(loop.exception, HuboError):
+        raise loop.exception
     if loop.ended in ("module-error", "target-error", "driver-error"):
         raise HuboError(f"the run stopped early: {loop.error}",
                         hint=f"the log up to the stop is in {done.run_dir / 'log.csv'}")
@@ -283,11 +344,26 @@ def _refuse(ctx: click.Context, plan, as_json: bool) -> None:
         "make the path smaller, or choose --wall-distance / the stance's centre_mm")
 
 
-def _view(target) -> Table:
-    """The live view: one progress bar per step, the safety status, error and wrist torque."""
+PHASE_WORDS = {"raise": "raising the tool", "run": "running", "settle": "settling",
+               "stopped": "[bold red]EMERGENCY STOP: reverted and holding[/]"}
+
+
+def _progress_line(target, panel) -> str:
+    """One plain line of progress (piped output): step, progress, error, safety state."""
     plan = target.plan
-    status = {"raise": "raising the tool", "run": "running", "settle": "settling",
-              "stopped": "[bold red]EMERGENCY STOP: reverted and holding[/]"}[target.phase]
+    step = plan.spec.steps[min(target.step, len(plan.spec.steps) - 1)]
+    phase = "EMERGENCY STOP" if target.phase == "stopped" else target.phase
+    return (f"{plan.spec.name}: {phase}, step {step.number}/{len(plan.spec.steps)} "
+            f"'{step.name}' {target.step_fraction(target.step):.0%}, bit error "
+            f"{target.error_m * 1000:.1f} mm, wrist {target.torque_nm:.2f} N m | "
+            f"{panel.words()}")
+
+
+def _view(target, panel) -> Group:
+    """The live view: one progress bar per step, the safety state, error and wrist torque."""
+    plan = target.plan
+    safety = panel()
+    status = PHASE_WORDS[target.phase]
     table = Table(title=f"hubo task {plan.spec.name} — {status}", title_justify="left",
                   box=None, pad_edge=False)
     table.add_column("step")
@@ -304,7 +380,7 @@ def _view(target) -> Table:
     colour = "red" if target.torque_nm > limit else "green"
     table.caption = (f"bit error {target.error_m * 1000:5.1f} mm   wrist torque "
                      f"[{colour}]{target.torque_nm:.2f}[/] / {limit:g} N m")
-    return table
+    return Group(table, safety)
 
 
 def _print_cut(summary: dict, run_dir) -> None:

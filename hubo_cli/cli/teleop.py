@@ -2,18 +2,34 @@
 
 from __future__ import annotations
 
+import math
+
 import click
 import numpy as np
+from rich.console import Group
 from rich.live import Live
 from rich.table import Table
 
+from hubo_cli.cli.checks import check_baud, check_seconds
 from hubo_cli.cli.hardware import driver_options, hardware_options
-from hubo_cli.cli.output import NO_ESTOP_HELP, console, err_console, interactive, print_json
+from hubo_cli.cli.options import perturb_option
+from hubo_cli.cli.output import (
+    NO_ESTOP_HELP,
+    ProgressLines,
+    console,
+    err_console,
+    interactive,
+    print_json,
+)
 from hubo_cli.drivers.registry import DRIVER_NAMES, driver_class
-from hubo_cli.errors import InputError
+from hubo_cli.errors import HuboError, InputError, SafetyError
 
-KEYS_HELP = "keys: space e-stop, r release, c re-centre (clutch), b change branch, q quit"
+KEYS_HELP = "keys: space e-stop, r release, c clutch, b change branch, q quit"
 DIRECTIONS = (("fwd", "back"), ("left", "right"), ("up", "down"))  # +/- x, y, z of the stance
+MOSTLY_REJECTED = 0.5  # a replay with more than this share of samples rejected has failed
+ABSURD_ERROR_MM = 100.0  # an RMS error above this means the hand never followed the operator
+EXIT_BAD_INPUT = 2
+EXIT_NOT_COMPLETED = 1
 
 
 def _speed(text: str) -> float | None:
@@ -30,15 +46,22 @@ def _speed(text: str) -> float | None:
 
 
 def _station_map(pairs: tuple[str, ...]) -> dict[int, str] | None:
-    if not pairs:
-        return None
-    out = {}
-    for pair in pairs:
-        station, _, arm = pair.partition("=")
-        if not station.isdigit() or arm not in ("right-arm", "left-arm"):
-            raise InputError(f"--map {pair!r} is not STATION=ARM",
-                             hint="e.g. --map 1=right-arm --map 2=left-arm")
-        out[int(station)] = arm
+    from hubo_cli.teleop.mapping import parse_station_map
+
+    return parse_station_map(pairs) if pairs else None
+
+
+def hand_safety(target) -> list:
+    """Per driven hand: stale input, waiting for a re-centre, reach (for the safety view)."""
+    from hubo_cli.cli.safety_view import HandSafety
+
+    out = []
+    for arm, hand in target.hands.items():
+        station = target.station_of(arm)
+        out.append(HandSafety(arm, stale=hand.stale, needs_clutch=hand.needs_clutch,
+                              calibrating=target.phase == "operate"
+                              and not target.mapper.is_calibrated(station),
+                              ik_status=hand.ik_status))
     return out
 
 
@@ -62,10 +85,13 @@ def _reach_cell(hand) -> str:
     return "ok"
 
 
-def _view(target) -> Table:
-    """The live view: per hand goal, actual, position and orientation errors, IK status, reach
-    (limit and direction of the missing part, branch changes, slowing); phase, input, latency."""
-    table = Table(title=f"hubo teleop — {target.phase}   ({KEYS_HELP})", title_justify="left")
+def _view(target, panel) -> Group:
+    """The live view: the safety state; per hand goal, actual, position and orientation errors,
+    IK status, reach (limit and direction of the missing part, branch changes, slowing); input
+    and latency."""
+    safety = panel()
+    phase = "E-STOPPED" if panel.last.estop in ("stopping", "held") else target.phase
+    table = Table(title=f"hubo teleop — {phase}   ({KEYS_HELP})", title_justify="left")
     for column in ("hand", "goal (mm)", "actual (mm)", "pos err (mm)", "rot err (deg)", "IK",
                    "reach", "input"):
         table.add_column(column)
@@ -78,18 +104,20 @@ def _view(target) -> Table:
                  if hand.goal_m is not None and hand.actual_m is not None else float("nan"))
         table.add_row(arm, mm(hand.goal_m), mm(hand.actual_m), f"{error:.1f}",
                       f"{np.degrees(hand.rotation_error_rad):.1f}", hand.ik_status,
-                      _reach_cell(hand), "[red]stale[/]" if hand.stale else "ok")
+                      _reach_cell(hand), "[red]stale[/]" if hand.stale
+                      else "[yellow]back: press c[/]" if hand.needs_clutch else "ok")
     latency = target.latencies_s[-1] * 1000 if target.latencies_s else float("nan")
     table.caption = (f"samples {target.samples_used}  rejected {target.mapper.rejected}  "
                      f"latency {latency:.1f} ms")
-    return table
+    return Group(safety, table)
 
 
 @click.command()
 @click.option("--replay", type=click.Path(dir_okay=False), default=None,
               help="Replay a raw FASTRAK capture or a pose log.")
 @click.option("--port", default=None, help="Read a live FASTRAK on this serial port.")
-@click.option("--baud", type=int, default=115200, show_default=True, help="Live port baud rate.")
+@click.option("--baud", type=int, default=115200, show_default=True, callback=check_baud,
+              help="Live port baud rate.")
 @click.option("--driver", type=click.Choice(DRIVER_NAMES), default=DRIVER_NAMES[0],
               show_default=True, help="Robot back end.")
 @click.option("--arm", "armed", is_flag=True, help="Arm the hardware driver (required by it).")
@@ -127,22 +155,32 @@ def _view(target) -> Table:
 @click.option("--video", is_flag=True,
               help="After the run, render video.mp4 from its log (needs hubo-cli[viz]).")
 @hardware_options
+@perturb_option
 def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, wall_distance,
            clutch_at, duration, reach_mode, orientation_weight, allow_branch_change, no_estop,
-           gui, out, as_json, video, **hardware) -> None:
+           gui, out, as_json, video, perturb_seed, **hardware) -> None:
     """Drive the robot's hands from an operator's FASTRAK stream.
 
     Exactly one of --replay FILE or --port DEV. The first sample of each station calibrates it:
     later motion is relative. Writes a run folder with the per-period log, summary.json and the
     commanded-vs-actual path plot.
 
+    \b
+    Keys in the live view (a terminal):
+      space   emergency stop: revert 0.5 s of motion and hold
+      r       release the emergency stop (blends back over 2.5 s)
+      c       re-centre (clutch): the hands stay, the tracker's pose becomes the new reference;
+              needed after the tracker was lost, before the hands move again
+      q, Esc  finish the run (smooth stop, summary written); Ctrl-C and SIGTERM do the same
+
+    \b
     Examples: hubo teleop --replay trajectories/drill-rectangle.fastrak --mode drill
               hubo teleop --port /dev/ttyUSB0
     """
-    from hubo_cli.cli.keys import KeyReader
-    from hubo_cli.cli.replay import add_run_video, check_video_support
+    from hubo_cli.cli.replay import check_video_support
     from hubo_cli.kinematics.arm_reach import ReachSettings
-    from hubo_cli.teleop.session import TeleopSettings, run_teleop
+    from hubo_cli.runs import reserved_run_dir
+    from hubo_cli.teleop.session import TeleopSettings
 
     if video:
         check_video_support()
@@ -156,19 +194,77 @@ def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, w
         raise InputError("--speed max is for replays on the sim or ideal drivers",
                          hint="live input, the hardware driver and --gui run in real time; "
                               "leave --speed out")
+    check_seconds("--duration", duration)
+    for t in clutch_at:
+        if not (math.isfinite(t) and t >= 0):
+            raise InputError(f"--clutch {t:g} is not a time in the replay",
+                             hint="give seconds from the replay's start, e.g. --clutch 12.5")
+    if clutch_at and port is not None:
+        raise InputError("--clutch times apply to replays", hint="live, press c to re-centre")
+    if not (math.isfinite(scale) and 0 < scale <= 10):
+        raise InputError(f"--scale {scale:g} must be in (0, 10]", hint="e.g. --scale 1")
+    if wall_distance is not None and mode != "drill":
+        raise InputError("--wall-distance applies to --mode drill", hint="add --mode drill")
+    if wall_distance is not None and not (math.isfinite(wall_distance) and wall_distance > 0):
+        raise InputError(f"--wall-distance {wall_distance:g} mm must be a positive distance",
+                         hint="e.g. --wall-distance 470 (or leave it out: the workspace map's)")
+    stations = _station_map(station_map)
     settings = TeleopSettings(
         replay=replay, port=port, driver=driver, mode=mode, speed=_speed(speed), scale=scale,
-        station_arm=_station_map(station_map),
+        station_arm=stations,
         wall_distance_m=None if wall_distance is None else wall_distance / 1000.0,
         duration_s=duration, clutch_at_s=tuple(clutch_at), out=out, gui=gui, baud=baud,
         estop=not no_estop, driver_options=driver_options(driver, armed, **hardware),
-        reach=ReachSettings.for_mode(
+        perturb_seed=perturb_seed, reach=ReachSettings.for_mode(
             mode, mode=reach_mode, allow_branch_change=allow_branch_change,
             orientation_weight_m_per_rad=orientation_weight / 1000 * 180 / np.pi))
-    state = {"live": None, "keys": None}
+    if replay is not None:
+        _check_replay_stations(replay, settings)
+    if wall_distance is not None:
+        _check_wall_reach(settings)
+    with reserved_run_dir("teleop", out) as run_dir:
+        settings.out = run_dir
+        run = _run(settings, as_json)
+    _report(run, as_json, video)
+
+
+def _check_replay_stations(replay: str, settings) -> None:
+    """Every mapped station must be in the recording (before anything moves)."""
+    from hubo_cli.fastrak.opener import open_source
+    from hubo_cli.teleop.mapping import check_stations_present
+    from hubo_cli.teleop.session import station_map
+
+    with open_source(replay=replay) as source:
+        check_stations_present(station_map(settings), source.stations, str(replay))
+
+
+def _check_wall_reach(settings) -> None:
+    """Drill mode with a given wall distance: the bit must reach the start of the cut there."""
+    from hubo_cli.teleop.session import approach_paths, prepare
+
+    _, body, mapping, scene = prepare(settings)
+    for arm, path in approach_paths(body, mapping.station_arm.values(), scene).items():
+        for T in (path.at(0.0), path.at(path.duration_s)):
+            result = body.solve({arm: T}, None, lift_m=body.lift_for({arm: T}))
+            if result.arms[arm].status != "exact":
+                raise SafetyError(
+                    f"--wall-distance {scene['wall_distance_m'] * 1000:g} mm: the drill cannot "
+                    f"reach the wall there ({arm} {result.arms[arm].status}); nothing moved",
+                    hint="leave out --wall-distance (the workspace map's best, 470 mm) or "
+                         "stay within about 400-520 mm")
+
+
+def _run(settings, as_json: bool):
+    from hubo_cli.cli.keys import KeyReader
+    from hubo_cli.cli.safety_view import SafetyPanel, read_safety
+    from hubo_cli.teleop.session import run_teleop
+
+    state: dict = {"target": None}
 
     def on_key(char: str) -> None:
         target = state["target"]
+        if target is None:
+            return
         if char == " ":
             target.keys.estop = True
         elif char == "r":
@@ -182,25 +278,47 @@ def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, w
 
     def on_ready(target) -> None:
         state["target"] = target
-        if interactive() and not as_json:
-            live = Live(get_renderable=lambda: _view(target), refresh_per_second=4,
+        modules = target.modules
+        if as_json:
+            return
+        panel = SafetyPanel(lambda: read_safety(modules, hand_safety(target)),
+                            bell=err_console.bell)
+        state["panel"] = panel
+        if interactive():
+            live = Live(get_renderable=lambda: _view(target, panel), refresh_per_second=4,
                         console=err_console)
             live.start()
             state["live"] = live
             keys = KeyReader(on_key)
             keys.__enter__()
             state["keys"] = keys
+        else:
+            lines = ProgressLines(lambda: f"teleop {target.phase}: samples "
+                                          f"{target.samples_used} | {panel.words()}")
+            lines.start()
+            state["lines"] = lines
 
     try:
-        run = run_teleop(settings, on_ready=on_ready)
+        return run_teleop(settings, on_ready=on_ready)
     finally:
-        if state["keys"] is not None:
+        if "keys" in state:
             state["keys"].__exit__(None, None, None)
-        if state["live"] is not None:
+        if "live" in state:
             state["live"].stop()
+        if "lines" in state:
+            state["lines"].stop()
+
+
+def _report(run, as_json: bool, video: bool = False) -> None:
+    """Print the summary; a run that failed in substance ends with a warning and exit 1 or 2."""
+    from hubo_cli.cli.output import warn
+
     summary = run.summary
     if video:
+        from hubo_cli.cli.replay import add_run_video
+
         add_run_video(run.run_dir, summary)
+    stops = [e for e in summary["estop_events"] if e["kind"] == "stop"]
     if as_json:
         print_json({"run_dir": str(run.run_dir), **summary})
     else:
@@ -215,13 +333,30 @@ def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, w
                               f"{r['at_limit_s']:.1f} s, largest excursion "
                               f"{r['max_excursion_mm']:.0f} mm, branch changes "
                               f"{r['branch_changes']}")
-        console.print(f"  e-stops {len(summary['estop_events'])}, statuses "
+        releases = len(summary["estop_events"]) - len(stops)
+        console.print(f"  e-stops {len(stops)} (released {releases}), statuses "
                       f"{summary['status_counts']}, max velocity "
                       f"{summary['max_joint_velocity_ratio']:.0%} of limit")
-        console.print(f"  run folder: {run.run_dir}")
+        console.print(f"  run folder: {run.run_dir}", soft_wrap=True)
         if video:
             console.print(f"  video: {summary['video']['file']}")
-        if summary["error"]:
-            err_console.print(f"[yellow]{summary['error']}[/]")
+    exception = run.loop.exception
+    if isinstance(exception, HuboError):
+        raise exception
+    if summary["error"] and not as_json:
+        err_console.print(f"[yellow]{summary['error']}[/]")
     if not run.loop.ok:
-        raise SystemExit(130 if run.loop.ended == "interrupted" else 1)
+        raise SystemExit(130 if run.loop.ended == "interrupted" else EXIT_NOT_COMPLETED)
+    used, rejected = summary["samples_used"], summary["samples_rejected"]
+    if used == 0:
+        warn("no operator input reached the robot (no sample of a mapped station was usable)")
+        raise SystemExit(EXIT_BAD_INPUT)
+    if rejected > MOSTLY_REJECTED * (used + rejected):
+        warn(f"{rejected} of {used + rejected} samples were rejected (jumps or bad values): "
+             "the errors above describe what was left, not the recording")
+        raise SystemExit(EXIT_BAD_INPUT)
+    worst = max(summary["rms_error_mm"].values(), default=0.0)
+    if worst > ABSURD_ERROR_MM:
+        warn(f"the hands missed the operator's goals by {worst:.0f} mm RMS: the robot did not "
+             "follow")
+        raise SystemExit(EXIT_NOT_COMPLETED)

@@ -86,8 +86,17 @@ def workspace_map(arm, tool, orientation, params, limits, resolution, x_range, z
     reports the distance with the widest segment (paper IV: 390 mm at 484 mm, 75 mm above the
     neck). Writes workspace.npz, summary.json and two plots into the run folder.
     """
+    from hubo_cli.runs import reserved_run_dir
+
+    with reserved_run_dir("workspace-map", out) as run:  # a bad --out fails before computing
+        _workspace_map(run, arm, tool, orientation, params, limits, resolution, x_range,
+                       z_range, no_refine, as_json)
+
+
+def _workspace_map(run, arm, tool, orientation, params, limits, resolution, x_range, z_range,
+                   no_refine, as_json) -> None:
     from hubo_cli.plots.workspace import plot_fig4, plot_widths
-    from hubo_cli.runs import make_run_dir, write_json
+    from hubo_cli.runs import write_json
     from hubo_cli.workspace import compute_map
     from hubo_cli.workspace.files import paper_points, save_npz, summary
 
@@ -109,7 +118,6 @@ def workspace_map(arm, tool, orientation, params, limits, resolution, x_range, z
                                     z_range_m=z_range and (z_range[0] / 1000.0,
                                                            z_range[1] / 1000.0)))
     seconds = time.perf_counter() - t0
-    run = make_run_dir("workspace-map", out)
     data = summary(maps, seconds)
     save_npz(maps, run / "workspace.npz")
     write_json(run / "summary.json", data)

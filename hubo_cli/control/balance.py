@@ -109,39 +109,230 @@ class AnkleBalancer(Module):
 
     def rates_rad_s(self, state: RobotState) -> dict[str, np.ndarray]:
         """Ankle (pitch, roll) velocities of eq. 11-12 for each leg (rad/s), before clipping."""
-        roll_rad, pitch_rad = state.tilt_rad()
-        tilt_deg = np.degrees([pitch_rad, roll_rad])
+        return {leg: np.array(rate) for leg, rate in self._rates(state).items()}
+
+    def _rates(self, state: RobotState) -> dict[str, tuple[float, float]]:
+        w, x, y, z = (float(v) for v in state.imu_quat_wxyz)
+        roll_deg = math.degrees(math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)))
+        pitch_deg = math.degrees(math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x)))))
         rates = {}
         for leg, sensor in FEET:
             wrench = state.ft.get(sensor)
-            m_ground = np.zeros(2) if wrench is None else np.array([wrench[4], wrench[3]])
-            m_sole_on_ground = -m_ground  # (about y, about x)
-            omega = self.k_r * tilt_deg - self.k_c * m_sole_on_ground
-            rates[leg] = np.array(self._signs[leg]) * omega
+            # moment of the sole on the ground (about y, about x): minus the ground's on the sole
+            m_y, m_x = (0.0, 0.0) if wrench is None else (-float(wrench[4]), -float(wrench[3]))
+            sign_pitch, sign_roll = self._signs[leg]
+            rates[leg] = (sign_pitch * (self.k_r * pitch_deg - self.k_c * m_y),
+                          sign_roll * (self.k_r * roll_deg - self.k_c * m_x))
         return rates
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         """Integrate the ankle velocities over one period and add the offsets to the ankles."""
         q = np.array(q_rad, dtype=float)
-        rates = self.rates_rad_s(state)
+        rates = self._rates(state)
+        lower, upper = self.model.lower_rad, self.model.upper_rad
+        max_rate, max_offset = self.max_rate_rad_s, self.max_offset_rad
         for leg, _ in FEET:
             rate = rates[leg]
-            if not np.all(np.isfinite(rate)):
-                rate = np.zeros(2)
+            if not (math.isfinite(rate[0]) and math.isfinite(rate[1])):
+                rate = (0.0, 0.0)
                 cycle.flags.add("balance-bad-sensor")
-            rate = np.clip(rate, -self.max_rate_rad_s, self.max_rate_rad_s)
-            offset = np.clip(self.offsets_rad[leg] + rate * cycle.dt_s, -self.max_offset_rad,
-                             self.max_offset_rad)
-            i_pitch, i_roll = self._index[leg]
-            for k, i in enumerate((i_pitch, i_roll)):
-                target = np.clip(q[i] + offset[k], self.model.lower_rad[i],
-                                 self.model.upper_rad[i])
-                offset[k] = target - q[i] if np.isfinite(q[i]) else offset[k]
-                q[i] = target
-            self.offsets_rad[leg] = offset
+            offset = self.offsets_rad[leg]
+            for k, i in enumerate(self._index[leg]):
+                step = max(-max_rate, min(max_rate, rate[k])) * cycle.dt_s
+                wanted = max(-max_offset, min(max_offset, float(offset[k]) + step))
+                qi = float(q[i])
+                if math.isfinite(qi):
+                    target = max(float(lower[i]), min(float(upper[i]), qi + wanted))
+                    offset[k] = target - qi
+                    q[i] = target
+                else:  # no command for this joint: it stays NaN (the next modules hold it)
+                    offset[k] = wanted
         side = self.offsets_rad
         cycle.info["balance.right_pitch_rad"] = float(side["right-leg"][0])
         cycle.info["balance.right_roll_rad"] = float(side["right-leg"][1])
         cycle.info["balance.left_pitch_rad"] = float(side["left-leg"][0])
         cycle.info["balance.left_roll_rad"] = float(side["left-leg"][1])
         return q
+
+
+# ---------------------------------------------------------------------- the default balancer
+GRAVITY_M_S2 = 9.80665
+DAMPING_NM_S_PER_RAD = 667.0     # 1 / K_c: the paper's compliance, now toward a reference
+COMMON_LEAK_S = 1.0              # hrpsys EEFM time constant of the return to the command
+CHAIN_STIFFNESS_NM_PER_RAD = 1.0e5  # between the feet, the simulated legs (issue 15's figure)
+DIFFERENTIAL_TIME_S = 0.2        # foot evening: time constant against that stiffness
+DIFFERENTIAL_LEAK_S = 2.0
+SMOOTHING_S = 0.05               # corrections follow their integrals with this time constant
+MAX_CORRECTION_ACCEL_RAD_S2 = 0.3  # half the limiter's 0.6 rad/s^2 on the ankles
+MAX_CORRECTION_RATE_RAD_S = 0.1
+BALANCE_MODES = ("default", "paper")
+
+
+class DampingBalancer(Module):
+    """The default ankle balancer: eq. 11-12 split into a common and a differential mode.
+
+    Common mode (both ankles alike, hrpsys EEFM damping form): each ankle axis turns with
+    ``(M - M_ref) / D + K_r * tilt - offset / T``, where M is the ground's moment on the two
+    soles together (about their own origins, sole axes), M_ref the moment the ground exerts
+    when the centre of pressure lies under the centre of mass of the *commanded* posture (pitch:
+    -W * x_com, W the weight; roll: 0, each foot loaded on its centre line), D the damping, tilt
+    the torso's tilt (degrees, IMU; the commanded torso is upright) and T the leak back to the
+    command. A robot that stands as commanded has nothing to correct, so it does not lean with
+    every load as the paper's pure compliance toward zero moment does.
+
+    Differential mode (between the feet, only while both carry load): each foot turns with
+    ``K_d * (M_foot - M_mean) - offset_d / T_d``, the paper's foot-evening compliance with K_d
+    set so that against the chain's stiffness k (1e5 N m/rad between the simulated feet) the
+    feet even out in ``DIFFERENTIAL_TIME_S``: K_d = 1 / (k * t). The paper's K_c = 0.0015 gives
+    1.3 control periods against that stiffness, which rocks the feet.
+
+    The sum of both modes is followed by the correction sent to the ankles through a filter
+    whose rate and acceleration stay well inside the limiter's (0.1 rad/s, 0.3 rad/s^2).
+
+    Args:
+        model: the robot model.
+        drill: the right hand holds the drill (its mass counts in the reference CoM).
+        damping_nm_s_per_rad, k_r, common_leak_s: the common mode.
+        chain_stiffness_nm_per_rad, differential_time_s, differential_leak_s: the differential
+            mode.
+        max_offset_rad: each correction is clipped to +- this (rad) and to the joint limits.
+    """
+
+    name = "balance"
+    log_columns = AnkleBalancer.log_columns
+
+    def __init__(self, model: RobotModel, drill: bool = False,
+                 damping_nm_s_per_rad: float = DAMPING_NM_S_PER_RAD,
+                 k_r: float = K_R_RAD_S_PER_DEG, common_leak_s: float = COMMON_LEAK_S,
+                 chain_stiffness_nm_per_rad: float = CHAIN_STIFFNESS_NM_PER_RAD,
+                 differential_time_s: float = DIFFERENTIAL_TIME_S,
+                 differential_leak_s: float = DIFFERENTIAL_LEAK_S,
+                 max_offset_rad: float = 0.15) -> None:
+        from hubo_cli.control.pin_robot import load_pin_robot
+        from hubo_cli.errors import ConfigError
+
+        values = (damping_nm_s_per_rad, common_leak_s, chain_stiffness_nm_per_rad,
+                  differential_time_s, differential_leak_s, max_offset_rad)
+        if not all(math.isfinite(v) and v > 0 for v in values) or not k_r >= 0:
+            raise ConfigError("balance gains, time constants and limits must be positive",
+                              hint="e.g. damping_nm_s_per_rad=667, common_leak_s=1")
+        self.model = model
+        self.damping = float(damping_nm_s_per_rad)
+        self.k_r = float(k_r)
+        self.common_leak_s = float(common_leak_s)
+        self.k_d = 1.0 / (float(chain_stiffness_nm_per_rad) * float(differential_time_s))
+        self.differential_leak_s = float(differential_leak_s)
+        self.max_offset_rad = float(max_offset_rad)
+        names = model.joint_names
+        self._index = {leg: (names.index(model.limb(leg).joints[4]),
+                             names.index(model.limb(leg).joints[5])) for leg, _ in FEET}
+        self._signs = ankle_axis_signs(model)
+        urdf = model.urdf_path()
+        if drill:
+            urdf = urdf.with_name(urdf.stem + "-drill.urdf")
+        # floating, with the torso at the origin: a fixed base would leave the torso's mass out
+        self._robot = load_pin_robot(model, floating=True, urdf_path=urdf)
+        self._data = self._robot.model.createData()
+        import pinocchio as pin
+
+        self._pin = pin
+        self._weight_n = float(pin.computeTotalMass(self._robot.model)) * GRAVITY_M_S2
+        self._sole_ids = [self._robot.frame_id(f) for f in ("right_sole", "left_sole")]
+        self._q = np.zeros(self._robot.model.nq)
+        self._last_cmd: np.ndarray | None = None
+        self._last_reference = 0.0
+        self.reset(np.zeros(len(names)), None)
+
+    def reset(self, q_rad: np.ndarray, state: RobotState | None) -> None:
+        """Start with no correction."""
+        self._common = np.zeros(2)                               # (pitch, roll), joint space
+        self._differential = {leg: np.zeros(2) for leg, _ in FEET}
+        self.offsets_rad = {leg: np.zeros(2) for leg, _ in FEET}  # what is sent
+        self._rate = {leg: np.zeros(2) for leg, _ in FEET}
+        self.reference_moment_nm = np.zeros(2)
+
+    def _reference_moment(self, q_cmd_rad: np.ndarray) -> float:
+        """Ground moment about y (N m, summed over the soles) with the centre of pressure
+        under the commanded posture's centre of mass."""
+        if self._last_cmd is not None and np.array_equal(q_cmd_rad, self._last_cmd):
+            return self._last_reference  # a held posture: nothing to recompute
+        pin = self._pin
+        q = self._robot.configuration(q_cmd_rad, None, out=self._q)
+        com = pin.centerOfMass(self._robot.model, self._data, q, False)
+        x = 0.0
+        for fid in self._sole_ids:
+            oMf = pin.updateFramePlacement(self._robot.model, self._data, fid)
+            x += float((oMf.rotation.T @ (com - oMf.translation))[0])
+        self._last_cmd, self._last_reference = q_cmd_rad.copy(), -self._weight_n * x / 2
+        return self._last_reference
+
+    def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
+        q = np.array(q_rad, dtype=float)
+        dt = cycle.dt_s
+        q_ref = np.where(np.isfinite(q), q, state.q_rad)
+        moments = {}
+        for leg, sensor in FEET:
+            wrench = state.ft.get(sensor)
+            moments[leg] = np.zeros(2) if wrench is None else np.array([wrench[4], wrench[3]])
+        if not all(np.all(np.isfinite(m)) for m in moments.values()):
+            cycle.flags.add("balance-bad-sensor")
+            moments = {leg: np.zeros(2) for leg, _ in FEET}
+        roll, pitch = state.tilt_rad()
+        tilt_deg = np.degrees([pitch, roll])
+        if not np.all(np.isfinite(tilt_deg)):
+            cycle.flags.add("balance-bad-sensor")
+            tilt_deg = np.zeros(2)
+        total = moments["right-leg"] + moments["left-leg"]
+        self.reference_moment_nm = np.array([self._reference_moment(q_ref), 0.0])
+        # common mode, in the "right leg" axis convention; each leg applies its own signs.
+        # Without the body's weight on the feet sensors (a driver without force sensing, a
+        # robot in the air) there is no moment to comply with: only the tilt term acts.
+        fz = sum(float(state.ft[s][2]) for _, s in FEET if state.ft.get(s) is not None)
+        mean = total / 2
+        moment_error = (mean - self.reference_moment_nm / 2 if fz > 0.5 * self._weight_n
+                        else np.zeros(2))
+        common_rate = (moment_error / self.damping + self.k_r * tilt_deg
+                       - self._common / self.common_leak_s)
+        self._common = self._common + common_rate * dt
+        both = state.feet_contact is None or all(state.feet_contact)
+        lower, upper = self.model.lower_rad, self.model.upper_rad
+        for leg, _ in FEET:
+            diff = self._differential[leg]
+            drive = self.k_d * (moments[leg] - mean) if both else 0.0
+            self._differential[leg] = diff + (drive - diff / self.differential_leak_s) * dt
+            signs = np.array(self._signs[leg])
+            wanted = np.clip(signs * (self._common + self._differential[leg]),
+                             -self.max_offset_rad, self.max_offset_rad)
+            # follow the wanted correction with bounded rate and acceleration
+            offset, rate = self.offsets_rad[leg], self._rate[leg]
+            rate_wanted = np.clip((wanted - offset) / SMOOTHING_S, -MAX_CORRECTION_RATE_RAD_S,
+                                  MAX_CORRECTION_RATE_RAD_S)
+            rate = rate + np.clip(rate_wanted - rate, -MAX_CORRECTION_ACCEL_RAD_S2 * dt,
+                                  MAX_CORRECTION_ACCEL_RAD_S2 * dt)
+            offset = offset + rate * dt
+            for k, i in enumerate(self._index[leg]):
+                if math.isfinite(q[i]):
+                    target = min(max(q[i] + offset[k], lower[i]), upper[i])
+                    offset[k] = target - q[i]
+                    q[i] = target
+            self.offsets_rad[leg], self._rate[leg] = offset, rate
+        side = self.offsets_rad
+        cycle.info["balance.right_pitch_rad"] = float(side["right-leg"][0])
+        cycle.info["balance.right_roll_rad"] = float(side["right-leg"][1])
+        cycle.info["balance.left_pitch_rad"] = float(side["left-leg"][0])
+        cycle.info["balance.left_roll_rad"] = float(side["left-leg"][1])
+        return q
+
+
+def make_balancer(model: RobotModel, mode: str = "default", **options) -> Module:
+    """The balancer of a mode: ``default`` (:class:`DampingBalancer`) or ``paper``
+    (:class:`AnkleBalancer`, eq. 11-12 as published)."""
+    from hubo_cli.errors import ConfigError
+
+    if mode == "paper":
+        options.pop("drill", None)
+        return AnkleBalancer(model, **options)
+    if mode == "default":
+        return DampingBalancer(model, **options)
+    raise ConfigError(f"unknown balance mode {mode!r}",
+                      hint=f"use {', '.join(BALANCE_MODES)} (or leave the module out: off)")

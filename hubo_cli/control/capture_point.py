@@ -191,6 +191,7 @@ class CapturePointMonitor(Module):
         cutoff_hz: low-pass cut-off of the CoM velocity (Hz).
         request_estop: request an emergency stop when the CP leaves the polygon.
         confirm_periods: periods in a row the CP must be outside before the flag.
+        drill: the robot holds the drill in its right hand (its mass counts in the CoM).
 
     Attributes after each update: ``com_m`` (3,), ``cp_m`` (2,), ``cp_ref_m`` (2,),
     ``outside_m`` (CP beyond the shrunk polygon, m; > 0 = flag), ``ground_z_m`` (lowest sole
@@ -207,7 +208,8 @@ class CapturePointMonitor(Module):
     def __init__(self, model: RobotModel, dt_s: float, margin_m: float = CP_MARGIN_M,
                  cutoff_hz: float = VELOCITY_CUTOFF_HZ, request_estop: bool = True,
                  corner_tolerance_m: float = CORNER_TOLERANCE_M,
-                 contact_hold_s: float = CONTACT_HOLD_S, confirm_periods: int = 3) -> None:
+                 contact_hold_s: float = CONTACT_HOLD_S, confirm_periods: int = 3,
+                 drill: bool = False) -> None:
         self.dt_s = float(dt_s)
         self.confirm_periods = max(1, int(confirm_periods))
         self._outside_periods = 0
@@ -218,7 +220,10 @@ class CapturePointMonitor(Module):
         self.request_estop = request_estop
         tau = 1.0 / (2 * math.pi * cutoff_hz)
         self.alpha = self.dt_s / (self.dt_s + tau)
-        self.robot: PinRobot = load_pin_robot(model, floating=True)
+        urdf = model.urdf_path()
+        if drill:  # the body as it is: with the drill's 0.6 kg on the right hand
+            urdf = urdf.with_name(urdf.stem + "-drill.urdf")
+        self.robot: PinRobot = load_pin_robot(model, floating=True, urdf_path=urdf)
         self.data = self.robot.model.createData()
         self._sole_ids = [self.robot.frame_id(f) for f in SOLE_FRAMES]
         self._corners = model.feet.sole_corners_m()

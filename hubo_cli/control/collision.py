@@ -12,12 +12,22 @@ against about 145 us with PyBullet's ``getClosestPoints`` in a DIRECT client, so
 used.
 
 Only the arm joints are held (hrpsys ``collision_mask``); the legs pass through so that the
-balancer keeps working. Each period the input command is checked where it would stop if it
-braked now (its position plus the jerk-limited braking distance of its velocity and
-acceleration, per joint), so the hold can start early enough to stay clear. A pair closer than
+balancer keeps working. Each period the input command is checked where it is and on its way to
+where it would stop if it braked now (its position plus the jerk-limited braking distance of its
+velocity and acceleration, per joint; sampled every 0.05 rad, so a fast motion cannot step over
+a thin part of the body), so the hold can start early enough to stay clear. A pair closer than
 ``tolerance_m`` is a collision: the arms go back to the last safe input (jerk-limited, within
 the joint limits) and hold; once the input is clear again they recover toward the live
-input, arriving no sooner than ``recover_s`` (2.5 s).
+input, arriving no sooner than ``recover_s`` (2.5 s). The way back is checked too: a straight
+joint-space path between two clear postures can pass through the body, so while recovering the
+output itself is checked on its way to where it would stop, and it holds where it is if that
+comes within ``BLOCK_M`` of the body (retrying when the input has moved, or after
+``recover_s``).
+
+Logged: ``collision_distance_m`` is the closest pair at the posture this module passes on (what
+the robot is told: the number that must never be negative), ``collision_ahead_m`` the closest
+pair of the input where it is or would stop, whichever is closer (what starts a hold; it goes
+negative while the operator's goal lies inside the body and the arms hold).
 """
 
 from __future__ import annotations
@@ -40,6 +50,12 @@ from hubo_cli.urdf import DRILL_FRAME
 
 TOLERANCE_M = 0.01   # MoveIt Servo's self-collision proximity threshold
 RECOVER_S = 2.5      # hrpsys default_recover_time
+SAMPLE_RAD = 0.05     # the way to a stopping posture is checked every this much joint travel
+MAX_SAMPLES = 8       # ... in at most this many checks (about 30 us each)
+BLOCK_M = 0.01       # while recovering, the output stopping this close to the body holds it
+CLOSING_M = 1e-4     # ... if it is closing in by more than this
+UNBLOCK_RAD = 0.05   # after the way back was blocked, retry once the input moved this far
+                     # (or after recover_s)
 
 
 def _arm_links(side: str) -> list[str]:
@@ -143,11 +159,14 @@ class CollisionDetector(Module):
         limits: override the model's limits (tests).
 
     Flags: ``collision`` while holding, ``recovering`` while going back. Info:
-    ``collision_distance_m`` (closest pair at the checked posture).
+    ``collision_distance_m`` (closest pair at the output), ``collision_ahead_m`` (closest pair
+    where the input would stop). Attributes: ``last_clearance`` (at the output),
+    ``ahead_clearance`` (where the input would stop), ``mode`` (``safe``, ``hold``,
+    ``recover``), ``events``.
     """
 
     name = "collision"
-    log_columns = ("collision_distance_m",)
+    log_columns = ("collision_distance_m", "collision_ahead_m")
 
     def __init__(self, model: RobotModel, dt_s: float, tolerance_m: float = TOLERANCE_M,
                  recover_s: float = RECOVER_S, drill: bool = False,
@@ -157,6 +176,7 @@ class CollisionDetector(Module):
         self.dt_s = float(dt_s)
         self.tolerance_m = float(tolerance_m)
         self.recover_s = float(recover_s)
+        self.block_m = BLOCK_M
         if joints is None:
             joints = model.limb("right-arm").joints + model.limb("left-arm").joints
         self.index = np.array([model.joint_names.index(j) for j in joints], dtype=int)
@@ -164,6 +184,7 @@ class CollisionDetector(Module):
         self.tracker = JointTracker(self.limits.subset(self.index), self.dt_s)
         self.events: list[SafetyEvent] = []
         self.last_clearance: Clearance | None = None
+        self.ahead_clearance: Clearance | None = None
         self._clear_state(np.zeros(self.limits.size))
 
     def _clear_state(self, q: np.ndarray) -> None:
@@ -176,6 +197,8 @@ class CollisionDetector(Module):
         self.out2 = q.copy()
         self.out3 = q.copy()
         self.t_recover_end_s = 0.0
+        self._blocked_in: np.ndarray | None = None  # input when the way back was blocked
+        self._blocked_t_s = 0.0
 
     def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
         q = np.where(np.isfinite(q_rad), q_rad, state.q_rad).astype(float)
@@ -188,6 +211,27 @@ class CollisionDetector(Module):
         a = (self.out1[i] - 2 * self.out2[i] + self.out3[i]) / dt**2
         self.tracker.reset(self.out1[i], v + 0.5 * a * dt, a)
 
+    def _hold(self, t_s: float, hold_rad: np.ndarray, pair: tuple[str, str]) -> None:
+        self._blocked_in = None
+        self._seed_tracker()
+        self.hold_rad = hold_rad[self.index].copy()
+        self.mode = "hold"
+        self.events.append(SafetyEvent(t_s, "collision", pair))
+
+    def _stopping_posture(self, q: np.ndarray, q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
+        """Where ``q`` (after q1, q2) would stop if it braked now (within the limits)."""
+        v = (q - q1) / self.dt_s
+        a = (q - 2 * q1 + q2) / self.dt_s**2
+        return self.limits.clip(q + braking_distance(v, a, self.limits))
+
+    def _closest_on_way(self, q: np.ndarray, stop: np.ndarray) -> Clearance:
+        """The closest pair along the way from ``q`` to its stopping posture ``stop`` (sampled
+        every ``SAMPLE_RAD`` of the largest joint's travel, so a thin part of the body between
+        the two is not stepped over); ``q`` itself not included."""
+        n = int(min(MAX_SAMPLES, max(1, np.ceil(np.max(np.abs(stop - q)) / SAMPLE_RAD))))
+        return min((self.checker.check(q + (stop - q) * (k / n)) for k in range(1, n + 1)),
+                   key=lambda c: c.distance_m)
+
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         q_in = np.where(np.isfinite(q_rad), q_rad, self.last_in)
         w_in = (q_in - self.last_in) / self.dt_s
@@ -195,17 +239,19 @@ class CollisionDetector(Module):
         self.last_in = q_in
         self._w_last = w_in
         ahead = self.limits.clip(q_in + braking_distance(w_in, dw_in, self.limits))
-        clearance = self.checker.check(ahead)
-        self.last_clearance = clearance
-        cycle.info["collision_distance_m"] = clearance.distance_m
+        at_input = self.checker.check(q_in)
+        clearance = min(self._closest_on_way(q_in, ahead), at_input, key=lambda c: c.distance_m)
+        self.ahead_clearance = clearance
+        cycle.info["collision_ahead_m"] = clearance.distance_m
         colliding = clearance.distance_m <= self.tolerance_m
         i = self.index
         if colliding and self.mode != "hold":
-            self._seed_tracker()
-            self.hold_rad = (self.safe_rad if self.mode == "safe" else self.out1)[i].copy()
-            self.mode = "hold"
-            self.events.append(SafetyEvent(cycle.t_s, "collision", clearance.pair))
-        elif not colliding and self.mode == "hold":
+            self._hold(cycle.t_s, self.safe_rad if self.mode == "safe" else self.out1,
+                       clearance.pair)
+        elif not colliding and self.mode == "hold" and (
+                self._blocked_in is None
+                or np.max(np.abs(q_in[i] - self._blocked_in)) > UNBLOCK_RAD
+                or cycle.t_s - self._blocked_t_s >= self.recover_s):
             self.mode = "recover"
             self.t_recover_end_s = cycle.t_s + self.recover_s
 
@@ -221,10 +267,24 @@ class CollisionDetector(Module):
                                      target_v_rad_s=w_in[i])
             out[i] = sub
             cycle.flags.add("recovering")
-            if (remaining <= 0 and np.max(np.abs(sub - q_in[i])) < 1e-6
+            back = self._closest_on_way(out, self._stopping_posture(out, self.out1, self.out2))
+            now_m = np.inf if self.last_clearance is None else self.last_clearance.distance_m
+            if back.distance_m <= self.block_m and back.distance_m < now_m - CLOSING_M:
+                # the way back runs into the body: hold where it is
+                self._hold(cycle.t_s, self.out1, back.pair)
+                self._blocked_in = q_in[i].copy()
+                self._blocked_t_s = cycle.t_s
+                out = np.array(q_in, dtype=float)
+                out[i] = self.tracker.track(self.hold_rad)
+                cycle.flags.discard("recovering")
+                cycle.flags.add("collision")
+            elif (remaining <= 0 and np.max(np.abs(sub - q_in[i])) < 1e-6
                     and np.max(np.abs(self.tracker.v - w_in[i])) < 1e-3):
                 out = np.array(q_in, dtype=float)
                 self.mode = "safe"
                 self.safe_rad = q_in
+        self.last_clearance = (at_input if np.array_equal(out, q_in)
+                               else self.checker.check(out))
+        cycle.info["collision_distance_m"] = self.last_clearance.distance_m
         self.out3, self.out2, self.out1 = self.out2, self.out1, out
         return out

@@ -41,7 +41,7 @@ from hubo_cli.control.otg import JointTracker
 from hubo_cli.control.status import Status, status_from_flags
 from hubo_cli.control.target import Target, TargetOutput, as_target
 from hubo_cli.drivers.base import Driver
-from hubo_cli.errors import ConfigError
+from hubo_cli.errors import ConfigError, HuboError
 from hubo_cli.state import RobotState
 
 TargetSource = Target | Callable[[float, RobotState], TargetOutput]
@@ -228,7 +228,9 @@ class ControlLoop:
                         q = m.update(q, state, cycle)
                 except Exception as err:  # noqa: BLE001 (any failure ends in a smooth stop)
                     ended = f"{stage}-error"
-                    error = f"{type(err).__name__} in {stage}: {err}"
+                    # a library error is already a message for the user; anything else is a bug
+                    error = str(err) if isinstance(err, HuboError) else (
+                        f"{type(err).__name__} in {stage}: {err}")
                     exc = err
                     break
                 if not np.all(np.isfinite(q)):

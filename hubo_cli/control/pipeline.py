@@ -21,6 +21,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 
+from hubo_cli.control.balance import BALANCE_MODES
 from hubo_cli.control.estop import SOFT_SOURCES
 from hubo_cli.control.module import Module
 from hubo_cli.errors import ConfigError
@@ -55,8 +56,10 @@ def _hard_estop(model, dt_s, **options):
 
 
 def _balance(model, dt_s, **options):
-    from hubo_cli.control.balance import AnkleBalancer
-    return AnkleBalancer(model, **options)  # it takes the period from each Cycle
+    from hubo_cli.control.balance import make_balancer
+    # mode "default" (common + differential damping) or "paper" (eq. 11-12 as published);
+    # it takes the period from each Cycle
+    return make_balancer(model, **options)
 
 
 def _collision(model, dt_s, **options):
@@ -145,7 +148,9 @@ class SafetyProfile:
         revert_s, stop_s: eq. 15's T1 and T2 (s).
         wrist_torque_limit_nm: the wrist-torque stop's limit (N m; None = the model's).
         interpolator: ``otg`` (ruckig) or ``hoff-arbib`` (eq. 1).
-        balance: run the ankle balancer (eq. 11-12).
+        balance: run the ankle balancer.
+        balance_mode: ``default`` (common + differential damping) or ``paper`` (eq. 11-12 as
+            published); see :func:`hubo_cli.control.balance.make_balancer`.
     """
 
     estop: bool = True
@@ -155,8 +160,12 @@ class SafetyProfile:
     wrist_torque_limit_nm: float | None = None
     interpolator: str = "otg"
     balance: bool = True
+    balance_mode: str = "default"
 
     def __post_init__(self) -> None:
+        if self.balance_mode not in BALANCE_MODES:
+            raise ConfigError(f"unknown balance mode {self.balance_mode!r}",
+                              hint=f"use {', '.join(BALANCE_MODES)} (or balance off)")
         unknown = set(self.sources) - set(SOFT_SOURCES)
         if unknown:
             raise ConfigError(f"unknown emergency-stop source {sorted(unknown)[0]!r}",
@@ -173,12 +182,14 @@ class SafetyProfile:
 
     def options(self, tools: Mapping[str, str]) -> dict[str, dict]:
         """Per-module options for a robot holding ``tools`` (arm -> tool)."""
+        drill = tools.get("right-arm") == "drill"
         return {
             "estop": {"sources": tuple(self.sources), "revert_s": self.revert_s,
                       "stop_s": self.stop_s,
                       "wrist_torque_limit_nm": self.wrist_torque_limit_nm},
-            "capture-point": {"request_estop": self.estop},
-            "collision": {"drill": tools.get("right-arm") == "drill"},
+            "capture-point": {"request_estop": self.estop, "drill": drill},
+            "collision": {"drill": drill},
+            "balance": {"mode": self.balance_mode, "drill": drill},
         }
 
     def build(self, model: RobotModel, dt_s: float, tools: Mapping[str, str]) -> list[Module]:

@@ -25,6 +25,7 @@ import numpy as np
 
 from hubo_cli.errors import ConfigError
 from hubo_cli.model import RobotModel
+from hubo_cli.perturb import Perturbation
 from hubo_cli.state import RobotState
 
 
@@ -38,12 +39,14 @@ class RunContext:
         gui: the user asked for a window.
         cutting: the wall material's cutting coefficients (``coulomb_n``,
             ``viscous_n_s_per_m``), where the scene has one.
+        perturb_seed: the seed of a perturbed simulated robot and world (None: nominal).
     """
 
     run_dir: Path
     tools: Mapping[str, str]
     gui: bool = False
     cutting: Mapping[str, float] | None = None
+    perturb_seed: int | None = None
 
 
 class SimulatedWorld(ABC):
@@ -75,6 +78,16 @@ class SimulatedWorld(ABC):
         """What has been placed, for the run's log metadata (JSON-able): ``walls`` (each
         ``centre_world_m``, ``quat_wxyz``, ``size_m``), ``tools`` (arm -> tool) and
         ``hole_world_m`` / ``hole_t_s`` (where and when a drill bit crossed a wall)."""
+
+    @property
+    @abstractmethod
+    def perturbation(self) -> Perturbation:
+        """How the simulated robot and world differ from the nominal ones (the draws)."""
+
+    @property
+    @abstractmethod
+    def max_tilt_deg(self) -> float:
+        """The largest true torso tilt from upright since the start (deg)."""
 
     @property
     @abstractmethod

@@ -1,17 +1,29 @@
 """The simulated HUBO 2+ in PyBullet (driver name ``sim``, the default).
 
 World
-    A floor (plane z = 0, friction 1.0) with gravity; the URDF robot (fixed links merged) stands
+    A floor (plane z = 0, friction 1.0) with gravity; the URDF robot (its physics variant, fixed
+    links folded into their moving parents by the generator) stands
     on it with both soles flat in the start posture (``home_posture`` unless given). The world
     frame is the neck frame N at start dropped onto the floor: x forward, y left, z up, origin
     on the floor under the neck. Before time 0 the robot settles for ``settle_s`` holding the
     start posture, so the first state already carries its weight on both feet.
 
 Physics and control
-    1 kHz physics (``physics_dt_s``), five steps per 5 ms control period, ``solver_iterations``
-    (20) constraint-solver iterations: cheaper than PyBullet's default 50 with a joint tracking
-    error still below 2e-4 rad when standing. Joints are in position control (PyBullet motors:
-    ``position_gain``, ``velocity_gain``) with the URDF's effort limits as torque limits (tens of
+    400 Hz physics (``physics_dt_s`` 2.5 ms), two steps per 5 ms control period, 30
+    constraint-solver iterations per step (``solver_iterations``). The physics step is what a
+    period costs (docs/profile.md); these settings keep the standing, push and cutting motion of
+    the former 1 kHz ones (``LEGACY_PHYSICS``, still selectable) within the limits that
+    tests/test_sim_credibility.py checks. Joints are in position control (PyBullet motors:
+    ``position_gain``, ``velocity_gain``): a motor removes the fraction ``position_gain`` of its
+    position error per physics step, so the gain is set per step size to keep the servo's time
+    constant (0.3 per 1 ms step = 0.59 per 2.5 ms step, see :func:`position_gain_for`).
+    The soles are compliant (``sole_stiffness_n_m`` 1e6 N/m, ``sole_damping_n_s_m`` 1e4 N s/m per
+    contact point, as rubber pads; the body sinks 0.06 mm): on rigid soles the closed chain
+    through both legs leaves the split of the feet's horizontal forces to the solver's
+    iteration history (24 N on one foot and 5 N on the other at 400 Hz, 6 and 4 N at 1 kHz,
+    0.1 s after start); compliant soles make it a matter of physics (2.3 and 2.4 N at either
+    rate). ``sole_stiffness_n_m=None`` gives rigid soles.
+    The URDF's effort limits are the torque limits (tens of
     N m in the arms, 10 N m in the wrists, 100-200 N m in the legs); each motor's speed is capped
     at ``max_speed_factor`` (3) times the model's velocity limit, as a real motor's top speed
     (a jump in the command is followed fast and hard, as on the robot, but not in one step).
@@ -23,7 +35,10 @@ Sensors (:class:`~hubo_cli.drivers.base.RobotState`)
     origin in sole axes, and to the hand with its tool (contacts plus the drilling force) about
     the hand frame origin in hand axes. So a wrist reading is that of a sensor zeroed with the
     tool attached; standing, an ankle reads fz = + its share of the weight. Joint torques are the
-    motors' applied torques. Feet contacts: a foot touches anything with a positive normal force.
+    motors' applied torques. Feet contacts: a foot is in contact while its ankle's F_z, low-passed
+    at ``CONTACT_CUTOFF_HZ`` (5 Hz), exceeds ``CONTACT_THRESHOLD_N`` (25 N), as hrpsys decides
+    it: a foot that only brushes the floor (a rocking sole touching with a few newtons) does not
+    count as support.
 
 Drilling (:class:`CuttingModel`)
     With the drill on the right hand (``drill=True``) and a wall in the scene (:meth:`add_wall`),
@@ -47,6 +62,7 @@ import contextlib
 import math
 import os
 import sys
+import tempfile
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -61,12 +77,18 @@ from hubo_cli.geometry import matrix_to_quat_wxyz, quat_xyzw_to_matrix
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.kinematics.poses import make_transform
 from hubo_cli.model import RobotModel
+from hubo_cli.perturb import FOOT_LINKS, CommandDelay, Perturbation
+from hubo_cli.perturb import draw as draw_perturbation
 from hubo_cli.posture import home_posture
 from hubo_cli.state import FT_SENSORS, RobotState
-from hubo_cli.urdf import DRILL_FRAME, link_frames
+from hubo_cli.urdf import DRILL_FRAME, PHYSICS_DRILL_URDF, PHYSICS_URDF, link_frames
 
+CONTACT_THRESHOLD_N = 25.0  # hrpsys contact_decision_threshold
+CONTACT_CUTOFF_HZ = 5.0     # low-pass of the ankles' F_z before the threshold
 HAND_FRAMES = {"right-wrist": ("RWP_link", "right_hand"), "left-wrist": ("LWP_link", "left_hand")}
 SOLE_FRAMES = {"right-ankle": ("RAR_link", "right_sole"), "left-ankle": ("LAR_link", "left_sole")}
+SENSOR_FRAMES = HAND_FRAMES | SOLE_FRAMES
+SENSOR_LINKS = ("RWP_link", "LWP_link", "RAR_link", "LAR_link")
 FRAME_PARENTS = {"right_hand": "RWP_link", "left_hand": "LWP_link", "right_sole": "RAR_link",
                  "left_sole": "LAR_link", DRILL_FRAME: "RWP_link"}
 
@@ -172,20 +194,60 @@ class _Push:
     until_s: float
 
 
+# ---- physics settings (docs/profile.md) -------------------------------------------------
+LEGACY_PHYSICS_DT_S = 0.001    # the former settings: 1 kHz, 5 steps per period
+LEGACY_POSITION_GAIN = 0.3     # fraction of a motor's position error removed per 1 ms step
+FAST_PHYSICS_DT_S = 0.0025     # the default: 400 Hz, 2 steps per period
+
+
+def position_gain_for(physics_dt_s: float) -> float:
+    """The motor position gain that closes a joint's error as fast (per second) at step
+    ``physics_dt_s`` as 0.3 per 1 ms step does: 1 - 0.7 ** (dt / 1 ms)."""
+    steps = physics_dt_s / LEGACY_PHYSICS_DT_S
+    return 1.0 - (1.0 - LEGACY_POSITION_GAIN) ** steps
+
+
+# SimOptions values: the former 1 kHz physics (for comparisons: ``SimDriver(model,
+# **LEGACY_PHYSICS)``) and the default. 30 iterations per 2.5 ms step (60 per period, the former
+# 100; each costs about 6 us): with 20 the standing lean moves 0.1 deg away from the former
+# physics' within 2 s, with 30 0.08 deg (docs/profile.md).
+LEGACY_PHYSICS = {"physics_dt_s": LEGACY_PHYSICS_DT_S, "solver_iterations": 20,
+                  "position_gain": LEGACY_POSITION_GAIN, "sole_stiffness_n_m": None}
+FAST_PHYSICS = {"physics_dt_s": FAST_PHYSICS_DT_S, "solver_iterations": 30,
+                "position_gain": position_gain_for(FAST_PHYSICS_DT_S),
+                "sole_stiffness_n_m": 1.0e6, "sole_damping_n_s_m": 1.0e4}
+
+
 @dataclass
 class SimOptions:
-    """Tunable settings of the simulation (SI units)."""
+    """Tunable settings of the simulation (SI units). The physics defaults are ``FAST_PHYSICS``;
+    ``LEGACY_PHYSICS`` holds the former 1 kHz ones."""
 
     gui: bool = False
     drill: bool = False
-    physics_dt_s: float = 0.001
-    solver_iterations: int = 20
-    position_gain: float = 0.3
+    physics_dt_s: float = FAST_PHYSICS["physics_dt_s"]
+    solver_iterations: int = FAST_PHYSICS["solver_iterations"]
+    position_gain: float = FAST_PHYSICS["position_gain"]
+    sole_stiffness_n_m: float | None = FAST_PHYSICS["sole_stiffness_n_m"]
+    sole_damping_n_s_m: float = FAST_PHYSICS["sole_damping_n_s_m"]
     velocity_gain: float = 1.0
     friction: float = 1.0
     settle_s: float = 0.3
     max_speed_factor: float = 3.0
     cutting: CuttingModel = field(default_factory=CuttingModel)
+    perturb_seed: int | None = None  # hubo_cli.perturb: None or 0 = the nominal robot and world
+
+
+@contextlib.contextmanager
+def _urdf_file(path: Path, text: str):
+    """``path`` itself when ``text`` is None, else a temporary file holding ``text``."""
+    if text is None:
+        yield path
+        return
+    with tempfile.TemporaryDirectory(prefix="hubo-urdf-") as folder:
+        copy = Path(folder) / path.name
+        copy.write_text(text)
+        yield copy
 
 
 def _pose(position, quat_xyzw) -> np.ndarray:
@@ -214,6 +276,8 @@ class SimDriver(Driver, SimulatedWorld):
         options = {"gui": run.gui, "drill": run.tools.get("right-arm") == "drill"}
         if run.cutting is not None:
             options["cutting"] = dict(run.cutting)
+        if run.perturb_seed:
+            options["perturb_seed"] = run.perturb_seed
         return options
 
     def __init__(self, model: RobotModel, **options) -> None:
@@ -225,6 +289,10 @@ class SimDriver(Driver, SimulatedWorld):
         if isinstance(options.get("cutting"), Mapping):
             options["cutting"] = CuttingModel(**options["cutting"])
         self.options = SimOptions(**options)
+        if self.options.sole_stiffness_n_m is not None and not (
+                self.options.sole_stiffness_n_m > 0 and self.options.sole_damping_n_s_m >= 0):
+            raise ConfigError("sole stiffness must be > 0 N/m and damping >= 0 N s/m",
+                              hint="or sole_stiffness_n_m=None for rigid soles")
         substeps = self.period_s / self.options.physics_dt_s
         if abs(substeps - round(substeps)) > 1e-9 or round(substeps) < 1:
             raise ConfigError(f"physics_dt_s {self.options.physics_dt_s} does not divide the "
@@ -246,6 +314,14 @@ class SimDriver(Driver, SimulatedWorld):
         self._cutting_point = np.zeros(3)
         self._cut_points: list[tuple] = []  # (time s, where the bit crossed a wall), per period
         self._physics_wall_s = 0.0
+        self._perturbation = Perturbation()  # drawn from perturb_seed when the world is built
+        self._noise = self._perturbation.noise()
+        self._max_tilt_deg = 0.0
+        self._delay: CommandDelay | None = None
+        self._physics_step = 0
+        tau = 1.0 / (2.0 * math.pi * CONTACT_CUTOFF_HZ)
+        self._contact_alpha = self.period_s / (self.period_s + tau)
+        self._fz_filtered_n: list[float | None] = [None, None]
         frames = link_frames(model)
         self._T_link_frame = {child: origin for (_, kind, parent, child, origin, _)
                               in frames.joints if kind == "fixed" and child in FRAME_PARENTS}
@@ -281,14 +357,16 @@ class SimDriver(Driver, SimulatedWorld):
         self._floor = p.createMultiBody(0, plane, floor_visual, physicsClientId=cid)
         p.changeDynamics(self._floor, -1, lateralFriction=self.options.friction,
                          physicsClientId=cid)
-        urdf = self.model.urdf_path()
-        if self.options.drill:
-            urdf = urdf.with_name(urdf.stem + "-drill.urdf")
+        # the physics variant: no fixed links (PyBullet's merge of fixed links misplaces the
+        # centre of mass, see hubo_cli.urdf.folded_inertials), the same bodies otherwise
+        urdf = self.model.urdf_path().with_name(PHYSICS_DRILL_URDF if self.options.drill
+                                                else PHYSICS_URDF)
+        urdf_text = self._perturb_world(urdf.read_text())
         sole = Limb(self.model, "right-leg").fk(q0[self.model.limb_slice("right-leg")])
         self.neck_height_m = float(-sole[2, 3])
-        flags = p.URDF_USE_INERTIA_FROM_FILE | p.URDF_MERGE_FIXED_LINKS
-        with quiet_native_output():
-            self._robot = p.loadURDF(str(urdf), basePosition=[0, 0, self.neck_height_m],
+        flags = p.URDF_USE_INERTIA_FROM_FILE
+        with quiet_native_output(), _urdf_file(urdf, urdf_text) as path:
+            self._robot = p.loadURDF(str(path), basePosition=[0, 0, self.neck_height_m],
                                      flags=flags, physicsClientId=cid)
         joints, self._links = {}, {}
         for i in range(p.getNumJoints(self._robot, physicsClientId=cid)):
@@ -296,6 +374,7 @@ class SimDriver(Driver, SimulatedWorld):
             joints[info[1].decode()] = i
             self._links[info[12].decode()] = i
         self._idx = [joints[n] for n in self.joint_names]
+        self._sensor_link_ids = [self._links[n] for n in SENSOR_LINKS]
         self._effort = [p.getJointInfo(self._robot, j, physicsClientId=cid)[10]
                         for j in self._idx]
         top_speed = self.options.max_speed_factor * self.model.velocity_rad_s
@@ -306,6 +385,17 @@ class SimDriver(Driver, SimulatedWorld):
         for link in [-1, *self._links.values()]:
             p.changeDynamics(self._robot, link, lateralFriction=self.options.friction,
                              physicsClientId=cid)
+        if self.options.sole_stiffness_n_m is not None:  # compliant soles (rubber pads)
+            for link in FOOT_LINKS:
+                p.changeDynamics(self._robot, self._links[link],
+                                 contactStiffness=self.options.sole_stiffness_n_m,
+                                 contactDamping=self.options.sole_damping_n_s_m,
+                                 physicsClientId=cid)
+        if self.perturbation.foot_friction is not None:
+            for link in FOOT_LINKS:
+                p.changeDynamics(self._robot, self._links[link],
+                                 lateralFriction=self.perturbation.foot_friction,
+                                 physicsClientId=cid)
         # base = torso link; PyBullet poses the base by its centre of mass
         info = p.getDynamicsInfo(self._robot, -1, physicsClientId=cid)
         self._T_com_torso = np.linalg.inv(_pose(info[3], info[4]))
@@ -317,9 +407,13 @@ class SimDriver(Driver, SimulatedWorld):
         p, cid = self._p, self._cid
         T_world_com = np.eye(4)
         T_world_com[2, 3] = self.neck_height_m
-        T_world_com = T_world_com @ np.linalg.inv(self._T_com_torso)
+        # standing on the (perturbed) floor with both soles flat on it; the base is posed by
+        # its inertial axes
+        T_world_com = self.perturbation.T_world_floor() @ T_world_com @ np.linalg.inv(
+            self._T_com_torso)
+        w, x, y, z = matrix_to_quat_wxyz(T_world_com[:3, :3])
         p.resetBasePositionAndOrientation(self._robot, T_world_com[:3, 3].tolist(),
-                                          [0, 0, 0, 1], physicsClientId=cid)
+                                          [x, y, z, w], physicsClientId=cid)
         for j, q in zip(self._idx, q0, strict=True):
             p.resetJointState(self._robot, j, float(q), 0.0, physicsClientId=cid)
         self._cmd = np.array(q0, dtype=float)
@@ -327,10 +421,27 @@ class SimDriver(Driver, SimulatedWorld):
         for _ in range(int(round(self.options.settle_s / self.options.physics_dt_s))):
             p.stepSimulation(physicsClientId=cid)
 
-    def _apply_command(self) -> None:
+    def _perturb_world(self, urdf_text: str) -> str | None:
+        """Draw the perturbation (:mod:`hubo_cli.perturb`), tilt the floor, restart the noise
+        and the command delay; returns the URDF text to load (None: the file as it is)."""
+        self._perturbation = draw_perturbation(self.options.perturb_seed, urdf_text,
+                                               self.options.physics_dt_s)
+        self._p.resetBasePositionAndOrientation(self._floor, [0, 0, 0],
+                                                self.perturbation.floor_quat_xyzw(),
+                                                physicsClientId=self._cid)
+        self._noise = self.perturbation.noise()
+        steps = self.perturbation.delay_steps(self.options.physics_dt_s)
+        self._delay = CommandDelay(steps) if steps else None
+        self._physics_step = 0
+        self._max_tilt_deg = 0.0
+        return None if self.perturbation.nominal else self.perturbation.urdf_text(urdf_text)
+
+    def _apply_command(self, q_cmd_rad: np.ndarray | None = None) -> None:
+        """Send ``q_cmd_rad`` (default: the last command) to the motors now."""
         n = len(self._idx)
+        q = self._cmd if q_cmd_rad is None else q_cmd_rad
         self._p.setJointMotorControlArray(
-            self._robot, self._idx, self._p.POSITION_CONTROL, targetPositions=self._cmd.tolist(),
+            self._robot, self._idx, self._p.POSITION_CONTROL, targetPositions=q.tolist(),
             forces=self._effort, positionGains=[self.options.position_gain] * n,
             velocityGains=[self.options.velocity_gain] * n, physicsClientId=self._cid)
 
@@ -350,6 +461,7 @@ class SimDriver(Driver, SimulatedWorld):
         self._pushes = []
         self._stopped = False
         self._t = 0.0
+        self._fz_filtered_n = [None, None]
         self._build_world(q0)
         self._state = self._measure()
         return self._state
@@ -370,7 +482,10 @@ class SimDriver(Driver, SimulatedWorld):
         q, flags, _ = checks.sanitize_command(self.model, self._cmd, q)
         self._flags += flags
         self._cmd = q
-        self._apply_command()
+        if self._delay is None:
+            self._apply_command()
+        else:
+            self._delay.push(self._physics_step, q)
         return self._cmd.copy()
 
     def step(self) -> RobotState:
@@ -379,8 +494,11 @@ class SimDriver(Driver, SimulatedWorld):
         p, cid = self._p, self._cid
         t0 = time.perf_counter()
         for k in range(self.substeps):
+            if self._delay is not None and (q := self._delay.due(self._physics_step)) is not None:
+                self._apply_command(q)
             self._apply_external_forces(self._t + k * self.options.physics_dt_s)
             p.stepSimulation(physicsClientId=cid)
+            self._physics_step += 1
         self._physics_wall_s += time.perf_counter() - t0
         self._t += self.period_s
         self._state = self._measure()
@@ -394,6 +512,8 @@ class SimDriver(Driver, SimulatedWorld):
         self._stopped = True
         with contextlib.suppress(Exception):
             self._pushes = []
+            if self._delay is not None:
+                self._delay.clear()
             self._apply_command()
 
     def close(self) -> None:
@@ -461,8 +581,10 @@ class SimDriver(Driver, SimulatedWorld):
             for wall in self._walls:
                 bit = wall.bit_crossing(T_world_bit, self.model.drill.bit_half_length_m)
                 if bit is not None:
-                    v_bit = np.asarray(ls[6]) + np.cross(ls[7], bit - np.asarray(ls[0]))
-                    v_plane = np.array([0.0, v_bit[1], v_bit[2]])
+                    # in-plane velocity of the link's point at the bit: v + omega x r
+                    (wx, wy, wz), (_, vy, vz) = ls[7], ls[6]
+                    rx, ry, rz = (bit[i] - ls[0][i] for i in range(3))
+                    v_plane = np.array([0.0, vy + wz * rx - wx * rz, vz + wx * ry - wy * rx])
                     self.cutting_force_n = self.options.cutting.force_n(v_plane)
                     p.applyExternalForce(self._robot, link, self.cutting_force_n.tolist(),
                                          bit.tolist(), p.WORLD_FRAME, physicsClientId=cid)
@@ -472,64 +594,84 @@ class SimDriver(Driver, SimulatedWorld):
                     break
 
     # ------------------------------------------------------------------ sensing
+    # Batched reads: one getLinkStates for the four sensor links, one getContactPoints for the
+    # whole robot (grouped by link here), one getJointStates.
     def _frames_world(self) -> dict[str, np.ndarray]:
         p, cid = self._p, self._cid
-        names = ["RWP_link", "LWP_link", "RAR_link", "LAR_link"]
-        states = p.getLinkStates(self._robot, [self._links[n] for n in names],
-                                 computeForwardKinematics=1, physicsClientId=cid)
-        return {n: _pose(s[4], s[5]) for n, s in zip(names, states, strict=True)}
+        states = p.getLinkStates(self._robot, self._sensor_link_ids, computeForwardKinematics=1,
+                                 physicsClientId=cid)
+        return {n: _pose(s[4], s[5]) for n, s in zip(SENSOR_LINKS, states, strict=True)}
 
-    def _wrench(self, link: str, T_world_sensor: np.ndarray, extra=None) -> np.ndarray:
-        """External wrench on a link about the sensor frame origin, in sensor axes."""
-        contacts = self._p.getContactPoints(bodyA=self._robot, linkIndexA=self._links[link],
-                                            physicsClientId=self._cid)
-        origin = T_world_sensor[:3, 3]
-        rows = [(*cp[5], *cp[7], cp[9], cp[10], *cp[11], cp[12], *cp[13]) for cp in contacts]
+    def _contact_rows(self) -> dict[int, list[tuple]]:
+        """Contact points of the robot with anything, by robot link index: (position on the
+        robot, normal towards the robot, normal force, friction 1, dir 1, friction 2, dir 2)."""
+        rows: dict[int, list[tuple]] = {}
+        for cp in self._p.getContactPoints(bodyA=self._robot, physicsClientId=self._cid):
+            rows.setdefault(cp[3], []).append((*cp[5], *cp[7], cp[9], cp[10], *cp[11], cp[12],
+                                               *cp[13]))
+        return rows
+
+    @staticmethod
+    def _wrench(rows: list[tuple], T_world_sensor: np.ndarray, extra=None) -> np.ndarray:
+        """External wrench on a link about the sensor frame origin, in sensor axes, from its
+        contact rows (see :meth:`_contact_rows`). Summed in plain floats: a foot has four
+        contact points, too few for array operations to pay."""
         if extra is not None:  # a known force (N) at a point, as one more "contact"
             f, at = extra
-            rows.append((*at, *f, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+            rows = [*rows, (*at, *f, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)]
         if not rows:
             return np.zeros(6)
-        a = np.array(rows)
-        f = a[:, 3:6] * a[:, 6:7] + a[:, 8:11] * a[:, 7:8] + a[:, 12:15] * a[:, 11:12]
-        r = a[:, 0:3] - origin
-        force = f.sum(axis=0)
-        moment = np.array([(r[:, 1] * f[:, 2] - r[:, 2] * f[:, 1]).sum(),
-                           (r[:, 2] * f[:, 0] - r[:, 0] * f[:, 2]).sum(),
-                           (r[:, 0] * f[:, 1] - r[:, 1] * f[:, 0]).sum()])
+        fx = fy = fz = mx = my = mz = 0.0
+        for px, py, pz, nx, ny, nz, fn, f1, d1x, d1y, d1z, f2, d2x, d2y, d2z in rows:
+            gx = nx * fn + d1x * f1 + d2x * f2
+            gy = ny * fn + d1y * f1 + d2y * f2
+            gz = nz * fn + d1z * f1 + d2z * f2
+            fx, fy, fz = fx + gx, fy + gy, fz + gz
+            mx += py * gz - pz * gy
+            my += pz * gx - px * gz
+            mz += px * gy - py * gx
+        ox, oy, oz = T_world_sensor[:3, 3]
+        moment = (mx - (oy * fz - oz * fy), my - (oz * fx - ox * fz), mz - (ox * fy - oy * fx))
         R = T_world_sensor[:3, :3]
-        return np.concatenate([R.T @ force, R.T @ moment])
+        return np.concatenate([np.array((fx, fy, fz)) @ R, np.array(moment) @ R])
 
     def _measure(self) -> RobotState:
         p, cid = self._p, self._cid
         js = p.getJointStates(self._robot, self._idx, physicsClientId=cid)
-        q = np.array([s[0] for s in js])
-        dq = np.array([s[1] for s in js])
-        tau = np.array([s[3] for s in js])
+        q, dq, _, tau = (np.array(column) for column in zip(*js, strict=True))
         com, orn = p.getBasePositionAndOrientation(self._robot, physicsClientId=cid)
         T_world_torso = _pose(com, orn) @ self._T_com_torso
         _, omega_world = p.getBaseVelocity(self._robot, physicsClientId=cid)
         R = T_world_torso[:3, :3]
         links = self._frames_world()
+        contacts = self._contact_rows()
         ft = {}
         contact = []
         for sensor in FT_SENSORS:
-            link, frame = (HAND_FRAMES | SOLE_FRAMES)[sensor]
+            link, frame = SENSOR_FRAMES[sensor]
             T_world_sensor = links[link] @ self._T_link_frame[frame]
             extra = None
             if sensor == "right-wrist" and np.any(self.cutting_force_n):
                 extra = (self.cutting_force_n, self._cutting_point)
-            ft[sensor] = self._wrench(link, T_world_sensor, extra)
+            ft[sensor] = self._wrench(contacts.get(self._links[link], []), T_world_sensor, extra)
             if sensor.endswith("ankle"):
-                contact.append(bool(ft[sensor][2] > 1e-6 or np.linalg.norm(ft[sensor][:3]) > 1e-6))
+                k = len(contact)
+                fz = float(ft[sensor][2])
+                if self._fz_filtered_n[k] is None:  # at start: no history to filter
+                    self._fz_filtered_n[k] = fz
+                self._fz_filtered_n[k] += self._contact_alpha * (fz - self._fz_filtered_n[k])
+                contact.append(self._fz_filtered_n[k] > CONTACT_THRESHOLD_N)
         flags, self._flags = tuple(dict.fromkeys(self._flags)), []
         if self._stopped:
             flags = tuple(dict.fromkeys((*flags, "stopped")))
-        return RobotState(time_s=self._t, q_rad=q, dq_rad_s=dq,
-                          imu_quat_wxyz=matrix_to_quat_wxyz(R),
-                          imu_gyro_rad_s=R.T @ np.asarray(omega_world),
-                          ft=ft, tau_nm=tau, T_world_torso=T_world_torso,
-                          feet_contact=(contact[0], contact[1]), flags=flags)
+        state = RobotState(time_s=self._t, q_rad=q, dq_rad_s=dq,
+                           imu_quat_wxyz=matrix_to_quat_wxyz(R),
+                           imu_gyro_rad_s=R.T @ np.asarray(omega_world), ft=ft, tau_nm=tau,
+                           T_world_torso=T_world_torso, feet_contact=(contact[0], contact[1]),
+                           flags=flags)
+        tilt_deg = math.degrees(math.acos(max(-1.0, min(1.0, float(R[2, 2])))))
+        self._max_tilt_deg = max(self._max_tilt_deg, tilt_deg)
+        return self._noise.measure(state)
 
     # ------------------------------------------------------------------ extras
     def frame_pose(self, frame: str) -> np.ndarray:
@@ -544,6 +686,33 @@ class SimDriver(Driver, SimulatedWorld):
         ls = self._p.getLinkState(self._robot, self._links[FRAME_PARENTS[frame]],
                                   computeForwardKinematics=1, physicsClientId=self._cid)
         return _pose(ls[4], ls[5]) @ self._T_link_frame[frame]
+
+    def com_world_m(self) -> np.ndarray:
+        """The whole body's centre of mass in the world (m) as the physics has it: the masses
+        and centres of mass of PyBullet's bodies (tests compare it with the model's)."""
+        self._require_started()
+        p, cid = self._p, self._cid
+        mass = p.getDynamicsInfo(self._robot, -1, physicsClientId=cid)[0]
+        base, _ = p.getBasePositionAndOrientation(self._robot, physicsClientId=cid)
+        total, moment = mass, mass * np.asarray(base)
+        links = sorted(self._links.values())
+        for link, state in zip(links, p.getLinkStates(self._robot, links,
+                                                      computeForwardKinematics=1,
+                                                      physicsClientId=cid), strict=True):
+            mass = p.getDynamicsInfo(self._robot, link, physicsClientId=cid)[0]
+            total += mass
+            moment = moment + mass * np.asarray(state[0])
+        return moment / total
+
+    @property
+    def perturbation(self) -> Perturbation:
+        """The perturbed robot and world of ``perturb_seed`` (nominal without one)."""
+        return self._perturbation
+
+    @property
+    def max_tilt_deg(self) -> float:
+        """The largest true torso tilt from upright since the start (deg)."""
+        return self._max_tilt_deg
 
     @property
     def physics_wall_s(self) -> float:

@@ -21,7 +21,7 @@ error along the push axis against time with the support-polygon thresholds, as F
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -283,7 +283,7 @@ def push_wall_setup(model: RobotModel, direction: str = "forward", estop: bool =
 
 def run_push_wall(model: RobotModel, direction: str = "forward", estop: bool = True,
                   out: str | Path | None = None, gui: bool = False, end_s: float | None = None,
-                  interpolator: str = "otg") -> RunResult:
+                  interpolator: str = "otg", perturb_seed: int | None = None) -> RunResult:
     """Run the experiment on the simulated robot and write its run folder.
 
     Args:
@@ -294,8 +294,10 @@ def run_push_wall(model: RobotModel, direction: str = "forward", estop: bool = T
         gui: open the PyBullet window (real time).
         end_s: shorten (or lengthen) the run (s).
         interpolator: the first module, ``otg`` (ruckig) or ``hoff-arbib`` (eq. 1).
+        perturb_seed: a perturbed simulated robot and world (:mod:`hubo_cli.perturb`).
     """
     setup, spec = push_wall_setup(model, direction, estop, out, gui, end_s, interpolator)
+    setup = replace(setup, perturb_seed=perturb_seed)
     targets = PushTargets(model, spec, setup.q_start_rad)
     done = run(setup, targets)
     summary = _summary(spec, estop, targets, done.loop, done.log, targets.obstacle)

@@ -139,20 +139,23 @@ class StandTarget(Target):
 def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
           balance: bool = True, *, push_at_s: float = 1.0, push_duration_s: float = 0.2,
           push_direction=(1.0, 0.0, 0.0), gui: bool = False, out: str | Path | None = None,
-          estop: bool = True) -> StandingResult:
+          estop: bool = True, perturb_seed: int | None = None,
+          balance_mode: str = "default") -> StandingResult:
     """Stand the simulated robot for ``duration_s`` and measure how it copes.
 
     Args:
         model: robot model.
         duration_s: simulated time (s).
         push_n: force (N) of one push on the torso's centre of mass, 0 for none.
-        balance: run the ankle balancer (eq. 11-12) in the pipeline.
+        balance: run the ankle balancer in the pipeline.
         push_at_s, push_duration_s: when the push starts and how long it lasts (s).
         push_direction: world direction of the push (normalised; default forward, +x).
         gui: open the PyBullet window (real time).
         out: the run folder (default ``runs/<time>-sim``); it gets the log, the snapshot and
             ``summary.json``.
         estop: keep the soft emergency stopper (see :class:`SafetyProfile`).
+        perturb_seed: a perturbed simulated robot and world (:mod:`hubo_cli.perturb`).
+        balance_mode: ``default`` or ``paper`` (eq. 11-12 as published), when balance is on.
     """
     check_standing_args(duration_s, push_n)
     direction = np.asarray(push_direction, dtype=float)
@@ -161,8 +164,10 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
     n_periods = int(round(duration_s / model.control_period_s))
     target = StandTarget(q_home, n_periods, push_n * direction, push_at_s, push_duration_s)
     setup = RunSetup(command="sim", model=model, driver="sim", gui=gui, out=out,
-                     safety=SafetyProfile(estop=estop, balance=balance),
-                     duration_s=n_periods * model.control_period_s, q_start_rad=q_home)
+                     safety=SafetyProfile(estop=estop, balance=balance,
+                                          balance_mode=balance_mode),
+                     duration_s=n_periods * model.control_period_s, q_start_rad=q_home,
+                     perturb_seed=perturb_seed)
     done = run(setup, target)
     result = _result(target, done, duration_s, push_n, balance, model.control_period_s)
     done.save_summary(result.summary())

@@ -44,6 +44,8 @@ from hubo_cli.geometry import matrix_to_quat_wxyz
 
 MAGIC = b"FASTRAK-CAPTURE 1\n"
 CHUNK_HEAD = struct.Struct("<dI")
+MAX_CHUNK_BYTES = 65536  # one serial read: 5 s of a 115200-baud line; a longer one is garbled
+MAX_CHUNK_GAP_S = 3600.0  # chunks an hour apart are a garbled time, not a recording
 POSE_LOG_COLUMNS = ("t_s", "station", "x_m", "y_m", "z_m", "qw", "qx", "qy", "qz", "status")
 RECORD_RATE_HZ = 120.0
 """Records per second the device emits in continuous mode, shared by the enabled stations."""
@@ -169,11 +171,17 @@ def parse_capture(blob: bytes, where: str = "capture") -> Capture:
             break
         t_s, n = CHUNK_HEAD.unpack_from(blob, pos)
         pos += CHUNK_HEAD.size
-        if not math.isfinite(t_s) or t_s < last_t - 1e-9:
-            raise InputError(f"{where}: chunk at byte {pos - CHUNK_HEAD.size} has time {t_s!r}",
-                             hint="chunk times must be finite and non-decreasing; "
-                                  "the file is garbled")
+        at = pos - CHUNK_HEAD.size
+        if (not math.isfinite(t_s) or t_s < last_t - 1e-9 or t_s < -1e-9
+                or t_s - max(last_t, 0.0) > MAX_CHUNK_GAP_S):
+            raise InputError(f"{where}: chunk at byte {at} has time {t_s!r}",
+                             hint="chunk times must be finite and non-decreasing, without "
+                                  "gaps of hours; the file is garbled")
         if pos + n > size:
+            if n - (size - pos) > MAX_CHUNK_BYTES:  # a cut-off file misses part of one read
+                raise InputError(f"{where}: chunk at byte {at} claims {n:,} bytes, "
+                                 f"{n - (size - pos):,} more than the file holds",
+                                 hint="the chunk's length is garbled; record the capture again")
             truncated = True
             n = size - pos
         last_t = t_s

@@ -115,10 +115,13 @@ class PoseSource(ABC):
     Attributes:
         stats: :class:`SourceStats` counters.
         info: what the source is (kind, path or port, format, output list, units, stations).
+        stations: the stations the source delivers (a recording's, or those the tracker
+            reports active).
     """
 
     stats: SourceStats
     info: dict
+    stations: tuple[int, ...]
     live = False  # a live device (its clock is the wall clock) rather than a recording
 
     def __init__(self) -> None:

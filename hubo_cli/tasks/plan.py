@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from hubo_cli.errors import ConfigError
 from hubo_cli.kinematics.interpolate import PoseSegment, segment_duration, trapezoid_timing
 from hubo_cli.kinematics.wholebody import LiftFilter, WholeBody
 from hubo_cli.model import RobotModel
@@ -164,6 +165,7 @@ class Plan:
         return float(self.t_s[-1]) if len(self.t_s) else 0.0
 
 
+PLAN_MAX_S = 1800.0  # a task's whole timeline (s): longer is a typo (and would not fit memory)
 LEGS_SPEED_M_S = 0.06  # the lift's speed limit in tasks (m/s): the knees stay within theirs
 LEGS_ACCEL_M_S2 = 0.05  # and its acceleration limit (m/s^2), within the knees' 0.6 rad/s^2
 CUT_ACCEL_M_S2 = 0.05  # the bit's acceleration at the ends of each cut edge (joints in limits)
@@ -214,6 +216,9 @@ def place(spec: TaskSpec, model: RobotModel) -> Placement:
                 break
             shifted = np.zeros((nz, ny), dtype=bool)
             lo, hi = max(0, -b), min(ny, ny - b)
+            if lo >= hi:  # the task is wider than the map: no lateral position fits
+                ok[:] = False
+                break
             shifted[:, lo:hi] = band[i + a, :, lo + b:hi + b]
             ok &= shifted
         if stance.centre_m is not None:  # only the given centre's row and column
@@ -362,6 +367,13 @@ def make_plan(spec: TaskSpec, model: RobotModel, placement: Placement | None = N
                             first.arms[limb].status))
 
     starts = np.cumsum([0.0] + [p.segment.duration_s for p in pieces])
+    if not starts[-1] <= PLAN_MAX_S:
+        slowest = max(pieces, key=lambda p: p.segment.duration_s)
+        raise ConfigError(f"the task would take {starts[-1]:,.0f} s ("
+                          f"{spec.steps[slowest.step].label} alone "
+                          f"{slowest.segment.duration_s:,.0f} s); the limit is "
+                          f"{PLAN_MAX_S:g} s", path=str(spec.path),
+                          hint="raise the speeds or shorten the waits")
     n = int(np.floor(starts[-1] / dt + 1e-9)) + 1
     t = np.arange(n) * dt
     piece_of = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, max(len(pieces) - 1, 0))

@@ -52,7 +52,7 @@ def check_task(spec: TaskSpec, model: RobotModel | None = None) -> Plan:
 
 def task_setup(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
                gui: bool = False, estop: bool = True,
-               driver_options: dict | None = None) -> RunSetup:
+               driver_options: dict | None = None, perturb_seed: int | None = None) -> RunSetup:
     """The run set-up of a checked plan: the plan's own model and tool, the task's safety
     settings, a duration long enough for the plan and its settling waits."""
     spec = plan.spec
@@ -67,12 +67,13 @@ def task_setup(plan: Plan, *, driver: str = "sim", out: str | Path | None = None
         gui=gui, out=out, q_start_rad=home_posture(plan.body.model),
         duration_s=plan.duration_s + 3 * SETTLE_TIMEOUT_S + 10.0,
         cutting={"coulomb_n": spec.scene.coulomb_n,
-                 "viscous_n_s_per_m": spec.scene.viscous_n_s_per_m})
+                 "viscous_n_s_per_m": spec.scene.viscous_n_s_per_m},
+        perturb_seed=perturb_seed)
 
 
 def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
              gui: bool = False, estop: bool = True, driver_options: dict | None = None,
-             on_start=None) -> TaskRun:
+             on_start=None, perturb_seed: int | None = None) -> TaskRun:
     """Run a checked plan and write its run folder.
 
     Args:
@@ -83,6 +84,7 @@ def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
         estop: keep the soft emergency stopper (see :class:`SafetyProfile`).
         driver_options: passed to the driver (e.g. ``armed`` for hardware).
         on_start: called with the :class:`TaskTarget` once the robot has started (live view).
+        perturb_seed: a perturbed simulated robot and world (:mod:`hubo_cli.perturb`).
 
     Raises:
         SafetyError: the plan did not pass pre-flight (nothing moves).
@@ -91,7 +93,7 @@ def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
         raise SafetyError(plan.preflight.worst_per_step()[0].message(),
                           hint="the task was refused in pre-flight; nothing moved")
     setup = task_setup(plan, driver=driver, out=out, gui=gui, estop=estop,
-                       driver_options=driver_options)
+                       driver_options=driver_options, perturb_seed=perturb_seed)
     target = TaskTarget(plan)
     done = run(setup, target, on_start=on_start)
     _write_task_copy(plan.spec, done.run_dir)
@@ -197,15 +199,16 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
 
 
 def run_experiment(spec: TaskSpec, *, out: str | Path | None = None, gui: bool = False,
-                   estop: bool | None = None) -> TaskRun:
+                   estop: bool | None = None, perturb_seed: int | None = None) -> TaskRun:
     """Run an experiment task (its built-in procedure with the file's parameters);
-    ``estop`` (``--no-estop``) overrides the file's."""
+    ``estop`` (``--no-estop``) overrides the file's; ``perturb_seed`` perturbs the robot."""
     from hubo_cli.experiments.push_wall import run_push_wall
 
     params = spec.parameters
     estop = bool(params.get("estop", True)) if estop is None else estop
     result = run_push_wall(load_model(), direction=str(params.get("direction", "forward")),
                            estop=estop, out=out, gui=gui,
-                           interpolator=str(params.get("interpolator", "otg")))
+                           interpolator=str(params.get("interpolator", "otg")),
+                           perturb_seed=perturb_seed)
     summary = result.save_summary({"task": spec.name, "parameters": params})
     return TaskRun(result.run_dir, summary, result.loop)

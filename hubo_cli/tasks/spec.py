@@ -58,6 +58,16 @@ ESTOP_SOURCES = ("operator", "capture-point", "wrist-torque", "stale-input")
 CORNERS = {"upper-left": (1, 1), "upper-right": (-1, 1), "lower-left": (1, -1),
            "lower-right": (-1, -1)}  # (sign of y, sign of z): the robot's left is +y
 EXPERIMENTS = ("push-wall",)
+# Physical sense, checked at load time (a value beyond these is a typo, not a task): no Hubo arm
+# reaches further than about 0.6 m from its shoulder, so no path spans more than LENGTH_MAX_MM;
+# its 1 rad/s joints move the tool at about 0.5 m/s at most; steps and stops are short.
+LENGTH_MAX_MM = 1000.0       # sizes, positions and depths in the wall frame (mm)
+TOOL_SPEED_MAX_MM_S = 500.0  # tool speed: the arm's 1 rad/s joints at its 0.5 m reach
+TOOL_ACCEL_MAX_MM_S2 = 2000.0
+STEP_MAX_S = 600.0           # one move or wait
+STOP_MAX_S = 5.0             # T1 and T2 of the emergency stopper (paper: 0.5 s)
+WRIST_TORQUE_MAX_NM = 50.0
+WALL_MAX_MM = 10000.0
 
 
 # ---------------------------------------------------------------------------- the objects
@@ -218,7 +228,14 @@ def load_task(name_or_path: str | Path, overrides: dict | None = None) -> TaskSp
         ConfigError: the file is missing or malformed (file, line, field and a hint).
     """
     path = find_task(name_or_path)
-    text = path.read_text()
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"not a text file (byte {exc.start} is not UTF-8)", path=str(path),
+                          hint="a task file is TOML text; see tasks/README.md") from None
+    except OSError as exc:
+        raise ConfigError(f"cannot read the task file: {exc.strerror or exc}", path=str(path),
+                          hint="check the path and its permissions") from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -313,6 +330,14 @@ class _Loader:
         defaults, params = self._parameters()
         body = {k: v for k, v in self.data.items() if k != "parameters"}
         body = self._substitute(body, "", params)
+        if "experiment" not in body:  # an experiment's procedure reads its parameters itself
+            used = set(self.origin.values())
+            unused = [name for name in self.overrides if name not in used]
+            if unused:
+                raise ConfigError(f"the task declares parameter {unused[0]!r} but never uses "
+                                  "it: setting it would change nothing", path=str(self.path),
+                                  hint="leave it out (hubo task show NAME lists what each "
+                                       "step uses)")
         table = _Table(self, "", body)
         name = table.text("name", default=self.path.stem)
         description = table.text("description", default="")
@@ -333,7 +358,7 @@ class _Loader:
                         steps)
 
     def _stance(self, t: _Table) -> Stance:
-        distance = t.number_or_auto("wall_distance_mm", positive=True)
+        distance = t.number_or_auto("wall_distance_mm", positive=True, maximum=LENGTH_MAX_MM)
         centre = t.point_or_auto("centre_mm")
         arm = t.choice("arm", ("right", "left"), default="right")
         tool = t.choice("tool", ("drill", "hand"), default="drill")
@@ -349,14 +374,15 @@ class _Loader:
         cutting = t.table("cutting")
         d = Scene()
         scene = Scene(
-            wall_width_m=wall.number("width_mm", positive=True, default=d.wall_width_m * 1000)
-            / 1000,
-            wall_height_m=wall.number("height_mm", positive=True,
+            wall_width_m=wall.number("width_mm", positive=True, maximum=WALL_MAX_MM,
+                                     default=d.wall_width_m * 1000) / 1000,
+            wall_height_m=wall.number("height_mm", positive=True, maximum=WALL_MAX_MM,
                                       default=d.wall_height_m * 1000) / 1000,
-            wall_thickness_m=wall.number("thickness_mm", positive=True,
+            wall_thickness_m=wall.number("thickness_mm", positive=True, maximum=LENGTH_MAX_MM,
                                          default=d.wall_thickness_m * 1000) / 1000,
-            coulomb_n=cutting.number("coulomb_n", minimum=0.0, default=d.coulomb_n),
-            viscous_n_s_per_m=cutting.number("viscous_n_s_per_m", minimum=0.0,
+            coulomb_n=cutting.number("coulomb_n", minimum=0.0, maximum=1000.0,
+                                     default=d.coulomb_n),
+            viscous_n_s_per_m=cutting.number("viscous_n_s_per_m", minimum=0.0, maximum=1e5,
                                              default=d.viscous_n_s_per_m))
         wall.finish()
         cutting.finish()
@@ -371,9 +397,11 @@ class _Loader:
                             hint=f"choose from {', '.join(ESTOP_SOURCES)}")
         safety = Safety(tuple(sources),
                         t.number("wrist_torque_limit_nm", positive=True,
-                                 default=d.wrist_torque_limit_nm),
-                        t.number("revert_s", positive=True, default=d.revert_s),
-                        t.number("stop_s", positive=True, default=d.stop_s))
+                                 maximum=WRIST_TORQUE_MAX_NM, default=d.wrist_torque_limit_nm),
+                        t.number("revert_s", positive=True, maximum=STOP_MAX_S,
+                                 default=d.revert_s),
+                        t.number("stop_s", positive=True, maximum=STOP_MAX_S,
+                                 default=d.stop_s))
         t.finish()
         return safety
 
@@ -394,8 +422,8 @@ class _Loader:
 
     @staticmethod
     def _timing(t: _Table) -> tuple[float | None, float | None]:
-        speed = t.number("speed_mm_s", positive=True, default=None)
-        duration = t.number("duration_s", positive=True, default=None)
+        speed = t.number("speed_mm_s", positive=True, maximum=TOOL_SPEED_MAX_MM_S, default=None)
+        duration = t.number("duration_s", positive=True, maximum=STEP_MAX_S, default=None)
         if (speed is None) == (duration is None):
             raise t.loader.fail(t.key("speed_mm_s"), "give exactly one of speed_mm_s or "
                                                      "duration_s", hint="e.g. speed_mm_s = 20")
@@ -403,32 +431,37 @@ class _Loader:
 
     def _move(self, t: _Table, kind: str, name: str, number: int) -> Step:
         to = t.point("to_mm", default=None)
-        depth = t.number("depth_mm")
+        depth = t.number("depth_mm", minimum=-LENGTH_MAX_MM, maximum=LENGTH_MAX_MM)
         speed, duration = self._timing(t)
         return Step(kind, name, number, to_m=None if to is None else (to[0] / 1000, to[1] / 1000),
                     depth_m=depth / 1000, speed_m_s=speed, duration_s=duration)
 
     def _plunge(self, t: _Table, kind: str, name: str, number: int) -> Step:
-        return Step(kind, name, number, depth_m=t.number("depth_mm") / 1000,
-                    speed_m_s=t.number("speed_mm_s", positive=True) / 1000)
+        return Step(kind, name, number,
+                    depth_m=t.number("depth_mm", minimum=-LENGTH_MAX_MM,
+                                     maximum=LENGTH_MAX_MM) / 1000,
+                    speed_m_s=t.number("speed_mm_s", positive=True,
+                                       maximum=TOOL_SPEED_MAX_MM_S) / 1000)
 
     _retract = _plunge
 
     def _wait(self, t: _Table, kind: str, name: str, number: int) -> Step:
-        return Step(kind, name, number, duration_s=t.number("duration_s", minimum=0.0))
+        return Step(kind, name, number,
+                    duration_s=t.number("duration_s", minimum=0.0, maximum=STEP_MAX_S))
 
     def _follow(self, t: _Table, kind: str, name: str, number: int) -> Step:
         path = t.choice("path", ("rectangle", "polyline"))
-        speed = t.number("speed_mm_s", positive=True) / 1000
-        accel = t.number("accel_mm_s2", positive=True, default=None)
+        speed = t.number("speed_mm_s", positive=True, maximum=TOOL_SPEED_MAX_MM_S) / 1000
+        accel = t.number("accel_mm_s2", positive=True, maximum=TOOL_ACCEL_MAX_MM_S2,
+                         default=None)
         accel = None if accel is None else accel / 1000
         if path == "polyline":
             points = t.points("points_mm")
             return Step(kind, name, number, points_m=tuple((y / 1000, z / 1000)
                                                            for y, z in points),
                         speed_m_s=speed, accel_m_s2=accel, path=path)
-        width = t.number("width_mm", positive=True) / 1000
-        height = t.number("height_mm", positive=True) / 1000
+        width = t.number("width_mm", positive=True, maximum=LENGTH_MAX_MM) / 1000
+        height = t.number("height_mm", positive=True, maximum=LENGTH_MAX_MM) / 1000
         centre = t.point("centre_mm", default=(0.0, 0.0))
         start = t.choice("start", tuple(CORNERS), default="upper-left")
         direction = t.choice("direction", ("ccw", "cw"), default="ccw")
@@ -504,7 +537,7 @@ class _Table:
         return value
 
     def number(self, name: str, *, positive: bool = False, minimum: float | None = None,
-               default=...) -> float | None:
+               maximum: float | None = None, default=...) -> float | None:
         value = self.value(name, default)
         if value is None and default is None:
             return None
@@ -515,13 +548,17 @@ class _Table:
             raise self.loader.fail(self.key(name), f"must be positive, got {value!r}")
         if minimum is not None and value < minimum:
             raise self.loader.fail(self.key(name), f"must be at least {minimum:g}, got {value!r}")
+        if maximum is not None and value > maximum:
+            raise self.loader.fail(self.key(name), f"must be at most {maximum:g}, got {value!r}",
+                                   hint="a larger value makes no physical sense for Hubo")
         return float(value)
 
-    def number_or_auto(self, name: str, *, positive: bool = False) -> float | None:
+    def number_or_auto(self, name: str, *, positive: bool = False,
+                       maximum: float | None = None) -> float | None:
         if self.data.get(name, "auto") == "auto":
             self.used.add(name)
             return None
-        return self.number(name, positive=positive)
+        return self.number(name, positive=positive, maximum=maximum)
 
     def point(self, name: str, default=...) -> tuple[float, float] | None:
         value = self.value(name, default)
@@ -529,6 +566,9 @@ class _Table:
             return None
         if not _is_point(value):
             raise self.loader.fail(self.key(name), f"must be [y, z] in mm, got {value!r}")
+        if max(abs(value[0]), abs(value[1])) > LENGTH_MAX_MM:
+            raise self.loader.fail(self.key(name), f"{value!r} lies more than "
+                                   f"{LENGTH_MAX_MM:g} mm out: beyond any arm's reach")
         return float(value[0]), float(value[1])
 
     def point_or_auto(self, name: str) -> tuple[float, float] | None:
@@ -542,6 +582,9 @@ class _Table:
         if not isinstance(value, list) or len(value) < 2 or not all(map(_is_point, value)):
             raise self.loader.fail(self.key(name), "must be a list of at least two [y, z] "
                                                    "points in mm", hint="e.g. [[0, 0], [50, 0]]")
+        if any(max(abs(y), abs(z)) > LENGTH_MAX_MM for y, z in value):
+            raise self.loader.fail(self.key(name), f"a point lies more than {LENGTH_MAX_MM:g} "
+                                   "mm out: beyond any arm's reach")
         return [(float(y), float(z)) for y, z in value]
 
     def finish(self) -> None:

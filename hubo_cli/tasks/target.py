@@ -57,6 +57,7 @@ class TaskTarget(Target):
         self.body = body = plan.body
         self.stopper: EmergencyStopper | None = None
         self.world: SimulatedWorld | None = None
+        self.modules: list = []  # set by attach()
         self.scene: dict = {}
         self.limb = plan.spec.stance.limb
         self.slice = body.model.limb_slice(self.limb)
@@ -67,6 +68,7 @@ class TaskTarget(Target):
         self.t_run_s: float | None = None
         self.t_phase_s = 0.0
         self.t_stop_s: float | None = None
+        self._t_hold_s: float | None = None  # when the stopper reached its hold
         self.step_stopped: int | None = None
         self.offset_world_m: np.ndarray | None = None  # world bit - commanded bit, when ready
         # while cutting: commanded and measured tool positions (S, m), wrist torque (N m), edge
@@ -81,6 +83,7 @@ class TaskTarget(Target):
 
     def attach(self, world: SimulatedWorld | None, modules: Sequence[Module]) -> None:
         self.world = world
+        self.modules = list(modules)  # the pipeline, for the live view's safety state
         self.stopper = next((m for m in modules if isinstance(m, EmergencyStopper)
                              and m.name == "estop"), None)
 
@@ -148,8 +151,11 @@ class TaskTarget(Target):
             if self._still(state) or t_s - self.t_phase_s >= SETTLE_TIMEOUT_S:
                 info["done"] = True
         elif self.phase == "stopped":
+            # the revert can outlast T2 under the limits: count the hold from its start
             holding = self.stopper.mode == "hold"
-            if holding and t_s - self.t_stop_s >= STOP_HOLD_S and np.max(
+            if holding and self._t_hold_s is None:
+                self._t_hold_s = t_s
+            if holding and t_s - self._t_hold_s >= STOP_HOLD_S and np.max(
                     np.abs(state.dq_rad_s)) < 0.05:
                 info["done"] = True
         self._measure(t_s, state, info)

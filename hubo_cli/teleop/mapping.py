@@ -23,11 +23,66 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hubo_cli.errors import ConfigError
+from hubo_cli.errors import ConfigError, InputError
 
 # FASTRAK reference frame is x forward, y right, z down; a half turn about x gives S's axes.
 R_STANCE_TRACKER_DEFAULT = np.diag([1.0, -1.0, -1.0])
 MODES = ("free", "drill")
+MAX_TRACKER_RANGE_M = 100.0  # a FASTRAK reads up to ~3 m from its source; far beyond is garbage
+ARMS = ("right-arm", "left-arm")
+STATIONS = (1, 2, 3, 4)  # FASTRAK receivers
+
+
+def check_station_map(station_arm: dict[int, str]) -> dict[int, str]:
+    """A station -> arm map must name FASTRAK stations 1..4 and drive each arm from one station.
+
+    Raises:
+        InputError: an unknown station or arm, or two stations on one arm.
+    """
+    seen: dict[str, int] = {}
+    for station, arm in station_arm.items():
+        if station not in STATIONS:
+            raise InputError(f"station {station} does not exist: a FASTRAK has stations 1-4",
+                             hint="e.g. --map 1=right-arm --map 2=left-arm")
+        if arm not in ARMS:
+            raise InputError(f"station {station}: unknown arm {arm!r}",
+                             hint=f"use one of {', '.join(ARMS)}")
+        if arm in seen:
+            raise InputError(f"stations {seen[arm]} and {station} both drive the {arm}",
+                             hint="map one station per arm")
+        seen[arm] = station
+    return station_arm
+
+
+def parse_station_map(pairs) -> dict[int, str]:
+    """``STATION=ARM`` texts (``--map 1=right-arm``) as a checked station -> arm map."""
+    out: dict[int, str] = {}
+    for pair in pairs:
+        station, _, arm = str(pair).partition("=")
+        station = station.strip()
+        if not station.isdigit() or arm.strip() not in ARMS:
+            raise InputError(f"--map {pair!r} is not STATION=ARM",
+                             hint="e.g. --map 1=right-arm --map 2=left-arm")
+        if int(station) in out:
+            raise InputError(f"station {station} is mapped twice", hint="map it once")
+        out[int(station)] = arm.strip()
+    return check_station_map(out)
+
+
+def check_stations_present(station_arm: dict[int, str], available, where: str) -> None:
+    """Every mapped station must be in the input (a recording's or a tracker's stations).
+
+    Raises:
+        InputError: naming the missing station and those the input has.
+    """
+    have = sorted(int(s) for s in available)
+    missing = [s for s in sorted(station_arm) if s not in have]
+    if missing:
+        raise InputError(f"{where} has no station {missing[0]} (mapped to the "
+                         f"{station_arm[missing[0]]}); it has station(s) "
+                         f"{', '.join(map(str, have)) or 'none'}",
+                         hint="map a station the input has, e.g. --map "
+                              f"{have[0] if have else 1}={station_arm[missing[0]]}")
 
 
 @dataclass
@@ -56,6 +111,7 @@ class MappingConfig:
             raise ConfigError(f"unknown teleop mode {self.mode!r}", hint="use free or drill")
         if not (np.isfinite(self.scale) and 0 < self.scale <= 10):
             raise ConfigError(f"scale {self.scale} is not in (0, 10]", hint="use e.g. --scale 1")
+        check_station_map(self.station_arm)
 
 
 @dataclass
@@ -99,14 +155,19 @@ class HandMapper:
         self._refs[station] = _Reference(np.array(T_K_sensor, dtype=float), T_S_hand,
                                          T_S_hand.copy())
 
-    def forget(self) -> None:
-        """Drop every calibration (the next sample of each station calibrates again)."""
-        self._refs.clear()
+    def forget(self, station: int | None = None) -> None:
+        """Drop the calibration of ``station`` (None: of every station); its next sample
+        calibrates again."""
+        if station is None:
+            self._refs.clear()
+        else:
+            self._refs.pop(station, None)
 
     def goal(self, station: int, T_K_sensor: np.ndarray, t_s: float,
              T_S_hand_now: np.ndarray) -> HandGoal | None:
         """The hand goal for one sample, or None if the station drives no arm or the sample is
-        implausible (non-finite, or a jump larger than ``max_step_m``).
+        implausible (non-finite, beyond ``MAX_TRACKER_RANGE_M``, or a jump larger than
+        ``max_step_m``).
 
         Args:
             station: tracker station of the sample.
@@ -118,7 +179,8 @@ class HandMapper:
         if arm is None:
             return None
         T_K = np.asarray(T_K_sensor, dtype=float)
-        if not np.all(np.isfinite(T_K)):
+        # non-finite, or beyond any tracker's range (and large enough to overflow in the maths)
+        if not np.all(np.isfinite(T_K)) or np.max(np.abs(T_K[:3, 3])) > MAX_TRACKER_RANGE_M:
             self.rejected += 1
             return None
         if station not in self._refs:

@@ -51,6 +51,7 @@ class TeleopSettings:
         out: run folder (None: runs/<time>-teleop).
         reach: how the arms behave at the edge of their reach (None: the mode's defaults).
         gui, baud, estop, driver_options: passed on.
+        perturb_seed: a perturbed simulated robot and world (:mod:`hubo_cli.perturb`).
     """
 
     replay: str | Path | None = None
@@ -68,6 +69,7 @@ class TeleopSettings:
     baud: int = 115200
     estop: bool = True
     driver_options: dict = field(default_factory=dict)
+    perturb_seed: int | None = None
     reach: ReachSettings | None = None
 
 
@@ -113,7 +115,8 @@ def drill_stance(wall_distance_m: float | None = None) -> tuple[float, np.ndarra
     return wall, corner, z_mid
 
 
-def _station_map(settings: TeleopSettings) -> dict[int, str]:
+def station_map(settings: TeleopSettings) -> dict[int, str]:
+    """Tracker station -> arm: the settings' map, or the mode's default."""
     if settings.station_arm is not None:
         return dict(settings.station_arm)
     return {1: "right-arm"} if settings.mode == "drill" else {1: "right-arm", 2: "left-arm"}
@@ -127,7 +130,7 @@ def prepare(settings: TeleopSettings, model: RobotModel | None = None):
     of the reachable rectangle (drill mode).
     """
     model = model or load_model()
-    stations = _station_map(settings)
+    stations = station_map(settings)
     tools = {arm: "hand" for arm in stations.values()}
     scene: dict = {}
     if settings.mode == "drill":
@@ -151,7 +154,8 @@ def teleop_setup(settings: TeleopSettings, body: WholeBody, duration_s: float | 
         command="teleop", model=body.model, tools=dict(body.tools), driver=settings.driver,
         driver_options=dict(settings.driver_options), safety=SafetyProfile(estop=settings.estop),
         speed=settings.speed, live_input=settings.port is not None, gui=settings.gui,
-        out=settings.out, duration_s=duration_s, q_start_rad=home_posture(body.model))
+        out=settings.out, duration_s=duration_s, q_start_rad=home_posture(body.model),
+        perturb_seed=settings.perturb_seed)
 
 
 def run_teleop(settings: TeleopSettings, on_ready=None) -> TeleopRun:

@@ -9,7 +9,10 @@ three phases:
 2. *operate*: the operator drives the hands. Replays deliver the samples whose receive time has
    come on the loop's clock (so ``--speed max`` and real time give the same path); a live tracker
    delivers what has arrived. The first sample of each station calibrates it (the hand stays);
-   a stale station holds its hand (flag ``stale-input``);
+   a stale station holds its hand (flag ``stale-input``). When a lost station comes back, its
+   hand keeps holding: live, until the operator re-centres (``c``, flag ``holding`` meanwhile),
+   so the hand never jumps to wherever the operator's hand went while the tracker was lost; a
+   replay re-centres on the first sample after the gap;
 3. *settle*: a replay has ended; the hands hold their last goals until the robot is still.
 
 While operating, each arm stays on the IK branch it started on and a goal out of its reach sends
@@ -65,6 +68,8 @@ class HandTrack:
     ik_status: str = "-"
     ik_counts: dict[str, int] = field(default_factory=lambda: dict.fromkeys(STATUS_NAMES, 0))
     stale: bool = False
+    lost: bool = False          # went stale after calibration: re-centre before moving again
+    needs_clutch: bool = False  # live: input is back, waiting for the operator's re-centre
     position_error_m: float = float("nan")
     rotation_error_rad: float = float("nan")
     missing_m: np.ndarray | None = None  # goal minus the reachable pose's position, at the limit
@@ -157,6 +162,7 @@ class TeleopTarget(Target):
         self.t_path_s: float | None = None
         self.wall = wall
         self.world: SimulatedWorld | None = None
+        self.modules: list = []  # set by attach()
         self.scene: dict = {}
         self.goals: dict[str, np.ndarray] = dict(firsts)
         self.hands = {arm: HandTrack() for arm in self.arms}
@@ -186,6 +192,7 @@ class TeleopTarget(Target):
 
     def attach(self, world: SimulatedWorld | None, modules) -> None:
         self.world = world
+        self.modules = list(modules)  # the pipeline, for the live view's safety state
 
     # ------------------------------------------------------------------ measurement
     def hand_pose_measured(self, arm: str, state) -> np.ndarray:
@@ -283,6 +290,8 @@ class TeleopTarget(Target):
             clutch = True
         if clutch:
             self.mapper.forget()  # the next sample of each station re-centres on the hand
+            for hand in self.hands.values():
+                hand.lost = hand.needs_clutch = False
         samples = self.source.read_until(t_src)
         changed = False
         for sample in samples:
@@ -291,6 +300,13 @@ class TeleopTarget(Target):
             arm = self.mapper.config.station_arm.get(sample.station)
             if arm not in self.hands:
                 continue
+            hand = self.hands[arm]
+            if hand.lost:
+                if self.live:  # hold until the operator re-centres
+                    hand.needs_clutch = True
+                    continue
+                hand.lost = False  # a replay re-centres by itself after a gap
+                self.mapper.forget(sample.station)
             goal = self.mapper.goal(sample.station, sample.T_tracker_sensor, sample.t_s,
                                     self.hand_pose_commanded(arm))
             if goal is None:
@@ -305,10 +321,14 @@ class TeleopTarget(Target):
         flags = []
         for station, arm in self.mapper.config.station_arm.items():
             if arm in self.hands:
+                hand = self.hands[arm]
                 stale = self.source.is_stale(station, t_src, self.stale_timeout_s)
-                self.hands[arm].stale = stale and self.mapper.is_calibrated(station)
-                if self.hands[arm].stale:
+                hand.stale = stale and self.mapper.is_calibrated(station)
+                if hand.stale:
+                    hand.lost = True
                     flags.append("stale-input")
+                elif hand.needs_clutch:
+                    flags.append("holding")
         lift = self.lift.step(self.body.lift_for(self.goals), self.dt_guard_s)
         if changed or self._converging() or branch_key or lift != self.body.lift_of(
                 self.q_target):
@@ -454,7 +474,7 @@ class TeleopTarget(Target):
                              f"goal_z_m_{key}": hand.goal_m[2], f"error_m_{key}": error,
                              f"rot_error_rad_{key}": rot_error})
                 if self.phase == "operate" and self.mapper.is_calibrated(
-                        self._station_of(arm)):
+                        self.station_of(arm)):
                     self.errors_m[arm].append(error)
                     self.rotation_errors_rad[arm].append(rot_error)
                     self.path_times_s[arm].append(t_s)
@@ -466,7 +486,8 @@ class TeleopTarget(Target):
         self.max_tilt_rad = max(self.max_tilt_rad,
                                 float(tilt_rad_of_quat_wxyz(state.imu_quat_wxyz)))
 
-    def _station_of(self, arm: str) -> int:
+    def station_of(self, arm: str) -> int:
+        """The tracker station that drives ``arm``."""
         return next(s for s, a in self.mapper.config.station_arm.items() if a == arm)
 
 

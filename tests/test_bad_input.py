@@ -1,0 +1,346 @@
+"""Bad input and operator mistakes: every case gets a one-line error and its exit code, before
+anything moves, and no file the user owns is changed (issue: operator safety and bad input).
+
+The table drives ``hubo`` through click's CliRunner with the ideal driver and short streams.
+"""
+
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import click
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from hubo_cli.cli.main import COMMANDS, main
+from hubo_cli.errors import InputError
+from hubo_cli.fastrak.capture import CHUNK_HEAD, parse_capture, read_recording_bytes
+from hubo_cli.resources import data_file
+from hubo_cli.runs import MARKER, make_run_dir
+
+FREE_CSV = data_file("trajectories", "two-hand-free.csv")
+FREE_CAPTURE = data_file("trajectories", "two-hand-free.fastrak")
+SLOT = data_file("tasks", "cut-slot.toml")
+
+
+def _short_log(path: Path, rows: int = 250) -> Path:
+    """The first ~2 s of the shipped two-hand pose log."""
+    lines = FREE_CSV.read_text().splitlines()[:rows]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def _jumpy_log(path: Path) -> Path:
+    """A pose log whose samples jump by a kilometre most of the time (tracker garbage)."""
+    lines = FREE_CSV.read_text().splitlines()[:250]
+    out = [lines[0]]
+    for k, line in enumerate(lines[1:]):
+        cells = line.split(",")
+        if k % 6 > 0:
+            cells[2] = "1000.0"
+        out.append(",".join(cells))
+    path.write_text("\n".join(out) + "\n")
+    return path
+
+
+def _suspect_log(path: Path) -> Path:
+    """A pose log whose every record carries an out-of-envelope status letter."""
+    lines = FREE_CSV.read_text().splitlines()[:250]
+    path.write_text("\n".join([lines[0]] + [line.rstrip(",") + ",x" for line in lines[1:]])
+                    + "\n")
+    return path
+
+
+def _corrupt_chunk(path: Path, extra: int) -> Path:
+    """The shipped capture with one chunk's length field garbled."""
+    blob = read_recording_bytes(FREE_CAPTURE)
+    cap = parse_capture(blob)
+    pos = blob.index(b"\n", blob.index(b"\n") + 1) + 1
+    for _ in range(len(cap.chunk_ends) // 3):
+        _, n = CHUNK_HEAD.unpack_from(blob, pos)
+        pos += CHUNK_HEAD.size + n
+    t_s, n = CHUNK_HEAD.unpack_from(blob, pos)
+    bad = bytearray(blob)
+    CHUNK_HEAD.pack_into(bad, pos, t_s, n + extra)
+    path.write_bytes(bytes(bad))
+    return path
+
+
+def _task_with(path: Path, old: str, new: str) -> Path:
+    text = SLOT.read_text()
+    assert old in text
+    path.write_text(text.replace(old, new))
+    return path
+
+
+def _unreachable_task(path: Path) -> Path:
+    path.write_text("""name = "far"
+[stance]
+wall_distance_mm = 470.0
+centre_mm = [0.0, 0.0]
+[[steps]]
+kind = "move"
+to_mm = [900.0, 0.0]
+depth_mm = -50.0
+duration_s = 0.5
+""")
+    return path
+
+
+# id -> (argument builder (tmp path -> argv), exit code, text the message must hold)
+CASES = {
+    "width-3000": (lambda d: ["task", "cut-rectangle", "--width", "3000", "--driver", "ideal"],
+                   2, "at most 1000"),
+    "height-5000": (lambda d: ["task", "cut-rectangle", "--height", "5000"], 2, "at most 1000"),
+    "task-speed-1e9": (lambda d: ["task", "cut-rectangle", "--speed", "1e9"], 2, "at most 500"),
+    "task-out-proc": (lambda d: ["task", "cut-slot", "--out", "/proc/hubo-no-such/run"], 2,
+                      "cannot create the run folder"),
+    "task-out-under-file": (lambda d: ["task", "cut-slot", "--out", str(d / "f.txt" / "sub")],
+                            2, "is a file"),
+    "task-garbage": (lambda d: ["task", "run", str(_bytes(d / "garbage.toml"))], 2,
+                     "not a text file"),
+    "task-wait-1e9": (lambda d: ["task", "run", str(_task_with(
+        d / "w.toml", "duration_s = 1.0", "duration_s = 1e9"))], 2, "at most 600"),
+    "task-revert-1e9": (lambda d: ["task", "run", str(_task_with(
+        d / "r.toml", "revert_s = 0.5", "revert_s = 1e9"))], 2, "at most 5"),
+    "task-speed-and-set": (lambda d: ["task", "cut-rectangle", "--speed", "20", "--set",
+                                      "speed_mm_s=30"], 2, "both set speed_mm_s"),
+    "task-unused-parameter": (lambda d: ["task", "cut-slot", "--set", "length_mm=50"], 2,
+                              "no parameter 'length_mm'"),
+    "task-unreachable": (lambda d: ["task", "run", str(_unreachable_task(d / "far.toml")),
+                                    "--driver", "ideal", "--out", str(d / "far-run")], 4,
+                         "refused in pre-flight"),
+    "workspace-out-proc": (lambda d: ["workspace-map", "--out", "/proc/hubo-no-such/run"], 2,
+                           "cannot create the run folder"),
+    "sim-out-under-file": (lambda d: ["sim", "--duration", "0.1", "--out",
+                                      str(d / "f.txt" / "sub")], 2, "is a file"),
+    "teleop-out-under-file": (lambda d: ["teleop", "--replay", str(_short_log(d / "s.csv")),
+                                         "--driver", "ideal", "--out", str(d / "f.txt" / "sub")],
+                              2, "is a file"),
+    "teleop-out-user-folder": (lambda d: ["teleop", "--replay", str(_short_log(d / "s.csv")),
+                                          "--driver", "ideal", "--out", str(d / "mine")],
+                               2, "not a hubo run"),
+    "teleop-map-5": (lambda d: ["teleop", "--replay", str(_short_log(d / "s.csv")),
+                                "--map", "5=right-arm"], 2, "stations 1-4"),
+    "teleop-map-missing": (lambda d: ["teleop", "--replay", str(_short_log(d / "s.csv")),
+                                      "--map", "3=right-arm"], 2, "has no station 3"),
+    "teleop-two-stations-one-arm": (lambda d: ["teleop", "--replay",
+                                               str(_short_log(d / "s.csv")), "--map",
+                                               "1=left-arm", "--map", "2=left-arm"],
+                                    2, "both drive the left-arm"),
+    "teleop-wall-5000": (lambda d: ["teleop", "--replay", str(_short_log(d / "s.csv")),
+                                    "--mode", "drill", "--wall-distance", "5000", "--out",
+                                    str(d / "wall-run")], 2, "reaches nothing"),
+    "teleop-wall-550": (lambda d: ["teleop", "--replay", str(_short_log(d / "s.csv")),
+                                   "--mode", "drill", "--wall-distance", "550", "--out",
+                                   str(d / "wall-run")], 4, "cannot reach the wall"),
+    "teleop-wall-negative": (lambda d: ["teleop", "--replay", str(_short_log(d / "s.csv")),
+                                        "--mode", "drill", "--wall-distance", "-100"],
+                             2, "positive distance"),
+    "teleop-duration-negative": (lambda d: ["teleop", "--replay", str(_short_log(d / "s.csv")),
+                                            "--duration", "-1"], 2, "positive number"),
+    "teleop-clutch-negative": (lambda d: ["teleop", "--replay", str(_short_log(d / "s.csv")),
+                                          "--clutch", "-1"], 2, "not a time"),
+    "teleop-baud-negative": (lambda d: ["teleop", "--port", "/dev/null", "--baud", "-5"], 2,
+                             "not a FASTRAK baud rate"),
+    "teleop-corrupt-chunk": (lambda d: ["teleop", "--replay",
+                                        str(_corrupt_chunk(d / "bad.fastrak", 1_000_000)),
+                                        "--driver", "ideal"], 2, "claims"),
+    "teleop-mostly-rejected": (lambda d: ["teleop", "--replay", str(_jumpy_log(d / "j.csv")),
+                                          "--driver", "ideal", "--out", str(d / "j-run")], 2,
+                               "were rejected"),
+    "teleop-no-input": (lambda d: ["teleop", "--replay", str(_suspect_log(d / "x.csv")),
+                                   "--driver", "ideal", "--out", str(d / "x-run")], 2,
+                        "no operator input"),
+    "fk-nan": (lambda d: ["fk", "right-arm", "nan", "0", "0", "0", "0", "0"], 2, "NaN"),
+    "ik-prev-nan": (lambda d: ["ik", "right-arm", "--xyz", "400", "-200", "0", "--prev", "nan",
+                               "0", "0", "0", "0", "0"], 2, "NaN"),
+    "ik-xyz-and-matrix": (lambda d: ["ik", "right-arm", "--xyz", "400", "-200", "0",
+                                     "--matrix", *"1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1".split()], 2,
+                          "both give the goal"),
+    "ik-1e300": (lambda d: ["ik", "right-arm", "--xyz", "1e300", "0", "0"], 2, "beyond 1e6"),
+    "emulate-duration-negative": (lambda d: ["fastrak", "emulate", "--pty", "--duration", "-1"],
+                                  2, "positive number"),
+    "record-over-existing": (lambda d: ["record", "--port", "/dev/null", "--out",
+                                        str(_owned(d / "mine.fastrak"))], 2, "exists"),
+    "decode-over-existing-csv": (lambda d: ["fastrak", "decode", str(_copy_capture(d))], 2,
+                                 "exists"),
+}
+
+
+def _bytes(path: Path) -> Path:
+    path.write_bytes(b"\xff\xfe\x00garbage\x81")
+    return path
+
+
+def _owned(path: Path) -> Path:
+    path.write_text("the user's own file\n")
+    return path
+
+
+def _copy_capture(d: Path) -> Path:
+    capture = d / "s.fastrak"
+    shutil.copy(FREE_CAPTURE, capture)
+    _owned(d / "s.csv")
+    return capture
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_bad_input_gives_one_line_and_its_exit_code(case, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    _owned(tmp_path / "f.txt")
+    (tmp_path / "mine").mkdir()
+    _owned(tmp_path / "mine" / "log.csv")
+    build, code, text = CASES[case]
+    argv = build(tmp_path)
+    before = {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()}
+    result = CliRunner().invoke(main, argv)
+    output = result.output
+    assert "Traceback" not in output and "internal error" not in output, output
+    assert not isinstance(result.exception, Exception) or isinstance(
+        result.exception, SystemExit), repr(result.exception)
+    assert result.exit_code == code, output
+    assert text in output, output
+    for path, data in before.items():  # nothing the user had was changed
+        assert path.read_bytes() == data, path
+    # a refused run leaves no run folder behind
+    assert not (tmp_path / "runs").exists() or not any((tmp_path / "runs").iterdir())
+    for name in ("far-run", "wall-run"):
+        assert not (tmp_path / name).exists()
+
+
+def test_run_folder_reused_only_by_the_same_command(tmp_path):
+    first = make_run_dir("teleop", tmp_path / "run")
+    (first / "log.csv").write_text("from the first run\n")
+    assert make_run_dir("teleop", tmp_path / "run") == first  # --out given again
+    with pytest.raises(InputError, match="already holds a 'hubo teleop' run"):
+        make_run_dir("sim", tmp_path / "run")
+    assert (first / MARKER).read_text().strip() == "teleop"
+
+
+def test_every_help_lists_the_exit_codes_and_teleop_the_keys():
+    runner = CliRunner()
+
+    def helps(argv, command, ctx):
+        yield argv
+        if isinstance(command, click.Group):
+            for name in command.list_commands(ctx):
+                sub = command.get_command(ctx, name)
+                yield from helps(argv + [name], sub, click.Context(sub, info_name=name))
+
+    seen = 0
+    for argv in helps([], main, click.Context(main, info_name="hubo")):
+        result = runner.invoke(main, [*argv, "--help"])
+        assert result.exit_code == 0, argv
+        assert "Exit codes:" in result.output and "4 refused for safety" in result.output, argv
+        seen += 1
+    assert seen >= len(COMMANDS) + 6  # the task and fastrak subcommands too
+    keys = runner.invoke(main, ["teleop", "--help"]).output
+    for key in ("space", "release", "re-centre", "q, Esc"):
+        assert key in keys
+
+
+def test_piped_teleop_prints_progress_lines_and_counts_stops(tmp_path):
+    log = _short_log(tmp_path / "s.csv")
+    result = CliRunner().invoke(main, ["teleop", "--replay", str(log), "--driver", "ideal",
+                                       "--speed", "1", "--out", str(tmp_path / "run")])
+    assert result.exit_code == 0, result.output
+    # progress while it runs (every 2 s; the replay takes a few seconds in real time)
+    assert re.search(r"teleop (approach|operate|settle): samples \d+ \|", result.stderr)
+    assert "e-stop off" in result.stderr
+    assert "e-stops 0 (released 0)" in result.stdout
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="signals as on Linux")
+def test_sigterm_ends_like_ctrl_c_with_a_summary(tmp_path):
+    log = _short_log(tmp_path / "s.csv", rows=2000)
+    run = tmp_path / "run"
+    hubo = Path(sys.executable).with_name("hubo")
+    process = subprocess.Popen([str(hubo), "teleop", "--replay", str(log), "--driver", "ideal",
+                                "--speed", "1", "--out", str(run)], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while not (run / "log.csv").exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        time.sleep(1.0)
+        process.send_signal(signal.SIGTERM)
+        out, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 130, err
+    assert "Traceback" not in err
+    assert (run / "summary.json").exists()
+    assert "interrupted" in out
+
+
+def test_collision_layer_keeps_the_commanded_posture_apart(model, tmp_path):
+    """The operator's goal goes deep into the body: the command stays clear (logged)."""
+    from hubo_cli.control.log import load_log
+    from hubo_cli.control.loop import ControlLoop
+    from hubo_cli.control.pipeline import build_pipeline
+    from hubo_cli.drivers.registry import make_driver
+    from hubo_cli.posture import home_posture
+
+    robot = make_driver("ideal", model)
+    robot.start(home_posture(model))
+    q0 = robot.read().q_rad.copy()
+    inward = q0.copy()
+    inward[1] = 0.3        # right shoulder rolled in: forearm through the pelvis
+    inward[7] = -0.3       # and the left one too
+    modules = build_pipeline(model, ["otg", "collision", "limiter"])
+
+    def target(t_s, state):
+        return (inward if t_s < 2.0 else q0), {}
+
+    ControlLoop(robot, modules, target, log_path=tmp_path).run(duration_s=4.0)
+    columns = load_log(tmp_path).columns  # (the final smooth stop's rows have no module data)
+    assert np.nanmin(columns["collision_ahead_m"]) < -0.01        # the goal went inside
+    assert np.nanmin(columns["collision_distance_m"]) > -0.001    # the command never did
+
+
+
+def test_setting_a_parameter_the_task_never_uses_is_refused(tmp_path):
+    from hubo_cli.errors import ConfigError
+    from hubo_cli.tasks.spec import load_task
+
+    path = tmp_path / "t.toml"
+    path.write_text(SLOT.read_text().replace("[parameters]\n", "[parameters]\nlength_mm = 300.0\n"))
+    assert load_task(path).parameters["length_mm"] == 300.0  # declaring it is harmless
+    with pytest.raises(ConfigError, match="never uses"):
+        load_task(path, {"length_mm": 50.0})
+    assert load_task(path, {"speed_mm_s": 20.0}).steps[2].speed_m_s == pytest.approx(0.02)
+
+
+def test_the_way_back_from_a_collision_hold_does_not_cross_the_body(model):
+    """Two clear postures whose straight joint-space way between crosses the torso (the left
+    wrist through it): held at the first, the input then at the second; the recovery must hold
+    short of the body rather than pass through it (without that check it reaches -9 mm)."""
+    from hubo_cli.control.collision import CollisionDetector
+    from hubo_cli.control.module import Cycle
+    from hubo_cli.posture import home_posture
+    from hubo_cli.state import RobotState
+
+    dt = model.control_period_s
+    a, b = home_posture(model), home_posture(model)
+    a[:12] = [-1.57, -0.31, -0.64, -2.4, -1.9, 0.7, 0.42, 0.19, 0.78, -2.17, 0.53, 0.3]
+    b[:12] = [-1.98, -0.82, 0.91, -0.6, 0.68, 0.9, 1.02, 1.82, -0.34, -2.41, -1.69, -0.65]
+    detector = CollisionDetector(model, dt)
+    way = [detector.checker.check(a + s * (b - a)).distance_m for s in np.linspace(0, 1, 101)]
+    assert min(way[0], way[-1]) > 0.03 and min(way) < -0.01  # the premise
+    inside = a + np.linspace(0, 1, 101)[int(np.argmin(way))] * (b - a)
+    state = RobotState(0.0, a, np.zeros(len(a)))
+    detector.reset(a, state)
+    distances = []
+    for k in range(int(6.0 / dt)):
+        q_in = a if k < 20 else (inside if k < 60 else b)  # into the body, then beyond it
+        detector.update(q_in, state, Cycle(k * dt, dt))
+        distances.append(detector.last_clearance.distance_m)
+    assert detector.events  # it held
+    assert min(distances) > 0.0

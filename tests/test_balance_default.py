@@ -1,0 +1,80 @@
+"""The default balancer (common-mode damping toward the commanded CoM's moment, differential
+foot evening): it holds the body as commanded instead of leaning with the load, and it keeps
+its corrections inside the limiter's limits."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hubo_cli.control.balance import (
+    MAX_CORRECTION_ACCEL_RAD_S2,
+    MAX_CORRECTION_RATE_RAD_S,
+    DampingBalancer,
+    make_balancer,
+)
+from hubo_cli.control.module import Cycle
+from hubo_cli.errors import ConfigError
+from hubo_cli.experiments.standing import stand
+from hubo_cli.posture import home_posture
+from hubo_cli.state import RobotState
+
+DT = 0.005
+
+
+def _state(model, moment_y_each_nm: float, pitch_deg: float = 0.0) -> RobotState:
+    half = np.radians(pitch_deg) / 2
+    quat = np.array([np.cos(half), 0.0, np.sin(half), 0.0])
+    ft = {name: np.zeros(6) for name in ("right-wrist", "left-wrist")}
+    for foot in ("right-ankle", "left-ankle"):
+        ft[foot] = np.array([0.0, 0.0, 190.0, 0.0, moment_y_each_nm, 0.0])
+    return RobotState(0.0, home_posture(model), np.zeros(24), imu_quat_wxyz=quat, ft=ft,
+                      feet_contact=(True, True))
+
+
+def test_a_robot_standing_as_commanded_gets_no_correction(model):
+    home = home_posture(model)
+    probe = DampingBalancer(model)
+    probe.update(home, _state(model, 0.0), Cycle(0.0, DT))
+    reference = probe.reference_moment_nm[0]  # the CoM ahead of the ankles: M_y < 0
+    assert reference < -5.0
+    balancer = DampingBalancer(model)
+    state = _state(model, reference / 2)  # each foot carries half of it: as commanded
+    for k in range(400):
+        q = balancer.update(home, state, Cycle(k * DT, DT))
+    assert np.abs(q - home).max() < 1e-9
+    # the paper's law leans with that same moment
+    paper = make_balancer(model, "paper")
+    for k in range(400):
+        q = paper.update(home, state, Cycle(k * DT, DT))
+    assert np.abs(q - home).max() > 0.01
+
+
+def test_corrections_stay_inside_the_limiters_rate_and_acceleration(model):
+    balancer = DampingBalancer(model)
+    home = home_posture(model)
+    state = _state(model, 60.0, pitch_deg=3.0)  # a large error: the filter saturates
+    offsets = []
+    for k in range(300):
+        balancer.update(home, state, Cycle(k * DT, DT))
+        offsets.append(balancer.offsets_rad["right-leg"].copy())
+    rate = np.diff(np.array(offsets), axis=0) / DT
+    accel = np.diff(rate, axis=0) / DT
+    assert np.abs(rate).max() <= MAX_CORRECTION_RATE_RAD_S + 1e-9
+    assert np.abs(accel).max() <= MAX_CORRECTION_ACCEL_RAD_S2 + 1e-6
+    assert np.abs(rate).max() > 0.5 * MAX_CORRECTION_RATE_RAD_S  # and it does move
+
+
+def test_bad_settings_are_refused(model):
+    with pytest.raises(ConfigError):
+        DampingBalancer(model, damping_nm_s_per_rad=-1.0)
+    with pytest.raises(ConfigError):
+        make_balancer(model, "sideways")
+
+
+def test_standing_the_default_balancer_holds_the_body_upright(model):
+    default = stand(model, duration_s=3.0, balance=True)
+    paper = stand(model, duration_s=3.0, balance=True, balance_mode="paper")
+    assert not default.fell and default.feet_flat
+    assert default.max_tilt_deg < 0.2
+    assert paper.max_tilt_deg > 0.5  # the paper's law leans (1.1 deg after 20 s)

@@ -1,0 +1,103 @@
+"""Input loss on a live tracker: the hands hold; when the tracker is back they keep holding until
+the operator re-centres (clutch), so the goal never jumps to where the operator's hand went
+meanwhile; a tracker that does not come back ends the run with exit 3 and a plain message.
+
+Real parts throughout: the emulated FASTRAK on a pseudo-terminal, the live reader (pyserial),
+the teleoperation target and the ideal driver. Waits are bounded by generous deadlines.
+"""
+
+import threading
+import time
+
+import numpy as np
+from click.testing import CliRunner
+
+from hubo_cli.cli.main import main
+from hubo_cli.drivers.registry import make_driver
+from hubo_cli.fastrak.emulator import make_emulator
+from hubo_cli.fastrak.opener import open_source
+from hubo_cli.posture import home_posture
+from hubo_cli.teleop.mapping import HandMapper
+from hubo_cli.teleop.session import TeleopSettings, approach_paths, prepare
+from hubo_cli.teleop.target import TeleopTarget
+
+FAST = {"settle_s": 0.05, "command_gap_s": 0.0}
+DEADLINE_S = 20.0
+
+
+class Operator:
+    """Runs the target period by period against the ideal driver, in real time."""
+
+    def __init__(self, model, target, driver) -> None:
+        self.target, self.driver = target, driver
+        self.state = driver.read()
+        self.t_s = 0.0
+        self.dt_s = model.control_period_s
+        self.flags: list[set[str]] = []
+        self.goals: list[np.ndarray] = []
+
+    def step(self) -> None:
+        q, info = self.target(self.t_s, self.state)
+        self.driver.send(q)
+        self.state = self.driver.step()
+        self.flags.append(set(info.get("flags", ())))
+        goal = self.target.goals.get("right-arm")
+        self.goals.append(goal[:3, 3].copy())
+        self.t_s += self.dt_s
+        time.sleep(self.dt_s)
+
+    def run_until(self, condition) -> bool:
+        deadline = time.monotonic() + DEADLINE_S
+        while not condition() and time.monotonic() < deadline:
+            self.step()
+        return condition()
+
+
+def test_hands_hold_after_input_loss_until_the_operator_recentres(model):
+    emu = make_emulator(stations=1).start()
+    try:
+        settings = TeleopSettings(port=emu.port_name, station_arm={1: "right-arm"})
+        _, body, mapping, scene = prepare(settings)
+        with open_source(port=emu.port_name, silence_timeout_s=0.3, **FAST) as source:
+            driver = make_driver("ideal", model)
+            with driver:
+                driver.start(home_posture(model))
+                target = TeleopTarget(model, source, HandMapper(mapping), body,
+                                      approach_paths(body, ["right-arm"], scene),
+                                      home_posture(model), live=True)
+                op = Operator(model, target, driver)
+                hand = target.hands["right-arm"]
+                assert op.run_until(lambda: target.samples_used > 30)  # operating, calibrated
+                emu.device.continuous = False  # the unit goes silent (e.g. a loose cable)
+                assert op.run_until(lambda: hand.stale)
+                assert op.run_until(lambda: hand.needs_clutch)  # reconnected, input is back
+                held = op.goals[-1].copy()
+                n_back = len(op.goals)
+                time.sleep(0.5)  # the operator's hand goes on moving meanwhile
+                for _ in range(60):
+                    op.step()
+                assert source.stats.reconnects == 1
+                assert all(np.array_equal(g, held) for g in op.goals[n_back:])  # holds
+                assert all("holding" in f for f in op.flags[-50:])
+                target.keys.clutch = True  # the operator re-centres
+                used = target.samples_used
+                assert op.run_until(lambda: target.samples_used > used + 20)
+                assert not hand.needs_clutch
+                after = np.array(op.goals[n_back + 60:])
+                steps = np.linalg.norm(np.diff(np.vstack([held, after]), axis=0), axis=1)
+                assert steps.max() < 0.01  # no jump: motion resumes from the held goal
+    finally:
+        emu.close()
+
+
+def test_lost_tracker_ends_with_exit_3_and_a_plain_message(tmp_path):
+    emu = make_emulator(stations=2).start()
+    port = emu.port_name
+    runner = CliRunner()
+    threading.Timer(6.0, emu.close).start()  # the tracker goes away for good during the run
+    result = runner.invoke(main, ["teleop", "--port", port, "--driver", "ideal", "--duration",
+                                  "60", "--out", str(tmp_path / "run")])
+    assert result.exit_code == 3, result.output
+    assert "DeviceError" not in result.output and "Traceback" not in result.output
+    assert "error: FASTRAK on" in result.output and "reconnecting failed" in result.output
+    assert (tmp_path / "run" / "summary.json").exists()
