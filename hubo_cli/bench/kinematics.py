@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from hubo_cli.kinematics import get_limb
+from hubo_cli.kinematics.arm_reach import ArmReach
 
 DLS_TOL = 1e-6      # pinocchio baseline converged when the 6-D log error is below this
 DLS_MAX_ITERS = 1000
@@ -65,6 +66,30 @@ def _bench_batch_csv(report, limb) -> None:
                        f"{seconds:.2f} s incl. ~0.4 s start-up; target >= 200,000")
 
 
+def _bench_reach(report, rng) -> None:
+    """One teleop IK call on the arm's branch: exact, or the nearest-pose fallback (median)."""
+    limb = get_limb("right-arm", "hand")
+    reach = ArmReach(limb)
+    q_ready = np.array([0.0, -0.15, 0.0, -1.4, 0.0, 0.0])
+    reach.start(q_ready)
+    T0 = limb.fk(q_ready)
+    goals = []
+    for offset in rng.uniform(-0.25, 0.25, size=(2000, 3)):  # about half out of reach
+        T = T0.copy()
+        T[:3, 3] += offset
+        goals.append(T)
+    reach.solve(goals[0], q_ready)  # compile / load the numba cache outside the timing
+    times = {"exact": [], "nearest": []}
+    for T in goals:
+        t0 = time.perf_counter()
+        result = reach.solve(T, q_ready)
+        times[result.status].append(time.perf_counter() - t0)
+    for status, label in (("exact", "exact on the branch"), ("nearest", "nearest-pose fallback")):
+        if times[status]:
+            report(f"teleop IK, one call, {label} (median)", np.median(times[status]) * 1e6,
+                   "us/call", f"target <= 25; {len(times[status])} of {len(goals)} goals")
+
+
 def run(report) -> None:
     limb = get_limb("right-arm", "drill")
     rng = np.random.default_rng(1)
@@ -80,6 +105,8 @@ def run(report) -> None:
     per_call_us = (time.perf_counter() - t0) / len(Q) * 1e6
     report("closed-form IK, one call (8 candidates + choice)", per_call_us, "us/call",
            "target <= 25")
+
+    _bench_reach(report, rng)
 
     n = 1_000_000
     Qb = limb.random_q(rng, n)

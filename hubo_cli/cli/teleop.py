@@ -24,7 +24,8 @@ from hubo_cli.cli.output import (
 from hubo_cli.drivers.registry import DRIVER_NAMES, driver_class
 from hubo_cli.errors import HuboError, InputError, SafetyError
 
-KEYS_HELP = "keys: space e-stop, r release, c clutch, q quit"
+KEYS_HELP = "keys: space e-stop, r release, c clutch, b change branch, q quit"
+DIRECTIONS = (("fwd", "back"), ("left", "right"), ("up", "down"))  # +/- x, y, z of the stance
 MOSTLY_REJECTED = 0.5  # a replay with more than this share of samples rejected has failed
 ABSURD_ERROR_MM = 100.0  # an RMS error above this means the hand never followed the operator
 EXIT_BAD_INPUT = 2
@@ -64,13 +65,35 @@ def hand_safety(target) -> list:
     return out
 
 
+def _direction(v) -> str:
+    """Words for a direction in the stance frame, e.g. ``fwd-down`` (components over 35 %)."""
+    unit = np.asarray(v, dtype=float) / max(float(np.linalg.norm(v)), 1e-12)
+    words = [DIRECTIONS[i][0 if unit[i] > 0 else 1] for i in range(3) if abs(unit[i]) > 0.35]
+    return "-".join(words)
+
+
+def _reach_cell(hand) -> str:
+    """The reach column: branch moves, the reach limit (missing part), slowing near singular."""
+    if hand.branch_move is not None or hand.notice.startswith("no other"):
+        return f"[cyan]{hand.notice}[/]"
+    if hand.at_limit:
+        missing = hand.missing_m
+        return (f"[yellow]at reach limit: {np.linalg.norm(missing) * 1000:.0f} mm "
+                f"{_direction(missing)}[/]")
+    if hand.speed_scale < 1.0:
+        return f"[yellow]near singular: {hand.speed_scale:.0%} speed[/]"
+    return "ok"
+
+
 def _view(target, panel) -> Group:
-    """The live view: the safety state; per hand goal, actual, error, IK status; input and
-    latency."""
+    """The live view: the safety state; per hand goal, actual, position and orientation errors,
+    IK status, reach (limit and direction of the missing part, branch changes, slowing); input
+    and latency."""
     safety = panel()
     phase = "E-STOPPED" if panel.last.estop in ("stopping", "held") else target.phase
     table = Table(title=f"hubo teleop — {phase}   ({KEYS_HELP})", title_justify="left")
-    for column in ("hand", "goal (mm)", "actual (mm)", "error (mm)", "IK", "input"):
+    for column in ("hand", "goal (mm)", "actual (mm)", "pos err (mm)", "rot err (deg)", "IK",
+                   "reach", "input"):
         table.add_column(column)
 
     def mm(p):
@@ -79,8 +102,9 @@ def _view(target, panel) -> Group:
     for arm, hand in target.hands.items():
         error = (np.linalg.norm(hand.goal_m - hand.actual_m) * 1000
                  if hand.goal_m is not None and hand.actual_m is not None else float("nan"))
-        table.add_row(arm, mm(hand.goal_m), mm(hand.actual_m), f"{error:.1f}", hand.ik_status,
-                      "[red]stale[/]" if hand.stale
+        table.add_row(arm, mm(hand.goal_m), mm(hand.actual_m), f"{error:.1f}",
+                      f"{np.degrees(hand.rotation_error_rad):.1f}", hand.ik_status,
+                      _reach_cell(hand), "[red]stale[/]" if hand.stale
                       else "[yellow]back: press c[/]" if hand.needs_clutch else "ok")
     latency = target.latencies_s[-1] * 1000 if target.latencies_s else float("nan")
     table.caption = (f"samples {target.samples_used}  rejected {target.mapper.rejected}  "
@@ -112,6 +136,17 @@ def _view(target, panel) -> Group:
               help="Re-centre at these replay times (as the c key does live).")
 @click.option("--duration", type=float, default=None, metavar="SECONDS",
               help="Stop after this long (live mode; default: until q or Ctrl-C).")
+@click.option("--reach", "reach_mode", type=click.Choice(["nearest", "paper"]), default="nearest",
+              show_default=True,
+              help="Out of reach: nearest = stay on the IK branch, go to the nearest reachable "
+                   "pose (position first); paper = the paper's 5 cm rule (may switch branch).")
+@click.option("--orientation-weight", type=float, default=0.87, show_default=True,
+              metavar="MM_PER_DEG",
+              help="Nearest pose: millimetres of position error one degree of orientation "
+                   "error is worth (small = position first).")
+@click.option("--allow-branch-change", is_flag=True,
+              help="Change IK branch by itself (slowly, announced) when a hand rests at its "
+                   "reach limit and another branch reaches the goal; otherwise only on key b.")
 @click.option("--no-estop", is_flag=True, help=NO_ESTOP_HELP)
 @click.option("--gui", is_flag=True, help="Open the PyBullet window.")
 @click.option("--out", type=click.Path(file_okay=False), default=None,
@@ -122,8 +157,8 @@ def _view(target, panel) -> Group:
 @hardware_options
 @perturb_option
 def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, wall_distance,
-           clutch_at, duration, no_estop, gui, out, as_json, video, perturb_seed,
-           **hardware) -> None:
+           clutch_at, duration, reach_mode, orientation_weight, allow_branch_change, no_estop,
+           gui, out, as_json, video, perturb_seed, **hardware) -> None:
     """Drive the robot's hands from an operator's FASTRAK stream.
 
     Exactly one of --replay FILE or --port DEV. The first sample of each station calibrates it:
@@ -143,6 +178,7 @@ def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, w
               hubo teleop --port /dev/ttyUSB0
     """
     from hubo_cli.cli.replay import check_video_support
+    from hubo_cli.kinematics.arm_reach import ReachSettings
     from hubo_cli.runs import reserved_run_dir
     from hubo_cli.teleop.session import TeleopSettings
 
@@ -179,7 +215,9 @@ def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, w
         wall_distance_m=None if wall_distance is None else wall_distance / 1000.0,
         duration_s=duration, clutch_at_s=tuple(clutch_at), out=out, gui=gui, baud=baud,
         estop=not no_estop, driver_options=driver_options(driver, armed, **hardware),
-        perturb_seed=perturb_seed)
+        perturb_seed=perturb_seed, reach=ReachSettings.for_mode(
+            mode, mode=reach_mode, allow_branch_change=allow_branch_change,
+            orientation_weight_m_per_rad=orientation_weight / 1000 * 180 / np.pi))
     if replay is not None:
         _check_replay_stations(replay, settings)
     if wall_distance is not None:
@@ -233,6 +271,8 @@ def _run(settings, as_json: bool):
             target.keys.release = True
         elif char == "c":
             target.keys.clutch = True
+        elif char == "b":
+            target.keys.branch = True
         elif char in ("q", "\x1b"):
             target.keys.quit = True
 
@@ -286,6 +326,13 @@ def _report(run, as_json: bool, video: bool = False) -> None:
                            for arm, v in summary["rms_error_mm"].items()) or "no operator input"
         console.print(f"teleop {summary['ended']} after {summary['duration_s']:.1f} s "
                       f"({summary['periods']} periods): {errors}")
+        for arm, r in summary["reach"].items():
+            if r["position_rms_mm"] is not None:
+                console.print(f"  {arm}: position {r['position_rms_mm']:.1f} mm rms, orientation "
+                              f"{r['orientation_rms_deg']:.1f} deg rms, at reach limit "
+                              f"{r['at_limit_s']:.1f} s, largest excursion "
+                              f"{r['max_excursion_mm']:.0f} mm, branch changes "
+                              f"{r['branch_changes']}")
         releases = len(summary["estop_events"]) - len(stops)
         console.print(f"  e-stops {len(stops)} (released {releases}), statuses "
                       f"{summary['status_counts']}, max velocity "

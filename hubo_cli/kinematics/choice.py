@@ -9,6 +9,10 @@ Rule, per target:
    frame lands closest to the target position, if it is within ``hold_m`` (5 cm);
 3. *held*: otherwise keep the previous joints;
 4. *unreachable*: as 3 but with no previous joints to keep (the capped best is returned).
+
+:func:`solve_limb_on_branch` is the rule used while operating (teleoperation): the exact
+candidate on the arm's current IK branch, or else *nearest*: the reachable pose on that branch
+nearest to the goal, position first (:mod:`.reach`).
 """
 
 from __future__ import annotations
@@ -19,12 +23,14 @@ import numpy as np
 from hubo_cli.kinematics.arm_ik import arm_candidates
 from hubo_cli.kinematics.dh import JIT, chain_fk, invert4, matmul4, pose_error
 from hubo_cli.kinematics.leg_ik import leg_candidates
+from hubo_cli.kinematics.reach import branch_box, nearest_on_branch
 
 EXACT = 0
 CAPPED = 1
 HELD = 2
 UNREACHABLE = 3
-STATUS_NAMES = ("exact", "capped", "held", "unreachable")
+NEAREST = 4
+STATUS_NAMES = ("exact", "capped", "held", "unreachable", "nearest")
 
 EXACT_POS_TOL_M = 1e-6
 EXACT_ROT_TOL_RAD = 1e-6
@@ -162,3 +168,43 @@ def solve_limb_batch(T_goals, chain, lengths, is_arm, lower, upper, q_prevs, has
         pos_err[i] = p
         rot_err[i] = r
     return q_out, status, pos_err, rot_err
+
+
+@nb.njit(**JIT)
+def solve_limb_on_branch(T_goal, chain, lengths, lower, upper, q_prev, branch, margins, w_pos,
+                         w_rot, iterations, q_out):
+    """Solve an arm goal without leaving ``branch``; returns (status, position m, rotation rad).
+
+    EXACT: the closed form's candidate on the branch (within the limits and ``margins`` inside
+    the branch, or no closer to its boundary than ``q_prev``; FK-verified; the one
+    closest to ``q_prev`` if two qualify). Otherwise NEAREST: at most
+    ``iterations`` damped least-squares steps from ``q_prev`` (within the limits) toward the pose
+    nearest to the goal on the branch, weighted by ``w_pos`` (1/m) and ``w_rot`` (m/rad).
+    """
+    base, base_inv, offset, alpha, a, d, end, end_inv = chain
+    work = np.empty((4, 4, 4))
+    T = work[3]
+    cands = np.empty((8, 6))
+    exact = np.zeros(8, dtype=np.bool_)
+    _candidates_into(T_goal, chain, lengths, True, q_prev, cands, exact, work, lower, upper)
+    box = np.empty((2, 6))
+    branch_box(q_prev, branch, margins, lower, upper, box[0], box[1])
+    best = -1
+    best_d = np.inf
+    for k in range(8):
+        if exact[k] and _within(cands[k], box[0], box[1]):
+            dk = _distance2(cands[k], q_prev, True)
+            if dk < best_d:
+                chain_fk(cands[k], base, offset, alpha, a, d, end, T)
+                pos, rot = pose_error(T, T_goal)
+                if pos <= EXACT_POS_TOL_M and rot <= EXACT_ROT_TOL_RAD:
+                    best_d = dk
+                    best = k
+    if best >= 0:
+        q_out[:] = cands[best]
+        chain_fk(q_out, base, offset, alpha, a, d, end, T)
+        pos, rot = pose_error(T, T_goal)
+        return EXACT, pos, rot
+    pos, rot, _ = nearest_on_branch(T_goal, chain, lower, upper, q_prev, branch, margins, w_pos,
+                                    w_rot, iterations, q_out)
+    return NEAREST, pos, rot

@@ -12,6 +12,7 @@ from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.errors import InputError
 from hubo_cli.fastrak.opener import open_source
 from hubo_cli.fastrak.source import PoseSource
+from hubo_cli.kinematics.arm_reach import ReachSettings
 from hubo_cli.kinematics.interpolate import PosePath, PoseSegment, segment_duration
 from hubo_cli.kinematics.wholebody import WholeBody
 from hubo_cli.model import RobotModel, load_model
@@ -48,6 +49,7 @@ class TeleopSettings:
         duration_s: stop after this long (live mode; None = until q / Ctrl-C).
         clutch_at_s: replay times at which to re-centre.
         out: run folder (None: runs/<time>-teleop).
+        reach: how the arms behave at the edge of their reach (None: the mode's defaults).
         gui, baud, estop, driver_options: passed on.
         perturb_seed: a perturbed simulated robot and world (:mod:`hubo_cli.perturb`).
     """
@@ -68,6 +70,7 @@ class TeleopSettings:
     estop: bool = True
     driver_options: dict = field(default_factory=dict)
     perturb_seed: int | None = None
+    reach: ReachSettings | None = None
 
 
 @dataclass
@@ -175,7 +178,8 @@ def run_teleop(settings: TeleopSettings, on_ready=None) -> TeleopRun:
     teleop_setup(settings, body, None).pace()  # refuse a bad pace before opening the port
     with open_source(replay=settings.replay, port=settings.port, baud=settings.baud) as source:
         target = TeleopTarget(model, source, HandMapper(mapping), body, approach, q_start,
-                              live=source.live, clutch_at_s=settings.clutch_at_s, wall=wall)
+                              live=source.live, clutch_at_s=settings.clutch_at_s, wall=wall,
+                              reach=settings.reach)
         duration = settings.duration_s
         if duration is None and source.recorded_s is not None:
             duration = source.recorded_s + target.approach_timeout_s + 30.0
@@ -234,6 +238,7 @@ def summarise(settings: TeleopSettings, target: TeleopTarget, done: RunResult,
                                for arm, e in target.world_errors_m.items() if e},
         "max_torso_tilt_deg": float(np.degrees(target.max_tilt_rad)),
         "ik_status_counts": {arm: h.ik_counts for arm, h in target.hands.items()},
+        "reach": target.reach_report(),
         "latency_ms": {"median": float(np.median(latencies)) if len(latencies) else None,
                        "p99": float(np.percentile(latencies, 99)) if len(latencies) else None},
         "samples_used": target.samples_used,

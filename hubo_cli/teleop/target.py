@@ -15,6 +15,14 @@ three phases:
    replay re-centres on the first sample after the gap;
 3. *settle*: a replay has ended; the hands hold their last goals until the robot is still.
 
+While operating, each arm stays on the IK branch it started on and a goal out of its reach sends
+it to the nearest reachable pose on that branch, position first (:mod:`hubo_cli.kinematics.
+arm_reach`; ``reach="paper"`` restores the paper's 5 cm rule). The branch changes only on the
+operator's request (key ``b``) or, with ``allow_branch_change``, when the hand rests at its reach
+limit and another branch reaches the goal: a slow joint-space move, announced in the live view.
+Near singular configurations the arm's joint speeds are scaled down
+(:mod:`hubo_cli.kinematics.conditioning`).
+
 Goals live in the stance frame S (the home neck frame, fixed to the ground). The actual
 end-effector pose is what the robot measures, as on the paper's robot: FK of the measured arm
 joints, lifted by the FK of the measured legs (feet flat on the ground). Where the driver knows
@@ -33,8 +41,12 @@ from hubo_cli.control.target import Target
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.fastrak.source import PoseSource
 from hubo_cli.geometry import tilt_rad_of_quat_wxyz
+from hubo_cli.kinematics.arm_reach import ArmReach, BranchMove, ReachSettings
 from hubo_cli.kinematics.choice import STATUS_NAMES
+from hubo_cli.kinematics.conditioning import SingularityScale, condition_number
+from hubo_cli.kinematics.dh import pose_error
 from hubo_cli.kinematics.interpolate import PosePath
+from hubo_cli.kinematics.reach import branch_of
 from hubo_cli.kinematics.wholebody import LiftFilter, WholeBody
 from hubo_cli.model import ARMS, RobotModel
 from hubo_cli.scene import WallPlacement
@@ -42,6 +54,9 @@ from hubo_cli.teleop.mapping import HandMapper
 
 PHASES = ("approach", "operate", "settle")
 SHORT = {"right-arm": "r", "left-arm": "l"}
+REST_RADIUS_M = 0.005  # a goal that stays within this for REST_S is at rest
+REST_S = 0.5
+EXCURSION_WINDOW_S = 1.0  # max_excursion_mm: nearest goal sample within +-this
 
 
 @dataclass
@@ -55,6 +70,22 @@ class HandTrack:
     stale: bool = False
     lost: bool = False          # went stale after calibration: re-centre before moving again
     needs_clutch: bool = False  # live: input is back, waiting for the operator's re-centre
+    position_error_m: float = float("nan")
+    rotation_error_rad: float = float("nan")
+    missing_m: np.ndarray | None = None  # goal minus the reachable pose's position, at the limit
+    speed_scale: float = 1.0
+    branch_move: BranchMove | None = None
+    notice: str = ""
+    branch_changes: int = 0
+    at_limit_periods: int = 0
+    rest_anchor_m: np.ndarray | None = None
+    rest_since_s: float = 0.0
+    last_branch: int | None = None
+
+    @property
+    def at_limit(self) -> bool:
+        """The goal is out of reach: the hand is held at the nearest reachable pose."""
+        return self.missing_m is not None
 
 
 @dataclass
@@ -65,11 +96,12 @@ class Keys:
     release: bool = False
     clutch: bool = False
     quit: bool = False
+    branch: bool = False
 
     def take(self) -> Keys:
         """Return the pending requests and clear them."""
-        pending = Keys(self.estop, self.release, self.clutch, self.quit)
-        self.estop = self.release = self.clutch = self.quit = False
+        pending = Keys(self.estop, self.release, self.clutch, self.quit, self.branch)
+        self.estop = self.release = self.clutch = self.quit = self.branch = False
         return pending
 
 
@@ -92,13 +124,17 @@ class TeleopTarget(Target):
         wall: placed once the robot is still at the approach's first pose (drill mode: the
             robot raises its tool away from the wall, as an operator would bring it up to the
             wall with the tool ready); in a simulator only.
+        reach: how the arms behave at the edge of their reach (branch, nearest pose, paper);
+            None: the mapping mode's defaults (:meth:`ReachSettings.for_mode`).
+        singularity: the speed scale near singular configurations (``reach="nearest"`` only).
     """
 
     def __init__(self, model: RobotModel, source: PoseSource, mapper: HandMapper,
                  body: WholeBody, approach: dict[str, PosePath], q_start_rad: np.ndarray,
                  *, live: bool = False, stale_timeout_s: float = 0.25, settle_s: float = 1.0,
                  approach_timeout_s: float = 5.0, clutch_at_s: tuple[float, ...] = (),
-                 wall: WallPlacement | None = None) -> None:
+                 wall: WallPlacement | None = None, reach: ReachSettings | None = None,
+                 singularity: SingularityScale | None = None) -> None:
         self.model = model
         self.source = source
         self.mapper = mapper
@@ -130,6 +166,13 @@ class TeleopTarget(Target):
         self.scene: dict = {}
         self.goals: dict[str, np.ndarray] = dict(firsts)
         self.hands = {arm: HandTrack() for arm in self.arms}
+        self.reach_settings = reach or ReachSettings.for_mode(mapper.config.mode)
+        self.reach = {arm: ArmReach(body.arms[arm], self.reach_settings) for arm in approach}
+        self.singularity = singularity or SingularityScale()
+        self.rotation_errors_rad: dict[str, list[float]] = {arm: [] for arm in self.arms}
+        self.path_times_s: dict[str, list[float]] = {arm: [] for arm in self.arms}
+        self._t_solved_s: dict[str, float] = {}
+        self._q_measured = self.q_target.copy()
         self.phase = "approach"
         self.t_operate_s: float | None = None
         self.t_settle_s: float | None = None
@@ -144,8 +187,8 @@ class TeleopTarget(Target):
         self.log_columns = tuple(
             f"{c}_{SHORT[a]}" for a in self.arms
             for c in ("goal_x_m", "goal_y_m", "goal_z_m", "actual_x_m", "actual_y_m",
-                      "actual_z_m", "error_m", "ik_code")) + ("phase_code", "lift_m",
-                                                             "latency_s")
+                      "actual_z_m", "error_m", "ik_code", "rot_error_rad", "reach_limit_m",
+                      "speed_scale")) + ("phase_code", "lift_m", "latency_s")
 
     def attach(self, world: SimulatedWorld | None, modules) -> None:
         self.world = world
@@ -174,14 +217,21 @@ class TeleopTarget(Target):
     def _record_ik(self, solved) -> None:
         for arm, result in solved.arms.items():
             if arm in self.hands:
-                self.hands[arm].ik_status = result.status
-                self.hands[arm].ik_counts[result.status] += 1
+                hand = self.hands[arm]
+                hand.ik_status = result.status
+                hand.ik_counts[result.status] += 1
+                if self.phase == "operate":  # the paper's rule: count the branch switches
+                    branch = int(branch_of(result.q_rad))
+                    if hand.last_branch is not None and branch != hand.last_branch:
+                        hand.branch_changes += 1
+                    hand.last_branch = branch
 
     # ------------------------------------------------------------------ the loop's call
     def __call__(self, t_s: float, state) -> tuple[np.ndarray | None, dict]:
         info: dict = {}
         flags: list[str] = []
         keys = self.keys.take()
+        self._q_measured = state.q_rad
         if keys.estop:
             info["estop"] = "operator"
         if keys.release:
@@ -191,8 +241,10 @@ class TeleopTarget(Target):
         if self.phase == "approach":
             self._approach(t_s, state)
         elif self.phase == "operate":
-            flags += self._operate(t_s, keys.clutch)
+            flags += self._operate(t_s, keys.clutch, keys.branch)
         if self.phase == "settle":
+            if self.reach_settings.mode == "nearest" and self._converging():
+                self._solve_on_branches(t_s, self.body.lift_of(self.q_target), False)
             moving = np.max(np.abs(state.dq_rad_s)) if len(state.dq_rad_s) else 0.0
             at_goal = np.max(np.abs(state.q_rad - self.q_target)) < 0.02
             if (t_s - self.t_settle_s >= self.settle_s and moving < 0.02 and at_goal) or (
@@ -225,11 +277,13 @@ class TeleopTarget(Target):
         if self._settled(state) or t_path >= self.approach_s + self.approach_timeout_s:
             self.phase = "operate"
             self.t_operate_s = t_s
+            for arm, reach in self.reach.items():
+                reach.start(self.q_target[self.slices[arm]])
 
     def _source_time(self, t_s: float) -> float:
         return self.source.now_s() if self.live else t_s - self.t_operate_s
 
-    def _operate(self, t_s: float, clutch: bool) -> list[str]:
+    def _operate(self, t_s: float, clutch: bool, branch_key: bool = False) -> list[str]:
         t_src = self._source_time(t_s)
         while self.clutch_at_s and t_src >= self.clutch_at_s[0]:
             self.clutch_at_s.pop(0)
@@ -276,14 +330,121 @@ class TeleopTarget(Target):
                 elif hand.needs_clutch:
                     flags.append("holding")
         lift = self.lift.step(self.body.lift_for(self.goals), self.dt_guard_s)
-        if changed or lift != self.body.lift_of(self.q_target):
-            solved = self.body.solve(self.goals, self.q_target, lift_m=lift)
-            self.q_target = solved.q_rad
-            self._record_ik(solved)
+        if changed or self._converging() or branch_key or lift != self.body.lift_of(
+                self.q_target):
+            if self.reach_settings.mode == "paper":
+                solved = self.body.solve(self.goals, self.q_target, lift_m=lift)
+                self.q_target = solved.q_rad
+                self._record_ik(solved)
+            else:
+                self._solve_on_branches(t_s, lift, branch_key)
         if self.source.done:
             self.phase = "settle"
             self.t_settle_s = t_s
         return flags
+
+    def _converging(self) -> bool:
+        """An arm target is still on its way (nearest-pose search, slowed step, branch move)."""
+        return any(h.branch_move is not None or h.at_limit or h.speed_scale < 1.0
+                   for h in self.hands.values())
+
+    def _solve_on_branches(self, t_s: float, lift_m: float, branch_key: bool) -> None:
+        """Legs to the lift, each arm on its branch (nearest pose, branch moves, speed scale)."""
+        legs = self.body.solve({}, self.q_target, lift_m=lift_m)
+        q = legs.q_rad
+        for arm, T_S_goal in self.goals.items():
+            sl = self.slices[arm]
+            q_now = self.q_target[sl]
+            reach = self.reach[arm]
+            T_N_goal = reach.smoothed(T_S_goal, t_s - self._t_solved_s.get(arm, t_s))
+            self._t_solved_s[arm] = t_s
+            T_N_goal[2, 3] -= legs.lift_m
+            result = reach.solve(T_N_goal, q_now)
+            hand = self.hands.get(arm)
+            q_arm = result.q_rad
+            if hand is not None:
+                hand.ik_status = result.status
+                hand.ik_counts[result.status] += 1
+                hand.position_error_m = result.position_error_m
+                hand.rotation_error_rad = result.rotation_error_rad
+                hand.missing_m = None
+                if result.status == "nearest":
+                    hand.missing_m = T_N_goal[:3, 3] - reach.limb.fk(result.q_rad)[:3, 3]
+                    hand.at_limit_periods += 1
+                q_arm = self._branch_policy(t_s, arm, hand, T_N_goal, q_now, q_arm, branch_key)
+            q[sl] = self._speed_scaled(arm, q_now, q_arm, hand)
+        self.q_target = q
+
+    def _branch_policy(self, t_s, arm, hand: HandTrack, T_N_goal, q_now, q_arm,
+                       branch_key: bool) -> np.ndarray:
+        """Start, follow or finish a slow branch change; returns the arm's joints."""
+        reach = self.reach[arm]
+        goal_m = T_N_goal[:3, 3]
+        if hand.rest_anchor_m is None or np.linalg.norm(goal_m - hand.rest_anchor_m) > \
+                REST_RADIUS_M:
+            hand.rest_anchor_m, hand.rest_since_s = goal_m.copy(), t_s
+        at_rest = t_s - hand.rest_since_s >= REST_S
+        if hand.branch_move is None and hand.at_limit and (
+                branch_key or (self.reach_settings.allow_branch_change and at_rest)):
+            q_to = reach.other_branch(T_N_goal, q_now)
+            if q_to is not None:
+                hand.branch_move = reach.plan_branch_move(q_now, q_to, t_s)
+                hand.notice = (f"branch change {reach.branch} -> {hand.branch_move.branch_to} "
+                               f"({hand.branch_move.duration_s:.1f} s)")
+            elif branch_key:
+                hand.notice = "no other branch reaches the goal"
+        if hand.branch_move is None:
+            return q_arm
+        q_move, finished = hand.branch_move.at(t_s)
+        if finished:
+            reach.branch = hand.branch_move.branch_to
+            hand.branch_move = None
+            hand.branch_changes += 1
+            hand.notice = f"on branch {reach.branch}"
+        return q_move
+
+    def _speed_scaled(self, arm: str, q_now, q_next, hand: HandTrack | None) -> np.ndarray:
+        """Slow the arm near a singular configuration: its target moves at most ``scale`` times
+        the speed limits (uniformly, direction kept) and leads the measured joints by at most
+        the distance in which the jerk-limited trajectory generator stops from that speed, so
+        the joints themselves stay near it."""
+        limb = self.reach[arm].limb
+        scale = self.singularity.scale(condition_number(limb, q_now),
+                                       condition_number(limb, q_next))
+        if hand is not None:
+            hand.speed_scale = scale
+        if scale >= 1.0:
+            return q_next
+        spec = limb.spec
+        step = q_next - q_now
+        biggest = np.max(np.abs(step) / (scale * spec.velocity_rad_s * self.dt_guard_s))
+        q = q_now + step / biggest if biggest > 1.0 else q_next
+        q_measured = self._q_measured[self.slices[arm]]
+        speed = scale * spec.velocity_rad_s  # the generator stops from it within the lead:
+        lead = (speed**2 / (2 * spec.acceleration_rad_s2)
+                + speed * spec.acceleration_rad_s2 / (2 * spec.jerk_rad_s3))
+        return np.clip(q, q_measured - lead, q_measured + lead)
+
+    def reach_report(self) -> dict[str, dict]:
+        """Per hand, while operating: position and orientation RMS, time at the reach limit,
+        branch changes and the largest excursion (hand to the nearest goal sample within +-1 s).
+        """
+        report = {}
+        for arm, hand in self.hands.items():
+            pos = np.asarray(self.errors_m[arm])
+            rot = np.asarray(self.rotation_errors_rad[arm])
+            report[arm] = {
+                "position_rms_mm": float(np.sqrt(np.mean(pos**2)) * 1000) if len(pos) else None,
+                "orientation_rms_deg": float(np.degrees(np.sqrt(np.mean(rot**2))))
+                if len(rot) else None,
+                "at_limit_s": hand.at_limit_periods * self.dt_guard_s,
+                "branch_changes": hand.branch_changes,
+                "max_excursion_mm": max_excursion_m(
+                    np.asarray(self.path_times_s[arm]),
+                    np.array([g for g, _ in self.paths[arm]]).reshape(-1, 3),
+                    np.array([a for _, a in self.paths[arm]]).reshape(-1, 3)) * 1000,
+            }
+        return report
 
     def _measure(self, t_s: float, state, info: dict) -> None:
         info["phase_code"] = PHASES.index(self.phase)
@@ -293,7 +454,8 @@ class TeleopTarget(Target):
         info["latency_s"] = self.latencies_s[-1] if self.latencies_s else 0.0
         for arm, hand in self.hands.items():
             key = SHORT[arm]
-            actual = self.hand_pose_measured(arm, state)[:3, 3]
+            T_actual = self.hand_pose_measured(arm, state)
+            actual = T_actual[:3, 3]
             goal = self.goals.get(arm)
             hand.actual_m = actual
             if goal is not None:
@@ -301,14 +463,21 @@ class TeleopTarget(Target):
             info.update({f"actual_x_m_{key}": actual[0], f"actual_y_m_{key}": actual[1],
                          f"actual_z_m_{key}": actual[2],
                          f"ik_code_{key}": STATUS_NAMES.index(hand.ik_status)
-                         if hand.ik_status in STATUS_NAMES else -1})
+                         if hand.ik_status in STATUS_NAMES else -1,
+                         f"reach_limit_m_{key}": 0.0 if hand.missing_m is None
+                         else float(np.linalg.norm(hand.missing_m)),
+                         f"speed_scale_{key}": hand.speed_scale})
             if hand.goal_m is not None:
                 error = float(np.linalg.norm(hand.goal_m - actual))
+                rot_error = float(pose_error(T_actual, np.asarray(goal, dtype=float))[1])
                 info.update({f"goal_x_m_{key}": hand.goal_m[0], f"goal_y_m_{key}": hand.goal_m[1],
-                             f"goal_z_m_{key}": hand.goal_m[2], f"error_m_{key}": error})
+                             f"goal_z_m_{key}": hand.goal_m[2], f"error_m_{key}": error,
+                             f"rot_error_rad_{key}": rot_error})
                 if self.phase == "operate" and self.mapper.is_calibrated(
                         self.station_of(arm)):
                     self.errors_m[arm].append(error)
+                    self.rotation_errors_rad[arm].append(rot_error)
+                    self.path_times_s[arm].append(t_s)
                     self.paths[arm].append((hand.goal_m.copy(), actual.copy()))
                     world = self.hand_position_world(arm, state)
                     if world is not None:
@@ -320,3 +489,29 @@ class TeleopTarget(Target):
     def station_of(self, arm: str) -> int:
         """The tracker station that drives ``arm``."""
         return next(s for s, a in self.mapper.config.station_arm.items() if a == arm)
+
+
+def max_excursion_m(t_s: np.ndarray, goals_m: np.ndarray, actual_m: np.ndarray,
+                    window_s: float = EXCURSION_WINDOW_S) -> float:
+    """The largest distance (m) from the hand to the nearest goal sample within +-window_s.
+
+    Args:
+        t_s: sample times (N,), increasing.
+        goals_m, actual_m: goal and hand positions (N x 3) at those times.
+    """
+    if len(t_s) == 0:
+        return 0.0
+    nearest = np.full(len(t_s), np.inf)
+    lo = np.searchsorted(t_s, t_s - window_s, side="left")
+    hi = np.searchsorted(t_s, t_s + window_s, side="right")
+    for k in range(int(np.max(np.arange(len(t_s)) - lo)) + 1):  # goal k samples earlier
+        idx = np.arange(len(t_s)) - k
+        ok = idx >= lo
+        d = np.linalg.norm(actual_m[ok] - goals_m[idx[ok]], axis=1)
+        nearest[ok] = np.minimum(nearest[ok], d)
+    for k in range(1, int(np.max(hi - np.arange(len(t_s)))) + 1):  # goal k samples later
+        idx = np.arange(len(t_s)) + k
+        ok = idx < hi
+        d = np.linalg.norm(actual_m[ok] - goals_m[idx[ok]], axis=1)
+        nearest[ok] = np.minimum(nearest[ok], d)
+    return float(np.max(nearest))

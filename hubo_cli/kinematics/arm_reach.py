@@ -1,0 +1,189 @@
+"""An arm while operating: it stays on its IK branch and goes to the nearest reachable pose.
+
+:class:`ArmReach` wraps one arm's :class:`~hubo_cli.kinematics.limb.Limb` with the rule of
+:func:`hubo_cli.kinematics.choice.solve_limb_on_branch` (``reach="nearest"``, the default) or
+the paper's 5 cm rule (``reach="paper"``, :func:`~hubo_cli.kinematics.choice.solve_limb`), and
+plans the slow joint-space move that changes branch when the operator allows it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hubo_cli.errors import ConfigError
+from hubo_cli.kinematics import choice
+from hubo_cli.kinematics.limb import IKResult, Limb
+from hubo_cli.kinematics.reach import branch_of, on_branch
+
+REACH_MODES = ("nearest", "paper")
+
+
+@dataclass(frozen=True)
+class ReachSettings:
+    """How an arm behaves at the edge of its reach.
+
+    Attributes:
+        mode: ``nearest`` (stay on the branch, nearest reachable pose) or ``paper`` (the
+            paper's rule: capped candidates within 5 cm, else hold; branches may switch).
+        orientation_weight_m_per_rad: how many metres of position error one radian of
+            orientation error is worth in the nearest pose (small = position first).
+        iterations: damped least-squares steps per IK call at most.
+        elbow_margin: |sin theta4| stays at least this: the elbow 6 deg from straight (0.4 mm
+            of reach), where the arm is singular.
+        wrist_margin: |cos theta5| stays at least this: the wrist yaw 49 deg from +-90 deg,
+            where the arm is singular. Near there a small change of the hand's orientation
+            turns the shoulder yaw and the wrist yaw by large opposite amounts; beyond the
+            margin the orientation gives way instead. :meth:`for_mode` uses less for drill
+            mode (33 deg), whose fixed bit orientation puts the wrist yaw near its -2.5 rad
+            limit on the other wrist branch, and which has no wobble to amplify.
+        shoulder_margin: |cos theta2| stays at least this: the shoulder roll 33 deg from
+            +-90 deg (singular too).
+        orientation_time_constant_s: the orientation goal is smoothed with this time constant
+            (first order, on the rotation; 0 = off): the operator's involuntary wrist wobble
+            (0.1-1 Hz) would otherwise make the shoulder and wrist joints oscillate faster than
+            their jerk limits let them follow, and the lag moves the hand off its position.
+        allow_branch_change: change branch by itself when the hand is at rest at its reach
+            limit and another branch reaches the goal exactly (otherwise only on request).
+        branch_move_fraction: a branch change moves the joints at this fraction of their
+            velocity and acceleration limits.
+    """
+
+    mode: str = "nearest"
+    orientation_weight_m_per_rad: float = 0.05
+    iterations: int = 10
+    elbow_margin: float = 0.1
+    wrist_margin: float = 0.75
+    shoulder_margin: float = 0.55
+    orientation_time_constant_s: float = 1.0
+    allow_branch_change: bool = False
+    branch_move_fraction: float = 0.25
+
+    @classmethod
+    def for_mode(cls, teleop_mode: str, **changes) -> ReachSettings:
+        """The settings for a teleoperation mode (``free`` or ``drill``), with changes."""
+        if teleop_mode == "drill":
+            changes = {"wrist_margin": 0.55, **changes}
+        return cls(**changes)
+
+    def __post_init__(self) -> None:
+        if self.mode not in REACH_MODES:
+            raise ConfigError(f"unknown reach mode {self.mode!r}", hint="use nearest or paper")
+        if not (np.isfinite(self.orientation_weight_m_per_rad)
+                and self.orientation_weight_m_per_rad > 0):
+            raise ConfigError(f"orientation weight {self.orientation_weight_m_per_rad} is not "
+                              "positive", hint="e.g. --orientation-weight 0.9 (mm per degree)")
+        if not 0 < self.branch_move_fraction <= 1:
+            raise ConfigError(f"branch move fraction {self.branch_move_fraction} is not in (0, 1]",
+                              hint="use e.g. 0.25")
+
+
+@dataclass(frozen=True)
+class BranchMove:
+    """A slow joint-space move to another branch (minimum-jerk from q_from to q_to)."""
+
+    q_from_rad: np.ndarray
+    q_to_rad: np.ndarray
+    t_start_s: float
+    duration_s: float
+    branch_to: int
+
+    def at(self, t_s: float) -> tuple[np.ndarray, bool]:
+        """(joints at time t, finished)."""
+        tau = min(1.0, max(0.0, (t_s - self.t_start_s) / self.duration_s))
+        s = tau**3 * (10 - 15 * tau + 6 * tau**2)
+        return self.q_from_rad + s * (self.q_to_rad - self.q_from_rad), tau >= 1.0
+
+
+class ArmReach:
+    """One arm's IK while operating: branch kept, nearest reachable pose when out of reach.
+
+    Args:
+        limb: the arm (its tool is the end effector).
+        settings: the reach rule and its parameters.
+    """
+
+    def __init__(self, limb: Limb, settings: ReachSettings | None = None) -> None:
+        if not limb.spec.is_arm:
+            raise ConfigError(f"{limb.name} is not an arm", hint="ArmReach drives arms only")
+        self.limb = limb
+        self.settings = settings or ReachSettings()
+        self.branch: int | None = None
+        self._R_smooth: np.ndarray | None = None
+        self._margins = np.array([self.settings.elbow_margin, self.settings.wrist_margin,
+                                  self.settings.shoulder_margin])
+
+    def start(self, q_rad: np.ndarray) -> None:
+        """Take the branch the arm is on now (call when the operator takes over)."""
+        self.branch = int(branch_of(np.asarray(q_rad, dtype=float)))
+        self._R_smooth = None
+
+    def smoothed(self, T_goal: np.ndarray, dt_s: float) -> np.ndarray:
+        """The goal with its orientation smoothed (``orientation_time_constant_s``) over dt_s."""
+        tau = self.settings.orientation_time_constant_s
+        T = np.array(T_goal, dtype=float)
+        if tau <= 0 or self.settings.mode == "paper":
+            return T
+        if self._R_smooth is None:
+            self._R_smooth = T[:3, :3].copy()
+        else:
+            alpha = dt_s / (tau + dt_s)
+            R_rel = self._R_smooth.T @ T[:3, :3]
+            angle = float(np.arccos(np.clip((np.trace(R_rel) - 1) / 2, -1.0, 1.0)))
+            if angle > 1e-12:
+                axis = np.array([R_rel[2, 1] - R_rel[1, 2], R_rel[0, 2] - R_rel[2, 0],
+                                 R_rel[1, 0] - R_rel[0, 1]])
+                norm = np.linalg.norm(axis)
+                if norm > 1e-12:
+                    self._R_smooth = self._R_smooth @ _axis_angle(axis / norm, alpha * angle)
+                else:  # a half turn: jump (it cannot come from a continuous stream)
+                    self._R_smooth = T[:3, :3].copy()
+        T[:3, :3] = self._R_smooth
+        return T
+
+    def solve(self, T_N_goal: np.ndarray, q_prev_rad: np.ndarray) -> IKResult:
+        """Joints for a goal (T_N_E, 4x4 m, in the current neck frame) from the previous ones."""
+        q_prev = np.ascontiguousarray(q_prev_rad, dtype=float)
+        if self.settings.mode == "paper" or self.branch is None:
+            return self.limb.solve(T_N_goal, q_prev)
+        limb = self.limb
+        lower, upper = limb.lower_rad, limb.upper_rad
+        q = np.empty(6)
+        status, pos, rot = choice.solve_limb_on_branch(
+            np.ascontiguousarray(T_N_goal, dtype=float), limb.chain, limb.lengths_m,
+            lower, upper, q_prev, self.branch, self._margins, 1.0,
+            self.settings.orientation_weight_m_per_rad, self.settings.iterations, q)
+        return IKResult(q, choice.STATUS_NAMES[status], pos, rot)
+
+    def other_branch(self, T_N_goal: np.ndarray, q_prev_rad: np.ndarray) -> np.ndarray | None:
+        """The exact solution on another branch (closest to q_prev), or None if there is none."""
+        best, best_d = None, np.inf
+        for cand in self.limb.candidates(T_N_goal, q_prev_rad):
+            if not (cand.exact and cand.within_limits):
+                continue
+            if self.branch is not None and on_branch(cand.q_rad, self.branch):
+                continue
+            dist = float(np.sum((cand.q_rad - q_prev_rad) ** 2))
+            if dist < best_d:
+                best, best_d = cand.q_rad, dist
+        return best
+
+    def plan_branch_move(self, q_from_rad: np.ndarray, q_to_rad: np.ndarray,
+                         t_s: float) -> BranchMove:
+        """A minimum-jerk joint move at ``branch_move_fraction`` of the limits."""
+        spec = self.limb.spec
+        f = self.settings.branch_move_fraction
+        dist = np.abs(np.asarray(q_to_rad) - np.asarray(q_from_rad))
+        # minimum jerk: peak speed 1.875 D/T, peak acceleration 5.774 D/T^2
+        duration = float(max(np.max(1.875 * dist / (f * spec.velocity_rad_s)),
+                             np.max(np.sqrt(5.774 * dist / (f * spec.acceleration_rad_s2))),
+                             0.1))
+        return BranchMove(np.array(q_from_rad, dtype=float), np.array(q_to_rad, dtype=float),
+                          t_s, duration, int(branch_of(np.asarray(q_to_rad, dtype=float))))
+
+
+def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
+    """Rotation matrix of ``angle`` (rad) about a unit ``axis`` (Rodrigues)."""
+    K = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * (K @ K)

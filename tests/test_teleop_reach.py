@@ -1,0 +1,156 @@
+"""Teleoperation at the edge of reach (ideal driver): out of reach and back, a straight elbow."""
+
+import io
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rich.console import Console
+
+from hubo_cli.cli.teleop import _direction, _reach_cell
+from hubo_cli.control.log import load_log
+from hubo_cli.kinematics import get_limb
+from hubo_cli.kinematics.arm_reach import ReachSettings
+from hubo_cli.kinematics.conditioning import SingularityScale, condition_number
+from hubo_cli.kinematics.reach import branch_of, nearest_on_branch
+from hubo_cli.model import load_model
+from hubo_cli.teleop.session import FREE_READY_ARM_RAD, TeleopSettings, run_teleop
+
+R_TRACKER_STANCE = np.diag([1.0, -1.0, -1.0])  # stance -> tracker (x fwd, y right, z down)
+RATE_HZ = 60.0
+
+
+def _min_jerk(s):
+    s = np.clip(s, 0.0, 1.0)
+    return s**3 * (10 - 15 * s + 6 * s * s)
+
+
+def _stream(path: Path, offsets_S_m, duration_s: float) -> Path:
+    """A pose log: stations 1 and 2 (right, left hand) move by offsets_S_m(t) (stance frame)
+    from wherever they start, orientation fixed."""
+    rows = ["t_s,station,x_m,y_m,z_m,qw,qx,qy,qz"]
+    for t in np.arange(0.0, duration_s, 1.0 / RATE_HZ):
+        for station, arm in ((1, "right-arm"), (2, "left-arm")):
+            p = np.array([0.3, 0.2 if station == 2 else -0.2, 0.0])
+            p = p + R_TRACKER_STANCE @ offsets_S_m(arm, t)
+            rows.append(f"{t + 0.004 * station:.6f},{station},{p[0]:.6f},{p[1]:.6f},"
+                        f"{p[2]:.6f},1,0,0,0")
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+def _distance_to_reach(limb, goals_m, q0):
+    """Distance (m) of each goal position to the positions the arm reaches on its branch within
+    its limits (a converged position-only nearest search from the ready pose)."""
+    q, out = np.array(q0, dtype=float), np.empty(6)
+    T = limb.fk(q)
+    dist = []
+    for g in goals_m:
+        T[:3, 3] = g
+        pos, _, _ = nearest_on_branch(T, limb.chain, limb.lower_rad, limb.upper_rad, q,
+                                      branch_of(q), np.zeros(3), 1.0, 1e-4, 300, out)
+        dist.append(pos)
+    return np.asarray(dist)
+
+
+def _operate(log, key):
+    sel = log["phase_code"] == 1
+    goal = np.column_stack([log[f"goal_{c}_m_{key}"] for c in "xyz"])[sel]
+    actual = np.column_stack([log[f"actual_{c}_m_{key}"] for c in "xyz"])[sel]
+    return log["t_s"][sel], goal, actual
+
+
+def test_a_walk_out_of_reach_stops_at_the_boundary_and_comes_back(tmp_path):
+    """Each hand walks forward to 30 cm beyond its reach (3 s), waits, walks back (8 s: the
+    elbow has to bend by 1.3 rad on the way back, at most 1 rad/s and 0.8 rad/s^2)."""
+    model = load_model()
+    limbs = {arm: get_limb(arm, "hand") for arm in ("right-arm", "left-arm")}
+    ready = {arm: limbs[arm].fk(np.array(FREE_READY_ARM_RAD[arm]))[:3, 3] for arm in limbs}
+    ahead = np.linspace(0.0, 0.3, 301)
+    edge = {arm: ahead[np.argmax(_distance_to_reach(
+        limbs[arm], ready[arm] + np.outer(ahead, [1, 0, 0]), FREE_READY_ARM_RAD[arm]) > 1e-3)]
+        for arm in limbs}
+    assert all(0.01 < e < 0.25 for e in edge.values())
+
+    def offset(arm, t):
+        out = _min_jerk((t - 1.0) / 3.0)
+        back = _min_jerk((t - 4.5) / 8.0)
+        return np.array([1.0, 0.0, 0.0]) * (edge[arm] + 0.3) * (out - back)
+
+    src = _stream(tmp_path / "walk.csv", offset, 13.5)
+    targets = []
+    run = run_teleop(TeleopSettings(replay=src, driver="ideal", out=tmp_path / "run"),
+                     on_ready=targets.append)
+    assert run.summary["ended"] == "done"
+    console = Console(width=240, record=True, file=io.StringIO())
+    for hand in targets[0].hands.values():   # the live view's reach column renders
+        console.print(_reach_cell(hand))
+    assert console.export_text().count("ok") == 2
+    log = load_log(run.run_dir)
+    for arm, key in (("right-arm", "r"), ("left-arm", "l")):
+        report = run.summary["reach"][arm]
+        assert report["branch_changes"] == 0 and report["at_limit_s"] > 2.0
+        t, goal, actual = _operate(log, key)
+        beyond = _distance_to_reach(limbs[arm], goal, FREE_READY_ARM_RAD[arm])
+        # excursion: hand to the nearest goal sample within +-1 s, against the goal's distance
+        # to the reachable set
+        excursion = np.array([np.min(np.linalg.norm(goal[np.abs(t - ti) <= 1.0] - a, axis=1))
+                              for ti, a in zip(t, actual, strict=True)])
+        error = np.linalg.norm(goal - actual, axis=1)
+        # from 1 s after the goal's turn (the arm slows near its straight elbow) while the goal
+        # is still well out of reach: parked at the boundary, not swinging
+        parked = (beyond > 0.05) & (t >= t[np.argmax(goal[:, 0])] + 1.0)
+        assert parked.sum() > 100 and np.all(error[parked] - beyond[parked] < 0.010)
+        # after the goal comes back in, the elbow (at most 1 rad/s, 0.8 rad/s^2) lags the exact
+        # path out of the stretched arm by up to ~25 mm more than the goal's own excursion
+        assert np.max(excursion - beyond) <= 0.035, np.max(excursion - beyond)
+        back_in = t[np.nonzero(beyond > 1e-3)[0][-1]]      # the goal is reachable again
+        settled = t[(t > back_in) & (error < 0.002)]
+        assert len(settled) and settled[0] - back_in < 3.5
+    q_cmd = log.joints("cmd")
+    index = [model.joint_names.index(j) for j in log.joint_names]
+    lower = np.concatenate([model.limb(n).lower_rad for n in ("right-arm", "left-arm")])
+    upper = np.concatenate([model.limb(n).upper_rad for n in ("right-arm", "left-arm")])
+    arm_cols = [index.index(model.joint_names.index(j)) for n in ("right-arm", "left-arm")
+                for j in model.limb(n).joints]
+    assert np.all(q_cmd[:, arm_cols] >= lower - 1e-9) and np.all(q_cmd[:, arm_cols] <= upper + 1e-9)
+
+
+@pytest.mark.parametrize("elbow_margin", [0.1, 0.0])  # the default, and straight allowed
+def test_a_path_through_the_straight_elbow_is_slowed(tmp_path, elbow_margin):
+    """The right hand's goal moves forward to the edge of its reach (the elbow straight) and
+    back: in the singular neighbourhood (condition number at or above the hard threshold) no
+    arm joint moves faster than half its speed limit, and the hand comes back onto the goal."""
+    arm = "right-arm"
+    limb = get_limb(arm, "hand")
+    ready = limb.fk(np.array(FREE_READY_ARM_RAD[arm]))[:3, 3]
+    ahead = np.linspace(0.0, 0.3, 301)
+    edge = ahead[np.argmax(_distance_to_reach(limb, ready + np.outer(ahead, [1, 0, 0]),
+                                              FREE_READY_ARM_RAD[arm]) > 1e-4)]
+
+    def offset(name, t):
+        if name != arm:
+            return np.zeros(3)
+        s = _min_jerk((t - 1.0) / 1.0) - _min_jerk((t - 4.5) / 1.0)
+        return np.array([edge + 0.05, 0.0, 0.0]) * s
+
+    src = _stream(tmp_path / "elbow.csv", offset, 8.5)
+    run = run_teleop(TeleopSettings(replay=src, driver="ideal", out=tmp_path / "run",
+                                    reach=ReachSettings(elbow_margin=elbow_margin)))
+    assert run.summary["ended"] == "done" and not run.summary["estop_events"]
+    log = load_log(run.run_dir)
+    model = load_model()
+    cols = [log.joint_names.index(j) for j in model.limb(arm).joints]
+    q = log.joints("cmd")[:, cols]
+    speed_ratio = np.abs(np.diff(q, axis=0)) / model.control_period_s / limb.spec.velocity_rad_s
+    kappa = np.array([condition_number(limb, qi) for qi in q[1:]])
+    near = kappa >= SingularityScale().hard
+    assert near.sum() > 40                          # it did pass the singular neighbourhood
+    assert np.max(speed_ratio[near]) <= 0.5 + 0.02, np.max(speed_ratio[near])
+    t, goal, actual = _operate(log, "r")
+    assert np.linalg.norm(goal[-1] - actual[-1]) < 0.002   # and tracked back to the goal
+
+
+def test_the_missing_part_is_named_in_words():
+    assert _direction([0.02, 0.0, -0.02]) == "fwd-down"
+    assert _direction([0.0, -0.03, 0.001]) == "right"
