@@ -27,7 +27,15 @@ from pathlib import Path
 
 import numpy as np
 
-from hubo_cli.control.log import LOG_NAME, LogData, load_log, max_velocity_ratio, set_log_metadata
+from hubo_cli.control.log import (
+    LOG_NAME,
+    META_NAME,
+    PARQUET_NAME,
+    LogData,
+    load_log,
+    max_velocity_ratio,
+    set_log_metadata,
+)
 from hubo_cli.control.loop import ControlLoop, LoopResult
 from hubo_cli.control.module import Module
 from hubo_cli.control.pipeline import SafetyProfile
@@ -180,7 +188,7 @@ def run(setup: RunSetup, target: Target,
                 world.snapshot_png(run_dir / SNAPSHOT_NAME)
                 set_log_metadata(run_dir, "scene", world.scene())
     except HuboError:
-        _remove_if_empty(run_dir)
+        discard_if_unused(run_dir)  # nothing moved: leave no empty run folder behind
         raise
     summary = common_summary(setup, speed, result, modules, run_dir)
     if world is not None:  # the simulator's draws and ground truth
@@ -192,17 +200,11 @@ def run(setup: RunSetup, target: Target,
     return done
 
 
-def _remove_if_empty(run_dir: Path) -> None:
-    """Remove the run folder again if nothing was written into it (but its marker)."""
-    discard_if_unused(run_dir)
-
-
 def common_summary(setup: RunSetup, speed: float | None, loop: LoopResult,
                    modules: list[Module], run_dir: Path) -> dict:
-    """The summary fields every run has (see the README's "Run folders")."""
-    files = [LOG_NAME, SUMMARY_NAME]
-    if (run_dir / SNAPSHOT_NAME).exists():
-        files.append(SNAPSHOT_NAME)
+    """The summary fields every run has (see the README's "Runs")."""
+    files = [name for name in (LOG_NAME, META_NAME, PARQUET_NAME, SNAPSHOT_NAME)
+             if (run_dir / name).exists()] + [SUMMARY_NAME]
     return {
         "command": setup.command,
         "driver": setup.driver,

@@ -161,7 +161,9 @@ def test_a_stream_that_swings_the_drill_into_the_torso_is_held_by_the_collision_
     corner to 10 cm right of the centre line, in front of the chest: the drill and the forearm
     would enter the torso. The collision detector (which checks the drill the robot holds)
     holds the arm; the summary counts the periods. (The bit is in the cardboard meanwhile, so
-    the wrist-torque stop may follow: it is not what this test is about.)"""
+    the wrist-torque stop may follow: it is not what this test is about.) The paper's reach rule
+    lets the IK send the arm there; the default one keeps the hand on its branch, short of it."""
+    from hubo_cli.kinematics.arm_reach import ReachSettings
     from hubo_cli.teleop.session import drill_stance, run_teleop
 
     _, corner, _ = drill_stance(0.38)
@@ -174,7 +176,7 @@ def test_a_stream_that_swings_the_drill_into_the_torso_is_held_by_the_collision_
     stream = tmp_path / "swing.csv"
     stream.write_text("\n".join(rows) + "\n")
     run = run_teleop(TeleopSettings(replay=stream, mode="drill", wall_distance_m=0.38,
-                                    out=tmp_path / "run"))
+                                    reach=ReachSettings(mode="paper"), out=tmp_path / "run"))
     s = run.summary
     assert s["tools"]["right-arm"] == "drill" and "collision" in s["pipeline"]
     assert s["collision_periods"] > 20, s["status_counts"]
