@@ -252,7 +252,7 @@ def test_piped_teleop_prints_progress_lines_and_counts_stops(tmp_path):
     assert result.exit_code == 0, result.output
     # progress while it runs (every 2 s; the replay takes a few seconds in real time)
     assert re.search(r"teleop (approach|operate|settle): samples \d+ \|", result.stderr)
-    assert "e-stop off" in result.stderr
+    assert "e-stop ready" in result.stderr
     assert "e-stops 0 (released 0)" in result.stdout
 
 

@@ -76,7 +76,7 @@ def test_live_view_shows_the_operator_stop_and_counts_it_once(tmp_path):
 
     run = run_teleop(TeleopSettings(replay=FREE_CSV, driver="ideal", speed=1.0,
                                     out=tmp_path / "run"), on_ready=on_ready)
-    assert "e-stop off" in captured["first"]
+    assert "e-stop ready" in captured["first"]
     held = captured["held"]
     assert "E-STOP (operator) — press r to release (held)" in held, held
     assert "collision" in held and "right-arm" in held and "left-arm" in held

@@ -38,7 +38,8 @@ class SafetyState:
     """A snapshot of the pipeline's safety layers.
 
     Attributes:
-        estop: ``off``, ``stopping``, ``held`` or ``releasing``.
+        estop: ``off`` (nothing latched), ``stopping``, ``held`` or ``releasing``.
+        soft_estop: the soft emergency stopper is in the pipeline (not ``--no-estop``).
         estop_sources: the sources of the latest stop.
         stops: emergency stops latched so far (releases not counted).
         collision: ``clear``, ``holding`` or ``recovering``.
@@ -48,6 +49,7 @@ class SafetyState:
     """
 
     estop: str = "off"
+    soft_estop: bool = False
     estop_sources: tuple[str, ...] = ()
     stops: int = 0
     collision: str = "clear"
@@ -67,6 +69,7 @@ def read_safety(modules: Iterable, hands: Iterable[HandSafety] = ()) -> SafetySt
     latest = None
     for module in modules:
         if isinstance(module, EmergencyStopper):
+            state.soft_estop |= module.name == "estop"
             stops = [e for e in module.events if e.kind == "stop"]
             state.stops += len(stops)
             if module.mode != "release" and (latest is None or module.mode == "hold"):
@@ -103,7 +106,8 @@ def safety_text(state: SafetyState, flash: bool = False, release_key: str | None
     elif state.estop == "releasing":
         text.append(f"e-stop ({sources}) released — blending back", style="yellow")
     else:
-        text.append("e-stop off", style="green")
+        text.append("e-stop ready" if state.soft_estop else "e-stop disabled (--no-estop)",
+                    style="green" if state.soft_estop else "yellow")
     text.append(f"   stops {state.stops}", style="dim")
     text.append("\n")
     distance = ("-" if state.collision_distance_m is None
