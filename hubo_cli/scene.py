@@ -1,10 +1,79 @@
-"""The scene a run places in the simulator: walls put where the robot holds its tool."""
+"""The scene a run places in the simulator: walls put where the robot holds its tool, and the
+wall material's reaction to the drill (:class:`CuttingModel`, a task file's ``[scene.cutting]``).
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
 
 from hubo_cli.drivers.base import SimulatedWorld
+
+
+def _bounded(default: float, maximum: float, positive: bool = False):
+    """A coefficient with its default and the largest value a task file may give it."""
+    return field(default=default, metadata={"maximum": maximum, "positive": positive})
+
+
+@dataclass(frozen=True)
+class CuttingModel:
+    """The wall material's reaction to the spinning drill bit (SI units).
+
+    The simulator applies it every physics step while the bit's flutes cross a wall
+    (:class:`hubo_cli.drivers.sim.SimDriver`); task files set it in ``[scene.cutting]`` (any
+    field, by name; the defaults are the cardboard's). With ``smooth(v) = v / sqrt(|v|^2 +
+    smooth_m_s^2)`` (a unit vector above a few mm/s, fading to zero at rest):
+
+    - across the bit (routing, in the wall plane): ``-(coulomb_n smooth(v) + viscous_n_s_per_m
+      v)``, at the point where the bit crosses the wall's mid-plane;
+    - along the bit (feed, thrust): ``-(thrust_n smooth(v_a) + thrust_n_s_per_m v_a) p``, where
+      ``p`` (0..1) is how much of the bit's point (one bit radius long) is in the material: the
+      thrust rises as the point enters the wall and falls once it is through;
+    - about the bit (spindle): the material brakes the spinning bit with ``spindle_torque_nm``
+      times the flutes' engagement (the share of the wall's thickness they fill) times the
+      cutting activity ``|smooth(v)|``; the drill's body takes the reaction, a torque about
+      -x of the bit frame (the bit turns clockwise seen from behind the drill, about +x).
+
+    Attributes:
+        coulomb_n: speed-independent part of the force across the bit (N).
+        viscous_n_s_per_m: part proportional to the speed across the bit (N per m/s).
+        thrust_n: speed-independent part of the thrust opposing feed (N).
+        thrust_n_s_per_m: part proportional to the feed speed (N per m/s).
+        spindle_torque_nm: the material's braking torque on the bit while cutting (N m).
+        smooth_m_s: speed (m/s) below which the speed-independent parts fade smoothly to zero
+            (the position-controlled arm jitters by about 1 mm/s when holding still).
+    """
+
+    coulomb_n: float = _bounded(0.5, 1000.0)
+    viscous_n_s_per_m: float = _bounded(80.0, 1e5)
+    thrust_n: float = _bounded(2.0, 1000.0)
+    thrust_n_s_per_m: float = _bounded(200.0, 1e5)
+    spindle_torque_nm: float = _bounded(0.02, 10.0)
+    smooth_m_s: float = _bounded(0.005, 1.0, positive=True)
+
+    def _smooth(self, speed_m_s: float) -> float:
+        return 1.0 / math.hypot(speed_m_s, self.smooth_m_s)
+
+    def force_n(self, v_plane_m_s: np.ndarray) -> np.ndarray:
+        """The force (N) across the bit for its in-plane velocity (m/s), opposite to it."""
+        v = np.asarray(v_plane_m_s, dtype=float)
+        return -(self.coulomb_n * self._smooth(float(np.linalg.norm(v)))
+                 + self.viscous_n_s_per_m) * v
+
+    def thrust_n_along(self, v_axial_m_s: float, point_in_m: float) -> float:
+        """The force (N) along the bit's axis for its speed along the axis (m/s, + = feeding
+        into the wall) with ``point_in_m`` (0..1) of its point in the material."""
+        v = float(v_axial_m_s)
+        return -(self.thrust_n * v * self._smooth(abs(v)) + self.thrust_n_s_per_m * v
+                 ) * float(point_in_m)
+
+    def spindle_nm(self, v_m_s: np.ndarray, engagement: float) -> float:
+        """The torque (N m, about the bit's axis, + = the spindle's turning sense) that the
+        material puts on the drill: negative, braking, while the flutes cut."""
+        speed = float(np.linalg.norm(v_m_s))
+        return -self.spindle_torque_nm * float(engagement) * speed * self._smooth(speed)
 
 
 @dataclass(frozen=True)
@@ -20,22 +89,15 @@ class WallSize:
 
 @dataclass(frozen=True)
 class WallPlacement:
-    """A wall to place once the robot holds its tool ready: ``gap_m`` ahead of where
-    ``frame`` is then, or, with no frame, at x = ``gap_m`` in the world (the neck frame at
-    the start, on the floor)."""
+    """A wall to place once the robot holds its tool ready: ``gap_m`` ahead (world +x) of
+    where ``frame`` is then (tasks and drill-mode teleop place it so from the bit)."""
 
-    frame: str | None
+    frame: str
     gap_m: float
     size: WallSize
 
     def place(self, world: SimulatedWorld) -> dict:
         """Place it now; returns what was placed."""
-        if self.frame is None:
-            s = self.size
-            world.add_wall(self.gap_m, s.height_m, s.width_m, s.thickness_m, s.centre_y_m)
-            return {"kind": "wall", "near_face_x_world_m": self.gap_m, "height_m": s.height_m,
-                    "width_m": s.width_m, "thickness_m": s.thickness_m,
-                    "centre_y_m": s.centre_y_m}
         return place_wall_ahead(world, self.frame, self.gap_m, self.size)
 
 

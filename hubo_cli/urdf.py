@@ -477,7 +477,9 @@ def build_urdf(model: RobotModel, drill: bool = False, fold_fixed: bool = False)
 
     Args:
         model: robot model (lengths, limits).
-        drill: add the drill (mass and visual, no collision) to the right hand.
+        drill: add the drill to the right hand: its mass, its body and bit as visuals, its
+            body (the motor housing) as a collision shape. The bit has none: it cuts into a
+            wall rather than meeting it (the simulator's cutting model is its contact).
         fold_fixed: leave out the fixed links (pelvis, head, the end frames) and fold their
             mass and shapes into the moving link they hang from: the variant the simulator
             loads (see :func:`folded_inertials`).
@@ -503,6 +505,7 @@ def build_urdf(model: RobotModel, drill: bool = False, fold_fixed: bool = False)
         drill_inertial, drill_shapes = _drill_parts(model.drill, frames.T_N_link[DRILL_FRAME])
         inertials = dict(inertials, **{DRILL_FRAME: drill_inertial})
         visuals[DRILL_FRAME] = visuals.get(DRILL_FRAME, []) + drill_shapes
+        shapes = dict(shapes, **{DRILL_FRAME: shapes.get(DRILL_FRAME, []) + drill_shapes[:1]})
     joints = frames.joints
     link_names = ["torso"] + [child for (_, _, _, child, _, _) in joints]
     if fold_fixed:

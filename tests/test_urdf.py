@@ -217,4 +217,7 @@ def test_drill_variant_adds_the_drill_mass_only():
     assert total_mass_kg(MODEL, drill=True) > total_mass_kg(MODEL)
     root = ET.fromstring(drill)
     bit = next(link for link in root.iter("link") if link.get("name") == "right_drill_bit")
-    assert bit.find("collision") is None and bit.find("visual") is not None
+    assert bit.find("visual") is not None
+    # the drill's body collides (radius from the robot TOML); the bit cuts, it has no shape
+    radii = [float(c.find("geometry/cylinder").get("radius")) for c in bit.iter("collision")]
+    assert radii == [pytest.approx(MODEL.drill.body_radius_m)]

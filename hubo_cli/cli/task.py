@@ -157,8 +157,10 @@ def show(name: str, as_json: bool) -> None:
     distance = "auto" if st.wall_distance_m is None else f"{st.wall_distance_m * 1000:g} mm"
     console.print(f"stance      wall {distance}, {st.arm} arm with the {st.tool}")
     console.print(f"scene       wall {sc.wall_width_m * 1000:g} x {sc.wall_height_m * 1000:g} x "
-                  f"{sc.wall_thickness_m * 1000:g} mm; cutting {sc.coulomb_n:g} N + "
-                  f"{sc.viscous_n_s_per_m:g} N s/m")
+                  f"{sc.wall_thickness_m * 1000:g} mm; cutting {sc.cutting.coulomb_n:g} N + "
+                  f"{sc.cutting.viscous_n_s_per_m:g} N s/m, thrust {sc.cutting.thrust_n:g} N + "
+                  f"{sc.cutting.thrust_n_s_per_m:g} N s/m, spindle "
+                  f"{sc.cutting.spindle_torque_nm:g} N m")
     console.print(f"safety      e-stop on {', '.join(sa.estop_sources)}; wrist torque limit "
                   f"{sa.wrist_torque_limit_nm:g} N m; revert {sa.revert_s:g} s, "
                   f"stop {sa.stop_s:g} s")

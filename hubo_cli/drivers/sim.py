@@ -40,20 +40,26 @@ Sensors (:class:`~hubo_cli.drivers.base.RobotState`)
     it: a foot that only brushes the floor (a rocking sole touching with a few newtons) does not
     count as support.
 
-Drilling (:class:`CuttingModel`)
+Drilling (:class:`~hubo_cli.scene.CuttingModel`)
     With the drill on the right hand (``drill=True``) and a wall in the scene (:meth:`add_wall`),
     while the bit's flutes (``model.drill.bit_half_length_m`` either side of its middle, the frame
-    ``right_drill_bit``) cross the wall, the wall resists the bit's velocity v_t in the wall
-    plane (y, z), at the point where the bit crosses the wall's mid-plane, with
+    ``right_drill_bit``) cross the wall, the material reacts on the wrist link every physics
+    step: across the bit (in the wall plane, y and z) against the bit's velocity v_t there,
 
         F = -(coulomb_n * v_t / sqrt(|v_t|^2 + smooth_m_s^2) + viscous_n_s_per_m * v_t),
 
-    applied at the bit every physics step. The drill itself has no collision shape, so the bit
-    passes into the wall and only this force acts. The bit sits lE = 0.178 m from the hand point
-    along its own axis, so a force F across the bit gives a wrist moment of about 0.178 F. With the
-    defaults (0.5 N + 80 N s/m) cutting at 10 mm/s gives 1.25 N, about 0.22 N m at the wrist
-    (the paper's cut: 0.14-0.15 N m average, 0.35 N m peak), 50 mm/s about 0.8 N m and 100 mm/s
-    about 1.5 N m, past the wrist's 1.21 N m limit.
+    along the bit against its feed (thrust, while its point is in the material) and about the
+    bit (the spindle's braking torque, while the flutes cut), at the point where the bit crosses
+    the wall's mid-plane. The wrist sensor reads all three. The bit cuts rather than collides:
+    it has no rigid shape against a wall, so it passes into the wall and only this reaction
+    acts; the drill's body (the motor housing, ``model.drill``) is a collision shape of the
+    wrist link, so pushed too deep it meets the wall face. The bit sits lE = 0.178 m from the
+    hand point along its own axis (which runs through the wrist), so a force F across the bit
+    gives a wrist moment of about 0.178 F and the thrust none. With the defaults (0.5 N + 80 N
+    s/m) cutting at 10 mm/s gives 1.25 N, about 0.22 N m at the wrist (the paper's cut:
+    0.14-0.15 N m average, 0.35 N m peak), 50 mm/s about 0.8 N m and 100 mm/s about 1.5 N m,
+    past the wrist's 1.21 N m limit; plunging at 10 mm/s meets 4 N of thrust and the spindle
+    0.02 N m.
 """
 
 from __future__ import annotations
@@ -80,6 +86,7 @@ from hubo_cli.model import RobotModel
 from hubo_cli.perturb import FOOT_LINKS, CommandDelay, Perturbation
 from hubo_cli.perturb import draw as draw_perturbation
 from hubo_cli.posture import home_posture
+from hubo_cli.scene import CuttingModel
 from hubo_cli.state import FT_SENSORS, RobotState
 from hubo_cli.urdf import DRILL_FRAME, PHYSICS_DRILL_URDF, PHYSICS_URDF, link_frames
 
@@ -134,28 +141,6 @@ def import_pybullet():
 
 
 @dataclass(frozen=True)
-class CuttingModel:
-    """Resistance of the wall to the drill bit moving in the wall plane (see module docstring).
-
-    Attributes:
-        coulomb_n: speed-independent part (N), reached above a few mm/s.
-        viscous_n_s_per_m: part proportional to speed (N per m/s).
-        smooth_m_s: speed (m/s) below which the constant part fades smoothly to zero (the
-            position-controlled arm jitters by about 1 mm/s when holding still).
-    """
-
-    coulomb_n: float = 0.5
-    viscous_n_s_per_m: float = 80.0
-    smooth_m_s: float = 0.005
-
-    def force_n(self, v_plane_m_s: np.ndarray) -> np.ndarray:
-        """The force (N) on the bit for its in-plane velocity (m/s), opposite to it."""
-        speed = float(np.linalg.norm(v_plane_m_s))
-        return -(self.coulomb_n / math.hypot(speed, self.smooth_m_s)
-                 + self.viscous_n_s_per_m) * np.asarray(v_plane_m_s, dtype=float)
-
-
-@dataclass(frozen=True)
 class Wall:
     """A box wall in front of the robot (world frame, m): its near face at x = distance_m."""
 
@@ -186,6 +171,24 @@ class Wall:
         if abs(y - self.centre_y_m) <= self.width_m / 2 and 0.0 <= z <= self.height_m:
             return point
         return None
+
+    def engagement(self, T_world_bit: np.ndarray, half_length_m: float,
+                   point_length_m: float) -> tuple[float, float]:
+        """How deep a bit (as in :meth:`bit_crossing`) is in the wall: the share (0..1) of the
+        wall's thickness its flutes fill, and the share of its point (the last
+        ``point_length_m`` before the tip) inside the wall."""
+        axis_x, middle_x = T_world_bit[0, 0], T_world_bit[0, 3]
+        near, far = self.distance_m, self.distance_m + self.thickness_m
+
+        def inside_m(s0: float, s1: float) -> float:  # x extent of [s0, s1] along the bit
+            x0, x1 = sorted((middle_x + s0 * axis_x, middle_x + s1 * axis_x))
+            return max(0.0, min(x1, far) - max(x0, near))
+
+        flutes = inside_m(-half_length_m, half_length_m) / min(
+            self.thickness_m, 2 * half_length_m * abs(axis_x))
+        point = inside_m(half_length_m - point_length_m, half_length_m) / (
+            point_length_m * abs(axis_x))
+        return min(1.0, flutes), min(1.0, point)
 
 
 @dataclass
@@ -311,6 +314,7 @@ class SimDriver(Driver, SimulatedWorld):
         self._closed = False
         self._t = 0.0
         self.cutting_force_n = np.zeros(3)
+        self.cutting_torque_nm = np.zeros(3)
         self._cutting_point = np.zeros(3)
         self._cut_points: list[tuple] = []  # (time s, where the bit crossed a wall), per period
         self._physics_wall_s = 0.0
@@ -573,25 +577,43 @@ class SimDriver(Driver, SimulatedWorld):
             p.applyExternalForce(self._robot, -1, total.tolist(), com, p.WORLD_FRAME,
                                  physicsClientId=cid)
         self.cutting_force_n = np.zeros(3)
+        self.cutting_torque_nm = np.zeros(3)
         if self._walls and self.options.drill:
-            link = self._links["RWP_link"]
-            ls = p.getLinkState(self._robot, link, computeLinkVelocity=1,
-                                computeForwardKinematics=1, physicsClientId=cid)
-            T_world_bit = _pose(ls[4], ls[5]) @ self._T_link_frame[DRILL_FRAME]
-            for wall in self._walls:
-                bit = wall.bit_crossing(T_world_bit, self.model.drill.bit_half_length_m)
-                if bit is not None:
-                    # in-plane velocity of the link's point at the bit: v + omega x r
-                    (wx, wy, wz), (_, vy, vz) = ls[7], ls[6]
-                    rx, ry, rz = (bit[i] - ls[0][i] for i in range(3))
-                    v_plane = np.array([0.0, vy + wz * rx - wx * rz, vz + wx * ry - wy * rx])
-                    self.cutting_force_n = self.options.cutting.force_n(v_plane)
-                    p.applyExternalForce(self._robot, link, self.cutting_force_n.tolist(),
-                                         bit.tolist(), p.WORLD_FRAME, physicsClientId=cid)
-                    self._cutting_point = bit
-                    if t_s < self._t + 1e-12:  # the period's first physics step
-                        self._cut_points.append((self._t, bit))
-                    break
+            self._apply_cutting(t_s)
+
+    def _apply_cutting(self, t_s: float) -> None:
+        """The wall's reaction to the bit (:class:`~hubo_cli.scene.CuttingModel`): across the
+        bit, along it (thrust) and about it (spindle), on the wrist link."""
+        p, cid, drill = self._p, self._cid, self.model.drill
+        link = self._links["RWP_link"]
+        ls = p.getLinkState(self._robot, link, computeLinkVelocity=1,
+                            computeForwardKinematics=1, physicsClientId=cid)
+        T_world_bit = _pose(ls[4], ls[5]) @ self._T_link_frame[DRILL_FRAME]
+        for wall in self._walls:
+            bit = wall.bit_crossing(T_world_bit, drill.bit_half_length_m)
+            if bit is None:
+                continue
+            # velocity of the link's point at the bit: v + omega x r
+            (wx, wy, wz), (vx, vy, vz) = ls[7], ls[6]
+            rx, ry, rz = (bit[i] - ls[0][i] for i in range(3))
+            v = np.array([vx + wy * rz - wz * ry, vy + wz * rx - wx * rz,
+                          vz + wx * ry - wy * rx])
+            axis = T_world_bit[:3, 0]
+            flutes, point = wall.engagement(T_world_bit, drill.bit_half_length_m,
+                                            drill.bit_radius_m)
+            cutting = self.options.cutting
+            force = cutting.force_n(np.array([0.0, v[1], v[2]]))
+            force = force + cutting.thrust_n_along(float(v @ axis), point) * axis
+            torque = cutting.spindle_nm(v, flutes) * axis
+            self.cutting_force_n, self.cutting_torque_nm = force, torque
+            p.applyExternalForce(self._robot, link, force.tolist(), bit.tolist(),
+                                 p.WORLD_FRAME, physicsClientId=cid)
+            p.applyExternalTorque(self._robot, link, torque.tolist(), p.WORLD_FRAME,
+                                  physicsClientId=cid)
+            self._cutting_point = bit
+            if t_s < self._t + 1e-12:  # the period's first physics step
+                self._cut_points.append((self._t, bit))
+            break
 
     # ------------------------------------------------------------------ sensing
     # Batched reads: one getLinkStates for the four sensor links, one getContactPoints for the
@@ -612,14 +634,16 @@ class SimDriver(Driver, SimulatedWorld):
         return rows
 
     @staticmethod
-    def _wrench(rows: list[tuple], T_world_sensor: np.ndarray, extra=None) -> np.ndarray:
+    def _wrench(rows: list[tuple], T_world_sensor: np.ndarray, extra=None,
+                extra_moment=None) -> np.ndarray:
         """External wrench on a link about the sensor frame origin, in sensor axes, from its
-        contact rows (see :meth:`_contact_rows`). Summed in plain floats: a foot has four
-        contact points, too few for array operations to pay."""
+        contact rows (see :meth:`_contact_rows`), a known force at a point (``extra``: force N,
+        point m) and a pure moment (``extra_moment``, N m), all in the world. Summed in plain
+        floats: a foot has four contact points, too few for array operations to pay."""
         if extra is not None:  # a known force (N) at a point, as one more "contact"
             f, at = extra
             rows = [*rows, (*at, *f, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)]
-        if not rows:
+        if not rows and extra_moment is None:
             return np.zeros(6)
         fx = fy = fz = mx = my = mz = 0.0
         for px, py, pz, nx, ny, nz, fn, f1, d1x, d1y, d1z, f2, d2x, d2y, d2z in rows:
@@ -630,6 +654,8 @@ class SimDriver(Driver, SimulatedWorld):
             mx += py * gz - pz * gy
             my += pz * gx - px * gz
             mz += px * gy - py * gx
+        if extra_moment is not None:
+            mx, my, mz = mx + extra_moment[0], my + extra_moment[1], mz + extra_moment[2]
         ox, oy, oz = T_world_sensor[:3, 3]
         moment = (mx - (oy * fz - oz * fy), my - (oz * fx - ox * fz), mz - (ox * fy - oy * fx))
         R = T_world_sensor[:3, :3]
@@ -650,10 +676,12 @@ class SimDriver(Driver, SimulatedWorld):
         for sensor in FT_SENSORS:
             link, frame = SENSOR_FRAMES[sensor]
             T_world_sensor = links[link] @ self._T_link_frame[frame]
-            extra = None
+            extra = moment = None
             if sensor == "right-wrist" and np.any(self.cutting_force_n):
                 extra = (self.cutting_force_n, self._cutting_point)
-            ft[sensor] = self._wrench(contacts.get(self._links[link], []), T_world_sensor, extra)
+                moment = self.cutting_torque_nm
+            ft[sensor] = self._wrench(contacts.get(self._links[link], []), T_world_sensor, extra,
+                                      moment)
             if sensor.endswith("ankle"):
                 k = len(contact)
                 fz = float(ft[sensor][2])

@@ -14,8 +14,9 @@ the step runner, :mod:`hubo_cli.tasks.runner`) or ``experiment`` (a built-in pro
     (``right``), ``tool`` (``drill``).
 ``[scene.wall]``
     ``width_mm``, ``height_mm``, ``thickness_mm`` of the wall (``[scene.cutting]``: the
-    simulated material, ``coulomb_n`` and ``viscous_n_s_per_m``; see
-    :class:`hubo_cli.drivers.sim.CuttingModel`).
+    simulated material's reaction to the drill, any field of
+    :class:`hubo_cli.scene.CuttingModel` by name: ``coulomb_n``, ``viscous_n_s_per_m``,
+    ``thrust_n``, ``thrust_n_s_per_m``, ``spindle_torque_nm``, ``smooth_m_s``).
 ``[safety]``
     ``estop_sources`` (of ``operator``, ``capture-point``, ``wrist-torque``,
     ``stale-input``), ``wrist_torque_limit_nm``, ``revert_s`` (T1), ``stop_s`` (T2).
@@ -46,11 +47,12 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 from hubo_cli.errors import ConfigError
 from hubo_cli.resources import data_dir
+from hubo_cli.scene import CuttingModel
 from hubo_cli.tasks.toml_lines import field_line
 
 STEP_KINDS = ("move", "plunge", "follow", "retract", "wait")
@@ -93,13 +95,12 @@ class Stance:
 
 @dataclass(frozen=True)
 class Scene:
-    """The wall (m) and the material's cutting coefficients (N, N s/m)."""
+    """The wall (m) and the material's reaction to the drill."""
 
     wall_width_m: float = 1.2
     wall_height_m: float = 2.0
     wall_thickness_m: float = 0.005
-    coulomb_n: float = 0.5
-    viscous_n_s_per_m: float = 80.0
+    cutting: CuttingModel = field(default_factory=CuttingModel)
 
 
 @dataclass(frozen=True)
@@ -380,10 +381,11 @@ class _Loader:
                                       default=d.wall_height_m * 1000) / 1000,
             wall_thickness_m=wall.number("thickness_mm", positive=True, maximum=LENGTH_MAX_MM,
                                          default=d.wall_thickness_m * 1000) / 1000,
-            coulomb_n=cutting.number("coulomb_n", minimum=0.0, maximum=1000.0,
-                                     default=d.coulomb_n),
-            viscous_n_s_per_m=cutting.number("viscous_n_s_per_m", minimum=0.0, maximum=1e5,
-                                             default=d.viscous_n_s_per_m))
+            cutting=CuttingModel(**{
+                f.name: cutting.number(f.name, minimum=0.0, positive=f.metadata["positive"],
+                                       maximum=f.metadata["maximum"],
+                                       default=f.default)
+                for f in fields(CuttingModel)}))
         wall.finish()
         cutting.finish()
         t.finish()
