@@ -9,18 +9,27 @@ from click.testing import CliRunner
 
 from hubo_cli.cli.main import main
 from hubo_cli.control.log import load_log
+from hubo_cli.geometry import rpy_to_quat_wxyz
+from hubo_cli.kinematics.torso import torso_in_stance
 from hubo_cli.model import load_model
+from hubo_cli.state import RobotState
 from hubo_cli.tasks.plan import make_plan
 from hubo_cli.tasks.spec import load_task
+from hubo_cli.tasks.target import TaskTarget
 
 
 def _invoke(*args):
     return CliRunner().invoke(main, ["task", *args], catch_exceptions=False)
 
 
-def test_default_plan_passes_preflight_and_follows_the_rectangle():
+@pytest.fixture(scope="module")
+def rectangle_plan():
+    return make_plan(load_task("cut-rectangle"), load_model())
+
+
+def test_default_plan_passes_preflight_and_follows_the_rectangle(rectangle_plan):
     model = load_model()
-    plan = make_plan(load_task("cut-rectangle"), model)
+    plan = rectangle_plan
     assert plan.preflight.ok and not plan.preflight.warnings
     corners = plan.placement.T_S_W()[:3, 3]
     cut = plan.goal_S_m[plan.cutting] - corners
@@ -35,6 +44,29 @@ def test_default_plan_passes_preflight_and_follows_the_rectangle():
         T = body.arms["right-arm"].fk(plan.q_rad[k, sl])
         T[2, 3] += body.lift_of(plan.q_rad[k])
         assert np.linalg.norm(T[:3, 3] - plan.goal_S_m[k]) < 1e-9
+
+
+def test_the_task_corrects_the_arm_by_the_measured_torso_lean(rectangle_plan):
+    """A torso leaning 0.5 deg forward (IMU): the target's arm joints put the bit back on the
+    plan's goal in S (through the measured torso pose); the plan's own joints, which the target
+    plays without the correction, leave it several millimetres off."""
+    plan = rectangle_plan
+    body, sl = plan.body, plan.body.model.limb_slice("right-arm")
+    q = plan.q_first_rad.copy()
+    lean = RobotState(0.0, q, np.zeros_like(q), imu_quat_wxyz=rpy_to_quat_wxyz(
+        0.0, np.radians(0.5), 0.0))
+    T_S_N = torso_in_stance(body, q, lean.imu_quat_wxyz)  # as the robot measures it
+    target = TaskTarget(plan)
+    for k in range(300):
+        q_out, _ = target(k * plan.dt_s, lean)
+    plain = target.q_target  # the plan's joints for this period
+    goal = (torso_in_stance(body, plain) @ body.arms["right-arm"].fk(plain[sl]))[:3, 3]
+    uncorrected, corrected = ((T_S_N @ body.arms["right-arm"].fk(q_arm[sl]))[:3, 3]
+                              for q_arm in (plain, q_out))
+    assert np.linalg.norm(uncorrected - goal) > 0.004
+    assert np.linalg.norm(corrected - goal) < 0.0005
+    assert corrected[0] < uncorrected[0] - 0.003  # held back against the forward lean
+    assert np.array_equal(TaskTarget(plan, correction=False)(0.0, lean)[0], plan.q_first_rad)
 
 
 def test_a_600_mm_rectangle_is_refused_in_preflight_and_nothing_moves(tmp_path, monkeypatch):

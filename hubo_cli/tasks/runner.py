@@ -11,7 +11,7 @@ Experiment tasks (``experiment = "push-wall"``) run their built-in procedure ins
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -66,8 +66,7 @@ def task_setup(plan: Plan, *, driver: str = "sim", out: str | Path | None = None
                              wrist_torque_limit_nm=safety.wrist_torque_limit_nm),
         gui=gui, out=out, q_start_rad=home_posture(plan.body.model),
         duration_s=plan.duration_s + 3 * SETTLE_TIMEOUT_S + 10.0,
-        cutting={"coulomb_n": spec.scene.coulomb_n,
-                 "viscous_n_s_per_m": spec.scene.viscous_n_s_per_m},
+        cutting=asdict(spec.scene.cutting),
         perturb_seed=perturb_seed)
 
 
@@ -180,7 +179,8 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
                   for s in spec.steps],
         "rms_error_mm": float(np.sqrt(np.mean(errors**2)) * 1000) if len(errors) else None,
         "max_error_mm": float(errors.max() * 1000) if len(errors) else None,
-        "error_measured_by": "forward kinematics of the measured joints (bit position in S), "
+        "error_measured_by": "forward kinematics of the measured arm through the measured "
+                             "torso pose (leg encoders and IMU): the bit position in S, "
                              "against the commanded bit position of the same period",
         "hole_rms_error_mm": _plane_rms_mm(goal, world),
         "hole_error_measured_by": "the bit's world position (simulation) in the wall plane, "

@@ -11,8 +11,15 @@ Phases:
    once the stopper holds and the robot is still (the operator can look at the scene, then
    start again).
 
-Each period it measures the tool as the robot does (FK of the measured arm and legs, in the
-stance frame S) and, where the driver knows the torso's pose, in the world; while the plan cuts
+Each period the measured torso pose (leg encoders and IMU, :mod:`hubo_cli.kinematics.torso`)
+corrects the arm's joint target: the plan's tool goal, given in S (the wall's frame), is solved
+in the measured neck frame, low-passed and bounded, so the body's residual sway moves the arm
+and not the hole. The correction runs from the first period on (``correction=False`` turns it
+off), so the wall is placed in front of a tool that already holds its place.
+
+Each period it measures the tool as the robot does (FK of the measured arm, through the
+measured torso pose in the stance frame S) and, where the driver knows the torso's pose, in
+the world; while the plan cuts
 it keeps the commanded and measured tool positions and the wrist torque, with the edge they
 belong to. The world positions are taken relative to where the tool stood when the wall was
 placed, so they trace the hole as it is cut into the wall (the body's sway and any change of
@@ -29,6 +36,7 @@ from hubo_cli.control.estop import EmergencyStopper, wrist_torque_nm
 from hubo_cli.control.module import Module
 from hubo_cli.control.target import Target
 from hubo_cli.drivers.base import SimulatedWorld
+from hubo_cli.kinematics.torso import TorsoCorrection, TorsoEstimator
 from hubo_cli.scene import WallPlacement, WallSize
 from hubo_cli.tasks.plan import EDGE_NONE, Plan
 from hubo_cli.urdf import tool_frame
@@ -43,6 +51,8 @@ class TaskTarget(Target):
 
     Args:
         plan: the checked plan (its whole-body solver gives the measured tool pose).
+        correction: correct the arm's goal by the measured torso pose (see the module
+            docstring); False plays the plan's joint targets as they are.
 
     After :meth:`attach`: ``stopper`` is the pipeline's soft emergency stopper (None when the
     run has none) and ``scene`` what was placed in the simulator.
@@ -52,7 +62,7 @@ class TaskTarget(Target):
                    "actual_y_m", "actual_z_m", "error_m", "cutting", "edge_code",
                    "task_wrist_torque_nm")
 
-    def __init__(self, plan: Plan) -> None:
+    def __init__(self, plan: Plan, correction: bool = True) -> None:
         self.plan = plan
         self.body = body = plan.body
         self.stopper: EmergencyStopper | None = None
@@ -63,7 +73,11 @@ class TaskTarget(Target):
         self.slice = body.model.limb_slice(self.limb)
         self.sensor = "right-wrist" if self.limb == "right-arm" else "left-wrist"
         self.phase = "raise"
-        self.q_target = plan.q_first_rad.copy()
+        self.q_target = plan.q_first_rad.copy()  # the plan's joint target
+        self.q_out = self.q_target.copy()           # ... corrected by the torso pose
+        self.estimator = TorsoEstimator(body)  # the torso pose the robot measures
+        self.correction = (TorsoCorrection(body, (self.limb,), plan.dt_s,
+                                           estimator=self.estimator) if correction else None)
         self.k = 0                       # the plan row being commanded
         self.t_run_s: float | None = None
         self.t_phase_s = 0.0
@@ -125,7 +139,7 @@ class TaskTarget(Target):
 
     # ------------------------------------------------------------------ the loop's call
     def _still(self, state, tolerance_rad: float = 0.01) -> bool:
-        return bool(np.max(np.abs(state.q_rad - self.q_target)) < tolerance_rad
+        return bool(np.max(np.abs(state.q_rad - self.q_out)) < tolerance_rad
                     and np.max(np.abs(state.dq_rad_s)) < 0.05)
 
     def __call__(self, t_s: float, state) -> tuple[np.ndarray, dict]:
@@ -158,8 +172,10 @@ class TaskTarget(Target):
             if holding and t_s - self._t_hold_s >= STOP_HOLD_S and np.max(
                     np.abs(state.dq_rad_s)) < 0.05:
                 info["done"] = True
+        self.q_out = (self.q_target if self.correction is None
+                      else self.correction(self.q_target, state))
         self._measure(t_s, state, info)
-        return self.q_target, info
+        return self.q_out, info
 
     def _tool_world(self, state) -> np.ndarray | None:
         """The tool's position in the world (m), where the driver knows the torso's pose."""
@@ -169,9 +185,8 @@ class TaskTarget(Target):
         return (state.T_world_torso @ T)[:3, 3]
 
     def _measure(self, t_s: float, state, info: dict) -> None:
-        T = self.body.arms[self.limb].fk(state.q_rad[self.slice])
-        actual = T[:3, 3].copy()
-        actual[2] += self.body.lift_of(state.q_rad)
+        T_N_E = self.body.arms[self.limb].fk(state.q_rad[self.slice])
+        actual = (self.estimator(state) @ T_N_E)[:3, 3]
         self.torque_nm = wrist_torque_nm(state, self.sensor)
         running = self.phase != "raise"
         k = self.k

@@ -22,6 +22,7 @@ from hubo_cli.scene import WallPlacement, WallSize
 from hubo_cli.session import RunResult, RunSetup, run
 from hubo_cli.teleop.mapping import HandMapper, MappingConfig
 from hubo_cli.teleop.target import TeleopTarget
+from hubo_cli.urdf import DRILL_FRAME
 
 PAPER_HOLE_M = (0.150, 0.100)  # the paper's cut (V): drill mode starts at its upper-left corner
 APPROACH_SPEED_M_S = 0.05      # mean speed of the bit's move into the wall
@@ -172,20 +173,28 @@ def run_teleop(settings: TeleopSettings, on_ready=None) -> TeleopRun:
     model, body, mapping, scene = prepare(settings)
     q_start = home_posture(model)
     approach = approach_paths(body, mapping.station_arm.values(), scene)
-    # the wall at the stance's distance (issue #15 moves it to the bit, as tasks place it)
-    wall = (WallPlacement(None, scene["wall_distance_m"], WALL) if settings.mode == "drill"
-            else None)
+    wall = drill_wall(scene) if settings.mode == "drill" else None
     teleop_setup(settings, body, None).pace()  # refuse a bad pace before opening the port
     with open_source(replay=settings.replay, port=settings.port, baud=settings.baud) as source:
         target = TeleopTarget(model, source, HandMapper(mapping), body, approach, q_start,
                               live=source.live, clutch_at_s=settings.clutch_at_s, wall=wall,
-                              reach=settings.reach)
+                              reach=settings.reach,
+                              correction=("right-arm",) if settings.mode == "drill" else ())
         duration = settings.duration_s
         if duration is None and source.recorded_s is not None:
             duration = source.recorded_s + target.approach_timeout_s + 30.0
         done = run(teleop_setup(settings, body, duration), target, on_start=on_ready)
     summary = done.save_summary(summarise(settings, target, done, source, scene))
     return TeleopRun(done.run_dir, summary, done.loop)
+
+
+def drill_wall(scene: dict) -> WallPlacement:
+    """Drill mode's wall, placed at the bit as a task places its wall: once the robot holds
+    the bit ``STANDOFF_M`` before the start point (the approach's first pose), the wall's
+    mid-plane goes ``STANDOFF_M`` ahead of the bit, where the mapping keeps the bit's middle
+    (x = the wall distance in S). So the flutes sit in the cardboard by half their length
+    either way whatever the body's lean at that moment."""
+    return WallPlacement(DRILL_FRAME, STANDOFF_M - WALL.thickness_m / 2, WALL)
 
 
 def approach_paths(body: WholeBody, arms, scene: dict) -> dict[str, PosePath]:

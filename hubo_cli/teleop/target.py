@@ -29,6 +29,12 @@ joints, lifted by the FK of the measured legs (feet flat on the ground). Where t
 the torso's pose in the world (the simulation), the tool's world position is tracked as well:
 it also contains the whole body's sway and lean (the ankle controller of eq. 11-12 complies
 with the ankle moments, so the robot leans when its centre of mass moves forward).
+
+With ``correction`` (drill mode), the measured torso pose (leg encoders and IMU,
+:mod:`hubo_cli.kinematics.torso`) corrects the corrected arms' joint targets every period: the
+goal in S is solved in the measured neck frame, low-passed and bounded, so the sway moves the
+arm and not the bit in the wall. Those arms' measured pose then goes through the measured torso
+pose too (without it the body's lean would not show in their error).
 """
 
 from __future__ import annotations
@@ -47,6 +53,7 @@ from hubo_cli.kinematics.conditioning import SingularityScale, condition_number
 from hubo_cli.kinematics.dh import pose_error
 from hubo_cli.kinematics.interpolate import PosePath
 from hubo_cli.kinematics.reach import branch_of
+from hubo_cli.kinematics.torso import CorrectionSettings, TorsoCorrection, TorsoEstimator
 from hubo_cli.kinematics.wholebody import LiftFilter, WholeBody
 from hubo_cli.model import ARMS, RobotModel
 from hubo_cli.scene import WallPlacement
@@ -127,6 +134,9 @@ class TeleopTarget(Target):
         reach: how the arms behave at the edge of their reach (branch, nearest pose, paper);
             None: the mapping mode's defaults (:meth:`ReachSettings.for_mode`).
         singularity: the speed scale near singular configurations (``reach="nearest"`` only).
+        correction: correct these arms' goals by the measured torso pose (see the module
+            docstring); empty: none.
+        correction_settings: its filter and bounds (None: the defaults).
     """
 
     def __init__(self, model: RobotModel, source: PoseSource, mapper: HandMapper,
@@ -134,7 +144,8 @@ class TeleopTarget(Target):
                  *, live: bool = False, stale_timeout_s: float = 0.25, settle_s: float = 1.0,
                  approach_timeout_s: float = 5.0, clutch_at_s: tuple[float, ...] = (),
                  wall: WallPlacement | None = None, reach: ReachSettings | None = None,
-                 singularity: SingularityScale | None = None) -> None:
+                 singularity: SingularityScale | None = None, correction: tuple[str, ...] = (),
+                 correction_settings: CorrectionSettings | None = None) -> None:
         self.model = model
         self.source = source
         self.mapper = mapper
@@ -149,6 +160,12 @@ class TeleopTarget(Target):
         self.arms = sorted(set(mapper.config.station_arm.values()) & set(ARMS))
         self.slices = {arm: model.limb_slice(arm) for arm in ARMS}
         self.q_target = np.array(q_start_rad, dtype=float)
+        self.q_out = self.q_target.copy()  # q_target corrected by the measured torso pose
+        self._q_out_of = self.q_target.copy()  # the q_target that q_out corrects
+        self.estimator = TorsoEstimator(body)  # the torso pose the robot measures
+        self.correction = (TorsoCorrection(body, correction, model.control_period_s,
+                                           correction_settings, self.estimator)
+                           if correction else None)
         self.lift = LiftFilter()
         # approach step 1: joint space to the paths' first poses (legs straight to their lift)
         firsts = {a: p.at(0.0) for a, p in approach.items()}
@@ -197,9 +214,11 @@ class TeleopTarget(Target):
     # ------------------------------------------------------------------ measurement
     def hand_pose_measured(self, arm: str, state) -> np.ndarray:
         """T_S_E of an arm's tool from the measured joints (4x4, m): arm FK lifted by leg FK."""
-        lifted = self.body.arms[arm].fk(state.q_rad[self.slices[arm]])
-        lifted[2, 3] += self.body.lift_of(state.q_rad)
-        return lifted
+        T_N_E = self.body.arms[arm].fk(state.q_rad[self.slices[arm]])
+        if self.correction is not None and arm in self.correction.arms:
+            return self.estimator(state) @ T_N_E
+        T_N_E[2, 3] += self.body.lift_of(state.q_rad)
+        return T_N_E
 
     def hand_position_world(self, arm: str, state) -> np.ndarray | None:
         """The tool's position in S through the measured torso pose (m), or None if unknown."""
@@ -246,17 +265,22 @@ class TeleopTarget(Target):
             if self.reach_settings.mode == "nearest" and self._converging():
                 self._solve_on_branches(t_s, self.body.lift_of(self.q_target), False)
             moving = np.max(np.abs(state.dq_rad_s)) if len(state.dq_rad_s) else 0.0
-            at_goal = np.max(np.abs(state.q_rad - self.q_target)) < 0.02
+            at_goal = np.max(np.abs(state.q_rad - self.q_out)) < 0.02
             if (t_s - self.t_settle_s >= self.settle_s and moving < 0.02 and at_goal) or (
                     t_s - self.t_settle_s >= 4 * self.settle_s):
                 info["done"] = True
+        self.q_out = (self.q_target if self.correction is None
+                      else self.correction(self.q_target, state))
+        self._q_out_of = self.q_target
         self._measure(t_s, state, info)
         if flags:
             info["flags"] = flags
-        return self.q_target, info
+        return self.q_out, info
 
     def _settled(self, state) -> bool:
-        return bool(np.max(np.abs(state.q_rad - self.q_target)) < 0.01
+        # against the output; a target set this period has none yet: against the target
+        q = self.q_out if np.array_equal(self._q_out_of, self.q_target) else self.q_target
+        return bool(np.max(np.abs(state.q_rad - q)) < 0.01
                     and np.max(np.abs(state.dq_rad_s)) < 0.05)
 
     def _approach(self, t_s: float, state) -> None:

@@ -1,0 +1,243 @@
+"""The torso's pose in the stance frame as the robot measures it, and the hand-goal correction
+that holds a tool in the world while the body sways.
+
+Measurement (:func:`torso_in_stance`, :class:`TorsoEstimator`): the feet stand where the stance
+frame S puts them, so each leg's forward kinematics from the measured joints gives the neck
+frame N in S (the encoders). The IMU's orientation replaces the encoders' (a sole rocking on its
+edge, the soles' compliance, the feet twisting on the floor and the ankles' tracking error turn
+the body without showing in the leg joints): its tilt as it is, its heading referenced to the
+encoders' heading at the first measurement (the IMU's yaw has no absolute reference; over one
+run its drift is small). Each foot then pivots about its sole origin: the neck sits at
+``p_S_sole - R_S_N p_N_sole``; the two feet's estimates are averaged. A real robot has the same
+inputs (``RobotState.q_rad`` and ``imu_quat_wxyz``); no simulator ground truth is used.
+
+Correction (:class:`TorsoCorrection`): the joint targets of a plan or of the teleoperation
+solver put a hand goal ``T_S_E`` in the neck frame the *commanded* legs give (upright,
+T_S_N_cmd). The measured neck frame differs from it by ``T_dev = T_S_N_cmd^-1 T_S_N_meas``
+(the body's lean and sway), so the arm is solved for ``T_dev^-1 T_N_E`` instead: the goal given
+in S (the wall's frame) re-expressed in the measured frame. ``T_dev`` is low-passed, bounded
+in size and in rate, so the arm never jumps; where the corrected goal is out of the arm's exact
+reach the correction fades out (and back in) at a bounded rate.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hubo_cli.geometry import quat_wxyz_to_matrix, rotation_exp, rotation_log
+from hubo_cli.kinematics.wholebody import WholeBody
+from hubo_cli.model import LEGS
+
+
+def _yaw(yaw_rad: float) -> np.ndarray:
+    """The rotation by ``yaw_rad`` about z."""
+    c, s = np.cos(yaw_rad), np.sin(yaw_rad)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _heading(R: np.ndarray) -> float:
+    """The heading (rad) of a frame's x axis projected on the ground."""
+    return float(np.arctan2(R[1, 0], R[0, 0]))
+
+
+def _legs(body: WholeBody, q: np.ndarray) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Per leg: R_S_N from its kinematics (sole flat where S puts it) and p_N_sole."""
+    R_legs, p_N_soles = [], []
+    for leg in LEGS:
+        T_N_sole = body.legs[leg].fk(q[body.model.limb_slice(leg)])
+        R_legs.append(body.T_S_sole[leg][:3, :3] @ T_N_sole[:3, :3].T)
+        p_N_soles.append(T_N_sole[:3, 3])
+    return R_legs, p_N_soles
+
+
+def torso_in_stance(body: WholeBody, q_rad, imu_quat_wxyz=None,
+                    imu_heading_rad: float | None = None) -> np.ndarray:
+    """T_S_N, the neck frame in the stance frame (4x4, m), from the leg joints and the IMU.
+
+    Args:
+        body: the whole-body solver (its legs and the soles' places in S).
+        q_rad: the full joint vector (measured, or commanded for the nominal pose).
+        imu_quat_wxyz: the torso's orientation in the world (w, x, y, z); None: the encoders'
+            orientation alone.
+        imu_heading_rad: the IMU's heading (rad) of S's x axis: the IMU's orientation is then
+            used whole, turned by it; None: the IMU's tilt under the encoders' heading.
+    """
+    q = np.asarray(q_rad, dtype=float)
+    R_legs, p_N_soles = _legs(body, q)
+    if imu_quat_wxyz is None:  # the mean of the two legs' orientations
+        R = R_legs[0] @ rotation_exp(rotation_log(R_legs[0].T @ R_legs[1]) / 2)
+    else:
+        R_imu = quat_wxyz_to_matrix(imu_quat_wxyz)
+        if imu_heading_rad is None:  # the IMU's tilt under the legs' mean heading
+            heading = float(np.mean([_heading(R) for R in R_legs]))
+            R = _yaw(heading - _heading(R_imu)) @ R_imu
+        else:
+            R = _yaw(-imu_heading_rad) @ R_imu
+    p = np.mean([body.T_S_sole[leg][:3, 3] - R @ p_N for leg, p_N in zip(LEGS, p_N_soles,
+                                                                           strict=True)], axis=0)
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, p
+    return T
+
+
+class TorsoEstimator:
+    """:func:`torso_in_stance` with the IMU's heading referenced once: at the first measurement
+    the IMU's heading is taken to be the encoders' (the robot stands on its stance).
+
+    Args:
+        body: the whole-body solver (legs, soles).
+    """
+
+    def __init__(self, body: WholeBody) -> None:
+        self.body = body
+        self.imu_heading_rad: float | None = None
+
+    def __call__(self, state) -> np.ndarray:
+        """T_S_N (4x4, m) from a :class:`~hubo_cli.state.RobotState`'s joints and IMU."""
+        if self.imu_heading_rad is None:
+            R_legs, _ = _legs(self.body, np.asarray(state.q_rad, dtype=float))
+            encoders = float(np.mean([_heading(R) for R in R_legs]))
+            self.imu_heading_rad = _heading(quat_wxyz_to_matrix(state.imu_quat_wxyz)) - encoders
+        return torso_in_stance(self.body, state.q_rad, state.imu_quat_wxyz,
+                               self.imu_heading_rad)
+
+
+@dataclass(frozen=True)
+class CorrectionSettings:
+    """How the measured torso pose corrects the hand goals.
+
+    Attributes:
+        time_constant_s: first-order low-pass of the deviation (its noise and the fast part
+            of the sway, which the loop's delays could not follow).
+        max_offset_m: largest translation of the correction.
+        max_tilt_rad: largest rotation of the correction.
+        max_speed_m_s: largest speed of the translation.
+        max_rate_rad_s: largest angular speed of the rotation.
+        fade_per_s: how fast the correction fades out where the corrected goal is out of the
+            arm's exact reach, and back in (weight per second).
+        max_joint_offset_rad: a corrected arm solution further than this from the uncorrected
+            one (any joint) counts as out of reach: near a singular configuration or a joint
+            limit a small correction would take a large joint motion.
+    """
+
+    time_constant_s: float = 0.1
+    max_offset_m: float = 0.02
+    max_tilt_rad: float = float(np.radians(2.0))
+    max_speed_m_s: float = 0.02
+    max_rate_rad_s: float = float(np.radians(2.0))
+    fade_per_s: float = 1.0
+    max_joint_offset_rad: float = 0.25
+
+
+class TorsoCorrection:
+    """Re-expresses arm goals in the measured neck frame, period by period.
+
+    Args:
+        body: the whole-body solver whose arms hold the tools.
+        arms: the arms to correct.
+        dt_s: the control period (s).
+        settings: filter and bounds.
+        estimator: the torso pose measurement (None: a new :class:`TorsoEstimator`).
+    """
+
+    def __init__(self, body: WholeBody, arms, dt_s: float,
+                 settings: CorrectionSettings | None = None,
+                 estimator: TorsoEstimator | None = None) -> None:
+        self.body = body
+        self.estimator = estimator or TorsoEstimator(body)
+        self.arms = tuple(arms)
+        self.dt_s = dt_s
+        self.settings = settings or CorrectionSettings()
+        self.offset_m = np.zeros(3)     # filtered translation of T_dev (in N_cmd axes)
+        self.rotation_rad = np.zeros(3)  # filtered rotation vector of T_dev
+        self.weight = {arm: 1.0 for arm in self.arms}
+        self._q_out: dict[str, np.ndarray] = {}
+        self._dq: dict[str, np.ndarray] = {}  # applied joint offset per arm
+        model = body.model
+        self._leg_index = np.r_[tuple(model.limb_slice(leg) for leg in LEGS)]
+        self._q_legs_cmd: np.ndarray | None = None
+        self._T_cmd: np.ndarray | None = None  # torso_in_stance of the commanded legs
+
+    def deviation(self) -> np.ndarray:
+        """The filtered and bounded T_dev (4x4): the measured neck frame in the commanded one."""
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = rotation_exp(self.rotation_rad), self.offset_m
+        return T
+
+    def update(self, q_cmd_rad, state) -> np.ndarray:
+        """Advance the filter with this period's measurement; returns T_dev (4x4)."""
+        s = self.settings
+        T_meas = self.estimator(state)
+        legs = np.asarray(q_cmd_rad, dtype=float)[self._leg_index]
+        if self._T_cmd is None or not np.array_equal(legs, self._q_legs_cmd):
+            self._T_cmd = torso_in_stance(self.body, q_cmd_rad)
+            self._q_legs_cmd = legs
+        T_cmd = self._T_cmd
+        T_dev = np.linalg.solve(T_cmd, T_meas)
+        alpha = self.dt_s / (s.time_constant_s + self.dt_s)
+        self.offset_m = _follow(self.offset_m, T_dev[:3, 3], alpha, s.max_offset_m,
+                                s.max_speed_m_s * self.dt_s)
+        self.rotation_rad = _follow(self.rotation_rad, rotation_log(T_dev[:3, :3]), alpha,
+                                    s.max_tilt_rad, s.max_rate_rad_s * self.dt_s)
+        return self.deviation()
+
+    def apply(self, q_cmd_rad) -> np.ndarray:
+        """The joint target with each arm solved for its goal in the measured neck frame.
+
+        Where the corrected goal has no exact solution, the arm keeps the joint offset of its
+        last exact correction, scaled down as the weight fades (no jump either way).
+        """
+        q = np.array(q_cmd_rad, dtype=float)
+        T_dev_inv = np.linalg.inv(self.deviation())
+        fade = self.settings.fade_per_s * self.dt_s
+        for arm in self.arms:
+            sl = self.body.model.limb_slice(arm)
+            limb = self.body.arms[arm]
+            q_arm = q[sl].copy()
+            T_N_E = limb.fk(q_arm)
+            w_prev = self.weight[arm]
+            w = min(1.0, w_prev + fade)
+            result = limb.solve(_blend(T_N_E, T_dev_inv @ T_N_E, w),
+                                self._q_out.get(arm, q_arm))
+            if result.exact and np.max(np.abs(result.q_rad - q_arm)) <= \
+                    self.settings.max_joint_offset_rad:
+                self.weight[arm] = w
+                self._dq[arm] = result.q_rad - q_arm
+            else:
+                self.weight[arm] = w = max(0.0, w_prev - fade)
+                self._dq[arm] = self._dq.get(arm, np.zeros(6)) * (w / w_prev if w_prev else 0.0)
+            q[sl] = q_arm + self._dq[arm]
+            self._q_out[arm] = q[sl].copy()
+        return q
+
+    def __call__(self, q_cmd_rad, state) -> np.ndarray:
+        """:meth:`update` then :meth:`apply`."""
+        self.update(q_cmd_rad, state)
+        return self.apply(q_cmd_rad)
+
+
+def _follow(now: np.ndarray, raw: np.ndarray, alpha: float, limit: float,
+            max_step: float) -> np.ndarray:
+    """One low-pass step from ``now`` toward ``raw``, kept within ``limit`` (norm) and moving
+    at most ``max_step`` (norm)."""
+    wanted = now + alpha * (np.asarray(raw, dtype=float) - now)
+    norm = float(np.linalg.norm(wanted))
+    if norm > limit:
+        wanted = wanted * (limit / norm)
+    step = wanted - now
+    size = float(np.linalg.norm(step))
+    if size > max_step:
+        step = step * (max_step / size)
+    return now + step
+
+
+def _blend(T_a: np.ndarray, T_b: np.ndarray, w: float) -> np.ndarray:
+    """The pose ``w`` of the way from T_a to T_b (0 <= w <= 1)."""
+    if w >= 1.0:
+        return T_b
+    T = np.eye(4)
+    T[:3, :3] = T_a[:3, :3] @ rotation_exp(w * rotation_log(T_a[:3, :3].T @ T_b[:3, :3]))
+    T[:3, 3] = T_a[:3, 3] + w * (T_b[:3, 3] - T_a[:3, 3])
+    return T

@@ -1,0 +1,114 @@
+"""The measured torso pose (leg encoders + IMU) and the hand-goal correction that holds a tool in
+the stance frame while the body leans."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hubo_cli.geometry import rpy_to_quat_wxyz
+from hubo_cli.kinematics.torso import (
+    CorrectionSettings,
+    TorsoCorrection,
+    TorsoEstimator,
+    torso_in_stance,
+)
+from hubo_cli.kinematics.wholebody import WholeBody
+from hubo_cli.model import load_model
+from hubo_cli.state import RobotState
+
+MODEL = load_model()
+ARM = "right-arm"
+SL = MODEL.limb_slice(ARM)
+DT = MODEL.control_period_s
+Q_ARM = np.array([-0.6444, -0.3933, 0.2581, -1.82, -1.9082, -0.3289])  # the bit ahead
+
+
+@pytest.fixture(scope="module")
+def body():
+    return WholeBody(MODEL, {ARM: "drill"})
+
+
+def _state(q, pitch_rad=0.0, roll_rad=0.0):
+    return RobotState(0.0, q, np.zeros_like(q), imu_quat_wxyz=rpy_to_quat_wxyz(roll_rad,
+                                                                              pitch_rad, 0.0))
+
+
+def _working_pose(body):
+    q = body.solve({}, body.q_home, lift_m=-0.03).q_rad
+    q[SL] = Q_ARM
+    return q
+
+
+def test_the_home_posture_is_the_stance_frame_and_a_crouch_lowers_it(body):
+    assert np.allclose(torso_in_stance(body, body.q_home), np.eye(4), atol=1e-9)
+    assert np.allclose(torso_in_stance(body, body.q_home, [1.0, 0.0, 0.0, 0.0]), np.eye(4),
+                       atol=1e-9)
+    q = _working_pose(body)
+    T = torso_in_stance(body, q)
+    assert T[2, 3] == pytest.approx(-0.03, abs=1e-6)
+    assert np.allclose(T[:3, :3], np.eye(3), atol=1e-9)
+
+
+def test_an_imu_lean_tilts_the_torso_about_the_soles(body):
+    q = body.q_home
+    pitch = np.radians(1.0)  # leaning forward: the torso's z axis tips toward +x
+    T = torso_in_stance(body, q, rpy_to_quat_wxyz(0.0, pitch, 0.0))
+    height = -body.T_S_sole["right-leg"][2, 3]  # neck above the soles
+    assert T[2, 0] == pytest.approx(-np.sin(pitch), abs=1e-9)
+    assert T[0, 3] == pytest.approx(height * np.sin(pitch), rel=1e-6)  # the neck moves forward
+    assert abs(T[1, 3]) < 1e-9
+
+
+def test_a_leaning_torso_moves_the_arm_goal_so_the_bit_stays_in_the_stance_frame(body):
+    q = _working_pose(body)
+    goal = torso_in_stance(body, q) @ body.arms[ARM].fk(q[SL])
+    lean = _state(q, pitch_rad=np.radians(1.0), roll_rad=np.radians(-0.5))
+    correction = TorsoCorrection(body, (ARM,), DT)
+    for _ in range(int(2.0 / DT)):  # 18 mm of lean at 20 mm/s
+        q_out = correction(q, lean)
+    T_S_N = torso_in_stance(body, q, lean.imu_quat_wxyz)  # what the robot measures
+    uncorrected = (T_S_N @ body.arms[ARM].fk(q[SL]))[:3, 3]
+    corrected = (T_S_N @ body.arms[ARM].fk(q_out[SL]))[:3, 3]
+    assert np.linalg.norm(uncorrected - goal[:3, 3]) > 0.008  # the lean carries the bit 1 cm
+    assert np.linalg.norm(corrected - goal[:3, 3]) < 2e-4
+    # the right way: a forward lean carries the bit forward and down, so the arm pulls it back
+    # and up in the neck frame
+    bit_N_before = body.arms[ARM].fk(q[SL])[:3, 3]
+    bit_N_after = body.arms[ARM].fk(q_out[SL])[:3, 3]
+    assert bit_N_after[0] < bit_N_before[0] - 0.005
+    assert np.allclose(q_out[:SL.start], q[:SL.start]) and np.allclose(q_out[SL.stop:],
+                                                                       q[SL.stop:])
+
+
+def test_the_correction_is_bounded_and_never_jumps(body):
+    q = _working_pose(body)
+    settings = CorrectionSettings()
+    correction = TorsoCorrection(body, (ARM,), DT, settings)
+    upright, fallen = _state(q), _state(q, pitch_rad=np.radians(10.0))
+    correction(q, upright)
+    lever = np.linalg.norm(body.arms[ARM].fk(q[SL])[:3, 3])
+    max_step = (settings.max_speed_m_s + lever * settings.max_rate_rad_s) * DT
+    bit = body.arms[ARM].fk(correction(q, upright)[SL])[:3, 3]
+    for _ in range(int(3.0 / DT)):  # an IMU step of 10 degrees
+        after = body.arms[ARM].fk(correction(q, fallen)[SL])[:3, 3]
+        assert np.linalg.norm(after - bit) <= max_step * 1.05
+        bit = after
+    assert np.degrees(np.linalg.norm(correction.rotation_rad)) == pytest.approx(2.0, abs=1e-6)
+    assert np.linalg.norm(correction.offset_m) <= settings.max_offset_m + 1e-12
+
+
+def test_the_imu_heading_is_referenced_at_the_first_measurement(body):
+    """The feet twisting on the floor turn the body with no hip-yaw motion: the IMU sees it,
+    relative to its heading when the estimator first measured."""
+    q = _working_pose(body)
+    estimator = TorsoEstimator(body)
+
+    def heading_deg(yaw_deg):
+        state = RobotState(0.0, q, np.zeros_like(q), imu_quat_wxyz=rpy_to_quat_wxyz(
+            0.0, 0.0, np.radians(yaw_deg)))
+        T = estimator(state)
+        return np.degrees(np.arctan2(T[1, 0], T[0, 0]))
+
+    assert heading_deg(30.0) == pytest.approx(0.0, abs=1e-9)  # the stance's heading
+    assert heading_deg(30.5) == pytest.approx(0.5, abs=1e-9)
