@@ -75,8 +75,8 @@ def torso_in_stance(body: WholeBody, q_rad, imu_quat_wxyz=None,
             R = _yaw(heading - _heading(R_imu)) @ R_imu
         else:
             R = _yaw(-imu_heading_rad) @ R_imu
-    p = np.mean([body.T_S_sole[leg][:3, 3] - R @ p_N for leg, p_N in zip(LEGS, p_N_soles,
-                                                                           strict=True)], axis=0)
+    (right, left), (p_right, p_left) = (body.T_S_sole[leg][:3, 3] for leg in LEGS), p_N_soles
+    p = (right + left - R @ (p_right + p_left)) / 2
     T = np.eye(4)
     T[:3, :3], T[:3, 3] = R, p
     return T
@@ -93,15 +93,21 @@ class TorsoEstimator:
     def __init__(self, body: WholeBody) -> None:
         self.body = body
         self.imu_heading_rad: float | None = None
+        self._last: tuple = (None, None, None)  # (joints, IMU, T_S_N): once per period
 
     def __call__(self, state) -> np.ndarray:
         """T_S_N (4x4, m) from a :class:`~hubo_cli.state.RobotState`'s joints and IMU."""
+        q_last, imu_last, T_last = self._last
+        if (q_last is not None and np.array_equal(q_last, state.q_rad)
+                and np.array_equal(imu_last, state.imu_quat_wxyz)):
+            return T_last
         if self.imu_heading_rad is None:
             R_legs, _ = _legs(self.body, np.asarray(state.q_rad, dtype=float))
             encoders = float(np.mean([_heading(R) for R in R_legs]))
             self.imu_heading_rad = _heading(quat_wxyz_to_matrix(state.imu_quat_wxyz)) - encoders
-        return torso_in_stance(self.body, state.q_rad, state.imu_quat_wxyz,
-                               self.imu_heading_rad)
+        T = torso_in_stance(self.body, state.q_rad, state.imu_quat_wxyz, self.imu_heading_rad)
+        self._last = (np.array(state.q_rad, dtype=float), np.array(state.imu_quat_wxyz), T)
+        return T
 
 
 @dataclass(frozen=True)
@@ -153,6 +159,7 @@ class TorsoCorrection:
         self.offset_m = np.zeros(3)     # filtered translation of T_dev (in N_cmd axes)
         self.rotation_rad = np.zeros(3)  # filtered rotation vector of T_dev
         self.weight = {arm: 1.0 for arm in self.arms}
+        self._T_dev = np.eye(4)  # deviation() as of the last update
         self._q_out: dict[str, np.ndarray] = {}
         self._dq: dict[str, np.ndarray] = {}  # applied joint offset per arm
         model = body.model
@@ -181,7 +188,8 @@ class TorsoCorrection:
                                 s.max_speed_m_s * self.dt_s)
         self.rotation_rad = _follow(self.rotation_rad, rotation_log(T_dev[:3, :3]), alpha,
                                     s.max_tilt_rad, s.max_rate_rad_s * self.dt_s)
-        return self.deviation()
+        self._T_dev = self.deviation()
+        return self._T_dev
 
     def apply(self, q_cmd_rad) -> np.ndarray:
         """The joint target with each arm solved for its goal in the measured neck frame.
@@ -190,7 +198,7 @@ class TorsoCorrection:
         last exact correction, scaled down as the weight fades (no jump either way).
         """
         q = np.array(q_cmd_rad, dtype=float)
-        T_dev_inv = np.linalg.inv(self.deviation())
+        T_dev_inv = np.linalg.inv(self._T_dev)
         fade = self.settings.fade_per_s * self.dt_s
         for arm in self.arms:
             sl = self.body.model.limb_slice(arm)
