@@ -120,3 +120,33 @@ def test_bad_inputs_are_one_line_errors(tmp_path):
         result = CliRunner().invoke(main, args)
         assert result.exit_code in (2, 3), (args, result.output)
         assert "Traceback" not in result.output and "error:" in result.output
+
+
+@pytest.fixture(scope="module")
+def short_drill_session(tmp_path_factory):
+    """The first 2 s of the drill recording on the simulated robot (about 8 simulated s with
+    the approach and the settling)."""
+    folder = tmp_path_factory.mktemp("short-drill")
+    lines = data_file("trajectories", "drill-rectangle.csv").read_text().splitlines()
+    kept = [line for line in lines[1:] if float(line.split(",")[0]) <= 2.0]
+    (folder / "short.csv").write_text("\n".join([lines[0], *kept]) + "\n")
+    return run_teleop(TeleopSettings(replay=folder / "short.csv", mode="drill",
+                                     out=folder / "run"))
+
+
+def test_drill_mode_places_the_wall_at_the_bit_and_holds_the_flutes_in_it(short_drill_session):
+    from hubo_cli.control.log import load_log as load
+    from hubo_cli.teleop.session import STANDOFF_M, WALL
+    from hubo_cli.urdf import DRILL_FRAME
+
+    run = short_drill_session
+    s = run.summary
+    assert s["ended"] == "done" and not s["estop_events"]
+    assert s["scene"]["placed_from"] == DRILL_FRAME
+    assert s["scene"]["gap_m"] == pytest.approx(STANDOFF_M - WALL.thickness_m / 2)
+    # every period of the operation has the flutes in the cardboard (the simulator's record)
+    log = load(run.run_dir)
+    operating = np.round(log["t_s"][log["phase_code"] == 1], 6)
+    holes = np.round(log.metadata["scene"]["hole_t_s"], 6)
+    assert len(operating) > 300 and np.isin(operating, holes).all()
+    assert s["world_rms_error_mm"]["right-arm"] < 6.0

@@ -3,8 +3,9 @@
 Phases:
 
 1. ``raise``: the joint-space move of the first step (joint target ``plan.q_first_rad``), then
-   a wait until the robot is still; the wall is placed then, ahead of the tool as the robot
-   holds it (in a simulator; a real robot stands at its wall);
+   a wait until the robot is still with the tool on its first pose (within
+   ``ON_POSE_M``, as the robot measures it); the wall is placed then, ahead of the tool as the
+   robot holds it (in a simulator; a real robot stands at its wall);
 2. ``run``: the plan's joint targets period by period;
 3. ``settle``: the plan has ended; wait until the robot is still;
 4. ``stopped``: an emergency stop latched; the plan is frozen where it was and the run ends
@@ -43,6 +44,7 @@ from hubo_cli.urdf import tool_frame
 
 PHASES = ("raise", "run", "settle", "stopped")
 SETTLE_TIMEOUT_S = 6.0
+ON_POSE_M = 0.0005  # the raise ends with the tool this close to its first pose
 STOP_HOLD_S = 1.0  # after a stop, keep holding this long (still) before ending the run
 
 
@@ -149,7 +151,7 @@ class TaskTarget(Target):
             self.phase, self.t_stop_s = "stopped", t_s
             self.step_stopped = self.step
         if self.phase == "raise":
-            if self._still(state) or t_s >= SETTLE_TIMEOUT_S:
+            if (self._still(state) and self._on_first_pose(state)) or t_s >= SETTLE_TIMEOUT_S:
                 self._place_wall()
                 world = self._tool_world(state)
                 if world is not None:
@@ -176,6 +178,16 @@ class TaskTarget(Target):
                       else self.correction(self.q_target, state))
         self._measure(t_s, state, info)
         return self.q_out, info
+
+    def _on_first_pose(self, state) -> bool:
+        """The tool, as the robot measures it, is within ON_POSE_M of the plan's first pose
+        (the torso correction may still be bringing it there when the joints look still);
+        without the correction nothing would bring it closer than the joints."""
+        if self.correction is None:
+            return True
+        T_N_E = self.body.arms[self.limb].fk(state.q_rad[self.slice])
+        tool = (self.estimator(state) @ T_N_E)[:3, 3]
+        return bool(np.linalg.norm(tool - self.plan.T_first_S[:3, 3]) < ON_POSE_M)
 
     def _tool_world(self, state) -> np.ndarray | None:
         """The tool's position in the world (m), where the driver knows the torso's pose."""
