@@ -29,6 +29,7 @@ from hubo_cli.walking.params import WalkingParams
 SIDES = ("right", "left")
 SIDE_SIGN = {"right": -1.0, "left": 1.0}
 MAX_STEPS = 200  # a goal needing more steps than this is refused (InputError)
+TOE_IN_TOLERANCE_RAD = 0.01  # measured feet stand straight to within this
 
 
 def wrap_angle(a: float) -> float:
@@ -122,7 +123,7 @@ def within_limits(steps: list[Footstep], right: Footstep, left: Footstep,
                 and abs(turn) <= params.max_turn_rad + 1e-9):
             return False
         feet[step.side] = step
-        if wrap_angle(feet["left"].yaw_rad - feet["right"].yaw_rad) < -1e-9:
+        if wrap_angle(feet["left"].yaw_rad - feet["right"].yaw_rad) < -TOE_IN_TOLERANCE_RAD:
             return False
     return True
 
