@@ -94,12 +94,12 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
     walking_s = target.walking_s
     result = WalkResult(
         fell=target.fell, final_error_mm=1000 * error_m, final_error_deg=math.degrees(error_rad),
-        steps=len(target.gait.steps),
+        steps=len(target.steps),
         average_speed_m_s=distance / walking_s if walking_s > 0 else 0.0,
         zmp_inside_fraction=(target.zmp_inside_periods / target.zmp_periods
                              if target.zmp_periods else 0.0),
         walking_s=walking_s, ended=done.loop.ended,
         estop_events=len(done.summary["estop_events"]),
-        footsteps=[s.to_json() for s in target.gait.steps], run_dir=done.run_dir)
+        footsteps=[s.to_json() for s in target.steps], run_dir=done.run_dir)
     done.save_summary(result.summary())
     return result

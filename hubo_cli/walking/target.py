@@ -21,6 +21,8 @@ from hubo_cli.walking.footsteps import Footstep, Stance, plan_footsteps, stance_
 from hubo_cli.walking.gait import Gait, make_gait
 from hubo_cli.walking.params import WalkingParams
 
+ARRIVED_M = 0.005                  # closer than this to the goal stance needs no correction
+ARRIVED_RAD = math.radians(1.0)
 LOADED_N = 10.0  # a sole carrying more than this counts in the measured ZMP and the support
 SOLES = (("right", "right_sole", "right-ankle"), ("left", "left_sole", "left-ankle"))
 
@@ -84,8 +86,10 @@ class WalkTarget(Target):
     """Walk to ``goal`` (forward, left, turn relative to the stance at the start).
 
     The plan is made in :meth:`attach` from the soles' poses in the simulator; each period
-    sends the pattern's joints and logs the reference and measured ZMP and CoM. The run ends
-    after the pattern (its last ``settle_s`` standing) or on a fall.
+    sends the pattern's joints and logs the reference and measured ZMP and CoM. When the
+    pattern has ended (its last ``settle_s`` standing) and the feet, which slip a little on
+    every step, stand further than ARRIVED_M / ARRIVED_RAD from the goal, it plans again from
+    where they stand, up to ``corrections`` times. The run ends then, or on a fall.
     """
 
     log_columns = ("walk.zmp_ref_x_m", "walk.zmp_ref_y_m", "walk.com_ref_x_m",
@@ -93,7 +97,8 @@ class WalkTarget(Target):
                    "walk.step", "walk.tilt_deg")
 
     def __init__(self, model: RobotModel, params: WalkingParams, goal: tuple[float, float, float],
-                 q_start_rad: np.ndarray, T_world_neck_start: np.ndarray) -> None:
+                 q_start_rad: np.ndarray, T_world_neck_start: np.ndarray,
+                 corrections: int = 1) -> None:
         self.model = model
         self.params = params
         self.goal_relative = goal
@@ -111,47 +116,72 @@ class WalkTarget(Target):
         self.zmp_inside_periods = 0
         self.torso_z0_m: float | None = None
         self.final_feet: dict[str, np.ndarray] = {}
+        self.steps: list[Footstep] = []
+        self.corrections_left = int(corrections)
+        self.plan_start_s = 0.0
+        self.last_step_end_s = 0.0
 
     def attach(self, world: SimulatedWorld | None, modules: Sequence) -> None:
         if world is None:
             raise ConfigError("walking needs the simulator (the soles' poses in the world)",
                               hint="run it with the sim driver")
         self.world = world
-        feet = {side: footstep_of(side, world.frame_pose(frame)) for side, frame, _ in SOLES}
+        feet = self._measured_feet()
         self.start = stance_of(feet["right"], feet["left"])
         forward, left, turn = self.goal_relative
         c, s = math.cos(self.start.yaw_rad), math.sin(self.start.yaw_rad)
         self.goal = Stance(self.start.x_m + c * forward - s * left,
                            self.start.y_m + s * forward + c * left, self.start.yaw_rad + turn)
+        self._plan(self.q_start, 0.0)
+        for module in modules:
+            if isinstance(module, CapturePointMonitor):
+                module.support_override = self.support_at
+
+    def _measured_feet(self) -> dict[str, Footstep]:
+        return {side: footstep_of(side, self.world.frame_pose(frame)) for side, frame, _ in SOLES}
+
+    def _plan(self, q_rad: np.ndarray, t_s: float) -> None:
+        """Plan the walk from where the feet stand now (the stance frame moves with them),
+        starting at loop time ``t_s`` from the commanded joints ``q_rad``."""
+        world = self.world
+        feet = self._measured_feet()
         steps = plan_footsteps(feet["right"], feet["left"], self.goal, self.params)
-        body = WalkingBody(self.model, self.q_start, world.frame_pose("torso"),
-                           self.params.lean_rad_per_m)
-        sole_z = float(world.frame_pose("right_sole")[2, 3])
-        com = body.com_in_neck(self.q_start)
         T_world_neck = world.frame_pose("torso")
+        T_world_neck[2, 3] = self.T_world_neck_start[2, 3] if self.gait is None \
+            else self.plan.T_world_neck[-1, 2, 3]
+        body = WalkingBody(self.model, q_rad, T_world_neck, self.params.lean_rad_per_m)
+        sole_z = float(world.frame_pose("right_sole")[2, 3])
+        com = body.com_in_neck(q_rad)
         com_world = T_world_neck[:3, :3] @ com + T_world_neck[:3, 3]
         self.gait = make_gait(feet["right"], feet["left"], steps, self.params,
                               self.model.control_period_s, float(com_world[2]) - sole_z, sole_z,
                               self.model.feet.forward_m, com_start_m=com_world[:2])
         self.plan = body.solve(self.gait)
         self._support_poses = planned_support(self.gait)
-        for module in modules:
-            if isinstance(module, CapturePointMonitor):
-                module.support_override = self.support_at
+        self.plan_start_s = t_s
+        self.k = 0
+        self.steps.extend(steps)
 
     def support_at(self, t_s: float) -> np.ndarray:
         """The planned support at time ``t_s`` (see :func:`planned_support`)."""
-        k = min(max(int(round(t_s / self.gait.period_s)), 0), self.gait.n - 1)
-        return self._support_poses[k]
+        k = int(round((t_s - self.plan_start_s) / self.gait.period_s))
+        return self._support_poses[min(max(k, 0), self.gait.n - 1)]
 
     @property
     def walking_s(self) -> float:
         """From the start to the end of the last step's double support (s)."""
         gait = self.gait
         moving = np.nonzero(gait.step_index >= 0)[0]
-        return float((moving[-1] + 1) * gait.period_s) if len(moving) else 0.0
+        if not len(moving):
+            return self.last_step_end_s
+        return self.plan_start_s + float((moving[-1] + 1) * gait.period_s)
 
     def __call__(self, t_s: float, state: RobotState) -> TargetOutput:
+        if self.k >= self.gait.n and not self.fell and self.corrections_left > 0 \
+                and not self.arrived():
+            self.corrections_left -= 1
+            self.last_step_end_s = self.walking_s
+            self._plan(self.plan.q_rad[-1], t_s)
         gait, plan, world = self.gait, self.plan, self.world
         k = min(self.k, gait.n - 1)
         self.k += 1
@@ -175,8 +205,16 @@ class WalkTarget(Target):
                 "walk.zmp_y_m": math.nan if zmp is None else float(zmp[1]),
                 "walk.zmp_outside_m": outside if math.isfinite(outside) else math.nan,
                 "walk.step": float(gait.step_index[k]), "walk.tilt_deg": tilt,
-                "done": self.fell or self.k >= gait.n}
+                "done": self.fell or (self.k >= gait.n and (self.corrections_left == 0
+                                                             or self.arrived()))}
         return plan.q_rad[k], info
+
+    def arrived(self) -> bool:
+        """The feet stand within ARRIVED_M and ARRIVED_RAD of the goal stance."""
+        if not self.final_feet:
+            return False
+        error_m, error_rad = self.final_error()
+        return error_m <= ARRIVED_M and error_rad <= ARRIVED_RAD
 
     def final_error(self) -> tuple[float, float]:
         """The final stance's distance (m) and heading error (rad) from the goal."""
