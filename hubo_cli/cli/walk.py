@@ -14,14 +14,17 @@ from hubo_cli.cli.output import NO_ESTOP_HELP, console, print_json
 @click.option("--to", "goal", type=float, nargs=3, required=True, metavar="X Y YAW",
               help="Goal stance relative to the start: forward (m), left (m), turn (rad, "
                    "counter-clockwise).")
+@click.option("--corrections", type=click.IntRange(0, 5), default=1, show_default=True,
+              help="Walk again from where the feet stand when they slipped more than 5 mm or "
+                   "1 deg off the goal, up to this many times.")
 @click.option("--no-estop", is_flag=True, help=NO_ESTOP_HELP)
 @click.option("--gui", is_flag=True, help="Open the PyBullet window (runs in real time).")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
 @click.option("--out", type=click.Path(file_okay=False), default=None,
               help="Run folder (default runs/<time>-walk).")
 @perturb_option
-def walk(goal: tuple[float, float, float], no_estop: bool, gui: bool, as_json: bool,
-         out: str | None, perturb_seed: int | None) -> None:
+def walk(goal: tuple[float, float, float], corrections: int, no_estop: bool, gui: bool,
+         as_json: bool, out: str | None, perturb_seed: int | None) -> None:
     """Walk the simulated HUBO 2+ to a goal stance (ZMP preview control, footsteps, leg IK).
 
     The robot starts standing in its walking posture (feet 0.26 m apart, 5 cm crouched) and
@@ -39,7 +42,7 @@ def walk(goal: tuple[float, float, float], no_estop: bool, gui: bool, as_json: b
     check_goal(goal)
     with reserved_run_dir("walk", out) as run_dir:  # a bad --out fails before anything runs
         result = walk_to(load_model(), goal, gui=gui, out=run_dir, estop=not no_estop,
-                         perturb_seed=perturb_seed)
+                         perturb_seed=perturb_seed, corrections=corrections)
     fields = result.summary() | {"ended": result.ended, "estop_events": result.estop_events,
                                  "run_dir": str(result.run_dir)}
     if as_json:

@@ -69,7 +69,7 @@ def check_goal(goal: tuple[float, float, float]) -> None:
 def walk(model: RobotModel, goal: tuple[float, float, float], *,
          params: WalkingParams | None = None, gui: bool = False,
          out: str | Path | None = None, estop: bool = True,
-         perturb_seed: int | None = None) -> WalkResult:
+         perturb_seed: int | None = None, corrections: int = 1) -> WalkResult:
     """Walk the simulated robot to ``goal`` = (forward m, left m, turn rad) from its stance.
 
     Args:
@@ -77,6 +77,8 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
         goal: where the stance (midway between the soles) should end, relative to the start.
         params: walking parameters (default the robot file's).
         gui, out, estop, perturb_seed: as for every run (:class:`~hubo_cli.session.RunSetup`).
+        corrections: how many times to plan again from where the feet stand when the walk
+            ended off the goal (the feet slip a little on every step).
     """
     check_goal(goal)
     from hubo_cli.model import load_model
@@ -84,7 +86,9 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
     walking_model = load_model(model.params_name, "walking")
     params = params or walking_params(walking_model)
     q_start, T_world_neck = walking_posture(walking_model, params.step_width_m, params.crouch_m)
-    target = WalkTarget(walking_model, params, goal, q_start, T_world_neck)
+    if not 0 <= corrections <= 5:
+        raise InputError(f"corrections must be 0 to 5, got {corrections}", hint="e.g. 1")
+    target = WalkTarget(walking_model, params, goal, q_start, T_world_neck, corrections)
     setup = RunSetup(command="walk", model=walking_model, driver="sim", gui=gui, out=out,
                      safety=SafetyProfile(estop=estop, balance=False), q_start_rad=q_start,
                      perturb_seed=perturb_seed)
