@@ -23,6 +23,8 @@ from hubo_cli.walking.params import WalkingParams
 
 ARRIVED_M = 0.005                  # closer than this to the goal stance needs no correction
 ARRIVED_RAD = math.radians(1.0)
+ZMP_INSIDE_MARGIN_M = 0.001  # a ZMP closer than this to the hull's edge counts as on it (a sole
+                             # tipping about that edge: the physics keeps the ZMP on the hull)
 LOADED_N = 10.0  # a sole carrying more than this counts in the measured ZMP and the support
 SOLES = (("right", "right_sole", "right-ankle"), ("left", "left_sole", "left-ankle"))
 
@@ -195,7 +197,7 @@ class WalkTarget(Target):
                                             for side, _, sensor in SOLES}, self.corners)
         if zmp is not None:
             self.zmp_periods += 1
-            self.zmp_inside_periods += outside <= 0.0
+            self.zmp_inside_periods += outside <= -ZMP_INSIDE_MARGIN_M
         self.final_feet = poses
         info = {"walk.zmp_ref_x_m": float(gait.zmp_ref_m[k, 0]),
                 "walk.zmp_ref_y_m": float(gait.zmp_ref_m[k, 1]),
