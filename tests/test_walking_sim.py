@@ -36,6 +36,7 @@ def test_walk_goes_forward_without_falling(short_walk):
     assert summary["ended"] == "done"
     assert summary["estop_events"] == []
     assert summary["duration_s"] <= 10.0
+    assert "walk.png" in summary["files"] and (out / "walk.png").exists()
     # four 75 mm steps: the stance moved most of the 0.3 m (the feet slip a few cm at most)
     assert summary["final_error_mm"] < 60.0
     last = summary["footsteps"][-1]

@@ -110,4 +110,30 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
         estop_events=len(done.summary["estop_events"]),
         footsteps=[s.to_json() for s in target.steps], run_dir=done.run_dir)
     done.save_summary(result.summary())
+    _plot(done, target, walking_model)
     return result
+
+
+PLOT_NAME = "walk.png"
+
+
+def _plot(done, target: WalkTarget, model: RobotModel) -> None:
+    """Footprints with the CoM and ZMP paths (``walk.png`` in the run folder)."""
+    import numpy as np
+
+    from hubo_cli.plots.walk import plot_walk
+
+    log = done.log
+
+    def columns(x: str, y: str) -> np.ndarray:
+        return np.column_stack([np.asarray(log[x], dtype=float),
+                                np.asarray(log[y], dtype=float)])
+
+    footprints = [s.to_json() for s in target.start_feet] + [s.to_json() for s in target.steps]
+    plot_walk(footprints, model.feet.sole_corners_m(),
+              columns("walk.com_ref_x_m", "walk.com_ref_y_m"), columns("com_x_m", "com_y_m"),
+              columns("walk.zmp_ref_x_m", "walk.zmp_ref_y_m"),
+              columns("walk.zmp_x_m", "walk.zmp_y_m"), done.run_dir / PLOT_NAME,
+              title=f"walk to {target.goal_relative}: footprints, CoM and ZMP")
+    done.add_file(PLOT_NAME)
+    done.save_summary({})

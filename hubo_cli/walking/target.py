@@ -119,6 +119,7 @@ class WalkTarget(Target):
         self.torso_z0_m: float | None = None
         self.final_feet: dict[str, np.ndarray] = {}
         self.steps: list[Footstep] = []
+        self.start_feet: list[Footstep] = []
         self.corrections_left = int(corrections)
         self.plan_start_s = 0.0
         self.last_step_end_s = 0.0
@@ -129,6 +130,7 @@ class WalkTarget(Target):
                               hint="run it with the sim driver")
         self.world = world
         feet = self._measured_feet()
+        self.start_feet = [feet["right"], feet["left"]]
         self.start = stance_of(feet["right"], feet["left"])
         forward, left, turn = self.goal_relative
         c, s = math.cos(self.start.yaw_rad), math.sin(self.start.yaw_rad)
