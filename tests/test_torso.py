@@ -112,3 +112,16 @@ def test_the_imu_heading_is_referenced_at_the_first_measurement(body):
 
     assert heading_deg(30.0) == pytest.approx(0.0, abs=1e-9)  # the stance's heading
     assert heading_deg(30.5) == pytest.approx(0.5, abs=1e-9)
+
+
+def test_a_garbled_measurement_leaves_the_correction_as_it_was(body):
+    q = _working_pose(body)
+    correction = TorsoCorrection(body, (ARM,), DT)
+    for _ in range(100):
+        correction(q, _state(q, pitch_rad=np.radians(0.5)))
+    before = correction.deviation()
+    garbled = _state(q)
+    garbled.imu_quat_wxyz = np.array([np.nan, 0.0, 0.0, 0.0])
+    q_out = correction(q, garbled)
+    assert np.all(np.isfinite(q_out)) and np.allclose(correction.deviation(), before)
+    assert correction.weight[ARM] == 1.0

@@ -101,7 +101,7 @@ class TorsoEstimator:
         if (q_last is not None and np.array_equal(q_last, state.q_rad)
                 and np.array_equal(imu_last, state.imu_quat_wxyz)):
             return T_last
-        if self.imu_heading_rad is None:
+        if self.imu_heading_rad is None and np.all(np.isfinite(state.imu_quat_wxyz)):
             R_legs, _ = _legs(self.body, np.asarray(state.q_rad, dtype=float))
             encoders = float(np.mean([_heading(R) for R in R_legs]))
             self.imu_heading_rad = _heading(quat_wxyz_to_matrix(state.imu_quat_wxyz)) - encoders
@@ -174,8 +174,11 @@ class TorsoCorrection:
         return T
 
     def update(self, q_cmd_rad, state) -> np.ndarray:
-        """Advance the filter with this period's measurement; returns T_dev (4x4)."""
+        """Advance the filter with this period's measurement; returns T_dev (4x4). A
+        measurement that is not finite (a garbled IMU or encoder reading) leaves it as it was."""
         s = self.settings
+        if not (np.all(np.isfinite(state.q_rad)) and np.all(np.isfinite(state.imu_quat_wxyz))):
+            return self._T_dev
         T_meas = self.estimator(state)
         legs = np.asarray(q_cmd_rad, dtype=float)[self._leg_index]
         if self._T_cmd is None or not np.array_equal(legs, self._q_legs_cmd):
