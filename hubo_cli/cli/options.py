@@ -9,3 +9,10 @@ perturb_option = click.option(
     help="Simulate a robot and world drawn from SEED (masses, centres of mass, foot friction, "
          "sensor noise, command delay, floor tilt; 0 = nominal); the draws go into "
          "summary.json. Same seed, same run.")
+
+balance_option = click.option(
+    "--balance", "balance", type=click.Choice(["default", "paper", "off"]), default="default",
+    show_default=True,
+    help="Balance controllers: default (the ankle balancer's common and differential damping "
+         "and what the balance pipeline adds), paper (eq. 11-12 as published, to study its "
+         "lean) or off. Recorded in summary.json.")

@@ -12,7 +12,7 @@ from rich.table import Table
 
 from hubo_cli.cli.checks import check_baud, check_seconds
 from hubo_cli.cli.hardware import driver_options, hardware_options
-from hubo_cli.cli.options import perturb_option
+from hubo_cli.cli.options import balance_option, perturb_option
 from hubo_cli.cli.output import (
     NO_ESTOP_HELP,
     ProgressLines,
@@ -156,9 +156,10 @@ def _view(target, panel) -> Group:
               help="After the run, render video.mp4 from its log (needs hubo-cli[viz]).")
 @hardware_options
 @perturb_option
+@balance_option
 def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, wall_distance,
            clutch_at, duration, reach_mode, orientation_weight, allow_branch_change, no_estop,
-           gui, out, as_json, video, perturb_seed, **hardware) -> None:
+           gui, out, as_json, video, perturb_seed, balance, **hardware) -> None:
     """Drive the robot's hands from an operator's FASTRAK stream.
 
     Exactly one of --replay FILE or --port DEV. The first sample of each station calibrates it:
@@ -215,7 +216,7 @@ def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, w
         wall_distance_m=None if wall_distance is None else wall_distance / 1000.0,
         duration_s=duration, clutch_at_s=tuple(clutch_at), out=out, gui=gui, baud=baud,
         estop=not no_estop, driver_options=driver_options(driver, armed, **hardware),
-        perturb_seed=perturb_seed, reach=ReachSettings.for_mode(
+        perturb_seed=perturb_seed, balance=balance, reach=ReachSettings.for_mode(
             mode, mode=reach_mode, allow_branch_change=allow_branch_change,
             orientation_weight_m_per_rad=orientation_weight / 1000 * 180 / np.pi))
     if replay is not None:
