@@ -28,10 +28,10 @@ import math
 
 import numpy as np
 
+from hubo_cli.control.capture_point import CONTACT_LOSS_MIN_S, CP_MARGIN_M
 from hubo_cli.control.log import LogData
 from hubo_cli.geometry import quat_wxyz_to_matrix
 
-CONTACT_LOSS_MIN_S = 0.020    # a foot unloaded for longer than this is a contact loss
 CONTACT_THRESHOLD_N = 25.0    # hrpsys contact_decision_threshold (as the simulator's)
 CONTACT_CUTOFF_HZ = 5.0       # low-pass of the ankles' F_z before the threshold
 LISTED_LOSSES = 20            # contact losses listed one by one in the summary
@@ -58,8 +58,6 @@ def max_tilt_deg(log: LogData) -> float | None:
 def support_margin(log: LogData) -> dict | None:
     """The worst period's support margin: ``{"mm", "t_s", "cp_x_mm", "cp_y_mm"}`` (the
     capture point's world x, y then), or None without a capture-point monitor in the run."""
-    from hubo_cli.control.capture_point import CP_MARGIN_M
-
     if "cp_outside_m" not in log.columns:
         return None
     margin = CP_MARGIN_M - log["cp_outside_m"]

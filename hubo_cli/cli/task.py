@@ -279,7 +279,8 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, no
         if as_json:
             return
         modules = target.modules
-        panel = SafetyPanel(lambda: read_safety(modules), bell=err_console.bell,
+        panel = SafetyPanel(lambda: read_safety(modules, world=target.world),
+                            bell=err_console.bell,
                             release_key=None)
         if interactive():
             live = Live(get_renderable=lambda: _view(target, panel), refresh_per_second=4,

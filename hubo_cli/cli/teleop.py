@@ -282,7 +282,7 @@ def _run(settings, as_json: bool):
         modules = target.modules
         if as_json:
             return
-        panel = SafetyPanel(lambda: read_safety(modules, hand_safety(target)),
+        panel = SafetyPanel(lambda: read_safety(modules, hand_safety(target), target.world),
                             bell=err_console.bell)
         state["panel"] = panel
         if interactive():

@@ -136,6 +136,16 @@ def _plane_rms_mm(goal_m: np.ndarray, actual_m: np.ndarray) -> float | None:
     return float(np.sqrt(np.mean(np.sum(d**2, axis=1))) * 1000)
 
 
+def _hole_in_wall_frame(log, target: TaskTarget, T_S_W: np.ndarray) -> np.ndarray | None:
+    """The hole as cut (the simulator's world points where the bit's flutes crossed the wall)
+    in the wall frame of the path plot, placed as the hole's RMS error places the bit's world
+    path; None without them."""
+    points = log.metadata.get("scene", {}).get("hole_world_m", [])
+    if not points or target.offset_world_m is None:
+        return None
+    return np.asarray(points, dtype=float) - target.offset_world_m - T_S_W[:3, 3]
+
+
 def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
     """The task's own summary fields; also draws the plots into the run folder."""
     from hubo_cli.plots.paths import plot_path_comparison
@@ -154,12 +164,15 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
     stops = [e for e in result.safety_events if e[2] == "stop"]
     completed = result.ok and target.phase == "settle" and target.step_stopped is None
     T_S_W = plan.placement.T_S_W()
+    hole_rms = _plane_rms_mm(goal, world)
     if len(goal):
         rms = float(np.sqrt(np.mean(errors**2)) * 1000)
         plot_path_comparison(goal - T_S_W[:3, 3], actual - T_S_W[:3, 3], run_dir / "path.png",
                              plane="yz", frame="the wall frame",
                              title=f"{spec.name}: commanded vs actual drill bit while cutting",
-                             rms_error_mm=rms)
+                             rms_error_mm=rms, actual_label="bit by the encoders (FK)",
+                             hole_m=_hole_in_wall_frame(log, target, T_S_W),
+                             hole_rms_error_mm=hole_rms)
         done.add_file("path.png")
     plot_wrist_torque(log, run_dir / "wrist_torque.png", limit_nm=limit,
                       title=f"{spec.name}: wrist torque (limit {limit:g} N m)",
@@ -191,7 +204,7 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
         "max_error_mm": float(errors.max() * 1000) if len(errors) else None,
         "error_measured_by": "forward kinematics of the measured joints (bit position in S), "
                              "against the commanded bit position of the same period",
-        "hole_rms_error_mm": _plane_rms_mm(goal, world),
+        "hole_rms_error_mm": hole_rms,
         "hole_error_measured_by": "the bit's world position (simulation) in the wall plane, "
                                   "relative to where it stood when the wall was placed",
         "cut_samples": len(goal),
