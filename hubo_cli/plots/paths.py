@@ -43,8 +43,9 @@ def plot_path_comparison(commanded_m: np.ndarray, actual_m: np.ndarray, path: st
     ax.plot(actual_m[:, i] * 1000, actual_m[:, j] * 1000, "-", color="#1f77b4", lw=1.4,
             alpha=0.9, label=actual_label)
     if hole_m is not None and len(hole_m):
-        ax.plot(hole_m[:, i] * 1000, hole_m[:, j] * 1000, ".", color="#8c564b", ms=1.5,
-                alpha=0.6, label="hole in the wall (bit in the world, flutes in the wall)")
+        ax.plot(hole_m[:, i] * 1000, hole_m[:, j] * 1000, ".", color="#8c564b", ms=3.0,
+                alpha=0.5, zorder=1, label="hole in the wall (bit in the world, flutes in the "
+                                           "wall)")
     if len(actual_m):
         ax.plot(actual_m[0, i] * 1000, actual_m[0, j] * 1000, "o", color="#2ca02c", ms=7,
                 label="start")
