@@ -180,21 +180,6 @@ def _first_stop(summary: dict) -> str:
     return "+".join(stops[0]["sources"]) if stops else ""
 
 
-def _support_margin_mm(run_dir: Path) -> float | None:
-    """The smallest distance of the capture point inside the support polygon (mm), from the
-    capture-point monitor's log column (its ``cp_outside_m`` is measured against the polygon
-    shrunk by the monitor's margin)."""
-    from hubo_cli.control.capture_point import CP_MARGIN_M
-    from hubo_cli.control.log import load_log
-
-    log = load_log(run_dir)
-    if "cp_outside_m" not in log.columns:
-        return None
-    outside = log["cp_outside_m"]
-    outside = outside[np.isfinite(outside)]
-    return float((CP_MARGIN_M - outside.max()) * 1000) if len(outside) else None
-
-
 def _run_sim(job: Job, run_dir: Path) -> Row:
     from hubo_cli.experiments.standing import stand
     from hubo_cli.model import load_model
@@ -204,7 +189,8 @@ def _run_sim(job: Job, run_dir: Path) -> Row:
                    out=run_dir, perturb_seed=job.seed)
     summary = _read_summary(run_dir)
     return Row(job.command, job.seed, dict(job.parameters), completed=not result.fell,
-               estop=_first_stop(summary), min_support_margin_mm=_support_margin_mm(run_dir),
+               estop=_first_stop(summary),
+               min_support_margin_mm=summary["min_support_margin_mm"],
                max_tilt_deg=summary["max_torso_tilt_deg"], ended=summary["ended"])
 
 
@@ -227,7 +213,7 @@ def _run_task(job: Job, run_dir: Path) -> Row:
         completed = not (summary.get("fell") or summary.get("tipped"))
     return Row(job.command, job.seed, dict(job.parameters), completed=bool(completed),
                estop=_first_stop(summary), hole_rms_mm=summary.get("hole_rms_error_mm"),
-               min_support_margin_mm=_support_margin_mm(run_dir),
+               min_support_margin_mm=summary.get("min_support_margin_mm"),
                max_tilt_deg=summary["max_torso_tilt_deg"], ended=summary["ended"])
 
 

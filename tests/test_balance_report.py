@@ -24,7 +24,12 @@ from hubo_cli.balance_report import (
 )
 from hubo_cli.cli.main import main
 from hubo_cli.cli.options import balance_option
-from hubo_cli.cli.safety_view import BalanceWatch, SafetyState, safety_text
+from hubo_cli.cli.safety_view import (
+    BalanceWatch,
+    SafetyState,
+    balance_summary_line,
+    safety_text,
+)
 from hubo_cli.control.balance import AnkleBalancer, DampingBalancer
 from hubo_cli.control.capture_point import CP_MARGIN_M, CapturePointMonitor
 from hubo_cli.control.limiter import SoftErrorLimiter, ankle_indices
@@ -218,6 +223,12 @@ def test_safety_view_shows_the_balance_line():
     text = console.export_text()
     assert ("balance on | tilt max 0.31° | support margin 95 mm (min 62 mm at 12.3 s) | feet "
             "left UNLOADED, contact losses 2 | ankle clamps 0.4%") in text
+    summary = {"balance": "paper", "max_torso_tilt_deg": 1.1, "min_support_margin_mm": 95.04,
+               "min_support_margin_at": {"t_s": 18.67}, "contact_losses": 0,
+               "ankle_clamp_fraction": 0.778, "cutting_fraction": 0.5}
+    assert balance_summary_line(summary) == (
+        "--balance paper, tilt max 1.10°, support margin min 95 mm at 18.7 s, contact losses 0, "
+        "ankle clamps 77.8%, flutes in the wall 50% of the cut")
 
 
 def test_a_short_run_reports_the_balance_figures(tmp_path):

@@ -222,6 +222,24 @@ def _balance_text(text: Text, watch: BalanceWatch) -> None:
                     style="yellow" if watch.ankle_clamp_fraction >= 0.01 else "")
 
 
+def balance_summary_line(summary: dict) -> str:
+    """The balance figures of a finished run's summary in one line of words (text output)."""
+    parts = [f"--balance {summary.get('balance', 'default')}"]
+    if summary.get("max_torso_tilt_deg") is not None:
+        parts.append(f"tilt max {summary['max_torso_tilt_deg']:.2f}°")
+    margin = summary.get("min_support_margin_mm")
+    if margin is not None:
+        parts.append(f"support margin min {margin:.0f} mm at "
+                     f"{summary['min_support_margin_at']['t_s']:.1f} s")
+    if summary.get("contact_losses") is not None:
+        parts.append(f"contact losses {summary['contact_losses']}")
+    if summary.get("ankle_clamp_fraction") is not None:
+        parts.append(f"ankle clamps {summary['ankle_clamp_fraction']:.1%}")
+    if summary.get("cutting_fraction") is not None:
+        parts.append(f"flutes in the wall {summary['cutting_fraction']:.0%} of the cut")
+    return ", ".join(parts)
+
+
 class SafetyPanel:
     """Renders the safety state; rings the bell and flashes on every new stop.
 

@@ -29,6 +29,7 @@ def sim(duration: float, push: float, balance: str, no_balance: bool, no_estop: 
 
     Example: hubo sim --duration 5 --push 30
     """
+    from hubo_cli.cli.safety_view import balance_summary_line
     from hubo_cli.control.pipeline import SafetyProfile
     from hubo_cli.experiments.standing import check_standing_args, stand
     from hubo_cli.model import load_model
@@ -57,6 +58,7 @@ def sim(duration: float, push: float, balance: str, no_balance: bool, no_estop: 
     console.print(f"feet flat         {'yes' if result.feet_flat else 'no'} "
                   f"(max sole tilt {result.max_sole_tilt_deg:.3f} deg)")
     console.print(f"fell              {'YES' if result.fell else 'no'}")
+    console.print(f"support           {balance_summary_line(summary)}", soft_wrap=True)
     console.print(f"real-time factor  {result.realtime_factor:.2f} "
                   f"({100 * result.physics_share:.0f} % of the time in physics)")
     console.print(f"run folder        {run_dir} (log.csv, snapshot.png, summary.json)")

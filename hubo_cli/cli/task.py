@@ -388,6 +388,8 @@ def _view(target, panel) -> Group:
 
 
 def _print_cut(summary: dict, run_dir) -> None:
+    from hubo_cli.cli.safety_view import balance_summary_line
+
     stance = summary["stance"]
     why = "emergency stop" if summary["estop"] else summary["ended"]
     outcome = "completed" if summary["completed"] else f"[red]did not complete[/] ({why})"
@@ -417,6 +419,7 @@ def _print_cut(summary: dict, run_dir) -> None:
                       f"{stop['reverted_to_t_s']:.2f} s"
                       + (" and held" if stop["held"] else ""))
     console.print(f"  velocity    {summary['max_joint_velocity_ratio']:.0%} of the limit at most")
+    console.print(f"  balance     {balance_summary_line(summary)}", soft_wrap=True)
     console.print(f"  run folder  {run_dir}", soft_wrap=True)
     console.print(f"              {', '.join(summary['files'])}", soft_wrap=True)
 

@@ -313,6 +313,7 @@ def _run(settings, as_json: bool):
 def _report(run, as_json: bool, video: bool = False) -> None:
     """Print the summary; a run that failed in substance ends with a warning and exit 1 or 2."""
     from hubo_cli.cli.output import warn
+    from hubo_cli.cli.safety_view import balance_summary_line
 
     summary = run.summary
     if video:
@@ -338,6 +339,7 @@ def _report(run, as_json: bool, video: bool = False) -> None:
         console.print(f"  e-stops {len(stops)} (released {releases}), statuses "
                       f"{summary['status_counts']}, max velocity "
                       f"{summary['max_joint_velocity_ratio']:.0%} of limit")
+        console.print(f"  balance: {balance_summary_line(summary)}", soft_wrap=True)
         console.print(f"  run folder: {run.run_dir}", soft_wrap=True)
         if video:
             console.print(f"  video: {summary['video']['file']}")
