@@ -18,8 +18,8 @@ run folder can be reported again after the fact and the tests can feed synthetic
 * ``cutting_fraction`` (runs with the drill and a wall): the share of the cut's time in which
   the bit's flutes were in the wall, the bit placed by the measured arm joints and the torso's
   world pose. The cut's time is where the task's plan cuts (its ``cutting`` column: the bit
-  planned past the wall face); without a plan (teleoperation), from the first to the last
-  period with the flutes in the wall.
+  planned past the wall face), in a teleoperation the operating phase, otherwise from the
+  first to the last period with the flutes in the wall.
 """
 
 from __future__ import annotations
@@ -169,14 +169,32 @@ def flutes_in_wall(T_world_bit: np.ndarray, wall: dict, half_length_m: float) ->
     return inside & np.all(np.isfinite(middle), axis=1)
 
 
+def cut_periods(log: LogData, inside: np.ndarray) -> tuple[np.ndarray, str]:
+    """The cut's periods and how they were chosen: where the task's plan cuts (its ``cutting``
+    column, ``plan``); in a teleoperation, while the operator drives the tool (its
+    ``phase_code`` is ``operate``); otherwise from the first to the last period with the
+    flutes in the wall (``inside``)."""
+    if "cutting" in log.columns:
+        return log["cutting"] > 0.5, "plan"
+    if log.metadata.get("command") == "teleop" and "phase_code" in log.columns:
+        from hubo_cli.teleop.target import PHASES
+
+        return log["phase_code"] == PHASES.index("operate"), "operating"
+    window = np.zeros(len(log), dtype=bool)
+    hits = np.flatnonzero(inside)
+    if len(hits):
+        window[hits[0]:hits[-1] + 1] = True
+    return window, "first to last contact"
+
+
 def cutting_report(log: LogData, T_world_bit: np.ndarray, half_length_m: float) -> dict | None:
     """``cutting_fraction`` and how it was measured, or None for a run without a wall.
 
     Returns:
         ``{"cutting_fraction", "cut_s", "cut_window", "bit_depth_mm"}``: the share (0..1) of
         the cut's periods with the flutes in a wall, the cut's length (s), how the cut's
-        periods were chosen (``plan`` or ``first to last contact``), and the bit's middle past
-        the first wall's face during the cut (median, min, max; mm).
+        periods were chosen (see :func:`cut_periods`), and the bit's middle past the first
+        wall's face during the cut (median, min, max; mm).
     """
     walls = log.metadata.get("scene", {}).get("walls", [])
     if not walls or not len(log):
@@ -184,13 +202,7 @@ def cutting_report(log: LogData, T_world_bit: np.ndarray, half_length_m: float) 
     inside = np.zeros(len(log), dtype=bool)
     for wall in walls:
         inside |= flutes_in_wall(T_world_bit, wall, half_length_m)
-    if "cutting" in log.columns:
-        window, how = log["cutting"] > 0.5, "plan"
-    else:
-        window, how = np.zeros(len(log), dtype=bool), "first to last contact"
-        hits = np.flatnonzero(inside)
-        if len(hits):
-            window[hits[0]:hits[-1] + 1] = True
+    window, how = cut_periods(log, inside)
     periods = int(window.sum())
     wall = walls[0]
     R_world_wall = quat_wxyz_to_matrix(np.asarray(wall["quat_wxyz"], dtype=float))

@@ -192,6 +192,7 @@ def run(setup: RunSetup, target: Target,
     except HuboError:
         discard_if_unused(run_dir)  # nothing moved: leave no empty run folder behind
         raise
+    set_log_metadata(run_dir, "command", setup.command)
     set_log_metadata(run_dir, "balance", setup.safety.balance_choice)
     summary = common_summary(setup, speed, result, modules, run_dir)
     done = RunResult(run_dir, result, modules, summary)

@@ -181,6 +181,11 @@ def test_cutting_fraction_over_the_plans_cut_or_from_first_to_last_contact():
     assert spanned["cut_window"] == "first to last contact"
     assert spanned["bit_depth_mm"]["max"] == pytest.approx(2.5)
     assert cutting_report(_log(100), _bit(x), h) is None  # no wall
+    phase = np.r_[np.zeros(25), np.ones(50), np.full(25, 2.0)]  # approach, operate, settle
+    operating = cutting_report(_log(100, meta | {"command": "teleop"}, phase_code=phase),
+                               _bit(x), h)
+    assert operating["cut_window"] == "operating"
+    assert operating["cutting_fraction"] == pytest.approx(40 / 50)
 
 
 def test_balance_report_without_the_balance_columns_says_none():

@@ -18,10 +18,11 @@ OTHER_MODULES = {"otg", "hoff-arbib", "estop", "hard-estop", "collision", "limit
 TOOLS = {"right-arm": "drill", "left-arm": "hand"}
 
 
-def _timed(model, choice: str) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray]:
-    """(balance module names, per-period wall time of the balance modules and of the whole
-    pipeline, and the balance modules' thread CPU time (s)) for ``--balance choice`` on the
-    standing simulated robot."""
+def _timed(model, choice: str) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray,
+                                          np.ndarray]:
+    """(per balance module its per-period wall time, per-period wall time of the balance
+    modules and of the whole pipeline, and the balance modules' thread CPU time (s)) for
+    ``--balance choice`` on the standing simulated robot."""
     from hubo_cli.control.module import Cycle
     from hubo_cli.control.pipeline import SafetyProfile
     from hubo_cli.drivers.sim import SimDriver
@@ -30,7 +31,7 @@ def _timed(model, choice: str) -> tuple[list[str], np.ndarray, np.ndarray, np.nd
     dt = model.control_period_s
     q_home = home_posture(model)
     modules = SafetyProfile().with_balance(choice).build(model, dt, TOOLS)
-    names = [m.name for m in modules if m.name not in OTHER_MODULES]
+    each = {m.name: np.zeros(PERIODS) for m in modules if m.name not in OTHER_MODULES}
     balance, total, cpu = np.zeros(PERIODS), np.zeros(PERIODS), np.zeros(PERIODS)
     clock, cpu_clock = time.perf_counter, time.thread_time
     with SimDriver(model, drill=True) as robot:
@@ -45,12 +46,14 @@ def _timed(model, choice: str) -> tuple[list[str], np.ndarray, np.ndarray, np.nd
                 q = m.update(q, state, cycle)
                 spent, cpu_spent = clock() - t0, cpu_clock() - c0
                 total[k] += spent
-                if m.name not in OTHER_MODULES:
+                if m.name in each:
+                    each[m.name][k] = spent
                     balance[k] += spent
                     cpu[k] += cpu_spent
             robot.send(q)
             state = robot.step()
-    return names, balance[WARMUP:], total[WARMUP:], cpu[WARMUP:]
+    each = {name: times[WARMUP:] for name, times in each.items()}
+    return each, balance[WARMUP:], total[WARMUP:], cpu[WARMUP:]
 
 
 def run(report) -> None:
@@ -58,10 +61,11 @@ def run(report) -> None:
 
     model = load_model()
     for choice in ("default", "paper"):
-        names, balance, total, cpu = _timed(model, choice)
+        each, balance, total, cpu = _timed(model, choice)
         median = float(np.median(balance) * 1e6)
         report(f"balance modules per period, --balance {choice}, median", median, "us",
-               f"target <= 250 us: {' + '.join(names)}")
+               "target <= 250 us: " + " + ".join(
+                   f"{name} {np.median(times) * 1e6:.0f}" for name, times in each.items()))
         report("  the same on thread CPU time, median", float(np.median(cpu) * 1e6), "us",
                "without the time other processes held the core")
         report("  their share of the pipeline's time (same periods)",
