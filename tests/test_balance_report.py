@@ -211,7 +211,7 @@ def test_balance_choices_build_one_balancer_each(model):
 
 
 @pytest.mark.parametrize("command", [["sim"], ["task", "cut-rectangle"], ["task", "push-wall"],
-                                     ["teleop"]])
+                                     ["teleop"], ["sweep", "sim"]])
 def test_every_robot_command_takes_balance(command):
     result = CliRunner().invoke(main, [*command, "--help"])
     assert result.exit_code == 0 and "--balance [default|paper|off]" in result.output

@@ -6,7 +6,8 @@ capture point's smallest distance inside the support polygon), the hole's RMS er
 worst of the runs that cut), the largest torso tilt, and what stopped the others. Then the
 wall-clock of the cut-slot sweep with 1 and with 2 worker processes (and whether their rows
 agree). Slow (tens of minutes for 20 seeds): it runs only when named,
-``make bench BENCH=robustness``; ``HUBO_BENCH_SEEDS=1-4`` runs fewer seeds.
+``make bench BENCH=robustness``; ``HUBO_BENCH_SEEDS=1-4`` runs fewer seeds,
+``HUBO_BENCH_BALANCE=paper`` (or ``off``) another ``--balance``.
 """
 
 from __future__ import annotations
@@ -42,11 +43,12 @@ def _line(label: str, rows: list[Row]) -> str:
 
 def run(report) -> None:
     seeds = parse_seeds(os.environ.get("HUBO_BENCH_SEEDS", "1-20"))
+    balance = os.environ.get("HUBO_BENCH_BALANCE", "default")
     lines = []
     with tempfile.TemporaryDirectory(prefix="hubo-robustness-") as tmp:
         timed: dict[int, object] = {}
         for k, (label, command, sets) in enumerate(TASKS):
-            jobs = make_jobs(command, seeds, sets)
+            jobs = make_jobs(command, seeds, sets, balance)
             result = run_sweep(jobs, Path(tmp) / f"{k}-w2", workers=2)
             if k == TIMED:
                 timed[2] = result
@@ -65,7 +67,8 @@ def run(report) -> None:
                 report(f"{label}: hole RMS, median / worst", float(np.median(holes)), "mm",
                        f"worst {max(holes):.1f} mm")
         label, command, sets = TASKS[TIMED]
-        timed[1] = run_sweep(make_jobs(command, seeds, sets), Path(tmp) / "timed-w1", workers=1)
+        timed[1] = run_sweep(make_jobs(command, seeds, sets, balance), Path(tmp) / "timed-w1",
+                             workers=1)
     same = ([r.outcome() for r in timed[1].rows] == [r.outcome() for r in timed[2].rows])
     report(f"sweep of {command} x {len(seeds)} seeds, 1 worker, wall-clock",
            timed[1].wall_clock_s, "s", "local Dask cluster")
