@@ -87,14 +87,18 @@ def contact_from_fz(fz_n: np.ndarray, period_s: float,
 
 def feet_contact(log: LogData) -> np.ndarray | None:
     """(N, 2) contact of the right and left foot per period, None when the log has neither the
-    contact flags nor the ankles' F_z."""
+    contact flags nor ankle forces that ever carried the robot (a driver without force
+    sensing, e.g. the ideal one, reads 0 N throughout: that says nothing about contact)."""
     columns = []
     period = _period_s(log)
+    forces = [log[f"{foot}_foot_fz_n"] for foot in FEET if f"{foot}_foot_fz_n" in log.columns]
+    sensed = len(forces) == 2 and max(np.nanmax(f, initial=-np.inf) for f in forces) > (
+        CONTACT_THRESHOLD_N)
     for foot in FEET:
         flag, fz = f"{foot}_foot_contact_flag", f"{foot}_foot_fz_n"
         if flag in log.columns and np.any(np.isfinite(log[flag])):
             columns.append(log[flag] > 0.5)
-        elif fz in log.columns and np.any(np.isfinite(log[fz])):
+        elif sensed:
             columns.append(contact_from_fz(log[fz], period))
         else:
             return None

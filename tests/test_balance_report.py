@@ -92,6 +92,10 @@ def test_feet_contact_prefers_the_drivers_flags_and_falls_back_to_fz():
                     right_foot_fz_n=np.zeros(n), left_foot_fz_n=np.full(n, 300.0))
     assert not feet_contact(no_flags)[:, 0].any() and feet_contact(no_flags)[:, 1].all()
     assert feet_contact(_log(n)) is None
+    unsensed = _log(n, right_foot_contact_flag=np.full(n, np.nan),
+                    left_foot_contact_flag=np.full(n, np.nan),
+                    right_foot_fz_n=np.zeros(n), left_foot_fz_n=np.zeros(n))
+    assert feet_contact(unsensed) is None  # the ideal driver: no force sensing
 
 
 def test_the_monitors_live_count_equals_the_reports(model, rng):
