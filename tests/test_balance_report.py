@@ -215,10 +215,12 @@ def test_balance_choices_build_one_balancer_each(model):
 
 
 @pytest.mark.parametrize("command", [["sim"], ["task", "cut-rectangle"], ["task", "push-wall"],
-                                     ["teleop"], ["sweep", "sim"]])
+                                     ["teleop"], ["sweep", "sim"], ["walk"]])
 def test_every_robot_command_takes_balance(command):
     result = CliRunner().invoke(main, [*command, "--help"])
     assert result.exit_code == 0 and "--balance [default|paper|off]" in result.output
+    default = "off" if command == ["walk"] else "default"  # walking: the standing balancers off
+    assert f"[default: {default}]" in " ".join(result.output.split())
     bad = CliRunner().invoke(main, [*command, "--balance", "strong"])
     assert bad.exit_code == 2 and "Traceback" not in bad.output
 
