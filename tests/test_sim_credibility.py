@@ -74,8 +74,11 @@ def _cut(model, physics: dict, duration_s: float = 2.5):
     with SimDriver(model, drill=True, **physics) as robot:
         state = robot.start(q_home)
         balancer.reset(q_home, state)
-        bit_x = robot.frame_pose(DRILL_FRAME)[0, 3]
-        robot.add_wall(bit_x - 0.005, 1.6, thickness_m=0.01)
+        bit_x, bit_y = robot.frame_pose(DRILL_FRAME)[:2, 3]
+        # a board 100 mm wide beside the bit's outer side: the drill's body (a collision shape,
+        # nearer the torso) stays off it, the contact would differ between the step sizes
+        robot.add_wall(bit_x - 0.005, 1.6, width_m=0.1, thickness_m=0.01,
+                       centre_y_m=bit_y - 0.03)
         for k in range(int(round(duration_s / dt))):
             q = q_home.copy()
             q[i_roll] -= 0.03 * (1 - np.cos(2 * np.pi * k * dt / duration_s))  # about 3 cm

@@ -136,7 +136,9 @@ def test_a_small_rectangle_is_cut_accurately_with_a_full_run_folder(tmp_path):
     inside = flutes_in_wall(bit_poses(log, model), log.metadata["scene"]["walls"][0],
                             model.drill.bit_half_length_m)
     crossed = np.isin(np.round(log["t_s"], 6), log.metadata["scene"]["hole_t_s"])
-    assert crossed.sum() > 1000 and (inside == crossed).mean() > 0.95
+    # from the wall's placement on (the raise swings the bit through where it will stand)
+    placed = log["phase_code"] > 0
+    assert crossed.sum() > 1000 and (inside == crossed)[placed].mean() > 0.95
     for name in ("log.csv", "summary.json", "task.toml", "path.png", "wrist_torque.png",
                  "snapshot.png"):
         assert (out / name).is_file(), name
