@@ -24,11 +24,20 @@ module flags ``cp-outside`` and requests an emergency stop from source ``capture
 passes the command through unchanged. The reference CP is the centre of mass of the commanded
 posture on its feet laid flat where the measured feet are (a static reference, like
 AutoBalancer's reference CoM); ``cp_error`` = actual CP - reference CP.
+
+While walking, the feet that carry the robot change every step and a swing foot leaves the
+ground on purpose; the CP then lies between the stance foot and where the swing foot will land
+(and must, for the robot's hips, which only abduct). A walking target therefore gives the
+monitor its *planned support* (:attr:`CapturePointMonitor.support_override`): the soles on the
+ground in this phase of the step, the swing foot counted at its landing place. The polygon is
+then their hull (flat on the ground, shrunk by the margin as before): the CP leaving it means
+the step cannot catch the robot. Without an override (standing, tasks) nothing changes.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numba as nb
 import numpy as np
@@ -197,6 +206,11 @@ class CapturePointMonitor(Module):
     ``outside_m`` (CP beyond the shrunk polygon, m; > 0 = flag), ``ground_z_m`` (lowest sole
     in contact), ``support_box_m`` (min x, max x, min y, max y of the soles in contact taken
     flat, shrunk by the margin: the nominal thresholds), ``flag``.
+
+    ``support_override``: None (the measured soles in contact), or a function of the time (s)
+    returning the planned support's sole poses in the world (2 x 4 x 4: right, left; a swing
+    foot at its landing place) or None for the measured soles in that period. Set by a
+    walking target in its ``attach``.
     """
 
     name = "capture-point"
@@ -240,6 +254,7 @@ class CapturePointMonitor(Module):
         self.ground_z_m = 0.0
         self.support_box_m = np.zeros(4)
         self.flag = False
+        self.support_override: Callable[[float], np.ndarray | None] | None = None
 
     def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
         self._prev_com = None
@@ -289,7 +304,11 @@ class CapturePointMonitor(Module):
                                                - self.velocity_m_s)
         self._prev_com = com
         self.com_m = com
-        outside, ground_z = _support(self._sole_pose, bool(contact[0]), bool(contact[1]),
+        poses = self._sole_pose
+        planned = None if self.support_override is None else self.support_override(state.time_s)
+        if planned is not None:
+            poses, contact = np.ascontiguousarray(planned, dtype=float), (True, True)
+        outside, ground_z = _support(poses, bool(contact[0]), bool(contact[1]),
                                      self._corners, com, self.velocity_m_s, self.margin_m,
                                      GRAVITY_M_S2, self.corner_tolerance_m, self.cp_m,
                                      self.support_box_m, self._flat_sole)
