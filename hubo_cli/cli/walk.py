@@ -6,7 +6,7 @@ import math
 
 import click
 
-from hubo_cli.cli.options import perturb_option
+from hubo_cli.cli.options import balance_option_with, perturb_option
 from hubo_cli.cli.output import NO_ESTOP_HELP, console, print_json
 
 
@@ -23,8 +23,10 @@ from hubo_cli.cli.output import NO_ESTOP_HELP, console, print_json
 @click.option("--out", type=click.Path(file_okay=False), default=None,
               help="Run folder (default runs/<time>-walk).")
 @perturb_option
+@balance_option_with("off", "Walking: off by default (the standing balancers' reference "
+                            "assumes both feet down).")
 def walk(goal: tuple[float, float, float], corrections: int, no_estop: bool, gui: bool,
-         as_json: bool, out: str | None, perturb_seed: int | None) -> None:
+         as_json: bool, out: str | None, perturb_seed: int | None, balance: str) -> None:
     """Walk the simulated HUBO 2+ to a goal stance (ZMP preview control, footsteps, leg IK).
 
     The robot starts standing in its walking posture (feet 0.26 m apart, 5 cm crouched) and
@@ -42,7 +44,8 @@ def walk(goal: tuple[float, float, float], corrections: int, no_estop: bool, gui
     check_goal(goal)
     with reserved_run_dir("walk", out) as run_dir:  # a bad --out fails before anything runs
         result = walk_to(load_model(), goal, gui=gui, out=run_dir, estop=not no_estop,
-                         perturb_seed=perturb_seed, corrections=corrections)
+                         perturb_seed=perturb_seed, corrections=corrections,
+                         balance=balance)
     fields = result.summary() | {"ended": result.ended, "estop_events": result.estop_events,
                                  "run_dir": str(result.run_dir)}
     if as_json:

@@ -71,7 +71,7 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
          params: WalkingParams | None = None, gui: bool = False,
          out: str | Path | None = None, estop: bool = True,
          perturb_seed: int | None = None, corrections: int = 1,
-         balance: bool = False) -> WalkResult:
+         balance: str = "off") -> WalkResult:
     """Walk the simulated robot to ``goal`` = (forward m, left m, turn rad) from its stance.
 
     Args:
@@ -81,8 +81,9 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
         gui, out, estop, perturb_seed: as for every run (:class:`~hubo_cli.session.RunSetup`).
         corrections: how many times to plan again from where the feet stand when the walk
             ended off the goal (the feet slip a little on every step).
-        balance: run the standing ankle balancer (its reference assumes both feet down and
-            the CoM over them, which walking breaks: off by default).
+        balance: the standing balancer, ``default``, ``paper`` or ``off`` (``--balance``; its
+            reference assumes both feet down and the CoM over them, which walking breaks: off
+            by default).
     """
     check_goal(goal)
     from hubo_cli.model import load_model
@@ -94,7 +95,7 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
         raise InputError(f"corrections must be 0 to 5, got {corrections}", hint="e.g. 1")
     target = WalkTarget(walking_model, params, goal, q_start, T_world_neck, corrections)
     setup = RunSetup(command="walk", model=walking_model, driver="sim", gui=gui, out=out,
-                     safety=SafetyProfile(estop=estop, balance=balance), q_start_rad=q_start,
+                     safety=SafetyProfile(estop=estop).with_balance(balance), q_start_rad=q_start,
                      perturb_seed=perturb_seed)
     done = run(setup, target)
     error_m, error_rad = target.final_error()
