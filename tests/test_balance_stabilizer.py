@@ -90,10 +90,17 @@ def test_without_weight_on_the_feet_the_correction_returns(model):
 
 
 @pytest.mark.parametrize("option", [{"k_com": -1.0}, {"k_zmp": -0.1}, {"max_shift_m": 0.0},
-                                    {"max_accel_m_s2": float("nan")}, {"max_hip_rad": -0.1}])
+                                    {"max_accel_m_s2": float("nan")}, {"max_hip_rad": -0.1},
+                                    {"com_offset_m": (0.2, 0.0)}, {"com_offset_m": (0.0, -0.3)},
+                                    {"com_offset_m": (float("nan"), 0.0)}])
 def test_bad_settings_are_refused(model, option):
     with pytest.raises(ConfigError):
         Stabilizer(model, DT, **option)
+
+
+def test_a_com_reference_inside_the_feet_is_accepted(model):
+    assert np.allclose(Stabilizer(model, DT, com_offset_m=(-0.03, 0.05)).com_offset_m,
+                       (-0.03, 0.05))
 
 
 def test_the_paper_mode_runs_without_the_stabilizer():

@@ -76,9 +76,13 @@ class Stabilizer(Module):
         max_hip_rad: bound of the hip strategy's upper-body pitch (rad), >= 0 (0: no hips).
         use_capture_point: feed back the capture point (CoM + velocity / omega) in place of
             the CoM, so a push is answered while the body is still near its posture.
+        com_offset_m: (x, y) added to the reference CoM in the feet frame (m), as
+            hubo-motion-rt's ``com_x_offset``; the home posture's CoM moved by it must stay
+            inside the support polygon of the two feet.
 
     Raises:
-        ConfigError: a negative gain or a bound that is not positive.
+        ConfigError: a negative gain, a bound that is not positive, or a CoM reference outside
+            the support polygon.
     """
 
     name = "stabilizer"
@@ -90,7 +94,8 @@ class Stabilizer(Module):
                  k_zmp: float = K_ZMP, k_com: float = K_COM,
                  max_shift_m: float = MAX_SHIFT_M, max_rate_m_s: float = MAX_SHIFT_RATE_M_S,
                  max_accel_m_s2: float = MAX_SHIFT_ACCEL_M_S2,
-                 max_hip_rad: float = MAX_HIP_RAD, use_capture_point: bool = True) -> None:
+                 max_hip_rad: float = MAX_HIP_RAD, use_capture_point: bool = True,
+                 com_offset_m: tuple[float, float] = (0.0, 0.0)) -> None:
         gains = {"k_zmp": k_zmp, "k_com": k_com, "max_hip_rad": max_hip_rad}
         bounds = {"max_shift_m": max_shift_m, "max_rate_m_s": max_rate_m_s,
                   "max_accel_m_s2": max_accel_m_s2, "dt_s": dt_s}
@@ -133,7 +138,32 @@ class Stabilizer(Module):
         home = home_posture(model)
         self._roll_per_m = 1.0 / self._sensitivity(home, self._roll, 1)
         self._hip_per_m = 1.0 / self._sensitivity(home, self._hip_pitch, 0)
+        self.com_offset_m = self._checked_offset(com_offset_m, home)
         self.reset(home, None)
+
+    def _checked_offset(self, offset_m: tuple[float, float], home: np.ndarray) -> np.ndarray:
+        """The CoM offset (m) if the home posture's CoM moved by it lies inside the feet's
+        support polygon (their box in the feet frame), else ConfigError."""
+        offset = np.asarray(offset_m, dtype=float)
+        if offset.shape != (2,) or not np.all(np.isfinite(offset)):
+            raise ConfigError(f"the CoM offset must be two finite numbers (m), got {offset_m}",
+                              hint="e.g. com_offset_m=(0.0, 0.0)")
+        com = self._com_in_feet(home, None)[:2] + offset
+        corners = self.model.feet.sole_corners_m()
+        data = self._data
+        mid = 0.5 * (data.oMf[self._sole_ids[0]].translation
+                     + data.oMf[self._sole_ids[1]].translation)
+        R = data.oMf[self._sole_ids[0]].rotation
+        points = np.array([(R.T @ (data.oMf[fid].translation + data.oMf[fid].rotation @ c
+                                   - mid))[:2] for fid in self._sole_ids for c in corners])
+        lo, hi = points.min(axis=0), points.max(axis=0)
+        if not np.all((com > lo) & (com < hi)):
+            raise ConfigError(
+                f"the CoM reference ({com[0] * 1000:+.0f}, {com[1] * 1000:+.0f}) mm lies outside "
+                f"the support polygon x [{lo[0] * 1000:+.0f}, {hi[0] * 1000:+.0f}] mm, "
+                f"y [{lo[1] * 1000:+.0f}, {hi[1] * 1000:+.0f}] mm (feet frame)",
+                hint="keep com_offset_m within the feet")
+        return offset
 
     # ------------------------------------------------------------------ estimation
     def _com_in_feet(self, q_rad: np.ndarray, R_world_torso: np.ndarray | None) -> np.ndarray:
@@ -227,8 +257,9 @@ class Stabilizer(Module):
                 measured += self.velocity_m_s / omega
             if zmp is not None:
                 # c_ref is the command's CoM moved by the correction already sent
-                self.com_error_m = reference[:2] + self.shift_m - measured
-                self.zmp_error_m = reference[:2] - zmp
+                target = reference[:2] + self.com_offset_m
+                self.com_error_m = target + self.shift_m - measured
+                self.zmp_error_m = target - zmp
                 wanted_rate = self.k_com * self.com_error_m - self.k_zmp * self.zmp_error_m
         else:
             cycle.flags.add("stabilizer-bad-sensor")
