@@ -92,3 +92,17 @@ def test_standing_the_default_balancer_holds_the_body_upright(model):
     assert not default.fell and default.feet_flat
     assert default.max_tilt_deg < 0.2
     assert paper.max_tilt_deg > 0.5  # the paper's law leans (1.1 deg after 20 s)
+
+
+def test_a_push_that_tips_the_body_over_its_heels_is_not_leaned_against(model, tmp_path):
+    import polars as pl
+
+    result = stand(model, duration_s=2.3, push_n=90.0, push_direction=(-1.0, 0.0, 0.0),
+                   out=tmp_path)
+    assert not result.fell
+    assert result.max_tilt_deg > 3.0  # the push did rock the robot back onto its heels
+    log = pl.read_csv(tmp_path / "log.csv")
+    # the common mode rested while the feet stood on their heels: no lean to land with (the
+    # tilt term alone had leaned the ankles 0.017 rad by now, which topples it forward)
+    pitch = log["balance.right_pitch_rad"].abs().max()
+    assert pitch < 0.005
