@@ -116,7 +116,8 @@ class WholeBody:
             urdf = model.urdf_path()
             if self.tools["right-arm"] == "drill":
                 urdf = urdf.with_name(urdf.stem + "-drill.urdf")
-            self._pin = load_pin_robot(model, floating=False, urdf_path=urdf)
+            # floating, the torso at the origin: a fixed base would leave the torso's mass out
+            self._pin = load_pin_robot(model, floating=True, urdf_path=urdf)
             self._pin_data = self._pin.model.createData()
             import pinocchio
 
