@@ -30,10 +30,11 @@ Feedback needs the feet on the ground: without the body's weight on the ankle se
 a bad sensor), the correction leaks back to zero.
 
 Status: :class:`~hubo_cli.control.pipeline.SafetyProfile` leaves it out unless asked
-(``stabilizer=True``). Measured on the simulated robot with the legs' 0.6 rad/s^2: a 0.2 s push
-of 90 N forward topples the robot with or without it, and backward it turns a recovery into a
-27 deg lean (the correction lags the body by the acceleration bound); standing it changes
-nothing (0.03 deg).
+(``stabilizer=True``). Measured on the simulated robot, whose legs' acceleration limit is
+0.6 rad/s^2: a 0.2 s push of 90 N forward topples the robot with or without it, and one of
+90 N backward, which the default balancer alone survives (the body rocks on its heels and
+settles), topples it forward: the correction lags the rocking body by its acceleration bound.
+Standing it changes nothing (0.03 deg).
 """
 
 from __future__ import annotations
