@@ -194,9 +194,10 @@ class DampingBalancer(Module):
     tips over a sole's edge (a push).
     Nor is the tilt term: it leans the body against the tilt, and once the feet land back flat
     that lean tips it over the other edge (it cannot be undone within the rate bounds). While
-    a loaded foot's centre of pressure is within ``edge_margin_m`` of its sole's edge, the
-    common mode rests (only its leak acts), as hubo-motion-rt's ``flattenFoot`` complies only
-    inside a force window.
+    a loaded foot's centre of pressure is within ``edge_margin_m`` of its sole's heel or toe,
+    the common mode's pitch rests (only its leak acts), as hubo-motion-rt's ``flattenFoot``
+    complies only inside a force window. (Sideways the feet stand apart: a centre of pressure
+    near a sole's side is a drill held out to the side, not a tipping body.)
 
     Args:
         model: the robot model.
@@ -205,8 +206,8 @@ class DampingBalancer(Module):
         chain_stiffness_nm_per_rad, differential_time_s, differential_leak_s: the differential
             mode.
         max_offset_rad: each correction is clipped to +- this (rad) and to the joint limits.
-        edge_margin_m: the common mode rests while a centre of pressure is this close to a
-            sole's edge (m); 0 never rests.
+        edge_margin_m: the common mode's pitch rests while a centre of pressure is this close
+            to a sole's heel or toe (m); 0 never rests.
     """
 
     name = "balance"
@@ -228,13 +229,12 @@ class DampingBalancer(Module):
             raise ConfigError("balance gains, time constants and limits must be positive",
                               hint="e.g. damping_nm_s_per_rad=667, common_leak_s=1")
         feet = model.feet
-        if not (math.isfinite(edge_margin_m) and 0 <= edge_margin_m < feet.width_m / 2):
-            raise ConfigError(f"the sole-edge margin must lie in [0, {feet.width_m / 2:g}) m, "
+        if not (math.isfinite(edge_margin_m) and 0 <= edge_margin_m < feet.length_m / 2):
+            raise ConfigError(f"the sole-edge margin must lie in [0, {feet.length_m / 2:g}) m, "
                               f"got {edge_margin_m}", hint=f"e.g. {EDGE_MARGIN_M}")
-        # the region of the sole where a centre of pressure means a flat foot (x, y in m)
+        # where along the sole a centre of pressure means a flat foot (m)
         self._flat_x_m = (feet.forward_m - feet.length_m / 2 + edge_margin_m,
                           feet.forward_m + feet.length_m / 2 - edge_margin_m)
-        self._flat_y_m = feet.width_m / 2 - edge_margin_m
         self.edge_margin_m = float(edge_margin_m)
         self.model = model
         self.damping = float(damping_nm_s_per_rad)
@@ -287,16 +287,16 @@ class DampingBalancer(Module):
         return self._last_reference
 
     def _tipping(self, state: RobotState) -> bool:
-        """A loaded foot's centre of pressure lies within the edge margin of its sole."""
+        """A loaded foot's centre of pressure lies within the edge margin of its sole's heel or
+        toe (the body rotates about that edge)."""
         if self.edge_margin_m <= 0:
             return False
-        (x_lo, x_hi), y_max = self._flat_x_m, self._flat_y_m
+        x_lo, x_hi = self._flat_x_m
         for _, sensor in FEET:
             wrench = state.ft.get(sensor)
             if wrench is None or not wrench[2] > 0.1 * self._weight_n:
                 continue
-            cop_x, cop_y = -wrench[4] / wrench[2], wrench[3] / wrench[2]
-            if not (x_lo < cop_x < x_hi and abs(cop_y) < y_max):
+            if not x_lo < -wrench[4] / wrench[2] < x_hi:
                 return True
         return False
 
@@ -327,8 +327,8 @@ class DampingBalancer(Module):
                         else np.zeros(2))
         common_rate = (moment_error / self.damping + self.k_r * tilt_deg
                        - self._common / self.common_leak_s)
-        if self._tipping(state):  # only the leak: the body will land back on its soles
-            common_rate = -self._common / self.common_leak_s
+        if self._tipping(state):  # pitch: only the leak; the body will land back on its soles
+            common_rate[0] = -self._common[0] / self.common_leak_s
         self._common = self._common + common_rate * dt
         both = state.feet_contact is None or all(state.feet_contact)
         lower, upper = self.model.lower_rad, self.model.upper_rad
