@@ -194,10 +194,11 @@ class DampingBalancer(Module):
     tips over a sole's edge (a push).
     Nor is the tilt term: it leans the body against the tilt, and once the feet land back flat
     that lean tips it over the other edge (it cannot be undone within the rate bounds). While
-    a loaded foot's centre of pressure is within ``edge_margin_m`` of its sole's heel or toe,
-    the common mode's pitch rests (only its leak acts), as hubo-motion-rt's ``flattenFoot``
+    the feet's common centre of pressure is within ``edge_margin_m`` of the soles' heels or
+    toes, the common mode's pitch rests (only its leak acts), as hubo-motion-rt's ``flattenFoot``
     complies only inside a force window. (Sideways the feet stand apart: a centre of pressure
-    near a sole's side is a drill held out to the side, not a tipping body.)
+    near a sole's side is a drill held out to the side, not a tipping body; so is one foot
+    loaded near its toe while the other is not.)
 
     Args:
         model: the robot model.
@@ -287,18 +288,20 @@ class DampingBalancer(Module):
         return self._last_reference
 
     def _tipping(self, state: RobotState) -> bool:
-        """A loaded foot's centre of pressure lies within the edge margin of its sole's heel or
-        toe (the body rotates about that edge)."""
+        """The feet's common centre of pressure lies within the edge margin of the soles' heels
+        or toes: the body rotates about that edge (one foot loaded near its edge while the
+        other is not is a drill held out to the side, which the differential mode evens)."""
         if self.edge_margin_m <= 0:
             return False
-        x_lo, x_hi = self._flat_x_m
+        fz = moment_y = 0.0
         for _, sensor in FEET:
             wrench = state.ft.get(sensor)
-            if wrench is None or not wrench[2] > 0.1 * self._weight_n:
-                continue
-            if not x_lo < -wrench[4] / wrench[2] < x_hi:
-                return True
-        return False
+            if wrench is not None:
+                fz, moment_y = fz + float(wrench[2]), moment_y + float(wrench[4])
+        if not fz > 0.5 * self._weight_n:
+            return False
+        x_lo, x_hi = self._flat_x_m
+        return not x_lo < -moment_y / fz < x_hi
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         q = np.array(q_rad, dtype=float)
