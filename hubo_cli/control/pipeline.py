@@ -20,7 +20,7 @@ command builds its pipeline through one, so ``--no-estop`` means the same everyw
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from hubo_cli.control.balance import BALANCE_MODES
 from hubo_cli.control.estop import SOFT_SOURCES
@@ -28,6 +28,7 @@ from hubo_cli.control.module import Module
 from hubo_cli.errors import ConfigError
 from hubo_cli.model import RobotModel
 
+BALANCE_CHOICES = (*BALANCE_MODES, "off")  # ``--balance``: a balancer's mode, or none
 DEFAULT_ORDER = ("otg", "capture-point", "estop", "balance", "collision", "hard-estop",
                  "limiter")
 GENERATORS = ("otg", "hoff-arbib")
@@ -182,6 +183,21 @@ class SafetyProfile:
         if unknown:
             raise ConfigError(f"unknown emergency-stop source {sorted(unknown)[0]!r}",
                               hint=f"use some of {', '.join(SOFT_SOURCES)}")
+
+    @property
+    def balance_choice(self) -> str:
+        """The balancer as ``--balance`` names it: its mode, or ``off``."""
+        return self.balance_mode if self.balance else "off"
+
+    def with_balance(self, choice: str) -> SafetyProfile:
+        """This profile with the balancer ``--balance CHOICE`` names (one of BALANCE_CHOICES:
+        ``default``, ``paper`` or ``off``)."""
+        if choice not in BALANCE_CHOICES:
+            raise ConfigError(f"unknown balance choice {choice!r}",
+                              hint=f"use one of {', '.join(BALANCE_CHOICES)}")
+        if choice == "off":
+            return replace(self, balance=False)
+        return replace(self, balance=True, balance_mode=choice)
 
     def order(self) -> tuple[str, ...]:
         """Module names, first to last."""
