@@ -197,6 +197,7 @@ class TaskTarget(Target):
         return (state.T_world_torso @ T)[:3, 3]
 
     def _measure(self, t_s: float, state, info: dict) -> None:
+        # through the measured torso pose: the legs' lift and the waist's CoM shift included
         T_N_E = self.body.arms[self.limb].fk(state.q_rad[self.slice])
         actual = (self.estimator(state) @ T_N_E)[:3, 3]
         self.torque_nm = wrist_torque_nm(state, self.sensor)
