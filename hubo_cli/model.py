@@ -186,6 +186,11 @@ class RobotModel:
     def raw_robot(self) -> dict:
         return _read_toml(self.source)["robot"]
 
+    @property
+    def raw_walking(self) -> dict:
+        """The robot file's ``[walking]`` table (read by :mod:`hubo_cli.walking.params`)."""
+        return _read_toml(self.source).get("walking", {})
+
 
 @cache
 def _read_toml(path: Path) -> dict:

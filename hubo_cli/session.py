@@ -14,8 +14,9 @@ same way for all of them:
 3. starts the robot, hands the target the simulator's world (or None on a real robot) so it
    can place its scene, runs the :class:`~hubo_cli.control.loop.ControlLoop` with the
    per-period log, takes a snapshot where there is a simulator;
-4. writes ``summary.json`` with the fields every run has (:func:`common_summary`) and returns a
-   :class:`RunResult`; the use case adds its own fields with :meth:`RunResult.save_summary`.
+4. writes ``summary.json`` with the fields every run has (:func:`common_summary`, the balance
+   figures of :func:`~hubo_cli.balance_report.balance_report` computed from the log) and returns
+   a :class:`RunResult`; the use case adds its own fields with :meth:`RunResult.save_summary`.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hubo_cli.balance_report import balance_report
 from hubo_cli.control.log import (
     LOG_NAME,
     META_NAME,
@@ -190,12 +192,16 @@ def run(setup: RunSetup, target: Target,
     except HuboError:
         discard_if_unused(run_dir)  # nothing moved: leave no empty run folder behind
         raise
+    set_log_metadata(run_dir, "command", setup.command)
+    set_log_metadata(run_dir, "balance", setup.safety.balance_choice)
     summary = common_summary(setup, speed, result, modules, run_dir)
+    done = RunResult(run_dir, result, modules, summary)
+    summary["max_joint_velocity_ratio"] = max_velocity_ratio(setup.model, done.log)
+    summary.update(balance_report(done.log, setup.model,
+                                  drill=setup.tools.get("right-arm") == "drill"))
     if world is not None:  # the simulator's draws and ground truth
         summary["perturbation"] = world.perturbation.to_json()
         summary["max_torso_tilt_deg"] = world.max_tilt_deg
-    done = RunResult(run_dir, result, modules, summary)
-    summary["max_joint_velocity_ratio"] = max_velocity_ratio(setup.model, done.log)
     write_json(run_dir / SUMMARY_NAME, summary)
     return done
 
@@ -212,6 +218,7 @@ def common_summary(setup: RunSetup, speed: float | None, loop: LoopResult,
         "tools": dict(setup.tools),
         "pipeline": [m.name for m in modules],
         "estop_enabled": setup.safety.estop,
+        "balance": setup.safety.balance_choice,
         "ended": loop.ended,
         "error": loop.error,
         "duration_s": loop.t_end_s,

@@ -44,17 +44,22 @@ class Job:
         command: ``sim`` or a task name or file.
         seed: the perturbation seed (0: the nominal robot).
         parameters: (name, value) pairs, the task's ``--set`` (or ``sim``'s duration/push).
+        balance: the balancer, ``default``, ``paper`` or ``off`` (``--balance``).
     """
 
     command: str
     seed: int
     parameters: tuple[tuple[str, object], ...] = ()
+    balance: str = "default"
 
     @property
     def name(self) -> str:
-        """A folder name for the job's run: command, seed and parameter values."""
+        """A folder name for the job's run: command, seed, parameter values (and the balancer
+        when not the default)."""
         parts = [Path(self.command).stem, f"seed{self.seed}"]
         parts += [f"{k}={v}" for k, v in self.parameters]
+        if self.balance != "default":
+            parts.append(f"balance={self.balance}")
         return re.sub(r"[^A-Za-z0-9_.=+-]", "_", "-".join(parts))
 
 
@@ -135,10 +140,12 @@ def parse_sets(sets: Sequence[str]) -> dict[str, list[object]]:
     return values
 
 
-def make_jobs(command: str, seeds: Sequence[int], sets: dict[str, list[object]]) -> list[Job]:
-    """Every combination of seeds and parameter values, seeds outermost."""
+def make_jobs(command: str, seeds: Sequence[int], sets: dict[str, list[object]],
+              balance: str = "default") -> list[Job]:
+    """Every combination of seeds and parameter values, seeds outermost, with the balancer
+    ``balance``."""
     names = list(sets)
-    return [Job(command, seed, tuple(zip(names, combo, strict=True)))
+    return [Job(command, seed, tuple(zip(names, combo, strict=True)), balance)
             for seed in seeds for combo in itertools.product(*(sets[n] for n in names))]
 
 
@@ -180,31 +187,20 @@ def _first_stop(summary: dict) -> str:
     return "+".join(stops[0]["sources"]) if stops else ""
 
 
-def _support_margin_mm(run_dir: Path) -> float | None:
-    """The smallest distance of the capture point inside the support polygon (mm), from the
-    capture-point monitor's log column (its ``cp_outside_m`` is measured against the polygon
-    shrunk by the monitor's margin)."""
-    from hubo_cli.control.capture_point import CP_MARGIN_M
-    from hubo_cli.control.log import load_log
-
-    log = load_log(run_dir)
-    if "cp_outside_m" not in log.columns:
-        return None
-    outside = log["cp_outside_m"]
-    outside = outside[np.isfinite(outside)]
-    return float((CP_MARGIN_M - outside.max()) * 1000) if len(outside) else None
-
-
 def _run_sim(job: Job, run_dir: Path) -> Row:
+    from hubo_cli.control.pipeline import SafetyProfile
     from hubo_cli.experiments.standing import stand
     from hubo_cli.model import load_model
 
     params = SIM_PARAMETERS | dict(job.parameters)
+    profile = SafetyProfile().with_balance(job.balance)
     result = stand(load_model(), float(params["duration"]), float(params["push"]),
-                   out=run_dir, perturb_seed=job.seed)
+                   profile.balance, out=run_dir, perturb_seed=job.seed,
+                   balance_mode=profile.balance_mode)
     summary = _read_summary(run_dir)
     return Row(job.command, job.seed, dict(job.parameters), completed=not result.fell,
-               estop=_first_stop(summary), min_support_margin_mm=_support_margin_mm(run_dir),
+               estop=_first_stop(summary),
+               min_support_margin_mm=summary["min_support_margin_mm"],
                max_tilt_deg=summary["max_torso_tilt_deg"], ended=summary["ended"])
 
 
@@ -214,20 +210,20 @@ def _run_task(job: Job, run_dir: Path) -> Row:
 
     spec = load_task(job.command, dict(job.parameters))
     if spec.experiment:
-        done = run_experiment(spec, out=run_dir, perturb_seed=job.seed)
+        done = run_experiment(spec, out=run_dir, perturb_seed=job.seed, balance=job.balance)
     else:
         plan = check_task(spec)
         if not plan.preflight.ok:
             return Row(job.command, job.seed, dict(job.parameters), completed=False,
                        ended="refused", error=plan.preflight.worst_per_step()[0].message())
-        done = run_task(plan, out=run_dir, perturb_seed=job.seed)
+        done = run_task(plan, out=run_dir, perturb_seed=job.seed, balance=job.balance)
     summary = done.summary
     completed = summary.get("completed")
     if completed is None:  # an experiment: it completed unless the robot fell or tipped
         completed = not (summary.get("fell") or summary.get("tipped"))
     return Row(job.command, job.seed, dict(job.parameters), completed=bool(completed),
                estop=_first_stop(summary), hole_rms_mm=summary.get("hole_rms_error_mm"),
-               min_support_margin_mm=_support_margin_mm(run_dir),
+               min_support_margin_mm=summary.get("min_support_margin_mm"),
                max_tilt_deg=summary["max_torso_tilt_deg"], ended=summary["ended"])
 
 

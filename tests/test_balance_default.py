@@ -53,7 +53,7 @@ def test_a_robot_standing_as_commanded_gets_no_correction(model):
 def test_corrections_stay_inside_the_limiters_rate_and_acceleration(model):
     balancer = DampingBalancer(model)
     home = home_posture(model)
-    state = _state(model, 60.0, pitch_deg=3.0)  # a large error: the filter saturates
+    state = _state(model, 10.0, pitch_deg=3.0)  # a large error: the filter saturates
     offsets = []
     for k in range(300):
         balancer.update(home, state, Cycle(k * DT, DT))
@@ -65,9 +65,23 @@ def test_corrections_stay_inside_the_limiters_rate_and_acceleration(model):
     assert np.abs(rate).max() > 0.5 * MAX_CORRECTION_RATE_RAD_S  # and it does move
 
 
+def test_a_foot_tipping_over_its_edge_stops_the_common_mode(model):
+    home = home_posture(model)
+    flat, tipping = DampingBalancer(model), DampingBalancer(model)
+    # the same tilt; the centre of pressure at -53 mm (inside the sole) or at -105 mm (past
+    # the heel's margin: the body rotates about the heel)
+    for k in range(100):
+        flat.update(home, _state(model, 10.0, pitch_deg=3.0), Cycle(k * DT, DT))
+        tipping.update(home, _state(model, 20.0, pitch_deg=3.0), Cycle(k * DT, DT))
+    assert np.abs(flat.offsets_rad["right-leg"]).max() > 1e-3
+    assert np.abs(tipping.offsets_rad["right-leg"]).max() < 1e-9
+
+
 def test_bad_settings_are_refused(model):
     with pytest.raises(ConfigError):
         DampingBalancer(model, damping_nm_s_per_rad=-1.0)
+    with pytest.raises(ConfigError):
+        DampingBalancer(model, edge_margin_m=-0.01)
     with pytest.raises(ConfigError):
         make_balancer(model, "sideways")
 
@@ -78,3 +92,17 @@ def test_standing_the_default_balancer_holds_the_body_upright(model):
     assert not default.fell and default.feet_flat
     assert default.max_tilt_deg < 0.2
     assert paper.max_tilt_deg > 0.5  # the paper's law leans (1.1 deg after 20 s)
+
+
+def test_a_push_that_tips_the_body_over_its_heels_is_not_leaned_against(model, tmp_path):
+    import polars as pl
+
+    result = stand(model, duration_s=2.3, push_n=90.0, push_direction=(-1.0, 0.0, 0.0),
+                   out=tmp_path)
+    assert not result.fell
+    assert result.max_tilt_deg > 3.0  # the push did rock the robot back onto its heels
+    log = pl.read_csv(tmp_path / "log.csv")
+    # the common mode rested while the feet stood on their heels: no lean to land with (the
+    # tilt term alone had leaned the ankles 0.017 rad by now, which topples it forward)
+    pitch = log["balance.right_pitch_rad"].abs().max()
+    assert pitch < 0.005

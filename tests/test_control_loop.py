@@ -120,7 +120,7 @@ def test_log_is_written_as_it_goes(model, tmp_path):
     assert len(log) == result.periods
     assert log.joints("cmd").shape == (result.periods, 24)
     header = (tmp_path / LOG_NAME).read_text().splitlines()[0].split(",")
-    units = ("_s", "_us", "_rad", "_m", "_nm", "_count", "_code", "_flag")
+    units = ("_s", "_us", "_rad", "_m", "_n", "_nm", "_count", "_code", "_flag")
     assert all(name == "flags" or name.endswith(units) for name in header), header
     running = np.array(["smooth-stop" not in f for f in log.flags])
     assert np.all(np.isfinite(log["com_z_m"][running]))

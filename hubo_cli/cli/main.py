@@ -20,6 +20,7 @@ COMMANDS = {
     "record": "hubo_cli.cli.fastrak:record",
     "workspace-map": "hubo_cli.cli.workspace:workspace_map",
     "sim": "hubo_cli.cli.sim:sim",
+    "walk": "hubo_cli.cli.walk:walk",
     "task": "hubo_cli.cli.task:task",
     "teleop": "hubo_cli.cli.teleop:teleop",
     "sweep": "hubo_cli.cli.sweep:sweep",

@@ -2,20 +2,25 @@
 
 One line per concern, each in words and in colour: the emergency stop (its source; stopping,
 held, or blending back after a release; the key that releases it), the collision layer (holding
-or recovering, which pair, how close), and per hand the clutch (waiting for a re-centre), stale
-input and the reach limit. A new stop rings the terminal bell and flashes the line for a second.
+or recovering, which pair, how close), the balance (torso tilt, the capture point's support
+margin now and at worst, the feet's load and contact losses, ankle clamps), and per hand the
+clutch (waiting for a re-centre), stale input and the reach limit. A new stop rings the
+terminal bell and flashes the line for a second.
 """
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
 from rich.text import Text
 
+from hubo_cli.control.capture_point import CP_MARGIN_M, CapturePointMonitor
 from hubo_cli.control.collision import CollisionDetector
 from hubo_cli.control.estop import EmergencyStopper
+from hubo_cli.control.limiter import SoftErrorLimiter
 
 FLASH_S = 1.0
 REACH_STATUSES = {"capped": "at its reach limit (capped)", "held": "out of reach (held)",
@@ -34,6 +39,31 @@ class HandSafety:
 
 
 @dataclass
+class BalanceWatch:
+    """How well the body is held so far (the balance figures of ``summary.json``, live).
+
+    Attributes:
+        balancer: a balance module is in the pipeline (``--balance`` not ``off``).
+        max_tilt_deg: the torso's largest tilt so far (simulator), None if unknown.
+        margin_m, min_margin_m: the capture point's distance inside the support polygon now
+            and its smallest so far (m), None without the capture-point monitor.
+        min_margin_t_s: when the smallest margin was.
+        feet_loaded: (right, left) in contact now, None unknown.
+        contact_losses: intervals > 20 ms with a foot unloaded so far.
+        ankle_clamp_fraction: share of periods so far with an ankle at the limiter's clamp.
+    """
+
+    balancer: bool = True
+    max_tilt_deg: float | None = None
+    margin_m: float | None = None
+    min_margin_m: float | None = None
+    min_margin_t_s: float | None = None
+    feet_loaded: tuple[bool, bool] | None = None
+    contact_losses: int = 0
+    ankle_clamp_fraction: float | None = None
+
+
+@dataclass
 class SafetyState:
     """A snapshot of the pipeline's safety layers.
 
@@ -46,6 +76,7 @@ class SafetyState:
         collision_pair: the closest pair of link names.
         collision_distance_m: its distance (m; negative: overlapping), None if unknown.
         hands: per driven hand, its input and reach state.
+        balance: how well the body is held (None: not read).
     """
 
     estop: str = "off"
@@ -56,16 +87,41 @@ class SafetyState:
     collision_pair: tuple[str, str] | None = None
     collision_distance_m: float | None = None
     hands: list[HandSafety] = field(default_factory=list)
+    balance: BalanceWatch | None = None
 
 
 ESTOP_WORDS = {"stop": "stopping", "hold": "held", "recover": "releasing"}
 COLLISION_WORDS = {"hold": "holding", "recover": "recovering"}
 
 
-def read_safety(modules: Iterable, hands: Iterable[HandSafety] = ()) -> SafetyState:
-    """The safety state of a pipeline's modules (the soft and hard emergency stoppers and the
-    collision detector; others are ignored)."""
-    state = SafetyState(hands=list(hands))
+def read_balance(modules: Iterable, world=None) -> BalanceWatch:
+    """How well the body is held so far: from the capture-point monitor and the limiter of a
+    pipeline, and the simulator's true tilt where there is one (``world``)."""
+    watch = BalanceWatch(balancer=False,
+                         max_tilt_deg=None if world is None else world.max_tilt_deg)
+    for module in modules:
+        if module.name == "balance":
+            watch.balancer = True
+        elif isinstance(module, CapturePointMonitor):
+            if math.isfinite(module.outside_m):
+                watch.margin_m = module.margin_m - module.outside_m
+            if math.isfinite(module.min_margin_m):
+                watch.min_margin_m = module.min_margin_m
+                watch.min_margin_t_s = module.min_margin_t_s
+            watch.feet_loaded = module.feet_loaded
+            watch.contact_losses = module.contact_losses
+        elif isinstance(module, SoftErrorLimiter) and module.periods:
+            watch.ankle_clamp_fraction = module.ankle_clamped_periods / module.periods
+    return watch
+
+
+def read_safety(modules: Iterable, hands: Iterable[HandSafety] = (),
+                world=None) -> SafetyState:
+    """The safety state of a pipeline's modules (the soft and hard emergency stoppers, the
+    collision detector, and for the balance line the capture-point monitor and the limiter;
+    others are ignored); ``world``: the simulator, for the torso's true tilt."""
+    modules = list(modules)
+    state = SafetyState(hands=list(hands), balance=read_balance(modules, world))
     latest = None
     for module in modules:
         if isinstance(module, EmergencyStopper):
@@ -121,6 +177,9 @@ def safety_text(state: SafetyState, flash: bool = False, release_key: str | None
     else:
         text.append(f"collision clear (closest {_pair(state.collision_pair)} {distance})",
                     style="green")
+    if state.balance is not None:
+        text.append("\n")
+        _balance_text(text, state.balance)
     for hand in state.hands:
         text.append("\n")
         if hand.needs_clutch:
@@ -136,6 +195,49 @@ def safety_text(state: SafetyState, flash: bool = False, release_key: str | None
         if reach:
             text.append(f", {reach}", style="yellow" if hand.ik_status == "capped" else "red")
     return text
+
+
+def _balance_text(text: Text, watch: BalanceWatch) -> None:
+    """One line: tilt, support margin (now, worst), feet, contact losses, ankle clamps."""
+    text.append("balance " + ("on" if watch.balancer else "off"),
+                style="green" if watch.balancer else "yellow")
+    if watch.max_tilt_deg is not None:
+        text.append(f" | tilt max {watch.max_tilt_deg:.2f}°")
+    if watch.min_margin_m is not None:
+        worst = watch.min_margin_m
+        style = "bold red" if worst < CP_MARGIN_M else "yellow" if worst < 0.08 else "green"
+        now = "-" if watch.margin_m is None else f"{watch.margin_m * 1000:.0f}"
+        text.append(f" | support margin {now} mm (min {worst * 1000:.0f} mm at "
+                    f"{watch.min_margin_t_s:.1f} s)", style=style)
+    if watch.feet_loaded is not None:
+        unloaded = [f for f, on in zip(("right", "left"), watch.feet_loaded, strict=True)
+                    if not on]
+        text.append(" | feet " + ("loaded" if not unloaded else
+                                  f"{' and '.join(unloaded)} UNLOADED"),
+                    style="yellow" if unloaded else "")
+        text.append(f", contact losses {watch.contact_losses}",
+                    style="yellow" if watch.contact_losses else "")
+    if watch.ankle_clamp_fraction is not None:
+        text.append(f" | ankle clamps {watch.ankle_clamp_fraction:.1%}",
+                    style="yellow" if watch.ankle_clamp_fraction >= 0.01 else "")
+
+
+def balance_summary_line(summary: dict) -> str:
+    """The balance figures of a finished run's summary in one line of words (text output)."""
+    parts = [f"--balance {summary.get('balance', 'default')}"]
+    if summary.get("max_torso_tilt_deg") is not None:
+        parts.append(f"tilt max {summary['max_torso_tilt_deg']:.2f}°")
+    margin = summary.get("min_support_margin_mm")
+    if margin is not None:
+        parts.append(f"support margin min {margin:.0f} mm at "
+                     f"{summary['min_support_margin_at']['t_s']:.1f} s")
+    if summary.get("contact_losses") is not None:
+        parts.append(f"contact losses {summary['contact_losses']}")
+    if summary.get("ankle_clamp_fraction") is not None:
+        parts.append(f"ankle clamps {summary['ankle_clamp_fraction']:.1%}")
+    if summary.get("cutting_fraction") is not None:
+        parts.append(f"flutes in the wall {summary['cutting_fraction']:.0%} of the cut")
+    return ", ".join(parts)
 
 
 class SafetyPanel:

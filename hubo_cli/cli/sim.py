@@ -6,7 +6,7 @@ import json
 
 import click
 
-from hubo_cli.cli.options import perturb_option
+from hubo_cli.cli.options import balance_option, perturb_option
 from hubo_cli.cli.output import NO_ESTOP_HELP, console, print_json
 
 
@@ -15,10 +15,7 @@ from hubo_cli.cli.output import NO_ESTOP_HELP, console, print_json
               help="Simulated time to stand (s).")
 @click.option("--push", type=float, default=0.0, show_default=True,
               help="Push the torso forward with this force (N) for 0.2 s, 1 s into the run.")
-@click.option("--balance", "balance_mode", type=click.Choice(["default", "paper", "off"]),
-              default="default", show_default=True,
-              help="Ankle balancer: common + differential damping, eq. 11-12 as published, or "
-                   "none.")
+@balance_option
 @click.option("--no-balance", is_flag=True, help="The same as --balance off.")
 @click.option("--no-estop", is_flag=True, help=NO_ESTOP_HELP)
 @click.option("--gui", is_flag=True, help="Open the PyBullet window (runs in real time).")
@@ -26,22 +23,24 @@ from hubo_cli.cli.output import NO_ESTOP_HELP, console, print_json
 @click.option("--out", type=click.Path(file_okay=False), default=None,
               help="Run folder (default runs/<time>-sim).")
 @perturb_option
-def sim(duration: float, push: float, balance_mode: str, no_balance: bool, no_estop: bool,
+def sim(duration: float, push: float, balance: str, no_balance: bool, no_estop: bool,
         gui: bool, as_json: bool, out: str | None, perturb_seed: int | None) -> None:
     """Stand the simulated HUBO 2+ in its home posture and report tilt, feet and falls.
 
     Example: hubo sim --duration 5 --push 30
     """
+    from hubo_cli.cli.safety_view import balance_summary_line
+    from hubo_cli.control.pipeline import SafetyProfile
     from hubo_cli.experiments.standing import check_standing_args, stand
     from hubo_cli.model import load_model
     from hubo_cli.runs import reserved_run_dir
 
     check_standing_args(duration, push)
-    on = not no_balance and balance_mode != "off"
+    profile = SafetyProfile().with_balance("off" if no_balance else balance)
     with reserved_run_dir("sim", out) as run_dir:  # a bad --out fails before anything runs
-        result = stand(load_model(), duration, push, balance=on, gui=gui, out=run_dir,
-                       estop=not no_estop, perturb_seed=perturb_seed,
-                       balance_mode=balance_mode if on else "default")
+        result = stand(load_model(), duration, push, balance=profile.balance, gui=gui,
+                       out=run_dir, estop=not no_estop, perturb_seed=perturb_seed,
+                       balance_mode=profile.balance_mode)
     # the run's whole summary (as in summary.json: pipeline, e-stops, perturbation draws ...)
     summary = json.loads((run_dir / "summary.json").read_text()) | {"run_dir": str(run_dir)}
     if as_json:
@@ -49,7 +48,7 @@ def sim(duration: float, push: float, balance_mode: str, no_balance: bool, no_es
         return
     balance = {"default": "default (common + differential damping)",
                "paper": "paper (eq. 11-12: K_r 0.009 rad/s/deg, K_c 0.0015 rad/s/N m)",
-               "off": "off"}["off" if no_balance else balance_mode]
+               "off": "off"}[profile.balance_choice]
     push_text = f"{push:g} N forward for 0.2 s at t = 1 s" if push > 0 else "none"
     console.print(f"stood             {result.simulated_s:.2f} s of {duration:g} s")
     console.print(f"balance           {balance}")
@@ -59,6 +58,7 @@ def sim(duration: float, push: float, balance_mode: str, no_balance: bool, no_es
     console.print(f"feet flat         {'yes' if result.feet_flat else 'no'} "
                   f"(max sole tilt {result.max_sole_tilt_deg:.3f} deg)")
     console.print(f"fell              {'YES' if result.fell else 'no'}")
+    console.print(f"support           {balance_summary_line(summary)}", soft_wrap=True)
     console.print(f"real-time factor  {result.realtime_factor:.2f} "
                   f"({100 * result.physics_share:.0f} % of the time in physics)")
     console.print(f"run folder        {run_dir} (log.csv, snapshot.png, summary.json)")

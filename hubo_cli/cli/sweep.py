@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import click
 
+from hubo_cli.cli.options import balance_option
 from hubo_cli.cli.output import console, err_console, interactive, print_json
 
 
@@ -21,8 +22,9 @@ from hubo_cli.cli.output import console, err_console, interactive, print_json
 @click.option("--out", type=click.Path(file_okay=False), default=None,
               help="Sweep folder (default runs/<time>-sweep-<command>).")
 @click.option("--json", "as_json", is_flag=True, help="Print the rows as JSON.")
+@balance_option
 def sweep(command: str, seeds: str, sets: tuple[str, ...], workers: int | None,
-          scheduler: str | None, out: str | None, as_json: bool) -> None:
+          scheduler: str | None, out: str | None, as_json: bool, balance: str) -> None:
     """Run TASK_OR_COMMAND (a task, or sim) once per seed and combination of --set values,
     each on its own perturbed robot, and tabulate the outcomes.
 
@@ -39,7 +41,7 @@ def sweep(command: str, seeds: str, sets: tuple[str, ...], workers: int | None,
     from hubo_cli.runs import make_run_dir
     from hubo_cli.sweep import check_jobs, make_jobs, parse_seeds, parse_sets, run_sweep
 
-    jobs = make_jobs(command, parse_seeds(seeds), parse_sets(sets))
+    jobs = make_jobs(command, parse_seeds(seeds), parse_sets(sets), balance)
     check_jobs(jobs)
     out_dir = make_run_dir(f"sweep-{command.replace('/', '_')}", out)
     progress = Progress("[progress.description]{task.description}", BarColumn(),

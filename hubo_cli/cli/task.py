@@ -9,7 +9,7 @@ from rich.progress_bar import ProgressBar
 from rich.table import Table
 
 from hubo_cli.cli.hardware import driver_options, hardware_options
-from hubo_cli.cli.options import perturb_option
+from hubo_cli.cli.options import balance_option, perturb_option
 from hubo_cli.cli.output import (
     NO_ESTOP_HELP,
     ProgressLines,
@@ -78,6 +78,7 @@ def run_options(function):
         click.option("--video", is_flag=True,
                      help="After the run, render video.mp4 from its log (needs hubo-cli[viz])."),
         perturb_option,
+        balance_option,
     ]
     function = hardware_options(function)  # listed after the others
     for option in reversed(options):
@@ -232,8 +233,8 @@ def _shortcut(name: str) -> click.Command:
 
 
 def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool, gui: bool,
-         out: str | None, as_json: bool, perturb_seed: int | None, video: bool = False,
-         **hardware) -> None:
+         out: str | None, as_json: bool, perturb_seed: int | None, balance: str = "default",
+         video: bool = False, **hardware) -> None:
     from hubo_cli.cli.replay import add_run_video, check_video_support
     from hubo_cli.runs import reserved_run_dir
     from hubo_cli.tasks.runner import run_experiment
@@ -250,18 +251,20 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
                              hint="leave out --driver")
         # its procedure names its own run folder (direction, e-stop) and checks --out first
         done = run_experiment(spec, out=out, gui=gui, estop=False if no_estop else None,
-                              perturb_seed=perturb_seed)
+                              perturb_seed=perturb_seed, balance=balance)
         if video:
             add_run_video(done.run_dir, done.summary)
         _finish(ctx, done, as_json, lambda: _print_push_wall(done.summary, done.run_dir))
         return
     with reserved_run_dir(f"task-{spec.name}", out) as run_dir:
         _run_in(ctx, spec, run_dir, driver=driver, options=options, no_estop=no_estop,
-                gui=gui, as_json=as_json, video=video, perturb_seed=perturb_seed)
+                gui=gui, as_json=as_json, video=video, perturb_seed=perturb_seed,
+                balance=balance)
 
 
 def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, no_estop: bool,
-            gui: bool, as_json: bool, video: bool, perturb_seed: int | None) -> None:
+            gui: bool, as_json: bool, video: bool, perturb_seed: int | None,
+            balance: str) -> None:
     from hubo_cli.cli.safety_view import SafetyPanel, read_safety
     from hubo_cli.tasks.runner import check_task, run_task
 
@@ -276,7 +279,8 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, no
         if as_json:
             return
         modules = target.modules
-        panel = SafetyPanel(lambda: read_safety(modules), bell=err_console.bell,
+        panel = SafetyPanel(lambda: read_safety(modules, world=target.world),
+                            bell=err_console.bell,
                             release_key=None)
         if interactive():
             live = Live(get_renderable=lambda: _view(target, panel), refresh_per_second=4,
@@ -290,7 +294,7 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, no
     try:
         done = run_task(plan, driver=driver, out=run_dir, gui=gui, estop=not no_estop,
                         on_start=on_start, perturb_seed=perturb_seed,
-                        driver_options=options)
+                        driver_options=options, balance=balance)
     finally:
         if "live" in state:
             state["live"].stop()
@@ -384,6 +388,8 @@ def _view(target, panel) -> Group:
 
 
 def _print_cut(summary: dict, run_dir) -> None:
+    from hubo_cli.cli.safety_view import balance_summary_line
+
     stance = summary["stance"]
     why = "emergency stop" if summary["estop"] else summary["ended"]
     outcome = "completed" if summary["completed"] else f"[red]did not complete[/] ({why})"
@@ -413,6 +419,7 @@ def _print_cut(summary: dict, run_dir) -> None:
                       f"{stop['reverted_to_t_s']:.2f} s"
                       + (" and held" if stop["held"] else ""))
     console.print(f"  velocity    {summary['max_joint_velocity_ratio']:.0%} of the limit at most")
+    console.print(f"  balance     {balance_summary_line(summary)}", soft_wrap=True)
     console.print(f"  run folder  {run_dir}", soft_wrap=True)
     console.print(f"              {', '.join(summary['files'])}", soft_wrap=True)
 

@@ -12,7 +12,7 @@ from rich.table import Table
 
 from hubo_cli.cli.checks import check_baud, check_seconds
 from hubo_cli.cli.hardware import driver_options, hardware_options
-from hubo_cli.cli.options import perturb_option
+from hubo_cli.cli.options import balance_option, perturb_option
 from hubo_cli.cli.output import (
     NO_ESTOP_HELP,
     ProgressLines,
@@ -156,9 +156,10 @@ def _view(target, panel) -> Group:
               help="After the run, render video.mp4 from its log (needs hubo-cli[viz]).")
 @hardware_options
 @perturb_option
+@balance_option
 def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, wall_distance,
            clutch_at, duration, reach_mode, orientation_weight, allow_branch_change, no_estop,
-           gui, out, as_json, video, perturb_seed, **hardware) -> None:
+           gui, out, as_json, video, perturb_seed, balance, **hardware) -> None:
     """Drive the robot's hands from an operator's FASTRAK stream.
 
     Exactly one of --replay FILE or --port DEV. The first sample of each station calibrates it:
@@ -215,7 +216,7 @@ def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, w
         wall_distance_m=None if wall_distance is None else wall_distance / 1000.0,
         duration_s=duration, clutch_at_s=tuple(clutch_at), out=out, gui=gui, baud=baud,
         estop=not no_estop, driver_options=driver_options(driver, armed, **hardware),
-        perturb_seed=perturb_seed, reach=ReachSettings.for_mode(
+        perturb_seed=perturb_seed, balance=balance, reach=ReachSettings.for_mode(
             mode, mode=reach_mode, allow_branch_change=allow_branch_change,
             orientation_weight_m_per_rad=orientation_weight / 1000 * 180 / np.pi))
     if replay is not None:
@@ -281,7 +282,7 @@ def _run(settings, as_json: bool):
         modules = target.modules
         if as_json:
             return
-        panel = SafetyPanel(lambda: read_safety(modules, hand_safety(target)),
+        panel = SafetyPanel(lambda: read_safety(modules, hand_safety(target), target.world),
                             bell=err_console.bell)
         state["panel"] = panel
         if interactive():
@@ -312,6 +313,7 @@ def _run(settings, as_json: bool):
 def _report(run, as_json: bool, video: bool = False) -> None:
     """Print the summary; a run that failed in substance ends with a warning and exit 1 or 2."""
     from hubo_cli.cli.output import warn
+    from hubo_cli.cli.safety_view import balance_summary_line
 
     summary = run.summary
     if video:
@@ -337,6 +339,7 @@ def _report(run, as_json: bool, video: bool = False) -> None:
         console.print(f"  e-stops {len(stops)} (released {releases}), statuses "
                       f"{summary['status_counts']}, max velocity "
                       f"{summary['max_joint_velocity_ratio']:.0%} of limit")
+        console.print(f"  balance: {balance_summary_line(summary)}", soft_wrap=True)
         console.print(f"  run folder: {run.run_dir}", soft_wrap=True)
         if video:
             console.print(f"  video: {summary['video']['file']}")

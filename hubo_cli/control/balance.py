@@ -165,6 +165,7 @@ DIFFERENTIAL_LEAK_S = 2.0
 SMOOTHING_S = 0.05               # corrections follow their integrals with this time constant
 MAX_CORRECTION_ACCEL_RAD_S2 = 0.3  # half the limiter's 0.6 rad/s^2 on the ankles
 MAX_CORRECTION_RATE_RAD_S = 0.1
+EDGE_MARGIN_M = 0.02  # a centre of pressure this close to a sole's edge: the foot is tipping
 BALANCE_MODES = ("default", "paper")
 
 
@@ -189,6 +190,16 @@ class DampingBalancer(Module):
     The sum of both modes is followed by the correction sent to the ankles through a filter
     whose rate and acceleration stay well inside the limiter's (0.1 rad/s, 0.3 rad/s^2).
 
+    The moment compliance evens out a foot that is not flat; it is no answer to a body that
+    tips over a sole's edge (a push).
+    Nor is the tilt term: it leans the body against the tilt, and once the feet land back flat
+    that lean tips it over the other edge (it cannot be undone within the rate bounds). While
+    the feet's common centre of pressure is within ``edge_margin_m`` of the soles' heels or
+    toes, the common mode's pitch rests (only its leak acts), as hubo-motion-rt's ``flattenFoot``
+    complies only inside a force window. (Sideways the feet stand apart: a centre of pressure
+    near a sole's side is a drill held out to the side, not a tipping body; so is one foot
+    loaded near its toe while the other is not.)
+
     Args:
         model: the robot model.
         drill: the right hand holds the drill (its mass counts in the reference CoM).
@@ -196,6 +207,8 @@ class DampingBalancer(Module):
         chain_stiffness_nm_per_rad, differential_time_s, differential_leak_s: the differential
             mode.
         max_offset_rad: each correction is clipped to +- this (rad) and to the joint limits.
+        edge_margin_m: the common mode's pitch rests while a centre of pressure is this close
+            to a sole's heel or toe (m); 0 never rests.
     """
 
     name = "balance"
@@ -207,7 +220,7 @@ class DampingBalancer(Module):
                  chain_stiffness_nm_per_rad: float = CHAIN_STIFFNESS_NM_PER_RAD,
                  differential_time_s: float = DIFFERENTIAL_TIME_S,
                  differential_leak_s: float = DIFFERENTIAL_LEAK_S,
-                 max_offset_rad: float = 0.15) -> None:
+                 max_offset_rad: float = 0.15, edge_margin_m: float = EDGE_MARGIN_M) -> None:
         from hubo_cli.control.pin_robot import load_pin_robot
         from hubo_cli.errors import ConfigError
 
@@ -216,6 +229,14 @@ class DampingBalancer(Module):
         if not all(math.isfinite(v) and v > 0 for v in values) or not k_r >= 0:
             raise ConfigError("balance gains, time constants and limits must be positive",
                               hint="e.g. damping_nm_s_per_rad=667, common_leak_s=1")
+        feet = model.feet
+        if not (math.isfinite(edge_margin_m) and 0 <= edge_margin_m < feet.length_m / 2):
+            raise ConfigError(f"the sole-edge margin must lie in [0, {feet.length_m / 2:g}) m, "
+                              f"got {edge_margin_m}", hint=f"e.g. {EDGE_MARGIN_M}")
+        # where along the sole a centre of pressure means a flat foot (m)
+        self._flat_x_m = (feet.forward_m - feet.length_m / 2 + edge_margin_m,
+                          feet.forward_m + feet.length_m / 2 - edge_margin_m)
+        self.edge_margin_m = float(edge_margin_m)
         self.model = model
         self.damping = float(damping_nm_s_per_rad)
         self.k_r = float(k_r)
@@ -266,6 +287,22 @@ class DampingBalancer(Module):
         self._last_cmd, self._last_reference = q_cmd_rad.copy(), -self._weight_n * x / 2
         return self._last_reference
 
+    def _tipping(self, state: RobotState) -> bool:
+        """The feet's common centre of pressure lies within the edge margin of the soles' heels
+        or toes: the body rotates about that edge (one foot loaded near its edge while the
+        other is not is a drill held out to the side, which the differential mode evens)."""
+        if self.edge_margin_m <= 0:
+            return False
+        fz = moment_y = 0.0
+        for _, sensor in FEET:
+            wrench = state.ft.get(sensor)
+            if wrench is not None:
+                fz, moment_y = fz + float(wrench[2]), moment_y + float(wrench[4])
+        if not fz > 0.5 * self._weight_n:
+            return False
+        x_lo, x_hi = self._flat_x_m
+        return not x_lo < -moment_y / fz < x_hi
+
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         q = np.array(q_rad, dtype=float)
         dt = cycle.dt_s
@@ -293,6 +330,8 @@ class DampingBalancer(Module):
                         else np.zeros(2))
         common_rate = (moment_error / self.damping + self.k_r * tilt_deg
                        - self._common / self.common_leak_s)
+        if self._tipping(state):  # pitch: only the leak; the body will land back on its soles
+            common_rate[0] = -self._common[0] / self.common_leak_s
         self._common = self._common + common_rate * dt
         both = state.feet_contact is None or all(state.feet_contact)
         lower, upper = self.model.lower_rad, self.model.upper_rad

@@ -24,11 +24,20 @@ module flags ``cp-outside`` and requests an emergency stop from source ``capture
 passes the command through unchanged. The reference CP is the centre of mass of the commanded
 posture on its feet laid flat where the measured feet are (a static reference, like
 AutoBalancer's reference CoM); ``cp_error`` = actual CP - reference CP.
+
+While walking, the feet that carry the robot change every step and a swing foot leaves the
+ground on purpose; the CP then lies between the stance foot and where the swing foot will land
+(and must, for the robot's hips, which only abduct). A walking target therefore gives the
+monitor its *planned support* (:attr:`CapturePointMonitor.support_override`): the soles on the
+ground in this phase of the step, the swing foot counted at its landing place. The polygon is
+then their hull (flat on the ground, shrunk by the margin as before): the CP leaving it means
+the step cannot catch the robot. Without an override (standing, tasks) nothing changes.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numba as nb
 import numpy as np
@@ -46,6 +55,7 @@ CORNER_TOLERANCE_M = 0.005  # a sole corner higher than this above the lowest on
 CONTACT_HOLD_S = 0.05       # a foot still counts as down this long after its last contact
 VELOCITY_CUTOFF_HZ = 4.0  # hrpsys CoM velocity low-pass
 SOLE_FRAMES = ("right_sole", "left_sole")
+CONTACT_LOSS_MIN_S = 0.020  # a foot unloaded longer than this while standing: a contact loss
 
 
 @nb.njit(cache=True, nogil=True)
@@ -196,7 +206,16 @@ class CapturePointMonitor(Module):
     Attributes after each update: ``com_m`` (3,), ``cp_m`` (2,), ``cp_ref_m`` (2,),
     ``outside_m`` (CP beyond the shrunk polygon, m; > 0 = flag), ``ground_z_m`` (lowest sole
     in contact), ``support_box_m`` (min x, max x, min y, max y of the soles in contact taken
-    flat, shrunk by the margin: the nominal thresholds), ``flag``.
+    flat, shrunk by the margin: the nominal thresholds), ``flag``; over the run (the live
+    view): ``min_margin_m`` and ``min_margin_t_s`` (the capture point's smallest distance inside
+    the support polygon, unshrunk, and when), ``feet_loaded`` (the driver's contacts, right and
+    left, None unknown) and ``contact_losses`` (intervals longer than CONTACT_LOSS_MIN_S with a
+    foot unloaded).
+
+    ``support_override``: None (the measured soles in contact), or a function of the time (s)
+    returning the planned support's sole poses in the world (2 x 4 x 4: right, left; a swing
+    foot at its landing place) or None for the measured soles in that period. Set by a
+    walking target in its ``attach``.
     """
 
     name = "capture-point"
@@ -240,6 +259,16 @@ class CapturePointMonitor(Module):
         self.ground_z_m = 0.0
         self.support_box_m = np.zeros(4)
         self.flag = False
+        self.support_override: Callable[[float], np.ndarray | None] | None = None
+        self.reset_watch()
+
+    def reset_watch(self) -> None:
+        """Forget the run's worst margin and contact losses."""
+        self.min_margin_m = math.inf
+        self.min_margin_t_s: float | None = None
+        self.feet_loaded: tuple[bool, bool] | None = None
+        self.contact_losses = 0
+        self._unloaded_periods = 0
 
     def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
         self._prev_com = None
@@ -247,6 +276,22 @@ class CapturePointMonitor(Module):
         self.velocity_m_s = np.zeros(3)
         self.flag = False
         self._outside_periods = 0
+        self.reset_watch()
+
+    def watch(self, state: RobotState) -> None:
+        """The run's worst margin and contact losses (as the balance report counts them)."""
+        margin = self.margin_m - self.outside_m
+        if margin < self.min_margin_m:
+            self.min_margin_m, self.min_margin_t_s = margin, state.time_s
+        contact = state.feet_contact
+        self.feet_loaded = None if contact is None else (bool(contact[0]), bool(contact[1]))
+        if contact is None or all(contact):
+            self._unloaded_periods = 0
+            return
+        self._unloaded_periods += 1
+        lasted = self._unloaded_periods * self.dt_s
+        if lasted > CONTACT_LOSS_MIN_S + 1e-9 >= lasted - self.dt_s:
+            self.contact_losses += 1
 
     def _torso_pose(self, state: RobotState) -> np.ndarray:
         if state.T_world_torso is not None:
@@ -289,7 +334,11 @@ class CapturePointMonitor(Module):
                                                - self.velocity_m_s)
         self._prev_com = com
         self.com_m = com
-        outside, ground_z = _support(self._sole_pose, bool(contact[0]), bool(contact[1]),
+        poses = self._sole_pose
+        planned = None if self.support_override is None else self.support_override(state.time_s)
+        if planned is not None:
+            poses, contact = np.ascontiguousarray(planned, dtype=float), (True, True)
+        outside, ground_z = _support(poses, bool(contact[0]), bool(contact[1]),
                                      self._corners, com, self.velocity_m_s, self.margin_m,
                                      GRAVITY_M_S2, self.corner_tolerance_m, self.cp_m,
                                      self.support_box_m, self._flat_sole)
@@ -299,6 +348,7 @@ class CapturePointMonitor(Module):
             self.cp_ref_m = self._reference_com(q_cmd_rad, state, 0 if contact[0] else 1)
         self._outside_periods = self._outside_periods + 1 if outside > 0.0 else 0
         self.flag = self._outside_periods >= self.confirm_periods
+        self.watch(state)
         return self.flag
 
     def _reference_com(self, q_cmd_rad: np.ndarray, state: RobotState, foot: int) -> np.ndarray:

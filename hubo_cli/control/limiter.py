@@ -107,6 +107,13 @@ def limit_step(q_want, w_want, q1, q2, lower, upper, vmax, amax, dt, q_meas, v_m
         catching[i] = (clamped or catching[i]) and abs(out[i] - target) > 1e-12
 
 
+def ankle_indices(model: RobotModel) -> np.ndarray:
+    """Command indices of the ankle pitch and roll joints of both legs."""
+    names = model.joint_names
+    return np.array([names.index(model.limb(leg).joints[k]) for leg in ("right-leg", "left-leg")
+                     for k in (4, 5)], dtype=np.int64)
+
+
 class SoftErrorLimiter(Module):
     """The last module: velocity, acceleration, position and tracking-error limits per joint.
 
@@ -117,12 +124,14 @@ class SoftErrorLimiter(Module):
         limits: override the model's limits (tests).
 
     Flags: ``joint-limit`` (position band clamped), ``slowing`` (velocity or acceleration band),
-    ``tracking-error``. Info: ``limiter_clamped_count`` (number of joints clamped); attribute
-    ``clamped_periods`` counts the periods in which it changed the command.
+    ``tracking-error``. Info: ``limiter_clamped_count`` (number of joints clamped) and
+    ``limiter_ankle_clamped_count`` (of them, ankle pitch and roll joints); attributes
+    ``clamped_periods`` and ``ankle_clamped_periods`` count the periods in which it changed the
+    command (of any joint, of an ankle), ``periods`` the periods it ran.
     """
 
     name = "limiter"
-    log_columns = ("limiter_clamped_count",)
+    log_columns = ("limiter_clamped_count", "limiter_ankle_clamped_count")
 
     def __init__(self, model: RobotModel, dt_s: float,
                  error_limit_rad: float = TRACKING_ERROR_LIMIT_RAD,
@@ -137,6 +146,10 @@ class SoftErrorLimiter(Module):
         self._mask = np.zeros(n, dtype=np.int64)
         self._catching = np.zeros(n, dtype=np.bool_)
         self.clamped_periods = 0  # periods in which the limiter changed the command
+        self.ankle_clamped_periods = 0  # ... of an ankle joint
+        self.periods = 0
+        self._ankles = (ankle_indices(model) if n == len(model.joint_names)
+                        else np.zeros(0, dtype=np.int64))
         self._nan = np.full(n, np.nan)
         self._zeros = np.zeros(n)
         self._want_prev = np.zeros(n)
@@ -190,7 +203,12 @@ class SoftErrorLimiter(Module):
             if (mask & CLAMP_TRACKING).any():
                 cycle.flags.add("tracking-error")
         clamped = int(np.count_nonzero(mask))
+        ankles = int(np.count_nonzero(mask[self._ankles]))
+        self.periods += 1
         if clamped:
             self.clamped_periods += 1
+        if ankles:
+            self.ankle_clamped_periods += 1
         cycle.info["limiter_clamped_count"] = float(clamped)
+        cycle.info["limiter_ankle_clamped_count"] = float(ankles)
         return out

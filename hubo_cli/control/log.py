@@ -15,9 +15,11 @@ A run folder's log is three files:
   orientation then comes from the IMU); when the log knows the robot model, the measured hand
   frames in the world ``{right,left}_hand_{x,y,z}_m, ..._{roll,pitch,yaw}_rad`` (forward
   kinematics of the measured arm joints through the torso pose; NaN where the torso position is
-  unknown); then the modules' and the caller's extra columns (NaN when not reported that period;
-  e.g. a task's commanded and measured tool positions ``goal_*_m``, ``actual_*_m`` in its
-  stance frame).
+  unknown); the feet as the driver senses them: ``{right,left}_foot_fz_n`` (the ankle F/T
+  sensor's normal force) and ``{right,left}_foot_contact_flag`` (the driver's contact decision;
+  NaN where it has none); then the modules' and the caller's extra columns (NaN when not
+  reported that period; e.g. a task's commanded and measured tool positions ``goal_*_m``,
+  ``actual_*_m`` in its stance frame).
 * ``log.json`` (sidecar): the format name and version, the unit legend, the status codes, the
   joint names, the columns, the row count and the run's metadata (:meth:`PeriodLog.set_metadata`:
   e.g. ``scene`` with the walls, the tool per hand and the hole's points as cut). Written when
@@ -50,8 +52,12 @@ FORMAT_VERSION = 2
 FIXED_COLUMNS = ("period_count", "t_s", "status_code", "compute_us", "late_us", "flags")
 POSE_AXES = ("x_m", "y_m", "z_m", "roll_rad", "pitch_rad", "yaw_rad")
 HAND_ARMS = {"right_hand": "right-arm", "left_hand": "left-arm"}
+FEET_COLUMNS = ("right_foot_fz_n", "left_foot_fz_n", "right_foot_contact_flag",
+                "left_foot_contact_flag")
+FEET_SENSORS = ("right-ankle", "left-ankle")
 UNIT_LEGEND = ("units in column names: _s seconds, _us microseconds, _rad radians, _m metres, "
-               "_nm newton metres, _deg degrees, _count count, _code enumeration, _flag 0/1")
+               "_n newtons, _nm newton metres, _deg degrees, _count count, _code enumeration, "
+               "_flag 0/1")
 
 
 def _float_text(value: float, spec: str) -> str:
@@ -102,6 +108,17 @@ def _pose_values(T: np.ndarray) -> list[float]:
     return [float(T[0, 3]), float(T[1, 3]), float(T[2, 3]), *rpy_from_rotation(T[:3, :3])]
 
 
+def _feet_values(state) -> list[float]:
+    """The FEET_COLUMNS of a state: the ankles' F_z (N) and the contact flags (NaN unknown)."""
+    values = []
+    for sensor in FEET_SENSORS:
+        wrench = state.ft.get(sensor)
+        values.append(math.nan if wrench is None else float(wrench[2]))
+    contact = state.feet_contact
+    values += [math.nan, math.nan] if contact is None else [float(bool(c)) for c in contact]
+    return values
+
+
 def status_codes() -> dict[int, str]:
     """Status code -> label, as written in the sidecar."""
     return {s.value: s.label for s in Status}
@@ -125,7 +142,8 @@ class PeriodLog:
         self.parquet_path = self.path.with_suffix(".parquet")
         self.joint_names = tuple(joint_names)
         self._hands = self._hand_kinematics(model)
-        pose_names = pose_columns("torso") + sum((pose_columns(f) for f in self._hands), ())
+        pose_names = (pose_columns("torso") + sum((pose_columns(f) for f in self._hands), ())
+                      + FEET_COLUMNS)
         self.extra_columns = tuple(c for c in dict.fromkeys(extra_columns)
                                    if c not in pose_names)
         joints = self.joint_names
@@ -169,7 +187,7 @@ class PeriodLog:
         q = np.asarray(q_rad, dtype=float)
         for limb, index in self._hands.values():
             values += _pose_values(T_world_torso @ limb.fk(q[index]))
-        return values
+        return values + _feet_values(state)
 
     def _body_format(self, values: list) -> str:
         """The row's format: ``%.1f`` where a value is a whole number (cached per pattern)."""

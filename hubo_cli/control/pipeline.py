@@ -6,7 +6,8 @@ project's modules the default is::
     otg -> capture-point -> estop -> balance -> collision -> hard-estop -> limiter
 
 ``otg`` (ruckig) is the sequence player, ``estop`` the soft emergency stopper, ``balance`` the
-ankle balancer (in place of abc/st), ``collision`` the collision detector, ``hard-estop`` the
+ankle balancer (in place of abc/st; ``stabilizer``, the CoM/ZMP feedback on the waist, can
+follow it), ``collision`` the collision detector, ``hard-estop`` the
 second stopper (freeze preset, reacting only to the ``hard`` source) and ``limiter`` the soft
 error limiter. The capture-point monitor passes the command through; it sits before ``estop``
 so that its request is seen in the same period. ``hoff-arbib`` can replace ``otg``.
@@ -19,7 +20,7 @@ command builds its pipeline through one, so ``--no-estop`` means the same everyw
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from hubo_cli.control.balance import BALANCE_MODES
 from hubo_cli.control.estop import SOFT_SOURCES
@@ -27,6 +28,7 @@ from hubo_cli.control.module import Module
 from hubo_cli.errors import ConfigError
 from hubo_cli.model import RobotModel
 
+BALANCE_CHOICES = (*BALANCE_MODES, "off")  # ``--balance``: a balancer's mode, or none
 DEFAULT_ORDER = ("otg", "capture-point", "estop", "balance", "collision", "hard-estop",
                  "limiter")
 GENERATORS = ("otg", "hoff-arbib")
@@ -62,6 +64,11 @@ def _balance(model, dt_s, **options):
     return make_balancer(model, **options)
 
 
+def _stabilizer(model, dt_s, **options):
+    from hubo_cli.control.stabilizer import Stabilizer
+    return Stabilizer(model, dt_s, **options)
+
+
 def _collision(model, dt_s, **options):
     from hubo_cli.control.collision import CollisionDetector
     return CollisionDetector(model, dt_s, **options)
@@ -83,6 +90,7 @@ FACTORIES: dict[str, Callable[..., Module]] = {
     "capture-point": _capture_point,
     "estop": _estop,
     "balance": _balance,
+    "stabilizer": _stabilizer,
     "collision": _collision,
     "hard-estop": _hard_estop,
     "limiter": _limiter,
@@ -151,6 +159,10 @@ class SafetyProfile:
         balance: run the ankle balancer.
         balance_mode: ``default`` (common + differential damping) or ``paper`` (eq. 11-12 as
             published); see :func:`hubo_cli.control.balance.make_balancer`.
+        stabilizer: with the default balancer, add the CoM/ZMP feedback on the waist
+            (:class:`hubo_cli.control.stabilizer.Stabilizer`); off by default (under the
+            legs' 0.6 rad/s^2 it does not yet help a 90 N push); the paper's mode runs
+            without it.
     """
 
     estop: bool = True
@@ -161,6 +173,7 @@ class SafetyProfile:
     interpolator: str = "otg"
     balance: bool = True
     balance_mode: str = "default"
+    stabilizer: bool = False
 
     def __post_init__(self) -> None:
         if self.balance_mode not in BALANCE_MODES:
@@ -171,6 +184,21 @@ class SafetyProfile:
             raise ConfigError(f"unknown emergency-stop source {sorted(unknown)[0]!r}",
                               hint=f"use some of {', '.join(SOFT_SOURCES)}")
 
+    @property
+    def balance_choice(self) -> str:
+        """The balancer as ``--balance`` names it: its mode, or ``off``."""
+        return self.balance_mode if self.balance else "off"
+
+    def with_balance(self, choice: str) -> SafetyProfile:
+        """This profile with the balancer ``--balance CHOICE`` names (one of BALANCE_CHOICES:
+        ``default``, ``paper`` or ``off``)."""
+        if choice not in BALANCE_CHOICES:
+            raise ConfigError(f"unknown balance choice {choice!r}",
+                              hint=f"use one of {', '.join(BALANCE_CHOICES)}")
+        if choice == "off":
+            return replace(self, balance=False)
+        return replace(self, balance=True, balance_mode=choice)
+
     def order(self) -> tuple[str, ...]:
         """Module names, first to last."""
         dropped = set()
@@ -178,7 +206,11 @@ class SafetyProfile:
             dropped.add("estop")
         if not self.balance:
             dropped.add("balance")
-        return tuple(n for n in DEFAULT_ORDER if n not in dropped)
+        order = tuple(n for n in DEFAULT_ORDER if n not in dropped)
+        if self.stabilizer and self.balance and self.balance_mode != "paper":
+            k = order.index("balance") + 1  # hrpsys: abc -> st
+            order = order[:k] + ("stabilizer",) + order[k:]
+        return order
 
     def options(self, tools: Mapping[str, str]) -> dict[str, dict]:
         """Per-module options for a robot holding ``tools`` (arm -> tool)."""
@@ -190,6 +222,7 @@ class SafetyProfile:
             "capture-point": {"request_estop": self.estop, "drill": drill},
             "collision": {"drill": drill},
             "balance": {"mode": self.balance_mode, "drill": drill},
+            "stabilizer": {"drill": drill},
         }
 
     def build(self, model: RobotModel, dt_s: float, tools: Mapping[str, str]) -> list[Module]:

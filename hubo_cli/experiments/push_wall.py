@@ -264,8 +264,8 @@ def _summary(spec: PushSpec, estop: bool, targets: PushTargets, loop: LoopResult
 
 def push_wall_setup(model: RobotModel, direction: str = "forward", estop: bool = True,
                     out: str | Path | None = None, gui: bool = False,
-                    end_s: float | None = None, interpolator: str = "otg"
-                    ) -> tuple[RunSetup, PushSpec]:
+                    end_s: float | None = None, interpolator: str = "otg",
+                    balance: str = "default") -> tuple[RunSetup, PushSpec]:
     """The experiment's run set-up (the simulated robot, both hands free, the stopper
     listening to the operator and the capture point) and its push."""
     spec = push_spec(direction)
@@ -276,14 +276,15 @@ def push_wall_setup(model: RobotModel, direction: str = "forward", estop: bool =
         command=f"push-wall-{direction}-{'estop' if estop else 'no-estop'}", model=model,
         tools={"right-arm": "hand", "left-arm": "hand"}, driver="sim",
         safety=SafetyProfile(estop=estop, sources=("operator", "capture-point"),
-                             interpolator=interpolator),
+                             interpolator=interpolator).with_balance(balance),
         gui=gui, out=out, duration_s=spec.end_s, q_start_rad=start_posture(model, spec))
     return setup, spec
 
 
 def run_push_wall(model: RobotModel, direction: str = "forward", estop: bool = True,
                   out: str | Path | None = None, gui: bool = False, end_s: float | None = None,
-                  interpolator: str = "otg", perturb_seed: int | None = None) -> RunResult:
+                  interpolator: str = "otg", perturb_seed: int | None = None,
+                  balance: str = "default") -> RunResult:
     """Run the experiment on the simulated robot and write its run folder.
 
     Args:
@@ -295,8 +296,10 @@ def run_push_wall(model: RobotModel, direction: str = "forward", estop: bool = T
         end_s: shorten (or lengthen) the run (s).
         interpolator: the first module, ``otg`` (ruckig) or ``hoff-arbib`` (eq. 1).
         perturb_seed: a perturbed simulated robot and world (:mod:`hubo_cli.perturb`).
+        balance: the balancer, ``default``, ``paper`` or ``off`` (``--balance``).
     """
-    setup, spec = push_wall_setup(model, direction, estop, out, gui, end_s, interpolator)
+    setup, spec = push_wall_setup(model, direction, estop, out, gui, end_s, interpolator,
+                                  balance)
     setup = replace(setup, perturb_seed=perturb_seed)
     targets = PushTargets(model, spec, setup.q_start_rad)
     done = run(setup, targets)

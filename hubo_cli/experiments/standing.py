@@ -63,11 +63,12 @@ class StandingResult:
                                                   repr=False)
 
     def summary(self) -> dict:
-        """The headline numbers as a plain dict (for JSON)."""
+        """The headline numbers as a plain dict (for JSON; the run's common summary says which
+        balancer ran, ``balance``)."""
         return {"max_tilt_deg": self.max_tilt_deg, "feet_flat": self.feet_flat,
                 "fell": self.fell, "realtime_factor": self.realtime_factor,
                 "duration_s": self.duration_s, "simulated_s": self.simulated_s,
-                "push_n": self.push_n, "balance": self.balance,
+                "push_n": self.push_n,
                 "max_sole_tilt_deg": self.max_sole_tilt_deg,
                 "final_tilt_deg": self.final_tilt_deg, "physics_share": self.physics_share,
                 "max_feet_moment_difference_nm": self.max_feet_moment_difference_nm,

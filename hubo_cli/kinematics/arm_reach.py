@@ -14,6 +14,7 @@ import numpy as np
 
 from hubo_cli.errors import ConfigError
 from hubo_cli.kinematics import choice
+from hubo_cli.kinematics.conditioning import SingularityScale
 from hubo_cli.kinematics.limb import IKResult, Limb
 from hubo_cli.kinematics.reach import branch_of, on_branch
 
@@ -48,6 +49,8 @@ class ReachSettings:
             limit and another branch reaches the goal exactly (otherwise only on request).
         branch_move_fraction: a branch change moves the joints at this fraction of their
             velocity and acceleration limits.
+        singularity: how joint speeds slow near singular configurations
+            (:meth:`SingularityScale.off` for not at all).
     """
 
     mode: str = "nearest"
@@ -59,6 +62,7 @@ class ReachSettings:
     orientation_time_constant_s: float = 1.0
     allow_branch_change: bool = False
     branch_move_fraction: float = 0.25
+    singularity: SingularityScale = SingularityScale()
 
     @classmethod
     def for_mode(cls, teleop_mode: str, **changes) -> ReachSettings:

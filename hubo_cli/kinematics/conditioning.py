@@ -50,6 +50,11 @@ class SingularityScale:
     leaving_multiplier: float = 2.0
     floor: float = 0.5
 
+    @classmethod
+    def off(cls) -> SingularityScale:
+        """No slowing at all (``floor`` 1: joint speeds up to their limits everywhere)."""
+        return cls(floor=1.0)
+
     def scale(self, kappa_now: float, kappa_next: float) -> float:
         """The speed scale (floor..1) for a move from condition number now to next."""
         kappa = max(kappa_now, kappa_next)

@@ -64,34 +64,27 @@ def dh_transform(theta, alpha, a, d, out):
     out[3, 3] = 1.0
 
 
-@nb.njit(**JIT)
-def chain_fk(q, base, offset, alpha, a, d, end, out):
-    """out = base @ T_1(q1) ... T_6(q6) @ end: the end frame in the base's parent frame.
+@nb.njit(inline="always", **JIT)
+def dh_step(th, alpha, a, d, x0, x1, x2, y0, y1, y2, z0, z1, z2, p0, p1, p2):
+    """One DH joint applied to a frame kept as its axes (x, y, z) and origin p.
 
-    Allocation-free: the running frame is kept as its axes (x, y, z) and origin p, and each DH
-    step is applied as x' = c x + s y, y' = ca (-s x + c y) + sa z, z' = -sa (...) + ca z,
-    p' = p + d z + a x'.
+    x' = c x + s y, y' = ca (-s x + c y) + sa z, z' = -sa (-s x + c y) + ca z, p' = p + d z + a x'
+    with c, s = cos, sin(th) and ca, sa = cos, sin(alpha). Returns the 12 new components in the
+    argument order (x', y', z', p').
     """
-    x0, x1, x2 = base[0, 0], base[1, 0], base[2, 0]
-    y0, y1, y2 = base[0, 1], base[1, 1], base[2, 1]
-    z0, z1, z2 = base[0, 2], base[1, 2], base[2, 2]
-    p0, p1, p2 = base[0, 3], base[1, 3], base[2, 3]
-    for i in range(6):
-        th = q[i] + offset[i]
-        ct, st = math.cos(th), math.sin(th)
-        ca, sa = math.cos(alpha[i]), math.sin(alpha[i])
-        nx0 = ct * x0 + st * y0
-        nx1 = ct * x1 + st * y1
-        nx2 = ct * x2 + st * y2
-        w0 = -st * x0 + ct * y0
-        w1 = -st * x1 + ct * y1
-        w2 = -st * x2 + ct * y2
-        p0 = p0 + d[i] * z0 + a[i] * nx0
-        p1 = p1 + d[i] * z1 + a[i] * nx1
-        p2 = p2 + d[i] * z2 + a[i] * nx2
-        y0, y1, y2, z0, z1, z2 = (ca * w0 + sa * z0, ca * w1 + sa * z1, ca * w2 + sa * z2,
-                                  -sa * w0 + ca * z0, -sa * w1 + ca * z1, -sa * w2 + ca * z2)
-        x0, x1, x2 = nx0, nx1, nx2
+    ct, st = math.cos(th), math.sin(th)
+    ca, sa = math.cos(alpha), math.sin(alpha)
+    nx0, nx1, nx2 = ct * x0 + st * y0, ct * x1 + st * y1, ct * x2 + st * y2
+    w0, w1, w2 = -st * x0 + ct * y0, -st * x1 + ct * y1, -st * x2 + ct * y2
+    return (nx0, nx1, nx2,
+            ca * w0 + sa * z0, ca * w1 + sa * z1, ca * w2 + sa * z2,
+            -sa * w0 + ca * z0, -sa * w1 + ca * z1, -sa * w2 + ca * z2,
+            p0 + d * z0 + a * nx0, p1 + d * z1 + a * nx1, p2 + d * z2 + a * nx2)
+
+
+@nb.njit(inline="always", **JIT)
+def end_frame(x0, x1, x2, y0, y1, y2, z0, z1, z2, p0, p1, p2, end, out):
+    """out = [x y z p; 0 0 0 1] @ end: the end frame after the last joint (4x4)."""
     for j in range(4):
         e0, e1, e2 = end[0, j], end[1, j], end[2, j]
         out[0, j] = x0 * e0 + y0 * e1 + z0 * e2
@@ -104,6 +97,23 @@ def chain_fk(q, base, offset, alpha, a, d, end, out):
     out[3, 1] = 0.0
     out[3, 2] = 0.0
     out[3, 3] = 1.0
+
+
+@nb.njit(**JIT)
+def chain_fk(q, base, offset, alpha, a, d, end, out):
+    """out = base @ T_1(q1) ... T_6(q6) @ end: the end frame in the base's parent frame.
+
+    Allocation-free: the running frame is kept as its axes and origin (:func:`dh_step`).
+    """
+    x0, x1, x2 = base[0, 0], base[1, 0], base[2, 0]
+    y0, y1, y2 = base[0, 1], base[1, 1], base[2, 1]
+    z0, z1, z2 = base[0, 2], base[1, 2], base[2, 2]
+    p0, p1, p2 = base[0, 3], base[1, 3], base[2, 3]
+    for i in range(6):
+        x0, x1, x2, y0, y1, y2, z0, z1, z2, p0, p1, p2 = dh_step(
+            q[i] + offset[i], alpha[i], a[i], d[i], x0, x1, x2, y0, y1, y2, z0, z1, z2,
+            p0, p1, p2)
+    end_frame(x0, x1, x2, y0, y1, y2, z0, z1, z2, p0, p1, p2, end, out)
 
 
 @nb.njit(parallel=True, **JIT)

@@ -33,7 +33,7 @@ import math
 import numba as nb
 import numpy as np
 
-from hubo_cli.kinematics.dh import JIT
+from hubo_cli.kinematics.dh import JIT, dh_step, end_frame
 
 BRANCH_EPS = 1e-3      # |sin theta4|, |cos theta5|, |cos theta2| below this match either branch
 MAX_STEP_RAD = 0.2     # trust region: no joint moves more than this in one iteration
@@ -113,29 +113,10 @@ def jacobian(q, base, offset, alpha, a, d, end, T_out, J_out):
     for i in range(6):  # joint i turns about z of frame i-1, through its origin
         zs[i, 0], zs[i, 1], zs[i, 2] = z0, z1, z2
         ps[i, 0], ps[i, 1], ps[i, 2] = p0, p1, p2
-        th = q[i] + offset[i]
-        ct, st = math.cos(th), math.sin(th)
-        ca, sa = math.cos(alpha[i]), math.sin(alpha[i])
-        nx0, nx1, nx2 = ct * x0 + st * y0, ct * x1 + st * y1, ct * x2 + st * y2
-        w0, w1, w2 = -st * x0 + ct * y0, -st * x1 + ct * y1, -st * x2 + ct * y2
-        p0 = p0 + d[i] * z0 + a[i] * nx0
-        p1 = p1 + d[i] * z1 + a[i] * nx1
-        p2 = p2 + d[i] * z2 + a[i] * nx2
-        y0, y1, y2, z0, z1, z2 = (ca * w0 + sa * z0, ca * w1 + sa * z1, ca * w2 + sa * z2,
-                                  -sa * w0 + ca * z0, -sa * w1 + ca * z1, -sa * w2 + ca * z2)
-        x0, x1, x2 = nx0, nx1, nx2
-    for j in range(4):
-        e0, e1, e2 = end[0, j], end[1, j], end[2, j]
-        T_out[0, j] = x0 * e0 + y0 * e1 + z0 * e2
-        T_out[1, j] = x1 * e0 + y1 * e1 + z1 * e2
-        T_out[2, j] = x2 * e0 + y2 * e1 + z2 * e2
-    T_out[0, 3] += p0
-    T_out[1, 3] += p1
-    T_out[2, 3] += p2
-    T_out[3, 0] = 0.0
-    T_out[3, 1] = 0.0
-    T_out[3, 2] = 0.0
-    T_out[3, 3] = 1.0
+        x0, x1, x2, y0, y1, y2, z0, z1, z2, p0, p1, p2 = dh_step(
+            q[i] + offset[i], alpha[i], a[i], d[i], x0, x1, x2, y0, y1, y2, z0, z1, z2,
+            p0, p1, p2)
+    end_frame(x0, x1, x2, y0, y1, y2, z0, z1, z2, p0, p1, p2, end, T_out)
     for i in range(6):
         r0 = T_out[0, 3] - ps[i, 0]
         r1 = T_out[1, 3] - ps[i, 1]

@@ -10,6 +10,18 @@ sole, fixed in S, is T_N_sole = Tz(-lift_m) T_S_sole.
 Algorithm: (1) take the goal heights; (2) lift = mean goal height - preferred working height,
 clipped to what the legs can do (knee kept inside [knee_min, knee_max] and the joint limits);
 legs solved with their IK; (3) arms solved in the new neck frame.
+
+CoM control (hrpsys AutoBalancer, standing; optional): the legs also move the torso forward or
+back by ``shift_m`` (upright, feet fixed), so the neck frame is N = S shifted by
+(shift_m, 0, lift_m), and the arms solve their goals in that N: the hands keep their goals in S.
+The shift is chosen so that the static balance point -- the ground projection of the CoM of the
+model's masses (pinocchio, the tool included), moved by the hands' expected forces as in the
+multi-layer paper's eq. 5-6 -- lies at the centre of the two soles. As hrpsys's
+``solveFullbodyIK`` does, each solve moves the waist by ``COM_GAIN`` x the balance point's error
+(:meth:`WholeBody.next_shift`); a caller that solves period by period passes the previous
+period's next shift, so the waist follows the arms continuously at the cost of one CoM per
+period. Sideways the hips' Table IV roll limits (0 in the standing posture) leave no room, so
+the shift is along x only.
 """
 
 from __future__ import annotations
@@ -18,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hubo_cli.errors import ConfigError
 from hubo_cli.kinematics.limb import IKResult, Limb
 from hubo_cli.model import ARMS, LEGS, RobotModel
 from hubo_cli.posture import home_posture
@@ -33,6 +46,9 @@ class WholeBodyResult:
         arms: per arm that had a goal, its IK result (in the lifted neck frame).
         legs: per leg, its IK result.
         lift_capped: True when the goal height needed more lift than the legs can give.
+        shift_m: how far the legs moved the neck forward over the feet (m, CoM control).
+        balance_error_m: support centre minus the static balance point along x (m) with this
+            solution (0 without CoM control).
     """
 
     q_rad: np.ndarray
@@ -40,6 +56,15 @@ class WholeBodyResult:
     arms: dict[str, IKResult]
     legs: dict[str, IKResult]
     lift_capped: bool
+    shift_m: float = 0.0
+    balance_error_m: float = 0.0
+
+
+GRAVITY_M_S2 = 9.80665
+COM_GAIN = 0.8         # hrpsys SimpleFullbodyInverseKinematicsSolver: 0.8 x the CoM error
+MAX_SHIFT_M = 0.12     # the waist's reach forward or back over the feet
+MAX_SHIFT_STEP_M = 0.0005  # per solve: 0.1 m/s at 200 Hz
+STEADY_ITERATIONS = 4
 
 
 class WholeBody:
@@ -51,11 +76,19 @@ class WholeBody:
         working_height_m: hand height in the neck frame the legs aim for (paper: 0, shoulder level).
         knee_range_rad: knee angles the height search may use (keeps clear of the straight-knee
             singularity and of deep crouches).
+        com_control: move the waist so the static balance point sits at the support centre
+            (see the module docstring).
+        support_offset_m: where along x the balance point should sit, from the soles' centre
+            (m); inside the soles.
+
+    Raises:
+        ConfigError: a support offset that puts the balance point outside the soles.
     """
 
     def __init__(self, model: RobotModel, tools: dict[str, str] | None = None,
                  working_height_m: float = 0.0,
-                 knee_range_rad: tuple[float, float] = (0.45, 1.6)) -> None:
+                 knee_range_rad: tuple[float, float] = (0.45, 1.6),
+                 com_control: bool = False, support_offset_m: float = 0.0) -> None:
         tools = tools or {}
         self.model = model
         self.tools = {name: tools.get(name, "hand") for name in ARMS}  # arm -> tool held
@@ -66,6 +99,33 @@ class WholeBody:
         self.T_S_sole = {name: leg.fk(self.q_home[model.limb_slice(name)])
                          for name, leg in self.legs.items()}
         self.lift_range_m = self._lift_range(knee_range_rad)
+        self.com_control = bool(com_control)
+        feet = model.feet
+        half = feet.length_m / 2
+        if not (np.isfinite(support_offset_m) and abs(support_offset_m) < half):
+            raise ConfigError(f"the balance point's offset {support_offset_m * 1000:+.0f} mm lies "
+                              f"outside the soles (+-{half * 1000:.0f} mm from their centre)",
+                              hint="use an offset inside the feet, e.g. 0")
+        sole_x = np.mean([T[0, 3] for T in self.T_S_sole.values()])
+        self.support_x_m = float(sole_x + feet.forward_m + support_offset_m)
+        self._ground_z_m = float(np.mean([T[2, 3] for T in self.T_S_sole.values()]))
+        self._pin = None
+        if self.com_control:
+            from hubo_cli.control.pin_robot import load_pin_robot
+
+            urdf = model.urdf_path()
+            if self.tools["right-arm"] == "drill":
+                urdf = urdf.with_name(urdf.stem + "-drill.urdf")
+            # floating, the torso at the origin: a fixed base would leave the torso's mass out
+            self._pin = load_pin_robot(model, floating=True, urdf_path=urdf)
+            self._pin_data = self._pin.model.createData()
+            import pinocchio
+
+            self._weight_n = float(pinocchio.computeTotalMass(self._pin.model)) * GRAVITY_M_S2
+            # how far the balance point moves per metre of waist shift (the legs' own mass
+            # moves less than the torso's): about 0.7, measured once at the home posture
+            moved = [self._solve({}, None, None, s, None).balance_error_m for s in (0.0, 0.01)]
+            self.shift_gain = float((moved[0] - moved[1]) / 0.01)
 
     def _lift_range(self, knee_range_rad: tuple[float, float]) -> tuple[float, float]:
         """Neck lift (m) at the two knee bounds, legs symmetric, soles flat under the hips."""
@@ -85,6 +145,40 @@ class WholeBody:
         sl = self.model.limb_slice("right-leg")
         return float(self.T_S_sole["right-leg"][2, 3] - self.legs["right-leg"].fk(q_rad[sl])[2, 3])
 
+    def shift_of(self, q_rad: np.ndarray) -> float:
+        """The neck's shift forward over the feet (m) that the leg joints of a full joint
+        vector produce (right leg; CoM control)."""
+        sl = self.model.limb_slice("right-leg")
+        return float(self.T_S_sole["right-leg"][0, 3] - self.legs["right-leg"].fk(q_rad[sl])[0, 3])
+
+    def balance_point_x(self, q_rad: np.ndarray, shift_m: float,
+                        T_S_goal: dict[str, np.ndarray] | None = None,
+                        hand_forces_n: dict[str, np.ndarray] | None = None) -> float:
+        """The static balance point along x in S (m): the CoM's ground projection, moved by
+        the forces the environment exerts on the hands (N, in S, at their goals) as in the
+        multi-layer paper's eq. 5-6: p = (W x_G + sum(z_h F_x - x_h F_z)) / (W - sum F_z)."""
+        import pinocchio
+
+        q = self._pin.configuration(q_rad, None)
+        com_x = float(pinocchio.centerOfMass(self._pin.model, self._pin_data, q, False)[0])
+        x_g = com_x + shift_m
+        if not hand_forces_n:
+            return x_g
+        num, den = self._weight_n * x_g, self._weight_n
+        for arm, force in hand_forces_n.items():
+            x_h, z_h = float(T_S_goal[arm][0, 3]), float(T_S_goal[arm][2, 3]) - self._ground_z_m
+            num += z_h * float(force[0]) - x_h * float(force[2])
+            den -= float(force[2])
+        return num / den
+
+    def next_shift(self, result: WholeBodyResult) -> float:
+        """The shift (m) to solve the next period with: the waist moved by ``COM_GAIN`` x what
+        the balance error needs, at most ``MAX_SHIFT_STEP_M`` per solve, within ``MAX_SHIFT_M``."""
+        step = float(np.clip(COM_GAIN * result.balance_error_m / self.shift_gain,
+                             -MAX_SHIFT_STEP_M,
+                             MAX_SHIFT_STEP_M))
+        return float(np.clip(result.shift_m + step, -MAX_SHIFT_M, MAX_SHIFT_M))
+
     def lift_for(self, T_S_goal: dict[str, np.ndarray]) -> float:
         """The lift (m) the legs aim for with these goals: mean goal height minus the working
         height, within the legs' range."""
@@ -93,7 +187,8 @@ class WholeBody:
         return float(np.clip(wanted, *self.lift_range_m))
 
     def solve(self, T_S_goal: dict[str, np.ndarray], q_prev_rad: np.ndarray | None = None,
-              lift_m: float | None = None) -> WholeBodyResult:
+              lift_m: float | None = None, shift_m: float | None = None,
+              hand_forces_n: dict[str, np.ndarray] | None = None) -> WholeBodyResult:
         """Solve goals for one or both arms (arm name -> T_S_E, 4x4 m).
 
         Args:
@@ -101,7 +196,24 @@ class WholeBody:
             q_prev_rad: previous full joint vector; home posture if None.
             lift_m: impose the legs' lift (m, clipped to their range) instead of deriving it
                 from the goal heights (e.g. while moving between postures).
+            shift_m: the waist's shift forward over the feet to solve with (m; e.g. the
+                previous period's :meth:`next_shift`, or a task's constant shift); None: with
+                CoM control the steady shift for these goals (iterated), else 0.
+            hand_forces_n: with CoM control, the forces the environment is expected to exert
+                on the hands (arm -> 3-vector in S, N), e.g. a drill's thrust.
         """
+        if shift_m is not None:
+            return self._solve(T_S_goal, q_prev_rad, lift_m, float(shift_m), hand_forces_n)
+        if not self.com_control:
+            return self._solve(T_S_goal, q_prev_rad, lift_m, 0.0, None)
+        shift = 0.0
+        for _ in range(STEADY_ITERATIONS):
+            result = self._solve(T_S_goal, q_prev_rad, lift_m, shift, hand_forces_n)
+            shift = float(np.clip(shift + result.balance_error_m / self.shift_gain,
+                                  -MAX_SHIFT_M, MAX_SHIFT_M))
+        return self._solve(T_S_goal, q_prev_rad, lift_m, shift, hand_forces_n)
+
+    def _solve(self, T_S_goal, q_prev_rad, lift_m, shift_m, hand_forces_n) -> WholeBodyResult:
         q_prev = self.q_home if q_prev_rad is None else np.asarray(q_prev_rad, dtype=float)
         q = q_prev.copy()
         heights = [float(T[2, 3]) for T in T_S_goal.values()]
@@ -110,21 +222,25 @@ class WholeBody:
             wanted = float(lift_m)
         lo, hi = self.lift_range_m
         lift = float(np.clip(wanted, lo, hi))
-        down = np.eye(4)
-        down[2, 3] = -lift
+        T_N_S = np.eye(4)
+        T_N_S[0, 3], T_N_S[2, 3] = -shift_m, -lift
         legs = {}
         for name, leg in self.legs.items():
             sl = self.model.limb_slice(name)
-            result = leg.solve(down @ self.T_S_sole[name], q_prev[sl])
+            result = leg.solve(T_N_S @ self.T_S_sole[name], q_prev[sl])
             legs[name] = result
             q[sl] = result.q_rad
         arms = {}
         for name, T_S_E in T_S_goal.items():
             sl = self.model.limb_slice(name)
-            result = self.arms[name].solve(down @ np.asarray(T_S_E, dtype=float), q_prev[sl])
+            result = self.arms[name].solve(T_N_S @ np.asarray(T_S_E, dtype=float), q_prev[sl])
             arms[name] = result
             q[sl] = result.q_rad
-        return WholeBodyResult(q, lift, arms, legs, lift_capped=bool(wanted != lift))
+        error = 0.0
+        if self.com_control:
+            error = self.support_x_m - self.balance_point_x(q, shift_m, T_S_goal, hand_forces_n)
+        return WholeBodyResult(q, lift, arms, legs, lift_capped=bool(wanted != lift),
+                               shift_m=float(shift_m), balance_error_m=float(error))
 
 
 class LiftFilter:

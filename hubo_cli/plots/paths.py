@@ -15,11 +15,19 @@ AXES = {"x": 0, "y": 1, "z": 2}
 
 def plot_path_comparison(commanded_m: np.ndarray, actual_m: np.ndarray, path: str | Path, *,
                          plane: str = "yz", title: str = "", rms_error_mm: float | None = None,
-                         mirror_first_axis: bool = True, frame: str = "the neck frame") -> Path:
-    """Plot two 3-D paths (N x 3, metres) projected on a plane, in millimetres.
+                         mirror_first_axis: bool = True, frame: str = "the neck frame",
+                         actual_label: str = "actual end effector",
+                         hole_m: np.ndarray | None = None,
+                         hole_rms_error_mm: float | None = None) -> Path:
+    """Plot two 3-D paths (N x 3, metres) projected on a plane, in millimetres, and where
+    given the hole the tool made in the world.
 
     Args:
         commanded_m, actual_m: the commanded and the actual end-effector positions.
+        actual_label: what the actual path is (e.g. the bit by the encoders' kinematics).
+        hole_m: the hole in the wall (M x 3, m, same frame): the bit's world path where its
+            flutes were in the wall; drawn as dots beside the other two.
+        hole_rms_error_mm: the hole's RMS error, printed on the plot when given.
         path: the PNG to write.
         plane: two axis letters, e.g. ``"yz"`` (the wall plane seen from behind the robot).
         title: the plot's title.
@@ -33,7 +41,11 @@ def plot_path_comparison(commanded_m: np.ndarray, actual_m: np.ndarray, path: st
     ax.plot(commanded_m[:, i] * 1000, commanded_m[:, j] * 1000, "--", color="#d62728", lw=1.6,
             label="commanded (operator / task)")
     ax.plot(actual_m[:, i] * 1000, actual_m[:, j] * 1000, "-", color="#1f77b4", lw=1.4,
-            alpha=0.9, label="actual end effector")
+            alpha=0.9, label=actual_label)
+    if hole_m is not None and len(hole_m):
+        ax.plot(hole_m[:, i] * 1000, hole_m[:, j] * 1000, ".", color="#8c564b", ms=3.0,
+                alpha=0.5, zorder=1, label="hole in the wall (bit in the world, flutes in the "
+                                           "wall)")
     if len(actual_m):
         ax.plot(actual_m[0, i] * 1000, actual_m[0, j] * 1000, "o", color="#2ca02c", ms=7,
                 label="start")
@@ -47,6 +59,8 @@ def plot_path_comparison(commanded_m: np.ndarray, actual_m: np.ndarray, path: st
     heading = title
     if rms_error_mm is not None:
         heading += f"\nRMS error {rms_error_mm:.2f} mm"
+    if hole_rms_error_mm is not None:
+        heading += f", hole {hole_rms_error_mm:.2f} mm"
     ax.set_title(heading)
     ax.legend(loc="best", fontsize=9)
     fig.tight_layout()

@@ -52,9 +52,11 @@ def check_task(spec: TaskSpec, model: RobotModel | None = None) -> Plan:
 
 def task_setup(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
                gui: bool = False, estop: bool = True,
-               driver_options: dict | None = None, perturb_seed: int | None = None) -> RunSetup:
+               driver_options: dict | None = None, perturb_seed: int | None = None,
+               balance: str = "default") -> RunSetup:
     """The run set-up of a checked plan: the plan's own model and tool, the task's safety
-    settings, a duration long enough for the plan and its settling waits."""
+    settings with the balancer ``balance`` names (``--balance``), a duration long enough for
+    the plan and its settling waits."""
     spec = plan.spec
     safety = spec.safety
     return RunSetup(
@@ -63,7 +65,8 @@ def task_setup(plan: Plan, *, driver: str = "sim", out: str | Path | None = None
         driver_options=dict(driver_options or {}),
         safety=SafetyProfile(estop=estop, sources=tuple(safety.estop_sources),
                              revert_s=safety.revert_s, stop_s=safety.stop_s,
-                             wrist_torque_limit_nm=safety.wrist_torque_limit_nm),
+                             wrist_torque_limit_nm=safety.wrist_torque_limit_nm
+                             ).with_balance(balance),
         gui=gui, out=out, q_start_rad=home_posture(plan.body.model),
         duration_s=plan.duration_s + 3 * SETTLE_TIMEOUT_S + 10.0,
         cutting={"coulomb_n": spec.scene.coulomb_n,
@@ -73,7 +76,8 @@ def task_setup(plan: Plan, *, driver: str = "sim", out: str | Path | None = None
 
 def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
              gui: bool = False, estop: bool = True, driver_options: dict | None = None,
-             on_start=None, perturb_seed: int | None = None) -> TaskRun:
+             on_start=None, perturb_seed: int | None = None,
+             balance: str = "default") -> TaskRun:
     """Run a checked plan and write its run folder.
 
     Args:
@@ -85,6 +89,7 @@ def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
         driver_options: passed to the driver (e.g. ``armed`` for hardware).
         on_start: called with the :class:`TaskTarget` once the robot has started (live view).
         perturb_seed: a perturbed simulated robot and world (:mod:`hubo_cli.perturb`).
+        balance: the balancer, ``default``, ``paper`` or ``off`` (``--balance``).
 
     Raises:
         SafetyError: the plan did not pass pre-flight (nothing moves).
@@ -93,21 +98,25 @@ def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
         raise SafetyError(plan.preflight.worst_per_step()[0].message(),
                           hint="the task was refused in pre-flight; nothing moved")
     setup = task_setup(plan, driver=driver, out=out, gui=gui, estop=estop,
-                       driver_options=driver_options, perturb_seed=perturb_seed)
+                       driver_options=driver_options, perturb_seed=perturb_seed,
+                       balance=balance)
     target = TaskTarget(plan)
     done = run(setup, target, on_start=on_start)
-    _write_task_copy(plan.spec, done.run_dir)
+    _write_task_copy(plan.spec, done.run_dir, balance)
     done.add_file("task.toml")
     summary = done.save_summary(summarise(plan, target, done))
     return TaskRun(done.run_dir, summary, done.loop, plan)
 
 
-def _write_task_copy(spec: TaskSpec, run_dir: Path) -> None:
-    """The task file as run; overridden parameters are noted at the top (``--set`` them)."""
+def _write_task_copy(spec: TaskSpec, run_dir: Path, balance: str = "default") -> None:
+    """The task file as run; overridden parameters and the balancer are noted at the top
+    (``--set`` them, ``--balance``)."""
     header = [f"# run of {spec.path}"]
     if spec.overridden:
         sets = " ".join(f"--set {k}={v}" for k, v in spec.overridden.items())
         header.append(f"# parameters changed for this run: hubo task run task.toml {sets}")
+    if balance != "default":
+        header.append(f"# balance controllers of this run: --balance {balance}")
     (run_dir / "task.toml").write_text("\n".join(header) + "\n" + spec.path.read_text())
 
 
@@ -125,6 +134,16 @@ def _plane_rms_mm(goal_m: np.ndarray, actual_m: np.ndarray) -> float | None:
         return None
     d = goal_m[:, 1:] - actual_m[:, 1:]
     return float(np.sqrt(np.mean(np.sum(d**2, axis=1))) * 1000)
+
+
+def _hole_in_wall_frame(log, target: TaskTarget, T_S_W: np.ndarray) -> np.ndarray | None:
+    """The hole as cut (the simulator's world points where the bit's flutes crossed the wall)
+    in the wall frame of the path plot, placed as the hole's RMS error places the bit's world
+    path; None without them."""
+    points = log.metadata.get("scene", {}).get("hole_world_m", [])
+    if not points or target.offset_world_m is None:
+        return None
+    return np.asarray(points, dtype=float) - target.offset_world_m - T_S_W[:3, 3]
 
 
 def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
@@ -145,12 +164,15 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
     stops = [e for e in result.safety_events if e[2] == "stop"]
     completed = result.ok and target.phase == "settle" and target.step_stopped is None
     T_S_W = plan.placement.T_S_W()
+    hole_rms = _plane_rms_mm(goal, world)
     if len(goal):
         rms = float(np.sqrt(np.mean(errors**2)) * 1000)
         plot_path_comparison(goal - T_S_W[:3, 3], actual - T_S_W[:3, 3], run_dir / "path.png",
                              plane="yz", frame="the wall frame",
                              title=f"{spec.name}: commanded vs actual drill bit while cutting",
-                             rms_error_mm=rms)
+                             rms_error_mm=rms, actual_label="bit by the encoders (FK)",
+                             hole_m=_hole_in_wall_frame(log, target, T_S_W),
+                             hole_rms_error_mm=hole_rms)
         done.add_file("path.png")
     plot_wrist_torque(log, run_dir / "wrist_torque.png", limit_nm=limit,
                       title=f"{spec.name}: wrist torque (limit {limit:g} N m)",
@@ -182,7 +204,7 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
         "max_error_mm": float(errors.max() * 1000) if len(errors) else None,
         "error_measured_by": "forward kinematics of the measured joints (bit position in S), "
                              "against the commanded bit position of the same period",
-        "hole_rms_error_mm": _plane_rms_mm(goal, world),
+        "hole_rms_error_mm": hole_rms,
         "hole_error_measured_by": "the bit's world position (simulation) in the wall plane, "
                                   "relative to where it stood when the wall was placed",
         "cut_samples": len(goal),
@@ -199,9 +221,11 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
 
 
 def run_experiment(spec: TaskSpec, *, out: str | Path | None = None, gui: bool = False,
-                   estop: bool | None = None, perturb_seed: int | None = None) -> TaskRun:
+                   estop: bool | None = None, perturb_seed: int | None = None,
+                   balance: str = "default") -> TaskRun:
     """Run an experiment task (its built-in procedure with the file's parameters);
-    ``estop`` (``--no-estop``) overrides the file's; ``perturb_seed`` perturbs the robot."""
+    ``estop`` (``--no-estop``) overrides the file's; ``perturb_seed`` perturbs the robot;
+    ``balance`` names the balancer (``--balance``)."""
     from hubo_cli.experiments.push_wall import run_push_wall
 
     params = spec.parameters
@@ -209,6 +233,6 @@ def run_experiment(spec: TaskSpec, *, out: str | Path | None = None, gui: bool =
     result = run_push_wall(load_model(), direction=str(params.get("direction", "forward")),
                            estop=estop, out=out, gui=gui,
                            interpolator=str(params.get("interpolator", "otg")),
-                           perturb_seed=perturb_seed)
+                           perturb_seed=perturb_seed, balance=balance)
     summary = result.save_summary({"task": spec.name, "parameters": params})
     return TaskRun(result.run_dir, summary, result.loop)

@@ -171,6 +171,7 @@ class TaskTarget(Target):
     def _measure(self, t_s: float, state, info: dict) -> None:
         T = self.body.arms[self.limb].fk(state.q_rad[self.slice])
         actual = T[:3, 3].copy()
+        actual[0] += self.plan.placement.shift_m  # the waist's CoM shift (0 without)
         actual[2] += self.body.lift_of(state.q_rad)
         self.torque_nm = wrist_torque_nm(state, self.sensor)
         running = self.phase != "raise"

@@ -52,6 +52,7 @@ class TeleopSettings:
         reach: how the arms behave at the edge of their reach (None: the mode's defaults).
         gui, baud, estop, driver_options: passed on.
         perturb_seed: a perturbed simulated robot and world (:mod:`hubo_cli.perturb`).
+        balance: the balancer, ``default``, ``paper`` or ``off`` (``--balance``).
     """
 
     replay: str | Path | None = None
@@ -71,6 +72,7 @@ class TeleopSettings:
     driver_options: dict = field(default_factory=dict)
     perturb_seed: int | None = None
     reach: ReachSettings | None = None
+    balance: str = "default"
 
 
 @dataclass
@@ -152,7 +154,8 @@ def teleop_setup(settings: TeleopSettings, body: WholeBody, duration_s: float | 
     """The session's run set-up: the solver's model and tools, live input in real time."""
     return RunSetup(
         command="teleop", model=body.model, tools=dict(body.tools), driver=settings.driver,
-        driver_options=dict(settings.driver_options), safety=SafetyProfile(estop=settings.estop),
+        driver_options=dict(settings.driver_options),
+        safety=SafetyProfile(estop=settings.estop).with_balance(settings.balance),
         speed=settings.speed, live_input=settings.port is not None, gui=settings.gui,
         out=settings.out, duration_s=duration_s, q_start_rad=home_posture(body.model),
         perturb_seed=settings.perturb_seed)

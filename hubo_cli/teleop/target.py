@@ -126,7 +126,8 @@ class TeleopTarget(Target):
             wall with the tool ready); in a simulator only.
         reach: how the arms behave at the edge of their reach (branch, nearest pose, paper);
             None: the mapping mode's defaults (:meth:`ReachSettings.for_mode`).
-        singularity: the speed scale near singular configurations (``reach="nearest"`` only).
+        singularity: the speed scale near singular configurations (``reach="nearest"`` only);
+            None: the reach settings' one.
     """
 
     def __init__(self, model: RobotModel, source: PoseSource, mapper: HandMapper,
@@ -168,7 +169,7 @@ class TeleopTarget(Target):
         self.hands = {arm: HandTrack() for arm in self.arms}
         self.reach_settings = reach or ReachSettings.for_mode(mapper.config.mode)
         self.reach = {arm: ArmReach(body.arms[arm], self.reach_settings) for arm in approach}
-        self.singularity = singularity or SingularityScale()
+        self.singularity = singularity or self.reach_settings.singularity
         self.rotation_errors_rad: dict[str, list[float]] = {arm: [] for arm in self.arms}
         self.path_times_s: dict[str, list[float]] = {arm: [] for arm in self.arms}
         self._t_solved_s: dict[str, float] = {}

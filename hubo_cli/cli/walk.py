@@ -1,0 +1,65 @@
+"""``hubo walk``: walk the simulated robot to a goal stance and report how it went."""
+
+from __future__ import annotations
+
+import math
+
+import click
+
+from hubo_cli.cli.options import balance_option_with, perturb_option
+from hubo_cli.cli.output import NO_ESTOP_HELP, console, print_json
+
+
+@click.command("walk")
+@click.option("--to", "goal", type=float, nargs=3, required=True, metavar="X Y YAW",
+              help="Goal stance relative to the start: forward (m), left (m), turn (rad, "
+                   "counter-clockwise).")
+@click.option("--corrections", type=click.IntRange(0, 5), default=1, show_default=True,
+              help="Walk again from where the feet stand when they slipped more than 5 mm or "
+                   "1 deg off the goal, up to this many times.")
+@click.option("--no-estop", is_flag=True, help=NO_ESTOP_HELP)
+@click.option("--gui", is_flag=True, help="Open the PyBullet window (runs in real time).")
+@click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
+@click.option("--out", type=click.Path(file_okay=False), default=None,
+              help="Run folder (default runs/<time>-walk).")
+@perturb_option
+@balance_option_with("off", "Walking: off by default (the standing balancers' reference "
+                            "assumes both feet down).")
+def walk(goal: tuple[float, float, float], corrections: int, no_estop: bool, gui: bool,
+         as_json: bool, out: str | None, perturb_seed: int | None, balance: str) -> None:
+    """Walk the simulated HUBO 2+ to a goal stance (ZMP preview control, footsteps, leg IK).
+
+    The robot starts standing in its walking posture (feet 0.26 m apart, 5 cm crouched) and
+    walks through the full pipeline: trajectory generator, capture-point monitor (on the
+    planned support), emergency stoppers, collision detector, limiter (the robot file's
+    `walking` limit set). Exit code 1 when it fell.
+
+    Example: hubo walk --to 1.0 0 0
+    """
+    from hubo_cli.experiments.walk import check_goal
+    from hubo_cli.experiments.walk import walk as walk_to
+    from hubo_cli.model import load_model
+    from hubo_cli.runs import reserved_run_dir
+
+    check_goal(goal)
+    with reserved_run_dir("walk", out) as run_dir:  # a bad --out fails before anything runs
+        result = walk_to(load_model(), goal, gui=gui, out=run_dir, estop=not no_estop,
+                         perturb_seed=perturb_seed, corrections=corrections,
+                         balance=balance)
+    fields = result.summary() | {"ended": result.ended, "estop_events": result.estop_events,
+                                 "run_dir": str(result.run_dir)}
+    if as_json:
+        print_json(fields)
+    else:
+        console.print(f"goal              {goal[0]:g} m forward, {goal[1]:g} m left, "
+                      f"{math.degrees(goal[2]):.1f} deg")
+        console.print(f"fell              {'YES' if result.fell else 'no'}")
+        console.print(f"steps             {result.steps} in {result.walking_s:.2f} s "
+                      f"({result.average_speed_m_s:.3f} m/s)")
+        console.print(f"final error       {result.final_error_mm:.1f} mm, "
+                      f"{result.final_error_deg:.2f} deg")
+        console.print(f"ZMP inside        {100 * result.zmp_inside_fraction:.1f} % of periods")
+        console.print(f"e-stop events     {result.estop_events}")
+        console.print(f"run folder        {result.run_dir} (log, snapshot.png, summary.json)")
+    if result.fell:
+        raise SystemExit(1)

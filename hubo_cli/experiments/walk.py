@@ -1,0 +1,140 @@
+"""The walking experiment: the simulated robot walks to a goal stance through the full
+pipeline (trajectory generator, capture-point monitor, emergency stoppers, collision detector,
+limiter) and we measure where it arrived, how fast, and where its ZMP was."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+from hubo_cli.control.pipeline import SafetyProfile
+from hubo_cli.errors import InputError
+from hubo_cli.model import RobotModel
+from hubo_cli.session import RunSetup, run
+from hubo_cli.walking.body import walking_posture
+from hubo_cli.walking.params import WalkingParams, walking_params
+from hubo_cli.walking.target import WalkTarget
+
+MAX_GOAL_M = 10.0
+
+
+@dataclass
+class WalkResult:
+    """What a walk showed.
+
+    Attributes:
+        fell: the torso fell (:func:`hubo_cli.falls.has_fallen`).
+        final_error_mm, final_error_deg: the final stance (midway between the soles) from the
+            goal.
+        steps: footsteps planned (all taken unless the run ended early).
+        average_speed_m_s: the goal's distance over the time from the start to the last
+            step's end.
+        zmp_inside_fraction: of the periods with a loaded sole, the share whose ZMP (ankle
+            force/torque) lay inside the loaded soles' convex hull by at least 1 mm. (The
+            ground cannot push outside the hull: a ZMP on its edge means a sole tipping.)
+        ended: how the loop ended.
+        run_dir: the run folder.
+    """
+
+    fell: bool
+    final_error_mm: float
+    final_error_deg: float
+    steps: int
+    average_speed_m_s: float
+    zmp_inside_fraction: float
+    walking_s: float
+    ended: str
+    estop_events: int
+    footsteps: list[dict]
+    run_dir: Path
+
+    def summary(self) -> dict:
+        return {"fell": self.fell, "final_error_mm": self.final_error_mm,
+                "final_error_deg": self.final_error_deg, "steps": self.steps,
+                "average_speed_m_s": self.average_speed_m_s,
+                "zmp_inside_fraction": self.zmp_inside_fraction, "walking_s": self.walking_s,
+                "footsteps": self.footsteps}
+
+
+def check_goal(goal: tuple[float, float, float]) -> None:
+    """Raise InputError unless the goal is finite and within MAX_GOAL_M and half a turn."""
+    x, y, yaw = goal
+    if not all(math.isfinite(v) for v in goal):
+        raise InputError(f"the goal must be finite numbers, got {goal}", hint="e.g. --to 1 0 0")
+    if math.hypot(x, y) > MAX_GOAL_M or abs(yaw) > math.pi:
+        raise InputError(f"the goal must lie within {MAX_GOAL_M:g} m and +-pi rad, got {goal}",
+                         hint="walk there in shorter legs")
+
+
+def walk(model: RobotModel, goal: tuple[float, float, float], *,
+         params: WalkingParams | None = None, gui: bool = False,
+         out: str | Path | None = None, estop: bool = True,
+         perturb_seed: int | None = None, corrections: int = 1,
+         balance: str = "off") -> WalkResult:
+    """Walk the simulated robot to ``goal`` = (forward m, left m, turn rad) from its stance.
+
+    Args:
+        model: the robot model; its ``walking`` limit set is used for the run.
+        goal: where the stance (midway between the soles) should end, relative to the start.
+        params: walking parameters (default the robot file's).
+        gui, out, estop, perturb_seed: as for every run (:class:`~hubo_cli.session.RunSetup`).
+        corrections: how many times to plan again from where the feet stand when the walk
+            ended off the goal (the feet slip a little on every step).
+        balance: the standing balancer, ``default``, ``paper`` or ``off`` (``--balance``; its
+            reference assumes both feet down and the CoM over them, which walking breaks: off
+            by default).
+    """
+    check_goal(goal)
+    from hubo_cli.model import load_model
+
+    walking_model = load_model(model.params_name, "walking")
+    params = params or walking_params(walking_model)
+    q_start, T_world_neck = walking_posture(walking_model, params.step_width_m, params.crouch_m)
+    if not 0 <= corrections <= 5:
+        raise InputError(f"corrections must be 0 to 5, got {corrections}", hint="e.g. 1")
+    target = WalkTarget(walking_model, params, goal, q_start, T_world_neck, corrections)
+    setup = RunSetup(command="walk", model=walking_model, driver="sim", gui=gui, out=out,
+                     safety=SafetyProfile(estop=estop).with_balance(balance), q_start_rad=q_start,
+                     perturb_seed=perturb_seed)
+    done = run(setup, target)
+    error_m, error_rad = target.final_error()
+    distance = math.hypot(goal[0], goal[1])
+    walking_s = target.walking_s
+    result = WalkResult(
+        fell=target.fell, final_error_mm=1000 * error_m, final_error_deg=math.degrees(error_rad),
+        steps=len(target.steps),
+        average_speed_m_s=distance / walking_s if walking_s > 0 else 0.0,
+        zmp_inside_fraction=(target.zmp_inside_periods / target.zmp_periods
+                             if target.zmp_periods else 0.0),
+        walking_s=walking_s, ended=done.loop.ended,
+        estop_events=len(done.summary["estop_events"]),
+        footsteps=[s.to_json() for s in target.steps], run_dir=done.run_dir)
+    done.save_summary(result.summary())
+    _plot(done, target, walking_model)
+    return result
+
+
+PLOT_NAME = "walk.png"
+
+
+def _plot(done, target: WalkTarget, model: RobotModel) -> None:
+    """Footprints with the CoM and ZMP paths (``walk.png`` in the run folder)."""
+    import numpy as np
+
+    from hubo_cli.plots.walk import plot_walk
+
+    log = done.log
+
+    def columns(x: str, y: str) -> np.ndarray:
+        return np.column_stack([np.asarray(log[x], dtype=float),
+                                np.asarray(log[y], dtype=float)])
+
+    footprints = [s.to_json() for s in target.start_feet] + [s.to_json() for s in target.steps]
+    plot_walk(footprints, model.feet.sole_corners_m(),
+              columns("walk.com_ref_x_m", "walk.com_ref_y_m"), columns("com_x_m", "com_y_m"),
+              columns("walk.zmp_ref_x_m", "walk.zmp_ref_y_m"),
+              columns("walk.zmp_x_m", "walk.zmp_y_m"), done.run_dir / PLOT_NAME,
+              title=f"walk to {target.goal_relative}: footprints, CoM and ZMP")
+    done.add_file(PLOT_NAME)
+    done.save_summary({})

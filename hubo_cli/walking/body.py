@@ -1,0 +1,162 @@
+"""From the walking pattern to joint targets: the neck placed so that the whole-body CoM
+follows the pattern's CoM, and the legs' closed-form IK reaching the soles from it.
+
+The torso stays upright at a constant height; its heading is the mean of the feet's. The
+neck's horizontal position is the pattern's CoM minus the CoM's offset from the neck, taken
+from the model's masses (pinocchio, the URDF) at the previous period's joints (a fixed-point
+iteration that converges within a few periods; the offset changes slowly). The arms keep the
+start posture.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from hubo_cli.control.pin_robot import load_pin_robot
+from hubo_cli.errors import InputError
+from hubo_cli.kinematics.limb import Limb
+from hubo_cli.model import LEGS, RobotModel
+from hubo_cli.posture import home_posture
+from hubo_cli.walking.footsteps import wrap_angle
+from hubo_cli.walking.gait import Gait
+
+SIDE_LEG = {"right": "right-leg", "left": "left-leg"}
+
+
+def yaw_matrix(yaw_rad: float) -> np.ndarray:
+    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def roll_matrix(roll_rad: float) -> np.ndarray:
+    c, s = math.cos(roll_rad), math.sin(roll_rad)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def pose_of_row(row: np.ndarray) -> np.ndarray:
+    """T_world_sole (4x4) of a (x, y, z, yaw) row, the sole flat."""
+    T = np.eye(4)
+    T[:3, :3] = yaw_matrix(float(row[3]))
+    T[:3, 3] = row[:3]
+    return T
+
+
+@dataclass(frozen=True)
+class JointPlan:
+    """Joint targets for a gait, one row per period.
+
+    Attributes:
+        q_rad: (n, joints) in ``model.joint_names`` order.
+        T_world_neck: (n, 4, 4) the torso pose the legs were solved for.
+        com_m: (n, 3) the whole-body CoM of those joints at that torso pose (pinocchio).
+        worst_ik_error_m: the largest distance between a sole goal and its FK.
+    """
+
+    q_rad: np.ndarray
+    T_world_neck: np.ndarray
+    com_m: np.ndarray
+    worst_ik_error_m: float
+
+
+class WalkingBody:
+    """Turns a :class:`Gait` into joint targets (see the module docstring).
+
+    Args:
+        model: the robot model.
+        q_start_rad: the start posture (arms keep it; it seeds the leg IK).
+        T_world_neck_start: the torso's pose at the start (its height is kept).
+        lean_rad_per_m: the torso rolls toward the stance foot by this much per metre of the
+            CoM's sideways offset from between the feet (see :func:`lean_rad`).
+    """
+
+    def __init__(self, model: RobotModel, q_start_rad: np.ndarray,
+                 T_world_neck_start: np.ndarray, lean_rad_per_m: float = 0.0) -> None:
+        self.model = model
+        self.lean_rad_per_m = float(lean_rad_per_m)
+        self.q_start = np.asarray(q_start_rad, dtype=float)
+        self.neck_z_m = float(T_world_neck_start[2, 3])
+        self.legs = {name: Limb(model, name) for name in LEGS}
+        self.slices = {name: model.limb_slice(name) for name in LEGS}
+        self.robot = load_pin_robot(model, floating=True)
+        self.data = self.robot.model.createData()
+        self._q_pin = np.zeros(self.robot.model.nq)
+
+    def com_in_neck(self, q_rad: np.ndarray) -> np.ndarray:
+        """The whole-body CoM in the neck frame (3,; m) for joints ``q_rad``."""
+        q = self.robot.configuration(q_rad, None, out=self._q_pin)
+        return pin.centerOfMass(self.robot.model, self.data, q, False).copy()
+
+    def solve(self, gait: Gait) -> JointPlan:
+        """Joint targets for every period of ``gait``.
+
+        Raises:
+            InputError: a sole the legs cannot reach (the step is too long for this posture).
+        """
+        n = gait.n
+        q_all = np.empty((n, len(self.q_start)))
+        T_all = np.empty((n, 4, 4))
+        com_all = np.empty((n, 3))
+        q = self.q_start.copy()
+        offset = self.com_in_neck(q)
+        worst = 0.0
+        for k in range(n):
+            right, left = gait.feet["right"][k], gait.feet["left"][k]
+            yaw = float(right[3]) + wrap_angle(float(left[3] - right[3])) / 2
+            sideways = (-math.sin(yaw) * (gait.com.com_m[k, 0] - (right[0] + left[0]) / 2)
+                        + math.cos(yaw) * (gait.com.com_m[k, 1] - (right[1] + left[1]) / 2))
+            R = yaw_matrix(yaw) @ roll_matrix(-self.lean_rad_per_m * sideways)
+            T_world_neck = np.eye(4)
+            T_world_neck[:3, :3] = R
+            for _ in range(2):  # the CoM offset at the joints being solved
+                T_world_neck[:2, 3] = gait.com.com_m[k] - (R @ offset)[:2]
+                T_world_neck[2, 3] = self.neck_z_m
+                T_neck_world = np.linalg.inv(T_world_neck)
+                for side, row in (("right", right), ("left", left)):
+                    name = SIDE_LEG[side]
+                    leg = self.legs[name]
+                    goal = T_neck_world @ pose_of_row(row)
+                    result = leg.solve(goal, q[self.slices[name]])
+                    if result.status not in ("exact", "capped") or result.position_error_m > 0.05:
+                        raise InputError(
+                            f"the {name} cannot reach its sole at t = {k * gait.period_s:.2f} s "
+                            f"({result.status}, {result.position_error_m * 1000:.0f} mm off)",
+                            hint="take shorter steps (walking.max_step_*_m in the robot file)")
+                    q[self.slices[name]] = result.q_rad
+                    worst = max(worst, result.position_error_m)
+                offset = self.com_in_neck(q)
+            q_all[k] = q
+            T_all[k] = T_world_neck
+            com_all[k] = T_world_neck[:3, :3] @ offset + T_world_neck[:3, 3]
+        return JointPlan(q_all, T_all, com_all, worst)
+
+
+def walking_posture(model: RobotModel, width_m: float, crouch_m: float
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """The posture walking starts and ends in: the home posture with the soles ``width_m``
+    apart (centre lines) and the torso ``crouch_m`` lower, soles flat and straight ahead.
+
+    Returns:
+        (q_rad, T_world_neck): the joints and the torso's pose in the world of the simulator
+        (origin on the floor under the neck, the soles on the floor at z = 0).
+    """
+    q = home_posture(model)
+    sole_z = None
+    for name, sign in (("right-leg", -1.0), ("left-leg", 1.0)):
+        leg, part = Limb(model, name), model.limb_slice(name)
+        T = leg.fk(q[part])
+        sole_z = float(T[2, 3])
+        T[1, 3] = sign * width_m / 2
+        T[2, 3] += crouch_m
+        result = leg.solve(T, q[part])
+        if not result.exact:
+            raise InputError(f"the {name} cannot stand {width_m * 1000:.0f} mm wide "
+                             f"{crouch_m * 1000:.0f} mm lower ({result.status})",
+                             hint="change walking.step_width_m or walking.crouch_m")
+        q[part] = result.q_rad
+    T_world_neck = np.eye(4)
+    T_world_neck[2, 3] = -sole_z - crouch_m
+    return q, T_world_neck

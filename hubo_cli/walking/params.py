@@ -1,0 +1,81 @@
+"""Walking parameters: the robot file's ``[walking]`` table, checked (see its comments for the
+sources)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, replace
+
+from hubo_cli.errors import ConfigError
+from hubo_cli.model import RobotModel
+
+
+@dataclass(frozen=True)
+class WalkingParams:
+    """Pattern-generator and footstep limits (SI units; every field a positive number).
+
+    Attributes:
+        preview_s: preview horizon of the ZMP controller (s).
+        zmp_weight, jerk_weight: the controller's weights Q_e and R.
+        step_width_m: nominal distance between the feet's centre lines (m).
+        max_step_forward_m, max_step_backward_m: how far a swing foot may land ahead of / behind
+            the stance foot (m).
+        max_step_lateral_m: change of the foot spacing in one step (m).
+        max_turn_rad: yaw of one turning step (rad).
+        single_support_s, double_support_s: the phases of one step (s).
+        start_s: first double support, the CoM moves over the first stance foot (s).
+        settle_s: after the last step, the CoM returns between the feet (s).
+        swing_height_m: sole clearance at mid-swing (m).
+        zmp_inset_m: in single support the ZMP reference lies this far inside the stance foot's
+            centre line, toward the other foot (m).
+        lean_rad_per_m: torso roll toward the stance foot per metre of the CoM's sideways
+            offset from between the feet (rad/m).
+        crouch_m: the torso walks this much lower than in the home posture (m).
+    """
+
+    preview_s: float
+    zmp_weight: float
+    jerk_weight: float
+    step_width_m: float
+    max_step_forward_m: float
+    max_step_backward_m: float
+    max_step_lateral_m: float
+    max_turn_rad: float
+    single_support_s: float
+    double_support_s: float
+    start_s: float
+    settle_s: float
+    swing_height_m: float
+    zmp_inset_m: float
+    lean_rad_per_m: float
+    crouch_m: float
+
+    @property
+    def step_s(self) -> float:
+        """One step: single plus double support (s)."""
+        return self.single_support_s + self.double_support_s
+
+    def with_changes(self, **changes: float) -> WalkingParams:
+        """A copy with some fields changed (checked like the file's values)."""
+        return _checked(replace(self, **changes), "overrides")
+
+
+def _checked(params: WalkingParams, where: str) -> WalkingParams:
+    for f in fields(params):
+        value = getattr(params, f.name)
+        if isinstance(value, bool) or not isinstance(value, int | float) \
+                or not (math.isfinite(value) and value > 0):
+            raise ConfigError(f"must be a positive number, got {value!r}", path=where,
+                              field=f"walking.{f.name}")
+    return params
+
+
+def walking_params(model: RobotModel) -> WalkingParams:
+    """The model's walking parameters (ConfigError names a missing or bad field)."""
+    raw = model.raw_walking
+    values = {}
+    for f in fields(WalkingParams):
+        if f.name not in raw:
+            raise ConfigError("missing key", path=str(model.source), field=f"walking.{f.name}")
+        values[f.name] = raw[f.name]
+    return _checked(WalkingParams(**values), str(model.source))

@@ -1,0 +1,229 @@
+"""The walking target: plans the walk from where the feet stand when the robot has started,
+then sends the pattern's joints one period at a time and measures what the robot did."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from hubo_cli.control.capture_point import CapturePointMonitor, convex_hull, outside_distance
+from hubo_cli.control.target import Target, TargetOutput
+from hubo_cli.drivers.base import SimulatedWorld
+from hubo_cli.errors import ConfigError
+from hubo_cli.falls import has_fallen
+from hubo_cli.geometry import tilt_rad_of_matrix
+from hubo_cli.model import RobotModel
+from hubo_cli.state import RobotState
+from hubo_cli.walking.body import JointPlan, WalkingBody
+from hubo_cli.walking.footsteps import Footstep, Stance, plan_footsteps, stance_of
+from hubo_cli.walking.gait import Gait, make_gait
+from hubo_cli.walking.params import WalkingParams
+
+ARRIVED_M = 0.005                  # closer than this to the goal stance needs no correction
+ARRIVED_RAD = math.radians(1.0)
+ZMP_INSIDE_MARGIN_M = 0.001  # a ZMP closer than this to the hull's edge counts as on it (a sole
+                             # tipping about that edge: the physics keeps the ZMP on the hull)
+LOADED_N = 10.0  # a sole carrying more than this counts in the measured ZMP and the support
+SOLES = (("right", "right_sole", "right-ankle"), ("left", "left_sole", "left-ankle"))
+
+
+def footstep_of(side: str, T_world_sole: np.ndarray) -> Footstep:
+    """The footstep a sole's world pose (4x4) stands on."""
+    return Footstep(side, float(T_world_sole[0, 3]), float(T_world_sole[1, 3]),
+                    math.atan2(T_world_sole[1, 0], T_world_sole[0, 0]))
+
+
+def measured_zmp(poses: dict[str, np.ndarray], wrenches: dict[str, np.ndarray],
+                 corners_m: np.ndarray) -> tuple[np.ndarray | None, float]:
+    """The ZMP from the ankles' force/torque (world x, y; None when no sole is loaded) and how
+    far it lies outside the loaded soles' convex hull (m; <= 0 inside).
+
+    Args:
+        poses: side -> T_world_sole (4x4).
+        wrenches: side -> [fx, fy, fz, mx, my, mz] of the ground on the sole, about the sole
+            frame's origin in sole axes (N, N m).
+        corners_m: the sole's corners in its own frame (4 x 3).
+    """
+    total, weighted, points = 0.0, np.zeros(2), []
+    for side, T in poses.items():
+        f = wrenches[side]
+        fz = float(f[2])
+        if not fz > LOADED_N:
+            continue
+        cop = T @ np.array([-f[4] / fz, f[3] / fz, 0.0, 1.0])  # p_x = -m_y/f_z, p_y = m_x/f_z
+        weighted += fz * cop[:2]
+        total += fz
+        points.extend((T[:3, :3] @ c + T[:3, 3])[:2] for c in corners_m)
+    if total == 0.0:
+        return None, math.inf
+    zmp = weighted / total
+    return zmp, float(outside_distance(convex_hull(np.array(points)), zmp))
+
+
+def planned_support(gait: Gait) -> np.ndarray:
+    """Per period the soles that carry the robot in this phase of the step, the swing foot at
+    its landing place: (n, 2, 4, 4) world poses (right, left), for the capture-point monitor."""
+    from hubo_cli.walking.body import pose_of_row
+
+    poses = np.empty((gait.n, 2, 4, 4))
+    for column, side in enumerate(("right", "left")):
+        rows = gait.feet[side].copy()
+        swinging = ~gait.support[:, column]
+        # a swing phase ends with the foot down: each swinging period takes the row where the
+        # swing ends (the next period on the ground)
+        landing = rows[-1].copy()
+        for i in range(gait.n - 1, -1, -1):
+            if swinging[i]:
+                rows[i] = landing
+            else:
+                landing = rows[i].copy()
+        rows[:, 2] = gait.feet[side][0, 2]
+        poses[:, column] = np.array([pose_of_row(r) for r in rows])
+    return poses
+
+
+class WalkTarget(Target):
+    """Walk to ``goal`` (forward, left, turn relative to the stance at the start).
+
+    The plan is made in :meth:`attach` from the soles' poses in the simulator; each period
+    sends the pattern's joints and logs the reference and measured ZMP and CoM. When the
+    pattern has ended (its last ``settle_s`` standing) and the feet, which slip a little on
+    every step, stand further than ARRIVED_M / ARRIVED_RAD from the goal, it plans again from
+    where they stand, up to ``corrections`` times. The run ends then, or on a fall.
+    """
+
+    log_columns = ("walk.zmp_ref_x_m", "walk.zmp_ref_y_m", "walk.com_ref_x_m",
+                   "walk.com_ref_y_m", "walk.zmp_x_m", "walk.zmp_y_m", "walk.zmp_outside_m",
+                   "walk.step", "walk.tilt_deg")
+
+    def __init__(self, model: RobotModel, params: WalkingParams, goal: tuple[float, float, float],
+                 q_start_rad: np.ndarray, T_world_neck_start: np.ndarray,
+                 corrections: int = 1) -> None:
+        self.model = model
+        self.params = params
+        self.goal_relative = goal
+        self.q_start = np.asarray(q_start_rad, dtype=float)
+        self.T_world_neck_start = T_world_neck_start
+        self.world: SimulatedWorld | None = None
+        self.gait: Gait | None = None
+        self.plan: JointPlan | None = None
+        self.start: Stance | None = None
+        self.goal: Stance | None = None
+        self.corners = model.feet.sole_corners_m()[:, :3]
+        self.k = 0
+        self.fell = False
+        self.zmp_periods = 0
+        self.zmp_inside_periods = 0
+        self.torso_z0_m: float | None = None
+        self.final_feet: dict[str, np.ndarray] = {}
+        self.steps: list[Footstep] = []
+        self.start_feet: list[Footstep] = []
+        self.corrections_left = int(corrections)
+        self.plan_start_s = 0.0
+        self.last_step_end_s = 0.0
+
+    def attach(self, world: SimulatedWorld | None, modules: Sequence) -> None:
+        if world is None:
+            raise ConfigError("walking needs the simulator (the soles' poses in the world)",
+                              hint="run it with the sim driver")
+        self.world = world
+        feet = self._measured_feet()
+        self.start_feet = [feet["right"], feet["left"]]
+        self.start = stance_of(feet["right"], feet["left"])
+        forward, left, turn = self.goal_relative
+        c, s = math.cos(self.start.yaw_rad), math.sin(self.start.yaw_rad)
+        self.goal = Stance(self.start.x_m + c * forward - s * left,
+                           self.start.y_m + s * forward + c * left, self.start.yaw_rad + turn)
+        self._plan(self.q_start, 0.0)
+        for module in modules:
+            if isinstance(module, CapturePointMonitor):
+                module.support_override = self.support_at
+
+    def _measured_feet(self) -> dict[str, Footstep]:
+        return {side: footstep_of(side, self.world.frame_pose(frame)) for side, frame, _ in SOLES}
+
+    def _plan(self, q_rad: np.ndarray, t_s: float) -> None:
+        """Plan the walk from where the feet stand now (the stance frame moves with them),
+        starting at loop time ``t_s`` from the commanded joints ``q_rad``."""
+        world = self.world
+        feet = self._measured_feet()
+        steps = plan_footsteps(feet["right"], feet["left"], self.goal, self.params)
+        T_world_neck = world.frame_pose("torso")
+        T_world_neck[2, 3] = self.T_world_neck_start[2, 3] if self.gait is None \
+            else self.plan.T_world_neck[-1, 2, 3]
+        body = WalkingBody(self.model, q_rad, T_world_neck, self.params.lean_rad_per_m)
+        sole_z = float(world.frame_pose("right_sole")[2, 3])
+        com = body.com_in_neck(q_rad)
+        com_world = T_world_neck[:3, :3] @ com + T_world_neck[:3, 3]
+        self.gait = make_gait(feet["right"], feet["left"], steps, self.params,
+                              self.model.control_period_s, float(com_world[2]) - sole_z, sole_z,
+                              self.model.feet.forward_m, com_start_m=com_world[:2])
+        self.plan = body.solve(self.gait)
+        self._support_poses = planned_support(self.gait)
+        self.plan_start_s = t_s
+        self.k = 0
+        self.steps.extend(steps)
+
+    def support_at(self, t_s: float) -> np.ndarray:
+        """The planned support at time ``t_s`` (see :func:`planned_support`)."""
+        k = int(round((t_s - self.plan_start_s) / self.gait.period_s))
+        return self._support_poses[min(max(k, 0), self.gait.n - 1)]
+
+    @property
+    def walking_s(self) -> float:
+        """From the start to the end of the last step's double support (s)."""
+        gait = self.gait
+        moving = np.nonzero(gait.step_index >= 0)[0]
+        if not len(moving):
+            return self.last_step_end_s
+        return self.plan_start_s + float((moving[-1] + 1) * gait.period_s)
+
+    def __call__(self, t_s: float, state: RobotState) -> TargetOutput:
+        if self.k >= self.gait.n and not self.fell and self.corrections_left > 0 \
+                and not self.arrived():
+            self.corrections_left -= 1
+            self.last_step_end_s = self.walking_s
+            self._plan(self.plan.q_rad[-1], t_s)
+        gait, plan, world = self.gait, self.plan, self.world
+        k = min(self.k, gait.n - 1)
+        self.k += 1
+        tilt = math.degrees(tilt_rad_of_matrix(state.T_world_torso[:3, :3]))
+        if self.torso_z0_m is None:
+            self.torso_z0_m = float(state.T_world_torso[2, 3])
+        if has_fallen(tilt, self.torso_z0_m - float(state.T_world_torso[2, 3])):
+            self.fell = True
+        poses = {side: world.frame_pose(frame) for side, frame, _ in SOLES}
+        zmp, outside = measured_zmp(poses, {side: state.ft[sensor]
+                                            for side, _, sensor in SOLES}, self.corners)
+        if zmp is not None:
+            self.zmp_periods += 1
+            self.zmp_inside_periods += outside <= -ZMP_INSIDE_MARGIN_M
+        self.final_feet = poses
+        info = {"walk.zmp_ref_x_m": float(gait.zmp_ref_m[k, 0]),
+                "walk.zmp_ref_y_m": float(gait.zmp_ref_m[k, 1]),
+                "walk.com_ref_x_m": float(gait.com.com_m[k, 0]),
+                "walk.com_ref_y_m": float(gait.com.com_m[k, 1]),
+                "walk.zmp_x_m": math.nan if zmp is None else float(zmp[0]),
+                "walk.zmp_y_m": math.nan if zmp is None else float(zmp[1]),
+                "walk.zmp_outside_m": outside if math.isfinite(outside) else math.nan,
+                "walk.step": float(gait.step_index[k]), "walk.tilt_deg": tilt,
+                "done": self.fell or (self.k >= gait.n and (self.corrections_left == 0
+                                                             or self.arrived()))}
+        return plan.q_rad[k], info
+
+    def arrived(self) -> bool:
+        """The feet stand within ARRIVED_M and ARRIVED_RAD of the goal stance."""
+        if not self.final_feet:
+            return False
+        error_m, error_rad = self.final_error()
+        return error_m <= ARRIVED_M and error_rad <= ARRIVED_RAD
+
+    def final_error(self) -> tuple[float, float]:
+        """The final stance's distance (m) and heading error (rad) from the goal."""
+        feet = {side: footstep_of(side, T) for side, T in self.final_feet.items()}
+        reached = stance_of(feet["right"], feet["left"])
+        return (math.hypot(reached.x_m - self.goal.x_m, reached.y_m - self.goal.y_m),
+                abs(math.atan2(math.sin(reached.yaw_rad - self.goal.yaw_rad),
+                               math.cos(reached.yaw_rad - self.goal.yaw_rad))))

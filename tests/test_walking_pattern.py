@@ -1,0 +1,180 @@
+"""Walking pattern: preview control, footsteps, swing feet and the legs' joints (no simulator)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from hubo_cli.control.capture_point import convex_hull, outside_distance
+from hubo_cli.errors import ConfigError, InputError
+from hubo_cli.model import load_model
+from hubo_cli.walking.body import WalkingBody, walking_posture
+from hubo_cli.walking.footsteps import Footstep, Stance, plan_footsteps, stance_of
+from hubo_cli.walking.gait import make_gait
+from hubo_cli.walking.params import walking_params
+from hubo_cli.walking.preview import com_from_zmp, preview_gains
+
+GOALS = [(1.0, 0.0, 0.0), (0.0, 0.3, 0.0), (0.5, 0.2, 0.5), (-0.2, -0.1, -0.4)]
+
+
+@pytest.fixture(scope="module")
+def walking_model():
+    return load_model(limits="walking")
+
+
+@pytest.fixture(scope="module")
+def params(walking_model):
+    return walking_params(walking_model)
+
+
+def start_feet(params):
+    w = params.step_width_m
+    return Footstep("right", 0.0, -w / 2, 0.0), Footstep("left", 0.0, w / 2, 0.0)
+
+
+def goal_stance(goal):
+    return Stance(*goal)
+
+
+def test_preview_gains_match_kajita():
+    """Kajita 2003 Fig. 6 (T = 5 ms, z_c = 0.8 m, Q = 1, R = 1e-6): the preview gain decays to
+    about zero within 1.6 s; the integral gain is positive and the first preview gain is -G_i."""
+    gains = preview_gains(0.005, 0.8, 1.6)
+    assert len(gains.preview) == 320
+    assert gains.integral > 0
+    assert gains.preview[0] == pytest.approx(-gains.integral)
+    assert abs(gains.preview[-1]) < 0.01 * abs(gains.preview[0])
+
+
+def test_preview_tracks_a_step_reference():
+    """A 0.1 m ZMP step seen 1.6 s ahead: the cart-table ZMP follows within 2 mm after the
+    step's first 0.1 s and the CoM ends on the new ZMP."""
+    gains = preview_gains(0.005, 0.6, 1.6)
+    ref = np.zeros((1200, 2))
+    ref[400:, 1] = 0.1
+    path = com_from_zmp(ref, gains)
+    error = np.abs(path.zmp_m - ref)[:, 1]
+    assert error[:380].max() < 0.005  # moving ahead of the step costs a small excursion
+    assert error[420:].max() < 0.002
+    assert path.com_m[-1, 1] == pytest.approx(0.1, abs=0.001)
+
+
+def test_preview_rejects_bad_settings():
+    with pytest.raises(ConfigError):
+        preview_gains(0.005, -0.6)
+    with pytest.raises(ConfigError):
+        com_from_zmp(np.full((10, 2), np.nan), preview_gains(0.005, 0.6))
+
+
+@pytest.mark.parametrize("goal", GOALS)
+def test_footsteps_respect_limits_and_end_at_goal(params, goal):
+    right, left = start_feet(params)
+    steps = plan_footsteps(right, left, goal_stance(goal), params)
+    assert len(steps) % 2 == 0 and steps
+    feet = {"right": right, "left": left}
+    for step in steps:
+        other = feet["left" if step.side == "right" else "right"]
+        seen = Stance(other.x_m, other.y_m, other.yaw_rad).relative(
+            Stance(step.x_m, step.y_m, step.yaw_rad))
+        forward, sideways, turn = seen
+        assert -params.max_step_backward_m - 1e-9 <= forward <= params.max_step_forward_m + 1e-9
+        # the feet stay apart (never crossed) and within the lateral limit of the nominal width
+        width = abs(sideways)
+        assert params.step_width_m - 2 * params.max_step_lateral_m - 1e-9 <= width
+        assert width <= params.step_width_m + 2 * params.max_step_lateral_m + 1e-9
+        assert abs(turn) <= params.max_turn_rad + 1e-9
+        # the hips only turn the toes out: the left foot's heading never below the right's
+        feet[step.side] = step
+        assert feet["left"].yaw_rad >= feet["right"].yaw_rad - 1e-9
+    end = stance_of(feet["right"], feet["left"])
+    assert math.hypot(end.x_m - goal[0], end.y_m - goal[1]) < 1e-9
+    assert end.yaw_rad == pytest.approx(goal[2], abs=1e-9)
+
+
+def test_no_steps_when_already_there(params):
+    right, left = start_feet(params)
+    assert plan_footsteps(right, left, Stance(0.0, 0.0, 0.0), params) == []
+
+
+def test_too_far_is_refused(params):
+    right, left = start_feet(params)
+    with pytest.raises(InputError):
+        plan_footsteps(right, left, Stance(100.0, 0.0, 0.0), params)
+
+
+@pytest.fixture(scope="module")
+def forward_gait(params):
+    right, left = start_feet(params)
+    steps = plan_footsteps(right, left, Stance(0.45, 0.0, 0.0), params)
+    return make_gait(right, left, steps, params, 0.005, 0.59, 0.0, 0.02)
+
+
+def test_pattern_zmp_tracks_and_stays_in_support(forward_gait, walking_model):
+    """The cart-table ZMP of the CoM path follows the reference within 3 mm after the lead-in
+    and lies inside the support polygon (the soles on the ground) in every period."""
+    gait = forward_gait
+    lead_in = int(round(1.0 / gait.period_s))
+    error = np.linalg.norm(gait.com.zmp_m - gait.zmp_ref_m, axis=1)
+    assert error[lead_in:].max() < 0.003
+    corners = walking_model.feet.sole_corners_m()
+    for k in range(lead_in, gait.n, 5):
+        points = []
+        for column, side in enumerate(("right", "left")):
+            if gait.support[k, column]:
+                x, y, _, yaw = gait.feet[side][k]
+                c, s = math.cos(yaw), math.sin(yaw)
+                points += [(x + c * px - s * py, y + s * px + c * py) for px, py, _ in corners]
+        assert outside_distance(convex_hull(np.array(points)), gait.com.zmp_m[k]) < -0.005
+
+
+def test_swing_feet_lift_and_land_flat(forward_gait, params):
+    gait = forward_gait
+    for column, side in enumerate(("right", "left")):
+        z = gait.feet[side][:, 2]
+        swinging = ~gait.support[:, column]
+        assert z[swinging].max() == pytest.approx(params.swing_height_m, rel=0.01)
+        assert np.all(z[~swinging] == 0.0)  # on the ground: flat on the floor
+        # the foot moves horizontally only while it is up
+        moving = np.linalg.norm(np.diff(gait.feet[side][:, :2], axis=0), axis=1) > 1e-9
+        assert np.all(z[1:][moving] >= 0.09 * params.swing_height_m)
+
+
+def test_joint_plan_reaches_the_feet_within_limits(forward_gait, walking_model, params):
+    """The legs' IK reaches every sole goal; the joints stay within the walking limit set's
+    velocity (0 < v <= limit) and the whole-body CoM follows the pattern's within 1 mm."""
+    q_start, T_world_neck = walking_posture(walking_model, params.step_width_m, params.crouch_m)
+    body = WalkingBody(walking_model, q_start, T_world_neck, params.lean_rad_per_m)
+    plan = body.solve(forward_gait)
+    assert plan.worst_ik_error_m < 1e-6
+    legs = slice(12, 24)
+    assert np.all(plan.q_rad[:, legs] >= walking_model.lower_rad[legs] - 1e-9)
+    assert np.all(plan.q_rad[:, legs] <= walking_model.upper_rad[legs] + 1e-9)
+    velocity = np.abs(np.diff(plan.q_rad, axis=0)) / forward_gait.period_s
+    assert np.all(velocity.max(axis=0) <= walking_model.velocity_rad_s + 1e-9)
+    assert np.abs(plan.com_m[:, :2] - forward_gait.com.com_m).max() < 0.001
+
+
+def test_capture_point_uses_the_planned_support(walking_model, params):
+    """With the left foot in the air (a swing) and the CoM between the feet, the measured
+    contacts alone put the CP outside the right sole; the walk's planned support (the swing
+    foot counted where it lands) keeps it inside. Without an override nothing changes."""
+    from hubo_cli.control.capture_point import CapturePointMonitor
+    from hubo_cli.state import RobotState
+    from hubo_cli.walking.body import pose_of_row
+
+    q, T_world_neck = walking_posture(walking_model, params.step_width_m, params.crouch_m)
+    monitor = CapturePointMonitor(walking_model, walking_model.control_period_s)
+
+    def flagged() -> bool:
+        monitor.reset(q, None)
+        return any([monitor.measure(RobotState(time_s=0.005 * k, q_rad=q, dq_rad_s=0 * q,
+                                               T_world_torso=T_world_neck,
+                                               feet_contact=(True, False)))
+                    for k in range(5)])
+
+    assert flagged() and monitor.outside_m > 0.03
+    w = params.step_width_m / 2
+    planned = np.array([pose_of_row(np.array([0.0, -w, 0.0, 0.0])),
+                        pose_of_row(np.array([0.1, w, 0.0, 0.0]))])
+    monitor.support_override = lambda t_s: planned
+    assert not flagged() and monitor.outside_m < -0.03

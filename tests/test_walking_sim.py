@@ -1,0 +1,49 @@
+"""One short walk on the simulated robot through the whole pipeline, driven by the CLI."""
+
+import json
+
+import pytest
+from click.testing import CliRunner
+
+from hubo_cli.cli.main import main
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def short_walk(tmp_path_factory):
+    """hubo walk --to 0.3 0 0 --corrections 0 --json: four steps, about 7.4 s simulated."""
+    out = tmp_path_factory.mktemp("walk") / "run"
+    result = CliRunner().invoke(main, ["walk", "--to", "0.3", "0", "0", "--corrections", "0",
+                                       "--json", "--out", str(out)])
+    return result, out
+
+
+def test_walk_prints_its_figures(short_walk):
+    result, _ = short_walk
+    assert result.exit_code == 0, result.output
+    fields = json.loads(result.output)
+    for key in ("fell", "final_error_mm", "final_error_deg", "steps", "average_speed_m_s",
+                "zmp_inside_fraction"):
+        assert key in fields
+    assert fields["steps"] == 4
+
+
+def test_walk_goes_forward_without_falling(short_walk):
+    result, out = short_walk
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["fell"] is False
+    assert summary["ended"] == "done"
+    assert summary["estop_events"] == []
+    assert summary["duration_s"] <= 10.0
+    assert "walk.png" in summary["files"] and (out / "walk.png").exists()
+    # four 75 mm steps: the stance moved most of the 0.3 m (the feet slip a few cm at most)
+    assert summary["final_error_mm"] < 60.0
+    last = summary["footsteps"][-1]
+    assert last["x_m"] == pytest.approx(0.3, abs=0.002)
+
+
+def test_walk_refuses_a_bad_goal():
+    result = CliRunner().invoke(main, ["walk", "--to", "inf", "0", "0"])
+    assert result.exit_code == 2
+    assert "finite" in result.output
