@@ -204,6 +204,73 @@ def _each(batch_kernel, values, item_shape: tuple[int, ...], out_item_shape: tup
     return batch_kernel(flat).reshape(lead + out_item_shape)
 
 
+# ------------------------------------------------------------------------------- one rotation
+# The same arithmetic as the kernels, in Python floats, for a single quaternion or matrix: the
+# simulator and the modules convert a few rotations every period, where the batch machinery
+# (array checks, the compiled call) costs more than the conversion. The results are identical
+# to the kernels' (tests/test_geometry.py compares them bit for bit).
+def _one_quat(values) -> tuple | list | None:
+    """The four numbers of a single quaternion (a (4,) array, tuple or list), else None."""
+    if isinstance(values, np.ndarray):
+        return values.tolist() if values.shape == (4,) else None
+    if (isinstance(values, (tuple, list)) and len(values) == 4
+            and all(isinstance(v, (float, int)) for v in values)):
+        return values
+    return None
+
+
+def _one_matrix(values) -> list[list[float]] | None:
+    """The rows of a single (3, 3) matrix given as an array, else None."""
+    if isinstance(values, np.ndarray) and values.shape == (3, 3):
+        return values.tolist()
+    return None
+
+
+def _quat_to_matrix_rows(w: float, x: float, y: float, z: float) -> np.ndarray:
+    n = math.sqrt(w * w + x * x + y * y + z * z)
+    w, x, y, z = w / n, x / n, y / n, z / n
+    return np.array((1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+                     2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+                     2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y))
+                    ).reshape(3, 3)
+
+
+def _matrix_rows_to_quat(R: list[list[float]]) -> np.ndarray:
+    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = R
+    d0 = 1.0 + m00 + m11 + m22
+    d1 = 1.0 + m00 - m11 - m22
+    d2 = 1.0 - m00 + m11 - m22
+    d3 = 1.0 - m00 - m11 + m22
+    if d0 >= d1 and d0 >= d2 and d0 >= d3:
+        q = [d0, m21 - m12, m02 - m20, m10 - m01]
+    elif d1 >= d2 and d1 >= d3:
+        q = [m21 - m12, d1, m01 + m10, m02 + m20]
+    elif d2 >= d3:
+        q = [m02 - m20, m01 + m10, d2, m12 + m21]
+    else:
+        q = [m10 - m01, m02 + m20, m12 + m21, d3]
+    n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    q = [v / n for v in q]
+    for v in q:  # canonical sign: the first non-zero component positive
+        if v != 0.0:
+            if v < 0.0:
+                q = [-c for c in q]
+            break
+    return np.array(q)
+
+
+def _matrix_rows_to_rpy(R: list[list[float]]) -> np.ndarray:
+    cos_pitch = float(np.hypot(R[0][0], R[1][0]))  # the C library's, as the kernel
+    roll = 0.0 if cos_pitch < GIMBAL_LOCK_COS else math.atan2(R[2][1], R[2][2])
+    pitch = math.atan2(-R[2][0], cos_pitch)
+    if cos_pitch >= NEAR_LOCK_COS:
+        yaw = math.atan2(R[1][0], R[0][0])
+    else:
+        cr, sr = math.cos(roll), math.sin(roll)
+        yaw = math.atan2(R[0][2] * sr - R[0][1] * cr, R[1][1] * cr - R[1][2] * sr)
+    return np.array((roll, pitch, yaw))
+
+
 def _rpy_array(roll_rad, pitch_rad, yaw_rad) -> np.ndarray:
     return np.stack(np.broadcast_arrays(*(np.asarray(a, dtype=np.float64)
                                           for a in (roll_rad, pitch_rad, yaw_rad))), axis=-1)
@@ -212,17 +279,27 @@ def _rpy_array(roll_rad, pitch_rad, yaw_rad) -> np.ndarray:
 # ------------------------------------------------------------------------------- quaternions
 def quat_wxyz_to_matrix(q_wxyz) -> np.ndarray:
     """Rotation matrices (..., 3, 3) of quaternions (..., 4) w, x, y, z (normalised here)."""
+    one = _one_quat(q_wxyz)
+    if one is not None:
+        return _quat_to_matrix_rows(*one)
     return _each(_quats_to_matrices, q_wxyz, (4,), (3, 3))
 
 
 def quat_xyzw_to_matrix(q_xyzw) -> np.ndarray:
     """Rotation matrices (..., 3, 3) of quaternions (..., 4) x, y, z, w (PyBullet's order)."""
+    one = _one_quat(q_xyzw)
+    if one is not None:
+        x, y, z, w = one
+        return _quat_to_matrix_rows(w, x, y, z)
     return quat_wxyz_to_matrix(np.asarray(q_xyzw, dtype=np.float64)[..., [3, 0, 1, 2]])
 
 
 def matrix_to_quat_wxyz(R) -> np.ndarray:
     """Canonical unit quaternions (..., 4) w, x, y, z of rotation matrices (..., 3, 3)
     (Shepperd's method: accurate for every rotation, half turns included)."""
+    one = _one_matrix(R)
+    if one is not None:
+        return _matrix_rows_to_quat(one)
     return _each(_matrices_to_quats, R, (3, 3), (4,))
 
 
@@ -254,6 +331,9 @@ def matrix_to_rpy(R) -> np.ndarray:
     """(..., 3) roll, pitch, yaw (rad) of rotation matrices (..., 3, 3), inverse of
     :func:`rpy_to_matrix`: roll and yaw in [-pi, pi], pitch in [-pi/2, pi/2]; roll = 0 at the
     gimbal lock (see the module docstring)."""
+    one = _one_matrix(R)
+    if one is not None:
+        return _matrix_rows_to_rpy(one)
     return _each(_matrices_to_rpys, R, (3, 3), (3,))
 
 

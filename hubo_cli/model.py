@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import tomllib
 from dataclasses import dataclass, field, fields
-from functools import cache
+from functools import cache, cached_property
 from pathlib import Path
 
 import numpy as np
@@ -151,25 +151,32 @@ class RobotModel:
             T[:3, 3] = [length_m * c, 0.0, -length_m * s]
         return T
 
-    @property
+    # The whole robot's limits in joint_names order: built once (the drivers clip every command
+    # to them), read-only so that no caller can change the cached copy.
+    def _all_limbs(self, per_limb) -> np.ndarray:
+        values = np.concatenate([per_limb(self.limbs[n]) for n in LIMB_NAMES])
+        values.flags.writeable = False
+        return values
+
+    @cached_property
     def lower_rad(self) -> np.ndarray:
-        return np.concatenate([self.limbs[n].lower_rad for n in LIMB_NAMES])
+        return self._all_limbs(lambda limb: limb.lower_rad)
 
-    @property
+    @cached_property
     def upper_rad(self) -> np.ndarray:
-        return np.concatenate([self.limbs[n].upper_rad for n in LIMB_NAMES])
+        return self._all_limbs(lambda limb: limb.upper_rad)
 
-    @property
+    @cached_property
     def velocity_rad_s(self) -> np.ndarray:
-        return np.concatenate([self.limbs[n].velocity_rad_s for n in LIMB_NAMES])
+        return self._all_limbs(lambda limb: limb.velocity_rad_s)
 
-    @property
+    @cached_property
     def acceleration_rad_s2(self) -> np.ndarray:
-        return np.concatenate([self.limbs[n].acceleration_rad_s2 for n in LIMB_NAMES])
+        return self._all_limbs(lambda limb: limb.acceleration_rad_s2)
 
-    @property
+    @cached_property
     def jerk_rad_s3(self) -> np.ndarray:
-        return np.concatenate([self.limbs[n].jerk_rad_s3 for n in LIMB_NAMES])
+        return self._all_limbs(lambda limb: limb.jerk_rad_s3)
 
     def urdf_path(self) -> Path:
         """Path of the robot's URDF (generated for the as-built set)."""

@@ -19,6 +19,8 @@ from hubo_cli.model import load_model
 from hubo_cli.posture import home_posture
 from hubo_cli.state import RobotState
 
+pytestmark = pytest.mark.xdist_group("balance")  # module-scoped runs: one worker
+
 MODEL = load_model()
 DT = MODEL.control_period_s
 NAMES = MODEL.joint_names

@@ -20,6 +20,8 @@ from hubo_cli.cli.main import main
 from hubo_cli.fastrak.capture import MAGIC
 from hubo_cli.resources import data_file
 
+pytestmark = pytest.mark.xdist_group("fuzz")  # module-scoped runs: one worker
+
 SLOT = data_file("tasks", "cut-slot.toml").read_text()
 FUZZ = settings(max_examples=12, deadline=5000, derandomize=True, database=None,
                 suppress_health_check=[HealthCheck.function_scoped_fixture,

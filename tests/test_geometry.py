@@ -87,6 +87,23 @@ def test_matrix_to_quaternion_matches_scipy_and_is_canonical(rotations):
     assert np.abs(g.quat_wxyz_to_matrix(q) - rotations).max() < TOL
 
 
+def test_one_rotation_converts_exactly_as_the_batch(rotations):
+    """A single quaternion or matrix takes a Python path (the simulator converts a few every
+    period); it gives the batch kernels' numbers to the last bit, degenerate ones included."""
+    q_wxyz = g.matrix_to_quat_wxyz(rotations)
+    q_wxyz[::3] *= 2.5  # any norm
+    R_batch = g.quat_wxyz_to_matrix(q_wxyz)
+    for q, R in zip(q_wxyz, R_batch, strict=True):
+        assert np.array_equal(g.quat_wxyz_to_matrix(q), R)
+        assert np.array_equal(g.quat_xyzw_to_matrix(tuple(q[[1, 2, 3, 0]].tolist())), R)
+    for batch, one in ((g.matrix_to_quat_wxyz(rotations), g.matrix_to_quat_wxyz),
+                       (g.matrix_to_rpy(rotations), g.matrix_to_rpy)):
+        assert all(np.array_equal(one(R), expected) for R, expected in zip(rotations, batch,
+                                                                            strict=True))
+    assert g.quat_wxyz_to_matrix([1, 0, 0, 0]).shape == (3, 3)  # integers too
+    assert g.quat_wxyz_to_matrix([[1.0, 0, 0, 0]]).shape == (1, 3, 3)  # a batch of one stays one
+
+
 def test_half_turn_quaternions_are_exact():
     assert np.array_equal(g.matrix_to_quat_wxyz(np.diag([1.0, -1.0, -1.0])), [0, 1, 0, 0])
     assert np.array_equal(g.matrix_to_quat_wxyz(np.diag([-1.0, 1.0, -1.0])), [0, 0, 1, 0])

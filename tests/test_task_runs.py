@@ -78,13 +78,15 @@ def test_a_600_mm_rectangle_is_refused_in_preflight_and_nothing_moves(tmp_path, 
 
     monkeypatch.setattr(session, "make_driver", no_driver)
     out = tmp_path / "run"
+    # at 40 mm/s: the same misses as at the default 10 mm/s, a quarter of the periods to check
     result = CliRunner().invoke(main, ["task", "cut-rectangle", "--width", "600",
-                                       "--out", str(out)])
+                                       "--speed", "40", "--out", str(out)])
     assert result.exit_code == 4, result.output
     assert "refused in pre-flight, nothing moved" in result.output
     assert "step 3 'cut' (follow)" in result.output and "out of reach by" in result.output
     assert not out.exists()
-    as_json = CliRunner().invoke(main, ["task", "cut-rectangle", "--width", "600", "--json"])
+    as_json = CliRunner().invoke(main, ["task", "cut-rectangle", "--width", "600", "--speed",
+                                        "40", "--json"])
     report = json.loads(as_json.output)
     assert as_json.exit_code == 4 and report["refused"] is True
     cut = next(m for m in report["misses"] if m["kind"] == "follow")
@@ -112,7 +114,7 @@ def test_a_small_rectangle_is_cut_accurately_with_a_full_run_folder(tmp_path):
     # crouch on some CPUs, not on others): that balance outcome is measured, over perturbed
     # robots, by the robustness bench (make bench BENCH=robustness), not asserted here.
     out = tmp_path / "run"
-    result = _invoke("cut-rectangle", "--width", "60", "--height", "40", "--no-estop",
+    result = _invoke("cut-rectangle", "--width", "40", "--height", "30", "--no-estop",
                      "--out", str(out), "--json")
     assert result.exit_code == 0, result.output
     s = json.loads(result.output)
@@ -142,8 +144,8 @@ def test_a_small_rectangle_is_cut_accurately_with_a_full_run_folder(tmp_path):
     for name in ("log.csv", "summary.json", "task.toml", "path.png", "wrist_torque.png",
                  "snapshot.png"):
         assert (out / name).is_file(), name
-    assert "--set width_mm=60.0" in (out / "task.toml").read_text()
-    assert json.loads((out / "summary.json").read_text())["parameters"]["width_mm"] == 60.0
+    assert "--set width_mm=40.0" in (out / "task.toml").read_text()
+    assert json.loads((out / "summary.json").read_text())["parameters"]["width_mm"] == 40.0
 
 
 @pytest.mark.slow

@@ -22,6 +22,8 @@ from hubo_cli.viz.camera import DEFAULT_PRESET, camera_for
 from hubo_cli.viz.replay import KinematicReplay
 from hubo_cli.viz.scene import load_scene
 
+pytestmark = pytest.mark.xdist_group("viz")  # module-scoped runs: one worker
+
 
 class SwayTarget(Target):
     """The right (drill) arm raised, a wall put through the bit, then one sideways sway of the

@@ -7,7 +7,8 @@ from click.testing import CliRunner
 
 from hubo_cli.cli.main import main
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow,
+              pytest.mark.xdist_group("walking-sim")]  # module-scoped runs: one worker
 
 
 @pytest.fixture(scope="module")

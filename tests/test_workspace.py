@@ -13,6 +13,8 @@ from hubo_cli.workspace import best_stance, compute_map
 from hubo_cli.workspace.cache import cache_dir
 from hubo_cli.workspace.search import largest_rectangles, longest_runs, pick_best_x
 
+pytestmark = pytest.mark.xdist_group("workspace")  # module-scoped runs: one worker
+
 COARSE_M = 0.02
 
 

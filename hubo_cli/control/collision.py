@@ -283,8 +283,8 @@ class CollisionDetector(Module):
                 out = np.array(q_in, dtype=float)
                 self.mode = "safe"
                 self.safe_rad = q_in
-        self.last_clearance = (at_input if np.array_equal(out, q_in)
-                               else self.checker.check(out))
+        passed_on = self.mode == "safe" or np.array_equal(out, q_in)  # safe: out is q_in
+        self.last_clearance = at_input if passed_on else self.checker.check(out)
         cycle.info["collision_distance_m"] = self.last_clearance.distance_m
         self.out3, self.out2, self.out1 = self.out2, self.out1, out
         return out

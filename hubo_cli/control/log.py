@@ -67,6 +67,11 @@ def _float_text(value: float, spec: str) -> str:
     return "NaN" if math.isnan(value) else spec % value
 
 
+def _floats(values) -> list[float]:
+    """A vector as a list of Python floats (they format faster than numpy's)."""
+    return np.asarray(values, dtype=float).tolist()
+
+
 def pose_columns(frame: str) -> tuple[str, ...]:
     """The six column names of a frame's world pose (``torso``, ``right_hand``, ...)."""
     return tuple(f"{frame}_{axis}" for axis in POSE_AXES)
@@ -208,7 +213,8 @@ class PeriodLog:
         """
         if self._file.closed:
             return
-        values = list(target_rad) + list(cmd_rad) + list(q_rad) + self._pose_row(q_rad, state)
+        values = (_floats(target_rad) + _floats(cmd_rad) + _floats(q_rad)
+                  + self._pose_row(q_rad, state))
         if self.extra_columns:
             if extras:
                 values += [float(extras.get(c, math.nan)) for c in self.extra_columns]

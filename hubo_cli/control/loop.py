@@ -233,7 +233,7 @@ class ControlLoop:
                         f"{type(err).__name__} in {stage}: {err}")
                     exc = err
                     break
-                if not np.all(np.isfinite(q)):
+                if not np.isfinite(q).all():
                     q = np.where(np.isfinite(q), q, self._cmd)
                     cycle.flags.add("holding")
                 compute_s = self.clock() - started

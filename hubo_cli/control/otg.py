@@ -181,11 +181,13 @@ class TargetInput:
             self._last_fresh_s = cycle.t_s
         fresh = np.isfinite(q_rad)
         if fresh.any():
-            wanted = np.where(fresh, q_rad, self.target)
+            every = fresh.all()
+            wanted = np.asarray(q_rad, dtype=float) if every else np.where(fresh, q_rad,
+                                                                             self.target)
             clipped = self.limits.clip(wanted)
-            if np.any(np.abs(clipped - wanted) > 1e-9):  # not rounding at a limit
+            if (np.abs(clipped - wanted) > 1e-9).any():  # not rounding at a limit
                 cycle.flags.add("joint-limit")
-            if not fresh.all():
+            if not every:
                 cycle.flags.add("holding")
             self.target = clipped
             self._last_fresh_s = cycle.t_s

@@ -656,10 +656,11 @@ class SimDriver(Driver, SimulatedWorld):
             mz += px * gy - py * gx
         if extra_moment is not None:
             mx, my, mz = mx + extra_moment[0], my + extra_moment[1], mz + extra_moment[2]
-        ox, oy, oz = T_world_sensor[:3, 3]
-        moment = (mx - (oy * fz - oz * fy), my - (oz * fx - ox * fz), mz - (ox * fy - oy * fx))
-        R = T_world_sensor[:3, :3]
-        return np.concatenate([np.array((fx, fy, fz)) @ R, np.array(moment) @ R])
+        (r00, r01, r02, ox), (r10, r11, r12, oy), (r20, r21, r22, oz), _ = T_world_sensor.tolist()
+        mx, my, mz = mx - (oy * fz - oz * fy), my - (oz * fx - ox * fz), mz - (ox * fy - oy * fx)
+        return np.array((fx * r00 + fy * r10 + fz * r20, fx * r01 + fy * r11 + fz * r21,
+                         fx * r02 + fy * r12 + fz * r22, mx * r00 + my * r10 + mz * r20,
+                         mx * r01 + my * r11 + mz * r21, mx * r02 + my * r12 + mz * r22))
 
     def _measure(self) -> RobotState:
         p, cid = self._p, self._cid
@@ -677,7 +678,7 @@ class SimDriver(Driver, SimulatedWorld):
             link, frame = SENSOR_FRAMES[sensor]
             T_world_sensor = links[link] @ self._T_link_frame[frame]
             extra = moment = None
-            if sensor == "right-wrist" and np.any(self.cutting_force_n):
+            if sensor == "right-wrist" and self.cutting_force_n.any():
                 extra = (self.cutting_force_n, self._cutting_point)
                 moment = self.cutting_torque_nm
             ft[sensor] = self._wrench(contacts.get(self._links[link], []), T_world_sensor, extra,

@@ -7,6 +7,7 @@ scene) and by scripted tasks (move, plunge, follow, retract). Poses are 4x4 tran
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -61,11 +62,16 @@ class PoseSegment:
             s = trapezoid(t_s, self.duration_s, self.ramp_s)
         else:
             s = min(max(s, 0.0), 1.0)
-        T = np.eye(4)
+        T = np.zeros((4, 4))
+        T[3, 3] = 1.0
         T[:3, 3] = self.T_start[:3, 3] + s * (self.T_end[:3, 3] - self.T_start[:3, 3])
-        delta = rotation_log(self.T_start[:3, :3].T @ self.T_end[:3, :3])
-        T[:3, :3] = self.T_start[:3, :3] @ rotation_exp(s * delta)
+        T[:3, :3] = self.T_start[:3, :3] @ rotation_exp(s * self._turn)
         return T
+
+    @cached_property
+    def _turn(self) -> np.ndarray:
+        """The rotation from the start to the end orientation (rotation vector, rad)."""
+        return rotation_log(self.T_start[:3, :3].T @ self.T_end[:3, :3])
 
 
 def segment_duration(T_start: np.ndarray, T_end: np.ndarray, speed_m_s: float,

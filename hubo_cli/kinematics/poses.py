@@ -8,9 +8,10 @@ import numpy as np
 
 def make_transform(R: np.ndarray, p_m) -> np.ndarray:
     """4x4 homogeneous transform from a rotation matrix and a position (m)."""
-    T = np.eye(4)
+    T = np.zeros((4, 4))  # np.eye costs as much again (it is Python over np.zeros)
     T[:3, :3] = R
     T[:3, 3] = p_m
+    T[3, 3] = 1.0
     return T
 
 
