@@ -9,10 +9,11 @@ run folder can be reported again after the fact and the tests can feed synthetic
   the soles on the ground (the capture-point monitor's ``cp_outside_m`` is measured against the
   polygon shrunk by ``CP_MARGIN_M``), with when and where (``min_support_margin_at``). Negative:
   the capture point was outside.
-* ``contact_losses``: intervals longer than ``CONTACT_LOSS_MIN_S`` (20 ms) in which a foot of
-  the standing robot carried no load (its contact flag: F_z low-passed at 5 Hz above 25 N, as
-  the simulator and hrpsys decide it; recomputed from the logged F_z where a driver gives no
-  flag), each with its start, length and foot.
+* ``contact_losses``: intervals longer than ``CONTACT_LOSS_MIN_S`` (20 ms) in which a foot that
+  should stand on the ground (always while standing; where a walk's plan puts it down, its
+  ``planned_{right,left}_foot_contact_flag`` columns) carried no load (its contact flag: F_z
+  low-passed at 5 Hz above 25 N, as the simulator and hrpsys decide it; recomputed from the
+  logged F_z where a driver gives no flag), each with its start, length and foot.
 * ``ankle_clamp_fraction``: the share of periods in which the soft error limiter clamped an
   ankle joint (``limiter_ankle_clamped_count``).
 * ``cutting_fraction`` (runs with the drill and a wall): the share of the cut's time in which
@@ -226,6 +227,11 @@ def balance_report(log: LogData, model=None, drill: bool = False) -> dict:
     for ``cutting_fraction``."""
     margin = support_margin(log)
     contact = feet_contact(log)
+    if contact is not None and all(f"planned_{foot}_foot_contact_flag" in log.columns
+                                   for foot in FEET):
+        planned = np.column_stack([log[f"planned_{foot}_foot_contact_flag"] > 0.5
+                                   for foot in FEET])
+        contact = contact | ~planned  # a foot in the air by plan is not a lost contact
     losses = (None if contact is None
               else contact_losses(log["t_s"], contact, _period_s(log)))
     report = {

@@ -192,6 +192,23 @@ def test_cutting_fraction_over_the_plans_cut_or_from_first_to_last_contact():
     assert operating["cutting_fraction"] == pytest.approx(40 / 50)
 
 
+def test_a_walks_planned_swing_is_not_a_contact_loss():
+    n = 100
+    right = np.ones(n)
+    right[20:60] = 0.0                    # the right foot swings for 200 ms, as planned
+    right[80:90] = 0.0                    # and later lifts for 50 ms against the plan
+    planned = np.ones(n)
+    planned[20:60] = 0.0
+    log = _log(n, right_foot_contact_flag=right, left_foot_contact_flag=np.ones(n),
+               planned_right_foot_contact_flag=planned,
+               planned_left_foot_contact_flag=np.ones(n))
+    report = balance_report(log)
+    assert report["contact_losses"] == 1
+    assert report["contact_loss_intervals"][0]["t_s"] == pytest.approx(80 * DT)
+    standing = _log(n, right_foot_contact_flag=right, left_foot_contact_flag=np.ones(n))
+    assert balance_report(standing)["contact_losses"] == 2
+
+
 def test_balance_report_without_the_balance_columns_says_none():
     report = balance_report(_log(10))
     assert report == {"max_torso_tilt_deg": None, "min_support_margin_mm": None,

@@ -96,7 +96,8 @@ class WalkTarget(Target):
 
     log_columns = ("walk.zmp_ref_x_m", "walk.zmp_ref_y_m", "walk.com_ref_x_m",
                    "walk.com_ref_y_m", "walk.zmp_x_m", "walk.zmp_y_m", "walk.zmp_outside_m",
-                   "walk.step", "walk.tilt_deg")
+                   "walk.step", "walk.tilt_deg", "planned_right_foot_contact_flag",
+                   "planned_left_foot_contact_flag")
 
     def __init__(self, model: RobotModel, params: WalkingParams, goal: tuple[float, float, float],
                  q_start_rad: np.ndarray, T_world_neck_start: np.ndarray,
@@ -209,6 +210,8 @@ class WalkTarget(Target):
                 "walk.zmp_y_m": math.nan if zmp is None else float(zmp[1]),
                 "walk.zmp_outside_m": outside if math.isfinite(outside) else math.nan,
                 "walk.step": float(gait.step_index[k]), "walk.tilt_deg": tilt,
+                "planned_right_foot_contact_flag": float(gait.support[k, 0]),
+                "planned_left_foot_contact_flag": float(gait.support[k, 1]),
                 "done": self.fell or (self.k >= gait.n and (self.corrections_left == 0
                                                              or self.arrived()))}
         return plan.q_rad[k], info
