@@ -178,9 +178,11 @@ class RobotModel:
     def jerk_rad_s3(self) -> np.ndarray:
         return self._all_limbs(lambda limb: limb.jerk_rad_s3)
 
-    def urdf_path(self) -> Path:
-        """Path of the robot's URDF (generated for the as-built set)."""
-        return self.source.parent / self.raw_robot["urdf"]
+    def urdf_path(self, drill: bool = False) -> Path:
+        """Path of the robot's URDF (generated for the as-built set); ``drill``: the one with
+        the drill (its body and 0.6 kg) on the right hand."""
+        urdf = self.source.parent / self.raw_robot["urdf"]
+        return urdf.with_name(urdf.stem + "-drill.urdf") if drill else urdf
 
     @property
     def raw_robot(self) -> dict:

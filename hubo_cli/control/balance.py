@@ -248,11 +248,8 @@ class DampingBalancer(Module):
         self._index = {leg: (names.index(model.limb(leg).joints[4]),
                              names.index(model.limb(leg).joints[5])) for leg, _ in FEET}
         self._signs = ankle_axis_signs(model)
-        urdf = model.urdf_path()
-        if drill:
-            urdf = urdf.with_name(urdf.stem + "-drill.urdf")
         # floating, with the torso at the origin: a fixed base would leave the torso's mass out
-        self._robot = load_pin_robot(model, floating=True, urdf_path=urdf)
+        self._robot = load_pin_robot(model, floating=True, urdf_path=model.urdf_path(drill))
         self._data = self._robot.model.createData()
         import pinocchio as pin
 

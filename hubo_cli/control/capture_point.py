@@ -239,10 +239,9 @@ class CapturePointMonitor(Module):
         self.request_estop = request_estop
         tau = 1.0 / (2 * math.pi * cutoff_hz)
         self.alpha = self.dt_s / (self.dt_s + tau)
-        urdf = model.urdf_path()
-        if drill:  # the body as it is: with the drill's 0.6 kg on the right hand
-            urdf = urdf.with_name(urdf.stem + "-drill.urdf")
-        self.robot: PinRobot = load_pin_robot(model, floating=True, urdf_path=urdf)
+        # the body as it is: with the drill's 0.6 kg on the right hand
+        self.robot: PinRobot = load_pin_robot(model, floating=True,
+                                              urdf_path=model.urdf_path(drill))
         self.data = self.robot.model.createData()
         self._sole_ids = [self.robot.frame_id(f) for f in SOLE_FRAMES]
         self._corners = model.feet.sole_corners_m()

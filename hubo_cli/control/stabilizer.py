@@ -116,10 +116,7 @@ class Stabilizer(Module):
         self.max_accel_m_s2 = float(max_accel_m_s2)
         self.max_hip_rad = float(max_hip_rad)
         self.use_capture_point = bool(use_capture_point)
-        urdf = model.urdf_path()
-        if drill:
-            urdf = urdf.with_name(urdf.stem + "-drill.urdf")
-        self._robot = load_pin_robot(model, floating=True, urdf_path=urdf)
+        self._robot = load_pin_robot(model, floating=True, urdf_path=model.urdf_path(drill))
         self._data = self._robot.model.createData()
         self._q = np.zeros(self._robot.model.nq)
         self._R_feet = np.eye(3)

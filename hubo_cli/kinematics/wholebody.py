@@ -113,9 +113,7 @@ class WholeBody:
         if self.com_control:
             from hubo_cli.control.pin_robot import load_pin_robot
 
-            urdf = model.urdf_path()
-            if self.tools["right-arm"] == "drill":
-                urdf = urdf.with_name(urdf.stem + "-drill.urdf")
+            urdf = model.urdf_path(drill=self.tools["right-arm"] == "drill")
             # floating, the torso at the origin: a fixed base would leave the torso's mass out
             self._pin = load_pin_robot(model, floating=True, urdf_path=urdf)
             self._pin_data = self._pin.model.createData()

@@ -169,7 +169,8 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
         plot_path_comparison(goal - T_S_W[:3, 3], actual - T_S_W[:3, 3], run_dir / "path.png",
                              plane="yz", frame="the wall frame",
                              title=f"{spec.name}: commanded vs actual drill bit while cutting",
-                             rms_error_mm=rms, actual_label="bit by the encoders (FK)",
+                             rms_error_mm=rms,
+                             actual_label="bit measured (arm FK through the torso estimate)",
                              hole_m=_hole_in_wall_frame(log, target, T_S_W),
                              hole_rms_error_mm=hole_rms)
         done.add_file("path.png")

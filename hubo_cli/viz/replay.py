@@ -117,9 +117,7 @@ class KinematicReplay:
                                     visualFramePosition=[0, 0, -0.001], rgbaColor=FLOOR_RGBA,
                                     physicsClientId=cid)
         p.createMultiBody(0, -1, floor, physicsClientId=cid)
-        urdf = scene.model.urdf_path()
-        if scene.drill:
-            urdf = urdf.with_name(urdf.stem + "-drill.urdf")
+        urdf = scene.model.urdf_path(scene.drill)
         flags = p.URDF_USE_INERTIA_FROM_FILE | p.URDF_MERGE_FIXED_LINKS
         with quiet_native_output():
             self._robot = p.loadURDF(str(urdf), flags=flags, physicsClientId=cid)

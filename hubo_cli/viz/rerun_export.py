@@ -85,9 +85,7 @@ def export_rrd(scene: RunScene, out: str | Path) -> RrdResult:
     out.parent.mkdir(parents=True, exist_ok=True)
     rec = rr.RecordingStream(APPLICATION_ID, recording_id=scene.run_dir.name)
     rec.save(str(out))
-    urdf = scene.model.urdf_path()
-    if scene.drill:
-        urdf = urdf.with_name(urdf.stem + "-drill.urdf")
+    urdf = scene.model.urdf_path(scene.drill)
     tree = UrdfTree.from_file_path(urdf, entity_path_prefix="robot")
     tree.log_urdf_to_recording(rec)
     t_s = scene.t_s
