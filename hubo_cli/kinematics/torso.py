@@ -22,6 +22,7 @@ reach the correction fades out (and back in) at a bounded rate.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -160,12 +161,14 @@ class TorsoCorrection:
         self.rotation_rad = np.zeros(3)  # filtered rotation vector of T_dev
         self.weight = {arm: 1.0 for arm in self.arms}
         self._T_dev = np.eye(4)  # deviation() as of the last update
+        self._T_dev_inv = np.eye(4)  # its inverse
         self._q_out: dict[str, np.ndarray] = {}
         self._dq: dict[str, np.ndarray] = {}  # applied joint offset per arm
         model = body.model
         self._leg_index = np.r_[tuple(model.limb_slice(leg) for leg in LEGS)]
         self._q_legs_cmd: np.ndarray | None = None
         self._T_cmd: np.ndarray | None = None  # torso_in_stance of the commanded legs
+        self._T_cmd_inv = np.eye(4)  # its inverse
 
     def deviation(self) -> np.ndarray:
         """The filtered and bounded T_dev (4x4): the measured neck frame in the commanded one."""
@@ -183,15 +186,16 @@ class TorsoCorrection:
         legs = np.asarray(q_cmd_rad, dtype=float)[self._leg_index]
         if self._T_cmd is None or not np.array_equal(legs, self._q_legs_cmd):
             self._T_cmd = torso_in_stance(self.body, q_cmd_rad)
+            self._T_cmd_inv = _rigid_inverse(self._T_cmd)
             self._q_legs_cmd = legs
-        T_cmd = self._T_cmd
-        T_dev = np.linalg.solve(T_cmd, T_meas)
+        T_dev = self._T_cmd_inv @ T_meas
         alpha = self.dt_s / (s.time_constant_s + self.dt_s)
         self.offset_m = _follow(self.offset_m, T_dev[:3, 3], alpha, s.max_offset_m,
                                 s.max_speed_m_s * self.dt_s)
         self.rotation_rad = _follow(self.rotation_rad, rotation_log(T_dev[:3, :3]), alpha,
                                     s.max_tilt_rad, s.max_rate_rad_s * self.dt_s)
         self._T_dev = self.deviation()
+        self._T_dev_inv = _rigid_inverse(self._T_dev)
         return self._T_dev
 
     def apply(self, q_cmd_rad) -> np.ndarray:
@@ -201,7 +205,7 @@ class TorsoCorrection:
         last exact correction, scaled down as the weight fades (no jump either way).
         """
         q = np.array(q_cmd_rad, dtype=float)
-        T_dev_inv = np.linalg.inv(self._T_dev)
+        T_dev_inv = self._T_dev_inv
         fade = self.settings.fade_per_s * self.dt_s
         for arm in self.arms:
             sl = self.body.model.limb_slice(arm)
@@ -234,14 +238,22 @@ def _follow(now: np.ndarray, raw: np.ndarray, alpha: float, limit: float,
     """One low-pass step from ``now`` toward ``raw``, kept within ``limit`` (norm) and moving
     at most ``max_step`` (norm)."""
     wanted = now + alpha * (np.asarray(raw, dtype=float) - now)
-    norm = float(np.linalg.norm(wanted))
+    norm = math.hypot(*wanted)
     if norm > limit:
         wanted = wanted * (limit / norm)
     step = wanted - now
-    size = float(np.linalg.norm(step))
+    size = math.hypot(*step)
     if size > max_step:
         step = step * (max_step / size)
     return now + step
+
+
+def _rigid_inverse(T: np.ndarray) -> np.ndarray:
+    """The inverse of a rigid transform (4x4): rotation transposed, translation turned back."""
+    T_inv = np.eye(4)
+    R_T = T[:3, :3].T
+    T_inv[:3, :3], T_inv[:3, 3] = R_T, -(R_T @ T[:3, 3])
+    return T_inv
 
 
 def _blend(T_a: np.ndarray, T_b: np.ndarray, w: float) -> np.ndarray:
