@@ -332,26 +332,31 @@ class DampingBalancer(Module):
         self._common = self._common + common_rate * dt
         both = state.feet_contact is None or all(state.feet_contact)
         lower, upper = self.model.lower_rad, self.model.upper_rad
+        # per joint in float math (the same arithmetic as on the 2-vectors, a fraction of the
+        # cost of numpy on arrays this small)
+        common = self._common.tolist()
+        limit, k_d, leak = self.max_offset_rad, self.k_d, self.differential_leak_s
+        max_rate, max_step = MAX_CORRECTION_RATE_RAD_S, MAX_CORRECTION_ACCEL_RAD_S2 * dt
+        mean_k = mean.tolist()
         for leg, _ in FEET:
-            diff = self._differential[leg]
-            drive = self.k_d * (moments[leg] - mean) if both else 0.0
-            self._differential[leg] = diff + (drive - diff / self.differential_leak_s) * dt
-            signs = np.array(self._signs[leg])
-            wanted = np.clip(signs * (self._common + self._differential[leg]),
-                             -self.max_offset_rad, self.max_offset_rad)
-            # follow the wanted correction with bounded rate and acceleration
-            offset, rate = self.offsets_rad[leg], self._rate[leg]
-            rate_wanted = np.clip((wanted - offset) / SMOOTHING_S, -MAX_CORRECTION_RATE_RAD_S,
-                                  MAX_CORRECTION_RATE_RAD_S)
-            rate = rate + np.clip(rate_wanted - rate, -MAX_CORRECTION_ACCEL_RAD_S2 * dt,
-                                  MAX_CORRECTION_ACCEL_RAD_S2 * dt)
-            offset = offset + rate * dt
+            diff = self._differential[leg].tolist()
+            moment = moments[leg].tolist()
+            signs = self._signs[leg]
+            offset, rate = self.offsets_rad[leg].tolist(), self._rate[leg].tolist()
             for k, i in enumerate(self._index[leg]):
+                drive = k_d * (moment[k] - mean_k[k]) if both else 0.0
+                diff[k] = diff[k] + (drive - diff[k] / leak) * dt
+                wanted = min(max(signs[k] * (common[k] + diff[k]), -limit), limit)
+                # follow the wanted correction with bounded rate and acceleration
+                rate_wanted = min(max((wanted - offset[k]) / SMOOTHING_S, -max_rate), max_rate)
+                rate[k] = rate[k] + min(max(rate_wanted - rate[k], -max_step), max_step)
+                offset[k] = offset[k] + rate[k] * dt
                 if math.isfinite(q[i]):
                     target = min(max(q[i] + offset[k], lower[i]), upper[i])
                     offset[k] = target - q[i]
                     q[i] = target
-            self.offsets_rad[leg], self._rate[leg] = offset, rate
+            self._differential[leg] = np.array(diff)
+            self.offsets_rad[leg], self._rate[leg] = np.array(offset), np.array(rate)
         side = self.offsets_rad
         cycle.info["balance.right_pitch_rad"] = float(side["right-leg"][0])
         cycle.info["balance.right_roll_rad"] = float(side["right-leg"][1])
