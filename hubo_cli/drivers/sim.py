@@ -79,9 +79,8 @@ import numpy as np
 from hubo_cli.drivers import checks
 from hubo_cli.drivers.base import Driver, RunContext, SimulatedWorld
 from hubo_cli.errors import ConfigError, DeviceError
-from hubo_cli.geometry import matrix_to_quat_wxyz, quat_xyzw_to_matrix
+from hubo_cli.geometry import matrix_to_quat_wxyz
 from hubo_cli.kinematics.limb import Limb
-from hubo_cli.kinematics.poses import make_transform
 from hubo_cli.model import RobotModel
 from hubo_cli.perturb import FOOT_LINKS, CommandDelay, Perturbation
 from hubo_cli.perturb import draw as draw_perturbation
@@ -254,8 +253,17 @@ def _urdf_file(path: Path, text: str):
 
 
 def _pose(position, quat_xyzw) -> np.ndarray:
-    """4x4 pose from a PyBullet position and quaternion (x, y, z, w)."""
-    return make_transform(quat_xyzw_to_matrix(quat_xyzw), position)
+    """4x4 pose from a PyBullet position and quaternion (x, y, z, w): the arithmetic of
+    :func:`~hubo_cli.geometry.quat_xyzw_to_matrix` in one array build (several calls a period
+    read PyBullet's link states)."""
+    x, y, z, w = quat_xyzw
+    n = math.sqrt(w * w + x * x + y * y + z * z)
+    w, x, y, z = w / n, x / n, y / n, z / n
+    px, py, pz = position
+    return np.array(((1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y), px),
+                     (2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x), py),
+                     (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y), pz),
+                     (0.0, 0.0, 0.0, 1.0)))
 
 
 class SimDriver(Driver, SimulatedWorld):
