@@ -281,3 +281,40 @@ def test_capture_point_ignores_a_one_period_contact_flicker(model):
         state = RobotState(k * DT, q, np.zeros(24), feet_contact=(True, False))
         monitor.update(q, state, Cycle(k * DT, DT))
     assert monitor.flag
+
+
+
+COMPILE_CHECK = """
+import json
+import sys
+from pathlib import Path
+from hubo_cli.control import capture_point, collision, limiter, limits
+from hubo_cli.experiments.standing import stand
+from hubo_cli.model import load_model
+
+kernels = (capture_point._support, limiter.limit_step, limits._braking_distance)
+model = load_model()
+capture_point.CapturePointMonitor(model, 0.005)
+limiter.SoftErrorLimiter(model, 0.005)
+collision.CollisionDetector(model, 0.005)
+built = [len(k.signatures) for k in kernels]
+stand(model, 0.1, out=Path(sys.argv[1]))
+print(json.dumps({"built": built, "after": [len(k.signatures) for k in kernels]}))
+"""
+
+
+def test_the_pipelines_kernels_compile_when_the_modules_are_built(tmp_path):
+    """numba compiles a kernel on its first call with new argument types; building the modules
+    makes that call with a run's types, so no control period compiles (that takes seconds on a
+    fresh install, and a live run would hold its first command that long). In a fresh process:
+    every kernel is compiled once the modules exist, and a standing run adds no signature."""
+    import json
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-c", COMPILE_CHECK, str(tmp_path / "run")],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    counts = json.loads(done.stdout.strip().splitlines()[-1])
+    assert all(n >= 1 for n in counts["built"]), counts
+    assert counts["after"] == counts["built"], counts

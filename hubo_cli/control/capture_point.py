@@ -260,6 +260,11 @@ class CapturePointMonitor(Module):
         self.flag = False
         self.support_override: Callable[[float], np.ndarray | None] | None = None
         self.reset_watch()
+        # numba compiles a kernel on its first call: make that now, not in the first period
+        # of a run (seconds on a fresh install; cached afterwards)
+        _support(self._flat_sole.copy(), True, True, self._corners, np.zeros(3), np.zeros(3),
+                 self.margin_m, GRAVITY_M_S2, self.corner_tolerance_m, np.zeros(2), np.zeros(4),
+                 self._flat_sole.copy())
 
     def reset_watch(self) -> None:
         """Forget the run's worst margin and contact losses."""

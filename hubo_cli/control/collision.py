@@ -186,6 +186,8 @@ class CollisionDetector(Module):
         self.last_clearance: Clearance | None = None
         self.ahead_clearance: Clearance | None = None
         self._clear_state(np.zeros(self.limits.size))
+        # numba compiles on the first call: make that now, not in the first period of a run
+        braking_distance(np.zeros(self.limits.size), np.zeros(self.limits.size), self.limits)
 
     def _clear_state(self, q: np.ndarray) -> None:
         self.mode = "safe"

@@ -153,6 +153,12 @@ class SoftErrorLimiter(Module):
         self._nan = np.full(n, np.nan)
         self._zeros = np.zeros(n)
         self._want_prev = np.zeros(n)
+        # numba compiles the kernel on its first call: make that now, not in the first period
+        lim = self.limits
+        limit_step(self._zeros, self._zeros, self._zeros, self._zeros, lim.lower_rad,
+                   lim.upper_rad, lim.velocity_rad_s, lim.acceleration_rad_s2, self.dt_s,
+                   self._zeros, self._zeros, self.error_limit_rad, np.zeros(n),
+                   self._mask.copy(), self._catching.copy())
 
     def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
         q = np.where(np.isfinite(q_rad), q_rad, state.q_rad)
