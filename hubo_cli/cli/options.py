@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import click
 
+from hubo_cli.cli.output import NO_ESTOP_HELP
+
 perturb_option = click.option(
     "--perturb", "perturb_seed", type=click.IntRange(min=0), default=None, metavar="SEED",
     help="Simulate a robot and world drawn from SEED (masses, centres of mass, foot friction, "
@@ -23,3 +25,24 @@ def balance_option_with(default: str, note: str = ""):
 
 
 balance_option = balance_option_with("default")
+
+
+def robot_run_options(run_name: str):
+    """``--no-estop``, ``--gui``, ``--json`` and ``--out`` of a command that runs the robot.
+
+    Args:
+        run_name: the run folder's default name after the time (``sim``, ``task-<name>``).
+    """
+    options = [
+        click.option("--no-estop", is_flag=True, help=NO_ESTOP_HELP),
+        click.option("--gui", is_flag=True, help="Open the PyBullet window (runs in real time)."),
+        click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON."),
+        click.option("--out", type=click.Path(file_okay=False), default=None,
+                     help=f"Run folder (default runs/<time>-{run_name})."),
+    ]
+
+    def decorate(function):
+        for option in reversed(options):
+            function = option(function)
+        return function
+    return decorate

@@ -6,8 +6,8 @@ import json
 
 import click
 
-from hubo_cli.cli.options import balance_option, perturb_option
-from hubo_cli.cli.output import NO_ESTOP_HELP, console, print_json
+from hubo_cli.cli.options import balance_option, perturb_option, robot_run_options
+from hubo_cli.cli.output import console, print_json
 
 
 @click.command("sim")
@@ -17,11 +17,7 @@ from hubo_cli.cli.output import NO_ESTOP_HELP, console, print_json
               help="Push the torso forward with this force (N) for 0.2 s, 1 s into the run.")
 @balance_option
 @click.option("--no-balance", is_flag=True, help="The same as --balance off.")
-@click.option("--no-estop", is_flag=True, help=NO_ESTOP_HELP)
-@click.option("--gui", is_flag=True, help="Open the PyBullet window (runs in real time).")
-@click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
-@click.option("--out", type=click.Path(file_okay=False), default=None,
-              help="Run folder (default runs/<time>-sim).")
+@robot_run_options("sim")
 @perturb_option
 def sim(duration: float, push: float, balance: str, no_balance: bool, no_estop: bool,
         gui: bool, as_json: bool, out: str | None, perturb_seed: int | None) -> None:

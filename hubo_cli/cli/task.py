@@ -9,9 +9,8 @@ from rich.progress_bar import ProgressBar
 from rich.table import Table
 
 from hubo_cli.cli.hardware import driver_options, hardware_options
-from hubo_cli.cli.options import balance_option, perturb_option
+from hubo_cli.cli.options import balance_option, perturb_option, robot_run_options
 from hubo_cli.cli.output import (
-    NO_ESTOP_HELP,
     ProgressLines,
     console,
     err_console,
@@ -70,11 +69,7 @@ def run_options(function):
                      show_default=True, help="Robot back end."),
         click.option("--arm", "armed", is_flag=True,
                      help="Arm the hardware driver (required by it)."),
-        click.option("--no-estop", is_flag=True, help=NO_ESTOP_HELP),
-        click.option("--gui", is_flag=True, help="Open the PyBullet window, run in real time."),
-        click.option("--out", type=click.Path(file_okay=False), default=None,
-                     help="Run folder (default runs/<time>-task-<name>)."),
-        click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON."),
+        robot_run_options("task-<name>"),
         click.option("--video", is_flag=True,
                      help="After the run, render video.mp4 from its log (needs hubo-cli[viz])."),
         perturb_option,

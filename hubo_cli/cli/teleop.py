@@ -12,9 +12,8 @@ from rich.table import Table
 
 from hubo_cli.cli.checks import check_baud, check_seconds
 from hubo_cli.cli.hardware import driver_options, hardware_options
-from hubo_cli.cli.options import balance_option, perturb_option
+from hubo_cli.cli.options import balance_option, perturb_option, robot_run_options
 from hubo_cli.cli.output import (
-    NO_ESTOP_HELP,
     ProgressLines,
     console,
     err_console,
@@ -147,11 +146,7 @@ def _view(target, panel) -> Group:
 @click.option("--allow-branch-change", is_flag=True,
               help="Change IK branch by itself (slowly, announced) when a hand rests at its "
                    "reach limit and another branch reaches the goal; otherwise only on key b.")
-@click.option("--no-estop", is_flag=True, help=NO_ESTOP_HELP)
-@click.option("--gui", is_flag=True, help="Open the PyBullet window.")
-@click.option("--out", type=click.Path(file_okay=False), default=None,
-              help="Run folder (default runs/<time>-teleop).")
-@click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
+@robot_run_options("teleop")
 @click.option("--video", is_flag=True,
               help="After the run, render video.mp4 from its log (needs hubo-cli[viz]).")
 @hardware_options

@@ -6,8 +6,8 @@ import math
 
 import click
 
-from hubo_cli.cli.options import balance_option_with, perturb_option
-from hubo_cli.cli.output import NO_ESTOP_HELP, console, print_json
+from hubo_cli.cli.options import balance_option_with, perturb_option, robot_run_options
+from hubo_cli.cli.output import console, print_json
 
 
 @click.command("walk")
@@ -17,11 +17,7 @@ from hubo_cli.cli.output import NO_ESTOP_HELP, console, print_json
 @click.option("--corrections", type=click.IntRange(0, 5), default=1, show_default=True,
               help="Walk again from where the feet stand when they slipped more than 5 mm or "
                    "1 deg off the goal, up to this many times.")
-@click.option("--no-estop", is_flag=True, help=NO_ESTOP_HELP)
-@click.option("--gui", is_flag=True, help="Open the PyBullet window (runs in real time).")
-@click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
-@click.option("--out", type=click.Path(file_okay=False), default=None,
-              help="Run folder (default runs/<time>-walk).")
+@robot_run_options("walk")
 @perturb_option
 @balance_option_with("off", "Walking: off by default (the standing balancers' reference "
                             "assumes both feet down).")
