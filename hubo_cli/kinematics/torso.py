@@ -190,7 +190,8 @@ class CorrectionSettings:
             the cardboard at up to this speed, and the cardboard resists that motion (80 N s/m
             in the default cutting model): at 20 mm/s this added up to 0.4 N m of wrist
             torque, and the drill replay's peak sometimes crossed the 1.21 N m stop. At
-            10 mm/s it stays at 1.10-1.13 N m.
+            10 mm/s it stayed at 1.10-1.13 N m; with the fused torso orientation (the IMU's
+            reading noise no longer moves the arm) it peaks at 0.94 N m.
         max_rate_rad_s: largest angular speed of the rotation.
         fade_per_s: how fast the correction fades out where the corrected goal is out of the
             arm's exact reach, and back in (weight per second).
