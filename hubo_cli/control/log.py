@@ -26,9 +26,8 @@ A run folder's log is three files:
   the log opens and again when it closes.
 * ``log.parquet``: the same table, written when the log closes (smaller and faster to read).
 
-The CSV rows are flushed to the operating system at least every ``FLUSH_S`` (0.1 s) of wall
-time, so a crash loses at most that much of the log (a flush per row cost a system call every
-period). :func:`load_log` reads a log back into numpy arrays (the Parquet copy when there is
+Each CSV row is flushed to the operating system when written, so a crash loses at most the period
+being written. :func:`load_log` reads a log back into numpy arrays (the Parquet copy when there is
 one, else the CSV; logs of the first format, with a leading ``#`` line, are read too).
 """
 
@@ -37,7 +36,6 @@ from __future__ import annotations
 import io
 import json
 import math
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -51,7 +49,6 @@ META_NAME = "log.json"
 PARQUET_NAME = "log.parquet"
 FORMAT_NAME = "hubo-cli period log"
 FORMAT_VERSION = 2
-FLUSH_S = 0.1  # the CSV reaches the operating system at least this often (wall time, s)
 FIXED_COLUMNS = ("period_count", "t_s", "status_code", "compute_us", "late_us", "flags")
 POSE_AXES = ("x_m", "y_m", "z_m", "roll_rad", "pitch_rad", "yaw_rad")
 HAND_ARMS = {"right_hand": "right-arm", "left_hand": "left-arm"}
@@ -168,7 +165,6 @@ class PeriodLog:
         self._file = open(self.path, "w", buffering=1 << 16)  # noqa: SIM115 (kept open)
         self._file.write(",".join(self.columns) + "\n")
         self._file.flush()
-        self._flush_at = time.monotonic() + FLUSH_S
         self._write_sidecar()
 
     def _hand_kinematics(self, model) -> dict:
@@ -210,7 +206,7 @@ class PeriodLog:
     def write(self, period: int, t_s: float, status: int, compute_us: float, late_us: float,
               flags, target_rad, cmd_rad, q_rad, extras: dict | None = None,
               state=None) -> None:
-        """Append one period (flushed within ``FLUSH_S``).
+        """Append one period and flush it.
 
         ``state`` (the :class:`~hubo_cli.state.RobotState` after the step) gives the
         torso and hand poses; without it they are NaN.
@@ -232,10 +228,7 @@ class PeriodLog:
                 f"{_float_text(compute_us, '%.6g')},{_float_text(late_us, '%.6g')},{flag_text},"
                 f"{(self._body_format(values) % tuple(values)).replace('nan', 'NaN')}\n")
         self._file.write(line)
-        now = time.monotonic()
-        if now >= self._flush_at:
-            self._file.flush()
-            self._flush_at = now + FLUSH_S
+        self._file.flush()
         self.rows += 1
 
     def set_metadata(self, key: str, value) -> None:
