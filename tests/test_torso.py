@@ -156,3 +156,85 @@ def test_a_garbled_measurement_leaves_the_correction_as_it_was(body):
     q_out = correction(q, garbled)
     assert np.all(np.isfinite(q_out)) and np.allclose(correction.deviation(), before)
     assert correction.weight[ARM] == 1.0
+
+
+def _torso_in_stance_numpy(body, q, imu_quat_wxyz=None, imu_heading_rad=None):
+    """The former numpy formulation of torso_in_stance, as a reference for the compiled one."""
+    from hubo_cli.geometry import quat_wxyz_to_matrix, rotation_exp, rotation_log
+
+    def yaw(a):
+        return np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0, 0, 1.0]])
+
+    R_legs, p_soles = [], []
+    for leg in ("right-leg", "left-leg"):
+        T_N_sole = body.legs[leg].fk(q[body.model.limb_slice(leg)])
+        R_legs.append(body.T_S_sole[leg][:3, :3] @ T_N_sole[:3, :3].T)
+        p_soles.append(T_N_sole[:3, 3])
+    if imu_quat_wxyz is None:
+        R = R_legs[0] @ rotation_exp(rotation_log(R_legs[0].T @ R_legs[1]) / 2)
+    else:
+        R_imu = quat_wxyz_to_matrix(imu_quat_wxyz)
+        if imu_heading_rad is None:
+            heading = np.mean([np.arctan2(R[1, 0], R[0, 0]) for R in R_legs])
+            R = yaw(heading - np.arctan2(R_imu[1, 0], R_imu[0, 0])) @ R_imu
+        else:
+            R = yaw(-imu_heading_rad) @ R_imu
+    p = (body.T_S_sole["right-leg"][:3, 3] + body.T_S_sole["left-leg"][:3, 3]
+         - R @ (p_soles[0] + p_soles[1])) / 2
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, p
+    return T
+
+
+def test_the_compiled_torso_pose_is_the_numpy_formula(body):
+    """torso_in_stance runs compiled (kinematics/torso_kernels.py): the same numbers as the numpy
+    formula for random leg postures (up to legs turned 3 rad apart, the rotation mean's half
+    turn branch), IMU orientations and headings."""
+    rng = np.random.default_rng(3)
+    for _ in range(300):
+        q = body.q_home + rng.normal(0.0, 0.3, body.q_home.shape)
+        if rng.random() < 0.2:
+            q[body.model.limb_slice("left-leg").start] += 3.0  # a hip yaw far off
+        quat = rng.normal(size=4)
+        heading = float(rng.uniform(-np.pi, np.pi))
+        for args in ((), (quat,), (quat, heading)):
+            assert np.allclose(torso_in_stance(body, q, *args),
+                               _torso_in_stance_numpy(body, q, *args), rtol=0, atol=1e-12)
+
+
+def test_the_compiled_correction_step_is_the_numpy_formula():
+    """The correction's filter step runs compiled (kinematics/torso_kernels.py): the same
+    offset, rotation, T_dev and inverse as the numpy formula, within and at its bounds."""
+    import math
+
+    from hubo_cli.geometry import rotation_exp, rotation_log
+    from hubo_cli.kinematics.torso_kernels import follow_deviation
+
+    def follow(now, raw, alpha, limit, max_step):
+        wanted = now + alpha * (raw - now)
+        if math.hypot(*wanted) > limit:
+            wanted = wanted * (limit / math.hypot(*wanted))
+        step = wanted - now
+        if math.hypot(*step) > max_step:
+            step = step * (max_step / math.hypot(*step))
+        return now + step
+
+    rng = np.random.default_rng(5)
+    bounds = np.array([0.02, 5e-5, np.radians(2.0), np.radians(1.0) * 0.005])
+    offset, rotation = np.zeros(3), np.zeros(3)
+    for k in range(400):
+        scale = 0.03 if k % 3 else 3e-4  # past the bounds, and within them
+        T_cmd_inv, T_meas = np.eye(4), np.eye(4)
+        T_meas[:3, :3] = rotation_exp(rng.normal(0.0, scale, 3))
+        T_meas[:3, 3] = rng.normal(0.0, scale, 3)
+        T_cmd_inv[:3, :3] = rotation_exp(rng.normal(0.0, 0.01, 3))
+        raw = T_cmd_inv @ T_meas
+        offset_ref = follow(offset, raw[:3, 3], 0.05, bounds[0], bounds[1])
+        rotation_ref = follow(rotation, rotation_log(raw[:3, :3]), 0.05, bounds[2], bounds[3])
+        T_dev, T_dev_inv = np.empty((4, 4)), np.empty((4, 4))
+        follow_deviation(T_cmd_inv, T_meas, offset, rotation, 0.05, bounds, T_dev, T_dev_inv)
+        assert np.allclose(offset, offset_ref, rtol=0, atol=1e-15)
+        assert np.allclose(rotation, rotation_ref, rtol=0, atol=1e-15)
+        assert np.allclose(T_dev[:3, :3], rotation_exp(rotation_ref), rtol=0, atol=1e-14)
+        assert np.allclose(T_dev @ T_dev_inv, np.eye(4), rtol=0, atol=1e-14)
+        offset, rotation = offset_ref, rotation_ref  # the next step from the same state

@@ -34,12 +34,13 @@ reach the correction fades out (and back in) at a bounded rate.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from hubo_cli.geometry import quat_wxyz_to_matrix, rotation_exp, rotation_log
+from hubo_cli.kinematics.dh import invert4
+from hubo_cli.kinematics.torso_kernels import follow_deviation, stance_legs
 from hubo_cli.kinematics.wholebody import WholeBody
 from hubo_cli.model import LEGS
 
@@ -82,18 +83,8 @@ def torso_in_stance(body: WholeBody, q_rad, imu_quat_wxyz=None,
         imu_heading_rad: the IMU's heading (rad) of S's x axis: the IMU's orientation is then
             used whole, turned by it; None: the IMU's tilt under the encoders' heading.
     """
-    q = np.asarray(q_rad, dtype=float)
-    R_legs, p_N_soles = _legs(body, q)
-    if imu_quat_wxyz is None:  # the mean of the two legs' orientations
-        R = _mean_rotation(R_legs)
-    else:
-        R_imu = quat_wxyz_to_matrix(imu_quat_wxyz)
-        if imu_heading_rad is None:  # the IMU's tilt under the legs' mean heading
-            heading = float(np.mean([_heading(R) for R in R_legs]))
-            R = _yaw(heading - _heading(R_imu)) @ R_imu
-        else:
-            R = _yaw(-imu_heading_rad) @ R_imu
-    return _on_soles(body, R, p_N_soles)
+    R_imu = None if imu_quat_wxyz is None else quat_wxyz_to_matrix(imu_quat_wxyz)
+    return stance_legs(body).pose(q_rad, R_imu, imu_heading_rad)  # compiled (torso_kernels)
 
 
 def _mean_rotation(R_legs: list[np.ndarray]) -> np.ndarray:
@@ -139,6 +130,7 @@ class TorsoEstimator:
         self.body = body
         self.time_constants_s = np.array([tilt_time_constant_s, tilt_time_constant_s,
                                           heading_time_constant_s], dtype=float)
+        stance_legs(body)  # compiles torso_in_stance's kernel now, not in a control period
         self.imu_heading_rad: float | None = None
         self.imu_offset_rad: np.ndarray | None = None  # the filter's state (neck frame)
         self._t_s = 0.0  # the time of the filter's last reading
@@ -228,6 +220,9 @@ class TorsoCorrection:
         self.arms = tuple(arms)
         self.dt_s = dt_s
         self.settings = settings or CorrectionSettings()
+        s = self.settings
+        self._bounds = np.array([s.max_offset_m, s.max_speed_m_s * dt_s, s.max_tilt_rad,
+                                 s.max_rate_rad_s * dt_s])  # per period
         self.offset_m = np.zeros(3)     # filtered translation of T_dev (in N_cmd axes)
         self.rotation_rad = np.zeros(3)  # filtered rotation vector of T_dev
         self.weight = {arm: 1.0 for arm in self.arms}
@@ -240,6 +235,8 @@ class TorsoCorrection:
         self._q_legs_cmd: np.ndarray | None = None
         self._T_cmd: np.ndarray | None = None  # torso_in_stance of the commanded legs
         self._T_cmd_inv = np.eye(4)  # its inverse
+        follow_deviation(np.eye(4), np.eye(4), np.zeros(3), np.zeros(3), 0.0, self._bounds,
+                         np.empty((4, 4)), np.empty((4, 4)))  # compile now, not in a period
 
     def deviation(self) -> np.ndarray:
         """The filtered and bounded T_dev (4x4): the measured neck frame in the commanded one."""
@@ -259,14 +256,12 @@ class TorsoCorrection:
             self._T_cmd = torso_in_stance(self.body, q_cmd_rad)
             self._T_cmd_inv = _rigid_inverse(self._T_cmd)
             self._q_legs_cmd = legs
-        T_dev = self._T_cmd_inv @ T_meas
         alpha = self.dt_s / (s.time_constant_s + self.dt_s)
-        self.offset_m = _follow(self.offset_m, T_dev[:3, 3], alpha, s.max_offset_m,
-                                s.max_speed_m_s * self.dt_s)
-        self.rotation_rad = _follow(self.rotation_rad, rotation_log(T_dev[:3, :3]), alpha,
-                                    s.max_tilt_rad, s.max_rate_rad_s * self.dt_s)
-        self._T_dev = self.deviation()
-        self._T_dev_inv = _rigid_inverse(self._T_dev)
+        # compiled (torso_kernels): the low-pass of T_cmd^-1 T_meas, its bounds, T_dev, T_dev^-1
+        self.offset_m, self.rotation_rad = self.offset_m.copy(), self.rotation_rad.copy()
+        self._T_dev, self._T_dev_inv = np.empty((4, 4)), np.empty((4, 4))
+        follow_deviation(self._T_cmd_inv, T_meas, self.offset_m, self.rotation_rad, alpha,
+                         self._bounds, self._T_dev, self._T_dev_inv)
         return self._T_dev
 
     def apply(self, q_cmd_rad) -> np.ndarray:
@@ -304,26 +299,10 @@ class TorsoCorrection:
         return self.apply(q_cmd_rad)
 
 
-def _follow(now: np.ndarray, raw: np.ndarray, alpha: float, limit: float,
-            max_step: float) -> np.ndarray:
-    """One low-pass step from ``now`` toward ``raw``, kept within ``limit`` (norm) and moving
-    at most ``max_step`` (norm)."""
-    wanted = now + alpha * (np.asarray(raw, dtype=float) - now)
-    norm = math.hypot(*wanted)
-    if norm > limit:
-        wanted = wanted * (limit / norm)
-    step = wanted - now
-    size = math.hypot(*step)
-    if size > max_step:
-        step = step * (max_step / size)
-    return now + step
-
-
 def _rigid_inverse(T: np.ndarray) -> np.ndarray:
     """The inverse of a rigid transform (4x4): rotation transposed, translation turned back."""
-    T_inv = np.eye(4)
-    R_T = T[:3, :3].T
-    T_inv[:3, :3], T_inv[:3, 3] = R_T, -(R_T @ T[:3, 3])
+    T_inv = np.empty((4, 4))
+    invert4(np.ascontiguousarray(T, dtype=float), T_inv)  # compiled: one call, not six
     return T_inv
 
 
