@@ -40,6 +40,9 @@ class StandingResult:
         physics_share: fraction of the loop's wall time spent in PyBullet's stepSimulation.
         max_feet_moment_difference_nm: largest |M_right - M_left| of the ankle moments (x, y),
             how unevenly the two feet are loaded (the balancer's compliance evens them out).
+        max_foot_shift_mm: largest horizontal distance of either sole from where it stood at
+            the start (mm): a foot that slid or stepped (a sole rocking on its heel or toe
+            moves it a few mm).
         times_s, tilts_deg, feet_moment_difference_nm: traces, one sample per control period.
     """
 
@@ -55,6 +58,7 @@ class StandingResult:
     physics_share: float
     simulated_s: float
     max_feet_moment_difference_nm: float = 0.0
+    max_foot_shift_mm: float = 0.0
     snapshot: Path | None = None
     run_dir: Path | None = None
     times_s: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
@@ -72,6 +76,7 @@ class StandingResult:
                 "max_sole_tilt_deg": self.max_sole_tilt_deg,
                 "final_tilt_deg": self.final_tilt_deg, "physics_share": self.physics_share,
                 "max_feet_moment_difference_nm": self.max_feet_moment_difference_nm,
+                "max_foot_shift_mm": self.max_foot_shift_mm,
                 "snapshot": str(self.snapshot) if self.snapshot else None}
 
 
@@ -101,6 +106,8 @@ class StandTarget(Target):
         self.differences_nm = np.zeros(n_periods)
         self.k = 0
         self.feet_flat, self.fell, self.max_sole_deg = True, False, 0.0
+        self.soles_start_m: dict[str, np.ndarray] = {}
+        self.max_foot_shift_m = 0.0
         self.torso_z0_m: float | None = None
         self.wall_start_s = self.wall_end_s = 0.0
         self.physics_start_s = 0.0
@@ -126,7 +133,11 @@ class StandTarget(Target):
             self.differences_nm[k] = float(np.linalg.norm(difference))
             self.k += 1
         for sole, touching in zip(("right_sole", "left_sole"), state.feet_contact, strict=True):
-            sole_tilt = math.degrees(tilt_rad_of_matrix(world.frame_pose(sole)[:3, :3]))
+            T_world_sole = world.frame_pose(sole)
+            sole_tilt = math.degrees(tilt_rad_of_matrix(T_world_sole[:3, :3]))
+            start = self.soles_start_m.setdefault(sole, T_world_sole[:2, 3].copy())
+            self.max_foot_shift_m = max(self.max_foot_shift_m,
+                                        float(np.linalg.norm(T_world_sole[:2, 3] - start)))
             self.max_sole_deg = max(self.max_sole_deg, sole_tilt)
             self.feet_flat &= bool(touching) and sole_tilt <= FLAT_TOLERANCE_DEG
         if has_fallen(tilt, self.torso_z0_m - state.T_world_torso[2, 3]):
@@ -189,6 +200,7 @@ def _result(target: StandTarget, done: RunResult, duration_s: float, push_n: flo
         max_sole_tilt_deg=target.max_sole_deg, final_tilt_deg=float(target.tilts_deg[n - 1]),
         physics_share=min(1.0, physics / wall) if wall > 0 else 0.0, simulated_s=simulated,
         max_feet_moment_difference_nm=float(target.differences_nm[:n].max()),
+        max_foot_shift_mm=target.max_foot_shift_m * 1000,
         snapshot=done.run_dir / "snapshot.png", run_dir=done.run_dir,
         times_s=target.times_s[:n], tilts_deg=target.tilts_deg[:n],
         feet_moment_difference_nm=target.differences_nm[:n])
