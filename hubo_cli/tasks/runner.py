@@ -11,7 +11,7 @@ Experiment tasks (``experiment = "push-wall"``) run their built-in procedure ins
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -23,7 +23,7 @@ from hubo_cli.model import RobotModel, load_model
 from hubo_cli.posture import home_posture
 from hubo_cli.session import RunResult, RunSetup, run
 from hubo_cli.tasks.plan import EDGE_NAMES, Plan, make_plan
-from hubo_cli.tasks.spec import TaskSpec
+from hubo_cli.tasks.spec import TaskSpec, format_override
 from hubo_cli.tasks.target import SETTLE_TIMEOUT_S, TaskTarget
 
 PAPER_TORQUE_NM = {"horizontal": {"mean": 0.14, "max": 0.23},
@@ -100,10 +100,30 @@ def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
                        driver_options=driver_options, perturb_seed=perturb_seed,
                        balance=balance)
     target = TaskTarget(plan)
-    done = run(setup, target, on_start=on_start)
+    start = plan.spec.stance.start_m
+    if start is None:
+        done = run(setup, target, on_start=on_start)
+    else:  # walk to the working stance first (hubo_cli.walking.approach)
+        from hubo_cli.urdf import tool_frame
+        from hubo_cli.walking.approach import walk_first
+
+        stance = plan.spec.stance
+        approach, walking_model, q_start, walk_s = walk_first(
+            setup.model, target, start, setup.q_start_rad, plan.placement.wall_distance_m,
+            frames=(tool_frame(stance.limb, stance.tool),))
+        setup = replace(setup, model=walking_model, q_start_rad=q_start,
+                        duration_s=setup.duration_s + walk_s)
+        done = run(setup, approach,
+                   on_start=None if on_start is None else lambda _: on_start(target))
     _write_task_copy(plan.spec, done.run_dir, balance)
     done.add_file("task.toml")
     summary = done.save_summary(summarise(plan, target, done))
+    if start is not None:
+        from hubo_cli.experiments.walk import plot_footprints
+
+        summary = done.save_summary({"walk": approach.summary()})
+        plot_footprints(done, approach.walk, walking_model,
+                        rows=np.asarray(done.log["approach.phase_code"]) == 0)
     return TaskRun(done.run_dir, summary, done.loop, plan)
 
 
@@ -112,7 +132,7 @@ def _write_task_copy(spec: TaskSpec, run_dir: Path, balance: str = "default") ->
     (``--set`` them, ``--balance``)."""
     header = [f"# run of {spec.path}"]
     if spec.overridden:
-        sets = " ".join(f"--set {k}={v}" for k, v in spec.overridden.items())
+        sets = " ".join(f"--set {k}={format_override(v)}" for k, v in spec.overridden.items())
         header.append(f"# parameters changed for this run: hubo task run task.toml {sets}")
     if balance != "default":
         header.append(f"# balance controllers of this run: --balance {balance}")
