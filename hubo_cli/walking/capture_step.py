@@ -35,28 +35,34 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from hubo_cli.control.capture_point import CapturePointMonitor
 from hubo_cli.control.module import Module
 from hubo_cli.control.target import Target, TargetOutput
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.errors import ConfigError, InputError
+from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.state import RobotState
-from hubo_cli.walking.body import WalkingBody, pose_of_row
+from hubo_cli.walking.body import SIDE_LEG, WalkingBody, pose_of_row
 from hubo_cli.walking.footsteps import SIDE_SIGN, Footstep, stance_of
-from hubo_cli.walking.gait import Gait, make_gait, swing_rows
+from hubo_cli.walking.gait import Gait, make_gait, smoothstep5, swing_rows
 from hubo_cli.walking.params import WalkingParams
 from hubo_cli.walking.preview import GRAVITY_M_S2, CoMPath
 from hubo_cli.walking.target import SOLES, footstep_of, planned_support
 
-SINGLE_SUPPORT_S = 0.30  # [chosen] the capture step's swing: short, the pendulum diverges
-SWING_HEIGHT_M = 0.03    # [chosen] sole clearance at mid-swing
+SINGLE_SUPPORT_S = 0.40  # [chosen] the capture step's swing: short, the pendulum diverges
+SWING_HEIGHT_M = 0.04    # [chosen] sole clearance at mid-swing
 ZMP_AHEAD_M = 0.09       # [chosen] stance ZMP ahead of the sole's middle, toward the push
 ZMP_INSET_M = 0.04       # [chosen] ... and inside, toward the swing foot
 MAX_STEP_M = 0.45        # [chosen] landing within this of the stance foot (the legs' reach)
 MAX_WIDTH_M = 0.35       # [chosen] the feet at most this far apart sideways
 CATCH_S = 1.0            # [chosen] both feet down, the CoM comes to rest on the landed foot
+CATCH_EDGE_M = 0.03      # [chosen] the catch's ZMP stays this far inside the landed sole's ends
+LANDED_M = 0.003         # a swing sole this close to the ground has landed
+LAND_WAIT_S = 0.2        # [chosen] wait at most this long after the swing for it to land
+SOLE_FRAME = {"right": "right_sole", "left": "left_sole"}
 RESTING = ("balance", "stabilizer")
 TRIGGER_M = 0.05         # [chosen] step once the CP is within this of the shrunk polygon's edge
 REPLAN_FRACTION = 0.6    # [chosen] the landing follows the measured CP over this much of the swing
@@ -148,7 +154,7 @@ class CaptureStepper(Target):
             self._start(t_s, state)
         q, ref = (q_stand if self.q_hold is None else self.q_hold), (math.nan, math.nan)
         if self.phase == "step":
-            q, ref = self._step_period()
+            q, ref = self._step_period(state)
         elif self.phase in ("catch", "return"):
             q, ref = self._rest_period()
         if self.phase in ("step", "catch", "return"):
@@ -190,13 +196,14 @@ class CaptureStepper(Target):
         T_world_neck = (state.T_world_torso.copy() if state.T_world_torso is not None
                         else world.frame_pose("torso"))
         self.body = WalkingBody(self.model, self.q_stand, T_world_neck)
+        self.legs = {side: Limb(self.model, SIDE_LEG[side]) for side in ("right", "left")}
         self.n_step = max(1, int(round(SINGLE_SUPPORT_S / self.model.control_period_s)))
         self.k, self.t_start_s, self.trigger_s = 0, t_s, t_s
         self.land = feet[swing]
         self.phase = "step"
         self.monitor.support_override = self._support_at
 
-    def _step_period(self) -> tuple[np.ndarray, tuple[float, float]]:
+    def _step_period(self, state: RobotState) -> tuple[np.ndarray, tuple[float, float]]:
         """One period of the capture step: the landing follows the measured capture point
         (until REPLAN_FRACTION of the swing), the CoM the pendulum from the measured state."""
         monitor, period, omega = self.monitor, self.model.control_period_s, self.omega
@@ -208,23 +215,45 @@ class CaptureStepper(Target):
         com, velocity = monitor.com_m[:2], monitor.velocity_m_s[:2]
         c, v, a = pendulum(com, velocity, self.zmp_m, omega, np.array([period]))
         swing_row = swing_rows(self.feet[self.swing], self.land, n, SWING_HEIGHT_M,
-                               self.sole_z_m)[k]
+                               self.sole_z_m)[min(k, n - 1)]
         feet = {self.stance_side: _row(stance, self.sole_z_m), self.swing: swing_row}
         support = np.zeros((1, 2), dtype=bool)
         support[0, 0 if self.stance_side == "right" else 1] = True
         q = self._solve(c, v, a, self.zmp_m, feet, support)
+        # the swing foot lands flat where it should in the world whatever the torso's tilt:
+        # its goal in the measured neck frame
+        T_world_neck = self._measured_neck(state)
+        leg, part = self.legs[self.swing], self.model.limb_slice(SIDE_LEG[self.swing])
+        result = leg.solve(np.linalg.inv(T_world_neck) @ pose_of_row(swing_row), q[part])
+        if result.status in ("exact", "capped"):
+            q = q.copy()
+            q[part] = result.q_rad
+            self.body.q_start = q
         self.k += 1
-        if self.k >= n:
+        # the swing foot lags its pattern under the limits: the step ends when it is down
+        # (or LAND_WAIT_S after the pattern's end)
+        height = float(self.world.frame_pose(SOLE_FRAME[self.swing])[2, 3]) - self.sole_z_m
+        if self.k >= n and (height < LANDED_M or self.k >= n + LAND_WAIT_S / period):
+            self.R_touch_down = T_world_neck[:3, :3].copy()
             self._touch_down(c[0], v[0])
         return q, (float(c[0, 0]), float(c[0, 1]))
 
     def _touch_down(self, com_m: np.ndarray, velocity_m_s: np.ndarray) -> None:
         """The swing foot is down: plan the catch and the return step."""
         period, omega = self.model.control_period_s, self.omega
-        land, stance = self.land, self.feet[self.stance_side]
+        # from where the feet are now (the swing foot lags its pattern under the limits and
+        # lands short of its goal; the stance foot may have slid): the catch and the return
+        # step start from the measured soles, so the legs do not fight each other
+        measured = {side: footstep_of(side, self.world.frame_pose(frame))
+                    for side, frame, _ in SOLES}
+        land, stance = measured[self.swing], measured[self.stance_side]
+        self.land = land
         forward = self.model.feet.forward_m
         sole_middle = np.array([land.x_m, land.y_m]) + forward * self.heading
         xi = com_m + velocity_m_s / omega
+        # the ZMP can only be held on the landed sole: the CoM comes to rest within it
+        reach = self.model.feet.length_m / 2 - CATCH_EDGE_M
+        xi = sole_middle + np.clip(xi - sole_middle, -reach, reach)
         n = max(1, int(round(CATCH_S / period)))
         t = (np.arange(n) + 1.0) * period
         # the CoM from (c, v) to rest over the landed sole (the ZMP held at its middle, the
@@ -259,12 +288,27 @@ class CaptureStepper(Target):
         self.k, self.phase = 0, "catch"
 
     def _rest_period(self) -> tuple[np.ndarray, tuple[float, float]]:
-        """One period of the catch or the return step (the planned pattern)."""
+        """One period of the catch or the return step (the planned pattern); over the catch
+        the torso turns from its tilt at touch-down back upright (both soles stay flat)."""
         rest, k = self.rest, self.k
+        feet = {side: rows[k] for side, rows in rest.feet.items()}
         q = self._solve(rest.com.com_m[k:k + 1], rest.com.com_velocity_m_s[k:k + 1],
-                        rest.com.com_acceleration_m_s2[k:k + 1], rest.zmp_ref_m[k],
-                        {side: rows[k] for side, rows in rest.feet.items()},
+                        rest.com.com_acceleration_m_s2[k:k + 1], rest.zmp_ref_m[k], feet,
                         rest.support[k:k + 1])
+        b = float(smoothstep5((k + 1) / self.n_catch))
+        if b < 1.0:
+            T = self.body_neck.copy()
+            T[:3, :3] = (Rotation.from_matrix(self.R_touch_down)
+                         * Rotation.from_rotvec(b * (Rotation.from_matrix(self.R_touch_down).inv()
+                                                     * Rotation.from_matrix(T[:3, :3])
+                                                     ).as_rotvec())).as_matrix()
+            T_neck_world = np.linalg.inv(T)
+            q = q.copy()
+            for side, row in feet.items():
+                part = self.model.limb_slice(SIDE_LEG[side])
+                result = self.legs[side].solve(T_neck_world @ pose_of_row(row), q[part])
+                if result.status in ("exact", "capped"):
+                    q[part] = result.q_rad
         self.k += 1
         self.phase = "catch" if self.k < self.n_catch else "return"
         if self.k >= rest.n:
@@ -280,11 +324,16 @@ class CaptureStepper(Target):
                    {side: np.asarray(row, dtype=float).reshape(1, 4)
                     for side, row in feet.items()}, support, np.zeros(1, dtype=int))
         try:
-            q = self.body.solve(one).q_rad[0]
+            plan = self.body.solve(one)
         except InputError:  # a sole out of the legs' reach: keep the last joints
             return self.body.q_start
+        q, self.body_neck = plan.q_rad[0], plan.T_world_neck[0]
         self.body.q_start = q
         return q
+
+    def _measured_neck(self, state: RobotState) -> np.ndarray:
+        return (state.T_world_torso if state.T_world_torso is not None
+                else self.world.frame_pose("torso"))
 
     def _support_at(self, t_s: float) -> np.ndarray:
         """The planned support (right, left sole poses) now: the swing foot at its landing."""
