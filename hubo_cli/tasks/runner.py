@@ -11,7 +11,7 @@ Experiment tasks (``experiment = "push-wall"``) run their built-in procedure ins
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -105,14 +105,11 @@ def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
         done = run(setup, target, on_start=on_start)
     else:  # walk to the working stance first (hubo_cli.walking.approach)
         from hubo_cli.urdf import tool_frame
-        from hubo_cli.walking.approach import walk_first
+        from hubo_cli.walking.approach import walk_first_setup
 
         stance = plan.spec.stance
-        approach, walking_model, q_start, walk_s = walk_first(
-            setup.model, target, start, setup.q_start_rad, plan.placement.wall_distance_m,
-            frames=(tool_frame(stance.limb, stance.tool),))
-        setup = replace(setup, model=walking_model, q_start_rad=q_start,
-                        duration_s=setup.duration_s + walk_s)
+        approach, setup = walk_first_setup(setup, target, start, plan.placement.wall_distance_m,
+                                           frames=(tool_frame(stance.limb, stance.tool),))
         done = run(setup, approach,
                    on_start=None if on_start is None else lambda _: on_start(target))
     _write_task_copy(plan.spec, done.run_dir, balance)
@@ -122,7 +119,7 @@ def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
         from hubo_cli.experiments.walk import plot_footprints
 
         summary = done.save_summary({"walk": approach.summary()})
-        plot_footprints(done, approach.walk, walking_model,
+        plot_footprints(done, approach.walk, setup.model,
                         rows=np.asarray(done.log["approach.phase_code"]) == 0)
     return TaskRun(done.run_dir, summary, done.loop, plan)
 

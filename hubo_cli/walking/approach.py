@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 
@@ -39,6 +40,8 @@ from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.errors import InputError
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import LEGS, RobotModel, load_model
+from hubo_cli.posture import home_posture
+from hubo_cli.session import RunSetup
 from hubo_cli.state import RobotState
 from hubo_cli.walking.body import walking_posture
 from hubo_cli.walking.footsteps import Footstep, Stance, closing_steps, plan_footsteps
@@ -89,7 +92,9 @@ def rise_rows(model: RobotModel, q_from_rad: np.ndarray, q_to_rad: np.ndarray,
                                  f"({result.status} at {k / n:.0%})",
                                  hint="the walk ended too far from the working stance")
             q = rows[k, part] = result.q_rad
-    rows[-1] = q_to
+        # the IK's last solution and the posture differ by its rounding: spread it over the
+        # rise (the last row is the posture, no jump)
+        rows[:, part] += s[:, None] * (q_to[part] - rows[-1, part])
     return rows
 
 
@@ -264,3 +269,17 @@ def walk_first(model: RobotModel, then: Target, start_m: tuple[float, float],
               + RISE_S + STILL_TIMEOUT_S)
     return (WalkFirst(walk, q_then_rad, then, wall_x, frames), walking_model, q_start,
             budget)
+
+
+def walk_first_setup(setup: RunSetup, then: Target, start_m: tuple[float, float],
+                     wall_distance_m: float | None = None, frames: Sequence[str] = HANDS,
+                     ) -> tuple[WalkFirst, RunSetup]:
+    """A session's run set-up and target with the walk to its working stance first
+    (:func:`walk_first`): the target to run, and ``setup`` with the walking limit set, the
+    walking start posture and the walk's time added to its duration (if it has one)."""
+    target, model, q_start, walk_s = walk_first(setup.model, then, start_m, setup.q_start_rad
+                                                if setup.q_start_rad is not None
+                                                else home_posture(setup.model),
+                                                wall_distance_m, frames=frames)
+    duration = None if setup.duration_s is None else setup.duration_s + walk_s
+    return target, replace(setup, model=model, q_start_rad=q_start, duration_s=duration)
