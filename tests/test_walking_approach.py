@@ -126,3 +126,14 @@ def test_landing_stays_within_reach():
     assert math.hypot(far.x_m - stance.x_m, far.y_m - stance.y_m) == \
         pytest.approx(MAX_STEP_M)
     assert far.y_m - stance.y_m == pytest.approx(MAX_WIDTH_M)
+
+
+def test_teleop_refuses_a_bad_walk_start():
+    from click.testing import CliRunner
+
+    from hubo_cli.cli.main import main
+
+    result = CliRunner().invoke(main, ["teleop", "--replay", "trajectories/drill-rectangle.csv",
+                                       "--walk-from", "nan", "0"])
+    assert result.exit_code == 2
+    assert "--walk-from" in result.output

@@ -69,3 +69,19 @@ def test_the_walk_closes_the_feet_without_a_stop(handed_over):
     feet = [np.array(target.walk.final_feet[s][:2, 3]) for s in ("right", "left")]
     assert np.linalg.norm(feet[0] - feet[1]) == pytest.approx(0.177, abs=0.006)
     json.dumps(walk)  # the summary's walk field is plain JSON
+
+
+def test_sim_step_stands_still_without_a_push(tmp_path):
+    """``hubo sim --step`` without a push: no step (the capture point stays well inside), the
+    summary says so and keeps ``fell``."""
+    from click.testing import CliRunner
+
+    from hubo_cli.cli.main import main
+
+    result = CliRunner().invoke(main, ["sim", "--duration", "1", "--step", "--json",
+                                       "--out", str(tmp_path / "run")])
+    assert result.exit_code == 0, result.output
+    fields = json.loads(result.output)
+    assert fields["fell"] is False
+    assert fields["capture_step"] == {"stepped": False, "trigger_s": None, "steps": 0,
+                                      "start_feet": [], "footsteps": []}

@@ -207,6 +207,9 @@ def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, w
     if wall_distance is not None and not (math.isfinite(wall_distance) and wall_distance > 0):
         raise InputError(f"--wall-distance {wall_distance:g} mm must be a positive distance",
                          hint="e.g. --wall-distance 470 (or leave it out: the workspace map's)")
+    if walk_from is not None and not all(math.isfinite(v) and abs(v) <= 10 for v in walk_from):
+        raise InputError(f"--walk-from {walk_from[0]:g} {walk_from[1]:g} must be metres within "
+                         "10 m of the working stance", hint="e.g. --walk-from -1 0 (1 m behind)")
     stations = _station_map(station_map)
     settings = TeleopSettings(
         replay=replay, port=port, driver=driver, mode=mode, speed=_speed(speed), scale=scale,
