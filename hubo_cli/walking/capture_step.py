@@ -56,6 +56,7 @@ SINGLE_SUPPORT_S = 0.40  # [chosen] the capture step's swing: short, the pendulu
 SWING_HEIGHT_M = 0.04    # [chosen] sole clearance at mid-swing
 ZMP_AHEAD_M = 0.09       # [chosen] stance ZMP ahead of the sole's middle, toward the push
 ZMP_INSET_M = 0.04       # [chosen] ... and inside, toward the swing foot
+MIN_STEP_M = 0.10        # [chosen] the step goes at least this far the push's way
 MAX_STEP_M = 0.45        # [chosen] landing within this of the stance foot (the legs' reach)
 MAX_WIDTH_M = 0.35       # [chosen] the feet at most this far apart sideways
 CATCH_S = 1.0            # [chosen] both feet down, the CoM comes to rest on the landed foot
@@ -85,13 +86,18 @@ def _row(foot: Footstep, z_m: float) -> np.ndarray:
 
 
 def landing(stance: Footstep, side: str, xi_m: np.ndarray, forward_m: float,
-            width_m: float) -> Footstep:
+            width_m: float, min_ahead_m: float = 0.0) -> Footstep:
     """Where the swing foot ``side`` lands: its sole's middle on ``xi_m`` (world x, y), within
-    MAX_STEP_M of the stance foot, ``width_m`` to MAX_WIDTH_M from it sideways, heading as
-    the stance foot."""
+    MAX_STEP_M of the stance foot, ``width_m`` to MAX_WIDTH_M from it sideways, at least
+    ``min_ahead_m`` ahead of it (negative: at least that far behind; the push's way), heading
+    as the stance foot."""
     c, s = math.cos(stance.yaw_rad), math.sin(stance.yaw_rad)
     dx, dy = xi_m[0] - stance.x_m, xi_m[1] - stance.y_m
     ahead = c * dx + s * dy - forward_m          # the ankle goes forward_m behind the middle
+    if min_ahead_m > 0:
+        ahead = max(ahead, min_ahead_m)
+    elif min_ahead_m < 0:
+        ahead = min(ahead, min_ahead_m)
     across = SIDE_SIGN[side] * (-s * dx + c * dy)  # toward the swing side: positive
     across = min(max(across, width_m), MAX_WIDTH_M)
     length = math.hypot(ahead, across)
@@ -190,7 +196,9 @@ class CaptureStepper(Target):
         self.heading = np.array([c, s])
         inward = -SIDE_SIGN[self.stance_side] * np.array([-s, c])
         forward = self.model.feet.forward_m
-        ahead = float(np.sign(velocity @ self.heading)) * ZMP_AHEAD_M
+        way = float(np.sign(velocity @ self.heading))  # forward (1) or backward (-1) push
+        ahead = way * ZMP_AHEAD_M
+        self.min_ahead_m = way * MIN_STEP_M
         self.zmp_m = (np.array([stance.x_m, stance.y_m]) + (forward + ahead) * self.heading
                       + ZMP_INSET_M * inward)
         T_world_neck = (state.T_world_torso.copy() if state.T_world_torso is not None
@@ -211,7 +219,8 @@ class CaptureStepper(Target):
         stance = self.feet[self.stance_side]
         if k <= REPLAN_FRACTION * n:
             xi = self.zmp_m + (monitor.cp_m - self.zmp_m) * math.exp(omega * (n - k) * period)
-            self.land = landing(stance, self.swing, xi, self.model.feet.forward_m, self.width_m)
+            self.land = landing(stance, self.swing, xi, self.model.feet.forward_m, self.width_m,
+                                self.min_ahead_m)
         com, velocity = monitor.com_m[:2], monitor.velocity_m_s[:2]
         c, v, a = pendulum(com, velocity, self.zmp_m, omega, np.array([period]))
         swing_row = swing_rows(self.feet[self.swing], self.land, n, SWING_HEIGHT_M,
