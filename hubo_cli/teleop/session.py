@@ -200,7 +200,11 @@ def run_teleop(settings: TeleopSettings, on_ready=None) -> TeleopRun:
                    else lambda _: on_ready(target))
     summary = done.save_summary(summarise(settings, target, done, source, scene))
     if runs is not target:
+        from hubo_cli.experiments.walk import plot_footprints
+
         summary = done.save_summary({"walk": runs.summary()})
+        plot_footprints(done, runs.walk, setup.model,
+                        rows=np.asarray(done.log["approach.phase_code"]) == 0)
     return TeleopRun(done.run_dir, summary, done.loop)
 
 
