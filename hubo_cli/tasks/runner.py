@@ -18,7 +18,7 @@ import numpy as np
 
 from hubo_cli.control.loop import LoopResult
 from hubo_cli.control.pipeline import SafetyProfile
-from hubo_cli.errors import SafetyError
+from hubo_cli.errors import InputError, SafetyError
 from hubo_cli.model import RobotModel, load_model
 from hubo_cli.posture import home_posture
 from hubo_cli.session import RunResult, RunSetup, run
@@ -101,6 +101,9 @@ def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
                        balance=balance)
     target = TaskTarget(plan)
     start = plan.spec.stance.start_m
+    if start is not None and driver != "sim":
+        raise InputError(f"stance.start_mm walks the robot to its stance: the simulator only, "
+                         f"not the {driver} driver", hint="leave out stance.start_mm")
     if start is None:
         done = run(setup, target, on_start=on_start)
     else:  # walk to the working stance first (hubo_cli.walking.approach)
