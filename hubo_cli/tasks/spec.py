@@ -280,7 +280,7 @@ def format_override(value: object) -> str:
         return "[" + ",".join(format_override(v) for v in value) + "]"
     if isinstance(value, bool):
         return str(value).lower()
-    return f"{value:g}" if isinstance(value, float) else str(value)
+    return str(value)
 
 
 def _scalar(value: str) -> object:
