@@ -152,7 +152,7 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
           balance: bool = True, *, push_at_s: float = 1.0, push_duration_s: float = 0.2,
           push_direction=(1.0, 0.0, 0.0), gui: bool = False, out: str | Path | None = None,
           estop: bool = True, perturb_seed: int | None = None,
-          balance_mode: str = "default") -> StandingResult:
+          balance_mode: str = "default", step: bool = False) -> StandingResult:
     """Stand the simulated robot for ``duration_s`` and measure how it copes.
 
     Args:
@@ -168,21 +168,35 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
         estop: keep the soft emergency stopper (see :class:`SafetyProfile`).
         perturb_seed: a perturbed simulated robot and world (:mod:`hubo_cli.perturb`).
         balance_mode: ``default`` or ``paper`` (eq. 11-12 as published), when balance is on.
+        step: catch a push the ankles cannot hold by stepping
+            (:class:`~hubo_cli.walking.capture_step.CaptureStepper`; the robot file's
+            ``walking`` limit set, whose legs are fast enough to step); the summary gets
+            ``capture_step``.
     """
     check_standing_args(duration_s, push_n)
     direction = np.asarray(push_direction, dtype=float)
     direction = direction / np.linalg.norm(direction)
     q_home = home_posture(model)
     n_periods = int(round(duration_s / model.control_period_s))
-    target = StandTarget(q_home, n_periods, push_n * direction, push_at_s, push_duration_s)
+    target = stepper = StandTarget(q_home, n_periods, push_n * direction, push_at_s,
+                                   push_duration_s)
+    if step:
+        from hubo_cli.model import load_model
+        from hubo_cli.walking.capture_step import CaptureStepper
+        from hubo_cli.walking.params import walking_params
+
+        model = load_model(model.params_name, "walking")
+        stepper = CaptureStepper(target, model, walking_params(model), q_home)
     setup = RunSetup(command="sim", model=model, driver="sim", gui=gui, out=out,
                      safety=SafetyProfile(estop=estop, balance=balance,
                                           balance_mode=balance_mode),
                      duration_s=n_periods * model.control_period_s, q_start_rad=q_home,
                      perturb_seed=perturb_seed)
-    done = run(setup, target)
+    done = run(setup, stepper)
     result = _result(target, done, duration_s, push_n, balance, model.control_period_s)
     done.save_summary(result.summary())
+    if step:
+        done.save_summary({"capture_step": stepper.summary()})
     return result
 
 
