@@ -16,7 +16,7 @@ from hubo_cli.errors import ConfigError
 from hubo_cli.kinematics import choice
 from hubo_cli.kinematics.conditioning import SingularityScale
 from hubo_cli.kinematics.limb import IKResult, Limb
-from hubo_cli.kinematics.reach import branch_box, branch_of, on_branch
+from hubo_cli.kinematics.reach import branch_of, on_branch
 
 REACH_MODES = ("nearest", "paper")
 
@@ -51,10 +51,6 @@ class ReachSettings:
             velocity and acceleration limits.
         singularity: how joint speeds slow near singular configurations
             (:meth:`SingularityScale.off` for not at all).
-        smoothing_bandwidth_rad_s: the arm's joint target is its IK solution smoothed by a
-            critically damped alpha-beta filter of this bandwidth (rad/s; 0 = off), which takes
-            the operator's tremor out of what the trajectory generator follows
-            (:mod:`hubo_cli.teleop.smoothing`).
     """
 
     mode: str = "nearest"
@@ -67,7 +63,6 @@ class ReachSettings:
     allow_branch_change: bool = False
     branch_move_fraction: float = 0.25
     singularity: SingularityScale = SingularityScale()
-    smoothing_bandwidth_rad_s: float = 8.0
 
     @classmethod
     def for_mode(cls, teleop_mode: str, **changes) -> ReachSettings:
@@ -164,15 +159,6 @@ class ArmReach:
             lower, upper, q_prev, self.branch, self._margins, 1.0,
             self.settings.orientation_weight_m_per_rad, self.settings.iterations, q)
         return IKResult(q, choice.STATUS_NAMES[status], pos, rot)
-
-    def branch_bounds(self, q_ref_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Joint intervals (lower, upper; rad) within the limits and inside the branch by its
-        margins, as seen from q_ref (a joint of q_ref already inside a margin may stay)."""
-        lo, hi = np.empty(6), np.empty(6)
-        branch_box(np.ascontiguousarray(q_ref_rad, dtype=float),
-                   -1 if self.branch is None else self.branch, self._margins,
-                   self.limb.lower_rad, self.limb.upper_rad, lo, hi)
-        return lo, hi
 
     def other_branch(self, T_N_goal: np.ndarray, q_prev_rad: np.ndarray) -> np.ndarray | None:
         """The exact solution on another branch (closest to q_prev), or None if there is none."""

@@ -21,10 +21,7 @@ arm_reach`; ``reach="paper"`` restores the paper's 5 cm rule). The branch change
 operator's request (key ``b``) or, with ``allow_branch_change``, when the hand rests at its reach
 limit and another branch reaches the goal: a slow joint-space move, announced in the live view.
 Near singular configurations the arm's joint speeds are scaled down
-(:mod:`hubo_cli.kinematics.conditioning`). Each arm's solution is smoothed before the trajectory
-generator (:mod:`hubo_cli.teleop.smoothing`: the operator's tremor out, no lag on a steady
-motion), and the target stops where the arm would come within 11 mm of the body
-(:mod:`hubo_cli.teleop.clearance`), so the collision detector does not have to hold it.
+(:mod:`hubo_cli.kinematics.conditioning`).
 
 Goals live in the stance frame S (the home neck frame, fixed to the ground). The actual
 end-effector pose is what the robot measures, as on the paper's robot: FK of the measured arm
@@ -46,7 +43,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hubo_cli.control.collision import SelfCollisionChecker
 from hubo_cli.control.target import Target
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.fastrak.source import PoseSource
@@ -61,9 +57,7 @@ from hubo_cli.kinematics.torso import CorrectionSettings, TorsoCorrection, Torso
 from hubo_cli.kinematics.wholebody import LiftFilter, WholeBody
 from hubo_cli.model import ARMS, RobotModel
 from hubo_cli.scene import WallPlacement
-from hubo_cli.teleop.clearance import clear_of_body
 from hubo_cli.teleop.mapping import HandMapper
-from hubo_cli.teleop.smoothing import TargetSmoother
 
 PHASES = ("approach", "operate", "settle")
 SHORT = {"right-arm": "r", "left-arm": "l"}
@@ -91,7 +85,6 @@ class HandTrack:
     notice: str = ""
     branch_changes: int = 0
     at_limit_periods: int = 0
-    at_body_periods: int = 0
     rest_anchor_m: np.ndarray | None = None
     rest_since_s: float = 0.0
     last_branch: int | None = None
@@ -168,7 +161,6 @@ class TeleopTarget(Target):
         self.arms = sorted(set(mapper.config.station_arm.values()) & set(ARMS))
         self.slices = {arm: model.limb_slice(arm) for arm in ARMS}
         self.q_target = np.array(q_start_rad, dtype=float)
-        self.q_solved = self.q_target.copy()  # the arms' IK solutions, before the smoothing
         self.q_out = self.q_target.copy()  # q_target corrected by the measured torso pose
         self._q_out_of = self.q_target.copy()  # the q_target that q_out corrects
         self.estimator = TorsoEstimator(body)  # the torso pose the robot measures
@@ -195,12 +187,6 @@ class TeleopTarget(Target):
         self.reach_settings = reach or ReachSettings.for_mode(mapper.config.mode)
         self.reach = {arm: ArmReach(body.arms[arm], self.reach_settings) for arm in approach}
         self.singularity = singularity or self.reach_settings.singularity
-        self.body_checker = SelfCollisionChecker(
-            model, drill=body.tools.get("right-arm") == "drill")
-        self.smoothers = {arm: TargetSmoother(len(model.limb(arm).joints),
-                                              model.control_period_s,
-                                              self.reach_settings.smoothing_bandwidth_rad_s)
-                          for arm in approach}
         self.rotation_errors_rad: dict[str, list[float]] = {arm: [] for arm in self.arms}
         self.path_times_s: dict[str, list[float]] = {arm: [] for arm in self.arms}
         self._t_solved_s: dict[str, float] = {}
@@ -316,10 +302,8 @@ class TeleopTarget(Target):
         if self._settled(state) or t_path >= self.approach_s + self.approach_timeout_s:
             self.phase = "operate"
             self.t_operate_s = t_s
-            self.q_solved = self.q_target.copy()
             for arm, reach in self.reach.items():
                 reach.start(self.q_target[self.slices[arm]])
-                self.smoothers[arm].reset(self.q_target[self.slices[arm]])
 
     def _source_time(self, t_s: float) -> float:
         return self.source.now_s() if self.live else t_s - self.t_operate_s
@@ -387,18 +371,15 @@ class TeleopTarget(Target):
     def _converging(self) -> bool:
         """An arm target is still on its way (nearest-pose search, slowed step, branch move)."""
         return any(h.branch_move is not None or h.at_limit or h.speed_scale < 1.0
-                   for h in self.hands.values()) or any(
-            not self.smoothers[arm].settled(self.q_solved[self.slices[arm]])
-            for arm in self.goals if arm in self.smoothers)
+                   for h in self.hands.values())
 
     def _solve_on_branches(self, t_s: float, lift_m: float, branch_key: bool) -> None:
-        """Legs to the lift, each arm on its branch (nearest pose, branch moves), its solution
-        smoothed (:mod:`hubo_cli.teleop.smoothing`) and slowed near singularities."""
+        """Legs to the lift, each arm on its branch (nearest pose, branch moves, speed scale)."""
         legs = self.body.solve({}, self.q_target, lift_m=lift_m)
         q = legs.q_rad
         for arm, T_S_goal in self.goals.items():
             sl = self.slices[arm]
-            q_now = self.q_solved[sl]
+            q_now = self.q_target[sl]
             reach = self.reach[arm]
             T_N_goal = reach.smoothed(T_S_goal, t_s - self._t_solved_s.get(arm, t_s))
             self._t_solved_s[arm] = t_s
@@ -416,24 +397,7 @@ class TeleopTarget(Target):
                     hand.missing_m = T_N_goal[:3, 3] - reach.limb.fk(result.q_rad)[:3, 3]
                     hand.at_limit_periods += 1
                 q_arm = self._branch_policy(t_s, arm, hand, T_N_goal, q_now, q_arm, branch_key)
-            self.q_solved[sl] = q_arm
-            smoother = self.smoothers[arm]
-            if hand is not None and hand.branch_move is not None:
-                smoother.reset(q_arm)  # the move is smooth already and crosses the branch
-                q_smooth = q_arm
-            else:
-                q_smooth = smoother.step(q_arm, *reach.branch_bounds(q_arm))
-                q_clear = clear_of_body(self.body_checker, q, sl, self.q_target[sl], q_smooth)
-                if q_clear is not None:
-                    smoother.reset(q_clear)
-                    if hand is not None:
-                        hand.at_body_periods += 1
-                    q_smooth = q_clear
-            q[sl] = self._speed_scaled(arm, self.q_target[sl], q_smooth, hand)
-            if hand is not None and hand.speed_scale < 1.0:
-                # near a singularity the slowed target is where the next solution starts
-                self.q_solved[sl] = q[sl]
-                smoother.reset(q[sl])
+            q[sl] = self._speed_scaled(arm, q_now, q_arm, hand)
         self.q_target = q
 
     def _branch_policy(self, t_s, arm, hand: HandTrack, T_N_goal, q_now, q_arm,
@@ -468,14 +432,10 @@ class TeleopTarget(Target):
         """Slow the arm near a singular configuration: its target moves at most ``scale`` times
         the speed limits (uniformly, direction kept) and leads the measured joints by at most
         the distance in which the jerk-limited trajectory generator stops from that speed, so
-        the joints themselves stay near it. The condition number ahead is taken one period
-        at the full speed limits toward q_next (which may be further away than that)."""
+        the joints themselves stay near it."""
         limb = self.reach[arm].limb
-        step = q_next - q_now
-        periods = np.max(np.abs(step) / (limb.spec.velocity_rad_s * self.dt_guard_s))
-        q_ahead = q_now + step / periods if periods > 1.0 else q_next
         scale = self.singularity.scale(condition_number(limb, q_now),
-                                       condition_number(limb, q_ahead))
+                                       condition_number(limb, q_next))
         if hand is not None:
             hand.speed_scale = scale
         if scale >= 1.0:
@@ -503,7 +463,6 @@ class TeleopTarget(Target):
                 "orientation_rms_deg": float(np.degrees(np.sqrt(np.mean(rot**2))))
                 if len(rot) else None,
                 "at_limit_s": hand.at_limit_periods * self.dt_guard_s,
-                "at_body_s": hand.at_body_periods * self.dt_guard_s,
                 "branch_changes": hand.branch_changes,
                 "max_excursion_mm": max_excursion_m(
                     np.asarray(self.path_times_s[arm]),
