@@ -22,7 +22,14 @@ Physics and control
     through both legs leaves the split of the feet's horizontal forces to the solver's
     iteration history (24 N on one foot and 5 N on the other at 400 Hz, 6 and 4 N at 1 kHz,
     0.1 s after start); compliant soles make it a matter of physics (2.3 and 2.4 N at either
-    rate). ``sole_stiffness_n_m=None`` gives rigid soles.
+    rate). ``sole_stiffness_n_m=None`` gives rigid soles. The soles' contacts hold their
+    friction anchors (``sole_friction_anchor``, PyBullet's ``frictionAnchor``): a contact that
+    sticks is held where it first touched, within the friction cone, so a standing foot does not
+    creep. Without them the solver's velocity-level friction lets both feet walk away together
+    under a few newtons of cutting reaction, far inside the cone: 14 mm over a 60 s cut on a
+    perturbed robot (foot friction 0.58), 9 mm at 0.91; the leg encoders and the IMU cannot see
+    both feet slide at once, so the measured torso pose, the corrected hand goal and the hole
+    drifted with them (hole RMS 5-6 mm instead of 1.5).
     The URDF's effort limits are the torque limits (tens of
     N m in the arms, 10 N m in the wrists, 100-200 N m in the legs); each motor's speed is capped
     at ``max_speed_factor`` (3) times the model's velocity limit, as a real motor's top speed
@@ -231,6 +238,7 @@ class SimOptions:
     position_gain: float = FAST_PHYSICS["position_gain"]
     sole_stiffness_n_m: float | None = FAST_PHYSICS["sole_stiffness_n_m"]
     sole_damping_n_s_m: float = FAST_PHYSICS["sole_damping_n_s_m"]
+    sole_friction_anchor: bool = True
     velocity_gain: float = 1.0
     friction: float = 1.0
     settle_s: float = 0.3
@@ -406,6 +414,10 @@ class SimDriver(Driver, SimulatedWorld):
             for link in FOOT_LINKS:
                 p.changeDynamics(self._robot, self._links[link],
                                  lateralFriction=self.perturbation.foot_friction,
+                                 physicsClientId=cid)
+        if self.options.sole_friction_anchor:  # sticking soles stay put (no creep)
+            for link in FOOT_LINKS:
+                p.changeDynamics(self._robot, self._links[link], frictionAnchor=1,
                                  physicsClientId=cid)
         # base = torso link; PyBullet poses the base by its centre of mass
         info = p.getDynamicsInfo(self._robot, -1, physicsClientId=cid)
