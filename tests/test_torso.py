@@ -238,3 +238,30 @@ def test_the_compiled_correction_step_is_the_numpy_formula():
         assert np.allclose(T_dev[:3, :3], rotation_exp(rotation_ref), rtol=0, atol=1e-14)
         assert np.allclose(T_dev @ T_dev_inv, np.eye(4), rtol=0, atol=1e-14)
         offset, rotation = offset_ref, rotation_ref  # the next step from the same state
+
+
+def test_at_a_wrist_limit_the_correction_holds_the_bit_and_lets_its_orientation_give(body):
+    # the wrist pitch 5 mrad from its limit (the slot's first pose stands 39 mrad from it): a
+    # forward lean asks for more than that, so the exact corrected goal is out of the limits
+    limb = body.arms[ARM]
+    q = _working_pose(body)
+    q[SL.stop - 1] = limb.lower_rad[5] + 0.005
+    goal = torso_in_stance(body, q) @ limb.fk(q[SL])
+    lean = _state(q, pitch_rad=np.radians(1.0), roll_rad=np.radians(-0.5))
+    T_S_N = torso_in_stance(body, q, lean.imu_quat_wxyz)
+    fading = CorrectionSettings(nearest_max_position_m=0.0)  # the former rule: fade out
+    for settings, holds in ((CorrectionSettings(), True), (fading, False)):
+        correction = TorsoCorrection(body, (ARM,), DT, settings)
+        for _ in range(int(3.0 / DT)):
+            q_out = correction(q, lean)
+        T_S_E = T_S_N @ limb.fk(q_out[SL])
+        assert not limb.solve(np.linalg.inv(correction.deviation()) @ limb.fk(q[SL]),
+                              q[SL]).exact
+        assert np.all(q_out[SL] >= limb.lower_rad - 1e-9)
+        error_m = np.linalg.norm(T_S_E[:3, 3] - goal[:3, 3])
+        if holds:
+            assert correction.weight[ARM] == 1.0 and error_m < 2e-4
+            tilt = np.arccos(np.clip((np.trace(goal[:3, :3].T @ T_S_E[:3, :3]) - 1) / 2, -1, 1))
+            assert tilt <= settings.nearest_max_rotation_rad
+        else:
+            assert correction.weight[ARM] < 0.9 and error_m > 1e-3
