@@ -13,13 +13,21 @@ from hubo_cli.control.target import Target, TargetOutput
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.errors import ConfigError
 from hubo_cli.falls import has_fallen
-from hubo_cli.geometry import tilt_rad_of_matrix
+from hubo_cli.geometry import quat_wxyz_to_matrix, tilt_rad_of_matrix
 from hubo_cli.model import RobotModel
 from hubo_cli.state import RobotState
-from hubo_cli.walking.body import JointPlan, WalkingBody
+from hubo_cli.walking.body import SIDE_LEG, JointPlan, WalkingBody, pose_of_row
 from hubo_cli.walking.footsteps import Footstep, Stance, plan_footsteps, stance_of
-from hubo_cli.walking.gait import Gait, make_gait
+from hubo_cli.walking.gait import Gait, make_gait, zmp_point
 from hubo_cli.walking.params import WalkingParams
+from hubo_cli.walking.stabilizer import (
+    ForceDifference,
+    SoleDamper,
+    StabilizerGains,
+    TorsoOffset,
+    Touchdown,
+    left_share,
+)
 
 ARRIVED_M = 0.005                  # closer than this to the goal stance needs no correction
 ARRIVED_RAD = math.radians(1.0)
@@ -27,6 +35,7 @@ ZMP_INSIDE_MARGIN_M = 0.001  # a ZMP closer than this to the hull's edge counts 
                              # tipping about that edge: the physics keeps the ZMP on the hull)
 LOADED_N = 10.0  # a sole carrying more than this counts in the measured ZMP and the support
 SOLES = (("right", "right_sole", "right-ankle"), ("left", "left_sole", "left-ankle"))
+SOLES_SENSOR = {side: sensor for side, _, sensor in SOLES}
 
 
 def footstep_of(side: str, T_world_sole: np.ndarray) -> Footstep:
@@ -62,11 +71,21 @@ def measured_zmp(poses: dict[str, np.ndarray], wrenches: dict[str, np.ndarray],
     return zmp, float(outside_distance(convex_hull(np.array(points)), zmp))
 
 
+def tilt_between(z_from: np.ndarray, z_to: np.ndarray) -> np.ndarray:
+    """The smallest rotation (3x3) turning the unit vector ``z_from`` onto ``z_to``."""
+    axis = np.cross(z_from, z_to)
+    s, c = float(np.linalg.norm(axis)), float(np.dot(z_from, z_to))
+    if s < 1e-12:
+        return np.eye(3)
+    K = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    K /= s
+    angle = math.atan2(s, c)
+    return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * K @ K
+
+
 def planned_support(gait: Gait) -> np.ndarray:
     """Per period the soles that carry the robot in this phase of the step, the swing foot at
     its landing place: (n, 2, 4, 4) world poses (right, left), for the capture-point monitor."""
-    from hubo_cli.walking.body import pose_of_row
-
     poses = np.empty((gait.n, 2, 4, 4))
     for column, side in enumerate(("right", "left")):
         rows = gait.feet[side].copy()
@@ -97,11 +116,13 @@ class WalkTarget(Target):
     log_columns = ("walk.zmp_ref_x_m", "walk.zmp_ref_y_m", "walk.com_ref_x_m",
                    "walk.com_ref_y_m", "walk.zmp_x_m", "walk.zmp_y_m", "walk.zmp_outside_m",
                    "walk.step", "walk.tilt_deg", "planned_right_foot_contact_flag",
-                   "planned_left_foot_contact_flag")
+                   "planned_left_foot_contact_flag", "walk.offset_x_m", "walk.offset_y_m",
+                   "walk.dz_m", "walk.right_sole_roll_rad", "walk.right_sole_pitch_rad",
+                   "walk.left_sole_roll_rad", "walk.left_sole_pitch_rad")
 
     def __init__(self, model: RobotModel, params: WalkingParams, goal: tuple[float, float, float],
                  q_start_rad: np.ndarray, T_world_neck_start: np.ndarray,
-                 corrections: int = 1) -> None:
+                 corrections: int = 1, stabilizer: StabilizerGains | None = None) -> None:
         self.model = model
         self.params = params
         self.goal_relative = goal
@@ -124,6 +145,19 @@ class WalkTarget(Target):
         self.corrections_left = int(corrections)
         self.plan_start_s = 0.0
         self.last_step_end_s = 0.0
+        self.body: WalkingBody | None = None
+        self.stabilizer = stabilizer
+        dt = model.control_period_s
+        xs, ys = self.corners[:, 0], self.corners[:, 1]
+        box = (float(xs.min()), float(xs.max()), float(ys.min()), float(ys.max()))
+        if stabilizer is not None:
+            self.dampers = {side: SoleDamper(stabilizer, box, dt) for side in ("right", "left")}
+            self.torso_offset = TorsoOffset(stabilizer, dt)
+            self.force_difference = ForceDifference(stabilizer, dt)
+            self.touchdowns = {side: Touchdown(stabilizer, dt) for side in ("right", "left")}
+        names = list(model.joint_names)
+        self._ankle = {"right": (names.index("RAR"), names.index("RAP")),
+                       "left": (names.index("LAR"), names.index("LAP"))}
 
     def attach(self, world: SimulatedWorld | None, modules: Sequence) -> None:
         if world is None:
@@ -161,7 +195,10 @@ class WalkTarget(Target):
         self.gait = make_gait(feet["right"], feet["left"], steps, self.params,
                               self.model.control_period_s, float(com_world[2]) - sole_z, sole_z,
                               self.model.feet.forward_m, com_start_m=com_world[:2])
-        self.plan = body.solve(self.gait)
+        params = self.params
+        self.gait, self.plan = body.solve_corrected(self.gait, sole_z, params.preview_s,
+                                                    params.zmp_weight, params.jerk_weight)
+        self.body = body
         self._support_poses = planned_support(self.gait)
         self.plan_start_s = t_s
         self.k = 0
@@ -202,6 +239,9 @@ class WalkTarget(Target):
             self.zmp_periods += 1
             self.zmp_inside_periods += outside <= -ZMP_INSIDE_MARGIN_M
         self.final_feet = poses
+        q = plan.q_rad[k]
+        if self.stabilizer is not None:
+            q = self._stabilized(k, q.copy(), state, zmp)
         info = {"walk.zmp_ref_x_m": float(gait.zmp_ref_m[k, 0]),
                 "walk.zmp_ref_y_m": float(gait.zmp_ref_m[k, 1]),
                 "walk.com_ref_x_m": float(gait.com.com_m[k, 0]),
@@ -212,9 +252,76 @@ class WalkTarget(Target):
                 "walk.step": float(gait.step_index[k]), "walk.tilt_deg": tilt,
                 "planned_right_foot_contact_flag": float(gait.support[k, 0]),
                 "planned_left_foot_contact_flag": float(gait.support[k, 1]),
+                **self._stabilizer_info(),
                 "done": self.fell or (self.k >= gait.n and (self.corrections_left == 0
                                                              or self.arrived()))}
-        return plan.q_rad[k], info
+        return q, info
+
+    def _stabilizer_info(self) -> dict[str, float]:
+        """The stabilizer's corrections for the log (NaN without a stabilizer)."""
+        if self.stabilizer is None:
+            return dict.fromkeys(self.log_columns[-7:], math.nan)
+        right, left = self.dampers["right"].delta_rad, self.dampers["left"].delta_rad
+        offset = self.torso_offset.offset_m
+        return {"walk.offset_x_m": float(offset[0]), "walk.offset_y_m": float(offset[1]),
+                "walk.dz_m": self.force_difference.dz_m,
+                "walk.right_sole_roll_rad": float(right[0]),
+                "walk.right_sole_pitch_rad": float(right[1]),
+                "walk.left_sole_roll_rad": float(left[0]),
+                "walk.left_sole_pitch_rad": float(left[1])}
+
+    def _measured_neck(self, k: int, state: RobotState) -> np.ndarray:
+        """The torso's pose in the world (4x4) as a real robot can measure it: tilted as the
+        IMU says (heading from the pattern), placed by the measured leg kinematics of the more
+        loaded planned support sole standing where the pattern put it."""
+        gait, body = self.gait, self.body
+        side = max(("right", "left"), key=lambda s: (
+            bool(gait.support[k, 0 if s == "right" else 1]), float(state.ft[SOLES_SENSOR[s]][2])))
+        name = SIDE_LEG[side]
+        T_neck_sole = body.legs[name].fk(state.q_rad[body.slices[name]])
+        R_plan = self.plan.T_world_neck[k, :3, :3]
+        R = tilt_between(R_plan[:, 2], quat_wxyz_to_matrix(state.imu_quat_wxyz)[:, 2]) @ R_plan
+        T = np.eye(4)
+        T[:3, :3] = R
+        T[:3, 3] = gait.feet[side][k, :3] - R @ T_neck_sole[:3, 3]
+        return T
+
+    def _stabilized(self, k: int, q: np.ndarray, state: RobotState,
+                    zmp: np.ndarray | None) -> np.ndarray:
+        """The pattern's joints ``q`` with the stabilizer's corrections (see
+        :mod:`hubo_cli.walking.stabilizer`)."""
+        gait, plan, body = self.gait, self.plan, self.body
+        T_world_neck_measured = self._measured_neck(k, state)
+        com = T_world_neck_measured[:3, :3] @ body.com_in_neck(state.q_rad) \
+            + T_world_neck_measured[:3, 3]
+        offset = self.torso_offset.update(zmp, gait.zmp_ref_m[k], com[:2], plan.com_m[k, :2])
+        middles = {side: zmp_point(footstep_of(side, pose_of_row(gait.feet[side][k])),
+                                   self.params, self.model.feet.forward_m)
+                   for side in ("right", "left")}
+        dz = self.force_difference.update(
+            float(state.ft[SOLES_SENSOR["right"]][2]), float(state.ft[SOLES_SENSOR["left"]][2]),
+            left_share(gait.zmp_ref_m[k], middles["right"], middles["left"]))
+        T_world_neck = plan.T_world_neck[k].copy()
+        T_world_neck[:2, 3] += offset
+        T_neck_world = np.linalg.inv(T_world_neck)
+        for column, side, sign in ((0, "right", 0.5), (1, "left", -0.5)):
+            name = SIDE_LEG[side]
+            part = body.slices[name]
+            row = gait.feet[side][k]
+            lift = self.touchdowns[side].update(
+                bool(not gait.support[k, column]), float(row[2] - gait.feet[side][0, 2]),
+                float(state.ft[SOLES_SENSOR[side]][2]))
+            T_world_sole = pose_of_row(row)
+            T_world_sole[2, 3] += sign * dz + lift
+            result = body.legs[name].solve(T_neck_world @ T_world_sole, q[part])
+            if result.status == "exact":
+                q[part] = result.q_rad
+        for side in ("right", "left"):
+            delta = self.dampers[side].update(state.ft[SOLES_SENSOR[side]])
+            roll, pitch = self._ankle[side]
+            q[roll] += delta[0]
+            q[pitch] += delta[1]
+        return q
 
     def arrived(self) -> bool:
         """The feet stand within ARRIVED_M and ARRIVED_RAD of the goal stance."""

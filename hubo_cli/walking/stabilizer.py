@@ -1,0 +1,258 @@
+"""The walking stabilizer: keeps the soles flat and the centre of mass on the pattern while the
+robot walks (hrpsys-base's Stabilizer, reduced to what a position-controlled Hubo needs).
+
+Two feedbacks act on the pattern's joints every period:
+
+* **Foot damping control** (hrpsys EEFM, Kajita 2010), per loaded sole: the ankle's pitch and
+  roll comply with the measured ground moment so that the centre of pressure stays inside a
+  safe region of the sole (the sole shrunk by ``edge_margin_m``). With the reference moment
+  ``m_ref`` the measured one's centre of pressure clipped to that region, the sole rotates at
+
+      d(delta)/dt = (m - m_ref) / D - delta / T
+
+  about its x (roll) and y (pitch) axes: a sole pressed onto its toe turns its toe up, one on
+  its inner edge turns that edge up, so the foot lands back flat instead of rocking; the
+  ``- delta / T`` leak returns it to the pattern. An unloaded sole (swinging) returns to the
+  pattern with ``swing_time_constant_s`` and lands flat. A swing foot that touches down early
+  is loaded, so the same law absorbs its landing.
+* **CoM feedback** (TPCC, Sugihara 2009 / Choi 2007 as hrpsys runs it): the torso moves
+  horizontally by ``offset`` with
+
+      d(offset)/dt = k_zmp (p - p_ref) - k_com (c - c_ref)
+
+  (p the ZMP from the ankles' force/torque, c the whole-body CoM from the measured joints and
+  torso pose), bounded to ``max_offset_m`` and ``max_offset_speed_m_s``: the measured CoM is
+  pulled onto the pattern's.
+* **Foot force difference control** (Kajita 2010): the soles' heights differ from the pattern by
+  ``dz`` (left lower by dz / 2, right higher by dz / 2) with
+
+      d(dz)/dt = ((F_l - F_r)_ref - (F_l - F_r)) / D_z - dz / T_z
+
+  where the reference splits the measured total force between the soles as the ZMP reference
+  lies between them (all on the stance sole in single support): a foot that lands late (the
+  floor lower than the pattern thinks, the robot rolled away from it) is pushed down to take its
+  share, one that touches early is lifted, so the weight moves from sole to sole as planned
+  instead of the robot dropping onto the new foot.
+* **Touchdown** (landing-impact handling): a swing sole that meets the floor before the pattern
+  lands it (loaded while still planned in the air, the last ``touchdown_height_m`` of its
+  descent) stops descending where it touched; the difference to the pattern then fades with
+  ``touchdown_time_constant_s`` once the pattern has it on the ground. Driving a position-
+  controlled foot on into a stiff floor is what throws the robot up and makes it hop.
+
+The torso offset is realised by solving the legs' IK again for the shifted torso; the sole
+rotations are added to the ankle joints (ankle pitch turns the sole about its y axis, ankle
+roll about its x axis, one for one).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from hubo_cli.errors import ConfigError
+
+LOADED_N = 30.0  # a sole carrying more than this complies; lighter, it returns to the pattern
+
+
+@dataclass(frozen=True)
+class StabilizerGains:
+    """The stabilizer's gains (SI units).
+
+    Attributes:
+        damping_roll_nm_s_rad, damping_pitch_nm_s_rad: D of the foot damping control about the
+            sole's x and y axes (N m s/rad).
+        time_constant_s: T, the leak back to the pattern of a loaded sole (s).
+        swing_time_constant_s: the same for an unloaded sole (s).
+        max_sole_rad: bound on each sole rotation (rad).
+        edge_margin_m: the centre of pressure may come this close to the sole's edges before
+            the sole complies (m).
+        k_zmp: TPCC gain on the ZMP error (1/s).
+        k_com: TPCC gain on the CoM error (1/s).
+        max_offset_m: bound on the torso's horizontal offset (m).
+        max_offset_speed_m_s: bound on its speed (m/s).
+        force_gain_m_n_s: 1 / D_z of the foot force difference control (m/(N s)).
+        force_time_constant_s: T_z, its leak back to the pattern (s).
+        max_height_m: bound on the soles' height difference dz (m).
+        touchdown_n: a swing sole pressing harder than this has touched down (N).
+        touchdown_height_m: touchdowns count only this close to the landing height (m).
+        touchdown_time_constant_s: the held height fades to the pattern's with this (s).
+    """
+
+    damping_roll_nm_s_rad: float = 300.0
+    damping_pitch_nm_s_rad: float = 600.0
+    time_constant_s: float = 1.5
+    swing_time_constant_s: float = 0.1
+    max_sole_rad: float = 0.1
+    edge_margin_m: float = 0.025
+    k_zmp: float = 0.2
+    k_com: float = 4.0
+    max_offset_m: float = 0.03
+    max_offset_speed_m_s: float = 0.1
+    force_gain_m_n_s: float = 1.0e-4
+    force_time_constant_s: float = 0.3
+    max_height_m: float = 0.015
+    touchdown_n: float = 40.0
+    touchdown_height_m: float = 0.006
+    touchdown_time_constant_s: float = 0.1
+
+    def __post_init__(self) -> None:
+        for name, value in vars(self).items():
+            if not (math.isfinite(value) and value >= 0):
+                raise ConfigError(f"stabilizer gain {name} must be a finite number >= 0, got "
+                                  f"{value!r}", hint="see hubo_cli/walking/stabilizer.py")
+
+
+class SoleDamper:
+    """Foot damping control of one sole (see the module docstring).
+
+    Args:
+        gains: the stabilizer's gains.
+        sole_box_m: (x_min, x_max, y_min, y_max) of the sole in its own frame (m).
+        dt_s: the control period (s).
+
+    Attributes:
+        delta_rad: the sole's rotation (about x, about y) added to the pattern (rad).
+    """
+
+    def __init__(self, gains: StabilizerGains, sole_box_m: tuple[float, float, float, float],
+                 dt_s: float) -> None:
+        self.gains = gains
+        x0, x1, y0, y1 = sole_box_m
+        m = gains.edge_margin_m
+        if x1 - x0 <= 2 * m or y1 - y0 <= 2 * m:
+            raise ConfigError("the stabilizer's edge margin leaves no safe region on the sole",
+                              hint="lower edge_margin_m")
+        self.safe = (x0 + m, x1 - m, y0 + m, y1 - m)
+        self.dt_s = float(dt_s)
+        self.damping = np.array([gains.damping_roll_nm_s_rad, gains.damping_pitch_nm_s_rad])
+        self.delta_rad = np.zeros(2)
+
+    def reset(self) -> None:
+        self.delta_rad[:] = 0.0
+
+    def update(self, wrench: np.ndarray) -> np.ndarray:
+        """One period with the sole's measured wrench [fx, fy, fz, mx, my, mz] (about the sole
+        frame's origin, sole axes); returns ``delta_rad``."""
+        g = self.gains
+        fz = float(wrench[2])
+        if fz > LOADED_N and np.all(np.isfinite(wrench)):
+            mx, my = float(wrench[3]), float(wrench[4])
+            x0, x1, y0, y1 = self.safe
+            px = min(max(-my / fz, x0), x1)
+            py = min(max(mx / fz, y0), y1)
+            error = np.array([mx - fz * py, my + fz * px])
+            rate = error / np.maximum(self.damping, 1e-9) - self.delta_rad / g.time_constant_s
+        else:
+            rate = -self.delta_rad / max(g.swing_time_constant_s, self.dt_s)
+        self.delta_rad = np.clip(self.delta_rad + rate * self.dt_s, -g.max_sole_rad,
+                                 g.max_sole_rad)
+        return self.delta_rad
+
+
+class TorsoOffset:
+    """The CoM feedback's horizontal torso offset (see the module docstring).
+
+    Attributes:
+        offset_m: (x, y) in the world (m).
+    """
+
+    def __init__(self, gains: StabilizerGains, dt_s: float) -> None:
+        self.gains = gains
+        self.dt_s = float(dt_s)
+        self.offset_m = np.zeros(2)
+
+    def reset(self) -> None:
+        self.offset_m[:] = 0.0
+
+    def update(self, zmp_m: np.ndarray | None, zmp_ref_m: np.ndarray, com_m: np.ndarray,
+               com_ref_m: np.ndarray) -> np.ndarray:
+        """One period; ``zmp_m`` None (no sole loaded) leaves the ZMP term out."""
+        g = self.gains
+        rate = -g.k_com * (np.asarray(com_m) - com_ref_m)
+        if zmp_m is not None:
+            rate = rate + g.k_zmp * (np.asarray(zmp_m) - zmp_ref_m)
+        speed = float(np.hypot(*rate))
+        if not math.isfinite(speed):
+            return self.offset_m
+        if speed > g.max_offset_speed_m_s:
+            rate = rate * (g.max_offset_speed_m_s / speed)
+        offset = self.offset_m + rate * self.dt_s
+        size = float(np.hypot(*offset))
+        if size > g.max_offset_m:
+            offset = offset * (g.max_offset_m / size)
+        self.offset_m = offset
+        return self.offset_m
+
+
+def left_share(zmp_ref_m: np.ndarray, right_m: np.ndarray, left_m: np.ndarray) -> float:
+    """The share of the weight the left sole should carry (0-1): where ``zmp_ref_m`` lies along
+    the segment from the right sole's middle ``right_m`` to the left's (x, y; m)."""
+    axis = np.asarray(left_m, dtype=float) - right_m
+    length2 = float(axis @ axis)
+    if length2 < 1e-12:
+        return 0.5
+    return min(max(float((np.asarray(zmp_ref_m) - right_m) @ axis) / length2, 0.0), 1.0)
+
+
+class ForceDifference:
+    """The foot force difference control (see the module docstring).
+
+    Attributes:
+        dz_m: the left sole lies dz / 2 below the pattern, the right dz / 2 above (m).
+    """
+
+    def __init__(self, gains: StabilizerGains, dt_s: float) -> None:
+        self.gains = gains
+        self.dt_s = float(dt_s)
+        self.dz_m = 0.0
+
+    def reset(self) -> None:
+        self.dz_m = 0.0
+
+    def update(self, fz_right_n: float, fz_left_n: float, left_share_ref: float) -> float:
+        """One period with the soles' measured normal forces (N) and the left sole's wanted
+        share of their sum; returns ``dz_m``."""
+        g = self.gains
+        right, left = max(float(fz_right_n), 0.0), max(float(fz_left_n), 0.0)
+        if not (math.isfinite(right) and math.isfinite(left)):
+            return self.dz_m
+        total = right + left
+        wanted = (2.0 * left_share_ref - 1.0) * total
+        rate = g.force_gain_m_n_s * (wanted - (left - right)) \
+            - self.dz_m / max(g.force_time_constant_s, self.dt_s)
+        self.dz_m = min(max(self.dz_m + rate * self.dt_s, -g.max_height_m), g.max_height_m)
+        return self.dz_m
+
+
+class Touchdown:
+    """Landing-impact handling for one sole (see the module docstring).
+
+    Attributes:
+        lift_m: the sole is held this much above the pattern (m, >= 0).
+    """
+
+    def __init__(self, gains: StabilizerGains, dt_s: float) -> None:
+        self.gains = gains
+        self.decay = math.exp(-float(dt_s) / max(gains.touchdown_time_constant_s, dt_s))
+        self.lift_m = 0.0
+        self._held_z_m: float | None = None
+
+    def reset(self) -> None:
+        self.lift_m = 0.0
+        self._held_z_m = None
+
+    def update(self, swinging: bool, height_m: float, fz_n: float) -> float:
+        """One period: whether the pattern has the sole in the air, its planned height above
+        the landing place (m) and its measured normal force (N); returns ``lift_m``."""
+        g = self.gains
+        if swinging and height_m < g.touchdown_height_m and fz_n > g.touchdown_n:
+            if self._held_z_m is None:  # touched: stay at the height of the last command
+                self._held_z_m = height_m + self.lift_m
+            self.lift_m = max(self._held_z_m - height_m, 0.0)
+        else:
+            if not swinging:
+                self._held_z_m = None
+            self.lift_m *= self.decay
+        return self.lift_m

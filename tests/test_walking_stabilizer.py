@@ -1,0 +1,109 @@
+"""The walking stabilizer's feedback laws and the second preview stage (no simulator)."""
+
+import numpy as np
+import pytest
+
+from hubo_cli.errors import ConfigError
+from hubo_cli.model import load_model
+from hubo_cli.walking.body import WalkingBody, multibody_zmp, walking_posture
+from hubo_cli.walking.footsteps import Footstep, Stance, plan_footsteps
+from hubo_cli.walking.gait import make_gait
+from hubo_cli.walking.params import walking_params
+from hubo_cli.walking.stabilizer import (
+    ForceDifference,
+    SoleDamper,
+    StabilizerGains,
+    TorsoOffset,
+    Touchdown,
+    left_share,
+)
+
+DT = 0.005
+SOLE = (-0.09, 0.13, -0.065, 0.065)  # the sole box in its own frame (m)
+
+
+def wrench_at(px, py, fz=380.0):
+    """The ground's wrench on a sole whose centre of pressure is (px, py) in the sole frame."""
+    return np.array([0.0, 0.0, fz, fz * py, -fz * px, 0.0])
+
+
+def test_sole_turns_away_from_the_edge_it_presses_and_returns():
+    gains = StabilizerGains()
+    damper = SoleDamper(gains, SOLE, DT)
+    for _ in range(20):  # on the toe, on the inner (left) edge
+        delta = damper.update(wrench_at(0.13, 0.065)).copy()
+    assert delta[1] < -0.001  # pitch: toe up
+    assert delta[0] > 0.001   # roll: left edge up
+    pressed = np.abs(delta).max()
+    for _ in range(int(3 * gains.time_constant_s / DT)):  # centred: only the leak acts
+        delta = damper.update(wrench_at(0.02, 0.0))
+    assert np.abs(delta).max() < 0.1 * pressed
+    damper.update(wrench_at(0.13, 0.065))
+    for _ in range(int(5 * gains.swing_time_constant_s / DT)):  # unloaded: back to the pattern
+        delta = damper.update(np.zeros(6))
+    assert np.abs(delta).max() < 1e-4
+
+
+def test_sole_inside_the_safe_region_is_left_alone():
+    damper = SoleDamper(StabilizerGains(), SOLE, DT)
+    for _ in range(50):
+        delta = damper.update(wrench_at(0.05, -0.03))
+    assert np.abs(delta).max() == 0.0
+
+
+def test_force_difference_lowers_the_foot_that_should_carry():
+    control = ForceDifference(StabilizerGains(), DT)
+    for _ in range(10):  # the left should carry everything but the right does
+        dz = control.update(380.0, 0.0, 1.0)
+    assert dz > 0.001  # left lower, right higher
+    assert ForceDifference(StabilizerGains(), DT).update(190.0, 190.0, 0.5) == 0.0
+    assert left_share(np.array([0.0, 0.13]), np.array([0.0, -0.13]), np.array([0.0, 0.13])) \
+        == pytest.approx(1.0)
+    assert left_share(np.array([0.05, 0.0]), np.array([0.0, -0.13]), np.array([0.1, 0.13])) \
+        == pytest.approx(0.5)
+
+
+def test_an_early_touchdown_stops_the_descent_then_fades():
+    gains = StabilizerGains()
+    touchdown = Touchdown(gains, DT)
+    assert touchdown.update(True, 0.004, 0.0) == 0.0  # in the air: the pattern
+    assert touchdown.update(True, 0.003, 300.0) == pytest.approx(0.0)  # touched at 3 mm
+    for height in (0.002, 0.001, 0.0):  # the pattern goes on down, the sole stays
+        lift = touchdown.update(True, height, 300.0)
+    assert lift == pytest.approx(0.003)
+    assert touchdown.update(True, 0.02, 300.0) < 0.003  # high in the swing: no touchdown
+    for _ in range(int(5 * gains.touchdown_time_constant_s / DT)):  # on the ground: fades
+        lift = touchdown.update(False, 0.0, 300.0)
+    assert lift < 0.01 * 0.003
+
+
+def test_torso_offset_pulls_the_com_back_and_is_bounded():
+    gains = StabilizerGains()
+    torso = TorsoOffset(gains, DT)
+    offset = torso.update(None, np.zeros(2), np.array([0.01, 0.0]), np.zeros(2))
+    assert offset[0] < 0.0  # the CoM ahead of the pattern: the torso moves back
+    for _ in range(2000):
+        offset = torso.update(np.array([1.0, 1.0]), np.zeros(2), np.zeros(2), np.zeros(2))
+    assert np.hypot(*offset) == pytest.approx(gains.max_offset_m)
+    with pytest.raises(ConfigError):
+        StabilizerGains(k_com=float("nan"))
+
+
+def test_second_preview_stage_cancels_the_swing_legs_zmp():
+    """The legs' and torso's momentum move the multi-body ZMP tens of mm from the reference;
+    after the second preview stage it stays within 12 mm (away from the standing ends)."""
+    model = load_model(limits="walking")
+    params = walking_params(model)
+    w = params.step_width_m / 2
+    right, left = Footstep("right", 0.0, -w, 0.0), Footstep("left", 0.0, w, 0.0)
+    steps = plan_footsteps(right, left, Stance(0.4, 0.0, 0.0), params)
+    gait = make_gait(right, left, steps, params, DT, 0.59, 0.0, 0.02)
+    q_start, T_world_neck = walking_posture(model, params.step_width_m, params.crouch_m)
+    body = WalkingBody(model, q_start, T_world_neck, params.lean_rad_per_m)
+    inner = slice(int(1.0 / DT), -int(1.0 / DT))
+    before = multibody_zmp(body, body.solve(gait), 0.0, DT) - gait.zmp_ref_m
+    _, plan = body.solve_corrected(gait, 0.0, params.preview_s, params.zmp_weight,
+                                   params.jerk_weight)
+    after = multibody_zmp(body, plan, 0.0, DT) - gait.zmp_ref_m
+    assert np.abs(before[inner]).max() > 0.025
+    assert np.abs(after[inner]).max() < 0.012
