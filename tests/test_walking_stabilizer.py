@@ -9,14 +9,7 @@ from hubo_cli.walking.body import WalkingBody, multibody_zmp, walking_posture
 from hubo_cli.walking.footsteps import Footstep, Stance, plan_footsteps
 from hubo_cli.walking.gait import make_gait
 from hubo_cli.walking.params import walking_params
-from hubo_cli.walking.stabilizer import (
-    ForceDifference,
-    SoleDamper,
-    StabilizerGains,
-    TorsoOffset,
-    Touchdown,
-    left_share,
-)
+from hubo_cli.walking.stabilizer import SoleDamper, StabilizerGains, TorsoOffset, Touchdown
 
 DT = 0.005
 SOLE = (-0.09, 0.13, -0.065, 0.065)  # the sole box in its own frame (m)
@@ -49,18 +42,6 @@ def test_sole_inside_the_safe_region_is_left_alone():
     for _ in range(50):
         delta = damper.update(wrench_at(0.05, -0.03))
     assert np.abs(delta).max() == 0.0
-
-
-def test_force_difference_lowers_the_foot_that_should_carry():
-    control = ForceDifference(StabilizerGains(), DT)
-    for _ in range(10):  # the left should carry everything but the right does
-        dz = control.update(380.0, 0.0, 1.0)
-    assert dz > 0.001  # left lower, right higher
-    assert ForceDifference(StabilizerGains(), DT).update(190.0, 190.0, 0.5) == 0.0
-    assert left_share(np.array([0.0, 0.13]), np.array([0.0, -0.13]), np.array([0.0, 0.13])) \
-        == pytest.approx(1.0)
-    assert left_share(np.array([0.05, 0.0]), np.array([0.0, -0.13]), np.array([0.1, 0.13])) \
-        == pytest.approx(0.5)
 
 
 def test_an_early_touchdown_stops_the_descent_then_fades():

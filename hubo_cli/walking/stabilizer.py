@@ -23,16 +23,6 @@ Two feedbacks act on the pattern's joints every period:
   (p the ZMP from the ankles' force/torque, c the whole-body CoM from the measured joints and
   torso pose), bounded to ``max_offset_m`` and ``max_offset_speed_m_s``: the measured CoM is
   pulled onto the pattern's.
-* **Foot force difference control** (Kajita 2010): the soles' heights differ from the pattern by
-  ``dz`` (left lower by dz / 2, right higher by dz / 2) with
-
-      d(dz)/dt = ((F_l - F_r)_ref - (F_l - F_r)) / D_z - dz / T_z
-
-  where the reference splits the measured total force between the soles as the ZMP reference
-  lies between them (all on the stance sole in single support): a foot that lands late (the
-  floor lower than the pattern thinks, the robot rolled away from it) is pushed down to take its
-  share, one that touches early is lifted, so the weight moves from sole to sole as planned
-  instead of the robot dropping onto the new foot.
 * **Touchdown** (landing-impact handling): a swing sole that meets the floor before the pattern
   lands it (loaded while still planned in the air, the last ``touchdown_height_m`` of its
   descent) stops descending where it touched; the difference to the pattern then fades with
@@ -72,9 +62,6 @@ class StabilizerGains:
         k_com: TPCC gain on the CoM error (1/s).
         max_offset_m: bound on the torso's horizontal offset (m).
         max_offset_speed_m_s: bound on its speed (m/s).
-        force_gain_m_n_s: 1 / D_z of the foot force difference control (m/(N s)).
-        force_time_constant_s: T_z, its leak back to the pattern (s).
-        max_height_m: bound on the soles' height difference dz (m).
         touchdown_n: a swing sole pressing harder than this has touched down (N).
         touchdown_height_m: touchdowns count only this close to the landing height (m).
         touchdown_time_constant_s: the held height fades to the pattern's with this (s).
@@ -90,9 +77,6 @@ class StabilizerGains:
     k_com: float = 4.0
     max_offset_m: float = 0.03
     max_offset_speed_m_s: float = 0.1
-    force_gain_m_n_s: float = 1.0e-4
-    force_time_constant_s: float = 0.3
-    max_height_m: float = 0.015
     touchdown_n: float = 40.0
     touchdown_height_m: float = 0.006
     touchdown_time_constant_s: float = 0.1
@@ -184,46 +168,6 @@ class TorsoOffset:
             offset = offset * (g.max_offset_m / size)
         self.offset_m = offset
         return self.offset_m
-
-
-def left_share(zmp_ref_m: np.ndarray, right_m: np.ndarray, left_m: np.ndarray) -> float:
-    """The share of the weight the left sole should carry (0-1): where ``zmp_ref_m`` lies along
-    the segment from the right sole's middle ``right_m`` to the left's (x, y; m)."""
-    axis = np.asarray(left_m, dtype=float) - right_m
-    length2 = float(axis @ axis)
-    if length2 < 1e-12:
-        return 0.5
-    return min(max(float((np.asarray(zmp_ref_m) - right_m) @ axis) / length2, 0.0), 1.0)
-
-
-class ForceDifference:
-    """The foot force difference control (see the module docstring).
-
-    Attributes:
-        dz_m: the left sole lies dz / 2 below the pattern, the right dz / 2 above (m).
-    """
-
-    def __init__(self, gains: StabilizerGains, dt_s: float) -> None:
-        self.gains = gains
-        self.dt_s = float(dt_s)
-        self.dz_m = 0.0
-
-    def reset(self) -> None:
-        self.dz_m = 0.0
-
-    def update(self, fz_right_n: float, fz_left_n: float, left_share_ref: float) -> float:
-        """One period with the soles' measured normal forces (N) and the left sole's wanted
-        share of their sum; returns ``dz_m``."""
-        g = self.gains
-        right, left = max(float(fz_right_n), 0.0), max(float(fz_left_n), 0.0)
-        if not (math.isfinite(right) and math.isfinite(left)):
-            return self.dz_m
-        total = right + left
-        wanted = (2.0 * left_share_ref - 1.0) * total
-        rate = g.force_gain_m_n_s * (wanted - (left - right)) \
-            - self.dz_m / max(g.force_time_constant_s, self.dt_s)
-        self.dz_m = min(max(self.dz_m + rate * self.dt_s, -g.max_height_m), g.max_height_m)
-        return self.dz_m
 
 
 class Touchdown:

@@ -18,19 +18,12 @@ from hubo_cli.model import RobotModel
 from hubo_cli.state import RobotState
 from hubo_cli.walking.body import SIDE_LEG, JointPlan, WalkingBody, pose_of_row
 from hubo_cli.walking.footsteps import Footstep, Stance, plan_footsteps, stance_of
-from hubo_cli.walking.gait import Gait, make_gait, zmp_point
+from hubo_cli.walking.gait import Gait, make_gait
 from hubo_cli.walking.params import WalkingParams
-from hubo_cli.walking.stabilizer import (
-    ForceDifference,
-    SoleDamper,
-    StabilizerGains,
-    TorsoOffset,
-    Touchdown,
-    left_share,
-)
+from hubo_cli.walking.stabilizer import SoleDamper, StabilizerGains, TorsoOffset, Touchdown
 
-ARRIVED_M = 0.005                  # closer than this to the goal stance needs no correction
-ARRIVED_RAD = math.radians(1.0)
+ARRIVED_M = 0.008                  # closer than this to the goal stance needs no correction
+ARRIVED_RAD = math.radians(1.5)
 ZMP_INSIDE_MARGIN_M = 0.001  # a ZMP closer than this to the hull's edge counts as on it (a sole
                              # tipping about that edge: the physics keeps the ZMP on the hull)
 LOADED_N = 10.0  # a sole carrying more than this counts in the measured ZMP and the support
@@ -117,8 +110,9 @@ class WalkTarget(Target):
                    "walk.com_ref_y_m", "walk.zmp_x_m", "walk.zmp_y_m", "walk.zmp_outside_m",
                    "walk.step", "walk.tilt_deg", "planned_right_foot_contact_flag",
                    "planned_left_foot_contact_flag", "walk.offset_x_m", "walk.offset_y_m",
-                   "walk.dz_m", "walk.right_sole_roll_rad", "walk.right_sole_pitch_rad",
-                   "walk.left_sole_roll_rad", "walk.left_sole_pitch_rad")
+                   "walk.right_lift_m", "walk.left_lift_m", "walk.right_sole_roll_rad",
+                   "walk.right_sole_pitch_rad", "walk.left_sole_roll_rad",
+                   "walk.left_sole_pitch_rad")
 
     def __init__(self, model: RobotModel, params: WalkingParams, goal: tuple[float, float, float],
                  q_start_rad: np.ndarray, T_world_neck_start: np.ndarray,
@@ -153,7 +147,6 @@ class WalkTarget(Target):
         if stabilizer is not None:
             self.dampers = {side: SoleDamper(stabilizer, box, dt) for side in ("right", "left")}
             self.torso_offset = TorsoOffset(stabilizer, dt)
-            self.force_difference = ForceDifference(stabilizer, dt)
             self.touchdowns = {side: Touchdown(stabilizer, dt) for side in ("right", "left")}
         names = list(model.joint_names)
         self._ankle = {"right": (names.index("RAR"), names.index("RAP")),
@@ -260,11 +253,12 @@ class WalkTarget(Target):
     def _stabilizer_info(self) -> dict[str, float]:
         """The stabilizer's corrections for the log (NaN without a stabilizer)."""
         if self.stabilizer is None:
-            return dict.fromkeys(self.log_columns[-7:], math.nan)
+            return dict.fromkeys(self.log_columns[-8:], math.nan)
         right, left = self.dampers["right"].delta_rad, self.dampers["left"].delta_rad
         offset = self.torso_offset.offset_m
         return {"walk.offset_x_m": float(offset[0]), "walk.offset_y_m": float(offset[1]),
-                "walk.dz_m": self.force_difference.dz_m,
+                "walk.right_lift_m": self.touchdowns["right"].lift_m,
+                "walk.left_lift_m": self.touchdowns["left"].lift_m,
                 "walk.right_sole_roll_rad": float(right[0]),
                 "walk.right_sole_pitch_rad": float(right[1]),
                 "walk.left_sole_roll_rad": float(left[0]),
@@ -295,16 +289,10 @@ class WalkTarget(Target):
         com = T_world_neck_measured[:3, :3] @ body.com_in_neck(state.q_rad) \
             + T_world_neck_measured[:3, 3]
         offset = self.torso_offset.update(zmp, gait.zmp_ref_m[k], com[:2], plan.com_m[k, :2])
-        middles = {side: zmp_point(footstep_of(side, pose_of_row(gait.feet[side][k])),
-                                   self.params, self.model.feet.forward_m)
-                   for side in ("right", "left")}
-        dz = self.force_difference.update(
-            float(state.ft[SOLES_SENSOR["right"]][2]), float(state.ft[SOLES_SENSOR["left"]][2]),
-            left_share(gait.zmp_ref_m[k], middles["right"], middles["left"]))
         T_world_neck = plan.T_world_neck[k].copy()
         T_world_neck[:2, 3] += offset
         T_neck_world = np.linalg.inv(T_world_neck)
-        for column, side, sign in ((0, "right", 0.5), (1, "left", -0.5)):
+        for column, side in enumerate(("right", "left")):
             name = SIDE_LEG[side]
             part = body.slices[name]
             row = gait.feet[side][k]
@@ -312,7 +300,7 @@ class WalkTarget(Target):
                 bool(not gait.support[k, column]), float(row[2] - gait.feet[side][0, 2]),
                 float(state.ft[SOLES_SENSOR[side]][2]))
             T_world_sole = pose_of_row(row)
-            T_world_sole[2, 3] += sign * dz + lift
+            T_world_sole[2, 3] += lift
             result = body.legs[name].solve(T_neck_world @ T_world_sole, q[part])
             if result.status == "exact":
                 q[part] = result.q_rad
