@@ -56,11 +56,17 @@ class CuttingModel:
     def _smooth(self, speed_m_s: float) -> float:
         return 1.0 / math.hypot(speed_m_s, self.smooth_m_s)
 
+    def _across(self, speed_m_s: float) -> float:
+        """The force across the bit per m/s of its in-plane velocity (N s/m, negative)."""
+        return -(self.coulomb_n * self._smooth(speed_m_s) + self.viscous_n_s_per_m)
+
+    def _spindle(self, speed_m_s: float, engagement: float) -> float:
+        return -self.spindle_torque_nm * float(engagement) * speed_m_s * self._smooth(speed_m_s)
+
     def force_n(self, v_plane_m_s: np.ndarray) -> np.ndarray:
         """The force (N) across the bit for its in-plane velocity (m/s), opposite to it."""
         v = np.asarray(v_plane_m_s, dtype=float)
-        return -(self.coulomb_n * self._smooth(float(np.linalg.norm(v)))
-                 + self.viscous_n_s_per_m) * v
+        return self._across(float(np.linalg.norm(v))) * v
 
     def thrust_n_along(self, v_axial_m_s: float, point_in_m: float) -> float:
         """The force (N) along the bit's axis for its speed along the axis (m/s, + = feeding
@@ -72,8 +78,21 @@ class CuttingModel:
     def spindle_nm(self, v_m_s: np.ndarray, engagement: float) -> float:
         """The torque (N m, about the bit's axis, + = the spindle's turning sense) that the
         material puts on the drill: negative, braking, while the flutes cut."""
-        speed = float(np.linalg.norm(v_m_s))
-        return -self.spindle_torque_nm * float(engagement) * speed * self._smooth(speed)
+        return self._spindle(float(np.linalg.norm(v_m_s)), engagement)
+
+    def wrench_on_bit(self, v_m_s, axis, flutes: float, point_in_m: float
+                      ) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+        """The force (N, world) and torque (N m, world) on a bit moving at ``v_m_s`` (world
+        x, y, z; the wall's plane is y, z) along its unit ``axis``: :meth:`force_n` across it
+        plus :meth:`thrust_n_along` along it, and :meth:`spindle_nm` about it, in plain floats
+        (the simulator applies it every physics step)."""
+        vx, vy, vz = v_m_s
+        ax, ay, az = axis
+        across = self._across(math.sqrt(vy * vy + vz * vz))
+        thrust = self.thrust_n_along(vx * ax + vy * ay + vz * az, point_in_m)
+        spindle = self._spindle(math.sqrt(vx * vx + vy * vy + vz * vz), flutes)
+        return ((thrust * ax, across * vy + thrust * ay, across * vz + thrust * az),
+                (spindle * ax, spindle * ay, spindle * az))
 
 
 @dataclass(frozen=True)

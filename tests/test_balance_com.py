@@ -1,4 +1,4 @@
-"""CoM control in a task's plan (WholeBody's waist shift, off by default): placement includes
+"""CoM control in a task's plan (WholeBody's waist shift, on by default): placement includes
 the shift, so every pose stays reachable, and the balance point sits near the soles' centre."""
 
 from __future__ import annotations
@@ -16,9 +16,9 @@ from hubo_cli.tasks.spec import load_task
 def plans(model):
     spec = load_task("cut-rectangle", {"width_mm": 60.0, "height_mm": 40.0})
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(plan_module, "COM_CONTROL", True)
-        balanced = make_plan(spec, model)
-    return make_plan(spec, model), balanced
+        patch.setattr(plan_module, "COM_CONTROL", False)
+        plain = make_plan(spec, model)
+    return plain, make_plan(spec, model)
 
 
 def test_placement_includes_the_waist_shift(plans):

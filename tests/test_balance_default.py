@@ -101,8 +101,21 @@ def test_a_push_that_tips_the_body_over_its_heels_is_not_leaned_against(model, t
                    out=tmp_path)
     assert not result.fell
     assert result.max_tilt_deg > 3.0  # the push did rock the robot back onto its heels
+    assert result.max_foot_shift_mm < 5.0  # in place: no step, no slide (0.9 mm)
     log = pl.read_csv(tmp_path / "log.csv")
     # the common mode rested while the feet stood on their heels: no lean to land with (the
     # tilt term alone had leaned the ankles 0.017 rad by now, which topples it forward)
     pitch = log["balance.right_pitch_rad"].abs().max()
     assert pitch < 0.005
+
+
+@pytest.mark.parametrize(("push_n", "direction", "duration_s"),
+                         [(80.0, (1.0, 0.0, 0.0), 2.6), (60.0, (0.0, 1.0, 0.0), 1.8)])
+def test_a_push_inside_the_feet_ceiling_is_survived_in_place(model, push_n, direction,
+                                                             duration_s):
+    # 0.2 s on the torso: 80 N forward rocks the body onto its toes (the ceiling of a stance
+    # that only moves its ankles is about 84 N, see the README), 60 N sideways barely tilts it
+    result = stand(model, duration_s=duration_s, push_n=push_n, push_direction=direction)
+    assert not result.fell
+    assert result.max_tilt_deg > 0.3  # the push did move the body
+    assert result.max_foot_shift_mm < 5.0  # no step, no slide (rocking moves a sole ~1 mm)

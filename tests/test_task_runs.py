@@ -37,14 +37,14 @@ def test_default_plan_passes_preflight_and_follows_the_rectangle(rectangle_plan)
     assert cut[:, 1].max() == pytest.approx(0.075) and cut[:, 1].min() == pytest.approx(-0.075)
     assert cut[:, 2].max() == pytest.approx(0.050) and cut[:, 2].min() == pytest.approx(-0.050)
     assert np.allclose(cut[:, 0], 0.0025)                   # the bit's middle in the cardboard
-    # every planned joint target reproduces its goal (whole-body FK)
-    from hubo_cli.kinematics.wholebody import WholeBody
-    body = WholeBody(model, {"right-arm": "drill"}, plan.placement.working_height_m)
+    # every planned joint target reproduces its goal (whole-body FK: the legs' lift and, with
+    # CoM control, their waist shift)
+    body = plan.body
     sl = model.limb_slice("right-arm")
     for k in range(0, len(plan.t_s), 250):
-        T = body.arms["right-arm"].fk(plan.q_rad[k, sl])
-        T[2, 3] += body.lift_of(plan.q_rad[k])
-        assert np.linalg.norm(T[:3, 3] - plan.goal_S_m[k]) < 1e-9
+        q = plan.q_rad[k]
+        bit = body.arms["right-arm"].fk(q[sl])[:3, 3] + (body.shift_of(q), 0.0, body.lift_of(q))
+        assert np.linalg.norm(bit - plan.goal_S_m[k]) < 1e-9
 
 
 def test_the_task_corrects_the_arm_by_the_measured_torso_lean(rectangle_plan):

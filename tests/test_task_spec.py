@@ -6,7 +6,13 @@ from click.testing import CliRunner
 from hubo_cli.cli.main import main
 from hubo_cli.errors import ConfigError
 from hubo_cli.resources import data_file
-from hubo_cli.tasks.spec import load_task, parse_override, rectangle_points, task_files
+from hubo_cli.tasks.spec import (
+    format_override,
+    load_task,
+    parse_override,
+    rectangle_points,
+    task_files,
+)
 from hubo_cli.tasks.toml_lines import field_line
 
 RECTANGLE = data_file("tasks", "cut-rectangle.toml")
@@ -47,6 +53,28 @@ def test_overrides_change_parameters_and_are_typed():
     assert spec.stance.wall_distance_m == pytest.approx(0.480)
     assert next(s for s in spec.steps if s.kind == "follow").speed_m_s == pytest.approx(0.020)
     assert spec.overridden == {"speed_mm_s": 20.0, "wall_distance_mm": 480.0}
+
+
+def test_set_reaches_a_stance_field_by_its_dotted_name():
+    """``--set stance.start_mm=[-1000,0]``: a TOML list, checked as the file's own field,
+    noted in ``overridden`` so the run's task copy can repeat it."""
+    spec = load_task("cut-rectangle", dict([parse_override("stance.start_mm=[-1000, 0]")]))
+    assert spec.stance.start_m == (-1.0, 0.0)
+    assert spec.overridden == {"stance.start_mm": [-1000, 0]}
+    assert format_override(spec.overridden["stance.start_mm"]) == "[-1000,0]"
+    assert load_task("cut-rectangle").stance.start_m is None
+
+
+@pytest.mark.parametrize("text, message", [
+    ("stance.start_mm=[1, 2", "not a list"),
+    ("stance.start_mm=[20000, 0]", "within"),
+    ("stance.start_mm=behind", "start_mm"),
+    ("steps.depth_mm=3", "only fields of"),
+    ("stance.start=[1, 2]", "unknown field"),
+])
+def test_set_of_a_bad_field_is_refused(text, message):
+    with pytest.raises(ConfigError, match=message):
+        load_task("cut-rectangle", dict([parse_override(text)]))
 
 
 def _broken(tmp_path, old, new):

@@ -17,10 +17,14 @@ from hubo_cli.cli.output import console, print_json
               help="Push the torso forward with this force (N) for 0.2 s, 1 s into the run.")
 @balance_option
 @click.option("--no-balance", is_flag=True, help="The same as --balance off.")
+@click.option("--step", is_flag=True,
+              help="Catch a push the ankles cannot hold by stepping toward the capture point, "
+                   "then bring the other foot beside it (the walking limit set).")
 @robot_run_options("sim")
 @perturb_option
-def sim(duration: float, push: float, balance: str, no_balance: bool, no_estop: bool,
-        gui: bool, as_json: bool, out: str | None, perturb_seed: int | None) -> None:
+def sim(duration: float, push: float, balance: str, no_balance: bool, step: bool,
+        no_estop: bool, gui: bool, as_json: bool, out: str | None,
+        perturb_seed: int | None) -> None:
     """Stand the simulated HUBO 2+ in its home posture and report tilt, feet and falls.
 
     Example: hubo sim --duration 5 --push 30
@@ -36,7 +40,7 @@ def sim(duration: float, push: float, balance: str, no_balance: bool, no_estop: 
     with reserved_run_dir("sim", out) as run_dir:  # a bad --out fails before anything runs
         result = stand(load_model(), duration, push, balance=profile.balance, gui=gui,
                        out=run_dir, estop=not no_estop, perturb_seed=perturb_seed,
-                       balance_mode=profile.balance_mode)
+                       balance_mode=profile.balance_mode, step=step)
     # the run's whole summary (as in summary.json: pipeline, e-stops, perturbation draws ...)
     summary = json.loads((run_dir / "summary.json").read_text()) | {"run_dir": str(run_dir)}
     if as_json:
@@ -54,6 +58,10 @@ def sim(duration: float, push: float, balance: str, no_balance: bool, no_estop: 
     console.print(f"feet flat         {'yes' if result.feet_flat else 'no'} "
                   f"(max sole tilt {result.max_sole_tilt_deg:.3f} deg)")
     console.print(f"fell              {'YES' if result.fell else 'no'}")
+    if step:
+        stepped = summary["capture_step"]
+        console.print(f"stepped           {stepped['steps']} step(s)" + (
+            f" from t = {stepped['trigger_s']:.2f} s" if stepped["stepped"] else ""))
     console.print(f"support           {balance_summary_line(summary)}", soft_wrap=True)
     console.print(f"real-time factor  {result.realtime_factor:.2f} "
                   f"({100 * result.physics_share:.0f} % of the time in physics)")

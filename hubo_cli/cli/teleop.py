@@ -146,6 +146,9 @@ def _view(target, panel) -> Group:
 @click.option("--allow-branch-change", is_flag=True,
               help="Change IK branch by itself (slowly, announced) when a hand rests at its "
                    "reach limit and another branch reaches the goal; otherwise only on key b.")
+@click.option("--walk-from", "walk_from", type=float, nargs=2, default=None, metavar="X Y",
+              help="Start this far (m, x forward, y left) from the working stance and walk "
+                   "there before the operator takes over (simulator).")
 @robot_run_options("teleop")
 @click.option("--video", is_flag=True,
               help="After the run, render video.mp4 from its log (needs hubo-cli[viz]).")
@@ -153,8 +156,8 @@ def _view(target, panel) -> Group:
 @perturb_option
 @balance_option
 def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, wall_distance,
-           clutch_at, duration, reach_mode, orientation_weight, allow_branch_change, no_estop,
-           gui, out, as_json, video, perturb_seed, balance, **hardware) -> None:
+           clutch_at, duration, reach_mode, orientation_weight, allow_branch_change, walk_from,
+           no_estop, gui, out, as_json, video, perturb_seed, balance, **hardware) -> None:
     """Drive the robot's hands from an operator's FASTRAK stream.
 
     Exactly one of --replay FILE or --port DEV. The first sample of each station calibrates it:
@@ -204,6 +207,9 @@ def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, w
     if wall_distance is not None and not (math.isfinite(wall_distance) and wall_distance > 0):
         raise InputError(f"--wall-distance {wall_distance:g} mm must be a positive distance",
                          hint="e.g. --wall-distance 470 (or leave it out: the workspace map's)")
+    if walk_from is not None and not all(math.isfinite(v) and abs(v) <= 10 for v in walk_from):
+        raise InputError(f"--walk-from {walk_from[0]:g} {walk_from[1]:g} must be metres within "
+                         "10 m of the working stance", hint="e.g. --walk-from -1 0 (1 m behind)")
     stations = _station_map(station_map)
     settings = TeleopSettings(
         replay=replay, port=port, driver=driver, mode=mode, speed=_speed(speed), scale=scale,
@@ -211,7 +217,8 @@ def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, w
         wall_distance_m=None if wall_distance is None else wall_distance / 1000.0,
         duration_s=duration, clutch_at_s=tuple(clutch_at), out=out, gui=gui, baud=baud,
         estop=not no_estop, driver_options=driver_options(driver, armed, **hardware),
-        perturb_seed=perturb_seed, balance=balance, reach=ReachSettings.for_mode(
+        perturb_seed=perturb_seed, balance=balance, walk_from_m=walk_from,
+        reach=ReachSettings.for_mode(
             mode, mode=reach_mode, allow_branch_change=allow_branch_change,
             orientation_weight_m_per_rad=orientation_weight / 1000 * 180 / np.pi))
     if replay is not None:

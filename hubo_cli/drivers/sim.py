@@ -159,16 +159,15 @@ class Wall:
     def bit_crossing(self, T_world_bit: np.ndarray, half_length_m: float) -> np.ndarray | None:
         """Where a drill bit (middle at the frame origin, along its x axis, ``half_length_m``
         each way) crosses the wall's mid-plane, or None when its flutes miss the wall."""
-        axis, middle = T_world_bit[:3, 0], T_world_bit[:3, 3]
-        if abs(axis[0]) < 1e-6:
+        (ax, _, _, mx), (ay, _, _, my), (az, _, _, mz), _ = T_world_bit.tolist()  # floats
+        if abs(ax) < 1e-6:
             return None
-        s = (self.distance_m + self.thickness_m / 2 - middle[0]) / axis[0]
-        if abs(s) > half_length_m + self.thickness_m / 2 / abs(axis[0]):
+        s = (self.distance_m + self.thickness_m / 2 - mx) / ax
+        if abs(s) > half_length_m + self.thickness_m / 2 / abs(ax):
             return None
-        point = middle + s * axis
-        _, y, z = point
+        y, z = my + s * ay, mz + s * az
         if abs(y - self.centre_y_m) <= self.width_m / 2 and 0.0 <= z <= self.height_m:
-            return point
+            return np.array((mx + s * ax, y, z))
         return None
 
     def engagement(self, T_world_bit: np.ndarray, half_length_m: float,
@@ -176,7 +175,7 @@ class Wall:
         """How deep a bit (as in :meth:`bit_crossing`) is in the wall: the share (0..1) of the
         wall's thickness its flutes fill, and the share of its point (the last
         ``point_length_m`` before the tip) inside the wall."""
-        axis_x, middle_x = T_world_bit[0, 0], T_world_bit[0, 3]
+        axis_x, middle_x = float(T_world_bit[0, 0]), float(T_world_bit[0, 3])
         near, far = self.distance_m, self.distance_m + self.thickness_m
 
         def inside_m(s0: float, s1: float) -> float:  # x extent of [s0, s1] along the bit
@@ -602,21 +601,18 @@ class SimDriver(Driver, SimulatedWorld):
             if bit is None:
                 continue
             # velocity of the link's point at the bit: v + omega x r
-            (wx, wy, wz), (vx, vy, vz) = ls[7], ls[6]
-            rx, ry, rz = (bit[i] - ls[0][i] for i in range(3))
-            v = np.array([vx + wy * rz - wz * ry, vy + wz * rx - wx * rz,
-                          vz + wx * ry - wy * rx])
-            axis = T_world_bit[:3, 0]
+            (wx, wy, wz), (vx, vy, vz), (ox, oy, oz) = ls[7], ls[6], ls[0]
+            bx, by, bz = bit_xyz = bit.tolist()
+            rx, ry, rz = bx - ox, by - oy, bz - oz
+            v = (vx + wy * rz - wz * ry, vy + wz * rx - wx * rz, vz + wx * ry - wy * rx)
             flutes, point = wall.engagement(T_world_bit, drill.bit_half_length_m,
                                             drill.bit_radius_m)
-            cutting = self.options.cutting
-            force = cutting.force_n(np.array([0.0, v[1], v[2]]))
-            force = force + cutting.thrust_n_along(float(v @ axis), point) * axis
-            torque = cutting.spindle_nm(v, flutes) * axis
-            self.cutting_force_n, self.cutting_torque_nm = force, torque
-            p.applyExternalForce(self._robot, link, force.tolist(), bit.tolist(),
-                                 p.WORLD_FRAME, physicsClientId=cid)
-            p.applyExternalTorque(self._robot, link, torque.tolist(), p.WORLD_FRAME,
+            force, torque = self.options.cutting.wrench_on_bit(v, T_world_bit[:3, 0].tolist(),
+                                                               flutes, point)
+            self.cutting_force_n, self.cutting_torque_nm = np.array(force), np.array(torque)
+            p.applyExternalForce(self._robot, link, force, bit_xyz, p.WORLD_FRAME,
+                                 physicsClientId=cid)
+            p.applyExternalTorque(self._robot, link, torque, p.WORLD_FRAME,
                                   physicsClientId=cid)
             self._cutting_point = bit
             if t_s < self._t + 1e-12:  # the period's first physics step
@@ -624,14 +620,9 @@ class SimDriver(Driver, SimulatedWorld):
             break
 
     # ------------------------------------------------------------------ sensing
-    # Batched reads: one getLinkStates for the four sensor links, one getContactPoints for the
-    # whole robot (grouped by link here), one getJointStates.
-    def _frames_world(self) -> dict[str, np.ndarray]:
-        p, cid = self._p, self._cid
-        states = p.getLinkStates(self._robot, self._sensor_link_ids, computeForwardKinematics=1,
-                                 physicsClientId=cid)
-        return {n: _pose(s[4], s[5]) for n, s in zip(SENSOR_LINKS, states, strict=True)}
-
+    # Batched reads: one getLinkStates for the four sensor links (a pose is built only for a
+    # sensor something touches), one getContactPoints for the whole robot (grouped by link
+    # here), one getJointStates.
     def _contact_rows(self) -> dict[int, list[tuple]]:
         """Contact points of the robot with anything, by robot link index: (position on the
         robot, normal towards the robot, normal force, friction 1, dir 1, friction 2, dir 2)."""
@@ -673,24 +664,31 @@ class SimDriver(Driver, SimulatedWorld):
     def _measure(self) -> RobotState:
         p, cid = self._p, self._cid
         js = p.getJointStates(self._robot, self._idx, physicsClientId=cid)
-        q, dq, _, tau = (np.array(column) for column in zip(*js, strict=True))
+        q, dq, _, tau = zip(*js, strict=True)  # the reaction forces (24 x 6) are not read
+        q, dq, tau = np.array(q), np.array(dq), np.array(tau)
         com, orn = p.getBasePositionAndOrientation(self._robot, physicsClientId=cid)
         T_world_torso = _pose(com, orn) @ self._T_com_torso
         _, omega_world = p.getBaseVelocity(self._robot, physicsClientId=cid)
         R = T_world_torso[:3, :3]
-        links = self._frames_world()
+        link_states = p.getLinkStates(self._robot, self._sensor_link_ids,
+                                      computeForwardKinematics=1, physicsClientId=cid)
+        links = dict(zip(SENSOR_LINKS, link_states, strict=True))
         contacts = self._contact_rows()
         ft = {}
         contact = []
         for sensor in FT_SENSORS:
             link, frame = SENSOR_FRAMES[sensor]
-            T_world_sensor = links[link] @ self._T_link_frame[frame]
             extra = moment = None
             if sensor == "right-wrist" and self.cutting_force_n.any():
                 extra = (self.cutting_force_n, self._cutting_point)
                 moment = self.cutting_torque_nm
-            ft[sensor] = self._wrench(contacts.get(self._links[link], []), T_world_sensor, extra,
-                                      moment)
+            rows = contacts.get(self._links[link], [])
+            if rows or extra is not None:
+                ls = links[link]
+                T_world_sensor = _pose(ls[4], ls[5]) @ self._T_link_frame[frame]
+                ft[sensor] = self._wrench(rows, T_world_sensor, extra, moment)
+            else:  # nothing touches it (a hand in the air): no pose needed
+                ft[sensor] = np.zeros(6)
             if sensor.endswith("ankle"):
                 k = len(contact)
                 fz = float(ft[sensor][2])

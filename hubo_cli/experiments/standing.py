@@ -40,6 +40,9 @@ class StandingResult:
         physics_share: fraction of the loop's wall time spent in PyBullet's stepSimulation.
         max_feet_moment_difference_nm: largest |M_right - M_left| of the ankle moments (x, y),
             how unevenly the two feet are loaded (the balancer's compliance evens them out).
+        max_foot_shift_mm: largest horizontal distance of either sole from where it stood at
+            the start (mm): a foot that slid or stepped (a sole rocking on its heel or toe
+            moves it a few mm).
         times_s, tilts_deg, feet_moment_difference_nm: traces, one sample per control period.
     """
 
@@ -55,6 +58,7 @@ class StandingResult:
     physics_share: float
     simulated_s: float
     max_feet_moment_difference_nm: float = 0.0
+    max_foot_shift_mm: float = 0.0
     snapshot: Path | None = None
     run_dir: Path | None = None
     times_s: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
@@ -72,6 +76,7 @@ class StandingResult:
                 "max_sole_tilt_deg": self.max_sole_tilt_deg,
                 "final_tilt_deg": self.final_tilt_deg, "physics_share": self.physics_share,
                 "max_feet_moment_difference_nm": self.max_feet_moment_difference_nm,
+                "max_foot_shift_mm": self.max_foot_shift_mm,
                 "snapshot": str(self.snapshot) if self.snapshot else None}
 
 
@@ -101,6 +106,8 @@ class StandTarget(Target):
         self.differences_nm = np.zeros(n_periods)
         self.k = 0
         self.feet_flat, self.fell, self.max_sole_deg = True, False, 0.0
+        self.soles_start_m: dict[str, np.ndarray] = {}
+        self.max_foot_shift_m = 0.0
         self.torso_z0_m: float | None = None
         self.wall_start_s = self.wall_end_s = 0.0
         self.physics_start_s = 0.0
@@ -126,7 +133,11 @@ class StandTarget(Target):
             self.differences_nm[k] = float(np.linalg.norm(difference))
             self.k += 1
         for sole, touching in zip(("right_sole", "left_sole"), state.feet_contact, strict=True):
-            sole_tilt = math.degrees(tilt_rad_of_matrix(world.frame_pose(sole)[:3, :3]))
+            T_world_sole = world.frame_pose(sole)
+            sole_tilt = math.degrees(tilt_rad_of_matrix(T_world_sole[:3, :3]))
+            start = self.soles_start_m.setdefault(sole, T_world_sole[:2, 3].copy())
+            self.max_foot_shift_m = max(self.max_foot_shift_m,
+                                        float(np.linalg.norm(T_world_sole[:2, 3] - start)))
             self.max_sole_deg = max(self.max_sole_deg, sole_tilt)
             self.feet_flat &= bool(touching) and sole_tilt <= FLAT_TOLERANCE_DEG
         if has_fallen(tilt, self.torso_z0_m - state.T_world_torso[2, 3]):
@@ -141,7 +152,7 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
           balance: bool = True, *, push_at_s: float = 1.0, push_duration_s: float = 0.2,
           push_direction=(1.0, 0.0, 0.0), gui: bool = False, out: str | Path | None = None,
           estop: bool = True, perturb_seed: int | None = None,
-          balance_mode: str = "default") -> StandingResult:
+          balance_mode: str = "default", step: bool = False) -> StandingResult:
     """Stand the simulated robot for ``duration_s`` and measure how it copes.
 
     Args:
@@ -157,21 +168,35 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
         estop: keep the soft emergency stopper (see :class:`SafetyProfile`).
         perturb_seed: a perturbed simulated robot and world (:mod:`hubo_cli.perturb`).
         balance_mode: ``default`` or ``paper`` (eq. 11-12 as published), when balance is on.
+        step: catch a push the ankles cannot hold by stepping
+            (:class:`~hubo_cli.walking.capture_step.CaptureStepper`; the robot file's
+            ``walking`` limit set, whose legs are fast enough to step); the summary gets
+            ``capture_step``.
     """
     check_standing_args(duration_s, push_n)
     direction = np.asarray(push_direction, dtype=float)
     direction = direction / np.linalg.norm(direction)
     q_home = home_posture(model)
     n_periods = int(round(duration_s / model.control_period_s))
-    target = StandTarget(q_home, n_periods, push_n * direction, push_at_s, push_duration_s)
+    target = stepper = StandTarget(q_home, n_periods, push_n * direction, push_at_s,
+                                   push_duration_s)
+    if step:
+        from hubo_cli.model import load_model
+        from hubo_cli.walking.capture_step import CaptureStepper
+        from hubo_cli.walking.params import walking_params
+
+        model = load_model(model.params_name, "walking")
+        stepper = CaptureStepper(target, model, walking_params(model), q_home)
     setup = RunSetup(command="sim", model=model, driver="sim", gui=gui, out=out,
                      safety=SafetyProfile(estop=estop, balance=balance,
                                           balance_mode=balance_mode),
                      duration_s=n_periods * model.control_period_s, q_start_rad=q_home,
                      perturb_seed=perturb_seed)
-    done = run(setup, target)
+    done = run(setup, stepper)
     result = _result(target, done, duration_s, push_n, balance, model.control_period_s)
     done.save_summary(result.summary())
+    if step:
+        done.save_summary({"capture_step": stepper.summary()})
     return result
 
 
@@ -189,6 +214,7 @@ def _result(target: StandTarget, done: RunResult, duration_s: float, push_n: flo
         max_sole_tilt_deg=target.max_sole_deg, final_tilt_deg=float(target.tilts_deg[n - 1]),
         physics_share=min(1.0, physics / wall) if wall > 0 else 0.0, simulated_s=simulated,
         max_feet_moment_difference_nm=float(target.differences_nm[:n].max()),
+        max_foot_shift_mm=target.max_foot_shift_m * 1000,
         snapshot=done.run_dir / "snapshot.png", run_dir=done.run_dir,
         times_s=target.times_s[:n], tilts_deg=target.tilts_deg[:n],
         feet_moment_difference_nm=target.differences_nm[:n])

@@ -98,7 +98,7 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
     if not 0 <= corrections <= 5:
         raise InputError(f"corrections must be 0 to 5, got {corrections}", hint="e.g. 1")
     target = WalkTarget(walking_model, params, goal, q_start, T_world_neck, corrections,
-                        stabilizer)
+                        stabilizer=stabilizer)
     setup = RunSetup(command="walk", model=walking_model, driver="sim", gui=gui, out=out,
                      safety=SafetyProfile(estop=estop).with_balance(balance), q_start_rad=q_start,
                      perturb_seed=perturb_seed)
@@ -116,15 +116,22 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
         estop_events=len(done.summary["estop_events"]),
         footsteps=[s.to_json() for s in target.steps], run_dir=done.run_dir)
     done.save_summary(result.summary())
-    _plot(done, target, walking_model)
+    plot_footprints(done, target, walking_model)
     return result
 
 
 PLOT_NAME = "walk.png"
 
 
-def _plot(done, target: WalkTarget, model: RobotModel) -> None:
-    """Footprints with the CoM and ZMP paths (``walk.png`` in the run folder)."""
+def plot_footprints(done, target: WalkTarget, model: RobotModel, rows=None) -> None:
+    """Footprints with the CoM and ZMP paths (``walk.png`` in the run folder).
+
+    Args:
+        done: the finished run.
+        target: the walk.
+        model: the robot model (its soles).
+        rows: the log's rows of the walk (a boolean mask; None: all).
+    """
     import numpy as np
 
     from hubo_cli.plots.walk import plot_walk
@@ -132,8 +139,9 @@ def _plot(done, target: WalkTarget, model: RobotModel) -> None:
     log = done.log
 
     def columns(x: str, y: str) -> np.ndarray:
-        return np.column_stack([np.asarray(log[x], dtype=float),
-                                np.asarray(log[y], dtype=float)])
+        xy = np.column_stack([np.asarray(log[x], dtype=float),
+                              np.asarray(log[y], dtype=float)])
+        return xy if rows is None else xy[rows]
 
     footprints = [s.to_json() for s in target.start_feet] + [s.to_json() for s in target.steps]
     plot_walk(footprints, model.feet.sole_corners_m(),

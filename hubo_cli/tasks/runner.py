@@ -18,12 +18,12 @@ import numpy as np
 
 from hubo_cli.control.loop import LoopResult
 from hubo_cli.control.pipeline import SafetyProfile
-from hubo_cli.errors import SafetyError
+from hubo_cli.errors import InputError, SafetyError
 from hubo_cli.model import RobotModel, load_model
 from hubo_cli.posture import home_posture
 from hubo_cli.session import RunResult, RunSetup, run
 from hubo_cli.tasks.plan import EDGE_NAMES, Plan, make_plan
-from hubo_cli.tasks.spec import TaskSpec
+from hubo_cli.tasks.spec import TaskSpec, format_override
 from hubo_cli.tasks.target import SETTLE_TIMEOUT_S, TaskTarget
 
 PAPER_TORQUE_NM = {"horizontal": {"mean": 0.14, "max": 0.23},
@@ -100,10 +100,30 @@ def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
                        driver_options=driver_options, perturb_seed=perturb_seed,
                        balance=balance)
     target = TaskTarget(plan)
-    done = run(setup, target, on_start=on_start)
+    start = plan.spec.stance.start_m
+    if start is not None and driver != "sim":
+        raise InputError(f"stance.start_mm walks the robot to its stance: the simulator only, "
+                         f"not the {driver} driver", hint="leave out stance.start_mm")
+    if start is None:
+        done = run(setup, target, on_start=on_start)
+    else:  # walk to the working stance first (hubo_cli.walking.approach)
+        from hubo_cli.urdf import tool_frame
+        from hubo_cli.walking.approach import walk_first_setup
+
+        stance = plan.spec.stance
+        approach, setup = walk_first_setup(setup, target, start, plan.placement.wall_distance_m,
+                                           frames=(tool_frame(stance.limb, stance.tool),))
+        done = run(setup, approach,
+                   on_start=None if on_start is None else lambda _: on_start(target))
     _write_task_copy(plan.spec, done.run_dir, balance)
     done.add_file("task.toml")
     summary = done.save_summary(summarise(plan, target, done))
+    if start is not None:
+        from hubo_cli.experiments.walk import plot_footprints
+
+        summary = done.save_summary({"walk": approach.summary()})
+        plot_footprints(done, approach.walk, setup.model,
+                        rows=np.asarray(done.log["approach.phase_code"]) == 0)
     return TaskRun(done.run_dir, summary, done.loop, plan)
 
 
@@ -112,7 +132,7 @@ def _write_task_copy(spec: TaskSpec, run_dir: Path, balance: str = "default") ->
     (``--set`` them, ``--balance``)."""
     header = [f"# run of {spec.path}"]
     if spec.overridden:
-        sets = " ".join(f"--set {k}={v}" for k, v in spec.overridden.items())
+        sets = " ".join(f"--set {k}={format_override(v)}" for k, v in spec.overridden.items())
         header.append(f"# parameters changed for this run: hubo task run task.toml {sets}")
     if balance != "default":
         header.append(f"# balance controllers of this run: --balance {balance}")

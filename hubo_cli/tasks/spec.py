@@ -6,12 +6,16 @@ the step runner, :mod:`hubo_cli.tasks.runner`) or ``experiment`` (a built-in pro
 
 ``[parameters]``
     Named values with their defaults. Anywhere else in the file the string ``"$name"`` stands for
-    the parameter's value; the command line overrides them (``--set name=value``).
+    the parameter's value; the command line overrides them (``--set name=value``). A dotted
+    name sets a field of the ``stance``, ``scene`` or ``safety`` tables directly, checked as
+    the file's own (``--set stance.start_mm=[-1000,0]``; lists in TOML's brackets).
 ``[stance]``
     ``wall_distance_mm`` (neck to wall face along x, or ``"auto"``: the workspace map's best
     distance for the tool held orthogonal to the wall), ``centre_mm`` ([y, z] of the work frame's
     origin in the stance frame, or ``"auto"``: centred in the reachable area), ``arm``
-    (``right``), ``tool`` (``drill``).
+    (``right``), ``tool`` (``drill``), ``start_mm`` (optional [x, y]: the robot starts this far
+    from the working stance, x forward and y left in the stance frame, and walks there first;
+    [-1000, 0] is 1 m behind it).
 ``[scene.wall]``
     ``width_mm``, ``height_mm``, ``thickness_mm`` of the wall (``[scene.cutting]``: the
     simulated material's reaction to the drill, any field of
@@ -70,6 +74,7 @@ STEP_MAX_S = 600.0           # one move or wait
 STOP_MAX_S = 5.0             # T1 and T2 of the emergency stopper (paper: 0.5 s)
 WRIST_TORQUE_MAX_NM = 50.0
 WALL_MAX_MM = 10000.0
+START_MAX_MM = 10000.0       # a walk to the working stance (``hubo walk``'s longest goal)
 
 
 # ---------------------------------------------------------------------------- the objects
@@ -81,12 +86,15 @@ class Stance:
         wall_distance_m: neck to wall face along x (m); None = auto.
         centre_m: (y, z) of the wall frame's origin in S (m); None = auto.
         arm: ``right`` or ``left``; tool: the arm's tool (``drill``, ``hand``).
+        start_m: (x, y) of where the robot starts, in the working stance's frame (m; x
+            forward, y left); None = it starts on the working stance.
     """
 
     wall_distance_m: float | None
     centre_m: tuple[float, float] | None
     arm: str = "right"
     tool: str = "drill"
+    start_m: tuple[float, float] | None = None
 
     @property
     def limb(self) -> str:
@@ -188,11 +196,14 @@ class TaskSpec:
     safety: Safety = field(default_factory=Safety)
     steps: tuple[Step, ...] = ()
     experiment: str | None = None
+    fields_set: dict = field(default_factory=dict)
 
     @property
     def overridden(self) -> dict:
-        """Parameters whose value differs from the file's default."""
-        return {k: v for k, v in self.parameters.items() if self.defaults.get(k) != v}
+        """Parameters whose value differs from the file's default, then the fields set from
+        the command line (``--set stance.start_mm=[-1000,0]``)."""
+        changed = {k: v for k, v in self.parameters.items() if self.defaults.get(k) != v}
+        return changed | self.fields_set
 
 
 # ---------------------------------------------------------------------------- loading
@@ -250,8 +261,12 @@ def load_task(name_or_path: str | Path, overrides: dict | None = None) -> TaskSp
     return _Loader(path, text, data, overrides or {}).task()
 
 
+FIELD_TABLES = ("stance", "scene", "safety")  # what a dotted ``--set`` name may reach
+
+
 def parse_override(text: str) -> tuple[str, object]:
-    """``name=value`` from ``--set`` (value: number, true/false, or text)."""
+    """``name=value`` from ``--set`` (value: number, true/false, a TOML list ``[a, b]``, or
+    text)."""
     name, sep, value = text.partition("=")
     if not sep or not name.strip():
         raise ConfigError(f"--set {text!r} is not NAME=VALUE",
@@ -259,7 +274,22 @@ def parse_override(text: str) -> tuple[str, object]:
     return name.strip(), _scalar(value.strip())
 
 
+def format_override(value: object) -> str:
+    """A value as ``--set`` reads it back (lists without spaces, so no quoting is needed)."""
+    if isinstance(value, list):
+        return "[" + ",".join(format_override(v) for v in value) + "]"
+    if isinstance(value, bool):
+        return str(value).lower()
+    return str(value)
+
+
 def _scalar(value: str) -> object:
+    if value.startswith("["):
+        try:
+            return tomllib.loads(f"v = {value}")["v"]
+        except tomllib.TOMLDecodeError:
+            raise ConfigError(f"--set value {value!r} is not a list",
+                              hint="write lists as in TOML, e.g. [-1000, 0]") from None
     lowered = value.lower()
     if lowered in ("true", "false"):
         return lowered == "true"
@@ -276,14 +306,16 @@ class _Loader:
         self.path = path
         self.text = text
         self.data = data
-        self.overrides = overrides
+        self.overrides = {k: v for k, v in overrides.items() if "." not in k}
+        self.fields_set = {k: v for k, v in overrides.items() if "." in k}
         self.origin: dict[str, str] = {}  # field -> parameter it came from
 
     # ------------------------------------------------------------------ errors
     def fail(self, field_path: str, message: str, hint: str = "") -> ConfigError:
         parameter = self.origin.get(field_path)
         if parameter is not None:
-            source = ("set on the command line" if parameter in self.overrides
+            source = ("set on the command line"
+                      if parameter in self.overrides or parameter in self.fields_set
                       else "the file's default")
             message += f" (from parameter {parameter}, {source})"
         return ConfigError(message, path=str(self.path), line=field_line(self.text, field_path),
@@ -326,11 +358,33 @@ class _Loader:
                                      params) for i, v in enumerate(value, start=1)]
         return value
 
+    def _set_fields(self, body: dict) -> dict:
+        """The file's tables with the dotted ``--set`` names applied (checked later as the
+        file's own fields are)."""
+        for name, value in self.fields_set.items():
+            parts = name.split(".")
+            if parts[0] not in FIELD_TABLES or not all(parts):
+                raise ConfigError(f"--set {name}: only fields of the {', '.join(FIELD_TABLES)} "
+                                  "tables can be set by name", path=str(self.path),
+                                  hint="e.g. --set stance.start_mm=[-1000,0]")
+            table = body
+            for part in parts[:-1]:
+                inner = table.setdefault(part, {})
+                if not isinstance(inner, dict):
+                    raise ConfigError(f"--set {name}: {part} is not a table",
+                                      path=str(self.path))
+                table = inner
+            if isinstance(value, str):
+                value = _scalar(value)
+            table[parts[-1]] = value
+            self.origin[name] = name  # errors in it say it was set on the command line
+        return body
+
     # ------------------------------------------------------------------ the whole file
     def task(self) -> TaskSpec:
         defaults, params = self._parameters()
         body = {k: v for k, v in self.data.items() if k != "parameters"}
-        body = self._substitute(body, "", params)
+        body = self._set_fields(self._substitute(body, "", params))
         if "experiment" not in body:  # an experiment's procedure reads its parameters itself
             used = set(self.origin.values())
             unused = [name for name in self.overrides if name not in used]
@@ -356,7 +410,7 @@ class _Loader:
         steps = self._steps(table.list_of_tables("steps"))
         table.finish()
         return TaskSpec(name, description, self.path, params, defaults, stance, scene, safety,
-                        steps)
+                        steps, fields_set=dict(self.fields_set))
 
     def _stance(self, t: _Table) -> Stance:
         distance = t.number_or_auto("wall_distance_mm", positive=True, maximum=LENGTH_MAX_MM)
@@ -366,9 +420,16 @@ class _Loader:
         if tool == "drill" and arm != "right":
             raise self.fail(t.key("tool"), "the drill is mounted on the right hand",
                             hint='use arm = "right" or tool = "hand"')
+        start = t.value("start_mm", default=None)
+        if start is not None and not (_is_point(start)
+                                      and math.hypot(*start) <= START_MAX_MM):
+            raise self.fail(t.key("start_mm"), f"must be [x, y] in mm within "
+                            f"{START_MAX_MM:g} mm of the working stance, got {start!r}",
+                            hint="e.g. start_mm = [-1000, 0] (1 m behind it)")
         t.finish()
         return Stance(None if distance is None else distance / 1000,
-                      None if centre is None else (centre[0] / 1000, centre[1] / 1000), arm, tool)
+                      None if centre is None else (centre[0] / 1000, centre[1] / 1000), arm, tool,
+                      None if start is None else (start[0] / 1000, start[1] / 1000))
 
     def _scene(self, t: _Table) -> Scene:
         wall = t.table("wall")

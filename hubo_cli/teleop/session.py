@@ -22,7 +22,7 @@ from hubo_cli.scene import WallPlacement, WallSize
 from hubo_cli.session import RunResult, RunSetup, run
 from hubo_cli.teleop.mapping import HandMapper, MappingConfig
 from hubo_cli.teleop.target import TeleopTarget
-from hubo_cli.urdf import DRILL_FRAME
+from hubo_cli.urdf import DRILL_FRAME, tool_frame
 
 PAPER_HOLE_M = (0.150, 0.100)  # the paper's cut (V): drill mode starts at its upper-left corner
 APPROACH_SPEED_M_S = 0.05      # mean speed of the bit's move into the wall
@@ -54,6 +54,8 @@ class TeleopSettings:
         gui, baud, estop, driver_options: passed on.
         perturb_seed: a perturbed simulated robot and world (:mod:`hubo_cli.perturb`).
         balance: the balancer, ``default``, ``paper`` or ``off`` (``--balance``).
+        walk_from_m: start this far (x, y; m) from the working stance and walk there before
+            the operator takes over (:mod:`hubo_cli.walking.approach`; None: start on it).
     """
 
     replay: str | Path | None = None
@@ -74,6 +76,7 @@ class TeleopSettings:
     perturb_seed: int | None = None
     reach: ReachSettings | None = None
     balance: str = "default"
+    walk_from_m: tuple[float, float] | None = None
 
 
 @dataclass
@@ -186,8 +189,26 @@ def run_teleop(settings: TeleopSettings, on_ready=None) -> TeleopRun:
         duration = settings.duration_s
         if duration is None and source.recorded_s is not None:
             duration = source.recorded_s + target.approach_timeout_s + 30.0
-        done = run(teleop_setup(settings, body, duration), target, on_start=on_ready)
+        setup, runs = teleop_setup(settings, body, duration), target
+        if settings.walk_from_m is not None:  # the operator takes over at the stance
+            if settings.driver != "sim":
+                raise InputError("--walk-from walks the robot to its stance: the simulator "
+                                 f"only, not the {settings.driver} driver",
+                                 hint="leave out --walk-from")
+            from hubo_cli.walking.approach import walk_first_setup
+
+            runs, setup = walk_first_setup(setup, target, settings.walk_from_m,
+                                           scene.get("wall_distance_m"),
+                                           frames=[tool_frame(a, t) for a, t in body.tools.items()])
+        done = run(setup, runs, on_start=None if on_ready is None
+                   else lambda _: on_ready(target))
     summary = done.save_summary(summarise(settings, target, done, source, scene))
+    if runs is not target:
+        from hubo_cli.experiments.walk import plot_footprints
+
+        summary = done.save_summary({"walk": runs.summary()})
+        plot_footprints(done, runs.walk, setup.model,
+                        rows=np.asarray(done.log["approach.phase_code"]) == 0)
     return TeleopRun(done.run_dir, summary, done.loop)
 
 

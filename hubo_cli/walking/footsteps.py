@@ -172,3 +172,19 @@ def _place(right: Footstep, left: Footstep, start: Stance, goal: Stance, n: int,
             yaw = _interpolate(start, goal, (i + 1) / n).yaw_rad
         steps.append(Stance(place.x_m, place.y_m, yaw).foot(side, width))
     return steps
+
+
+def closing_steps(right: Footstep, left: Footstep, goal: Stance, width_m: float,
+                  first: str = "right", tolerance_m: float = 0.001) -> list[Footstep]:
+    """The two steps that bring feet standing on ``goal`` to ``width_m`` apart (the stance a
+    task or an operator starts from is narrower than the walking one): ``first``, then the
+    other foot, so that the feet keep alternating (give the side that did not step last).
+    Empty when both feet stand within ``tolerance_m`` of their places."""
+    feet = {"right": right, "left": left}
+    places = {side: goal.foot(side, width_m) for side in SIDES}
+    if all(math.hypot(places[s].x_m - feet[s].x_m, places[s].y_m - feet[s].y_m) <= tolerance_m
+           and abs(wrap_angle(places[s].yaw_rad - feet[s].yaw_rad)) <= TOE_IN_TOLERANCE_RAD
+           for s in SIDES):
+        return []
+    second = "left" if first == "right" else "right"
+    return [places[first], places[second]]

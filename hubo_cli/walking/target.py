@@ -17,7 +17,13 @@ from hubo_cli.geometry import quat_wxyz_to_matrix, tilt_rad_of_matrix
 from hubo_cli.model import RobotModel
 from hubo_cli.state import RobotState
 from hubo_cli.walking.body import SIDE_LEG, JointPlan, WalkingBody, pose_of_row
-from hubo_cli.walking.footsteps import Footstep, Stance, plan_footsteps, stance_of
+from hubo_cli.walking.footsteps import (
+    Footstep,
+    Stance,
+    closing_steps,
+    plan_footsteps,
+    stance_of,
+)
 from hubo_cli.walking.gait import Gait, make_gait
 from hubo_cli.walking.params import WalkingParams
 from hubo_cli.walking.stabilizer import SoleDamper, StabilizerGains, TorsoOffset, Touchdown
@@ -104,6 +110,9 @@ class WalkTarget(Target):
     pattern has ended (its last ``settle_s`` standing) and the feet, which slip a little on
     every step, stand further than ARRIVED_M / ARRIVED_RAD from the goal, it plans again from
     where they stand, up to ``corrections`` times. The run ends then, or on a fall.
+
+    ``end_width_m`` (None: the walking width) ends every walk with the feet this far apart
+    (:func:`~hubo_cli.walking.footsteps.closing_steps`): the stance a task starts from.
     """
 
     log_columns = ("walk.zmp_ref_x_m", "walk.zmp_ref_y_m", "walk.com_ref_x_m",
@@ -116,8 +125,10 @@ class WalkTarget(Target):
 
     def __init__(self, model: RobotModel, params: WalkingParams, goal: tuple[float, float, float],
                  q_start_rad: np.ndarray, T_world_neck_start: np.ndarray,
-                 corrections: int = 1, stabilizer: StabilizerGains | None = None) -> None:
+                 corrections: int = 1, end_width_m: float | None = None,
+                 stabilizer: StabilizerGains | None = None) -> None:
         self.model = model
+        self.end_width_m = end_width_m
         self.params = params
         self.goal_relative = goal
         self.q_start = np.asarray(q_start_rad, dtype=float)
@@ -178,6 +189,12 @@ class WalkTarget(Target):
         world = self.world
         feet = self._measured_feet()
         steps = plan_footsteps(feet["right"], feet["left"], self.goal, self.params)
+        if self.end_width_m is not None:
+            placed = {step.side: step for step in steps}
+            first = "left" if steps and steps[-1].side == "right" else "right"
+            steps = steps + closing_steps(placed.get("right", feet["right"]),
+                                          placed.get("left", feet["left"]), self.goal,
+                                          self.end_width_m, first)
         T_world_neck = world.frame_pose("torso")
         T_world_neck[2, 3] = self.T_world_neck_start[2, 3] if self.gait is None \
             else self.plan.T_world_neck[-1, 2, 3]

@@ -1,0 +1,360 @@
+"""Push recovery by stepping: when the capture point leaves what the ankles can hold, step
+toward it (the capture step), then bring the other foot back beside it.
+
+The robot stands (a standing target, e.g. :class:`~hubo_cli.experiments.standing.StandTarget`,
+gives the posture and does its own measuring). Each period the :class:`CaptureStepper` reads
+the capture-point monitor (the CP, CoM and its velocity of the period before); when the CP
+lies beyond the support polygon shrunk by the monitor's margin (``outside_m > 0``: where the
+ankle and hip strategies run out) it plans, from the measured feet and CoM, on the linear
+inverted pendulum (omega^2 = g / z_c):
+
+1. *capture step*, ``SINGLE_SUPPORT_S``: the foot on the CP's side (the less loaded one when
+   the CP lies between the feet) swings; the ZMP sits on the stance sole ``ZMP_AHEAD_M`` ahead
+   of its middle toward the push and ``ZMP_INSET_M`` inside toward the swing foot, and the CoM
+   follows the pendulum, c(t) = p + (c0 - p) cosh(wt) + v0 / w sinh(wt). The swing foot lands
+   with its sole's middle on the capture point the pendulum has at touch-down,
+   xi = c + c' / w (within ``MAX_STEP_M`` of the stance foot and at least the standing width
+   from it sideways);
+2. *catch*, ``CATCH_S``: both feet down, the ZMP on the landed sole's middle (= xi); the CoM
+   comes to rest there, c(t) = xi + (c_T - xi) exp(-w t);
+3. *return*: one walking step of :func:`~hubo_cli.walking.gait.make_gait` brings the other foot
+   beside the landed one at the standing width (the stance, moved by the push); the CoM
+   returns between the feet.
+
+The pattern's joints come from :class:`~hubo_cli.walking.body.WalkingBody` (the legs' IK, the
+neck placed so that the model's CoM follows the pattern), one period at a time. While it
+steps, the capture-point monitor watches the planned support (the swing foot at its landing
+place, as when walking) and the standing balancers rest (reset every period); afterwards the
+robot holds the pattern's last posture and the balancers act again. At most two steps per
+push; one plan at a time.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from hubo_cli.control.capture_point import CapturePointMonitor
+from hubo_cli.control.module import Module
+from hubo_cli.control.target import Target, TargetOutput
+from hubo_cli.drivers.base import SimulatedWorld
+from hubo_cli.errors import ConfigError, InputError
+from hubo_cli.kinematics.limb import Limb
+from hubo_cli.model import RobotModel
+from hubo_cli.state import RobotState
+from hubo_cli.walking.body import SIDE_LEG, WalkingBody, pose_of_row
+from hubo_cli.walking.footsteps import SIDE_SIGN, Footstep, stance_of
+from hubo_cli.walking.gait import Gait, make_gait, smoothstep5, swing_rows
+from hubo_cli.walking.params import WalkingParams
+from hubo_cli.walking.preview import GRAVITY_M_S2, CoMPath
+from hubo_cli.walking.target import SOLES, footstep_of, planned_support
+
+SINGLE_SUPPORT_S = 0.40  # [chosen] the capture step's swing: short, the pendulum diverges
+SWING_HEIGHT_M = 0.04    # [chosen] sole clearance at mid-swing
+ZMP_AHEAD_M = 0.09       # [chosen] stance ZMP ahead of the sole's middle, toward the push
+ZMP_INSET_M = 0.04       # [chosen] ... and inside, toward the swing foot
+MIN_STEP_M = 0.10        # [chosen] the step goes at least this far the push's way
+MAX_STEP_M = 0.45        # [chosen] landing within this of the stance foot (the legs' reach)
+MAX_WIDTH_M = 0.35       # [chosen] the feet at most this far apart sideways
+CATCH_S = 1.0            # [chosen] both feet down, the CoM comes to rest on the landed foot
+CATCH_EDGE_M = 0.03      # [chosen] the catch's ZMP stays this far inside the landed sole's ends
+LANDED_M = 0.003         # a swing sole this close to the ground has landed
+LAND_WAIT_S = 0.2        # [chosen] wait at most this long after the swing for it to land
+SOLE_FRAME = {"right": "right_sole", "left": "left_sole"}
+RESTING = ("balance", "stabilizer")
+TRIGGER_M = 0.05         # [chosen] step once the CP is within this of the shrunk polygon's edge
+REPLAN_FRACTION = 0.6    # [chosen] the landing follows the measured CP over this much of the swing
+PHASE_CODES = {"stand": 0.0, "step": 1.0, "catch": 2.0, "return": 3.0, "stood": 4.0}
+
+
+def pendulum(c0: np.ndarray, v0: np.ndarray, p: np.ndarray, omega: float,
+             t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The linear inverted pendulum over a fixed ZMP ``p`` (2,): CoM position, velocity and
+    acceleration (len(t), 2) from (c0, v0) at t = 0."""
+    ch, sh = np.cosh(omega * t_s)[:, None], np.sinh(omega * t_s)[:, None]
+    d0, w = c0 - p, omega
+    c = p + d0 * ch + v0 / w * sh
+    v = d0 * w * sh + v0 * ch
+    return c, v, w * w * (c - p)
+
+
+def _row(foot: Footstep, z_m: float) -> np.ndarray:
+    return np.array([foot.x_m, foot.y_m, z_m, foot.yaw_rad])
+
+
+def landing(stance: Footstep, side: str, xi_m: np.ndarray, forward_m: float,
+            width_m: float, min_ahead_m: float = 0.0) -> Footstep:
+    """Where the swing foot ``side`` lands: its sole's middle on ``xi_m`` (world x, y), within
+    MAX_STEP_M of the stance foot, ``width_m`` to MAX_WIDTH_M from it sideways, at least
+    ``min_ahead_m`` ahead of it (negative: at least that far behind; the push's way), heading
+    as the stance foot."""
+    c, s = math.cos(stance.yaw_rad), math.sin(stance.yaw_rad)
+    dx, dy = xi_m[0] - stance.x_m, xi_m[1] - stance.y_m
+    ahead = c * dx + s * dy - forward_m          # the ankle goes forward_m behind the middle
+    if min_ahead_m > 0:
+        ahead = max(ahead, min_ahead_m)
+    elif min_ahead_m < 0:
+        ahead = min(ahead, min_ahead_m)
+    across = SIDE_SIGN[side] * (-s * dx + c * dy)  # toward the swing side: positive
+    across = min(max(across, width_m), MAX_WIDTH_M)
+    length = math.hypot(ahead, across)
+    if length > MAX_STEP_M:  # keep the sideways part, shorten the forward one
+        ahead = math.copysign(math.sqrt(max(MAX_STEP_M**2 - across**2, 0.0)), ahead)
+    left = SIDE_SIGN[side] * across
+    return Footstep(side, stance.x_m + c * ahead - s * left, stance.y_m + s * ahead + c * left,
+                    stance.yaw_rad)
+
+
+class CaptureStepper(Target):
+    """Stand with ``stand`` and catch a push by stepping (see the module docstring).
+
+    Args:
+        stand: the standing target (its posture and measurements; it keeps being called).
+        model: the robot model (the ``walking`` limit set: a capture step needs the legs'
+            walking speeds).
+        params: walking parameters (the return step's timing; the standing width is
+            measured).
+        q_stand_rad: the standing posture (the pattern's IK starts from it).
+    """
+
+    def __init__(self, stand: Target, model: RobotModel, params: WalkingParams,
+                 q_stand_rad: np.ndarray) -> None:
+        self.stand = stand
+        self.model = model
+        self.params = params
+        self.q_stand = np.asarray(q_stand_rad, dtype=float)
+        self.log_columns = (*stand.log_columns, "capture.phase_code", "capture.com_ref_x_m",
+                            "capture.com_ref_y_m")
+        self.world: SimulatedWorld | None = None
+        self.monitor: CapturePointMonitor | None = None
+        self.resting: list[Module] = []
+        self.phase = "stand"
+        self.body: WalkingBody | None = None
+        self.rest: Gait | None = None  # the catch and the return step, planned at touch-down
+        self.k = 0
+        self.t_start_s = 0.0
+        self.q_hold: np.ndarray | None = None
+        self.steps: list[Footstep] = []
+        self.start_feet: list[Footstep] = []
+        self.trigger_s: float | None = None
+
+    def attach(self, world: SimulatedWorld | None, modules: Sequence[Module]) -> None:
+        if world is None:
+            raise ConfigError("stepping needs the simulator (the soles' poses in the world)",
+                              hint="leave out --step on the hardware driver")
+        self.world = world
+        self.stand.attach(world, modules)
+        self.monitor = next((m for m in modules if isinstance(m, CapturePointMonitor)), None)
+        if self.monitor is None:
+            raise ConfigError("stepping needs the capture-point monitor in the pipeline",
+                              hint="keep capture-point in the module order")
+        self.resting = [m for m in modules if m.name in RESTING]
+
+    def __call__(self, t_s: float, state: RobotState) -> TargetOutput:
+        q_stand, info = self.stand(t_s, state)
+        if self.phase == "stand" and self.trigger_s is None and state.time_s > 0 \
+                and self.monitor.outside_m > -TRIGGER_M:
+            self._start(t_s, state)
+        q, ref = (q_stand if self.q_hold is None else self.q_hold), (math.nan, math.nan)
+        if self.phase == "step":
+            q, ref = self._step_period(state)
+        elif self.phase in ("catch", "return"):
+            q, ref = self._rest_period()
+        if self.phase in ("step", "catch", "return"):
+            for module in self.resting:
+                module.reset(q, state)
+        return q, info | {"capture.phase_code": PHASE_CODES[self.phase],
+                          "capture.com_ref_x_m": ref[0], "capture.com_ref_y_m": ref[1]}
+
+    # ------------------------------------------------------------------ the capture step
+    def _start(self, t_s: float, state: RobotState) -> None:
+        """Choose the swing foot and the stance ZMP; the step starts this period."""
+        world, monitor = self.world, self.monitor
+        feet = {side: footstep_of(side, world.frame_pose(frame)) for side, frame, _ in SOLES}
+        self.feet = feet
+        self.start_feet = [feet["right"], feet["left"]]
+        self.sole_z_m = float(world.frame_pose("right_sole")[2, 3])
+        self.height_m = float(monitor.com_m[2]) - self.sole_z_m
+        self.omega = math.sqrt(GRAVITY_M_S2 / self.height_m)
+        cp, velocity = monitor.cp_m.copy(), monitor.velocity_m_s[:2].copy()
+        middle = stance_of(feet["right"], feet["left"])
+        across = (-math.sin(middle.yaw_rad) * (cp[0] - middle.x_m)
+                  + math.cos(middle.yaw_rad) * (cp[1] - middle.y_m))
+        if abs(across) > 0.01:
+            swing = "left" if across > 0 else "right"
+        else:  # between the feet: the less loaded one lifts
+            swing = ("right" if state.ft["right-ankle"][2] < state.ft["left-ankle"][2]
+                     else "left")
+        self.swing, self.stance_side = swing, "left" if swing == "right" else "right"
+        stance = feet[self.stance_side]
+        self.width_m = math.hypot(feet["right"].x_m - feet["left"].x_m,
+                                  feet["right"].y_m - feet["left"].y_m)
+        c, s = math.cos(stance.yaw_rad), math.sin(stance.yaw_rad)
+        self.heading = np.array([c, s])
+        inward = -SIDE_SIGN[self.stance_side] * np.array([-s, c])
+        forward = self.model.feet.forward_m
+        way = float(np.sign(velocity @ self.heading))  # forward (1) or backward (-1) push
+        ahead = way * ZMP_AHEAD_M
+        self.min_ahead_m = way * MIN_STEP_M
+        self.zmp_m = (np.array([stance.x_m, stance.y_m]) + (forward + ahead) * self.heading
+                      + ZMP_INSET_M * inward)
+        T_world_neck = (state.T_world_torso.copy() if state.T_world_torso is not None
+                        else world.frame_pose("torso"))
+        self.body = WalkingBody(self.model, self.q_stand, T_world_neck)
+        self.legs = {side: Limb(self.model, SIDE_LEG[side]) for side in ("right", "left")}
+        self.n_step = max(1, int(round(SINGLE_SUPPORT_S / self.model.control_period_s)))
+        self.k, self.t_start_s, self.trigger_s = 0, t_s, t_s
+        self.land = feet[swing]
+        self.phase = "step"
+        self.monitor.support_override = self._support_at
+
+    def _step_period(self, state: RobotState) -> tuple[np.ndarray, tuple[float, float]]:
+        """One period of the capture step: the landing follows the measured capture point
+        (until REPLAN_FRACTION of the swing), the CoM the pendulum from the measured state."""
+        monitor, period, omega = self.monitor, self.model.control_period_s, self.omega
+        k, n = self.k, self.n_step
+        stance = self.feet[self.stance_side]
+        if k <= REPLAN_FRACTION * n:
+            xi = self.zmp_m + (monitor.cp_m - self.zmp_m) * math.exp(omega * (n - k) * period)
+            self.land = landing(stance, self.swing, xi, self.model.feet.forward_m, self.width_m,
+                                self.min_ahead_m)
+        com, velocity = monitor.com_m[:2], monitor.velocity_m_s[:2]
+        c, v, a = pendulum(com, velocity, self.zmp_m, omega, np.array([period]))
+        swing_row = swing_rows(self.feet[self.swing], self.land, n, SWING_HEIGHT_M,
+                               self.sole_z_m)[min(k, n - 1)]
+        feet = {self.stance_side: _row(stance, self.sole_z_m), self.swing: swing_row}
+        support = np.zeros((1, 2), dtype=bool)
+        support[0, 0 if self.stance_side == "right" else 1] = True
+        q = self._solve(c, v, a, self.zmp_m, feet, support)
+        # the swing foot lands flat where it should in the world whatever the torso's tilt:
+        # its goal in the measured neck frame
+        T_world_neck = self._measured_neck(state)
+        leg, part = self.legs[self.swing], self.model.limb_slice(SIDE_LEG[self.swing])
+        result = leg.solve(np.linalg.inv(T_world_neck) @ pose_of_row(swing_row), q[part])
+        if result.status in ("exact", "capped"):
+            q = q.copy()
+            q[part] = result.q_rad
+            self.body.q_start = q
+        self.k += 1
+        # the swing foot lags its pattern under the limits: the step ends when it is down
+        # (or LAND_WAIT_S after the pattern's end)
+        height = float(self.world.frame_pose(SOLE_FRAME[self.swing])[2, 3]) - self.sole_z_m
+        if self.k >= n and (height < LANDED_M or self.k >= n + LAND_WAIT_S / period):
+            self.R_touch_down = T_world_neck[:3, :3].copy()
+            self._touch_down(c[0], v[0])
+        return q, (float(c[0, 0]), float(c[0, 1]))
+
+    def _touch_down(self, com_m: np.ndarray, velocity_m_s: np.ndarray) -> None:
+        """The swing foot is down: plan the catch and the return step."""
+        period, omega = self.model.control_period_s, self.omega
+        # from where the feet are now (the swing foot lags its pattern under the limits and
+        # lands short of its goal; the stance foot may have slid): the catch and the return
+        # step start from the measured soles, so the legs do not fight each other
+        measured = {side: footstep_of(side, self.world.frame_pose(frame))
+                    for side, frame, _ in SOLES}
+        land, stance = measured[self.swing], measured[self.stance_side]
+        self.land = land
+        forward = self.model.feet.forward_m
+        sole_middle = np.array([land.x_m, land.y_m]) + forward * self.heading
+        xi = com_m + velocity_m_s / omega
+        # the ZMP can only be held on the landed sole: the CoM comes to rest within it
+        reach = self.model.feet.length_m / 2 - CATCH_EDGE_M
+        xi = sole_middle + np.clip(xi - sole_middle, -reach, reach)
+        n = max(1, int(round(CATCH_S / period)))
+        t = (np.arange(n) + 1.0) * period
+        # the CoM from (c, v) to rest over the landed sole (the ZMP held at its middle, the
+        # capture point's excess decays with the stable root): c = m + (xi - m) ... shaped as
+        # the pendulum's converging part plus the stable decay
+        d = com_m - sole_middle
+        e = xi - sole_middle  # the part that diverges: the ZMP is held on it below
+        decay = np.exp(-omega * t)[:, None]
+        c = sole_middle + e + (d - e) * decay
+        v = -omega * (d - e) * decay
+        a = omega**2 * (d - e) * decay
+        zmp = np.tile(sole_middle + e, (n, 1))
+        after = {self.swing: land, self.stance_side: stance}
+        beside = SIDE_SIGN[self.stance_side] * self.width_m
+        s, co = self.heading[1], self.heading[0]
+        back = Footstep(self.stance_side, land.x_m - s * beside, land.y_m + co * beside,
+                        land.yaw_rad)
+        ret = make_gait(after["right"], after["left"], [back], self.params, period,
+                        self.height_m, self.sole_z_m, forward, com_start_m=c[-1])
+        rows = {side: np.vstack([np.tile(_row(after[side], self.sole_z_m), (n, 1)),
+                                 ret.feet[side]]) for side in ("right", "left")}
+        self.rest = Gait(period, (back,), self.height_m, np.vstack([zmp, ret.zmp_ref_m]),
+                         CoMPath(np.vstack([c, ret.com.com_m]),
+                                 np.vstack([v, ret.com.com_velocity_m_s]),
+                                 np.vstack([a, ret.com.com_acceleration_m_s2]),
+                                 np.vstack([zmp, ret.com.zmp_m])),
+                         rows, np.vstack([np.ones((n, 2), dtype=bool), ret.support]),
+                         np.concatenate([np.full(n, -1), ret.step_index]))
+        self.rest_support = planned_support(self.rest)
+        self.n_catch = n
+        self.steps = [land, back]
+        self.k, self.phase = 0, "catch"
+
+    def _rest_period(self) -> tuple[np.ndarray, tuple[float, float]]:
+        """One period of the catch or the return step (the planned pattern); over the catch
+        the torso turns from its tilt at touch-down back upright (both soles stay flat)."""
+        rest, k = self.rest, self.k
+        feet = {side: rows[k] for side, rows in rest.feet.items()}
+        q = self._solve(rest.com.com_m[k:k + 1], rest.com.com_velocity_m_s[k:k + 1],
+                        rest.com.com_acceleration_m_s2[k:k + 1], rest.zmp_ref_m[k], feet,
+                        rest.support[k:k + 1])
+        b = float(smoothstep5((k + 1) / self.n_catch))
+        if b < 1.0:
+            T = self.body_neck.copy()
+            T[:3, :3] = (Rotation.from_matrix(self.R_touch_down)
+                         * Rotation.from_rotvec(b * (Rotation.from_matrix(self.R_touch_down).inv()
+                                                     * Rotation.from_matrix(T[:3, :3])
+                                                     ).as_rotvec())).as_matrix()
+            T_neck_world = np.linalg.inv(T)
+            q = q.copy()
+            for side, row in feet.items():
+                part = self.model.limb_slice(SIDE_LEG[side])
+                result = self.legs[side].solve(T_neck_world @ pose_of_row(row), q[part])
+                if result.status in ("exact", "capped"):
+                    q[part] = result.q_rad
+        self.k += 1
+        self.phase = "catch" if self.k < self.n_catch else "return"
+        if self.k >= rest.n:
+            self.phase, self.q_hold = "stood", q
+            self.monitor.support_override = None
+        return q, (float(rest.com.com_m[k, 0]), float(rest.com.com_m[k, 1]))
+
+    def _solve(self, c, v, a, zmp, feet: dict, support: np.ndarray) -> np.ndarray:
+        """The body's IK for one period of pattern (CoM rows (1, 2), feet rows (4,))."""
+        period = self.model.control_period_s
+        zmp = np.asarray(zmp, dtype=float).reshape(1, 2)
+        one = Gait(period, (), self.height_m, zmp, CoMPath(c, v, a, zmp),
+                   {side: np.asarray(row, dtype=float).reshape(1, 4)
+                    for side, row in feet.items()}, support, np.zeros(1, dtype=int))
+        try:
+            plan = self.body.solve(one)
+        except InputError:  # a sole out of the legs' reach: keep the last joints
+            return self.body.q_start
+        q, self.body_neck = plan.q_rad[0], plan.T_world_neck[0]
+        self.body.q_start = q
+        return q
+
+    def _measured_neck(self, state: RobotState) -> np.ndarray:
+        return (state.T_world_torso if state.T_world_torso is not None
+                else self.world.frame_pose("torso"))
+
+    def _support_at(self, t_s: float) -> np.ndarray:
+        """The planned support (right, left sole poses) now: the swing foot at its landing."""
+        if self.phase == "step":
+            feet = {self.stance_side: self.feet[self.stance_side], self.swing: self.land}
+            return np.array([pose_of_row(_row(feet[side], self.sole_z_m))
+                             for side in ("right", "left")])
+        return self.rest_support[min(self.k, self.rest.n - 1)]
+
+    def summary(self) -> dict:
+        """What the stepping did, for the run's summary (``capture_step``)."""
+        return {"stepped": self.trigger_s is not None, "trigger_s": self.trigger_s,
+                "steps": len(self.steps) if self.trigger_s is not None else 0,
+                "start_feet": [f.to_json() for f in self.start_feet],
+                "footsteps": [f.to_json() for f in self.steps]}

@@ -1,0 +1,87 @@
+"""Walk first, then hand over: the shortest walk (the two steps that close the feet from the
+walking width to the home posture's), the rise, and a session target that takes over with its
+own clock, on the simulated robot through the whole pipeline with the default balancer."""
+
+import json
+
+import numpy as np
+import pytest
+
+from hubo_cli.control.pipeline import SafetyProfile
+from hubo_cli.control.target import Target
+from hubo_cli.model import load_model
+from hubo_cli.posture import home_posture
+from hubo_cli.session import RunSetup, run
+from hubo_cli.walking.approach import PHASES, walk_first_setup
+
+pytestmark = [pytest.mark.slow]
+
+
+class Session(Target):
+    """Holds the home posture for 0.3 s of its own clock and records what it saw."""
+
+    log_columns = ("session_t_s",)
+
+    def __init__(self, q_rad):
+        self.q_rad = q_rad
+        self.times_s = []
+        self.attached = False
+
+    def attach(self, world, modules):
+        self.attached = True
+
+    def __call__(self, t_s, state):
+        self.times_s.append(t_s)
+        return self.q_rad, {"session_t_s": t_s, "done": t_s >= 0.3}
+
+
+@pytest.fixture(scope="module")
+def handed_over(tmp_path_factory):
+    model = load_model()
+    session = Session(home_posture(model))
+    setup = RunSetup(command="walk-first", model=model, out=tmp_path_factory.mktemp("wf") / "run",
+                     safety=SafetyProfile(), q_start_rad=home_posture(model), duration_s=30.0)
+    target, setup = walk_first_setup(setup, session, (0.0, 0.0))
+    done = run(setup, target)
+    return target, session, done
+
+
+def test_the_session_takes_over_on_its_own_clock(handed_over):
+    target, session, done = handed_over
+    assert done.loop.ended == "done"
+    assert target.phase == "then" and session.attached
+    assert session.times_s[0] == pytest.approx(0.0)
+    phases = np.asarray(done.log["approach.phase_code"])
+    phases = phases[np.isfinite(phases)]  # the loop's closing row has no target
+    assert set(np.unique(phases)) == {float(i) for i in range(len(PHASES))}
+    assert np.all(np.diff(phases) >= 0)  # walk, rise, then: in order, once each
+
+
+def test_the_walk_closes_the_feet_without_a_stop(handed_over):
+    target, _, done = handed_over
+    summary = done.summary
+    # the torso leans toward the stance foot while walking (lean_rad_per_m): about 6 deg
+    assert summary["estop_events"] == [] and summary["max_torso_tilt_deg"] < 10.0
+    assert summary["max_joint_velocity_ratio"] <= 1.0 + 1e-9
+    walk = target.summary()
+    assert walk["fell"] is False and walk["arrived"] is True
+    assert walk["steps"] == 2  # only the closing pair: from 260 mm to 177 mm apart
+    feet = [np.array(target.walk.final_feet[s][:2, 3]) for s in ("right", "left")]
+    assert np.linalg.norm(feet[0] - feet[1]) == pytest.approx(0.177, abs=0.006)
+    json.dumps(walk)  # the summary's walk field is plain JSON
+
+
+def test_sim_step_stands_still_without_a_push(tmp_path):
+    """``hubo sim --step`` without a push: no step (the capture point stays well inside), the
+    summary says so and keeps ``fell``."""
+    from click.testing import CliRunner
+
+    from hubo_cli.cli.main import main
+
+    result = CliRunner().invoke(main, ["sim", "--duration", "1", "--step", "--json",
+                                       "--out", str(tmp_path / "run")])
+    assert result.exit_code == 0, result.output
+    fields = json.loads(result.output)
+    assert fields["fell"] is False
+    assert fields["capture_step"] == {"stepped": False, "trigger_s": None, "steps": 0,
+                                      "start_feet": [], "footsteps": []}
