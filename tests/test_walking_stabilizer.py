@@ -4,12 +4,14 @@ import numpy as np
 import pytest
 
 from hubo_cli.errors import ConfigError
+from hubo_cli.geometry import quat_wxyz_to_matrix
 from hubo_cli.model import load_model
 from hubo_cli.walking.body import WalkingBody, multibody_zmp, walking_posture
 from hubo_cli.walking.footsteps import Footstep, Stance, plan_footsteps
 from hubo_cli.walking.gait import make_gait
 from hubo_cli.walking.params import walking_params
 from hubo_cli.walking.stabilizer import SoleDamper, StabilizerGains, TorsoOffset, Touchdown
+from hubo_cli.walking.target import imu_z_axis, measured_zmp, rigid_inverse, tilt_between
 
 DT = 0.005
 SOLE = (-0.09, 0.13, -0.065, 0.065)  # the sole box in its own frame (m)
@@ -88,3 +90,42 @@ def test_second_preview_stage_cancels_the_swing_legs_zmp():
     after = multibody_zmp(body, plan, 0.0, DT) - gait.zmp_ref_m
     assert np.abs(before[inner]).max() > 0.025
     assert np.abs(after[inner]).max() < 0.012
+
+
+def test_per_period_geometry_in_floats_matches_numpy():
+    """The stabilizer's per-period helpers (plain floats, for the period budget) agree with
+    the matrix formulas: the tilt turns one axis onto the other and is a rotation, the IMU's
+    z axis is its rotation's third column, the rigid inverse is the inverse."""
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        a, b = rng.normal(size=3), rng.normal(size=3)
+        a, b = a / np.linalg.norm(a), b / np.linalg.norm(b)
+        R = tilt_between(a, b)
+        assert np.allclose(R @ a, b, atol=1e-12) and np.allclose(R @ R.T, np.eye(3), atol=1e-12)
+        q = rng.normal(size=4)
+        assert np.allclose(imu_z_axis(q), quat_wxyz_to_matrix(q / np.linalg.norm(q))[:, 2],
+                           atol=1e-12)
+        T = np.eye(4)
+        T[:3, :3] = quat_wxyz_to_matrix(q / np.linalg.norm(q))
+        T[:3, 3] = rng.normal(size=3)
+        assert np.allclose(rigid_inverse(T), np.linalg.inv(T), atol=1e-12)
+
+
+def test_measured_zmp_weights_the_soles_and_measures_the_hull():
+    """Two soles 0.24 m apart, the right one carrying three quarters at its centre: the ZMP
+    lies a quarter of the way to the left sole, inside their hull by the distance to its
+    nearest edge (the soles' toe line, 0.11 m ahead of the centre with forward_m 0)."""
+    corners = np.array([[-0.11, -0.065, 0.0], [0.11, -0.065, 0.0], [0.11, 0.065, 0.0],
+                        [-0.11, 0.065, 0.0]])
+    poses = {}
+    for side, y in (("right", -0.12), ("left", 0.12)):
+        T = np.eye(4)
+        T[:2, 3] = 1.0, y
+        poses[side] = T
+    zmp, outside = measured_zmp(poses, {"right": wrench_at(0.0, 0.0, 300.0),
+                                        "left": wrench_at(0.0, 0.0, 100.0)}, corners)
+    assert zmp == pytest.approx([1.0, -0.06], abs=1e-12)
+    assert outside == pytest.approx(-0.11, abs=1e-12)
+    none, far = measured_zmp(poses, {"right": wrench_at(0.0, 0.0, 5.0),
+                                     "left": wrench_at(0.0, 0.0, 5.0)}, corners)
+    assert none is None and far == float("inf")

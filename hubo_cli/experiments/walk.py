@@ -18,6 +18,7 @@ from hubo_cli.walking.stabilizer import StabilizerGains
 from hubo_cli.walking.target import WalkTarget
 
 MAX_GOAL_M = 10.0
+DEFAULT_GAINS = StabilizerGains()
 
 
 @dataclass
@@ -73,7 +74,7 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
          out: str | Path | None = None, estop: bool = True,
          perturb_seed: int | None = None, corrections: int = 1,
          balance: str = "off",
-         stabilizer: StabilizerGains | None = StabilizerGains()) -> WalkResult:
+         stabilizer: StabilizerGains | None = DEFAULT_GAINS) -> WalkResult:
     """Walk the simulated robot to ``goal`` = (forward m, left m, turn rad) from its stance.
 
     Args:

@@ -110,7 +110,8 @@ class SoleDamper:
                               hint="lower edge_margin_m")
         self.safe = (x0 + m, x1 - m, y0 + m, y1 - m)
         self.dt_s = float(dt_s)
-        self.damping = np.array([gains.damping_roll_nm_s_rad, gains.damping_pitch_nm_s_rad])
+        self._damping_roll = float(gains.damping_roll_nm_s_rad)
+        self._damping_pitch = float(gains.damping_pitch_nm_s_rad)
         self.delta_rad = np.zeros(2)
 
     def reset(self) -> None:
@@ -120,18 +121,21 @@ class SoleDamper:
         """One period with the sole's measured wrench [fx, fy, fz, mx, my, mz] (about the sole
         frame's origin, sole axes); returns ``delta_rad``."""
         g = self.gains
-        fz = float(wrench[2])
-        if fz > LOADED_N and np.all(np.isfinite(wrench)):
-            mx, my = float(wrench[3]), float(wrench[4])
+        fx, fy, fz, mx, my, mz = (float(v) for v in wrench)
+        roll, pitch = float(self.delta_rad[0]), float(self.delta_rad[1])
+        if fz > LOADED_N and math.isfinite(mx + my + fx + fy + mz):
             x0, x1, y0, y1 = self.safe
             px = min(max(-my / fz, x0), x1)
             py = min(max(mx / fz, y0), y1)
-            error = np.array([mx - fz * py, my + fz * px])
-            rate = error / np.maximum(self.damping, 1e-9) - self.delta_rad / g.time_constant_s
+            rate_roll = (mx - fz * py) / max(self._damping_roll, 1e-9) - roll / g.time_constant_s
+            rate_pitch = ((my + fz * px) / max(self._damping_pitch, 1e-9)
+                          - pitch / g.time_constant_s)
         else:
-            rate = -self.delta_rad / max(g.swing_time_constant_s, self.dt_s)
-        self.delta_rad = np.clip(self.delta_rad + rate * self.dt_s, -g.max_sole_rad,
-                                 g.max_sole_rad)
+            leak = max(g.swing_time_constant_s, self.dt_s)
+            rate_roll, rate_pitch = -roll / leak, -pitch / leak
+        bound = g.max_sole_rad
+        self.delta_rad[0] = min(max(roll + rate_roll * self.dt_s, -bound), bound)
+        self.delta_rad[1] = min(max(pitch + rate_pitch * self.dt_s, -bound), bound)
         return self.delta_rad
 
 
@@ -154,19 +158,22 @@ class TorsoOffset:
                com_ref_m: np.ndarray) -> np.ndarray:
         """One period; ``zmp_m`` None (no sole loaded) leaves the ZMP term out."""
         g = self.gains
-        rate = -g.k_com * (np.asarray(com_m) - com_ref_m)
+        rate_x = -g.k_com * (float(com_m[0]) - float(com_ref_m[0]))
+        rate_y = -g.k_com * (float(com_m[1]) - float(com_ref_m[1]))
         if zmp_m is not None:
-            rate = rate + g.k_zmp * (np.asarray(zmp_m) - zmp_ref_m)
-        speed = float(np.hypot(*rate))
+            rate_x += g.k_zmp * (float(zmp_m[0]) - float(zmp_ref_m[0]))
+            rate_y += g.k_zmp * (float(zmp_m[1]) - float(zmp_ref_m[1]))
+        speed = math.hypot(rate_x, rate_y)
         if not math.isfinite(speed):
             return self.offset_m
         if speed > g.max_offset_speed_m_s:
-            rate = rate * (g.max_offset_speed_m_s / speed)
-        offset = self.offset_m + rate * self.dt_s
-        size = float(np.hypot(*offset))
+            rate_x, rate_y = (v * (g.max_offset_speed_m_s / speed) for v in (rate_x, rate_y))
+        x = float(self.offset_m[0]) + rate_x * self.dt_s
+        y = float(self.offset_m[1]) + rate_y * self.dt_s
+        size = math.hypot(x, y)
         if size > g.max_offset_m:
-            offset = offset * (g.max_offset_m / size)
-        self.offset_m = offset
+            x, y = x * (g.max_offset_m / size), y * (g.max_offset_m / size)
+        self.offset_m = np.array((x, y))
         return self.offset_m
 
 

@@ -13,7 +13,7 @@ from hubo_cli.control.target import Target, TargetOutput
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.errors import ConfigError
 from hubo_cli.falls import has_fallen
-from hubo_cli.geometry import quat_wxyz_to_matrix, tilt_rad_of_matrix
+from hubo_cli.geometry import tilt_rad_of_matrix
 from hubo_cli.model import RobotModel
 from hubo_cli.state import RobotState
 from hubo_cli.walking.body import SIDE_LEG, JointPlan, WalkingBody, pose_of_row
@@ -33,6 +33,9 @@ ARRIVED_RAD = math.radians(1.5)
 ZMP_INSIDE_MARGIN_M = 0.001  # a ZMP closer than this to the hull's edge counts as on it (a sole
                              # tipping about that edge: the physics keeps the ZMP on the hull)
 LOADED_N = 10.0  # a sole carrying more than this counts in the measured ZMP and the support
+LEG_STEP_RAD = 0.005  # the stabilizer's correction of a leg's joints (torso offset, touchdown
+                     # hold) changes by at most this much a period: an IK solution further from
+                     # the last one (another branch, or not exact) keeps the last correction
 SOLES = (("right", "right_sole", "right-ankle"), ("left", "left_sole", "left-ankle"))
 SOLES_SENSOR = {side: sensor for side, _, sensor in SOLES}
 
@@ -54,32 +57,59 @@ def measured_zmp(poses: dict[str, np.ndarray], wrenches: dict[str, np.ndarray],
             frame's origin in sole axes (N, N m).
         corners_m: the sole's corners in its own frame (4 x 3).
     """
-    total, weighted, points = 0.0, np.zeros(2), []
+    total = weighted_x = weighted_y = 0.0
+    points = []
     for side, T in poses.items():
         f = wrenches[side]
         fz = float(f[2])
         if not fz > LOADED_N:
             continue
-        cop = T @ np.array([-f[4] / fz, f[3] / fz, 0.0, 1.0])  # p_x = -m_y/f_z, p_y = m_x/f_z
-        weighted += fz * cop[:2]
+        px, py = -float(f[4]) / fz, float(f[3]) / fz  # the sole's CoP: -m_y/f_z, m_x/f_z
+        weighted_x += fz * (T[0, 0] * px + T[0, 1] * py + T[0, 3])
+        weighted_y += fz * (T[1, 0] * px + T[1, 1] * py + T[1, 3])
         total += fz
-        points.extend((T[:3, :3] @ c + T[:3, 3])[:2] for c in corners_m)
+        points.append(corners_m[:, :2] @ T[:2, :2].T + T[:2, 3])
     if total == 0.0:
         return None, math.inf
-    zmp = weighted / total
-    return zmp, float(outside_distance(convex_hull(np.array(points)), zmp))
+    zmp = np.array((weighted_x / total, weighted_y / total))
+    return zmp, float(outside_distance(convex_hull(np.concatenate(points)), zmp))
 
 
 def tilt_between(z_from: np.ndarray, z_to: np.ndarray) -> np.ndarray:
-    """The smallest rotation (3x3) turning the unit vector ``z_from`` onto ``z_to``."""
-    axis = np.cross(z_from, z_to)
-    s, c = float(np.linalg.norm(axis)), float(np.dot(z_from, z_to))
+    """The smallest rotation (3x3) turning the unit vector ``z_from`` onto ``z_to`` (Rodrigues'
+    formula, in plain floats: it runs every control period)."""
+    ax, ay, az = (float(v) for v in z_from)
+    bx, by, bz = (float(v) for v in z_to)
+    kx, ky, kz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    s = math.sqrt(kx * kx + ky * ky + kz * kz)
     if s < 1e-12:
         return np.eye(3)
-    K = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
-    K /= s
+    c = ax * bx + ay * by + az * bz
+    kx, ky, kz = kx / s, ky / s, kz / s
     angle = math.atan2(s, c)
-    return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * K @ K
+    sn, vc = math.sin(angle), 1.0 - math.cos(angle)
+    return np.array([
+        [1.0 - vc * (ky * ky + kz * kz), -sn * kz + vc * kx * ky, sn * ky + vc * kx * kz],
+        [sn * kz + vc * kx * ky, 1.0 - vc * (kx * kx + kz * kz), -sn * kx + vc * ky * kz],
+        [-sn * ky + vc * kx * kz, sn * kx + vc * ky * kz, 1.0 - vc * (kx * kx + ky * ky)]])
+
+
+def imu_z_axis(q_wxyz: np.ndarray) -> np.ndarray:
+    """The world's view of the torso's z axis (3,) from the IMU's quaternion (w, x, y, z;
+    normalised here): the third column of its rotation matrix."""
+    w, x, y, z = (float(v) for v in q_wxyz)
+    n2 = w * w + x * x + y * y + z * z
+    return np.array([2.0 * (x * z + w * y) / n2, 2.0 * (y * z - w * x) / n2,
+                     1.0 - 2.0 * (x * x + y * y) / n2])
+
+
+def rigid_inverse(T: np.ndarray) -> np.ndarray:
+    """The inverse of a rigid transform (4x4): [R^T, -R^T p]."""
+    out = np.eye(4)
+    R = T[:3, :3]
+    out[:3, :3] = R.T
+    out[:3, 3] = -(R.T @ T[:3, 3])
+    return out
 
 
 def planned_support(gait: Gait) -> np.ndarray:
@@ -159,6 +189,7 @@ class WalkTarget(Target):
             self.dampers = {side: SoleDamper(stabilizer, box, dt) for side in ("right", "left")}
             self.torso_offset = TorsoOffset(stabilizer, dt)
             self.touchdowns = {side: Touchdown(stabilizer, dt) for side in ("right", "left")}
+            self._leg_delta = {side: np.zeros(6) for side in ("right", "left")}
         names = list(model.joint_names)
         self._ankle = {"right": (names.index("RAR"), names.index("RAP")),
                        "left": (names.index("LAR"), names.index("LAP"))}
@@ -291,7 +322,7 @@ class WalkTarget(Target):
         name = SIDE_LEG[side]
         T_neck_sole = body.legs[name].fk(state.q_rad[body.slices[name]])
         R_plan = self.plan.T_world_neck[k, :3, :3]
-        R = tilt_between(R_plan[:, 2], quat_wxyz_to_matrix(state.imu_quat_wxyz)[:, 2]) @ R_plan
+        R = tilt_between(R_plan[:, 2], imu_z_axis(state.imu_quat_wxyz)) @ R_plan
         T = np.eye(4)
         T[:3, :3] = R
         T[:3, 3] = gait.feet[side][k, :3] - R @ T_neck_sole[:3, 3]
@@ -308,7 +339,7 @@ class WalkTarget(Target):
         offset = self.torso_offset.update(zmp, gait.zmp_ref_m[k], com[:2], plan.com_m[k, :2])
         T_world_neck = plan.T_world_neck[k].copy()
         T_world_neck[:2, 3] += offset
-        T_neck_world = np.linalg.inv(T_world_neck)
+        T_neck_world = rigid_inverse(T_world_neck)
         for column, side in enumerate(("right", "left")):
             name = SIDE_LEG[side]
             part = body.slices[name]
@@ -319,8 +350,11 @@ class WalkTarget(Target):
             T_world_sole = pose_of_row(row)
             T_world_sole[2, 3] += lift
             result = body.legs[name].solve(T_neck_world @ T_world_sole, q[part])
-            if result.status == "exact":
-                q[part] = result.q_rad
+            delta = result.q_rad - q[part]
+            if result.status == "exact" and float(
+                    np.max(np.abs(delta - self._leg_delta[side]))) <= LEG_STEP_RAD:
+                self._leg_delta[side] = delta
+            q[part] += self._leg_delta[side]
         for side in ("right", "left"):
             delta = self.dampers[side].update(state.ft[SOLES_SENSOR[side]])
             roll, pitch = self._ankle[side]
