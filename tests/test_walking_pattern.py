@@ -178,3 +178,37 @@ def test_capture_point_uses_the_planned_support(walking_model, params):
                         pose_of_row(np.array([0.1, w, 0.0, 0.0]))])
     monitor.support_override = lambda t_s: planned
     assert not flagged() and monitor.outside_m < -0.03
+
+
+def test_measured_feet_a_fraction_of_a_mm_off_take_no_extra_steps(params):
+    """Feet measured 0.1 mm and 0.001 rad off their nominal places walk 1 m forward in the
+    same steps as nominal feet (each at most the forward limit), not in two more."""
+    right, left = start_feet(params)
+    nominal = plan_footsteps(right, left, Stance(1.0, 0.0, 0.0), params)
+    measured = plan_footsteps(Footstep("right", -1e-4, right.y_m, 1e-3),
+                              Footstep("left", -1.1e-4, left.y_m, 1e-3),
+                              Stance(1.0, 0.0, 0.0), params)
+    assert len(measured) == len(nominal)
+    forward = [b.x_m - a.x_m for a, b in zip(measured, measured[1:], strict=False)]
+    assert max(forward) <= params.max_step_forward_m + 0.002
+
+
+def test_sideways_walk_keeps_the_ankle_rolls_off_their_limits(walking_model, params):
+    """Walking 0.3 m to the left, the ankle rolls stay 0.03 rad and the hip rolls 0.01 rad
+    inside Table IV's limits: the swing sole lands flat instead of on its edge (with 0.26 m
+    feet and 0.05 m lateral steps the swing ankle's roll sat at its 0.3 rad limit and the
+    simulated robot fell)."""
+    right, left = start_feet(params)
+    steps = plan_footsteps(right, left, Stance(0.0, 0.3, 0.0), params)
+    gait = make_gait(right, left, steps, params, 0.005, 0.59, 0.0, 0.02)
+    q_start, T_world_neck = walking_posture(walking_model, params.step_width_m, params.crouch_m)
+    body = WalkingBody(walking_model, q_start, T_world_neck, params.lean_rad_per_m)
+    plan = body.solve(gait)
+    assert plan.worst_ik_error_m < 1e-6
+    names = list(walking_model.joint_names)
+    # the hips only abduct: the stance hip is held a little off its 0 limit by the lean
+    for joint, margin in (("RAR", 0.03), ("LAR", 0.03), ("RHR", 0.01), ("LHR", 0.01)):
+        i = names.index(joint)
+        q = plan.q_rad[:, i]
+        inside = min(q.min() - walking_model.lower_rad[i], walking_model.upper_rad[i] - q.max())
+        assert inside >= margin, (joint, inside)

@@ -48,3 +48,31 @@ def test_walk_refuses_a_bad_goal():
     result = CliRunner().invoke(main, ["walk", "--to", "inf", "0", "0"])
     assert result.exit_code == 2
     assert "finite" in result.output
+
+
+@pytest.fixture(scope="module")
+def side_walk(tmp_path_factory):
+    """hubo walk --to 0 0.12 0 --corrections 0: six steps to the left, the feet's spacing
+    changing by the full lateral limit on each, about 8.5 s simulated."""
+    out = tmp_path_factory.mktemp("side") / "run"
+    result = CliRunner().invoke(main, ["walk", "--to", "0", "0.12", "0", "--corrections", "0",
+                                       "--json", "--out", str(out)])
+    return result, out
+
+
+def test_walk_sideways_without_falling(side_walk):
+    """Sideways steps widen and narrow the stance by 2 x 30 mm; the robot (which fell walking
+    0.3 m sideways with 0.05 m lateral steps) arrives standing, near the goal."""
+    result, out = side_walk
+    assert result.exit_code == 0, result.output
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["fell"] is False
+    assert summary["ended"] == "done"
+    assert summary["estop_events"] == []
+    assert summary["steps"] == 6
+    # one plan, no correction: the feet slip about 10 mm over 0.3 m sideways
+    assert summary["final_error_mm"] < 40.0
+    assert summary["final_error_deg"] < 3.0
+    assert summary["zmp_inside_fraction"] > 0.8
+    last = summary["footsteps"][-2:]
+    assert sorted(s["y_m"] for s in last) == pytest.approx([0.0, 0.24], abs=0.002)

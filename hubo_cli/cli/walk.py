@@ -15,8 +15,8 @@ from hubo_cli.cli.output import console, print_json
               help="Goal stance relative to the start: forward (m), left (m), turn (rad, "
                    "counter-clockwise).")
 @click.option("--corrections", type=click.IntRange(0, 5), default=1, show_default=True,
-              help="Walk again from where the feet stand when they slipped more than 5 mm or "
-                   "1 deg off the goal, up to this many times.")
+              help="Walk again from where the feet stand when they slipped more than 8 mm or "
+                   "1.5 deg off the goal, up to this many times.")
 @robot_run_options("walk")
 @perturb_option
 @balance_option_with("off", "Walking: off by default (the standing balancers' reference "

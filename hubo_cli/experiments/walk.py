@@ -14,9 +14,11 @@ from hubo_cli.model import RobotModel
 from hubo_cli.session import RunSetup, run
 from hubo_cli.walking.body import walking_posture
 from hubo_cli.walking.params import WalkingParams, walking_params
+from hubo_cli.walking.stabilizer import StabilizerGains
 from hubo_cli.walking.target import WalkTarget
 
 MAX_GOAL_M = 10.0
+DEFAULT_GAINS = StabilizerGains()
 
 
 @dataclass
@@ -71,7 +73,8 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
          params: WalkingParams | None = None, gui: bool = False,
          out: str | Path | None = None, estop: bool = True,
          perturb_seed: int | None = None, corrections: int = 1,
-         balance: str = "off") -> WalkResult:
+         balance: str = "off",
+         stabilizer: StabilizerGains | None = DEFAULT_GAINS) -> WalkResult:
     """Walk the simulated robot to ``goal`` = (forward m, left m, turn rad) from its stance.
 
     Args:
@@ -84,6 +87,8 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
         balance: the standing balancer, ``default``, ``paper`` or ``off`` (``--balance``; its
             reference assumes both feet down and the CoM over them, which walking breaks: off
             by default).
+        stabilizer: the walking stabilizer's gains (:mod:`hubo_cli.walking.stabilizer`);
+            None walks the pattern open loop.
     """
     check_goal(goal)
     from hubo_cli.model import load_model
@@ -93,7 +98,8 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
     q_start, T_world_neck = walking_posture(walking_model, params.step_width_m, params.crouch_m)
     if not 0 <= corrections <= 5:
         raise InputError(f"corrections must be 0 to 5, got {corrections}", hint="e.g. 1")
-    target = WalkTarget(walking_model, params, goal, q_start, T_world_neck, corrections)
+    target = WalkTarget(walking_model, params, goal, q_start, T_world_neck, corrections,
+                        stabilizer=stabilizer)
     setup = RunSetup(command="walk", model=walking_model, driver="sim", gui=gui, out=out,
                      safety=SafetyProfile(estop=estop).with_balance(balance), q_start_rad=q_start,
                      perturb_seed=perturb_seed)

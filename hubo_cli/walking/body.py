@@ -1,17 +1,23 @@
 """From the walking pattern to joint targets: the neck placed so that the whole-body CoM
 follows the pattern's CoM, and the legs' closed-form IK reaching the soles from it.
 
-The torso stays upright at a constant height; its heading is the mean of the feet's. The
+The torso stays at a constant height; its heading is the mean of the feet's. The
 neck's horizontal position is the pattern's CoM minus the CoM's offset from the neck, taken
 from the model's masses (pinocchio, the URDF) at the previous period's joints (a fixed-point
 iteration that converges within a few periods; the offset changes slowly). The arms keep the
 start posture.
+
+The cart-table model ignores the legs' and the torso's angular momentum: a swinging leg moves the
+multi-body ZMP up to 40 mm from the reference along the foot. :meth:`WalkingBody.solve_corrected`
+runs Kajita's second preview stage (Kajita et al. 2003, section IV): the ZMP of the solved
+joints (:func:`multibody_zmp`, pinocchio's centroidal momentum) is compared with the reference,
+the preview controller turns the difference into a CoM correction, and the legs are solved again.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pinocchio as pin
@@ -23,8 +29,10 @@ from hubo_cli.model import LEGS, RobotModel
 from hubo_cli.posture import home_posture
 from hubo_cli.walking.footsteps import wrap_angle
 from hubo_cli.walking.gait import Gait
+from hubo_cli.walking.preview import GRAVITY_M_S2, CoMPath, com_from_zmp, preview_gains
 
 SIDE_LEG = {"right": "right-leg", "left": "left-leg"}
+END_PERIODS = 10  # the multi-body ZMP correction leaves out this many periods at either end
 
 
 def yaw_matrix(yaw_rad: float) -> np.ndarray:
@@ -132,6 +140,54 @@ class WalkingBody:
             T_all[k] = T_world_neck
             com_all[k] = T_world_neck[:3, :3] @ offset + T_world_neck[:3, 3]
         return JointPlan(q_all, T_all, com_all, worst)
+
+    def solve_corrected(self, gait: Gait, ground_z_m: float, preview_s: float,
+                        zmp_weight: float, jerk_weight: float) -> tuple[Gait, JointPlan]:
+        """The second preview stage (see the module docstring): the gait with its CoM path
+        corrected for the multi-body ZMP, and its joints. ``ground_z_m`` is the soles' height;
+        the other arguments are the preview controller's (:func:`preview_gains`)."""
+        plan = self.solve(gait)
+        error = multibody_zmp(self, plan, ground_z_m, gait.period_s) - gait.zmp_ref_m
+        # the ends hold still; their one-sided differences are not motion (and a step in the
+        # correction's reference at the start would itself move the ZMP)
+        error[:END_PERIODS] = 0.0
+        error[-END_PERIODS:] = 0.0
+        gains = preview_gains(gait.period_s, gait.com_height_m, preview_s, zmp_weight,
+                              jerk_weight)
+        fix = com_from_zmp(-error, gains, np.zeros(2))
+        com = gait.com
+        corrected = replace(gait, com=CoMPath(
+            com.com_m + fix.com_m, com.com_velocity_m_s + fix.com_velocity_m_s,
+            com.com_acceleration_m_s2 + fix.com_acceleration_m_s2, com.zmp_m + fix.zmp_m))
+        return corrected, self.solve(corrected)
+
+
+def multibody_zmp(body: WalkingBody, plan: JointPlan, ground_z_m: float,
+                  period_s: float) -> np.ndarray:
+    """The ZMP (n, 2; m, world) of the whole body moving through ``plan``: from the CoM and
+    the centroidal momentum's rate (pinocchio; velocities and rates by central differences,
+    the ends repeat their neighbours) on flat ground at height ``ground_z_m``."""
+    model, data = body.robot.model, body.data
+    n = len(plan.q_rad)
+    qs = np.array([body.robot.configuration(plan.q_rad[k], plan.T_world_neck[k]).copy()
+                   for k in range(n)])
+    momentum = np.zeros((n, 6))
+    com = np.zeros((n, 3))
+    for k in range(n):
+        before, after = qs[max(k - 1, 0)], qs[min(k + 1, n - 1)]
+        span = (min(k + 1, n - 1) - max(k - 1, 0)) * period_s
+        v = pin.difference(model, before, after) / span if span > 0 else np.zeros(model.nv)
+        h = pin.computeCentroidalMomentum(model, data, qs[k], v)
+        momentum[k, :3], momentum[k, 3:] = h.linear, h.angular
+        com[k] = data.com[0]
+    rate = np.gradient(momentum, period_s, axis=0) if n > 1 else np.zeros_like(momentum)
+    mass = float(pin.computeTotalMass(model))
+    fz = mass * GRAVITY_M_S2 + rate[:, 2]
+    height = com[:, 2] - ground_z_m
+    zmp = np.empty((n, 2))
+    zmp[:, 0] = (mass * GRAVITY_M_S2 * com[:, 0] - height * rate[:, 0] - rate[:, 4]) / fz
+    zmp[:, 1] = (mass * GRAVITY_M_S2 * com[:, 1] - height * rate[:, 1] + rate[:, 3]) / fz
+    return zmp
 
 
 def walking_posture(model: RobotModel, width_m: float, crouch_m: float

@@ -30,6 +30,11 @@ SIDES = ("right", "left")
 SIDE_SIGN = {"right": -1.0, "left": 1.0}
 MAX_STEPS = 200  # a goal needing more steps than this is refused (InputError)
 TOE_IN_TOLERANCE_RAD = 0.01  # measured feet stand straight to within this
+LIMIT_TOLERANCE_M = 0.002  # a step may exceed a length limit by this much: the feet a walk
+                           # starts from are measured, a fraction of a mm off their nominal
+                           # places, which would otherwise add two steps to a walk (1 m forward:
+                           # eight steps of 0.14 m instead of six of 0.2 m)
+LIMIT_TOLERANCE_RAD = 0.005  # the same for the turn limit
 
 
 def wrap_angle(a: float) -> float:
@@ -109,18 +114,19 @@ def step_count(start: Stance, goal: Stance, params: WalkingParams) -> int:
 
 def within_limits(steps: list[Footstep], right: Footstep, left: Footstep,
                   params: WalkingParams) -> bool:
-    """Every step lands within the forward/backward, lateral and turn limits, seen from the
-    stance foot it steps from, and the feet are never toed in (left heading >= right)."""
+    """Every step lands within the forward/backward, lateral and turn limits (to within
+    LIMIT_TOLERANCE_M / LIMIT_TOLERANCE_RAD), seen from the stance foot it steps from, and the
+    feet are never toed in (left heading >= right)."""
     feet = {"right": right, "left": left}
-    low = params.step_width_m - 2 * params.max_step_lateral_m - 1e-9
-    high = params.step_width_m + 2 * params.max_step_lateral_m + 1e-9
+    low = params.step_width_m - 2 * params.max_step_lateral_m - LIMIT_TOLERANCE_M
+    high = params.step_width_m + 2 * params.max_step_lateral_m + LIMIT_TOLERANCE_M
     for step in steps:
         stance = feet["left" if step.side == "right" else "right"]
         forward, sideways, turn = Stance(stance.x_m, stance.y_m, stance.yaw_rad).relative(
             Stance(step.x_m, step.y_m, step.yaw_rad))
-        if not (-params.max_step_backward_m - 1e-9 <= forward
-                <= params.max_step_forward_m + 1e-9 and low <= abs(sideways) <= high
-                and abs(turn) <= params.max_turn_rad + 1e-9):
+        if not (-params.max_step_backward_m - LIMIT_TOLERANCE_M <= forward
+                <= params.max_step_forward_m + LIMIT_TOLERANCE_M and low <= abs(sideways) <= high
+                and abs(turn) <= params.max_turn_rad + LIMIT_TOLERANCE_RAD):
             return False
         feet[step.side] = step
         if wrap_angle(feet["left"].yaw_rad - feet["right"].yaw_rad) < -TOE_IN_TOLERANCE_RAD:

@@ -16,7 +16,7 @@ from hubo_cli.falls import has_fallen
 from hubo_cli.geometry import tilt_rad_of_matrix
 from hubo_cli.model import RobotModel
 from hubo_cli.state import RobotState
-from hubo_cli.walking.body import JointPlan, WalkingBody
+from hubo_cli.walking.body import SIDE_LEG, JointPlan, WalkingBody, pose_of_row
 from hubo_cli.walking.footsteps import (
     Footstep,
     Stance,
@@ -26,13 +26,18 @@ from hubo_cli.walking.footsteps import (
 )
 from hubo_cli.walking.gait import Gait, make_gait
 from hubo_cli.walking.params import WalkingParams
+from hubo_cli.walking.stabilizer import SoleDamper, StabilizerGains, TorsoOffset, Touchdown
 
-ARRIVED_M = 0.005                  # closer than this to the goal stance needs no correction
-ARRIVED_RAD = math.radians(1.0)
+ARRIVED_M = 0.008                  # closer than this to the goal stance needs no correction
+ARRIVED_RAD = math.radians(1.5)
 ZMP_INSIDE_MARGIN_M = 0.001  # a ZMP closer than this to the hull's edge counts as on it (a sole
                              # tipping about that edge: the physics keeps the ZMP on the hull)
 LOADED_N = 10.0  # a sole carrying more than this counts in the measured ZMP and the support
+LEG_STEP_RAD = 0.005  # the stabilizer's correction of a leg's joints (torso offset, touchdown
+                     # hold) changes by at most this much a period: an IK solution further from
+                     # the last one (another branch, or not exact) keeps the last correction
 SOLES = (("right", "right_sole", "right-ankle"), ("left", "left_sole", "left-ankle"))
+SOLES_SENSOR = {side: sensor for side, _, sensor in SOLES}
 
 
 def footstep_of(side: str, T_world_sole: np.ndarray) -> Footstep:
@@ -52,27 +57,64 @@ def measured_zmp(poses: dict[str, np.ndarray], wrenches: dict[str, np.ndarray],
             frame's origin in sole axes (N, N m).
         corners_m: the sole's corners in its own frame (4 x 3).
     """
-    total, weighted, points = 0.0, np.zeros(2), []
+    total = weighted_x = weighted_y = 0.0
+    points = []
     for side, T in poses.items():
         f = wrenches[side]
         fz = float(f[2])
         if not fz > LOADED_N:
             continue
-        cop = T @ np.array([-f[4] / fz, f[3] / fz, 0.0, 1.0])  # p_x = -m_y/f_z, p_y = m_x/f_z
-        weighted += fz * cop[:2]
+        px, py = -float(f[4]) / fz, float(f[3]) / fz  # the sole's CoP: -m_y/f_z, m_x/f_z
+        weighted_x += fz * (T[0, 0] * px + T[0, 1] * py + T[0, 3])
+        weighted_y += fz * (T[1, 0] * px + T[1, 1] * py + T[1, 3])
         total += fz
-        points.extend((T[:3, :3] @ c + T[:3, 3])[:2] for c in corners_m)
+        points.append(corners_m[:, :2] @ T[:2, :2].T + T[:2, 3])
     if total == 0.0:
         return None, math.inf
-    zmp = weighted / total
-    return zmp, float(outside_distance(convex_hull(np.array(points)), zmp))
+    zmp = np.array((weighted_x / total, weighted_y / total))
+    return zmp, float(outside_distance(convex_hull(np.concatenate(points)), zmp))
+
+
+def tilt_between(z_from: np.ndarray, z_to: np.ndarray) -> np.ndarray:
+    """The smallest rotation (3x3) turning the unit vector ``z_from`` onto ``z_to`` (Rodrigues'
+    formula, in plain floats: it runs every control period)."""
+    ax, ay, az = (float(v) for v in z_from)
+    bx, by, bz = (float(v) for v in z_to)
+    kx, ky, kz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    s = math.sqrt(kx * kx + ky * ky + kz * kz)
+    if s < 1e-12:
+        return np.eye(3)
+    c = ax * bx + ay * by + az * bz
+    kx, ky, kz = kx / s, ky / s, kz / s
+    angle = math.atan2(s, c)
+    sn, vc = math.sin(angle), 1.0 - math.cos(angle)
+    return np.array([
+        [1.0 - vc * (ky * ky + kz * kz), -sn * kz + vc * kx * ky, sn * ky + vc * kx * kz],
+        [sn * kz + vc * kx * ky, 1.0 - vc * (kx * kx + kz * kz), -sn * kx + vc * ky * kz],
+        [-sn * ky + vc * kx * kz, sn * kx + vc * ky * kz, 1.0 - vc * (kx * kx + ky * ky)]])
+
+
+def imu_z_axis(q_wxyz: np.ndarray) -> np.ndarray:
+    """The world's view of the torso's z axis (3,) from the IMU's quaternion (w, x, y, z;
+    normalised here): the third column of its rotation matrix."""
+    w, x, y, z = (float(v) for v in q_wxyz)
+    n2 = w * w + x * x + y * y + z * z
+    return np.array([2.0 * (x * z + w * y) / n2, 2.0 * (y * z - w * x) / n2,
+                     1.0 - 2.0 * (x * x + y * y) / n2])
+
+
+def rigid_inverse(T: np.ndarray) -> np.ndarray:
+    """The inverse of a rigid transform (4x4): [R^T, -R^T p]."""
+    out = np.eye(4)
+    R = T[:3, :3]
+    out[:3, :3] = R.T
+    out[:3, 3] = -(R.T @ T[:3, 3])
+    return out
 
 
 def planned_support(gait: Gait) -> np.ndarray:
     """Per period the soles that carry the robot in this phase of the step, the swing foot at
     its landing place: (n, 2, 4, 4) world poses (right, left), for the capture-point monitor."""
-    from hubo_cli.walking.body import pose_of_row
-
     poses = np.empty((gait.n, 2, 4, 4))
     for column, side in enumerate(("right", "left")):
         rows = gait.feet[side].copy()
@@ -106,11 +148,15 @@ class WalkTarget(Target):
     log_columns = ("walk.zmp_ref_x_m", "walk.zmp_ref_y_m", "walk.com_ref_x_m",
                    "walk.com_ref_y_m", "walk.zmp_x_m", "walk.zmp_y_m", "walk.zmp_outside_m",
                    "walk.step", "walk.tilt_deg", "planned_right_foot_contact_flag",
-                   "planned_left_foot_contact_flag")
+                   "planned_left_foot_contact_flag", "walk.offset_x_m", "walk.offset_y_m",
+                   "walk.right_lift_m", "walk.left_lift_m", "walk.right_sole_roll_rad",
+                   "walk.right_sole_pitch_rad", "walk.left_sole_roll_rad",
+                   "walk.left_sole_pitch_rad")
 
     def __init__(self, model: RobotModel, params: WalkingParams, goal: tuple[float, float, float],
                  q_start_rad: np.ndarray, T_world_neck_start: np.ndarray,
-                 corrections: int = 1, end_width_m: float | None = None) -> None:
+                 corrections: int = 1, end_width_m: float | None = None,
+                 stabilizer: StabilizerGains | None = None) -> None:
         self.model = model
         self.end_width_m = end_width_m
         self.params = params
@@ -134,6 +180,19 @@ class WalkTarget(Target):
         self.corrections_left = int(corrections)
         self.plan_start_s = 0.0
         self.last_step_end_s = 0.0
+        self.body: WalkingBody | None = None
+        self.stabilizer = stabilizer
+        dt = model.control_period_s
+        xs, ys = self.corners[:, 0], self.corners[:, 1]
+        box = (float(xs.min()), float(xs.max()), float(ys.min()), float(ys.max()))
+        if stabilizer is not None:
+            self.dampers = {side: SoleDamper(stabilizer, box, dt) for side in ("right", "left")}
+            self.torso_offset = TorsoOffset(stabilizer, dt)
+            self.touchdowns = {side: Touchdown(stabilizer, dt) for side in ("right", "left")}
+            self._leg_delta = {side: np.zeros(6) for side in ("right", "left")}
+        names = list(model.joint_names)
+        self._ankle = {"right": (names.index("RAR"), names.index("RAP")),
+                       "left": (names.index("LAR"), names.index("LAP"))}
 
     def attach(self, world: SimulatedWorld | None, modules: Sequence) -> None:
         if world is None:
@@ -177,7 +236,10 @@ class WalkTarget(Target):
         self.gait = make_gait(feet["right"], feet["left"], steps, self.params,
                               self.model.control_period_s, float(com_world[2]) - sole_z, sole_z,
                               self.model.feet.forward_m, com_start_m=com_world[:2])
-        self.plan = body.solve(self.gait)
+        params = self.params
+        self.gait, self.plan = body.solve_corrected(self.gait, sole_z, params.preview_s,
+                                                    params.zmp_weight, params.jerk_weight)
+        self.body = body
         self._support_poses = planned_support(self.gait)
         self.plan_start_s = t_s
         self.k = 0
@@ -218,6 +280,9 @@ class WalkTarget(Target):
             self.zmp_periods += 1
             self.zmp_inside_periods += outside <= -ZMP_INSIDE_MARGIN_M
         self.final_feet = poses
+        q = plan.q_rad[k]
+        if self.stabilizer is not None:
+            q = self._stabilized(k, q.copy(), state, zmp)
         info = {"walk.zmp_ref_x_m": float(gait.zmp_ref_m[k, 0]),
                 "walk.zmp_ref_y_m": float(gait.zmp_ref_m[k, 1]),
                 "walk.com_ref_x_m": float(gait.com.com_m[k, 0]),
@@ -228,9 +293,74 @@ class WalkTarget(Target):
                 "walk.step": float(gait.step_index[k]), "walk.tilt_deg": tilt,
                 "planned_right_foot_contact_flag": float(gait.support[k, 0]),
                 "planned_left_foot_contact_flag": float(gait.support[k, 1]),
+                **self._stabilizer_info(),
                 "done": self.fell or (self.k >= gait.n and (self.corrections_left == 0
                                                              or self.arrived()))}
-        return plan.q_rad[k], info
+        return q, info
+
+    def _stabilizer_info(self) -> dict[str, float]:
+        """The stabilizer's corrections for the log (NaN without a stabilizer)."""
+        if self.stabilizer is None:
+            return dict.fromkeys(self.log_columns[-8:], math.nan)
+        right, left = self.dampers["right"].delta_rad, self.dampers["left"].delta_rad
+        offset = self.torso_offset.offset_m
+        return {"walk.offset_x_m": float(offset[0]), "walk.offset_y_m": float(offset[1]),
+                "walk.right_lift_m": self.touchdowns["right"].lift_m,
+                "walk.left_lift_m": self.touchdowns["left"].lift_m,
+                "walk.right_sole_roll_rad": float(right[0]),
+                "walk.right_sole_pitch_rad": float(right[1]),
+                "walk.left_sole_roll_rad": float(left[0]),
+                "walk.left_sole_pitch_rad": float(left[1])}
+
+    def _measured_neck(self, k: int, state: RobotState) -> np.ndarray:
+        """The torso's pose in the world (4x4) as a real robot can measure it: tilted as the
+        IMU says (heading from the pattern), placed by the measured leg kinematics of the more
+        loaded planned support sole standing where the pattern put it."""
+        gait, body = self.gait, self.body
+        side = max(("right", "left"), key=lambda s: (
+            bool(gait.support[k, 0 if s == "right" else 1]), float(state.ft[SOLES_SENSOR[s]][2])))
+        name = SIDE_LEG[side]
+        T_neck_sole = body.legs[name].fk(state.q_rad[body.slices[name]])
+        R_plan = self.plan.T_world_neck[k, :3, :3]
+        R = tilt_between(R_plan[:, 2], imu_z_axis(state.imu_quat_wxyz)) @ R_plan
+        T = np.eye(4)
+        T[:3, :3] = R
+        T[:3, 3] = gait.feet[side][k, :3] - R @ T_neck_sole[:3, 3]
+        return T
+
+    def _stabilized(self, k: int, q: np.ndarray, state: RobotState,
+                    zmp: np.ndarray | None) -> np.ndarray:
+        """The pattern's joints ``q`` with the stabilizer's corrections (see
+        :mod:`hubo_cli.walking.stabilizer`)."""
+        gait, plan, body = self.gait, self.plan, self.body
+        T_world_neck_measured = self._measured_neck(k, state)
+        com = T_world_neck_measured[:3, :3] @ body.com_in_neck(state.q_rad) \
+            + T_world_neck_measured[:3, 3]
+        offset = self.torso_offset.update(zmp, gait.zmp_ref_m[k], com[:2], plan.com_m[k, :2])
+        T_world_neck = plan.T_world_neck[k].copy()
+        T_world_neck[:2, 3] += offset
+        T_neck_world = rigid_inverse(T_world_neck)
+        for column, side in enumerate(("right", "left")):
+            name = SIDE_LEG[side]
+            part = body.slices[name]
+            row = gait.feet[side][k]
+            lift = self.touchdowns[side].update(
+                bool(not gait.support[k, column]), float(row[2] - gait.feet[side][0, 2]),
+                float(state.ft[SOLES_SENSOR[side]][2]))
+            T_world_sole = pose_of_row(row)
+            T_world_sole[2, 3] += lift
+            result = body.legs[name].solve(T_neck_world @ T_world_sole, q[part])
+            delta = result.q_rad - q[part]
+            if result.status == "exact" and float(
+                    np.max(np.abs(delta - self._leg_delta[side]))) <= LEG_STEP_RAD:
+                self._leg_delta[side] = delta
+            q[part] += self._leg_delta[side]
+        for side in ("right", "left"):
+            delta = self.dampers[side].update(state.ft[SOLES_SENSOR[side]])
+            roll, pitch = self._ankle[side]
+            q[roll] += delta[0]
+            q[pitch] += delta[1]
+        return q
 
     def arrived(self) -> bool:
         """The feet stand within ARRIVED_M and ARRIVED_RAD of the goal stance."""

@@ -1,0 +1,131 @@
+"""The walking stabilizer's feedback laws and the second preview stage (no simulator)."""
+
+import numpy as np
+import pytest
+
+from hubo_cli.errors import ConfigError
+from hubo_cli.geometry import quat_wxyz_to_matrix
+from hubo_cli.model import load_model
+from hubo_cli.walking.body import WalkingBody, multibody_zmp, walking_posture
+from hubo_cli.walking.footsteps import Footstep, Stance, plan_footsteps
+from hubo_cli.walking.gait import make_gait
+from hubo_cli.walking.params import walking_params
+from hubo_cli.walking.stabilizer import SoleDamper, StabilizerGains, TorsoOffset, Touchdown
+from hubo_cli.walking.target import imu_z_axis, measured_zmp, rigid_inverse, tilt_between
+
+DT = 0.005
+SOLE = (-0.09, 0.13, -0.065, 0.065)  # the sole box in its own frame (m)
+
+
+def wrench_at(px, py, fz=380.0):
+    """The ground's wrench on a sole whose centre of pressure is (px, py) in the sole frame."""
+    return np.array([0.0, 0.0, fz, fz * py, -fz * px, 0.0])
+
+
+def test_sole_turns_away_from_the_edge_it_presses_and_returns():
+    gains = StabilizerGains()
+    damper = SoleDamper(gains, SOLE, DT)
+    for _ in range(20):  # on the toe, on the inner (left) edge
+        delta = damper.update(wrench_at(0.13, 0.065)).copy()
+    assert delta[1] < -0.001  # pitch: toe up
+    assert delta[0] > 0.001   # roll: left edge up
+    pressed = np.abs(delta).max()
+    for _ in range(int(3 * gains.time_constant_s / DT)):  # centred: only the leak acts
+        delta = damper.update(wrench_at(0.02, 0.0))
+    assert np.abs(delta).max() < 0.1 * pressed
+    damper.update(wrench_at(0.13, 0.065))
+    for _ in range(int(5 * gains.swing_time_constant_s / DT)):  # unloaded: back to the pattern
+        delta = damper.update(np.zeros(6))
+    assert np.abs(delta).max() < 1e-4
+
+
+def test_sole_inside_the_safe_region_is_left_alone():
+    damper = SoleDamper(StabilizerGains(), SOLE, DT)
+    for _ in range(50):
+        delta = damper.update(wrench_at(0.05, -0.03))
+    assert np.abs(delta).max() == 0.0
+
+
+def test_an_early_touchdown_stops_the_descent_then_fades():
+    gains = StabilizerGains()
+    touchdown = Touchdown(gains, DT)
+    assert touchdown.update(True, 0.004, 0.0) == 0.0  # in the air: the pattern
+    assert touchdown.update(True, 0.003, 300.0) == pytest.approx(0.0)  # touched at 3 mm
+    for height in (0.002, 0.001, 0.0):  # the pattern goes on down, the sole stays
+        lift = touchdown.update(True, height, 300.0)
+    assert lift == pytest.approx(0.003)
+    assert touchdown.update(True, 0.02, 300.0) < 0.003  # high in the swing: no touchdown
+    for _ in range(int(5 * gains.touchdown_time_constant_s / DT)):  # on the ground: fades
+        lift = touchdown.update(False, 0.0, 300.0)
+    assert lift < 0.01 * 0.003
+
+
+def test_torso_offset_pulls_the_com_back_and_is_bounded():
+    gains = StabilizerGains()
+    torso = TorsoOffset(gains, DT)
+    offset = torso.update(None, np.zeros(2), np.array([0.01, 0.0]), np.zeros(2))
+    assert offset[0] < 0.0  # the CoM ahead of the pattern: the torso moves back
+    for _ in range(2000):
+        offset = torso.update(np.array([1.0, 1.0]), np.zeros(2), np.zeros(2), np.zeros(2))
+    assert np.hypot(*offset) == pytest.approx(gains.max_offset_m)
+    with pytest.raises(ConfigError):
+        StabilizerGains(k_com=float("nan"))
+
+
+def test_second_preview_stage_cancels_the_swing_legs_zmp():
+    """The legs' and torso's momentum move the multi-body ZMP tens of mm from the reference;
+    after the second preview stage it stays within 12 mm (away from the standing ends)."""
+    model = load_model(limits="walking")
+    params = walking_params(model)
+    w = params.step_width_m / 2
+    right, left = Footstep("right", 0.0, -w, 0.0), Footstep("left", 0.0, w, 0.0)
+    steps = plan_footsteps(right, left, Stance(0.4, 0.0, 0.0), params)
+    gait = make_gait(right, left, steps, params, DT, 0.59, 0.0, 0.02)
+    q_start, T_world_neck = walking_posture(model, params.step_width_m, params.crouch_m)
+    body = WalkingBody(model, q_start, T_world_neck, params.lean_rad_per_m)
+    inner = slice(int(1.0 / DT), -int(1.0 / DT))
+    before = multibody_zmp(body, body.solve(gait), 0.0, DT) - gait.zmp_ref_m
+    _, plan = body.solve_corrected(gait, 0.0, params.preview_s, params.zmp_weight,
+                                   params.jerk_weight)
+    after = multibody_zmp(body, plan, 0.0, DT) - gait.zmp_ref_m
+    assert np.abs(before[inner]).max() > 0.025
+    assert np.abs(after[inner]).max() < 0.012
+
+
+def test_per_period_geometry_in_floats_matches_numpy():
+    """The stabilizer's per-period helpers (plain floats, for the period budget) agree with
+    the matrix formulas: the tilt turns one axis onto the other and is a rotation, the IMU's
+    z axis is its rotation's third column, the rigid inverse is the inverse."""
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        a, b = rng.normal(size=3), rng.normal(size=3)
+        a, b = a / np.linalg.norm(a), b / np.linalg.norm(b)
+        R = tilt_between(a, b)
+        assert np.allclose(R @ a, b, atol=1e-12) and np.allclose(R @ R.T, np.eye(3), atol=1e-12)
+        q = rng.normal(size=4)
+        assert np.allclose(imu_z_axis(q), quat_wxyz_to_matrix(q / np.linalg.norm(q))[:, 2],
+                           atol=1e-12)
+        T = np.eye(4)
+        T[:3, :3] = quat_wxyz_to_matrix(q / np.linalg.norm(q))
+        T[:3, 3] = rng.normal(size=3)
+        assert np.allclose(rigid_inverse(T), np.linalg.inv(T), atol=1e-12)
+
+
+def test_measured_zmp_weights_the_soles_and_measures_the_hull():
+    """Two soles 0.24 m apart, the right one carrying three quarters at its centre: the ZMP
+    lies a quarter of the way to the left sole, inside their hull by the distance to its
+    nearest edge (the soles' toe line, 0.11 m ahead of the centre with forward_m 0)."""
+    corners = np.array([[-0.11, -0.065, 0.0], [0.11, -0.065, 0.0], [0.11, 0.065, 0.0],
+                        [-0.11, 0.065, 0.0]])
+    poses = {}
+    for side, y in (("right", -0.12), ("left", 0.12)):
+        T = np.eye(4)
+        T[:2, 3] = 1.0, y
+        poses[side] = T
+    zmp, outside = measured_zmp(poses, {"right": wrench_at(0.0, 0.0, 300.0),
+                                        "left": wrench_at(0.0, 0.0, 100.0)}, corners)
+    assert zmp == pytest.approx([1.0, -0.06], abs=1e-12)
+    assert outside == pytest.approx(-0.11, abs=1e-12)
+    none, far = measured_zmp(poses, {"right": wrench_at(0.0, 0.0, 5.0),
+                                     "left": wrench_at(0.0, 0.0, 5.0)}, corners)
+    assert none is None and far == float("inf")
