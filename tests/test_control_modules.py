@@ -318,3 +318,22 @@ def test_the_pipelines_kernels_compile_when_the_modules_are_built(tmp_path):
     counts = json.loads(done.stdout.strip().splitlines()[-1])
     assert all(n >= 1 for n in counts["built"]), counts
     assert counts["after"] == counts["built"], counts
+
+
+def test_ideal_driver_keeps_the_feet_flat_so_a_leaning_posture_stays_supported(model):
+    """Ankles pitched 2 deg lean the ideal robot's torso 2 deg over flat feet (its IMU says so),
+    so the capture-point monitor sees flat soles under the CoM, not soles tipped on an edge."""
+    from hubo_cli.drivers.ideal import IdealDriver
+
+    q = home_posture(model)
+    for joint in ("RAP", "LAP"):
+        q[model.joint_names.index(joint)] += np.radians(2.0)
+    robot = IdealDriver(model)
+    robot.start(q)
+    robot.send(q)
+    state = robot.step()
+    assert abs(np.degrees(np.hypot(*state.tilt_rad())) - 2.0) < 0.05
+    monitor = CapturePointMonitor(model, DT)
+    monitor.reset(q, state)
+    monitor.update(q, state, Cycle(0.0, DT))
+    assert not monitor.flag and monitor.outside_m < -0.03

@@ -37,3 +37,25 @@ def test_bad_duration_is_an_input_error(tmp_path):
     result = CliRunner().invoke(main, ["sim", "--duration", "0", "--out", str(tmp_path)])
     assert result.exit_code == 2
     assert "duration" in result.output
+
+
+def test_push_direction_reaches_the_run_and_a_bad_one_is_refused(tmp_path):
+    # the push comes at 1 s, after this short run: only the wiring is under test here (the
+    # pushes themselves are in test_balance_default.py)
+    result = CliRunner().invoke(main, ["sim", "--duration", "0.1", "--push", "60",
+                                       "--push-direction", "right", "--json", "--out",
+                                       str(tmp_path / "run")])
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.output)["push_direction"] == [0.0, -1.0, 0.0]
+    bad = CliRunner().invoke(main, ["sim", "--push", "60", "--push-direction", "up",
+                                    "--out", str(tmp_path / "bad")])
+    assert bad.exit_code == 2
+    assert "push-direction" in bad.output
+
+
+def test_the_push_directions_offered_are_the_ones_the_experiment_knows():
+    from hubo_cli.cli.sim import sim
+    from hubo_cli.experiments.standing import PUSH_DIRECTIONS
+
+    option = next(p for p in sim.params if p.name == "push_direction")
+    assert set(option.type.choices) == set(PUSH_DIRECTIONS)

@@ -74,9 +74,7 @@ def test_two_hand_session_through_the_cli(tmp_path):
 @pytest.mark.slow
 def test_a_one_second_gap_holds_smoothly(tmp_path):
     header, chunks = _chunks(RECTANGLE)
-    # the first 7 s, without 4-5 s: the gap falls before the legs crouch for the lowered drill
-    # (10 s into the run), where the capture point's reference, computed from the targets the
-    # limiter has not reached yet, runs 10-15 mm ahead of the measured one on the ideal driver
+    # the first 7 s, without 4-5 s (a short stream: the gap, not the whole cut, is tested)
     src = tmp_path / "gap.fastrak"
     src.write_bytes(capture_bytes(header, [(t, d) for t, d in chunks
                                            if t < 7.0 and not 4.0 <= t < 5.0]))

@@ -14,7 +14,10 @@ from hubo_cli.cli.output import console, print_json
 @click.option("--duration", type=float, default=5.0, show_default=True,
               help="Simulated time to stand (s).")
 @click.option("--push", type=float, default=0.0, show_default=True,
-              help="Push the torso forward with this force (N) for 0.2 s, 1 s into the run.")
+              help="Push the torso with this force (N) for 0.2 s, 1 s into the run (at the "
+                   "torso's centre of mass, about 0.93 m above the floor).")
+@click.option("--push-direction", type=click.Choice(["forward", "backward", "left", "right"]),
+              default="forward", show_default=True, help="Which way the push acts.")
 @balance_option
 @click.option("--no-balance", is_flag=True, help="The same as --balance off.")
 @click.option("--step", is_flag=True,
@@ -22,16 +25,16 @@ from hubo_cli.cli.output import console, print_json
                    "then bring the other foot beside it (the walking limit set).")
 @robot_run_options("sim")
 @perturb_option
-def sim(duration: float, push: float, balance: str, no_balance: bool, step: bool,
-        no_estop: bool, gui: bool, as_json: bool, out: str | None,
+def sim(duration: float, push: float, push_direction: str, balance: str, no_balance: bool,
+        step: bool, no_estop: bool, gui: bool, as_json: bool, out: str | None,
         perturb_seed: int | None) -> None:
     """Stand the simulated HUBO 2+ in its home posture and report tilt, feet and falls.
 
-    Example: hubo sim --duration 5 --push 30
+    Example: hubo sim --duration 5 --push 30 --push-direction backward
     """
     from hubo_cli.cli.safety_view import balance_summary_line
     from hubo_cli.control.pipeline import SafetyProfile
-    from hubo_cli.experiments.standing import check_standing_args, stand
+    from hubo_cli.experiments.standing import PUSH_DIRECTIONS, check_standing_args, stand
     from hubo_cli.model import load_model
     from hubo_cli.runs import reserved_run_dir
 
@@ -40,7 +43,8 @@ def sim(duration: float, push: float, balance: str, no_balance: bool, step: bool
     with reserved_run_dir("sim", out) as run_dir:  # a bad --out fails before anything runs
         result = stand(load_model(), duration, push, balance=profile.balance, gui=gui,
                        out=run_dir, estop=not no_estop, perturb_seed=perturb_seed,
-                       balance_mode=profile.balance_mode, step=step)
+                       balance_mode=profile.balance_mode, step=step,
+                       push_direction=PUSH_DIRECTIONS[push_direction])
     # the run's whole summary (as in summary.json: pipeline, e-stops, perturbation draws ...)
     summary = json.loads((run_dir / "summary.json").read_text()) | {"run_dir": str(run_dir)}
     if as_json:
@@ -49,7 +53,8 @@ def sim(duration: float, push: float, balance: str, no_balance: bool, step: bool
     balance = {"default": "default (common + differential damping)",
                "paper": "paper (eq. 11-12: K_r 0.009 rad/s/deg, K_c 0.0015 rad/s/N m)",
                "off": "off"}[profile.balance_choice]
-    push_text = f"{push:g} N forward for 0.2 s at t = 1 s" if push > 0 else "none"
+    push_text = (f"{push:g} N {push_direction} for 0.2 s at t = 1 s" if push > 0
+                 else "none")
     console.print(f"stood             {result.simulated_s:.2f} s of {duration:g} s")
     console.print(f"balance           {balance}")
     console.print(f"push              {push_text}")

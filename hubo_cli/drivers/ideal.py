@@ -1,9 +1,10 @@
 """The ideal driver (name ``ideal``): the robot is exactly where it was commanded, no physics.
 
 Used by pipeline tests and benchmarks. Each period the measured joints equal the last applied
-command and the velocities are its finite difference; the torso stays upright (identity IMU),
-the force/torque sensors read zero, torques are unknown. Commands pass the same checks as on
-the other drivers (NaN keeps the joint, position limits clip).
+command and the velocities are its finite difference; the feet stay flat on the floor, so the
+IMU reads the torso orientation the legs give it (the lower sole flat, heading 0: upright in
+the home posture); the force/torque sensors read zero, torques are unknown. Commands pass the
+same checks as on the other drivers (NaN keeps the joint, position limits clip).
 """
 
 from __future__ import annotations
@@ -13,7 +14,9 @@ import numpy as np
 from hubo_cli.drivers import checks
 from hubo_cli.drivers.base import Driver
 from hubo_cli.errors import ConfigError, DeviceError
-from hubo_cli.model import RobotModel
+from hubo_cli.geometry import matrix_to_quat_wxyz
+from hubo_cli.kinematics.limb import Limb
+from hubo_cli.model import LEGS, RobotModel
 from hubo_cli.posture import home_posture
 from hubo_cli.state import RobotState
 
@@ -34,6 +37,7 @@ class IdealDriver(Driver):
         self._flags: list[str] = []
         self._stopped = False
         self._closed = False
+        self._legs = [(Limb(model, name), model.limb_slice(name)) for name in LEGS]
 
     def start(self, q0_rad: np.ndarray | None = None) -> RobotState:
         """Put the robot at ``q0_rad`` (home posture by default), time 0."""
@@ -96,5 +100,12 @@ class IdealDriver(Driver):
         flags, self._flags = list(dict.fromkeys(self._flags)), []
         if self._stopped and "stopped" not in flags:
             flags.append("stopped")
-        return RobotState(time_s=self._t, q_rad=self._q.copy(), dq_rad_s=dq, flags=tuple(flags))
+        return RobotState(time_s=self._t, q_rad=self._q.copy(), dq_rad_s=dq, flags=tuple(flags),
+                          imu_quat_wxyz=self._imu_quat_wxyz())
+
+    def _imu_quat_wxyz(self) -> np.ndarray:
+        """The torso orientation with the lower sole flat on the floor (heading 0)."""
+        T_N_soles = [leg.fk(self._q[part]) for leg, part in self._legs]
+        T_N_sole = min(T_N_soles, key=lambda T: T[2, 3])
+        return matrix_to_quat_wxyz(T_N_sole[:3, :3].T)
 

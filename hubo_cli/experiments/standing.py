@@ -23,6 +23,9 @@ from hubo_cli.posture import home_posture
 from hubo_cli.session import RunResult, RunSetup, run
 
 FLAT_TOLERANCE_DEG = 1.0  # a sole tilted more than this (or without contact) is not flat
+# ``hubo sim --push-direction``: the push's world direction by name (x forward, y left)
+PUSH_DIRECTIONS = {"forward": (1.0, 0.0, 0.0), "backward": (-1.0, 0.0, 0.0),
+                   "left": (0.0, 1.0, 0.0), "right": (0.0, -1.0, 0.0)}
 
 
 @dataclass
@@ -40,6 +43,7 @@ class StandingResult:
         physics_share: fraction of the loop's wall time spent in PyBullet's stepSimulation.
         max_feet_moment_difference_nm: largest |M_right - M_left| of the ankle moments (x, y),
             how unevenly the two feet are loaded (the balancer's compliance evens them out).
+        push_direction: world direction of the push (unit vector, x forward, y left).
         max_foot_shift_mm: largest horizontal distance of either sole from where it stood at
             the start (mm): a foot that slid or stepped (a sole rocking on its heel or toe
             moves it a few mm).
@@ -59,6 +63,7 @@ class StandingResult:
     simulated_s: float
     max_feet_moment_difference_nm: float = 0.0
     max_foot_shift_mm: float = 0.0
+    push_direction: tuple[float, float, float] = (1.0, 0.0, 0.0)
     snapshot: Path | None = None
     run_dir: Path | None = None
     times_s: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
@@ -72,7 +77,7 @@ class StandingResult:
         return {"max_tilt_deg": self.max_tilt_deg, "feet_flat": self.feet_flat,
                 "fell": self.fell, "realtime_factor": self.realtime_factor,
                 "duration_s": self.duration_s, "simulated_s": self.simulated_s,
-                "push_n": self.push_n,
+                "push_n": self.push_n, "push_direction": list(self.push_direction),
                 "max_sole_tilt_deg": self.max_sole_tilt_deg,
                 "final_tilt_deg": self.final_tilt_deg, "physics_share": self.physics_share,
                 "max_feet_moment_difference_nm": self.max_feet_moment_difference_nm,
@@ -158,10 +163,13 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
     Args:
         model: robot model.
         duration_s: simulated time (s).
-        push_n: force (N) of one push on the torso's centre of mass, 0 for none.
+        push_n: force (N) of one push on the torso's centre of mass, 0 for none (the
+            simulator's torso body, torso, pelvis and neck in one, has it 0.93 m above the
+            floor in the home posture).
         balance: run the ankle balancer in the pipeline.
         push_at_s, push_duration_s: when the push starts and how long it lasts (s).
-        push_direction: world direction of the push (normalised; default forward, +x).
+        push_direction: world direction of the push (normalised; default forward, +x;
+            PUSH_DIRECTIONS names four).
         gui: open the PyBullet window (real time).
         out: the run folder (default ``runs/<time>-sim``); it gets the log, the snapshot and
             ``summary.json``.
@@ -194,6 +202,7 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
                      perturb_seed=perturb_seed)
     done = run(setup, stepper)
     result = _result(target, done, duration_s, push_n, balance, model.control_period_s)
+    result.push_direction = tuple(float(v) for v in direction)
     done.save_summary(result.summary())
     if step:
         done.save_summary({"capture_step": stepper.summary()})
