@@ -370,7 +370,17 @@ def fastrak_euler_deg_to_quat_wxyz(az_el_rl_deg) -> np.ndarray:
 def rotation_log(R) -> np.ndarray:
     """Rotation vector (axis * angle, rad, angle in [0, pi]) of a (3, 3) rotation matrix."""
     R = np.asarray(R, dtype=np.float64)
-    cos_angle = np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)
+    # up to a quarter turn (the control loop's case, several times a period) in Python floats:
+    # the same operations as the array formula below, without its dispatch
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = R.tolist()
+    cos_angle = min(1.0, max(-1.0, (r00 + r11 + r22 - 1.0) / 2.0))
+    if cos_angle >= 0.0:
+        w0, w1, w2 = (r21 - r12) / 2.0, (r02 - r20) / 2.0, (r10 - r01) / 2.0
+        sin_angle = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+        if sin_angle < 1e-12:
+            return np.array([w0, w1, w2])  # small angle: the vector part is the rotation vector
+        scale = math.atan2(sin_angle, cos_angle) / sin_angle
+        return np.array([w0 * scale, w1 * scale, w2 * scale])
     w = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / 2.0
     sin_angle = np.linalg.norm(w)
     angle = np.arctan2(sin_angle, cos_angle)
@@ -388,13 +398,16 @@ def rotation_log(R) -> np.ndarray:
 
 def rotation_exp(v) -> np.ndarray:
     """(3, 3) rotation matrix of a rotation vector (axis * angle, rad) (Rodrigues)."""
-    v = np.asarray(v, dtype=np.float64)
-    angle = float(np.linalg.norm(v))
+    v0, v1, v2 = np.asarray(v, dtype=np.float64).tolist()
+    angle = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
     if angle < 1e-12:
         return np.eye(3)
-    k = v / angle
-    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * (K @ K)
+    # I + sin K + (1 - cos) K^2 for the unit axis k, in Python floats (K^2 = k k^T - I)
+    k0, k1, k2 = v0 / angle, v1 / angle, v2 / angle
+    s, c = math.sin(angle), 1.0 - math.cos(angle)
+    return np.array([[1.0 - c * (k1 * k1 + k2 * k2), c * k0 * k1 - s * k2, c * k0 * k2 + s * k1],
+                     [c * k0 * k1 + s * k2, 1.0 - c * (k0 * k0 + k2 * k2), c * k1 * k2 - s * k0],
+                     [c * k0 * k2 - s * k1, c * k1 * k2 + s * k0, 1.0 - c * (k0 * k0 + k1 * k1)]])
 
 
 # ------------------------------------------------------------------------------- tilt

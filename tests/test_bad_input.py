@@ -245,6 +245,7 @@ def test_every_help_lists_the_exit_codes_and_teleop_the_keys():
         assert key in keys
 
 
+@pytest.mark.slow
 def test_piped_teleop_prints_progress_lines_and_counts_stops(tmp_path):
     log = _short_log(tmp_path / "s.csv")
     result = CliRunner().invoke(main, ["teleop", "--replay", str(log), "--driver", "ideal",

@@ -69,6 +69,7 @@ def _run(model, events, interpolator="otg"):
     return robot, q0, result
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(events=st.lists(EVENT, min_size=1, max_size=7))
 def test_default_pipeline_commands_are_finite_and_within_limits(model, events):

@@ -226,6 +226,16 @@ def test_rotation_log_and_exp_match_scipy(rotations):
         assert np.abs(g.rotation_exp(v) - R).max() < TOL
 
 
+def test_rotation_log_and_exp_of_small_rotations_match_scipy():
+    """The control loop's case (a body swaying by milliradians), taken in Python floats."""
+    rng = np.random.default_rng(7)
+    for scale in (1e-14, 1e-9, 1e-4, 0.1, 0.5):  # angles below pi
+        for v in rng.normal(size=(50, 3)) * scale:
+            R = Rotation.from_rotvec(v).as_matrix()
+            assert np.abs(g.rotation_exp(v) - R).max() < TOL
+            assert np.abs(g.rotation_log(R) - v).max() < TOL
+
+
 # ------------------------------------------------------------------------------- tilt
 def test_tilt_is_the_angle_of_the_body_z_axis(rotations):
     z_body = Rotation.from_matrix(rotations).apply([0.0, 0.0, 1.0])

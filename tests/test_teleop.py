@@ -71,6 +71,7 @@ def test_two_hand_session_through_the_cli(tmp_path):
     assert s["latency_ms"]["p99"] < 10.0
 
 
+@pytest.mark.slow
 def test_a_one_second_gap_holds_smoothly(tmp_path):
     header, chunks = _chunks(RECTANGLE)
     # the first 7 s, without 4-5 s (a short stream: the gap, not the whole cut, is tested)
@@ -85,6 +86,7 @@ def test_a_one_second_gap_holds_smoothly(tmp_path):
     assert run.summary["max_joint_velocity_ratio"] <= 1.0 + 1e-9
 
 
+@pytest.mark.slow
 def test_garbage_bytes_give_the_same_path(tmp_path):
     clean_src = _first_seconds(RECTANGLE, tmp_path, 12.0)
     header, chunks = _chunks(clean_src)
@@ -107,6 +109,7 @@ def test_garbage_bytes_give_the_same_path(tmp_path):
     assert a.shape == b.shape and np.allclose(a, b, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_pose_log_replays_like_the_capture(tmp_path):
     lines = data_file("trajectories", "drill-rectangle.csv").read_text().splitlines()
     csv = tmp_path / "first-10s.csv"  # the header and 10 s of poses (2 stations at 60 Hz)

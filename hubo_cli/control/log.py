@@ -79,11 +79,17 @@ def pose_columns(frame: str) -> tuple[str, ...]:
 
 def rpy_from_rotation(R: np.ndarray) -> tuple[float, float, float]:
     """Roll, pitch, yaw (rad) with R = Rz(yaw) Ry(pitch) Rx(roll) (URDF convention)."""
-    cos_pitch = math.hypot(R[0, 0], R[1, 0])
-    pitch = math.atan2(-R[2, 0], cos_pitch)
+    return _rpy_from_rows(*np.asarray(R, dtype=float)[:3, :3].tolist())
+
+
+def _rpy_from_rows(r0, r1, r2) -> tuple[float, float, float]:
+    """:func:`rpy_from_rotation` of a rotation's rows given as Python floats (a pose's rows
+    may carry a fourth entry, the translation, which is ignored)."""
+    cos_pitch = math.hypot(r0[0], r1[0])
+    pitch = math.atan2(-r2[0], cos_pitch)
     if cos_pitch < 1e-12:  # gimbal lock: put everything in yaw
-        return 0.0, pitch, math.atan2(-R[0, 1], R[1, 1])
-    return math.atan2(R[2, 1], R[2, 2]), pitch, math.atan2(R[1, 0], R[0, 0])
+        return 0.0, pitch, math.atan2(-r0[1], r1[1])
+    return math.atan2(r2[1], r2[2]), pitch, math.atan2(r1[0], r0[0])
 
 
 def rotation_from_rpy(roll, pitch, yaw) -> np.ndarray:
@@ -105,7 +111,8 @@ def _rotation_from_quat_wxyz(q) -> np.ndarray:
 
 
 def _pose_values(T: np.ndarray) -> list[float]:
-    return [float(T[0, 3]), float(T[1, 3]), float(T[2, 3]), *rpy_from_rotation(T[:3, :3])]
+    r0, r1, r2 = T[:3].tolist()  # Python floats: element-wise reads of numpy cost more
+    return [r0[3], r1[3], r2[3], *_rpy_from_rows(r0, r1, r2)]
 
 
 def _feet_values(state) -> list[float]:
