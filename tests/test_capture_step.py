@@ -1,0 +1,23 @@
+"""Stepping to catch a push (``hubo sim --push N --step``): one short pushed run on the
+simulated robot with the ``walking`` limit set."""
+
+import json
+
+import pytest
+
+from hubo_cli.experiments.standing import stand
+from hubo_cli.model import load_model
+
+
+@pytest.mark.slow
+def test_a_75_n_push_is_caught_with_two_steps(tmp_path):
+    """75 N forward for 0.2 s: the robot steps (once to catch, once to bring the other foot
+    beside it) and stands; the limiter bounded every command by the walking limit set."""
+    result = stand(load_model(), 3.0, 75.0, step=True, push_at_s=0.3, out=tmp_path / "run")
+    summary = json.loads((result.run_dir / "summary.json").read_text())
+    assert result.fell is False
+    assert summary["capture_step"]["stepped"] is True
+    assert summary["capture_step"]["steps"] == 2
+    step = summary["capture_step"]["footsteps"][0]
+    assert step["x_m"] > 0.05  # the catching foot went the push's way
+    assert summary["max_joint_velocity_ratio"] <= 1.0 + 1e-9
