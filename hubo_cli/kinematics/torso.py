@@ -248,7 +248,7 @@ class TorsoCorrection:
         """Advance the filter with this period's measurement; returns T_dev (4x4). A
         measurement that is not finite (a garbled IMU or encoder reading) leaves it as it was."""
         s = self.settings
-        if not (np.all(np.isfinite(state.q_rad)) and np.all(np.isfinite(state.imu_quat_wxyz))):
+        if not (np.isfinite(state.q_rad).all() and np.isfinite(state.imu_quat_wxyz).all()):
             return self._T_dev
         T_meas = self.estimator(state)
         legs = np.asarray(q_cmd_rad, dtype=float)[self._leg_index]
