@@ -1,9 +1,10 @@
 """The per-period arithmetic of :mod:`hubo_cli.kinematics.torso`, compiled with numba.
 
 :func:`hubo_cli.kinematics.torso.torso_in_stance` runs every control period (the measured torso
-pose, and the commanded one whenever the legs' command changes), and so does the correction's
-filter step. Done with numpy each was about twenty small-array calls; here each is one compiled
-call: :func:`stance_pose` on the legs' DH chains packed once per
+pose, and the commanded one whenever the legs' command changes), and so do the torso estimator
+(its fused pose) and the correction's filter step. Done with numpy each was about twenty
+small-array calls; here each is one compiled call: :func:`stance_pose` and
+:func:`estimate_pose` on the legs' DH chains packed once per
 :class:`~hubo_cli.kinematics.wholebody.WholeBody` (:class:`StanceLegs`), and
 :func:`follow_deviation`. The arithmetic is that of the numpy versions (tests/test_torso.py
 compares them to 1e-12).
