@@ -63,6 +63,8 @@ class JointTracker:
         self.finished = True
         self.error = ""
         self._mode = None
+        self._synced = False  # ruckig's input holds q, v, a (no need to set them again)
+        self._target_v_zero = False
 
     def reset(self, q_rad, v_rad_s=None, a_rad_s2=None) -> None:
         """Start from position ``q_rad`` with the given velocity and acceleration (default 0)."""
@@ -72,12 +74,16 @@ class JointTracker:
         self.finished = True
         self.error = ""
         self._mode = None
+        self._synced = False
 
     def _set_current(self) -> None:
+        if self._synced:  # the last sample, passed on inside ruckig (the same numbers)
+            return
         inp = self._inp
         inp.current_position = self.q
         inp.current_velocity = self.v
         inp.current_acceleration = self.a
+        self._synced = True
 
     def _run(self) -> bool:
         try:
@@ -93,6 +99,8 @@ class JointTracker:
         self.q = q
         self.v = np.array(out.new_velocity)
         self.a = np.array(out.new_acceleration)
+        out.pass_to_input(self._inp)  # the next period starts from this sample
+        self._synced = True
         self.finished = result == Result.Finished
         return True
 
@@ -115,10 +123,13 @@ class JointTracker:
         self._set_current()
         inp.target_position = target_rad
         if target_v_rad_s is None:
-            inp.target_velocity = self._zeros
+            if not self._target_v_zero:
+                inp.target_velocity = self._zeros
+                self._target_v_zero = True
         else:
             vmax = 0.9 * self.limits.velocity_rad_s
             inp.target_velocity = np.clip(np.nan_to_num(target_v_rad_s), -vmax, vmax)
+            self._target_v_zero = False
         inp.minimum_duration = min_duration_s
         if self._run():
             self.error = ""
@@ -136,6 +147,7 @@ class JointTracker:
             inp.control_interface = ControlInterface.Velocity
             inp.synchronization = Synchronization.No
             inp.target_velocity = self._zeros
+            self._target_v_zero = True
             inp.target_acceleration = self._zeros
             inp.minimum_duration = None
             self._mode = "velocity"
@@ -143,6 +155,7 @@ class JointTracker:
         if not self._run():
             self.v = self._zeros.copy()
             self.a = self._zeros.copy()
+            self._synced = False
             self.finished = True
         return self.q
 

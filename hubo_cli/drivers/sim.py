@@ -331,6 +331,7 @@ class SimDriver(Driver, SimulatedWorld):
         self.cutting_force_n = np.zeros(3)
         self.cutting_torque_nm = np.zeros(3)
         self._cutting_point = np.zeros(3)
+        self._cutting_set = False  # the cutting wrench is not zero (reset before each step)
         self._cut_points: list[tuple] = []  # (time s, where the bit crossed a wall), per period
         self._physics_wall_s = 0.0
         self._perturbation = Perturbation()  # drawn from perturb_seed when the world is built
@@ -394,6 +395,13 @@ class SimDriver(Driver, SimulatedWorld):
             self._links[info[12].decode()] = i
         self._idx = [joints[n] for n in self.joint_names]
         self._sensor_link_ids = [self._links[n] for n in SENSOR_LINKS]
+        # per F/T sensor, in FT_SENSORS order: its link's index in PyBullet and in the sensor
+        # links' batch, the link-to-sensor pose, which ankle (0, 1, None), the drill's wrist
+        ankles = iter(range(2))
+        self._sensor_table = tuple(
+            (sensor, self._links[link], SENSOR_LINKS.index(link), self._T_link_frame[frame],
+             next(ankles) if sensor.endswith("ankle") else None, sensor == "right-wrist")
+            for sensor, (link, frame) in ((s, SENSOR_FRAMES[s]) for s in FT_SENSORS))
         self._effort = [p.getJointInfo(self._robot, j, physicsClientId=cid)[10]
                         for j in self._idx]
         n = len(self._idx)  # the motors' gains, as setJointMotorControlArray takes them
@@ -598,8 +606,10 @@ class SimDriver(Driver, SimulatedWorld):
             total = sum(push.force_world_n for push in self._pushes)
             p.applyExternalForce(self._robot, -1, total.tolist(), com, p.WORLD_FRAME,
                                  physicsClientId=cid)
-        self.cutting_force_n = np.zeros(3)
-        self.cutting_torque_nm = np.zeros(3)
+        if self._cutting_set:
+            self.cutting_force_n = np.zeros(3)
+            self.cutting_torque_nm = np.zeros(3)
+            self._cutting_set = False
         if self._walls and self.options.drill:
             self._apply_cutting(t_s)
 
@@ -625,6 +635,7 @@ class SimDriver(Driver, SimulatedWorld):
             force, torque = self.options.cutting.wrench_on_bit(v, T_world_bit[:3, 0].tolist(),
                                                                flutes, point)
             self.cutting_force_n, self.cutting_torque_nm = np.array(force), np.array(torque)
+            self._cutting_set = True
             p.applyExternalForce(self._robot, link, force, bit_xyz, p.WORLD_FRAME,
                                  physicsClientId=cid)
             p.applyExternalTorque(self._robot, link, torque, p.WORLD_FRAME,
@@ -687,30 +698,29 @@ class SimDriver(Driver, SimulatedWorld):
         R = T_world_torso[:3, :3]
         link_states = p.getLinkStates(self._robot, self._sensor_link_ids,
                                       computeForwardKinematics=1, physicsClientId=cid)
-        links = dict(zip(SENSOR_LINKS, link_states, strict=True))
         contacts = self._contact_rows()
+        cutting = self._cutting_set and self.cutting_force_n.any()
         ft = {}
-        contact = []
-        for sensor in FT_SENSORS:
-            link, frame = SENSOR_FRAMES[sensor]
+        contact = [False, False]
+        filtered = self._fz_filtered_n
+        for sensor, link_id, k_state, T_link_sensor, ankle, wrist in self._sensor_table:
             extra = moment = None
-            if sensor == "right-wrist" and self.cutting_force_n.any():
+            if wrist and cutting:
                 extra = (self.cutting_force_n, self._cutting_point)
                 moment = self.cutting_torque_nm
-            rows = contacts.get(self._links[link], [])
+            rows = contacts.get(link_id)
             if rows or extra is not None:
-                ls = links[link]
-                T_world_sensor = _pose(ls[4], ls[5]) @ self._T_link_frame[frame]
-                ft[sensor] = self._wrench(rows, T_world_sensor, extra, moment)
+                ls = link_states[k_state]
+                T_world_sensor = _pose(ls[4], ls[5]) @ T_link_sensor
+                wrench = ft[sensor] = self._wrench(rows or [], T_world_sensor, extra, moment)
             else:  # nothing touches it (a hand in the air): no pose needed
-                ft[sensor] = np.zeros(6)
-            if sensor.endswith("ankle"):
-                k = len(contact)
-                fz = float(ft[sensor][2])
-                if self._fz_filtered_n[k] is None:  # at start: no history to filter
-                    self._fz_filtered_n[k] = fz
-                self._fz_filtered_n[k] += self._contact_alpha * (fz - self._fz_filtered_n[k])
-                contact.append(self._fz_filtered_n[k] > CONTACT_THRESHOLD_N)
+                wrench = ft[sensor] = np.zeros(6)
+            if ankle is not None:
+                fz = float(wrench[2])
+                if filtered[ankle] is None:  # at start: no history to filter
+                    filtered[ankle] = fz
+                filtered[ankle] += self._contact_alpha * (fz - filtered[ankle])
+                contact[ankle] = filtered[ankle] > CONTACT_THRESHOLD_N
         flags, self._flags = tuple(dict.fromkeys(self._flags)), []
         if self._stopped:
             flags = tuple(dict.fromkeys((*flags, "stopped")))
