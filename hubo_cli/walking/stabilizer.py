@@ -121,7 +121,7 @@ class SoleDamper:
         """One period with the sole's measured wrench [fx, fy, fz, mx, my, mz] (about the sole
         frame's origin, sole axes); returns ``delta_rad``."""
         g = self.gains
-        fx, fy, fz, mx, my, mz = (float(v) for v in wrench)
+        fx, fy, fz, mx, my, mz = np.asarray(wrench, dtype=float).tolist()  # plain floats
         roll, pitch = float(self.delta_rad[0]), float(self.delta_rad[1])
         if fz > LOADED_N and math.isfinite(mx + my + fx + fy + mz):
             x0, x1, y0, y1 = self.safe
