@@ -8,6 +8,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from hubo_cli.balance_report import CONTACT_CUTOFF_HZ, CONTACT_THRESHOLD_N
 from hubo_cli.control.capture_point import CapturePointMonitor, convex_hull, outside_distance
 from hubo_cli.control.target import Target, TargetOutput
 from hubo_cli.drivers.base import SimulatedWorld
@@ -46,9 +47,11 @@ def footstep_of(side: str, T_world_sole: np.ndarray) -> Footstep:
 
 
 def measured_zmp(poses: dict[str, np.ndarray], wrenches: dict[str, np.ndarray],
-                 corners_m: np.ndarray) -> tuple[np.ndarray | None, float]:
+                 corners_m: np.ndarray, loaded_n: float = LOADED_N
+                 ) -> tuple[np.ndarray | None, float]:
     """The ZMP from the ankles' force/torque (world x, y; None when no sole is loaded) and how
-    far it lies outside the loaded soles' convex hull (m; <= 0 inside).
+    far it lies outside the loaded soles' convex hull (m; <= 0 inside). A sole is loaded when
+    its F_z exceeds ``loaded_n`` (N).
 
     Args:
         poses: side -> T_world_sole (4x4).
@@ -60,7 +63,7 @@ def measured_zmp(poses: dict[str, np.ndarray], wrenches: dict[str, np.ndarray],
     points = []
     for side, T in poses.items():
         _, _, fz, mx, my, _ = wrenches[side].tolist()  # plain floats: this runs every period
-        if not fz > LOADED_N:
+        if not fz > loaded_n:
             continue
         px, py = -my / fz, mx / fz  # the sole's CoP: -m_y/f_z, m_x/f_z
         (r00, r01, _, x), (r10, r11, _, y) = T[:2].tolist()
@@ -73,6 +76,34 @@ def measured_zmp(poses: dict[str, np.ndarray], wrenches: dict[str, np.ndarray],
     zmp = np.array((weighted_x / total, weighted_y / total))
     hull = points[0] if len(points) == 1 else convex_hull(np.concatenate(points))
     return zmp, float(outside_distance(hull, zmp))
+
+
+class ContactWrenches:
+    """The soles' wrenches as the walk's ZMP figure reads them: each ankle's F_z, m_x and m_y
+    low-passed at CONTACT_CUTOFF_HZ (first order, started at the first reading), the filter
+    that decides contact in the simulator and the reports (a sole counts as support while its
+    filtered F_z exceeds CONTACT_THRESHOLD_N).
+
+    The simulated ankle sensors read the contact forces of the last physics step, which jump
+    between the feet at touch-down and lift-off: for 0.1 s after a landing the two F_z sum to
+    100-160 N (the robot weighs about 380 N) while the torso's height stays within 0.5 mm, a
+    reading no motion of the robot produces. Averaged over the filter's 32 ms, they keep the
+    momentum the ground actually gave."""
+
+    def __init__(self, period_s: float) -> None:
+        tau = 1.0 / (2.0 * math.pi * CONTACT_CUTOFF_HZ)
+        self.alpha = period_s / (period_s + tau)
+        self.filtered: dict[str, np.ndarray] = {}
+
+    def update(self, wrenches: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """One period's raw wrenches (side -> [fx, fy, fz, mx, my, mz]); the filtered ones."""
+        for side, wrench in wrenches.items():
+            w = np.asarray(wrench, dtype=float)
+            if not np.all(np.isfinite(w)):
+                continue
+            last = self.filtered.get(side)
+            self.filtered[side] = w.copy() if last is None else last + self.alpha * (w - last)
+        return self.filtered
 
 
 def tilt_between(z_from: np.ndarray, z_to: np.ndarray) -> np.ndarray:
@@ -147,11 +178,11 @@ class WalkTarget(Target):
 
     log_columns = ("walk.zmp_ref_x_m", "walk.zmp_ref_y_m", "walk.com_ref_x_m",
                    "walk.com_ref_y_m", "walk.zmp_x_m", "walk.zmp_y_m", "walk.zmp_outside_m",
-                   "walk.step", "walk.tilt_deg", "planned_right_foot_contact_flag",
-                   "planned_left_foot_contact_flag", "walk.offset_x_m", "walk.offset_y_m",
-                   "walk.right_lift_m", "walk.left_lift_m", "walk.right_sole_roll_rad",
-                   "walk.right_sole_pitch_rad", "walk.left_sole_roll_rad",
-                   "walk.left_sole_pitch_rad")
+                   "walk.contact_zmp_outside_m", "walk.step", "walk.tilt_deg",
+                   "planned_right_foot_contact_flag", "planned_left_foot_contact_flag",
+                   "walk.offset_x_m", "walk.offset_y_m", "walk.right_lift_m", "walk.left_lift_m",
+                   "walk.right_sole_roll_rad", "walk.right_sole_pitch_rad",
+                   "walk.left_sole_roll_rad", "walk.left_sole_pitch_rad")
 
     def __init__(self, model: RobotModel, params: WalkingParams, goal: tuple[float, float, float],
                  q_start_rad: np.ndarray, T_world_neck_start: np.ndarray,
@@ -173,6 +204,9 @@ class WalkTarget(Target):
         self.fell = False
         self.zmp_periods = 0
         self.zmp_inside_periods = 0
+        self.raw_zmp_periods = 0
+        self.raw_zmp_inside_periods = 0
+        self.contact_wrenches = ContactWrenches(model.control_period_s)
         self.torso_z0_m: float | None = None
         self.final_feet: dict[str, np.ndarray] = {}
         self.steps: list[Footstep] = []
@@ -283,11 +317,16 @@ class WalkTarget(Target):
         if has_fallen(tilt, self.torso_z0_m - torso_z):
             self.fell = True
         poses = {side: world.frame_pose(frame) for side, frame, _ in SOLES}
-        zmp, outside = measured_zmp(poses, {side: state.ft[sensor]
-                                            for side, _, sensor in SOLES}, self.corners)
+        wrenches = {side: state.ft[sensor] for side, _, sensor in SOLES}
+        zmp, outside = measured_zmp(poses, wrenches, self.corners)
         if zmp is not None:
+            self.raw_zmp_periods += 1
+            self.raw_zmp_inside_periods += outside <= -ZMP_INSIDE_MARGIN_M
+        support_zmp, support_outside = measured_zmp(
+            poses, self.contact_wrenches.update(wrenches), self.corners, CONTACT_THRESHOLD_N)
+        if support_zmp is not None:
             self.zmp_periods += 1
-            self.zmp_inside_periods += outside <= -ZMP_INSIDE_MARGIN_M
+            self.zmp_inside_periods += support_outside <= -ZMP_INSIDE_MARGIN_M
         self.final_feet = poses
         q = plan.q_rad[k]
         if self.stabilizer is not None:
@@ -300,6 +339,8 @@ class WalkTarget(Target):
                 "walk.com_ref_x_m": com_ref_x, "walk.com_ref_y_m": com_ref_y,
                 "walk.zmp_x_m": zmp_x, "walk.zmp_y_m": zmp_y,
                 "walk.zmp_outside_m": outside if math.isfinite(outside) else math.nan,
+                "walk.contact_zmp_outside_m": (support_outside if math.isfinite(support_outside)
+                                               else math.nan),
                 "walk.step": float(rows["step"][k]), "walk.tilt_deg": tilt,
                 "planned_right_foot_contact_flag": float(support[0]),
                 "planned_left_foot_contact_flag": float(support[1]),
