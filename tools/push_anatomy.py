@@ -13,9 +13,10 @@ limiter's clamps, the soft stopper's mode and the trunk bow.
 pitches bow the trunk forward (the ankles and knees with them so that the model's CoM stays
 over the feet, 1.258 / 0.028 / 0.287 rad per rad of bow) at K rad/s per metre of the capture
 point monitor's excess over ``--bow-start`` metres inside its shrunk support, at most
-``--bow-rate`` rad/s and ``--bow-max`` rad; it needs the robot file's ``walking`` limit set
-(legs 2.6 rad/s, 150 rad/s^2), which the run then uses. The soft stopper is off with it (its
-capture-point stop would hold the bow).
+``--bow-rate`` rad/s and ``--bow-max`` rad (``--rise U``: the legs also rise, knees
+straightening, U units of RISE_JOINTS_RAD per rad of bow); it needs the robot file's
+``walking`` limit set (legs 2.6 rad/s, 150 rad/s^2), which the run then uses. The soft
+stopper is off with it (its capture-point stop would hold the bow).
 """
 
 from __future__ import annotations
@@ -37,6 +38,9 @@ from hubo_cli.session import RunSetup, run
 # joint offsets per rad of trunk bow (hip pitch, knee, ankle pitch), solved on the model so that
 # the torso pitches forward by 1 rad with the CoM's x and height unchanged (pinocchio)
 BOW_JOINTS_RAD = {"HP": -1.258, "KN": -0.028, "AP": 0.287}
+# ... and a rise on the legs: the knees straighten with the torso upright and the CoM's x kept
+# (the neck rises 0.139 m per unit)
+RISE_JOINTS_RAD = {"HP": 1.185, "KN": -2.185, "AP": 1.0}
 OMEGA_1_S = math.sqrt(9.81 / 0.65)
 
 
@@ -44,12 +48,15 @@ class PushAnatomy(Target):
     """Stand (``stand``), optionally bow on the capture point, and record one row per period."""
 
     def __init__(self, stand: StandTarget, model, toe_m: float, bow_gain: float,
-                 bow_start_m: float, bow_rate_rad_s: float, bow_max_rad: float) -> None:
+                 bow_start_m: float, bow_rate_rad_s: float, bow_max_rad: float,
+                 rise_per_bow: float = 0.0) -> None:
         self.stand, self.toe_m = stand, toe_m
         self.log_columns = (*stand.log_columns, "bow_rad")
         self.bow_gain, self.bow_start_m = bow_gain, bow_start_m
         self.bow_rate_rad_s, self.bow_max_rad = bow_rate_rad_s, bow_max_rad
         self.bow_rad = 0.0
+        self.per_bow_rad = {name: BOW_JOINTS_RAD[name] + rise_per_bow * RISE_JOINTS_RAD[name]
+                            for name in BOW_JOINTS_RAD}
         self.period_s = model.control_period_s
         self.joints = {name: [model.joint_names.index(side + name) for side in "RL"]
                        for name in BOW_JOINTS_RAD}
@@ -68,7 +75,7 @@ class PushAnatomy(Target):
             excess_m = self.monitor.outside_m + self.bow_start_m
             rate = min(self.bow_rate_rad_s, max(0.0, self.bow_gain * excess_m))
             self.bow_rad = min(self.bow_rad + rate * self.period_s, self.bow_max_rad)
-        for name, per_rad in BOW_JOINTS_RAD.items():
+        for name, per_rad in self.per_bow_rad.items():
             q[self.joints[name]] += per_rad * self.bow_rad
         self._record(t_s, state)
         return q, info | {"bow_rad": self.bow_rad}
@@ -101,6 +108,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="bow once the capture point is within this (m) of the shrunk edge")
     parser.add_argument("--bow-rate", type=float, default=1.0, help="largest bow rate (rad/s)")
     parser.add_argument("--bow-max", type=float, default=0.3, help="largest bow (rad)")
+    parser.add_argument("--rise", type=float, default=0.0,
+                        help="with the bow, rise on the legs by this many units per rad of bow")
     parser.add_argument("--every", type=int, default=6, help="print every n-th period")
     parser.add_argument("--out", default=None, help="run folder")
     args = parser.parse_args(argv)
@@ -110,7 +119,7 @@ def main(argv: list[str] | None = None) -> int:
     stand = StandTarget(q_home, n, np.array([args.push, 0.0, 0.0]), 1.0, 0.2)
     feet = model.feet
     target = PushAnatomy(stand, model, feet.forward_m + feet.length_m / 2, args.bow_gain,
-                         args.bow_start, args.bow_rate, args.bow_max)
+                         args.bow_start, args.bow_rate, args.bow_max, args.rise)
     setup = RunSetup(command="sim", model=model, driver="sim", out=args.out,
                      safety=SafetyProfile(estop=not args.bow_gain),
                      duration_s=n * model.control_period_s, q_start_rad=q_home)
