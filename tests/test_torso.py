@@ -265,3 +265,65 @@ def test_at_a_wrist_limit_the_correction_holds_the_bit_and_lets_its_orientation_
             assert tilt <= settings.nearest_max_rotation_rad
         else:
             assert correction.weight[ARM] < 0.9 and error_m > 1e-3
+
+
+class _EstimatorNumpy:
+    """The former numpy formulation of TorsoEstimator, as a reference for the compiled one."""
+
+    def __init__(self, body):
+        self.body, self.heading, self.offset, self.t_s = body, None, None, 0.0
+        self.tau = np.array([0.5, 0.5, IMU_HEADING_TIME_CONSTANT_S])
+
+    def __call__(self, state):
+        from hubo_cli.geometry import quat_wxyz_to_matrix, rotation_log
+
+        def yaw(a):
+            return np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0],
+                             [0.0, 0.0, 1.0]])
+
+        body, q = self.body, state.q_rad
+        R_legs, p_soles = [], []
+        for leg in ("right-leg", "left-leg"):
+            T_N_sole = body.legs[leg].fk(q[body.model.limb_slice(leg)])
+            R_legs.append(body.T_S_sole[leg][:3, :3] @ T_N_sole[:3, :3].T)
+            p_soles.append(T_N_sole[:3, 3])
+        R_enc = R_legs[0] @ rotation_exp(rotation_log(R_legs[0].T @ R_legs[1]) / 2)
+        if np.all(np.isfinite(state.imu_quat_wxyz)):
+            R_imu = quat_wxyz_to_matrix(state.imu_quat_wxyz)
+            if self.heading is None:
+                legs = np.mean([np.arctan2(R[1, 0], R[0, 0]) for R in R_legs])
+                self.heading = np.arctan2(R_imu[1, 0], R_imu[0, 0]) - legs
+            alpha = 1.0 if self.offset is None else -np.expm1(
+                -max(0.0, state.time_s - self.t_s) / self.tau)
+            offset = np.zeros(3) if self.offset is None else self.offset
+            raw = rotation_log(R_enc.T @ yaw(-self.heading) @ R_imu)
+            self.offset, self.t_s = offset + alpha * (raw - offset), state.time_s
+        R = R_enc @ rotation_exp(np.zeros(3) if self.offset is None else self.offset)
+        T = np.eye(4)
+        T[:3, :3] = R
+        T[:3, 3] = (body.T_S_sole["right-leg"][:3, 3] + body.T_S_sole["left-leg"][:3, 3]
+                    - R @ (p_soles[0] + p_soles[1])) / 2
+        return T
+
+
+def test_the_compiled_estimator_is_the_numpy_formula(body):
+    """TorsoEstimator runs as one compiled call a period (kinematics/torso_kernels.py): the same
+    poses and filter state as the numpy formula over a run of leaning, swaying readings with
+    garbled IMU readings, an uneven period and a second call with the same reading."""
+    rng = np.random.default_rng(11)
+    compiled, reference = TorsoEstimator(body), _EstimatorNumpy(body)
+    q0 = _working_pose(body)
+    t_s = 0.0
+    for k in range(600):
+        q = q0 + rng.normal(0.0, 0.05, q0.shape)
+        imu = rpy_to_quat_wxyz(*rng.normal(0.0, 0.05, 3)) * rng.uniform(0.9, 1.1)
+        if k % 97 == 3:
+            imu = np.array([np.nan, 0.0, 0.0, 0.0])
+        t_s += DT * (3 if k % 50 == 7 else 1)
+        state = RobotState(t_s, q, np.zeros_like(q), imu_quat_wxyz=imu)
+        T_ref = reference(state)
+        assert np.allclose(compiled(state), T_ref, rtol=0, atol=1e-12)
+        assert np.allclose(compiled(state), T_ref, rtol=0, atol=1e-12)  # the same reading
+    assert compiled.imu_heading_rad == pytest.approx(reference.heading, abs=1e-12)
+    assert np.allclose(compiled.imu_offset_rad, reference.offset, rtol=0, atol=1e-12)
+    assert np.linalg.norm(reference.offset) > 1e-3  # the IMU's part is not trivial

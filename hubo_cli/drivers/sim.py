@@ -396,6 +396,8 @@ class SimDriver(Driver, SimulatedWorld):
         self._sensor_link_ids = [self._links[n] for n in SENSOR_LINKS]
         self._effort = [p.getJointInfo(self._robot, j, physicsClientId=cid)[10]
                         for j in self._idx]
+        n = len(self._idx)  # the motors' gains, as setJointMotorControlArray takes them
+        self._gains = ([self.options.position_gain] * n, [self.options.velocity_gain] * n)
         top_speed = self.options.max_speed_factor * self.model.velocity_rad_s
         for j, q, force, speed in zip(self._idx, q0, self._effort, top_speed, strict=True):
             # the speed cap is kept by later setJointMotorControlArray calls
@@ -461,12 +463,12 @@ class SimDriver(Driver, SimulatedWorld):
 
     def _apply_command(self, q_cmd_rad: np.ndarray | None = None) -> None:
         """Send ``q_cmd_rad`` (default: the last command) to the motors now."""
-        n = len(self._idx)
         q = self._cmd if q_cmd_rad is None else q_cmd_rad
+        position_gains, velocity_gains = self._gains
         self._p.setJointMotorControlArray(
             self._robot, self._idx, self._p.POSITION_CONTROL, targetPositions=q.tolist(),
-            forces=self._effort, positionGains=[self.options.position_gain] * n,
-            velocityGains=[self.options.velocity_gain] * n, physicsClientId=self._cid)
+            forces=self._effort, positionGains=position_gains, velocityGains=velocity_gains,
+            physicsClientId=self._cid)
 
     # ------------------------------------------------------------------ contract
     def start(self, q0_rad: np.ndarray | None = None) -> RobotState:
@@ -589,7 +591,8 @@ class SimDriver(Driver, SimulatedWorld):
 
     def _apply_external_forces(self, t_s: float) -> None:
         p, cid = self._p, self._cid
-        self._pushes = [push for push in self._pushes if t_s < push.until_s - 1e-12]
+        if self._pushes:
+            self._pushes = [push for push in self._pushes if t_s < push.until_s - 1e-12]
         if self._pushes:
             com, _ = p.getBasePositionAndOrientation(self._robot, physicsClientId=cid)
             total = sum(push.force_world_n for push in self._pushes)

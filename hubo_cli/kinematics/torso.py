@@ -59,27 +59,6 @@ IMU_HEADING_TIME_CONSTANT_S = 0.1
 """Low-pass time constant of the IMU's correction of the encoders' heading (s)."""
 
 
-def _yaw(yaw_rad: float) -> np.ndarray:
-    """The rotation by ``yaw_rad`` about z."""
-    c, s = np.cos(yaw_rad), np.sin(yaw_rad)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def _heading(R: np.ndarray) -> float:
-    """The heading (rad) of a frame's x axis projected on the ground."""
-    return float(np.arctan2(R[1, 0], R[0, 0]))
-
-
-def _legs(body: WholeBody, q: np.ndarray) -> tuple[list[np.ndarray], list[np.ndarray]]:
-    """Per leg: R_S_N from its kinematics (sole flat where S puts it) and p_N_sole."""
-    R_legs, p_N_soles = [], []
-    for leg in LEGS:
-        T_N_sole = body.legs[leg].fk(q[body.model.limb_slice(leg)])
-        R_legs.append(body.T_S_sole[leg][:3, :3] @ T_N_sole[:3, :3].T)
-        p_N_soles.append(T_N_sole[:3, 3])
-    return R_legs, p_N_soles
-
-
 def torso_in_stance(body: WholeBody, q_rad, imu_quat_wxyz=None,
                     imu_heading_rad: float | None = None) -> np.ndarray:
     """T_S_N, the neck frame in the stance frame (4x4, m), from the leg joints and the IMU.
@@ -94,30 +73,6 @@ def torso_in_stance(body: WholeBody, q_rad, imu_quat_wxyz=None,
     """
     R_imu = None if imu_quat_wxyz is None else quat_wxyz_to_matrix(imu_quat_wxyz)
     return stance_legs(body).pose(q_rad, R_imu, imu_heading_rad)  # compiled (torso_kernels)
-
-
-def _mean_rotation(R_legs: list[np.ndarray]) -> np.ndarray:
-    """The rotation half way between the two legs' orientations of the neck."""
-    return R_legs[0] @ rotation_exp(rotation_log(R_legs[0].T @ R_legs[1]) / 2)
-
-
-def _on_soles(body: WholeBody, R_S_N: np.ndarray, p_N_soles: list[np.ndarray]) -> np.ndarray:
-    """T_S_N of a neck turned by ``R_S_N`` with each foot pivoting about its sole origin (the
-    two feet's estimates averaged)."""
-    (right, left), (p_right, p_left) = (body.T_S_sole[leg][:3, 3] for leg in LEGS), p_N_soles
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = R_S_N, (right + left - R_S_N @ (p_right + p_left)) / 2
-    return T
-
-
-def imu_offset_step(offset_rad: np.ndarray, R_S_N_encoders: np.ndarray, R_S_N_imu: np.ndarray,
-                    alpha) -> np.ndarray:
-    """One step of the complementary filter: the IMU's rotation from the encoders' orientation
-    (a rotation vector in the neck frame), low-passed with weight ``alpha`` (0..1, or one per
-    neck axis) on the new reading. The fused orientation is
-    ``R_S_N_encoders @ rotation_exp(offset)``."""
-    raw = rotation_log(R_S_N_encoders.T @ R_S_N_imu)
-    return offset_rad + alpha * (raw - offset_rad)
 
 
 class TorsoEstimator:
@@ -139,42 +94,64 @@ class TorsoEstimator:
         self.body = body
         self.time_constants_s = np.array([tilt_time_constant_s, tilt_time_constant_s,
                                           heading_time_constant_s], dtype=float)
-        stance_legs(body)  # compiles torso_in_stance's kernel now, not in a control period
-        self.imu_heading_rad: float | None = None
-        self.imu_offset_rad: np.ndarray | None = None  # the filter's state (neck frame)
+        self._legs = stance_legs(body)  # compiles the kernels now, not in a control period
+        self._heading = np.zeros(1)  # the filter's state (in place in the compiled kernel):
+        self._offset = np.zeros(3)   # the IMU's heading of S's x axis and its rotation offset
+        self._referenced = False     # ... set by the first finite IMU reading
+        self._alpha = (None, None)   # (dt s, the filter's weights for it)
         self._t_s = 0.0  # the time of the filter's last reading
-        self._last: tuple = (None, None, None, None)  # (time, joints, IMU, T_S_N): once a period
+        self._last: tuple = (None, None, None, None, None)  # (state, time, joints, IMU, T_S_N)
+
+    @property
+    def imu_heading_rad(self) -> float | None:
+        """The IMU's heading (rad) of S's x axis, referenced at its first reading (None before)."""
+        return float(self._heading[0]) if self._referenced else None
+
+    @property
+    def imu_offset_rad(self) -> np.ndarray | None:
+        """The filter's state: the IMU's rotation from the encoders' orientation (a rotation
+        vector in the neck frame, rad), None before the first IMU reading."""
+        return self._offset.copy() if self._referenced else None
+
+    def _weights(self, dt_s: float) -> np.ndarray:
+        """The filter's weights on a new reading ``dt_s`` after the last one (per neck axis)."""
+        if self._alpha[0] != dt_s:
+            tau = self.time_constants_s
+            self._alpha = (dt_s, np.where(tau > 0.0, -np.expm1(-dt_s / np.maximum(tau, 1e-12)),
+                                          1.0))
+        return self._alpha[1]
 
     def __call__(self, state) -> np.ndarray:
         """T_S_N (4x4, m) from a :class:`~hubo_cli.state.RobotState`'s joints and IMU (a
-        reading that is not finite leaves the IMU's part as it was)."""
-        t_last, q_last, imu_last, T_last = self._last
-        if (q_last is not None and t_last == state.time_s and np.array_equal(q_last, state.q_rad)
-                and np.array_equal(imu_last, state.imu_quat_wxyz)):
+        reading that is not finite leaves the IMU's part as it was).
+
+        The legs' kinematics, the orientations' mean, the filter step and the pose are one
+        compiled call (:func:`~hubo_cli.kinematics.torso_kernels.estimate_pose`); a second call
+        with the same reading (the task target measures twice a period) returns the same pose.
+        """
+        state_last, t_last, q_last, imu_last, T_last = self._last
+        if q_last is not None and t_last == state.time_s and (state is state_last or (
+                np.array_equal(q_last, state.q_rad)
+                and np.array_equal(imu_last, state.imu_quat_wxyz))):
             return T_last
         q = np.asarray(state.q_rad, dtype=float)
-        R_legs, p_N_soles = _legs(self.body, q)
-        R_encoders = _mean_rotation(R_legs)
-        if np.all(np.isfinite(state.imu_quat_wxyz)):
-            R_imu = quat_wxyz_to_matrix(state.imu_quat_wxyz)
-            if self.imu_heading_rad is None:
-                encoders = float(np.mean([_heading(R) for R in R_legs]))
-                self.imu_heading_rad = _heading(R_imu) - encoders
-            R_imu_S = _yaw(-self.imu_heading_rad) @ R_imu
-            if self.imu_offset_rad is None:
-                alpha = 1.0
-            else:
-                dt_s = max(0.0, float(state.time_s) - self._t_s)
-                tau = self.time_constants_s
-                alpha = np.where(tau > 0.0, -np.expm1(-dt_s / np.maximum(tau, 1e-12)), 1.0)
-            self.imu_offset_rad = imu_offset_step(
-                np.zeros(3) if self.imu_offset_rad is None else self.imu_offset_rad,
-                R_encoders, R_imu_S, alpha)
+        imu = np.asarray(state.imu_quat_wxyz, dtype=float)
+        first = False
+        alpha = self._no_weights
+        if np.isfinite(imu).all():
+            first = not self._referenced
+            if not first:
+                alpha = self._weights(max(0.0, float(state.time_s) - self._t_s))
+            self._referenced = True
             self._t_s = float(state.time_s)
-        offset = np.zeros(3) if self.imu_offset_rad is None else self.imu_offset_rad
-        T = _on_soles(self.body, R_encoders @ rotation_exp(offset), p_N_soles)
-        self._last = (state.time_s, q.copy(), np.array(state.imu_quat_wxyz), T)
+        else:
+            imu = None
+        T = self._legs.estimate(q, imu, first, self._heading, self._offset, alpha)
+        self._last = (state, state.time_s, q.copy(),
+                      np.array(state.imu_quat_wxyz, dtype=float), T)
         return T
+
+    _no_weights = np.ones(3)  # the first reading is taken as it is; without one, unused
 
 
 @dataclass(frozen=True)
@@ -271,7 +248,7 @@ class TorsoCorrection:
         """Advance the filter with this period's measurement; returns T_dev (4x4). A
         measurement that is not finite (a garbled IMU or encoder reading) leaves it as it was."""
         s = self.settings
-        if not (np.all(np.isfinite(state.q_rad)) and np.all(np.isfinite(state.imu_quat_wxyz))):
+        if not (np.isfinite(state.q_rad).all() and np.isfinite(state.imu_quat_wxyz).all()):
             return self._T_dev
         T_meas = self.estimator(state)
         legs = np.asarray(q_cmd_rad, dtype=float)[self._leg_index]

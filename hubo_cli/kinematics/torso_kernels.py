@@ -1,9 +1,10 @@
 """The per-period arithmetic of :mod:`hubo_cli.kinematics.torso`, compiled with numba.
 
 :func:`hubo_cli.kinematics.torso.torso_in_stance` runs every control period (the measured torso
-pose, and the commanded one whenever the legs' command changes), and so does the correction's
-filter step. Done with numpy each was about twenty small-array calls; here each is one compiled
-call: :func:`stance_pose` on the legs' DH chains packed once per
+pose, and the commanded one whenever the legs' command changes), and so do the torso estimator
+(its fused pose) and the correction's filter step. Done with numpy each was about twenty
+small-array calls; here each is one compiled call: :func:`stance_pose` and
+:func:`estimate_pose` on the legs' DH chains packed once per
 :class:`~hubo_cli.kinematics.wholebody.WholeBody` (:class:`StanceLegs`), and
 :func:`follow_deviation`. The arithmetic is that of the numpy versions (tests/test_torso.py
 compares them to 1e-12).
@@ -151,6 +152,93 @@ def stance_pose(q, first, bases, dh, ends, soles, R_imu, heading, mode, out):
     out[3, 3] = 1.0
 
 
+NO_IMU = 0        # estimate_pose: no usable IMU reading this period
+IMU = 1           # ... an IMU reading, its heading already referenced
+IMU_FIRST = 2     # ... the first IMU reading: reference its heading, start the filter on it
+
+
+@nb.njit(**JIT)
+def estimate_pose(q, first, bases, dh, ends, soles, quat_wxyz, mode, heading, offset, alpha,
+                  out):
+    """One period of :class:`~hubo_cli.kinematics.torso.TorsoEstimator` (the numpy formulas
+    of its module, tests/test_torso.py compares them): out = T_S_N (4x4).
+
+    The encoders' orientation is the mean of the two legs'; with an IMU reading (``mode``
+    ``IMU`` or ``IMU_FIRST``) its rotation from the encoders' orientation, in the neck frame,
+    is low-passed into ``offset`` (3,) in place with weights ``alpha`` (3,) (``IMU_FIRST``:
+    ``heading[0]`` is set to the IMU's heading less the legs' mean heading, and ``offset``
+    starts at the reading); the fused orientation ``R_encoders exp(offset)`` places the neck
+    with each foot pivoting about its sole origin.
+    """
+    T = np.empty((4, 4))
+    R_legs = np.empty((2, 3, 3))
+    p = np.zeros(3)
+    for leg in range(2):
+        i0 = first[leg]
+        chain_fk(q[i0:i0 + 6], bases[leg], dh[leg, 0], dh[leg, 1], dh[leg, 2], dh[leg, 3],
+                 ends[leg], T)
+        S = soles[leg]
+        for i in range(3):  # R_S_N = R_S_sole R_N_sole^T
+            for j in range(3):
+                R_legs[leg, i, j] = S[i, 0] * T[j, 0] + S[i, 1] * T[j, 1] + S[i, 2] * T[j, 2]
+            p[i] += T[i, 3]
+    D = np.empty((3, 3))
+    A = R_legs[0]
+    for i in range(3):  # D = R_0^T R_1
+        for j in range(3):
+            D[i, j] = A[0, i] * R_legs[1, 0, j] + A[1, i] * R_legs[1, 1, j] \
+                + A[2, i] * R_legs[1, 2, j]
+    w = np.empty(3)
+    _log3(D, w)
+    for i in range(3):
+        w[i] /= 2
+    E = np.empty((3, 3))
+    _exp3(w, E)
+    R_enc = np.empty((3, 3))
+    _mul3(A, E, R_enc)
+    if mode != NO_IMU:
+        qw, qx, qy, qz = quat_wxyz[0], quat_wxyz[1], quat_wxyz[2], quat_wxyz[3]
+        n = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+        qw, qx, qy, qz = qw / n, qx / n, qy / n, qz / n
+        R_imu = np.empty((3, 3))
+        R_imu[0, 0] = 1 - 2 * (qy * qy + qz * qz)
+        R_imu[0, 1] = 2 * (qx * qy - qw * qz)
+        R_imu[0, 2] = 2 * (qx * qz + qw * qy)
+        R_imu[1, 0] = 2 * (qx * qy + qw * qz)
+        R_imu[1, 1] = 1 - 2 * (qx * qx + qz * qz)
+        R_imu[1, 2] = 2 * (qy * qz - qw * qx)
+        R_imu[2, 0] = 2 * (qx * qz - qw * qy)
+        R_imu[2, 1] = 2 * (qy * qz + qw * qx)
+        R_imu[2, 2] = 1 - 2 * (qx * qx + qy * qy)
+        if mode == IMU_FIRST:
+            legs = (math.atan2(R_legs[0, 1, 0], R_legs[0, 0, 0])
+                    + math.atan2(R_legs[1, 1, 0], R_legs[1, 0, 0])) / 2
+            heading[0] = math.atan2(R_imu[1, 0], R_imu[0, 0]) - legs
+            for i in range(3):
+                offset[i] = 0.0
+        R_imu_S = np.empty((3, 3))
+        _turn(-heading[0], R_imu, R_imu_S)
+        for i in range(3):  # D = R_enc^T R_imu_S
+            for j in range(3):
+                D[i, j] = R_enc[0, i] * R_imu_S[0, j] + R_enc[1, i] * R_imu_S[1, j] \
+                    + R_enc[2, i] * R_imu_S[2, j]
+        _log3(D, w)
+        for i in range(3):
+            offset[i] = offset[i] + alpha[i] * (w[i] - offset[i])
+    _exp3(offset, E)
+    R = np.empty((3, 3))
+    _mul3(R_enc, E, R)
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = R[i, j]
+        out[i, 3] = (soles[0, i, 3] + soles[1, i, 3]
+                     - (R[i, 0] * p[0] + R[i, 1] * p[1] + R[i, 2] * p[2])) / 2
+    out[3, 0] = 0.0
+    out[3, 1] = 0.0
+    out[3, 2] = 0.0
+    out[3, 3] = 1.0
+
+
 @nb.njit(**JIT)
 def _follow(now, raw, alpha, limit, max_step):
     """One low-pass step of ``now`` (3,) toward ``raw`` in place, kept within ``limit`` (norm)
@@ -229,7 +317,9 @@ class StanceLegs:
             self.bases[k], self.dh[k], self.ends[k] = base, (offset, alpha, a, d), end
             self.soles[k] = body.T_S_sole[leg]
         self._none = np.zeros((3, 3))
-        self.pose(body.q_home)  # compile (or load) the kernel now, not in a control period
+        self._no_quat = np.array([1.0, 0.0, 0.0, 0.0])
+        self.pose(body.q_home)  # compile (or load) the kernels now, not in a control period
+        self.estimate(body.q_home, self._no_quat, True, np.zeros(1), np.zeros(3), np.ones(3))
 
     def pose(self, q_rad: np.ndarray, R_imu: np.ndarray | None = None,
              heading_rad: float | None = None) -> np.ndarray:
@@ -244,6 +334,22 @@ class StanceLegs:
         stance_pose(np.ascontiguousarray(q_rad, dtype=np.float64), self.first, self.bases,
                     self.dh, self.ends, self.soles, np.ascontiguousarray(R, dtype=np.float64),
                     h, mode, out)
+        return out
+
+
+    def estimate(self, q_rad: np.ndarray, imu_quat_wxyz: np.ndarray | None, first_reading: bool,
+                 heading: np.ndarray, offset: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+        """T_S_N (4x4, m) of :func:`estimate_pose` (``heading`` (1,) and ``offset`` (3,) are the
+        estimator's state, updated in place; ``imu_quat_wxyz`` None: no usable reading)."""
+        out = np.empty((4, 4))
+        if imu_quat_wxyz is None:
+            mode, quat = NO_IMU, self._no_quat
+        else:
+            mode, quat = IMU_FIRST if first_reading else IMU, imu_quat_wxyz
+        estimate_pose(np.ascontiguousarray(q_rad, dtype=np.float64), self.first, self.bases,
+                      self.dh, self.ends, self.soles,
+                      np.ascontiguousarray(quat, dtype=np.float64), mode, heading, offset,
+                      alpha, out)
         return out
 
 

@@ -189,11 +189,12 @@ class TaskTarget(Target):
         tool = (self.estimator(state) @ T_N_E)[:3, 3]
         return bool(np.linalg.norm(tool - self.plan.T_first_S[:3, 3]) < ON_POSE_M)
 
-    def _tool_world(self, state) -> np.ndarray | None:
-        """The tool's position in the world (m), where the driver knows the torso's pose."""
+    def _tool_world(self, state, T_N_E: np.ndarray | None = None) -> np.ndarray | None:
+        """The tool's position in the world (m), where the driver knows the torso's pose
+        (``T_N_E``: the measured arm's forward kinematics, when already computed)."""
         if state.T_world_torso is None:
             return None
-        T = self.body.arms[self.limb].fk(state.q_rad[self.slice])
+        T = self.body.arms[self.limb].fk(state.q_rad[self.slice]) if T_N_E is None else T_N_E
         return (state.T_world_torso @ T)[:3, 3]
 
     def _measure(self, t_s: float, state, info: dict) -> None:
@@ -218,6 +219,6 @@ class TaskTarget(Target):
             self.cut_torque_nm.append(self.torque_nm)
             self.cut_edge.append(int(self.plan.edge[k]))
             self.cut_t_s.append(t_s)
-            world = self._tool_world(state)
+            world = self._tool_world(state, T_N_E)
             if world is not None and self.offset_world_m is not None:
                 self.cut_world_m.append(world - self.offset_world_m)
