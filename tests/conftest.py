@@ -1,4 +1,4 @@
-"""Shared fixtures."""
+"""Shared fixtures, the order of the tests and their grouping on the xdist workers."""
 
 import numpy as np
 import pytest
@@ -16,8 +16,46 @@ def rng():
     return np.random.default_rng(12345)
 
 
+def _shared_module_fixture(item) -> bool:
+    """Whether the test uses a module-scoped fixture (one expensive run its module shares)."""
+    info = getattr(item, "_fixtureinfo", None)
+    if info is None:
+        return False
+    return any(defs and defs[-1].scope == "module"
+               for name in item.fixturenames
+               if (defs := info.name2fixturedefs.get(name)))
+
+
+def _group_on_one_worker(item, name: str) -> None:
+    """Suffix the test's id with its group as pytest-xdist's ``--dist loadgroup`` does: the
+    scheduler hands out a group as one unit, so a module-scoped fixture is built once, on one
+    worker. pytest-xdist sets a ``_nodeid`` attribute, which pytest from 9.1 on no longer reads
+    (its node id is structured): there the id is set here."""
+    try:
+        from _pytest.nodeid import NodeId
+    except ImportError:  # pytest < 9.1: pytest-xdist's own hook applies the mark
+        return
+    if hasattr(item, "_id") and "@" not in item.nodeid:
+        item._id = NodeId.parse(f"{item.nodeid}@{name}")
+
+
+@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
     """Long simulation tests (``@pytest.mark.slow``) first: pytest-xdist hands the tests out in
-    this order, one or two at a time, so the longest start at once and the short ones fill the
-    workers' gaps at the end instead of one long test running alone."""
+    this order, so the longest start at once and the short ones fill the workers' gaps at the
+    end instead of one long test running alone.
+
+    Tests that share a module-scoped fixture form one group (``xdist_group``, named after
+    their module unless the module names one): a run they share happens once, not once per
+    worker and again whenever another module's test ran in between."""
     items.sort(key=lambda item: item.get_closest_marker("slow") is None)
+    grouping = getattr(config.option, "loadgroup", False)  # set on pytest-xdist's workers
+    for item in items:
+        mark = item.get_closest_marker("xdist_group")
+        if mark is None and _shared_module_fixture(item):
+            group = pytest.mark.xdist_group(item.module.__name__)
+            item.add_marker(group)
+            mark = group.mark
+        if grouping and mark is not None:
+            _group_on_one_worker(item, str(mark.args[0] if mark.args
+                                           else mark.kwargs.get("name", "default")))
