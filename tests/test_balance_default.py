@@ -112,10 +112,17 @@ def test_a_push_that_tips_the_body_over_its_heels_is_not_leaned_against(model, t
 @pytest.mark.parametrize(("push_n", "direction", "duration_s"),
                          [(80.0, (1.0, 0.0, 0.0), 2.6), (60.0, (0.0, 1.0, 0.0), 1.8)])
 def test_a_push_inside_the_feet_ceiling_is_survived_in_place(model, push_n, direction,
-                                                             duration_s):
+                                                             duration_s, tmp_path):
+    import polars as pl
+
     # 0.2 s on the torso: 80 N forward rocks the body onto its toes (the ceiling of a stance
     # that only moves its ankles is about 84 N, see the README), 60 N sideways barely tilts it
-    result = stand(model, duration_s=duration_s, push_n=push_n, push_direction=direction)
+    result = stand(model, duration_s=duration_s, push_n=push_n, push_direction=direction,
+                   out=tmp_path)
     assert not result.fell
     assert result.max_tilt_deg > 0.3  # the push did move the body
     assert result.max_foot_shift_mm < 5.0  # no step, no slide (rocking moves a sole ~1 mm)
+    # the ceiling is not the limiter's: the body rocks on its soles' edges as one piece, and no
+    # joint command needs clamping on the way (docs/push-ceiling.md)
+    log = pl.read_csv(tmp_path / "log.csv")
+    assert log["limiter_clamped_count"].max() == 0

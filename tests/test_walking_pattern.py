@@ -109,6 +109,18 @@ def forward_gait(params):
     return make_gait(right, left, steps, params, 0.005, 0.59, 0.0, 0.02)
 
 
+def test_one_metre_forward_averages_over_a_tenth_of_a_metre_a_second(params):
+    """The walk 1 m forward (``hubo walk --to 1.0 0 0``, the walk's ``average_speed_m_s``: the
+    goal's distance over the time from the start to the last step's end, lead-in included)
+    averages at least 0.1 m/s with a margin when no correction follows (the robot file's step
+    length and timing: 0.112 m/s)."""
+    right, left = start_feet(params)
+    steps = plan_footsteps(right, left, Stance(1.0, 0.0, 0.0), params)
+    gait = make_gait(right, left, steps, params, 0.005, 0.59, 0.0, 0.02)
+    walking_s = (np.nonzero(gait.step_index >= 0)[0][-1] + 1) * gait.period_s
+    assert 1.0 / walking_s >= 0.105
+
+
 def test_pattern_zmp_tracks_and_stays_in_support(forward_gait, walking_model):
     """The cart-table ZMP of the CoM path follows the reference within 3 mm after the lead-in
     and lies inside the support polygon (the soles on the ground) in every period."""

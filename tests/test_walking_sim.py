@@ -40,6 +40,7 @@ def test_walk_goes_forward_without_falling(short_walk):
     assert "walk.png" in summary["files"] and (out / "walk.png").exists()
     # four 75 mm steps: the stance moved most of the 0.3 m (the feet slip a few cm at most)
     assert summary["final_error_mm"] < 60.0
+    assert summary["zmp_inside_fraction"] >= 0.99
     last = summary["footsteps"][-1]
     assert last["x_m"] == pytest.approx(0.3, abs=0.002)
 
@@ -73,6 +74,9 @@ def test_walk_sideways_without_falling(side_walk):
     # one plan, no correction: the feet slip about 10 mm over 0.3 m sideways
     assert summary["final_error_mm"] < 40.0
     assert summary["final_error_deg"] < 3.0
-    assert summary["zmp_inside_fraction"] > 0.8
+    # the ZMP of the soles in contact (their wrenches low-passed at 5 Hz) stayed inside their
+    # hull in every period (the unfiltered reading jumps at landings: about 0.9)
+    assert summary["zmp_inside_fraction"] >= 0.99
+    assert summary["zmp_inside_fraction_raw"] > 0.8
     last = summary["footsteps"][-2:]
     assert sorted(s["y_m"] for s in last) == pytest.approx([0.0, 0.24], abs=0.002)

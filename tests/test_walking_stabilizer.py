@@ -129,3 +129,39 @@ def test_measured_zmp_weights_the_soles_and_measures_the_hull():
     none, far = measured_zmp(poses, {"right": wrench_at(0.0, 0.0, 5.0),
                                      "left": wrench_at(0.0, 0.0, 5.0)}, corners)
     assert none is None and far == float("inf")
+
+
+def test_one_loaded_sole_measures_against_its_own_outline():
+    """One loaded sole: the hull is the sole itself (its corners counter-clockwise), a CoP 5 mm
+    inside its outer edge lies 5 mm inside, one on that edge is not inside."""
+    corners = np.array([[-0.11, -0.065, 0.0], [0.11, -0.065, 0.0], [0.11, 0.065, 0.0],
+                        [-0.11, 0.065, 0.0]])
+    poses = {"right": np.eye(4), "left": np.eye(4)}
+    poses["left"][1, 3] = 0.24
+    idle = wrench_at(0.0, 0.0, 0.0)
+    zmp, outside = measured_zmp(poses, {"right": wrench_at(0.0, -0.06, 300.0), "left": idle},
+                                corners)
+    assert zmp == pytest.approx([0.0, -0.06], abs=1e-12)
+    assert outside == pytest.approx(-0.005, abs=1e-9)
+    _, on_edge = measured_zmp(poses, {"right": wrench_at(0.0, -0.065, 300.0), "left": idle},
+                              corners)
+    assert on_edge > -0.001
+
+
+def test_contact_wrenches_average_a_jumping_reading_and_follow_a_landing():
+    """A sole's F_z jumping between 0 and 760 N every period (what the simulated sensor reads
+    at transitions) averages to about 380 N and keeps the sole in contact; a landing from 0 to
+    380 N is followed at 5 Hz: past 25 N within 2 periods, 63 % within about 32 ms."""
+    from hubo_cli.walking.target import ContactWrenches
+
+    wrenches = ContactWrenches(DT)
+    readings = []
+    for k in range(200):
+        filtered = wrenches.update({"right": wrench_at(0.01, 0.0, 760.0 * (k % 2))})
+        readings.append(filtered["right"][2])
+    assert min(readings[100:]) > 300.0 and max(readings[100:]) < 460.0
+    landing = ContactWrenches(DT)
+    landing.update({"left": wrench_at(0.0, 0.0, 0.0)})
+    fz = [landing.update({"left": wrench_at(0.0, 0.0, 380.0)})["left"][2] for _ in range(12)]
+    assert fz[1] > 25.0
+    assert 0.5 * 380.0 < fz[5] < 0.75 * 380.0

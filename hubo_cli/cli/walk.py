@@ -54,7 +54,8 @@ def walk(goal: tuple[float, float, float], corrections: int, no_estop: bool, gui
                       f"({result.average_speed_m_s:.3f} m/s)")
         console.print(f"final error       {result.final_error_mm:.1f} mm, "
                       f"{result.final_error_deg:.2f} deg")
-        console.print(f"ZMP inside        {100 * result.zmp_inside_fraction:.1f} % of periods")
+        console.print(f"ZMP inside        {100 * result.zmp_inside_fraction:.1f} % of periods "
+                      f"(unfiltered sensors {100 * result.zmp_inside_fraction_raw:.1f} %)")
         console.print(f"e-stop events     {result.estop_events}")
         console.print(f"run folder        {result.run_dir} (log, snapshot.png, summary.json)")
     if result.fell:

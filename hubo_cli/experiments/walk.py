@@ -32,9 +32,14 @@ class WalkResult:
         steps: footsteps planned (all taken unless the run ended early).
         average_speed_m_s: the goal's distance over the time from the start to the last
             step's end.
-        zmp_inside_fraction: of the periods with a loaded sole, the share whose ZMP (ankle
-            force/torque) lay inside the loaded soles' convex hull by at least 1 mm. (The
-            ground cannot push outside the hull: a ZMP on its edge means a sole tipping.)
+        zmp_inside_fraction: of the periods with a sole in contact, the share whose ZMP lay
+            inside the convex hull of the soles in contact by at least 1 mm (the ground cannot
+            push outside the hull: a ZMP on its edge means a sole tipping). The ZMP and the
+            contacts are those of the ankles' force/torque low-passed at 5 Hz, contact above
+            25 N, as the simulator and the reports decide contact
+            (:class:`~hubo_cli.walking.target.ContactWrenches` says why).
+        zmp_inside_fraction_raw: the same from each period's unfiltered reading, a sole
+            counting above 10 N.
         ended: how the loop ended.
         run_dir: the run folder.
     """
@@ -45,6 +50,7 @@ class WalkResult:
     steps: int
     average_speed_m_s: float
     zmp_inside_fraction: float
+    zmp_inside_fraction_raw: float
     walking_s: float
     ended: str
     estop_events: int
@@ -55,7 +61,9 @@ class WalkResult:
         return {"fell": self.fell, "final_error_mm": self.final_error_mm,
                 "final_error_deg": self.final_error_deg, "steps": self.steps,
                 "average_speed_m_s": self.average_speed_m_s,
-                "zmp_inside_fraction": self.zmp_inside_fraction, "walking_s": self.walking_s,
+                "zmp_inside_fraction": self.zmp_inside_fraction,
+                "zmp_inside_fraction_raw": self.zmp_inside_fraction_raw,
+                "walking_s": self.walking_s,
                 "footsteps": self.footsteps}
 
 
@@ -113,6 +121,8 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
         average_speed_m_s=distance / walking_s if walking_s > 0 else 0.0,
         zmp_inside_fraction=(target.zmp_inside_periods / target.zmp_periods
                              if target.zmp_periods else 0.0),
+        zmp_inside_fraction_raw=(target.raw_zmp_inside_periods / target.raw_zmp_periods
+                                 if target.raw_zmp_periods else 0.0),
         walking_s=walking_s, ended=done.loop.ended,
         estop_events=len(done.summary["estop_events"]),
         footsteps=[s.to_json() for s in target.steps], run_dir=done.run_dir)

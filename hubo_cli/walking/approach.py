@@ -204,6 +204,8 @@ class WalkFirst(Target):
             "average_speed_m_s": distance / walking_s if walking_s > 0 else 0.0,
             "zmp_inside_fraction": (walk.zmp_inside_periods / walk.zmp_periods
                                     if walk.zmp_periods else 0.0),
+            "zmp_inside_fraction_raw": (walk.raw_zmp_inside_periods / walk.raw_zmp_periods
+                                        if walk.raw_zmp_periods else 0.0),
             "walking_s": walking_s, "handover_s": self.handover_s,
             "wall_clearance_mm": (1000 * self.wall_clearance_m
                                   if math.isfinite(self.wall_clearance_m) else None),

@@ -47,10 +47,9 @@ def roll_matrix(roll_rad: float) -> np.ndarray:
 
 def pose_of_row(row: np.ndarray) -> np.ndarray:
     """T_world_sole (4x4) of a (x, y, z, yaw) row, the sole flat."""
-    T = np.eye(4)
-    T[:3, :3] = yaw_matrix(float(row[3]))
-    T[:3, 3] = row[:3]
-    return T
+    x, y, z, yaw = row.tolist() if isinstance(row, np.ndarray) else (float(v) for v in row)
+    c, s = math.cos(yaw), math.sin(yaw)  # plain floats: the stabilizer runs this every period
+    return np.array([[c, -s, 0.0, x], [s, c, 0.0, y], [0.0, 0.0, 1.0, z], [0.0, 0.0, 0.0, 1.0]])
 
 
 @dataclass(frozen=True)

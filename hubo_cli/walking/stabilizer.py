@@ -52,7 +52,9 @@ class StabilizerGains:
 
     Attributes:
         damping_roll_nm_s_rad, damping_pitch_nm_s_rad: D of the foot damping control about the
-            sole's x and y axes (N m s/rad).
+            sole's x and y axes (N m s/rad). 60 / 120: walking 0.3 m sideways the ZMP stayed
+            inside the soles in contact in every period, against 98.9 % with the former
+            300 / 600 (one run each; 1 m forward and the turning walk: 100 % with both).
         time_constant_s: T, the leak back to the pattern of a loaded sole (s).
         swing_time_constant_s: the same for an unloaded sole (s).
         max_sole_rad: bound on each sole rotation (rad).
@@ -67,8 +69,8 @@ class StabilizerGains:
         touchdown_time_constant_s: the held height fades to the pattern's with this (s).
     """
 
-    damping_roll_nm_s_rad: float = 300.0
-    damping_pitch_nm_s_rad: float = 600.0
+    damping_roll_nm_s_rad: float = 60.0
+    damping_pitch_nm_s_rad: float = 120.0
     time_constant_s: float = 1.5
     swing_time_constant_s: float = 0.1
     max_sole_rad: float = 0.1
@@ -121,7 +123,7 @@ class SoleDamper:
         """One period with the sole's measured wrench [fx, fy, fz, mx, my, mz] (about the sole
         frame's origin, sole axes); returns ``delta_rad``."""
         g = self.gains
-        fx, fy, fz, mx, my, mz = (float(v) for v in wrench)
+        fx, fy, fz, mx, my, mz = np.asarray(wrench, dtype=float).tolist()  # plain floats
         roll, pitch = float(self.delta_rad[0]), float(self.delta_rad[1])
         if fz > LOADED_N and math.isfinite(mx + my + fx + fy + mz):
             x0, x1, y0, y1 = self.safe

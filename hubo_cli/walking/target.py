@@ -8,12 +8,12 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from hubo_cli.balance_report import CONTACT_CUTOFF_HZ, CONTACT_THRESHOLD_N
 from hubo_cli.control.capture_point import CapturePointMonitor, convex_hull, outside_distance
 from hubo_cli.control.target import Target, TargetOutput
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.errors import ConfigError
 from hubo_cli.falls import has_fallen
-from hubo_cli.geometry import tilt_rad_of_matrix
 from hubo_cli.model import RobotModel
 from hubo_cli.state import RobotState
 from hubo_cli.walking.body import SIDE_LEG, JointPlan, WalkingBody, pose_of_row
@@ -47,39 +47,70 @@ def footstep_of(side: str, T_world_sole: np.ndarray) -> Footstep:
 
 
 def measured_zmp(poses: dict[str, np.ndarray], wrenches: dict[str, np.ndarray],
-                 corners_m: np.ndarray) -> tuple[np.ndarray | None, float]:
+                 corners_m: np.ndarray, loaded_n: float = LOADED_N
+                 ) -> tuple[np.ndarray | None, float]:
     """The ZMP from the ankles' force/torque (world x, y; None when no sole is loaded) and how
-    far it lies outside the loaded soles' convex hull (m; <= 0 inside).
+    far it lies outside the loaded soles' convex hull (m; <= 0 inside). A sole is loaded when
+    its F_z exceeds ``loaded_n`` (N).
 
     Args:
         poses: side -> T_world_sole (4x4).
         wrenches: side -> [fx, fy, fz, mx, my, mz] of the ground on the sole, about the sole
             frame's origin in sole axes (N, N m).
-        corners_m: the sole's corners in its own frame (4 x 3).
+        corners_m: the sole's corners in its own frame (4 x 3), counter-clockwise.
     """
     total = weighted_x = weighted_y = 0.0
     points = []
     for side, T in poses.items():
-        f = wrenches[side]
-        fz = float(f[2])
-        if not fz > LOADED_N:
+        _, _, fz, mx, my, _ = wrenches[side].tolist()  # plain floats: this runs every period
+        if not fz > loaded_n:
             continue
-        px, py = -float(f[4]) / fz, float(f[3]) / fz  # the sole's CoP: -m_y/f_z, m_x/f_z
-        weighted_x += fz * (T[0, 0] * px + T[0, 1] * py + T[0, 3])
-        weighted_y += fz * (T[1, 0] * px + T[1, 1] * py + T[1, 3])
+        px, py = -my / fz, mx / fz  # the sole's CoP: -m_y/f_z, m_x/f_z
+        (r00, r01, _, x), (r10, r11, _, y) = T[:2].tolist()
+        weighted_x += fz * (r00 * px + r01 * py + x)
+        weighted_y += fz * (r10 * px + r11 * py + y)
         total += fz
         points.append(corners_m[:, :2] @ T[:2, :2].T + T[:2, 3])
     if total == 0.0:
         return None, math.inf
     zmp = np.array((weighted_x / total, weighted_y / total))
-    return zmp, float(outside_distance(convex_hull(np.concatenate(points)), zmp))
+    hull = points[0] if len(points) == 1 else convex_hull(np.concatenate(points))
+    return zmp, float(outside_distance(hull, zmp))
+
+
+class ContactWrenches:
+    """The soles' wrenches as the walk's ZMP figure reads them: each ankle's F_z, m_x and m_y
+    low-passed at CONTACT_CUTOFF_HZ (first order, started at the first reading), the filter
+    that decides contact in the simulator and the reports (a sole counts as support while its
+    filtered F_z exceeds CONTACT_THRESHOLD_N).
+
+    The simulated ankle sensors read the contact forces of the last physics step, which jump
+    between the feet at touch-down and lift-off: for 0.1 s after a landing the two F_z sum to
+    100-160 N (the robot weighs about 380 N) while the torso's height stays within 0.5 mm, a
+    reading no motion of the robot produces. Averaged over the filter's 32 ms, they keep the
+    momentum the ground actually gave."""
+
+    def __init__(self, period_s: float) -> None:
+        tau = 1.0 / (2.0 * math.pi * CONTACT_CUTOFF_HZ)
+        self.alpha = period_s / (period_s + tau)
+        self.filtered: dict[str, np.ndarray] = {}
+
+    def update(self, wrenches: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """One period's raw wrenches (side -> [fx, fy, fz, mx, my, mz]); the filtered ones."""
+        for side, wrench in wrenches.items():
+            w = np.asarray(wrench, dtype=float)
+            if not np.all(np.isfinite(w)):
+                continue
+            last = self.filtered.get(side)
+            self.filtered[side] = w.copy() if last is None else last + self.alpha * (w - last)
+        return self.filtered
 
 
 def tilt_between(z_from: np.ndarray, z_to: np.ndarray) -> np.ndarray:
     """The smallest rotation (3x3) turning the unit vector ``z_from`` onto ``z_to`` (Rodrigues'
     formula, in plain floats: it runs every control period)."""
-    ax, ay, az = (float(v) for v in z_from)
-    bx, by, bz = (float(v) for v in z_to)
+    ax, ay, az = np.asarray(z_from, dtype=float).tolist()
+    bx, by, bz = np.asarray(z_to, dtype=float).tolist()
     kx, ky, kz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
     s = math.sqrt(kx * kx + ky * ky + kz * kz)
     if s < 1e-12:
@@ -97,7 +128,7 @@ def tilt_between(z_from: np.ndarray, z_to: np.ndarray) -> np.ndarray:
 def imu_z_axis(q_wxyz: np.ndarray) -> np.ndarray:
     """The world's view of the torso's z axis (3,) from the IMU's quaternion (w, x, y, z;
     normalised here): the third column of its rotation matrix."""
-    w, x, y, z = (float(v) for v in q_wxyz)
+    w, x, y, z = np.asarray(q_wxyz, dtype=float).tolist()
     n2 = w * w + x * x + y * y + z * z
     return np.array([2.0 * (x * z + w * y) / n2, 2.0 * (y * z - w * x) / n2,
                      1.0 - 2.0 * (x * x + y * y) / n2])
@@ -147,11 +178,11 @@ class WalkTarget(Target):
 
     log_columns = ("walk.zmp_ref_x_m", "walk.zmp_ref_y_m", "walk.com_ref_x_m",
                    "walk.com_ref_y_m", "walk.zmp_x_m", "walk.zmp_y_m", "walk.zmp_outside_m",
-                   "walk.step", "walk.tilt_deg", "planned_right_foot_contact_flag",
-                   "planned_left_foot_contact_flag", "walk.offset_x_m", "walk.offset_y_m",
-                   "walk.right_lift_m", "walk.left_lift_m", "walk.right_sole_roll_rad",
-                   "walk.right_sole_pitch_rad", "walk.left_sole_roll_rad",
-                   "walk.left_sole_pitch_rad")
+                   "walk.contact_zmp_outside_m", "walk.step", "walk.tilt_deg",
+                   "planned_right_foot_contact_flag", "planned_left_foot_contact_flag",
+                   "walk.offset_x_m", "walk.offset_y_m", "walk.right_lift_m", "walk.left_lift_m",
+                   "walk.right_sole_roll_rad", "walk.right_sole_pitch_rad",
+                   "walk.left_sole_roll_rad", "walk.left_sole_pitch_rad")
 
     def __init__(self, model: RobotModel, params: WalkingParams, goal: tuple[float, float, float],
                  q_start_rad: np.ndarray, T_world_neck_start: np.ndarray,
@@ -173,6 +204,9 @@ class WalkTarget(Target):
         self.fell = False
         self.zmp_periods = 0
         self.zmp_inside_periods = 0
+        self.raw_zmp_periods = 0
+        self.raw_zmp_inside_periods = 0
+        self.contact_wrenches = ContactWrenches(model.control_period_s)
         self.torso_z0_m: float | None = None
         self.final_feet: dict[str, np.ndarray] = {}
         self.steps: list[Footstep] = []
@@ -241,6 +275,13 @@ class WalkTarget(Target):
                                                     params.zmp_weight, params.jerk_weight)
         self.body = body
         self._support_poses = planned_support(self.gait)
+        # per-period rows as plain floats and bools for the loop (cheaper than numpy scalars)
+        gait = self.gait
+        self._rows = {"support": gait.support.tolist(), "zmp_ref": gait.zmp_ref_m.tolist(),
+                      "com_ref": gait.com.com_m.tolist(), "plan_com": self.plan.com_m.tolist(),
+                      "step": gait.step_index.tolist(),
+                      **{side: gait.feet[side].tolist() for side in ("right", "left")}}
+        self._sole_z0 = {side: float(gait.feet[side][0, 2]) for side in ("right", "left")}
         self.plan_start_s = t_s
         self.k = 0
         self.steps.extend(steps)
@@ -268,31 +309,41 @@ class WalkTarget(Target):
         gait, plan, world = self.gait, self.plan, self.world
         k = min(self.k, gait.n - 1)
         self.k += 1
-        tilt = math.degrees(tilt_rad_of_matrix(state.T_world_torso[:3, :3]))
+        (_, _, r02, _), (_, _, r12, _), (_, _, r22, torso_z) = \
+            state.T_world_torso[:3].tolist()
+        tilt = math.degrees(math.atan2(math.hypot(r02, r12), r22))  # tilt_rad_of_matrix
         if self.torso_z0_m is None:
-            self.torso_z0_m = float(state.T_world_torso[2, 3])
-        if has_fallen(tilt, self.torso_z0_m - float(state.T_world_torso[2, 3])):
+            self.torso_z0_m = torso_z
+        if has_fallen(tilt, self.torso_z0_m - torso_z):
             self.fell = True
         poses = {side: world.frame_pose(frame) for side, frame, _ in SOLES}
-        zmp, outside = measured_zmp(poses, {side: state.ft[sensor]
-                                            for side, _, sensor in SOLES}, self.corners)
+        wrenches = {side: state.ft[sensor] for side, _, sensor in SOLES}
+        zmp, outside = measured_zmp(poses, wrenches, self.corners)
         if zmp is not None:
+            self.raw_zmp_periods += 1
+            self.raw_zmp_inside_periods += outside <= -ZMP_INSIDE_MARGIN_M
+        support_zmp, support_outside = measured_zmp(
+            poses, self.contact_wrenches.update(wrenches), self.corners, CONTACT_THRESHOLD_N)
+        if support_zmp is not None:
             self.zmp_periods += 1
-            self.zmp_inside_periods += outside <= -ZMP_INSIDE_MARGIN_M
+            self.zmp_inside_periods += support_outside <= -ZMP_INSIDE_MARGIN_M
         self.final_feet = poses
         q = plan.q_rad[k]
         if self.stabilizer is not None:
             q = self._stabilized(k, q.copy(), state, zmp)
-        info = {"walk.zmp_ref_x_m": float(gait.zmp_ref_m[k, 0]),
-                "walk.zmp_ref_y_m": float(gait.zmp_ref_m[k, 1]),
-                "walk.com_ref_x_m": float(gait.com.com_m[k, 0]),
-                "walk.com_ref_y_m": float(gait.com.com_m[k, 1]),
-                "walk.zmp_x_m": math.nan if zmp is None else float(zmp[0]),
-                "walk.zmp_y_m": math.nan if zmp is None else float(zmp[1]),
+        rows = self._rows
+        zmp_x, zmp_y = (math.nan, math.nan) if zmp is None else zmp.tolist()
+        support = rows["support"][k]
+        (zmp_ref_x, zmp_ref_y), (com_ref_x, com_ref_y) = rows["zmp_ref"][k], rows["com_ref"][k]
+        info = {"walk.zmp_ref_x_m": zmp_ref_x, "walk.zmp_ref_y_m": zmp_ref_y,
+                "walk.com_ref_x_m": com_ref_x, "walk.com_ref_y_m": com_ref_y,
+                "walk.zmp_x_m": zmp_x, "walk.zmp_y_m": zmp_y,
                 "walk.zmp_outside_m": outside if math.isfinite(outside) else math.nan,
-                "walk.step": float(gait.step_index[k]), "walk.tilt_deg": tilt,
-                "planned_right_foot_contact_flag": float(gait.support[k, 0]),
-                "planned_left_foot_contact_flag": float(gait.support[k, 1]),
+                "walk.contact_zmp_outside_m": (support_outside if math.isfinite(support_outside)
+                                               else math.nan),
+                "walk.step": float(rows["step"][k]), "walk.tilt_deg": tilt,
+                "planned_right_foot_contact_flag": float(support[0]),
+                "planned_left_foot_contact_flag": float(support[1]),
                 **self._stabilizer_info(),
                 "done": self.fell or (self.k >= gait.n and (self.corrections_left == 0
                                                              or self.arrived()))}
@@ -316,36 +367,39 @@ class WalkTarget(Target):
         """The torso's pose in the world (4x4) as a real robot can measure it: tilted as the
         IMU says (heading from the pattern), placed by the measured leg kinematics of the more
         loaded planned support sole standing where the pattern put it."""
-        gait, body = self.gait, self.body
-        side = max(("right", "left"), key=lambda s: (
-            bool(gait.support[k, 0 if s == "right" else 1]), float(state.ft[SOLES_SENSOR[s]][2])))
+        body = self.body
+        right_down, left_down = self._rows["support"][k]
+        ranks = {"right": (right_down, float(state.ft[SOLES_SENSOR["right"]][2])),
+                 "left": (left_down, float(state.ft[SOLES_SENSOR["left"]][2]))}
+        side = "left" if ranks["left"] > ranks["right"] else "right"
         name = SIDE_LEG[side]
         T_neck_sole = body.legs[name].fk(state.q_rad[body.slices[name]])
         R_plan = self.plan.T_world_neck[k, :3, :3]
         R = tilt_between(R_plan[:, 2], imu_z_axis(state.imu_quat_wxyz)) @ R_plan
         T = np.eye(4)
         T[:3, :3] = R
-        T[:3, 3] = gait.feet[side][k, :3] - R @ T_neck_sole[:3, 3]
+        T[:3, 3] = np.array(self._rows[side][k][:3]) - R @ T_neck_sole[:3, 3]
         return T
 
     def _stabilized(self, k: int, q: np.ndarray, state: RobotState,
                     zmp: np.ndarray | None) -> np.ndarray:
         """The pattern's joints ``q`` with the stabilizer's corrections (see
         :mod:`hubo_cli.walking.stabilizer`)."""
-        gait, plan, body = self.gait, self.plan, self.body
+        plan, body = self.plan, self.body
         T_world_neck_measured = self._measured_neck(k, state)
         com = T_world_neck_measured[:3, :3] @ body.com_in_neck(state.q_rad) \
             + T_world_neck_measured[:3, 3]
-        offset = self.torso_offset.update(zmp, gait.zmp_ref_m[k], com[:2], plan.com_m[k, :2])
+        offset = self.torso_offset.update(zmp, self._rows["zmp_ref"][k], com[:2].tolist(),
+                                          self._rows["plan_com"][k])
         T_world_neck = plan.T_world_neck[k].copy()
         T_world_neck[:2, 3] += offset
         T_neck_world = rigid_inverse(T_world_neck)
         for column, side in enumerate(("right", "left")):
             name = SIDE_LEG[side]
             part = body.slices[name]
-            row = gait.feet[side][k]
+            row = self._rows[side][k]
             lift = self.touchdowns[side].update(
-                bool(not gait.support[k, column]), float(row[2] - gait.feet[side][0, 2]),
+                not self._rows["support"][k][column], row[2] - self._sole_z0[side],
                 float(state.ft[SOLES_SENSOR[side]][2]))
             T_world_sole = pose_of_row(row)
             T_world_sole[2, 3] += lift
