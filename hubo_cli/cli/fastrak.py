@@ -206,6 +206,7 @@ def record(port: str, out: Path, duration: float | None, baud: int, fmt: str, ou
         pass
     finally:
         src.close()
+    samples += src.read_until(src.now_s())  # what closing completed (counted in its stats)
     batch = samples_batch(samples)
     if csv_path is not None:
         write_pose_log(csv_path, batch)
