@@ -74,7 +74,8 @@ def _canonical(q):
 
 
 @nb.njit(**JIT)
-def _quat_to_matrix(q, R):
+def quat_to_matrix_into(q, R):
+    """R (3x3, in place) = the rotation of quaternion q (w, x, y, z), normalised first."""
     n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
     w, x, y, z = q[0] / n, q[1] / n, q[2] / n, q[3] / n
     R[0, 0] = 1 - 2 * (y * y + z * z)
@@ -157,7 +158,7 @@ def _rpy_to_quat(rpy, q):
 def _quats_to_matrices(q):
     out = np.empty((q.shape[0], 3, 3))
     for i in range(q.shape[0]):
-        _quat_to_matrix(q[i], out[i])
+        quat_to_matrix_into(q[i], out[i])
     return out
 
 

@@ -18,6 +18,7 @@ import weakref
 import numba as nb
 import numpy as np
 
+from hubo_cli.geometry import quat_to_matrix_into
 from hubo_cli.kinematics.dh import JIT, chain_fk, invert4
 from hubo_cli.model import LEGS
 
@@ -93,6 +94,56 @@ def _turn(yaw, R_in, R):
 
 
 @nb.njit(**JIT)
+def _legs_fk(q, first, bases, dh, ends, soles, R_legs, p):
+    """Per leg the neck's orientation in S seen through that leg, R_S_N = R_S_sole R_N_sole^T,
+    into ``R_legs`` (2, 3, 3); the sum of the two soles' positions in the neck frame into ``p``
+    (3,, zeroed by the caller)."""
+    T = np.empty((4, 4))
+    for leg in range(2):
+        i0 = first[leg]
+        chain_fk(q[i0:i0 + 6], bases[leg], dh[leg, 0], dh[leg, 1], dh[leg, 2], dh[leg, 3],
+                 ends[leg], T)
+        S = soles[leg]
+        for i in range(3):
+            for j in range(3):
+                R_legs[leg, i, j] = S[i, 0] * T[j, 0] + S[i, 1] * T[j, 1] + S[i, 2] * T[j, 2]
+            p[i] += T[i, 3]
+
+
+@nb.njit(**JIT)
+def _legs_mean(R_legs, R):
+    """The geodesic mean of the two legs' orientations: R = R_0 exp(log(R_0^T R_1) / 2)."""
+    D = np.empty((3, 3))
+    A = R_legs[0]
+    for i in range(3):
+        for j in range(3):
+            D[i, j] = A[0, i] * R_legs[1, 0, j] + A[1, i] * R_legs[1, 1, j] \
+                + A[2, i] * R_legs[1, 2, j]
+    w = np.empty(3)
+    _log3(D, w)
+    for i in range(3):
+        w[i] /= 2
+    E = np.empty((3, 3))
+    _exp3(w, E)
+    _mul3(A, E, R)
+
+
+@nb.njit(**JIT)
+def _neck_on_soles(R, p, soles, out):
+    """out = T_S_N with orientation R, placed so that each foot pivots about its sole origin
+    (the mean of the two legs' neck positions)."""
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = R[i, j]
+        out[i, 3] = (soles[0, i, 3] + soles[1, i, 3]
+                     - (R[i, 0] * p[0] + R[i, 1] * p[1] + R[i, 2] * p[2])) / 2
+    out[3, 0] = 0.0
+    out[3, 1] = 0.0
+    out[3, 2] = 0.0
+    out[3, 3] = 1.0
+
+
+@nb.njit(**JIT)
 def stance_pose(q, first, bases, dh, ends, soles, R_imu, heading, mode, out):
     """out = T_S_N (4x4) from the legs' joints.
 
@@ -108,48 +159,19 @@ def stance_pose(q, first, bases, dh, ends, soles, R_imu, heading, mode, out):
         mode: ``ENCODERS``, ``IMU_TILT`` or ``IMU_HEADING``.
         out: T_S_N (4x4).
     """
-    T = np.empty((4, 4))
     R_legs = np.empty((2, 3, 3))
     p = np.zeros(3)
-    for leg in range(2):
-        i0 = first[leg]
-        chain_fk(q[i0:i0 + 6], bases[leg], dh[leg, 0], dh[leg, 1], dh[leg, 2], dh[leg, 3],
-                 ends[leg], T)
-        S = soles[leg]
-        for i in range(3):  # R_S_N = R_S_sole R_N_sole^T
-            for j in range(3):
-                R_legs[leg, i, j] = S[i, 0] * T[j, 0] + S[i, 1] * T[j, 1] + S[i, 2] * T[j, 2]
-            p[i] += T[i, 3]
+    _legs_fk(q, first, bases, dh, ends, soles, R_legs, p)
     R = np.empty((3, 3))
     if mode == ENCODERS:
-        D = np.empty((3, 3))
-        A = R_legs[0]
-        for i in range(3):  # D = R_0^T R_1
-            for j in range(3):
-                D[i, j] = A[0, i] * R_legs[1, 0, j] + A[1, i] * R_legs[1, 1, j] \
-                    + A[2, i] * R_legs[1, 2, j]
-        w = np.empty(3)
-        _log3(D, w)
-        for i in range(3):
-            w[i] /= 2
-        E = np.empty((3, 3))
-        _exp3(w, E)
-        _mul3(A, E, R)
+        _legs_mean(R_legs, R)
     elif mode == IMU_TILT:
         h = (math.atan2(R_legs[0, 1, 0], R_legs[0, 0, 0])
              + math.atan2(R_legs[1, 1, 0], R_legs[1, 0, 0])) / 2
         _turn(h - math.atan2(R_imu[1, 0], R_imu[0, 0]), R_imu, R)
     else:
         _turn(-heading, R_imu, R)
-    for i in range(3):
-        for j in range(3):
-            out[i, j] = R[i, j]
-        out[i, 3] = (soles[0, i, 3] + soles[1, i, 3]
-                     - (R[i, 0] * p[0] + R[i, 1] * p[1] + R[i, 2] * p[2])) / 2
-    out[3, 0] = 0.0
-    out[3, 1] = 0.0
-    out[3, 2] = 0.0
-    out[3, 3] = 1.0
+    _neck_on_soles(R, p, soles, out)
 
 
 NO_IMU = 0        # estimate_pose: no usable IMU reading this period
@@ -170,46 +192,17 @@ def estimate_pose(q, first, bases, dh, ends, soles, quat_wxyz, mode, heading, of
     starts at the reading); the fused orientation ``R_encoders exp(offset)`` places the neck
     with each foot pivoting about its sole origin.
     """
-    T = np.empty((4, 4))
     R_legs = np.empty((2, 3, 3))
     p = np.zeros(3)
-    for leg in range(2):
-        i0 = first[leg]
-        chain_fk(q[i0:i0 + 6], bases[leg], dh[leg, 0], dh[leg, 1], dh[leg, 2], dh[leg, 3],
-                 ends[leg], T)
-        S = soles[leg]
-        for i in range(3):  # R_S_N = R_S_sole R_N_sole^T
-            for j in range(3):
-                R_legs[leg, i, j] = S[i, 0] * T[j, 0] + S[i, 1] * T[j, 1] + S[i, 2] * T[j, 2]
-            p[i] += T[i, 3]
-    D = np.empty((3, 3))
-    A = R_legs[0]
-    for i in range(3):  # D = R_0^T R_1
-        for j in range(3):
-            D[i, j] = A[0, i] * R_legs[1, 0, j] + A[1, i] * R_legs[1, 1, j] \
-                + A[2, i] * R_legs[1, 2, j]
-    w = np.empty(3)
-    _log3(D, w)
-    for i in range(3):
-        w[i] /= 2
-    E = np.empty((3, 3))
-    _exp3(w, E)
+    _legs_fk(q, first, bases, dh, ends, soles, R_legs, p)
     R_enc = np.empty((3, 3))
-    _mul3(A, E, R_enc)
+    _legs_mean(R_legs, R_enc)
+    D = np.empty((3, 3))
+    w = np.empty(3)
+    E = np.empty((3, 3))
     if mode != NO_IMU:
-        qw, qx, qy, qz = quat_wxyz[0], quat_wxyz[1], quat_wxyz[2], quat_wxyz[3]
-        n = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
-        qw, qx, qy, qz = qw / n, qx / n, qy / n, qz / n
         R_imu = np.empty((3, 3))
-        R_imu[0, 0] = 1 - 2 * (qy * qy + qz * qz)
-        R_imu[0, 1] = 2 * (qx * qy - qw * qz)
-        R_imu[0, 2] = 2 * (qx * qz + qw * qy)
-        R_imu[1, 0] = 2 * (qx * qy + qw * qz)
-        R_imu[1, 1] = 1 - 2 * (qx * qx + qz * qz)
-        R_imu[1, 2] = 2 * (qy * qz - qw * qx)
-        R_imu[2, 0] = 2 * (qx * qz - qw * qy)
-        R_imu[2, 1] = 2 * (qy * qz + qw * qx)
-        R_imu[2, 2] = 1 - 2 * (qx * qx + qy * qy)
+        quat_to_matrix_into(quat_wxyz, R_imu)
         if mode == IMU_FIRST:
             legs = (math.atan2(R_legs[0, 1, 0], R_legs[0, 0, 0])
                     + math.atan2(R_legs[1, 1, 0], R_legs[1, 0, 0])) / 2
@@ -228,15 +221,7 @@ def estimate_pose(q, first, bases, dh, ends, soles, quat_wxyz, mode, heading, of
     _exp3(offset, E)
     R = np.empty((3, 3))
     _mul3(R_enc, E, R)
-    for i in range(3):
-        for j in range(3):
-            out[i, j] = R[i, j]
-        out[i, 3] = (soles[0, i, 3] + soles[1, i, 3]
-                     - (R[i, 0] * p[0] + R[i, 1] * p[1] + R[i, 2] * p[2])) / 2
-    out[3, 0] = 0.0
-    out[3, 1] = 0.0
-    out[3, 2] = 0.0
-    out[3, 3] = 1.0
+    _neck_on_soles(R, p, soles, out)
 
 
 @nb.njit(**JIT)
