@@ -23,10 +23,14 @@ from hubo_cli.cli.output import console, print_json
 @click.option("--step", is_flag=True,
               help="Catch a push the ankles cannot hold by stepping toward the capture point, "
                    "then bring the other foot beside it (the walking limit set).")
+@click.option("--no-hip", is_flag=True,
+              help="Leave out the hip strategy (the trunk bows when a push brings the capture "
+                   "point near the toes or heels; it runs on the robot file's walking limits) "
+                   "and stand on Table IV's limits.")
 @robot_run_options("sim")
 @perturb_option
 def sim(duration: float, push: float, push_direction: str, balance: str, no_balance: bool,
-        step: bool, no_estop: bool, gui: bool, as_json: bool, out: str | None,
+        step: bool, no_hip: bool, no_estop: bool, gui: bool, as_json: bool, out: str | None,
         perturb_seed: int | None) -> None:
     """Stand the simulated HUBO 2+ in its home posture and report tilt, feet and falls.
 
@@ -43,7 +47,7 @@ def sim(duration: float, push: float, push_direction: str, balance: str, no_bala
     with reserved_run_dir("sim", out) as run_dir:  # a bad --out fails before anything runs
         result = stand(load_model(), duration, push, balance=profile.balance, gui=gui,
                        out=run_dir, estop=not no_estop, perturb_seed=perturb_seed,
-                       balance_mode=profile.balance_mode, step=step,
+                       balance_mode=profile.balance_mode, step=step, hip_strategy=not no_hip,
                        push_direction=PUSH_DIRECTIONS[push_direction])
     # the run's whole summary (as in summary.json: pipeline, e-stops, perturbation draws ...)
     summary = json.loads((run_dir / "summary.json").read_text()) | {"run_dir": str(run_dir)}

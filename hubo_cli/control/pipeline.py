@@ -69,6 +69,11 @@ def _stabilizer(model, dt_s, **options):
     return Stabilizer(model, dt_s, **options)
 
 
+def _hip(model, dt_s, **options):
+    from hubo_cli.control.hip_strategy import HipStrategy
+    return HipStrategy(model, dt_s, **options)
+
+
 def _collision(model, dt_s, **options):
     from hubo_cli.control.collision import CollisionDetector
     return CollisionDetector(model, dt_s, **options)
@@ -91,6 +96,7 @@ FACTORIES: dict[str, Callable[..., Module]] = {
     "estop": _estop,
     "balance": _balance,
     "stabilizer": _stabilizer,
+    "hip": _hip,
     "collision": _collision,
     "hard-estop": _hard_estop,
     "limiter": _limiter,
@@ -174,6 +180,7 @@ class SafetyProfile:
     balance: bool = True
     balance_mode: str = "default"
     stabilizer: bool = False
+    hip_strategy: bool = False
 
     def __post_init__(self) -> None:
         if self.balance_mode not in BALANCE_MODES:
@@ -210,6 +217,9 @@ class SafetyProfile:
         if self.stabilizer and self.balance and self.balance_mode != "paper":
             k = order.index("balance") + 1  # hrpsys: abc -> st
             order = order[:k] + ("stabilizer",) + order[k:]
+        if self.hip_strategy:
+            k = order.index("collision")
+            order = order[:k] + ("hip",) + order[k:]
         return order
 
     def options(self, tools: Mapping[str, str]) -> dict[str, dict]:

@@ -19,7 +19,6 @@ from hubo_cli.errors import ConfigError, InputError
 from hubo_cli.falls import has_fallen
 from hubo_cli.geometry import tilt_rad_of_matrix
 from hubo_cli.model import RobotModel
-from hubo_cli.posture import home_posture
 from hubo_cli.session import RunResult, RunSetup, run
 
 FLAT_TOLERANCE_DEG = 1.0  # a sole tilted more than this (or without contact) is not flat
@@ -83,6 +82,18 @@ class StandingResult:
                 "max_feet_moment_difference_nm": self.max_feet_moment_difference_nm,
                 "max_foot_shift_mm": self.max_foot_shift_mm,
                 "snapshot": str(self.snapshot) if self.snapshot else None}
+
+
+def standing_posture(model: RobotModel) -> np.ndarray:
+    """The home posture with the waist moved over the feet so that the model's centre of mass
+    (pinocchio, empty hands) sits over the centre of the soles, as the tasks' CoM control
+    (:class:`~hubo_cli.kinematics.wholebody.WholeBody`, hrpsys AutoBalancer) places it: the
+    crouched home posture has it about 4 mm ahead of the centre, which leaves the toes less
+    room than the heels (a forward push held 84 N, a backward one 90 N). Torso upright, soles
+    flat (rad)."""
+    from hubo_cli.kinematics.wholebody import WholeBody
+
+    return WholeBody(model, com_control=True).solve({}).q_rad
 
 
 def check_standing_args(duration_s: float, push_n: float) -> None:
@@ -157,8 +168,12 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
           balance: bool = True, *, push_at_s: float = 1.0, push_duration_s: float = 0.2,
           push_direction=(1.0, 0.0, 0.0), gui: bool = False, out: str | Path | None = None,
           estop: bool = True, perturb_seed: int | None = None,
-          balance_mode: str = "default", step: bool = False) -> StandingResult:
+          balance_mode: str = "default", step: bool = False,
+          hip_strategy: bool = True) -> StandingResult:
     """Stand the simulated robot for ``duration_s`` and measure how it copes.
+
+    The robot stands in :func:`standing_posture` (the home posture with the model's CoM over
+    the soles' centre).
 
     Args:
         model: robot model.
@@ -180,24 +195,31 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
             (:class:`~hubo_cli.walking.capture_step.CaptureStepper`; the robot file's
             ``walking`` limit set, whose legs are fast enough to step); the summary gets
             ``capture_step``.
+        hip_strategy: bow the trunk when the capture point nears the soles' toe or heel edge
+            (:class:`~hubo_cli.control.hip_strategy.HipStrategy`, after the balancer; the
+            robot file's ``walking`` limit set, whose legs are fast enough for it); not with
+            ``step``, which answers such a push by stepping.
     """
     check_standing_args(duration_s, push_n)
     direction = np.asarray(push_direction, dtype=float)
     direction = direction / np.linalg.norm(direction)
-    q_home = home_posture(model)
+    q_home = standing_posture(model)
     n_periods = int(round(duration_s / model.control_period_s))
     target = stepper = StandTarget(q_home, n_periods, push_n * direction, push_at_s,
                                    push_duration_s)
-    if step:
+    hip = hip_strategy and not step
+    if step or hip:
         from hubo_cli.model import load_model
+
+        model = load_model(model.params_name, "walking")
+    if step:
         from hubo_cli.walking.capture_step import CaptureStepper
         from hubo_cli.walking.params import walking_params
 
-        model = load_model(model.params_name, "walking")
         stepper = CaptureStepper(target, model, walking_params(model), q_home)
     setup = RunSetup(command="sim", model=model, driver="sim", gui=gui, out=out,
                      safety=SafetyProfile(estop=estop, balance=balance,
-                                          balance_mode=balance_mode),
+                                          balance_mode=balance_mode, hip_strategy=hip),
                      duration_s=n_periods * model.control_period_s, q_start_rad=q_home,
                      perturb_seed=perturb_seed)
     done = run(setup, stepper)
@@ -206,6 +228,10 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
     done.save_summary(result.summary())
     if step:
         done.save_summary({"capture_step": stepper.summary()})
+    bow = done.module("hip")
+    if bow is not None:  # how far the trunk bowed, and that it stands upright again
+        done.save_summary({"hip_strategy": {"max_bow_rad": bow.max_abs_bow_rad,
+                                            "final_bow_rad": bow.bow_rad}})
     return result
 
 

@@ -1,0 +1,142 @@
+"""Hip strategy: bow the trunk when a push leaves the ankles nothing more to give.
+
+A standing robot pushed hard on the torso has its feet's centre of pressure on the toe (or heel)
+edge within a few control periods; from then on no ankle motion moves it further and the body
+rotates about that edge as one piece. What is left is to rotate the trunk relative to the legs
+(Horak and Nashner's hip strategy; hrpsys Stabilizer's and the multi-layer paper's answer once
+the ankles saturate): bowing the trunk toward the fall stores angular momentum in it and pushes
+the hips the other way, which slows the centre of mass.
+
+Each period, from the capture-point monitor's numbers of the same period (``cp_x_m`` and the
+shrunk support box ``support_min_x_m`` / ``support_max_x_m``, world x, along the standing
+robot's feet): while the capture point lies within ``start_m`` of the box's front (back) edge,
+the bow grows forward (backward) at ``gain`` rad/s per metre of the excess over that band, at
+most ``max_rate_rad_s``, up to ``max_bow_rad``. The bow turns both hip pitches, with the knees
+and ankles moving along so that the model's centre of mass keeps its x and height
+(:data:`BOW_JOINTS_RAD`, per rad of bow). Once the capture point has stayed inside the band
+for ``hold_s``, the bow returns to zero with time constant ``return_s`` (at most
+``return_rate_rad_s``), so the trunk stands upright again. Un-bowing turns the trunk the
+other way, which is what the body's rebound needs; the return is therefore not interrupted by
+the body rocking back into the band, and the bow never flips sign: a new bow starts only once
+the trunk is upright (re-bowing on every rock pumps a heel-to-toe limit cycle).
+
+The bow needs legs faster than Table IV's 0.6 rad/s^2: the limiter clamps it there (the robot
+file's ``walking`` limit set, legs 2.6 rad/s and 150 rad/s^2, lets it act). It never acts while
+the capture point stays more than ``start_m`` inside the shrunk soles (a standing robot, the
+cutting tasks); it is only sagittal (sideways the feet stand apart).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from hubo_cli.control.module import Cycle, Module
+from hubo_cli.errors import ConfigError
+from hubo_cli.model import RobotModel
+from hubo_cli.state import RobotState
+
+# joint offsets per rad of trunk bow (hip pitch, knee, ankle pitch), solved on the model so that
+# the torso pitches forward by 1 rad with the CoM's x and height unchanged (pinocchio)
+BOW_JOINTS_RAD = {"HP": -1.258, "KN": -0.028, "AP": 0.287}
+START_M = 0.02           # act once the capture point is this close to the shrunk support edge
+GAIN_RAD_S_PER_M = 60.0  # bow rate per metre of the capture point's excess over that band
+MAX_RATE_RAD_S = 1.5
+MAX_BOW_RAD = 0.3        # about 17 deg of trunk, on top of the body's own rocking
+HOLD_S = 0.2             # the capture point back inside the band this long: return upright
+RETURN_S = 0.5           # time constant of the return
+RETURN_RATE_RAD_S = 0.6
+RETURN_MIN_RATE_RAD_S = 0.01  # so that the return ends
+
+
+class HipStrategy(Module):
+    """Bow the trunk at the hips while the capture point nears the soles' front or back edge.
+
+    Args:
+        model: the robot model (joint names and limits).
+        start_m: the band inside the shrunk support box's front and back edges where the bow
+            starts (m, > 0).
+        gain: bow rate per metre of excess over that band (rad/s/m, > 0).
+        max_rate_rad_s, max_bow_rad: the bow's rate and size bounds (> 0).
+        hold_s: how long the capture point must stay inside the band before the return (s).
+        return_s, return_rate_rad_s: the return's time constant (s) and rate bound (rad/s).
+
+    Raises:
+        ConfigError: a non-positive bound or gain.
+    """
+
+    name = "hip"
+    log_columns = ("hip_bow_rad",)
+
+    def __init__(self, model: RobotModel, dt_s: float, start_m: float = START_M,
+                 gain: float = GAIN_RAD_S_PER_M, max_rate_rad_s: float = MAX_RATE_RAD_S,
+                 max_bow_rad: float = MAX_BOW_RAD, hold_s: float = HOLD_S,
+                 return_s: float = RETURN_S,
+                 return_rate_rad_s: float = RETURN_RATE_RAD_S) -> None:
+        values = (start_m, gain, max_rate_rad_s, max_bow_rad, return_s, return_rate_rad_s)
+        if not all(math.isfinite(v) and v > 0 for v in values) or not hold_s >= 0:
+            raise ConfigError("hip strategy gains, bounds and times must be positive",
+                              hint=f"e.g. start_m={START_M}, max_bow_rad={MAX_BOW_RAD}")
+        self.dt_s = float(dt_s)
+        self.start_m, self.gain = float(start_m), float(gain)
+        self.max_rate_rad_s, self.max_bow_rad = float(max_rate_rad_s), float(max_bow_rad)
+        self.hold_s, self.return_s = float(hold_s), float(return_s)
+        self.return_rate_rad_s = float(return_rate_rad_s)
+        names = model.joint_names
+        self._joints = [(names.index(side + joint), per_rad)
+                        for joint, per_rad in BOW_JOINTS_RAD.items() for side in "RL"]
+        self._lower, self._upper = model.lower_rad, model.upper_rad
+        self.reset(np.zeros(len(names)), None)
+
+    def reset(self, q_rad: np.ndarray, state: RobotState | None) -> None:
+        """Start upright."""
+        self.bow_rad = 0.0
+        self.max_abs_bow_rad = 0.0
+        self._inside_s = math.inf
+        self._returning = False
+
+    def _excess_m(self, cycle: Cycle) -> float:
+        """The capture point's signed excess over the band: > 0 toward the front edge, < 0
+        toward the back, 0 inside (m); 0 without the monitor's numbers."""
+        info = cycle.info
+        cp_x, lo, hi = (info.get(k) for k in ("cp_x_m", "support_min_x_m", "support_max_x_m"))
+        if cp_x is None or lo is None or hi is None or not math.isfinite(cp_x + lo + hi):
+            return 0.0
+        forward = cp_x - (hi - self.start_m)
+        backward = (lo + self.start_m) - cp_x
+        if forward > 0 and forward >= backward:
+            return forward
+        if backward > 0:
+            return -backward
+        return 0.0
+
+    def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
+        excess = self._excess_m(cycle)
+        bow, dt = self.bow_rad, cycle.dt_s
+        if bow != 0.0 and (excess * bow < 0.0 or self._returning):
+            excess = 0.0  # the body rocking back: the bow returns first, it never flips
+        if excess != 0.0:
+            self._inside_s = 0.0
+            rate = min(self.gain * abs(excess), self.max_rate_rad_s)
+            bow = min(max(bow + math.copysign(rate * dt, excess), -self.max_bow_rad),
+                      self.max_bow_rad)
+        else:
+            self._inside_s += dt
+            if self._inside_s >= self.hold_s and bow != 0.0:
+                self._returning = True
+                step = max(min(abs(bow) / self.return_s, self.return_rate_rad_s),
+                           RETURN_MIN_RATE_RAD_S) * dt
+                bow = 0.0 if abs(bow) <= step else bow - math.copysign(step, bow)
+        if bow == 0.0:
+            self._returning = False
+        self.bow_rad = bow
+        self.max_abs_bow_rad = max(self.max_abs_bow_rad, abs(bow))
+        cycle.info["hip_bow_rad"] = bow
+        if bow == 0.0:
+            return q_rad
+        q = np.array(q_rad, dtype=float)
+        for i, per_rad in self._joints:
+            if math.isfinite(q[i]):
+                q[i] = min(max(q[i] + per_rad * bow, self._lower[i]), self._upper[i])
+        return q
