@@ -7,7 +7,8 @@ project's modules the default is::
 
 ``otg`` (ruckig) is the sequence player, ``estop`` the soft emergency stopper, ``balance`` the
 ankle balancer (in place of abc/st; ``stabilizer``, the CoM/ZMP feedback on the waist, can
-follow it), ``collision`` the collision detector, ``hard-estop`` the
+follow it; ``hip``, the hip strategy of the standing experiment, comes before ``collision``),
+``collision`` the collision detector, ``hard-estop`` the
 second stopper (freeze preset, reacting only to the ``hard`` source) and ``limiter`` the soft
 error limiter. The capture-point monitor passes the command through; it sits before ``estop``
 so that its request is seen in the same period. ``hoff-arbib`` can replace ``otg``.
@@ -169,6 +170,10 @@ class SafetyProfile:
             (:class:`hubo_cli.control.stabilizer.Stabilizer`); off by default (under the
             legs' 0.6 rad/s^2 it does not yet help a 90 N push); the paper's mode runs
             without it.
+        hip_strategy: add the hip strategy before the collision detector
+            (:class:`hubo_cli.control.hip_strategy.HipStrategy`: the trunk bows when the
+            capture point nears the toes or heels); off by default, on in the standing
+            experiment, whose legs run the ``walking`` limit set it needs.
     """
 
     estop: bool = True
