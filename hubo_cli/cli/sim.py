@@ -25,8 +25,8 @@ from hubo_cli.cli.output import console, print_json
                    "then bring the other foot beside it (the walking limit set).")
 @click.option("--no-hip", is_flag=True,
               help="Leave out the hip strategy (the trunk bows when a push brings the capture "
-                   "point near the toes or heels; it runs on the robot file's walking limits) "
-                   "and stand on Table IV's limits.")
+                   "point near the toes or heels; it runs on the robot file's walking limits, "
+                   "with the default balancer only) and stand on Table IV's limits.")
 @robot_run_options("sim")
 @perturb_option
 def sim(duration: float, push: float, push_direction: str, balance: str, no_balance: bool,

@@ -197,8 +197,9 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
             ``capture_step``.
         hip_strategy: bow the trunk when the capture point nears the soles' toe or heel edge
             (:class:`~hubo_cli.control.hip_strategy.HipStrategy`, after the balancer; the
-            robot file's ``walking`` limit set, whose legs are fast enough for it); not with
-            ``step``, which answers such a push by stepping.
+            robot file's ``walking`` limit set, whose legs are fast enough for it); only with
+            the default balancer (the paper's mode and no balancer stand on Table IV's limits,
+            as published), and not with ``step``, which answers such a push by stepping.
     """
     check_standing_args(duration_s, push_n)
     direction = np.asarray(push_direction, dtype=float)
@@ -207,7 +208,8 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
     n_periods = int(round(duration_s / model.control_period_s))
     target = stepper = StandTarget(q_home, n_periods, push_n * direction, push_at_s,
                                    push_duration_s)
-    hip = hip_strategy and not step
+    # the paper's balancer (fidelity runs) and no balancer stand on Table IV's limits, as before
+    hip = hip_strategy and not step and balance and balance_mode == "default"
     if step or hip:
         from hubo_cli.model import load_model
 
