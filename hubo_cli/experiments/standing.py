@@ -19,6 +19,7 @@ from hubo_cli.errors import ConfigError, InputError
 from hubo_cli.falls import has_fallen
 from hubo_cli.geometry import tilt_rad_of_matrix
 from hubo_cli.model import RobotModel
+from hubo_cli.posture import home_posture
 from hubo_cli.session import RunResult, RunSetup, run
 
 FLAT_TOLERANCE_DEG = 1.0  # a sole tilted more than this (or without contact) is not flat
@@ -172,8 +173,8 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
           hip_strategy: bool = True) -> StandingResult:
     """Stand the simulated robot for ``duration_s`` and measure how it copes.
 
-    The robot stands in :func:`standing_posture` (the home posture with the model's CoM over
-    the soles' centre).
+    With the default balancer the robot stands in :func:`standing_posture` (the home posture
+    with the model's CoM over the soles' centre); with the paper's or none, in the home posture.
 
     Args:
         model: robot model.
@@ -204,12 +205,14 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
     check_standing_args(duration_s, push_n)
     direction = np.asarray(push_direction, dtype=float)
     direction = direction / np.linalg.norm(direction)
-    q_home = standing_posture(model)
+    default = balance and balance_mode == "default"
+    # the paper's balancer (fidelity runs) and no balancer stand as before: the home posture,
+    # Table IV's limits
+    q_home = standing_posture(model) if default else home_posture(model)
     n_periods = int(round(duration_s / model.control_period_s))
     target = stepper = StandTarget(q_home, n_periods, push_n * direction, push_at_s,
                                    push_duration_s)
-    # the paper's balancer (fidelity runs) and no balancer stand on Table IV's limits, as before
-    hip = hip_strategy and not step and balance and balance_mode == "default"
+    hip = hip_strategy and not step and default
     if step or hip:
         from hubo_cli.model import load_model
 
