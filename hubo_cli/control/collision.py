@@ -44,7 +44,7 @@ from hubo_cli.control.otg import JointTracker
 from hubo_cli.control.pin_robot import PinRobot, load_pin_robot
 from hubo_cli.control.status import SafetyEvent
 from hubo_cli.geometry import rpy_to_matrix
-from hubo_cli.model import DrillShape, RobotModel
+from hubo_cli.model import LEGS, DrillShape, RobotModel
 from hubo_cli.state import RobotState
 from hubo_cli.urdf import DRILL_FRAME
 
@@ -89,6 +89,12 @@ class Clearance:
 class SelfCollisionChecker:
     """Minimum distance between the checked link pairs for a joint vector (pinocchio + coal).
 
+    The pairs fall into two groups: those a leg joint moves (an arm against a thigh) and the
+    others, which only the other joints move. The others' closest pair is remembered with the
+    joints it was computed for and computed again only when one of those changed: while the
+    robot walks its arms stand still, and a check costs the legs' pairs only (the same
+    distances, pair for pair).
+
     Args:
         model: the robot model.
         drill: add the drill capsules to the right hand.
@@ -116,8 +122,26 @@ class SelfCollisionChecker:
                                             geom.geometryObjects[ib].name))
         self.geom = geom
         self.data = pmodel.createData()
-        self.geom_data = pin.GeometryData(geom)
         self._q = np.zeros(pmodel.nq)
+        legs = {pmodel.getJointId(j) for limb in LEGS for j in model.limb(limb).joints}
+        moved_by_legs = [not legs.isdisjoint(pmodel.supports[obj.parentJoint])
+                         for obj in geom.geometryObjects]
+        self._groups = []  # (pair data with the group's pairs active, remembers its result)
+        for with_legs in (True, False):
+            active = np.zeros((len(moved_by_legs), len(moved_by_legs)), dtype=bool)
+            for pair in geom.collisionPairs:
+                if (moved_by_legs[pair.first] or moved_by_legs[pair.second]) == with_legs:
+                    active[min(pair.first, pair.second), max(pair.first, pair.second)] = True
+            if active.any():
+                data = pin.GeometryData(geom)
+                data.setActiveCollisionPairs(geom, active)
+                self._groups.append((data, not with_legs))
+        # the configuration's entries the legs do not move (the remembered group's key)
+        self._still_q = np.array([i for j in range(1, pmodel.njoints) if j not in legs
+                                  for i in range(pmodel.joints[j].idx_q,
+                                                 pmodel.joints[j].idx_q + pmodel.joints[j].nq)],
+                                 dtype=int)
+        self._remembered: tuple[list[float], float, int] | None = None
 
     def _add_drill(self, geom: pin.GeometryModel, drill: DrillShape) -> None:
         pmodel = self.robot.model
@@ -139,10 +163,22 @@ class SelfCollisionChecker:
         q = self.robot.configuration(q_rad, out=self._q)
         if not self.pair_names:
             return Clearance(np.inf, ("", ""))
-        # pinocchio returns the index of the closest pair
-        best = pin.computeDistances(self.robot.model, self.data, self.geom, self.geom_data, q)
-        distance = self.geom_data.distanceResults[best].min_distance
-        return Clearance(float(distance), self.pair_names[best])
+        pmodel, geom = self.robot.model, self.geom
+        pin.forwardKinematics(pmodel, self.data, q)
+        closest = (np.inf, len(self.pair_names))  # (distance, pair index): ties go to the first
+        for data, remember in self._groups:
+            if remember:
+                key = q[self._still_q].tolist()
+                if self._remembered is not None and self._remembered[0] == key:
+                    closest = min(closest, self._remembered[1:])
+                    continue
+            pin.updateGeometryPlacements(pmodel, self.data, geom, data)
+            best = pin.computeDistances(geom, data)  # the index of the group's closest pair
+            found = (float(data.distanceResults[best].min_distance), best)
+            if remember:
+                self._remembered = (key, *found)
+            closest = min(closest, found)
+        return Clearance(closest[0], self.pair_names[closest[1]])
 
 
 class CollisionDetector(Module):
