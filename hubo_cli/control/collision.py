@@ -32,6 +32,7 @@ negative while the operator's goal lies inside the body and the arms hold).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import coal
@@ -52,6 +53,9 @@ TOLERANCE_M = 0.01   # MoveIt Servo's self-collision proximity threshold
 RECOVER_S = 2.5      # hrpsys default_recover_time
 SAMPLE_RAD = 0.05     # the way to a stopping posture is checked every this much joint travel
 MAX_SAMPLES = 8       # ... in at most this many checks (about 30 us each)
+STILL_RAD = 1e-7     # joints moving less than this move no point of a link within 1 m of them
+                     # by more than 0.1 um (0.6 um for a chain of six): within coal's GJK
+                     # tolerance, so the distances they set are taken as unchanged
 BLOCK_M = 0.01       # while recovering, the output stopping this close to the body holds it
 CLOSING_M = 1e-4     # ... if it is closing in by more than this
 UNBLOCK_RAD = 0.05   # after the way back was blocked, retry once the input moved this far
@@ -91,9 +95,10 @@ class SelfCollisionChecker:
 
     The pairs fall into two groups: those a leg joint moves (an arm against a thigh) and the
     others, which only the other joints move. The others' closest pair is remembered with the
-    joints it was computed for and computed again only when one of those changed: while the
-    robot walks its arms stand still, and a check costs the legs' pairs only (the same
-    distances, pair for pair).
+    joints it was computed for and computed again only when one of those has moved more than
+    STILL_RAD since: while the robot walks its arms stand (the trajectory generator's phase
+    synchronisation moves them by 1e-12 to 1e-8 rad a period), and a check costs the legs'
+    pairs only.
 
     Args:
         model: the robot model.
@@ -141,7 +146,7 @@ class SelfCollisionChecker:
                                   for i in range(pmodel.joints[j].idx_q,
                                                  pmodel.joints[j].idx_q + pmodel.joints[j].nq)],
                                  dtype=int)
-        self._remembered: tuple[list[float], float, int] | None = None
+        self._remembered: tuple[np.ndarray, float, int] | None = None
 
     def _add_drill(self, geom: pin.GeometryModel, drill: DrillShape) -> None:
         pmodel = self.robot.model
@@ -168,8 +173,9 @@ class SelfCollisionChecker:
         closest = (np.inf, len(self.pair_names))  # (distance, pair index): ties go to the first
         for data, remember in self._groups:
             if remember:
-                key = q[self._still_q].tolist()
-                if self._remembered is not None and self._remembered[0] == key:
+                key = q[self._still_q]
+                if (self._remembered is not None
+                        and float(abs(key - self._remembered[0]).max()) <= STILL_RAD):
                     closest = min(closest, self._remembered[1:])
                     continue
             pin.updateGeometryPlacements(pmodel, self.data, geom, data)
@@ -266,9 +272,13 @@ class CollisionDetector(Module):
         """The closest pair along the way from ``q`` to its stopping posture ``stop`` (sampled
         every ``SAMPLE_RAD`` of the largest joint's travel, so a thin part of the body between
         the two is not stepped over); ``q`` itself not included."""
-        n = int(min(MAX_SAMPLES, max(1, np.ceil(np.max(np.abs(stop - q)) / SAMPLE_RAD))))
-        return min((self.checker.check(q + (stop - q) * (k / n)) for k in range(1, n + 1)),
-                   key=lambda c: c.distance_m)
+        n = min(MAX_SAMPLES, max(1, math.ceil(float(abs(stop - q).max()) / SAMPLE_RAD)))
+        closest = None
+        for k in range(1, n + 1):
+            clearance = self.checker.check(q + (stop - q) * (k / n))
+            if closest is None or clearance.distance_m < closest.distance_m:
+                closest = clearance
+        return closest
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         q_in = np.where(np.isfinite(q_rad), q_rad, self.last_in)
