@@ -117,11 +117,24 @@ class ContactWrenches:
     def update(self, wrenches: np.ndarray) -> np.ndarray:
         """One period's raw wrenches (2 x 6: the right and the left sole's [fx, fy, fz, mx, my,
         mz]); the filtered ones (2 x 6). A sole's reading with a non-finite value is skipped."""
-        w = np.asarray(wrenches, dtype=float)
-        last = self.filtered
-        new = np.where(np.isnan(last), w, last + self.alpha * (w - last))  # first: as read
-        self.filtered = np.where(np.isfinite(w).all(axis=1, keepdims=True), new, last)
+        _low_pass(self.filtered, np.ascontiguousarray(wrenches, dtype=float), self.alpha)
         return self.filtered
+
+
+@nb.njit(cache=True, nogil=True)
+def _low_pass(filtered, wrenches, alpha):
+    """:meth:`ContactWrenches.update` in place, compiled (a few array operations cost more
+    than the arithmetic): a row with a non-finite value is skipped, a first reading taken."""
+    for s in range(wrenches.shape[0]):
+        finite = True
+        for i in range(wrenches.shape[1]):
+            finite = finite and math.isfinite(wrenches[s, i])
+        if not finite:
+            continue
+        for i in range(wrenches.shape[1]):
+            last = filtered[s, i]
+            filtered[s, i] = wrenches[s, i] if math.isnan(last) else (
+                last + alpha * (wrenches[s, i] - last))
 
 
 def tilt_between(z_from: np.ndarray, z_to: np.ndarray) -> np.ndarray:
@@ -306,9 +319,9 @@ class WalkTarget(Target):
         # them by its torso offset and a touchdown's lift (:meth:`_stabilized`)
         T_neck_world = rigid_inverse(self.plan.T_world_neck)
         self._R_neck_world = T_neck_world[:, :3, :3].copy()
-        self._T_neck_sole = {side: T_neck_world @ np.array([pose_of_row(row)
-                                                            for row in gait.feet[side]])
-                             for side in ("right", "left")}
+        self._T_neck_soles = np.stack([T_neck_world @ np.array([pose_of_row(row)
+                                                                for row in gait.feet[side]])
+                                       for side in ("right", "left")], axis=1)  # n x 2 x 4 x 4
         self.plan_start_s = t_s
         self.k = 0
         self.steps.extend(steps)
@@ -414,17 +427,17 @@ class WalkTarget(Target):
         body, rows = self.body, self._rows
         offset_x, offset_y = self.torso_offset.update(
             zmp, rows["zmp_ref"][k], self._measured_com(k, state), rows["plan_com"][k]).tolist()
-        R_neck_world = self._R_neck_world[k]
+        lifts = [self.touchdowns[side].update(not down, rows[side][k][2] - self._sole_z0[side],
+                                              float(state.ft[SOLES_SENSOR[side]][2]))
+                 for side, down in zip(("right", "left"), rows["support"][k], strict=True)]
+        # the planned goals with the torso moved by the offset and the soles lifted
+        goals = self._T_neck_soles[k].copy()
+        goals[:, :3, 3] += (self._R_neck_world[k] @ np.array(
+            ((-offset_x, -offset_x), (-offset_y, -offset_y), lifts))).T
         for column, side in enumerate(("right", "left")):
             name = SIDE_LEG[side]
             part = body.slices[name]
-            lift = self.touchdowns[side].update(
-                not rows["support"][k][column], rows[side][k][2] - self._sole_z0[side],
-                float(state.ft[SOLES_SENSOR[side]][2]))
-            # the planned goal with the torso moved by the offset and the sole lifted
-            goal = self._T_neck_sole[side][k].copy()
-            goal[:3, 3] += R_neck_world @ (-offset_x, -offset_y, lift)
-            result = body.legs[name].solve(goal, q[part])
+            result = body.legs[name].solve(goals[column], q[part])
             delta = result.q_rad - q[part]
             if result.status == "exact" and float(
                     abs(delta - self._leg_delta[side]).max()) <= LEG_STEP_RAD:
