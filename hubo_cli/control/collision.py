@@ -94,11 +94,11 @@ class SelfCollisionChecker:
     """Minimum distance between the checked link pairs for a joint vector (pinocchio + coal).
 
     The pairs fall into two groups: those a leg joint moves (an arm against a thigh) and the
-    others, which only the other joints move. The others' closest pair is remembered with the
-    joints it was computed for and computed again only when one of those has moved more than
-    STILL_RAD since: while the robot walks its arms stand (the trajectory generator's phase
-    synchronisation moves them by 1e-12 to 1e-8 rad a period), and a check costs the legs'
-    pairs only.
+    others, which only the other joints move. While those other joints stand (moved less than
+    STILL_RAD since the last check: the walking robot's arms, which the trajectory generator's
+    phase synchronisation creeps by 1e-12 to 1e-8 rad a period), the others' closest pair is
+    remembered with the joints it was computed for, and a check costs the legs' pairs only;
+    when they move, every pair is computed in one pass as before.
 
     Args:
         model: the robot model.
@@ -128,25 +128,27 @@ class SelfCollisionChecker:
         self.geom = geom
         self.data = pmodel.createData()
         self._q = np.zeros(pmodel.nq)
+        self.geom_data = pin.GeometryData(geom)  # every pair
         legs = {pmodel.getJointId(j) for limb in LEGS for j in model.limb(limb).joints}
         moved_by_legs = [not legs.isdisjoint(pmodel.supports[obj.parentJoint])
                          for obj in geom.geometryObjects]
-        self._groups = []  # (pair data with the group's pairs active, remembers its result)
+        self._split = []  # the pairs the legs move, then the others: each active in its data
         for with_legs in (True, False):
             active = np.zeros((len(moved_by_legs), len(moved_by_legs)), dtype=bool)
             for pair in geom.collisionPairs:
                 if (moved_by_legs[pair.first] or moved_by_legs[pair.second]) == with_legs:
                     active[min(pair.first, pair.second), max(pair.first, pair.second)] = True
-            if active.any():
-                data = pin.GeometryData(geom)
-                data.setActiveCollisionPairs(geom, active)
-                self._groups.append((data, not with_legs))
-        # the configuration's entries the legs do not move (the remembered group's key)
+            data = pin.GeometryData(geom)
+            data.setActiveCollisionPairs(geom, active)
+            self._split.append(data)
+        # the configuration's entries the legs do not move: what the others' closest pair
+        # depends on
         self._still_q = np.array([i for j in range(1, pmodel.njoints) if j not in legs
                                   for i in range(pmodel.joints[j].idx_q,
                                                  pmodel.joints[j].idx_q + pmodel.joints[j].nq)],
                                  dtype=int)
-        self._remembered: tuple[np.ndarray, float, int] | None = None
+        self._last_key: np.ndarray | None = None
+        self._remembered: tuple[np.ndarray, float, int] | None = None  # key, distance, pair
 
     def _add_drill(self, geom: pin.GeometryModel, drill: DrillShape) -> None:
         pmodel = self.robot.model
@@ -169,22 +171,32 @@ class SelfCollisionChecker:
         if not self.pair_names:
             return Clearance(np.inf, ("", ""))
         pmodel, geom = self.robot.model, self.geom
+        key = q[self._still_q]
+        still = (self._last_key is not None
+                 and float(abs(key - self._last_key).max()) <= STILL_RAD)
+        self._last_key = key
+        if not still:  # the other joints move too: every pair in one pass
+            self._remembered = None
+            best = pin.computeDistances(pmodel, self.data, geom, self.geom_data, q)
+            return Clearance(float(self.geom_data.distanceResults[best].min_distance),
+                             self.pair_names[best])
         pin.forwardKinematics(pmodel, self.data, q)
-        closest = (np.inf, len(self.pair_names))  # (distance, pair index): ties go to the first
-        for data, remember in self._groups:
-            if remember:
-                key = q[self._still_q]
-                if (self._remembered is not None
-                        and float(abs(key - self._remembered[0]).max()) <= STILL_RAD):
-                    closest = min(closest, self._remembered[1:])
-                    continue
-            pin.updateGeometryPlacements(pmodel, self.data, geom, data)
-            best = pin.computeDistances(geom, data)  # the index of the group's closest pair
-            found = (float(data.distanceResults[best].min_distance), best)
-            if remember:
-                self._remembered = (key, *found)
-            closest = min(closest, found)
+        legs, others = self._split
+        if (self._remembered is None
+                or float(abs(key - self._remembered[0]).max()) > STILL_RAD):
+            self._remembered = (key, *self._closest(others))
+        closest = min(self._closest(legs), self._remembered[1:])  # ties: the first pair
         return Clearance(closest[0], self.pair_names[closest[1]])
+
+    def _closest(self, data: pin.GeometryData) -> tuple[float, int]:
+        """(distance, pair index) of the closest active pair of ``data`` at the placements of
+        the last forward kinematics; (inf, number of pairs) when it has none."""
+        pmodel, geom = self.robot.model, self.geom
+        pin.updateGeometryPlacements(pmodel, self.data, geom, data)
+        best = pin.computeDistances(geom, data)
+        if best >= len(self.pair_names):
+            return np.inf, best
+        return float(data.distanceResults[best].min_distance), best
 
 
 class CollisionDetector(Module):
