@@ -364,9 +364,9 @@ class CapturePointMonitor(Module):
         q_ref = self.robot.configuration(q_cmd, None, out=self._q_ref)
         com_torso = pin.centerOfMass(pmodel, data, q_ref, False)  # torso at the origin
         oMf = pin.updateFramePlacement(pmodel, data, self._sole_ids[foot])  # T_torso_sole
-        in_sole = oMf.rotation.T @ (com_torso - oMf.translation)
+        in_sole = oMf.actInv(com_torso)  # R^T (com - p)
         flat = self._flat_sole[foot]
-        return (flat[:2, :3] @ in_sole + flat[:2, 3]).copy()
+        return flat[:2, :3] @ in_sole + flat[:2, 3]
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         flag = self.measure(state, q_rad)
