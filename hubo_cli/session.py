@@ -223,6 +223,7 @@ def common_summary(setup: RunSetup, speed: float | None, loop: LoopResult,
         "error": loop.error,
         "duration_s": loop.t_end_s,
         "periods": loop.periods,
+        "smooth_stop_s": loop.smooth_stop_s,
         "status_counts": loop.status_counts,
         "collision_periods": loop.flag_counts.get("collision", 0),
         "collision_holds": [{"t_s": t, "pair": list(pair)}
@@ -230,5 +231,6 @@ def common_summary(setup: RunSetup, speed: float | None, loop: LoopResult,
         "estop_events": [{"module": m, "t_s": t, "kind": k, "sources": list(s)}
                          for m, t, k, s in loop.safety_events if k in ("stop", "release")],
         "overruns": loop.overruns,
+        "overrun_skipped_s": loop.skipped_s,
         "files": files,
     }

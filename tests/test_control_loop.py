@@ -89,6 +89,7 @@ def test_late_periods_catch_up_then_reanchor(model):
     assert np.all(starts[10:12] > schedule[10:12])                  # late, run back to back
     assert np.allclose(starts[12:100], schedule[12:100], atol=1e-9)  # back on schedule
     assert result.overruns == 1
+    assert abs(result.skipped_s - (1.0 - DT)) < 1e-9  # the stall, less the period it was due in
     assert np.allclose(np.diff(starts[100:]), DT, atol=1e-9)
 
 

@@ -1,8 +1,9 @@
 """Fuzz every file-reading command with random bytes, random TOML and random CSV.
 
 Whatever the file holds: no traceback (nor the CLI's "internal error", which marks a bug), an
-exit code in {0, 1, 2, 3, 4, 5}, and no file outside the command's output changed. Bounded:
-few examples per command and a per-example deadline, so the module runs in well under 30 s.
+exit code in {0, 1, 2, 3, 4, 5}, and no file outside the command's output changed. Bounded by
+few examples per command, so the module runs in well under 30 s; no per-example wall-clock
+deadline (on a machine loaded by other jobs one example may take seconds, which is not a bug).
 """
 
 import math
@@ -23,7 +24,7 @@ from hubo_cli.resources import data_file
 pytestmark = pytest.mark.xdist_group("fuzz")  # module-scoped runs: one worker
 
 SLOT = data_file("tasks", "cut-slot.toml").read_text()
-FUZZ = settings(max_examples=12, deadline=5000, derandomize=True, database=None,
+FUZZ = settings(max_examples=12, deadline=None, derandomize=True, database=None,
                 suppress_health_check=[HealthCheck.function_scoped_fixture,
                                        HealthCheck.too_slow])
 EXIT_CODES = {0, 1, 2, 3, 4, 5}
@@ -99,8 +100,8 @@ def _invoke(folder: Path, argv: list[str], outputs: tuple[Path, ...] = ()) -> No
 
 @pytest.fixture(scope="module")
 def warm(tmp_path_factory):
-    """Run the commands once first: compiling the IK kernels and loading the model are not
-    what the per-example deadline measures."""
+    """Run the commands once first, so that compiling the IK kernels and loading the model
+    happen once and not inside the first examples."""
     folder = tmp_path_factory.mktemp("warm")
     goals = folder / "goals.csv"
     goals.write_text(_csv(IK_HEADER, [[1, 0, 0, 0.4, 0, 1, 0, -0.2, 0, 0, 1, 0, 0, 0, 0, 1]]))

@@ -125,7 +125,7 @@ def test_a_live_session_on_the_hardware_driver_runs_in_real_time(tmp_path):
     assert summary["speed"] == 1.0
     frames = (run / "hubo-ref.bin").stat().st_size // 462
     loop_s = frames * MODEL.control_period_s
-    assert abs(loop_s - 10.0) <= 0.2 + 0.1  # the duration, plus the smooth stop's few periods
+    assert abs(loop_s - summary["smooth_stop_s"] - 10.0) <= 0.2  # the duration, then the brake
     assert loop_s <= wall_s * 1.02  # never ahead of the wall clock
     refused = _run(["teleop", "--port", "/dev/null", "--driver", "hardware", "--dry-run",
                     "--speed", "4", "--out", str(tmp_path / "r2")])

@@ -66,6 +66,8 @@ class LoopResult:
         safety_events: (module name, time s, kind, sources) for every emergency-stop latch and
             release and every collision hold.
         overruns: periods that ran so late that the schedule was re-anchored.
+        skipped_s: wall time the schedule skipped at those re-anchors (s): the periods a
+            real-time run did not get to run.
         log_path: the per-period log, if one was written.
         final_command_rad: the last command sent.
     """
@@ -79,9 +81,15 @@ class LoopResult:
     flag_counts: dict[str, int] = field(default_factory=dict)
     safety_events: list[tuple[str, float, str, tuple[str, ...]]] = field(default_factory=list)
     overruns: int = 0
+    skipped_s: float = 0.0
     log_path: Path | None = None
     final_command_rad: np.ndarray | None = None
     exception: BaseException | None = None
+
+    @property
+    def smooth_stop_s(self) -> float:
+        """Loop time spent in the final smooth stop (s)."""
+        return self.t_end_s * self.stop_periods / self.periods if self.periods else 0.0
 
     @property
     def ok(self) -> bool:
@@ -140,6 +148,7 @@ class ControlLoop:
         self.log: PeriodLog | None = None
         self.period = 0
         self.overruns = 0
+        self.skipped_s = 0.0
         self._deadline = 0.0
         self._statuses: Counter[str] = Counter()
         self._flags: Counter[str] = Counter()
@@ -170,6 +179,7 @@ class ControlLoop:
             now = self.clock()
         elif -wait > self.max_lag_periods * wall_period:
             self.overruns += 1
+            self.skipped_s += -wait
             self._deadline = now
         late = now - self._deadline
         self._deadline += wall_period
@@ -275,8 +285,8 @@ class ControlLoop:
             flag_counts=dict(self._flags),
             safety_events=[(m.name, e.t_s, e.kind, e.sources) for m in self.modules
                           for e in m.events],
-            overruns=self.overruns, log_path=self.log_path, final_command_rad=self._cmd.copy(),
-            exception=exc)
+            overruns=self.overruns, skipped_s=self.skipped_s, log_path=self.log_path,
+            final_command_rad=self._cmd.copy(), exception=exc)
 
     def _smooth_stop(self) -> int:
         """Brake the command to rest within the limits, sending every period. Returns periods."""

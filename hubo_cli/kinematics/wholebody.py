@@ -180,9 +180,13 @@ class WholeBody:
     def lift_for(self, T_S_goal: dict[str, np.ndarray]) -> float:
         """The lift (m) the legs aim for with these goals: mean goal height minus the working
         height, within the legs' range."""
-        heights = [float(T[2, 3]) for T in T_S_goal.values()]
-        wanted = (np.mean(heights) if heights else 0.0) - self.working_height_m
-        return float(np.clip(wanted, *self.lift_range_m))
+        lo, hi = self.lift_range_m
+        return min(max(self._mean_goal_height(T_S_goal) - self.working_height_m, lo), hi)
+
+    @staticmethod
+    def _mean_goal_height(T_S_goal: dict[str, np.ndarray]) -> float:
+        """The goals' mean height in the stance frame (m); 0 without goals."""
+        return sum(float(T[2, 3]) for T in T_S_goal.values()) / len(T_S_goal) if T_S_goal else 0.0
 
     def solve(self, T_S_goal: dict[str, np.ndarray], q_prev_rad: np.ndarray | None = None,
               lift_m: float | None = None, shift_m: float | None = None,
@@ -207,19 +211,19 @@ class WholeBody:
         shift = 0.0
         for _ in range(STEADY_ITERATIONS):
             result = self._solve(T_S_goal, q_prev_rad, lift_m, shift, hand_forces_n)
-            shift = float(np.clip(shift + result.balance_error_m / self.shift_gain,
-                                  -MAX_SHIFT_M, MAX_SHIFT_M))
+            shift = min(max(shift + result.balance_error_m / self.shift_gain, -MAX_SHIFT_M),
+                        MAX_SHIFT_M)
         return self._solve(T_S_goal, q_prev_rad, lift_m, shift, hand_forces_n)
 
     def _solve(self, T_S_goal, q_prev_rad, lift_m, shift_m, hand_forces_n) -> WholeBodyResult:
         q_prev = self.q_home if q_prev_rad is None else np.asarray(q_prev_rad, dtype=float)
         q = q_prev.copy()
-        heights = [float(T[2, 3]) for T in T_S_goal.values()]
-        wanted = (np.mean(heights) if heights else 0.0) - self.working_height_m
-        if lift_m is not None:
+        if lift_m is None:
+            wanted = self._mean_goal_height(T_S_goal) - self.working_height_m
+        else:
             wanted = float(lift_m)
         lo, hi = self.lift_range_m
-        lift = float(np.clip(wanted, lo, hi))
+        lift = min(max(wanted, lo), hi)
         T_N_S = np.eye(4)
         T_N_S[0, 3], T_N_S[2, 3] = -shift_m, -lift
         legs = {}
