@@ -63,7 +63,7 @@ def measured_zmp(poses: np.ndarray, wrenches: np.ndarray, corners_m: np.ndarray,
     outside = _zmp_outside(np.ascontiguousarray(poses, dtype=float),
                            np.ascontiguousarray(wrenches, dtype=float), corners_m,
                            float(loaded_n), zmp)
-    return (zmp, outside) if math.isfinite(outside) else (None, math.inf)
+    return (None, math.inf) if outside == math.inf else (zmp, outside)  # inf: none loaded
 
 
 @nb.njit(cache=True, nogil=True)
