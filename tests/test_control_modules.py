@@ -147,6 +147,37 @@ def test_collision_checker_distances(model):
     assert with_drill.check(q0).distance_m > 0.01
 
 
+def test_collision_checker_remembers_the_pairs_the_legs_do_not_move(model):
+    """The pairs the legs do not move are computed again only when the arms move: a sequence
+    with the legs moving and the arms now creeping by nanoradians, now jumping, gives each
+    posture's closest pair as a checker that sees it alone does (to coal's GJK tolerance),
+    thighs included."""
+    from hubo_cli.model import LEGS
+
+    rng = np.random.default_rng(5)
+    legs = np.zeros(len(model.joint_names), dtype=bool)
+    for name in LEGS:
+        legs[model.limb_slice(name)] = True
+    checker = SelfCollisionChecker(model)
+    base = home_posture(model)
+    base[:6] = 0.19, -0.03, 0.95, -0.01, -0.96, -0.06  # the right hand near the right thigh
+    base[12:15] = -0.66, -0.59, 0.16                   # lifted forward and out
+    pairs = set()
+    for k in range(120):
+        if k % 30 == 29:  # the arms move now and then, otherwise creep by rounding's order
+            base = np.where(legs, base, base + rng.normal(0.0, 0.03, base.size))
+        base = np.where(legs, base, base + 2e-9)
+        q = np.clip(base + legs * rng.normal(0.0, 0.05, base.size), model.lower_rad,
+                    model.upper_rad)
+        seen = checker.check(q)
+        alone = SelfCollisionChecker(model).check(q)
+        assert seen.pair == alone.pair
+        assert seen.distance_m == pytest.approx(alone.distance_m, abs=1e-6)
+        pairs.add(seen.pair)
+    thigh = {pair for pair in pairs if "HP_link" in pair[0] + pair[1]}
+    assert thigh and pairs - thigh  # now a thigh's pair was the closest, now another
+
+
 def test_collision_detector_holds_then_recovers(model):
     robot = ideal(model)
     q0 = robot.read().q_rad.copy()

@@ -59,6 +59,24 @@ def test_stands_on_both_flat_feet_carrying_its_weight(sim):
     assert np.allclose(state.q_rad, home_posture(MODEL), atol=1e-3)
 
 
+def test_frame_poses_are_the_physics_as_of_the_last_step(sim):
+    """The end frames' poses come from the link states read with the state: after moving
+    steps they equal a fresh forward kinematics of the physics, and the hands move."""
+    from hubo_cli.drivers.sim import FRAME_PARENTS, _pose
+
+    state = sim.start()
+    hand_before = sim.frame_pose("right_hand")[:3, 3]
+    for k in range(20):
+        sim.send(state.q_rad + 0.2 * np.sin(0.1 * k))
+        sim.step()
+        for frame, link in FRAME_PARENTS.items():
+            ls = sim._p.getLinkState(sim._robot, sim._links[link], computeForwardKinematics=1,
+                                     physicsClientId=sim._cid)
+            fresh = _pose(ls[4], ls[5]) @ sim._T_link_frame[frame]
+            assert np.allclose(sim.frame_pose(frame), fresh, atol=1e-12)
+    assert np.linalg.norm(sim.frame_pose("right_hand")[:3, 3] - hand_before) > 0.01
+
+
 def test_frames_and_signs_of_sensors_under_a_forward_push(sim):
     sim.start()
     before = _hold(sim, home_posture(MODEL), 20)

@@ -109,6 +109,8 @@ def test_per_period_geometry_in_floats_matches_numpy():
         T[:3, :3] = quat_wxyz_to_matrix(q / np.linalg.norm(q))
         T[:3, 3] = rng.normal(size=3)
         assert np.allclose(rigid_inverse(T), np.linalg.inv(T), atol=1e-12)
+        assert np.allclose(rigid_inverse(np.array([T, np.eye(4)]))[0], np.linalg.inv(T),
+                           atol=1e-12)
 
 
 def test_measured_zmp_weights_the_soles_and_measures_the_hull():
@@ -117,17 +119,14 @@ def test_measured_zmp_weights_the_soles_and_measures_the_hull():
     nearest edge (the soles' toe line, 0.11 m ahead of the centre with forward_m 0)."""
     corners = np.array([[-0.11, -0.065, 0.0], [0.11, -0.065, 0.0], [0.11, 0.065, 0.0],
                         [-0.11, 0.065, 0.0]])
-    poses = {}
-    for side, y in (("right", -0.12), ("left", 0.12)):
-        T = np.eye(4)
-        T[:2, 3] = 1.0, y
-        poses[side] = T
-    zmp, outside = measured_zmp(poses, {"right": wrench_at(0.0, 0.0, 300.0),
-                                        "left": wrench_at(0.0, 0.0, 100.0)}, corners)
+    poses = np.array([np.eye(4), np.eye(4)])  # right, left
+    poses[:, :2, 3] = (1.0, -0.12), (1.0, 0.12)
+    zmp, outside = measured_zmp(poses, np.array([wrench_at(0.0, 0.0, 300.0),
+                                                 wrench_at(0.0, 0.0, 100.0)]), corners)
     assert zmp == pytest.approx([1.0, -0.06], abs=1e-12)
     assert outside == pytest.approx(-0.11, abs=1e-12)
-    none, far = measured_zmp(poses, {"right": wrench_at(0.0, 0.0, 5.0),
-                                     "left": wrench_at(0.0, 0.0, 5.0)}, corners)
+    none, far = measured_zmp(poses, np.array([wrench_at(0.0, 0.0, 5.0),
+                                              wrench_at(0.0, 0.0, 5.0)]), corners)
     assert none is None and far == float("inf")
 
 
@@ -136,15 +135,13 @@ def test_one_loaded_sole_measures_against_its_own_outline():
     inside its outer edge lies 5 mm inside, one on that edge is not inside."""
     corners = np.array([[-0.11, -0.065, 0.0], [0.11, -0.065, 0.0], [0.11, 0.065, 0.0],
                         [-0.11, 0.065, 0.0]])
-    poses = {"right": np.eye(4), "left": np.eye(4)}
-    poses["left"][1, 3] = 0.24
+    poses = np.array([np.eye(4), np.eye(4)])  # right, left
+    poses[1, 1, 3] = 0.24
     idle = wrench_at(0.0, 0.0, 0.0)
-    zmp, outside = measured_zmp(poses, {"right": wrench_at(0.0, -0.06, 300.0), "left": idle},
-                                corners)
+    zmp, outside = measured_zmp(poses, np.array([wrench_at(0.0, -0.06, 300.0), idle]), corners)
     assert zmp == pytest.approx([0.0, -0.06], abs=1e-12)
     assert outside == pytest.approx(-0.005, abs=1e-9)
-    _, on_edge = measured_zmp(poses, {"right": wrench_at(0.0, -0.065, 300.0), "left": idle},
-                              corners)
+    _, on_edge = measured_zmp(poses, np.array([wrench_at(0.0, -0.065, 300.0), idle]), corners)
     assert on_edge > -0.001
 
 
@@ -155,13 +152,16 @@ def test_contact_wrenches_average_a_jumping_reading_and_follow_a_landing():
     from hubo_cli.walking.target import ContactWrenches
 
     wrenches = ContactWrenches(DT)
+    unread = np.full(6, np.nan)
     readings = []
     for k in range(200):
-        filtered = wrenches.update({"right": wrench_at(0.01, 0.0, 760.0 * (k % 2))})
-        readings.append(filtered["right"][2])
+        filtered = wrenches.update(np.array([wrench_at(0.01, 0.0, 760.0 * (k % 2)), unread]))
+        readings.append(filtered[0, 2])
+    assert np.isnan(filtered[1]).all()  # a sole never read stays unknown
     assert min(readings[100:]) > 300.0 and max(readings[100:]) < 460.0
     landing = ContactWrenches(DT)
-    landing.update({"left": wrench_at(0.0, 0.0, 0.0)})
-    fz = [landing.update({"left": wrench_at(0.0, 0.0, 380.0)})["left"][2] for _ in range(12)]
+    landing.update(np.array([unread, wrench_at(0.0, 0.0, 0.0)]))
+    fz = [landing.update(np.array([unread, wrench_at(0.0, 0.0, 380.0)]))[1, 2]
+          for _ in range(12)]
     assert fz[1] > 25.0
     assert 0.5 * 380.0 < fz[5] < 0.75 * 380.0

@@ -327,10 +327,6 @@ class CapturePointMonitor(Module):
         q = self.robot.configuration(state.q_rad, T_world_torso, out=self._q)
         com = pin.centerOfMass(pmodel, data, q, False).copy()
         contact = self._debounced_contact(state)
-        for k, fid in enumerate(self._sole_ids):
-            oMf = pin.updateFramePlacement(pmodel, data, fid)
-            self._sole_pose[k, :3, :3] = oMf.rotation
-            self._sole_pose[k, :3, 3] = oMf.translation
         if self._prev_com is None:
             self.velocity_m_s = np.zeros(3)
         else:
@@ -338,10 +334,15 @@ class CapturePointMonitor(Module):
                                                - self.velocity_m_s)
         self._prev_com = com
         self.com_m = com
-        poses = self._sole_pose
         planned = None if self.support_override is None else self.support_override(state.time_s)
         if planned is not None:
             poses, contact = np.ascontiguousarray(planned, dtype=float), (True, True)
+        else:  # the measured soles (the placements of the joints' kinematics above)
+            poses = self._sole_pose
+            for k, fid in enumerate(self._sole_ids):
+                oMf = pin.updateFramePlacement(pmodel, data, fid)
+                poses[k, :3, :3] = oMf.rotation
+                poses[k, :3, 3] = oMf.translation
         outside, ground_z = _support(poses, bool(contact[0]), bool(contact[1]),
                                      self._corners, com, self.velocity_m_s, self.margin_m,
                                      GRAVITY_M_S2, self.corner_tolerance_m, self.cp_m,
@@ -363,9 +364,9 @@ class CapturePointMonitor(Module):
         q_ref = self.robot.configuration(q_cmd, None, out=self._q_ref)
         com_torso = pin.centerOfMass(pmodel, data, q_ref, False)  # torso at the origin
         oMf = pin.updateFramePlacement(pmodel, data, self._sole_ids[foot])  # T_torso_sole
-        in_sole = oMf.rotation.T @ (com_torso - oMf.translation)
+        in_sole = oMf.actInv(com_torso)  # R^T (com - p)
         flat = self._flat_sole[foot]
-        return (flat[:2, :3] @ in_sole + flat[:2, 3]).copy()
+        return flat[:2, :3] @ in_sole + flat[:2, 3]
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         flag = self.measure(state, q_rad)

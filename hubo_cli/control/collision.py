@@ -32,6 +32,7 @@ negative while the operator's goal lies inside the body and the arms hold).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import coal
@@ -44,7 +45,7 @@ from hubo_cli.control.otg import JointTracker
 from hubo_cli.control.pin_robot import PinRobot, load_pin_robot
 from hubo_cli.control.status import SafetyEvent
 from hubo_cli.geometry import rpy_to_matrix
-from hubo_cli.model import DrillShape, RobotModel
+from hubo_cli.model import LEGS, DrillShape, RobotModel
 from hubo_cli.state import RobotState
 from hubo_cli.urdf import DRILL_FRAME
 
@@ -52,6 +53,9 @@ TOLERANCE_M = 0.01   # MoveIt Servo's self-collision proximity threshold
 RECOVER_S = 2.5      # hrpsys default_recover_time
 SAMPLE_RAD = 0.05     # the way to a stopping posture is checked every this much joint travel
 MAX_SAMPLES = 8       # ... in at most this many checks (about 30 us each)
+STILL_RAD = 1e-7     # joints moving less than this move no point of a link within 1 m of them
+                     # by more than 0.1 um (0.6 um for a chain of six): within coal's GJK
+                     # tolerance, so the distances they set are taken as unchanged
 BLOCK_M = 0.01       # while recovering, the output stopping this close to the body holds it
 CLOSING_M = 1e-4     # ... if it is closing in by more than this
 UNBLOCK_RAD = 0.05   # after the way back was blocked, retry once the input moved this far
@@ -89,6 +93,13 @@ class Clearance:
 class SelfCollisionChecker:
     """Minimum distance between the checked link pairs for a joint vector (pinocchio + coal).
 
+    The pairs fall into two groups: those a leg joint moves (an arm against a thigh) and the
+    others, which only the other joints move. While those other joints stand (moved less than
+    STILL_RAD since the last check: the walking robot's arms, which the trajectory generator's
+    phase synchronisation creeps by 1e-12 to 1e-8 rad a period), the others' closest pair is
+    remembered with the joints it was computed for, and a check costs the legs' pairs only;
+    when they move, every pair is computed in one pass as before.
+
     Args:
         model: the robot model.
         drill: add the drill capsules to the right hand.
@@ -116,8 +127,28 @@ class SelfCollisionChecker:
                                             geom.geometryObjects[ib].name))
         self.geom = geom
         self.data = pmodel.createData()
-        self.geom_data = pin.GeometryData(geom)
         self._q = np.zeros(pmodel.nq)
+        self.geom_data = pin.GeometryData(geom)  # every pair
+        legs = {pmodel.getJointId(j) for limb in LEGS for j in model.limb(limb).joints}
+        moved_by_legs = [not legs.isdisjoint(pmodel.supports[obj.parentJoint])
+                         for obj in geom.geometryObjects]
+        self._split = []  # the pairs the legs move, then the others: each active in its data
+        for with_legs in (True, False):
+            active = np.zeros((len(moved_by_legs), len(moved_by_legs)), dtype=bool)
+            for pair in geom.collisionPairs:
+                if (moved_by_legs[pair.first] or moved_by_legs[pair.second]) == with_legs:
+                    active[min(pair.first, pair.second), max(pair.first, pair.second)] = True
+            data = pin.GeometryData(geom)
+            data.setActiveCollisionPairs(geom, active)
+            self._split.append(data)
+        # the configuration's entries the legs do not move: what the others' closest pair
+        # depends on
+        self._still_q = np.array([i for j in range(1, pmodel.njoints) if j not in legs
+                                  for i in range(pmodel.joints[j].idx_q,
+                                                 pmodel.joints[j].idx_q + pmodel.joints[j].nq)],
+                                 dtype=int)
+        self._last_key: np.ndarray | None = None
+        self._remembered: tuple[np.ndarray, float, int] | None = None  # key, distance, pair
 
     def _add_drill(self, geom: pin.GeometryModel, drill: DrillShape) -> None:
         pmodel = self.robot.model
@@ -139,10 +170,33 @@ class SelfCollisionChecker:
         q = self.robot.configuration(q_rad, out=self._q)
         if not self.pair_names:
             return Clearance(np.inf, ("", ""))
-        # pinocchio returns the index of the closest pair
-        best = pin.computeDistances(self.robot.model, self.data, self.geom, self.geom_data, q)
-        distance = self.geom_data.distanceResults[best].min_distance
-        return Clearance(float(distance), self.pair_names[best])
+        pmodel, geom = self.robot.model, self.geom
+        key = q[self._still_q]
+        still = (self._last_key is not None
+                 and float(abs(key - self._last_key).max()) <= STILL_RAD)
+        self._last_key = key
+        if not still:  # the other joints move too: every pair in one pass
+            self._remembered = None
+            best = pin.computeDistances(pmodel, self.data, geom, self.geom_data, q)
+            return Clearance(float(self.geom_data.distanceResults[best].min_distance),
+                             self.pair_names[best])
+        pin.forwardKinematics(pmodel, self.data, q)
+        legs, others = self._split
+        if (self._remembered is None
+                or float(abs(key - self._remembered[0]).max()) > STILL_RAD):
+            self._remembered = (key, *self._closest(others))
+        closest = min(self._closest(legs), self._remembered[1:])  # ties: the first pair
+        return Clearance(closest[0], self.pair_names[closest[1]])
+
+    def _closest(self, data: pin.GeometryData) -> tuple[float, int]:
+        """(distance, pair index) of the closest active pair of ``data`` at the placements of
+        the last forward kinematics; (inf, number of pairs) when it has none."""
+        pmodel, geom = self.robot.model, self.geom
+        pin.updateGeometryPlacements(pmodel, self.data, geom, data)
+        best = pin.computeDistances(geom, data)
+        if best >= len(self.pair_names):
+            return np.inf, best
+        return float(data.distanceResults[best].min_distance), best
 
 
 class CollisionDetector(Module):
@@ -230,9 +284,13 @@ class CollisionDetector(Module):
         """The closest pair along the way from ``q`` to its stopping posture ``stop`` (sampled
         every ``SAMPLE_RAD`` of the largest joint's travel, so a thin part of the body between
         the two is not stepped over); ``q`` itself not included."""
-        n = int(min(MAX_SAMPLES, max(1, np.ceil(np.max(np.abs(stop - q)) / SAMPLE_RAD))))
-        return min((self.checker.check(q + (stop - q) * (k / n)) for k in range(1, n + 1)),
-                   key=lambda c: c.distance_m)
+        n = min(MAX_SAMPLES, max(1, math.ceil(float(abs(stop - q).max()) / SAMPLE_RAD)))
+        closest = None
+        for k in range(1, n + 1):
+            clearance = self.checker.check(q + (stop - q) * (k / n))
+            if closest is None or clearance.distance_m < closest.distance_m:
+                closest = clearance
+        return closest
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         q_in = np.where(np.isfinite(q_rad), q_rad, self.last_in)

@@ -28,6 +28,7 @@ balance and collision layers.
 
 from __future__ import annotations
 
+import math
 import signal
 from collections import deque
 from collections.abc import Callable, Iterable
@@ -54,7 +55,7 @@ def wrist_torque_nm(state: RobotState, sensor: str) -> float:
     whose x runs along the forearm out through the palm (as Hubo's wrist F/T sensor reads the
     two moments across the forearm); 0 when the sensor is absent."""
     wrench = state.ft.get(sensor)
-    return 0.0 if wrench is None else float(np.hypot(wrench[4], wrench[5]))
+    return 0.0 if wrench is None else math.hypot(*wrench[4:6].tolist())
 MODE_CODE = {name: i for i, name in enumerate(MODES)}
 
 

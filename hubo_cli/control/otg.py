@@ -193,8 +193,8 @@ class TargetInput:
         if self._last_fresh_s is None:
             self._last_fresh_s = cycle.t_s
         fresh = np.isfinite(q_rad)
-        if fresh.any():
-            every = fresh.all()
+        every = bool(fresh.all())
+        if every or fresh.any():
             wanted = np.asarray(q_rad, dtype=float) if every else np.where(fresh, q_rad,
                                                                              self.target)
             clipped = self.limits.clip(wanted)

@@ -696,8 +696,8 @@ class SimDriver(Driver, SimulatedWorld):
         T_world_torso = _pose(com, orn) @ self._T_com_torso
         _, omega_world = p.getBaseVelocity(self._robot, physicsClientId=cid)
         R = T_world_torso[:3, :3]
-        link_states = p.getLinkStates(self._robot, self._sensor_link_ids,
-                                      computeForwardKinematics=1, physicsClientId=cid)
+        link_states = self._link_states = p.getLinkStates(
+            self._robot, self._sensor_link_ids, computeForwardKinematics=1, physicsClientId=cid)
         contacts = self._contact_rows()
         cutting = self._cutting_set and self.cutting_force_n.any()
         ft = {}
@@ -743,8 +743,8 @@ class SimDriver(Driver, SimulatedWorld):
         if frame not in FRAME_PARENTS:
             raise ConfigError(f"unknown frame {frame!r}",
                               hint=f"use torso, {', '.join(FRAME_PARENTS)}")
-        ls = self._p.getLinkState(self._robot, self._links[FRAME_PARENTS[frame]],
-                                  computeForwardKinematics=1, physicsClientId=self._cid)
+        # the sensor links' states read with the state (the physics has not moved since)
+        ls = self._link_states[SENSOR_LINKS.index(FRAME_PARENTS[frame])]
         return _pose(ls[4], ls[5]) @ self._T_link_frame[frame]
 
     def com_world_m(self) -> np.ndarray:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
+import numba as nb
 import numpy as np
 
 from hubo_cli.balance_report import CONTACT_CUTOFF_HZ, CONTACT_THRESHOLD_N
@@ -46,36 +47,54 @@ def footstep_of(side: str, T_world_sole: np.ndarray) -> Footstep:
                     math.atan2(T_world_sole[1, 0], T_world_sole[0, 0]))
 
 
-def measured_zmp(poses: dict[str, np.ndarray], wrenches: dict[str, np.ndarray],
-                 corners_m: np.ndarray, loaded_n: float = LOADED_N
-                 ) -> tuple[np.ndarray | None, float]:
+def measured_zmp(poses: np.ndarray, wrenches: np.ndarray, corners_m: np.ndarray,
+                 loaded_n: float = LOADED_N) -> tuple[np.ndarray | None, float]:
     """The ZMP from the ankles' force/torque (world x, y; None when no sole is loaded) and how
     far it lies outside the loaded soles' convex hull (m; <= 0 inside). A sole is loaded when
     its F_z exceeds ``loaded_n`` (N).
 
     Args:
-        poses: side -> T_world_sole (4x4).
-        wrenches: side -> [fx, fy, fz, mx, my, mz] of the ground on the sole, about the sole
-            frame's origin in sole axes (N, N m).
+        poses: T_world_sole of the right and the left sole (2 x 4 x 4).
+        wrenches: their [fx, fy, fz, mx, my, mz] of the ground on the sole, about the sole
+            frame's origin in sole axes (2 x 6; N, N m).
         corners_m: the sole's corners in its own frame (4 x 3), counter-clockwise.
     """
+    zmp = np.empty(2)
+    outside = _zmp_outside(np.ascontiguousarray(poses, dtype=float),
+                           np.ascontiguousarray(wrenches, dtype=float), corners_m,
+                           float(loaded_n), zmp)
+    return (None, math.inf) if outside == math.inf else (zmp, outside)  # inf: none loaded
+
+
+@nb.njit(cache=True, nogil=True)
+def _zmp_outside(poses, wrenches, corners, loaded_n, zmp_out):
+    """:func:`measured_zmp` compiled (one call a period instead of some twenty array
+    operations): writes the ZMP to ``zmp_out``, returns how far it lies outside the hull
+    (inf when no sole is loaded). One loaded sole is its own outline, corners in order."""
     total = weighted_x = weighted_y = 0.0
-    points = []
-    for side, T in poses.items():
-        _, _, fz, mx, my, _ = wrenches[side].tolist()  # plain floats: this runs every period
+    points = np.empty((poses.shape[0] * corners.shape[0], 2))
+    n = loaded = 0
+    for s in range(poses.shape[0]):
+        fz = wrenches[s, 2]
         if not fz > loaded_n:
             continue
-        px, py = -my / fz, mx / fz  # the sole's CoP: -m_y/f_z, m_x/f_z
-        (r00, r01, _, x), (r10, r11, _, y) = T[:2].tolist()
-        weighted_x += fz * (r00 * px + r01 * py + x)
-        weighted_y += fz * (r10 * px + r11 * py + y)
+        px, py = -wrenches[s, 4] / fz, wrenches[s, 3] / fz  # the sole's CoP: -m_y/f_z, m_x/f_z
+        T = poses[s]
+        weighted_x += fz * (T[0, 0] * px + T[0, 1] * py + T[0, 3])
+        weighted_y += fz * (T[1, 0] * px + T[1, 1] * py + T[1, 3])
         total += fz
-        points.append(corners_m[:, :2] @ T[:2, :2].T + T[:2, 3])
-    if total == 0.0:
-        return None, math.inf
-    zmp = np.array((weighted_x / total, weighted_y / total))
-    hull = points[0] if len(points) == 1 else convex_hull(np.concatenate(points))
-    return zmp, float(outside_distance(hull, zmp))
+        for c in range(corners.shape[0]):
+            points[n, 0] = corners[c, 0] * T[0, 0] + corners[c, 1] * T[0, 1] + T[0, 3]
+            points[n, 1] = corners[c, 0] * T[1, 0] + corners[c, 1] * T[1, 1] + T[1, 3]
+            n += 1
+        loaded += 1
+    if loaded == 0:
+        return math.inf
+    zmp_out[0] = weighted_x / total
+    zmp_out[1] = weighted_y / total
+    if loaded == 1:
+        return outside_distance(points[:n], zmp_out)
+    return outside_distance(convex_hull(points[:n]), zmp_out)
 
 
 class ContactWrenches:
@@ -93,17 +112,29 @@ class ContactWrenches:
     def __init__(self, period_s: float) -> None:
         tau = 1.0 / (2.0 * math.pi * CONTACT_CUTOFF_HZ)
         self.alpha = period_s / (period_s + tau)
-        self.filtered: dict[str, np.ndarray] = {}
+        self.filtered = np.full((2, 6), np.nan)  # right, left; NaN until a first reading
 
-    def update(self, wrenches: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        """One period's raw wrenches (side -> [fx, fy, fz, mx, my, mz]); the filtered ones."""
-        for side, wrench in wrenches.items():
-            w = np.asarray(wrench, dtype=float)
-            if not np.all(np.isfinite(w)):
-                continue
-            last = self.filtered.get(side)
-            self.filtered[side] = w.copy() if last is None else last + self.alpha * (w - last)
+    def update(self, wrenches: np.ndarray) -> np.ndarray:
+        """One period's raw wrenches (2 x 6: the right and the left sole's [fx, fy, fz, mx, my,
+        mz]); the filtered ones (2 x 6). A sole's reading with a non-finite value is skipped."""
+        _low_pass(self.filtered, np.ascontiguousarray(wrenches, dtype=float), self.alpha)
         return self.filtered
+
+
+@nb.njit(cache=True, nogil=True)
+def _low_pass(filtered, wrenches, alpha):
+    """:meth:`ContactWrenches.update` in place, compiled (a few array operations cost more
+    than the arithmetic): a row with a non-finite value is skipped, a first reading taken."""
+    for s in range(wrenches.shape[0]):
+        finite = True
+        for i in range(wrenches.shape[1]):
+            finite = finite and math.isfinite(wrenches[s, i])
+        if not finite:
+            continue
+        for i in range(wrenches.shape[1]):
+            last = filtered[s, i]
+            filtered[s, i] = wrenches[s, i] if math.isnan(last) else (
+                last + alpha * (wrenches[s, i] - last))
 
 
 def tilt_between(z_from: np.ndarray, z_to: np.ndarray) -> np.ndarray:
@@ -135,11 +166,13 @@ def imu_z_axis(q_wxyz: np.ndarray) -> np.ndarray:
 
 
 def rigid_inverse(T: np.ndarray) -> np.ndarray:
-    """The inverse of a rigid transform (4x4): [R^T, -R^T p]."""
-    out = np.eye(4)
-    R = T[:3, :3]
-    out[:3, :3] = R.T
-    out[:3, 3] = -(R.T @ T[:3, 3])
+    """The inverse of rigid transforms (4x4, or a stack of them: ... x 4 x 4): [R^T, -R^T p]."""
+    T = np.asarray(T, dtype=float)
+    R_t = np.swapaxes(T[..., :3, :3], -1, -2)
+    out = np.zeros(T.shape)
+    out[..., :3, :3] = R_t
+    out[..., :3, 3] = -(R_t @ T[..., :3, 3, None])[..., 0]
+    out[..., 3, 3] = 1.0
     return out
 
 
@@ -199,7 +232,7 @@ class WalkTarget(Target):
         self.plan: JointPlan | None = None
         self.start: Stance | None = None
         self.goal: Stance | None = None
-        self.corners = model.feet.sole_corners_m()[:, :3]
+        self.corners = np.ascontiguousarray(model.feet.sole_corners_m()[:, :3])
         self.k = 0
         self.fell = False
         self.zmp_periods = 0
@@ -282,6 +315,13 @@ class WalkTarget(Target):
                       "step": gait.step_index.tolist(),
                       **{side: gait.feet[side].tolist() for side in ("right", "left")}}
         self._sole_z0 = {side: float(gait.feet[side][0, 2]) for side in ("right", "left")}
+        # the soles' goals in the planned torso's frame, per period: the stabilizer only moves
+        # them by its torso offset and a touchdown's lift (:meth:`_stabilized`)
+        T_neck_world = rigid_inverse(self.plan.T_world_neck)
+        self._R_neck_world = T_neck_world[:, :3, :3].copy()
+        self._T_neck_soles = np.stack([T_neck_world @ np.array([pose_of_row(row)
+                                                                for row in gait.feet[side]])
+                                       for side in ("right", "left")], axis=1)  # n x 2 x 4 x 4
         self.plan_start_s = t_s
         self.k = 0
         self.steps.extend(steps)
@@ -316,8 +356,8 @@ class WalkTarget(Target):
             self.torso_z0_m = torso_z
         if has_fallen(tilt, self.torso_z0_m - torso_z):
             self.fell = True
-        poses = {side: world.frame_pose(frame) for side, frame, _ in SOLES}
-        wrenches = {side: state.ft[sensor] for side, _, sensor in SOLES}
+        poses = np.array([world.frame_pose(frame) for _, frame, _ in SOLES])
+        wrenches = np.array([state.ft[sensor] for _, _, sensor in SOLES])
         zmp, outside = measured_zmp(poses, wrenches, self.corners)
         if zmp is not None:
             self.raw_zmp_periods += 1
@@ -327,7 +367,7 @@ class WalkTarget(Target):
         if support_zmp is not None:
             self.zmp_periods += 1
             self.zmp_inside_periods += support_outside <= -ZMP_INSIDE_MARGIN_M
-        self.final_feet = poses
+        self.final_feet = {"right": poses[0], "left": poses[1]}
         q = plan.q_rad[k]
         if self.stabilizer is not None:
             q = self._stabilized(k, q.copy(), state, zmp)
@@ -363,10 +403,10 @@ class WalkTarget(Target):
                 "walk.left_sole_roll_rad": float(left[0]),
                 "walk.left_sole_pitch_rad": float(left[1])}
 
-    def _measured_neck(self, k: int, state: RobotState) -> np.ndarray:
-        """The torso's pose in the world (4x4) as a real robot can measure it: tilted as the
-        IMU says (heading from the pattern), placed by the measured leg kinematics of the more
-        loaded planned support sole standing where the pattern put it."""
+    def _measured_com(self, k: int, state: RobotState) -> tuple[float, float]:
+        """The whole-body CoM's world x, y as a real robot can measure it: the torso tilted as
+        the IMU says (heading from the pattern), placed by the measured leg kinematics of the
+        more loaded planned support sole standing where the pattern put it."""
         body = self.body
         right_down, left_down = self._rows["support"][k]
         ranks = {"right": (right_down, float(state.ft[SOLES_SENSOR["right"]][2])),
@@ -376,37 +416,31 @@ class WalkTarget(Target):
         T_neck_sole = body.legs[name].fk(state.q_rad[body.slices[name]])
         R_plan = self.plan.T_world_neck[k, :3, :3]
         R = tilt_between(R_plan[:, 2], imu_z_axis(state.imu_quat_wxyz)) @ R_plan
-        T = np.eye(4)
-        T[:3, :3] = R
-        T[:3, 3] = np.array(self._rows[side][k][:3]) - R @ T_neck_sole[:3, 3]
-        return T
+        x, y, _ = (R @ (body.com_in_neck(state.q_rad) - T_neck_sole[:3, 3])).tolist()
+        sole_x, sole_y = self._rows[side][k][:2]
+        return sole_x + x, sole_y + y
 
     def _stabilized(self, k: int, q: np.ndarray, state: RobotState,
                     zmp: np.ndarray | None) -> np.ndarray:
         """The pattern's joints ``q`` with the stabilizer's corrections (see
         :mod:`hubo_cli.walking.stabilizer`)."""
-        plan, body = self.plan, self.body
-        T_world_neck_measured = self._measured_neck(k, state)
-        com = T_world_neck_measured[:3, :3] @ body.com_in_neck(state.q_rad) \
-            + T_world_neck_measured[:3, 3]
-        offset = self.torso_offset.update(zmp, self._rows["zmp_ref"][k], com[:2].tolist(),
-                                          self._rows["plan_com"][k])
-        T_world_neck = plan.T_world_neck[k].copy()
-        T_world_neck[:2, 3] += offset
-        T_neck_world = rigid_inverse(T_world_neck)
+        body, rows = self.body, self._rows
+        offset_x, offset_y = self.torso_offset.update(
+            zmp, rows["zmp_ref"][k], self._measured_com(k, state), rows["plan_com"][k]).tolist()
+        lifts = [self.touchdowns[side].update(not down, rows[side][k][2] - self._sole_z0[side],
+                                              float(state.ft[SOLES_SENSOR[side]][2]))
+                 for side, down in zip(("right", "left"), rows["support"][k], strict=True)]
+        # the planned goals with the torso moved by the offset and the soles lifted
+        goals = self._T_neck_soles[k].copy()
+        goals[:, :3, 3] += (self._R_neck_world[k] @ np.array(
+            ((-offset_x, -offset_x), (-offset_y, -offset_y), lifts))).T
         for column, side in enumerate(("right", "left")):
             name = SIDE_LEG[side]
             part = body.slices[name]
-            row = self._rows[side][k]
-            lift = self.touchdowns[side].update(
-                not self._rows["support"][k][column], row[2] - self._sole_z0[side],
-                float(state.ft[SOLES_SENSOR[side]][2]))
-            T_world_sole = pose_of_row(row)
-            T_world_sole[2, 3] += lift
-            result = body.legs[name].solve(T_neck_world @ T_world_sole, q[part])
+            result = body.legs[name].solve(goals[column], q[part])
             delta = result.q_rad - q[part]
             if result.status == "exact" and float(
-                    np.max(np.abs(delta - self._leg_delta[side]))) <= LEG_STEP_RAD:
+                    abs(delta - self._leg_delta[side]).max()) <= LEG_STEP_RAD:
                 self._leg_delta[side] = delta
             q[part] += self._leg_delta[side]
         for side in ("right", "left"):
