@@ -5,13 +5,21 @@ import pytest
 
 from hubo_cli.errors import ConfigError
 from hubo_cli.geometry import quat_wxyz_to_matrix
+from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import load_model
+from hubo_cli.state import FT_SENSORS, RobotState
 from hubo_cli.walking.body import WalkingBody, multibody_zmp, walking_posture
 from hubo_cli.walking.footsteps import Footstep, Stance, plan_footsteps
 from hubo_cli.walking.gait import make_gait
 from hubo_cli.walking.params import walking_params
 from hubo_cli.walking.stabilizer import SoleDamper, StabilizerGains, TorsoOffset, Touchdown
-from hubo_cli.walking.target import imu_z_axis, measured_zmp, rigid_inverse, tilt_between
+from hubo_cli.walking.target import (
+    WalkTarget,
+    imu_z_axis,
+    measured_zmp,
+    rigid_inverse,
+    tilt_between,
+)
 
 DT = 0.005
 SOLE = (-0.09, 0.13, -0.065, 0.065)  # the sole box in its own frame (m)
@@ -165,3 +173,53 @@ def test_contact_wrenches_average_a_jumping_reading_and_follow_a_landing():
           for _ in range(12)]
     assert fz[1] > 25.0
     assert 0.5 * 380.0 < fz[5] < 0.75 * 380.0
+
+
+class StandingWorld:
+    """The soles and the torso of the walking posture, where a simulator reports them; the
+    right sole turned by ``right_yaw_rad`` about its vertical."""
+
+    def __init__(self, model, q_rad, T_world_neck, right_yaw_rad=0.0):
+        self.poses = {"torso": T_world_neck}
+        for frame, name in (("right_sole", "right-leg"), ("left_sole", "left-leg")):
+            T_neck_sole = Limb(model, name).fk(q_rad[model.limb_slice(name)])
+            self.poses[frame] = T_world_neck @ T_neck_sole
+        turn = np.eye(4)
+        c, s = np.cos(right_yaw_rad), np.sin(right_yaw_rad)
+        turn[:2, :2] = ((c, -s), (s, c))
+        self.poses["right_sole"] = self.poses["right_sole"] @ turn
+
+    def frame_pose(self, frame):
+        return self.poses[frame].copy()
+
+
+def test_torso_offset_reaches_the_legs_with_the_hip_yaw_at_its_limit():
+    """Standing with the feet ahead, each hip yaw sits at its joint limit (0): with the feet
+    toed in by a hundredth of a degree, as the simulator reads them after a few steps, the
+    legs' IK reaches the soles' goals only capped to the limits (a few microradians off), and
+    the torso offset must still move the legs. A torso that the IMU reads 1 deg pitched
+    forward puts the measured CoM ahead of the pattern's; the offset moves the torso back, so
+    both soles move forward in its frame by the offset (and sideways by its part from the
+    ZMP's feedback). Before, the offset grew while the legs never followed it."""
+    model = load_model("as-built", "walking")
+    params = walking_params(model)
+    q_start, T_world_neck = walking_posture(model, params.step_width_m, params.crouch_m)
+    target = WalkTarget(model, params, (0.3, 0.0, 0.0), q_start, T_world_neck, corrections=0,
+                        stabilizer=StabilizerGains())
+    target.attach(StandingWorld(model, q_start, T_world_neck, right_yaw_rad=1e-4), [])
+    pitch = np.radians(1.0)
+    ft = {name: np.zeros(6) for name in FT_SENSORS}
+    ft["right-ankle"] = ft["left-ankle"] = wrench_at(0.0, 0.0, 190.0)
+    for k in range(60):  # 0.3 s of the start's double support, the robot on the pattern
+        q_plan = target.plan.q_rad[k]
+        state = RobotState(time_s=k * DT, q_rad=q_plan.copy(), dq_rad_s=np.zeros_like(q_plan),
+                           imu_quat_wxyz=np.array([np.cos(pitch / 2), 0.0, np.sin(pitch / 2),
+                                                   0.0]),
+                           ft=ft, T_world_torso=T_world_neck)
+        q, _ = target(k * DT, state)
+    offset = target.torso_offset.offset_m
+    assert offset[0] < -0.005  # pulled back by more than 5 mm
+    for name in ("right-leg", "left-leg"):
+        leg, part = Limb(model, name), model.limb_slice(name)
+        moved = leg.fk(q[part])[:3, 3] - leg.fk(q_plan[part])[:3, 3]
+        assert moved[:2] == pytest.approx(-offset, abs=0.001)

@@ -36,7 +36,12 @@ ZMP_INSIDE_MARGIN_M = 0.001  # a ZMP closer than this to the hull's edge counts 
 LOADED_N = 10.0  # a sole carrying more than this counts in the measured ZMP and the support
 LEG_STEP_RAD = 0.005  # the stabilizer's correction of a leg's joints (torso offset, touchdown
                      # hold) changes by at most this much a period: an IK solution further from
-                     # the last one (another branch, or not exact) keeps the last correction
+                     # the last one (another branch, or off the goal) keeps the last correction
+LEG_CAPPED_M = 1e-4  # an IK solution capped to the joint limits this close to the sole's goal
+LEG_CAPPED_RAD = 1e-3  # reaches it: each hip yaw stands at its limit, 0, while the feet point
+                       # ahead, and feet toed in by microradians (as the simulator reads them
+                       # after a few steps) cap it; taking only exact solutions, the correction
+                       # stayed zero from the first capped period on while the offset grew
 SOLES = (("right", "right_sole", "right-ankle"), ("left", "left_sole", "left-ankle"))
 SOLES_SENSOR = {side: sensor for side, _, sensor in SOLES}
 
@@ -439,7 +444,9 @@ class WalkTarget(Target):
             part = body.slices[name]
             result = body.legs[name].solve(goals[column], q[part])
             delta = result.q_rad - q[part]
-            if result.status == "exact" and float(
+            if (result.status == "exact" or (
+                    result.status == "capped" and result.position_error_m <= LEG_CAPPED_M
+                    and result.rotation_error_rad <= LEG_CAPPED_RAD)) and float(
                     abs(delta - self._leg_delta[side]).max()) <= LEG_STEP_RAD:
                 self._leg_delta[side] = delta
             q[part] += self._leg_delta[side]
