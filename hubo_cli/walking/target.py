@@ -15,6 +15,8 @@ from hubo_cli.control.target import Target, TargetOutput
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.errors import ConfigError
 from hubo_cli.falls import has_fallen
+from hubo_cli.kinematics.choice import EXACT, solve_limb
+from hubo_cli.kinematics.dh import JIT
 from hubo_cli.model import RobotModel
 from hubo_cli.state import RobotState
 from hubo_cli.walking.body import SIDE_LEG, JointPlan, WalkingBody, pose_of_row
@@ -137,6 +139,30 @@ def _low_pass(filtered, wrenches, alpha):
                 last + alpha * (wrenches[s, i] - last))
 
 
+@nb.njit(**JIT)
+def _correct_leg(T_neck_goal, chain, lengths, is_arm, lower, upper, hold_m, q, start, delta,
+                 step_rad):
+    """The stabilizer's correction of one leg, compiled (one call instead of the IK's wrapper
+    and a few small array operations): the leg's joints ``q[start:start + 6]`` (the pattern's)
+    solved for the goal sole ``T_neck_goal`` (:func:`~hubo_cli.kinematics.choice.solve_limb`
+    from those joints); an exact solution whose difference to them changes no joint by more
+    than ``step_rad`` from the last correction ``delta`` becomes the new correction (written
+    to ``delta``); the correction is added to the leg's joints of ``q`` in place."""
+    part = q[start:start + 6]
+    solved = np.empty(6)
+    status, _, _ = solve_limb(T_neck_goal, chain, lengths, is_arm, lower, upper, part, True,
+                              hold_m, True, solved)
+    if status == EXACT:
+        within = True
+        for j in range(6):
+            within = within and abs(solved[j] - part[j] - delta[j]) <= step_rad
+        if within:
+            for j in range(6):
+                delta[j] = solved[j] - part[j]
+    for j in range(6):
+        part[j] += delta[j]
+
+
 def tilt_between(z_from: np.ndarray, z_to: np.ndarray) -> np.ndarray:
     """The smallest rotation (3x3) turning the unit vector ``z_from`` onto ``z_to`` (Rodrigues'
     formula, in plain floats: it runs every control period)."""
@@ -256,7 +282,7 @@ class WalkTarget(Target):
             self.dampers = {side: SoleDamper(stabilizer, box, dt) for side in ("right", "left")}
             self.torso_offset = TorsoOffset(stabilizer, dt)
             self.touchdowns = {side: Touchdown(stabilizer, dt) for side in ("right", "left")}
-            self._leg_delta = {side: np.zeros(6) for side in ("right", "left")}
+            self._leg_delta = np.zeros((2, 6))  # the legs' corrections: right, left
         names = list(model.joint_names)
         self._ankle = {"right": (names.index("RAR"), names.index("RAP")),
                        "left": (names.index("LAR"), names.index("LAP"))}
@@ -436,13 +462,10 @@ class WalkTarget(Target):
             ((-offset_x, -offset_x), (-offset_y, -offset_y), lifts))).T
         for column, side in enumerate(("right", "left")):
             name = SIDE_LEG[side]
-            part = body.slices[name]
-            result = body.legs[name].solve(goals[column], q[part])
-            delta = result.q_rad - q[part]
-            if result.status == "exact" and float(
-                    abs(delta - self._leg_delta[side]).max()) <= LEG_STEP_RAD:
-                self._leg_delta[side] = delta
-            q[part] += self._leg_delta[side]
+            leg = body.legs[name]
+            _correct_leg(goals[column], leg.chain, leg.lengths_m, leg.spec.is_arm, leg.lower_rad,
+                         leg.upper_rad, leg.hold_m, q, body.slices[name].start,
+                         self._leg_delta[column], LEG_STEP_RAD)
         for side in ("right", "left"):
             delta = self.dampers[side].update(state.ft[SOLES_SENSOR[side]])
             roll, pitch = self._ankle[side]
