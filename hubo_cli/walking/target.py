@@ -349,6 +349,15 @@ class WalkTarget(Target):
         self.goal = Stance(self.start.x_m + c * forward - s * left,
                            self.start.y_m + s * forward + c * left, self.start.yaw_rad + turn)
         self._plan(self.q_start, 0.0)
+        if self.stabilizer is not None:
+            # numba compiles a kernel on its first call: make that now with the run's types,
+            # not in the first period (seconds on a fresh install; cached afterwards)
+            q, body = self.q_start.copy(), self.body
+            _correct_legs(self._T_neck_soles[0], self._R_neck_world[0], 0.0, 0.0, 0.0, 0.0, q,
+                          np.zeros((2, 6)), *self._leg_kernel, LEG_STEP_RAD)
+            leg = SIDE_LEG["right"]
+            _com_from_sole(q[body.slices[leg]], body.legs[leg].chain, body.com_in_neck(q),
+                           self.plan.T_world_neck[0, :3, :3], np.array((1.0, 0.0, 0.0, 0.0)))
         for module in modules:
             if isinstance(module, CapturePointMonitor):
                 module.support_override = self.support_at
