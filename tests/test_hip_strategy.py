@@ -83,22 +83,44 @@ def test_it_is_in_the_standing_pipeline_only_when_asked(model):
     assert order.index("balance") < order.index("hip") < order.index("limiter")
 
 
-def test_the_standing_posture_puts_the_com_over_the_soles_centre(model):
+def _com_and_trunk_in_the_sole_frame(model, q_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The whole-body CoM (m) and the torso's rotation, both in the right sole's frame
+    (pinocchio on the URDF: independent of the module's own numbers)."""
     import pinocchio as pin
 
     from hubo_cli.control.pin_robot import load_pin_robot
 
     robot = load_pin_robot(model, floating=True)
     data = robot.model.createData()
+    q = robot.configuration(q_rad, None)
+    com = pin.centerOfMass(robot.model, data, q, False)
+    sole = pin.updateFramePlacement(robot.model, data, robot.frame_id("right_sole"))
+    return sole.rotation.T @ (com - sole.translation), sole.rotation.T
 
+
+def test_the_standing_posture_puts_the_com_over_the_soles_centre(model):
     def com_ahead_of_soles_centre_m(q_rad):
-        q = robot.configuration(q_rad, None)
-        com = pin.centerOfMass(robot.model, data, q, False)
-        sole = pin.updateFramePlacement(robot.model, data, robot.frame_id("right_sole"))
-        return float((sole.rotation.T @ (com - sole.translation))[0]) - model.feet.forward_m
+        return float(_com_and_trunk_in_the_sole_frame(model, q_rad)[0][0]) - model.feet.forward_m
 
     assert com_ahead_of_soles_centre_m(home_posture(model)) > 0.003  # 4 mm toward the toes
     assert abs(com_ahead_of_soles_centre_m(standing_posture(model))) < 0.001
+
+
+def test_the_bow_pitches_the_trunk_and_keeps_the_com_over_the_feet(model):
+    """BOW_JOINTS_RAD against pinocchio: a 0.2 rad bow pitches the torso 0.2 rad relative to
+    the soles, moves the whole-body CoM less than 1 mm along x (0.4 mm) and, the offsets being
+    solved to first order, less than 5 mm in height (3.1 mm)."""
+    q = standing_posture(model)
+    bowed = q.copy()
+    for joint, per_rad in BOW_JOINTS_RAD.items():
+        for side in "RL":
+            bowed[_joint(model, side + joint)] += per_rad * 0.2
+    com, R_sole_torso = _com_and_trunk_in_the_sole_frame(model, q)
+    com_bowed, R_sole_torso_bowed = _com_and_trunk_in_the_sole_frame(model, bowed)
+    assert abs(com_bowed[0] - com[0]) < 0.001 and abs(com_bowed[2] - com[2]) < 0.005
+    pitch = R_sole_torso.T @ R_sole_torso_bowed  # the torso's rotation in its former frame
+    assert np.degrees(np.arccos(np.clip((np.trace(pitch) - 1) / 2, -1, 1))) == pytest.approx(
+        np.degrees(0.2), abs=0.3)
 
 
 @pytest.mark.parametrize("direction", [(1.0, 0.0, 0.0), (-1.0, 0.0, 0.0)])
