@@ -223,3 +223,24 @@ def test_torso_offset_reaches_the_legs_with_the_hip_yaw_at_its_limit():
         leg, part = Limb(model, name), model.limb_slice(name)
         moved = leg.fk(q[part])[:3, 3] - leg.fk(q_plan[part])[:3, 3]
         assert moved[:2] == pytest.approx(-offset, abs=0.001)
+
+
+def test_the_compiled_com_offset_from_a_sole_is_the_matrix_formula(model):
+    """``_com_from_sole`` (one compiled call a period) against the same quantity built from the
+    leg's FK and matrix products: R = tilt(plan z -> IMU z) @ R_plan, then R @ (c - p_sole)."""
+    from hubo_cli.geometry import rpy_to_matrix
+    from hubo_cli.kinematics.limb import Limb
+    from hubo_cli.walking.target import _com_from_sole
+
+    rng = np.random.default_rng(7)
+    for leg in ("right-leg", "left-leg"):
+        limb = Limb(model, leg)
+        for _ in range(200):
+            q_leg = limb.random_q(rng)
+            com_in_neck = rng.uniform(-0.3, 0.3, 3)
+            R_plan = rpy_to_matrix(*rng.uniform(-0.2, 0.2, 2), rng.uniform(-np.pi, np.pi))
+            q_imu = rng.normal(size=4)
+            R = tilt_between(R_plan[:, 2], imu_z_axis(q_imu)) @ R_plan
+            expected = (R @ (com_in_neck - limb.fk(q_leg)[:3, 3]))[:2]
+            got = _com_from_sole(q_leg, limb.chain, com_in_neck, R_plan, q_imu)
+            assert np.allclose(got, expected, rtol=0, atol=1e-12)

@@ -36,10 +36,11 @@ import math
 from dataclasses import dataclass
 
 import coal
+import numba as nb
 import numpy as np
 import pinocchio as pin
 
-from hubo_cli.control.limits import JointLimits, braking_distance
+from hubo_cli.control.limits import JointLimits, braking_distance, braking_distance_of
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.otg import JointTracker
 from hubo_cli.control.pin_robot import PinRobot, load_pin_robot
@@ -199,6 +200,21 @@ class SelfCollisionChecker:
         return float(data.distanceResults[best].min_distance), best
 
 
+@nb.njit(cache=True, nogil=True)
+def _input_ahead(q_rad, last_in, w_last, dt_s, lower, upper, amax, jmax, q_in, w_in, ahead):
+    """The input's side of :meth:`CollisionDetector.update` in one compiled pass: the input
+    (a NaN entry keeps the last input), its speed and acceleration by differences, and where
+    it would stop if it braked now (:func:`~hubo_cli.control.limits.braking_distance`, within
+    the position limits), written to ``q_in``, ``w_in`` and ``ahead``."""
+    for i in range(q_rad.shape[0]):
+        q = q_rad[i] if math.isfinite(q_rad[i]) else last_in[i]
+        w = (q - last_in[i]) / dt_s
+        q_in[i] = q
+        w_in[i] = w
+        stop = q + braking_distance_of(w, (w - w_last[i]) / dt_s, amax[i], jmax[i])
+        ahead[i] = min(max(stop, lower[i]), upper[i])
+
+
 class CollisionDetector(Module):
     """The ``collision`` module (see the module docstring).
 
@@ -242,6 +258,9 @@ class CollisionDetector(Module):
         self._clear_state(np.zeros(self.limits.size))
         # numba compiles on the first call: make that now, not in the first period of a run
         braking_distance(np.zeros(self.limits.size), np.zeros(self.limits.size), self.limits)
+        _input_ahead(*np.zeros((3, self.limits.size)), self.dt_s, self.limits.lower_rad,
+                     self.limits.upper_rad, self.limits.acceleration_rad_s2,
+                     self.limits.jerk_rad_s3, *np.zeros((3, self.limits.size)))
 
     def _clear_state(self, q: np.ndarray) -> None:
         self.mode = "safe"
@@ -293,12 +312,13 @@ class CollisionDetector(Module):
         return closest
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
-        q_in = np.where(np.isfinite(q_rad), q_rad, self.last_in)
-        w_in = (q_in - self.last_in) / self.dt_s
-        dw_in = (w_in - self._w_last) / self.dt_s
+        q_in, w_in, ahead = np.empty((3, len(q_rad)))
+        limits = self.limits
+        _input_ahead(np.asarray(q_rad, dtype=float), self.last_in, self._w_last, self.dt_s,
+                     limits.lower_rad, limits.upper_rad, limits.acceleration_rad_s2,
+                     limits.jerk_rad_s3, q_in, w_in, ahead)
         self.last_in = q_in
         self._w_last = w_in
-        ahead = self.limits.clip(q_in + braking_distance(w_in, dw_in, self.limits))
         at_input = self.checker.check(q_in)
         clearance = min(self._closest_on_way(q_in, ahead), at_input, key=lambda c: c.distance_m)
         self.ahead_clearance = clearance

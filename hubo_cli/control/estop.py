@@ -175,8 +175,7 @@ class EmergencyStopper(Module):
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         q_in = np.where(np.isfinite(q_rad), q_rad, self.last_in)
-        w_in = (q_in - self.last_in) / self.dt_s
-        self.last_in = q_in
+        last_in, self.last_in = self.last_in, q_in
         self.history.append(q_in)
         requests = self._requests(state, cycle)
         if requests and self.mode in ("release", "recover"):
@@ -205,6 +204,7 @@ class EmergencyStopper(Module):
             self.tracker.reset(out)
         else:  # recover
             remaining = self.t_recover_end_s - cycle.t_s
+            w_in = (q_in - last_in) / self.dt_s
             out = self.tracker.track(q_in, min_duration_s=remaining if remaining > 0 else None,
                                      target_v_rad_s=w_in)
             if (remaining <= 0 and np.max(np.abs(out - q_in)) < 1e-6

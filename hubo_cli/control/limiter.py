@@ -201,15 +201,16 @@ class SoftErrorLimiter(Module):
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         out = self.step(q_rad, state.q_rad, state.dq_rad_s)
         mask = self._mask
-        if mask.any():
+        clamped = int(np.count_nonzero(mask))
+        ankles = 0
+        if clamped:
             if (mask & CLAMP_POSITION).any():
                 cycle.flags.add("joint-limit")
             if (mask & CLAMP_RATE).any():
                 cycle.flags.add("slowing")
             if (mask & CLAMP_TRACKING).any():
                 cycle.flags.add("tracking-error")
-        clamped = int(np.count_nonzero(mask))
-        ankles = int(np.count_nonzero(mask[self._ankles]))
+            ankles = int(np.count_nonzero(mask[self._ankles]))
         self.periods += 1
         if clamped:
             self.clamped_periods += 1

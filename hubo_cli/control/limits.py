@@ -76,15 +76,21 @@ def braking_distance(v_rad_s: np.ndarray, a_rad_s2: np.ndarray, limits: JointLim
 
 
 @nb.njit(cache=True, nogil=True)
+def braking_distance_of(v: float, a: float, amax: float, jmax: float) -> float:
+    """:func:`braking_distance` of one joint (compiled, for kernels)."""
+    speed = abs(v)
+    direction = 1.0 if v > 0 else (-1.0 if v < 0 else 0.0)
+    along = max(a * direction, 0.0)           # acceleration pushing onward
+    lead = speed * along / jmax + along**3 / (3 * jmax ** 2)
+    speed += along * along / (2 * jmax)
+    if speed > amax * amax / jmax:
+        stop = speed * speed / (2 * amax) + speed * amax / (2 * jmax)
+    else:
+        stop = speed * math.sqrt(speed / jmax)
+    return direction * (lead + stop)
+
+
+@nb.njit(cache=True, nogil=True)
 def _braking_distance(v, a, amax, jmax, out) -> None:
     for i in range(v.shape[0]):
-        speed = abs(v[i])
-        direction = 1.0 if v[i] > 0 else (-1.0 if v[i] < 0 else 0.0)
-        along = max(a[i] * direction, 0.0)           # acceleration pushing onward
-        lead = speed * along / jmax[i] + along**3 / (3 * jmax[i] ** 2)
-        speed += along * along / (2 * jmax[i])
-        if speed > amax[i] * amax[i] / jmax[i]:
-            stop = speed * speed / (2 * amax[i]) + speed * amax[i] / (2 * jmax[i])
-        else:
-            stop = speed * math.sqrt(speed / jmax[i])
-        out[i] = direction * (lead + stop)
+        out[i] = braking_distance_of(v[i], a[i], amax[i], jmax[i])

@@ -15,6 +15,8 @@ from hubo_cli.control.target import Target, TargetOutput
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.errors import ConfigError
 from hubo_cli.falls import has_fallen
+from hubo_cli.kinematics.choice import CAPPED, EXACT, solve_limb
+from hubo_cli.kinematics.dh import JIT, chain_fk
 from hubo_cli.model import RobotModel
 from hubo_cli.state import RobotState
 from hubo_cli.walking.body import SIDE_LEG, JointPlan, WalkingBody, pose_of_row
@@ -142,11 +144,55 @@ def _low_pass(filtered, wrenches, alpha):
                 last + alpha * (wrenches[s, i] - last))
 
 
+@nb.njit(**JIT)
+def _correct_legs(T_neck_soles, R_neck_world, offset_x, offset_y, lift_right, lift_left, q,
+                  deltas, right, left, step_rad):
+    """The stabilizer's correction of both legs, compiled (one call a period): each planned
+    sole goal in the torso's frame (``T_neck_soles``: right, left) moved by the torso offset
+    (world x, y) and the sole's lift (world z), both turned into the torso's frame by
+    ``R_neck_world``, then :func:`_correct_leg` with the leg's ``(chain, lengths, is_arm,
+    lower, upper, hold_m, start)`` and its row of ``deltas`` (2 x 6)."""
+    goal = np.empty((4, 4))
+    for side in range(2):
+        lift = lift_right if side == 0 else lift_left
+        goal[:, :] = T_neck_soles[side]
+        for r in range(3):
+            goal[r, 3] += (R_neck_world[r, 0] * -offset_x + R_neck_world[r, 1] * -offset_y
+                           + R_neck_world[r, 2] * lift)
+        _correct_leg(goal, right if side == 0 else left, q, deltas[side], step_rad)
+
+
+@nb.njit(**JIT)
+def _correct_leg(T_neck_goal, leg, q, delta, step_rad):
+    """One leg's correction: the leg's joints ``q[start:start + 6]`` (the pattern's) solved
+    for the goal sole ``T_neck_goal`` (:func:`~hubo_cli.kinematics.choice.solve_limb` from
+    those joints); an exact solution, or one capped to the joint limits within LEG_CAPPED_M
+    and LEG_CAPPED_RAD of the goal, whose difference to them changes no joint by more than
+    ``step_rad`` from the last correction ``delta`` becomes the new correction (written to
+    ``delta``); the correction is added to the leg's joints of ``q`` in place."""
+    chain, lengths, is_arm, lower, upper, hold_m, start = leg
+    part = q[start:start + 6]
+    solved = np.empty(6)
+    status, position_m, rotation_rad = solve_limb(T_neck_goal, chain, lengths, is_arm, lower,
+                                                  upper, part, True, hold_m, True, solved)
+    if status == EXACT or (status == CAPPED and position_m <= LEG_CAPPED_M
+                           and rotation_rad <= LEG_CAPPED_RAD):
+        within = True
+        for j in range(6):
+            within = within and abs(solved[j] - part[j] - delta[j]) <= step_rad
+        if within:
+            for j in range(6):
+                delta[j] = solved[j] - part[j]
+    for j in range(6):
+        part[j] += delta[j]
+
+
+@nb.njit(**JIT)
 def tilt_between(z_from: np.ndarray, z_to: np.ndarray) -> np.ndarray:
     """The smallest rotation (3x3) turning the unit vector ``z_from`` onto ``z_to`` (Rodrigues'
-    formula, in plain floats: it runs every control period)."""
-    ax, ay, az = np.asarray(z_from, dtype=float).tolist()
-    bx, by, bz = np.asarray(z_to, dtype=float).tolist()
+    formula; compiled: it runs every control period)."""
+    ax, ay, az = z_from[0], z_from[1], z_from[2]
+    bx, by, bz = z_to[0], z_to[1], z_to[2]
     kx, ky, kz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
     s = math.sqrt(kx * kx + ky * ky + kz * kz)
     if s < 1e-12:
@@ -155,19 +201,50 @@ def tilt_between(z_from: np.ndarray, z_to: np.ndarray) -> np.ndarray:
     kx, ky, kz = kx / s, ky / s, kz / s
     angle = math.atan2(s, c)
     sn, vc = math.sin(angle), 1.0 - math.cos(angle)
-    return np.array([
-        [1.0 - vc * (ky * ky + kz * kz), -sn * kz + vc * kx * ky, sn * ky + vc * kx * kz],
-        [sn * kz + vc * kx * ky, 1.0 - vc * (kx * kx + kz * kz), -sn * kx + vc * ky * kz],
-        [-sn * ky + vc * kx * kz, sn * kx + vc * ky * kz, 1.0 - vc * (kx * kx + ky * ky)]])
+    R = np.empty((3, 3))
+    R[0, 0] = 1.0 - vc * (ky * ky + kz * kz)
+    R[0, 1] = -sn * kz + vc * kx * ky
+    R[0, 2] = sn * ky + vc * kx * kz
+    R[1, 0] = sn * kz + vc * kx * ky
+    R[1, 1] = 1.0 - vc * (kx * kx + kz * kz)
+    R[1, 2] = -sn * kx + vc * ky * kz
+    R[2, 0] = -sn * ky + vc * kx * kz
+    R[2, 1] = sn * kx + vc * ky * kz
+    R[2, 2] = 1.0 - vc * (kx * kx + ky * ky)
+    return R
 
 
+@nb.njit(**JIT)
 def imu_z_axis(q_wxyz: np.ndarray) -> np.ndarray:
     """The world's view of the torso's z axis (3,) from the IMU's quaternion (w, x, y, z;
     normalised here): the third column of its rotation matrix."""
-    w, x, y, z = np.asarray(q_wxyz, dtype=float).tolist()
+    w, x, y, z = q_wxyz[0], q_wxyz[1], q_wxyz[2], q_wxyz[3]
     n2 = w * w + x * x + y * y + z * z
-    return np.array([2.0 * (x * z + w * y) / n2, 2.0 * (y * z - w * x) / n2,
-                     1.0 - 2.0 * (x * x + y * y) / n2])
+    axis = np.empty(3)
+    axis[0] = 2.0 * (x * z + w * y) / n2
+    axis[1] = 2.0 * (y * z - w * x) / n2
+    axis[2] = 1.0 - 2.0 * (x * x + y * y) / n2
+    return axis
+
+
+@nb.njit(**JIT)
+def _com_from_sole(q_leg, chain, com_in_neck, R_world_neck, q_imu_wxyz):
+    """The CoM's world x, y offset from a sole (m): ``com_in_neck`` less the sole's place in
+    the neck frame (the leg's FK at ``q_leg``), turned into the world by the planned torso
+    rotation ``R_world_neck`` tilted as the IMU's quaternion says (:func:`tilt_between`)."""
+    base, _, offset, alpha, a, d, end, _ = chain
+    T = np.empty((4, 4))
+    chain_fk(q_leg, base, offset, alpha, a, d, end, T)
+    tilt = tilt_between(R_world_neck[:, 2], imu_z_axis(q_imu_wxyz))
+    r0, r1, r2 = (com_in_neck[0] - T[0, 3], com_in_neck[1] - T[1, 3],
+                  com_in_neck[2] - T[2, 3])
+    xy = np.zeros(2)
+    for i in range(2):
+        for j in range(3):
+            R_ij = (tilt[i, 0] * R_world_neck[0, j] + tilt[i, 1] * R_world_neck[1, j]
+                    + tilt[i, 2] * R_world_neck[2, j])
+            xy[i] += R_ij * (r0 if j == 0 else (r1 if j == 1 else r2))
+    return xy[0], xy[1]
 
 
 def rigid_inverse(T: np.ndarray) -> np.ndarray:
@@ -261,7 +338,7 @@ class WalkTarget(Target):
             self.dampers = {side: SoleDamper(stabilizer, box, dt) for side in ("right", "left")}
             self.torso_offset = TorsoOffset(stabilizer, dt)
             self.touchdowns = {side: Touchdown(stabilizer, dt) for side in ("right", "left")}
-            self._leg_delta = {side: np.zeros(6) for side in ("right", "left")}
+            self._leg_delta = np.zeros((2, 6))  # the legs' corrections: right, left
         names = list(model.joint_names)
         self._ankle = {"right": (names.index("RAR"), names.index("RAP")),
                        "left": (names.index("LAR"), names.index("LAP"))}
@@ -279,6 +356,15 @@ class WalkTarget(Target):
         self.goal = Stance(self.start.x_m + c * forward - s * left,
                            self.start.y_m + s * forward + c * left, self.start.yaw_rad + turn)
         self._plan(self.q_start, 0.0)
+        if self.stabilizer is not None:
+            # numba compiles a kernel on its first call: make that now with the run's types,
+            # not in the first period (seconds on a fresh install; cached afterwards)
+            q, body = self.q_start.copy(), self.body
+            _correct_legs(self._T_neck_soles[0], self._R_neck_world[0], 0.0, 0.0, 0.0, 0.0, q,
+                          np.zeros((2, 6)), *self._leg_kernel, LEG_STEP_RAD)
+            leg = SIDE_LEG["right"]
+            _com_from_sole(q[body.slices[leg]], body.legs[leg].chain, body.com_in_neck(q),
+                           self.plan.T_world_neck[0, :3, :3], np.array((1.0, 0.0, 0.0, 0.0)))
         for module in modules:
             if isinstance(module, CapturePointMonitor):
                 module.support_override = self.support_at
@@ -312,6 +398,12 @@ class WalkTarget(Target):
         self.gait, self.plan = body.solve_corrected(self.gait, sole_z, params.preview_s,
                                                     params.zmp_weight, params.jerk_weight)
         self.body = body
+        # each leg's IK data as :func:`_correct_legs` takes them (right, left)
+        self._leg_kernel = tuple(
+            (leg.chain, leg.lengths_m, leg.spec.is_arm, leg.lower_rad, leg.upper_rad, leg.hold_m,
+             body.slices[name].start)
+            for leg, name in ((body.legs[SIDE_LEG[side]], SIDE_LEG[side])
+                              for side in ("right", "left")))
         self._support_poses = planned_support(self.gait)
         # per-period rows as plain floats and bools for the loop (cheaper than numpy scalars)
         gait = self.gait
@@ -418,10 +510,9 @@ class WalkTarget(Target):
                  "left": (left_down, float(state.ft[SOLES_SENSOR["left"]][2]))}
         side = "left" if ranks["left"] > ranks["right"] else "right"
         name = SIDE_LEG[side]
-        T_neck_sole = body.legs[name].fk(state.q_rad[body.slices[name]])
-        R_plan = self.plan.T_world_neck[k, :3, :3]
-        R = tilt_between(R_plan[:, 2], imu_z_axis(state.imu_quat_wxyz)) @ R_plan
-        x, y, _ = (R @ (body.com_in_neck(state.q_rad) - T_neck_sole[:3, 3])).tolist()
+        x, y = _com_from_sole(state.q_rad[body.slices[name]], body.legs[name].chain,
+                              body.com_in_neck(state.q_rad), self.plan.T_world_neck[k, :3, :3],
+                              state.imu_quat_wxyz)
         sole_x, sole_y = self._rows[side][k][:2]
         return sole_x + x, sole_y + y
 
@@ -429,27 +520,14 @@ class WalkTarget(Target):
                     zmp: np.ndarray | None) -> np.ndarray:
         """The pattern's joints ``q`` with the stabilizer's corrections (see
         :mod:`hubo_cli.walking.stabilizer`)."""
-        body, rows = self.body, self._rows
+        rows = self._rows
         offset_x, offset_y = self.torso_offset.update(
             zmp, rows["zmp_ref"][k], self._measured_com(k, state), rows["plan_com"][k]).tolist()
         lifts = [self.touchdowns[side].update(not down, rows[side][k][2] - self._sole_z0[side],
                                               float(state.ft[SOLES_SENSOR[side]][2]))
                  for side, down in zip(("right", "left"), rows["support"][k], strict=True)]
-        # the planned goals with the torso moved by the offset and the soles lifted
-        goals = self._T_neck_soles[k].copy()
-        goals[:, :3, 3] += (self._R_neck_world[k] @ np.array(
-            ((-offset_x, -offset_x), (-offset_y, -offset_y), lifts))).T
-        for column, side in enumerate(("right", "left")):
-            name = SIDE_LEG[side]
-            part = body.slices[name]
-            result = body.legs[name].solve(goals[column], q[part])
-            delta = result.q_rad - q[part]
-            if (result.status == "exact" or (
-                    result.status == "capped" and result.position_error_m <= LEG_CAPPED_M
-                    and result.rotation_error_rad <= LEG_CAPPED_RAD)) and float(
-                    abs(delta - self._leg_delta[side]).max()) <= LEG_STEP_RAD:
-                self._leg_delta[side] = delta
-            q[part] += self._leg_delta[side]
+        _correct_legs(self._T_neck_soles[k], self._R_neck_world[k], offset_x, offset_y, *lifts,
+                      q, self._leg_delta, *self._leg_kernel, LEG_STEP_RAD)
         for side in ("right", "left"):
             delta = self.dampers[side].update(state.ft[SOLES_SENSOR[side]])
             roll, pitch = self._ankle[side]
