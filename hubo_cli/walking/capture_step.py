@@ -272,6 +272,8 @@ class CaptureStepper(Target):
         sole_middle = np.array([land.x_m, land.y_m]) + forward * self.heading
         xi = com_m + velocity_m_s / omega
         # the ZMP can only be held on the landed sole: the CoM comes to rest within it
+        ahead = float(np.array([land.x_m - stance.x_m, land.y_m - stance.y_m]) @ self.heading)
+        long_step = abs(ahead) > LONG_STEP_M
         reach = self.model.feet.length_m / 2 - CATCH_EDGE_M
         xi = sole_middle + np.clip(xi - sole_middle, -reach, reach)
         after = {self.swing: land, self.stance_side: stance}
@@ -279,8 +281,6 @@ class CaptureStepper(Target):
         s, co = self.heading[1], self.heading[0]
         back = Footstep(self.stance_side, land.x_m - s * beside, land.y_m + co * beside,
                         land.yaw_rad)
-        ahead = float(np.array([land.x_m - stance.x_m, land.y_m - stance.y_m]) @ self.heading)
-        long_step = abs(ahead) > LONG_STEP_M
         n_in = max(1, int(round(SWING_IN_S / period))) if long_step else 0
         n = max(1, int(round(CATCH_S / period))) + n_in
         t = (np.arange(n) + 1.0) * period
@@ -298,7 +298,16 @@ class CaptureStepper(Target):
         if long_step:
             # the CoM cannot come to rest over the landed sole with the other foot down that
             # far behind (out of the legs' reach): that foot swings in beside the landed one
-            # meanwhile (the second step), then the robot holds the last posture
+            # meanwhile (the second step); then, both feet down, the CoM moves to between
+            # the soles' middles (smoothly, the ZMP with it), and the robot holds the last
+            # posture
+            rest_m = sole_middle + e
+            between = sole_middle + np.array([-s, co]) * beside / 2
+            blend = smoothstep5((np.arange(n) + 1.0 - n_in) / max(n - n_in, 1))[:, None]
+            c = c + blend * (between - rest_m)
+            zmp = zmp + blend * (between - rest_m)
+            v = np.gradient(c, period, axis=0)
+            a = np.gradient(v, period, axis=0)
             rows = {self.swing: np.tile(_row(land, self.sole_z_m), (n, 1)),
                     self.stance_side: np.vstack([
                         swing_rows(stance, back, n_in, SWING_HEIGHT_M, self.sole_z_m),
