@@ -14,12 +14,19 @@ inverted pendulum (omega^2 = g / z_c):
    follows the pendulum, c(t) = p + (c0 - p) cosh(wt) + v0 / w sinh(wt). The swing foot lands
    with its sole's middle on the capture point the pendulum has at touch-down,
    xi = c + c' / w (within ``MAX_STEP_M`` of the stance foot and at least the standing width
-   from it sideways);
+   from it sideways). The step ends when the swing sole carries ``TOUCH_N`` (after
+   ``TOUCH_FRACTION`` of the swing) or is down;
 2. *catch*, ``CATCH_S``: both feet down, the ZMP on the landed sole's middle (= xi); the CoM
    comes to rest there, c(t) = xi + (c_T - xi) exp(-w t);
 3. *return*: one walking step of :func:`~hubo_cli.walking.gait.make_gait` brings the other foot
    beside the landed one at the standing width (the stance, moved by the push); the CoM
    returns between the feet.
+
+After a long step (more than ``LONG_STEP_M`` the push's way) the CoM cannot come to rest over
+the landed sole with the other foot still down that far behind (out of the legs' reach): the
+catch and the return are one instead, the other foot swinging in beside the landed one over
+``SWING_IN_S`` while the CoM comes to rest over the landed sole and the torso turns back
+upright over ``UPRIGHT_S``; then the CoM moves to between the soles' middles over ``CATCH_S``.
 
 The pattern's joints come from :class:`~hubo_cli.walking.body.WalkingBody` (the legs' IK, the
 neck placed so that the model's CoM follows the pattern), one period at a time. While it
