@@ -108,7 +108,9 @@ def test_per_period_geometry_in_floats_matches_numpy():
     for _ in range(50):
         a, b = rng.normal(size=3), rng.normal(size=3)
         a, b = a / np.linalg.norm(a), b / np.linalg.norm(b)
-        R = tilt_between(a, b)
+        columns = np.zeros((3, 3))  # the kernels take a column of a rotation, as the target
+        columns[:, 2] = a           # passes it: one compiled signature, not two
+        R = tilt_between(columns[:, 2], b)
         assert np.allclose(R @ a, b, atol=1e-12) and np.allclose(R @ R.T, np.eye(3), atol=1e-12)
         q = rng.normal(size=4)
         assert np.allclose(imu_z_axis(q), quat_wxyz_to_matrix(q / np.linalg.norm(q))[:, 2],
@@ -238,7 +240,9 @@ def test_the_compiled_com_offset_from_a_sole_is_the_matrix_formula(model):
         for _ in range(200):
             q_leg = limb.random_q(rng)
             com_in_neck = rng.uniform(-0.3, 0.3, 3)
-            R_plan = rpy_to_matrix(*rng.uniform(-0.2, 0.2, 2), rng.uniform(-np.pi, np.pi))
+            T_plan = np.eye(4)  # the plan's pose: the kernel gets a view, as the target passes it
+            T_plan[:3, :3] = rpy_to_matrix(*rng.uniform(-0.2, 0.2, 2), rng.uniform(-np.pi, np.pi))
+            R_plan = T_plan[:3, :3]
             q_imu = rng.normal(size=4)
             R = tilt_between(R_plan[:, 2], imu_z_axis(q_imu)) @ R_plan
             expected = (R @ (com_in_neck - limb.fk(q_leg)[:3, 3]))[:2]
