@@ -275,7 +275,7 @@ class DampingBalancer(Module):
     def _reference_moment(self, q_cmd_rad: np.ndarray) -> float:
         """Ground moment about y (N m, summed over the soles) with the centre of pressure
         under the commanded posture's centre of mass."""
-        if self._last_cmd is not None and np.array_equal(q_cmd_rad, self._last_cmd):
+        if self._last_cmd is not None and (q_cmd_rad == self._last_cmd).all():  # same shape
             return self._last_reference  # a held posture: nothing to recompute
         pin = self._pin
         q = self._robot.configuration(q_cmd_rad, None, out=self._q)
