@@ -21,3 +21,19 @@ def test_a_75_n_push_is_caught_with_two_steps(tmp_path):
     step = summary["capture_step"]["footsteps"][0]
     assert step["x_m"] > 0.05  # the catching foot went the push's way
     assert summary["max_joint_velocity_ratio"] <= 1.0 + 1e-9
+
+
+@pytest.mark.slow
+def test_a_90_n_push_is_caught_by_a_long_step_and_a_swing_in(tmp_path):
+    """90 N forward for 0.2 s (what `hubo sim --push 90 --step` runs): the first step is long
+    (past the trailing foot's reach with the CoM over the landed sole), so the trailing foot
+    swings in beside the landed one while the CoM comes to rest; two steps, no fall, the
+    torso well away from the 30 degrees of a fall."""
+    result = stand(load_model(), 5.0, 90.0, step=True, out=tmp_path / "run")
+    summary = json.loads((result.run_dir / "summary.json").read_text())
+    assert result.fell is False
+    assert summary["capture_step"]["steps"] == 2
+    first = summary["capture_step"]["footsteps"][0]
+    assert first["x_m"] > 0.15  # a long step (as landed): the swing-in path
+    assert result.max_tilt_deg < 20.0
+    assert summary["max_joint_velocity_ratio"] <= 1.0 + 1e-9

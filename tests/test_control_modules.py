@@ -17,6 +17,7 @@ from hubo_cli.control.loop import ControlLoop
 from hubo_cli.control.module import Cycle
 from hubo_cli.control.otg import JointTracker, TrajectoryGenerator
 from hubo_cli.control.pipeline import build_pipeline, find_module
+from hubo_cli.errors import ConfigError
 from hubo_cli.posture import home_posture
 from hubo_cli.state import RobotState
 
@@ -88,6 +89,26 @@ def test_tracker_never_raises_on_ruckig_errors(model):
     out = tracker.track(q0 + 0.1)
     assert tracker.error and np.all(np.isfinite(out))
     assert np.all(np.isfinite(tracker.brake()))
+
+
+def test_tracker_synchronization_phase_keeps_a_straight_line_none_does_not(model):
+    limits = JointLimits.from_model(model).subset(np.arange(6))  # the right arm
+    q0, goal = np.zeros(6), np.array([0.6, 0.0, 0.0, -0.06, 0.0, 0.0])
+    paths = {}
+    for sync in ("phase", "none"):
+        tracker = JointTracker(limits, DT, sync)
+        tracker.reset(q0)
+        paths[sync] = np.array([tracker.track(goal).copy() for _ in range(600)])
+        assert np.allclose(paths[sync][-1], goal, atol=1e-9)
+    # phase: the short joint stays in proportion to the long one all the way
+    ratio = paths["phase"][:, 3] / paths["phase"][:, 0].clip(1e-9)
+    assert np.all(np.abs(ratio[10:] + 0.1) < 1e-3)
+    # none: each joint time-optimal, so the short one arrives first (well before the long one)
+    arrive = {j: int(np.argmax(np.all(np.abs(paths["none"][:, [j]] - goal[j]) < 1e-6, axis=1)))
+              for j in (0, 3)}
+    assert arrive[3] < 0.7 * arrive[0]
+    with pytest.raises(ConfigError):
+        JointTracker(limits, DT, "time")
 
 
 def test_otg_clamps_targets_and_goes_stale(model):

@@ -27,10 +27,12 @@ from ruckig import (
 
 from hubo_cli.control.limits import JointLimits
 from hubo_cli.control.module import Cycle, Module
+from hubo_cli.errors import ConfigError
 from hubo_cli.model import RobotModel
 from hubo_cli.state import RobotState
 
 STALE_TIMEOUT_S = 0.5  # hubo-motion-rt timeOut: no fresh command for this long -> stop
+SYNCHRONIZATIONS = {"phase": Synchronization.Phase, "none": Synchronization.No}
 
 
 class JointTracker:
@@ -39,6 +41,8 @@ class JointTracker:
     Args:
         limits: joint limits (velocity, acceleration and jerk are used).
         dt_s: the control period (s).
+        synchronization: how ``track`` times the joints: ``phase`` (all arrive together on
+            a straight line in joint space) or ``none`` (each joint time-optimal on its own).
 
     Attributes:
         q, v, a: the state of the generated trajectory at the last sample (rad, rad/s, rad/s^2).
@@ -46,8 +50,12 @@ class JointTracker:
         error: the last ruckig error message, or "".
     """
 
-    def __init__(self, limits: JointLimits, dt_s: float) -> None:
+    def __init__(self, limits: JointLimits, dt_s: float, synchronization: str = "phase") -> None:
+        if synchronization not in SYNCHRONIZATIONS:
+            raise ConfigError(f"unknown synchronization {synchronization!r}",
+                              hint=f"use one of {', '.join(SYNCHRONIZATIONS)}")
         n = limits.size
+        self._sync = SYNCHRONIZATIONS[synchronization]
         self.limits = limits
         self.dt_s = float(dt_s)
         self._otg = Ruckig(n, self.dt_s)
@@ -106,7 +114,7 @@ class JointTracker:
 
     def track(self, target_rad: np.ndarray, min_duration_s: float | None = None,
               target_v_rad_s: np.ndarray | None = None) -> np.ndarray:
-        """Advance one period toward ``target_rad`` (position interface, phase sync).
+        """Advance one period toward ``target_rad`` (position interface, the synchronization).
 
         Args:
             target_rad: target positions (rad), finite.
@@ -117,7 +125,7 @@ class JointTracker:
         inp = self._inp
         if self._mode != "position":
             inp.control_interface = ControlInterface.Position
-            inp.synchronization = Synchronization.Phase
+            inp.synchronization = self._sync
             inp.target_acceleration = self._zeros
             self._mode = "position"
         self._set_current()

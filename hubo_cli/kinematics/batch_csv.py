@@ -95,7 +95,7 @@ def _check_rows(values: np.ndarray, names: list[str]) -> dict[int, str]:
 
     ``values`` holds T00..T33 (and qprev1..qprev6) per row, ``names`` their column names.
     """
-    rigid = _rigid(values)
+    rigid = _rigid(np.ascontiguousarray(values))
     finite = np.isfinite(values[:, 16:]).all(axis=1) if values.shape[1] > 16 else True
     reasons = {}
     for i in np.flatnonzero(~(rigid & finite)):

@@ -21,7 +21,7 @@ import numba as nb
 import numpy as np
 
 from hubo_cli.kinematics.arm_ik import arm_candidates
-from hubo_cli.kinematics.dh import JIT, chain_fk, invert4, matmul4, pose_error
+from hubo_cli.kinematics.dh import JIT, TRUE, chain_fk, invert4, matmul4, pose_error
 from hubo_cli.kinematics.leg_ik import leg_candidates
 from hubo_cli.kinematics.reach import branch_box, nearest_on_branch
 
@@ -186,14 +186,14 @@ def solve_limb_on_branch(T_goal, chain, lengths, lower, upper, q_prev, branch, m
     T = work[3]
     cands = np.empty((8, 6))
     exact = np.zeros(8, dtype=np.bool_)
-    _candidates_into(T_goal, chain, lengths, True, q_prev, cands, exact, work, lower, upper)
+    _candidates_into(T_goal, chain, lengths, TRUE[0], q_prev, cands, exact, work, lower, upper)
     box = np.empty((2, 6))
     branch_box(q_prev, branch, margins, lower, upper, box[0], box[1])
     best = -1
     best_d = np.inf
     for k in range(8):
         if exact[k] and _within(cands[k], box[0], box[1]):
-            dk = _distance2(cands[k], q_prev, True)
+            dk = _distance2(cands[k], q_prev, TRUE[0])
             if dk < best_d:
                 chain_fk(cands[k], base, offset, alpha, a, d, end, T)
                 pos, rot = pose_error(T, T_goal)

@@ -12,6 +12,9 @@ import numba as nb
 import numpy as np
 
 JIT = {"cache": True, "nogil": True, "fastmath": False}
+# A constant True that one kernel passes to another makes numba compile the callee once more
+# for that literal value (seconds per kernel, on every cold cache); TRUE[0] is a plain bool.
+TRUE = np.ones(1, dtype=np.bool_)
 
 
 @nb.njit(**JIT)

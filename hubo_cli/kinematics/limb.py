@@ -128,7 +128,7 @@ class Limb:
         """T_N_E: the end frame in the neck frame (4x4, m) for joints q (6,) in rad."""
         base, _, offset, alpha, a, d, end, _ = self.chain
         out = np.empty((4, 4))
-        chain_fk(np.ascontiguousarray(q_rad, dtype=float), base, offset, alpha, a, d, end, out)
+        chain_fk(np.array(q_rad, dtype=float, order="C"), base, offset, alpha, a, d, end, out)
         return out
 
     def fk_batch(self, Q_rad) -> np.ndarray:
@@ -156,10 +156,11 @@ class Limb:
     def solve(self, T_N_E, q_prev_rad=None) -> IKResult:
         """Choose one solution for the goal T_N_E (4x4, m) by the rule of :mod:`.choice`."""
         has_prev = q_prev_rad is not None
-        q_prev = np.asarray(q_prev_rad, dtype=float) if has_prev else np.zeros(6)
+        # copies: a read-only or non-contiguous array would compile the kernel once more
+        q_prev = np.array(q_prev_rad, dtype=float) if has_prev else np.zeros(6)
         q = np.empty(6)
         status, pos, rot = choice.solve_limb(
-            np.ascontiguousarray(T_N_E, dtype=float), self.chain, self.lengths_m,
+            np.array(T_N_E, dtype=float, order="C"), self.chain, self.lengths_m,
             self.spec.is_arm, self.lower_rad, self.upper_rad, q_prev, has_prev, self.hold_m,
             True, q)
         return IKResult(q, choice.STATUS_NAMES[status], pos, rot)
@@ -172,7 +173,7 @@ class Limb:
         T = np.ascontiguousarray(T_N_E, dtype=float).reshape(-1, 4, 4)
         has_prev = q_prev_rad is not None
         if has_prev:
-            Q = np.ascontiguousarray(np.broadcast_to(q_prev_rad, (len(T), 6)), dtype=float)
+            Q = np.array(np.broadcast_to(q_prev_rad, (len(T), 6)), dtype=float)  # writable
         else:
             Q = np.zeros((len(T), 6))
         q, status, pos, rot = choice.solve_limb_batch(

@@ -32,6 +32,7 @@ from hubo_cli.walking.gait import Gait
 from hubo_cli.walking.preview import GRAVITY_M_S2, CoMPath, com_from_zmp, preview_gains
 
 SIDE_LEG = {"right": "right-leg", "left": "left-leg"}
+MAX_SOLE_ERROR_M = 0.05  # a capped leg solution further than this from its sole: out of reach
 END_PERIODS = 10  # the multi-body ZMP correction leaves out this many periods at either end
 
 
@@ -78,12 +79,16 @@ class WalkingBody:
         T_world_neck_start: the torso's pose at the start (its height is kept).
         lean_rad_per_m: the torso rolls toward the stance foot by this much per metre of the
             CoM's sideways offset from between the feet (see :func:`lean_rad`).
+
+    ``max_error_m`` (default MAX_SOLE_ERROR_M): :meth:`solve` refuses a capped leg solution
+    further than this from its sole.
     """
 
     def __init__(self, model: RobotModel, q_start_rad: np.ndarray,
                  T_world_neck_start: np.ndarray, lean_rad_per_m: float = 0.0) -> None:
         self.model = model
         self.lean_rad_per_m = float(lean_rad_per_m)
+        self.max_error_m = MAX_SOLE_ERROR_M
         self.q_start = np.asarray(q_start_rad, dtype=float)
         self.neck_z_m = float(T_world_neck_start[2, 3])
         self.legs = {name: Limb(model, name) for name in LEGS}
@@ -127,7 +132,8 @@ class WalkingBody:
                     leg = self.legs[name]
                     goal = T_neck_world @ pose_of_row(row)
                     result = leg.solve(goal, q[self.slices[name]])
-                    if result.status not in ("exact", "capped") or result.position_error_m > 0.05:
+                    if (result.status not in ("exact", "capped")
+                            or result.position_error_m > self.max_error_m):
                         raise InputError(
                             f"the {name} cannot reach its sole at t = {k * gait.period_s:.2f} s "
                             f"({result.status}, {result.position_error_m * 1000:.0f} mm off)",

@@ -14,12 +14,19 @@ inverted pendulum (omega^2 = g / z_c):
    follows the pendulum, c(t) = p + (c0 - p) cosh(wt) + v0 / w sinh(wt). The swing foot lands
    with its sole's middle on the capture point the pendulum has at touch-down,
    xi = c + c' / w (within ``MAX_STEP_M`` of the stance foot and at least the standing width
-   from it sideways);
+   from it sideways). The step ends when the swing sole carries ``TOUCH_N`` (after
+   ``TOUCH_FRACTION`` of the swing) or is down;
 2. *catch*, ``CATCH_S``: both feet down, the ZMP on the landed sole's middle (= xi); the CoM
    comes to rest there, c(t) = xi + (c_T - xi) exp(-w t);
 3. *return*: one walking step of :func:`~hubo_cli.walking.gait.make_gait` brings the other foot
    beside the landed one at the standing width (the stance, moved by the push); the CoM
    returns between the feet.
+
+After a long step (more than ``LONG_STEP_M`` the push's way) the CoM cannot come to rest over
+the landed sole with the other foot still down that far behind (out of the legs' reach): the
+catch and the return are one instead, the other foot swinging in beside the landed one over
+``SWING_IN_S`` while the CoM comes to rest over the landed sole and the torso turns back
+upright over ``UPRIGHT_S``; then the CoM moves to between the soles' middles over ``CATCH_S``.
 
 The pattern's joints come from :class:`~hubo_cli.walking.body.WalkingBody` (the legs' IK, the
 neck placed so that the model's CoM follows the pattern), one period at a time. While it
@@ -50,7 +57,7 @@ from hubo_cli.walking.footsteps import SIDE_SIGN, Footstep, stance_of
 from hubo_cli.walking.gait import Gait, make_gait, smoothstep5, swing_rows
 from hubo_cli.walking.params import WalkingParams
 from hubo_cli.walking.preview import GRAVITY_M_S2, CoMPath
-from hubo_cli.walking.target import SOLES, footstep_of, planned_support
+from hubo_cli.walking.target import SOLES, SOLES_SENSOR, footstep_of, planned_support
 
 SINGLE_SUPPORT_S = 0.40  # [chosen] the capture step's swing: short, the pendulum diverges
 SWING_HEIGHT_M = 0.04    # [chosen] sole clearance at mid-swing
@@ -63,6 +70,12 @@ CATCH_S = 1.0            # [chosen] both feet down, the CoM comes to rest on the
 CATCH_EDGE_M = 0.03      # [chosen] the catch's ZMP stays this far inside the landed sole's ends
 LANDED_M = 0.003         # a swing sole this close to the ground has landed
 LAND_WAIT_S = 0.2        # [chosen] wait at most this long after the swing for it to land
+TOUCH_N = 60.0           # [chosen] a swing sole carrying this much (ankle F/T) is down ...
+TOUCH_FRACTION = 0.5     # [chosen] ... once this much of the swing has passed
+LONG_STEP_M = 0.15       # [chosen] a capture step longer than this: the other foot swings in
+SWING_IN_S = 0.6         # [chosen] ... over this long, while the CoM comes to rest
+UPRIGHT_S = 0.3          # [chosen] ... and the torso turns back upright over this long
+MAX_SOLE_ERROR_M = 0.2   # [chosen] the legs' capped solutions accepted this far off their soles
 SOLE_FRAME = {"right": "right_sole", "left": "left_sole"}
 RESTING = ("balance", "stabilizer")
 TRIGGER_M = 0.05         # [chosen] step once the CP is within this of the shrunk polygon's edge
@@ -204,6 +217,9 @@ class CaptureStepper(Target):
         T_world_neck = (state.T_world_torso.copy() if state.T_world_torso is not None
                         else world.frame_pose("torso"))
         self.body = WalkingBody(self.model, self.q_stand, T_world_neck)
+        # a trailing foot far behind a long step is out of reach until it swings in: take the
+        # legs' capped solutions rather than freeze the joints
+        self.body.max_error_m = MAX_SOLE_ERROR_M
         self.legs = {side: Limb(self.model, SIDE_LEG[side]) for side in ("right", "left")}
         self.n_step = max(1, int(round(SINGLE_SUPPORT_S / self.model.control_period_s)))
         self.k, self.t_start_s, self.trigger_s = 0, t_s, t_s
@@ -242,7 +258,9 @@ class CaptureStepper(Target):
         # the swing foot lags its pattern under the limits: the step ends when it is down
         # (or LAND_WAIT_S after the pattern's end)
         height = float(self.world.frame_pose(SOLE_FRAME[self.swing])[2, 3]) - self.sole_z_m
-        if self.k >= n and (height < LANDED_M or self.k >= n + LAND_WAIT_S / period):
+        loaded = float(state.ft[SOLES_SENSOR[self.swing]][2]) > TOUCH_N
+        if (self.k >= TOUCH_FRACTION * n and loaded) or (
+                self.k >= n and (height < LANDED_M or self.k >= n + LAND_WAIT_S / period)):
             self.R_touch_down = T_world_neck[:3, :3].copy()
             self._touch_down(c[0], v[0])
         return q, (float(c[0, 0]), float(c[0, 1]))
@@ -261,9 +279,17 @@ class CaptureStepper(Target):
         sole_middle = np.array([land.x_m, land.y_m]) + forward * self.heading
         xi = com_m + velocity_m_s / omega
         # the ZMP can only be held on the landed sole: the CoM comes to rest within it
+        ahead = float(np.array([land.x_m - stance.x_m, land.y_m - stance.y_m]) @ self.heading)
+        long_step = abs(ahead) > LONG_STEP_M
         reach = self.model.feet.length_m / 2 - CATCH_EDGE_M
         xi = sole_middle + np.clip(xi - sole_middle, -reach, reach)
-        n = max(1, int(round(CATCH_S / period)))
+        after = {self.swing: land, self.stance_side: stance}
+        beside = SIDE_SIGN[self.stance_side] * self.width_m
+        s, co = self.heading[1], self.heading[0]
+        back = Footstep(self.stance_side, land.x_m - s * beside, land.y_m + co * beside,
+                        land.yaw_rad)
+        n_in = max(1, int(round(SWING_IN_S / period))) if long_step else 0
+        n = max(1, int(round(CATCH_S / period))) + n_in
         t = (np.arange(n) + 1.0) * period
         # the CoM from (c, v) to rest over the landed sole (the ZMP held at its middle, the
         # capture point's excess decays with the stable root): c = m + (xi - m) ... shaped as
@@ -275,11 +301,33 @@ class CaptureStepper(Target):
         v = -omega * (d - e) * decay
         a = omega**2 * (d - e) * decay
         zmp = np.tile(sole_middle + e, (n, 1))
-        after = {self.swing: land, self.stance_side: stance}
-        beside = SIDE_SIGN[self.stance_side] * self.width_m
-        s, co = self.heading[1], self.heading[0]
-        back = Footstep(self.stance_side, land.x_m - s * beside, land.y_m + co * beside,
-                        land.yaw_rad)
+        self.n_upright = max(1, int(round(UPRIGHT_S / period))) if long_step else n
+        if long_step:
+            # the CoM cannot come to rest over the landed sole with the other foot down that
+            # far behind (out of the legs' reach): that foot swings in beside the landed one
+            # meanwhile (the second step); then, both feet down, the CoM moves to between
+            # the soles' middles (smoothly, the ZMP with it), and the robot holds the last
+            # posture
+            rest_m = sole_middle + e
+            between = sole_middle + np.array([-s, co]) * beside / 2
+            blend = smoothstep5((np.arange(n) + 1.0 - n_in) / max(n - n_in, 1))[:, None]
+            c = c + blend * (between - rest_m)
+            zmp = zmp + blend * (between - rest_m)
+            v = np.gradient(c, period, axis=0)
+            a = np.gradient(v, period, axis=0)
+            rows = {self.swing: np.tile(_row(land, self.sole_z_m), (n, 1)),
+                    self.stance_side: np.vstack([
+                        swing_rows(stance, back, n_in, SWING_HEIGHT_M, self.sole_z_m),
+                        np.tile(_row(back, self.sole_z_m), (n - n_in, 1))])}
+            support = np.ones((n, 2), dtype=bool)
+            support[:n_in, 0 if self.stance_side == "right" else 1] = False
+            self.rest = Gait(period, (back,), self.height_m, zmp, CoMPath(c, v, a, zmp), rows,
+                             support, np.full(n, -1))
+            self.rest_support = planned_support(self.rest)
+            self.n_catch = n
+            self.steps = [land, back]
+            self.k, self.phase = 0, "catch"
+            return
         ret = make_gait(after["right"], after["left"], [back], self.params, period,
                         self.height_m, self.sole_z_m, forward, com_start_m=c[-1])
         rows = {side: np.vstack([np.tile(_row(after[side], self.sole_z_m), (n, 1)),
@@ -304,7 +352,7 @@ class CaptureStepper(Target):
         q = self._solve(rest.com.com_m[k:k + 1], rest.com.com_velocity_m_s[k:k + 1],
                         rest.com.com_acceleration_m_s2[k:k + 1], rest.zmp_ref_m[k], feet,
                         rest.support[k:k + 1])
-        b = float(smoothstep5((k + 1) / self.n_catch))
+        b = float(smoothstep5(min((k + 1) / self.n_upright, 1.0)))
         if b < 1.0:
             T = self.body_neck.copy()
             T[:3, :3] = (Rotation.from_matrix(self.R_touch_down)

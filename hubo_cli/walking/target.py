@@ -16,7 +16,7 @@ from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.errors import ConfigError
 from hubo_cli.falls import has_fallen
 from hubo_cli.kinematics.choice import CAPPED, EXACT, solve_limb
-from hubo_cli.kinematics.dh import JIT, chain_fk
+from hubo_cli.kinematics.dh import JIT, TRUE, chain_fk
 from hubo_cli.model import RobotModel
 from hubo_cli.state import RobotState
 from hubo_cli.walking.body import SIDE_LEG, JointPlan, WalkingBody, pose_of_row
@@ -174,7 +174,7 @@ def _correct_leg(T_neck_goal, leg, q, delta, step_rad):
     part = q[start:start + 6]
     solved = np.empty(6)
     status, position_m, rotation_rad = solve_limb(T_neck_goal, chain, lengths, is_arm, lower,
-                                                  upper, part, True, hold_m, True, solved)
+                                                  upper, part, TRUE[0], hold_m, TRUE[0], solved)
     if status == EXACT or (status == CAPPED and position_m <= LEG_CAPPED_M
                            and rotation_rad <= LEG_CAPPED_RAD):
         within = True

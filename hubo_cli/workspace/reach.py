@@ -23,7 +23,7 @@ from hubo_cli.kinematics.choice import (
     _candidates_into,
     _within,
 )
-from hubo_cli.kinematics.dh import JIT, chain_fk, pose_error
+from hubo_cli.kinematics.dh import JIT, TRUE, chain_fk, pose_error
 from hubo_cli.workspace.grid import Grid, ReachSphere
 
 SPHERE_MARGIN_M = 1e-6  # points this far outside the reach sphere are skipped without IK
@@ -41,7 +41,7 @@ def _point_mask(T_goal, chain, lengths, lower, upper, centre, r2_max, cands, exa
         return 0
     base, base_inv, offset, alpha, a, d, end, end_inv = chain
     # candidates pruned at the first joint outside the limits, as the choice step does
-    _candidates_into(T_goal, chain, lengths, True, q_prev, cands, exact, work, lower, upper)
+    _candidates_into(T_goal, chain, lengths, TRUE[0], q_prev, cands, exact, work, lower, upper)
     T_fk = work[3]
     mask = 0
     for k in range(8):
