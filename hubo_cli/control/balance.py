@@ -258,21 +258,24 @@ class DampingBalancer(Module):
         self._sole_ids = [self._robot.frame_id(f) for f in ("right_sole", "left_sole")]
         self._q = np.zeros(self._robot.model.nq)
         self._last_cmd: np.ndarray | None = None
+        self._lower, self._upper = model.lower_rad.tolist(), model.upper_rad.tolist()
         self._last_reference = 0.0
         self.reset(np.zeros(len(names)), None)
 
     def reset(self, q_rad: np.ndarray, state: RobotState | None) -> None:
         """Start with no correction."""
-        self._common = np.zeros(2)                               # (pitch, roll), joint space
-        self._differential = {leg: np.zeros(2) for leg, _ in FEET}
+        # the filter's state in Python floats, (pitch, roll) lists
+        self._common = [0.0, 0.0]                                # joint space
+        self._differential = {leg: [0.0, 0.0] for leg, _ in FEET}
+        self._offsets = {leg: [0.0, 0.0] for leg, _ in FEET}
+        self._rate = {leg: [0.0, 0.0] for leg, _ in FEET}
         self.offsets_rad = {leg: np.zeros(2) for leg, _ in FEET}  # what is sent
-        self._rate = {leg: np.zeros(2) for leg, _ in FEET}
         self.reference_moment_nm = np.zeros(2)
 
     def _reference_moment(self, q_cmd_rad: np.ndarray) -> float:
         """Ground moment about y (N m, summed over the soles) with the centre of pressure
         under the commanded posture's centre of mass."""
-        if self._last_cmd is not None and np.array_equal(q_cmd_rad, self._last_cmd):
+        if self._last_cmd is not None and (q_cmd_rad == self._last_cmd).all():  # same shape
             return self._last_reference  # a held posture: nothing to recompute
         pin = self._pin
         q = self._robot.configuration(q_cmd_rad, None, out=self._q)
@@ -301,48 +304,53 @@ class DampingBalancer(Module):
         return not x_lo < -moment_y / fz < x_hi
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
+        # in Python floats: the same arithmetic as on the 2-vectors (pitch, roll), a fraction
+        # of the cost of numpy on arrays this small
         q = np.array(q_rad, dtype=float)
         dt = cycle.dt_s
-        q_ref = np.where(np.isfinite(q), q, state.q_rad)
+        finite_q = np.isfinite(q)
+        q_ref = q if finite_q.all() else np.where(finite_q, q, state.q_rad)
         moments = {}
         for leg, sensor in FEET:
             wrench = state.ft.get(sensor)
-            moments[leg] = np.zeros(2) if wrench is None else np.array([wrench[4], wrench[3]])
-        if not all(np.all(np.isfinite(m)) for m in moments.values()):
+            moments[leg] = (0.0, 0.0) if wrench is None else (float(wrench[4]), float(wrench[3]))
+        if not all(math.isfinite(m[0]) and math.isfinite(m[1]) for m in moments.values()):
             cycle.flags.add("balance-bad-sensor")
-            moments = {leg: np.zeros(2) for leg, _ in FEET}
+            moments = {leg: (0.0, 0.0) for leg, _ in FEET}
         roll, pitch = state.tilt_rad()
-        tilt_deg = np.degrees([pitch, roll])
-        if not np.all(np.isfinite(tilt_deg)):
+        tilt_deg = (math.degrees(pitch), math.degrees(roll))
+        if not (math.isfinite(tilt_deg[0]) and math.isfinite(tilt_deg[1])):
             cycle.flags.add("balance-bad-sensor")
-            tilt_deg = np.zeros(2)
-        total = moments["right-leg"] + moments["left-leg"]
-        self.reference_moment_nm = np.array([self._reference_moment(q_ref), 0.0])
+            tilt_deg = (0.0, 0.0)
+        right, left = moments["right-leg"], moments["left-leg"]
+        reference = self._reference_moment(q_ref)
+        self.reference_moment_nm = np.array([reference, 0.0])
         # common mode, in the "right leg" axis convention; each leg applies its own signs.
         # Without the body's weight on the feet sensors (a driver without force sensing, a
         # robot in the air) there is no moment to comply with: only the tilt term acts.
         fz = sum(float(state.ft[s][2]) for _, s in FEET if state.ft.get(s) is not None)
-        mean = total / 2
-        moment_error = (mean - self.reference_moment_nm / 2 if fz > 0.5 * self._weight_n
-                        else np.zeros(2))
-        common_rate = (moment_error / self.damping + self.k_r * tilt_deg
-                       - self._common / self.common_leak_s)
+        mean_k = [(right[0] + left[0]) / 2, (right[1] + left[1]) / 2]
+        if fz > 0.5 * self._weight_n:
+            moment_error = (mean_k[0] - reference / 2, mean_k[1] - 0.0 / 2)
+        else:
+            moment_error = (0.0, 0.0)
+        common = self._common
+        leak_c = self.common_leak_s
+        common_rate = [moment_error[k] / self.damping + self.k_r * tilt_deg[k]
+                       - common[k] / leak_c for k in (0, 1)]
         if self._tipping(state):  # pitch: only the leak; the body will land back on its soles
-            common_rate[0] = -self._common[0] / self.common_leak_s
-        self._common = self._common + common_rate * dt
+            common_rate[0] = -common[0] / leak_c
+        common = self._common = [common[0] + common_rate[0] * dt, common[1] + common_rate[1] * dt]
         both = state.feet_contact is None or all(state.feet_contact)
-        lower, upper = self.model.lower_rad, self.model.upper_rad
-        # per joint in float math (the same arithmetic as on the 2-vectors, a fraction of the
-        # cost of numpy on arrays this small)
-        common = self._common.tolist()
+        lower, upper = self._lower, self._upper
         limit, k_d, leak = self.max_offset_rad, self.k_d, self.differential_leak_s
         max_rate, max_step = MAX_CORRECTION_RATE_RAD_S, MAX_CORRECTION_ACCEL_RAD_S2 * dt
-        mean_k = mean.tolist()
+        q_list = q.tolist()
         for leg, _ in FEET:
-            diff = self._differential[leg].tolist()
-            moment = moments[leg].tolist()
+            diff = self._differential[leg]
+            moment = moments[leg]
             signs = self._signs[leg]
-            offset, rate = self.offsets_rad[leg].tolist(), self._rate[leg].tolist()
+            offset, rate = self._offsets[leg], self._rate[leg]
             for k, i in enumerate(self._index[leg]):
                 drive = k_d * (moment[k] - mean_k[k]) if both else 0.0
                 diff[k] = diff[k] + (drive - diff[k] / leak) * dt
@@ -351,17 +359,17 @@ class DampingBalancer(Module):
                 rate_wanted = min(max((wanted - offset[k]) / SMOOTHING_S, -max_rate), max_rate)
                 rate[k] = rate[k] + min(max(rate_wanted - rate[k], -max_step), max_step)
                 offset[k] = offset[k] + rate[k] * dt
-                if math.isfinite(q[i]):
-                    target = min(max(q[i] + offset[k], lower[i]), upper[i])
-                    offset[k] = target - q[i]
+                qi = q_list[i]
+                if math.isfinite(qi):
+                    target = min(max(qi + offset[k], lower[i]), upper[i])
+                    offset[k] = target - qi
                     q[i] = target
-            self._differential[leg] = np.array(diff)
-            self.offsets_rad[leg], self._rate[leg] = np.array(offset), np.array(rate)
-        side = self.offsets_rad
-        cycle.info["balance.right_pitch_rad"] = float(side["right-leg"][0])
-        cycle.info["balance.right_roll_rad"] = float(side["right-leg"][1])
-        cycle.info["balance.left_pitch_rad"] = float(side["left-leg"][0])
-        cycle.info["balance.left_roll_rad"] = float(side["left-leg"][1])
+            self.offsets_rad[leg] = np.array(offset)
+        right_offset, left_offset = self._offsets["right-leg"], self._offsets["left-leg"]
+        cycle.info["balance.right_pitch_rad"] = right_offset[0]
+        cycle.info["balance.right_roll_rad"] = right_offset[1]
+        cycle.info["balance.left_pitch_rad"] = left_offset[0]
+        cycle.info["balance.left_roll_rad"] = left_offset[1]
         return q
 
 

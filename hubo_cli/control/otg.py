@@ -101,7 +101,7 @@ class JointTracker:
             return False
         out = self._out
         q = np.array(out.new_position)
-        if not np.all(np.isfinite(q)):
+        if not np.isfinite(q).all():
             self.error = "ruckig returned a non-finite sample"
             return False
         self.q = q

@@ -31,7 +31,8 @@ def sanitize_command(model: RobotModel, last_rad: np.ndarray,
     if frozen.any():
         q[frozen] = last_rad[frozen]
         flags.append(NAN_REF)
-    clipped = np.clip(q, model.lower_rad, model.upper_rad)
-    if np.any(np.abs(clipped - q) > 1e-9):  # rounding at a limit is not worth a flag
+    # np.clip's arithmetic without its Python-level argument checks (a call every period)
+    clipped = np.minimum(np.maximum(q, model.lower_rad), model.upper_rad)
+    if (np.abs(clipped - q) > 1e-9).any():  # rounding at a limit is not worth a flag
         flags.append(LIMIT_CLIP)
     return clipped, flags, frozen

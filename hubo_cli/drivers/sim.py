@@ -331,6 +331,7 @@ class SimDriver(Driver, SimulatedWorld):
         self.cutting_force_n = np.zeros(3)
         self.cutting_torque_nm = np.zeros(3)
         self._cutting_point = np.zeros(3)
+        self._cutting_floats = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
         self._cutting_set = False  # the cutting wrench is not zero (reset before each step)
         self._cut_points: list[tuple] = []  # (time s, where the bit crossed a wall), per period
         self._physics_wall_s = 0.0
@@ -635,6 +636,7 @@ class SimDriver(Driver, SimulatedWorld):
             force, torque = self.options.cutting.wrench_on_bit(v, T_world_bit[:3, 0].tolist(),
                                                                flutes, point)
             self.cutting_force_n, self.cutting_torque_nm = np.array(force), np.array(torque)
+            self._cutting_floats = (force, torque, bit_xyz)  # the same, for the F/T sums
             self._cutting_set = True
             p.applyExternalForce(self._robot, link, force, bit_xyz, p.WORLD_FRAME,
                                  physicsClientId=cid)
@@ -699,15 +701,15 @@ class SimDriver(Driver, SimulatedWorld):
         link_states = self._link_states = p.getLinkStates(
             self._robot, self._sensor_link_ids, computeForwardKinematics=1, physicsClientId=cid)
         contacts = self._contact_rows()
-        cutting = self._cutting_set and self.cutting_force_n.any()
+        cutting = self._cutting_set and any(self._cutting_floats[0])
         ft = {}
         contact = [False, False]
         filtered = self._fz_filtered_n
         for sensor, link_id, k_state, T_link_sensor, ankle, wrist in self._sensor_table:
             extra = moment = None
-            if wrist and cutting:
-                extra = (self.cutting_force_n, self._cutting_point)
-                moment = self.cutting_torque_nm
+            if wrist and cutting:  # the cutting wrench as Python floats (cutting_force_n ...)
+                force, moment, at = self._cutting_floats
+                extra = (force, at)
             rows = contacts.get(link_id)
             if rows or extra is not None:
                 ls = link_states[k_state]

@@ -252,7 +252,7 @@ class TorsoCorrection:
             return self._T_dev
         T_meas = self.estimator(state)
         legs = np.asarray(q_cmd_rad, dtype=float)[self._leg_index]
-        if self._T_cmd is None or not np.array_equal(legs, self._q_legs_cmd):
+        if self._T_cmd is None or (legs != self._q_legs_cmd).any():  # the same 12 joints
             self._T_cmd = torso_in_stance(self.body, q_cmd_rad)
             self._T_cmd_inv = _rigid_inverse(self._T_cmd)
             self._q_legs_cmd = legs
@@ -286,7 +286,7 @@ class TorsoCorrection:
             result = limb.solve(T_goal, q_prev)
             if not result.exact:
                 result = self._nearest(arm, T_goal, q_arm, q_prev)
-            if result is not None and np.max(np.abs(result.q_rad - q_arm)) <= \
+            if result is not None and abs(result.q_rad - q_arm).max() <= \
                     self.settings.max_joint_offset_rad:
                 self.weight[arm] = w
                 self._dq[arm] = result.q_rad - q_arm
