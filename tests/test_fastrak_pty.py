@@ -6,6 +6,7 @@ depends on how fast the machine is.
 
 import os
 import select
+import termios
 import time
 import tty
 
@@ -16,6 +17,7 @@ from hubo_cli.errors import DeviceError, InputError
 from hubo_cli.fastrak.capture import write_capture
 from hubo_cli.fastrak.emulator import EmulatedFastrak, make_emulator
 from hubo_cli.fastrak.opener import open_source
+from hubo_cli.fastrak.reader import FastrakReader
 from hubo_cli.fastrak.records import make_layout, scan
 from hubo_cli.fastrak.track import PoseTrack
 
@@ -161,6 +163,27 @@ def test_reconnect_gives_up_with_a_clear_error():
                 src.read_until(0.0)
     finally:
         src.close()
+
+
+def test_a_port_failing_while_configuring_is_a_device_error(monkeypatch):
+    """pyserial's buffer resets raise termios.error, which is no OSError: a reconnect that
+    opens a pty whose other end is just closing is one failed attempt (a DeviceError), not
+    the end of the reader."""
+    emu = make_emulator(stations=1).start()
+    src = open_source(port=emu.port_name, **FAST)
+    try:
+        assert collect(src, 1)
+        src.close()  # the port is free again; the emulator still answers
+
+        def failing_probe(self, ser):
+            raise termios.error(5, "Input/output error")
+
+        monkeypatch.setattr(FastrakReader, "_probe", failing_probe)
+        with pytest.raises(DeviceError, match="while configuring"):
+            src._connect()
+    finally:
+        src.close()
+        emu.close()
 
 
 def test_silent_unit_is_stale_then_reconfigured():

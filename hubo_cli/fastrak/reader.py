@@ -205,13 +205,15 @@ class FastrakReader(PoseSource):
 
     def _connect(self):
         """Open, probe and configure the unit; return the open serial port."""
+        import termios  # pyserial's buffer resets raise its error, which is no OSError
+
         import serial
 
         ser = self._open_port()
         try:
             self._probe(ser)
             self._configure(ser)
-        except (serial.SerialException, OSError) as exc:
+        except (serial.SerialException, OSError, termios.error) as exc:
             ser.close()
             raise DeviceError(f"lost {self.port} while configuring the FASTRAK: {exc}",
                               hint="check the cable and the adapter") from None
