@@ -86,9 +86,10 @@ def test_bad_settings_are_refused(model):
         make_balancer(model, "sideways")
 
 
-def test_standing_the_default_balancer_holds_the_body_upright(model):
-    default = stand(model, duration_s=3.0, balance=True)
-    paper = stand(model, duration_s=3.0, balance=True, balance_mode="paper")
+def test_standing_the_default_balancer_holds_the_body_upright(model, tmp_path):
+    default = stand(model, duration_s=3.0, balance=True, out=tmp_path / "default")
+    paper = stand(model, duration_s=3.0, balance=True, balance_mode="paper",
+                  out=tmp_path / "paper")
     assert not default.fell and default.feet_flat
     assert default.max_tilt_deg < 0.2
     assert paper.max_tilt_deg > 0.5  # the paper's law leans (1.1 deg after 20 s)
