@@ -251,7 +251,7 @@ class PeriodLog:
                    "units": UNIT_LEGEND, "status_codes": status_codes(),
                    "joint_names": list(self.joint_names), "rows": self.rows,
                    "columns": list(self.columns)}
-        _write_sidecar_json(self.meta_path, sidecar, self.metadata)
+        _write_sidecar_json(self.meta_path, sidecar, self.metadata, jsonable=True)
 
     def close(self) -> None:
         """Flush and close the CSV, write the Parquet copy and the sidecar; safe to call twice."""
@@ -271,18 +271,25 @@ class PeriodLog:
 
 def set_log_metadata(run_dir: str | Path, key: str, value) -> None:
     """Add metadata to a closed run's sidecar (``log.json``), e.g. the scene after the run."""
+    update_log_metadata(run_dir, {key: value})
+
+
+def update_log_metadata(run_dir: str | Path, items: dict) -> None:
+    """Add several metadata keys to a closed run's sidecar at once (in ``items``' order)."""
     path = Path(run_dir)
     path = path / META_NAME if path.is_dir() else path.with_suffix(".json")
     sidecar = json.loads(path.read_text())
-    metadata = sidecar.pop("metadata", {})
-    metadata[str(key)] = _jsonable(value)
-    _write_sidecar_json(path, sidecar, metadata)
+    metadata = sidecar.pop("metadata", {})  # read from JSON: already JSON-able
+    for key, value in items.items():
+        metadata[str(key)] = _jsonable(value)
+    _write_sidecar_json(path, sidecar, metadata, jsonable=True)
 
 
-def _write_sidecar_json(path: Path, head: dict, metadata: dict) -> None:
-    """The sidecar: its fixed part indented, the metadata (point lists) on one line each key."""
+def _write_sidecar_json(path: Path, head: dict, metadata: dict, jsonable: bool = False) -> None:
+    """The sidecar: its fixed part indented, the metadata (point lists) on one line each key
+    (``jsonable``: the metadata's values are JSON-able already)."""
     lines = json.dumps(_jsonable(head), indent=1)[:-2]  # without the closing "\n}"
-    items = ",\n".join(f"  {json.dumps(k)}: {json.dumps(_jsonable(v))}"
+    items = ",\n".join(f"  {json.dumps(k)}: {json.dumps(v if jsonable else _jsonable(v))}"
                         for k, v in metadata.items())
     body = f"{{\n{items}\n }}" if items else "{}"
     path.write_text(f"{lines},\n \"metadata\": {body}\n}}\n")
