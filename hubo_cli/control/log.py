@@ -1,4 +1,4 @@
-"""The per-period log: one CSV row per control period, written and flushed as the loop runs.
+"""The per-period log: one row per control period, stored as the loop runs, a CSV at the end.
 
 A run folder's log is three files:
 
@@ -155,11 +155,13 @@ def status_codes() -> dict[int, str]:
 
 
 class PeriodLog:
-    """Append-as-you-go CSV log of a control run, with its JSON sidecar and a Parquet copy.
+    """Append-as-you-go log of a control run (records while it runs, see the module
+    docstring), with its CSV, JSON sidecar and Parquet copy.
 
     Args:
-        path: the CSV file to create (its folder must exist); the sidecar and the Parquet copy
-            are written beside it (``log.json``, ``log.parquet`` for ``log.csv``).
+        path: the CSV file to create at close (its folder must exist); the sidecar, the
+            Parquet copy and, while the log is open, the records are beside it (``log.json``,
+            ``log.parquet``, ``log.rows`` and ``log.flags`` for ``log.csv``).
         joint_names: joint names in command order.
         extra_columns: further numeric columns (names ending in their unit).
         model: the robot model; when given (and the joints are the model's), the measured hand
