@@ -379,14 +379,19 @@ def _csv_from_rows(rows_path: Path, flags_path: Path, csv_path: Path) -> int:
     body = rows[:, 5:]
     whole = np.isfinite(body) & (body == np.trunc(body))
     formats = _float_column_formats(whole, specs)
-    lines = [",".join(layout["columns"]) + "\n"]
-    for row, fmt, flag_text in zip(rows.tolist(), formats, flags, strict=True):
-        period, t_s, status, compute_us, late_us = row[:5]
-        lines.append(f"{int(period):d},{_float_text(t_s, '%.9g')},{int(status):d},"
-                     f"{_float_text(compute_us, '%.6g')},{_float_text(late_us, '%.6g')},"
-                     f"{flag_text},{(fmt % tuple(row[5:])).replace('nan', 'NaN')}\n")
-    csv_path.write_text("".join(lines))
-    return len(lines) - 1
+    with open(csv_path, "w") as f:
+        f.write(",".join(layout["columns"]) + "\n")
+        for start in range(0, len(rows), _BLOCK_ROWS):  # a block of lines at a time
+            block = range(start, min(start + _BLOCK_ROWS, len(rows)))
+            lines = []
+            for row, k in zip(rows[block.start:block.stop].tolist(), block, strict=True):
+                period, t_s, status, compute_us, late_us = row[:5]
+                lines.append(
+                    f"{int(period):d},{_float_text(t_s, '%.9g')},{int(status):d},"
+                    f"{_float_text(compute_us, '%.6g')},{_float_text(late_us, '%.6g')},"
+                    f"{flags[k]},{(formats[k] % tuple(row[5:])).replace('nan', 'NaN')}\n")
+            f.write("".join(lines))
+    return len(rows)
 
 
 def recover_log(path: str | Path) -> bool:
