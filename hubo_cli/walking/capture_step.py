@@ -271,8 +271,8 @@ class CaptureStepper(Target):
         T_world_neck = (state.T_world_torso.copy() if state.T_world_torso is not None
                         else world.frame_pose("torso"))
         self.body = WalkingBody(self.model, self.q_stand, T_world_neck)
-        # a trailing foot far behind a long step is out of reach until it swings in: take the
-        # legs' capped solutions rather than freeze the joints
+        # a long step asks the legs for their full reach (the torso lowering follows): take
+        # their capped solutions rather than freeze the joints
         self.body.max_error_m = MAX_SOLE_ERROR_M
         self.neck_z0_m = self.body.neck_z_m
         L = self.model.lengths_m  # the hip joints above the ankles, standing
