@@ -6,6 +6,7 @@ Real parts throughout: the emulated FASTRAK on a pseudo-terminal, the live reade
 the teleoperation target and the ideal driver. Waits are bounded by generous deadlines.
 """
 
+import json
 import threading
 import time
 
@@ -90,14 +91,33 @@ def test_hands_hold_after_input_loss_until_the_operator_recentres(model):
         emu.close()
 
 
+def _close_once_running(emu, run_dir) -> threading.Thread:
+    """Close the emulator (for good) once the run's loop writes its log and the tracker has
+    streamed 1 s of records: the tracker goes away during the run, however slow the start."""
+
+    def close() -> None:
+        deadline = time.monotonic() + 2 * DEADLINE_S
+        while time.monotonic() < deadline and not (
+                emu.records_sent >= 120 and (run_dir / "log.csv").exists()):
+            time.sleep(0.05)
+        emu.close()
+
+    watcher = threading.Thread(target=close, daemon=True)
+    watcher.start()
+    return watcher
+
+
 def test_lost_tracker_ends_with_exit_3_and_a_plain_message(tmp_path):
     emu = make_emulator(stations=2).start()
-    port = emu.port_name
-    runner = CliRunner()
-    threading.Timer(6.0, emu.close).start()  # the tracker goes away for good during the run
-    result = runner.invoke(main, ["teleop", "--port", port, "--driver", "ideal", "--duration",
-                                  "60", "--out", str(tmp_path / "run")])
+    run_dir = tmp_path / "run"
+    watcher = _close_once_running(emu, run_dir)
+    # a 1 s reconnect timeout (the default, 10 s, only makes the same end later)
+    result = CliRunner().invoke(main, ["teleop", "--port", emu.port_name, "--driver", "ideal",
+                                       "--duration", "60", "--reconnect-timeout", "1",
+                                       "--out", str(run_dir)])
+    watcher.join()
     assert result.exit_code == 3, result.output
     assert "DeviceError" not in result.output and "Traceback" not in result.output
-    assert "error: FASTRAK on" in result.output and "reconnecting failed" in result.output
-    assert (tmp_path / "run" / "summary.json").exists()
+    assert "error: FASTRAK on" in result.output and "reconnecting failed for 1 s" in result.output
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert summary["input_kind"] == "port" and summary["samples_used"] > 0

@@ -115,6 +115,9 @@ def _view(target, panel) -> Group:
 @click.option("--replay", type=click.Path(dir_okay=False), default=None,
               help="Replay a raw FASTRAK capture or a pose log.")
 @click.option("--port", default=None, help="Read a live FASTRAK on this serial port.")
+@click.option("--reconnect-timeout", "reconnect_timeout", type=float, default=10.0,
+              show_default=True, metavar="SECONDS",
+              help="Live: a lost tracker ends the run after this long without reconnecting.")
 @click.option("--baud", type=int, default=115200, show_default=True, callback=check_baud,
               help="Live port baud rate.")
 @click.option("--driver", type=click.Choice(DRIVER_NAMES), default=DRIVER_NAMES[0],
@@ -155,9 +158,10 @@ def _view(target, panel) -> Group:
 @hardware_options
 @perturb_option
 @balance_option
-def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, wall_distance,
-           clutch_at, duration, reach_mode, orientation_weight, allow_branch_change, walk_from,
-           no_estop, gui, out, as_json, video, perturb_seed, balance, **hardware) -> None:
+def teleop(replay, port, reconnect_timeout, baud, driver, armed, mode, speed, scale, station_map,
+           wall_distance, clutch_at, duration, reach_mode, orientation_weight, allow_branch_change,
+           walk_from, no_estop, gui, out, as_json, video, perturb_seed, balance,
+           **hardware) -> None:
     """Drive the robot's hands from an operator's FASTRAK stream.
 
     Exactly one of --replay FILE or --port DEV. The first sample of each station calibrates it:
@@ -194,12 +198,17 @@ def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, w
                          hint="live input, the hardware driver and --gui run in real time; "
                               "leave --speed out")
     check_seconds("--duration", duration)
+    check_seconds("--reconnect-timeout", reconnect_timeout, 3600)
     for t in clutch_at:
         if not (math.isfinite(t) and t >= 0):
             raise InputError(f"--clutch {t:g} is not a time in the replay",
                              hint="give seconds from the replay's start, e.g. --clutch 12.5")
     if clutch_at and port is not None:
         raise InputError("--clutch times apply to replays", hint="live, press c to re-centre")
+    if replay is not None and click.get_current_context().get_parameter_source(
+            "reconnect_timeout") is click.core.ParameterSource.COMMANDLINE:
+        raise InputError("--reconnect-timeout applies to a live tracker (--port)",
+                         hint="leave it out for a replay")
     if not (math.isfinite(scale) and 0 < scale <= 10):
         raise InputError(f"--scale {scale:g} must be in (0, 10]", hint="e.g. --scale 1")
     if wall_distance is not None and mode != "drill":
@@ -216,6 +225,7 @@ def teleop(replay, port, baud, driver, armed, mode, speed, scale, station_map, w
         station_arm=stations,
         wall_distance_m=None if wall_distance is None else wall_distance / 1000.0,
         duration_s=duration, clutch_at_s=tuple(clutch_at), out=out, gui=gui, baud=baud,
+        reconnect_timeout_s=reconnect_timeout,
         estop=not no_estop, driver_options=driver_options(driver, armed, **hardware),
         perturb_seed=perturb_seed, balance=balance, walk_from_m=walk_from,
         reach=ReachSettings.for_mode(

@@ -52,6 +52,8 @@ class TeleopSettings:
         out: run folder (None: runs/<time>-teleop).
         reach: how the arms behave at the edge of their reach (None: the mode's defaults).
         gui, baud, estop, driver_options: passed on.
+        reconnect_timeout_s: live: a lost tracker ends the run after this long without
+            reconnecting (``--reconnect-timeout``).
         perturb_seed: a perturbed simulated robot and world (:mod:`hubo_cli.perturb`).
         balance: the balancer, ``default``, ``paper`` or ``off`` (``--balance``).
         walk_from_m: start this far (x, y; m) from the working stance and walk there before
@@ -71,6 +73,7 @@ class TeleopSettings:
     out: str | Path | None = None
     gui: bool = False
     baud: int = 115200
+    reconnect_timeout_s: float = 10.0
     estop: bool = True
     driver_options: dict = field(default_factory=dict)
     perturb_seed: int | None = None
@@ -181,7 +184,8 @@ def run_teleop(settings: TeleopSettings, on_ready=None) -> TeleopRun:
     approach = approach_paths(body, mapping.station_arm.values(), scene)
     wall = drill_wall(scene) if settings.mode == "drill" else None
     teleop_setup(settings, body, None).pace()  # refuse a bad pace before opening the port
-    with open_source(replay=settings.replay, port=settings.port, baud=settings.baud) as source:
+    with open_source(replay=settings.replay, port=settings.port, baud=settings.baud,
+                     reconnect_timeout_s=settings.reconnect_timeout_s) as source:
         target = TeleopTarget(model, source, HandMapper(mapping), body, approach, q_start,
                               live=source.live, clutch_at_s=settings.clutch_at_s, wall=wall,
                               reach=settings.reach,
