@@ -2,11 +2,22 @@
 simulated robot with the ``walking`` limit set."""
 
 import json
+import math
 
+import numpy as np
 import pytest
 
 from hubo_cli.experiments.standing import stand
 from hubo_cli.model import load_model
+from hubo_cli.walking.capture_step import (
+    MAX_STEP_M,
+    RAMP_FRACTION,
+    TRAVEL_END,
+    capture_swing_rows,
+    landing,
+    travel,
+)
+from hubo_cli.walking.footsteps import Footstep
 
 
 @pytest.mark.slow
@@ -24,22 +35,61 @@ def test_a_75_n_push_is_caught_with_two_steps(tmp_path):
 
 
 @pytest.mark.slow
-def test_a_90_n_push_is_caught_by_a_long_step_and_a_swing_in(tmp_path):
-    """90 N forward for 0.2 s (`hubo sim --push 90 --step --no-estop`): the first step is long
-    (past the trailing foot's reach with the CoM over the landed sole), so the trailing foot
-    swings in beside the landed one while the CoM comes to rest; two steps, no fall, the
-    torso well away from the 30 degrees of a fall.
-
-    Without the emergency stop: with it, the capture-point monitor may fire in the catch and
-    the stop's revert then does not always hold the stepped stance, which fell 85 N and 92 N
-    (and 90 N on one perturbation seed) that the stepping alone catches (84-100 N, seeds 1-3
-    and 5: all caught, 2.4-8 degrees): whether it fires and holds is chaotic there, so it is
-    no test (README)."""
-    result = stand(load_model(), 5.0, 90.0, step=True, estop=False, out=tmp_path / "run")
+def test_a_90_n_push_is_caught_by_a_long_step_and_a_lunge(tmp_path):
+    """90 N forward for 0.2 s: the first step is long (past the trailing foot's reach with the
+    CoM over the landed sole), so the robot stays in the stepped stance, the CoM at rest
+    between the soles; one step, no fall, the torso well away from the 30 degrees of a
+    fall."""
+    result = stand(load_model(), 3.0, 90.0, step=True, push_at_s=0.3, out=tmp_path / "run")
     summary = json.loads((result.run_dir / "summary.json").read_text())
     assert result.fell is False
-    assert summary["capture_step"]["steps"] == 2
+    assert summary["capture_step"]["steps"] == 1
     first = summary["capture_step"]["footsteps"][0]
-    assert first["x_m"] > 0.15  # a long step (as landed): the swing-in path
+    assert first["x_m"] > 0.15  # a long step (as landed): the lunge path
     assert result.max_tilt_deg < 20.0
     assert summary["max_joint_velocity_ratio"] <= 1.0 + 1e-9
+
+
+@pytest.mark.slow
+def test_a_150_n_push_is_caught_with_at_most_two_steps(tmp_path):
+    """150 N forward for 0.2 s (`hubo sim --push 150 --step`, the emergency stop on): the
+    capture step lands far (the torso lowered for the legs' reach) and the lunge catches
+    it; no fall, at most two steps, the torso well away from a fall, no joint faster than
+    the walking limit set allows."""
+    result = stand(load_model(), 3.0, 150.0, step=True, push_at_s=0.3, out=tmp_path / "run")
+    summary = json.loads((result.run_dir / "summary.json").read_text())
+    assert result.fell is False
+    assert 1 <= summary["capture_step"]["steps"] <= 2
+    first = summary["capture_step"]["footsteps"][0]
+    assert first["x_m"] > 0.35  # the push's way, far: a long capture step
+    assert result.max_tilt_deg < 20.0  # measured 9.6 degrees
+    assert summary["max_joint_velocity_ratio"] <= 1.0 + 1e-9
+
+
+def test_the_capture_swing_keeps_its_peak_speed_near_the_mean():
+    """The swing foot's progress runs 0 to 1, never back, and its steepest slope is
+    1 / (1 - RAMP_FRACTION) of the mean over the travel (the walking swing's smoothstep
+    needs 2.3 times): a lagging foot under the legs' speed limit loses less of the step."""
+    tau = np.linspace(0.0, 1.0, 2001)
+    s = travel(tau)
+    assert s[0] == 0.0 and s[-1] == 1.0
+    assert np.all(np.diff(s) >= 0.0)
+    slope = np.diff(s) / np.diff(tau)
+    assert slope.max() <= 1.0 / (1.0 - RAMP_FRACTION) / TRAVEL_END * 1.001
+    rows = capture_swing_rows(Footstep("left", 0.0, 0.09, 0.0), Footstep("left", 0.4, 0.09, 0.0),
+                              80, 0.04, 0.0)
+    assert rows[-1, 0] == pytest.approx(0.4) and abs(rows[-1, 2]) < 1e-9
+    assert rows[7, 2] > 0.01  # off the ground within the first tenth
+
+
+def test_a_far_landing_gives_up_its_sideways_part_first():
+    """A capture point far ahead and to the side: the landing keeps the push's way (down to
+    the standing width sideways) and stays within MAX_STEP_M."""
+    stance = Footstep("right", 0.0, -0.09, 0.0)
+    land = landing(stance, "left", np.array([0.6, 0.25]), 0.02, 0.18)
+    ahead, across = land.x_m - stance.x_m, land.y_m - stance.y_m
+    assert math.hypot(ahead, across) <= MAX_STEP_M + 1e-9
+    assert across == pytest.approx(0.18)
+    assert ahead == pytest.approx(math.sqrt(MAX_STEP_M**2 - 0.18**2))
+    near = landing(stance, "left", np.array([0.2, 0.2]), 0.02, 0.18)  # within reach: as asked
+    assert near.x_m == pytest.approx(0.18) and near.y_m == pytest.approx(0.2)

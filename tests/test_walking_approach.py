@@ -125,7 +125,10 @@ def test_landing_stays_within_reach():
     far = landing(stance, "left", np.array([2.0, 1.0]), 0.02, 0.177)
     assert math.hypot(far.x_m - stance.x_m, far.y_m - stance.y_m) == \
         pytest.approx(MAX_STEP_M)
-    assert far.y_m - stance.y_m == pytest.approx(MAX_WIDTH_M)
+    # too far: the sideways part gives way first, down to the standing width
+    assert far.y_m - stance.y_m == pytest.approx(0.177)
+    wide = landing(stance, "left", np.array([0.1, 1.0]), 0.02, 0.177)  # within reach, wide
+    assert wide.y_m - stance.y_m == pytest.approx(MAX_WIDTH_M)
 
 
 def test_teleop_refuses_a_bad_walk_start():

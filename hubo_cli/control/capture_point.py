@@ -32,6 +32,8 @@ monitor its *planned support* (:attr:`CapturePointMonitor.support_override`): th
 ground in this phase of the step, the swing foot counted at its landing place. The polygon is
 then their hull (flat on the ground, shrunk by the margin as before): the CP leaving it means
 the step cannot catch the robot. Without an override (standing, tasks) nothing changes.
+The planned support is shrunk by ``planned_margin_m`` (the margin unless the override's owner
+sets it: a capture step judges the CP against its planned and stepped stance unshrunk).
 """
 
 from __future__ import annotations
@@ -215,7 +217,8 @@ class CapturePointMonitor(Module):
     ``support_override``: None (the measured soles in contact), or a function of the time (s)
     returning the planned support's sole poses in the world (2 x 4 x 4: right, left; a swing
     foot at its landing place) or None for the measured soles in that period. Set by a
-    walking target in its ``attach``.
+    walking target in its ``attach``. ``planned_margin_m`` (default ``margin_m``): the shrink
+    of that planned support.
     """
 
     name = "capture-point"
@@ -259,6 +262,8 @@ class CapturePointMonitor(Module):
         self.support_box_m = np.zeros(4)
         self.flag = False
         self.support_override: Callable[[float], np.ndarray | None] | None = None
+        self.planned_margin_m = float(margin_m)
+        self._margin_used_m = float(margin_m)
         self.reset_watch()
         # numba compiles a kernel on its first call: make that now, not in the first period
         # of a run (seconds on a fresh install; cached afterwards)
@@ -284,7 +289,7 @@ class CapturePointMonitor(Module):
 
     def watch(self, state: RobotState) -> None:
         """The run's worst margin and contact losses (as the balance report counts them)."""
-        margin = self.margin_m - self.outside_m
+        margin = self._margin_used_m - self.outside_m
         if margin < self.min_margin_m:
             self.min_margin_m, self.min_margin_t_s = margin, state.time_s
         contact = state.feet_contact
@@ -335,16 +340,19 @@ class CapturePointMonitor(Module):
         self._prev_com = com
         self.com_m = com
         planned = None if self.support_override is None else self.support_override(state.time_s)
+        margin = self.margin_m
         if planned is not None:
             poses, contact = np.ascontiguousarray(planned, dtype=float), (True, True)
+            margin = self.planned_margin_m
         else:  # the measured soles (the placements of the joints' kinematics above)
             poses = self._sole_pose
             for k, fid in enumerate(self._sole_ids):
                 oMf = pin.updateFramePlacement(pmodel, data, fid)
                 poses[k, :3, :3] = oMf.rotation
                 poses[k, :3, 3] = oMf.translation
+        self._margin_used_m = margin
         outside, ground_z = _support(poses, bool(contact[0]), bool(contact[1]),
-                                     self._corners, com, self.velocity_m_s, self.margin_m,
+                                     self._corners, com, self.velocity_m_s, margin,
                                      GRAVITY_M_S2, self.corner_tolerance_m, self.cp_m,
                                      self.support_box_m, self._flat_sole)
         self.outside_m = outside

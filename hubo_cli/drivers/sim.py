@@ -30,6 +30,16 @@ Physics and control
     perturbed robot (foot friction 0.58), 9 mm at 0.91; the leg encoders and the IMU cannot see
     both feet slide at once, so the measured torso pose, the corrected hand goal and the hole
     drifted with them (hole RMS 5-6 mm instead of 1.5).
+    A sole's contact also resists twisting (``sole_torsion_radius_m``): the solver's contact
+    points carry no torsional friction each, so a sole that rocks onto one corner or edge (one
+    or two points: the stance foot of a capture step, its CoP at the toe) spun freely under the
+    swing leg's reaction (0.15 rad a step, up to 0.9 rad in a catch) where a rubber pad's
+    contact patch holds it. Each point gets the torsional friction of a uniformly pressed disc
+    of radius a, (2/3) mu a N (PyBullet's spinning friction, multiplied by the floor's friction,
+    1); a = 1.5 cm, a corner's patch of the rubber pad. On a flat sole (four points 0.13 m from
+    its middle) this adds about 8 % to the torsional friction its points' lateral friction
+    already gives. (With a = 3 cm the standing balancer's even loading of the feet through a
+    push and the paper balancer's ankle clamping in a short run changed past their tests.)
     The URDF's effort limits are the torque limits (tens of
     N m in the arms, 10 N m in the wrists, 100-200 N m in the legs); each motor's speed is capped
     at ``max_speed_factor`` (3) times the model's velocity limit, as a real motor's top speed
@@ -239,6 +249,7 @@ class SimOptions:
     sole_stiffness_n_m: float | None = FAST_PHYSICS["sole_stiffness_n_m"]
     sole_damping_n_s_m: float = FAST_PHYSICS["sole_damping_n_s_m"]
     sole_friction_anchor: bool = True
+    sole_torsion_radius_m: float | None = 0.015
     velocity_gain: float = 1.0
     friction: float = 1.0
     settle_s: float = 0.3
@@ -426,6 +437,13 @@ class SimDriver(Driver, SimulatedWorld):
                 p.changeDynamics(self._robot, self._links[link],
                                  lateralFriction=self.perturbation.foot_friction,
                                  physicsClientId=cid)
+        if self.options.sole_torsion_radius_m is not None:  # a contact patch resists twisting
+            mu = (self.options.friction if self.perturbation.foot_friction is None
+                  else self.perturbation.foot_friction)
+            for link in FOOT_LINKS:
+                p.changeDynamics(self._robot, self._links[link],
+                                 spinningFriction=2.0 / 3.0 * mu
+                                 * self.options.sole_torsion_radius_m, physicsClientId=cid)
         if self.options.sole_friction_anchor:  # sticking soles stay put (no creep)
             for link in FOOT_LINKS:
                 p.changeDynamics(self._robot, self._links[link], frictionAnchor=1,
@@ -796,7 +814,8 @@ class SimDriver(Driver, SimulatedWorld):
                   "size_m": [w.thickness_m, w.width_m, w.height_m]} for w in self._walls]
         return {"walls": walls, "tools": {"right-arm": "drill" if self.options.drill else "hand",
                                           "left-arm": "hand"},
-                "hole_world_m": [np.round(p, 6).tolist() for _, p in self._cut_points],
+                "hole_world_m": np.round(np.reshape([p for _, p in self._cut_points], (-1, 3)),
+                                         6).tolist(),  # one rounding of every point
                 "hole_t_s": [round(t, 6) for t, _ in self._cut_points]}
 
     def snapshot_png(self, path: str | Path, width: int = 640, height: int = 480) -> Path:

@@ -14,26 +14,40 @@ inverted pendulum (omega^2 = g / z_c):
    follows the pendulum, c(t) = p + (c0 - p) cosh(wt) + v0 / w sinh(wt). The swing foot lands
    with its sole's middle on the capture point the pendulum has at touch-down,
    xi = c + c' / w (within ``MAX_STEP_M`` of the stance foot and at least the standing width
-   from it sideways). The step ends when the swing sole carries ``TOUCH_N`` (after
-   ``TOUCH_FRACTION`` of the swing) or is down;
+   from it sideways; a landing too far gives up its sideways part first, down to the standing
+   width, then its forward one). It travels from the first period on at a trapezoidal speed
+   (:func:`travel`: the legs' speed limit bounds the foot's peak speed, which a trapezoid keeps
+   near the mean) and lifts as sin(pi tau). The torso lowers over the swing as far as the
+   legs need to reach both soles with the pelvis midway between them, each leg no longer hip
+   to ankle than standing (the model's thigh, shin and hip offsets; :meth:`_reach_drop_m`).
+   The step ends when the swing sole carries ``TOUCH_N`` (after ``TOUCH_FRACTION`` of the
+   swing) or is down;
 2. *catch*, ``CATCH_S``: both feet down, the ZMP on the landed sole's middle (= xi); the CoM
    comes to rest there, c(t) = xi + (c_T - xi) exp(-w t);
 3. *return*: one walking step of :func:`~hubo_cli.walking.gait.make_gait` brings the other foot
    beside the landed one at the standing width (the stance, moved by the push); the CoM
    returns between the feet.
 
-After a long step (more than ``LONG_STEP_M`` the push's way) the CoM cannot come to rest over
-the landed sole with the other foot still down that far behind (out of the legs' reach): the
-catch and the return are one instead, the other foot swinging in beside the landed one over
-``SWING_IN_S`` while the CoM comes to rest over the landed sole and the torso turns back
-upright over ``UPRIGHT_S``; then the CoM moves to between the soles' middles over ``CATCH_S``.
+After a long step (more than ``LONG_STEP_M`` the push's way) the robot stays in the stepped
+stance, a lunge (one step): over ``LUNGE_CATCH_S`` both feet stay down, the torso turns back
+upright over ``UPRIGHT_S`` and the CoM comes to rest, c' = w (r - c), on a point r that
+follows the measured capture point (time constant ``REST_TAU_S``) held on the line through
+the soles' middles, from ``CATCH_EDGE_M`` inside the back heel to as far inside the front toe.
+The pattern so follows where the landing (its impact took an unknown part of the momentum)
+left the robot instead of driving it on toward its own capture point; the standing balancers
+act meanwhile. (Bringing the back foot in from that far behind needs the CoM over the landed
+sole, out of the trailing leg's reach: the former swing-in lagged its pattern under the
+legs' speed limit and tipped the robot.)
 
 The pattern's joints come from :class:`~hubo_cli.walking.body.WalkingBody` (the legs' IK, the
 neck placed so that the model's CoM follows the pattern), one period at a time. While it
-steps, the capture-point monitor watches the planned support (the swing foot at its landing
-place, as when walking) and the standing balancers rest (reset every period); afterwards the
-robot holds the pattern's last posture and the balancers act again. At most two steps per
-push; one plan at a time.
+steps and catches, the capture-point monitor watches the planned support (the swing foot at
+its landing place, as when walking; then the stepped stance) with no margin: the stepping is
+the answer to the capture point leaving the shrunk polygon, and the stop, which freezes a
+recoverable catch, is left for a capture point beyond the stepped stance itself. The
+standing balancers rest (reset every period) until the lunge's catch or the return step's
+end; afterwards the robot holds the pattern's last posture and the balancers act again. At
+most two steps per push; one plan at a time.
 """
 
 from __future__ import annotations
@@ -53,8 +67,8 @@ from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.state import RobotState
 from hubo_cli.walking.body import SIDE_LEG, WalkingBody, pose_of_row
-from hubo_cli.walking.footsteps import SIDE_SIGN, Footstep, stance_of
-from hubo_cli.walking.gait import Gait, make_gait, smoothstep5, swing_rows
+from hubo_cli.walking.footsteps import SIDE_SIGN, Footstep, stance_of, wrap_angle
+from hubo_cli.walking.gait import Gait, make_gait, smoothstep5
 from hubo_cli.walking.params import WalkingParams
 from hubo_cli.walking.preview import GRAVITY_M_S2, CoMPath
 from hubo_cli.walking.target import SOLES, SOLES_SENSOR, footstep_of, planned_support
@@ -64,7 +78,8 @@ SWING_HEIGHT_M = 0.04    # [chosen] sole clearance at mid-swing
 ZMP_AHEAD_M = 0.09       # [chosen] stance ZMP ahead of the sole's middle, toward the push
 ZMP_INSET_M = 0.04       # [chosen] ... and inside, toward the swing foot
 MIN_STEP_M = 0.10        # [chosen] the step goes at least this far the push's way
-MAX_STEP_M = 0.45        # [chosen] landing within this of the stance foot (the legs' reach)
+MAX_STEP_M = 0.50        # [chosen] landing within this of the stance foot (the legs reach it
+#                          with the torso lowered, see _reach_drop_m: 0.05 m for 0.48 m ahead)
 MAX_WIDTH_M = 0.35       # [chosen] the feet at most this far apart sideways
 CATCH_S = 1.0            # [chosen] both feet down, the CoM comes to rest on the landed foot
 CATCH_EDGE_M = 0.03      # [chosen] the catch's ZMP stays this far inside the landed sole's ends
@@ -72,9 +87,11 @@ LANDED_M = 0.003         # a swing sole this close to the ground has landed
 LAND_WAIT_S = 0.2        # [chosen] wait at most this long after the swing for it to land
 TOUCH_N = 60.0           # [chosen] a swing sole carrying this much (ankle F/T) is down ...
 TOUCH_FRACTION = 0.5     # [chosen] ... once this much of the swing has passed
-LONG_STEP_M = 0.15       # [chosen] a capture step longer than this: the other foot swings in
-SWING_IN_S = 0.6         # [chosen] ... over this long, while the CoM comes to rest
+LONG_STEP_M = 0.15       # [chosen] a capture step longer than this: the robot stays in the lunge
+LUNGE_CATCH_S = 2.0      # [chosen] ... while the CoM comes to rest in it
 UPRIGHT_S = 0.3          # [chosen] ... and the torso turns back upright over this long
+REST_TAU_S = 0.1         # [chosen] the lunge's rest point follows the measured CP this fast
+MAX_DROP_M = 0.08        # [chosen] the torso lowers at most this much for the legs' reach
 MAX_SOLE_ERROR_M = 0.2   # [chosen] the legs' capped solutions accepted this far off their soles
 SOLE_FRAME = {"right": "right_sole", "left": "left_sole"}
 RESTING = ("balance", "stabilizer")
@@ -94,6 +111,39 @@ def pendulum(c0: np.ndarray, v0: np.ndarray, p: np.ndarray, omega: float,
     return c, v, w * w * (c - p)
 
 
+RAMP_FRACTION = 0.2      # [chosen] the capture swing's speed ramps over this much of its travel
+TRAVEL_END = 0.9         # [chosen] ... which ends at this fraction of the swing
+
+
+def travel(tau: np.ndarray) -> np.ndarray:
+    """The capture swing's progress (0..1) at swing fractions ``tau``: a trapezoidal speed
+    from the swing's start to TRAVEL_END, each ramp RAMP_FRACTION of that. The legs' speed
+    limit bounds the swing foot's peak speed: a trapezoid needs 1 / (1 - r) of the mean
+    (1.25), the walking swing's fifth-order smoothstep over 0.1..0.9 of the swing 2.3 times."""
+    u = np.clip(np.asarray(tau, dtype=float) / TRAVEL_END, 0.0, 1.0)
+    r = RAMP_FRACTION
+    peak = 1.0 / (1.0 - r)
+    return np.where(u < r, peak * u**2 / (2 * r),
+                    np.where(u > 1 - r, 1.0 - peak * (1 - u)**2 / (2 * r),
+                             peak * (u - r / 2)))
+
+
+def capture_swing_rows(start: Footstep, end: Footstep, n: int, height_m: float,
+                       z_m: float) -> np.ndarray:
+    """The capture step's swing foot: (n, 4) rows of (x, y, z, yaw), sample k at
+    tau = (k + 1) / n; it travels from the first period on (:func:`travel`) and lifts as
+    sin(pi tau) (off the ground early, down late: a foot that lags its pattern under the
+    speed limit still clears the ground)."""
+    tau = (np.arange(n) + 1.0) / n
+    s = travel(tau)
+    rows = np.empty((n, 4))
+    rows[:, 0] = start.x_m + s * (end.x_m - start.x_m)
+    rows[:, 1] = start.y_m + s * (end.y_m - start.y_m)
+    rows[:, 2] = z_m + height_m * np.sin(np.pi * tau)
+    rows[:, 3] = start.yaw_rad + s * wrap_angle(end.yaw_rad - start.yaw_rad)
+    return rows
+
+
 def _row(foot: Footstep, z_m: float) -> np.ndarray:
     return np.array([foot.x_m, foot.y_m, z_m, foot.yaw_rad])
 
@@ -103,7 +153,8 @@ def landing(stance: Footstep, side: str, xi_m: np.ndarray, forward_m: float,
     """Where the swing foot ``side`` lands: its sole's middle on ``xi_m`` (world x, y), within
     MAX_STEP_M of the stance foot, ``width_m`` to MAX_WIDTH_M from it sideways, at least
     ``min_ahead_m`` ahead of it (negative: at least that far behind; the push's way), heading
-    as the stance foot."""
+    as the stance foot. A landing too far gives up its sideways part first (down to
+    ``width_m``), then its forward one: the length the push's way is what catches it."""
     c, s = math.cos(stance.yaw_rad), math.sin(stance.yaw_rad)
     dx, dy = xi_m[0] - stance.x_m, xi_m[1] - stance.y_m
     ahead = c * dx + s * dy - forward_m          # the ankle goes forward_m behind the middle
@@ -113,9 +164,10 @@ def landing(stance: Footstep, side: str, xi_m: np.ndarray, forward_m: float,
         ahead = min(ahead, min_ahead_m)
     across = SIDE_SIGN[side] * (-s * dx + c * dy)  # toward the swing side: positive
     across = min(max(across, width_m), MAX_WIDTH_M)
-    length = math.hypot(ahead, across)
-    if length > MAX_STEP_M:  # keep the sideways part, shorten the forward one
-        ahead = math.copysign(math.sqrt(max(MAX_STEP_M**2 - across**2, 0.0)), ahead)
+    if math.hypot(ahead, across) > MAX_STEP_M:
+        across = max(math.sqrt(max(MAX_STEP_M**2 - ahead**2, 0.0)), width_m)
+        ahead = math.copysign(min(abs(ahead),
+                                  math.sqrt(max(MAX_STEP_M**2 - across**2, 0.0))), ahead)
     left = SIDE_SIGN[side] * across
     return Footstep(side, stance.x_m + c * ahead - s * left, stance.y_m + s * ahead + c * left,
                     stance.yaw_rad)
@@ -153,6 +205,7 @@ class CaptureStepper(Target):
         self.steps: list[Footstep] = []
         self.start_feet: list[Footstep] = []
         self.trigger_s: float | None = None
+        self.track: dict | None = None  # the lunge's catch (see _touch_down)
 
     def attach(self, world: SimulatedWorld | None, modules: Sequence[Module]) -> None:
         if world is None:
@@ -176,7 +229,8 @@ class CaptureStepper(Target):
             q, ref = self._step_period(state)
         elif self.phase in ("catch", "return"):
             q, ref = self._rest_period()
-        if self.phase in ("step", "catch", "return"):
+        lunge_catch = self.phase == "catch" and self.track is not None
+        if self.phase in ("step", "catch", "return") and not lunge_catch:
             for module in self.resting:
                 module.reset(q, state)
         return q, info | {"capture.phase_code": PHASE_CODES[self.phase],
@@ -217,15 +271,19 @@ class CaptureStepper(Target):
         T_world_neck = (state.T_world_torso.copy() if state.T_world_torso is not None
                         else world.frame_pose("torso"))
         self.body = WalkingBody(self.model, self.q_stand, T_world_neck)
-        # a trailing foot far behind a long step is out of reach until it swings in: take the
-        # legs' capped solutions rather than freeze the joints
+        # a long step asks the legs for their full reach (the torso lowering follows): take
+        # their capped solutions rather than freeze the joints
         self.body.max_error_m = MAX_SOLE_ERROR_M
+        self.neck_z0_m = self.body.neck_z_m
+        L = self.model.lengths_m  # the hip joints above the ankles, standing
+        self.hip_height_m = (self.neck_z0_m - L["lT"] - L["lL2"]) - (self.sole_z_m + L["lL5"])
         self.legs = {side: Limb(self.model, SIDE_LEG[side]) for side in ("right", "left")}
         self.n_step = max(1, int(round(SINGLE_SUPPORT_S / self.model.control_period_s)))
         self.k, self.t_start_s, self.trigger_s = 0, t_s, t_s
         self.land = feet[swing]
         self.phase = "step"
         self.monitor.support_override = self._support_at
+        self.monitor.planned_margin_m = 0.0
 
     def _step_period(self, state: RobotState) -> tuple[np.ndarray, tuple[float, float]]:
         """One period of the capture step: the landing follows the measured capture point
@@ -239,11 +297,13 @@ class CaptureStepper(Target):
                                 self.min_ahead_m)
         com, velocity = monitor.com_m[:2], monitor.velocity_m_s[:2]
         c, v, a = pendulum(com, velocity, self.zmp_m, omega, np.array([period]))
-        swing_row = swing_rows(self.feet[self.swing], self.land, n, SWING_HEIGHT_M,
-                               self.sole_z_m)[min(k, n - 1)]
+        swing_row = capture_swing_rows(self.feet[self.swing], self.land, n, SWING_HEIGHT_M,
+                                       self.sole_z_m)[min(k, n - 1)]
         feet = {self.stance_side: _row(stance, self.sole_z_m), self.swing: swing_row}
         support = np.zeros((1, 2), dtype=bool)
         support[0, 0 if self.stance_side == "right" else 1] = True
+        drop = self._reach_drop_m(stance, self.land) * float(smoothstep5(min((k + 1) / n, 1.0)))
+        self.body.neck_z_m = self.neck_z0_m - drop
         q = self._solve(c, v, a, self.zmp_m, feet, support)
         # the swing foot lands flat where it should in the world whatever the torso's tilt:
         # its goal in the measured neck frame
@@ -288,8 +348,10 @@ class CaptureStepper(Target):
         s, co = self.heading[1], self.heading[0]
         back = Footstep(self.stance_side, land.x_m - s * beside, land.y_m + co * beside,
                         land.yaw_rad)
-        n_in = max(1, int(round(SWING_IN_S / period))) if long_step else 0
-        n = max(1, int(round(CATCH_S / period))) + n_in
+        if long_step:
+            self._lunge(land, stance, sole_middle, com_m, xi)
+            return
+        n = max(1, int(round(CATCH_S / period)))
         t = (np.arange(n) + 1.0) * period
         # the CoM from (c, v) to rest over the landed sole (the ZMP held at its middle, the
         # capture point's excess decays with the stable root): c = m + (xi - m) ... shaped as
@@ -301,33 +363,7 @@ class CaptureStepper(Target):
         v = -omega * (d - e) * decay
         a = omega**2 * (d - e) * decay
         zmp = np.tile(sole_middle + e, (n, 1))
-        self.n_upright = max(1, int(round(UPRIGHT_S / period))) if long_step else n
-        if long_step:
-            # the CoM cannot come to rest over the landed sole with the other foot down that
-            # far behind (out of the legs' reach): that foot swings in beside the landed one
-            # meanwhile (the second step); then, both feet down, the CoM moves to between
-            # the soles' middles (smoothly, the ZMP with it), and the robot holds the last
-            # posture
-            rest_m = sole_middle + e
-            between = sole_middle + np.array([-s, co]) * beside / 2
-            blend = smoothstep5((np.arange(n) + 1.0 - n_in) / max(n - n_in, 1))[:, None]
-            c = c + blend * (between - rest_m)
-            zmp = zmp + blend * (between - rest_m)
-            v = np.gradient(c, period, axis=0)
-            a = np.gradient(v, period, axis=0)
-            rows = {self.swing: np.tile(_row(land, self.sole_z_m), (n, 1)),
-                    self.stance_side: np.vstack([
-                        swing_rows(stance, back, n_in, SWING_HEIGHT_M, self.sole_z_m),
-                        np.tile(_row(back, self.sole_z_m), (n - n_in, 1))])}
-            support = np.ones((n, 2), dtype=bool)
-            support[:n_in, 0 if self.stance_side == "right" else 1] = False
-            self.rest = Gait(period, (back,), self.height_m, zmp, CoMPath(c, v, a, zmp), rows,
-                             support, np.full(n, -1))
-            self.rest_support = planned_support(self.rest)
-            self.n_catch = n
-            self.steps = [land, back]
-            self.k, self.phase = 0, "catch"
-            return
+        self.n_upright = n
         ret = make_gait(after["right"], after["left"], [back], self.params, period,
                         self.height_m, self.sole_z_m, forward, com_start_m=c[-1])
         rows = {side: np.vstack([np.tile(_row(after[side], self.sole_z_m), (n, 1)),
@@ -344,14 +380,64 @@ class CaptureStepper(Target):
         self.steps = [land, back]
         self.k, self.phase = 0, "catch"
 
+    def _lunge(self, land: Footstep, stance: Footstep, sole_middle: np.ndarray,
+               com_m: np.ndarray, xi_m: np.ndarray) -> None:
+        """After a long step: both feet stay down (the stepped stance, one step); the CoM
+        comes to rest where the measured capture point says (:meth:`_lunge_com`)."""
+        period = self.model.control_period_s
+        n = max(1, int(round(LUNGE_CATCH_S / period)))
+        rows = {self.swing: np.tile(_row(land, self.sole_z_m), (n, 1)),
+                self.stance_side: np.tile(_row(stance, self.sole_z_m), (n, 1))}
+        c = np.tile(com_m, (n, 1))
+        zmp = np.tile(sole_middle, (n, 1))
+        self.rest = Gait(period, (), self.height_m, zmp, CoMPath(c, 0 * c, 0 * c, zmp), rows,
+                         np.ones((n, 2), dtype=bool), np.full(n, -1))
+        back = np.array([stance.x_m, stance.y_m]) + self.model.feet.forward_m * self.heading
+        self.track = {"com": np.asarray(com_m, dtype=float).copy(), "front": sole_middle,
+                      "back": back,
+                      "reach": self.model.feet.length_m / 2 - CATCH_EDGE_M}
+        self.track["rest"] = self._in_stance(xi_m)
+        self.rest_support = planned_support(self.rest)
+        self.n_upright = max(1, int(round(UPRIGHT_S / period)))
+        self.n_catch = n
+        self.steps = [land]
+        self.k, self.phase = 0, "catch"
+
+    def _in_stance(self, point_m: np.ndarray) -> np.ndarray:
+        """``point_m`` projected on the line through the lunge's soles' middles, from
+        ``reach`` behind the back one to ``reach`` ahead of the front one."""
+        tr = self.track
+        axis = tr["front"] - tr["back"]
+        length = float(np.hypot(*axis))
+        axis = axis / length
+        along = float((np.asarray(point_m, dtype=float) - tr["back"]) @ axis)
+        return tr["back"] + min(max(along, -tr["reach"]), length + tr["reach"]) * axis
+
+    def _lunge_com(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The lunge's CoM for this period (rows (1, 2): position, velocity, acceleration)
+        and ZMP (2,): the rest point r follows the measured capture point held in the stance
+        (time constant REST_TAU_S), the CoM converges on it as the pendulum's stable part,
+        c' = w (r - c)."""
+        tr, period, omega = self.track, self.model.control_period_s, self.omega
+        target = self._in_stance(self.monitor.cp_m[:2])
+        tr["rest"] = tr["rest"] + min(period / REST_TAU_S, 1.0) * (target - tr["rest"])
+        v = omega * (tr["rest"] - tr["com"])
+        tr["com"] = tr["com"] + v * period
+        return (tr["com"].reshape(1, 2), v.reshape(1, 2), (-omega * v).reshape(1, 2),
+                tr["rest"].copy())
+
     def _rest_period(self) -> tuple[np.ndarray, tuple[float, float]]:
         """One period of the catch or the return step (the planned pattern); over the catch
         the torso turns from its tilt at touch-down back upright (both soles stay flat)."""
         rest, k = self.rest, self.k
         feet = {side: rows[k] for side, rows in rest.feet.items()}
-        q = self._solve(rest.com.com_m[k:k + 1], rest.com.com_velocity_m_s[k:k + 1],
-                        rest.com.com_acceleration_m_s2[k:k + 1], rest.zmp_ref_m[k], feet,
-                        rest.support[k:k + 1])
+        if self.track is not None:
+            c, v, a, zmp = self._lunge_com()
+        else:
+            c, v, a = (rest.com.com_m[k:k + 1], rest.com.com_velocity_m_s[k:k + 1],
+                       rest.com.com_acceleration_m_s2[k:k + 1])
+            zmp = rest.zmp_ref_m[k]
+        q = self._solve(c, v, a, zmp, feet, rest.support[k:k + 1])
         b = float(smoothstep5(min((k + 1) / self.n_upright, 1.0)))
         if b < 1.0:
             T = self.body_neck.copy()
@@ -371,7 +457,22 @@ class CaptureStepper(Target):
         if self.k >= rest.n:
             self.phase, self.q_hold = "stood", q
             self.monitor.support_override = None
-        return q, (float(rest.com.com_m[k, 0]), float(rest.com.com_m[k, 1]))
+            self.monitor.planned_margin_m = self.monitor.margin_m
+        return q, (float(c[0, 0]), float(c[0, 1]))
+
+    def _reach_drop_m(self, stance: Footstep, land: Footstep) -> float:
+        """How much lower the torso must stand for each leg, with the pelvis midway between
+        the soles, to be no longer hip to ankle than standing (its knee keeps the standing
+        bend; the hips ``lL1`` either side of the pelvis, the model's lengths): at most
+        MAX_DROP_M."""
+        hip_m = self.model.lengths_m["lL1"]
+        ankles = np.array([[stance.x_m, stance.y_m], [land.x_m, land.y_m]])
+        middle = ankles.mean(axis=0)
+        normal = np.array([-self.heading[1], self.heading[0]])
+        hips = middle + np.sign((ankles - middle) @ normal)[:, None] * hip_m * normal
+        r = float(np.max(np.hypot(*(ankles - hips).T)))
+        h = self.hip_height_m
+        return min(h - math.sqrt(max(h * h - r * r, 0.0)), MAX_DROP_M)
 
     def _solve(self, c, v, a, zmp, feet: dict, support: np.ndarray) -> np.ndarray:
         """The body's IK for one period of pattern (CoM rows (1, 2), feet rows (4,))."""
