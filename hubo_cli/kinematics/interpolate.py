@@ -65,8 +65,17 @@ class PoseSegment:
         T = np.zeros((4, 4))
         T[3, 3] = 1.0
         T[:3, 3] = self.T_start[:3, 3] + s * (self.T_end[:3, 3] - self.T_start[:3, 3])
-        T[:3, :3] = self.T_start[:3, :3] @ rotation_exp(s * self._turn)
+        R = self._R_unturned
+        T[:3, :3] = self.T_start[:3, :3] @ rotation_exp(s * self._turn) if R is None else R
         return T
+
+    @cached_property
+    def _R_unturned(self) -> np.ndarray | None:
+        """The orientation of every pose of a segment that does not turn (computed as
+        :meth:`at` would, once), else None."""
+        if np.any(self._turn):
+            return None
+        return self.T_start[:3, :3] @ rotation_exp(0.0 * self._turn)
 
     @cached_property
     def _turn(self) -> np.ndarray:

@@ -26,6 +26,7 @@ the shift is along x only.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -94,6 +95,8 @@ class WholeBody:
         self.tools = {name: tools.get(name, "hand") for name in ARMS}  # arm -> tool held
         self.arms = {name: Limb(model, name, self.tools[name]) for name in ARMS}
         self.legs = {name: Limb(model, name) for name in LEGS}
+        self._slices = {name: model.limb_slice(name) for name in (*ARMS, *LEGS)}
+        self._last_leg: dict[str, tuple] = {}  # leg -> ((lift, shift, q_prev bytes), IKResult)
         self.working_height_m = working_height_m
         self.q_home = home_posture(model)
         self.T_S_sole = {name: leg.fk(self.q_home[model.limb_slice(name)])
@@ -228,13 +231,21 @@ class WholeBody:
         T_N_S[0, 3], T_N_S[2, 3] = -shift_m, -lift
         legs = {}
         for name, leg in self.legs.items():
-            sl = self.model.limb_slice(name)
-            result = leg.solve(T_N_S @ self.T_S_sole[name], q_prev[sl])
+            sl = self._slices[name]
+            # the legs' goal depends on the lift and shift alone: while both hold (a level cut,
+            # a wait) the same goal from the same joints has the same answer as last time
+            key = (lift, shift_m, q_prev[sl].tobytes())
+            last = self._last_leg.get(name)
+            if last is not None and last[0] == key:
+                result = last[1]
+            else:
+                result = leg.solve(T_N_S @ self.T_S_sole[name], q_prev[sl])
+                self._last_leg[name] = (key, result)
             legs[name] = result
             q[sl] = result.q_rad
         arms = {}
         for name, T_S_E in T_S_goal.items():
-            sl = self.model.limb_slice(name)
+            sl = self._slices[name]
             result = self.arms[name].solve(T_N_S @ np.asarray(T_S_E, dtype=float), q_prev[sl])
             arms[name] = result
             q[sl] = result.q_rad
@@ -281,12 +292,13 @@ class LiftFilter:
         alpha = dt_s / (self.time_constant_s + dt_s)
         self._smoothed += alpha * (wanted_m - self._smoothed)
         gap = self._smoothed - self.lift_m
-        speed = float(np.clip(gap / dt_s, -self.max_speed_m_s, self.max_speed_m_s))
+        # Python floats (min/max, math.sqrt): the same values as numpy's, at a tenth of the cost
+        speed = float(min(max(gap / dt_s, -self.max_speed_m_s), self.max_speed_m_s))
         if self.max_accel_m_s2 is not None:
             a = self.max_accel_m_s2
-            stop = float(np.sqrt(2 * a * abs(gap)))  # the speed that can still stop on it
-            speed = float(np.clip(speed, -stop, stop))
-            speed = float(np.clip(speed, self.speed_m_s - a * dt_s, self.speed_m_s + a * dt_s))
+            stop = math.sqrt(2 * a * abs(gap))  # the speed that can still stop on it
+            speed = min(max(speed, -stop), stop)
+            speed = min(max(speed, self.speed_m_s - a * dt_s), self.speed_m_s + a * dt_s)
         self.speed_m_s = speed
         self.lift_m += speed * dt_s
         return self.lift_m
