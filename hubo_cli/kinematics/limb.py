@@ -119,6 +119,7 @@ class Limb:
         self.lower_rad = self.spec.lower_rad
         self.upper_rad = self.spec.upper_rad
         self.hold_m = float(model.safety["ik_hold_distance_m"])
+        self._is_arm = self.spec.is_arm  # read every solve
 
     def __repr__(self) -> str:
         return f"Limb({self.name!r}, tool={self.tool!r}, params={self.model.params_name!r})"
@@ -161,7 +162,7 @@ class Limb:
         q = np.empty(6)
         status, pos, rot = choice.solve_limb(
             np.array(T_N_E, dtype=float, order="C"), self.chain, self.lengths_m,
-            self.spec.is_arm, self.lower_rad, self.upper_rad, q_prev, has_prev, self.hold_m,
+            self._is_arm, self.lower_rad, self.upper_rad, q_prev, has_prev, self.hold_m,
             True, q)
         return IKResult(q, choice.STATUS_NAMES[status], pos, rot)
 

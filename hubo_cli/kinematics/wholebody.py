@@ -66,6 +66,7 @@ COM_GAIN = 0.8         # hrpsys SimpleFullbodyInverseKinematicsSolver: 0.8 x the
 MAX_SHIFT_M = 0.12     # the waist's reach forward or back over the feet
 MAX_SHIFT_STEP_M = 0.0005  # per solve: 0.1 m/s at 200 Hz
 STEADY_ITERATIONS = 4
+_EYE4 = np.eye(4)  # copied, not rebuilt, every solve
 
 
 class WholeBody:
@@ -227,7 +228,7 @@ class WholeBody:
             wanted = float(lift_m)
         lo, hi = self.lift_range_m
         lift = min(max(wanted, lo), hi)
-        T_N_S = np.eye(4)
+        T_N_S = _EYE4.copy()
         T_N_S[0, 3], T_N_S[2, 3] = -shift_m, -lift
         legs = {}
         for name, leg in self.legs.items():
