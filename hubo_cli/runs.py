@@ -152,6 +152,13 @@ def check_new_file(path: str | Path, *, inputs: tuple[str | Path, ...] = (),
 
 
 def _jsonable(value):
+    kind = type(value)  # the plain types first: a run's metadata holds some 10^5 floats
+    if kind is float:
+        return value if math.isfinite(value) else None
+    if kind is int or kind is str or kind is bool or value is None:
+        return value
+    if kind is list or kind is tuple:
+        return [_jsonable(v) for v in value]
     if isinstance(value, dict):
         return {str(k): _jsonable(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):

@@ -36,7 +36,7 @@ from hubo_cli.control.log import (
     LogData,
     load_log,
     max_velocity_ratio,
-    set_log_metadata,
+    update_log_metadata,
 )
 from hubo_cli.control.loop import ControlLoop, LoopResult
 from hubo_cli.control.module import Module
@@ -186,14 +186,15 @@ def run(setup: RunSetup, target: Target,
                 on_start(target)
             loop = ControlLoop(driver, modules, target, speed=speed, log_path=run_dir)
             result = loop.run(setup.duration_s)
+            metadata = {}
             if world is not None:
                 world.snapshot_png(run_dir / SNAPSHOT_NAME)
-                set_log_metadata(run_dir, "scene", world.scene())
+                metadata["scene"] = world.scene()
     except HuboError:
         discard_if_unused(run_dir)  # nothing moved: leave no empty run folder behind
         raise
-    set_log_metadata(run_dir, "command", setup.command)
-    set_log_metadata(run_dir, "balance", setup.safety.balance_choice)
+    metadata |= {"command": setup.command, "balance": setup.safety.balance_choice}
+    update_log_metadata(run_dir, metadata)
     summary = common_summary(setup, speed, result, modules, run_dir)
     done = RunResult(run_dir, result, modules, summary)
     summary["max_joint_velocity_ratio"] = max_velocity_ratio(setup.model, done.log)

@@ -274,7 +274,7 @@ def test_sigterm_ends_like_ctrl_c_with_a_summary(tmp_path):
                                stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + 60
-        while not (run / "log.csv").exists() and time.monotonic() < deadline:
+        while not (run / "log.rows").exists() and time.monotonic() < deadline:  # running
             time.sleep(0.1)
         time.sleep(1.0)
         process.send_signal(signal.SIGTERM)
@@ -285,6 +285,7 @@ def test_sigterm_ends_like_ctrl_c_with_a_summary(tmp_path):
     assert process.returncode == 130, err
     assert "Traceback" not in err
     assert (run / "summary.json").exists()
+    assert (run / "log.csv").exists() and not (run / "log.rows").exists()  # the log finished
     assert "interrupted" in out
 
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from control_support import assert_within_limits, ideal
 
-from hubo_cli.control.log import LOG_NAME, load_log
+from hubo_cli.control.log import FLAGS_NAME, LOG_NAME, ROWS_NAME, load_log, read_rows
 from hubo_cli.control.loop import ControlLoop
 from hubo_cli.control.module import Module
 from hubo_cli.control.pipeline import build_pipeline
@@ -108,15 +108,15 @@ def test_log_is_written_as_it_goes(model, tmp_path):
 
     def target(t_s, state):
         k = int(round(t_s / DT))
-        if k in (1, 50, 120):
-            rows = [ln for ln in (tmp_path / LOG_NAME).read_text().splitlines()
-                    if not ln.startswith("#")]
-            seen.append((k, len(rows) - 1))  # minus the header
+        if k in (1, 50, 120):  # the periods so far are stored (the CSV comes at close)
+            _, rows, flags = read_rows(tmp_path / ROWS_NAME, tmp_path / FLAGS_NAME)
+            seen.append((k, len(rows), len(flags)))
         return _moving_target(q0)(t_s, state)
 
     result = ControlLoop(robot, build_pipeline(model), target,
                          log_path=tmp_path).run(duration_s=1.0)
-    assert seen == [(1, 1), (50, 50), (120, 120)]
+    assert seen == [(1, 1, 1), (50, 50, 50), (120, 120, 120)]
+    assert not (tmp_path / ROWS_NAME).exists() and not (tmp_path / FLAGS_NAME).exists()
     log = load_log(tmp_path)
     assert len(log) == result.periods
     assert log.joints("cmd").shape == (result.periods, 24)

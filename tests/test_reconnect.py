@@ -92,13 +92,13 @@ def test_hands_hold_after_input_loss_until_the_operator_recentres(model):
 
 
 def _close_once_running(emu, run_dir) -> threading.Thread:
-    """Close the emulator (for good) once the run's loop writes its log and the tracker has
+    """Close the emulator (for good) once the run's loop stores its log and the tracker has
     streamed 1 s of records: the tracker goes away during the run, however slow the start."""
 
     def close() -> None:
         deadline = time.monotonic() + 2 * DEADLINE_S
         while time.monotonic() < deadline and not (
-                emu.records_sent >= 120 and (run_dir / "log.csv").exists()):
+                emu.records_sent >= 120 and (run_dir / "log.rows").exists()):
             time.sleep(0.05)
         emu.close()
 

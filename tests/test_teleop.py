@@ -41,16 +41,27 @@ def _max_step_ratio(run_dir):
     return float(np.max(steps / model.velocity_rad_s[index]))
 
 
+@pytest.fixture(scope="module")
+def drill_rectangle_run(tmp_path_factory):
+    """The whole drill recording on the simulated robot (about 50 simulated s), run once for
+    the module, and its session target (the hand's errors in the world, period by period)."""
+    targets = []
+    run = run_teleop(TeleopSettings(replay=RECTANGLE, mode="drill",
+                                    out=tmp_path_factory.mktemp("drill-rectangle") / "run"),
+                     on_ready=targets.append)
+    return run, targets[0]
+
+
 @pytest.mark.slow
-def test_drill_rectangle_on_the_simulated_robot(tmp_path):
-    run = run_teleop(TeleopSettings(replay=RECTANGLE, mode="drill", out=tmp_path / "run"))
+def test_drill_rectangle_on_the_simulated_robot(drill_rectangle_run):
+    run, _ = drill_rectangle_run
     s = run.summary
     assert s["ended"] == "done" and not s["estop_events"]
     # through the measured torso pose (encoders + IMU), which the drill-mode correction holds
     # on the goal: 5.1 mm on most runs, but 7.4 mm after a 1e-12 change of one time constant
     # (the feet slip sideways on some runs, which no measurement on the robot sees, and the
-    # torso estimate assumes they stand still). The short session below asserts the world
-    # error to 6 mm; this bound leaves room for that chaos.
+    # torso estimate assumes they stand still). The test below asserts the world error of
+    # the operation's first 2 s to 6 mm; this bound leaves room for that chaos.
     assert s["rms_error_mm"]["right-arm"] < 10.0
     assert s["scene"]["placed_from"] == "right_drill_bit"
     assert s["max_joint_velocity_ratio"] <= 1.0 + 1e-9  # the log keeps 15 digits
@@ -146,31 +157,31 @@ def test_bad_inputs_are_one_line_errors(tmp_path):
         assert "Traceback" not in result.output and "error:" in result.output
 
 
-@pytest.fixture(scope="module")
-def short_drill_session(tmp_path_factory):
-    """The first 2 s of the drill recording on the simulated robot (about 8 simulated s with
-    the approach and the settling)."""
-    folder = tmp_path_factory.mktemp("short-drill")
-    lines = data_file("trajectories", "drill-rectangle.csv").read_text().splitlines()
-    kept = [line for line in lines[1:] if float(line.split(",")[0]) <= 2.0]
-    (folder / "short.csv").write_text("\n".join([lines[0], *kept]) + "\n")
-    return run_teleop(TeleopSettings(replay=folder / "short.csv", mode="drill",
-                                     out=folder / "run"))
-
-
-def test_drill_mode_places_the_wall_at_the_bit_and_holds_the_flutes_in_it(short_drill_session):
+@pytest.mark.slow
+def test_drill_mode_places_the_wall_at_the_bit_and_holds_the_flutes_in_it(drill_rectangle_run):
+    """The first 2 s of the operation (the whole run's feet slip a little on some runs, see
+    above; these 2 s are the part before that chaos: 1.8 mm in the world)."""
     from hubo_cli.control.log import load_log as load
     from hubo_cli.teleop.session import STANDOFF_M, WALL
     from hubo_cli.urdf import DRILL_FRAME
 
-    run = short_drill_session
+    run, target = drill_rectangle_run
     s = run.summary
     assert s["ended"] == "done" and not s["estop_events"]
     assert s["scene"]["placed_from"] == DRILL_FRAME
     assert s["scene"]["gap_m"] == pytest.approx(STANDOFF_M - WALL.thickness_m / 2)
-    # every period of the operation has the flutes in the cardboard (the simulator's record)
+    # every period of the operation's first 2 s has the flutes in the cardboard (the
+    # simulator's record)
     log = load(run.run_dir)
     operating = np.round(log["t_s"][log["phase_code"] == 1], 6)
+    operating = operating[operating <= operating[0] + 2.0]
     holes = np.round(log.metadata["scene"]["hole_t_s"], 6)
     assert len(operating) > 300 and np.isin(operating, holes).all()
-    assert s["world_rms_error_mm"]["right-arm"] < 6.0
+    # the hand's error in the world (the summary's world_rms_error_mm) over the same 2 s
+    t_s = np.asarray(target.path_times_s["right-arm"])
+    world_m = np.asarray(target.world_errors_m["right-arm"])
+    assert len(world_m) == len(t_s) and len(world_m) > 300
+    first = world_m[t_s <= t_s[0] + 2.0]
+    assert len(first) > 300 and np.sqrt(np.mean(np.square(first))) * 1000 < 6.0
+    assert s["world_rms_error_mm"]["right-arm"] == pytest.approx(
+        np.sqrt(np.mean(np.square(world_m))) * 1000)

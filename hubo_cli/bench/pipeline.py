@@ -107,5 +107,6 @@ def run(report) -> None:
             log.write(1, 0.1, 0, 100.0, 1.0, {"ok"}, q0_all, q0_all, q0_all, cycle.info)
             times.append(clock() - t0)
         log.close()
-    report("log row (CSV, flushed), median", float(np.median(times) * 1e6), "us",
+    report("log row (a record in the memory-mapped file), median",
+           float(np.median(times) * 1e6), "us",
            f"{len(log.columns)} columns")

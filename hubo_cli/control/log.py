@@ -1,4 +1,4 @@
-"""The per-period log: one CSV row per control period, written and flushed as the loop runs.
+"""The per-period log: one row per control period, stored as the loop runs, a CSV at the end.
 
 A run folder's log is three files:
 
@@ -26,9 +26,17 @@ A run folder's log is three files:
   the log opens and again when it closes.
 * ``log.parquet``: the same table, written when the log closes (smaller and faster to read).
 
-Each CSV row is flushed to the operating system when written, so a crash loses at most the period
-being written. :func:`load_log` reads a log back into numpy arrays (the Parquet copy when there is
-one, else the CSV; logs of the first format, with a leading ``#`` line, are read too).
+While the run goes, each period is stored as one binary record (the row's numbers as float64,
+its flags as a number into ``log.flags``, see :data:`ROWS_MAGIC`) in ``log.rows``, a file mapped
+into memory: the record is in the operating system's page cache as soon as it is stored, so a
+crash of the process (an exception, Ctrl-C, a kill) loses at most the period being written, as
+a CSV row flushed every period would. The CSV is made from the records when the log closes (the
+loop closes it however the run ends: done, an error, Ctrl-C or SIGTERM), in the same text a
+row-by-row writer gives, and ``log.rows`` and ``log.flags`` are removed then. Where the process
+died before that, the run folder still holds them: :func:`recover_log` writes the CSV, the
+Parquet copy and the sidecar's row count from them, and :func:`load_log` does so by itself.
+:func:`load_log` reads a log back into numpy arrays (the Parquet copy when there is one, else
+the CSV; logs of the first format, with a leading ``#`` line, are read too).
 """
 
 from __future__ import annotations
@@ -36,6 +44,9 @@ from __future__ import annotations
 import io
 import json
 import math
+import mmap
+import os
+import struct
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -47,6 +58,18 @@ from hubo_cli.runs import _jsonable
 LOG_NAME = "log.csv"
 META_NAME = "log.json"
 PARQUET_NAME = "log.parquet"
+ROWS_NAME = "log.rows"
+FLAGS_NAME = "log.flags"
+# log.rows: ROWS_MAGIC (16 bytes); the number of records stored (little-endian uint64, updated
+# after each record); a uint32 n and n bytes of JSON (the columns and how many of them are
+# joints, poses and extras); zeros to a multiple of 8 bytes; then the records, each one
+# little-endian float64 per column: the flags (the line of log.flags holding their text, a JSON
+# string), then every other column in order. The file grows in blocks (unused records are zero).
+# log.flags: one JSON string a line, each distinct flags text once, written before its first use
+ROWS_MAGIC = b"HUBO-PERIOD-ROWS"
+_COUNT_AT = len(ROWS_MAGIC)
+_HEAD_AT = _COUNT_AT + 8
+_BLOCK_ROWS = 4096
 FORMAT_NAME = "hubo-cli period log"
 FORMAT_VERSION = 2
 FIXED_COLUMNS = ("period_count", "t_s", "status_code", "compute_us", "late_us", "flags")
@@ -132,11 +155,13 @@ def status_codes() -> dict[int, str]:
 
 
 class PeriodLog:
-    """Append-as-you-go CSV log of a control run, with its JSON sidecar and a Parquet copy.
+    """Append-as-you-go log of a control run (records while it runs, see the module
+    docstring), with its CSV, JSON sidecar and Parquet copy.
 
     Args:
-        path: the CSV file to create (its folder must exist); the sidecar and the Parquet copy
-            are written beside it (``log.json``, ``log.parquet`` for ``log.csv``).
+        path: the CSV file to create at close (its folder must exist); the sidecar, the
+            Parquet copy and, while the log is open, the records are beside it (``log.json``,
+            ``log.parquet``, ``log.rows`` and ``log.flags`` for ``log.csv``).
         joint_names: joint names in command order.
         extra_columns: further numeric columns (names ending in their unit).
         model: the robot model; when given (and the joints are the model's), the measured hand
@@ -159,19 +184,24 @@ class PeriodLog:
                         + tuple(f"cmd_{j}_rad" for j in joints)
                         + tuple(f"q_{j}_rad" for j in joints)
                         + pose_names + self.extra_columns)
-        # joints with 15 significant digits, so that finite differences of the log (velocity,
-        # acceleration) are exact to about 1e-9 rad/s^2; poses with 12 (sub-nanometre); the
-        # other numbers with 9
-        self._specs = (["%.15g"] * (3 * len(joints)) + ["%.12g"] * len(pose_names)
-                       + ["%.9g"] * len(self.extra_columns))
-        self._formats: dict[bytes, str] = {}
         self._nan_poses = [math.nan] * len(pose_names)
         self._nan_extras = [math.nan] * len(self.extra_columns)
         self.metadata: dict = {}
         self.rows = 0
-        self._file = open(self.path, "w", buffering=1 << 16)  # noqa: SIM115 (kept open)
-        self._file.write(",".join(self.columns) + "\n")
-        self._file.flush()
+        self.rows_path, self.flags_path = _record_paths(self.path)
+        layout = {"columns": list(self.columns), "joints": len(joints),
+                  "poses": len(pose_names), "extras": len(self.extra_columns)}
+        head = json.dumps(layout).encode()
+        self._data_at = -(-(_HEAD_AT + 4 + len(head)) // 8) * 8
+        self._record_bytes = 8 * len(self.columns)
+        self._pack = struct.Struct(f"<{len(self.columns)}d").pack_into
+        self._flag_ids: dict[str, float] = {}
+        self.path.unlink(missing_ok=True)  # the CSV comes at close
+        self._flags_fd = os.open(self.flags_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        with open(self.rows_path, "w+b") as f:
+            f.write(ROWS_MAGIC + struct.pack("<QI", 0, len(head)) + head)
+            f.truncate(self._data_at + _BLOCK_ROWS * self._record_bytes)
+            self._map: mmap.mmap | None = mmap.mmap(f.fileno(), 0)
         self._write_sidecar()
 
     def _hand_kinematics(self, model) -> dict:
@@ -196,29 +226,16 @@ class PeriodLog:
             values += _pose_values(T_world_torso @ limb.fk(q[index]))
         return values + _feet_values(state)
 
-    def _body_format(self, values: list) -> str:
-        """The row's format: ``%.1f`` where a value is a whole number (cached per pattern)."""
-        v = np.asarray(values, dtype=float)
-        whole = np.isfinite(v) & (v == np.trunc(v))
-        key = np.packbits(whole).tobytes()
-        fmt = self._formats.get(key)
-        if fmt is None:
-            if len(self._formats) > 256:
-                self._formats.clear()
-            fmt = ",".join("%.1f" if w else spec for w, spec in zip(whole, self._specs,
-                                                                      strict=True))
-            self._formats[key] = fmt
-        return fmt
-
     def write(self, period: int, t_s: float, status: int, compute_us: float, late_us: float,
               flags, target_rad, cmd_rad, q_rad, extras: dict | None = None,
               state=None) -> None:
-        """Append one period and flush it.
+        """Append one period (one record in ``log.rows``, with the operating system when this
+        returns).
 
         ``state`` (the :class:`~hubo_cli.state.RobotState` after the step) gives the
         torso and hand poses; without it they are NaN.
         """
-        if self._file.closed:
+        if self._map is None:
             return
         values = (_floats(target_rad) + _floats(cmd_rad) + _floats(q_rad)
                   + self._pose_row(q_rad, state))
@@ -228,21 +245,22 @@ class PeriodLog:
             else:
                 values += self._nan_extras
         flag_text = ";".join(sorted(flags))
-        # every real-valued number carries a "." (or is NaN/inf, written so), so that CSV
-        # readers that guess types from the first rows (polars, pandas) read its column as
-        # floats; the period count and the status code stay integers
-        line = (f"{period:d},{_float_text(t_s, '%.9g')},{int(status):d},"
-                f"{_float_text(compute_us, '%.6g')},{_float_text(late_us, '%.6g')},{flag_text},"
-                f"{(self._body_format(values) % tuple(values)).replace('nan', 'NaN')}\n")
-        self._file.write(line)
-        self._file.flush()
+        flag_id = self._flag_ids.get(flag_text)
+        if flag_id is None:  # a new flags text: in log.flags before a record points to it
+            flag_id = self._flag_ids[flag_text] = float(len(self._flag_ids))
+            _write_all(self._flags_fd, (json.dumps(flag_text) + "\n").encode())
+        at = self._data_at + self.rows * self._record_bytes
+        if at + self._record_bytes > len(self._map):
+            self._map.resize(len(self._map) + _BLOCK_ROWS * self._record_bytes)
+        self._pack(self._map, at, flag_id, period, t_s, status, compute_us, late_us, *values)
         self.rows += 1
+        self._map[_COUNT_AT:_HEAD_AT] = self.rows.to_bytes(8, "little")  # the record counts
 
     def set_metadata(self, key: str, value) -> None:
         """Record run metadata (JSON-able: numbers, strings, lists, dicts, numpy arrays) in the
         sidecar. Before :meth:`close` it is written at close; after, the sidecar is rewritten."""
         self.metadata[str(key)] = _jsonable(value)
-        if self._file.closed:
+        if self._map is None:
             self._write_sidecar()
 
     def _write_sidecar(self) -> None:
@@ -251,16 +269,21 @@ class PeriodLog:
                    "units": UNIT_LEGEND, "status_codes": status_codes(),
                    "joint_names": list(self.joint_names), "rows": self.rows,
                    "columns": list(self.columns)}
-        _write_sidecar_json(self.meta_path, sidecar, self.metadata)
+        _write_sidecar_json(self.meta_path, sidecar, self.metadata, jsonable=True)
 
     def close(self) -> None:
-        """Flush and close the CSV, write the Parquet copy and the sidecar; safe to call twice."""
-        if self._file.closed:
+        """Write the CSV from the records, then the Parquet copy and the sidecar, and remove
+        ``log.rows`` and ``log.flags``; safe to call twice."""
+        if self._map is None:
             return
-        self._file.flush()
-        self._file.close()
+        self._map.close()
+        self._map = None
+        os.close(self._flags_fd)
+        _csv_from_rows(self.rows_path, self.flags_path, self.path)
         _read_csv(self.path).write_parquet(self.parquet_path)
         self._write_sidecar()
+        self.rows_path.unlink()
+        self.flags_path.unlink()
 
     def __enter__(self) -> PeriodLog:
         return self
@@ -271,21 +294,125 @@ class PeriodLog:
 
 def set_log_metadata(run_dir: str | Path, key: str, value) -> None:
     """Add metadata to a closed run's sidecar (``log.json``), e.g. the scene after the run."""
+    update_log_metadata(run_dir, {key: value})
+
+
+def update_log_metadata(run_dir: str | Path, items: dict) -> None:
+    """Add several metadata keys to a closed run's sidecar at once (in ``items``' order)."""
     path = Path(run_dir)
     path = path / META_NAME if path.is_dir() else path.with_suffix(".json")
     sidecar = json.loads(path.read_text())
-    metadata = sidecar.pop("metadata", {})
-    metadata[str(key)] = _jsonable(value)
-    _write_sidecar_json(path, sidecar, metadata)
+    metadata = sidecar.pop("metadata", {})  # read from JSON: already JSON-able
+    for key, value in items.items():
+        metadata[str(key)] = _jsonable(value)
+    _write_sidecar_json(path, sidecar, metadata, jsonable=True)
 
 
-def _write_sidecar_json(path: Path, head: dict, metadata: dict) -> None:
-    """The sidecar: its fixed part indented, the metadata (point lists) on one line each key."""
+def _write_sidecar_json(path: Path, head: dict, metadata: dict, jsonable: bool = False) -> None:
+    """The sidecar: its fixed part indented, the metadata (point lists) on one line each key
+    (``jsonable``: the metadata's values are JSON-able already)."""
     lines = json.dumps(_jsonable(head), indent=1)[:-2]  # without the closing "\n}"
-    items = ",\n".join(f"  {json.dumps(k)}: {json.dumps(_jsonable(v))}"
+    items = ",\n".join(f"  {json.dumps(k)}: {json.dumps(v if jsonable else _jsonable(v))}"
                         for k, v in metadata.items())
     body = f"{{\n{items}\n }}" if items else "{}"
     path.write_text(f"{lines},\n \"metadata\": {body}\n}}\n")
+
+
+def _write_all(fd: int, data: bytes) -> None:
+    """``os.write`` until every byte is written (a regular file takes them in one call)."""
+    while data:
+        data = data[os.write(fd, data):]
+
+
+def _float_column_formats(whole: np.ndarray, specs: list[str]):
+    """Per row, the format of its numbers: ``%.1f`` where one is a whole number, else its
+    column's spec (one format string per distinct pattern)."""
+    keys = np.packbits(whole, axis=1)
+    formats: dict[bytes, str] = {}
+    out = []
+    for key, row in zip(keys, whole, strict=True):
+        k = key.tobytes()
+        fmt = formats.get(k)
+        if fmt is None:
+            fmt = formats[k] = ",".join("%.1f" if w else spec
+                                         for w, spec in zip(row.tolist(), specs, strict=True))
+        out.append(fmt)
+    return out
+
+
+def _record_paths(csv_path: Path) -> tuple[Path, Path]:
+    """(``log.rows``, ``log.flags``) beside a log's CSV."""
+    return csv_path.with_suffix(".rows"), csv_path.with_suffix(".flags")
+
+
+def read_rows(rows_path: str | Path, flags_path: str | Path) -> tuple[dict, np.ndarray,
+                                                                        list[str]]:
+    """The records of a ``log.rows`` file and its ``log.flags``: the layout (``columns``,
+    ``joints``, ``poses``, ``extras``), the numbers (rows x columns but the flags, float64)
+    and each row's flags text. Only the records the file counts are read (one being written
+    when the process died is not counted)."""
+    data = Path(rows_path).read_bytes()
+    if not data.startswith(ROWS_MAGIC):
+        raise ValueError(f"{rows_path} is not a period log's record file")
+    count, n_head = struct.unpack_from("<QI", data, _COUNT_AT)
+    layout = json.loads(data[_HEAD_AT + 4:_HEAD_AT + 4 + n_head])
+    data_at = -(-(_HEAD_AT + 4 + n_head) // 8) * 8
+    width = len(layout["columns"])
+    count = min(count, (len(data) - data_at) // (8 * width))
+    table = np.frombuffer(data, dtype="<f8", count=count * width,
+                          offset=data_at).reshape(count, width)
+    texts = [json.loads(line) for line in Path(flags_path).read_text().splitlines()]
+    flags = [texts[i] for i in table[:, 0].astype(int).tolist()]
+    return layout, table[:, 1:].astype(float), flags
+
+
+def _csv_from_rows(rows_path: Path, flags_path: Path, csv_path: Path) -> int:
+    """Write the CSV of a ``log.rows`` file; returns its row count. Numbers always carry a
+    ``.`` (or are ``NaN``/``inf``), so that CSV readers that guess types from the first rows
+    (polars, pandas) read every real-valued column as floats; a whole number is written
+    ``1.0``; the period count and the status code are integers. Joints have 15 significant
+    digits, so that finite differences of the log (velocity, acceleration) are exact to about
+    1e-9 rad/s^2; poses 12 (sub-nanometre); the other numbers 9."""
+    layout, rows, flags = read_rows(rows_path, flags_path)
+    specs = (["%.15g"] * (3 * layout["joints"]) + ["%.12g"] * layout["poses"]
+             + ["%.9g"] * layout["extras"])
+    body = rows[:, 5:]
+    whole = np.isfinite(body) & (body == np.trunc(body))
+    formats = _float_column_formats(whole, specs)
+    with open(csv_path, "w") as f:
+        f.write(",".join(layout["columns"]) + "\n")
+        for start in range(0, len(rows), _BLOCK_ROWS):  # a block of lines at a time
+            block = range(start, min(start + _BLOCK_ROWS, len(rows)))
+            lines = []
+            for row, k in zip(rows[block.start:block.stop].tolist(), block, strict=True):
+                period, t_s, status, compute_us, late_us = row[:5]
+                lines.append(
+                    f"{int(period):d},{_float_text(t_s, '%.9g')},{int(status):d},"
+                    f"{_float_text(compute_us, '%.6g')},{_float_text(late_us, '%.6g')},"
+                    f"{flags[k]},{(formats[k] % tuple(row[5:])).replace('nan', 'NaN')}\n")
+            f.write("".join(lines))
+    return len(rows)
+
+
+def recover_log(path: str | Path) -> bool:
+    """Finish the log of a run whose process died before closing it: the CSV, the Parquet
+    copy and the sidecar's row count from ``log.rows`` and ``log.flags`` (a run folder or any
+    of its log files), which are removed then. Returns False when there is nothing to
+    recover."""
+    csv_path, meta_path, parquet_path = log_paths(path)
+    rows_path, flags_path = _record_paths(csv_path)
+    if not rows_path.exists():
+        return False
+    rows = _csv_from_rows(rows_path, flags_path, csv_path)
+    _read_csv(csv_path).write_parquet(parquet_path)
+    if meta_path.exists():
+        sidecar = json.loads(meta_path.read_text())
+        metadata = sidecar.pop("metadata", {})
+        sidecar.update(rows=rows, parquet=parquet_path.name)
+        _write_sidecar_json(meta_path, sidecar, metadata, jsonable=True)
+    rows_path.unlink()
+    flags_path.unlink(missing_ok=True)
+    return True
 
 
 def _read_csv(path: Path):
@@ -360,11 +487,13 @@ def load_log(path: str | Path) -> LogData:
     """Read a period log (a run folder, its CSV or its Parquet copy) into numpy arrays.
 
     A run folder is read from ``log.parquet`` when the run closed its log, else from
-    ``log.csv`` (a run that crashed); the sidecar's metadata comes along where there is one.
+    ``log.csv``; the sidecar's metadata comes along where there is one. A log whose process
+    died before closing it (``log.rows`` still there) is finished first (:func:`recover_log`).
     """
     import polars as pl
 
     path = Path(path)
+    recover_log(path)
     csv_path, meta_path, parquet_path = log_paths(path)
     use_parquet = path.suffix == ".parquet" or (path.is_dir() and parquet_path.exists())
     frame = pl.read_parquet(parquet_path) if use_parquet else _read_csv(csv_path)

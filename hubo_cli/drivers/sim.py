@@ -814,7 +814,8 @@ class SimDriver(Driver, SimulatedWorld):
                   "size_m": [w.thickness_m, w.width_m, w.height_m]} for w in self._walls]
         return {"walls": walls, "tools": {"right-arm": "drill" if self.options.drill else "hand",
                                           "left-arm": "hand"},
-                "hole_world_m": [np.round(p, 6).tolist() for _, p in self._cut_points],
+                "hole_world_m": np.round(np.reshape([p for _, p in self._cut_points], (-1, 3)),
+                                         6).tolist(),  # one rounding of every point
                 "hole_t_s": [round(t, 6) for t, _ in self._cut_points]}
 
     def snapshot_png(self, path: str | Path, width: int = 640, height: int = 480) -> Path:

@@ -1,0 +1,171 @@
+"""The period log's records: the CSV made from them at close is the documented row text, a
+process killed mid-run leaves records that load_log turns into the log, and the sidecar's
+metadata is written the same in one rewrite as in several."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hubo_cli.control.log import (
+    FLAGS_NAME,
+    LOG_NAME,
+    META_NAME,
+    PARQUET_NAME,
+    ROWS_NAME,
+    PeriodLog,
+    load_log,
+    read_rows,
+    recover_log,
+    set_log_metadata,
+    update_log_metadata,
+)
+
+JOINTS = ("A", "B", "C")
+EXTRAS = ("x_m", "y_count")
+ODD = [0.1, -2.5e-7, 1.0, -0.0, 3.0e20, math.nan, math.inf, -math.inf, 1e-300,
+       123456789.12345678, 0.30000000000000004, -7.0]
+
+
+def _rows(n: int):
+    """n periods with whole numbers, NaN, infinities, tiny and huge values, and flag sets."""
+    rng = np.random.default_rng(5)
+    flag_sets = [set(), {"holding"}, {"collision", "holding"}, {"smooth-stop"}]
+    rows = []
+    for k in range(n):
+        q = rng.normal(0.0, 1.0, 3)
+        q[k % 3] = ODD[k % len(ODD)]
+        target = np.full(3, math.nan) if k % 4 == 0 else q + 0.5
+        extras = {} if k % 5 == 0 else {"x_m": ODD[(k + 3) % len(ODD)], "y_count": float(k)}
+        rows.append((k, k * 0.005, k % 3, 10.0 + k / 7, 0.0 if k % 2 else 2.0 + k / 3,
+                     flag_sets[k % 4], target, q * 0.5, q, extras))
+    return rows
+
+
+def _reference_text(rows) -> str:
+    """The CSV the documented format gives, one row at a time (the former row writer's rules):
+    a whole number as ``%.1f``, NaN as ``NaN``, joints with 15 significant digits, the pose
+    columns (NaN here: no state) with 12, the extras with 9."""
+
+    def number(v: float, spec: str) -> str:
+        if math.isfinite(v) and v == int(v):
+            return "%.1f" % v
+        return "NaN" if math.isnan(v) else spec % v
+
+    pose = ["torso_x_m", "torso_y_m", "torso_z_m", "torso_roll_rad", "torso_pitch_rad",
+            "torso_yaw_rad", "right_foot_fz_n", "left_foot_fz_n", "right_foot_contact_flag",
+            "left_foot_contact_flag"]
+    header = (["period_count", "t_s", "status_code", "compute_us", "late_us", "flags"]
+              + [f"{kind}_{j}_rad" for kind in ("target", "cmd", "q") for j in JOINTS]
+              + pose + list(EXTRAS))
+    lines = [",".join(header)]
+    for period, t_s, status, compute_us, late_us, flags, target, cmd, q, extras in rows:
+        cells = [str(period), number(t_s, "%.9g"), str(status), number(compute_us, "%.6g"),
+                 number(late_us, "%.6g"), ";".join(sorted(flags))]
+        cells += [number(float(v), "%.15g") for v in (*target, *cmd, *q)]
+        cells += ["NaN"] * len(pose)
+        cells += [number(float(extras.get(c, math.nan)), "%.9g") for c in EXTRAS]
+        lines.append(",".join(cells))
+    return "\n".join(lines) + "\n"
+
+
+def _write(path: Path, rows) -> PeriodLog:
+    log = PeriodLog(path / LOG_NAME, JOINTS, EXTRAS)
+    for row in rows:
+        log.write(*row)
+    return log
+
+
+def test_the_csv_made_at_close_is_the_row_text(tmp_path):
+    rows = _rows(300)
+    log = _write(tmp_path, rows)
+    assert not (tmp_path / LOG_NAME).exists()  # records while the run goes
+    assert len(read_rows(tmp_path / ROWS_NAME, tmp_path / FLAGS_NAME)[1]) == 300
+    log.close()
+    log.close()  # twice is harmless
+    assert (tmp_path / LOG_NAME).read_text() == _reference_text(rows)
+    assert not (tmp_path / ROWS_NAME).exists() and not (tmp_path / FLAGS_NAME).exists()
+    assert json.loads((tmp_path / META_NAME).read_text())["rows"] == 300
+    loaded = load_log(tmp_path)  # from the Parquet copy
+    assert len(loaded) == 300
+    assert loaded.flags[2] == ["collision", "holding"] and loaded.flags[0] == []
+    np.testing.assert_allclose(loaded["q_A_rad"], [r[8][0] for r in rows], rtol=1e-13)  # 15 digits
+
+
+def test_the_records_grow_past_their_first_block(tmp_path):
+    rows = _rows(9000)  # more than the file's first block of records
+    _write(tmp_path, rows).close()
+    loaded = load_log(tmp_path / LOG_NAME)
+    assert len(loaded) == 9000
+    assert loaded["period_count"][-1] == 8999.0
+
+
+def test_a_killed_run_leaves_records_that_load_log_finishes(tmp_path):
+    """A process killed outright (no finally blocks, no close) after 250 periods: the records
+    are in the file; load_log writes the CSV, the Parquet copy and the row count from them."""
+    script = textwrap.dedent(f"""
+        import os, signal, sys
+        sys.path.insert(0, {str(Path(__file__).parent)!r})
+        from test_log_records import _rows, _write
+        from pathlib import Path
+        log = _write(Path({str(tmp_path)!r}), _rows(250))
+        os.kill(os.getpid(), signal.SIGKILL)
+    """)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    done = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True,
+                          timeout=120)
+    assert done.returncode == -signal.SIGKILL, done.stderr.decode()
+    assert (tmp_path / ROWS_NAME).exists() and not (tmp_path / LOG_NAME).exists()
+    loaded = load_log(tmp_path)
+    assert len(loaded) == 250
+    assert (tmp_path / LOG_NAME).read_text() == _reference_text(_rows(250))
+    assert (tmp_path / PARQUET_NAME).exists() and not (tmp_path / ROWS_NAME).exists()
+    assert json.loads((tmp_path / META_NAME).read_text())["rows"] == 250
+    assert recover_log(tmp_path) is False  # nothing left to recover
+
+
+def test_a_record_not_yet_counted_is_left_out(tmp_path):
+    """The count is updated after each record: a record being stored when the process died
+    (its numbers partly there, the count not yet raised) is not read."""
+    log = _write(tmp_path, _rows(40))
+    at = log._data_at + 40 * log._record_bytes
+    log._map[at:at + 16] = np.array([0.0, 40.0]).tobytes()  # half a 41st record
+    layout, numbers, flags = read_rows(tmp_path / ROWS_NAME, tmp_path / FLAGS_NAME)
+    assert numbers.shape == (40, len(layout["columns"]) - 1) and len(flags) == 40
+    log._map.close()
+    assert len(load_log(tmp_path)) == 40
+
+
+def test_not_a_record_file_is_refused(tmp_path):
+    (tmp_path / ROWS_NAME).write_bytes(b"period_count,t_s\n")
+    (tmp_path / FLAGS_NAME).write_text("")
+    with pytest.raises(ValueError, match="not a period log"):
+        read_rows(tmp_path / ROWS_NAME, tmp_path / FLAGS_NAME)
+
+
+def test_metadata_in_one_rewrite_equals_one_key_at_a_time(tmp_path):
+    one, many = tmp_path / "one", tmp_path / "many"
+    items = {"scene": {"hole_world_m": [np.array([0.1, -0.2, 1e-7]), [1.0, math.nan, 3]],
+                       "size": (np.float64(0.5), np.int64(3), np.bool_(True))},
+             "command": "task-cut", "balance": None, "limit": math.inf}
+    for folder in (one, many):
+        folder.mkdir()
+        _write(folder, _rows(3)).close()
+    for key, value in items.items():
+        set_log_metadata(one, key, value)
+    update_log_metadata(many, items)
+    assert (one / META_NAME).read_text() == (many / META_NAME).read_text()
+    metadata = load_log(many).metadata
+    assert metadata["scene"] == {"hole_world_m": [[0.1, -0.2, 1e-7], [1.0, None, 3]],
+                                 "size": [0.5, 3, True]}
+    assert metadata["limit"] is None and metadata["balance"] is None
+    assert list(metadata) == ["scene", "command", "balance", "limit"]
