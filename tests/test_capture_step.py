@@ -34,36 +34,64 @@ def test_a_75_n_push_is_caught_with_two_steps(tmp_path):
     assert summary["max_joint_velocity_ratio"] <= 1.0 + 1e-9
 
 
+def assert_stands_after_the_return(summary: dict, duration_s: float) -> None:
+    """The pattern ended (the back foot beside the front one) at least 0.4 s before the run's
+    end, the soles side by side within 3 cm of the standing width and 3 cm of each other
+    along the feet, and the emergency stop never fired (nor after the return)."""
+    stepped = summary["capture_step"]
+    assert stepped["stood_s"] is not None and stepped["stood_s"] < duration_s - 0.4
+    start = {f["side"]: f for f in stepped["start_feet"]}
+    feet = {f["side"]: f for f in stepped["stood_feet"]}
+    width_m = math.hypot(start["left"]["x_m"] - start["right"]["x_m"],
+                         start["left"]["y_m"] - start["right"]["y_m"])
+    yaw = feet["left"]["yaw_rad"]
+    dx = feet["left"]["x_m"] - feet["right"]["x_m"]
+    dy = feet["left"]["y_m"] - feet["right"]["y_m"]
+    along = math.cos(yaw) * dx + math.sin(yaw) * dy
+    across = -math.sin(yaw) * dx + math.cos(yaw) * dy
+    assert abs(along) < 0.03
+    assert abs(across - width_m) < 0.03
+    assert summary["estop_events"] == []
+
+
 @pytest.mark.slow
-def test_a_90_n_push_is_caught_by_a_long_step_and_a_lunge(tmp_path):
-    """90 N forward for 0.2 s: the first step is long (past the trailing foot's reach with the
-    CoM over the landed sole), so the robot stays in the stepped stance, the CoM at rest
-    between the soles; one step, no fall, the torso well away from the 30 degrees of a
-    fall."""
-    result = stand(load_model(), 3.0, 90.0, step=True, push_at_s=0.3, out=tmp_path / "run")
+def test_a_90_n_push_is_caught_by_a_long_step_and_a_return_step(tmp_path):
+    """90 N forward for 0.2 s: the first step is long, so the robot stands in the stepped
+    stance (the lunge) until it settles, then one walking step brings the back foot beside
+    the front one (its heel rising for the leg's reach) and it stands at the standing width:
+    two steps, no fall, no stop, the torso well away from the 30 degrees of a fall, no joint
+    faster than the walking limit set allows."""
+    duration_s = 8.8
+    result = stand(load_model(), duration_s, 90.0, step=True, push_at_s=0.3,
+                   out=tmp_path / "run")
     summary = json.loads((result.run_dir / "summary.json").read_text())
     assert result.fell is False
-    assert summary["capture_step"]["steps"] == 1
+    assert summary["capture_step"]["steps"] == 2
     first = summary["capture_step"]["footsteps"][0]
     assert first["x_m"] > 0.15  # a long step (as landed): the lunge path
     assert result.max_tilt_deg < 20.0
     assert summary["max_joint_velocity_ratio"] <= 1.0 + 1e-9
+    assert_stands_after_the_return(summary, duration_s)
 
 
 @pytest.mark.slow
 def test_a_150_n_push_is_caught_with_at_most_two_steps(tmp_path):
     """150 N forward for 0.2 s (`hubo sim --push 150 --step`, the emergency stop on): the
-    capture step lands far (the torso lowered for the legs' reach) and the lunge catches
-    it; no fall, at most two steps, the torso well away from a fall, no joint faster than
-    the walking limit set allows."""
-    result = stand(load_model(), 3.0, 150.0, step=True, push_at_s=0.3, out=tmp_path / "run")
+    capture step lands far (the torso lowered for the legs' reach), the lunge catches it and
+    the return step brings the back foot beside the front one: no fall, two steps, the torso
+    well away from a fall, no joint faster than the walking limit set allows, and the robot
+    stands at the standing width with no stop."""
+    duration_s = 9.6
+    result = stand(load_model(), duration_s, 150.0, step=True, push_at_s=0.3,
+                   out=tmp_path / "run")
     summary = json.loads((result.run_dir / "summary.json").read_text())
     assert result.fell is False
-    assert 1 <= summary["capture_step"]["steps"] <= 2
+    assert summary["capture_step"]["steps"] == 2
     first = summary["capture_step"]["footsteps"][0]
     assert first["x_m"] > 0.35  # the push's way, far: a long capture step
-    assert result.max_tilt_deg < 20.0  # measured 9.6 degrees
+    assert result.max_tilt_deg < 20.0
     assert summary["max_joint_velocity_ratio"] <= 1.0 + 1e-9
+    assert_stands_after_the_return(summary, duration_s)
 
 
 def test_the_capture_swing_keeps_its_peak_speed_near_the_mean():

@@ -35,9 +35,21 @@ follows the measured capture point (time constant ``REST_TAU_S``) held on the li
 the soles' middles, from ``CATCH_EDGE_M`` inside the back heel to as far inside the front toe.
 The pattern so follows where the landing (its impact took an unknown part of the momentum)
 left the robot instead of driving it on toward its own capture point; the standing balancers
-act meanwhile. (Bringing the back foot in from that far behind needs the CoM over the landed
-sole, out of the trailing leg's reach: the former swing-in lagged its pattern under the
-legs' speed limit and tipped the robot.)
+act meanwhile. Then the return (:meth:`CaptureStepper._plan_lunge_return`): one walking step
+of :func:`~hubo_cli.walking.gait.make_gait` from the measured soles (its lead-in from the
+lunge's CoM, a ``RETURN_SHIFT_S`` double support that moves the CoM over the front sole, a
+swing whose smoothstep peaks at ``RETURN_FOOT_SPEED_M_S``, the settle between the feet)
+brings the back foot beside the front one at the standing width: two steps in all. With the
+CoM over the front sole the back foot is out of a flat leg's reach (the former quick swing-in
+lagged its pattern under the legs' speed limit and tipped the robot), so the torso lowers
+for the reach (at most ``RETURN_MAX_DROP_M``, rising again at most ``RETURN_RISE_M_S``) and
+leans as when walking (``RETURN_LEAN_FRACTION`` of it: the front hip only abducts), and the
+back heel rises about the toe as far as the leg needs (:meth:`CaptureStepper._toe_off_pose`,
+at most ``MAX_TOE_OFF_RAD``; from the lunge's reach, its knee perhaps straight, to
+standing's over ``RETURN_BEND_S``), on the ground and in the swing. The front sole complies
+with its measured ground moment (the walking stabilizer's foot damping,
+:class:`~hubo_cli.walking.stabilizer.SoleDamper`): without it the robot rocked sideways onto
+the sole's outer edge over the shift and tipped toward the swing foot in the single support.
 
 The pattern's joints come from :class:`~hubo_cli.walking.body.WalkingBody` (the legs' IK, the
 neck placed so that the model's CoM follows the pattern), one period at a time. While it
@@ -45,9 +57,10 @@ steps and catches, the capture-point monitor watches the planned support (the sw
 its landing place, as when walking; then the stepped stance) with no margin: the stepping is
 the answer to the capture point leaving the shrunk polygon, and the stop, which freezes a
 recoverable catch, is left for a capture point beyond the stepped stance itself. The
-standing balancers rest (reset every period) until the lunge's catch or the return step's
-end; afterwards the robot holds the pattern's last posture and the balancers act again. At
-most two steps per push; one plan at a time.
+standing balancers rest (reset every period) while it steps, in a short step's catch and
+return step and in the lunge's return until the back foot is down; afterwards the robot
+holds the pattern's last posture, the balancers act and the monitor watches the measured
+soles with its margin again. At most two steps per push; one plan at a time.
 """
 
 from __future__ import annotations
@@ -68,9 +81,10 @@ from hubo_cli.model import RobotModel
 from hubo_cli.state import RobotState
 from hubo_cli.walking.body import SIDE_LEG, WalkingBody, pose_of_row
 from hubo_cli.walking.footsteps import SIDE_SIGN, Footstep, stance_of, wrap_angle
-from hubo_cli.walking.gait import Gait, make_gait, smoothstep5
+from hubo_cli.walking.gait import SWING_MOVE, Gait, make_gait, smoothstep5
 from hubo_cli.walking.params import WalkingParams
 from hubo_cli.walking.preview import GRAVITY_M_S2, CoMPath
+from hubo_cli.walking.stabilizer import SoleDamper, StabilizerGains
 from hubo_cli.walking.target import SOLES, SOLES_SENSOR, footstep_of, planned_support
 
 SINGLE_SUPPORT_S = 0.40  # [chosen] the capture step's swing: short, the pendulum diverges
@@ -91,6 +105,15 @@ LONG_STEP_M = 0.15       # [chosen] a capture step longer than this: the robot s
 LUNGE_CATCH_S = 2.0      # [chosen] ... while the CoM comes to rest in it
 UPRIGHT_S = 0.3          # [chosen] ... and the torso turns back upright over this long
 REST_TAU_S = 0.1         # [chosen] the lunge's rest point follows the measured CP this fast
+RETURN_FOOT_SPEED_M_S = 0.5  # [chosen] the return swing's peak foot speed (its smoothstep's)
+RETURN_RISE_M_S = 0.05   # [chosen] the torso rises at most this fast while it returns
+RETURN_LEAN_FRACTION = 0.8  # [chosen] this much of the walking lean (all of it: 120 and
+#                             160 N fell; 0.6: 140 N; none: 150 N)
+RETURN_BEND_S = 1.0      # [chosen] the back knee bends from the lunge's reach over this long
+RETURN_SHIFT_S = 1.0     # [chosen] the return's double support: the CoM over the front foot
+RETURN_MAX_DROP_M = 0.11  # [chosen] the torso lowers at most this much while it returns ...
+MAX_TOE_OFF_RAD = 0.8    # [chosen] ... and the back foot's heel rises at most this far
+TOE_OFF_STEP_RAD = 0.025  # [chosen] the heel's rise is searched in steps of this
 MAX_DROP_M = 0.08        # [chosen] the torso lowers at most this much for the legs' reach
 MAX_SOLE_ERROR_M = 0.2   # [chosen] the legs' capped solutions accepted this far off their soles
 SOLE_FRAME = {"right": "right_sole", "left": "left_sole"}
@@ -206,6 +229,9 @@ class CaptureStepper(Target):
         self.start_feet: list[Footstep] = []
         self.trigger_s: float | None = None
         self.track: dict | None = None  # the lunge's catch (see _touch_down)
+        self.lunge_return = False
+        self.stood_s: float | None = None
+        self.stood_feet: list[Footstep] = []
 
     def attach(self, world: SimulatedWorld | None, modules: Sequence[Module]) -> None:
         if world is None:
@@ -228,8 +254,14 @@ class CaptureStepper(Target):
         if self.phase == "step":
             q, ref = self._step_period(state)
         elif self.phase in ("catch", "return"):
-            q, ref = self._rest_period()
+            q, ref = self._rest_period(state)
+            if self.phase == "stood":  # where the feet stand when the pattern ends
+                self.stood_s = t_s
+                self.stood_feet = [footstep_of(side, self.world.frame_pose(frame))
+                                   for side, frame, _ in SOLES]
         lunge_catch = self.phase == "catch" and self.track is not None
+        if self.lunge_return and self.k >= self.landed_k:  # the back foot is beside: stand
+            lunge_catch = True
         if self.phase in ("step", "catch", "return") and not lunge_catch:
             for module in self.resting:
                 module.reset(q, state)
@@ -426,18 +458,40 @@ class CaptureStepper(Target):
         return (tr["com"].reshape(1, 2), v.reshape(1, 2), (-omega * v).reshape(1, 2),
                 tr["rest"].copy())
 
-    def _rest_period(self) -> tuple[np.ndarray, tuple[float, float]]:
+    def _rest_period(self, state: RobotState) -> tuple[np.ndarray, tuple[float, float]]:
         """One period of the catch or the return step (the planned pattern); over the catch
         the torso turns from its tilt at touch-down back upright (both soles stay flat)."""
         rest, k = self.rest, self.k
         feet = {side: rows[k] for side, rows in rest.feet.items()}
+        if self.track is None and self.lunge_return:
+            self._return_drop(k, rest.com.com_m[k], feet)
         if self.track is not None:
             c, v, a, zmp = self._lunge_com()
         else:
             c, v, a = (rest.com.com_m[k:k + 1], rest.com.com_velocity_m_s[k:k + 1],
                        rest.com.com_acceleration_m_s2[k:k + 1])
             zmp = rest.zmp_ref_m[k]
+        if self.lunge_return:  # the back leg's ankle where the raised heel puts it
+            rear = feet[self.stance_side]
+            T_world_foot = self._toe_off_pose(c[0], rear)
+            feet = feet | {self.stance_side: np.append(
+                T_world_foot[:3, 3] + (T_world_foot[:3, 2] - [0.0, 0.0, 1.0])
+                * self.model.lengths_m["lL5"], rear[3])}
         q = self._solve(c, v, a, zmp, feet, rest.support[k:k + 1])
+        if self.lunge_return and self.toe_off_rad > 0.0:
+            q = self._solve_leg(q, self.stance_side, T_world_foot)
+        if self.lunge_return:  # from the lunge's last joints (a capped leg's solution may
+            # differ): their difference fades over the pattern's lead-in
+            if k == 0:
+                self.q_jump = self.q_last - q
+            q = q + (1.0 - self._lead_in(k)) * self.q_jump
+            # the front sole complies with its ground moment (the walking stabilizer's foot
+            # damping): it stays flat instead of rocking onto an edge
+            delta = self.damper.update(state.ft[SOLES_SENSOR[self.swing]])
+            leg = "R" if self.swing == "right" else "L"
+            names = list(self.model.joint_names)
+            q[names.index(leg + "AR")] += delta[0]
+            q[names.index(leg + "AP")] += delta[1]
         b = float(smoothstep5(min((k + 1) / self.n_upright, 1.0)))
         if b < 1.0:
             T = self.body_neck.copy()
@@ -452,13 +506,134 @@ class CaptureStepper(Target):
                 result = self.legs[side].solve(T_neck_world @ pose_of_row(row), q[part])
                 if result.status in ("exact", "capped"):
                     q[part] = result.q_rad
+        self.q_last = q
         self.k += 1
         self.phase = "catch" if self.k < self.n_catch else "return"
-        if self.k >= rest.n:
+        if self.k >= rest.n and self.track is not None:
+            self._plan_lunge_return()
+        elif self.k >= rest.n:
             self.phase, self.q_hold = "stood", q
             self.monitor.support_override = None
             self.monitor.planned_margin_m = self.monitor.margin_m
         return q, (float(c[0, 0]), float(c[0, 1]))
+
+    def _plan_lunge_return(self) -> None:
+        """The lunge has settled: one walking step (:func:`~hubo_cli.walking.gait.make_gait`,
+        the robot file's walking parameters but a RETURN_SHIFT_S double support and a swing
+        whose smoothstep peaks at RETURN_FOOT_SPEED_M_S) from the measured soles brings the
+        back foot beside the front one at the standing width. The torso lowers and leans as
+        when walking (:meth:`_return_drop`) and the back heel rises (:meth:`_toe_off_pose`)
+        for the legs' reach; the front sole's foot damping starts from rest."""
+        period, forward = self.model.control_period_s, self.model.feet.forward_m
+        measured = {side: footstep_of(side, self.world.frame_pose(frame))
+                    for side, frame, _ in SOLES}
+        front = measured[self.swing]
+        beside = SIDE_SIGN[self.stance_side] * self.width_m
+        s, co = math.sin(front.yaw_rad), math.cos(front.yaw_rad)
+        back = Footstep(self.stance_side, front.x_m - s * beside, front.y_m + co * beside,
+                        front.yaw_rad)
+        rear = measured[self.stance_side]
+        distance = math.hypot(back.x_m - rear.x_m, back.y_m - rear.y_m)
+        lo, hi = SWING_MOVE
+        single = max(self.params.single_support_s,
+                     distance * 1.875 / (hi - lo) / RETURN_FOOT_SPEED_M_S)
+        params = self.params.with_changes(single_support_s=single,
+                                          double_support_s=RETURN_SHIFT_S,
+                                          swing_height_m=SWING_HEIGHT_M)
+        self.rest = make_gait(measured["right"], measured["left"], [back], params, period,
+                              self.height_m, self.sole_z_m, forward,
+                              com_start_m=self.track["com"].copy())
+        self.rest_support = planned_support(self.rest)
+        self.landed_k = int(np.nonzero(~self.rest.support.all(axis=1))[0][-1]) + 1
+        self.drop_m = self.neck_z0_m - self.body.neck_z_m
+        self.reach_m: float | None = None
+        feet = self.model.feet
+        box = (feet.forward_m - feet.length_m / 2, feet.forward_m + feet.length_m / 2,
+               -feet.width_m / 2, feet.width_m / 2)
+        self.damper = SoleDamper(StabilizerGains(), box, period)
+        # the back leg reaches its sole with the heel raised (:meth:`_toe_off_pose`), not flat
+        self.body.max_error_m = math.inf
+        self.track, self.lunge_return = None, True
+        self.n_catch, self.n_upright = 0, 1
+        self.steps = [front, back]
+        self.k, self.phase = 0, "return"
+
+    def _return_drop(self, k: int, com_m: np.ndarray, feet: dict) -> None:
+        """The torso's height and lean in period ``k`` of the return: low enough for each leg
+        to reach its sole flat from a pelvis over the pattern's CoM, no longer hip to ankle
+        than standing (at most RETURN_MAX_DROP_M; the back heel's rise does the rest), rising
+        at most RETURN_RISE_M_S; RETURN_LEAN_FRACTION of the walking lean (the front hip
+        only abducts: without it the robot fell). Over the
+        pattern's lead-in both blend in from the lunge's."""
+        hip_m = self.model.lengths_m["lL1"]
+        normal = np.array([-self.heading[1], self.heading[0]])
+        need = 0.0
+        h = self.hip_height_m
+        for side, row in feet.items():
+            hip = np.asarray(com_m, dtype=float) + SIDE_SIGN[side] * hip_m * normal
+            r = float(np.hypot(*(row[:2] - hip)))
+            need = max(need, h - math.sqrt(max(h * h - r * r, 0.0)))
+        b = self._lead_in(k)
+        drop = self.drop_m + b * (min(need, RETURN_MAX_DROP_M) - self.drop_m)
+        # the torso rises slowly (a quick rise on one leg hops the robot)
+        drop = max(drop, self.neck_z0_m - self.body.neck_z_m
+                   - RETURN_RISE_M_S * self.model.control_period_s)
+        self.body.lean_rad_per_m = b * RETURN_LEAN_FRACTION * self.params.lean_rad_per_m
+        self.body.neck_z_m = self.neck_z0_m - drop
+
+    def _lead_in(self, k: int) -> float:
+        """0 -> 1 over the return pattern's lead-in (``start_s``; smoothstep)."""
+        return float(smoothstep5((k + 1) / max(1, round(self.params.start_s
+                                                        / self.model.control_period_s))))
+
+    def _toe_off_pose(self, com_m: np.ndarray, row: np.ndarray) -> np.ndarray:
+        """T_world_foot of the back foot (on the ground or swinging) with its heel raised
+        about the toe as far as the leg needs to reach it from the hip where the last period's
+        neck had it: hip to ankle no longer than standing (from the lunge's reach, its knee
+        perhaps straight, over RETURN_BEND_S); at most MAX_TOE_OFF_RAD. Sets
+        ``toe_off_rad``."""
+        L, feet = self.model.lengths_m, self.model.feet
+        side = self.stance_side
+        # the hip where the last period's neck had it (its height this period's)
+        T = self.body_neck
+        hip = T[:3, :3] @ np.array([0.0, SIDE_SIGN[side] * L["lL1"], -L["lT"] - L["lL2"]])
+        hip = hip + np.append(T[:2, 3], self.body.neck_z_m)
+        toe_m = feet.forward_m + feet.length_m / 2
+        T_world_sole = pose_of_row(row)
+        angles = np.arange(0.0, MAX_TOE_OFF_RAD + 1e-9, TOE_OFF_STEP_RAD)
+        ankle = np.stack([toe_m - toe_m * np.cos(angles) + L["lL5"] * np.sin(angles),
+                          np.zeros_like(angles),
+                          toe_m * np.sin(angles) + L["lL5"] * np.cos(angles)], axis=1)
+        ankle_world = ankle @ T_world_sole[:3, :3].T + T_world_sole[:3, 3]
+        reach = np.linalg.norm(ankle_world - hip, axis=1)
+        if self.reach_m is None:  # the lunge's own reach (its back knee may be straight)
+            self.reach_m = max(self.hip_height_m, float(reach[0]))
+        # from it the allowed reach shrinks to standing's over RETURN_BEND_S: the knee bends
+        b = float(smoothstep5(self.k * self.model.control_period_s / RETURN_BEND_S))
+        allowed = self.reach_m + b * (self.hip_height_m - self.reach_m)
+        # the least rise that fits, between the samples
+        fits = np.nonzero(reach <= allowed)[0]
+        i = int(fits[0]) if len(fits) else len(angles) - 1
+        angle = float(angles[i])
+        if 0 < i < len(angles) and len(fits):
+            angle -= TOE_OFF_STEP_RAD * (allowed - reach[i]) / (reach[i - 1] - reach[i])
+        self.toe_off_rad = angle
+        pivot = np.eye(4)
+        pivot[0, 3] = toe_m
+        turn = np.eye(4)
+        turn[:3, :3] = Rotation.from_rotvec([0.0, angle, 0.0]).as_matrix()
+        return T_world_sole @ pivot @ turn @ np.linalg.inv(pivot)
+
+    def _solve_leg(self, q: np.ndarray, side: str, T_world_foot: np.ndarray) -> np.ndarray:
+        """``q`` with the leg ``side`` re-solved for the sole pose ``T_world_foot`` (the
+        body's neck this period)."""
+        part = self.model.limb_slice(SIDE_LEG[side])
+        result = self.legs[side].solve(np.linalg.inv(self.body_neck) @ T_world_foot, q[part])
+        if result.status in ("exact", "capped"):
+            q = q.copy()
+            q[part] = result.q_rad
+            self.body.q_start = q
+        return q
 
     def _reach_drop_m(self, stance: Footstep, land: Footstep) -> float:
         """How much lower the torso must stand for each leg, with the pelvis midway between
@@ -506,4 +681,6 @@ class CaptureStepper(Target):
         return {"stepped": self.trigger_s is not None, "trigger_s": self.trigger_s,
                 "steps": len(self.steps) if self.trigger_s is not None else 0,
                 "start_feet": [f.to_json() for f in self.start_feet],
+                "stood_s": self.stood_s,
+                "stood_feet": [f.to_json() for f in self.stood_feet],
                 "footsteps": [f.to_json() for f in self.steps]}
