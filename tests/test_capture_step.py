@@ -75,6 +75,24 @@ def test_a_90_n_push_is_caught_by_a_long_step_and_a_return_step(tmp_path):
 
 
 @pytest.mark.slow
+def test_a_125_n_push_rests_between_the_feet_before_the_return(tmp_path):
+    """125 N forward for 0.2 s: the landing leaves the capture point drifting back toward
+    the back foot; the lunge's CoM rests no further back than midway between the soles, so
+    both feet carry the robot when the return step starts (resting over the back foot, the
+    robot rocked sideways and fell as the return began): two steps, no fall, no stop, and it
+    stands at the standing width."""
+    duration_s = 9.4
+    result = stand(load_model(), duration_s, 125.0, step=True, push_at_s=0.3,
+                   out=tmp_path / "run")
+    summary = json.loads((result.run_dir / "summary.json").read_text())
+    assert result.fell is False
+    assert summary["capture_step"]["steps"] == 2
+    assert summary["capture_step"]["footsteps"][0]["x_m"] > 0.15  # the lunge path
+    assert result.max_tilt_deg < 20.0
+    assert_stands_after_the_return(summary, duration_s)
+
+
+@pytest.mark.slow
 def test_a_150_n_push_is_caught_with_at_most_two_steps(tmp_path):
     """150 N forward for 0.2 s (`hubo sim --push 150 --step`, the emergency stop on): the
     capture step lands far (the torso lowered for the legs' reach), the lunge catches it and

@@ -32,7 +32,9 @@ After a long step (more than ``LONG_STEP_M`` the push's way) the robot stays in 
 stance, a lunge (one step): over ``LUNGE_CATCH_S`` both feet stay down, the torso turns back
 upright over ``UPRIGHT_S`` and the CoM comes to rest, c' = w (r - c), on a point r that
 follows the measured capture point (time constant ``REST_TAU_S``) held on the line through
-the soles' middles, from ``CATCH_EDGE_M`` inside the back heel to as far inside the front toe.
+the soles' middles, from ``REST_BACK_FRACTION`` of the way from the back sole's middle to the
+front one's up to ``CATCH_EDGE_M`` inside the front toe (both soles carry the robot: resting
+over the back foot alone, it rocked sideways and tipped as the return began).
 The pattern so follows where the landing (its impact took an unknown part of the momentum)
 left the robot instead of driving it on toward its own capture point; the standing balancers
 act meanwhile. Then the return (:meth:`CaptureStepper._plan_lunge_return`): one walking step
@@ -105,6 +107,10 @@ LONG_STEP_M = 0.15       # [chosen] a capture step longer than this: the robot s
 LUNGE_CATCH_S = 2.0      # [chosen] ... while the CoM comes to rest in it
 UPRIGHT_S = 0.3          # [chosen] ... and the torso turns back upright over this long
 REST_TAU_S = 0.1         # [chosen] the lunge's rest point follows the measured CP this fast
+REST_BACK_FRACTION = 0.5  # [chosen] ... held no further back than this part of the way from
+#                          the back sole's middle to the front one's (none: the CoM came to
+#                          rest over the back foot, which carried it alone, the robot rocked
+#                          sideways, 125 N fell and 130 N stopped; 0.4 to 0.6 caught both)
 RETURN_FOOT_SPEED_M_S = 0.5  # [chosen] the return swing's peak foot speed (its smoothstep's)
 RETURN_RISE_M_S = 0.05   # [chosen] the torso rises at most this fast while it returns
 RETURN_LEAN_FRACTION = 0.8  # [chosen] this much of the walking lean (all of it: 120 and
@@ -437,13 +443,15 @@ class CaptureStepper(Target):
 
     def _in_stance(self, point_m: np.ndarray) -> np.ndarray:
         """``point_m`` projected on the line through the lunge's soles' middles, from
-        ``reach`` behind the back one to ``reach`` ahead of the front one."""
+        REST_BACK_FRACTION of the way from the back one to the front one up to ``reach``
+        ahead of the front one."""
         tr = self.track
         axis = tr["front"] - tr["back"]
         length = float(np.hypot(*axis))
         axis = axis / length
         along = float((np.asarray(point_m, dtype=float) - tr["back"]) @ axis)
-        return tr["back"] + min(max(along, -tr["reach"]), length + tr["reach"]) * axis
+        return tr["back"] + min(max(along, REST_BACK_FRACTION * length),
+                                length + tr["reach"]) * axis
 
     def _lunge_com(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The lunge's CoM for this period (rows (1, 2): position, velocity, acceleration)
