@@ -29,6 +29,7 @@ from hubo_cli.control.log import (
     set_log_metadata,
     update_log_metadata,
 )
+from hubo_cli.errors import InputError
 
 JOINTS = ("A", "B", "C")
 EXTRAS = ("x_m", "y_count")
@@ -142,13 +143,26 @@ def test_a_record_not_yet_counted_is_left_out(tmp_path):
     layout, numbers, flags = read_rows(tmp_path / ROWS_NAME, tmp_path / FLAGS_NAME)
     assert numbers.shape == (40, len(layout["columns"]) - 1) and len(flags) == 40
     log._map.close()
+    log._rows_file.close()  # the process's end releases the writer's lock
     assert len(load_log(tmp_path)) == 40
+
+
+def test_the_log_of_a_run_still_going_is_left_alone(tmp_path):
+    """Reading a run folder while its run still writes (the writer holds its records' lock)
+    is refused with a one-line error, and the records stay for the writer to finish; once it
+    has closed, the folder reads as usual."""
+    log = _write(tmp_path, _rows(30))
+    with pytest.raises(InputError, match="still going"):
+        load_log(tmp_path)
+    assert (tmp_path / ROWS_NAME).exists() and not (tmp_path / LOG_NAME).exists()
+    log.close()
+    assert len(load_log(tmp_path)) == 30 and not (tmp_path / ROWS_NAME).exists()
 
 
 def test_not_a_record_file_is_refused(tmp_path):
     (tmp_path / ROWS_NAME).write_bytes(b"period_count,t_s\n")
     (tmp_path / FLAGS_NAME).write_text("")
-    with pytest.raises(ValueError, match="not a period log"):
+    with pytest.raises(InputError, match="not a period log"):
         read_rows(tmp_path / ROWS_NAME, tmp_path / FLAGS_NAME)
 
 

@@ -53,7 +53,13 @@ from pathlib import Path
 import numpy as np
 
 from hubo_cli.control.status import Status
+from hubo_cli.errors import InputError
 from hubo_cli.runs import _jsonable
+
+try:  # POSIX: a live log's records are locked by their writer
+    import fcntl
+except ImportError:  # pragma: no cover (no advisory locks: recover_log trusts the caller)
+    fcntl = None
 
 LOG_NAME = "log.csv"
 META_NAME = "log.json"
@@ -198,10 +204,14 @@ class PeriodLog:
         self._flag_ids: dict[str, float] = {}
         self.path.unlink(missing_ok=True)  # the CSV comes at close
         self._flags_fd = os.open(self.flags_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
-        with open(self.rows_path, "w+b") as f:
-            f.write(ROWS_MAGIC + struct.pack("<QI", 0, len(head)) + head)
-            f.truncate(self._data_at + _BLOCK_ROWS * self._record_bytes)
-            self._map: mmap.mmap | None = mmap.mmap(f.fileno(), 0)
+        # held open and locked while the run writes, so that recover_log leaves a live log alone
+        self._rows_file = open(self.rows_path, "w+b")  # noqa: SIM115 (kept open)
+        if fcntl is not None:
+            fcntl.flock(self._rows_file, fcntl.LOCK_EX)
+        self._rows_file.write(ROWS_MAGIC + struct.pack("<QI", 0, len(head)) + head)
+        self._rows_file.truncate(self._data_at + _BLOCK_ROWS * self._record_bytes)
+        self._rows_file.flush()
+        self._map: mmap.mmap | None = mmap.mmap(self._rows_file.fileno(), 0)
         self._write_sidecar()
 
     def _hand_kinematics(self, model) -> dict:
@@ -284,6 +294,7 @@ class PeriodLog:
         self._write_sidecar()
         self.rows_path.unlink()
         self.flags_path.unlink()
+        self._rows_file.close()  # releases the lock
 
     def __enter__(self) -> PeriodLog:
         return self
@@ -353,7 +364,8 @@ def read_rows(rows_path: str | Path, flags_path: str | Path) -> tuple[dict, np.n
     when the process died is not counted)."""
     data = Path(rows_path).read_bytes()
     if not data.startswith(ROWS_MAGIC):
-        raise ValueError(f"{rows_path} is not a period log's record file")
+        raise InputError(f"{rows_path} is not a period log's record file",
+                         hint="give a run folder written by hubo, or remove the file")
     count, n_head = struct.unpack_from("<QI", data, _COUNT_AT)
     layout = json.loads(data[_HEAD_AT + 4:_HEAD_AT + 4 + n_head])
     data_at = -(-(_HEAD_AT + 4 + n_head) // 8) * 8
@@ -401,8 +413,24 @@ def recover_log(path: str | Path) -> bool:
     recover."""
     csv_path, meta_path, parquet_path = log_paths(path)
     rows_path, flags_path = _record_paths(csv_path)
-    if not rows_path.exists():
+    try:
+        rows_file = open(rows_path, "rb")  # noqa: SIM115 (closed below)
+    except FileNotFoundError:
         return False
+    with rows_file:
+        try:  # the writer holds this lock until its log is closed
+            if fcntl is not None:
+                fcntl.flock(rows_file, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise InputError(f"the run writing {csv_path.parent} is still going: its log is "
+                             "made when it ends", hint="wait for the run to end, then read it"
+                             ) from None
+        return _recover(rows_path, flags_path, csv_path, meta_path, parquet_path)
+
+
+def _recover(rows_path: Path, flags_path: Path, csv_path: Path, meta_path: Path,
+             parquet_path: Path) -> bool:
+    """:func:`recover_log`'s work, with the record file locked."""
     rows = _csv_from_rows(rows_path, flags_path, csv_path)
     _read_csv(csv_path).write_parquet(parquet_path)
     if meta_path.exists():
