@@ -16,7 +16,10 @@ the model's limits, starting from the logged command:
 For each it prints the RMS and the largest distance between the tool at the replayed command and
 at the target (arm FK, mm): the generator's share of the hand error only (no servo, no legs).
 
-    python tools/teleop_lag_replay.py RUN_DIR [--window-s 0.07]
+    python tools/teleop_lag_replay.py RUN_DIR [--window-s 0.07] [--arm-jerk 20]
+
+``--arm-jerk`` replays under another jerk limit for the arms' joints (rad/s^3; the robot file's
+is 4), everything else as the model's.
 """
 
 from __future__ import annotations
@@ -54,6 +57,8 @@ def main() -> None:
     parser.add_argument("run_dir")
     parser.add_argument("--window-s", type=float, default=0.07,
                         help="finite-difference window of the target velocity (s)")
+    parser.add_argument("--arm-jerk", type=float, default=None,
+                        help="the arms' jerk limit for the replay (rad/s^3; default: the model's)")
     args = parser.parse_args()
     model = load_model()
     dt_s = model.control_period_s
@@ -67,6 +72,9 @@ def main() -> None:
     commands = log.joints("cmd")[operating][:, order]
     tools = log.metadata.get("scene", {}).get("tools", {})
     limits = JointLimits.from_model(model)
+    if args.arm_jerk is not None:
+        for arm in ARMS:
+            limits.jerk_rad_s3[model.limb_slice(arm)] = args.arm_jerk
     arms = [a for a in ARMS if np.ptp(targets[:, model.limb_slice(a)]) > 1e-3]
     limbs = {a: get_limb(a, tools.get(a, "hand")) for a in arms}
 
