@@ -22,7 +22,7 @@ import math
 import numba as nb
 import numpy as np
 
-from hubo_cli.kinematics.dh import JIT
+from hubo_cli.kinematics.dh import INDEX, JIT
 
 SINGULAR_EPS = 1e-7  # |sin theta4| or |cos theta2| below this is treated as exactly singular
 ROOT_TOL = 1e-12     # a cosine or sine this far beyond +-1 is rounding, not out of reach
@@ -57,7 +57,8 @@ def outside(value, j, lower, upper):
 def drop_branch(out, exact, k0, count):
     """Mark candidates k0 .. k0+count-1 as pruned (NaN joints, not exact)."""
     for k in range(k0, k0 + count):
-        out[k, :] = np.nan
+        for j in range(6):
+            out[k, j] = np.nan
         exact[k] = False
 
 
@@ -91,8 +92,8 @@ def arm_candidates(T60, lA2, lA3, lA4, q_prev, out, exact, lower, upper):
             S4 = 0.0
             C4 = 1.0 if C4 > 0.0 else -1.0
         th4 = math.atan2(S4, C4)
-        if outside(th4, 3, lower, upper):
-            drop_branch(out, exact, i4 * 4, 4)
+        if outside(th4, INDEX[3], lower, upper):
+            drop_branch(out, exact, i4 * 4, INDEX[4])
             continue
         if elbow_singular:
             S5 = 0.0
@@ -104,9 +105,9 @@ def arm_candidates(T60, lA2, lA3, lA4, q_prev, out, exact, lower, upper):
             C5 = root5 if i5 == 0 else -root5
             th5 = math.atan2(S5, C5)
             th6 = wrap_to_pi(math.atan2(S4 * C5 * lA2, -C4 * lA2 - lA3) - psi)
-            if outside(th6, 5, lower, upper) or (not elbow_singular
-                                                  and outside(th5, 4, lower, upper)):
-                drop_branch(out, exact, i4 * 4 + i5 * 2, 2)
+            if outside(th6, INDEX[5], lower, upper) or (
+                    not elbow_singular and outside(th5, INDEX[4], lower, upper)):
+                drop_branch(out, exact, i4 * 4 + i5 * 2, INDEX[2])
                 continue
             S6, C6 = math.sin(th6), math.cos(th6)
             # u, v: the combinations of theta4..6 that recur in the orientation equations
@@ -123,8 +124,8 @@ def arm_candidates(T60, lA2, lA3, lA4, q_prev, out, exact, lower, upper):
                     S2 = 1.0 if S2 > 0.0 else -1.0
                 th2 = math.atan2(S2, C2)
                 k = i4 * 4 + i5 * 2 + i2
-                if outside(th2, 1, lower, upper):
-                    drop_branch(out, exact, k, 1)
+                if outside(th2, INDEX[1], lower, upper):
+                    drop_branch(out, exact, k, INDEX[1])
                     continue
                 if not shoulder_singular:
                     sgn = 1.0 if C2 > 0.0 else -1.0

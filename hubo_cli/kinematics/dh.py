@@ -15,6 +15,8 @@ JIT = {"cache": True, "nogil": True, "fastmath": False}
 # A constant True that one kernel passes to another makes numba compile the callee once more
 # for that literal value (seconds per kernel, on every cold cache); TRUE[0] is a plain bool.
 TRUE = np.ones(1, dtype=np.bool_)
+# The same for a constant int (a joint index, a count): INDEX[3] is a plain int64 of value 3.
+INDEX = np.arange(8)
 
 
 @nb.njit(**JIT)

@@ -23,7 +23,7 @@ from hubo_cli.kinematics.arm_ik import (
     unit_clip,
     wrap_to_pi,
 )
-from hubo_cli.kinematics.dh import JIT
+from hubo_cli.kinematics.dh import INDEX, JIT
 
 
 @nb.njit(**JIT)
@@ -51,8 +51,8 @@ def leg_candidates(T60, lL3, lL4, lL5, q_prev, out, exact, lower, upper):
     for i4 in range(2):
         S4 = root4 if i4 == 0 else -root4
         th4 = math.atan2(S4, C4)
-        if outside(th4, 3, lower, upper):
-            drop_branch(out, exact, i4 * 4, 4)
+        if outside(th4, INDEX[3], lower, upper):
+            drop_branch(out, exact, i4 * 4, INDEX[4])
             continue
         psi = math.atan2(S4 * lL3, C4 * lL3 + lL4)
         for i5 in range(2):
@@ -62,8 +62,8 @@ def leg_candidates(T60, lL3, lL4, lL5, q_prev, out, exact, lower, upper):
             th6 = th6_base
             if C45 * lL3 + math.cos(th5) * lL4 < 0.0:
                 th6 = wrap_to_pi(th6 + math.pi)
-            if outside(th5, 4, lower, upper) or outside(th6, 5, lower, upper):
-                drop_branch(out, exact, i4 * 4 + i5 * 2, 2)
+            if outside(th5, INDEX[4], lower, upper) or outside(th6, INDEX[5], lower, upper):
+                drop_branch(out, exact, i4 * 4 + i5 * 2, INDEX[2])
                 continue
             S6, C6 = math.sin(th6), math.cos(th6)
             S2, ok2 = unit_clip(S6 * ax + C6 * ay)

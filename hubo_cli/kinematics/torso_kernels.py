@@ -37,7 +37,8 @@ def _mul3(A, B, out):
 
 @nb.njit(**JIT)
 def _log3(R, w):
-    """w = the rotation vector of R (as :func:`hubo_cli.geometry.rotation_log`)."""
+    """w = the rotation vector of R (as :func:`hubo_cli.geometry.rotation_log`); R is 3x3 or a
+    4x4 transform (only its rotation block is read)."""
     cos_angle = min(1.0, max(-1.0, (R[0, 0] + R[1, 1] + R[2, 2] - 1.0) / 2.0))
     w0 = (R[2, 1] - R[1, 2]) / 2.0
     w1 = (R[0, 2] - R[2, 0]) / 2.0
@@ -258,7 +259,7 @@ def follow_deviation(T_cmd_inv, T_meas, offset, rotation, alpha, bounds, T_dev, 
         p[i] = raw[i, 3]
     _follow(offset, p, alpha, bounds[0], bounds[1])
     w = np.empty(3)
-    _log3(raw[:3, :3], w)
+    _log3(raw, w)  # the whole 4x4: a block view would compile _log3 once more
     _follow(rotation, w, alpha, bounds[2], bounds[3])
     R = np.empty((3, 3))
     _exp3(rotation, R)
