@@ -54,41 +54,27 @@ def _point_mask(T_goal, chain, lengths, lower, upper, centre, r2_max, cands, exa
 
 
 @nb.njit(parallel=True, **JIT)
-def grid_masks(x_m, y_m, z_m, R, chain, lengths, lower, upper, centre, r2_max):
-    """Branch masks over a grid: uint8 array (len(x), len(z), len(y)), rows along y."""
-    nx, ny, nz = x_m.shape[0], y_m.shape[0], z_m.shape[0]
-    out = np.zeros((nx, nz, ny), dtype=np.uint8)
-    for row in nb.prange(nx * nz):
-        i = row // nz
-        kz = row % nz
+def point_masks(P_m, R, chain, lengths, lower, upper, centre, r2_max):
+    """Branch masks of tool positions P_m at one orientation R: P_m is (rows, n, 3), the masks
+    uint8 (rows, n); the rows run in parallel, each with its own scratch space. (One kernel
+    serves both the grid and single points: every parallel kernel costs seconds to compile.)"""
+    rows, n = P_m.shape[0], P_m.shape[1]
+    out = np.zeros((rows, n), dtype=np.uint8)
+    for row in nb.prange(rows):
         T = np.zeros((4, 4))
-        T[:3, :3] = R
-        T[0, 3] = x_m[i]
-        T[2, 3] = z_m[kz]
+        for r in range(3):
+            for c in range(3):
+                T[r, c] = R[r, c]
         T[3, 3] = 1.0
         cands = np.empty((8, 6))
         exact = np.zeros(8, dtype=np.bool_)
         q_prev = np.zeros(6)
         work = np.empty((4, 4, 4))
-        for j in range(ny):
-            T[1, 3] = y_m[j]
-            out[i, kz, j] = _point_mask(T, chain, lengths, lower, upper, centre, r2_max, cands,
-                                        exact, q_prev, work)
-    return out
-
-
-@nb.njit(parallel=True, **JIT)
-def point_masks(P_m, R, chain, lengths, lower, upper, centre, r2_max):
-    """Branch masks of N tool positions P_m (N x 3) at one orientation R: uint8 (N,)."""
-    n = P_m.shape[0]
-    out = np.zeros(n, dtype=np.uint8)
-    for i in nb.prange(n):
-        T = np.zeros((4, 4))
-        T[:3, :3] = R
-        T[:3, 3] = P_m[i]
-        T[3, 3] = 1.0
-        out[i] = _point_mask(T, chain, lengths, lower, upper, centre, r2_max, np.empty((8, 6)),
-                             np.zeros(8, dtype=np.bool_), np.zeros(6), np.empty((4, 4, 4)))
+        for j in range(n):
+            for r in range(3):
+                T[r, 3] = P_m[row, j, r]
+            out[row, j] = _point_mask(T, chain, lengths, lower, upper, centre, r2_max, cands,
+                                      exact, q_prev, work)
     return out
 
 
@@ -111,7 +97,7 @@ class BranchReach:
     def points(self, P_m) -> np.ndarray:
         """Branch masks (uint8, N) of tool positions P_m (N x 3, m)."""
         P = np.ascontiguousarray(np.atleast_2d(P_m), dtype=float)
-        return point_masks(P, self.R_N_E, *self._args)
+        return point_masks(P.reshape(-1, 1, 3), self.R_N_E, *self._args)[:, 0]
 
     def grid(self, grid: Grid, chunk: int = 8,
              progress: Callable[[int, int], None] | None = None) -> np.ndarray:
@@ -124,7 +110,12 @@ class BranchReach:
         nx = len(grid.x_m)
         for i0 in range(0, nx, chunk):
             i1 = min(i0 + chunk, nx)
-            out[i0:i1] = grid_masks(grid.x_m[i0:i1], grid.y_m, grid.z_m, self.R_N_E, *self._args)
+            P = np.empty((i1 - i0, len(grid.z_m), len(grid.y_m), 3))  # rows along y
+            P[..., 0] = grid.x_m[i0:i1, None, None]
+            P[..., 1] = grid.y_m
+            P[..., 2] = grid.z_m[:, None]
+            out[i0:i1] = point_masks(P.reshape(-1, len(grid.y_m), 3), self.R_N_E,
+                                     *self._args).reshape(P.shape[:3])
             if progress is not None:
                 progress(i1, nx)
         return out
