@@ -15,7 +15,7 @@ from hubo_cli.kinematics.dh import JIT
 N_BRANCHES = 8
 
 
-@nb.njit(parallel=True, **JIT)
+@nb.njit(**JIT)
 def longest_runs(masks):
     """Longest run of consecutive points along y, per x slice, z row and branch.
 
@@ -29,7 +29,7 @@ def longest_runs(masks):
     nx, nz, ny = masks.shape
     length = np.zeros((nx, nz, N_BRANCHES), dtype=np.int32)
     start = np.full((nx, nz, N_BRANCHES), -1, dtype=np.int32)
-    for row in nb.prange(nx * nz):
+    for row in range(nx * nz):
         i = row // nz
         k = row % nz
         for b in range(N_BRANCHES):
@@ -79,12 +79,12 @@ def _largest_rectangle(masks_x, bit):
     return best
 
 
-@nb.njit(parallel=True, **JIT)
+@nb.njit(**JIT)
 def largest_rectangles(masks):
     """:func:`_largest_rectangle` for every x slice and branch: int64 (nx, 8, 5)."""
     nx = masks.shape[0]
     out = np.full((nx, N_BRANCHES, 5), -1, dtype=np.int64)
-    for row in nb.prange(nx * N_BRANCHES):
+    for row in range(nx * N_BRANCHES):
         i = row // N_BRANCHES
         b = row % N_BRANCHES
         r = _largest_rectangle(masks[i], 1 << b)

@@ -86,7 +86,7 @@ def _window_fits(sums, nh, nw):
     return -1, -1
 
 
-@nb.njit(parallel=True, **JIT)
+@nb.njit(**JIT)
 def largest_fits(masks, aspect):
     """Per x slice, the widest all-set window of a fixed aspect ratio on one branch.
 
@@ -100,7 +100,7 @@ def largest_fits(masks, aspect):
     """
     nx, nz, ny = masks.shape
     out = np.full((nx, 4), -1, dtype=np.int64)
-    for i in nb.prange(nx):
+    for i in range(nx):
         sums = np.zeros((nz + 1, ny + 1), dtype=np.int64)
         for b in range(N_BRANCHES):
             bit = 1 << b
