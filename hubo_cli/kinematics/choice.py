@@ -78,6 +78,14 @@ def _within(q, lower, upper):
 
 
 @nb.njit(**JIT)
+def _copy6(q, out):
+    """out[:] = q for joint vectors, as a loop: an array assignment compiles numba's
+    shape-mismatch error message (string formatting, seconds on every cold cache)."""
+    for j in range(6):
+        out[j] = q[j]
+
+
+@nb.njit(**JIT)
 def _distance2(q, q_prev, has_prev):
     s = 0.0
     for j in range(6):
@@ -120,11 +128,12 @@ def solve_limb(T_goal, chain, lengths, is_arm, lower, upper, q_prev, has_prev, h
         chain_fk(cands[best], base, offset, alpha, a, d, end, T)
         pos, rot = pose_error(T, T_goal)
         if pos <= EXACT_POS_TOL_M and rot <= EXACT_ROT_TOL_RAD:
-            q_out[:] = cands[best]
+            _copy6(cands[best], q_out)
             return EXACT, pos, rot
         usable[best] = False
     if not allow_cap:
-        q_out[:] = np.nan
+        for j in range(6):
+            q_out[j] = np.nan
         return UNREACHABLE, np.inf, np.inf
     # nothing exact within the limits: all eight candidates, unpruned, for capping
     no_limits = np.empty(0)
@@ -140,12 +149,12 @@ def solve_limb(T_goal, chain, lengths, is_arm, lower, upper, q_prev, has_prev, h
         if pos < best_pos or (pos == best_pos and rot < best_rot):
             best_pos = pos
             best_rot = rot
-            q_out[:] = capped
+            _copy6(capped, q_out)
     if best_pos <= hold_m:
         status = EXACT if best_pos <= EXACT_POS_TOL_M and best_rot <= EXACT_ROT_TOL_RAD else CAPPED
         return status, best_pos, best_rot
     if has_prev:
-        q_out[:] = q_prev
+        _copy6(q_prev, q_out)
         chain_fk(q_prev, base, offset, alpha, a, d, end, T)
         pos, rot = pose_error(T, T_goal)
         return HELD, pos, rot
@@ -201,7 +210,7 @@ def solve_limb_on_branch(T_goal, chain, lengths, lower, upper, q_prev, branch, m
                     best_d = dk
                     best = k
     if best >= 0:
-        q_out[:] = cands[best]
+        _copy6(cands[best], q_out)
         chain_fk(q_out, base, offset, alpha, a, d, end, T)
         pos, rot = pose_error(T, T_goal)
         return EXACT, pos, rot

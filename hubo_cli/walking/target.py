@@ -155,7 +155,9 @@ def _correct_legs(T_neck_soles, R_neck_world, offset_x, offset_y, lift_right, li
     goal = np.empty((4, 4))
     for side in range(2):
         lift = lift_right if side == 0 else lift_left
-        goal[:, :] = T_neck_soles[side]
+        for r in range(4):  # a loop, not goal[:, :] = ...: see choice._copy6
+            for c in range(4):
+                goal[r, c] = T_neck_soles[side, r, c]
         for r in range(3):
             goal[r, 3] += (R_neck_world[r, 0] * -offset_x + R_neck_world[r, 1] * -offset_y
                            + R_neck_world[r, 2] * lift)
