@@ -21,7 +21,15 @@ import numba as nb
 import numpy as np
 
 from hubo_cli.kinematics.arm_ik import arm_candidates
-from hubo_cli.kinematics.dh import JIT, TRUE, chain_fk, invert4, matmul4, pose_error
+from hubo_cli.kinematics.dh import (
+    JIT,
+    TRUE,
+    chain_fk,
+    in_threads,
+    invert4,
+    matmul4,
+    pose_error,
+)
 from hubo_cli.kinematics.leg_ik import leg_candidates
 from hubo_cli.kinematics.reach import branch_box, nearest_on_branch
 
@@ -161,21 +169,36 @@ def solve_limb(T_goal, chain, lengths, is_arm, lower, upper, q_prev, has_prev, h
     return UNREACHABLE, best_pos, best_rot
 
 
-@nb.njit(parallel=True, **JIT)
-def solve_limb_batch(T_goals, chain, lengths, is_arm, lower, upper, q_prevs, has_prev, hold_m,
-                     allow_cap):
-    """:func:`solve_limb` over N goals (N x 4 x 4) on all cores; q_prevs is N x 6."""
-    n = T_goals.shape[0]
-    q_out = np.empty((n, 6))
-    status = np.empty(n, dtype=np.int8)
-    pos_err = np.empty(n)
-    rot_err = np.empty(n)
-    for i in nb.prange(n):
+@nb.njit(**JIT)
+def solve_limb_rows(T_goals, chain, lengths, is_arm, lower, upper, q_prevs, has_prev, hold_m,
+                    allow_cap, q_out, status, pos_err, rot_err):
+    """:func:`solve_limb` over N goals (N x 4 x 4; q_prevs N x 6) into the N-row outputs."""
+    for i in range(T_goals.shape[0]):
         s, p, r = solve_limb(T_goals[i], chain, lengths, is_arm, lower, upper, q_prevs[i],
                              has_prev, hold_m, allow_cap, q_out[i])
         status[i] = s
         pos_err[i] = p
         rot_err[i] = r
+
+
+def solve_limb_batch(T_goals, chain, lengths, is_arm, lower, upper, q_prevs, has_prev, hold_m,
+                     allow_cap):
+    """:func:`solve_limb` over N goals (N x 4 x 4, C-contiguous) on all cores; q_prevs is N x 6.
+
+    Returns (q (N x 6), status int8 (N,), position errors (N,), rotation errors (N,)).
+    """
+    n = T_goals.shape[0]
+    q_out = np.empty((n, 6))
+    status = np.empty(n, dtype=np.int8)
+    pos_err = np.empty(n)
+    rot_err = np.empty(n)
+
+    def run(i0: int, i1: int) -> None:
+        solve_limb_rows(T_goals[i0:i1], chain, lengths, is_arm, lower, upper, q_prevs[i0:i1],
+                        has_prev, hold_m, allow_cap, q_out[i0:i1], status[i0:i1],
+                        pos_err[i0:i1], rot_err[i0:i1])
+
+    in_threads(n, run)
     return q_out, status, pos_err, rot_err
 
 

@@ -23,7 +23,7 @@ from hubo_cli.kinematics.choice import (
     _candidates_into,
     _within,
 )
-from hubo_cli.kinematics.dh import JIT, TRUE, chain_fk, pose_error
+from hubo_cli.kinematics.dh import JIT, TRUE, chain_fk, in_threads, pose_error
 from hubo_cli.workspace.grid import Grid, ReachSphere
 
 SPHERE_MARGIN_M = 1e-6  # points this far outside the reach sphere are skipped without IK
@@ -53,14 +53,12 @@ def _point_mask(T_goal, chain, lengths, lower, upper, centre, r2_max, cands, exa
     return mask
 
 
-@nb.njit(parallel=True, **JIT)
-def point_masks(P_m, R, chain, lengths, lower, upper, centre, r2_max):
-    """Branch masks of tool positions P_m at one orientation R: P_m is (rows, n, 3), the masks
-    uint8 (rows, n); the rows run in parallel, each with its own scratch space. (One kernel
-    serves both the grid and single points: every parallel kernel costs seconds to compile.)"""
+@nb.njit(**JIT)
+def _row_masks(P_m, R, chain, lengths, lower, upper, centre, r2_max, out):
+    """Branch masks of tool positions P_m at one orientation R into ``out``: P_m is (rows, n,
+    3), ``out`` uint8 (rows, n); each row with its own scratch space."""
     rows, n = P_m.shape[0], P_m.shape[1]
-    out = np.zeros((rows, n), dtype=np.uint8)
-    for row in nb.prange(rows):
+    for row in range(rows):
         T = np.zeros((4, 4))
         for r in range(3):
             for c in range(3):
@@ -75,6 +73,15 @@ def point_masks(P_m, R, chain, lengths, lower, upper, centre, r2_max):
                 T[r, 3] = P_m[row, j, r]
             out[row, j] = _point_mask(T, chain, lengths, lower, upper, centre, r2_max, cands,
                                       exact, q_prev, work)
+
+
+def point_masks(P_m, R, chain, lengths, lower, upper, centre, r2_max) -> np.ndarray:
+    """:func:`_row_masks` with the rows split over the cores: uint8 (rows, n). (One kernel
+    serves both the grid and single points, and it is serial: a parallel kernel costs seconds
+    to compile.)"""
+    out = np.zeros(P_m.shape[:2], dtype=np.uint8)
+    in_threads(P_m.shape[0], lambda i0, i1: _row_masks(
+        P_m[i0:i1], R, chain, lengths, lower, upper, centre, r2_max, out[i0:i1]))
     return out
 
 
