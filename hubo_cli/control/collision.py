@@ -63,6 +63,7 @@ UNBLOCK_RAD = 0.05   # after the way back was blocked, retry once the input move
                      # (or after recover_s)
 REFRESH_M = 0.01     # the bounded re-checks compute every pair again once a geometry can
                      # have moved this far since the last full pass
+REFERENCES = 2       # ... against the last this many full passes
 BOUND_SLACK_M = 1e-4  # ... and compute every pair whose bound is within this of the closest
                       # (far above coal's GJK tolerance, 1e-6 m)
 
@@ -162,10 +163,15 @@ class SelfCollisionChecker:
         pairs = geom.collisionPairs
         self._pair_first = np.array([pair.first for pair in pairs], dtype=int)
         self._pair_second = np.array([pair.second for pair in pairs], dtype=int)
-        self._ref_q: np.ndarray | None = None  # configuration of the last full pass
-        self._ref_m = np.zeros(len(pairs))      # each pair's distance then
+        unpaired = np.setdiff1d(np.arange(len(self._lever)),
+                                np.r_[self._pair_first, self._pair_second])
+        self._lever[unpaired] = 0.0  # a geometry in no pair (a sole) never calls for a pass
+        # the last full passes (at most REFERENCES): configuration, each pair's distance there;
+        # the most recently used first (a detector checks its input and where it would stop,
+        # two postures a little apart, in turn: each keeps its own)
+        self._refs: list[tuple[np.ndarray, np.ndarray]] = []
         self._bound = np.zeros(len(pairs))      # each pair's lower bound now
-        _pair_bounds(self._q, self._q.copy(), self._lever, self._ref_m, self._pair_first,
+        _pair_bounds(self._q, self._q.copy(), self._lever, self._bound, self._pair_first,
                      self._pair_second, REFRESH_M, self._bound)  # compile now, not in a period
 
     def _levers(self) -> np.ndarray:
@@ -228,31 +234,35 @@ class SelfCollisionChecker:
 
     def _closest_bounded(self, q: np.ndarray) -> tuple[float, int]:
         """(distance, pair index) of the closest pair at configuration ``q``, computing only
-        the pairs that can be it. Each pair's distance at the last full pass, less how far
+        the pairs that can be it. Each pair's distance at a recent full pass (the first of
+        the last REFERENCES from which no geometry can have moved REFRESH_M), less how far
         its two geometries can have moved since (:meth:`_levers`), bounds it from below; the
         pair with the lowest bound is computed, and then every pair whose bound does not
-        exceed that distance (plus coal's tolerance, BOUND_SLACK_M): a pair left out is
-        further than the closest. Once a geometry can have moved REFRESH_M, every pair is
-        computed again. The result is a full pass's to coal's GJK tolerance (its guesses
-        start from each pair's last result)."""
+        exceed that distance (plus BOUND_SLACK_M, far above coal's tolerance): a pair left
+        out is further than the closest. Without such a pass, every pair is computed. The
+        result is a full pass's to coal's GJK tolerance (its guesses start from each pair's
+        last result)."""
         pmodel, geom, data = self.robot.model, self.geom, self.geom_data
-        if self._ref_q is not None:
-            bound = self._bound
-            first = _pair_bounds(q, self._ref_q, self._lever, self._ref_m, self._pair_first,
+        bound = self._bound
+        for k, (ref_q, ref_m) in enumerate(self._refs):
+            first = _pair_bounds(q, ref_q, self._lever, ref_m, self._pair_first,
                                  self._pair_second, REFRESH_M, bound)
-            if first >= 0:
-                pin.updateGeometryPlacements(pmodel, self.data, geom, data, q)
-                nearest = pin.computeDistance(geom, data, first).min_distance
-                best_m, best = np.inf, len(self.pair_names)
-                for i in np.flatnonzero(bound <= nearest + BOUND_SLACK_M).tolist():
-                    d = nearest if i == first else pin.computeDistance(geom, data, i).min_distance
-                    if d < best_m:  # in pair order, the first of equals: as a full pass
-                        best_m, best = d, i
-                return float(best_m), best
+            if first < 0:
+                continue
+            if k:
+                self._refs.insert(0, self._refs.pop(k))
+            pin.updateGeometryPlacements(pmodel, self.data, geom, data, q)
+            nearest = pin.computeDistance(geom, data, first).min_distance
+            best_m, best = np.inf, len(self.pair_names)
+            for i in np.flatnonzero(bound <= nearest + BOUND_SLACK_M).tolist():
+                d = nearest if i == first else pin.computeDistance(geom, data, i).min_distance
+                if d < best_m:  # in pair order, the first of equals: as a full pass
+                    best_m, best = d, i
+            return float(best_m), best
         best = pin.computeDistances(pmodel, self.data, geom, data, q)
-        self._ref_q = q.copy()
-        self._ref_m = np.array([r.min_distance for r in data.distanceResults])
-        return float(self._ref_m[best]), best
+        ref_m = np.array([r.min_distance for r in data.distanceResults])
+        self._refs = [(q.copy(), ref_m), *self._refs[:REFERENCES - 1]]
+        return float(ref_m[best]), best
 
     def _closest(self, data: pin.GeometryData) -> tuple[float, int]:
         """(distance, pair index) of the closest active pair of ``data`` at the placements of
