@@ -94,34 +94,3 @@ def test_settled_objects_undoes_its_freeze():
             inner = gc.get_freeze_count()
         assert gc.get_freeze_count() == inner
     assert gc.get_freeze_count() == before
-
-
-def test_bounded_collision_checks_find_the_full_pass_closest_pair():
-    """Arms creeping (the bounds skip most pairs), stepping and jumping (the bounds run out and
-    every pair is computed again) near the thighs and the torso: each check names the pair a
-    full pass over every pair names, at its distance (to coal's GJK tolerance), and more than
-    one pair is the closest on the way."""
-    import pinocchio as pin
-
-    from hubo_cli.control.collision import SelfCollisionChecker
-
-    model = load_model()
-    rng = np.random.default_rng(11)
-    checker = SelfCollisionChecker(model, drill=True)
-    full = SelfCollisionChecker(model, drill=True)
-    q = home_posture(model)
-    q[:6] = 0.19, -0.03, 0.95, -0.01, -0.96, -0.06  # the right hand near the right thigh
-    arms = np.zeros(len(q), dtype=bool)
-    arms[model.limb_slice("right-arm")] = arms[model.limb_slice("left-arm")] = True
-    pairs = set()
-    for k in range(300):
-        step = 0.08 if k % 50 == 49 else (2e-3 if k % 10 == 9 else 1e-4)
-        q = np.clip(q + arms * rng.normal(0.0, step, q.size), model.lower_rad, model.upper_rad)
-        seen = checker.check(q)
-        configuration = full.robot.configuration(q)
-        best = pin.computeDistances(full.robot.model, full.data, full.geom, full.geom_data,
-                                    configuration)
-        assert seen.pair == full.pair_names[best]
-        assert abs(seen.distance_m - full.geom_data.distanceResults[best].min_distance) < 1e-6
-        pairs.add(seen.pair)
-    assert len(pairs) > 1

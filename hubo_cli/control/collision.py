@@ -61,11 +61,6 @@ BLOCK_M = 0.01       # while recovering, the output stopping this close to the b
 CLOSING_M = 1e-4     # ... if it is closing in by more than this
 UNBLOCK_RAD = 0.05   # after the way back was blocked, retry once the input moved this far
                      # (or after recover_s)
-REFRESH_M = 0.01     # the bounded re-checks compute every pair again once a geometry can
-                     # have moved this far since the last full pass
-REFERENCES = 2       # ... against the last this many full passes
-BOUND_SLACK_M = 1e-4  # ... and compute every pair whose bound is within this of the closest
-                      # (far above coal's GJK tolerance, 1e-6 m)
 
 
 def _arm_links(side: str) -> list[str]:
@@ -104,10 +99,7 @@ class SelfCollisionChecker:
     STILL_RAD since the last check: the walking robot's arms, which the trajectory generator's
     phase synchronisation creeps by 1e-12 to 1e-8 rad a period), the others' closest pair is
     remembered with the joints it was computed for, and a check costs the legs' pairs only;
-    when they move, the pairs are bounded (:meth:`_closest_bounded`): each pair's distance at the
-    last full pass, less how far its geometries can have moved since, leaves out the pairs that
-    cannot be the closest, so a slowly moving arm (a cut) costs one or two pairs a check, not
-    all of them; every pair is computed again once a geometry can have moved 1 cm.
+    when they move, every pair is computed in one pass as before.
 
     Args:
         model: the robot model.
@@ -158,42 +150,6 @@ class SelfCollisionChecker:
                                  dtype=int)
         self._last_key: np.ndarray | None = None
         self._remembered: tuple[np.ndarray, float, int] | None = None  # key, distance, pair
-        # bounded re-checks (see _closest_bounded): how far each geometry can have moved
-        self._lever = self._levers()
-        pairs = geom.collisionPairs
-        self._pair_first = np.array([pair.first for pair in pairs], dtype=int)
-        self._pair_second = np.array([pair.second for pair in pairs], dtype=int)
-        unpaired = np.setdiff1d(np.arange(len(self._lever)),
-                                np.r_[self._pair_first, self._pair_second])
-        self._lever[unpaired] = 0.0  # a geometry in no pair (a sole) never calls for a pass
-        # the last full passes (at most REFERENCES): configuration, each pair's distance there;
-        # the most recently used first (a detector checks its input and where it would stop,
-        # two postures a little apart, in turn: each keeps its own)
-        self._refs: list[tuple[np.ndarray, np.ndarray]] = []
-        self._bound = np.zeros(len(pairs))      # each pair's lower bound now
-        _pair_bounds(self._q, self._q.copy(), self._lever, self._bound, self._pair_first,
-                     self._pair_second, REFRESH_M, self._bound)  # compile now, not in a period
-
-    def _levers(self) -> np.ndarray:
-        """(geometries x configuration entries): for each joint that moves a geometry, a
-        bound on how far any of its points lies from the joint's origin (m), whatever the
-        posture: the joints' offsets along the chain, the geometry's placement and its
-        bounding sphere. A point at most r from a revolute joint's axis moves at most
-        r |dq| when the joint turns by dq, so ``lever @ |q - q_ref|`` bounds each geometry's
-        motion since q_ref."""
-        pmodel = self.robot.model
-        lever = np.zeros((len(self.geom.geometryObjects), pmodel.nq))
-        for g, obj in enumerate(self.geom.geometryObjects):
-            shape = obj.geometry
-            shape.computeLocalAABB()
-            reach = (float(np.linalg.norm(obj.placement.translation))
-                     + float(np.linalg.norm(shape.aabb_center)) + float(shape.aabb_radius))
-            joint = obj.parentJoint
-            while joint > 0:  # from the geometry's joint up to the root
-                lever[g, pmodel.joints[joint].idx_q] = reach
-                reach += float(np.linalg.norm(pmodel.jointPlacements[joint].translation))
-                joint = pmodel.parents[joint]
-        return lever
 
     def _add_drill(self, geom: pin.GeometryModel, drill: DrillShape) -> None:
         pmodel = self.robot.model
@@ -215,15 +171,16 @@ class SelfCollisionChecker:
         q = self.robot.configuration(q_rad, out=self._q)
         if not self.pair_names:
             return Clearance(np.inf, ("", ""))
-        pmodel = self.robot.model
+        pmodel, geom = self.robot.model, self.geom
         key = q[self._still_q]
         still = (self._last_key is not None
                  and float(abs(key - self._last_key).max()) <= STILL_RAD)
         self._last_key = key
-        if not still:  # the other joints move too
+        if not still:  # the other joints move too: every pair in one pass
             self._remembered = None
-            distance_m, best = self._closest_bounded(q)
-            return Clearance(distance_m, self.pair_names[best])
+            best = pin.computeDistances(pmodel, self.data, geom, self.geom_data, q)
+            return Clearance(float(self.geom_data.distanceResults[best].min_distance),
+                             self.pair_names[best])
         pin.forwardKinematics(pmodel, self.data, q)
         legs, others = self._split
         if (self._remembered is None
@@ -231,38 +188,6 @@ class SelfCollisionChecker:
             self._remembered = (key, *self._closest(others))
         closest = min(self._closest(legs), self._remembered[1:])  # ties: the first pair
         return Clearance(closest[0], self.pair_names[closest[1]])
-
-    def _closest_bounded(self, q: np.ndarray) -> tuple[float, int]:
-        """(distance, pair index) of the closest pair at configuration ``q``, computing only
-        the pairs that can be it. Each pair's distance at a recent full pass (the first of
-        the last REFERENCES from which no geometry can have moved REFRESH_M), less how far
-        its two geometries can have moved since (:meth:`_levers`), bounds it from below; the
-        pair with the lowest bound is computed, and then every pair whose bound does not
-        exceed that distance (plus BOUND_SLACK_M, far above coal's tolerance): a pair left
-        out is further than the closest. Without such a pass, every pair is computed. The
-        result is a full pass's to coal's GJK tolerance (its guesses start from each pair's
-        last result)."""
-        pmodel, geom, data = self.robot.model, self.geom, self.geom_data
-        bound = self._bound
-        for k, (ref_q, ref_m) in enumerate(self._refs):
-            first = _pair_bounds(q, ref_q, self._lever, ref_m, self._pair_first,
-                                 self._pair_second, REFRESH_M, bound)
-            if first < 0:
-                continue
-            if k:
-                self._refs.insert(0, self._refs.pop(k))
-            pin.updateGeometryPlacements(pmodel, self.data, geom, data, q)
-            nearest = pin.computeDistance(geom, data, first).min_distance
-            best_m, best = np.inf, len(self.pair_names)
-            for i in np.flatnonzero(bound <= nearest + BOUND_SLACK_M).tolist():
-                d = nearest if i == first else pin.computeDistance(geom, data, i).min_distance
-                if d < best_m:  # in pair order, the first of equals: as a full pass
-                    best_m, best = d, i
-            return float(best_m), best
-        best = pin.computeDistances(pmodel, self.data, geom, data, q)
-        ref_m = np.array([r.min_distance for r in data.distanceResults])
-        self._refs = [(q.copy(), ref_m), *self._refs[:REFERENCES - 1]]
-        return float(ref_m[best]), best
 
     def _closest(self, data: pin.GeometryData) -> tuple[float, int]:
         """(distance, pair index) of the closest active pair of ``data`` at the placements of
@@ -273,30 +198,6 @@ class SelfCollisionChecker:
         if best >= len(self.pair_names):
             return np.inf, best
         return float(data.distanceResults[best].min_distance), best
-
-
-@nb.njit(cache=True, nogil=True)
-def _pair_bounds(q, ref_q, lever, ref_m, first, second, refresh_m, bound):
-    """:meth:`SelfCollisionChecker._closest_bounded`'s bounds: each geometry's largest motion
-    since ``ref_q`` (``lever @ |q - ref_q|``, m), then each pair's lower bound (its distance
-    ``ref_m`` then, less both motions) into ``bound``. Returns the pair of the lowest bound, or
-    -1 once a geometry can have moved more than ``refresh_m`` (every pair is due again)."""
-    n_geom, n_q = lever.shape
-    moved = np.empty(n_geom)
-    for g in range(n_geom):
-        m = 0.0
-        for j in range(n_q):
-            if lever[g, j] != 0.0:
-                m += lever[g, j] * abs(q[j] - ref_q[j])
-        if m > refresh_m:
-            return -1
-        moved[g] = m
-    lowest = 0
-    for i in range(ref_m.shape[0]):
-        bound[i] = ref_m[i] - moved[first[i]] - moved[second[i]]
-        if bound[i] < bound[lowest]:
-            lowest = i
-    return lowest
 
 
 @nb.njit(cache=True, nogil=True)
