@@ -162,7 +162,8 @@ def teleop_setup(settings: TeleopSettings, body: WholeBody, duration_s: float | 
     return RunSetup(
         command="teleop", model=body.model, tools=dict(body.tools), driver=settings.driver,
         driver_options=dict(settings.driver_options),
-        safety=SafetyProfile(estop=settings.estop).with_balance(settings.balance),
+        safety=SafetyProfile(estop=settings.estop, tracker_groups="limbs"
+                             ).with_balance(settings.balance),
         speed=settings.speed, live_input=settings.port is not None, gui=settings.gui,
         out=settings.out, duration_s=duration_s, q_start_rad=home_posture(body.model),
         perturb_seed=settings.perturb_seed)
