@@ -25,8 +25,9 @@ Near singular configurations the arm's joint speeds are scaled down
 as out of reach too: an arm target keeps ``collision_room_m`` from the body and slides along it
 (:mod:`hubo_cli.teleop.room`), so a goal brushing past the torso does not trip a collision hold.
 While operating, each arm's joints are timed by the trajectory generator's own tracker for that
-arm (the session builds ``otg`` with a tracker per limb), unsynchronised, so a hand waits
-neither for the legs nor for its own slowest joint.
+arm (the session builds ``otg`` with a tracker per limb), unsynchronised while the command is
+within ``SYNC_LAG_RAD`` of the target, so a hand waits neither for the legs nor for its own
+slowest joint; further behind, the arm's joints keep the straight joint-space line.
 
 Goals live in the stance frame S (the home neck frame, fixed to the ground). The actual
 end-effector pose is what the robot measures, as on the paper's robot: FK of the measured arm
@@ -71,9 +72,14 @@ REST_S = 0.5
 EXCURSION_WINDOW_S = 1.0  # max_excursion_mm: nearest goal sample within +-this
 # while operating, each arm joint of the trajectory generator tracks its target on its own
 # (ruckig without synchronisation: on the two-hand sample 6.7 / 6.9 mm RMS against 8.0 / 8.2 mm
-# with phase-synchronised arms); the approach's joint-space moves keep the straight line in
-# joint space (unsynchronised, drill mode's first move swings the drill into the torso)
+# with phase-synchronised arms), unless the arm's command lags its target by more than
+# SYNC_LAG_RAD on some joint: then the joints keep the straight line in joint space (phase), as
+# they do in the approach's joint-space moves. Unsynchronised across a large gap the joints
+# arrive one by one and the hand swings off (85 mm beyond the goal's distance to the reachable
+# set where a stretched arm comes back, 21 mm with the switch; drill mode's first move would
+# swing the drill into the torso); the two-hand sample's lag stays below it.
 OPERATE_SYNCHRONIZATION = "none"
+SYNC_LAG_RAD = 0.15
 
 
 @dataclass
@@ -198,6 +204,7 @@ class TeleopTarget(Target):
         self.reach = {arm: ArmReach(body.arms[arm], self.reach_settings) for arm in approach}
         self.singularity = singularity or self.reach_settings.singularity
         self.room = None  # arm targets keep out of the collision detector's band
+        self._otg = None  # the trajectory generator, once operating, if it has arm trackers
         if self.reach_settings.mode == "nearest" and self.reach_settings.collision_room_m > 0:
             from hubo_cli.teleop.room import CollisionRoom
 
@@ -290,10 +297,22 @@ class TeleopTarget(Target):
         self.q_out = (self.q_target if self.correction is None
                       else self.correction(self.q_target, state))
         self._q_out_of = self.q_target
+        self._pace_arms()
         self._measure(t_s, state, info)
         if flags:
             info["flags"] = flags
         return self.q_out, info
+
+    def _pace_arms(self) -> None:
+        """Each arm's tracker: unsynchronised while its command is near the target, phase
+        synchronised (the straight joint-space line) when it lags further behind."""
+        if self._otg is None:
+            return
+        for arm in self.arms:
+            k = self._otg.group_names.index(arm)
+            lag = float(np.max(np.abs(self.q_out[self.slices[arm]] - self._otg.trackers[k].q)))
+            self._otg.synchronize(OPERATE_SYNCHRONIZATION if lag <= SYNC_LAG_RAD else "phase",
+                                  groups=(arm,))
 
     def _settled(self, state) -> bool:
         # against the output; a target set this period has none yet: against the target
@@ -321,7 +340,7 @@ class TeleopTarget(Target):
             self.t_operate_s = t_s
             for module in self.modules:  # the arms' trackers, when they have their own
                 if module.name == "otg" and "right-arm" in getattr(module, "group_names", ()):
-                    module.synchronize(OPERATE_SYNCHRONIZATION, groups=ARMS)
+                    self._otg = module
             for arm, reach in self.reach.items():
                 reach.start(self.q_target[self.slices[arm]])
 
