@@ -20,7 +20,8 @@ at the target (arm FK, mm): the generator's share of the hand error only (no ser
     python tools/teleop_lag_replay.py RUN_DIR [--window-s 0.07] [--arm-jerk 20]
 
 ``--arm-jerk`` replays under another jerk limit for the arms' joints (rad/s^3; the robot file's
-is 40), everything else as the model's.
+is 4, 40 in its ``teleop`` limit set, which free-mode teleoperation runs with), everything else
+as the model's.
 """
 
 from __future__ import annotations

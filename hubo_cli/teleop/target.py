@@ -49,6 +49,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from hubo_cli.control.otg import TrajectoryGenerator
 from hubo_cli.control.target import Target
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.fastrak.source import PoseSource
@@ -339,7 +340,7 @@ class TeleopTarget(Target):
             self.phase = "operate"
             self.t_operate_s = t_s
             for module in self.modules:  # the arms' trackers, when they have their own
-                if module.name == "otg" and "right-arm" in getattr(module, "group_names", ()):
+                if isinstance(module, TrajectoryGenerator) and module.groups == "limbs":
                     self._otg = module
             for arm, reach in self.reach.items():
                 reach.start(self.q_target[self.slices[arm]])
