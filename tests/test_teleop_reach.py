@@ -210,9 +210,10 @@ def test_collision_room_keeps_targets_out_of_the_band_and_slides_along_it():
 def test_the_two_hand_sample_keeps_up_with_the_operator(tmp_path):
     """The shipped two-hand sample in free mode on the simulated robot: each arm on its own
     trajectory generator (its joints unsynchronised while operating, the arms' jerk limit
-    40 rad/s^3 of the robot file's teleop limit set) keeps each hand within 7.5 mm RMS of the operator's goal (measured 6.7-6.9 mm;
-    11.8 mm with one phase-synchronised tracker for the body at 4 rad/s^3), and the goal passing
-    6 mm from the torso slides the arm along the collision band instead of tripping a hold."""
+    40 rad/s^3 of the robot file's teleop limit set) keeps each hand within 7.5 mm RMS of the
+    operator's goal (measured 6.7-6.9 mm; 11.8 mm with one phase-synchronised tracker for the
+    body at 4 rad/s^3), and the goal passing 6 mm from the torso slides the arm along the
+    collision band instead of tripping a hold."""
     from hubo_cli.resources import data_file
 
     run = run_teleop(TeleopSettings(replay=data_file("trajectories", "two-hand-free.csv"),
