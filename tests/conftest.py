@@ -43,7 +43,9 @@ def _group_on_one_worker(item, name: str) -> None:
 def pytest_collection_modifyitems(config, items):
     """Long simulation tests (``@pytest.mark.slow``) first: pytest-xdist hands the tests out in
     this order, so the longest start at once and the short ones fill the workers' gaps at the
-    end instead of one long test running alone.
+    end instead of one long test running alone. (With ``--dist loadgroup`` pytest-xdist 3.8
+    first sorts its units by their number of tests, ``--loadscope-reorder`` being the default:
+    the groups go out first, the most tests first, then the single tests in this order.)
 
     Tests that share a module-scoped fixture form one group (``xdist_group``, named after
     their module unless the module names one): a run they share happens once, not once per

@@ -108,7 +108,9 @@ def test_standing_with_balance_stays_upright_with_flat_feet(tmp_path):
                    balance_mode="paper")
     assert not result.fell
     assert result.feet_flat
-    assert result.max_tilt_deg < 2.0
+    # the paper's law leans with the load (1.1 deg after 20 s), where the default balancer
+    # holds the body within 0.2 deg over the same 3 s (test_balance_default.py)
+    assert 0.5 < result.max_tilt_deg < 2.0
     # settling toward the lean where the two terms balance (about 1.07 deg after 30 s):
     # the last second drifts less than half as fast as the first
     first = np.ptp(result.tilts_deg[result.times_s <= 1.0])

@@ -87,12 +87,11 @@ def test_bad_settings_are_refused(model):
 
 
 def test_standing_the_default_balancer_holds_the_body_upright(model, tmp_path):
+    """3 s standing: within 0.2 deg of upright. The paper's law, over the same 3 s, leans more
+    than 0.5 deg (asserted on that run in test_balance.py, which runs the same standing)."""
     default = stand(model, duration_s=3.0, balance=True, out=tmp_path / "default")
-    paper = stand(model, duration_s=3.0, balance=True, balance_mode="paper",
-                  out=tmp_path / "paper")
     assert not default.fell and default.feet_flat
     assert default.max_tilt_deg < 0.2
-    assert paper.max_tilt_deg > 0.5  # the paper's law leans (1.1 deg after 20 s)
 
 
 def test_a_push_that_tips_the_body_over_its_heels_is_not_leaned_against(model, tmp_path):

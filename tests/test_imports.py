@@ -8,9 +8,12 @@ imports resolved and ``from package import module`` pointing at the module.
 from __future__ import annotations
 
 import ast
+import functools
 from pathlib import Path
 
 import pytest
+
+pytestmark = pytest.mark.xdist_group("imports")  # the graph is read once, on one worker
 
 PACKAGE = "hubo_cli"
 ROOT = Path(__file__).resolve().parent.parent / PACKAGE
@@ -46,8 +49,10 @@ def _owner(name: str, modules: dict[str, Path]) -> str | None:
     return None
 
 
+@functools.cache
 def import_graph() -> dict[str, set[str]]:
-    """Module -> the package modules it imports (anywhere in its body)."""
+    """Module -> the package modules it imports (anywhere in its body); read once per process
+    (the tests only read it)."""
     modules = _module_names()
     graph: dict[str, set[str]] = {name: set() for name in modules}
     for name, path in modules.items():
