@@ -6,9 +6,10 @@ whole-body solver asked for, period by period) and replays them through ruckig o
 the model's limits, starting from the logged command:
 
 - ``whole body, phase``: one phase-synchronised tracker for every joint, as the pipeline's
-  ``otg`` module runs (an arm waits for the legs' and the other arm's slowest joint);
+  ``otg`` module runs for scripted tasks (an arm waits for the legs' and the other arm's slowest
+  joint);
 - ``own tracker, phase`` / ``own tracker, none``: each arm by a tracker of its own, its joints
-  phase-synchronised or each time-optimal;
+  phase-synchronised or each time-optimal (``none`` is what teleoperation runs while operating);
 - ``target velocity xG``: own tracker, phase, with ruckig's target velocity set to G times the
   targets' finite-difference velocity over the last ``--window-s`` (instead of 0: arrive moving);
 - ``foresight N ms``: own tracker, phase, fed the target N ms ahead (a perfect prediction).
@@ -19,7 +20,8 @@ at the target (arm FK, mm): the generator's share of the hand error only (no ser
     python tools/teleop_lag_replay.py RUN_DIR [--window-s 0.07] [--arm-jerk 20]
 
 ``--arm-jerk`` replays under another jerk limit for the arms' joints (rad/s^3; the robot file's
-is 4), everything else as the model's.
+is 4, 40 in its ``teleop`` limit set, which free-mode teleoperation runs with), everything else
+as the model's.
 """
 
 from __future__ import annotations

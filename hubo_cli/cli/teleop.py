@@ -344,7 +344,8 @@ def _report(run, as_json: bool, video: bool = False) -> None:
             if r["position_rms_mm"] is not None:
                 console.print(f"  {arm}: position {r['position_rms_mm']:.1f} mm rms, orientation "
                               f"{r['orientation_rms_deg']:.1f} deg rms, at reach limit "
-                              f"{r['at_limit_s']:.1f} s, largest excursion "
+                              f"{r['at_limit_s']:.1f} s, kept out of the collision band "
+                              f"{r['collision_room_s']:.1f} s, largest excursion "
                               f"{r['max_excursion_mm']:.0f} mm, branch changes "
                               f"{r['branch_changes']}")
         releases = len(summary["estop_events"]) - len(stops)

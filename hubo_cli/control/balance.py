@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import math
 
+import numba as nb
 import numpy as np
 
 from hubo_cli.control.module import Cycle, Module
@@ -258,19 +259,32 @@ class DampingBalancer(Module):
         self._sole_ids = [self._robot.frame_id(f) for f in ("right_sole", "left_sole")]
         self._q = np.zeros(self._robot.model.nq)
         self._last_cmd: np.ndarray | None = None
-        self._lower, self._upper = model.lower_rad.tolist(), model.upper_rad.tolist()
+        self._lower = np.array(model.lower_rad, dtype=float)
+        self._upper = np.array(model.upper_rad, dtype=float)
+        # per leg (rows, FEET order) and ankle axis (columns: pitch, roll), for the compiled
+        # filter (_follow_offsets)
+        self._ankles = np.array([self._index[leg] for leg, _ in FEET], dtype=np.int64)
+        self._ankle_signs = np.array([self._signs[leg] for leg, _ in FEET], dtype=float)
         self._last_reference = 0.0
         self.reset(np.zeros(len(names)), None)
+        # numba compiles (or loads its cache) on the first call: now, not in the first period
+        _follow_offsets(np.zeros(len(names)), self._ankles, self._ankle_signs, *[0.0] * 8, True,
+                        *np.zeros((3, 2, 2)), self._lower, self._upper, *[1.0] * 7)
 
     def reset(self, q_rad: np.ndarray, state: RobotState | None) -> None:
         """Start with no correction."""
-        # the filter's state in Python floats, (pitch, roll) lists
+        # the filter's state: the common mode in Python floats (pitch, roll), the per-leg
+        # parts as (leg, axis) arrays (FEET order; pitch, roll) for the compiled step
         self._common = [0.0, 0.0]                                # joint space
-        self._differential = {leg: [0.0, 0.0] for leg, _ in FEET}
-        self._offsets = {leg: [0.0, 0.0] for leg, _ in FEET}
-        self._rate = {leg: [0.0, 0.0] for leg, _ in FEET}
-        self.offsets_rad = {leg: np.zeros(2) for leg, _ in FEET}  # what is sent
+        self._differential = np.zeros((2, 2))
+        self._offsets = np.zeros((2, 2))  # what is sent
+        self._rate = np.zeros((2, 2))
         self.reference_moment_nm = np.zeros(2)
+
+    @property
+    def offsets_rad(self) -> dict[str, np.ndarray]:
+        """Per leg, the (pitch, roll) correction sent to its ankle (rad)."""
+        return {leg: self._offsets[k].copy() for k, (leg, _) in enumerate(FEET)}
 
     def _reference_moment(self, q_cmd_rad: np.ndarray) -> float:
         """Ground moment about y (N m, summed over the soles) with the centre of pressure
@@ -342,35 +356,52 @@ class DampingBalancer(Module):
             common_rate[0] = -common[0] / leak_c
         common = self._common = [common[0] + common_rate[0] * dt, common[1] + common_rate[1] * dt]
         both = state.feet_contact is None or all(state.feet_contact)
-        lower, upper = self._lower, self._upper
-        limit, k_d, leak = self.max_offset_rad, self.k_d, self.differential_leak_s
-        max_rate, max_step = MAX_CORRECTION_RATE_RAD_S, MAX_CORRECTION_ACCEL_RAD_S2 * dt
-        q_list = q.tolist()
-        for leg, _ in FEET:
-            diff = self._differential[leg]
-            moment = moments[leg]
-            signs = self._signs[leg]
-            offset, rate = self._offsets[leg], self._rate[leg]
-            for k, i in enumerate(self._index[leg]):
-                drive = k_d * (moment[k] - mean_k[k]) if both else 0.0
-                diff[k] = diff[k] + (drive - diff[k] / leak) * dt
-                wanted = min(max(signs[k] * (common[k] + diff[k]), -limit), limit)
-                # follow the wanted correction with bounded rate and acceleration
-                rate_wanted = min(max((wanted - offset[k]) / SMOOTHING_S, -max_rate), max_rate)
-                rate[k] = rate[k] + min(max(rate_wanted - rate[k], -max_step), max_step)
-                offset[k] = offset[k] + rate[k] * dt
-                qi = q_list[i]
-                if math.isfinite(qi):
-                    target = min(max(qi + offset[k], lower[i]), upper[i])
-                    offset[k] = target - qi
-                    q[i] = target
-            self.offsets_rad[leg] = np.array(offset)
-        right_offset, left_offset = self._offsets["right-leg"], self._offsets["left-leg"]
-        cycle.info["balance.right_pitch_rad"] = right_offset[0]
-        cycle.info["balance.right_roll_rad"] = right_offset[1]
-        cycle.info["balance.left_pitch_rad"] = left_offset[0]
-        cycle.info["balance.left_roll_rad"] = left_offset[1]
+        _follow_offsets(q, self._ankles, self._ankle_signs, right[0], right[1], left[0], left[1],
+                        mean_k[0], mean_k[1], common[0], common[1], both, self._differential,
+                        self._offsets, self._rate, self._lower, self._upper,
+                        self.max_offset_rad, self.k_d, self.differential_leak_s,
+                        MAX_CORRECTION_RATE_RAD_S, MAX_CORRECTION_ACCEL_RAD_S2 * dt, SMOOTHING_S,
+                        dt)
+        (right_pitch, right_roll), (left_pitch, left_roll) = self._offsets.tolist()
+        cycle.info["balance.right_pitch_rad"] = right_pitch
+        cycle.info["balance.right_roll_rad"] = right_roll
+        cycle.info["balance.left_pitch_rad"] = left_pitch
+        cycle.info["balance.left_roll_rad"] = left_roll
         return q
+
+
+@nb.njit(cache=True, nogil=True)
+def _follow_offsets(q, ankles, signs, right_pitch, right_roll, left_pitch, left_roll, mean_pitch,
+                    mean_roll, common_pitch, common_roll, both, differential, offsets, rate,
+                    lower, upper, limit, k_d, leak, max_rate, max_step, smoothing_s, dt):
+    """:class:`DampingBalancer`'s per-leg step, compiled (the same float arithmetic in the
+    same order as in Python): each ankle axis's differential mode (``k_d`` times its foot's
+    moment less the feet's mean, leaking over ``leak`` s), plus the common mode, bounded by
+    ``limit``, followed by the offset with bounded rate and acceleration, then added to the
+    joint ``q[ankles[leg, axis]]`` within its limits (where it is finite). Updates
+    ``differential``, ``offsets``, ``rate`` and ``q`` in place; rows are legs in FEET order,
+    columns (pitch, roll)."""
+    moments = ((right_pitch, right_roll), (left_pitch, left_roll))
+    mean = (mean_pitch, mean_roll)
+    common = (common_pitch, common_roll)
+    for leg in range(2):
+        for k in range(2):
+            drive = k_d * (moments[leg][k] - mean[k]) if both else 0.0
+            differential[leg, k] = differential[leg, k] + (
+                drive - differential[leg, k] / leak) * dt
+            wanted = min(max(signs[leg, k] * (common[k] + differential[leg, k]), -limit), limit)
+            # follow the wanted correction with bounded rate and acceleration
+            rate_wanted = min(max((wanted - offsets[leg, k]) / smoothing_s, -max_rate),
+                              max_rate)
+            rate[leg, k] = rate[leg, k] + min(max(rate_wanted - rate[leg, k], -max_step),
+                                              max_step)
+            offsets[leg, k] = offsets[leg, k] + rate[leg, k] * dt
+            i = ankles[leg, k]
+            qi = q[i]
+            if math.isfinite(qi):
+                target = min(max(qi + offsets[leg, k], lower[i]), upper[i])
+                offsets[leg, k] = target - qi
+                q[i] = target
 
 
 def make_balancer(model: RobotModel, mode: str = "default", **options) -> Module:

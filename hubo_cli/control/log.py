@@ -52,6 +52,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hubo_cli.control.log_kernels import pose_row
 from hubo_cli.control.status import Status
 from hubo_cli.errors import InputError
 from hubo_cli.runs import _jsonable
@@ -96,11 +97,6 @@ def _float_text(value: float, spec: str) -> str:
     return "NaN" if math.isnan(value) else spec % value
 
 
-def _floats(values) -> list[float]:
-    """A vector as a list of Python floats (they format faster than numpy's)."""
-    return np.asarray(values, dtype=float).tolist()
-
-
 def pose_columns(frame: str) -> tuple[str, ...]:
     """The six column names of a frame's world pose (``torso``, ``right_hand``, ...)."""
     return tuple(f"{frame}_{axis}" for axis in POSE_AXES)
@@ -139,11 +135,6 @@ def _rotation_from_quat_wxyz(q) -> np.ndarray:
                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
-def _pose_values(T: np.ndarray) -> list[float]:
-    r0, r1, r2 = T[:3].tolist()  # Python floats: element-wise reads of numpy cost more
-    return [r0[3], r1[3], r2[3], *_rpy_from_rows(r0, r1, r2)]
-
-
 def _feet_values(state) -> list[float]:
     """The FEET_COLUMNS of a state: the ankles' F_z (N) and the contact flags (NaN unknown)."""
     values = []
@@ -153,6 +144,20 @@ def _feet_values(state) -> list[float]:
     contact = state.feet_contact
     values += [math.nan, math.nan] if contact is None else [float(bool(c)) for c in contact]
     return values
+
+
+def _stacked_chains(hands, joints: int) -> tuple[np.ndarray, ...]:
+    """The hands' arm chains (``(limb, joint slice)`` pairs) stacked for
+    :func:`~hubo_cli.control.log_kernels.pose_row`: joint index, base, offset, alpha, a, d and
+    end, one row per hand (empty without hands); ``joints`` is the length of a joint vector."""
+    hands = list(hands)
+    index = np.array([np.arange(joints)[sl] for _, sl in hands],
+                     dtype=np.int64).reshape(len(hands), 6)
+    parts = [np.array([limb.chain[k] for limb, _ in hands], dtype=float)
+             for k in (0, 2, 3, 4, 5, 6)]
+    shapes = ((4, 4), (6,), (6,), (6,), (6,), (4, 4))
+    parts = [p.reshape(len(hands), *shape) for p, shape in zip(parts, shapes, strict=True)]
+    return (index, *parts)
 
 
 def status_codes() -> dict[int, str]:
@@ -190,8 +195,14 @@ class PeriodLog:
                         + tuple(f"cmd_{j}_rad" for j in joints)
                         + tuple(f"q_{j}_rad" for j in joints)
                         + pose_names + self.extra_columns)
-        self._nan_poses = [math.nan] * len(pose_names)
-        self._nan_extras = [math.nan] * len(self.extra_columns)
+        # one record as float64, filled in place each period (see write)
+        self._record = np.zeros(len(self.columns), dtype="<f8")
+        n = len(joints)
+        self._at_joints = (len(FIXED_COLUMNS), len(FIXED_COLUMNS) + n,
+                           len(FIXED_COLUMNS) + 2 * n, len(FIXED_COLUMNS) + 3 * n)
+        self._at_feet = self._at_joints[3] + 6 * (1 + len(self._hands))
+        self._at_extras = self._at_feet + len(FEET_COLUMNS)
+        self._hand_chains = _stacked_chains(self._hands.values(), n)
         self.metadata: dict = {}
         self.rows = 0
         self.rows_path, self.flags_path = _record_paths(self.path)
@@ -200,7 +211,6 @@ class PeriodLog:
         head = json.dumps(layout).encode()
         self._data_at = -(-(_HEAD_AT + 4 + len(head)) // 8) * 8
         self._record_bytes = 8 * len(self.columns)
-        self._pack = struct.Struct(f"<{len(self.columns)}d").pack_into
         self._flag_ids: dict[str, float] = {}
         self.path.unlink(missing_ok=True)  # the CSV comes at close
         self._flags_fd = os.open(self.flags_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
@@ -222,20 +232,6 @@ class PeriodLog:
         return {frame: (Limb(model, arm, "hand"), model.limb_slice(arm))
                 for frame, arm in HAND_ARMS.items()}
 
-    def _pose_row(self, q_rad, state) -> list[float]:
-        if state is None:
-            return self._nan_poses
-        T_world_torso = state.T_world_torso
-        if T_world_torso is None:
-            T_world_torso = np.eye(4)
-            T_world_torso[:3, :3] = _rotation_from_quat_wxyz(state.imu_quat_wxyz)
-            T_world_torso[:3, 3] = math.nan
-        values = _pose_values(T_world_torso)
-        q = np.asarray(q_rad, dtype=float)
-        for limb, index in self._hands.values():
-            values += _pose_values(T_world_torso @ limb.fk(q[index]))
-        return values + _feet_values(state)
-
     def write(self, period: int, t_s: float, status: int, compute_us: float, late_us: float,
               flags, target_rad, cmd_rad, q_rad, extras: dict | None = None,
               state=None) -> None:
@@ -247,24 +243,47 @@ class PeriodLog:
         """
         if self._map is None:
             return
-        values = (_floats(target_rad) + _floats(cmd_rad) + _floats(q_rad)
-                  + self._pose_row(q_rad, state))
-        if self.extra_columns:
-            if extras:
-                values += [float(extras.get(c, math.nan)) for c in self.extra_columns]
-            else:
-                values += self._nan_extras
         flag_text = ";".join(sorted(flags))
         flag_id = self._flag_ids.get(flag_text)
         if flag_id is None:  # a new flags text: in log.flags before a record points to it
             flag_id = self._flag_ids[flag_text] = float(len(self._flag_ids))
             _write_all(self._flags_fd, (json.dumps(flag_text) + "\n").encode())
+        # the record filled in place: numbers as numpy converts them (float64, as struct does)
+        record = self._record
+        record[:6] = (flag_id, period, t_s, status, compute_us, late_us)
+        a, b, c, d = self._at_joints
+        record[a:b] = target_rad
+        record[b:c] = cmd_rad
+        record[c:d] = q_rad
+        self._pose_record(q_rad, state)
+        if self.extra_columns:
+            if extras:
+                record[self._at_extras:] = [float(extras.get(c, math.nan))
+                                            for c in self.extra_columns]
+            else:
+                record[self._at_extras:] = math.nan
         at = self._data_at + self.rows * self._record_bytes
         if at + self._record_bytes > len(self._map):
             self._map.resize(len(self._map) + _BLOCK_ROWS * self._record_bytes)
-        self._pack(self._map, at, flag_id, period, t_s, status, compute_us, late_us, *values)
+        self._map[at:at + self._record_bytes] = record.tobytes()
         self.rows += 1
         self._map[_COUNT_AT:_HEAD_AT] = self.rows.to_bytes(8, "little")  # the record counts
+
+    def _pose_record(self, q_rad, state) -> None:
+        """The record's torso, hand and feet columns: the torso's and hands' world poses
+        (compiled, :func:`~hubo_cli.control.log_kernels.pose_row`), then the feet."""
+        record, at = self._record, self._at_joints[3]
+        if state is None:
+            record[at:self._at_extras] = math.nan
+            return
+        T_world_torso = state.T_world_torso
+        if T_world_torso is None:
+            T_world_torso = np.eye(4)
+            T_world_torso[:3, :3] = _rotation_from_quat_wxyz(state.imu_quat_wxyz)
+            T_world_torso[:3, 3] = math.nan
+        pose_row(np.ascontiguousarray(T_world_torso, dtype=float),
+                 np.ascontiguousarray(q_rad, dtype=float), *self._hand_chains, record, at)
+        record[self._at_feet:self._at_extras] = _feet_values(state)
 
     def set_metadata(self, key: str, value) -> None:
         """Record run metadata (JSON-able: numbers, strings, lists, dicts, numpy arrays) in the

@@ -9,7 +9,11 @@ stop use it for their own transitions so that those respect the limits too.
 :class:`TrajectoryGenerator` is the ``otg`` module: targets are clamped to the joint limits
 before ruckig, NaN entries keep that joint's previous target, a missing target for longer than
 ``stale_timeout_s`` brakes to a stop and requests an emergency stop (source ``stale-input``).
-It is seeded from the last command, never from the measured state.
+It is seeded from the last command, never from the measured state. Its joints are timed by one
+tracker (``groups="body"``: every joint phase-synchronised, an arm waits for the legs' slowest
+joint) or by one tracker per group (``groups="limbs"``: each arm on its own, the legs together,
+so a hand is not slowed by the other hand or the legs); the safety behaviour is the same: a
+ruckig error in any group brakes every group to rest.
 """
 
 from __future__ import annotations
@@ -28,11 +32,27 @@ from ruckig import (
 from hubo_cli.control.limits import JointLimits
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.errors import ConfigError
-from hubo_cli.model import RobotModel
+from hubo_cli.model import ARMS, LEGS, RobotModel
 from hubo_cli.state import RobotState
 
 STALE_TIMEOUT_S = 0.5  # hubo-motion-rt timeOut: no fresh command for this long -> stop
 SYNCHRONIZATIONS = {"phase": Synchronization.Phase, "none": Synchronization.No}
+TRACKER_GROUPS = ("body", "limbs")  # one tracker for every joint / one per arm + the legs
+
+
+def tracker_groups(model: RobotModel, groups: str) -> dict[str, np.ndarray]:
+    """The joint indices each tracker times, by group name: ``body`` = all joints in one group
+    (``body``), ``limbs`` = the right arm, the left arm (``right-arm``, ``left-arm``) and the
+    legs together (``legs``: their joints move the torso as one)."""
+    if groups not in TRACKER_GROUPS:
+        raise ConfigError(f"unknown tracker groups {groups!r}",
+                          hint=f"use one of {', '.join(TRACKER_GROUPS)}")
+    n = len(model.joint_names)
+    if groups == "body":
+        return {"body": np.arange(n)}
+    out = {arm: np.arange(n)[model.limb_slice(arm)] for arm in ARMS}
+    out["legs"] = np.concatenate([np.arange(n)[model.limb_slice(leg)] for leg in LEGS])
+    return out
 
 
 class JointTracker:
@@ -83,6 +103,15 @@ class JointTracker:
         self.error = ""
         self._mode = None
         self._synced = False
+
+    def set_synchronization(self, synchronization: str) -> None:
+        """Time the joints of later ``track`` calls this way (``phase`` or ``none``)."""
+        if synchronization not in SYNCHRONIZATIONS:
+            raise ConfigError(f"unknown synchronization {synchronization!r}",
+                              hint=f"use one of {', '.join(SYNCHRONIZATIONS)}")
+        self._sync = SYNCHRONIZATIONS[synchronization]
+        if self._mode == "position":
+            self._inp.synchronization = self._sync
 
     def _set_current(self) -> None:
         if self._synced:  # the last sample, passed on inside ruckig (the same numbers)
@@ -228,21 +257,34 @@ class TrajectoryGenerator(Module):
         dt_s: the control period (s).
         stale_timeout_s: brake and request an emergency stop after this long without a target.
         limits: override the model's limits (tests).
+        groups: ``body`` (one tracker for every joint) or ``limbs`` (one per arm and one for
+            the legs: a hand keeps its own pace); see :func:`tracker_groups`.
+        synchronization: within each tracker, ``phase`` (the joints arrive together on a
+            straight line in joint space) or ``none`` (each joint time-optimal on its own).
 
     Input: the target (rad); NaN entries keep their last target, an all-NaN vector means
     "no new target". Flags: ``joint-limit`` (target clamped), ``holding`` (some joints kept their
-    last target), ``stale-input``, ``slowing`` (braking after a ruckig error).
+    last target), ``stale-input``, ``slowing`` (braking after a ruckig error: every group
+    brakes until all are at rest).
     """
 
     name = "otg"
     log_columns = ("otg_error_flag",)
 
     def __init__(self, model: RobotModel, dt_s: float, stale_timeout_s: float = STALE_TIMEOUT_S,
-                 limits: JointLimits | None = None) -> None:
+                 limits: JointLimits | None = None, groups: str = "body",
+                 synchronization: str = "phase") -> None:
         self.limits = limits or JointLimits.from_model(model)
         self.dt_s = float(dt_s)
+        self.groups = groups
         self.input = TargetInput(self.limits, stale_timeout_s)
-        self.tracker = JointTracker(self.limits, self.dt_s)
+        named = tracker_groups(model, groups)
+        self.group_names = tuple(named)
+        self._index = list(named.values())
+        self.trackers = [JointTracker(self.limits.subset(i), self.dt_s, synchronization)
+                         for i in self._index]
+        self._single = len(self.trackers) == 1
+        self._q = np.zeros(self.limits.size)
         self._fault = False
         self.errors = 0
 
@@ -251,25 +293,59 @@ class TrajectoryGenerator(Module):
         """The current (clamped) target (rad)."""
         return self.input.target
 
+    def synchronize(self, synchronization: str, groups: tuple[str, ...] | None = None) -> None:
+        """Time the joints of the named groups' trackers (default all) this way from the next
+        period on (``phase`` or ``none``). Teleoperation lets each arm joint track on its own
+        while the operator drives, and keeps the straight joint-space line of ``phase`` for the
+        moves before (:class:`hubo_cli.teleop.target.TeleopTarget`)."""
+        for name, tracker in zip(self.group_names, self.trackers, strict=True):
+            if groups is None or name in groups:
+                tracker.set_synchronization(synchronization)
+
+    @property
+    def at_rest(self) -> bool:
+        """Every tracker's velocity and acceleration are (numerically) zero."""
+        return all(t.at_rest for t in self.trackers)
+
     def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
         q = np.where(np.isfinite(q_rad), q_rad, state.q_rad)
-        self.tracker.reset(q)
+        for index, tracker in zip(self._index, self.trackers, strict=True):
+            tracker.reset(q[index])
+        self._q = np.array(q, dtype=float)
         self.input.reset(q)
         self._fault = False
+
+    def _brake(self) -> np.ndarray:
+        if self._single:
+            return self.trackers[0].brake()
+        for index, tracker in zip(self._index, self.trackers, strict=True):
+            self._q[index] = tracker.brake()
+        return self._q.copy()
+
+    def _track(self, target: np.ndarray) -> tuple[np.ndarray, bool]:
+        """One period toward ``target``; returns (sample, whether any group's ruckig failed)."""
+        if self._single:
+            tracker = self.trackers[0]
+            return tracker.track(target), bool(tracker.error)
+        failed = False
+        for index, tracker in zip(self._index, self.trackers, strict=True):
+            self._q[index] = tracker.track(target[index])  # a failing group brakes already
+            failed = failed or bool(tracker.error)
+        return self._q.copy(), failed
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         stale = self.input.take(q_rad, cycle)
         cycle.info["otg_error_flag"] = 0.0
         if stale:
-            return self.tracker.brake()
+            return self._brake()
         if self._fault:
-            q = self.tracker.brake()
+            q = self._brake()
             cycle.flags.add("slowing")
-            if self.tracker.at_rest:
+            if self.at_rest:
                 self._fault = False
             return q
-        q = self.tracker.track(self.input.target)
-        if self.tracker.error:
+        q, failed = self._track(self.input.target)
+        if failed:
             self.errors += 1
             self._fault = True
             cycle.flags.add("slowing")

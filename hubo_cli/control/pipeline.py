@@ -174,6 +174,12 @@ class SafetyProfile:
             (:class:`hubo_cli.control.hip_strategy.HipStrategy`: the trunk bows when the
             capture point nears the toes or heels); off by default, on in the standing
             experiment, whose legs run the ``walking`` limit set it needs.
+        tracker_groups: how ``otg`` groups the joints: ``body`` (one tracker, every joint
+            arrives together) or ``limbs`` (one tracker per arm and one for the legs:
+            teleoperation's hands keep their own pace); see
+            :func:`hubo_cli.control.otg.tracker_groups`.
+        tracker_sync: within each of ``otg``'s trackers, ``phase`` (the joints arrive together
+            on a straight line in joint space) or ``none`` (each joint time-optimal).
     """
 
     estop: bool = True
@@ -186,6 +192,8 @@ class SafetyProfile:
     balance_mode: str = "default"
     stabilizer: bool = False
     hip_strategy: bool = False
+    tracker_groups: str = "body"
+    tracker_sync: str = "phase"
 
     def __post_init__(self) -> None:
         if self.balance_mode not in BALANCE_MODES:
@@ -195,6 +203,14 @@ class SafetyProfile:
         if unknown:
             raise ConfigError(f"unknown emergency-stop source {sorted(unknown)[0]!r}",
                               hint=f"use some of {', '.join(SOFT_SOURCES)}")
+        from hubo_cli.control.otg import SYNCHRONIZATIONS, TRACKER_GROUPS
+
+        if self.tracker_groups not in TRACKER_GROUPS:
+            raise ConfigError(f"unknown tracker groups {self.tracker_groups!r}",
+                              hint=f"use one of {', '.join(TRACKER_GROUPS)}")
+        if self.tracker_sync not in SYNCHRONIZATIONS:
+            raise ConfigError(f"unknown tracker synchronization {self.tracker_sync!r}",
+                              hint=f"use one of {', '.join(SYNCHRONIZATIONS)}")
 
     @property
     def balance_choice(self) -> str:
@@ -231,6 +247,7 @@ class SafetyProfile:
         """Per-module options for a robot holding ``tools`` (arm -> tool)."""
         drill = tools.get("right-arm") == "drill"
         return {
+            "otg": {"groups": self.tracker_groups, "synchronization": self.tracker_sync},
             "estop": {"sources": tuple(self.sources), "revert_s": self.revert_s,
                       "stop_s": self.stop_s,
                       "wrist_torque_limit_nm": self.wrist_torque_limit_nm},

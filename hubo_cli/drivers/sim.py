@@ -176,7 +176,12 @@ class Wall:
     def bit_crossing(self, T_world_bit: np.ndarray, half_length_m: float) -> np.ndarray | None:
         """Where a drill bit (middle at the frame origin, along its x axis, ``half_length_m``
         each way) crosses the wall's mid-plane, or None when its flutes miss the wall."""
-        (ax, _, _, mx), (ay, _, _, my), (az, _, _, mz), _ = T_world_bit.tolist()  # floats
+        crossing = self._crossing(T_world_bit.tolist(), half_length_m)
+        return None if crossing is None else np.array(crossing)
+
+    def _crossing(self, rows: list, half_length_m: float) -> tuple[float, float, float] | None:
+        """:meth:`bit_crossing` of a pose given as its rows of Python floats, as a tuple."""
+        (ax, _, _, mx), (ay, _, _, my), (az, _, _, mz), _ = rows
         if abs(ax) < 1e-6:
             return None
         s = (self.distance_m + self.thickness_m / 2 - mx) / ax
@@ -184,7 +189,7 @@ class Wall:
             return None
         y, z = my + s * ay, mz + s * az
         if abs(y - self.centre_y_m) <= self.width_m / 2 and 0.0 <= z <= self.height_m:
-            return np.array((mx + s * ax, y, z))
+            return (mx + s * ax, y, z)
         return None
 
     def engagement(self, T_world_bit: np.ndarray, half_length_m: float,
@@ -192,11 +197,18 @@ class Wall:
         """How deep a bit (as in :meth:`bit_crossing`) is in the wall: the share (0..1) of the
         wall's thickness its flutes fill, and the share of its point (the last
         ``point_length_m`` before the tip) inside the wall."""
-        axis_x, middle_x = float(T_world_bit[0, 0]), float(T_world_bit[0, 3])
+        return self._engagement(float(T_world_bit[0, 0]), float(T_world_bit[0, 3]),
+                                half_length_m, point_length_m)
+
+    def _engagement(self, axis_x: float, middle_x: float, half_length_m: float,
+                    point_length_m: float) -> tuple[float, float]:
+        """:meth:`engagement` of the bit's axis x component and its middle's x (floats)."""
         near, far = self.distance_m, self.distance_m + self.thickness_m
 
         def inside_m(s0: float, s1: float) -> float:  # x extent of [s0, s1] along the bit
-            x0, x1 = sorted((middle_x + s0 * axis_x, middle_x + s1 * axis_x))
+            x0, x1 = middle_x + s0 * axis_x, middle_x + s1 * axis_x
+            if x1 < x0:
+                x0, x1 = x1, x0
             return max(0.0, min(x1, far) - max(x0, near))
 
         flutes = inside_m(-half_length_m, half_length_m) / min(
@@ -339,9 +351,6 @@ class SimDriver(Driver, SimulatedWorld):
         self._stopped = False
         self._closed = False
         self._t = 0.0
-        self.cutting_force_n = np.zeros(3)
-        self.cutting_torque_nm = np.zeros(3)
-        self._cutting_point = np.zeros(3)
         self._cutting_floats = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
         self._cutting_set = False  # the cutting wrench is not zero (reset before each step)
         self._cut_points: list[tuple] = []  # (time s, where the bit crossed a wall), per period
@@ -357,6 +366,7 @@ class SimDriver(Driver, SimulatedWorld):
         frames = link_frames(model)
         self._T_link_frame = {child: origin for (_, kind, parent, child, origin, _)
                               in frames.joints if kind == "fixed" and child in FRAME_PARENTS}
+        self._T_link_bit = self._T_link_frame.get(DRILL_FRAME)  # the drill's bit on its wrist
 
     # ------------------------------------------------------------------ set-up
     def _connect(self) -> None:
@@ -406,6 +416,7 @@ class SimDriver(Driver, SimulatedWorld):
             joints[info[1].decode()] = i
             self._links[info[12].decode()] = i
         self._idx = [joints[n] for n in self.joint_names]
+        self._wrist_link = self._links["RWP_link"]  # the drill's
         self._sensor_link_ids = [self._links[n] for n in SENSOR_LINKS]
         # per F/T sensor, in FT_SENSORS order: its link's index in PyBullet and in the sensor
         # links' batch, the link-to-sensor pose, which ankle (0, 1, None), the drill's wrist
@@ -625,45 +636,50 @@ class SimDriver(Driver, SimulatedWorld):
             total = sum(push.force_world_n for push in self._pushes)
             p.applyExternalForce(self._robot, -1, total.tolist(), com, p.WORLD_FRAME,
                                  physicsClientId=cid)
-        if self._cutting_set:
-            self.cutting_force_n = np.zeros(3)
-            self.cutting_torque_nm = np.zeros(3)
-            self._cutting_set = False
+        self._cutting_set = False  # until the cutting sets it again
         if self._walls and self.options.drill:
             self._apply_cutting(t_s)
 
     def _apply_cutting(self, t_s: float) -> None:
         """The wall's reaction to the bit (:class:`~hubo_cli.scene.CuttingModel`): across the
-        bit, along it (thrust) and about it (spindle), on the wrist link."""
+        bit, along it (thrust) and about it (spindle), on the wrist link. Every physics step:
+        the arithmetic in Python floats, the one pose product in numpy."""
         p, cid, drill = self._p, self._cid, self.model.drill
-        link = self._links["RWP_link"]
-        ls = p.getLinkState(self._robot, link, computeLinkVelocity=1,
-                            computeForwardKinematics=1, physicsClientId=cid)
-        T_world_bit = _pose(ls[4], ls[5]) @ self._T_link_frame[DRILL_FRAME]
+        link = self._wrist_link
+        ls = p.getLinkState(self._robot, link, 1, 1, physicsClientId=cid)  # velocity, FK
+        rows = (_pose(ls[4], ls[5]) @ self._T_link_bit).tolist()
         for wall in self._walls:
-            bit = wall.bit_crossing(T_world_bit, drill.bit_half_length_m)
-            if bit is None:
+            bit_xyz = wall._crossing(rows, drill.bit_half_length_m)
+            if bit_xyz is None:
                 continue
             # velocity of the link's point at the bit: v + omega x r
             (wx, wy, wz), (vx, vy, vz), (ox, oy, oz) = ls[7], ls[6], ls[0]
-            bx, by, bz = bit_xyz = bit.tolist()
+            bx, by, bz = bit_xyz
             rx, ry, rz = bx - ox, by - oy, bz - oz
             v = (vx + wy * rz - wz * ry, vy + wz * rx - wx * rz, vz + wx * ry - wy * rx)
-            flutes, point = wall.engagement(T_world_bit, drill.bit_half_length_m,
-                                            drill.bit_radius_m)
-            force, torque = self.options.cutting.wrench_on_bit(v, T_world_bit[:3, 0].tolist(),
-                                                               flutes, point)
-            self.cutting_force_n, self.cutting_torque_nm = np.array(force), np.array(torque)
-            self._cutting_floats = (force, torque, bit_xyz)  # the same, for the F/T sums
+            (ax, _, _, mx), (ay, _, _, _), (az, _, _, _), _ = rows
+            flutes, point = wall._engagement(ax, mx, drill.bit_half_length_m,
+                                             drill.bit_radius_m)
+            force, torque = self.options.cutting.wrench_on_bit(v, (ax, ay, az), flutes, point)
+            self._cutting_floats = (force, torque, bit_xyz)  # cutting_force_n ... as floats
             self._cutting_set = True
             p.applyExternalForce(self._robot, link, force, bit_xyz, p.WORLD_FRAME,
                                  physicsClientId=cid)
             p.applyExternalTorque(self._robot, link, torque, p.WORLD_FRAME,
                                   physicsClientId=cid)
-            self._cutting_point = bit
             if t_s < self._t + 1e-12:  # the period's first physics step
-                self._cut_points.append((self._t, bit))
+                self._cut_points.append((self._t, np.array(bit_xyz)))
             break
+
+    @property
+    def cutting_force_n(self) -> np.ndarray:
+        """The wall's force on the bit in the last physics step (N, world; zero when none)."""
+        return np.array(self._cutting_floats[0]) if self._cutting_set else np.zeros(3)
+
+    @property
+    def cutting_torque_nm(self) -> np.ndarray:
+        """The spindle's braking torque on the bit in the last physics step (N m, world)."""
+        return np.array(self._cutting_floats[1]) if self._cutting_set else np.zeros(3)
 
     # ------------------------------------------------------------------ sensing
     # Batched reads: one getLinkStates for the four sensor links (a pose is built only for a

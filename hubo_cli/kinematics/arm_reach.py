@@ -51,6 +51,11 @@ class ReachSettings:
             velocity and acceleration limits.
         singularity: how joint speeds slow near singular configurations
             (:meth:`SingularityScale.off` for not at all).
+        collision_room_m: while operating, arm targets keep at least this clearance from the
+            body (m; 0 = off): postures inside the collision detector's 10 mm band count as
+            not reachable, so the hand slides along the band instead of tripping a collision
+            hold (:class:`hubo_cli.teleop.room.CollisionRoom`; the default is the band and
+            5 mm for the command's braking look-ahead).
     """
 
     mode: str = "nearest"
@@ -63,6 +68,7 @@ class ReachSettings:
     allow_branch_change: bool = False
     branch_move_fraction: float = 0.25
     singularity: SingularityScale = SingularityScale()
+    collision_room_m: float = 0.015
 
     @classmethod
     def for_mode(cls, teleop_mode: str, **changes) -> ReachSettings:
@@ -78,6 +84,9 @@ class ReachSettings:
                 and self.orientation_weight_m_per_rad > 0):
             raise ConfigError(f"orientation weight {self.orientation_weight_m_per_rad} is not "
                               "positive", hint="e.g. --orientation-weight 0.9 (mm per degree)")
+        if not (np.isfinite(self.collision_room_m) and self.collision_room_m >= 0):
+            raise ConfigError(f"collision room {self.collision_room_m} m is not >= 0",
+                              hint="use e.g. 0.015 (m), or 0 for none")
         if not 0 < self.branch_move_fraction <= 1:
             raise ConfigError(f"branch move fraction {self.branch_move_fraction} is not in (0, 1]",
                               hint="use e.g. 0.25")

@@ -213,6 +213,7 @@ class TorsoCorrection:
         self.body = body
         self.estimator = estimator or TorsoEstimator(body)
         self.arms = tuple(arms)
+        self._slices = tuple((arm, body.model.limb_slice(arm)) for arm in self.arms)
         self.dt_s = dt_s
         self.settings = settings or CorrectionSettings()
         s = self.settings
@@ -275,8 +276,7 @@ class TorsoCorrection:
         q = np.array(q_cmd_rad, dtype=float)
         T_dev_inv = self._T_dev_inv
         fade = self.settings.fade_per_s * self.dt_s
-        for arm in self.arms:
-            sl = self.body.model.limb_slice(arm)
+        for arm, sl in self._slices:
             limb = self.body.arms[arm]
             q_arm = q[sl].copy()
             T_N_E = limb.fk(q_arm)

@@ -21,7 +21,7 @@ from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.errors import InputError, SafetyError
 from hubo_cli.model import RobotModel, load_model
 from hubo_cli.posture import home_posture
-from hubo_cli.session import RunResult, RunSetup, run
+from hubo_cli.session import RunResult, RunSetup, run, settled_objects
 from hubo_cli.tasks.plan import EDGE_NAMES, Plan, make_plan
 from hubo_cli.tasks.spec import TaskSpec, format_override
 from hubo_cli.tasks.target import SETTLE_TIMEOUT_S, TaskTarget
@@ -96,6 +96,13 @@ def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
     if not plan.preflight.ok:
         raise SafetyError(plan.preflight.worst_per_step()[0].message(),
                           hint="the task was refused in pre-flight; nothing moved")
+    with settled_objects():
+        return _run_task(plan, driver, out, gui, estop, driver_options, on_start, perturb_seed,
+                         balance)
+
+
+def _run_task(plan: Plan, driver: str, out, gui: bool, estop: bool, driver_options,
+              on_start, perturb_seed: int | None, balance: str) -> TaskRun:
     setup = task_setup(plan, driver=driver, out=out, gui=gui, estop=estop,
                        driver_options=driver_options, perturb_seed=perturb_seed,
                        balance=balance)

@@ -29,6 +29,7 @@ its lean included).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -206,7 +207,8 @@ class TaskTarget(Target):
         k = self.k
         goal = self.plan.goal_S_m[k] if running else actual
         cutting = self.phase == "run" and bool(self.plan.cutting[k])
-        self.error_m = float(np.linalg.norm(goal - actual))
+        d = goal - actual
+        self.error_m = math.sqrt(d.dot(d))  # np.linalg.norm's arithmetic, without its checks
         info.update({"step_code": float(self.step), "phase_code": float(PHASES.index(self.phase)),
                      "goal_x_m": goal[0], "goal_y_m": goal[1], "goal_z_m": goal[2],
                      "actual_x_m": actual[0], "actual_y_m": actual[1], "actual_z_m": actual[2],

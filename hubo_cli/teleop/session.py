@@ -32,6 +32,12 @@ STANDOFF_M = 0.05              # drill mode: the bit stops this far before the w
 FREE_READY_ARM_RAD = {"right-arm": (0.0, -0.15, 0.0, -1.4, 0.0, 0.0),
                       "left-arm": (0.0, 0.15, 0.0, -1.4, 0.0, 0.0)}
 WALL = WallSize(height_m=2.0, width_m=1.2, thickness_m=0.005)  # the simulated cardboard
+# The robot's limit set per mode. Free mode: the arms' jerk limit raised (40 rad/s^3, the robot
+# file says why) and a trajectory-generator tracker per arm, so each hand keeps up with the
+# operator. Drill mode: the robot's own limits and one tracker for the whole body, so the arm
+# moves the bit through the cardboard in step with the legs (faster, it drags the bit harder
+# and the wrist-torque stop fires sooner).
+MODE_LIMITS = {"free": "teleop", "drill": "table4"}
 
 
 @dataclass
@@ -138,7 +144,7 @@ def prepare(settings: TeleopSettings, model: RobotModel | None = None):
     hands start (free mode: the legs follow only the operator's height changes) or the middle
     of the reachable rectangle (drill mode).
     """
-    model = model or load_model()
+    model = model or load_model(limits=MODE_LIMITS.get(settings.mode, "table4"))
     stations = station_map(settings)
     tools = {arm: "hand" for arm in stations.values()}
     scene: dict = {}
@@ -162,7 +168,9 @@ def teleop_setup(settings: TeleopSettings, body: WholeBody, duration_s: float | 
     return RunSetup(
         command="teleop", model=body.model, tools=dict(body.tools), driver=settings.driver,
         driver_options=dict(settings.driver_options),
-        safety=SafetyProfile(estop=settings.estop).with_balance(settings.balance),
+        safety=SafetyProfile(estop=settings.estop,
+                             tracker_groups="limbs" if settings.mode == "free" else "body"
+                             ).with_balance(settings.balance),
         speed=settings.speed, live_input=settings.port is not None, gui=settings.gui,
         out=settings.out, duration_s=duration_s, q_start_rad=home_posture(body.model),
         perturb_seed=settings.perturb_seed)

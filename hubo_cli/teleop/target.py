@@ -21,7 +21,13 @@ arm_reach`; ``reach="paper"`` restores the paper's 5 cm rule). The branch change
 operator's request (key ``b``) or, with ``allow_branch_change``, when the hand rests at its reach
 limit and another branch reaches the goal: a slow joint-space move, announced in the live view.
 Near singular configurations the arm's joint speeds are scaled down
-(:mod:`hubo_cli.kinematics.conditioning`).
+(:mod:`hubo_cli.kinematics.conditioning`). Postures within the collision detector's band count
+as out of reach too: an arm target keeps ``collision_room_m`` from the body and slides along it
+(:mod:`hubo_cli.teleop.room`), so a goal brushing past the torso does not trip a collision hold.
+While operating, each arm's joints are timed by the trajectory generator's own tracker for that
+arm (the session builds ``otg`` with a tracker per limb), unsynchronised while the command is
+within ``SYNC_LAG_RAD`` of the target, so a hand waits neither for the legs nor for its own
+slowest joint; further behind, the arm's joints keep the straight joint-space line.
 
 Goals live in the stance frame S (the home neck frame, fixed to the ground). The actual
 end-effector pose is what the robot measures, as on the paper's robot: FK of the measured arm
@@ -43,6 +49,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from hubo_cli.control.otg import TrajectoryGenerator
 from hubo_cli.control.target import Target
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.fastrak.source import PoseSource
@@ -64,6 +71,16 @@ SHORT = {"right-arm": "r", "left-arm": "l"}
 REST_RADIUS_M = 0.005  # a goal that stays within this for REST_S is at rest
 REST_S = 0.5
 EXCURSION_WINDOW_S = 1.0  # max_excursion_mm: nearest goal sample within +-this
+# while operating, each arm joint of the trajectory generator tracks its target on its own
+# (ruckig without synchronisation: on the two-hand sample 6.7 / 6.9 mm RMS against 8.0 / 8.2 mm
+# with phase-synchronised arms), unless the arm's command lags its target by more than
+# SYNC_LAG_RAD on some joint: then the joints keep the straight line in joint space (phase), as
+# they do in the approach's joint-space moves. Unsynchronised across a large gap the joints
+# arrive one by one and the hand swings off (85 mm beyond the goal's distance to the reachable
+# set where a stretched arm comes back, 21 mm with the switch; drill mode's first move would
+# swing the drill into the torso); the two-hand sample's lag stays below it.
+OPERATE_SYNCHRONIZATION = "none"
+SYNC_LAG_RAD = 0.15
 
 
 @dataclass
@@ -187,6 +204,14 @@ class TeleopTarget(Target):
         self.reach_settings = reach or ReachSettings.for_mode(mapper.config.mode)
         self.reach = {arm: ArmReach(body.arms[arm], self.reach_settings) for arm in approach}
         self.singularity = singularity or self.reach_settings.singularity
+        self.room = None  # arm targets keep out of the collision detector's band
+        self._otg = None  # the trajectory generator, once operating, if it has arm trackers
+        if self.reach_settings.mode == "nearest" and self.reach_settings.collision_room_m > 0:
+            from hubo_cli.teleop.room import CollisionRoom
+
+            self.room = CollisionRoom(model, drill=body.tools.get("right-arm") == "drill",
+                                      room_m=self.reach_settings.collision_room_m,
+                                      arms=tuple(self.arms))
         self.rotation_errors_rad: dict[str, list[float]] = {arm: [] for arm in self.arms}
         self.path_times_s: dict[str, list[float]] = {arm: [] for arm in self.arms}
         self._t_solved_s: dict[str, float] = {}
@@ -273,10 +298,22 @@ class TeleopTarget(Target):
         self.q_out = (self.q_target if self.correction is None
                       else self.correction(self.q_target, state))
         self._q_out_of = self.q_target
+        self._pace_arms()
         self._measure(t_s, state, info)
         if flags:
             info["flags"] = flags
         return self.q_out, info
+
+    def _pace_arms(self) -> None:
+        """Each arm's tracker: unsynchronised while its command is near the target, phase
+        synchronised (the straight joint-space line) when it lags further behind."""
+        if self._otg is None:
+            return
+        for arm in self.arms:
+            k = self._otg.group_names.index(arm)
+            lag = float(np.max(np.abs(self.q_out[self.slices[arm]] - self._otg.trackers[k].q)))
+            self._otg.synchronize(OPERATE_SYNCHRONIZATION if lag <= SYNC_LAG_RAD else "phase",
+                                  groups=(arm,))
 
     def _settled(self, state) -> bool:
         # against the output; a target set this period has none yet: against the target
@@ -302,6 +339,9 @@ class TeleopTarget(Target):
         if self._settled(state) or t_path >= self.approach_s + self.approach_timeout_s:
             self.phase = "operate"
             self.t_operate_s = t_s
+            for module in self.modules:  # the arms' trackers, when they have their own
+                if isinstance(module, TrajectoryGenerator) and module.groups == "limbs":
+                    self._otg = module
             for arm, reach in self.reach.items():
                 reach.start(self.q_target[self.slices[arm]])
 
@@ -398,6 +438,8 @@ class TeleopTarget(Target):
                     hand.at_limit_periods += 1
                 q_arm = self._branch_policy(t_s, arm, hand, T_N_goal, q_now, q_arm, branch_key)
             q[sl] = self._speed_scaled(arm, q_now, q_arm, hand)
+        if self.room is not None:
+            q = self.room.keep(self.q_target, q)
         self.q_target = q
 
     def _branch_policy(self, t_s, arm, hand: HandTrack, T_N_goal, q_now, q_arm,
@@ -452,7 +494,9 @@ class TeleopTarget(Target):
 
     def reach_report(self) -> dict[str, dict]:
         """Per hand, while operating: position and orientation RMS, time at the reach limit,
-        branch changes and the largest excursion (hand to the nearest goal sample within +-1 s).
+        branch changes, time its target was kept out of the collision band
+        (``collision_room_s``) and the largest excursion (hand to the nearest goal sample within
+        +-1 s).
         """
         report = {}
         for arm, hand in self.hands.items():
@@ -464,6 +508,8 @@ class TeleopTarget(Target):
                 if len(rot) else None,
                 "at_limit_s": hand.at_limit_periods * self.dt_guard_s,
                 "branch_changes": hand.branch_changes,
+                "collision_room_s": 0.0 if self.room is None
+                else self.room.pushed_periods.get(arm, 0) * self.dt_guard_s,
                 "max_excursion_mm": max_excursion_m(
                     np.asarray(self.path_times_s[arm]),
                     np.array([g for g, _ in self.paths[arm]]).reshape(-1, 3),

@@ -1,0 +1,187 @@
+"""The trajectory generator's tracker groups: one tracker per arm and one for the legs keeps
+every safety behaviour of the whole-body tracker, and a hand no longer waits for the legs."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from control_support import assert_within_limits, ideal
+
+from hubo_cli.control.limits import JointLimits
+from hubo_cli.control.loop import ControlLoop
+from hubo_cli.control.module import Cycle
+from hubo_cli.control.otg import TrajectoryGenerator, tracker_groups
+from hubo_cli.control.pipeline import SafetyProfile, build_pipeline, find_module
+from hubo_cli.errors import ConfigError
+from hubo_cli.model import ARMS, LEGS
+from hubo_cli.posture import home_posture
+from hubo_cli.state import RobotState
+
+DT = 0.005
+
+
+def _state(model):
+    return RobotState(0.0, home_posture(model), np.zeros(24))
+
+
+def _run(otg, model, goal, periods):
+    q0 = home_posture(model)
+    otg.reset(q0, _state(model))
+    return np.array([otg.update(goal, _state(model), Cycle(k * DT, DT)).copy()
+                     for k in range(periods)])
+
+
+def test_limbs_groups_cover_every_joint_once(model):
+    groups = tracker_groups(model, "limbs")
+    assert list(groups) == [*ARMS, "legs"]
+    assert np.array_equal(np.sort(np.concatenate(list(groups.values()))), np.arange(24))
+    for arm in ARMS:
+        assert [model.joint_names[i] for i in groups[arm]] == list(model.limb(arm).joints)
+    assert {model.joint_names[i] for i in groups["legs"]} == {
+        j for leg in LEGS for j in model.limb(leg).joints}
+    assert len(tracker_groups(model, "body")) == 1
+    with pytest.raises(ConfigError):
+        tracker_groups(model, "joints")
+    with pytest.raises(ConfigError):
+        SafetyProfile(tracker_groups="arms")
+    with pytest.raises(ConfigError):
+        SafetyProfile(tracker_sync="time")
+
+
+def test_an_arm_does_not_wait_for_the_legs_with_its_own_tracker(model):
+    """A small elbow step while a knee makes a long move: the whole-body tracker (phase
+    synchronised) stretches the elbow over the knee's time; with one tracker per limb the elbow
+    arrives in a fraction of it. The knee arrives when it would alone either way."""
+    goal = home_posture(model)
+    goal[3] += 0.1                                  # REB (right elbow): 0.1 rad
+    knee = model.joint_names.index("RKN")
+    goal[knee] += 0.8                               # right knee: 0.8 rad
+    arrive = {}
+    for groups in ("body", "limbs"):
+        otg = TrajectoryGenerator(model, DT, groups=groups)
+        out = _run(otg, model, goal, 1200)
+        at = {j: int(np.argmax(np.all(np.abs(out[:, [j]] - goal[j]) < 1e-9, axis=1)))
+              for j in (3, knee)}
+        assert np.abs(out[-1] - goal).max() < 1e-9
+        assert_within_limits(model, np.vstack([out[:1], out[:1], out]), DT)
+        arrive[groups] = at
+    assert arrive["body"][3] == pytest.approx(arrive["body"][knee], abs=2)
+    assert arrive["limbs"][3] < 0.5 * arrive["body"][3]
+    assert arrive["limbs"][knee] == pytest.approx(arrive["body"][knee], abs=2)
+
+
+def test_limbs_groups_clamp_hold_and_go_stale(model):
+    otg = TrajectoryGenerator(model, DT, stale_timeout_s=0.1, groups="limbs")
+    q0 = home_posture(model)
+    otg.reset(q0, _state(model))
+    far = q0.copy()
+    far[1] = 5.0                                    # RSR above its 0.3 rad limit
+    cycle = Cycle(0.0, DT)
+    moving = [otg.update(far, _state(model), cycle).copy()]
+    assert "joint-limit" in cycle.flags and otg.target[1] == model.upper_rad[1]
+    some = np.full(24, np.nan)
+    some[6] = q0[6] + 0.2                           # the left arm's first joint only
+    cycle = Cycle(DT, DT)
+    moving.append(otg.update(some, _state(model), cycle).copy())
+    assert "holding" in cycle.flags and otg.target[1] == model.upper_rad[1]
+    for k in range(2, 300):
+        cycle = Cycle(k * DT, DT)
+        moving.append(otg.update(np.full(24, np.nan), _state(model), cycle).copy())
+    assert "stale-input" in cycle.flags and "stale-input" in cycle.estop_requests
+    # stale: every group brakes to rest (no longer toward the target), within the limits
+    assert otg.at_rest and np.allclose(moving[-1], moving[-2], atol=1e-12)
+    assert moving[-1][1] < model.upper_rad[1] and moving[-1][6] < q0[6] + 0.2
+    assert_within_limits(model, np.vstack([q0, q0, moving]), DT)
+
+
+def test_a_ruckig_error_in_one_group_brakes_every_group(model):
+    """The left arm's limits are broken (ruckig rejects a zero jerk): the right arm and the legs,
+    moving at the time, brake to rest with it ("slowing"), as the whole-body tracker does."""
+    limits = JointLimits.from_model(model)
+    jerk = limits.jerk_rad_s3.copy()
+    otg = TrajectoryGenerator(model, DT, groups="limbs", limits=limits)
+    q0 = home_posture(model)
+    otg.reset(q0, _state(model))
+    goal = q0.copy()
+    goal[0] += 0.5                                  # right shoulder pitch
+    goal[model.joint_names.index("RKN")] += 0.3
+    out = [q0, q0]
+    for k in range(40):                             # both groups get going
+        out.append(otg.update(goal, _state(model), Cycle(k * DT, DT)).copy())
+    assert not otg.at_rest
+    jerk[model.limb_slice("left-arm")] = 0.0
+    otg.trackers[1]._inp.max_jerk = jerk[model.limb_slice("left-arm")]
+    goal[6] += 0.2                                  # the left arm now has to move: ruckig fails
+    flags = []
+    for k in range(40, 400):
+        cycle = Cycle(k * DT, DT)
+        out.append(otg.update(goal, _state(model), cycle).copy())
+        flags.append("slowing" in cycle.flags)
+        if otg.at_rest:
+            break
+    assert otg.errors >= 1 and flags[0] and otg.at_rest
+    assert abs(out[-1][0] - goal[0]) > 0.05         # stopped short of the right arm's goal
+    assert_within_limits(model, np.array(out), DT)
+
+
+def test_teleop_pipeline_with_limbs_groups_keeps_to_the_limits_and_reverts(model):
+    """A pipeline with the generator split into limbs: a step keeps every limit without the
+    limiter, and an operator stop still reverts to the command of 0.5 s before and holds."""
+    profile = SafetyProfile(tracker_groups="limbs", tracker_sync="none", balance=False)
+    robot = ideal(model)
+    q0 = robot.read().q_rad.copy()
+    goal = q0.copy()
+    goal[:6] += [0.7, -0.5, 0.6, -0.8, 1.0, 0.5]
+    goal[6:12] += [0.3, 0.2, -0.2, -0.4, 0.0, 0.0]
+    modules = profile.build(model, DT, {"right-arm": "hand", "left-arm": "hand"})
+    assert find_module(modules, "otg").groups == "limbs"
+    stop_at = 1.0
+
+    def target(t, state):
+        return goal, ({"estop": "operator"} if abs(t - stop_at) < DT / 2 else {})
+
+    ControlLoop(robot, modules, target).run(duration_s=8.0)
+    commands = robot.commands(q0)
+    assert_within_limits(model, commands, DT)
+    assert find_module(modules, "limiter").clamped_periods == 0
+    k_stop = int(round(stop_at / DT)) + 2            # the two rest rows in front
+    k_back = k_stop - int(round(0.5 / DT))
+    near = np.abs(commands[k_back - 3:k_back + 4] - commands[-1]).max(axis=1)
+    assert near.min() < 1e-9                        # reverted to a command of 0.5 s before
+    assert np.abs(commands[-100:] - commands[-1]).max() < 1e-12   # and holding it
+    assert np.abs(commands[-1] - goal).max() > 0.1
+
+
+def test_whole_body_tracker_is_the_default(model):
+    otg = build_pipeline(model, ["otg", "limiter"])[0]
+    assert otg.groups == "body" and len(otg.trackers) == 1
+    limbs = dataclasses.replace(SafetyProfile(), tracker_groups="limbs")
+    assert limbs.options({})["otg"] == {"groups": "limbs", "synchronization": "phase"}
+
+
+def test_synchronize_unties_the_arms_joints_and_leaves_the_legs_phase_synchronised(model):
+    """After ``synchronize("none", groups=ARMS)`` an arm's short joint arrives well before its
+    long one, while the legs' joints still arrive together on a straight line."""
+    otg = TrajectoryGenerator(model, DT, groups="limbs")
+    otg.synchronize("none", groups=ARMS)
+    goal = home_posture(model)
+    goal[0] += 0.6                                  # RSP, long
+    goal[3] -= 0.06                                 # REB, short
+    hip, knee = model.joint_names.index("RHP"), model.joint_names.index("RKN")
+    goal[hip] -= 0.4
+    goal[knee] += 0.8
+    out = _run(otg, model, goal, 1200)
+    assert np.abs(out[-1] - goal).max() < 1e-9
+
+    def arrival(j):
+        return int(np.argmax(np.abs(out[:, j] - goal[j]) < 1e-9))
+
+    assert arrival(3) < 0.7 * arrival(0)
+    assert abs(arrival(hip) - arrival(knee)) <= 2
+    q0 = home_posture(model)
+    ratio = (out[20:, hip] - q0[hip]) / (out[20:, knee] - q0[knee])
+    assert np.all(np.abs(ratio + 0.5) < 1e-3)
+    with pytest.raises(ConfigError):
+        otg.synchronize("time")
