@@ -1,11 +1,12 @@
 """Closed-form IK against FK: all eight candidates, singular cases, mirror symmetry, choice."""
 
+import numba as nb
 import numpy as np
 import pytest
 
 from hubo_cli.kinematics import get_limb
 from hubo_cli.kinematics.choice import limb_candidates
-from hubo_cli.kinematics.dh import pose_error
+from hubo_cli.kinematics.dh import PARALLEL_MIN_ROWS, in_threads, pose_error
 
 LIMBS = ["right-arm", "left-arm", "right-leg", "left-leg"]
 MIRROR_SIGNS = {"arm": np.array([1, -1, -1, 1, -1, 1]), "leg": np.array([-1, -1, 1, 1, 1, -1])}
@@ -195,3 +196,15 @@ def test_fk_batch_equals_scalar(rng):
     limb = get_limb("left-arm", "hand")
     Q = limb.random_q(rng, 50)
     assert np.allclose(limb.fk_batch(Q), np.array([limb.fk(q) for q in Q]), atol=1e-15)
+
+
+@pytest.mark.parametrize("n", [0, 1, PARALLEL_MIN_ROWS * 2 - 1, 1000])
+def test_in_threads_runs_every_row_once(n):
+    """The batched kernels' row split: contiguous parts covering every row exactly once, one
+    part per numba thread (at most one per PARALLEL_MIN_ROWS rows)."""
+    runs = []
+    in_threads(n, lambda i0, i1: runs.append((i0, i1)))
+    runs.sort()
+    assert runs[0][0] == 0 and runs[-1][1] == n
+    assert all(a[1] == b[0] for a, b in zip(runs[:-1], runs[1:], strict=True))
+    assert len(runs) == max(1, min(nb.get_num_threads(), n // PARALLEL_MIN_ROWS))
