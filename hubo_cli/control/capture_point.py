@@ -74,7 +74,8 @@ def convex_hull(points: np.ndarray) -> np.ndarray:
         x, y = pts[i, 0], pts[i, 1]
         j = i - 1
         while j >= 0 and (pts[j, 0] > x or (pts[j, 0] == x and pts[j, 1] > y)):
-            pts[j + 1] = pts[j]
+            pts[j + 1, 0] = pts[j, 0]  # element by element: a row copy makes numba compile its
+            pts[j + 1, 1] = pts[j, 1]  # shape-mismatch error path (seconds on a cold cache)
             j -= 1
         pts[j + 1, 0] = x
         pts[j + 1, 1] = y
@@ -85,13 +86,15 @@ def convex_hull(points: np.ndarray) -> np.ndarray:
     for i in range(n):
         while k >= 2 and _cross(hull[k - 2], hull[k - 1], pts[i]) <= 0:
             k -= 1
-        hull[k] = pts[i]
+        hull[k, 0] = pts[i, 0]
+        hull[k, 1] = pts[i, 1]
         k += 1
     lower = k + 1
     for i in range(n - 2, -1, -1):
         while k >= lower and _cross(hull[k - 2], hull[k - 1], pts[i]) <= 0:
             k -= 1
-        hull[k] = pts[i]
+        hull[k, 0] = pts[i, 0]
+        hull[k, 1] = pts[i, 1]
         k += 1
     return hull[:k - 1].copy()
 

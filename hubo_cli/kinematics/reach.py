@@ -296,8 +296,9 @@ def nearest_on_branch(T_goal, chain, lower, upper, q_start, branch, margins, w_p
         if not accepted:
             break
         improvement = cost - cost_try
-        q_out[:] = q_try
-        e[:] = e_try
+        for j in range(6):  # element by element (no compiled shape-mismatch error path)
+            q_out[j] = q_try[j]
+            e[j] = e_try[j]
         cost = cost_try
         steps += 1
         if improvement < 1e-14:
