@@ -24,10 +24,32 @@ output itself is checked on its way to where it would stop, and it holds where i
 comes within ``BLOCK_M`` of the body (retrying when the input has moved, or after
 ``recover_s``).
 
+Skipping clear periods (a Lipschitz bound): a revolute joint turned by dq moves a point it
+carries by at most |dq| times the point's distance from the joint's origin, which is at most the
+sum of the joint offsets along the chain from that joint to the link plus the shape's offset and
+bounding radius, whatever the posture (triangle inequality). Turning the joints one after another
+from a checked posture q0 to q, a pair's distance thus falls by at most sum_j |q_j - q0_j| r_j,
+with r_j that reach for the one shape of the pair joint j carries (0 for a joint that carries
+both, as it moves them together; the legs count for the thighs). While the mode is ``safe``,
+a period whose input and braking posture both lie in a box around the last fully checked input
+q0 where every pair's bound stays ``SKIP_MARGIN_M`` (2 mm: far above coal's 1e-6 m GJK tolerance)
+beyond ``tolerance_m`` needs no check: no posture it would check can come within the tolerance,
+so it would not hold either. The first period whose box comes closer is checked exactly. Holds,
+recoveries and outputs are the same as with every period checked (``skip = False``); only the
+logged distances differ in a skipped period: they are the bound (a lower bound at the input and
+over the way to stop), never more clearance than there is. The distances of all pairs at q0 are
+taken (about one check's cost) only when the closest pair, moving as in that period, would stay
+beyond the band. Measured on the 2-core development machine: the default ``task cut-rectangle``
+skips 93 % of its 12,833 periods (the left arm stands; the right arm moves slowly), saving about
+1.2 s of its 23 s CPU; ``make bench``'s pipeline (hands on fast circles) skips 26 % and its
+collision module's mean falls from 159 to 143 us a period, while a checked period costs about
+9 us more (the bound and, now and then, the distances of all pairs).
+
 Logged: ``collision_distance_m`` is the closest pair at the posture this module passes on (what
 the robot is told: the number that must never be negative), ``collision_ahead_m`` the closest
 pair of the input where it is or would stop, whichever is closer (what starts a hold; it goes
-negative while the operator's goal lies inside the body and the arms hold).
+negative while the operator's goal lies inside the body and the arms hold). In a skipped period
+both are lower bounds (see above).
 """
 
 from __future__ import annotations
@@ -157,6 +179,7 @@ class SelfCollisionChecker:
         self._last_key: np.ndarray | None = None
         self._remembered: tuple[np.ndarray, float, int] | None = None  # key, distance, pair
         self._last_full = True  # the last check computed every pair in geom_data
+        self.last_pair = 0  # the index of the last check's closest pair
         self._legs_pair = np.array([moved_by_legs[p.first] or moved_by_legs[p.second]
                                     for p in geom.collisionPairs], dtype=bool)
         self.rate_m_rad = self._pair_rates()
@@ -239,6 +262,7 @@ class SelfCollisionChecker:
         if not still:  # the other joints move too: every pair in one pass
             self._remembered = None
             best = pin.computeDistances(pmodel, self.data, geom, self.geom_data, q)
+            self.last_pair = best
             return Clearance(float(self.geom_data.distanceResults[best].min_distance),
                              self.pair_names[best])
         pin.forwardKinematics(pmodel, self.data, q)
@@ -247,6 +271,7 @@ class SelfCollisionChecker:
                 or float(abs(key - self._remembered[0]).max()) > STILL_RAD):
             self._remembered = (key, *self._closest(others))
         closest = min(self._closest(legs), self._remembered[1:])  # ties: the first pair
+        self.last_pair = closest[1]
         return Clearance(closest[0], self.pair_names[closest[1]])
 
     def _closest(self, data: pin.GeometryData) -> tuple[float, int]:
@@ -294,6 +319,15 @@ def _lower_bound(q_in, ahead, q0, d0, rate):
         if far < best_box:
             best_box, pair_box = far, p
     return best_in, pair_in, best_box, pair_box
+
+
+@nb.njit(cache=True, nogil=True)
+def _lower_bound_of(rate, pair, distance_m, q0, q):
+    """The Lipschitz lower bound of one pair's distance at ``q`` from ``distance_m`` at ``q0``."""
+    bound = distance_m
+    for j in range(q0.shape[0]):
+        bound -= rate[pair, j] * abs(q[j] - q0[j])
+    return bound
 
 
 class CollisionDetector(Module):
@@ -348,6 +382,8 @@ class CollisionDetector(Module):
                      self.limits.jerk_rad_s3, *np.zeros((3, self.limits.size)))
         _lower_bound(*np.zeros((3, self.limits.size)), np.zeros(1),
                      np.zeros((1, self.limits.size)))
+        _lower_bound_of(np.zeros((1, self.limits.size)), 0, 0.0,
+                        *np.zeros((2, self.limits.size)))
 
     def _clear_state(self, q: np.ndarray) -> None:
         self.mode = "safe"
@@ -419,8 +455,14 @@ class CollisionDetector(Module):
         if clearance is None:
             self.checked_periods += 1
             at_input = self.checker.check(q_in)
-            if self.mode == "safe" and at_input.distance_m > band_m and self.skip:
-                self._anchor = (q_in, self.checker.pair_distances_m())
+            if self.mode == "safe" and self.skip:
+                # a bound from here can skip the next period only if, moving as in this one,
+                # the closest pair stays beyond the band: only then are the distances of all
+                # pairs (about as dear as one check) worth taking
+                self._anchor = None
+                if _lower_bound_of(self.checker.rate_m_rad, self.checker.last_pair,
+                                   at_input.distance_m, q_in, ahead) > band_m:
+                    self._anchor = (q_in, self.checker.pair_distances_m())
             clearance = min(self._closest_on_way(q_in, ahead), at_input,
                             key=lambda c: c.distance_m)
         self.ahead_clearance = clearance
