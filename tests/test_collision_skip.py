@@ -126,3 +126,10 @@ def test_skipping_does_not_delay_a_hold(model, drill):
         safe = sum(mode == "safe" for mode, _ in modes_always)
         assert skipping.skipped_periods > 0.2 * safe  # most clear periods skip
         assert (logged_skip <= logged_always + GJK_M).all()  # a bound: never more clearance
+
+
+def test_a_checker_without_pairs_skips_nothing(model):
+    """No pairs: no rates, and every check is clear (an infinite distance)."""
+    checker = SelfCollisionChecker(model, pairs=[])
+    assert checker.rate_m_rad.shape == (0, len(model.joint_names))
+    assert checker.check(home_posture(model)).distance_m == np.inf
