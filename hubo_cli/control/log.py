@@ -135,19 +135,15 @@ def _rotation_from_quat_wxyz(q) -> np.ndarray:
                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
-def _feet_values(state) -> tuple[float, ...]:
-    """The FEET_COLUMNS of a state: the ankles' F_z (N) and the contact flags (NaN unknown;
-    all NaN without a state)."""
-    if state is None:
-        return (math.nan,) * len(FEET_COLUMNS)
-    right, left = state.ft.get(FEET_SENSORS[0]), state.ft.get(FEET_SENSORS[1])
+def _feet_values(state) -> list[float]:
+    """The FEET_COLUMNS of a state: the ankles' F_z (N) and the contact flags (NaN unknown)."""
+    values = []
+    for sensor in FEET_SENSORS:
+        wrench = state.ft.get(sensor)
+        values.append(math.nan if wrench is None else float(wrench[2]))
     contact = state.feet_contact
-    if contact is None:
-        touch = (math.nan, math.nan)
-    else:
-        touch = (float(bool(contact[0])), float(bool(contact[1])))
-    return (math.nan if right is None else float(right[2]),
-            math.nan if left is None else float(left[2]), *touch)
+    values += [math.nan, math.nan] if contact is None else [float(bool(c)) for c in contact]
+    return values
 
 
 def _stacked_chains(hands, joints: int) -> tuple[np.ndarray, ...]:
@@ -199,15 +195,13 @@ class PeriodLog:
                         + tuple(f"cmd_{j}_rad" for j in joints)
                         + tuple(f"q_{j}_rad" for j in joints)
                         + pose_names + self.extra_columns)
-        # a record is stored in three parts (see write): the flags and the fixed numbers
-        # (packed), the joints and poses (float64, filled in place each period), the feet and
-        # the extras (packed)
+        # one record as float64, filled in place each period (see write)
+        self._record = np.zeros(len(self.columns), dtype="<f8")
         n = len(joints)
-        self._head = struct.Struct(f"<{len(FIXED_COLUMNS)}d")
-        self._at_joints = (0, n, 2 * n, 3 * n)
-        self._record = np.zeros(3 * n + 6 * (1 + len(self._hands)), dtype="<f8")
-        self._tail = struct.Struct(f"<{len(FEET_COLUMNS) + len(self.extra_columns)}d")
-        self._extra_nans = (math.nan,) * len(self.extra_columns)
+        self._at_joints = (len(FIXED_COLUMNS), len(FIXED_COLUMNS) + n,
+                           len(FIXED_COLUMNS) + 2 * n, len(FIXED_COLUMNS) + 3 * n)
+        self._at_feet = self._at_joints[3] + 6 * (1 + len(self._hands))
+        self._at_extras = self._at_feet + len(FEET_COLUMNS)
         self._hand_chains = _stacked_chains(self._hands.values(), n)
         self.metadata: dict = {}
         self.rows = 0
@@ -254,32 +248,33 @@ class PeriodLog:
         if flag_id is None:  # a new flags text: in log.flags before a record points to it
             flag_id = self._flag_ids[flag_text] = float(len(self._flag_ids))
             _write_all(self._flags_fd, (json.dumps(flag_text) + "\n").encode())
-        at = self._data_at + self.rows * self._record_bytes
-        if at + self._record_bytes > len(self._map):
-            self._map.resize(len(self._map) + _BLOCK_ROWS * self._record_bytes)
-        # numbers as float64 (struct and numpy convert them alike): the fixed ones packed, the
-        # joints, poses and feet filled in place in the record, the extras packed
-        self._head.pack_into(self._map, at, flag_id, period, t_s, status, compute_us, late_us)
+        # the record filled in place: numbers as numpy converts them (float64, as struct does)
         record = self._record
+        record[:6] = (flag_id, period, t_s, status, compute_us, late_us)
         a, b, c, d = self._at_joints
         record[a:b] = target_rad
         record[b:c] = cmd_rad
         record[c:d] = q_rad
         self._pose_record(q_rad, state)
-        at += self._head.size
-        self._map[at:at + record.nbytes] = record
-        self._tail.pack_into(self._map, at + record.nbytes, *_feet_values(state),
-                             *(map(extras.get, self.extra_columns, self._extra_nans)
-                               if extras else self._extra_nans))
+        if self.extra_columns:
+            if extras:
+                record[self._at_extras:] = [float(extras.get(c, math.nan))
+                                            for c in self.extra_columns]
+            else:
+                record[self._at_extras:] = math.nan
+        at = self._data_at + self.rows * self._record_bytes
+        if at + self._record_bytes > len(self._map):
+            self._map.resize(len(self._map) + _BLOCK_ROWS * self._record_bytes)
+        self._map[at:at + self._record_bytes] = record.tobytes()
         self.rows += 1
         self._map[_COUNT_AT:_HEAD_AT] = self.rows.to_bytes(8, "little")  # the record counts
 
     def _pose_record(self, q_rad, state) -> None:
-        """The record's torso and hand columns: their world poses (compiled,
-        :func:`~hubo_cli.control.log_kernels.pose_row`)."""
+        """The record's torso, hand and feet columns: the torso's and hands' world poses
+        (compiled, :func:`~hubo_cli.control.log_kernels.pose_row`), then the feet."""
         record, at = self._record, self._at_joints[3]
         if state is None:
-            record[at:] = math.nan
+            record[at:self._at_extras] = math.nan
             return
         T_world_torso = state.T_world_torso
         if T_world_torso is None:
@@ -288,6 +283,7 @@ class PeriodLog:
             T_world_torso[:3, 3] = math.nan
         pose_row(np.ascontiguousarray(T_world_torso, dtype=float),
                  np.ascontiguousarray(q_rad, dtype=float), *self._hand_chains, record, at)
+        record[self._at_feet:self._at_extras] = _feet_values(state)
 
     def set_metadata(self, key: str, value) -> None:
         """Record run metadata (JSON-able: numbers, strings, lists, dicts, numpy arrays) in the
