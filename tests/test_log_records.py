@@ -102,6 +102,31 @@ def test_the_csv_made_at_close_is_the_row_text(tmp_path):
     np.testing.assert_allclose(loaded["q_A_rad"], [r[8][0] for r in rows], rtol=1e-13)  # 15 digits
 
 
+def test_a_state_row_logs_its_feet_and_extras(tmp_path):
+    """With a state: the ankles' normal forces and the contact flags (NaN where the driver
+    has none), the extras it reported and NaN for the others."""
+    from hubo_cli.state import RobotState
+
+    q = np.array([0.1, -0.2, 0.3])
+    ft = {"right-ankle": np.array([1.0, 2.0, 301.25, 0.0, 0.0, 0.0])}
+    states = [RobotState(0.0, q, np.zeros(3), ft=ft, feet_contact=(True, np.False_)),
+              RobotState(0.005, q, np.zeros(3), ft={}, feet_contact=None)]
+    log = PeriodLog(tmp_path / LOG_NAME, JOINTS, EXTRAS)
+    log.write(0, 0.0, 0, 1.0, 0.0, set(), q, q, q, {"x_m": np.float64(0.25)}, state=states[0])
+    log.write(1, 0.005, 0, 1.0, 0.0, set(), q, q, q, None, state=states[1])
+    log.close()
+    data = load_log(tmp_path)
+    assert data["right_foot_fz_n"][0] == 301.25 and math.isnan(data["left_foot_fz_n"][0])
+    assert data["right_foot_contact_flag"][0] == 1.0 and data["left_foot_contact_flag"][0] == 0.0
+    assert data["x_m"][0] == 0.25 and math.isnan(data["y_count"][0])
+    second = [data[c][1] for c in ("right_foot_fz_n", "left_foot_fz_n",
+                                   "right_foot_contact_flag", "left_foot_contact_flag",
+                                   "x_m", "y_count")]
+    assert all(math.isnan(v) for v in second)
+    # no world position from this driver; the orientation is the IMU's (level)
+    assert np.isnan(data["torso_x_m"]).all() and (data["torso_roll_rad"] == 0.0).all()
+
+
 def test_the_records_grow_past_their_first_block(tmp_path):
     rows = _rows(9000)  # more than the file's first block of records
     _write(tmp_path, rows).close()

@@ -185,3 +185,37 @@ def test_synchronize_unties_the_arms_joints_and_leaves_the_legs_phase_synchronis
     assert np.all(np.abs(ratio + 0.5) < 1e-3)
     with pytest.raises(ConfigError):
         otg.synchronize("time")
+
+
+def test_preview_shows_the_way_track_takes_and_leaves_the_tracker_as_it_was(model):
+    """A tracker's preview toward a target is the path its ``track`` calls then follow (phase:
+    a straight joint-space line, none: the short joint arrives first), and previewing changes
+    nothing of the tracker: tracking afterwards gives the same samples as without it."""
+    otg = TrajectoryGenerator(model, DT, groups="limbs")
+    k = otg.group_names.index("right-arm")
+    tracker = otg.trackers[k]
+    q0 = home_posture(model)[model.limb_slice("right-arm")]
+    goal = q0.copy()
+    goal[0] += 0.6                                  # RSP, long
+    goal[3] -= 0.06                                 # REB, short
+    for sync in ("phase", "none"):
+        tracker.reset(q0)
+        for _ in range(30):                         # under way, not at rest
+            tracker.track(q0 + 0.5 * (goal - q0))
+        state = (tracker.q.copy(), tracker.v.copy(), tracker.a.copy())
+        path = tracker.preview(goal, sync, 9)
+        assert path.shape == (9, 6)
+        assert np.array_equal(path[0], state[0]) and np.abs(path[-1] - goal).max() < 1e-9
+        for before, after in zip(state, (tracker.q, tracker.v, tracker.a), strict=True):
+            assert np.array_equal(before, after)
+        tracker.set_synchronization(sync)
+        tracked = np.array([tracker.track(goal).copy() for _ in range(400)])
+        # the previewed points lie on the tracked path (within a period's motion)
+        step = np.abs(np.diff(tracked, axis=0)).max()
+        for point in path[1:-1]:
+            assert np.min(np.abs(tracked - point).max(axis=1)) <= step
+        share = (path[1:-1, [0, 3]] - path[0, [0, 3]]) / (goal - path[0])[[0, 3]]
+        spread = np.abs(share[:, 0] - share[:, 1]).max()   # RSP's and REB's share of the way
+        assert (spread < 0.05) if sync == "phase" else (spread > 0.2), (sync, spread)
+    with pytest.raises(ConfigError):
+        tracker.preview(goal, "time", 5)

@@ -10,7 +10,7 @@ from rich.console import Console
 from hubo_cli.cli.teleop import _direction, _reach_cell
 from hubo_cli.control.log import load_log
 from hubo_cli.kinematics import get_limb
-from hubo_cli.kinematics.arm_reach import ReachSettings
+from hubo_cli.kinematics.arm_reach import ArmReach, ReachSettings
 from hubo_cli.kinematics.conditioning import SingularityScale, condition_number
 from hubo_cli.kinematics.reach import branch_of, nearest_on_branch
 from hubo_cli.model import load_model
@@ -67,8 +67,8 @@ def test_a_walk_out_of_reach_stops_at_the_boundary_and_comes_back(tmp_path):
     The goal comes back into reach at about 75 mm/s. From the elbow's margin (0.1 rad from
     straight) the hand moves inward by 0.09 m x (cos 0.1 - cos theta4): starting from rest at
     0.8 rad/s^2, about 1 mm in the first 0.5 s, so the issue's "< 2 mm within 0.5 s" and
-    "excursion <= 15 mm" cannot hold for this walk within the joint limits (measured: 21 mm,
-    2.7 s; 85 mm if the arm's joints stayed unsynchronised while its command lags far behind):
+    "excursion <= 15 mm" cannot hold for this walk within the joint limits (measured: 23 mm,
+    2.7 s; 84 mm if the arm's joints stayed unsynchronised however far the hand swings):
     an ideal elbow starting at full acceleration as the goal passes the parked hand, with
     no jerk limit and no braking, is back within 2 mm no sooner than 1.9 s after the goal is
     reachable again (tools/reach_return_bound.py). The bounds below guard the measured
@@ -124,6 +124,30 @@ def test_a_walk_out_of_reach_stops_at_the_boundary_and_comes_back(tmp_path):
     arm_cols = [index.index(model.joint_names.index(j)) for n in ("right-arm", "left-arm")
                 for j in model.limb(n).joints]
     assert np.all(q_cmd[:, arm_cols] >= lower - 1e-9) and np.all(q_cmd[:, arm_cols] <= upper + 1e-9)
+
+
+
+def test_a_joint_a_hair_inside_its_margin_does_not_stop_the_nearest_pose_search():
+    """The right arm parked with its elbow 0.4 mrad inside the straight-elbow margin (where a
+    walk out of reach left it) and the goal coming back to 23 mm beyond reach: the search's step
+    pushes the elbow outward, the step clipped at the margin does not lower the cost, and the
+    search used to stop there (the hand stayed 85 mm from the goal, parked for seconds while the
+    goal came in). Holding the clipped joint, the other joints move: one call of the arm's
+    10 steps brings the hand within a few mm of the distance to the reachable set."""
+    limb = get_limb("right-arm", "hand")
+    q = np.array([-1.213955, -0.052615, 0.139303, -0.100536, 0.00121, 0.040255])
+    margin = ReachSettings().elbow_margin
+    assert 0.0 < abs(q[3]) - np.arcsin(margin) < 1e-3          # just inside the margin
+    T_goal = limb.fk(q)
+    T_goal[:3, 3] = [0.4487, -0.2490, -0.2279]                  # neck frame, m
+    beyond = _distance_to_reach(limb, [T_goal[:3, 3]], FREE_READY_ARM_RAD["right-arm"])[0]
+    assert 0.015 < beyond < 0.035
+    reach = ArmReach(limb)
+    reach.start(q)
+    result = reach.solve(T_goal, q)
+    assert result.status == "nearest"
+    assert result.position_error_m - beyond < 0.005, result.position_error_m
+    assert abs(np.sin(result.q_rad[3])) >= margin - 1e-9        # the elbow kept its margin
 
 
 @pytest.mark.parametrize("scaled", [True, False])
@@ -207,16 +231,19 @@ def test_collision_room_keeps_targets_out_of_the_band_and_slides_along_it():
 
 
 @pytest.mark.slow
-def test_the_two_hand_sample_keeps_up_with_the_operator(tmp_path):
-    """The shipped two-hand sample in free mode on the simulated robot: each arm on its own
-    trajectory generator (its joints unsynchronised while operating, the arms' jerk limit
-    40 rad/s^3 of the robot file's teleop limit set) keeps each hand within 7.5 mm RMS of the
-    operator's goal (measured 6.7-6.9 mm; 11.8 mm with one phase-synchronised tracker for the
-    body at 4 rad/s^3), and the goal passing 6 mm from the torso slides the arm along the
-    collision band instead of tripping a hold."""
+@pytest.mark.parametrize("sample", ["two-hand-free.csv", "two-hand-free.fastrak"])
+def test_the_two_hand_sample_keeps_up_with_the_operator(tmp_path, sample):
+    """The shipped two-hand sample (the pose log and the raw FASTRAK capture) in free mode on the
+    simulated robot: each arm on its own trajectory generator (its joints unsynchronised unless
+    that swings the hand off the straight line to the target, the arms' jerk limit 40 rad/s^3
+    of the robot file's teleop limit set) keeps each hand within 7.5 mm RMS of the operator's
+    goal and within 14 mm of the goal's path (measured 6.6-7.0 mm RMS, 12.7 mm max excursion;
+    11.8 mm RMS with one phase-synchronised tracker for the body at 4 rad/s^3; 15.5 mm
+    excursion on the capture with a switch on the joints' lag), and the goal passing 6 mm from
+    the torso slides the arm along the collision band instead of tripping a hold."""
     from hubo_cli.resources import data_file
 
-    run = run_teleop(TeleopSettings(replay=data_file("trajectories", "two-hand-free.csv"),
+    run = run_teleop(TeleopSettings(replay=data_file("trajectories", sample),
                                     out=tmp_path / "run"))
     s = run.summary
     assert s["ended"] == "done" and not s["estop_events"] and not s["collision_holds"]
@@ -224,7 +251,7 @@ def test_the_two_hand_sample_keeps_up_with_the_operator(tmp_path):
     for arm in ("right-arm", "left-arm"):
         report = s["reach"][arm]
         assert report["position_rms_mm"] <= 7.5, report
-        assert report["max_excursion_mm"] <= 15.0, report
+        assert report["max_excursion_mm"] <= 14.0, report
         assert report["branch_changes"] == 0
         assert 0.2 < report["collision_room_s"] < 5.0, report   # the room did the work
 

@@ -27,6 +27,7 @@ from ruckig import (
     Ruckig,
     RuckigError,
     Synchronization,
+    Trajectory,
 )
 
 from hubo_cli.control.limits import JointLimits
@@ -93,6 +94,7 @@ class JointTracker:
         self._mode = None
         self._synced = False  # ruckig's input holds q, v, a (no need to set them again)
         self._target_v_zero = False
+        self._preview = None  # ruckig, its input and a trajectory for preview()
 
     def reset(self, q_rad, v_rad_s=None, a_rad_s2=None) -> None:
         """Start from position ``q_rad`` with the given velocity and acceleration (default 0)."""
@@ -112,6 +114,36 @@ class JointTracker:
         self._sync = SYNCHRONIZATIONS[synchronization]
         if self._mode == "position":
             self._inp.synchronization = self._sync
+
+    def preview(self, target_rad: np.ndarray, synchronization: str, samples: int) -> np.ndarray:
+        """The positions ``track`` would pass through on its way to ``target_rad`` (a fixed
+        target, target velocity 0) from the current state with this synchronization, at
+        ``samples`` evenly spaced times from now to arrival (samples x n, rad). Nothing of the
+        tracker changes. On a ruckig error: the current position alone (1 x n)."""
+        if synchronization not in SYNCHRONIZATIONS:
+            raise ConfigError(f"unknown synchronization {synchronization!r}",
+                              hint=f"use one of {', '.join(SYNCHRONIZATIONS)}")
+        if self._preview is None:
+            n = self.limits.size
+            self._preview = (Ruckig(n), InputParameter(n), Trajectory(n))
+            _, inp, _ = self._preview
+            inp.max_velocity = self.limits.velocity_rad_s
+            inp.max_acceleration = self.limits.acceleration_rad_s2
+            inp.max_jerk = self.limits.jerk_rad_s3
+        otg, inp, trajectory = self._preview
+        inp.current_position = self.q
+        inp.current_velocity = self.v
+        inp.current_acceleration = self.a
+        inp.target_position = target_rad
+        inp.synchronization = SYNCHRONIZATIONS[synchronization]
+        try:
+            result = otg.calculate(inp, trajectory)
+        except (RuckigError, RuntimeError, ValueError, TypeError):
+            return self.q[None, :].copy()
+        if result not in (Result.Working, Result.Finished):
+            return self.q[None, :].copy()
+        times = np.linspace(0.0, trajectory.duration, max(int(samples), 2))
+        return np.array([trajectory.at_time(t)[0] for t in times])
 
     def _set_current(self) -> None:
         if self._synced:  # the last sample, passed on inside ruckig (the same numbers)

@@ -10,7 +10,9 @@ World
 
 Physics and control
     400 Hz physics (``physics_dt_s`` 2.5 ms), two steps per 5 ms control period, 30
-    constraint-solver iterations per step (``solver_iterations``). The physics step is what a
+    constraint-solver iterations per step (``solver_iterations``), all of them every step
+    (``solver_residual_threshold`` is PyBullet's 1e-7, which these settings never reach; an
+    early stop at 1e-3 or more changed the balance tests' outcomes). The physics step is what a
     period costs (docs/profile.md); these settings keep the standing, push and cutting motion of
     the former 1 kHz ones (``LEGACY_PHYSICS``, still selectable) within the limits that
     tests/test_sim_credibility.py checks. Joints are in position control (PyBullet motors:
@@ -228,6 +230,9 @@ class _Push:
 LEGACY_PHYSICS_DT_S = 0.001    # the former settings: 1 kHz, 5 steps per period
 LEGACY_POSITION_GAIN = 0.3     # fraction of a motor's position error removed per 1 ms step
 FAST_PHYSICS_DT_S = 0.0025     # the default: 400 Hz, 2 steps per period
+# PyBullet's own solverResidualThreshold ((m/s)^2, see SimOptions): never reached by these
+# settings, so every step runs all its solver iterations
+PYBULLET_RESIDUAL_THRESHOLD = 1e-7
 
 
 def position_gain_for(physics_dt_s: float) -> float:
@@ -240,10 +245,13 @@ def position_gain_for(physics_dt_s: float) -> float:
 # SimOptions values: the former 1 kHz physics (for comparisons: ``SimDriver(model,
 # **LEGACY_PHYSICS)``) and the default. 30 iterations per 2.5 ms step (60 per period, the former
 # 100; each costs about 6 us): with 20 the standing lean moves 0.1 deg away from the former
-# physics' within 2 s, with 30 0.08 deg (docs/profile.md).
+# physics' within 2 s, with 30 0.08 deg. Both keep PyBullet's residual threshold: a larger one
+# that saves time changes the balance tests' outcomes (docs/profile.md).
 LEGACY_PHYSICS = {"physics_dt_s": LEGACY_PHYSICS_DT_S, "solver_iterations": 20,
+                  "solver_residual_threshold": PYBULLET_RESIDUAL_THRESHOLD,
                   "position_gain": LEGACY_POSITION_GAIN, "sole_stiffness_n_m": None}
 FAST_PHYSICS = {"physics_dt_s": FAST_PHYSICS_DT_S, "solver_iterations": 30,
+                "solver_residual_threshold": PYBULLET_RESIDUAL_THRESHOLD,
                 "position_gain": position_gain_for(FAST_PHYSICS_DT_S),
                 "sole_stiffness_n_m": 1.0e6, "sole_damping_n_s_m": 1.0e4}
 
@@ -251,12 +259,18 @@ FAST_PHYSICS = {"physics_dt_s": FAST_PHYSICS_DT_S, "solver_iterations": 30,
 @dataclass
 class SimOptions:
     """Tunable settings of the simulation (SI units). The physics defaults are ``FAST_PHYSICS``;
-    ``LEGACY_PHYSICS`` holds the former 1 kHz ones."""
+    ``LEGACY_PHYSICS`` holds the former 1 kHz ones.
+
+    ``solver_residual_threshold`` ((m/s)^2; rad^2/s^2 for joint rows) is PyBullet's
+    ``solverResidualThreshold``: a step's constraint solver stops before ``solver_iterations``
+    once, in one iteration, the largest squared velocity correction of any constraint row
+    (contact, friction, joint motor) falls below it."""
 
     gui: bool = False
     drill: bool = False
     physics_dt_s: float = FAST_PHYSICS["physics_dt_s"]
     solver_iterations: int = FAST_PHYSICS["solver_iterations"]
+    solver_residual_threshold: float = FAST_PHYSICS["solver_residual_threshold"]
     position_gain: float = FAST_PHYSICS["position_gain"]
     sole_stiffness_n_m: float | None = FAST_PHYSICS["sole_stiffness_n_m"]
     sole_damping_n_s_m: float = FAST_PHYSICS["sole_damping_n_s_m"]
@@ -391,6 +405,7 @@ class SimDriver(Driver, SimulatedWorld):
         p.setGravity(0, 0, -9.81, physicsClientId=cid)
         p.setPhysicsEngineParameter(fixedTimeStep=self.options.physics_dt_s,
                                     numSolverIterations=self.options.solver_iterations,
+                                    solverResidualThreshold=self.options.solver_residual_threshold,
                                     physicsClientId=cid)
         plane = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=cid)
         floor_visual = p.createVisualShape(p.GEOM_BOX, halfExtents=[5, 5, 0.001],

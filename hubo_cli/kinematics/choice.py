@@ -211,8 +211,11 @@ def solve_limb_on_branch(T_goal, chain, lengths, lower, upper, q_prev, branch, m
     the branch, or no closer to its boundary than ``q_prev``; FK-verified; the one
     closest to ``q_prev`` if two qualify). Otherwise NEAREST: at most
     ``iterations`` damped least-squares steps from ``q_prev`` (within the limits) toward the pose
-    nearest to the goal on the branch, weighted by ``w_pos`` (1/m) and ``w_rot`` (m/rad).
+    nearest to the goal on the branch, weighted by ``w_pos`` (1/m) and ``w_rot`` (m/rad)
+    (:func:`hubo_cli.kinematics.reach.nearest_on_branch`).
     """
+    # numba's on-disk cache of this function holds nearest_on_branch compiled in and is checked
+    # against this file only: a change to the search must come with a change here
     base, base_inv, offset, alpha, a, d, end, end_inv = chain
     work = np.empty((4, 4, 4))
     T = work[3]

@@ -265,34 +265,49 @@ def nearest_on_branch(T_goal, chain, lower, upper, q_start, branch, margins, w_p
     for _ in range(iterations):
         for j in range(6):
             free[j] = True
-        for _pass in range(3):  # active set: a joint on a limit and pushed outward is fixed
-            _dls_step(J, e, free, w_pos, w_rot, dq)
-            changed = False
-            for j in range(6):
-                if free[j] and ((q_out[j] <= lo[j] and dq[j] < 0.0)
-                                or (q_out[j] >= hi[j] and dq[j] > 0.0)):
-                    free[j] = False
-                    changed = True
-            if not changed:
-                break
-        biggest = 0.0
-        for j in range(6):
-            if not free[j]:
-                dq[j] = 0.0
-            biggest = max(biggest, abs(dq[j]))
-        if biggest < 1e-12:
-            break
-        scale = min(1.0, MAX_STEP_RAD / biggest)
         accepted = False
-        for _halving in range(6):  # line search: lower cost and still on the branch
+        for _attempt in range(2):
+            for _pass in range(3):  # active set: a joint on a limit and pushed outward is fixed
+                _dls_step(J, e, free, w_pos, w_rot, dq)
+                changed = False
+                for j in range(6):
+                    if free[j] and ((q_out[j] <= lo[j] and dq[j] < 0.0)
+                                    or (q_out[j] >= hi[j] and dq[j] > 0.0)):
+                        free[j] = False
+                        changed = True
+                if not changed:
+                    break
+            biggest = 0.0
             for j in range(6):
-                q_try[j] = min(max(q_out[j] + scale * dq[j], lo[j]), hi[j])
-            jacobian(q_try, base, offset, alpha, a, d, end, T, J)
-            cost_try = _cost(T, T_goal, w_pos, w_rot, e_try)
-            if cost_try < cost:
-                accepted = True
+                if not free[j]:
+                    dq[j] = 0.0
+                biggest = max(biggest, abs(dq[j]))
+            if biggest < 1e-12:
                 break
-            scale *= 0.5
+            first = min(1.0, MAX_STEP_RAD / biggest)
+            scale = first
+            for _halving in range(6):  # line search: lower cost and still on the branch
+                for j in range(6):
+                    q_try[j] = min(max(q_out[j] + scale * dq[j], lo[j]), hi[j])
+                jacobian(q_try, base, offset, alpha, a, d, end, T, J)
+                cost_try = _cost(T, T_goal, w_pos, w_rot, e_try)
+                if cost_try < cost:
+                    accepted = True
+                    break
+                scale *= 0.5
+            if accepted:
+                break
+            # the step clipped at a bound short of it does not descend (a joint just inside
+            # its limit or margin, pushed outward): hold those joints and step with the others
+            pinned = False
+            for j in range(6):
+                if free[j] and (q_out[j] + first * dq[j] > hi[j]
+                                or q_out[j] + first * dq[j] < lo[j]):
+                    free[j] = False
+                    pinned = True
+            if not pinned:
+                break
+            jacobian(q_out, base, offset, alpha, a, d, end, T, J)
         if not accepted:
             break
         improvement = cost - cost_try

@@ -10,6 +10,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from hubo_cli.plots import save_figure  # noqa: E402
+
 AXES = {"x": 0, "y": 1, "z": 2}
 
 
@@ -64,10 +66,7 @@ def plot_path_comparison(commanded_m: np.ndarray, actual_m: np.ndarray, path: st
     ax.set_title(heading)
     ax.legend(loc="best", fontsize=9)
     fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def plot_signals(t_s: np.ndarray, signals: dict[str, np.ndarray], path: str | Path, *,
@@ -85,7 +84,4 @@ def plot_signals(t_s: np.ndarray, signals: dict[str, np.ndarray], path: str | Pa
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best", fontsize=9)
     fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)

@@ -10,6 +10,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from hubo_cli.plots import save_figure  # noqa: E402
+
 EDGE_COLOURS = {1: ("#c6dbef", "horizontal edge"), 2: ("#fdd0a2", "vertical edge")}
 
 
@@ -48,7 +50,4 @@ def plot_wrist_torque(log, path: str | Path, *, limit_nm: float, title: str = ""
     ax.grid(True, alpha=0.3)
     ax.legend(loc="upper left", fontsize=8, ncol=3, framealpha=0.9)
     fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)

@@ -25,9 +25,12 @@ Near singular configurations the arm's joint speeds are scaled down
 as out of reach too: an arm target keeps ``collision_room_m`` from the body and slides along it
 (:mod:`hubo_cli.teleop.room`), so a goal brushing past the torso does not trip a collision hold.
 While operating, each arm's joints are timed by the trajectory generator's own tracker for that
-arm (the session builds ``otg`` with a tracker per limb), unsynchronised while the command is
-within ``SYNC_LAG_RAD`` of the target, so a hand waits neither for the legs nor for its own
-slowest joint; further behind, the arm's joints keep the straight joint-space line.
+arm (the session builds ``otg`` with a tracker per limb), so a hand does not wait for the legs.
+Each period the arm's joints go unsynchronised (each joint time-optimal: the hand keeps up
+best) unless that way to the current target would carry the hand more than ``SWING_M`` off the
+straight line from its commanded position to the target's (the ruckig trajectory, previewed
+and put through the arm's forward kinematics); then they keep the straight joint-space line
+(phase synchronisation).
 
 Goals live in the stance frame S (the home neck frame, fixed to the ground). The actual
 end-effector pose is what the robot measures, as on the paper's robot: FK of the measured arm
@@ -49,7 +52,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hubo_cli.control.otg import TrajectoryGenerator
+from hubo_cli.control.otg import JointTracker, TrajectoryGenerator
 from hubo_cli.control.target import Target
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.fastrak.source import PoseSource
@@ -72,15 +75,18 @@ REST_RADIUS_M = 0.005  # a goal that stays within this for REST_S is at rest
 REST_S = 0.5
 EXCURSION_WINDOW_S = 1.0  # max_excursion_mm: nearest goal sample within +-this
 # while operating, each arm joint of the trajectory generator tracks its target on its own
-# (ruckig without synchronisation: on the two-hand sample 6.7 / 6.9 mm RMS against 8.0 / 8.2 mm
-# with phase-synchronised arms), unless the arm's command lags its target by more than
-# SYNC_LAG_RAD on some joint: then the joints keep the straight line in joint space (phase), as
-# they do in the approach's joint-space moves. Unsynchronised across a large gap the joints
-# arrive one by one and the hand swings off (85 mm beyond the goal's distance to the reachable
-# set where a stretched arm comes back, 21 mm with the switch; drill mode's first move would
-# swing the drill into the torso); the two-hand sample's lag stays below it.
+# (ruckig without synchronisation: on the two-hand sample 6.8 / 6.9 mm RMS against 8.0 / 8.2 mm
+# with phase-synchronised arms), unless the hand would swing more than SWING_M off the straight
+# line to the target on the way there: then the joints keep the straight line in joint space
+# (phase), as they do in the approach's joint-space moves. Unsynchronised across a large gap the
+# joints arrive one by one and the hand swings off (84 mm beyond the goal's distance to the
+# reachable set where a stretched arm comes back, 23 mm with the rule; drill mode's first move
+# would swing the drill into the torso), and a lagging hand whose goal speeds up dips below the
+# goal's path (two-hand-free.fastrak: 15.5 mm max excursion with a rule on the joints' lag
+# alone, phase beyond 0.15 rad; 12.7 mm with this one).
 OPERATE_SYNCHRONIZATION = "none"
-SYNC_LAG_RAD = 0.15
+SWING_M = 0.003
+SWING_SAMPLES = 8  # points of the previewed way the swing is measured at (ends included)
 
 
 @dataclass
@@ -305,15 +311,34 @@ class TeleopTarget(Target):
         return self.q_out, info
 
     def _pace_arms(self) -> None:
-        """Each arm's tracker: unsynchronised while its command is near the target, phase
-        synchronised (the straight joint-space line) when it lags further behind."""
+        """Each arm's tracker: unsynchronised unless that way to the target swings the hand more
+        than ``SWING_M`` off the straight line to it, phase synchronised then."""
         if self._otg is None:
             return
         for arm in self.arms:
-            k = self._otg.group_names.index(arm)
-            lag = float(np.max(np.abs(self.q_out[self.slices[arm]] - self._otg.trackers[k].q)))
-            self._otg.synchronize(OPERATE_SYNCHRONIZATION if lag <= SYNC_LAG_RAD else "phase",
-                                  groups=(arm,))
+            tracker = self._otg.trackers[self._otg.group_names.index(arm)]
+            target = self.q_out[self.slices[arm]]
+            sync = OPERATE_SYNCHRONIZATION
+            if self.swing_m(arm, tracker, target) > SWING_M:
+                sync = "phase"
+            self._otg.synchronize(sync, groups=(arm,))
+
+    def swing_m(self, arm: str, tracker: JointTracker, target_rad: np.ndarray) -> float:
+        """How far (m) the hand strays from the straight line between its commanded position and
+        the target's on the tracker's unsynchronised way to ``target_rad`` (arm joints, rad)."""
+        if np.max(np.abs(target_rad - tracker.q)) < 1e-6:
+            return 0.0
+        limb = self.body.arms[arm]
+        path = tracker.preview(target_rad, OPERATE_SYNCHRONIZATION, SWING_SAMPLES)
+        p0 = limb.fk(tracker.q)[:3, 3]
+        line = limb.fk(target_rad)[:3, 3] - p0
+        length2 = float(line @ line)
+        worst = 0.0
+        for q in path[1:-1]:
+            p = limb.fk(q)[:3, 3] - p0
+            along = 0.0 if length2 < 1e-18 else min(1.0, max(0.0, float(p @ line) / length2))
+            worst = max(worst, float(np.linalg.norm(p - along * line)))
+        return worst
 
     def _settled(self, state) -> bool:
         # against the output; a target set this period has none yet: against the target
