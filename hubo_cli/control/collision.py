@@ -180,10 +180,15 @@ class SelfCollisionChecker:
         self._last_key: np.ndarray | None = None
         self._remembered: tuple[np.ndarray, float, int] | None = None  # key, distance, pair
         self._last_full = True  # the last check computed every pair in geom_data
-        self.last_pair = 0  # the index of the last check's closest pair
         self._legs_pair = np.array([moved_by_legs[p.first] or moved_by_legs[p.second]
                                     for p in geom.collisionPairs], dtype=bool)
         self.rate_m_rad = self._pair_rates()
+        # check_near's bounds: each pair's last computed distance and the joints it was
+        # computed at (-inf: none yet)
+        self.anchor_q = np.zeros((len(self.pair_names), len(self.robot.q_index)))
+        self.anchor_m = np.full(len(self.pair_names), -np.inf)
+        self._bounds_m = np.empty(len(self.pair_names))
+        self._near_data = pin.GeometryData(geom)
         # the others' distances are taken at joints up to STILL_RAD away from the check's
         self._still_slack_m = np.where(self._legs_pair, 0.0,
                                        STILL_RAD * self.rate_m_rad.sum(axis=1))
@@ -263,7 +268,6 @@ class SelfCollisionChecker:
         if not still:  # the other joints move too: every pair in one pass
             self._remembered = None
             best = pin.computeDistances(pmodel, self.data, geom, self.geom_data, q)
-            self.last_pair = best
             return Clearance(float(self.geom_data.distanceResults[best].min_distance),
                              self.pair_names[best])
         pin.forwardKinematics(pmodel, self.data, q)
@@ -272,8 +276,28 @@ class SelfCollisionChecker:
                 or float(abs(key - self._remembered[0]).max()) > STILL_RAD):
             self._remembered = (key, *self._closest(others))
         closest = min(self._closest(legs), self._remembered[1:])  # ties: the first pair
-        self.last_pair = closest[1]
         return Clearance(closest[0], self.pair_names[closest[1]])
+
+    def check_near(self, q_rad: np.ndarray, band_m: float) -> Clearance:
+        """:meth:`check` computing only the pairs whose Lipschitz lower bound at ``q_rad`` (from
+        their last distance here) comes within ``band_m``; the others report their bound. So
+        the result equals the exact closest pair's where that is at most ``band_m`` and
+        exceeds ``band_m`` (a lower bound of it) otherwise."""
+        if not self.pair_names:
+            return Clearance(np.inf, ("", ""))
+        bounds = _pair_bounds(q_rad, self.anchor_q, self.anchor_m, self.rate_m_rad,
+                              self._bounds_m)
+        near = np.flatnonzero(bounds <= band_m)
+        if near.size:
+            pmodel, geom, data = self.robot.model, self.geom, self._near_data
+            pin.forwardKinematics(pmodel, self.data, self.robot.configuration(q_rad, out=self._q))
+            pin.updateGeometryPlacements(pmodel, self.data, geom, data)
+            for p in near:
+                bounds[p] = pin.computeDistance(geom, data, int(p)).min_distance
+            self.anchor_q[near] = q_rad
+            self.anchor_m[near] = bounds[near]
+        best = int(bounds.argmin())
+        return Clearance(float(bounds[best]), self.pair_names[best])
 
     def _closest(self, data: pin.GeometryData) -> tuple[float, int]:
         """(distance, pair index) of the closest active pair of ``data`` at the placements of
@@ -304,17 +328,18 @@ def _input_ahead(q_rad, last_in, w_last, dt_s, lower, upper, amax, jmax, q_in, w
 @nb.njit(cache=True, nogil=True)
 def _lower_bound(q_in, ahead, q0, d0, rate):
     """The smallest Lipschitz lower bound of the pairs' distances (m) at ``q_in`` and over the
-    box of postures whose every joint lies within its larger offset from ``q0`` at ``q_in`` or
-    ``ahead`` (which holds the way from one to the other), from the distances ``d0`` at ``q0``
-    and the rates of :meth:`SelfCollisionChecker._pair_rates`: (at_input, pair, box, pair)."""
+    box of postures whose every joint lies within its larger offset from pair p's ``q0[p]`` at
+    ``q_in`` or ``ahead`` (which holds the way from one to the other), from the distances
+    ``d0[p]`` at ``q0[p]`` and the rates of :meth:`SelfCollisionChecker._pair_rates`:
+    (at_input, pair, box, pair)."""
     best_in, pair_in, best_box, pair_box = np.inf, 0, np.inf, 0
     for p in range(d0.shape[0]):
         near, far = d0[p], d0[p]
-        for j in range(q0.shape[0]):
+        for j in range(q_in.shape[0]):
             if rate[p, j] > 0.0:
-                a = abs(q_in[j] - q0[j])
+                a = abs(q_in[j] - q0[p, j])
                 near -= rate[p, j] * a
-                far -= rate[p, j] * max(a, abs(ahead[j] - q0[j]))
+                far -= rate[p, j] * max(a, abs(ahead[j] - q0[p, j]))
         if near < best_in:
             best_in, pair_in = near, p
         if far < best_box:
@@ -323,12 +348,16 @@ def _lower_bound(q_in, ahead, q0, d0, rate):
 
 
 @nb.njit(cache=True, nogil=True)
-def _lower_bound_of(rate, pair, distance_m, q0, q):
-    """The Lipschitz lower bound of one pair's distance at ``q`` from ``distance_m`` at ``q0``."""
-    bound = distance_m
-    for j in range(q0.shape[0]):
-        bound -= rate[pair, j] * abs(q[j] - q0[j])
-    return bound
+def _pair_bounds(q, q0, d0, rate, out):
+    """Each pair's Lipschitz lower bound at ``q`` from its distance ``d0[p]`` at ``q0[p]``,
+    written to ``out`` (m)."""
+    for p in range(d0.shape[0]):
+        bound = d0[p]
+        for j in range(q.shape[0]):
+            if rate[p, j] > 0.0:
+                bound -= rate[p, j] * abs(q[j] - q0[p, j])
+        out[p] = bound
+    return out
 
 
 class CollisionDetector(Module):
@@ -367,12 +396,12 @@ class CollisionDetector(Module):
             joints = model.limb("right-arm").joints + model.limb("left-arm").joints
         self.index = np.array([model.joint_names.index(j) for j in joints], dtype=int)
         self.checker = SelfCollisionChecker(model, drill=drill)
-        # the Lipschitz skip (False: every period checked, for comparison; no pairs: nothing
-        # to skip)
+        # the Lipschitz skip (False: every period and every pair checked, for comparison; no
+        # pairs: nothing to skip)
         self.skip = bool(self.checker.pair_names)
+        self.band_m = max(self.tolerance_m, self.block_m) + SKIP_MARGIN_M
         self.skipped_periods = 0
         self.checked_periods = 0
-        self._anchor: tuple[np.ndarray, np.ndarray] | None = None  # q0, each pair's distance
         self.tracker = JointTracker(self.limits.subset(self.index), self.dt_s)
         self.events: list[SafetyEvent] = []
         self.last_clearance: Clearance | None = None
@@ -383,10 +412,10 @@ class CollisionDetector(Module):
         _input_ahead(*np.zeros((3, self.limits.size)), self.dt_s, self.limits.lower_rad,
                      self.limits.upper_rad, self.limits.acceleration_rad_s2,
                      self.limits.jerk_rad_s3, *np.zeros((3, self.limits.size)))
-        _lower_bound(*np.zeros((3, self.limits.size)), np.zeros(1),
-                     np.zeros((1, self.limits.size)))
-        _lower_bound_of(np.zeros((1, self.limits.size)), 0, 0.0,
-                        *np.zeros((2, self.limits.size)))
+        _lower_bound(*np.zeros((2, self.limits.size)), np.zeros((1, self.limits.size)),
+                     np.zeros(1), np.zeros((1, self.limits.size)))
+        _pair_bounds(np.zeros(self.limits.size), np.zeros((1, self.limits.size)), np.zeros(1),
+                     np.zeros((1, self.limits.size)), np.zeros(1))
 
     def _clear_state(self, q: np.ndarray) -> None:
         self.mode = "safe"
@@ -425,6 +454,12 @@ class CollisionDetector(Module):
         a = (q - 2 * q1 + q2) / self.dt_s**2
         return self.limits.clip(q + braking_distance(v, a, self.limits))
 
+    def _check(self, q: np.ndarray) -> Clearance:
+        """The closest pair at ``q``: exact, or beyond the band when skipping (see check_near)."""
+        if self.skip:
+            return self.checker.check_near(q, self.band_m)
+        return self.checker.check(q)
+
     def _closest_on_way(self, q: np.ndarray, stop: np.ndarray) -> Clearance:
         """The closest pair along the way from ``q`` to its stopping posture ``stop`` (sampled
         every ``SAMPLE_RAD`` of the largest joint's travel, so a thin part of the body between
@@ -432,7 +467,7 @@ class CollisionDetector(Module):
         n = min(MAX_SAMPLES, max(1, math.ceil(float(abs(stop - q).max()) / SAMPLE_RAD)))
         closest = None
         for k in range(1, n + 1):
-            clearance = self.checker.check(q + (stop - q) * (k / n))
+            clearance = self._check(q + (stop - q) * (k / n))
             if closest is None or clearance.distance_m < closest.distance_m:
                 closest = clearance
         return closest
@@ -446,26 +481,18 @@ class CollisionDetector(Module):
         self.last_in = q_in
         self._w_last = w_in
         at_input = clearance = None
-        band_m = self.tolerance_m + SKIP_MARGIN_M
-        if self.mode == "safe" and self._anchor is not None and self.skip:
-            near_m, near, far_m, far = _lower_bound(q_in, ahead, *self._anchor,
+        if self.mode == "safe" and self.skip:
+            near_m, near, far_m, far = _lower_bound(q_in, ahead, self.checker.anchor_q,
+                                                    self.checker.anchor_m,
                                                     self.checker.rate_m_rad)
-            if far_m > band_m:  # no posture checked this period can come within tolerance
+            if far_m > self.band_m:  # no posture checked this period can come within the band
                 names = self.checker.pair_names
                 at_input = Clearance(near_m, names[near])
                 clearance = Clearance(far_m, names[far])
                 self.skipped_periods += 1
         if clearance is None:
             self.checked_periods += 1
-            at_input = self.checker.check(q_in)
-            if self.mode == "safe" and self.skip:
-                # a bound from here can skip the next period only if, moving as in this one,
-                # the closest pair stays beyond the band: only then are the distances of all
-                # pairs (about as dear as one check) worth taking
-                self._anchor = None
-                if _lower_bound_of(self.checker.rate_m_rad, self.checker.last_pair,
-                                   at_input.distance_m, q_in, ahead) > band_m:
-                    self._anchor = (q_in, self.checker.pair_distances_m())
+            at_input = self._check(q_in)
             clearance = min(self._closest_on_way(q_in, ahead), at_input,
                             key=lambda c: c.distance_m)
         self.ahead_clearance = clearance
@@ -511,7 +538,7 @@ class CollisionDetector(Module):
                 self.mode = "safe"
                 self.safe_rad = q_in
         passed_on = self.mode == "safe" or np.array_equal(out, q_in)  # safe: out is q_in
-        self.last_clearance = at_input if passed_on else self.checker.check(out)
+        self.last_clearance = at_input if passed_on else self._check(out)
         cycle.info["collision_distance_m"] = self.last_clearance.distance_m
         self.out3, self.out2, self.out1 = self.out2, self.out1, out
         return out
