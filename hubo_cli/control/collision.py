@@ -188,7 +188,13 @@ class SelfCollisionChecker:
         self.anchor_q = np.zeros((len(self.pair_names), len(self.robot.q_index)))
         self.anchor_m = np.full(len(self.pair_names), -np.inf)
         self._bounds_m = np.empty(len(self.pair_names))
+        self._near = np.zeros(len(self.pair_names), dtype=bool)  # the active pairs of:
         self._near_data = pin.GeometryData(geom)
+        self._near_data.deactivateAllCollisionPairs()
+        # live references into the results (the vector never resizes): five times as fast to
+        # read as through distanceResults
+        self._near_results = list(self._near_data.distanceResults)
+        self._listed = np.zeros(2 * len(self.pair_names), dtype=np.int64)
         # the others' distances are taken at joints up to STILL_RAD away from the check's
         self._still_slack_m = np.where(self._legs_pair, 0.0,
                                        STILL_RAD * self.rate_m_rad.sum(axis=1))
@@ -285,18 +291,18 @@ class SelfCollisionChecker:
         exceeds ``band_m`` (a lower bound of it) otherwise."""
         if not self.pair_names:
             return Clearance(np.inf, ("", ""))
-        bounds = _pair_bounds(q_rad, self.anchor_q, self.anchor_m, self.rate_m_rad,
-                              self._bounds_m)
-        near = np.flatnonzero(bounds <= band_m)
-        if near.size:
-            pmodel, geom, data = self.robot.model, self.geom, self._near_data
-            pin.forwardKinematics(pmodel, self.data, self.robot.configuration(q_rad, out=self._q))
-            pin.updateGeometryPlacements(pmodel, self.data, geom, data)
-            for p in near:
-                bounds[p] = pin.computeDistance(geom, data, int(p)).min_distance
-            self.anchor_q[near] = q_rad
-            self.anchor_m[near] = bounds[near]
-        best = int(bounds.argmin())
+        bounds, near, listed, data = self._bounds_m, self._near, self._listed, self._near_data
+        n_changed, n_near, best = _pair_bounds(q_rad, self.anchor_q, self.anchor_m,
+                                               self.rate_m_rad, band_m, bounds, near, listed)
+        for p in listed[:n_changed]:  # the near pairs are the active ones of data
+            (data.activateCollisionPair if near[p] else data.deactivateCollisionPair)(int(p))
+        if n_near:
+            pin.computeDistances(self.robot.model, self.data, self.geom, data,
+                                 self.robot.configuration(q_rad, out=self._q))
+            pairs = listed[n_changed:n_changed + n_near]
+            for p in pairs:
+                bounds[p] = self._near_results[p].min_distance
+            best = _take_near(q_rad, pairs, bounds, self.anchor_q, self.anchor_m)
         return Clearance(float(bounds[best]), self.pair_names[best])
 
     def _closest(self, data: pin.GeometryData) -> tuple[float, int]:
@@ -348,16 +354,44 @@ def _lower_bound(q_in, ahead, q0, d0, rate):
 
 
 @nb.njit(cache=True, nogil=True)
-def _pair_bounds(q, q0, d0, rate, out):
-    """Each pair's Lipschitz lower bound at ``q`` from its distance ``d0[p]`` at ``q0[p]``,
-    written to ``out`` (m)."""
+def _pair_bounds(q, q0, d0, rate, band_m, bounds, near, changed):
+    """Each pair's Lipschitz lower bound at ``q`` from its distance ``d0[p]`` at ``q0[p]``
+    (m, to ``bounds``); ``near`` set to the pairs whose bound is at most ``band_m``, the pairs
+    whose entry that changed listed in ``changed``. Returns (how many changed, the near pairs
+    listed after them, the pair of the smallest bound)."""
+    n_changed, best = 0, 0
     for p in range(d0.shape[0]):
         bound = d0[p]
         for j in range(q.shape[0]):
             if rate[p, j] > 0.0:
                 bound -= rate[p, j] * abs(q[j] - q0[p, j])
-        out[p] = bound
-    return out
+        bounds[p] = bound
+        if bound < bounds[best]:
+            best = p
+        if (bound <= band_m) != near[p]:
+            near[p] = bound <= band_m
+            changed[n_changed] = p
+            n_changed += 1
+    n_near = 0
+    for p in range(d0.shape[0]):
+        if near[p]:
+            changed[n_changed + n_near] = p
+            n_near += 1
+    return n_changed, n_near, best
+
+
+@nb.njit(cache=True, nogil=True)
+def _take_near(q, pairs, bounds, q0, d0):
+    """The near ``pairs``' distances (in ``bounds``) become their anchors at ``q``; returns the
+    pair of the smallest entry of ``bounds``."""
+    for p in pairs:
+        q0[p, :] = q
+        d0[p] = bounds[p]
+    best = 0
+    for p in range(bounds.shape[0]):
+        if bounds[p] < bounds[best]:
+            best = p
+    return best
 
 
 class CollisionDetector(Module):
@@ -415,7 +449,10 @@ class CollisionDetector(Module):
         _lower_bound(*np.zeros((2, self.limits.size)), np.zeros((1, self.limits.size)),
                      np.zeros(1), np.zeros((1, self.limits.size)))
         _pair_bounds(np.zeros(self.limits.size), np.zeros((1, self.limits.size)), np.zeros(1),
-                     np.zeros((1, self.limits.size)), np.zeros(1))
+                     np.zeros((1, self.limits.size)), 0.0, np.zeros(1), np.zeros(1, dtype=bool),
+                     np.zeros(2, dtype=np.int64))
+        _take_near(np.zeros(self.limits.size), np.zeros(1, dtype=np.int64), np.zeros(1),
+                   np.zeros((1, self.limits.size)), np.zeros(1))
 
     def _clear_state(self, q: np.ndarray) -> None:
         self.mode = "safe"
