@@ -70,6 +70,45 @@ def test_the_lipschitz_bound_never_exceeds_the_exact_distance(model, drill):
     assert tightest_m < 0.05  # the samples came near the bound somewhere
 
 
+@pytest.mark.parametrize("drill", [False, True])
+def test_check_near_is_exact_within_the_band_and_a_lower_bound_beyond(model, drill):
+    """Straight moves between random postures (in and out of the body; 30 steps each, one
+    arm or every joint): check_near, which computes only the pairs whose bound from their own
+    last distance comes within the band, reports the exact closest pair wherever that is
+    within the band, and beyond it a value above the band and never above the exact one;
+    each pair's stored distance stays exact at its stored posture, and bounds every later
+    posture's exact distance. It computes few of the pairs."""
+    rng = np.random.default_rng(5 + drill)
+    lower, upper = model.lower_rad, model.upper_rad
+    right = np.zeros(len(lower), dtype=bool)
+    right[model.limb_slice("right-arm")] = True
+    near = SelfCollisionChecker(model, drill=drill)
+    exact = SelfCollisionChecker(model, drill=drill)
+    band_m = 0.012
+    a = home_posture(model)
+    within = beyond = computed = 0
+    for k in range(24):
+        b = np.where(right if k % 2 else True, rng.uniform(lower, upper), a)
+        for q in a + np.linspace(0.0, 1.0, 31)[1:, None] * (b - a):
+            got, want = near.check_near(q, band_m), exact.check(q)
+            computed += int((near.anchor_q == q).all(axis=1).sum())
+            if want.distance_m <= band_m:
+                within += 1
+                assert abs(got.distance_m - want.distance_m) <= GJK_M, k
+            else:
+                beyond += 1
+                assert band_m < got.distance_m <= want.distance_m + GJK_M, k
+            bound = near.anchor_m - np.einsum("pj,pj->p", near.rate_m_rad,
+                                              np.abs(q - near.anchor_q))
+            assert (exact.pair_distances_m() >= bound - GJK_M).all(), k
+        a = b
+    assert within > 100 and beyond > 100  # both sides of the band were walked
+    assert computed < 0.4 * 24 * 30 * len(near.pair_names)  # most pairs only bounded
+    for p, q0 in enumerate(near.anchor_q):  # the stored distances are the exact ones
+        exact.check(q0)
+        assert abs(exact.pair_distances_m()[p] - near.anchor_m[p]) <= GJK_M, p
+
+
 def _smooth(a, b, n):
     s = 0.5 - 0.5 * np.cos(np.linspace(0.0, np.pi, n))
     return a + s[:, None] * (b - a)

@@ -24,27 +24,30 @@ output itself is checked on its way to where it would stop, and it holds where i
 comes within ``BLOCK_M`` of the body (retrying when the input has moved, or after
 ``recover_s``).
 
-Skipping clear periods (a Lipschitz bound): a revolute joint turned by dq moves a point it
-carries by at most |dq| times the point's distance from the joint's origin, which is at most the
-sum of the joint offsets along the chain from that joint to the link plus the shape's offset and
-bounding radius, whatever the posture (triangle inequality). Turning the joints one after another
-from a checked posture q0 to q, a pair's distance thus falls by at most sum_j |q_j - q0_j| r_j,
-with r_j that reach for the one shape of the pair joint j carries (0 for a joint that carries
-both, as it moves them together; the legs count for the thighs). While the mode is ``safe``,
-a period whose input and braking posture both lie in a box around the last fully checked input
-q0 where every pair's bound stays ``SKIP_MARGIN_M`` (2 mm: far above coal's 1e-6 m GJK tolerance)
-beyond ``tolerance_m`` needs no check: no posture it would check can come within the tolerance,
-so it would not hold either. The first period whose box comes closer is checked exactly. Holds,
-recoveries and outputs are the same as with every period checked (``skip = False``); only the
-logged distances differ in a skipped period: they are the bound (a lower bound at the input and
-over the way to stop), never more clearance than there is. The distances of all pairs at q0 are
-taken (about one check's cost) only when the closest pair, moving as in that period, would stay
-beyond the band. Measured on the 2-core development machine: the default ``task cut-rectangle``
-skips 93 % of its 12,833 periods (the left arm stands; the right arm moves slowly): 22.1 s
-of CPU against 23.2 s with every period checked; ``make bench``'s pipeline (hands on fast
-circles) skips 27 % and its collision module's mean falls from 159 to 143 us a period, while a
-checked period costs about 9 us more (the bound and, now and then, the distances of all pairs),
-so that module's median rises from 159 to about 169 us.
+Skipping far pairs and clear periods (a Lipschitz bound): a revolute joint turned by dq moves a
+point it carries by at most |dq| times the point's distance from the joint's origin, which is at
+most the sum of the joint offsets along the chain from that joint to the link plus the shape's
+offset and bounding radius, whatever the posture (triangle inequality). Turning the joints one
+after another from a posture q0 to q, a pair's distance thus falls by at most
+sum_j |q_j - q0_j| r_j, with r_j that reach for the one shape of the pair joint j carries (0 for
+a joint that carries both, as it moves them together; the legs count for the thighs). The
+checker keeps each pair's last computed distance and the joints it was computed at; a check
+bounds every pair from there and computes (one coal pass over the pairs it activates) only
+those whose bound comes within the band, ``tolerance_m`` (or ``BLOCK_M`` if larger) plus
+``SKIP_MARGIN_M`` (2 mm: far above coal's 1e-6 m GJK tolerance); the others report their bound.
+A check's closest distance is therefore exact wherever it is within the band, and beyond the
+band a lower bound that stays beyond it: every test against ``tolerance_m`` and ``BLOCK_M``
+(and the way back's closing test, which only matters below ``BLOCK_M``) comes out as with exact
+checks. While the mode is ``safe``, a period whose input and braking posture both lie in a box
+around those postures where every pair's bound stays beyond the band needs no check at all.
+Holds, recoveries and outputs are the same as with every pair computed in every period
+(``skip = False``); only the logged distances beyond the band differ: they are bounds, never
+more clearance than there is. Measured on the 2-core development machine: ``make bench``'s
+pipeline (hands on fast circles) skips 29 % of its periods and computes about 4 of the 46
+pairs in a check (about 3 checks in a checked period): its collision module's median falls from
+about 136 to 71 us a period (CPU time of the module alone, replaying the bench's inputs; every
+pair in every period: 133 us); the default ``task cut-rectangle`` skips 90 % of its 12,833
+periods, and the module costs 0.6 s of its 21.4 s of CPU.
 
 Logged: ``collision_distance_m`` is the closest pair at the posture this module passes on (what
 the robot is told: the number that must never be negative), ``collision_ahead_m`` the closest
@@ -77,7 +80,7 @@ from hubo_cli.urdf import DRILL_FRAME
 TOLERANCE_M = 0.01   # MoveIt Servo's self-collision proximity threshold
 RECOVER_S = 2.5      # hrpsys default_recover_time
 SAMPLE_RAD = 0.05     # the way to a stopping posture is checked every this much joint travel
-MAX_SAMPLES = 8       # ... in at most this many checks (about 30 us each)
+MAX_SAMPLES = 8       # ... in at most this many checks
 STILL_RAD = 1e-7     # joints moving less than this move no point of a link within 1 m of them
                      # by more than 0.1 um (0.6 um for a chain of six): within coal's GJK
                      # tolerance, so the distances they set are taken as unchanged
