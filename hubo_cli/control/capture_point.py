@@ -454,11 +454,16 @@ class CapturePointMonitor(Module):
             cycle.flags.add("cp-outside")
             if self.request_estop:
                 cycle.estop_requests.add("capture-point")
-        # Python floats in one conversion per vector (tolist), in the order of log_columns
-        cp_x, cp_y = self.cp_m.tolist()
-        ref_x, ref_y = self.cp_ref_m.tolist()
-        cycle.info.update(zip(self.log_columns, (
-            *self.com_m.tolist(), cp_x, cp_y, ref_x, ref_y, cp_x - ref_x, cp_y - ref_y,
-            float(self.outside_m), *self.support_box_m.tolist(), 1.0 if flag else 0.0),
-            strict=True))
+        info = cycle.info  # Python floats in one conversion per vector (tolist)
+        info["com_x_m"], info["com_y_m"], info["com_z_m"] = self.com_m.tolist()[:3]
+        cp_x, cp_y = self.cp_m.tolist()[:2]
+        ref_x, ref_y = self.cp_ref_m.tolist()[:2]
+        info["cp_x_m"], info["cp_y_m"] = cp_x, cp_y
+        info["cp_ref_x_m"], info["cp_ref_y_m"] = ref_x, ref_y
+        info["cp_error_x_m"] = cp_x - ref_x
+        info["cp_error_y_m"] = cp_y - ref_y
+        info["cp_outside_m"] = float(self.outside_m)
+        (info["support_min_x_m"], info["support_max_x_m"], info["support_min_y_m"],
+         info["support_max_y_m"]) = self.support_box_m.tolist()[:4]
+        info["cp_flag"] = 1.0 if flag else 0.0
         return q_rad
