@@ -45,9 +45,10 @@ Holds, recoveries and outputs are the same as with every pair computed in every 
 more clearance than there is. Measured on the 2-core development machine: ``make bench``'s
 pipeline (hands on fast circles) skips 29 % of its periods and computes about 4 of the 46
 pairs in a check (about 3 checks in a checked period): its collision module's median falls from
-about 136 to 71 us a period (CPU time of the module alone, replaying the bench's inputs; every
-pair in every period: 133 us); the default ``task cut-rectangle`` skips 90 % of its 12,833
-periods, and the module costs 0.6 s of its 21.4 s of CPU.
+160 to 96 us (mean of its CPU time, the bench's inputs replayed: 114 to 68 us; every pair in
+every period: 130 us); the default ``task cut-rectangle`` skips 90 % of its 12,833 periods, so
+there the module costs little either way (20.7 s of CPU for the run, as with one bound for all
+pairs from the last input checked).
 
 Logged: ``collision_distance_m`` is the closest pair at the posture this module passes on (what
 the robot is told: the number that must never be negative), ``collision_ahead_m`` the closest
@@ -359,9 +360,9 @@ def _lower_bound(q_in, ahead, q0, d0, rate):
 @nb.njit(cache=True, nogil=True)
 def _pair_bounds(q, q0, d0, rate, band_m, bounds, near, changed):
     """Each pair's Lipschitz lower bound at ``q`` from its distance ``d0[p]`` at ``q0[p]``
-    (m, to ``bounds``); ``near`` set to the pairs whose bound is at most ``band_m``, the pairs
-    whose entry that changed listed in ``changed``. Returns (how many changed, the near pairs
-    listed after them, the pair of the smallest bound)."""
+    (m, to ``bounds``); ``near`` set to the pairs whose bound is at most ``band_m``, listing in
+    ``changed`` first the pairs whose entry changed, then the near pairs. Returns (how many
+    changed, how many are near, the pair of the smallest bound)."""
     n_changed, best = 0, 0
     for p in range(d0.shape[0]):
         bound = d0[p]
