@@ -104,3 +104,12 @@ def hold_nan(q_rad, held_rad, out_rad) -> None:
         x = q_rad[i]
         out_rad[i] = x if np.isfinite(x) else held_rad[i]
 
+
+@nb.njit(cache=True, nogil=True)
+def all_finite(x) -> bool:
+    """``np.isfinite(x).all()`` of a vector in one compiled pass."""
+    for i in range(x.shape[0]):
+        if not np.isfinite(x[i]):
+            return False
+    return True
+
