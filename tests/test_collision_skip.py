@@ -1,0 +1,135 @@
+"""The collision detector's Lipschitz skip: the bound never exceeds the exact distance, and a
+detector that skips holds in the same period, with the same output, as one that checks always."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hubo_cli.control.collision import (
+    CollisionDetector,
+    SelfCollisionChecker,
+    _lower_bound,
+)
+from hubo_cli.control.module import Cycle
+from hubo_cli.model import LEGS
+from hubo_cli.posture import home_posture
+from hubo_cli.state import RobotState
+
+GJK_M = 1e-5  # coal's distances: exact to its GJK tolerance, 1e-6 m (ten times that here)
+
+
+def _legs_mask(model) -> np.ndarray:
+    legs = np.zeros(len(model.joint_names), dtype=bool)
+    for name in LEGS:
+        legs[model.limb_slice(name)] = True
+    return legs
+
+
+@pytest.mark.parametrize("drill", [False, True])
+def test_the_lipschitz_bound_never_exceeds_the_exact_distance(model, drill):
+    """Random postures q0 and random offsets (all joints, the legs alone, one arm alone; 1 mrad
+    to 0.6 rad): every pair's exact distance at the input, on its way to the stopping posture
+    and at corners of the box around q0 is at least the bound from q0, the smallest one at
+    least what the detector's bound reports. Also when q0's distances came from a check that
+    reused the pairs the legs do not move. coal's distances are exact to its GJK tolerance
+    (1e-6 m; the detector keeps SKIP_MARGIN_M beyond the band), so the bound is allowed that."""
+    rng = np.random.default_rng(11 + drill)
+    lower, upper = model.lower_rad, model.upper_rad
+    legs = _legs_mask(model)
+    right = np.zeros_like(legs)
+    right[model.limb_slice("right-arm")] = True
+    anchor = SelfCollisionChecker(model, drill=drill)
+    exact = SelfCollisionChecker(model, drill=drill)
+    rate = anchor.rate_m_rad
+    assert (rate >= 0).all() and rate.shape == (len(anchor.pair_names), len(lower))
+    assert rate[:, legs].any() and rate[:, right].any()  # thighs move with the legs
+    tightest_m = np.inf
+    for k in range(60):
+        q0 = rng.uniform(lower, upper)
+        if k % 3 == 0:  # the legs moved alone since the last check: the split check
+            anchor.check(np.where(legs, rng.uniform(lower, upper), q0))
+        anchor.check(q0)
+        d0 = anchor.pair_distances_m()
+        moved = [np.ones_like(legs), legs, right][k % 3]
+        size = rng.choice([0.001, 0.02, 0.1, 0.6])
+        q_in, ahead = (np.clip(q0 + moved * rng.uniform(-size, size, q0.size), lower, upper)
+                       for _ in range(2))
+        near_m, _, far_m, _ = _lower_bound(q_in, ahead, q0, d0, rate)
+        reach = np.maximum(np.abs(q_in - q0), np.abs(ahead - q0))
+        corners = [q0 + reach * rng.choice([-1.0, 1.0], q0.size) for _ in range(2)]
+        way = [q_in + s * (ahead - q_in) for s in (0.25, 0.5, 1.0)]
+        for i, q in enumerate([q_in, *way, *corners]):
+            exact.check(q)
+            d = exact.pair_distances_m()
+            bound = d0 - rate @ np.abs(q - q0)
+            assert (d >= bound - GJK_M).all(), (k, i, float((d - bound).min()))
+            assert d.min() >= far_m - GJK_M
+            tightest_m = min(tightest_m, float((d - bound).min()))
+        assert exact.check(q_in).distance_m >= near_m - GJK_M
+    assert tightest_m < 0.05  # the samples came near the bound somewhere
+
+
+def _smooth(a, b, n):
+    s = 0.5 - 0.5 * np.cos(np.linspace(0.0, np.pi, n))
+    return a + s[:, None] * (b - a)
+
+
+def _drive(model, drill, inputs, skip):
+    dt = model.control_period_s
+    detector = CollisionDetector(model, dt, drill=drill)
+    detector.skip = skip
+    state = RobotState(0.0, inputs[0], np.zeros(len(inputs[0])))
+    detector.reset(inputs[0], state)
+    outs, modes, ahead = [], [], []
+    for k, q in enumerate(inputs):
+        cycle = Cycle(k * dt, dt)
+        outs.append(detector.update(q, state, cycle))
+        modes.append((detector.mode, frozenset(cycle.flags)))
+        ahead.append((cycle.info["collision_ahead_m"], cycle.info["collision_distance_m"]))
+    return detector, np.array(outs), modes, np.array(ahead)
+
+
+@pytest.mark.parametrize("drill", [False, True])
+def test_skipping_does_not_delay_a_hold(model, drill):
+    """Moves from clear postures into the body (the right forearm creeping into the pelvis over
+    7.5 s, where the bound follows the distance closest; random fast moves whose way crosses
+    the body), held, then back out: the skipping detector holds and recovers
+    in the same periods with the same outputs as one that checks every period, skips a fair
+    share of the clear periods, and never logs more clearance than the exact check finds."""
+    rng = np.random.default_rng(3 + drill)
+    checker = SelfCollisionChecker(model, drill=drill)
+    home = home_posture(model)
+    inward = home.copy()
+    inward[1] = 0.3  # the right arm rolled in: its forearm meets the pelvis
+    moves = [(home, inward)]
+    while len(moves) < 3:
+        a, b = home.copy(), home.copy()
+        a[:12], b[:12] = (rng.uniform(model.lower_rad[:12], model.upper_rad[:12])
+                          for _ in range(2))
+        way = [checker.check(q).distance_m for q in _smooth(a, b, 40)]
+        if min(way[0], way[-1]) > 0.05 and min(way) < -0.01:
+            moves.append((a, b))
+    for m, (a, b) in enumerate(moves):
+        n = 1500 if m == 0 else int(rng.integers(150, 400))  # a slow creep, then fast moves
+        inputs = np.vstack([np.repeat(a[None], 20, axis=0), _smooth(a, b, n),
+                            np.repeat(b[None], 40, axis=0), _smooth(b, a, n),
+                            np.repeat(a[None], 200, axis=0)])
+        always, out_always, modes_always, logged_always = _drive(model, drill, inputs, False)
+        skipping, out_skip, modes_skip, logged_skip = _drive(model, drill, inputs, True)
+        assert always.events, "the premise: the move is held"
+        assert [(e.t_s, e.kind, e.sources) for e in skipping.events] == \
+            [(e.t_s, e.kind, e.sources) for e in always.events]
+        assert modes_skip == modes_always
+        assert np.array_equal(out_skip, out_always)
+        assert always.skipped_periods == 0
+        safe = sum(mode == "safe" for mode, _ in modes_always)
+        assert skipping.skipped_periods > 0.2 * safe  # most clear periods skip
+        assert (logged_skip <= logged_always + GJK_M).all()  # a bound: never more clearance
+
+
+def test_a_checker_without_pairs_skips_nothing(model):
+    """No pairs: no rates, and every check is clear (an infinite distance)."""
+    checker = SelfCollisionChecker(model, pairs=[])
+    assert checker.rate_m_rad.shape == (0, len(model.joint_names))
+    assert checker.check(home_posture(model)).distance_m == np.inf
