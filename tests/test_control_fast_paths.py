@@ -126,3 +126,39 @@ def test_the_limiters_clamp_bits_are_its_mask():
         assert cycle.info["limiter_clamped_count"] == float(np.count_nonzero(mask))
         seen |= expected
     assert seen == set(names.values())
+
+
+COMPILE_CHECK = """
+import json
+import numpy as np
+from hubo_cli.control import limiter, limits, otg
+from hubo_cli.control.loop import ControlLoop
+from hubo_cli.control.pipeline import build_pipeline
+from hubo_cli.drivers.registry import make_driver
+from hubo_cli.model import load_model
+
+kernels = (otg.take_target, limits.hold_nan, limits.all_finite, limiter.limit_step)
+model = load_model()
+driver = make_driver("ideal", model)
+driver.start()
+q0 = driver.read().q_rad.copy()
+loop = ControlLoop(driver, build_pipeline(model), lambda t, s: (q0 + 0.05 * np.sin(t), {}))
+built = [len(k.signatures) for k in kernels]
+loop.run(0.2)
+print(json.dumps({"built": built, "after": [len(k.signatures) for k in kernels]}))
+"""
+
+
+def test_the_compiled_passes_compile_when_the_pipeline_is_built():
+    """Building the modules and the loop compiles every pass above with a run's argument
+    types, so no control period compiles one (seconds on a fresh install)."""
+    import json
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-c", COMPILE_CHECK], capture_output=True,
+                          text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    counts = json.loads(done.stdout.strip().splitlines()[-1])
+    assert all(n == 1 for n in counts["built"]), counts
+    assert counts["after"] == counts["built"], counts
