@@ -340,13 +340,15 @@ COMPILE_CHECK = """
 import json
 import sys
 from pathlib import Path
-from hubo_cli.control import capture_point, collision, limiter, limits
+from hubo_cli.control import balance, capture_point, collision, limiter, limits
 from hubo_cli.experiments.standing import stand
 from hubo_cli.model import load_model
 
-kernels = (capture_point._support, limiter.limit_step, limits._braking_distance)
+kernels = (capture_point._measure, capture_point._configure, balance._balance_step,
+           balance.command_configuration, limiter.limit_step, limits._braking_distance)
 model = load_model()
 capture_point.CapturePointMonitor(model, 0.005)
+balance.DampingBalancer(model)
 limiter.SoftErrorLimiter(model, 0.005)
 collision.CollisionDetector(model, 0.005)
 built = [len(k.signatures) for k in kernels]

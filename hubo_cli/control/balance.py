@@ -42,6 +42,7 @@ import numba as nb
 import numpy as np
 
 from hubo_cli.control.module import Cycle, Module
+from hubo_cli.geometry import GIMBAL_LOCK_COS
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.posture import home_posture
@@ -257,8 +258,8 @@ class DampingBalancer(Module):
         self._pin = pin
         self._weight_n = float(pin.computeTotalMass(self._robot.model)) * GRAVITY_M_S2
         self._sole_ids = [self._robot.frame_id(f) for f in ("right_sole", "left_sole")]
-        self._q = np.zeros(self._robot.model.nq)
-        self._last_cmd: np.ndarray | None = None
+        self._q = self._robot.configuration(np.zeros(len(names)))  # torso at the origin
+        self._last_ref = np.full(len(names), np.nan)  # the command of the last reference
         self._lower = np.array(model.lower_rad, dtype=float)
         self._upper = np.array(model.upper_rad, dtype=float)
         # per leg (rows, FEET order) and ankle axis (columns: pitch, roll), for the compiled
@@ -266,108 +267,150 @@ class DampingBalancer(Module):
         self._ankles = np.array([self._index[leg] for leg, _ in FEET], dtype=np.int64)
         self._ankle_signs = np.array([self._signs[leg] for leg, _ in FEET], dtype=float)
         self._last_reference = 0.0
+        self._no_wrench = np.zeros(6)
         self.reset(np.zeros(len(names)), None)
         # numba compiles (or loads its cache) on the first call: now, not in the first period
         _follow_offsets(np.zeros(len(names)), self._ankles, self._ankle_signs, *[0.0] * 8, True,
                         *np.zeros((3, 2, 2)), self._lower, self._upper, *[1.0] * 7)
+        command_configuration(np.zeros(len(names)), np.zeros(len(names)), np.zeros(len(names)),
+                           np.zeros(self._robot.model.nq), self._robot.q_index)
+        self._step(np.zeros(len(names)), RobotState(0.0, np.zeros(len(names)),
+                                                     np.zeros(len(names))), 0.005)
+        self.reset(np.zeros(len(names)), None)
 
     def reset(self, q_rad: np.ndarray, state: RobotState | None) -> None:
         """Start with no correction."""
         # the filter's state: the common mode in Python floats (pitch, roll), the per-leg
         # parts as (leg, axis) arrays (FEET order; pitch, roll) for the compiled step
-        self._common = [0.0, 0.0]                                # joint space
+        self._common = np.zeros(2)                               # joint space
         self._differential = np.zeros((2, 2))
         self._offsets = np.zeros((2, 2))  # what is sent
         self._rate = np.zeros((2, 2))
-        self.reference_moment_nm = np.zeros(2)
+        self._reference_now = 0.0
+
+    @property
+    def reference_moment_nm(self) -> np.ndarray:
+        """The last period's reference ground moment (about y, about x; N m)."""
+        return np.array([self._reference_now, 0.0])
 
     @property
     def offsets_rad(self) -> dict[str, np.ndarray]:
         """Per leg, the (pitch, roll) correction sent to its ankle (rad)."""
         return {leg: self._offsets[k].copy() for k, (leg, _) in enumerate(FEET)}
 
-    def _reference_moment(self, q_cmd_rad: np.ndarray) -> float:
+    def _reference_moment(self, q_rad: np.ndarray, q_measured_rad: np.ndarray) -> float:
         """Ground moment about y (N m, summed over the soles) with the centre of pressure
-        under the commanded posture's centre of mass."""
-        if self._last_cmd is not None and (q_cmd_rad == self._last_cmd).all():  # same shape
+        under the commanded posture's centre of mass (a joint without a command: measured)."""
+        if not command_configuration(q_rad, q_measured_rad, self._last_ref, self._q,
+                                  self._robot.q_index):
             return self._last_reference  # a held posture: nothing to recompute
         pin = self._pin
-        q = self._robot.configuration(q_cmd_rad, None, out=self._q)
-        com = pin.centerOfMass(self._robot.model, self._data, q, False)
+        com = pin.centerOfMass(self._robot.model, self._data, self._q, False)
         x = 0.0
         for fid in self._sole_ids:
             oMf = pin.updateFramePlacement(self._robot.model, self._data, fid)
             x += float((oMf.rotation.T @ (com - oMf.translation))[0])
-        self._last_cmd, self._last_reference = q_cmd_rad.copy(), -self._weight_n * x / 2
+        self._last_reference = -self._weight_n * x / 2
         return self._last_reference
 
-    def _tipping(self, state: RobotState) -> bool:
-        """The feet's common centre of pressure lies within the edge margin of the soles' heels
-        or toes: the body rotates about that edge (one foot loaded near its edge while the
-        other is not is a drill held out to the side, which the differential mode evens)."""
-        if self.edge_margin_m <= 0:
-            return False
-        fz = moment_y = 0.0
-        for _, sensor in FEET:
-            wrench = state.ft.get(sensor)
-            if wrench is not None:
-                fz, moment_y = fz + float(wrench[2]), moment_y + float(wrench[4])
-        if not fz > 0.5 * self._weight_n:
-            return False
-        x_lo, x_hi = self._flat_x_m
-        return not x_lo < -moment_y / fz < x_hi
-
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
-        # in Python floats: the same arithmetic as on the 2-vectors (pitch, roll), a fraction
-        # of the cost of numpy on arrays this small
         q = np.array(q_rad, dtype=float)
-        dt = cycle.dt_s
-        finite_q = np.isfinite(q)
-        q_ref = q if finite_q.all() else np.where(finite_q, q, state.q_rad)
-        moments = {}
-        for leg, sensor in FEET:
-            wrench = state.ft.get(sensor)
-            moments[leg] = (0.0, 0.0) if wrench is None else (float(wrench[4]), float(wrench[3]))
-        if not all(math.isfinite(m[0]) and math.isfinite(m[1]) for m in moments.values()):
+        if self._step(q, state, cycle.dt_s):
             cycle.flags.add("balance-bad-sensor")
-            moments = {leg: (0.0, 0.0) for leg, _ in FEET}
-        roll, pitch = state.tilt_rad()
-        tilt_deg = (math.degrees(pitch), math.degrees(roll))
-        if not (math.isfinite(tilt_deg[0]) and math.isfinite(tilt_deg[1])):
-            cycle.flags.add("balance-bad-sensor")
-            tilt_deg = (0.0, 0.0)
-        right, left = moments["right-leg"], moments["left-leg"]
-        reference = self._reference_moment(q_ref)
-        self.reference_moment_nm = np.array([reference, 0.0])
-        # common mode, in the "right leg" axis convention; each leg applies its own signs.
-        # Without the body's weight on the feet sensors (a driver without force sensing, a
-        # robot in the air) there is no moment to comply with: only the tilt term acts.
-        fz = sum(float(state.ft[s][2]) for _, s in FEET if state.ft.get(s) is not None)
-        mean_k = [(right[0] + left[0]) / 2, (right[1] + left[1]) / 2]
-        if fz > 0.5 * self._weight_n:
-            moment_error = (mean_k[0] - reference / 2, mean_k[1] - 0.0 / 2)
-        else:
-            moment_error = (0.0, 0.0)
-        common = self._common
-        leak_c = self.common_leak_s
-        common_rate = [moment_error[k] / self.damping + self.k_r * tilt_deg[k]
-                       - common[k] / leak_c for k in (0, 1)]
-        if self._tipping(state):  # pitch: only the leak; the body will land back on its soles
-            common_rate[0] = -common[0] / leak_c
-        common = self._common = [common[0] + common_rate[0] * dt, common[1] + common_rate[1] * dt]
-        both = state.feet_contact is None or all(state.feet_contact)
-        _follow_offsets(q, self._ankles, self._ankle_signs, right[0], right[1], left[0], left[1],
-                        mean_k[0], mean_k[1], common[0], common[1], both, self._differential,
-                        self._offsets, self._rate, self._lower, self._upper,
-                        self.max_offset_rad, self.k_d, self.differential_leak_s,
-                        MAX_CORRECTION_RATE_RAD_S, MAX_CORRECTION_ACCEL_RAD_S2 * dt, SMOOTHING_S,
-                        dt)
         (right_pitch, right_roll), (left_pitch, left_roll) = self._offsets.tolist()
         cycle.info["balance.right_pitch_rad"] = right_pitch
         cycle.info["balance.right_roll_rad"] = right_roll
         cycle.info["balance.left_pitch_rad"] = left_pitch
         cycle.info["balance.left_roll_rad"] = left_roll
         return q
+
+    def _step(self, q: np.ndarray, state: RobotState, dt: float) -> bool:
+        """One period on the command ``q`` (in place); True when a sensor reads non-finite."""
+        reference = self._reference_now = self._reference_moment(q, state.q_rad)
+        right, left = (state.ft.get(sensor) for _, sensor in FEET)
+        as_array = np.asarray
+        both = state.feet_contact is None or all(state.feet_contact)
+        return _balance_step(
+            q, self._ankles, self._ankle_signs,
+            self._no_wrench if right is None else as_array(right, dtype=float), right is not None,
+            self._no_wrench if left is None else as_array(left, dtype=float), left is not None,
+            as_array(state.imu_quat_wxyz, dtype=float), both,
+            reference, self._weight_n, self._flat_x_m[0], self._flat_x_m[1],
+            self.edge_margin_m > 0, self.damping, self.k_r, self.common_leak_s, self._common,
+            self._differential, self._offsets, self._rate, self._lower, self._upper,
+            self.max_offset_rad, self.k_d, self.differential_leak_s, MAX_CORRECTION_RATE_RAD_S,
+            MAX_CORRECTION_ACCEL_RAD_S2 * dt, SMOOTHING_S, dt)
+
+
+@nb.njit(cache=True, nogil=True)
+def command_configuration(q, q_measured, last, q_pin, index):
+    """The command with the measured joints where it has none, into pinocchio's
+    configuration ``q_pin`` (at ``index``) and ``last``; False when it equals ``last``."""
+    changed = False
+    for i in range(q.shape[0]):
+        value = q[i] if math.isfinite(q[i]) else q_measured[i]
+        if not value == last[i]:
+            changed = True
+        last[i] = value
+        q_pin[index[i]] = value
+    return changed
+
+
+@nb.njit(cache=True, nogil=True)
+def _balance_step(q, ankles, signs, right_wrench, has_right, left_wrench, has_left, quat, both,
+                  reference, weight_n, flat_lo, flat_hi, edge_check, damping, k_r, common_leak,
+                  common, differential, offsets, rate, lower, upper, limit, k_d, leak, max_rate,
+                  max_step, smoothing_s, dt):
+    """:class:`DampingBalancer`'s period, compiled (the arithmetic of its Python form, in the
+    same order): the feet's moments, the torso tilt (IMU quaternion w, x, y, z), the common
+    mode (``common``, pitch and roll, in place) resting its pitch while the feet tip over an
+    edge, then :func:`_follow_offsets`. Returns True when a sensor reads non-finite (its
+    term is then zero)."""
+    bad = False
+    right_pitch = right_roll = left_pitch = left_roll = 0.0
+    if has_right:
+        right_pitch, right_roll = right_wrench[4], right_wrench[3]
+    if has_left:
+        left_pitch, left_roll = left_wrench[4], left_wrench[3]
+    if not (math.isfinite(right_pitch) and math.isfinite(right_roll)
+            and math.isfinite(left_pitch) and math.isfinite(left_roll)):
+        bad = True
+        right_pitch = right_roll = left_pitch = left_roll = 0.0
+    # the tilt as hubo_cli.geometry.roll_pitch_of_quat_wxyz computes it
+    w, x, y, z = quat[0], quat[1], quat[2], quat[3]
+    n = math.sqrt(w * w + x * x + y * y + z * z)
+    w, x, y, z = w / n, x / n, y / n, z / n
+    r00 = 1 - 2 * (y * y + z * z)
+    r10 = 2 * (x * y + w * z)
+    r20 = 2 * (x * z - w * y)
+    r21 = 2 * (y * z + w * x)
+    r22 = 1 - 2 * (x * x + y * y)
+    cos_pitch = math.hypot(r00, r10)
+    roll = 0.0 if cos_pitch < GIMBAL_LOCK_COS else math.atan2(r21, r22)
+    pitch = math.atan2(-r20, cos_pitch)
+    tilt_pitch, tilt_roll = math.degrees(pitch), math.degrees(roll)
+    if not (math.isfinite(tilt_pitch) and math.isfinite(tilt_roll)):
+        bad = True
+        tilt_pitch = tilt_roll = 0.0
+    fz = moment_y = 0.0
+    if has_right:
+        fz, moment_y = fz + right_wrench[2], moment_y + right_wrench[4]
+    if has_left:
+        fz, moment_y = fz + left_wrench[2], moment_y + left_wrench[4]
+    mean_pitch, mean_roll = (right_pitch + left_pitch) / 2, (right_roll + left_roll) / 2
+    error_pitch = error_roll = 0.0
+    if fz > 0.5 * weight_n:
+        error_pitch, error_roll = mean_pitch - reference / 2, mean_roll - 0.0 / 2
+    rate_pitch = error_pitch / damping + k_r * tilt_pitch - common[0] / common_leak
+    rate_roll = error_roll / damping + k_r * tilt_roll - common[1] / common_leak
+    if edge_check and fz > 0.5 * weight_n and not flat_lo < -moment_y / fz < flat_hi:
+        rate_pitch = -common[0] / common_leak  # tipping: only the leak
+    common[0] = common[0] + rate_pitch * dt
+    common[1] = common[1] + rate_roll * dt
+    _follow_offsets(q, ankles, signs, right_pitch, right_roll, left_pitch, left_roll,
+                    mean_pitch, mean_roll, common[0], common[1], both, differential, offsets,
+                    rate, lower, upper, limit, k_d, leak, max_rate, max_step, smoothing_s, dt)
+    return bad
 
 
 @nb.njit(cache=True, nogil=True)

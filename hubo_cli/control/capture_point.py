@@ -45,9 +45,9 @@ import numba as nb
 import numpy as np
 import pinocchio as pin
 
+from hubo_cli.control.balance import command_configuration
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.pin_robot import PinRobot, load_pin_robot
-from hubo_cli.geometry import quat_wxyz_to_matrix
 from hubo_cli.model import RobotModel
 from hubo_cli.state import RobotState
 
@@ -193,6 +193,69 @@ def _support(sole_pose, right_down, left_down, corners, com, velocity, margin, g
     return outside_distance(hull, cp_out) + margin, ground_z
 
 
+@nb.njit(cache=True, nogil=True)
+def _configure(q, index, q_rad, T_world_torso, has_pose, quat_wxyz):
+    """Pinocchio's floating-base ``q`` (in place): the joints ``q_rad`` at ``index``, the torso
+    pose ``T_world_torso`` (4x4) or without one (``has_pose`` False) the rotation of the
+    quaternion w, x, y, z at the origin. The same arithmetic as
+    :func:`hubo_cli.geometry.quat_wxyz_to_matrix` and Eigen's rotation-matrix-to-quaternion
+    (trace m00 + (m11 + m22)) that ``pin.Quaternion`` runs."""
+    for i in range(q_rad.shape[0]):
+        q[index[i]] = q_rad[i]
+    R = np.empty((3, 3))
+    if has_pose:
+        for r in range(3):
+            q[r] = T_world_torso[r, 3]
+            for c in range(3):
+                R[r, c] = T_world_torso[r, c]
+    else:
+        w, x, y, z = quat_wxyz[0], quat_wxyz[1], quat_wxyz[2], quat_wxyz[3]
+        n = math.sqrt(w * w + x * x + y * y + z * z)
+        w, x, y, z = w / n, x / n, y / n, z / n
+        R[0, 0], R[1, 1], R[2, 2] = (1 - 2 * (y * y + z * z), 1 - 2 * (x * x + z * z),
+                                     1 - 2 * (x * x + y * y))
+        R[0, 1], R[0, 2], R[1, 2] = 2 * (x * y - w * z), 2 * (x * z + w * y), 2 * (y * z - w * x)
+        R[1, 0], R[2, 0], R[2, 1] = 2 * (x * y + w * z), 2 * (x * z - w * y), 2 * (y * z + w * x)
+        q[0] = q[1] = q[2] = 0.0
+    t = R[0, 0] + (R[1, 1] + R[2, 2])
+    if t > 0.0:  # q[3:7]: x, y, z, w
+        t = math.sqrt(t + 1.0)
+        q[6] = 0.5 * t
+        t = 0.5 / t
+        q[3] = (R[2, 1] - R[1, 2]) * t
+        q[4] = (R[0, 2] - R[2, 0]) * t
+        q[5] = (R[1, 0] - R[0, 1]) * t
+    else:
+        i = 0
+        if R[1, 1] > R[0, 0]:
+            i = 1
+        if R[2, 2] > R[i, i]:
+            i = 2
+        j = (i + 1) % 3
+        k = (j + 1) % 3
+        t = math.sqrt(R[i, i] - R[j, j] - R[k, k] + 1.0)
+        q[3 + i] = 0.5 * t
+        t = 0.5 / t
+        q[6] = (R[k, j] - R[j, k]) * t
+        q[3 + j] = (R[j, i] + R[i, j]) * t
+        q[3 + k] = (R[k, i] + R[i, k]) * t
+
+
+@nb.njit(cache=True, nogil=True)
+def _measure(com, prev_com, filtered, velocity, alpha, dt, sole_pose, right_down, left_down,
+             corners, margin, gravity, corner_tolerance, cp_out, box_out, flat_out):
+    """The CoM velocity low-passed in place (``velocity``: zero unless ``filtered``, with the
+    previous CoM ``prev_com``), then :func:`_support`; ``prev_com`` becomes ``com``."""
+    for i in range(3):
+        if filtered:
+            velocity[i] = velocity[i] + alpha * ((com[i] - prev_com[i]) / dt - velocity[i])
+        else:
+            velocity[i] = 0.0
+        prev_com[i] = com[i]
+    return _support(sole_pose, right_down, left_down, corners, com, velocity, margin, gravity,
+                    corner_tolerance, cp_out, box_out, flat_out)
+
+
 class CapturePointMonitor(Module):
     """The ``capture-point`` module (see the module docstring).
 
@@ -252,10 +315,15 @@ class CapturePointMonitor(Module):
         self._sole_ids = [self.robot.frame_id(f) for f in SOLE_FRAMES]
         self._corners = model.feet.sole_corners_m()
         self._q = np.zeros(self.robot.model.nq)
-        self._q_ref = np.zeros(self.robot.model.nq)
+        self._q_ref = self.robot.configuration(np.zeros(len(model.joint_names)))  # at origin
+        self._last_cmd = np.full(len(model.joint_names), np.nan)  # of the reference CoM
+        self._in_sole: np.ndarray | None = None  # the reference CoM in the sole's frame
+        self._in_sole_foot = -1
+        self._eye = np.eye(4)
         self._sole_pose = np.zeros((2, 4, 4))
         self._flat_sole = np.tile(np.eye(4), (2, 1, 1))
-        self._prev_com: np.ndarray | None = None
+        self._prev_com = np.zeros(3)
+        self._filtered = False  # the velocity has a previous CoM to difference
         self.velocity_m_s = np.zeros(3)
         self.com_m = np.zeros(3)
         self.cp_m = np.zeros(2)
@@ -270,9 +338,14 @@ class CapturePointMonitor(Module):
         self.reset_watch()
         # numba compiles a kernel on its first call: make that now, not in the first period
         # of a run (seconds on a fresh install; cached afterwards)
-        _support(self._flat_sole.copy(), True, True, self._corners, np.zeros(3), np.zeros(3),
-                 self.margin_m, GRAVITY_M_S2, self.corner_tolerance_m, np.zeros(2), np.zeros(4),
-                 self._flat_sole.copy())
+        _measure(np.zeros(3), np.zeros(3), True, np.zeros(3), self.alpha, self.dt_s,
+                 self._flat_sole.copy(), True, True, self._corners, self.margin_m, GRAVITY_M_S2,
+                 self.corner_tolerance_m, np.zeros(2), np.zeros(4), self._flat_sole.copy())
+        _configure(self._q, self.robot.q_index, np.zeros(len(model.joint_names)), self._eye,
+                   True, np.array([1.0, 0.0, 0.0, 0.0]))
+        command_configuration(np.zeros(len(model.joint_names)), np.zeros(len(model.joint_names)),
+                              np.zeros(len(model.joint_names)), np.zeros(self.robot.model.nq),
+                              self.robot.q_index)
 
     def reset_watch(self) -> None:
         """Forget the run's worst margin and contact losses."""
@@ -283,7 +356,7 @@ class CapturePointMonitor(Module):
         self._unloaded_periods = 0
 
     def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
-        self._prev_com = None
+        self._filtered = False
         self._last_contact_s = [None, None]
         self.velocity_m_s = np.zeros(3)
         self.flag = False
@@ -305,12 +378,14 @@ class CapturePointMonitor(Module):
         if lasted > CONTACT_LOSS_MIN_S + 1e-9 >= lasted - self.dt_s:
             self.contact_losses += 1
 
-    def _torso_pose(self, state: RobotState) -> np.ndarray:
-        if state.T_world_torso is not None:
-            return state.T_world_torso
-        T = np.eye(4)
-        T[:3, :3] = quat_wxyz_to_matrix(state.imu_quat_wxyz)
-        return T
+    def _configuration(self, state: RobotState) -> np.ndarray:
+        """Pinocchio's q of the measured joints and torso pose (without one, the IMU
+        orientation at the origin: only relative positions matter)."""
+        T = state.T_world_torso
+        _configure(self._q, self.robot.q_index, np.asarray(state.q_rad, dtype=float),
+                   self._eye if T is None else np.ascontiguousarray(T, dtype=float),
+                   T is not None, np.asarray(state.imu_quat_wxyz, dtype=float))
+        return self._q
 
     def _debounced_contact(self, state: RobotState) -> tuple[bool, bool]:
         """Feet contacts, each held for ``contact_hold_s`` after it was last reported (a
@@ -331,16 +406,9 @@ class CapturePointMonitor(Module):
         return True when the CP has been outside the shrunk support polygon with a foot on the
         ground for ``confirm_periods`` periods."""
         pmodel, data = self.robot.model, self.data
-        T_world_torso = self._torso_pose(state)
-        q = self.robot.configuration(state.q_rad, T_world_torso, out=self._q)
+        q = self._configuration(state)
         com = pin.centerOfMass(pmodel, data, q, False).copy()
         contact = self._debounced_contact(state)
-        if self._prev_com is None:
-            self.velocity_m_s = np.zeros(3)
-        else:
-            self.velocity_m_s += self.alpha * ((com - self._prev_com) / self.dt_s
-                                               - self.velocity_m_s)
-        self._prev_com = com
         self.com_m = com
         planned = None if self.support_override is None else self.support_override(state.time_s)
         margin = self.margin_m
@@ -350,14 +418,14 @@ class CapturePointMonitor(Module):
         else:  # the measured soles (the placements of the joints' kinematics above)
             poses = self._sole_pose
             for k, fid in enumerate(self._sole_ids):
-                oMf = pin.updateFramePlacement(pmodel, data, fid)
-                poses[k, :3, :3] = oMf.rotation
-                poses[k, :3, 3] = oMf.translation
+                poses[k] = pin.updateFramePlacement(pmodel, data, fid).homogeneous
         self._margin_used_m = margin
-        outside, ground_z = _support(poses, bool(contact[0]), bool(contact[1]),
-                                     self._corners, com, self.velocity_m_s, margin,
-                                     GRAVITY_M_S2, self.corner_tolerance_m, self.cp_m,
-                                     self.support_box_m, self._flat_sole)
+        outside, ground_z = _measure(com, self._prev_com, self._filtered, self.velocity_m_s,
+                                     self.alpha, self.dt_s, poses, bool(contact[0]),
+                                     bool(contact[1]), self._corners, margin, GRAVITY_M_S2,
+                                     self.corner_tolerance_m, self.cp_m, self.support_box_m,
+                                     self._flat_sole)
+        self._filtered = True
         self.outside_m = outside
         self.ground_z_m = ground_z
         if q_cmd_rad is not None and (contact[0] or contact[1]):
@@ -371,13 +439,14 @@ class CapturePointMonitor(Module):
         """x, y (m) of the commanded posture's CoM standing with sole ``foot`` flat where it is
         (the reference CP of a static posture, as AutoBalancer's reference CoM)."""
         pmodel, data = self.robot.model, self.data
-        q_cmd = np.where(np.isfinite(q_cmd_rad), q_cmd_rad, state.q_rad)
-        q_ref = self.robot.configuration(q_cmd, None, out=self._q_ref)
-        com_torso = pin.centerOfMass(pmodel, data, q_ref, False)  # torso at the origin
-        oMf = pin.updateFramePlacement(pmodel, data, self._sole_ids[foot])  # T_torso_sole
-        in_sole = oMf.actInv(com_torso)  # R^T (com - p)
+        changed = command_configuration(np.asarray(q_cmd_rad, dtype=float), state.q_rad,
+                                        self._last_cmd, self._q_ref, self.robot.q_index)
+        if changed or foot != self._in_sole_foot:
+            com_torso = pin.centerOfMass(pmodel, data, self._q_ref, False)  # torso at origin
+            oMf = pin.updateFramePlacement(pmodel, data, self._sole_ids[foot])  # T_torso_sole
+            self._in_sole, self._in_sole_foot = oMf.actInv(com_torso), foot  # R^T (com - p)
         flat = self._flat_sole[foot]
-        return flat[:2, :3] @ in_sole + flat[:2, 3]
+        return flat[:2, :3] @ self._in_sole + flat[:2, 3]
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         flag = self.measure(state, q_rad)
