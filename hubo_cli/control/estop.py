@@ -35,7 +35,7 @@ from collections.abc import Callable, Iterable
 
 import numpy as np
 
-from hubo_cli.control.limits import JointLimits
+from hubo_cli.control.limits import JointLimits, hold_nan
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.otg import JointTracker
 from hubo_cli.control.status import SafetyEvent
@@ -93,13 +93,16 @@ class EmergencyStopper(Module):
             model.safety.get("wrist_torque_limit_nm", np.inf) if wrist_torque_limit_nm is None
             else wrist_torque_limit_nm)
         self._key = name.replace("-", "_")
-        self.log_columns = (f"{self._key}_mode_code",)
-        if "wrist-torque" in self.sources:
+        self._mode_column = f"{self._key}_mode_code"
+        self.log_columns = (self._mode_column,)
+        self._wrist_torque = "wrist-torque" in self.sources
+        if self._wrist_torque:
             self.log_columns += ("wrist_torque_nm",)
         self.tracker = JointTracker(self.limits, self.dt_s)
         self._history_len = max(1, int(round(self.revert_s / self.dt_s))) + 1
         self.events: list[SafetyEvent] = []
         self._clear(np.zeros(self.limits.size))
+        hold_nan(self.last_in, self.last_in, self.out1.copy())  # compile now, not in a period
 
     @classmethod
     def freeze(cls, model: RobotModel, dt_s: float, **options) -> EmergencyStopper:
@@ -147,10 +150,13 @@ class EmergencyStopper(Module):
         self.tracker.reset(q)
 
     def _requests(self, state: RobotState, cycle: Cycle) -> set[str]:
-        wanted = (set(cycle.estop_requests) | self._pending) & self.sources
-        self._pending.clear()
-        if "wrist-torque" in self.sources:
-            torque = max(wrist_torque_nm(state, sensor) for sensor in WRIST_SENSORS)
+        wanted = set(self.sources.intersection(cycle.estop_requests))
+        if self._pending:
+            wanted |= self._pending & self.sources
+            self._pending.clear()
+        if self._wrist_torque:
+            right, left = WRIST_SENSORS
+            torque = max(wrist_torque_nm(state, right), wrist_torque_nm(state, left))
             cycle.info["wrist_torque_nm"] = torque
             if torque > self.wrist_torque_limit_nm:
                 wanted.add("wrist-torque")
@@ -174,7 +180,8 @@ class EmergencyStopper(Module):
         self.hold_rad = self.history[0].copy()
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
-        q_in = np.where(np.isfinite(q_rad), q_rad, self.last_in)
+        q_in = np.empty(self.last_in.shape[0])
+        hold_nan(np.ascontiguousarray(q_rad, dtype=float), self.last_in, q_in)
         last_in, self.last_in = self.last_in, q_in
         self.history.append(q_in)
         requests = self._requests(state, cycle)
@@ -215,7 +222,7 @@ class EmergencyStopper(Module):
             cycle.flags.add("estop")
         elif self.mode == "recover":
             cycle.flags.add("recovering")
-        cycle.info[f"{self._key}_mode_code"] = float(MODE_CODE[self.mode])
+        cycle.info[self._mode_column] = float(MODE_CODE[self.mode])
         out = np.array(out, dtype=float)
         self.out3, self.out2, self.out1 = self.out2, self.out1, out
         return out

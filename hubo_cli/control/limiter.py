@@ -40,14 +40,15 @@ def _clip(x: float, lo: float, hi: float) -> float:
 
 
 @nb.njit(cache=True, nogil=True)
-def limit_step(q_want, w_want, q1, q2, lower, upper, vmax, amax, dt, q_meas, v_meas,
+def limit_step(q_want, want_prev, q1, q2, lower, upper, vmax, amax, dt, q_meas, v_meas,
                error_limit, out, mask, catching):
-    """One limiter period for every joint (numba).
+    """One limiter period for every joint (numba); returns the bitwise or of ``mask``.
 
     Args:
         q_want: wanted command (rad); NaN holds q1.
-        w_want: the wanted command's own velocity (rad/s), 0 when unknown; it keeps the
-            stop-on-target cap from slowing an input that moves smoothly.
+        want_prev: the previous period's wanted command (rad): the difference is the wanted
+            command's own velocity (0 where not finite); it keeps the stop-on-target cap from
+            slowing an input that moves smoothly.
         q1, q2: the two previous commands (rad).
         lower, upper, vmax, amax: limits (rad, rad/s, rad/s^2).
         dt: the period (s).
@@ -58,6 +59,7 @@ def limit_step(q_want, w_want, q1, q2, lower, upper, vmax, amax, dt, q_meas, v_m
         mask: per-joint CLAMP_* bits, written.
         catching: per-joint "still catching up after a clamp" (bool), read and written.
     """
+    any_bits = 0
     for i in range(q_want.shape[0]):
         target = q_want[i]
         if not np.isfinite(target):
@@ -82,7 +84,9 @@ def limit_step(q_want, w_want, q1, q2, lower, upper, vmax, amax, dt, q_meas, v_m
         clamped = v_want < lo - slack or v_want > hi + slack
         if clamped or catching[i]:
             # catching up after a clamp: aim to stop on the (moving) target, not run through it
-            w = w_want[i]
+            w = (q_want[i] - want_prev[i]) / dt
+            if not np.isfinite(w):
+                w = 0.0
             v = _clip(v_want, w - brake_speed(q1[i] - target, amax[i], dt),
                       w + brake_speed(target - q1[i], amax[i], dt))
             v0 = v
@@ -104,7 +108,9 @@ def limit_step(q_want, w_want, q1, q2, lower, upper, vmax, amax, dt, q_meas, v_m
                 bits = CLAMP_RATE
         out[i] = q1[i] + v * dt
         mask[i] = bits
+        any_bits |= bits
         catching[i] = (clamped or catching[i]) and abs(out[i] - target) > 1e-12
+    return any_bits
 
 
 def ankle_indices(model: RobotModel) -> np.ndarray:
@@ -153,6 +159,7 @@ class SoftErrorLimiter(Module):
         self._nan = np.full(n, np.nan)
         self._zeros = np.zeros(n)
         self._want_prev = np.zeros(n)
+        self._bits = 0  # the or of the last step's clamp bits
         # numba compiles the kernel on its first call: make that now, not in the first period
         lim = self.limits
         limit_step(self._zeros, self._zeros, self._zeros, self._zeros, lim.lower_rad,
@@ -182,12 +189,11 @@ class SoftErrorLimiter(Module):
         meas = self._nan if q_meas is None else np.asarray(q_meas, dtype=float)
         v_meas = self._zeros if v_meas is None else np.asarray(v_meas, dtype=float)
         want = np.asarray(q_want, dtype=float)
-        w_want = (want - self._want_prev) / self.dt_s
-        w_want[~np.isfinite(w_want)] = 0.0
         out = np.empty_like(self.q1)
-        limit_step(want, w_want, self.q1, self.q2, lim.lower_rad, lim.upper_rad,
-                   lim.velocity_rad_s, lim.acceleration_rad_s2, self.dt_s, meas, v_meas,
-                   self.error_limit_rad, out, self._mask, self._catching)
+        self._bits = limit_step(want, self._want_prev, self.q1, self.q2, lim.lower_rad,
+                                lim.upper_rad, lim.velocity_rad_s, lim.acceleration_rad_s2,
+                                self.dt_s, meas, v_meas, self.error_limit_rad, out, self._mask,
+                                self._catching)
         self._want_prev = want.copy()
         self.q2 = self.q1
         self.q1 = out
@@ -200,15 +206,15 @@ class SoftErrorLimiter(Module):
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         out = self.step(q_rad, state.q_rad, state.dq_rad_s)
-        mask = self._mask
-        clamped = int(np.count_nonzero(mask))
+        mask, bits = self._mask, self._bits
+        clamped = int(np.count_nonzero(mask)) if bits else 0
         ankles = 0
         if clamped:
-            if (mask & CLAMP_POSITION).any():
+            if bits & CLAMP_POSITION:
                 cycle.flags.add("joint-limit")
-            if (mask & CLAMP_RATE).any():
+            if bits & CLAMP_RATE:
                 cycle.flags.add("slowing")
-            if (mask & CLAMP_TRACKING).any():
+            if bits & CLAMP_TRACKING:
                 cycle.flags.add("tracking-error")
             ankles = int(np.count_nonzero(mask[self._ankles]))
         self.periods += 1

@@ -94,3 +94,22 @@ def braking_distance_of(v: float, a: float, amax: float, jmax: float) -> float:
 def _braking_distance(v, a, amax, jmax, out) -> None:
     for i in range(v.shape[0]):
         out[i] = braking_distance_of(v[i], a[i], amax[i], jmax[i])
+
+
+@nb.njit(cache=True, nogil=True)
+def hold_nan(q_rad, held_rad, out_rad) -> None:
+    """``out_rad`` = ``q_rad`` with each entry that is not finite taken from ``held_rad``
+    (``np.where(np.isfinite(q_rad), q_rad, held_rad)`` in one compiled pass)."""
+    for i in range(q_rad.shape[0]):
+        x = q_rad[i]
+        out_rad[i] = x if np.isfinite(x) else held_rad[i]
+
+
+@nb.njit(cache=True, nogil=True)
+def all_finite(x) -> bool:
+    """``np.isfinite(x).all()`` of a vector in one compiled pass."""
+    for i in range(x.shape[0]):
+        if not np.isfinite(x[i]):
+            return False
+    return True
+

@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from hubo_cli.control.limiter import SoftErrorLimiter
-from hubo_cli.control.limits import JointLimits
+from hubo_cli.control.limits import JointLimits, all_finite
 from hubo_cli.control.log import LOG_NAME, PeriodLog
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.otg import JointTracker
@@ -46,6 +46,7 @@ from hubo_cli.state import RobotState
 
 TargetSource = Target | Callable[[float, RobotState], TargetOutput]
 
+LABELS = {status: status.label for status in Status}  # a property's work done once
 ENDINGS = ("finished", "done", "interrupted", "module-error", "target-error", "driver-error")
 MAX_STOP_S = 15.0  # a brake from full speed at the slowest joint's limits takes under 2 s
 
@@ -154,6 +155,7 @@ class ControlLoop:
         self._flags: Counter[str] = Counter()
         n = len(driver.joint_names)
         self._nan = np.full(n, np.nan)
+        all_finite(self._nan)  # numba compiles it now, not in the first period
         self._cmd = np.zeros(n)
         self._cmd_prev = np.zeros(n)
         self._cmd_prev2 = np.zeros(n)
@@ -192,7 +194,7 @@ class ControlLoop:
 
     def _write(self, t_s, flags, compute_s, late_s, target, cmd, state, extras) -> None:
         status = status_from_flags(flags)
-        self._statuses[status.label] += 1
+        self._statuses[LABELS[status]] += 1
         self._flags.update(flags)
         if self.log is not None:
             self.log.write(self.period, t_s, status, compute_s * 1e6, late_s * 1e6, flags,
@@ -243,7 +245,7 @@ class ControlLoop:
                         f"{type(err).__name__} in {stage}: {err}")
                     exc = err
                     break
-                if not np.isfinite(q).all():
+                if not all_finite(np.ascontiguousarray(q, dtype=float)):
                     q = np.where(np.isfinite(q), q, self._cmd)
                     cycle.flags.add("holding")
                 compute_s = self.clock() - started
@@ -258,7 +260,9 @@ class ControlLoop:
                 self._remember(np.array(q, dtype=float))
                 cycle.flags.update(state.flags)
                 extras = dict(cycle.info)
-                extras.update((k, v) for k, v in info.items() if isinstance(v, (int, float)))
+                for key, value in info.items():
+                    if isinstance(value, (int, float)):
+                        extras[key] = value
                 extras.update(driver.log_values())
                 self._write(t_s, cycle.flags, compute_s, late_s, target_logged, applied, state,
                             extras)

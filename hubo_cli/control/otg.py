@@ -18,6 +18,9 @@ ruckig error in any group brakes every group to rest.
 
 from __future__ import annotations
 
+import math
+
+import numba as nb
 import numpy as np
 from ruckig import (
     ControlInterface,
@@ -39,6 +42,30 @@ from hubo_cli.state import RobotState
 STALE_TIMEOUT_S = 0.5  # hubo-motion-rt timeOut: no fresh command for this long -> stop
 SYNCHRONIZATIONS = {"phase": Synchronization.Phase, "none": Synchronization.No}
 TRACKER_GROUPS = ("body", "limbs")  # one tracker for every joint / one per arm + the legs
+CLAMP_TOLERANCE_RAD = 1e-9  # a target moved by less at a limit is rounding, not a clamp
+
+
+@nb.njit(cache=True, nogil=True)
+def take_target(q_rad, held_rad, lower_rad, upper_rad, out_rad):
+    """One period's target (numba): ``out_rad`` = ``q_rad`` with its NaN entries taken from
+    ``held_rad``, clamped into [lower, upper] as ``np.minimum(np.maximum(.))`` does. Returns
+    (the number of finite entries of ``q_rad``, whether the clamp moved an entry by more than
+    CLAMP_TOLERANCE_RAD). ``out_rad`` is written only when some entry is finite."""
+    fresh = 0
+    for i in range(q_rad.shape[0]):
+        if np.isfinite(q_rad[i]):
+            fresh += 1
+    if fresh == 0:
+        return 0, False
+    clamped = False
+    for i in range(q_rad.shape[0]):
+        wanted = q_rad[i] if np.isfinite(q_rad[i]) else held_rad[i]
+        x = wanted if wanted >= lower_rad[i] else lower_rad[i]
+        x = x if x <= upper_rad[i] else upper_rad[i]
+        if abs(x - wanted) > CLAMP_TOLERANCE_RAD:
+            clamped = True
+        out_rad[i] = x
+    return fresh, clamped
 
 
 def tracker_groups(model: RobotModel, groups: str) -> dict[str, np.ndarray]:
@@ -161,11 +188,12 @@ class JointTracker:
             self.error = str(exc).strip()
             return False
         out = self._out
-        q = np.array(out.new_position)
-        if not np.isfinite(q).all():
+        position = out.new_position  # a list; its sum is finite when every entry is (joint
+        # angles are far from overflowing a sum)
+        if not math.isfinite(sum(position)):
             self.error = "ruckig returned a non-finite sample"
             return False
-        self.q = q
+        self.q = np.array(position)
         self.v = np.array(out.new_velocity)
         self.a = np.array(out.new_acceleration)
         out.pass_to_input(self._inp)  # the next period starts from this sample
@@ -190,7 +218,7 @@ class JointTracker:
             inp.target_acceleration = self._zeros
             self._mode = "position"
         self._set_current()
-        inp.target_position = target_rad
+        inp.target_position = np.asarray(target_rad, dtype=float).tolist()  # a list: 10x faster
         if target_v_rad_s is None:
             if not self._target_v_zero:
                 inp.target_velocity = self._zeros
@@ -247,6 +275,8 @@ class TargetInput:
         self.stale_timeout_s = float(stale_timeout_s)
         self.target = np.zeros(limits.size)
         self._last_fresh_s: float | None = None
+        take_target(self.target, self.target, limits.lower_rad, limits.upper_rad,
+                    np.zeros(limits.size))  # numba compiles it now, not in a control period
 
     def reset(self, q_rad: np.ndarray) -> None:
         """Hold ``q_rad`` (clamped) until the first target arrives."""
@@ -261,17 +291,16 @@ class TargetInput:
         """
         if self._last_fresh_s is None:
             self._last_fresh_s = cycle.t_s
-        fresh = np.isfinite(q_rad)
-        every = bool(fresh.all())
-        if every or fresh.any():
-            wanted = np.asarray(q_rad, dtype=float) if every else np.where(fresh, q_rad,
-                                                                             self.target)
-            clipped = self.limits.clip(wanted)
-            if (np.abs(clipped - wanted) > 1e-9).any():  # not rounding at a limit
+        q = np.ascontiguousarray(q_rad, dtype=float)  # a no-op for the loop's own vectors
+        target = np.empty(self.limits.size)
+        fresh, clamped = take_target(q, self.target, self.limits.lower_rad,
+                                     self.limits.upper_rad, target)
+        if fresh:
+            if clamped:
                 cycle.flags.add("joint-limit")
-            if not every:
+            if fresh < target.shape[0]:
                 cycle.flags.add("holding")
-            self.target = clipped
+            self.target = target
             self._last_fresh_s = cycle.t_s
             return False
         if cycle.t_s - self._last_fresh_s > self.stale_timeout_s:
