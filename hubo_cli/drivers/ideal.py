@@ -9,16 +9,68 @@ same checks as on the other drivers (NaN keeps the joint, position limits clip).
 
 from __future__ import annotations
 
+import math
+
+import numba as nb
 import numpy as np
 
 from hubo_cli.drivers import checks
 from hubo_cli.drivers.base import Driver
 from hubo_cli.errors import ConfigError, DeviceError
-from hubo_cli.geometry import matrix_to_quat_wxyz
+from hubo_cli.geometry import _matrix_to_quat
+from hubo_cli.kinematics.dh import JIT, chain_fk
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import LEGS, RobotModel
 from hubo_cli.posture import home_posture
 from hubo_cli.state import RobotState
+
+
+# The two compiled kernels below do each period's arithmetic in one call each: the numpy
+# version (a dozen small array operations, two FK calls, a quaternion) cost several times more
+# than the work. Their results are bit for bit those of :func:`checks.sanitize_command` and of
+# Limb.fk + matrix_to_quat_wxyz (tests/test_driver_ideal.py compares them). The signatures are
+# declared, so they load from numba's cache at import and never compile during a run.
+@nb.njit("int64(float64[::1], float64[::1], float64[::1], float64[::1], float64[::1])", **JIT)
+def _sanitize_into(last, q, lower, upper, out):
+    """out = :func:`checks.sanitize_command`'s command; returns 1 (NaN kept) + 2 (clipped)."""
+    flags = 0
+    for i in range(q.shape[0]):
+        x = q[i]
+        if not math.isfinite(x):
+            x = last[i]
+            flags |= 1
+        c = x
+        if c < lower[i]:  # np.maximum, then np.minimum (x is finite here)
+            c = lower[i]
+        if c > upper[i]:
+            c = upper[i]
+        if abs(c - x) > 1e-9:
+            flags |= 2
+        out[i] = c
+    return flags
+
+
+@nb.njit("void(float64[::1], float64[::1], float64, int64[::1], float64[:, :, ::1], "
+         "float64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
+         "float64[:, :, ::1], float64[::1], float64[::1], float64[::1], float64[::1])", **JIT)
+def _reach_command(cmd, q_prev, period_s, starts, base, offset, alpha, a, d, end, q_out, q_copy,
+             dq_out, quat_out):
+    """One period: q_out = q_copy = cmd, dq_out its finite difference, quat_out the torso
+    orientation with the lower sole (first leg on a tie) flat on the floor."""
+    for i in range(cmd.shape[0]):
+        dq_out[i] = (cmd[i] - q_prev[i]) / period_s
+        q_out[i] = cmd[i]
+        q_copy[i] = cmd[i]
+    T = np.empty((2, 4, 4))
+    for k in range(2):
+        s = starts[k]
+        chain_fk(q_out[s:s + 6], base[k], offset[k], alpha[k], a[k], d[k], end[k], T[k])
+    lower = 1 if T[1, 2, 3] < T[0, 2, 3] else 0
+    R = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            R[i, j] = T[lower, j, i]  # the sole's orientation in the torso, transposed
+    _matrix_to_quat(R, quat_out)
 
 
 class IdealDriver(Driver):
@@ -37,7 +89,14 @@ class IdealDriver(Driver):
         self._flags: list[str] = []
         self._stopped = False
         self._closed = False
-        self._legs = [(Limb(model, name), model.limb_slice(name)) for name in LEGS]
+        legs = [Limb(model, name) for name in LEGS]
+        starts = [model.limb_slice(name).start for name in LEGS]
+        # _reach_command's leg arguments: slice starts, then base, offset, alpha, a, d, end per leg
+        self._legs = (np.array(starts, dtype=np.int64),) + tuple(
+            np.array([leg.chain[k] for leg in legs], dtype=float)
+            for k in (0, 2, 3, 4, 5, 6))
+        self._lower = np.array(model.lower_rad, dtype=float)  # writable: one signature
+        self._upper = np.array(model.upper_rad, dtype=float)
 
     def start(self, q0_rad: np.ndarray | None = None) -> RobotState:
         """Put the robot at ``q0_rad`` (home posture by default), time 0."""
@@ -47,11 +106,12 @@ class IdealDriver(Driver):
         if q0.shape != (len(self.joint_names),) or not np.all(np.isfinite(q0)):
             raise ConfigError(f"start posture must be {len(self.joint_names)} finite angles")
         self._cmd = np.clip(q0, self.model.lower_rad, self.model.upper_rad)
-        self._q = self._cmd.copy()
+        self._q = self._cmd
         self._t = 0.0
         self._stopped = False
         self._flags = []
-        self._state = self._make_state(np.zeros_like(self._q))
+        self._q, q, _, quat = self._advance()
+        self._state = self._make_state(q, np.zeros_like(q), quat)
         return self._state
 
     def read(self) -> RobotState:
@@ -66,18 +126,23 @@ class IdealDriver(Driver):
         if self._stopped:
             self._flags.append("stopped")
             return self._cmd.copy()
-        q, flags, _ = checks.sanitize_command(self.model, self._cmd, q)
-        self._flags += flags
-        self._cmd = q
-        return self._cmd.copy()
+        if not q.flags.carray:  # the kernel's one signature: writable, C-ordered
+            q = q.copy()
+        out = np.empty(len(q))
+        flags = _sanitize_into(self._cmd, q, self._lower, self._upper, out)
+        if flags & 1:
+            self._flags.append(checks.NAN_REF)
+        if flags & 2:
+            self._flags.append(checks.LIMIT_CLIP)
+        self._cmd = out
+        return out.copy()
 
     def step(self) -> RobotState:
         """Advance one period: the joints reach the last command."""
         self._require_started()
-        dq = (self._cmd - self._q) / self.period_s
-        self._q = self._cmd.copy()
+        self._q, q, dq, quat = self._advance()
         self._t += self.period_s
-        self._state = self._make_state(dq)
+        self._state = self._make_state(q, dq, quat)
         return self._state
 
     def stop(self) -> None:
@@ -96,16 +161,19 @@ class IdealDriver(Driver):
             raise DeviceError("the ideal driver has not been started",
                               hint=checks.NOT_STARTED_HINT)
 
-    def _make_state(self, dq: np.ndarray) -> RobotState:
-        flags, self._flags = list(dict.fromkeys(self._flags)), []
+    def _advance(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The joints reach the command: (driver's copy, state's copy, velocities, IMU)."""
+        n = len(self._cmd)
+        q, q_state, dq, quat = np.empty(n), np.empty(n), np.empty(n), np.empty(4)
+        _reach_command(self._cmd, self._q, self.period_s, *self._legs, q, q_state, dq, quat)
+        return q, q_state, dq, quat
+
+    def _make_state(self, q: np.ndarray, dq: np.ndarray, quat: np.ndarray) -> RobotState:
+        if self._flags:
+            flags, self._flags = list(dict.fromkeys(self._flags)), []
+        else:
+            flags = []
         if self._stopped and "stopped" not in flags:
             flags.append("stopped")
-        return RobotState(time_s=self._t, q_rad=self._q.copy(), dq_rad_s=dq, flags=tuple(flags),
-                          imu_quat_wxyz=self._imu_quat_wxyz())
-
-    def _imu_quat_wxyz(self) -> np.ndarray:
-        """The torso orientation with the lower sole flat on the floor (heading 0)."""
-        T_N_soles = [leg.fk(self._q[part]) for leg, part in self._legs]
-        T_N_sole = min(T_N_soles, key=lambda T: T[2, 3])
-        return matrix_to_quat_wxyz(T_N_sole[:3, :3].T)
-
+        return RobotState(time_s=self._t, q_rad=q, dq_rad_s=dq, flags=tuple(flags),
+                          imu_quat_wxyz=quat)
