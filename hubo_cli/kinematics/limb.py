@@ -157,14 +157,28 @@ class Limb:
     def solve(self, T_N_E, q_prev_rad=None) -> IKResult:
         """Choose one solution for the goal T_N_E (4x4, m) by the rule of :mod:`.choice`."""
         has_prev = q_prev_rad is not None
-        # copies: a read-only or non-contiguous array would compile the kernel once more
-        q_prev = np.array(q_prev_rad, dtype=float) if has_prev else np.zeros(6)
+        # copies where needed: a read-only, non-contiguous or non-float64 array would compile
+        # the kernel once more (the kernel only reads the goal and q_prev)
+        T_goal = T_N_E if _kernel_ready(T_N_E) else np.array(T_N_E, dtype=float, order="C")
+        if not has_prev:
+            q_prev = np.zeros(6)
+        elif _kernel_ready(q_prev_rad):
+            q_prev = q_prev_rad
+        else:
+            q_prev = np.array(q_prev_rad, dtype=float)
         q = np.empty(6)
         status, pos, rot = choice.solve_limb(
-            np.array(T_N_E, dtype=float, order="C"), self.chain, self.lengths_m,
-            self._is_arm, self.lower_rad, self.upper_rad, q_prev, has_prev, self.hold_m,
-            True, q)
-        return IKResult(q, choice.STATUS_NAMES[status], pos, rot)
+            T_goal, self.chain, self.lengths_m, self._is_arm, self.lower_rad, self.upper_rad,
+            q_prev, has_prev, self.hold_m, True, q)
+        # IKResult's fields set directly: the frozen dataclass' __init__ (object.__setattr__
+        # per field) costs twice as much, in every period of every limb
+        result = _new_object(IKResult)
+        fields = result.__dict__
+        fields["q_rad"] = q
+        fields["status"] = choice.STATUS_NAMES[status]
+        fields["position_error_m"] = pos
+        fields["rotation_error_rad"] = rot
+        return result
 
     def solve_batch(self, T_N_E, q_prev_rad=None, allow_cap: bool = True) -> BatchIKResult:
         """Solve N goals (N x 4 x 4, m) on all cores; q_prev_rad is N x 6 or None.
@@ -186,6 +200,15 @@ class Limb:
         """Uniform random joints within the limits ((6,) or (n, 6), rad)."""
         size = None if n is None else (n, 6)
         return rng.uniform(self.lower_rad, self.upper_rad, size=size)
+
+
+_FLOAT64 = np.dtype(np.float64)
+_new_object = object.__new__
+
+
+def _kernel_ready(x) -> bool:
+    """An array the compiled kernels take as it is: float64, C-ordered, aligned, writable."""
+    return type(x) is np.ndarray and x.dtype is _FLOAT64 and x.flags.carray
 
 
 @cache
