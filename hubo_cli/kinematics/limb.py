@@ -170,15 +170,7 @@ class Limb:
         status, pos, rot = choice.solve_limb(
             T_goal, self.chain, self.lengths_m, self._is_arm, self.lower_rad, self.upper_rad,
             q_prev, has_prev, self.hold_m, True, q)
-        # IKResult's fields set directly: the frozen dataclass' __init__ (object.__setattr__
-        # per field) costs twice as much, in every period of every limb
-        result = _new_object(IKResult)
-        fields = result.__dict__
-        fields["q_rad"] = q
-        fields["status"] = choice.STATUS_NAMES[status]
-        fields["position_error_m"] = pos
-        fields["rotation_error_rad"] = rot
-        return result
+        return IKResult(q, choice.STATUS_NAMES[status], pos, rot)
 
     def solve_batch(self, T_N_E, q_prev_rad=None, allow_cap: bool = True) -> BatchIKResult:
         """Solve N goals (N x 4 x 4, m) on all cores; q_prev_rad is N x 6 or None.
@@ -203,7 +195,6 @@ class Limb:
 
 
 _FLOAT64 = np.dtype(np.float64)
-_new_object = object.__new__
 
 
 def _kernel_ready(x) -> bool:
