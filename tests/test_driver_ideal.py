@@ -1,5 +1,6 @@
-"""The ideal driver's compiled period against the numpy reference it replaced: the same command
-checks (checks.sanitize_command), velocities and IMU (leg FK, lower sole flat), bit for bit."""
+"""The compiled command check every driver applies, and the ideal driver's compiled period,
+against the numpy reference they replaced: the same commands and flags, velocities and IMU (leg
+FK, lower sole flat), bit for bit."""
 
 from __future__ import annotations
 
@@ -20,6 +21,20 @@ def _reference_imu(q: np.ndarray) -> np.ndarray:
     T_N_soles = [leg.fk(q[part]) for leg, part in LEG_PARTS]
     T_N_sole = min(T_N_soles, key=lambda T: T[2, 3])
     return matrix_to_quat_wxyz(T_N_sole[:3, :3].T)
+
+
+def _reference_check(last: np.ndarray, q_cmd: np.ndarray) -> tuple[np.ndarray, list[str]]:
+    """The command check as numpy arithmetic: NaN/inf keep the last command, then clip."""
+    q = np.array(q_cmd, dtype=float)
+    flags = []
+    frozen = ~np.isfinite(q)
+    if frozen.any():
+        q[frozen] = last[frozen]
+        flags.append(checks.NAN_REF)
+    clipped = np.minimum(np.maximum(q, MODEL.lower_rad), MODEL.upper_rad)
+    if (np.abs(clipped - q) > 1e-9).any():
+        flags.append(checks.LIMIT_CLIP)
+    return clipped, flags
 
 
 def _commands(rng: np.random.Generator, n: int) -> list[np.ndarray]:
@@ -50,7 +65,10 @@ def test_period_matches_the_numpy_reference():
     for q_cmd in _commands(rng, 300):
         last = driver._cmd.copy()
         q_prev = state.q_rad.copy()
-        expected, flags, _ = checks.sanitize_command(MODEL, last, q_cmd)
+        expected, flags = _reference_check(last, q_cmd)
+        checked, checked_flags, frozen = checks.sanitize_command(MODEL, last, q_cmd)
+        assert np.array_equal(checked, expected) and checked_flags == flags
+        assert np.array_equal(frozen, ~np.isfinite(q_cmd))
         applied = driver.send(q_cmd)
         state = driver.step()
         assert np.array_equal(applied, expected)

@@ -9,8 +9,6 @@ same checks as on the other drivers (NaN keeps the joint, position limits clip).
 
 from __future__ import annotations
 
-import math
-
 import numba as nb
 import numpy as np
 
@@ -18,38 +16,18 @@ from hubo_cli.drivers import checks
 from hubo_cli.drivers.base import Driver
 from hubo_cli.errors import ConfigError, DeviceError
 from hubo_cli.geometry import _matrix_to_quat
-from hubo_cli.kinematics.dh import JIT, chain_fk
+from hubo_cli.kinematics.dh import JIT, chain_fk, kernel_array
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import LEGS, RobotModel
 from hubo_cli.posture import home_posture
 from hubo_cli.state import RobotState
 
 
-# The two compiled kernels below do each period's arithmetic in one call each: the numpy
-# version (a dozen small array operations, two FK calls, a quaternion) cost several times more
-# than the work. Their results are bit for bit those of :func:`checks.sanitize_command` and of
-# Limb.fk + matrix_to_quat_wxyz (tests/test_driver_ideal.py compares them). The signatures are
-# declared, so they load from numba's cache at import and never compile during a run.
-@nb.njit("int64(float64[::1], float64[::1], float64[::1], float64[::1], float64[::1])", **JIT)
-def _sanitize_into(last, q, lower, upper, out):
-    """out = :func:`checks.sanitize_command`'s command; returns 1 (NaN kept) + 2 (clipped)."""
-    flags = 0
-    for i in range(q.shape[0]):
-        x = q[i]
-        if not math.isfinite(x):
-            x = last[i]
-            flags |= 1
-        c = x
-        if c < lower[i]:  # np.maximum, then np.minimum (x is finite here)
-            c = lower[i]
-        if c > upper[i]:
-            c = upper[i]
-        if abs(c - x) > 1e-9:
-            flags |= 2
-        out[i] = c
-    return flags
-
-
+# A period's state in one compiled call (with the command check's kernel, send's): the numpy
+# version (two FK calls, a quaternion, small array operations) cost several times more than the
+# work. Its results are bit for bit those of Limb.fk + matrix_to_quat_wxyz
+# (tests/test_driver_ideal.py compares them). The signature is declared, so the kernel loads
+# from numba's cache at import and never compiles during a run.
 @nb.njit("void(float64[::1], float64[::1], float64, int64[::1], float64[:, :, ::1], "
          "float64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
          "float64[:, :, ::1], float64[::1], float64[::1], float64[::1], float64[::1])", **JIT)
@@ -126,14 +104,9 @@ class IdealDriver(Driver):
         if self._stopped:
             self._flags.append("stopped")
             return self._cmd.copy()
-        if not q.flags.carray:  # the kernel's one signature: writable, C-ordered
-            q = q.copy()
         out = np.empty(len(q))
-        flags = _sanitize_into(self._cmd, q, self._lower, self._upper, out)
-        if flags & 1:
-            self._flags.append(checks.NAN_REF)
-        if flags & 2:
-            self._flags.append(checks.LIMIT_CLIP)
+        code = checks.sanitize_into(self._cmd, kernel_array(q), self._lower, self._upper, out)
+        self._flags += checks.flags_of(code)
         self._cmd = out
         return out.copy()
 

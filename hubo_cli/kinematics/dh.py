@@ -19,6 +19,15 @@ JIT = {"cache": True, "nogil": True, "fastmath": False}
 TRUE = np.ones(1, dtype=np.bool_)
 # The same for a constant int (a joint index, a count): INDEX[3] is a plain int64 of value 3.
 INDEX = np.arange(8)
+def kernel_array(x) -> np.ndarray:
+    """``x`` itself when a compiled kernel takes it as it is (float64, C-ordered, aligned,
+    writable: the one signature every kernel compiles), else such a copy (a read-only or
+    non-contiguous array would compile the kernel once more)."""
+    if type(x) is np.ndarray and x.dtype == np.float64 and x.flags.carray:
+        return x
+    return np.array(x, dtype=float, order="C")
+
+
 PARALLEL_MIN_ROWS = 64  # fewer rows than this per thread run in the calling thread
 
 

@@ -13,7 +13,7 @@ from functools import cache
 import numpy as np
 
 from hubo_cli.kinematics import choice
-from hubo_cli.kinematics.dh import chain_fk, chain_fk_batch
+from hubo_cli.kinematics.dh import chain_fk, chain_fk_batch, kernel_array
 from hubo_cli.model import LimbSpec, RobotModel, load_model
 
 _HALF_PI = np.pi / 2
@@ -157,15 +157,9 @@ class Limb:
     def solve(self, T_N_E, q_prev_rad=None) -> IKResult:
         """Choose one solution for the goal T_N_E (4x4, m) by the rule of :mod:`.choice`."""
         has_prev = q_prev_rad is not None
-        # copies where needed: a read-only, non-contiguous or non-float64 array would compile
-        # the kernel once more (the kernel only reads the goal and q_prev)
-        T_goal = T_N_E if _kernel_ready(T_N_E) else np.array(T_N_E, dtype=float, order="C")
-        if not has_prev:
-            q_prev = np.zeros(6)
-        elif _kernel_ready(q_prev_rad):
-            q_prev = q_prev_rad
-        else:
-            q_prev = np.array(q_prev_rad, dtype=float)
+        # the kernel only reads the goal and q_prev: no copies of arrays it takes as they are
+        T_goal = kernel_array(T_N_E)
+        q_prev = kernel_array(q_prev_rad) if has_prev else np.zeros(6)
         q = np.empty(6)
         status, pos, rot = choice.solve_limb(
             T_goal, self.chain, self.lengths_m, self._is_arm, self.lower_rad, self.upper_rad,
@@ -192,14 +186,6 @@ class Limb:
         """Uniform random joints within the limits ((6,) or (n, 6), rad)."""
         size = None if n is None else (n, 6)
         return rng.uniform(self.lower_rad, self.upper_rad, size=size)
-
-
-_FLOAT64 = np.dtype(np.float64)
-
-
-def _kernel_ready(x) -> bool:
-    """An array the compiled kernels take as it is: float64, C-ordered, aligned, writable."""
-    return type(x) is np.ndarray and x.dtype is _FLOAT64 and x.flags.carray
 
 
 @cache
