@@ -90,9 +90,11 @@ def quat_to_matrix_into(q, R):
 
 
 @nb.njit(**JIT)
-def _matrix_to_quat(R, q):
-    """Shepperd's method: the largest of |w|, |x|, |y|, |z| comes from the diagonal, the
-    others from sums of off-diagonal pairs divided by it (no small divisor, half turns too)."""
+def matrix_to_quat_into(R, q):
+    """The unit quaternion (w, x, y, z) of the rotation matrix ``R`` into ``q`` (compiled, for
+    other kernels). Shepperd's method: the largest of |w|, |x|, |y|, |z| comes from the
+    diagonal, the others from sums of off-diagonal pairs divided by it (no small divisor, half
+    turns too)."""
     m00, m11, m22 = R[0, 0], R[1, 1], R[2, 2]
     d0 = 1.0 + m00 + m11 + m22  # 4 w^2, 4 x^2, 4 y^2, 4 z^2
     d1 = 1.0 + m00 - m11 - m22
@@ -166,7 +168,7 @@ def _quats_to_matrices(q):
 def _matrices_to_quats(R):
     out = np.empty((R.shape[0], 4))
     for i in range(R.shape[0]):
-        _matrix_to_quat(R[i], out[i])
+        matrix_to_quat_into(R[i], out[i])
     return out
 
 

@@ -15,7 +15,7 @@ import numpy as np
 from hubo_cli.drivers import checks
 from hubo_cli.drivers.base import Driver
 from hubo_cli.errors import ConfigError, DeviceError
-from hubo_cli.geometry import _matrix_to_quat
+from hubo_cli.geometry import matrix_to_quat_into
 from hubo_cli.kinematics.dh import JIT, chain_fk, kernel_array
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import LEGS, RobotModel
@@ -48,7 +48,7 @@ def _reach_command(cmd, q_prev, period_s, starts, base, offset, alpha, a, d, end
     for i in range(3):
         for j in range(3):
             R[i, j] = T[lower, j, i]  # the sole's orientation in the torso, transposed
-    _matrix_to_quat(R, quat_out)
+    matrix_to_quat_into(R, quat_out)
 
 
 class IdealDriver(Driver):
