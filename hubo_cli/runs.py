@@ -36,7 +36,7 @@ def folder_name(command: str) -> str:
     trailing dot or dash; at most :data:`NAME_MAX_BYTES` bytes; ``unnamed`` if nothing is left."""
     text = unicodedata.normalize("NFC", command)
     name = "".join(c if c.isalnum() or c in "-_." else "_" for c in text)
-    name = re.sub(r"_*\.\.+_*|__+", "_", name)
+    name = re.sub(r"[_.]*\.\.[_.]*|__+", "_", name)[:NAME_MAX_BYTES]
     while len(name.encode()) > NAME_MAX_BYTES:
         name = name[:-1]
     return name.strip("._-") or "unnamed"
