@@ -93,8 +93,8 @@ class OutputFile:
 
     def check(self) -> None:
         """Refuse the path: a folder, one of the inputs (by name, device and inode), a file of
-        a run folder, an existing file without ``force``, or a folder that is missing or not
-        writable.
+        a run folder, a device or pipe, an existing file without ``force``, or a folder that is
+        missing or not writable.
 
         Raises:
             InputError: what is wrong and how to fix it.
@@ -119,6 +119,9 @@ class OutputFile:
         if exists and any(is_run_folder(folder) for folder in _folders_of(path)):
             raise self._refuse("is a file of a run folder (never written over, not even with "
                                "--force)", "write the output to a file outside the run folder")
+        if exists and path.exists() and not path.is_file():
+            raise self._refuse("is not a regular file (a device, pipe or socket)",
+                               "give the path of a file")
         if exists and not self.force:
             raise self._refuse("exists", "choose another name, delete the file, or add --force")
         parent = path.parent

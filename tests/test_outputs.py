@@ -227,6 +227,8 @@ def _hostile_targets(d: Path, source: Path | None) -> list[tuple[str, bool, str]
     targets = [(str(d / "mine.out"), False, "exists"),
                (str(d), True, ""),  # click's own check (Error: ... is a directory)
                (str(d / "no-such-folder" / "x.out"), True, "does not exist")]
+    os.mkfifo(d / "fifo")
+    targets.append((str(d / "fifo"), True, "not a regular file"))
     for name in RUN_FILES:  # a run's own files, even with --force
         targets.append((str(run / name), True, ""))
     (d / "link-to-summary").symlink_to(run / "summary.json")
