@@ -151,8 +151,8 @@ def replacing(path: str | Path, *, check: Callable[[], None] | None = None,
         check: called just before the rename (it may refuse).
         clobber: replace an existing ``path``; else an existing one is refused.
         keep_partial: when the block fails and nothing is at ``path``, keep what was written
-            there (a recording cut short is still data); otherwise a failed block leaves no
-            trace.
+            there (a recording cut short is still data), and when the rename is refused keep
+            the temporary file (named in the error); otherwise a failure leaves no trace.
 
     Raises:
         InputError: the temporary file cannot be made, or the rename is refused or fails.
@@ -179,9 +179,15 @@ def replacing(path: str | Path, *, check: Callable[[], None] | None = None,
         if check is not None:
             check()
         _rename(temporary, path, clobber=clobber)
-    finally:
+    except InputError as exc:
+        if keep_partial:  # refused at the end: the recording stays, under its temporary name
+            raise InputError(f"{exc.message} (what was written is kept in {temporary})",
+                             hint=exc.hint) from None
         with contextlib.suppress(OSError):
             temporary.unlink()
+        raise
+    with contextlib.suppress(OSError):
+        temporary.unlink()  # the hard link made without ``clobber``
 
 
 def _rename(temporary: Path, path: Path, *, clobber: bool) -> None:

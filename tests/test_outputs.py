@@ -332,6 +332,12 @@ def test_a_recording_cut_short_is_kept_only_where_no_file_was(tmp_path):
             raise ConnectionError
     assert new.read_bytes() == b"partial" and old.read_bytes() == b"good"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["new.fastrak", "old.fastrak"]
+    with pytest.raises(InputError, match="exists.*kept in") as refused, \
+            OutputFile(tmp_path / "late.fastrak").writing(keep_partial=True) as temporary:
+        temporary.write_bytes(b"a whole recording")
+        (tmp_path / "late.fastrak").write_bytes(b"appeared meanwhile")
+    assert temporary.read_bytes() == b"a whole recording" and str(temporary) in str(refused.value)
+    assert (tmp_path / "late.fastrak").read_bytes() == b"appeared meanwhile"
 
 
 def test_a_file_that_appears_during_the_write_is_not_written_over(tmp_path):
