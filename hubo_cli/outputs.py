@@ -102,6 +102,13 @@ class OutputFile:
         path = self.path
         if not path.name or path.name in (".", ".."):
             raise self._refuse("is not a file name", "give a file name, e.g. out.csv")
+        try:
+            os.lstat(path)
+        except FileNotFoundError:
+            pass
+        except OSError as exc:  # a name too long, a file where a folder should be, ...
+            raise self._refuse(f"cannot be written: {exc.strerror or exc}",
+                               "choose another path") from None
         if path.is_dir():
             raise self._refuse("is a folder, not a file", "give a file name inside it")
         for source in self.inputs:
@@ -158,9 +165,10 @@ def replacing(path: str | Path, *, check: Callable[[], None] | None = None,
         InputError: the temporary file cannot be made, or the rename is refused or fails.
     """
     path = Path(path)
+    stem = path.stem.encode()[:64].decode(errors="ignore")  # the name stays short enough
+    suffix = path.suffix if len(path.suffix.encode()) <= 16 else ""
     try:
-        fd, name = tempfile.mkstemp(prefix=f".{path.stem[:80]}.", suffix=f".part{path.suffix}",
-                                    dir=path.parent)
+        fd, name = tempfile.mkstemp(prefix=f".{stem}.", suffix=f".part{suffix}", dir=path.parent)
     except OSError as exc:
         raise InputError(f"cannot write in {path.parent}: {exc.strerror or exc}",
                          hint="choose a writable path") from None
@@ -195,7 +203,7 @@ def _rename(temporary: Path, path: Path, *, clobber: bool) -> None:
     ``path``, atomically; without ``clobber`` an existing ``path`` is never replaced."""
     try:
         old = os.lstat(path)
-        mode = old.st_mode & 0o7777 if not os.path.islink(path) else 0o666 & ~_UMASK
+        mode = old.st_mode & 0o777 if not os.path.islink(path) else 0o666 & ~_UMASK
     except OSError:
         mode = 0o666 & ~_UMASK
     try:

@@ -226,7 +226,9 @@ def _hostile_targets(d: Path, source: Path | None) -> list[tuple[str, bool, str]
     run = d / "run"
     targets = [(str(d / "mine.out"), False, "exists"),
                (str(d), True, ""),  # click's own check (Error: ... is a directory)
-               (str(d / "no-such-folder" / "x.out"), True, "does not exist")]
+               (str(d / "no-such-folder" / "x.out"), True, "does not exist"),
+               (str(d / ("a" * 300 + ".out")), True, "File name too long"),
+               (str(d / "mine.out" / "x.out"), True, "Not a directory")]
     os.mkfifo(d / "fifo")
     targets.append((str(d / "fifo"), True, "not a regular file"))
     for name in RUN_FILES:  # a run's own files, even with --force
@@ -320,6 +322,10 @@ def test_replacing_keeps_the_old_file_when_the_writer_fails_or_is_interrupted(tm
     with replacing(old) as temporary:
         temporary.write_bytes(b"new")
     assert old.read_bytes() == b"new" and sorted(p.name for p in tmp_path.iterdir()) == ["a.mp4"]
+    for name in ("\u65e5" * 80 + ".csv", "x." + "y" * 250):  # 244 and 252 bytes: allowed names
+        with replacing(tmp_path / name) as temporary:
+            temporary.write_bytes(b"long")
+        assert (tmp_path / name).read_bytes() == b"long"
 
 
 def test_a_recording_cut_short_is_kept_only_where_no_file_was(tmp_path):
