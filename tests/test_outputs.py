@@ -122,6 +122,38 @@ def test_a_task_files_name_never_leads_the_run_folder_out_of_runs(tmp_path, monk
             and p != work / "runs"} == before
 
 
+def test_hubo_task_reserves_its_run_folder_inside_runs(tmp_path, monkeypatch):
+    """Through the command line: ``hubo task run`` reserves its run folder from the task's
+    name before pre-flight; with a hostile name it is inside runs/, and the task (out of
+    reach: refused in pre-flight, exit 4, in about a second) leaves every other file as it
+    was."""
+    import hubo_cli.runs as runs
+
+    made = []
+
+    def spy(command, out=None):
+        made.append(make_run_dir(command, out))
+        return made[-1]
+
+    monkeypatch.setattr(runs, "make_run_dir", spy)
+    (tmp_path / "victim").mkdir()
+    (tmp_path / "victim" / "log.csv").write_text("the user's own log\n")
+    monkeypatch.chdir(tmp_path)
+    names = ["x/../../victim", "../victim", str(tmp_path / "victim"), "..\u202e/victim",
+             "...", "", "x/" * 200 + "victim"]
+    for k, name in enumerate(names):
+        task = _task_file(tmp_path / f"t{k}.toml", name)
+        task.write_text(task.read_text().replace("to_mm = [0.0, 0.0]", "to_mm = [900.0, 0.0]"))
+        before = _snapshot(tmp_path)
+        _invoke(["task", "run", str(task), "--driver", "ideal"], 4, "refused in pre-flight",
+                [])
+        assert made[-1].resolve().parent == (tmp_path / "runs").resolve(), (name, made[-1])
+        after = _snapshot(tmp_path)
+        before.pop(tmp_path / "runs", None)
+        assert {p: v for p, v in after.items() if p != tmp_path / "runs"} == before
+    assert len(made) == len(names) and not any((tmp_path / "runs").iterdir())
+
+
 def test_folder_name_keeps_ordinary_names_and_marks_the_folder(tmp_path, monkeypatch):
     for name in ("task-cut-rectangle", "sim", "push-wall-left-estop", "task-cut_slot.v2",
                  "task-\u65e5\u672c"):
