@@ -6,6 +6,10 @@ import click
 
 from hubo_cli.cli.output import NO_ESTOP_HELP
 
+force_option = click.option(
+    "--force", is_flag=True,
+    help="Write over an existing output file (never over an input or a run folder's file).")
+
 perturb_option = click.option(
     "--perturb", "perturb_seed", type=click.IntRange(min=0), default=None, metavar="SEED",
     help="Simulate a robot and world drawn from SEED (masses, centres of mass, foot friction, "
