@@ -9,7 +9,12 @@ from rich.progress_bar import ProgressBar
 from rich.table import Table
 
 from hubo_cli.cli.hardware import driver_options, hardware_options
-from hubo_cli.cli.options import balance_option, perturb_option, robot_run_options
+from hubo_cli.cli.options import (
+    active_stops,
+    balance_option,
+    perturb_option,
+    robot_run_options,
+)
 from hubo_cli.cli.output import (
     ProgressLines,
     console,
@@ -83,7 +88,7 @@ def run_options(function):
 
 OPTION_OF = {"width_mm": "--width", "height_mm": "--height", "speed_mm_s": "--speed",
              "wall_distance_mm": "--wall-distance", "direction": "--direction",
-             "interpolator": "--interpolator", "estop": "--no-estop"}
+             "interpolator": "--interpolator"}
 
 
 def _overrides(sets: tuple[str, ...], named: dict | None = None) -> dict:
@@ -215,8 +220,6 @@ def push_wall(direction, interpolator, **options) -> None:
     Example: hubo task push-wall --direction left --no-estop
     """
     named = {"direction": direction, "interpolator": interpolator}
-    if options["no_estop"]:
-        named["estop"] = False
     _run("push-wall", _overrides(options.pop("sets"), named), **options)
 
 
@@ -229,7 +232,8 @@ def _shortcut(name: str) -> click.Command:
     return command
 
 
-def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool, gui: bool,
+def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool,
+         estop_sources: str | None, accept_reduced_safety: bool, gui: bool,
          out: str | None, as_json: bool, perturb_seed: int | None, balance: str = "default",
          video: bool = False, **hardware) -> None:
     from hubo_cli.cli.replay import add_run_video, check_video_support
@@ -246,20 +250,27 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
         if driver != "sim":
             raise InputError(f"the {spec.name} experiment runs on the simulated robot only",
                              hint="leave out --driver")
+        if estop_sources is not None:
+            raise InputError(f"the {spec.name} experiment's stopper listens to the operator "
+                             "and the capture point; --estop-sources does not apply",
+                             hint="to run it without the stopper: --no-estop")
         # its procedure names its own run folder (direction, e-stop) and checks --out first
-        done = run_experiment(spec, out=out, gui=gui, estop=False if no_estop else None,
+        done = run_experiment(spec, out=out, gui=gui, estop=not no_estop,
                               perturb_seed=perturb_seed, balance=balance)
         if video:
             add_run_video(done.run_dir, done.summary)
         _finish(ctx, done, as_json, lambda: _print_push_wall(done.summary, done.run_dir))
         return
+    stops = active_stops(spec.safety.estop_sources, driver, no_estop=no_estop,
+                         estop_sources=estop_sources,
+                         accept_reduced_safety=accept_reduced_safety, quiet=as_json)
     with reserved_run_dir(f"task-{spec.name}", out) as run_dir:
-        _run_in(ctx, spec, run_dir, driver=driver, options=options, no_estop=no_estop,
+        _run_in(ctx, spec, run_dir, driver=driver, options=options, stops=stops,
                 gui=gui, as_json=as_json, video=video, perturb_seed=perturb_seed,
                 balance=balance)
 
 
-def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, no_estop: bool,
+def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, stops,
             gui: bool, as_json: bool, video: bool, perturb_seed: int | None,
             balance: str) -> None:
     from hubo_cli.cli.safety_view import SafetyPanel, read_safety
@@ -289,7 +300,7 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, no
             state["lines"].start()
 
     try:
-        done = run_task(plan, driver=driver, out=run_dir, gui=gui, estop=not no_estop,
+        done = run_task(plan, driver=driver, out=run_dir, gui=gui, stops=stops,
                         on_start=on_start, perturb_seed=perturb_seed,
                         driver_options=options, balance=balance)
     finally:
