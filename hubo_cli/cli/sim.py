@@ -42,9 +42,10 @@ def sim(duration: float, push: float, push_direction: str, balance: str, no_bala
 
     Example: hubo sim --duration 5 --push 30 --push-direction backward
     """
+    from hubo_cli.cli.keys import announce_keys, operator_keys
     from hubo_cli.cli.safety_view import balance_summary_line
-    from hubo_cli.control.estop import SOFT_SOURCES
     from hubo_cli.control.pipeline import SafetyProfile
+    from hubo_cli.control.stop_choice import SOFT_SOURCES
     from hubo_cli.experiments.standing import PUSH_DIRECTIONS, check_standing_args, stand
     from hubo_cli.model import load_model
     from hubo_cli.runs import reserved_run_dir
@@ -53,11 +54,13 @@ def sim(duration: float, push: float, push_direction: str, balance: str, no_bala
     stops = active_stops(SOFT_SOURCES, "sim", no_estop=no_estop, estop_sources=estop_sources,
                          accept_reduced_safety=accept_reduced_safety, quiet=as_json)
     profile = SafetyProfile().with_balance("off" if no_balance else balance)
-    with reserved_run_dir("sim", out) as run_dir:  # a bad --out fails before anything runs
+    with (reserved_run_dir("sim", out) as run_dir,  # a bad --out fails before anything runs
+          operator_keys() as keys):
+        announce_keys(keys, quiet=as_json)
         result = stand(load_model(), duration, push, balance=profile.balance, gui=gui,
                        out=run_dir, stops=stops, perturb_seed=perturb_seed,
                        balance_mode=profile.balance_mode, step=step, hip_strategy=not no_hip,
-                       push_direction=PUSH_DIRECTIONS[push_direction])
+                       push_direction=PUSH_DIRECTIONS[push_direction], operator=keys)
     # the run's whole summary (as in summary.json: pipeline, e-stops, perturbation draws ...)
     summary = json.loads((run_dir / "summary.json").read_text()) | {"run_dir": str(run_dir)}
     if as_json:

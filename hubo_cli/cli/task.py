@@ -22,6 +22,7 @@ from hubo_cli.cli.output import (
     interactive,
     print_json,
 )
+from hubo_cli.control.operator import KEYS_HELP
 from hubo_cli.drivers.registry import DRIVER_NAMES
 from hubo_cli.errors import HuboError, InputError, SafetyError
 
@@ -273,6 +274,7 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
 def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, stops,
             gui: bool, as_json: bool, video: bool, perturb_seed: int | None,
             balance: str) -> None:
+    from hubo_cli.cli.keys import operator_keys
     from hubo_cli.cli.safety_view import SafetyPanel, read_safety
     from hubo_cli.tasks.runner import check_task, run_task
 
@@ -287,12 +289,13 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, st
         if as_json:
             return
         modules = target.modules
+        keys = state["keys"]
         panel = SafetyPanel(lambda: read_safety(modules, world=target.world),
                             bell=err_console.bell,
-                            release_key=None)
+                            release_key="r" if keys else None)
         if interactive():
-            live = Live(get_renderable=lambda: _view(target, panel), refresh_per_second=4,
-                        console=err_console, transient=True)
+            live = Live(get_renderable=lambda: _view(target, panel, keys is not None),
+                        refresh_per_second=4, console=err_console, transient=True)
             live.start()
             state["live"] = live
         else:
@@ -300,9 +303,11 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, st
             state["lines"].start()
 
     try:
-        done = run_task(plan, driver=driver, out=run_dir, gui=gui, stops=stops,
-                        on_start=on_start, perturb_seed=perturb_seed,
-                        driver_options=options, balance=balance)
+        with operator_keys() as keys:
+            state["keys"] = keys
+            done = run_task(plan, driver=driver, out=run_dir, gui=gui, stops=stops,
+                            on_start=on_start, perturb_seed=perturb_seed,
+                            driver_options=options, balance=balance, operator=keys)
     finally:
         if "live" in state:
             state["live"].stop()
@@ -371,12 +376,14 @@ def _progress_line(target, panel) -> str:
             f"{panel.words()}")
 
 
-def _view(target, panel) -> Group:
-    """The live view: one progress bar per step, the safety state, error and wrist torque."""
+def _view(target, panel, keys: bool = False) -> Group:
+    """The live view: one progress bar per step, the safety state, error and wrist torque;
+    the operator's keys when there are (a terminal)."""
     plan = target.plan
     safety = panel()
     status = PHASE_WORDS[target.phase]
-    table = Table(title=f"hubo task {plan.spec.name} — {status}", title_justify="left",
+    table = Table(title=f"hubo task {plan.spec.name} — {status}"
+                  + (f"   (keys: {KEYS_HELP})" if keys else ""), title_justify="left",
                   box=None, pad_edge=False)
     table.add_column("step")
     table.add_column("progress", width=32)
@@ -399,7 +406,8 @@ def _print_cut(summary: dict, run_dir) -> None:
     from hubo_cli.cli.safety_view import balance_summary_line
 
     stance = summary["stance"]
-    why = "emergency stop" if summary["estop"] else summary["ended"]
+    why = ("emergency stop" if summary["estop"] else "finished by the operator: q"
+           if summary.get("finished_by_operator") else summary["ended"])
     outcome = "completed" if summary["completed"] else f"[red]did not complete[/] ({why})"
     console.print(f"{summary['task']} {outcome} after {summary['duration_s']:.1f} s "
                   f"({summary['driver']})")

@@ -186,7 +186,7 @@ def teleop(replay, port, reconnect_timeout, baud, driver, armed, mode, speed, sc
               hubo teleop --port /dev/ttyUSB0
     """
     from hubo_cli.cli.replay import check_video_support
-    from hubo_cli.control.estop import SOFT_SOURCES
+    from hubo_cli.control.stop_choice import SOFT_SOURCES
     from hubo_cli.kinematics.arm_reach import ReachSettings
     from hubo_cli.runs import reserved_run_dir
     from hubo_cli.teleop.session import TeleopSettings
@@ -276,26 +276,20 @@ def _check_wall_reach(settings) -> None:
 
 
 def _run(settings, as_json: bool):
-    from hubo_cli.cli.keys import KeyReader
+    from hubo_cli.cli.keys import operator_keys
     from hubo_cli.cli.safety_view import SafetyPanel, read_safety
     from hubo_cli.teleop.session import run_teleop
 
     state: dict = {"target": None}
 
-    def on_key(char: str) -> None:
+    def on_key(char: str) -> None:  # teleop's own keys (space, r and q: every command's)
         target = state["target"]
         if target is None:
             return
-        if char == " ":
-            target.keys.estop = True
-        elif char == "r":
-            target.keys.release = True
-        elif char == "c":
+        if char == "c":
             target.keys.clutch = True
         elif char == "b":
             target.keys.branch = True
-        elif char in ("q", "\x1b"):
-            target.keys.quit = True
 
     def on_ready(target) -> None:
         state["target"] = target
@@ -310,9 +304,6 @@ def _run(settings, as_json: bool):
                         console=err_console)
             live.start()
             state["live"] = live
-            keys = KeyReader(on_key)
-            keys.__enter__()
-            state["keys"] = keys
         else:
             lines = ProgressLines(lambda: f"teleop {target.phase}: samples "
                                           f"{target.samples_used} | {panel.words()}")
@@ -320,10 +311,10 @@ def _run(settings, as_json: bool):
             state["lines"] = lines
 
     try:
-        return run_teleop(settings, on_ready=on_ready)
+        with operator_keys(on_key) as keys:
+            settings.operator = keys
+            return run_teleop(settings, on_ready=on_ready)
     finally:
-        if "keys" in state:
-            state["keys"].__exit__(None, None, None)
         if "live" in state:
             state["live"].stop()
         if "lines" in state:

@@ -38,7 +38,8 @@ def walk(goal: tuple[float, float, float], corrections: int, no_estop: bool,
 
     Example: hubo walk --to 1.0 0 0
     """
-    from hubo_cli.control.estop import SOFT_SOURCES
+    from hubo_cli.cli.keys import announce_keys, operator_keys
+    from hubo_cli.control.stop_choice import SOFT_SOURCES
     from hubo_cli.experiments.walk import check_goal
     from hubo_cli.experiments.walk import walk as walk_to
     from hubo_cli.model import load_model
@@ -47,10 +48,12 @@ def walk(goal: tuple[float, float, float], corrections: int, no_estop: bool,
     check_goal(goal)
     stops = active_stops(SOFT_SOURCES, "sim", no_estop=no_estop, estop_sources=estop_sources,
                          accept_reduced_safety=accept_reduced_safety, quiet=as_json)
-    with reserved_run_dir("walk", out) as run_dir:  # a bad --out fails before anything runs
+    with (reserved_run_dir("walk", out) as run_dir,  # a bad --out fails before anything runs
+          operator_keys() as keys):
+        announce_keys(keys, quiet=as_json)
         result = walk_to(load_model(), goal, gui=gui, out=run_dir, stops=stops,
                          perturb_seed=perturb_seed, corrections=corrections,
-                         balance=balance)
+                         balance=balance, operator=keys)
     fields = result.summary() | {"ended": result.ended, "estop_events": result.estop_events,
                                  "run_dir": str(result.run_dir)}
     if as_json:

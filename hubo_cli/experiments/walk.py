@@ -8,6 +8,7 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.stop_choice import ActiveStops
 from hubo_cli.errors import InputError
@@ -82,7 +83,7 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
          params: WalkingParams | None = None, gui: bool = False,
          out: str | Path | None = None, stops: ActiveStops | None = None,
          perturb_seed: int | None = None, corrections: int = 1,
-         balance: str = "off",
+         balance: str = "off", operator: OperatorKeys | None = None,
          stabilizer: StabilizerGains | None = DEFAULT_GAINS) -> WalkResult:
     """Walk the simulated robot to ``goal`` = (forward m, left m, turn rad) from its stance.
 
@@ -98,6 +99,7 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
         balance: the standing balancer, ``default``, ``paper`` or ``off`` (``--balance``; its
             reference assumes both feet down and the CoM over them, which walking breaks: off
             by default).
+        operator: the operator's keys (space stop, r release, q finish), if any.
         stabilizer: the walking stabilizer's gains (:mod:`hubo_cli.walking.stabilizer`);
             None walks the pattern open loop.
     """
@@ -113,7 +115,7 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
                         stabilizer=stabilizer)
     setup = RunSetup(command="walk", model=walking_model, driver="sim", gui=gui, out=out,
                      safety=SafetyProfile().with_stops(stops).with_balance(balance),
-                     q_start_rad=q_start, perturb_seed=perturb_seed)
+                     q_start_rad=q_start, perturb_seed=perturb_seed, operator=operator)
     done = run(setup, target)
     error_m, error_rad = target.final_error()
     distance = math.hypot(goal[0], goal[1])

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from hubo_cli.control.loop import LoopResult
+from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.stop_choice import ActiveStops
 from hubo_cli.errors import InputError, SafetyError
@@ -54,12 +55,12 @@ def check_task(spec: TaskSpec, model: RobotModel | None = None) -> Plan:
 def task_setup(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
                gui: bool = False, stops: ActiveStops | None = None,
                driver_options: dict | None = None, perturb_seed: int | None = None,
-               balance: str = "default") -> RunSetup:
+               balance: str = "default", operator: OperatorKeys | None = None) -> RunSetup:
     """The run set-up of a checked plan: the plan's own model and tool, the task's safety
     settings with the stop sources ``stops`` keeps (None: the task's;
     :func:`~hubo_cli.control.stop_choice.decide_stops` decides them) and the balancer
     ``balance`` names (``--balance``), a duration long enough for the plan and its settling
-    waits."""
+    waits; ``operator``: the operator's keys, if any."""
     spec = plan.spec
     safety = spec.safety
     return RunSetup(
@@ -73,13 +74,13 @@ def task_setup(plan: Plan, *, driver: str = "sim", out: str | Path | None = None
         gui=gui, out=out, q_start_rad=home_posture(plan.body.model),
         duration_s=plan.duration_s + 3 * SETTLE_TIMEOUT_S + 10.0,
         cutting=asdict(spec.scene.cutting),
-        perturb_seed=perturb_seed)
+        perturb_seed=perturb_seed, operator=operator)
 
 
 def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
              gui: bool = False, stops: ActiveStops | None = None,
              driver_options: dict | None = None, on_start=None, perturb_seed: int | None = None,
-             balance: str = "default") -> TaskRun:
+             balance: str = "default", operator: OperatorKeys | None = None) -> TaskRun:
     """Run a checked plan and write its run folder.
 
     Args:
@@ -93,6 +94,7 @@ def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
         on_start: called with the :class:`TaskTarget` once the robot has started (live view).
         perturb_seed: a perturbed simulated robot and world (:mod:`hubo_cli.perturb`).
         balance: the balancer, ``default``, ``paper`` or ``off`` (``--balance``).
+        operator: the operator's keys (space stop, r release, q finish), if any.
 
     Raises:
         SafetyError: the plan did not pass pre-flight (nothing moves).
@@ -101,15 +103,14 @@ def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
         raise SafetyError(plan.preflight.worst_per_step()[0].message(),
                           hint="the task was refused in pre-flight; nothing moved")
     with settled_objects():
-        return _run_task(plan, driver, out, gui, stops, driver_options, on_start, perturb_seed,
-                         balance)
+        setup = task_setup(plan, driver=driver, out=out, gui=gui, stops=stops,
+                           driver_options=driver_options, perturb_seed=perturb_seed,
+                           balance=balance, operator=operator)
+        return _run_task(plan, setup, on_start, balance)
 
 
-def _run_task(plan: Plan, driver: str, out, gui: bool, stops: ActiveStops | None,
-              driver_options, on_start, perturb_seed: int | None, balance: str) -> TaskRun:
-    setup = task_setup(plan, driver=driver, out=out, gui=gui, stops=stops,
-                       driver_options=driver_options, perturb_seed=perturb_seed,
-                       balance=balance)
+def _run_task(plan: Plan, setup: RunSetup, on_start, balance: str) -> TaskRun:
+    driver = setup.driver
     target = TaskTarget(plan)
     start = plan.spec.stance.start_m
     if start is not None and driver != "sim":

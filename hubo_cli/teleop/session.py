@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from hubo_cli.control.loop import LoopResult
+from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.stop_choice import ActiveStops
 from hubo_cli.errors import InputError
@@ -61,6 +62,7 @@ class TeleopSettings:
         gui, baud, driver_options: passed on.
         stops: the stop sources the run keeps (None: every soft source; see
             :mod:`hubo_cli.control.stop_choice`).
+        operator: the operator's keys (space stop, r release, q finish), if any.
         reconnect_timeout_s: live: a lost tracker ends the run after this long without
             reconnecting (``--reconnect-timeout``).
         perturb_seed: a perturbed simulated robot and world (:mod:`hubo_cli.perturb`).
@@ -84,6 +86,7 @@ class TeleopSettings:
     baud: int = 115200
     reconnect_timeout_s: float = 10.0
     stops: ActiveStops | None = None
+    operator: OperatorKeys | None = None
     driver_options: dict = field(default_factory=dict)
     perturb_seed: int | None = None
     reach: ReachSettings | None = None
@@ -175,7 +178,7 @@ def teleop_setup(settings: TeleopSettings, body: WholeBody, duration_s: float | 
                              ).with_stops(settings.stops).with_balance(settings.balance),
         speed=settings.speed, live_input=settings.port is not None, gui=settings.gui,
         out=settings.out, duration_s=duration_s, q_start_rad=home_posture(body.model),
-        perturb_seed=settings.perturb_seed)
+        perturb_seed=settings.perturb_seed, operator=settings.operator)
 
 
 def run_teleop(settings: TeleopSettings, on_ready=None) -> TeleopRun:
