@@ -480,9 +480,8 @@ class _Loader:
             kept = ",".join(s for s in ESTOP_SOURCES if s in sources) or "none"
             raise self.fail(t.key("estop_sources"), f"a task may add stop sources but not "
                             f"remove the {stops_words(missing)}",
-                            hint=f"keep {', '.join(TASK_SOURCES)}; to run without "
-                                 f"{missing[0]}, say so on the command line: "
-                                 f"--estop-sources {kept}")
+                            hint=f"to run without the {stops_words(missing)}, say so on "
+                                 f"the command line: --estop-sources {kept}")
         robot_limit_nm = float(load_model().safety["wrist_torque_limit_nm"])
         limit = t.number("wrist_torque_limit_nm", positive=True, maximum=WRIST_TORQUE_MAX_NM,
                          default=robot_limit_nm)
