@@ -223,6 +223,25 @@ def test_only_the_command_line_removes_and_the_hardware_needs_a_second_option(tm
                           "--accept-reduced-safety", "--out", str(tmp_path / "run")], env=env)
         assert confirmed.exit_code == 3 and "libach is not available" in confirmed.output
     assert not (tmp_path / "run").exists()
+    replay = data_file("trajectories", "two-hand-free.csv")
+    before = _digest(replay)
+    result = _cli(["teleop", "--replay", str(replay), "--driver", "hardware", "--arm",
+                   "--estop-sources", "operator", "--out", str(tmp_path / "run")], env=env)
+    _assert_refused(result, 4, "capture-point, wrist-torque and stale-input stops",
+                    "--accept-reduced-safety")
+    assert _digest(replay) == before and not (tmp_path / "run").exists()
+
+
+def test_an_inline_safety_table_is_checked_the_same(tmp_path):
+    text = CUT_SLOT.read_text()
+    start = text.index("[safety]")
+    end = text.index("[[steps]]")
+    task = tmp_path / "inline.toml"
+    # an inline table must come before the first table header: put it at the top
+    task.write_text('safety = { estop_sources = ["capture-point"] }\n'
+                    + text[:start] + text[end:])
+    _assert_refused(_cli(["task", "run", str(task)]), 2, "safety.estop_sources",
+                    "--estop-sources capture-point")
 
 
 @pytest.fixture(scope="module")
