@@ -37,9 +37,6 @@ centre_mm = "auto"
 arm = "right"
 tool = "drill"
 
-[safety]
-estop_sources = ["operator"]
-
 [[steps]]
 kind = "move"
 name = "raise the drill"

@@ -70,6 +70,7 @@ class SafetyState:
     Attributes:
         estop: ``off`` (nothing latched), ``stopping``, ``held`` or ``releasing``.
         soft_estop: the soft emergency stopper is in the pipeline (not ``--no-estop``).
+        active_sources: what the soft stopper acts on (``--estop-sources``).
         estop_sources: the sources of the latest stop.
         stops: emergency stops latched so far (releases not counted).
         collision: ``clear``, ``holding`` or ``recovering``.
@@ -81,6 +82,7 @@ class SafetyState:
 
     estop: str = "off"
     soft_estop: bool = False
+    active_sources: tuple[str, ...] = ()
     estop_sources: tuple[str, ...] = ()
     stops: int = 0
     collision: str = "clear"
@@ -125,7 +127,8 @@ def read_safety(modules: Iterable, hands: Iterable[HandSafety] = (),
     latest = None
     for module in modules:
         if isinstance(module, EmergencyStopper):
-            state.soft_estop |= module.name == "estop"
+            if module.name == "estop":
+                state.soft_estop, state.active_sources = True, tuple(sorted(module.sources))
             stops = [e for e in module.events if e.kind == "stop"]
             state.stops += len(stops)
             if module.mode != "release" and (latest is None or module.mode == "hold"):
@@ -162,7 +165,8 @@ def safety_text(state: SafetyState, flash: bool = False, release_key: str | None
     elif state.estop == "releasing":
         text.append(f"e-stop ({sources}) released — blending back", style="yellow")
     else:
-        text.append("e-stop ready" if state.soft_estop else "e-stop disabled (--no-estop)",
+        text.append(f"e-stop ready ({', '.join(state.active_sources)})" if state.soft_estop
+                    else "e-stop disabled: no stop source (command line)",
                     style="green" if state.soft_estop else "yellow")
     text.append(f"   stops {state.stops}", style="dim")
     text.append("\n")

@@ -37,6 +37,7 @@ from hubo_cli.control.limiter import SoftErrorLimiter
 from hubo_cli.control.limits import JointLimits, all_finite
 from hubo_cli.control.log import LOG_NAME, PeriodLog
 from hubo_cli.control.module import Cycle, Module
+from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.otg import JointTracker
 from hubo_cli.control.status import Status, status_from_flags
 from hubo_cli.control.target import Target, TargetOutput, as_target
@@ -106,6 +107,16 @@ def _as_requests(value) -> Iterable[str]:
     return tuple(str(v) for v in value)
 
 
+def _merge_info(info: dict, pressed: dict) -> dict:
+    """A target's ``info`` with the operator's requests added (stop requests of both kept)."""
+    if not pressed:
+        return info
+    merged = {**info, **pressed}
+    if "estop" in info and "estop" in pressed:
+        merged["estop"] = (*_as_requests(info["estop"]), *_as_requests(pressed["estop"]))
+    return merged
+
+
 class ControlLoop:
     """Runs modules at a fixed rate between a target source and a driver.
 
@@ -118,18 +129,21 @@ class ControlLoop:
         log_path: write the per-period CSV here (a folder gets ``log.csv``); None = no log.
         clock, sleep: time functions (s); injectable for tests.
         max_lag_periods: lateness (in periods) that re-anchors the schedule.
+        operator: the operator's keys (:class:`~hubo_cli.control.operator.OperatorKeys`):
+            what was pressed is taken each period and merged into the target's ``info``.
     """
 
     def __init__(self, driver: Driver, modules: list[Module], target: TargetSource, *,
                  speed: float | None = None, log_path: str | Path | None = None,
                  clock: Callable[[], float] = time.perf_counter,
                  sleep: Callable[[float], None] = time.sleep,
-                 max_lag_periods: int = 20) -> None:
+                 max_lag_periods: int = 20, operator: OperatorKeys | None = None) -> None:
         if speed is not None and speed <= 0:
             raise ValueError("speed must be positive or None")
         self.driver = driver
         self.modules = list(modules)
         self.target = as_target(target)
+        self.operator = operator
         self.speed = speed
         self.dt_s = driver.period_s
         for m in self.modules:
@@ -228,6 +242,8 @@ class ControlLoop:
                 try:
                     q_target, info = self.target(t_s, state)
                     info = info or {}
+                    if self.operator is not None:
+                        info = _merge_info(info, self.operator.take())
                     cycle.estop_requests.update(_as_requests(info.get("estop")))
                     cycle.flags.update(_as_requests(info.get("flags")))
                     if info.get("release"):
