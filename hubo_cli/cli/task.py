@@ -276,7 +276,8 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, no
         if as_json:
             return
         modules = target.modules
-        panel = SafetyPanel(lambda: read_safety(modules, world=target.world),
+        panel = SafetyPanel(lambda: read_safety(modules, world=target.world,
+                                                robot_flags=target.robot_flags),
                             bell=err_console.bell,
                             release_key=None)
         if interactive():

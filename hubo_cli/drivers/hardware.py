@@ -27,8 +27,16 @@ Start-up and safety, enforced here whatever the layers above do:
 - a reference that would move a joint faster than its velocity limit (times
   ``velocity_margin``) is refused whole: servo-off latches (the last reference is held, flag
   ``servo-off``) until :meth:`reset_servo`;
-- no new state for ``stale_periods`` periods flags ``stale-state`` and holds the last reference
-  until states come again;
+- no fresh state (a new ``hubo-state`` frame whose ``time`` advances) for ``stale_after_s``
+  (0.1 s, wall clock) brakes: the pipeline's commands are ignored from then on, and the
+  reference is brought to rest from its current velocity within the joints' velocity,
+  acceleration and jerk limits, then held (flag ``stale-state`` while no fresh state comes,
+  ``stale-hold`` once it comes again). ``stale_grace_s`` (1 s) after the brake began (or when
+  the brake reaches rest, if later), :meth:`step` raises :class:`StateLost` (a
+  :class:`~hubo_cli.errors.DeviceError`, exit 3), which ends the run. A state that comes back
+  within the grace is reported (in the error's words) but never resumes the motion: the plan
+  went on while the robot was held, so carrying on needs the operator; a new run starts from
+  the measured posture;
 - any exception inside ends in a hold (the last reference keeps being sent, flag ``fault``,
   :attr:`fault_message`), never a crash. Malformed commands (wrong shape, unknown joint name)
   are the caller's error: refused with :class:`~hubo_cli.errors.ConfigError`, nothing sent.
@@ -44,10 +52,14 @@ daemon's clock, the state's age in periods).
 from __future__ import annotations
 
 import contextlib
+import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
+from hubo_cli.control.limits import JointLimits
+from hubo_cli.control.otg import JointTracker
 from hubo_cli.drivers import checks, hubo_ach
 from hubo_cli.drivers.ach import load_libach
 from hubo_cli.drivers.base import Driver, RunContext
@@ -91,6 +103,31 @@ def read_ref_frames(path: str | Path) -> list[RefFrame]:
     return [hubo_ach.decode_ref(data[k:k + size]) for k in range(0, len(data), size)]
 
 
+class StateLost(DeviceError):
+    """No fresh robot state for longer than the grace: the robot was braked and held.
+
+    Args:
+        channel: the state channel.
+        since_t_s: run time of the last fresh state (s).
+        stale_s: how long no fresh state came before the run ended (s), or until it came
+            back (then ``back`` is True).
+        back: fresh state came again within the grace (the motion was still not resumed).
+    """
+
+    def __init__(self, channel: str, since_t_s: float, stale_s: float, back: bool) -> None:
+        what = (f"{channel} stopped at t = {since_t_s:.2f} s and came back {stale_s:.2f} s "
+                "later; the cut is not resumed unattended" if back else
+                f"no fresh {channel} for {stale_s:.2f} s since t = {since_t_s:.2f} s")
+        super().__init__(f"robot state lost: {what}; the robot was braked and holds its "
+                         "last reference",
+                         hint="check hubo-daemon (hubo-ach status) and the achd link, then "
+                              "start the run again (it starts from the measured posture)")
+        self.channel = channel
+        self.since_t_s = since_t_s
+        self.stale_s = stale_s
+        self.back = back
+
+
 class HardwareDriver(Driver):
     """hubo-ach driver. Options:
 
@@ -103,11 +140,13 @@ class HardwareDriver(Driver):
         ach_ref, ach_state: the channel names (hubo-ach's ``hubo-ref``, ``hubo-state``).
         ref_mode: hubo-ach mode written for every joint (0 reference filter, 1 direct).
         velocity_margin: references faster than margin x the velocity limit trip servo-off.
-        stale_periods: periods without a new state before ``stale-state`` holds.
+        stale_after_s: wall time without a fresh state before the driver brakes and holds.
+        stale_grace_s: how long after the brake began the run ends (:class:`StateLost`).
         state_wait_s: how long each period waits for the daemon's next state (default 1.5
             periods).
         start_timeout_s: how long :meth:`start` waits for the first state.
         start_tolerance_rad: how far outside its limits a joint may be measured at start.
+        clock: wall-clock time source (s) for the state's age; injectable for tests.
     """
 
     name = "hardware"
@@ -117,9 +156,10 @@ class HardwareDriver(Driver):
     def __init__(self, model: RobotModel, armed: bool = False, sink: str = "ach",
                  sink_path: str | Path | None = None, ach_ref: str = hubo_ach.CHAN_REF,
                  ach_state: str = hubo_ach.CHAN_STATE, ref_mode: int = MODE_FILTERED,
-                 velocity_margin: float = 1.02, stale_periods: int = 20,
-                 state_wait_s: float | None = None, start_timeout_s: float = 1.0,
-                 start_tolerance_rad: float = 0.02) -> None:
+                 velocity_margin: float = 1.02, stale_after_s: float = 0.1,
+                 stale_grace_s: float = 1.0, state_wait_s: float | None = None,
+                 start_timeout_s: float = 1.0, start_tolerance_rad: float = 0.02,
+                 clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__(model)
         if sink not in SINKS:
             raise ConfigError(f"unknown sink {sink!r}", hint=f"use one of {', '.join(SINKS)}")
@@ -128,9 +168,10 @@ class HardwareDriver(Driver):
                               hint="give the file's path (the run folder's hubo-ref.bin)")
         if ref_mode not in (MODE_FILTERED, MODE_DIRECT):
             raise ConfigError(f"unsupported hubo-ach mode {ref_mode}", hint="use 0 or 1")
-        if stale_periods < 1 or start_timeout_s <= 0 or velocity_margin < 1.0:
-            raise ConfigError("stale_periods must be >= 1, start_timeout_s > 0 and "
-                              "velocity_margin >= 1")
+        if not (stale_after_s > 0 and stale_grace_s >= 0 and start_timeout_s > 0
+                and velocity_margin >= 1.0):
+            raise ConfigError("stale_after_s and start_timeout_s must be > 0, stale_grace_s "
+                              ">= 0 and velocity_margin >= 1")
         for channel in (ach_ref, ach_state):
             if not channel or "/" in channel or len(channel) > 63:
                 raise ConfigError(f"bad ach channel name {channel!r}",
@@ -141,7 +182,9 @@ class HardwareDriver(Driver):
         self.ach_ref, self.ach_state = ach_ref, ach_state
         self.ref_mode = int(ref_mode)
         self.velocity_margin = float(velocity_margin)
-        self.stale_periods = int(stale_periods)
+        self.stale_after_s = float(stale_after_s)
+        self.stale_grace_s = float(stale_grace_s)
+        self.clock = clock
         self.state_wait_s = 1.5 * self.period_s if state_wait_s is None else float(state_wait_s)
         self.start_timeout_s = float(start_timeout_s)
         self.start_tolerance_rad = float(start_tolerance_rad)
@@ -161,7 +204,15 @@ class HardwareDriver(Driver):
         self._frame: StateFrame | None = None
         self._t0 = 0.0
         self._flags: list[str] = []
-        self._stale = 0
+        self._stale = 0           # periods since the last fresh state (logged)
+        self._fresh_s = 0.0       # clock() at the last fresh state
+        self._hold_s: float | None = None  # clock() when the stale brake began
+        self._hold_t_s = 0.0      # run time of the last fresh state before it
+        self._lost_s = 0.0        # clock() of that state
+        self._back = False        # fresh state came again during the hold
+        self._back_s = 0.0        # clock() when it came
+        self._brake: JointTracker | None = None
+        self._sent = (self._cmd,) * 3  # the last three references put, oldest first
         self._stopped = False
         self._closed = False
 
@@ -203,7 +254,7 @@ class HardwareDriver(Driver):
         self._ref42 = frame.pos_rad.copy()
         for _ in range(int(round(self.startup_delay_s / self.period_s))):
             self._read(self.source.advance(self._ref42, self._modes()))
-        if self._stale >= self.stale_periods:
+        if self._stale_s() >= self.stale_after_s:
             raise DeviceError(f"{self.ach_state} stopped updating during the start-up delay",
                               hint="is hubo-daemon (hubo-ach) running?")
         self._ref42 = self._frame.pos_rad.copy()  # the posture measured now is the reference
@@ -211,6 +262,7 @@ class HardwareDriver(Driver):
         self._cmd = np.clip(self._ref42[self.ach_index], self.model.lower_rad,
                             self.model.upper_rad)
         self._ref42[self.ach_index] = self._cmd
+        self._sent = (self._cmd,) * 3
         self._flags = []
         self._state = self._make_state()
         return self._state
@@ -235,6 +287,8 @@ class HardwareDriver(Driver):
     def _reset(self) -> None:
         self._seq = 0
         self._stale = 0
+        self._fresh_s = self.clock()
+        self._hold_s, self._brake, self._back = None, None, False
         self._stopped = False
         self.servo_off = False
         self.fault_message = ""
@@ -276,8 +330,7 @@ class HardwareDriver(Driver):
         if self.servo_off:
             self._flags.append("servo-off")
             return
-        if self._stale >= self.stale_periods:
-            self._flags.append("stale-state")
+        if self._hold_s is not None:  # braking or held after stale state: commands ignored
             return
         q, flags, frozen = checks.sanitize_command(self.model, self._cmd, q)
         self._flags += flags
@@ -297,14 +350,27 @@ class HardwareDriver(Driver):
         self._ref42[self.ach_index] = q
 
     def step(self) -> RobotState:
-        """Put this period's reference, then read the daemon's next state."""
+        """Put this period's reference, then read the daemon's next state.
+
+        Raises:
+            StateLost: ``stale_grace_s`` after a stale state began the brake (the brake's
+                hold reference has been put; :meth:`stop` puts it once more).
+        """
         self._require_started()
         try:
+            if self._braking():
+                self._brake_step()
             self._put()
+            self._sent = (*self._sent[1:], self._cmd)
             self._read(self.source.advance(self._ref42, self._modes()))
+            self._watch_stale()
         except Exception as exc:  # any internal failure ends in a hold
             self._enter_fault(exc)
         self._state = self._make_state()
+        if (self._hold_s is not None and not self._braking()
+                and self.clock() - self._hold_s >= self.stale_grace_s):
+            stale_s = (self._back_s if self._back else self.clock()) - self._lost_s
+            raise StateLost(self.ach_state, self._hold_t_s, stale_s, self._back)
         return self._state
 
     def stop(self) -> None:
@@ -362,12 +428,41 @@ class HardwareDriver(Driver):
             self._flags.append("sink-full")
 
     def _read(self, frame: StateFrame | None) -> None:
-        if frame is None:
-            self._stale += 1
-            if self._stale >= self.stale_periods:
-                self._flags.append("stale-state")
+        if frame is None or (self._frame is not None and frame.time_s <= self._frame.time_s):
+            self._stale += 1  # nothing new, or a frame whose clock did not advance
             return
         self._take(frame)
+        if self._hold_s is not None and not self._back:
+            self._back, self._back_s = True, self._fresh_s
+
+    def _stale_s(self) -> float:
+        """Wall time since the last fresh state (s)."""
+        return self.clock() - self._fresh_s
+
+    def _watch_stale(self) -> None:
+        """Begin the brake once the state is ``stale_after_s`` old (once per run)."""
+        if self._hold_s is not None or self._stale_s() < self.stale_after_s:
+            return
+        self._hold_s, self._lost_s = self.clock(), self._fresh_s
+        self._hold_t_s = self._frame.time_s - self._t0
+        dt = self.period_s
+        q2, q1, q0 = self._sent
+        v = (q0 - q1) / dt
+        a = (q0 - 2 * q1 + q2) / dt**2
+        self._brake = JointTracker(JointLimits.from_model(self.model), dt)
+        self._brake.reset(q0, v + 0.5 * a * dt, a)  # as the loop's smooth stop starts
+
+    def _braking(self) -> bool:
+        """The stale-state brake is still bringing the reference to rest."""
+        return (self._brake is not None and not self._brake.at_rest and not self._stopped
+                and not self.fault_message)
+
+    def _brake_step(self) -> None:
+        """One period of the stale-state brake: the reference decelerates towards rest."""
+        q = np.clip(self._brake.brake(), self.model.lower_rad, self.model.upper_rad)
+        if np.all(np.isfinite(q)):
+            self._cmd = q
+            self._ref42[self.ach_index] = q
 
     def _take(self, frame: StateFrame) -> None:
         values = np.concatenate([frame.pos_rad, frame.vel_rad_s, frame.imu_tilt_rad,
@@ -375,6 +470,7 @@ class HardwareDriver(Driver):
         if not np.isfinite(values).all():
             raise DeviceError(f"{self.ach_state} sent a non-finite value")
         self._stale = 0
+        self._fresh_s = self.clock()
         self._frame = frame
 
     def _enter_fault(self, exc: Exception) -> None:
@@ -393,7 +489,8 @@ class HardwareDriver(Driver):
         self._flags = []
         for latched, name in ((self.servo_off, "servo-off"), (bool(self.frozen_joints), "nan-ref"),
                               (bool(self.fault_message), "fault"), (self._stopped, "stopped"),
-                              (self._stale >= self.stale_periods, "stale-state"),
+                              (self._hold_s is not None and not self._back, "stale-state"),
+                              (self._back, "stale-hold"),
                               (frame.ref_wait, "ref-wait")):
             if latched and name not in flags:
                 flags.append(name)
