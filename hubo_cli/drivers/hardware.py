@@ -212,6 +212,7 @@ class HardwareDriver(Driver):
         self._back = False        # fresh state came again during the hold
         self._back_s = 0.0        # clock() when it came
         self._brake: JointTracker | None = None
+        self._brake_sent = False  # send() advanced the brake this period
         self._sent = (self._cmd,) * 3  # the last three references put, oldest first
         self._stopped = False
         self._closed = False
@@ -327,10 +328,12 @@ class HardwareDriver(Driver):
         if self._stopped or self.fault_message:
             self._flags.append("stopped" if self._stopped else "fault")
             return
+        if self._hold_s is not None:  # braking or held after stale state: commands ignored
+            if self._braking():
+                self._brake_step()
+            return
         if self.servo_off:
             self._flags.append("servo-off")
-            return
-        if self._hold_s is not None:  # braking or held after stale state: commands ignored
             return
         q, flags, frozen = checks.sanitize_command(self.model, self._cmd, q)
         self._flags += flags
@@ -358,8 +361,9 @@ class HardwareDriver(Driver):
         """
         self._require_started()
         try:
-            if self._braking():
+            if self._braking() and not self._brake_sent:  # no send() this period
                 self._brake_step()
+            self._brake_sent = False
             self._put()
             self._sent = (*self._sent[1:], self._cmd)
             self._read(self.source.advance(self._ref42, self._modes()))
@@ -459,6 +463,7 @@ class HardwareDriver(Driver):
 
     def _brake_step(self) -> None:
         """One period of the stale-state brake: the reference decelerates towards rest."""
+        self._brake_sent = True
         q = np.clip(self._brake.brake(), self.model.lower_rad, self.model.upper_rad)
         if np.all(np.isfinite(q)):
             self._cmd = q
