@@ -366,3 +366,17 @@ def test_a_run_whose_robot_state_stops_ends_device_with_its_periods_counted(tmp_
     assert stale == pytest.approx(1.0 / PERIOD, abs=2)
     assert result.stop_periods == 0
     assert result.periods == pytest.approx(40 + 20 + 1.0 / PERIOD, abs=3)
+
+
+def test_the_view_and_the_status_say_state_stale():
+    from hubo_cli.cli.safety_view import read_safety, safety_text
+    from hubo_cli.control.status import Status, status_from_flags
+
+    assert status_from_flags({"servo-off", "stale-state", "estop"}) == Status.STATE_STALE
+    assert Status.STATE_STALE.label == "state stale"
+    assert status_from_flags({"stale-hold", "holding"}) == Status.STATE_STALE
+    for flags, words in ((("stale-state", "ref-wait"), "no fresh robot state"),
+                         (("stale-hold",), "robot state back")):
+        text = safety_text(read_safety([], robot_flags=flags)).plain
+        assert text.startswith("STATE STALE") and words in text and "the run ends" in text
+    assert "STATE STALE" not in safety_text(read_safety([], robot_flags=("ref-wait",))).plain
