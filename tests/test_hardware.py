@@ -256,7 +256,7 @@ def stale_hw(tmp_path):
 def test_stale_state_brakes_then_holds_then_ends_the_run(stale_hw):
     """No fresh state for 0.1 s: the pipeline's commands are ignored, the reference brakes
     within the joint limits from its cruise, holds, and 1 s later the run ends (exit 3)."""
-    from hubo_cli.drivers.hardware import StateLost
+    from hubo_cli.drivers.stale_state import StateLost
 
     driver, clock = stale_hw
     step = -0.5 * MODEL.velocity_rad_s[REB] * PERIOD  # half the joint's speed limit
@@ -303,7 +303,7 @@ def test_stale_state_brakes_then_holds_then_ends_the_run(stale_hw):
 
 
 def test_state_back_within_the_grace_does_not_resume_the_motion(stale_hw):
-    from hubo_cli.drivers.hardware import StateLost
+    from hubo_cli.drivers.stale_state import StateLost
 
     driver, clock = stale_hw
     _silence(driver, clock, after=5, back_after=60)  # 0.3 s without a state, then back

@@ -191,7 +191,7 @@ def test_stale_state_on_the_channels_brakes_holds_and_ends_even_if_it_comes_back
     """The daemon stops publishing (hung, its channels there): after 0.1 s the driver brakes
     and holds; the daemon comes back within the grace, but the motion does not resume and the
     run ends with :class:`StateLost` (exit 3)."""
-    from hubo_cli.drivers.hardware import StateLost
+    from hubo_cli.drivers.stale_state import StateLost
 
     lib = load_libach()
     with FakeHuboDaemon(lib, posture, *channels).start() as daemon:

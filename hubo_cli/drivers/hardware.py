@@ -28,15 +28,12 @@ Start-up and safety, enforced here whatever the layers above do:
   ``velocity_margin``) is refused whole: servo-off latches (the last reference is held, flag
   ``servo-off``) until :meth:`reset_servo`;
 - no fresh state (a new ``hubo-state`` frame whose ``time`` advances) for ``stale_after_s``
-  (0.1 s, wall clock) brakes: the pipeline's commands are ignored from then on, and the
-  reference is brought to rest from its current velocity within the joints' velocity,
-  acceleration and jerk limits, then held (flag ``stale-state`` while no fresh state comes,
-  ``stale-hold`` once it comes again). ``stale_grace_s`` (1 s) after the brake began (or when
-  the brake reaches rest, if later), :meth:`step` raises :class:`StateLost` (a
-  :class:`~hubo_cli.errors.DeviceError`, exit 3), which ends the run. A state that comes back
-  within the grace is reported (in the error's words) but never resumes the motion: the plan
-  went on while the robot was held, so carrying on needs the operator; a new run starts from
-  the measured posture;
+  (0.1 s, wall clock): the pipeline's commands are ignored from then on, the reference brakes
+  to rest within the joints' limits and holds (flag ``stale-state``; ``stale-hold`` once the
+  state comes again, which never resumes the motion), and ``stale_grace_s`` (1 s) later, or
+  at the brake's rest if later, :meth:`step` raises
+  :class:`~hubo_cli.drivers.stale_state.StateLost` (exit 3), which ends the run (see
+  :mod:`hubo_cli.drivers.stale_state`);
 - any exception inside ends in a hold (the last reference keeps being sent, flag ``fault``,
   :attr:`fault_message`), never a crash. Malformed commands (wrong shape, unknown joint name)
   are the caller's error: refused with :class:`~hubo_cli.errors.ConfigError`, nothing sent.
@@ -58,8 +55,6 @@ from pathlib import Path
 
 import numpy as np
 
-from hubo_cli.control.limits import JointLimits
-from hubo_cli.control.otg import JointTracker
 from hubo_cli.drivers import checks, hubo_ach
 from hubo_cli.drivers.ach import load_libach
 from hubo_cli.drivers.base import Driver, RunContext
@@ -72,6 +67,7 @@ from hubo_cli.drivers.hubo_ach_io import (
     RefSink,
     StateSource,
 )
+from hubo_cli.drivers.stale_state import StaleStateBrake
 from hubo_cli.errors import ConfigError, DeviceError, SafetyError
 from hubo_cli.model import RobotModel
 from hubo_cli.posture import home_posture
@@ -101,31 +97,6 @@ def read_ref_frames(path: str | Path) -> list[RefFrame]:
                           f"{hubo_ach.REF_SIZE}-byte hubo_ref frames")
     size = hubo_ach.REF_SIZE
     return [hubo_ach.decode_ref(data[k:k + size]) for k in range(0, len(data), size)]
-
-
-class StateLost(DeviceError):
-    """No fresh robot state for longer than the grace: the robot was braked and held.
-
-    Args:
-        channel: the state channel.
-        since_t_s: run time of the last fresh state (s).
-        stale_s: how long no fresh state came before the run ended (s), or until it came
-            back (then ``back`` is True).
-        back: fresh state came again within the grace (the motion was still not resumed).
-    """
-
-    def __init__(self, channel: str, since_t_s: float, stale_s: float, back: bool) -> None:
-        what = (f"{channel} stopped at t = {since_t_s:.2f} s and came back {stale_s:.2f} s "
-                "later; the cut is not resumed unattended" if back else
-                f"no fresh {channel} for {stale_s:.2f} s since t = {since_t_s:.2f} s")
-        super().__init__(f"robot state lost: {what}; the robot was braked and holds its "
-                         "last reference",
-                         hint="check hubo-daemon (hubo-ach status) and the achd link, then "
-                              "start the run again (it starts from the measured posture)")
-        self.channel = channel
-        self.since_t_s = since_t_s
-        self.stale_s = stale_s
-        self.back = back
 
 
 class HardwareDriver(Driver):
@@ -182,9 +153,6 @@ class HardwareDriver(Driver):
         self.ach_ref, self.ach_state = ach_ref, ach_state
         self.ref_mode = int(ref_mode)
         self.velocity_margin = float(velocity_margin)
-        self.stale_after_s = float(stale_after_s)
-        self.stale_grace_s = float(stale_grace_s)
-        self.clock = clock
         self.state_wait_s = 1.5 * self.period_s if state_wait_s is None else float(state_wait_s)
         self.start_timeout_s = float(start_timeout_s)
         self.start_tolerance_rad = float(start_tolerance_rad)
@@ -204,15 +172,9 @@ class HardwareDriver(Driver):
         self._frame: StateFrame | None = None
         self._t0 = 0.0
         self._flags: list[str] = []
-        self._stale = 0           # periods since the last fresh state (logged)
-        self._fresh_s = 0.0       # clock() at the last fresh state
-        self._hold_s: float | None = None  # clock() when the stale brake began
-        self._hold_t_s = 0.0      # run time of the last fresh state before it
-        self._lost_s = 0.0        # clock() of that state
-        self._back = False        # fresh state came again during the hold
-        self._back_s = 0.0        # clock() when it came
-        self._brake: JointTracker | None = None
-        self._brake_sent = False  # send() advanced the brake this period
+        self._stale = 0  # periods since the last fresh state (logged)
+        self.stale = StaleStateBrake(model, self.period_s, float(stale_after_s),
+                                     float(stale_grace_s), clock)
         self._sent = (self._cmd,) * 3  # the last three references put, oldest first
         self._stopped = False
         self._closed = False
@@ -255,7 +217,7 @@ class HardwareDriver(Driver):
         self._ref42 = frame.pos_rad.copy()
         for _ in range(int(round(self.startup_delay_s / self.period_s))):
             self._read(self.source.advance(self._ref42, self._modes()))
-        if self._stale_s() >= self.stale_after_s:
+        if self.stale.age_s >= self.stale.after_s:
             raise DeviceError(f"{self.ach_state} stopped updating during the start-up delay",
                               hint="is hubo-daemon (hubo-ach) running?")
         self._ref42 = self._frame.pos_rad.copy()  # the posture measured now is the reference
@@ -288,8 +250,7 @@ class HardwareDriver(Driver):
     def _reset(self) -> None:
         self._seq = 0
         self._stale = 0
-        self._fresh_s = self.clock()
-        self._hold_s, self._brake, self._back = None, None, False
+        self.stale.reset()
         self._stopped = False
         self.servo_off = False
         self.fault_message = ""
@@ -328,9 +289,9 @@ class HardwareDriver(Driver):
         if self._stopped or self.fault_message:
             self._flags.append("stopped" if self._stopped else "fault")
             return
-        if self._hold_s is not None:  # braking or held after stale state: commands ignored
+        if self.stale.holding:  # braking or held after stale state: commands ignored
             if self._braking():
-                self._brake_step()
+                self._hold(self.stale.advance())
             return
         if self.servo_off:
             self._flags.append("servo-off")
@@ -361,20 +322,19 @@ class HardwareDriver(Driver):
         """
         self._require_started()
         try:
-            if self._braking() and not self._brake_sent:  # no send() this period
-                self._brake_step()
-            self._brake_sent = False
+            if self._braking() and not self.stale.advanced:  # no send() this period
+                self._hold(self.stale.advance())
+            self.stale.advanced = False
             self._put()
             self._sent = (*self._sent[1:], self._cmd)
             self._read(self.source.advance(self._ref42, self._modes()))
-            self._watch_stale()
+            self.stale.watch(self._frame.time_s - self._t0, self._sent)
         except Exception as exc:  # any internal failure ends in a hold
             self._enter_fault(exc)
         self._state = self._make_state()
-        if (self._hold_s is not None and not self._braking()
-                and self.clock() - self._hold_s >= self.stale_grace_s):
-            stale_s = (self._back_s if self._back else self.clock()) - self._lost_s
-            raise StateLost(self.ach_state, self._hold_t_s, stale_s, self._back)
+        lost = self.stale.lost(self.ach_state, self._braking())
+        if lost is not None:
+            raise lost
         return self._state
 
     def stop(self) -> None:
@@ -436,35 +396,13 @@ class HardwareDriver(Driver):
             self._stale += 1  # nothing new, or a frame whose clock did not advance
             return
         self._take(frame)
-        if self._hold_s is not None and not self._back:
-            self._back, self._back_s = True, self._fresh_s
-
-    def _stale_s(self) -> float:
-        """Wall time since the last fresh state (s)."""
-        return self.clock() - self._fresh_s
-
-    def _watch_stale(self) -> None:
-        """Begin the brake once the state is ``stale_after_s`` old (once per run)."""
-        if self._hold_s is not None or self._stale_s() < self.stale_after_s:
-            return
-        self._hold_s, self._lost_s = self.clock(), self._fresh_s
-        self._hold_t_s = self._frame.time_s - self._t0
-        dt = self.period_s
-        q2, q1, q0 = self._sent
-        v = (q0 - q1) / dt
-        a = (q0 - 2 * q1 + q2) / dt**2
-        self._brake = JointTracker(JointLimits.from_model(self.model), dt)
-        self._brake.reset(q0, v + 0.5 * a * dt, a)  # as the loop's smooth stop starts
 
     def _braking(self) -> bool:
-        """The stale-state brake is still bringing the reference to rest."""
-        return (self._brake is not None and not self._brake.at_rest and not self._stopped
-                and not self.fault_message)
+        """The stale-state brake still moves the reference (not after a stop or a fault)."""
+        return self.stale.braking and not self._stopped and not self.fault_message
 
-    def _brake_step(self) -> None:
-        """One period of the stale-state brake: the reference decelerates towards rest."""
-        self._brake_sent = True
-        q = np.clip(self._brake.brake(), self.model.lower_rad, self.model.upper_rad)
+    def _hold(self, q: np.ndarray) -> None:
+        """Make ``q`` (the brake's) the reference."""
         if np.all(np.isfinite(q)):
             self._cmd = q
             self._ref42[self.ach_index] = q
@@ -475,7 +413,7 @@ class HardwareDriver(Driver):
         if not np.isfinite(values).all():
             raise DeviceError(f"{self.ach_state} sent a non-finite value")
         self._stale = 0
-        self._fresh_s = self.clock()
+        self.stale.fresh()
         self._frame = frame
 
     def _enter_fault(self, exc: Exception) -> None:
@@ -494,11 +432,10 @@ class HardwareDriver(Driver):
         self._flags = []
         for latched, name in ((self.servo_off, "servo-off"), (bool(self.frozen_joints), "nan-ref"),
                               (bool(self.fault_message), "fault"), (self._stopped, "stopped"),
-                              (self._hold_s is not None and not self._back, "stale-state"),
-                              (self._back, "stale-hold"),
                               (frame.ref_wait, "ref-wait")):
             if latched and name not in flags:
                 flags.append(name)
+        flags += self.stale.flags()
         return RobotState(time_s=frame.time_s - self._t0, q_rad=frame.pos_rad[self.ach_index],
                           dq_rad_s=frame.vel_rad_s[self.ach_index],
                           imu_quat_wxyz=hubo_ach.quat_from_tilt(frame.imu_tilt_rad),

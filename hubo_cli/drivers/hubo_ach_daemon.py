@@ -24,14 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hubo_cli.drivers import hubo_ach
-from hubo_cli.drivers.ach import (
-    ACH_EEXIST,
-    ACH_ENOENT,
-    ACH_MISSED_FRAME,
-    ACH_OK,
-    AchError,
-    Libach,
-)
+from hubo_cli.drivers.ach import ACH_EEXIST, ACH_MISSED_FRAME, ACH_OK, AchError, Libach
 from hubo_cli.drivers.hubo_ach import JOINT_COUNT, StateFrame
 from hubo_cli.errors import DeviceError
 
@@ -239,15 +232,13 @@ class FakeHuboDaemon:
 
 def channel_published(lib: Libach, name: str) -> bool:
     """Whether a new frame comes on channel ``name`` within :data:`LIVE_CHECK_S` (a live
-    writer); False when the channel does not exist."""
-    try:
-        channel = lib.open(name)
-    except AchError as exc:
-        if exc.status == ACH_ENOENT:
-            return False
-        raise
+    writer); False when the channel does not exist or cannot be read (a writer killed in the
+    middle of a put can leave it so)."""
     buffer = (ctypes.c_uint8 * (1 << 16))()  # any old frame size fits
-    with channel:
-        channel.get(buffer, last=True)  # what is there already is not news
-        return channel.get(buffer, last=True, wait_s=LIVE_CHECK_S)[0] in (ACH_OK,
-                                                                          ACH_MISSED_FRAME)
+    try:
+        with lib.open(name) as channel:
+            channel.get(buffer, last=True)  # what is there already is not news
+            status, _ = channel.get(buffer, last=True, wait_s=LIVE_CHECK_S)
+    except AchError:
+        return False
+    return status in (ACH_OK, ACH_MISSED_FRAME)
