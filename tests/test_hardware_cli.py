@@ -196,6 +196,18 @@ def _daemon(ref: str, state: str) -> subprocess.Popen:
          "--ach-state", state], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
+@pytest.fixture
+def channel_names():
+    """Unique ``hubo-ref`` and ``hubo-state`` names, unlinked afterwards whatever happened."""
+    tag = f"hubotest-{os.getpid()}-{uuid.uuid4().hex[:8]}"
+    names = (f"{tag}-ref", f"{tag}-state")
+    yield names
+    from hubo_cli.drivers.ach import load_libach
+
+    for name in names:
+        load_libach().unlink(name)
+
+
 def _wait_published(lib, name: str, timeout_s: float = 60.0) -> None:
     """Wait until a daemon publishes on channel ``name`` (it is running)."""
     from hubo_cli.drivers.hubo_ach_daemon import channel_published
@@ -207,7 +219,8 @@ def _wait_published(lib, name: str, timeout_s: float = 60.0) -> None:
 
 @needs_libach
 @pytest.mark.parametrize("how", [signal.SIGKILL, signal.SIGTERM], ids=["SIGKILL", "SIGTERM"])
-def test_a_daemon_killed_mid_move_ends_the_run_braked_with_exit_3(tmp_path, how):
+def test_a_daemon_killed_mid_move_ends_the_run_braked_with_exit_3(tmp_path, how,
+                                                                  channel_names):
     """hubo-daemon dies in the middle of a slow move: the run ends ``device``, exit 3, with
     one line; the references brake to rest within the joints' limits and hold (no jump); the
     summary counts the stale periods. After a SIGKILL the channels stay, the last reference on
@@ -222,8 +235,7 @@ def test_a_daemon_killed_mid_move_ends_the_run_braked_with_exit_3(tmp_path, how)
     from hubo_cli.drivers.hubo_ach import HuboRef, decode_ref
 
     lib = load_libach()
-    tag = f"hubotest-{os.getpid()}-{uuid.uuid4().hex[:8]}"
-    ref, state = f"{tag}-ref", f"{tag}-state"
+    ref, state = channel_names
     task = tmp_path / "slow.toml"
     task.write_text(SLOW_TASK)
     run, err_path = tmp_path / "run", tmp_path / "stderr.txt"
@@ -234,7 +246,7 @@ def test_a_daemon_killed_mid_move_ends_the_run_braked_with_exit_3(tmp_path, how)
             client = subprocess.Popen(
                 [sys.executable, "-m", "hubo_cli.cli.main", "task", "run", str(task),
                  "--driver", "hardware", "--arm", "--ach-ref", ref, "--ach-state", state,
-                 "--out", str(run)], stdout=subprocess.PIPE, stderr=err_file, text=True)
+                 "--out", str(run)], stdout=subprocess.DEVNULL, stderr=err_file)
         end = time.monotonic() + 240
         while "short-move: run," not in err_path.read_text():  # the 8 s move has begun
             assert client.poll() is None and time.monotonic() < end, err_path.read_text()
@@ -290,9 +302,14 @@ def test_a_daemon_killed_mid_move_ends_the_run_braked_with_exit_3(tmp_path, how)
                                                  for n in MODEL.joint_names]]
         assert np.allclose(held, cmd[-1], atol=1e-9)
         second = _daemon(ref, state)
-        _wait_published(lib, state)
-        second.send_signal(signal.SIGTERM)
-        _, err2 = second.communicate(timeout=20)
+        try:
+            _wait_published(lib, state)
+            second.send_signal(signal.SIGTERM)
+            _, err2 = second.communicate(timeout=20)
+        finally:
+            if second.poll() is None:
+                second.kill()
+                second.wait()
         assert second.returncode == 0, err2
         assert f"replacing {ref}, {state} left over from a dead daemon" in err2
     assert not (SHM / f"achshm-{ref}").exists() and not (SHM / f"achshm-{state}").exists()
