@@ -1,6 +1,7 @@
 """The hardware driver on its dry-run sink (file/FIFO, state echoed through hubo-daemon's
-reference filter): arming, start-up delay, frames, safety latches, faults. The same driver on
-real ach channels: tests/test_hardware_ach.py."""
+reference filter): arming, start-up delay, frames, safety latches, faults, and a state that
+stops (its source silenced, a clock of one period a step). The same driver on real ach
+channels: tests/test_hardware_ach.py."""
 
 from __future__ import annotations
 
@@ -380,3 +381,47 @@ def test_the_view_and_the_status_say_state_stale():
         text = safety_text(read_safety([], robot_flags=flags)).plain
         assert text.startswith("STATE STALE") and words in text and "the run ends" in text
     assert "STATE STALE" not in safety_text(read_safety([], robot_flags=("ref-wait",))).plain
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_stale_brake_from_any_motion_stays_within_the_limits(tmp_path, seed):
+    """Every joint cruising at a random speed up to its limit (away from its nearer position
+    limit, with room to stop) when the state stops at a random period: the references slow
+    down only, within the velocity and acceleration limits, come to rest and hold, and the run
+    ends at the grace or, from a fast motion, when the brake is done."""
+    from hubo_cli.drivers.stale_state import StateLost
+
+    rng = np.random.default_rng(seed)
+    clock = _Clock()
+    with HardwareDriver(MODEL, armed=True, sink="file", sink_path=tmp_path / "hubo-ref.bin",
+                        clock=clock) as driver:
+        q = driver.start().q_rad.copy()
+        lower, upper = MODEL.lower_rad, MODEL.upper_rad
+        direction = np.where(upper - q > q - lower, 1.0, -1.0)
+        room = np.maximum(upper - q, q - lower) - 0.05
+        v_max = MODEL.velocity_rad_s
+        speed = rng.uniform(0.0, 1.0, q.size) * v_max
+        speed = np.minimum(speed, np.sqrt(MODEL.acceleration_rad_s2 * room))  # room to stop
+        cruise = int(rng.integers(3, 30))
+        _silence(driver, clock, after=cruise)
+        periods = 0
+        with pytest.raises(StateLost) as info:
+            for periods in range(1, 2000):  # noqa: B007 (counted for after the loop)
+                q = q + direction * speed * PERIOD
+                driver.send(q)
+                driver.step()
+    ref = np.array([f.ref_rad[[INDEX[n] for n in MODEL.joint_names]]
+                    for f in read_ref_frames(driver.sink_path)])
+    v = np.diff(ref, axis=0) / PERIOD
+    assert np.all(np.abs(v) <= v_max * 1.001)
+    brake = np.abs(v[cruise + 20:])  # from the brake's first period on
+    assert np.all(np.diff(brake, axis=0) <= 1e-9)  # slowing down only
+    a = np.diff(v, axis=0) / PERIOD
+    assert np.all(np.abs(a) <= MODEL.acceleration_rad_s2 * 1.001)
+    assert np.all(np.abs(v[-1]) < 1e-6)  # at rest at the end
+    # from the brake's start: the grace, or the time to stop from the fastest joint if longer
+    stop_s = np.max(speed / MODEL.acceleration_rad_s2 + MODEL.acceleration_rad_s2
+                    / MODEL.jerk_rad_s3)
+    held_s = (periods - cruise - 20) * PERIOD
+    assert 1.0 - 2 * PERIOD <= held_s <= max(1.0, stop_s) + 3 * PERIOD
+    assert not info.value.back
