@@ -262,5 +262,6 @@ def common_summary(setup: RunSetup, speed: float | None, loop: LoopResult,
                          for m, t, k, s in loop.safety_events if k in ("stop", "release")],
         "overruns": loop.overruns,
         "overrun_skipped_s": loop.skipped_s,
+        "stale_state_periods": loop.flag_counts.get("stale-state", 0),
         "files": files,
     }

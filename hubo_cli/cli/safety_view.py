@@ -78,6 +78,7 @@ class SafetyState:
         collision_distance_m: its distance (m; negative: overlapping), None if unknown.
         hands: per driven hand, its input and reach state.
         balance: how well the body is held (None: not read).
+        robot: the driver's trouble in words ("" when none), e.g. a stale robot state.
     """
 
     estop: str = "off"
@@ -90,10 +91,15 @@ class SafetyState:
     collision_distance_m: float | None = None
     hands: list[HandSafety] = field(default_factory=list)
     balance: BalanceWatch | None = None
+    robot: str = ""
 
 
 ESTOP_WORDS = {"stop": "stopping", "hold": "held", "recover": "releasing"}
 COLLISION_WORDS = {"hold": "holding", "recover": "recovering"}
+ROBOT_WORDS = {  # driver flags of the robot's state the operator must see
+    "stale-state": "STATE STALE: no fresh robot state — braked and holding; the run ends",
+    "stale-hold": "STATE STALE: robot state back — held, not resumed; the run ends",
+}
 
 
 def read_balance(modules: Iterable, world=None) -> BalanceWatch:
@@ -118,12 +124,14 @@ def read_balance(modules: Iterable, world=None) -> BalanceWatch:
 
 
 def read_safety(modules: Iterable, hands: Iterable[HandSafety] = (),
-                world=None) -> SafetyState:
+                world=None, robot_flags: Iterable[str] = ()) -> SafetyState:
     """The safety state of a pipeline's modules (the soft and hard emergency stoppers, the
     collision detector, and for the balance line the capture-point monitor and the limiter;
-    others are ignored); ``world``: the simulator, for the torso's true tilt."""
+    others are ignored); ``world``: the simulator, for the torso's true tilt;
+    ``robot_flags``: the flags of the robot's latest state (the driver's trouble)."""
     modules = list(modules)
-    state = SafetyState(hands=list(hands), balance=read_balance(modules, world))
+    robot = next((ROBOT_WORDS[f] for f in robot_flags if f in ROBOT_WORDS), "")
+    state = SafetyState(hands=list(hands), balance=read_balance(modules, world), robot=robot)
     latest = None
     for module in modules:
         if isinstance(module, EmergencyStopper):
@@ -156,6 +164,8 @@ def _pair(pair: tuple[str, str] | None) -> str:
 def safety_text(state: SafetyState, flash: bool = False, release_key: str | None = "r") -> Text:
     """The state in words and colour (several lines)."""
     text = Text()
+    if state.robot:
+        text.append(state.robot + "\n", style="bold white on red" if flash else "bold red")
     sources = ", ".join(state.estop_sources) or "unknown"
     if state.estop in ("stopping", "held"):
         how = "reverting" if state.estop == "stopping" else "held"

@@ -296,7 +296,8 @@ def _run(settings, as_json: bool):
         modules = target.modules
         if as_json:
             return
-        panel = SafetyPanel(lambda: read_safety(modules, hand_safety(target), target.world),
+        panel = SafetyPanel(lambda: read_safety(modules, hand_safety(target), target.world,
+                                                target.robot_flags),
                             bell=err_console.bell)
         state["panel"] = panel
         if interactive():
