@@ -6,11 +6,16 @@ the torso, with the logged (IMU) orientation. The measured tool path is the logg
 carried to the tool's point; the goal path is the commanded tool position (logged in the task's
 stance frame S) carried into the world by the offset between the measured tool in the world and
 in S at the first period where both are known (the way a task places its wall).
+
+The run's start in UTC (for exports' absolute times) is the log's ``started_utc``; a log written
+before that was recorded gets its file's modification time, and :attr:`RunScene.start_source`
+says so.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
@@ -18,10 +23,16 @@ import numpy as np
 from hubo_cli.control.log import LogData, load_log
 from hubo_cli.control.status import Status
 from hubo_cli.errors import InputError
+from hubo_cli.geometry import quat_wxyz_to_matrix
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import ARMS, LEGS, RobotModel, load_model
 
 ARM_SUFFIX = {"right-arm": "_r", "left-arm": "_l"}
+# the run's scalar series (time_series), in the order exports show them
+SERIES = ("error_mm", "wrist_torque_nm", "cp_margin_mm", "torso_pitch_deg", "status_code")
+HOLE_FACE_OFFSET_M = 0.001  # the hole drawn this far in front of the wall's face
+START_FROM_LOG = "log"  # RunScene.start_source when the log says when the run started
+LATEST_START_NS = 2 ** 62  # a start time after this (year 2116) is not believed
 HAND_FRAME = {"right-arm": "right_hand", "left-arm": "left_hand"}
 
 
@@ -56,6 +67,9 @@ class RunScene:
         goal_world_m: the commanded tool point per period (N x 3), NaN where none was logged.
         walls: walls as placed (``centre_world_m``, ``quat_wxyz``, ``size_m``).
         hole_world_m: where the bit crossed a wall (M x 3).
+        start_utc_ns: when the run started (UTC, ns since the epoch).
+        start_source: where that comes from: ``"log"`` (the log's ``started_utc``) or a
+            sentence naming the file whose modification time stands in for it.
     """
 
     run_dir: Path
@@ -69,6 +83,8 @@ class RunScene:
     goal_world_m: np.ndarray
     walls: list[dict] = field(default_factory=list)
     hole_world_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    start_utc_ns: int = 0
+    start_source: str = START_FROM_LOG
 
     @property
     def t_s(self) -> np.ndarray:
@@ -96,6 +112,31 @@ class RunScene:
                 return 0.5 * (finite.min(axis=0) + finite.max(axis=0))
         return self.T_world_torso[0, :3, 3] + np.array([0.35, 0.0, -0.1])
 
+    def utc_ns(self) -> np.ndarray:
+        """Each period's time as UTC nanoseconds since the epoch (int64)."""
+        return self.start_utc_ns + np.round(self.t_s * 1e9).astype(np.int64)
+
+    def hole_on_face_world_m(self) -> np.ndarray:
+        """The hole's points moved onto the face of their wall on the robot's side (plus
+        :data:`HOLE_FACE_OFFSET_M`), where a viewer sees them; the points as cut lie inside the
+        wall. A point in no wall stays where it is."""
+        points = self.hole_world_m.copy()
+        robot = self.T_world_torso[0, :3, 3]
+        for wall in self.walls:
+            try:
+                centre = np.asarray(wall["centre_world_m"], dtype=float).reshape(3)
+                size = np.asarray(wall["size_m"], dtype=float).reshape(3)
+                R = quat_wxyz_to_matrix(np.asarray(wall["quat_wxyz"], dtype=float).reshape(4))
+            except (KeyError, TypeError, ValueError):
+                continue  # not a wall this can place (the exporters refuse it themselves)
+            local = (points - centre) @ R  # rows: R.T @ (p - c)
+            inside = np.all(np.abs(local) <= size / 2 + 0.005, axis=1)
+            thin = int(np.argmin(size))
+            side = np.sign(((robot - centre) @ R)[thin]) if np.all(np.isfinite(robot)) else -1
+            local[inside, thin] = (side or -1) * (size[thin] / 2 + HOLE_FACE_OFFSET_M)
+            points[inside] = centre + local[inside] @ R.T
+        return points
+
     def caption(self, k: int) -> str:
         """One line describing period ``k``: time, step, error, wrist torque, status."""
         log = self.log
@@ -114,6 +155,65 @@ class RunScene:
         parts.append(f"lean {lean:+4.1f} deg")
         parts.append(Status(int(log["status_code"][k])).label)
         return "   ".join(parts)
+
+
+def time_series(scene: RunScene) -> dict[str, np.ndarray]:
+    """The run's scalar time series by name (NaN where not logged): ``error_mm`` (tracking
+    error of the tool), ``wrist_torque_nm``, ``cp_margin_mm`` (the capture point inside its
+    support polygon shrunk by the monitor's margin; negative = outside), ``torso_pitch_deg``
+    and ``status_code`` (:data:`SERIES`); a series the log lacks is left out."""
+    log = scene.log
+    suffix = ARM_SUFFIX[scene.working_arm]
+    out: dict[str, np.ndarray] = {}
+    error = first_column(log, ("error_m", f"error_m{suffix}"))
+    if error is not None:
+        out["error_mm"] = error * 1000
+    torque = first_column(log, ("task_wrist_torque_nm", "wrist_torque_nm"))
+    if torque is not None:
+        out["wrist_torque_nm"] = torque
+    outside = first_column(log, ("cp_outside_m",))
+    if outside is not None:
+        out["cp_margin_mm"] = -outside * 1000
+    T = scene.T_world_torso
+    out["torso_pitch_deg"] = np.degrees(np.arctan2(-T[:, 2, 0], np.hypot(T[:, 0, 0], T[:, 1, 0])))
+    out["status_code"] = log["status_code"]
+    return out
+
+
+def events(scene: RunScene) -> list[tuple[int, str, str]]:
+    """What happened, in order, as (period, level, text): the e-stop latching (``warning``)
+    and releasing (``info``), read from the log's ``estop`` flag, and each change of status
+    (``info``; ``warning`` from joint limit up)."""
+    out = []
+    estopped = np.array(["estop" in f for f in scene.log.flags], dtype=bool)
+    for k in np.flatnonzero(np.diff(estopped.astype(np.int8), prepend=0)).tolist():
+        out.append((k, "warning", "e-stop latched") if estopped[k]
+                   else (k, "info", "e-stop released"))
+    status = scene.log.status
+    for k in np.flatnonzero(np.r_[True, status[1:] != status[:-1]]).tolist():
+        code = int(status[k])
+        label = Status(code).label if code in Status._value2member_map_ else f"code {code}"
+        out.append((k, "warning" if code >= Status.JOINT_LIMIT else "info",
+                    f"status: {label}"))
+    return sorted(out, key=lambda e: e[0])
+
+
+def _start_utc(log: LogData, log_file: Path) -> tuple[int, str]:
+    """(UTC ns since the epoch, source) of the run's start; see the module docstring."""
+    text = log.started_utc
+    try:
+        moment = datetime.fromisoformat(text)
+        if moment.tzinfo is None:
+            moment = moment.replace(tzinfo=UTC)
+        ns = round(moment.timestamp() * 1e6) * 1000
+        if 0 <= ns < LATEST_START_NS:
+            return ns, START_FROM_LOG
+    except (TypeError, ValueError, OverflowError, OSError):
+        pass
+    stamp = log_file.stat().st_mtime_ns
+    why = "no start time" if text is None else f"an unusable start time ({str(text)[:40]!r})"
+    return stamp, (f"the modification time of {log_file.name} (the log has {why}; that is "
+                   "when the log was last written, at or after the run's end)")
 
 
 def _tools(log: LogData) -> dict[str, str]:
@@ -209,5 +309,9 @@ def load_scene(run: str | Path, model: RobotModel | None = None) -> RunScene:
     tool_world = _tool_world(model, log, T, arm, tools[arm])
     scene_meta = log.metadata.get("scene", {})
     hole = np.asarray(scene_meta.get("hole_world_m", []), dtype=float).reshape(-1, 3)
+    log_file = next(f for f in (run_dir / "log.parquet", run_dir / "log.csv", path)
+                    if f.is_file())
+    start_ns, start_source = _start_utc(log, log_file)
     return RunScene(run_dir, log, model, T, estimated, tools, arm, tool_world,
-                    _goal_world(log, arm, tool_world), list(scene_meta.get("walls", [])), hole)
+                    _goal_world(log, arm, tool_world), list(scene_meta.get("walls", [])), hole,
+                    start_ns, start_source)
