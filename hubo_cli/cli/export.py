@@ -19,8 +19,9 @@ def export(run, rrd, mcap, as_json) -> None:
 
     The .rrd holds the URDF animated, the goal and measured tool paths, the hole and the walls
     in 3-D, and on the same timeline the tracking error, wrist torque, capture-point margin,
-    torso pitch and status. The .mcap holds joint states and frame transforms (Foxglove schemas)
-    and the scene; add the robot's URDF as a layer in Foxglove's 3D panel.
+    torso pitch and events, laid out by its blueprint. The .mcap (UTC times) holds the URDF,
+    joint states and frame transforms (Foxglove schemas), the scene, the scalar series and the
+    events; import hubo_cli/viz/foxglove_layout.json in Foxglove for its panels.
 
     Example: hubo export runs/<run> --rrd run.rrd --mcap run.mcap
     """

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from hubo_cli import __version__
-from hubo_cli.control.status import Status
+from hubo_cli.control.log import status_codes
 from hubo_cli.urdf import link_frames
 from hubo_cli.viz.deps import require
 from hubo_cli.viz.replay import ACTUAL_RGB, GOAL_RGB, HOLE_RGB, WALL_RGBA, quat_xyzw
@@ -160,7 +160,7 @@ def _metrics(series: dict[str, np.ndarray], periods: int) -> list[dict]:
     names = list(SERIES)
     missing = np.full(periods, np.nan)
     rows = np.column_stack([series.get(n, missing) for n in names]).tolist()
-    labels = {s.value: s.label for s in Status}
+    labels = status_codes()
     out = []
     for row in rows:
         message = {n: (v if math.isfinite(v) else None) for n, v in zip(names, row, strict=True)}

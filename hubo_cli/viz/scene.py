@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hubo_cli.control.log import LogData, load_log
+from hubo_cli.control.log import LogData, load_log, status_codes
 from hubo_cli.control.status import Status
 from hubo_cli.errors import InputError
 from hubo_cli.geometry import quat_wxyz_to_matrix
@@ -189,12 +189,11 @@ def events(scene: RunScene) -> list[tuple[int, str, str]]:
     for k in np.flatnonzero(np.diff(estopped.astype(np.int8), prepend=0)).tolist():
         out.append((k, "warning", "e-stop latched") if estopped[k]
                    else (k, "info", "e-stop released"))
-    status = scene.log.status
+    status, labels = scene.log.status, status_codes()
     for k in np.flatnonzero(np.r_[True, status[1:] != status[:-1]]).tolist():
         code = int(status[k])
-        label = Status(code).label if code in Status._value2member_map_ else f"code {code}"
         out.append((k, "warning" if code >= Status.JOINT_LIMIT else "info",
-                    f"status: {label}"))
+                    f"status: {labels.get(code, f'code {code}')}"))
     return sorted(out, key=lambda e: e[0])
 
 
