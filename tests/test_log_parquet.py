@@ -2,6 +2,7 @@
 lost, values read back equal to the CSV's, and the file's metadata describes it."""
 
 import json
+import sys
 
 import numpy as np
 import polars as pl
@@ -78,3 +79,12 @@ def test_column_units_follow_the_name_endings():
                                      "right_foot_fz_n", "wrist_torque_nm", "limiter_clamped_count",
                                      "status_code", "cp_flag", "flags")] == [
         "us", "s", "rad", "m", "N", "N m", "count", "enumeration", "0/1", None]
+
+
+def test_without_pyarrow_polars_writes_the_same_types_and_metadata(tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "pyarrow", None)  # import pyarrow fails
+    frame = _table(np.random.default_rng(9), 50)
+    write_log_parquet(frame, tmp_path / "log.parquet", {"started_utc": "2026-01-01T00:00:00Z"})
+    back = pl.read_parquet(tmp_path / "log.parquet")
+    assert back.schema["status_code"] == pl.Int64 and back.schema["cp_flag"] == pl.Int8
+    assert pl.read_parquet_metadata(tmp_path / "log.parquet")["started_utc"].startswith("2026")

@@ -97,9 +97,9 @@ def write_log_parquet(frame: pl.DataFrame, path: Path, sidecar: dict) -> None:
     frame = with_integer_columns(frame)
     metadata = parquet_metadata(sidecar, frame)
     try:  # pyarrow (which pandas reads Parquet with) takes the metadata from the Arrow schema
-        import pyarrow.parquet as pq
-    except ImportError:  # pragma: no cover (polars alone: the same metadata, in the file only)
-        frame.write_parquet(path, metadata=metadata)
-        return
-    table = frame.to_arrow()
-    pq.write_table(table.replace_schema_metadata(metadata), path, compression="zstd")
+        import pyarrow as pa
+    except ImportError:  # no pandas either: the metadata in the file only
+        arrow_schema = None
+    else:
+        arrow_schema = pa.schema(frame.schema).with_metadata(metadata)
+    frame.write_parquet(path, metadata=metadata, arrow_schema=arrow_schema)
