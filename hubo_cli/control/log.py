@@ -166,11 +166,9 @@ def _stacked_chains(hands, joints: int) -> tuple[np.ndarray, ...]:
     return (index, *parts)
 
 
-def utc_iso(t_s: float | None = None) -> str:
-    """A time (seconds since the epoch; None: now) as UTC ISO 8601 to the microsecond,
-    ``2026-11-28T18:17:32.123456Z``."""
-    moment = datetime.now(UTC) if t_s is None else datetime.fromtimestamp(t_s, UTC)
-    return moment.strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+def utc_now_iso() -> str:
+    """Now as UTC ISO 8601 to the microsecond, ``2026-11-28T18:17:32.123456Z``."""
+    return datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
 
 
 def status_codes() -> dict[int, str]:
@@ -217,7 +215,7 @@ class PeriodLog:
         self._at_extras = self._at_feet + len(FEET_COLUMNS)
         self._hand_chains = _stacked_chains(self._hands.values(), n)
         self.metadata: dict = {}
-        self.started_utc = utc_iso()  # just before the first period
+        self.started_utc = utc_now_iso()  # just before the first period
         self.rows = 0
         self.rows_path, self.flags_path = _record_paths(self.path)
         layout = {"columns": list(self.columns), "joints": len(joints),
