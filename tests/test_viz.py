@@ -337,6 +337,24 @@ def test_an_old_run_without_a_start_time_exports_at_its_files_time(run_dir, tmp_
     assert load_scene(old).start_utc_ns == 1767323045 * 10 ** 9  # no zone given: UTC
 
 
+def test_events_are_the_estop_latches_and_releases_and_the_status_changes(scene):
+    from hubo_cli.viz.scene import events
+
+    n = len(scene)
+    flags = [["estop"] if 100 <= k < 150 or k >= n - 3 else ["slowing"] for k in range(n)]
+    codes = np.zeros(n)
+    codes[100:150] = 6  # e-stopped
+    codes[150:160] = 42  # no such status: its number
+    codes[n - 3:] = 7  # servo off
+    log = dataclasses.replace(scene.log, flags=flags,
+                              columns={**scene.log.columns, "status_code": codes})
+    got = events(dataclasses.replace(scene, log=log))
+    assert got == [(0, "info", "status: ok"), (100, "warning", "e-stop latched"),
+                   (100, "warning", "status: e-stopped"), (150, "info", "e-stop released"),
+                   (150, "warning", "status: code 42"), (160, "info", "status: ok"),
+                   (n - 3, "warning", "e-stop latched"), (n - 3, "warning", "status: servo off")]
+
+
 def test_the_hole_is_drawn_on_the_walls_face_toward_the_robot(scene):
     hole = scene.hole_world_m
     assert len(hole) > 10

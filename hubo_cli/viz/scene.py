@@ -30,6 +30,9 @@ from hubo_cli.model import ARMS, LEGS, RobotModel, load_model
 ARM_SUFFIX = {"right-arm": "_r", "left-arm": "_l"}
 # the run's scalar series (time_series), in the order exports show them
 SERIES = ("error_mm", "wrist_torque_nm", "cp_margin_mm", "torso_pitch_deg", "status_code")
+# statuses whose start is an ``info`` event, not a ``warning``: the pipeline at work (a joint
+# held at its limit is most of a nominal cut: the hip yaw and roll at their zero limits)
+QUIET_STATUSES = frozenset({Status.OK, Status.SLOWING, Status.HOLDING, Status.JOINT_LIMIT})
 HOLE_FACE_OFFSET_M = 0.001  # the hole drawn this far in front of the wall's face
 START_FROM_LOG = "log"  # RunScene.start_source when the log says when the run started
 LATEST_START_NS = 2 ** 62  # a start time after this (year 2116) is not believed
@@ -183,7 +186,7 @@ def time_series(scene: RunScene) -> dict[str, np.ndarray]:
 def events(scene: RunScene) -> list[tuple[int, str, str]]:
     """What happened, in order, as (period, level, text): the e-stop latching (``warning``)
     and releasing (``info``), read from the log's ``estop`` flag, and each change of status
-    (``info``; ``warning`` from joint limit up)."""
+    (``info``, or ``warning`` for a status outside :data:`QUIET_STATUSES`)."""
     out = []
     estopped = np.array(["estop" in f for f in scene.log.flags], dtype=bool)
     for k in np.flatnonzero(np.diff(estopped.astype(np.int8), prepend=0)).tolist():
@@ -192,7 +195,7 @@ def events(scene: RunScene) -> list[tuple[int, str, str]]:
     status, labels = scene.log.status, status_codes()
     for k in np.flatnonzero(np.r_[True, status[1:] != status[:-1]]).tolist():
         code = int(status[k])
-        out.append((k, "warning" if code >= Status.JOINT_LIMIT else "info",
+        out.append((k, "info" if code in QUIET_STATUSES else "warning",
                     f"status: {labels.get(code, f'code {code}')}"))
     return sorted(out, key=lambda e: e[0])
 
