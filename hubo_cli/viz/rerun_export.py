@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hubo_cli.viz.camera import DEFAULT_PRESET, camera_for
 from hubo_cli.viz.deps import require
 from hubo_cli.viz.replay import ACTUAL_RGB, GOAL_RGB, HOLE_RGB, WALL_RGBA, quat_xyzw
 from hubo_cli.viz.scene import RunScene, events, time_series
@@ -73,7 +74,7 @@ def export_rrd(scene: RunScene, out: str | Path) -> RrdResult:
     # its name and start time are the run's (not the export's, which the SDK would send)
     rec = rr.RecordingStream(APPLICATION_ID, recording_id=scene.run_dir.name,
                              send_properties=False)
-    rec.save(str(out), default_blueprint=blueprint(rr))
+    rec.save(str(out), default_blueprint=blueprint(rr, scene))
     rec.send_recording_name(scene.run_dir.name)
     rec.send_recording_start_time_nanos(scene.start_utc_ns)
     urdf = scene.model.urdf_path(scene.drill)
@@ -109,17 +110,22 @@ def export_rrd(scene: RunScene, out: str | Path) -> RrdResult:
     return RrdResult(out, len(scene), animated, names, time.perf_counter() - started)
 
 
-def blueprint(rr):
-    """The viewer's layout: the 3-D view (robot and world) beside the plots of
+def blueprint(rr, scene: RunScene):
+    """The viewer's layout: the 3-D view (robot and world, seen from the video's camera:
+    behind and above the working shoulder, at the hole) beside the plots of
     :data:`PLOT_GROUPS` above the event log."""
     rrb = rr.blueprint
+    camera = camera_for(DEFAULT_PRESET, scene.focus_world_m(), scene.working_arm)
     plots = [rrb.TimeSeriesView(name=title, origin="/plots",
                                 contents=[f"+ /plots/{name}" for name in names])
              for title, names in PLOT_GROUPS.items()]
     return rrb.Blueprint(
         rrb.Horizontal(
             rrb.Spatial3DView(name="Robot and wall", origin="/",
-                              contents=["+ /robot/**", "+ /world/**", "+ /transforms/**"]),
+                              contents=["+ /robot/**", "+ /world/**", "+ /transforms/**"],
+                              eye_controls=rrb.EyeControls3D(
+                                  position=camera.eye_m, look_target=camera.target_m,
+                                  eye_up=(0.0, 0.0, 1.0))),
             rrb.Vertical(*plots, rrb.TextLogView(name="Events", origin="/events"),
                          row_shares=[3] * len(plots) + [2]),
             column_shares=[3, 2]),
