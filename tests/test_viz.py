@@ -312,11 +312,15 @@ def test_an_old_run_without_a_start_time_exports_at_its_files_time(run_dir, tmp_
     """A log written before started_utc was recorded (and one with a hostile start time)
     exports with its file's modification time as the start, and the metadata says so."""
     from hubo_cli.viz.mcap_export import METADATA_NAME, export_mcap
+    from hubo_cli.viz.rerun_export import export_rrd
 
     old = tmp_path / "old"
     old.mkdir()
-    for name in ("log.csv", "log.parquet"):
-        (old / name).write_bytes((run_dir / name).read_bytes())
+    (old / "log.csv").write_bytes((run_dir / "log.csv").read_bytes())
+    # the Parquet copy as first written: every number a float, NaN where missing, no metadata
+    pl.read_parquet(run_dir / "log.parquet").with_columns(
+        pl.col(pl.Int64, pl.Int8).cast(pl.Float64).fill_null(np.nan)).write_parquet(
+        old / "log.parquet")
     sidecar = json.loads((run_dir / "log.json").read_text())
     del sidecar["started_utc"], sidecar["hubo_cli_version"]
     (old / "log.json").write_text(json.dumps(sidecar))
@@ -324,8 +328,11 @@ def test_an_old_run_without_a_start_time_exports_at_its_files_time(run_dir, tmp_
     os.utime(old / "log.parquet", ns=(mtime_ns, mtime_ns))
     scene = load_scene(old)
     assert scene.log.started_utc is None and scene.start_utc_ns == mtime_ns
+    assert np.array_equal(scene.log["estop_mode_code"], load_log(run_dir)["estop_mode_code"],
+                          equal_nan=True)
     assert "modification time of log.parquet" in scene.start_source
     read = _read_mcap(export_mcap(scene, tmp_path / "old.mcap").path)
+    assert export_rrd(scene, tmp_path / "old.rrd").periods == len(scene)
     assert read["topics"]["/tf"]["times"][0] == mtime_ns
     meta = read["metadata"][METADATA_NAME]
     assert "modification time" in meta["start_time_source"] and meta["hubo_cli_version"] == ""
