@@ -381,9 +381,41 @@ def test_the_hole_is_drawn_on_the_walls_face_toward_the_robot(scene):
     moved = turned.hole_on_face_world_m()
     assert np.allclose(moved[0], [0.1, 0.5 - 0.01 - 0.001, 1.0])
     assert np.array_equal(moved[1], [3.0, 3.0, 3.0])  # in no wall: left alone
-    for bad in ([{"centre_world_m": [0, 0]}], [{"size_m": "x", "centre_world_m": [0, 0, 0],
-                                                "quat_wxyz": [0, 0, 0, 0]}]):
-        assert np.array_equal(dataclasses.replace(scene, walls=bad).hole_on_face_world_m(), hole)
+
+
+@pytest.mark.parametrize("damage", [
+    {"scene": {"walls": [{"centre_world_m": [0.5, 0, 1]}]}},
+    {"scene": {"walls": [{"centre_world_m": [None, 0, 1], "quat_wxyz": [0, 0, 0, 0],
+                          "size_m": [0.01, 1, 1]}]}},
+    {"scene": {"walls": {"a": 1}, "hole_world_m": [[1, 2]]}},
+    {"scene": {"hole_world_m": "abc"}},
+    {"scene": [], "tools": 3},
+    {"scene": {"tools": ["drill"]}},
+    "{not json", "[]", '{"metadata": []}', "log.parquet", "t_s"])
+def test_export_of_a_damaged_run_folder_is_refused_in_one_line(run_dir, tmp_path, damage):
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    for name in ("log.csv", "log.json", "log.parquet"):
+        (bad / name).write_bytes((run_dir / name).read_bytes())
+    if isinstance(damage, dict):
+        sidecar = json.loads((run_dir / "log.json").read_text())
+        sidecar["metadata"] |= damage
+        (bad / "log.json").write_text(json.dumps(sidecar))
+    elif damage == "log.parquet":
+        (bad / "log.parquet").write_bytes(b"PAR1 not a parquet file")
+    elif damage == "t_s":
+        table = pl.read_parquet(run_dir / "log.parquet")
+        table.with_columns(pl.Series("t_s", [*table["t_s"][:-1], 1e300])).write_parquet(
+            bad / "log.parquet")
+    else:
+        (bad / "log.json").write_text(damage)
+    result = CliRunner().invoke(main, ["export", str(bad), "--mcap", str(tmp_path / "x.mcap"),
+                                       "--rrd", str(tmp_path / "x.rrd")])
+    assert result.exit_code == 2, result.output
+    lines = result.output.strip().splitlines()
+    assert lines[0].startswith("error: ") and lines[1].startswith("hint: ") and len(lines) == 2
+    assert "Traceback" not in result.output and "internal error" not in result.output
+    assert not (tmp_path / "x.mcap").exists() and not (tmp_path / "x.rrd").exists()
 
 
 def test_without_the_extra_the_commands_say_what_to_install(run_dir, tmp_path, monkeypatch):

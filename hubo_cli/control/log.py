@@ -565,14 +565,41 @@ def load_log(path: str | Path) -> LogData:
     recover_log(path)
     csv_path, meta_path, parquet_path = log_paths(path)
     use_parquet = path.suffix == ".parquet" or (path.is_dir() and parquet_path.exists())
-    frame = pl.read_parquet(parquet_path) if use_parquet else _read_csv(csv_path)
-    columns = {name: frame.get_column(name).to_numpy().astype(float, copy=False)
-               for name in frame.columns if name != "flags"}
-    flags = [text.split(";") if text else [] for text in frame.get_column("flags").to_list()]
+    source = parquet_path if use_parquet else csv_path
+    try:
+        frame = pl.read_parquet(parquet_path) if use_parquet else _read_csv(csv_path)
+        columns = {name: frame.get_column(name).to_numpy().astype(float, copy=False)
+                   for name in frame.columns if name != "flags"}
+        flags = [text.split(";") if text else []
+                 for text in frame.get_column("flags").cast(pl.String).fill_null("").to_list()]
+    except (pl.exceptions.PolarsError, OSError, UnicodeDecodeError, ValueError) as exc:
+        reason = str(exc).strip().splitlines()[0][:160] if str(exc).strip() else type(exc).__name__
+        raise InputError(f"cannot read the period log {source}: {reason}",
+                         hint="give a run folder as hubo wrote it (a damaged log.parquet can be "
+                              "removed: the log is then read from log.csv)") from None
     joints = tuple(n[4:-4] for n in frame.columns if n.startswith("cmd_") and n.endswith("_rad"))
-    sidecar = json.loads(meta_path.read_text()) if meta_path.exists() else {}
+    sidecar = _read_sidecar(meta_path)
     return LogData(columns, flags, joints, sidecar.get("metadata", {}),
                    sidecar.get("started_utc"), sidecar.get("hubo_cli_version"))
+
+
+def _read_sidecar(path: Path) -> dict:
+    """A log's sidecar as a dict (empty when there is none).
+
+    Raises:
+        InputError: the file is not a JSON object with a mapping as its metadata.
+    """
+    if not path.exists():
+        return {}
+    try:
+        sidecar = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, ValueError):
+        sidecar = None
+    if not isinstance(sidecar, dict) or not isinstance(sidecar.get("metadata", {}), dict):
+        raise InputError(f"{path} is not a period log's sidecar (a JSON object with its "
+                         "metadata)", hint="give a run folder as hubo wrote it (or remove the "
+                                           "file to read the log without its metadata)")
+    return sidecar
 
 
 def max_velocity_ratio(model, log: LogData) -> float:

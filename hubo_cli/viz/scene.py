@@ -36,6 +36,7 @@ QUIET_STATUSES = frozenset({Status.OK, Status.SLOWING, Status.HOLDING, Status.JO
 HOLE_FACE_OFFSET_M = 0.001  # the hole drawn this far in front of the wall's face
 START_FROM_LOG = "log"  # RunScene.start_source when the log says when the run started
 LATEST_START_NS = 2 ** 62  # a start time after this (year 2116) is not believed
+MAX_LOG_TIME_S = 1e8  # a log's times beyond this (3 years) are not a run's
 HAND_FRAME = {"right-arm": "right_hand", "left-arm": "left_hand"}
 
 
@@ -126,12 +127,8 @@ class RunScene:
         points = self.hole_world_m.copy()
         robot = self.T_world_torso[0, :3, 3]
         for wall in self.walls:
-            try:
-                centre = np.asarray(wall["centre_world_m"], dtype=float).reshape(3)
-                size = np.asarray(wall["size_m"], dtype=float).reshape(3)
-                R = quat_wxyz_to_matrix(np.asarray(wall["quat_wxyz"], dtype=float).reshape(4))
-            except (KeyError, TypeError, ValueError):
-                continue  # not a wall this can place (the exporters refuse it themselves)
+            centre, size = np.asarray(wall["centre_world_m"]), np.asarray(wall["size_m"])
+            R = quat_wxyz_to_matrix(wall["quat_wxyz"])
             local = (points - centre) @ R  # rows: R.T @ (p - c)
             inside = np.all(np.abs(local) <= size / 2 + 0.005, axis=1)
             thin = int(np.argmin(size))
@@ -218,10 +215,58 @@ def _start_utc(log: LogData, log_file: Path) -> tuple[int, str]:
                    "when the log was last written, at or after the run's end)")
 
 
-def _tools(log: LogData) -> dict[str, str]:
+def _tools(scene_meta: dict) -> dict[str, str]:
     tools = {arm: "hand" for arm in ARMS}
-    tools.update(log.metadata.get("scene", {}).get("tools", {}))
+    tools.update(scene_meta.get("tools", {}))
     return tools
+
+
+def _checked_scene(log: LogData, run_dir: Path) -> dict:
+    """The log's scene metadata (walls, tools, hole), checked so that a replay can place it.
+
+    Raises:
+        InputError: something in it is not what a run writes.
+    """
+    scene = log.metadata.get("scene", {})
+    problem = None
+    if not isinstance(scene, dict):
+        problem = "is not a mapping"
+    elif not (isinstance(scene.get("tools", {}), dict)
+              and all(isinstance(a, str) and isinstance(t, str)
+                      for a, t in scene.get("tools", {}).items())):
+        problem = "has tools that are not arm -> tool names"
+    else:
+        walls = scene.get("walls", [])
+        for k, wall in enumerate(walls if isinstance(walls, list) else [None]):
+            if not _wall_ok(wall):
+                problem = (f"has a malformed wall ({k + 1}): each needs centre_world_m and size_m "
+                           "(3 finite numbers, the sizes positive) and quat_wxyz (4, not all 0)")
+                break
+        try:
+            hole = np.asarray(scene.get("hole_world_m", []), dtype=float).reshape(-1, 3)
+        except (TypeError, ValueError):
+            hole = None
+        if problem is None and (hole is None or not np.all(np.isfinite(hole))):
+            problem = "has a hole_world_m that is not a list of finite x, y, z points"
+    if problem is not None:
+        raise InputError(f"the scene in {run_dir / 'log.json'} {problem}",
+                         hint="give a run folder as hubo wrote it (or remove the scene from "
+                              "log.json's metadata to replay without walls)")
+    return scene
+
+
+def _wall_ok(wall) -> bool:
+    if not isinstance(wall, dict):
+        return False
+    try:
+        centre = np.asarray(wall["centre_world_m"], dtype=float)
+        size = np.asarray(wall["size_m"], dtype=float)
+        quat = np.asarray(wall["quat_wxyz"], dtype=float)
+    except (KeyError, TypeError, ValueError):
+        return False
+    return (centre.shape == size.shape == (3,) and quat.shape == (4,)
+            and bool(np.all(np.isfinite([*centre, *size, *quat])) and np.all(size > 0)
+                     and np.linalg.norm(quat) > 1e-9))
 
 
 def _working_arm(log: LogData, tools: dict[str, str]) -> str:
@@ -286,7 +331,8 @@ def load_scene(run: str | Path, model: RobotModel | None = None) -> RunScene:
     """Read a run folder (or its log file) into a :class:`RunScene`.
 
     Raises:
-        InputError: no log there, or an empty one.
+        InputError: no log there, an empty one, one that cannot be read, times that are not
+            finite, or a scene in its metadata that cannot be placed.
     """
     path = Path(run)
     run_dir = path if path.is_dir() else path.parent
@@ -296,6 +342,10 @@ def load_scene(run: str | Path, model: RobotModel | None = None) -> RunScene:
     log = load_log(path)
     if len(log) == 0:
         raise InputError(f"the log in {run_dir} has no periods", hint="replay a run that ran")
+    t_s = log["t_s"]
+    if not np.all(np.isfinite(t_s) & (np.abs(t_s) < MAX_LOG_TIME_S)):
+        raise InputError(f"the log in {run_dir} has times (t_s) that are not finite or beyond "
+                         f"{MAX_LOG_TIME_S:.0e} s", hint="give a run folder as hubo wrote it")
     model = model or load_model()
     if tuple(log.joint_names) != tuple(model.joint_names):
         raise InputError(f"the log's joints ({len(log.joint_names)}) are not the model's",
@@ -306,10 +356,10 @@ def load_scene(run: str | Path, model: RobotModel | None = None) -> RunScene:
         T = np.tile(np.eye(4), (len(log), 1, 1))
         T[:, :3, 3] = np.nan
     estimated = _estimate_torso(model, log, T)
-    tools = _tools(log)
+    scene_meta = _checked_scene(log, run_dir)
+    tools = _tools(scene_meta)
     arm = _working_arm(log, tools)
     tool_world = _tool_world(model, log, T, arm, tools[arm])
-    scene_meta = log.metadata.get("scene", {})
     hole = np.asarray(scene_meta.get("hole_world_m", []), dtype=float).reshape(-1, 3)
     log_file = next(f for f in (run_dir / "log.parquet", run_dir / "log.csv", path)
                     if f.is_file())
