@@ -228,31 +228,34 @@ def _checked_scene(log: LogData, run_dir: Path) -> dict:
         InputError: something in it is not what a run writes.
     """
     scene = log.metadata.get("scene", {})
-    problem = None
-    if not isinstance(scene, dict):
-        problem = "is not a mapping"
-    elif not (isinstance(scene.get("tools", {}), dict)
-              and all(isinstance(a, str) and isinstance(t, str)
-                      for a, t in scene.get("tools", {}).items())):
-        problem = "has tools that are not arm -> tool names"
-    else:
-        walls = scene.get("walls", [])
-        for k, wall in enumerate(walls if isinstance(walls, list) else [None]):
-            if not _wall_ok(wall):
-                problem = (f"has a malformed wall ({k + 1}): each needs centre_world_m and size_m "
-                           "(3 finite numbers, the sizes positive) and quat_wxyz (4, not all 0)")
-                break
-        try:
-            hole = np.asarray(scene.get("hole_world_m", []), dtype=float).reshape(-1, 3)
-        except (TypeError, ValueError):
-            hole = None
-        if problem is None and (hole is None or not np.all(np.isfinite(hole))):
-            problem = "has a hole_world_m that is not a list of finite x, y, z points"
+    problem = _scene_problem(scene)
     if problem is not None:
         raise InputError(f"the scene in {run_dir / 'log.json'} {problem}",
                          hint="give a run folder as hubo wrote it (or remove the scene from "
                               "log.json's metadata to replay without walls)")
     return scene
+
+
+def _scene_problem(scene) -> str | None:
+    """What is wrong with a scene's metadata, or None."""
+    if not isinstance(scene, dict):
+        return "is not a mapping"
+    tools = scene.get("tools", {})
+    if not (isinstance(tools, dict)
+            and all(isinstance(a, str) and isinstance(t, str) for a, t in tools.items())):
+        return "has tools that are not arm -> tool names"
+    walls = scene.get("walls", [])
+    for k, wall in enumerate(walls if isinstance(walls, list) else [None]):
+        if not _wall_ok(wall):
+            return (f"has a malformed wall ({k + 1}): each needs centre_world_m and size_m "
+                    "(3 finite numbers, the sizes positive) and quat_wxyz (4, not all 0)")
+    try:
+        hole = np.asarray(scene.get("hole_world_m", []), dtype=float).reshape(-1, 3)
+    except (TypeError, ValueError):
+        hole = None
+    if hole is None or not np.all(np.isfinite(hole)):
+        return "has a hole_world_m that is not a list of finite x, y, z points"
+    return None
 
 
 def _wall_ok(wall) -> bool:
