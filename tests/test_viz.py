@@ -247,7 +247,7 @@ def _read_mcap(path: Path) -> dict:
 
 def test_export_rrd_verifies_with_blueprint_and_mcap_reads_back(scene, run_dir, tmp_path):
     from hubo_cli.viz.mcap_export import LAYOUT_PATH, METADATA_NAME
-    from hubo_cli.viz.scene import events
+    from hubo_cli.viz.scene import events, run_metadata
 
     rerun = _rerun_cli()
     rrd, mcap = tmp_path / "run.rrd", tmp_path / "run.mcap"
@@ -268,6 +268,9 @@ def test_export_rrd_verifies_with_blueprint_and_mcap_reads_back(scene, run_dir, 
     assert scene.start_source == "log"
     assert start_ns == round(datetime.fromisoformat(scene.log.started_utc).timestamp() * 1e6) * 1000
     assert printed.count("RecordingInfo:start_time │") == 1 and f"[{start_ns}]" in printed
+    # and says what the run was, as the MCAP's metadata record does
+    assert " - /__properties/hubo_cli_run - " in printed
+    assert f"[{run_metadata(scene)['started_utc']}]" in printed and "[sway]" in printed
 
     read = _read_mcap(mcap)
     topics = read["topics"]

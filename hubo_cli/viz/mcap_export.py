@@ -18,13 +18,12 @@ modification time, which the metadata then says) plus each period's time. Topics
 * ``/events`` (``foxglove.Log``): e-stop latched and released, and each change of status.
 
 The file also holds the URDF as an attachment and one metadata record, ``hubo-cli run``
-(:func:`run_metadata`). The layout :data:`LAYOUT_PATH` (Foxglove: Layouts, Import from file)
-shows the 3D panel, the plots and the event log.
+(:func:`~hubo_cli.viz.scene.run_metadata`). The layout :data:`LAYOUT_PATH` (Foxglove: Layouts,
+Import from file) shows the 3D panel, the plots and the event log.
 """
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from dataclasses import dataclass
@@ -32,12 +31,11 @@ from pathlib import Path
 
 import numpy as np
 
-from hubo_cli import __version__
 from hubo_cli.control.log import status_codes
 from hubo_cli.urdf import link_frames
 from hubo_cli.viz.deps import require
 from hubo_cli.viz.replay import ACTUAL_RGB, GOAL_RGB, HOLE_RGB, WALL_RGBA, quat_xyzw
-from hubo_cli.viz.scene import SERIES, RunScene, events, time_series
+from hubo_cli.viz.scene import SERIES, RunScene, events, run_metadata, time_series
 
 WORLD_FRAME = "world"
 TOPICS = ("/robot_description", "/joint_states", "/tf", "/scene", "/metrics", "/events")
@@ -126,32 +124,6 @@ def _scene_update(fm, scene: RunScene, stamp):
     entity = fm.SceneEntity(timestamp=stamp, frame_id=WORLD_FRAME, id="scene", cubes=cubes,
                             lines=lines)
     return fm.SceneUpdate(entities=[entity])
-
-
-def run_metadata(scene: RunScene) -> dict[str, str]:
-    """The MCAP metadata record of a run (strings): the hubo-cli that made the run and the one
-    that exported it, when it started (UTC ISO 8601) and where that comes from, the command,
-    driver and perturbation seed (from ``summary.json`` where the run folder has one), the
-    periods, the duration, the URDF and the run folder."""
-    log = scene.log
-    summary = {}
-    try:
-        summary = json.loads((scene.run_dir / "summary.json").read_text())
-    except (OSError, ValueError):
-        pass
-    if not isinstance(summary, dict):
-        summary = {}
-    perturbation = summary.get("perturbation")
-    seed = perturbation.get("seed") if isinstance(perturbation, dict) else None
-    start_s, start_ns = divmod(scene.start_utc_ns, 1_000_000_000)
-    started = time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime(start_s)) + f".{start_ns:09d}Z"
-    values = {"hubo_cli_version": log.hubo_cli_version, "exported_by": f"hubo-cli {__version__}",
-              "started_utc": started, "start_time_source": scene.start_source,
-              "command": log.metadata.get("command", summary.get("command")),
-              "driver": summary.get("driver"), "seed": seed, "periods": len(scene),
-              "duration_s": float(scene.t_s[-1] - scene.t_s[0]),
-              "urdf": scene.model.urdf_path(scene.drill).name, "run_dir": str(scene.run_dir)}
-    return {k: "" if v is None else str(v) for k, v in values.items()}
 
 
 def _metrics(series: dict[str, np.ndarray], periods: int) -> list[dict]:

@@ -2,7 +2,8 @@
 time series on one timeline.
 
 Layout (timeline ``time``, the run's seconds; the recording's start time is the run's, from its
-log, so the viewer shows when it happened):
+log, so the viewer shows when it happened; the property ``hubo_cli_run`` holds
+:func:`~hubo_cli.viz.scene.run_metadata`: versions, start, command, driver, seed):
 
 * ``robot/...``: the URDF (Rerun's URDF loader, static), moved by one transform per joint
   (``transforms/joints/<joint>``, frame ``<parent link>`` -> ``<child link>``) and the torso
@@ -29,10 +30,11 @@ import numpy as np
 from hubo_cli.viz.camera import DEFAULT_PRESET, camera_for
 from hubo_cli.viz.deps import require
 from hubo_cli.viz.replay import ACTUAL_RGB, GOAL_RGB, HOLE_RGB, WALL_RGBA, quat_xyzw
-from hubo_cli.viz.scene import RunScene, events, time_series
+from hubo_cli.viz.scene import RunScene, events, run_metadata, time_series
 
 APPLICATION_ID = "hubo-cli"
 WORLD_FRAME = "tf#/"  # the implicit frame of the recording's root entity: the world
+PROPERTY_NAME = "hubo_cli_run"  # the recording's property holding scene.run_metadata
 TEXT_LOG_LEVEL = {"info": "INFO", "warning": "WARN"}  # events' levels in Rerun's words
 # the blueprint's plots: title -> the series it groups
 PLOT_GROUPS = {"Tracking error and support margin (mm)": ("error_mm", "cp_margin_mm"),
@@ -77,6 +79,7 @@ def export_rrd(scene: RunScene, out: str | Path) -> RrdResult:
     rec.save(str(out), default_blueprint=blueprint(rr, scene))
     rec.send_recording_name(scene.run_dir.name)
     rec.send_recording_start_time_nanos(scene.start_utc_ns)
+    rec.send_property(PROPERTY_NAME, rr.AnyValues(**run_metadata(scene)))
     urdf = scene.model.urdf_path(scene.drill)
     tree = UrdfTree.from_file_path(urdf, entity_path_prefix="robot")
     tree.log_urdf_to_recording(rec)

@@ -14,12 +14,15 @@ says so.
 
 from __future__ import annotations
 
+import json
+import time
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
 
+from hubo_cli import __version__
 from hubo_cli.control.log import LogData, load_log, status_codes
 from hubo_cli.control.status import Status
 from hubo_cli.errors import InputError
@@ -195,6 +198,31 @@ def events(scene: RunScene) -> list[tuple[int, str, str]]:
         out.append((k, "info" if code in QUIET_STATUSES else "warning",
                     f"status: {labels.get(code, f'code {code}')}"))
     return sorted(out, key=lambda e: e[0])
+
+
+def run_metadata(scene: RunScene) -> dict[str, str]:
+    """What an export says about the run it holds (strings): the hubo-cli that made the run
+    and the one that exported it, when it started (UTC ISO 8601) and where that comes from, the
+    command, driver and perturbation seed (from ``summary.json`` where the run folder has a
+    readable one), the periods, the duration, the URDF and the run folder."""
+    log = scene.log
+    try:
+        summary = json.loads((scene.run_dir / "summary.json").read_text())
+    except (OSError, UnicodeDecodeError, ValueError):
+        summary = {}
+    if not isinstance(summary, dict):
+        summary = {}
+    perturbation = summary.get("perturbation")
+    seed = perturbation.get("seed") if isinstance(perturbation, dict) else None
+    start_s, start_ns = divmod(scene.start_utc_ns, 1_000_000_000)
+    started = time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime(start_s)) + f".{start_ns:09d}Z"
+    values = {"hubo_cli_version": log.hubo_cli_version, "exported_by": f"hubo-cli {__version__}",
+              "started_utc": started, "start_time_source": scene.start_source,
+              "command": log.metadata.get("command", summary.get("command")),
+              "driver": summary.get("driver"), "seed": seed, "periods": len(scene),
+              "duration_s": float(scene.t_s[-1] - scene.t_s[0]),
+              "urdf": scene.model.urdf_path(scene.drill).name, "run_dir": str(scene.run_dir)}
+    return {k: "" if v is None else str(v) for k, v in values.items()}
 
 
 def _start_utc(log: LogData, log_file: Path) -> tuple[int, str]:
