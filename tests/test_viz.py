@@ -255,7 +255,7 @@ def test_export_rrd_verifies_with_blueprint_and_mcap_reads_back(scene, run_dir, 
                                        str(mcap), "--json"])
     assert result.exit_code == 0, result.output
     report = json.loads(result.output)
-    assert report["rrd"]["joints"] == 24
+    assert report["rrd"]["joints"] == 24 and report["mcap"]["layout"] == str(LAYOUT_PATH)
     printed = _rrd_print(rerun, rrd)
     for entity in ("/transforms/torso", "/transforms/joints/RSY", "/plots/wrist_torque_nm",
                    "/plots/cp_margin_mm", "/world/hole", "/world/actual_path", "/events"):

@@ -43,14 +43,14 @@ def export(run, rrd, mcap, as_json) -> None:
             console.print(f"rrd   {result.path} ({len(scene)} periods, {result.joints} joints; "
                           f"open with: rerun {result.path})", soft_wrap=True)
     if mcap is not None:
-        from hubo_cli.viz.mcap_export import export_mcap
+        from hubo_cli.viz.mcap_export import LAYOUT_PATH, export_mcap
 
         result = export_mcap(scene, mcap)
         report["mcap"] = {"path": str(result.path), "messages": result.messages,
-                          "wall_s": result.wall_s}
+                          "wall_s": result.wall_s, "layout": str(LAYOUT_PATH)}
         if not as_json:
             counts = ", ".join(f"{t} {n}" for t, n in result.messages.items())
-            console.print(f"mcap  {result.path} ({counts}; open in Foxglove Studio)",
-                          soft_wrap=True)
+            console.print(f"mcap  {result.path} ({counts}; open in Foxglove with the layout "
+                          f"{LAYOUT_PATH})", soft_wrap=True)
     if as_json:
         print_json(report)
