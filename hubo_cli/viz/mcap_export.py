@@ -144,9 +144,11 @@ def _metrics(series: dict[str, np.ndarray], periods: int) -> list[dict]:
 
 
 def _metrics_schema() -> dict:
-    properties = {name: {"type": ["number", "null"]} for name in SERIES}
-    properties["status_code"] = {"type": ["integer", "null"]}
-    properties["status"] = {"type": ["string", "null"]}
+    """``/metrics``' JSON schema: one plain type a field (Foxglove reads no type lists; a
+    value may still be null)."""
+    properties = {name: {"type": "number"} for name in SERIES}
+    properties["status_code"] = {"type": "integer"}
+    properties["status"] = {"type": "string"}
     return {"title": "hubo.Metrics", "type": "object", "properties": properties}
 
 
