@@ -88,3 +88,32 @@ def test_without_pyarrow_polars_writes_the_same_types_and_metadata(tmp_path, mon
     back = pl.read_parquet(tmp_path / "log.parquet")
     assert back.schema["status_code"] == pl.Int64 and back.schema["cp_flag"] == pl.Int8
     assert pl.read_parquet_metadata(tmp_path / "log.parquet")["started_utc"].startswith("2026")
+
+
+def test_a_log_written_by_a_run_and_one_recovered_after_a_crash_describe_themselves(tmp_path):
+    from hubo_cli.control.log import META_NAME, PeriodLog, load_log
+
+    folders = []
+    for name, closes in (("closed", True), ("crashed", False)):
+        folder = tmp_path / name
+        folder.mkdir()
+        log = PeriodLog(folder / "log.csv", ("A", "B"), ("phase_code", "x_m"))
+        for k in range(25):
+            q = np.array([0.1 * k, -0.2])
+            log.write(k, k * 0.005, k % 3, 10.0, 0.0, {"holding"} if k % 2 else set(), q, q,
+                      q, {"phase_code": float(k // 10)} if k % 4 else {})
+        if closes:
+            log.close()
+        else:  # the process dies: its mapping and lock go, the log is never closed
+            log._map.close()
+            log._rows_file.close()
+        assert len(load_log(folder)) == 25  # a crashed run's log is finished here
+        folders.append(folder)
+    for folder in folders:
+        sidecar = json.loads((folder / META_NAME).read_text())
+        metadata = pl.read_parquet_metadata(folder / "log.parquet")
+        assert metadata["started_utc"] == sidecar["started_utc"]
+        assert json.loads(metadata["joint_names"]) == ["A", "B"]
+        table = pl.read_parquet(folder / "log.parquet")
+        assert table.schema["phase_code"] == table.schema["status_code"] == pl.Int64
+        assert table["phase_code"].null_count() == 7  # the periods that did not report it
