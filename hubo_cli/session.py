@@ -222,6 +222,8 @@ def run(setup: RunSetup, target: Target,
     update_log_metadata(run_dir, metadata)
     summary = common_summary(setup, speed, result, modules, run_dir)
     done = RunResult(run_dir, result, modules, summary)
+    summary["started_utc"] = done.log.started_utc  # the log's, the one home of the fact
+    summary["hubo_cli_version"] = done.log.hubo_cli_version
     summary["max_joint_velocity_ratio"] = max_velocity_ratio(setup.model, done.log)
     summary.update(balance_report(done.log, setup.model,
                                   drill=setup.tools.get("right-arm") == "drill"))

@@ -20,11 +20,14 @@ A run folder's log is three files:
   NaN where it has none); then the modules' and the caller's extra columns (NaN when not
   reported that period; e.g. a task's commanded and measured tool positions ``goal_*_m``,
   ``actual_*_m`` in its stance frame).
-* ``log.json`` (sidecar): the format name and version, the unit legend, the status codes, the
+* ``log.json`` (sidecar): the format name and version, when the run started (``started_utc``,
+  UTC ISO 8601) and the ``hubo_cli_version`` that wrote it, the unit legend, the status codes, the
   joint names, the columns, the row count and the run's metadata (:meth:`PeriodLog.set_metadata`:
   e.g. ``scene`` with the walls, the tool per hand and the hole's points as cut). Written when
   the log opens and again when it closes.
-* ``log.parquet``: the same table, written when the log closes (smaller and faster to read).
+* ``log.parquet``: the same table, written when the log closes (smaller and faster to read;
+  counters, codes and flags as integers, the sidecar's facts and each column's unit in the
+  file's metadata, see :mod:`hubo_cli.control.log_parquet`).
 
 While the run goes, each period is stored as one binary record (the row's numbers as float64,
 its flags as a number into ``log.flags``, see :data:`ROWS_MAGIC`) in ``log.rows``, a file mapped
@@ -48,11 +51,14 @@ import mmap
 import os
 import struct
 from dataclasses import dataclass, field
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
 
+from hubo_cli import __version__
 from hubo_cli.control.log_kernels import pose_row
+from hubo_cli.control.log_parquet import write_log_parquet
 from hubo_cli.control.status import Status
 from hubo_cli.errors import InputError
 from hubo_cli.runs import _jsonable
@@ -160,6 +166,11 @@ def _stacked_chains(hands, joints: int) -> tuple[np.ndarray, ...]:
     return (index, *parts)
 
 
+def utc_now_iso() -> str:
+    """Now as UTC ISO 8601 to the microsecond, ``2026-11-28T18:17:32.123456Z``."""
+    return datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+
+
 def status_codes() -> dict[int, str]:
     """Status code -> label, as written in the sidecar."""
     return {s.value: s.label for s in Status}
@@ -204,6 +215,7 @@ class PeriodLog:
         self._at_extras = self._at_feet + len(FEET_COLUMNS)
         self._hand_chains = _stacked_chains(self._hands.values(), n)
         self.metadata: dict = {}
+        self.started_utc = utc_now_iso()  # just before the first period
         self.rows = 0
         self.rows_path, self.flags_path = _record_paths(self.path)
         layout = {"columns": list(self.columns), "joints": len(joints),
@@ -293,12 +305,17 @@ class PeriodLog:
             self._write_sidecar()
 
     def _write_sidecar(self) -> None:
-        sidecar = {"format": FORMAT_NAME, "version": FORMAT_VERSION, "csv": self.path.name,
-                   "parquet": self.parquet_path.name if self.parquet_path.exists() else None,
-                   "units": UNIT_LEGEND, "status_codes": status_codes(),
-                   "joint_names": list(self.joint_names), "rows": self.rows,
-                   "columns": list(self.columns)}
-        _write_sidecar_json(self.meta_path, sidecar, self.metadata, jsonable=True)
+        _write_sidecar_json(self.meta_path, self._sidecar_head(), self.metadata, jsonable=True)
+
+    def _sidecar_head(self) -> dict:
+        """The sidecar's fixed part (all but the metadata)."""
+        return {"format": FORMAT_NAME, "version": FORMAT_VERSION,
+                "started_utc": self.started_utc, "hubo_cli_version": __version__,
+                "csv": self.path.name,
+                "parquet": self.parquet_path.name if self.parquet_path.exists() else None,
+                "units": UNIT_LEGEND, "status_codes": status_codes(),
+                "joint_names": list(self.joint_names), "rows": self.rows,
+                "columns": list(self.columns)}
 
     def close(self) -> None:
         """Write the CSV from the records, then the Parquet copy and the sidecar, and remove
@@ -309,7 +326,7 @@ class PeriodLog:
         self._map = None
         os.close(self._flags_fd)
         _csv_from_rows(self.rows_path, self.flags_path, self.path)
-        _read_csv(self.path).write_parquet(self.parquet_path)
+        write_log_parquet(_read_csv(self.path), self.parquet_path, self._sidecar_head())
         self._write_sidecar()
         self.rows_path.unlink()
         self.flags_path.unlink()
@@ -451,10 +468,10 @@ def _recover(rows_path: Path, flags_path: Path, csv_path: Path, meta_path: Path,
              parquet_path: Path) -> bool:
     """:func:`recover_log`'s work, with the record file locked."""
     rows = _csv_from_rows(rows_path, flags_path, csv_path)
-    _read_csv(csv_path).write_parquet(parquet_path)
+    sidecar = json.loads(meta_path.read_text()) if meta_path.exists() else {}
+    metadata = sidecar.pop("metadata", {})
+    write_log_parquet(_read_csv(csv_path), parquet_path, sidecar)
     if meta_path.exists():
-        sidecar = json.loads(meta_path.read_text())
-        metadata = sidecar.pop("metadata", {})
         sidecar.update(rows=rows, parquet=parquet_path.name)
         _write_sidecar_json(meta_path, sidecar, metadata, jsonable=True)
     rows_path.unlink()
@@ -486,12 +503,17 @@ class LogData:
         flags: the ``flags`` column, one list of words per period.
         joint_names: the joints found in the ``cmd_*`` columns, in order.
         metadata: the run metadata from the sidecar (empty for logs without one).
+        started_utc: when the run started (UTC, ISO 8601), from the sidecar; None for logs
+            written before it was recorded.
+        hubo_cli_version: the hubo-cli that wrote the log (None, likewise).
     """
 
     columns: dict[str, np.ndarray]
     flags: list[list[str]]
     joint_names: tuple[str, ...]
     metadata: dict = field(default_factory=dict)
+    started_utc: str | None = None
+    hubo_cli_version: str | None = None
 
     def __getitem__(self, name: str) -> np.ndarray:
         return self.columns[name]
@@ -543,15 +565,41 @@ def load_log(path: str | Path) -> LogData:
     recover_log(path)
     csv_path, meta_path, parquet_path = log_paths(path)
     use_parquet = path.suffix == ".parquet" or (path.is_dir() and parquet_path.exists())
-    frame = pl.read_parquet(parquet_path) if use_parquet else _read_csv(csv_path)
-    columns = {name: frame.get_column(name).to_numpy().astype(float, copy=False)
-               for name in frame.columns if name != "flags"}
-    flags = [text.split(";") if text else [] for text in frame.get_column("flags").to_list()]
+    source = parquet_path if use_parquet else csv_path
+    try:
+        frame = pl.read_parquet(parquet_path) if use_parquet else _read_csv(csv_path)
+        columns = {name: frame.get_column(name).to_numpy().astype(float, copy=False)
+                   for name in frame.columns if name != "flags"}
+        flags = [text.split(";") if text else []
+                 for text in frame.get_column("flags").cast(pl.String).fill_null("").to_list()]
+    except (pl.exceptions.PolarsError, OSError, UnicodeDecodeError, ValueError) as exc:
+        reason = str(exc).strip().splitlines()[0][:160] if str(exc).strip() else type(exc).__name__
+        raise InputError(f"cannot read the period log {source}: {reason}",
+                         hint="give a run folder as hubo wrote it (a damaged log.parquet can be "
+                              "removed: the log is then read from log.csv)") from None
     joints = tuple(n[4:-4] for n in frame.columns if n.startswith("cmd_") and n.endswith("_rad"))
-    metadata = {}
-    if meta_path.exists():
-        metadata = json.loads(meta_path.read_text()).get("metadata", {})
-    return LogData(columns, flags, joints, metadata)
+    sidecar = _read_sidecar(meta_path)
+    return LogData(columns, flags, joints, sidecar.get("metadata", {}),
+                   sidecar.get("started_utc"), sidecar.get("hubo_cli_version"))
+
+
+def _read_sidecar(path: Path) -> dict:
+    """A log's sidecar as a dict (empty when there is none).
+
+    Raises:
+        InputError: the file is not a JSON object with a mapping as its metadata.
+    """
+    if not path.exists():
+        return {}
+    try:
+        sidecar = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, ValueError):
+        sidecar = None
+    if not isinstance(sidecar, dict) or not isinstance(sidecar.get("metadata", {}), dict):
+        raise InputError(f"{path} is not a period log's sidecar (a JSON object with its "
+                         "metadata)", hint="give a run folder as hubo wrote it (or remove the "
+                                           "file to read the log without its metadata)")
+    return sidecar
 
 
 def max_velocity_ratio(model, log: LogData) -> float:
