@@ -221,7 +221,8 @@ def _run_task(job: Job, run_dir: Path) -> Row:
     completed = summary.get("completed")
     if completed is None:  # an experiment: it completed unless the robot fell or tipped
         completed = not (summary.get("fell") or summary.get("tipped"))
-    return Row(job.command, job.seed, dict(job.parameters), completed=bool(completed),
+    completed = bool(completed) and summary["ended"] != "interrupted"
+    return Row(job.command, job.seed, dict(job.parameters), completed=completed,
                estop=_first_stop(summary), hole_rms_mm=summary.get("hole_rms_error_mm"),
                min_support_margin_mm=summary.get("min_support_margin_mm"),
                max_tilt_deg=summary["max_torso_tilt_deg"], ended=summary["ended"])
@@ -280,7 +281,10 @@ def run_sweep(jobs: Sequence[Job], out_dir: str | Path, *, workers: int | None =
     try:
         if scheduler is None and workers == 0:
             for index, job in enumerate(jobs):
-                finished(index, run_job(job, out_dir))
+                row = run_job(job, out_dir)
+                finished(index, row)
+                if row.ended == "interrupted":  # the run took the Ctrl-C (SIGTERM): stop here
+                    raise KeyboardInterrupt
         else:
             _run_on_dask(jobs, out_dir, n_workers, scheduler, finished)
     except KeyboardInterrupt:

@@ -1,0 +1,245 @@
+"""A run always ends with a smooth stop and a summary: a full disk (exit 3, the log whole to
+the last period stored), a second run into a locked folder (exit 2, the first unaffected), a
+replay that is not a recording (refused from its first bytes, exit 2) and SIGTERM (within a
+second, exit 130, the time actually run)."""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from control_support import assert_within_limits, ideal
+
+import hubo_cli.control.log as log_module
+from hubo_cli.control.log import FLAGS_NAME, LOG_NAME, ROWS_NAME, load_log, read_rows
+from hubo_cli.control.loop import ControlLoop
+from hubo_cli.control.pipeline import build_pipeline
+from hubo_cli.resources import data_file
+
+DT = 0.005
+HUBO = Path(sys.executable).with_name("hubo")
+FREE_CSV = data_file("trajectories", "two-hand-free.csv")
+linux_only = pytest.mark.skipif(sys.platform != "linux", reason="signals and locks as on Linux")
+
+
+def _short_log(path: Path, rows: int) -> Path:
+    """The first rows of the shipped two-hand pose log (some 120 rows a second)."""
+    path.write_text("\n".join(FREE_CSV.read_text().splitlines()[:rows]) + "\n")
+    return path
+
+
+def _moving_target(q0, amplitude=0.4, period_s=3.0):
+    def target(t_s, state):
+        q = q0.copy()
+        q[0] += amplitude * np.sin(2 * np.pi * t_s / period_s)
+        return q, {}
+    return target
+
+
+def _disk_full_after(monkeypatch, allocations: int) -> None:
+    """The record file's allocations fail with ENOSPC after the first ``allocations``."""
+    real = log_module._allocate
+    calls = []
+
+    def allocate(fd, size):
+        calls.append(size)
+        if len(calls) > allocations:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        real(fd, size)
+
+    monkeypatch.setattr(log_module, "_allocate", allocate)
+    monkeypatch.setattr(log_module, "_BLOCK_ROWS", 64)
+
+
+def test_a_full_disk_mid_run_brakes_and_keeps_the_records(model, tmp_path, monkeypatch):
+    """ENOSPC at the third block: the loop brakes (commands within the limits, at rest), the
+    run ends ``log-error``, and the 128 records stored before it read back whole."""
+    _disk_full_after(monkeypatch, 2)
+    robot = ideal(model)
+    q0 = robot.read().q_rad.copy()
+    result = ControlLoop(robot, build_pipeline(model), _moving_target(q0),
+                         log_path=tmp_path).run(5.0)
+    assert result.ended == "log-error" and not result.ok
+    assert "No space left on device" in result.error and "log.rows" in result.error
+    assert result.stop_periods > 10  # it was moving: a real brake, sent to the robot
+    commands = robot.commands(q0)
+    assert_within_limits(model, commands, DT)
+    assert np.max(np.abs(commands[-1] - commands[-2])) / DT < 1e-9
+    # no CSV was made on the full disk; the records are there, whole, for recover_log
+    assert not (tmp_path / LOG_NAME).exists()
+    layout, numbers, flags = read_rows(tmp_path / ROWS_NAME, tmp_path / FLAGS_NAME)
+    assert len(numbers) == 128
+    assert np.array_equal(numbers[:, 0], np.arange(128))  # period_count, none cut
+    monkeypatch.undo()  # space again: the log is finished from its records
+    log = load_log(tmp_path)
+    assert len(log) == 128 and np.all(np.isfinite(log.joints("cmd")))
+
+
+def test_a_log_that_cannot_start_refuses_the_run(model, tmp_path, monkeypatch):
+    """No space for the first block: DeviceError (exit 3) before the loop sends anything,
+    and nothing of the log is left behind."""
+    from hubo_cli.errors import DeviceError
+
+    _disk_full_after(monkeypatch, 0)
+    robot = ideal(model)
+    q0 = robot.read().q_rad.copy()
+    with pytest.raises(DeviceError, match="No space left on device") as info:
+        ControlLoop(robot, build_pipeline(model), _moving_target(q0), log_path=tmp_path).run(1)
+    assert info.value.exit_code == 3 and info.value.hint
+    assert robot.sent == [] and sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+# ------------------------------------------------------------------ processes
+
+def _start(args: list[str], run_dir: Path, wait_for: str = ROWS_NAME, **kwargs):
+    """Start ``hubo ARGS`` and return it once ``run_dir/wait_for`` exists (the loop runs)."""
+    process = subprocess.Popen([str(HUBO), *args], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True, **kwargs)
+    deadline = time.monotonic() + 120  # start-up is 5-10 s on a loaded 2-core machine
+    while not (run_dir / wait_for).exists():
+        if process.poll() is not None or time.monotonic() > deadline:
+            out, err = process.communicate(timeout=60)
+            pytest.fail(f"the run did not start: {process.returncode}\n{out}\n{err}")
+        time.sleep(0.02)
+    return process
+
+
+def _finish(process, timeout_s: float = 120) -> tuple[str, str]:
+    try:
+        return process.communicate(timeout=timeout_s)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.communicate()
+
+
+def _one_line_error(err: str, code_text: str) -> None:
+    """stderr is ``error: ...`` (one line) and its hint, no traceback, no internal error."""
+    lines = err.strip().splitlines()
+    assert lines[0].startswith("error: ") and code_text in lines[0], err
+    assert len(lines) <= 2 and all(line.startswith(("error: ", "hint: ")) for line in lines), err
+    assert "Traceback" not in err and "internal error" not in err
+
+
+@pytest.fixture
+def tmpfs(tmp_path):
+    """A small tmpfs (root only: skipped where mounting is not permitted)."""
+    mounted = []
+
+    def mount(size: str) -> Path:
+        where = tmp_path / f"disk{len(mounted)}"
+        where.mkdir()
+        done = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs",
+                               str(where)], capture_output=True, text=True)
+        if done.returncode != 0:
+            pytest.skip(f"cannot mount a tmpfs here ({done.stderr.strip() or 'not root'}); "
+                        "the injected ENOSPC tests above cover the behaviour")
+        mounted.append(where)
+        return where
+
+    yield mount
+    for where in mounted:
+        subprocess.run(["umount", "-l", str(where)], capture_output=True)
+
+
+@linux_only
+def test_a_full_tmpfs_mid_run_brakes_exits_3_and_keeps_the_log(tmpfs):
+    """The disk fills while ``hubo sim`` stands (a filler takes every free byte once the log
+    started): the next block of the log fails, the loop brakes, exit 3 with one line, and the
+    records written so far read back whole once there is space."""
+    disk = tmpfs("32m")
+    run = disk / "run"
+    process = _start(["sim", "--duration", "30", "--out", str(run)], run)
+    with open(disk / "filler", "wb", buffering=0) as filler:  # every free byte
+        for block in (1 << 20, 4096):
+            with contextlib.suppress(OSError):
+                while True:
+                    filler.write(bytes(block))
+    out, err = _finish(process)
+    assert process.returncode == 3, err
+    _one_line_error(err, "No space left on device")
+    assert "braked to a stop" in err
+    assert not (run / LOG_NAME).exists()  # no half CSV
+    (disk / "filler").unlink()  # space again: the log is made from its records
+    log = load_log(run)
+    assert len(log) % log_module._BLOCK_ROWS == 0 and len(log) >= log_module._BLOCK_ROWS
+    assert np.array_equal(log["period_count"], np.arange(len(log)))
+
+
+@linux_only
+def test_the_issues_64_kib_tmpfs_is_refused_before_anything_moves(tmpfs):
+    """The issue's case (a 64 KiB tmpfs as ``--out``, SIGBUS on main): exit 3, one line."""
+    disk = tmpfs("64k")
+    done = subprocess.run([str(HUBO), "sim", "--duration", "2", "--out", str(disk / "run")],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 3, done.stderr
+    _one_line_error(done.stderr, "No space left on device")
+    assert not (disk / "run").exists()  # refused: nothing left behind
+
+
+# ------------------------------------------------------------------ the run folder's lock
+
+def test_a_run_folder_is_locked_while_a_run_writes_it(tmp_path):
+    """make_run_dir holds the folder; another process is refused (InputError, exit 2), this
+    process may take it again (the CLI and the session both make it), the last release frees
+    it."""
+    from hubo_cli.runs import make_run_dir, release_run_dir
+
+    run = make_run_dir("sim", tmp_path / "run")
+    assert make_run_dir("sim", run) == run  # the same process: a second hold
+    env = os.environ | {"PYTHONPATH": str(Path(__file__).parents[1])}
+
+    def other_process() -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, "-c", "import sys\n"
+                               "from hubo_cli.errors import InputError\n"
+                               "from hubo_cli.runs import make_run_dir\n"
+                               "try: make_run_dir('sim', sys.argv[1])\n"
+                               "except InputError as e: sys.exit(f'{e.exit_code} {e}')",
+                               str(run)], capture_output=True, text=True, env=env)
+
+    refused = other_process()
+    assert refused.returncode == 1, refused.stderr
+    assert refused.stderr.startswith(f"2 --out {run} is being written by another run")
+    release_run_dir(run)
+    assert other_process().returncode == 1  # still one hold
+    release_run_dir(run)
+    assert other_process().returncode == 0, "the last release frees the folder"
+
+
+@linux_only
+def test_a_second_run_into_a_running_folder_is_refused_and_the_first_goes_on(tmp_path):
+    """The issue's case (SIGBUS on main): the second run exits 2 with one line naming the
+    folder and changes nothing; the first goes on, then ends on SIGTERM (exit 130) with its
+    whole log and a summary of the time it ran."""
+    replay = _short_log(tmp_path / "s.csv", rows=2880)  # 24 s in real time
+    run = tmp_path / "run"
+    first = _start(["teleop", "--replay", str(replay), "--driver", "ideal", "--speed", "1",
+                    "--out", str(run)], run)
+    before = {p.name: p.stat().st_mtime_ns for p in run.iterdir()}
+    second = subprocess.run([str(HUBO), "teleop", "--replay", str(replay), "--driver", "ideal",
+                             "--out", str(run)], capture_output=True, text=True, timeout=120)
+    running = first.poll() is None
+    marker = (run / ".hubo-run").stat().st_mtime_ns
+    first.send_signal(signal.SIGTERM)
+    out, err = _finish(first)
+    assert running, "the first run was still going when the second was refused"
+    assert second.returncode == 2, second.stderr
+    _one_line_error(second.stderr, f"--out {run} is being written by another run")
+    assert second.stdout == "" and marker == before[".hubo-run"]  # nothing touched
+    assert first.returncode == 130, err
+    assert "Traceback" not in err and "internal error" not in err
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["ended"] == "interrupted" and summary["error"] == "interrupted (SIGTERM)"
+    assert summary["duration_s"] < 24.0
+    log = load_log(run)
+    assert len(log) == summary["periods"]
+    assert log["t_s"][-1] == pytest.approx(summary["duration_s"] - DT)
