@@ -71,6 +71,11 @@ try:  # POSIX: a live log's records are locked by their writer
 except ImportError:  # pragma: no cover (no advisory locks: recover_log trusts the caller)
     fcntl = None
 
+try:  # Linux, the BSDs: a file's blocks allocated up front
+    from os import posix_fallocate as _fallocate
+except ImportError:  # pragma: no cover (macOS, Windows)
+    _fallocate = None
+
 LOG_NAME = "log.csv"
 META_NAME = "log.json"
 PARQUET_NAME = "log.parquet"
@@ -406,8 +411,8 @@ def _write_sidecar_json(path: Path, head: dict, metadata: dict, jsonable: bool =
 def _allocate(fd: int, size: int) -> None:
     """Make a file ``size`` bytes long with its blocks allocated on the disk (ENOSPC now
     rather than a SIGBUS when a mapped page is first written)."""
-    if hasattr(os, "posix_fallocate"):
-        os.posix_fallocate(fd, 0, size)
+    if _fallocate is not None:
+        _fallocate(fd, 0, size)
     else:  # pragma: no cover (macOS: no preallocation; a full disk may still SIGBUS there)
         os.ftruncate(fd, size)
 
