@@ -177,6 +177,7 @@ def run_job(job: Job, out_dir: str | Path) -> Row:
     except HuboError as exc:
         row = Row(job.command, job.seed, dict(job.parameters), completed=False, ended="error",
                   error=str(exc))
+    row.completed = row.completed and row.ended != "interrupted"  # Ctrl-C or SIGTERM
     row.wall_clock_s = time.perf_counter() - t0
     row.run_dir = str(run_dir)
     return row
@@ -221,8 +222,7 @@ def _run_task(job: Job, run_dir: Path) -> Row:
     completed = summary.get("completed")
     if completed is None:  # an experiment: it completed unless the robot fell or tipped
         completed = not (summary.get("fell") or summary.get("tipped"))
-    completed = bool(completed) and summary["ended"] != "interrupted"
-    return Row(job.command, job.seed, dict(job.parameters), completed=completed,
+    return Row(job.command, job.seed, dict(job.parameters), completed=bool(completed),
                estop=_first_stop(summary), hole_rms_mm=summary.get("hole_rms_error_mm"),
                min_support_margin_mm=summary.get("min_support_margin_mm"),
                max_tilt_deg=summary["max_torso_tilt_deg"], ended=summary["ended"])
