@@ -151,6 +151,7 @@ def tmpfs(tmp_path):
         subprocess.run(["umount", "-l", str(where)], capture_output=True)
 
 
+@pytest.mark.slow
 @linux_only
 def test_a_full_tmpfs_mid_run_brakes_exits_3_and_keeps_the_log(tmpfs):
     """The disk fills while ``hubo sim`` stands (a filler takes every free byte once the log
@@ -215,6 +216,7 @@ def test_a_run_folder_is_locked_while_a_run_writes_it(tmp_path):
     assert other_process().returncode == 0, "the last release frees the folder"
 
 
+@pytest.mark.slow
 @linux_only
 def test_a_second_run_into_a_running_folder_is_refused_and_the_first_goes_on(tmp_path):
     """The issue's case (SIGBUS on main): the second run exits 2 with one line naming the
@@ -359,6 +361,7 @@ def _terminate(process, run_dir: Path) -> tuple[float, float]:
     return stopped, time.monotonic() - started
 
 
+@pytest.mark.slow
 @linux_only
 @pytest.mark.parametrize("args", [["sim", "--duration", "60"],
                                   ["walk", "--to", "3", "0", "0"]], ids=["sim", "walk"])
@@ -439,6 +442,7 @@ def test_sigterm_while_a_replay_is_read_ends_it_within_a_second(tmp_path):
     assert not (tmp_path / "run").exists()
 
 
+@pytest.mark.slow
 @linux_only
 def test_sigterm_ends_a_sequential_sweep_after_the_run_it_interrupted(tmp_path):
     """The run going when SIGTERM came brakes and is the sweep's last row (interrupted, not
