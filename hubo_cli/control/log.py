@@ -40,10 +40,19 @@ died before that, the run folder still holds them: :func:`recover_log` writes th
 Parquet copy and the sidecar's row count from them, and :func:`load_log` does so by itself.
 :func:`load_log` reads a log back into numpy arrays (the Parquet copy when there is one, else
 the CSV; logs of the first format, with a leading ``#`` line, are read too).
+
+``log.rows`` grows a block of records at a time, each block allocated on the disk before it is
+mapped (``posix_fallocate``): a full disk is an ``OSError`` (ENOSPC) when a block is asked
+for, never a SIGBUS while a mapped page is written. A write that fails (full disk, I/O error)
+is kept in :attr:`PeriodLog.error` and the log stops there: the records stored before it stay
+whole, later periods are not logged, and the loop ends the run with its smooth stop
+(``ended: log-error``). Where the CSV cannot be written at close, ``log.rows`` and
+``log.flags`` are kept for :func:`recover_log`.
 """
 
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import math
@@ -60,13 +69,18 @@ from hubo_cli import __version__
 from hubo_cli.control.log_kernels import pose_row
 from hubo_cli.control.log_parquet import write_log_parquet
 from hubo_cli.control.status import Status
-from hubo_cli.errors import InputError
+from hubo_cli.errors import DeviceError, InputError
 from hubo_cli.runs import _jsonable
 
 try:  # POSIX: a live log's records are locked by their writer
     import fcntl
 except ImportError:  # pragma: no cover (no advisory locks: recover_log trusts the caller)
     fcntl = None
+
+try:  # Linux, the BSDs: a file's blocks allocated up front
+    from os import posix_fallocate as _fallocate
+except ImportError:  # pragma: no cover (macOS, Windows)
+    _fallocate = None
 
 LOG_NAME = "log.csv"
 META_NAME = "log.json"
@@ -82,7 +96,7 @@ FLAGS_NAME = "log.flags"
 ROWS_MAGIC = b"HUBO-PERIOD-ROWS"
 _COUNT_AT = len(ROWS_MAGIC)
 _HEAD_AT = _COUNT_AT + 8
-_BLOCK_ROWS = 4096
+_BLOCK_ROWS = 1024  # 5 s of periods at 200 Hz per allocation
 FORMAT_NAME = "hubo-cli period log"
 FORMAT_VERSION = 2
 FIXED_COLUMNS = ("period_count", "t_s", "status_code", "compute_us", "late_us", "flags")
@@ -224,17 +238,27 @@ class PeriodLog:
         self._data_at = -(-(_HEAD_AT + 4 + len(head)) // 8) * 8
         self._record_bytes = 8 * len(self.columns)
         self._flag_ids: dict[str, float] = {}
-        self.path.unlink(missing_ok=True)  # the CSV comes at close
-        self._flags_fd = os.open(self.flags_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
-        # held open and locked while the run writes, so that recover_log leaves a live log alone
-        self._rows_file = open(self.rows_path, "w+b")  # noqa: SIM115 (kept open)
-        if fcntl is not None:
-            fcntl.flock(self._rows_file, fcntl.LOCK_EX)
-        self._rows_file.write(ROWS_MAGIC + struct.pack("<QI", 0, len(head)) + head)
-        self._rows_file.truncate(self._data_at + _BLOCK_ROWS * self._record_bytes)
-        self._rows_file.flush()
-        self._map: mmap.mmap | None = mmap.mmap(self._rows_file.fileno(), 0)
-        self._write_sidecar()
+        self.error = ""  # the first write that failed (one line); the log stopped there
+        self._map: mmap.mmap | None = None
+        try:
+            self.path.unlink(missing_ok=True)  # the CSV comes at close
+            self._flags_fd = os.open(self.flags_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC,
+                                     0o644)
+            # held open and locked while the run writes, so that recover_log leaves a live
+            # log alone
+            self._rows_file = open(self.rows_path, "w+b")  # noqa: SIM115 (kept open)
+            if fcntl is not None:
+                fcntl.flock(self._rows_file, fcntl.LOCK_EX)
+            self._rows_file.write(ROWS_MAGIC + struct.pack("<QI", 0, len(head)) + head)
+            self._rows_file.flush()
+            _allocate(self._rows_file.fileno(), self._data_at + _BLOCK_ROWS * self._record_bytes)
+            self._map = mmap.mmap(self._rows_file.fileno(), 0)
+            self._write_sidecar()
+        except OSError as exc:  # nothing has moved yet: the run is refused
+            self._discard()
+            raise DeviceError(f"cannot start the log in {self.path.parent}: "
+                              f"{_os_reason(exc)}",
+                              hint="free space on that disk or choose another --out") from None
 
     def _hand_kinematics(self, model) -> dict:
         if model is None or tuple(model.joint_names) != self.joint_names:
@@ -253,13 +277,17 @@ class PeriodLog:
         ``state`` (the :class:`~hubo_cli.state.RobotState` after the step) gives the
         torso and hand poses; without it they are NaN.
         """
-        if self._map is None:
+        if self._map is None or self.error:
             return
         flag_text = ";".join(sorted(flags))
         flag_id = self._flag_ids.get(flag_text)
         if flag_id is None:  # a new flags text: in log.flags before a record points to it
+            try:
+                _write_all(self._flags_fd, (json.dumps(flag_text) + "\n").encode())
+            except OSError as exc:
+                self._failed(exc, self.flags_path)
+                return
             flag_id = self._flag_ids[flag_text] = float(len(self._flag_ids))
-            _write_all(self._flags_fd, (json.dumps(flag_text) + "\n").encode())
         # the record filled in place: numbers as numpy converts them (float64, as struct does)
         record = self._record
         record[:6] = (flag_id, period, t_s, status, compute_us, late_us)
@@ -275,11 +303,35 @@ class PeriodLog:
             else:
                 record[self._at_extras:] = math.nan
         at = self._data_at + self.rows * self._record_bytes
-        if at + self._record_bytes > len(self._map):
-            self._map.resize(len(self._map) + _BLOCK_ROWS * self._record_bytes)
+        if at + self._record_bytes > len(self._map):  # the next block, on the disk first
+            size = len(self._map) + _BLOCK_ROWS * self._record_bytes
+            try:
+                _allocate(self._rows_file.fileno(), size)
+                self._map.resize(size)
+            except OSError as exc:
+                self._failed(exc, self.rows_path)
+                return
         self._map[at:at + self._record_bytes] = record.tobytes()
         self.rows += 1
         self._map[_COUNT_AT:_HEAD_AT] = self.rows.to_bytes(8, "little")  # the record counts
+
+    def _discard(self) -> None:
+        """Close and remove what a log that could not start had opened."""
+        for name in ("_flags_fd", "_rows_file"):
+            handle = self.__dict__.pop(name, None)
+            with contextlib.suppress(OSError):
+                if isinstance(handle, int):
+                    os.close(handle)
+                elif handle is not None:
+                    handle.close()
+        for path in (self.rows_path, self.flags_path, self.meta_path):
+            with contextlib.suppress(OSError):
+                path.unlink(missing_ok=True)
+
+    def _failed(self, exc: OSError, path: Path) -> None:
+        """Keep the first failed write as :attr:`error`; the log takes no more periods."""
+        if not self.error:
+            self.error = f"cannot write the log {path}: {_os_reason(exc)}"
 
     def _pose_record(self, q_rad, state) -> None:
         """The record's torso, hand and feet columns: the torso's and hands' world poses
@@ -325,12 +377,20 @@ class PeriodLog:
         self._map.close()
         self._map = None
         os.close(self._flags_fd)
-        _csv_from_rows(self.rows_path, self.flags_path, self.path)
-        write_log_parquet(_read_csv(self.path), self.parquet_path, self._sidecar_head())
-        self._write_sidecar()
-        self.rows_path.unlink()
-        self.flags_path.unlink()
-        self._rows_file.close()  # releases the lock
+        try:
+            if not self.error:  # else the records are all there is: kept for recover_log
+                _csv_from_rows(self.rows_path, self.flags_path, self.path)
+                write_log_parquet(_read_csv(self.path), self.parquet_path, self._sidecar_head())
+                self._write_sidecar()
+                self.rows_path.unlink()
+                self.flags_path.unlink()
+        except OSError as exc:  # a full disk at the end: the records stay, no half CSV
+            self._failed(exc, self.path)
+            for path in (self.path, self.parquet_path):
+                with contextlib.suppress(OSError):
+                    path.unlink(missing_ok=True)
+        finally:
+            self._rows_file.close()  # releases the lock
 
     def __enter__(self) -> PeriodLog:
         return self
@@ -363,6 +423,20 @@ def _write_sidecar_json(path: Path, head: dict, metadata: dict, jsonable: bool =
                         for k, v in metadata.items())
     body = f"{{\n{items}\n }}" if items else "{}"
     path.write_text(f"{lines},\n \"metadata\": {body}\n}}\n")
+
+
+def _allocate(fd: int, size: int) -> None:
+    """Make a file ``size`` bytes long with its blocks allocated on the disk (ENOSPC now
+    rather than a SIGBUS when a mapped page is first written)."""
+    if _fallocate is not None:
+        _fallocate(fd, 0, size)
+    else:  # pragma: no cover (macOS: no preallocation; a full disk may still SIGBUS there)
+        os.ftruncate(fd, size)
+
+
+def _os_reason(exc: OSError) -> str:
+    """The operating system's words for a failed write (``No space left on device``)."""
+    return exc.strerror or str(exc) or type(exc).__name__
 
 
 def _write_all(fd: int, data: bytes) -> None:
@@ -409,7 +483,9 @@ def read_rows(rows_path: str | Path, flags_path: str | Path) -> tuple[dict, np.n
     count = min(count, (len(data) - data_at) // (8 * width))
     table = np.frombuffer(data, dtype="<f8", count=count * width,
                           offset=data_at).reshape(count, width)
-    texts = [json.loads(line) for line in Path(flags_path).read_text().splitlines()]
+    text = Path(flags_path).read_text()
+    # a line cut short by a failed write is not used by any record
+    texts = [json.loads(line) for line in text[:text.rfind("\n") + 1].splitlines()]
     flags = [texts[i] for i in table[:, 0].astype(int).tolist()]
     return layout, table[:, 1:].astype(float), flags
 
