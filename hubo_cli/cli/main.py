@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import errno
+import gc
 import importlib
 import os
 import signal
 import sys
+import threading
 
 import click
 
@@ -138,5 +141,37 @@ def main() -> None:
     """
 
 
+def entry() -> None:
+    """The ``hubo`` console script: :func:`main`, then a quick exit.
+
+    Once a command has returned, its files are written and closed; what is left is the
+    interpreter tearing down some 800 modules, 0.4-0.6 s on a loaded 2-core machine (measured
+    against 0.02 s with ``os._exit``), which would delay the exit after SIGTERM or a dead
+    robot past the second the operator is promised. So the exit handlers run, stray objects
+    are finalised (an unclosed file flushes), the standard streams are flushed, and the
+    process ends with ``os._exit``. While a non-daemon thread still runs, the normal exit
+    (which waits for it) is taken instead.
+    """
+    try:
+        main()
+        code: object = 0
+    except SystemExit as exc:
+        code = exc.code
+    if any(thread.is_alive() and not thread.daemon and thread is not threading.main_thread()
+           for thread in threading.enumerate()):
+        sys.exit(code)
+    if code is None:
+        code = 0
+    elif not isinstance(code, int):  # sys.exit("message") prints the message, exits 1
+        print(code, file=sys.stderr)
+        code = 1
+    atexit._run_exitfuncs()
+    gc.collect()
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    os._exit(code)
+
+
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    entry()
