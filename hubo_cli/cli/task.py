@@ -4,14 +4,12 @@ from __future__ import annotations
 
 import click
 from rich.console import Group
-from rich.live import Live
 from rich.progress_bar import ProgressBar
 from rich.table import Table
 
 from hubo_cli.cli.hardware import driver_options, hardware_options
 from hubo_cli.cli.options import balance_option, perturb_option, robot_run_options
 from hubo_cli.cli.output import (
-    ProgressLines,
     console,
     err_console,
     interactive,
@@ -262,6 +260,7 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
 def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, no_estop: bool,
             gui: bool, as_json: bool, video: bool, perturb_seed: int | None,
             balance: str) -> None:
+    from hubo_cli.cli.live_view import LiveView
     from hubo_cli.cli.safety_view import SafetyPanel, read_safety
     from hubo_cli.tasks.runner import check_task, run_task
 
@@ -272,31 +271,25 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, no
         _refuse(ctx, plan, as_json)
     state: dict = {}
 
-    def on_start(target) -> None:
+    def on_start(target, loop) -> None:
         if as_json:
             return
         modules = target.modules
-        panel = SafetyPanel(lambda: read_safety(modules, world=target.world),
+        panel = SafetyPanel(lambda: read_safety(modules, world=target.world, loop=loop),
                             bell=err_console.bell,
                             release_key=None)
-        if interactive():
-            live = Live(get_renderable=lambda: _view(target, panel), refresh_per_second=4,
-                        console=err_console, transient=True)
-            live.start()
-            state["live"] = live
-        else:
-            state["lines"] = ProgressLines(lambda: _progress_line(target, panel))
-            state["lines"].start()
+        state["view"] = LiveView(lambda: _view(target, panel),
+                                 lambda: _progress_line(target, panel), urgent=panel.alarm,
+                                 transient=True)
+        state["view"].start()
 
     try:
         done = run_task(plan, driver=driver, out=run_dir, gui=gui, estop=not no_estop,
                         on_start=on_start, perturb_seed=perturb_seed,
                         driver_options=options, balance=balance)
     finally:
-        if "live" in state:
-            state["live"].stop()
-        if "lines" in state:
-            state["lines"].stop()
+        if "view" in state:
+            state["view"].stop()
     if video:
         from hubo_cli.cli.replay import add_run_video
 

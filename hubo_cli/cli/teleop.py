@@ -7,14 +7,12 @@ import math
 import click
 import numpy as np
 from rich.console import Group
-from rich.live import Live
 from rich.table import Table
 
 from hubo_cli.cli.checks import check_baud, check_seconds
 from hubo_cli.cli.hardware import driver_options, hardware_options
 from hubo_cli.cli.options import balance_option, perturb_option, robot_run_options
 from hubo_cli.cli.output import (
-    ProgressLines,
     console,
     err_console,
     interactive,
@@ -269,6 +267,7 @@ def _check_wall_reach(settings) -> None:
 
 def _run(settings, as_json: bool):
     from hubo_cli.cli.keys import KeyReader
+    from hubo_cli.cli.live_view import LiveView
     from hubo_cli.cli.safety_view import SafetyPanel, read_safety
     from hubo_cli.teleop.session import run_teleop
 
@@ -289,37 +288,32 @@ def _run(settings, as_json: bool):
         elif char in ("q", "\x1b"):
             target.keys.quit = True
 
-    def on_ready(target) -> None:
+    def on_ready(target, loop) -> None:
         state["target"] = target
         modules = target.modules
         if as_json:
             return
-        panel = SafetyPanel(lambda: read_safety(modules, hand_safety(target), target.world),
+        panel = SafetyPanel(lambda: read_safety(modules, hand_safety(target), target.world,
+                                                loop),
                             bell=err_console.bell)
-        state["panel"] = panel
+        view = LiveView(lambda: _view(target, panel),
+                        lambda: f"teleop {target.phase}: samples {target.samples_used} | "
+                                f"{panel.words()}",
+                        urgent=panel.alarm, header=KEYS_HELP if interactive() else None)
+        view.start()
+        state["view"] = view
         if interactive():
-            live = Live(get_renderable=lambda: _view(target, panel), refresh_per_second=4,
-                        console=err_console)
-            live.start()
-            state["live"] = live
             keys = KeyReader(on_key)
             keys.__enter__()
             state["keys"] = keys
-        else:
-            lines = ProgressLines(lambda: f"teleop {target.phase}: samples "
-                                          f"{target.samples_used} | {panel.words()}")
-            lines.start()
-            state["lines"] = lines
 
     try:
         return run_teleop(settings, on_ready=on_ready)
     finally:
         if "keys" in state:
             state["keys"].__exit__(None, None, None)
-        if "live" in state:
-            state["live"].stop()
-        if "lines" in state:
-            state["lines"].stop()
+        if "view" in state:
+            state["view"].stop()
 
 
 def _report(run, as_json: bool, video: bool = False) -> None:
