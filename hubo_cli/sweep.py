@@ -208,7 +208,30 @@ def check_scheduler(address: str) -> str:
         raise DeviceError(f"cannot reach the Dask scheduler at {address}: "
                           f"{exc.strerror or exc}",
                           hint="start it (dask scheduler) or check the address") from None
-    return f"tcp://{match.group(1)}:{port}"
+    address = f"tcp://{match.group(1)}:{port}"
+    if not _answers_as_dask(address):
+        raise DeviceError(f"the service at {address} does not answer as a Dask scheduler "
+                          f"within {CONNECT_TIMEOUT_S:g} s",
+                          hint="check the address (a Dask scheduler listens on 8786 by "
+                               "default)")
+    return address
+
+
+def _answers_as_dask(address: str) -> bool:
+    """Dask's own handshake with ``address`` completes within :data:`CONNECT_TIMEOUT_S`."""
+    import asyncio
+
+    from distributed.comm import connect
+
+    async def handshake() -> None:
+        comm = await connect(address, timeout=CONNECT_TIMEOUT_S)
+        await comm.close()
+
+    try:
+        asyncio.run(asyncio.wait_for(handshake(), CONNECT_TIMEOUT_S))
+    except Exception:  # noqa: BLE001 (a service that is not Dask can make it fail any way)
+        return False
+    return True
 
 
 def make_jobs(command: str, seeds: Sequence[int], sets: dict[str, list[object]],
@@ -376,6 +399,8 @@ def run_sweep(jobs: Sequence[Job], out_dir: str | Path, *, workers: int | None =
     write_table(rows, out_dir / TABLE_NAME)
     if rows:
         plot_sweep(rows, out_dir / PLOT_NAME)
+    if lost is not None and not rows:
+        raise lost
     if lost is not None:
         raise DeviceError(f"{lost} after {len(rows)} of {len(jobs)} runs; the finished rows "
                           f"are in {out_dir / TABLE_NAME}", hint=lost.hint) from None
@@ -400,7 +425,8 @@ def _run_on_dask(jobs, out_dir: Path, n_workers: int, scheduler: str | None,
     for logger in quiet.values():
         logger.setLevel(logging.CRITICAL + 1)
     try:
-        with config.set({"distributed.worker.daemon": False,
+        with config.set({"distributed.comm.timeouts.connect": f"{CONNECT_TIMEOUT_S}s",
+                         "distributed.worker.daemon": False,
                          "distributed.admin.system-monitor.gil.enabled": False}):
             _submit_all(jobs, out_dir, n_workers, scheduler, finished)
     finally:
@@ -412,17 +438,29 @@ def _submit_all(jobs, out_dir: Path, n_workers: int, scheduler: str | None,
                 finished: Callable[[int, Row], None]) -> None:
     from distributed import Client, LocalCluster, as_completed
 
-    if scheduler is not None:
-        cluster = None
-        client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
-    else:
-        # no dashboard; the scheduler's own HTTP routes on a free loopback port (its default
-        # would take 8787 on every interface)
-        cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                               host="127.0.0.1", dashboard_address=None,
-                               scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
-                               silence_logs=logging.CRITICAL)
-        client = Client(cluster)
+    cluster = None
+    try:
+        if scheduler is not None:
+            client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
+        else:
+            # no dashboard; the scheduler's own HTTP routes on a free loopback port (it
+            # would take 8787 by default)
+            cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
+                                   host="127.0.0.1", dashboard_address=None,
+                                   scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+                                   silence_logs=logging.CRITICAL)
+            client = Client(cluster)
+    except Exception as exc:  # noqa: BLE001 (nothing has run; garbage from a service that
+        # is not a Dask scheduler can make Dask fail in any way, even a MemoryError)
+        if cluster is not None:
+            cluster.close()
+        where = (f"connect to a Dask scheduler at {scheduler}" if scheduler
+                 else "start a local Dask cluster")
+        why = exc if isinstance(exc, OSError | TimeoutError) else "it did not answer as one"
+        raise DeviceError(f"cannot {where}: {why}",
+                          hint="check the address and that it is a Dask scheduler"
+                          if scheduler else "run with --workers 0 (one job after the other)"
+                          ) from None
     futures = {}
     try:
         for index, job in enumerate(jobs):
