@@ -41,6 +41,7 @@ CONFIRM_JOBS = 10_000  # a sweep of more simulations than this needs an explicit
 MAX_JOBS = 1_000_000  # never more in one sweep (the job list alone would fill the memory)
 MAX_SEED_DIGITS = 18
 CONNECT_TIMEOUT_S = 10.0
+WORKERS_PER_CORE = 4
 SCHEDULER_EXAMPLE = "tcp://host:8786"
 
 
@@ -184,6 +185,20 @@ def check_size(n_jobs: int, confirmed: bool) -> None:
     if n_jobs > CONFIRM_JOBS and not confirmed:
         raise InputError(f"the sweep makes {n_jobs:,} runs (more than {CONFIRM_JOBS:,}) and "
                          f"was not confirmed", hint="add --yes to run them all")
+
+
+def check_workers(workers: int | None) -> None:
+    """At most :data:`WORKERS_PER_CORE` local worker processes per core (each holds a
+    simulator; more only compete for the cores and the memory).
+
+    Raises:
+        InputError: more.
+    """
+    most = WORKERS_PER_CORE * (os.cpu_count() or 1)
+    if workers is not None and workers > most:
+        raise InputError(f"--workers {workers}: at most {most} on this machine "
+                         f"({WORKERS_PER_CORE} per core)",
+                         hint="leave out --workers (one per core), or use --scheduler")
 
 
 def check_scheduler(address: str) -> str:
@@ -367,7 +382,7 @@ def run_sweep(jobs: Sequence[Job], out_dir: str | Path, *, workers: int | None =
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    n_workers = workers or os.cpu_count() or 1
+    n_workers = max(1, min(workers or os.cpu_count() or 1, len(jobs)))
     if scheduler is not None:
         where = f"the Dask cluster at {scheduler}"
     elif workers == 0:

@@ -51,6 +51,7 @@ def sweep(command: str, seeds: str, sets: tuple[str, ...], workers: int | None,
         check_jobs,
         check_scheduler,
         check_size,
+        check_workers,
         job_count,
         make_jobs,
         parse_seeds,
@@ -63,6 +64,7 @@ def sweep(command: str, seeds: str, sets: tuple[str, ...], workers: int | None,
     if not yes and n_jobs > CONFIRM_JOBS and sys.stdin.isatty() and err_console.is_terminal:
         yes = click.confirm(f"run {n_jobs:,} simulations?", err=True)
     check_size(n_jobs, yes)
+    check_workers(workers)
     jobs = make_jobs(command, seed_list, values, balance)
     check_jobs(jobs)
     if scheduler is not None:
