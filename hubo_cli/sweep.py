@@ -15,6 +15,7 @@ parameters are the task's, as ``--set``).
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import itertools
 import json
@@ -207,7 +208,8 @@ def check_scheduler(address: str) -> str:
 
     Raises:
         InputError: not that form (another scheme, no host, a port that is not 1-65535).
-        DeviceError: nothing accepts a connection there within :data:`CONNECT_TIMEOUT_S`.
+        DeviceError: nothing accepts a connection there, or what does is not a Dask
+            scheduler (no Dask handshake within :data:`CONNECT_TIMEOUT_S`).
     """
     match = re.fullmatch(r"(?:tcp://)?(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9][A-Za-z0-9.-]*):(\d{1,5})",
                          address)
@@ -440,8 +442,7 @@ def _run_on_dask(jobs, out_dir: Path, n_workers: int, scheduler: str | None,
     for logger in quiet.values():
         logger.setLevel(logging.CRITICAL + 1)
     try:
-        with config.set({"distributed.comm.timeouts.connect": f"{CONNECT_TIMEOUT_S}s",
-                         "distributed.worker.daemon": False,
+        with config.set({"distributed.worker.daemon": False,
                          "distributed.admin.system-monitor.gil.enabled": False}):
             _submit_all(jobs, out_dir, n_workers, scheduler, finished)
     finally:
@@ -501,8 +502,10 @@ def _submit_all(jobs, out_dir: Path, n_workers: int, scheduler: str | None,
                                        "again") from None
             finished(index, row)
     finally:
-        client.cancel(list(futures))
-        client.close()
+        # after a lost scheduler, cancelling and closing may fail too: nothing to report then
+        with contextlib.suppress(Exception):
+            client.cancel(list(futures))
+            client.close()
         if cluster is not None:
             cluster.close()
 
