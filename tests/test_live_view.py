@@ -18,7 +18,13 @@ from pty_support import HUBO, run_in_pty
 from rich.console import Console
 from test_control_loop import DT, FakeClock
 
-from hubo_cli.cli.live_view import MIN_COLUMNS, TERMINAL_EVERY_S, URGENT_GAP_S, rich_view_fits
+from hubo_cli.cli.live_view import (
+    MIN_COLUMNS,
+    MIN_LINES,
+    TERMINAL_EVERY_S,
+    URGENT_GAP_S,
+    rich_view_fits,
+)
 from hubo_cli.cli.output import ProgressLines
 from hubo_cli.cli.safety_view import HandSafety, SafetyPanel, SafetyState, read_safety, safety_text
 from hubo_cli.cli.teleop import KEYS_HELP, _view, hand_safety
@@ -152,12 +158,13 @@ def test_the_loop_falling_behind_shows_as_it_happens(model):
 
 
 def test_only_a_terminal_that_redraws_and_is_wide_enough_gets_the_rich_view():
-    def console(width, term):
-        return Console(file=io.StringIO(), force_terminal=True, width=width,
+    def console(width, term, height=40):
+        return Console(file=io.StringIO(), force_terminal=True, width=width, height=height,
                        _environ={"TERM": term})
 
     assert rich_view_fits(console(80, "xterm-256color"))
     assert not rich_view_fits(console(MIN_COLUMNS - 1, "xterm-256color"))
+    assert not rich_view_fits(console(80, "xterm-256color", height=MIN_LINES - 1))
     assert not rich_view_fits(console(200, "dumb"))
     assert not rich_view_fits(Console(file=io.StringIO(), width=200))  # not a terminal
 

@@ -1,10 +1,10 @@
 """A robot run's live view on the operator's terminal: it degrades, it never blanks.
 
-A terminal that can redraw (not ``TERM=dumb``) and is at least :data:`MIN_COLUMNS` wide gets
-the rich view, redrawn four times a second. Anything else gets plain lines on stderr, one line
-per update, never cut (the terminal wraps them): on a dumb or narrow terminal one a second and
-at once (at most twice a second) when the safety state changes; in a pipe or a log one every
-two seconds and on every safety change.
+A terminal that can redraw (not ``TERM=dumb``), at least :data:`MIN_COLUMNS` wide and
+:data:`MIN_LINES` high gets the rich view, redrawn four times a second. Anything else gets
+plain lines on stderr, one line per update, never cut (the terminal wraps them): on a dumb,
+narrow or short terminal one a second, and at once (at most twice a second) when the safety
+state changes; in a pipe or a log one every two seconds and on every safety change.
 """
 
 from __future__ import annotations
@@ -17,14 +17,16 @@ from rich.live import Live
 from hubo_cli.cli.output import ProgressLines, err_console, interactive
 
 MIN_COLUMNS = 60  # narrower, a rich table's cells come out empty and lines are cut
+MIN_LINES = 12  # lower, the view's last lines would be cut off
 TERMINAL_EVERY_S = 1.0
 PIPE_EVERY_S = 2.0
 URGENT_GAP_S = 0.5
 
 
 def rich_view_fits(console: Console) -> bool:
-    """The console can show the rich live view: a terminal that redraws, wide enough."""
-    return console.is_terminal and not console.is_dumb_terminal and console.width >= MIN_COLUMNS
+    """The console can show the rich live view: a terminal that redraws, large enough."""
+    return (console.is_terminal and not console.is_dumb_terminal
+            and console.width >= MIN_COLUMNS and console.height >= MIN_LINES)
 
 
 class LiveView:
@@ -43,6 +45,7 @@ class LiveView:
                  urgent: Callable[[], object] | None = None, header: str | None = None,
                  transient: bool = False, console: Console = err_console) -> None:
         self.console = console
+        self.header = header
         self.rich = interactive() and rich_view_fits(console)
         self._live: Live | None = None
         self._lines: ProgressLines | None = None
@@ -53,9 +56,9 @@ class LiveView:
             every_s = TERMINAL_EVERY_S if console.is_terminal else PIPE_EVERY_S
             self._lines = ProgressLines(line, every_s=every_s, urgent=urgent,
                                         gap_s=URGENT_GAP_S)
-        self.header = header
 
     def start(self) -> None:
+        """Start drawing (the header first, for plain lines)."""
         if self._live is not None:
             self._live.start()
             return

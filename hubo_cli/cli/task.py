@@ -374,7 +374,7 @@ def _view(target, panel) -> Group:
     colour = "red" if target.torque_nm > limit else "green"
     table.caption = (f"bit error {target.error_m * 1000:5.1f} mm   wrist torque "
                      f"[{colour}]{target.torque_nm:.2f}[/] / {limit:g} N m")
-    return Group(table, safety)
+    return Group(safety, table)  # the safety state first: never the part a short screen cuts
 
 
 def _print_cut(summary: dict, run_dir) -> None:
