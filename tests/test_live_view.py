@@ -200,7 +200,7 @@ def test_a_dumb_narrow_terminal_gets_plain_lines_with_the_release_key(tmp_path):
                               columns=20, term="dumb", on_output=operator, timeout_s=180)
     assert code == 0, output
     lines = output.replace("\r", "").splitlines()
-    assert lines[0] == KEYS_HELP  # whole, on its own line
+    assert KEYS_HELP in lines  # whole, on its own line
     progress = [line for line in lines if line.startswith("teleop ")
                 and ": samples " in line]
     assert len(progress) >= 2, output
@@ -221,7 +221,7 @@ def _emulator() -> tuple[subprocess.Popen, str]:
 def test_a_late_loop_does_not_make_fresh_input_stale():
     """The reader's thread starved while the caller runs late (it holds the interpreter, as a
     long period does): the input is not stale, as the unit streamed all along. A unit that
-    really stops is stale within the timeout."""
+    really stops is stale soon after the 0.25 s timeout."""
     emulator, port = _emulator()
     try:
         assert port.startswith("/dev/"), port
@@ -230,25 +230,43 @@ def test_a_late_loop_does_not_make_fresh_input_stale():
             while time.monotonic() < deadline and source.last_seen_s(1) is None:
                 source.read_until(0.0)
                 time.sleep(0.01)
-            switch = sys.getswitchinterval()
-            sys.setswitchinterval(10.0)  # this thread keeps the interpreter: the reader waits
-            try:
-                busy_until = time.monotonic() + 0.6
-                while time.monotonic() < busy_until:
-                    pass
-                source.read_until(0.0)
-                late_s = source.now_s() - source.last_seen_s(1)
-                stale = source.is_stale(1, source.now_s())
-            finally:
-                sys.setswitchinterval(switch)
-            assert late_s > 0.5 and not stale  # judged by the loop's clock it would be stale
+            judged = []
+            for _ in range(3):  # the reader may slip in once at the start of a stall: retry
+                judged.append(_stalled_judgement(source))
+                if judged[-1][0] > 0.5:
+                    break
+            late_s, stale = judged[-1]
+            # the newest sample is over 0.5 s old by the loop's clock, which would call it stale
+            assert late_s > 0.5 and not stale, judged
             emulator.send_signal(signal.SIGSTOP)  # the unit goes silent; the reader reads on
             try:
-                time.sleep(0.5)
-                source.read_until(0.0)
-                assert source.is_stale(1, source.now_s())
+                def silent() -> bool:
+                    source.read_until(0.0)
+                    return source.is_stale(1, source.now_s())
+
+                stopped_s = time.monotonic()
+                assert _wait(silent)
+                # 0.25 s of silence, read by a reader polling every 50 ms (or, starved for a
+                # second, judged by the caller's clock): well within 2 s on a busy machine
+                assert time.monotonic() - stopped_s < 2.0
             finally:
                 emulator.send_signal(signal.SIGCONT)
     finally:
         emulator.kill()
         emulator.wait()
+
+
+def _stalled_judgement(source) -> tuple[float, bool]:
+    """Hold the interpreter for 0.6 s (the reader thread waits for its turn), then judge station
+    1 as the loop does: (its newest sample's age by the loop's clock, stale)."""
+    switch = sys.getswitchinterval()
+    sys.setswitchinterval(10.0)
+    try:
+        busy_until = time.monotonic() + 0.6
+        while time.monotonic() < busy_until:
+            pass
+        source.read_until(0.0)
+        now_s = source.now_s()
+        return now_s - source.last_seen_s(1), source.is_stale(1, now_s)
+    finally:
+        sys.setswitchinterval(switch)
