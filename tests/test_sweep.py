@@ -4,6 +4,7 @@ port; the progress bar on a terminal."""
 
 import csv
 import json
+import os
 import signal
 import socket
 import subprocess
@@ -328,3 +329,13 @@ def _port_open(port: int) -> bool:
             return True
     except OSError:
         return False
+
+
+def test_a_narrow_terminal_gets_one_plain_line_per_row(tmp_path):
+    result = subprocess.run([HUBO, "sweep", "sim", "--seeds", "4", "--set", "duration=0.2",
+                             "--workers", "0", "--out", str(tmp_path / "s")],
+                            env=dict(os.environ, COLUMNS="30"), capture_output=True, text=True,
+                            timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith("seed 4, duration 0.2, completed yes, min support mm ")
+    assert "┃" not in result.stdout  # no table whose cells would come out empty

@@ -99,26 +99,37 @@ def sweep(command: str, seeds: str, sets: tuple[str, ...], workers: int | None,
 
 
 def _print_table(result, command: str) -> None:
+    """The rows as a table, or as one plain line each on a terminal too narrow for it."""
     from rich.table import Table
+    from rich.text import Text
 
+    from hubo_cli.cli.live_view import MIN_COLUMNS
     from hubo_cli.sweep import parameter_names
 
     names = parameter_names(result.rows)
-    table = Table(title=f"hubo sweep {command}", title_justify="left")
-    for column in ("seed", *names, "completed", "e-stop", "hole RMS mm", "min support mm",
-                   "max tilt deg", "wall s"):
-        table.add_column(column, justify="right")
+    columns = ("seed", *names, "completed", "e-stop", "hole RMS mm", "min support mm",
+               "max tilt deg", "wall s")
 
     def number(value, digits: int = 1) -> str:
         return "" if value is None else f"{value:.{digits}f}"
 
-    for row in result.rows:
-        table.add_row(str(row.seed), *(str(row.parameters.get(n, "")) for n in names),
-                      "yes" if row.completed else "[red]no[/]",
-                      row.estop or ("refused" if row.ended == "refused" else ""),
-                      number(row.hole_rms_mm), number(row.min_support_margin_mm),
-                      number(row.max_tilt_deg, 2), number(row.wall_clock_s))
-    console.print(table)
+    rows = [(str(row.seed), *(str(row.parameters.get(n, "")) for n in names),
+             "yes" if row.completed else "no",
+             row.estop or ("refused" if row.ended == "refused" else ""),
+             number(row.hole_rms_mm), number(row.min_support_margin_mm),
+             number(row.max_tilt_deg, 2), number(row.wall_clock_s)) for row in result.rows]
+    if console.width < MIN_COLUMNS:
+        for cells in rows:
+            console.print(", ".join(f"{c} {v}" for c, v in zip(columns, cells, strict=True)
+                                    if v), markup=False)
+    else:
+        table = Table(title=f"hubo sweep {command}", title_justify="left")
+        for column in columns:
+            table.add_column(column, justify="right")
+        for cells in rows:
+            table.add_row(*map(Text, cells),  # Text: a value's brackets are not markup
+                          style=None if cells[len(names) + 1] == "yes" else "red")
+        console.print(table)
     done = sum(row.completed for row in result.rows)
     state = " (interrupted: the finished rows are kept)" if result.interrupted else ""
     console.print(f"{done} of {len(result.rows)} runs completed ({result.jobs} planned) on "
