@@ -180,13 +180,14 @@ def settled_objects() -> Iterator[None]:
 
 
 def run(setup: RunSetup, target: Target,
-        on_start: Callable[[Target], None] | None = None) -> RunResult:
+        on_start: Callable[[Target, ControlLoop], None] | None = None) -> RunResult:
     """Run ``target`` on the robot as ``setup`` says and write the run folder.
 
     Args:
         setup: the run's set-up.
         target: where the joint targets come from.
-        on_start: called with the target once the robot has started (live views, keys).
+        on_start: called with the target and the control loop once the robot has started,
+            before the first period (live views, keys; the loop's overruns and skipped time).
 
     Raises:
         HuboError: a bad set-up, or a driver that cannot start (nothing moved; an empty run
@@ -216,10 +217,10 @@ def _run_in(setup: RunSetup, target: Target, on_start, speed: float | None,
             driver.start(setup.q_start_rad)
             world = driver.world
             target.attach(world, modules)
-            if on_start is not None:
-                on_start(target)
             loop = ControlLoop(driver, modules, target, speed=speed, log_path=run_dir,
                                operator=setup.operator)
+            if on_start is not None:
+                on_start(target, loop)
             result = loop.run(setup.duration_s)
             if result.ended == "log-error":  # a full disk: no snapshot, no log read back
                 _end_without_log(setup, speed, result, modules, run_dir)

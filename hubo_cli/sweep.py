@@ -15,25 +15,35 @@ parameters are the task's, as ``--set``).
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import itertools
 import json
+import logging
 import math
 import os
 import re
+import socket
 import time
 from collections.abc import Callable, Sequence
+from concurrent.futures import CancelledError
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
-from hubo_cli.errors import HuboError, InputError
+from hubo_cli.errors import DeviceError, HuboError, InputError
 
 SIM_COMMAND = "sim"
 SIM_PARAMETERS = {"duration": 5.0, "push": 0.0}
 TABLE_NAME = "sweep.csv"
 PLOT_NAME = "sweep.png"
+CONFIRM_JOBS = 10_000  # a sweep of more simulations than this needs an explicit yes
+MAX_JOBS = 1_000_000  # never more in one sweep (the job list alone would fill the memory)
+MAX_SEED_DIGITS = 18
+CONNECT_TIMEOUT_S = 10.0
+WORKERS_PER_CORE = 4
+SCHEDULER_EXAMPLE = "tcp://host:8786"
 
 
 @dataclass(frozen=True)
@@ -102,42 +112,143 @@ class Row:
 
 
 def parse_seeds(text: str) -> list[int]:
-    """``A-B`` (inclusive), ``A`` or ``A,B,C`` -> seeds.
+    """``A-B`` (inclusive), ``A`` or ``A,B,C`` -> seeds (at most :data:`MAX_JOBS`).
 
     Raises:
-        InputError: not that form, negative, or B < A.
+        InputError: not that form, negative, B < A, or more than MAX_JOBS seeds.
     """
-    seeds: list[int] = []
+    ranges: list[range] = []
     for part in text.split(","):
-        match = re.fullmatch(r"\s*(\d+)\s*(?:-\s*(\d+)\s*)?", part)
+        match = re.fullmatch(rf"\s*(\d{{1,{MAX_SEED_DIGITS}}})\s*"
+                             rf"(?:-\s*(\d{{1,{MAX_SEED_DIGITS}}})\s*)?", part)
         if not match:
-            raise InputError(f"--seeds {text!r} is not A-B, A or A,B,C (integers >= 0)",
-                             hint="e.g. --seeds 1-20")
+            raise InputError(f"--seeds {text!r} is not A-B, A or A,B,C (integers >= 0 of at "
+                             f"most {MAX_SEED_DIGITS} digits)", hint="e.g. --seeds 1-20")
         first = int(match.group(1))
         last = int(match.group(2)) if match.group(2) is not None else first
         if last < first:
             raise InputError(f"--seeds {part.strip()!r}: the range ends before it starts",
                              hint="e.g. --seeds 1-20")
-        seeds += range(first, last + 1)
-    return list(dict.fromkeys(seeds))
+        ranges.append(range(first, last + 1))
+    count = sum(len(r) for r in ranges)  # before listing them: 1-100000000 is refused at once
+    if count > MAX_JOBS:
+        raise InputError(f"--seeds {text!r} makes {count:,} runs; a sweep runs at most "
+                         f"{MAX_JOBS:,}", hint="split the seeds into several sweeps")
+    return list(dict.fromkeys(itertools.chain.from_iterable(ranges)))
 
 
 def parse_sets(sets: Sequence[str]) -> dict[str, list[object]]:
-    """``NAME=V1,V2,...`` (each ``--set``) -> name -> values (numbers, true/false or text).
+    """``NAME=V1,V2,...`` (each ``--set``) -> name -> values (numbers, true/false, TOML lists
+    such as ``[a,b]`` or text).
 
     Raises:
-        InputError: not NAME=VALUES.
+        InputError: not NAME=VALUES, or an empty value.
     """
     from hubo_cli.tasks.spec import parse_override
 
     values: dict[str, list[object]] = {}
     for text in sets:
         name, sep, listed = text.partition("=")
-        if not sep or not name.strip() or not listed.strip():
-            raise InputError(f"--set {text!r} is not NAME=V1,V2,...",
+        items = _split_values(listed)
+        if not sep or not name.strip() or not all(item.strip() for item in items):
+            raise InputError(f"--set {text!r} is not NAME=V1,V2,... (no empty value)",
                              hint="e.g. --set speed_mm_s=10,20,40")
-        values[name.strip()] = [parse_override(f"{name}={v}")[1] for v in listed.split(",")]
+        values[name.strip()] = [parse_override(f"{name}={v}")[1] for v in items]
     return values
+
+
+def _split_values(listed: str) -> list[str]:
+    """``10,20`` -> ``['10', '20']``; commas inside ``[...]`` belong to a list value."""
+    items, depth, start = [], 0, 0
+    for i, char in enumerate(listed):
+        depth += (char == "[") - (char == "]")
+        if char == "," and depth == 0:
+            items.append(listed[start:i])
+            start = i + 1
+    return [*items, listed[start:]]
+
+
+def job_count(n_seeds: int, sets: dict[str, list[object]]) -> int:
+    """How many simulations :func:`make_jobs` would make (without making them)."""
+    return n_seeds * math.prod(len(v) for v in sets.values())
+
+
+def check_size(n_jobs: int, confirmed: bool) -> None:
+    """A sweep of more than :data:`CONFIRM_JOBS` simulations runs only when ``confirmed``, and
+    never more than :data:`MAX_JOBS`.
+
+    Raises:
+        InputError: too many, or not confirmed.
+    """
+    if n_jobs > MAX_JOBS:
+        raise InputError(f"the sweep makes {n_jobs:,} runs; a sweep runs at most {MAX_JOBS:,}",
+                         hint="split it into several sweeps (fewer --seeds or --set values)")
+    if n_jobs > CONFIRM_JOBS and not confirmed:
+        raise InputError(f"the sweep makes {n_jobs:,} runs (more than {CONFIRM_JOBS:,}) and "
+                         f"was not confirmed", hint="add --yes to run them all")
+
+
+def check_workers(workers: int | None) -> None:
+    """At most :data:`WORKERS_PER_CORE` local worker processes per core (each holds a
+    simulator; more only compete for the cores and the memory).
+
+    Raises:
+        InputError: more.
+    """
+    most = WORKERS_PER_CORE * (os.cpu_count() or 1)
+    if workers is not None and workers > most:
+        raise InputError(f"--workers {workers}: at most {most} on this machine "
+                         f"({WORKERS_PER_CORE} per core)",
+                         hint="leave out --workers (one per core), or use --scheduler")
+
+
+def check_scheduler(address: str) -> str:
+    """A Dask scheduler address, ``tcp://HOST:PORT`` or ``HOST:PORT``, that answers; returns
+    it as ``tcp://HOST:PORT``. Checked before anything runs.
+
+    Raises:
+        InputError: not that form (another scheme, no host, a port that is not 1-65535).
+        DeviceError: nothing accepts a connection there, or what does is not a Dask
+            scheduler (no Dask handshake within :data:`CONNECT_TIMEOUT_S`).
+    """
+    match = re.fullmatch(r"(?:tcp://)?(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9][A-Za-z0-9.-]*):(\d{1,5})",
+                         address)
+    port = int(match.group(2)) if match else 0
+    if not 0 < port < 65536:
+        raise InputError(f"--scheduler {address!r} is not a Dask scheduler address "
+                         f"(tcp://HOST:PORT, port 1-65535)", hint=f"e.g. {SCHEDULER_EXAMPLE}")
+    host = match.group(1).strip("[]")
+    try:
+        with socket.create_connection((host, port), timeout=CONNECT_TIMEOUT_S):
+            pass
+    except OSError as exc:
+        raise DeviceError(f"cannot reach the Dask scheduler at {address}: "
+                          f"{exc.strerror or exc}",
+                          hint="start it (dask scheduler) or check the address") from None
+    address = f"tcp://{match.group(1)}:{port}"
+    if not _answers_as_dask(address):
+        raise DeviceError(f"the service at {address} does not answer as a Dask scheduler "
+                          f"within {CONNECT_TIMEOUT_S:g} s",
+                          hint="check the address (a Dask scheduler listens on 8786 by "
+                               "default)")
+    return address
+
+
+def _answers_as_dask(address: str) -> bool:
+    """Dask's own handshake with ``address`` completes within :data:`CONNECT_TIMEOUT_S`."""
+    import asyncio
+
+    from distributed.comm import connect
+
+    async def handshake() -> None:
+        comm = await connect(address, timeout=CONNECT_TIMEOUT_S)
+        await comm.close()
+
+    try:
+        asyncio.run(asyncio.wait_for(handshake(), CONNECT_TIMEOUT_S))
+    except Exception:  # noqa: BLE001 (a service that is not Dask can make it fail any way)
+        return False
+    return True
 
 
 def make_jobs(command: str, seeds: Sequence[int], sets: dict[str, list[object]],
@@ -150,22 +261,34 @@ def make_jobs(command: str, seeds: Sequence[int], sets: dict[str, list[object]],
 
 
 def check_jobs(jobs: Sequence[Job]) -> None:
-    """Refuse a sweep whose command or parameters are unknown before anything runs.
+    """Refuse a sweep whose command or any parameter value is unknown or out of range before
+    anything runs (every distinct combination of values is checked).
 
     Raises:
-        HuboError: an unknown task, a bad task file or parameter (ConfigError), an unknown
-            ``sim`` parameter (InputError).
+        HuboError: an unknown task, a bad task file or parameter value (ConfigError), an
+            unknown ``sim`` parameter or a bad value of one (InputError).
     """
+    from hubo_cli.experiments.standing import check_standing_args
     from hubo_cli.tasks.spec import load_task
 
-    for job in {(j.command, tuple(n for n, _ in j.parameters)): j for j in jobs}.values():
-        if job.command == SIM_COMMAND:
-            unknown = [n for n, _ in job.parameters if n not in SIM_PARAMETERS]
-            if unknown:
-                raise InputError(f"sim has no parameter {', '.join(unknown)}",
-                                 hint=f"use {', '.join(SIM_PARAMETERS)}")
-        else:
-            load_task(job.command, dict(job.parameters))
+    combinations = {(j.command, repr(j.parameters)): (j.command, j.parameters) for j in jobs}
+    for command, parameters in combinations.values():
+        if command != SIM_COMMAND:
+            load_task(command, dict(parameters))
+            continue
+        unknown = [n for n, _ in parameters if n not in SIM_PARAMETERS]
+        if unknown:
+            raise InputError(f"sim has no parameter {', '.join(unknown)}",
+                             hint=f"use {', '.join(SIM_PARAMETERS)}")
+        for name, value in parameters:
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise InputError(f"--set {name}={value}: sim's {name} must be a number",
+                                 hint="e.g. --set push=0,30")
+        params = SIM_PARAMETERS | dict(parameters)
+        try:
+            check_standing_args(float(params["duration"]), float(params["push"]))
+        except InputError as exc:
+            raise InputError(f"--set: sim's {exc}", hint="e.g. --set push=0,30") from None
 
 
 def run_job(job: Job, out_dir: str | Path) -> Row:
@@ -262,7 +385,7 @@ def run_sweep(jobs: Sequence[Job], out_dir: str | Path, *, workers: int | None =
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    n_workers = workers or os.cpu_count() or 1
+    n_workers = max(1, min(workers or os.cpu_count() or 1, len(jobs)))
     if scheduler is not None:
         where = f"the Dask cluster at {scheduler}"
     elif workers == 0:
@@ -278,6 +401,7 @@ def run_sweep(jobs: Sequence[Job], out_dir: str | Path, *, workers: int | None =
         if on_row is not None:
             on_row(row, len(done), len(jobs))
 
+    lost: DeviceError | None = None
     try:
         if scheduler is None and workers == 0:
             for index, job in enumerate(jobs):
@@ -289,37 +413,85 @@ def run_sweep(jobs: Sequence[Job], out_dir: str | Path, *, workers: int | None =
             _run_on_dask(jobs, out_dir, n_workers, scheduler, finished)
     except KeyboardInterrupt:
         interrupted = True
+    except DeviceError as exc:
+        lost = exc
     rows = [done[i] for i in sorted(done)]
     result = SweepResult(rows, len(jobs), where, time.perf_counter() - t0, interrupted, out_dir)
     write_table(rows, out_dir / TABLE_NAME)
     if rows:
         plot_sweep(rows, out_dir / PLOT_NAME)
+    if lost is not None and not rows:
+        raise lost
+    if lost is not None:
+        raise DeviceError(f"{lost} after {len(rows)} of {len(jobs)} runs; the finished rows "
+                          f"are in {out_dir / TABLE_NAME}", hint=lost.hint) from None
     return result
 
 
 def _run_on_dask(jobs, out_dir: Path, n_workers: int, scheduler: str | None,
                  finished: Callable[[int, Row], None]) -> None:
+    """Submit every job and hand back each row as it finishes.
+
+    Raises:
+        DeviceError: the connection to the scheduler was lost (the rows handed back so far
+            are all there is).
+    """
+    import distributed  # noqa: F401  (its loggers exist from here on)
     from dask import config
+
+    # a lost scheduler is reported once, by us, not as pages of Dask's tracebacks
+    quiet = {name: logging.getLogger(name) for name in list(logging.root.manager.loggerDict)
+             if name.split(".")[0] == "distributed"}
+    levels = {name: logger.level for name, logger in quiet.items()}
+    for logger in quiet.values():
+        logger.setLevel(logging.CRITICAL + 1)
+    try:
+        with config.set({"distributed.worker.daemon": False,
+                         "distributed.admin.system-monitor.gil.enabled": False}):
+            _submit_all(jobs, out_dir, n_workers, scheduler, finished)
+    finally:
+        for name, logger in quiet.items():
+            logger.setLevel(levels[name])
+
+
+def _submit_all(jobs, out_dir: Path, n_workers: int, scheduler: str | None,
+                finished: Callable[[int, Row], None]) -> None:
     from distributed import Client, LocalCluster, as_completed
 
-    with config.set({"distributed.worker.daemon": False,
-                     "distributed.admin.system-monitor.gil.enabled": False}):
+    cluster = None
+    try:
         if scheduler is not None:
-            cluster = None
-            client = Client(scheduler, timeout="10s")
+            client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
         else:
+            # no dashboard; the scheduler's own HTTP routes on a free loopback port (it
+            # would take 8787 by default)
             cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
                                    host="127.0.0.1", dashboard_address=None,
-                                   silence_logs=50)
+                                   scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+                                   silence_logs=logging.CRITICAL)
             client = Client(cluster)
-        futures = {}
-        try:
-            for index, job in enumerate(jobs):
-                future = client.submit(run_job, job, str(out_dir.resolve()), pure=False,
-                                       key=f"hubo-sweep-{index}-{job.name}")
-                futures[future] = index
-            for future in as_completed(futures):
-                index = futures[future]
+    except Exception as exc:  # noqa: BLE001 (nothing has run; garbage from a service that
+        # is not a Dask scheduler can make Dask fail in any way, even a MemoryError)
+        if cluster is not None:
+            cluster.close()
+        where = (f"connect to a Dask scheduler at {scheduler}" if scheduler
+                 else "start a local Dask cluster")
+        why = exc if isinstance(exc, OSError | TimeoutError) else "it did not answer as one"
+        raise DeviceError(f"cannot {where}: {why}",
+                          hint="check the address and that it is a Dask scheduler"
+                          if scheduler else "run with --workers 0 (one job after the other)"
+                          ) from None
+    futures = {}
+    try:
+        for index, job in enumerate(jobs):
+            future = client.submit(run_job, job, str(out_dir.resolve()), pure=False,
+                                   key=f"hubo-sweep-{index}-{job.name}")
+            futures[future] = index
+        for future in as_completed(futures):
+            index = futures[future]
+            try:
+                if future.status == "cancelled":  # only a lost scheduler cancels them here
+                    raise ConnectionError("cancelled")
                 if future.status == "error":
                     exc = future.exception()
                     job = jobs[index]
@@ -327,12 +499,19 @@ def _run_on_dask(jobs, out_dir: Path, n_workers: int, scheduler: str | None,
                               ended="error", error=f"{type(exc).__name__}: {exc}")
                 else:
                     row = future.result()
-                finished(index, row)
-        finally:
+            except (OSError, CancelledError, TimeoutError):  # Dask's CommClosedError is one
+                raise DeviceError(f"lost the connection to the Dask scheduler "
+                                  f"{scheduler or '(local)'}",
+                                  hint="restart the scheduler and sweep the missing seeds "
+                                       "again") from None
+            finished(index, row)
+    finally:
+        # after a lost scheduler, cancelling and closing may fail too: nothing to report then
+        with contextlib.suppress(Exception):
             client.cancel(list(futures))
             client.close()
-            if cluster is not None:
-                cluster.close()
+        if cluster is not None:
+            cluster.close()
 
 
 COLUMNS = ("command", "seed", "completed", "estop", "hole_rms_mm", "min_support_margin_mm",

@@ -196,7 +196,9 @@ def test_silent_unit_is_stale_then_reconfigured():
             got = collect(src, 10)
             assert len(got) >= 10
             last = max(s.t_s for s in got if s.station == 1)
-            assert not src.is_stale(1, last) and src.is_stale(1, last + 0.3)
+            # judged up to when the reader last looked: fresh now, not at a time to come
+            assert not src.is_stale(1, last) and not src.is_stale(1, src.now_s())
+            assert src.looked_s() >= last
             assert src.is_stale(3, src.now_s())
     finally:
         emu.close()

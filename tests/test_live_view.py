@@ -1,8 +1,11 @@
-"""The operator always sees the safety state: the live view rendered in-process, and the real
-terminal (tmux) after pressing space."""
+"""The operator always sees the safety state: the live view rendered in-process, the real
+terminal (tmux) after pressing space, plain lines on a dumb and narrow terminal, the loop's
+overruns as they happen, and stale input judged from the input's own timestamps."""
 
+import io
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import threading
@@ -10,11 +13,24 @@ import time
 from pathlib import Path
 
 import pytest
+from control_support import ideal
+from pty_support import HUBO, run_in_pty
 from rich.console import Console
+from test_control_loop import DT, FakeClock
 
+from hubo_cli.cli.live_view import (
+    MIN_COLUMNS,
+    MIN_LINES,
+    TERMINAL_EVERY_S,
+    URGENT_GAP_S,
+    rich_view_fits,
+)
+from hubo_cli.cli.output import ProgressLines
 from hubo_cli.cli.safety_view import HandSafety, SafetyPanel, SafetyState, read_safety, safety_text
-from hubo_cli.cli.teleop import _view, hand_safety
+from hubo_cli.cli.teleop import KEYS_HELP, _view, hand_safety
+from hubo_cli.control.loop import ControlLoop
 from hubo_cli.control.pipeline import find_module
+from hubo_cli.fastrak.opener import open_source
 from hubo_cli.resources import data_file
 from hubo_cli.teleop.session import TeleopSettings, run_teleop
 
@@ -67,7 +83,7 @@ def test_live_view_shows_the_operator_stop_and_counts_it_once(tmp_path):
             captured["released"] = _text(_view(target, panel))
         target.keys.quit = True
 
-    def on_ready(target):
+    def on_ready(target, loop):
         modules = target.modules
         panel = SafetyPanel(lambda: read_safety(modules, hand_safety(target)),
                             bell=lambda: bells.append(time.monotonic()))
@@ -116,3 +132,141 @@ def test_terminal_shows_estop_after_space(tmp_path):
         assert _wait(lambda: "e-stops 1 (released 1)" in pane()), pane()
     finally:
         subprocess.run(["tmux", "kill-session", "-t", session], capture_output=True)
+
+
+def test_the_loop_falling_behind_shows_as_it_happens(model):
+    """A real control loop on a clock that stalls twice: the view says so from the next period
+    on, with the overruns and the wall time skipped so far."""
+    clock = FakeClock()
+    seen: dict[int, str] = {}
+    loop_ref: list[ControlLoop] = []
+
+    def target(t_s, state):
+        k = round(t_s / DT)
+        if k in (40, 60, 150):
+            seen[k] = SafetyPanel(lambda: read_safety([], loop=loop_ref[0])).words()
+        if k in (50, 120):
+            clock.now_s += {50: 1.0, 120: 0.5}[k]  # a stall far beyond the loop's lag limit
+        return None, {}
+
+    loop = ControlLoop(ideal(model), [], target, speed=1.0, clock=clock, sleep=clock.sleep)
+    loop_ref.append(loop)
+    loop.run(duration_s=200 * DT)
+    assert "LOOP LATE" not in seen[40]
+    assert "LOOP LATE: 1 overrun, 1.0 s of wall time skipped" in seen[60], seen[60]
+    assert "LOOP LATE: 2 overruns, 1.5 s of wall time skipped" in seen[150], seen[150]
+
+
+def test_only_a_terminal_that_redraws_and_is_wide_enough_gets_the_rich_view():
+    def console(width, term, height=40):
+        return Console(file=io.StringIO(), force_terminal=True, width=width, height=height,
+                       _environ={"TERM": term})
+
+    assert rich_view_fits(console(80, "xterm-256color"))
+    assert not rich_view_fits(console(MIN_COLUMNS - 1, "xterm-256color"))
+    assert not rich_view_fits(console(80, "xterm-256color", height=MIN_LINES - 1))
+    assert not rich_view_fits(console(200, "dumb"))
+    assert not rich_view_fits(Console(file=io.StringIO(), width=200))  # not a terminal
+
+
+def test_plain_lines_come_at_most_twice_a_second(capsys):
+    """Even when the safety state changes at every look, plain lines are rate-limited."""
+    calls = iter(range(10**6))
+    lines = ProgressLines(lambda: "line", every_s=TERMINAL_EVERY_S,
+                          urgent=lambda: next(calls), gap_s=URGENT_GAP_S)
+    lines.start()
+    time.sleep(1.6)
+    lines.stop()
+    printed = capsys.readouterr().err.splitlines()
+    assert 1 <= len(printed) <= 1.6 / URGENT_GAP_S + 1, printed
+
+
+def test_a_dumb_narrow_terminal_gets_plain_lines_with_the_release_key(tmp_path):
+    """hubo teleop on a pty with TERM=dumb and 20 columns: the keys once, then one plain line
+    per update (never cut: the terminal wraps them, no cursor movement), the e-stop with its
+    release key after space, and q ends the run."""
+    keys = {"space": False, "q": False}
+
+    def operator(text, send):
+        if "teleop operate" in text and not keys["space"]:
+            keys["space"] = True
+            send(b" ")
+        if "E-STOP (operator)" in text and not keys["q"]:
+            keys["q"] = True
+            send(b"q")
+
+    code, output = run_in_pty([HUBO, "teleop", "--replay", str(FREE_CSV), "--driver", "ideal",
+                               "--speed", "1", "--out", str(tmp_path / "run")],
+                              columns=20, term="dumb", on_output=operator, timeout_s=180)
+    assert code == 0, output
+    lines = output.replace("\r", "").splitlines()
+    assert KEYS_HELP in lines  # whole, on its own line
+    progress = [line for line in lines if line.startswith("teleop ")
+                and ": samples " in line]
+    assert len(progress) >= 2, output
+    assert any("E-STOP (operator) — press r to release" in line for line in progress), output
+    assert all("collision" in line and "right-arm" in line for line in progress)
+    assert "\x1b[" not in output  # a dumb terminal: no colour, no cursor movement
+    assert "e-stops 1" in output
+
+
+def _emulator() -> tuple[subprocess.Popen, str]:
+    """``hubo fastrak emulate --pty`` in its own process (it streams while this one stalls)."""
+    process = subprocess.Popen([HUBO, "fastrak", "emulate", "--pty", "--stations", "2",
+                                "--duration", "60"], stdout=subprocess.PIPE,
+                               stderr=subprocess.DEVNULL, text=True)
+    return process, process.stdout.readline().strip()
+
+
+def test_a_late_loop_does_not_make_fresh_input_stale():
+    """The reader's thread starved while the caller runs late (it holds the interpreter, as a
+    long period does): the input is not stale, as the unit streamed all along. A unit that
+    really stops is stale soon after the 0.25 s timeout."""
+    emulator, port = _emulator()
+    try:
+        assert port.startswith("/dev/"), port
+        with open_source(port=port) as source:
+            deadline = time.monotonic() + DEADLINE_S
+            while time.monotonic() < deadline and source.last_seen_s(1) is None:
+                source.read_until(0.0)
+                time.sleep(0.01)
+            judged = []
+            for _ in range(3):  # the reader may slip in once at the start of a stall: retry
+                judged.append(_stalled_judgement(source))
+                if judged[-1][0] > 0.5:
+                    break
+            late_s, stale = judged[-1]
+            # the newest sample is over 0.5 s old by the loop's clock, which would call it stale
+            assert late_s > 0.5 and not stale, judged
+            emulator.send_signal(signal.SIGSTOP)  # the unit goes silent; the reader reads on
+            try:
+                def silent() -> bool:
+                    source.read_until(0.0)
+                    return source.is_stale(1, source.now_s())
+
+                stopped_s = time.monotonic()
+                assert _wait(silent)
+                # 0.25 s of silence, read by a reader polling every 50 ms (or, starved for a
+                # second, judged by the caller's clock): well within 2 s on a busy machine
+                assert time.monotonic() - stopped_s < 2.0
+            finally:
+                emulator.send_signal(signal.SIGCONT)
+    finally:
+        emulator.kill()
+        emulator.wait()
+
+
+def _stalled_judgement(source) -> tuple[float, bool]:
+    """Hold the interpreter for 0.6 s (the reader thread waits for its turn), then judge station
+    1 as the loop does: (its newest sample's age by the loop's clock, stale)."""
+    switch = sys.getswitchinterval()
+    sys.setswitchinterval(10.0)
+    try:
+        busy_until = time.monotonic() + 0.6
+        while time.monotonic() < busy_until:
+            pass
+        source.read_until(0.0)
+        now_s = source.now_s()
+        return now_s - source.last_seen_s(1), source.is_stale(1, now_s)
+    finally:
+        sys.setswitchinterval(switch)

@@ -1,14 +1,39 @@
-"""hubo sweep: the same rows sequentially and on a Dask cluster; the table, the plot, Ctrl-C."""
+"""hubo sweep: the same rows sequentially and on a Dask cluster; the table, the plot, Ctrl-C;
+bad values, addresses and sizes refused before anything runs; a lost scheduler; no dashboard
+port; the progress bar on a terminal."""
 
 import csv
 import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
 
+import numpy as np
+import psutil
 import pytest
 from click.testing import CliRunner
+from pty_support import HUBO, run_in_pty
 
 from hubo_cli.cli.main import main
 from hubo_cli.errors import ConfigError, InputError
-from hubo_cli.sweep import Job, check_jobs, make_jobs, parse_seeds, parse_sets, run_sweep
+from hubo_cli.sweep import (
+    CONFIRM_JOBS,
+    MAX_JOBS,
+    Job,
+    check_jobs,
+    check_size,
+    make_jobs,
+    parse_seeds,
+    parse_sets,
+    run_sweep,
+)
+
+DASHBOARD_PORT = 8787  # Dask's default dashboard port
 
 SHORT = {"duration": [0.6]}  # a short standing run per job: a few seconds of wall-clock
 
@@ -38,10 +63,54 @@ def test_unknown_commands_and_parameters_are_refused_before_anything_runs():
         check_jobs(make_jobs("sim", [1], {"speed": [1]}))
 
 
+def _ours() -> list[psutil.Process]:
+    return [psutil.Process(), *psutil.Process().children(recursive=True)]
+
+
+def _listening_ports() -> set[tuple[str, int]]:
+    """(address, port) of every TCP socket this process and its children listen on."""
+    ports = set()
+    for process in _ours():
+        try:
+            ports |= {c.laddr[:2] for c in process.net_connections("tcp")
+                      if c.status == psutil.CONN_LISTEN}
+        except psutil.Error:  # a worker that has just ended
+            pass
+    return ports
+
+
+def _held_by_us(port: int) -> bool:
+    """A process of this test listens on ``port`` (on a shared machine another may)."""
+    pids = {p.pid for p in _ours()}
+    return any(c.pid in pids for c in psutil.net_connections("tcp")
+               if c.laddr and c.laddr[1] == port and c.status == psutil.CONN_LISTEN)
+
+
+def _port_free(port: int) -> bool:
+    with socket.socket() as probe:
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            probe.bind(("0.0.0.0", port))
+        except OSError:
+            return False
+    return True
+
+
 def test_a_local_cluster_of_two_workers_gives_the_sequential_rows(tmp_path):
+    """... and opens no dashboard: while it runs, every port it listens on is a loopback one,
+    none is 8787, and 8787 stays free (or is held by a process not of this test)."""
     jobs = make_jobs("sim", [0, 2, 5], SHORT)
     sequential = run_sweep(jobs, tmp_path / "seq", workers=0)
-    parallel = run_sweep(jobs, tmp_path / "par", workers=2)
+    seen: dict = {}
+
+    def look(row, done, total):
+        seen["ports"] = _listening_ports()
+        seen["free"] = _port_free(DASHBOARD_PORT) or not _held_by_us(DASHBOARD_PORT)
+
+    parallel = run_sweep(jobs, tmp_path / "par", workers=2, on_row=look)
+    assert seen["ports"] and all(host == "127.0.0.1" for host, _ in seen["ports"]), seen
+    assert DASHBOARD_PORT not in {port for _, port in seen["ports"]}
+    assert seen["free"]
     assert "2 worker processes" in parallel.where and not parallel.interrupted
     assert [r.outcome() for r in parallel.rows] == [r.outcome() for r in sequential.rows]
     assert [r.seed for r in sequential.rows] == [0, 2, 5]
@@ -74,3 +143,199 @@ def test_cli_sweep_writes_the_table(tmp_path):
     assert (tmp_path / "sweep.csv").exists()
     refused = CliRunner().invoke(main, ["sweep", "no-such-task", "--out", str(tmp_path / "x")])
     assert refused.exit_code == 2 and not (tmp_path / "x").exists()
+
+
+def _hostile_sweeps() -> dict[str, list[str]]:
+    """Bad values of every kind, each refused (exit 2) before any job; a few drawn at random."""
+    rng = np.random.default_rng(32)
+    garbage = "".join(chr(c) for c in rng.integers(0x21, 0x7e, 12) if chr(c) not in ",=[]")
+    cases = {
+        "push-nan": ["sim", "--set", "push=0,nan"], "push-inf": ["sim", "--set", "push=inf"],
+        "push--inf": ["sim", "--set", "push=-inf"], "push-huge": ["sim", "--set", "push=1e300"],
+        "push-negative": ["sim", "--set", "push=-5"], "push-text": ["sim", "--set", "push=ab"],
+        "push-bool": ["sim", "--set", "push=true"], "push-list": ["sim", "--set", "push=[1,2]"],
+        "push-garbage": ["sim", "--set", f"push={garbage}"],
+        "duration--0": ["sim", "--set", "duration=-0"],
+        "duration-overflow": ["sim", "--set", "duration=1e400"],
+        "empty-value": ["sim", "--set", "push=1,,2"], "empty-set": ["sim", "--set", "push="],
+        "no-name": ["sim", "--set", "=1"], "no-equals": ["sim", "--set", "push"],
+        "unknown-parameter": ["sim", "--set", "speed=1"],
+        "task-nan-second": ["cut-slot", "--set", "speed_mm_s=10,nan"],
+        "task-unknown": ["cut-slot", "--set", "no_such=1"],
+        "unknown-command": ["no-such-task"],
+        "seeds-empty": ["sim", "--seeds", ""], "seeds-negative": ["sim", "--seeds", "-3"],
+        "seeds-backwards": ["sim", "--seeds", "5-2"],
+        "seeds-digits": ["sim", "--seeds", "9" * 5000],
+        "seeds-huge-range": ["sim", "--seeds", "1-100000000"],
+        "seeds-unconfirmed": ["sim", "--seeds", f"1-{CONFIRM_JOBS + 1}"],
+        "combinations-unconfirmed": ["sim", "--seeds", "1-5001", "--set", "push=0,10"],
+        "over-the-maximum": ["sim", "--seeds", f"1-{MAX_JOBS}", "--set", "push=0,1", "--yes"],
+        "workers-huge": ["sim", "--seeds", "1", "--workers", "100000"],
+        "workers-negative": ["sim", "--seeds", "1", "--workers", "-1"],
+        "workers-text": ["sim", "--seeds", "1", "--workers", "many"],
+    }
+    for address in ("http://", "http://host:8786", "tcp://host:notaport", "tcp://:0",
+                    "tcp://host:0", "tcp://host:65536", "tcp://host", "", ":8786",
+                    "tls://host:8786", "tcp://ho st:8786", f"tcp://{garbage}:1"):
+        cases[f"scheduler-{address}"] = ["sim", "--seeds", "1", "--scheduler", address]
+    return cases
+
+
+HOSTILE = _hostile_sweeps()
+
+
+@pytest.mark.parametrize("args", HOSTILE.values(), ids=HOSTILE.keys())
+def test_bad_values_are_refused_before_any_job(tmp_path, args):
+    out = tmp_path / "sweep"
+    t0 = time.perf_counter()
+    result = CliRunner().invoke(main, ["sweep", *args, "--out", str(out)])
+    assert result.exit_code == 2, result.output
+    lines = result.output.splitlines()
+    if lines[0].startswith("Usage:"):  # refused by click's own type check
+        assert lines[-1].startswith("Error: Invalid value for '--workers'"), result.output
+    else:
+        assert lines[0].startswith("error: ") and len(lines) <= 2
+        assert all(line.startswith("hint: ") for line in lines[1:])
+    assert "internal error" not in result.output and "Traceback" not in result.output
+    assert not out.exists()  # refused before its folder, let alone a job
+    assert time.perf_counter() - t0 < 5.0  # nothing listed or run: 1e8 seeds are not listed
+
+
+def test_an_unreachable_scheduler_is_device_trouble(tmp_path):
+    with socket.socket() as closed:  # a port nothing listens on
+        closed.bind(("127.0.0.1", 0))
+        port = closed.getsockname()[1]
+    result = CliRunner().invoke(main, ["sweep", "sim", "--seeds", "1", "--scheduler",
+                                       f"127.0.0.1:{port}", "--out", str(tmp_path / "s")])
+    assert result.exit_code == 3, result.output
+    assert result.output.startswith(f"error: cannot reach the Dask scheduler at 127.0.0.1:{port}")
+    assert not (tmp_path / "s").exists()
+
+
+@pytest.mark.parametrize("reply", [b"", b"HTTP/1.1 400 Bad Request\r\n\r\n" * 20,
+                                   bytes(np.random.default_rng(8).integers(0, 256, 4096,
+                                                                            dtype=np.uint8))])
+def test_a_service_that_is_not_a_dask_scheduler_is_device_trouble(tmp_path, reply):
+    """Something listens there but is not Dask: it hangs up, or answers garbage."""
+    server = socket.create_server(("127.0.0.1", 0))
+    port = server.getsockname()[1]
+
+    def serve():
+        with server:
+            while True:
+                try:
+                    conn, _ = server.accept()
+                except OSError:
+                    return
+                with conn:
+                    conn.sendall(reply)
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    try:
+        result = CliRunner().invoke(main, ["sweep", "sim", "--seeds", "1", "--scheduler",
+                                           f"127.0.0.1:{port}", "--out", str(tmp_path / "s")])
+    finally:
+        server.close()
+    assert result.exit_code == 3, result.output
+    assert result.output.startswith(f"error: the service at tcp://127.0.0.1:{port} does not "
+                                    "answer as a Dask scheduler")
+    assert "Traceback" not in result.output and not (tmp_path / "s").exists()
+
+
+def test_a_large_sweep_needs_a_yes():
+    check_size(CONFIRM_JOBS, confirmed=False)
+    check_size(CONFIRM_JOBS + 1, confirmed=True)
+    with pytest.raises(InputError, match="not confirmed"):
+        check_size(CONFIRM_JOBS + 1, confirmed=False)
+    with pytest.raises(InputError, match="at most"):
+        check_size(MAX_JOBS + 1, confirmed=True)
+
+
+def test_a_large_sweep_asks_on_a_terminal_and_no_refuses(tmp_path):
+    def answer(text, send):
+        if "simulations? [y/N]" in text and not answer.sent:
+            answer.sent = True
+            send(b"n\n")
+
+    answer.sent = False
+    code, output = run_in_pty([HUBO, "sweep", "sim", "--seeds", f"1-{CONFIRM_JOBS + 1}",
+                               "--out", str(tmp_path / "s")], on_output=answer, timeout_s=30)
+    assert answer.sent and f"run {CONFIRM_JOBS + 1:,} simulations?" in output, output
+    assert code == 2 and "was not confirmed" in output and not (tmp_path / "s").exists()
+
+
+def test_the_progress_bar_shows_on_a_terminal_while_it_runs(tmp_path):
+    code, output = run_in_pty([HUBO, "sweep", "sim", "--seeds", "1,2", "--set",
+                               "duration=0.2", "--workers", "0", "--out", str(tmp_path / "s")],
+                              timeout_s=120)
+    assert code == 0, output
+    assert "sweep sim" in output and "1/2" in output, output  # drawn before the end
+    quiet = CliRunner().invoke(main, ["sweep", "sim", "--seeds", "1", "--set", "duration=0.2",
+                                      "--workers", "0", "--out", str(tmp_path / "q"), "--json"])
+    assert quiet.exit_code == 0 and quiet.stderr == ""  # not a terminal, --json: no bar
+
+
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def test_a_lost_scheduler_keeps_the_finished_rows_and_exits_3(tmp_path):
+    """A real Dask scheduler and worker; the scheduler killed once three runs have finished."""
+    port = _free_port()
+    dask = str(Path(sys.executable).with_name("dask"))
+    quiet = dict(stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    scheduler = subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port",
+                                  str(port), "--dashboard-address", "127.0.0.1:0"], **quiet)
+    worker = subprocess.Popen([dask, "worker", f"tcp://127.0.0.1:{port}", "--nthreads", "1",
+                               "--no-dashboard"], **quiet)
+    out = tmp_path / "sweep"
+    try:
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and not _port_open(port):
+            time.sleep(0.1)
+        sweep = subprocess.Popen([HUBO, "sweep", "sim", "--seeds", "1-8", "--set",
+                                  "duration=0.3", "--scheduler", f"tcp://127.0.0.1:{port}",
+                                  "--out", str(out)], stdout=subprocess.PIPE,
+                                 stderr=subprocess.PIPE, text=True)
+        while (time.monotonic() < deadline + 60 and sweep.poll() is None
+               and len(list(out.glob("*/summary.json"))) < 3):
+            time.sleep(0.05)
+        scheduler.send_signal(signal.SIGKILL)
+        stdout, stderr = sweep.communicate(timeout=60)
+    finally:
+        for process in (scheduler, worker):
+            process.kill()
+            process.wait()
+    assert sweep.returncode == 3, (stdout, stderr)
+    first = stderr.splitlines()[0]
+    assert first.startswith("error: lost the connection to the Dask scheduler"), stderr
+    assert "Traceback" not in stderr and "internal error" not in stderr
+    assert len(stderr.splitlines()) == 2 and stderr.splitlines()[1].startswith("hint: ")
+    with open(out / "sweep.csv") as f:
+        rows = list(csv.DictReader(f))
+    # the rows the sweep had received (a result the worker held when the scheduler died is
+    # lost with it, so at least one of the three finished runs is there, usually all three)
+    assert 1 <= len(rows) < 8 and f"after {len(rows)} of 8 runs" in first
+    assert all(row["ended"] == "finished" for row in rows)
+    assert all((Path(row["run_dir"]) / "summary.json").exists() for row in rows)
+
+
+def _port_open(port: int) -> bool:
+    try:
+        with socket.create_connection(("127.0.0.1", port), timeout=0.5):
+            return True
+    except OSError:
+        return False
+
+
+def test_a_narrow_terminal_gets_one_plain_line_per_row(tmp_path):
+    result = subprocess.run([HUBO, "sweep", "sim", "--seeds", "4", "--set", "duration=0.2",
+                             "--workers", "0", "--out", str(tmp_path / "s")],
+                            env=dict(os.environ, COLUMNS="30"), capture_output=True, text=True,
+                            timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith("seed 4, duration 0.2, completed yes, min support mm ")
+    assert "┃" not in result.stdout  # no table whose cells would come out empty

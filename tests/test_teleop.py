@@ -48,7 +48,7 @@ def drill_rectangle_run(tmp_path_factory):
     targets = []
     run = run_teleop(TeleopSettings(replay=RECTANGLE, mode="drill",
                                     out=tmp_path_factory.mktemp("drill-rectangle") / "run"),
-                     on_ready=targets.append)
+                     on_ready=lambda target, loop: targets.append(target))
     return run, targets[0]
 
 

@@ -90,7 +90,7 @@ def test_a_walk_out_of_reach_stops_at_the_boundary_and_comes_back(tmp_path):
     src = _stream(tmp_path / "walk.csv", offset, 13.5)
     targets = []
     run = run_teleop(TeleopSettings(replay=src, driver="ideal", out=tmp_path / "run"),
-                     on_ready=targets.append)
+                     on_ready=lambda target, loop: targets.append(target))
     assert run.summary["ended"] == "done"
     console = Console(width=240, record=True, file=io.StringIO())
     for hand in targets[0].hands.values():   # the live view's reach column renders

@@ -45,25 +45,40 @@ def interactive() -> bool:
 
 
 class ProgressLines:
-    """While a run goes on, print one progress line to stderr every ``every_s`` seconds (for
-    output that is not a terminal: pipes and logs get progress too, without a live view).
+    """While a run goes on, print one progress line to stderr every ``every_s`` seconds, and at
+    once (but at most every ``gap_s``) when ``urgent()`` changes (for output that is not a
+    terminal, or a terminal too dumb or narrow for a live view: progress without redrawing).
 
     Args:
         line: returns the line to print.
         every_s: seconds between lines.
+        urgent: returns what must be shown as soon as it changes (e.g. the safety state's
+            words); None: lines on the clock only.
+        gap_s: the shortest time between two lines.
     """
 
-    def __init__(self, line, every_s: float = 2.0) -> None:
+    def __init__(self, line, every_s: float = 2.0, urgent=None, gap_s: float = 0.5) -> None:
         import threading
 
         self.line = line
         self.every_s = every_s
+        self.urgent = urgent
+        self.gap_s = min(gap_s, every_s)
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="progress-lines", daemon=True)
 
     def _run(self) -> None:
-        while not self._stop.wait(self.every_s):
-            click.echo(self.line(), err=True)
+        import time
+
+        printed_s, shown = time.monotonic(), self._urgent()
+        while not self._stop.wait(self.gap_s):
+            now, urgent = time.monotonic(), self._urgent()
+            if urgent != shown or now - printed_s >= self.every_s - 1e-3:
+                click.echo(self.line(), err=True)
+                printed_s, shown = now, urgent
+
+    def _urgent(self):
+        return None if self.urgent is None else self.urgent()
 
     def start(self) -> None:
         """Start printing."""

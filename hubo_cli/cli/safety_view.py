@@ -3,9 +3,12 @@
 One line per concern, each in words and in colour: the emergency stop (its source; stopping,
 held, or blending back after a release; the key that releases it), the collision layer (holding
 or recovering, which pair, how close), the balance (torso tilt, the capture point's support
-margin now and at worst, the feet's load and contact losses, ankle clamps), and per hand the
-clutch (waiting for a re-centre), stale input and the reach limit. A new stop rings the
-terminal bell and flashes the line for a second.
+margin now and at worst, the feet's load and contact losses, ankle clamps), the loop's timing
+(overruns and the wall time skipped, once there are any), and per hand the clutch (waiting for
+a re-centre), stale input and the reach limit. A new stop rings the terminal bell and flashes
+the line for a second. Above them all, while the driver reports it, the robot's own trouble
+(STATE STALE). Each concern is one function of :data:`SAFETY_LINES`: a new one is one
+function and one entry there.
 """
 
 from __future__ import annotations
@@ -78,6 +81,8 @@ class SafetyState:
         collision_distance_m: its distance (m; negative: overlapping), None if unknown.
         hands: per driven hand, its input and reach state.
         balance: how well the body is held (None: not read).
+        overruns: periods the control loop ran so late that it re-anchored its schedule.
+        skipped_s: the wall time skipped at those re-anchors (s).
         robot: the driver's trouble in words ("" when none), e.g. a stale robot state.
     """
 
@@ -91,6 +96,8 @@ class SafetyState:
     collision_distance_m: float | None = None
     hands: list[HandSafety] = field(default_factory=list)
     balance: BalanceWatch | None = None
+    overruns: int = 0
+    skipped_s: float = 0.0
     robot: str = ""
 
 
@@ -124,14 +131,17 @@ def read_balance(modules: Iterable, world=None) -> BalanceWatch:
 
 
 def read_safety(modules: Iterable, hands: Iterable[HandSafety] = (),
-                world=None, robot_flags: Iterable[str] = ()) -> SafetyState:
+                world=None, loop=None, robot_flags: Iterable[str] = ()) -> SafetyState:
     """The safety state of a pipeline's modules (the soft and hard emergency stoppers, the
     collision detector, and for the balance line the capture-point monitor and the limiter;
-    others are ignored); ``world``: the simulator, for the torso's true tilt;
-    ``robot_flags``: the flags of the robot's latest state (the driver's trouble)."""
+    others are ignored); ``world``: the simulator, for the torso's true tilt; ``loop``: the
+    control loop, for its overruns and skipped wall time; ``robot_flags``: the flags of the
+    robot's latest state (the driver's trouble)."""
     modules = list(modules)
     robot = next((ROBOT_WORDS[f] for f in robot_flags if f in ROBOT_WORDS), "")
     state = SafetyState(hands=list(hands), balance=read_balance(modules, world), robot=robot)
+    if loop is not None:
+        state.overruns, state.skipped_s = loop.overruns, loop.skipped_s
     latest = None
     for module in modules:
         if isinstance(module, EmergencyStopper):
@@ -161,54 +171,95 @@ def _pair(pair: tuple[str, str] | None) -> str:
                       for name in pair)
 
 
-def safety_text(state: SafetyState, flash: bool = False, release_key: str | None = "r") -> Text:
-    """The state in words and colour (several lines)."""
-    text = Text()
-    if state.robot:
-        text.append(state.robot + "\n", style="bold white on red" if flash else "bold red")
+@dataclass(frozen=True)
+class Look:
+    """How the view shows the state: flashing (a new stop), and the key that releases a stop
+    (None: none, e.g. a scripted task)."""
+
+    flash: bool = False
+    release_key: str | None = "r"
+
+
+def _estop_line(state: SafetyState, look: Look) -> Text:
     sources = ", ".join(state.estop_sources) or "unknown"
     if state.estop in ("stopping", "held"):
         how = "reverting" if state.estop == "stopping" else "held"
-        key = f" — press {release_key} to release" if release_key else ""
-        style = "bold white on red" if flash else "bold red"
-        text.append(f"E-STOP ({sources}){key} ({how})", style=style)
+        key = f" — press {look.release_key} to release" if look.release_key else ""
+        text = Text(f"E-STOP ({sources}){key} ({how})",
+                    style="bold white on red" if look.flash else "bold red")
     elif state.estop == "releasing":
-        text.append(f"e-stop ({sources}) released — blending back", style="yellow")
+        text = Text(f"e-stop ({sources}) released — blending back", style="yellow")
     else:
-        text.append(f"e-stop ready ({', '.join(state.active_sources)})" if state.soft_estop
+        text = Text(f"e-stop ready ({', '.join(state.active_sources)})" if state.soft_estop
                     else "e-stop disabled: no stop source (command line)",
                     style="green" if state.soft_estop else "yellow")
     text.append(f"   stops {state.stops}", style="dim")
-    text.append("\n")
+    return text
+
+
+def _robot_line(state: SafetyState, look: Look) -> Text | None:
+    """Only while the driver reports trouble, e.g. no fresh robot state."""
+    if not state.robot:
+        return None
+    return Text(state.robot, style="bold white on red" if look.flash else "bold red")
+
+
+def _collision_line(state: SafetyState, look: Look) -> Text:
     distance = ("-" if state.collision_distance_m is None
                 else f"{state.collision_distance_m * 1000:+.0f} mm")
+    pair = _pair(state.collision_pair)
     if state.collision == "holding":
-        text.append(f"COLLISION HOLD: {_pair(state.collision_pair)} at {distance}",
-                    style="bold red")
-    elif state.collision == "recovering":
-        text.append(f"collision cleared, recovering: {_pair(state.collision_pair)} at "
-                    f"{distance}", style="yellow")
-    else:
-        text.append(f"collision clear (closest {_pair(state.collision_pair)} {distance})",
-                    style="green")
-    if state.balance is not None:
-        text.append("\n")
-        _balance_text(text, state.balance)
+        return Text(f"COLLISION HOLD: {pair} at {distance}", style="bold red")
+    if state.collision == "recovering":
+        return Text(f"collision cleared, recovering: {pair} at {distance}", style="yellow")
+    return Text(f"collision clear (closest {pair} {distance})", style="green")
+
+
+def _balance_line(state: SafetyState, look: Look) -> Text | None:
+    if state.balance is None:
+        return None
+    text = Text()
+    _balance_text(text, state.balance)
+    return text
+
+
+def _timing_line(state: SafetyState, look: Look) -> Text | None:
+    """Only once the loop has fallen behind: overruns and the wall time they skipped."""
+    if not state.overruns:
+        return None
+    return Text(f"LOOP LATE: {state.overruns} overrun{'s' * (state.overruns != 1)}, "
+                f"{state.skipped_s:.1f} s of wall time skipped (the machine is too busy)",
+                style="bold yellow")
+
+
+def _hand_lines(state: SafetyState, look: Look) -> Text | None:
+    lines = []
     for hand in state.hands:
-        text.append("\n")
         if hand.needs_clutch:
-            text.append(f"{hand.arm}: INPUT BACK — press c to re-centre (clutch); holding",
+            text = Text(f"{hand.arm}: INPUT BACK — press c to re-centre (clutch); holding",
                         style="bold yellow")
         elif hand.stale:
-            text.append(f"{hand.arm}: STALE INPUT — holding", style="bold red")
+            text = Text(f"{hand.arm}: STALE INPUT — holding", style="bold red")
         elif hand.calibrating:
-            text.append(f"{hand.arm}: waiting for the tracker (clutch)", style="yellow")
+            text = Text(f"{hand.arm}: waiting for the tracker (clutch)", style="yellow")
         else:
-            text.append(f"{hand.arm}: input ok", style="green")
+            text = Text(f"{hand.arm}: input ok", style="green")
         reach = REACH_STATUSES.get(hand.ik_status)
         if reach:
             text.append(f", {reach}", style="yellow" if hand.ik_status == "capped" else "red")
-    return text
+        lines.append(text)
+    return Text("\n").join(lines) if lines else None
+
+
+SAFETY_LINES: tuple[Callable[[SafetyState, Look], Text | None], ...] = (
+    _robot_line, _estop_line, _collision_line, _balance_line, _timing_line, _hand_lines)
+
+
+def safety_text(state: SafetyState, flash: bool = False, release_key: str | None = "r") -> Text:
+    """The state in words and colour (one line per concern of :data:`SAFETY_LINES`)."""
+    look = Look(flash, release_key)
+    return Text("\n").join(line for build in SAFETY_LINES
+                            if (line := build(state, look)) is not None)
 
 
 def _balance_text(text: Text, watch: BalanceWatch) -> None:
@@ -284,6 +335,13 @@ class SafetyPanel:
             if self.bell is not None:
                 self.bell()
         return safety_text(state, flash=now < self.flash_until, release_key=self.release_key)
+
+    def alarm(self) -> tuple:
+        """What must be shown as soon as it changes (plain lines): the stop and collision
+        states, the overruns, and each hand's input state."""
+        state = self.read()
+        return (state.robot, state.estop, state.estop_sources, state.collision, state.overruns,
+                tuple((h.stale, h.needs_clutch, h.calibrating) for h in state.hands))
 
     def words(self) -> str:
         """The state as plain words on one line (for piped output)."""

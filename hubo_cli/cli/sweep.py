@@ -5,7 +5,8 @@ from __future__ import annotations
 import click
 
 from hubo_cli.cli.options import balance_option
-from hubo_cli.cli.output import console, err_console, interactive, print_json
+from hubo_cli.cli.output import console, err_console, print_json
+from hubo_cli.sweep import CONFIRM_JOBS
 
 
 @click.command("sweep")
@@ -21,36 +22,68 @@ from hubo_cli.cli.output import console, err_console, interactive, print_json
               help="Run on an existing Dask cluster, e.g. tcp://host:8786.")
 @click.option("--out", type=click.Path(file_okay=False), default=None,
               help="Sweep folder (default runs/<time>-sweep-<command>).")
+@click.option("--yes", is_flag=True,
+              help=f"Run a sweep of more than {CONFIRM_JOBS:,} simulations without asking.")
 @click.option("--json", "as_json", is_flag=True, help="Print the rows as JSON.")
 @balance_option
 def sweep(command: str, seeds: str, sets: tuple[str, ...], workers: int | None,
-          scheduler: str | None, out: str | None, as_json: bool, balance: str) -> None:
+          scheduler: str | None, out: str | None, yes: bool, as_json: bool,
+          balance: str) -> None:
     """Run TASK_OR_COMMAND (a task, or sim) once per seed and combination of --set values,
     each on its own perturbed robot, and tabulate the outcomes.
 
-    Writes sweep.csv, sweep.png and one run folder per simulation. Ctrl-C cancels the
-    simulations still running and keeps the finished rows. Exit code 0 when every run
-    completed, 1 otherwise, 130 when interrupted.
+    Writes sweep.csv, sweep.png and one run folder per simulation. Every value, the scheduler's
+    address and the sweep's size (more than 10,000 runs: --yes) are checked before anything
+    runs. Ctrl-C cancels the simulations still running and keeps the finished rows, as does a
+    lost scheduler. Exit code 0 when every run completed, 1 otherwise, 2 for a bad value, 3
+    when the scheduler cannot be reached or is lost, 130 when interrupted.
 
     Examples: hubo sweep cut-slot --seeds 1-20
               hubo sweep cut-rectangle --seeds 1-5 --set speed_mm_s=10,20
               hubo sweep sim --seeds 1-50 --set push=0,30 --scheduler tcp://host:8786
     """
+    import sys
+
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
 
     from hubo_cli.runs import make_run_dir
-    from hubo_cli.sweep import check_jobs, make_jobs, parse_seeds, parse_sets, run_sweep
+    from hubo_cli.sweep import (
+        check_jobs,
+        check_scheduler,
+        check_size,
+        check_workers,
+        job_count,
+        make_jobs,
+        parse_seeds,
+        parse_sets,
+        run_sweep,
+    )
 
-    jobs = make_jobs(command, parse_seeds(seeds), parse_sets(sets), balance)
+    seed_list, values = parse_seeds(seeds), parse_sets(sets)
+    n_jobs = job_count(len(seed_list), values)
+    if not yes and n_jobs > CONFIRM_JOBS and sys.stdin.isatty() and err_console.is_terminal:
+        yes = click.confirm(f"run {n_jobs:,} simulations?", err=True)
+    check_size(n_jobs, yes)
+    check_workers(workers)
+    jobs = make_jobs(command, seed_list, values, balance)
     check_jobs(jobs)
+    if scheduler is not None:
+        scheduler = check_scheduler(scheduler)
     out_dir = make_run_dir(f"sweep-{command.replace('/', '_')}", out)
+    show = err_console.is_terminal and not err_console.is_dumb_terminal and not as_json
     progress = Progress("[progress.description]{task.description}", BarColumn(),
                         MofNCompleteColumn(), TimeElapsedColumn(), console=err_console,
-                        disable=not interactive() or as_json, transient=True)
+                        disable=not show, transient=True)
+
+    def on_row(row, done: int, total: int) -> None:
+        failed[0] += not row.completed
+        progress.update(bar, completed=done,
+                        description=f"sweep {command} ({failed[0]} not completed)")
+
+    failed = [0]
     with progress:
         bar = progress.add_task(f"sweep {command}", total=len(jobs))
-        result = run_sweep(jobs, out_dir, workers=workers, scheduler=scheduler,
-                           on_row=lambda row, done, total: progress.update(bar, completed=done))
+        result = run_sweep(jobs, out_dir, workers=workers, scheduler=scheduler, on_row=on_row)
     if as_json:
         print_json({"out": str(out_dir), "where": result.where, "jobs": result.jobs,
                     "wall_clock_s": result.wall_clock_s, "interrupted": result.interrupted,
@@ -66,26 +99,37 @@ def sweep(command: str, seeds: str, sets: tuple[str, ...], workers: int | None,
 
 
 def _print_table(result, command: str) -> None:
+    """The rows as a table, or as one plain line each on a terminal too narrow for it."""
     from rich.table import Table
+    from rich.text import Text
 
+    from hubo_cli.cli.live_view import MIN_COLUMNS
     from hubo_cli.sweep import parameter_names
 
     names = parameter_names(result.rows)
-    table = Table(title=f"hubo sweep {command}", title_justify="left")
-    for column in ("seed", *names, "completed", "e-stop", "hole RMS mm", "min support mm",
-                   "max tilt deg", "wall s"):
-        table.add_column(column, justify="right")
+    columns = ("seed", *names, "completed", "e-stop", "hole RMS mm", "min support mm",
+               "max tilt deg", "wall s")
 
     def number(value, digits: int = 1) -> str:
         return "" if value is None else f"{value:.{digits}f}"
 
-    for row in result.rows:
-        table.add_row(str(row.seed), *(str(row.parameters.get(n, "")) for n in names),
-                      "yes" if row.completed else "[red]no[/]",
-                      row.estop or ("refused" if row.ended == "refused" else ""),
-                      number(row.hole_rms_mm), number(row.min_support_margin_mm),
-                      number(row.max_tilt_deg, 2), number(row.wall_clock_s))
-    console.print(table)
+    rows = [(str(row.seed), *(str(row.parameters.get(n, "")) for n in names),
+             "yes" if row.completed else "no",
+             row.estop or ("refused" if row.ended == "refused" else ""),
+             number(row.hole_rms_mm), number(row.min_support_margin_mm),
+             number(row.max_tilt_deg, 2), number(row.wall_clock_s)) for row in result.rows]
+    if console.width < MIN_COLUMNS:
+        for cells in rows:
+            console.print(", ".join(f"{c} {v}" for c, v in zip(columns, cells, strict=True)
+                                    if v), markup=False)
+    else:
+        table = Table(title=f"hubo sweep {command}", title_justify="left")
+        for column in columns:
+            table.add_column(column, justify="right")
+        for cells in rows:
+            table.add_row(*map(Text, cells),  # Text: a value's brackets are not markup
+                          style=None if cells[len(names) + 1] == "yes" else "red")
+        console.print(table)
     done = sum(row.completed for row in result.rows)
     state = " (interrupted: the finished rows are kept)" if result.interrupted else ""
     console.print(f"{done} of {len(result.rows)} runs completed ({result.jobs} planned) on "

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import click
 from rich.console import Group
-from rich.live import Live
 from rich.progress_bar import ProgressBar
 from rich.table import Table
 
@@ -16,7 +15,6 @@ from hubo_cli.cli.options import (
     robot_run_options,
 )
 from hubo_cli.cli.output import (
-    ProgressLines,
     console,
     err_console,
     interactive,
@@ -275,6 +273,7 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, st
             gui: bool, as_json: bool, video: bool, perturb_seed: int | None,
             balance: str) -> None:
     from hubo_cli.cli.keys import operator_keys
+    from hubo_cli.cli.live_view import LiveView
     from hubo_cli.cli.safety_view import SafetyPanel, read_safety
     from hubo_cli.tasks.runner import check_task, run_task
 
@@ -285,23 +284,20 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, st
         _refuse(ctx, plan, as_json)
     state: dict = {}
 
-    def on_start(target) -> None:
+    def on_start(target, loop) -> None:
         if as_json:
             return
         modules = target.modules
         keys = state["keys"]
-        panel = SafetyPanel(lambda: read_safety(modules, world=target.world,
+        panel = SafetyPanel(lambda: read_safety(modules, world=target.world, loop=loop,
                                                 robot_flags=target.robot_flags),
                             bell=err_console.bell,
                             release_key="r" if keys else None)
-        if interactive():
-            live = Live(get_renderable=lambda: _view(target, panel, keys is not None),
-                        refresh_per_second=4, console=err_console, transient=True)
-            live.start()
-            state["live"] = live
-        else:
-            state["lines"] = ProgressLines(lambda: _progress_line(target, panel))
-            state["lines"].start()
+        state["view"] = LiveView(lambda: _view(target, panel, keys is not None),
+                                 lambda: _progress_line(target, panel), urgent=panel.alarm,
+                                 header=f"keys: {KEYS_HELP}" if keys else None,
+                                 transient=True)
+        state["view"].start()
 
     try:
         with operator_keys() as keys:
@@ -310,10 +306,8 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, st
                             on_start=on_start, perturb_seed=perturb_seed,
                             driver_options=options, balance=balance, operator=keys)
     finally:
-        if "live" in state:
-            state["live"].stop()
-        if "lines" in state:
-            state["lines"].stop()
+        if "view" in state:
+            state["view"].stop()
     if video:
         from hubo_cli.cli.replay import add_run_video
 
@@ -400,7 +394,7 @@ def _view(target, panel, keys: bool = False) -> Group:
     colour = "red" if target.torque_nm > limit else "green"
     table.caption = (f"bit error {target.error_m * 1000:5.1f} mm   wrist torque "
                      f"[{colour}]{target.torque_nm:.2f}[/] / {limit:g} N m")
-    return Group(table, safety)
+    return Group(safety, table)  # the safety state first: never the part a short screen cuts
 
 
 def _print_cut(summary: dict, run_dir) -> None:

@@ -7,7 +7,6 @@ import math
 import click
 import numpy as np
 from rich.console import Group
-from rich.live import Live
 from rich.table import Table
 
 from hubo_cli.cli.checks import check_baud, check_seconds
@@ -19,10 +18,8 @@ from hubo_cli.cli.options import (
     robot_run_options,
 )
 from hubo_cli.cli.output import (
-    ProgressLines,
     console,
     err_console,
-    interactive,
     print_json,
 )
 from hubo_cli.drivers.registry import DRIVER_NAMES, driver_class
@@ -277,6 +274,7 @@ def _check_wall_reach(settings) -> None:
 
 def _run(settings, as_json: bool):
     from hubo_cli.cli.keys import operator_keys
+    from hubo_cli.cli.live_view import LiveView
     from hubo_cli.cli.safety_view import SafetyPanel, read_safety
     from hubo_cli.teleop.session import run_teleop
 
@@ -291,35 +289,29 @@ def _run(settings, as_json: bool):
         elif char == "b":
             target.keys.branch = True
 
-    def on_ready(target) -> None:
+    def on_ready(target, loop) -> None:
         state["target"] = target
         modules = target.modules
         if as_json:
             return
         panel = SafetyPanel(lambda: read_safety(modules, hand_safety(target), target.world,
-                                                target.robot_flags),
+                                                loop, target.robot_flags),
                             bell=err_console.bell)
-        state["panel"] = panel
-        if interactive():
-            live = Live(get_renderable=lambda: _view(target, panel), refresh_per_second=4,
-                        console=err_console)
-            live.start()
-            state["live"] = live
-        else:
-            lines = ProgressLines(lambda: f"teleop {target.phase}: samples "
-                                          f"{target.samples_used} | {panel.words()}")
-            lines.start()
-            state["lines"] = lines
+        view = LiveView(lambda: _view(target, panel),
+                        lambda: f"teleop {target.phase}: samples {target.samples_used} | "
+                                f"{panel.words()}",
+                        urgent=panel.alarm,
+                        header=KEYS_HELP if settings.operator is not None else None)
+        view.start()
+        state["view"] = view
 
     try:
         with operator_keys(on_key) as keys:
             settings.operator = keys
             return run_teleop(settings, on_ready=on_ready)
     finally:
-        if "live" in state:
-            state["live"].stop()
-        if "lines" in state:
-            state["lines"].stop()
+        if "view" in state:
+            state["view"].stop()
 
 
 def _report(run, as_json: bool, video: bool = False) -> None:

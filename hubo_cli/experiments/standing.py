@@ -100,13 +100,17 @@ def standing_posture(model: RobotModel) -> np.ndarray:
     return WholeBody(model, com_control=True).solve({}).q_rad
 
 
+MAX_PUSH_N = 10_000.0  # N; 0.2 s of far less throws the robot, more is a typing error
+
+
 def check_standing_args(duration_s: float, push_n: float) -> None:
-    """Raise InputError unless 0 < duration_s <= 3600 (s) and push_n >= 0 (N)."""
+    """Raise InputError unless 0 < duration_s <= 3600 (s) and 0 <= push_n <= MAX_PUSH_N."""
     if not (math.isfinite(duration_s) and 0 < duration_s <= 3600):
         raise InputError(f"duration must be in (0, 3600] s, got {duration_s}",
                          hint="e.g. --duration 5")
-    if not (math.isfinite(push_n) and push_n >= 0):
-        raise InputError(f"push must be a force >= 0 N, got {push_n}", hint="e.g. --push 30")
+    if not (math.isfinite(push_n) and 0 <= push_n <= MAX_PUSH_N):
+        raise InputError(f"push must be a force of 0 to {MAX_PUSH_N:g} N, got {push_n}",
+                         hint="e.g. --push 30")
 
 
 class StandTarget(Target):

@@ -15,6 +15,7 @@ at once when ``reconnect=False``) the next ``read_until`` raises :class:`DeviceE
 
 from __future__ import annotations
 
+import math
 import re
 import threading
 import time
@@ -142,7 +143,7 @@ class FastrakReader(PoseSource):
             if self._writer is not None:
                 self._writer.close()
             raise
-        self._last_byte_s = self.now_s()
+        self._last_byte_s = self._looked_at_s = self.now_s()
         self._thread = threading.Thread(target=self._run, name=f"fastrak:{port}", daemon=True)
         self._thread.start()
 
@@ -151,6 +152,13 @@ class FastrakReader(PoseSource):
     def now_s(self) -> float:
         """Seconds since the reader started streaming (monotonic clock)."""
         return time.monotonic() - self._t0
+
+    def looked_s(self) -> float:
+        """When the reader thread last completed a read of the port (data or its timeout);
+        ``inf`` (judge by the caller's clock) while it reconnects, or when it has not looked
+        for ``silence_timeout_s``: a reader that does not read counts as a silent unit."""
+        looked = self._looked_at_s
+        return looked if self.now_s() - looked <= self.silence_timeout_s else math.inf
 
     def read_until(self, t_s: float = 0.0) -> list[PoseSample]:
         """Every sample received since the last call (``t_s`` is ignored; never blocks).
@@ -334,7 +342,8 @@ class FastrakReader(PoseSource):
             if data:
                 self._last_byte_s = now
                 self._ingest(data, now)
-            elif now - self._last_byte_s > self.silence_timeout_s:
+            self._looked_at_s = now  # after the samples are queued: they count as seen
+            if not data and now - self._last_byte_s > self.silence_timeout_s:
                 if not self._recover(f"no data for {self.silence_timeout_s:g} s"):
                     return
 
@@ -344,6 +353,7 @@ class FastrakReader(PoseSource):
 
     def _recover(self, reason: str) -> bool:
         """Reconnect with backoff; False (and an error for read_until) if that is not possible."""
+        self._looked_at_s = -math.inf  # not looking: judged by the caller's clock
         self._close_port()
         if not self.reconnect:
             self._fail(DeviceError(f"FASTRAK on {self.port} stopped: {reason}",

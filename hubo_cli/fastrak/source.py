@@ -11,6 +11,7 @@ everything received so far and never block for more than a few milliseconds.
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 
@@ -153,10 +154,19 @@ class PoseSource(ABC):
         """Receive time of the newest sample delivered for ``station``, or None if never seen."""
         return self._last_seen.get(station)
 
+    def looked_s(self) -> float:
+        """Up to when the source has looked at its input, on its own clock: a live reader's
+        latest completed read of its port; ``inf`` when that is not what limits it (a replay:
+        the caller's clock releases the samples)."""
+        return math.inf
+
     def is_stale(self, station: int, now_s: float, timeout_s: float = 0.25) -> bool:
-        """True if ``station`` has delivered nothing within ``timeout_s`` before ``now_s``."""
+        """True if ``station`` has delivered nothing within ``timeout_s`` before ``now_s``, or
+        before the source last looked at its input if that is earlier: input is judged by its
+        own timestamps, so a caller running late while a live reader waits for its turn does
+        not make fresh input stale."""
         last = self._last_seen.get(station)
-        return last is None or now_s - last > timeout_s
+        return last is None or min(now_s, self.looked_s()) - last > timeout_s
 
     def close(self) -> None:
         """Release the port or file (idempotent)."""

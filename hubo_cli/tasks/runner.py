@@ -91,7 +91,8 @@ def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
         stops: the stop sources the run keeps (None: the task's; see
             :mod:`hubo_cli.control.stop_choice`).
         driver_options: passed to the driver (e.g. ``armed`` for hardware).
-        on_start: called with the :class:`TaskTarget` once the robot has started (live view).
+        on_start: called with the :class:`TaskTarget` and the control loop once the robot has
+            started (live view).
         perturb_seed: a perturbed simulated robot and world (:mod:`hubo_cli.perturb`).
         balance: the balancer, ``default``, ``paper`` or ``off`` (``--balance``).
         operator: the operator's keys (space stop, r release, q finish), if any.
@@ -126,7 +127,8 @@ def _run_task(plan: Plan, setup: RunSetup, on_start, balance: str) -> TaskRun:
         approach, setup = walk_first_setup(setup, target, start, plan.placement.wall_distance_m,
                                            frames=(tool_frame(stance.limb, stance.tool),))
         done = run(setup, approach,
-                   on_start=None if on_start is None else lambda _: on_start(target))
+                   on_start=None if on_start is None
+                   else lambda _, loop: on_start(target, loop))
     _write_task_copy(plan.spec, done.run_dir, balance, setup.safety)
     done.add_file("task.toml")
     summary = done.save_summary(summarise(plan, target, done))

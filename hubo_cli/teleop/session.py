@@ -186,8 +186,8 @@ def run_teleop(settings: TeleopSettings, on_ready=None) -> TeleopRun:
 
     Args:
         settings: what to run.
-        on_ready: called with the :class:`TeleopTarget` once the robot has started (the CLI
-            attaches its live view and key reader there).
+        on_ready: called with the :class:`TeleopTarget` and the control loop once the robot
+            has started (the CLI attaches its live view and key reader there).
 
     Raises:
         InputError / DeviceError: a bad recording, a missing port (before anything moves).
@@ -218,7 +218,7 @@ def run_teleop(settings: TeleopSettings, on_ready=None) -> TeleopRun:
                                            scene.get("wall_distance_m"),
                                            frames=[tool_frame(a, t) for a, t in body.tools.items()])
         done = run(setup, runs, on_start=None if on_ready is None
-                   else lambda _: on_ready(target))
+                   else lambda _, loop: on_ready(target, loop))
     summary = done.save_summary(summarise(settings, target, done, source, scene))
     if runs is not target:
         from hubo_cli.experiments.walk import plot_footprints
