@@ -14,9 +14,10 @@ from hubo_cli.geometry import rpy_to_quat_wxyz
 from hubo_cli.kinematics.torso import torso_in_stance
 from hubo_cli.model import load_model
 from hubo_cli.state import RobotState
+from hubo_cli.tasks import target as target_module
 from hubo_cli.tasks.plan import make_plan
 from hubo_cli.tasks.spec import load_task
-from hubo_cli.tasks.target import TaskTarget
+from hubo_cli.tasks.target import RETREAT_ALONG_M, RETREAT_M, RETREAT_STEPS, TaskTarget
 
 
 def _invoke(*args):
@@ -68,6 +69,51 @@ def test_the_task_corrects_the_arm_by_the_measured_torso_lean(rectangle_plan):
     assert np.linalg.norm(corrected - goal) < 0.0005
     assert corrected[0] < uncorrected[0] - 0.003  # held back against the forward lean
     assert np.array_equal(TaskTarget(plan, correction=False)(0.0, lean)[0], plan.q_first_rad)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_wrist_stop_relief_backs_the_bit_straight_out_of_the_wall(rectangle_plan, seed,
+                                                                       monkeypatch):
+    """TaskTarget.relieve, the wrist-torque stop's relief, over random postures around the
+    cut's (arm joints +-0.25 rad, torso leaning up to 2 deg): whenever it gives a path, the bit
+    ends RETREAT_M out of the wall along S's -x with its orientation kept, and the straight
+    joint-space moves between its postures (checked at 10 points each, independently of its
+    own check) never take the bit into the wall nor more than RETREAT_ALONG_M along it; it
+    refuses (None) rather than move otherwise, and without a torso pose."""
+    plan = rectangle_plan
+    body, sl, arm = plan.body, plan.body.model.limb_slice("right-arm"), plan.body.arms["right-arm"]
+    target = TaskTarget(plan)
+    assert target.relieve(plan.q_first_rad) is None  # no torso pose measured yet
+    rng = np.random.default_rng(seed)
+    cut_rows = np.nonzero(plan.cutting)[0]
+    given = 0
+    for _ in range(40):
+        q = plan.q_rad[rng.choice(cut_rows)].copy()
+        q[sl] += rng.uniform(-0.25, 0.25, 6)
+        lean = np.radians(rng.uniform(-2.0, 2.0, 2))
+        target.T_S_N = torso_in_stance(body, q, rpy_to_quat_wxyz(lean[0], lean[1], 0.0))
+        path = target.relieve(q)
+        if path is None:
+            continue
+        given += 1
+        assert path.shape == (RETREAT_STEPS, 24) and np.all(np.isfinite(path))
+        others = np.ones(24, dtype=bool)
+        others[sl] = False
+        assert np.array_equal(path[:, others], np.repeat(q[None, others], len(path), axis=0))
+        T_start = target.T_S_N @ arm.fk(q[sl])
+        T_end = target.T_S_N @ arm.fk(path[-1, sl])
+        assert np.allclose(T_end[:3, 3] - T_start[:3, 3], [-RETREAT_M, 0.0, 0.0], atol=1e-9)
+        assert np.allclose(T_end[:3, :3], T_start[:3, :3], atol=1e-9)
+        joints = np.vstack([q[sl], path[:, sl]])
+        fine = np.vstack([a + f * (b - a) for a, b in zip(joints[:-1], joints[1:], strict=True)
+                          for f in np.linspace(0.0, 1.0, 10)])
+        moved = (target.T_S_N @ arm.fk_batch(fine))[:, :3, 3] - T_start[:3, 3]
+        assert moved[:, 0].max() <= 1e-4
+        assert np.hypot(moved[:, 1], moved[:, 2]).max() <= RETREAT_ALONG_M
+    assert given >= 30  # postures near the cut's back out: 40 of 40 for seeds 0-7
+    # a path that would move the bit along the wall at all is refused
+    monkeypatch.setattr(target_module, "RETREAT_ALONG_M", 1e-9)
+    assert target.relieve(q) is None
 
 
 def test_a_600_mm_rectangle_is_refused_in_preflight_and_nothing_moves(tmp_path, monkeypatch):
