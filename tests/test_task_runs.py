@@ -1,5 +1,5 @@
 """Scripted tasks end to end: pre-flight refusals move nothing, the rectangle is cut within the
-paper's accuracy, and a cut too fast for the wrist is reverted by the emergency stop."""
+paper's accuracy, and a cut too fast for the wrist is stopped and backed out of the wall."""
 
 import json
 
@@ -195,25 +195,41 @@ def test_a_small_rectangle_is_cut_accurately_with_a_full_run_folder(tmp_path):
 
 
 @pytest.mark.slow
-def test_cutting_too_fast_trips_the_wrist_torque_stop_which_reverts_and_holds(tmp_path):
+def test_cutting_too_fast_trips_the_wrist_torque_stop_which_relieves_the_wrist(tmp_path):
+    """`hubo task cut-slot --set speed_mm_s=150` (issue 32, case 3): the wrist-torque stop
+    latches in the cut, brakes at the emergency limits and backs the bit 5 mm out of the wall,
+    then holds. Before: eq. 15's revert under the arms' trajectory limits ran the bit on 53 mm
+    along the wall and 12 mm up, loaded the wrist to 1.84 N m and held after 1.85 s.
+
+    Bounds (the issue's) against the spread measured over cut-slot at 100, 150 and 250 mm/s
+    (the same latch: it comes while the cut speeds up), at 150 mm/s with --perturb 1, 2, 3 and
+    cut-rectangle at 40 and 50 mm/s: wrist torque after the latch 1.19-1.26 N m (at most
+    0.05 N m past the 1.21 N m limit; <= 1.33 allows 0.12, 2.4x), bit along the wall after the
+    latch 0.7-6.4 mm (<= 10 mm, 1.57x), into the wall 0-0.26 mm (<= 1 mm, 3.8x), out of it
+    4.0-7.5 mm (>= 2.5 mm, 1.59x below the least), robot held still 0.31-0.35 s after the
+    latch (<= 0.6 s, 1.7x). This run: 1.22 N m, 3.5 mm, 0.2 mm, 4.8 mm, 0.31 s."""
     out = tmp_path / "run"
     slow = load_task("cut-slot")
     assert slow.parameters["speed_mm_s"] == 10.0
-    result = _invoke("cut-slot", "--set", "speed_mm_s=150", "--out", str(out), "--json")
+    result = _invoke("cut-slot", "--set", "speed_mm_s=150", "--out", str(out))
     assert result.exit_code == 1, result.output              # ran, but did not complete
-    s = json.loads(result.output)
+    s = json.loads((out / "summary.json").read_text())
     assert s["completed"] is False
     stop = s["estop"]
     assert stop["sources"] == ["wrist-torque"] and stop["step"] == "cut" and stop["held"]
-    assert stop["wrist_torque_nm"] > s["wrist_torque_nm"]["limit"]
-    assert stop["reverted_to_t_s"] == pytest.approx(stop["t_s"] - 0.5)
+    limit = s["wrist_torque_nm"]["limit"]
+    assert stop["wrist_torque_nm"] > limit                   # up to the latch
+    assert stop["wrist_torque_after_nm"] <= 1.10 * limit     # after it, reported apart
+    assert s["wrist_torque_nm"]["max_after_stop"] == stop["wrist_torque_after_nm"]
+    assert stop["bit_along_wall_mm"] <= 10.0 and stop["bit_into_wall_mm"] <= 1.0
+    assert stop["bit_out_of_wall_mm"] >= 2.5 and stop["retreat_mm"] == 5.0
+    assert stop["held_after_s"] <= 0.6 and stop["reverted_to_t_s"] is None
+    # the text summary tells the peak after the latch apart from the one while cutting
+    assert f"wrist {stop['wrist_torque_after_nm']:.2f} N m max" in result.output
+    assert f"bit {stop['bit_along_wall_mm']:.1f} mm along the wall" in result.output
     log = load_log(out)
     model = load_model()
     arm = [log.joint_names.index(n) for n in model.joint_names[model.limb_slice("right-arm")]]
     cmd = log.joints("cmd")[:, arm]
-    t = log["t_s"]
-    i = int(np.searchsorted(t, stop["reverted_to_t_s"]))
-    # back where the command was T1 earlier (give or take two periods of the 150 mm/s motion)
-    assert min(np.abs(cmd[-1] - cmd[k]).max() for k in range(i - 2, i + 3)) < 1e-3
-    held = t > t[-1] - 0.5
+    held = log["t_s"] > stop["t_s"] + 0.6
     assert np.abs(np.diff(cmd[held], axis=0)).max() < 1e-9   # and holding still
