@@ -1,10 +1,11 @@
 """Run folders: every command writes ``runs/<time>-<command>/`` with its log and summary.
 
-A run folder carries a small marker file (``.hubo-run``, the command's name) so that a later
+A run folder carries a small marker file (``.hubo-run``, the command's safe name) so that a later
 run of the same command may reuse it (``--out`` given twice), while a folder holding anything
 else (a user's own files, another command's run) is refused: a run never writes over files it
-did not make. Output files outside run folders (``hubo record --out``, ``fastrak decode``) go
-through :func:`check_new_file`.
+did not make. A default folder's name is made safe (:func:`folder_name`: a task file's
+``name`` cannot lead out of ``runs/``). Output files outside run folders go through
+:mod:`hubo_cli.outputs`.
 """
 
 from __future__ import annotations
@@ -13,7 +14,9 @@ import contextlib
 import json
 import math
 import os
+import re
 import time
+import unicodedata
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -22,15 +25,36 @@ import numpy as np
 from hubo_cli.errors import InputError
 
 MARKER = ".hubo-run"
+RUNS_DIR = Path("runs")
+NAME_MAX_BYTES = 96  # of a folder name's command part in UTF-8 (a file system allows 255)
+
+
+def folder_name(command: str) -> str:
+    """``command`` (e.g. ``task-<the task file's name>``) as one safe folder name: letters,
+    digits, ``-``, ``_`` and single dots are kept; every other run of characters (path
+    separators, ``..``, spaces, control and bidi characters) becomes ``_``; no leading or
+    trailing dot or dash; at most :data:`NAME_MAX_BYTES` bytes; ``unnamed`` if nothing is left."""
+    text = unicodedata.normalize("NFC", command)
+    name = "".join(c if c.isalnum() or c in "-_." else "_" for c in text)
+    name = re.sub(r"[_.]*\.\.[_.]*|__+", "_", name)[:NAME_MAX_BYTES]
+    while len(name.encode()) > NAME_MAX_BYTES:
+        name = name[:-1]
+    return name.strip("._-") or "unnamed"
 
 
 def _default_dir(command: str) -> Path:
+    """A new folder ``runs/<UTC time>-<command>`` (``-2``, ``-3`` ... if taken), checked to be
+    inside ``runs/``."""
     stamp = time.strftime("%Y%m%d-%H%M%S", time.gmtime())
-    path = Path("runs") / f"{stamp}-{command}"
+    base = f"{stamp}-{folder_name(command)}"
+    path = RUNS_DIR / base
     n = 1
-    while path.exists():
+    while os.path.lexists(path):
         n += 1
-        path = Path("runs") / f"{stamp}-{command}-{n}"
+        path = RUNS_DIR / f"{base}-{n}"
+    if path.resolve().parent != RUNS_DIR.resolve():
+        raise InputError(f"the run folder {path} would lie outside {RUNS_DIR}/",
+                         hint="give the run folder with --out")
     return path
 
 
@@ -62,7 +86,7 @@ def check_run_dir(command: str, out: str | Path) -> None:
             raise InputError(f"cannot read --out {path}: {exc.strerror or exc}",
                              hint="choose a folder you can write") from None
         owner = run_dir_owner(path)
-        if entries and entries != [MARKER] and owner != command:
+        if entries and entries != [MARKER] and owner != folder_name(command):
             whose = (f"a 'hubo {owner}' run" if owner
                      else f"files that are not a hubo run ({', '.join(sorted(entries)[:3])}"
                           f"{', ...' if len(entries) > 3 else ''})")
@@ -84,7 +108,7 @@ def make_run_dir(command: str, out: str | Path | None = None) -> Path:
     check_run_dir(command, path)
     try:
         path.mkdir(parents=True, exist_ok=True)
-        (path / MARKER).write_text(command + "\n")
+        (path / MARKER).write_text(folder_name(command) + "\n")
     except OSError as exc:
         raise InputError(f"cannot create the run folder {path}: {exc.strerror or exc}",
                          hint="choose a writable --out folder") from None
@@ -120,35 +144,6 @@ def discard_if_unused(path: str | Path) -> bool:
         path.rmdir()
         return True
     return False
-
-
-def check_new_file(path: str | Path, *, inputs: tuple[str | Path, ...] = (),
-                   force: bool = False, option: str = "--out") -> Path:
-    """Refuse to write over a user's file: ``path`` must not be one of ``inputs`` and must not
-    exist (unless ``force``); its folder must exist.
-
-    Raises:
-        InputError: what is wrong and how to fix it.
-    """
-    path = Path(path)
-    for source in inputs:
-        with contextlib.suppress(OSError):
-            if path.resolve() == Path(source).resolve():
-                raise InputError(f"{option} {path} is the input file; it would be destroyed",
-                                 hint="write the output to another file")
-    if path.is_dir():
-        raise InputError(f"{option} {path} is a folder, not a file", hint="give a file name")
-    if path.exists() and not force:
-        raise InputError(f"{option} {path} exists; nothing was written",
-                         hint="choose another name, delete the file, or add --force")
-    parent = path.parent
-    if not parent.is_dir():
-        raise InputError(f"{option} {path}: the folder {parent} does not exist",
-                         hint="create it first or choose another path")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise InputError(f"{option} {path}: the folder {parent} is not writable",
-                         hint="choose a writable path")
-    return path
 
 
 def _jsonable(value):

@@ -42,6 +42,7 @@ from hubo_cli.control.log import (
 )
 from hubo_cli.control.loop import ControlLoop, LoopResult
 from hubo_cli.control.module import Module
+from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.target import Target
 from hubo_cli.drivers.base import RunContext
@@ -76,6 +77,8 @@ class RunSetup:
         cutting: the wall material's cutting coefficients for the simulator (or None).
         perturb_seed: draw the simulated robot and world from this seed
             (:mod:`hubo_cli.perturb`; None or 0: nominal); simulators only.
+        operator: the operator's keys (space stop, r release, q finish), read by the loop
+            every period (None: no operator at a keyboard).
     """
 
     command: str
@@ -92,6 +95,7 @@ class RunSetup:
     q_start_rad: np.ndarray | None = None
     cutting: Mapping[str, float] | None = None
     perturb_seed: int | None = None
+    operator: OperatorKeys | None = None
 
     def real_time_reason(self) -> str | None:
         """Why this run must go at wall-clock pace, or None when it need not."""
@@ -204,7 +208,8 @@ def run(setup: RunSetup, target: Target,
             target.attach(world, modules)
             if on_start is not None:
                 on_start(target)
-            loop = ControlLoop(driver, modules, target, speed=speed, log_path=run_dir)
+            loop = ControlLoop(driver, modules, target, speed=speed, log_path=run_dir,
+                               operator=setup.operator)
             result = loop.run(setup.duration_s)
             metadata = {}
             if world is not None:
@@ -238,9 +243,13 @@ def common_summary(setup: RunSetup, speed: float | None, loop: LoopResult,
         "speed": "max" if speed is None else speed,
         "tools": dict(setup.tools),
         "pipeline": [m.name for m in modules],
-        "estop_enabled": setup.safety.estop,
+        "estop_enabled": bool(setup.safety.active_sources),
+        "estop_sources": list(setup.safety.active_sources),
+        "estop_removed": {"sources": list(setup.safety.removed),
+                          "by": setup.safety.removed_by} if setup.safety.removed else None,
         "balance": setup.safety.balance_choice,
         "ended": loop.ended,
+        "finished_by_operator": setup.operator is not None and setup.operator.finished,
         "error": loop.error,
         "duration_s": loop.t_end_s,
         "periods": loop.periods,
@@ -253,5 +262,6 @@ def common_summary(setup: RunSetup, speed: float | None, loop: LoopResult,
                          for m, t, k, s in loop.safety_events if k in ("stop", "release")],
         "overruns": loop.overruns,
         "overrun_skipped_s": loop.skipped_s,
+        "stale_state_periods": loop.flag_counts.get("stale-state", 0),
         "files": files,
     }

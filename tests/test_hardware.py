@@ -1,6 +1,7 @@
 """The hardware driver on its dry-run sink (file/FIFO, state echoed through hubo-daemon's
-reference filter): arming, start-up delay, frames, safety latches, faults. The same driver on
-real ach channels: tests/test_hardware_ach.py."""
+reference filter): arming, start-up delay, frames, safety latches, faults, and a state that
+stops (its source silenced, a clock of one period a step). The same driver on real ach
+channels: tests/test_hardware_ach.py."""
 
 from __future__ import annotations
 
@@ -205,3 +206,222 @@ def test_a_library_that_is_not_libach_is_refused(monkeypatch):
 
     with pytest.raises(LibachMissing, match="not libach"):
         load_libach()
+
+
+class _Clock:
+    """Wall time advancing one control period per driver step (the daemon's 200 Hz)."""
+
+    def __init__(self) -> None:
+        self.t_s = 100.0
+
+    def __call__(self) -> float:
+        return self.t_s
+
+
+def _silence(driver, clock, *, after: int, back_after: int | None = None):
+    """The state source goes quiet after ``after`` more periods (a dead daemon), and speaks
+    again after ``back_after`` periods of silence if given; the clock runs one period a step."""
+    advance = driver.source.advance
+    count = {"n": 0}
+
+    def quiet(ref_rad, mode):
+        clock.t_s += PERIOD
+        count["n"] += 1
+        silent = count["n"] > after and (back_after is None or count["n"] <= after + back_after)
+        frame = advance(ref_rad, mode)
+        return None if silent else frame
+
+    driver.source.advance = quiet
+
+
+def _cruise(driver, periods: int, step_rad: float):
+    """Move REB at a constant rate; returns the commands."""
+    q = driver.read().q_rad.copy()
+    for _ in range(periods):
+        q[REB] += step_rad
+        driver.send(q)
+        driver.step()
+    return q
+
+
+@pytest.fixture
+def stale_hw(tmp_path):
+    clock = _Clock()
+    driver = HardwareDriver(MODEL, armed=True, sink="file", sink_path=tmp_path / "hubo-ref.bin",
+                            clock=clock)
+    driver.start()
+    yield driver, clock
+    driver.close()
+
+
+def test_stale_state_brakes_then_holds_then_ends_the_run(stale_hw):
+    """No fresh state for 0.1 s: the pipeline's commands are ignored, the reference brakes
+    within the joint limits from its cruise, holds, and 1 s later the run ends (exit 3)."""
+    from hubo_cli.drivers.stale_state import StateLost
+
+    driver, clock = stale_hw
+    step = -0.5 * MODEL.velocity_rad_s[REB] * PERIOD  # half the joint's speed limit
+    _silence(driver, clock, after=10)
+    q = _cruise(driver, 10, step)
+    flags, lost = [], None
+    for _ in range(400):
+        q[REB] += step  # the pipeline would go on moving
+        driver.send(q)
+        try:
+            flags.append(driver.step().flags)
+        except StateLost as exc:
+            lost = exc
+            break
+    assert lost is not None and lost.exit_code == 3 and not lost.back
+    assert "braked" in lost.message and "hubo-state" in lost.message
+    onset = next(i for i, f in enumerate(flags) if "stale-state" in f)
+    assert onset in (19, 20)  # 0.1 s of 5 ms periods without a fresh state (+ rounding)
+    # ends 1 s after the brake began (the brake is done by then), within one period
+    assert len(flags) - onset == pytest.approx(1.0 / PERIOD, abs=1)
+    assert all("stale-state" in f for f in flags[onset:])
+    assert lost.stale_s == pytest.approx(0.1 + 1.0, abs=2 * PERIOD)
+
+    ref = np.array([f.ref_rad[INDEX["REB"]] for f in read_ref_frames(driver.sink_path)])
+    v = np.diff(ref) / PERIOD
+    a = np.diff(v) / PERIOD
+    cruise = 10 + onset + 1  # frames put before the brake's first
+    assert np.allclose(v[:cruise - 1], step / PERIOD)  # the pipeline's commands until then
+    brake = v[cruise - 1:]
+    assert np.all(np.abs(np.diff(np.abs(brake))) <= 1e-9 + MODEL.acceleration_rad_s2[REB]
+                  * PERIOD)  # decelerating only, within the acceleration limit
+    assert np.max(np.abs(a)) <= MODEL.acceleration_rad_s2[REB] * 1.001
+    assert np.all(brake * np.sign(step) >= -1e-12)  # never back, never a jump
+    rest = np.flatnonzero(np.abs(brake) < 1e-12)[0]
+    v0, a_max, j_max = (abs(step) / PERIOD, MODEL.acceleration_rad_s2[REB],
+                        MODEL.jerk_rad_s3[REB])
+    assert rest * PERIOD <= v0 / a_max + a_max / j_max + 2 * PERIOD < 1.0  # within the grace
+    assert np.all(brake[rest:] == 0.0)  # then held, whatever the pipeline sends
+    travel = abs(ref[-1] - ref[cruise - 1])
+    assert travel <= v0**2 / a_max  # twice v²/2a: the jerk limit's ramps add less than that
+
+    driver.stop()
+    assert read_ref_frames(driver.sink_path)[-1].ref_rad[INDEX["REB"]] == ref[-1]
+
+
+def test_state_back_within_the_grace_does_not_resume_the_motion(stale_hw):
+    from hubo_cli.drivers.stale_state import StateLost
+
+    driver, clock = stale_hw
+    _silence(driver, clock, after=5, back_after=60)  # 0.3 s without a state, then back
+    q = _cruise(driver, 5, -0.001)
+    held = []  # the reference while the state is back
+    with pytest.raises(StateLost) as info:
+        for _ in range(400):
+            q[REB] -= 0.001
+            applied = driver.send(q)
+            if "stale-hold" in driver.step().flags:
+                held.append(applied[REB])
+    assert info.value.back and info.value.exit_code == 3
+    assert info.value.stale_s == pytest.approx(0.3, abs=2 * PERIOD)
+    assert "came back" in info.value.message and "not resumed" in info.value.message
+    # fresh state for the rest of the grace, yet the brake goes on to rest and holds there
+    speed = np.abs(np.diff(held))
+    assert len(held) > 100 and np.all(np.diff(speed) <= 1e-12)
+    assert np.all(speed[-50:] == 0.0)
+    assert abs(held[-1] - q[REB]) > 0.1  # the pipeline moved on; the robot did not follow
+
+
+def test_a_state_whose_clock_stands_still_is_not_fresh(stale_hw):
+    driver, clock = stale_hw
+    advance = driver.source.advance
+    frozen = {}
+
+    def repeat(ref_rad, mode):  # a daemon stuck republishing the same state
+        clock.t_s += PERIOD
+        frozen.setdefault("frame", advance(ref_rad, mode))
+        return frozen["frame"]
+
+    driver.source.advance = repeat
+    flags = [driver.step().flags for _ in range(25)]
+    assert "stale-state" in flags[-1] and "stale-state" not in flags[10]
+    assert driver.log_values()["hw_state_age_periods"] >= 20
+
+
+def test_a_run_whose_robot_state_stops_ends_device_with_its_periods_counted(tmp_path):
+    """The loop on the dry-run driver whose state stops: ``ended: device``, the driver's
+    error, its stale periods counted, no smooth stop of the loop's own after the brake."""
+    from hubo_cli.control.loop import ControlLoop
+
+    clock = _Clock()
+    with HardwareDriver(MODEL, armed=True, sink="file", sink_path=tmp_path / "hubo-ref.bin",
+                        clock=clock) as driver:
+        state = driver.start()
+        _silence(driver, clock, after=40)
+        q0 = state.q_rad.copy()
+
+        def target(t_s, state):
+            q = q0.copy()
+            q[REB] -= 0.2 * t_s  # 0.2 rad/s, on and on
+            return q, {}
+
+        loop = ControlLoop(driver, [], target, speed=None)
+        result = loop.run(5.0)
+    assert result.ended == "device" and result.exception.exit_code == 3
+    assert "robot state lost" in result.error
+    stale = result.flag_counts["stale-state"]
+    assert stale == pytest.approx(1.0 / PERIOD, abs=2)
+    assert result.stop_periods == 0
+    assert result.periods == pytest.approx(40 + 20 + 1.0 / PERIOD, abs=3)
+
+
+def test_the_view_and_the_status_say_state_stale():
+    from hubo_cli.cli.safety_view import read_safety, safety_text
+    from hubo_cli.control.status import Status, status_from_flags
+
+    assert status_from_flags({"servo-off", "stale-state", "estop"}) == Status.STATE_STALE
+    assert Status.STATE_STALE.label == "state stale"
+    assert status_from_flags({"stale-hold", "holding"}) == Status.STATE_STALE
+    for flags, words in ((("stale-state", "ref-wait"), "no fresh robot state"),
+                         (("stale-hold",), "robot state back")):
+        text = safety_text(read_safety([], robot_flags=flags)).plain
+        assert text.startswith("STATE STALE") and words in text and "the run ends" in text
+    assert "STATE STALE" not in safety_text(read_safety([], robot_flags=("ref-wait",))).plain
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_stale_brake_from_any_motion_stays_within_the_limits(tmp_path, seed):
+    """Every joint cruising at a random speed up to its limit (away from its nearer position
+    limit, with room to stop) when the state stops at a random period: the references slow
+    down only, within the velocity and acceleration limits, come to rest and hold, and the run
+    ends at the grace or, from a fast motion, when the brake is done."""
+    from hubo_cli.drivers.stale_state import StateLost
+
+    rng = np.random.default_rng(seed)
+    clock = _Clock()
+    with HardwareDriver(MODEL, armed=True, sink="file", sink_path=tmp_path / "hubo-ref.bin",
+                        clock=clock) as driver:
+        q = driver.start().q_rad.copy()
+        lower, upper = MODEL.lower_rad, MODEL.upper_rad
+        direction = np.where(upper - q > q - lower, 1.0, -1.0)
+        room = np.maximum(upper - q, q - lower) - 0.05
+        v_max = MODEL.velocity_rad_s
+        speed = rng.uniform(0.0, 1.0, q.size) * v_max
+        speed = np.minimum(speed, np.sqrt(MODEL.acceleration_rad_s2 * room))  # room to stop
+        cruise = int(rng.integers(3, 30))
+        _silence(driver, clock, after=cruise)
+        periods = 0
+        with pytest.raises(StateLost) as info:
+            for periods in range(1, 2000):  # noqa: B007 (counted for after the loop)
+                q = q + direction * speed * PERIOD
+                driver.send(q)
+                driver.step()
+    ref = np.array([f.ref_rad[[INDEX[n] for n in MODEL.joint_names]]
+                    for f in read_ref_frames(driver.sink_path)])
+    v = np.diff(ref, axis=0) / PERIOD
+    assert np.all(np.abs(v) <= v_max * 1.001)
+    brake = np.abs(v[cruise + 20:])  # from the brake's first period on
+    assert np.all(np.diff(brake, axis=0) <= 1e-9)  # slowing down only
+    a = np.diff(v, axis=0) / PERIOD
+    assert np.all(np.abs(a) <= MODEL.acceleration_rad_s2 * 1.001)
+    assert np.all(np.abs(v[-1]) < 1e-6)  # at rest at the end
+    # from the brake's start: the grace, or the time to stop from the fastest joint if longer
+    stop_s = np.max(speed / MODEL.acceleration_rad_s2 + MODEL.acceleration_rad_s2
+                    / MODEL.jerk_rad_s3)
+    held_s = (periods - cruise - 20) * PERIOD
+    assert 1.0 - 2 * PERIOD <= held_s <= max(1.0, stop_s) + 3 * PERIOD
+    assert not info.value.back

@@ -7,6 +7,7 @@ Every channel is uniquely named and unlinked afterwards.
 from __future__ import annotations
 
 import os
+import time
 import uuid
 from pathlib import Path
 
@@ -139,8 +140,8 @@ def test_the_loop_closes_through_the_channels_within_the_filter_lag(channels, po
 def test_safety_latches_hold_on_the_channels(channels, posture):
     lib = load_libach()
     with FakeHuboDaemon(lib, posture, *channels).start() as daemon:
-        with HardwareDriver(MODEL, armed=True, ach_ref=channels[0], ach_state=channels[1],
-                            stale_periods=10) as driver:
+        with HardwareDriver(MODEL, armed=True, ach_ref=channels[0],
+                            ach_state=channels[1]) as driver:
             start = driver.start()
             q = start.q_rad.copy()
             q[REB] = np.nan  # NaN freezes the joint
@@ -153,19 +154,6 @@ def test_safety_latches_hold_on_the_channels(channels, posture):
             assert "servo-off" in driver.step().flags
             assert daemon.joints_rad[INDEX["REB"]] == pytest.approx(start.q_rad[REB])
             driver.reset_servo()
-
-            daemon.stop()  # the daemon stops publishing: stale, then a hold
-            flags = [driver.step().flags for _ in range(12)]
-            first = min(i for i, f in enumerate(flags) if "stale-state" in f)
-            assert first in (9, 10)  # 10 periods without a state (one may have been in flight)
-            q = start.q_rad.copy()
-            q[REB] -= 0.001
-            assert driver.send(q)[REB] == start.q_rad[REB]
-            daemon.start()
-            for _ in range(20):
-                if "stale-state" not in driver.step().flags:
-                    break
-            assert driver.send(q)[REB] == pytest.approx(q[REB])
 
             driver.sink.channel.close()  # the channel goes away underneath: a hold, no crash
             assert "fault" in driver.step().flags
@@ -196,3 +184,64 @@ def test_the_fake_daemon_stops_on_a_frame_of_the_wrong_size(channels, posture):
         ref.put(bytes(490))  # the old private frame
         daemon.period()
         assert "490 bytes" in daemon.stats.error
+
+
+def test_stale_state_on_the_channels_brakes_holds_and_ends_even_if_it_comes_back(channels,
+                                                                                 posture):
+    """The daemon stops publishing (hung, its channels there): after 0.1 s the driver brakes
+    and holds; the daemon comes back within the grace, but the motion does not resume and the
+    run ends with :class:`StateLost` (exit 3)."""
+    from hubo_cli.drivers.stale_state import StateLost
+
+    lib = load_libach()
+    with FakeHuboDaemon(lib, posture, *channels).start() as daemon:
+        with HardwareDriver(MODEL, armed=True, ach_ref=channels[0],
+                            ach_state=channels[1]) as driver:
+            q = driver.start().q_rad.copy()
+            for _ in range(20):  # 0.4 rad/s
+                q[REB] -= 0.002
+                driver.send(q)
+                driver.step()
+            daemon.stop()
+            stopped = time.monotonic()
+            flags, refs = [], []
+            with pytest.raises(StateLost) as info:
+                for _ in range(1000):
+                    q[REB] -= 0.002
+                    refs.append(driver.send(q)[REB])
+                    flags.append(driver.step().flags)
+                    if "stale-state" in flags[-1] and daemon._thread is None:
+                        stale_after = time.monotonic() - stopped
+                        daemon.start()  # back within the grace
+            ended = time.monotonic() - stopped
+    assert info.value.back and info.value.exit_code == 3
+    # 0.1 s by the wall clock after the last state read (the one in flight when the daemon
+    # stopped is read a period later); generous upper bounds for a loaded machine
+    assert 0.1 - 2 * MODEL.control_period_s <= stale_after < 0.5
+    assert 1.1 - 2 * MODEL.control_period_s <= ended < 2.5
+    assert any("stale-hold" in f for f in flags)
+    speed = np.abs(np.diff(refs))
+    onset = next(i for i, f in enumerate(flags) if "stale-state" in f)
+    assert np.all(np.diff(speed[onset + 1:]) <= 1e-12)  # only slowing down, then held
+    assert np.all(speed[-20:] == 0.0)
+    assert abs(refs[-1] - q[REB]) > 0.1  # the commands went on; the robot did not follow
+    assert not _shm_files(*channels)
+
+
+def test_left_over_channels_are_taken_over_and_removed(channels, posture):
+    """Channels a killed daemon left (here of the old 504/3,632-byte layout) are replaced and
+    removed at the end; channels a live daemon publishes are refused, untouched."""
+    from hubo_cli.errors import DeviceError
+
+    lib = load_libach()
+    lib.create(channels[0], 4, 504)
+    lib.create(channels[1], 4, 3632)
+    with FakeHuboDaemon(lib, posture, *channels).start() as daemon:
+        assert daemon.replaced == list(channels) and daemon.created == list(channels)
+        with lib.open(channels[0]) as ref:
+            ref.put(bytes(REF_SIZE))  # the new channel takes hubo_ref_t frames
+        with pytest.raises(DeviceError, match="another daemon publishes") as info:
+            FakeHuboDaemon(lib, posture, *channels)
+        assert info.value.exit_code == 3
+        assert _shm_files(*channels) and daemon.stats.error == ""
+    assert not _shm_files(*channels)

@@ -37,9 +37,6 @@ centre_mm = "auto"
 arm = "right"
 tool = "drill"
 
-[safety]
-estop_sources = ["operator"]
-
 [[steps]]
 kind = "move"
 name = "raise the drill"
@@ -177,4 +174,139 @@ def test_a_task_closes_the_loop_through_the_fake_daemon(tmp_path):
     lag = np.max(np.abs(q - cmd), axis=0)
     assert np.all(lag[moved] <= (L - 1 + 3) * step[moved]), lag / step
     assert np.all(lag[~moved] < 1e-9)
+    assert not (SHM / f"achshm-{ref}").exists() and not (SHM / f"achshm-{state}").exists()
+
+
+# a slow move (30 mm in 8 s) long enough to kill the daemon in the middle of it
+SLOW_TASK = SHORT_TASK + """
+[[steps]]
+kind = "move"
+name = "approach slowly"
+depth_mm = -20.0
+duration_s = 8.0
+"""
+
+
+def _daemon(ref: str, state: str) -> subprocess.Popen:
+    return subprocess.Popen(
+        [sys.executable, "-m", "hubo_cli.cli.main", "hardware", "fake-daemon", "--ach-ref", ref,
+         "--ach-state", state], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+@pytest.fixture
+def channel_names():
+    """Unique ``hubo-ref`` and ``hubo-state`` names, unlinked afterwards whatever happened."""
+    tag = f"hubotest-{os.getpid()}-{uuid.uuid4().hex[:8]}"
+    names = (f"{tag}-ref", f"{tag}-state")
+    yield names
+    from hubo_cli.drivers.ach import load_libach
+
+    for name in names:
+        load_libach().unlink(name)
+
+
+def _wait_published(lib, name: str, timeout_s: float = 60.0) -> None:
+    """Wait until a daemon publishes on channel ``name`` (it is running)."""
+    from hubo_cli.drivers.hubo_ach_daemon import channel_published
+
+    end = time.monotonic() + timeout_s
+    while not channel_published(lib, name):
+        assert time.monotonic() < end, f"nothing publishes {name}"
+
+
+@needs_libach
+@pytest.mark.parametrize("how", [signal.SIGKILL, signal.SIGTERM], ids=["SIGKILL", "SIGTERM"])
+def test_a_daemon_killed_mid_move_ends_the_run_braked_with_exit_3(tmp_path, how,
+                                                                  channel_names):
+    """hubo-daemon dies in the middle of a slow move: the run ends ``device``, exit 3, with
+    one line; the references brake to rest within the joints' limits and hold (no jump); the
+    summary counts the stale periods. After a SIGKILL the channels stay, the last reference on
+    them is the hold, and the next daemon takes them over and removes them at its end.
+
+    Measured on this 2-core machine at load 8: the driver ended the run 1.10-1.12 s after its
+    last fresh state (the brake from the slow move is short); the wall-clock figures are
+    printed (``-s``) and bounded generously below."""
+    import re
+
+    from hubo_cli.drivers.ach import load_libach
+    from hubo_cli.drivers.hubo_ach import HuboRef, decode_ref
+
+    lib = load_libach()
+    ref, state = channel_names
+    task = tmp_path / "slow.toml"
+    task.write_text(SLOW_TASK)
+    run, err_path = tmp_path / "run", tmp_path / "stderr.txt"
+    daemon, client = _daemon(ref, state), None
+    try:
+        _wait_for(SHM / f"achshm-{state}")
+        with err_path.open("w") as err_file:
+            client = subprocess.Popen(
+                [sys.executable, "-m", "hubo_cli.cli.main", "task", "run", str(task),
+                 "--driver", "hardware", "--arm", "--ach-ref", ref, "--ach-state", state,
+                 "--out", str(run)], stdout=subprocess.DEVNULL, stderr=err_file)
+        end = time.monotonic() + 240
+        while "short-move: run," not in err_path.read_text():  # the 8 s move has begun
+            assert client.poll() is None and time.monotonic() < end, err_path.read_text()
+            time.sleep(0.05)
+        daemon.send_signal(how)
+        killed_s = time.time()
+        daemon.wait(timeout=20)
+        client.wait(timeout=300)
+        exited_s = time.time()
+    finally:
+        for process in (daemon, client):
+            if process is not None and process.poll() is None:
+                process.kill()
+                process.wait()
+    err = err_path.read_text()
+    assert client.returncode == 3, err
+    lines = [line for line in err.splitlines() if line.startswith("error:")]
+    assert len(lines) == 1 and "robot state lost" in lines[0] and "braked" in lines[0], err
+    assert "Traceback" not in err and "internal error" not in err
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["ended"] == "device" and "robot state lost" in summary["error"]
+    assert summary["completed"] is False
+    # the driver's own clock: 0.1 s without state, 1 s of grace, the brake (short here);
+    # measured 1.10-1.13 s, bounded at 1.5 s as the issue asks
+    stale_s = float(re.search(r"for ([0-9.]+) s", summary["error"]).group(1))
+    assert 1.1 - 0.01 <= stale_s <= 1.5
+    # the periods run in that wall time: 179 and 88 measured at load 8 (a loaded machine's
+    # loop runs late and re-anchors), 200 on time
+    assert 20 <= summary["stale_state_periods"] <= 1.5 / MODEL.control_period_s
+    # the wall clock of the whole machine, generous for its load
+    loop_end_s = (run / "log.csv").stat().st_mtime - killed_s
+    print(f"{how.name}: loop ended {loop_end_s:.2f} s, process exited "
+          f"{exited_s - killed_s:.2f} s after the kill; driver: {stale_s:.2f} s stale")
+    assert loop_end_s < 3.0
+    assert exited_s - killed_s < 60.0
+
+    log = load_log(run)
+    onset = next(i for i, f in enumerate(log.flags) if "stale-state" in f)
+    assert all("stale-state" in f for f in log.flags[onset:])
+    cmd = log.joints("cmd")
+    step = np.abs(np.diff(cmd, axis=0))
+    assert np.all(step <= MODEL.velocity_rad_s * MODEL.control_period_s * 1.001)  # no jump
+    braking = step[onset:]
+    assert np.all(np.diff(braking, axis=0) <= MODEL.acceleration_rad_s2
+                  * MODEL.control_period_s**2 * 1.001 + 1e-12)  # only slowing down
+    assert np.all(braking[-1] < 1e-6)  # at rest at the end: held
+
+    if how == signal.SIGKILL:  # the channels stay: the hold is on them, a new daemon takes over
+        frame = HuboRef()
+        with lib.open(ref) as channel:
+            channel.get(frame)
+        held = decode_ref(bytes(frame)).ref_rad[[MODEL.hubo_ach["index"][n]
+                                                 for n in MODEL.joint_names]]
+        assert np.allclose(held, cmd[-1], atol=1e-9)
+        second = _daemon(ref, state)
+        try:
+            _wait_published(lib, state)
+            second.send_signal(signal.SIGTERM)
+            _, err2 = second.communicate(timeout=20)
+        finally:
+            if second.poll() is None:
+                second.kill()
+                second.wait()
+        assert second.returncode == 0, err2
+        assert f"replacing {ref}, {state} left over from a dead daemon" in err2
     assert not (SHM / f"achshm-{ref}").exists() and not (SHM / f"achshm-{state}").exists()

@@ -8,6 +8,7 @@ import pytest
 from hubo_cli.control.loop import ControlLoop
 from hubo_cli.control.module import Cycle
 from hubo_cli.control.pipeline import DEFAULT_ORDER, SafetyProfile, build_pipeline
+from hubo_cli.control.stop_choice import ActiveStops
 from hubo_cli.drivers.registry import make_driver
 from hubo_cli.errors import ConfigError, InputError
 from hubo_cli.experiments.push_wall import push_wall_setup
@@ -24,9 +25,10 @@ def setups(model):
     plan = check_task(load_task("cut-rectangle", {"width_mm": 60, "height_mm": 40}), model)
     out = {}
     for estop in (True, False):
-        settings = TeleopSettings(replay="x.csv", mode="drill", estop=estop)
+        stops = None if estop else ActiveStops(())  # --no-estop
+        settings = TeleopSettings(replay="x.csv", mode="drill", stops=stops)
         _, body, _, _ = prepare(settings, model)
-        out[estop] = {"task": task_setup(plan, estop=estop),
+        out[estop] = {"task": task_setup(plan, stops=stops),
                       "teleop": teleop_setup(settings, body, 1.0),
                       "push-wall": push_wall_setup(model, "forward", estop=estop)[0]}
     return out

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import click
 
+from hubo_cli.cli.options import force_option
 from hubo_cli.cli.output import console, print_json
 
 
@@ -13,8 +16,9 @@ from hubo_cli.cli.output import console, print_json
               help="Write a Rerun recording (open with: rerun FILE.rrd).")
 @click.option("--mcap", type=click.Path(dir_okay=False), default=None, metavar="FILE.mcap",
               help="Write an MCAP file in Foxglove's schemas (open in Foxglove Studio).")
+@force_option
 @click.option("--json", "as_json", is_flag=True, help="Print what was written as JSON.")
-def export(run, rrd, mcap, as_json) -> None:
+def export(run, rrd, mcap, force, as_json) -> None:
     """Export a run folder to Rerun (.rrd) and/or Foxglove (.mcap); needs hubo-cli[viz].
 
     The .rrd holds the URDF animated, the goal and measured tool paths, the hole and the walls
@@ -25,26 +29,32 @@ def export(run, rrd, mcap, as_json) -> None:
     Example: hubo export runs/<run> --rrd run.rrd --mcap run.mcap
     """
     from hubo_cli.errors import InputError
+    from hubo_cli.outputs import OutputFile
     from hubo_cli.viz.scene import load_scene
 
     if rrd is None and mcap is None:
         raise InputError("nothing to export: give --rrd FILE.rrd and/or --mcap FILE.mcap",
                          hint="e.g. hubo export RUN --rrd run.rrd")
+    rrd_out, mcap_out = (None if path is None else OutputFile(
+        path, option=option, inputs=(run,), others=(other,), force=force)
+        for path, option, other in ((rrd, "--rrd", mcap), (mcap, "--mcap", rrd)))
     scene = load_scene(run)
     report: dict = {"run_dir": str(scene.run_dir), "periods": len(scene)}
-    if rrd is not None:
+    if rrd_out is not None:
         from hubo_cli.viz.rerun_export import export_rrd
 
-        result = export_rrd(scene, rrd)
+        with rrd_out.writing() as temporary:
+            result = dataclasses.replace(export_rrd(scene, temporary), path=rrd_out.path)
         report["rrd"] = {"path": str(result.path), "joints": result.joints,
                          "series": result.series, "wall_s": result.wall_s}
         if not as_json:
             console.print(f"rrd   {result.path} ({len(scene)} periods, {result.joints} joints; "
                           f"open with: rerun {result.path})", soft_wrap=True)
-    if mcap is not None:
+    if mcap_out is not None:
         from hubo_cli.viz.mcap_export import export_mcap
 
-        result = export_mcap(scene, mcap)
+        with mcap_out.writing() as temporary:
+            result = dataclasses.replace(export_mcap(scene, temporary), path=mcap_out.path)
         report["mcap"] = {"path": str(result.path), "messages": result.messages,
                           "wall_s": result.wall_s}
         if not as_json:

@@ -8,11 +8,11 @@ from pathlib import Path
 import click
 
 from hubo_cli.cli.checks import check_baud, check_seconds
+from hubo_cli.cli.options import force_option
 from hubo_cli.cli.output import console, err_console, interactive, print_json
 from hubo_cli.errors import InputError
 
 JSON = click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
-FORCE = click.option("--force", is_flag=True, help="Write over an existing output file.")
 
 
 def _station_rates(batch) -> dict[str, dict]:
@@ -61,7 +61,7 @@ def fastrak() -> None:
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Pose-log CSV to write (default: FILE with the suffix .csv; an existing "
                    "file is not overwritten without --force).")
-@FORCE
+@force_option
 @JSON
 def decode(file: Path, out: Path | None, force: bool, as_json: bool) -> None:
     """Turn a raw capture FILE into a pose log and report what it holds.
@@ -69,7 +69,7 @@ def decode(file: Path, out: Path | None, force: bool, as_json: bool) -> None:
     Reports good records, bytes skipped while resynchronising and per-station rates.
     """
     from hubo_cli.fastrak.capture import MAGIC, parse_capture, read_recording_bytes, write_pose_log
-    from hubo_cli.runs import check_new_file
+    from hubo_cli.outputs import OutputFile
 
     blob = read_recording_bytes(file)
     if not blob.startswith(MAGIC) and blob[:40].lstrip().lower().startswith((b"t_s", b"#")):
@@ -77,10 +77,11 @@ def decode(file: Path, out: Path | None, force: bool, as_json: bool) -> None:
                          hint="replay it directly with `hubo teleop --replay FILE`")
     if out is None:
         out = file.with_suffix(".csv")
-    check_new_file(out, inputs=(file,), force=force)
+    pose_log = OutputFile(out, inputs=(file,), force=force)
     cap = parse_capture(blob, str(file))
     batch, bad = cap.decode()
-    write_pose_log(out, batch)
+    with pose_log.writing() as temporary:
+        write_pose_log(temporary, batch)
     h = cap.header
     letters: dict[str, int] = {}
     for c in batch.status_chars():
@@ -175,7 +176,7 @@ def _parse_stations(text: str | None) -> tuple[int, ...] | None:
 @click.option("--stations", default=None, help="Stations to enable, e.g. 1,2 (default: active).")
 @click.option("--csv", "csv_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Also write a pose-log CSV.")
-@FORCE
+@force_option
 @JSON
 def record(port: str, out: Path, duration: float | None, baud: int, fmt: str, output_list: str,
            units: str, stations: str | None, csv_path: Path | None, force: bool,
@@ -183,33 +184,36 @@ def record(port: str, out: Path, duration: float | None, baud: int, fmt: str, ou
     """Record a live FASTRAK to a raw capture (decode it later with `hubo fastrak decode`)."""
     from hubo_cli.fastrak.capture import samples_batch, write_pose_log
     from hubo_cli.fastrak.opener import open_source
-    from hubo_cli.runs import check_new_file
+    from hubo_cli.outputs import OutputFile
 
     check_seconds("--duration", duration, 7 * 24 * 3600)
-    check_new_file(out, force=force)
-    if csv_path is not None:
-        check_new_file(csv_path, inputs=(out,), force=force, option="--csv")
-    src = open_source(port=port, baud=baud, fmt=fmt, output_list=output_list, units=units,
-                      stations=_parse_stations(stations), capture=out)
-    samples = []
-    next_note = 1.0
-    try:
-        while duration is None or src.now_s() < duration:
+    capture = OutputFile(out, inputs=(port,), others=(csv_path,), force=force)
+    pose_log = None if csv_path is None else OutputFile(csv_path, option="--csv",
+                                                         inputs=(port,), others=(out,),
+                                                         force=force)
+    with capture.writing(keep_partial=True) as temporary:  # a recording cut short is kept
+        src = open_source(port=port, baud=baud, fmt=fmt, output_list=output_list, units=units,
+                          stations=_parse_stations(stations), capture=temporary)
+        samples = []
+        next_note = 1.0
+        try:
+            while duration is None or src.now_s() < duration:
+                samples += src.read_until(src.now_s())
+                if interactive() and src.now_s() >= next_note:
+                    err_console.print(f"  {src.now_s():6.1f} s  {src.stats.good_records} "
+                                      "records", end="\r")
+                    next_note += 1.0
+                time.sleep(0.02)
             samples += src.read_until(src.now_s())
-            if interactive() and src.now_s() >= next_note:
-                err_console.print(f"  {src.now_s():6.1f} s  {src.stats.good_records} records",
-                                  end="\r")
-                next_note += 1.0
-            time.sleep(0.02)
-        samples += src.read_until(src.now_s())
-    except KeyboardInterrupt:
-        pass
-    finally:
-        src.close()
-    samples += src.read_until(src.now_s())  # what closing completed (counted in its stats)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            src.close()
+        samples += src.read_until(src.now_s())  # what closing completed (counted in its stats)
     batch = samples_batch(samples)
-    if csv_path is not None:
-        write_pose_log(csv_path, batch)
+    if pose_log is not None:
+        with pose_log.writing() as temporary:
+            write_pose_log(temporary, batch)
     stats = src.stats
     report = {"capture": str(out), "port": port, "format": fmt,
               "output_list": list(src.layout.output_list), "units": units, "baud": baud,

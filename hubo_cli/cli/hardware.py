@@ -83,7 +83,9 @@ def hardware() -> None:
 def fake_daemon(ach_ref: str, ach_state: str, duration: float | None, posture: str,
                 as_json: bool) -> None:
     """Stand in for hubo-daemon: read hubo-ref, apply its reference filter, publish hubo-state
-    at 200 Hz. Channels that do not exist are created, and removed again at the end.
+    at 200 Hz. Channels that do not exist are created, and removed again at the end;
+    channels left over from a daemon that died (kill -9) are replaced and removed too; channels
+    another daemon publishes are refused (exit 3).
 
     Example: hubo hardware fake-daemon   (then, in another terminal:
              hubo task cut-rectangle --driver hardware --arm)
@@ -104,6 +106,8 @@ def fake_daemon(ach_ref: str, ach_state: str, duration: float | None, posture: s
     q = home_posture(model) if posture == "home" else np.zeros(len(model.joint_names))
     with FakeHuboDaemon(lib, hubo_ach_vector(model, q), ach_ref, ach_state) as daemon:
         created = ", ".join(daemon.created) or "none (they existed)"
+        if daemon.replaced:
+            created += f" (replacing {', '.join(daemon.replaced)} left over from a dead daemon)"
         err_console.print(f"fake hubo-daemon: reading {ach_ref}, publishing {ach_state} at "
                           f"200 Hz; channels created: {created}. Ctrl-C stops.")
         # Ctrl-C, SIGTERM (kill, systemd) and SIGHUP end the loop; the channels are removed

@@ -6,6 +6,7 @@ import click
 import numpy as np
 from rich.table import Table
 
+from hubo_cli.cli.options import force_option
 from hubo_cli.cli.output import console, fmt_q, print_json
 from hubo_cli.errors import InputError
 from hubo_cli.model import LIMB_NAMES, TOOL_NAMES
@@ -114,13 +115,15 @@ def _goal_from_options(matrix, xyz, rpy) -> np.ndarray:
 @click.option("--batch", "batch_in", type=click.Path(dir_okay=False), default=None,
               help="Solve every row of a CSV (columns T00..T33, optional qprev1..qprev6).")
 @click.option("--out", "batch_out", type=click.Path(dir_okay=False), default=None,
-              help="Output CSV for --batch.")
+              help="Output CSV for --batch (an existing file is not overwritten without "
+                   "--force).")
+@force_option
 @PARAMS
 @LIMITS
 @TOOL
 @JSON
-def ik(limb, matrix, xyz, rpy, prev, show_all, batch_in, batch_out, params, limits, tool,
-       as_json) -> None:
+def ik(limb, matrix, xyz, rpy, prev, show_all, batch_in, batch_out, force, params, limits,
+       tool, as_json) -> None:
     """Joints that put LIMB's end frame at a goal pose in the neck frame.
 
     Prints the chosen joints, the status (exact, capped, held, unreachable) and the residual
@@ -139,7 +142,7 @@ def ik(limb, matrix, xyz, rpy, prev, show_all, batch_in, batch_out, params, limi
     if prev is not None:
         _finite("--prev", prev)
     if batch_in:
-        _batch(solver, batch_in, batch_out, as_json)
+        _batch(solver, batch_in, batch_out, force, as_json)
         return
     T = _goal_from_options(matrix, xyz, rpy)
     result = solver.solve(T, None if prev is None else np.array(prev))
@@ -169,13 +172,13 @@ def ik(limb, matrix, xyz, rpy, prev, show_all, batch_in, batch_out, params, limi
         raise SystemExit(5)
 
 
-def _batch(solver, batch_in: str, batch_out: str | None, as_json: bool) -> None:
+def _batch(solver, batch_in: str, batch_out: str | None, force: bool, as_json: bool) -> None:
     from hubo_cli.cli.output import warn
     from hubo_cli.kinematics.batch_csv import solve_csv
 
     if not batch_out:
         raise InputError("--batch needs --out OUT.csv", hint="add --out results.csv")
-    report = solve_csv(solver, batch_in, batch_out)
+    report = solve_csv(solver, batch_in, batch_out, force=force)
     for line, reason in report.bad_lines[:20]:
         warn(f"{batch_in}:{line}: {reason}")
     if len(report.bad_lines) > 20:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import os
 import signal
@@ -40,6 +41,16 @@ def _sigterm_as_interrupt(signum, frame) -> None:
     raise KeyboardInterrupt
 
 
+def replace_unencodable_output() -> None:
+    """Let stdout and stderr replace what their encoding cannot write (``PYTHONIOENCODING=ascii``,
+    a C locale) with ``?`` instead of failing: click.echo and rich both write through them."""
+    for stream in (sys.stdout, sys.stderr):
+        reconfigure = getattr(stream, "reconfigure", None)
+        if reconfigure is not None:
+            with contextlib.suppress(ValueError, OSError):  # a closed or detached stream
+                reconfigure(errors="replace")
+
+
 def report_error(exc: HuboError) -> None:
     """Print a library error on one line (plus its hint) on stderr."""
     click.secho(f"error: {exc}", fg="red", err=True)
@@ -69,6 +80,10 @@ class LazyGroup(click.Group):
             return None
         module, attr = target.split(":")
         return with_exit_codes(getattr(importlib.import_module(module), attr))
+
+    def main(self, *args, **kwargs):
+        replace_unencodable_output()  # before anything is written, --help included
+        return super().main(*args, **kwargs)
 
     def invoke(self, ctx: click.Context):
         previous = signal.getsignal(signal.SIGTERM)

@@ -4,7 +4,18 @@ from __future__ import annotations
 
 import click
 
-from hubo_cli.cli.output import NO_ESTOP_HELP
+from hubo_cli.cli.output import NO_ESTOP_HELP, err_console
+from hubo_cli.control.stop_choice import (
+    CONFIRM_OPTION,
+    SOFT_SOURCES,
+    ActiveStops,
+    StopChoice,
+    decide_stops,
+)
+
+force_option = click.option(
+    "--force", is_flag=True,
+    help="Write over an existing output file (never over an input or a run folder's file).")
 
 perturb_option = click.option(
     "--perturb", "perturb_seed", type=click.IntRange(min=0), default=None, metavar="SEED",
@@ -28,13 +39,21 @@ balance_option = balance_option_with("default")
 
 
 def robot_run_options(run_name: str):
-    """``--no-estop``, ``--gui``, ``--json`` and ``--out`` of a command that runs the robot.
+    """``--no-estop``, ``--estop-sources``, ``--accept-reduced-safety``, ``--gui``, ``--json``
+    and ``--out`` of a command that runs the robot.
 
     Args:
         run_name: the run folder's default name after the time (``sim``, ``task-<name>``).
     """
     options = [
         click.option("--no-estop", is_flag=True, help=NO_ESTOP_HELP),
+        click.option("--estop-sources", "estop_sources", default=None, metavar="LIST",
+                     help=f"The soft emergency stopper's sources, exactly: a comma-separated "
+                          f"list of {', '.join(SOFT_SOURCES)}, or none. The only way besides "
+                          "--no-estop to remove one (task files and --set may only add)."),
+        click.option(CONFIRM_OPTION, "accept_reduced_safety", is_flag=True,
+                     help="Confirm --no-estop or --estop-sources removing a stop source on the "
+                          "hardware driver (refused without it, exit 4)."),
         click.option("--gui", is_flag=True, help="Open the PyBullet window (runs in real time)."),
         click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON."),
         click.option("--out", type=click.Path(file_okay=False), default=None,
@@ -46,3 +65,16 @@ def robot_run_options(run_name: str):
             function = option(function)
         return function
     return decorate
+
+
+def active_stops(requested: tuple[str, ...], driver: str, *, no_estop: bool,
+                 estop_sources: str | None, accept_reduced_safety: bool,
+                 quiet: bool = False) -> ActiveStops:
+    """The stop sources a run keeps (:func:`~hubo_cli.control.stop_choice.decide_stops` on the
+    command line's choice), announced on stderr on one line unless ``quiet`` (``--json``)."""
+    choice = StopChoice.from_options(no_estop, estop_sources, accept_reduced_safety)
+    stops = decide_stops(requested, choice, driver)
+    if not quiet:
+        style = "bold yellow" if stops.removed or not stops.sources else "green"
+        err_console.print(f"safety: {stops.words()}", style=style, markup=False)
+    return stops

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import click
 
+from hubo_cli.cli.options import force_option
 from hubo_cli.cli.output import console, err_console, interactive, print_json
 from hubo_cli.viz.camera import DEFAULT_PRESET, PRESETS
 
@@ -27,26 +28,34 @@ def parse_size(text: str) -> tuple[int, int]:
 
 def make_video(run_dir, out=None, *, speed=None, camera=DEFAULT_PRESET, size="640x480",
                start_s=None, end_s=None):
-    """Render a run's video (``out`` or RUN/video.mp4) with a progress bar when interactive;
-    returns the :class:`~hubo_cli.viz.video.VideoResult`."""
-    from pathlib import Path
+    """Render a run's video (``out``, an :class:`~hubo_cli.outputs.OutputFile`, or
+    RUN/video.mp4) under a temporary name, renamed when complete, with a progress bar when
+    interactive; returns the :class:`~hubo_cli.viz.video.VideoResult`."""
+    import contextlib
+    import dataclasses
 
     from rich.progress import Progress
 
+    from hubo_cli.outputs import replacing
     from hubo_cli.viz.scene import load_scene
     from hubo_cli.viz.video import render_video
 
     width, height = parse_size(size)
     scene = load_scene(run_dir)
-    out = Path(out) if out is not None else scene.run_dir / "video.mp4"
-    if not interactive():
-        return render_video(scene, out, speed=speed, camera=camera, width=width, height=height,
-                            start_s=start_s, end_s=end_s)
-    with Progress(console=err_console, transient=True) as progress:
-        bar = progress.add_task("rendering the video", total=None)
-        return render_video(scene, out, speed=speed, camera=camera, width=width, height=height,
-                            start_s=start_s, end_s=end_s,
-                            on_frame=lambda i, n: progress.update(bar, completed=i, total=n))
+    target = out.writing() if out is not None else replacing(scene.run_dir / "video.mp4")
+    with contextlib.ExitStack() as stack:
+        temporary = stack.enter_context(target)
+        on_frame = None
+        if interactive():
+            progress = stack.enter_context(Progress(console=err_console, transient=True))
+            bar = progress.add_task("rendering the video", total=None)
+
+            def on_frame(i, n):
+                progress.update(bar, completed=i, total=n)
+        result = render_video(scene, temporary, speed=speed, camera=camera, width=width,
+                              height=height, start_s=start_s, end_s=end_s, on_frame=on_frame)
+    path = out.path if out is not None else scene.run_dir / "video.mp4"
+    return dataclasses.replace(result, path=path)
 
 
 def describe_video(result) -> str:
@@ -70,8 +79,9 @@ def describe_video(result) -> str:
               help="Video: start at this run time (s).")
 @click.option("--to", "end_s", type=float, default=None, metavar="S",
               help="Video: end at this run time (s).")
+@force_option
 @click.option("--json", "as_json", is_flag=True, help="Print what was done as JSON.")
-def replay(run, gui, video, speed, camera, size, start_s, end_s, as_json) -> None:
+def replay(run, gui, video, speed, camera, size, start_s, end_s, force, as_json) -> None:
     """Re-play a run folder (sim or hardware) in 3-D from its log.
 
     The logged joints and torso pose are set every period, with the walls as placed; the goal
@@ -81,6 +91,7 @@ def replay(run, gui, video, speed, camera, size, start_s, end_s, as_json) -> Non
               hubo replay runs/<run> --gui --speed 2
     """
     from hubo_cli.errors import InputError
+    from hubo_cli.outputs import OutputFile
     from hubo_cli.viz.scene import load_scene
 
     if not gui and video is None:
@@ -90,7 +101,8 @@ def replay(run, gui, video, speed, camera, size, start_s, end_s, as_json) -> Non
         raise InputError(f"--speed must be positive, got {speed}", hint="e.g. --speed 2")
     report: dict = {"run_dir": str(run)}
     if video is not None:
-        result = make_video(run, video, speed=speed, camera=camera, size=size, start_s=start_s,
+        out = OutputFile(video, option="--video", inputs=(run,), force=force)
+        result = make_video(run, out, speed=speed, camera=camera, size=size, start_s=start_s,
                             end_s=end_s)
         report["video"] = {"path": str(result.path), "frames": result.frames,
                            "width": result.width, "height": result.height,

@@ -70,6 +70,7 @@ class SafetyState:
     Attributes:
         estop: ``off`` (nothing latched), ``stopping``, ``held`` or ``releasing``.
         soft_estop: the soft emergency stopper is in the pipeline (not ``--no-estop``).
+        active_sources: what the soft stopper acts on (``--estop-sources``).
         estop_sources: the sources of the latest stop.
         stops: emergency stops latched so far (releases not counted).
         collision: ``clear``, ``holding`` or ``recovering``.
@@ -77,10 +78,12 @@ class SafetyState:
         collision_distance_m: its distance (m; negative: overlapping), None if unknown.
         hands: per driven hand, its input and reach state.
         balance: how well the body is held (None: not read).
+        robot: the driver's trouble in words ("" when none), e.g. a stale robot state.
     """
 
     estop: str = "off"
     soft_estop: bool = False
+    active_sources: tuple[str, ...] = ()
     estop_sources: tuple[str, ...] = ()
     stops: int = 0
     collision: str = "clear"
@@ -88,10 +91,15 @@ class SafetyState:
     collision_distance_m: float | None = None
     hands: list[HandSafety] = field(default_factory=list)
     balance: BalanceWatch | None = None
+    robot: str = ""
 
 
 ESTOP_WORDS = {"stop": "stopping", "hold": "held", "recover": "releasing"}
 COLLISION_WORDS = {"hold": "holding", "recover": "recovering"}
+ROBOT_WORDS = {  # driver flags of the robot's state the operator must see
+    "stale-state": "STATE STALE: no fresh robot state — braked and holding; the run ends",
+    "stale-hold": "STATE STALE: robot state back — held, not resumed; the run ends",
+}
 
 
 def read_balance(modules: Iterable, world=None) -> BalanceWatch:
@@ -116,16 +124,19 @@ def read_balance(modules: Iterable, world=None) -> BalanceWatch:
 
 
 def read_safety(modules: Iterable, hands: Iterable[HandSafety] = (),
-                world=None) -> SafetyState:
+                world=None, robot_flags: Iterable[str] = ()) -> SafetyState:
     """The safety state of a pipeline's modules (the soft and hard emergency stoppers, the
     collision detector, and for the balance line the capture-point monitor and the limiter;
-    others are ignored); ``world``: the simulator, for the torso's true tilt."""
+    others are ignored); ``world``: the simulator, for the torso's true tilt;
+    ``robot_flags``: the flags of the robot's latest state (the driver's trouble)."""
     modules = list(modules)
-    state = SafetyState(hands=list(hands), balance=read_balance(modules, world))
+    robot = next((ROBOT_WORDS[f] for f in robot_flags if f in ROBOT_WORDS), "")
+    state = SafetyState(hands=list(hands), balance=read_balance(modules, world), robot=robot)
     latest = None
     for module in modules:
         if isinstance(module, EmergencyStopper):
-            state.soft_estop |= module.name == "estop"
+            if module.name == "estop":
+                state.soft_estop, state.active_sources = True, tuple(sorted(module.sources))
             stops = [e for e in module.events if e.kind == "stop"]
             state.stops += len(stops)
             if module.mode != "release" and (latest is None or module.mode == "hold"):
@@ -153,6 +164,8 @@ def _pair(pair: tuple[str, str] | None) -> str:
 def safety_text(state: SafetyState, flash: bool = False, release_key: str | None = "r") -> Text:
     """The state in words and colour (several lines)."""
     text = Text()
+    if state.robot:
+        text.append(state.robot + "\n", style="bold white on red" if flash else "bold red")
     sources = ", ".join(state.estop_sources) or "unknown"
     if state.estop in ("stopping", "held"):
         how = "reverting" if state.estop == "stopping" else "held"
@@ -162,7 +175,8 @@ def safety_text(state: SafetyState, flash: bool = False, release_key: str | None
     elif state.estop == "releasing":
         text.append(f"e-stop ({sources}) released — blending back", style="yellow")
     else:
-        text.append("e-stop ready" if state.soft_estop else "e-stop disabled (--no-estop)",
+        text.append(f"e-stop ready ({', '.join(state.active_sources)})" if state.soft_estop
+                    else "e-stop disabled: no stop source (command line)",
                     style="green" if state.soft_estop else "yellow")
     text.append(f"   stops {state.stops}", style="dim")
     text.append("\n")

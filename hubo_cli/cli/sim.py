@@ -6,7 +6,12 @@ import json
 
 import click
 
-from hubo_cli.cli.options import balance_option, perturb_option, robot_run_options
+from hubo_cli.cli.options import (
+    active_stops,
+    balance_option,
+    perturb_option,
+    robot_run_options,
+)
 from hubo_cli.cli.output import console, print_json
 
 
@@ -30,25 +35,32 @@ from hubo_cli.cli.output import console, print_json
 @robot_run_options("sim")
 @perturb_option
 def sim(duration: float, push: float, push_direction: str, balance: str, no_balance: bool,
-        step: bool, no_hip: bool, no_estop: bool, gui: bool, as_json: bool, out: str | None,
+        step: bool, no_hip: bool, no_estop: bool, estop_sources: str | None,
+        accept_reduced_safety: bool, gui: bool, as_json: bool, out: str | None,
         perturb_seed: int | None) -> None:
     """Stand the simulated HUBO 2+ in its home posture and report tilt, feet and falls.
 
     Example: hubo sim --duration 5 --push 30 --push-direction backward
     """
+    from hubo_cli.cli.keys import announce_keys, operator_keys
     from hubo_cli.cli.safety_view import balance_summary_line
     from hubo_cli.control.pipeline import SafetyProfile
+    from hubo_cli.control.stop_choice import SOFT_SOURCES
     from hubo_cli.experiments.standing import PUSH_DIRECTIONS, check_standing_args, stand
     from hubo_cli.model import load_model
     from hubo_cli.runs import reserved_run_dir
 
     check_standing_args(duration, push)
+    stops = active_stops(SOFT_SOURCES, "sim", no_estop=no_estop, estop_sources=estop_sources,
+                         accept_reduced_safety=accept_reduced_safety, quiet=as_json)
     profile = SafetyProfile().with_balance("off" if no_balance else balance)
-    with reserved_run_dir("sim", out) as run_dir:  # a bad --out fails before anything runs
+    with (reserved_run_dir("sim", out) as run_dir,  # a bad --out fails before anything runs
+          operator_keys() as keys):
+        announce_keys(keys, quiet=as_json)
         result = stand(load_model(), duration, push, balance=profile.balance, gui=gui,
-                       out=run_dir, estop=not no_estop, perturb_seed=perturb_seed,
+                       out=run_dir, stops=stops, perturb_seed=perturb_seed,
                        balance_mode=profile.balance_mode, step=step, hip_strategy=not no_hip,
-                       push_direction=PUSH_DIRECTIONS[push_direction])
+                       push_direction=PUSH_DIRECTIONS[push_direction], operator=keys)
     # the run's whole summary (as in summary.json: pipeline, e-stops, perturbation draws ...)
     summary = json.loads((run_dir / "summary.json").read_text()) | {"run_dir": str(run_dir)}
     if as_json:

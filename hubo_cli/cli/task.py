@@ -9,7 +9,12 @@ from rich.progress_bar import ProgressBar
 from rich.table import Table
 
 from hubo_cli.cli.hardware import driver_options, hardware_options
-from hubo_cli.cli.options import balance_option, perturb_option, robot_run_options
+from hubo_cli.cli.options import (
+    active_stops,
+    balance_option,
+    perturb_option,
+    robot_run_options,
+)
 from hubo_cli.cli.output import (
     ProgressLines,
     console,
@@ -17,6 +22,7 @@ from hubo_cli.cli.output import (
     interactive,
     print_json,
 )
+from hubo_cli.control.operator import KEYS_HELP
 from hubo_cli.drivers.registry import DRIVER_NAMES
 from hubo_cli.errors import HuboError, InputError, SafetyError
 
@@ -83,7 +89,7 @@ def run_options(function):
 
 OPTION_OF = {"width_mm": "--width", "height_mm": "--height", "speed_mm_s": "--speed",
              "wall_distance_mm": "--wall-distance", "direction": "--direction",
-             "interpolator": "--interpolator", "estop": "--no-estop"}
+             "interpolator": "--interpolator"}
 
 
 def _overrides(sets: tuple[str, ...], named: dict | None = None) -> dict:
@@ -215,8 +221,6 @@ def push_wall(direction, interpolator, **options) -> None:
     Example: hubo task push-wall --direction left --no-estop
     """
     named = {"direction": direction, "interpolator": interpolator}
-    if options["no_estop"]:
-        named["estop"] = False
     _run("push-wall", _overrides(options.pop("sets"), named), **options)
 
 
@@ -229,7 +233,8 @@ def _shortcut(name: str) -> click.Command:
     return command
 
 
-def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool, gui: bool,
+def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool,
+         estop_sources: str | None, accept_reduced_safety: bool, gui: bool,
          out: str | None, as_json: bool, perturb_seed: int | None, balance: str = "default",
          video: bool = False, **hardware) -> None:
     from hubo_cli.cli.replay import add_run_video, check_video_support
@@ -246,22 +251,30 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
         if driver != "sim":
             raise InputError(f"the {spec.name} experiment runs on the simulated robot only",
                              hint="leave out --driver")
+        if estop_sources is not None:
+            raise InputError(f"the {spec.name} experiment's stopper listens to the operator "
+                             "and the capture point; --estop-sources does not apply",
+                             hint="to run it without the stopper: --no-estop")
         # its procedure names its own run folder (direction, e-stop) and checks --out first
-        done = run_experiment(spec, out=out, gui=gui, estop=False if no_estop else None,
+        done = run_experiment(spec, out=out, gui=gui, estop=not no_estop,
                               perturb_seed=perturb_seed, balance=balance)
         if video:
             add_run_video(done.run_dir, done.summary)
         _finish(ctx, done, as_json, lambda: _print_push_wall(done.summary, done.run_dir))
         return
+    stops = active_stops(spec.safety.estop_sources, driver, no_estop=no_estop,
+                         estop_sources=estop_sources,
+                         accept_reduced_safety=accept_reduced_safety, quiet=as_json)
     with reserved_run_dir(f"task-{spec.name}", out) as run_dir:
-        _run_in(ctx, spec, run_dir, driver=driver, options=options, no_estop=no_estop,
+        _run_in(ctx, spec, run_dir, driver=driver, options=options, stops=stops,
                 gui=gui, as_json=as_json, video=video, perturb_seed=perturb_seed,
                 balance=balance)
 
 
-def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, no_estop: bool,
+def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, stops,
             gui: bool, as_json: bool, video: bool, perturb_seed: int | None,
             balance: str) -> None:
+    from hubo_cli.cli.keys import operator_keys
     from hubo_cli.cli.safety_view import SafetyPanel, read_safety
     from hubo_cli.tasks.runner import check_task, run_task
 
@@ -276,12 +289,14 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, no
         if as_json:
             return
         modules = target.modules
-        panel = SafetyPanel(lambda: read_safety(modules, world=target.world),
+        keys = state["keys"]
+        panel = SafetyPanel(lambda: read_safety(modules, world=target.world,
+                                                robot_flags=target.robot_flags),
                             bell=err_console.bell,
-                            release_key=None)
+                            release_key="r" if keys else None)
         if interactive():
-            live = Live(get_renderable=lambda: _view(target, panel), refresh_per_second=4,
-                        console=err_console, transient=True)
+            live = Live(get_renderable=lambda: _view(target, panel, keys is not None),
+                        refresh_per_second=4, console=err_console, transient=True)
             live.start()
             state["live"] = live
         else:
@@ -289,9 +304,11 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, no
             state["lines"].start()
 
     try:
-        done = run_task(plan, driver=driver, out=run_dir, gui=gui, estop=not no_estop,
-                        on_start=on_start, perturb_seed=perturb_seed,
-                        driver_options=options, balance=balance)
+        with operator_keys() as keys:
+            state["keys"] = keys
+            done = run_task(plan, driver=driver, out=run_dir, gui=gui, stops=stops,
+                            on_start=on_start, perturb_seed=perturb_seed,
+                            driver_options=options, balance=balance, operator=keys)
     finally:
         if "live" in state:
             state["live"].stop()
@@ -360,12 +377,14 @@ def _progress_line(target, panel) -> str:
             f"{panel.words()}")
 
 
-def _view(target, panel) -> Group:
-    """The live view: one progress bar per step, the safety state, error and wrist torque."""
+def _view(target, panel, keys: bool = False) -> Group:
+    """The live view: one progress bar per step, the safety state, error and wrist torque;
+    the operator's keys when there are (a terminal)."""
     plan = target.plan
     safety = panel()
     status = PHASE_WORDS[target.phase]
-    table = Table(title=f"hubo task {plan.spec.name} — {status}", title_justify="left",
+    table = Table(title=f"hubo task {plan.spec.name} — {status}"
+                  + (f"   (keys: {KEYS_HELP})" if keys else ""), title_justify="left",
                   box=None, pad_edge=False)
     table.add_column("step")
     table.add_column("progress", width=32)
@@ -388,7 +407,8 @@ def _print_cut(summary: dict, run_dir) -> None:
     from hubo_cli.cli.safety_view import balance_summary_line
 
     stance = summary["stance"]
-    why = "emergency stop" if summary["estop"] else summary["ended"]
+    why = ("emergency stop" if summary["estop"] else "finished by the operator: q"
+           if summary.get("finished_by_operator") else summary["ended"])
     outcome = "completed" if summary["completed"] else f"[red]did not complete[/] ({why})"
     console.print(f"{summary['task']} {outcome} after {summary['duration_s']:.1f} s "
                   f"({summary['driver']})")

@@ -12,7 +12,12 @@ from rich.table import Table
 
 from hubo_cli.cli.checks import check_baud, check_seconds
 from hubo_cli.cli.hardware import driver_options, hardware_options
-from hubo_cli.cli.options import balance_option, perturb_option, robot_run_options
+from hubo_cli.cli.options import (
+    active_stops,
+    balance_option,
+    perturb_option,
+    robot_run_options,
+)
 from hubo_cli.cli.output import (
     ProgressLines,
     console,
@@ -160,8 +165,8 @@ def _view(target, panel) -> Group:
 @balance_option
 def teleop(replay, port, reconnect_timeout, baud, driver, armed, mode, speed, scale, station_map,
            wall_distance, clutch_at, duration, reach_mode, orientation_weight, allow_branch_change,
-           walk_from, no_estop, gui, out, as_json, video, perturb_seed, balance,
-           **hardware) -> None:
+           walk_from, no_estop, estop_sources, accept_reduced_safety, gui, out, as_json, video,
+           perturb_seed, balance, **hardware) -> None:
     """Drive the robot's hands from an operator's FASTRAK stream.
 
     Exactly one of --replay FILE or --port DEV. The first sample of each station calibrates it:
@@ -181,6 +186,7 @@ def teleop(replay, port, reconnect_timeout, baud, driver, armed, mode, speed, sc
               hubo teleop --port /dev/ttyUSB0
     """
     from hubo_cli.cli.replay import check_video_support
+    from hubo_cli.control.stop_choice import SOFT_SOURCES
     from hubo_cli.kinematics.arm_reach import ReachSettings
     from hubo_cli.runs import reserved_run_dir
     from hubo_cli.teleop.session import TeleopSettings
@@ -220,13 +226,15 @@ def teleop(replay, port, reconnect_timeout, baud, driver, armed, mode, speed, sc
         raise InputError(f"--walk-from {walk_from[0]:g} {walk_from[1]:g} must be metres within "
                          "10 m of the working stance", hint="e.g. --walk-from -1 0 (1 m behind)")
     stations = _station_map(station_map)
+    stops = active_stops(SOFT_SOURCES, driver, no_estop=no_estop, estop_sources=estop_sources,
+                         accept_reduced_safety=accept_reduced_safety, quiet=as_json)
     settings = TeleopSettings(
         replay=replay, port=port, driver=driver, mode=mode, speed=_speed(speed), scale=scale,
         station_arm=stations,
         wall_distance_m=None if wall_distance is None else wall_distance / 1000.0,
         duration_s=duration, clutch_at_s=tuple(clutch_at), out=out, gui=gui, baud=baud,
         reconnect_timeout_s=reconnect_timeout,
-        estop=not no_estop, driver_options=driver_options(driver, armed, **hardware),
+        stops=stops, driver_options=driver_options(driver, armed, **hardware),
         perturb_seed=perturb_seed, balance=balance, walk_from_m=walk_from,
         reach=ReachSettings.for_mode(
             mode, mode=reach_mode, allow_branch_change=allow_branch_change,
@@ -268,33 +276,28 @@ def _check_wall_reach(settings) -> None:
 
 
 def _run(settings, as_json: bool):
-    from hubo_cli.cli.keys import KeyReader
+    from hubo_cli.cli.keys import operator_keys
     from hubo_cli.cli.safety_view import SafetyPanel, read_safety
     from hubo_cli.teleop.session import run_teleop
 
     state: dict = {"target": None}
 
-    def on_key(char: str) -> None:
+    def on_key(char: str) -> None:  # teleop's own keys (space, r and q: every command's)
         target = state["target"]
         if target is None:
             return
-        if char == " ":
-            target.keys.estop = True
-        elif char == "r":
-            target.keys.release = True
-        elif char == "c":
+        if char == "c":
             target.keys.clutch = True
         elif char == "b":
             target.keys.branch = True
-        elif char in ("q", "\x1b"):
-            target.keys.quit = True
 
     def on_ready(target) -> None:
         state["target"] = target
         modules = target.modules
         if as_json:
             return
-        panel = SafetyPanel(lambda: read_safety(modules, hand_safety(target), target.world),
+        panel = SafetyPanel(lambda: read_safety(modules, hand_safety(target), target.world,
+                                                target.robot_flags),
                             bell=err_console.bell)
         state["panel"] = panel
         if interactive():
@@ -302,9 +305,6 @@ def _run(settings, as_json: bool):
                         console=err_console)
             live.start()
             state["live"] = live
-            keys = KeyReader(on_key)
-            keys.__enter__()
-            state["keys"] = keys
         else:
             lines = ProgressLines(lambda: f"teleop {target.phase}: samples "
                                           f"{target.samples_used} | {panel.words()}")
@@ -312,10 +312,10 @@ def _run(settings, as_json: bool):
             state["lines"] = lines
 
     try:
-        return run_teleop(settings, on_ready=on_ready)
+        with operator_keys(on_key) as keys:
+            settings.operator = keys
+            return run_teleop(settings, on_ready=on_ready)
     finally:
-        if "keys" in state:
-            state["keys"].__exit__(None, None, None)
         if "live" in state:
             state["live"].stop()
         if "lines" in state:

@@ -6,7 +6,12 @@ import math
 
 import click
 
-from hubo_cli.cli.options import balance_option_with, perturb_option, robot_run_options
+from hubo_cli.cli.options import (
+    active_stops,
+    balance_option_with,
+    perturb_option,
+    robot_run_options,
+)
 from hubo_cli.cli.output import console, print_json
 
 
@@ -21,7 +26,8 @@ from hubo_cli.cli.output import console, print_json
 @perturb_option
 @balance_option_with("off", "Walking: off by default (the standing balancers' reference "
                             "assumes both feet down).")
-def walk(goal: tuple[float, float, float], corrections: int, no_estop: bool, gui: bool,
+def walk(goal: tuple[float, float, float], corrections: int, no_estop: bool,
+         estop_sources: str | None, accept_reduced_safety: bool, gui: bool,
          as_json: bool, out: str | None, perturb_seed: int | None, balance: str) -> None:
     """Walk the simulated HUBO 2+ to a goal stance (ZMP preview control, footsteps, leg IK).
 
@@ -32,16 +38,22 @@ def walk(goal: tuple[float, float, float], corrections: int, no_estop: bool, gui
 
     Example: hubo walk --to 1.0 0 0
     """
+    from hubo_cli.cli.keys import announce_keys, operator_keys
+    from hubo_cli.control.stop_choice import SOFT_SOURCES
     from hubo_cli.experiments.walk import check_goal
     from hubo_cli.experiments.walk import walk as walk_to
     from hubo_cli.model import load_model
     from hubo_cli.runs import reserved_run_dir
 
     check_goal(goal)
-    with reserved_run_dir("walk", out) as run_dir:  # a bad --out fails before anything runs
-        result = walk_to(load_model(), goal, gui=gui, out=run_dir, estop=not no_estop,
+    stops = active_stops(SOFT_SOURCES, "sim", no_estop=no_estop, estop_sources=estop_sources,
+                         accept_reduced_safety=accept_reduced_safety, quiet=as_json)
+    with (reserved_run_dir("walk", out) as run_dir,  # a bad --out fails before anything runs
+          operator_keys() as keys):
+        announce_keys(keys, quiet=as_json)
+        result = walk_to(load_model(), goal, gui=gui, out=run_dir, stops=stops,
                          perturb_seed=perturb_seed, corrections=corrections,
-                         balance=balance)
+                         balance=balance, operator=keys)
     fields = result.summary() | {"ended": result.ended, "estop_events": result.estop_events,
                                  "run_dir": str(result.run_dir)}
     if as_json:

@@ -49,6 +49,7 @@ from hubo_cli.control.limits import JointLimits, hold_nan
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.otg import JointTracker
 from hubo_cli.control.status import SafetyEvent
+from hubo_cli.control.stop_choice import SOFT_SOURCES
 from hubo_cli.geometry import (
     MIN_JERK_PEAK_ACCELERATION,
     MIN_JERK_PEAK_JERK,
@@ -58,7 +59,6 @@ from hubo_cli.geometry import (
 from hubo_cli.model import RobotModel
 from hubo_cli.state import RobotState
 
-SOFT_SOURCES = ("operator", "capture-point", "wrist-torque", "stale-input")
 HARD_SOURCES = ("hard",)
 RECOVER_S = 2.5          # hrpsys default_recover_time
 RELIEF_S = 0.25          # the shortest move along the relief path (s)

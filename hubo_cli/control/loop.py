@@ -19,7 +19,8 @@ fast as possible, ``1.0`` in real time, ``x`` at x times real time. A period mor
 Ctrl-C (KeyboardInterrupt) and any exception raised by the target source or a module end in a
 smooth stop: a velocity-interface ruckig brake from the last command, passed through a soft
 error limiter, sent period by period until the command is at rest; then ``driver.stop()``. A
-second Ctrl-C during the brake stops the driver at once. A failing driver is stopped at once.
+second Ctrl-C during the brake stops the driver at once. A failing driver is stopped at once
+(one reporting device trouble has braked by itself: ``ended`` is ``device``).
 The loop never raises for these; :class:`LoopResult` says how it ended.
 """
 
@@ -37,17 +38,19 @@ from hubo_cli.control.limiter import SoftErrorLimiter
 from hubo_cli.control.limits import JointLimits, all_finite
 from hubo_cli.control.log import LOG_NAME, PeriodLog
 from hubo_cli.control.module import Cycle, Module
+from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.otg import JointTracker
 from hubo_cli.control.status import Status, status_from_flags
 from hubo_cli.control.target import Target, TargetOutput, as_target
 from hubo_cli.drivers.base import Driver
-from hubo_cli.errors import ConfigError, HuboError
+from hubo_cli.errors import ConfigError, DeviceError, HuboError
 from hubo_cli.state import RobotState
 
 TargetSource = Target | Callable[[float, RobotState], TargetOutput]
 
 LABELS = {status: status.label for status in Status}  # a property's work done once
-ENDINGS = ("finished", "done", "interrupted", "module-error", "target-error", "driver-error")
+ENDINGS = ("finished", "done", "interrupted", "module-error", "target-error", "driver-error",
+           "device")
 MAX_STOP_S = 15.0  # a brake from full speed at the slowest joint's limits takes under 2 s
 
 
@@ -57,7 +60,9 @@ class LoopResult:
 
     Attributes:
         ended: ``finished`` (duration reached), ``done`` (the target source said so),
-            ``interrupted`` (Ctrl-C), ``module-error``, ``target-error`` or ``driver-error``.
+            ``interrupted`` (Ctrl-C), ``module-error``, ``target-error``, ``driver-error`` or
+            ``device`` (the driver reported device trouble, e.g. the robot's state stopped;
+            it has braked and holds by itself).
         periods: control periods run (the smooth stop included).
         t_end_s: loop time at the end (s).
         error: one line describing the error or interruption, "" otherwise.
@@ -106,6 +111,16 @@ def _as_requests(value) -> Iterable[str]:
     return tuple(str(v) for v in value)
 
 
+def _merge_info(info: dict, pressed: dict) -> dict:
+    """A target's ``info`` with the operator's requests added (stop requests of both kept)."""
+    if not pressed:
+        return info
+    merged = {**info, **pressed}
+    if "estop" in info and "estop" in pressed:
+        merged["estop"] = (*_as_requests(info["estop"]), *_as_requests(pressed["estop"]))
+    return merged
+
+
 class ControlLoop:
     """Runs modules at a fixed rate between a target source and a driver.
 
@@ -118,18 +133,21 @@ class ControlLoop:
         log_path: write the per-period CSV here (a folder gets ``log.csv``); None = no log.
         clock, sleep: time functions (s); injectable for tests.
         max_lag_periods: lateness (in periods) that re-anchors the schedule.
+        operator: the operator's keys (:class:`~hubo_cli.control.operator.OperatorKeys`):
+            what was pressed is taken each period and merged into the target's ``info``.
     """
 
     def __init__(self, driver: Driver, modules: list[Module], target: TargetSource, *,
                  speed: float | None = None, log_path: str | Path | None = None,
                  clock: Callable[[], float] = time.perf_counter,
                  sleep: Callable[[float], None] = time.sleep,
-                 max_lag_periods: int = 20) -> None:
+                 max_lag_periods: int = 20, operator: OperatorKeys | None = None) -> None:
         if speed is not None and speed <= 0:
             raise ValueError("speed must be positive or None")
         self.driver = driver
         self.modules = list(modules)
         self.target = as_target(target)
+        self.operator = operator
         self.speed = speed
         self.dt_s = driver.period_s
         for m in self.modules:
@@ -228,6 +246,8 @@ class ControlLoop:
                 try:
                     q_target, info = self.target(t_s, state)
                     info = info or {}
+                    if self.operator is not None:
+                        info = _merge_info(info, self.operator.take())
                     cycle.estop_requests.update(_as_requests(info.get("estop")))
                     cycle.flags.update(_as_requests(info.get("flags")))
                     if info.get("release"):
@@ -254,10 +274,12 @@ class ControlLoop:
                     applied = driver.send(q)
                     state = driver.step()
                 except Exception as err:  # noqa: BLE001
-                    ended, error, exc = "driver-error", f"{type(err).__name__}: {err}", err
+                    ended = "device" if isinstance(err, DeviceError) else "driver-error"
+                    error, exc = f"{type(err).__name__}: {err}", err
                     driver.stop()
                     break
                 self._remember(np.array(q, dtype=float))
+                self.target.robot_flags = state.flags
                 cycle.flags.update(state.flags)
                 extras = dict(cycle.info)
                 for key, value in info.items():
@@ -273,7 +295,7 @@ class ControlLoop:
         except KeyboardInterrupt as err:
             ended, error, exc = "interrupted", "interrupted (Ctrl-C)", err
         try:
-            if ended != "driver-error":
+            if ended not in ("driver-error", "device"):
                 stop_periods = self._smooth_stop()
         except KeyboardInterrupt:
             error = (error + "; " if error else "") + "second Ctrl-C: stopped without the ramp"

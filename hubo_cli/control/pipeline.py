@@ -26,6 +26,7 @@ from dataclasses import dataclass, replace
 from hubo_cli.control.balance import BALANCE_MODES
 from hubo_cli.control.estop import SOFT_SOURCES
 from hubo_cli.control.module import Module
+from hubo_cli.control.stop_choice import ActiveStops
 from hubo_cli.errors import ConfigError
 from hubo_cli.model import RobotModel
 
@@ -160,6 +161,8 @@ class SafetyProfile:
             and the capture-point monitor only measures (its margin is still logged); the hard
             stopper, the collision detector and the limiter always stay.
         sources: the stop requests the soft stopper acts on (a subset of SOFT_SOURCES).
+        removed, removed_by: the sources the command line removed and its option (see
+            :mod:`hubo_cli.control.stop_choice`, the one place that decides them).
         revert_s, stop_s: eq. 15's T1 and T2 (s).
         wrist_torque_limit_nm: the wrist-torque stop's limit (N m; None = the model's).
         interpolator: ``otg`` (ruckig) or ``hoff-arbib`` (eq. 1).
@@ -194,6 +197,8 @@ class SafetyProfile:
     hip_strategy: bool = False
     tracker_groups: str = "body"
     tracker_sync: str = "phase"
+    removed: tuple[str, ...] = ()
+    removed_by: str = ""
 
     def __post_init__(self) -> None:
         if self.balance_mode not in BALANCE_MODES:
@@ -211,6 +216,19 @@ class SafetyProfile:
         if self.tracker_sync not in SYNCHRONIZATIONS:
             raise ConfigError(f"unknown tracker synchronization {self.tracker_sync!r}",
                               hint=f"use one of {', '.join(SYNCHRONIZATIONS)}")
+
+    @property
+    def active_sources(self) -> tuple[str, ...]:
+        """The sources the soft stopper acts on in this run (none without it)."""
+        return tuple(self.sources) if self.estop else ()
+
+    def with_stops(self, stops: ActiveStops | None) -> SafetyProfile:
+        """This profile with the stop sources :func:`~hubo_cli.control.stop_choice.decide_stops`
+        decided (None: this profile's own); no source leaves the soft stopper out."""
+        if stops is None:
+            return self
+        return replace(self, estop=bool(stops.sources), sources=stops.sources or self.sources,
+                       removed=stops.removed, removed_by=stops.by)
 
     @property
     def balance_choice(self) -> str:

@@ -21,6 +21,7 @@ class Status(IntEnum):
     COLLISION = 5      # the collision detector holds (or recovers from) a colliding posture
     ESTOPPED = 6       # an emergency stopper reverts, holds or blends back after release
     SERVO_OFF = 7      # the driver reports its servos off
+    STATE_STALE = 8    # no fresh robot state: the driver brakes and holds, the run ends
 
     @property
     def label(self) -> str:
@@ -42,6 +43,8 @@ FLAG_STATUS = {
     "collision": Status.COLLISION,
     "estop": Status.ESTOPPED,
     "servo-off": Status.SERVO_OFF,
+    "stale-state": Status.STATE_STALE,
+    "stale-hold": Status.STATE_STALE,
 }
 
 

@@ -23,9 +23,12 @@ class Target(ABC):
 
     Attributes:
         log_columns: the numeric ``info`` keys it returns that go into the log.
+        robot_flags: the flags of the robot's latest state (set by the loop every period;
+            the live view shows the driver's, e.g. ``stale-state``).
     """
 
     log_columns: tuple[str, ...] = ()
+    robot_flags: tuple[str, ...] = ()
 
     @abstractmethod
     def __call__(self, t_s: float, state: RobotState) -> TargetOutput:

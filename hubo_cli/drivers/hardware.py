@@ -27,8 +27,13 @@ Start-up and safety, enforced here whatever the layers above do:
 - a reference that would move a joint faster than its velocity limit (times
   ``velocity_margin``) is refused whole: servo-off latches (the last reference is held, flag
   ``servo-off``) until :meth:`reset_servo`;
-- no new state for ``stale_periods`` periods flags ``stale-state`` and holds the last reference
-  until states come again;
+- no fresh state (a new ``hubo-state`` frame whose ``time`` advances) for ``stale_after_s``
+  (0.1 s, wall clock): the pipeline's commands are ignored from then on, the reference brakes
+  to rest within the joints' limits and holds (flag ``stale-state``; ``stale-hold`` once the
+  state comes again, which never resumes the motion), and ``stale_grace_s`` (1 s) later, or
+  at the brake's rest if later, :meth:`step` raises
+  :class:`~hubo_cli.drivers.stale_state.StateLost` (exit 3), which ends the run (see
+  :mod:`hubo_cli.drivers.stale_state`);
 - any exception inside ends in a hold (the last reference keeps being sent, flag ``fault``,
   :attr:`fault_message`), never a crash. Malformed commands (wrong shape, unknown joint name)
   are the caller's error: refused with :class:`~hubo_cli.errors.ConfigError`, nothing sent.
@@ -44,6 +49,8 @@ daemon's clock, the state's age in periods).
 from __future__ import annotations
 
 import contextlib
+import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -60,6 +67,7 @@ from hubo_cli.drivers.hubo_ach_io import (
     RefSink,
     StateSource,
 )
+from hubo_cli.drivers.stale_state import StaleStateBrake
 from hubo_cli.errors import ConfigError, DeviceError, SafetyError
 from hubo_cli.model import RobotModel
 from hubo_cli.posture import home_posture
@@ -103,11 +111,13 @@ class HardwareDriver(Driver):
         ach_ref, ach_state: the channel names (hubo-ach's ``hubo-ref``, ``hubo-state``).
         ref_mode: hubo-ach mode written for every joint (0 reference filter, 1 direct).
         velocity_margin: references faster than margin x the velocity limit trip servo-off.
-        stale_periods: periods without a new state before ``stale-state`` holds.
+        stale_after_s: wall time without a fresh state before the driver brakes and holds.
+        stale_grace_s: how long after the brake began the run ends (:class:`StateLost`).
         state_wait_s: how long each period waits for the daemon's next state (default 1.5
             periods).
         start_timeout_s: how long :meth:`start` waits for the first state.
         start_tolerance_rad: how far outside its limits a joint may be measured at start.
+        clock: wall-clock time source (s) for the state's age; injectable for tests.
     """
 
     name = "hardware"
@@ -117,9 +127,10 @@ class HardwareDriver(Driver):
     def __init__(self, model: RobotModel, armed: bool = False, sink: str = "ach",
                  sink_path: str | Path | None = None, ach_ref: str = hubo_ach.CHAN_REF,
                  ach_state: str = hubo_ach.CHAN_STATE, ref_mode: int = MODE_FILTERED,
-                 velocity_margin: float = 1.02, stale_periods: int = 20,
-                 state_wait_s: float | None = None, start_timeout_s: float = 1.0,
-                 start_tolerance_rad: float = 0.02) -> None:
+                 velocity_margin: float = 1.02, stale_after_s: float = 0.1,
+                 stale_grace_s: float = 1.0, state_wait_s: float | None = None,
+                 start_timeout_s: float = 1.0, start_tolerance_rad: float = 0.02,
+                 clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__(model)
         if sink not in SINKS:
             raise ConfigError(f"unknown sink {sink!r}", hint=f"use one of {', '.join(SINKS)}")
@@ -128,9 +139,10 @@ class HardwareDriver(Driver):
                               hint="give the file's path (the run folder's hubo-ref.bin)")
         if ref_mode not in (MODE_FILTERED, MODE_DIRECT):
             raise ConfigError(f"unsupported hubo-ach mode {ref_mode}", hint="use 0 or 1")
-        if stale_periods < 1 or start_timeout_s <= 0 or velocity_margin < 1.0:
-            raise ConfigError("stale_periods must be >= 1, start_timeout_s > 0 and "
-                              "velocity_margin >= 1")
+        if not (stale_after_s > 0 and stale_grace_s >= 0 and start_timeout_s > 0
+                and velocity_margin >= 1.0):
+            raise ConfigError("stale_after_s and start_timeout_s must be > 0, stale_grace_s "
+                              ">= 0 and velocity_margin >= 1")
         for channel in (ach_ref, ach_state):
             if not channel or "/" in channel or len(channel) > 63:
                 raise ConfigError(f"bad ach channel name {channel!r}",
@@ -141,7 +153,6 @@ class HardwareDriver(Driver):
         self.ach_ref, self.ach_state = ach_ref, ach_state
         self.ref_mode = int(ref_mode)
         self.velocity_margin = float(velocity_margin)
-        self.stale_periods = int(stale_periods)
         self.state_wait_s = 1.5 * self.period_s if state_wait_s is None else float(state_wait_s)
         self.start_timeout_s = float(start_timeout_s)
         self.start_tolerance_rad = float(start_tolerance_rad)
@@ -161,7 +172,10 @@ class HardwareDriver(Driver):
         self._frame: StateFrame | None = None
         self._t0 = 0.0
         self._flags: list[str] = []
-        self._stale = 0
+        self._stale = 0  # periods since the last fresh state (logged)
+        self.stale = StaleStateBrake(model, self.period_s, float(stale_after_s),
+                                     float(stale_grace_s), clock)
+        self._sent = (self._cmd,) * 3  # the last three references put, oldest first
         self._stopped = False
         self._closed = False
 
@@ -203,7 +217,7 @@ class HardwareDriver(Driver):
         self._ref42 = frame.pos_rad.copy()
         for _ in range(int(round(self.startup_delay_s / self.period_s))):
             self._read(self.source.advance(self._ref42, self._modes()))
-        if self._stale >= self.stale_periods:
+        if self.stale.age_s >= self.stale.after_s:
             raise DeviceError(f"{self.ach_state} stopped updating during the start-up delay",
                               hint="is hubo-daemon (hubo-ach) running?")
         self._ref42 = self._frame.pos_rad.copy()  # the posture measured now is the reference
@@ -211,6 +225,7 @@ class HardwareDriver(Driver):
         self._cmd = np.clip(self._ref42[self.ach_index], self.model.lower_rad,
                             self.model.upper_rad)
         self._ref42[self.ach_index] = self._cmd
+        self._sent = (self._cmd,) * 3
         self._flags = []
         self._state = self._make_state()
         return self._state
@@ -235,6 +250,7 @@ class HardwareDriver(Driver):
     def _reset(self) -> None:
         self._seq = 0
         self._stale = 0
+        self.stale.reset()
         self._stopped = False
         self.servo_off = False
         self.fault_message = ""
@@ -273,11 +289,12 @@ class HardwareDriver(Driver):
         if self._stopped or self.fault_message:
             self._flags.append("stopped" if self._stopped else "fault")
             return
+        if self.stale.holding:  # braking or held after stale state: commands ignored
+            if self._braking():
+                self._hold(self.stale.advance())
+            return
         if self.servo_off:
             self._flags.append("servo-off")
-            return
-        if self._stale >= self.stale_periods:
-            self._flags.append("stale-state")
             return
         q, flags, frozen = checks.sanitize_command(self.model, self._cmd, q)
         self._flags += flags
@@ -297,14 +314,27 @@ class HardwareDriver(Driver):
         self._ref42[self.ach_index] = q
 
     def step(self) -> RobotState:
-        """Put this period's reference, then read the daemon's next state."""
+        """Put this period's reference, then read the daemon's next state.
+
+        Raises:
+            StateLost: ``stale_grace_s`` after a stale state began the brake (the brake's
+                hold reference has been put; :meth:`stop` puts it once more).
+        """
         self._require_started()
         try:
+            if self._braking() and not self.stale.advanced:  # no send() this period
+                self._hold(self.stale.advance())
+            self.stale.advanced = False
             self._put()
+            self._sent = (*self._sent[1:], self._cmd)
             self._read(self.source.advance(self._ref42, self._modes()))
+            self.stale.watch(self._frame.time_s - self._t0, self._sent)
         except Exception as exc:  # any internal failure ends in a hold
             self._enter_fault(exc)
         self._state = self._make_state()
+        lost = self.stale.lost(self.ach_state, self._braking())
+        if lost is not None:
+            raise lost
         return self._state
 
     def stop(self) -> None:
@@ -362,12 +392,20 @@ class HardwareDriver(Driver):
             self._flags.append("sink-full")
 
     def _read(self, frame: StateFrame | None) -> None:
-        if frame is None:
-            self._stale += 1
-            if self._stale >= self.stale_periods:
-                self._flags.append("stale-state")
+        if frame is None or (self._frame is not None and frame.time_s <= self._frame.time_s):
+            self._stale += 1  # nothing new, or a frame whose clock did not advance
             return
         self._take(frame)
+
+    def _braking(self) -> bool:
+        """The stale-state brake still moves the reference (not after a stop or a fault)."""
+        return self.stale.braking and not self._stopped and not self.fault_message
+
+    def _hold(self, q: np.ndarray) -> None:
+        """Make ``q`` (the brake's) the reference."""
+        if np.all(np.isfinite(q)):
+            self._cmd = q
+            self._ref42[self.ach_index] = q
 
     def _take(self, frame: StateFrame) -> None:
         values = np.concatenate([frame.pos_rad, frame.vel_rad_s, frame.imu_tilt_rad,
@@ -375,6 +413,7 @@ class HardwareDriver(Driver):
         if not np.isfinite(values).all():
             raise DeviceError(f"{self.ach_state} sent a non-finite value")
         self._stale = 0
+        self.stale.fresh()
         self._frame = frame
 
     def _enter_fault(self, exc: Exception) -> None:
@@ -393,10 +432,10 @@ class HardwareDriver(Driver):
         self._flags = []
         for latched, name in ((self.servo_off, "servo-off"), (bool(self.frozen_joints), "nan-ref"),
                               (bool(self.fault_message), "fault"), (self._stopped, "stopped"),
-                              (self._stale >= self.stale_periods, "stale-state"),
                               (frame.ref_wait, "ref-wait")):
             if latched and name not in flags:
                 flags.append(name)
+        flags += self.stale.flags()
         return RobotState(time_s=frame.time_s - self._t0, q_rad=frame.pos_rad[self.ach_index],
                           dq_rad_s=frame.vel_rad_s[self.ach_index],
                           imu_quat_wxyz=hubo_ach.quat_from_tilt(frame.imu_tilt_rad),

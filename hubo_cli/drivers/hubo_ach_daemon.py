@@ -7,6 +7,11 @@ hubo-daemon's reference filter (mode 0, ``HUBO_REF_FILTER_LENGTH`` 40) or direct
 publishes ``hubo_state`` with the joints at the filtered reference (an ideal motor), their
 velocity, a level IMU, zero wrenches and ``time`` = ``CLOCK_MONOTONIC`` seconds, as hubo-daemon
 does. A controller talking to it closes its loop through real ach channels.
+
+Channels it finds already there are either another daemon's (a new state frame within
+``LIVE_CHECK_S``: refused, two writers would fight) or left over from a daemon that died
+without removing them (a kill -9, a crash): those are replaced by fresh ones (their frame sizes
+and contents are not trusted) and removed at the end like the ones it created.
 """
 
 from __future__ import annotations
@@ -21,9 +26,11 @@ import numpy as np
 from hubo_cli.drivers import hubo_ach
 from hubo_cli.drivers.ach import ACH_EEXIST, ACH_MISSED_FRAME, ACH_OK, AchError, Libach
 from hubo_cli.drivers.hubo_ach import JOINT_COUNT, StateFrame
+from hubo_cli.errors import DeviceError
 
 REF_FRAMES = 64    # ring sizes of the channels this daemon creates
 STATE_FRAMES = 16
+LIVE_CHECK_S = 0.1  # 20 of hubo-daemon's periods: a live daemon publishes within it
 
 
 @dataclass
@@ -56,7 +63,15 @@ class FakeHuboDaemon:
         ref_channel, state_channel: channel names (``hubo-ref``, ``hubo-state``).
         period_s: the loop period (``HUBO_LOOP_PERIOD``).
         filter_length: ``HUBO_REF_FILTER_LENGTH``.
-        create: create the channels if they do not exist (and unlink those on :meth:`close`).
+        create: create the channels (replacing ones left over from a dead daemon; refusing
+            ones another daemon publishes) and unlink them on :meth:`close`.
+
+    Attributes:
+        created: the channels this daemon created (and removes at the end).
+        replaced: those of them that were left over from an earlier daemon.
+
+    Raises:
+        DeviceError: another daemon publishes the state channel.
     """
 
     def __init__(self, lib: Libach, posture_rad, ref_channel: str = hubo_ach.CHAN_REF,
@@ -72,16 +87,9 @@ class FakeHuboDaemon:
         self.filter_length = filter_length
         self.stats = DaemonStats()
         self.created: list[str] = []
+        self.replaced: list[str] = []
         if create:
-            for name, frames, size in ((ref_channel, REF_FRAMES, hubo_ach.REF_SIZE),
-                                       (state_channel, STATE_FRAMES, hubo_ach.STATE_SIZE)):
-                try:
-                    lib.create(name, frames, size)
-                    self.created.append(name)
-                except AchError as exc:
-                    if exc.status != ACH_EEXIST:
-                        self.unlink()
-                        raise
+            self._create_channels()
         self._ref_chan = lib.open(ref_channel)
         self._state_chan = lib.open(state_channel)
         self._filtered = posture.copy()
@@ -170,6 +178,28 @@ class FakeHuboDaemon:
         return self._filtered.copy()
 
     # ------------------------------------------------------------------ internals
+    def _create_channels(self) -> None:
+        if channel_published(self.lib, self.state_channel):
+            raise DeviceError(f"another daemon publishes {self.state_channel}: two would "
+                              "fight over the robot",
+                              hint="stop it first, or give this one other channels "
+                                   "(--ach-ref, --ach-state)")
+        for name, frames, size in ((self.ref_channel, REF_FRAMES, hubo_ach.REF_SIZE),
+                                   (self.state_channel, STATE_FRAMES, hubo_ach.STATE_SIZE)):
+            try:
+                try:
+                    self.lib.create(name, frames, size)
+                except AchError as exc:
+                    if exc.status != ACH_EEXIST:
+                        raise
+                    self.lib.unlink(name)  # left over from a dead daemon: take it over
+                    self.lib.create(name, frames, size)
+                    self.replaced.append(name)
+            except AchError:
+                self.unlink()
+                raise
+            self.created.append(name)
+
     def _drain(self) -> None:
         while self._ref_chan.get(self._buffer, last=True)[0] in (ACH_OK, ACH_MISSED_FRAME):
             pass
@@ -198,3 +228,17 @@ class FakeHuboDaemon:
         frame = StateFrame(time.clock_gettime(time.CLOCK_MONOTONIC), np.zeros(3), np.zeros(3),
                            np.zeros((4, 3)), self._filtered.copy(), vel_rad_s)
         self._state_chan.put(hubo_ach.encode_state(frame))
+
+
+def channel_published(lib: Libach, name: str) -> bool:
+    """Whether a new frame comes on channel ``name`` within :data:`LIVE_CHECK_S` (a live
+    writer); False when the channel does not exist or cannot be read (a writer killed in the
+    middle of a put can leave it so)."""
+    buffer = (ctypes.c_uint8 * (1 << 16))()  # any old frame size fits
+    try:
+        with lib.open(name) as channel:
+            channel.get(buffer, last=True)  # what is there already is not news
+            status, _ = channel.get(buffer, last=True, wait_s=LIVE_CHECK_S)
+    except AchError:
+        return False
+    return status in (ACH_OK, ACH_MISSED_FRAME)

@@ -152,7 +152,9 @@ class AchStateSource(StateSource):
     Args:
         lib: libach.
         name: the state channel (``hubo-state``).
-        wait_s: how long :meth:`advance` waits for a new frame before reporting none.
+        wait_s: how long :meth:`advance` waits for a new frame before reporting none (a third
+            of it after a period without one, so that a dead daemon does not slow the
+            caller's 200 Hz loop while it brakes).
         start_timeout_s: how long :meth:`open` waits for the first frame.
 
     Attributes:
@@ -164,6 +166,7 @@ class AchStateSource(StateSource):
         self.wait_s = wait_s
         self.start_timeout_s = start_timeout_s
         self.missed_frames = 0
+        self._late = False
         self._buffer = hubo_ach.HuboState()
         self.channel: AchChannel = lib.open(name)
 
@@ -171,7 +174,9 @@ class AchStateSource(StateSource):
         return self._get(self.start_timeout_s)
 
     def advance(self, ref_rad: np.ndarray, mode: np.ndarray) -> StateFrame | None:
-        return self._get(self.wait_s)
+        frame = self._get(self.wait_s / 3 if self._late else self.wait_s)
+        self._late = frame is None
+        return frame
 
     def _get(self, wait_s: float) -> StateFrame | None:
         status, size = self.channel.get(self._buffer, last=True, wait_s=wait_s)

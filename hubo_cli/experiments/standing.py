@@ -12,7 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
+from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
+from hubo_cli.control.stop_choice import ActiveStops
 from hubo_cli.control.target import Target
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.errors import ConfigError, InputError
@@ -168,9 +170,9 @@ class StandTarget(Target):
 def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
           balance: bool = True, *, push_at_s: float = 1.0, push_duration_s: float = 0.2,
           push_direction=(1.0, 0.0, 0.0), gui: bool = False, out: str | Path | None = None,
-          estop: bool = True, perturb_seed: int | None = None,
+          stops: ActiveStops | None = None, perturb_seed: int | None = None,
           balance_mode: str = "default", step: bool = False,
-          hip_strategy: bool = True) -> StandingResult:
+          hip_strategy: bool = True, operator: OperatorKeys | None = None) -> StandingResult:
     """Stand the simulated robot for ``duration_s`` and measure how it copes.
 
     With the default balancer the robot stands in :func:`standing_posture` (the home posture
@@ -189,7 +191,8 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
         gui: open the PyBullet window (real time).
         out: the run folder (default ``runs/<time>-sim``); it gets the log, the snapshot and
             ``summary.json``.
-        estop: keep the soft emergency stopper (see :class:`SafetyProfile`).
+        stops: the stop sources the run keeps (None: every soft source; see
+            :mod:`hubo_cli.control.stop_choice`).
         perturb_seed: a perturbed simulated robot and world (:mod:`hubo_cli.perturb`).
         balance_mode: ``default`` or ``paper`` (eq. 11-12 as published), when balance is on.
         step: catch a push the ankles cannot hold by stepping
@@ -201,6 +204,7 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
             robot file's ``walking`` limit set, whose legs are fast enough for it); only with
             the default balancer (the paper's mode and no balancer stand on Table IV's limits,
             as published), and not with ``step``, which answers such a push by stepping.
+        operator: the operator's keys (space stop, r release, q finish), if any.
     """
     check_standing_args(duration_s, push_n)
     direction = np.asarray(push_direction, dtype=float)
@@ -223,10 +227,10 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
 
         stepper = CaptureStepper(target, model, walking_params(model), q_home)
     setup = RunSetup(command="sim", model=model, driver="sim", gui=gui, out=out,
-                     safety=SafetyProfile(estop=estop, balance=balance,
-                                          balance_mode=balance_mode, hip_strategy=hip),
+                     safety=SafetyProfile(balance=balance, balance_mode=balance_mode,
+                                          hip_strategy=hip).with_stops(stops),
                      duration_s=n_periods * model.control_period_s, q_start_rad=q_home,
-                     perturb_seed=perturb_seed)
+                     perturb_seed=perturb_seed, operator=operator)
     done = run(setup, stepper)
     result = _result(target, done, duration_s, push_n, balance, model.control_period_s)
     result.push_direction = tuple(float(v) for v in direction)

@@ -8,7 +8,9 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
+from hubo_cli.control.stop_choice import ActiveStops
 from hubo_cli.errors import InputError
 from hubo_cli.model import RobotModel
 from hubo_cli.session import RunSetup, run
@@ -79,9 +81,9 @@ def check_goal(goal: tuple[float, float, float]) -> None:
 
 def walk(model: RobotModel, goal: tuple[float, float, float], *,
          params: WalkingParams | None = None, gui: bool = False,
-         out: str | Path | None = None, estop: bool = True,
+         out: str | Path | None = None, stops: ActiveStops | None = None,
          perturb_seed: int | None = None, corrections: int = 1,
-         balance: str = "off",
+         balance: str = "off", operator: OperatorKeys | None = None,
          stabilizer: StabilizerGains | None = DEFAULT_GAINS) -> WalkResult:
     """Walk the simulated robot to ``goal`` = (forward m, left m, turn rad) from its stance.
 
@@ -89,12 +91,15 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
         model: the robot model; its ``walking`` limit set is used for the run.
         goal: where the stance (midway between the soles) should end, relative to the start.
         params: walking parameters (default the robot file's).
-        gui, out, estop, perturb_seed: as for every run (:class:`~hubo_cli.session.RunSetup`).
+        gui, out, perturb_seed: as for every run (:class:`~hubo_cli.session.RunSetup`).
+        stops: the stop sources the run keeps (None: every soft source; see
+            :mod:`hubo_cli.control.stop_choice`).
         corrections: how many times to plan again from where the feet stand when the walk
             ended off the goal (the feet slip a little on every step).
         balance: the standing balancer, ``default``, ``paper`` or ``off`` (``--balance``; its
             reference assumes both feet down and the CoM over them, which walking breaks: off
             by default).
+        operator: the operator's keys (space stop, r release, q finish), if any.
         stabilizer: the walking stabilizer's gains (:mod:`hubo_cli.walking.stabilizer`);
             None walks the pattern open loop.
     """
@@ -109,8 +114,8 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
     target = WalkTarget(walking_model, params, goal, q_start, T_world_neck, corrections,
                         stabilizer=stabilizer)
     setup = RunSetup(command="walk", model=walking_model, driver="sim", gui=gui, out=out,
-                     safety=SafetyProfile(estop=estop).with_balance(balance), q_start_rad=q_start,
-                     perturb_seed=perturb_seed)
+                     safety=SafetyProfile().with_stops(stops).with_balance(balance),
+                     q_start_rad=q_start, perturb_seed=perturb_seed, operator=operator)
     done = run(setup, target)
     error_m, error_rad = target.final_error()
     distance = math.hypot(goal[0], goal[1])

@@ -27,6 +27,7 @@ from hubo_cli.errors import InputError
 from hubo_cli.kinematics.choice import STATUS_NAMES
 from hubo_cli.kinematics.dh import JIT
 from hubo_cli.kinematics.limb import Limb
+from hubo_cli.outputs import OutputFile
 
 POSE_COLUMNS = [f"T{i}{j}" for i in range(4) for j in range(4)]
 PREV_COLUMNS = [f"qprev{k}" for k in range(1, 7)]
@@ -133,12 +134,14 @@ def _read_table(data: bytes, header: list[str]) -> pl.DataFrame:
                          hint="one pose per line, fields separated by commas") from None
 
 
-def solve_csv(limb: Limb, in_path: str | Path, out_path: str | Path) -> BatchReport:
-    """Solve every pose of ``in_path`` with ``limb`` and write ``out_path``.
+def solve_csv(limb: Limb, in_path: str | Path, out_path: str | Path, *,
+              force: bool = False) -> BatchReport:
+    """Solve every pose of ``in_path`` with ``limb`` and write ``out_path`` (whole or not at
+    all: see :mod:`hubo_cli.outputs`).
 
     Raises:
-        InputError: the file is missing, empty, its header lacks T00..T33, or ``out_path`` is
-            the input file (it would be overwritten).
+        InputError: the file is missing, empty or its header lacks T00..T33, or ``out_path``
+            is refused (the input file, a run's file, or an existing file without ``force``).
     """
     t0 = time.perf_counter()
     in_path, out_path = Path(in_path), Path(out_path)
@@ -147,9 +150,7 @@ def solve_csv(limb: Limb, in_path: str | Path, out_path: str | Path) -> BatchRep
     except OSError as exc:
         raise InputError(f"cannot read {in_path}: {exc.strerror}",
                          hint="check the path of --batch") from None
-    if out_path.exists() and out_path.resolve() == in_path.resolve():
-        raise InputError(f"--out {out_path} is the input file: it would be overwritten",
-                         hint="write the results to another file, e.g. --out results.csv")
+    out = OutputFile(out_path, inputs=(in_path,), force=force)
     header = _read_header(in_path, data)
     table = _read_table(data, header)
     n_rows = table.height
@@ -179,7 +180,8 @@ def solve_csv(limb: Limb, in_path: str | Path, out_path: str | Path) -> BatchRep
         result = limb.solve_batch(poses[good], prevs[good] if has_prev else None)
         q[good], status[good] = result.q_rad, result.status
         pos_err[good], rot_err[good] = result.position_error_m, result.rotation_error_rad
-    _write(out_path, q, status, pos_err, rot_err)
+    with out.writing() as temporary:
+        _write(temporary, out_path, q, status, pos_err, rot_err)
     names = (*STATUS_NAMES, "invalid")
     counts = {name: int(n) for name, n in zip(names, np.bincount(status, minlength=len(names)),
                                                strict=True)}
@@ -187,7 +189,8 @@ def solve_csv(limb: Limb, in_path: str | Path, out_path: str | Path) -> BatchRep
     return BatchReport(n_rows, int(good.sum()), bad, counts, time.perf_counter() - t0)
 
 
-def _write(out_path: Path, q, status, pos_err, rot_err) -> None:
+def _write(path: Path, out_path: Path, q, status, pos_err, rot_err) -> None:
+    """Write the results to ``path`` (a temporary name of ``out_path``, named in errors)."""
     names = pl.Series([*STATUS_NAMES, "invalid"], dtype=pl.String)
     columns = {"line": pl.Series(np.arange(2, len(q) + 2, dtype=np.int64))}
     columns |= {f"q{k + 1}": pl.Series(q[:, k], nan_to_null=True) for k in range(6)}
@@ -195,7 +198,7 @@ def _write(out_path: Path, q, status, pos_err, rot_err) -> None:
                 "pos_err_m": pl.Series(pos_err, nan_to_null=True),
                 "rot_err_rad": pl.Series(rot_err, nan_to_null=True)}
     try:
-        pl.DataFrame(columns).write_csv(out_path)
+        pl.DataFrame(columns).write_csv(path)
     except OSError as exc:
         raise InputError(f"cannot write {out_path}: {exc.strerror}",
                          hint="check the path of --out") from None

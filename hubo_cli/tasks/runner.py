@@ -18,7 +18,9 @@ import numpy as np
 
 from hubo_cli.control.estop import RELIEVE_SOURCES
 from hubo_cli.control.loop import LoopResult
+from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
+from hubo_cli.control.stop_choice import ActiveStops
 from hubo_cli.errors import InputError, SafetyError
 from hubo_cli.model import RobotModel, load_model
 from hubo_cli.posture import home_posture
@@ -52,32 +54,34 @@ def check_task(spec: TaskSpec, model: RobotModel | None = None) -> Plan:
 
 
 def task_setup(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
-               gui: bool = False, estop: bool = True,
+               gui: bool = False, stops: ActiveStops | None = None,
                driver_options: dict | None = None, perturb_seed: int | None = None,
-               balance: str = "default") -> RunSetup:
+               balance: str = "default", operator: OperatorKeys | None = None) -> RunSetup:
     """The run set-up of a checked plan: the plan's own model and tool, the task's safety
-    settings with the balancer ``balance`` names (``--balance``), a duration long enough for
-    the plan and its settling waits."""
+    settings with the stop sources ``stops`` keeps (None: the task's;
+    :func:`~hubo_cli.control.stop_choice.decide_stops` decides them) and the balancer
+    ``balance`` names (``--balance``), a duration long enough for the plan and its settling
+    waits; ``operator``: the operator's keys, if any."""
     spec = plan.spec
     safety = spec.safety
     return RunSetup(
         command=f"task-{spec.name}", model=plan.body.model,
         tools=plan.body.tools, driver=driver,
         driver_options=dict(driver_options or {}),
-        safety=SafetyProfile(estop=estop, sources=tuple(safety.estop_sources),
+        safety=SafetyProfile(sources=tuple(safety.estop_sources),
                              revert_s=safety.revert_s, stop_s=safety.stop_s,
                              wrist_torque_limit_nm=safety.wrist_torque_limit_nm
-                             ).with_balance(balance),
+                             ).with_stops(stops).with_balance(balance),
         gui=gui, out=out, q_start_rad=home_posture(plan.body.model),
         duration_s=plan.duration_s + 3 * SETTLE_TIMEOUT_S + 10.0,
         cutting=asdict(spec.scene.cutting),
-        perturb_seed=perturb_seed)
+        perturb_seed=perturb_seed, operator=operator)
 
 
 def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
-             gui: bool = False, estop: bool = True, driver_options: dict | None = None,
-             on_start=None, perturb_seed: int | None = None,
-             balance: str = "default") -> TaskRun:
+             gui: bool = False, stops: ActiveStops | None = None,
+             driver_options: dict | None = None, on_start=None, perturb_seed: int | None = None,
+             balance: str = "default", operator: OperatorKeys | None = None) -> TaskRun:
     """Run a checked plan and write its run folder.
 
     Args:
@@ -85,11 +89,13 @@ def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
         driver: ``sim``, ``ideal`` or ``hardware``.
         out: the run folder (default ``runs/<time>-task-<name>``).
         gui: open the PyBullet window (sim; real time).
-        estop: keep the soft emergency stopper (see :class:`SafetyProfile`).
+        stops: the stop sources the run keeps (None: the task's; see
+            :mod:`hubo_cli.control.stop_choice`).
         driver_options: passed to the driver (e.g. ``armed`` for hardware).
         on_start: called with the :class:`TaskTarget` once the robot has started (live view).
         perturb_seed: a perturbed simulated robot and world (:mod:`hubo_cli.perturb`).
         balance: the balancer, ``default``, ``paper`` or ``off`` (``--balance``).
+        operator: the operator's keys (space stop, r release, q finish), if any.
 
     Raises:
         SafetyError: the plan did not pass pre-flight (nothing moves).
@@ -98,15 +104,14 @@ def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
         raise SafetyError(plan.preflight.worst_per_step()[0].message(),
                           hint="the task was refused in pre-flight; nothing moved")
     with settled_objects():
-        return _run_task(plan, driver, out, gui, estop, driver_options, on_start, perturb_seed,
-                         balance)
+        setup = task_setup(plan, driver=driver, out=out, gui=gui, stops=stops,
+                           driver_options=driver_options, perturb_seed=perturb_seed,
+                           balance=balance, operator=operator)
+        return _run_task(plan, setup, on_start, balance)
 
 
-def _run_task(plan: Plan, driver: str, out, gui: bool, estop: bool, driver_options,
-              on_start, perturb_seed: int | None, balance: str) -> TaskRun:
-    setup = task_setup(plan, driver=driver, out=out, gui=gui, estop=estop,
-                       driver_options=driver_options, perturb_seed=perturb_seed,
-                       balance=balance)
+def _run_task(plan: Plan, setup: RunSetup, on_start, balance: str) -> TaskRun:
+    driver = setup.driver
     target = TaskTarget(plan)
     start = plan.spec.stance.start_m
     if start is not None and driver != "sim":
@@ -123,7 +128,7 @@ def _run_task(plan: Plan, driver: str, out, gui: bool, estop: bool, driver_optio
                                            frames=(tool_frame(stance.limb, stance.tool),))
         done = run(setup, approach,
                    on_start=None if on_start is None else lambda _: on_start(target))
-    _write_task_copy(plan.spec, done.run_dir, balance)
+    _write_task_copy(plan.spec, done.run_dir, balance, setup.safety)
     done.add_file("task.toml")
     summary = done.save_summary(summarise(plan, target, done))
     if start is not None:
@@ -135,10 +140,17 @@ def _run_task(plan: Plan, driver: str, out, gui: bool, estop: bool, driver_optio
     return TaskRun(done.run_dir, summary, done.loop, plan)
 
 
-def _write_task_copy(spec: TaskSpec, run_dir: Path, balance: str = "default") -> None:
-    """The task file as run; overridden parameters and the balancer are noted at the top
-    (``--set`` them, ``--balance``)."""
-    header = [f"# run of {spec.path}"]
+def _write_task_copy(spec: TaskSpec, run_dir: Path, balance: str,
+                     safety: SafetyProfile) -> None:
+    """The task file as run; overridden parameters, the balancer and the stops that were
+    active are noted at the top (``--set`` them, ``--balance``, ``--estop-sources``)."""
+    active = ", ".join(safety.active_sources) or "none"
+    header = [f"# run of {spec.path}",
+              f"# safety of this run: e-stop sources {active}; wrist torque limit "
+              f"{spec.safety.wrist_torque_limit_nm:g} N m"]
+    if safety.removed:
+        header.append(f"# stop sources removed on the command line: "
+                      f"{', '.join(safety.removed)} ({safety.removed_by})")
     if spec.overridden:
         sets = " ".join(f"--set {k}={format_override(v)}" for k, v in spec.overridden.items())
         header.append(f"# parameters changed for this run: hubo task run task.toml {sets}")
@@ -287,15 +299,15 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
 
 
 def run_experiment(spec: TaskSpec, *, out: str | Path | None = None, gui: bool = False,
-                   estop: bool | None = None, perturb_seed: int | None = None,
+                   estop: bool = True, perturb_seed: int | None = None,
                    balance: str = "default") -> TaskRun:
     """Run an experiment task (its built-in procedure with the file's parameters);
-    ``estop`` (``--no-estop``) overrides the file's; ``perturb_seed`` perturbs the robot;
-    ``balance`` names the balancer (``--balance``)."""
+    ``estop`` is the command line's (``--no-estop``: a file cannot turn the stopper off, see
+    :mod:`hubo_cli.tasks.spec`); ``perturb_seed`` perturbs the robot; ``balance`` names the
+    balancer (``--balance``)."""
     from hubo_cli.experiments.push_wall import run_push_wall
 
     params = spec.parameters
-    estop = bool(params.get("estop", True)) if estop is None else estop
     result = run_push_wall(load_model(), direction=str(params.get("direction", "forward")),
                            estop=estop, out=out, gui=gui,
                            interpolator=str(params.get("interpolator", "otg")),

@@ -23,7 +23,9 @@ the step runner, :mod:`hubo_cli.tasks.runner`) or ``experiment`` (a built-in pro
     ``thrust_n``, ``thrust_n_s_per_m``, ``spindle_torque_nm``, ``smooth_m_s``).
 ``[safety]``
     ``estop_sources`` (of ``operator``, ``capture-point``, ``wrist-torque``,
-    ``stale-input``), ``wrist_torque_limit_nm``, ``revert_s`` (T1), ``stop_s`` (T2).
+    ``stale-input``; the first three always), ``wrist_torque_limit_nm`` (at most the robot
+    file's), ``revert_s`` (T1), ``stop_s`` (T2). A file or ``--set`` only tightens these; a
+    stop source is removed on the command line alone (``--estop-sources``, ``--no-estop``).
 ``[[steps]]``
     In order, each with a ``kind`` and an optional ``name``:
 
@@ -54,13 +56,14 @@ import tomllib
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
+from hubo_cli.control.stop_choice import SOFT_SOURCES, TASK_SOURCES, stops_words
 from hubo_cli.errors import ConfigError
 from hubo_cli.resources import data_dir
 from hubo_cli.scene import CuttingModel
 from hubo_cli.tasks.toml_lines import field_line
 
 STEP_KINDS = ("move", "plunge", "follow", "retract", "wait")
-ESTOP_SOURCES = ("operator", "capture-point", "wrist-torque", "stale-input")
+ESTOP_SOURCES = SOFT_SOURCES
 CORNERS = {"upper-left": (1, 1), "upper-right": (-1, 1), "lower-left": (1, -1),
            "lower-right": (-1, -1)}  # (sign of y, sign of z): the robot's left is +y
 EXPERIMENTS = ("push-wall",)
@@ -115,8 +118,8 @@ class Scene:
 class Safety:
     """Emergency-stop settings: enabled sources, wrist torque threshold (N m), T1 and T2 (s)."""
 
-    estop_sources: tuple[str, ...] = ("operator", "capture-point", "wrist-torque")
-    wrist_torque_limit_nm: float = 1.21
+    estop_sources: tuple[str, ...] = TASK_SOURCES
+    wrist_torque_limit_nm: float = 1.21  # the loader's default is the robot file's
     revert_s: float = 0.5
     stop_s: float = 0.5
 
@@ -401,6 +404,15 @@ class _Loader:
             if experiment not in EXPERIMENTS:
                 raise self.fail("experiment", f"unknown experiment {experiment!r}",
                                 hint=f"use one of {', '.join(EXPERIMENTS)}")
+            if params.get("estop", True) is not True:  # only the command line turns it off
+                where = ("set on the command line" if "estop" in self.overrides
+                         else "in the task file")
+                raise ConfigError(f"parameter estop = {format_override(params['estop'])} ({where}) "
+                                  "would turn the emergency stopper off", path=str(self.path),
+                                  line=field_line(self.text, "parameters.estop"),
+                                  field="parameters.estop",
+                                  hint="leave it true; to run without the stopper, say so on "
+                                       "the command line: --no-estop")
             table.finish()
             return TaskSpec(name, description, self.path, params, defaults,
                             experiment=experiment)
@@ -453,14 +465,31 @@ class _Loader:
         return scene
 
     def _safety(self, t: _Table) -> Safety:
+        """The file's stop settings, which may only tighten the robot's (more sources, a
+        lower wrist-torque limit): removing a stop is the command line's choice alone
+        (:mod:`hubo_cli.control.stop_choice`)."""
+        from hubo_cli.model import load_model
+
         d = Safety()
         sources = t.value("estop_sources", default=list(d.estop_sources))
         if not isinstance(sources, list) or any(s not in ESTOP_SOURCES for s in sources):
             raise self.fail(t.key("estop_sources"), f"must be a list of sources, got {sources!r}",
                             hint=f"choose from {', '.join(ESTOP_SOURCES)}")
-        safety = Safety(tuple(sources),
-                        t.number("wrist_torque_limit_nm", positive=True,
-                                 maximum=WRIST_TORQUE_MAX_NM, default=d.wrist_torque_limit_nm),
+        missing = [s for s in TASK_SOURCES if s not in sources]
+        if missing:
+            kept = ",".join(s for s in ESTOP_SOURCES if s in sources) or "none"
+            raise self.fail(t.key("estop_sources"), f"a task may add stop sources but not "
+                            f"remove the {stops_words(missing)}",
+                            hint=f"to run without the {stops_words(missing)}, say so on "
+                                 f"the command line: --estop-sources {kept}")
+        robot_limit_nm = float(load_model().safety["wrist_torque_limit_nm"])
+        limit = t.number("wrist_torque_limit_nm", positive=True, maximum=WRIST_TORQUE_MAX_NM,
+                         default=robot_limit_nm)
+        if limit > robot_limit_nm:
+            raise self.fail(t.key("wrist_torque_limit_nm"), f"{limit:g} N m is above the robot "
+                            f"file's limit of {robot_limit_nm:g} N m: a task may only lower it",
+                            hint=f"give at most {robot_limit_nm:g}, or leave it out")
+        safety = Safety(tuple(s for s in ESTOP_SOURCES if s in sources), limit,
                         t.number("revert_s", positive=True, maximum=STOP_MAX_S,
                                  default=d.revert_s),
                         t.number("stop_s", positive=True, maximum=STOP_MAX_S,

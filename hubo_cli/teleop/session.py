@@ -8,7 +8,9 @@ from pathlib import Path
 import numpy as np
 
 from hubo_cli.control.loop import LoopResult
+from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
+from hubo_cli.control.stop_choice import ActiveStops
 from hubo_cli.errors import InputError
 from hubo_cli.fastrak.opener import open_source
 from hubo_cli.fastrak.source import PoseSource
@@ -57,7 +59,10 @@ class TeleopSettings:
         clutch_at_s: replay times at which to re-centre.
         out: run folder (None: runs/<time>-teleop).
         reach: how the arms behave at the edge of their reach (None: the mode's defaults).
-        gui, baud, estop, driver_options: passed on.
+        gui, baud, driver_options: passed on.
+        stops: the stop sources the run keeps (None: every soft source; see
+            :mod:`hubo_cli.control.stop_choice`).
+        operator: the operator's keys (space stop, r release, q finish), if any.
         reconnect_timeout_s: live: a lost tracker ends the run after this long without
             reconnecting (``--reconnect-timeout``).
         perturb_seed: a perturbed simulated robot and world (:mod:`hubo_cli.perturb`).
@@ -80,7 +85,8 @@ class TeleopSettings:
     gui: bool = False
     baud: int = 115200
     reconnect_timeout_s: float = 10.0
-    estop: bool = True
+    stops: ActiveStops | None = None
+    operator: OperatorKeys | None = None
     driver_options: dict = field(default_factory=dict)
     perturb_seed: int | None = None
     reach: ReachSettings | None = None
@@ -168,12 +174,11 @@ def teleop_setup(settings: TeleopSettings, body: WholeBody, duration_s: float | 
     return RunSetup(
         command="teleop", model=body.model, tools=dict(body.tools), driver=settings.driver,
         driver_options=dict(settings.driver_options),
-        safety=SafetyProfile(estop=settings.estop,
-                             tracker_groups="limbs" if settings.mode == "free" else "body"
-                             ).with_balance(settings.balance),
+        safety=SafetyProfile(tracker_groups="limbs" if settings.mode == "free" else "body"
+                             ).with_stops(settings.stops).with_balance(settings.balance),
         speed=settings.speed, live_input=settings.port is not None, gui=settings.gui,
         out=settings.out, duration_s=duration_s, q_start_rad=home_posture(body.model),
-        perturb_seed=settings.perturb_seed)
+        perturb_seed=settings.perturb_seed, operator=settings.operator)
 
 
 def run_teleop(settings: TeleopSettings, on_ready=None) -> TeleopRun:
