@@ -223,6 +223,34 @@ def test_wrist_torque_stop_without_a_usable_relief_holds_where_it_braked(model, 
     assert not any(BRAKE_FLAG in f for f, h in zip(flags, held, strict=True) if h)
 
 
+@pytest.mark.parametrize("release_after_s", [0.02, 0.1, 0.2])
+def test_a_release_while_the_wrist_stop_brakes_or_relieves_blends_back_smoothly(
+        model, release_after_s):
+    """Released while braking (0.02 s) or backing out (0.1, 0.2 s): the output blends back to
+    the live input from where it is, no step (each period's move within the velocity limit)."""
+    stopper = EmergencyStopper(model, DT)
+    q0 = home_posture(model)
+    stopper.reset(q0, RobotState(0.0, q0, np.zeros(24)))
+    delta = np.zeros(24)
+    delta[:6] = [0.03, 0.02, -0.02, 0.04, 0.01, -0.03]
+    stopper.relief = lambda q: q + np.linspace(0.0, 1.0, 4)[1:, None] * delta
+    outputs = []
+    for k in range(int(round(5.0 / DT))):
+        t = k * DT
+        state = RobotState(t, q0, np.zeros(24))
+        if k == 200:
+            state.ft["right-wrist"] = np.array([0, 0, 0, 0, 2.0, 0.0])
+        if k == 200 + int(round(release_after_s / DT)):
+            stopper.release()
+        q = q0.copy()
+        q[:4] -= smooth_ramp(t, 0.3)
+        outputs.append(stopper.update(q, state, Cycle(t, DT)))
+    outputs = np.array(outputs)
+    assert stopper.events[-1].kind == "release" and stopper.mode in ("recover", "release")
+    steps = np.abs(np.diff(outputs, axis=0)) / DT
+    assert np.all(steps <= model.velocity_rad_s + 1e-9)
+
+
 def test_latch_release_and_sources(model):
     stopper = EmergencyStopper(model, DT, sources=("operator", "wrist-torque"))
     q0 = home_posture(model)

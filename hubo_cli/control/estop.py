@@ -269,6 +269,9 @@ class EmergencyStopper(Module):
         if requests and self.mode in ("release", "recover"):
             self._latch(cycle.t_s, requests)
         elif self._release and self.mode in ("stop", "hold"):
+            if self._relieving:  # released while braking or relieving: blend back from there
+                self.tracker.reset(*self._output_state())
+                self._relieving = None
             self.mode = "recover"
             self.t_recover_end_s = cycle.t_s + self.recover_s
             self.events.append(SafetyEvent(cycle.t_s, "release", ()))
