@@ -441,8 +441,10 @@ def _print_cut(summary: dict, run_dir) -> None:
 def _stop_words(stop: dict) -> str:
     """The e-stop line of the text summary: what latched it, what the stopper did, and the
     wrist torque and bit travel after the latch apart from those before it."""
+    before = stop["wrist_torque_nm"]
     words = (f"[red]{', '.join(stop['sources'])}[/] at {stop['t_s']:.2f} s in step "
-             f"'{stop['step']}' (wrist {stop['wrist_torque_nm']:.2f} N m): ")
+             f"'{stop['step']}'" + (f" (wrist {before:.2f} N m)" if before is not None else "")
+             + ": ")
     if stop["reverted_to_t_s"] is not None:
         words += f"reverted to the command of {stop['reverted_to_t_s']:.2f} s"
     elif stop["retreat_mm"] is not None:
