@@ -65,3 +65,13 @@ class SafetyError(HuboError):
     """A safety rule refused an action before anything moved (e.g. the hardware is not armed)."""
 
     exit_code = 4
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where Ctrl-C raises KeyboardInterrupt: a run ends the same way (its
+    smooth stop, its summary, exit 130)."""
+
+
+def interrupt_cause(exc: BaseException) -> str:
+    """What interrupted a run: ``SIGTERM`` or ``Ctrl-C``."""
+    return "SIGTERM" if isinstance(exc, Terminated) else "Ctrl-C"

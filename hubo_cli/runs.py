@@ -6,6 +6,10 @@ else (a user's own files, another command's run) is refused: a run never writes 
 did not make. A default folder's name is made safe (:func:`folder_name`: a task file's
 ``name`` cannot lead out of ``runs/``). Output files outside run folders go through
 :mod:`hubo_cli.outputs`.
+
+A run holds its folder locked while it writes it (``flock`` on the marker, held from
+:func:`make_run_dir` to :func:`release_run_dir`, or the process's end): a second run into the
+same folder is refused before it writes anything, and the first is left alone.
 """
 
 from __future__ import annotations
@@ -24,6 +28,11 @@ import numpy as np
 
 from hubo_cli.errors import InputError
 
+try:  # POSIX: advisory locks
+    import fcntl
+except ImportError:  # pragma: no cover (no locks: a second run is not detected)
+    fcntl = None
+
 MARKER = ".hubo-run"
 RUNS_DIR = Path("runs")
 NAME_MAX_BYTES = 96  # of a folder name's command part in UTF-8 (a file system allows 255)
@@ -40,6 +49,9 @@ def folder_name(command: str) -> str:
     while len(name.encode()) > NAME_MAX_BYTES:
         name = name[:-1]
     return name.strip("._-") or "unnamed"
+# run folder (resolved) -> [the marker's file descriptor, holding its lock; how many holders
+# in this process]: make_run_dir takes a hold, release_run_dir gives one back
+_LOCKS: dict[Path, list[int]] = {}
 
 
 def _default_dir(command: str) -> Path:
@@ -98,17 +110,18 @@ def check_run_dir(command: str, out: str | Path) -> None:
 def make_run_dir(command: str, out: str | Path | None = None) -> Path:
     """Create and return the run folder (``out`` if given, else runs/<UTC time>-<command>).
 
-    The folder gets its marker; a folder already marked for ``command`` is reused.
+    The folder gets its marker; a folder already marked for ``command`` is reused. The
+    folder stays locked until :func:`release_run_dir` (or the process ends).
 
     Raises:
-        InputError: ``out`` is refused (see :func:`check_run_dir`) or cannot be created or
-            written (the operating system's reason).
+        InputError: ``out`` is refused (see :func:`check_run_dir`), another run is writing it,
+            or it cannot be created or written (the operating system's reason).
     """
     path = _default_dir(command) if out is None else Path(out)
     check_run_dir(command, path)
     try:
         path.mkdir(parents=True, exist_ok=True)
-        (path / MARKER).write_text(folder_name(command) + "\n")
+        _lock(path, folder_name(command))
     except OSError as exc:
         raise InputError(f"cannot create the run folder {path}: {exc.strerror or exc}",
                          hint="choose a writable --out folder") from None
@@ -116,6 +129,42 @@ def make_run_dir(command: str, out: str | Path | None = None) -> Path:
         raise InputError(f"the run folder {path} is not writable",
                          hint="choose a writable --out folder")
     return path
+
+
+def _lock(path: Path, command: str) -> None:
+    """Take a hold of the run folder's lock (the marker, written with ``command``); a lock
+    another process holds is refused (InputError)."""
+    held = _LOCKS.get(path.resolve())
+    if held is not None:  # this process's run already holds it
+        held[1] += 1
+        return
+    fd = os.open(path / MARKER, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        if fcntl is not None:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        os.ftruncate(fd, 0)
+        os.write(fd, (command + "\n").encode())
+    except BlockingIOError:
+        os.close(fd)
+        raise InputError(f"--out {path} is being written by another run; nothing was written",
+                         hint="wait for that run to end, or choose another --out") from None
+    except BaseException:
+        os.close(fd)
+        raise
+    _LOCKS[path.resolve()] = [fd, 1]
+
+
+def release_run_dir(path: str | Path) -> None:
+    """Give back a hold of the run folder's lock (:func:`make_run_dir` took it); the last
+    one unlocks the folder."""
+    key = Path(path).resolve()
+    held = _LOCKS.get(key)
+    if held is None:
+        return
+    held[1] -= 1
+    if held[1] <= 0:
+        del _LOCKS[key]
+        os.close(held[0])
 
 
 @contextlib.contextmanager
@@ -127,6 +176,7 @@ def reserved_run_dir(command: str, out: str | Path | None = None) -> Iterator[Pa
         yield path
     finally:
         discard_if_unused(path)
+        release_run_dir(path)
 
 
 def discard_if_unused(path: str | Path) -> bool:

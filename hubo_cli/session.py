@@ -35,6 +35,7 @@ from hubo_cli.control.log import (
     LOG_NAME,
     META_NAME,
     PARQUET_NAME,
+    ROWS_NAME,
     LogData,
     load_log,
     max_velocity_ratio,
@@ -47,9 +48,9 @@ from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.target import Target
 from hubo_cli.drivers.base import RunContext
 from hubo_cli.drivers.registry import driver_class, make_driver
-from hubo_cli.errors import HuboError, InputError
+from hubo_cli.errors import DeviceError, HuboError, InputError
 from hubo_cli.model import RobotModel
-from hubo_cli.runs import discard_if_unused, make_run_dir, write_json
+from hubo_cli.runs import discard_if_unused, make_run_dir, release_run_dir, write_json
 
 SUMMARY_NAME = "summary.json"
 SNAPSHOT_NAME = "snapshot.png"
@@ -192,7 +193,16 @@ def run(setup: RunSetup, target: Target,
             folder is removed again).
     """
     speed = setup.pace()
-    run_dir = make_run_dir(setup.command, setup.out)
+    run_dir = make_run_dir(setup.command, setup.out)  # locked until the run is written
+    try:
+        return _run_in(setup, target, on_start, speed, run_dir)
+    finally:
+        release_run_dir(run_dir)
+
+
+def _run_in(setup: RunSetup, target: Target, on_start, speed: float | None,
+            run_dir: Path) -> RunResult:
+    """:func:`run` in its locked run folder."""
     try:
         cls = driver_class(setup.driver)
         context = RunContext(run_dir, dict(setup.tools), setup.gui, setup.cutting,
@@ -211,6 +221,8 @@ def run(setup: RunSetup, target: Target,
             loop = ControlLoop(driver, modules, target, speed=speed, log_path=run_dir,
                                operator=setup.operator)
             result = loop.run(setup.duration_s)
+            if result.ended == "log-error":  # a full disk: no snapshot, no log read back
+                _end_without_log(setup, speed, result, modules, run_dir)
             metadata = {}
             if world is not None:
                 world.snapshot_png(run_dir / SNAPSHOT_NAME)
@@ -222,6 +234,8 @@ def run(setup: RunSetup, target: Target,
     update_log_metadata(run_dir, metadata)
     summary = common_summary(setup, speed, result, modules, run_dir)
     done = RunResult(run_dir, result, modules, summary)
+    summary["started_utc"] = done.log.started_utc  # the log's, the one home of the fact
+    summary["hubo_cli_version"] = done.log.hubo_cli_version
     summary["max_joint_velocity_ratio"] = max_velocity_ratio(setup.model, done.log)
     summary.update(balance_report(done.log, setup.model,
                                   drill=setup.tools.get("right-arm") == "drill"))
@@ -230,6 +244,25 @@ def run(setup: RunSetup, target: Target,
         summary["max_torso_tilt_deg"] = world.max_tilt_deg
     write_json(run_dir / SUMMARY_NAME, summary)
     return done
+
+
+def _end_without_log(setup: RunSetup, speed: float | None, loop: LoopResult,
+                     modules: list[Module], run_dir: Path) -> None:
+    """A run whose log could not be written (a full disk) was braked to a stop: write what
+    summary the disk still takes and raise DeviceError (exit 3) saying so."""
+    summary = common_summary(setup, speed, loop, modules, run_dir)
+    partial = run_dir / (SUMMARY_NAME + ".part")
+    try:  # a summary whole or none: written aside, then renamed
+        write_json(partial, summary)
+        partial.replace(run_dir / SUMMARY_NAME)
+    except OSError:
+        with contextlib.suppress(OSError):
+            partial.unlink(missing_ok=True)
+    kept = ("its records are kept in log.rows: `hubo replay` writes log.csv from them once "
+            "there is space" if (run_dir / ROWS_NAME).exists() else "")
+    raise DeviceError(f"{loop.error}; the run was braked to a stop after {loop.t_end_s:.2f} s",
+                      hint="free space on that disk or choose another --out"
+                           + (f" ({kept})" if kept else ""))
 
 
 def common_summary(setup: RunSetup, speed: float | None, loop: LoopResult,

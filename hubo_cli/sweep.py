@@ -177,6 +177,7 @@ def run_job(job: Job, out_dir: str | Path) -> Row:
     except HuboError as exc:
         row = Row(job.command, job.seed, dict(job.parameters), completed=False, ended="error",
                   error=str(exc))
+    row.completed = row.completed and row.ended != "interrupted"  # Ctrl-C or SIGTERM
     row.wall_clock_s = time.perf_counter() - t0
     row.run_dir = str(run_dir)
     return row
@@ -280,7 +281,10 @@ def run_sweep(jobs: Sequence[Job], out_dir: str | Path, *, workers: int | None =
     try:
         if scheduler is None and workers == 0:
             for index, job in enumerate(jobs):
-                finished(index, run_job(job, out_dir))
+                row = run_job(job, out_dir)
+                finished(index, row)
+                if row.ended == "interrupted":  # the run took the Ctrl-C (SIGTERM): stop here
+                    raise KeyboardInterrupt
         else:
             _run_on_dask(jobs, out_dir, n_workers, scheduler, finished)
     except KeyboardInterrupt:

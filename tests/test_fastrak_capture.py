@@ -7,6 +7,7 @@ import pytest
 
 from hubo_cli.errors import InputError
 from hubo_cli.fastrak.capture import (
+    CHUNK_HEAD,
     MAGIC,
     load_recording,
     parse_capture,
@@ -155,7 +156,10 @@ def test_capture_with_garbage_between_chunks_resynchronises(tmp_path):
     (MAGIC + b'{"format": "binary", "output_list": [2, 11, 1], "units": "mm", '
              b'"stations": [1]}\n', "units"),
     (MAGIC + b'{"format": "binary", "output_list": [2, 11, 1], "units": "cm", '
-             b'"stations": [1]}\n' + b"\x00" * 12 + b"garbage", "no valid FASTRAK records"),
+             b'"stations": [1]}\n' + CHUNK_HEAD.pack(0.0, 7) + b"garbage",
+     "no valid FASTRAK records"),
+    (MAGIC + b'{"format": "binary", "output_list": [2, 11, 1], "units": "cm", '
+             b'"stations": [1]}\n' + b"\x00" * 12 + b"garbage", "claims 0 bytes"),
     (b"t_s,station,x_m\n1,2,3\n", "missing column"),
     (b"t_s,station,x_m,y_m,z_m,qw,qx,qy,qz,status\n0,1,0,0,0,1,0,0,0,\n0.1,1,a,0,0,1,0,0,0,\n",
      "line 3"),

@@ -22,6 +22,7 @@ def test_wheel_ships_data_and_works_from_another_directory(tmp_path):
     wheel = next(tmp_path.glob("hubo_cli-*.whl"))
     names = zipfile.ZipFile(wheel).namelist()
     assert "hubo_cli/_data/robots/hubo2plus/hubo2plus.toml" in names
+    assert "hubo_cli/viz/foxglove_layout.json" in names  # the layout README points to
     target = tmp_path / "site"
     subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target",
                     str(target), str(wheel)], check=True)

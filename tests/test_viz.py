@@ -3,8 +3,11 @@ tool and torso, a video decodes to the asked frames, and the Rerun and MCAP expo
 
 import dataclasses
 import json
+import os
+import re
 import subprocess
 import sys
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +15,7 @@ import polars as pl
 import pytest
 from click.testing import CliRunner
 
+import hubo_cli
 from hubo_cli.cli.main import main
 from hubo_cli.control.log import load_log, pose_columns
 from hubo_cli.control.target import Target
@@ -90,6 +94,49 @@ def test_log_is_plain_csv_with_sidecar_and_parquet(run_dir):
     assert np.all(np.isfinite(pitch)) and np.ptp(pitch) > 1e-3
 
 
+def test_log_says_when_and_by_what_it_was_written_and_parquet_keeps_integers(run_dir):
+    pq = pytest.importorskip("pyarrow.parquet")
+    sidecar = json.loads((run_dir / "log.json").read_text())
+    summary = json.loads((run_dir / "summary.json").read_text())
+    started = datetime.fromisoformat(sidecar["started_utc"])
+    assert sidecar["started_utc"].endswith("Z") and started.tzinfo is not None
+    assert abs(started.timestamp() - (run_dir / "log.json").stat().st_mtime) < 600
+    assert sidecar["hubo_cli_version"] == hubo_cli.__version__
+    assert summary["started_utc"] == sidecar["started_utc"]
+    assert summary["hubo_cli_version"] == hubo_cli.__version__
+    schema = pq.read_schema(run_dir / "log.parquet")
+    kinds = {name: str(schema.field(name).type) for name in schema.names}
+    assert kinds["period_count"] == kinds["status_code"] == "int64"
+    assert kinds["limiter_clamped_count"] == kinds["estop_mode_code"] == "int64"
+    assert kinds["right_foot_contact_flag"] == "int8" and kinds["q_RSY_rad"] == "double"
+    metadata = {k.decode(): v.decode() for k, v in pq.read_metadata(
+        run_dir / "log.parquet").metadata.items()}
+    assert metadata["started_utc"] == sidecar["started_utc"]
+    assert metadata["hubo_cli_version"] == hubo_cli.__version__
+    assert metadata["units"] == sidecar["units"]
+    assert json.loads(metadata["joint_names"]) == sidecar["joint_names"]
+    assert json.loads(metadata["status_codes"]) == sidecar["status_codes"]
+    units = json.loads(metadata["column_units"])
+    assert (units["t_s"], units["compute_us"], units["q_RSY_rad"], units["torso_x_m"]) == (
+        "s", "us", "rad", "m")
+    # the values are the CSV's (integers where whole, null where the CSV has NaN)
+    csv = pl.read_csv(run_dir / "log.csv")
+    parquet = pl.read_parquet(run_dir / "log.parquet")
+    for name in ("period_count", "status_code", "limiter_clamped_count", "estop_mode_code"):
+        assert np.array_equal(parquet[name].cast(pl.Float64).fill_null(np.nan).to_numpy(),
+                              csv[name].cast(pl.Float64).to_numpy(), equal_nan=True)
+
+
+def test_pandas_reads_the_counters_as_integers(run_dir):
+    pd = pytest.importorskip("pandas")
+    table = pd.read_parquet(run_dir / "log.parquet")
+    for name in ("period_count", "status_code", "limiter_clamped_count", "estop_mode_code",
+                 "right_foot_contact_flag"):
+        assert pd.api.types.is_integer_dtype(table[name]), (name, table[name].dtype)
+    assert table["estop_mode_code"].isna().any()  # missing values stay missing, not NaN floats
+    assert pd.api.types.is_float_dtype(table["q_RSY_rad"])
+
+
 def test_load_log_reads_the_first_format_and_a_cut_short_row(tmp_path, run_dir):
     lines = (run_dir / "log.csv").read_text().splitlines(keepends=True)
     old = tmp_path / "log.csv"
@@ -161,32 +208,217 @@ def test_a_2_s_video_decodes_to_60_frames_of_the_robot(scene, tmp_path):
     assert np.mean(np.abs(frames[0].astype(float) - last)) > 1  # and it moves
 
 
-def test_export_rrd_verifies_and_mcap_reads_back(scene, run_dir, tmp_path):
-    from hubo_cli.viz.mcap_export import read_mcap_summary
+def _rerun_cli() -> Path:
+    """The rerun binary beside the interpreter (it comes with rerun-sdk), or skip."""
+    rerun = Path(sys.executable).with_name("rerun")
+    if not rerun.exists():
+        pytest.skip(f"no rerun command at {rerun} (install hubo-cli[viz])")
+    return rerun
 
+
+def _rrd_print(rerun: Path, rrd: Path) -> str:
+    verified = subprocess.run([str(rerun), "rrd", "verify", str(rrd)], capture_output=True,
+                              text=True, timeout=120)
+    assert verified.returncode == 0, verified.stderr
+    return subprocess.run([str(rerun), "rrd", "print", "-vvv", str(rrd)], capture_output=True,
+                          text=True, timeout=120).stdout
+
+
+def _read_mcap(path: Path) -> dict:
+    """Everything the ``mcap`` reader gives back: channels by topic (schema name, message
+    encoding, log times, raw messages), attachments and metadata records."""
+    from mcap.reader import make_reader
+
+    out = {"topics": {}, "attachments": {}, "metadata": {}}
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        for schema, channel, message in reader.iter_messages():
+            entry = out["topics"].setdefault(channel.topic, {
+                "schema": schema.name, "encoding": channel.message_encoding, "times": [],
+                "data": []})
+            entry["times"].append(message.log_time)
+            entry["data"].append(message.data)
+        for attachment in reader.iter_attachments():
+            out["attachments"][attachment.name] = (attachment.media_type, attachment.data)
+        for record in reader.iter_metadata():
+            out["metadata"][record.name] = record.metadata
+    return out
+
+
+def test_export_rrd_verifies_with_blueprint_and_mcap_reads_back(scene, run_dir, tmp_path):
+    from hubo_cli.viz.mcap_export import LAYOUT_PATH, METADATA_NAME
+    from hubo_cli.viz.scene import events, run_metadata
+
+    rerun = _rerun_cli()
     rrd, mcap = tmp_path / "run.rrd", tmp_path / "run.mcap"
     result = CliRunner().invoke(main, ["export", str(run_dir), "--rrd", str(rrd), "--mcap",
                                        str(mcap), "--json"])
     assert result.exit_code == 0, result.output
     report = json.loads(result.output)
-    assert report["rrd"]["joints"] == 24
-    rerun = Path(sys.executable).with_name("rerun")
-    verified = subprocess.run([str(rerun), "rrd", "verify", str(rrd)], capture_output=True,
-                              text=True, timeout=120)
-    assert verified.returncode == 0, verified.stderr
-    stats = subprocess.run([str(rerun), "rrd", "stats", str(rrd)], capture_output=True,
-                           text=True, timeout=120).stdout
+    assert report["rrd"]["joints"] == 24 and report["mcap"]["layout"] == str(LAYOUT_PATH)
+    printed = _rrd_print(rerun, rrd)
     for entity in ("/transforms/torso", "/transforms/joints/RSY", "/plots/wrist_torque_nm",
-                   "/plots/cp_margin_mm", "/world/hole", "/world/actual_path"):
-        assert entity in stats
-    topics = read_mcap_summary(mcap)
-    t_s = scene.t_s
+                   "/plots/cp_margin_mm", "/world/hole", "/world/actual_path", "/events"):
+        assert f" - {entity} - " in printed, entity
+    # the blueprint: one 3-D view, three grouped plots (not one per series) and the event log
+    views = re.findall(r"┆ \[(\w+)\]\s+┆ \[[^\]]*\]\s+┆ \[/", printed)
+    assert sorted(views) == ["3D", "TextLog", "TimeSeries", "TimeSeries", "TimeSeries"]
+    # the recording starts when the run did (the log's start), not at the export
+    start_ns = scene.start_utc_ns
+    assert scene.start_source == "log"
+    assert start_ns == round(datetime.fromisoformat(scene.log.started_utc).timestamp() * 1e6) * 1000
+    assert printed.count("RecordingInfo:start_time │") == 1 and f"[{start_ns}]" in printed
+    # and says what the run was, as the MCAP's metadata record does
+    assert " - /__properties/hubo_cli_run - " in printed
+    assert f"[{run_metadata(scene)['started_utc']}]" in printed and "[sway]" in printed
+
+    read = _read_mcap(mcap)
+    topics = read["topics"]
+    t_ns = start_ns + np.round(scene.t_s * 1e9).astype(np.int64)
     for topic, schema in (("/joint_states", "foxglove.JointStates"),
-                          ("/tf", "foxglove.FrameTransforms")):
+                          ("/tf", "foxglove.FrameTransforms"), ("/metrics", "hubo.Metrics")):
         assert topics[topic]["schema"] == schema
-        assert topics[topic]["messages"] == len(scene)
-        assert topics[topic]["first_s"] == pytest.approx(t_s[0], abs=1e-9)
-        assert topics[topic]["last_s"] == pytest.approx(t_s[-1], abs=1e-9)
+        assert topics[topic]["times"] == t_ns.tolist()  # UTC: the run's start + its time
+    assert datetime(2020, 1, 1, tzinfo=UTC).timestamp() * 1e9 < t_ns[0]  # not 1970
+    urdf = scene.model.urdf_path(drill=True)
+    assert read["attachments"][urdf.name] == ("application/xml", urdf.read_bytes())
+    description = topics["/robot_description"]
+    assert description["schema"] == "std_msgs/String" and description["encoding"] == "json"
+    assert json.loads(description["data"][0]) == {"data": urdf.read_text()}
+    meta = read["metadata"][METADATA_NAME]
+    assert meta["started_utc"].startswith(scene.log.started_utc[:26])
+    assert meta["start_time_source"] == "log" and meta["command"] == "sway"
+    assert meta["hubo_cli_version"] == hubo_cli.__version__ and meta["periods"] == str(len(scene))
+    metrics = [json.loads(m) for m in topics["/metrics"]["data"]]
+    assert all(isinstance(m["status_code"], int) and m["status"] for m in metrics)
+    torque = [m["wrist_torque_nm"] for m in metrics]
+    assert np.allclose(np.array(torque, dtype=float), scene.log["task_wrist_torque_nm"]
+                       if "task_wrist_torque_nm" in scene.log.columns
+                       else scene.log["wrist_torque_nm"], equal_nan=True)
+    assert topics["/events"]["schema"] == "foxglove.Log"
+    happened = events(scene)
+    assert topics["/events"]["times"] == [int(t_ns[k]) for k, _, _ in happened]
+    assert happened[0][2] == "status: ok"
+    # the shipped layout shows what the file holds: each plotted field is a /metrics field
+    layout = json.loads(LAYOUT_PATH.read_text())
+    panels = layout["configById"]
+    plotted = [p["value"] for c in panels.values() for p in c.get("paths", [])]
+    assert len(plotted) >= 5 and all(p.split(".")[0] in topics for p in plotted)
+    assert all(p.split(".", 1)[1] in metrics[0] for p in plotted)
+    assert panels["RosOut!hubo-events"]["topicToRender"] in topics
+    three_d = panels["3D!hubo"]["topics"]
+    assert three_d["/robot_description"]["visible"] and set(three_d) <= set(topics)
+    assert set(re.findall(r'"([^"]+![^"]+)"', json.dumps(layout["layout"]))) == set(panels)
+
+
+def test_an_old_run_without_a_start_time_exports_at_its_files_time(run_dir, tmp_path):
+    """A log written before started_utc was recorded (and one with a hostile start time)
+    exports with its file's modification time as the start, and the metadata says so."""
+    from hubo_cli.viz.mcap_export import METADATA_NAME, export_mcap
+    from hubo_cli.viz.rerun_export import export_rrd
+
+    old = tmp_path / "old"
+    old.mkdir()
+    (old / "log.csv").write_bytes((run_dir / "log.csv").read_bytes())
+    # the Parquet copy as first written: every number a float, NaN where missing, no metadata
+    pl.read_parquet(run_dir / "log.parquet").with_columns(
+        pl.col(pl.Int64, pl.Int8).cast(pl.Float64).fill_null(np.nan)).write_parquet(
+        old / "log.parquet")
+    sidecar = json.loads((run_dir / "log.json").read_text())
+    del sidecar["started_utc"], sidecar["hubo_cli_version"]
+    (old / "log.json").write_text(json.dumps(sidecar))
+    mtime_ns = 1_600_000_000_123_456_789
+    os.utime(old / "log.parquet", ns=(mtime_ns, mtime_ns))
+    scene = load_scene(old)
+    assert scene.log.started_utc is None and scene.start_utc_ns == mtime_ns
+    assert np.array_equal(scene.log["estop_mode_code"], load_log(run_dir)["estop_mode_code"],
+                          equal_nan=True)
+    assert "modification time of log.parquet" in scene.start_source
+    read = _read_mcap(export_mcap(scene, tmp_path / "old.mcap").path)
+    assert export_rrd(scene, tmp_path / "old.rrd").periods == len(scene)
+    assert read["topics"]["/tf"]["times"][0] == mtime_ns
+    meta = read["metadata"][METADATA_NAME]
+    assert "modification time" in meta["start_time_source"] and meta["hubo_cli_version"] == ""
+    for hostile in ("yesterday", "0001-01-01T00:00:00Z", "9999-12-31T23:59:59Z", 12, None, ""):
+        (old / "log.json").write_text(json.dumps(sidecar | {"started_utc": hostile}))
+        scene = load_scene(old)
+        assert scene.start_utc_ns == mtime_ns and "modification time" in scene.start_source
+    (old / "log.json").write_text(json.dumps(sidecar | {"started_utc": "2026-01-02T03:04:05"}))
+    assert load_scene(old).start_utc_ns == 1767323045 * 10 ** 9  # no zone given: UTC
+
+
+def test_events_are_the_estop_latches_and_releases_and_the_status_changes(scene):
+    from hubo_cli.viz.scene import events
+
+    n = len(scene)
+    flags = [["estop"] if 100 <= k < 150 or k >= n - 3 else ["slowing"] for k in range(n)]
+    codes = np.zeros(n)
+    codes[100:150] = 6  # e-stopped
+    codes[150:160] = 42  # no such status: its number
+    codes[n - 3:] = 7  # servo off
+    log = dataclasses.replace(scene.log, flags=flags,
+                              columns={**scene.log.columns, "status_code": codes})
+    got = events(dataclasses.replace(scene, log=log))
+    assert got == [(0, "info", "status: ok"), (100, "warning", "e-stop latched"),
+                   (100, "warning", "status: e-stopped"), (150, "info", "e-stop released"),
+                   (150, "warning", "status: code 42"), (160, "info", "status: ok"),
+                   (n - 3, "warning", "e-stop latched"), (n - 3, "warning", "status: servo off")]
+
+
+def test_the_hole_is_drawn_on_the_walls_face_toward_the_robot(scene):
+    hole = scene.hole_world_m
+    assert len(hole) > 10
+    wall = scene.walls[0]
+    near_face_x = wall["centre_world_m"][0] - wall["size_m"][0] / 2
+    # as cut, the points are in the wall (the bit's crossing), hidden by the opaque box
+    assert np.all(hole[:, 0] > near_face_x - 1e-6)
+    shown = scene.hole_on_face_world_m()
+    assert np.allclose(shown[:, 0], near_face_x - 0.001)  # 1 mm in front, on the robot's side
+    assert np.array_equal(shown[:, 1:], hole[:, 1:])
+    assert scene.T_world_torso[0, 0, 3] < near_face_x
+    # a wall turned 90 degrees about z (its thin side along y) with the robot on its -y side
+    c = np.cos(np.pi / 4)
+    turned = dataclasses.replace(scene, walls=[{
+        "centre_world_m": [0.0, 0.5, 1.0], "quat_wxyz": [c, 0, 0, c], "size_m": [0.02, 1.0, 2.0]}],
+        hole_world_m=np.array([[0.1, 0.505, 1.0], [3.0, 3.0, 3.0]]))
+    moved = turned.hole_on_face_world_m()
+    assert np.allclose(moved[0], [0.1, 0.5 - 0.01 - 0.001, 1.0])
+    assert np.array_equal(moved[1], [3.0, 3.0, 3.0])  # in no wall: left alone
+
+
+@pytest.mark.parametrize("damage", [
+    {"scene": {"walls": [{"centre_world_m": [0.5, 0, 1]}]}},
+    {"scene": {"walls": [{"centre_world_m": [None, 0, 1], "quat_wxyz": [0, 0, 0, 0],
+                          "size_m": [0.01, 1, 1]}]}},
+    {"scene": {"walls": {"a": 1}, "hole_world_m": [[1, 2]]}},
+    {"scene": {"hole_world_m": "abc"}},
+    {"scene": [], "tools": 3},
+    {"scene": {"tools": ["drill"]}},
+    "{not json", "[]", '{"metadata": []}', "log.parquet", "t_s"])
+def test_export_of_a_damaged_run_folder_is_refused_in_one_line(run_dir, tmp_path, damage):
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    for name in ("log.csv", "log.json", "log.parquet"):
+        (bad / name).write_bytes((run_dir / name).read_bytes())
+    if isinstance(damage, dict):
+        sidecar = json.loads((run_dir / "log.json").read_text())
+        sidecar["metadata"] |= damage
+        (bad / "log.json").write_text(json.dumps(sidecar))
+    elif damage == "log.parquet":
+        (bad / "log.parquet").write_bytes(b"PAR1 not a parquet file")
+    elif damage == "t_s":
+        table = pl.read_parquet(run_dir / "log.parquet")
+        table.with_columns(pl.Series("t_s", [*table["t_s"][:-1], 1e300])).write_parquet(
+            bad / "log.parquet")
+    else:
+        (bad / "log.json").write_text(damage)
+    result = CliRunner().invoke(main, ["export", str(bad), "--mcap", str(tmp_path / "x.mcap"),
+                                       "--rrd", str(tmp_path / "x.rrd")])
+    assert result.exit_code == 2, result.output
+    lines = result.output.strip().splitlines()
+    assert lines[0].startswith("error: ") and lines[1].startswith("hint: ") and len(lines) == 2
+    assert "Traceback" not in result.output and "internal error" not in result.output
+    assert not (tmp_path / "x.mcap").exists() and not (tmp_path / "x.rrd").exists()
 
 
 def test_without_the_extra_the_commands_say_what_to_install(run_dir, tmp_path, monkeypatch):

@@ -23,8 +23,9 @@ def export(run, rrd, mcap, force, as_json) -> None:
 
     The .rrd holds the URDF animated, the goal and measured tool paths, the hole and the walls
     in 3-D, and on the same timeline the tracking error, wrist torque, capture-point margin,
-    torso pitch and status. The .mcap holds joint states and frame transforms (Foxglove schemas)
-    and the scene; add the robot's URDF as a layer in Foxglove's 3D panel.
+    torso pitch and events, laid out by its blueprint. The .mcap (UTC times) holds the URDF,
+    joint states and frame transforms (Foxglove schemas), the scene, the scalar series and the
+    events; import hubo_cli/viz/foxglove_layout.json in Foxglove for its panels.
 
     Example: hubo export runs/<run> --rrd run.rrd --mcap run.mcap
     """
@@ -51,15 +52,15 @@ def export(run, rrd, mcap, force, as_json) -> None:
             console.print(f"rrd   {result.path} ({len(scene)} periods, {result.joints} joints; "
                           f"open with: rerun {result.path})", soft_wrap=True)
     if mcap_out is not None:
-        from hubo_cli.viz.mcap_export import export_mcap
+        from hubo_cli.viz.mcap_export import LAYOUT_PATH, export_mcap
 
         with mcap_out.writing() as temporary:
             result = dataclasses.replace(export_mcap(scene, temporary), path=mcap_out.path)
         report["mcap"] = {"path": str(result.path), "messages": result.messages,
-                          "wall_s": result.wall_s}
+                          "wall_s": result.wall_s, "layout": str(LAYOUT_PATH)}
         if not as_json:
             counts = ", ".join(f"{t} {n}" for t, n in result.messages.items())
-            console.print(f"mcap  {result.path} ({counts}; open in Foxglove Studio)",
-                          soft_wrap=True)
+            console.print(f"mcap  {result.path} ({counts}; open in Foxglove with the layout "
+                          f"{LAYOUT_PATH})", soft_wrap=True)
     if as_json:
         print_json(report)

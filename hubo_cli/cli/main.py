@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import errno
 import importlib
 import os
 import signal
@@ -11,7 +12,7 @@ import sys
 import click
 
 from hubo_cli import __version__
-from hubo_cli.errors import HuboError
+from hubo_cli.errors import HuboError, Terminated
 
 # command name -> "module:attribute" (modules are imported only when the command runs)
 COMMANDS = {
@@ -36,9 +37,12 @@ EXIT_CODES = ("Exit codes: 0 success, 1 other error or a run that did not comple
               "5 no IK solution, 130 interrupted (Ctrl-C or SIGTERM).")
 
 
+DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
+
+
 def _sigterm_as_interrupt(signum, frame) -> None:
     """SIGTERM ends a run like Ctrl-C: the loop's smooth stop runs and the summary is written."""
-    raise KeyboardInterrupt
+    raise Terminated
 
 
 def replace_unencodable_output() -> None:
@@ -94,8 +98,9 @@ class LazyGroup(click.Group):
         except HuboError as exc:
             report_error(exc)
             ctx.exit(exc.exit_code)
-        except KeyboardInterrupt:
-            click.echo("interrupted", err=True)
+        except KeyboardInterrupt as exc:
+            click.echo("interrupted" + (" (SIGTERM)" if isinstance(exc, Terminated) else ""),
+                       err=True)
             ctx.exit(130)
         except MemoryError:
             click.secho("error: out of memory: an input asks for far more than the machine "
@@ -104,6 +109,9 @@ class LazyGroup(click.Group):
         except OSError as exc:
             where = f" ({exc.filename})" if exc.filename else ""
             click.secho(f"error: {exc.strerror or exc}{where}", fg="red", err=True)
+            if exc.errno in DISK_FULL:  # the disk is the device in trouble, not the input
+                click.echo("hint: free space on that disk or choose another --out", err=True)
+                ctx.exit(3)
             ctx.exit(2)
         except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
             raise

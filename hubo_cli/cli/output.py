@@ -23,6 +23,12 @@ def print_json(data: dict) -> None:
     click.echo(json.dumps(_jsonable(data), indent=2))
 
 
+def exit_if_interrupted(summary: dict) -> None:
+    """Exit 130 after a run that Ctrl-C or SIGTERM ended (its summary already printed)."""
+    if summary.get("ended") == "interrupted":
+        raise SystemExit(130)
+
+
 def fmt_q(q_rad) -> str:
     """Joint vector as space-separated radians with 4 decimals."""
     return " ".join(f"{v:+.4f}" for v in np.asarray(q_rad, dtype=float))

@@ -12,7 +12,7 @@ from hubo_cli.cli.options import (
     perturb_option,
     robot_run_options,
 )
-from hubo_cli.cli.output import console, print_json
+from hubo_cli.cli.output import console, exit_if_interrupted, print_json
 
 
 @click.command("sim")
@@ -43,7 +43,6 @@ def sim(duration: float, push: float, push_direction: str, balance: str, no_bala
     Example: hubo sim --duration 5 --push 30 --push-direction backward
     """
     from hubo_cli.cli.keys import announce_keys, operator_keys
-    from hubo_cli.cli.safety_view import balance_summary_line
     from hubo_cli.control.pipeline import SafetyProfile
     from hubo_cli.control.stop_choice import SOFT_SOURCES
     from hubo_cli.experiments.standing import PUSH_DIRECTIONS, check_standing_args, stand
@@ -65,13 +64,22 @@ def sim(duration: float, push: float, push_direction: str, balance: str, no_bala
     summary = json.loads((run_dir / "summary.json").read_text()) | {"run_dir": str(run_dir)}
     if as_json:
         print_json(summary)
-        return
+    else:
+        _print(summary, result, profile, push, push_direction, duration, step, run_dir)
+    exit_if_interrupted(summary)
+
+
+def _print(summary: dict, result, profile, push: float, push_direction: str, duration: float,
+           step: bool, run_dir) -> None:
+    from hubo_cli.cli.safety_view import balance_summary_line
+
     balance = {"default": "default (common + differential damping)",
                "paper": "paper (eq. 11-12: K_r 0.009 rad/s/deg, K_c 0.0015 rad/s/N m)",
                "off": "off"}[profile.balance_choice]
     push_text = (f"{push:g} N {push_direction} for 0.2 s at t = 1 s" if push > 0
                  else "none")
-    console.print(f"stood             {result.simulated_s:.2f} s of {duration:g} s")
+    interrupted = " (interrupted)" if summary["ended"] == "interrupted" else ""
+    console.print(f"stood             {result.simulated_s:.2f} s of {duration:g} s{interrupted}")
     console.print(f"balance           {balance}")
     console.print(f"push              {push_text}")
     console.print(f"max tilt          {result.max_tilt_deg:.3f} deg "

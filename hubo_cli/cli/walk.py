@@ -12,7 +12,7 @@ from hubo_cli.cli.options import (
     perturb_option,
     robot_run_options,
 )
-from hubo_cli.cli.output import console, print_json
+from hubo_cli.cli.output import console, exit_if_interrupted, print_json
 
 
 @click.command("walk")
@@ -61,6 +61,8 @@ def walk(goal: tuple[float, float, float], corrections: int, no_estop: bool,
     else:
         console.print(f"goal              {goal[0]:g} m forward, {goal[1]:g} m left, "
                       f"{math.degrees(goal[2]):.1f} deg")
+        if result.ended == "interrupted":
+            console.print("ended             interrupted: braked to a stop before the goal")
         console.print(f"fell              {'YES' if result.fell else 'no'}")
         console.print(f"steps             {result.steps} in {result.walking_s:.2f} s "
                       f"({result.average_speed_m_s:.3f} m/s)")
@@ -70,5 +72,6 @@ def walk(goal: tuple[float, float, float], corrections: int, no_estop: bool,
                       f"(unfiltered sensors {100 * result.zmp_inside_fraction_raw:.1f} %)")
         console.print(f"e-stop events     {result.estop_events}")
         console.print(f"run folder        {result.run_dir} (log, snapshot.png, summary.json)")
+    exit_if_interrupted(fields)
     if result.fell:
         raise SystemExit(1)

@@ -20,11 +20,14 @@ A run folder's log is three files:
   NaN where it has none); then the modules' and the caller's extra columns (NaN when not
   reported that period; e.g. a task's commanded and measured tool positions ``goal_*_m``,
   ``actual_*_m`` in its stance frame).
-* ``log.json`` (sidecar): the format name and version, the unit legend, the status codes, the
+* ``log.json`` (sidecar): the format name and version, when the run started (``started_utc``,
+  UTC ISO 8601) and the ``hubo_cli_version`` that wrote it, the unit legend, the status codes, the
   joint names, the columns, the row count and the run's metadata (:meth:`PeriodLog.set_metadata`:
   e.g. ``scene`` with the walls, the tool per hand and the hole's points as cut). Written when
   the log opens and again when it closes.
-* ``log.parquet``: the same table, written when the log closes (smaller and faster to read).
+* ``log.parquet``: the same table, written when the log closes (smaller and faster to read;
+  counters, codes and flags as integers, the sidecar's facts and each column's unit in the
+  file's metadata, see :mod:`hubo_cli.control.log_parquet`).
 
 While the run goes, each period is stored as one binary record (the row's numbers as float64,
 its flags as a number into ``log.flags``, see :data:`ROWS_MAGIC`) in ``log.rows``, a file mapped
@@ -37,10 +40,19 @@ died before that, the run folder still holds them: :func:`recover_log` writes th
 Parquet copy and the sidecar's row count from them, and :func:`load_log` does so by itself.
 :func:`load_log` reads a log back into numpy arrays (the Parquet copy when there is one, else
 the CSV; logs of the first format, with a leading ``#`` line, are read too).
+
+``log.rows`` grows a block of records at a time, each block allocated on the disk before it is
+mapped (``posix_fallocate``): a full disk is an ``OSError`` (ENOSPC) when a block is asked
+for, never a SIGBUS while a mapped page is written. A write that fails (full disk, I/O error)
+is kept in :attr:`PeriodLog.error` and the log stops there: the records stored before it stay
+whole, later periods are not logged, and the loop ends the run with its smooth stop
+(``ended: log-error``). Where the CSV cannot be written at close, ``log.rows`` and
+``log.flags`` are kept for :func:`recover_log`.
 """
 
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import math
@@ -48,19 +60,27 @@ import mmap
 import os
 import struct
 from dataclasses import dataclass, field
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
 
+from hubo_cli import __version__
 from hubo_cli.control.log_kernels import pose_row
+from hubo_cli.control.log_parquet import write_log_parquet
 from hubo_cli.control.status import Status
-from hubo_cli.errors import InputError
+from hubo_cli.errors import DeviceError, InputError
 from hubo_cli.runs import _jsonable
 
 try:  # POSIX: a live log's records are locked by their writer
     import fcntl
 except ImportError:  # pragma: no cover (no advisory locks: recover_log trusts the caller)
     fcntl = None
+
+try:  # Linux, the BSDs: a file's blocks allocated up front
+    from os import posix_fallocate as _fallocate
+except ImportError:  # pragma: no cover (macOS, Windows)
+    _fallocate = None
 
 LOG_NAME = "log.csv"
 META_NAME = "log.json"
@@ -76,7 +96,7 @@ FLAGS_NAME = "log.flags"
 ROWS_MAGIC = b"HUBO-PERIOD-ROWS"
 _COUNT_AT = len(ROWS_MAGIC)
 _HEAD_AT = _COUNT_AT + 8
-_BLOCK_ROWS = 4096
+_BLOCK_ROWS = 1024  # 5 s of periods at 200 Hz per allocation
 FORMAT_NAME = "hubo-cli period log"
 FORMAT_VERSION = 2
 FIXED_COLUMNS = ("period_count", "t_s", "status_code", "compute_us", "late_us", "flags")
@@ -160,6 +180,11 @@ def _stacked_chains(hands, joints: int) -> tuple[np.ndarray, ...]:
     return (index, *parts)
 
 
+def utc_now_iso() -> str:
+    """Now as UTC ISO 8601 to the microsecond, ``2026-11-28T18:17:32.123456Z``."""
+    return datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+
+
 def status_codes() -> dict[int, str]:
     """Status code -> label, as written in the sidecar."""
     return {s.value: s.label for s in Status}
@@ -204,6 +229,7 @@ class PeriodLog:
         self._at_extras = self._at_feet + len(FEET_COLUMNS)
         self._hand_chains = _stacked_chains(self._hands.values(), n)
         self.metadata: dict = {}
+        self.started_utc = utc_now_iso()  # just before the first period
         self.rows = 0
         self.rows_path, self.flags_path = _record_paths(self.path)
         layout = {"columns": list(self.columns), "joints": len(joints),
@@ -212,17 +238,27 @@ class PeriodLog:
         self._data_at = -(-(_HEAD_AT + 4 + len(head)) // 8) * 8
         self._record_bytes = 8 * len(self.columns)
         self._flag_ids: dict[str, float] = {}
-        self.path.unlink(missing_ok=True)  # the CSV comes at close
-        self._flags_fd = os.open(self.flags_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
-        # held open and locked while the run writes, so that recover_log leaves a live log alone
-        self._rows_file = open(self.rows_path, "w+b")  # noqa: SIM115 (kept open)
-        if fcntl is not None:
-            fcntl.flock(self._rows_file, fcntl.LOCK_EX)
-        self._rows_file.write(ROWS_MAGIC + struct.pack("<QI", 0, len(head)) + head)
-        self._rows_file.truncate(self._data_at + _BLOCK_ROWS * self._record_bytes)
-        self._rows_file.flush()
-        self._map: mmap.mmap | None = mmap.mmap(self._rows_file.fileno(), 0)
-        self._write_sidecar()
+        self.error = ""  # the first write that failed (one line); the log stopped there
+        self._map: mmap.mmap | None = None
+        try:
+            self.path.unlink(missing_ok=True)  # the CSV comes at close
+            self._flags_fd = os.open(self.flags_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC,
+                                     0o644)
+            # held open and locked while the run writes, so that recover_log leaves a live
+            # log alone
+            self._rows_file = open(self.rows_path, "w+b")  # noqa: SIM115 (kept open)
+            if fcntl is not None:
+                fcntl.flock(self._rows_file, fcntl.LOCK_EX)
+            self._rows_file.write(ROWS_MAGIC + struct.pack("<QI", 0, len(head)) + head)
+            self._rows_file.flush()
+            _allocate(self._rows_file.fileno(), self._data_at + _BLOCK_ROWS * self._record_bytes)
+            self._map = mmap.mmap(self._rows_file.fileno(), 0)
+            self._write_sidecar()
+        except OSError as exc:  # nothing has moved yet: the run is refused
+            self._discard()
+            raise DeviceError(f"cannot start the log in {self.path.parent}: "
+                              f"{_os_reason(exc)}",
+                              hint="free space on that disk or choose another --out") from None
 
     def _hand_kinematics(self, model) -> dict:
         if model is None or tuple(model.joint_names) != self.joint_names:
@@ -241,13 +277,17 @@ class PeriodLog:
         ``state`` (the :class:`~hubo_cli.state.RobotState` after the step) gives the
         torso and hand poses; without it they are NaN.
         """
-        if self._map is None:
+        if self._map is None or self.error:
             return
         flag_text = ";".join(sorted(flags))
         flag_id = self._flag_ids.get(flag_text)
         if flag_id is None:  # a new flags text: in log.flags before a record points to it
+            try:
+                _write_all(self._flags_fd, (json.dumps(flag_text) + "\n").encode())
+            except OSError as exc:
+                self._failed(exc, self.flags_path)
+                return
             flag_id = self._flag_ids[flag_text] = float(len(self._flag_ids))
-            _write_all(self._flags_fd, (json.dumps(flag_text) + "\n").encode())
         # the record filled in place: numbers as numpy converts them (float64, as struct does)
         record = self._record
         record[:6] = (flag_id, period, t_s, status, compute_us, late_us)
@@ -263,11 +303,35 @@ class PeriodLog:
             else:
                 record[self._at_extras:] = math.nan
         at = self._data_at + self.rows * self._record_bytes
-        if at + self._record_bytes > len(self._map):
-            self._map.resize(len(self._map) + _BLOCK_ROWS * self._record_bytes)
+        if at + self._record_bytes > len(self._map):  # the next block, on the disk first
+            size = len(self._map) + _BLOCK_ROWS * self._record_bytes
+            try:
+                _allocate(self._rows_file.fileno(), size)
+                self._map.resize(size)
+            except OSError as exc:
+                self._failed(exc, self.rows_path)
+                return
         self._map[at:at + self._record_bytes] = record.tobytes()
         self.rows += 1
         self._map[_COUNT_AT:_HEAD_AT] = self.rows.to_bytes(8, "little")  # the record counts
+
+    def _discard(self) -> None:
+        """Close and remove what a log that could not start had opened."""
+        for name in ("_flags_fd", "_rows_file"):
+            handle = self.__dict__.pop(name, None)
+            with contextlib.suppress(OSError):
+                if isinstance(handle, int):
+                    os.close(handle)
+                elif handle is not None:
+                    handle.close()
+        for path in (self.rows_path, self.flags_path, self.meta_path):
+            with contextlib.suppress(OSError):
+                path.unlink(missing_ok=True)
+
+    def _failed(self, exc: OSError, path: Path) -> None:
+        """Keep the first failed write as :attr:`error`; the log takes no more periods."""
+        if not self.error:
+            self.error = f"cannot write the log {path}: {_os_reason(exc)}"
 
     def _pose_record(self, q_rad, state) -> None:
         """The record's torso, hand and feet columns: the torso's and hands' world poses
@@ -293,12 +357,17 @@ class PeriodLog:
             self._write_sidecar()
 
     def _write_sidecar(self) -> None:
-        sidecar = {"format": FORMAT_NAME, "version": FORMAT_VERSION, "csv": self.path.name,
-                   "parquet": self.parquet_path.name if self.parquet_path.exists() else None,
-                   "units": UNIT_LEGEND, "status_codes": status_codes(),
-                   "joint_names": list(self.joint_names), "rows": self.rows,
-                   "columns": list(self.columns)}
-        _write_sidecar_json(self.meta_path, sidecar, self.metadata, jsonable=True)
+        _write_sidecar_json(self.meta_path, self._sidecar_head(), self.metadata, jsonable=True)
+
+    def _sidecar_head(self) -> dict:
+        """The sidecar's fixed part (all but the metadata)."""
+        return {"format": FORMAT_NAME, "version": FORMAT_VERSION,
+                "started_utc": self.started_utc, "hubo_cli_version": __version__,
+                "csv": self.path.name,
+                "parquet": self.parquet_path.name if self.parquet_path.exists() else None,
+                "units": UNIT_LEGEND, "status_codes": status_codes(),
+                "joint_names": list(self.joint_names), "rows": self.rows,
+                "columns": list(self.columns)}
 
     def close(self) -> None:
         """Write the CSV from the records, then the Parquet copy and the sidecar, and remove
@@ -308,12 +377,20 @@ class PeriodLog:
         self._map.close()
         self._map = None
         os.close(self._flags_fd)
-        _csv_from_rows(self.rows_path, self.flags_path, self.path)
-        _read_csv(self.path).write_parquet(self.parquet_path)
-        self._write_sidecar()
-        self.rows_path.unlink()
-        self.flags_path.unlink()
-        self._rows_file.close()  # releases the lock
+        try:
+            if not self.error:  # else the records are all there is: kept for recover_log
+                _csv_from_rows(self.rows_path, self.flags_path, self.path)
+                write_log_parquet(_read_csv(self.path), self.parquet_path, self._sidecar_head())
+                self._write_sidecar()
+                self.rows_path.unlink()
+                self.flags_path.unlink()
+        except OSError as exc:  # a full disk at the end: the records stay, no half CSV
+            self._failed(exc, self.path)
+            for path in (self.path, self.parquet_path):
+                with contextlib.suppress(OSError):
+                    path.unlink(missing_ok=True)
+        finally:
+            self._rows_file.close()  # releases the lock
 
     def __enter__(self) -> PeriodLog:
         return self
@@ -346,6 +423,20 @@ def _write_sidecar_json(path: Path, head: dict, metadata: dict, jsonable: bool =
                         for k, v in metadata.items())
     body = f"{{\n{items}\n }}" if items else "{}"
     path.write_text(f"{lines},\n \"metadata\": {body}\n}}\n")
+
+
+def _allocate(fd: int, size: int) -> None:
+    """Make a file ``size`` bytes long with its blocks allocated on the disk (ENOSPC now
+    rather than a SIGBUS when a mapped page is first written)."""
+    if _fallocate is not None:
+        _fallocate(fd, 0, size)
+    else:  # pragma: no cover (macOS: no preallocation; a full disk may still SIGBUS there)
+        os.ftruncate(fd, size)
+
+
+def _os_reason(exc: OSError) -> str:
+    """The operating system's words for a failed write (``No space left on device``)."""
+    return exc.strerror or str(exc) or type(exc).__name__
 
 
 def _write_all(fd: int, data: bytes) -> None:
@@ -392,7 +483,9 @@ def read_rows(rows_path: str | Path, flags_path: str | Path) -> tuple[dict, np.n
     count = min(count, (len(data) - data_at) // (8 * width))
     table = np.frombuffer(data, dtype="<f8", count=count * width,
                           offset=data_at).reshape(count, width)
-    texts = [json.loads(line) for line in Path(flags_path).read_text().splitlines()]
+    text = Path(flags_path).read_text()
+    # a line cut short by a failed write is not used by any record
+    texts = [json.loads(line) for line in text[:text.rfind("\n") + 1].splitlines()]
     flags = [texts[i] for i in table[:, 0].astype(int).tolist()]
     return layout, table[:, 1:].astype(float), flags
 
@@ -451,10 +544,10 @@ def _recover(rows_path: Path, flags_path: Path, csv_path: Path, meta_path: Path,
              parquet_path: Path) -> bool:
     """:func:`recover_log`'s work, with the record file locked."""
     rows = _csv_from_rows(rows_path, flags_path, csv_path)
-    _read_csv(csv_path).write_parquet(parquet_path)
+    sidecar = json.loads(meta_path.read_text()) if meta_path.exists() else {}
+    metadata = sidecar.pop("metadata", {})
+    write_log_parquet(_read_csv(csv_path), parquet_path, sidecar)
     if meta_path.exists():
-        sidecar = json.loads(meta_path.read_text())
-        metadata = sidecar.pop("metadata", {})
         sidecar.update(rows=rows, parquet=parquet_path.name)
         _write_sidecar_json(meta_path, sidecar, metadata, jsonable=True)
     rows_path.unlink()
@@ -486,12 +579,17 @@ class LogData:
         flags: the ``flags`` column, one list of words per period.
         joint_names: the joints found in the ``cmd_*`` columns, in order.
         metadata: the run metadata from the sidecar (empty for logs without one).
+        started_utc: when the run started (UTC, ISO 8601), from the sidecar; None for logs
+            written before it was recorded.
+        hubo_cli_version: the hubo-cli that wrote the log (None, likewise).
     """
 
     columns: dict[str, np.ndarray]
     flags: list[list[str]]
     joint_names: tuple[str, ...]
     metadata: dict = field(default_factory=dict)
+    started_utc: str | None = None
+    hubo_cli_version: str | None = None
 
     def __getitem__(self, name: str) -> np.ndarray:
         return self.columns[name]
@@ -543,15 +641,41 @@ def load_log(path: str | Path) -> LogData:
     recover_log(path)
     csv_path, meta_path, parquet_path = log_paths(path)
     use_parquet = path.suffix == ".parquet" or (path.is_dir() and parquet_path.exists())
-    frame = pl.read_parquet(parquet_path) if use_parquet else _read_csv(csv_path)
-    columns = {name: frame.get_column(name).to_numpy().astype(float, copy=False)
-               for name in frame.columns if name != "flags"}
-    flags = [text.split(";") if text else [] for text in frame.get_column("flags").to_list()]
+    source = parquet_path if use_parquet else csv_path
+    try:
+        frame = pl.read_parquet(parquet_path) if use_parquet else _read_csv(csv_path)
+        columns = {name: frame.get_column(name).to_numpy().astype(float, copy=False)
+                   for name in frame.columns if name != "flags"}
+        flags = [text.split(";") if text else []
+                 for text in frame.get_column("flags").cast(pl.String).fill_null("").to_list()]
+    except (pl.exceptions.PolarsError, OSError, UnicodeDecodeError, ValueError) as exc:
+        reason = str(exc).strip().splitlines()[0][:160] if str(exc).strip() else type(exc).__name__
+        raise InputError(f"cannot read the period log {source}: {reason}",
+                         hint="give a run folder as hubo wrote it (a damaged log.parquet can be "
+                              "removed: the log is then read from log.csv)") from None
     joints = tuple(n[4:-4] for n in frame.columns if n.startswith("cmd_") and n.endswith("_rad"))
-    metadata = {}
-    if meta_path.exists():
-        metadata = json.loads(meta_path.read_text()).get("metadata", {})
-    return LogData(columns, flags, joints, metadata)
+    sidecar = _read_sidecar(meta_path)
+    return LogData(columns, flags, joints, sidecar.get("metadata", {}),
+                   sidecar.get("started_utc"), sidecar.get("hubo_cli_version"))
+
+
+def _read_sidecar(path: Path) -> dict:
+    """A log's sidecar as a dict (empty when there is none).
+
+    Raises:
+        InputError: the file is not a JSON object with a mapping as its metadata.
+    """
+    if not path.exists():
+        return {}
+    try:
+        sidecar = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, ValueError):
+        sidecar = None
+    if not isinstance(sidecar, dict) or not isinstance(sidecar.get("metadata", {}), dict):
+        raise InputError(f"{path} is not a period log's sidecar (a JSON object with its "
+                         "metadata)", hint="give a run folder as hubo wrote it (or remove the "
+                                           "file to read the log without its metadata)")
+    return sidecar
 
 
 def max_velocity_ratio(model, log: LogData) -> float:

@@ -20,7 +20,9 @@ Ctrl-C (KeyboardInterrupt) and any exception raised by the target source or a mo
 smooth stop: a velocity-interface ruckig brake from the last command, passed through a soft
 error limiter, sent period by period until the command is at rest; then ``driver.stop()``. A
 second Ctrl-C during the brake stops the driver at once. A failing driver is stopped at once
-(one reporting device trouble has braked by itself: ``ended`` is ``device``).
+(one reporting device trouble has braked by itself: ``ended`` is ``device``). A log that cannot
+be written (a full disk: :attr:`PeriodLog.error`) ends the run with a brake (``log-error``; the
+periods after the failure are not logged).
 The loop never raises for these; :class:`LoopResult` says how it ended.
 """
 
@@ -43,14 +45,14 @@ from hubo_cli.control.otg import JointTracker
 from hubo_cli.control.status import Status, status_from_flags
 from hubo_cli.control.target import Target, TargetOutput, as_target
 from hubo_cli.drivers.base import Driver
-from hubo_cli.errors import ConfigError, DeviceError, HuboError
+from hubo_cli.errors import ConfigError, DeviceError, HuboError, interrupt_cause
 from hubo_cli.state import RobotState
 
 TargetSource = Target | Callable[[float, RobotState], TargetOutput]
 
 LABELS = {status: status.label for status in Status}  # a property's work done once
 ENDINGS = ("finished", "done", "interrupted", "module-error", "target-error", "driver-error",
-           "device")
+           "device", "log-error")
 MAX_STOP_S = 15.0  # a brake from full speed at the slowest joint's limits takes under 2 s
 
 
@@ -60,9 +62,10 @@ class LoopResult:
 
     Attributes:
         ended: ``finished`` (duration reached), ``done`` (the target source said so),
-            ``interrupted`` (Ctrl-C), ``module-error``, ``target-error``, ``driver-error`` or
-            ``device`` (the driver reported device trouble, e.g. the robot's state stopped;
-            it has braked and holds by itself).
+            ``interrupted`` (Ctrl-C or SIGTERM), ``module-error``, ``target-error``,
+            ``driver-error``, ``device`` (the driver reported device trouble, e.g. the robot's
+            state stopped; it has braked and holds by itself) or ``log-error`` (the log could
+            not be written: a full disk).
         periods: control periods run (the smooth stop included).
         t_end_s: loop time at the end (s).
         error: one line describing the error or interruption, "" otherwise.
@@ -289,11 +292,14 @@ class ControlLoop:
                 self._write(t_s, cycle.flags, compute_s, late_s, target_logged, applied, state,
                             extras)
                 self.period += 1
+                if self.log is not None and self.log.error:
+                    ended, error = "log-error", self.log.error
+                    break
                 if info.get("done"):
                     ended = "done"
                     break
         except KeyboardInterrupt as err:
-            ended, error, exc = "interrupted", "interrupted (Ctrl-C)", err
+            ended, error, exc = "interrupted", f"interrupted ({interrupt_cause(err)})", err
         try:
             if ended not in ("driver-error", "device"):
                 stop_periods = self._smooth_stop()
@@ -305,6 +311,10 @@ class ControlLoop:
             driver.stop()
             if self.log is not None:
                 self.log.close()
+                if self.log.error and ended != "log-error":  # the CSV at close
+                    error = (error + "; " if error else "") + self.log.error
+                    if ended in ("finished", "done"):
+                        ended = "log-error"
         return LoopResult(
             ended=ended, periods=self.period, t_end_s=self.period * self.dt_s, error=error,
             stop_periods=stop_periods, status_counts=dict(self._statuses),

@@ -75,10 +75,11 @@ class StandingResult:
 
     def summary(self) -> dict:
         """The headline numbers as a plain dict (for JSON; the run's common summary says which
-        balancer ran, ``balance``)."""
+        balancer ran, ``balance``, and the time it ran, ``duration_s``; the time asked for is
+        ``requested_duration_s``)."""
         return {"max_tilt_deg": self.max_tilt_deg, "feet_flat": self.feet_flat,
                 "fell": self.fell, "realtime_factor": self.realtime_factor,
-                "duration_s": self.duration_s, "simulated_s": self.simulated_s,
+                "requested_duration_s": self.duration_s, "simulated_s": self.simulated_s,
                 "push_n": self.push_n, "push_direction": list(self.push_direction),
                 "max_sole_tilt_deg": self.max_sole_tilt_deg,
                 "final_tilt_deg": self.final_tilt_deg, "physics_share": self.physics_share,

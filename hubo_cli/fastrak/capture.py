@@ -20,6 +20,7 @@ import csv
 import io
 import json
 import math
+import os
 import struct
 import time
 from collections.abc import Iterable
@@ -45,6 +46,13 @@ from hubo_cli.geometry import matrix_to_quat_wxyz
 MAGIC = b"FASTRAK-CAPTURE 1\n"
 CHUNK_HEAD = struct.Struct("<dI")
 MAX_CHUNK_BYTES = 65536  # one serial read: 5 s of a 115200-baud line; a longer one is garbled
+# the largest recording read (a binary capture of two stations takes about 6 kB/s, a pose log
+# about 9 kB/s: 256 MiB is some 8 hours); a bigger file is not read at all
+MAX_RECORDING_BYTES = 256 << 20
+# the first bytes of a recording are parsed before the rest is read: a file that is not a
+# recording (/dev/zero, random bytes, a binary blob) is refused from them
+FIRST_BYTES = 1 << 20
+MAX_LINE_BYTES = 65536  # no line of a pose log comes near this
 MAX_CHUNK_GAP_S = 3600.0  # chunks an hour apart are a garbled time, not a recording
 POSE_LOG_COLUMNS = ("t_s", "station", "x_m", "y_m", "z_m", "qw", "qx", "qy", "qz", "status")
 RECORD_RATE_HZ = 120.0
@@ -122,10 +130,29 @@ class Capture:
 
 
 def read_recording_bytes(path: str | Path) -> bytes:
-    """The bytes of a recording file; InputError (with a hint) if it cannot be read."""
+    """The bytes of a recording file, read a block at a time (Ctrl-C and SIGTERM are seen
+    between blocks): its first :data:`FIRST_BYTES` must parse as a raw capture or a pose log,
+    and the file must not exceed :data:`MAX_RECORDING_BYTES`, so that a file that is no
+    recording (``/dev/zero``, random bytes) is refused from its first bytes, never read whole.
+
+    Raises:
+        InputError: the file is missing, unreadable, too large or not a recording.
+    """
     path = Path(path)
     try:
-        return path.read_bytes()
+        with open(path, "rb") as f:
+            size = os.fstat(f.fileno()).st_size
+            if size > MAX_RECORDING_BYTES:
+                raise _too_large(path)
+            blob = bytearray(f.read(FIRST_BYTES))
+            more = f.read(1)
+            _check_first_bytes(bytes(blob), str(path), whole=not more)
+            while more:
+                blob += more
+                if len(blob) > MAX_RECORDING_BYTES:
+                    raise _too_large(path)
+                more = f.read(FIRST_BYTES)
+            return bytes(blob)
     except FileNotFoundError:
         raise InputError(f"no such recording: {path}",
                          hint="check the path; sample recordings are in trajectories/") from None
@@ -133,6 +160,35 @@ def read_recording_bytes(path: str | Path) -> bytes:
         raise InputError(f"{path} is a folder, not a recording", hint="give a file") from None
     except OSError as exc:
         raise InputError(f"cannot read {path}: {exc.strerror}", hint="check permissions") from None
+
+
+def _too_large(path: Path) -> InputError:
+    return InputError(f"{path} is larger than {MAX_RECORDING_BYTES >> 20} MiB: not a recording "
+                      "(that is some 8 hours of tracker stream)",
+                      hint="replay a file written by `hubo record` or a pose-log CSV")
+
+
+def _check_first_bytes(first: bytes, where: str, whole: bool) -> None:
+    """Parse a recording's first bytes (``whole``: the file ends there) as a raw capture or
+    a pose log up to their last complete line; InputError when they are neither."""
+    if first.startswith(MAGIC):
+        parse_capture(first, where)  # a chunk cut at the end is taken as a truncation
+        return
+    if not whole:  # up to the last whole line: a pose log's lines are some 80 bytes
+        end = first.rfind(b"\n") + 1
+        if len(first) - end > MAX_LINE_BYTES:
+            line = first.count(b"\n") + 1
+            raise InputError(f"{where} is not a recording: line {line} runs over "
+                             f"{MAX_LINE_BYTES >> 10} KiB",
+                             hint="replay a file written by `hubo record` or a pose-log CSV")
+        first = first[:end]
+    try:
+        text = first.decode("utf-8")
+    except UnicodeDecodeError:
+        raise InputError(f"{where} is neither a raw capture nor a text pose log",
+                         hint="replay a file written by `hubo record` or a pose-log CSV"
+                         ) from None
+    parse_pose_log(text, where)
 
 
 def parse_capture(blob: bytes, where: str = "capture") -> Capture:
@@ -172,16 +228,16 @@ def parse_capture(blob: bytes, where: str = "capture") -> Capture:
         t_s, n = CHUNK_HEAD.unpack_from(blob, pos)
         pos += CHUNK_HEAD.size
         at = pos - CHUNK_HEAD.size
+        if not 0 < n <= MAX_CHUNK_BYTES:  # a serial read has at least one byte
+            raise InputError(f"{where}: chunk at byte {at} claims {n:,} bytes (one serial read "
+                             f"is 1 to {MAX_CHUNK_BYTES:,})",
+                             hint="the chunk's length is garbled; record the capture again")
         if (not math.isfinite(t_s) or t_s < last_t - 1e-9 or t_s < -1e-9
                 or t_s - max(last_t, 0.0) > MAX_CHUNK_GAP_S):
             raise InputError(f"{where}: chunk at byte {at} has time {t_s!r}",
                              hint="chunk times must be finite and non-decreasing, without "
                                   "gaps of hours; the file is garbled")
-        if pos + n > size:
-            if n - (size - pos) > MAX_CHUNK_BYTES:  # a cut-off file misses part of one read
-                raise InputError(f"{where}: chunk at byte {at} claims {n:,} bytes, "
-                                 f"{n - (size - pos):,} more than the file holds",
-                                 hint="the chunk's length is garbled; record the capture again")
+        if pos + n > size:  # a cut-off file misses part of one read
             truncated = True
             n = size - pos
         last_t = t_s
@@ -403,8 +459,8 @@ def parse_pose_log(text: str, where: str = "pose log") -> RecordBatch:
     if not lines:
         raise InputError(f"{where} is empty", hint="a pose log starts with the header line "
                          + ",".join(POSE_LOG_COLUMNS))
-    reader = csv.reader([line for _, line in lines])
-    header = [h.strip() for h in next(reader)]
+    reader = _csv_rows(lines, where)
+    header = [h.strip() for h in next(reader)[1]]
     missing = [c for c in POSE_LOG_COLUMNS[:-1] if c not in header]
     if missing:
         raise InputError(f"{where}: line {lines[0][0]}: missing column(s) {', '.join(missing)}",
@@ -413,8 +469,7 @@ def parse_pose_log(text: str, where: str = "pose log") -> RecordBatch:
     numeric = POSE_LOG_COLUMNS[:-1]
     values = np.zeros((len(lines) - 1, len(numeric)))
     status = np.full(len(lines) - 1, 0x20, dtype=np.uint8)
-    for row_i, row in enumerate(reader):
-        line_no = lines[row_i + 1][0]
+    for row_i, (line_no, row) in enumerate(reader):
         try:
             values[row_i] = [float(row[col[name]]) for name in numeric]
         except (ValueError, IndexError):
@@ -448,6 +503,22 @@ def parse_pose_log(text: str, where: str = "pose log") -> RecordBatch:
     if len(batch) > 1 and (np.diff(batch.t_s) < 0).any():
         batch = batch.select(np.argsort(batch.t_s, kind="stable"))
     return batch
+
+
+def _csv_rows(lines: list[tuple[int, str]], where: str):
+    """(line number, cells) of each numbered line; a line the csv module refuses (a field
+    over its size limit, a NUL) is an InputError naming it."""
+    reader = csv.reader([line for _, line in lines])
+    while True:
+        try:
+            row = next(reader)
+        except StopIteration:
+            return
+        except csv.Error as exc:
+            line_no = lines[min(reader.line_num, len(lines)) - 1][0]
+            raise InputError(f"{where}: line {line_no}: not a pose-log row ({exc})",
+                             hint="fix or delete that line") from None
+        yield lines[reader.line_num - 1][0], row
 
 
 def read_pose_log(path: str | Path) -> RecordBatch:

@@ -1,32 +1,49 @@
-"""Export a run to an MCAP file in Foxglove's schemas (protobuf), for Foxglove Studio.
+"""Export a run to an MCAP file in Foxglove's schemas, for Foxglove (opens with the robot shown).
 
-Topics (log times are the run's seconds since its start, in nanoseconds; one message per period
-on each of the first two):
+Times are UTC: the run's start (the log's ``started_utc``; for an older log, its file's
+modification time, which the metadata then says) plus each period's time. Topics:
 
-* ``/joint_states`` (``foxglove.JointStates``): the measured joint positions (rad) and
-  velocities (rad/s, from the log by finite differences) with the joint names of the URDF;
-* ``/tf`` (``foxglove.FrameTransforms``): ``world`` -> ``torso`` (the torso pose) and every URDF
-  joint's ``parent link`` -> ``child link``, so Foxglove's 3D panel animates the URDF (add
-  ``robots/hubo2plus/hubo2plus[-drill].urdf`` as a URDF layer);
+* ``/robot_description`` (``std_msgs/String`` in JSON, once at the start): the URDF the run used,
+  which Foxglove's 3D panel loads by itself, as it does ROS's topic of that name;
+* ``/joint_states`` (``foxglove.JointStates``, each period): the measured joint positions (rad)
+  and velocities (rad/s, from the log by finite differences) with the joint names of the URDF;
+* ``/tf`` (``foxglove.FrameTransforms``, each period): ``world`` -> ``torso`` (the torso pose)
+  and every URDF joint's ``parent link`` -> ``child link``, so the 3D panel animates the URDF;
 * ``/scene`` (``foxglove.SceneUpdate``, once at the start): the walls, the goal and measured
-  tool paths and the hole, in ``world``.
+  tool paths and the hole (drawn on the wall's face on the robot's side), in ``world``;
+* ``/metrics`` (JSON, ``hubo.Metrics``, each period): the run's scalar series
+  (:func:`~hubo_cli.viz.scene.time_series`: ``error_mm``, ``wrist_torque_nm``, ``cp_margin_mm``,
+  ``torso_pitch_deg``, ``status_code``; every field in every message, null where the run has
+  no value) and ``status`` (its label), for Foxglove's plots;
+* ``/events`` (``foxglove.Log``): e-stop latched and released, and each change of status.
+
+The file also holds the URDF as an attachment and one metadata record, ``hubo-cli run``
+(:func:`~hubo_cli.viz.scene.run_metadata`). The layout :data:`LAYOUT_PATH` (Foxglove: Layouts,
+Import from file) shows the 3D panel, the plots and the event log.
 """
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from hubo_cli.control.log import status_codes
 from hubo_cli.urdf import link_frames
 from hubo_cli.viz.deps import require
 from hubo_cli.viz.replay import ACTUAL_RGB, GOAL_RGB, HOLE_RGB, WALL_RGBA, quat_xyzw
-from hubo_cli.viz.scene import RunScene
+from hubo_cli.viz.scene import SERIES, RunScene, events, run_metadata, time_series
 
 WORLD_FRAME = "world"
-TOPICS = ("/joint_states", "/tf", "/scene")
+TOPICS = ("/robot_description", "/joint_states", "/tf", "/scene", "/metrics", "/events")
+METADATA_NAME = "hubo-cli run"
+LAYOUT_PATH = Path(__file__).with_name("foxglove_layout.json")
+# ROS's std_msgs/String, the schema Foxglove's 3D panel reads a URDF from
+STRING_SCHEMA = {"title": "std_msgs/String", "type": "object",
+                 "properties": {"data": {"type": "string"}}}
 
 
 @dataclass
@@ -92,7 +109,8 @@ def _scene_update(fm, scene: RunScene, stamp):
     lines = []
     for points, rgb, kind in ((scene.goal_world_m, GOAL_RGB, fm.LinePrimitiveLineType.LineStrip),
                               (scene.tool_world_m, ACTUAL_RGB, fm.LinePrimitiveLineType.LineStrip),
-                              (scene.hole_world_m, HOLE_RGB, fm.LinePrimitiveLineType.LineList)):
+                              (scene.hole_on_face_world_m(), HOLE_RGB,
+                               fm.LinePrimitiveLineType.LineList)):
         finite = points[np.all(np.isfinite(points), axis=1)] if len(points) else points
         if kind == fm.LinePrimitiveLineType.LineList:
             finite = finite[: len(finite) // 2 * 2]
@@ -108,6 +126,32 @@ def _scene_update(fm, scene: RunScene, stamp):
     return fm.SceneUpdate(entities=[entity])
 
 
+def _metrics(series: dict[str, np.ndarray], periods: int) -> list[dict]:
+    """One ``/metrics`` message per period with every one of :data:`SERIES` (null where the
+    run has no value: not logged, or NaN, which JSON lacks)."""
+    names = list(SERIES)
+    missing = np.full(periods, np.nan)
+    rows = np.column_stack([series.get(n, missing) for n in names]).tolist()
+    labels = status_codes()
+    out = []
+    for row in rows:
+        message = {n: (v if math.isfinite(v) else None) for n, v in zip(names, row, strict=True)}
+        code = message["status_code"] = None if message["status_code"] is None else int(
+            message["status_code"])
+        message["status"] = None if code is None else labels.get(code, f"code {code}")
+        out.append(message)
+    return out
+
+
+def _metrics_schema() -> dict:
+    """``/metrics``' JSON schema: one plain type a field (Foxglove reads no type lists; a
+    value may still be null)."""
+    properties = {name: {"type": "number"} for name in SERIES}
+    properties["status_code"] = {"type": "integer"}
+    properties["status"] = {"type": "string"}
+    return {"title": "hubo.Metrics", "type": "object", "properties": properties}
+
+
 def export_mcap(scene: RunScene, out: str | Path) -> McapResult:
     """Write ``scene`` as an MCAP file in Foxglove's schemas at ``out`` (replaced if present).
 
@@ -116,28 +160,47 @@ def export_mcap(scene: RunScene, out: str | Path) -> McapResult:
     """
     foxglove = require("foxglove", "the MCAP file")
     import foxglove.messages as fm
-    from foxglove.channels import FrameTransformsChannel, JointStatesChannel, SceneUpdateChannel
+    from foxglove.channels import (
+        FrameTransformsChannel,
+        JointStatesChannel,
+        LogChannel,
+        SceneUpdateChannel,
+    )
 
     started = time.perf_counter()
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     t_s = scene.t_s
-    t_ns = np.round(t_s * 1e9).astype(np.int64)
+    t_ns = scene.utc_ns()
     q = scene.log.joints("q")
     dq = np.gradient(q, t_s, axis=0) if len(t_s) > 1 else np.zeros_like(q)
     names = list(scene.log.joint_names)
     columns = [_transform_columns(WORLD_FRAME, "torso", scene.T_world_torso)]
     columns += [_transform_columns(*joint) for joint in joint_transforms(scene)]
     q_list, dq_list = q.tolist(), dq.tolist()
+    urdf_path = scene.model.urdf_path(scene.drill)
+    urdf = urdf_path.read_text()
     counts = dict.fromkeys(TOPICS, 0)
     context = foxglove.Context()
-    with foxglove.open_mcap(str(out), allow_overwrite=True, context=context):
-        states = JointStatesChannel(TOPICS[0], context=context)
-        tf = FrameTransformsChannel(TOPICS[1], context=context)
-        scene_channel = SceneUpdateChannel(TOPICS[2], context=context)
-        scene_channel.log(_scene_update(fm, scene, _stamp(fm, t_ns[0])), log_time=int(t_ns[0]))
-        counts[TOPICS[2]] += 1
-        for k, ns in enumerate(t_ns.tolist()):
+    first = int(t_ns[0])
+    with foxglove.open_mcap(str(out), allow_overwrite=True, context=context) as writer:
+        writer.write_metadata(METADATA_NAME, run_metadata(scene))
+        writer.attach(log_time=first, create_time=urdf_path.stat().st_mtime_ns,
+                      name=urdf_path.name, media_type="application/xml", data=urdf.encode())
+        description = foxglove.Channel(TOPICS[0], schema=STRING_SCHEMA, context=context)
+        states = JointStatesChannel(TOPICS[1], context=context)
+        tf = FrameTransformsChannel(TOPICS[2], context=context)
+        scene_channel = SceneUpdateChannel(TOPICS[3], context=context)
+        metrics = foxglove.Channel(TOPICS[4], schema=_metrics_schema(), context=context)
+        log_channel = LogChannel(TOPICS[5], context=context)
+        description.log({"data": urdf}, log_time=first)
+        scene_channel.log(_scene_update(fm, scene, _stamp(fm, first)), log_time=first)
+        happened = {}
+        for k, level, text in events(scene):
+            happened.setdefault(k, []).append((level, text))
+        levels = {"info": fm.LogLevel.Info, "warning": fm.LogLevel.Warning}
+        metric_rows = _metrics(time_series(scene), len(scene))
+        for k, (ns, metric) in enumerate(zip(t_ns.tolist(), metric_rows, strict=True)):
             stamp = _stamp(fm, ns)
             states.log(fm.JointStates(timestamp=stamp, joints=[
                 fm.JointState(name=n, position=p, velocity=v)
@@ -145,7 +208,13 @@ def export_mcap(scene: RunScene, out: str | Path) -> McapResult:
             tf.log(fm.FrameTransforms(transforms=[
                 _transform(fm, parent, child, p[k], r[k], stamp)
                 for parent, child, p, r in columns]), log_time=ns)
-        counts[TOPICS[0]] = counts[TOPICS[1]] = len(t_ns)
+            metrics.log(metric, log_time=ns)
+            for level, text in happened.get(k, ()):
+                log_channel.log(fm.Log(timestamp=stamp, level=levels[level],
+                                       message=text, name="hubo-cli"), log_time=ns)
+                counts[TOPICS[5]] += 1
+        counts[TOPICS[0]] = counts[TOPICS[3]] = 1
+        counts[TOPICS[1]] = counts[TOPICS[2]] = counts[TOPICS[4]] = len(t_ns)
     return McapResult(out, counts, time.perf_counter() - started)
 
 
@@ -154,8 +223,8 @@ def _stamp(fm, ns: int):
 
 
 def read_mcap_summary(path: str | Path) -> dict[str, dict]:
-    """Per topic of an MCAP file: schema name, message count and first/last log time (s),
-    read back with the ``mcap`` reader."""
+    """Per topic of an MCAP file: schema name, message count and first/last log time (s since
+    the epoch), read back with the ``mcap`` reader."""
     require("mcap", "reading the MCAP file")
     from mcap.reader import make_reader
 

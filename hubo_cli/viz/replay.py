@@ -206,11 +206,12 @@ class KinematicReplay:
 
     # ------------------------------------------------------------------ window
     def draw_paths(self) -> None:
-        """Draw the goal and measured tool paths and the hole as lines (PyBullet window)."""
+        """Draw the goal and measured tool paths and the hole (on the wall's face, where it is seen)
+        as lines (PyBullet window)."""
         scene = self.scene
         for points, rgb, width in ((scene.goal_world_m, GOAL_RGB, 2),
                                    (scene.tool_world_m, ACTUAL_RGB, 2),
-                                   (scene.hole_world_m, HOLE_RGB, 4)):
+                                   (scene.hole_on_face_world_m(), HOLE_RGB, 4)):
             finite = points[np.all(np.isfinite(points), axis=1)][::5]
             for a, b in zip(finite[:-1], finite[1:], strict=True):
                 if np.linalg.norm(b - a) > 1e-4:

@@ -6,22 +6,40 @@ the torso, with the logged (IMU) orientation. The measured tool path is the logg
 carried to the tool's point; the goal path is the commanded tool position (logged in the task's
 stance frame S) carried into the world by the offset between the measured tool in the world and
 in S at the first period where both are known (the way a task places its wall).
+
+The run's start in UTC (for exports' absolute times) is the log's ``started_utc``; a log written
+before that was recorded gets its file's modification time, and :attr:`RunScene.start_source`
+says so.
 """
 
 from __future__ import annotations
 
+import json
+import time
 from dataclasses import dataclass, field
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
 
-from hubo_cli.control.log import LogData, load_log
+from hubo_cli import __version__
+from hubo_cli.control.log import LogData, load_log, status_codes
 from hubo_cli.control.status import Status
 from hubo_cli.errors import InputError
+from hubo_cli.geometry import quat_wxyz_to_matrix
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import ARMS, LEGS, RobotModel, load_model
 
 ARM_SUFFIX = {"right-arm": "_r", "left-arm": "_l"}
+# the run's scalar series (time_series), in the order exports show them
+SERIES = ("error_mm", "wrist_torque_nm", "cp_margin_mm", "torso_pitch_deg", "status_code")
+# statuses whose start is an ``info`` event, not a ``warning``: the pipeline at work (a joint
+# held at its limit is most of a nominal cut: the hip yaw and roll at their zero limits)
+QUIET_STATUSES = frozenset({Status.OK, Status.SLOWING, Status.HOLDING, Status.JOINT_LIMIT})
+HOLE_FACE_OFFSET_M = 0.001  # the hole drawn this far in front of the wall's face
+START_FROM_LOG = "log"  # RunScene.start_source when the log says when the run started
+LATEST_START_NS = 2 ** 62  # a start time after this (year 2116) is not believed
+MAX_LOG_TIME_S = 1e8  # a log's times beyond this (3 years) are not a run's
 HAND_FRAME = {"right-arm": "right_hand", "left-arm": "left_hand"}
 
 
@@ -56,6 +74,9 @@ class RunScene:
         goal_world_m: the commanded tool point per period (N x 3), NaN where none was logged.
         walls: walls as placed (``centre_world_m``, ``quat_wxyz``, ``size_m``).
         hole_world_m: where the bit crossed a wall (M x 3).
+        start_utc_ns: when the run started (UTC, ns since the epoch).
+        start_source: where that comes from: ``"log"`` (the log's ``started_utc``) or a
+            sentence naming the file whose modification time stands in for it.
     """
 
     run_dir: Path
@@ -69,6 +90,8 @@ class RunScene:
     goal_world_m: np.ndarray
     walls: list[dict] = field(default_factory=list)
     hole_world_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    start_utc_ns: int = 0
+    start_source: str = START_FROM_LOG
 
     @property
     def t_s(self) -> np.ndarray:
@@ -96,6 +119,27 @@ class RunScene:
                 return 0.5 * (finite.min(axis=0) + finite.max(axis=0))
         return self.T_world_torso[0, :3, 3] + np.array([0.35, 0.0, -0.1])
 
+    def utc_ns(self) -> np.ndarray:
+        """Each period's time as UTC nanoseconds since the epoch (int64)."""
+        return self.start_utc_ns + np.round(self.t_s * 1e9).astype(np.int64)
+
+    def hole_on_face_world_m(self) -> np.ndarray:
+        """The hole's points moved onto the face of their wall on the robot's side (plus
+        :data:`HOLE_FACE_OFFSET_M`), where a viewer sees them; the points as cut lie inside the
+        wall. A point in no wall stays where it is."""
+        points = self.hole_world_m.copy()
+        robot = self.T_world_torso[0, :3, 3]
+        for wall in self.walls:
+            centre, size = np.asarray(wall["centre_world_m"]), np.asarray(wall["size_m"])
+            R = quat_wxyz_to_matrix(wall["quat_wxyz"])
+            local = (points - centre) @ R  # rows: R.T @ (p - c)
+            inside = np.all(np.abs(local) <= size / 2 + 0.005, axis=1)
+            thin = int(np.argmin(size))
+            side = np.sign(((robot - centre) @ R)[thin]) if np.all(np.isfinite(robot)) else -1
+            local[inside, thin] = (side or -1) * (size[thin] / 2 + HOLE_FACE_OFFSET_M)
+            points[inside] = centre + local[inside] @ R.T
+        return points
+
     def caption(self, k: int) -> str:
         """One line describing period ``k``: time, step, error, wrist torque, status."""
         log = self.log
@@ -116,10 +160,144 @@ class RunScene:
         return "   ".join(parts)
 
 
-def _tools(log: LogData) -> dict[str, str]:
+def time_series(scene: RunScene) -> dict[str, np.ndarray]:
+    """The run's scalar time series by name (NaN where not logged): ``error_mm`` (tracking
+    error of the tool), ``wrist_torque_nm``, ``cp_margin_mm`` (the capture point inside its
+    support polygon shrunk by the monitor's margin; negative = outside), ``torso_pitch_deg``
+    and ``status_code`` (:data:`SERIES`); a series the log lacks is left out."""
+    log = scene.log
+    suffix = ARM_SUFFIX[scene.working_arm]
+    out: dict[str, np.ndarray] = {}
+    error = first_column(log, ("error_m", f"error_m{suffix}"))
+    if error is not None:
+        out["error_mm"] = error * 1000
+    torque = first_column(log, ("task_wrist_torque_nm", "wrist_torque_nm"))
+    if torque is not None:
+        out["wrist_torque_nm"] = torque
+    outside = first_column(log, ("cp_outside_m",))
+    if outside is not None:
+        out["cp_margin_mm"] = -outside * 1000
+    T = scene.T_world_torso
+    out["torso_pitch_deg"] = np.degrees(np.arctan2(-T[:, 2, 0], np.hypot(T[:, 0, 0], T[:, 1, 0])))
+    out["status_code"] = log["status_code"]
+    return out
+
+
+def events(scene: RunScene) -> list[tuple[int, str, str]]:
+    """What happened, in order, as (period, level, text): the e-stop latching (``warning``)
+    and releasing (``info``), read from the log's ``estop`` flag, and each change of status
+    (``info``, or ``warning`` for a status outside :data:`QUIET_STATUSES`)."""
+    out = []
+    estopped = np.array(["estop" in f for f in scene.log.flags], dtype=bool)
+    for k in np.flatnonzero(np.diff(estopped.astype(np.int8), prepend=0)).tolist():
+        out.append((k, "warning", "e-stop latched") if estopped[k]
+                   else (k, "info", "e-stop released"))
+    status, labels = scene.log.status, status_codes()
+    for k in np.flatnonzero(np.r_[True, status[1:] != status[:-1]]).tolist():
+        code = int(status[k])
+        out.append((k, "info" if code in QUIET_STATUSES else "warning",
+                    f"status: {labels.get(code, f'code {code}')}"))
+    return sorted(out, key=lambda e: e[0])
+
+
+def run_metadata(scene: RunScene) -> dict[str, str]:
+    """What an export says about the run it holds (strings): the hubo-cli that made the run
+    and the one that exported it, when it started (UTC ISO 8601) and where that comes from, the
+    command, driver and perturbation seed (from ``summary.json`` where the run folder has a
+    readable one), the periods, the duration, the URDF and the run folder."""
+    log = scene.log
+    try:
+        summary = json.loads((scene.run_dir / "summary.json").read_text())
+    except (OSError, UnicodeDecodeError, ValueError):
+        summary = {}
+    if not isinstance(summary, dict):
+        summary = {}
+    perturbation = summary.get("perturbation")
+    seed = perturbation.get("seed") if isinstance(perturbation, dict) else None
+    start_s, start_ns = divmod(scene.start_utc_ns, 1_000_000_000)
+    started = time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime(start_s)) + f".{start_ns:09d}Z"
+    values = {"hubo_cli_version": log.hubo_cli_version, "exported_by": f"hubo-cli {__version__}",
+              "started_utc": started, "start_time_source": scene.start_source,
+              "command": log.metadata.get("command", summary.get("command")),
+              "driver": summary.get("driver"), "seed": seed, "periods": len(scene),
+              "duration_s": float(scene.t_s[-1] - scene.t_s[0]),
+              "urdf": scene.model.urdf_path(scene.drill).name, "run_dir": str(scene.run_dir)}
+    return {k: "" if v is None else str(v) for k, v in values.items()}
+
+
+def _start_utc(log: LogData, log_file: Path) -> tuple[int, str]:
+    """(UTC ns since the epoch, source) of the run's start; see the module docstring."""
+    text = log.started_utc
+    try:
+        moment = datetime.fromisoformat(text)
+        if moment.tzinfo is None:
+            moment = moment.replace(tzinfo=UTC)
+        ns = round(moment.timestamp() * 1e6) * 1000
+        if 0 <= ns < LATEST_START_NS:
+            return ns, START_FROM_LOG
+    except (TypeError, ValueError, OverflowError, OSError):
+        pass
+    stamp = log_file.stat().st_mtime_ns
+    why = "no start time" if text is None else f"an unusable start time ({str(text)[:40]!r})"
+    return stamp, (f"the modification time of {log_file.name} (the log has {why}; that is "
+                   "when the log was last written, at or after the run's end)")
+
+
+def _tools(scene_meta: dict) -> dict[str, str]:
     tools = {arm: "hand" for arm in ARMS}
-    tools.update(log.metadata.get("scene", {}).get("tools", {}))
+    tools.update(scene_meta.get("tools", {}))
     return tools
+
+
+def _checked_scene(log: LogData, run_dir: Path) -> dict:
+    """The log's scene metadata (walls, tools, hole), checked so that a replay can place it.
+
+    Raises:
+        InputError: something in it is not what a run writes.
+    """
+    scene = log.metadata.get("scene", {})
+    problem = _scene_problem(scene)
+    if problem is not None:
+        raise InputError(f"the scene in {run_dir / 'log.json'} {problem}",
+                         hint="give a run folder as hubo wrote it (or remove the scene from "
+                              "log.json's metadata to replay without walls)")
+    return scene
+
+
+def _scene_problem(scene) -> str | None:
+    """What is wrong with a scene's metadata, or None."""
+    if not isinstance(scene, dict):
+        return "is not a mapping"
+    tools = scene.get("tools", {})
+    if not (isinstance(tools, dict)
+            and all(isinstance(a, str) and isinstance(t, str) for a, t in tools.items())):
+        return "has tools that are not arm -> tool names"
+    walls = scene.get("walls", [])
+    for k, wall in enumerate(walls if isinstance(walls, list) else [None]):
+        if not _wall_ok(wall):
+            return (f"has a malformed wall ({k + 1}): each needs centre_world_m and size_m "
+                    "(3 finite numbers, the sizes positive) and quat_wxyz (4, not all 0)")
+    try:
+        hole = np.asarray(scene.get("hole_world_m", []), dtype=float).reshape(-1, 3)
+    except (TypeError, ValueError):
+        hole = None
+    if hole is None or not np.all(np.isfinite(hole)):
+        return "has a hole_world_m that is not a list of finite x, y, z points"
+    return None
+
+
+def _wall_ok(wall) -> bool:
+    if not isinstance(wall, dict):
+        return False
+    try:
+        centre = np.asarray(wall["centre_world_m"], dtype=float)
+        size = np.asarray(wall["size_m"], dtype=float)
+        quat = np.asarray(wall["quat_wxyz"], dtype=float)
+    except (KeyError, TypeError, ValueError):
+        return False
+    return (centre.shape == size.shape == (3,) and quat.shape == (4,)
+            and bool(np.all(np.isfinite([*centre, *size, *quat])) and np.all(size > 0)
+                     and np.linalg.norm(quat) > 1e-9))
 
 
 def _working_arm(log: LogData, tools: dict[str, str]) -> str:
@@ -184,7 +362,8 @@ def load_scene(run: str | Path, model: RobotModel | None = None) -> RunScene:
     """Read a run folder (or its log file) into a :class:`RunScene`.
 
     Raises:
-        InputError: no log there, or an empty one.
+        InputError: no log there, an empty one, one that cannot be read, times that are not
+            finite, or a scene in its metadata that cannot be placed.
     """
     path = Path(run)
     run_dir = path if path.is_dir() else path.parent
@@ -194,6 +373,10 @@ def load_scene(run: str | Path, model: RobotModel | None = None) -> RunScene:
     log = load_log(path)
     if len(log) == 0:
         raise InputError(f"the log in {run_dir} has no periods", hint="replay a run that ran")
+    t_s = log["t_s"]
+    if not np.all(np.isfinite(t_s) & (np.abs(t_s) < MAX_LOG_TIME_S)):
+        raise InputError(f"the log in {run_dir} has times (t_s) that are not finite or beyond "
+                         f"{MAX_LOG_TIME_S:.0e} s", hint="give a run folder as hubo wrote it")
     model = model or load_model()
     if tuple(log.joint_names) != tuple(model.joint_names):
         raise InputError(f"the log's joints ({len(log.joint_names)}) are not the model's",
@@ -204,10 +387,14 @@ def load_scene(run: str | Path, model: RobotModel | None = None) -> RunScene:
         T = np.tile(np.eye(4), (len(log), 1, 1))
         T[:, :3, 3] = np.nan
     estimated = _estimate_torso(model, log, T)
-    tools = _tools(log)
+    scene_meta = _checked_scene(log, run_dir)
+    tools = _tools(scene_meta)
     arm = _working_arm(log, tools)
     tool_world = _tool_world(model, log, T, arm, tools[arm])
-    scene_meta = log.metadata.get("scene", {})
     hole = np.asarray(scene_meta.get("hole_world_m", []), dtype=float).reshape(-1, 3)
+    log_file = next(f for f in (run_dir / "log.parquet", run_dir / "log.csv", path)
+                    if f.is_file())
+    start_ns, start_source = _start_utc(log, log_file)
     return RunScene(run_dir, log, model, T, estimated, tools, arm, tool_world,
-                    _goal_world(log, arm, tool_world), list(scene_meta.get("walls", [])), hole)
+                    _goal_world(log, arm, tool_world), list(scene_meta.get("walls", [])), hole,
+                    start_ns, start_source)

@@ -545,7 +545,10 @@ class WalkTarget(Target):
         return error_m <= ARRIVED_M and error_rad <= ARRIVED_RAD
 
     def final_error(self) -> tuple[float, float]:
-        """The final stance's distance (m) and heading error (rad) from the goal."""
+        """The final stance's distance (m) and heading error (rad) from the goal; NaN when
+        the walk ended (Ctrl-C, SIGTERM, an error) before its last step came down."""
+        if not self.final_feet:
+            return math.nan, math.nan
         feet = {side: footstep_of(side, T) for side, T in self.final_feet.items()}
         reached = stance_of(feet["right"], feet["left"])
         return (math.hypot(reached.x_m - self.goal.x_m, reached.y_m - self.goal.y_m),
