@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 from control_support import assert_within_limits, ideal
 
-from hubo_cli.control.estop import EmergencyStopper, stop_on_signal
+from hubo_cli.control.estop import BRAKE_FLAG, RELIEF_S, EmergencyStopper, stop_on_signal
+from hubo_cli.control.limits import JointLimits
 from hubo_cli.control.log import load_log
 from hubo_cli.control.loop import ControlLoop
 from hubo_cli.control.module import Cycle
@@ -136,6 +137,118 @@ def test_stop_table_hrpsys(model, tmp_path, preset):
     assert find_module(modules, "estop").events[0].sources == ("operator",)
     # the stop, the revert and the blend back kept to the limits on their own
     assert find_module(modules, "limiter").clamped_periods == 0
+
+
+def _dir(parent, name):
+    (parent / name).mkdir()
+    return parent / name
+
+
+def _wrist_stop_run(model, tmp_path, relief=None, source="wrist-torque", speed_rad_s=0.35):
+    """The whole default pipeline on the ideal driver: RSP, RSR and REB ramp up to
+    ``speed_rad_s`` (the right arm of a fast cut), ``source`` stops at 2.0 s; the stopper's
+    relief is ``relief``. Returns the stopper, the limiter, time, commands and flags."""
+    robot = ideal(model)
+    q0 = robot.read().q_rad.copy()
+    names = model.joint_names
+    joints = [names.index(j) for j in ("RSP", "RSR", "REB")]
+
+    def target(t_s, state):
+        q = q0.copy()
+        q[joints] -= smooth_ramp(t_s, speed_rad_s)
+        return q, ({"estop": source} if abs(t_s - 2.0) < 1e-9 else {})
+
+    modules = build_pipeline(model)
+    stopper = find_module(modules, "estop")
+    stopper.relief = relief
+    ControlLoop(robot, modules, target, log_path=tmp_path).run(duration_s=3.5)
+    log = load_log(tmp_path)
+    return (stopper, find_module(modules, "limiter"), log["t_s"], log.joints("cmd"),
+            log.flags, joints)
+
+
+def test_wrist_torque_stop_brakes_at_the_emergency_limits_then_relieves(model, tmp_path):
+    """A wrist-torque stop brakes at the robot file's emergency braking limits (8 rad/s^2,
+    400 rad/s^3 on the arms): from 0.35 rad/s the command is at rest v/a + a/j = 0.064 s after
+    the latch, 0.35^2/16 + 0.35*8/800 = 11 mrad on (eq. 15's revert under the arms' 0.8 rad/s^2
+    and 4 rad/s^3 runs on 0.11 rad first); then it follows the relief path on a minimum-jerk
+    time scale (RELIEF_S) to its end and holds there. Every command keeps to the braking
+    limits and the limiter never has to clamp it."""
+    delta = np.zeros(24)
+    delta[:6] = [0.02, 0.03, -0.01, 0.04, 0.0, -0.02]
+    relief_calls = []
+
+    def relief(q_rad):
+        relief_calls.append(q_rad.copy())
+        return q_rad + np.linspace(0.0, 1.0, 5)[1:, None] * delta
+
+    stopper, limiter, t, cmd, flags, joints = _wrist_stop_run(model, _dir(tmp_path, "w"), relief)
+    k0 = int(np.searchsorted(t, 2.0))
+    assert stopper.events[0].sources == ("wrist-torque",) and stopper.mode == "hold"
+    assert len(relief_calls) == 1
+    arm = model.limb_slice("right-arm")  # (the balancer moves the ankles; the log keeps 1e-6)
+    rest = relief_calls[0]
+    k_rest = int(np.nonzero(np.all(np.abs(cmd[:, arm] - rest[arm]) < 1e-5, axis=1))[0][0])
+    assert t[k_rest] - 2.0 <= 0.064 + 3 * DT
+    assert np.abs(rest[joints] - cmd[k0, joints]).max() < 0.011 + 1e-3
+    assert np.abs(cmd[-1, arm] - (rest + delta)[arm]).max() < 1e-5  # holds the relief's end
+    k_end = int(np.nonzero(np.abs(cmd[:, arm] - cmd[-1, arm]).max(axis=1) > 1e-12)[0][-1]) + 1
+    assert t[k_end] - t[k_rest] == pytest.approx(RELIEF_S, abs=2 * DT)
+    braking = [i for i, f in enumerate(flags) if BRAKE_FLAG in f]
+    assert braking[0] == k0 and braking[-1] <= k_end           # only while braking, relieving
+    brake = JointLimits.from_model(model).for_emergency_brake(model)
+    a = np.diff(cmd, 2, axis=0) / DT**2
+    assert np.all(np.abs(a) <= brake.acceleration_rad_s2 * (1 + 1e-6) + 1e-6)
+    assert np.all(np.abs(np.diff(cmd, axis=0)) / DT <= model.velocity_rad_s + 1e-9)
+    assert limiter.clamped_periods == 0
+
+    # the same input stopped by the operator: eq. 15 under the trajectory limits runs on further
+    _, _, _, cmd_op, _, _ = _wrist_stop_run(model, _dir(tmp_path, "o"), relief,
+                                           source="operator")
+    overrun_op = np.max(np.abs(cmd_op[k0:, joints] - cmd_op[k0, joints]))
+    assert overrun_op > 0.08 > 5 * np.abs(rest[joints] - cmd[k0, joints]).max()
+
+
+@pytest.mark.parametrize("relief", [None, lambda q: None, lambda q: np.full((3, 24), np.nan),
+                                    lambda q: np.zeros((0, 24))])
+def test_wrist_torque_stop_without_a_usable_relief_holds_where_it_braked(model, tmp_path,
+                                                                         relief):
+    stopper, _, t, cmd, flags, joints = _wrist_stop_run(model, tmp_path, relief)
+    k0 = int(np.searchsorted(t, 2.0))
+    assert stopper.mode == "hold" and np.all(np.isfinite(cmd))
+    held = t > 2.0 + 0.064 + 3 * DT
+    arm = model.limb_slice("right-arm")  # (the balancer moves the ankles)
+    assert np.abs(cmd[held, arm] - cmd[-1, arm]).max() < 1e-12
+    assert np.abs(cmd[-1, joints] - cmd[k0, joints]).max() < 0.011 + 1e-3
+    assert not any(BRAKE_FLAG in f for f, h in zip(flags, held, strict=True) if h)
+
+
+@pytest.mark.parametrize("release_after_s", [0.02, 0.1, 0.2])
+def test_a_release_while_the_wrist_stop_brakes_or_relieves_blends_back_smoothly(
+        model, release_after_s):
+    """Released while braking (0.02 s) or backing out (0.1, 0.2 s): the output blends back to
+    the live input from where it is, no step (each period's move within the velocity limit)."""
+    stopper = EmergencyStopper(model, DT)
+    q0 = home_posture(model)
+    stopper.reset(q0, RobotState(0.0, q0, np.zeros(24)))
+    delta = np.zeros(24)
+    delta[:6] = [0.03, 0.02, -0.02, 0.04, 0.01, -0.03]
+    stopper.relief = lambda q: q + np.linspace(0.0, 1.0, 4)[1:, None] * delta
+    outputs = []
+    for k in range(int(round(5.0 / DT))):
+        t = k * DT
+        state = RobotState(t, q0, np.zeros(24))
+        if k == 200:
+            state.ft["right-wrist"] = np.array([0, 0, 0, 0, 2.0, 0.0])
+        if k == 200 + int(round(release_after_s / DT)):
+            stopper.release()
+        q = q0.copy()
+        q[:4] -= smooth_ramp(t, 0.3)
+        outputs.append(stopper.update(q, state, Cycle(t, DT)))
+    outputs = np.array(outputs)
+    assert stopper.events[-1].kind == "release" and stopper.mode in ("recover", "release")
+    steps = np.abs(np.diff(outputs, axis=0)) / DT
+    assert np.all(steps <= model.velocity_rad_s + 1e-9)
 
 
 def test_latch_release_and_sources(model):

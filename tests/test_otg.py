@@ -12,7 +12,7 @@ from control_support import assert_within_limits, ideal
 from hubo_cli.control.limits import JointLimits
 from hubo_cli.control.loop import ControlLoop
 from hubo_cli.control.module import Cycle
-from hubo_cli.control.otg import TrajectoryGenerator, tracker_groups
+from hubo_cli.control.otg import JointTracker, TrajectoryGenerator, tracker_groups
 from hubo_cli.control.pipeline import SafetyProfile, build_pipeline, find_module
 from hubo_cli.errors import ConfigError
 from hubo_cli.model import ARMS, LEGS
@@ -219,3 +219,29 @@ def test_preview_shows_the_way_track_takes_and_leaves_the_tracker_as_it_was(mode
         assert (spread < 0.05) if sync == "phase" else (spread > 0.2), (sync, spread)
     with pytest.raises(ConfigError):
         tracker.preview(goal, "time", 5)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_tracker_seeded_beyond_its_acceleration_limit_does_not_run_away(model, seed):
+    """A command braked at the emergency limits (8 rad/s^2) seeds a tracker of the arms'
+    0.8 rad/s^2 and 4 rad/s^3 (a collision hold or a hard stop in that moment): it starts from
+    the acceleration limit, so it stops within the braking distance of that state, where ruckig
+    seeded with 6 rad/s^2 kept accelerating for 1.5 s (to 4 rad/s). Random states, both
+    signs; the tracker reaches its target, never faster than the seed or the limit."""
+    rng = np.random.default_rng(seed)
+    limits = JointLimits.from_model(model).subset(np.arange(6))
+    tracker = JointTracker(limits, DT)
+    v0 = rng.uniform(-0.6, 0.6, 6)
+    a0 = rng.choice([-1.0, 1.0], 6) * rng.uniform(2.0, 8.0, 6)
+    goal = rng.uniform(-0.02, 0.02, 6)
+    tracker.reset(np.zeros(6), v0, a0)
+    assert np.all(np.abs(tracker.a) <= limits.acceleration_rad_s2)
+    speeds = []
+    for _ in range(int(round(6.0 / DT))):
+        tracker.track(goal, target_v_rad_s=np.zeros(6))
+        speeds.append(np.abs(tracker.v))
+    assert tracker.finished and np.allclose(tracker.q, goal, atol=1e-9)
+    # from |v0| plus what the clipped acceleration adds while the jerk ramps it down
+    amax, jmax = limits.acceleration_rad_s2, limits.jerk_rad_s3
+    assert np.all(np.max(speeds, axis=0) <= np.maximum(np.abs(v0) + amax**2 / (2 * jmax),
+                                                       limits.velocity_rad_s) + 1e-9)

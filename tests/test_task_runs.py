@@ -1,5 +1,5 @@
 """Scripted tasks end to end: pre-flight refusals move nothing, the rectangle is cut within the
-paper's accuracy, and a cut too fast for the wrist is reverted by the emergency stop."""
+paper's accuracy, and a cut too fast for the wrist is stopped and backed out of the wall."""
 
 import json
 
@@ -14,9 +14,10 @@ from hubo_cli.geometry import rpy_to_quat_wxyz
 from hubo_cli.kinematics.torso import torso_in_stance
 from hubo_cli.model import load_model
 from hubo_cli.state import RobotState
+from hubo_cli.tasks import target as target_module
 from hubo_cli.tasks.plan import make_plan
 from hubo_cli.tasks.spec import load_task
-from hubo_cli.tasks.target import TaskTarget
+from hubo_cli.tasks.target import RETREAT_ALONG_M, RETREAT_M, RETREAT_STEPS, TaskTarget
 
 
 def _invoke(*args):
@@ -68,6 +69,51 @@ def test_the_task_corrects_the_arm_by_the_measured_torso_lean(rectangle_plan):
     assert np.linalg.norm(corrected - goal) < 0.0005
     assert corrected[0] < uncorrected[0] - 0.003  # held back against the forward lean
     assert np.array_equal(TaskTarget(plan, correction=False)(0.0, lean)[0], plan.q_first_rad)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_wrist_stop_relief_backs_the_bit_straight_out_of_the_wall(rectangle_plan, seed,
+                                                                       monkeypatch):
+    """TaskTarget.relieve, the wrist-torque stop's relief, over random postures around the
+    cut's (arm joints +-0.25 rad, torso leaning up to 2 deg): whenever it gives a path, the bit
+    ends RETREAT_M out of the wall along S's -x with its orientation kept, and the straight
+    joint-space moves between its postures (checked at 10 points each, independently of its
+    own check) never take the bit into the wall nor more than RETREAT_ALONG_M along it; it
+    refuses (None) rather than move otherwise, and without a torso pose."""
+    plan = rectangle_plan
+    body, sl, arm = plan.body, plan.body.model.limb_slice("right-arm"), plan.body.arms["right-arm"]
+    target = TaskTarget(plan)
+    assert target.relieve(plan.q_first_rad) is None  # no torso pose measured yet
+    rng = np.random.default_rng(seed)
+    cut_rows = np.nonzero(plan.cutting)[0]
+    given = 0
+    for _ in range(40):
+        q = plan.q_rad[rng.choice(cut_rows)].copy()
+        q[sl] += rng.uniform(-0.25, 0.25, 6)
+        lean = np.radians(rng.uniform(-2.0, 2.0, 2))
+        target.T_S_N = torso_in_stance(body, q, rpy_to_quat_wxyz(lean[0], lean[1], 0.0))
+        path = target.relieve(q)
+        if path is None:
+            continue
+        given += 1
+        assert path.shape == (RETREAT_STEPS, 24) and np.all(np.isfinite(path))
+        others = np.ones(24, dtype=bool)
+        others[sl] = False
+        assert np.array_equal(path[:, others], np.repeat(q[None, others], len(path), axis=0))
+        T_start = target.T_S_N @ arm.fk(q[sl])
+        T_end = target.T_S_N @ arm.fk(path[-1, sl])
+        assert np.allclose(T_end[:3, 3] - T_start[:3, 3], [-RETREAT_M, 0.0, 0.0], atol=1e-9)
+        assert np.allclose(T_end[:3, :3], T_start[:3, :3], atol=1e-9)
+        joints = np.vstack([q[sl], path[:, sl]])
+        fine = np.vstack([a + f * (b - a) for a, b in zip(joints[:-1], joints[1:], strict=True)
+                          for f in np.linspace(0.0, 1.0, 10)])
+        moved = (target.T_S_N @ arm.fk_batch(fine))[:, :3, 3] - T_start[:3, 3]
+        assert moved[:, 0].max() <= 1e-4
+        assert np.hypot(moved[:, 1], moved[:, 2]).max() <= RETREAT_ALONG_M
+    assert given >= 30  # postures near the cut's back out: 40 of 40 for seeds 0-7
+    # a path that would move the bit along the wall at all is refused
+    monkeypatch.setattr(target_module, "RETREAT_ALONG_M", 1e-9)
+    assert target.relieve(q) is None
 
 
 def test_a_600_mm_rectangle_is_refused_in_preflight_and_nothing_moves(tmp_path, monkeypatch):
@@ -149,25 +195,45 @@ def test_a_small_rectangle_is_cut_accurately_with_a_full_run_folder(tmp_path):
 
 
 @pytest.mark.slow
-def test_cutting_too_fast_trips_the_wrist_torque_stop_which_reverts_and_holds(tmp_path):
+@pytest.mark.parametrize("perturb", [(), ("--perturb", "1")], ids=["nominal", "perturb-1"])
+def test_cutting_too_fast_trips_the_wrist_torque_stop_which_relieves_the_wrist(tmp_path,
+                                                                              perturb):
+    """`hubo task cut-slot --set speed_mm_s=150` (issue 32, case 3): the wrist-torque stop
+    latches in the cut, brakes at the emergency limits and backs the bit 5 mm out of the wall,
+    then holds. Before: eq. 15's revert under the arms' trajectory limits ran the bit on 53 mm
+    along the wall and 12 mm up, loaded the wrist to 1.84 N m and held after 1.85 s.
+
+    Bounds (the issue's) against the spread measured over cut-slot at 100, 150 and 250 mm/s
+    (the same latch: it comes while the cut speeds up), at 150 mm/s with --perturb 1, 2, 3 and
+    cut-rectangle at 40 and 50 mm/s: wrist torque after the latch 1.19-1.26 N m (at most
+    0.05 N m past the 1.21 N m limit; <= 1.33 allows 0.12, 2.4x), bit along the wall after the
+    latch 0.7-6.4 mm (<= 10 mm, 1.57x), into the wall 0-0.26 mm (<= 1 mm, 3.8x), out of it
+    4.0-7.5 mm (>= 2.5 mm, 1.59x below the least), robot held still 0.31-0.35 s after the
+    latch (<= 0.6 s, 1.7x). Nominal: 1.22 N m, 3.5 mm, 0.2 mm, 4.8 mm, 0.31 s; --perturb 1
+    (the worst seen, a perturbed robot latching later and faster): 1.26 N m, 6.4 mm, 0.1 mm,
+    7.5 mm, 0.35 s."""
     out = tmp_path / "run"
     slow = load_task("cut-slot")
     assert slow.parameters["speed_mm_s"] == 10.0
-    result = _invoke("cut-slot", "--set", "speed_mm_s=150", "--out", str(out), "--json")
+    result = _invoke("cut-slot", "--set", "speed_mm_s=150", *perturb, "--out", str(out))
     assert result.exit_code == 1, result.output              # ran, but did not complete
-    s = json.loads(result.output)
+    s = json.loads((out / "summary.json").read_text())
     assert s["completed"] is False
     stop = s["estop"]
     assert stop["sources"] == ["wrist-torque"] and stop["step"] == "cut" and stop["held"]
-    assert stop["wrist_torque_nm"] > s["wrist_torque_nm"]["limit"]
-    assert stop["reverted_to_t_s"] == pytest.approx(stop["t_s"] - 0.5)
+    limit = s["wrist_torque_nm"]["limit"]
+    assert stop["wrist_torque_nm"] > limit                   # up to the latch
+    assert stop["wrist_torque_after_nm"] <= 1.10 * limit     # after it, reported apart
+    assert s["wrist_torque_nm"]["max_after_stop"] == stop["wrist_torque_after_nm"]
+    assert stop["bit_along_wall_mm"] <= 10.0 and stop["bit_into_wall_mm"] <= 1.0
+    assert stop["bit_out_of_wall_mm"] >= 2.5 and stop["retreat_mm"] == 5.0
+    assert stop["held_after_s"] <= 0.6 and stop["reverted_to_t_s"] is None
+    # the text summary tells the peak after the latch apart from the one while cutting
+    assert f"wrist {stop['wrist_torque_after_nm']:.2f} N m max" in result.output
+    assert f"bit {stop['bit_along_wall_mm']:.1f} mm along the wall" in result.output
     log = load_log(out)
     model = load_model()
     arm = [log.joint_names.index(n) for n in model.joint_names[model.limb_slice("right-arm")]]
     cmd = log.joints("cmd")[:, arm]
-    t = log["t_s"]
-    i = int(np.searchsorted(t, stop["reverted_to_t_s"]))
-    # back where the command was T1 earlier (give or take two periods of the 150 mm/s motion)
-    assert min(np.abs(cmd[-1] - cmd[k]).max() for k in range(i - 2, i + 3)) < 1e-3
-    held = t > t[-1] - 0.5
+    held = log["t_s"] > stop["t_s"] + 0.6
     assert np.abs(np.diff(cmd[held], axis=0)).max() < 1e-9   # and holding still

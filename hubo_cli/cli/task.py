@@ -419,20 +419,42 @@ def _print_cut(summary: dict, run_dir) -> None:
     parts = [f"{edge} {torque[edge]['mean']:.2f} mean / {torque[edge]['max']:.2f} max"
              for edge in ("horizontal", "vertical") if torque[edge]["samples"]]
     if parts:
-        console.print(f"  wrist       {', '.join(parts)} N m (limit {torque['limit']:g}; "
-                      "paper 0.14 / 0.23 and 0.15 / 0.35)")
+        console.print(f"  wrist       {', '.join(parts)} N m while cutting (limit "
+                      f"{torque['limit']:g}; paper 0.14 / 0.23 and 0.15 / 0.35)")
     stop = summary["estop"]
     if stop is None:
         console.print("  e-stop      none")
     else:
-        console.print(f"  e-stop      [red]{', '.join(stop['sources'])}[/] at {stop['t_s']:.2f} s "
-                      f"in step '{stop['step']}': reverted to the command of "
-                      f"{stop['reverted_to_t_s']:.2f} s"
-                      + (" and held" if stop["held"] else ""))
+        console.print(f"  e-stop      {_stop_words(stop)}", soft_wrap=True)
     console.print(f"  velocity    {summary['max_joint_velocity_ratio']:.0%} of the limit at most")
     console.print(f"  balance     {balance_summary_line(summary)}", soft_wrap=True)
     console.print(f"  run folder  {run_dir}", soft_wrap=True)
     console.print(f"              {', '.join(summary['files'])}", soft_wrap=True)
+
+
+def _stop_words(stop: dict) -> str:
+    """The e-stop line of the text summary: what latched it, what the stopper did, and the
+    wrist torque and bit travel after the latch apart from those before it."""
+    before = stop["wrist_torque_nm"]
+    words = (f"[red]{', '.join(stop['sources'])}[/] at {stop['t_s']:.2f} s in step "
+             f"'{stop['step']}'" + (f" (wrist {before:.2f} N m)" if before is not None else "")
+             + ": ")
+    if stop["reverted_to_t_s"] is not None:
+        words += f"reverted to the command of {stop['reverted_to_t_s']:.2f} s"
+    elif stop["retreat_mm"] is not None:
+        words += f"braked and backed the bit {stop['retreat_mm']:.0f} mm out of the wall"
+    else:
+        words += "braked"
+    if stop["held"]:
+        held = stop["held_after_s"]
+        words += " and held" + (f" {held:.2f} s after the latch" if held is not None else "")
+    after = stop["wrist_torque_after_nm"]
+    if after is not None:
+        words += f"; after the latch: wrist {after:.2f} N m max"
+        if stop["bit_along_wall_mm"] is not None:
+            words += (f", bit {stop['bit_along_wall_mm']:.1f} mm along the wall, "
+                      f"{stop['bit_into_wall_mm']:.1f} mm into it")
+    return words
 
 
 def _print_push_wall(summary: dict, run_dir) -> None:

@@ -14,7 +14,8 @@ used.
 Only the arm joints are held (hrpsys ``collision_mask``); the legs pass through so that the
 balancer keeps working. Each period the input command is checked where it is and on its way to
 where it would stop if it braked now (its position plus the jerk-limited braking distance of its
-velocity and acceleration, per joint; sampled every 0.05 rad, so a fast motion cannot step over
+velocity and acceleration, per joint, at the emergency braking limits while a wrist-torque
+stop brakes, flag ``estop-brake``; sampled every 0.05 rad, so a fast motion cannot step over
 a thin part of the body), so the hold can start early enough to stay clear. A pair closer than
 ``tolerance_m`` is a collision: the arms go back to the last safe input (jerk-limited, within
 the joint limits) and hold; once the input is clear again they recover toward the live
@@ -67,6 +68,7 @@ import numba as nb
 import numpy as np
 import pinocchio as pin
 
+from hubo_cli.control.estop import BRAKE_FLAG
 from hubo_cli.control.limits import JointLimits, braking_distance, braking_distance_of
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.otg import JointTracker
@@ -426,6 +428,8 @@ class CollisionDetector(Module):
                  joints: tuple[str, ...] | None = None,
                  limits: JointLimits | None = None) -> None:
         self.limits = limits or JointLimits.from_model(model)
+        # while a wrist-torque stop brakes, its input would stop at the braking limits
+        self._brake_limits = self.limits.for_emergency_brake(model)
         self.dt_s = float(dt_s)
         self.tolerance_m = float(tolerance_m)
         self.recover_s = float(recover_s)
@@ -515,7 +519,7 @@ class CollisionDetector(Module):
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         q_in, w_in, ahead = np.empty((3, len(q_rad)))
-        limits = self.limits
+        limits = self._brake_limits if BRAKE_FLAG in cycle.flags else self.limits
         _input_ahead(np.asarray(q_rad, dtype=float), self.last_in, self._w_last, self.dt_s,
                      limits.lower_rad, limits.upper_rad, limits.acceleration_rad_s2,
                      limits.jerk_rad_s3, q_in, w_in, ahead)

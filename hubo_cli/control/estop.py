@@ -18,6 +18,16 @@ and still ends exactly on the posture of t_emer - T1 (no overshoot past it). The
 (T1 = T2 = one period, hrpsys' default) brakes as hard as the limits allow and holds where it
 stopped.
 
+A stop on the wrist torque relieves the wrist instead: the load on the tool comes from driving
+it through the material, and eq. 15's revert, which first runs on under the arms' trajectory
+limits and then drives the tool back along its path within T2, adds load instead of removing it.
+So the ``relieve`` stop brakes every joint as fast as the emergency braking limits allow
+(:meth:`JointLimits.for_emergency_brake`; flag ``estop-brake`` lets the limiter admit them),
+then follows the path :attr:`EmergencyStopper.relief` returns for the braked posture (the task
+backs the tool out of the wall along its normal, checked against the wall) on a minimum-jerk
+time scale of at least ``RELIEF_S`` within those limits, and holds its end; without a relief
+(or when it returns None) it holds where it braked.
+
 The flag is latched: any request from an enabled source (``cycle.estop_requests``, a call to
 :meth:`stop` -- e.g. from the operator's key or, through :func:`stop_on_signal`, a signal -- or
 a wrist torque above ``model.safety["wrist_torque_limit_nm"]``) stops; only an
@@ -40,14 +50,23 @@ from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.otg import JointTracker
 from hubo_cli.control.status import SafetyEvent
 from hubo_cli.control.stop_choice import SOFT_SOURCES
+from hubo_cli.geometry import (
+    MIN_JERK_PEAK_ACCELERATION,
+    MIN_JERK_PEAK_JERK,
+    MIN_JERK_PEAK_VELOCITY,
+    min_jerk,
+)
 from hubo_cli.model import RobotModel
 from hubo_cli.state import RobotState
 
 HARD_SOURCES = ("hard",)
 RECOVER_S = 2.5          # hrpsys default_recover_time
+RELIEF_S = 0.25          # the shortest move along the relief path (s)
 WRIST_SENSORS = ("right-wrist", "left-wrist")
 
 MODES = ("release", "stop", "hold", "recover")
+RELIEVE_SOURCES = frozenset({"wrist-torque"})  # stops that brake hard and relieve the tool
+BRAKE_FLAG = "estop-brake"  # the stopper brakes at the emergency limits this period
 
 
 def wrist_torque_nm(state: RobotState, sensor: str) -> float:
@@ -73,8 +92,15 @@ class EmergencyStopper(Module):
         limits: override the model's limits (tests).
         wrist_torque_limit_nm: override the model's wrist torque limit (N m).
 
-    Flags: ``estop`` while stopping or holding, ``recovering`` while blending back.
+    Flags: ``estop`` while stopping or holding, ``recovering`` while blending back,
+    ``estop-brake`` while a wrist-torque stop brakes and relieves.
     Info: ``<name>_mode_code`` (0 release, 1 stop, 2 hold, 3 recover), ``wrist_torque_nm``.
+
+    Attributes:
+        relief: called once a wrist-torque stop has braked to rest, with the braked joint
+            command (rad); returns the postures (m x joints, rad) of the path that relieves
+            the tool, the last one to hold, or None to hold where it braked. Set by the task
+            target (None: hold where braked).
     """
 
     def __init__(self, model: RobotModel, dt_s: float, revert_s: float = 0.5,
@@ -99,6 +125,12 @@ class EmergencyStopper(Module):
         if self._wrist_torque:
             self.log_columns += ("wrist_torque_nm",)
         self.tracker = JointTracker(self.limits, self.dt_s)
+        self.brake_tracker = JointTracker(self.limits.for_emergency_brake(model), self.dt_s)
+        self.relief: Callable[[np.ndarray], np.ndarray | None] | None = None
+        self._path = np.zeros((1, self.limits.size))  # the relief path being played
+        self._path_s = np.zeros(1)  # its normalised arc positions (0 .. 1)
+        self._path_periods = 1
+        self._path_k = 0
         self._history_len = max(1, int(round(self.revert_s / self.dt_s))) + 1
         self.events: list[SafetyEvent] = []
         self._clear(np.zeros(self.limits.size))
@@ -127,6 +159,7 @@ class EmergencyStopper(Module):
         self._pending: set[str] = set()
         self._release = False
         self._brake_only = False
+        self._relieving: str | None = None  # "brake", then "move" (wrist-torque stops)
 
     # ------------------------------------------------------------------ commands
     def stop(self, source: str = "operator") -> None:
@@ -178,6 +211,54 @@ class EmergencyStopper(Module):
         # while blending back, the input of T1 ago may be far from the output: stop in place
         self._brake_only = self.is_freeze or recovering
         self.hold_rad = self.history[0].copy()
+        self._relieving = None
+        if sources & RELIEVE_SOURCES:
+            self.brake_tracker.reset(*self._output_state())
+            self._relieving = "brake"
+
+    def _relieve(self) -> np.ndarray:
+        """One period of a wrist-torque stop: brake at the emergency limits, then play the
+        relief path, then hold its end."""
+        tracker = self.brake_tracker
+        if self._relieving == "brake":
+            out = tracker.brake()
+            if not tracker.at_rest:
+                return out
+            path = None if self.relief is None else self.relief(out.copy())
+            if path is None or not len(path) or not np.all(np.isfinite(path)):
+                self.hold_rad = out.copy()
+                self.mode, self._relieving = "hold", None
+                return out
+            self._start_path(np.vstack([out, self.limits.clip(np.atleast_2d(path))]))
+        self._path_k += 1
+        u = min_jerk(self._path_k / self._path_periods)
+        out = np.array([np.interp(u, self._path_s, joint) for joint in self._path.T])
+        if self._path_k >= self._path_periods:
+            out = self.hold_rad.copy()
+            self.mode, self._relieving = "hold", None
+        return out
+
+    def _start_path(self, path: np.ndarray) -> None:
+        """Play ``path`` (from rest to rest) in the shortest multiple of the period, at least
+        RELIEF_S, whose minimum-jerk peaks keep every joint within the braking limits."""
+        steps = np.abs(np.diff(path, axis=0))
+        arc = np.concatenate([[0.0], np.cumsum(steps.max(axis=1))])  # no joint moves further
+        moving = steps.sum(axis=0) > 0
+        lim = self.brake_tracker.limits
+        if arc[-1] > 0:
+            v, a, j = (x[moving].min() for x in (lim.velocity_rad_s, lim.acceleration_rad_s2,
+                                                  lim.jerk_rad_s3))
+            duration = max(RELIEF_S, MIN_JERK_PEAK_VELOCITY * arc[-1] / v,
+                           math.sqrt(MIN_JERK_PEAK_ACCELERATION * arc[-1] / a),
+                           math.cbrt(MIN_JERK_PEAK_JERK * arc[-1] / j))
+        else:
+            duration = self.dt_s
+        self._path = path
+        self._path_s = arc / arc[-1] if arc[-1] > 0 else np.linspace(0.0, 1.0, len(path))
+        self._path_periods = max(1, math.ceil(duration / self.dt_s - 1e-9))
+        self._path_k = 0
+        self.hold_rad = path[-1].copy()
+        self._relieving = "move"
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         q_in = np.empty(self.last_in.shape[0])
@@ -188,6 +269,9 @@ class EmergencyStopper(Module):
         if requests and self.mode in ("release", "recover"):
             self._latch(cycle.t_s, requests)
         elif self._release and self.mode in ("stop", "hold"):
+            if self._relieving:  # released while braking or relieving: blend back from there
+                self.tracker.reset(*self._output_state())
+                self._relieving = None
             self.mode = "recover"
             self.t_recover_end_s = cycle.t_s + self.recover_s
             self.events.append(SafetyEvent(cycle.t_s, "release", ()))
@@ -196,7 +280,10 @@ class EmergencyStopper(Module):
         if self.mode == "release":
             out = q_in
         elif self.mode == "stop":
-            if self._brake_only:
+            if self._relieving:
+                cycle.flags.add(BRAKE_FLAG)
+                out = self._relieve()
+            elif self._brake_only:
                 out = self.tracker.brake()
                 if self.tracker.at_rest:
                     self.hold_rad = out.copy()

@@ -11,6 +11,9 @@ applied in this order, a later band winning if two cannot both hold:
 4. position: the command may approach a limit only as fast as it can still brake before it
    (:func:`~hubo_cli.control.limits.brake_speed`), and never moves further out once outside.
 
+While an emergency stopper brakes a wrist-torque stop (flag ``estop-brake``), band 2 takes the
+emergency braking acceleration (:meth:`~hubo_cli.control.limits.JointLimits.for_emergency_brake`).
+
 When a band clamps, the wanted velocity is also capped so that the command can stop on the
 wanted position instead of overshooting it, so a jump in the input becomes an acceleration-
 limited move that lands without ringing. NaN inputs hold the previous command.
@@ -21,6 +24,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from hubo_cli.control.estop import BRAKE_FLAG
 from hubo_cli.control.limits import JointLimits, brake_speed
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.model import RobotModel
@@ -143,6 +147,7 @@ class SoftErrorLimiter(Module):
                  error_limit_rad: float = TRACKING_ERROR_LIMIT_RAD,
                  limits: JointLimits | None = None) -> None:
         self.limits = limits or JointLimits.from_model(model)
+        self._brake_accel = self.limits.for_emergency_brake(model).acceleration_rad_s2
         self.dt_s = float(dt_s)
         self.error_limit_rad = float(error_limit_rad)
         n = self.limits.size
@@ -182,16 +187,18 @@ class SoftErrorLimiter(Module):
         self._catching[:] = False
 
     def step(self, q_want: np.ndarray, q_meas: np.ndarray | None = None,
-             v_meas: np.ndarray | None = None) -> np.ndarray:
+             v_meas: np.ndarray | None = None, braking: bool = False) -> np.ndarray:
         """Limit one command (rad) against the previous two, with the measured joints (rad) and
-        their velocities (rad/s) for the tracking-error band; returns a new array."""
+        their velocities (rad/s) for the tracking-error band; ``braking``: an emergency stopper
+        brakes (its acceleration limits); returns a new array."""
         lim = self.limits
         meas = self._nan if q_meas is None else np.asarray(q_meas, dtype=float)
         v_meas = self._zeros if v_meas is None else np.asarray(v_meas, dtype=float)
         want = np.asarray(q_want, dtype=float)
         out = np.empty_like(self.q1)
         self._bits = limit_step(want, self._want_prev, self.q1, self.q2, lim.lower_rad,
-                                lim.upper_rad, lim.velocity_rad_s, lim.acceleration_rad_s2,
+                                lim.upper_rad, lim.velocity_rad_s,
+                                self._brake_accel if braking else lim.acceleration_rad_s2,
                                 self.dt_s, meas, v_meas, self.error_limit_rad, out, self._mask,
                                 self._catching)
         self._want_prev = want.copy()
@@ -205,7 +212,7 @@ class SoftErrorLimiter(Module):
         return (self.q1 - self.q2) / self.dt_s
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
-        out = self.step(q_rad, state.q_rad, state.dq_rad_s)
+        out = self.step(q_rad, state.q_rad, state.dq_rad_s, BRAKE_FLAG in cycle.flags)
         mask, bits = self._mask, self._bits
         clamped = int(np.count_nonzero(mask)) if bits else 0
         ankles = 0

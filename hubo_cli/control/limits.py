@@ -42,6 +42,20 @@ class JointLimits:
                            self.velocity_rad_s[index], self.acceleration_rad_s2[index],
                            self.jerk_rad_s3[index])
 
+    def for_emergency_brake(self, model: RobotModel) -> JointLimits:
+        """These limits with every joint's acceleration and jerk raised to the robot file's
+        emergency braking values (``[safety] estop_brake_acceleration_rad_s2`` and
+        ``estop_brake_jerk_rad_s3``; never lowered): the wrist-torque stop brakes at what the
+        drives can do, not at the trajectories' shaping limits. Unchanged when the file has no
+        such values."""
+        accel = model.safety.get("estop_brake_acceleration_rad_s2")
+        jerk = model.safety.get("estop_brake_jerk_rad_s3")
+        if accel is None or jerk is None:
+            return self
+        return JointLimits(self.lower_rad, self.upper_rad, self.velocity_rad_s,
+                           np.maximum(self.acceleration_rad_s2, float(accel)),
+                           np.maximum(self.jerk_rad_s3, float(jerk)))
+
     def clip(self, q_rad: np.ndarray) -> np.ndarray:
         """``q_rad`` clamped into the position limits (rad)."""
         return np.minimum(np.maximum(q_rad, self.lower_rad), self.upper_rad)

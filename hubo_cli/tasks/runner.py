@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hubo_cli.control.estop import RELIEVE_SOURCES
 from hubo_cli.control.loop import LoopResult
 from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
@@ -168,6 +169,35 @@ def _stats(values) -> dict:
             "samples": len(v)}
 
 
+def _nanmax(values) -> float | None:
+    v = np.asarray(values, dtype=float)
+    return float(np.nanmax(v)) if np.isfinite(v).any() else None
+
+
+def _travel_after(log, plan: Plan, before: np.ndarray) -> dict:
+    """How far the bit moved after a stop (mm): the largest distance in the wall plane (y, z)
+    from where it was in the stop's period, and the furthest into the wall (x) and out of it.
+    Where the log has the torso's world pose (simulation) the bit is the measured arm's forward
+    kinematics through it (the world, where the wall stands); else as the robot measured it
+    in S. ``before`` masks the periods up to the stop."""
+    none = {"bit_along_wall_mm": None, "bit_into_wall_mm": None, "bit_out_of_wall_mm": None}
+    if not before.any() or before.all():
+        return none
+    limb = plan.spec.stance.limb
+    q_arm = np.column_stack([log[f"q_{j}_rad"] for j in plan.body.model.limb(limb).joints])
+    bit = (log.poses("torso") @ plan.body.arms[limb].fk_batch(q_arm))[:, :3, 3]
+    latch = np.nonzero(before)[0][-1]
+    if not np.isfinite(bit[latch]).all():  # no world pose: the robot's own measurement
+        bit = np.column_stack([log["actual_x_m"], log["actual_y_m"], log["actual_z_m"]])
+    moved = (bit[~before] - bit[latch]) * 1000
+    moved = moved[np.isfinite(moved).all(axis=1)]
+    if not len(moved):
+        return none
+    return {"bit_along_wall_mm": float(np.hypot(moved[:, 1], moved[:, 2]).max()),
+            "bit_into_wall_mm": float(max(moved[:, 0].max(), 0.0)),
+            "bit_out_of_wall_mm": float(max(-moved[:, 0].min(), 0.0))}
+
+
 def _plane_rms_mm(goal_m: np.ndarray, actual_m: np.ndarray) -> float | None:
     """RMS distance in the wall plane (y, z) between matching rows (mm)."""
     if not len(actual_m) or len(actual_m) != len(goal_m):
@@ -220,17 +250,24 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
                       stop_times_s=[e[1] for e in stops])
     done.add_file("wrist_torque.png")
     stop = None
+    after_stop = None
     if stops:
         module, t_stop, _, sources = stops[0]
         step = spec.steps[target.step_stopped] if target.step_stopped is not None else None
         stopper = target.stopper
+        after_stop = log["t_s"] > t_stop + 1e-9
+        relieved = bool(RELIEVE_SOURCES.intersection(sources))
         stop = {"t_s": t_stop, "sources": list(sources),
                 "step": None if step is None else step.name,
-                "reverted_to_t_s": t_stop - spec.safety.revert_s,
+                "reverted_to_t_s": None if relieved else t_stop - spec.safety.revert_s,
+                "retreat_mm": None if target.retreat_m is None else target.retreat_m * 1000,
                 "held": target.phase == "stopped" and stopper is not None
                 and stopper.mode == "hold",
-                "wrist_torque_nm": float(np.nanmax(all_torque[log["t_s"] <= t_stop + 1e-9]))
-                if len(all_torque) else None}
+                "held_after_s": None if target.t_held_s is None else target.t_held_s - t_stop,
+                "wrist_torque_nm": float(np.nanmax(all_torque[~after_stop]))
+                if len(all_torque) else None,
+                "wrist_torque_after_nm": _nanmax(all_torque[after_stop])} | _travel_after(
+                    log, plan, ~after_stop)
     return {
         "task": spec.name,
         "task_file": str(spec.path),
@@ -254,6 +291,7 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
             "limit": limit,
             "max_while_cutting": float(torque.max()) if len(torque) else None,
             "max_whole_run": float(np.nanmax(all_torque)) if len(all_torque) else None,
+            "max_after_stop": None if after_stop is None else _nanmax(all_torque[after_stop]),
             "over_limit": bool(len(torque) and torque.max() > limit),
             "paper": PAPER_TORQUE_NM},
         "paper_rms_error_mm": PAPER_RMS_ERROR_MM,

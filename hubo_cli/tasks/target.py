@@ -10,7 +10,8 @@ Phases:
 3. ``settle``: the plan has ended; wait until the robot is still;
 4. ``stopped``: an emergency stop latched; the plan is frozen where it was and the run ends
    once the stopper holds and the robot is still (the operator can look at the scene, then
-   start again).
+   start again). A stop on the wrist torque brakes, then backs the tool out of the wall along
+   its normal (:meth:`TaskTarget.relieve`, the stopper's relief).
 
 Each period the measured torso pose (leg encoders and IMU, :mod:`hubo_cli.kinematics.torso`)
 corrects the arm's joint target: the plan's tool goal, given in S (the wall's frame), is solved
@@ -47,6 +48,9 @@ PHASES = ("raise", "run", "settle", "stopped")
 SETTLE_TIMEOUT_S = 6.0
 ON_POSE_M = 0.0005  # the raise ends with the tool this close to its first pose
 STOP_HOLD_S = 1.0  # after a stop, keep holding this long (still) before ending the run
+RETREAT_M = 0.005  # a wrist-torque stop backs the tool this far out of the wall (its normal)
+RETREAT_ALONG_M = 0.0005  # ... moving it at most this far along the wall on the way
+RETREAT_STEPS = 8  # postures of that path
 
 
 class TaskTarget(Target):
@@ -86,6 +90,8 @@ class TaskTarget(Target):
         self.t_phase_s = 0.0
         self.t_stop_s: float | None = None
         self._t_hold_s: float | None = None  # when the stopper reached its hold
+        self.t_held_s: float | None = None  # ... with the robot still (joints < 0.05 rad/s)
+        self.retreat_m: float | None = None  # how far a wrist-torque stop backed the tool out
         self.step_stopped: int | None = None
         self.offset_world_m: np.ndarray | None = None  # world bit - commanded bit, when ready
         # while cutting: commanded and measured tool positions (S, m), wrist torque (N m), edge
@@ -97,12 +103,47 @@ class TaskTarget(Target):
         self.cut_t_s: list[float] = []
         self.torque_nm = 0.0
         self.error_m = float("nan")
+        self.T_S_N: np.ndarray | None = None  # the torso pose last measured (S, m)
 
     def attach(self, world: SimulatedWorld | None, modules: Sequence[Module]) -> None:
         self.world = world
         self.modules = list(modules)  # the pipeline, for the live view's safety state
         self.stopper = next((m for m in modules if isinstance(m, EmergencyStopper)
                              and m.name == "estop"), None)
+        if self.stopper is not None:
+            self.stopper.relief = self.relieve
+
+    def relieve(self, q_rad: np.ndarray) -> np.ndarray | None:
+        """The path that relieves the wrist after a wrist-torque stop braked the command
+        ``q_rad`` (rad, every joint): the tool backed RETREAT_M straight out of the wall along
+        its normal (S's -x), its orientation and the other joints kept, as RETREAT_STEPS
+        postures (the stopper moves in straight joint-space lines between them). None (hold
+        where braked) when the arm cannot reach one exactly, or when the path, checked halfway
+        between the postures too, would take the tool into the wall or more than
+        RETREAT_ALONG_M along it."""
+        if self.T_S_N is None:
+            return None
+        arm, T_S_N = self.body.arms[self.limb], self.T_S_N
+        q_arm = np.asarray(q_rad, dtype=float)[self.slice]
+        T_N_E = arm.fk(q_arm)
+        out_N = -T_S_N[0, :3]  # S's -x in N: minus the first row of R_S_N
+        path = [q_arm]
+        for f in np.arange(1, RETREAT_STEPS + 1) / RETREAT_STEPS:
+            goal = T_N_E.copy()
+            goal[:3, 3] += f * RETREAT_M * out_N
+            result = arm.solve(goal, path[-1])
+            if not result.exact:
+                return None
+            path.append(result.q_rad)
+        path = np.array(path)
+        checked = np.vstack([path, 0.5 * (path[1:] + path[:-1])])
+        moved = T_S_N[:3, :3] @ (arm.fk_batch(checked)[:, :3, 3] - T_N_E[:3, 3]).T
+        if moved[0].max() > 1e-4 or np.hypot(moved[1], moved[2]).max() > RETREAT_ALONG_M:
+            return None
+        out = np.repeat(np.asarray(q_rad, dtype=float)[None, :], RETREAT_STEPS, axis=0)
+        out[:, self.slice] = path[1:]
+        self.retreat_m = RETREAT_M
+        return out
 
     def _place_wall(self) -> None:
         """The wall at the task's distance from the tool as the robot now holds it (the
@@ -172,8 +213,10 @@ class TaskTarget(Target):
             holding = self.stopper.mode == "hold"
             if holding and self._t_hold_s is None:
                 self._t_hold_s = t_s
-            if holding and t_s - self._t_hold_s >= STOP_HOLD_S and np.max(
-                    np.abs(state.dq_rad_s)) < 0.05:
+            still = holding and np.max(np.abs(state.dq_rad_s)) < 0.05
+            if still and self.t_held_s is None:
+                self.t_held_s = t_s
+            if still and t_s - self._t_hold_s >= STOP_HOLD_S:
                 info["done"] = True
         self.q_out = (self.q_target if self.correction is None
                       else self.correction(self.q_target, state))
@@ -201,7 +244,8 @@ class TaskTarget(Target):
     def _measure(self, t_s: float, state, info: dict) -> None:
         # through the measured torso pose: the legs' lift and the waist's CoM shift included
         T_N_E = self.body.arms[self.limb].fk(state.q_rad[self.slice])
-        actual = (self.estimator(state) @ T_N_E)[:3, 3]
+        self.T_S_N = self.estimator(state)
+        actual = (self.T_S_N @ T_N_E)[:3, 3]
         self.torque_nm = wrist_torque_nm(state, self.sensor)
         running = self.phase != "raise"
         k = self.k
