@@ -27,6 +27,7 @@ from click.testing import CliRunner
 
 from hubo_cli.cli.keys import keyboard_fd, operator_keys
 from hubo_cli.cli.main import main
+from hubo_cli.control.estop import RECOVER_S
 from hubo_cli.control.log import load_log
 from hubo_cli.control.loop import ControlLoop
 from hubo_cli.control.operator import KEYS_HELP, OperatorKeys
@@ -131,16 +132,49 @@ def test_space_during_a_task_latches_the_stop(long_task, tmp_path):
     assert term.wait_for(f"keys: {KEYS_HELP}"), term.text()[-2000:]
     assert term.wait_for("running"), term.text()[-2000:]  # the view is up: the loop runs
     term.press(" ")
+    # with an operator at the keyboard the stop holds (it does not end the run by itself)
+    assert term.wait_for("press r to release (held)"), term.text()[-2000:]
+    time.sleep(2.0)  # longer than a stop without an operator holds before the run ends
+    assert term.poll() is None, term.text()[-2000:]
+    term.press("q")
     status = term.wait()
     text = term.text()
-    assert status == 1, text  # the task did not complete: the stop ended it
+    assert status == 1, text  # the task did not complete: stopped, then finished by q
     assert "did not complete (emergency stop)" in text and "e-stop      operator at" in text
     assert "Traceback" not in text and "internal error" not in text
     summary = _summary(run)
     assert summary["estop"]["sources"] == ["operator"] and summary["estop"]["held"]
+    assert summary["estop"]["resumed_at_t_s"] == []
     assert [e["kind"] for e in summary["estop_events"]] == ["stop"]
-    assert summary["ended"] == "done" and not summary["finished_by_operator"]
+    assert summary["ended"] == "done" and summary["finished_by_operator"]
     assert term.lflag & termios.ICANON and term.lflag & termios.ECHO  # given back cooked
+
+
+def test_r_after_a_stop_resumes_the_task_where_it_froze(long_task, tmp_path):
+    """space stops a task, r releases it: the stopper blends back to the frozen plan and the
+    plan goes on from there to its end (completed, exit 0)."""
+    task = tmp_path / "short.toml"
+    task.write_text(LONG_TASK.replace("duration_s = 60", "duration_s = 30"))
+    run = tmp_path / "run"
+    term = Terminal(["task", "run", str(task), "--driver", "ideal", "--out", str(run)])
+    assert term.wait_for("running"), term.text()[-2000:]
+    term.press(" ")
+    assert term.wait_for("press r to release (held)"), term.text()[-2000:]
+    term.press("r")
+    status = term.wait()
+    text = term.text()
+    assert status == 0, text
+    summary = _summary(run)
+    assert summary["completed"] and not summary["finished_by_operator"]
+    assert [e["kind"] for e in summary["estop_events"]] == ["stop", "release"]
+    (resumed,) = summary["estop"]["resumed_at_t_s"]
+    release_t_s = summary["estop_events"][1]["t_s"]
+    # after the blend back: no sooner than RECOVER_S, at most a few periods later
+    assert release_t_s + RECOVER_S - 0.01 < resumed < release_t_s + RECOVER_S + 0.5
+    assert all(step["done"] for step in summary["steps"])
+    # the whole plan was played after the stop, not cut short by it (the plan is 31 s long;
+    # the stop came within its first seconds)
+    assert summary["duration_s"] > resumed + 20
 
 
 def test_q_during_a_task_ends_it_cleanly(long_task, tmp_path):

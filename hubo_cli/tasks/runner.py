@@ -113,7 +113,7 @@ def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
 
 def _run_task(plan: Plan, setup: RunSetup, on_start, balance: str) -> TaskRun:
     driver = setup.driver
-    target = TaskTarget(plan)
+    target = TaskTarget(plan, resumable=setup.operator is not None)
     start = plan.spec.stance.start_m
     if start is not None and driver != "sim":
         raise InputError(f"stance.start_mm walks the robot to its stance: the simulator only, "
@@ -232,7 +232,7 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
     torque_stats = {name: _stats(torque[edge == code]) for code, name in EDGE_NAMES.items()}
     all_torque = log["task_wrist_torque_nm"]
     stops = [e for e in result.safety_events if e[2] == "stop"]
-    completed = result.ok and target.phase == "settle" and target.step_stopped is None
+    completed = result.ok and target.phase == "settle"  # after a stop: only if resumed
     T_S_W = plan.placement.T_S_W()
     hole_rms = _plane_rms_mm(goal, world)
     if len(goal):
@@ -263,6 +263,7 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
                 "retreat_mm": None if target.retreat_m is None else target.retreat_m * 1000,
                 "held": target.phase == "stopped" and stopper is not None
                 and stopper.mode == "hold",
+                "resumed_at_t_s": target.resumed_t_s,
                 "held_after_s": None if target.t_held_s is None else target.t_held_s - t_stop,
                 "wrist_torque_nm": float(np.nanmax(all_torque[~after_stop]))
                 if len(all_torque) else None,

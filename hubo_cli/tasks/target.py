@@ -8,10 +8,13 @@ Phases:
    robot holds it (in a simulator; a real robot stands at its wall);
 2. ``run``: the plan's joint targets period by period;
 3. ``settle``: the plan has ended; wait until the robot is still;
-4. ``stopped``: an emergency stop latched; the plan is frozen where it was and the run ends
-   once the stopper holds and the robot is still (the operator can look at the scene, then
-   start again). A stop on the wrist torque brakes, then backs the tool out of the wall along
-   its normal (:meth:`TaskTarget.relieve`, the stopper's relief).
+4. ``stopped``: an emergency stop latched; the plan is frozen where it was. Without an
+   operator at a keyboard the run ends once the stopper holds and the robot is still (the
+   operator can look at the scene, then start again). With one (``resumable``) it holds until
+   the operator finishes the run (q) or releases the stop (r): once the stopper has blended
+   back to the frozen plan, the plan goes on from where it froze, as hrpsys's sequence player
+   resumes after an emergency. A stop on the wrist torque brakes, then backs the tool out of
+   the wall along its normal (:meth:`TaskTarget.relieve`, the stopper's relief).
 
 Each period the measured torso pose (leg encoders and IMU, :mod:`hubo_cli.kinematics.torso`)
 corrects the arm's joint target: the plan's tool goal, given in S (the wall's frame), is solved
@@ -60,6 +63,8 @@ class TaskTarget(Target):
         plan: the checked plan (its whole-body solver gives the measured tool pose).
         correction: correct the arm's goal by the measured torso pose (see the module
             docstring); False plays the plan's joint targets as they are.
+        resumable: an operator at a keyboard can release a stop and resume the plan; without
+            one a stop ends the run once held.
 
     After :meth:`attach`: ``stopper`` is the pipeline's soft emergency stopper (None when the
     run has none) and ``scene`` what was placed in the simulator.
@@ -69,8 +74,9 @@ class TaskTarget(Target):
                    "actual_y_m", "actual_z_m", "error_m", "cutting", "edge_code",
                    "task_wrist_torque_nm")
 
-    def __init__(self, plan: Plan, correction: bool = True) -> None:
+    def __init__(self, plan: Plan, correction: bool = True, resumable: bool = False) -> None:
         self.plan = plan
+        self.resumable = resumable
         self.body = body = plan.body
         self.stopper: EmergencyStopper | None = None
         self.world: SimulatedWorld | None = None
@@ -93,6 +99,8 @@ class TaskTarget(Target):
         self.t_held_s: float | None = None  # ... with the robot still (joints < 0.05 rad/s)
         self.retreat_m: float | None = None  # how far a wrist-torque stop backed the tool out
         self.step_stopped: int | None = None
+        self._phase_before_stop = "raise"
+        self.resumed_t_s: list[float] = []  # when the plan went on after a released stop
         self.offset_world_m: np.ndarray | None = None  # world bit - commanded bit, when ready
         # while cutting: commanded and measured tool positions (S, m), wrist torque (N m), edge
         self.cut_goal_m: list[np.ndarray] = []
@@ -175,7 +183,7 @@ class TaskTarget(Target):
             return 1.0
         start, end = self.plan.step_times_s[index]
         t = self.plan.t_s[min(self.k, len(self.plan.t_s) - 1)]
-        if self.phase == "settle" and self.step_stopped is None:
+        if self.phase == "settle":
             return 1.0
         if end <= start:
             return 1.0 if t >= end else 0.0
@@ -190,8 +198,11 @@ class TaskTarget(Target):
         info: dict = {}
         stopped = self.stopper is not None and self.stopper.stopped
         if stopped and self.phase != "stopped":
+            self._phase_before_stop = self.phase
             self.phase, self.t_stop_s = "stopped", t_s
             self.step_stopped = self.step
+        elif not stopped and self.phase == "stopped":  # released and blended back
+            self._resume(t_s)
         if self.phase == "raise":
             if (self._still(state) and self._on_first_pose(state)) or t_s >= SETTLE_TIMEOUT_S:
                 self._place_wall()
@@ -216,12 +227,22 @@ class TaskTarget(Target):
             still = holding and np.max(np.abs(state.dq_rad_s)) < 0.05
             if still and self.t_held_s is None:
                 self.t_held_s = t_s
-            if still and t_s - self._t_hold_s >= STOP_HOLD_S:
+            if still and not self.resumable and t_s - self._t_hold_s >= STOP_HOLD_S:
                 info["done"] = True
         self.q_out = (self.q_target if self.correction is None
                       else self.correction(self.q_target, state))
         self._measure(t_s, state, info)
         return self.q_out, info
+
+    def _resume(self, t_s: float) -> None:
+        """Go on from where the plan froze (the stopper has blended back to its target)."""
+        self.phase = self._phase_before_stop
+        self._t_hold_s = None
+        self.resumed_t_s.append(t_s)
+        if self.phase == "run":  # the same plan row next period, the rest in its own time
+            self.t_run_s = t_s - self.k * self.plan.dt_s
+        elif self.phase == "settle":
+            self.t_phase_s = t_s
 
     def _on_first_pose(self, state) -> bool:
         """The tool, as the robot measures it, is within ON_POSE_M of the plan's first pose
