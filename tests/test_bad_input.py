@@ -289,6 +289,7 @@ def test_sigterm_ends_like_ctrl_c_with_a_summary(tmp_path):
     assert "interrupted" in out
 
 
+@pytest.mark.physical
 def test_collision_layer_keeps_the_commanded_posture_apart(model, tmp_path):
     """The operator's goal goes deep into the body: the command stays clear (logged)."""
     from hubo_cli.control.log import load_log
@@ -327,6 +328,7 @@ def test_setting_a_parameter_the_task_never_uses_is_refused(tmp_path):
     assert load_task(path, {"speed_mm_s": 20.0}).steps[2].speed_m_s == pytest.approx(0.02)
 
 
+@pytest.mark.physical
 def test_the_way_back_from_a_collision_hold_does_not_cross_the_body(model):
     """Two clear postures whose straight joint-space way between crosses the torso (the left
     wrist through it): held at the first, the input then at the second; the recovery must hold

@@ -103,6 +103,7 @@ def test_a_bad_sensor_is_flagged_and_ignored():
 
 
 # ------------------------------------------------------------------ in the simulation
+@pytest.mark.physical
 def test_standing_with_balance_stays_upright_with_flat_feet(tmp_path):
     result = stand(MODEL, duration_s=3.0, push_n=0.0, balance=True, out=tmp_path,
                    balance_mode="paper")
@@ -126,6 +127,7 @@ def pushed(tmp_path_factory):
             for balance in (True, False)}
 
 
+@pytest.mark.physical
 def test_a_30_newton_push_is_absorbed_without_a_fall(pushed):
     for result in pushed.values():
         assert not result.fell
@@ -133,6 +135,7 @@ def test_a_30_newton_push_is_absorbed_without_a_fall(pushed):
         assert result.max_tilt_deg < 2.0
 
 
+@pytest.mark.physical
 def test_balance_keeps_the_feet_evenly_loaded_through_the_push(pushed):
     # eq. 11-12's compliance evens out the two feet (on the compliant soles; on rigid ones the
     # limiter's clamp turned it into rocking): over the second from the push on, the

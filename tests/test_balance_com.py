@@ -21,6 +21,7 @@ def plans(model):
     return plain, make_plan(spec, model)
 
 
+@pytest.mark.physical
 def test_placement_includes_the_waist_shift(plans):
     plain, balanced = plans
     assert plain.placement.shift_m == 0.0
@@ -32,6 +33,7 @@ def test_placement_includes_the_waist_shift(plans):
     assert balanced.preflight.ok, [m.message() for m in balanced.preflight.misses[:3]]
 
 
+@pytest.mark.physical
 def test_the_balance_point_stays_near_the_soles_centre(plans, model):
     plain, balanced = plans
     spec = balanced.spec

@@ -86,6 +86,7 @@ def test_bad_settings_are_refused(model):
         make_balancer(model, "sideways")
 
 
+@pytest.mark.physical
 def test_standing_the_default_balancer_holds_the_body_upright(model, tmp_path):
     """3 s standing: within 0.2 deg of upright. The paper's law, over the same 3 s, leans more
     than 0.5 deg (asserted on that run in test_balance.py, which runs the same standing)."""
@@ -94,6 +95,7 @@ def test_standing_the_default_balancer_holds_the_body_upright(model, tmp_path):
     assert default.max_tilt_deg < 0.2
 
 
+@pytest.mark.physical
 def test_a_push_that_tips_the_body_over_its_heels_is_not_leaned_against(model, tmp_path):
     import polars as pl
 
@@ -112,6 +114,7 @@ def test_a_push_that_tips_the_body_over_its_heels_is_not_leaned_against(model, t
 
 @pytest.mark.parametrize(("push_n", "direction", "duration_s"),
                          [(80.0, (1.0, 0.0, 0.0), 2.6), (60.0, (0.0, 1.0, 0.0), 1.8)])
+@pytest.mark.physical
 def test_a_push_inside_the_feet_ceiling_is_survived_in_place(model, push_n, direction,
                                                              duration_s, tmp_path):
     import polars as pl

@@ -259,6 +259,7 @@ def test_safety_view_shows_the_balance_line():
         "ankle clamps 77.8%, flutes in the wall 50% of the cut")
 
 
+@pytest.mark.physical
 def test_a_short_run_reports_the_balance_figures(tmp_path):
     """One short standing run per balancer setting: the figures are in summary.json and the
     log (recorded balancer, feet columns, ankle clamp count)."""

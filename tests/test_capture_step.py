@@ -20,6 +20,7 @@ from hubo_cli.walking.capture_step import (
 from hubo_cli.walking.footsteps import Footstep
 
 
+@pytest.mark.physical
 @pytest.mark.slow
 def test_a_75_n_push_is_caught_with_two_steps(tmp_path):
     """75 N forward for 0.2 s: the robot steps (once to catch, once to bring the other foot
@@ -66,6 +67,7 @@ def assert_stands_after_the_return(summary: dict, duration_s: float) -> None:
     # for the legs' reach
     (150.0, 9.6, 0.35),
 ])
+@pytest.mark.physical
 def test_a_long_step_push_is_caught_by_a_lunge_and_a_return_step(tmp_path, push_n, duration_s,
                                                                  min_first_step_m):
     """A forward push for 0.2 s, the emergency stop on: the first step is long, so the robot

@@ -28,6 +28,7 @@ def _commands_ok(model, run_dir):
     return log
 
 
+@pytest.mark.physical
 def test_push_wall_forward_with_estop_stays_up(model, tmp_path):
     result = run_push_wall(model, "forward", estop=True, out=tmp_path, end_s=5.0)
     s = result.summary
@@ -49,6 +50,7 @@ def test_push_wall_forward_with_estop_stays_up(model, tmp_path):
     assert log["tilt_deg"][np.isfinite(log["tilt_deg"])][-1] < 3.0  # standing again
 
 
+@pytest.mark.physical
 def test_push_wall_forward_without_estop_falls(model, tmp_path):
     result = run_push_wall(model, "forward", estop=False, out=tmp_path)
     s = result.summary
@@ -58,6 +60,7 @@ def test_push_wall_forward_without_estop_falls(model, tmp_path):
     assert "estop_mode_code" not in load_log(tmp_path).columns
 
 
+@pytest.mark.physical
 def test_cli_push_wall_left(tmp_path):
     out = tmp_path / "run"
     result = CliRunner().invoke(main, ["task", "push-wall", "--direction", "left", "--json",

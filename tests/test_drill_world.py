@@ -51,6 +51,7 @@ def _start(robot, q, periods=40):
         robot.step()
 
 
+@pytest.mark.physical
 def test_a_bit_fed_into_the_wall_meets_thrust_and_spindle_torque():
     arm, T_goal, q_arm = _bit_goal()
     assert arm.solve(T_goal, q_arm).exact
@@ -75,6 +76,7 @@ def test_a_bit_fed_into_the_wall_meets_thrust_and_spindle_torque():
     assert np.abs(states[40].ft["right-wrist"]).max() < 1e-9
 
 
+@pytest.mark.physical
 def test_the_drill_body_collides_with_the_wall():
     """Fed on past its bit, the drill's body (the motor housing) meets the wall face: a contact
     of the physics, not of the cutting model (the bit went through already)."""

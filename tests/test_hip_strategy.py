@@ -123,6 +123,7 @@ def test_the_bow_pitches_the_trunk_and_keeps_the_com_over_the_feet(model):
         np.degrees(0.2), abs=0.3)
 
 
+@pytest.mark.physical
 @pytest.mark.parametrize("direction", [(1.0, 0.0, 0.0), (-1.0, 0.0, 0.0)])
 def test_a_90_n_push_is_held_in_place_with_the_hips(model, direction, tmp_path):
     # 0.2 s on the torso at 1 s; the ankles alone hold about 87 N each way (README); the held

@@ -94,6 +94,7 @@ def _trace(seed, periods=100):
         return np.array(rows), sim.perturbation
 
 
+@pytest.mark.physical
 def test_the_same_seed_gives_the_same_run_and_another_seed_another():
     a, pa = _trace(5)
     b, pb = _trace(5)

@@ -154,6 +154,7 @@ def test_teleop_wall_distance_puts_the_hole_on_that_distance_s_reachable_rectang
         drill_stance(0.95)
 
 
+@pytest.mark.physical
 @pytest.mark.slow
 def test_a_stream_that_swings_the_drill_into_the_torso_is_held_by_the_collision_detector(
         tmp_path):

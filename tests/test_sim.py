@@ -36,6 +36,7 @@ def _hold(robot, q, periods):
     return state
 
 
+@pytest.mark.physical
 def test_stands_on_both_flat_feet_carrying_its_weight(sim):
     sim.start()
     state = _hold(sim, home_posture(MODEL), 100)
@@ -77,6 +78,7 @@ def test_frame_poses_are_the_physics_as_of_the_last_step(sim):
     assert np.linalg.norm(sim.frame_pose("right_hand")[:3, 3] - hand_before) > 0.01
 
 
+@pytest.mark.physical
 def test_frames_and_signs_of_sensors_under_a_forward_push(sim):
     sim.start()
     before = _hold(sim, home_posture(MODEL), 20)
@@ -111,6 +113,7 @@ def _drill_goal():
     return arm, T, arm.solve(T, q_far_right).q_rad
 
 
+@pytest.mark.physical
 def test_drilling_wrist_torque_is_small_when_slow_and_over_the_limit_when_fast():
     arm, T_goal, q_arm = _drill_goal()
     q = home_posture(MODEL)
@@ -137,6 +140,7 @@ def test_drilling_wrist_torque_is_small_when_slow_and_over_the_limit_when_fast()
     assert moments[0.1] > limit
 
 
+@pytest.mark.physical
 def test_no_cutting_force_outside_the_wall():
     q = home_posture(MODEL)
     with SimDriver(MODEL, drill=True) as robot:
@@ -177,6 +181,7 @@ def test_bad_options_and_requests_are_refused(sim):
         sim.push_torso([1.0, 0.0], 0.1)
 
 
+@pytest.mark.physical
 def test_a_jump_in_the_command_is_followed_at_the_motor_top_speed(sim):
     q = home_posture(MODEL)
     sim.start(q)
@@ -211,6 +216,7 @@ def _creep_under_a_side_push(anchor: bool) -> tuple[float, float]:
     return drift, error
 
 
+@pytest.mark.physical
 def test_standing_soles_do_not_creep_so_the_torso_estimate_stays_on_the_body():
     # the estimator assumes the feet stay where they stood; the solver's friction without
     # anchors lets both feet walk away together (14 mm over a perturbed robot's 60 s cut),
@@ -230,6 +236,7 @@ def _solver_iterations_used(robot, steps):
             for _ in range(steps)]
 
 
+@pytest.mark.physical
 def test_the_residual_threshold_reaches_the_solver():
     default, early = SimDriver(MODEL), SimDriver(MODEL, solver_residual_threshold=1e-2)
     try:

@@ -6,11 +6,13 @@ import json
 import subprocess
 import sys
 
+import pytest
 from click.testing import CliRunner
 
 from hubo_cli.cli.main import main
 
 
+@pytest.mark.physical
 def test_json_report_on_a_clean_stdout(tmp_path):
     out = tmp_path / "run"
     done = subprocess.run([sys.executable, "-m", "hubo_cli.cli.main", "sim", "--duration", "0.3",

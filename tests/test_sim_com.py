@@ -9,6 +9,8 @@ from hubo_cli.control.pin_robot import load_pin_robot
 from hubo_cli.drivers.sim import SimDriver
 from hubo_cli.posture import home_posture
 
+pytestmark = pytest.mark.physical
+
 
 @pytest.mark.parametrize("drill", [False, True])
 def test_physics_com_equals_the_model_com_in_random_postures(model, rng, drill):

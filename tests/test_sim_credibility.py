@@ -3,6 +3,7 @@
 and a short cut. Tolerances and why they are what they are: docs/profile.md."""
 
 import numpy as np
+import pytest
 
 from hubo_cli.control.balance import AnkleBalancer
 from hubo_cli.control.capture_point import CapturePointMonitor
@@ -10,6 +11,8 @@ from hubo_cli.control.module import Cycle
 from hubo_cli.drivers.sim import FAST_PHYSICS, LEGACY_PHYSICS, SimDriver
 from hubo_cli.posture import home_posture
 from hubo_cli.urdf import DRILL_FRAME
+
+pytestmark = pytest.mark.physical
 
 PUSH_AT_S = 1.0
 PUSH_S = 0.2

@@ -38,6 +38,7 @@ def test_unknown_commands_and_parameters_are_refused_before_anything_runs():
         check_jobs(make_jobs("sim", [1], {"speed": [1]}))
 
 
+@pytest.mark.physical
 def test_a_local_cluster_of_two_workers_gives_the_sequential_rows(tmp_path):
     jobs = make_jobs("sim", [0, 2, 5], SHORT)
     sequential = run_sweep(jobs, tmp_path / "seq", workers=0)

@@ -106,6 +106,7 @@ def test_too_fast_for_the_legs_is_refused_with_a_hint(tmp_path):
     assert "--speed" in result.output
 
 
+@pytest.mark.physical
 @pytest.mark.slow
 def test_a_small_rectangle_is_cut_accurately_with_a_full_run_folder(tmp_path):
     # The cut's accuracy is the point here, so the run goes without the soft e-stop: the
@@ -148,6 +149,7 @@ def test_a_small_rectangle_is_cut_accurately_with_a_full_run_folder(tmp_path):
     assert json.loads((out / "summary.json").read_text())["parameters"]["width_mm"] == 40.0
 
 
+@pytest.mark.physical
 @pytest.mark.slow
 def test_cutting_too_fast_trips_the_wrist_torque_stop_which_reverts_and_holds(tmp_path):
     out = tmp_path / "run"

@@ -52,6 +52,7 @@ def drill_rectangle_run(tmp_path_factory):
     return run, targets[0]
 
 
+@pytest.mark.physical
 @pytest.mark.slow
 def test_drill_rectangle_on_the_simulated_robot(drill_rectangle_run):
     run, _ = drill_rectangle_run
@@ -70,6 +71,7 @@ def test_drill_rectangle_on_the_simulated_robot(drill_rectangle_run):
         assert (run.run_dir / name).exists()
 
 
+@pytest.mark.physical
 @pytest.mark.slow
 def test_two_hand_session_through_the_cli(tmp_path):
     free = _first_seconds(FREE, tmp_path, 5.0)  # both hands move from the start
@@ -82,6 +84,7 @@ def test_two_hand_session_through_the_cli(tmp_path):
     assert s["latency_ms"]["p99"] < 10.0
 
 
+@pytest.mark.physical
 @pytest.mark.slow
 def test_a_one_second_gap_holds_smoothly(tmp_path):
     header, chunks = _chunks(RECTANGLE)
@@ -157,6 +160,7 @@ def test_bad_inputs_are_one_line_errors(tmp_path):
         assert "Traceback" not in result.output and "error:" in result.output
 
 
+@pytest.mark.physical
 @pytest.mark.slow
 def test_drill_mode_places_the_wall_at_the_bit_and_holds_the_flutes_in_it(drill_rectangle_run):
     """The first 2 s of the operation (the whole run's feet slip a little on some runs, see

@@ -60,6 +60,7 @@ def _operate(log, key):
     return log["t_s"][sel], goal, actual
 
 
+@pytest.mark.physical
 def test_a_walk_out_of_reach_stops_at_the_boundary_and_comes_back(tmp_path):
     """Each hand walks forward to 30 cm beyond its reach (3 s), waits, walks back (8 s: the
     elbow has to bend by 1.3 rad on the way back, at most 1 rad/s and 0.8 rad/s^2).
@@ -150,6 +151,7 @@ def test_a_joint_a_hair_inside_its_margin_does_not_stop_the_nearest_pose_search(
     assert abs(np.sin(result.q_rad[3])) >= margin - 1e-9        # the elbow kept its margin
 
 
+@pytest.mark.physical
 @pytest.mark.parametrize("scaled", [True, False])
 def test_a_sweep_along_the_straight_elbow_is_slowed_only_with_the_scale(tmp_path, scaled):
     """The right hand's goal goes 3 cm beyond its reach straight ahead (the arm parks with the
@@ -230,6 +232,7 @@ def test_collision_room_keeps_targets_out_of_the_band_and_slides_along_it():
     assert out[-1, 0] < -0.55 and 0.0 < out[-1, 1] < 0.1   # swung on, rolled in only so far
 
 
+@pytest.mark.physical
 @pytest.mark.slow
 @pytest.mark.parametrize("sample", ["two-hand-free.csv", "two-hand-free.fastrak"])
 def test_the_two_hand_sample_keeps_up_with_the_operator(tmp_path, sample):

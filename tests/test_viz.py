@@ -116,6 +116,7 @@ def test_replay_reproduces_logged_bit_and_torso_lean(scene):
     assert np.linalg.norm(np.ptp(scene.tool_world_m, axis=0)) > 0.1
 
 
+@pytest.mark.physical
 def test_a_hardware_log_without_torso_position_is_stood_on_its_soles(run_dir, tmp_path):
     """A hardware driver knows the torso's orientation (IMU) but not its position: the replay
     stands the robot on its lower sole under the torso, which lands where the sim had it."""

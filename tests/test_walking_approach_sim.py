@@ -14,7 +14,7 @@ from hubo_cli.posture import home_posture
 from hubo_cli.session import RunSetup, run
 from hubo_cli.walking.approach import PHASES, walk_first_setup
 
-pytestmark = [pytest.mark.slow]
+pytestmark = [pytest.mark.slow, pytest.mark.physical]
 
 
 class Session(Target):

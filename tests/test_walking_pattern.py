@@ -46,6 +46,7 @@ def test_preview_gains_match_kajita():
     assert abs(gains.preview[-1]) < 0.01 * abs(gains.preview[0])
 
 
+@pytest.mark.physical
 def test_preview_tracks_a_step_reference():
     """A 0.1 m ZMP step seen 1.6 s ahead: the cart-table ZMP follows within 2 mm after the
     step's first 0.1 s and the CoM ends on the new ZMP."""
@@ -109,6 +110,7 @@ def forward_gait(params):
     return make_gait(right, left, steps, params, 0.005, 0.59, 0.0, 0.02)
 
 
+@pytest.mark.physical
 def test_one_metre_forward_averages_over_a_tenth_of_a_metre_a_second(params):
     """The walk 1 m forward (``hubo walk --to 1.0 0 0``, the walk's ``average_speed_m_s``: the
     goal's distance over the time from the start to the last step's end, lead-in included)
@@ -121,6 +123,7 @@ def test_one_metre_forward_averages_over_a_tenth_of_a_metre_a_second(params):
     assert 1.0 / walking_s >= 0.105
 
 
+@pytest.mark.physical
 def test_pattern_zmp_tracks_and_stays_in_support(forward_gait, walking_model):
     """The cart-table ZMP of the CoM path follows the reference within 3 mm after the lead-in
     and lies inside the support polygon (the soles on the ground) in every period."""
@@ -139,6 +142,7 @@ def test_pattern_zmp_tracks_and_stays_in_support(forward_gait, walking_model):
         assert outside_distance(convex_hull(np.array(points)), gait.com.zmp_m[k]) < -0.005
 
 
+@pytest.mark.physical
 def test_swing_feet_lift_and_land_flat(forward_gait, params):
     gait = forward_gait
     for column, side in enumerate(("right", "left")):
@@ -151,6 +155,7 @@ def test_swing_feet_lift_and_land_flat(forward_gait, params):
         assert np.all(z[1:][moving] >= 0.09 * params.swing_height_m)
 
 
+@pytest.mark.physical
 def test_joint_plan_reaches_the_feet_within_limits(forward_gait, walking_model, params):
     """The legs' IK reaches every sole goal; the joints stay within the walking limit set's
     velocity (0 < v <= limit) and the whole-body CoM follows the pattern's within 1 mm."""
@@ -205,6 +210,7 @@ def test_measured_feet_a_fraction_of_a_mm_off_take_no_extra_steps(params):
     assert max(forward) <= params.max_step_forward_m + 0.002
 
 
+@pytest.mark.physical
 def test_sideways_walk_keeps_the_ankle_rolls_off_their_limits(walking_model, params):
     """Walking 0.3 m to the left, the ankle rolls stay 0.03 rad and the hip rolls 0.01 rad
     inside Table IV's limits: the swing sole lands flat instead of on its edge (with 0.26 m

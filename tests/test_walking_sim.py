@@ -20,6 +20,7 @@ def short_walk(tmp_path_factory):
     return result, out
 
 
+@pytest.mark.physical
 def test_walk_prints_its_figures(short_walk):
     result, _ = short_walk
     assert result.exit_code == 0, result.output
@@ -30,6 +31,7 @@ def test_walk_prints_its_figures(short_walk):
     assert fields["steps"] == 4
 
 
+@pytest.mark.physical
 def test_walk_goes_forward_without_falling(short_walk):
     result, out = short_walk
     summary = json.loads((out / "summary.json").read_text())
@@ -61,6 +63,7 @@ def side_walk(tmp_path_factory):
     return result, out
 
 
+@pytest.mark.physical
 def test_walk_sideways_without_falling(side_walk):
     """Sideways steps widen and narrow the stance by 2 x 30 mm; the robot (which fell walking
     0.3 m sideways with 0.05 m lateral steps) arrives standing, near the goal."""
@@ -82,11 +85,13 @@ def test_walk_sideways_without_falling(side_walk):
     assert sorted(s["y_m"] for s in last) == pytest.approx([0.0, 0.24], abs=0.002)
 
 
+@pytest.mark.physical
 def test_perturbed_walk_lands_its_steps_where_planned(tmp_path):
     """Perturbed robot 4 (foot friction 0.46, the floor tilted 0.38 deg) walks 1 m without a
     correction. The stabilizer's torso offset and touchdown hold reach the legs, so its feet
     do not slip off their steps at the landings: it ended 9.9 mm off when they did not (the
-    goal is 10 mm), 1.9 mm with them."""
+    goal is 10 mm), 2.3-5.1 mm with them (the last bits of the CPU's arithmetic decide where
+    in that range: 5.06 mm with AVX-512, 2.29 mm on the portable code paths)."""
     out = tmp_path / "run"
     result = CliRunner().invoke(main, ["walk", "--to", "1.0", "0", "0", "--perturb", "4",
                                        "--corrections", "0", "--json", "--out", str(out)])
@@ -94,6 +99,8 @@ def test_perturbed_walk_lands_its_steps_where_planned(tmp_path):
     fields = json.loads(result.output)
     assert fields["fell"] is False
     assert fields["steps"] == 8
-    assert fields["final_error_mm"] < 5.0
-    assert fields["average_speed_m_s"] >= 0.1
-    assert fields["zmp_inside_fraction"] >= 0.99
+    # measured 2.3-5.1 mm (AVX-512 / portable); perturbed robots 1-3: 0.7-2.7 mm; bound 8 mm
+    # = 1.6x the worst, still short of the 9.9 mm of feet that slip
+    assert fields["final_error_mm"] < 8.0
+    assert fields["average_speed_m_s"] >= 0.1  # the plan's 1 m in 8.9 s: 0.112 on every run
+    assert fields["zmp_inside_fraction"] >= 0.99  # 1.0 on every run (robots 1-4, both paths)

@@ -80,6 +80,7 @@ def test_torso_offset_pulls_the_com_back_and_is_bounded():
         StabilizerGains(k_com=float("nan"))
 
 
+@pytest.mark.physical
 def test_second_preview_stage_cancels_the_swing_legs_zmp():
     """The legs' and torso's momentum move the multi-body ZMP tens of mm from the reference;
     after the second preview stage it stays within 12 mm (away from the standing ends)."""
@@ -195,6 +196,7 @@ class StandingWorld:
         return self.poses[frame].copy()
 
 
+@pytest.mark.physical
 def test_torso_offset_reaches_the_legs_with_the_hip_yaw_at_its_limit():
     """Standing with the feet ahead, each hip yaw sits at its joint limit (0): with the feet
     toed in by a hundredth of a degree, as the simulator reads them after a few steps, the
