@@ -311,6 +311,8 @@ def test_collision_layer_keeps_the_commanded_posture_apart(model, tmp_path):
 
     ControlLoop(robot, modules, target, log_path=tmp_path).run(duration_s=4.0)
     columns = load_log(tmp_path).columns  # (the final smooth stop's rows have no module data)
+    # measured on both code paths (AVX-512 / portable): the goal 45.6 mm inside (4.6x), the
+    # command 10.6 mm clear
     assert np.nanmin(columns["collision_ahead_m"]) < -0.01        # the goal went inside
     assert np.nanmin(columns["collision_distance_m"]) > -0.001    # the command never did
 
@@ -354,4 +356,4 @@ def test_the_way_back_from_a_collision_hold_does_not_cross_the_body(model):
         detector.update(q_in, state, Cycle(k * dt, dt))
         distances.append(detector.last_clearance.distance_m)
     assert detector.events  # it held
-    assert min(distances) > 0.0
+    assert min(distances) > 0.0  # 10.2 mm clear on both code paths (AVX-512 / portable)

