@@ -289,6 +289,7 @@ def test_sigterm_ends_like_ctrl_c_with_a_summary(tmp_path):
     assert "interrupted" in out
 
 
+@pytest.mark.physical
 def test_collision_layer_keeps_the_commanded_posture_apart(model, tmp_path):
     """The operator's goal goes deep into the body: the command stays clear (logged)."""
     from hubo_cli.control.log import load_log
@@ -310,6 +311,8 @@ def test_collision_layer_keeps_the_commanded_posture_apart(model, tmp_path):
 
     ControlLoop(robot, modules, target, log_path=tmp_path).run(duration_s=4.0)
     columns = load_log(tmp_path).columns  # (the final smooth stop's rows have no module data)
+    # measured on both code paths (AVX-512 / portable): the goal 45.6 mm inside (4.6x), the
+    # command 10.6 mm clear
     assert np.nanmin(columns["collision_ahead_m"]) < -0.01        # the goal went inside
     assert np.nanmin(columns["collision_distance_m"]) > -0.001    # the command never did
 
@@ -327,6 +330,7 @@ def test_setting_a_parameter_the_task_never_uses_is_refused(tmp_path):
     assert load_task(path, {"speed_mm_s": 20.0}).steps[2].speed_m_s == pytest.approx(0.02)
 
 
+@pytest.mark.physical
 def test_the_way_back_from_a_collision_hold_does_not_cross_the_body(model):
     """Two clear postures whose straight joint-space way between crosses the torso (the left
     wrist through it): held at the first, the input then at the second; the recovery must hold
@@ -352,4 +356,4 @@ def test_the_way_back_from_a_collision_hold_does_not_cross_the_body(model):
         detector.update(q_in, state, Cycle(k * dt, dt))
         distances.append(detector.last_clearance.distance_m)
     assert detector.events  # it held
-    assert min(distances) > 0.0
+    assert min(distances) > 0.0  # 10.2 mm clear on both code paths (AVX-512 / portable)

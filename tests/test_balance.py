@@ -103,19 +103,22 @@ def test_a_bad_sensor_is_flagged_and_ignored():
 
 
 # ------------------------------------------------------------------ in the simulation
+@pytest.mark.physical
 def test_standing_with_balance_stays_upright_with_flat_feet(tmp_path):
     result = stand(MODEL, duration_s=3.0, push_n=0.0, balance=True, out=tmp_path,
                    balance_mode="paper")
     assert not result.fell
     assert result.feet_flat
     # the paper's law leans with the load (1.1 deg after 20 s), where the default balancer
-    # holds the body within 0.2 deg over the same 3 s (test_balance_default.py)
+    # holds the body within 0.2 deg over the same 3 s (test_balance_default.py); measured
+    # 0.753 deg on both code paths (AVX-512 / portable): 1.5x from 0.5, 2.7x from 2.0
     assert 0.5 < result.max_tilt_deg < 2.0
-    # settling toward the lean where the two terms balance (about 1.07 deg after 30 s):
-    # the last second drifts less than half as fast as the first
+    # settling toward the lean where the two terms balance (about 1.07 deg after 30 s): the
+    # last second drifts less than the first (measured 0.46 of it on both code paths; bound
+    # 0.7 = 1.5x)
     first = np.ptp(result.tilts_deg[result.times_s <= 1.0])
     last = np.ptp(result.tilts_deg[result.times_s > 2.0])
-    assert 0 < last < 0.5 * first
+    assert 0 < last < 0.7 * first
 
 
 @pytest.fixture(scope="module")
@@ -126,13 +129,15 @@ def pushed(tmp_path_factory):
             for balance in (True, False)}
 
 
+@pytest.mark.physical
 def test_a_30_newton_push_is_absorbed_without_a_fall(pushed):
     for result in pushed.values():
         assert not result.fell
         assert result.feet_flat
-        assert result.max_tilt_deg < 2.0
+        assert result.max_tilt_deg < 2.0  # measured 0.05-0.83 deg (both code paths): 2.4x
 
 
+@pytest.mark.physical
 def test_balance_keeps_the_feet_evenly_loaded_through_the_push(pushed):
     # eq. 11-12's compliance evens out the two feet (on the compliant soles; on rigid ones the
     # limiter's clamp turned it into rocking): over the second from the push on, the
@@ -141,6 +146,8 @@ def test_balance_keeps_the_feet_evenly_loaded_through_the_push(pushed):
         window = (result.times_s > 1.0) & (result.times_s <= 2.0)
         return result.feet_moment_difference_nm[window].mean()
 
+    # measured 0.31 against 4.07 N m (0.076 of it) on both code paths (AVX-512 / portable):
+    # bound 0.3 = 3.9x. (The peaks, 6.08 and 6.41 N m, come at the push, before the compliance
+    # acts, and differ by 5%: a knife edge, not asserted.)
     on, off = pushed[True], pushed[False]
     assert mean_difference(on) < 0.3 * mean_difference(off)
-    assert on.max_feet_moment_difference_nm < off.max_feet_moment_difference_nm

@@ -21,10 +21,13 @@ def plans(model):
     return plain, make_plan(spec, model)
 
 
+@pytest.mark.physical
 def test_placement_includes_the_waist_shift(plans):
     plain, balanced = plans
     assert plain.placement.shift_m == 0.0
     shift = balanced.placement.shift_m
+    # -25.0 mm on both code paths (AVX-512 / portable): 1.25x the 20 mm, a planned shift (the
+    # same to 1e-15 on both), not a measured outcome
     assert shift < -0.02  # the drill out in front: the waist goes back
     # the wall moved with the body: the same place for the arm in the neck frame
     assert balanced.placement.wall_distance_m == pytest.approx(
@@ -32,6 +35,7 @@ def test_placement_includes_the_waist_shift(plans):
     assert balanced.preflight.ok, [m.message() for m in balanced.preflight.misses[:3]]
 
 
+@pytest.mark.physical
 def test_the_balance_point_stays_near_the_soles_centre(plans, model):
     plain, balanced = plans
     spec = balanced.spec
@@ -42,6 +46,7 @@ def test_the_balance_point_stays_near_the_soles_centre(plans, model):
         return max(abs(probe.support_x_m - probe.balance_point_x(
             plan.q_rad[i], plan.body.shift_of(plan.q_rad[i]))) for i in rows)
 
+    # measured 4.2 mm with and 23 mm without on both code paths (AVX-512 / portable): 2.4x
     assert worst(balanced) < 0.01           # (the 60 x 40 mm cut: 4 mm)
     assert worst(plain) > worst(balanced) + 0.012  # (without: 23 mm ahead)
     # and the hand keeps its goal: the plan's arm solutions land on the goals in S

@@ -86,23 +86,28 @@ def test_bad_settings_are_refused(model):
         make_balancer(model, "sideways")
 
 
+@pytest.mark.physical
 def test_standing_the_default_balancer_holds_the_body_upright(model, tmp_path):
     """3 s standing: within 0.2 deg of upright. The paper's law, over the same 3 s, leans more
     than 0.5 deg (asserted on that run in test_balance.py, which runs the same standing)."""
     default = stand(model, duration_s=3.0, balance=True, out=tmp_path / "default")
     assert not default.fell and default.feet_flat
-    assert default.max_tilt_deg < 0.2
+    assert default.max_tilt_deg < 0.2  # measured 0.010 deg on both code paths: 19x
 
 
+@pytest.mark.physical
 def test_a_push_that_tips_the_body_over_its_heels_is_not_leaned_against(model, tmp_path):
     import polars as pl
 
     # the ankles alone (the hip strategy, which bows the trunk too, is in test_hip_strategy.py)
     result = stand(model, duration_s=2.3, push_n=90.0, push_direction=(-1.0, 0.0, 0.0),
                    out=tmp_path, hip_strategy=False)
+    # measured the same on both code paths (AVX-512 / portable): tilt 18.1 deg (6x the 3 deg),
+    # foot shift 4.43 mm as the soles rock on their heels (bound 7 mm = 1.6x; a step or a
+    # slide moves a foot centimetres), balancer pitch 0.00015 rad (34x)
     assert not result.fell
     assert result.max_tilt_deg > 3.0  # the push did rock the robot back onto its heels
-    assert result.max_foot_shift_mm < 5.0  # in place: no step, no slide (0.9 mm)
+    assert result.max_foot_shift_mm < 7.0  # in place: no step, no slide
     log = pl.read_csv(tmp_path / "log.csv")
     # the common mode rested while the feet stood on their heels: no lean to land with (the
     # tilt term alone had leaned the ankles 0.017 rad by now, which topples it forward)
@@ -112,6 +117,7 @@ def test_a_push_that_tips_the_body_over_its_heels_is_not_leaned_against(model, t
 
 @pytest.mark.parametrize(("push_n", "direction", "duration_s"),
                          [(80.0, (1.0, 0.0, 0.0), 2.6), (60.0, (0.0, 1.0, 0.0), 1.8)])
+@pytest.mark.physical
 def test_a_push_inside_the_feet_ceiling_is_survived_in_place(model, push_n, direction,
                                                              duration_s, tmp_path):
     import polars as pl
@@ -120,6 +126,8 @@ def test_a_push_inside_the_feet_ceiling_is_survived_in_place(model, push_n, dire
     # that only moves its ankles is about 87 N, see the README), 60 N sideways barely tilts it
     result = stand(model, duration_s=duration_s, push_n=push_n, push_direction=direction,
                    out=tmp_path, hip_strategy=False)
+    # measured (AVX-512 / portable), 80 N forward / 60 N sideways: tilt 5.06 / 0.54 deg (17x /
+    # 1.8x the 0.3 deg), foot shift 0.51 / 0.17-0.21 mm (10x / 23x)
     assert not result.fell
     assert result.max_tilt_deg > 0.3  # the push did move the body
     assert result.max_foot_shift_mm < 5.0  # no step, no slide (rocking moves a sole ~1 mm)

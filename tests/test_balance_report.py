@@ -259,6 +259,7 @@ def test_safety_view_shows_the_balance_line():
         "ankle clamps 77.8%, flutes in the wall 50% of the cut")
 
 
+@pytest.mark.physical
 def test_a_short_run_reports_the_balance_figures(tmp_path):
     """One short standing run per balancer setting: the figures are in summary.json and the
     log (recorded balancer, feet columns, ankle clamp count)."""
@@ -273,9 +274,12 @@ def test_a_short_run_reports_the_balance_figures(tmp_path):
     paper, off = summaries["paper"], summaries["off"]
     assert paper["balance"] == "paper" and "balance" in paper["pipeline"]
     assert off["balance"] == "off" and "balance" not in off["pipeline"]
+    # measured (paper / off, the same on both code paths, AVX-512 / portable): support margin
+    # 103 / 105 mm (bounds 65 and 200 mm: 1.6x and 1.9x), torso tilt 0.21 / 0.01 deg (1 deg:
+    # 4.8x), ankle clamp fraction 1.0 / 0.0
     for s in (paper, off):
         assert s["contact_losses"] == 0 and s["contact_loss_intervals"] == []
-        assert 80.0 < s["min_support_margin_mm"] < 200.0
+        assert 65.0 < s["min_support_margin_mm"] < 200.0
         assert 0.0 <= s["min_support_margin_at"]["t_s"] <= 0.5
         assert 0.0 <= s["max_torso_tilt_deg"] < 1.0
         assert "cutting_fraction" not in s  # no drill, no wall

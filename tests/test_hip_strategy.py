@@ -123,13 +123,18 @@ def test_the_bow_pitches_the_trunk_and_keeps_the_com_over_the_feet(model):
         np.degrees(0.2), abs=0.3)
 
 
+@pytest.mark.physical
 @pytest.mark.parametrize("direction", [(1.0, 0.0, 0.0), (-1.0, 0.0, 0.0)])
 def test_a_90_n_push_is_held_in_place_with_the_hips(model, direction, tmp_path):
     # 0.2 s on the torso at 1 s; the ankles alone hold about 87 N each way (README); the held
     # ceiling with the hips is 91 N both ways, so 90 N leaves 1 N
     # 8 s: past the 3.2 s at which an ankle-only 85 N push toppled, and back near upright
     result = stand(model, duration_s=8.0, push_n=90.0, push_direction=direction, out=tmp_path)
+    # measured (forward / backward, AVX-512 / portable): peak tilt 25.2 / 25.0 and 25.0 / 25.1
+    # deg (1.7x the 15), final tilt 1.07 / 0.73 and 0.23 / 1.08 deg (3.7x), foot shift 4.7 /
+    # 5.9 and 2.9 / 2.8 mm as the soles rock on their edges (bound 9 mm = 1.5x; a step or a
+    # slide moves a foot centimetres)
     assert not result.fell
-    assert result.max_tilt_deg > 15.0  # the trunk did bow (25 deg at the peak)
-    assert result.final_tilt_deg < 4.0  # standing again (1.1-1.3 deg at 8 s, bow 0)
-    assert result.max_foot_shift_mm < 8.0  # no step, no slide (rocking on the edges: 3-4 mm)
+    assert result.max_tilt_deg > 15.0  # the trunk did bow
+    assert result.final_tilt_deg < 4.0  # standing again (bow 0)
+    assert result.max_foot_shift_mm < 9.0  # no step, no slide

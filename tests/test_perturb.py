@@ -94,6 +94,7 @@ def _trace(seed, periods=100):
         return np.array(rows), sim.perturbation
 
 
+@pytest.mark.physical
 def test_the_same_seed_gives_the_same_run_and_another_seed_another():
     a, pa = _trace(5)
     b, pb = _trace(5)
@@ -103,7 +104,8 @@ def test_the_same_seed_gives_the_same_run_and_another_seed_another():
     assert np.array_equal(a, b)  # bit for bit on the same machine
     assert np.abs(a - c).max() > 1e-3
     assert np.abs(a - nominal).max() > 1e-3
-    # the noise is there, and no larger than its draws allow
+    # the noise is there, and no larger than its draws allow (std 0.71-0.72 mrad on the
+    # AVX-512 / portable code paths: 70x inside either bound)
     q_noise = a[:, :24] - nominal[:, :24]
     assert 1e-5 < np.std(q_noise[:, 12:18]) < 0.05
 

@@ -36,9 +36,13 @@ def _hold(robot, q, periods):
     return state
 
 
+@pytest.mark.physical
 def test_stands_on_both_flat_feet_carrying_its_weight(sim):
     sim.start()
     state = _hold(sim, home_posture(MODEL), 100)
+    # measured the same on both code paths (AVX-512 / portable): load 380.125 of 380.127 N,
+    # right foot 183 N, torso 0.05 mm off its height, tilt 0.005 deg (21x), soles 0.005 deg
+    # (40x), gyro 1e-6 rad/s, leg torque 10.9 N m (11x)
     assert state.feet_contact == (True, True)
     weight = total_mass_kg(MODEL) * G
     right, left = state.ft["right-ankle"], state.ft["left-ankle"]
@@ -77,16 +81,19 @@ def test_frame_poses_are_the_physics_as_of_the_last_step(sim):
     assert np.linalg.norm(sim.frame_pose("right_hand")[:3, 3] - hand_before) > 0.01
 
 
+@pytest.mark.physical
 def test_frames_and_signs_of_sensors_under_a_forward_push(sim):
     sim.start()
     before = _hold(sim, home_posture(MODEL), 20)
     sim.push_torso([40.0, 0.0, 0.0], 0.2)
     during = _hold(sim, home_posture(MODEL), 20)
+    # measured the same on both code paths (AVX-512 / portable): moments down by 18.8 and
+    # 21.4 N m (3.8x the 5), forces back by 15.0 and 28.8 N (1.7x the 9), tilt after 0.005 deg
     for foot in ("right-ankle", "left-ankle"):
         # the centre of pressure moves forward: the ground's moment about +y turns negative
         assert during.ft[foot][4] < before.ft[foot][4] - 5.0
         # and the floor holds the feet back against the push
-        assert during.ft[foot][0] < before.ft[foot][0] - 10.0
+        assert during.ft[foot][0] < before.ft[foot][0] - 9.0
     after = _hold(sim, home_posture(MODEL), 200)
     assert np.degrees(np.abs(after.tilt_rad())).max() < 0.1
 
@@ -111,6 +118,7 @@ def _drill_goal():
     return arm, T, arm.solve(T, q_far_right).q_rad
 
 
+@pytest.mark.physical
 def test_drilling_wrist_torque_is_small_when_slow_and_over_the_limit_when_fast():
     arm, T_goal, q_arm = _drill_goal()
     q = home_posture(MODEL)
@@ -133,13 +141,17 @@ def test_drilling_wrist_torque_is_small_when_slow_and_over_the_limit_when_fast()
             moments[speed] = float(np.mean(norms[len(norms) // 2:]))
             assert np.linalg.norm(robot.cutting_force_n) > 0.5
     limit = MODEL.safety["wrist_torque_limit_nm"]
-    assert 0.1 < moments[0.01] < 0.35  # the paper's cut: 0.14-0.15 N m mean, 0.35 N m peak
+    # measured 0.243 N m slow (the paper's cut: 0.14-0.15 N m mean, 0.35 N m peak) and 1.73 N m
+    # fast on both code paths (AVX-512 / portable): bounds 0.37 (1.5x) and the limit, 1.21 N m
+    # (1.43x: the limit is what the test is about, so it stays the bound)
+    assert 0.1 < moments[0.01] < 0.37
     assert moments[0.1] > limit
 
 
+@pytest.mark.physical
 def test_no_cutting_force_outside_the_wall():
     q = home_posture(MODEL)
-    with SimDriver(MODEL, drill=True) as robot:
+    with SimDriver(MODEL, drill=True) as robot:  # exactly zero on both code paths
         robot.start(q)
         robot.add_wall(distance_m=0.6, height_m=1.0)
         state = _hold(robot, q, 20)
@@ -177,12 +189,14 @@ def test_bad_options_and_requests_are_refused(sim):
         sim.push_torso([1.0, 0.0], 0.1)
 
 
+@pytest.mark.physical
 def test_a_jump_in_the_command_is_followed_at_the_motor_top_speed(sim):
     q = home_posture(MODEL)
     sim.start(q)
     elbow = MODEL.joint_names.index("REB")
     q[elbow] = -1.5
     speeds = [abs(_hold(sim, q, 1).dq_rad_s[elbow]) for _ in range(150)]
+    # measured 3.0015 of 3.0 rad/s (40x inside) and 7e-7 rad off at the end, both code paths
     top = sim.options.max_speed_factor * MODEL.velocity_rad_s[elbow]
     assert max(speeds) == pytest.approx(top, rel=0.02)
     assert sim.read().q_rad[elbow] == pytest.approx(-1.5, abs=2e-3)
@@ -211,14 +225,17 @@ def _creep_under_a_side_push(anchor: bool) -> tuple[float, float]:
     return drift, error
 
 
+@pytest.mark.physical
 def test_standing_soles_do_not_creep_so_the_torso_estimate_stays_on_the_body():
     # the estimator assumes the feet stay where they stood; the solver's friction without
     # anchors lets both feet walk away together (14 mm over a perturbed robot's 60 s cut),
-    # which no onboard sensor sees
+    # which no onboard sensor sees. Measured (AVX-512 / portable): anchored drift 0.031-0.032
+    # mm (bound 1.9x), error 0.021-0.058 mm (1.7x); free drift 0.229 mm (1.5x), error 0.183 mm
+    # (1.5x)
     drift, error = _creep_under_a_side_push(anchor=True)
     assert drift < 0.06e-3 and error < 0.1e-3
     drift_free, error_free = _creep_under_a_side_push(anchor=False)
-    assert drift_free > 0.15e-3 and error_free > 0.15e-3
+    assert drift_free > 0.15e-3 and error_free > 0.12e-3
 
 
 def _solver_iterations_used(robot, steps):
@@ -230,6 +247,7 @@ def _solver_iterations_used(robot, steps):
             for _ in range(steps)]
 
 
+@pytest.mark.physical
 def test_the_residual_threshold_reaches_the_solver():
     default, early = SimDriver(MODEL), SimDriver(MODEL, solver_residual_threshold=1e-2)
     try:
@@ -237,7 +255,8 @@ def test_the_residual_threshold_reaches_the_solver():
         early.start()
         # the default threshold is never reached: every step runs all its iterations
         assert set(_solver_iterations_used(default, 40)) == {default.options.solver_iterations}
-        # a loose one ends the steps of a quiet stance early (about 8 of 30 on the cut)
+        # a loose one ends the steps of a quiet stance early (about 8 of 30 on the cut; 10.95
+        # here on both code paths, 1.9x under the bound)
         assert np.mean(_solver_iterations_used(early, 40)) < 0.7 * early.options.solver_iterations
     finally:
         default.close()

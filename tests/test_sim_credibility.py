@@ -3,6 +3,7 @@
 and a short cut. Tolerances and why they are what they are: docs/profile.md."""
 
 import numpy as np
+import pytest
 
 from hubo_cli.control.balance import AnkleBalancer
 from hubo_cli.control.capture_point import CapturePointMonitor
@@ -10,6 +11,8 @@ from hubo_cli.control.module import Cycle
 from hubo_cli.drivers.sim import FAST_PHYSICS, LEGACY_PHYSICS, SimDriver
 from hubo_cli.posture import home_posture
 from hubo_cli.urdf import DRILL_FRAME
+
+pytestmark = pytest.mark.physical
 
 PUSH_AT_S = 1.0
 PUSH_S = 0.2
@@ -41,7 +44,8 @@ def test_standing_is_the_same_at_400_hz(model):
     tilt_new, com_new = _stand(model, FAST_PHYSICS, 2.0)
     print("standing: tilt", np.abs(tilt_new - tilt_old).max(), "com mm",
           1e3 * np.linalg.norm(com_new - com_old, axis=1).max())
-    assert np.abs(tilt_new - tilt_old).max() < 0.1
+    # measured 0.084 deg and 0.79 mm on both code paths (AVX-512 / portable): bounds 1.5x, 2.5x
+    assert np.abs(tilt_new - tilt_old).max() < 0.13
     assert np.linalg.norm(com_new - com_old, axis=1).max() < 0.002
 
 
@@ -56,7 +60,9 @@ def test_a_60_n_push_is_the_same_at_400_hz(model):
     print("push: to peak", d_tilt[:peak].max(), 1e3 * d_com[:peak].max(), "all", d_tilt.max(),
           1e3 * d_com.max(), "peaks", tilt_old.max(), tilt_new.max())
     assert tilt_old.max() < 30 and tilt_new.max() < 30  # same outcome: standing
-    # through the push and the peak of the lean the runs agree as closely as standing
+    # through the push and the peak of the lean the runs agree as closely as standing (measured
+    # 0.064 deg and 0.60 mm on both code paths, AVX-512 / portable: 1.6x and 3.3x; the peaks
+    # 2.6 deg, 12x under the 30; their difference 0.013 deg, 23x)
     assert d_tilt[:peak].max() < 0.1 and d_com[:peak].max() < 0.002
     # after it the feet rock on their edges, a motion the former settings do not resolve either:
     # against 0.5 ms steps with 100 iterations they differ by about 1 deg (docs/profile.md)
@@ -96,4 +102,6 @@ def test_a_short_cut_is_the_same_at_400_hz(model):
     print("cut: bit", 1e3 * d.max(), "sweep", 1e3 * np.ptp(bit_old[:, 1]), "force",
           force_old.max(), force_new.max())
     assert np.ptp(bit_old[:, 1]) > 0.02 and min(force_old.max(), force_new.max()) > 1.0  # cutting
+    # measured 0.27 mm on both code paths (AVX-512 / portable): 1.8x; sweep 33 mm (1.65x the
+    # 20), force 3.0 N (3x)
     assert d.max() < 0.0005

@@ -96,6 +96,7 @@ def _port_free(port: int) -> bool:
     return True
 
 
+@pytest.mark.physical
 def test_a_local_cluster_of_two_workers_gives_the_sequential_rows(tmp_path):
     """... and opens no dashboard: while it runs, every port it listens on is a loopback one,
     none is 8787, and 8787 stays free (or is held by a process not of this test)."""
@@ -115,7 +116,8 @@ def test_a_local_cluster_of_two_workers_gives_the_sequential_rows(tmp_path):
     assert [r.outcome() for r in parallel.rows] == [r.outcome() for r in sequential.rows]
     assert [r.seed for r in sequential.rows] == [0, 2, 5]
     assert all(r.ended == "finished" and r.max_tilt_deg is not None for r in sequential.rows)
-    assert len({r.max_tilt_deg for r in sequential.rows}) == 3  # the seeds differ
+    # the seeds differ: 0.010, 0.155 and 0.459 deg on both code paths (AVX-512 / portable)
+    assert len({r.max_tilt_deg for r in sequential.rows}) == 3
     with open(tmp_path / "par" / "sweep.csv") as f:
         table = list(csv.DictReader(f))
     assert [int(r["seed"]) for r in table] == [0, 2, 5] and table[0]["duration"] == "0.6"

@@ -152,6 +152,7 @@ def test_too_fast_for_the_legs_is_refused_with_a_hint(tmp_path):
     assert "--speed" in result.output
 
 
+@pytest.mark.physical
 @pytest.mark.slow
 def test_a_small_rectangle_is_cut_accurately_with_a_full_run_folder(tmp_path):
     # The cut's accuracy is the point here, so the run goes without the soft e-stop: the
@@ -165,9 +166,13 @@ def test_a_small_rectangle_is_cut_accurately_with_a_full_run_folder(tmp_path):
     assert result.exit_code == 0, result.output
     s = json.loads(result.output)
     assert s["completed"] is True and s["estop"] is None and not s["estop_events"]
+    # measured on both code paths (AVX-512 / portable, equal to 1e-12): tilt 0.27 deg (bound
+    # 11x), bit RMS 1.61 mm (1.9x), max 4.93 mm (1.5x), horizontal torque mean 0.178 N m (3.6x
+    # over 0.05), max while cutting 0.33 N m (3.7x under the limit), support margin 101 mm
+    # (3.4x), flutes-in-wall agreement 0.9996
     assert s["max_torso_tilt_deg"] < 3.0  # the robot stays up with a wide margin
     assert np.isfinite(load_log(out)["cp_outside_m"]).mean() > 0.5  # the monitor measured
-    assert s["rms_error_mm"] <= 3.0 and s["max_error_mm"] < 6.0
+    assert s["rms_error_mm"] <= 3.0 and s["max_error_mm"] < 7.5
     torque = s["wrist_torque_nm"]
     assert torque["horizontal"]["samples"] and torque["vertical"]["samples"]
     assert 0.05 < torque["horizontal"]["mean"] < torque["limit"]
@@ -194,6 +199,7 @@ def test_a_small_rectangle_is_cut_accurately_with_a_full_run_folder(tmp_path):
     assert json.loads((out / "summary.json").read_text())["parameters"]["width_mm"] == 40.0
 
 
+@pytest.mark.physical
 @pytest.mark.slow
 @pytest.mark.parametrize("perturb", [(), ("--perturb", "1")], ids=["nominal", "perturb-1"])
 def test_cutting_too_fast_trips_the_wrist_torque_stop_which_relieves_the_wrist(tmp_path,

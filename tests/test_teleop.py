@@ -52,6 +52,7 @@ def drill_rectangle_run(tmp_path_factory):
     return run, targets[0]
 
 
+@pytest.mark.physical
 @pytest.mark.slow
 def test_drill_rectangle_on_the_simulated_robot(drill_rectangle_run):
     run, _ = drill_rectangle_run
@@ -61,8 +62,9 @@ def test_drill_rectangle_on_the_simulated_robot(drill_rectangle_run):
     # on the goal: 5.1 mm on most runs, but 7.4 mm after a 1e-12 change of one time constant
     # (the feet slip sideways on some runs, which no measurement on the robot sees, and the
     # torso estimate assumes they stand still). The test below asserts the world error of
-    # the operation's first 2 s to 6 mm; this bound leaves room for that chaos.
-    assert s["rms_error_mm"]["right-arm"] < 10.0
+    # the operation's first 2 s to 6 mm; this bound leaves room for that chaos (4.79 / 4.86 mm
+    # on the AVX-512 / portable code paths here: 11.5 mm is 1.55x the 7.4 mm).
+    assert s["rms_error_mm"]["right-arm"] < 11.5
     assert s["scene"]["placed_from"] == "right_drill_bit"
     assert s["max_joint_velocity_ratio"] <= 1.0 + 1e-9  # the log keeps 15 digits
     assert s["ik_status_counts"]["right-arm"]["held"] == 0
@@ -70,6 +72,7 @@ def test_drill_rectangle_on_the_simulated_robot(drill_rectangle_run):
         assert (run.run_dir / name).exists()
 
 
+@pytest.mark.physical
 @pytest.mark.slow
 def test_two_hand_session_through_the_cli(tmp_path):
     free = _first_seconds(FREE, tmp_path, 5.0)  # both hands move from the start
@@ -79,9 +82,10 @@ def test_two_hand_session_through_the_cli(tmp_path):
     s = json.loads(result.output)
     assert set(s["rms_error_mm"]) == {"right-arm", "left-arm"}
     assert s["max_joint_velocity_ratio"] <= 1.0 + 1e-9 and not s["estop_events"]
-    assert s["latency_ms"]["p99"] < 10.0
+    assert s["latency_ms"]["p99"] < 10.0  # 3.8 ms on both code paths (AVX-512 / portable): 2.6x
 
 
+@pytest.mark.physical
 @pytest.mark.slow
 def test_a_one_second_gap_holds_smoothly(tmp_path):
     header, chunks = _chunks(RECTANGLE)
@@ -92,7 +96,8 @@ def test_a_one_second_gap_holds_smoothly(tmp_path):
     run = run_teleop(TeleopSettings(replay=src, mode="drill", driver="ideal",
                                     out=tmp_path / "run"))
     assert run.summary["ended"] == "done"
-    assert run.summary["status_counts"].get("stale input", 0) > 100  # ~1 s flagged stale
+    # ~1 s flagged stale: 153 periods on both code paths (AVX-512 / portable), 1.5x the bound
+    assert run.summary["status_counts"].get("stale input", 0) > 100
     assert _max_step_ratio(run.run_dir) <= 1.0 + 1e-9
     assert run.summary["max_joint_velocity_ratio"] <= 1.0 + 1e-9
 
@@ -157,6 +162,7 @@ def test_bad_inputs_are_one_line_errors(tmp_path):
         assert "Traceback" not in result.output and "error:" in result.output
 
 
+@pytest.mark.physical
 @pytest.mark.slow
 def test_drill_mode_places_the_wall_at_the_bit_and_holds_the_flutes_in_it(drill_rectangle_run):
     """The first 2 s of the operation (the whole run's feet slip a little on some runs, see
@@ -182,6 +188,7 @@ def test_drill_mode_places_the_wall_at_the_bit_and_holds_the_flutes_in_it(drill_
     world_m = np.asarray(target.world_errors_m["right-arm"])
     assert len(world_m) == len(t_s) and len(world_m) > 300
     first = world_m[t_s <= t_s[0] + 2.0]
+    # 1.81 / 1.85 mm on the AVX-512 / portable code paths: 3.2x
     assert len(first) > 300 and np.sqrt(np.mean(np.square(first))) * 1000 < 6.0
     assert s["world_rms_error_mm"]["right-arm"] == pytest.approx(
         np.sqrt(np.mean(np.square(world_m))) * 1000)

@@ -60,6 +60,7 @@ def _operate(log, key):
     return log["t_s"][sel], goal, actual
 
 
+@pytest.mark.physical
 def test_a_walk_out_of_reach_stops_at_the_boundary_and_comes_back(tmp_path):
     """Each hand walks forward to 30 cm beyond its reach (3 s), waits, walks back (8 s: the
     elbow has to bend by 1.3 rad on the way back, at most 1 rad/s and 0.8 rad/s^2).
@@ -113,10 +114,12 @@ def test_a_walk_out_of_reach_stops_at_the_boundary_and_comes_back(tmp_path):
         assert parked.sum() > 100 and np.all(error[parked] - beyond[parked] < 0.010)
         # after the goal comes back in, the elbow (at most 1 rad/s, 0.8 rad/s^2) lags the exact
         # path out of the stretched arm by up to ~25 mm more than the goal's own excursion
+        # (measured 22.8-22.9 mm on both code paths, AVX-512 / portable: bound 1.5x)
         assert np.max(excursion - beyond) <= 0.035, np.max(excursion - beyond)
         back_in = t[np.nonzero(beyond > 1e-3)[0][-1]]      # the goal is reachable again
         settled = t[(t > back_in) & (error < 0.002)]
-        assert len(settled) and settled[0] - back_in < 3.5
+        # back within 2 mm 2.66-2.665 s after (both code paths): bound 4 s = 1.5x
+        assert len(settled) and settled[0] - back_in < 4.0
     q_cmd = log.joints("cmd")
     index = [model.joint_names.index(j) for j in log.joint_names]
     lower = np.concatenate([model.limb(n).lower_rad for n in ("right-arm", "left-arm")])
@@ -150,6 +153,7 @@ def test_a_joint_a_hair_inside_its_margin_does_not_stop_the_nearest_pose_search(
     assert abs(np.sin(result.q_rad[3])) >= margin - 1e-9        # the elbow kept its margin
 
 
+@pytest.mark.physical
 @pytest.mark.parametrize("scaled", [True, False])
 def test_a_sweep_along_the_straight_elbow_is_slowed_only_with_the_scale(tmp_path, scaled):
     """The right hand's goal goes 3 cm beyond its reach straight ahead (the arm parks with the
@@ -185,10 +189,13 @@ def test_a_sweep_along_the_straight_elbow_is_slowed_only_with_the_scale(tmp_path
     near = kappa >= SingularityScale().hard
     assert near.sum() > 200                         # it did stay in the singular neighbourhood
     fastest = np.max(speed_ratio[near])
+    # measured 0.480 with the scale, 0.752 without, on both code paths (AVX-512 / portable): the
+    # scale's own cap of half the limit holds by construction, and without the scale the
+    # joints exceed that cap by 1.5x
     if scaled:
         assert fastest <= 0.5, fastest
     else:
-        assert fastest >= 0.6, fastest
+        assert fastest > 0.5, fastest
     assert run.summary["reach"][arm]["branch_changes"] == 0
     # the last period the target ran (a smooth-stop ramp after it logs no goal)
     last = np.flatnonzero(np.isfinite(log["goal_x_m_r"]))[-1]
@@ -230,6 +237,7 @@ def test_collision_room_keeps_targets_out_of_the_band_and_slides_along_it():
     assert out[-1, 0] < -0.55 and 0.0 < out[-1, 1] < 0.1   # swung on, rolled in only so far
 
 
+@pytest.mark.physical
 @pytest.mark.slow
 @pytest.mark.parametrize("sample", ["two-hand-free.csv", "two-hand-free.fastrak"])
 def test_the_two_hand_sample_keeps_up_with_the_operator(tmp_path, sample):
@@ -237,10 +245,15 @@ def test_the_two_hand_sample_keeps_up_with_the_operator(tmp_path, sample):
     simulated robot: each arm on its own trajectory generator (its joints unsynchronised unless
     that swings the hand off the straight line to the target, the arms' jerk limit 40 rad/s^3
     of the robot file's teleop limit set) keeps each hand within 7.5 mm RMS of the operator's
-    goal and within 14 mm of the goal's path (measured 6.6-7.0 mm RMS, 12.7 mm max excursion;
-    11.8 mm RMS with one phase-synchronised tracker for the body at 4 rad/s^3; 15.5 mm
-    excursion on the capture with a switch on the joints' lag), and the goal passing 6 mm from
-    the torso slides the arm along the collision band instead of tripping a hold."""
+    goal and within 14 mm of the goal's path (measured 6.6-7.0 mm RMS, 12.6-12.7 mm max
+    excursion on both code paths, AVX-512 / portable; 11.8 mm RMS with one phase-synchronised
+    tracker for the body at 4 rad/s^3; 15.5 mm excursion on the capture with a switch on the
+    joints' lag), and the goal passing 6 mm from the torso slides the arm along the collision
+    band instead of tripping a hold.
+
+    The RMS bound is 1.5x the worst measured (10.5 mm, short of the synchronised tracker's
+    11.8). The excursion's stays at 14 mm, 1.1x: 1.5x (19 mm) would pass the 15.5 mm of the
+    switch it is there to catch; the two code paths differ by 0.0001 mm on it."""
     from hubo_cli.resources import data_file
 
     run = run_teleop(TeleopSettings(replay=data_file("trajectories", sample),
@@ -250,7 +263,7 @@ def test_the_two_hand_sample_keeps_up_with_the_operator(tmp_path, sample):
     assert s["collision_periods"] == 0
     for arm in ("right-arm", "left-arm"):
         report = s["reach"][arm]
-        assert report["position_rms_mm"] <= 7.5, report
+        assert report["position_rms_mm"] <= 10.5, report
         assert report["max_excursion_mm"] <= 14.0, report
         assert report["branch_changes"] == 0
         assert 0.2 < report["collision_room_s"] < 5.0, report   # the room did the work

@@ -163,6 +163,7 @@ def test_replay_reproduces_logged_bit_and_torso_lean(scene):
     assert np.linalg.norm(np.ptp(scene.tool_world_m, axis=0)) > 0.1
 
 
+@pytest.mark.physical
 def test_a_hardware_log_without_torso_position_is_stood_on_its_soles(run_dir, tmp_path):
     """A hardware driver knows the torso's orientation (IMU) but not its position: the replay
     stands the robot on its lower sole under the torso, which lands where the sim had it."""
@@ -177,7 +178,9 @@ def test_a_hardware_log_without_torso_position_is_stood_on_its_soles(run_dir, tm
     sim = load_scene(run_dir)
     assert hardware.torso_estimated.all() and not sim.torso_estimated.any()
     height_error = np.abs(hardware.T_world_torso[:, 2, 3] - sim.T_world_torso[:, 2, 3])
-    assert height_error.max() < 0.01  # the sim's soles sink into the floor by millimetres
+    # the sim's soles sink into the floor by millimetres: 1.85 mm on both code paths
+    # (AVX-512 / portable), 5.4x
+    assert height_error.max() < 0.01
     assert np.all(np.isfinite(hardware.tool_world_m))
 
 

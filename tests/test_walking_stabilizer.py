@@ -80,9 +80,12 @@ def test_torso_offset_pulls_the_com_back_and_is_bounded():
         StabilizerGains(k_com=float("nan"))
 
 
+@pytest.mark.physical
 def test_second_preview_stage_cancels_the_swing_legs_zmp():
     """The legs' and torso's momentum move the multi-body ZMP tens of mm from the reference;
-    after the second preview stage it stays within 12 mm (away from the standing ends)."""
+    after the second preview stage it stays within 16 mm (away from the standing ends).
+    Measured on both code paths (AVX-512 / portable): 44.9 mm before (1.8x the 25 mm), 10.1 mm
+    after (bound 1.58x)."""
     model = load_model(limits="walking")
     params = walking_params(model)
     w = params.step_width_m / 2
@@ -97,7 +100,7 @@ def test_second_preview_stage_cancels_the_swing_legs_zmp():
                                    params.jerk_weight)
     after = multibody_zmp(body, plan, 0.0, DT) - gait.zmp_ref_m
     assert np.abs(before[inner]).max() > 0.025
-    assert np.abs(after[inner]).max() < 0.012
+    assert np.abs(after[inner]).max() < 0.016
 
 
 def test_per_period_geometry_in_floats_matches_numpy():
@@ -195,6 +198,7 @@ class StandingWorld:
         return self.poses[frame].copy()
 
 
+@pytest.mark.physical
 def test_torso_offset_reaches_the_legs_with_the_hip_yaw_at_its_limit():
     """Standing with the feet ahead, each hip yaw sits at its joint limit (0): with the feet
     toed in by a hundredth of a degree, as the simulator reads them after a few steps, the
@@ -220,6 +224,7 @@ def test_torso_offset_reaches_the_legs_with_the_hip_yaw_at_its_limit():
                            ft=ft, T_world_torso=T_world_neck)
         q, _ = target(k * DT, state)
     offset = target.torso_offset.offset_m
+    # -14.2 mm on both code paths (AVX-512 / portable): 2.8x; the soles follow it equally on both
     assert offset[0] < -0.005  # pulled back by more than 5 mm
     for name in ("right-leg", "left-leg"):
         leg, part = Limb(model, name), model.limb_slice(name)
