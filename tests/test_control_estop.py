@@ -10,11 +10,11 @@ import pytest
 from control_support import assert_within_limits, ideal
 
 from hubo_cli.control.estop import BRAKE_FLAG, RELIEF_S, EmergencyStopper, stop_on_signal
-from hubo_cli.control.limits import JointLimits
 from hubo_cli.control.log import load_log
 from hubo_cli.control.loop import ControlLoop
 from hubo_cli.control.module import Cycle
 from hubo_cli.control.pipeline import build_pipeline, find_module
+from hubo_cli.motion.limits import JointLimits
 from hubo_cli.posture import home_posture
 from hubo_cli.state import RobotState
 

@@ -12,10 +12,10 @@ from hubo_cli.control.limiter import (
     CLAMP_TRACKING,
     SoftErrorLimiter,
 )
-from hubo_cli.control.limits import JointLimits, all_finite, hold_nan
 from hubo_cli.control.module import Cycle
 from hubo_cli.control.otg import TargetInput
 from hubo_cli.model import load_model
+from hubo_cli.motion.limits import JointLimits, all_finite, hold_nan
 from hubo_cli.state import RobotState
 
 
@@ -131,7 +131,8 @@ def test_the_limiters_clamp_bits_are_its_mask():
 COMPILE_CHECK = """
 import json
 import numpy as np
-from hubo_cli.control import limiter, limits, otg
+from hubo_cli.control import limiter, otg
+from hubo_cli.motion import limits
 from hubo_cli.control.loop import ControlLoop
 from hubo_cli.control.pipeline import build_pipeline
 from hubo_cli.drivers.registry import make_driver

@@ -12,12 +12,13 @@ from hubo_cli.control.capture_point import CapturePointMonitor, convex_hull, out
 from hubo_cli.control.collision import SelfCollisionChecker
 from hubo_cli.control.hoff_arbib import hoff_arbib_step
 from hubo_cli.control.limiter import SoftErrorLimiter
-from hubo_cli.control.limits import JointLimits
 from hubo_cli.control.loop import ControlLoop
 from hubo_cli.control.module import Cycle
-from hubo_cli.control.otg import JointTracker, TrajectoryGenerator
+from hubo_cli.control.otg import TrajectoryGenerator
 from hubo_cli.control.pipeline import build_pipeline, find_module
 from hubo_cli.errors import ConfigError
+from hubo_cli.motion.limits import JointLimits
+from hubo_cli.motion.tracker import JointTracker
 from hubo_cli.posture import home_posture
 from hubo_cli.state import RobotState
 
@@ -340,7 +341,8 @@ COMPILE_CHECK = """
 import json
 import sys
 from pathlib import Path
-from hubo_cli.control import balance, capture_point, collision, limiter, limits
+from hubo_cli.control import balance, capture_point, collision, limiter
+from hubo_cli.motion import limits
 from hubo_cli.experiments.standing import stand
 from hubo_cli.model import load_model
 

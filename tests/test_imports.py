@@ -141,7 +141,9 @@ def test_no_import_cycle():
     assert cycles == [], f"import cycles: {cycles}"
 
 
-@pytest.mark.parametrize(("lower", "upper"), [("hubo_cli.drivers", "hubo_cli.control")])
+@pytest.mark.parametrize(("lower", "upper"), [("hubo_cli.drivers", "hubo_cli.control"),
+                                             ("hubo_cli.motion", "hubo_cli.control"),
+                                             ("hubo_cli.motion", "hubo_cli.drivers")])
 def test_no_upward_import(lower, upper):
     graph = import_graph()
     upward = sorted((module, target) for module, targets in graph.items()

@@ -9,13 +9,14 @@ import numpy as np
 import pytest
 from control_support import assert_within_limits, ideal
 
-from hubo_cli.control.limits import JointLimits
 from hubo_cli.control.loop import ControlLoop
 from hubo_cli.control.module import Cycle
-from hubo_cli.control.otg import JointTracker, TrajectoryGenerator, tracker_groups
+from hubo_cli.control.otg import TrajectoryGenerator, tracker_groups
 from hubo_cli.control.pipeline import SafetyProfile, build_pipeline, find_module
 from hubo_cli.errors import ConfigError
 from hubo_cli.model import ARMS, LEGS
+from hubo_cli.motion.limits import JointLimits
+from hubo_cli.motion.tracker import JointTracker
 from hubo_cli.posture import home_posture
 from hubo_cli.state import RobotState
 

@@ -89,9 +89,12 @@ def test_log_is_plain_csv_with_sidecar_and_parquet(run_dir):
     assert len(scene["hole_world_m"]) == len(scene["hole_t_s"]) > 0
     log = load_log(run_dir)
     assert len(log) == table.height and log.metadata["scene"]["walls"] == scene["walls"]
-    # the torso leans: its pitch is logged and changes over the run
+    # the torso leans: its pitch is logged and changes over the run. The wall put through the
+    # bit latches the wrist-torque stop at 0.805 s, which brakes and backs the bit out, so the
+    # body barely moves: 0.57 mrad of pitch (22 mrad when the stop reverted the raise); a
+    # logged pitch that did not change (constant, zeros) fails the 0.1 mrad bound
     pitch = log["torso_pitch_rad"]
-    assert np.all(np.isfinite(pitch)) and np.ptp(pitch) > 1e-3
+    assert np.all(np.isfinite(pitch)) and np.ptp(pitch) > 1e-4
 
 
 def test_log_says_when_and_by_what_it_was_written_and_parquet_keeps_integers(run_dir):

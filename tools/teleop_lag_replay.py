@@ -30,11 +30,11 @@ import argparse
 
 import numpy as np
 
-from hubo_cli.control.limits import JointLimits
 from hubo_cli.control.log import load_log
-from hubo_cli.control.otg import JointTracker
 from hubo_cli.kinematics import get_limb
 from hubo_cli.model import ARMS, load_model
+from hubo_cli.motion.limits import JointLimits
+from hubo_cli.motion.tracker import JointTracker
 
 
 def replay(limits: JointLimits, dt_s: float, q0: np.ndarray, targets: np.ndarray,

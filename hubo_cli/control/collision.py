@@ -69,14 +69,14 @@ import numpy as np
 import pinocchio as pin
 
 from hubo_cli.control.estop import BRAKE_FLAG
-from hubo_cli.control.limits import JointLimits, braking_distance, braking_distance_of
 from hubo_cli.control.module import Cycle, Module
-from hubo_cli.control.otg import JointTracker
 from hubo_cli.control.pin_robot import PinRobot, load_pin_robot
 from hubo_cli.control.status import SafetyEvent
 from hubo_cli.errors import ConfigError
 from hubo_cli.geometry import rpy_to_matrix
 from hubo_cli.model import LEGS, DrillShape, RobotModel
+from hubo_cli.motion.limits import JointLimits, braking_distance, braking_distance_of
+from hubo_cli.motion.tracker import JointTracker
 from hubo_cli.state import RobotState
 from hubo_cli.urdf import DRILL_FRAME
 
@@ -326,7 +326,7 @@ class SelfCollisionChecker:
 def _input_ahead(q_rad, last_in, w_last, dt_s, lower, upper, amax, jmax, q_in, w_in, ahead):
     """The input's side of :meth:`CollisionDetector.update` in one compiled pass: the input
     (a NaN entry keeps the last input), its speed and acceleration by differences, and where
-    it would stop if it braked now (:func:`~hubo_cli.control.limits.braking_distance`, within
+    it would stop if it braked now (:func:`~hubo_cli.motion.limits.braking_distance`, within
     the position limits), written to ``q_in``, ``w_in`` and ``ahead``."""
     for i in range(q_rad.shape[0]):
         q = q_rad[i] if math.isfinite(q_rad[i]) else last_in[i]

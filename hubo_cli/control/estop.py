@@ -12,7 +12,7 @@ recover   after release, join the live input again; re-planned every period so t
 ========  ==============================================================================
 
 Every transition is a jerk-limited ruckig trajectory started from the output's own position,
-velocity and acceleration (:class:`~hubo_cli.control.otg.JointTracker`), so the revert obeys the
+velocity and acceleration (:class:`~hubo_cli.motion.tracker.JointTracker`), so the revert obeys the
 joint limits: when the limits cannot turn the motion around within T2 the revert takes longer
 and still ends exactly on the posture of t_emer - T1 (no overshoot past it). The freeze preset
 (T1 = T2 = one period, hrpsys' default) brakes as hard as the limits allow and holds where it
@@ -45,9 +45,7 @@ from collections.abc import Callable, Iterable
 
 import numpy as np
 
-from hubo_cli.control.limits import JointLimits, hold_nan
 from hubo_cli.control.module import Cycle, Module
-from hubo_cli.control.otg import JointTracker
 from hubo_cli.control.status import SafetyEvent
 from hubo_cli.control.stop_choice import SOFT_SOURCES
 from hubo_cli.geometry import (
@@ -57,6 +55,8 @@ from hubo_cli.geometry import (
     min_jerk,
 )
 from hubo_cli.model import RobotModel
+from hubo_cli.motion.limits import JointLimits, hold_nan
+from hubo_cli.motion.tracker import JointTracker
 from hubo_cli.state import RobotState
 
 HARD_SOURCES = ("hard",)

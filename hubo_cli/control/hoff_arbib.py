@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from hubo_cli.control.limits import JointLimits
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.otg import STALE_TIMEOUT_S, TargetInput
 from hubo_cli.geometry import (
@@ -25,6 +24,7 @@ from hubo_cli.geometry import (
     MIN_JERK_PEAK_VELOCITY,
 )
 from hubo_cli.model import RobotModel
+from hubo_cli.motion.limits import JointLimits
 from hubo_cli.state import RobotState
 
 

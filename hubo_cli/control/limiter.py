@@ -9,10 +9,10 @@ applied in this order, a later band winning if two cannot both hold:
 2. acceleration: |v - v_prev| <= a_max dt;
 3. velocity: |v| <= v_max;
 4. position: the command may approach a limit only as fast as it can still brake before it
-   (:func:`~hubo_cli.control.limits.brake_speed`), and never moves further out once outside.
+   (:func:`~hubo_cli.motion.limits.brake_speed`), and never moves further out once outside.
 
 While an emergency stopper brakes a wrist-torque stop (flag ``estop-brake``), band 2 takes the
-emergency braking acceleration (:meth:`~hubo_cli.control.limits.JointLimits.for_emergency_brake`).
+emergency braking acceleration (:meth:`~hubo_cli.motion.limits.JointLimits.for_emergency_brake`).
 
 When a band clamps, the wanted velocity is also capped so that the command can stop on the
 wanted position instead of overshooting it, so a jump in the input becomes an acceleration-
@@ -25,9 +25,9 @@ import numba as nb
 import numpy as np
 
 from hubo_cli.control.estop import BRAKE_FLAG
-from hubo_cli.control.limits import JointLimits, brake_speed
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.model import RobotModel
+from hubo_cli.motion.limits import JointLimits, brake_speed
 from hubo_cli.state import RobotState
 
 TRACKING_ERROR_LIMIT_RAD = 0.18  # hrpsys SoftErrorLimiter default (0.2 servo-off minus 0.02)

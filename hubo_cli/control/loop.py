@@ -37,15 +37,15 @@ from pathlib import Path
 import numpy as np
 
 from hubo_cli.control.limiter import SoftErrorLimiter
-from hubo_cli.control.limits import JointLimits, all_finite
 from hubo_cli.control.log import LOG_NAME, PeriodLog
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.operator import OperatorKeys
-from hubo_cli.control.otg import JointTracker
 from hubo_cli.control.status import Status, status_from_flags
 from hubo_cli.control.target import Target, TargetOutput, as_target
 from hubo_cli.drivers.base import Driver
 from hubo_cli.errors import ConfigError, DeviceError, HuboError, interrupt_cause
+from hubo_cli.motion.limits import JointLimits, all_finite
+from hubo_cli.motion.tracker import JointTracker
 from hubo_cli.state import RobotState
 
 TargetSource = Target | Callable[[float, RobotState], TargetOutput]

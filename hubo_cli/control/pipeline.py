@@ -208,7 +208,8 @@ class SafetyProfile:
         if unknown:
             raise ConfigError(f"unknown emergency-stop source {sorted(unknown)[0]!r}",
                               hint=f"use some of {', '.join(SOFT_SOURCES)}")
-        from hubo_cli.control.otg import SYNCHRONIZATIONS, TRACKER_GROUPS
+        from hubo_cli.control.otg import TRACKER_GROUPS
+        from hubo_cli.motion.tracker import SYNCHRONIZATIONS
 
         if self.tracker_groups not in TRACKER_GROUPS:
             raise ConfigError(f"unknown tracker groups {self.tracker_groups!r}",

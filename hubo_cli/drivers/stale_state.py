@@ -18,10 +18,10 @@ from collections.abc import Callable
 
 import numpy as np
 
-from hubo_cli.control.limits import JointLimits
-from hubo_cli.control.otg import JointTracker
 from hubo_cli.errors import DeviceError
 from hubo_cli.model import RobotModel
+from hubo_cli.motion.limits import JointLimits
+from hubo_cli.motion.tracker import JointTracker
 
 
 class StateLost(DeviceError):

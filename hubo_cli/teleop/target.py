@@ -52,7 +52,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hubo_cli.control.otg import JointTracker, TrajectoryGenerator
+from hubo_cli.control.otg import TrajectoryGenerator
 from hubo_cli.control.target import Target
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.fastrak.source import PoseSource
@@ -66,6 +66,7 @@ from hubo_cli.kinematics.reach import branch_of
 from hubo_cli.kinematics.torso import CorrectionSettings, TorsoCorrection, TorsoEstimator
 from hubo_cli.kinematics.wholebody import LiftFilter, WholeBody
 from hubo_cli.model import ARMS, RobotModel
+from hubo_cli.motion.tracker import JointTracker
 from hubo_cli.scene import WallPlacement
 from hubo_cli.teleop.mapping import HandMapper
 

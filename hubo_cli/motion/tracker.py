@@ -1,0 +1,215 @@
+"""A jerk-limited follower of joint targets (ruckig underneath) that never raises.
+
+:class:`JointTracker` wraps one ruckig instance for a whole joint vector: ``track`` follows a
+position target (position interface, phase synchronisation, jerk-limited), ``brake`` stops with
+the velocity interface. A ruckig error switches to braking, and a failure while braking holds
+the position. The pipeline's trajectory generator (:mod:`hubo_cli.control.otg`), the emergency
+stopper, the collision detector and the loop's smooth stop use it, and so does the hardware
+driver's stale-state brake: it sits below both the pipeline and the drivers.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from ruckig import (
+    ControlInterface,
+    InputParameter,
+    OutputParameter,
+    Result,
+    Ruckig,
+    RuckigError,
+    Synchronization,
+    Trajectory,
+)
+
+from hubo_cli.errors import ConfigError
+from hubo_cli.motion.limits import JointLimits
+
+SYNCHRONIZATIONS = {"phase": Synchronization.Phase, "none": Synchronization.No}
+
+
+class JointTracker:
+    """A jerk-limited follower of joint targets that never raises (ruckig underneath).
+
+    Args:
+        limits: joint limits (velocity, acceleration and jerk are used).
+        dt_s: the control period (s).
+        synchronization: how ``track`` times the joints: ``phase`` (all arrive together on
+            a straight line in joint space) or ``none`` (each joint time-optimal on its own).
+
+    Attributes:
+        q, v, a: the state of the generated trajectory at the last sample (rad, rad/s, rad/s^2).
+        finished: the last call reached its target (or standstill when braking).
+        error: the last ruckig error message, or "".
+    """
+
+    def __init__(self, limits: JointLimits, dt_s: float, synchronization: str = "phase") -> None:
+        if synchronization not in SYNCHRONIZATIONS:
+            raise ConfigError(f"unknown synchronization {synchronization!r}",
+                              hint=f"use one of {', '.join(SYNCHRONIZATIONS)}")
+        n = limits.size
+        self._sync = SYNCHRONIZATIONS[synchronization]
+        self.limits = limits
+        self.dt_s = float(dt_s)
+        self._otg = Ruckig(n, self.dt_s)
+        self._inp = InputParameter(n)
+        self._out = OutputParameter(n)
+        self._inp.max_velocity = limits.velocity_rad_s
+        self._inp.max_acceleration = limits.acceleration_rad_s2
+        self._inp.max_jerk = limits.jerk_rad_s3
+        self._zeros = np.zeros(n)
+        self.q = np.zeros(n)
+        self.v = np.zeros(n)
+        self.a = np.zeros(n)
+        self.finished = True
+        self.error = ""
+        self._mode = None
+        self._synced = False  # ruckig's input holds q, v, a (no need to set them again)
+        self._target_v_zero = False
+        self._preview = None  # ruckig, its input and a trajectory for preview()
+
+    def reset(self, q_rad, v_rad_s=None, a_rad_s2=None) -> None:
+        """Start from position ``q_rad`` with the given velocity and acceleration (default 0).
+
+        An acceleration beyond the limit (a command an emergency stop braked at its own
+        limits) is taken as the limit: under the jerk limit ruckig would keep accelerating
+        while it ramps it down (from 6 rad/s^2 at 4 rad/s^3: 1.5 s, reaching 4 rad/s)."""
+        self.q = np.array(q_rad, dtype=float)
+        self.v = self._zeros.copy() if v_rad_s is None else np.array(v_rad_s, dtype=float)
+        amax = self.limits.acceleration_rad_s2
+        self.a = (self._zeros.copy() if a_rad_s2 is None
+                  else np.clip(np.asarray(a_rad_s2, dtype=float), -amax, amax))
+        self.finished = True
+        self.error = ""
+        self._mode = None
+        self._synced = False
+
+    def set_synchronization(self, synchronization: str) -> None:
+        """Time the joints of later ``track`` calls this way (``phase`` or ``none``)."""
+        if synchronization not in SYNCHRONIZATIONS:
+            raise ConfigError(f"unknown synchronization {synchronization!r}",
+                              hint=f"use one of {', '.join(SYNCHRONIZATIONS)}")
+        self._sync = SYNCHRONIZATIONS[synchronization]
+        if self._mode == "position":
+            self._inp.synchronization = self._sync
+
+    def preview(self, target_rad: np.ndarray, synchronization: str, samples: int) -> np.ndarray:
+        """The positions ``track`` would pass through on its way to ``target_rad`` (a fixed
+        target, target velocity 0) from the current state with this synchronization, at
+        ``samples`` evenly spaced times from now to arrival (samples x n, rad). Nothing of the
+        tracker changes. On a ruckig error: the current position alone (1 x n)."""
+        if synchronization not in SYNCHRONIZATIONS:
+            raise ConfigError(f"unknown synchronization {synchronization!r}",
+                              hint=f"use one of {', '.join(SYNCHRONIZATIONS)}")
+        if self._preview is None:
+            n = self.limits.size
+            self._preview = (Ruckig(n), InputParameter(n), Trajectory(n))
+            _, inp, _ = self._preview
+            inp.max_velocity = self.limits.velocity_rad_s
+            inp.max_acceleration = self.limits.acceleration_rad_s2
+            inp.max_jerk = self.limits.jerk_rad_s3
+        otg, inp, trajectory = self._preview
+        inp.current_position = self.q
+        inp.current_velocity = self.v
+        inp.current_acceleration = self.a
+        inp.target_position = target_rad
+        inp.synchronization = SYNCHRONIZATIONS[synchronization]
+        try:
+            result = otg.calculate(inp, trajectory)
+        except (RuckigError, RuntimeError, ValueError, TypeError):
+            return self.q[None, :].copy()
+        if result not in (Result.Working, Result.Finished):
+            return self.q[None, :].copy()
+        times = np.linspace(0.0, trajectory.duration, max(int(samples), 2))
+        return np.array([trajectory.at_time(t)[0] for t in times])
+
+    def _set_current(self) -> None:
+        if self._synced:  # the last sample, passed on inside ruckig (the same numbers)
+            return
+        inp = self._inp
+        inp.current_position = self.q
+        inp.current_velocity = self.v
+        inp.current_acceleration = self.a
+        self._synced = True
+
+    def _run(self) -> bool:
+        try:
+            result = self._otg.update(self._inp, self._out)
+        except (RuckigError, RuntimeError, ValueError, TypeError) as exc:
+            self.error = str(exc).strip()
+            return False
+        out = self._out
+        position = out.new_position  # a list; its sum is finite when every entry is (joint
+        # angles are far from overflowing a sum)
+        if not math.isfinite(sum(position)):
+            self.error = "ruckig returned a non-finite sample"
+            return False
+        self.q = np.array(position)
+        self.v = np.array(out.new_velocity)
+        self.a = np.array(out.new_acceleration)
+        out.pass_to_input(self._inp)  # the next period starts from this sample
+        self._synced = True
+        self.finished = result == Result.Finished
+        return True
+
+    def track(self, target_rad: np.ndarray, min_duration_s: float | None = None,
+              target_v_rad_s: np.ndarray | None = None) -> np.ndarray:
+        """Advance one period toward ``target_rad`` (position interface, the synchronization).
+
+        Args:
+            target_rad: target positions (rad), finite.
+            min_duration_s: reach the target no sooner than this (s), None for time-optimal.
+            target_v_rad_s: target velocities (rad/s), default 0; clipped to 90 % of the limit.
+        Returns the new sample (rad). On a ruckig error it brakes instead (see ``error``).
+        """
+        inp = self._inp
+        if self._mode != "position":
+            inp.control_interface = ControlInterface.Position
+            inp.synchronization = self._sync
+            inp.target_acceleration = self._zeros
+            self._mode = "position"
+        self._set_current()
+        inp.target_position = np.asarray(target_rad, dtype=float).tolist()  # a list: 10x faster
+        if target_v_rad_s is None:
+            if not self._target_v_zero:
+                inp.target_velocity = self._zeros
+                self._target_v_zero = True
+        else:
+            vmax = 0.9 * self.limits.velocity_rad_s
+            inp.target_velocity = np.clip(np.nan_to_num(target_v_rad_s), -vmax, vmax)
+            self._target_v_zero = False
+        inp.minimum_duration = min_duration_s
+        if self._run():
+            self.error = ""
+            return self.q
+        message = self.error
+        out = self.brake()
+        self.error = message
+        return out
+
+    def brake(self) -> np.ndarray:
+        """Advance one period of a velocity-interface stop (target velocity 0); returns the
+        sample (rad). If even that fails the position is held."""
+        inp = self._inp
+        if self._mode != "velocity":
+            inp.control_interface = ControlInterface.Velocity
+            inp.synchronization = Synchronization.No
+            inp.target_velocity = self._zeros
+            self._target_v_zero = True
+            inp.target_acceleration = self._zeros
+            inp.minimum_duration = None
+            self._mode = "velocity"
+        self._set_current()
+        if not self._run():
+            self.v = self._zeros.copy()
+            self.a = self._zeros.copy()
+            self._synced = False
+            self.finished = True
+        return self.q
+
+    @property
+    def at_rest(self) -> bool:
+        """Velocity and acceleration are (numerically) zero."""
+        return bool(np.all(np.abs(self.v) < 1e-9) and np.all(np.abs(self.a) < 1e-9))
