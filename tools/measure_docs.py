@@ -54,9 +54,10 @@ def machine() -> str:
     return f"{model}, {os.cpu_count()} cores"
 
 
-def stamp() -> dict:
+def stamp(load_before: float) -> dict:
+    """When, on what, and how busy the machine was (1-minute load average as it began)."""
     return {"measured_utc": datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC"),
-            "machine": machine()}
+            "machine": machine(), "load": round(load_before, 1)}
 
 
 def hubo_command() -> list[str]:
@@ -76,13 +77,14 @@ def timed(cmd: list[str], **kwargs) -> tuple[float, subprocess.CompletedProcess]
 
 def measure_run() -> dict:
     """make run's command (the default cut with its video), timed; the cut's figures."""
+    busy = os.getloadavg()[0]
     with tempfile.TemporaryDirectory(prefix="hubo-measure-") as tmp:
         out = Path(tmp) / "run"
         cmd = [*hubo_command(), "task", "cut-rectangle", "--video", "--out", str(out)]
         elapsed, _ = timed(cmd, cwd=ROOT, stdout=subprocess.DEVNULL)
         s = json.loads((out / "summary.json").read_text())
     torque = s["wrist_torque_nm"]
-    return stamp() | {
+    return stamp(busy) | {
         "command": "hubo task cut-rectangle --video (make run)",
         "wall_clock_s": elapsed, "duration_s": s["duration_s"], "completed": s["completed"],
         "bit_rms_mm": s["rms_error_mm"], "bit_max_mm": s["max_error_mm"],
@@ -99,12 +101,13 @@ def measure_run() -> dict:
 
 def measure_walk() -> dict:
     """hubo walk --to 1.0 0 0 on the nominal robot."""
+    busy = os.getloadavg()[0]
     with tempfile.TemporaryDirectory(prefix="hubo-measure-") as tmp:
         cmd = [*hubo_command(), "walk", "--to", "1.0", "0", "0", "--json",
                "--out", str(Path(tmp) / "walk")]
         elapsed, done = timed(cmd, cwd=ROOT, stdout=subprocess.PIPE, text=True)
     s = json.loads(done.stdout)
-    return stamp() | {"command": "hubo walk --to 1.0 0 0", "wall_clock_s": elapsed,
+    return stamp(busy) | {"command": "hubo walk --to 1.0 0 0", "wall_clock_s": elapsed,
                       "fell": s["fell"], "final_error_mm": s["final_error_mm"],
                       "final_error_deg": s["final_error_deg"], "steps": s["steps"],
                       "average_speed_m_s": s["average_speed_m_s"],
@@ -113,6 +116,7 @@ def measure_walk() -> dict:
 
 def measure_install(cold: bool) -> dict:
     """A fresh `make .venv/.installed-stamp` in a scratch clone of HEAD; the venv's size."""
+    busy = os.getloadavg()[0]
     with tempfile.TemporaryDirectory(prefix="hubo-install-") as tmp:
         clone = Path(tmp) / "clone"
         subprocess.run(["git", "clone", "--quiet", "--no-hardlinks", str(ROOT), str(clone)],
@@ -126,21 +130,23 @@ def measure_install(cold: bool) -> dict:
         du = subprocess.run(["du", "-sk", str(clone / ".venv")], check=True,
                             capture_output=True, text=True)
         size_gb = int(du.stdout.split()[0]) * 1024 / 1e9
-    return stamp() | {"wall_clock_s": elapsed, "venv_gb": size_gb,
+    return stamp(busy) | {"wall_clock_s": elapsed, "venv_gb": size_gb,
                       "pip_cache": "cold (PIP_NO_CACHE_DIR=1)" if cold else "warm"}
 
 
 def measure_suite() -> dict:
     """The whole suite as `make test` runs it (pytest -q, every core)."""
+    busy = os.getloadavg()[0]
     elapsed, _ = timed([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider"],
                        cwd=ROOT, stdout=subprocess.DEVNULL)
-    return stamp() | {"wall_clock_s": elapsed, "command": "make test (pytest -q, -n auto)"}
+    return stamp(busy) | {"wall_clock_s": elapsed, "command": "make test (pytest -q, -n auto)"}
 
 
 # ---------------------------------------------------------------------------- rendering
 
 def _when(entry: dict) -> str:
-    return f"measured {entry['measured_utc']} on {entry['machine']}"
+    load = f", load {entry['load']:g}" if "load" in entry else ""
+    return f"measured {entry['measured_utc']} on {entry['machine']}{load}"
 
 
 def _missing(part: str) -> str:
@@ -165,9 +171,10 @@ def readme_block(m: dict) -> str:
                  f"simulated cut and its video); " if run else f"`make run`: {_missing('run')}; ")
     lines[-1] += (f"`make test` {suite['wall_clock_s'] / 60:.1f} min." if suite
                   else f"`make test`: {_missing('suite')}.")
-    where = m.get("install_warm") or run or {}
+    where = m.get("run") or m.get("install_warm")
     if where:
-        lines.append(f"({_when(where)}; [how](docs/measured.md).)")
+        lines.append(f"(Measured by tools/measure_docs.py on {where['machine']}: "
+                     f"[how and when](docs/measured.md).)")
     return "\n".join(lines)
 
 
@@ -203,7 +210,7 @@ def page_default_cut(m: dict) -> str:
         f"(limit {r['torque_limit_nm']:g}) |",
         f"| emergency stops, collision holds | {r['estop_events']}, {r['collision_holds']} |",
     ]
-    return "\n".join(rows) + f"\n\n{_when(r).capitalize()}.\n"
+    return "\n".join(rows) + f"\n\nM{_when(r)[1:]}.\n"
 
 
 def page_walk(m: dict) -> str:

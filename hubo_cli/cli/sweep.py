@@ -94,8 +94,8 @@ def sweep(command: str, seeds: str, sets: tuple[str, ...], workers: int | None,
 
     def on_dashboard(link: str | None) -> None:
         err_console.print(f"Dask dashboard: {link}" if link else
-                          f"the Dask scheduler at {scheduler} serves no dashboard (bokeh is "
-                          f"not installed where it runs)", highlight=False, soft_wrap=True)
+                          f"the Dask scheduler at {scheduler} reports no dashboard",
+                          highlight=False, soft_wrap=True)
 
     failed = [0]
     with progress:
