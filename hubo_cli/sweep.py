@@ -259,19 +259,26 @@ def version_mismatches(versions: dict) -> list[str]:
     """What differs between this client and the cluster, from Dask's ``get_versions``.
 
     Every worker must have the client's :data:`DASK_PACKAGES` and :data:`ROW_PACKAGES`; the
-    scheduler the client's :data:`DASK_PACKAGES` (it runs no job). Returns one text per
+    scheduler the client's :data:`DASK_PACKAGES` (it runs no job). Python is compared by its
+    minor version (3.11). Returns one text per
     difference, e.g. ``"worker tcp://10.0.0.2:40111 has hubo-cli 0.0.9 (this client
     0.1.0)"``; empty when everything matches.
     """
+    def version(packages: dict, name: str) -> str | None:
+        found = packages.get(name)
+        if name == "python" and isinstance(found, str):  # 3.11.7.final.0: the minor version
+            return ".".join(found.split(".")[:2])  # decides the bytecode cloudpickle ships
+        return found
+
     client = (versions.get("client") or {}).get("packages") or {}
 
     def differences(who: str, info, names) -> list[str]:
         packages = (info or {}).get("packages") if isinstance(info, dict) else None
         if not isinstance(packages, dict):
             return [f"{who} did not report its versions"]
-        return [f"{who} has {name} {packages.get(name) or 'not installed'} "
-                f"(this client {client.get(name) or 'not installed'})"
-                for name in names if packages.get(name) != client.get(name)]
+        return [f"{who} has {name} {version(packages, name) or 'not installed'} "
+                f"(this client {version(client, name) or 'not installed'})"
+                for name in names if version(packages, name) != version(client, name)]
 
     found = differences("the scheduler", versions.get("scheduler"), DASK_PACKAGES)
     for address, info in sorted((versions.get("workers") or {}).items()):

@@ -355,12 +355,14 @@ def _versions(**workers) -> dict:
 
 
 def test_version_mismatches_name_each_worker_and_package():
-    assert version_mismatches(_versions(a={}, b={})) == []
+    assert version_mismatches(_versions(a={}, b={"python": "3.11.9.final.0"})) == []
     found = version_mismatches(_versions(**{"tcp://h:1": {"hubo-cli": "0.0.9"},
-                                            "tcp://h:2": {"numpy": None}, "tcp://h:3": None}))
+                                            "tcp://h:2": {"numpy": None}, "tcp://h:3": None,
+                                            "tcp://h:4": {"python": "3.12.1.final.0"}}))
     assert found == ["worker tcp://h:1 has hubo-cli 0.0.9 (this client 0.1.0)",
                      "worker tcp://h:2 has numpy not installed (this client 2)",
-                     "worker tcp://h:3 did not report its versions"]
+                     "worker tcp://h:3 did not report its versions",
+                     "worker tcp://h:4 has python 3.12 (this client 3.11)"]
     # the scheduler runs no job: only Dask's own packages must match there
     versions = _versions(w={})
     versions["scheduler"]["packages"] |= {"hubo-cli": None, "numpy": "1"}
