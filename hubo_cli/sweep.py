@@ -260,10 +260,11 @@ def version_mismatches(versions: dict) -> list[str]:
 
     Every worker must have the client's :data:`DASK_PACKAGES` and :data:`ROW_PACKAGES`; the
     scheduler the client's :data:`DASK_PACKAGES` (it runs no job). Python is compared by its
-    minor version (3.11). Returns one text per
-    difference, e.g. ``"worker tcp://10.0.0.2:40111 has hubo-cli 0.0.9 (this client
-    0.1.0)"``; empty when everything matches.
+    minor version (3.11). Returns one text per difference, e.g. ``"worker
+    tcp://10.0.0.2:40111 has hubo-cli 0.0.9 (this client 0.1.0)"``; empty when everything
+    matches.
     """
+
     def version(packages: dict, name: str) -> str | None:
         found = packages.get(name)
         if name == "python" and isinstance(found, str):  # 3.11.7.final.0: the minor version
