@@ -268,7 +268,7 @@ def _end_without_log(setup: RunSetup, speed: float | None, loop: LoopResult,
 
 def common_summary(setup: RunSetup, speed: float | None, loop: LoopResult,
                    modules: list[Module], run_dir: Path) -> dict:
-    """The summary fields every run has (see the README's "Runs")."""
+    """The summary fields every run has (see docs/runs.md, "The run folder")."""
     files = [name for name in (LOG_NAME, META_NAME, PARQUET_NAME, SNAPSHOT_NAME)
              if (run_dir / name).exists()] + [SUMMARY_NAME]
     return {

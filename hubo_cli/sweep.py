@@ -25,6 +25,7 @@ import os
 import re
 import socket
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from concurrent.futures import CancelledError
 from dataclasses import asdict, dataclass
@@ -44,6 +45,13 @@ MAX_SEED_DIGITS = 18
 CONNECT_TIMEOUT_S = 10.0
 WORKERS_PER_CORE = 4
 SCHEDULER_EXAMPLE = "tcp://host:8786"
+# --dashboard: the local cluster's dashboard, on the loopback interface only (another machine
+# reaches it through an ssh tunnel); Dask moves it to a free port when 8787 is taken
+DASHBOARD_ADDRESS = "127.0.0.1:8787"
+# what must match between this client and every worker: Dask's own wire (its required
+# packages and the interpreter) and what decides a row (hubo-cli and the numerics under it)
+DASK_PACKAGES = ("python", "dask", "distributed", "msgpack", "cloudpickle", "tornado", "toolz")
+ROW_PACKAGES = ("hubo-cli", "numpy", "scipy", "pybullet", "pin", "ruckig", "numba")
 
 
 @dataclass(frozen=True)
@@ -234,6 +242,68 @@ def check_scheduler(address: str) -> str:
     return address
 
 
+def check_dashboard() -> None:
+    """Dask's dashboard can be served: bokeh is installed (the ``bokeh`` extra).
+
+    Raises:
+        InputError: it is not.
+    """
+    import importlib.util
+
+    if importlib.util.find_spec("bokeh") is None:
+        raise InputError("--dashboard: Dask's dashboard needs bokeh, which is not installed",
+                         hint="pip install 'hubo-cli[bokeh]' (make installs it)")
+
+
+def version_mismatches(versions: dict) -> list[str]:
+    """What differs between this client and the cluster, from Dask's ``get_versions``.
+
+    Every worker must have the client's :data:`DASK_PACKAGES` and :data:`ROW_PACKAGES`; the
+    scheduler the client's :data:`DASK_PACKAGES` (it runs no job). Python is compared by its
+    minor version (3.11). Returns one text per difference, e.g. ``"worker
+    tcp://10.0.0.2:40111 has hubo-cli 0.0.9 (this client 0.1.0)"``; empty when everything
+    matches.
+    """
+
+    def version(packages: dict, name: str) -> str | None:
+        found = packages.get(name)
+        if name == "python" and isinstance(found, str):  # 3.11.7.final.0: the minor version
+            return ".".join(found.split(".")[:2])  # decides the bytecode cloudpickle ships
+        return found
+
+    client = (versions.get("client") or {}).get("packages") or {}
+
+    def differences(who: str, info, names) -> list[str]:
+        packages = (info or {}).get("packages") if isinstance(info, dict) else None
+        if not isinstance(packages, dict):
+            return [f"{who} did not report its versions"]
+        return [f"{who} has {name} {version(packages, name) or 'not installed'} "
+                f"(this client {version(client, name) or 'not installed'})"
+                for name in names if version(packages, name) != version(client, name)]
+
+    found = differences("the scheduler", versions.get("scheduler"), DASK_PACKAGES)
+    for address, info in sorted((versions.get("workers") or {}).items()):
+        found += differences(f"worker {address}", info, DASK_PACKAGES + ROW_PACKAGES)
+    return found
+
+
+def _check_versions(client) -> None:
+    """Raise InputError when the cluster's versions differ from this client's."""
+    try:
+        versions = client.get_versions(packages=list(ROW_PACKAGES))
+    except (OSError, TimeoutError):  # Dask's CommClosedError is one
+        raise DeviceError("lost the connection to the Dask scheduler while asking the "
+                          "workers' versions", hint="check the scheduler and try again") from None
+    found = version_mismatches(versions)
+    if found:
+        more = f" (and {len(found) - 1} more difference{'s' * (len(found) > 2)})" \
+            if len(found) > 1 else ""
+        raise InputError(f"the Dask cluster does not run this client's versions: "
+                         f"{found[0]}{more}; nothing ran",
+                         hint="install hubo-cli on every worker from the same checkout "
+                              "and lock: pip install -c requirements.lock -e .")
+
+
 def _answers_as_dask(address: str) -> bool:
     """Dask's own handshake with ``address`` completes within :data:`CONNECT_TIMEOUT_S`."""
     import asyncio
@@ -369,7 +439,8 @@ class SweepResult:
 
 def run_sweep(jobs: Sequence[Job], out_dir: str | Path, *, workers: int | None = None,
               scheduler: str | None = None,
-              on_row: Callable[[Row, int, int], None] | None = None) -> SweepResult:
+              on_row: Callable[[Row, int, int], None] | None = None,
+              on_dashboard: Callable[[str | None], None] | None = None) -> SweepResult:
     """Run every job and write the table and the plot into ``out_dir``.
 
     Args:
@@ -379,6 +450,13 @@ def run_sweep(jobs: Sequence[Job], out_dir: str | Path, *, workers: int | None =
             worker process per core; n = a LocalCluster of n worker processes.
         scheduler: the address of an existing Dask scheduler (``workers`` is then ignored).
         on_row: called with each finished row, the number done and the total (progress).
+        on_dashboard: given, the local cluster serves Dask's dashboard (needs bokeh, see
+            :func:`check_dashboard`) and this is called with its link once the cluster is up;
+            with ``scheduler``, with the scheduler's link, or None when it serves none.
+            Without it the local cluster opens no dashboard.
+
+    Before any job runs, the cluster's versions are checked against this process's
+    (:func:`version_mismatches`): a difference raises InputError.
 
     A KeyboardInterrupt cancels the jobs still running; the finished rows are kept and
     written (``interrupted`` is then True).
@@ -410,7 +488,7 @@ def run_sweep(jobs: Sequence[Job], out_dir: str | Path, *, workers: int | None =
                 if row.ended == "interrupted":  # the run took the Ctrl-C (SIGTERM): stop here
                     raise KeyboardInterrupt
         else:
-            _run_on_dask(jobs, out_dir, n_workers, scheduler, finished)
+            _run_on_dask(jobs, out_dir, n_workers, scheduler, finished, on_dashboard)
     except KeyboardInterrupt:
         interrupted = True
     except DeviceError as exc:
@@ -429,7 +507,8 @@ def run_sweep(jobs: Sequence[Job], out_dir: str | Path, *, workers: int | None =
 
 
 def _run_on_dask(jobs, out_dir: Path, n_workers: int, scheduler: str | None,
-                 finished: Callable[[int, Row], None]) -> None:
+                 finished: Callable[[int, Row], None],
+                 on_dashboard: Callable[[str | None], None] | None) -> None:
     """Submit every job and hand back each row as it finishes.
 
     Raises:
@@ -448,26 +527,32 @@ def _run_on_dask(jobs, out_dir: Path, n_workers: int, scheduler: str | None,
     try:
         with config.set({"distributed.worker.daemon": False,
                          "distributed.admin.system-monitor.gil.enabled": False}):
-            _submit_all(jobs, out_dir, n_workers, scheduler, finished)
+            _submit_all(jobs, out_dir, n_workers, scheduler, finished, on_dashboard)
     finally:
         for name, logger in quiet.items():
             logger.setLevel(levels[name])
 
 
 def _submit_all(jobs, out_dir: Path, n_workers: int, scheduler: str | None,
-                finished: Callable[[int, Row], None]) -> None:
+                finished: Callable[[int, Row], None],
+                on_dashboard: Callable[[str | None], None] | None) -> None:
     from distributed import Client, LocalCluster, as_completed
+    from distributed.versions import VersionMismatchWarning
 
     cluster = None
     try:
         if scheduler is not None:
-            client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
+            with warnings.catch_warnings():  # Dask's table of them; _check_versions says it
+                warnings.simplefilter("ignore", VersionMismatchWarning)
+                client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
         else:
-            # no dashboard; the scheduler's own HTTP routes on a free loopback port (it
-            # would take 8787 by default)
+            # without on_dashboard no dashboard: the scheduler's own HTTP routes on a free
+            # loopback port (it would take 8787 by default)
+            http = DASHBOARD_ADDRESS if on_dashboard else "127.0.0.1:0"
             cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                                   host="127.0.0.1", dashboard_address=None,
-                                   scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+                                   host="127.0.0.1",
+                                   dashboard_address=http if on_dashboard else None,
+                                   scheduler_kwargs={"dashboard_address": http},
                                    silence_logs=logging.CRITICAL)
             client = Client(cluster)
     except Exception as exc:  # noqa: BLE001 (nothing has run; garbage from a service that
@@ -483,6 +568,9 @@ def _submit_all(jobs, out_dir: Path, n_workers: int, scheduler: str | None,
                           ) from None
     futures = {}
     try:
+        _check_versions(client)
+        if on_dashboard is not None:
+            on_dashboard(_dashboard_link(client))
         for index, job in enumerate(jobs):
             future = client.submit(run_job, job, str(out_dir.resolve()), pure=False,
                                    key=f"hubo-sweep-{index}-{job.name}")
@@ -512,6 +600,14 @@ def _submit_all(jobs, out_dir: Path, n_workers: int, scheduler: str | None,
             client.close()
         if cluster is not None:
             cluster.close()
+
+
+def _dashboard_link(client) -> str | None:
+    """The dashboard's address, or None when the scheduler serves none."""
+    try:
+        return client.dashboard_link
+    except (KeyError, TypeError):  # no "dashboard" among the scheduler's services
+        return None
 
 
 COLUMNS = ("command", "seed", "completed", "estop", "hole_rms_mm", "min_support_margin_mm",

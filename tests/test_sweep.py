@@ -1,10 +1,12 @@
 """hubo sweep: the same rows sequentially and on a Dask cluster; the table, the plot, Ctrl-C;
 bad values, addresses and sizes refused before anything runs; a lost scheduler; no dashboard
-port; the progress bar on a terminal."""
+port unless --dashboard, then its link; workers of other versions refused; the progress bar on
+a terminal."""
 
 import csv
 import json
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -31,6 +33,7 @@ from hubo_cli.sweep import (
     parse_seeds,
     parse_sets,
     run_sweep,
+    version_mismatches,
 )
 
 DASHBOARD_PORT = 8787  # Dask's default dashboard port
@@ -341,3 +344,100 @@ def test_a_narrow_terminal_gets_one_plain_line_per_row(tmp_path):
     assert result.returncode == 0, result.stderr
     assert result.stdout.startswith("seed 4, duration 0.2, completed yes, min support mm ")
     assert "┃" not in result.stdout  # no table whose cells would come out empty
+
+
+def _versions(**workers) -> dict:
+    client = {"python": "3.11.7.final.0", "dask": "1", "distributed": "1", "msgpack": "1",
+              "cloudpickle": "1", "tornado": "1", "toolz": "1", "hubo-cli": "0.1.0",
+              "numpy": "2", "scipy": "1", "pybullet": "3", "pin": "4", "ruckig": "0",
+              "numba": "0"}
+    return {"client": {"packages": client}, "scheduler": {"packages": dict(client)},
+            "workers": {address: (None if w is None else {"packages": client | w})
+                        for address, w in workers.items()}}
+
+
+def test_version_mismatches_name_each_worker_and_package():
+    assert version_mismatches(_versions(a={}, b={"python": "3.11.9.final.0"})) == []
+    found = version_mismatches(_versions(**{"tcp://h:1": {"hubo-cli": "0.0.9"},
+                                            "tcp://h:2": {"numpy": None}, "tcp://h:3": None,
+                                            "tcp://h:4": {"python": "3.12.1.final.0"}}))
+    assert found == ["worker tcp://h:1 has hubo-cli 0.0.9 (this client 0.1.0)",
+                     "worker tcp://h:2 has numpy not installed (this client 2)",
+                     "worker tcp://h:3 did not report its versions",
+                     "worker tcp://h:4 has python 3.12 (this client 3.11)"]
+    # the scheduler runs no job: only Dask's own packages must match there
+    versions = _versions(w={})
+    versions["scheduler"]["packages"] |= {"hubo-cli": None, "numpy": "1"}
+    versions["scheduler"]["packages"]["distributed"] = "0"
+    assert version_mismatches(versions) == ["the scheduler has distributed 0 (this client 1)"]
+    assert version_mismatches({}) == ["the scheduler did not report its versions"]
+
+
+PRETEND_OTHER_VERSION = '''
+import distributed.versions as versions
+if not hasattr(versions, "real_get_package_info"):  # a preload may run more than once
+    versions.real_get_package_info = versions.get_package_info
+    versions.get_package_info = lambda packages: (versions.real_get_package_info(packages)
+                                                  | {"hubo-cli": "0.0.0+other"})
+'''
+
+
+def test_a_worker_of_another_version_is_refused_before_any_run(tmp_path):
+    """A real worker process that reports another hubo-cli: one line, exit 2, nothing ran."""
+    from distributed import LocalCluster
+
+    preload = tmp_path / "other_version.py"
+    preload.write_text(PRETEND_OTHER_VERSION)
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1",
+                      dashboard_address=None, scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+                      preload=[str(preload)]) as cluster:
+        with pytest.raises(InputError, match=r"worker tcp://127\.0\.0\.1:\d+ has hubo-cli "
+                                             r"0\.0\.0\+other \(this client [^)]+\); nothing ran"):
+            run_sweep(make_jobs("sim", [1], SHORT), tmp_path / "a",
+                      scheduler=cluster.scheduler_address)
+        result = CliRunner().invoke(main, ["sweep", "sim", "--seeds", "1-2", "--set",
+                                           "duration=0.2", "--scheduler",
+                                           cluster.scheduler_address, "--out",
+                                           str(tmp_path / "b")])
+    assert result.exit_code == 2, result.output
+    lines = result.output.splitlines()
+    assert lines[0].startswith("error: the Dask cluster does not run this client's versions")
+    assert len(lines) == 2 and lines[1].startswith("hint: ") and "Traceback" not in result.output
+    assert not list((tmp_path / "b").glob("*/summary.json"))
+
+
+def test_the_dashboard_serves_and_its_link_is_printed(tmp_path, monkeypatch):
+    """hubo sweep --dashboard on a local cluster: the link printed is the page it serves."""
+    pytest.importorskip("bokeh", reason="the bokeh extra is not installed (make installs it)")
+    import urllib.request
+
+    import hubo_cli.sweep
+
+    real_link, served = hubo_cli.sweep._dashboard_link, []
+
+    def link_and_look(client):
+        link = real_link(client)
+        with urllib.request.urlopen(link, timeout=20) as page:
+            served.append((link, page.status))
+        return link
+
+    monkeypatch.setattr(hubo_cli.sweep, "_dashboard_link", link_and_look)
+    result = CliRunner().invoke(main, ["sweep", "sim", "--seeds", "1", "--set", "duration=0.2",
+                                       "--workers", "1", "--dashboard", "--out",
+                                       str(tmp_path / "b")])
+    assert result.exit_code == 0, result.output
+    link = re.search(r"^Dask dashboard: (http://127\.0\.0\.1:\d+/status)$", result.output,
+                     re.M).group(1)
+    assert served == [(link, 200)]
+
+
+def test_the_dashboard_is_refused_without_bokeh_or_a_cluster(tmp_path, monkeypatch):
+    refused = CliRunner().invoke(main, ["sweep", "sim", "--seeds", "1", "--workers", "0",
+                                        "--dashboard", "--out", str(tmp_path / "a")])
+    assert refused.exit_code == 2 and "--dashboard needs a Dask cluster" in refused.output
+    monkeypatch.setitem(sys.modules, "bokeh", None)  # find_spec then finds no bokeh
+    refused = CliRunner().invoke(main, ["sweep", "sim", "--seeds", "1", "--dashboard",
+                                        "--out", str(tmp_path / "b")])
+    assert refused.exit_code == 2, refused.output
+    assert "needs bokeh" in refused.output and "hubo-cli[bokeh]" in refused.output
+    assert not (tmp_path / "b").exists()

@@ -66,7 +66,7 @@ def hardware() -> None:
     """The real Hubo's side: a fake hubo-daemon to run the hardware driver without a robot.
 
     The hardware driver (--driver hardware --arm) talks to hubo-ach's hubo-ref and hubo-state
-    channels through libach. See the README's "The real Hubo".
+    channels through libach. See docs/hardware.md (The real Hubo).
     """
 
 

@@ -6,6 +6,7 @@ import click
 
 from hubo_cli.cli.options import balance_option
 from hubo_cli.cli.output import console, err_console, print_json
+from hubo_cli.errors import InputError
 from hubo_cli.sweep import CONFIRM_JOBS
 
 
@@ -20,6 +21,9 @@ from hubo_cli.sweep import CONFIRM_JOBS
                    "0 = one job after the other in this process).")
 @click.option("--scheduler", default=None, metavar="ADDRESS",
               help="Run on an existing Dask cluster, e.g. tcp://host:8786.")
+@click.option("--dashboard", is_flag=True,
+              help="Serve Dask's dashboard (needs the bokeh extra) and print its link; "
+                   "with --scheduler, print the scheduler's.")
 @click.option("--out", type=click.Path(file_okay=False), default=None,
               help="Sweep folder (default runs/<time>-sweep-<command>).")
 @click.option("--yes", is_flag=True,
@@ -27,7 +31,7 @@ from hubo_cli.sweep import CONFIRM_JOBS
 @click.option("--json", "as_json", is_flag=True, help="Print the rows as JSON.")
 @balance_option
 def sweep(command: str, seeds: str, sets: tuple[str, ...], workers: int | None,
-          scheduler: str | None, out: str | None, yes: bool, as_json: bool,
+          scheduler: str | None, dashboard: bool, out: str | None, yes: bool, as_json: bool,
           balance: str) -> None:
     """Run TASK_OR_COMMAND (a task, or sim) once per seed and combination of --set values,
     each on its own perturbed robot, and tabulate the outcomes.
@@ -35,8 +39,10 @@ def sweep(command: str, seeds: str, sets: tuple[str, ...], workers: int | None,
     Writes sweep.csv, sweep.png and one run folder per simulation. Every value, the scheduler's
     address and the sweep's size (more than 10,000 runs: --yes) are checked before anything
     runs. Ctrl-C cancels the simulations still running and keeps the finished rows, as does a
-    lost scheduler. Exit code 0 when every run completed, 1 otherwise, 2 for a bad value, 3
-    when the scheduler cannot be reached or is lost, 130 when interrupted.
+    lost scheduler. The workers must run this client's versions of Dask, hubo-cli and its
+    numerics (checked before any run) and see --out at the same path. Exit code 0 when every
+    run completed, 1 otherwise, 2 for a bad value or mismatched worker versions, 3 when the
+    scheduler cannot be reached or is lost, 130 when interrupted.
 
     Examples: hubo sweep cut-slot --seeds 1-20
               hubo sweep cut-rectangle --seeds 1-5 --set speed_mm_s=10,20
@@ -48,6 +54,7 @@ def sweep(command: str, seeds: str, sets: tuple[str, ...], workers: int | None,
 
     from hubo_cli.runs import make_run_dir
     from hubo_cli.sweep import (
+        check_dashboard,
         check_jobs,
         check_scheduler,
         check_size,
@@ -65,6 +72,11 @@ def sweep(command: str, seeds: str, sets: tuple[str, ...], workers: int | None,
         yes = click.confirm(f"run {n_jobs:,} simulations?", err=True)
     check_size(n_jobs, yes)
     check_workers(workers)
+    if dashboard and scheduler is None:
+        if workers == 0:
+            raise InputError("--dashboard needs a Dask cluster; --workers 0 runs in this "
+                             "process", hint="leave out --workers 0")
+        check_dashboard()
     jobs = make_jobs(command, seed_list, values, balance)
     check_jobs(jobs)
     if scheduler is not None:
@@ -80,10 +92,16 @@ def sweep(command: str, seeds: str, sets: tuple[str, ...], workers: int | None,
         progress.update(bar, completed=done,
                         description=f"sweep {command} ({failed[0]} not completed)")
 
+    def on_dashboard(link: str | None) -> None:
+        err_console.print(f"Dask dashboard: {link}" if link else
+                          f"the Dask scheduler at {scheduler} reports no dashboard",
+                          highlight=False, soft_wrap=True)
+
     failed = [0]
     with progress:
         bar = progress.add_task(f"sweep {command}", total=len(jobs))
-        result = run_sweep(jobs, out_dir, workers=workers, scheduler=scheduler, on_row=on_row)
+        result = run_sweep(jobs, out_dir, workers=workers, scheduler=scheduler, on_row=on_row,
+                           on_dashboard=on_dashboard if dashboard else None)
     if as_json:
         print_json({"out": str(out_dir), "where": result.where, "jobs": result.jobs,
                     "wall_clock_s": result.wall_clock_s, "interrupted": result.interrupted,
