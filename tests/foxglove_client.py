@@ -124,3 +124,37 @@ class FoxgloveClient:
             if predicate(kind, value):
                 return kind, value
         raise TimeoutError("no such message in time")
+
+
+def protobuf_fields(data: bytes) -> list[tuple[int, object]]:
+    """The (field number, value) pairs of a protobuf message, in order: varints as ints,
+    fixed 64/32-bit fields as bytes, length-delimited ones (strings, nested messages, packed
+    lists) as bytes, to be parsed again by the caller who knows the schema."""
+    out, i = [], 0
+    while i < len(data):
+        key, i = _varint(data, i)
+        number, wire = key >> 3, key & 7
+        if wire == 0:
+            value, i = _varint(data, i)
+        elif wire == 1:
+            value, i = data[i:i + 8], i + 8
+        elif wire == 2:
+            n, i = _varint(data, i)
+            value, i = data[i:i + n], i + n
+        elif wire == 5:
+            value, i = data[i:i + 4], i + 4
+        else:
+            raise ValueError(f"protobuf wire type {wire} not handled")
+        out.append((number, value))
+    return out
+
+
+def _varint(data: bytes, i: int) -> tuple[int, int]:
+    value = shift = 0
+    while True:
+        byte = data[i]
+        i += 1
+        value |= (byte & 0x7F) << shift
+        shift += 7
+        if not byte & 0x80:
+            return value, i

@@ -3,12 +3,15 @@ the standard library (tests/foxglove_client.py)."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
 import socket
+import struct
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -18,7 +21,7 @@ from click.testing import CliRunner
 
 pytest.importorskip("foxglove")
 
-from foxglove_client import FoxgloveClient  # noqa: E402
+from foxglove_client import FoxgloveClient, protobuf_fields  # noqa: E402
 
 from hubo_cli.cli.main import main  # noqa: E402
 from hubo_cli.control.log import load_log  # noqa: E402
@@ -208,3 +211,67 @@ def test_live_publishing_leaves_the_loop_period_unchanged(tmp_path):
     for without, with_live in (figures["compute_ms"], figures["late_ms"]):
         assert with_live - without <= 0.05 * period_ms, figures
     assert figures["hook_ms"] <= 0.01 * period_ms, figures
+
+
+def _points(line: bytes) -> np.ndarray:
+    """The points (field 5, each x y z doubles) of a LinePrimitive's bytes."""
+    rows = []
+    for number, point in protobuf_fields(line):
+        if number == 5:
+            xyz = dict(protobuf_fields(point))
+            rows.append([struct.unpack("<d", xyz[k])[0] if k in xyz else 0.0 for k in (1, 2, 3)])
+    return np.array(rows).reshape(-1, 3)
+
+
+def test_a_simulated_run_serves_its_wall_and_the_hole_as_cut(tmp_path):
+    """The sway run of test_viz (the drill raised, a wall placed through the bit, the bit
+    moved in it) on the simulator with a live server: the last /scene holds the wall as a
+    cube and the hole as cut, drawn on the wall's face as the export draws it, and the
+    measured tool path."""
+    from test_viz import SwayTarget
+
+    from hubo_cli.session import RunSetup, run
+    from hubo_cli.viz.scene import load_scene
+
+    model = load_model()
+    server = LiveServer(port=0)
+    client = FoxgloveClient("127.0.0.1", server.port)
+    scenes: list[bytes] = []
+    try:
+        subscriptions = _subscribe_all(client)
+        setup = RunSetup("sway", model, tools={"right-arm": "drill"}, out=tmp_path / "run",
+                         duration_s=2.0, live=server)
+        done: dict = {}
+        runner = threading.Thread(target=lambda: done.update(run=run(setup,
+                                                                     SwayTarget(model))))
+        runner.start()
+        client.sock.settimeout(1.0)
+        while runner.is_alive() or client._buffer:
+            try:
+                kind, value = client.next_event()
+            except TimeoutError:
+                continue
+            if kind == "message" and subscriptions[value[0]] == "/scene":
+                scenes.append(value[2])
+        runner.join()
+        client.sock.settimeout(5.0)
+        with contextlib.suppress(TimeoutError):  # the final scene, sent at the run's end
+            while True:
+                kind, value = client.next_event()
+                if kind == "message" and subscriptions[value[0]] == "/scene":
+                    scenes.append(value[2])
+    finally:
+        client.close()
+        server.close()
+    assert done["run"].loop.ok and not server.error
+    assert len(scenes) >= 3  # about 2 a second
+    (number, entity), = protobuf_fields(scenes[-1])
+    fields = protobuf_fields(entity)
+    assert number == 2 and dict(fields)[2] == b"world"
+    assert sum(n == 8 for n, _ in fields) == 1  # the wall
+    lines = {dict(protobuf_fields(v)).get(1, 0): v for n, v in fields if n == 11}
+    expected = load_scene(done["run"].run_dir).hole_on_face_world_m()
+    hole = _points(lines[2])  # LineList: the hole
+    assert len(expected) > 10 and len(hole) == len(expected) // 2 * 2
+    assert np.allclose(hole, expected[: len(hole)], atol=1e-5)
+    assert len(_points(lines[0])) > 10  # LineStrip: the measured tool path

@@ -81,6 +81,7 @@ class _Run:
         self.arm = next((a for a in ARMS if tools.get(a) == "drill"), None)
         self.tool = "hand"
         self.start_ns = time.time_ns()
+        self.last_ns: int | None = None  # the latest snapshot's time (UTC ns)
         self.robot_world_m: np.ndarray | None = None  # the torso at the first snapshot
         self.goal_offset_m: np.ndarray | None = None
         self.goal_path: collections.deque = collections.deque(maxlen=MAX_PATH_POINTS)
@@ -267,9 +268,27 @@ class LiveServer:
             channels.events.log(msg.log_message(fm, level, text, msg.stamp(fm, ns)),
                                 log_time=ns)
         snap, self._latest = self._latest, None
-        if snap is None or not channels.states.has_sinks():
+        if not any(c.has_sinks() for c in (channels.states, channels.tf, channels.scene,
+                                           channels.metrics, channels.safety)):
+            return next_scene  # no one listens: no work
+        if snap is not None:
+            self._publish_state(run, snap)
+        if run.last_ns is None or (now < next_scene and not final):
             return next_scene
-        ns = run.start_ns + round(snap.t_s * 1e9)
+        scene = run.world.scene() if run.world is not None else {}
+        walls = scene.get("walls", [])
+        hole = hole_on_face(np.asarray(scene.get("hole_world_m", []), dtype=float),
+                            walls, run.robot_world_m)
+        channels.scene.log(msg.scene_update(fm, walls, np.array(run.goal_path).reshape(-1, 3),
+                                            np.array(run.tool_path).reshape(-1, 3), hole,
+                                            msg.stamp(fm, run.last_ns)), log_time=run.last_ns)
+        return now + 1.0 / SCENE_RATE_HZ
+
+    def _publish_state(self, run: _Run, snap: _Snapshot) -> None:
+        """The joints, transforms, metrics and safety of a snapshot; its tool and goal points
+        join the paths."""
+        fm, channels = self._fm, self._channels
+        ns = run.last_ns = run.start_ns + round(snap.t_s * 1e9)
         ts = msg.stamp(fm, ns)
         T_world_torso = self._torso(run, snap)
         channels.states.log(msg.joint_states(fm, run.names, snap.q_rad.tolist(),
@@ -284,16 +303,6 @@ class LiveServer:
             [float(series.get(name, math.nan)) for name in SERIES], self.labels), log_time=ns)
         channels.safety.log(msg.safety_message(snap.flags), log_time=ns)
         self._extend_paths(run, snap, T_world_torso)
-        if now < next_scene and not final:
-            return next_scene
-        scene = run.world.scene() if run.world is not None else {}
-        walls = scene.get("walls", [])
-        hole = hole_on_face(np.asarray(scene.get("hole_world_m", []), dtype=float),
-                            walls, run.robot_world_m)
-        channels.scene.log(msg.scene_update(fm, walls, np.array(run.goal_path).reshape(-1, 3),
-                                            np.array(run.tool_path).reshape(-1, 3), hole, ts),
-                           log_time=ns)
-        return now + 1.0 / SCENE_RATE_HZ
 
     @staticmethod
     def _torso(run: _Run, snap: _Snapshot) -> np.ndarray:
