@@ -275,3 +275,65 @@ def test_a_simulated_run_serves_its_wall_and_the_hole_as_cut(tmp_path):
     assert len(expected) > 10 and len(hole) == len(expected) // 2 * 2
     assert np.allclose(hole, expected[: len(hole)], atol=1e-5)
     assert len(_points(lines[0])) > 10  # LineStrip: the measured tool path
+
+
+def _collect(client: FoxgloveClient, subscriptions: dict[int, str], seconds: float) -> dict:
+    got: dict[str, list[bytes]] = {}
+    client.sock.settimeout(seconds)
+    deadline = time.monotonic() + seconds
+    with contextlib.suppress(TimeoutError):
+        while time.monotonic() < deadline:
+            kind, value = client.next_event()
+            if kind == "message":
+                got.setdefault(subscriptions[value[0]], []).append(value[2])
+    return got
+
+
+def test_publisher_keeps_what_a_late_client_needs_and_misses_no_event():
+    """Periods fed by hand (the ideal robot's state: no torso pose) with hostile numbers: a
+    client that connects late still gets the URDF, the tool and goal paths from the start
+    and every e-stop latch and release, even one that lasted a single period between two
+    snapshots; NaN and missing values go out as null, never as a crash."""
+    from hubo_cli.control.status import Status
+    from hubo_cli.state import RobotState
+
+    model = load_model()
+    server = LiveServer(port=0)
+    q = home_posture(model)
+    rng = np.random.default_rng(38)
+    try:
+        server.run_started(model, {"right-arm": "drill"}, None)
+
+        def feed(k0: int, n: int) -> None:
+            for k in range(k0, k0 + n):
+                estop = k in (7, 203)  # single periods, not on a snapshot (every 5th)
+                flags = {"estop"} if estop else set()
+                extras = {"goal_x_m": 0.4 + 1e-4 * k, "goal_y_m": 0.0, "goal_z_m": 0.1,
+                          "actual_x_m": 0.4, "actual_y_m": 0.0, "actual_z_m": 0.1,
+                          "error_m": float(rng.choice([np.nan, np.inf, 1e300, -0.0, 1e-3])),
+                          "cp_outside_m": np.nan}
+                server.period(k * 0.005, Status.ESTOPPED if estop else Status.OK, flags,
+                              RobotState(k * 0.005, q + 0.01 * np.sin(k), np.zeros_like(q)),
+                              extras if k % 3 else None)
+                time.sleep(0.001)
+
+        feed(0, 100)  # no one listens yet
+        client = FoxgloveClient("127.0.0.1", server.port)
+        subscriptions = _subscribe_all(client)
+        feed(100, 200)
+        got = _collect(client, subscriptions, 1.5)
+        client.close()
+    finally:
+        server.close()
+    assert not server.error
+    assert json.loads(got["/robot_description"][0])["data"] == model.urdf_path(True).read_text()
+    for text in (b"e-stop latched", b"e-stop released"):
+        assert sum(text in m for m in got["/events"]) == 1  # the one after connecting
+    (_, entity), = protobuf_fields(got["/scene"][-1])
+    lines = [v for n, v in protobuf_fields(entity) if n == 11]
+    assert len(lines) == 2 and all(len(_points(v)) >= 5 for v in lines)
+    goal = _points(lines[0])  # x = 0.4 + 0.1 mm a period + the offset: from period < 85 on
+    assert np.ptp(goal[:, 0]) > 0.021, goal[:, 0]
+    for message in got["/metrics"]:
+        error = json.loads(message)["error_mm"]  # strict JSON: NaN is null
+        assert error is None or np.isfinite(error)

@@ -268,11 +268,15 @@ class LiveServer:
             channels.events.log(msg.log_message(fm, level, text, msg.stamp(fm, ns)),
                                 log_time=ns)
         snap, self._latest = self._latest, None
+        T_world_torso = None
+        if snap is not None:  # the paths grow whether or not anyone listens
+            T_world_torso = self._torso(run, snap)
+            self._extend_paths(run, snap, T_world_torso)
         if not any(c.has_sinks() for c in (channels.states, channels.tf, channels.scene,
                                            channels.metrics, channels.safety)):
-            return next_scene  # no one listens: no work
+            return next_scene  # no one listens: no messages
         if snap is not None:
-            self._publish_state(run, snap)
+            self._publish_state(run, snap, T_world_torso)
         if run.last_ns is None or (now < next_scene and not final):
             return next_scene
         scene = run.world.scene() if run.world is not None else {}
@@ -284,13 +288,11 @@ class LiveServer:
                                             msg.stamp(fm, run.last_ns)), log_time=run.last_ns)
         return now + 1.0 / SCENE_RATE_HZ
 
-    def _publish_state(self, run: _Run, snap: _Snapshot) -> None:
-        """The joints, transforms, metrics and safety of a snapshot; its tool and goal points
-        join the paths."""
+    def _publish_state(self, run: _Run, snap: _Snapshot, T_world_torso: np.ndarray) -> None:
+        """The joints, transforms, metrics and safety of a snapshot."""
         fm, channels = self._fm, self._channels
         ns = run.last_ns = run.start_ns + round(snap.t_s * 1e9)
         ts = msg.stamp(fm, ns)
-        T_world_torso = self._torso(run, snap)
         channels.states.log(msg.joint_states(fm, run.names, snap.q_rad.tolist(),
                                              snap.dq_rad_s.tolist(), ts), log_time=ns)
         channels.tf.log(msg.frame_transforms(fm, run.frames.columns_at(T_world_torso,
@@ -302,7 +304,6 @@ class LiveServer:
         channels.metrics.log(msg.metrics_message(
             [float(series.get(name, math.nan)) for name in SERIES], self.labels), log_time=ns)
         channels.safety.log(msg.safety_message(snap.flags), log_time=ns)
-        self._extend_paths(run, snap, T_world_torso)
 
     @staticmethod
     def _torso(run: _Run, snap: _Snapshot) -> np.ndarray:
@@ -323,7 +324,7 @@ class LiveServer:
     def _extend_paths(run: _Run, snap: _Snapshot, T_world_torso: np.ndarray) -> None:
         """Add the measured tool point and the goal (carried from the task's frame into the
         world by the offset of the first snapshot with both: as a replay places it)."""
-        suffix = ARM_SUFFIX[run.arm]
+        suffix = ARM_SUFFIX[run.choose_arm(snap.extras)]
         tool = run.tool_world_m(T_world_torso, snap.q_rad)
         run.tool_path.append(tool)
         for ending in (suffix, ""):
