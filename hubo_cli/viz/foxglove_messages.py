@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hubo_cli.control.status import FLAG_STATUS, Status
+from hubo_cli.control.status import FLAG_STATUS
 from hubo_cli.model import RobotModel
 from hubo_cli.urdf import link_frames
 from hubo_cli.viz.replay import ACTUAL_RGB, GOAL_RGB, HOLE_RGB, WALL_RGBA, quat_xyzw
@@ -226,11 +226,3 @@ def log_message(fm, level: str, text: str, ts):
     """An ``/events`` message (level ``info`` or ``warning``)."""
     levels = {"info": fm.LogLevel.Info, "warning": fm.LogLevel.Warning}
     return fm.Log(timestamp=ts, level=levels[level], message=text, name="hubo-cli")
-
-
-def status_label(code: int) -> str:
-    """The label of a status code (``code N`` for a code no :class:`Status` has)."""
-    try:
-        return Status(int(code)).label
-    except ValueError:
-        return f"code {code}"

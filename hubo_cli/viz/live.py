@@ -31,7 +31,7 @@ from hubo_cli.control.status import Status
 from hubo_cli.errors import InputError
 from hubo_cli.geometry import quat_wxyz_to_matrix
 from hubo_cli.kinematics.limb import Limb
-from hubo_cli.model import ARMS, RobotModel, load_model
+from hubo_cli.model import RobotModel, load_model
 from hubo_cli.state import RobotState
 from hubo_cli.viz import foxglove_messages as msg
 from hubo_cli.viz.deps import require
@@ -39,11 +39,13 @@ from hubo_cli.viz.scene import (
     ARM_SUFFIX,
     SERIES,
     estop_event,
+    hand_to_tool,
     hole_on_face,
     leg_limbs,
     series_values,
     status_event,
     torso_on_floor,
+    working_arm,
 )
 
 DEFAULT_HOST = "127.0.0.1"
@@ -78,8 +80,7 @@ class _Run:
         self.frames = msg.JointFrames(model)
         self.legs = leg_limbs(model)
         self.drill = tools.get("right-arm") == "drill"
-        self.arm = next((a for a in ARMS if tools.get(a) == "drill"), None)
-        self.tool = "hand"
+        self.arm: str | None = None  # the working arm, from the first snapshot
         self.start_ns = time.time_ns()
         self.last_ns: int | None = None  # the latest snapshot's time (UTC ns)
         self.robot_world_m: np.ndarray | None = None  # the torso at the first snapshot
@@ -90,20 +91,18 @@ class _Run:
         self._limb: tuple[Limb, slice, np.ndarray] | None = None
 
     def choose_arm(self, extras: dict) -> str:
-        """The arm whose tool the paths follow: the drill's, else the one with goals."""
+        """The arm whose tool the paths follow (:func:`~hubo_cli.viz.scene.working_arm`),
+        chosen at the first snapshot."""
         if self.arm is None:
-            self.arm = next((a for a in ARMS if f"goal_x_m{ARM_SUFFIX[a]}" in extras),
-                            "right-arm")
+            self.arm = working_arm(self.tools, extras)
         return self.arm
 
     def tool_world_m(self, T_world_torso: np.ndarray, q_rad: np.ndarray) -> np.ndarray:
+        """The working arm's tool point in the world (m)."""
         if self._limb is None:
             tool = self.tools.get(self.arm, "hand")
-            tool = tool if tool in ("hand", "drill") else "hand"
-            T_hand_tool = (np.linalg.inv(self.model.tool_transform("hand"))
-                           @ self.model.tool_transform(tool))
             self._limb = (Limb(self.model, self.arm, "hand"), self.model.limb_slice(self.arm),
-                          T_hand_tool)
+                          hand_to_tool(self.model, tool if tool == "drill" else "hand"))
         limb, index, T_hand_tool = self._limb
         return (T_world_torso @ limb.fk(q_rad[index]) @ T_hand_tool)[:3, 3]
 

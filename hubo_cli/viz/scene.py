@@ -329,14 +329,21 @@ def _wall_ok(wall) -> bool:
                      and np.linalg.norm(quat) > 1e-9))
 
 
-def _working_arm(log: LogData, tools: dict[str, str]) -> str:
+def working_arm(tools: dict[str, str], columns) -> str:
+    """The arm whose tool a replay follows: the drill's, else the first whose goals are
+    logged (``columns``: the log's column names), else the right."""
     for arm in ARMS:
         if tools.get(arm) == "drill":
             return arm
     for arm in ARMS:
-        if _columns(log, "goal", ARM_SUFFIX[arm]) is not None:
+        if all(f"goal_{axis}_m{ARM_SUFFIX[arm]}" in columns for axis in "xyz"):
             return arm
     return "right-arm"
+
+
+def hand_to_tool(model: RobotModel, tool: str) -> np.ndarray:
+    """T_hand_tool: the tool's point seen from the hand frame (4x4, m)."""
+    return np.linalg.inv(model.tool_transform("hand")) @ model.tool_transform(tool)
 
 
 def leg_limbs(model: RobotModel) -> list[tuple[Limb, slice]]:
@@ -368,7 +375,7 @@ def _estimate_torso(model: RobotModel, log: LogData, T: np.ndarray) -> np.ndarra
 
 def _tool_world(model: RobotModel, log: LogData, T_world_torso: np.ndarray, arm: str,
                 tool: str) -> np.ndarray:
-    T_hand_tool = np.linalg.inv(model.tool_transform("hand")) @ model.tool_transform(tool)
+    T_hand_tool = hand_to_tool(model, tool)
     frame = HAND_FRAME[arm]
     if log.has_pose(frame):
         T_world_hand = log.poses(frame)
@@ -430,7 +437,7 @@ def load_scene(run: str | Path, model: RobotModel | None = None) -> RunScene:
     estimated = _estimate_torso(model, log, T)
     scene_meta = _checked_scene(log, run_dir)
     tools = _tools(scene_meta)
-    arm = _working_arm(log, tools)
+    arm = working_arm(tools, log.columns)
     tool_world = _tool_world(model, log, T, arm, tools[arm])
     hole = np.asarray(scene_meta.get("hole_world_m", []), dtype=float).reshape(-1, 3)
     log_file = next(f for f in (run_dir / "log.parquet", run_dir / "log.csv", path)
