@@ -172,7 +172,8 @@ class LiveServer:
     @property
     def url(self) -> str:
         """Where Foxglove connects (Open connection, Foxglove WebSocket)."""
-        return f"ws://{'localhost' if self.host == DEFAULT_HOST else self.host}:{self.port}"
+        host = "localhost" if self.host == DEFAULT_HOST else self.host
+        return f"ws://{f'[{host}]' if ':' in host else host}:{self.port}"
 
     # --------------------------------------------------------------- the run (loop thread)
     def run_started(self, model: RobotModel, tools: Mapping[str, str], world) -> None:
