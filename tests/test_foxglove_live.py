@@ -135,7 +135,8 @@ def test_port_in_use_is_one_line_exit_2_before_the_robot_moves(tmp_path):
 
 
 @pytest.mark.parametrize("args", [["--live-port", "8765"], ["--live", "--live-port", "70000"],
-                                  ["--live-host", "localhost"]])
+                                  ["--live-host", "localhost"], ["--live", "--live-port", "-1"],
+                                  ["--live", "--live-host", "no-such-host.invalid"]])
 def test_live_options_checked(tmp_path, args):
     result = CliRunner().invoke(main, ["teleop", "--replay", str(REPLAY), "--driver", "ideal",
                                        *args, "--out", str(tmp_path / "run")])

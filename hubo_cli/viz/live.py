@@ -149,10 +149,11 @@ class LiveServer:
                 asset_handler=self._asset, server_listener=Listener())
         except RuntimeError as err:
             reason = str(err).removeprefix("FoxgloveError: ")
+            hint = ("another program (another --live run?) holds that port: choose another "
+                    "with --live-port, or 0 for any free one" if "in use" in reason else
+                    f"give an address of this machine with --live-host (default {DEFAULT_HOST})")
             raise InputError(f"--live cannot serve on {host}:{port}: {reason}",
-                             hint="another program (another --live run?) holds that port: "
-                                  "choose another with --live-port, or 0 for any free one"
-                             ) from None
+                             hint=hint) from None
         self.host = host
         self.port = self._server.port
         self.labels = status_codes()
