@@ -27,6 +27,7 @@ from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 
@@ -41,7 +42,7 @@ from hubo_cli.control.log import (
     max_velocity_ratio,
     update_log_metadata,
 )
-from hubo_cli.control.loop import ControlLoop, LoopResult
+from hubo_cli.control.loop import ControlLoop, LoopResult, PeriodObserver
 from hubo_cli.control.module import Module
 from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
@@ -54,6 +55,18 @@ from hubo_cli.runs import discard_if_unused, make_run_dir, release_run_dir, writ
 
 SUMMARY_NAME = "summary.json"
 SNAPSHOT_NAME = "snapshot.png"
+
+
+class RunObserver(PeriodObserver, Protocol):
+    """A live viewer of a run: :meth:`run_started` once the robot has started (before the
+    first period), :meth:`period` every period (:class:`PeriodObserver`), :meth:`run_ended`
+    after the last (also when the run failed or was interrupted)."""
+
+    def run_started(self, model: RobotModel, tools: Mapping[str, str], world) -> None:
+        """``world``: the simulator's (walls, hole), or None on a robot without one."""
+
+    def run_ended(self) -> None:
+        """The run is over: publish what is left."""
 
 
 @dataclass(frozen=True)
@@ -80,6 +93,8 @@ class RunSetup:
             (:mod:`hubo_cli.perturb`; None or 0: nominal); simulators only.
         operator: the operator's keys (space stop, r release, q finish), read by the loop
             every period (None: no operator at a keyboard).
+        live: a live viewer's publisher (:class:`RunObserver`, e.g. the Foxglove server of
+            ``--live``): told when the robot has started, shown every period, told the end.
     """
 
     command: str
@@ -97,6 +112,7 @@ class RunSetup:
     cutting: Mapping[str, float] | None = None
     perturb_seed: int | None = None
     operator: OperatorKeys | None = None
+    live: RunObserver | None = None
 
     def real_time_reason(self) -> str | None:
         """Why this run must go at wall-clock pace, or None when it need not."""
@@ -106,6 +122,8 @@ class RunSetup:
             return "a live operator drives the robot"
         if self.gui:
             return "the simulator's window is open"
+        if self.live is not None:
+            return "a live viewer (--live) watches the run"
         return None
 
     def pace(self) -> float | None:
@@ -218,10 +236,10 @@ def _run_in(setup: RunSetup, target: Target, on_start, speed: float | None,
             world = driver.world
             target.attach(world, modules)
             loop = ControlLoop(driver, modules, target, speed=speed, log_path=run_dir,
-                               operator=setup.operator)
+                               operator=setup.operator, observer=setup.live)
             if on_start is not None:
                 on_start(target, loop)
-            result = loop.run(setup.duration_s)
+            result = _run_loop(loop, setup, world)
             if result.ended == "log-error":  # a full disk: no snapshot, no log read back
                 _end_without_log(setup, speed, result, modules, run_dir)
             metadata = {}
@@ -245,6 +263,17 @@ def _run_in(setup: RunSetup, target: Target, on_start, speed: float | None,
         summary["max_torso_tilt_deg"] = world.max_tilt_deg
     write_json(run_dir / SUMMARY_NAME, summary)
     return done
+
+
+def _run_loop(loop: ControlLoop, setup: RunSetup, world) -> LoopResult:
+    """Run the loop, with the live viewer (if any) told of its start and end."""
+    if setup.live is None:
+        return loop.run(setup.duration_s)
+    setup.live.run_started(setup.model, setup.tools, world)
+    try:
+        return loop.run(setup.duration_s)
+    finally:
+        setup.live.run_ended()
 
 
 def _end_without_log(setup: RunSetup, speed: float | None, loop: LoopResult,

@@ -282,7 +282,8 @@ def test_export_rrd_verifies_with_blueprint_and_mcap_reads_back(scene, run_dir, 
     topics = read["topics"]
     t_ns = start_ns + np.round(scene.t_s * 1e9).astype(np.int64)
     for topic, schema in (("/joint_states", "foxglove.JointStates"),
-                          ("/tf", "foxglove.FrameTransforms"), ("/metrics", "hubo.Metrics")):
+                          ("/tf", "foxglove.FrameTransforms"), ("/metrics", "hubo.Metrics"),
+                          ("/safety", "hubo.Safety")):
         assert topics[topic]["schema"] == schema
         assert topics[topic]["times"] == t_ns.tolist()  # UTC: the run's start + its time
     assert datetime(2020, 1, 1, tzinfo=UTC).timestamp() * 1e9 < t_ns[0]  # not 1970
@@ -310,7 +311,8 @@ def test_export_rrd_verifies_with_blueprint_and_mcap_reads_back(scene, run_dir, 
     panels = layout["configById"]
     plotted = [p["value"] for c in panels.values() for p in c.get("paths", [])]
     assert len(plotted) >= 5 and all(p.split(".")[0] in topics for p in plotted)
-    assert all(p.split(".", 1)[1] in metrics[0] for p in plotted)
+    first = {"/metrics": metrics[0], "/safety": json.loads(topics["/safety"]["data"][0])}
+    assert all(p.split(".", 1)[1] in first[p.split(".")[0]] for p in plotted)
     assert panels["RosOut!hubo-events"]["topicToRender"] in topics
     three_d = panels["3D!hubo"]["topics"]
     assert three_d["/robot_description"]["visible"] and set(three_d) <= set(topics)

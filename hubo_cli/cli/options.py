@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Iterator
+
 import click
 
 from hubo_cli.cli.output import NO_ESTOP_HELP, err_console
@@ -58,6 +61,13 @@ def robot_run_options(run_name: str):
         click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON."),
         click.option("--out", type=click.Path(file_okay=False), default=None,
                      help=f"Run folder (default runs/<time>-{run_name})."),
+        click.option("--live", is_flag=True,
+                     help="Serve the run to Foxglove as it runs (open connection "
+                          "ws://localhost:8765; runs in real time; see docs/live-view.md)."),
+        click.option("--live-host", default=None, metavar="HOST",
+                     help="Address --live binds (default 127.0.0.1: this machine only)."),
+        click.option("--live-port", type=int, default=None, metavar="PORT",
+                     help="TCP port of --live (default 8765; 0: any free port, printed)."),
     ]
 
     def decorate(function):
@@ -65,6 +75,42 @@ def robot_run_options(run_name: str):
             function = option(function)
         return function
     return decorate
+
+
+@contextlib.contextmanager
+def live_server(live: bool, host: str | None, port: int | None,
+                quiet: bool = False) -> Iterator[object | None]:
+    """The Foxglove server of ``--live`` (None without it), bound now, before the robot
+    moves, and stopped when the block ends (Ctrl-C included); its address is announced on
+    stderr unless ``quiet``.
+
+    Raises:
+        InputError: ``--live-host``/``--live-port`` without ``--live``, a bad port or one in
+            use.
+    """
+    from hubo_cli.errors import InputError
+
+    if not live:
+        if host is not None or port is not None:
+            raise InputError("--live-host and --live-port apply to --live",
+                             hint="add --live, or leave them out")
+        yield None
+        return
+    from hubo_cli.viz.foxglove_messages import LAYOUT_PATH
+    from hubo_cli.viz.live import DEFAULT_HOST, DEFAULT_PORT, LiveServer
+
+    server = LiveServer(DEFAULT_HOST if host is None else host,
+                        DEFAULT_PORT if port is None else port)
+    try:
+        if not quiet:
+            err_console.print(f"live: Foxglove, open connection {server.url} "
+                              f"(layout: {LAYOUT_PATH})", markup=False, highlight=False)
+        yield server
+    finally:
+        server.close()
+    if server.error and not quiet:
+        err_console.print(f"live: publishing stopped early: {server.error}", style="yellow",
+                          markup=False)
 
 
 def active_stops(requested: tuple[str, ...], driver: str, *, no_estop: bool,

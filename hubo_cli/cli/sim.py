@@ -9,6 +9,7 @@ import click
 from hubo_cli.cli.options import (
     active_stops,
     balance_option,
+    live_server,
     perturb_option,
     robot_run_options,
 )
@@ -37,6 +38,7 @@ from hubo_cli.cli.output import console, exit_if_interrupted, print_json
 def sim(duration: float, push: float, push_direction: str, balance: str, no_balance: bool,
         step: bool, no_hip: bool, no_estop: bool, estop_sources: str | None,
         accept_reduced_safety: bool, gui: bool, as_json: bool, out: str | None,
+        live: bool, live_host: str | None, live_port: int | None,
         perturb_seed: int | None) -> None:
     """Stand the simulated HUBO 2+ in its home posture and report tilt, feet and falls.
 
@@ -54,12 +56,14 @@ def sim(duration: float, push: float, push_direction: str, balance: str, no_bala
                          accept_reduced_safety=accept_reduced_safety, quiet=as_json)
     profile = SafetyProfile().with_balance("off" if no_balance else balance)
     with (reserved_run_dir("sim", out) as run_dir,  # a bad --out fails before anything runs
+          live_server(live, live_host, live_port, quiet=as_json) as server,
           operator_keys() as keys):
         announce_keys(keys, quiet=as_json)
         result = stand(load_model(), duration, push, balance=profile.balance, gui=gui,
                        out=run_dir, stops=stops, perturb_seed=perturb_seed,
                        balance_mode=profile.balance_mode, step=step, hip_strategy=not no_hip,
-                       push_direction=PUSH_DIRECTIONS[push_direction], operator=keys)
+                       push_direction=PUSH_DIRECTIONS[push_direction], operator=keys,
+                       live=server)
     # the run's whole summary (as in summary.json: pipeline, e-stops, perturbation draws ...)
     summary = json.loads((run_dir / "summary.json").read_text()) | {"run_dir": str(run_dir)}
     if as_json:

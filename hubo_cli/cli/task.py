@@ -11,6 +11,7 @@ from hubo_cli.cli.hardware import driver_options, hardware_options
 from hubo_cli.cli.options import (
     active_stops,
     balance_option,
+    live_server,
     perturb_option,
     robot_run_options,
 )
@@ -234,7 +235,8 @@ def _shortcut(name: str) -> click.Command:
 def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool,
          estop_sources: str | None, accept_reduced_safety: bool, gui: bool,
          out: str | None, as_json: bool, perturb_seed: int | None, balance: str = "default",
-         video: bool = False, **hardware) -> None:
+         video: bool = False, live: bool = False, live_host: str | None = None,
+         live_port: int | None = None, **hardware) -> None:
     from hubo_cli.cli.replay import add_run_video, check_video_support
     from hubo_cli.runs import reserved_run_dir
     from hubo_cli.tasks.runner import run_experiment
@@ -254,8 +256,9 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
                              "and the capture point; --estop-sources does not apply",
                              hint="to run it without the stopper: --no-estop")
         # its procedure names its own run folder (direction, e-stop) and checks --out first
-        done = run_experiment(spec, out=out, gui=gui, estop=not no_estop,
-                              perturb_seed=perturb_seed, balance=balance)
+        with live_server(live, live_host, live_port, quiet=as_json) as server:
+            done = run_experiment(spec, out=out, gui=gui, estop=not no_estop,
+                                  perturb_seed=perturb_seed, balance=balance, live=server)
         if video:
             add_run_video(done.run_dir, done.summary)
         _finish(ctx, done, as_json, lambda: _print_push_wall(done.summary, done.run_dir))
@@ -263,15 +266,16 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
     stops = active_stops(spec.safety.estop_sources, driver, no_estop=no_estop,
                          estop_sources=estop_sources,
                          accept_reduced_safety=accept_reduced_safety, quiet=as_json)
-    with reserved_run_dir(f"task-{spec.name}", out) as run_dir:
+    with (reserved_run_dir(f"task-{spec.name}", out) as run_dir,
+          live_server(live, live_host, live_port, quiet=as_json) as server):
         _run_in(ctx, spec, run_dir, driver=driver, options=options, stops=stops,
                 gui=gui, as_json=as_json, video=video, perturb_seed=perturb_seed,
-                balance=balance)
+                balance=balance, live=server)
 
 
 def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, stops,
             gui: bool, as_json: bool, video: bool, perturb_seed: int | None,
-            balance: str) -> None:
+            balance: str, live=None) -> None:
     from hubo_cli.cli.keys import operator_keys
     from hubo_cli.cli.live_view import LiveView
     from hubo_cli.cli.safety_view import SafetyPanel, read_safety
@@ -304,7 +308,8 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, st
             state["keys"] = keys
             done = run_task(plan, driver=driver, out=run_dir, gui=gui, stops=stops,
                             on_start=on_start, perturb_seed=perturb_seed,
-                            driver_options=options, balance=balance, operator=keys)
+                            driver_options=options, balance=balance, operator=keys,
+                            live=live)
     finally:
         if "view" in state:
             state["view"].stop()

@@ -14,6 +14,7 @@ from hubo_cli.cli.hardware import driver_options, hardware_options
 from hubo_cli.cli.options import (
     active_stops,
     balance_option,
+    live_server,
     perturb_option,
     robot_run_options,
 )
@@ -162,8 +163,8 @@ def _view(target, panel) -> Group:
 @balance_option
 def teleop(replay, port, reconnect_timeout, baud, driver, armed, mode, speed, scale, station_map,
            wall_distance, clutch_at, duration, reach_mode, orientation_weight, allow_branch_change,
-           walk_from, no_estop, estop_sources, accept_reduced_safety, gui, out, as_json, video,
-           perturb_seed, balance, **hardware) -> None:
+           walk_from, no_estop, estop_sources, accept_reduced_safety, gui, out, as_json, live,
+           live_host, live_port, video, perturb_seed, balance, **hardware) -> None:
     """Drive the robot's hands from an operator's FASTRAK stream.
 
     Exactly one of --replay FILE or --port DEV. The first sample of each station calibrates it:
@@ -196,10 +197,10 @@ def teleop(replay, port, reconnect_timeout, baud, driver, armed, mode, speed, sc
                          hint="e.g. hubo teleop --replay trajectories/drill-rectangle.fastrak")
     explicit = click.get_current_context().get_parameter_source("speed")
     if speed == "max" and explicit is click.core.ParameterSource.COMMANDLINE and (
-            port is not None or gui or driver_class(driver).real_time):
+            port is not None or gui or live or driver_class(driver).real_time):
         raise InputError("--speed max is for replays on the sim or ideal drivers",
-                         hint="live input, the hardware driver and --gui run in real time; "
-                              "leave --speed out")
+                         hint="live input, the hardware driver, --gui and --live run in real "
+                              "time; leave --speed out")
     check_seconds("--duration", duration)
     check_seconds("--reconnect-timeout", reconnect_timeout, 3600)
     for t in clutch_at:
@@ -240,8 +241,9 @@ def teleop(replay, port, reconnect_timeout, baud, driver, armed, mode, speed, sc
         _check_replay_stations(replay, settings)
     if wall_distance is not None:
         _check_wall_reach(settings)
-    with reserved_run_dir("teleop", out) as run_dir:
-        settings.out = run_dir
+    with (reserved_run_dir("teleop", out) as run_dir,
+          live_server(live, live_host, live_port, quiet=as_json) as server):
+        settings.out, settings.live = run_dir, server
         run = _run(settings, as_json)
     _report(run, as_json, video)
 

@@ -9,6 +9,7 @@ import click
 from hubo_cli.cli.options import (
     active_stops,
     balance_option_with,
+    live_server,
     perturb_option,
     robot_run_options,
 )
@@ -28,7 +29,8 @@ from hubo_cli.cli.output import console, exit_if_interrupted, print_json
                             "assumes both feet down).")
 def walk(goal: tuple[float, float, float], corrections: int, no_estop: bool,
          estop_sources: str | None, accept_reduced_safety: bool, gui: bool,
-         as_json: bool, out: str | None, perturb_seed: int | None, balance: str) -> None:
+         as_json: bool, out: str | None, live: bool, live_host: str | None,
+         live_port: int | None, perturb_seed: int | None, balance: str) -> None:
     """Walk the simulated HUBO 2+ to a goal stance (ZMP preview control, footsteps, leg IK).
 
     The robot starts standing in its walking posture (feet 0.26 m apart, 5 cm crouched) and
@@ -49,11 +51,12 @@ def walk(goal: tuple[float, float, float], corrections: int, no_estop: bool,
     stops = active_stops(SOFT_SOURCES, "sim", no_estop=no_estop, estop_sources=estop_sources,
                          accept_reduced_safety=accept_reduced_safety, quiet=as_json)
     with (reserved_run_dir("walk", out) as run_dir,  # a bad --out fails before anything runs
+          live_server(live, live_host, live_port, quiet=as_json) as server,
           operator_keys() as keys):
         announce_keys(keys, quiet=as_json)
         result = walk_to(load_model(), goal, gui=gui, out=run_dir, stops=stops,
                          perturb_seed=perturb_seed, corrections=corrections,
-                         balance=balance, operator=keys)
+                         balance=balance, operator=keys, live=server)
     fields = result.summary() | {"ended": result.ended, "estop_events": result.estop_events,
                                  "run_dir": str(result.run_dir)}
     if as_json:

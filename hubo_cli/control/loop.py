@@ -10,7 +10,8 @@ Each period of ``dt`` (the model's 5 ms):
    this period) and numbers for the log's extra columns (declared in ``target.log_columns``);
 2. run the ordered modules on the command (a module that requests an emergency stop through
    ``cycle.estop_requests`` must come before the stopper that should see it in that period);
-3. send the result to the driver, step it, and write one log row with the period's status.
+3. send the result to the driver, step it, and write one log row with the period's status;
+   an ``observer`` (:class:`PeriodObserver`, e.g. the live view) is shown the period too.
 
 Pacing uses absolute deadlines (``next += period``), so it does not drift: ``speed=None`` runs as
 fast as possible, ``1.0`` in real time, ``x`` at x times real time. A period more than
@@ -33,6 +34,7 @@ from collections import Counter
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 
@@ -49,6 +51,17 @@ from hubo_cli.motion.tracker import JointTracker
 from hubo_cli.state import RobotState
 
 TargetSource = Target | Callable[[float, RobotState], TargetOutput]
+
+
+class PeriodObserver(Protocol):
+    """Shown every period the loop logs (the smooth stop's included), after the log row is
+    written, in the loop's thread: it must be quick (copy what it needs and return) and is
+    dropped for the rest of the run if it raises."""
+
+    def period(self, t_s: float, status: Status, flags: set[str], state: RobotState,
+               extras: dict | None) -> None:
+        """``t_s``: loop time (s); ``status``, ``flags``: the period's; ``state``: the robot's
+        after the step; ``extras``: the log's extra columns (None in the smooth stop)."""
 
 LABELS = {status: status.label for status in Status}  # a property's work done once
 ENDINGS = ("finished", "done", "interrupted", "module-error", "target-error", "driver-error",
@@ -138,19 +151,24 @@ class ControlLoop:
         max_lag_periods: lateness (in periods) that re-anchors the schedule.
         operator: the operator's keys (:class:`~hubo_cli.control.operator.OperatorKeys`):
             what was pressed is taken each period and merged into the target's ``info``.
+        observer: shown every period (:class:`PeriodObserver`); ``observer_error`` says why
+            it was dropped, if it was.
     """
 
     def __init__(self, driver: Driver, modules: list[Module], target: TargetSource, *,
                  speed: float | None = None, log_path: str | Path | None = None,
                  clock: Callable[[], float] = time.perf_counter,
                  sleep: Callable[[float], None] = time.sleep,
-                 max_lag_periods: int = 20, operator: OperatorKeys | None = None) -> None:
+                 max_lag_periods: int = 20, operator: OperatorKeys | None = None,
+                 observer: PeriodObserver | None = None) -> None:
         if speed is not None and speed <= 0:
             raise ValueError("speed must be positive or None")
         self.driver = driver
         self.modules = list(modules)
         self.target = as_target(target)
         self.operator = operator
+        self.observer = observer
+        self.observer_error = ""
         self.speed = speed
         self.dt_s = driver.period_s
         for m in self.modules:
@@ -220,6 +238,11 @@ class ControlLoop:
         if self.log is not None:
             self.log.write(self.period, t_s, status, compute_s * 1e6, late_s * 1e6, flags,
                            target, cmd, state.q_rad, extras, state=state)
+        if self.observer is not None:
+            try:
+                self.observer.period(t_s, status, flags, state, extras)
+            except Exception as err:  # noqa: BLE001 (a viewer never stops the robot)
+                self.observer, self.observer_error = None, f"{type(err).__name__}: {err}"
 
     # ------------------------------------------------------------------ run
     def run(self, duration_s: float | None = None) -> LoopResult:

@@ -40,7 +40,7 @@ from hubo_cli.geometry import min_jerk, tilt_rad_of_matrix, tilt_rad_of_quat_wxy
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.posture import home_posture
-from hubo_cli.session import RunResult, RunSetup, run
+from hubo_cli.session import RunObserver, RunResult, RunSetup, run
 
 DIRECTIONS = ("forward", "left")
 TIP_LIFT_M = 0.02      # a sole corner this far above its start height: the robot tipped
@@ -284,7 +284,7 @@ def push_wall_setup(model: RobotModel, direction: str = "forward", estop: bool =
 def run_push_wall(model: RobotModel, direction: str = "forward", estop: bool = True,
                   out: str | Path | None = None, gui: bool = False, end_s: float | None = None,
                   interpolator: str = "otg", perturb_seed: int | None = None,
-                  balance: str = "default") -> RunResult:
+                  balance: str = "default", live: RunObserver | None = None) -> RunResult:
     """Run the experiment on the simulated robot and write its run folder.
 
     Args:
@@ -297,10 +297,11 @@ def run_push_wall(model: RobotModel, direction: str = "forward", estop: bool = T
         interpolator: the first module, ``otg`` (ruckig) or ``hoff-arbib`` (eq. 1).
         perturb_seed: a perturbed simulated robot and world (:mod:`hubo_cli.perturb`).
         balance: the balancer, ``default``, ``paper`` or ``off`` (``--balance``).
+        live: the live viewer's publisher (``--live``), if any.
     """
     setup, spec = push_wall_setup(model, direction, estop, out, gui, end_s, interpolator,
                                   balance)
-    setup = replace(setup, perturb_seed=perturb_seed)
+    setup = replace(setup, perturb_seed=perturb_seed, live=live)
     targets = PushTargets(model, spec, setup.q_start_rad)
     done = run(setup, targets)
     summary = _summary(spec, estop, targets, done.loop, done.log, targets.obstacle)

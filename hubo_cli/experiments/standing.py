@@ -22,7 +22,7 @@ from hubo_cli.falls import has_fallen
 from hubo_cli.geometry import tilt_rad_of_matrix
 from hubo_cli.model import RobotModel
 from hubo_cli.posture import home_posture
-from hubo_cli.session import RunResult, RunSetup, run
+from hubo_cli.session import RunObserver, RunResult, RunSetup, run
 
 FLAT_TOLERANCE_DEG = 1.0  # a sole tilted more than this (or without contact) is not flat
 # ``hubo sim --push-direction``: the push's world direction by name (x forward, y left)
@@ -177,7 +177,8 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
           push_direction=(1.0, 0.0, 0.0), gui: bool = False, out: str | Path | None = None,
           stops: ActiveStops | None = None, perturb_seed: int | None = None,
           balance_mode: str = "default", step: bool = False,
-          hip_strategy: bool = True, operator: OperatorKeys | None = None) -> StandingResult:
+          hip_strategy: bool = True, operator: OperatorKeys | None = None,
+          live: RunObserver | None = None) -> StandingResult:
     """Stand the simulated robot for ``duration_s`` and measure how it copes.
 
     With the default balancer the robot stands in :func:`standing_posture` (the home posture
@@ -210,6 +211,7 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
             the default balancer (the paper's mode and no balancer stand on Table IV's limits,
             as published), and not with ``step``, which answers such a push by stepping.
         operator: the operator's keys (space stop, r release, q finish), if any.
+        live: the live viewer's publisher (``--live``), if any.
     """
     check_standing_args(duration_s, push_n)
     direction = np.asarray(push_direction, dtype=float)
@@ -235,7 +237,7 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
                      safety=SafetyProfile(balance=balance, balance_mode=balance_mode,
                                           hip_strategy=hip).with_stops(stops),
                      duration_s=n_periods * model.control_period_s, q_start_rad=q_home,
-                     perturb_seed=perturb_seed, operator=operator)
+                     perturb_seed=perturb_seed, operator=operator, live=live)
     done = run(setup, stepper)
     result = _result(target, done, duration_s, push_n, balance, model.control_period_s)
     result.push_direction = tuple(float(v) for v in direction)

@@ -13,7 +13,7 @@ from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.stop_choice import ActiveStops
 from hubo_cli.errors import InputError
 from hubo_cli.model import RobotModel
-from hubo_cli.session import RunSetup, run
+from hubo_cli.session import RunObserver, RunSetup, run
 from hubo_cli.walking.body import walking_posture
 from hubo_cli.walking.params import WalkingParams, walking_params
 from hubo_cli.walking.stabilizer import StabilizerGains
@@ -84,6 +84,7 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
          out: str | Path | None = None, stops: ActiveStops | None = None,
          perturb_seed: int | None = None, corrections: int = 1,
          balance: str = "off", operator: OperatorKeys | None = None,
+         live: RunObserver | None = None,
          stabilizer: StabilizerGains | None = DEFAULT_GAINS) -> WalkResult:
     """Walk the simulated robot to ``goal`` = (forward m, left m, turn rad) from its stance.
 
@@ -100,6 +101,7 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
             reference assumes both feet down and the CoM over them, which walking breaks: off
             by default).
         operator: the operator's keys (space stop, r release, q finish), if any.
+        live: the live viewer's publisher (``--live``), if any.
         stabilizer: the walking stabilizer's gains (:mod:`hubo_cli.walking.stabilizer`);
             None walks the pattern open loop.
     """
@@ -115,7 +117,8 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
                         stabilizer=stabilizer)
     setup = RunSetup(command="walk", model=walking_model, driver="sim", gui=gui, out=out,
                      safety=SafetyProfile().with_stops(stops).with_balance(balance),
-                     q_start_rad=q_start, perturb_seed=perturb_seed, operator=operator)
+                     q_start_rad=q_start, perturb_seed=perturb_seed, operator=operator,
+                     live=live)
     done = run(setup, target)
     error_m, error_rad = target.final_error()
     distance = math.hypot(goal[0], goal[1])

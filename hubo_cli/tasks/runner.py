@@ -24,7 +24,7 @@ from hubo_cli.control.stop_choice import ActiveStops
 from hubo_cli.errors import InputError, SafetyError
 from hubo_cli.model import RobotModel, load_model
 from hubo_cli.posture import home_posture
-from hubo_cli.session import RunResult, RunSetup, run, settled_objects
+from hubo_cli.session import RunObserver, RunResult, RunSetup, run, settled_objects
 from hubo_cli.tasks.plan import EDGE_NAMES, Plan, make_plan
 from hubo_cli.tasks.spec import TaskSpec, format_override
 from hubo_cli.tasks.target import SETTLE_TIMEOUT_S, TaskTarget
@@ -56,7 +56,8 @@ def check_task(spec: TaskSpec, model: RobotModel | None = None) -> Plan:
 def task_setup(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
                gui: bool = False, stops: ActiveStops | None = None,
                driver_options: dict | None = None, perturb_seed: int | None = None,
-               balance: str = "default", operator: OperatorKeys | None = None) -> RunSetup:
+               balance: str = "default", operator: OperatorKeys | None = None,
+               live: RunObserver | None = None) -> RunSetup:
     """The run set-up of a checked plan: the plan's own model and tool, the task's safety
     settings with the stop sources ``stops`` keeps (None: the task's;
     :func:`~hubo_cli.control.stop_choice.decide_stops` decides them) and the balancer
@@ -75,13 +76,14 @@ def task_setup(plan: Plan, *, driver: str = "sim", out: str | Path | None = None
         gui=gui, out=out, q_start_rad=home_posture(plan.body.model),
         duration_s=plan.duration_s + 3 * SETTLE_TIMEOUT_S + 10.0,
         cutting=asdict(spec.scene.cutting),
-        perturb_seed=perturb_seed, operator=operator)
+        perturb_seed=perturb_seed, operator=operator, live=live)
 
 
 def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
              gui: bool = False, stops: ActiveStops | None = None,
              driver_options: dict | None = None, on_start=None, perturb_seed: int | None = None,
-             balance: str = "default", operator: OperatorKeys | None = None) -> TaskRun:
+             balance: str = "default", operator: OperatorKeys | None = None,
+             live: RunObserver | None = None) -> TaskRun:
     """Run a checked plan and write its run folder.
 
     Args:
@@ -97,6 +99,7 @@ def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
         perturb_seed: a perturbed simulated robot and world (:mod:`hubo_cli.perturb`).
         balance: the balancer, ``default``, ``paper`` or ``off`` (``--balance``).
         operator: the operator's keys (space stop, r release, q finish), if any.
+        live: the live viewer's publisher (``--live``), if any.
 
     Raises:
         SafetyError: the plan did not pass pre-flight (nothing moves).
@@ -107,7 +110,7 @@ def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
     with settled_objects():
         setup = task_setup(plan, driver=driver, out=out, gui=gui, stops=stops,
                            driver_options=driver_options, perturb_seed=perturb_seed,
-                           balance=balance, operator=operator)
+                           balance=balance, operator=operator, live=live)
         return _run_task(plan, setup, on_start, balance)
 
 
@@ -303,17 +306,17 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
 
 def run_experiment(spec: TaskSpec, *, out: str | Path | None = None, gui: bool = False,
                    estop: bool = True, perturb_seed: int | None = None,
-                   balance: str = "default") -> TaskRun:
+                   balance: str = "default", live: RunObserver | None = None) -> TaskRun:
     """Run an experiment task (its built-in procedure with the file's parameters);
     ``estop`` is the command line's (``--no-estop``: a file cannot turn the stopper off, see
     :mod:`hubo_cli.tasks.spec`); ``perturb_seed`` perturbs the robot; ``balance`` names the
-    balancer (``--balance``)."""
+    balancer (``--balance``); ``live`` the live viewer's publisher (``--live``)."""
     from hubo_cli.experiments.push_wall import run_push_wall
 
     params = spec.parameters
     result = run_push_wall(load_model(), direction=str(params.get("direction", "forward")),
                            estop=estop, out=out, gui=gui,
                            interpolator=str(params.get("interpolator", "otg")),
-                           perturb_seed=perturb_seed, balance=balance)
+                           perturb_seed=perturb_seed, balance=balance, live=live)
     summary = result.save_summary({"task": spec.name, "parameters": params})
     return TaskRun(result.run_dir, summary, result.loop)

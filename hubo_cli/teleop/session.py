@@ -21,7 +21,7 @@ from hubo_cli.model import RobotModel, load_model
 from hubo_cli.plots.paths import plot_path_comparison
 from hubo_cli.posture import home_posture
 from hubo_cli.scene import WallPlacement, WallSize
-from hubo_cli.session import RunResult, RunSetup, run
+from hubo_cli.session import RunObserver, RunResult, RunSetup, run
 from hubo_cli.teleop.mapping import HandMapper, MappingConfig
 from hubo_cli.teleop.target import TeleopTarget
 from hubo_cli.urdf import DRILL_FRAME, tool_frame
@@ -63,6 +63,7 @@ class TeleopSettings:
         stops: the stop sources the run keeps (None: every soft source; see
             :mod:`hubo_cli.control.stop_choice`).
         operator: the operator's keys (space stop, r release, q finish), if any.
+        live: the live viewer's publisher (``--live``), if any.
         reconnect_timeout_s: live: a lost tracker ends the run after this long without
             reconnecting (``--reconnect-timeout``).
         perturb_seed: a perturbed simulated robot and world (:mod:`hubo_cli.perturb`).
@@ -87,6 +88,7 @@ class TeleopSettings:
     reconnect_timeout_s: float = 10.0
     stops: ActiveStops | None = None
     operator: OperatorKeys | None = None
+    live: RunObserver | None = None
     driver_options: dict = field(default_factory=dict)
     perturb_seed: int | None = None
     reach: ReachSettings | None = None
@@ -178,7 +180,7 @@ def teleop_setup(settings: TeleopSettings, body: WholeBody, duration_s: float | 
                              ).with_stops(settings.stops).with_balance(settings.balance),
         speed=settings.speed, live_input=settings.port is not None, gui=settings.gui,
         out=settings.out, duration_s=duration_s, q_start_rad=home_posture(body.model),
-        perturb_seed=settings.perturb_seed, operator=settings.operator)
+        perturb_seed=settings.perturb_seed, operator=settings.operator, live=settings.live)
 
 
 def run_teleop(settings: TeleopSettings, on_ready=None) -> TeleopRun:

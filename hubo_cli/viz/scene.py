@@ -124,21 +124,9 @@ class RunScene:
         return self.start_utc_ns + np.round(self.t_s * 1e9).astype(np.int64)
 
     def hole_on_face_world_m(self) -> np.ndarray:
-        """The hole's points moved onto the face of their wall on the robot's side (plus
-        :data:`HOLE_FACE_OFFSET_M`), where a viewer sees them; the points as cut lie inside the
-        wall. A point in no wall stays where it is."""
-        points = self.hole_world_m.copy()
-        robot = self.T_world_torso[0, :3, 3]
-        for wall in self.walls:
-            centre, size = np.asarray(wall["centre_world_m"]), np.asarray(wall["size_m"])
-            R = quat_wxyz_to_matrix(wall["quat_wxyz"])
-            local = (points - centre) @ R  # rows: R.T @ (p - c)
-            inside = np.all(np.abs(local) <= size / 2 + 0.005, axis=1)
-            thin = int(np.argmin(size))
-            side = np.sign(((robot - centre) @ R)[thin]) if np.all(np.isfinite(robot)) else -1
-            local[inside, thin] = (side or -1) * (size[thin] / 2 + HOLE_FACE_OFFSET_M)
-            points[inside] = centre + local[inside] @ R.T
-        return points
+        """The hole's points on the face of their wall on the robot's side
+        (:func:`hole_on_face`)."""
+        return hole_on_face(self.hole_world_m, self.walls, self.T_world_torso[0, :3, 3])
 
     def caption(self, k: int) -> str:
         """One line describing period ``k``: time, step, error, wrist torque, status."""
@@ -160,27 +148,71 @@ class RunScene:
         return "   ".join(parts)
 
 
+def hole_on_face(hole_world_m: np.ndarray, walls: list[dict],
+                 robot_world_m: np.ndarray) -> np.ndarray:
+    """The hole's points moved onto the face of their wall on the robot's side (at
+    ``robot_world_m``), plus :data:`HOLE_FACE_OFFSET_M`, where a viewer sees them; the points as
+    cut lie inside the wall. A point in no wall stays where it is."""
+    points = np.array(hole_world_m, dtype=float).reshape(-1, 3)
+    for wall in walls:
+        centre, size = np.asarray(wall["centre_world_m"]), np.asarray(wall["size_m"])
+        R = quat_wxyz_to_matrix(wall["quat_wxyz"])
+        local = (points - centre) @ R  # rows: R.T @ (p - c)
+        inside = np.all(np.abs(local) <= size / 2 + 0.005, axis=1)
+        thin = int(np.argmin(size))
+        side = (np.sign(((robot_world_m - centre) @ R)[thin])
+                if np.all(np.isfinite(robot_world_m)) else -1)
+        local[inside, thin] = (side or -1) * (size[thin] / 2 + HOLE_FACE_OFFSET_M)
+        points[inside] = centre + local[inside] @ R.T
+    return points
+
+
+def series_values(column, working_arm: str, T_world_torso: np.ndarray) -> dict:
+    """The scalar series (:data:`SERIES`) by name from a run's columns, for every period of a
+    log or one live period: ``column(name)`` gives a log column's values (an array or a number)
+    or None; ``T_world_torso``: the torso poses (... x 4 x 4). A series without its column is
+    left out; see :func:`time_series`."""
+    def first(*names):
+        return next((v for v in map(column, names) if v is not None), None)
+
+    suffix = ARM_SUFFIX[working_arm]
+    out = {}
+    error = first("error_m", f"error_m{suffix}")
+    if error is not None:
+        out["error_mm"] = error * 1000
+    torque = first("task_wrist_torque_nm", "wrist_torque_nm")
+    if torque is not None:
+        out["wrist_torque_nm"] = torque
+    outside = first("cp_outside_m")
+    if outside is not None:
+        out["cp_margin_mm"] = -outside * 1000
+    T = T_world_torso
+    out["torso_pitch_deg"] = np.degrees(np.arctan2(-T[..., 2, 0],
+                                                   np.hypot(T[..., 0, 0], T[..., 1, 0])))
+    out["status_code"] = first("status_code")
+    return out
+
+
 def time_series(scene: RunScene) -> dict[str, np.ndarray]:
     """The run's scalar time series by name (NaN where not logged): ``error_mm`` (tracking
     error of the tool), ``wrist_torque_nm``, ``cp_margin_mm`` (the capture point inside its
     support polygon shrunk by the monitor's margin; negative = outside), ``torso_pitch_deg``
     and ``status_code`` (:data:`SERIES`); a series the log lacks is left out."""
     log = scene.log
-    suffix = ARM_SUFFIX[scene.working_arm]
-    out: dict[str, np.ndarray] = {}
-    error = first_column(log, ("error_m", f"error_m{suffix}"))
-    if error is not None:
-        out["error_mm"] = error * 1000
-    torque = first_column(log, ("task_wrist_torque_nm", "wrist_torque_nm"))
-    if torque is not None:
-        out["wrist_torque_nm"] = torque
-    outside = first_column(log, ("cp_outside_m",))
-    if outside is not None:
-        out["cp_margin_mm"] = -outside * 1000
-    T = scene.T_world_torso
-    out["torso_pitch_deg"] = np.degrees(np.arctan2(-T[:, 2, 0], np.hypot(T[:, 0, 0], T[:, 1, 0])))
-    out["status_code"] = log["status_code"]
-    return out
+    return series_values(lambda name: log[name] if name in log.columns else None,
+                         scene.working_arm, scene.T_world_torso)
+
+
+def estop_event(latched: bool) -> tuple[str, str]:
+    """(level, text) of the e-stop latching or releasing."""
+    return ("warning", "e-stop latched") if latched else ("info", "e-stop released")
+
+
+def status_event(code: int, labels: dict[int, str]) -> tuple[str, str]:
+    """(level, text) of a change to status ``code`` (``warning`` outside
+    :data:`QUIET_STATUSES`)."""
+    return ("info" if code in QUIET_STATUSES else "warning",
+            f"status: {labels.get(code, f'code {code}')}")
 
 
 def events(scene: RunScene) -> list[tuple[int, str, str]]:
@@ -190,13 +222,10 @@ def events(scene: RunScene) -> list[tuple[int, str, str]]:
     out = []
     estopped = np.array(["estop" in f for f in scene.log.flags], dtype=bool)
     for k in np.flatnonzero(np.diff(estopped.astype(np.int8), prepend=0)).tolist():
-        out.append((k, "warning", "e-stop latched") if estopped[k]
-                   else (k, "info", "e-stop released"))
+        out.append((k, *estop_event(bool(estopped[k]))))
     status, labels = scene.log.status, status_codes()
     for k in np.flatnonzero(np.r_[True, status[1:] != status[:-1]]).tolist():
-        code = int(status[k])
-        out.append((k, "info" if code in QUIET_STATUSES else "warning",
-                    f"status: {labels.get(code, f'code {code}')}"))
+        out.append((k, *status_event(int(status[k]), labels)))
     return sorted(out, key=lambda e: e[0])
 
 
@@ -300,14 +329,34 @@ def _wall_ok(wall) -> bool:
                      and np.linalg.norm(quat) > 1e-9))
 
 
-def _working_arm(log: LogData, tools: dict[str, str]) -> str:
+def working_arm(tools: dict[str, str], columns) -> str:
+    """The arm whose tool a replay follows: the drill's, else the first whose goals are
+    logged (``columns``: the log's column names), else the right."""
     for arm in ARMS:
         if tools.get(arm) == "drill":
             return arm
     for arm in ARMS:
-        if _columns(log, "goal", ARM_SUFFIX[arm]) is not None:
+        if all(f"goal_{axis}_m{ARM_SUFFIX[arm]}" in columns for axis in "xyz"):
             return arm
     return "right-arm"
+
+
+def hand_to_tool(model: RobotModel, tool: str) -> np.ndarray:
+    """T_hand_tool: the tool's point seen from the hand frame (4x4, m)."""
+    return np.linalg.inv(model.tool_transform("hand")) @ model.tool_transform(tool)
+
+
+def leg_limbs(model: RobotModel) -> list[tuple[Limb, slice]]:
+    """The legs' kinematics and joint slices, for :func:`torso_on_floor`."""
+    return [(Limb(model, leg), model.limb_slice(leg)) for leg in LEGS]
+
+
+def torso_on_floor(legs: list[tuple[Limb, slice]], R_world_torso: np.ndarray,
+                   q_rad: np.ndarray) -> np.ndarray:
+    """The torso's world position (m) when its lower sole stands on the floor under it, with
+    the torso's orientation ``R_world_torso`` and the joint positions ``q_rad``."""
+    soles_z = [(R_world_torso @ limb.fk(q_rad[index])[:3, 3])[2] for limb, index in legs]
+    return np.array([0.0, 0.0, -min(soles_z)])
 
 
 def _estimate_torso(model: RobotModel, log: LogData, T: np.ndarray) -> np.ndarray:
@@ -316,18 +365,17 @@ def _estimate_torso(model: RobotModel, log: LogData, T: np.ndarray) -> np.ndarra
     if not unknown.any():
         return unknown
     q = log.joints("q")
-    legs = [(Limb(model, leg), model.limb_slice(leg)) for leg in LEGS]
+    legs = leg_limbs(model)
     for k in np.flatnonzero(unknown):
         R = T[k, :3, :3] if np.all(np.isfinite(T[k, :3, :3])) else np.eye(3)
-        soles_z = [(R @ limb.fk(q[k, index])[:3, 3])[2] for limb, index in legs]
         T[k, :3, :3] = R
-        T[k, :3, 3] = [0.0, 0.0, -min(soles_z)]
+        T[k, :3, 3] = torso_on_floor(legs, R, q[k])
     return unknown
 
 
 def _tool_world(model: RobotModel, log: LogData, T_world_torso: np.ndarray, arm: str,
                 tool: str) -> np.ndarray:
-    T_hand_tool = np.linalg.inv(model.tool_transform("hand")) @ model.tool_transform(tool)
+    T_hand_tool = hand_to_tool(model, tool)
     frame = HAND_FRAME[arm]
     if log.has_pose(frame):
         T_world_hand = log.poses(frame)
@@ -389,7 +437,7 @@ def load_scene(run: str | Path, model: RobotModel | None = None) -> RunScene:
     estimated = _estimate_torso(model, log, T)
     scene_meta = _checked_scene(log, run_dir)
     tools = _tools(scene_meta)
-    arm = _working_arm(log, tools)
+    arm = working_arm(tools, log.columns)
     tool_world = _tool_world(model, log, T, arm, tools[arm])
     hole = np.asarray(scene_meta.get("hole_world_m", []), dtype=float).reshape(-1, 3)
     log_file = next(f for f in (run_dir / "log.parquet", run_dir / "log.csv", path)
