@@ -115,6 +115,11 @@ def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
 
 
 def _run_task(plan: Plan, setup: RunSetup, on_start, balance: str) -> TaskRun:
+    # the plots' modules (matplotlib, ~0.3 s) are loaded before the robot moves rather than
+    # after it stopped: a run that ends on device trouble reports and exits that much sooner
+    import hubo_cli.plots.paths  # noqa: F401
+    import hubo_cli.plots.task  # noqa: F401
+
     driver = setup.driver
     target = TaskTarget(plan, resumable=setup.operator is not None)
     start = plan.spec.stance.start_m
