@@ -22,7 +22,12 @@ from hubo_cli.drivers.ach import (
     libach_status,
     load_libach,
 )
-from hubo_cli.drivers.hardware import HardwareDriver, hubo_ach_vector
+from hubo_cli.drivers.hardware import (
+    STALE_AFTER_S,
+    STALE_GRACE_S,
+    HardwareDriver,
+    hubo_ach_vector,
+)
 from hubo_cli.drivers.hubo_ach import REF_SIZE, STATE_SIZE, HuboRef, encode_ref
 from hubo_cli.drivers.hubo_ach_daemon import FakeHuboDaemon
 from hubo_cli.model import load_model
@@ -218,7 +223,7 @@ def test_stale_state_on_the_channels_brakes_holds_and_ends_even_if_it_comes_back
     # 0.1 s by the wall clock after the last state read (the one in flight when the daemon
     # stopped is read a period later); generous upper bounds for a loaded machine
     assert 0.1 - 2 * MODEL.control_period_s <= stale_after < 0.5
-    assert 1.1 - 2 * MODEL.control_period_s <= ended < 2.5
+    assert STALE_AFTER_S + STALE_GRACE_S - 2 * MODEL.control_period_s <= ended < 2.5
     assert any("stale-hold" in f for f in flags)
     speed = np.abs(np.diff(refs))
     onset = next(i for i, f in enumerate(flags) if "stale-state" in f)

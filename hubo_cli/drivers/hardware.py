@@ -28,10 +28,11 @@ Start-up and safety, enforced here whatever the layers above do:
   ``velocity_margin``) is refused whole: servo-off latches (the last reference is held, flag
   ``servo-off``) until :meth:`reset_servo`;
 - no fresh state (a new ``hubo-state`` frame whose ``time`` advances) for ``stale_after_s``
-  (0.1 s, wall clock): the pipeline's commands are ignored from then on, the reference brakes
-  to rest within the joints' limits and holds (flag ``stale-state``; ``stale-hold`` once the
-  state comes again, which never resumes the motion), and ``stale_grace_s`` (1 s) later, or
-  at the brake's rest if later, :meth:`step` raises
+  (:data:`STALE_AFTER_S`, 0.1 s, wall clock): the pipeline's commands are ignored from then
+  on, the reference brakes to rest within the joints' limits and holds (flag ``stale-state``;
+  ``stale-hold`` once the state comes again, which never resumes the motion), and
+  ``stale_grace_s`` (:data:`STALE_GRACE_S`, 0.8 s) later, or at the brake's rest if later,
+  :meth:`step` raises
   :class:`~hubo_cli.drivers.stale_state.StateLost` (exit 3), which ends the run (see
   :mod:`hubo_cli.drivers.stale_state`);
 - any exception inside ends in a hold (the last reference keeps being sent, flag ``fault``,
@@ -74,6 +75,12 @@ from hubo_cli.posture import home_posture
 from hubo_cli.state import FT_SENSORS, RobotState
 
 SINKS = ("ach", "file", "fifo")
+STALE_AFTER_S = 0.1  # no fresh state this long (wall clock): brake and hold
+# ... and this long after the brake began the run ends (exit 3): the robot is braked and never
+# resumes by itself, so the grace is only how long a glitch may last before the run is given
+# up; 0.8 s leaves the run's own end (log, summary, plots) room within the 1.5 s that a dead
+# robot's run may take to exit after the state stopped
+STALE_GRACE_S = 0.8
 MODE_FILTERED, MODE_DIRECT = hubo_ach.MODE_REF_FILTER, hubo_ach.MODE_REF
 SINK_FILE_NAME = "hubo-ref.bin"
 
@@ -127,8 +134,8 @@ class HardwareDriver(Driver):
     def __init__(self, model: RobotModel, armed: bool = False, sink: str = "ach",
                  sink_path: str | Path | None = None, ach_ref: str = hubo_ach.CHAN_REF,
                  ach_state: str = hubo_ach.CHAN_STATE, ref_mode: int = MODE_FILTERED,
-                 velocity_margin: float = 1.02, stale_after_s: float = 0.1,
-                 stale_grace_s: float = 1.0, state_wait_s: float | None = None,
+                 velocity_margin: float = 1.02, stale_after_s: float = STALE_AFTER_S,
+                 stale_grace_s: float = STALE_GRACE_S, state_wait_s: float | None = None,
                  start_timeout_s: float = 1.0, start_tolerance_rad: float = 0.02,
                  clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__(model)

@@ -5,7 +5,7 @@ an ``achd`` link lost). :class:`StaleStateBrake` judges the state's freshness by
 (periods stretch while the driver waits for a state that does not come). After ``after_s``
 (0.1 s) without a fresh state it takes over the reference from the pipeline: a jerk-limited
 velocity-interface brake (the control loop's smooth stop, :class:`JointTracker`) from the
-reference's own velocity and acceleration to rest, then a hold. ``grace_s`` (1 s) after the
+reference's own velocity and acceleration to rest, then a hold. ``grace_s`` (0.8 s) after the
 brake began, or when it reaches rest if that is later, the run ends with :class:`StateLost`
 (exit 3). A state that comes back within the grace is reported but never resumes the motion:
 the plan went on while the robot was held, so carrying on needs the operator, and a new run
