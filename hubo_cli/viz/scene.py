@@ -33,8 +33,7 @@ from hubo_cli.model import ARMS, LEGS, RobotModel, load_model
 ARM_SUFFIX = {"right-arm": "_r", "left-arm": "_l"}
 # the run's scalar series (time_series), in the order exports show them
 SERIES = ("error_mm", "wrist_torque_nm", "cp_margin_mm", "torso_pitch_deg", "status_code")
-# statuses whose start is an ``info`` event, not a ``warning``: the pipeline at work (a joint
-# held at its limit is most of a nominal cut: the hip yaw and roll at their zero limits)
+# statuses whose start is an ``info`` event, not a ``warning``: the pipeline at work
 QUIET_STATUSES = frozenset({Status.OK, Status.SLOWING, Status.HOLDING, Status.JOINT_LIMIT})
 HOLE_FACE_OFFSET_M = 0.001  # the hole drawn this far in front of the wall's face
 START_FROM_LOG = "log"  # RunScene.start_source when the log says when the run started
@@ -156,7 +155,7 @@ class RunScene:
             parts.append(f"wrist {torque[k]:4.2f} N m")
         lean = np.degrees(np.arctan2(-self.T_world_torso[k, 2, 0], self.T_world_torso[k, 2, 2]))
         parts.append(f"lean {lean:+4.1f} deg")
-        parts.append(Status(int(log["status_code"][k])).label)
+        parts.append(f"status {Status(int(log['status_code'][k])).label}")
         return "   ".join(parts)
 
 

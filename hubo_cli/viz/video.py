@@ -3,7 +3,11 @@ and a caption, at 30 frames per second.
 
 Frame ``i`` shows the last logged period at or before run time ``t0 + i * speed / fps``; a span
 of T seconds of the run gives ``round(T * fps / speed)`` frames. The goal path (green) is drawn
-whole, the measured path (red) and the hole (dark) up to the frame's time; a ring marks the tool.
+whole, the measured path (red) and the hole (dark) up to the frame's time, both only while
+cutting where the log says so (elsewhere the bit leaves a short light-red trail); a ring marks
+the tool. A caption bar on top gives the time, step, error, wrist torque, lean and status, a
+legend bar below says what the colours mean, and the camera frames the whole robot and the
+hole (:func:`framing_camera`).
 """
 
 from __future__ import annotations
@@ -15,13 +19,26 @@ from pathlib import Path
 import numpy as np
 
 from hubo_cli.errors import InputError
-from hubo_cli.viz.camera import DEFAULT_PRESET, Camera, camera_for
+from hubo_cli.viz.camera import DEFAULT_PRESET, Camera, fit_camera
 from hubo_cli.viz.deps import require
+from hubo_cli.viz.legend import (
+    RING_RGB,
+    Entry,
+    bar_height_px,
+    draw_legend,
+    draw_ring,
+    font,
+    mark_hole,
+    rgb255,
+)
 from hubo_cli.viz.replay import ACTUAL_RGB, GOAL_RGB, HOLE_RGB, KinematicReplay
-from hubo_cli.viz.scene import RunScene
+from hubo_cli.viz.scene import RunScene, first_column
 
 FPS = 30
 LONGEST_AT_REAL_TIME_S = 20.0  # longer runs are sped up to a video of this length by default
+TRAIL_S = 1.0  # outside the cut the bit leaves a trail this long (s), not a lasting path
+TRAIL_RGB = (240, 150, 140)
+FRAMING_SAMPLES = 12  # postures of the run whose links the camera frames
 
 
 def default_speed(scene: RunScene) -> float:
@@ -54,15 +71,47 @@ class VideoResult:
     renderer: str
 
 
-def _rgb255(rgb) -> tuple[int, int, int]:
-    return tuple(int(round(255 * c)) for c in rgb)
+def legend_entries(trail: bool) -> list[Entry]:
+    """What the overlay's colours and markers mean (the legend bar's entries)."""
+    entries = [Entry("line", rgb255(GOAL_RGB), "goal path"),
+               Entry("line", rgb255(ACTUAL_RGB), "bit measured"),
+               Entry("dot", rgb255(HOLE_RGB), "hole cut"),
+               Entry("ring", RING_RGB, "bit now")]
+    if trail:
+        entries.insert(2, Entry("line", TRAIL_RGB, f"bit, last {TRAIL_S:g} s"))
+    return entries
+
+
+def drawn_periods(scene: RunScene) -> np.ndarray:
+    """The periods whose goal and measured tool paths stay drawn: while cutting where the log
+    says (a task's ``cutting`` column), else all (N, bool). Elsewhere (the raise, the way back)
+    only a trail of the last :data:`TRAIL_S` seconds follows the bit."""
+    cutting = first_column(scene.log, ("cutting",))
+    if cutting is None or not np.any(cutting == 1):
+        return np.ones(len(scene), dtype=bool)
+    return cutting == 1
+
+
+def framing_camera(scene: RunScene, replay: KinematicReplay, preset: str, width: int,
+                   height: int) -> Camera:
+    """The preset's camera fitted to the robot's links over the run (sampled at
+    :data:`FRAMING_SAMPLES` periods) and the hole, clear of the caption and legend bars."""
+    periods = np.unique(np.linspace(0, len(scene) - 1, FRAMING_SAMPLES).round().astype(int))
+    lower, upper = replay.robot_bounds_m(periods)
+    hole = scene.hole_world_m
+    if len(hole):
+        lower, upper = np.minimum(lower, hole.min(axis=0)), np.maximum(upper, hole.max(axis=0))
+    bar = bar_height_px(height)
+    return fit_camera(preset, lower, upper, scene.working_arm, width, height, top_px=bar,
+                      bottom_px=bar)
 
 
 class Overlay:
-    """Paths, hole, tool marker and caption drawn over rendered frames (Pillow).
+    """Paths, hole, tool marker, caption and legend drawn over rendered frames (Pillow).
 
     The goal path is drawn once; the measured path and the hole are added to a kept layer as
-    time goes on (frames in time order cost only their new segments).
+    time goes on (frames in time order cost only their new segments). Both paths are kept only
+    where :func:`drawn_periods` says; elsewhere the bit leaves a short trail.
 
     Args:
         scene: the run.
@@ -70,8 +119,6 @@ class Overlay:
     """
 
     def __init__(self, scene: RunScene, camera: Camera) -> None:
-        from PIL import ImageFont
-
         self.scene = scene
         self.camera = camera
         self.tool_px = camera.project(scene.tool_world_m)
@@ -80,39 +127,35 @@ class Overlay:
         self.hole_t_s = np.asarray(hole_t, dtype=float)
         if self.hole_px is not None and len(self.hole_t_s) != len(self.hole_px):
             self.hole_t_s = np.full(len(self.hole_px), -np.inf)  # no times: draw it whole
-        size = max(11, camera.height // 34)
-        self.font = ImageFont.load_default(size=size)
-        self.bar_px = size + 10
+        self.kept = drawn_periods(scene)
+        self.entries = legend_entries(trail=not self.kept.all())
+        self.font = font(camera.height)
+        self.bar_px = bar_height_px(camera.height)
         self._reset()
+
+    def _kept_only(self, pixels: np.ndarray, start: int = 0) -> np.ndarray:
+        """``pixels`` (of periods start...) with those not kept made unknown (NaN)."""
+        return np.where(self.kept[start:start + len(pixels), None], pixels, np.nan)
 
     def _reset(self) -> None:
         from PIL import Image, ImageDraw
 
         self.layer = Image.new("RGBA", (self.camera.width, self.camera.height), (0, 0, 0, 0))
         self._draw = ImageDraw.Draw(self.layer)
-        self._polyline(self.camera.project(self.scene.goal_world_m), (*_rgb255(GOAL_RGB), 255), 2)
+        goal_px = self._kept_only(self.camera.project(self.scene.goal_world_m))
+        _polyline(self._draw, goal_px, (*rgb255(GOAL_RGB), 255), 2)
         self.k_drawn = 0
         self.t_drawn_s = -np.inf
-
-    def _polyline(self, pixels: np.ndarray, rgba, width: int) -> None:
-        finite = np.all(np.isfinite(pixels), axis=1)
-        # split at unknown points so that no line jumps across a gap
-        breaks = np.flatnonzero(np.diff(finite.astype(int)) != 0) + 1
-        for part, ok in zip(np.split(pixels, breaks), np.split(finite, breaks), strict=True):
-            if ok[0] and len(part) > 1:
-                self._draw.line([tuple(p) for p in part], fill=rgba, width=width)
 
     def _advance(self, k: int) -> None:
         if k < self.k_drawn:
             self._reset()
-        self._polyline(self.tool_px[self.k_drawn:k + 1], (*_rgb255(ACTUAL_RGB), 255), 2)
+        part = self._kept_only(self.tool_px[self.k_drawn:k + 1], self.k_drawn)
+        _polyline(self._draw, part, (*rgb255(ACTUAL_RGB), 255), 2)
         t_s = self.scene.t_s[k]
         if self.hole_px is not None:
             new = (self.hole_t_s > self.t_drawn_s) & (self.hole_t_s <= t_s + 1e-9)
-            for x, y in self.hole_px[new]:
-                if np.isfinite(x):
-                    self._draw.ellipse((x - 1.5, y - 1.5, x + 1.5, y + 1.5),
-                                       fill=(*_rgb255(HOLE_RGB), 255))
+            mark_hole(self._draw, self.hole_px[new], (*rgb255(HOLE_RGB), 255))
         self.k_drawn, self.t_drawn_s = k, t_s
 
     def draw(self, image: np.ndarray, k: int) -> np.ndarray:
@@ -123,12 +166,25 @@ class Overlay:
         picture = Image.fromarray(image)
         picture.paste(self.layer, (0, 0), self.layer)
         draw = ImageDraw.Draw(picture)
+        if not self.kept[k]:
+            first = self.scene.index_at(self.scene.t_s[k] - TRAIL_S)
+            _polyline(draw, self.tool_px[first:k + 1], TRAIL_RGB, 2)
         x, y = self.tool_px[k]
         if np.isfinite(x):
-            draw.ellipse((x - 6, y - 6, x + 6, y + 6), outline=(255, 255, 255), width=2)
+            draw_ring(draw, x, y, 6)
         draw.rectangle((0, 0, picture.width, self.bar_px), fill=(20, 20, 24))
         draw.text((8, 5), self.scene.caption(k), fill=(240, 240, 240), font=self.font)
+        draw_legend(picture, self.entries)
         return np.asarray(picture)
+
+
+def _polyline(draw, pixels: np.ndarray, rgba, width: int) -> None:
+    """Lines through the pixels, split at unknown (NaN) ones so that no line jumps a gap."""
+    finite = np.all(np.isfinite(pixels), axis=1)
+    breaks = np.flatnonzero(np.diff(finite.astype(int)) != 0) + 1
+    for part, ok in zip(np.split(pixels, breaks), np.split(finite, breaks), strict=True):
+        if ok[0] and len(part) > 1:
+            draw.line([tuple(p) for p in part], fill=rgba, width=width)
 
 
 def frame_periods(scene: RunScene, speed: float, fps: int = FPS, start_s: float | None = None,
@@ -170,12 +226,12 @@ def render_video(scene: RunScene, out: str | Path, *, speed: float | None = None
     speed = default_speed(scene) if speed is None else float(speed)
     if not speed > 0:
         raise InputError(f"speed must be positive, got {speed}", hint="e.g. --speed 2")
-    view = camera_for(camera, scene.focus_world_m(), scene.working_arm, width, height)
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     periods = frame_periods(scene, speed, fps, start_s, end_s)
     started = time.perf_counter()
     with KinematicReplay(scene) as replay:
+        view = framing_camera(scene, replay, camera, width, height)
         overlay = Overlay(scene, view)
         writer = imageio_ffmpeg.write_frames(
             str(out), (width, height), fps=fps, codec="libx264", pix_fmt_out="yuv420p",
@@ -203,8 +259,8 @@ def render_still(scene: RunScene, out: str | Path, k: int | None = None, *,
     from hubo_cli.drivers.snapshot import write_png
 
     k = len(scene) - 1 if k is None else int(k)
-    view = camera_for(camera, scene.focus_world_m(), scene.working_arm, width, height)
     with KinematicReplay(scene) as replay:
+        view = framing_camera(scene, replay, camera, width, height)
         replay.show(k)
         image = Overlay(scene, view).draw(replay.render(view), k)
     return write_png(out, image)
