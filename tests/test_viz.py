@@ -22,7 +22,7 @@ from hubo_cli.control.target import Target
 from hubo_cli.model import load_model
 from hubo_cli.posture import home_posture
 from hubo_cli.session import RunSetup, run
-from hubo_cli.viz.camera import DEFAULT_PRESET, camera_for
+from hubo_cli.viz.camera import DEFAULT_PRESET, PRESETS, camera_for
 from hubo_cli.viz.replay import KinematicReplay
 from hubo_cli.viz.scene import load_scene
 
@@ -460,3 +460,76 @@ def test_replay_command_writes_the_video_it_reports(run_dir, tmp_path):
     assert video["frames"] == round(run_s * 30 / 4)
     assert (video["width"], video["height"]) == (96, 64)
     assert out.read_bytes()[4:8] == b"ftyp"  # an MP4 container
+
+
+def _corners(lower, upper) -> np.ndarray:
+    return np.array([[(lower, upper)[i >> k & 1][k] for k in range(3)] for i in range(8)])
+
+
+@pytest.mark.parametrize("preset", sorted(PRESETS))
+def test_the_video_camera_frames_the_whole_robot_and_the_hole(scene, preset):
+    """Every corner of the box round the robot's links over the run and the hole is in the
+    picture between the caption and legend bars, and the box fills it (a corner near an edge:
+    the camera is not just far away)."""
+    from hubo_cli.viz.legend import bar_height_px
+    from hubo_cli.viz.video import FRAMING_SAMPLES, framing_camera
+
+    width, height = 320, 240
+    bar = bar_height_px(height)
+    with KinematicReplay(scene) as replay:
+        camera = framing_camera(scene, replay, preset, width, height)
+        periods = np.linspace(0, len(scene) - 1, FRAMING_SAMPLES).round().astype(int)
+        lower, upper = replay.robot_bounds_m(periods)
+    lower = np.minimum(lower, scene.hole_world_m.min(axis=0))
+    upper = np.maximum(upper, scene.hole_world_m.max(axis=0))
+    px = camera.project(_corners(lower, upper))
+    assert np.all(np.isfinite(px))
+    assert np.all((px[:, 0] >= 0) & (px[:, 0] <= width) & (px[:, 1] >= bar)
+                  & (px[:, 1] <= height - bar))
+    gaps = np.r_[px[:, 0], width - px[:, 0], px[:, 1] - bar, height - bar - px[:, 1]]
+    assert gaps.min() < 10  # fitted, not merely far away
+    # the old framing (the preset's distance from the hole) cut the default view's feet off
+    if preset == DEFAULT_PRESET:
+        old = camera_for(preset, scene.focus_world_m(), scene.working_arm, width, height)
+        assert np.any(old.project(_corners(lower, upper))[:, 1] > height)
+
+
+def test_the_snapshot_camera_frames_the_robots_links(scene):
+    from hubo_cli.drivers.snapshot import snapshot_camera
+    from hubo_cli.viz.camera import body_bounds_m
+    from hubo_cli.viz.legend import bar_height_px
+
+    with KinematicReplay(scene) as replay:
+        replay.show(len(scene) - 1)
+        p, cid, robot = replay._p, replay._cid, replay._robot
+        meta = {"tools": scene.tools, "hole_world_m": scene.hole_world_m.tolist()}
+        camera = snapshot_camera(p, cid, meta, scene.tool_world_m[-1], robot, 640, 480)
+        lower, upper = body_bounds_m(p, robot, cid)
+    assert upper[2] - lower[2] > 1.0  # head to feet
+    px = camera.project(_corners(lower, upper))
+    assert np.all((px >= 0) & (px <= [640, 480 - bar_height_px(480)]))
+
+
+def test_frames_and_snapshots_carry_a_legend_and_the_path_is_kept_only_while_cutting(
+        scene, run_dir, tmp_path):
+    from PIL import Image
+
+    from hubo_cli.viz.legend import BAR_RGB, bar_height_px
+    from hubo_cli.viz.video import Overlay, drawn_periods, legend_entries, render_still
+
+    labels = [e.label for e in legend_entries(trail=True)]
+    assert labels == ["goal path", "bit measured", "bit, last 1 s", "hole cut", "bit now"]
+    for picture in (np.asarray(Image.open(render_still(scene, tmp_path / "still.png",
+                                                       width=320, height=240))),
+                    np.asarray(Image.open(run_dir / "snapshot.png"))):
+        bar = picture[-bar_height_px(picture.shape[0]) + 2:]
+        light = np.all(np.abs(bar.astype(int) - BAR_RGB) <= 3, axis=2)
+        assert 0.5 < light.mean() < 0.98  # the bar, with words and samples on it
+    assert drawn_periods(scene).all()  # no cutting column: every period
+    cutting = np.zeros(len(scene))
+    cutting[100:200] = 1
+    log = dataclasses.replace(scene.log, columns={**scene.log.columns, "cutting": cutting})
+    cut = dataclasses.replace(scene, log=log)
+    assert np.array_equal(np.flatnonzero(drawn_periods(cut)), np.arange(100, 200))
+    overlay = Overlay(cut, camera_for(DEFAULT_PRESET, scene.focus_world_m(), "right-arm"))
+    assert "bit, last 1 s" in [e.label for e in overlay.entries]

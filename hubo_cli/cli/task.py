@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+
 import click
 from rich.console import Group
 from rich.progress_bar import ProgressBar
@@ -15,9 +17,9 @@ from hubo_cli.cli.options import (
     robot_run_options,
 )
 from hubo_cli.cli.output import (
+    busy,
     console,
     err_console,
-    interactive,
     print_json,
 )
 from hubo_cli.control.operator import KEYS_HELP
@@ -277,9 +279,10 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, st
     from hubo_cli.cli.safety_view import SafetyPanel, read_safety
     from hubo_cli.tasks.runner import check_task, run_task
 
-    if not interactive() and not as_json:
-        err_console.print(f"{spec.name}: pre-flight (laying out and solving every period)")
-    plan = check_task(spec)
+    with (busy(f"{spec.name}: pre-flight (laying out and solving every period; a first run "
+               "also maps the arm's workspace, a few seconds)") if not as_json
+          else contextlib.nullcontext()):
+        plan = check_task(spec)
     if not plan.preflight.ok:
         _refuse(ctx, plan, as_json)
     state: dict = {}

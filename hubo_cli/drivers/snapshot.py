@@ -60,10 +60,28 @@ def mark_points(image: np.ndarray, camera, hole_world_m, tool_world_m) -> np.nda
     return np.asarray(picture)
 
 
+def snapshot_camera(p, client: int, scene: dict, tool_world_m, robot: int, width: int = 640,
+                    height: int = 480, preset: str = "shoulder"):
+    """The camera of a snapshot: the preset's, fitted to the robot's links, the hole and the
+    tool, clear of the legend bar (see :func:`hubo_cli.viz.camera.fit_camera`)."""
+    from hubo_cli.viz.camera import body_bounds_m, fit_camera
+    from hubo_cli.viz.legend import bar_height_px
+
+    lower, upper = body_bounds_m(p, robot, client)
+    hole = np.asarray(scene.get("hole_world_m", []), dtype=float).reshape(-1, 3)
+    for points in (hole, np.asarray(tool_world_m, dtype=float).reshape(-1, 3)):
+        if len(points) and np.all(np.isfinite(points)):
+            lower = np.minimum(lower, points.min(axis=0))
+            upper = np.maximum(upper, points.max(axis=0))
+    arm = next((a for a, t in scene.get("tools", {}).items() if t == "drill"), "right-arm")
+    return fit_camera(preset, lower, upper, arm, width, height, bottom_px=bar_height_px(height))
+
+
 def scene_snapshot(p, client: int, path: str | Path, scene: dict, tool_world_m, robot: int,
                    width: int = 640, height: int = 480, preset: str = "shoulder") -> Path:
     """Render a live PyBullet scene headless (TinyRenderer) from the video camera's preset,
-    framing the whole robot and the hole, mark the hole and the tool, and write it as PNG.
+    framing the whole robot and the hole (:func:`snapshot_camera`), mark the hole and the
+    tool, and write it as PNG.
 
     Args:
         p, client: the pybullet module and the physics client id.
@@ -74,21 +92,10 @@ def scene_snapshot(p, client: int, path: str | Path, scene: dict, tool_world_m, 
         width, height: image size (pixels, even).
         preset: a camera preset of :mod:`hubo_cli.viz.camera`.
     """
-    from hubo_cli.viz.camera import body_bounds_m, fit_camera
-    from hubo_cli.viz.legend import bar_height_px
-
-    hole = np.asarray(scene.get("hole_world_m", []), dtype=float).reshape(-1, 3)
-    tool = np.asarray(tool_world_m, dtype=float)
-    lower, upper = body_bounds_m(p, robot, client)
-    for points in (hole, tool.reshape(1, 3)):
-        if len(points) and np.all(np.isfinite(points)):
-            lower, upper = np.minimum(lower, points.min(axis=0)), np.maximum(upper,
-                                                                            points.max(axis=0))
-    arm = next((a for a, t in scene.get("tools", {}).items() if t == "drill"), "right-arm")
-    camera = fit_camera(preset, lower, upper, arm, width, height,
-                        bottom_px=bar_height_px(height))
+    camera = snapshot_camera(p, client, scene, tool_world_m, robot, width, height, preset)
     view, proj = camera.gl_matrices()
     _, _, rgba, _, _ = p.getCameraImage(width, height, view, proj, renderer=p.ER_TINY_RENDERER,
                                         shadow=0, physicsClientId=client)
     image = np.reshape(np.asarray(rgba, dtype=np.uint8), (height, width, 4))[:, :, :3]
-    return write_png(path, mark_points(image, camera, hole, tool))
+    hole = np.asarray(scene.get("hole_world_m", []), dtype=float).reshape(-1, 3)
+    return write_png(path, mark_points(image, camera, hole, np.asarray(tool_world_m, float)))
