@@ -112,3 +112,24 @@ def test_a_hand_that_did_not_move_is_drawn_on_20_mm_axes_with_a_note(tremor_mm):
         assert not [t for t in fig.axes[0].texts if t.get_gid() == "did-not-move"]
     finally:
         plt.close(fig)
+
+
+def test_the_sweep_plot_shows_every_run_and_says_what_its_value_means():
+    from hubo_cli.sweep import Row, sweep_figure
+
+    rows = [Row("cut-rectangle", seed, {"speed_mm_s": speed}, completed=speed < 40,
+                estop="" if speed < 40 else "wrist-torque", hole_rms_mm=1.0 + speed / 100)
+            for seed in (1, 2) for speed in (10, 20, 40)]
+    rows.append(Row("cut-rectangle", 3, {"speed_mm_s": 20}, completed=False, ended="refused"))
+    fig = sweep_figure(rows)
+    try:
+        labels = [t.get_text() for t in fig.legends[0].get_texts()]
+        assert labels == ["completed", "not completed (e-stop: wrist-torque)",
+                          "not completed (e-stop: wrist-torque), no value (on the floor)"]
+        marks = sum(len(c.get_offsets()) for c in fig.axes[0].collections)
+        assert marks == len(rows)  # the refused run without a value is drawn too
+        title = fig._suptitle.get_text()
+        assert "7 runs, 4 completed" in title and "lower is better" in title
+        assert fig.axes[0].get_xlabel() == "speed_mm_s (--set)"
+    finally:
+        plt.close(fig)
