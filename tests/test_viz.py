@@ -184,7 +184,8 @@ def test_a_hardware_log_without_torso_position_is_stood_on_its_soles(run_dir, tm
 def test_a_2_s_video_decodes_to_60_frames_of_the_robot(scene, tmp_path):
     import imageio_ffmpeg
 
-    from hubo_cli.viz.video import render_video
+    from hubo_cli.viz.legend import bar_height_px
+    from hubo_cli.viz.video import Overlay, render_video
 
     out = tmp_path / "two.mp4"
     result = render_video(scene, out, speed=1.0, width=320, height=240, start_s=0.0, end_s=2.0)
@@ -203,8 +204,11 @@ def test_a_2_s_video_decodes_to_60_frames_of_the_robot(scene, tmp_path):
         empty.show(len(scene) - 1)
         no_robot = empty.render(camera).astype(float)
     last = frames[-1].astype(float)
-    changed = np.sum(np.abs(last - no_robot), axis=2)[40:] > 60  # below the caption bar
-    assert changed.mean() > 0.05
+    changed = np.sum(np.abs(last - no_robot), axis=2) > 60
+    inset = Overlay(scene, camera).inset  # the overlay's drawings do not count
+    changed[inset.top:inset.top + inset.size + 1, inset.left:inset.left + inset.size + 1] = False
+    bar = bar_height_px(240)
+    assert changed[bar:-bar].mean() > 0.05  # between the caption and the legend bars
     assert np.mean(np.abs(frames[0].astype(float) - last)) > 1  # and it moves
 
 
@@ -460,6 +464,13 @@ def test_replay_command_writes_the_video_it_reports(run_dir, tmp_path):
     assert video["frames"] == round(run_s * 30 / 4)
     assert (video["width"], video["height"]) == (96, 64)
     assert out.read_bytes()[4:8] == b"ftyp"  # an MP4 container
+    # without --json, off a terminal, it says how far it is: at the start and each quarter
+    said = CliRunner().invoke(main, ["replay", str(run_dir), "--video", str(out), "--size",
+                                     "96x64", "--to", "0.5", "--force"])
+    assert said.exit_code == 0, said.output
+    lines = [line for line in said.output.splitlines() if line.startswith("rendering")]
+    assert lines[0] == "rendering small.mp4: 1/15 frames"
+    assert lines[-1] == "rendering small.mp4: 15/15 frames" and len(lines) == 5
 
 
 def _corners(lower, upper) -> np.ndarray:
@@ -533,3 +544,12 @@ def test_frames_and_snapshots_carry_a_legend_and_the_path_is_kept_only_while_cut
     assert np.array_equal(np.flatnonzero(drawn_periods(cut)), np.arange(100, 200))
     overlay = Overlay(cut, camera_for(DEFAULT_PRESET, scene.focus_world_m(), "right-arm"))
     assert "bit, last 1 s" in [e.label for e in overlay.entries]
+    # the inset magnifies the cut: every kept point and the hole inside its square
+    inset = overlay.inset
+    assert inset.shown and inset.size >= 0.3 * 480
+    inside = np.vstack([inset.tool[100:200], inset.hole])
+    assert np.all((inside[:, 0] >= inset.left) & (inside[:, 0] <= inset.left + inset.size)
+                  & (inside[:, 1] >= inset.top) & (inside[:, 1] <= inset.top + inset.size))
+    extent = inside.max(axis=0) - inside.min(axis=0)
+    assert extent.max() > 0.5 * inset.size  # magnified to fill it
+    assert 0 < inset.bar_px <= inset.size / 2

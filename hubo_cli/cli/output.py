@@ -36,14 +36,15 @@ def fmt_q(q_rad) -> str:
 
 
 @contextlib.contextmanager
-def busy(what: str):
+def busy(what: str, quiet: bool = False):
     """Around a step that takes more than a second: a spinner saying ``what`` on a terminal's
-    stderr, else the words as one line on stderr when it starts."""
+    stderr, else (unless ``quiet``: --json) the words as one line on stderr when it starts."""
     if err_console.is_terminal and not err_console.is_dumb_terminal:
         with err_console.status(what):
             yield
     else:
-        err_console.print(f"{what} ...", soft_wrap=True)
+        if not quiet:
+            err_console.print(f"{what} ...", soft_wrap=True)
         yield
 
 

@@ -29,11 +29,11 @@ def parse_size(text: str) -> tuple[int, int]:
 
 
 def make_video(run_dir, out=None, *, speed=None, camera=DEFAULT_PRESET, size="640x480",
-               start_s=None, end_s=None):
+               start_s=None, end_s=None, quiet=False):
     """Render a run's video (``out``, an :class:`~hubo_cli.outputs.OutputFile`, or
     RUN/video.mp4) under a temporary name, renamed when complete, with a progress bar on a
-    terminal's stderr (elsewhere a line at the start and at each quarter); returns the
-    :class:`~hubo_cli.viz.video.VideoResult`."""
+    terminal's stderr (elsewhere a line at the start and at each quarter, unless ``quiet``:
+    --json); returns the :class:`~hubo_cli.viz.video.VideoResult`."""
     import contextlib
     import dataclasses
 
@@ -47,16 +47,16 @@ def make_video(run_dir, out=None, *, speed=None, camera=DEFAULT_PRESET, size="64
     target = out.writing() if out is not None else replacing(path)
     with contextlib.ExitStack() as stack:
         temporary = stack.enter_context(target)
-        on_frame = stack.enter_context(frame_progress(f"rendering {path.name}"))
+        on_frame = stack.enter_context(frame_progress(f"rendering {path.name}", quiet))
         result = render_video(scene, temporary, speed=speed, camera=camera, width=width,
                               height=height, start_s=start_s, end_s=end_s, on_frame=on_frame)
     return dataclasses.replace(result, path=path)
 
 
 @contextlib.contextmanager
-def frame_progress(what: str):
+def frame_progress(what: str, quiet: bool = False):
     """A callback ``(done, total)`` showing progress: a bar with the time left on a terminal's
-    stderr, else a plain line on stderr at the start and at each quarter."""
+    stderr, else (unless ``quiet``) a plain line on stderr at the start and at each quarter."""
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,
@@ -77,7 +77,7 @@ def frame_progress(what: str):
 
     def on_frame(done: int, total: int) -> None:
         quarter = 4 * done // max(total, 1)
-        if done == 1 or quarter > quarters[0]:
+        if not quiet and (done == 1 or quarter > quarters[0]):
             err_console.print(f"{what}: {done}/{total} frames", soft_wrap=True)
             quarters[0] = quarter
     yield on_frame
@@ -128,7 +128,7 @@ def replay(run, gui, video, speed, camera, size, start_s, end_s, force, as_json)
     if video is not None:
         out = OutputFile(video, option="--video", inputs=(run,), force=force)
         result = make_video(run, out, speed=speed, camera=camera, size=size, start_s=start_s,
-                            end_s=end_s)
+                            end_s=end_s, quiet=as_json)
         report["video"] = {"path": str(result.path), "frames": result.frames,
                            "width": result.width, "height": result.height,
                            "speed": result.speed, "run_s": result.run_s,
@@ -154,14 +154,15 @@ def check_video_support() -> None:
     require("imageio_ffmpeg", "the MP4 video (--video)")
 
 
-def add_run_video(run_dir, summary: dict):
+def add_run_video(run_dir, summary: dict, quiet: bool = False):
     """After a run: render RUN/video.mp4 from its log (default speed and camera), list it in
-    the summary (and summary.json); returns the :class:`~hubo_cli.viz.video.VideoResult`."""
+    the summary (and summary.json); ``quiet``: no progress lines off a terminal (--json);
+    returns the :class:`~hubo_cli.viz.video.VideoResult`."""
     from pathlib import Path
 
     from hubo_cli.runs import write_json
 
-    result = make_video(run_dir)
+    result = make_video(run_dir, quiet=quiet)
     summary.setdefault("files", []).append(result.path.name)
     summary["video"] = {"file": result.path.name, "frames": result.frames,
                         "speed": result.speed, "wall_s": result.wall_s}

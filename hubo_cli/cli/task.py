@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
-
 import click
 from rich.console import Group
 from rich.progress_bar import ProgressBar
@@ -259,7 +257,7 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
         done = run_experiment(spec, out=out, gui=gui, estop=not no_estop,
                               perturb_seed=perturb_seed, balance=balance)
         if video:
-            add_run_video(done.run_dir, done.summary)
+            add_run_video(done.run_dir, done.summary, quiet=as_json)
         _finish(ctx, done, as_json, lambda: _print_push_wall(done.summary, done.run_dir))
         return
     stops = active_stops(spec.safety.estop_sources, driver, no_estop=no_estop,
@@ -279,9 +277,8 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, st
     from hubo_cli.cli.safety_view import SafetyPanel, read_safety
     from hubo_cli.tasks.runner import check_task, run_task
 
-    with (busy(f"{spec.name}: pre-flight (laying out and solving every period; a first run "
-               "also maps the arm's workspace, a few seconds)") if not as_json
-          else contextlib.nullcontext()):
+    with busy(f"{spec.name}: pre-flight (laying out and solving every period; a first run "
+              "also maps the arm's workspace, a few seconds)", quiet=as_json):
         plan = check_task(spec)
     if not plan.preflight.ok:
         _refuse(ctx, plan, as_json)
@@ -314,7 +311,7 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, st
     if video:
         from hubo_cli.cli.replay import add_run_video
 
-        add_run_video(done.run_dir, done.summary)
+        add_run_video(done.run_dir, done.summary, quiet=as_json)
     _finish(ctx, done, as_json, lambda: _print_cut(done.summary, done.run_dir))
 
 

@@ -6,8 +6,8 @@ of T seconds of the run gives ``round(T * fps / speed)`` frames. The goal path (
 whole, the measured path (red) and the hole (dark) up to the frame's time, both only while
 cutting where the log says so (elsewhere the bit leaves a short light-red trail); a ring marks
 the tool. A caption bar on top gives the time, step, error, wrist torque, lean and status, a
-legend bar below says what the colours mean, and the camera frames the whole robot and the
-hole (:func:`framing_camera`).
+legend bar below says what the colours mean, the camera frames the whole robot and the hole
+(:func:`framing_camera`), and an inset shows the cut magnified (:class:`CutInset`).
 """
 
 from __future__ import annotations
@@ -39,6 +39,9 @@ LONGEST_AT_REAL_TIME_S = 20.0  # longer runs are sped up to a video of this leng
 TRAIL_S = 1.0  # outside the cut the bit leaves a trail this long (s), not a lasting path
 TRAIL_RGB = (240, 150, 140)
 FRAMING_SAMPLES = 12  # postures of the run whose links the camera frames
+INSET_FRACTION = 0.36  # the cut's inset is this part of the picture's height, square
+INSET_MIN_SPAN_M = 0.02  # ... and shows at least this much of the wall
+INSET_EVERY = 4  # the inset's paths through every 4th period
 
 
 def default_speed(scene: RunScene) -> float:
@@ -106,6 +109,72 @@ def framing_camera(scene: RunScene, replay: KinematicReplay, preset: str, width:
                       bottom_px=bar)
 
 
+class CutInset:
+    """The cut magnified in the picture's top-right corner, seen square-on from behind the robot
+    (world y mirrored, so that its left is on the left, and z up): the kept goal path, the
+    measured path and the hole up to the frame's time, the tool's ring and a scale bar.
+
+    Args:
+        scene: the run.
+        kept: the periods whose paths are drawn (:func:`drawn_periods`).
+        hole_t_s: the hole points' times (s).
+        camera: the picture's camera (its size).
+        top_px: the inset's top edge (below the caption bar).
+    """
+
+    def __init__(self, scene: RunScene, kept: np.ndarray, hole_t_s: np.ndarray, camera: Camera,
+                 top_px: int) -> None:
+        self.size = int(camera.height * INSET_FRACTION)
+        self.left, self.top = camera.width - self.size - 6, top_px + 6
+        points = [scene.goal_world_m[kept], scene.tool_world_m[kept], scene.hole_world_m]
+        every = np.vstack([p for p in points if len(p)])
+        every = self._uv(every[np.all(np.isfinite(every), axis=1)])
+        self.shown = len(every) > 1
+        if not self.shown:
+            return
+        lo, hi = every.min(axis=0), every.max(axis=0)
+        span = max(float(np.max(hi - lo)) * 1.15, INSET_MIN_SPAN_M)
+        self.scale = (self.size - 20) / span  # px per m
+        self.centre = 0.5 * (lo + hi)
+        self.goal = self._px(np.where(kept[:, None], scene.goal_world_m, np.nan))
+        self.tool = self._px(scene.tool_world_m)
+        self.kept = kept
+        self.hole = self._px(scene.hole_world_m) if len(scene.hole_world_m) else np.zeros((0, 2))
+        self.hole_t_s = hole_t_s
+        self.t_s = scene.t_s
+        bar_m = next((b for b in (0.2, 0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001)
+                      if b * self.scale <= (self.size - 20) / 2), 0.001)
+        self.bar_m, self.bar_px = bar_m, bar_m * self.scale
+
+    @staticmethod
+    def _uv(points: np.ndarray) -> np.ndarray:
+        return np.column_stack([-points[:, 1], points[:, 2]])
+
+    def _px(self, points: np.ndarray) -> np.ndarray:
+        uv = (self._uv(points) - self.centre) * self.scale
+        return np.column_stack([self.left + self.size / 2 + uv[:, 0],
+                                self.top + self.size / 2 - uv[:, 1]])
+
+    def draw(self, draw, k: int, text_font) -> None:
+        """Draw the inset for period ``k`` (PIL ImageDraw)."""
+        if not self.shown:
+            return
+        x0, y0, n = self.left, self.top, self.size
+        draw.rectangle((x0, y0, x0 + n, y0 + n), fill=(248, 248, 248), outline=(20, 20, 24))
+        _polyline(draw, self.goal[::INSET_EVERY], rgb255(GOAL_RGB), 2)
+        mark_hole(draw, self.hole[self.hole_t_s <= self.t_s[k] + 1e-9], rgb255(HOLE_RGB))
+        measured = np.where(self.kept[:k + 1, None], self.tool[:k + 1], np.nan)
+        _polyline(draw, measured[::INSET_EVERY], rgb255(ACTUAL_RGB), 1)  # over the hole
+        x, y = self.tool[k]
+        if x0 <= x <= x0 + n and y0 <= y <= y0 + n:
+            draw_ring(draw, x, y, 4)
+        draw.text((x0 + 4, y0 + 2), "cut, magnified", fill=(20, 20, 24), font=text_font)
+        bx, by = x0 + 6, y0 + n - 8
+        draw.line((bx, by, bx + self.bar_px, by), fill=(20, 20, 24), width=2)
+        draw.text((bx + self.bar_px + 4, by - 12), f"{self.bar_m * 1000:g} mm",
+                  fill=(20, 20, 24), font=text_font)
+
+
 class Overlay:
     """Paths, hole, tool marker, caption and legend drawn over rendered frames (Pillow).
 
@@ -130,7 +199,10 @@ class Overlay:
         self.kept = drawn_periods(scene)
         self.entries = legend_entries(trail=not self.kept.all())
         self.font = font(camera.height)
+        self.small_font = font(int(camera.height * 0.8))
         self.bar_px = bar_height_px(camera.height)
+        self.inset = CutInset(scene, self.kept, self.hole_t_s if self.hole_px is not None
+                              else np.zeros(0), camera, self.bar_px)
         self._reset()
 
     def _kept_only(self, pixels: np.ndarray, start: int = 0) -> np.ndarray:
@@ -172,6 +244,7 @@ class Overlay:
         x, y = self.tool_px[k]
         if np.isfinite(x):
             draw_ring(draw, x, y, 6)
+        self.inset.draw(draw, k, self.small_font)
         draw.rectangle((0, 0, picture.width, self.bar_px), fill=(20, 20, 24))
         draw.text((8, 5), self.scene.caption(k), fill=(240, 240, 240), font=self.font)
         draw_legend(picture, self.entries)
