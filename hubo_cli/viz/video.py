@@ -42,6 +42,7 @@ FRAMING_SAMPLES = 12  # postures of the run whose links the camera frames
 INSET_FRACTION = 0.36  # the cut's inset is this part of the picture's height, square
 INSET_MIN_SPAN_M = 0.02  # ... and shows at least this much of the wall
 INSET_EVERY = 4  # the inset's paths through every 4th period
+INSET_SMALLEST_PX = 60  # no inset in pictures too small for one this wide
 
 
 def default_speed(scene: RunScene) -> float:
@@ -129,7 +130,7 @@ class CutInset:
         points = [scene.goal_world_m[kept], scene.tool_world_m[kept], scene.hole_world_m]
         every = np.vstack([p for p in points if len(p)])
         every = self._uv(every[np.all(np.isfinite(every), axis=1)])
-        self.shown = len(every) > 1
+        self.shown = len(every) > 1 and self.size >= INSET_SMALLEST_PX
         if not self.shown:
             return
         lo, hi = every.min(axis=0), every.max(axis=0)
