@@ -553,3 +553,12 @@ def test_frames_and_snapshots_carry_a_legend_and_the_path_is_kept_only_while_cut
     extent = inside.max(axis=0) - inside.min(axis=0)
     assert extent.max() > 0.5 * inset.size  # magnified to fill it
     assert 0 < inset.bar_px <= inset.size / 2
+    # the caption bar is red while e-stopped, dark otherwise
+    from hubo_cli.viz.video import ALARM_BAR_RGB
+
+    status = scene.log.status
+    assert (status == 6).any() and (status == 0).any()  # the sway's wall trips the wrist stop
+    blank = np.zeros((480, 640, 3), dtype=np.uint8)
+    for k in (int(np.argmax(status == 6)), int(np.argmax(status == 0))):
+        corner = tuple(overlay.draw(blank, k)[2, 636])
+        assert (corner == ALARM_BAR_RGB) == (status[k] == 6), (k, status[k], corner)

@@ -5,8 +5,9 @@ Frame ``i`` shows the last logged period at or before run time ``t0 + i * speed 
 of T seconds of the run gives ``round(T * fps / speed)`` frames. The goal path (green) is drawn
 whole, the measured path (red) and the hole (dark) up to the frame's time, both only while
 cutting where the log says so (elsewhere the bit leaves a short light-red trail); a ring marks
-the tool. A caption bar on top gives the time, step, error, wrist torque, lean and status, a
-legend bar below says what the colours mean, the camera frames the whole robot and the hole
+the tool. A caption bar on top gives the time, step, error, wrist torque, lean and status (red
+while the status is a warning: an e-stop, a collision, stale input...), a legend bar below
+says what the colours mean, the camera frames the whole robot and the hole
 (:func:`framing_camera`), and an inset shows the cut magnified (:class:`CutInset`).
 """
 
@@ -32,12 +33,13 @@ from hubo_cli.viz.legend import (
     rgb255,
 )
 from hubo_cli.viz.replay import ACTUAL_RGB, GOAL_RGB, HOLE_RGB, KinematicReplay
-from hubo_cli.viz.scene import RunScene, first_column
+from hubo_cli.viz.scene import QUIET_STATUSES, RunScene, first_column
 
 FPS = 30
 LONGEST_AT_REAL_TIME_S = 20.0  # longer runs are sped up to a video of this length by default
 TRAIL_S = 1.0  # outside the cut the bit leaves a trail this long (s), not a lasting path
 TRAIL_RGB = (240, 150, 140)
+ALARM_BAR_RGB = (150, 20, 30)  # the caption bar while the status is a warning (an e-stop...)
 FRAMING_SAMPLES = 12  # postures of the run whose links the camera frames
 INSET_FRACTION = 0.36  # the cut's inset is this part of the picture's height, square
 INSET_MIN_SPAN_M = 0.02  # ... and shows at least this much of the wall
@@ -246,7 +248,10 @@ class Overlay:
         if np.isfinite(x):
             draw_ring(draw, x, y, 6)
         self.inset.draw(draw, k, self.small_font)
-        draw.rectangle((0, 0, picture.width, self.bar_px), fill=(20, 20, 24))
+        code = int(self.scene.log["status_code"][k])
+        alarm = code not in QUIET_STATUSES  # e-stopped, collision, stale input...: red bar
+        draw.rectangle((0, 0, picture.width, self.bar_px),
+                       fill=ALARM_BAR_RGB if alarm else (20, 20, 24))
         draw.text((8, 5), self.scene.caption(k), fill=(240, 240, 240), font=self.font)
         draw_legend(picture, self.entries)
         return np.asarray(picture)
