@@ -132,6 +132,7 @@ class CutInset:
         points = [scene.goal_world_m[kept], scene.tool_world_m[kept], scene.hole_world_m]
         every = np.vstack([p for p in points if len(p)])
         every = self._uv(every[np.all(np.isfinite(every), axis=1)])
+        self.panel = None  # the kept drawing, made on the first frame
         self.shown = len(every) > 1 and self.size >= INSET_SMALLEST_PX
         if not self.shown:
             return
@@ -158,24 +159,43 @@ class CutInset:
         return np.column_stack([self.left + self.size / 2 + uv[:, 0],
                                 self.top + self.size / 2 - uv[:, 1]])
 
-    def draw(self, draw, k: int, text_font) -> None:
-        """Draw the inset for period ``k`` (PIL ImageDraw)."""
+    def _reset(self, text_font) -> None:
+        from PIL import Image, ImageDraw
+
+        n = self.size
+        self.panel = Image.new("RGB", (n + 1, n + 1), (248, 248, 248))
+        self._draw = ImageDraw.Draw(self.panel)
+        self._draw.rectangle((0, 0, n, n), outline=(20, 20, 24))
+        offset = np.array([self.left, self.top])
+        _polyline(self._draw, self.goal[::INSET_EVERY] - offset, rgb255(GOAL_RGB), 2)
+        self._draw.text((4, 2), "cut, magnified", fill=(20, 20, 24), font=text_font)
+        by = n - 8
+        self._draw.line((6, by, 6 + self.bar_px, by), fill=(20, 20, 24), width=2)
+        self._draw.text((10 + self.bar_px, by - 12), f"{self.bar_m * 1000:g} mm",
+                        fill=(20, 20, 24), font=text_font)
+        self.k_drawn, self.t_drawn_s = 0, -np.inf
+
+    def draw(self, picture, k: int, text_font) -> None:
+        """Paste the inset for period ``k`` into a PIL image (the paths and the hole added to a
+        kept panel as time goes on, as the overlay's layer)."""
+        from PIL import ImageDraw
+
         if not self.shown:
             return
-        x0, y0, n = self.left, self.top, self.size
-        draw.rectangle((x0, y0, x0 + n, y0 + n), fill=(248, 248, 248), outline=(20, 20, 24))
-        _polyline(draw, self.goal[::INSET_EVERY], rgb255(GOAL_RGB), 2)
-        mark_hole(draw, self.hole[self.hole_t_s <= self.t_s[k] + 1e-9], rgb255(HOLE_RGB))
-        measured = np.where(self.kept[:k + 1, None], self.tool[:k + 1], np.nan)
-        _polyline(draw, measured[::INSET_EVERY], rgb255(ACTUAL_RGB), 1)  # over the hole
+        if self.panel is None or k < self.k_drawn:
+            self._reset(text_font)
+        offset = np.array([self.left, self.top])
+        t_s = self.t_s[k]
+        new = (self.hole_t_s > self.t_drawn_s) & (self.hole_t_s <= t_s + 1e-9)
+        mark_hole(self._draw, self.hole[new] - offset, rgb255(HOLE_RGB))
+        start = max(self.k_drawn - self.k_drawn % INSET_EVERY, 0)
+        part = np.where(self.kept[start:k + 1, None], self.tool[start:k + 1], np.nan)
+        _polyline(self._draw, part[::INSET_EVERY] - offset, rgb255(ACTUAL_RGB), 1)
+        self.k_drawn, self.t_drawn_s = k, t_s
+        picture.paste(self.panel, (self.left, self.top))
         x, y = self.tool[k]
-        if x0 <= x <= x0 + n and y0 <= y <= y0 + n:
-            draw_ring(draw, x, y, 4)
-        draw.text((x0 + 4, y0 + 2), "cut, magnified", fill=(20, 20, 24), font=text_font)
-        bx, by = x0 + 6, y0 + n - 8
-        draw.line((bx, by, bx + self.bar_px, by), fill=(20, 20, 24), width=2)
-        draw.text((bx + self.bar_px + 4, by - 12), f"{self.bar_m * 1000:g} mm",
-                  fill=(20, 20, 24), font=text_font)
+        if self.left <= x <= self.left + self.size and self.top <= y <= self.top + self.size:
+            draw_ring(ImageDraw.Draw(picture), x, y, 4)
 
 
 class Overlay:
@@ -247,7 +267,7 @@ class Overlay:
         x, y = self.tool_px[k]
         if np.isfinite(x):
             draw_ring(draw, x, y, 6)
-        self.inset.draw(draw, k, self.small_font)
+        self.inset.draw(picture, k, self.small_font)
         code = int(self.scene.log["status_code"][k])
         alarm = code not in QUIET_STATUSES  # e-stopped, collision, stale input...: red bar
         draw.rectangle((0, 0, picture.width, self.bar_px),
