@@ -562,3 +562,24 @@ def test_frames_and_snapshots_carry_a_legend_and_the_path_is_kept_only_while_cut
     for k in (int(np.argmax(status == 6)), int(np.argmax(status == 0))):
         corner = tuple(overlay.draw(blank, k)[2, 636])
         assert (corner == ALARM_BAR_RGB) == (status[k] == 6), (k, status[k], corner)
+
+
+def test_fit_camera_frames_any_box_and_refuses_an_unknown_one():
+    from hubo_cli.errors import InputError
+    from hubo_cli.viz.camera import fit_camera
+
+    rng = np.random.default_rng(38)
+    for k in range(60):
+        size = 10.0 ** rng.uniform(-3, 1.7, 3) * (rng.random(3) > 0.15)  # some sides flat
+        lower = rng.uniform(-5, 5, 3)
+        preset = sorted(PRESETS)[k % len(PRESETS)]
+        w, h = (640, 480) if k % 2 else (96, 64)
+        top, bottom = (0, 0) if k % 3 else (12, 12)
+        camera = fit_camera(preset, lower, lower + size, "left-arm" if k % 4 else "right-arm",
+                            w, h, top_px=top, bottom_px=bottom)
+        px = camera.project(_corners(lower, lower + size))
+        assert np.all((px[:, 0] >= 0) & (px[:, 0] <= w) & (px[:, 1] >= top)
+                      & (px[:, 1] <= h - bottom)), (k, size, preset)
+    for bad in ([np.nan, 0, 0], [0, np.inf, 0]):
+        with pytest.raises(InputError):
+            fit_camera(DEFAULT_PRESET, [0, 0, 0], bad)
