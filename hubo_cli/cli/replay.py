@@ -34,7 +34,6 @@ def make_video(run_dir, out=None, *, speed=None, camera=DEFAULT_PRESET, size="64
     RUN/video.mp4) under a temporary name, renamed when complete, with a progress bar on a
     terminal's stderr (elsewhere a line at the start and at each quarter, unless ``quiet``:
     --json); returns the :class:`~hubo_cli.viz.video.VideoResult`."""
-    import contextlib
     import dataclasses
 
     from hubo_cli.outputs import replacing

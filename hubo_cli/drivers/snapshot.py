@@ -39,9 +39,10 @@ def write_png(path: str | Path, image: np.ndarray) -> Path:
     return path
 
 
-def mark_points(image: np.ndarray, camera, hole_world_m, tool_world_m) -> np.ndarray:
-    """The image with the hole's points (dots), the tool (a ring) and a legend bar saying what
-    they are drawn over it."""
+def mark_points(image: np.ndarray, camera, hole_world_m, tool_world_m,
+                tool: str = "tool") -> np.ndarray:
+    """The image with the hole's points (dots), the tool (a ring; ``tool`` names it) and a
+    legend bar saying what they are drawn over it."""
     from PIL import Image, ImageDraw
 
     from hubo_cli.viz.legend import Entry, draw_legend, draw_ring, mark_hole
@@ -49,7 +50,7 @@ def mark_points(image: np.ndarray, camera, hole_world_m, tool_world_m) -> np.nda
     picture = Image.fromarray(np.ascontiguousarray(image, dtype=np.uint8))
     draw = ImageDraw.Draw(picture)
     hole = np.asarray(hole_world_m, dtype=float).reshape(-1, 3)
-    entries = [Entry("ring", MARK_RGB, "tool (drill bit or hand)")]
+    entries = [Entry("ring", MARK_RGB, tool)]
     if len(hole):
         mark_hole(draw, camera.project(hole), HOLE_RGB)
         entries.insert(0, Entry("dot", HOLE_RGB, "hole cut in the wall"))
@@ -98,4 +99,6 @@ def scene_snapshot(p, client: int, path: str | Path, scene: dict, tool_world_m, 
                                         shadow=0, physicsClientId=client)
     image = np.reshape(np.asarray(rgba, dtype=np.uint8), (height, width, 4))[:, :, :3]
     hole = np.asarray(scene.get("hole_world_m", []), dtype=float).reshape(-1, 3)
-    return write_png(path, mark_points(image, camera, hole, np.asarray(tool_world_m, float)))
+    tool = "drill bit" if "drill" in scene.get("tools", {}).values() else "hand"
+    return write_png(path, mark_points(image, camera, hole, np.asarray(tool_world_m, float),
+                                       tool))
