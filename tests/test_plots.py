@@ -104,6 +104,7 @@ def test_a_hand_that_did_not_move_is_drawn_on_20_mm_axes_with_a_note(tremor_mm):
             assert abs(hi - lo) >= MIN_SPAN_MM - 1e-9  # tremor is not magnified
         notes = [t.get_text() for t in ax.texts if t.get_gid() == "did-not-move"]
         assert len(notes) == 1 and notes[0].startswith("did not move")
+        assert not [t for t in ax.texts if t.get_gid() == "direction-arrow"]  # no way to go
     finally:
         plt.close(fig)
     moved = still + np.linspace(0, 0.05, 300)[:, None] * [0, 1, 0]  # a 50 mm sweep

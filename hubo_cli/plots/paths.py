@@ -61,9 +61,6 @@ def path_figure(commanded_m: np.ndarray, actual_m: np.ndarray, *, plane: str = "
             zorder=3, label="commanded (operator / task)")
     ax.plot(actual_m[:, i] * mm, actual_m[:, j] * mm, "-", color="#1f77b4", lw=1.4,
             alpha=0.9, zorder=4, label=actual_label)
-    if _arrows(ax, commanded_m[:, [i, j]] * mm, "#d62728"):
-        ax.plot([], [], marker=r"$\rightarrow$", color="#d62728", ls="none", ms=12,
-                label="direction of travel")
     if len(actual_m):
         # the start larger and under the end: both seen where a closed path ends at its start
         ax.plot(actual_m[0, i] * mm, actual_m[0, j] * mm, "o", color="#2ca02c", ms=12,
@@ -76,17 +73,20 @@ def path_figure(commanded_m: np.ndarray, actual_m: np.ndarray, *, plane: str = "
     ax.set_aspect("equal", adjustable="datalim")
     points = np.vstack([commanded_m[:, [i, j]], actual_m[:, [i, j]]]) * mm
     points = points[np.all(np.isfinite(points), axis=1)]
-    if len(points):
-        span = points.max(axis=0) - points.min(axis=0)
-        if span.max() < MIN_SPAN_MM:
-            centre = 0.5 * (points.max(axis=0) + points.min(axis=0))
-            ax.set_aspect("equal", adjustable="box")  # the limits below are kept
-            ax.set_xlim(centre[0] - MIN_SPAN_MM / 2, centre[0] + MIN_SPAN_MM / 2)
-            ax.set_ylim(centre[1] - MIN_SPAN_MM / 2, centre[1] + MIN_SPAN_MM / 2)
-            ax.text(0.5, 0.04, f"did not move: {span.max():.1f} mm at most "
-                               f"(axes kept {MIN_SPAN_MM:g} mm wide)",
-                    transform=ax.transAxes, ha="center", fontsize=10, gid="did-not-move",
-                    bbox=dict(boxstyle="round", fc="#fff3cd", ec="#c9a227"))
+    span = points.max(axis=0) - points.min(axis=0) if len(points) else np.zeros(2)
+    # (a path that did not move has no direction worth an arrow: tremor's would point anywhere)
+    if span.max() >= MIN_SPAN_MM and _arrows(ax, commanded_m[:, [i, j]] * mm, "#d62728"):
+        ax.plot([], [], marker=r"$\rightarrow$", color="#d62728", ls="none", ms=12,
+                label="direction of travel")
+    if len(points) and span.max() < MIN_SPAN_MM:
+        centre = 0.5 * (points.max(axis=0) + points.min(axis=0))
+        ax.set_aspect("equal", adjustable="box")  # the limits below are kept
+        ax.set_xlim(centre[0] - MIN_SPAN_MM / 2, centre[0] + MIN_SPAN_MM / 2)
+        ax.set_ylim(centre[1] - MIN_SPAN_MM / 2, centre[1] + MIN_SPAN_MM / 2)
+        ax.text(0.5, 0.04, f"did not move: {span.max():.1f} mm at most "
+                           f"(axes kept {MIN_SPAN_MM:g} mm wide)",
+                transform=ax.transAxes, ha="center", fontsize=10, gid="did-not-move",
+                bbox=dict(boxstyle="round", fc="#fff3cd", ec="#c9a227"))
     if mirror_first_axis:
         ax.invert_xaxis()
     ax.set_xlabel(f"{plane[0]} in {frame} (mm)" + (" — robot's left is left"
