@@ -583,3 +583,27 @@ def test_fit_camera_frames_any_box_and_refuses_an_unknown_one():
     for bad in ([np.nan, 0, 0], [0, np.inf, 0]):
         with pytest.raises(InputError):
             fit_camera(DEFAULT_PRESET, [0, 0, 0], bad)
+
+
+def test_the_caption_names_the_tasks_step(scene, tmp_path):
+    from hubo_cli.viz.video import step_names
+
+    steps = np.full(len(scene), np.nan)
+    steps[10:] = 2
+    log = dataclasses.replace(scene.log, columns={**scene.log.columns, "step_code": steps})
+    folder = tmp_path / "run"
+    folder.mkdir()
+    stepped = dataclasses.replace(scene, log=log, run_dir=folder)
+    assert step_names(stepped) == []  # no task.toml: the number only
+    assert "step 3 " in stepped.caption(20, step_names(stepped))
+    for garbage in ("[[steps]]\nname = ", "steps = 3", b"\xff\xfe[[steps]]"):
+        (folder / "task.toml").write_bytes(garbage if isinstance(garbage, bytes)
+                                           else garbage.encode())
+        assert step_names(stepped) == []
+    (folder / "task.toml").write_text('[[steps]]\nname = "raise"\n[[steps]]\nname = "in"\n'
+                                      '[[steps]]\nname = "cut"\n')
+    names = step_names(stepped)
+    assert names == ["raise", "in", "cut"]
+    assert "step 3/3 cut" in stepped.caption(20, names)
+    assert "step" not in stepped.caption(5, names)  # no step logged yet
+    assert "step 3 " in stepped.caption(20, names[:2])  # a step the names do not reach

@@ -139,13 +139,16 @@ class RunScene:
             points[inside] = centre + local[inside] @ R.T
         return points
 
-    def caption(self, k: int) -> str:
-        """One line describing period ``k``: time, step, error, wrist torque, status."""
+    def caption(self, k: int, step_names=()) -> str:
+        """One line describing period ``k``: time, step (``step 3/5 cut`` with the task's
+        ``step_names``), error, wrist torque, lean, status."""
         log = self.log
         parts = [f"t {log['t_s'][k]:6.2f} s"]
         step = first_column(log, ("step_code",))
         if step is not None and np.isfinite(step[k]):
-            parts.append(f"step {int(step[k]) + 1}")
+            i = int(step[k])
+            parts.append(f"step {i + 1}/{len(step_names)} {step_names[i]}"
+                         if 0 <= i < len(step_names) else f"step {i + 1}")
         suffix = ARM_SUFFIX[self.working_arm]
         error = first_column(log, ("error_m", f"error_m{suffix}"))
         if error is not None and np.isfinite(error[k]):

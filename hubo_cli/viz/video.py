@@ -98,6 +98,18 @@ def drawn_periods(scene: RunScene) -> np.ndarray:
     return cutting == 1
 
 
+def step_names(scene: RunScene) -> list[str]:
+    """The task's step names from the run folder's ``task.toml`` ([] without a readable one:
+    captions then give the step's number only)."""
+    import tomllib
+
+    try:
+        steps = tomllib.loads((scene.run_dir / "task.toml").read_text())["steps"]
+        return [str(step["name"]) for step in steps]
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError, KeyError, TypeError):
+        return []
+
+
 def framing_camera(scene: RunScene, replay: KinematicReplay, preset: str, width: int,
                    height: int) -> Camera:
     """The preset's camera fitted to the robot's links over the run (sampled at
@@ -220,6 +232,7 @@ class Overlay:
         if self.hole_px is not None and len(self.hole_t_s) != len(self.hole_px):
             self.hole_t_s = np.full(len(self.hole_px), -np.inf)  # no times: draw it whole
         self.kept = drawn_periods(scene)
+        self.step_names = step_names(scene)
         self.entries = legend_entries(trail=not self.kept.all())
         self.font = font(camera.height)
         self.small_font = font(int(camera.height * 0.8))
@@ -272,7 +285,8 @@ class Overlay:
         alarm = code not in QUIET_STATUSES  # e-stopped, collision, stale input...: red bar
         draw.rectangle((0, 0, picture.width, self.bar_px),
                        fill=ALARM_BAR_RGB if alarm else (20, 20, 24))
-        draw.text((8, 5), self.scene.caption(k), fill=(240, 240, 240), font=self.font)
+        draw.text((8, 5), self.scene.caption(k, self.step_names), fill=(240, 240, 240),
+                  font=self.font)
         draw_legend(picture, self.entries)
         return np.asarray(picture)
 
