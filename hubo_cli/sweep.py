@@ -24,14 +24,13 @@ import math
 import os
 import re
 import socket
+import textwrap
 import time
 import warnings
 from collections.abc import Callable, Sequence
 from concurrent.futures import CancelledError
 from dataclasses import asdict, dataclass
 from pathlib import Path
-
-import numpy as np
 
 from hubo_cli.errors import DeviceError, HuboError, InputError
 
@@ -641,10 +640,29 @@ def _cell(value) -> object:
     return value
 
 
+METRIC_NOTES = {
+    "hole_rms_mm": ("hole RMS error (mm)", "the hole's distance from the commanded path in the "
+                                            "wall plane, RMS; lower is better"),
+    "max_tilt_deg": ("largest torso tilt (deg)", "the torso's largest tilt from upright; lower "
+                                                 "is steadier"),
+}
+
+
 def plot_sweep(rows: Sequence[Row], path: str | Path) -> Path:
+    """Outcome against the parameters (:func:`sweep_figure`) as a PNG."""
+    import matplotlib.pyplot as plt
+
+    fig = sweep_figure(rows)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
+
+
+def sweep_figure(rows: Sequence[Row]):
     """Outcome against the parameters: one panel per swept parameter (or the seed), the hole's
     RMS error (tasks that cut) or the largest torso tilt, completed runs as dots and the others
-    as red crosses."""
+    as red crosses (those without a value on the panel's floor, with their e-stop's sources in
+    the legend); a note says what the value means. The figure is left open."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -653,29 +671,38 @@ def plot_sweep(rows: Sequence[Row], path: str | Path) -> Path:
     names = [n for n in parameter_names(rows)
              if len({str(r.parameters.get(n)) for r in rows}) > 1] or ["seed"]
     holes = any(r.hole_rms_mm is not None for r in rows)
-    metric, label = (("hole_rms_mm", "hole RMS error (mm)") if holes
-                     else ("max_tilt_deg", "largest torso tilt (deg)"))
-    fig, axes = plt.subplots(1, len(names), figsize=(4.5 * len(names), 3.6), squeeze=False)
+    metric = "hole_rms_mm" if holes else "max_tilt_deg"
+    label, note = METRIC_NOTES[metric]
+    stops = sorted({r.estop for r in rows if not r.completed and r.estop})
+    failed = "not completed" + (f" (e-stop: {', '.join(stops)})" if stops else "")
+    fig, axes = plt.subplots(1, len(names), figsize=(max(7.5, 4.5 * len(names)), 5.0),
+                             squeeze=False)
     for ax, name in zip(axes[0], names, strict=True):
         for ok, style in ((True, dict(marker="o", color="tab:green", label="completed")),
-                          (False, dict(marker="x", color="tab:red", label="not completed"))):
+                          (False, dict(marker="x", color="tab:red", label=failed))):
             points = [(r.seed if name == "seed" else r.parameters.get(name),
                        getattr(r, metric)) for r in rows if r.completed == ok]
-            points = [(x, np.nan if y is None else y) for x, y in points]
-            if points:
-                xs, ys = zip(*points, strict=True)
-                ax.scatter([str(x) for x in xs] if not _numeric(xs) else xs, ys,
-                           linestyle="none", **style)
-        ax.set_xlabel(name)
+            known = [(x, y) for x, y in points if y is not None]
+            unknown = [x for x, y in points if y is None]
+            xs_all = [x for x, _ in points]
+            as_x = (lambda xs: xs) if _numeric(xs_all) else (lambda xs: [str(x) for x in xs])
+            if known:
+                xs, ys = zip(*known, strict=True)
+                ax.scatter(as_x(xs), ys, linestyle="none", **style)
+            if unknown:  # no value (refused, or stopped before any): on the panel's floor
+                ax.scatter(as_x(unknown), [0.0] * len(unknown), marker=style["marker"],
+                           color=style["color"], transform=ax.get_xaxis_transform(),
+                           clip_on=False, label=f"{style['label']}, no value (on the floor)")
+        ax.set_xlabel(name if name == "seed" else f"{name} (--set)")
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
-    axes[0][0].legend(loc="best", fontsize=8)
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=1, fontsize=8, frameon=False)
     fig.suptitle(f"hubo sweep {rows[0].command}: {len(rows)} runs, "
-                 f"{sum(r.completed for r in rows)} completed")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return Path(path)
+                 f"{sum(r.completed for r in rows)} completed; one mark per run\n"
+                 + textwrap.fill(f"{label}: {note}", 90), fontsize=10)
+    fig.tight_layout(rect=(0, 0.04 + 0.035 * len(labels), 1, 1))
+    return fig
 
 
 def _numeric(values) -> bool:

@@ -58,6 +58,32 @@ def test_limiter_position_band_only_blocks_moving_further_out(model):
     assert values[-1] == 0.0 and np.all(np.diff(values) <= 0.0)
 
 
+def test_a_joint_resting_on_its_limit_is_no_event_but_one_pushed_beyond_it_is(model):
+    """The hip yaws and rolls stand at their 0 rad limits; upstream rounding asks up to 7.5e-7
+    rad beyond them (measured over a default cut). That is no flag (the status stays ok); a
+    wanted command beyond the limit by 50x the rounding tolerance is ``joint-limit``, and the
+    command stays on the limit either way."""
+    from hubo_cli.control.limiter import POSITION_ROUNDING_RAD
+
+    limiter = SoftErrorLimiter(model, DT)
+    q0 = home_posture(model)
+    hip = model.joint_names.index("RHY")
+    assert q0[hip] == model.upper_rad[hip] == 0.0
+    limiter.reset(q0, _state(model))
+    rng = np.random.default_rng(7)
+    for k in range(300):
+        want = q0.copy()
+        want[hip] += rng.uniform(0.0, 2.0) * 7.5e-7 if k % 3 else 7.5e-7
+        cycle = Cycle(k * DT, DT)
+        out = limiter.update(want, _state(model), cycle)
+        assert cycle.flags == set() and out[hip] <= model.upper_rad[hip] + 1e-15
+    want = q0.copy()
+    want[hip] += 50 * POSITION_ROUNDING_RAD
+    cycle = Cycle(300 * DT, DT)
+    out = limiter.update(want, _state(model), cycle)
+    assert "joint-limit" in cycle.flags and out[hip] == pytest.approx(0.0, abs=1e-12)
+
+
 def test_limiter_tracking_error_band(model):
     limiter = SoftErrorLimiter(model, DT)
     q0 = home_posture(model)

@@ -22,7 +22,7 @@ from hubo_cli.control.target import Target
 from hubo_cli.model import load_model
 from hubo_cli.posture import home_posture
 from hubo_cli.session import RunSetup, run
-from hubo_cli.viz.camera import DEFAULT_PRESET, camera_for
+from hubo_cli.viz.camera import DEFAULT_PRESET, PRESETS, camera_for
 from hubo_cli.viz.replay import KinematicReplay
 from hubo_cli.viz.scene import load_scene
 
@@ -190,7 +190,8 @@ def test_a_hardware_log_without_torso_position_is_stood_on_its_soles(run_dir, tm
 def test_a_2_s_video_decodes_to_60_frames_of_the_robot(scene, tmp_path):
     import imageio_ffmpeg
 
-    from hubo_cli.viz.video import render_video
+    from hubo_cli.viz.legend import bar_height_px
+    from hubo_cli.viz.video import Overlay, render_video
 
     out = tmp_path / "two.mp4"
     result = render_video(scene, out, speed=1.0, width=320, height=240, start_s=0.0, end_s=2.0)
@@ -209,8 +210,11 @@ def test_a_2_s_video_decodes_to_60_frames_of_the_robot(scene, tmp_path):
         empty.show(len(scene) - 1)
         no_robot = empty.render(camera).astype(float)
     last = frames[-1].astype(float)
-    changed = np.sum(np.abs(last - no_robot), axis=2)[40:] > 60  # below the caption bar
-    assert changed.mean() > 0.05
+    changed = np.sum(np.abs(last - no_robot), axis=2) > 60
+    inset = Overlay(scene, camera).inset  # the overlay's drawings do not count
+    changed[inset.top:inset.top + inset.size + 1, inset.left:inset.left + inset.size + 1] = False
+    bar = bar_height_px(240)
+    assert changed[bar:-bar].mean() > 0.05  # between the caption and the legend bars
     assert np.mean(np.abs(frames[0].astype(float) - last)) > 1  # and it moves
 
 
@@ -468,3 +472,146 @@ def test_replay_command_writes_the_video_it_reports(run_dir, tmp_path):
     assert video["frames"] == round(run_s * 30 / 4)
     assert (video["width"], video["height"]) == (96, 64)
     assert out.read_bytes()[4:8] == b"ftyp"  # an MP4 container
+    # without --json, off a terminal, it says how far it is: at the start and each quarter
+    said = CliRunner().invoke(main, ["replay", str(run_dir), "--video", str(out), "--size",
+                                     "96x64", "--to", "0.5", "--force"])
+    assert said.exit_code == 0, said.output
+    lines = [line for line in said.output.splitlines() if line.startswith("rendering")]
+    assert lines[0] == "rendering small.mp4: 1/15 frames"
+    assert lines[-1] == "rendering small.mp4: 15/15 frames" and len(lines) == 5
+
+
+def _corners(lower, upper) -> np.ndarray:
+    return np.array([[(lower, upper)[i >> k & 1][k] for k in range(3)] for i in range(8)])
+
+
+@pytest.mark.parametrize("preset", sorted(PRESETS))
+def test_the_video_camera_frames_the_whole_robot_and_the_hole(scene, preset):
+    """Every corner of the box round the robot's links over the run and the hole is in the
+    picture between the caption and legend bars, and the box fills it (a corner near an edge:
+    the camera is not just far away)."""
+    from hubo_cli.viz.legend import bar_height_px
+    from hubo_cli.viz.video import FRAMING_SAMPLES, framing_camera
+
+    width, height = 320, 240
+    bar = bar_height_px(height)
+    with KinematicReplay(scene) as replay:
+        camera = framing_camera(scene, replay, preset, width, height)
+        periods = np.linspace(0, len(scene) - 1, FRAMING_SAMPLES).round().astype(int)
+        lower, upper = replay.robot_bounds_m(periods)
+    lower = np.minimum(lower, scene.hole_world_m.min(axis=0))
+    upper = np.maximum(upper, scene.hole_world_m.max(axis=0))
+    px = camera.project(_corners(lower, upper))
+    assert np.all(np.isfinite(px))
+    assert np.all((px[:, 0] >= 0) & (px[:, 0] <= width) & (px[:, 1] >= bar)
+                  & (px[:, 1] <= height - bar))
+    gaps = np.r_[px[:, 0], width - px[:, 0], px[:, 1] - bar, height - bar - px[:, 1]]
+    assert gaps.min() < 10  # fitted, not merely far away
+    # the old framing (the preset's distance from the hole) cut the default view's feet off
+    if preset == DEFAULT_PRESET:
+        old = camera_for(preset, scene.focus_world_m(), scene.working_arm, width, height)
+        assert np.any(old.project(_corners(lower, upper))[:, 1] > height)
+
+
+def test_the_snapshot_camera_frames_the_robots_links(scene):
+    from hubo_cli.drivers.snapshot import snapshot_camera
+    from hubo_cli.viz.camera import body_bounds_m
+    from hubo_cli.viz.legend import bar_height_px
+
+    with KinematicReplay(scene) as replay:
+        replay.show(len(scene) - 1)
+        p, cid, robot = replay._p, replay._cid, replay._robot
+        meta = {"tools": scene.tools, "hole_world_m": scene.hole_world_m.tolist()}
+        camera = snapshot_camera(p, cid, meta, scene.tool_world_m[-1], robot, 640, 480)
+        lower, upper = body_bounds_m(p, robot, cid)
+    assert upper[2] - lower[2] > 1.0  # head to feet
+    px = camera.project(_corners(lower, upper))
+    assert np.all((px >= 0) & (px <= [640, 480 - bar_height_px(480)]))
+
+
+def test_frames_and_snapshots_carry_a_legend_and_the_path_is_kept_only_while_cutting(
+        scene, run_dir, tmp_path):
+    from PIL import Image
+
+    from hubo_cli.viz.legend import BAR_RGB, bar_height_px
+    from hubo_cli.viz.video import Overlay, drawn_periods, legend_entries, render_still
+
+    labels = [e.label for e in legend_entries(trail=True)]
+    assert labels == ["goal path", "bit measured", "bit, last 1 s", "hole cut", "bit now"]
+    for picture in (np.asarray(Image.open(render_still(scene, tmp_path / "still.png",
+                                                       width=320, height=240))),
+                    np.asarray(Image.open(run_dir / "snapshot.png"))):
+        bar = picture[-bar_height_px(picture.shape[0]) + 2:]
+        light = np.all(np.abs(bar.astype(int) - BAR_RGB) <= 3, axis=2)
+        assert 0.5 < light.mean() < 0.98  # the bar, with words and samples on it
+    assert drawn_periods(scene).all()  # no cutting column: every period
+    cutting = np.zeros(len(scene))
+    cutting[100:200] = 1
+    log = dataclasses.replace(scene.log, columns={**scene.log.columns, "cutting": cutting})
+    cut = dataclasses.replace(scene, log=log)
+    assert np.array_equal(np.flatnonzero(drawn_periods(cut)), np.arange(100, 200))
+    overlay = Overlay(cut, camera_for(DEFAULT_PRESET, scene.focus_world_m(), "right-arm"))
+    assert "bit, last 1 s" in [e.label for e in overlay.entries]
+    # the inset magnifies the cut: every kept point and the hole inside its square
+    inset = overlay.inset
+    assert inset.shown and inset.size >= 0.3 * 480
+    inside = np.vstack([inset.tool[100:200], inset.hole])
+    assert np.all((inside[:, 0] >= inset.left) & (inside[:, 0] <= inset.left + inset.size)
+                  & (inside[:, 1] >= inset.top) & (inside[:, 1] <= inset.top + inset.size))
+    extent = inside.max(axis=0) - inside.min(axis=0)
+    assert extent.max() > 0.5 * inset.size  # magnified to fill it
+    assert 0 < inset.bar_px <= inset.size / 2
+    # the caption bar is red while e-stopped, dark otherwise
+    from hubo_cli.viz.video import ALARM_BAR_RGB
+
+    status = scene.log.status
+    assert (status == 6).any() and (status == 0).any()  # the sway's wall trips the wrist stop
+    blank = np.zeros((480, 640, 3), dtype=np.uint8)
+    for k in (int(np.argmax(status == 6)), int(np.argmax(status == 0))):
+        corner = tuple(overlay.draw(blank, k)[2, 636])
+        assert (corner == ALARM_BAR_RGB) == (status[k] == 6), (k, status[k], corner)
+
+
+def test_fit_camera_frames_any_box_and_refuses_an_unknown_one():
+    from hubo_cli.errors import InputError
+    from hubo_cli.viz.camera import fit_camera
+
+    rng = np.random.default_rng(38)
+    for k in range(60):
+        size = 10.0 ** rng.uniform(-3, 1.7, 3) * (rng.random(3) > 0.15)  # some sides flat
+        lower = rng.uniform(-5, 5, 3)
+        preset = sorted(PRESETS)[k % len(PRESETS)]
+        w, h = (640, 480) if k % 2 else (96, 64)
+        top, bottom = (0, 0) if k % 3 else (12, 12)
+        camera = fit_camera(preset, lower, lower + size, "left-arm" if k % 4 else "right-arm",
+                            w, h, top_px=top, bottom_px=bottom)
+        px = camera.project(_corners(lower, lower + size))
+        assert np.all((px[:, 0] >= 0) & (px[:, 0] <= w) & (px[:, 1] >= top)
+                      & (px[:, 1] <= h - bottom)), (k, size, preset)
+    for bad in ([np.nan, 0, 0], [0, np.inf, 0]):
+        with pytest.raises(InputError):
+            fit_camera(DEFAULT_PRESET, [0, 0, 0], bad)
+
+
+def test_the_caption_names_the_tasks_step(scene, tmp_path):
+    from hubo_cli.viz.video import step_names
+
+    steps = np.full(len(scene), np.nan)
+    steps[10:] = 2
+    log = dataclasses.replace(scene.log, columns={**scene.log.columns, "step_code": steps})
+    folder = tmp_path / "run"
+    folder.mkdir()
+    stepped = dataclasses.replace(scene, log=log, run_dir=folder)
+    assert step_names(stepped) == []  # no task.toml: the number only
+    assert "step 3 " in stepped.caption(20, step_names(stepped))
+    for garbage in ("[[steps]]\nname = ", "steps = 3", b"\xff\xfe[[steps]]"):
+        (folder / "task.toml").write_bytes(garbage if isinstance(garbage, bytes)
+                                           else garbage.encode())
+        assert step_names(stepped) == []
+    (folder / "task.toml").write_text('[[steps]]\nname = "raise"\n[[steps]]\nname = "in"\n'
+                                      '[[steps]]\nname = "cut"\n')
+    names = step_names(stepped)
+    assert names == ["raise", "in", "cut"]
+    assert "step 3/3 cut" in stepped.caption(20, names)
+    assert "step" not in stepped.caption(5, names)  # no step logged yet
+    assert "step 3 " in stepped.caption(20, names[:2])  # a step the names do not reach

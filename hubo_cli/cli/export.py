@@ -7,7 +7,7 @@ import dataclasses
 import click
 
 from hubo_cli.cli.options import force_option
-from hubo_cli.cli.output import console, print_json
+from hubo_cli.cli.output import busy, console, print_json
 
 
 @click.command("export")
@@ -44,7 +44,8 @@ def export(run, rrd, mcap, force, as_json) -> None:
     if rrd_out is not None:
         from hubo_cli.viz.rerun_export import export_rrd
 
-        with rrd_out.writing() as temporary:
+        with (busy(f"writing {rrd_out.path} (Rerun)", quiet=as_json),
+              rrd_out.writing() as temporary):
             result = dataclasses.replace(export_rrd(scene, temporary), path=rrd_out.path)
         report["rrd"] = {"path": str(result.path), "joints": result.joints,
                          "series": result.series, "wall_s": result.wall_s}
@@ -54,7 +55,8 @@ def export(run, rrd, mcap, force, as_json) -> None:
     if mcap_out is not None:
         from hubo_cli.viz.mcap_export import LAYOUT_PATH, export_mcap
 
-        with mcap_out.writing() as temporary:
+        with (busy(f"writing {mcap_out.path} (MCAP)", quiet=as_json),
+              mcap_out.writing() as temporary):
             result = dataclasses.replace(export_mcap(scene, temporary), path=mcap_out.path)
         report["mcap"] = {"path": str(result.path), "messages": result.messages,
                           "wall_s": result.wall_s, "layout": str(LAYOUT_PATH)}

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import sys
 
@@ -32,6 +33,19 @@ def exit_if_interrupted(summary: dict) -> None:
 def fmt_q(q_rad) -> str:
     """Joint vector as space-separated radians with 4 decimals."""
     return " ".join(f"{v:+.4f}" for v in np.asarray(q_rad, dtype=float))
+
+
+@contextlib.contextmanager
+def busy(what: str, quiet: bool = False):
+    """Around a step that takes more than a second: a spinner saying ``what`` on a terminal's
+    stderr, else (unless ``quiet``: --json) the words as one line on stderr when it starts."""
+    if err_console.is_terminal and not err_console.is_dumb_terminal:
+        with err_console.status(what):
+            yield
+    else:
+        if not quiet:
+            err_console.print(f"{what} ...", soft_wrap=True)
+        yield
 
 
 def warn(message: str) -> None:

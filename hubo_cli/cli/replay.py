@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
+
 import click
 
 from hubo_cli.cli.options import force_option
-from hubo_cli.cli.output import console, err_console, interactive, print_json
+from hubo_cli.cli.output import console, err_console, print_json
 from hubo_cli.viz.camera import DEFAULT_PRESET, PRESETS
 
 
@@ -27,14 +29,12 @@ def parse_size(text: str) -> tuple[int, int]:
 
 
 def make_video(run_dir, out=None, *, speed=None, camera=DEFAULT_PRESET, size="640x480",
-               start_s=None, end_s=None):
+               start_s=None, end_s=None, quiet=False):
     """Render a run's video (``out``, an :class:`~hubo_cli.outputs.OutputFile`, or
-    RUN/video.mp4) under a temporary name, renamed when complete, with a progress bar when
-    interactive; returns the :class:`~hubo_cli.viz.video.VideoResult`."""
-    import contextlib
+    RUN/video.mp4) under a temporary name, renamed when complete, with a progress bar on a
+    terminal's stderr (elsewhere a line at the start and at each quarter, unless ``quiet``:
+    --json); returns the :class:`~hubo_cli.viz.video.VideoResult`."""
     import dataclasses
-
-    from rich.progress import Progress
 
     from hubo_cli.outputs import replacing
     from hubo_cli.viz.scene import load_scene
@@ -42,20 +42,44 @@ def make_video(run_dir, out=None, *, speed=None, camera=DEFAULT_PRESET, size="64
 
     width, height = parse_size(size)
     scene = load_scene(run_dir)
-    target = out.writing() if out is not None else replacing(scene.run_dir / "video.mp4")
+    path = out.path if out is not None else scene.run_dir / "video.mp4"
+    target = out.writing() if out is not None else replacing(path)
     with contextlib.ExitStack() as stack:
         temporary = stack.enter_context(target)
-        on_frame = None
-        if interactive():
-            progress = stack.enter_context(Progress(console=err_console, transient=True))
-            bar = progress.add_task("rendering the video", total=None)
-
-            def on_frame(i, n):
-                progress.update(bar, completed=i, total=n)
+        on_frame = stack.enter_context(frame_progress(f"rendering {path.name}", quiet))
         result = render_video(scene, temporary, speed=speed, camera=camera, width=width,
                               height=height, start_s=start_s, end_s=end_s, on_frame=on_frame)
-    path = out.path if out is not None else scene.run_dir / "video.mp4"
     return dataclasses.replace(result, path=path)
+
+
+@contextlib.contextmanager
+def frame_progress(what: str, quiet: bool = False):
+    """A callback ``(done, total)`` showing progress: a bar with the time left on a terminal's
+    stderr, else (unless ``quiet``) a plain line on stderr at the start and at each quarter."""
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    if err_console.is_terminal and not err_console.is_dumb_terminal:
+        with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                      TimeElapsedColumn(), TimeRemainingColumn(), console=err_console,
+                      transient=True) as progress:
+            bar = progress.add_task(what, total=None)
+            yield lambda done, total: progress.update(bar, completed=done, total=total)
+        return
+    quarters = [-1]
+
+    def on_frame(done: int, total: int) -> None:
+        quarter = 4 * done // max(total, 1)
+        if not quiet and (done == 1 or quarter > quarters[0]):
+            err_console.print(f"{what}: {done}/{total} frames", soft_wrap=True)
+            quarters[0] = quarter
+    yield on_frame
 
 
 def describe_video(result) -> str:
@@ -103,7 +127,7 @@ def replay(run, gui, video, speed, camera, size, start_s, end_s, force, as_json)
     if video is not None:
         out = OutputFile(video, option="--video", inputs=(run,), force=force)
         result = make_video(run, out, speed=speed, camera=camera, size=size, start_s=start_s,
-                            end_s=end_s)
+                            end_s=end_s, quiet=as_json)
         report["video"] = {"path": str(result.path), "frames": result.frames,
                            "width": result.width, "height": result.height,
                            "speed": result.speed, "run_s": result.run_s,
@@ -129,14 +153,15 @@ def check_video_support() -> None:
     require("imageio_ffmpeg", "the MP4 video (--video)")
 
 
-def add_run_video(run_dir, summary: dict):
+def add_run_video(run_dir, summary: dict, quiet: bool = False):
     """After a run: render RUN/video.mp4 from its log (default speed and camera), list it in
-    the summary (and summary.json); returns the :class:`~hubo_cli.viz.video.VideoResult`."""
+    the summary (and summary.json); ``quiet``: no progress lines off a terminal (--json);
+    returns the :class:`~hubo_cli.viz.video.VideoResult`."""
     from pathlib import Path
 
     from hubo_cli.runs import write_json
 
-    result = make_video(run_dir)
+    result = make_video(run_dir, quiet=quiet)
     summary.setdefault("files", []).append(result.path.name)
     summary["video"] = {"file": result.path.name, "frames": result.frames,
                         "speed": result.speed, "wall_s": result.wall_s}

@@ -16,9 +16,9 @@ from hubo_cli.cli.options import (
     robot_run_options,
 )
 from hubo_cli.cli.output import (
+    busy,
     console,
     err_console,
-    interactive,
     print_json,
 )
 from hubo_cli.control.operator import KEYS_HELP
@@ -260,7 +260,7 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
             done = run_experiment(spec, out=out, gui=gui, estop=not no_estop,
                                   perturb_seed=perturb_seed, balance=balance, live=server)
         if video:
-            add_run_video(done.run_dir, done.summary)
+            add_run_video(done.run_dir, done.summary, quiet=as_json)
         _finish(ctx, done, as_json, lambda: _print_push_wall(done.summary, done.run_dir))
         return
     stops = active_stops(spec.safety.estop_sources, driver, no_estop=no_estop,
@@ -281,9 +281,9 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, st
     from hubo_cli.cli.safety_view import SafetyPanel, read_safety
     from hubo_cli.tasks.runner import check_task, run_task
 
-    if not interactive() and not as_json:
-        err_console.print(f"{spec.name}: pre-flight (laying out and solving every period)")
-    plan = check_task(spec)
+    with busy(f"{spec.name}: pre-flight (laying out and solving every period; a first run "
+              "also maps the arm's workspace, a few seconds)", quiet=as_json):
+        plan = check_task(spec)
     if not plan.preflight.ok:
         _refuse(ctx, plan, as_json)
     state: dict = {}
@@ -316,7 +316,7 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, st
     if video:
         from hubo_cli.cli.replay import add_run_video
 
-        add_run_video(done.run_dir, done.summary)
+        add_run_video(done.run_dir, done.summary, quiet=as_json)
     _finish(ctx, done, as_json, lambda: _print_cut(done.summary, done.run_dir))
 
 

@@ -325,7 +325,7 @@ def _report(run, as_json: bool, video: bool = False) -> None:
     if video:
         from hubo_cli.cli.replay import add_run_video
 
-        add_run_video(run.run_dir, summary)
+        add_run_video(run.run_dir, summary, quiet=as_json)
     stops = [e for e in summary["estop_events"] if e["kind"] == "stop"]
     if as_json:
         print_json({"run_dir": str(run.run_dir), **summary})

@@ -850,10 +850,12 @@ class SimDriver(Driver, SimulatedWorld):
                 "hole_t_s": [round(t, 6) for t, _ in self._cut_points]}
 
     def snapshot_png(self, path: str | Path, width: int = 640, height: int = 480) -> Path:
-        """Render the scene headless from the video's camera (bit and hole marked) as a PNG."""
+        """Render the scene headless from the video's camera, framing the whole robot (bit
+        and hole marked, a legend bar), as a PNG."""
         self._require_started()
         from hubo_cli.drivers.snapshot import scene_snapshot
 
         tool = self.frame_pose(DRILL_FRAME if self.options.drill else "right_hand")[:3, 3]
-        return scene_snapshot(self._p, self._cid, path, self.scene(), tool, width, height)
+        return scene_snapshot(self._p, self._cid, path, self.scene(), tool, self._robot, width,
+                              height)
 

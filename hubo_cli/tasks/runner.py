@@ -214,6 +214,15 @@ def _plane_rms_mm(goal_m: np.ndarray, actual_m: np.ndarray) -> float | None:
     return float(np.sqrt(np.mean(np.sum(d**2, axis=1))) * 1000)
 
 
+def _cut_at(target: TaskTarget, times_s, points_m: np.ndarray) -> np.ndarray:
+    """The rows of ``points_m`` (one per cut period) at the cut's last period at or before
+    each time that falls while cutting (K x 3)."""
+    cut_t = np.asarray(target.cut_t_s)
+    rows = [int(np.searchsorted(cut_t, t, side="right")) - 1 for t in times_s
+            if len(cut_t) and cut_t[0] <= t <= cut_t[-1] + 0.01]
+    return points_m[rows].reshape(-1, 3)
+
+
 def _hole_in_wall_frame(log, target: TaskTarget, T_S_W: np.ndarray) -> np.ndarray | None:
     """The hole as cut (the simulator's world points where the bit's flutes crossed the wall)
     in the wall frame of the path plot, placed as the hole's RMS error places the bit's world
@@ -251,7 +260,9 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
                              rms_error_mm=rms,
                              actual_label="bit measured (arm FK through the torso estimate)",
                              hole_m=_hole_in_wall_frame(log, target, T_S_W),
-                             hole_rms_error_mm=hole_rms)
+                             hole_rms_error_mm=hole_rms,
+                             stops_m=_cut_at(target, [e[1] for e in stops], actual)
+                             - T_S_W[:3, 3])
         done.add_file("path.png")
     plot_wrist_torque(log, run_dir / "wrist_torque.png", limit_nm=limit,
                       title=f"{spec.name}: wrist torque (limit {limit:g} N m)",

@@ -9,6 +9,10 @@ frame, mirrored to the working arm's side (the robot faces +x; its right arm is 
 * ``behind``: from straight behind the robot;
 * ``top``: from above;
 * ``wide``: the whole robot and the wall from behind on the other side.
+
+:func:`fit_camera` keeps a preset's direction and field of view and moves the camera back (or
+in) until a bounding box (the robot's links and the hole, :func:`body_bounds_m`) fills the
+picture between its caption and legend bars, so that no head or foot is cut off.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ PRESETS = {
     "wide": ((-0.7, 2.6, 0.6), 45.0),
 }
 DEFAULT_PRESET = "shoulder"
+FIT_MARGIN_PX = 6  # the fitted box's corners stay this far inside the picture
 
 
 @dataclass(frozen=True)
@@ -103,9 +108,61 @@ def camera_for(preset: str, focus_m, working_arm: str = "right-arm", width: int 
     if width < 16 or height < 16 or width % 2 or height % 2:
         raise InputError(f"image size {width} x {height} is not usable",
                          hint="give an even width and height of at least 16 pixels")
-    offset, fov = PRESETS[preset]
-    offset = np.array(offset)
-    if working_arm == "left-arm":
-        offset[1] = -offset[1]
+    offset, fov = _offset(preset, working_arm)
     focus = np.asarray(focus_m, dtype=float)
     return Camera(tuple(focus + offset), tuple(focus), fov, int(width), int(height))
+
+
+def _offset(preset: str, working_arm: str) -> tuple[np.ndarray, float]:
+    offset, fov = PRESETS[preset]
+    offset = np.array(offset, dtype=float)
+    if working_arm == "left-arm":
+        offset[1] = -offset[1]
+    return offset, fov
+
+
+def fit_camera(preset: str, lower_m, upper_m, working_arm: str = "right-arm", width: int = 640,
+               height: int = 480, *, top_px: int = 0, bottom_px: int = 0) -> Camera:
+    """A preset's camera (its direction and field of view) looking at the centre of the box
+    ``lower_m``..``upper_m`` (world, m) from the distance at which the whole box is in the
+    picture, :data:`FIT_MARGIN_PX` inside its edges and clear of ``top_px`` and ``bottom_px``
+    (caption and legend bars): as close as that allows.
+
+    Raises:
+        InputError: unknown preset, bad image size, or a box that is not finite.
+    """
+    lower, upper = np.asarray(lower_m, dtype=float), np.asarray(upper_m, dtype=float)
+    if not (np.all(np.isfinite(lower)) and np.all(np.isfinite(upper))):
+        raise InputError("the box to frame is not finite", hint="frame points that are known")
+    centre = 0.5 * (lower + upper)
+    camera_for(preset, centre, working_arm, width, height)  # checks the preset and the size
+    offset, fov = _offset(preset, working_arm)
+    direction = offset / np.linalg.norm(offset)
+    corners = np.array([[(lower, upper)[i >> k & 1][k] for k in range(3)] for i in range(8)])
+    m = FIT_MARGIN_PX
+    y_lo, y_hi = top_px + m, height - bottom_px - m
+
+    def camera_at(distance_m: float) -> Camera:
+        return Camera(tuple(centre + direction * distance_m), tuple(centre), fov, int(width),
+                      int(height))
+
+    def fits(distance_m: float) -> bool:
+        px = camera_at(distance_m).project(corners)
+        return bool(np.all(np.isfinite(px)) and np.all((px[:, 0] >= m) & (px[:, 0] <= width - m)
+                                                       & (px[:, 1] >= y_lo) & (px[:, 1] <= y_hi)))
+
+    near, far = 0.05, 0.05 + 2.0 * float(np.linalg.norm(upper - lower)) + 1.0
+    while not fits(far) and far < 1e4:
+        far *= 2.0
+    for _ in range(40):
+        mid = 0.5 * (near + far)
+        near, far = (near, mid) if fits(mid) else (mid, far)
+    return camera_at(far)
+
+
+def body_bounds_m(p, body: int, client: int) -> tuple[np.ndarray, np.ndarray]:
+    """The world bounding box (lower, upper corners, m) of every link of a PyBullet body."""
+    boxes = [p.getAABB(body, link, physicsClientId=client)
+             for link in range(-1, p.getNumJoints(body, physicsClientId=client))]
+    corners = np.array([corner for box in boxes for corner in box], dtype=float)
+    return corners.min(axis=0), corners.max(axis=0)

@@ -19,7 +19,7 @@ import numpy as np
 from hubo_cli.drivers.sim import FRAME_PARENTS, import_pybullet, quiet_native_output
 from hubo_cli.errors import DeviceError, InputError
 from hubo_cli.urdf import link_frames
-from hubo_cli.viz.camera import Camera
+from hubo_cli.viz.camera import Camera, body_bounds_m
 from hubo_cli.viz.scene import RunScene
 
 WALL_RGBA = (0.76, 0.6, 0.42, 1.0)
@@ -157,6 +157,16 @@ class KinematicReplay:
         p.resetJointStatesMultiDof(self._robot, self._idx,
                                    [[float(v)] for v in self._q[k]], physicsClientId=cid)
         self.k = k
+
+    def robot_bounds_m(self, periods) -> tuple[np.ndarray, np.ndarray]:
+        """The world bounding box (lower, upper, m) of the robot's links over ``periods``
+        (shown in turn; the robot is left in the last one's posture)."""
+        boxes = []
+        for k in periods:
+            self.show(int(k))
+            boxes.extend(body_bounds_m(self._p, self._robot, self._cid))
+        corners = np.array(boxes)
+        return corners.min(axis=0), corners.max(axis=0)
 
     def torso_pose(self) -> np.ndarray:
         """The replayed torso pose in the world (4x4, m), read back from PyBullet."""

@@ -33,8 +33,7 @@ from hubo_cli.model import ARMS, LEGS, RobotModel, load_model
 ARM_SUFFIX = {"right-arm": "_r", "left-arm": "_l"}
 # the run's scalar series (time_series), in the order exports show them
 SERIES = ("error_mm", "wrist_torque_nm", "cp_margin_mm", "torso_pitch_deg", "status_code")
-# statuses whose start is an ``info`` event, not a ``warning``: the pipeline at work (a joint
-# held at its limit is most of a nominal cut: the hip yaw and roll at their zero limits)
+# statuses whose start is an ``info`` event, not a ``warning``: the pipeline at work
 QUIET_STATUSES = frozenset({Status.OK, Status.SLOWING, Status.HOLDING, Status.JOINT_LIMIT})
 HOLE_FACE_OFFSET_M = 0.001  # the hole drawn this far in front of the wall's face
 START_FROM_LOG = "log"  # RunScene.start_source when the log says when the run started
@@ -128,13 +127,16 @@ class RunScene:
         (:func:`hole_on_face`)."""
         return hole_on_face(self.hole_world_m, self.walls, self.T_world_torso[0, :3, 3])
 
-    def caption(self, k: int) -> str:
-        """One line describing period ``k``: time, step, error, wrist torque, status."""
+    def caption(self, k: int, step_names=()) -> str:
+        """One line describing period ``k``: time, step (``step 3/5 cut`` with the task's
+        ``step_names``), error, wrist torque, lean, status."""
         log = self.log
         parts = [f"t {log['t_s'][k]:6.2f} s"]
         step = first_column(log, ("step_code",))
         if step is not None and np.isfinite(step[k]):
-            parts.append(f"step {int(step[k]) + 1}")
+            i = int(step[k])
+            parts.append(f"step {i + 1}/{len(step_names)} {step_names[i]}"
+                         if 0 <= i < len(step_names) else f"step {i + 1}")
         suffix = ARM_SUFFIX[self.working_arm]
         error = first_column(log, ("error_m", f"error_m{suffix}"))
         if error is not None and np.isfinite(error[k]):
@@ -144,7 +146,7 @@ class RunScene:
             parts.append(f"wrist {torque[k]:4.2f} N m")
         lean = np.degrees(np.arctan2(-self.T_world_torso[k, 2, 0], self.T_world_torso[k, 2, 2]))
         parts.append(f"lean {lean:+4.1f} deg")
-        parts.append(Status(int(log["status_code"][k])).label)
+        parts.append(f"status {Status(int(log['status_code'][k])).label}")
         return "   ".join(parts)
 
 

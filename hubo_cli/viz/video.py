@@ -3,7 +3,12 @@ and a caption, at 30 frames per second.
 
 Frame ``i`` shows the last logged period at or before run time ``t0 + i * speed / fps``; a span
 of T seconds of the run gives ``round(T * fps / speed)`` frames. The goal path (green) is drawn
-whole, the measured path (red) and the hole (dark) up to the frame's time; a ring marks the tool.
+whole, the measured path (red) and the hole (dark) up to the frame's time, both only while
+cutting where the log says so (elsewhere the bit leaves a short light-red trail); a ring marks
+the tool. A caption bar on top gives the time, step, error, wrist torque, lean and status (red
+while the status is a warning: an e-stop, a collision, stale input...), a legend bar below
+says what the colours mean, the camera frames the whole robot and the hole
+(:func:`framing_camera`), and an inset shows the cut magnified (:class:`CutInset`).
 """
 
 from __future__ import annotations
@@ -15,13 +20,31 @@ from pathlib import Path
 import numpy as np
 
 from hubo_cli.errors import InputError
-from hubo_cli.viz.camera import DEFAULT_PRESET, Camera, camera_for
+from hubo_cli.viz.camera import DEFAULT_PRESET, Camera, fit_camera
 from hubo_cli.viz.deps import require
+from hubo_cli.viz.legend import (
+    RING_RGB,
+    Entry,
+    bar_height_px,
+    draw_legend,
+    draw_ring,
+    font,
+    mark_hole,
+    rgb255,
+)
 from hubo_cli.viz.replay import ACTUAL_RGB, GOAL_RGB, HOLE_RGB, KinematicReplay
-from hubo_cli.viz.scene import RunScene
+from hubo_cli.viz.scene import QUIET_STATUSES, RunScene, first_column
 
 FPS = 30
 LONGEST_AT_REAL_TIME_S = 20.0  # longer runs are sped up to a video of this length by default
+TRAIL_S = 1.0  # outside the cut the bit leaves a trail this long (s), not a lasting path
+TRAIL_RGB = (240, 150, 140)
+ALARM_BAR_RGB = (150, 20, 30)  # the caption bar while the status is a warning (an e-stop...)
+FRAMING_SAMPLES = 12  # postures of the run whose links the camera frames
+INSET_FRACTION = 0.36  # the cut's inset is this part of the picture's height, square
+INSET_MIN_SPAN_M = 0.02  # ... and shows at least this much of the wall
+INSET_EVERY = 4  # the inset's paths through every 4th period
+INSET_SMALLEST_PX = 60  # no inset in pictures too small for one this wide
 
 
 def default_speed(scene: RunScene) -> float:
@@ -54,15 +77,145 @@ class VideoResult:
     renderer: str
 
 
-def _rgb255(rgb) -> tuple[int, int, int]:
-    return tuple(int(round(255 * c)) for c in rgb)
+def legend_entries(trail: bool) -> list[Entry]:
+    """What the overlay's colours and markers mean (the legend bar's entries)."""
+    entries = [Entry("line", rgb255(GOAL_RGB), "goal path"),
+               Entry("line", rgb255(ACTUAL_RGB), "bit measured"),
+               Entry("dot", rgb255(HOLE_RGB), "hole cut"),
+               Entry("ring", RING_RGB, "bit now")]
+    if trail:
+        entries.insert(2, Entry("line", TRAIL_RGB, f"bit, last {TRAIL_S:g} s"))
+    return entries
+
+
+def drawn_periods(scene: RunScene) -> np.ndarray:
+    """The periods whose goal and measured tool paths stay drawn: while cutting where the log
+    says (a task's ``cutting`` column), else all (N, bool). Elsewhere (the raise, the way back)
+    only a trail of the last :data:`TRAIL_S` seconds follows the bit."""
+    cutting = first_column(scene.log, ("cutting",))
+    if cutting is None or not np.any(cutting == 1):
+        return np.ones(len(scene), dtype=bool)
+    return cutting == 1
+
+
+def step_names(scene: RunScene) -> list[str]:
+    """The task's step names from the run folder's ``task.toml`` ([] without a readable one:
+    captions then give the step's number only)."""
+    import tomllib
+
+    try:
+        steps = tomllib.loads((scene.run_dir / "task.toml").read_text())["steps"]
+        return [str(step["name"]) for step in steps]
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError, KeyError, TypeError):
+        return []
+
+
+def framing_camera(scene: RunScene, replay: KinematicReplay, preset: str, width: int,
+                   height: int) -> Camera:
+    """The preset's camera fitted to the robot's links over the run (sampled at
+    :data:`FRAMING_SAMPLES` periods) and the hole, clear of the caption and legend bars."""
+    periods = np.unique(np.linspace(0, len(scene) - 1, FRAMING_SAMPLES).round().astype(int))
+    lower, upper = replay.robot_bounds_m(periods)
+    hole = scene.hole_world_m
+    if len(hole):
+        lower, upper = np.minimum(lower, hole.min(axis=0)), np.maximum(upper, hole.max(axis=0))
+    bar = bar_height_px(height)
+    return fit_camera(preset, lower, upper, scene.working_arm, width, height, top_px=bar,
+                      bottom_px=bar)
+
+
+class CutInset:
+    """The cut magnified in the picture's top-right corner, seen square-on from behind the robot
+    (world y mirrored, so that its left is on the left, and z up): the kept goal path, the
+    measured path and the hole up to the frame's time, the tool's ring and a scale bar.
+
+    Args:
+        scene: the run.
+        kept: the periods whose paths are drawn (:func:`drawn_periods`).
+        hole_t_s: the hole points' times (s).
+        camera: the picture's camera (its size).
+        top_px: the inset's top edge (below the caption bar).
+    """
+
+    def __init__(self, scene: RunScene, kept: np.ndarray, hole_t_s: np.ndarray, camera: Camera,
+                 top_px: int) -> None:
+        self.size = int(camera.height * INSET_FRACTION)
+        self.left, self.top = camera.width - self.size - 6, top_px + 6
+        points = [scene.goal_world_m[kept], scene.tool_world_m[kept], scene.hole_world_m]
+        every = np.vstack([p for p in points if len(p)])
+        every = self._uv(every[np.all(np.isfinite(every), axis=1)])
+        self.panel = None  # the kept drawing, made on the first frame
+        self.shown = len(every) > 1 and self.size >= INSET_SMALLEST_PX
+        if not self.shown:
+            return
+        lo, hi = every.min(axis=0), every.max(axis=0)
+        span = max(float(np.max(hi - lo)) * 1.15, INSET_MIN_SPAN_M)
+        self.scale = (self.size - 20) / span  # px per m
+        self.centre = 0.5 * (lo + hi)
+        self.goal = self._px(np.where(kept[:, None], scene.goal_world_m, np.nan))
+        self.tool = self._px(scene.tool_world_m)
+        self.kept = kept
+        self.hole = self._px(scene.hole_world_m) if len(scene.hole_world_m) else np.zeros((0, 2))
+        self.hole_t_s = hole_t_s
+        self.t_s = scene.t_s
+        bar_m = next((b for b in (0.2, 0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001)
+                      if b * self.scale <= (self.size - 20) / 2), 0.001)
+        self.bar_m, self.bar_px = bar_m, bar_m * self.scale
+
+    @staticmethod
+    def _uv(points: np.ndarray) -> np.ndarray:
+        return np.column_stack([-points[:, 1], points[:, 2]])
+
+    def _px(self, points: np.ndarray) -> np.ndarray:
+        uv = (self._uv(points) - self.centre) * self.scale
+        return np.column_stack([self.left + self.size / 2 + uv[:, 0],
+                                self.top + self.size / 2 - uv[:, 1]])
+
+    def _reset(self, text_font) -> None:
+        from PIL import Image, ImageDraw
+
+        n = self.size
+        self.panel = Image.new("RGB", (n + 1, n + 1), (248, 248, 248))
+        self._draw = ImageDraw.Draw(self.panel)
+        self._draw.rectangle((0, 0, n, n), outline=(20, 20, 24))
+        offset = np.array([self.left, self.top])
+        _polyline(self._draw, self.goal[::INSET_EVERY] - offset, rgb255(GOAL_RGB), 2)
+        self._draw.text((4, 2), "cut, magnified", fill=(20, 20, 24), font=text_font)
+        by = n - 8
+        self._draw.line((6, by, 6 + self.bar_px, by), fill=(20, 20, 24), width=2)
+        self._draw.text((10 + self.bar_px, by - 12), f"{self.bar_m * 1000:g} mm",
+                        fill=(20, 20, 24), font=text_font)
+        self.k_drawn, self.t_drawn_s = 0, -np.inf
+
+    def draw(self, picture, k: int, text_font) -> None:
+        """Paste the inset for period ``k`` into a PIL image (the paths and the hole added to a
+        kept panel as time goes on, as the overlay's layer)."""
+        from PIL import ImageDraw
+
+        if not self.shown:
+            return
+        if self.panel is None or k < self.k_drawn:
+            self._reset(text_font)
+        offset = np.array([self.left, self.top])
+        t_s = self.t_s[k]
+        new = (self.hole_t_s > self.t_drawn_s) & (self.hole_t_s <= t_s + 1e-9)
+        mark_hole(self._draw, self.hole[new] - offset, rgb255(HOLE_RGB))
+        start = max(self.k_drawn - self.k_drawn % INSET_EVERY, 0)
+        part = np.where(self.kept[start:k + 1, None], self.tool[start:k + 1], np.nan)
+        _polyline(self._draw, part[::INSET_EVERY] - offset, rgb255(ACTUAL_RGB), 1)
+        self.k_drawn, self.t_drawn_s = k, t_s
+        picture.paste(self.panel, (self.left, self.top))
+        x, y = self.tool[k]
+        if self.left <= x <= self.left + self.size and self.top <= y <= self.top + self.size:
+            draw_ring(ImageDraw.Draw(picture), x, y, 4)
 
 
 class Overlay:
-    """Paths, hole, tool marker and caption drawn over rendered frames (Pillow).
+    """Paths, hole, tool marker, caption and legend drawn over rendered frames (Pillow).
 
     The goal path is drawn once; the measured path and the hole are added to a kept layer as
-    time goes on (frames in time order cost only their new segments).
+    time goes on (frames in time order cost only their new segments). Both paths are kept only
+    where :func:`drawn_periods` says; elsewhere the bit leaves a short trail.
 
     Args:
         scene: the run.
@@ -70,8 +223,6 @@ class Overlay:
     """
 
     def __init__(self, scene: RunScene, camera: Camera) -> None:
-        from PIL import ImageFont
-
         self.scene = scene
         self.camera = camera
         self.tool_px = camera.project(scene.tool_world_m)
@@ -80,39 +231,39 @@ class Overlay:
         self.hole_t_s = np.asarray(hole_t, dtype=float)
         if self.hole_px is not None and len(self.hole_t_s) != len(self.hole_px):
             self.hole_t_s = np.full(len(self.hole_px), -np.inf)  # no times: draw it whole
-        size = max(11, camera.height // 34)
-        self.font = ImageFont.load_default(size=size)
-        self.bar_px = size + 10
+        self.kept = drawn_periods(scene)
+        self.step_names = step_names(scene)
+        self.entries = legend_entries(trail=not self.kept.all())
+        self.font = font(camera.height)
+        self.small_font = font(int(camera.height * 0.8))
+        self.bar_px = bar_height_px(camera.height)
+        self.inset = CutInset(scene, self.kept, self.hole_t_s if self.hole_px is not None
+                              else np.zeros(0), camera, self.bar_px)
         self._reset()
+
+    def _kept_only(self, pixels: np.ndarray, start: int = 0) -> np.ndarray:
+        """``pixels`` (of periods start...) with those not kept made unknown (NaN)."""
+        return np.where(self.kept[start:start + len(pixels), None], pixels, np.nan)
 
     def _reset(self) -> None:
         from PIL import Image, ImageDraw
 
         self.layer = Image.new("RGBA", (self.camera.width, self.camera.height), (0, 0, 0, 0))
         self._draw = ImageDraw.Draw(self.layer)
-        self._polyline(self.camera.project(self.scene.goal_world_m), (*_rgb255(GOAL_RGB), 255), 2)
+        goal_px = self._kept_only(self.camera.project(self.scene.goal_world_m))
+        _polyline(self._draw, goal_px, (*rgb255(GOAL_RGB), 255), 2)
         self.k_drawn = 0
         self.t_drawn_s = -np.inf
-
-    def _polyline(self, pixels: np.ndarray, rgba, width: int) -> None:
-        finite = np.all(np.isfinite(pixels), axis=1)
-        # split at unknown points so that no line jumps across a gap
-        breaks = np.flatnonzero(np.diff(finite.astype(int)) != 0) + 1
-        for part, ok in zip(np.split(pixels, breaks), np.split(finite, breaks), strict=True):
-            if ok[0] and len(part) > 1:
-                self._draw.line([tuple(p) for p in part], fill=rgba, width=width)
 
     def _advance(self, k: int) -> None:
         if k < self.k_drawn:
             self._reset()
-        self._polyline(self.tool_px[self.k_drawn:k + 1], (*_rgb255(ACTUAL_RGB), 255), 2)
+        part = self._kept_only(self.tool_px[self.k_drawn:k + 1], self.k_drawn)
+        _polyline(self._draw, part, (*rgb255(ACTUAL_RGB), 255), 2)
         t_s = self.scene.t_s[k]
         if self.hole_px is not None:
             new = (self.hole_t_s > self.t_drawn_s) & (self.hole_t_s <= t_s + 1e-9)
-            for x, y in self.hole_px[new]:
-                if np.isfinite(x):
-                    self._draw.ellipse((x - 1.5, y - 1.5, x + 1.5, y + 1.5),
-                                       fill=(*_rgb255(HOLE_RGB), 255))
+            mark_hole(self._draw, self.hole_px[new], (*rgb255(HOLE_RGB), 255))
         self.k_drawn, self.t_drawn_s = k, t_s
 
     def draw(self, image: np.ndarray, k: int) -> np.ndarray:
@@ -123,12 +274,30 @@ class Overlay:
         picture = Image.fromarray(image)
         picture.paste(self.layer, (0, 0), self.layer)
         draw = ImageDraw.Draw(picture)
+        if not self.kept[k]:
+            first = self.scene.index_at(self.scene.t_s[k] - TRAIL_S)
+            _polyline(draw, self.tool_px[first:k + 1], TRAIL_RGB, 2)
         x, y = self.tool_px[k]
         if np.isfinite(x):
-            draw.ellipse((x - 6, y - 6, x + 6, y + 6), outline=(255, 255, 255), width=2)
-        draw.rectangle((0, 0, picture.width, self.bar_px), fill=(20, 20, 24))
-        draw.text((8, 5), self.scene.caption(k), fill=(240, 240, 240), font=self.font)
+            draw_ring(draw, x, y, 6)
+        self.inset.draw(picture, k, self.small_font)
+        code = int(self.scene.log["status_code"][k])
+        alarm = code not in QUIET_STATUSES  # e-stopped, collision, stale input...: red bar
+        draw.rectangle((0, 0, picture.width, self.bar_px),
+                       fill=ALARM_BAR_RGB if alarm else (20, 20, 24))
+        draw.text((8, 5), self.scene.caption(k, self.step_names), fill=(240, 240, 240),
+                  font=self.font)
+        draw_legend(picture, self.entries)
         return np.asarray(picture)
+
+
+def _polyline(draw, pixels: np.ndarray, rgba, width: int) -> None:
+    """Lines through the pixels, split at unknown (NaN) ones so that no line jumps a gap."""
+    finite = np.all(np.isfinite(pixels), axis=1)
+    breaks = np.flatnonzero(np.diff(finite.astype(int)) != 0) + 1
+    for part, ok in zip(np.split(pixels, breaks), np.split(finite, breaks), strict=True):
+        if ok[0] and len(part) > 1:
+            draw.line([tuple(p) for p in part], fill=rgba, width=width)
 
 
 def frame_periods(scene: RunScene, speed: float, fps: int = FPS, start_s: float | None = None,
@@ -170,12 +339,12 @@ def render_video(scene: RunScene, out: str | Path, *, speed: float | None = None
     speed = default_speed(scene) if speed is None else float(speed)
     if not speed > 0:
         raise InputError(f"speed must be positive, got {speed}", hint="e.g. --speed 2")
-    view = camera_for(camera, scene.focus_world_m(), scene.working_arm, width, height)
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     periods = frame_periods(scene, speed, fps, start_s, end_s)
     started = time.perf_counter()
     with KinematicReplay(scene) as replay:
+        view = framing_camera(scene, replay, camera, width, height)
         overlay = Overlay(scene, view)
         writer = imageio_ffmpeg.write_frames(
             str(out), (width, height), fps=fps, codec="libx264", pix_fmt_out="yuv420p",
@@ -203,8 +372,8 @@ def render_still(scene: RunScene, out: str | Path, k: int | None = None, *,
     from hubo_cli.drivers.snapshot import write_png
 
     k = len(scene) - 1 if k is None else int(k)
-    view = camera_for(camera, scene.focus_world_m(), scene.working_arm, width, height)
     with KinematicReplay(scene) as replay:
+        view = framing_camera(scene, replay, camera, width, height)
         replay.show(k)
         image = Overlay(scene, view).draw(replay.render(view), k)
     return write_png(out, image)
