@@ -566,6 +566,7 @@ def _submit_all(jobs, out_dir: Path, n_workers: int, scheduler: str | None,
                           if scheduler else "run with --workers 0 (one job after the other)"
                           ) from None
     futures = {}
+    interrupted = False
     try:
         _check_versions(client)
         if on_dashboard is not None:
@@ -592,13 +593,36 @@ def _submit_all(jobs, out_dir: Path, n_workers: int, scheduler: str | None,
                                   hint="restart the scheduler and sweep the missing seeds "
                                        "again") from None
             finished(index, row)
+    except KeyboardInterrupt:  # Ctrl-C or SIGTERM
+        interrupted = True
+        raise
     finally:
+        if interrupted and cluster is not None:
+            _kill_local_workers()
         # after a lost scheduler, cancelling and closing may fail too: nothing to report then
         with contextlib.suppress(Exception):
             client.cancel(list(futures))
             client.close()
         if cluster is not None:
             cluster.close()
+
+
+def _kill_local_workers() -> None:
+    """End the local cluster's worker processes at once (an interrupted sweep): a worker in
+    the middle of a simulation does not stop for the cluster's graceful close, which took
+    about 5 s; its run is cut short either way (its ``log.rows`` can be recovered)."""
+    import psutil
+
+    def is_worker(process) -> bool:  # not multiprocessing's resource tracker: it cleans up
+        with contextlib.suppress(psutil.Error):
+            return not any("resource_tracker" in part for part in process.cmdline())
+        return False
+
+    workers = [p for p in psutil.Process().children(recursive=True) if is_worker(p)]
+    for worker in workers:
+        with contextlib.suppress(psutil.Error):
+            worker.kill()
+    psutil.wait_procs(workers, timeout=1.0)
 
 
 def _dashboard_link(client) -> str | None:
