@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from task_files import raise_and_hold
 
 from hubo_cli.cli.main import main
 from hubo_cli.control.log import load_log
@@ -28,27 +29,7 @@ SHM = Path("/dev/shm")
 MODEL = load_model()
 
 # raise the drill, hold it: a task of about 4 s
-SHORT_TASK = """\
-name = "short-move"
-description = "Raise the drill and hold it"
-
-[stance]
-wall_distance_mm = "auto"
-centre_mm = "auto"
-arm = "right"
-tool = "drill"
-
-[[steps]]
-kind = "move"
-name = "raise the drill"
-depth_mm = -50.0
-duration_s = 1.0
-
-[[steps]]
-kind = "wait"
-name = "hold"
-duration_s = 0.2
-"""
+SHORT_TASK = raise_and_hold("short-move", 0.2, stance='arm = "right"\ntool = "drill"\n')
 
 
 def _run(args: list[str], env: dict | None = None):

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from task_files import raise_and_hold
 
 from hubo_cli.cli.keys import keyboard_fd, operator_keys
 from hubo_cli.cli.main import main
@@ -39,25 +40,7 @@ DEADLINE_S = 120.0
 ANSI = re.compile(rb"\x1b\[[0-9;?]*[A-Za-z]|\x1b\][^\x07]*\x07|\r")
 
 # raise the drill, then hold it far longer than any test waits: a key must end it
-LONG_TASK = """\
-name = "long-hold"
-description = "Raise the drill and hold it"
-
-[stance]
-wall_distance_mm = "auto"
-centre_mm = "auto"
-
-[[steps]]
-kind = "move"
-name = "raise the drill"
-depth_mm = -50.0
-duration_s = 1.0
-
-[[steps]]
-kind = "wait"
-name = "hold"
-duration_s = 60
-"""
+LONG_TASK = raise_and_hold("long-hold", 60)
 
 
 class Terminal:

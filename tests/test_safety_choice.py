@@ -21,6 +21,7 @@ from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
+from task_files import raise_and_hold
 
 from hubo_cli.cli.main import main
 from hubo_cli.control.stop_choice import (
@@ -39,25 +40,7 @@ PUSH_WALL = data_file("tasks", "push-wall.toml")
 ROBOT_LIMIT_NM = 1.21  # robots/hubo2plus/hubo2plus.toml [safety]
 
 # raise the drill and hold it: about 2 s of simulated time
-SHORT_TASK = """\
-name = "short-hold"
-description = "Raise the drill and hold it"
-
-[stance]
-wall_distance_mm = "auto"
-centre_mm = "auto"
-
-[[steps]]
-kind = "move"
-name = "raise the drill"
-depth_mm = -50.0
-duration_s = 1.0
-
-[[steps]]
-kind = "wait"
-name = "hold"
-duration_s = 0.2
-"""
+SHORT_TASK = raise_and_hold("short-hold", 0.2)
 
 
 def _toml_list(sources) -> str:
