@@ -17,8 +17,8 @@ from hubo_cli.cli.main import main
 from hubo_cli.drivers.registry import make_driver
 from hubo_cli.fastrak.emulator import make_emulator
 from hubo_cli.fastrak.opener import open_source
-from hubo_cli.posture import home_posture
 from hubo_cli.input.fastrak import FastrakInput
+from hubo_cli.posture import home_posture
 from hubo_cli.teleop.mapping import HandMapper
 from hubo_cli.teleop.session import TeleopSettings, approach_paths, prepare
 from hubo_cli.teleop.target import TeleopTarget
