@@ -380,7 +380,7 @@ def _report(run, as_json: bool, video: bool = False) -> None:
         raise SystemExit(130 if run.loop.ended == "interrupted" else EXIT_NOT_COMPLETED)
     used, rejected = summary["samples_used"], summary["samples_rejected"]
     if used == 0:
-        warn("no operator input reached the robot (no sample of a mapped station was usable)")
+        warn("no operator input reached the robot (no pose of a driven hand was usable)")
         raise SystemExit(EXIT_BAD_INPUT)
     if rejected > MOSTLY_REJECTED * (used + rejected):
         warn(f"{rejected} of {used + rejected} samples were rejected (jumps or bad values): "

@@ -19,7 +19,7 @@ import numpy as np
 
 from hubo_cli.errors import InputError
 from hubo_cli.fastrak.source import PoseSample, PoseSource
-from hubo_cli.input.device import InputDevice
+from hubo_cli.input.device import HandPose, InputDevice
 
 R_OPERATOR_TRACKER = np.diag([1.0, -1.0, -1.0])  # FASTRAK x forward, y right, z down -> O
 STATIONS = (1, 2, 3, 4)
@@ -127,14 +127,12 @@ class FastrakInput(InputDevice):
         self.live = source.live
         self.info = dict(source.info, stations={str(s): h for s, h in self.station_hand.items()})
 
-    def _hand_pose(self, sample: PoseSample):
-        from hubo_cli.input.device import HandPose
-
+    def _hand_pose(self, sample: PoseSample) -> HandPose:
         return HandPose(self.station_hand[sample.station],
                         operator_pose(sample.T_tracker_sensor, self.R_operator_tracker),
                         sample.t_s, reliable=not sample.suspect)
 
-    def _read(self, t_s: float):
+    def _read(self, t_s: float) -> list[HandPose]:
         return [self._hand_pose(s) for s in self.source.read_until(t_s)
                 if s.station in self.station_hand]
 
