@@ -359,8 +359,9 @@ def _report(run, as_json: bool, video: bool = False) -> None:
                 if r.get("reachable_share") is not None:
                     over = ("" if r["reachable_position_rms_mm"] is None else
                             f": position {r['reachable_position_rms_mm']:.1f} mm rms, "
-                            f"orientation {r['reachable_orientation_rms_deg']:.1f} deg rms "
-                            "over that time")
+                            f"orientation {r['reachable_orientation_rms_deg']:.1f} deg rms, "
+                            f"largest excursion {r['reachable_max_excursion_mm']:.0f} mm over "
+                            "that time")
                     console.print(f"    goal reachable {r['reachable_share']:.0%} of the "
                                   f"time{over}")
         releases = len(summary["estop_events"]) - len(stops)

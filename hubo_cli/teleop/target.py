@@ -542,13 +542,17 @@ class TeleopTarget(Target):
         branch changes, time its target was kept out of the collision band
         (``collision_room_s``), the largest excursion (hand to the nearest goal sample within
         +-1 s), and the share of the time the goal was reachable (``reachable_share``) with
-        the position and orientation RMS over that time (None when it never was).
+        the position and orientation RMS and the largest excursion over that time (None when
+        it never was).
         """
         report = {}
         for arm, hand in self.hands.items():
             pos = np.asarray(self.errors_m[arm])
             rot = np.asarray(self.rotation_errors_rad[arm])
             ok = np.asarray(self.reachable[arm], dtype=bool)
+            excursion = excursions_m(np.asarray(self.path_times_s[arm]),
+                                     np.array([g for g, _ in self.paths[arm]]).reshape(-1, 3),
+                                     np.array([a for _, a in self.paths[arm]]).reshape(-1, 3))
             report[arm] = {
                 "reachable_share": float(ok.mean()) if len(ok) else None,
                 "reachable_position_rms_mm": float(np.sqrt(np.mean(pos[ok]**2)) * 1000)
@@ -562,10 +566,9 @@ class TeleopTarget(Target):
                 "branch_changes": hand.branch_changes,
                 "collision_room_s": 0.0 if self.room is None
                 else self.room.pushed_periods.get(arm, 0) * self.dt_guard_s,
-                "max_excursion_mm": max_excursion_m(
-                    np.asarray(self.path_times_s[arm]),
-                    np.array([g for g, _ in self.paths[arm]]).reshape(-1, 3),
-                    np.array([a for _, a in self.paths[arm]]).reshape(-1, 3)) * 1000,
+                "max_excursion_mm": float(np.max(excursion, initial=0.0)) * 1000,
+                "reachable_max_excursion_mm": float(np.max(excursion[ok])) * 1000
+                if ok.any() else None,
             }
         return report
 
@@ -622,8 +625,15 @@ def max_excursion_m(t_s: np.ndarray, goals_m: np.ndarray, actual_m: np.ndarray,
         t_s: sample times (N,), increasing.
         goals_m, actual_m: goal and hand positions (N x 3) at those times.
     """
+    return float(np.max(excursions_m(t_s, goals_m, actual_m, window_s), initial=0.0))
+
+
+def excursions_m(t_s: np.ndarray, goals_m: np.ndarray, actual_m: np.ndarray,
+                 window_s: float = EXCURSION_WINDOW_S) -> np.ndarray:
+    """Per sample, the distance (m) from the hand to the nearest goal sample within +-window_s
+    ((N,); see :func:`max_excursion_m`)."""
     if len(t_s) == 0:
-        return 0.0
+        return np.zeros(0)
     nearest = np.full(len(t_s), np.inf)
     lo = np.searchsorted(t_s, t_s - window_s, side="left")
     hi = np.searchsorted(t_s, t_s + window_s, side="right")
@@ -637,4 +647,4 @@ def max_excursion_m(t_s: np.ndarray, goals_m: np.ndarray, actual_m: np.ndarray,
         ok = idx < hi
         d = np.linalg.norm(actual_m[ok] - goals_m[idx[ok]], axis=1)
         nearest[ok] = np.minimum(nearest[ok], d)
-    return float(np.max(nearest))
+    return nearest
