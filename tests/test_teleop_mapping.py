@@ -6,7 +6,7 @@ frame by the FASTRAK input device as a run does."""
 import numpy as np
 import pytest
 
-from hubo_cli.errors import ConfigError, InputError
+from hubo_cli.errors import ConfigError
 from hubo_cli.geometry import rpy_to_matrix
 from hubo_cli.input.fastrak import operator_pose
 from hubo_cli.kinematics.poses import make_transform
@@ -89,5 +89,5 @@ def test_bad_config_is_refused():
         MappingConfig(mode="fly")
     with pytest.raises(ConfigError):
         MappingConfig(scale=-1)
-    with pytest.raises(InputError):
+    with pytest.raises(ConfigError):
         MappingConfig(hand_arm={"right": "left-arm", "left": "left-arm"})

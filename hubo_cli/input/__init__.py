@@ -9,6 +9,6 @@
 A new device (a SpaceMouse, a VR tracker) is one module with one :class:`InputDevice` subclass.
 """
 
-from hubo_cli.input.device import HANDS, HandPose, InputDevice
+from hubo_cli.input.device import ARM_OF_HAND, HAND_OF_ARM, HANDS, HandPose, InputDevice
 
-__all__ = ["HANDS", "HandPose", "InputDevice"]
+__all__ = ["ARM_OF_HAND", "HAND_OF_ARM", "HANDS", "HandPose", "InputDevice"]

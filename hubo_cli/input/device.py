@@ -21,6 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 
 HANDS = ("right", "left")
+ARM_OF_HAND = {"right": "right-arm", "left": "left-arm"}  # the robot arm a hand drives
+HAND_OF_ARM = {arm: hand for hand, arm in ARM_OF_HAND.items()}
 
 
 @dataclass(frozen=True, eq=False)

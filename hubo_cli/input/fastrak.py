@@ -19,11 +19,11 @@ import numpy as np
 
 from hubo_cli.errors import InputError
 from hubo_cli.fastrak.source import PoseSample, PoseSource
-from hubo_cli.input.device import HandPose, InputDevice
+from hubo_cli.input.device import HAND_OF_ARM, HandPose, InputDevice
+from hubo_cli.model import ARMS
 
 R_OPERATOR_TRACKER = np.diag([1.0, -1.0, -1.0])  # FASTRAK x forward, y right, z down -> O
 STATIONS = (1, 2, 3, 4)
-ARMS = ("right-arm", "left-arm")
 DEFAULT_STATION_ARM = {1: "right-arm", 2: "left-arm"}
 
 
@@ -121,7 +121,7 @@ class FastrakInput(InputDevice):
             except InputError:
                 source.close()
                 raise
-        self.station_hand = {s: arm.removesuffix("-arm") for s, arm in station_arm.items()}
+        self.station_hand = {s: HAND_OF_ARM[arm] for s, arm in station_arm.items()}
         self.hands = tuple(h for h in ("right", "left") if h in self.station_hand.values())
         self.R_operator_tracker = np.asarray(R_operator_tracker, dtype=float)
         self.live = source.live

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from hubo_cli.errors import InputError
-from hubo_cli.input.device import InputDevice
+from hubo_cli.input.device import HAND_OF_ARM, InputDevice
 from hubo_cli.input.operator_stream import StreamSettings
 
 
@@ -32,7 +32,7 @@ def open_input(replay: str | Path | None = None, port: str | None = None,
 
         arms = (station_arm or {1: "right-arm", 2: "left-arm"}).values()
         return generated_input(generate_seed, stream,
-                               hands=tuple(arm.removesuffix("-arm") for arm in arms))
+                               hands=tuple(HAND_OF_ARM[arm] for arm in arms))
     from hubo_cli.input.fastrak import open_fastrak
 
     return open_fastrak(replay=replay, port=port, station_arm=station_arm, **options)

@@ -24,12 +24,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hubo_cli.errors import ConfigError, InputError
+from hubo_cli.errors import ConfigError
+from hubo_cli.input.device import ARM_OF_HAND
+from hubo_cli.model import ARMS
 
 MODES = ("free", "drill")
 MAX_OPERATOR_RANGE_M = 100.0  # a tracker reads a few metres; far beyond is garbage
-ARMS = ("right-arm", "left-arm")
-ARM_OF_HAND = {"right": "right-arm", "left": "left-arm"}
 
 
 @dataclass
@@ -60,7 +60,7 @@ class MappingConfig:
         arms = list(self.hand_arm.values())
         unknown = [h for h, a in self.hand_arm.items() if h not in ARM_OF_HAND or a not in ARMS]
         if unknown or len(set(arms)) != len(arms):
-            raise InputError(f"hand -> arm map {self.hand_arm} is not one hand per arm",
+            raise ConfigError(f"hand -> arm map {self.hand_arm} is not one hand per arm",
                              hint="e.g. right -> right-arm, left -> left-arm")
 
 

@@ -13,7 +13,7 @@ from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.stop_choice import ActiveStops
 from hubo_cli.errors import InputError
-from hubo_cli.input.device import InputDevice
+from hubo_cli.input.device import HAND_OF_ARM, InputDevice
 from hubo_cli.input.opener import open_input
 from hubo_cli.input.operator_stream import StreamSettings
 from hubo_cli.kinematics.arm_reach import ReachSettings
@@ -170,7 +170,7 @@ def prepare(settings: TeleopSettings, model: RobotModel | None = None):
         body = WholeBody(model, tools)
         heights = [body.arms[a].fk(np.array(FREE_READY_ARM_RAD[a]))[2, 3] for a in tools]
         body.working_height_m = float(np.mean(heights))
-    mapping = MappingConfig(hand_arm={arm.removesuffix("-arm"): arm for arm in stations.values()},
+    mapping = MappingConfig(hand_arm={HAND_OF_ARM[arm]: arm for arm in stations.values()},
                             scale=settings.scale, mode=settings.mode,
                             wall_distance_m=scene.get("wall_distance_m", 0.484))
     return model, body, mapping, scene
