@@ -43,6 +43,8 @@ FIGURES = (  # summary key, label, unit, low is bad
     ("orientation_rms_deg", "orientation RMS, all the time", "deg", False),
     ("reachable_max_excursion_mm", "largest excursion over reachable time", "mm", False),
     ("max_excursion_mm", "largest excursion, all the time", "mm", False),
+    ("collision_room_s", "target kept out of the collision band", "s", False),
+    ("at_limit_s", "at the reach limit", "s", False),
 )
 
 
