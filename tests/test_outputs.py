@@ -236,6 +236,8 @@ COMMANDS = {
     "export-rrd": lambda d, out: (["export", str(d / "run"), "--rrd", out], d / "run"),
     "export-mcap": lambda d, out: (["export", str(d / "run"), "--mcap", out], d / "run"),
     "replay-video": lambda d, out: (["replay", str(d / "run"), "--video", out], d / "run"),
+    "input-generate": lambda d, out: (["input", "generate", "3", "--duration", "2", "--out",
+                                       out], None),
 }
 
 

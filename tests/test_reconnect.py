@@ -17,6 +17,7 @@ from hubo_cli.cli.main import main
 from hubo_cli.drivers.registry import make_driver
 from hubo_cli.fastrak.emulator import make_emulator
 from hubo_cli.fastrak.opener import open_source
+from hubo_cli.input.fastrak import FastrakInput
 from hubo_cli.posture import home_posture
 from hubo_cli.teleop.mapping import HandMapper
 from hubo_cli.teleop.session import TeleopSettings, approach_paths, prepare
@@ -63,7 +64,8 @@ def test_hands_hold_after_input_loss_until_the_operator_recentres(model):
             driver = make_driver("ideal", model)
             with driver:
                 driver.start(home_posture(model))
-                target = TeleopTarget(model, source, HandMapper(mapping), body,
+                target = TeleopTarget(model, FastrakInput(source, {1: "right-arm"}),
+                                      HandMapper(mapping), body,
                                       approach_paths(body, ["right-arm"], scene),
                                       home_posture(model), live=True)
                 op = Operator(model, target, driver)

@@ -1,10 +1,14 @@
-"""Operator -> hand goal mapping: calibration, frames, drill mode, glitches."""
+"""Operator -> hand goal mapping: calibration, frames, drill mode, glitches.
+
+The poses are a FASTRAK's (tracker frame: x forward, y right, z down), turned into the operator's
+frame by the FASTRAK input device as a run does."""
 
 import numpy as np
 import pytest
 
 from hubo_cli.errors import ConfigError
 from hubo_cli.geometry import rpy_to_matrix
+from hubo_cli.input.fastrak import operator_pose
 from hubo_cli.kinematics.poses import make_transform
 from hubo_cli.teleop.mapping import HandMapper, MappingConfig
 
@@ -12,69 +16,71 @@ T_HAND0 = make_transform(rpy_to_matrix(0.1, -0.2, 0.3), [0.40, -0.25, 0.05])
 
 
 def sensor(x, y, z, roll=0.0, pitch=0.0, yaw=0.0):
-    return make_transform(rpy_to_matrix(roll, pitch, yaw), [x, y, z])
+    """A sensor pose in the tracker frame, as the operator frame's hand pose."""
+    return operator_pose(make_transform(rpy_to_matrix(roll, pitch, yaw), [x, y, z]))
 
 
 def test_first_sample_calibrates_and_holds_the_hand():
     mapper = HandMapper(MappingConfig())
-    goal = mapper.goal(1, sensor(0.3, 0.1, -0.2, 0.5), 0.0, T_HAND0)
+    goal = mapper.goal("right", sensor(0.3, 0.1, -0.2, 0.5), 0.0, T_HAND0)
     assert goal.calibrated_now and goal.arm == "right-arm"
     assert np.allclose(goal.T_S_goal, T_HAND0)
 
 
 def test_motion_is_relative_and_rotated_into_the_stance_frame():
     mapper = HandMapper(MappingConfig(scale=0.5))
-    mapper.goal(1, sensor(0.3, 0.1, -0.2), 0.0, T_HAND0)
+    mapper.goal("right", sensor(0.3, 0.1, -0.2), 0.0, T_HAND0)
     # operator moves 10 cm forward, 4 cm to his right, 6 cm down (tracker z is down)
-    goal = mapper.goal(1, sensor(0.4, 0.14, -0.14), 0.01, T_HAND0)
+    goal = mapper.goal("right", sensor(0.4, 0.14, -0.14), 0.01, T_HAND0)
     assert np.allclose(goal.T_S_goal[:3, 3], T_HAND0[:3, 3] + 0.5 * np.array([0.10, -0.04, -0.06]))
     assert np.allclose(goal.T_S_goal[:3, :3], T_HAND0[:3, :3])
 
 
 def test_rotation_about_tracker_z_is_yaw_the_other_way_in_stance():
     mapper = HandMapper(MappingConfig())
-    mapper.goal(1, sensor(0, 0, 0), 0.0, np.eye(4))
-    goal = mapper.goal(1, sensor(0, 0, 0, yaw=0.3), 0.01, np.eye(4))
+    mapper.goal("right", sensor(0, 0, 0), 0.0, np.eye(4))
+    goal = mapper.goal("right", sensor(0, 0, 0, yaw=0.3), 0.01, np.eye(4))
     # tracker z points down, so a positive tracker yaw is a negative yaw about the robot's z up
     assert np.allclose(goal.T_S_goal[:3, :3], rpy_to_matrix(0, 0, -0.3))
 
 
 def test_drill_mode_follows_only_y_and_z():
     mapper = HandMapper(MappingConfig(mode="drill", wall_distance_m=0.48))
-    first = mapper.goal(1, sensor(0, 0, 0), 0.0, T_HAND0)
+    first = mapper.goal("right", sensor(0, 0, 0), 0.0, T_HAND0)
     assert first.T_S_goal[0, 3] == pytest.approx(0.48)
     assert np.allclose(first.T_S_goal[:3, :3], np.eye(3))
-    goal = mapper.goal(1, sensor(0.05, -0.03, -0.02, 0.4, 0.2, 0.1), 0.01, T_HAND0)
+    goal = mapper.goal("right", sensor(0.05, -0.03, -0.02, 0.4, 0.2, 0.1), 0.01, T_HAND0)
     assert goal.T_S_goal[0, 3] == pytest.approx(0.48)
     assert np.allclose(goal.T_S_goal[:3, :3], np.eye(3))
     assert np.allclose(goal.T_S_goal[1:3, 3], T_HAND0[1:3, 3] + [0.03, 0.02])
 
 
-def test_stations_are_independent_and_unmapped_ones_ignored():
+def test_hands_are_independent_and_unmapped_ones_ignored():
     mapper = HandMapper(MappingConfig())
-    mapper.goal(1, sensor(0, 0, 0), 0.0, T_HAND0)
-    left = mapper.goal(2, sensor(1, 1, 1), 0.0, np.eye(4))
+    mapper.goal("right", sensor(0, 0, 0), 0.0, T_HAND0)
+    left = mapper.goal("left", sensor(1, 1, 1), 0.0, np.eye(4))
     assert left.arm == "left-arm" and left.calibrated_now
-    assert mapper.goal(3, sensor(0, 0, 0), 0.0, np.eye(4)) is None
+    right_only = HandMapper(MappingConfig(hand_arm={"right": "right-arm"}))
+    assert right_only.goal("left", sensor(0, 0, 0), 0.0, np.eye(4)) is None
 
 
 def test_glitches_are_rejected():
     mapper = HandMapper(MappingConfig())
-    mapper.goal(1, sensor(0, 0, 0), 0.0, T_HAND0)
-    assert mapper.goal(1, sensor(0.5, 0, 0), 0.01, T_HAND0) is None       # 50 cm jump
+    mapper.goal("right", sensor(0, 0, 0), 0.0, T_HAND0)
+    assert mapper.goal("right", sensor(0.5, 0, 0), 0.01, T_HAND0) is None       # 50 cm jump
     bad = sensor(0, 0, 0)
     bad[0, 3] = np.nan
-    assert mapper.goal(1, bad, 0.02, T_HAND0) is None
+    assert mapper.goal("right", bad, 0.02, T_HAND0) is None
     assert mapper.rejected == 2
-    assert mapper.goal(1, sensor(0.01, 0, 0), 0.03, T_HAND0) is not None
+    assert mapper.goal("right", sensor(0.01, 0, 0), 0.03, T_HAND0) is not None
 
 
 def test_clutch_recenters_without_moving_the_goal():
     mapper = HandMapper(MappingConfig())
-    mapper.goal(1, sensor(0, 0, 0), 0.0, T_HAND0)
-    moved = mapper.goal(1, sensor(0.05, 0, 0), 0.01, T_HAND0).T_S_goal
-    mapper.recenter(1, sensor(0.3, 0.3, 0.3), moved)
-    again = mapper.goal(1, sensor(0.3, 0.3, 0.3), 0.02, T_HAND0)
+    mapper.goal("right", sensor(0, 0, 0), 0.0, T_HAND0)
+    moved = mapper.goal("right", sensor(0.05, 0, 0), 0.01, T_HAND0).T_S_goal
+    mapper.recenter("right", sensor(0.3, 0.3, 0.3), moved)
+    again = mapper.goal("right", sensor(0.3, 0.3, 0.3), 0.02, T_HAND0)
     assert np.allclose(again.T_S_goal, moved)
 
 
@@ -83,3 +89,5 @@ def test_bad_config_is_refused():
         MappingConfig(mode="fly")
     with pytest.raises(ConfigError):
         MappingConfig(scale=-1)
+    with pytest.raises(ConfigError):
+        MappingConfig(hand_arm={"right": "left-arm", "left": "left-arm"})

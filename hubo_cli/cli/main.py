@@ -32,6 +32,7 @@ COMMANDS = {
     "hardware": "hubo_cli.cli.hardware:hardware",
     "replay": "hubo_cli.cli.replay:replay",
     "export": "hubo_cli.cli.export:export",
+    "input": "hubo_cli.cli.input:input_group",
 }
 
 

@@ -1,4 +1,4 @@
-"""``hubo teleop``: an operator's stream (replay or live FASTRAK) drives the robot."""
+"""``hubo teleop``: an operator's stream (replay, live FASTRAK or generated) drives the robot."""
 
 from __future__ import annotations
 
@@ -48,7 +48,7 @@ def _speed(text: str) -> float | None:
 
 
 def _station_map(pairs: tuple[str, ...]) -> dict[int, str] | None:
-    from hubo_cli.teleop.mapping import parse_station_map
+    from hubo_cli.input.fastrak import parse_station_map
 
     return parse_station_map(pairs) if pairs else None
 
@@ -59,10 +59,9 @@ def hand_safety(target) -> list:
 
     out = []
     for arm, hand in target.hands.items():
-        station = target.station_of(arm)
         out.append(HandSafety(arm, stale=hand.stale, needs_clutch=hand.needs_clutch,
                               calibrating=target.phase == "operate"
-                              and not target.mapper.is_calibrated(station),
+                              and not target.mapper.is_calibrated(target.hand_of(arm)),
                               ik_status=hand.ik_status))
     return out
 
@@ -118,6 +117,11 @@ def _view(target, panel) -> Group:
 @click.option("--replay", type=click.Path(dir_okay=False), default=None,
               help="Replay a raw FASTRAK capture or a pose log.")
 @click.option("--port", default=None, help="Read a live FASTRAK on this serial port.")
+@click.option("--generate", "generate_seed", type=click.IntRange(0, 2**32 - 1), default=None,
+              metavar="SEED", help="Replay the generated operator stream of this seed (both "
+                                   "hands; --duration sets its length, default 30 s).")
+@click.option("--max-speed", "max_speed", type=float, default=None, metavar="M/S",
+              help="--generate: the hands' speed cap (default 0.25; 0.6 for a swing test).")
 @click.option("--reconnect-timeout", "reconnect_timeout", type=float, default=10.0,
               show_default=True, metavar="SECONDS",
               help="Live: a lost tracker ends the run after this long without reconnecting.")
@@ -140,7 +144,8 @@ def _view(target, panel) -> Group:
 @click.option("--clutch", "clutch_at", type=float, multiple=True, metavar="SECONDS",
               help="Re-centre at these replay times (as the c key does live).")
 @click.option("--duration", type=float, default=None, metavar="SECONDS",
-              help="Stop after this long (live mode; default: until q or Ctrl-C).")
+              help="Stop after this long (live mode; default: until q or Ctrl-C); with "
+                   "--generate, the stream's length.")
 @click.option("--reach", "reach_mode", type=click.Choice(["nearest", "paper"]), default="nearest",
               show_default=True,
               help="Out of reach: nearest = stay on the IK branch, go to the nearest reachable "
@@ -161,13 +166,15 @@ def _view(target, panel) -> Group:
 @hardware_options
 @perturb_option
 @balance_option
-def teleop(replay, port, reconnect_timeout, baud, driver, armed, mode, speed, scale, station_map,
+def teleop(replay, port, generate_seed, max_speed, reconnect_timeout, baud, driver, armed, mode,
+           speed, scale, station_map,
            wall_distance, clutch_at, duration, reach_mode, orientation_weight, allow_branch_change,
            walk_from, no_estop, estop_sources, accept_reduced_safety, gui, out, as_json, live,
            live_host, live_port, video, perturb_seed, balance, **hardware) -> None:
     """Drive the robot's hands from an operator's FASTRAK stream.
 
-    Exactly one of --replay FILE or --port DEV. The first sample of each station calibrates it:
+    Exactly one of --replay FILE, --port DEV or --generate SEED. The first pose of each hand
+    calibrates it:
     later motion is relative. Writes a run folder with the per-period log, summary.json and the
     commanded-vs-actual path plot.
 
@@ -192,9 +199,18 @@ def teleop(replay, port, reconnect_timeout, baud, driver, armed, mode, speed, sc
     if video:
         check_video_support()
 
-    if (replay is None) == (port is None):
-        raise InputError("give exactly one of --replay FILE or --port DEV",
+    if sum(x is not None for x in (replay, port, generate_seed)) != 1:
+        raise InputError("give exactly one of --replay FILE, --port DEV or --generate SEED",
                          hint="e.g. hubo teleop --replay trajectories/drill-rectangle.fastrak")
+    if max_speed is not None and generate_seed is None:
+        raise InputError("--max-speed applies to --generate", hint="add --generate SEED")
+    stream = None
+    if generate_seed is not None:
+        from hubo_cli.input.operator_stream import StreamSettings
+
+        stream = StreamSettings(duration_s=30.0 if duration is None else duration,
+                                max_speed_m_s=0.25 if max_speed is None else max_speed)
+        duration = None  # the stream's length ends the run
     explicit = click.get_current_context().get_parameter_source("speed")
     if speed == "max" and explicit is click.core.ParameterSource.COMMANDLINE and (
             port is not None or gui or live or driver_class(driver).real_time):
@@ -209,10 +225,10 @@ def teleop(replay, port, reconnect_timeout, baud, driver, armed, mode, speed, sc
                              hint="give seconds from the replay's start, e.g. --clutch 12.5")
     if clutch_at and port is not None:
         raise InputError("--clutch times apply to replays", hint="live, press c to re-centre")
-    if replay is not None and click.get_current_context().get_parameter_source(
+    if port is None and click.get_current_context().get_parameter_source(
             "reconnect_timeout") is click.core.ParameterSource.COMMANDLINE:
         raise InputError("--reconnect-timeout applies to a live tracker (--port)",
-                         hint="leave it out for a replay")
+                         hint="leave it out for a replay or a generated stream")
     if not (math.isfinite(scale) and 0 < scale <= 10):
         raise InputError(f"--scale {scale:g} must be in (0, 10]", hint="e.g. --scale 1")
     if wall_distance is not None and mode != "drill":
@@ -227,7 +243,8 @@ def teleop(replay, port, reconnect_timeout, baud, driver, armed, mode, speed, sc
     stops = active_stops(SOFT_SOURCES, driver, no_estop=no_estop, estop_sources=estop_sources,
                          accept_reduced_safety=accept_reduced_safety, quiet=as_json)
     settings = TeleopSettings(
-        replay=replay, port=port, driver=driver, mode=mode, speed=_speed(speed), scale=scale,
+        replay=replay, port=port, generate_seed=generate_seed, stream=stream, driver=driver,
+        mode=mode, speed=_speed(speed), scale=scale,
         station_arm=stations,
         wall_distance_m=None if wall_distance is None else wall_distance / 1000.0,
         duration_s=duration, clutch_at_s=tuple(clutch_at), out=out, gui=gui, baud=baud,
@@ -250,12 +267,11 @@ def teleop(replay, port, reconnect_timeout, baud, driver, armed, mode, speed, sc
 
 def _check_replay_stations(replay: str, settings) -> None:
     """Every mapped station must be in the recording (before anything moves)."""
-    from hubo_cli.fastrak.opener import open_source
-    from hubo_cli.teleop.mapping import check_stations_present
+    from hubo_cli.input.fastrak import open_fastrak
     from hubo_cli.teleop.session import station_map
 
-    with open_source(replay=replay) as source:
-        check_stations_present(station_map(settings), source.stations, str(replay))
+    with open_fastrak(replay=replay, station_arm=station_map(settings)):
+        pass  # opening checks the stations
 
 
 def _check_wall_reach(settings) -> None:
@@ -263,7 +279,7 @@ def _check_wall_reach(settings) -> None:
     from hubo_cli.teleop.session import approach_paths, prepare
 
     _, body, mapping, scene = prepare(settings)
-    for arm, path in approach_paths(body, mapping.station_arm.values(), scene).items():
+    for arm, path in approach_paths(body, mapping.hand_arm.values(), scene).items():
         for T in (path.at(0.0), path.at(path.duration_s)):
             result = body.solve({arm: T}, None, lift_m=body.lift_for({arm: T}))
             if result.arms[arm].status != "exact":
@@ -342,6 +358,14 @@ def _report(run, as_json: bool, video: bool = False) -> None:
                               f"{r['collision_room_s']:.1f} s, largest excursion "
                               f"{r['max_excursion_mm']:.0f} mm, branch changes "
                               f"{r['branch_changes']}")
+                if r.get("reachable_share") is not None:
+                    over = ("" if r["reachable_position_rms_mm"] is None else
+                            f": position {r['reachable_position_rms_mm']:.1f} mm rms, "
+                            f"orientation {r['reachable_orientation_rms_deg']:.1f} deg rms, "
+                            f"largest excursion {r['reachable_max_excursion_mm']:.0f} mm over "
+                            "that time")
+                    console.print(f"    goal reachable {r['reachable_share']:.0%} of the "
+                                  f"time{over}")
         releases = len(summary["estop_events"]) - len(stops)
         console.print(f"  e-stops {len(stops)} (released {releases}), statuses "
                       f"{summary['status_counts']}, max velocity "
@@ -359,7 +383,7 @@ def _report(run, as_json: bool, video: bool = False) -> None:
         raise SystemExit(130 if run.loop.ended == "interrupted" else EXIT_NOT_COMPLETED)
     used, rejected = summary["samples_used"], summary["samples_rejected"]
     if used == 0:
-        warn("no operator input reached the robot (no sample of a mapped station was usable)")
+        warn("no operator input reached the robot (no pose of a driven hand was usable)")
         raise SystemExit(EXIT_BAD_INPUT)
     if rejected > MOSTLY_REJECTED * (used + rejected):
         warn(f"{rejected} of {used + rejected} samples were rejected (jumps or bad values): "

@@ -5,7 +5,8 @@
 - :mod:`.reader`: the live pyserial reader (explicit configuration, probe, staleness, reconnect).
 - :mod:`.capture`: raw captures and pose logs (CSV), their readers and writers.
 - :mod:`.emulator`: a FASTRAK on a pty or serial port, for tests and hardware-free runs.
-- :mod:`.source`: :class:`PoseSource`, the one interface consumers read poses through.
+- :mod:`.source`: :class:`PoseSource`, the one interface the live reader and recordings share
+  (the teleoperation reads them as an input device, :mod:`hubo_cli.input.fastrak`).
 - :mod:`.opener`: :func:`open_source`, which opens a recording or a live port as a source.
 """
 

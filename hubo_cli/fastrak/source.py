@@ -1,7 +1,8 @@
 """One interface for operator poses, from a live FASTRAK or from a recording.
 
-:func:`hubo_cli.fastrak.opener.open_source` returns a :class:`PoseSource`; the consumer
-(teleoperation) calls ``read_until(t_s)`` once per control cycle and checks
+:func:`hubo_cli.fastrak.opener.open_source` returns a :class:`PoseSource`; its consumer (the
+FASTRAK input device, :mod:`hubo_cli.input.fastrak`, which turns stations into hands for the
+teleoperation) calls ``read_until(t_s)`` once per control cycle and checks
 ``is_stale(station, now_s)`` before trusting a station's latest pose.
 
 Replay sources deliver every sample whose receive time is at or before ``t_s``, so a replay runs

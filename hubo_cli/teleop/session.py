@@ -1,4 +1,5 @@
-"""One teleoperation run: source -> mapping -> whole body -> pipeline -> driver -> run folder."""
+"""One teleoperation run: input device -> mapping -> whole body -> pipeline -> driver -> run
+folder."""
 
 from __future__ import annotations
 
@@ -12,8 +13,9 @@ from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.stop_choice import ActiveStops
 from hubo_cli.errors import InputError
-from hubo_cli.fastrak.opener import open_source
-from hubo_cli.fastrak.source import PoseSource
+from hubo_cli.input.device import HAND_OF_ARM, InputDevice
+from hubo_cli.input.opener import open_input
+from hubo_cli.input.operator_stream import StreamSettings
 from hubo_cli.kinematics.arm_reach import ReachSettings
 from hubo_cli.kinematics.interpolate import PosePath, PoseSegment, segment_duration
 from hubo_cli.kinematics.wholebody import WholeBody
@@ -47,8 +49,11 @@ class TeleopSettings:
     """What to run (see ``hubo teleop --help`` for the user's view).
 
     Attributes:
-        replay: a raw capture or pose log to replay (or None with ``port``).
+        replay: a raw capture or pose log to replay (or None with ``port``/``generate_seed``).
         port: a serial port with a live FASTRAK.
+        generate_seed: replay the generated operator stream of this seed
+            (:mod:`hubo_cli.input.operator_stream`).
+        stream: the generated stream's settings (None: the defaults, 30 s at 0.25 m/s).
         driver: ``sim``, ``hardware`` or ``ideal``.
         mode: ``free`` or ``drill``.
         speed: None = as fast as possible, 1.0 = real time.
@@ -74,6 +79,8 @@ class TeleopSettings:
 
     replay: str | Path | None = None
     port: str | None = None
+    generate_seed: int | None = None
+    stream: StreamSettings | None = None
     driver: str = "sim"
     mode: str = "free"
     speed: float | None = None
@@ -165,7 +172,8 @@ def prepare(settings: TeleopSettings, model: RobotModel | None = None):
         body = WholeBody(model, tools)
         heights = [body.arms[a].fk(np.array(FREE_READY_ARM_RAD[a]))[2, 3] for a in tools]
         body.working_height_m = float(np.mean(heights))
-    mapping = MappingConfig(station_arm=stations, scale=settings.scale, mode=settings.mode,
+    mapping = MappingConfig(hand_arm={HAND_OF_ARM[arm]: arm for arm in stations.values()},
+                            scale=settings.scale, mode=settings.mode,
                             wall_distance_m=scene.get("wall_distance_m", 0.484))
     return model, body, mapping, scene
 
@@ -196,11 +204,13 @@ def run_teleop(settings: TeleopSettings, on_ready=None) -> TeleopRun:
     """
     model, body, mapping, scene = prepare(settings)
     q_start = home_posture(model)
-    approach = approach_paths(body, mapping.station_arm.values(), scene)
+    approach = approach_paths(body, mapping.hand_arm.values(), scene)
     wall = drill_wall(scene) if settings.mode == "drill" else None
     teleop_setup(settings, body, None).pace()  # refuse a bad pace before opening the port
-    with open_source(replay=settings.replay, port=settings.port, baud=settings.baud,
-                     reconnect_timeout_s=settings.reconnect_timeout_s) as source:
+    with open_input(replay=settings.replay, port=settings.port,
+                    generate_seed=settings.generate_seed, stream=settings.stream,
+                    station_arm=station_map(settings), baud=settings.baud,
+                    reconnect_timeout_s=settings.reconnect_timeout_s) as source:
         target = TeleopTarget(model, source, HandMapper(mapping), body, approach, q_start,
                               live=source.live, clutch_at_s=settings.clutch_at_s, wall=wall,
                               reach=settings.reach,
@@ -262,7 +272,7 @@ def approach_paths(body: WholeBody, arms, scene: dict) -> dict[str, PosePath]:
 
 
 def summarise(settings: TeleopSettings, target: TeleopTarget, done: RunResult,
-              source: PoseSource, scene: dict) -> dict:
+              source: InputDevice, scene: dict) -> dict:
     """The session's own summary fields; also draws the path plots into the run folder."""
     rms, peak = {}, {}
     for arm, errors in target.errors_m.items():
@@ -281,8 +291,9 @@ def summarise(settings: TeleopSettings, target: TeleopTarget, done: RunResult,
     latencies = np.asarray(target.latencies_s) * 1000
     result = done.loop
     summary = {
-        "input": str(settings.replay or settings.port),
-        "input_kind": "port" if settings.port else "replay",
+        "input": str(settings.replay or settings.port or f"generated:{settings.generate_seed}"),
+        "input_kind": ("port" if settings.port else "replay" if settings.replay
+                       else "generated"),
         "mode": settings.mode,
         "operate_s": None if target.t_operate_s is None else result.t_end_s - target.t_operate_s,
         "rms_error_mm": rms, "max_error_mm": peak,
@@ -295,7 +306,8 @@ def summarise(settings: TeleopSettings, target: TeleopTarget, done: RunResult,
                        "p99": float(np.percentile(latencies, 99)) if len(latencies) else None},
         "samples_used": target.samples_used,
         "samples_rejected": target.mapper.rejected,
-        "input_stats": source.stats.as_dict(),
+        "input_stats": source.stats(),
+        "input_info": source.info,
         "scene": target.scene,
     }
     if scene:

@@ -1,4 +1,4 @@
-"""The teleoperation target source: tracker samples -> hand goals -> whole-body joint targets.
+"""The teleoperation target source: operator hand poses -> hand goals -> whole-body joint targets.
 
 It is called by the control loop once per period (``target(t_s, state)``) and goes through
 three phases:
@@ -6,13 +6,15 @@ three phases:
 1. *approach*: a joint-space move to the first pose of each hand's approach path (drill mode:
    the bit a few centimetres before the wall), then the Cartesian paths (straight into the
    wall), then a wait until the robot is still;
-2. *operate*: the operator drives the hands. Replays deliver the samples whose receive time has
-   come on the loop's clock (so ``--speed max`` and real time give the same path); a live tracker
-   delivers what has arrived. The first sample of each station calibrates it (the hand stays);
-   a stale station holds its hand (flag ``stale-input``). When a lost station comes back, its
-   hand keeps holding: live, until the operator re-centres (``c``, flag ``holding`` meanwhile),
-   so the hand never jumps to wherever the operator's hand went while the tracker was lost; a
-   replay re-centres on the first sample after the gap;
+2. *operate*: the operator drives the hands. The input device (:mod:`hubo_cli.input`) delivers
+   hand poses stamped with their sample time: a recording or a generated stream those whose
+   time has come on the loop's clock (so ``--speed max`` and real time give the same path), a
+   live device what has arrived. The first pose of each hand calibrates it (the robot's hand
+   stays); a stale hand holds (flag ``stale-input``). When a lost hand comes back, it keeps
+   holding: live, until the operator re-centres (``c``, flag ``holding`` meanwhile), so the
+   robot's hand never jumps to wherever the operator's hand went while the input was lost; a
+   replay re-centres on the first pose after the gap. While the operator holds the device's
+   clutch (poses not ``engaged``) the hand holds, and re-centres on release;
 3. *settle*: a replay has ended; the hands hold their last goals until the robot is still.
 
 While operating, each arm stays on the IK branch it started on and a goal out of its reach sends
@@ -55,8 +57,8 @@ import numpy as np
 from hubo_cli.control.otg import TrajectoryGenerator
 from hubo_cli.control.target import Target
 from hubo_cli.drivers.base import SimulatedWorld
-from hubo_cli.fastrak.source import PoseSource
 from hubo_cli.geometry import tilt_rad_of_quat_wxyz
+from hubo_cli.input.device import InputDevice
 from hubo_cli.kinematics.arm_reach import ArmReach, BranchMove, ReachSettings
 from hubo_cli.kinematics.choice import STATUS_NAMES
 from hubo_cli.kinematics.conditioning import SingularityScale, condition_number
@@ -88,6 +90,10 @@ EXCURSION_WINDOW_S = 1.0  # max_excursion_mm: nearest goal sample within +-this
 OPERATE_SYNCHRONIZATION = "none"
 SWING_M = 0.003
 SWING_SAMPLES = 8  # points of the previewed way the swing is measured at (ends included)
+# a goal is reachable when the reach search's nearest pose on the arm's branch is this close
+# to it (the search stops within a fraction of a millimetre of a reachable goal)
+REACHABLE_POSITION_M = 0.002
+REACHABLE_ROTATION_RAD = np.radians(1.0)
 
 
 @dataclass
@@ -101,6 +107,8 @@ class HandTrack:
     stale: bool = False
     lost: bool = False          # went stale after calibration: re-centre before moving again
     needs_clutch: bool = False  # live: input is back, waiting for the operator's re-centre
+    clutched: bool = False      # the operator holds the device's clutch: re-centre on release
+    reachable: bool = True      # the reach search's nearest pose is the goal (within tolerance)
     position_error_m: float = float("nan")
     rotation_error_rad: float = float("nan")
     missing_m: np.ndarray | None = None  # goal minus the reachable pose's position, at the limit
@@ -141,14 +149,14 @@ class TeleopTarget(Target):
 
     Args:
         model: the robot model.
-        source: the pose source (replay or live).
+        source: the input device (a recording, a generated stream, a live device).
         mapper: calibration and mapping of tracker poses onto hand goals.
         body: the whole-body solver (its arms' tools are the end effectors).
         approach: arm -> the Cartesian path (goals in S) each hand follows before the operator
             takes over; its end is the hand's start pose.
         q_start_rad: the posture the loop starts from.
-        live: the source is a live tracker (its clock is the wall clock).
-        stale_timeout_s: a station silent this long is stale.
+        live: the input is a live device (its clock is the wall clock).
+        stale_timeout_s: a hand silent this long (by its poses' own times) is stale.
         settle_s: after a replay ends, how long the robot may take to come to rest.
         approach_timeout_s: each approach step waits at most this long for the robot to settle.
         clutch_at_s: replay times (s) at which to re-centre (as if ``c`` was pressed).
@@ -164,7 +172,7 @@ class TeleopTarget(Target):
         correction_settings: its filter and bounds (None: the defaults).
     """
 
-    def __init__(self, model: RobotModel, source: PoseSource, mapper: HandMapper,
+    def __init__(self, model: RobotModel, source: InputDevice, mapper: HandMapper,
                  body: WholeBody, approach: dict[str, PosePath], q_start_rad: np.ndarray,
                  *, live: bool = False, stale_timeout_s: float = 0.25, settle_s: float = 1.0,
                  approach_timeout_s: float = 5.0, clutch_at_s: tuple[float, ...] = (),
@@ -182,7 +190,7 @@ class TeleopTarget(Target):
         self.clutch_at_s = sorted(clutch_at_s)
         self.dt_guard_s = model.control_period_s
         self.keys = Keys()
-        self.arms = sorted(set(mapper.config.station_arm.values()) & set(ARMS))
+        self.arms = sorted(set(mapper.config.hand_arm.values()) & set(ARMS))
         self.slices = {arm: model.limb_slice(arm) for arm in ARMS}
         self.q_target = np.array(q_start_rad, dtype=float)
         self.q_out = self.q_target.copy()  # q_target corrected by the measured torso pose
@@ -229,8 +237,9 @@ class TeleopTarget(Target):
         self.T_world_S: np.ndarray | None = None
         self.latencies_s: list[float] = []
         self.samples_used = 0
-        self.last_sample_s: dict[int, float] = {}
+        self.last_sample_s: dict[str, float] = {}
         self.errors_m: dict[str, list[float]] = {arm: [] for arm in self.arms}
+        self.reachable: dict[str, list[bool]] = {arm: [] for arm in self.arms}
         self.world_errors_m: dict[str, list[float]] = {arm: [] for arm in self.arms}
         self.max_tilt_rad = 0.0
         self.paths: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {a: [] for a in self.arms}
@@ -380,41 +389,47 @@ class TeleopTarget(Target):
             self.clutch_at_s.pop(0)
             clutch = True
         if clutch:
-            self.mapper.forget()  # the next sample of each station re-centres on the hand
+            self.mapper.forget()  # the next pose of each hand re-centres it
             for hand in self.hands.values():
                 hand.lost = hand.needs_clutch = False
         samples = self.source.read_until(t_src)
         changed = False
         for sample in samples:
-            if sample.suspect:
+            if not sample.reliable:
                 continue
-            arm = self.mapper.config.station_arm.get(sample.station)
+            arm = self.mapper.config.hand_arm.get(sample.hand)
             if arm not in self.hands:
                 continue
             hand = self.hands[arm]
+            if not sample.engaged:  # the operator holds the clutch: hold, re-centre on release
+                hand.clutched = True
+                continue
+            if hand.clutched:
+                hand.clutched = False
+                self.mapper.forget(sample.hand)
             if hand.lost:
                 if self.live:  # hold until the operator re-centres
                     hand.needs_clutch = True
                     continue
                 hand.lost = False  # a replay re-centres by itself after a gap
-                self.mapper.forget(sample.station)
-            goal = self.mapper.goal(sample.station, sample.T_tracker_sensor, sample.t_s,
+                self.mapper.forget(sample.hand)
+            goal = self.mapper.goal(sample.hand, sample.T_operator_hand, sample.t_s,
                                     self.hand_pose_commanded(arm))
             if goal is None:
                 continue
             self.goals[arm] = goal.T_S_goal
-            self.last_sample_s[sample.station] = sample.t_s
+            self.last_sample_s[sample.hand] = sample.t_s
             self.samples_used += 1
             changed = True
         if samples:
             newest = max(s.t_s for s in samples)
             self.latencies_s.append(max(0.0, self._source_time(t_s) - newest))
         flags = []
-        for station, arm in self.mapper.config.station_arm.items():
+        for hand_name, arm in self.mapper.config.hand_arm.items():
             if arm in self.hands:
                 hand = self.hands[arm]
-                stale = self.source.is_stale(station, t_src, self.stale_timeout_s)
-                hand.stale = stale and self.mapper.is_calibrated(station)
+                stale = self.source.is_stale(hand_name, t_src, self.stale_timeout_s)
+                hand.stale = stale and self.mapper.is_calibrated(hand_name)
                 if hand.stale:
                     hand.lost = True
                     flags.append("stale-input")
@@ -427,6 +442,9 @@ class TeleopTarget(Target):
                 solved = self.body.solve(self.goals, self.q_target, lift_m=lift)
                 self.q_target = solved.q_rad
                 self._record_ik(solved)
+                for arm, result in solved.arms.items():
+                    if arm in self.hands:
+                        self.hands[arm].reachable = result.status == "exact"
             else:
                 self._solve_on_branches(t_s, lift, branch_key)
         if self.source.done:
@@ -459,6 +477,8 @@ class TeleopTarget(Target):
                 hand.position_error_m = result.position_error_m
                 hand.rotation_error_rad = result.rotation_error_rad
                 hand.missing_m = None
+                hand.reachable = (result.position_error_m <= REACHABLE_POSITION_M
+                                  and result.rotation_error_rad <= REACHABLE_ROTATION_RAD)
                 if result.status == "nearest":
                     hand.missing_m = T_N_goal[:3, 3] - reach.limb.fk(result.q_rad)[:3, 3]
                     hand.at_limit_periods += 1
@@ -521,14 +541,25 @@ class TeleopTarget(Target):
     def reach_report(self) -> dict[str, dict]:
         """Per hand, while operating: position and orientation RMS, time at the reach limit,
         branch changes, time its target was kept out of the collision band
-        (``collision_room_s``) and the largest excursion (hand to the nearest goal sample within
-        +-1 s).
+        (``collision_room_s``), the largest excursion (hand to the nearest goal sample within
+        +-1 s), and the share of the time the goal was reachable (``reachable_share``) with
+        the position and orientation RMS and the largest excursion over that time (None when
+        it never was).
         """
         report = {}
         for arm, hand in self.hands.items():
             pos = np.asarray(self.errors_m[arm])
             rot = np.asarray(self.rotation_errors_rad[arm])
+            ok = np.asarray(self.reachable[arm], dtype=bool)
+            excursion = excursions_m(np.asarray(self.path_times_s[arm]),
+                                     np.array([g for g, _ in self.paths[arm]]).reshape(-1, 3),
+                                     np.array([a for _, a in self.paths[arm]]).reshape(-1, 3))
             report[arm] = {
+                "reachable_share": float(ok.mean()) if len(ok) else None,
+                "reachable_position_rms_mm": float(np.sqrt(np.mean(pos[ok]**2)) * 1000)
+                if ok.any() else None,
+                "reachable_orientation_rms_deg": float(np.degrees(np.sqrt(np.mean(rot[ok]**2))))
+                if ok.any() else None,
                 "position_rms_mm": float(np.sqrt(np.mean(pos**2)) * 1000) if len(pos) else None,
                 "orientation_rms_deg": float(np.degrees(np.sqrt(np.mean(rot**2))))
                 if len(rot) else None,
@@ -536,10 +567,9 @@ class TeleopTarget(Target):
                 "branch_changes": hand.branch_changes,
                 "collision_room_s": 0.0 if self.room is None
                 else self.room.pushed_periods.get(arm, 0) * self.dt_guard_s,
-                "max_excursion_mm": max_excursion_m(
-                    np.asarray(self.path_times_s[arm]),
-                    np.array([g for g, _ in self.paths[arm]]).reshape(-1, 3),
-                    np.array([a for _, a in self.paths[arm]]).reshape(-1, 3)) * 1000,
+                "max_excursion_mm": float(np.max(excursion, initial=0.0)) * 1000,
+                "reachable_max_excursion_mm": float(np.max(excursion[ok])) * 1000
+                if ok.any() else None,
             }
         return report
 
@@ -570,9 +600,9 @@ class TeleopTarget(Target):
                 info.update({f"goal_x_m_{key}": hand.goal_m[0], f"goal_y_m_{key}": hand.goal_m[1],
                              f"goal_z_m_{key}": hand.goal_m[2], f"error_m_{key}": error,
                              f"rot_error_rad_{key}": rot_error})
-                if self.phase == "operate" and self.mapper.is_calibrated(
-                        self.station_of(arm)):
+                if self.phase == "operate" and self.mapper.is_calibrated(self.hand_of(arm)):
                     self.errors_m[arm].append(error)
+                    self.reachable[arm].append(hand.reachable)
                     self.rotation_errors_rad[arm].append(rot_error)
                     self.path_times_s[arm].append(t_s)
                     self.paths[arm].append((hand.goal_m.copy(), actual.copy()))
@@ -583,9 +613,9 @@ class TeleopTarget(Target):
         self.max_tilt_rad = max(self.max_tilt_rad,
                                 float(tilt_rad_of_quat_wxyz(state.imu_quat_wxyz)))
 
-    def station_of(self, arm: str) -> int:
-        """The tracker station that drives ``arm``."""
-        return next(s for s, a in self.mapper.config.station_arm.items() if a == arm)
+    def hand_of(self, arm: str) -> str:
+        """The operator's hand that drives ``arm``."""
+        return next(h for h, a in self.mapper.config.hand_arm.items() if a == arm)
 
 
 def max_excursion_m(t_s: np.ndarray, goals_m: np.ndarray, actual_m: np.ndarray,
@@ -596,8 +626,15 @@ def max_excursion_m(t_s: np.ndarray, goals_m: np.ndarray, actual_m: np.ndarray,
         t_s: sample times (N,), increasing.
         goals_m, actual_m: goal and hand positions (N x 3) at those times.
     """
+    return float(np.max(excursions_m(t_s, goals_m, actual_m, window_s), initial=0.0))
+
+
+def excursions_m(t_s: np.ndarray, goals_m: np.ndarray, actual_m: np.ndarray,
+                 window_s: float = EXCURSION_WINDOW_S) -> np.ndarray:
+    """Per sample, the distance (m) from the hand to the nearest goal sample within +-window_s
+    ((N,); see :func:`max_excursion_m`)."""
     if len(t_s) == 0:
-        return 0.0
+        return np.zeros(0)
     nearest = np.full(len(t_s), np.inf)
     lo = np.searchsorted(t_s, t_s - window_s, side="left")
     hi = np.searchsorted(t_s, t_s + window_s, side="right")
@@ -611,4 +648,4 @@ def max_excursion_m(t_s: np.ndarray, goals_m: np.ndarray, actual_m: np.ndarray,
         ok = idx < hi
         d = np.linalg.norm(actual_m[ok] - goals_m[idx[ok]], axis=1)
         nearest[ok] = np.minimum(nearest[ok], d)
-    return float(np.max(nearest))
+    return nearest

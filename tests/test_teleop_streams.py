@@ -1,0 +1,89 @@
+"""A property test over generated operator streams (:mod:`hubo_cli.input.operator_stream`):
+streams no one tuned the teleoperation on, replayed through ``hubo teleop`` on the ideal driver.
+
+It asserts what holds today, with a margin over what was measured: no command beyond a joint
+limit, none not finite, no jump (a joint step beyond its speed limit in one period), and the
+largest excursion within 1.5x the worst measured over the bench's streams. It does not assert
+the issue's accuracy targets (position RMS <= 10 mm, orientation RMS <= 3 deg over the time the
+goal is reachable, excursion <= 15 mm): they are not met today (``make bench BENCH=teleop``
+prints the distribution). Few short streams here; the bench replays more.
+"""
+
+import numpy as np
+import pytest
+
+from hubo_cli.input.operator_stream import StreamSettings
+from hubo_cli.teleop.stream_runs import replay_generated
+
+# the seeds are drawn, not picked (a new draw is a new test of the same properties)
+SEEDS = np.random.default_rng(3434).integers(0, 2**31, 2).tolist()
+# The largest excursion, worst over the bench's streams (make bench BENCH=teleop: 20 streams
+# <= 0.25 m/s and 8 <= 0.6 m/s, 20 s each, seeds 3400-3419, ideal driver; the same figures on
+# two runs): over the whole run (where the goal is out of reach it includes how far beyond
+# reach the goal is) 416 / 287 mm (median 93-106 / 128-148 mm); over the reachable time 226 /
+# 147 mm (median 70-80 / 110 mm). The bounds are 1.5x those.
+EXCURSION_BOUND_MM = {0.25: 1.5 * 416, 0.6: 1.5 * 287}
+REACHABLE_EXCURSION_BOUND_MM = {0.25: 1.5 * 226, 0.6: 1.5 * 147}
+
+
+@pytest.mark.parametrize("max_speed, seed", [(0.25, SEEDS[0]), (0.6, SEEDS[1])])
+def test_generated_streams_never_exceed_limits_jump_or_swing_beyond_todays_bound(max_speed,
+                                                                                 seed):
+    run = replay_generated(seed, StreamSettings(duration_s=8.0, max_speed_m_s=max_speed))
+    assert run.ended == "done", run
+    assert run.finite
+    assert run.limit_excess_rad <= 1e-9
+    assert run.max_step_ratio <= 1.0 + 1e-6
+    for arm, figures in run.hands.items():
+        assert figures["max_excursion_mm"] <= EXCURSION_BOUND_MM[max_speed], (arm, figures)
+        assert (figures["reachable_max_excursion_mm"] or 0.0) <= REACHABLE_EXCURSION_BOUND_MM[
+            max_speed], (arm, figures)
+        assert figures["branch_changes"] == 0, (arm, figures)
+
+
+def test_the_devices_clutch_holds_the_hand_and_recentres_without_a_jump(model):
+    """The operator moves 5 cm forward, holds the clutch while going 10 cm back, releases it
+    and moves 5 cm forward again: the goal goes 5 cm forward, holds, then 5 cm further, with
+    no step; the robot's hand ends 10 cm forward while the operator's is back where it began."""
+    from hubo_cli.drivers.registry import make_driver
+    from hubo_cli.geometry import min_jerk
+    from hubo_cli.input.device import HandPose, RecordedInput
+    from hubo_cli.posture import home_posture
+    from hubo_cli.teleop.mapping import HandMapper
+    from hubo_cli.teleop.session import TeleopSettings, approach_paths, prepare
+    from hubo_cli.teleop.target import TeleopTarget
+
+    def x_m(t):  # the operator's hand along x: +5 cm, back 10 cm (clutched), +5 cm
+        return 0.05 * (min_jerk(t - 1.0) - 2 * min_jerk(t - 2.5) + min_jerk(t - 4.0))
+
+    t = np.arange(0.0, 6.0, 1 / 120)
+    poses = []
+    for ti in t:
+        T = np.eye(4)
+        T[:3, 3] = [0.3 + x_m(ti), -0.2, -0.1]
+        poses.append(HandPose("right", T, float(ti), engaged=not 2.4 <= ti < 3.6))
+    settings = TeleopSettings(generate_seed=0, station_arm={1: "right-arm"})
+    _, body, mapping, scene = prepare(settings, model)
+    driver = make_driver("ideal", model)
+    with driver, RecordedInput(poses, {"kind": "test"}) as device:
+        driver.start(home_posture(model))
+        target = TeleopTarget(model, device, HandMapper(mapping), body,
+                              approach_paths(body, ["right-arm"], scene), home_posture(model))
+        state, t_s, goals = driver.read(), 0.0, []
+        while target.phase != "settle" and t_s < 30.0:
+            q, _ = target(t_s, state)
+            driver.send(q)
+            state = driver.step()
+            if target.phase == "operate" and target.mapper.is_calibrated("right"):
+                goals.append((t_s - target.t_operate_s, target.goals["right-arm"][:3, 3].copy()))
+            t_s += model.control_period_s
+    times = np.array([g[0] for g in goals])
+    x = np.array([g[1][0] for g in goals]) - goals[0][1][0]
+    assert target.phase == "settle"
+    clutched = (times >= 2.45) & (times < 3.6)
+    assert np.ptp(x[clutched]) < 1e-12  # held while the clutch is down
+    assert x[clutched][0] == pytest.approx(0.05, abs=2e-3)
+    assert x[-1] == pytest.approx(0.10, abs=2e-3)  # 5 + 5 cm: the clutched return not followed
+    # no step: at most the operator's own motion in a period (0.05 m min-jerk in 1 s peaks at
+    # 0.094 m/s, 0.8 mm per 1/120 s)
+    assert np.max(np.abs(np.diff(x))) < 1e-3
