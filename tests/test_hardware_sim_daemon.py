@@ -91,6 +91,19 @@ def test_the_body_applies_references_per_joint_as_hubo_daemon_does():
         body.close()
 
 
+@pytest.mark.parametrize("args, code, message", [
+    (["--duration", "0.1"], 3, "libach is not available"),
+    (["--duration", "-1"], 2, "is not a duration"),
+    (["--duration", "nan"], 2, "is not a duration"),
+    (["--perturb", "-3"], 2, "--perturb"),
+])
+def test_the_sim_daemon_refuses_clearly(tmp_path, args, code, message):
+    result = CliRunner().invoke(main, ["hardware", "sim-daemon", *args],
+                                env={"HUBO_LIBACH": str(tmp_path / "missing-libach.so")})
+    assert result.exit_code == code, result.output
+    assert message in result.output and "Traceback" not in result.output
+
+
 def _stand(ref: str, state: str, seconds: float) -> None:
     """The hardware driver holds the measured (home) posture for ``seconds`` over the channels:
     the torso's tilt from the published IMU stays small, the feet carry the weight.

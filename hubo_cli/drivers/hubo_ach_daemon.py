@@ -107,6 +107,12 @@ class DaemonBody(ABC):
     def joints_rad(self) -> np.ndarray:
         """The joints' current positions (hubo-ach order, rad)."""
 
+    @property
+    def target_rad(self) -> np.ndarray:
+        """The motors' reference now (the filter's output), which stays in force until a client
+        sends one (by default the joints' positions)."""
+        return self.joints_rad
+
     def close(self) -> None:
         """Release what the body holds (nothing by default)."""
 
@@ -182,7 +188,7 @@ class HuboDaemon:
         except Exception:
             self.close()
             raise
-        self._ref = body.joints_rad
+        self._ref = body.target_rad
         self._mode = np.zeros(JOINT_COUNT, dtype=np.int16)
         self._buffer = (ctypes.c_uint8 * (hubo_ach.REF_SIZE + 256))()
         self._drain()  # frames left on hubo-ref by an earlier writer are not this run's

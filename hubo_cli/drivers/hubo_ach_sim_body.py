@@ -90,6 +90,10 @@ class PhysicsBody(DaemonBody):
         return out
 
     @property
+    def target_rad(self) -> np.ndarray:
+        return self._filtered.copy()
+
+    @property
     def max_tilt_deg(self) -> float:
         """The torso's largest tilt from upright so far (deg, the simulator's truth)."""
         return self.sim.max_tilt_deg
