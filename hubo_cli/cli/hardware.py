@@ -188,11 +188,7 @@ def sim_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: bo
     lib = load_libach()
     model = load_model()
     body = PhysicsBody(model, hubo_ach_vector(model, home_posture(model)), perturb_seed)
-    try:
-        daemon = HuboDaemon(lib, body, ach_ref, ach_state)
-    except BaseException:
-        body.close()
-        raise
+    daemon = HuboDaemon(lib, body, ach_ref, ach_state)  # closes the body if it cannot start
 
     def extra(daemon) -> dict:
         return {"max_tilt_deg": daemon.body.max_tilt_deg,

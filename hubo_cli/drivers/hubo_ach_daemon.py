@@ -153,7 +153,8 @@ class HuboDaemon:
 
     Args:
         lib: libach.
-        body: what stands behind the channels (closed with the daemon).
+        body: what stands behind the channels (closed with the daemon, or when it cannot
+            start).
         ref_channel, state_channel: channel names (``hubo-ref``, ``hubo-state``).
         period_s: the loop period (``HUBO_LOOP_PERIOD``).
         create: create the channels (replacing ones left over from a dead daemon; refusing
@@ -180,19 +181,19 @@ class HuboDaemon:
         self._ref_chan = self._state_chan = None
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
+        self._ref = body.target_rad
+        self._mode = np.zeros(JOINT_COUNT, dtype=np.int16)
+        self._buffer = (ctypes.c_uint8 * (hubo_ach.REF_SIZE + 256))()
         try:
             if create:
                 self._create_channels()
             self._ref_chan = lib.open(ref_channel)
             self._state_chan = lib.open(state_channel)
-        except Exception:
+            self._drain()  # frames left on hubo-ref by an earlier writer are not this run's
+            self._publish()
+        except BaseException:  # the channels this daemon created do not outlive it
             self.close()
             raise
-        self._ref = body.target_rad
-        self._mode = np.zeros(JOINT_COUNT, dtype=np.int16)
-        self._buffer = (ctypes.c_uint8 * (hubo_ach.REF_SIZE + 256))()
-        self._drain()  # frames left on hubo-ref by an earlier writer are not this run's
-        self._publish()
 
     # ------------------------------------------------------------------ running
     def start(self) -> HuboDaemon:
