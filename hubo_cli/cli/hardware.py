@@ -7,7 +7,6 @@ import signal
 
 import click
 
-from hubo_cli.cli.options import perturb_option
 from hubo_cli.cli.output import err_console, print_json
 from hubo_cli.errors import DeviceError, InputError
 
@@ -163,7 +162,10 @@ def fake_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: b
 
 @hardware.command("sim-daemon")
 @_daemon_options
-@perturb_option
+@click.option("--perturb", "perturb_seed", type=click.IntRange(min=0), default=None,
+              metavar="SEED",
+              help="Simulate a robot and world drawn from SEED as hubo sim --perturb does "
+                   "(0 = nominal); the draws go into the final statistics (--json).")
 def sim_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: bool,
                perturb_seed: int | None) -> None:
     """Play hubo-daemon with the simulated robot behind it: read hubo-ref, apply references as
