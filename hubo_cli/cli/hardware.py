@@ -63,25 +63,79 @@ def driver_options(driver: str, armed: bool, dry_run: bool, sink: str | None,
 
 @click.group("hardware")
 def hardware() -> None:
-    """The real Hubo's side: a fake hubo-daemon to run the hardware driver without a robot.
+    """The real Hubo's side: stand-ins for hubo-daemon to run the hardware driver without a
+    robot (fake-daemon: ideal motors; sim-daemon: the simulated robot).
 
     The hardware driver (--driver hardware --arm) talks to hubo-ach's hubo-ref and hubo-state
     channels through libach. See docs/hardware.md (The real Hubo).
     """
 
 
+def _daemon_options(function):
+    """The options both daemons take."""
+    options = [
+        click.option("--ach-ref", default="hubo-ref", show_default=True, metavar="NAME",
+                     help="Reference channel to read."),
+        click.option("--ach-state", default="hubo-state", show_default=True, metavar="NAME",
+                     help="State channel to publish."),
+        click.option("--duration", type=float, default=None, metavar="SECONDS",
+                     help="Stop after this long (default: until Ctrl-C)."),
+        click.option("--json", "as_json", is_flag=True,
+                     help="Print the final statistics as JSON."),
+    ]
+    for option in reversed(options):
+        function = option(function)
+    return function
+
+
+def _check_duration(duration: float | None) -> None:
+    if duration is not None and not 0 < duration <= 7 * 24 * 3600:
+        raise InputError(f"--duration {duration:g} s is not a duration",
+                         hint="give seconds, more than 0 and at most a week")
+
+
+def _serve(daemon, what: str, duration: float | None, as_json: bool, extra: dict) -> None:
+    """Run ``daemon`` (a :class:`~hubo_cli.drivers.hubo_ach_daemon.HuboDaemon`) in this thread
+    until Ctrl-C, SIGTERM, SIGHUP or ``duration``; close it (its channels removed) and report."""
+    with daemon:
+        created = ", ".join(daemon.created) or "none (they existed)"
+        if daemon.replaced:
+            created += f" (replacing {', '.join(daemon.replaced)} left over from a dead daemon)"
+        err_console.print(f"{what}: reading {daemon.ref_channel}, publishing "
+                          f"{daemon.state_channel} at 200 Hz; channels created: {created}. "
+                          "Ctrl-C stops.")
+        # Ctrl-C, SIGTERM (kill, systemd) and SIGHUP end the loop; the channels are removed
+        signals = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+        previous = {sig: signal.signal(sig, lambda *_: daemon.request_stop()) for sig in signals}
+        try:
+            daemon.run(duration)
+        finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+        stats = daemon.stats
+        summary = {**stats.summary(), **extra(daemon)}
+    if as_json:
+        print_json(summary)
+    else:
+        sizes = ", ".join(f"{n} x {size} B" for size, n in sorted(stats.frame_sizes.items()))
+        loop = ("" if summary["loop_ms_median"] is None else
+                f"; loop {summary['loop_ms_median']:.2f} ms median, "
+                f"{summary['loop_ms_p99']:.2f} ms p99")
+        err_console.print(f"{stats.periods} periods, {stats.ref_frames} reference frames "
+                          f"({sizes or 'none'}), {stats.missed_ref_frames} missed, "
+                          f"{stats.overruns} overruns ({summary['overrun_percent']:.2f} %), "
+                          f"{stats.late_periods} late periods{loop}")
+    if stats.error:
+        raise DeviceError(f"the {what} stopped: {stats.error}",
+                          hint="the writer does not send hubo_ref_t frames")
+
+
 @hardware.command("fake-daemon")
-@click.option("--ach-ref", default="hubo-ref", show_default=True, metavar="NAME",
-              help="Reference channel to read.")
-@click.option("--ach-state", default="hubo-state", show_default=True, metavar="NAME",
-              help="State channel to publish.")
-@click.option("--duration", type=float, default=None, metavar="SECONDS",
-              help="Stop after this long (default: until Ctrl-C).")
+@_daemon_options
 @click.option("--posture", type=click.Choice(["home", "zero"]), default="home", show_default=True,
               help="Where the joints start.")
-@click.option("--json", "as_json", is_flag=True, help="Print the final statistics as JSON.")
-def fake_daemon(ach_ref: str, ach_state: str, duration: float | None, posture: str,
-                as_json: bool) -> None:
+def fake_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: bool,
+                posture: str) -> None:
     """Stand in for hubo-daemon: read hubo-ref, apply its reference filter, publish hubo-state
     at 200 Hz. Channels that do not exist are created, and removed again at the end;
     channels left over from a daemon that died (kill -9) are replaced and removed too; channels
@@ -98,37 +152,48 @@ def fake_daemon(ach_ref: str, ach_state: str, duration: float | None, posture: s
     from hubo_cli.model import load_model
     from hubo_cli.posture import home_posture
 
-    if duration is not None and not 0 < duration <= 7 * 24 * 3600:
-        raise InputError(f"--duration {duration:g} s is not a duration",
-                         hint="give seconds, more than 0 and at most a week")
+    _check_duration(duration)
     lib = load_libach()
     model = load_model()
     q = home_posture(model) if posture == "home" else np.zeros(len(model.joint_names))
-    with FakeHuboDaemon(lib, hubo_ach_vector(model, q), ach_ref, ach_state) as daemon:
-        created = ", ".join(daemon.created) or "none (they existed)"
-        if daemon.replaced:
-            created += f" (replacing {', '.join(daemon.replaced)} left over from a dead daemon)"
-        err_console.print(f"fake hubo-daemon: reading {ach_ref}, publishing {ach_state} at "
-                          f"200 Hz; channels created: {created}. Ctrl-C stops.")
-        # Ctrl-C, SIGTERM (kill, systemd) and SIGHUP end the loop; the channels are removed
-        signals = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
-        previous = {sig: signal.signal(sig, lambda *_: daemon.request_stop()) for sig in signals}
-        try:
-            daemon.run(duration)
-        finally:
-            for sig, handler in previous.items():
-                signal.signal(sig, handler)
-        stats = daemon.stats
-    summary = {"periods": stats.periods, "ref_frames": stats.ref_frames,
-               "frame_sizes": stats.frame_sizes, "missed_ref_frames": stats.missed_ref_frames,
-               "late_periods": stats.late_periods, "error": stats.error or None}
-    if as_json:
-        print_json(summary)
-    else:
-        sizes = ", ".join(f"{n} x {size} B" for size, n in sorted(stats.frame_sizes.items()))
-        err_console.print(f"{stats.periods} periods, {stats.ref_frames} reference frames "
-                          f"({sizes or 'none'}), {stats.missed_ref_frames} missed, "
-                          f"{stats.late_periods} late periods")
-    if stats.error:
-        raise DeviceError(f"the fake daemon stopped: {stats.error}",
-                         hint="the writer does not send hubo_ref_t frames")
+    _serve(FakeHuboDaemon(lib, hubo_ach_vector(model, q), ach_ref, ach_state),
+           "fake hubo-daemon", duration, as_json, lambda _: {})
+
+
+@hardware.command("sim-daemon")
+@_daemon_options
+@click.option("--perturb", "perturb_seed", type=click.IntRange(min=0), default=None,
+              metavar="SEED",
+              help="Simulate a robot and world drawn from SEED as hubo sim --perturb does "
+                   "(0 = nominal); the draws go into the final statistics (--json).")
+def sim_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: bool,
+               perturb_seed: int | None) -> None:
+    """Play hubo-daemon with the simulated robot behind it: read hubo-ref, apply references as
+    hubo-daemon does (mode 0 through its reference filter, mode 1 directly, per joint), run the
+    PyBullet Hubo (the sim driver's world) in real time and publish what it measures on
+    hubo-state at 200 Hz: encoders, the body IMU, the four force-torque sensors. The robot
+    stands in the home posture. Channels as the fake daemon (created, taken over from a dead
+    daemon, removed at the end; another live daemon's refused, exit 3). The loop's overruns and
+    times are reported at the end.
+
+    Example: hubo hardware sim-daemon --perturb 3   (then, in another terminal:
+             hubo task cut-rectangle --driver hardware --arm)
+    """
+    from hubo_cli.drivers.ach import load_libach
+    from hubo_cli.drivers.hardware import hubo_ach_vector
+    from hubo_cli.drivers.hubo_ach_daemon import HuboDaemon
+    from hubo_cli.drivers.hubo_ach_sim_body import PhysicsBody
+    from hubo_cli.model import load_model
+    from hubo_cli.posture import home_posture
+
+    _check_duration(duration)
+    lib = load_libach()
+    model = load_model()
+    body = PhysicsBody(model, hubo_ach_vector(model, home_posture(model)), perturb_seed)
+    daemon = HuboDaemon(lib, body, ach_ref, ach_state)  # closes the body if it cannot start
+
+    def extra(daemon) -> dict:
+        return {"max_tilt_deg": daemon.body.max_tilt_deg,
+                "perturbation": daemon.body.sim.perturbation.to_json()}
+
+    _serve(daemon, "simulated hubo-daemon", duration, as_json, extra)

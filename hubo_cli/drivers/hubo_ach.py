@@ -144,6 +144,8 @@ class StateFrame:
         ft_mx_my_fz: 4 x 3: m_x, m_y (N m), f_z (N) for R hand, L hand, R foot, L foot.
         pos_rad, vel_rad_s: the 42 joints' measured positions and velocities.
         ref_wait: the daemon is not applying references yet (``refWait``).
+        ref_rad: the 42 references the motors are given (``joint[].ref``: after the reference
+            filter); None: the positions (a daemon publishing them; not decoded).
     """
 
     time_s: float
@@ -153,6 +155,7 @@ class StateFrame:
     pos_rad: np.ndarray
     vel_rad_s: np.ndarray
     ref_wait: bool = False
+    ref_rad: np.ndarray | None = None
 
 
 def _doubles(data: bytes, offset: int, count: int, stride: int = 8) -> np.ndarray:
@@ -190,7 +193,7 @@ def encode_state(frame: StateFrame) -> bytes:
     for k, f in enumerate(FT_FIELDS):
         s["ft"][f] = np.asarray(frame.ft_mx_my_fz)[:, k]
     s["joint"]["pos"] = frame.pos_rad
-    s["joint"]["ref"] = frame.pos_rad
+    s["joint"]["ref"] = frame.pos_rad if frame.ref_rad is None else frame.ref_rad
     s["joint"]["vel"] = frame.vel_rad_s
     s["joint"]["active"] = 1
     s["joint"]["zeroed"] = 1
@@ -209,6 +212,16 @@ def reference_filter(filtered_rad: np.ndarray, ref_rad: np.ndarray, mode: np.nda
     smoothed = (filtered_rad * (length - 1.0) + ref_rad) / length
     out = np.where(mode == MODE_REF_FILTER, smoothed, filtered_rad)
     return np.where(mode == MODE_REF, ref_rad, out)
+
+
+def tilt_from_quat(q_wxyz) -> np.ndarray:
+    """The IMU's tilt angles a_x, a_y, a_z (rad) of a torso orientation (unit quaternion w, x,
+    y, z): the inverse of :func:`quat_from_tilt` (R = Rz(a_z) Ry(a_y) Rx(a_x))."""
+    w, x, y, z = (float(v) for v in q_wxyz)
+    roll = np.arctan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+    pitch = np.arcsin(np.clip(2.0 * (w * y - x * z), -1.0, 1.0))
+    yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    return np.array([roll, pitch, yaw])
 
 
 def quat_from_tilt(tilt_rad) -> np.ndarray:

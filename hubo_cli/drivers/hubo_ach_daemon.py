@@ -1,12 +1,19 @@
-"""A stand-in for hubo-daemon: the robot side of ``hubo-ref`` / ``hubo-state`` without a robot.
+"""Stand-ins for hubo-daemon: the robot side of ``hubo-ref`` / ``hubo-state`` without a robot.
 
-Every 5 ms (``HUBO_LOOP_PERIOD``, absolute deadlines on ``CLOCK_MONOTONIC``) it reads every
-frame put on ``hubo-ref`` since its last period, checks each is exactly ``sizeof(hubo_ref_t)``
-(hubo-daemon exits on a mismatch; this one stops and records why), applies the newest through
-hubo-daemon's reference filter (mode 0, ``HUBO_REF_FILTER_LENGTH`` 40) or directly (mode 1), and
-publishes ``hubo_state`` with the joints at the filtered reference (an ideal motor), their
-velocity, a level IMU, zero wrenches and ``time`` = ``CLOCK_MONOTONIC`` seconds, as hubo-daemon
-does. A controller talking to it closes its loop through real ach channels.
+One daemon contract (:class:`HuboDaemon`), two bodies behind it. Every 5 ms
+(``HUBO_LOOP_PERIOD``, absolute deadlines on ``CLOCK_MONOTONIC``) the daemon reads every frame
+put on ``hubo-ref`` since its last period, checks each is exactly ``sizeof(hubo_ref_t)``
+(hubo-daemon exits on a mismatch; this one stops and records why), hands the newest to its body
+and publishes the body's ``hubo_state`` with ``time`` = ``CLOCK_MONOTONIC`` seconds, as
+hubo-daemon does. The bodies: :class:`EchoBody` (``hubo hardware fake-daemon``) puts the joints
+at hubo-daemon's reference filter output (mode 0, ``HUBO_REF_FILTER_LENGTH`` 40; mode 1 direct),
+an ideal motor, with a level IMU and zero wrenches;
+:class:`~hubo_cli.drivers.hubo_ach_sim_body.PhysicsBody` (``hubo hardware sim-daemon``) drives
+the simulated robot's motors with that filter output and publishes what the simulator measures.
+A controller talking to either closes its loop through real ach channels.
+
+Each period's work (read, body, publish) is timed; a period whose work ends past its deadline is
+an overrun, and :class:`DaemonStats` keeps their count and the loop times' distribution.
 
 Channels it finds already there are either another daemon's (a new state frame within
 ``LIVE_CHECK_S``: refused, two writers would fight) or left over from a daemon that died
@@ -19,6 +26,7 @@ from __future__ import annotations
 import ctypes
 import threading
 import time
+from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -31,6 +39,8 @@ from hubo_cli.errors import DeviceError
 REF_FRAMES = 64    # ring sizes of the channels this daemon creates
 STATE_FRAMES = 16
 LIVE_CHECK_S = 0.1  # 20 of hubo-daemon's periods: a live daemon publishes within it
+LOOP_BIN_S = 1e-5   # loop times are kept as a histogram of 10 us bins (bounded memory) ...
+LOOP_BINS = 10_000  # ... up to 0.1 s (longer ones count in the last bin)
 
 
 @dataclass
@@ -42,7 +52,10 @@ class DaemonStats:
         ref_frames: ``hubo-ref`` frames read (every one, in order).
         frame_sizes: how many frames of each size were read (bytes -> count).
         missed_ref_frames: frames overwritten in the ring before they were read.
-        late_periods: periods that started more than one period late.
+        late_periods: periods that started more than one period late (the loop re-anchors its
+            deadlines then rather than run a burst of periods).
+        overruns: periods whose work (read, body, publish) ended past their deadline.
+        loop_time_counts: the periods' work times, a histogram of :data:`LOOP_BIN_S` bins.
         error: why the daemon stopped early ("" if it did not).
     """
 
@@ -51,18 +64,99 @@ class DaemonStats:
     frame_sizes: dict[int, int] = field(default_factory=dict)
     missed_ref_frames: int = 0
     late_periods: int = 0
+    overruns: int = 0
+    loop_time_counts: np.ndarray = field(default_factory=lambda: np.zeros(LOOP_BINS, np.int64))
     error: str = ""
 
+    def loop_time_s(self, quantile: float) -> float | None:
+        """A quantile (0-1) of the periods' work time (s, to the bin's upper edge); None before
+        any period."""
+        total = int(self.loop_time_counts.sum())
+        if total == 0:
+            return None
+        k = int(np.searchsorted(np.cumsum(self.loop_time_counts), quantile * total))
+        return (min(k, LOOP_BINS - 1) + 1) * LOOP_BIN_S
 
-class FakeHuboDaemon:
-    """hubo-daemon's channel behaviour in a background thread.
+    def summary(self) -> dict:
+        """The statistics as plain numbers (JSON): loop times in ms, overrun share in %."""
+        median, p99 = self.loop_time_s(0.5), self.loop_time_s(0.99)
+        return {"periods": self.periods, "ref_frames": self.ref_frames,
+                "frame_sizes": self.frame_sizes, "missed_ref_frames": self.missed_ref_frames,
+                "late_periods": self.late_periods, "overruns": self.overruns,
+                "overrun_percent": (100.0 * self.overruns / self.periods if self.periods
+                                    else 0.0),
+                "loop_ms_median": None if median is None else median * 1e3,
+                "loop_ms_p99": None if p99 is None else p99 * 1e3,
+                "error": self.error or None}
+
+
+class DaemonBody(ABC):
+    """What stands behind the channels: it takes the reference in force each period and says
+    what the robot's state is."""
+
+    @abstractmethod
+    def advance(self, ref_rad: np.ndarray, mode: np.ndarray, period_s: float) -> None:
+        """One period with the reference ``ref_rad`` (42, rad) in hubo-ach's ``mode`` per joint."""
+
+    @abstractmethod
+    def state(self, time_s: float) -> StateFrame:
+        """The state to publish now (``time_s``: the daemon's clock)."""
+
+    @property
+    @abstractmethod
+    def joints_rad(self) -> np.ndarray:
+        """The joints' current positions (hubo-ach order, rad)."""
+
+    @property
+    def target_rad(self) -> np.ndarray:
+        """The motors' reference now (the filter's output), which stays in force until a client
+        sends one (by default the joints' positions)."""
+        return self.joints_rad
+
+    def close(self) -> None:
+        """Release what the body holds (nothing by default)."""
+
+
+class EchoBody(DaemonBody):
+    """Ideal motors: the joints are at hubo-daemon's reference filter output (the fake daemon).
+
+    Args:
+        posture_rad: the 42 joints' start positions (hubo-ach order, rad).
+        filter_length: ``HUBO_REF_FILTER_LENGTH``.
+    """
+
+    def __init__(self, posture_rad, filter_length: int = hubo_ach.REF_FILTER_LENGTH) -> None:
+        posture = np.asarray(posture_rad, dtype=float)
+        if posture.shape != (JOINT_COUNT,) or not np.all(np.isfinite(posture)):
+            raise ValueError(f"posture must be {JOINT_COUNT} finite angles (rad)")
+        self.filter_length = filter_length
+        self._filtered = posture.copy()
+        self._vel = np.zeros(JOINT_COUNT)
+
+    def advance(self, ref_rad: np.ndarray, mode: np.ndarray, period_s: float) -> None:
+        previous = self._filtered
+        self._filtered = hubo_ach.reference_filter(previous, ref_rad, mode, self.filter_length)
+        self._vel = (self._filtered - previous) / period_s
+
+    def state(self, time_s: float) -> StateFrame:
+        return StateFrame(time_s, np.zeros(3), np.zeros(3), np.zeros((4, 3)),
+                          self._filtered.copy(), self._vel.copy())
+
+    @property
+    def joints_rad(self) -> np.ndarray:
+        return self._filtered.copy()
+
+
+class HuboDaemon:
+    """hubo-daemon's channel behaviour around a :class:`DaemonBody`, in this thread
+    (:meth:`run`) or a background one (:meth:`start`).
 
     Args:
         lib: libach.
-        posture_rad: the 42 joints' start positions (hubo-ach order, rad).
+        body: what stands behind the channels (closed with the daemon, or when it cannot
+            start).
         ref_channel, state_channel: channel names (``hubo-ref``, ``hubo-state``).
         period_s: the loop period (``HUBO_LOOP_PERIOD``).
-        filter_length: ``HUBO_REF_FILTER_LENGTH``.
         create: create the channels (replacing ones left over from a dead daemon; refusing
             ones another daemon publishes) and unlink them on :meth:`close`.
 
@@ -74,72 +168,76 @@ class FakeHuboDaemon:
         DeviceError: another daemon publishes the state channel.
     """
 
-    def __init__(self, lib: Libach, posture_rad, ref_channel: str = hubo_ach.CHAN_REF,
+    def __init__(self, lib: Libach, body: DaemonBody, ref_channel: str = hubo_ach.CHAN_REF,
                  state_channel: str = hubo_ach.CHAN_STATE,
-                 period_s: float = hubo_ach.LOOP_PERIOD_S,
-                 filter_length: int = hubo_ach.REF_FILTER_LENGTH, create: bool = True) -> None:
-        posture = np.asarray(posture_rad, dtype=float)
-        if posture.shape != (JOINT_COUNT,) or not np.all(np.isfinite(posture)):
-            raise ValueError(f"posture must be {JOINT_COUNT} finite angles (rad)")
+                 period_s: float = hubo_ach.LOOP_PERIOD_S, create: bool = True) -> None:
         self.lib = lib
+        self.body = body
         self.ref_channel, self.state_channel = ref_channel, state_channel
         self.period_s = period_s
-        self.filter_length = filter_length
         self.stats = DaemonStats()
         self.created: list[str] = []
         self.replaced: list[str] = []
-        if create:
-            self._create_channels()
-        self._ref_chan = lib.open(ref_channel)
-        self._state_chan = lib.open(state_channel)
-        self._filtered = posture.copy()
-        self._ref = posture.copy()
-        self._mode = np.zeros(JOINT_COUNT, dtype=np.int16)
-        self._buffer = (ctypes.c_uint8 * (hubo_ach.REF_SIZE + 256))()
+        self._ref_chan = self._state_chan = None
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        self._drain()  # frames left on hubo-ref by an earlier writer are not this run's
-        self._publish(np.zeros(JOINT_COUNT))
+        self._ref = body.target_rad
+        self._mode = np.zeros(JOINT_COUNT, dtype=np.int16)
+        self._buffer = (ctypes.c_uint8 * (hubo_ach.REF_SIZE + 256))()
+        try:
+            if create:
+                self._create_channels()
+            self._ref_chan = lib.open(ref_channel)
+            self._state_chan = lib.open(state_channel)
+            self._drain()  # frames left on hubo-ref by an earlier writer are not this run's
+            self._publish()
+        except BaseException:  # the channels this daemon created do not outlive it
+            self.close()
+            raise
 
     # ------------------------------------------------------------------ running
-    def start(self) -> FakeHuboDaemon:
+    def start(self) -> HuboDaemon:
         """Run the loop in a background thread (again after :meth:`stop`); returns self."""
         self.stop()
         self._stop.clear()
-        self._thread = threading.Thread(target=self.run, name="fake-hubo-daemon", daemon=True)
+        self._thread = threading.Thread(target=self.run, name="hubo-daemon", daemon=True)
         self._thread.start()
         return self
 
     def run(self, duration_s: float | None = None) -> DaemonStats:
         """Run the loop here until :meth:`stop` (or for ``duration_s``)."""
+        stats = self.stats
         next_s = time.monotonic()
         end_s = None if duration_s is None else next_s + duration_s
         while not self._stop.is_set() and (end_s is None or next_s < end_s):
+            began_s = time.monotonic()
             self.period()
-            if self.stats.error:
+            if stats.error:
                 break
+            done_s = time.monotonic()
+            stats.loop_time_counts[min(int((done_s - began_s) / LOOP_BIN_S), LOOP_BINS - 1)] += 1
             next_s += self.period_s
-            delay = next_s - time.monotonic()
+            delay = next_s - done_s
             if delay > 0:
                 time.sleep(delay)
-            elif delay < -self.period_s:
-                self.stats.late_periods += 1
-                next_s = time.monotonic()  # re-anchor rather than burst
-        return self.stats
+            else:
+                stats.overruns += 1
+                if delay < -self.period_s:
+                    stats.late_periods += 1
+                    next_s = done_s  # re-anchor rather than burst
+        return stats
 
     def period(self) -> None:
-        """One daemon period: read the references, filter, publish the state. A failure stops
-        the daemon with :attr:`DaemonStats.error` set (as hubo-daemon exits)."""
+        """One daemon period: read the references, advance the body, publish the state. A failure
+        stops the daemon with :attr:`DaemonStats.error` set (as hubo-daemon exits)."""
         try:
             self._read_refs()
         except AchError as exc:
             self.stats.error = str(exc)
         if self.stats.error:
             return
-        previous = self._filtered
-        self._filtered = hubo_ach.reference_filter(previous, self._ref, self._mode,
-                                                   self.filter_length)
-        self._publish((self._filtered - previous) / self.period_s)
+        self.body.advance(self._ref, self._mode, self.period_s)
+        self._publish()
         self.stats.periods += 1
 
     def request_stop(self) -> None:
@@ -154,11 +252,14 @@ class FakeHuboDaemon:
             self._thread = None
 
     def close(self) -> None:
-        """Stop, close the channels and unlink the ones this daemon created."""
+        """Stop, close the channels, unlink the ones this daemon created, close the body."""
         self.stop()
-        self._ref_chan.close()
-        self._state_chan.close()
+        for channel in (self._ref_chan, self._state_chan):
+            if channel is not None:
+                channel.close()
+        self._ref_chan = self._state_chan = None
         self.unlink()
+        self.body.close()
 
     def unlink(self) -> None:
         """Remove the channels this daemon created."""
@@ -166,7 +267,7 @@ class FakeHuboDaemon:
             self.lib.unlink(name)
         self.created = []
 
-    def __enter__(self) -> FakeHuboDaemon:
+    def __enter__(self) -> HuboDaemon:
         return self
 
     def __exit__(self, *exc) -> None:
@@ -175,7 +276,7 @@ class FakeHuboDaemon:
     @property
     def joints_rad(self) -> np.ndarray:
         """The joints' current positions (hubo-ach order, rad)."""
-        return self._filtered.copy()
+        return self.body.joints_rad
 
     # ------------------------------------------------------------------ internals
     def _create_channels(self) -> None:
@@ -224,10 +325,26 @@ class FakeHuboDaemon:
                 return
             self._ref, self._mode = frame.ref_rad, frame.mode
 
-    def _publish(self, vel_rad_s: np.ndarray) -> None:
-        frame = StateFrame(time.clock_gettime(time.CLOCK_MONOTONIC), np.zeros(3), np.zeros(3),
-                           np.zeros((4, 3)), self._filtered.copy(), vel_rad_s)
+    def _publish(self) -> None:
+        frame = self.body.state(time.clock_gettime(time.CLOCK_MONOTONIC))
         self._state_chan.put(hubo_ach.encode_state(frame))
+
+
+class FakeHuboDaemon(HuboDaemon):
+    """The daemon with ideal motors at the reference filter's output (:class:`EchoBody`).
+
+    Args:
+        lib: libach.
+        posture_rad: the 42 joints' start positions (hubo-ach order, rad).
+        filter_length: ``HUBO_REF_FILTER_LENGTH``; the other arguments as :class:`HuboDaemon`.
+    """
+
+    def __init__(self, lib: Libach, posture_rad, ref_channel: str = hubo_ach.CHAN_REF,
+                 state_channel: str = hubo_ach.CHAN_STATE,
+                 period_s: float = hubo_ach.LOOP_PERIOD_S,
+                 filter_length: int = hubo_ach.REF_FILTER_LENGTH, create: bool = True) -> None:
+        super().__init__(lib, EchoBody(posture_rad, filter_length), ref_channel, state_channel,
+                         period_s, create)
 
 
 def channel_published(lib: Libach, name: str) -> bool:
