@@ -375,3 +375,50 @@ def test_the_safety_profile_adds_it_only_on_request(model):
     modules = SafetyProfile(impedance=True).build(model, DT, {"right-arm": "hand"})
     assert [m.name for m in modules][-1] == "limiter"
     assert any(isinstance(m, ImpedanceController) for m in modules)
+
+
+class _Pushed:
+    """An ideal driver whose right wrist feels ``wrench`` (hand axes) from ``t_on_s``."""
+
+    def __init__(self, recorder, wrench, t_on_s) -> None:
+        self.recorder, self.wrench, self.t_on_s = recorder, np.asarray(wrench), t_on_s
+
+    def __getattr__(self, name):
+        return getattr(self.recorder, name)
+
+    def step(self):
+        state = self.recorder.step()
+        if state.time_s >= self.t_on_s:
+            state.ft["right-wrist"] = self.wrench.copy()
+        return state
+
+
+def test_in_the_pipeline_it_changes_nothing_without_force_and_stays_within_limits(model):
+    """The ideal driver (no force): the commands of the profile with the module are those
+    without it, bit for bit. Then a 10 N push along the forearm and a 0.3 N m twist from 0.5 s:
+    the hand yields, every command finite and within the joints' limits."""
+    from control_support import assert_within_limits, ideal
+
+    from hubo_cli.control.loop import ControlLoop
+
+    def hold(t_s, state):
+        return home_posture(model), {}
+
+    sent = {}
+    for on in (False, True):
+        robot = ideal(model)
+        modules = SafetyProfile(impedance=on).build(model, DT, {})
+        ControlLoop(robot, modules, hold).run(duration_s=1.0)
+        sent[on] = np.array(robot.sent)
+    np.testing.assert_array_equal(sent[True], sent[False])
+
+    robot = ideal(model)
+    q0 = robot.read().q_rad.copy()
+    modules = SafetyProfile(impedance=True).build(model, DT, {})
+    result = ControlLoop(_Pushed(robot, [-10.0, 0, 0, 0.3, 0, 0], 0.5), modules,
+                         hold).run(duration_s=3.0)
+    commands = robot.commands(q0)
+    assert np.all(np.isfinite(commands))
+    assert_within_limits(model, commands, DT)
+    assert np.max(np.abs(commands[-1] - home_posture(model))) > 0.01  # it yielded
+    assert result.flag_counts.get(UNREACHABLE_FLAG, 0) == 0
