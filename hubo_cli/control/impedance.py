@@ -233,7 +233,7 @@ class _Hand:
     """One hand's state: the limb, its joints' slice, sensor, s = [x, x'], the reference
     wrench and the joint offset last applied."""
 
-    def __init__(self, model: RobotModel, arm: str) -> None:
+    def __init__(self, model: RobotModel, arm: str, dt_s: float) -> None:
         self.arm = arm
         self.limb = Limb(model, arm, "hand")
         self.slice = model.limb_slice(arm)
@@ -242,13 +242,12 @@ class _Hand:
         self.fk_chain = (base, offset, alpha, a, d, end)  # as chain_fk takes it
         # as offset_joints takes it; the offset's joints move at most at the joints' speed limit
         self.ik = (self.limb.chain, self.limb.lengths_m, self.limb.lower_rad,
-                   self.limb.upper_rad, self.limb.spec.velocity_rad_s * model.control_period_s)
+                   self.limb.upper_rad, self.limb.spec.velocity_rad_s * dt_s)
         self.s = np.zeros(12)
         self.s_next = np.zeros(12)
         self.wrench_ref_N = np.zeros(6)
         self.dq_rad = np.zeros(6)
         self.x_good = np.zeros(6)  # the offset dq_rad reaches
-        self.R_N_H = np.eye(3)
         self.T_N_H = np.empty((4, 4))
         self.release_from = np.zeros(6)
         self.dq_release_rad = np.zeros(6)
@@ -308,7 +307,7 @@ class ImpedanceController(Module):
         self.dt_s = float(dt_s)
         self.Ad, self.Bd = discretize(self.M, self.D, self.K, self.dt_s)
         self.T_hand_sensor = np.ascontiguousarray(T_hand_sensor, dtype=float)
-        self.hands = [_Hand(model, arm) for arm in arms]
+        self.hands = [_Hand(model, arm, self.dt_s) for arm in arms]
         self._initially_active = active
         self.log_columns = ("impedance_mode_code",) + tuple(
             c for h in self.hands for c in (h.offset_column, h.rotation_column))
@@ -361,11 +360,11 @@ class ImpedanceController(Module):
         """Compile the kernels now, not in a control period."""
         h = self.hands[0]
         scratch = h.s.copy()
-        advance(scratch, self.Ad, self.Bd, np.zeros(6), self.T_hand_sensor, h.R_N_H,
+        chain_fk(np.zeros(6), *h.fk_chain, h.T_N_H)
+        advance(scratch, self.Ad, self.Bd, np.zeros(6), self.T_hand_sensor, h.T_N_H[:3, :3],
                 h.wrench_ref_N, h.s_next)
         clamp_offset(scratch, 1.0, 1.0)
         offset_joints(np.zeros(6), *h.ik, np.zeros(6), np.zeros(6))
-        chain_fk(np.zeros(6), *h.fk_chain, h.T_N_H)
         all_finite(scratch)
 
     def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
