@@ -189,6 +189,11 @@ class RobotModel:
         return _read_toml(self.source)["robot"]
 
     @property
+    def raw_impedance(self) -> dict:
+        """The robot file's ``[impedance]`` table (read by :mod:`hubo_cli.control.impedance`)."""
+        return _read_toml(self.source).get("impedance", {})
+
+    @property
     def raw_walking(self) -> dict:
         """The robot file's ``[walking]`` table (read by :mod:`hubo_cli.walking.params`)."""
         return _read_toml(self.source).get("walking", {})

@@ -12,6 +12,8 @@ follow it; ``hip``, the hip strategy of the standing experiment, comes before ``
 second stopper (freeze preset, reacting only to the ``hard`` source) and ``limiter`` the soft
 error limiter. The capture-point monitor passes the command through; it sits before ``estop``
 so that its request is seen in the same period. ``hoff-arbib`` can replace ``otg``.
+``impedance`` (hrpsys ``ic``, eq. 3) is optional and off by default: with
+``SafetyProfile(impedance=True)`` it follows the soft stopper (before the balancer).
 The limiter must stay last: it is what guarantees the limits.
 
 A :class:`SafetyProfile` decides the order and the options of one run's pipeline; every robot
@@ -86,6 +88,11 @@ def _capture_point(model, dt_s, **options):
     return CapturePointMonitor(model, dt_s, **options)
 
 
+def _impedance(model, dt_s, **options):
+    from hubo_cli.control.impedance import ImpedanceController
+    return ImpedanceController(model, dt_s, **options)
+
+
 def _limiter(model, dt_s, **options):
     from hubo_cli.control.limiter import SoftErrorLimiter
     return SoftErrorLimiter(model, dt_s, **options)
@@ -96,6 +103,7 @@ FACTORIES: dict[str, Callable[..., Module]] = {
     "hoff-arbib": _hoff_arbib,
     "capture-point": _capture_point,
     "estop": _estop,
+    "impedance": _impedance,
     "balance": _balance,
     "stabilizer": _stabilizer,
     "hip": _hip,
@@ -181,6 +189,9 @@ class SafetyProfile:
             arrives together) or ``limbs`` (one tracker per arm and one for the legs:
             teleoperation's hands keep their own pace); see
             :func:`hubo_cli.control.otg.tracker_groups`.
+        impedance: add the ImpedanceController (eq. 3, :mod:`hubo_cli.control.impedance`)
+            right after the soft stopper (hrpsys ``es -> ic``) on both hands, with the robot
+            file's ``[impedance]`` gains; off by default.
         tracker_sync: within each of ``otg``'s trackers, ``phase`` (the joints arrive together
             on a straight line in joint space) or ``none`` (each joint time-optimal).
     """
@@ -197,6 +208,7 @@ class SafetyProfile:
     hip_strategy: bool = False
     tracker_groups: str = "body"
     tracker_sync: str = "phase"
+    impedance: bool = False
     removed: tuple[str, ...] = ()
     removed_by: str = ""
 
@@ -257,6 +269,9 @@ class SafetyProfile:
         if self.stabilizer and self.balance and self.balance_mode != "paper":
             k = order.index("balance") + 1  # hrpsys: abc -> st
             order = order[:k] + ("stabilizer",) + order[k:]
+        if self.impedance:  # hrpsys: es -> ic -> abc
+            k = order.index("capture-point") + 1 + ("estop" in order)
+            order = order[:k] + ("impedance",) + order[k:]
         if self.hip_strategy:
             k = order.index("collision")
             order = order[:k] + ("hip",) + order[k:]

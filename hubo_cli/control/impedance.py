@@ -1,0 +1,442 @@
+"""The ImpedanceController (hrpsys ``ic``, eq. 3 of the multi-layer paper): each hand yields to
+the wrench it feels like a mass-damper-spring hung on its reference pose.
+
+Per hand, on the 6-D offset x = [position (m), small-angle rotation (rad)] of the hand frame
+from the pose the incoming command puts it at (the reference pose, the spring's centre)::
+
+    M x'' + D x' + K x = F_N - F_ref_N                                      (eq. 3)
+
+F_N is the wrench the environment applies to the hand, about the hand frame's origin, in the
+neck frame's axes N (forces N, moments N m); F_ref_N the wrench the hand should feel (zero
+unless :meth:`ImpedanceController.set_reference_wrench` gave one). M (kg, kg m^2), D (N s/m,
+N m s/rad) and K (N/m, N m/rad) are 6x6; the defaults are diagonal, from the robot file's
+``[impedance]`` table.
+
+Discrete update: the state s = [x, x'] (12) advances over one period by the exact solution of
+the linear ODE for an input held over the period (zero-order hold), s <- A_d s + B_d u, with
+A_d, B_d taken once from the matrix exponential of [[A, B], [0, 0]] dt (scipy.linalg.expm).
+So a step of force is followed exactly at every period and a ramp to within its staircase; no
+stability limit on dt as with Euler. With no force (u = 0 and s = 0) s stays exactly 0 and the
+command passes through unchanged, bit for bit: the hand tracks its reference exactly.
+
+Force input: ``state.ft["right-wrist"]`` / ``["left-wrist"]``, the wrench the environment
+applies to the hand in the sensor frame S, which :class:`~hubo_cli.state.RobotState` defines
+as the hand frame (``T_hand_sensor`` = identity; another mounting is one argument). It is
+moved to the hand origin in hand axes (f_H = R_HS f_S, m_H = R_HS m_S + p_HS x f_H), then
+turned into N by the hand's measured orientation (forward kinematics of the measured joints).
+The reading is taken as given: the estimation layer that removes the tool's weight and the
+sensor's offset (hrpsys RemoveForceOffset) does not exist yet (issue 36 names it), so a tool's
+weight, unless the sensor was zeroed with it, deflects the hand by weight / K.
+
+Offset to joints: the target pose is (p_ref + x_p, Exp(x_r) R_ref) in N, with the reference
+pose FK(commanded arm joints); the arm's closed-form IK (paper II-B,
+:func:`hubo_cli.kinematics.choice.solve_limb`) solves it on the candidate nearest the commanded
+joints. It is exact (the IK's own 1e-6 m / 1e-6 rad check) and cheap (about 2 us compiled).
+A Jacobian step was the alternative and is not exact enough: at the offset limits (30 mm with
+0.1 rad), over 2000 random arm postures (a one-off comparison, not kept), one damped Newton
+step missed the pose by up to 1 mm / 8 mrad even where the arm is well conditioned
+(condition number < 10), two steps by 0.7 mm / 2.6 mrad, and more near a straight elbow.
+When the offset pose has no exact solution within the joint limits, or its joint offset would
+change by more than the joint's speed limit times the period (a branch switch, or the arm
+nearing a singular posture such as a straight elbow, where a millimetre asks for ever larger
+joint moves), the offset and its joints are held at the last good period's, its rate set to
+zero (the hand rests at the edge of what the arm can follow and leaves it continuously), and
+the flag ``impedance-unreachable`` is set. The limiter downstream keeps every joint within
+its limits and rates.
+
+Limits: the position offset's norm is clamped to ``max_offset_m`` and the rotation's to
+``max_rotation_rad`` (the velocity pushing outward is dropped, so the state does not wind up);
+flag ``impedance-limit``. A non-finite wrench holds the last offset (the state is not
+advanced; flag ``impedance-bad-wrench``); a non-finite command entry is replaced by the last
+finite one. Release: :meth:`switch_off` blends the offset back to zero on a minimum-jerk
+profile over ``release_s`` (flag ``impedance-release``), in joint space (the joint offset
+scaled down, always reachable and smooth; the reported x is scaled alike), then the command
+passes through unchanged; :meth:`switch_on` resumes the dynamics from where the blend is.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+import scipy.linalg
+
+from hubo_cli.control.module import Cycle, Module
+from hubo_cli.errors import ConfigError
+from hubo_cli.geometry import min_jerk
+from hubo_cli.kinematics.choice import EXACT, solve_limb
+from hubo_cli.kinematics.dh import JIT, chain_fk
+from hubo_cli.kinematics.limb import Limb
+from hubo_cli.model import ARMS, RobotModel
+from hubo_cli.motion.limits import all_finite, hold_nan
+from hubo_cli.state import RobotState
+
+HAND_SENSORS = {"right-arm": "right-wrist", "left-arm": "left-wrist"}
+T_HAND_SENSOR = np.eye(4)   # RobotState: a wrist reading is in the hand frame
+MODES = ("on", "release", "off")
+MODE_CODE = {name: i for i, name in enumerate(MODES)}
+LIMIT_FLAG, BAD_FLAG, UNREACHABLE_FLAG, RELEASE_FLAG = (
+    "impedance-limit", "impedance-bad-wrench", "impedance-unreachable", "impedance-release")
+
+# the robot file's [impedance] keys and the diagonal entries they fill
+_DIAGONALS = {"M": ("mass_kg", "inertia_kg_m2"),
+              "D": ("damping_n_s_m", "rotation_damping_n_m_s_rad"),
+              "K": ("stiffness_n_m", "rotation_stiffness_n_m_rad")}
+
+
+def discretize(M, D, K, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """(A_d, B_d) of eq. 3 over one period for an input held over it (zero-order hold).
+
+    The state is s = [x, x'] (12); s(t + dt) = A_d s(t) + B_d u, exact for constant u.
+    """
+    M, D, K = (np.asarray(m, dtype=float) for m in (M, D, K))
+    Minv = np.linalg.inv(M)
+    big = np.zeros((18, 18))
+    big[:6, 6:12] = np.eye(6)
+    big[6:12, :6] = -Minv @ K
+    big[6:12, 6:12] = -Minv @ D
+    big[6:12, 12:] = Minv
+    E = scipy.linalg.expm(big * dt_s)
+    return np.ascontiguousarray(E[:12, :12]), np.ascontiguousarray(E[:12, 12:])
+
+
+def default_gains(model: RobotModel) -> dict[str, np.ndarray]:
+    """M, D, K (6x6 diagonal) from the robot file's ``[impedance]`` table."""
+    raw = model.raw_impedance
+    gains = {}
+    for name, (linear, angular) in _DIAGONALS.items():
+        try:
+            diag = [float(raw[linear])] * 3 + [float(raw[angular])] * 3
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ConfigError(f"[impedance] needs numbers {linear} and {angular}",
+                              path=str(model.source), hint=f"missing or bad: {exc}") from None
+        gains[name] = np.diag(diag)
+    return gains
+
+
+def _check_gains(M, D, K) -> None:
+    for name, m in (("M", M), ("D", D), ("K", K)):
+        if m.shape != (6, 6) or not np.all(np.isfinite(m)):
+            raise ConfigError(f"impedance {name} must be a finite 6x6 matrix",
+                              hint=f"got shape {m.shape}")
+    if np.linalg.eigvalsh(0.5 * (M + M.T)).min() <= 0:
+        raise ConfigError("impedance M must be positive definite",
+                          hint="a mass (kg) and inertia (kg m^2) > 0 on every axis")
+    for name, m in (("D", D), ("K", K)):
+        if np.linalg.eigvalsh(0.5 * (m + m.T)).min() < 0:
+            raise ConfigError(f"impedance {name} must not be negative definite on any axis",
+                              hint="an unstable spring or damper would push the hand away")
+
+
+@nb.njit(**JIT)
+def advance(s, Ad, Bd, wrench_S, T_H_S, R_N_H, wrench_ref_N, s_next) -> None:
+    """s_next = A_d s + B_d (F_N - F_ref_N), with F_N the sensor's wrench moved to the hand
+    origin (f_H = R_HS f_S, m_H = R_HS m_S + p_HS x f_H) and turned into N axes."""
+    f_H = np.empty(3)
+    m_H = np.empty(3)
+    for i in range(3):
+        f_H[i] = T_H_S[i, 0] * wrench_S[0] + T_H_S[i, 1] * wrench_S[1] + T_H_S[i, 2] * wrench_S[2]
+        m_H[i] = T_H_S[i, 0] * wrench_S[3] + T_H_S[i, 1] * wrench_S[4] + T_H_S[i, 2] * wrench_S[5]
+    px, py, pz = T_H_S[0, 3], T_H_S[1, 3], T_H_S[2, 3]
+    m_H[0] += py * f_H[2] - pz * f_H[1]
+    m_H[1] += pz * f_H[0] - px * f_H[2]
+    m_H[2] += px * f_H[1] - py * f_H[0]
+    u = np.empty(6)
+    for i in range(3):
+        u[i] = (R_N_H[i, 0] * f_H[0] + R_N_H[i, 1] * f_H[1] + R_N_H[i, 2] * f_H[2]
+                - wrench_ref_N[i])
+        u[3 + i] = (R_N_H[i, 0] * m_H[0] + R_N_H[i, 1] * m_H[1] + R_N_H[i, 2] * m_H[2]
+                    - wrench_ref_N[3 + i])
+    for r in range(12):
+        acc = 0.0
+        for c in range(12):
+            acc += Ad[r, c] * s[c]
+        for c in range(6):
+            acc += Bd[r, c] * u[c]
+        s_next[r] = acc
+
+
+@nb.njit(**JIT)
+def clamp_offset(s, max_offset_m, max_rotation_rad) -> bool:
+    """Clamp the position and rotation parts of x to their norms, dropping the velocity that
+    pushes further out; True if either was clamped."""
+    position = _clamp_norm(s, 0, max_offset_m)
+    rotation = _clamp_norm(s, 3, max_rotation_rad)
+    return position or rotation
+
+
+@nb.njit(**JIT)
+def _clamp_norm(s, k, limit) -> bool:
+    """Clamp |s[k:k+3]| to limit and drop the outward part of its rate s[6+k:9+k]."""
+    n = math.sqrt(s[k] ** 2 + s[k + 1] ** 2 + s[k + 2] ** 2)
+    if not n > limit:
+        return False
+    scale = limit / n
+    outward = 0.0
+    for i in range(3):
+        s[k + i] *= scale
+        if limit > 0.0:
+            outward += s[6 + k + i] * s[k + i] / limit
+    for i in range(3):
+        if limit > 0.0 and outward > 0.0:
+            s[6 + k + i] -= outward * s[k + i] / limit
+        elif limit == 0.0:
+            s[6 + k + i] = 0.0
+    return True
+
+
+@nb.njit(**JIT)
+def _rotate_small(x_rot, R, out) -> None:
+    """out = Exp(x_rot) R (Rodrigues), x_rot a rotation vector (rad)."""
+    angle = math.sqrt(x_rot[0] ** 2 + x_rot[1] ** 2 + x_rot[2] ** 2)
+    E = np.eye(3)
+    if angle > 0.0:
+        kx, ky, kz = x_rot[0] / angle, x_rot[1] / angle, x_rot[2] / angle
+        s, c = math.sin(angle), math.cos(angle)
+        v = 1.0 - c
+        E[0, 0], E[0, 1], E[0, 2] = c + kx * kx * v, kx * ky * v - kz * s, kx * kz * v + ky * s
+        E[1, 0], E[1, 1], E[1, 2] = ky * kx * v + kz * s, c + ky * ky * v, ky * kz * v - kx * s
+        E[2, 0], E[2, 1], E[2, 2] = kz * kx * v - ky * s, kz * ky * v + kx * s, c + kz * kz * v
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = E[i, 0] * R[0, j] + E[i, 1] * R[1, j] + E[i, 2] * R[2, j]
+
+
+@nb.njit(**JIT)
+def offset_joints(q_cmd, chain, lengths, lower, upper, max_step_rad, x, dq_out) -> bool:
+    """dq_out: the joint offset that puts the end frame at FK(q_cmd) moved by x (position m,
+    rotation vector rad, both in N), by the arm's closed-form IK on the candidate nearest the
+    commanded joints; False (dq_out untouched) when that pose has no exact solution within the
+    joint limits or the new offset differs from the one in dq_out by more than max_step_rad
+    on some joint (a branch switch, or the arm nearing a singular posture)."""
+    base, _, offset, alpha, a, d, end, _ = chain
+    T_ref = np.empty((4, 4))
+    chain_fk(q_cmd, base, offset, alpha, a, d, end, T_ref)
+    T_goal = np.eye(4)
+    for i in range(3):
+        T_goal[i, 3] = T_ref[i, 3] + x[i]
+    _rotate_small(x[3:], T_ref[:3, :3], T_goal[:3, :3])
+    q = np.empty(6)
+    status, _, _ = solve_limb(T_goal, chain, lengths, True, lower, upper, q_cmd, True, 0.0,
+                              False, q)
+    if status != EXACT:
+        return False
+    for k in range(6):
+        if not (abs(q[k] - q_cmd[k] - dq_out[k]) <= max_step_rad[k]):  # also catches NaN
+            return False
+    for k in range(6):
+        dq_out[k] = q[k] - q_cmd[k]
+    return True
+
+
+class _Hand:
+    """One hand's state: the limb, its joints' slice, sensor, s = [x, x'], the reference
+    wrench and the joint offset last applied."""
+
+    def __init__(self, model: RobotModel, arm: str, dt_s: float) -> None:
+        self.arm = arm
+        self.limb = Limb(model, arm, "hand")
+        self.slice = model.limb_slice(arm)
+        self.sensor = HAND_SENSORS[arm]
+        base, _, offset, alpha, a, d, end, _ = self.limb.chain
+        self.fk_chain = (base, offset, alpha, a, d, end)  # as chain_fk takes it
+        # as offset_joints takes it; the offset's joints move at most at the joints' speed limit
+        self.ik = (self.limb.chain, self.limb.lengths_m, self.limb.lower_rad,
+                   self.limb.upper_rad, self.limb.spec.velocity_rad_s * dt_s)
+        self.s = np.zeros(12)
+        self.s_next = np.zeros(12)
+        self.wrench_ref_N = np.zeros(6)
+        self.dq_rad = np.zeros(6)
+        self.x_good = np.zeros(6)  # the offset dq_rad reaches
+        self.T_N_H = np.empty((4, 4))
+        self.release_from = np.zeros(6)
+        self.dq_release_rad = np.zeros(6)
+        side = arm.split("-")[0]
+        self.offset_column = f"impedance_{side}_offset_m"
+        self.rotation_column = f"impedance_{side}_rotation_rad"
+
+
+class ImpedanceController(Module):
+    """Eq. 3 on each hand (see the module docstring).
+
+    Args:
+        model: the robot model (arms, the ``[impedance]`` defaults).
+        dt_s: the control period (s).
+        M, D, K: 6x6 inertia (kg, kg m^2), damping (N s/m, N m s/rad) and stiffness (N/m,
+            N m/rad) on [x, y, z, rx, ry, rz] in the neck frame's axes; None: the robot file's.
+        max_offset_m, max_rotation_rad: the largest offset the module adds (m, rad).
+        release_s: how long :meth:`switch_off` takes to blend the offset back to zero (s).
+        arms: the hands it acts on (default both).
+        T_hand_sensor: the wrist sensor's frame in the hand frame (4x4, m).
+        active: start switched on (True) or off.
+
+    Flags: ``impedance-limit`` (an offset clamped), ``impedance-bad-wrench`` (a non-finite
+    reading: offset held), ``impedance-unreachable`` (joint offset held), ``impedance-release``.
+    Info: ``impedance_mode_code`` (0 on, 1 release, 2 off) and per hand
+    ``impedance_<side>_offset_m`` and ``impedance_<side>_rotation_rad`` (norms of x).
+    """
+
+    name = "impedance"
+
+    def __init__(self, model: RobotModel, dt_s: float, M=None, D=None, K=None,
+                 max_offset_m: float | None = None, max_rotation_rad: float | None = None,
+                 release_s: float | None = None, arms: tuple[str, ...] = ARMS,
+                 T_hand_sensor: np.ndarray = T_HAND_SENSOR, active: bool = True) -> None:
+        raw = model.raw_impedance
+        defaults = default_gains(model) if M is None or D is None or K is None else {}
+        self.M, self.D, self.K = (
+            np.array(defaults[n] if given is None else given, dtype=float)
+            for n, given in (("M", M), ("D", D), ("K", K)))
+        _check_gains(self.M, self.D, self.K)
+        try:
+            self.max_offset_m = float(raw["max_offset_m"] if max_offset_m is None
+                                      else max_offset_m)
+            self.max_rotation_rad = float(raw["max_rotation_rad"] if max_rotation_rad is None
+                                          else max_rotation_rad)
+            self.release_s = float(raw["release_s"] if release_s is None else release_s)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ConfigError("[impedance] needs numbers max_offset_m, max_rotation_rad and "
+                              "release_s", path=str(model.source), hint=str(exc)) from None
+        if not (self.max_offset_m >= 0 and self.max_rotation_rad >= 0 and self.release_s >= 0
+                and math.isfinite(self.max_offset_m + self.max_rotation_rad + self.release_s)):
+            raise ConfigError("impedance limits and release time must be finite and >= 0")
+        unknown = [a for a in arms if a not in HAND_SENSORS]
+        if unknown:
+            raise ConfigError(f"impedance on unknown arm {unknown[0]!r}",
+                              hint=f"use {', '.join(HAND_SENSORS)}")
+        self.dt_s = float(dt_s)
+        self.Ad, self.Bd = discretize(self.M, self.D, self.K, self.dt_s)
+        self.T_hand_sensor = np.ascontiguousarray(T_hand_sensor, dtype=float)
+        self.hands = [_Hand(model, arm, self.dt_s) for arm in arms]
+        self._initially_active = active
+        self.log_columns = ("impedance_mode_code",) + tuple(
+            c for h in self.hands for c in (h.offset_column, h.rotation_column))
+        self._last_in = np.zeros(len(model.joint_names))
+        self._clear()
+        self._warm_up()
+
+    # ------------------------------------------------------------------ commands
+    def switch_off(self) -> None:
+        """Blend every hand's offset back to zero over ``release_s``, then pass through."""
+        if self.mode == "on":
+            self.mode = "release"
+            self._release_k = 0
+            for h in self.hands:
+                h.release_from = h.s[:6].copy()
+                h.dq_release_rad = h.dq_rad.copy()
+
+    def switch_on(self) -> None:
+        """Resume eq. 3 from the current offset (and its rate while blending back)."""
+        self.mode = "on"
+
+    def set_reference_wrench(self, arm: str, wrench_ref_N) -> None:
+        """The wrench (N, N m; about the hand origin, neck-frame axes) the hand ``arm`` should
+        feel from its environment at the spring's centre: the hand settles where the measured
+        wrench equals it. Non-finite values are refused."""
+        w = np.asarray(wrench_ref_N, dtype=float).reshape(6)
+        if not np.all(np.isfinite(w)):
+            raise ConfigError(f"reference wrench for {arm} is not finite", hint=str(w))
+        for h in self.hands:
+            if h.arm == arm:
+                h.wrench_ref_N[:] = w
+                return
+        raise ConfigError(f"no impedance on {arm!r}",
+                          hint=f"it acts on {', '.join(h.arm for h in self.hands)}")
+
+    def offset(self, arm: str) -> np.ndarray:
+        """The hand's current offset x (position m, rotation vector rad; neck-frame axes)."""
+        return next(h.s[:6].copy() for h in self.hands if h.arm == arm)
+
+    # ------------------------------------------------------------------ module
+    def _clear(self) -> None:
+        self.mode = "on" if self._initially_active else "off"
+        self._release_k = 0
+        for h in self.hands:
+            h.s[:] = 0.0
+            h.dq_rad[:] = 0.0
+            h.x_good[:] = 0.0
+
+    def _warm_up(self) -> None:
+        """Compile the kernels now, not in a control period."""
+        h = self.hands[0]
+        scratch = h.s.copy()
+        chain_fk(np.zeros(6), *h.fk_chain, h.T_N_H)
+        advance(scratch, self.Ad, self.Bd, np.zeros(6), self.T_hand_sensor, h.T_N_H[:3, :3],
+                h.wrench_ref_N, h.s_next)
+        clamp_offset(scratch, 1.0, 1.0)
+        offset_joints(np.zeros(6), *h.ik, np.zeros(6), np.zeros(6))
+        all_finite(scratch)
+        hold_nan(self._last_in, self._last_in, self._last_in.copy())
+
+    def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
+        """Start with zero offsets (switched on if built ``active``)."""
+        self._last_in = np.where(np.isfinite(q_rad), q_rad, state.q_rad).astype(float)
+        self._clear()
+
+    def _release_step(self) -> None:
+        """One period of the blend back: x = x_off (1 - min_jerk(k / n))."""
+        n = max(1, math.ceil(self.release_s / self.dt_s - 1e-9))
+        self._release_k += 1
+        u = self._release_k / n
+        w = 1.0 - float(min_jerk(u))
+        rate = -30.0 * u * u * (1.0 - u) ** 2 / (n * self.dt_s) if u < 1.0 else 0.0
+        for h in self.hands:
+            h.s[:6] = h.release_from * w
+            h.s[6:] = h.release_from * rate
+            h.dq_rad[:] = h.dq_release_rad * w
+        if self._release_k >= n:
+            self.mode = "off"
+            for h in self.hands:
+                h.s[:] = 0.0
+                h.dq_rad[:] = 0.0
+
+    def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
+        q_in = np.empty(self._last_in.shape[0])
+        hold_nan(np.ascontiguousarray(q_rad, dtype=float), self._last_in, q_in)
+        self._last_in = q_in
+        if self.mode == "release":
+            cycle.flags.add(RELEASE_FLAG)
+            self._release_step()
+        out = q_in
+        for h in self.hands:
+            if self.mode == "on":
+                wrench_S = state.ft.get(h.sensor)
+                if wrench_S is None:
+                    wrench_S = np.zeros(6)
+                if not all_finite(wrench_S):
+                    cycle.flags.add(BAD_FLAG)  # hold the offset: s is not advanced
+                else:
+                    q_hand = state.q_rad[h.slice]  # the measured joints turn the reading
+                    if not all_finite(q_hand):
+                        q_hand = q_in[h.slice]
+                    chain_fk(q_hand, *h.fk_chain, h.T_N_H)
+                    advance(h.s, self.Ad, self.Bd, wrench_S, self.T_hand_sensor,
+                            h.T_N_H[:3, :3], h.wrench_ref_N, h.s_next)
+                    if all_finite(h.s_next):  # else (overflow) the offset is held
+                        h.s, h.s_next = h.s_next, h.s
+                    else:
+                        cycle.flags.add(BAD_FLAG)
+                    if clamp_offset(h.s, self.max_offset_m, self.max_rotation_rad):
+                        cycle.flags.add(LIMIT_FLAG)
+            x = h.s[:6]
+            cycle.info[h.offset_column] = float(np.linalg.norm(x[:3]))
+            cycle.info[h.rotation_column] = float(np.linalg.norm(x[3:]))
+            if not x.any():
+                h.dq_rad[:] = 0.0
+                h.x_good[:] = 0.0
+                continue  # exact tracking: this arm's command passes through unchanged
+            if self.mode == "on":
+                q_arm = np.ascontiguousarray(q_in[h.slice])
+                if offset_joints(q_arm, *h.ik, x, h.dq_rad):
+                    h.x_good[:] = x
+                else:  # hold the last offset the arm could take (h.dq_rad keeps its joints)
+                    cycle.flags.add(UNREACHABLE_FLAG)
+                    h.s[:6] = h.x_good
+                    h.s[6:] = 0.0
+            if out is q_in:
+                out = q_in.copy()
+            out[h.slice] += h.dq_rad
+        cycle.info["impedance_mode_code"] = float(MODE_CODE[self.mode])
+        return out
+
