@@ -283,6 +283,9 @@ def test_a_short_run_reports_the_balance_figures(tmp_path):
         assert 0.0 <= s["min_support_margin_at"]["t_s"] <= 0.5
         assert 0.0 <= s["max_torso_tilt_deg"] < 1.0
         assert "cutting_fraction" not in s  # no drill, no wall
-    # eq. 11-12's compliance against the stiff simulated legs keeps the ankles at the
-    # limiter's acceleration clamp (issue 15); without a balancer nothing moves them
-    assert paper["ankle_clamp_fraction"] > 0.3 and off["ankle_clamp_fraction"] < 0.01
+    # eq. 11-12's compliance against the stiff simulated legs drives the ankles into the
+    # limiter's acceleration clamp (issue 15); without a balancer nothing moves them. Counted
+    # are the periods the clamp binds: 0.05 measured (the catch-up periods after a clamp,
+    # corrections under POSITION_ROUNDING_RAD, are no events since issue 38: 1.0 before);
+    # bound 0.02, 2.5x below
+    assert paper["ankle_clamp_fraction"] > 0.02 and off["ankle_clamp_fraction"] < 0.01

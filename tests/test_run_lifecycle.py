@@ -495,9 +495,17 @@ def test_sigterm_ends_a_local_cluster_sweep_within_a_second_or_so(tmp_path):
         while _periods_stored(first) < 200 and time.monotonic() < deadline:
             assert process.poll() is None, process.communicate()
             time.sleep(0.02)
-        children = psutil.Process(process.pid).children(recursive=True)
+        workers = [c for c in psutil.Process(process.pid).children(recursive=True)
+                   if not any("resource_tracker" in part for part in c.cmdline())]
+
+        def running() -> list:
+            return [c for c in workers if c.is_running() and c.status() != psutil.STATUS_ZOMBIE]
+
         started = time.monotonic()
         process.send_signal(signal.SIGTERM)
+        while running() and time.monotonic() - started < 30:
+            time.sleep(0.02)
+        workers_gone_s = time.monotonic() - started
         out_text, err = process.communicate(timeout=60)
         exit_s = time.monotonic() - started
     finally:
@@ -505,11 +513,11 @@ def test_sigterm_ends_a_local_cluster_sweep_within_a_second_or_so(tmp_path):
             process.kill()
     assert process.returncode == 130, err
     assert "Traceback" not in err and "internal error" not in err, err
-    # measured at load 2-3: 1.2-1.3 s (4.8 s while the cluster's close waited for the
-    # workers); the bound, 3 s, still fails the graceful close
-    assert exit_s < 3.0, exit_s
+    # the workers, busy in simulations, are ended at once: 0.05-0.1 s measured (with the
+    # cluster's graceful close they lived on until it gave up, 4.4-4.8 s); the whole exit,
+    # the cluster's close after them included, took 1.2-2.5 s at load 2-4, 4.1 s under the
+    # full suite: bounds 1.5 s and 15 s
+    assert workers_gone_s < 1.5, workers_gone_s
+    assert exit_s < 15.0, exit_s
+    assert running() == []
     assert (out / "sweep.csv").read_text().splitlines()[0].startswith("command,seed")
-    time.sleep(0.5)
-    left = [c for c in children if c.is_running() and c.status() != psutil.STATUS_ZOMBIE
-            and not any("resource_tracker" in part for part in c.cmdline())]
-    assert left == [], left
