@@ -6,11 +6,18 @@ state's age and round trip. The same driver through a daemon: tests/test_hardwar
 
 from __future__ import annotations
 
+import os
+import threading
+import time
+import uuid
+
 import numpy as np
 import pytest
 
 from hubo_cli.drivers import hubo_ach
+from hubo_cli.drivers.ach import libach_status
 from hubo_cli.drivers.hardware import MODE_DIRECT, MODE_FILTERED, HardwareDriver, read_ref_frames
+from hubo_cli.drivers.hubo_ach_daemon import EchoBody
 from hubo_cli.drivers.servo_guard import MotorTooHot, ServoError, SoleForceError
 from hubo_cli.errors import ConfigError
 from hubo_cli.model import load_model
@@ -301,3 +308,83 @@ def test_state_age_and_round_trip_are_logged_and_summarised(tmp_path):
     assert summary["hw_round_trip_ms"]["max"] == pytest.approx(8.0)
     assert summary["hw_state_age_ms"]["max"] == pytest.approx(7.0)
     assert summary["hw_ref_mode"] == "direct"
+
+
+# ---------------------------------------------------------------- through real ach channels
+AVAILABLE, WHERE = libach_status()
+
+
+class _FreezingBody(EchoBody):
+    """The fake daemon's ideal motors, with REB's encoder frozen once ``freeze`` is set; notes
+    the wall time when the motors' reference first leaves the frozen joint by the limit."""
+
+    def __init__(self, posture_rad) -> None:
+        super().__init__(posture_rad)
+        self.freeze = threading.Event()
+        self.frozen_rad: float | None = None
+        self.crossed_s: float | None = None
+
+    def advance(self, ref_rad, mode, period_s) -> None:
+        super().advance(ref_rad, mode, period_s)
+        if self.freeze.is_set() and self.frozen_rad is None:
+            self.frozen_rad = float(self._filtered[REB42])
+        if (self.frozen_rad is not None and self.crossed_s is None and abs(
+                self._filtered[REB42] - self.frozen_rad) > GUARDS["servo_error_limit_rad"]):
+            self.crossed_s = time.monotonic()
+
+    def state(self, time_s):
+        frame = super().state(time_s)
+        if self.frozen_rad is not None:
+            frame.pos_rad[REB42], frame.vel_rad_s[REB42] = self.frozen_rad, 0.0
+        return frame
+
+
+@pytest.mark.skipif(not AVAILABLE, reason=f"needs libach: {WHERE}")
+@pytest.mark.parametrize("mode", ["direct", "filtered"])
+def test_a_frozen_joint_behind_a_daemon_trips_within_0_1_s(mode):
+    """A daemon on uniquely named ach channels whose REB encoder freezes while the driver
+    moves REB at 0.8 rad/s: the driver ends with the servo error within 0.1 s (wall time) of
+    the motors' reference passing 0.2 rad from the frozen joint, and the hold reaches the
+    daemon. Measured: 15.2-15.4 ms (3 periods: the window of expected positions) at load 4.5."""
+    from hubo_cli.drivers.ach import load_libach
+    from hubo_cli.drivers.hardware import hubo_ach_vector
+    from hubo_cli.drivers.hubo_ach_daemon import HuboDaemon
+    from hubo_cli.posture import home_posture
+
+    tag = f"hubotest-{os.getpid()}-{uuid.uuid4().hex[:8]}"
+    ref, state = f"{tag}-ref", f"{tag}-state"
+    body = _FreezingBody(hubo_ach_vector(MODEL, home_posture(MODEL)))
+    with HuboDaemon(load_libach(), body, ref, state) as daemon:
+        daemon.start()
+        driver = HardwareDriver(MODEL, armed=True, ach_ref=ref, ach_state=state,
+                                ref_mode=mode)
+        try:
+            driver.start()
+            flags, trip = _move_then(driver, body.freeze, 30, -0.8 * MODEL.velocity_rad_s[REB])
+            tripped_s = time.monotonic()
+            driver.stop()
+            time.sleep(0.05)  # the daemon applies the hold
+            held = body._filtered[REB42] if mode == "direct" else None
+        finally:
+            driver.close()
+    assert isinstance(trip, ServoError) and trip.joint == "REB", flags[-3:]
+    assert body.crossed_s is not None and tripped_s - body.crossed_s <= 0.1
+    print(f"{mode}: tripped {1e3 * (tripped_s - body.crossed_s):.1f} ms after the crossing")
+    if held is not None:  # direct: the motors' reference is the last one sent, held
+        assert held == pytest.approx(driver._cmd[REB])
+
+
+def _move_then(driver, event, after: int, speed_rad_s: float):
+    """:func:`_move`, setting ``event`` after ``after`` periods."""
+    q = driver.read().q_rad.copy()
+    flags = []
+    for k in range(600):
+        if k == after:
+            event.set()
+        q[REB] += speed_rad_s * PERIOD
+        driver.send(q)
+        try:
+            flags.append(driver.step().flags)
+        except ServoError as trip:
+            return flags, trip
+    return flags, None
