@@ -107,6 +107,32 @@ def test_a_frozen_joint_trips_the_servo_error_within_0_1_s(tmp_path, mode, freez
         assert refs[-1] == refs[-2]
 
 
+def test_a_servo_error_ends_the_run_as_device_trouble(tmp_path):
+    """The control loop on the driver whose joint freezes: ``ended: device``, exit 3, the
+    one-line servo error, no smooth stop of the loop's own (the driver holds)."""
+    from hubo_cli.control.loop import ControlLoop
+
+    with _driver(tmp_path) as driver:
+        q0 = driver.start().q_rad.copy()
+
+        def freeze(frame, n):
+            if n >= 20:
+                frame.pos_rad[REB42] = q0[REB] - 20 * 0.5 * PERIOD
+
+        _doctor(driver, freeze)
+
+        def target(t_s, state):
+            q = q0.copy()
+            q[REB] -= 0.5 * t_s
+            return q, {}
+
+        result = ControlLoop(driver, [], target, speed=None).run(5.0)
+    assert result.ended == "device" and result.exception.exit_code == 3
+    assert "servo error: REB" in result.error and result.stop_periods == 0
+    # 0.2 rad at 0.5 rad/s after the freeze, and the window's 3 periods: 0.4 s
+    assert result.periods == pytest.approx(20 + 0.2 / 0.5 / PERIOD, abs=5)
+
+
 @pytest.mark.parametrize("mode", [MODE_DIRECT, MODE_FILTERED])
 @pytest.mark.parametrize("seed", range(4))
 def test_honest_motors_with_a_bus_lag_never_trip(tmp_path, mode, seed):
