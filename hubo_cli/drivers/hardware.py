@@ -144,7 +144,7 @@ class HardwareDriver(Driver):
     real_time = True
     log_columns = ("hw_ref_seq", "hw_state_time_s", "hw_state_age_periods", "hw_ref_mode",
                    "hw_state_age_ms", "hw_round_trip_ms", "hw_servo_error_rad",
-                   "hw_sole_fz_right_n", "hw_sole_fz_left_n", "hw_thermal_scale")
+                   "hw_thermal_scale")
 
     def __init__(self, model: RobotModel, armed: bool = False, sink: str = "ach",
                  sink_path: str | Path | None = None, ach_ref: str = hubo_ach.CHAN_REF,
@@ -441,18 +441,15 @@ class HardwareDriver(Driver):
         the newest state (s), how many periods ago it arrived, the hubo-ach mode, the state's
         age (now minus its ``time``, ms; NaN for a simulated clock), the time from putting
         this period's reference to reading the next fresh state (ms; NaN without one), the
-        largest servo error (rad), the soles' vertical forces (N) and the smallest thermal
-        velocity scale."""
+        largest servo error (rad) and the smallest thermal velocity scale (the soles' forces
+        are the log's ``*_foot_fz_n``)."""
         frame = self._frame
         time_s = frame.time_s if frame is not None else float("nan")
         ages = self._ages_s[-1:] if self._ages_s else [float("nan")]
-        fz = frame.ft_mx_my_fz[[hubo_ach.FT_R_FOOT, hubo_ach.FT_L_FOOT], 2] if frame else (
-            float("nan"),) * 2
         return {"hw_ref_seq": float(self._seq), "hw_state_time_s": time_s,
                 "hw_state_age_periods": float(self._stale), "hw_ref_mode": float(self.ref_mode),
                 "hw_state_age_ms": 1e3 * ages[0], "hw_round_trip_ms": 1e3 * self._round_trip_s,
                 "hw_servo_error_rad": float(np.max(self.servo_guard.error_rad)),
-                "hw_sole_fz_right_n": float(fz[0]), "hw_sole_fz_left_n": float(fz[1]),
                 "hw_thermal_scale": float(np.min(self.thermal.scale))}
 
     def summary_values(self) -> dict[str, object]:
