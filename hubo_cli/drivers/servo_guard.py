@@ -75,7 +75,7 @@ def guard_parameters(model) -> dict[str, float]:
     names = ("servo_error_limit_rad", "servo_error_window_periods", "sole_force_max_n",
              "sole_standing_min_n", "sole_unloaded_n", "sole_unloaded_grace_s",
              "motor_warning_temperature_c", "motor_max_temperature_c")
-    raw = getattr(model, "hardware_guards", None) or {}
+    raw = model.hardware_guards
     missing = [n for n in names if n not in raw]
     if missing:
         raise ConfigError(f"the robot file's [hardware_guards] lacks {', '.join(missing)}",
