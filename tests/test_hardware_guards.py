@@ -218,26 +218,40 @@ def test_hanging_standing_and_stepping_soles_never_trip(tmp_path, seed):
     assert trip is None and driver.sole_guard.stood
 
 
-def test_a_start_with_an_impossible_sole_is_refused_before_anything_moves(tmp_path):
+def _nan_sole(frame, n):
+    frame.ft_mx_my_fz[hubo_ach.FT_R_FOOT, 2] = np.nan
+
+
+def _hot_reb(frame, n):
+    frame.tmp_c = np.zeros(hubo_ach.JOINT_COUNT)
+    frame.tmp_c[REB42] = 85.0 if n > 10 else 30.0
+
+
+@pytest.mark.parametrize("change, error, words", [
+    (_nan_sole, SoleForceError, "right sole"),  # from the first state on
+    (_hot_reb, MotorTooHot, "REB at 85.0 C"),  # from the 11th period of the start-up delay
+])
+def test_a_start_with_a_tripped_check_is_refused_before_anything_moves(tmp_path, change,
+                                                                       error, words):
     driver = _driver(tmp_path)
     original = driver._open_io
 
     def open_io():
         original()
         source_open = driver.source.open
-
-        def bad_open(pos0):
-            frame = source_open(pos0)
-            frame.ft_mx_my_fz[hubo_ach.FT_R_FOOT, 2] = np.nan
-            return frame
-
-        driver.source.open = bad_open
+        driver.source.open = lambda pos0: _changed(source_open(pos0), change, 0)
+        _doctor(driver, change)
 
     driver._open_io = open_io
-    with pytest.raises(SoleForceError, match="right sole"):
+    with pytest.raises(error, match=words):
         driver.start()
     assert driver.sink_path.stat().st_size == 0
     driver.close()
+
+
+def _changed(frame, change, n):
+    change(frame, n)
+    return frame
 
 
 # ---------------------------------------------------------------- thermal limiter

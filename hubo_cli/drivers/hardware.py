@@ -27,6 +27,11 @@ Start-up and safety, enforced here whatever the layers above do:
 - a reference that would move a joint faster than its velocity limit (times
   ``velocity_margin``) is refused whole: servo-off latches (the last reference is held, flag
   ``servo-off``) until :meth:`reset_servo`;
+- references go out in hubo-ach's mode 1 (direct) by default, or mode 0 (hubo-daemon's reference
+  filter) with ``ref_mode``;
+- every fresh state is checked (:mod:`hubo_cli.drivers.servo_guard`): a servo error, an
+  impossible sole force or a standing robot off the ground, a motor at its maximum temperature
+  latch servo-off and :meth:`step` raises the trip (exit 3); a warm motor slows its joint;
 - no fresh state (a new ``hubo-state`` frame whose ``time`` advances) for ``stale_after_s``
   (:data:`STALE_AFTER_S`, 0.1 s, wall clock): the pipeline's commands are ignored from then
   on, the reference brakes to rest within the joints' limits and holds (flag ``stale-state``;
@@ -44,13 +49,15 @@ hold/servo-off/fault bits) is reported beside it: words in ``RobotState.flags``,
 log records (``servo-off``, ``stopped`` for the final hold, ``fault``, ``stale-state``,
 ``ref-wait`` while hubo-daemon does not apply references yet), and per-period numbers declared
 in :attr:`HardwareDriver.log_columns` with :meth:`HardwareDriver.log_values` (frames put, the
-daemon's clock, the state's age in periods).
+daemon's clock, the state's age, the round trip, the servo error, the thermal scale), summarised
+by :meth:`HardwareDriver.summary_values`.
 """
 
 from __future__ import annotations
 
 import contextlib
 import time
+from array import array
 from collections.abc import Callable
 from pathlib import Path
 
@@ -220,8 +227,8 @@ class HardwareDriver(Driver):
         self.trip: Exception | None = None  # a guard's DeviceError: the run ends with it
         self._put_s: float | None = None  # wall time of the last put not yet answered
         self._round_trip_s = float("nan")
-        self._ages_s: list[float] = []
-        self._round_trips_s: list[float] = []
+        self._ages_s = array("d")  # per period (8 bytes each: an hour is 5.8 MB)
+        self._round_trips_s = array("d")
         self._max_servo_error_rad = 0.0
         self._thermal_periods = 0
         self._sent = (self._cmd,) * 3  # the last three references put, oldest first
@@ -268,14 +275,14 @@ class HardwareDriver(Driver):
         self._ref42 = frame.pos_rad.copy()
         for _ in range(int(round(self.startup_delay_s / self.period_s))):
             self._read(self.source.advance(self._ref42, self._modes()))
+            if self.trip is not None:  # a sole or a motor out of bounds: nothing moved
+                raise self.trip
         if self.stale.age_s >= self.stale.after_s:
             raise DeviceError(f"{self.ach_state} stopped updating during the start-up delay",
                               hint="is hubo-daemon (hubo-ach) running?")
         self._ref42 = self._frame.pos_rad.copy()  # the posture measured now is the reference
         self._check_start_posture()
         self.servo_guard.reset(self._ref42)
-        if self.trip is not None:  # a sole or a motor already out of bounds: nothing moved
-            raise self.trip
         self._cmd = np.clip(self._ref42[self.ach_index], self.model.lower_rad,
                             self.model.upper_rad)
         self._ref42[self.ach_index] = self._cmd
@@ -313,7 +320,7 @@ class HardwareDriver(Driver):
         self.sole_guard.reset()
         self.thermal.reset()
         self._put_s = None
-        self._ages_s, self._round_trips_s = [], []
+        self._ages_s, self._round_trips_s = array("d"), array("d")
         self._max_servo_error_rad = 0.0
         self._thermal_periods = 0
 
@@ -456,8 +463,9 @@ class HardwareDriver(Driver):
         """The run's hubo-ach mode, the state's age and the reference-to-state round trip
         (median, p99, max in ms; None without a measure), the largest servo error (rad), the
         periods slowed by hot motors and the trip that ended the run (if any)."""
-        def stats(values_s: list[float]) -> dict[str, float | None]:
-            x = np.asarray([v for v in values_s if np.isfinite(v)]) * 1e3
+        def stats(values_s: array) -> dict[str, float | None]:
+            x = np.frombuffer(values_s, dtype=float) * 1e3
+            x = x[np.isfinite(x)]
             if not x.size:
                 return {"median": None, "p99": None, "max": None}
             return {"median": round(float(np.median(x)), 3),
@@ -511,7 +519,7 @@ class HardwareDriver(Driver):
         t_s = frame.time_s - self._t0 if self._frame is not None else 0.0
         self._guard(self.sole_guard.check(frame.ft_mx_my_fz, t_s), "sole-force")
         if self.trip is not None:
-            return  # an impossible force: the frame is not taken
+            return  # the run ends with the sole's trip: the frame is not taken
         values = np.concatenate([frame.pos_rad, frame.vel_rad_s, frame.imu_tilt_rad,
                                  frame.imu_rate_rad_s, frame.ft_mx_my_fz.ravel(), [frame.time_s]])
         if not np.isfinite(values).all():
