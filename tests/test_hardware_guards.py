@@ -428,3 +428,15 @@ def _move_then(driver, event, after: int, speed_rad_s: float):
         except ServoError as trip:
             return flags, trip
     return flags, None
+
+
+def test_motor_temperatures_round_trip_through_hubo_state():
+    """``joint[].tmp`` is decoded (degrees C, hubo-ach order); a daemon that publishes none
+    gives 0 C."""
+    tmp = np.linspace(20.0, 95.0, hubo_ach.JOINT_COUNT)
+    frame = hubo_ach.StateFrame(1.0, np.zeros(3), np.zeros(3), np.zeros((4, 3)),
+                                np.zeros(hubo_ach.JOINT_COUNT), np.zeros(hubo_ach.JOINT_COUNT),
+                                tmp_c=tmp)
+    assert np.array_equal(hubo_ach.decode_state(hubo_ach.encode_state(frame)).tmp_c, tmp)
+    frame.tmp_c = None
+    assert not hubo_ach.decode_state(hubo_ach.encode_state(frame)).tmp_c.any()
