@@ -102,6 +102,8 @@ class RobotModel:
         joint_names: all limb joints in robot order (right arm, left arm, right leg, left leg).
         drill: the drill's shape (:class:`DrillShape`).
         feet: the feet's shape (:class:`FootShape`).
+        hardware_guards: the hardware driver's checks of the measured state (robot file's
+            ``[hardware_guards]``, see :mod:`hubo_cli.drivers.servo_guard`).
     """
 
     params_name: str
@@ -115,6 +117,7 @@ class RobotModel:
     source: Path
     drill: DrillShape
     feet: FootShape
+    hardware_guards: dict = field(default_factory=dict)
     joint_names: tuple[str, ...] = field(init=False)
 
     def __post_init__(self) -> None:
@@ -275,4 +278,5 @@ def load_model(params: str = "as-built", limits: str = "table4",
                       tools=raw["tools"], hubo_ach=raw["hubo_ach"], safety=raw["safety"],
                       control_period_s=float(raw["robot"]["control_period_s"]), source=path,
                       drill=_shape(DrillShape, raw, "tools.drill", path),
-                      feet=_shape(FootShape, raw, "feet", path))
+                      feet=_shape(FootShape, raw, "feet", path),
+                      hardware_guards=raw.get("hardware_guards", {}))

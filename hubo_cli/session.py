@@ -240,6 +240,7 @@ def _run_in(setup: RunSetup, target: Target, on_start, speed: float | None,
             if on_start is not None:
                 on_start(target, loop)
             result = _run_loop(loop, setup, world)
+            driver_summary = driver.summary_values()
             if result.ended == "log-error":  # a full disk: no snapshot, no log read back
                 _end_without_log(setup, speed, result, modules, run_dir)
             metadata = {}
@@ -251,7 +252,7 @@ def _run_in(setup: RunSetup, target: Target, on_start, speed: float | None,
         raise
     metadata |= {"command": setup.command, "balance": setup.safety.balance_choice}
     update_log_metadata(run_dir, metadata)
-    summary = common_summary(setup, speed, result, modules, run_dir)
+    summary = common_summary(setup, speed, result, modules, run_dir) | driver_summary
     done = RunResult(run_dir, result, modules, summary)
     summary["started_utc"] = done.log.started_utc  # the log's, the one home of the fact
     summary["hubo_cli_version"] = done.log.hubo_cli_version

@@ -11,6 +11,8 @@ import numpy as np
 import pytest
 
 from hubo_cli.drivers.hardware import (
+    MODE_DIRECT,
+    MODE_FILTERED,
     STALE_AFTER_S,
     STALE_GRACE_S,
     HardwareDriver,
@@ -77,16 +79,21 @@ def test_frames_carry_references_in_hubo_ach_order(hw):
         assert frame.ref_rad[INDEX[name]] == pytest.approx(q[i])
     unused = sorted(set(range(JOINT_COUNT)) - {INDEX[n] for n in MODEL.joint_names})
     assert np.all(frame.ref_rad[unused] == 0.0)
-    assert np.all(frame.mode == 0) and np.all(frame.comply == 0)
+    assert np.all(frame.mode == MODE_DIRECT) and np.all(frame.comply == 0)  # direct: default
 
 
-def test_echo_follows_with_the_hubo_ach_filter(hw):
-    start = hw.start()
-    q = start.q_rad.copy()
-    q[REB] -= 0.004  # a small step, within the velocity limit
-    hw.send(q)
-    state = hw.step()
-    L = MODEL.hubo_ach["ref_filter_length"]
+@pytest.mark.parametrize("mode", [MODE_FILTERED, MODE_DIRECT])
+def test_echo_follows_through_the_mode_chosen(tmp_path, mode):
+    with HardwareDriver(MODEL, armed=True, sink="file", sink_path=tmp_path / "hubo-ref.bin",
+                        ref_mode=mode) as hw:
+        start = hw.start()
+        q = start.q_rad.copy()
+        q[REB] -= 0.004  # a small step, within the velocity limit
+        hw.send(q)
+        state = hw.step()
+        assert np.all(read_ref_frames(hw.sink_path)[-1].mode == mode)
+        assert hw.log_values()["hw_ref_mode"] == mode
+    L = MODEL.hubo_ach["ref_filter_length"] if mode == MODE_FILTERED else 1
     assert state.q_rad[REB] - start.q_rad[REB] == pytest.approx(-0.004 / L)
     assert state.dq_rad_s[REB] == pytest.approx(-0.004 / L / PERIOD)
 

@@ -108,11 +108,12 @@ def test_start_from_the_measured_posture_without_references_for_0_8_s(channels, 
     assert not _shm_files(*channels)
 
 
-def test_the_loop_closes_through_the_channels_within_the_filter_lag(channels, posture):
+@pytest.mark.parametrize("mode", ["filtered", "direct"])
+def test_the_loop_closes_through_the_channels_within_the_filter_lag(channels, posture, mode):
     lib = load_libach()
     with FakeHuboDaemon(lib, posture, *channels).start() as daemon:
         with HardwareDriver(MODEL, armed=True, ach_ref=channels[0],
-                            ach_state=channels[1]) as driver:
+                            ach_state=channels[1], ref_mode=mode) as driver:
             start = driver.start()
             q = start.q_rad.copy()
             commanded, measured = [], []
@@ -135,8 +136,10 @@ def test_the_loop_closes_through_the_channels_within_the_filter_lag(channels, po
     # a first-order filter lags a reference moving by at most `step` per period by at most
     # (L - 1) steps; allow 3 periods of transport between the processes' clocks
     lag = np.abs(measured - commanded)
-    assert np.max(lag) <= (L - 1 + 3) * step
-    assert np.max(lag) >= 0.5 * (L - 1) * step  # it does lag: the filter is applied
+    filter_lag = L - 1 if mode == "filtered" else 0  # direct: no filter
+    assert np.max(lag) <= (filter_lag + 3) * step
+    if mode == "filtered":
+        assert np.max(lag) >= 0.5 * (L - 1) * step  # it does lag: the filter is applied
     assert abs(measured[-1] - commanded[-1]) < 0.02 * 0.2  # settled after 1 s of hold
     assert values["hw_ref_seq"] == 300 and values["hw_state_age_periods"] == 0
     assert not _shm_files(*channels)

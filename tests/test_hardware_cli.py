@@ -57,6 +57,7 @@ def test_without_libach_the_fake_daemon_says_so(tmp_path):
 @pytest.mark.parametrize("args, message", [
     (["--driver", "sim", "--ach-ref", "x"], "only apply to the hardware driver"),
     (["--driver", "ideal", "--dry-run"], "only apply to the hardware driver"),
+    (["--driver", "sim", "--ref-mode", "direct"], "only apply to the hardware driver"),
     (["--driver", "hardware", "--dry-run", "--sink", "ach"], "contradicts"),
     (["--driver", "hardware", "--dry-run", "--ach-state", "s"], "no ach channel"),
 ])
@@ -73,12 +74,21 @@ def test_the_dry_run_writes_462_byte_frames_into_the_run_folder(tmp_path):
     task.write_text(SHORT_TASK)
     run = tmp_path / "run"
     result = _run(["task", "run", str(task), "--driver", "hardware", "--dry-run",
-                   "--out", str(run), "--json"],
+                   "--ref-mode", "filtered", "--out", str(run), "--json"],
                   env={"HUBO_LIBACH": str(tmp_path / "missing-libach.so")})
     assert result.exit_code == 0, result.output
     frames = (run / "hubo-ref.bin").stat().st_size
     log = load_log(run)
     assert frames % 462 == 0 and frames // 462 >= len(log) - 1
+    from hubo_cli.drivers.hardware import read_ref_frames
+
+    assert all(np.all(f.mode == 0) for f in read_ref_frames(run / "hubo-ref.bin")[-3:])
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["hw_ref_mode"] == "filtered" and summary["hw_trip"] is None
+    # the echo's motors are ideal: the filter's lag is expected, not a servo error
+    assert summary["hw_max_servo_error_rad"] < 1e-9
+    assert summary["hw_round_trip_ms"]["median"] is not None
+    assert summary["hw_state_age_ms"]["median"] is None  # a simulated clock: no age
     # the driver's own numbers reach the log: one frame put per period
     seq = log["hw_ref_seq"]
     assert np.all(np.diff(seq[np.isfinite(seq)]) >= 0) and np.nanmax(seq) >= len(log) - 50

@@ -164,6 +164,13 @@ def test_the_driver_holds_the_simulated_robot_and_a_task_runs_through_it(tmp_pat
     assert run.exit_code == 0, run.output
     summary = json.loads(run.output)
     assert summary["completed"] and summary["driver"] == "hardware"
+    # direct references by default; the standing robot's soles and its joints' tracking pass
+    # the driver's checks (servo error measured 0.0024 rad of the 0.2 rad limit)
+    assert summary["hw_ref_mode"] == "direct" and summary["hw_trip"] is None
+    assert summary["hw_max_servo_error_rad"] < 0.1
+    print(f"driver: servo error {summary['hw_max_servo_error_rad']} rad, state age "
+          f"{summary['hw_state_age_ms']} ms, round trip {summary['hw_round_trip_ms']} ms")
+    assert 0 <= summary["hw_state_age_ms"]["median"] <= summary["hw_state_age_ms"]["max"]
     assert process.returncode == 0, err
     stats = json.loads(out)
     print(f"sim-daemon: {stats['periods']} periods, loop {stats['loop_ms_median']:.2f} ms "

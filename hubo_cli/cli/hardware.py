@@ -11,6 +11,7 @@ from hubo_cli.cli.output import err_console, print_json
 from hubo_cli.errors import DeviceError, InputError
 
 SINK_CHOICES = ("ach", "file", "fifo")
+REF_MODE_CHOICES = ("direct", "filtered")  # the driver's words for hubo-ach's modes 1 and 0
 
 
 def hardware_options(function):
@@ -26,6 +27,10 @@ def hardware_options(function):
                      help="hubo-ach reference channel (default hubo-ref)."),
         click.option("--ach-state", default=None, metavar="NAME",
                      help="hubo-ach state channel (default hubo-state)."),
+        click.option("--ref-mode", type=click.Choice(REF_MODE_CHOICES), default=None,
+                     help="hubo-ach reference mode for every joint: direct (mode 1, the "
+                          "default, as hubo-motion-rt) or filtered (mode 0, hubo-daemon's "
+                          "40-tap filter: 0.2 s of lag). Recorded in the summary."),
     ]
     for option in reversed(options):
         function = option(function)
@@ -33,14 +38,15 @@ def hardware_options(function):
 
 
 def driver_options(driver: str, armed: bool, dry_run: bool, sink: str | None,
-                   ach_ref: str | None, ach_state: str | None) -> dict:
+                   ach_ref: str | None, ach_state: str | None,
+                   ref_mode: str | None = None) -> dict:
     """The driver's options from the command line; hardware options with another driver, or a
     dry run on the channels, are refused (exit 2).
 
     A dry run writes a file that no robot reads, so it needs no ``--arm``; every other sink
     reaches (or may reach) a robot and the driver refuses to start without it.
     """
-    hardware = {"sink": sink, "ach_ref": ach_ref, "ach_state": ach_state}
+    hardware = {"sink": sink, "ach_ref": ach_ref, "ach_state": ach_state, "ref_mode": ref_mode}
     given = [f"--{k.replace('_', '-')}" for k, v in hardware.items() if v is not None]
     if dry_run:
         given.append("--dry-run")
@@ -56,8 +62,11 @@ def driver_options(driver: str, armed: bool, dry_run: bool, sink: str | None,
         if ach_ref or ach_state:
             raise InputError("a dry run uses no ach channel",
                              hint="leave out --ach-ref and --ach-state")
-        return {"armed": True, "sink": "file"}
-    options = {"armed": armed, **{k: v for k, v in hardware.items() if v is not None}}
+        options = {"armed": True, "sink": "file"}
+    else:
+        options = {"armed": armed, **{k: v for k, v in hardware.items() if v is not None}}
+    if ref_mode is not None:
+        options["ref_mode"] = ref_mode
     return options
 
 

@@ -121,6 +121,10 @@ class Driver(ABC):
         """This period's values of :attr:`log_columns` (driver-level numbers for the log)."""
         return {}
 
+    def summary_values(self) -> dict[str, object]:
+        """The driver's own fields for the run's ``summary.json`` (read at the run's end)."""
+        return {}
+
     @classmethod
     def run_options(cls, run: RunContext) -> dict:
         """Options this driver takes from the run it serves (its files, tools, window)."""

@@ -27,6 +27,11 @@ Start-up and safety, enforced here whatever the layers above do:
 - a reference that would move a joint faster than its velocity limit (times
   ``velocity_margin``) is refused whole: servo-off latches (the last reference is held, flag
   ``servo-off``) until :meth:`reset_servo`;
+- references go out in hubo-ach's mode 1 (direct) by default, or mode 0 (hubo-daemon's reference
+  filter) with ``ref_mode``;
+- every fresh state is checked (:mod:`hubo_cli.drivers.servo_guard`): a servo error, an
+  impossible sole force or a standing robot off the ground, a motor at its maximum temperature
+  latch servo-off and :meth:`step` raises the trip (exit 3); a warm motor slows its joint;
 - no fresh state (a new ``hubo-state`` frame whose ``time`` advances) for ``stale_after_s``
   (:data:`STALE_AFTER_S`, 0.1 s, wall clock): the pipeline's commands are ignored from then
   on, the reference brakes to rest within the joints' limits and holds (flag ``stale-state``;
@@ -44,13 +49,15 @@ hold/servo-off/fault bits) is reported beside it: words in ``RobotState.flags``,
 log records (``servo-off``, ``stopped`` for the final hold, ``fault``, ``stale-state``,
 ``ref-wait`` while hubo-daemon does not apply references yet), and per-period numbers declared
 in :attr:`HardwareDriver.log_columns` with :meth:`HardwareDriver.log_values` (frames put, the
-daemon's clock, the state's age in periods).
+daemon's clock, the state's age, the round trip, the servo error, the thermal scale), summarised
+by :meth:`HardwareDriver.summary_values`.
 """
 
 from __future__ import annotations
 
 import contextlib
 import time
+from array import array
 from collections.abc import Callable
 from pathlib import Path
 
@@ -68,6 +75,12 @@ from hubo_cli.drivers.hubo_ach_io import (
     RefSink,
     StateSource,
 )
+from hubo_cli.drivers.servo_guard import (
+    ServoErrorGuard,
+    SoleForceGuard,
+    ThermalLimiter,
+    guard_parameters,
+)
 from hubo_cli.drivers.stale_state import StaleStateBrake
 from hubo_cli.errors import ConfigError, DeviceError, SafetyError
 from hubo_cli.model import RobotModel
@@ -82,6 +95,8 @@ STALE_AFTER_S = 0.1  # no fresh state this long (wall clock): brake and hold
 # robot's run may take to exit after the state stopped
 STALE_GRACE_S = 0.8
 MODE_FILTERED, MODE_DIRECT = hubo_ach.MODE_REF_FILTER, hubo_ach.MODE_REF
+REF_MODES = {"direct": MODE_DIRECT, "filtered": MODE_FILTERED}  # --ref-mode's words
+REF_NAMES = {v: k for k, v in REF_MODES.items()}
 SINK_FILE_NAME = "hubo-ref.bin"
 
 
@@ -116,7 +131,12 @@ class HardwareDriver(Driver):
         sink_path: the file or pipe of the ``file``/``fifo`` sinks (the run scaffold puts it in
             the run folder; see :meth:`run_options`).
         ach_ref, ach_state: the channel names (hubo-ach's ``hubo-ref``, ``hubo-state``).
-        ref_mode: hubo-ach mode written for every joint (0 reference filter, 1 direct).
+        ref_mode: hubo-ach mode written for every joint (or its word, ``direct`` or
+            ``filtered``): 1 direct (the default, as
+            hubo-motion-rt's control-daemon, which avoids the filter's 0.2 s lag) or 0
+            through hubo-daemon's reference filter.
+        servo_error_limit_rad: the servo-error trip (default: the robot file's
+            ``[hardware_guards]``; see :mod:`hubo_cli.drivers.servo_guard`).
         velocity_margin: references faster than margin x the velocity limit trip servo-off.
         stale_after_s: wall time without a fresh state before the driver brakes and holds.
         stale_grace_s: how long after the brake began the run ends (:class:`StateLost`).
@@ -129,11 +149,14 @@ class HardwareDriver(Driver):
 
     name = "hardware"
     real_time = True
-    log_columns = ("hw_ref_seq", "hw_state_time_s", "hw_state_age_periods")
+    log_columns = ("hw_ref_seq", "hw_state_time_s", "hw_state_age_periods", "hw_ref_mode",
+                   "hw_state_age_ms", "hw_round_trip_ms", "hw_servo_error_rad",
+                   "hw_thermal_scale")
 
     def __init__(self, model: RobotModel, armed: bool = False, sink: str = "ach",
                  sink_path: str | Path | None = None, ach_ref: str = hubo_ach.CHAN_REF,
-                 ach_state: str = hubo_ach.CHAN_STATE, ref_mode: int = MODE_FILTERED,
+                 ach_state: str = hubo_ach.CHAN_STATE, ref_mode: int = MODE_DIRECT,
+                 servo_error_limit_rad: float | None = None,
                  velocity_margin: float = 1.02, stale_after_s: float = STALE_AFTER_S,
                  stale_grace_s: float = STALE_GRACE_S, state_wait_s: float | None = None,
                  start_timeout_s: float = 1.0, start_tolerance_rad: float = 0.02,
@@ -144,8 +167,10 @@ class HardwareDriver(Driver):
         if sink != "ach" and sink_path is None:
             raise ConfigError(f"the {sink} sink needs sink_path",
                               hint="give the file's path (the run folder's hubo-ref.bin)")
+        ref_mode = REF_MODES.get(ref_mode, ref_mode)
         if ref_mode not in (MODE_FILTERED, MODE_DIRECT):
-            raise ConfigError(f"unsupported hubo-ach mode {ref_mode}", hint="use 0 or 1")
+            raise ConfigError(f"unsupported hubo-ach mode {ref_mode}",
+                              hint="use 1 (direct) or 0 (filtered)")
         if not (stale_after_s > 0 and stale_grace_s >= 0 and start_timeout_s > 0
                 and velocity_margin >= 1.0):
             raise ConfigError("stale_after_s and start_timeout_s must be > 0, stale_grace_s "
@@ -182,6 +207,30 @@ class HardwareDriver(Driver):
         self._stale = 0  # periods since the last fresh state (logged)
         self.stale = StaleStateBrake(model, self.period_s, float(stale_after_s),
                                      float(stale_grace_s), clock)
+        guards = guard_parameters(model)
+        if servo_error_limit_rad is not None:
+            if not servo_error_limit_rad > 0:
+                raise ConfigError(f"servo_error_limit_rad {servo_error_limit_rad} must be > 0")
+            guards["servo_error_limit_rad"] = float(servo_error_limit_rad)
+        self.servo_guard = ServoErrorGuard(self.joint_names, self.ach_index,
+                                           guards["servo_error_limit_rad"],
+                                           int(guards["servo_error_window_periods"]),
+                                           self.filter_length)
+        self.sole_guard = SoleForceGuard(guards["sole_force_max_n"],
+                                         guards["sole_standing_min_n"],
+                                         guards["sole_unloaded_n"],
+                                         guards["sole_unloaded_grace_s"])
+        self.thermal = ThermalLimiter(self.joint_names, self.ach_index,
+                                      guards["motor_warning_temperature_c"],
+                                      guards["motor_max_temperature_c"])
+        self.clock = clock
+        self.trip: Exception | None = None  # a guard's DeviceError: the run ends with it
+        self._put_s: float | None = None  # wall time of the last put not yet answered
+        self._round_trip_s = float("nan")
+        self._ages_s = array("d")  # per period (8 bytes each: an hour is 5.8 MB)
+        self._round_trips_s = array("d")
+        self._max_servo_error_rad = 0.0
+        self._thermal_periods = 0
         self._sent = (self._cmd,) * 3  # the last three references put, oldest first
         self._stopped = False
         self._closed = False
@@ -220,15 +269,20 @@ class HardwareDriver(Driver):
             raise DeviceError(f"no {self.ach_state} frame within {self.start_timeout_s:g} s",
                               hint="is hubo-daemon (hubo-ach) running and publishing?")
         self._take(frame)
+        if self.trip is not None:  # a sole or a motor out of bounds: nothing moved
+            raise self.trip
         self._t0 = frame.time_s
         self._ref42 = frame.pos_rad.copy()
         for _ in range(int(round(self.startup_delay_s / self.period_s))):
             self._read(self.source.advance(self._ref42, self._modes()))
+            if self.trip is not None:  # a sole or a motor out of bounds: nothing moved
+                raise self.trip
         if self.stale.age_s >= self.stale.after_s:
             raise DeviceError(f"{self.ach_state} stopped updating during the start-up delay",
                               hint="is hubo-daemon (hubo-ach) running?")
         self._ref42 = self._frame.pos_rad.copy()  # the posture measured now is the reference
         self._check_start_posture()
+        self.servo_guard.reset(self._ref42)
         self._cmd = np.clip(self._ref42[self.ach_index], self.model.lower_rad,
                             self.model.upper_rad)
         self._ref42[self.ach_index] = self._cmd
@@ -262,6 +316,13 @@ class HardwareDriver(Driver):
         self.servo_off = False
         self.fault_message = ""
         self.frozen_joints = set()
+        self.trip = None
+        self.sole_guard.reset()
+        self.thermal.reset()
+        self._put_s = None
+        self._ages_s, self._round_trips_s = array("d"), array("d")
+        self._max_servo_error_rad = 0.0
+        self._thermal_periods = 0
 
     def _check_start_posture(self) -> None:
         q = self._ref42[self.ach_index]
@@ -311,6 +372,10 @@ class HardwareDriver(Driver):
             held = [self.joint_names.index(n) for n in self.frozen_joints]
             q[held] = self._cmd[held]
             self._flags.append(checks.NAN_REF)
+        if self.thermal.limiting:  # hot motors: their joints slowed (to a stop at the maximum)
+            step = self.thermal.scale * self.model.velocity_rad_s * self.period_s
+            q = self._cmd + np.clip(q - self._cmd, -step, step)
+            self._flags.append("thermal")
         speed = np.abs(q - self._cmd) / self.period_s
         limit = self.model.velocity_rad_s * self.velocity_margin
         if np.any(speed > limit):
@@ -326,6 +391,8 @@ class HardwareDriver(Driver):
         Raises:
             StateLost: ``stale_grace_s`` after a stale state began the brake (the brake's
                 hold reference has been put; :meth:`stop` puts it once more).
+            ServoError, SoleForceError, MotorTooHot: a check of the measured state tripped
+                (:mod:`hubo_cli.drivers.servo_guard`); servo-off holds the last reference.
         """
         self._require_started()
         try:
@@ -336,9 +403,12 @@ class HardwareDriver(Driver):
             self._sent = (*self._sent[1:], self._cmd)
             self._read(self.source.advance(self._ref42, self._modes()))
             self.stale.watch(self._frame.time_s - self._t0, self._sent)
+            self._time_state()
         except Exception as exc:  # any internal failure ends in a hold
             self._enter_fault(exc)
         self._state = self._make_state()
+        if self.trip is not None:
+            raise self.trip
         lost = self.stale.lost(self.ach_state, self._braking())
         if lost is not None:
             raise lost
@@ -375,10 +445,38 @@ class HardwareDriver(Driver):
     # ------------------------------------------------------------------ log
     def log_values(self) -> dict[str, float]:
         """This period's values of :attr:`log_columns`: frames put so far, the daemon's time of
-        the newest state (s), and how many periods ago it arrived."""
-        time_s = self._frame.time_s if self._frame is not None else float("nan")
+        the newest state (s), how many periods ago it arrived, the hubo-ach mode, the state's
+        age (now minus its ``time``, ms; NaN for a simulated clock), the time from putting
+        this period's reference to reading the next fresh state (ms; NaN without one), the
+        largest servo error (rad) and the smallest thermal velocity scale (the soles' forces
+        are the log's ``*_foot_fz_n``)."""
+        frame = self._frame
+        time_s = frame.time_s if frame is not None else float("nan")
+        ages = self._ages_s[-1:] if self._ages_s else [float("nan")]
         return {"hw_ref_seq": float(self._seq), "hw_state_time_s": time_s,
-                "hw_state_age_periods": float(self._stale)}
+                "hw_state_age_periods": float(self._stale), "hw_ref_mode": float(self.ref_mode),
+                "hw_state_age_ms": 1e3 * ages[0], "hw_round_trip_ms": 1e3 * self._round_trip_s,
+                "hw_servo_error_rad": float(np.max(self.servo_guard.error_rad)),
+                "hw_thermal_scale": float(np.min(self.thermal.scale))}
+
+    def summary_values(self) -> dict[str, object]:
+        """The run's hubo-ach mode, the state's age and the reference-to-state round trip
+        (median, p99, max in ms; None without a measure), the largest servo error (rad), the
+        periods slowed by hot motors and the trip that ended the run (if any)."""
+        def stats(values_s: array) -> dict[str, float | None]:
+            x = np.frombuffer(values_s, dtype=float) * 1e3
+            x = x[np.isfinite(x)]
+            if not x.size:
+                return {"median": None, "p99": None, "max": None}
+            return {"median": round(float(np.median(x)), 3),
+                    "p99": round(float(np.percentile(x, 99)), 3), "max": round(float(x.max()), 3)}
+
+        return {"hw_ref_mode": REF_NAMES[self.ref_mode],
+                "hw_state_age_ms": stats(self._ages_s),
+                "hw_round_trip_ms": stats(self._round_trips_s),
+                "hw_max_servo_error_rad": round(self._max_servo_error_rad, 4),
+                "hw_thermal_limited_periods": self._thermal_periods,
+                "hw_trip": None if self.trip is None else type(self.trip).__name__}
 
     # ------------------------------------------------------------------ internals
     def _require_started(self) -> None:
@@ -395,6 +493,9 @@ class HardwareDriver(Driver):
         frame = hubo_ach.encode_ref(self._ref42, self._modes(), np.zeros(JOINT_COUNT, np.int8))
         if self.sink.put(frame):
             self._seq += 1
+            self.servo_guard.sent(self._ref42, self._modes())
+            if self._put_s is None:
+                self._put_s = self.clock()
         else:
             self._flags.append("sink-full")
 
@@ -415,6 +516,10 @@ class HardwareDriver(Driver):
             self._ref42[self.ach_index] = q
 
     def _take(self, frame: StateFrame) -> None:
+        t_s = frame.time_s - self._t0 if self._frame is not None else 0.0
+        self._guard(self.sole_guard.check(frame.ft_mx_my_fz, t_s), "sole-force")
+        if self.trip is not None:
+            return  # the run ends with the sole's trip: the frame is not taken
         values = np.concatenate([frame.pos_rad, frame.vel_rad_s, frame.imu_tilt_rad,
                                  frame.imu_rate_rad_s, frame.ft_mx_my_fz.ravel(), [frame.time_s]])
         if not np.isfinite(values).all():
@@ -422,6 +527,31 @@ class HardwareDriver(Driver):
         self._stale = 0
         self.stale.fresh()
         self._frame = frame
+        if self._put_s is not None:  # the first fresh state after a reference was put
+            self._round_trip_s = self.clock() - self._put_s
+            self._round_trips_s.append(self._round_trip_s)
+            self._put_s = None
+        self._guard(self.thermal.check(frame.tmp_c, t_s), "motor-hot")
+        if self._seq and not frame.ref_wait:  # references are being applied: they must hold
+            self._guard(self.servo_guard.check(frame.pos_rad, t_s), "servo-error")
+            self._max_servo_error_rad = max(self._max_servo_error_rad,
+                                            float(np.max(self.servo_guard.error_rad)))
+
+    def _guard(self, trip: Exception | None, flag: str) -> None:
+        """A check's trip latches servo-off (the last reference held) and ends the run."""
+        if trip is not None and self.trip is None:
+            self.trip = trip
+            self.servo_off = True
+            self._flags.append(flag)
+
+    def _time_state(self) -> None:
+        """This period's state age (wall clock minus the state's time, s) and round trip."""
+        if self._put_s is not None:  # no fresh state answered this period's reference
+            self._round_trip_s = float("nan")
+        if self.source.wall_clock:
+            self._ages_s.append(self.clock() - self._frame.time_s)
+        if self.thermal.limiting:
+            self._thermal_periods += 1
 
     def _enter_fault(self, exc: Exception) -> None:
         self.fault_message = f"{type(exc).__name__}: {exc}"

@@ -146,6 +146,8 @@ class StateFrame:
         ref_wait: the daemon is not applying references yet (``refWait``).
         ref_rad: the 42 references the motors are given (``joint[].ref``: after the reference
             filter); None: the positions (a daemon publishing them; not decoded).
+        tmp_c: the 42 motors' temperatures (``joint[].tmp``, degrees C); None: zero (a daemon
+            publishing them).
     """
 
     time_s: float
@@ -156,6 +158,7 @@ class StateFrame:
     vel_rad_s: np.ndarray
     ref_wait: bool = False
     ref_rad: np.ndarray | None = None
+    tmp_c: np.ndarray | None = None
 
 
 def _doubles(data: bytes, offset: int, count: int, stride: int = 8) -> np.ndarray:
@@ -180,7 +183,9 @@ def decode_state(data: bytes) -> StateFrame:
                                _JOINT_STRIDE),
                       _doubles(data, joint + HuboJointState.vel.offset, JOINT_COUNT,
                                _JOINT_STRIDE),
-                      bool(ref_wait))
+                      bool(ref_wait),
+                      tmp_c=_doubles(data, joint + HuboJointState.tmp.offset, JOINT_COUNT,
+                                     _JOINT_STRIDE))
 
 
 def encode_state(frame: StateFrame) -> bytes:
@@ -195,6 +200,8 @@ def encode_state(frame: StateFrame) -> bytes:
     s["joint"]["pos"] = frame.pos_rad
     s["joint"]["ref"] = frame.pos_rad if frame.ref_rad is None else frame.ref_rad
     s["joint"]["vel"] = frame.vel_rad_s
+    if frame.tmp_c is not None:
+        s["joint"]["tmp"] = frame.tmp_c
     s["joint"]["active"] = 1
     s["joint"]["zeroed"] = 1
     s["time"] = frame.time_s

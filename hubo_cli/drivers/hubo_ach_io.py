@@ -38,7 +38,14 @@ class RefSink(ABC):
 
 
 class StateSource(ABC):
-    """Gives the robot's state once per period."""
+    """Gives the robot's state once per period.
+
+    Attributes:
+        wall_clock: the state's ``time`` is this computer's ``CLOCK_MONOTONIC`` (a daemon on
+            it), so the state's age can be measured; False for a simulated clock.
+    """
+
+    wall_clock = False
 
     @abstractmethod
     def open(self, pos0_rad: np.ndarray) -> StateFrame | None:
@@ -160,6 +167,8 @@ class AchStateSource(StateSource):
     Attributes:
         missed_frames: frames the daemon published that were never read (ACH_MISSED_FRAME).
     """
+
+    wall_clock = True  # hubo-daemon's CLOCK_MONOTONIC (through achd: another computer's)
 
     def __init__(self, lib: Libach, name: str, wait_s: float, start_timeout_s: float) -> None:
         self.name = name
