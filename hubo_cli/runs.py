@@ -19,6 +19,7 @@ import json
 import math
 import os
 import re
+import sys
 import time
 import unicodedata
 from collections.abc import Iterator
@@ -42,13 +43,27 @@ def folder_name(command: str) -> str:
     """``command`` (e.g. ``task-<the task file's name>``) as one safe folder name: letters,
     digits, ``-``, ``_`` and single dots are kept; every other run of characters (path
     separators, ``..``, spaces, control and bidi characters) becomes ``_``; no leading or
-    trailing dot or dash; at most :data:`NAME_MAX_BYTES` bytes; ``unnamed`` if nothing is left."""
+    trailing dot or dash; at most :data:`NAME_MAX_BYTES` bytes; ``unnamed`` if nothing is left.
+    A letter the file system's encoding cannot write (``café`` under ``LANG=C``, whose file
+    names are ASCII) becomes ``_`` too."""
+    encoding = sys.getfilesystemencoding()
     text = unicodedata.normalize("NFC", command)
-    name = "".join(c if c.isalnum() or c in "-_." else "_" for c in text)
+    name = "".join(c if (c.isalnum() or c in "-_.") and _encodable(c, encoding) else "_"
+                   for c in text)
     name = re.sub(r"[_.]*\.\.[_.]*|__+", "_", name)[:NAME_MAX_BYTES]
-    while len(name.encode()) > NAME_MAX_BYTES:
+    while len(name.encode(encoding)) > NAME_MAX_BYTES:
         name = name[:-1]
     return name.strip("._-") or "unnamed"
+
+
+def _encodable(char: str, encoding: str) -> bool:
+    try:
+        char.encode(encoding)
+    except UnicodeEncodeError:
+        return False
+    return True
+
+
 # run folder (resolved) -> [the marker's file descriptor, holding its lock; how many holders
 # in this process]: make_run_dir takes a hold, release_run_dir gives one back
 _LOCKS: dict[Path, list[int]] = {}
@@ -73,7 +88,7 @@ def _default_dir(command: str) -> Path:
 def run_dir_owner(path: str | Path) -> str | None:
     """The command that made the run folder ``path`` (from its marker), or None."""
     try:
-        return (Path(path) / MARKER).read_text().strip() or None
+        return (Path(path) / MARKER).read_text(encoding="utf-8").strip() or None
     except (OSError, UnicodeDecodeError):
         return None
 
@@ -225,5 +240,5 @@ def _jsonable(value):
 def write_json(path: str | Path, data: dict) -> Path:
     """Write ``data`` as pretty JSON (numpy values converted, NaN/inf as null)."""
     path = Path(path)
-    path.write_text(json.dumps(_jsonable(data), indent=2) + "\n")
+    path.write_text(json.dumps(_jsonable(data), indent=2) + "\n", encoding="utf-8")
     return path

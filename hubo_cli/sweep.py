@@ -421,7 +421,7 @@ def _run_task(job: Job, run_dir: Path) -> Row:
 
 
 def _read_summary(run_dir: Path) -> dict:
-    return json.loads((run_dir / "summary.json").read_text())
+    return json.loads((run_dir / "summary.json").read_text(encoding="utf-8"))
 
 
 @dataclass
@@ -646,7 +646,7 @@ def write_table(rows: Sequence[Row], path: str | Path) -> Path:
     """The sweep table as CSV: command, seed, one column per parameter, then the outcome."""
     names = parameter_names(rows)
     header = ["command", "seed", *names, *COLUMNS[2:]]
-    with open(path, "w", newline="") as f:
+    with open(path, "w", newline="", encoding="utf-8") as f:
         writer = csv.writer(f)
         writer.writerow(header)
         for row in rows:

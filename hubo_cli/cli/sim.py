@@ -65,7 +65,8 @@ def sim(duration: float, push: float, push_direction: str, balance: str, no_bala
                        push_direction=PUSH_DIRECTIONS[push_direction], operator=keys,
                        live=server)
     # the run's whole summary (as in summary.json: pipeline, e-stops, perturbation draws ...)
-    summary = json.loads((run_dir / "summary.json").read_text()) | {"run_dir": str(run_dir)}
+    summary = (json.loads((run_dir / "summary.json").read_text(encoding="utf-8"))
+               | {"run_dir": str(run_dir)})
     if as_json:
         print_json(summary)
     else:

@@ -408,7 +408,7 @@ def update_log_metadata(run_dir: str | Path, items: dict) -> None:
     """Add several metadata keys to a closed run's sidecar at once (in ``items``' order)."""
     path = Path(run_dir)
     path = path / META_NAME if path.is_dir() else path.with_suffix(".json")
-    sidecar = json.loads(path.read_text())
+    sidecar = json.loads(path.read_text(encoding="utf-8"))
     metadata = sidecar.pop("metadata", {})  # read from JSON: already JSON-able
     for key, value in items.items():
         metadata[str(key)] = _jsonable(value)
@@ -422,7 +422,7 @@ def _write_sidecar_json(path: Path, head: dict, metadata: dict, jsonable: bool =
     items = ",\n".join(f"  {json.dumps(k)}: {json.dumps(v if jsonable else _jsonable(v))}"
                         for k, v in metadata.items())
     body = f"{{\n{items}\n }}" if items else "{}"
-    path.write_text(f"{lines},\n \"metadata\": {body}\n}}\n")
+    path.write_text(f"{lines},\n \"metadata\": {body}\n}}\n", encoding="utf-8")
 
 
 def _allocate(fd: int, size: int) -> None:
@@ -483,7 +483,7 @@ def read_rows(rows_path: str | Path, flags_path: str | Path) -> tuple[dict, np.n
     count = min(count, (len(data) - data_at) // (8 * width))
     table = np.frombuffer(data, dtype="<f8", count=count * width,
                           offset=data_at).reshape(count, width)
-    text = Path(flags_path).read_text()
+    text = Path(flags_path).read_text(encoding="utf-8")
     # a line cut short by a failed write is not used by any record
     texts = [json.loads(line) for line in text[:text.rfind("\n") + 1].splitlines()]
     flags = [texts[i] for i in table[:, 0].astype(int).tolist()]
@@ -503,7 +503,7 @@ def _csv_from_rows(rows_path: Path, flags_path: Path, csv_path: Path) -> int:
     body = rows[:, 5:]
     whole = np.isfinite(body) & (body == np.trunc(body))
     formats = _float_column_formats(whole, specs)
-    with open(csv_path, "w") as f:
+    with open(csv_path, "w", encoding="utf-8") as f:
         f.write(",".join(layout["columns"]) + "\n")
         for start in range(0, len(rows), _BLOCK_ROWS):  # a block of lines at a time
             block = range(start, min(start + _BLOCK_ROWS, len(rows)))
@@ -544,7 +544,7 @@ def _recover(rows_path: Path, flags_path: Path, csv_path: Path, meta_path: Path,
              parquet_path: Path) -> bool:
     """:func:`recover_log`'s work, with the record file locked."""
     rows = _csv_from_rows(rows_path, flags_path, csv_path)
-    sidecar = json.loads(meta_path.read_text()) if meta_path.exists() else {}
+    sidecar = json.loads(meta_path.read_text(encoding="utf-8")) if meta_path.exists() else {}
     metadata = sidecar.pop("metadata", {})
     write_log_parquet(_read_csv(csv_path), parquet_path, sidecar)
     if meta_path.exists():
@@ -668,7 +668,7 @@ def _read_sidecar(path: Path) -> dict:
     if not path.exists():
         return {}
     try:
-        sidecar = json.loads(path.read_text())
+        sidecar = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, ValueError):
         sidecar = None
     if not isinstance(sidecar, dict) or not isinstance(sidecar.get("metadata", {}), dict):

@@ -292,7 +292,7 @@ def _urdf_file(path: Path, text: str):
         return
     with tempfile.TemporaryDirectory(prefix="hubo-urdf-") as folder:
         copy = Path(folder) / path.name
-        copy.write_text(text)
+        copy.write_text(text, encoding="utf-8")
         yield copy
 
 
@@ -418,7 +418,7 @@ class SimDriver(Driver, SimulatedWorld):
         # centre of mass, see hubo_cli.urdf.folded_inertials), the same bodies otherwise
         urdf = self.model.urdf_path().with_name(PHYSICS_DRILL_URDF if self.options.drill
                                                 else PHYSICS_URDF)
-        urdf_text = self._perturb_world(urdf.read_text())
+        urdf_text = self._perturb_world(urdf.read_text(encoding="utf-8"))
         sole = Limb(self.model, "right-leg").fk(q0[self.model.limb_slice("right-leg")])
         self.neck_height_m = float(-sole[2, 3])
         flags = p.URDF_USE_INERTIA_FROM_FILE

@@ -439,7 +439,7 @@ def write_pose_log(path: str | Path, records: RecordBatch | Iterable[PoseSample]
     batch = records if isinstance(records, RecordBatch) else samples_batch(records)
     path = Path(path)
     try:
-        path.write_text(pose_log_text(batch))
+        path.write_text(pose_log_text(batch), encoding="utf-8")
     except OSError as exc:
         raise InputError(f"cannot write {path}: {exc.strerror}",
                          hint="choose a writable output path") from None

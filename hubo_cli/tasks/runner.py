@@ -166,7 +166,8 @@ def _write_task_copy(spec: TaskSpec, run_dir: Path, balance: str,
         header.append(f"# parameters changed for this run: hubo task run task.toml {sets}")
     if balance != "default":
         header.append(f"# balance controllers of this run: --balance {balance}")
-    (run_dir / "task.toml").write_text("\n".join(header) + "\n" + spec.path.read_text())
+    original = spec.path.read_text(encoding="utf-8")
+    (run_dir / "task.toml").write_text("\n".join(header) + "\n" + original, encoding="utf-8")
 
 
 def _stats(values) -> dict:

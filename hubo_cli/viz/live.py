@@ -183,7 +183,7 @@ class LiveServer:
         run = _Run(model, tools, world)
         urdf = model.urdf_path(run.drill)
         self._serve_urdfs(urdf.parent)
-        self._urdf = urdf.read_text()
+        self._urdf = urdf.read_text(encoding="utf-8")
         self.every = max(1, round(1.0 / (self.rate_hz * model.control_period_s)))
         self._k, self._estop, self._status, self._latest = 0, False, -1, None
         self._events.clear()

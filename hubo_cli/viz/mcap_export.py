@@ -74,7 +74,7 @@ def export_mcap(scene: RunScene, out: str | Path) -> McapResult:
                 for joint in msg.JointFrames(scene.model).transforms(q)]
     q_list, dq_list = q.tolist(), dq.tolist()
     urdf_path = scene.model.urdf_path(scene.drill)
-    urdf = urdf_path.read_text()
+    urdf = urdf_path.read_text(encoding="utf-8")
     counts = dict.fromkeys(TOPICS, 0)
     context = foxglove.Context()
     first = int(t_ns[0])

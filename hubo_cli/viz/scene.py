@@ -238,7 +238,7 @@ def run_metadata(scene: RunScene) -> dict[str, str]:
     readable one), the periods, the duration, the URDF and the run folder."""
     log = scene.log
     try:
-        summary = json.loads((scene.run_dir / "summary.json").read_text())
+        summary = json.loads((scene.run_dir / "summary.json").read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, ValueError):
         summary = {}
     if not isinstance(summary, dict):

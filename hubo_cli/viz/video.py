@@ -104,7 +104,7 @@ def step_names(scene: RunScene) -> list[str]:
     import tomllib
 
     try:
-        steps = tomllib.loads((scene.run_dir / "task.toml").read_text())["steps"]
+        steps = tomllib.loads((scene.run_dir / "task.toml").read_text(encoding="utf-8"))["steps"]
         return [str(step["name"]) for step in steps]
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError, KeyError, TypeError):
         return []
