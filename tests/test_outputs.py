@@ -443,4 +443,9 @@ def test_export_and_replay_never_write_over_the_run_and_replace_a_file_whole(rea
     _invoke(["replay", str(real_run), "--video", str(video), "--size", "64x48", "--force"], 0,
             "", run_files)
     assert video.read_bytes()[4:8] == b"ftyp"  # an MP4 now
+    # a name ffmpeg cannot take a format from: one line, nothing written (it was 11 lines of
+    # ffmpeg's own errors)
+    for name in ("a.out", "a", "a.mp4.tmp", "a.MKV"):
+        _invoke(["replay", str(real_run), "--video", str(tmp_path / name), "--size", "64x48"],
+                2, "must end in .mp4", run_files)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.mcap", "a.mp4"]

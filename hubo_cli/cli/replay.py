@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+from pathlib import Path
 
 import click
 
@@ -126,6 +127,9 @@ def replay(run, gui, video, speed, camera, size, start_s, end_s, force, as_json)
     report: dict = {"run_dir": str(run)}
     if video is not None:
         out = OutputFile(video, option="--video", inputs=(run,), force=force)
+        if out.path.suffix.lower() != ".mp4":  # ffmpeg picks its format by the name
+            raise InputError(f"--video {video}: the video is an MP4 file, its name must end "
+                             "in .mp4", hint=f"e.g. --video {out.path.with_suffix('.mp4').name}")
         result = make_video(run, out, speed=speed, camera=camera, size=size, start_s=start_s,
                             end_s=end_s, quiet=as_json)
         report["video"] = {"path": str(result.path), "frames": result.frames,
@@ -157,7 +161,6 @@ def add_run_video(run_dir, summary: dict, quiet: bool = False):
     """After a run: render RUN/video.mp4 from its log (default speed and camera), list it in
     the summary (and summary.json); ``quiet``: no progress lines off a terminal (--json);
     returns the :class:`~hubo_cli.viz.video.VideoResult`."""
-    from pathlib import Path
 
     from hubo_cli.runs import write_json
 
