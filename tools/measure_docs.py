@@ -1,10 +1,15 @@
 """Measure the numbers a newcomer relies on and write them where the docs include them.
 
-Every figure on the README's first screen and on the site's getting-started, tasks, walking
-and performance pages comes from here, never typed by hand:
+Every measured figure on the README's first screen and on the site's user pages (outside the
+history) comes from here, never typed by hand:
 
     python tools/measure_docs.py run       # make run's command: time, the cut's figures (~70 s)
     python tools/measure_docs.py walk      # hubo walk --to 1.0 0 0: final error, steps (~30 s)
+    python tools/measure_docs.py teleop    # the shipped recordings replayed in free and drill
+                                           # mode on the simulated robot (~1-2 min)
+    python tools/measure_docs.py push      # hubo sim --push: pushes held in place, one caught
+                                           # by a step (~30 s)
+    python tools/measure_docs.py bench     # make bench's parts that take seconds (~1-2 min)
     python tools/measure_docs.py install   # a fresh `make .venv/.installed-stamp` in a scratch
                                            # clone of HEAD, pip's cache warm and cold (minutes,
                                            # 2-3 GB of disk each, removed afterwards)
@@ -24,6 +29,7 @@ import argparse
 import json
 import os
 import platform
+import re
 import shutil
 import subprocess
 import sys
@@ -38,7 +44,19 @@ MEASURED = GENERATED / "measured.json"
 README = ROOT / "README.md"
 README_BEGIN = "<!-- measured: written by tools/measure_docs.py, do not edit -->"
 README_END = "<!-- /measured -->"
-PARTS = ("run", "walk", "install", "suite")
+PARTS = ("run", "walk", "teleop", "push", "bench", "install", "suite")
+# the replays the teleoperation page shows: (file, mode)
+TELEOP_REPLAYS = (("drill-rectangle.csv", "free"), ("drill-rectangle.csv", "drill"),
+                  ("two-hand-free.csv", "free"), ("two-hand-free.csv", "drill"))
+# the pushes the walking page shows: (force N, direction, extra options); 10 s of standing
+# (the push at 1 s) lets the robot come upright again after the hip strategy's bow
+PUSHES = ((90, "forward", ()), (90, "backward", ()), (60, "left", ()),
+          (150, "forward", ("--step",)))
+PUSH_DURATION_S = 10.0
+# the make bench modules whose figures the performance page shows (the cheap ones: task runs
+# the default cut twice and robustness a sweep; make bench prints those)
+BENCH_MODULES = ("kinematics", "fastrak", "pipeline", "walking", "balance", "sim", "workspace",
+                 "teleop")
 
 
 def machine() -> str:
@@ -96,6 +114,7 @@ def measure_run() -> dict:
         "torque_vertical_nm": [torque["vertical"]["mean"], torque["vertical"]["max"]],
         "torque_limit_nm": torque["limit"],
         "estop_events": len(s["estop_events"]), "collision_holds": len(s["collision_holds"]),
+        "status_counts": s["status_counts"],
     }
 
 
@@ -111,7 +130,74 @@ def measure_walk() -> dict:
                       "fell": s["fell"], "final_error_mm": s["final_error_mm"],
                       "final_error_deg": s["final_error_deg"], "steps": s["steps"],
                       "average_speed_m_s": s["average_speed_m_s"],
-                      "zmp_inside_percent": 100 * s["zmp_inside_fraction"]}
+                      "zmp_inside_percent": 100 * s["zmp_inside_fraction"],
+                      "zmp_inside_raw_percent": 100 * s["zmp_inside_fraction_raw"]}
+
+
+def measure_teleop() -> dict:
+    """The shipped recordings replayed in free and drill mode on the simulated robot."""
+    busy = os.getloadavg()[0]
+    replays = []
+    with tempfile.TemporaryDirectory(prefix="hubo-measure-") as tmp:
+        for i, (name, mode) in enumerate(TELEOP_REPLAYS):
+            cmd = [*hubo_command(), "teleop", "--replay", f"trajectories/{name}", "--mode", mode,
+                   "--driver", "sim", "--json", "--out", str(Path(tmp) / str(i))]
+            elapsed, done = timed(cmd, cwd=ROOT, stdout=subprocess.PIPE, text=True)
+            s = json.loads(done.stdout)
+            replays.append({
+                "replay": name, "mode": mode, "ended": s["ended"], "wall_clock_s": elapsed,
+                "position_rms_mm": s["rms_error_mm"], "world_rms_mm": s["world_rms_error_mm"],
+                "max_excursion_mm": {a: r["max_excursion_mm"] for a, r in s["reach"].items()},
+                "at_limit_s": {a: r["at_limit_s"] for a, r in s["reach"].items()},
+                "branch_changes": sum(r["branch_changes"] for r in s["reach"].values()),
+                "max_tilt_deg": s["max_torso_tilt_deg"],
+                "estop_events": len(s["estop_events"]),
+                "collision_holds": len(s["collision_holds"])})
+    return stamp(busy) | {"replays": replays}
+
+
+def measure_push() -> dict:
+    """hubo sim --push: a few 0.2 s pushes on the torso of the standing robot."""
+    busy = os.getloadavg()[0]
+    pushes = []
+    with tempfile.TemporaryDirectory(prefix="hubo-measure-") as tmp:
+        for i, (force, direction, extra) in enumerate(PUSHES):
+            cmd = [*hubo_command(), "sim", "--push", str(force), "--push-direction", direction,
+                   *extra, "--duration", f"{PUSH_DURATION_S:g}", "--json",
+                   "--out", str(Path(tmp) / str(i))]
+            _, done = timed(cmd, cwd=ROOT, stdout=subprocess.PIPE, text=True)
+            s = json.loads(done.stdout)
+            step = s.get("capture_step") or {}
+            pushes.append({"command": " ".join(["hubo sim --push", str(force),
+                                                "--push-direction", direction, *extra]),
+                           "fell": s["fell"], "max_tilt_deg": s["max_tilt_deg"],
+                           "final_tilt_deg": s["final_tilt_deg"],
+                           "max_foot_shift_mm": s["max_foot_shift_mm"],
+                           "steps": step.get("steps", 0),
+                           "stops": [f"{e['kind']} ({', '.join(e.get('sources') or [])}) at "
+                                     f"{e['t_s']:.2f} s" for e in s["estop_events"]]})
+    return stamp(busy) | {"duration_s": PUSH_DURATION_S, "pushes": pushes}
+
+
+def measure_bench() -> dict:
+    """The make bench modules the performance page shows (python -m hubo_cli.bench MODULE ...)."""
+    busy = os.getloadavg()[0]
+    # a part that stops keeps the figures it reported and says why it stopped
+    code = ("import importlib, json, sys\n"
+            "rows, failures = [], []\n"
+            "for m in sys.argv[1:]:\n"
+            "    try:\n"
+            "        importlib.import_module('hubo_cli.bench.' + m).run(\n"
+            "            lambda name, value, unit, note='', m=m: rows.append(\n"
+            "                {'module': m, 'name': name.strip(), 'value': float(value),\n"
+            "                 'unit': unit, 'note': note}))\n"
+            "    except Exception as exc:\n"
+            "        failures.append({'module': m, 'error': f'{type(exc).__name__}: {exc}'})\n"
+            "print(json.dumps({'rows': rows, 'failures': failures}))\n")
+    _, done = timed([sys.executable, "-c", code, *BENCH_MODULES], cwd=ROOT,
+                    stdout=subprocess.PIPE, text=True)
+    return stamp(busy) | {"command": f"make bench BENCH=\"{' '.join(BENCH_MODULES)}\"",
+                          **json.loads(done.stdout.strip().splitlines()[-1])}
 
 
 def measure_install(cold: bool) -> dict:
@@ -210,6 +296,11 @@ def page_default_cut(m: dict) -> str:
         f"(limit {r['torque_limit_nm']:g}) |",
         f"| emergency stops, collision holds | {r['estop_events']}, {r['collision_holds']} |",
     ]
+    if "status_counts" in r:
+        counts = r["status_counts"]
+        rows.append(f"| the status over the run's {sum(counts.values()):,} periods | "
+                    + ", ".join(f"{n:,} {status}" for status, n in
+                                sorted(counts.items(), key=lambda kv: -kv[1])) + " |")
     return "\n".join(rows) + f"\n\nM{_when(r)[1:]}.\n"
 
 
@@ -220,7 +311,9 @@ def page_walk(m: dict) -> str:
     return (f"`hubo walk --to 1.0 0 0` (nominal robot): {'fell' if w['fell'] else 'did not fall'}, "
             f"{w['steps']} steps, final error {w['final_error_mm']:.1f} mm and "
             f"{w['final_error_deg']:.2f}°, {w['average_speed_m_s']:.3f} m/s on average, the ZMP "
-            f"inside the support in {w['zmp_inside_percent']:.1f} % of periods; "
+            f"inside the support in {w['zmp_inside_percent']:.1f} % of periods"
+            + (f" ({w['zmp_inside_raw_percent']:.1f} % from the unfiltered readings)"
+               if "zmp_inside_raw_percent" in w else "") + "; "
             f"{w['wall_clock_s']:.0f} s of wall-clock ({_when(w)}).\n")
 
 
@@ -231,8 +324,69 @@ def page_suite(m: dict) -> str:
     return f"`make test`: {s['wall_clock_s']:.0f} s ({_when(s)}).\n"
 
 
+def _arms(values: dict, fmt: str = "{:.1f}") -> str:
+    """Per-hand figures, right first: "2.6 / 1.1" (right / left) or "4.8" (one hand)."""
+    return " / ".join(fmt.format(values[a]) for a in ("right-arm", "left-arm") if a in values)
+
+
+def page_teleop(m: dict) -> str:
+    tele = m.get("teleop")
+    if not tele:
+        return f"The replays: {_missing('teleop')}.\n"
+    rows = ["| `hubo teleop --replay trajectories/FILE --mode MODE` | hand(s) | position RMS "
+            "(robot) | in the world | largest excursion | at reach limit | torso tilt | "
+            "branch changes, e-stops, collision holds |",
+            "|---|---|---|---|---|---|---|---|"]
+    for r in tele["replays"]:
+        hands = " / ".join(a.split("-")[0] for a in ("right-arm", "left-arm")
+                           if a in r["position_rms_mm"])
+        ended = "" if r["ended"] == "done" else f" (ended: {r['ended']})"
+        rows.append(f"| `{r['replay']}`, {r['mode']}{ended} | {hands} | "
+                    f"{_arms(r['position_rms_mm'])} mm | {_arms(r['world_rms_mm'])} mm | "
+                    f"{_arms(r['max_excursion_mm'])} mm | {_arms(r['at_limit_s'])} s | "
+                    f"{r['max_tilt_deg']:.2f}° | {r['branch_changes']}, {r['estop_events']}, "
+                    f"{r['collision_holds']} |")
+    return "\n".join(rows) + f"\n\nSimulated robot, default balancer; {_when(tele)}.\n"
+
+
+def page_push(m: dict) -> str:
+    push = m.get("push")
+    if not push:
+        return f"The pushes: {_missing('push')}.\n"
+    rows = ["| 0.2 s push on the torso, 1 s into the run | outcome | steps | torso tilt, "
+            "largest / at the end | soles moved | emergency stops |", "|---|---|---|---|---|---|"]
+    for r in push["pushes"]:
+        rows.append(f"| `{r['command']}` | {'fell' if r['fell'] else 'stood'} | {r['steps']} | "
+                    f"{r['max_tilt_deg']:.1f}° / {r['final_tilt_deg']:.1f}° | "
+                    f"{r['max_foot_shift_mm']:.1f} mm | {'; '.join(r['stops']) or 'none'} |")
+    return ("\n".join(rows) + f"\n\nNominal simulated robot, default balancer, "
+            f"{push['duration_s']:g} s of standing; {_when(push)}.\n")
+
+
+def _bench_value(value: float) -> str:
+    """As make bench prints it: three significant digits, thousands grouped."""
+    return f"{value:,.3g}" if abs(value) < 1000 else f"{value:,.0f}"
+
+
+def page_bench(m: dict) -> str:
+    bench = m.get("bench")
+    if not bench:
+        return f"The benchmarks: {_missing('bench')}.\n"
+    rows = ["| part | figure | measured | note |", "|---|---|---|---|"]
+    for r in bench["rows"]:
+        note = r["note"].replace("|", "\\|")
+        unit = re.sub(r"^us\b", "µs", r["unit"])  # make bench prints ASCII
+        rows.append(f"| {r['module']} | {r['name']} | {_bench_value(r['value'])} {unit} "
+                    f"| {note} |")
+    stopped = "".join(f"\n\n**`{f['module']}` stopped before its last figures:** "
+                      f"`{f['error'][:300]}`" for f in bench.get("failures", []))
+    return ("\n".join(rows) + f"\n\n`{bench['command']}`, {_when(bench)} (wall-clock "
+            "figures on a busy machine are slower than on an idle one)." + stopped + "\n")
+
+
 PAGES = {"install.md": page_install, "default-cut.md": page_default_cut, "walk.md": page_walk,
-         "suite.md": page_suite}
+         "suite.md": page_suite, "teleop.md": page_teleop, "push.md": page_push,
+         "bench.md": page_bench}
 
 
 def load() -> dict:
@@ -265,6 +419,12 @@ def main() -> None:
             m["run"] = measure_run()
         elif part == "walk":
             m["walk"] = measure_walk()
+        elif part == "teleop":
+            m["teleop"] = measure_teleop()
+        elif part == "push":
+            m["push"] = measure_push()
+        elif part == "bench":
+            m["bench"] = measure_bench()
         elif part == "install":
             m["install_warm"] = measure_install(cold=False)
             if not args.warm_only:
