@@ -54,7 +54,7 @@ def _bench_batch_csv(report, limb) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for n in (1_000, 200_000, 1_000_000):  # the first run only fills the compile cache
             T = limb.fk_batch(limb.random_q(rng, n)).reshape(n, 16)
-            src, out = Path(tmp) / "in.csv", Path(tmp) / "out.csv"
+            src, out = Path(tmp) / f"in-{n}.csv", Path(tmp) / f"out-{n}.csv"  # new files
             np.savetxt(src, T, delimiter=",", header=header, comments="", fmt="%.12g")
             t0 = time.perf_counter()
             subprocess.run([sys.executable, "-m", "hubo_cli.cli.main", "ik", limb.name,
