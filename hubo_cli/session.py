@@ -50,6 +50,7 @@ from hubo_cli.control.target import Target
 from hubo_cli.drivers.base import RunContext
 from hubo_cli.drivers.registry import driver_class, make_driver
 from hubo_cli.errors import DeviceError, HuboError, InputError
+from hubo_cli.interrupts import loop_ended, loop_starting, run_files
 from hubo_cli.model import RobotModel
 from hubo_cli.runs import discard_if_unused, make_run_dir, release_run_dir, write_json
 
@@ -210,11 +211,15 @@ def run(setup: RunSetup, target: Target,
     Raises:
         HuboError: a bad set-up, or a driver that cannot start (nothing moved; an empty run
             folder is removed again).
+        KeyboardInterrupt: Ctrl-C or SIGTERM after the loop ended, raised once the run folder
+            is written (unless an outer :func:`hubo_cli.interrupts.run_files` holds it longer).
     """
+    loop_starting()
     speed = setup.pace()
     run_dir = make_run_dir(setup.command, setup.out)  # locked until the run is written
     try:
-        return _run_in(setup, target, on_start, speed, run_dir)
+        with run_files():  # an interrupt once the loop ended waits for the files
+            return _run_in(setup, target, on_start, speed, run_dir)
     finally:
         release_run_dir(run_dir)
 
@@ -240,6 +245,7 @@ def _run_in(setup: RunSetup, target: Target, on_start, speed: float | None,
             if on_start is not None:
                 on_start(target, loop)
             result = _run_loop(loop, setup, world)
+            loop_ended()
             driver_summary = driver.summary_values()
             if result.ended == "log-error":  # a full disk: no snapshot, no log read back
                 _end_without_log(setup, speed, result, modules, run_dir)

@@ -521,3 +521,80 @@ def test_sigterm_ends_a_local_cluster_sweep_within_a_second_or_so(tmp_path):
     assert exit_s < 15.0, exit_s
     assert running() == []
     assert (out / "sweep.csv").read_text().splitlines()[0].startswith("command,seed")
+
+
+# ------------------------------------------------------------------ silent streams, late signals
+
+@linux_only
+def test_a_fifo_nobody_writes_is_refused_within_its_wait(tmp_path, monkeypatch):
+    """A FIFO with no writer at all, or a writer that sends nothing, is refused (InputError,
+    naming it) after STREAM_WAIT_S, never waited on; one that streams with pauses shorter
+    than that is read whole."""
+    import threading
+
+    import hubo_cli.fastrak.capture as capture
+    from hubo_cli.errors import InputError
+    from hubo_cli.fastrak.opener import open_source
+
+    monkeypatch.setattr(capture, "STREAM_WAIT_S", 0.3)
+    silent = tmp_path / "silent"
+    os.mkfifo(silent)
+    started = time.monotonic()
+    with pytest.raises(InputError, match="nothing arrived from .*silent") as info:
+        open_source(replay=silent)  # no writer: open() must not block either
+    assert info.value.hint and time.monotonic() - started < 3.0
+
+    def write(path: Path, parts: list[bytes], pause_s: float) -> threading.Thread:
+        def feed() -> None:
+            with contextlib.suppress(OSError), open(path, "wb") as fifo:
+                for part in parts:
+                    fifo.write(part)
+                    fifo.flush()
+                    time.sleep(pause_s)
+        thread = threading.Thread(target=feed, daemon=True)
+        thread.start()
+        return thread
+
+    mute = tmp_path / "mute"  # a writer that opens it and then says nothing
+    os.mkfifo(mute)
+    write(mute, [b""], 5.0)
+    with pytest.raises(InputError, match="nothing arrived"):
+        capture.read_recording_bytes(mute)
+
+    streaming = tmp_path / "streaming"
+    os.mkfifo(streaming)
+    data = FREE_CSV.read_bytes()
+    thirds = [data[: len(data) // 3], data[len(data) // 3: 2 * len(data) // 3],
+              data[2 * len(data) // 3:]]
+    write(streaming, thirds, 0.1).join(timeout=0)
+    assert capture.read_recording_bytes(streaming) == data
+
+
+@pytest.mark.slow
+@linux_only
+def test_sigterm_after_the_loop_ended_leaves_a_complete_run(tmp_path):
+    """SIGTERM the moment the run's first summary.json appears (the loop has ended, the task's
+    fields and plots are still being written): the run finishes with its files whole, its text
+    summary and its own exit code, and says on stderr that the signal came after the run."""
+    out = tmp_path / "run"
+    process = subprocess.Popen([str(HUBO), "task", "cut-rectangle", "--width", "20",
+                                "--height", "15", "--driver", "ideal", "--out", str(out)],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 180
+        while not (out / "summary.json").exists():
+            assert process.poll() is None and time.monotonic() < deadline, process.returncode
+            time.sleep(0.001)
+        process.send_signal(signal.SIGTERM)
+        stdout, err = _finish(process)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    summary = json.loads((out / "summary.json").read_text())
+    assert "completed" in summary and summary["ended"] != "interrupted", summary
+    assert process.returncode == (0 if summary["completed"] else 1), (stdout, err)
+    assert "completed" in stdout and str(out) in stdout  # the text summary was printed
+    assert "SIGTERM came after the run had ended" in err
+    assert "Traceback" not in err and "interrupted" not in err
+    for name in summary["files"]:
+        assert (out / name).is_file(), name

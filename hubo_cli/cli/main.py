@@ -16,6 +16,7 @@ import click
 
 from hubo_cli import __version__
 from hubo_cli.errors import HuboError, Terminated
+from hubo_cli.interrupts import run_files
 
 # command name -> "module:attribute" (modules are imported only when the command runs)
 COMMANDS = {
@@ -97,8 +98,10 @@ class LazyGroup(click.Group):
         previous = signal.getsignal(signal.SIGTERM)
         if previous is signal.SIG_DFL:
             signal.signal(signal.SIGTERM, _sigterm_as_interrupt)
-        try:
-            return super().invoke(ctx)
+        late = None
+        try:  # an interrupt after a run's loop ended waits until its files and stdout are whole
+            with run_files(deliver=False) as late:
+                return super().invoke(ctx)
         except HuboError as exc:
             report_error(exc)
             ctx.exit(exc.exit_code)
@@ -128,6 +131,9 @@ class LazyGroup(click.Group):
                        "the traceback", err=True)
             ctx.exit(1)
         finally:
+            if late is not None and late.cause is not None:
+                click.echo(f"note: {late.cause} came after the run had ended; the run finished "
+                           "and its files are complete", err=True)
             if previous is signal.SIG_DFL:
                 signal.signal(signal.SIGTERM, previous)
 

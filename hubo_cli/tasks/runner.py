@@ -22,6 +22,7 @@ from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.stop_choice import ActiveStops
 from hubo_cli.errors import InputError, SafetyError
+from hubo_cli.interrupts import run_files
 from hubo_cli.model import RobotModel, load_model
 from hubo_cli.posture import home_posture
 from hubo_cli.session import RunObserver, RunResult, RunSetup, run, settled_objects
@@ -107,7 +108,7 @@ def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
     if not plan.preflight.ok:
         raise SafetyError(plan.preflight.worst_per_step()[0].message(),
                           hint="the task was refused in pre-flight; nothing moved")
-    with settled_objects():
+    with settled_objects(), run_files():  # the summary and plots too are whole before an interrupt
         setup = task_setup(plan, driver=driver, out=out, gui=gui, stops=stops,
                            driver_options=driver_options, perturb_seed=perturb_seed,
                            balance=balance, operator=operator, live=live)

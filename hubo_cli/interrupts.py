@@ -1,0 +1,98 @@
+"""Interrupts after a run's control loop has ended: held back until the run's files are whole.
+
+Once the robot has stopped, the run's summary, plots and (on the command line) its text summary
+are quick to finish, and an interrupt in the middle would leave them half written: a first-draft
+``summary.json`` contradicting the exit code. So a run is wrapped in :func:`run_files`, and the
+run scaffold calls :func:`loop_ended` as soon as the loop returns; from then until the
+*outermost* :func:`run_files` exits (or the next run starts, :func:`loop_starting`), Ctrl-C and
+SIGTERM are recorded, not raised. Scopes nest (the command line, the task runner and the run
+scaffold each open one); only the outermost one acts on a recorded interrupt:
+
+- ``deliver=True`` (the library's default): it raises the interrupt (``KeyboardInterrupt``, or
+  :class:`~hubo_cli.errors.Terminated` for SIGTERM) once the files are complete.
+- ``deliver=False`` (the command line): it does not raise; the run finishes normally, exits with
+  its own code, and the caller reads :attr:`LateInterrupt.cause` to say on stderr that the signal
+  came after the run ended. The files, stdout and the exit code then all describe the run as it
+  happened: the robot had already stopped, so the signal changed nothing.
+
+Only the main thread can handle signals; elsewhere the scopes do nothing.
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+from hubo_cli.errors import Terminated
+
+_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+@dataclass
+class LateInterrupt:
+    """What the outermost scope learnt: ``cause`` is ``SIGTERM``, ``Ctrl-C`` or None."""
+
+    cause: str | None = None
+
+
+@dataclass
+class _State:
+    depth: int = 0
+    late: LateInterrupt | None = None  # the outermost scope's
+    previous: dict | None = None  # the handlers in place before loop_ended(), while deferring
+
+
+_state = _State()
+
+
+def _record(signum, frame) -> None:
+    if _state.late is not None and _state.late.cause is None:
+        _state.late.cause = "SIGTERM" if signum == signal.SIGTERM else "Ctrl-C"
+
+
+def _in_main_thread() -> bool:
+    return threading.current_thread() is threading.main_thread()
+
+
+def loop_starting() -> None:
+    """A new run is about to start (a command may run several): interrupts are raised again,
+    and one held back since the previous run's loop ended is raised now, before anything moves."""
+    previous, _state.previous = _state.previous, None
+    for s, handler in (previous or {}).items():
+        signal.signal(s, handler)
+    late = _state.late
+    if late is not None and late.cause is not None:
+        cause, late.cause = late.cause, None
+        raise Terminated if cause == "SIGTERM" else KeyboardInterrupt
+
+
+def loop_ended() -> None:
+    """The run's loop has ended: hold back interrupts until the outermost scope exits (a no-op
+    outside :func:`run_files`, off the main thread, or when already holding back)."""
+    if _state.depth == 0 or _state.previous is not None or not _in_main_thread():
+        return
+    _state.previous = {s: signal.signal(s, _record) for s in _SIGNALS}
+
+
+@contextmanager
+def run_files(deliver: bool = True) -> Iterator[LateInterrupt]:
+    """A scope inside which, after :func:`loop_ended`, interrupts wait for the scope's end
+    (see the module's docstring for ``deliver``); yields the outermost scope's record."""
+    outermost = _state.depth == 0
+    if outermost:
+        _state.late = LateInterrupt()
+    late = _state.late
+    _state.depth += 1
+    try:
+        yield late
+    finally:
+        _state.depth -= 1
+        if outermost:
+            previous, _state.previous, _state.late = _state.previous, None, None
+            for s, handler in (previous or {}).items():
+                signal.signal(s, handler)
+    if outermost and deliver and late.cause is not None:
+        raise Terminated if late.cause == "SIGTERM" else KeyboardInterrupt
