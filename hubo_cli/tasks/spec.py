@@ -24,7 +24,8 @@ the step runner, :mod:`hubo_cli.tasks.runner`) or ``experiment`` (a built-in pro
 ``[safety]``
     ``estop_sources`` (of ``operator``, ``capture-point``, ``wrist-torque``,
     ``stale-input``; the first three always), ``wrist_torque_limit_nm`` (at most the robot
-    file's), ``revert_s`` (T1), ``stop_s`` (T2). A file or ``--set`` only tightens these; a
+    file's), ``revert_s`` (T1), ``stop_s`` (T2) (at most the robot file's ``estop_revert_s``,
+    ``estop_stop_s``). A file or ``--set`` only tightens these; a
     stop source is removed on the command line alone (``--estop-sources``, ``--no-estop``).
 ``[[steps]]``
     In order, each with a ``kind`` and an optional ``name``:
@@ -482,18 +483,24 @@ class _Loader:
                             f"remove the {stops_words(missing)}",
                             hint=f"to run without the {stops_words(missing)}, say so on "
                                  f"the command line: --estop-sources {kept}")
-        robot_limit_nm = float(load_model().safety["wrist_torque_limit_nm"])
-        limit = t.number("wrist_torque_limit_nm", positive=True, maximum=WRIST_TORQUE_MAX_NM,
-                         default=robot_limit_nm)
-        if limit > robot_limit_nm:
-            raise self.fail(t.key("wrist_torque_limit_nm"), f"{limit:g} N m is above the robot "
-                            f"file's limit of {robot_limit_nm:g} N m: a task may only lower it",
-                            hint=f"give at most {robot_limit_nm:g}, or leave it out")
-        safety = Safety(tuple(s for s in ESTOP_SOURCES if s in sources), limit,
-                        t.number("revert_s", positive=True, maximum=STOP_MAX_S,
-                                 default=d.revert_s),
-                        t.number("stop_s", positive=True, maximum=STOP_MAX_S,
-                                 default=d.stop_s))
+        robot = load_model().safety
+        # field, unit, sense bound, its robot file key (the most a task may give), words
+        at_most = (("wrist_torque_limit_nm", "N m", WRIST_TORQUE_MAX_NM, "wrist_torque_limit_nm",
+                    "limit", "lower it"),
+                   ("revert_s", "s", STOP_MAX_S, "estop_revert_s", "T1",
+                    "shorten it: a longer one reverts further back"),
+                   ("stop_s", "s", STOP_MAX_S, "estop_stop_s", "T2",
+                    "shorten it: a longer one is a slower stop"))
+        values = []
+        for name, unit, maximum, robot_key, what, rule in at_most:
+            robot_value = float(robot[robot_key])
+            value = float(t.number(name, positive=True, maximum=maximum, default=robot_value))
+            if value > robot_value:  # repr: the shortest text that tells two floats apart
+                raise self.fail(t.key(name), f"{value!r} {unit} is above the robot file's "
+                                f"{what} of {robot_value!r} {unit}: a task may only {rule}",
+                                hint=f"give at most {robot_value!r}, or leave it out")
+            values.append(value)
+        safety = Safety(tuple(s for s in ESTOP_SOURCES if s in sources), *values)
         t.finish()
         return safety
 
