@@ -279,6 +279,25 @@ def test_what_ran_is_printed_written_and_noted(reduced_runs):
                                              "revert_s": 0.5, "stop_s": 0.5}
 
 
+def test_the_task_file_as_run_runs_again_with_the_same_option(reduced_runs, tmp_path):
+    """The copy lists the reduced sources: loaded only when the command line chooses the
+    sources again, and on the hardware still only with the second option."""
+    copy = tmp_path / "task.toml"
+    copy.write_text(reduced_runs["sources"][2])
+    with pytest.raises(ConfigError, match="not remove the operator and wrist-torque") as no:
+        load_task(copy)
+    assert "--estop-sources capture-point" in no.value.hint
+    again = load_task(copy, sources_on_command_line=True)
+    assert again.safety.estop_sources == ("capture-point",)
+    env = {"HUBO_LIBACH": str(tmp_path / "missing-libach.so")}
+    result = _cli(["task", "run", str(copy), "--driver", "hardware", "--arm",
+                   "--estop-sources", "capture-point", "--out", str(tmp_path / "run")], env=env)
+    _assert_refused(result, 4, "--accept-reduced-safety", "operator and wrist-torque stops")
+    _assert_refused(_cli(["task", "run", str(copy), "--out", str(tmp_path / "run")]), 2,
+                    "--estop-sources capture-point")
+    assert not (tmp_path / "run").exists()
+
+
 @pytest.mark.parametrize("where", ["table", "inline", "none", "dotted"])
 def test_the_copy_holds_the_safety_as_run(where):
     """The [safety] table of the task file as run, however the file spelled its own."""

@@ -23,6 +23,7 @@ from hubo_cli.cli.output import (
     print_json,
 )
 from hubo_cli.control.operator import KEYS_HELP
+from hubo_cli.control.stop_choice import SOFT_SOURCES, TASK_SOURCES
 from hubo_cli.drivers.registry import DRIVER_NAMES
 from hubo_cli.errors import HuboError, InputError, SafetyError
 from hubo_cli.runs import shown_name
@@ -247,7 +248,8 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
     if video:
         check_video_support()
     options = driver_options(driver, armed, **hardware)
-    spec = load_task(name, overrides)
+    spec = load_task(name, overrides,
+                     sources_on_command_line=no_estop or estop_sources is not None)
     ctx = click.get_current_context()
     if spec.experiment:
         if driver != "sim":
@@ -267,7 +269,10 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
             add_run_video(done.run_dir, done.summary, quiet=as_json)
         _finish(ctx, done, as_json, lambda: _print_push_wall(done.summary, done.run_dir))
         return
-    stops = active_stops(spec.safety.estop_sources, driver, no_estop=no_estop,
+    # the baseline: what a file lacks is removed by the command line (and so confirmed)
+    requested = tuple(s for s in SOFT_SOURCES
+                      if s in TASK_SOURCES or s in spec.safety.estop_sources)
+    stops = active_stops(requested, driver, no_estop=no_estop,
                          estop_sources=estop_sources,
                          accept_reduced_safety=accept_reduced_safety, quiet=as_json)
     with (reserved_run_dir(f"task-{spec.name}", out) as run_dir,

@@ -232,13 +232,17 @@ def find_task(name_or_path: str | Path) -> Path:
                       hint=f"shipped tasks: {names}; or give a .toml file")
 
 
-def load_task(name_or_path: str | Path, overrides: dict | None = None) -> TaskSpec:
+def load_task(name_or_path: str | Path, overrides: dict | None = None, *,
+              sources_on_command_line: bool = False) -> TaskSpec:
     """Read, check and resolve a task file.
 
     Args:
         name_or_path: a ``.toml`` file or the name of a shipped task.
         overrides: parameter name -> value (strings from the command line are converted to the
             default's type; ``auto`` stays a string).
+        sources_on_command_line: ``--estop-sources`` or ``--no-estop`` chooses the run's stop
+            sources, so the file's list may lack some (a task file as run records them so);
+            the run keeps the command line's, removing sources from the task's baseline.
 
     Raises:
         ConfigError: the file is missing or malformed (file, line, field and a hint).
@@ -262,7 +266,7 @@ def load_task(name_or_path: str | Path, overrides: dict | None = None) -> TaskSp
             message = message.split(" (at line ")[0]
         raise ConfigError(f"not valid TOML: {message}", path=str(path), line=line,
                           hint="check the quotes, brackets and '=' on that line") from None
-    return _Loader(path, text, data, overrides or {}).task()
+    return _Loader(path, text, data, overrides or {}, sources_on_command_line).task()
 
 
 FIELD_TABLES = ("stance", "scene", "safety")  # what a dotted ``--set`` name may reach
@@ -306,8 +310,10 @@ def _scalar(value: str) -> object:
 class _Loader:
     """Checks one parsed file field by field, so each error can point at its line."""
 
-    def __init__(self, path: Path, text: str, data: dict, overrides: dict) -> None:
+    def __init__(self, path: Path, text: str, data: dict, overrides: dict,
+                 sources_on_command_line: bool = False) -> None:
         self.path = path
+        self.sources_on_command_line = sources_on_command_line
         self.text = text
         self.data = data
         self.overrides = {k: v for k, v in overrides.items() if "." not in k}
@@ -477,7 +483,7 @@ class _Loader:
             raise self.fail(t.key("estop_sources"), f"must be a list of sources, got {sources!r}",
                             hint=f"choose from {', '.join(ESTOP_SOURCES)}")
         missing = [s for s in TASK_SOURCES if s not in sources]
-        if missing:
+        if missing and not self.sources_on_command_line:
             kept = ",".join(s for s in ESTOP_SOURCES if s in sources) or "none"
             raise self.fail(t.key("estop_sources"), f"a task may add stop sources but not "
                             f"remove the {stops_words(missing)}",
