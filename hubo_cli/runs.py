@@ -64,6 +64,18 @@ def _encodable(char: str, encoding: str) -> bool:
     return True
 
 
+SHOWN_MAX_CHARS = 80  # of a name shown on the terminal or in a plot title
+
+
+def shown_name(text: str) -> str:
+    """``text`` (e.g. a task file's ``name``) safe to print or draw: control and format
+    characters (Unicode Cc, Cf, Zl, Zp: newlines, escape sequences, bidi overrides) become a
+    visible escape (``\\n``, ``\\x1b``, ``\\u202e``), at most :data:`SHOWN_MAX_CHARS`
+    characters (``...`` marks a cut)."""
+    shown = "".join(c.encode("unicode_escape").decode("ascii")
+                    if unicodedata.category(c) in ("Cc", "Cf", "Zl", "Zp") else c
+                    for c in str(text))
+    return shown if len(shown) <= SHOWN_MAX_CHARS else shown[:SHOWN_MAX_CHARS - 3] + "..."
 # run folder (resolved) -> [the marker's file descriptor, holding its lock; how many holders
 # in this process]: make_run_dir takes a hold, release_run_dir gives one back
 _LOCKS: dict[Path, list[int]] = {}
@@ -114,12 +126,12 @@ def check_run_dir(command: str, out: str | Path) -> None:
                              hint="choose a folder you can write") from None
         owner = run_dir_owner(path)
         if entries and entries != [MARKER] and owner != folder_name(command):
-            whose = (f"a 'hubo {owner}' run" if owner
+            whose = (f"a 'hubo {shown_name(owner)}' run" if owner
                      else f"files that are not a hubo run ({', '.join(sorted(entries)[:3])}"
                           f"{', ...' if len(entries) > 3 else ''})")
             raise InputError(f"--out {path} already holds {whose}; nothing was written",
                              hint="choose a new or empty folder, or leave out --out "
-                                  f"(runs/<time>-{command})")
+                                  f"(runs/<time>-{folder_name(command)})")
 
 
 def make_run_dir(command: str, out: str | Path | None = None) -> Path:

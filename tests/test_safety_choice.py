@@ -17,6 +17,8 @@ import os
 import random
 import subprocess
 import sys
+import tomllib
+import unicodedata
 from pathlib import Path
 
 import pytest
@@ -24,6 +26,7 @@ from click.testing import CliRunner
 from task_files import raise_and_hold
 
 from hubo_cli.cli.main import main
+from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.stop_choice import (
     SOFT_SOURCES,
     TASK_SOURCES,
@@ -31,9 +34,11 @@ from hubo_cli.control.stop_choice import (
     StopChoice,
     decide_stops,
 )
-from hubo_cli.errors import InputError, SafetyError
+from hubo_cli.errors import ConfigError, InputError, SafetyError
 from hubo_cli.resources import data_file
-from hubo_cli.tasks.spec import load_task
+from hubo_cli.runs import SHOWN_MAX_CHARS, check_run_dir, folder_name, shown_name
+from hubo_cli.tasks.runner import _title_name, _with_safety_as_run
+from hubo_cli.tasks.spec import Safety, load_task
 
 CUT_SLOT = data_file("tasks", "cut-slot.toml")
 PUSH_WALL = data_file("tasks", "push-wall.toml")
@@ -253,6 +258,8 @@ def test_what_ran_is_printed_written_and_noted(reduced_runs):
                                         "by": "--estop-sources capture-point"}
     assert "# safety of this run: e-stop sources capture-point;" in copy
     assert "removed on the command line: operator, wrist-torque" in copy
+    assert "# --estop-sources capture-point removed: operator, wrist-torque" in copy
+    assert tomllib.loads(copy)["safety"]["estop_sources"] == ["capture-point"]
 
     result, summary, copy = reduced_runs["none"]
     assert result.exit_code == 0, result.output
@@ -260,12 +267,84 @@ def test_what_ran_is_printed_written_and_noted(reduced_runs):
     assert summary["estop_enabled"] is False and summary["estop_sources"] == []
     assert "estop" not in summary["pipeline"]
     assert "# safety of this run: e-stop sources none;" in copy
+    assert tomllib.loads(copy)["safety"]["estop_sources"] == []
 
     result, summary, copy = reduced_runs["default"]
     assert result.exit_code == 0, result.output
     assert summary["estop_sources"] == list(TASK_SOURCES) and summary["estop_removed"] is None
     assert "e-stop sources operator, capture-point, wrist-torque; wrist torque limit 1.21" in copy
     assert summary["finished_by_operator"] is False
+    assert tomllib.loads(copy)["safety"] == {"estop_sources": list(TASK_SOURCES),
+                                             "wrist_torque_limit_nm": ROBOT_LIMIT_NM,
+                                             "revert_s": 0.5, "stop_s": 0.5}
+
+
+def test_the_task_file_as_run_runs_again_with_the_same_option(reduced_runs, tmp_path):
+    """The copy lists the reduced sources: loaded only when the command line chooses the
+    sources again, and on the hardware still only with the second option."""
+    copy = tmp_path / "task.toml"
+    copy.write_text(reduced_runs["sources"][2])
+    with pytest.raises(ConfigError, match="not remove the operator and wrist-torque") as no:
+        load_task(copy)
+    assert "--estop-sources capture-point" in no.value.hint
+    again = load_task(copy, sources_on_command_line=True)
+    assert again.safety.estop_sources == ("capture-point",)
+    env = {"HUBO_LIBACH": str(tmp_path / "missing-libach.so")}
+    result = _cli(["task", "run", str(copy), "--driver", "hardware", "--arm",
+                   "--estop-sources", "capture-point", "--out", str(tmp_path / "run")], env=env)
+    _assert_refused(result, 4, "--accept-reduced-safety", "operator and wrist-torque stops")
+    _assert_refused(_cli(["task", "run", str(copy), "--out", str(tmp_path / "run")]), 2,
+                    "--estop-sources capture-point")
+    assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("where", ["table", "inline", "none", "dotted"])
+def test_the_copy_holds_the_safety_as_run(where):
+    """The [safety] table of the task file as run, however the file spelled its own."""
+    text = CUT_SLOT.read_text()
+    start, end = text.index("[safety]"), text.index("[[steps]]")
+    spelled = {"table": text,
+               "inline": 'safety = { estop_sources = ["operator", "capture-point", '
+                         '"wrist-torque"] }\n' + text[:start] + text[end:],
+               "none": text[:start] + text[end:],
+               "dotted": "safety.stop_s = 0.4\n" + text[:start] + text[end:]}[where]
+    used = Safety(TASK_SOURCES, 1.0, 0.3, 0.2)
+    profile = SafetyProfile(sources=TASK_SOURCES).with_stops(
+        ActiveStops(("capture-point",), ("operator", "wrist-torque"), "--estop-sources x"))
+    copy = _with_safety_as_run(spelled, profile, used)
+    original = tomllib.loads(spelled)
+    if where == "dotted":  # not a spelling it rewrites: kept, the header says what ran
+        assert copy == spelled
+        return
+    data = tomllib.loads(copy)
+    assert data["safety"] == {"estop_sources": ["capture-point"], "wrist_torque_limit_nm": 1.0,
+                              "revert_s": 0.3, "stop_s": 0.2}
+    assert {k: v for k, v in data.items() if k != "safety"} == {
+        k: v for k, v in original.items() if k != "safety"}
+
+
+@pytest.mark.parametrize("field", ["stop_s", "revert_s"])
+@pytest.mark.parametrize("value", [0.5000001, 0.6, 5.0])
+def test_no_slower_stop_than_the_robot_files(tmp_path, field, value):
+    """T1 and T2 may only shrink: a longer stop is a weaker one (the robot file: 0.5 s)."""
+    result = _cli(["task", "cut-slot", "--set", f"safety.{field}={value}",
+                   "--out", str(tmp_path / "run")])
+    _assert_refused(result, 2, f"safety.{field}", f"{value!r} s is above", "0.5 s",
+                    "set on the command line")
+    task = tmp_path / "slow.toml"
+    text = CUT_SLOT.read_text()
+    assert f"\n{field} = 0.5\n" in text
+    task.write_text(text.replace(f"\n{field} = 0.5\n", f"\n{field} = {value}\n"))
+    _assert_refused(_cli(["task", "run", str(task), "--out", str(tmp_path / "run")]), 2,
+                    f"{task}:", f"safety.{field}")
+    assert not (tmp_path / "run").exists()
+    assert getattr(load_task("cut-slot", {f"safety.{field}": 0.3}).safety, field) == 0.3
+
+
+def test_the_limit_message_shows_the_difference():
+    with pytest.raises(ConfigError) as caught:
+        load_task("cut-slot", {"safety.wrist_torque_limit_nm": 1.2100001})
+    assert "1.2100001 N m is above the robot file's limit of 1.21 N m" in str(caught.value)
 
 
 def test_output_that_cannot_be_encoded_is_replaced(tmp_path):
@@ -286,3 +365,37 @@ def test_output_that_cannot_be_encoded_is_replaced(tmp_path):
                              capture_output=True, timeout=120)
     assert missing.returncode == 2 and missing.stderr.count(b"error:") == 1
     assert b"Traceback" not in missing.stderr and b"internal error" not in missing.stderr
+
+
+HOSTILE_NAMES = ["a\nb", "\x1b[31mred", "x\u202ey\u2066", "nul\x00", "line\u2028sep",
+                 "[bold]markup[/]", "cost $\\frac{a$", "\t" * 300, "é日本 ok"]
+
+
+@pytest.mark.parametrize("name", HOSTILE_NAMES)
+def test_a_task_name_is_shown_safely(tmp_path, name):
+    """No control, format or line-separator character reaches the terminal or a plot title,
+    and the length is bounded; summary.json keeps the raw name (JSON escapes it)."""
+    shown = shown_name(name)
+    assert len(shown) <= SHOWN_MAX_CHARS
+    assert not any(unicodedata.category(c) in ("Cc", "Cf", "Zl", "Zp") for c in shown)
+    assert shown == name or any(c in name for c in "\n\x1b\u202e\x00\u2028\t")
+    assert "$" not in _title_name(name).replace(r"\$", "")
+    task = tmp_path / "named.toml"
+    task.write_text(SHORT_TASK.replace('name = "short-hold"', f"name = {json.dumps(name)}", 1))
+    assert load_task(task).name == name
+    result = _cli(["task", "show", str(task)])
+    assert result.exit_code == 0, result.output
+    first = result.output.splitlines()[0]
+    assert first.startswith(shown), first  # markup in the name printed as text
+    assert not any(unicodedata.category(c) in ("Cc", "Cf", "Zl", "Zp") for c in first)
+
+
+def test_the_out_hint_shows_the_cleaned_folder_name(tmp_path):
+    out = tmp_path / "taken"
+    out.mkdir()
+    (out / "mine.txt").write_text("a user's file")
+    command = "task-x/../../../victim\x1b[2J"
+    with pytest.raises(InputError) as caught:
+        check_run_dir(command, out)
+    assert f"runs/<time>-{folder_name(command)})" in caught.value.hint
+    assert "../" not in caught.value.hint and "\x1b" not in caught.value.hint

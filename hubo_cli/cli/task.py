@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import click
 from rich.console import Group
+from rich.markup import escape
 from rich.progress_bar import ProgressBar
 from rich.table import Table
 
@@ -22,8 +23,10 @@ from hubo_cli.cli.output import (
     print_json,
 )
 from hubo_cli.control.operator import KEYS_HELP
+from hubo_cli.control.stop_choice import SOFT_SOURCES, TASK_SOURCES
 from hubo_cli.drivers.registry import DRIVER_NAMES
 from hubo_cli.errors import HuboError, InputError, SafetyError
+from hubo_cli.runs import shown_name
 
 EXIT_INTERRUPTED = 130
 EXIT_NOT_COMPLETED = 1
@@ -147,7 +150,7 @@ def show(name: str, as_json: bool) -> None:
                     "steps": [{"kind": s.kind, "name": s.name, "description": s.describe()}
                               for s in spec.steps]})
         return
-    console.print(f"[bold]{spec.name}[/] — {spec.description}")
+    console.print(f"[bold]{escape(shown_name(spec.name))}[/] — {escape(spec.description)}")
     console.print(f"file        {spec.path}", soft_wrap=True)
     params = ", ".join(f"{k} = {v!r}" for k, v in spec.parameters.items()) or "none"
     console.print(f"parameters  {params}  [dim](--set NAME=VALUE)[/]")
@@ -245,14 +248,17 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
     if video:
         check_video_support()
     options = driver_options(driver, armed, **hardware)
-    spec = load_task(name, overrides)
+    spec = load_task(name, overrides,
+                     sources_on_command_line=no_estop or estop_sources is not None)
     ctx = click.get_current_context()
     if spec.experiment:
         if driver != "sim":
-            raise InputError(f"the {spec.name} experiment runs on the simulated robot only",
+            raise InputError(f"the {shown_name(spec.name)} experiment runs on the simulated "
+                             "robot only",
                              hint="leave out --driver")
         if estop_sources is not None:
-            raise InputError(f"the {spec.name} experiment's stopper listens to the operator "
+            raise InputError(f"the {shown_name(spec.name)} experiment's stopper listens to "
+                             "the operator "
                              "and the capture point; --estop-sources does not apply",
                              hint="to run it without the stopper: --no-estop")
         # its procedure names its own run folder (direction, e-stop) and checks --out first
@@ -263,7 +269,10 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
             add_run_video(done.run_dir, done.summary, quiet=as_json)
         _finish(ctx, done, as_json, lambda: _print_push_wall(done.summary, done.run_dir))
         return
-    stops = active_stops(spec.safety.estop_sources, driver, no_estop=no_estop,
+    # the baseline: what a file lacks is removed by the command line (and so confirmed)
+    requested = tuple(s for s in SOFT_SOURCES
+                      if s in TASK_SOURCES or s in spec.safety.estop_sources)
+    stops = active_stops(requested, driver, no_estop=no_estop,
                          estop_sources=estop_sources,
                          accept_reduced_safety=accept_reduced_safety, quiet=as_json)
     with (reserved_run_dir(f"task-{spec.name}", out) as run_dir,
@@ -281,7 +290,8 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, st
     from hubo_cli.cli.safety_view import SafetyPanel, read_safety
     from hubo_cli.tasks.runner import check_task, run_task
 
-    with busy(f"{spec.name}: pre-flight (laying out and solving every period; a first run "
+    with busy(f"{shown_name(spec.name)}: pre-flight (laying out and solving every period; "
+              "a first run "
               "also maps the arm's workspace, a few seconds)", quiet=as_json):
         plan = check_task(spec)
     if not plan.preflight.ok:
@@ -356,7 +366,7 @@ def _refuse(ctx: click.Context, plan, as_json: bool) -> None:
     legs = any(m.legs_lag for m in worst)
     farthest = max(worst, key=lambda m: -1.0 if m.miss_m is None else m.miss_m)
     raise SafetyError(
-        f"{plan.spec.name} refused in pre-flight, nothing moved: {farthest.message()}",
+        f"{shown_name(plan.spec.name)} refused in pre-flight, nothing moved: {farthest.message()}",
         hint="cut more slowly (--speed)" if legs else
         "make the path smaller, or choose --wall-distance / the stance's centre_mm")
 
@@ -370,8 +380,8 @@ def _progress_line(target, panel) -> str:
     plan = target.plan
     step = plan.spec.steps[min(target.step, len(plan.spec.steps) - 1)]
     phase = "EMERGENCY STOP" if target.phase == "stopped" else target.phase
-    return (f"{plan.spec.name}: {phase}, step {step.number}/{len(plan.spec.steps)} "
-            f"'{step.name}' {target.step_fraction(target.step):.0%}, bit error "
+    return (f"{shown_name(plan.spec.name)}: {phase}, step {step.number}/{len(plan.spec.steps)} "
+            f"'{shown_name(step.name)}' {target.step_fraction(target.step):.0%}, bit error "
             f"{target.error_m * 1000:.1f} mm, wrist {target.torque_nm:.2f} N m | "
             f"{panel.words()}")
 
@@ -382,7 +392,7 @@ def _view(target, panel, keys: bool = False) -> Group:
     plan = target.plan
     safety = panel()
     status = PHASE_WORDS[target.phase]
-    table = Table(title=f"hubo task {plan.spec.name} — {status}"
+    table = Table(title=f"hubo task {escape(shown_name(plan.spec.name))} — {status}"
                   + (f"   (keys: {KEYS_HELP})" if keys else ""), title_justify="left",
                   box=None, pad_edge=False)
     table.add_column("step")
@@ -392,7 +402,7 @@ def _view(target, panel, keys: bool = False) -> Group:
     for index, step in enumerate(plan.spec.steps):
         fraction = target.step_fraction(index)
         marker = "[bold]>[/] " if index == current and target.phase != "settle" else "  "
-        table.add_row(f"{marker}{step.number}. {step.name}",
+        table.add_row(f"{marker}{step.number}. {escape(shown_name(step.name))}",
                       ProgressBar(total=1.0, completed=fraction, width=30),
                       f"{fraction:4.0%}")
     limit = plan.spec.safety.wrist_torque_limit_nm
@@ -409,7 +419,8 @@ def _print_cut(summary: dict, run_dir) -> None:
     why = ("emergency stop" if summary["estop"] else "finished by the operator: q"
            if summary.get("finished_by_operator") else summary["ended"])
     outcome = "completed" if summary["completed"] else f"[red]did not complete[/] ({why})"
-    console.print(f"{summary['task']} {outcome} after {summary['duration_s']:.1f} s "
+    console.print(f"{escape(shown_name(summary['task']))} {outcome} after "
+                  f"{summary['duration_s']:.1f} s "
                   f"({summary['driver']})")
     console.print(f"  stance      wall {stance['wall_distance_mm']:.0f} mm"
                   f"{' (auto)' if stance['auto'] else ''}, work centre y "

@@ -11,6 +11,9 @@ Experiment tasks (``experiment = "push-wall"``) run their built-in procedure ins
 
 from __future__ import annotations
 
+import json
+import re
+import tomllib
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -25,6 +28,7 @@ from hubo_cli.errors import InputError, SafetyError
 from hubo_cli.interrupts import run_files
 from hubo_cli.model import RobotModel, load_model
 from hubo_cli.posture import home_posture
+from hubo_cli.runs import shown_name
 from hubo_cli.session import RunObserver, RunResult, RunSetup, run, settled_objects
 from hubo_cli.tasks.plan import EDGE_NAMES, Plan, make_plan
 from hubo_cli.tasks.spec import TaskSpec, format_override
@@ -151,6 +155,11 @@ def _run_task(plan: Plan, setup: RunSetup, on_start, balance: str) -> TaskRun:
     return TaskRun(done.run_dir, summary, done.loop, plan)
 
 
+def _title_name(name: str) -> str:
+    """A task's name for a plot title: shown safely, its ``$`` kept from starting mathtext."""
+    return shown_name(name).replace("$", r"\$")
+
+
 def _write_task_copy(spec: TaskSpec, run_dir: Path, balance: str,
                      safety: SafetyProfile) -> None:
     """The task file as run; overridden parameters, the balancer and the stops that were
@@ -158,7 +167,7 @@ def _write_task_copy(spec: TaskSpec, run_dir: Path, balance: str,
     active = ", ".join(safety.active_sources) or "none"
     header = [f"# run of {spec.path}",
               f"# safety of this run: e-stop sources {active}; wrist torque limit "
-              f"{spec.safety.wrist_torque_limit_nm:g} N m"]
+              f"{spec.safety.wrist_torque_limit_nm!r} N m"]
     if safety.removed:
         header.append(f"# stop sources removed on the command line: "
                       f"{', '.join(safety.removed)} ({safety.removed_by})")
@@ -167,8 +176,39 @@ def _write_task_copy(spec: TaskSpec, run_dir: Path, balance: str,
         header.append(f"# parameters changed for this run: hubo task run task.toml {sets}")
     if balance != "default":
         header.append(f"# balance controllers of this run: --balance {balance}")
-    original = spec.path.read_text(encoding="utf-8")
-    (run_dir / "task.toml").write_text("\n".join(header) + "\n" + original, encoding="utf-8")
+    text = _with_safety_as_run(spec.path.read_text(encoding="utf-8"), safety, spec.safety)
+    (run_dir / "task.toml").write_text("\n".join(header) + "\n" + text, encoding="utf-8")
+
+
+def _with_safety_as_run(text: str, safety: SafetyProfile, file_safety) -> str:
+    """The task file's text with its ``[safety]`` table (or inline ``safety = {...}`` line)
+    replaced by the settings this run used: the active stop sources, the wrist-torque limit,
+    T1 and T2. A file whose safety is spelled otherwise (dotted keys) is kept as it is: the
+    header above it says what ran."""
+    values = {"estop_sources": list(safety.active_sources),
+              "wrist_torque_limit_nm": file_safety.wrist_torque_limit_nm,
+              "revert_s": file_safety.revert_s, "stop_s": file_safety.stop_s}
+    table = ["[safety]  # as run (the header above says what the command line changed)"]
+    if safety.removed:
+        table.append(f"# {safety.removed_by} removed: {', '.join(safety.removed)}")
+    table += [f"{k} = {json.dumps(v)}" for k, v in values.items()]
+    kept, inside, top_level = [], False, True
+    for line in text.splitlines():
+        bare = line.strip()
+        if bare.startswith("["):
+            inside = re.fullmatch(r"\[\s*safety\s*\]\s*(#.*)?", bare) is not None
+            top_level = False
+        elif top_level and re.match(r"safety\s*=", bare):
+            continue  # the inline table
+        if not inside:
+            kept.append(line)
+    new = "\n".join(kept).rstrip("\n") + "\n\n" + "\n".join(table) + "\n"
+    try:
+        if tomllib.loads(new).get("safety") == values:
+            return new
+    except tomllib.TOMLDecodeError:
+        pass
+    return text
 
 
 def _stats(values) -> dict:
@@ -258,7 +298,8 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
         rms = float(np.sqrt(np.mean(errors**2)) * 1000)
         plot_path_comparison(goal - T_S_W[:3, 3], actual - T_S_W[:3, 3], run_dir / "path.png",
                              plane="yz", frame="the wall frame",
-                             title=f"{spec.name}: commanded vs actual drill bit while cutting",
+                             title=f"{_title_name(spec.name)}: commanded vs actual drill bit while "
+                                   "cutting",
                              rms_error_mm=rms,
                              actual_label="bit measured (arm FK through the torso estimate)",
                              hole_m=_hole_in_wall_frame(log, target, T_S_W),
@@ -267,7 +308,7 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
                              - T_S_W[:3, 3])
         done.add_file("path.png")
     plot_wrist_torque(log, run_dir / "wrist_torque.png", limit_nm=limit,
-                      title=f"{spec.name}: wrist torque (limit {limit:g} N m)",
+                      title=f"{_title_name(spec.name)}: wrist torque (limit {limit:g} N m)",
                       stop_times_s=[e[1] for e in stops])
     done.add_file("wrist_torque.png")
     stop = None

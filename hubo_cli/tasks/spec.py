@@ -24,7 +24,8 @@ the step runner, :mod:`hubo_cli.tasks.runner`) or ``experiment`` (a built-in pro
 ``[safety]``
     ``estop_sources`` (of ``operator``, ``capture-point``, ``wrist-torque``,
     ``stale-input``; the first three always), ``wrist_torque_limit_nm`` (at most the robot
-    file's), ``revert_s`` (T1), ``stop_s`` (T2). A file or ``--set`` only tightens these; a
+    file's), ``revert_s`` (T1), ``stop_s`` (T2) (at most the robot file's ``estop_revert_s``,
+    ``estop_stop_s``). A file or ``--set`` only tightens these; a
     stop source is removed on the command line alone (``--estop-sources``, ``--no-estop``).
 ``[[steps]]``
     In order, each with a ``kind`` and an optional ``name``:
@@ -231,13 +232,17 @@ def find_task(name_or_path: str | Path) -> Path:
                       hint=f"shipped tasks: {names}; or give a .toml file")
 
 
-def load_task(name_or_path: str | Path, overrides: dict | None = None) -> TaskSpec:
+def load_task(name_or_path: str | Path, overrides: dict | None = None, *,
+              sources_on_command_line: bool = False) -> TaskSpec:
     """Read, check and resolve a task file.
 
     Args:
         name_or_path: a ``.toml`` file or the name of a shipped task.
         overrides: parameter name -> value (strings from the command line are converted to the
             default's type; ``auto`` stays a string).
+        sources_on_command_line: ``--estop-sources`` or ``--no-estop`` chooses the run's stop
+            sources, so the file's list may lack some (a task file as run records them so);
+            the run keeps the command line's, removing sources from the task's baseline.
 
     Raises:
         ConfigError: the file is missing or malformed (file, line, field and a hint).
@@ -261,7 +266,7 @@ def load_task(name_or_path: str | Path, overrides: dict | None = None) -> TaskSp
             message = message.split(" (at line ")[0]
         raise ConfigError(f"not valid TOML: {message}", path=str(path), line=line,
                           hint="check the quotes, brackets and '=' on that line") from None
-    return _Loader(path, text, data, overrides or {}).task()
+    return _Loader(path, text, data, overrides or {}, sources_on_command_line).task()
 
 
 FIELD_TABLES = ("stance", "scene", "safety")  # what a dotted ``--set`` name may reach
@@ -305,8 +310,10 @@ def _scalar(value: str) -> object:
 class _Loader:
     """Checks one parsed file field by field, so each error can point at its line."""
 
-    def __init__(self, path: Path, text: str, data: dict, overrides: dict) -> None:
+    def __init__(self, path: Path, text: str, data: dict, overrides: dict,
+                 sources_on_command_line: bool = False) -> None:
         self.path = path
+        self.sources_on_command_line = sources_on_command_line
         self.text = text
         self.data = data
         self.overrides = {k: v for k, v in overrides.items() if "." not in k}
@@ -476,24 +483,30 @@ class _Loader:
             raise self.fail(t.key("estop_sources"), f"must be a list of sources, got {sources!r}",
                             hint=f"choose from {', '.join(ESTOP_SOURCES)}")
         missing = [s for s in TASK_SOURCES if s not in sources]
-        if missing:
+        if missing and not self.sources_on_command_line:
             kept = ",".join(s for s in ESTOP_SOURCES if s in sources) or "none"
             raise self.fail(t.key("estop_sources"), f"a task may add stop sources but not "
                             f"remove the {stops_words(missing)}",
                             hint=f"to run without the {stops_words(missing)}, say so on "
                                  f"the command line: --estop-sources {kept}")
-        robot_limit_nm = float(load_model().safety["wrist_torque_limit_nm"])
-        limit = t.number("wrist_torque_limit_nm", positive=True, maximum=WRIST_TORQUE_MAX_NM,
-                         default=robot_limit_nm)
-        if limit > robot_limit_nm:
-            raise self.fail(t.key("wrist_torque_limit_nm"), f"{limit:g} N m is above the robot "
-                            f"file's limit of {robot_limit_nm:g} N m: a task may only lower it",
-                            hint=f"give at most {robot_limit_nm:g}, or leave it out")
-        safety = Safety(tuple(s for s in ESTOP_SOURCES if s in sources), limit,
-                        t.number("revert_s", positive=True, maximum=STOP_MAX_S,
-                                 default=d.revert_s),
-                        t.number("stop_s", positive=True, maximum=STOP_MAX_S,
-                                 default=d.stop_s))
+        robot = load_model().safety
+        # field, unit, sense bound, its robot file key (the most a task may give), words
+        at_most = (("wrist_torque_limit_nm", "N m", WRIST_TORQUE_MAX_NM, "wrist_torque_limit_nm",
+                    "limit", "lower it"),
+                   ("revert_s", "s", STOP_MAX_S, "estop_revert_s", "T1",
+                    "shorten it: a longer one reverts further back"),
+                   ("stop_s", "s", STOP_MAX_S, "estop_stop_s", "T2",
+                    "shorten it: a longer one is a slower stop"))
+        values = []
+        for name, unit, maximum, robot_key, what, rule in at_most:
+            robot_value = float(robot[robot_key])
+            value = float(t.number(name, positive=True, maximum=maximum, default=robot_value))
+            if value > robot_value:  # repr: the shortest text that tells two floats apart
+                raise self.fail(t.key(name), f"{value!r} {unit} is above the robot file's "
+                                f"{what} of {robot_value!r} {unit}: a task may only {rule}",
+                                hint=f"give at most {robot_value!r}, or leave it out")
+            values.append(value)
+        safety = Safety(tuple(s for s in ESTOP_SOURCES if s in sources), *values)
         t.finish()
         return safety
 
