@@ -20,6 +20,7 @@ import numpy as np
 
 from hubo_cli.fastrak.records import SUSPECT_STATUS, RecordBatch
 from hubo_cli.geometry import quat_wxyz_to_matrix
+from hubo_cli.timeline import Timeline
 
 
 @dataclass(frozen=True, eq=False)
@@ -190,59 +191,47 @@ class ReplaySource(PoseSource):
 
     def __init__(self, samples: list[PoseSample], info: dict, stats: SourceStats) -> None:
         super().__init__()
-        self._samples = samples
-        self._times = np.array([s.t_s for s in samples], dtype=np.float64)
-        if self._times.size and (np.diff(self._times) < 0).any():
-            order = np.argsort(self._times, kind="stable")
-            self._samples = [samples[i] for i in order]
-            self._times = self._times[order]
-        self._cursor = 0
-        self._now = float("-inf")
+        self._timeline = Timeline(samples, lambda sample: sample.t_s)
         self.info = info
         self.stats = stats
 
     @property
     def start_s(self) -> float:
         """Receive time of the first sample, seconds."""
-        return float(self._times[0]) if self._times.size else 0.0
+        return self._timeline.start_s
 
     @property
     def end_s(self) -> float:
         """Receive time of the last sample, seconds."""
-        return float(self._times[-1]) if self._times.size else 0.0
+        return self._timeline.end_s
 
     @property
     def done(self) -> bool:
         """True once every sample has been delivered."""
-        return self._cursor >= len(self._samples)
+        return self._timeline.done
 
     @property
     def recorded_s(self) -> float:
         """From the first sample to the last (s)."""
-        return self.end_s - self.start_s
+        return self._timeline.recorded_s
 
     @property
     def stations(self) -> tuple[int, ...]:
         """Stations present in the recording."""
-        return tuple(sorted({s.station for s in self._samples}))
+        return tuple(sorted({s.station for s in self._timeline.items}))
 
     def read_until(self, t_s: float) -> list[PoseSample]:
         """Every not yet delivered sample with receive time <= ``t_s`` (seconds)."""
-        self._now = max(self._now, float(t_s))
-        end = int(np.searchsorted(self._times, t_s, side="right"))
-        if end <= self._cursor:
-            return []
-        out = self._samples[self._cursor:end]
-        self._cursor = end
-        self._seen(out)
+        out = self._timeline.take_until(t_s)
+        if out:
+            self._seen(out)
         return out
 
     def now_s(self) -> float:
         """The latest ``t_s`` passed to :meth:`read_until`."""
-        return self._now if self._now != float("-inf") else self.start_s
+        return self._timeline.now_s()
 
     def rewind(self) -> None:
         """Start delivering from the first sample again."""
-        self._cursor = 0
-        self._now = float("-inf")
+        self._timeline.rewind()
         self._last_seen.clear()

@@ -20,6 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hubo_cli.timeline import Timeline
+
 HANDS = ("right", "left")
 ARM_OF_HAND = {"right": "right-arm", "left": "left-arm"}  # the robot arm a hand drives
 HAND_OF_ARM = {arm: hand for hand, arm in ARM_OF_HAND.items()}
@@ -140,41 +142,31 @@ class RecordedInput(InputDevice):
 
     def __init__(self, poses: list[HandPose], info: dict) -> None:
         super().__init__()
-        order = sorted(range(len(poses)), key=lambda i: poses[i].t_s)
-        self._poses = [poses[i] for i in order]
-        self._times = np.array([p.t_s for p in self._poses], dtype=np.float64)
-        self._cursor = 0
-        self._now = -math.inf
+        self._timeline = Timeline(poses, lambda pose: pose.t_s)
         self.info = info
-        self.hands = tuple(h for h in HANDS if any(p.hand == h for p in self._poses))
+        self.hands = tuple(h for h in HANDS if any(p.hand == h for p in self._timeline.items))
 
     @property
     def start_s(self) -> float:
         """Time of the first pose, seconds."""
-        return float(self._times[0]) if self._times.size else 0.0
+        return self._timeline.start_s
 
     @property
     def end_s(self) -> float:
         """Time of the last pose, seconds."""
-        return float(self._times[-1]) if self._times.size else 0.0
+        return self._timeline.end_s
 
     @property
     def done(self) -> bool:
-        return self._cursor >= len(self._poses)
+        return self._timeline.done
 
     @property
     def recorded_s(self) -> float:
-        return self.end_s - self.start_s
+        return self._timeline.recorded_s
 
     def _read(self, t_s: float) -> list[HandPose]:
-        self._now = max(self._now, float(t_s))
-        end = int(np.searchsorted(self._times, t_s, side="right"))
-        if end <= self._cursor:
-            return []
-        out = self._poses[self._cursor:end]
-        self._cursor = end
-        return out
+        return self._timeline.take_until(t_s)
 
     def now_s(self) -> float:
         """The latest ``t_s`` passed to :meth:`read_until` (before any: the first pose's)."""
-        return self._now if self._now != -math.inf else self.start_s
+        return self._timeline.now_s()
