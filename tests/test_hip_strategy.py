@@ -88,7 +88,7 @@ def _com_and_trunk_in_the_sole_frame(model, q_rad: np.ndarray) -> tuple[np.ndarr
     (pinocchio on the URDF: independent of the module's own numbers)."""
     import pinocchio as pin
 
-    from hubo_cli.control.pin_robot import load_pin_robot
+    from hubo_cli.pin_robot import load_pin_robot
 
     robot = load_pin_robot(model, floating=True)
     data = robot.model.createData()

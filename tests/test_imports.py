@@ -1,4 +1,5 @@
-"""The import graph of ``hubo_cli``: no cycles, and no upward import from drivers into control.
+"""The import graph of ``hubo_cli``: no cycles, no upward import from drivers into control, and
+the estimation layer below everything that reads its estimate.
 
 The graph is read from the source with ``ast`` (nothing is imported): every ``import`` and
 ``from ... import`` statement counts, at module level or inside a function, with relative
@@ -143,7 +144,12 @@ def test_no_import_cycle():
 
 @pytest.mark.parametrize(("lower", "upper"), [("hubo_cli.drivers", "hubo_cli.control"),
                                              ("hubo_cli.motion", "hubo_cli.control"),
-                                             ("hubo_cli.motion", "hubo_cli.drivers")])
+                                             ("hubo_cli.motion", "hubo_cli.drivers"),
+                                             *[("hubo_cli.estimation", upper) for upper in (
+                                                 "hubo_cli.control", "hubo_cli.walking",
+                                                 "hubo_cli.tasks", "hubo_cli.teleop",
+                                                 "hubo_cli.drivers", "hubo_cli.experiments",
+                                                 "hubo_cli.cli")]])
 def test_no_upward_import(lower, upper):
     graph = import_graph()
     upward = sorted((module, target) for module, targets in graph.items()

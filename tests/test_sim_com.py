@@ -5,8 +5,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from hubo_cli.control.pin_robot import load_pin_robot
 from hubo_cli.drivers.sim import SimDriver
+from hubo_cli.pin_robot import load_pin_robot
 from hubo_cli.posture import home_posture
 
 pytestmark = pytest.mark.physical

@@ -334,7 +334,7 @@ def _finish(ctx: click.Context, done, as_json: bool, printer) -> None:
     loop = done.loop
     if isinstance(loop.exception, HuboError):
         raise loop.exception
-    if loop.ended in ("module-error", "target-error", "driver-error"):
+    if loop.ended in ("module-error", "target-error", "estimation-error", "driver-error"):
         raise HuboError(f"the run stopped early: {loop.error}",
                         hint=f"the log up to the stop is in {done.run_dir / 'log.csv'}")
     if as_json:

@@ -223,8 +223,8 @@ class DampingBalancer(Module):
                  differential_time_s: float = DIFFERENTIAL_TIME_S,
                  differential_leak_s: float = DIFFERENTIAL_LEAK_S,
                  max_offset_rad: float = 0.15, edge_margin_m: float = EDGE_MARGIN_M) -> None:
-        from hubo_cli.control.pin_robot import load_pin_robot
         from hubo_cli.errors import ConfigError
+        from hubo_cli.pin_robot import load_pin_robot
 
         values = (damping_nm_s_per_rad, common_leak_s, chain_stiffness_nm_per_rad,
                   differential_time_s, differential_leak_s, max_offset_rad)

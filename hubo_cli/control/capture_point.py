@@ -47,8 +47,8 @@ import pinocchio as pin
 
 from hubo_cli.control.balance import command_configuration
 from hubo_cli.control.module import Cycle, Module
-from hubo_cli.control.pin_robot import PinRobot, load_pin_robot
 from hubo_cli.model import RobotModel
+from hubo_cli.pin_robot import PinRobot, load_pin_robot
 from hubo_cli.state import RobotState
 
 GRAVITY_M_S2 = 9.80665

@@ -70,13 +70,13 @@ import pinocchio as pin
 
 from hubo_cli.control.estop import BRAKE_FLAG
 from hubo_cli.control.module import Cycle, Module
-from hubo_cli.control.pin_robot import PinRobot, load_pin_robot
 from hubo_cli.control.status import SafetyEvent
 from hubo_cli.errors import ConfigError
 from hubo_cli.geometry import rpy_to_matrix
 from hubo_cli.model import LEGS, DrillShape, RobotModel
 from hubo_cli.motion.limits import JointLimits, braking_distance, braking_distance_of
 from hubo_cli.motion.tracker import JointTracker
+from hubo_cli.pin_robot import PinRobot, load_pin_robot
 from hubo_cli.state import RobotState
 from hubo_cli.urdf import DRILL_FRAME
 

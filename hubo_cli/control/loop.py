@@ -44,8 +44,10 @@ from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.status import Status, status_from_flags
 from hubo_cli.control.target import Target, TargetOutput, as_target
+from hubo_cli.dataflow import Store, check_flow
 from hubo_cli.drivers.base import Driver
 from hubo_cli.errors import ConfigError, DeviceError, HuboError, interrupt_cause
+from hubo_cli.estimation.estimator import Estimator
 from hubo_cli.motion.limits import JointLimits, all_finite
 from hubo_cli.motion.tracker import JointTracker
 from hubo_cli.state import RobotState
@@ -65,7 +67,7 @@ class PeriodObserver(Protocol):
 
 LABELS = {status: status.label for status in Status}  # a property's work done once
 ENDINGS = ("finished", "done", "interrupted", "module-error", "target-error", "driver-error",
-           "device", "log-error")
+           "device", "log-error", "estimation-error")
 MAX_STOP_S = 15.0  # a brake from full speed at the slowest joint's limits takes under 2 s
 
 
@@ -76,6 +78,7 @@ class LoopResult:
     Attributes:
         ended: ``finished`` (duration reached), ``done`` (the target source said so),
             ``interrupted`` (Ctrl-C or SIGTERM), ``module-error``, ``target-error``,
+            ``estimation-error`` (an observer failed: the robot is braked from the last command),
             ``driver-error``, ``device`` (the driver reported device trouble, e.g. the robot's
             state stopped; it has braked and holds by itself) or ``log-error`` (the log could
             not be written: a full disk).
@@ -153,6 +156,9 @@ class ControlLoop:
             what was pressed is taken each period and merged into the target's ``info``.
         observer: shown every period (:class:`PeriodObserver`); ``observer_error`` says why
             it was dropped, if it was.
+        estimator: the estimation layer, run on every state the driver returns, before the
+            target and the modules (None: an empty store, for modules that read nothing).
+            The flow of keys from it through the target and the modules is checked now.
     """
 
     def __init__(self, driver: Driver, modules: list[Module], target: TargetSource, *,
@@ -160,7 +166,8 @@ class ControlLoop:
                  clock: Callable[[], float] = time.perf_counter,
                  sleep: Callable[[float], None] = time.sleep,
                  max_lag_periods: int = 20, operator: OperatorKeys | None = None,
-                 observer: PeriodObserver | None = None) -> None:
+                 observer: PeriodObserver | None = None,
+                 estimator: Estimator | None = None) -> None:
         if speed is not None and speed <= 0:
             raise ValueError("speed must be positive or None")
         self.driver = driver
@@ -177,6 +184,10 @@ class ControlLoop:
                     f"the {m.name} module was built for a {m.dt_s * 1000:g} ms period but the "
                     f"{driver.name} driver runs at {self.dt_s * 1000:g} ms",
                     hint="build the pipeline with the driver's period (driver.period_s)")
+        self.estimator = estimator
+        self.store = estimator.store if estimator is not None else Store()
+        check_flow([self.target, *self.modules],
+                   provided=estimator.writes if estimator is not None else ())
         self.clock = clock
         self.sleep = sleep
         self.max_lag_periods = max_lag_periods
@@ -259,6 +270,8 @@ class ControlLoop:
         t_s = 0.0
         try:
             state = driver.read()
+            if self.estimator is not None:
+                self.estimator.reset(state)
             q0 = np.array(state.q_rad, dtype=float)
             self._cmd = self._cmd_prev = self._cmd_prev2 = q0
             for m in self.modules:
@@ -266,7 +279,7 @@ class ControlLoop:
             while duration_s is None or self.period * self.dt_s < duration_s - 1e-9:
                 t_s = self.period * self.dt_s
                 late_s = self._pace()
-                cycle = Cycle(t_s, self.dt_s)
+                cycle = Cycle(t_s, self.dt_s, store=self.store)
                 started = self.clock()
                 stage = "target"
                 try:
@@ -304,6 +317,14 @@ class ControlLoop:
                     error, exc = f"{type(err).__name__}: {err}", err
                     driver.stop()
                     break
+                if self.estimator is not None:
+                    try:
+                        self.estimator.update(state)
+                    except Exception as err:  # noqa: BLE001 (ends in a smooth stop)
+                        ended, exc = "estimation-error", err
+                        error = str(err) if isinstance(err, HuboError) else (
+                            f"{type(err).__name__} in estimation: {err}")
+                        break
                 self._remember(np.array(q, dtype=float))
                 self.target.robot_flags = state.flags
                 cycle.flags.update(state.flags)

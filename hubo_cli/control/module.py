@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hubo_cli.control.status import SafetyEvent
+from hubo_cli.dataflow import Key, Store
 from hubo_cli.state import RobotState
 
 
@@ -35,6 +36,8 @@ class Cycle:
         estop_requests: sources asking for an emergency stop this period (e.g. ``"operator"``,
             ``"capture-point"``, ``"wrist-torque"``, ``"stale-input"``).
         info: per-module numbers worth logging (name -> float).
+        store: the run's per-period store: the estimate and what earlier modules wrote (see
+            :mod:`hubo_cli.dataflow`; a module reads only the keys it declares).
     """
 
     t_s: float
@@ -42,6 +45,7 @@ class Cycle:
     flags: set[str] = field(default_factory=set)
     estop_requests: set[str] = field(default_factory=set)
     info: dict[str, float] = field(default_factory=dict)
+    store: Store = field(default_factory=Store)
 
 
 class Module(ABC):
@@ -53,9 +57,12 @@ class Module(ABC):
             from each :class:`Cycle`.
         log_columns: every ``cycle.info`` key the module writes (logged each period).
         events: safety events the module recorded (stops, releases, collision holds).
+        reads, writes: the store keys it reads and writes (checked when the loop is built).
     """
 
     name = "module"
+    reads: tuple[Key, ...] = ()
+    writes: tuple[Key, ...] = ()
     dt_s: float | None = None
     log_columns: tuple[str, ...] = ()
     events: Sequence[SafetyEvent] = ()

@@ -45,11 +45,11 @@ import numpy as np
 import pinocchio as pin
 
 from hubo_cli.control.module import Cycle, Module
-from hubo_cli.control.pin_robot import load_pin_robot
 from hubo_cli.errors import ConfigError
 from hubo_cli.geometry import quat_wxyz_to_matrix
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
+from hubo_cli.pin_robot import load_pin_robot
 from hubo_cli.state import RobotState
 
 GRAVITY_M_S2 = 9.80665

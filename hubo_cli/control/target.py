@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from hubo_cli.dataflow import Key
 from hubo_cli.state import RobotState
 
 if TYPE_CHECKING:
@@ -25,9 +26,14 @@ class Target(ABC):
         log_columns: the numeric ``info`` keys it returns that go into the log.
         robot_flags: the flags of the robot's latest state (set by the loop every period;
             the live view shows the driver's, e.g. ``stale-state``).
+        name: the target's name in flow errors.
+        reads: the store keys it reads (the estimate's; checked when the loop is built).
     """
 
+    name = "target"
     log_columns: tuple[str, ...] = ()
+    reads: tuple[Key, ...] = ()
+    writes: tuple[Key, ...] = ()
     robot_flags: tuple[str, ...] = ()
 
     @abstractmethod

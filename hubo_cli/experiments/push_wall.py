@@ -30,7 +30,6 @@ import pinocchio as pin
 from hubo_cli.control.estop import EmergencyStopper
 from hubo_cli.control.log import LogData
 from hubo_cli.control.loop import LoopResult
-from hubo_cli.control.pin_robot import load_pin_robot
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.target import Target
 from hubo_cli.drivers.base import SimulatedWorld
@@ -39,6 +38,7 @@ from hubo_cli.falls import FALL_TILT_DEG, has_fallen
 from hubo_cli.geometry import min_jerk, tilt_rad_of_matrix, tilt_rad_of_quat_wxyz
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
+from hubo_cli.pin_robot import load_pin_robot
 from hubo_cli.posture import home_posture
 from hubo_cli.session import RunObserver, RunResult, RunSetup, run
 

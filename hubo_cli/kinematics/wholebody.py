@@ -115,7 +115,7 @@ class WholeBody:
         self._ground_z_m = float(np.mean([T[2, 3] for T in self.T_S_sole.values()]))
         self._pin = None
         if self.com_control:
-            from hubo_cli.control.pin_robot import load_pin_robot
+            from hubo_cli.pin_robot import load_pin_robot
 
             urdf = model.urdf_path(drill=self.tools["right-arm"] == "drill")
             # floating, the torso at the origin: a fixed base would leave the torso's mass out

@@ -22,10 +22,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pinocchio as pin
 
-from hubo_cli.control.pin_robot import load_pin_robot
 from hubo_cli.errors import InputError
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import LEGS, RobotModel
+from hubo_cli.pin_robot import load_pin_robot
 from hubo_cli.posture import home_posture
 from hubo_cli.walking.footsteps import wrap_angle
 from hubo_cli.walking.gait import Gait

@@ -1,0 +1,71 @@
+"""The declared data flow: keys read before they are written, or written twice, are build errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hubo_cli.control.loop import ControlLoop
+from hubo_cli.control.module import Module
+from hubo_cli.dataflow import FlowError, Key, Store, check_flow
+from hubo_cli.drivers.registry import make_driver
+from hubo_cli.estimation.estimator import Estimator
+from hubo_cli.estimation.observer import Observer
+from hubo_cli.model import load_model
+
+A = Key("a_m", float, "a test quantity (m)")
+B = Key("b_m", float, "another (m)")
+
+
+class Writes(Observer):
+    name, writes = "writes-a", (A,)
+
+    def update(self, state, store):
+        store[A] = float(state.time_s)
+
+
+class Reads(Module):
+    name, reads, writes = "reads-a", (A,), (B,)
+    seen: list[float]
+
+    def __init__(self):
+        self.seen = []
+
+    def update(self, q_rad, state, cycle):
+        self.seen.append(cycle.store[A])
+        cycle.store[B] = 2 * cycle.store[A]
+        return q_rad
+
+
+def test_a_read_before_any_writer_is_a_build_error():
+    with pytest.raises(FlowError, match="reads-a reads a_m, which no earlier stage writes"):
+        check_flow([Reads()])
+    check_flow([Writes(), Reads()])
+
+
+def test_two_writers_of_one_key_are_a_build_error():
+    with pytest.raises(FlowError, match="a_m is written by both writes-a and writes-a"):
+        Estimator([Writes(), Writes()])
+
+
+def test_an_unwritten_key_cannot_be_read():
+    store = Store()
+    with pytest.raises(FlowError, match="nothing has written b_m"):
+        store[B]
+    assert store.get(B, 1.5) == 1.5
+
+
+def test_the_loop_runs_the_estimator_before_the_modules_and_checks_the_flow():
+    model = load_model()
+    with make_driver("ideal", model) as driver:
+        driver.start()
+        with pytest.raises(FlowError):
+            ControlLoop(driver, [Reads()], lambda t, s: (None, {}))
+        reader = Reads()
+        loop = ControlLoop(driver, [reader], lambda t, s: (None, {}),
+                           estimator=Estimator([Writes()]))
+        result = loop.run(0.05)
+    assert result.ok
+    # period k sees the estimate of the state after period k - 1's step (period 0: the start)
+    assert np.allclose(np.diff(reader.seen), driver.period_s)
+    assert loop.store[B] == 2 * reader.seen[-1]
