@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from hubo_cli.errors import InputError
+from hubo_cli.outputs import replacing
 
 try:  # POSIX: advisory locks
     import fcntl
@@ -250,7 +251,19 @@ def _jsonable(value):
 
 
 def write_json(path: str | Path, data: dict) -> Path:
-    """Write ``data`` as pretty JSON (numpy values converted, NaN/inf as null)."""
+    """Write ``data`` as pretty JSON (numpy values converted, NaN/inf as null), whole or not
+    at all: written beside ``path`` and renamed over it, so a full disk or an interrupt never
+    leaves a summary cut short.
+
+    Raises:
+        InputError: the file cannot be written (the former one, if any, is kept).
+    """
     path = Path(path)
-    path.write_text(json.dumps(_jsonable(data), indent=2) + "\n", encoding="utf-8")
+    text = json.dumps(_jsonable(data), indent=2) + "\n"
+    with replacing(path) as temporary:
+        try:
+            temporary.write_text(text, encoding="utf-8")
+        except OSError as exc:
+            raise InputError(f"cannot write {path}: {exc.strerror or exc}",
+                             hint="free disk space or choose a writable path") from None
     return path

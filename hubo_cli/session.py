@@ -288,13 +288,8 @@ def _end_without_log(setup: RunSetup, speed: float | None, loop: LoopResult,
     """A run whose log could not be written (a full disk) was braked to a stop: write what
     summary the disk still takes and raise DeviceError (exit 3) saying so."""
     summary = common_summary(setup, speed, loop, modules, run_dir)
-    partial = run_dir / (SUMMARY_NAME + ".part")
-    try:  # a summary whole or none: written aside, then renamed
-        write_json(partial, summary)
-        partial.replace(run_dir / SUMMARY_NAME)
-    except OSError:
-        with contextlib.suppress(OSError):
-            partial.unlink(missing_ok=True)
+    with contextlib.suppress(InputError):  # a summary whole or none (write_json)
+        write_json(run_dir / SUMMARY_NAME, summary)
     kept = ("its records are kept in log.rows: `hubo replay` writes log.csv from them once "
             "there is space" if (run_dir / ROWS_NAME).exists() else "")
     raise DeviceError(f"{loop.error}; the run was braked to a stop after {loop.t_end_s:.2f} s",

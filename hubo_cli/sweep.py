@@ -33,6 +33,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from hubo_cli.errors import DeviceError, HuboError, InputError
+from hubo_cli.outputs import replacing
 
 SIM_COMMAND = "sim"
 SIM_PARAMETERS = {"duration": 5.0, "push": 0.0}
@@ -643,16 +644,23 @@ def parameter_names(rows: Sequence[Row]) -> list[str]:
 
 
 def write_table(rows: Sequence[Row], path: str | Path) -> Path:
-    """The sweep table as CSV: command, seed, one column per parameter, then the outcome."""
+    """The sweep table as CSV: command, seed, one column per parameter, then the outcome;
+    written beside ``path`` and renamed over it (whole or not at all)."""
     names = parameter_names(rows)
     header = ["command", "seed", *names, *COLUMNS[2:]]
-    with open(path, "w", newline="", encoding="utf-8") as f:
-        writer = csv.writer(f)
-        writer.writerow(header)
-        for row in rows:
-            values = asdict(row)
-            writer.writerow([row.command, row.seed, *(row.parameters.get(n, "") for n in names),
-                             *(_cell(values[c]) for c in COLUMNS[2:])])
+    try:
+        with replacing(path) as temporary, \
+                open(temporary, "w", newline="", encoding="utf-8") as f:
+            writer = csv.writer(f)
+            writer.writerow(header)
+            for row in rows:
+                values = asdict(row)
+                writer.writerow([row.command, row.seed,
+                                 *(row.parameters.get(n, "") for n in names),
+                                 *(_cell(values[c]) for c in COLUMNS[2:])])
+    except OSError as exc:
+        raise InputError(f"cannot write {path}: {exc.strerror or exc}",
+                         hint="free disk space or choose a writable path") from None
     return Path(path)
 
 

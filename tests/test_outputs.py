@@ -449,3 +449,35 @@ def test_export_and_replay_never_write_over_the_run_and_replace_a_file_whole(rea
         _invoke(["replay", str(real_run), "--video", str(tmp_path / name), "--size", "64x48"],
                 2, "must end in .mp4", run_files)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.mcap", "a.mp4"]
+
+
+def test_a_summary_and_a_sweep_table_are_written_whole_or_not_at_all(tmp_path, monkeypatch):
+    """A write that fails half way (a full disk) keeps the former file and leaves no part."""
+    from hubo_cli.runs import write_json
+    from hubo_cli.sweep import write_table
+
+    summary = tmp_path / "summary.json"
+    write_json(summary, {"ok": True})
+    table = tmp_path / "sweep.csv"
+    write_table([], table)
+    before = summary.read_text(), table.read_text()
+
+    real_open = open
+
+    def failing_open(path, mode="r", *args, **kwargs):
+        f = real_open(path, mode, *args, **kwargs)
+        if "w" in mode and ".part" in str(path):
+            f.write("{half" if str(path).endswith(".json") else "command,se")
+            f.flush()
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return f
+
+    monkeypatch.setattr("builtins.open", failing_open)
+    monkeypatch.setattr(Path, "write_text", lambda self, text, **kw: failing_open(self, "w"))
+    with pytest.raises(InputError, match="cannot write .*summary.json: No space left"):
+        write_json(summary, {"ok": False})
+    with pytest.raises(InputError, match="cannot write .*sweep.csv: No space left"):
+        write_table([], table)
+    monkeypatch.undo()
+    assert (summary.read_text(), table.read_text()) == before
+    assert not [p for p in tmp_path.iterdir() if ".part" in p.name]
