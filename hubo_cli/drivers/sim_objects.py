@@ -32,10 +32,12 @@ HUB_RADIUS_M = 0.03
 SPOKES = 3
 PANEL_HALF_M = (0.01, 0.35, 0.35)   # the valve's mounting panel (x thickness, y, z half sizes)
 POST_HALF_M = (0.05, 0.05)          # the door frame's hinge post (x, y half sizes)
-# the grip: 20 N stretch it 4 mm; past 300 N (15 mm) it slips
-GRIP_STIFFNESS_N_M = 20000.0
-GRIP_DAMPING_N_S_M = 150.0
-GRIP_SLIP_M = 0.015
+# the grip: the fingers and the play between them and the rim give 1 cm under 20 N (a stiffer
+# grip against the position-controlled arm turned the few millimetres by which the hand's path
+# misses the rim's circle into 100 N); stretched 4 cm (80 N) it slips
+GRIP_STIFFNESS_N_M = 2000.0
+GRIP_DAMPING_N_S_M = 60.0
+GRIP_SLIP_M = 0.04
 WOOD_FRICTION = 0.6
 
 
