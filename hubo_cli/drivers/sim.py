@@ -58,6 +58,9 @@ Sensors (:class:`~hubo_cli.drivers.base.RobotState`)
     at ``CONTACT_CUTOFF_HZ`` (5 Hz), exceeds ``CONTACT_THRESHOLD_N`` (25 N), as hrpsys decides
     it: a foot that only brushes the floor (a rocking sole touching with a few newtons) does not
     count as support.
+    With hinged objects in the scene (:meth:`add_valve`, :meth:`add_door`) a wrist reads its
+    hand's contacts averaged over the period's physics steps, plus the force of a grip on an
+    object (:mod:`hubo_cli.drivers.sim_objects`).
 
 Drilling (:class:`~hubo_cli.scene.CuttingModel`)
     With the drill on the right hand (``drill=True``) and a wall in the scene (:meth:`add_wall`),
@@ -369,6 +372,7 @@ class SimDriver(Driver, SimulatedWorld):
         self._objects: dict[str, HingedBody] = {}
         self._pending_objects: dict[str, Valve | Door] = {}
         self._grips: dict[str, Grip] = {}  # hand frame -> its grip
+        self._earlier_hand_rows: dict[int, list[tuple]] = {}  # see _hand_rows
         self._pushes: list[_Push] = []
         self._state: RobotState | None = None
         self._cmd = np.zeros(len(self.joint_names))
@@ -443,6 +447,7 @@ class SimDriver(Driver, SimulatedWorld):
             self._links[info[12].decode()] = i
         self._idx = [joints[n] for n in self.joint_names]
         self._wrist_link = self._links["RWP_link"]  # the drill's
+        self._hand_link_ids = [self._links[link] for link, _ in HAND_FRAMES.values()]
         self._sensor_link_ids = [self._links[n] for n in SENSOR_LINKS]
         # per F/T sensor, in FT_SENSORS order: its link's index in PyBullet and in the sensor
         # links' batch, the link-to-sensor pose, which ankle (0, 1, None), the drill's wrist
@@ -550,6 +555,7 @@ class SimDriver(Driver, SimulatedWorld):
         self._walls = []
         self._objects = {}
         self._grips = {}
+        self._earlier_hand_rows = {}
         self._cut_points = []
         self._pushes = []
         self._stopped = False
@@ -592,6 +598,8 @@ class SimDriver(Driver, SimulatedWorld):
             self._apply_external_forces(self._t + k * self.options.physics_dt_s)
             p.stepSimulation(physicsClientId=cid)
             self._physics_step += 1
+            if self._objects and k < self.substeps - 1:
+                self._keep_hand_rows()
         self._physics_wall_s += time.perf_counter() - t0
         self._t += self.period_s
         self._state = self._measure()
@@ -816,6 +824,26 @@ class SimDriver(Driver, SimulatedWorld):
                          fx * r02 + fy * r12 + fz * r22, mx * r00 + my * r10 + mz * r20,
                          mx * r01 + my * r11 + mz * r21, mx * r02 + my * r12 + mz * r22))
 
+    def _hand_rows(self, link_id: int, rows: list[tuple]) -> list[tuple]:
+        """A hand's rows when the scene has hinged objects: its contacts averaged over the
+        period's physics steps (a hand pushing a door slowly meets it in one of the two steps
+        and leaves it in the other, 25 N and 0 N: the last step alone read 0 N all along) and
+        the force of the grip holding an object (its last step's)."""
+        share = 1.0 / self.substeps
+        earlier = self._earlier_hand_rows.pop(link_id, [])
+        averaged = [(*r[:6], r[6] * share, r[7] * share, *r[8:11], r[11] * share, *r[12:])
+                    for r in (*rows, *earlier)]
+        return averaged + [g.row() for g in self._grips.values()
+                           if g.link == link_id and not g.slipped]
+
+    def _keep_hand_rows(self) -> None:
+        """Keep this physics step's hand contacts for the period's average (:meth:`_hand_rows`)."""
+        for link in self._hand_link_ids:
+            self._earlier_hand_rows.setdefault(link, []).extend(
+                (*cp[5], *cp[7], cp[9], cp[10], *cp[11], cp[12], *cp[13])
+                for cp in self._p.getContactPoints(bodyA=self._robot, linkIndexA=link,
+                                                   physicsClientId=self._cid))
+
     def _measure(self) -> RobotState:
         p, cid = self._p, self._cid
         js = p.getJointStates(self._robot, self._idx, physicsClientId=cid)
@@ -838,10 +866,8 @@ class SimDriver(Driver, SimulatedWorld):
                 force, moment, at = self._cutting_floats
                 extra = (force, at)
             rows = contacts.get(link_id)
-            if self._grips:  # a held object pulls on its hand through the grip
-                held = [g.row() for g in self._grips.values()
-                        if g.link == link_id and not g.slipped]
-                rows = [*(rows or []), *held] if held else rows
+            if self._objects and ankle is None:  # a hand among hinged objects
+                rows = self._hand_rows(link_id, rows or [])
             if rows or extra is not None:
                 ls = link_states[k_state]
                 T_world_sensor = _pose(ls[4], ls[5]) @ T_link_sensor

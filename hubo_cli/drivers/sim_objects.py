@@ -39,6 +39,11 @@ GRIP_STIFFNESS_N_M = 2000.0
 GRIP_DAMPING_N_S_M = 60.0
 GRIP_SLIP_M = 0.04
 WOOD_FRICTION = 0.6
+# The moving link's contacts are compliant, as the soles' (hubo_cli.drivers.sim): with PyBullet's
+# rigid contacts a hand pushing a door open slowly moved it by the solver's position correction
+# alone, every contact reporting 0 N while the closer held it shut with 14 N at the hand
+CONTACT_STIFFNESS_N_M = 1.0e6
+CONTACT_DAMPING_N_S_M = 1.0e4
 
 
 @dataclass
@@ -164,8 +169,10 @@ def create_door(p, cid: int, door: Door) -> HingedBody:
 
 
 def _brake(p, cid: int, body: int, friction_nm: float) -> None:
-    """Dry friction on the joint: a zero-speed velocity motor capped at ``friction_nm``."""
+    """Dry friction on the joint: a zero-speed velocity motor capped at ``friction_nm``; and
+    the moving link's contacts made compliant (``CONTACT_STIFFNESS_N_M``)."""
     p.changeDynamics(body, 0, linearDamping=0.0, angularDamping=0.0, jointDamping=0.0,
+                     contactStiffness=CONTACT_STIFFNESS_N_M, contactDamping=CONTACT_DAMPING_N_S_M,
                      physicsClientId=cid)
     p.setJointMotorControl2(body, 0, p.VELOCITY_CONTROL, targetVelocity=0.0,
                             force=float(friction_nm), physicsClientId=cid)
