@@ -27,9 +27,12 @@ import numpy as np
 
 from hubo_cli.scene import Door, Valve
 
-RIM_SEGMENTS = 24
+# PyBullet builds at most 16 shapes of a compound (MAX_COMPOUND_COLLISION_SHAPES): more are
+# dropped without a word (a 24-segment rim lost its left half, hub and spokes)
+RIM_SEGMENTS = 12
 HUB_RADIUS_M = 0.03
 SPOKES = 3
+MAX_COMPOUND_SHAPES = 16
 PANEL_HALF_M = (0.01, 0.35, 0.35)   # the valve's mounting panel (x thickness, y, z half sizes)
 POST_HALF_M = (0.05, 0.05)          # the door frame's hinge post (x, y half sizes)
 # the grip: the fingers and the play between them and the rim give 1 cm under 20 N (a stiffer
@@ -117,6 +120,7 @@ def create_valve(p, cid: int, valve: Valve) -> HingedBody:
         lengths.append(0.0)
         positions.append([0.0, -r / 2 * math.sin(a), r / 2 * math.cos(a)])
         orientations.append(p.getQuaternionFromEuler([a, 0.0, 0.0]))
+    assert len(types) <= MAX_COMPOUND_SHAPES
     wheel = p.createCollisionShapeArray(types, radii=radii, halfExtents=halves, lengths=lengths,
                                         collisionFramePositions=positions,
                                         collisionFrameOrientations=orientations,

@@ -66,7 +66,8 @@ WRIST = "right-wrist"
 # the scene as the plan sees it, in the start neck frame N (m): found with the arm's IK and the
 # self-collision checker so that every pose of both plans has an exact solution at least
 # COLLISION_MARGIN_M clear of the body (the collision detector holds the arm nearer than 1 cm)
-VALVE_CENTRE_N_M = (0.35, -0.20, -0.17)
+VALVE_CENTRE_N_M = (0.32, -0.20, -0.22)  # low enough that the valve seen 131 mm too far and
+# 33 mm too high (so truly that much nearer and lower) is still clear of the hand at the start
 HAND_ROLL_RAD = math.radians(-30.0)  # the hand rolled outward: the elbow clears the torso
 VALVE_RADIUS_M = 0.12
 VALVE_STEM_M = 0.06
@@ -126,7 +127,7 @@ class ManipulationSpec:
         if offset.shape != (3,) or not np.all(np.isfinite(offset)) \
                 or np.max(np.abs(offset)) > 0.5:
             raise InputError(f"seen_offset_mm must be 3 finite numbers within 500 mm, got "
-                             f"{[round(v * 1000, 3) for v in np.ravel(offset)]}",
+                             f"{[round(float(v) * 1000, 3) for v in np.ravel(offset)]}",
                              hint="e.g. --set seen_offset_mm=[131,0,33]")
         if self.door_opens not in DOOR_OPENS:
             raise InputError(f"door_opens must be {' or '.join(DOOR_OPENS)}, got "
@@ -151,6 +152,33 @@ class ManipulationSpec:
             return "nominal"
         return "seen-" + "-".join(f"{axis}{v * 1000:+.0f}mm" for axis, v
                                   in zip("xyz", self.seen_offset_m, strict=True) if v)
+
+
+def spec_from_parameters(kind: str, params: dict) -> ManipulationSpec:
+    """The experiment's spec from a task file's ``[parameters]`` (``seen_offset_mm`` [x, y, z]
+    in mm, ``door_opens``, ``turn_deg``, ``door_deg``; missing ones take their defaults).
+
+    Raises:
+        InputError: a value of the wrong kind or out of range (exit 2).
+    """
+    def number(name: str, default: float) -> float:
+        value = params.get(name, default)
+        if isinstance(value, bool) or not isinstance(value, int | float) \
+                or not math.isfinite(value):
+            raise InputError(f"parameter {name} must be a number, got {value!r}",
+                             hint=f"e.g. --set {name}={default:g}")
+        return float(value)
+
+    offset = params.get("seen_offset_mm", [0.0, 0.0, 0.0])
+    if not (isinstance(offset, list | tuple) and len(offset) == 3 and all(
+            isinstance(v, int | float) and not isinstance(v, bool) for v in offset)):
+        raise InputError(f"parameter seen_offset_mm must be three numbers [x, y, z] in mm, got "
+                         f"{offset!r}", hint="e.g. --set seen_offset_mm=[131,0,33]")
+    defaults = ManipulationSpec("turn-valve")
+    return ManipulationSpec(kind, seen_offset_m=tuple(float(v) / 1000.0 for v in offset),
+                            door_opens=str(params.get("door_opens", "away")),
+                            turn_deg=number("turn_deg", defaults.turn_deg),
+                            door_deg=number("door_deg", defaults.door_deg))
 
 
 def start_posture(model: RobotModel) -> np.ndarray:
@@ -247,6 +275,7 @@ class ManipulationTargets(WatchedTarget):
         self.grasped_at_s: float | None = None
         self.placed: dict = {}
         self.world: SimulatedWorld | None = None
+        self.stopper: EmergencyStopper | None = None  # no grasp while it stops the motion
         self.overload_periods = 0
         self.max_torque_ratio = 0.0
         self.max_force_n = 0.0
@@ -299,6 +328,7 @@ class ManipulationTargets(WatchedTarget):
             raise ConfigError(f"the {self.spec.kind} experiment needs the simulator",
                               hint="run it with the sim driver")
         self.world = world
+        self.stopper = next((m for m in modules if isinstance(m, EmergencyStopper)), None)
         # N -> world: the hand's start point as the physics has it (the robot's settled lean)
         shift = world.frame_pose(HAND)[:3, 3] - self.T_start[:3, 3]
         if isinstance(self.seen, Valve):
@@ -321,7 +351,8 @@ class ManipulationTargets(WatchedTarget):
     def __call__(self, t_s: float, state):
         tilt_deg, z = self.watch(t_s, state)
         k, T = self.goal(t_s)
-        if self.segments[k].grasp and not self.world.holding(HAND):
+        stopped = self.stopper is not None and self.stopper.stopped
+        if self.segments[k].grasp and not self.world.holding(HAND) and not stopped:
             self.grasp_miss_m = self.world.grasp(HAND, "valve", self.clearance_m + GRIP_REACH_M)
             if self.world.holding(HAND):
                 self.grasped_at_s = t_s
