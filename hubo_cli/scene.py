@@ -156,7 +156,9 @@ class Valve:
         _check_finite("valve centre_world_m", self.centre_world_m, 3)
         _check_positive("valve", radius_m=self.radius_m, tube_radius_m=self.tube_radius_m,
                         mass_kg=self.mass_kg, stem_m=self.stem_m)
-        if not (math.isfinite(self.friction_nm) and self.friction_nm >= 0):
+        if isinstance(self.friction_nm, bool) or not (
+                isinstance(self.friction_nm, int | float) and math.isfinite(self.friction_nm)
+                and self.friction_nm >= 0):
             raise ConfigError(f"valve friction_nm must be >= 0 N m, got {self.friction_nm!r}")
         if self.tube_radius_m >= self.radius_m:
             raise ConfigError("the valve's tube radius must be smaller than its radius")
@@ -201,7 +203,8 @@ class Door:
                         max_open_rad=self.max_open_rad)
         for name in ("closer_nm", "closer_nm_per_rad", "closer_nm_s_per_rad", "friction_nm"):
             value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0):
+            if isinstance(value, bool) or not (isinstance(value, int | float)
+                                               and math.isfinite(value) and value >= 0):
                 raise ConfigError(f"door {name} must be >= 0, got {value!r}")
 
     @property
@@ -234,5 +237,6 @@ def _check_finite(what: str, values, n: int) -> None:
 
 def _check_positive(what: str, **values: float) -> None:
     for name, value in values.items():
-        if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+        if isinstance(value, bool) or not (isinstance(value, int | float)
+                                           and math.isfinite(value) and value > 0):
             raise ConfigError(f"{what} {name} must be a positive number, got {value!r}")
