@@ -163,12 +163,6 @@ class Valve:
         if self.tube_radius_m >= self.radius_m:
             raise ConfigError("the valve's tube radius must be smaller than its radius")
 
-    def rim_point_world_m(self, angle_rad: float) -> np.ndarray:
-        """The rim's centre line at ``angle_rad`` from the top, clockwise as the robot sees
-        it (toward -y): the point where a hand grips at that angle (m, world)."""
-        c = np.asarray(self.centre_world_m, dtype=float)
-        return c + self.radius_m * np.array([0.0, -math.sin(angle_rad), math.cos(angle_rad)])
-
 
 @dataclass(frozen=True)
 class Door:

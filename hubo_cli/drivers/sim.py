@@ -324,7 +324,8 @@ def _pose(position, quat_xyzw) -> np.ndarray:
 class SimDriver(Driver, SimulatedWorld):
     """The HUBO 2+ in PyBullet. Options: see :class:`SimOptions` (``gui``, ``drill``, ...).
 
-    Besides the contract it offers scene objects (:meth:`add_wall`), a torso push
+    Besides the contract it offers scene objects (:meth:`add_wall`, :meth:`add_valve`,
+    :meth:`add_door`), a hand's grip on a valve (:meth:`grasp`, :meth:`release`), a torso push
     (:meth:`push_torso`), poses of named frames (:meth:`frame_pose`) and a headless
     snapshot (:meth:`snapshot_png`).
     """
@@ -674,8 +675,18 @@ class SimDriver(Driver, SimulatedWorld):
             self._create_object(name, spec)
 
     def _create_object(self, name: str, spec: Valve | Door) -> None:
-        make = create_valve if isinstance(spec, Valve) else create_door
-        self._objects[name] = make(self._p, self._cid, spec)
+        """Build it, unless it would stand inside the robot (refused: nothing moved)."""
+        p, cid = self._p, self._cid
+        body = (create_valve if isinstance(spec, Valve) else create_door)(p, cid, spec)
+        inside = p.getClosestPoints(self._robot, body.body_id, 0.0, physicsClientId=cid)
+        if inside:
+            p.removeBody(body.body_id, physicsClientId=cid)
+            self._pending_objects.pop(name, None)
+            link = next((k for k, v in self._links.items() if v == inside[0][3]), "torso")
+            raise ConfigError(f"the {body.kind} {name!r} would stand inside the robot (it "
+                              f"touches {link} where it is placed)",
+                              hint="place it farther from the robot (a smaller seen offset)")
+        self._objects[name] = body
 
     def _object(self, name: str) -> HingedBody:
         self._require_started()
@@ -700,16 +711,14 @@ class SimDriver(Driver, SimulatedWorld):
             raise ConfigError(f"no hand frame {frame!r}", hint="right_hand or left_hand")
         point = self.frame_pose(frame)[:3, 3]
         miss_m = body.grip_distance_m(self._p, self._cid, point)
-        if miss_m <= tolerance_m and frame not in self._grips:
+        if miss_m <= tolerance_m and not self.holding(frame):
             self._grips[frame] = make_grip(self._p, self._cid, self._robot,
                                            self._links[HAND_LINK_OF[frame]], point, body)
         return miss_m
 
     def release(self, frame: str) -> None:
         """Open the hand ``frame`` (nothing when it holds nothing)."""
-        grip = self._grips.pop(frame, None)
-        if grip is not None:
-            grip.slipped = True  # no more force
+        self._grips.pop(frame, None)
 
     def holding(self, frame: str) -> bool:
         """Whether the hand ``frame`` holds an object (it closed on it and has not slipped)."""

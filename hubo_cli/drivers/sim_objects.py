@@ -62,9 +62,6 @@ class HingedBody:
         """The joint's angle (rad; the spec's sign)."""
         return float(p.getJointState(self.body_id, 0, physicsClientId=cid)[0])
 
-    def rate_rad_s(self, p, cid: int) -> float:
-        return float(p.getJointState(self.body_id, 0, physicsClientId=cid)[1])
-
     def apply_closer(self, p, cid: int) -> None:
         """The door closer's torque for this physics step (nothing for a valve)."""
         if self.kind != "door":

@@ -66,11 +66,11 @@ WRIST = "right-wrist"
 # the scene as the plan sees it, in the start neck frame N (m): found with the arm's IK and the
 # self-collision checker so that every pose of both plans has an exact solution at least
 # COLLISION_MARGIN_M clear of the body (the collision detector holds the arm nearer than 1 cm)
-VALVE_CENTRE_N_M = (0.32, -0.20, -0.22)  # low enough that the valve seen 131 mm too far and
+VALVE_CENTRE_N_M = (0.34, -0.20, -0.21)  # low enough that the valve seen 131 mm too far and
 # 33 mm too high (so truly that much nearer and lower) is still clear of the hand at the start
 HAND_ROLL_RAD = math.radians(-30.0)  # the hand rolled outward: the elbow clears the torso
 VALVE_RADIUS_M = 0.12
-VALVE_STEM_M = 0.06
+VALVE_STEM_M = 0.06        # the panel stays clear of the hand at the start in every case
 DOOR_GAP_M = 0.03          # the fingertips to the closed leaf at the start
 DOOR_LEVER_M = 0.35        # the pushed point to the hinge
 RIM_GAP_M = 0.004          # the hand's underside above the rim's tube when it grips
