@@ -184,8 +184,8 @@ def test_grip_pulls_the_hand_the_way_the_valve_pulls(model):
 @pytest.mark.physical
 def test_valve_turned_on_the_nominal_scene(model, tmp_path):
     s = run_manipulation(model, ManipulationSpec("turn-valve"), out=tmp_path).summary
-    # turned 92.7 deg (planned 95) with no stop and no tip; spread over perturbed robots and
-    # the portable code path: see docs/history/manipulation.md
+    # turned 93.19 deg (planned 95) with no stop and no tip, the same on the portable code
+    # path; 93.14-93.76 deg on perturbed robots (seeds 1-3): the bound is 5x that spread away
     assert s["grasped_at_s"] is not None and s["t_emergency_s"] is None
     assert s["object_angle_deg"] >= 90.0
     assert not s["fell"] and not s["tipped"] and not s["overloaded"]
@@ -199,7 +199,8 @@ def test_valve_turned_on_the_nominal_scene(model, tmp_path):
 @pytest.mark.physical
 def test_door_pushed_open_on_the_nominal_scene(model, tmp_path):
     s = run_manipulation(model, ManipulationSpec("push-door"), out=tmp_path).summary
-    # pushed 25.5 deg open (planned 24) with a hand force of about 15-19 N against the closer
+    # pushed 25.53 deg open (planned 24) on both code paths, 25.5-25.9 on perturbed robots,
+    # with 15-19 N at the hand against the closer (42 N at most)
     assert s["object_angle_deg"] >= 20.0 and s["t_emergency_s"] is None
     assert not s["fell"] and not s["tipped"]
     assert 5.0 < s["max_hand_force_n"] < 100.0
@@ -211,8 +212,9 @@ def test_door_that_opens_toward_the_robot_with_and_without_the_stop(model, tmp_p
     spec = ManipulationSpec("push-door", door_opens="toward")
     stopped = run_manipulation(model, spec, out=tmp_path / "on").summary
     free = run_manipulation(model, spec, estop=False, out=tmp_path / "off").summary
-    # with the stop: flagged at 2.49 s, tilt 2.6 deg, soles flat; without: the robot rocks
-    # onto its heels (sole lift 31 mm, tilt 8.2 deg) and stays propped on the door
+    # the same on both code paths: with the stop flagged at 2.485 s, tilt 2.59 deg, sole lift
+    # 9.9 mm; without it the robot rocks onto its heels (sole lift 31.3 mm against the 20 mm
+    # criterion, tilt 8.18 deg) and stays propped on the door; CP error 94.8 against 33.2 mm
     assert stopped["t_emergency_s"] is not None and stopped["emergency_sources"] == [
         "capture-point"]
     assert not stopped["fell"] and not stopped["tipped"] and stopped["max_tilt_deg"] < 5.0
