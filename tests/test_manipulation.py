@@ -72,11 +72,11 @@ def test_parameters_from_task_files_are_checked(rng):
         with pytest.raises(InputError):
             spec_from_parameters("turn-valve", {"seen_offset_mm": value})
     for _ in range(30):  # random out-of-range or non-numbers for the angles
-        value = [math.nan, -1.0, 0.0, 121.0, 1e6, "x", True, [1]][rng.integers(8)]
+        value = [math.nan, -1.0, 0.0, 97.0, 1e6, "x", True, [1]][rng.integers(8)]
         with pytest.raises(InputError):
             spec_from_parameters("turn-valve", {"turn_deg": value})
         with pytest.raises(InputError):
-            spec_from_parameters("push-door", {"door_deg": value if value != 121.0 else 31})
+            spec_from_parameters("push-door", {"door_deg": value if value != 97.0 else 31})
     for value in ("sideways", 1.0, "", "AWAY"):
         with pytest.raises(InputError):
             spec_from_parameters("push-door", {"door_opens": value})

@@ -79,6 +79,7 @@ GRIP_REACH_M = 0.005       # the grip closes once the rim lies within this of it
 OVERLOAD_RATIO = 0.95      # of a motor's torque limit
 OVERLOAD_S = 0.25
 COLLISION_MARGIN_M = 0.012
+MAX_TURN_DEG = 96.0        # the last turn whose every pose has an exact arm solution
 
 
 @dataclass(frozen=True)
@@ -132,8 +133,9 @@ class ManipulationSpec:
         if self.door_opens not in DOOR_OPENS:
             raise InputError(f"door_opens must be {' or '.join(DOOR_OPENS)}, got "
                              f"{self.door_opens!r}")
-        if not 0.0 < self.turn_deg <= 120.0:
-            raise InputError(f"turn_deg must be in (0, 120], got {self.turn_deg!r}")
+        if not 0.0 < self.turn_deg <= MAX_TURN_DEG:
+            raise InputError(f"turn_deg must be in (0, {MAX_TURN_DEG:g}], got {self.turn_deg!r}",
+                             hint="the right hand reaches that far along this valve's rim")
         if not 0.0 < self.door_deg <= 30.0:
             raise InputError(f"door_deg must be in (0, 30], got {self.door_deg!r}")
         if not 0.0 <= self.end_hold_s <= 60.0:
