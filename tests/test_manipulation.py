@@ -232,7 +232,8 @@ def test_cli_refuses_bad_recognition_errors(tmp_path):
                  ["push-door", "--set", "door_opens=sideways"],
                  ["turn-valve", "--set", "estop=false"],
                  ["turn-valve", "--set", "door_opens=away"],
-                 ["push-door", "--driver", "ideal"]):
+                 ["push-door", "--driver", "ideal"],
+                 ["turn-valve", "--set", "seen_offset_mm=[300,0,0]"]):  # inside the robot
         result = CliRunner().invoke(main, ["task", *args, "--out", str(out)])
         assert result.exit_code == 2, (args, result.output)
         assert "Traceback" not in result.output and "error:" in result.output
