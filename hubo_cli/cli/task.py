@@ -267,7 +267,8 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
                                   perturb_seed=perturb_seed, balance=balance, live=server)
         if video:
             add_run_video(done.run_dir, done.summary, quiet=as_json)
-        _finish(ctx, done, as_json, lambda: _print_push_wall(done.summary, done.run_dir))
+        printer = _print_push_wall if spec.experiment == "push-wall" else _print_manipulation
+        _finish(ctx, done, as_json, lambda: printer(done.summary, done.run_dir))
         return
     # the baseline: what a file lacks is removed by the command line (and so confirmed)
     requested = tuple(s for s in SOFT_SOURCES
@@ -494,3 +495,29 @@ def _print_push_wall(summary: dict, run_dir) -> None:
     console.print(f"ended             {summary['ended']} after {summary['duration_s']:.2f} s")
     console.print(f"run folder        {run_dir}", soft_wrap=True)
     console.print("                  log.csv, summary.json, cp_error.png")
+
+
+def _print_manipulation(summary: dict, run_dir) -> None:
+    outcome = "FELL" if summary["fell"] else "tipped" if summary["tipped"] else "stayed up"
+    if summary["overloaded"]:
+        outcome += ", arm OVERLOADED"
+    flag = summary["t_emergency_s"]
+    what = "valve" if summary["experiment"] == "turn-valve" else "door"
+    console.print(f"experiment        {summary['experiment']} ({escape(summary['case'])})")
+    console.print(f"emergency stop    {summary['estop']}"
+                  + (f", at {flag:.3f} s ({', '.join(summary['emergency_sources'])})"
+                     if flag is not None else ", never raised" if summary["estop"] == "on"
+                     else ""))
+    console.print(f"{what:<18}{summary['object_angle_deg']:.1f} deg at the end (planned "
+                  f"{summary['planned_deg']:g})"
+                  + (f", gripped at {summary['grasped_at_s']:.2f} s"
+                     if summary.get("grasped_at_s") is not None else
+                     ", never gripped" if what == "valve" else ""))
+    console.print(f"robot             {outcome}: max tilt {summary['max_tilt_deg']:.1f} deg, "
+                  f"sole lift {summary['max_sole_lift_mm']:.0f} mm")
+    console.print(f"max CP error      {summary['max_cp_error_mm']:.1f} mm")
+    console.print(f"max hand force    {summary['max_hand_force_n']:.0f} N; arm motors up to "
+                  f"{summary['max_arm_torque_ratio'] * 100:.0f} % of their limit")
+    console.print(f"ended             {summary['ended']} after {summary['duration_s']:.2f} s")
+    console.print(f"run folder        {run_dir}", soft_wrap=True)
+    console.print("                  log.csv, summary.json, manipulation.png")

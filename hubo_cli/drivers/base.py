@@ -19,7 +19,7 @@ from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
@@ -27,6 +27,9 @@ from hubo_cli.errors import ConfigError
 from hubo_cli.model import RobotModel
 from hubo_cli.perturb import Perturbation
 from hubo_cli.state import RobotState
+
+if TYPE_CHECKING:
+    from hubo_cli.scene import Door, Valve
 
 
 @dataclass(frozen=True)
@@ -62,6 +65,31 @@ class SimulatedWorld(ABC):
         """A static box wall: near face at x = ``distance_m`` in the world (m)."""
 
     @abstractmethod
+    def add_valve(self, valve: Valve, name: str = "valve") -> None:
+        """A valve wheel on a revolute joint with friction (:class:`~hubo_cli.scene.Valve`)."""
+
+    @abstractmethod
+    def add_door(self, door: Door, name: str = "door") -> None:
+        """A hinged door with a closer and a stop (:class:`~hubo_cli.scene.Door`)."""
+
+    @abstractmethod
+    def hinge_angle_rad(self, name: str) -> float:
+        """A hinged object's joint angle now (rad)."""
+
+    @abstractmethod
+    def grasp(self, frame: str, name: str, tolerance_m: float) -> float:
+        """Close the hand ``frame`` on object ``name``; it holds only when the hand point is
+        within ``tolerance_m`` of what can be gripped. Returns that distance (m)."""
+
+    @abstractmethod
+    def release(self, frame: str) -> None:
+        """Open the hand ``frame``."""
+
+    @abstractmethod
+    def holding(self, frame: str) -> bool:
+        """Whether the hand ``frame`` holds an object."""
+
+    @abstractmethod
     def push_torso(self, force_world_n, duration_s: float) -> None:
         """Push the torso at its centre of mass with a world-frame force (N) for a while (s)."""
 
@@ -76,8 +104,10 @@ class SimulatedWorld(ABC):
     @abstractmethod
     def scene(self) -> dict:
         """What has been placed, for the run's log metadata (JSON-able): ``walls`` (each
-        ``centre_world_m``, ``quat_wxyz``, ``size_m``), ``tools`` (arm -> tool) and
-        ``hole_world_m`` / ``hole_t_s`` (where and when a drill bit crossed a wall)."""
+        ``centre_world_m``, ``quat_wxyz``, ``size_m``), ``tools`` (arm -> tool),
+        ``objects`` (name -> a hinged object's spec, ``kind`` and ``angle_deg`` now),
+        ``held`` (hand frame -> the kind it holds) and ``hole_world_m`` / ``hole_t_s`` (where
+        and when a drill bit crossed a wall)."""
 
     @property
     @abstractmethod

@@ -58,6 +58,9 @@ Sensors (:class:`~hubo_cli.drivers.base.RobotState`)
     at ``CONTACT_CUTOFF_HZ`` (5 Hz), exceeds ``CONTACT_THRESHOLD_N`` (25 N), as hrpsys decides
     it: a foot that only brushes the floor (a rocking sole touching with a few newtons) does not
     count as support.
+    With hinged objects in the scene (:meth:`add_valve`, :meth:`add_door`) a wrist reads its
+    hand's contacts averaged over the period's physics steps, plus the force of a grip on an
+    object (:mod:`hubo_cli.drivers.sim_objects`).
 
 Drilling (:class:`~hubo_cli.scene.CuttingModel`)
     With the drill on the right hand (``drill=True``) and a wall in the scene (:meth:`add_wall`),
@@ -97,6 +100,13 @@ import numpy as np
 
 from hubo_cli.drivers import checks
 from hubo_cli.drivers.base import Driver, RunContext, SimulatedWorld
+from hubo_cli.drivers.sim_objects import (
+    Grip,
+    HingedBody,
+    create_door,
+    create_valve,
+    make_grip,
+)
 from hubo_cli.errors import ConfigError, DeviceError
 from hubo_cli.geometry import matrix_to_quat_wxyz
 from hubo_cli.kinematics.limb import Limb
@@ -104,13 +114,14 @@ from hubo_cli.model import RobotModel
 from hubo_cli.perturb import FOOT_LINKS, CommandDelay, Perturbation
 from hubo_cli.perturb import draw as draw_perturbation
 from hubo_cli.posture import home_posture
-from hubo_cli.scene import CuttingModel
+from hubo_cli.scene import CuttingModel, Door, Valve
 from hubo_cli.state import FT_SENSORS, RobotState
 from hubo_cli.urdf import DRILL_FRAME, PHYSICS_DRILL_URDF, PHYSICS_URDF, link_frames
 
 CONTACT_THRESHOLD_N = 25.0  # hrpsys contact_decision_threshold
 CONTACT_CUTOFF_HZ = 5.0     # low-pass of the ankles' F_z before the threshold
 HAND_FRAMES = {"right-wrist": ("RWP_link", "right_hand"), "left-wrist": ("LWP_link", "left_hand")}
+HAND_LINK_OF = {frame: link for link, frame in HAND_FRAMES.values()}
 SOLE_FRAMES = {"right-ankle": ("RAR_link", "right_sole"), "left-ankle": ("LAR_link", "left_sole")}
 SENSOR_FRAMES = HAND_FRAMES | SOLE_FRAMES
 SENSOR_LINKS = ("RWP_link", "LWP_link", "RAR_link", "LAR_link")
@@ -313,7 +324,8 @@ def _pose(position, quat_xyzw) -> np.ndarray:
 class SimDriver(Driver, SimulatedWorld):
     """The HUBO 2+ in PyBullet. Options: see :class:`SimOptions` (``gui``, ``drill``, ...).
 
-    Besides the contract it offers scene objects (:meth:`add_wall`), a torso push
+    Besides the contract it offers scene objects (:meth:`add_wall`, :meth:`add_valve`,
+    :meth:`add_door`), a hand's grip on a valve (:meth:`grasp`, :meth:`release`), a torso push
     (:meth:`push_torso`), poses of named frames (:meth:`frame_pose`) and a headless
     snapshot (:meth:`snapshot_png`).
     """
@@ -358,6 +370,10 @@ class SimDriver(Driver, SimulatedWorld):
         self._robot = -1
         self._walls: list[Wall] = []
         self._pending_walls: list[tuple] = []
+        self._objects: dict[str, HingedBody] = {}
+        self._pending_objects: dict[str, Valve | Door] = {}
+        self._grips: dict[str, Grip] = {}  # hand frame -> its grip
+        self._earlier_hand_rows: dict[int, list[tuple]] = {}  # see _hand_rows
         self._pushes: list[_Push] = []
         self._state: RobotState | None = None
         self._cmd = np.zeros(len(self.joint_names))
@@ -432,6 +448,7 @@ class SimDriver(Driver, SimulatedWorld):
             self._links[info[12].decode()] = i
         self._idx = [joints[n] for n in self.joint_names]
         self._wrist_link = self._links["RWP_link"]  # the drill's
+        self._hand_link_ids = [self._links[link] for link, _ in HAND_FRAMES.values()]
         self._sensor_link_ids = [self._links[n] for n in SENSOR_LINKS]
         # per F/T sensor, in FT_SENSORS order: its link's index in PyBullet and in the sensor
         # links' batch, the link-to-sensor pose, which ankle (0, 1, None), the drill's wrist
@@ -480,6 +497,8 @@ class SimDriver(Driver, SimulatedWorld):
         self._place(q0)
         for wall in self._pending_walls:
             self._create_wall(*wall)
+        for name, spec in self._pending_objects.items():
+            self._create_object(name, spec)
 
     def _place(self, q0: np.ndarray) -> None:
         p, cid = self._p, self._cid
@@ -535,6 +554,9 @@ class SimDriver(Driver, SimulatedWorld):
         if self._p is None:
             self._connect()
         self._walls = []
+        self._objects = {}
+        self._grips = {}
+        self._earlier_hand_rows = {}
         self._cut_points = []
         self._pushes = []
         self._stopped = False
@@ -577,6 +599,8 @@ class SimDriver(Driver, SimulatedWorld):
             self._apply_external_forces(self._t + k * self.options.physics_dt_s)
             p.stepSimulation(physicsClientId=cid)
             self._physics_step += 1
+            if self._objects and k < self.substeps - 1:
+                self._keep_hand_rows()
         self._physics_wall_s += time.perf_counter() - t0
         self._t += self.period_s
         self._state = self._measure()
@@ -634,6 +658,73 @@ class SimDriver(Driver, SimulatedWorld):
         self._walls.append(wall)
         return wall
 
+    def add_valve(self, valve: Valve, name: str = "valve") -> None:
+        """Put a valve wheel (:class:`~hubo_cli.scene.Valve`) into the scene; before
+        :meth:`start` it is created when the world is."""
+        self._add_object(name, valve)
+
+    def add_door(self, door: Door, name: str = "door") -> None:
+        """Put a hinged door (:class:`~hubo_cli.scene.Door`) into the scene."""
+        self._add_object(name, door)
+
+    def _add_object(self, name: str, spec: Valve | Door) -> None:
+        if name in self._pending_objects:
+            raise ConfigError(f"the scene already has an object called {name!r}")
+        self._pending_objects[name] = spec
+        if self._p is not None and self._robot >= 0 and not self._closed:
+            self._create_object(name, spec)
+
+    def _create_object(self, name: str, spec: Valve | Door) -> None:
+        """Build it, unless it would stand inside the robot (refused: nothing moved)."""
+        p, cid = self._p, self._cid
+        body = (create_valve if isinstance(spec, Valve) else create_door)(p, cid, spec)
+        inside = p.getClosestPoints(self._robot, body.body_id, 0.0, physicsClientId=cid)
+        if inside:
+            p.removeBody(body.body_id, physicsClientId=cid)
+            self._pending_objects.pop(name, None)
+            link = next((k for k, v in self._links.items() if v == inside[0][3]), "torso")
+            raise ConfigError(f"the {body.kind} {name!r} would stand inside the robot (it "
+                              f"touches {link} where it is placed)",
+                              hint="place it farther from the robot (a smaller seen offset)")
+        self._objects[name] = body
+
+    def _object(self, name: str) -> HingedBody:
+        self._require_started()
+        if name not in self._objects:
+            raise ConfigError(f"the scene has no object {name!r}",
+                              hint=f"objects: {', '.join(self._objects) or 'none'}")
+        return self._objects[name]
+
+    def hinge_angle_rad(self, name: str) -> float:
+        """A hinged object's joint angle now (rad; see :class:`~hubo_cli.scene.Valve`,
+        :class:`~hubo_cli.scene.Door` for its sign)."""
+        return self._object(name).angle_rad(self._p, self._cid)
+
+    def grasp(self, frame: str, name: str, tolerance_m: float) -> float:
+        """Close the hand ``frame`` on object ``name``: when the hand point lies within
+        ``tolerance_m`` of what can be gripped (a valve's rim), it holds the object there
+        (:func:`~hubo_cli.drivers.sim_objects.make_grip`). Returns how far the hand point
+        was from the grip (m; inf when the object has nothing to grip); holds only when that
+        is within the tolerance."""
+        body = self._object(name)
+        if frame not in HAND_LINK_OF:
+            raise ConfigError(f"no hand frame {frame!r}", hint="right_hand or left_hand")
+        point = self.frame_pose(frame)[:3, 3]
+        miss_m = body.grip_distance_m(self._p, self._cid, point)
+        if miss_m <= tolerance_m and not self.holding(frame):
+            self._grips[frame] = make_grip(self._p, self._cid, self._robot,
+                                           self._links[HAND_LINK_OF[frame]], point, body)
+        return miss_m
+
+    def release(self, frame: str) -> None:
+        """Open the hand ``frame`` (nothing when it holds nothing)."""
+        self._grips.pop(frame, None)
+
+    def holding(self, frame: str) -> bool:
+        """Whether the hand ``frame`` holds an object (it closed on it and has not slipped)."""
+        grip = self._grips.get(frame)
+        return grip is not None and not grip.slipped
+
     def push_torso(self, force_world_n, duration_s: float) -> None:
         """Push the torso at its centre of mass with a world-frame force (N) for duration_s."""
         self._require_started()
@@ -651,6 +742,10 @@ class SimDriver(Driver, SimulatedWorld):
             total = sum(push.force_world_n for push in self._pushes)
             p.applyExternalForce(self._robot, -1, total.tolist(), com, p.WORLD_FRAME,
                                  physicsClientId=cid)
+        for body in self._objects.values():
+            body.apply_closer(p, cid)
+        for grip in self._grips.values():
+            grip.apply(p, cid)
         self._cutting_set = False  # until the cutting sets it again
         if self._walls and self.options.drill:
             self._apply_cutting(t_s)
@@ -738,6 +833,26 @@ class SimDriver(Driver, SimulatedWorld):
                          fx * r02 + fy * r12 + fz * r22, mx * r00 + my * r10 + mz * r20,
                          mx * r01 + my * r11 + mz * r21, mx * r02 + my * r12 + mz * r22))
 
+    def _hand_rows(self, link_id: int, rows: list[tuple]) -> list[tuple]:
+        """A hand's rows when the scene has hinged objects: its contacts averaged over the
+        period's physics steps (a hand pushing a door slowly meets it in one of the two steps
+        and leaves it in the other, 25 N and 0 N: the last step alone read 0 N all along) and
+        the force of the grip holding an object (its last step's)."""
+        share = 1.0 / self.substeps
+        earlier = self._earlier_hand_rows.pop(link_id, [])
+        averaged = [(*r[:6], r[6] * share, r[7] * share, *r[8:11], r[11] * share, *r[12:])
+                    for r in (*rows, *earlier)]
+        return averaged + [g.row() for g in self._grips.values()
+                           if g.link == link_id and not g.slipped]
+
+    def _keep_hand_rows(self) -> None:
+        """Keep this physics step's hand contacts for the period's average (:meth:`_hand_rows`)."""
+        for link in self._hand_link_ids:
+            self._earlier_hand_rows.setdefault(link, []).extend(
+                (*cp[5], *cp[7], cp[9], cp[10], *cp[11], cp[12], *cp[13])
+                for cp in self._p.getContactPoints(bodyA=self._robot, linkIndexA=link,
+                                                   physicsClientId=self._cid))
+
     def _measure(self) -> RobotState:
         p, cid = self._p, self._cid
         js = p.getJointStates(self._robot, self._idx, physicsClientId=cid)
@@ -760,6 +875,8 @@ class SimDriver(Driver, SimulatedWorld):
                 force, moment, at = self._cutting_floats
                 extra = (force, at)
             rows = contacts.get(link_id)
+            if self._objects and ankle is None:  # a hand among hinged objects
+                rows = self._hand_rows(link_id, rows or [])
             if rows or extra is not None:
                 ls = link_states[k_state]
                 T_world_sensor = _pose(ls[4], ls[5]) @ T_link_sensor
@@ -845,6 +962,10 @@ class SimDriver(Driver, SimulatedWorld):
                   "size_m": [w.thickness_m, w.width_m, w.height_m]} for w in self._walls]
         return {"walls": walls, "tools": {"right-arm": "drill" if self.options.drill else "hand",
                                           "left-arm": "hand"},
+                "objects": {name: body.to_json(self._p, self._cid)
+                            for name, body in self._objects.items()},
+                "held": {frame: grip.body.kind for frame, grip in self._grips.items()
+                         if not grip.slipped},
                 "hole_world_m": np.round(np.reshape([p for _, p in self._cut_points], (-1, 3)),
                                          6).tolist(),  # one rounding of every point
                 "hole_t_s": [round(t, 6) for t, _ in self._cut_points]}

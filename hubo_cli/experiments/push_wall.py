@@ -20,7 +20,6 @@ error along the push axis against time with the support-polygon thresholds, as F
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -31,11 +30,11 @@ from hubo_cli.control.estop import EmergencyStopper
 from hubo_cli.control.log import LogData
 from hubo_cli.control.loop import LoopResult
 from hubo_cli.control.pipeline import SafetyProfile
-from hubo_cli.control.target import Target
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.errors import ConfigError, InputError
-from hubo_cli.falls import FALL_TILT_DEG, has_fallen
-from hubo_cli.geometry import min_jerk, tilt_rad_of_matrix, tilt_rad_of_quat_wxyz
+from hubo_cli.experiments.watch import TIP_LIFT_M, WatchedTarget
+from hubo_cli.falls import FALL_TILT_DEG
+from hubo_cli.geometry import min_jerk
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.pin_robot import load_pin_robot
@@ -43,8 +42,6 @@ from hubo_cli.posture import home_posture
 from hubo_cli.session import RunObserver, RunResult, RunSetup, run
 
 DIRECTIONS = ("forward", "left")
-TIP_LIFT_M = 0.02      # a sole corner this far above its start height: the robot tipped
-STOP_AFTER_FALL_S = 0.5
 WALL_HEIGHT_M = 2.0
 # Elbows fully bent, hands level in front of the chest (hand x forward): from here the fixed-
 # orientation IK reaches the whole 0.25 m forward push exactly. For the left push the left
@@ -119,7 +116,7 @@ def hand_box_extent_m(model: RobotModel, q_rad: np.ndarray, arm: str) -> np.ndar
     return np.array([corners.min(axis=0), corners.max(axis=0)])
 
 
-class PushTargets(Target):
+class PushTargets(WatchedTarget):
     """The target source: goal poses along the push, through the arm IK every period.
 
     It also watches the torso (tilt, height) and ends the run shortly after a fall. Once the
@@ -129,6 +126,7 @@ class PushTargets(Target):
     log_columns = ("push_offset_m", "tilt_deg", "torso_z_m", "sole_lift_m")
 
     def __init__(self, model: RobotModel, spec: PushSpec, q_start: np.ndarray) -> None:
+        super().__init__(model)
         self.model = model
         self.spec = spec
         self.q_start = q_start.copy()
@@ -137,16 +135,6 @@ class PushTargets(Target):
         self.T_start = {arm: self.limbs[arm].fk(q_start[self.slices[arm]]) for arm in spec.arms}
         self.q_prev = {arm: q_start[self.slices[arm]].copy() for arm in spec.arms}
         self.ik_status: dict[str, int] = {}
-        self.max_tilt_deg = 0.0
-        self.start_z_m: float | None = None
-        self.t_fall_s: float | None = None
-        self.min_z_m = math.inf
-        self.robot = load_pin_robot(model, floating=True)
-        self._data = self.robot.model.createData()
-        self._soles = [self.robot.frame_id(f) for f in ("right_sole", "left_sole")]
-        self._corners = model.feet.sole_corners_m()
-        self._sole_start_z: np.ndarray | None = None
-        self.max_lift_m = 0.0
         self.obstacle: dict = {}
 
     def attach(self, world: SimulatedWorld | None, modules) -> None:
@@ -155,42 +143,8 @@ class PushTargets(Target):
                               hint="run it with the sim driver")
         self.obstacle = _place_obstacle(world, self.model, self.spec, self.q_start)
 
-    def _sole_lift_m(self, state) -> float:
-        """How far the highest sole corner has risen above its start height (m)."""
-        if state.T_world_torso is None:
-            return 0.0
-        q = self.robot.configuration(state.q_rad, state.T_world_torso)
-        pin.framesForwardKinematics(self.robot.model, self._data, q)
-        z = []
-        for fid in self._soles:
-            oMf = self._data.oMf[fid]
-            z.append(self._corners @ oMf.rotation[2] + oMf.translation[2])
-        z = np.concatenate(z)
-        if self._sole_start_z is None:
-            self._sole_start_z = z
-        return float(np.max(z - self._sole_start_z))
-
-    def _watch(self, t_s: float, state) -> tuple[float, float]:
-        T = state.T_world_torso
-        if T is None:
-            tilt_deg = math.degrees(tilt_rad_of_quat_wxyz(state.imu_quat_wxyz))
-            z = 0.0
-        else:
-            tilt_deg = math.degrees(tilt_rad_of_matrix(T[:3, :3]))
-            z = float(T[2, 3])
-        if self.start_z_m is None:
-            self.start_z_m = z
-        self.max_tilt_deg = max(self.max_tilt_deg, tilt_deg)
-        self.min_z_m = min(self.min_z_m, z)
-        self.lift_m = self._sole_lift_m(state)
-        self.max_lift_m = max(self.max_lift_m, self.lift_m)
-        fallen = has_fallen(tilt_deg, self.start_z_m - z)
-        if fallen and self.t_fall_s is None:
-            self.t_fall_s = t_s
-        return tilt_deg, z
-
     def __call__(self, t_s: float, state):
-        tilt_deg, z = self._watch(t_s, state)
+        tilt_deg, z = self.watch(t_s, state)
         spec = self.spec
         offset = spec.push_m * min_jerk((t_s - spec.start_s) / spec.push_s)
         q = self.q_start.copy()
@@ -201,7 +155,7 @@ class PushTargets(Target):
             self.ik_status[result.status] = self.ik_status.get(result.status, 0) + 1
             self.q_prev[arm] = result.q_rad
             q[self.slices[arm]] = result.q_rad
-        done = self.t_fall_s is not None and t_s >= self.t_fall_s + STOP_AFTER_FALL_S
+        done = self.fall_done(t_s)
         return q, {"push_offset_m": offset, "tilt_deg": tilt_deg, "torso_z_m": z,
                    "sole_lift_m": self.lift_m, "done": done}
 
@@ -243,8 +197,8 @@ def _summary(spec: PushSpec, estop: bool, targets: PushTargets, loop: LoopResult
         "experiment": "push-wall",
         "direction": spec.direction,
         "estop": "on" if estop else "off",
-        "fell": targets.t_fall_s is not None,
-        "tipped": targets.max_lift_m > TIP_LIFT_M,
+        "fell": targets.fell,
+        "tipped": targets.tipped,
         "max_sole_lift_mm": round(targets.max_lift_m * 1000, 1),
         "t_fall_s": targets.t_fall_s,
         "max_tilt_deg": round(targets.max_tilt_deg, 2),

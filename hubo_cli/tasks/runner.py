@@ -6,7 +6,8 @@ runs a checked plan and writes ``runs/<time>-task-<name>/``: ``log.csv`` (every 
 ``summary.json``, ``task.toml`` (the file as run, with the parameters used, to run it again),
 ``path.png`` (commanded vs actual bit path in the wall plane, the paper's Fig. 5),
 ``wrist_torque.png`` and ``snapshot.png`` (the scene at the end, simulation only).
-Experiment tasks (``experiment = "push-wall"``) run their built-in procedure instead.
+Experiment tasks (``experiment = "push-wall"``, ``"turn-valve"``, ``"push-door"``) run their
+built-in procedure instead.
 """
 
 from __future__ import annotations
@@ -370,12 +371,19 @@ def run_experiment(spec: TaskSpec, *, out: str | Path | None = None, gui: bool =
     ``estop`` is the command line's (``--no-estop``: a file cannot turn the stopper off, see
     :mod:`hubo_cli.tasks.spec`); ``perturb_seed`` perturbs the robot; ``balance`` names the
     balancer (``--balance``); ``live`` the live viewer's publisher (``--live``)."""
-    from hubo_cli.experiments.push_wall import run_push_wall
-
     params = spec.parameters
-    result = run_push_wall(load_model(), direction=str(params.get("direction", "forward")),
-                           estop=estop, out=out, gui=gui,
-                           interpolator=str(params.get("interpolator", "otg")),
-                           perturb_seed=perturb_seed, balance=balance, live=live)
+    if spec.experiment in ("turn-valve", "push-door"):
+        from hubo_cli.experiments.manipulation import run_manipulation, spec_from_parameters
+
+        result = run_manipulation(load_model(), spec_from_parameters(spec.experiment, params),
+                                  estop=estop, out=out, gui=gui, perturb_seed=perturb_seed,
+                                  balance=balance, live=live)
+    else:
+        from hubo_cli.experiments.push_wall import run_push_wall
+
+        result = run_push_wall(load_model(), direction=str(params.get("direction", "forward")),
+                               estop=estop, out=out, gui=gui,
+                               interpolator=str(params.get("interpolator", "otg")),
+                               perturb_seed=perturb_seed, balance=balance, live=live)
     summary = result.save_summary({"task": spec.name, "parameters": params})
     return TaskRun(result.run_dir, summary, result.loop)

@@ -1,8 +1,8 @@
 """The task file format (``tasks/*.toml``) and its loader.
 
 A task is data. Top level: ``name``, ``description`` (one line) and either ``steps`` (run by
-the step runner, :mod:`hubo_cli.tasks.runner`) or ``experiment`` (a built-in procedure such as
-``push-wall``, given its ``[parameters]``). Tables:
+the step runner, :mod:`hubo_cli.tasks.runner`) or ``experiment`` (a built-in procedure:
+``push-wall``, ``turn-valve``, ``push-door``, given its ``[parameters]``). Tables:
 
 ``[parameters]``
     Named values with their defaults. Anywhere else in the file the string ``"$name"`` stands for
@@ -67,7 +67,7 @@ STEP_KINDS = ("move", "plunge", "follow", "retract", "wait")
 ESTOP_SOURCES = SOFT_SOURCES
 CORNERS = {"upper-left": (1, 1), "upper-right": (-1, 1), "lower-left": (1, -1),
            "lower-right": (-1, -1)}  # (sign of y, sign of z): the robot's left is +y
-EXPERIMENTS = ("push-wall",)
+EXPERIMENTS = ("push-wall", "turn-valve", "push-door")
 # Physical sense, checked at load time (a value beyond these is a typo, not a task): no Hubo arm
 # reaches further than about 0.6 m from its shoulder, so no path spans more than LENGTH_MAX_MM;
 # its 1 rad/s joints move the tool at about 0.5 m/s at most; steps and stops are short.

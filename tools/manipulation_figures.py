@@ -1,0 +1,72 @@
+"""Run the manipulation experiments' cases (IV-C.2 of the multi-layer paper) and keep their plots
+for the docs:
+
+    python tools/manipulation_figures.py [--out DIR] [--perturb SEED]
+
+Runs turn-valve and push-door on the nominal scene (with the stop) and each recognition error
+with and without the stop (8 runs, about 10 s of CPU each), copies each run's
+``manipulation.png`` to docs/figures/manipulation/ and prints the table of docs/history/
+manipulation.md (the figures of this machine; the run folders stay under --out).
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from hubo_cli.experiments.manipulation import ManipulationSpec, run_manipulation  # noqa: E402
+from hubo_cli.model import load_model  # noqa: E402
+
+FIGURES = ROOT / "docs" / "figures" / "manipulation"
+CASES = [  # (spec, estop)
+    (ManipulationSpec("turn-valve"), True),
+    (ManipulationSpec("push-door"), True),
+    (ManipulationSpec("turn-valve", seen_offset_m=(0.131, 0.0, 0.033)), True),
+    (ManipulationSpec("turn-valve", seen_offset_m=(0.131, 0.0, 0.033)), False),
+    (ManipulationSpec("turn-valve", seen_offset_m=(0.0, 0.195, 0.0)), True),
+    (ManipulationSpec("turn-valve", seen_offset_m=(0.0, 0.195, 0.0)), False),
+    (ManipulationSpec("push-door", door_opens="toward"), True),
+    (ManipulationSpec("push-door", door_opens="toward"), False),
+]
+
+
+def row(summary: dict) -> str:
+    outcome = ("fell" if summary["fell"] else "tipped" if summary["tipped"] else "stayed up")
+    if summary["overloaded"]:
+        outcome += ", overloaded"
+    flag = summary["t_emergency_s"]
+    return (f"| {summary['experiment']} | {summary['case']} | {summary['estop']} | "
+            f"{'-' if flag is None else f'{flag:.2f} s'} | {summary['object_angle_deg']:.1f} | "
+            f"{summary['max_cp_error_mm']:.0f} | {summary['max_hand_force_n']:.0f} | "
+            f"{summary['max_arm_torque_ratio'] * 100:.0f} % | {summary['max_tilt_deg']:.1f} | "
+            f"{summary['max_sole_lift_mm']:.0f} | {outcome} |")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=None, help="where the run folders go")
+    parser.add_argument("--perturb", type=int, default=None, help="a perturbed robot's seed")
+    args = parser.parse_args()
+    out = args.out or Path(tempfile.mkdtemp(prefix="manipulation-"))
+    model = load_model()
+    FIGURES.mkdir(parents=True, exist_ok=True)
+    print("| experiment | case | stop | flag | angle (deg) | max CP error (mm) | "
+          "max hand force (N) | arm torque | max tilt (deg) | sole lift (mm) | outcome |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for spec, estop in CASES:
+        name = f"{spec.kind}-{spec.case}-{'estop' if estop else 'no-estop'}"
+        done = run_manipulation(model, spec, estop=estop, out=out / name,
+                                perturb_seed=args.perturb)
+        if args.perturb is None:
+            shutil.copy(done.run_dir / "manipulation.png", FIGURES / f"{name}.png")
+        print(row(done.summary), flush=True)
+
+
+if __name__ == "__main__":
+    main()
