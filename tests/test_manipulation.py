@@ -21,7 +21,7 @@ from hubo_cli.experiments.manipulation import (
     spec_from_parameters,
     start_posture,
 )
-from hubo_cli.scene import Door, Valve
+from hubo_cli.hinged_objects import Door, Valve
 
 PNG = b"\x89PNG\r\n\x1a\n"
 

@@ -29,7 +29,7 @@ from hubo_cli.perturb import Perturbation
 from hubo_cli.state import RobotState
 
 if TYPE_CHECKING:
-    from hubo_cli.scene import Door, Valve
+    from hubo_cli.hinged_objects import Door, Valve
 
 
 @dataclass(frozen=True)
@@ -66,11 +66,12 @@ class SimulatedWorld(ABC):
 
     @abstractmethod
     def add_valve(self, valve: Valve, name: str = "valve") -> None:
-        """A valve wheel on a revolute joint with friction (:class:`~hubo_cli.scene.Valve`)."""
+        """A valve wheel on a revolute joint with friction
+        (:class:`~hubo_cli.hinged_objects.Valve`)."""
 
     @abstractmethod
     def add_door(self, door: Door, name: str = "door") -> None:
-        """A hinged door with a closer and a stop (:class:`~hubo_cli.scene.Door`)."""
+        """A hinged door with a closer and a stop (:class:`~hubo_cli.hinged_objects.Door`)."""
 
     @abstractmethod
     def hinge_angle_rad(self, name: str) -> float:

@@ -109,12 +109,13 @@ from hubo_cli.drivers.sim_objects import (
 )
 from hubo_cli.errors import ConfigError, DeviceError
 from hubo_cli.geometry import matrix_to_quat_wxyz
+from hubo_cli.hinged_objects import Door, Valve
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.perturb import FOOT_LINKS, CommandDelay, Perturbation
 from hubo_cli.perturb import draw as draw_perturbation
 from hubo_cli.posture import home_posture
-from hubo_cli.scene import CuttingModel, Door, Valve
+from hubo_cli.scene import CuttingModel
 from hubo_cli.state import FT_SENSORS, RobotState
 from hubo_cli.urdf import DRILL_FRAME, PHYSICS_DRILL_URDF, PHYSICS_URDF, link_frames
 
@@ -659,12 +660,12 @@ class SimDriver(Driver, SimulatedWorld):
         return wall
 
     def add_valve(self, valve: Valve, name: str = "valve") -> None:
-        """Put a valve wheel (:class:`~hubo_cli.scene.Valve`) into the scene; before
+        """Put a valve wheel (:class:`~hubo_cli.hinged_objects.Valve`) into the scene; before
         :meth:`start` it is created when the world is."""
         self._add_object(name, valve)
 
     def add_door(self, door: Door, name: str = "door") -> None:
-        """Put a hinged door (:class:`~hubo_cli.scene.Door`) into the scene."""
+        """Put a hinged door (:class:`~hubo_cli.hinged_objects.Door`) into the scene."""
         self._add_object(name, door)
 
     def _add_object(self, name: str, spec: Valve | Door) -> None:
@@ -696,8 +697,8 @@ class SimDriver(Driver, SimulatedWorld):
         return self._objects[name]
 
     def hinge_angle_rad(self, name: str) -> float:
-        """A hinged object's joint angle now (rad; see :class:`~hubo_cli.scene.Valve`,
-        :class:`~hubo_cli.scene.Door` for its sign)."""
+        """A hinged object's joint angle now (rad; see :class:`~hubo_cli.hinged_objects.Valve`,
+        :class:`~hubo_cli.hinged_objects.Door` for its sign)."""
         return self._object(name).angle_rad(self._p, self._cid)
 
     def grasp(self, frame: str, name: str, tolerance_m: float) -> float:

@@ -1,14 +1,14 @@
-"""The simulator's hinged objects (:class:`~hubo_cli.scene.Valve`, :class:`~hubo_cli.scene.Door`)
-as PyBullet multibodies, and a hand's grip on one.
+"""The simulator's hinged objects (:class:`~hubo_cli.hinged_objects.Valve`,
+:class:`~hubo_cli.hinged_objects.Door`) as PyBullet multibodies, and a hand's grip on one.
 
 Each object is one ``createMultiBody``: a static base (the valve's panel, the door's frame post)
 and one link on a revolute joint. The joint's dry friction is a velocity motor held at zero
 speed whose force is capped at the friction torque (PyBullet's usual Coulomb friction: it
 holds the joint until the torque on it exceeds the cap, then brakes it with the cap). The
 door's closer is an external torque about the hinge, set every physics step from the joint's
-angle and rate (:meth:`~hubo_cli.scene.Door.closer_torque_nm`); its stop is the joint's limit
-(closed at 0). Everything else (the wheel's and the leaf's inertia, the contacts with the
-robot) is PyBullet's.
+angle and rate (:meth:`~hubo_cli.hinged_objects.Door.closer_torque_nm`); its stop is the
+joint's limit (closed at 0). Everything else (the wheel's and the leaf's inertia, the
+contacts with the robot) is PyBullet's.
 
 The grip (:class:`Grip`) is a stiff spring-damper between the hand link and the valve's wheel at
 the hand point, made only when the hand point lies within a tolerance of the rim's centre line
@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hubo_cli.scene import Door, Valve
+from hubo_cli.hinged_objects import Door, Valve
 
 # PyBullet builds at most 16 shapes of a compound (MAX_COMPOUND_COLLISION_SHAPES): more are
 # dropped without a word (a 24-segment rim lost its left half, hub and spokes)

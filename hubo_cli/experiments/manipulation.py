@@ -2,14 +2,14 @@
 right hand turns a valve or pushes a door open, on a scene the planner may have misrecognised.
 
 Valve (``turn-valve``)
-    A wheel (:class:`~hubo_cli.scene.Valve`, radius 0.12 m, 3 N m of dry friction) stands in
-    front of the robot's right shoulder, its axis along x, on a stem from a panel behind it.
-    The plan (Fig. 13 alpha, beta): reach up and over the rim, lower the hand onto the
+    A wheel (:class:`~hubo_cli.hinged_objects.Valve`, radius 0.12 m, 3 N m of dry friction)
+    stands in front of the robot's right shoulder, its axis along x, on a stem from a panel
+    behind it. The plan (Fig. 13 alpha, beta): reach up and over the rim, lower the hand onto the
     rim's top, close the hand (the grip holds only if the rim is really there:
     :meth:`~hubo_cli.drivers.base.SimulatedWorld.grasp`), then carry the grip clockwise (as
     the robot sees it) along the rim's circle through ``turn_deg`` and hold.
 Door (``push-door``)
-    A door (:class:`~hubo_cli.scene.Door`, 0.9 m wide, hinged on the robot's left, a closer
+    A door (:class:`~hubo_cli.hinged_objects.Door`, 0.9 m wide, hinged on the robot's left, a closer
     of 2 N m + 10 N m/rad) stands closed just in front of the hands. The plan (Fig. 13
     gamma): bring the right hand's fingertips to the leaf, then push the leaf along its arc
     about the hinge through ``door_deg`` and hold it there against the closer.
@@ -53,10 +53,10 @@ from hubo_cli.errors import ConfigError, InputError
 from hubo_cli.experiments.push_wall import ARM_START_RAD, hand_box_extent_m
 from hubo_cli.experiments.watch import WatchedTarget
 from hubo_cli.geometry import min_jerk
+from hubo_cli.hinged_objects import DOOR_OPENS, Door, Valve
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.posture import home_posture
-from hubo_cli.scene import DOOR_OPENS, Door, Valve
 from hubo_cli.session import RunObserver, RunResult, RunSetup, run
 
 KINDS = ("turn-valve", "push-door")
