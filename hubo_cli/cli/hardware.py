@@ -134,6 +134,13 @@ def _serve(daemon, what: str, duration: float | None, as_json: bool, extra: dict
                           f"({sizes or 'none'}), {stats.missed_ref_frames} missed, "
                           f"{stats.overruns} overruns ({summary['overrun_percent']:.2f} %), "
                           f"{stats.late_periods} late periods{loop}")
+        for spec, began in stats.faults.items():
+            err_console.print(f"fault {spec}: " + ("not reached" if began is None else
+                                                   f"began {began:.3f} s after the first "
+                                                   "reference"))
+        if stats.states_withheld or stats.states_late:
+            err_console.print(f"{stats.states_withheld} states withheld, {stats.states_late} "
+                              "published late")
     if stats.error:
         raise DeviceError(f"the {what} stopped: {stats.error}",
                           hint="the writer does not send hubo_ref_t frames")
@@ -175,34 +182,52 @@ def fake_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: b
               metavar="SEED",
               help="Simulate a robot and world drawn from SEED as hubo sim --perturb does "
                    "(0 = nominal); the draws go into the final statistics (--json).")
+@click.option("--fault", "faults", multiple=True, metavar="SPEC",
+              help="Play a fault, times in s after the first reference frame (repeatable): "
+                   "missing,at=S[,for=S] (no state); late,at=S,by=S[,for=S] (states S old); "
+                   "frozen,joint=NAME,at=S (the joint sticks); hot,joint=NAME,at=S,rate=K/S "
+                   "(the motor heats that much faster).")
 def sim_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: bool,
-               perturb_seed: int | None) -> None:
+               perturb_seed: int | None, faults: tuple[str, ...]) -> None:
     """Play hubo-daemon with the simulated robot behind it: read hubo-ref, apply references as
     hubo-daemon does (mode 0 through its reference filter, mode 1 directly, per joint), run the
     PyBullet Hubo (the sim driver's world) in real time and publish what it measures on
-    hubo-state at 200 Hz: encoders, the body IMU, the four force-torque sensors. The robot
-    stands in the home posture. Channels as the fake daemon (created, taken over from a dead
-    daemon, removed at the end; another live daemon's refused, exit 3). The loop's overruns and
-    times are reported at the end.
+    hubo-state at 200 Hz: encoders, the body IMU, the four force-torque sensors, and the motors'
+    currents and temperatures from the simulated torques (the robot file's [motors]). The robot
+    stands in the home posture. --fault plays a bus's or a motor's fault on request. Channels
+    as the fake daemon (created, taken over from a dead daemon, removed at the end; another
+    live daemon's refused, exit 3). The loop's overruns and times, the faults played and the
+    hottest motor are reported at the end.
 
     Example: hubo hardware sim-daemon --perturb 3   (then, in another terminal:
              hubo task cut-rectangle --driver hardware --arm)
+             hubo hardware sim-daemon --fault frozen,joint=REB,at=2
     """
+    import numpy as np
+
     from hubo_cli.drivers.ach import load_libach
     from hubo_cli.drivers.hardware import hubo_ach_vector
     from hubo_cli.drivers.hubo_ach_daemon import HuboDaemon
+    from hubo_cli.drivers.hubo_ach_faults import parse_fault
     from hubo_cli.drivers.hubo_ach_sim_body import PhysicsBody
     from hubo_cli.model import load_model
     from hubo_cli.posture import home_posture
 
     _check_duration(duration)
-    lib = load_libach()
     model = load_model()
+    played = tuple(parse_fault(spec, model.joint_names) for spec in faults)
+    lib = load_libach()
     body = PhysicsBody(model, hubo_ach_vector(model, home_posture(model)), perturb_seed)
-    daemon = HuboDaemon(lib, body, ach_ref, ach_state)  # closes the body if it cannot start
+    # closes the body if it cannot start
+    daemon = HuboDaemon(lib, body, ach_ref, ach_state, faults=played)
 
     def extra(daemon) -> dict:
+        motors = daemon.body.motors
+        hottest = int(np.argmax(motors.tmp_c[daemon.body.index]))
         return {"max_tilt_deg": daemon.body.max_tilt_deg,
-                "perturbation": daemon.body.sim.perturbation.to_json()}
+                "perturbation": daemon.body.sim.perturbation.to_json(),
+                "hottest_motor": {"joint": model.joint_names[hottest],
+                                  "temperature_c": round(float(
+                                      motors.tmp_c[daemon.body.index[hottest]]), 3)}}
 
     _serve(daemon, "simulated hubo-daemon", duration, as_json, extra)
