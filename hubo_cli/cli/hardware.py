@@ -187,8 +187,16 @@ def fake_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: b
                    "missing,at=S[,for=S] (no state); late,at=S,by=S[,for=S] (states S old); "
                    "frozen,joint=NAME,at=S (the joint sticks); hot,joint=NAME,at=S,rate=K/S "
                    "(the motor heats that much faster).")
+@click.option("--drill", is_flag=True,
+              help="The drill in the right hand (as a drilling task's robot holds it).")
+@click.option("--tool-log", type=click.Path(dir_okay=False, writable=True), default=None,
+              metavar="FILE.csv",
+              help="Write the right hand's tool's true world position (the drill bit with "
+                   "--drill) with each published state's time, at the end: a run's hole as "
+                   "the simulator has it (tools/daemon_hole.py compares it with the run).")
 def sim_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: bool,
-               perturb_seed: int | None, faults: tuple[str, ...]) -> None:
+               perturb_seed: int | None, faults: tuple[str, ...], drill: bool,
+               tool_log: str | None) -> None:
     """Play hubo-daemon with the simulated robot behind it: read hubo-ref, apply references as
     hubo-daemon does (mode 0 through its reference filter, mode 1 directly, per joint), run the
     PyBullet Hubo (the sim driver's world) in real time and publish what it measures on
@@ -211,13 +219,18 @@ def sim_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: bo
     from hubo_cli.drivers.hubo_ach_faults import parse_fault
     from hubo_cli.drivers.hubo_ach_sim_body import PhysicsBody
     from hubo_cli.model import load_model
+    from hubo_cli.outputs import OutputFile
     from hubo_cli.posture import home_posture
 
     _check_duration(duration)
     model = load_model()
     played = tuple(parse_fault(spec, model.joint_names) for spec in faults)
+    # checked now, written at the end (a daemon's log: an existing file is replaced)
+    output = None if tool_log is None else OutputFile(tool_log, option="--tool-log",
+                                                      force=True)
     lib = load_libach()
-    body = PhysicsBody(model, hubo_ach_vector(model, home_posture(model)), perturb_seed)
+    body = PhysicsBody(model, hubo_ach_vector(model, home_posture(model)), perturb_seed,
+                       track_tool=tool_log is not None, drill=drill)
     # closes the body if it cannot start
     daemon = HuboDaemon(lib, body, ach_ref, ach_state, faults=played)
 
@@ -230,4 +243,15 @@ def sim_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: bo
                                   "temperature_c": round(float(
                                       motors.tmp_c[daemon.body.index[hottest]]), 3)}}
 
-    _serve(daemon, "simulated hubo-daemon", duration, as_json, extra)
+    try:
+        _serve(daemon, "simulated hubo-daemon", duration, as_json, extra)
+    finally:
+        if output is not None:
+            write_tool_log(output, body.tool_track)
+
+
+def write_tool_log(output, rows) -> None:
+    """The tool's track as CSV (time_s, x_m, y_m, z_m), written whole or not at all."""
+    with output.writing() as temporary, open(temporary, "w", encoding="utf-8") as out:
+        out.write("time_s,x_m,y_m,z_m\n")
+        out.writelines(f"{t:.6f},{x:.7f},{y:.7f},{z:.7f}\n" for t, x, y, z in rows)

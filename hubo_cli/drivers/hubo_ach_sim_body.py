@@ -39,6 +39,7 @@ from hubo_cli.drivers.hubo_ach_motors import MotorModel
 from hubo_cli.drivers.sim import SimDriver
 from hubo_cli.model import RobotModel
 from hubo_cli.state import FT_SENSORS
+from hubo_cli.urdf import DRILL_FRAME
 
 
 class PhysicsBody(DaemonBody):
@@ -50,13 +51,21 @@ class PhysicsBody(DaemonBody):
             stands in its limb joints.
         perturb_seed: the sim driver's ``--perturb`` draw (None or 0: nominal).
         filter_length: ``HUBO_REF_FILTER_LENGTH``.
-        sim_options: further :class:`~hubo_cli.drivers.sim.SimOptions`.
+        track_tool: keep the right hand's tool's true world position (the drill bit with
+            ``drill=True``, else the hand) with each published state's time
+            (:attr:`tool_track`): what a run's hole would be, measured outside the robot.
+        sim_options: further :class:`~hubo_cli.drivers.sim.SimOptions` (``drill=True``: the
+            drill in the right hand, as the task's robot holds it).
+
+    Attributes:
+        tool_track: rows of the state's time (s) and the tool's world x, y, z (m).
     """
 
     fault_kinds = ("frozen", "hot")
 
     def __init__(self, model: RobotModel, posture_rad, perturb_seed: int | None = None,
-                 filter_length: int = hubo_ach.REF_FILTER_LENGTH, **sim_options) -> None:
+                 filter_length: int = hubo_ach.REF_FILTER_LENGTH, track_tool: bool = False,
+                 **sim_options) -> None:
         posture = np.asarray(posture_rad, dtype=float)
         if posture.shape != (JOINT_COUNT,) or not np.all(np.isfinite(posture)):
             raise ValueError(f"posture must be {JOINT_COUNT} finite angles (rad)")
@@ -65,6 +74,9 @@ class PhysicsBody(DaemonBody):
         self.index = np.array([model.hubo_ach["index"][n] for n in model.joint_names])
         self.motors = MotorModel(model)
         self.frozen_rad: dict[int, float] = {}  # limb joint (model order) -> where it stuck
+        self.tool_frame = DRILL_FRAME if sim_options.get("drill") else "right_hand"
+        self.tool_track: list[tuple[float, float, float, float]] | None = (
+            [] if track_tool else None)
         self.sim = SimDriver(model, perturb_seed=perturb_seed, **sim_options)
         try:
             self._state = self.sim.start(posture[self.index])
@@ -99,6 +111,8 @@ class PhysicsBody(DaemonBody):
 
     def state(self, time_s: float) -> StateFrame:
         measured = self._state
+        if self.tool_track is not None:
+            self.tool_track.append((time_s, *self.sim.frame_pose(self.tool_frame)[:3, 3]))
         pos, vel = self._filtered.copy(), self._filter_vel.copy()
         pos[self.index], vel[self.index] = measured.q_rad, measured.dq_rad_s
         # FT_SENSORS is hubo-ach's ft[] order (R hand, L hand, R foot, L foot): m_x, m_y, f_z
