@@ -74,19 +74,20 @@ def test_the_temperature_is_a_first_order_lag_of_the_copper_loss():
     tau[knee] = 20.0
     i_a = 20.0 / (ratio[knee] * params["torque_constant_nm_a"])
     loss_w = params["winding_resistance_ohm"] * i_a ** 2
-    periods = int(round(params["thermal_time_constant_s"] / PERIOD_S))
-    for _ in range(periods):
-        motors.advance(tau, PERIOD_S)
+    step_s = params["thermal_time_constant_s"] / 1000  # the step is exact for any period
+    for _ in range(1000):
+        motors.advance(tau, step_s)
     rise = motors.tmp_c[INDEX["RKN"]] - params["ambient_temperature_c"]
     assert rise == pytest.approx((1 - np.exp(-1)) * params["thermal_resistance_k_w"] * loss_w,
                                  rel=1e-6)
-    assert motors.heat_j[INDEX["RKN"]] == pytest.approx(loss_w * periods * PERIOD_S, rel=1e-9)
+    assert motors.heat_j[INDEX["RKN"]] == pytest.approx(
+        loss_w * params["thermal_time_constant_s"], rel=1e-9)
     assert motors.tmp_c[INDEX["LKN"]] == params["ambient_temperature_c"]
     assert not motors.temp_error.any()
     motors.heat(INDEX["LKN"], 20.0)
     tau[knee] = np.nan
-    for _ in range(int(4.0 / PERIOD_S)):
-        motors.advance(tau, PERIOD_S)
+    for _ in range(40):
+        motors.advance(tau, 0.1)
     assert motors.tmp_c[INDEX["LKN"]] == pytest.approx(params["ambient_temperature_c"] + 80.0,
                                                        rel=0.01)
     assert motors.cur_a[INDEX["RKN"]] == 0.0
@@ -358,6 +359,8 @@ def test_a_heating_motor_in_the_simulated_robot_is_slowed_then_stopped():
     assert isinstance(trip, MotorTooHot) and trip.joint == "REB", trip
     assert "motor too hot: REB" in trip.message and "\n" not in trip.message
     temps, speeds, scales = np.array(temps), np.array(speeds), np.array(scales)
+    print(f"hot REB: {int(np.sum(temps >= warn))} periods slowed, from "
+          f"{temps[temps >= warn][0]:.1f} C to {trip.temperature_c:.1f} C; {trip.message}")
     cool = temps < warn
     assert np.all(speeds[cool] == pytest.approx(0.8, abs=1e-6))
     warm = ~cool
