@@ -186,9 +186,14 @@ def test_hostile_fault_specs_are_refused_in_one_line():
     ("hot,joint=REB,at=1", "needs rate"),
     ("late,at=1,by=nan", "is not a number"),
     ("stuck,at=1", "unknown kind"),
+    ("late,at=1,by=11", "in (0, 10]"),  # the daemon would keep every state that old
+    ("hot,joint=REB,at=1,rate=1e4", "kelvin per second"),
+    (None, "--tool-log"),  # a tool log in a folder that is not there
 ])
 def test_the_sim_daemon_refuses_a_bad_fault_before_anything_starts(tmp_path, spec, message):
-    result = CliRunner().invoke(main, ["hardware", "sim-daemon", "--fault", spec],
+    args = (["--fault", spec] if spec else
+            ["--tool-log", str(tmp_path / "missing" / "tool.csv")])
+    result = CliRunner().invoke(main, ["hardware", "sim-daemon", *args],
                                 env={"HUBO_LIBACH": str(tmp_path / "missing-libach.so")})
     assert result.exit_code == 2, result.output
     assert message in result.output and "Traceback" not in result.output

@@ -32,6 +32,9 @@ BODY_FAULTS = ("frozen", "hot")  # played by the body (its motors); the others b
 HINT = ("e.g. --fault frozen,joint=REB,at=2  --fault hot,joint=RKN,at=1,rate=10  "
         "--fault missing,at=3,for=0.3  --fault late,at=3,for=1,by=0.05")
 MAX_S = 7 * 24 * 3600.0
+# the daemon keeps every state of the last ``by`` seconds: 10 s is 2,000 states (8 MB), far past
+# the hardware driver's 0.1 s stale limit; a motor heated 1,000 K/s is at any limit at once
+MAX = {"at": MAX_S, "for": MAX_S, "by": 10.0, "rate": 1000.0}
 
 
 @dataclass(frozen=True)
@@ -99,10 +102,10 @@ def parse_fault(spec: str, joint_names) -> Fault:
         except ValueError:
             number = math.nan
         low = 0.0 if key == "at" else 1e-9  # for, by, rate: more than 0
-        if not (math.isfinite(number) and low <= number <= MAX_S):
+        if not (math.isfinite(number) and low <= number <= MAX[key]):
             unit = "kelvin per second" if key == "rate" else "seconds"
             raise InputError(f"--fault {text!r}: {key}={values[key]!r} is not a number of "
-                             f"{unit} in {'[0' if key == 'at' else '(0'}, {MAX_S:g}]",
+                             f"{unit} in {'[0' if key == 'at' else '(0'}, {MAX[key]:g}]",
                              hint=HINT)
         numbers[key] = number
     joint = values.get("joint")
