@@ -479,10 +479,16 @@ class HardwareDriver(Driver):
                 "hw_round_trip_ms": stats(self._round_trips_s),
                 "hw_max_servo_error_rad": round(self._max_servo_error_rad, 4),
                 "hw_thermal_limited_periods": self._thermal_periods,
-                "hw_hottest_motor": (None if self.thermal.hottest[0] is None else
-                                     {"joint": self.thermal.hottest[0],
-                                      "temperature_c": round(self.thermal.hottest[1], 2)}),
+                "hw_hottest_motor": self._hottest_motor(),
                 "hw_trip": None if self.trip is None else type(self.trip).__name__}
+
+    def _hottest_motor(self) -> dict | None:
+        """The run's hottest motor: joint and degrees C (None: unreadable, NaN in the state)."""
+        joint, temperature_c = self.thermal.hottest
+        if joint is None:
+            return None
+        return {"joint": joint, "temperature_c": (round(temperature_c, 2)
+                                                  if np.isfinite(temperature_c) else None)}
 
     # ------------------------------------------------------------------ internals
     def _require_started(self) -> None:
