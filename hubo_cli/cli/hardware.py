@@ -204,12 +204,14 @@ def sim_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: bo
     currents and temperatures from the simulated torques (the robot file's [motors]). The robot
     stands in the home posture. --fault plays a bus's or a motor's fault on request. Channels
     as the fake daemon (created, taken over from a dead daemon, removed at the end; another
-    live daemon's refused, exit 3). The loop's overruns and times, the faults played and the
-    hottest motor are reported at the end.
+    live daemon's refused, exit 3). The loop's overruns and times and the faults played are
+    reported at the end (--json: also the hottest motor and the simulator's true tilt).
 
-    Example: hubo hardware sim-daemon --perturb 3   (then, in another terminal:
-             hubo task cut-rectangle --driver hardware --arm)
-             hubo hardware sim-daemon --fault frozen,joint=REB,at=2
+    \b
+    Examples:
+      hubo hardware sim-daemon --perturb 3 --drill   (then, in another terminal:
+        hubo task cut-rectangle --driver hardware --arm)
+      hubo hardware sim-daemon --fault frozen,joint=REB,at=2
     """
     import numpy as np
 
