@@ -189,6 +189,11 @@ def fake_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: b
                    "(the motor heats that much faster).")
 @click.option("--drill", is_flag=True,
               help="The drill in the right hand (as a drilling task's robot holds it).")
+@click.option("--wall", "wall_mm", type=click.FloatRange(min=50.0, max=5000.0), default=None,
+              metavar="MM",
+              help="A wall (the shipped tasks' cardboard, 2 m x 1.2 m) with its near face MM "
+                   "ahead of where the robot starts, e.g. a task's planned wall_distance_mm; "
+                   "with --drill the bit cuts it as in hubo sim.")
 @click.option("--tool-log", type=click.Path(dir_okay=False, writable=True), default=None,
               metavar="FILE.csv",
               help="Write the right hand's tool's true world position (the drill bit with "
@@ -196,7 +201,7 @@ def fake_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: b
                    "the simulator has it (tools/daemon_hole.py compares it with the run).")
 def sim_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: bool,
                perturb_seed: int | None, faults: tuple[str, ...], drill: bool,
-               tool_log: str | None) -> None:
+               wall_mm: float | None, tool_log: str | None) -> None:
     """Play hubo-daemon with the simulated robot behind it: read hubo-ref, apply references as
     hubo-daemon does (mode 0 through its reference filter, mode 1 directly, per joint), run the
     PyBullet Hubo (the sim driver's world) in real time and publish what it measures on
@@ -232,7 +237,8 @@ def sim_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: bo
                                                       force=True)
     lib = load_libach()
     body = PhysicsBody(model, hubo_ach_vector(model, home_posture(model)), perturb_seed,
-                       track_tool=tool_log is not None, drill=drill)
+                       track_tool=tool_log is not None, drill=drill,
+                       wall_distance_m=None if wall_mm is None else wall_mm / 1000)
     # closes the body if it cannot start
     daemon = HuboDaemon(lib, body, ach_ref, ach_state, faults=played)
 
