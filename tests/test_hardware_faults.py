@@ -411,3 +411,26 @@ def test_the_imu_and_the_wrenches_reach_the_driver_in_hubo_achs_conventions():
         assert max(pitch) > -min(pitch)
     finally:
         body.close()
+
+
+def test_the_daemons_world_can_hold_the_tasks_wall_and_track_the_bit():
+    """``--wall``, ``--drill``, ``--tool-log``: the shipped tasks' wall at the distance asked,
+    the drill in the right hand, and one row of the bit's true world position per state
+    published, with that state's time."""
+    from hubo_cli.tasks.spec import Scene
+    from hubo_cli.urdf import DRILL_FRAME
+
+    body = PhysicsBody(MODEL, HOME42, track_tool=True, wall_distance_m=0.485, drill=True)
+    try:
+        (wall,) = body.sim.walls
+        assert wall.distance_m == 0.485 and wall.thickness_m == Scene().wall_thickness_m
+        mode = np.full(hubo_ach.JOINT_COUNT, hubo_ach.MODE_REF, dtype=np.int16)
+        for k in range(3):
+            body.advance(HOME42, mode, PERIOD_S)
+            body.state(10.0 + k)
+        times = [row[0] for row in body.tool_track]
+        assert times == [10.0, 11.0, 12.0]
+        bit = body.sim.frame_pose(DRILL_FRAME)[:3, 3]
+        assert np.allclose(body.tool_track[-1][1:], bit) and bit[0] < wall.distance_m
+    finally:
+        body.close()
