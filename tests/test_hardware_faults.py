@@ -420,8 +420,10 @@ def test_the_daemons_world_can_hold_the_tasks_wall_and_track_the_bit():
     from hubo_cli.tasks.spec import Scene
     from hubo_cli.urdf import DRILL_FRAME
 
-    body = PhysicsBody(MODEL, HOME42, track_tool=True, wall_distance_m=0.485, drill=True)
+    body = PhysicsBody(MODEL, HOME42, track_tool=True, drill=True)
     try:
+        assert not body.sim.walls
+        body.place_wall(0.485)
         (wall,) = body.sim.walls
         assert wall.distance_m == 0.485 and wall.thickness_m == Scene().wall_thickness_m
         mode = np.full(hubo_ach.JOINT_COUNT, hubo_ach.MODE_REF, dtype=np.int16)

@@ -192,8 +192,15 @@ def fake_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: b
 @click.option("--wall", "wall_mm", type=click.FloatRange(min=50.0, max=5000.0), default=None,
               metavar="MM",
               help="A wall (the shipped tasks' cardboard, 2 m x 1.2 m) with its near face MM "
-                   "ahead of where the robot starts, e.g. a task's planned wall_distance_mm; "
-                   "with --drill the bit cuts it as in hubo sim.")
+                   "ahead of where the robot started, e.g. a task's planned wall_distance_mm, "
+                   "placed --wall-at after the first reference; with --drill the bit cuts it "
+                   "as in hubo sim.")
+@click.option("--wall-at", "wall_at_s", type=click.FloatRange(min=0.0, max=3600.0),
+              default=4.5, show_default=True, metavar="SECONDS",
+              help="When --wall is placed, in s after the first reference: once a task has "
+                   "raised its tool (the shipped cut's raise ends about 4 s after it; the raise "
+                   "may sweep through the wall's place), before its plunge reaches the wall "
+                   "(about 9 s after it).")
 @click.option("--tool-log", type=click.Path(dir_okay=False, writable=True), default=None,
               metavar="FILE.csv",
               help="Write the right hand's tool's true world position (the drill bit with "
@@ -201,7 +208,7 @@ def fake_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: b
                    "the simulator has it (tools/daemon_hole.py compares it with the run).")
 def sim_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: bool,
                perturb_seed: int | None, faults: tuple[str, ...], drill: bool,
-               wall_mm: float | None, tool_log: str | None) -> None:
+               wall_mm: float | None, wall_at_s: float, tool_log: str | None) -> None:
     """Play hubo-daemon with the simulated robot behind it: read hubo-ref, apply references as
     hubo-daemon does (mode 0 through its reference filter, mode 1 directly, per joint), run the
     PyBullet Hubo (the sim driver's world) in real time and publish what it measures on
@@ -237,10 +244,11 @@ def sim_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: bo
                                                       force=True)
     lib = load_libach()
     body = PhysicsBody(model, hubo_ach_vector(model, home_posture(model)), perturb_seed,
-                       track_tool=tool_log is not None, drill=drill,
-                       wall_distance_m=None if wall_mm is None else wall_mm / 1000)
+                       track_tool=tool_log is not None, drill=drill)
+    scheduled = (() if wall_mm is None else
+                 ((wall_at_s, lambda: body.place_wall(wall_mm / 1000)),))
     # closes the body if it cannot start
-    daemon = HuboDaemon(lib, body, ach_ref, ach_state, faults=played)
+    daemon = HuboDaemon(lib, body, ach_ref, ach_state, faults=played, scheduled=scheduled)
 
     def extra(daemon) -> dict:
         motors = daemon.body.motors

@@ -32,6 +32,7 @@ import threading
 import time
 from abc import ABC, abstractmethod
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -184,6 +185,8 @@ class HuboDaemon:
         create: create the channels (replacing ones left over from a dead daemon; refusing
             ones another daemon publishes) and unlink them on :meth:`close`.
         faults: faults to play (:mod:`hubo_cli.drivers.hubo_ach_faults`).
+        scheduled: other things to do once, on the faults' clock: (seconds after the first
+            reference frame, a function of no arguments), e.g. place a wall.
 
     Attributes:
         created: the channels this daemon created (and removes at the end).
@@ -197,7 +200,8 @@ class HuboDaemon:
     def __init__(self, lib: Libach, body: DaemonBody, ref_channel: str = hubo_ach.CHAN_REF,
                  state_channel: str = hubo_ach.CHAN_STATE,
                  period_s: float = hubo_ach.LOOP_PERIOD_S, create: bool = True,
-                 faults: tuple[Fault, ...] = ()) -> None:
+                 faults: tuple[Fault, ...] = (),
+                 scheduled: tuple[tuple[float, Callable[[], None]], ...] = ()) -> None:
         self.lib = lib
         self.body = body
         self.faults = tuple(faults)
@@ -214,6 +218,7 @@ class HuboDaemon:
         self._buffer = (ctypes.c_uint8 * (hubo_ach.REF_SIZE + 256))()
         self._first_ref_s: float | None = None
         self._pending = list(self.faults)
+        self._scheduled = list(scheduled)
         self.stats.faults = {f.describe(): None for f in self.faults}
         late = [round(f.by_s / period_s) for f in self.faults if f.kind == "late"]
         self._history: deque[bytes] = deque(maxlen=max(late, default=0) + 1)
@@ -379,6 +384,9 @@ class HuboDaemon:
             if fault.kind in BODY_FAULTS:
                 self.body.begin_fault(fault)
             self.stats.faults[fault.describe()] = round(t_s, 4)
+        for item in [item for item in self._scheduled if t_s >= item[0]]:
+            self._scheduled.remove(item)
+            item[1]()
 
     def _publish(self) -> None:
         data = hubo_ach.encode_state(self.body.state(time.clock_gettime(time.CLOCK_MONOTONIC)))

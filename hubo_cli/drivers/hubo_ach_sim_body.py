@@ -52,9 +52,6 @@ class PhysicsBody(DaemonBody):
             stands in its limb joints.
         perturb_seed: the sim driver's ``--perturb`` draw (None or 0: nominal).
         filter_length: ``HUBO_REF_FILTER_LENGTH``.
-        wall_distance_m: a wall with its near face this far ahead (world +x) of where the robot
-            starts, the size and material (cardboard) of the shipped tasks' wall; with
-            ``drill=True`` the bit cuts it as in ``hubo sim`` (None: no wall).
         track_tool: keep the right hand's tool's true world position (the drill bit with
             ``drill=True``, else the hand) with each published state's time
             (:attr:`tool_track`): what a run's hole would be, measured outside the robot.
@@ -69,7 +66,7 @@ class PhysicsBody(DaemonBody):
 
     def __init__(self, model: RobotModel, posture_rad, perturb_seed: int | None = None,
                  filter_length: int = hubo_ach.REF_FILTER_LENGTH, track_tool: bool = False,
-                 wall_distance_m: float | None = None, **sim_options) -> None:
+                 **sim_options) -> None:
         posture = np.asarray(posture_rad, dtype=float)
         if posture.shape != (JOINT_COUNT,) or not np.all(np.isfinite(posture)):
             raise ValueError(f"posture must be {JOINT_COUNT} finite angles (rad)")
@@ -83,10 +80,6 @@ class PhysicsBody(DaemonBody):
             [] if track_tool else None)
         self.sim = SimDriver(model, perturb_seed=perturb_seed, **sim_options)
         try:
-            if wall_distance_m is not None:
-                wall = Scene()
-                self.sim.add_wall(wall_distance_m, wall.wall_height_m, wall.wall_width_m,
-                                  wall.wall_thickness_m)
             self._state = self.sim.start(posture[self.index])
         except Exception:
             self.sim.close()
@@ -107,6 +100,15 @@ class PhysicsBody(DaemonBody):
         self.sim.send(target)
         self._state = self.sim.step()
         self.motors.advance(self._state.tau_nm, period_s)
+
+    def place_wall(self, distance_m: float) -> None:
+        """A wall with its near face ``distance_m`` ahead (world +x) of where the robot started,
+        now: the size and material (cardboard) of the shipped tasks' wall; with ``drill=True``
+        the bit cuts it as in ``hubo sim``. A task's simulator run places it once the robot
+        holds its tool ready (the raise might sweep through it); the daemon at a set time."""
+        wall = Scene()
+        self.sim.add_wall(distance_m, wall.wall_height_m, wall.wall_width_m,
+                          wall.wall_thickness_m)
 
     def begin_fault(self, fault: Fault) -> None:
         i = self.joint_names.index(fault.joint)
