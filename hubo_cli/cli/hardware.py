@@ -183,7 +183,8 @@ def fake_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: b
               help="Simulate a robot and world drawn from SEED as hubo sim --perturb does "
                    "(0 = nominal); the draws go into the final statistics (--json).")
 @click.option("--fault", "faults", multiple=True, metavar="SPEC",
-              help="Play a fault, times in s after the first reference frame (repeatable): "
+              help="Play a fault, times in s after the first reference frame, counted in the "
+                   "daemon's periods (repeatable): "
                    "missing,at=S[,for=S] (no state); late,at=S,by=S[,for=S] (states S old); "
                    "frozen,joint=NAME,at=S (the joint sticks); hot,joint=NAME,at=S,rate=K/S "
                    "(the motor heats that much faster).")
@@ -197,7 +198,8 @@ def fake_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: b
                    "as in hubo sim.")
 @click.option("--wall-at", "wall_at_s", type=click.FloatRange(min=0.0, max=3600.0),
               default=4.5, show_default=True, metavar="SECONDS",
-              help="When --wall is placed, in s after the first reference: once a task has "
+              help="When --wall is placed, in s after the first reference (counted as "
+                   "--fault's): once a task has "
                    "raised its tool (the shipped cut's raise ends about 4 s after it; the raise "
                    "may sweep through the wall's place), before its plunge reaches the wall "
                    "(about 9 s after it).")

@@ -216,7 +216,7 @@ class HuboDaemon:
         self._ref = body.target_rad
         self._mode = np.zeros(JOINT_COUNT, dtype=np.int16)
         self._buffer = (ctypes.c_uint8 * (hubo_ach.REF_SIZE + 256))()
-        self._first_ref_s: float | None = None
+        self._ref_periods: int | None = None  # periods since the first reference frame
         self._pending = list(self.faults)
         self._scheduled = list(scheduled)
         self.stats.faults = {f.describe(): None for f in self.faults}
@@ -283,10 +283,14 @@ class HuboDaemon:
         self.body.advance(self._ref, self._mode, self.period_s)
         self._publish()
         self.stats.periods += 1
+        if self._ref_periods is not None:
+            self._ref_periods += 1
 
     def fault_time_s(self) -> float | None:
-        """Seconds since the first reference frame (the faults' clock; None before it)."""
-        return None if self._first_ref_s is None else time.monotonic() - self._first_ref_s
+        """The faults' clock: the body's time since the first reference frame (periods run
+        times the period, s: a loaded machine's late periods do not advance it, so a fault
+        meets the simulated robot where it would on a quiet one); None before that frame."""
+        return None if self._ref_periods is None else self._ref_periods * self.period_s
 
     def request_stop(self) -> None:
         """Ask the loop to end after the current period (safe from a signal handler)."""
@@ -372,8 +376,8 @@ class HuboDaemon:
                 stats.error = f"a {self.ref_channel} frame with a non-finite reference"
                 return
             self._ref, self._mode = frame.ref_rad, frame.mode
-            if self._first_ref_s is None:
-                self._first_ref_s = time.monotonic()
+            if self._ref_periods is None:
+                self._ref_periods = 0
 
     def _begin_faults(self) -> None:
         t_s = self.fault_time_s()

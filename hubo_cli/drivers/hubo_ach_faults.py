@@ -2,7 +2,9 @@
 robot's bus and motors would show them in ``hubo-state``.
 
 A spec is a kind and ``key=value`` fields, comma separated; times are seconds after the first
-``hubo-ref`` frame the daemon reads (the client's first reference, after its start-up delay):
+``hubo-ref`` frame the daemon reads (the client's first reference, after its start-up delay),
+on the simulated robot's clock (the daemon's periods; a loaded machine's late ones do not
+count):
 
 - ``missing,at=S,for=S``: no state is published for that long (a dead bus, a hung daemon);
 - ``late,at=S,for=S,by=S``: each state published is the one measured ``by`` seconds earlier
