@@ -6,6 +6,12 @@ measured position against the command sent d earlier, with that RMS and the larg
 (rad) at d. Through the hardware driver this is the reference mode's lag (hubo-daemon's filter
 in mode 0) plus the bus and the motors.
 
+Two clocks, when the log has the hardware driver's ``hw_state_time_s``: the run's periods
+(``t_s``, 5 ms each) and the daemon's (the state's time, wall clock; only the periods whose
+state is new). On a quiet machine they agree; on a loaded one the driver misses some of the
+daemon's states (the periods clock runs slow: delays read short) and the daemon runs some of
+its periods late (the wall clock stretches the filter's 39 periods: delays read long).
+
     python tools/ref_lag.py RUN_DIR [--limb right-arm] [--max-ms 400] [--step-ms 0.5]
 """
 
@@ -45,10 +51,17 @@ def main() -> None:
     joints = load_model().limb(args.limb).joints
     cmd = np.column_stack([log[f"cmd_{j}_rad"] for j in joints])
     q = np.column_stack([log[f"q_{j}_rad"] for j in joints])
-    delay, rms, largest = best_delay(np.asarray(log["t_s"], dtype=float), cmd, q,
-                                     args.max_ms / 1e3, args.step_ms / 1e3)
-    print(f"{args.limb}: best-fit delay {1e3 * delay:.1f} ms, RMS gap {rms:.4f} rad, "
-          f"largest {largest:.4f} rad")
+    clocks = {"the run's periods": (np.asarray(log["t_s"], dtype=float), np.ones(len(cmd), bool))}
+    if "hw_state_time_s" in log.columns:
+        state_t = np.asarray(log["hw_state_time_s"], dtype=float)
+        new = np.isfinite(state_t)
+        new[1:] &= np.diff(state_t) > 0
+        clocks["the daemon's"] = (state_t, new)
+    for name, (t_s, rows) in clocks.items():
+        delay, rms, largest = best_delay(t_s[rows], cmd[rows], q[rows], args.max_ms / 1e3,
+                                         args.step_ms / 1e3)
+        print(f"{args.limb}, {name} clock: best-fit delay {1e3 * delay:.1f} ms, RMS gap "
+              f"{rms:.4f} rad, largest {largest:.4f} rad")
 
 
 if __name__ == "__main__":
