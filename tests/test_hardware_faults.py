@@ -181,18 +181,20 @@ def test_hostile_fault_specs_are_refused_in_one_line():
     assert refused > 250  # only a dropped optional field leaves a valid spec
 
 
-@pytest.mark.parametrize("spec, message", [
-    ("frozen,joint=NKY,at=1", "not a limb joint"),
-    ("hot,joint=REB,at=1", "needs rate"),
-    ("late,at=1,by=nan", "is not a number"),
-    ("stuck,at=1", "unknown kind"),
-    ("late,at=1,by=11", "in (0, 10]"),  # the daemon would keep every state that old
-    ("hot,joint=REB,at=1,rate=1e4", "kelvin per second"),
-    (None, "--tool-log"),  # a tool log in a folder that is not there
+@pytest.mark.parametrize("args, message", [
+    (["--fault", "frozen,joint=NKY,at=1"], "not a limb joint"),
+    (["--fault", "hot,joint=REB,at=1"], "needs rate"),
+    (["--fault", "late,at=1,by=nan"], "is not a number"),
+    (["--fault", "stuck,at=1"], "unknown kind"),
+    (["--fault", "late,at=1,by=11"], "in (0, 10]"),  # the daemon would keep every state
+    (["--fault", "hot,joint=REB,at=1,rate=1e4"], "kelvin per second"),
+    (["--tool-log", "{tmp}/missing/tool.csv"], "--tool-log"),  # its folder is not there
+    (["--wall", "10"], "--wall"),  # inside the robot
+    (["--wall", "500", "--wall-at", "-1"], "--wall-at"),
+    (["--wall-at", "3"], "there is none"),
 ])
-def test_the_sim_daemon_refuses_a_bad_fault_before_anything_starts(tmp_path, spec, message):
-    args = (["--fault", spec] if spec else
-            ["--tool-log", str(tmp_path / "missing" / "tool.csv")])
+def test_the_sim_daemon_refuses_bad_options_before_anything_starts(tmp_path, args, message):
+    args = [a.format(tmp=tmp_path) for a in args]
     result = CliRunner().invoke(main, ["hardware", "sim-daemon", *args],
                                 env={"HUBO_LIBACH": str(tmp_path / "missing-libach.so")})
     assert result.exit_code == 2, result.output

@@ -97,6 +97,9 @@ def _daemon_options(function):
     return function
 
 
+WALL_AT_S = 4.5  # after the shipped cut's raise (about 4 s), before its plunge (about 9 s)
+
+
 def _check_duration(duration: float | None) -> None:
     if duration is not None and not 0 < duration <= 7 * 24 * 3600:
         raise InputError(f"--duration {duration:g} s is not a duration",
@@ -197,12 +200,12 @@ def fake_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: b
                    "placed --wall-at after the first reference; with --drill the bit cuts it "
                    "as in hubo sim.")
 @click.option("--wall-at", "wall_at_s", type=click.FloatRange(min=0.0, max=3600.0),
-              default=4.5, show_default=True, metavar="SECONDS",
+              default=None, metavar="SECONDS",
               help="When --wall is placed, in s after the first reference (counted as "
                    "--fault's): once a task has "
                    "raised its tool (the shipped cut's raise ends about 4 s after it; the raise "
                    "may sweep through the wall's place), before its plunge reaches the wall "
-                   "(about 9 s after it).")
+                   "(about 9 s after it). Default 4.5.")
 @click.option("--tool-log", type=click.Path(dir_okay=False, writable=True), default=None,
               metavar="FILE.csv",
               help="Write the right hand's tool's true world position (the drill bit with "
@@ -210,7 +213,7 @@ def fake_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: b
                    "the simulator has it (tools/daemon_hole.py compares it with the run).")
 def sim_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: bool,
                perturb_seed: int | None, faults: tuple[str, ...], drill: bool,
-               wall_mm: float | None, wall_at_s: float, tool_log: str | None) -> None:
+               wall_mm: float | None, wall_at_s: float | None, tool_log: str | None) -> None:
     """Play hubo-daemon with the simulated robot behind it: read hubo-ref, apply references as
     hubo-daemon does (mode 0 through its reference filter, mode 1 directly, per joint), run the
     PyBullet Hubo (the sim driver's world) in real time and publish what it measures on
@@ -239,6 +242,9 @@ def sim_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: bo
     from hubo_cli.posture import home_posture
 
     _check_duration(duration)
+    if wall_at_s is not None and wall_mm is None:
+        raise InputError("--wall-at places a --wall; there is none", hint="add --wall MM")
+    wall_at_s = WALL_AT_S if wall_at_s is None else wall_at_s
     model = load_model()
     played = tuple(parse_fault(spec, model.joint_names) for spec in faults)
     # checked now, written at the end (a daemon's log: an existing file is replaced)
