@@ -422,7 +422,9 @@ def test_the_daemons_world_can_hold_the_tasks_wall_and_track_the_bit():
     from hubo_cli.tasks.spec import Scene
     from hubo_cli.urdf import DRILL_FRAME
 
-    body = PhysicsBody(MODEL, HOME42, track_tool=True, drill=True)
+    track = []
+    body = PhysicsBody(MODEL, HOME42, drill=True,
+                       track_tool=lambda t_s, xyz_m: track.append((t_s, *xyz_m)))
     try:
         assert not body.sim.walls
         body.place_wall(0.485)
@@ -432,9 +434,8 @@ def test_the_daemons_world_can_hold_the_tasks_wall_and_track_the_bit():
         for k in range(3):
             body.advance(HOME42, mode, PERIOD_S)
             body.state(10.0 + k)
-        times = [row[0] for row in body.tool_track]
-        assert times == [10.0, 11.0, 12.0]
+        assert [row[0] for row in track] == [10.0, 11.0, 12.0]
         bit = body.sim.frame_pose(DRILL_FRAME)[:3, 3]
-        assert np.allclose(body.tool_track[-1][1:], bit) and bit[0] < wall.distance_m
+        assert np.allclose(track[-1][1:], bit) and bit[0] < wall.distance_m
     finally:
         body.close()

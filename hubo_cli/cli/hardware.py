@@ -3,6 +3,7 @@ options shared by ``hubo task`` and ``hubo teleop``."""
 
 from __future__ import annotations
 
+import contextlib
 import signal
 
 import click
@@ -230,8 +231,6 @@ def sim_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: bo
         hubo task cut-rectangle --driver hardware --arm)
       hubo hardware sim-daemon --fault frozen,joint=REB,at=2
     """
-    import numpy as np
-
     from hubo_cli.drivers.ach import load_libach
     from hubo_cli.drivers.hardware import hubo_ach_vector
     from hubo_cli.drivers.hubo_ach_daemon import HuboDaemon
@@ -247,35 +246,42 @@ def sim_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: bo
     wall_at_s = WALL_AT_S if wall_at_s is None else wall_at_s
     model = load_model()
     played = tuple(parse_fault(spec, model.joint_names) for spec in faults)
-    # checked now, written at the end (a daemon's log: an existing file is replaced)
+    # checked now, written as the daemon runs (a daemon's log: an existing file is replaced)
     output = None if tool_log is None else OutputFile(tool_log, option="--tool-log",
                                                       force=True)
     lib = load_libach()
-    body = PhysicsBody(model, hubo_ach_vector(model, home_posture(model)), perturb_seed,
-                       track_tool=tool_log is not None, drill=drill)
-    scheduled = (() if wall_mm is None else
-                 ((wall_at_s, lambda: body.place_wall(wall_mm / 1000)),))
-    # closes the body if it cannot start
-    daemon = HuboDaemon(lib, body, ach_ref, ach_state, faults=played, scheduled=scheduled)
+    with contextlib.ExitStack() as stack:
+        track = None
+        if output is not None:  # rows as they come, the file renamed into place at the end
+            out = stack.enter_context(open(stack.enter_context(output.writing(
+                keep_partial=True)), "w", encoding="utf-8"))
+            out.write("time_s,x_m,y_m,z_m\n")
 
-    def extra(daemon) -> dict:
-        motors = daemon.body.motors
-        hottest = int(np.argmax(motors.tmp_c[daemon.body.index]))
-        return {"max_tilt_deg": daemon.body.max_tilt_deg,
-                "perturbation": daemon.body.sim.perturbation.to_json(),
-                "hottest_motor": {"joint": model.joint_names[hottest],
-                                  "temperature_c": round(float(
-                                      motors.tmp_c[daemon.body.index[hottest]]), 3)}}
+            def track(t_s, xyz_m) -> None:
+                try:
+                    out.write(f"{t_s:.6f},{xyz_m[0]:.7f},{xyz_m[1]:.7f},{xyz_m[2]:.7f}\n")
+                except OSError as exc:  # a full disk: the daemon stops, its channels removed
+                    raise DeviceError(f"cannot write the tool log {output.path}: "
+                                      f"{exc.strerror or exc}",
+                                      hint="free space or leave out --tool-log") from None
 
-    try:
-        _serve(daemon, "simulated hubo-daemon", duration, as_json, extra)
-    finally:
-        if output is not None:
-            write_tool_log(output, body.tool_track)
+        body = PhysicsBody(model, hubo_ach_vector(model, home_posture(model)), perturb_seed,
+                           track_tool=track, drill=drill)
+        scheduled = (() if wall_mm is None else
+                     ((wall_at_s, lambda: body.place_wall(wall_mm / 1000)),))
+        # closes the body if it cannot start
+        daemon = HuboDaemon(lib, body, ach_ref, ach_state, faults=played, scheduled=scheduled)
+        _serve(daemon, "simulated hubo-daemon", duration, as_json,
+               lambda daemon: _sim_extra(model, daemon.body))
 
 
-def write_tool_log(output, rows) -> None:
-    """The tool's track as CSV (time_s, x_m, y_m, z_m), written whole or not at all."""
-    with output.writing() as temporary, open(temporary, "w", encoding="utf-8") as out:
-        out.write("time_s,x_m,y_m,z_m\n")
-        out.writelines(f"{t:.6f},{x:.7f},{y:.7f},{z:.7f}\n" for t, x, y, z in rows)
+def _sim_extra(model, body) -> dict:
+    """The simulated daemon's own report: the true largest tilt, the perturbation, the hottest
+    motor."""
+    import numpy as np
+
+    tmp_c = body.motors.tmp_c[body.index]
+    hottest = int(np.argmax(tmp_c))
+    return {"max_tilt_deg": body.max_tilt_deg, "perturbation": body.sim.perturbation.to_json(),
+            "hottest_motor": {"joint": model.joint_names[hottest],
+                              "temperature_c": round(float(tmp_c[hottest]), 3)}}

@@ -29,6 +29,8 @@ sensors and ``--perturb`` draws unchanged) runs one 5 ms period. What it measure
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from hubo_cli.drivers import hubo_ach
@@ -52,20 +54,18 @@ class PhysicsBody(DaemonBody):
             stands in its limb joints.
         perturb_seed: the sim driver's ``--perturb`` draw (None or 0: nominal).
         filter_length: ``HUBO_REF_FILTER_LENGTH``.
-        track_tool: keep the right hand's tool's true world position (the drill bit with
-            ``drill=True``, else the hand) with each published state's time
-            (:attr:`tool_track`): what a run's hole would be, measured outside the robot.
+        track_tool: called with each published state's time (s) and the right hand's tool's
+            true world position (m; the drill bit with ``drill=True``, else the hand): what a
+            run's hole would be, measured outside the robot (None: not tracked).
         sim_options: further :class:`~hubo_cli.drivers.sim.SimOptions` (``drill=True``: the
             drill in the right hand, as the task's robot holds it).
-
-    Attributes:
-        tool_track: rows of the state's time (s) and the tool's world x, y, z (m).
     """
 
     fault_kinds = ("frozen", "hot")
 
     def __init__(self, model: RobotModel, posture_rad, perturb_seed: int | None = None,
-                 filter_length: int = hubo_ach.REF_FILTER_LENGTH, track_tool: bool = False,
+                 filter_length: int = hubo_ach.REF_FILTER_LENGTH,
+                 track_tool: Callable[[float, np.ndarray], None] | None = None,
                  **sim_options) -> None:
         posture = np.asarray(posture_rad, dtype=float)
         if posture.shape != (JOINT_COUNT,) or not np.all(np.isfinite(posture)):
@@ -76,8 +76,7 @@ class PhysicsBody(DaemonBody):
         self.motors = MotorModel(model)
         self.frozen_rad: dict[int, float] = {}  # limb joint (model order) -> where it stuck
         self.tool_frame = DRILL_FRAME if sim_options.get("drill") else "right_hand"
-        self.tool_track: list[tuple[float, float, float, float]] | None = (
-            [] if track_tool else None)
+        self.track_tool = track_tool
         self.sim = SimDriver(model, perturb_seed=perturb_seed, **sim_options)
         try:
             self._state = self.sim.start(posture[self.index])
@@ -121,8 +120,8 @@ class PhysicsBody(DaemonBody):
 
     def state(self, time_s: float) -> StateFrame:
         measured = self._state
-        if self.tool_track is not None:
-            self.tool_track.append((time_s, *self.sim.frame_pose(self.tool_frame)[:3, 3]))
+        if self.track_tool is not None:
+            self.track_tool(time_s, self.sim.frame_pose(self.tool_frame)[:3, 3])
         pos, vel = self._filtered.copy(), self._filter_vel.copy()
         pos[self.index], vel[self.index] = measured.q_rad, measured.dq_rad_s
         # FT_SENSORS is hubo-ach's ft[] order (R hand, L hand, R foot, L foot): m_x, m_y, f_z
