@@ -104,6 +104,8 @@ class RobotModel:
         feet: the feet's shape (:class:`FootShape`).
         hardware_guards: the hardware driver's checks of the measured state (robot file's
             ``[hardware_guards]``, see :mod:`hubo_cli.drivers.servo_guard`).
+        motors: the simulated daemon's motor constants (robot file's ``[motors]``, see
+            :mod:`hubo_cli.drivers.hubo_ach_motors`).
     """
 
     params_name: str
@@ -118,6 +120,7 @@ class RobotModel:
     drill: DrillShape
     feet: FootShape
     hardware_guards: dict = field(default_factory=dict)
+    motors: dict = field(default_factory=dict)
     joint_names: tuple[str, ...] = field(init=False)
 
     def __post_init__(self) -> None:
@@ -279,4 +282,5 @@ def load_model(params: str = "as-built", limits: str = "table4",
                       control_period_s=float(raw["robot"]["control_period_s"]), source=path,
                       drill=_shape(DrillShape, raw, "tools.drill", path),
                       feet=_shape(FootShape, raw, "feet", path),
-                      hardware_guards=raw.get("hardware_guards", {}))
+                      hardware_guards=raw.get("hardware_guards", {}),
+                      motors=raw.get("motors", {}))

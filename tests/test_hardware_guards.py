@@ -303,7 +303,9 @@ def test_an_unreadable_temperature_counts_as_the_maximum(tmp_path):
         driver.start()
         _doctor(driver, nan)
         flags, trip = _move(driver, 0.1, 50)
+        hottest = driver.summary_values()["hw_hottest_motor"]
     assert isinstance(trip, MotorTooHot) and len(flags) == 5
+    assert hottest == {"joint": "REB", "temperature_c": None}  # unreadable, not infinite
 
 
 # ---------------------------------------------------------------- state age, round trip

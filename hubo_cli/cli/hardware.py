@@ -3,6 +3,7 @@ options shared by ``hubo task`` and ``hubo teleop``."""
 
 from __future__ import annotations
 
+import contextlib
 import signal
 
 import click
@@ -97,6 +98,9 @@ def _daemon_options(function):
     return function
 
 
+WALL_AT_S = 4.5  # after the shipped cut's raise (about 4 s), before its plunge (about 9 s)
+
+
 def _check_duration(duration: float | None) -> None:
     if duration is not None and not 0 < duration <= 7 * 24 * 3600:
         raise InputError(f"--duration {duration:g} s is not a duration",
@@ -134,6 +138,13 @@ def _serve(daemon, what: str, duration: float | None, as_json: bool, extra: dict
                           f"({sizes or 'none'}), {stats.missed_ref_frames} missed, "
                           f"{stats.overruns} overruns ({summary['overrun_percent']:.2f} %), "
                           f"{stats.late_periods} late periods{loop}")
+        for spec, began in stats.faults.items():
+            err_console.print(f"fault {spec}: " + ("not reached" if began is None else
+                                                   f"began {began:.3f} s after the first "
+                                                   "reference"))
+        if stats.states_withheld or stats.states_late:
+            err_console.print(f"{stats.states_withheld} states withheld, {stats.states_late} "
+                              "published late")
     if stats.error:
         raise DeviceError(f"the {what} stopped: {stats.error}",
                           hint="the writer does not send hubo_ref_t frames")
@@ -175,34 +186,102 @@ def fake_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: b
               metavar="SEED",
               help="Simulate a robot and world drawn from SEED as hubo sim --perturb does "
                    "(0 = nominal); the draws go into the final statistics (--json).")
+@click.option("--fault", "faults", multiple=True, metavar="SPEC",
+              help="Play a fault, times in s after the first reference frame, counted in the "
+                   "daemon's periods (repeatable): "
+                   "missing,at=S[,for=S] (no state); late,at=S,by=S[,for=S] (states S old); "
+                   "frozen,joint=NAME,at=S (the joint sticks); hot,joint=NAME,at=S,rate=K/S "
+                   "(the motor heats that much faster).")
+@click.option("--drill", is_flag=True,
+              help="The drill in the right hand (as a drilling task's robot holds it).")
+@click.option("--wall", "wall_mm", type=click.FloatRange(min=50.0, max=5000.0), default=None,
+              metavar="MM",
+              help="A wall (the shipped tasks' cardboard, 2 m x 1.2 m) with its near face MM "
+                   "ahead of where the robot started, e.g. a task's planned wall_distance_mm, "
+                   "placed --wall-at after the first reference; with --drill the bit cuts it "
+                   "as in hubo sim.")
+@click.option("--wall-at", "wall_at_s", type=click.FloatRange(min=0.0, max=3600.0),
+              default=None, metavar="SECONDS",
+              help="When --wall is placed, in s after the first reference (counted as "
+                   "--fault's): once a task has "
+                   "raised its tool (the shipped cut's raise ends about 4 s after it; the raise "
+                   "may sweep through the wall's place), before its plunge reaches the wall "
+                   "(about 9 s after it). Default 4.5.")
+@click.option("--tool-log", type=click.Path(dir_okay=False, writable=True), default=None,
+              metavar="FILE.csv",
+              help="Write the right hand's tool's true world position (the drill bit with "
+                   "--drill) with each published state's time, at the end: a run's hole as "
+                   "the simulator has it (tools/daemon_hole.py compares it with the run).")
 def sim_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: bool,
-               perturb_seed: int | None) -> None:
+               perturb_seed: int | None, faults: tuple[str, ...], drill: bool,
+               wall_mm: float | None, wall_at_s: float | None, tool_log: str | None) -> None:
     """Play hubo-daemon with the simulated robot behind it: read hubo-ref, apply references as
     hubo-daemon does (mode 0 through its reference filter, mode 1 directly, per joint), run the
     PyBullet Hubo (the sim driver's world) in real time and publish what it measures on
-    hubo-state at 200 Hz: encoders, the body IMU, the four force-torque sensors. The robot
-    stands in the home posture. Channels as the fake daemon (created, taken over from a dead
-    daemon, removed at the end; another live daemon's refused, exit 3). The loop's overruns and
-    times are reported at the end.
+    hubo-state at 200 Hz: encoders, the body IMU, the four force-torque sensors, and the motors'
+    currents and temperatures from the simulated torques (the robot file's [motors]). The robot
+    stands in the home posture. --fault plays a bus's or a motor's fault on request. Channels
+    as the fake daemon (created, taken over from a dead daemon, removed at the end; another
+    live daemon's refused, exit 3). The loop's overruns and times and the faults played are
+    reported at the end (--json: also the hottest motor and the simulator's true tilt).
 
-    Example: hubo hardware sim-daemon --perturb 3   (then, in another terminal:
-             hubo task cut-rectangle --driver hardware --arm)
+    \b
+    Examples:
+      hubo hardware sim-daemon --perturb 3 --drill   (then, in another terminal:
+        hubo task cut-rectangle --driver hardware --arm)
+      hubo hardware sim-daemon --fault frozen,joint=REB,at=2
     """
     from hubo_cli.drivers.ach import load_libach
     from hubo_cli.drivers.hardware import hubo_ach_vector
     from hubo_cli.drivers.hubo_ach_daemon import HuboDaemon
+    from hubo_cli.drivers.hubo_ach_faults import parse_fault
     from hubo_cli.drivers.hubo_ach_sim_body import PhysicsBody
     from hubo_cli.model import load_model
+    from hubo_cli.outputs import OutputFile
     from hubo_cli.posture import home_posture
 
     _check_duration(duration)
-    lib = load_libach()
+    if wall_at_s is not None and wall_mm is None:
+        raise InputError("--wall-at places a --wall; there is none", hint="add --wall MM")
+    wall_at_s = WALL_AT_S if wall_at_s is None else wall_at_s
     model = load_model()
-    body = PhysicsBody(model, hubo_ach_vector(model, home_posture(model)), perturb_seed)
-    daemon = HuboDaemon(lib, body, ach_ref, ach_state)  # closes the body if it cannot start
+    played = tuple(parse_fault(spec, model.joint_names) for spec in faults)
+    # checked now, written as the daemon runs (a daemon's log: an existing file is replaced)
+    output = None if tool_log is None else OutputFile(tool_log, option="--tool-log",
+                                                      force=True)
+    lib = load_libach()
+    with contextlib.ExitStack() as stack:
+        track = None
+        if output is not None:  # rows as they come, the file renamed into place at the end
+            out = stack.enter_context(open(stack.enter_context(output.writing(
+                keep_partial=True)), "w", encoding="utf-8"))
+            out.write("time_s,x_m,y_m,z_m\n")
 
-    def extra(daemon) -> dict:
-        return {"max_tilt_deg": daemon.body.max_tilt_deg,
-                "perturbation": daemon.body.sim.perturbation.to_json()}
+            def track(t_s, xyz_m) -> None:
+                try:
+                    out.write(f"{t_s:.6f},{xyz_m[0]:.7f},{xyz_m[1]:.7f},{xyz_m[2]:.7f}\n")
+                except OSError as exc:  # a full disk: the daemon stops, its channels removed
+                    raise DeviceError(f"cannot write the tool log {output.path}: "
+                                      f"{exc.strerror or exc}",
+                                      hint="free space or leave out --tool-log") from None
 
-    _serve(daemon, "simulated hubo-daemon", duration, as_json, extra)
+        body = PhysicsBody(model, hubo_ach_vector(model, home_posture(model)), perturb_seed,
+                           track_tool=track, drill=drill)
+        scheduled = (() if wall_mm is None else
+                     ((wall_at_s, lambda: body.place_wall(wall_mm / 1000)),))
+        # closes the body if it cannot start
+        daemon = HuboDaemon(lib, body, ach_ref, ach_state, faults=played, scheduled=scheduled)
+        _serve(daemon, "simulated hubo-daemon", duration, as_json,
+               lambda daemon: _sim_extra(model, daemon.body))
+
+
+def _sim_extra(model, body) -> dict:
+    """The simulated daemon's own report: the true largest tilt, the perturbation, the hottest
+    motor."""
+    import numpy as np
+
+    tmp_c = body.motors.tmp_c[body.index]
+    hottest = int(np.argmax(tmp_c))
+    return {"max_tilt_deg": body.max_tilt_deg, "perturbation": body.sim.perturbation.to_json(),
+            "hottest_motor": {"joint": model.joint_names[hottest],
+                              "temperature_c": round(float(tmp_c[hottest]), 3)}}

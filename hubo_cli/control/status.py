@@ -37,6 +37,7 @@ FLAG_STATUS = {
     "recovering": Status.SLOWING,
     "smooth-stop": Status.SLOWING,
     "tracking-error": Status.SLOWING,
+    "thermal": Status.SLOWING,  # the hardware driver slows a joint whose motor runs hot
     "holding": Status.HOLDING,
     "stale-input": Status.STALE_INPUT,
     "joint-limit": Status.JOINT_LIMIT,

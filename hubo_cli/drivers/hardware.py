@@ -151,7 +151,7 @@ class HardwareDriver(Driver):
     real_time = True
     log_columns = ("hw_ref_seq", "hw_state_time_s", "hw_state_age_periods", "hw_ref_mode",
                    "hw_state_age_ms", "hw_round_trip_ms", "hw_servo_error_rad",
-                   "hw_thermal_scale")
+                   "hw_thermal_scale", "hw_max_motor_temp_c")
 
     def __init__(self, model: RobotModel, armed: bool = False, sink: str = "ach",
                  sink_path: str | Path | None = None, ach_ref: str = hubo_ach.CHAN_REF,
@@ -448,8 +448,9 @@ class HardwareDriver(Driver):
         the newest state (s), how many periods ago it arrived, the hubo-ach mode, the state's
         age (now minus its ``time``, ms; NaN for a simulated clock), the time from putting
         this period's reference to reading the next fresh state (ms; NaN without one), the
-        largest servo error (rad) and the smallest thermal velocity scale (the soles' forces
-        are the log's ``*_foot_fz_n``)."""
+        largest servo error (rad), the smallest thermal velocity scale and the hottest limb
+        motor's temperature (degrees C; NaN before a state; the soles' forces are the log's
+        ``*_foot_fz_n``)."""
         frame = self._frame
         time_s = frame.time_s if frame is not None else float("nan")
         ages = self._ages_s[-1:] if self._ages_s else [float("nan")]
@@ -457,12 +458,14 @@ class HardwareDriver(Driver):
                 "hw_state_age_periods": float(self._stale), "hw_ref_mode": float(self.ref_mode),
                 "hw_state_age_ms": 1e3 * ages[0], "hw_round_trip_ms": 1e3 * self._round_trip_s,
                 "hw_servo_error_rad": float(np.max(self.servo_guard.error_rad)),
-                "hw_thermal_scale": float(np.min(self.thermal.scale))}
+                "hw_thermal_scale": float(np.min(self.thermal.scale)),
+                "hw_max_motor_temp_c": float(np.max(self.thermal.temperature_c))}
 
     def summary_values(self) -> dict[str, object]:
         """The run's hubo-ach mode, the state's age and the reference-to-state round trip
         (median, p99, max in ms; None without a measure), the largest servo error (rad), the
-        periods slowed by hot motors and the trip that ended the run (if any)."""
+        periods slowed by hot motors, the hottest motor (joint and degrees C; None without a
+        temperature) and the trip that ended the run (if any)."""
         def stats(values_s: array) -> dict[str, float | None]:
             x = np.frombuffer(values_s, dtype=float) * 1e3
             x = x[np.isfinite(x)]
@@ -476,7 +479,16 @@ class HardwareDriver(Driver):
                 "hw_round_trip_ms": stats(self._round_trips_s),
                 "hw_max_servo_error_rad": round(self._max_servo_error_rad, 4),
                 "hw_thermal_limited_periods": self._thermal_periods,
+                "hw_hottest_motor": self._hottest_motor(),
                 "hw_trip": None if self.trip is None else type(self.trip).__name__}
+
+    def _hottest_motor(self) -> dict | None:
+        """The run's hottest motor: joint and degrees C (None: unreadable, NaN in the state)."""
+        joint, temperature_c = self.thermal.hottest
+        if joint is None:
+            return None
+        return {"joint": joint, "temperature_c": (round(temperature_c, 2)
+                                                  if np.isfinite(temperature_c) else None)}
 
     # ------------------------------------------------------------------ internals
     def _require_started(self) -> None:

@@ -148,6 +148,11 @@ class StateFrame:
             filter); None: the positions (a daemon publishing them; not decoded).
         tmp_c: the 42 motors' temperatures (``joint[].tmp``, degrees C); None: zero (a daemon
             publishing them).
+        cur_a: the 42 motors' currents (``joint[].cur``, A); None: zero.
+        heat_j: the heat each motor has generated (``joint[].heat``, J: hubo.h's "NOT
+            TEMPERATURE"); None: zero (not decoded).
+        status: ``status[]`` flags by name (each 42 values, 0 or 1), e.g. ``jam``,
+            ``tempError``; None or a flag not named: zero (not decoded).
     """
 
     time_s: float
@@ -159,6 +164,9 @@ class StateFrame:
     ref_wait: bool = False
     ref_rad: np.ndarray | None = None
     tmp_c: np.ndarray | None = None
+    cur_a: np.ndarray | None = None
+    heat_j: np.ndarray | None = None
+    status: dict[str, np.ndarray] | None = None
 
 
 def _doubles(data: bytes, offset: int, count: int, stride: int = 8) -> np.ndarray:
@@ -185,6 +193,8 @@ def decode_state(data: bytes) -> StateFrame:
                                _JOINT_STRIDE),
                       bool(ref_wait),
                       tmp_c=_doubles(data, joint + HuboJointState.tmp.offset, JOINT_COUNT,
+                                     _JOINT_STRIDE),
+                      cur_a=_doubles(data, joint + HuboJointState.cur.offset, JOINT_COUNT,
                                      _JOINT_STRIDE))
 
 
@@ -200,8 +210,11 @@ def encode_state(frame: StateFrame) -> bytes:
     s["joint"]["pos"] = frame.pos_rad
     s["joint"]["ref"] = frame.pos_rad if frame.ref_rad is None else frame.ref_rad
     s["joint"]["vel"] = frame.vel_rad_s
-    if frame.tmp_c is not None:
-        s["joint"]["tmp"] = frame.tmp_c
+    for name, values in (("tmp", frame.tmp_c), ("cur", frame.cur_a), ("heat", frame.heat_j)):
+        if values is not None:
+            s["joint"][name] = values
+    for name, values in (frame.status or {}).items():
+        s["status"][name] = values
     s["joint"]["active"] = 1
     s["joint"]["zeroed"] = 1
     s["time"] = frame.time_s

@@ -15,6 +15,10 @@ A controller talking to either closes its loop through real ach channels.
 Each period's work (read, body, publish) is timed; a period whose work ends past its deadline is
 an overrun, and :class:`DaemonStats` keeps their count and the loop times' distribution.
 
+Faults on request (:mod:`hubo_cli.drivers.hubo_ach_faults`): the daemon withholds states
+(``missing``) or publishes old ones (``late``); the body plays those of its motors (``frozen``,
+``hot``) if it has motors to play them with.
+
 Channels it finds already there are either another daemon's (a new state frame within
 ``LIVE_CHECK_S``: refused, two writers would fight) or left over from a daemon that died
 without removing them (a kill -9, a crash): those are replaced by fresh ones (their frame sizes
@@ -27,6 +31,8 @@ import ctypes
 import threading
 import time
 from abc import ABC, abstractmethod
+from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -34,6 +40,7 @@ import numpy as np
 from hubo_cli.drivers import hubo_ach
 from hubo_cli.drivers.ach import ACH_EEXIST, ACH_MISSED_FRAME, ACH_OK, AchError, Libach
 from hubo_cli.drivers.hubo_ach import JOINT_COUNT, StateFrame
+from hubo_cli.drivers.hubo_ach_faults import BODY_FAULTS, Fault
 from hubo_cli.errors import DeviceError
 
 REF_FRAMES = 64    # ring sizes of the channels this daemon creates
@@ -56,6 +63,10 @@ class DaemonStats:
             deadlines then rather than run a burst of periods).
         overruns: periods whose work (read, body, publish) ended past their deadline.
         loop_time_counts: the periods' work times, a histogram of :data:`LOOP_BIN_S` bins.
+        faults: each requested fault and when it began (s after the first reference frame;
+            None: not yet).
+        states_withheld: periods whose state was not published (``missing``).
+        states_late: periods that published an old state (``late``).
         error: why the daemon stopped early ("" if it did not).
     """
 
@@ -66,6 +77,9 @@ class DaemonStats:
     late_periods: int = 0
     overruns: int = 0
     loop_time_counts: np.ndarray = field(default_factory=lambda: np.zeros(LOOP_BINS, np.int64))
+    faults: dict[str, float | None] = field(default_factory=dict)
+    states_withheld: int = 0
+    states_late: int = 0
     error: str = ""
 
     def loop_time_s(self, quantile: float) -> float | None:
@@ -87,12 +101,23 @@ class DaemonStats:
                                     else 0.0),
                 "loop_ms_median": None if median is None else median * 1e3,
                 "loop_ms_p99": None if p99 is None else p99 * 1e3,
-                "error": self.error or None}
+                "faults": dict(self.faults), "states_withheld": self.states_withheld,
+                "states_late": self.states_late, "error": self.error or None}
 
 
 class DaemonBody(ABC):
     """What stands behind the channels: it takes the reference in force each period and says
-    what the robot's state is."""
+    what the robot's state is.
+
+    Attributes:
+        fault_kinds: the motor faults it plays (:meth:`begin_fault`).
+    """
+
+    fault_kinds: tuple[str, ...] = ()
+
+    def begin_fault(self, fault: Fault) -> None:
+        """Start a motor fault (one of :attr:`fault_kinds`) now."""
+        raise ValueError(f"{type(self).__name__} has no motors to play {fault.kind!r}")
 
     @abstractmethod
     def advance(self, ref_rad: np.ndarray, mode: np.ndarray, period_s: float) -> None:
@@ -159,6 +184,9 @@ class HuboDaemon:
         period_s: the loop period (``HUBO_LOOP_PERIOD``).
         create: create the channels (replacing ones left over from a dead daemon; refusing
             ones another daemon publishes) and unlink them on :meth:`close`.
+        faults: faults to play (:mod:`hubo_cli.drivers.hubo_ach_faults`).
+        scheduled: other things to do once, on the faults' clock: (seconds after the first
+            reference frame, a function of no arguments), e.g. place a wall.
 
     Attributes:
         created: the channels this daemon created (and removes at the end).
@@ -166,13 +194,17 @@ class HuboDaemon:
 
     Raises:
         DeviceError: another daemon publishes the state channel.
+        ValueError: a motor fault the body cannot play.
     """
 
     def __init__(self, lib: Libach, body: DaemonBody, ref_channel: str = hubo_ach.CHAN_REF,
                  state_channel: str = hubo_ach.CHAN_STATE,
-                 period_s: float = hubo_ach.LOOP_PERIOD_S, create: bool = True) -> None:
+                 period_s: float = hubo_ach.LOOP_PERIOD_S, create: bool = True,
+                 faults: tuple[Fault, ...] = (),
+                 scheduled: tuple[tuple[float, Callable[[], None]], ...] = ()) -> None:
         self.lib = lib
         self.body = body
+        self.faults = tuple(faults)
         self.ref_channel, self.state_channel = ref_channel, state_channel
         self.period_s = period_s
         self.stats = DaemonStats()
@@ -184,7 +216,18 @@ class HuboDaemon:
         self._ref = body.target_rad
         self._mode = np.zeros(JOINT_COUNT, dtype=np.int16)
         self._buffer = (ctypes.c_uint8 * (hubo_ach.REF_SIZE + 256))()
+        self._ref_periods: int | None = None  # periods since the first reference frame
+        self._pending = list(self.faults)
+        self._scheduled = list(scheduled)
+        self.stats.faults = {f.describe(): None for f in self.faults}
+        late = [round(f.by_s / period_s) for f in self.faults if f.kind == "late"]
+        self._history: deque[bytes] = deque(maxlen=max(late, default=0) + 1)
         try:
+            unplayable = [f.kind for f in self.faults
+                          if f.kind in BODY_FAULTS and f.kind not in body.fault_kinds]
+            if unplayable:
+                raise ValueError(f"{type(body).__name__} has no motors to play "
+                                 f"{', '.join(unplayable)}")
             if create:
                 self._create_channels()
             self._ref_chan = lib.open(ref_channel)
@@ -236,9 +279,18 @@ class HuboDaemon:
             self.stats.error = str(exc)
         if self.stats.error:
             return
+        self._begin_faults()
         self.body.advance(self._ref, self._mode, self.period_s)
         self._publish()
         self.stats.periods += 1
+        if self._ref_periods is not None:
+            self._ref_periods += 1
+
+    def fault_time_s(self) -> float | None:
+        """The faults' clock: the body's time since the first reference frame (periods run
+        times the period, s: a loaded machine's late periods do not advance it, so a fault
+        meets the simulated robot where it would on a quiet one); None before that frame."""
+        return None if self._ref_periods is None else self._ref_periods * self.period_s
 
     def request_stop(self) -> None:
         """Ask the loop to end after the current period (safe from a signal handler)."""
@@ -324,10 +376,37 @@ class HuboDaemon:
                 stats.error = f"a {self.ref_channel} frame with a non-finite reference"
                 return
             self._ref, self._mode = frame.ref_rad, frame.mode
+            if self._ref_periods is None:
+                self._ref_periods = 0
+
+    def _begin_faults(self) -> None:
+        t_s = self.fault_time_s()
+        if t_s is None:
+            return
+        for fault in [f for f in self._pending if t_s >= f.at_s]:
+            self._pending.remove(fault)
+            if fault.kind in BODY_FAULTS:
+                self.body.begin_fault(fault)
+            self.stats.faults[fault.describe()] = round(t_s, 4)
+        for item in [item for item in self._scheduled if t_s >= item[0]]:
+            self._scheduled.remove(item)
+            item[1]()
 
     def _publish(self) -> None:
-        frame = self.body.state(time.clock_gettime(time.CLOCK_MONOTONIC))
-        self._state_chan.put(hubo_ach.encode_state(frame))
+        data = hubo_ach.encode_state(self.body.state(time.clock_gettime(time.CLOCK_MONOTONIC)))
+        self._history.append(data)
+        t_s = self.fault_time_s()
+        if t_s is not None:
+            for fault in self.faults:
+                if fault.kind == "missing" and fault.active(t_s):
+                    self.stats.states_withheld += 1
+                    return
+                if fault.kind == "late" and fault.active(t_s):
+                    k = round(fault.by_s / self.period_s)  # periods ago
+                    data = self._history[max(0, len(self._history) - 1 - k)]
+                    self.stats.states_late += 1
+                    break
+        self._state_chan.put(data)
 
 
 class FakeHuboDaemon(HuboDaemon):

@@ -18,25 +18,35 @@ sensors and ``--perturb`` draws unchanged) runs one 5 ms period. What it measure
 - ``ft[4]`` (R hand, L hand, R foot, L foot): m_x, m_y (N m) and f_z (N) of the wrench the
   environment applies, in the sensor frames the hardware driver reads them in (hand and sole
   frames, as the sim driver's ``RobotState.ft``).
-- ``cur``, ``heat``, ``tmp`` and the boards' ``temp`` stay zero: the model has no motor
-  constants, gear ratios or thermal model to turn the simulated joint torques into currents or
-  temperatures.
+- ``joint[].cur``, ``heat``, ``tmp`` and ``status[].tempError``: the motors' currents, heat and
+  temperatures from the simulated joint torques (:mod:`hubo_cli.drivers.hubo_ach_motors`, the
+  robot file's ``[motors]``). The boards' ``driver[].temp`` stay 0, which hubo-daemon publishes
+  for "no temperature reading".
+- motor faults on request (:mod:`hubo_cli.drivers.hubo_ach_faults`): a ``frozen`` joint's
+  motor is held where the joint was (its encoder stays there, ``joint[].ref`` goes on following
+  the references, ``status[].jam`` set); a ``hot`` motor heats faster than its load makes it.
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import numpy as np
 
 from hubo_cli.drivers import hubo_ach
 from hubo_cli.drivers.hubo_ach import JOINT_COUNT, StateFrame
 from hubo_cli.drivers.hubo_ach_daemon import DaemonBody
+from hubo_cli.drivers.hubo_ach_faults import Fault
+from hubo_cli.drivers.hubo_ach_motors import MotorModel
 from hubo_cli.drivers.sim import SimDriver
 from hubo_cli.model import RobotModel
 from hubo_cli.state import FT_SENSORS
+from hubo_cli.tasks.spec import Scene
+from hubo_cli.urdf import DRILL_FRAME
 
 
 class PhysicsBody(DaemonBody):
-    """The simulated robot behind hubo-daemon's channels.
+    """The simulated robot behind hubo-daemon's channels (with its motors' faults).
 
     Args:
         model: the robot model.
@@ -44,16 +54,29 @@ class PhysicsBody(DaemonBody):
             stands in its limb joints.
         perturb_seed: the sim driver's ``--perturb`` draw (None or 0: nominal).
         filter_length: ``HUBO_REF_FILTER_LENGTH``.
-        sim_options: further :class:`~hubo_cli.drivers.sim.SimOptions`.
+        track_tool: called with each published state's time (s) and the right hand's tool's
+            true world position (m; the drill bit with ``drill=True``, else the hand): what a
+            run's hole would be, measured outside the robot (None: not tracked).
+        sim_options: further :class:`~hubo_cli.drivers.sim.SimOptions` (``drill=True``: the
+            drill in the right hand, as the task's robot holds it).
     """
 
+    fault_kinds = ("frozen", "hot")
+
     def __init__(self, model: RobotModel, posture_rad, perturb_seed: int | None = None,
-                 filter_length: int = hubo_ach.REF_FILTER_LENGTH, **sim_options) -> None:
+                 filter_length: int = hubo_ach.REF_FILTER_LENGTH,
+                 track_tool: Callable[[float, np.ndarray], None] | None = None,
+                 **sim_options) -> None:
         posture = np.asarray(posture_rad, dtype=float)
         if posture.shape != (JOINT_COUNT,) or not np.all(np.isfinite(posture)):
             raise ValueError(f"posture must be {JOINT_COUNT} finite angles (rad)")
         self.filter_length = filter_length
+        self.joint_names = model.joint_names
         self.index = np.array([model.hubo_ach["index"][n] for n in model.joint_names])
+        self.motors = MotorModel(model)
+        self.frozen_rad: dict[int, float] = {}  # limb joint (model order) -> where it stuck
+        self.tool_frame = DRILL_FRAME if sim_options.get("drill") else "right_hand"
+        self.track_tool = track_tool
         self.sim = SimDriver(model, perturb_seed=perturb_seed, **sim_options)
         try:
             self._state = self.sim.start(posture[self.index])
@@ -70,18 +93,47 @@ class PhysicsBody(DaemonBody):
         previous = self._filtered
         self._filtered = hubo_ach.reference_filter(previous, ref_rad, mode, self.filter_length)
         self._filter_vel = (self._filtered - previous) / period_s
-        self.sim.send(self._filtered[self.index])
+        target = self._filtered[self.index]
+        for i, q in self.frozen_rad.items():
+            target[i] = q
+        self.sim.send(target)
         self._state = self.sim.step()
+        self.motors.advance(self._state.tau_nm, period_s)
+
+    def place_wall(self, distance_m: float) -> None:
+        """A wall with its near face ``distance_m`` ahead (world +x) of where the robot started,
+        now: the size and material (cardboard) of the shipped tasks' wall; with ``drill=True``
+        the bit cuts it as in ``hubo sim``. A task's simulator run places it once the robot
+        holds its tool ready (the raise might sweep through it); the daemon at a set time."""
+        wall = Scene()
+        self.sim.add_wall(distance_m, wall.wall_height_m, wall.wall_width_m,
+                          wall.wall_thickness_m)
+
+    def begin_fault(self, fault: Fault) -> None:
+        i = self.joint_names.index(fault.joint)
+        if fault.kind == "frozen":
+            self.frozen_rad[i] = float(self._state.q_rad[i])
+        elif fault.kind == "hot":
+            self.motors.heat(int(self.index[i]), fault.rate_k_s)
+        else:
+            super().begin_fault(fault)
 
     def state(self, time_s: float) -> StateFrame:
         measured = self._state
+        if self.track_tool is not None:
+            self.track_tool(time_s, self.sim.frame_pose(self.tool_frame)[:3, 3])
         pos, vel = self._filtered.copy(), self._filter_vel.copy()
         pos[self.index], vel[self.index] = measured.q_rad, measured.dq_rad_s
         # FT_SENSORS is hubo-ach's ft[] order (R hand, L hand, R foot, L foot): m_x, m_y, f_z
         ft = np.array([[w[3], w[4], w[2]] for w in (measured.ft[name] for name in FT_SENSORS)])
+        jam = np.zeros(JOINT_COUNT, dtype=np.uint8)
+        jam[self.index[list(self.frozen_rad)]] = 1
+        motors = self.motors
         return StateFrame(time_s, hubo_ach.tilt_from_quat(measured.imu_quat_wxyz),
                           np.array(measured.imu_gyro_rad_s, dtype=float), ft, pos, vel,
-                          ref_rad=self._filtered.copy())
+                          ref_rad=self._filtered.copy(), tmp_c=motors.tmp_c.copy(),
+                          cur_a=motors.cur_a.copy(), heat_j=motors.heat_j.copy(),
+                          status={"jam": jam, "tempError": motors.temp_error})
 
     @property
     def joints_rad(self) -> np.ndarray:

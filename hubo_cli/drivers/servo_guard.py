@@ -180,10 +180,12 @@ class ThermalLimiter:
         self.joint_names = tuple(joint_names)
         self.index = np.asarray(index)
         self.warning_c, self.max_c = float(warning_c), float(max_c)
-        self.scale = np.ones(len(self.joint_names))
+        self.reset()
 
     def reset(self) -> None:
         self.scale = np.ones(len(self.joint_names))
+        self.temperature_c = np.full(len(self.joint_names), np.nan)  # the last state's
+        self.hottest = (None, -np.inf)  # the run's hottest motor so far: joint, degrees C
 
     def check(self, tmp42_c: np.ndarray | None, t_s: float) -> MotorTooHot | None:
         """Update :attr:`scale` (1 below the warning, 0 at the maximum); the trip at 0.
@@ -194,6 +196,10 @@ class ThermalLimiter:
             return None
         tmp = np.asarray(tmp42_c, dtype=float)[self.index]
         tmp = np.where(np.isfinite(tmp), tmp, np.inf)
+        self.temperature_c = tmp
+        k = int(np.argmax(tmp))
+        if tmp[k] > self.hottest[1]:
+            self.hottest = (self.joint_names[k], float(tmp[k]))
         self.scale = np.clip((self.max_c - tmp) / (self.max_c - self.warning_c), 0.0, 1.0)
         hot = np.flatnonzero(tmp >= self.max_c)
         if hot.size:
