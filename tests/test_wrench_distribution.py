@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from robot_file_support import robot_file_with
 
 from hubo_cli.control.wrench_distribution import (
     Contact,
@@ -16,6 +17,7 @@ from hubo_cli.control.wrench_distribution import (
     project_into_polygon,
 )
 from hubo_cli.errors import ConfigError
+from hubo_cli.model import load_model
 
 WEIGHT_N = 380.0  # about the model's 38.7 kg
 TOL_N = 1e-6 * WEIGHT_N  # the solver's equalities hold to rounding (1e-9 relative seen)
@@ -222,27 +224,10 @@ def test_the_hull_of_two_soles(distributor):
     assert area == pytest.approx((x1 - x0) * (0.24 + y1 - y0))  # counter-clockwise: positive
 
 
-def robot_file_with(model, tmp_path, table: str, key: str, value: str):
-    """A copy of the robot file with ``[table] key = value``."""
-    text = model.source.read_text()
-    head, rest = text.split(f"[{table}]\n", 1)
-    lines = rest.split("\n")
-    for i, line in enumerate(lines):
-        if line.startswith(f"{key} ="):
-            lines[i] = f"{key} = {value}"
-            break
-    else:
-        raise AssertionError(f"no {key} in [{table}]")
-    path = tmp_path / "robot.toml"
-    path.write_text(head + f"[{table}]\n" + "\n".join(lines))
-    return path
-
-
 @pytest.mark.parametrize("key,value", [("cop_weight", "0"), ("friction_coefficient", "-0.5"),
                                        ("cop_margin_m", '"a"'), ("force_weight", "true"),
                                        ("cop_weight", "nan")])
 def test_bad_parameters_are_refused(model, tmp_path, key, value):
-    from hubo_cli.model import load_model
     bad = load_model(path=robot_file_with(model, tmp_path, "wrench_distribution", key, value))
     with pytest.raises(ConfigError, match=key):
         WrenchDistributor.from_model(bad)

@@ -124,13 +124,19 @@ class LipFeedback:
         return cls(com_height_m, LipFeedbackParams.from_model(model))
 
     def zmp_command(self, com_ref_m, com_velocity_ref_m_s, zmp_ref_m, com_m, com_velocity_m_s,
-                    zmp_m) -> np.ndarray:
+                    zmp_m, zmp_velocity_ref_m_s=(0.0, 0.0)) -> np.ndarray:
         """u (x, y) (m) of eq. 8 from the reference and the estimated state, each (x, y).
+
+        ``zmp_velocity_ref_m_s`` adds T_p p_ref' to the feedforward, the lag's inverse (hrpsys
+        has it, switched off): with it a moving reference is consistent with eq. 7 and is
+        tracked without offset; without it (eq. 8 as printed) a reference ZMP moving at v
+        leaves the CoM a constant offset behind, -(A - B K)^-1 [0, 0, -v] (tests).
 
         A non-finite estimate leaves its term out (the reference ZMP alone, hrpsys's fallback
         when the feedback is off), so no NaN reaches the command."""
         k1, k2, k3 = self.gains
-        u = np.asarray(zmp_ref_m, dtype=float)[:2].copy()
+        lead = self.params.zmp_time_constant_s * np.asarray(zmp_velocity_ref_m_s, dtype=float)
+        u = np.asarray(zmp_ref_m, dtype=float)[:2] + np.where(np.isfinite(lead), lead, 0.0)[:2]
         for k, ref, est in ((k1, com_ref_m, com_m), (k2, com_velocity_ref_m_s, com_velocity_m_s),
                             (k3, zmp_ref_m, zmp_m)):
             error = np.asarray(ref, dtype=float)[:2] - np.asarray(est, dtype=float)[:2]
