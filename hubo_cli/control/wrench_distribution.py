@@ -57,9 +57,8 @@ from hubo_cli.errors import ConfigError
 from hubo_cli.kinematics.dh import JIT
 from hubo_cli.model import FootShape, RobotModel
 
-FEET = ("right", "left")
 MIN_LOAD_N = 1.0          # below this total normal force nothing is distributed
-UNLOADED_N = 1e-6        # a foot carrying less has its origin as CoP
+UNLOADED_N = 1e-6         # a foot carrying less has its origin as CoP
 ALPHA_FLOOR = 1e-3        # alpha kept in [floor, 1 - floor]: W_f stays finite
 SENSE_EQUALITY = 5        # daqp's code of an equality row
 _INF = 1e30
@@ -116,7 +115,7 @@ class WrenchSplit:
 
     Attributes:
         found: a distribution was computed (False: no load, no contact, a non-finite input or
-            the solver's failure, see ``reason``; every array is then zero).
+            the solver's failure, see ``reason``; the feet's arrays are then zero).
         force_n: (2, 3) each foot's force, world axes (N).
         cop_m: (2, 2) each foot's CoP (m; a foot without load: its origin).
         vertex_force_n: (2, 4) the normal force at each vertex (N).
