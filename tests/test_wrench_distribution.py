@@ -55,6 +55,8 @@ def _check_constraints(d: WrenchDistributor, split, right, left):
             local = np.array([[c, s], [-s, c]]) @ (split.cop_m[i] - contact.position_m)
             x0, x1, y0, y1 = d.box_local_m
             assert x0 - 1e-9 <= local[0] <= x1 + 1e-9 and y0 - 1e-9 <= local[1] <= y1 + 1e-9
+            if contact.edge_x_m is not None:  # rolling: the CoP on the edge
+                assert local[0] == pytest.approx(np.clip(contact.edge_x_m, x0, x1), abs=1e-9)
     np.testing.assert_allclose(moment, 0.0, atol=TOL_NM)
 
 
@@ -126,6 +128,23 @@ def test_cop_limit_active_at_the_toe(distributor):
     np.testing.assert_allclose(split.vertex_force_n[0][heel], 0.0, atol=TOL_N)
 
 
+def test_a_sole_rolling_on_its_toe_carries_everything_on_the_toe_edge(distributor):
+    """Single support on the toe edge (toe-heel phase (ii)): the ZMP is moved onto the edge
+    and the CoP is there; in double support the rolling rear sole's CoP stays on its edge."""
+    toe_x = distributor.box_local_m[1]
+    rolling = Contact((0.0, -0.12), 0.0, (0.13, -0.12), edge_x_m=0.13)  # clamped to toe_x
+    split = distributor.distribute([0.0, 0.0, WEIGHT_N], [0.0, -0.1], rolling, None)
+    _check_constraints(distributor, split, rolling, None)
+    assert split.zmp_clipped
+    np.testing.assert_allclose(split.cop_m[0], [toe_x, -0.1], atol=1e-9)
+    left = Contact((0.2, 0.12))
+    both = distributor.distribute([0.0, 0.0, WEIGHT_N], [0.15, 0.0], rolling, left)
+    _check_constraints(distributor, both, rolling, left)
+    assert not both.zmp_clipped
+    assert both.cop_m[0, 0] == pytest.approx(toe_x)
+    assert both.force_n[0, 2] > 0.1 * WEIGHT_N  # the rolling sole still carries its share
+
+
 def test_friction_limit_clips_the_horizontal_force(distributor):
     right, left = _stance()
     split = distributor.distribute([WEIGHT_N, 0.0, WEIGHT_N], [0.0, 0.0], right, left)
@@ -147,12 +166,18 @@ def test_the_reference_cop_pulls_the_cop(distributor):
 
 
 def _random_contacts(data_rng, single: bool):
+    """Two soles at random places and headings, random reference CoPs, each rolling on an
+    edge (anywhere along it, even beyond the sole: clamped) one time in three."""
     width = data_rng.uniform(0.16, 0.4)
     x_offset = data_rng.uniform(-0.3, 0.3)
+
+    def edge():
+        return data_rng.uniform(-0.15, 0.2) if data_rng.random() < 1 / 3 else None
+
     right = Contact((data_rng.uniform(-0.1, 0.1), -width / 2), data_rng.uniform(-0.5, 0.5),
-                    tuple(data_rng.uniform(-0.1, 0.1, 2) + (0, -width / 2)))
+                    tuple(data_rng.uniform(-0.1, 0.1, 2) + (0, -width / 2)), edge())
     left = Contact((x_offset, width / 2), data_rng.uniform(-0.5, 0.5),
-                   tuple(data_rng.uniform(-0.1, 0.1, 2) + (x_offset, width / 2)))
+                   tuple(data_rng.uniform(-0.1, 0.1, 2) + (x_offset, width / 2)), edge())
     if single:
         return (right, None) if data_rng.random() < 0.5 else (None, left)
     return right, left
@@ -177,8 +202,13 @@ def test_random_feasible_demands_are_met_exactly(distributor, seed, single):
 
 
 def distributor_vertices(d: WrenchDistributor, contact: Contact) -> np.ndarray:
+    """The contact's four points in the world: the margined sole's corners, or on a rolling
+    edge the two ends of that edge (each twice)."""
+    local = d.vertices_local_m.copy()
+    if contact.edge_x_m is not None:
+        local[:, 0] = np.clip(contact.edge_x_m, d.box_local_m[0], d.box_local_m[1])
     c, s = math.cos(contact.yaw_rad), math.sin(contact.yaw_rad)
-    return d.vertices_local_m @ np.array([[c, -s], [s, c]]).T + contact.position_m
+    return local @ np.array([[c, -s], [s, c]]).T + contact.position_m
 
 
 @settings(max_examples=100, deadline=None)
@@ -202,6 +232,7 @@ def test_random_infeasible_demands_are_made_feasible(distributor, seed, single):
 @pytest.mark.parametrize("bad", [
     dict(force=[0, 0, float("nan")]), dict(zmp=[float("inf"), 0]),
     dict(right=Contact((float("nan"), 0.0))), dict(force=[0, 0, -50.0]),
+    dict(left=Contact((0.0, 0.12), edge_x_m=float("inf"))),
     dict(force=[0, 0, 0.5]), dict(right=None, left=None)])
 def test_bad_demands_give_no_distribution_and_no_nan(distributor, bad):
     right, left = _stance()

@@ -7,7 +7,9 @@ about ``u`` the horizontal moments are zero). Each sole in contact is a rectangl
 plane (the paper projects the soles onto the horizontal plane) whose four vertices are the
 :class:`~hubo_cli.model.FootShape` corners drawn in by ``cop_margin_m``. The unknowns are the
 normal force at every vertex, ``f_ij >= 0`` (eq. 10), and each sole's horizontal force
-``h_i = (h_ix, h_iy)``: 6 per foot, 12 in double support. Constraints:
+``h_i = (h_ix, h_iy)``: 6 per foot, 12 in double support. A sole rolling on an edge (toe-heel
+contact, :mod:`hubo_cli.walking.toe_heel`) touches along that line only: its four vertices are
+put on the edge (``Contact.edge_x_m``). Constraints:
 
 * the demand is met exactly (eq. 9, ``F = G f``, with the horizontal force rows added)::
 
@@ -61,6 +63,7 @@ MIN_LOAD_N = 1.0          # below this total normal force nothing is distributed
 UNLOADED_N = 1e-6         # a foot carrying less has its origin as CoP
 ALPHA_FLOOR = 1e-3        # alpha kept in [floor, 1 - floor]: W_f stays finite
 SENSE_EQUALITY = 5        # daqp's code of an equality row
+INSIDE_TOLERANCE_M2 = 1e-12  # rounding: a point this near an edge (cross product) is on it
 _INF = 1e30
 
 
@@ -102,11 +105,15 @@ class Contact:
         position_m: (x, y) of the sole frame's origin (the ankle's projection) in the world.
         yaw_rad: the sole's heading about the world z axis.
         cop_ref_m: (x, y) where its CoP should be (the toe-heel planner's); None: the origin.
+        edge_x_m: the sole rolls on the edge across it at this x along the sole (m, the
+            toe-heel planner's pivot, clamped into the margined sole): its contact is that
+            line; None: the whole sole.
     """
 
     position_m: tuple[float, float]
     yaw_rad: float = 0.0
     cop_ref_m: tuple[float, float] | None = None
+    edge_x_m: float | None = None
 
 
 @dataclass
@@ -184,12 +191,12 @@ def convex_hull(points):
 
 @nb.njit(**JIT)
 def project_into_polygon(point, polygon):
-    """The point of the convex polygon (counter-clockwise vertices) nearest to ``point``, and
-    whether ``point`` was outside."""
+    """The point of the convex polygon (counter-clockwise vertices; two for a segment, the
+    contact of a rolling sole) nearest to ``point``, and whether ``point`` was outside."""
     k = polygon.shape[0]
     inside = True
     for i in range(k):
-        if _cross(polygon[i], polygon[(i + 1) % k], point) < 0:
+        if _cross(polygon[i], polygon[(i + 1) % k], point) < -INSIDE_TOLERANCE_M2:
             inside = False
             break
     if inside:
@@ -199,7 +206,8 @@ def project_into_polygon(point, polygon):
     for i in range(k):
         a, b = polygon[i], polygon[(i + 1) % k]
         ex, ey = b[0] - a[0], b[1] - a[1]
-        t = ((point[0] - a[0]) * ex + (point[1] - a[1]) * ey) / (ex * ex + ey * ey)
+        length2 = ex * ex + ey * ey
+        t = ((point[0] - a[0]) * ex + (point[1] - a[1]) * ey) / length2 if length2 > 0 else 0.0
         t = min(max(t, 0.0), 1.0)
         nx, ny = a[0] + t * ex, a[1] + t * ey
         d = (nx - point[0]) ** 2 + (ny - point[1]) ** 2
@@ -233,8 +241,8 @@ def share_alpha(zmp, positions, yaws, box) -> float:
 
 
 @nb.njit(**JIT)
-def _qp_data(force, zmp_in, positions, yaws, refs, local_vertices, box, right_only, cop_weight,
-             force_weight, pyramid):
+def _qp_data(force, zmp_in, positions, yaws, refs, edges, local_vertices, box, right_only,
+             cop_weight, force_weight, pyramid):
     """The feasible demand and the QP over x = [vertex forces (4 per foot), horizontal forces
     (2 per foot)]: daqp's H, A, bounds and senses."""
     n = positions.shape[0]
@@ -244,9 +252,11 @@ def _qp_data(force, zmp_in, positions, yaws, refs, local_vertices, box, right_on
         c, s = math.cos(yaws[k]), math.sin(yaws[k])
         for j in range(4):
             lx, ly = local_vertices[j, 0], local_vertices[j, 1]
+            if not math.isnan(edges[k]):  # rolling on an edge: the four on that line
+                lx = min(max(edges[k], box[0]), box[1])
             verts[4 * k + j, 0] = positions[k, 0] + c * lx - s * ly
             verts[4 * k + j, 1] = positions[k, 1] + s * lx + c * ly
-    polygon = verts if n == 1 else convex_hull(verts)
+    polygon = convex_hull(verts)
     zmp, zmp_clipped = project_into_polygon(zmp_in, polygon)
     bound = pyramid * force[2]
     total = force.copy()
@@ -348,15 +358,18 @@ class WrenchDistributor:
         yaws = np.array([c.yaw_rad for c in contacts], dtype=float)
         refs = np.array([c.position_m if c.cop_ref_m is None else c.cop_ref_m
                          for c in contacts], dtype=float)
+        edges = np.array([math.nan if c.edge_x_m is None else c.edge_x_m for c in contacts],
+                         dtype=float)
         if not (np.isfinite(force).all() and np.isfinite(zmp).all()
                 and np.isfinite(positions).all() and np.isfinite(yaws).all()
-                and np.isfinite(refs).all()):
+                and np.isfinite(refs).all()
+                and all(c.edge_x_m is None or math.isfinite(c.edge_x_m) for c in contacts)):
             return _failed("a non-finite demand or contact", zmp, force)
         if force[2] < MIN_LOAD_N:
             return _failed(f"no load ({force[2]:.3g} N)", zmp, force)
         p = self.params
         (verts, zmp, zmp_clipped, total, friction_clipped, alpha, H, A, upper, lower,
-         sense) = _qp_data(force, zmp, positions, yaws, refs, self.vertices_local_m,
+         sense) = _qp_data(force, zmp, positions, yaws, refs, edges, self.vertices_local_m,
                            self.box_local_m, feet[0] == 0, p.cop_weight, p.force_weight,
                            self._pyramid)
         x, _, exitflag, info = daqp.solve(H, np.zeros(H.shape[0]), A, upper, lower, sense)
