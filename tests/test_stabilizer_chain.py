@@ -19,7 +19,8 @@ COM_HEIGHT_M = 0.58
 def test_a_walk_through_feedback_and_distribution(model, com_error_m):
     """Every period of a three-step walk: a distribution is found, the feet's forces sum to
     the pendulum's demand at the (possibly clipped) ZMP command, and only feet on the ground
-    carry load. Undisturbed, the command is the planned ZMP and is never moved."""
+    carry load; a rolling sole touches along its edge. Undisturbed, the command is the planned
+    ZMP and is never moved."""
     dt = model.control_period_s
     half = 0.12
     steps = [Footstep("left", 0.15, half, 0.0), Footstep("right", 0.3, -half, 0.0),
@@ -36,7 +37,9 @@ def test_a_walk_through_feedback_and_distribution(model, com_error_m):
         u = feedback.zmp_command(path.com_m[k], path.com_velocity_m_s[k], plan.zmp_m[k], com,
                                  path.com_velocity_m_s[k], plan.zmp_m[k])
         contacts = [Contact(tuple(plan.foot_pose[k, i, :2]), plan.foot_pose[k, i, 2],
-                            tuple(plan.cop_m[k, i])) for i in (0, 1)]
+                            tuple(plan.cop_m[k, i]),
+                            plan.pivot_m[k, i] if plan.foot_angle_rad[k, i] != 0 else None)
+                    for i in (0, 1)]  # a rolling sole touches along its edge
         if plan.ratio[k] == 0.0:
             contacts[1] = None
         elif plan.ratio[k] == 1.0:
@@ -50,6 +53,7 @@ def test_a_walk_through_feedback_and_distribution(model, com_error_m):
                 assert np.all(split.force_n[i] == 0)
         moved_m.append(float(np.linalg.norm(split.zmp_m - u)))
     if com_error_m == (0.0, 0.0):
-        # the planned ZMP is inside the margined support polygon in every period, although a
-        # rolling sole's CoP sits on its edge: in double support that sole carries at most half
+        # the planned ZMP is inside the support polygon in every period, although a rolling
+        # sole's CoP sits on its physical edge, just outside the margined one: in double
+        # support that sole carries at most half
         assert max(moved_m) == 0.0
