@@ -133,7 +133,8 @@ class LipFeedback:
         leaves the CoM a constant offset behind, -(A - B K)^-1 [0, 0, -v] (tests).
 
         A non-finite estimate leaves its term out (the reference ZMP alone, hrpsys's fallback
-        when the feedback is off), so no NaN reaches the command."""
+        when the feedback is off). A non-finite reference ZMP gives a non-finite u, which the
+        force distribution refuses (``found`` False)."""
         k1, k2, k3 = self.gains
         lead = self.params.zmp_time_constant_s * np.asarray(zmp_velocity_ref_m_s, dtype=float)
         u = np.asarray(zmp_ref_m, dtype=float)[:2] + np.where(np.isfinite(lead), lead, 0.0)[:2]
