@@ -204,6 +204,14 @@ class RobotModel:
         """The robot file's ``[walking]`` table (read by :mod:`hubo_cli.walking.params`)."""
         return _read_toml(self.source).get("walking", {})
 
+    def raw_table(self, name: str) -> dict:
+        """The robot file's table ``[name]`` (empty when absent), for the modules that read
+        their own parameters (``[lip_feedback]``, ``[wrench_distribution]``, ``[toe_heel]``)."""
+        table = _read_toml(self.source).get(name, {})
+        if not isinstance(table, dict):
+            raise ConfigError("must be a table", path=str(self.source), field=name)
+        return table
+
 
 @cache
 def _read_toml(path: Path) -> dict:
