@@ -181,27 +181,28 @@ def test_joint_plan_reaches_the_feet_within_limits(forward_gait, walking_model, 
 def test_capture_point_uses_the_planned_support(walking_model, params):
     """With the left foot in the air (a swing) and the CoM between the feet, the measured
     contacts alone put the CP outside the right sole; the walk's planned support (the swing
-    foot counted where it lands) keeps it inside. Without an override nothing changes."""
+    foot counted where it lands, :class:`SupportPlan`) keeps it inside."""
     from hubo_cli.control.capture_point import CapturePointMonitor
+    from hubo_cli.control.phase import SupportPlan
     from hubo_cli.state import RobotState
     from hubo_cli.walking.body import pose_of_row
 
     q, T_world_neck = walking_posture(walking_model, params.step_width_m, params.crouch_m)
     monitor = CapturePointMonitor(walking_model, walking_model.control_period_s)
 
-    def flagged() -> bool:
+    def flagged(plan=None) -> bool:
         monitor.reset(q, None)
         return any([monitor.measure(RobotState(time_s=0.005 * k, q_rad=q, dq_rad_s=0 * q,
                                                T_world_torso=T_world_neck,
-                                               feet_contact=(True, False)))
+                                               feet_contact=(True, False)), plan=plan)
                     for k in range(5)])
 
     assert flagged() and monitor.outside_m > 0.03
     w = params.step_width_m / 2
     planned = np.array([pose_of_row(np.array([0.0, -w, 0.0, 0.0])),
                         pose_of_row(np.array([0.1, w, 0.0, 0.0]))])
-    monitor.support_override = lambda t_s: planned
-    assert not flagged() and monitor.outside_m < -0.03
+    plan = SupportPlan(planned)
+    assert not flagged(plan) and monitor.outside_m < -0.03
 
 
 def test_measured_feet_a_fraction_of_a_mm_off_take_no_extra_steps(params):

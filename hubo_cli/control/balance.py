@@ -42,6 +42,7 @@ import numba as nb
 import numpy as np
 
 from hubo_cli.control.module import Cycle, Module
+from hubo_cli.control.phase import BALANCERS_REST
 from hubo_cli.geometry import GIMBAL_LOCK_COS
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
@@ -88,6 +89,7 @@ class AnkleBalancer(Module):
     """
 
     name = "balance"
+    follows = (BALANCERS_REST,)
     log_columns = ("balance.right_pitch_rad", "balance.right_roll_rad",
                    "balance.left_pitch_rad", "balance.left_roll_rad")
 
@@ -129,6 +131,8 @@ class AnkleBalancer(Module):
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         """Integrate the ankle velocities over one period and add the offsets to the ankles."""
+        if cycle.store.get(BALANCERS_REST, False):  # a phase moves the CoM: start afresh
+            self.reset(q_rad, state)
         q = np.array(q_rad, dtype=float)
         rates = self._rates(state)
         lower, upper = self.model.lower_rad, self.model.upper_rad
@@ -214,6 +218,7 @@ class DampingBalancer(Module):
     """
 
     name = "balance"
+    follows = (BALANCERS_REST,)
     log_columns = AnkleBalancer.log_columns
 
     def __init__(self, model: RobotModel, drill: bool = False,
@@ -314,6 +319,8 @@ class DampingBalancer(Module):
         return self._last_reference
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
+        if cycle.store.get(BALANCERS_REST, False):  # a phase moves the CoM: start afresh
+            self.reset(q_rad, state)
         q = np.array(q_rad, dtype=float)
         if self._step(q, state, cycle.dt_s):
             cycle.flags.add("balance-bad-sensor")

@@ -28,18 +28,17 @@ AutoBalancer's reference CoM); ``cp_error`` = actual CP - reference CP.
 While walking, the feet that carry the robot change every step and a swing foot leaves the
 ground on purpose; the CP then lies between the stance foot and where the swing foot will land
 (and must, for the robot's hips, which only abduct). A walking target therefore gives the
-monitor its *planned support* (:attr:`CapturePointMonitor.support_override`): the soles on the
-ground in this phase of the step, the swing foot counted at its landing place. The polygon is
-then their hull (flat on the ground, shrunk by the margin as before): the CP leaving it means
-the step cannot catch the robot. Without an override (standing, tasks) nothing changes.
-The planned support is shrunk by ``planned_margin_m`` (the margin unless the override's owner
-sets it: a capture step judges the CP against its planned and stepped stance unshrunk).
+monitor its *planned support* (the store key :data:`~hubo_cli.control.phase.SUPPORT_PLAN`,
+written by the phase's target every period): the soles on the ground in this phase of the
+step, the swing foot counted at its landing place. The polygon is then their hull (flat on
+the ground, shrunk by the plan's margin: a capture step judges the CP against its planned and
+stepped stance unshrunk): the CP leaving it means the step cannot catch the robot. Without a
+plan (standing, tasks, or a phase that writes None) nothing changes.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 
 import numba as nb
 import numpy as np
@@ -47,6 +46,7 @@ import pinocchio as pin
 
 from hubo_cli.control.balance import command_configuration
 from hubo_cli.control.module import Cycle, Module
+from hubo_cli.control.phase import SUPPORT_PLAN, SupportPlan
 from hubo_cli.model import RobotModel
 from hubo_cli.pin_robot import PinRobot, load_pin_robot
 from hubo_cli.state import RobotState
@@ -280,14 +280,12 @@ class CapturePointMonitor(Module):
     left, None unknown) and ``contact_losses`` (intervals longer than CONTACT_LOSS_MIN_S with a
     foot unloaded).
 
-    ``support_override``: None (the measured soles in contact), or a function of the time (s)
-    returning the planned support's sole poses in the world (2 x 4 x 4: right, left; a swing
-    foot at its landing place) or None for the measured soles in that period. Set by a
-    walking target in its ``attach``. ``planned_margin_m`` (default ``margin_m``): the shrink
-    of that planned support.
+    It follows :data:`~hubo_cli.control.phase.SUPPORT_PLAN` (a phase's planned support, its
+    sole poses and margin; None or unwritten: the measured soles in contact).
     """
 
     name = "capture-point"
+    follows = (SUPPORT_PLAN,)
     log_columns = ("com_x_m", "com_y_m", "com_z_m", "cp_x_m", "cp_y_m", "cp_ref_x_m",
                    "cp_ref_y_m", "cp_error_x_m", "cp_error_y_m", "cp_outside_m",
                    "support_min_x_m", "support_max_x_m", "support_min_y_m", "support_max_y_m",
@@ -332,8 +330,6 @@ class CapturePointMonitor(Module):
         self.ground_z_m = 0.0
         self.support_box_m = np.zeros(4)
         self.flag = False
-        self.support_override: Callable[[float], np.ndarray | None] | None = None
-        self.planned_margin_m = float(margin_m)
         self._margin_used_m = float(margin_m)
         self.reset_watch()
         # numba compiles a kernel on its first call: make that now, not in the first period
@@ -401,20 +397,21 @@ class CapturePointMonitor(Module):
                                           and state.time_s - last <= self.contact_hold_s)))
         return held[0], held[1]
 
-    def measure(self, state: RobotState, q_cmd_rad: np.ndarray | None = None) -> bool:
+    def measure(self, state: RobotState, q_cmd_rad: np.ndarray | None = None,
+                plan: SupportPlan | None = None) -> bool:
         """Update the estimate from ``state`` (and the reference from the command, rad);
         return True when the CP has been outside the shrunk support polygon with a foot on the
-        ground for ``confirm_periods`` periods."""
+        ground for ``confirm_periods`` periods. ``plan``: a phase's planned support (None: the
+        measured soles in contact)."""
         pmodel, data = self.robot.model, self.data
         q = self._configuration(state)
         com = pin.centerOfMass(pmodel, data, q, False).copy()
         contact = self._debounced_contact(state)
         self.com_m = com
-        planned = None if self.support_override is None else self.support_override(state.time_s)
         margin = self.margin_m
-        if planned is not None:
-            poses, contact = np.ascontiguousarray(planned, dtype=float), (True, True)
-            margin = self.planned_margin_m
+        if plan is not None:
+            poses, contact = np.ascontiguousarray(plan.T_world_soles, dtype=float), (True, True)
+            margin = self.margin_m if plan.margin_m is None else plan.margin_m
         else:  # the measured soles (the placements of the joints' kinematics above)
             poses = self._sole_pose
             for k, fid in enumerate(self._sole_ids):
@@ -449,7 +446,7 @@ class CapturePointMonitor(Module):
         return flat[:2, :3] @ self._in_sole + flat[:2, 3]
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
-        flag = self.measure(state, q_rad)
+        flag = self.measure(state, q_rad, cycle.store.get(SUPPORT_PLAN))
         if flag:
             cycle.flags.add("cp-outside")
             if self.request_estop:

@@ -113,7 +113,7 @@ class TaskTarget(Target):
         self.error_m = float("nan")
         self.T_S_N: np.ndarray | None = None  # the torso pose last measured (S, m)
 
-    def attach(self, world: SimulatedWorld | None, modules: Sequence[Module]) -> None:
+    def attach(self, world: SimulatedWorld | None, modules: Sequence[Module], store) -> None:
         self.world = world
         self.modules = list(modules)  # the pipeline, for the live view's safety state
         self.stopper = next((m for m in modules if isinstance(m, EmergencyStopper)

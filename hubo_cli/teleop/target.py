@@ -249,7 +249,7 @@ class TeleopTarget(Target):
                       "actual_z_m", "error_m", "ik_code", "rot_error_rad", "reach_limit_m",
                       "speed_scale")) + ("phase_code", "lift_m", "latency_s")
 
-    def attach(self, world: SimulatedWorld | None, modules) -> None:
+    def attach(self, world: SimulatedWorld | None, modules, store) -> None:
         self.world = world
         self.modules = list(modules)  # the pipeline, for the live view's safety state
 
