@@ -35,6 +35,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from hubo_cli.errors import ConfigError
+from hubo_cli.state import FT_MEASURED
 
 MASS_SCALE_RANGE = (0.9, 1.1)
 COM_OFFSET_MAX_M = 0.010
@@ -252,6 +253,7 @@ class SensorNoise:
         R_noise = np.eye(3) if angle == 0.0 else _rotation(noise / angle, angle)
         R_imu = self._R_bias @ R_noise @ _quat_wxyz_to_matrix(state.imu_quat_wxyz)
         sigma = np.array([p.ft_force_noise_n] * 3 + [p.ft_moment_noise_nm] * 3)
+        sigma[[k for k in range(6) if k not in FT_MEASURED]] = 0.0  # what the sensors lack
         ft = {name: wrench + rng.normal(0.0, 1.0, 6) * sigma
               for name, wrench in sorted(state.ft.items())}
         return replace(state, q_rad=q, imu_quat_wxyz=_matrix_to_quat_wxyz(R_imu), ft=ft)

@@ -23,6 +23,15 @@ R_HAND_WRIST_SENSOR = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0
 R_HAND_WRIST_SENSOR.flags.writeable = False
 
 
+def T_frame_sensor(sensor: str) -> np.ndarray:
+    """A force-torque sensor's axes in its frame (4x4): a wrist's in the hand frame
+    (R_HAND_WRIST_SENSOR), an ankle's are the sole's (identity)."""
+    T = np.eye(4)
+    if sensor.endswith("wrist"):
+        T[:3, :3] = R_HAND_WRIST_SENSOR
+    return T
+
+
 @dataclass
 class RobotState:
     """What a driver knows about the robot at one instant.

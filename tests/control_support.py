@@ -65,3 +65,14 @@ def assert_within_limits(model, commands: np.ndarray, dt: float) -> None:
     """Fail with the worst excesses if any command breaks a limit or is not finite."""
     bad = limit_violations(model, commands, dt)
     assert bad == {"nonfinite": 0.0, "position": 0.0, "velocity": 0.0, "acceleration": 0.0}, bad
+
+
+def sensed_cycle(t_s: float, dt_s: float, state, **fields):
+    """A :class:`~hubo_cli.control.module.Cycle` whose store holds the estimate's wrenches as
+    the test's state gives them (taken as already compensated: a module's unit test)."""
+    from hubo_cli.control.module import Cycle
+    from hubo_cli.estimation.keys import WRENCHES
+
+    cycle = Cycle(t_s, dt_s, **fields)
+    cycle.store[WRENCHES] = state.ft
+    return cycle

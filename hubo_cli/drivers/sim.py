@@ -49,12 +49,18 @@ Physics and control
 
 Sensors (:class:`~hubo_cli.drivers.base.RobotState`)
     IMU: torso orientation in the world and its angular rate in the torso frame. Force/torque:
-    computed, not read from joint reactions: the wrench [fx, fy, fz, mx, my, mz] (N, N m) that
-    the environment applies to the foot (contacts with the floor or a wall) about the sole frame
-    origin in sole axes, and to the hand with its tool (contacts plus the drilling force) about
-    the hand frame origin in hand axes. So a wrist reading is that of a sensor zeroed with the
-    tool attached; standing, an ankle reads fz = + its share of the weight. Joint torques are the
-    motors' applied torques. Feet contacts: a foot is in contact while its ankle's F_z, low-passed
+    computed, not read from joint reactions, as Hubo's three-axis sensors read them (f_z, m_x,
+    m_y of [fx, fy, fz, mx, my, mz], N and N m; the others 0) in their own frames
+    (:func:`~hubo_cli.state.T_frame_sensor`: an ankle's is the sole frame, a wrist's sits at the
+    hand frame's origin with z along the forearm): the wrench the environment applies to the
+    foot (contacts with the floor or a wall) or to the hand with its tool (contacts plus the
+    drilling force), plus the load of the body beyond the sensor (the whole last link of the
+    limb: the foot; the hand with the drill), m (g - a) at its centre of mass, a its
+    acceleration differenced over the period (its rotational inertia is left out). So a still
+    hand in the air reads its own and its tool's weight; standing, an ankle reads f_z = its
+    share of the weight minus the foot's. Joint torques are the motors' applied torques. Feet
+    contacts (the simulator's truth, for reports): a foot is in contact while the floor's F_z
+    on it, low-passed
     at ``CONTACT_CUTOFF_HZ`` (5 Hz), exceeds ``CONTACT_THRESHOLD_N`` (25 N), as hrpsys decides
     it: a foot that only brushes the floor (a rocking sole touching with a few newtons) does not
     count as support.
@@ -105,9 +111,12 @@ from hubo_cli.perturb import FOOT_LINKS, CommandDelay, Perturbation
 from hubo_cli.perturb import draw as draw_perturbation
 from hubo_cli.posture import home_posture
 from hubo_cli.scene import CuttingModel
-from hubo_cli.state import FT_SENSORS, RobotState
+from hubo_cli.state import FT_MEASURED, FT_SENSORS, RobotState, T_frame_sensor
 from hubo_cli.urdf import DRILL_FRAME, PHYSICS_DRILL_URDF, PHYSICS_URDF, link_frames
 
+SIM_GRAVITY_M_S2 = 9.81
+FT_MASK = np.zeros(6)
+FT_MASK[list(FT_MEASURED)] = 1.0  # Hubo's three-axis sensors: f_z, m_x, m_y
 CONTACT_THRESHOLD_N = 25.0  # hrpsys contact_decision_threshold
 CONTACT_CUTOFF_HZ = 5.0     # low-pass of the ankles' F_z before the threshold
 HAND_FRAMES = {"right-wrist": ("RWP_link", "right_hand"), "left-wrist": ("LWP_link", "left_hand")}
@@ -116,6 +125,7 @@ SENSOR_FRAMES = HAND_FRAMES | SOLE_FRAMES
 SENSOR_LINKS = ("RWP_link", "LWP_link", "RAR_link", "LAR_link")
 FRAME_PARENTS = {"right_hand": "RWP_link", "left_hand": "LWP_link", "right_sole": "RAR_link",
                  "left_sole": "LAR_link", DRILL_FRAME: "RWP_link"}
+
 
 
 def _flush_c_stdio() -> None:
@@ -402,7 +412,7 @@ class SimDriver(Driver, SimulatedWorld):
     def _build_world(self, q0: np.ndarray) -> None:
         p, cid = self._p, self._cid
         p.resetSimulation(physicsClientId=cid)
-        p.setGravity(0, 0, -9.81, physicsClientId=cid)
+        p.setGravity(0, 0, -SIM_GRAVITY_M_S2, physicsClientId=cid)
         p.setPhysicsEngineParameter(fixedTimeStep=self.options.physics_dt_s,
                                     numSolverIterations=self.options.solver_iterations,
                                     solverResidualThreshold=self.options.solver_residual_threshold,
@@ -435,11 +445,15 @@ class SimDriver(Driver, SimulatedWorld):
         self._sensor_link_ids = [self._links[n] for n in SENSOR_LINKS]
         # per F/T sensor, in FT_SENSORS order: its link's index in PyBullet and in the sensor
         # links' batch, the link-to-sensor pose, which ankle (0, 1, None), the drill's wrist
+        # and the mass beyond the sensor: the whole link (the hand and a held tool, the foot)
         ankles = iter(range(2))
         self._sensor_table = tuple(
-            (sensor, self._links[link], SENSOR_LINKS.index(link), self._T_link_frame[frame],
-             next(ankles) if sensor.endswith("ankle") else None, sensor == "right-wrist")
+            (sensor, self._links[link], SENSOR_LINKS.index(link),
+             self._T_link_frame[frame] @ T_frame_sensor(sensor),
+             next(ankles) if sensor.endswith("ankle") else None, sensor == "right-wrist",
+             p.getDynamicsInfo(self._robot, self._links[link], physicsClientId=cid)[0])
             for sensor, (link, frame) in ((s, SENSOR_FRAMES[s]) for s in FT_SENSORS))
+        self._sensor_velocity: list[tuple | None] = [None] * len(FT_SENSORS)
         self._effort = [p.getJointInfo(self._robot, j, physicsClientId=cid)[10]
                         for j in self._idx]
         n = len(self._idx)  # the motors' gains, as setJointMotorControlArray takes them
@@ -748,25 +762,33 @@ class SimDriver(Driver, SimulatedWorld):
         _, omega_world = p.getBaseVelocity(self._robot, physicsClientId=cid)
         R = T_world_torso[:3, :3]
         link_states = self._link_states = p.getLinkStates(
-            self._robot, self._sensor_link_ids, computeForwardKinematics=1, physicsClientId=cid)
+            self._robot, self._sensor_link_ids, computeLinkVelocity=1,
+            computeForwardKinematics=1, physicsClientId=cid)
         contacts = self._contact_rows()
         cutting = self._cutting_set and any(self._cutting_floats[0])
         ft = {}
         contact = [False, False]
         filtered = self._fz_filtered_n
-        for sensor, link_id, k_state, T_link_sensor, ankle, wrist in self._sensor_table:
+        velocities = self._sensor_velocity
+        for k, (sensor, link_id, k_state, T_link_sensor, ankle, wrist,
+                mass) in enumerate(self._sensor_table):
             extra = moment = None
             if wrist and cutting:  # the cutting wrench as Python floats (cutting_force_n ...)
                 force, moment, at = self._cutting_floats
                 extra = (force, at)
-            rows = contacts.get(link_id)
-            if rows or extra is not None:
-                ls = link_states[k_state]
-                T_world_sensor = _pose(ls[4], ls[5]) @ T_link_sensor
-                wrench = ft[sensor] = self._wrench(rows or [], T_world_sensor, extra, moment)
-            else:  # nothing touches it (a hand in the air): no pose needed
-                wrench = ft[sensor] = np.zeros(6)
-            if ankle is not None:
+            ls = link_states[k_state]
+            T_world_sensor = _pose(ls[4], ls[5]) @ T_link_sensor
+            wrench = self._wrench(contacts.get(link_id, []), T_world_sensor, extra, moment)
+            # the body beyond the sensor loads it with its weight and its inertia, m (g - a),
+            # at its centre of mass (a: its velocity differenced over the period)
+            previous, velocities[k] = velocities[k], ls[6]
+            ax = ay = az = 0.0
+            if previous is not None:
+                ax, ay, az = ((v - u) / self.period_s for v, u in zip(ls[6], previous,
+                                                                        strict=True))
+            load = (mass * -ax, mass * -ay, mass * (-SIM_GRAVITY_M_S2 - az))
+            ft[sensor] = (wrench + self._wrench([], T_world_sensor, (load, ls[0]))) * FT_MASK
+            if ankle is not None:  # contact: the floor's push alone (the simulator's truth)
                 fz = float(wrench[2])
                 if filtered[ankle] is None:  # at start: no history to filter
                     filtered[ankle] = fz

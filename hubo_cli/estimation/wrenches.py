@@ -36,20 +36,12 @@ from hubo_cli.kinematics.dh import chain_fk
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import GRAVITY_M_S2, RobotModel
 from hubo_cli.pin_robot import load_pin_robot
-from hubo_cli.state import FT_MEASURED, FT_SENSORS, R_HAND_WRIST_SENSOR, RobotState
+from hubo_cli.state import FT_MEASURED, FT_SENSORS, RobotState, T_frame_sensor
 
 # per sensor in FT_SENSORS: its limb and the URDF frame whose origin is the sensor's
 SENSOR_LIMBS = {"right-wrist": ("right-arm", "right_hand"), "left-wrist": ("left-arm", "left_hand"),
                 "right-ankle": ("right-leg", "right_sole"), "left-ankle": ("left-leg", "left_sole")}
 
-
-def T_frame_sensor(sensor: str) -> np.ndarray:
-    """The sensor's axes in its URDF frame (4x4): a wrist's z along the forearm
-    (:data:`~hubo_cli.state.R_HAND_WRIST_SENSOR`), an ankle's the sole's."""
-    T = np.eye(4)
-    if sensor.endswith("wrist"):
-        T[:3, :3] = R_HAND_WRIST_SENSOR
-    return T
 
 
 def sensor_loads(model: RobotModel, drill: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -180,10 +172,9 @@ class RemoveForceOffset(Observer):
     def update(self, state: RobotState, store: Store) -> None:
         raw = self._raw
         for k, sensor in enumerate(FT_SENSORS):
-            wrench = state.ft.get(sensor, self._nan)
             try:
-                raw[k] = wrench
-            except (TypeError, ValueError):  # not six numbers: this sensor holds
+                raw[k] = np.asarray(state.ft.get(sensor, self._nan), dtype=float).reshape(6)
+            except (TypeError, ValueError, AttributeError):  # not six numbers: it holds
                 raw[k] = self._nan
         out = self._update(joint_vector(state.q_rad, self._joints),
                            np.asarray(store[QUAT_WORLD_TORSO], dtype=float))
