@@ -12,9 +12,13 @@ limbs' chains, :mod:`hubo_cli.kinematics.limb`) and the attitude ``QUAT_WORLD_TO
 * the torso's position puts the anchor sole's origin where it is held;
 * both soles follow from the torso through the legs.
 
-The anchor changes when it loses contact (``CONTACT``) and the other sole has it: the new anchor
-keeps the pose estimated for it in that period, so the estimate does not jump. Without any
-contact (a jump, a fall, a lifted robot) the anchor stays.
+The anchor changes when it loses contact (``CONTACT``) and the other sole has it, or when the
+other sole in contact carries ``ANCHOR_SWITCH_N`` more than it (the compensated ankle F_z): a
+foot that lifts is still in contact for the debounce's delay, and held as the anchor meanwhile
+it would carry the whole estimate up with it (a capture step's swing foot lifted the estimated
+torso by 30 mm and sank the stance sole as far). The new anchor keeps the pose estimated for it
+in that period, so the estimate does not jump. Without any contact (a jump, a fall, a lifted
+robot) the anchor stays.
 
 Start: the world frame is the simulator's (:mod:`hubo_cli.drivers.sim`): the torso's neck frame
 at the start, dropped onto the floor (x forward, y left, z up, the origin on the floor under the
@@ -49,6 +53,9 @@ from hubo_cli.model import LEGS, RobotModel
 from hubo_cli.state import RobotState
 
 ANKLES = ("right-ankle", "left-ankle")
+ANCHOR_SWITCH_N = 40.0  # [chosen] the other sole carrying this much more takes the anchor
+#                         (about a tenth of the robot's weight: quiet standing's noise and
+#                         the two feet's uneven load never reach it)
 
 
 @nb.njit(cache=True, nogil=True)
@@ -190,7 +197,10 @@ class FloatingBase(Observer):
             self._place()
             contact = store[CONTACT]
             other = 1 - self.anchor
-            if not contact[self.anchor] and contact[other]:
+            wrenches = store[WRENCHES]
+            heavier = (float(wrenches[ANKLES[other]][2])
+                       > float(wrenches[ANKLES[self.anchor]][2]) + ANCHOR_SWITCH_N)
+            if contact[other] and (heavier or not contact[self.anchor]):
                 self.anchor = other  # it keeps the pose just estimated for it
                 self._T_world_anchor = self._T_world_soles[other].copy()
         self._write(store)
