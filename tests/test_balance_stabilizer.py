@@ -10,6 +10,7 @@ import pytest
 from hubo_cli.control.module import Cycle
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.stabilizer import Stabilizer
+from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError
 from hubo_cli.posture import home_posture
 from hubo_cli.state import RobotState
@@ -35,7 +36,7 @@ def stabilizer(model):
 
 def _run(stabilizer, model, state, periods):
     home = home_posture(model)
-    stabilizer.reset(home, state)
+    stabilizer.reset(home, state, Store())
     out, shifts = home, []
     for k in range(periods):
         out = stabilizer.update(home, state, Cycle(k * DT, DT))

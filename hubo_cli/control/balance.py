@@ -42,6 +42,7 @@ import numba as nb
 import numpy as np
 
 from hubo_cli.control.module import Cycle, Module
+from hubo_cli.dataflow import Store
 from hubo_cli.geometry import GIMBAL_LOCK_COS
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
@@ -105,7 +106,7 @@ class AnkleBalancer(Module):
         self._signs = ankle_axis_signs(model)
         self.offsets_rad = {leg: np.zeros(2) for leg, _ in FEET}  # (pitch, roll)
 
-    def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
+    def reset(self, q_rad: np.ndarray, state: RobotState, store: Store) -> None:
         """Start with no correction."""
         self.offsets_rad = {leg: np.zeros(2) for leg, _ in FEET}
 
@@ -268,7 +269,7 @@ class DampingBalancer(Module):
         self._ankle_signs = np.array([self._signs[leg] for leg, _ in FEET], dtype=float)
         self._last_reference = 0.0
         self._no_wrench = np.zeros(6)
-        self.reset(np.zeros(len(names)), None)
+        self.reset(np.zeros(len(names)), None, None)
         # numba compiles (or loads its cache) on the first call: now, not in the first period
         _follow_offsets(np.zeros(len(names)), self._ankles, self._ankle_signs, *[0.0] * 8, True,
                         *np.zeros((3, 2, 2)), self._lower, self._upper, *[1.0] * 7)
@@ -276,9 +277,10 @@ class DampingBalancer(Module):
                            np.zeros(self._robot.model.nq), self._robot.q_index)
         self._step(np.zeros(len(names)), RobotState(0.0, np.zeros(len(names)),
                                                      np.zeros(len(names))), 0.005)
-        self.reset(np.zeros(len(names)), None)
+        self.reset(np.zeros(len(names)), None, None)
 
-    def reset(self, q_rad: np.ndarray, state: RobotState | None) -> None:
+    def reset(self, q_rad: np.ndarray, state: RobotState | None,
+              store: Store | None) -> None:
         """Start with no correction."""
         # the filter's state: the common mode in Python floats (pitch, roll), the per-leg
         # parts as (leg, axis) arrays (FEET order; pitch, roll) for the compiled step

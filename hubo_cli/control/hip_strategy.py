@@ -33,6 +33,7 @@ import math
 import numpy as np
 
 from hubo_cli.control.module import Cycle, Module
+from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError
 from hubo_cli.model import RobotModel
 from hubo_cli.state import RobotState
@@ -88,9 +89,10 @@ class HipStrategy(Module):
         self._joints = [(names.index(side + joint), per_rad)
                         for joint, per_rad in BOW_JOINTS_RAD.items() for side in "RL"]
         self._lower, self._upper = model.lower_rad, model.upper_rad
-        self.reset(np.zeros(len(names)), None)
+        self.reset(np.zeros(len(names)), None, None)
 
-    def reset(self, q_rad: np.ndarray, state: RobotState | None) -> None:
+    def reset(self, q_rad: np.ndarray, state: RobotState | None,
+              store: Store | None) -> None:
         """Start upright."""
         self.bow_rad = 0.0
         self.max_abs_bow_rad = 0.0

@@ -45,6 +45,7 @@ import numpy as np
 import pinocchio as pin
 
 from hubo_cli.control.module import Cycle, Module
+from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError
 from hubo_cli.geometry import quat_wxyz_to_matrix
 from hubo_cli.kinematics.limb import Limb
@@ -137,7 +138,7 @@ class Stabilizer(Module):
         self._roll_per_m = 1.0 / self._sensitivity(home, self._roll, 1)
         self._hip_per_m = 1.0 / self._sensitivity(home, self._hip_pitch, 0)
         self.com_offset_m = self._checked_offset(com_offset_m, home)
-        self.reset(home, None)
+        self.reset(home, None, None)
 
     def _checked_offset(self, offset_m: tuple[float, float], home: np.ndarray) -> np.ndarray:
         """The CoM offset (m) if the home posture's CoM moved by it lies inside the feet's
@@ -220,7 +221,8 @@ class Stabilizer(Module):
         return moment / total_fz
 
     # ------------------------------------------------------------------ the module
-    def reset(self, q_rad: np.ndarray, state: RobotState | None) -> None:
+    def reset(self, q_rad: np.ndarray, state: RobotState | None,
+              store: Store | None) -> None:
         self.shift_m = np.zeros(2)
         self.rate_m_s = np.zeros(2)
         self.hip_rad = 0.0
