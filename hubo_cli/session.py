@@ -50,6 +50,7 @@ from hubo_cli.control.target import Target
 from hubo_cli.drivers.base import RunContext
 from hubo_cli.drivers.registry import driver_class, make_driver
 from hubo_cli.errors import DeviceError, HuboError, InputError
+from hubo_cli.estimation.build import build_estimator
 from hubo_cli.interrupts import loop_ended, loop_starting, run_files
 from hubo_cli.model import RobotModel
 from hubo_cli.runs import discard_if_unused, make_run_dir, release_run_dir, write_json
@@ -240,7 +241,9 @@ def _run_in(setup: RunSetup, target: Target, on_start, speed: float | None,
             driver.start(setup.q_start_rad)
             world = driver.world
             loop = ControlLoop(driver, modules, target, speed=speed, log_path=run_dir,
-                               operator=setup.operator, observer=setup.live)
+                               operator=setup.operator, observer=setup.live,
+                               estimator=build_estimator(setup.model, setup.tools,
+                                                         driver.period_s))
             target.attach(world, modules, loop.store)
             if on_start is not None:
                 on_start(target, loop)

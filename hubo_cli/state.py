@@ -19,6 +19,14 @@ import numpy as np
 from hubo_cli.geometry import roll_pitch_of_quat_wxyz
 
 FT_SENSORS = ("right-wrist", "left-wrist", "right-ankle", "left-ankle")
+FT_MEASURED = (2, 3, 4)
+"""What Hubo's three-axis force-torque sensors measure of [fx, fy, fz, mx, my, mz]: f_z, m_x,
+m_y (hubo-ach ``hubo_ft_t``); the other components read 0."""
+# The wrist sensor's axes in the hand frame (whose x runs along the forearm out through the
+# palm): the sensor's z along the forearm (its f_z the axial force), its x and y across it (m_x,
+# m_y the two bending moments) = the hand's y and z. The ankle sensors' frames are the soles'.
+R_HAND_WRIST_SENSOR = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+R_HAND_WRIST_SENSOR.flags.writeable = False
 
 
 @dataclass(frozen=True)
@@ -47,8 +55,12 @@ class RobotState:
         q_rad, dq_rad_s: joint positions (rad) and velocities (rad/s), joint_names order.
         imu_quat_wxyz: torso (IMU) orientation in the world frame, unit quaternion w, x, y, z.
         imu_gyro_rad_s: torso angular rate in the IMU frame (rad/s).
-        ft: per sensor in FT_SENSORS, the wrench [fx, fy, fz, mx, my, mz] (N, N m) in the
-            sensor frame (wrists: hand frame; ankles: sole frame).
+        ft: per sensor in FT_SENSORS, the wrench [fx, fy, fz, mx, my, mz] (N, N m) the sensor
+            reads, in its own frame (wrists: z along the forearm, R_HAND_WRIST_SENSOR; ankles:
+            the sole frame), about its origin (the hand point, the sole's middle): what the
+            body beyond it and the environment load onto it, the weight of that body and of a
+            held tool included (the estimation layer removes them). Hubo's sensors measure
+            fz, mx, my (FT_MEASURED); fx, fy, mz read 0.
         tau_nm: joint torques (N m) where the driver knows them, else None.
         truth: the simulator's ground truth (:class:`Truth`), None on a real robot; read by
             logs, reports, plots and viewers only, never by a module, target or planner.

@@ -1,0 +1,196 @@
+"""The floating base and the soles in the world, from the legs' kinematics anchored at the loaded
+sole, with the estimated attitude.
+
+One sole is the anchor: its position and heading in the world are held while it carries the
+robot (a sole that carries load is taken not to slip; a slip is not seen, as on the real robot).
+Each period, from the legs' forward kinematics of the measured joints (T_torso_sole, the
+limbs' chains, :mod:`hubo_cli.kinematics.limb`) and the attitude ``QUAT_WORLD_TORSO``:
+
+* the torso's rotation is the attitude turned about the world's vertical so that the anchor
+  sole keeps its heading (the tilt is the attitude's, the heading the legs': the IMU's yaw
+  drifts);
+* the torso's position puts the anchor sole's origin where it is held;
+* both soles follow from the torso through the legs.
+
+The anchor changes when it loses contact (``CONTACT``) and the other sole has it: the new anchor
+keeps the pose estimated for it in that period, so the estimate does not jump. Without any
+contact (a jump, a fall, a lifted robot) the anchor stays.
+
+Start: the world frame is the simulator's (:mod:`hubo_cli.drivers.sim`): the torso's neck frame
+at the start, dropped onto the floor (x forward, y left, z up, the origin on the floor under the
+neck). The torso's heading is taken as zero and its position over the origin; the anchor is the
+more loaded sole, laid flat on the floor (z = 0, its heading kept). So the estimate and the
+simulator's truth start together on the nominal robot (the truth has settled 0.3 s by then).
+
+Non-finite joints or attitude keep the last estimate.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from hubo_cli.dataflow import Store
+from hubo_cli.estimation.keys import (
+    CONTACT,
+    QUAT_WORLD_TORSO,
+    T_WORLD_SOLES,
+    T_WORLD_TORSO,
+    WRENCHES,
+)
+from hubo_cli.estimation.observer import Observer
+from hubo_cli.estimation.wrenches import joint_vector
+from hubo_cli.geometry import quat_to_matrix_into
+from hubo_cli.kinematics.dh import chain_fk
+from hubo_cli.kinematics.limb import Limb
+from hubo_cli.model import LEGS, RobotModel
+from hubo_cli.state import RobotState
+
+ANKLES = ("right-ankle", "left-ankle")
+
+
+@nb.njit(cache=True, nogil=True)
+def _legs_fk(q, index, base, offset, alpha, a, d, end, out) -> bool:
+    """T_torso_sole of both legs (``out``, 2 x 4 x 4); False (``out`` untouched) when a joint
+    is not finite."""
+    qk = np.empty((2, 6))
+    for k in range(2):
+        for j in range(6):
+            v = q[index[k, j]]
+            if not math.isfinite(v):
+                return False
+            qk[k, j] = v
+    for k in range(2):
+        chain_fk(qk[k], base[k], offset[k], alpha[k], a[k], d[k], end[k], out[k])
+    return True
+
+
+@nb.njit(cache=True, nogil=True)
+def _heading(R) -> float:
+    return math.atan2(R[1, 0], R[0, 0])
+
+
+@nb.njit(cache=True, nogil=True)
+def _place(quat_wxyz, T_torso_soles, anchor, T_world_anchor, T_world_torso, T_world_soles):
+    """The torso and soles in the world (in place) from the attitude, the legs and the anchor
+    sole's held pose (its position and heading)."""
+    R = np.empty((3, 3))
+    quat_to_matrix_into(quat_wxyz, R)
+    T_ta = T_torso_soles[anchor]
+    # the anchor's heading through the chain, against its held heading
+    c00 = R[0, 0] * T_ta[0, 0] + R[0, 1] * T_ta[1, 0] + R[0, 2] * T_ta[2, 0]
+    c10 = R[1, 0] * T_ta[0, 0] + R[1, 1] * T_ta[1, 0] + R[1, 2] * T_ta[2, 0]
+    turn = _heading(T_world_anchor) - math.atan2(c10, c00)
+    ct, st = math.cos(turn), math.sin(turn)
+    T = T_world_torso
+    for c in range(3):
+        T[0, c] = ct * R[0, c] - st * R[1, c]
+        T[1, c] = st * R[0, c] + ct * R[1, c]
+        T[2, c] = R[2, c]
+    for r in range(3):
+        T[r, 3] = T_world_anchor[r, 3] - (T[r, 0] * T_ta[0, 3] + T[r, 1] * T_ta[1, 3]
+                                          + T[r, 2] * T_ta[2, 3])
+    T[3, 0], T[3, 1], T[3, 2], T[3, 3] = 0.0, 0.0, 0.0, 1.0
+    for k in range(2):
+        S, W = T_torso_soles[k], T_world_soles[k]
+        for r in range(4):
+            for c in range(4):
+                W[r, c] = (T[r, 0] * S[0, c] + T[r, 1] * S[1, c] + T[r, 2] * S[2, c]
+                           + T[r, 3] * S[3, c])
+
+
+def _flat(T: np.ndarray) -> np.ndarray:
+    """The pose laid flat on the floor: same x, y and heading, z = 0, upright."""
+    heading = math.atan2(T[1, 0], T[0, 0])
+    flat = np.eye(4)
+    flat[:2, :2] = [[math.cos(heading), -math.sin(heading)],
+                    [math.sin(heading), math.cos(heading)]]
+    flat[:2, 3] = T[:2, 3]
+    return flat
+
+
+class FloatingBase(Observer):
+    """Writes ``T_WORLD_TORSO`` and ``T_WORLD_SOLES`` (see the module docstring).
+
+    Args:
+        model: the robot model (the legs' kinematics).
+
+    Attributes:
+        anchor: the sole holding the estimate (0 right, 1 left).
+    """
+
+    name = "floating-base"
+    reads = (QUAT_WORLD_TORSO, WRENCHES, CONTACT)
+    writes = (T_WORLD_TORSO, T_WORLD_SOLES)
+
+    def __init__(self, model: RobotModel) -> None:
+        rows = []
+        for leg in LEGS:
+            base, _, offset, alpha, a, d, end, _ = Limb(model, leg).chain
+            sl = model.limb_slice(leg)
+            rows.append((np.arange(sl.start, sl.stop), base, offset, alpha, a, d, end))
+        self._chain = (np.array([r[0] for r in rows], dtype=np.int64),
+                       *(np.ascontiguousarray([r[k] for r in rows], dtype=float)
+                         for k in range(1, 7)))
+        self._joints = len(model.joint_names)
+        self._T_torso_soles = np.tile(np.eye(4), (2, 1, 1))
+        self.anchor = 0
+        self._T_world_anchor = np.eye(4)
+        self._T_world_torso = np.eye(4)
+        self._T_world_soles = np.tile(np.eye(4), (2, 1, 1))
+        self._quat = np.array([1.0, 0.0, 0.0, 0.0])
+        _legs_fk(np.zeros(self._joints), *self._chain, self._T_torso_soles)  # compile now
+        _place(self._quat, self._T_torso_soles, 0, self._T_world_anchor, np.eye(4),
+               np.zeros((2, 4, 4)))
+
+    def _inputs(self, state: RobotState, store: Store) -> bool:
+        """The legs' kinematics and the attitude of this period; False when not finite."""
+        quat = np.asarray(store[QUAT_WORLD_TORSO], dtype=float)
+        if not np.all(np.isfinite(quat)):
+            return False
+        self._quat = quat
+        return bool(_legs_fk(joint_vector(state.q_rad, self._joints), *self._chain,
+                             self._T_torso_soles))
+
+    def reset(self, state: RobotState, store: Store) -> None:
+        wrenches = store[WRENCHES]
+        fz = [float(wrenches[s][2]) for s in ANKLES]
+        self.anchor = 1 if fz[1] > fz[0] else 0  # a NaN compares False: the right sole
+        self._T_world_torso = np.eye(4)
+        self._T_world_soles = np.tile(np.eye(4), (2, 1, 1))
+        if not self._inputs(state, store):
+            self._write(store)
+            return
+        # the torso over the origin heading along x, its tilt the attitude's
+        R = np.empty((3, 3))
+        quat_to_matrix_into(self._quat, R)
+        heading = math.atan2(R[1, 0], R[0, 0])
+        T_start = np.eye(4)
+        T_start[:3, :3] = np.array([[math.cos(heading), math.sin(heading), 0.0],
+                                    [-math.sin(heading), math.cos(heading), 0.0],
+                                    [0.0, 0.0, 1.0]]) @ R
+        self._T_world_anchor = _flat(T_start @ self._T_torso_soles[self.anchor])
+        self._place()
+        self._write(store)
+
+    def _place(self) -> None:
+        T_world_torso, T_world_soles = np.empty((4, 4)), np.empty((2, 4, 4))
+        _place(self._quat, self._T_torso_soles, self.anchor, self._T_world_anchor,
+               T_world_torso, T_world_soles)
+        self._T_world_torso, self._T_world_soles = T_world_torso, T_world_soles
+
+    def _write(self, store: Store) -> None:
+        store[T_WORLD_TORSO] = self._T_world_torso
+        store[T_WORLD_SOLES] = self._T_world_soles
+
+    def update(self, state: RobotState, store: Store) -> None:
+        if self._inputs(state, store):
+            self._place()
+            contact = store[CONTACT]
+            other = 1 - self.anchor
+            if not contact[self.anchor] and contact[other]:
+                self.anchor = other  # it keeps the pose just estimated for it
+                self._T_world_anchor = self._T_world_soles[other].copy()
+        self._write(store)
