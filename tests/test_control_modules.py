@@ -16,6 +16,7 @@ from hubo_cli.control.loop import ControlLoop
 from hubo_cli.control.module import Cycle
 from hubo_cli.control.otg import TrajectoryGenerator
 from hubo_cli.control.pipeline import build_pipeline, find_module
+from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError
 from hubo_cli.motion.limits import JointLimits
 from hubo_cli.motion.tracker import JointTracker
@@ -141,7 +142,7 @@ def test_tracker_synchronization_phase_keeps_a_straight_line_none_does_not(model
 def test_otg_clamps_targets_and_goes_stale(model):
     otg = TrajectoryGenerator(model, DT, stale_timeout_s=0.1)
     q0 = home_posture(model)
-    otg.reset(q0, _state(model))
+    otg.reset(q0, _state(model), Store())
     far = q0.copy()
     far[1] = 5.0                                   # RSR above its 0.3 rad limit
     cycle = Cycle(0.0, DT)
@@ -261,7 +262,7 @@ def test_hull_and_outside_distance():
 def test_capture_point_standing_still_is_inside(model):
     monitor = CapturePointMonitor(model, DT)
     state = _state(model)
-    monitor.reset(state.q_rad, state)
+    monitor.reset(state.q_rad, state, Store())
     cycle = Cycle(0.0, DT)
     monitor.update(state.q_rad, state, cycle)
     assert not monitor.flag and monitor.outside_m < -0.03
@@ -303,7 +304,7 @@ def test_capture_point_reference_matches_a_still_robot(model):
     monitor = CapturePointMonitor(model, DT)
     q = home_posture(model)
     state = RobotState(0.0, q, np.zeros(24), feet_contact=(True, True))
-    monitor.reset(q, state)
+    monitor.reset(q, state, Store())
     cycle = Cycle(0.0, DT)
     monitor.update(q, state, cycle)
     assert abs(cycle.info["cp_error_x_m"]) < 1e-9 and abs(cycle.info["cp_error_y_m"]) < 1e-9
@@ -323,7 +324,7 @@ def test_capture_point_flags_feet_tipping_on_their_heels(model):
         monitor = CapturePointMonitor(model, DT)
         state = RobotState(0.0, q, np.zeros(24), T_world_torso=_pitched(np.radians(-angle_deg)),
                            feet_contact=(True, True))
-        monitor.reset(q, state)
+        monitor.reset(q, state, Store())
         for k in range(monitor.confirm_periods):
             assert not monitor.flag
             monitor.update(q, state, Cycle(k * DT, DT))
@@ -338,7 +339,7 @@ def test_capture_point_ignores_a_one_period_outlier(model):
                          feet_contact=(True, True))
     tipped = RobotState(0.0, q, np.zeros(24), T_world_torso=_pitched(np.radians(-3.0)),
                         feet_contact=(True, True))
-    monitor.reset(q, upright)
+    monitor.reset(q, upright, Store())
     for k, state in enumerate([upright, tipped, upright, tipped, tipped, tipped]):
         cycle = Cycle(k * DT, DT)
         monitor.update(q, state, cycle)
@@ -416,6 +417,6 @@ def test_ideal_driver_keeps_the_feet_flat_so_a_leaning_posture_stays_supported(m
     state = robot.step()
     assert abs(np.degrees(np.hypot(*state.tilt_rad())) - 2.0) < 0.05
     monitor = CapturePointMonitor(model, DT)
-    monitor.reset(q, state)
+    monitor.reset(q, state, Store())
     monitor.update(q, state, Cycle(0.0, DT))
     assert not monitor.flag and monitor.outside_m < -0.03

@@ -9,6 +9,7 @@ from hubo_cli.control.loop import ControlLoop
 from hubo_cli.control.module import Cycle
 from hubo_cli.control.pipeline import DEFAULT_ORDER, SafetyProfile, build_pipeline
 from hubo_cli.control.stop_choice import ActiveStops
+from hubo_cli.dataflow import Store
 from hubo_cli.drivers.registry import make_driver
 from hubo_cli.errors import ConfigError, InputError
 from hubo_cli.experiments.push_wall import push_wall_setup
@@ -82,7 +83,7 @@ def test_every_info_key_a_module_writes_is_a_declared_log_column(model):
         with make_driver("ideal", model) as robot:
             state = robot.start(home_posture(model))
             for m in modules:
-                m.reset(state.q_rad.copy(), state)
+                m.reset(state.q_rad.copy(), state, Store())
             q_goal = home_posture(model)
             q_goal[model.limb_slice("right-arm")] += 0.3
             for k in range(40):

@@ -277,7 +277,7 @@ class ControlLoop:
             q0 = np.array(state.q_rad, dtype=float)
             self._cmd = self._cmd_prev = self._cmd_prev2 = q0
             for m in self.modules:
-                m.reset(q0.copy(), state)
+                m.reset(q0.copy(), state, self.store)
             while duration_s is None or self.period * self.dt_s < duration_s - 1e-9:
                 t_s = self.period * self.dt_s
                 late_s = self._pace()
