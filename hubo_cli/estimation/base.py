@@ -1,15 +1,20 @@
 """The floating base and the soles in the world, from the legs' kinematics anchored at the loaded
 sole, with the estimated attitude.
 
-One sole is the anchor: its position and heading in the world are held while it carries the
-robot (a sole that carries load is taken not to slip; a slip is not seen, as on the real robot).
-Each period, from the legs' forward kinematics of the measured joints (T_torso_sole, the
-limbs' chains, :mod:`hubo_cli.kinematics.limb`) and the attitude ``QUAT_WORLD_TORSO``:
+One sole is the anchor: its heading and its contact point in the world are held while it
+carries the robot (a sole that carries load is taken not to slip; a slip is not seen, as on
+the real robot). The contact point is the sole's centre of pressure (its compensated ankle
+wrench, ``WRENCHES``, kept inside the sole's outline): a sole that rolls onto its toe or heel
+edge (a push, a capture step) turns about that edge and its middle rises, as it does. Each
+period, from the legs' forward kinematics of the measured joints (T_torso_sole, the limbs'
+chains, :mod:`hubo_cli.kinematics.limb`) and the attitude ``QUAT_WORLD_TORSO``:
 
 * the torso's rotation is the attitude turned about the world's vertical so that the anchor
   sole keeps its heading (the tilt is the attitude's, the heading the legs': the IMU's yaw
   drifts);
-* the torso's position puts the anchor sole's origin where it is held;
+* the torso's position puts the anchor sole's contact point of this period where that point
+  of the sole was in the last period's estimate (a flat sole whose centre of pressure moves
+  stays where it is; one rolling on an edge keeps the edge on the floor);
 * both soles follow from the torso through the legs.
 
 The anchor changes when it loses contact (``CONTACT``) and the other sole has it, or when the
@@ -53,6 +58,7 @@ from hubo_cli.model import LEGS, RobotModel
 from hubo_cli.state import RobotState
 
 ANKLES = ("right-ankle", "left-ankle")
+MIN_FZ_N = 10.0  # [chosen] a sole pressing less than this: its last centre of pressure
 ANCHOR_SWITCH_N = 40.0  # [chosen] the other sole carrying this much more takes the anchor
 #                         (about a tenth of the robot's weight: quiet standing's noise and
 #                         the two feet's uneven load never reach it)
@@ -80,9 +86,11 @@ def _heading(R) -> float:
 
 
 @nb.njit(cache=True, nogil=True)
-def _place(quat_wxyz, T_torso_soles, anchor, T_world_anchor, T_world_torso, T_world_soles):
+def _place(quat_wxyz, T_torso_soles, anchor, T_world_anchor, cx, cy, T_world_torso,
+           T_world_soles):
     """The torso and soles in the world (in place) from the attitude, the legs and the anchor
-    sole's held pose (its position and heading)."""
+    sole's last pose ``T_world_anchor``: its heading kept, its point (cx, cy) on the sole
+    (sole frame, m) kept where it was."""
     R = np.empty((3, 3))
     quat_to_matrix_into(quat_wxyz, R)
     T_ta = T_torso_soles[anchor]
@@ -97,8 +105,12 @@ def _place(quat_wxyz, T_torso_soles, anchor, T_world_anchor, T_world_torso, T_wo
         T[1, c] = st * R[0, c] + ct * R[1, c]
         T[2, c] = R[2, c]
     for r in range(3):
-        T[r, 3] = T_world_anchor[r, 3] - (T[r, 0] * T_ta[0, 3] + T[r, 1] * T_ta[1, 3]
-                                          + T[r, 2] * T_ta[2, 3])
+        held = (T_world_anchor[r, 0] * cx + T_world_anchor[r, 1] * cy
+                + T_world_anchor[r, 3])  # where the contact point was
+        p = np.empty(3)  # the contact point in the torso frame
+        for i in range(3):
+            p[i] = T_ta[i, 0] * cx + T_ta[i, 1] * cy + T_ta[i, 3]
+        T[r, 3] = held - (T[r, 0] * p[0] + T[r, 1] * p[1] + T[r, 2] * p[2])
     T[3, 0], T[3, 1], T[3, 2], T[3, 3] = 0.0, 0.0, 0.0, 1.0
     for k in range(2):
         S, W = T_torso_soles[k], T_world_soles[k]
@@ -148,8 +160,12 @@ class FloatingBase(Observer):
         self._T_world_torso = np.eye(4)
         self._T_world_soles = np.tile(np.eye(4), (2, 1, 1))
         self._quat = np.array([1.0, 0.0, 0.0, 0.0])
+        corners = model.feet.sole_corners_m()
+        self._sole_box = (float(corners[:, 0].min()), float(corners[:, 0].max()),
+                          float(corners[:, 1].min()), float(corners[:, 1].max()))
+        self._contact_point = (0.0, 0.0)  # on the anchor sole (sole frame, m)
         _legs_fk(np.zeros(self._joints), *self._chain, self._T_torso_soles)  # compile now
-        _place(self._quat, self._T_torso_soles, 0, self._T_world_anchor, np.eye(4),
+        _place(self._quat, self._T_torso_soles, 0, self._T_world_anchor, 0.0, 0.0, np.eye(4),
                np.zeros((2, 4, 4)))
 
     def _inputs(self, state: RobotState, store: Store) -> bool:
@@ -182,11 +198,23 @@ class FloatingBase(Observer):
         self._place()
         self._write(store)
 
-    def _place(self) -> None:
+    def _centre_of_pressure(self, store: Store) -> tuple[float, float]:
+        """The anchor sole's centre of pressure (sole frame, m) inside its outline; the last
+        one while it presses less than MIN_FZ_N or reads non-finite."""
+        wrench = store[WRENCHES][ANKLES[self.anchor]]
+        fz, mx, my = float(wrench[2]), float(wrench[3]), float(wrench[4])
+        if not (fz > MIN_FZ_N and math.isfinite(mx) and math.isfinite(my)):
+            return self._contact_point
+        x_lo, x_hi, y_lo, y_hi = self._sole_box
+        return min(max(-my / fz, x_lo), x_hi), min(max(mx / fz, y_lo), y_hi)
+
+    def _place(self, contact_point: tuple[float, float] = (0.0, 0.0)) -> None:
         T_world_torso, T_world_soles = np.empty((4, 4)), np.empty((2, 4, 4))
         _place(self._quat, self._T_torso_soles, self.anchor, self._T_world_anchor,
-               T_world_torso, T_world_soles)
+               *contact_point, T_world_torso, T_world_soles)
         self._T_world_torso, self._T_world_soles = T_world_torso, T_world_soles
+        self._T_world_anchor = T_world_soles[self.anchor].copy()
+        self._contact_point = contact_point
 
     def _write(self, store: Store) -> None:
         store[T_WORLD_TORSO] = self._T_world_torso
@@ -194,7 +222,7 @@ class FloatingBase(Observer):
 
     def update(self, state: RobotState, store: Store) -> None:
         if self._inputs(state, store):
-            self._place()
+            self._place(self._centre_of_pressure(store))
             contact = store[CONTACT]
             other = 1 - self.anchor
             wrenches = store[WRENCHES]
@@ -203,4 +231,5 @@ class FloatingBase(Observer):
             if contact[other] and (heavier or not contact[self.anchor]):
                 self.anchor = other  # it keeps the pose just estimated for it
                 self._T_world_anchor = self._T_world_soles[other].copy()
+                self._contact_point = (0.0, 0.0)  # its own, read next period
         self._write(store)
