@@ -11,7 +11,12 @@ chains, :mod:`hubo_cli.kinematics.limb`) and the attitude ``QUAT_WORLD_TORSO``:
 
 * the torso's rotation is the attitude turned about the world's vertical so that the anchor
   sole keeps its heading (the tilt is the attitude's, the heading the legs': the IMU's yaw
-  drifts);
+  drifts), then turned about the contact point by what the gyro's yaw rate adds to it,
+  high-passed with ``HEADING_TAU_S``: a stance sole that twists on the floor under a push
+  turns the robot, which the gyro sees and the legs do not (a 150 N push turned the capture
+  step's stance foot by some degrees, and the step, planned on the legs' heading alone,
+  landed 5 cm long and the robot fell), while the gyro's bias and drift fade. When the other
+  sole takes the anchor it keeps its pose as estimated, the turn included;
 * the torso's position puts the anchor sole's contact point of this period where that point
   of the sole was in the last period's estimate (a flat sole whose centre of pressure moves
   stays where it is; one rolling on an edge keeps the edge on the floor);
@@ -59,6 +64,7 @@ from hubo_cli.state import RobotState
 
 ANKLES = ("right-ankle", "left-ankle")
 MIN_FZ_N = 10.0  # [chosen] a sole pressing less than this: its last centre of pressure
+HEADING_TAU_S = 1.0  # [chosen] the gyro's share of the heading fades with this time constant
 ANCHOR_SWITCH_N = 40.0  # [chosen] the other sole carrying this much more takes the anchor
 #                         (about a tenth of the robot's weight: quiet standing's noise and
 #                         the two feet's uneven load never reach it)
@@ -164,6 +170,10 @@ class FloatingBase(Observer):
         self._sole_box = (float(corners[:, 0].min()), float(corners[:, 0].max()),
                           float(corners[:, 1].min()), float(corners[:, 1].max()))
         self._contact_point = (0.0, 0.0)  # on the anchor sole (sole frame, m)
+        self._dt_s = model.control_period_s
+        self._keep = HEADING_TAU_S / (HEADING_TAU_S + self._dt_s)  # the turn's fade a period
+        self._turn_rad = 0.0  # the gyro's turn on top of the legs' heading
+        self._legs_heading: float | None = None  # the legs' torso heading, last period
         _legs_fk(np.zeros(self._joints), *self._chain, self._T_torso_soles)  # compile now
         _place(self._quat, self._T_torso_soles, 0, self._T_world_anchor, 0.0, 0.0, np.eye(4),
                np.zeros((2, 4, 4)))
@@ -183,6 +193,7 @@ class FloatingBase(Observer):
         self.anchor = 1 if fz[1] > fz[0] else 0  # a NaN compares False: the right sole
         self._T_world_torso = np.eye(4)
         self._T_world_soles = np.tile(np.eye(4), (2, 1, 1))
+        self._turn_rad, self._legs_heading = 0.0, None
         if not self._inputs(state, store):
             self._write(store)
             return
@@ -208,13 +219,32 @@ class FloatingBase(Observer):
         x_lo, x_hi, y_lo, y_hi = self._sole_box
         return min(max(-my / fz, x_lo), x_hi), min(max(mx / fz, y_lo), y_hi)
 
-    def _place(self, contact_point: tuple[float, float] = (0.0, 0.0)) -> None:
+    def _place(self, contact_point: tuple[float, float] = (0.0, 0.0),
+                gyro_rad_s: np.ndarray | None = None) -> None:
+        """This period's torso and soles: the legs' placement (the anchor's held contact point
+        and heading), turned about the contact point by the gyro's high-passed share of the
+        heading (``gyro_rad_s``: the IMU's rate in the torso frame; None: none)."""
         T_world_torso, T_world_soles = np.empty((4, 4)), np.empty((2, 4, 4))
         _place(self._quat, self._T_torso_soles, self.anchor, self._T_world_anchor,
                *contact_point, T_world_torso, T_world_soles)
-        self._T_world_torso, self._T_world_soles = T_world_torso, T_world_soles
-        self._T_world_anchor = T_world_soles[self.anchor].copy()
+        self._T_world_anchor = T_world_soles[self.anchor].copy()  # the legs' own
         self._contact_point = contact_point
+        heading = math.atan2(T_world_torso[1, 0], T_world_torso[0, 0])
+        if gyro_rad_s is not None and self._legs_heading is not None:
+            yaw_rate = float(T_world_torso[2, :3] @ gyro_rad_s)  # about the world's vertical
+            legs_rate = math.remainder(heading - self._legs_heading, math.tau) / self._dt_s
+            if math.isfinite(yaw_rate):
+                self._turn_rad = self._keep * (self._turn_rad
+                                               + (yaw_rate - legs_rate) * self._dt_s)
+        self._legs_heading = heading
+        if self._turn_rad:
+            c, s = math.cos(self._turn_rad), math.sin(self._turn_rad)
+            pivot = self._T_world_anchor @ np.array([*contact_point, 0.0, 1.0])
+            turn = np.eye(4)
+            turn[:2, :2] = ((c, -s), (s, c))
+            turn[:2, 3] = pivot[:2] - turn[:2, :2] @ pivot[:2]
+            T_world_torso, T_world_soles = turn @ T_world_torso, turn @ T_world_soles
+        self._T_world_torso, self._T_world_soles = T_world_torso, T_world_soles
 
     def _write(self, store: Store) -> None:
         store[T_WORLD_TORSO] = self._T_world_torso
@@ -222,14 +252,16 @@ class FloatingBase(Observer):
 
     def update(self, state: RobotState, store: Store) -> None:
         if self._inputs(state, store):
-            self._place(self._centre_of_pressure(store))
+            self._place(self._centre_of_pressure(store),
+                        np.asarray(state.imu_gyro_rad_s, dtype=float))
             contact = store[CONTACT]
             other = 1 - self.anchor
             wrenches = store[WRENCHES]
             heavier = (float(wrenches[ANKLES[other]][2])
                        > float(wrenches[ANKLES[self.anchor]][2]) + ANCHOR_SWITCH_N)
             if contact[other] and (heavier or not contact[self.anchor]):
-                self.anchor = other  # it keeps the pose just estimated for it
+                self.anchor = other  # it keeps the pose just estimated for it, turn included
                 self._T_world_anchor = self._T_world_soles[other].copy()
                 self._contact_point = (0.0, 0.0)  # its own, read next period
+                self._turn_rad, self._legs_heading = 0.0, None
         self._write(store)
