@@ -15,8 +15,12 @@ chains, :mod:`hubo_cli.kinematics.limb`) and the attitude ``QUAT_WORLD_TORSO``:
   high-passed with ``HEADING_TAU_S``: a stance sole that twists on the floor under a push
   turns the robot, which the gyro sees and the legs do not (a 150 N push turned the capture
   step's stance foot by some degrees, and the step, planned on the legs' heading alone,
-  landed 5 cm long and the robot fell), while the gyro's bias and drift fade. When the other
-  sole takes the anchor it keeps its pose as estimated, the turn included;
+  landed 5 cm long and the robot fell), while the gyro's bias and drift fade (and so does a
+  twist the foot keeps: over seconds the legs' heading holds, as without the gyro). The turn
+  is laid over the legs' estimate, never folded into it: when the other sole takes the anchor,
+  it goes on from the pose the legs gave it (walking, whose soles twist a little and back on
+  every step, kept its accuracy only so: folded in at each change, the turns added up to
+  24 mm in 1 m);
 * the torso's position puts the anchor sole's contact point of this period where that point
   of the sole was in the last period's estimate (a flat sole whose centre of pressure moves
   stays where it is; one rolling on an edge keeps the edge on the floor);
@@ -126,6 +130,15 @@ def _place(quat_wxyz, T_torso_soles, anchor, T_world_anchor, cx, cy, T_world_tor
                            + T[r, 3] * S[3, c])
 
 
+def _turn_about(point: np.ndarray, angle_rad: float) -> np.ndarray:
+    """The turn (4x4) by ``angle_rad`` about the vertical through ``point`` (world)."""
+    c, s = math.cos(angle_rad), math.sin(angle_rad)
+    turn = np.eye(4)
+    turn[:2, :2] = ((c, -s), (s, c))
+    turn[:2, 3] = point[:2] - turn[:2, :2] @ point[:2]
+    return turn
+
+
 def _flat(T: np.ndarray) -> np.ndarray:
     """The pose laid flat on the floor: same x, y and heading, z = 0, upright."""
     heading = math.atan2(T[1, 0], T[0, 0])
@@ -173,7 +186,7 @@ class FloatingBase(Observer):
         self._dt_s = model.control_period_s
         self._keep = HEADING_TAU_S / (HEADING_TAU_S + self._dt_s)  # the turn's fade a period
         self._turn_rad = 0.0  # the gyro's turn on top of the legs' heading
-        self._legs_heading: float | None = None  # the legs' torso heading, last period
+        self._R_legs: np.ndarray | None = None  # the legs' torso rotation, last period
         _legs_fk(np.zeros(self._joints), *self._chain, self._T_torso_soles)  # compile now
         _place(self._quat, self._T_torso_soles, 0, self._T_world_anchor, 0.0, 0.0, np.eye(4),
                np.zeros((2, 4, 4)))
@@ -193,7 +206,7 @@ class FloatingBase(Observer):
         self.anchor = 1 if fz[1] > fz[0] else 0  # a NaN compares False: the right sole
         self._T_world_torso = np.eye(4)
         self._T_world_soles = np.tile(np.eye(4), (2, 1, 1))
-        self._turn_rad, self._legs_heading = 0.0, None
+        self._turn_rad, self._R_legs = 0.0, None
         if not self._inputs(state, store):
             self._write(store)
             return
@@ -229,22 +242,29 @@ class FloatingBase(Observer):
                *contact_point, T_world_torso, T_world_soles)
         self._T_world_anchor = T_world_soles[self.anchor].copy()  # the legs' own
         self._contact_point = contact_point
-        heading = math.atan2(T_world_torso[1, 0], T_world_torso[0, 0])
-        if gyro_rad_s is not None and self._legs_heading is not None:
-            yaw_rate = float(T_world_torso[2, :3] @ gyro_rad_s)  # about the world's vertical
-            legs_rate = math.remainder(heading - self._legs_heading, math.tau) / self._dt_s
+        R = T_world_torso[:3, :3]
+        if gyro_rad_s is not None and self._R_legs is not None:
+            # both rates about the world's vertical: the gyro's, and the legs' (the rotation
+            # from the last period's, small: its skew part)
+            yaw_rate = float(R[2] @ gyro_rad_s)
+            step = R @ self._R_legs.T
+            legs_rate = 0.5 * float(step[1, 0] - step[0, 1]) / self._dt_s
             if math.isfinite(yaw_rate):
                 self._turn_rad = self._keep * (self._turn_rad
                                                + (yaw_rate - legs_rate) * self._dt_s)
-        self._legs_heading = heading
+        self._R_legs = R.copy()
         if self._turn_rad:
-            c, s = math.cos(self._turn_rad), math.sin(self._turn_rad)
             pivot = self._T_world_anchor @ np.array([*contact_point, 0.0, 1.0])
-            turn = np.eye(4)
-            turn[:2, :2] = ((c, -s), (s, c))
-            turn[:2, 3] = pivot[:2] - turn[:2, :2] @ pivot[:2]
+            turn = _turn_about(pivot, self._turn_rad)
             T_world_torso, T_world_soles = turn @ T_world_torso, turn @ T_world_soles
         self._T_world_torso, self._T_world_soles = T_world_torso, T_world_soles
+
+    def _take_anchor(self, side: int) -> None:
+        """Sole ``side`` takes the anchor as estimated, the gyro's turn included."""
+        self.anchor = side
+        self._T_world_anchor = self._T_world_soles[side].copy()
+        self._contact_point = (0.0, 0.0)  # its own, read next period
+        self._turn_rad, self._R_legs = 0.0, None
 
     def _write(self, store: Store) -> None:
         store[T_WORLD_TORSO] = self._T_world_torso
@@ -260,8 +280,5 @@ class FloatingBase(Observer):
             heavier = (float(wrenches[ANKLES[other]][2])
                        > float(wrenches[ANKLES[self.anchor]][2]) + ANCHOR_SWITCH_N)
             if contact[other] and (heavier or not contact[self.anchor]):
-                self.anchor = other  # it keeps the pose just estimated for it, turn included
-                self._T_world_anchor = self._T_world_soles[other].copy()
-                self._contact_point = (0.0, 0.0)  # its own, read next period
-                self._turn_rad, self._legs_heading = 0.0, None
+                self._take_anchor(other)
         self._write(store)
