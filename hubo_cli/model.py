@@ -197,6 +197,11 @@ class RobotModel:
         return _read_toml(self.source).get("impedance", {})
 
     @property
+    def raw_estimation(self) -> dict:
+        """The robot file's ``[estimation]`` table (read by :mod:`hubo_cli.estimation`)."""
+        return _read_toml(self.source).get("estimation", {})
+
+    @property
     def raw_walking(self) -> dict:
         """The robot file's ``[walking]`` table (read by :mod:`hubo_cli.walking.params`)."""
         return _read_toml(self.source).get("walking", {})
