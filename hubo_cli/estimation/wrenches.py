@@ -34,9 +34,9 @@ from hubo_cli.estimation.observer import Observer
 from hubo_cli.geometry import quat_to_matrix_into
 from hubo_cli.kinematics.dh import chain_fk
 from hubo_cli.kinematics.limb import Limb
-from hubo_cli.model import GRAVITY_M_S2, RobotModel
+from hubo_cli.model import RobotModel
 from hubo_cli.pin_robot import load_pin_robot
-from hubo_cli.state import FT_MEASURED, FT_SENSORS, RobotState, T_frame_sensor
+from hubo_cli.state import FT_MEASURED, FT_SENSORS, GRAVITY_M_S2, RobotState, T_frame_sensor
 
 # per sensor in FT_SENSORS: its limb and the URDF frame whose origin is the sensor's
 SENSOR_LIMBS = {"right-wrist": ("right-arm", "right_hand"), "left-wrist": ("left-arm", "left_hand"),
