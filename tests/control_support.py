@@ -76,3 +76,12 @@ def sensed_cycle(t_s: float, dt_s: float, state, **fields):
     cycle = Cycle(t_s, dt_s, **fields)
     cycle.store[WRENCHES] = state.ft
     return cycle
+
+
+def compensated_wrenches(model, state, tools=None) -> dict:
+    """The estimate's wrenches of one state (RemoveForceOffset with the state's attitude): the
+    sensors' readings with the hand's, the tool's and the foot's weight removed."""
+    from hubo_cli.estimation.build import build_estimator
+    from hubo_cli.estimation.keys import WRENCHES
+
+    return build_estimator(model, tools or {}).reset(state)[WRENCHES]
