@@ -287,8 +287,7 @@ class SensorNoise:
 
     def measure(self, state):
         """A copy of ``state`` (a :class:`~hubo_cli.drivers.base.RobotState`) as the noisy
-        sensors read it. The simulator's ground truth (``T_world_torso``) and the contact flags
-        are left as they are."""
+        sensors read it. The simulator's ground truth (``state.truth``) is left as it is."""
         p, rng = self.p, self._rng
         if p.nominal:
             return state

@@ -240,11 +240,11 @@ def _run_in(setup: RunSetup, target: Target, on_start, speed: float | None,
             modules = setup.safety.build(setup.model, driver.period_s, setup.tools)
             driver.start(setup.q_start_rad)
             world = driver.world
-            target.attach(world, modules)
             loop = ControlLoop(driver, modules, target, speed=speed, log_path=run_dir,
                                operator=setup.operator, observer=setup.live,
                                estimator=build_estimator(setup.model, setup.tools,
                                                          driver.period_s))
+            target.attach(world, modules, loop.store)
             if on_start is not None:
                 on_start(target, loop)
             result = _run_loop(loop, setup, world)

@@ -2,6 +2,12 @@
 
 It lives apart from the drivers so that control modules, targets and reports can use it
 without importing any driver.
+
+A :class:`RobotState` holds what a Hubo's sensors report (encoders, IMU, force-torque
+sensors) and nothing else. What only a simulator knows (the torso's true pose, the feet's true
+contact) travels beside it in :attr:`RobotState.truth`, for logs, reports, plots and the
+viewers only: modules, targets and planners act on the estimate
+(:mod:`hubo_cli.estimation.keys`), and tests/test_truth_isolation.py holds them to it.
 """
 
 from __future__ import annotations
@@ -33,6 +39,23 @@ def T_frame_sensor(sensor: str) -> np.ndarray:
     return T
 
 
+@dataclass(frozen=True)
+class Truth:
+    """The simulator's ground truth of one instant: for logs, reports, plots and viewers only.
+
+    Attributes:
+        T_world_torso: the torso's (neck frame's) true pose in the world (4x4, m).
+        feet_contact: (right, left) the sole truly carries load (the simulator's filtered
+            ankle F_z above its threshold).
+        quat_world_torso_wxyz: the torso's true attitude (unit quaternion w, x, y, z), before
+            any IMU noise or bias.
+    """
+
+    T_world_torso: np.ndarray
+    feet_contact: tuple[bool, bool]
+    quat_world_torso_wxyz: np.ndarray
+
+
 @dataclass
 class RobotState:
     """What a driver knows about the robot at one instant.
@@ -45,9 +68,6 @@ class RobotState:
             (with its noise and bias).
         imu_accel_m_s2: the accelerometer's specific force in the IMU frame (m/s^2): the
             acceleration minus gravity, in the torso axes; about [0, 0, +9.81] upright at rest.
-        ft: per sensor in FT_SENSORS, the wrench [fx, fy, fz, mx, my, mz] (N, N m) in the
-            sensor frame (wrists: hand frame; ankles: sole frame).
-        imu_gyro_rad_s: torso angular rate in the IMU frame (rad/s).
         ft: per sensor in FT_SENSORS, the wrench [fx, fy, fz, mx, my, mz] (N, N m) the sensor
             reads, in its own frame (wrists: z along the forearm, R_HAND_WRIST_SENSOR; ankles:
             the sole frame), about its origin (the hand point, the sole's middle): what the
@@ -55,8 +75,8 @@ class RobotState:
             held tool included (the estimation layer removes them). Hubo's sensors measure
             fz, mx, my (FT_MEASURED); fx, fy, mz read 0.
         tau_nm: joint torques (N m) where the driver knows them, else None.
-        T_world_torso: torso pose in the world (4x4, m) where known (simulation), else None.
-        feet_contact: (right, left) sole touches the ground, where known, else None.
+        truth: the simulator's ground truth (:class:`Truth`), None on a real robot; read by
+            logs, reports, plots and viewers only, never by a module, target or planner.
         flags: driver-level events this period (e.g. ``"nan-ref"``, ``"servo-off"``).
     """
 
@@ -70,8 +90,7 @@ class RobotState:
     ft: dict[str, np.ndarray] = field(
         default_factory=lambda: {name: np.zeros(6) for name in FT_SENSORS})
     tau_nm: np.ndarray | None = None
-    T_world_torso: np.ndarray | None = None
-    feet_contact: tuple[bool, bool] | None = None
+    truth: Truth | None = None
     flags: tuple[str, ...] = ()
 
     def tilt_rad(self) -> tuple[float, float]:

@@ -14,6 +14,7 @@ from hubo_cli.control.balance import (
     ankle_axis_signs,
 )
 from hubo_cli.control.module import Cycle
+from hubo_cli.dataflow import Store
 from hubo_cli.experiments.standing import stand
 from hubo_cli.model import load_model
 from hubo_cli.posture import home_posture
@@ -44,7 +45,7 @@ def _state(pitch_deg=0.0, roll_deg=0.0, moment_y=0.0, moment_x=0.0) -> RobotStat
 def _offsets_after(state, periods=1, **gains):
     balancer = AnkleBalancer(MODEL, **gains)
     q0 = home_posture(MODEL)
-    balancer.reset(q0, state)
+    balancer.reset(q0, state, Store())
     q = q0
     for k in range(periods):
         q = balancer.update(q0, state, Cycle(k * DT, DT))

@@ -36,6 +36,7 @@ from hubo_cli.control.limiter import SoftErrorLimiter, ankle_indices
 from hubo_cli.control.log import LogData
 from hubo_cli.control.module import Cycle
 from hubo_cli.control.pipeline import BALANCE_CHOICES, SafetyProfile
+from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError
 from hubo_cli.posture import home_posture
 from hubo_cli.state import RobotState
@@ -143,7 +144,7 @@ def test_the_limiter_counts_ankle_clamps_apart_from_other_joints(model):
     state = RobotState(0.0, q0, np.zeros(24))
     for joint, ankle_count in ((0, 0), (int(ankles[0]), 1)):
         limiter = SoftErrorLimiter(model, DT)
-        limiter.reset(q0, state)
+        limiter.reset(q0, state, Store())
         goal = q0.copy()
         goal[joint] += 0.3  # a jump: clamped by the acceleration band
         cycle = Cycle(0.0, DT)

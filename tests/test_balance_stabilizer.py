@@ -10,6 +10,7 @@ import pytest
 from hubo_cli.control.module import Cycle
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.stabilizer import Stabilizer
+from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError
 from hubo_cli.posture import home_posture
 from hubo_cli.state import RobotState
@@ -35,7 +36,7 @@ def stabilizer(model):
 
 def _run(stabilizer, model, state, periods):
     home = home_posture(model)
-    stabilizer.reset(home, state)
+    stabilizer.reset(home, state, Store())
     out, shifts = home, []
     for k in range(periods):
         out = stabilizer.update(home, state, Cycle(k * DT, DT))
@@ -55,8 +56,8 @@ def test_a_body_leaning_forward_is_moved_back_over_the_feet(stabilizer, model):
     assert shifts[-1, 0] < -0.005  # the waist goes back
     assert abs(shifts[-1, 1]) < 1e-3
     # the command's CoM over the feet (torso upright) is behind the home posture's
-    ref = stabilizer._com_in_feet(home, None)[0]
-    moved = stabilizer._com_in_feet(out, None)[0]
+    ref = stabilizer._com_in_feet(home)[0]
+    moved = stabilizer._com_in_feet(out)[0]
     assert moved < ref - 0.004
     # and the soles stay flat under the upright torso: only the legs' pitch chain moved
     changed = np.nonzero(np.abs(out - home) > 1e-9)[0]

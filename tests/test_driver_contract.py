@@ -45,8 +45,9 @@ def _check_state(state: RobotState) -> None:
         assert wrench.shape == (6,) and np.all(np.isfinite(wrench))
     if state.tau_nm is not None:
         assert state.tau_nm.shape == (N,) and np.all(np.isfinite(state.tau_nm))
-    if state.T_world_torso is not None:
-        assert state.T_world_torso.shape == (4, 4)
+    if state.truth is not None:  # the simulator's ground truth, beside the sensors
+        assert state.truth.T_world_torso.shape == (4, 4)
+        assert len(state.truth.feet_contact) == 2
     assert isinstance(state.flags, tuple) and all(isinstance(f, str) for f in state.flags)
     roll, pitch = state.tilt_rad()
     assert abs(roll) < 0.1 and abs(pitch) < 0.1

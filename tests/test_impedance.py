@@ -19,6 +19,7 @@ from hubo_cli.control.impedance import (
 )
 from hubo_cli.control.module import Cycle
 from hubo_cli.control.pipeline import DEFAULT_ORDER, SafetyProfile
+from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError
 from hubo_cli.kinematics.dh import pose_error
 from hubo_cli.kinematics.limb import Limb
@@ -41,7 +42,7 @@ def _state(model, q=None, wrench_right=None, wrench_left=None):
 
 def _controller(model, q, **options):
     ic = ImpedanceController(model, DT, **options)
-    ic.reset(q, _state(model, q))
+    ic.reset(q, _state(model, q), Store())
     return ic
 
 

@@ -90,7 +90,7 @@ def _trace(seed, periods=100):
             sim.send(q + 0.05 * math.sin(k * 0.05))  # the arms and legs move
             s = sim.step()
             rows.append(np.concatenate([s.q_rad, s.imu_quat_wxyz, s.ft["right-ankle"],
-                                        s.T_world_torso[:3, 3]]))
+                                        s.truth.T_world_torso[:3, 3]]))
         return np.array(rows), sim.perturbation
 
 

@@ -45,7 +45,7 @@ def test_stands_on_both_flat_feet_carrying_its_weight(sim):
     # measured the same on both code paths (AVX-512 / portable): load 380.125 of 380.127 N,
     # right foot 183 N, torso 0.05 mm off its height, tilt 0.005 deg (21x), soles 0.005 deg
     # (40x), gyro 1e-6 rad/s, leg torque 10.9 N m (11x)
-    assert state.feet_contact == (True, True)
+    assert state.truth.feet_contact == (True, True)
     weight = total_mass_kg(MODEL) * G
     right, left = state.ft["right-ankle"], state.ft["left-ankle"]
     # the ankle sensors carry the body less the feet below them
@@ -53,7 +53,7 @@ def test_stands_on_both_flat_feet_carrying_its_weight(sim):
     assert right[2] + left[2] == pytest.approx(weight - feet_n, rel=0.02)
     assert 0.35 * weight < right[2] < 0.65 * weight
     sole = get_limb("right-leg").fk(home_posture(MODEL)[MODEL.limb_slice("right-leg")])
-    assert state.T_world_torso[2, 3] == pytest.approx(-sole[2, 3], abs=0.003)
+    assert state.truth.T_world_torso[2, 3] == pytest.approx(-sole[2, 3], abs=0.003)
     assert np.degrees(np.abs(state.tilt_rad())).max() < 0.1
     assert np.abs(state.imu_gyro_rad_s).max() < 0.01
     for name in ("right_sole", "left_sole"):
@@ -221,17 +221,18 @@ def _creep_under_a_side_push(anchor: bool) -> tuple[float, float]:
     with SimDriver(MODEL, friction=0.5, sole_friction_anchor=anchor) as robot:
         robot.start()
         state = _hold(robot, home_posture(MODEL), 20)
-        T_world_S = state.T_world_torso @ np.linalg.inv(estimator(state))
+        T_world_S = state.truth.T_world_torso @ np.linalg.inv(
+            estimator(state, state.imu_quat_wxyz))
         soles = ("right_sole", "left_sole")
         before = [robot.frame_pose(name)[:3, 3] for name in soles]
         robot.push_torso([0.0, 40.0, 0.0], 2.0)
         for _ in range(int(2.0 / robot.period_s)):
             robot.send(home_posture(MODEL))
             state = robot.step()
-            T_S_N = estimator(state)
+            T_S_N = estimator(state, state.imu_quat_wxyz)
         drift = max(float(np.linalg.norm((robot.frame_pose(name)[:3, 3] - p)[:2]))
                     for name, p in zip(soles, before, strict=True))
-        error = float(np.linalg.norm(((T_world_S @ T_S_N) - state.T_world_torso)[:2, 3]))
+        error = float(np.linalg.norm(((T_world_S @ T_S_N) - state.truth.T_world_torso)[:2, 3]))
     return drift, error
 
 

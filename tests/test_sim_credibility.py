@@ -8,6 +8,7 @@ import pytest
 from hubo_cli.control.balance import AnkleBalancer
 from hubo_cli.control.capture_point import CapturePointMonitor
 from hubo_cli.control.module import Cycle
+from hubo_cli.dataflow import Store
 from hubo_cli.drivers.sim import FAST_PHYSICS, LEGACY_PHYSICS, SimDriver
 from hubo_cli.posture import home_posture
 from hubo_cli.urdf import DRILL_FRAME
@@ -27,13 +28,13 @@ def _stand(model, physics: dict, duration_s: float, push_n: float = 0.0):
     tilts, coms = [], []
     with SimDriver(model, **physics) as robot:
         state = robot.start(q_home)
-        balancer.reset(q_home, state)
+        balancer.reset(q_home, state, Store())
         for k in range(int(round(duration_s / dt))):
             if push_n and k == int(round(PUSH_AT_S / dt)):
                 robot.push_torso([push_n, 0.0, 0.0], PUSH_S)
             robot.send(balancer.update(q_home, state, Cycle(k * dt, dt)))
             state = robot.step()
-            tilts.append(np.degrees(np.arccos(min(1.0, state.T_world_torso[2, 2]))))
+            tilts.append(np.degrees(np.arccos(min(1.0, state.truth.T_world_torso[2, 2]))))
             monitor.measure(state)
             coms.append(monitor.com_m.copy())
     return np.array(tilts), np.array(coms)
@@ -79,7 +80,7 @@ def _cut(model, physics: dict, duration_s: float = 2.5):
     bits, forces = [], []
     with SimDriver(model, drill=True, **physics) as robot:
         state = robot.start(q_home)
-        balancer.reset(q_home, state)
+        balancer.reset(q_home, state, Store())
         bit_x, bit_y = robot.frame_pose(DRILL_FRAME)[:2, 3]
         # a board 100 mm wide beside the bit's outer side: the drill's body (a collision shape,
         # nearer the torso) stays off it, the contact would differ between the step sizes

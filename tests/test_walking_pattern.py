@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from hubo_cli.control.capture_point import convex_hull, outside_distance
+from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError, InputError
 from hubo_cli.model import load_model
 from hubo_cli.walking.body import WalkingBody, walking_posture
@@ -190,7 +191,7 @@ def test_capture_point_uses_the_planned_support(walking_model, params):
     monitor = CapturePointMonitor(walking_model, walking_model.control_period_s)
 
     def flagged() -> bool:
-        monitor.reset(q, None)
+        monitor.reset(q, None, Store())
         return any([monitor.measure(RobotState(time_s=0.005 * k, q_rad=q, dq_rad_s=0 * q,
                                                T_world_torso=T_world_neck,
                                                feet_contact=(True, False)))

@@ -3,11 +3,12 @@
 import numpy as np
 import pytest
 
+from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError
 from hubo_cli.geometry import quat_wxyz_to_matrix
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import load_model
-from hubo_cli.state import FT_SENSORS, RobotState
+from hubo_cli.state import FT_SENSORS, RobotState, Truth
 from hubo_cli.walking.body import WalkingBody, multibody_zmp, walking_posture
 from hubo_cli.walking.footsteps import Footstep, Stance, plan_footsteps
 from hubo_cli.walking.gait import make_gait
@@ -212,7 +213,8 @@ def test_torso_offset_reaches_the_legs_with_the_hip_yaw_at_its_limit():
     q_start, T_world_neck = walking_posture(model, params.step_width_m, params.crouch_m)
     target = WalkTarget(model, params, (0.3, 0.0, 0.0), q_start, T_world_neck, corrections=0,
                         stabilizer=StabilizerGains())
-    target.attach(StandingWorld(model, q_start, T_world_neck, right_yaw_rad=1e-4), [])
+    target.attach(StandingWorld(model, q_start, T_world_neck, right_yaw_rad=1e-4), [],
+                  Store())
     pitch = np.radians(1.0)
     ft = {name: np.zeros(6) for name in FT_SENSORS}
     ft["right-ankle"] = ft["left-ankle"] = wrench_at(0.0, 0.0, 190.0)
@@ -221,7 +223,8 @@ def test_torso_offset_reaches_the_legs_with_the_hip_yaw_at_its_limit():
         state = RobotState(time_s=k * DT, q_rad=q_plan.copy(), dq_rad_s=np.zeros_like(q_plan),
                            imu_quat_wxyz=np.array([np.cos(pitch / 2), 0.0, np.sin(pitch / 2),
                                                    0.0]),
-                           ft=ft, T_world_torso=T_world_neck)
+                           ft=ft, truth=Truth(T_world_neck, (True, True),
+                                              np.array([1.0, 0.0, 0.0, 0.0])))
         q, _ = target(k * DT, state)
     offset = target.torso_offset.offset_m
     # -14.2 mm on both code paths (AVX-512 / portable): 2.8x; the soles follow it equally on both

@@ -25,6 +25,7 @@ def _timed(model, choice: str) -> tuple[dict[str, np.ndarray], np.ndarray, np.nd
     ``--balance choice`` on the standing simulated robot."""
     from hubo_cli.control.module import Cycle
     from hubo_cli.control.pipeline import SafetyProfile
+    from hubo_cli.dataflow import Store
     from hubo_cli.drivers.sim import SimDriver
     from hubo_cli.posture import home_posture
 
@@ -37,7 +38,7 @@ def _timed(model, choice: str) -> tuple[dict[str, np.ndarray], np.ndarray, np.nd
     with SimDriver(model, drill=True) as robot:
         state = robot.start(q_home)
         for m in modules:
-            m.reset(q_home.copy(), state)
+            m.reset(q_home.copy(), state, Store())
         for k in range(PERIODS):
             cycle = Cycle(k * dt, dt)
             q = q_home

@@ -13,6 +13,7 @@ import numpy as np
 from hubo_cli.control.log import PeriodLog
 from hubo_cli.control.module import Cycle
 from hubo_cli.control.pipeline import build_pipeline
+from hubo_cli.dataflow import Store
 from hubo_cli.drivers.registry import make_driver
 from hubo_cli.kinematics import get_limb
 from hubo_cli.model import ARMS, LEGS, load_model
@@ -48,7 +49,7 @@ def run(report) -> None:
     q0 = {name: q0_all[slices[name]] for name in limbs}
     modules = build_pipeline(model)
     for m in modules:
-        m.reset(q0_all.copy(), state)
+        m.reset(q0_all.copy(), state, Store())
     goal_sets = [_goals(limbs, q0, k * dt) for k in range(PERIODS)]
     q_prev = {name: q0[name].copy() for name in limbs}
     per_module = {m.name: [] for m in modules}

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import time
 
+from hubo_cli.dataflow import Store
 from hubo_cli.model import load_model
 from hubo_cli.posture import home_posture
 
@@ -57,7 +58,7 @@ def _sim_figures(report, model) -> None:
     q_home = home_posture(model)
     for mode in ("default", "paper"):
         balancer = make_balancer(model, mode)
-        balancer.reset(q_home, state)
+        balancer.reset(q_home, state, Store())
         n = 2000
         t0 = time.perf_counter()
         for k in range(n):

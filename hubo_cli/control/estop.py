@@ -47,8 +47,9 @@ from collections.abc import Callable, Iterable
 import numpy as np
 
 from hubo_cli.control.module import Cycle, Module
-from hubo_cli.control.status import SafetyEvent
+from hubo_cli.control.status import SafetyEvent, StopperStatus
 from hubo_cli.control.stop_choice import SOFT_SOURCES
+from hubo_cli.dataflow import Store
 from hubo_cli.estimation.keys import WRENCHES
 from hubo_cli.geometry import (
     MIN_JERK_PEAK_ACCELERATION,
@@ -178,7 +179,13 @@ class EmergencyStopper(Module):
         return self.mode != "release"
 
     # ------------------------------------------------------------------ module
-    def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
+    def status(self) -> StopperStatus:
+        """What a viewer shows of this stopper."""
+        stops = [e for e in self.events if e.kind == "stop"]
+        return StopperStatus(self.mode, tuple(sorted(self.sources)), len(stops),
+                             stops[-1].sources if stops else ())
+
+    def reset(self, q_rad: np.ndarray, state: RobotState, store: Store) -> None:
         """Start released, passing ``q_rad`` through (deactivation releases, as in hrpsys)."""
         q = np.where(np.isfinite(q_rad), q_rad, state.q_rad).astype(float)
         self._clear(q)

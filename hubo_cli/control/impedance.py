@@ -63,6 +63,7 @@ import numpy as np
 import scipy.linalg
 
 from hubo_cli.control.module import Cycle, Module
+from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError
 from hubo_cli.geometry import min_jerk
 from hubo_cli.kinematics.choice import EXACT, solve_limb
@@ -369,7 +370,7 @@ class ImpedanceController(Module):
         all_finite(scratch)
         hold_nan(self._last_in, self._last_in, self._last_in.copy())
 
-    def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
+    def reset(self, q_rad: np.ndarray, state: RobotState, store: Store) -> None:
         """Start with zero offsets (switched on if built ``active``)."""
         self._last_in = np.where(np.isfinite(q_rad), q_rad, state.q_rad).astype(float)
         self._clear()

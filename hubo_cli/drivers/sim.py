@@ -120,7 +120,7 @@ from hubo_cli.perturb import FOOT_LINKS, CommandDelay, Perturbation
 from hubo_cli.perturb import draw as draw_perturbation
 from hubo_cli.posture import home_posture
 from hubo_cli.scene import CuttingModel
-from hubo_cli.state import FT_MEASURED, FT_SENSORS, RobotState, T_frame_sensor
+from hubo_cli.state import FT_MEASURED, FT_SENSORS, RobotState, T_frame_sensor, Truth
 from hubo_cli.urdf import DRILL_FRAME, PHYSICS_DRILL_URDF, PHYSICS_URDF, link_frames
 
 GRAVITY_SIM_M_S2 = 9.81     # the simulated world's gravity
@@ -810,10 +810,10 @@ class SimDriver(Driver, SimulatedWorld):
         flags, self._flags = tuple(dict.fromkeys(self._flags)), []
         if self._stopped:
             flags = tuple(dict.fromkeys((*flags, "stopped")))
-        state = RobotState(time_s=self._t, q_rad=q, dq_rad_s=dq,
-                           imu_quat_wxyz=matrix_to_quat_wxyz(R),
+        quat = matrix_to_quat_wxyz(R)
+        state = RobotState(time_s=self._t, q_rad=q, dq_rad_s=dq, imu_quat_wxyz=quat,
                            imu_gyro_rad_s=gyro, imu_accel_m_s2=accel, ft=ft, tau_nm=tau,
-                           T_world_torso=T_world_torso, feet_contact=(contact[0], contact[1]),
+                           truth=Truth(T_world_torso, (contact[0], contact[1]), quat.copy()),
                            flags=flags)
         tilt_deg = math.degrees(math.acos(max(-1.0, min(1.0, float(R[2, 2])))))
         self._max_tilt_deg = max(self._max_tilt_deg, tilt_deg)
@@ -841,7 +841,7 @@ class SimDriver(Driver, SimulatedWorld):
         ``right_sole``, ``left_sole``, ``right_drill_bit``)."""
         self._require_started()
         if frame == "torso":
-            return self._state.T_world_torso.copy()
+            return self._state.truth.T_world_torso.copy()
         if frame not in FRAME_PARENTS:
             raise ConfigError(f"unknown frame {frame!r}",
                               hint=f"use torso, {', '.join(FRAME_PARENTS)}")

@@ -32,6 +32,7 @@ from hubo_cli.control.log import LogData
 from hubo_cli.control.loop import LoopResult
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.target import Target
+from hubo_cli.dataflow import Store
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.errors import ConfigError, InputError
 from hubo_cli.falls import FALL_TILT_DEG, has_fallen
@@ -149,7 +150,7 @@ class PushTargets(Target):
         self.max_lift_m = 0.0
         self.obstacle: dict = {}
 
-    def attach(self, world: SimulatedWorld | None, modules) -> None:
+    def attach(self, world: SimulatedWorld | None, modules, store: Store) -> None:
         if world is None:
             raise ConfigError("the push-wall experiment needs the simulator",
                               hint="run it with the sim driver")
@@ -157,9 +158,9 @@ class PushTargets(Target):
 
     def _sole_lift_m(self, state) -> float:
         """How far the highest sole corner has risen above its start height (m)."""
-        if state.T_world_torso is None:
+        if state.truth is None:
             return 0.0
-        q = self.robot.configuration(state.q_rad, state.T_world_torso)
+        q = self.robot.configuration(state.q_rad, state.truth.T_world_torso)
         pin.framesForwardKinematics(self.robot.model, self._data, q)
         z = []
         for fid in self._soles:
@@ -171,7 +172,7 @@ class PushTargets(Target):
         return float(np.max(z - self._sole_start_z))
 
     def _watch(self, t_s: float, state) -> tuple[float, float]:
-        T = state.T_world_torso
+        T = None if state.truth is None else state.truth.T_world_torso
         if T is None:
             tilt_deg = math.degrees(tilt_rad_of_quat_wxyz(state.imu_quat_wxyz))
             z = 0.0

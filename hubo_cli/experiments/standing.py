@@ -16,6 +16,7 @@ from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.stop_choice import ActiveStops
 from hubo_cli.control.target import Target
+from hubo_cli.dataflow import Store
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.errors import ConfigError, InputError
 from hubo_cli.falls import has_fallen
@@ -136,7 +137,7 @@ class StandTarget(Target):
         self.wall_start_s = self.wall_end_s = 0.0
         self.physics_start_s = 0.0
 
-    def attach(self, world: SimulatedWorld | None, modules) -> None:
+    def attach(self, world: SimulatedWorld | None, modules, store: Store) -> None:
         if world is None:
             raise ConfigError("the standing experiment needs the simulator",
                               hint="run it with the sim driver")
@@ -148,15 +149,16 @@ class StandTarget(Target):
         world, k = self.world, self.k
         if np.any(self.push_world_n) and abs(t_s - self.push_at_s) < 0.0025:
             world.push_torso(self.push_world_n, self.push_duration_s)
-        tilt = math.degrees(tilt_rad_of_matrix(state.T_world_torso[:3, :3]))
+        truth = state.truth
+        tilt = math.degrees(tilt_rad_of_matrix(truth.T_world_torso[:3, :3]))
         if self.torso_z0_m is None:
-            self.torso_z0_m = float(state.T_world_torso[2, 3])
+            self.torso_z0_m = float(truth.T_world_torso[2, 3])
         difference = state.ft["right-ankle"][3:5] - state.ft["left-ankle"][3:5]
         if k < len(self.times_s):
             self.times_s[k], self.tilts_deg[k] = state.time_s, tilt
             self.differences_nm[k] = float(np.linalg.norm(difference))
             self.k += 1
-        for sole, touching in zip(("right_sole", "left_sole"), state.feet_contact, strict=True):
+        for sole, touching in zip(("right_sole", "left_sole"), truth.feet_contact, strict=True):
             T_world_sole = world.frame_pose(sole)
             sole_tilt = math.degrees(tilt_rad_of_matrix(T_world_sole[:3, :3]))
             start = self.soles_start_m.setdefault(sole, T_world_sole[:2, 3].copy())
@@ -164,7 +166,7 @@ class StandTarget(Target):
                                         float(np.linalg.norm(T_world_sole[:2, 3] - start)))
             self.max_sole_deg = max(self.max_sole_deg, sole_tilt)
             self.feet_flat &= bool(touching) and sole_tilt <= FLAT_TOLERANCE_DEG
-        if has_fallen(tilt, self.torso_z0_m - state.T_world_torso[2, 3]):
+        if has_fallen(tilt, self.torso_z0_m - truth.T_world_torso[2, 3]):
             self.fell = True
         self.wall_end_s = time.perf_counter()
         return self.q_home_rad, {"tilt_deg": tilt, "feet_moment_difference_nm":

@@ -36,6 +36,7 @@ import numpy as np
 from hubo_cli.control.capture_point import CapturePointMonitor
 from hubo_cli.control.module import Module
 from hubo_cli.control.target import Target, TargetOutput
+from hubo_cli.dataflow import Store
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.errors import InputError
 from hubo_cli.kinematics.limb import Limb
@@ -140,10 +141,11 @@ class WalkFirst(Target):
         self.handover_s: float | None = None
         self.wall_clearance_m = math.inf
 
-    def attach(self, world: SimulatedWorld | None, modules: Sequence[Module]) -> None:
-        self.world = world
+    def attach(self, world: SimulatedWorld | None, modules: Sequence[Module],
+               store: Store) -> None:
+        self.world, self.store = world, store
         self.modules = list(modules)
-        self.walk.attach(world, modules)
+        self.walk.attach(world, modules, store)
         self.resting = [m for m in modules if m.name in RESTING]
         self.monitor = next((m for m in modules if isinstance(m, CapturePointMonitor)), None)
 
@@ -156,7 +158,7 @@ class WalkFirst(Target):
         if self.phase == "walk":
             q, info = self.walk(t_s, state)
             for module in self.resting:
-                module.reset(q, state)
+                module.reset(q, state, self.store)
             self._measure_clearance()
             if info.pop("done", False):
                 if self.walk.fell:
@@ -171,7 +173,7 @@ class WalkFirst(Target):
             if k >= len(self.rise) and (still or t_s - self.t_phase_s
                                         >= RISE_S + STILL_TIMEOUT_S):
                 self.phase, self.handover_s = "then", t_s
-                self.then.attach(self.world, self.modules)
+                self.then.attach(self.world, self.modules, self.store)
             else:
                 return q, {"approach.phase_code": float(PHASES.index("rise"))}
         q, info = self.then(t_s - self.handover_s, state)

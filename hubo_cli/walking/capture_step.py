@@ -76,6 +76,7 @@ from scipy.spatial.transform import Rotation
 from hubo_cli.control.capture_point import CapturePointMonitor
 from hubo_cli.control.module import Module
 from hubo_cli.control.target import Target, TargetOutput
+from hubo_cli.dataflow import Store
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.errors import ConfigError, InputError
 from hubo_cli.kinematics.limb import Limb
@@ -239,12 +240,13 @@ class CaptureStepper(Target):
         self.stood_s: float | None = None
         self.stood_feet: list[Footstep] = []
 
-    def attach(self, world: SimulatedWorld | None, modules: Sequence[Module]) -> None:
+    def attach(self, world: SimulatedWorld | None, modules: Sequence[Module],
+               store: Store) -> None:
         if world is None:
             raise ConfigError("stepping needs the simulator (the soles' poses in the world)",
                               hint="leave out --step on the hardware driver")
-        self.world = world
-        self.stand.attach(world, modules)
+        self.world, self.store = world, store
+        self.stand.attach(world, modules, store)
         self.monitor = next((m for m in modules if isinstance(m, CapturePointMonitor)), None)
         if self.monitor is None:
             raise ConfigError("stepping needs the capture-point monitor in the pipeline",
@@ -270,7 +272,7 @@ class CaptureStepper(Target):
             lunge_catch = True
         if self.phase in ("step", "catch", "return") and not lunge_catch:
             for module in self.resting:
-                module.reset(q, state)
+                module.reset(q, state, self.store)
         return q, info | {"capture.phase_code": PHASE_CODES[self.phase],
                           "capture.com_ref_x_m": ref[0], "capture.com_ref_y_m": ref[1]}
 
@@ -306,8 +308,7 @@ class CaptureStepper(Target):
         self.min_ahead_m = way * MIN_STEP_M
         self.zmp_m = (np.array([stance.x_m, stance.y_m]) + (forward + ahead) * self.heading
                       + ZMP_INSET_M * inward)
-        T_world_neck = (state.T_world_torso.copy() if state.T_world_torso is not None
-                        else world.frame_pose("torso"))
+        T_world_neck = world.frame_pose("torso")
         self.body = WalkingBody(self.model, self.q_stand, T_world_neck)
         # a long step asks the legs for their full reach (the torso lowering follows): take
         # their capped solutions rather than freeze the joints
@@ -673,8 +674,7 @@ class CaptureStepper(Target):
         return q
 
     def _measured_neck(self, state: RobotState) -> np.ndarray:
-        return (state.T_world_torso if state.T_world_torso is not None
-                else self.world.frame_pose("torso"))
+        return self.world.frame_pose("torso")
 
     def _support_at(self, t_s: float) -> np.ndarray:
         """The planned support (right, left sole poses) now: the swing foot at its landing."""

@@ -12,6 +12,7 @@ import numpy as np
 from hubo_cli.balance_report import CONTACT_CUTOFF_HZ, CONTACT_THRESHOLD_N
 from hubo_cli.control.capture_point import CapturePointMonitor, convex_hull, outside_distance
 from hubo_cli.control.target import Target, TargetOutput
+from hubo_cli.dataflow import Store
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.errors import ConfigError
 from hubo_cli.falls import has_fallen
@@ -345,7 +346,7 @@ class WalkTarget(Target):
         self._ankle = {"right": (names.index("RAR"), names.index("RAP")),
                        "left": (names.index("LAR"), names.index("LAP"))}
 
-    def attach(self, world: SimulatedWorld | None, modules: Sequence) -> None:
+    def attach(self, world: SimulatedWorld | None, modules: Sequence, store: Store) -> None:
         if world is None:
             raise ConfigError("walking needs the simulator (the soles' poses in the world)",
                               hint="run it with the sim driver")
@@ -449,7 +450,7 @@ class WalkTarget(Target):
         k = min(self.k, gait.n - 1)
         self.k += 1
         (_, _, r02, _), (_, _, r12, _), (_, _, r22, torso_z) = \
-            state.T_world_torso[:3].tolist()
+            state.truth.T_world_torso[:3].tolist()
         tilt = math.degrees(math.atan2(math.hypot(r02, r12), r22))  # tilt_rad_of_matrix
         if self.torso_z0_m is None:
             self.torso_z0_m = torso_z
