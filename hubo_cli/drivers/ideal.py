@@ -4,8 +4,10 @@ Used by pipeline tests and benchmarks. Each period the measured joints equal the
 command and the velocities are its finite difference; the feet stay flat on the floor, so the
 IMU reads the torso orientation the legs give it (the lower sole flat, heading 0: upright in
 the home posture), its gyro that orientation's rate over the period and its accelerometer
-gravity alone (nothing accelerates: :func:`imu_readings`); the force/torque sensors read zero,
-torques are unknown. Commands pass the
+gravity alone (nothing accelerates: :func:`imu_readings`); the force/torque sensors read the
+weight of what hangs beyond them and nothing else (the hand, the drill with option ``drill``,
+the foot: :func:`~hubo_cli.estimation.wrenches.hanging_readings`, so the estimate's
+compensated wrenches are zero), torques are unknown. Commands pass the
 same checks as on the other drivers (NaN keeps the joint, position limits clip).
 """
 
@@ -17,14 +19,20 @@ import numba as nb
 import numpy as np
 
 from hubo_cli.drivers import checks
-from hubo_cli.drivers.base import Driver
+from hubo_cli.drivers.base import Driver, RunContext
 from hubo_cli.errors import ConfigError, DeviceError
+from hubo_cli.estimation.wrenches import (
+    hanging_readings,
+    measured_mask,
+    sensor_chains,
+    sensor_loads,
+)
 from hubo_cli.geometry import matrix_to_quat_into
 from hubo_cli.kinematics.dh import JIT, chain_fk, kernel_array
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import LEGS, RobotModel
 from hubo_cli.posture import home_posture
-from hubo_cli.state import GRAVITY_M_S2, RobotState
+from hubo_cli.state import FT_SENSORS, GRAVITY_M_S2, RobotState
 
 
 # A period's state in one compiled call (with the command check's kernel, send's): the numpy
@@ -78,14 +86,23 @@ def imu_readings(quat_prev_wxyz, quat_wxyz, period_s: float) -> tuple[np.ndarray
 
 
 class IdealDriver(Driver):
-    """State = command. No options."""
+    """State = command. Option ``drill``: the right hand holds the drill (its weight on the
+    wrist sensor)."""
 
     name = "ideal"
 
-    def __init__(self, model: RobotModel, **options) -> None:
+    @classmethod
+    def run_options(cls, run: RunContext) -> dict:
+        """The drill in the right hand."""
+        return {"drill": run.tools.get("right-arm") == "drill"}
+
+    def __init__(self, model: RobotModel, drill: bool = False, **options) -> None:
         if options:
-            raise ConfigError(f"the ideal driver takes no options (got {', '.join(options)})")
+            raise ConfigError(f"the ideal driver takes no options but drill "
+                              f"(got {', '.join(options)})")
         super().__init__(model)
+        masses, coms = sensor_loads(model, bool(drill))
+        self._sensors = (*sensor_chains(model), masses, coms, GRAVITY_M_S2, measured_mask())
         self._cmd = np.zeros(len(self.joint_names))
         self._q = self._cmd.copy()
         self._t = 0.0
@@ -176,5 +193,8 @@ class IdealDriver(Driver):
         if self._stopped and "stopped" not in flags:
             flags.append("stopped")
         gyro, accel = imu_readings(quat_prev, quat, self.period_s)
+        readings = np.empty((len(FT_SENSORS), 6))
+        hanging_readings(q, quat, *self._sensors, readings)
         return RobotState(time_s=self._t, q_rad=q, dq_rad_s=dq, flags=tuple(flags),
-                          imu_quat_wxyz=quat, imu_gyro_rad_s=gyro, imu_accel_m_s2=accel)
+                          imu_quat_wxyz=quat, imu_gyro_rad_s=gyro, imu_accel_m_s2=accel,
+                          ft=dict(zip(FT_SENSORS, readings, strict=True)))
