@@ -183,19 +183,38 @@ def test_capture_point_uses_the_planned_support(walking_model, params):
     """With the left foot in the air (a swing) and the CoM between the feet, the measured
     contacts alone put the CP outside the right sole; the walk's planned support (the swing
     foot counted where it lands) keeps it inside. Without an override nothing changes."""
+    import pinocchio as pin
+
     from hubo_cli.control.capture_point import CapturePointMonitor
+    from hubo_cli.estimation.keys import (
+        CAPTURE_POINT_WORLD,
+        COM_VELOCITY_WORLD,
+        COM_WORLD,
+        CONTACT,
+        T_WORLD_SOLES,
+    )
+    from hubo_cli.pin_robot import load_pin_robot
     from hubo_cli.state import RobotState
     from hubo_cli.walking.body import pose_of_row
 
     q, T_world_neck = walking_posture(walking_model, params.step_width_m, params.crouch_m)
     monitor = CapturePointMonitor(walking_model, walking_model.control_period_s)
 
+    # the estimate of the robot standing so, the left foot out of contact
+    robot = load_pin_robot(walking_model, floating=True)
+    data = robot.model.createData()
+    com = pin.centerOfMass(robot.model, data, robot.configuration(q, T_world_neck), False)
+    store = Store()
+    store[COM_WORLD], store[COM_VELOCITY_WORLD] = com.copy(), np.zeros(3)
+    store[CAPTURE_POINT_WORLD], store[CONTACT] = com[:2].copy(), (True, False)
+    store[T_WORLD_SOLES] = np.array([
+        pin.updateFramePlacement(robot.model, data, robot.frame_id(f)).homogeneous
+        for f in ("right_sole", "left_sole")])
+
     def flagged() -> bool:
-        monitor.reset(q, None, Store())
-        return any([monitor.measure(RobotState(time_s=0.005 * k, q_rad=q, dq_rad_s=0 * q,
-                                               T_world_torso=T_world_neck,
-                                               feet_contact=(True, False)))
-                    for k in range(5)])
+        monitor.reset(q, None, store)
+        return any([monitor.measure(RobotState(time_s=0.005 * k, q_rad=q, dq_rad_s=0 * q),
+                                    store) for k in range(5)])
 
     assert flagged() and monitor.outside_m > 0.03
     w = params.step_width_m / 2
