@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hubo_cli.control.capture_point import CapturePointMonitor
 from hubo_cli.dataflow import Store
 from hubo_cli.drivers.sim import SimDriver
 from hubo_cli.estimation.build import build_estimator
+from hubo_cli.estimation.centre_of_mass import CentreOfMass
 from hubo_cli.estimation.contact import ContactObserver
 from hubo_cli.estimation.keys import (
     CAPTURE_POINT_WORLD,
@@ -28,35 +28,47 @@ from hubo_cli.state import FT_SENSORS
 DT = 0.005
 
 
+def _truth_store(sim, state, wrenches) -> Store:
+    """The keys the centre-of-mass observer reads, from the simulator's truth: what the
+    capture-point monitor computed its capture point from before the estimate existed."""
+    store = Store()
+    store[T_WORLD_TORSO] = state.truth.T_world_torso
+    store[T_WORLD_SOLES] = np.array([sim.frame_pose(f) for f in ("right_sole", "left_sole")])
+    store[CONTACT] = state.truth.feet_contact
+    store[WRENCHES] = wrenches
+    return store
+
+
 @pytest.fixture(scope="module")
 def standing_push(model):
     """The nominal robot standing 0.6 s, pushed at the torso (60 N forward for 0.1 s), then 0.6
-    s more, with the estimate, the capture-point monitor on the truth and the truth each
+    s more, with the estimate, the capture point of the truth (the monitor's former arithmetic:
+    the same CoM, filter and support on the true torso, soles and contacts) and the truth each
     period."""
     estimator = build_estimator(model, {}, DT)
-    monitor = CapturePointMonitor(model, DT)
+    on_truth = CentreOfMass(model, DT)
     rows = []
     with SimDriver(model) as sim:
         state = sim.start()
         store = estimator.reset(state)
+        on_truth.reset(state, _truth_store(sim, state, store[WRENCHES]))
         for k in range(260):
             if k == 120:
                 sim.push_torso([60.0, 0.0, 0.0], 0.1)
             sim.send(home_posture(model))
             state = sim.step()
             store = estimator.update(state)
-            monitor.measure(state)
-            torso = store[T_WORLD_TORSO][:3, 3] - state.T_world_torso[:3, 3]
-            soles = [store[T_WORLD_SOLES][k][:3, 3] - sim.frame_pose(f)[:3, 3]
-                     for k, f in enumerate(("right_sole", "left_sole"))]
-            com = store[COM_WORLD] - sim.com_world_m()
+            truth = _truth_store(sim, state, store[WRENCHES])
+            on_truth.update(state, truth)
+            torso = store[T_WORLD_TORSO][:3, 3] - state.truth.T_world_torso[:3, 3]
+            soles = store[T_WORLD_SOLES][:, :3, 3] - truth[T_WORLD_SOLES][:, :3, 3]
             rows.append({
                 "torso": np.linalg.norm(torso[:2]), "torso_z": abs(torso[2]),
                 "soles": max(np.linalg.norm(e[:2]) for e in soles),
-                "com": np.linalg.norm(com[:2]),
-                "cp": np.linalg.norm(store[CAPTURE_POINT_WORLD] - monitor.cp_m),
+                "com": np.linalg.norm((store[COM_WORLD] - sim.com_world_m())[:2]),
+                "cp": np.linalg.norm(store[CAPTURE_POINT_WORLD] - truth[CAPTURE_POINT_WORLD]),
                 "cp_x": float(store[CAPTURE_POINT_WORLD][0]),
-                "contact": store[CONTACT], "truth_contact": state.feet_contact,
+                "contact": store[CONTACT], "truth_contact": state.truth.feet_contact,
                 "zmp": store[ZMP_WORLD].copy()})
     return rows
 
@@ -66,9 +78,10 @@ def test_standing_and_pushed_the_estimate_follows_the_simulator(standing_push):
     worst = {key: max(row[key] for row in standing_push)
              for key in ("torso", "torso_z", "soles", "com", "cp")}
     # measured (nominal robot, this push), horizontal: torso 0.07 mm, soles 0.07 mm, CoM (the
-    # URDF's against PyBullet's bodies) 0.08 mm, capture point 0.08 mm from the monitor's on
-    # the truth; vertical: the torso 1.0 mm, the simulated rubber soles' compression under the
-    # push, which an estimate that puts the sole on the floor does not see; bounds >= 2x
+    # URDF's against PyBullet's bodies) 0.08 mm, capture point 0.08 mm from the same arithmetic
+    # on the truth (the capture-point monitor's before the estimate); vertical: the torso 1.0
+    # mm, the simulated rubber soles' compression under the push, which an estimate that puts
+    # the sole on the floor does not see; bounds >= 2x
     assert worst["torso"] < 0.3e-3
     assert worst["soles"] < 0.3e-3
     assert worst["com"] < 0.5e-3

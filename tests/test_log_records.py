@@ -124,8 +124,10 @@ def test_a_state_row_logs_its_feet_and_extras(tmp_path):
                                    "right_foot_contact_flag", "left_foot_contact_flag",
                                    "x_m", "y_count")]
     assert all(math.isnan(v) for v in second)
-    # no world position from this driver; the orientation is the IMU's (level)
-    assert np.isnan(data["torso_x_m"]).all() and (data["torso_roll_rad"] == 0.0).all()
+    # the first row: the simulator's truth; the second, without one: no world position, the
+    # orientation the IMU's (level)
+    assert data["torso_x_m"][0] == 0.0 and np.isnan(data["torso_x_m"][1])
+    assert (data["torso_roll_rad"] == 0.0).all()
 
 
 def test_the_records_grow_past_their_first_block(tmp_path):

@@ -9,9 +9,9 @@ from hubo_cli.control.loop import ControlLoop
 from hubo_cli.control.module import Cycle
 from hubo_cli.control.pipeline import DEFAULT_ORDER, SafetyProfile, build_pipeline
 from hubo_cli.control.stop_choice import ActiveStops
-from hubo_cli.dataflow import Store
 from hubo_cli.drivers.registry import make_driver
 from hubo_cli.errors import ConfigError, InputError
+from hubo_cli.estimation.build import build_estimator
 from hubo_cli.experiments.push_wall import push_wall_setup
 from hubo_cli.posture import home_posture
 from hubo_cli.session import RunSetup
@@ -80,21 +80,24 @@ def test_every_info_key_a_module_writes_is_a_declared_log_column(model):
                                                wrist_torque_limit_nm=1.21)]
     for profile in profiles:
         modules = profile.build(model, dt, {"right-arm": "drill"})
+        estimator = build_estimator(model, {"right-arm": "drill"}, dt)
         with make_driver("ideal", model) as robot:
             state = robot.start(home_posture(model))
+            store = estimator.reset(state)
             for m in modules:
-                m.reset(state.q_rad.copy(), state, Store())
+                m.reset(state.q_rad.copy(), state, store)
             q_goal = home_posture(model)
             q_goal[model.limb_slice("right-arm")] += 0.3
             for k in range(40):
                 q = q_goal.copy()
                 for m in modules:
-                    cycle = Cycle(k * dt, dt)
+                    cycle = Cycle(k * dt, dt, store=store)
                     q = m.update(q, state, cycle)
                     undeclared = set(cycle.info) - set(m.log_columns)
                     assert not undeclared, f"{m.name} writes undeclared {undeclared}"
                 robot.send(q)
                 state = robot.step()
+                estimator.update(state)
 
 
 def test_a_pipeline_built_for_another_period_is_refused(model):

@@ -289,7 +289,7 @@ class CapturePointMonitor(Module):
             min_margin_t_s=self.min_margin_t_s, feet_loaded=self.feet_loaded,
             contact_losses=self.contact_losses)
 
-    def _watch(self, t_s: float, contact: tuple[bool, bool]) -> None:
+    def watch(self, t_s: float, contact: tuple[bool, bool]) -> None:
         """The run's worst margin and contact losses (as the balance report counts them)."""
         margin = self._margin_used_m - self.outside_m
         if margin < self.min_margin_m:
@@ -331,7 +331,7 @@ class CapturePointMonitor(Module):
             self.cp_ref_m = self._reference_com(q_cmd_rad, state, 0 if contact[0] else 1)
         self._outside_periods = self._outside_periods + 1 if outside > 0.0 else 0
         self.flag = self._outside_periods >= self.confirm_periods
-        self._watch(state.time_s, measured)
+        self.watch(state.time_s, measured)
         return self.flag
 
     def _reference_com(self, q_cmd_rad: np.ndarray, state: RobotState, foot: int) -> np.ndarray:

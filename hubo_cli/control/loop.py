@@ -44,10 +44,9 @@ from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.status import Status, status_from_flags
 from hubo_cli.control.target import Target, TargetOutput, as_target
-from hubo_cli.dataflow import check_flow
+from hubo_cli.dataflow import Store, check_flow
 from hubo_cli.drivers.base import Driver
 from hubo_cli.errors import ConfigError, DeviceError, HuboError, interrupt_cause
-from hubo_cli.estimation.build import build_estimator
 from hubo_cli.estimation.estimator import Estimator
 from hubo_cli.motion.limits import JointLimits, all_finite
 from hubo_cli.motion.tracker import JointTracker
@@ -158,9 +157,10 @@ class ControlLoop:
         observer: shown every period (:class:`PeriodObserver`); ``observer_error`` says why
             it was dropped, if it was.
         estimator: the estimation layer, run on every state the driver returns, before the
-            target and the modules (None: the robot's, no tool held:
-            :func:`~hubo_cli.estimation.build.build_estimator`; a run passes the one of its
-            tools). The flow of keys from it through the target and the modules is checked now.
+            target and the modules (None: the robot's own,
+            :func:`~hubo_cli.estimation.build.build_estimator` of the driver's model without a
+            tool, where the target or a module reads a key; else none, an empty store). The
+            flow of keys from it through the target and the modules is checked now.
     """
 
     def __init__(self, driver: Driver, modules: list[Module], target: TargetSource, *,
@@ -186,11 +186,14 @@ class ControlLoop:
                     f"the {m.name} module was built for a {m.dt_s * 1000:g} ms period but the "
                     f"{driver.name} driver runs at {self.dt_s * 1000:g} ms",
                     hint="build the pipeline with the driver's period (driver.period_s)")
-        if estimator is None:
+        if estimator is None and (self.target.reads or any(m.reads for m in self.modules)):
+            from hubo_cli.estimation.build import build_estimator
+
             estimator = build_estimator(driver.model, period_s=self.dt_s)
         self.estimator = estimator
-        self.store = estimator.store
-        check_flow([self.target, *self.modules], provided=estimator.writes)
+        self.store = estimator.store if estimator is not None else Store()
+        check_flow([self.target, *self.modules],
+                   provided=estimator.writes if estimator is not None else ())
         self.clock = clock
         self.sleep = sleep
         self.max_lag_periods = max_lag_periods
@@ -273,7 +276,8 @@ class ControlLoop:
         t_s = 0.0
         try:
             state = driver.read()
-            self.estimator.reset(state)
+            if self.estimator is not None:
+                self.estimator.reset(state)
             q0 = np.array(state.q_rad, dtype=float)
             self._cmd = self._cmd_prev = self._cmd_prev2 = q0
             for m in self.modules:
@@ -319,13 +323,14 @@ class ControlLoop:
                     error, exc = f"{type(err).__name__}: {err}", err
                     driver.stop()
                     break
-                try:
-                    self.estimator.update(state)
-                except Exception as err:  # noqa: BLE001 (ends in a smooth stop)
-                    ended, exc = "estimation-error", err
-                    error = str(err) if isinstance(err, HuboError) else (
-                        f"{type(err).__name__} in estimation: {err}")
-                    break
+                if self.estimator is not None:
+                    try:
+                        self.estimator.update(state)
+                    except Exception as err:  # noqa: BLE001 (ends in a smooth stop)
+                        ended, exc = "estimation-error", err
+                        error = str(err) if isinstance(err, HuboError) else (
+                            f"{type(err).__name__} in estimation: {err}")
+                        break
                 self._remember(np.array(q, dtype=float))
                 self.target.robot_flags = state.flags
                 cycle.flags.update(state.flags)

@@ -233,18 +233,22 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
     target = stepper = StandTarget(q_home, n_periods, push_n * direction, push_at_s,
                                    push_duration_s)
     hip = hip_strategy and not step and default
-    if step or hip:
+    # the legs' limits are part of the run's configuration, decided here once: stepping and
+    # the hip strategy need the robot file's walking set, the rest the model's own (Table IV)
+    safety = SafetyProfile(balance=balance, balance_mode=balance_mode, hip_strategy=hip,
+                           limit_set="walking" if step or hip else model.limits_name
+                           ).with_stops(stops)
+    if model.limits_name != safety.limit_set:
         from hubo_cli.model import load_model
 
-        model = load_model(model.params_name, "walking")
+        model = load_model(model.params_name, safety.limit_set)
     if step:
         from hubo_cli.walking.capture_step import CaptureStepper
         from hubo_cli.walking.params import walking_params
 
         stepper = CaptureStepper(target, model, walking_params(model), q_home)
     setup = RunSetup(command="sim", model=model, driver="sim", gui=gui, out=out,
-                     safety=SafetyProfile(balance=balance, balance_mode=balance_mode,
-                                          hip_strategy=hip).with_stops(stops),
+                     safety=safety,
                      duration_s=n_periods * model.control_period_s, q_start_rad=q_home,
                      perturb_seed=perturb_seed, operator=operator, live=live)
     done = run(setup, stepper)
