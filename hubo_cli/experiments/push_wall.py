@@ -39,7 +39,7 @@ from hubo_cli.estimation.keys import T_WORLD_SOLES, T_WORLD_TORSO
 from hubo_cli.falls import FALL_TILT_DEG, has_fallen
 from hubo_cli.geometry import min_jerk, tilt_rad_of_matrix
 from hubo_cli.kinematics.limb import Limb
-from hubo_cli.model import RobotModel
+from hubo_cli.model import LEGS, RobotModel
 from hubo_cli.pin_robot import load_pin_robot
 from hubo_cli.posture import home_posture
 from hubo_cli.session import RunObserver, RunResult, RunSetup, run
@@ -201,13 +201,14 @@ class PushTargets(Target):
 
 def _place_obstacle(world: SimulatedWorld, model: RobotModel, spec: PushSpec,
                     q_start: np.ndarray) -> dict:
-    """A wall in front of both hands, or a block on the left of the left hand (world frame)."""
-    neck_height_m = float(world.frame_pose("torso")[2, 3])
+    """A wall in front of both hands, or a block on the left of the left hand (world frame:
+    the robot as the simulator sets it down in ``q_start``, its neck over the origin, the
+    lower sole on the floor)."""
+    neck_height_m = -min(float(Limb(model, leg).fk(q_start[model.limb_slice(leg)])[2, 3])
+                         for leg in LEGS)
     arm = spec.arms[0]
     box = hand_box_extent_m(model, q_start, arm)
-    frame = "right_hand" if arm == "right-arm" else "left_hand"
-    T_neck_hand = Limb(model, arm, "hand").fk(q_start[model.limb_slice(arm)])
-    offset = world.frame_pose(frame)[:3, 3] - T_neck_hand[:3, 3]  # neck frame -> world
+    offset = np.array([0.0, 0.0, neck_height_m])  # neck frame -> world
     lo, hi = box[0] + offset, box[1] + offset
     if spec.direction == "forward":
         distance_m = float(hi[0] + spec.wall_gap_m)
