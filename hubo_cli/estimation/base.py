@@ -11,16 +11,14 @@ chains, :mod:`hubo_cli.kinematics.limb`) and the attitude ``QUAT_WORLD_TORSO``:
 
 * the torso's rotation is the attitude turned about the world's vertical so that the anchor
   sole keeps its heading (the tilt is the attitude's, the heading the legs': the IMU's yaw
-  drifts), then turned about the contact point by what the gyro's yaw rate adds to it,
-  high-passed with ``HEADING_TAU_S``: a stance sole that twists on the floor under a push
-  turns the robot, which the gyro sees and the legs do not (a 150 N push turned the capture
-  step's stance foot by some degrees, and the step, planned on the legs' heading alone,
-  landed 5 cm long and the robot fell), while the gyro's bias and drift fade (and so does a
-  twist the foot keeps: over seconds the legs' heading holds, as without the gyro). The turn
-  is laid over the legs' estimate, never folded into it: when the other sole takes the anchor,
-  it goes on from the pose the legs gave it (walking, whose soles twist a little and back on
-  every step, kept its accuracy only so: folded in at each change, the turns added up to
-  24 mm in 1 m);
+  drifts), then turned about the anchor's contact point by the gyro's yaw rate beyond the
+  legs' while one sole alone carries the robot (on two the robot cannot twist, and neither
+  the gyro's bias nor its noise turns a robot standing; the turn fades with
+  ``HEADING_TAU_S``): a stance sole that twists on
+  the floor under a push turns the robot, which the gyro sees and the legs do not (a 150 N
+  push twisted the capture step's stance foot by degrees; planned on the legs' heading alone
+  the step landed 5 cm long and the robot fell). When the other sole takes the anchor it
+  keeps its pose as estimated, the turn included, and the turn starts again from zero;
 * the torso's position puts the anchor sole's contact point of this period where that point
   of the sole was in the last period's estimate (a flat sole whose centre of pressure moves
   stays where it is; one rolling on an edge keeps the edge on the floor);
@@ -233,10 +231,11 @@ class FloatingBase(Observer):
         return min(max(-my / fz, x_lo), x_hi), min(max(mx / fz, y_lo), y_hi)
 
     def _place(self, contact_point: tuple[float, float] = (0.0, 0.0),
-                gyro_rad_s: np.ndarray | None = None) -> None:
+                gyro_rad_s: np.ndarray | None = None, single: bool = False) -> None:
         """This period's torso and soles: the legs' placement (the anchor's held contact point
         and heading), turned about the contact point by the gyro's high-passed share of the
-        heading (``gyro_rad_s``: the IMU's rate in the torso frame; None: none)."""
+        heading (``gyro_rad_s``: the IMU's rate in the torso frame; None: none; counted while
+        ``single``: one sole alone in contact)."""
         T_world_torso, T_world_soles = np.empty((4, 4)), np.empty((2, 4, 4))
         _place(self._quat, self._T_torso_soles, self.anchor, self._T_world_anchor,
                *contact_point, T_world_torso, T_world_soles)
@@ -249,9 +248,10 @@ class FloatingBase(Observer):
             yaw_rate = float(R[2] @ gyro_rad_s)
             step = R @ self._R_legs.T
             legs_rate = 0.5 * float(step[1, 0] - step[0, 1]) / self._dt_s
-            if math.isfinite(yaw_rate):
-                self._turn_rad = self._keep * (self._turn_rad
-                                               + (yaw_rate - legs_rate) * self._dt_s)
+            twist = yaw_rate - legs_rate  # the stance foot's twist (and the gyro's bias)
+            if not (single and math.isfinite(twist)):
+                twist = 0.0
+            self._turn_rad = self._keep * (self._turn_rad + twist * self._dt_s)
         self._R_legs = R.copy()
         if self._turn_rad:
             pivot = self._T_world_anchor @ np.array([*contact_point, 0.0, 1.0])
@@ -272,9 +272,10 @@ class FloatingBase(Observer):
 
     def update(self, state: RobotState, store: Store) -> None:
         if self._inputs(state, store):
-            self._place(self._centre_of_pressure(store),
-                        np.asarray(state.imu_gyro_rad_s, dtype=float))
             contact = store[CONTACT]
+            self._place(self._centre_of_pressure(store),
+                        np.asarray(state.imu_gyro_rad_s, dtype=float),
+                        bool(contact[0]) != bool(contact[1]))
             other = 1 - self.anchor
             wrenches = store[WRENCHES]
             heavier = (float(wrenches[ANKLES[other]][2])
