@@ -12,9 +12,9 @@ chains, :mod:`hubo_cli.kinematics.limb`) and the attitude ``QUAT_WORLD_TORSO``:
 * the torso's rotation is the attitude turned about the world's vertical so that the anchor
   sole keeps its heading (the tilt is the attitude's, the heading the legs': the IMU's yaw
   drifts), then turned about the anchor's contact point by the gyro's yaw rate beyond the
-  legs' while one sole alone carries the robot (on two the robot cannot twist, and neither
-  the gyro's bias nor its noise turns a robot standing; the turn fades with
-  ``HEADING_TAU_S``): a stance sole that twists on
+  legs' while one sole alone carries the robot, less the gyro's bias (on two soles the robot
+  cannot twist: the difference there, low-passed with ``GYRO_BIAS_TAU_S``, is the bias; a
+  robot standing does not turn); the turn fades with ``HEADING_TAU_S``: a stance sole that twists on
   the floor under a push turns the robot, which the gyro sees and the legs do not (a 150 N
   push twisted the capture step's stance foot by degrees; planned on the legs' heading alone
   the step landed 5 cm long and the robot fell). When the other sole takes the anchor it
@@ -67,6 +67,9 @@ from hubo_cli.state import RobotState
 ANKLES = ("right-ankle", "left-ankle")
 MIN_FZ_N = 10.0  # [chosen] a sole pressing less than this: its last centre of pressure
 HEADING_TAU_S = 1.0  # [chosen] the gyro's share of the heading fades with this time constant
+GYRO_BIAS_TAU_S = 1.0  # [chosen] the gyro's yaw bias: its rate beyond the legs' on two soles,
+#                        low-passed (the perturbation's bias, up to 0.5 deg/s, integrated over
+#                        a walk's single supports turned the estimate 2 deg in 1 m)
 ANCHOR_SWITCH_N = 40.0  # [chosen] the other sole carrying this much more takes the anchor
 #                         (about a tenth of the robot's weight: quiet standing's noise and
 #                         the two feet's uneven load never reach it)
@@ -128,6 +131,15 @@ def _place(quat_wxyz, T_torso_soles, anchor, T_world_anchor, cx, cy, T_world_tor
                            + T[r, 3] * S[3, c])
 
 
+def _gyro(state: RobotState) -> np.ndarray | None:
+    """The IMU's rate (3,; rad/s, torso axes), None unless three finite numbers."""
+    try:
+        gyro = np.asarray(state.imu_gyro_rad_s, dtype=float).reshape(3)
+    except (TypeError, ValueError):
+        return None
+    return gyro if np.all(np.isfinite(gyro)) else None
+
+
 def _turn_about(point: np.ndarray, angle_rad: float) -> np.ndarray:
     """The turn (4x4) by ``angle_rad`` about the vertical through ``point`` (world)."""
     c, s = math.cos(angle_rad), math.sin(angle_rad)
@@ -185,6 +197,8 @@ class FloatingBase(Observer):
         self._keep = HEADING_TAU_S / (HEADING_TAU_S + self._dt_s)  # the turn's fade a period
         self._turn_rad = 0.0  # the gyro's turn on top of the legs' heading
         self._R_legs: np.ndarray | None = None  # the legs' torso rotation, last period
+        self._bias_rad_s = 0.0  # the gyro's yaw bias about the world's vertical
+        self._bias_gain = self._dt_s / (GYRO_BIAS_TAU_S + self._dt_s)
         _legs_fk(np.zeros(self._joints), *self._chain, self._T_torso_soles)  # compile now
         _place(self._quat, self._T_torso_soles, 0, self._T_world_anchor, 0.0, 0.0, np.eye(4),
                np.zeros((2, 4, 4)))
@@ -204,7 +218,7 @@ class FloatingBase(Observer):
         self.anchor = 1 if fz[1] > fz[0] else 0  # a NaN compares False: the right sole
         self._T_world_torso = np.eye(4)
         self._T_world_soles = np.tile(np.eye(4), (2, 1, 1))
-        self._turn_rad, self._R_legs = 0.0, None
+        self._turn_rad, self._R_legs, self._bias_rad_s = 0.0, None, 0.0
         if not self._inputs(state, store):
             self._write(store)
             return
@@ -248,8 +262,13 @@ class FloatingBase(Observer):
             yaw_rate = float(R[2] @ gyro_rad_s)
             step = R @ self._R_legs.T
             legs_rate = 0.5 * float(step[1, 0] - step[0, 1]) / self._dt_s
-            twist = yaw_rate - legs_rate  # the stance foot's twist (and the gyro's bias)
-            if not (single and math.isfinite(twist)):
+            twist = yaw_rate - legs_rate  # the stance foot's twist, and the gyro's bias
+            if not math.isfinite(twist):
+                twist = 0.0
+            elif single:
+                twist -= self._bias_rad_s
+            else:  # on two soles the robot does not twist: what the gyro reads is its bias
+                self._bias_rad_s += self._bias_gain * (twist - self._bias_rad_s)
                 twist = 0.0
             self._turn_rad = self._keep * (self._turn_rad + twist * self._dt_s)
         self._R_legs = R.copy()
@@ -273,8 +292,7 @@ class FloatingBase(Observer):
     def update(self, state: RobotState, store: Store) -> None:
         if self._inputs(state, store):
             contact = store[CONTACT]
-            self._place(self._centre_of_pressure(store),
-                        np.asarray(state.imu_gyro_rad_s, dtype=float),
+            self._place(self._centre_of_pressure(store), _gyro(state),
                         bool(contact[0]) != bool(contact[1]))
             other = 1 - self.anchor
             wrenches = store[WRENCHES]
