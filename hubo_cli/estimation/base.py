@@ -12,9 +12,13 @@ chains, :mod:`hubo_cli.kinematics.limb`) and the attitude ``QUAT_WORLD_TORSO``:
 * the torso's rotation is the attitude turned about the world's vertical so that the anchor
   sole keeps its heading (the tilt is the attitude's, the heading the legs': the IMU's yaw
   drifts), then turned about the anchor's contact point by the gyro's yaw rate beyond the
-  legs' while one sole alone carries the robot, less the gyro's bias (on two soles the robot
-  cannot twist: the difference there, low-passed with ``GYRO_BIAS_TAU_S``, is the bias; a
-  robot standing does not turn); the turn fades with ``HEADING_TAU_S``: a stance sole that twists on
+  legs' while one sole alone carries the robot rolling on its edge (its centre of pressure
+  within ``EDGE_M`` of the outline: little holds it from twisting then; walking keeps it
+  further in, and there the gyro's bias would only turn the estimate), less the gyro's bias
+  (on two soles the robot
+  cannot twist unless pushed: the difference there within ``STILL_YAW_RAD_S``, low-passed with
+  ``GYRO_BIAS_TAU_S``, is the bias; a robot standing does not turn); the turn fades with
+  ``HEADING_TAU_S``: a stance sole that twists on
   the floor under a push turns the robot, which the gyro sees and the legs do not (a 150 N
   push twisted the capture step's stance foot by degrees; planned on the legs' heading alone
   the step landed 5 cm long and the robot fell). When the other sole takes the anchor it
@@ -67,9 +71,13 @@ from hubo_cli.state import RobotState
 ANKLES = ("right-ankle", "left-ankle")
 MIN_FZ_N = 10.0  # [chosen] a sole pressing less than this: its last centre of pressure
 HEADING_TAU_S = 1.0  # [chosen] the gyro's share of the heading fades with this time constant
-GYRO_BIAS_TAU_S = 1.0  # [chosen] the gyro's yaw bias: its rate beyond the legs' on two soles,
-#                        low-passed (the perturbation's bias, up to 0.5 deg/s, integrated over
-#                        a walk's single supports turned the estimate 2 deg in 1 m)
+GYRO_BIAS_TAU_S = 1.0  # [chosen] the gyro's yaw bias: its rate beyond the legs' on two soles
+#                        while still, low-passed (the perturbation's bias, up to 0.5 deg/s,
+#                        integrated over a walk's single supports turned the estimate 2 deg)
+EDGE_M = 0.015  # [chosen] a centre of pressure this close to the sole's outline: it rolls on
+#                 an edge (the walking stabilizer keeps it 25 mm inside)
+STILL_YAW_RAD_S = 0.02  # [chosen] ... still: within this of the bias (2.3x the perturbation's
+#                         largest bias; a push twisting the feet on the floor is not learnt)
 ANCHOR_SWITCH_N = 40.0  # [chosen] the other sole carrying this much more takes the anchor
 #                         (about a tenth of the robot's weight: quiet standing's noise and
 #                         the two feet's uneven load never reach it)
@@ -245,11 +253,11 @@ class FloatingBase(Observer):
         return min(max(-my / fz, x_lo), x_hi), min(max(mx / fz, y_lo), y_hi)
 
     def _place(self, contact_point: tuple[float, float] = (0.0, 0.0),
-                gyro_rad_s: np.ndarray | None = None, single: bool = False) -> None:
+                gyro_rad_s: np.ndarray | None = None, rolling: bool = False) -> None:
         """This period's torso and soles: the legs' placement (the anchor's held contact point
         and heading), turned about the contact point by the gyro's high-passed share of the
         heading (``gyro_rad_s``: the IMU's rate in the torso frame; None: none; counted while
-        ``single``: one sole alone in contact)."""
+        ``rolling``: one sole alone in contact, on its edge)."""
         T_world_torso, T_world_soles = np.empty((4, 4)), np.empty((2, 4, 4))
         _place(self._quat, self._T_torso_soles, self.anchor, self._T_world_anchor,
                *contact_point, T_world_torso, T_world_soles)
@@ -265,10 +273,11 @@ class FloatingBase(Observer):
             twist = yaw_rate - legs_rate  # the stance foot's twist, and the gyro's bias
             if not math.isfinite(twist):
                 twist = 0.0
-            elif single:
+            elif rolling:
                 twist -= self._bias_rad_s
-            else:  # on two soles the robot does not twist: what the gyro reads is its bias
-                self._bias_rad_s += self._bias_gain * (twist - self._bias_rad_s)
+            else:  # on two soles, still, the robot does not twist: what the gyro reads is bias
+                if abs(twist - self._bias_rad_s) < STILL_YAW_RAD_S:
+                    self._bias_rad_s += self._bias_gain * (twist - self._bias_rad_s)
                 twist = 0.0
             self._turn_rad = self._keep * (self._turn_rad + twist * self._dt_s)
         self._R_legs = R.copy()
@@ -292,8 +301,12 @@ class FloatingBase(Observer):
     def update(self, state: RobotState, store: Store) -> None:
         if self._inputs(state, store):
             contact = store[CONTACT]
-            self._place(self._centre_of_pressure(store), _gyro(state),
-                        bool(contact[0]) != bool(contact[1]))
+            point = self._centre_of_pressure(store)
+            x_lo, x_hi, y_lo, y_hi = self._sole_box
+            on_edge = min(point[0] - x_lo, x_hi - point[0], point[1] - y_lo,
+                          y_hi - point[1]) < EDGE_M
+            self._place(point, _gyro(state),
+                        bool(contact[0]) != bool(contact[1]) and on_edge)
             other = 1 - self.anchor
             wrenches = store[WRENCHES]
             heavier = (float(wrenches[ANKLES[other]][2])
