@@ -48,6 +48,7 @@ Non-finite joints or attitude keep the last estimate.
 from __future__ import annotations
 
 import math
+from collections import deque
 
 import numba as nb
 import numpy as np
@@ -78,6 +79,7 @@ EDGE_M = 0.015  # [chosen] a centre of pressure this close to the sole's outline
 #                 an edge (the walking stabilizer keeps it 25 mm inside)
 STILL_YAW_RAD_S = 0.02  # [chosen] ... still: within this of the bias (2.3x the perturbation's
 #                         largest bias; a push twisting the feet on the floor is not learnt)
+LANDED_PERIODS = 20  # [chosen] a sole takes the anchor where it stood these last periods
 ANCHOR_SWITCH_N = 40.0  # [chosen] the other sole carrying this much more takes the anchor
 #                         (about a tenth of the robot's weight: quiet standing's noise and
 #                         the two feet's uneven load never reach it)
@@ -205,6 +207,8 @@ class FloatingBase(Observer):
         self._keep = HEADING_TAU_S / (HEADING_TAU_S + self._dt_s)  # the turn's fade a period
         self._turn_rad = 0.0  # the gyro's turn on top of the legs' heading
         self._R_legs: np.ndarray | None = None  # the legs' torso rotation, last period
+        # the other sole's last estimates on the floor: x, y, z, cos and sin of its heading
+        self._landed: deque[tuple[float, ...]] = deque(maxlen=LANDED_PERIODS)
         self._bias_rad_s = 0.0  # the gyro's yaw bias about the world's vertical
         self._bias_gain = self._dt_s / (GYRO_BIAS_TAU_S + self._dt_s)
         _legs_fk(np.zeros(self._joints), *self._chain, self._T_torso_soles)  # compile now
@@ -227,6 +231,7 @@ class FloatingBase(Observer):
         self._T_world_torso = np.eye(4)
         self._T_world_soles = np.tile(np.eye(4), (2, 1, 1))
         self._turn_rad, self._R_legs, self._bias_rad_s = 0.0, None, 0.0
+        self._landed.clear()
         if not self._inputs(state, store):
             self._write(store)
             return
@@ -288,9 +293,18 @@ class FloatingBase(Observer):
         self._T_world_torso, self._T_world_soles = T_world_torso, T_world_soles
 
     def _take_anchor(self, side: int) -> None:
-        """Sole ``side`` takes the anchor as estimated, the gyro's turn included."""
+        """Sole ``side`` takes the anchor as estimated, the gyro's turn included: its place and
+        heading the mean of its last LANDED_PERIODS estimates on the floor (one period's
+        estimate carries the encoders' and the IMU's noise through the legs into every later
+        step: perturbed robots' estimates drifted 10 mm in a 1 m walk)."""
         self.anchor = side
-        self._T_world_anchor = self._T_world_soles[side].copy()
+        T = self._T_world_soles[side].copy()
+        if self._landed:
+            x, y, z, c, s = np.mean(self._landed, axis=0)
+            T = _turn_about(T[:3, 3], math.atan2(s, c) - math.atan2(T[1, 0], T[0, 0])) @ T
+            T[:3, 3] = x, y, z
+        self._T_world_anchor = T
+        self._landed.clear()
         self._contact_point = (0.0, 0.0)  # its own, read next period
         self._turn_rad, self._R_legs = 0.0, None
 
@@ -311,6 +325,11 @@ class FloatingBase(Observer):
             wrenches = store[WRENCHES]
             heavier = (float(wrenches[ANKLES[other]][2])
                        > float(wrenches[ANKLES[self.anchor]][2]) + ANCHOR_SWITCH_N)
-            if contact[other] and (heavier or not contact[self.anchor]):
+            if not contact[other]:
+                self._landed.clear()
+            elif heavier or not contact[self.anchor]:
                 self._take_anchor(other)
+            else:  # on the floor, not yet the anchor: where it stands, for when it is
+                T = self._T_world_soles[other]
+                self._landed.append((T[0, 3], T[1, 3], T[2, 3], T[0, 0], T[1, 0]))
         self._write(store)
