@@ -194,3 +194,13 @@ def test_a_stream_that_swings_the_drill_into_the_torso_is_held_by_the_collision_
     assert first["t_s"] > 1.0  # not during the approach
     assert any(name.startswith(("drill", "R")) for name in first["pair"])
     assert any(name.startswith("torso") for name in first["pair"])
+
+
+def test_the_limit_set_is_the_profile_s_and_a_model_with_another_is_refused(model):
+    from hubo_cli.model import load_model
+
+    walking = load_model(model.params_name, "walking")
+    assert RunSetup("x", walking, safety=SafetyProfile(limit_set="walking")).model is walking
+    assert RunSetup("x", model).model is model  # None: the model's own set
+    with pytest.raises(ConfigError, match="'walking' joint-limit set .* loaded with 'table4'"):
+        RunSetup("x", model, safety=SafetyProfile(limit_set="walking"))
