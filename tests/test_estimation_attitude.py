@@ -152,6 +152,19 @@ def test_bad_readings_never_give_a_bad_estimate(rng):
     assert observer.rejected_periods > 1000
 
 
+@pytest.mark.parametrize("garbage", GARBAGE)
+def test_a_first_state_of_garbage_starts_upright_and_finite(garbage):
+    observer, store = AttitudeObserver(PARAMS, DT), Store()
+    state = RobotState(None, np.zeros(N), np.zeros(N), imu_quat_wxyz=garbage,
+                       imu_gyro_rad_s=garbage, imu_accel_m_s2=garbage)
+    observer.reset(state, store)
+    for key in (QUAT_WORLD_TORSO, GYRO_BIAS, OMEGA_TORSO):
+        assert np.all(np.isfinite(store[key]))
+    assert np.linalg.norm(store[QUAT_WORLD_TORSO]) == pytest.approx(1.0)
+    observer.update(_state(DT, np.zeros(3), np.array([0.0, 0.0, GRAVITY_M_S2])), store)
+    assert _tilt_error_deg(store[QUAT_WORLD_TORSO], np.eye(3)) < 1.0
+
+
 def test_the_parameters_come_from_the_robot_file_and_are_checked(tmp_path):
     text = MODEL.source.read_text()
     assert PARAMS.accel_noise_m_s2 > 0 and PARAMS.gyro_range_rad_s > 0
@@ -215,3 +228,119 @@ def test_the_perturbed_imu_readings_carry_the_drawn_biases():
                                                                            rel=0.1)
     nominal = draw(0, "").noise(DT)
     assert nominal.measure(state) is state  # the nominal robot: no noise
+
+
+# ------------------------------------------------------------------ the simulated robot
+# One recording per scenario, shared by the module's tests: the simulator's IMU readings (with
+# the perturbation's noise and biases) and its true torso orientation each period; the
+# observer runs over them afterwards.
+STAND_SEEDS = (1, 3, 6)
+STAND_S = 4.0
+WALK_SEED = 3
+WALK_STAND_S = 10.0   # the walk's lead-in (its start_s): the robot stands while the bias is learnt
+WALK_GOAL_M = 0.3
+
+
+def _row(state: RobotState, T_world_torso: np.ndarray) -> tuple:
+    return (state.time_s, np.array(state.imu_gyro_rad_s), np.array(state.imu_accel_m_s2),
+            np.array(state.imu_quat_wxyz), np.array(T_world_torso[:3, :3]))
+
+
+def record_standing(seed: int, seconds: float = STAND_S):
+    """The simulated robot standing in the home posture: (rows, perturbation)."""
+    from hubo_cli.drivers.sim import SimDriver
+
+    q = home_posture(MODEL)
+    with SimDriver(MODEL, perturb_seed=seed) as robot:
+        state = robot.start(q)
+        rows = [_row(state, robot.frame_pose("torso"))]
+        for _ in range(int(round(seconds / DT))):
+            robot.send(q)
+            state = robot.step()
+            rows.append(_row(state, robot.frame_pose("torso")))
+        return rows, robot.perturbation
+
+
+class _Recorder:
+    """A run's live observer that keeps each period's IMU readings and the true torso."""
+
+    def __init__(self) -> None:
+        self.rows: list[tuple] = []
+
+    def run_started(self, model, tools, world) -> None:
+        self.world = world
+        self.rows.append(_row(world.read(), world.frame_pose("torso")))
+
+    def period(self, t_s, status, flags, state, extras) -> None:
+        self.rows.append(_row(state, self.world.frame_pose("torso")))
+
+    def run_ended(self) -> None:
+        pass
+
+
+def record_walk(seed: int, out, stand_s: float = WALK_STAND_S, goal_m: float = WALK_GOAL_M):
+    """``hubo walk --to goal_m 0 0`` on the perturbed robot, standing ``stand_s`` first (the
+    walk's lead-in): (rows, perturbation, the walk's result)."""
+    from hubo_cli.experiments.walk import walk
+    from hubo_cli.walking.params import walking_params
+
+    params = walking_params(load_model(MODEL.params_name, "walking")).with_changes(
+        start_s=stand_s)
+    recorder = _Recorder()
+    result = walk(MODEL, (goal_m, 0.0, 0.0), params=params, perturb_seed=seed, out=out,
+                  live=recorder)
+    return recorder.rows, recorder.world.perturbation, result
+
+
+def replay(rows, params=PARAMS):
+    """The observer over recorded rows: (times, tilt errors in deg, final bias rad/s)."""
+    observer, store = AttitudeObserver(params, DT), Store()
+    times, errors = [], []
+    for k, (t_s, gyro, accel, quat, R_true) in enumerate(rows):
+        state = _state(t_s, gyro, accel, quat)
+        (observer.reset if k == 0 else observer.update)(state, store)
+        times.append(t_s)
+        errors.append(_tilt_error_deg(store[QUAT_WORLD_TORSO], R_true))
+    return np.array(times), np.array(errors), store[GYRO_BIAS].copy()
+
+
+def _rms(values: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(values ** 2)))
+
+
+@pytest.fixture(scope="module")
+def standing():
+    return {seed: record_standing(seed) for seed in STAND_SEEDS}
+
+
+@pytest.fixture(scope="module")
+def walking(tmp_path_factory):
+    return record_walk(WALK_SEED, tmp_path_factory.mktemp("walk"))
+
+
+@pytest.mark.physical
+def test_standing_attitude_and_bias_against_the_simulators_truth(standing):
+    """Standing, perturbed seeds 1, 3, 6 (gyro biases of 0.05-0.49 deg/s per axis): the
+    attitude's RMS error over the whole run (from the first state) within 0.1 deg, the bias
+    learnt to within 0.05 deg/s on every axis in 4 s.
+    Measured (these 4 s runs, seeds 1-8): RMS 0.030-0.053 deg, bias error <= 0.027 deg/s."""
+    for seed, (rows, perturbation) in standing.items():
+        _, errors, bias = replay(rows)
+        assert _rms(errors) <= 0.1, seed
+        drawn = np.array(perturbation.gyro_bias_rad_s)
+        assert np.degrees(np.abs(bias - drawn)).max() < 0.05, (seed, bias, drawn)
+
+
+@pytest.mark.physical
+@pytest.mark.slow
+def test_walking_attitude_against_the_simulators_truth(walking):
+    """A 0.3 m walk of perturbed seed 3 (gyro bias -0.47, 0.24, 0.31 deg/s) after a 10 s
+    stand: the attitude's RMS error over the walk within 0.3 deg.
+    Measured (seeds 1-6): 0.06-0.20 deg; with a 5.5 s stand 0.11-0.30 (seeds 2, 3, 6: the
+    bias not yet learnt as closely, it drifts the attitude through the walk)."""
+    rows, perturbation, result = walking
+    assert not result.fell
+    times, errors, bias = replay(rows)
+    walk = times >= WALK_STAND_S
+    assert _rms(errors[walk]) <= 0.3
+    assert np.all(np.isfinite(errors))

@@ -289,16 +289,16 @@ def initial_attitude(state: RobotState) -> np.ndarray:
     (the gravity it sees), the heading of the IMU's reported orientation (ZYX yaw); either
     from the reported orientation alone when the accelerometer's reading is not usable, and
     upright when neither is."""
-    quat = np.asarray(state.imu_quat_wxyz, dtype=float)
+    quat = _vector(state.imu_quat_wxyz, 4)
     yaw = 0.0
-    if quat.shape == (4,) and np.all(np.isfinite(quat)) and np.linalg.norm(quat) > 0.5:
+    if np.all(np.isfinite(quat)) and np.linalg.norm(quat) > 0.5:
         w, x, y, z = quat / np.linalg.norm(quat)
         yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
         tilt_source = quat
     else:
         tilt_source = None
-    accel = np.asarray(state.imu_accel_m_s2, dtype=float)
-    if accel.shape == (3,) and np.all(np.isfinite(accel)) \
+    accel = _vector(state.imu_accel_m_s2, 3)
+    if np.all(np.isfinite(accel)) \
             and 0.5 * GRAVITY_M_S2 < np.linalg.norm(accel) < 1.5 * GRAVITY_M_S2:
         fx, fy, fz = accel
         roll, pitch = math.atan2(fy, fz), math.atan2(-fx, math.hypot(fy, fz))
@@ -350,18 +350,19 @@ class AttitudeObserver(Observer):
         self._q = initial_attitude(state)
         self._b = np.zeros(3)
         self._P = np.diag([p.initial_tilt_rad ** 2] * 3 + [p.initial_gyro_bias_rad_s ** 2] * 3)
-        gyro = np.asarray(state.imu_gyro_rad_s, dtype=float)
-        self._omega = gyro.copy() if np.all(np.isfinite(gyro)) else np.zeros(3)
-        self._t_s = float(state.time_s)
+        gyro = _vector(state.imu_gyro_rad_s, 3)
+        self._omega = gyro if np.all(np.abs(gyro) <= p.gyro_range_rad_s) else np.zeros(3)
+        t_s = _seconds(state.time_s)
+        self._t_s = t_s if math.isfinite(t_s) else 0.0
         # the vibration unknown yet: as much as still allows
         self._motion[:3] = 0.0, 0.0, p.still_accel_m_s2 ** 2
-        accel = _three(state.imu_accel_m_s2)
+        accel = _vector(state.imu_accel_m_s2, 3)
         self._motion[3:] = accel if np.all(np.isfinite(accel)) else (0.0, 0.0, GRAVITY_M_S2)
         self.rejected_periods = 0
         self._write(store, 0)
 
     def update(self, state: RobotState, store: Store) -> None:
-        t_s = float(state.time_s)
+        t_s = _seconds(state.time_s)
         dt = t_s - self._t_s
         if not math.isfinite(dt) or dt < 0.0 or dt > self.MAX_DT_PERIODS * self.period_s:
             dt = self.period_s  # a clock that jumps: one period
@@ -369,9 +370,9 @@ class AttitudeObserver(Observer):
             self._t_s = t_s
         gyro, accel = state.imu_gyro_rad_s, state.imu_accel_m_s2
         if type(gyro) is not np.ndarray or gyro.dtype != np.float64 or gyro.shape != (3,):
-            gyro = _three(gyro)
+            gyro = _vector(gyro, 3)
         if type(accel) is not np.ndarray or accel.dtype != np.float64 or accel.shape != (3,):
-            accel = _three(accel)
+            accel = _vector(accel, 3)
         code = _filter_step(self._q, self._b, self._P, gyro, accel, dt, self._gravity,
                             self._params, self._q_next, self._b_next, self._P_next, self._omega,
                             self._motion)
@@ -396,11 +397,19 @@ class AttitudeObserver(Observer):
         return self._P.copy()
 
 
-def _three(values) -> np.ndarray:
-    """Three float64s from a reading of any shape or type: NaN where there are not three
+def _vector(values, n: int) -> np.ndarray:
+    """``n`` float64s from a reading of any shape or type: NaN where there are not ``n``
     numbers (the kernel then rejects it)."""
     try:
         out = np.array(values, dtype=np.float64).reshape(-1)
     except (TypeError, ValueError):
-        return np.full(3, np.nan)
-    return out.copy() if out.shape == (3,) else np.full(3, np.nan)
+        return np.full(n, np.nan)
+    return out if out.shape == (n,) else np.full(n, np.nan)
+
+
+def _seconds(value) -> float:
+    """A state's time as a float; NaN when it is not a number."""
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return math.nan
