@@ -11,16 +11,18 @@ chains, :mod:`hubo_cli.kinematics.limb`) and the attitude ``QUAT_WORLD_TORSO``:
 
 * the torso's rotation is the attitude turned about the world's vertical so that the anchor
   sole keeps its heading (the tilt is the attitude's, the heading the legs': the IMU's yaw
-  drifts), then turned about the contact point by what the gyro's yaw rate adds to it,
-  high-passed with ``HEADING_TAU_S``: a stance sole that twists on the floor under a push
-  turns the robot, which the gyro sees and the legs do not (a 150 N push turned the capture
-  step's stance foot by some degrees, and the step, planned on the legs' heading alone,
-  landed 5 cm long and the robot fell), while the gyro's bias and drift fade (and so does a
-  twist the foot keeps: over seconds the legs' heading holds, as without the gyro). The turn
-  is laid over the legs' estimate, never folded into it: when the other sole takes the anchor,
-  it goes on from the pose the legs gave it (walking, whose soles twist a little and back on
-  every step, kept its accuracy only so: folded in at each change, the turns added up to
-  24 mm in 1 m);
+  drifts), then turned about the anchor's contact point by the gyro's yaw rate beyond the
+  legs' while one sole alone carries the robot rolling on its edge (its centre of pressure
+  within ``EDGE_M`` of the outline: little holds it from twisting then; walking keeps it
+  further in, and there the gyro's bias would only turn the estimate), less the gyro's bias
+  (on two soles the robot
+  cannot twist unless pushed: the difference there within ``STILL_YAW_RAD_S``, low-passed with
+  ``GYRO_BIAS_TAU_S``, is the bias; a robot standing does not turn); the turn fades with
+  ``HEADING_TAU_S``: a stance sole that twists on
+  the floor under a push turns the robot, which the gyro sees and the legs do not (a 150 N
+  push twisted the capture step's stance foot by degrees; planned on the legs' heading alone
+  the step landed 5 cm long and the robot fell). When the other sole takes the anchor it
+  keeps its pose as estimated, the turn included, and the turn starts again from zero;
 * the torso's position puts the anchor sole's contact point of this period where that point
   of the sole was in the last period's estimate (a flat sole whose centre of pressure moves
   stays where it is; one rolling on an edge keeps the edge on the floor);
@@ -69,6 +71,13 @@ from hubo_cli.state import RobotState
 ANKLES = ("right-ankle", "left-ankle")
 MIN_FZ_N = 10.0  # [chosen] a sole pressing less than this: its last centre of pressure
 HEADING_TAU_S = 1.0  # [chosen] the gyro's share of the heading fades with this time constant
+GYRO_BIAS_TAU_S = 1.0  # [chosen] the gyro's yaw bias: its rate beyond the legs' on two soles
+#                        while still, low-passed (the perturbation's bias, up to 0.5 deg/s,
+#                        integrated over a walk's single supports turned the estimate 2 deg)
+EDGE_M = 0.015  # [chosen] a centre of pressure this close to the sole's outline: it rolls on
+#                 an edge (the walking stabilizer keeps it 25 mm inside)
+STILL_YAW_RAD_S = 0.02  # [chosen] ... still: within this of the bias (2.3x the perturbation's
+#                         largest bias; a push twisting the feet on the floor is not learnt)
 ANCHOR_SWITCH_N = 40.0  # [chosen] the other sole carrying this much more takes the anchor
 #                         (about a tenth of the robot's weight: quiet standing's noise and
 #                         the two feet's uneven load never reach it)
@@ -130,6 +139,15 @@ def _place(quat_wxyz, T_torso_soles, anchor, T_world_anchor, cx, cy, T_world_tor
                            + T[r, 3] * S[3, c])
 
 
+def _gyro(state: RobotState) -> np.ndarray | None:
+    """The IMU's rate (3,; rad/s, torso axes), None unless three finite numbers."""
+    try:
+        gyro = np.asarray(state.imu_gyro_rad_s, dtype=float).reshape(3)
+    except (TypeError, ValueError):
+        return None
+    return gyro if np.all(np.isfinite(gyro)) else None
+
+
 def _turn_about(point: np.ndarray, angle_rad: float) -> np.ndarray:
     """The turn (4x4) by ``angle_rad`` about the vertical through ``point`` (world)."""
     c, s = math.cos(angle_rad), math.sin(angle_rad)
@@ -187,6 +205,8 @@ class FloatingBase(Observer):
         self._keep = HEADING_TAU_S / (HEADING_TAU_S + self._dt_s)  # the turn's fade a period
         self._turn_rad = 0.0  # the gyro's turn on top of the legs' heading
         self._R_legs: np.ndarray | None = None  # the legs' torso rotation, last period
+        self._bias_rad_s = 0.0  # the gyro's yaw bias about the world's vertical
+        self._bias_gain = self._dt_s / (GYRO_BIAS_TAU_S + self._dt_s)
         _legs_fk(np.zeros(self._joints), *self._chain, self._T_torso_soles)  # compile now
         _place(self._quat, self._T_torso_soles, 0, self._T_world_anchor, 0.0, 0.0, np.eye(4),
                np.zeros((2, 4, 4)))
@@ -206,7 +226,7 @@ class FloatingBase(Observer):
         self.anchor = 1 if fz[1] > fz[0] else 0  # a NaN compares False: the right sole
         self._T_world_torso = np.eye(4)
         self._T_world_soles = np.tile(np.eye(4), (2, 1, 1))
-        self._turn_rad, self._R_legs = 0.0, None
+        self._turn_rad, self._R_legs, self._bias_rad_s = 0.0, None, 0.0
         if not self._inputs(state, store):
             self._write(store)
             return
@@ -233,10 +253,11 @@ class FloatingBase(Observer):
         return min(max(-my / fz, x_lo), x_hi), min(max(mx / fz, y_lo), y_hi)
 
     def _place(self, contact_point: tuple[float, float] = (0.0, 0.0),
-                gyro_rad_s: np.ndarray | None = None) -> None:
+                gyro_rad_s: np.ndarray | None = None, rolling: bool = False) -> None:
         """This period's torso and soles: the legs' placement (the anchor's held contact point
         and heading), turned about the contact point by the gyro's high-passed share of the
-        heading (``gyro_rad_s``: the IMU's rate in the torso frame; None: none)."""
+        heading (``gyro_rad_s``: the IMU's rate in the torso frame; None: none; counted while
+        ``rolling``: one sole alone in contact, on its edge)."""
         T_world_torso, T_world_soles = np.empty((4, 4)), np.empty((2, 4, 4))
         _place(self._quat, self._T_torso_soles, self.anchor, self._T_world_anchor,
                *contact_point, T_world_torso, T_world_soles)
@@ -249,9 +270,16 @@ class FloatingBase(Observer):
             yaw_rate = float(R[2] @ gyro_rad_s)
             step = R @ self._R_legs.T
             legs_rate = 0.5 * float(step[1, 0] - step[0, 1]) / self._dt_s
-            if math.isfinite(yaw_rate):
-                self._turn_rad = self._keep * (self._turn_rad
-                                               + (yaw_rate - legs_rate) * self._dt_s)
+            twist = yaw_rate - legs_rate  # the stance foot's twist, and the gyro's bias
+            if not math.isfinite(twist):
+                twist = 0.0
+            elif rolling:
+                twist -= self._bias_rad_s
+            else:  # on two soles, still, the robot does not twist: what the gyro reads is bias
+                if abs(twist - self._bias_rad_s) < STILL_YAW_RAD_S:
+                    self._bias_rad_s += self._bias_gain * (twist - self._bias_rad_s)
+                twist = 0.0
+            self._turn_rad = self._keep * (self._turn_rad + twist * self._dt_s)
         self._R_legs = R.copy()
         if self._turn_rad:
             pivot = self._T_world_anchor @ np.array([*contact_point, 0.0, 1.0])
@@ -272,9 +300,13 @@ class FloatingBase(Observer):
 
     def update(self, state: RobotState, store: Store) -> None:
         if self._inputs(state, store):
-            self._place(self._centre_of_pressure(store),
-                        np.asarray(state.imu_gyro_rad_s, dtype=float))
             contact = store[CONTACT]
+            point = self._centre_of_pressure(store)
+            x_lo, x_hi, y_lo, y_hi = self._sole_box
+            on_edge = min(point[0] - x_lo, x_hi - point[0], point[1] - y_lo,
+                          y_hi - point[1]) < EDGE_M
+            self._place(point, _gyro(state),
+                        bool(contact[0]) != bool(contact[1]) and on_edge)
             other = 1 - self.anchor
             wrenches = store[WRENCHES]
             heavier = (float(wrenches[ANKLES[other]][2])

@@ -23,10 +23,10 @@ from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.session import RunObserver, RunSetup, run
 from hubo_cli.walking.body import SIDE_LEG, walking_posture
-from hubo_cli.walking.footsteps import Stance
+from hubo_cli.walking.footsteps import Stance, stance_of
 from hubo_cli.walking.params import WalkingParams, walking_params
 from hubo_cli.walking.stabilizer import StabilizerGains
-from hubo_cli.walking.target import WalkTarget, stance_error
+from hubo_cli.walking.target import WalkTarget, footstep_of
 
 MAX_GOAL_M = 10.0
 FINAL_ROWS = 20  # the final stance: the mean over the log's last rows (encoder noise averages)
@@ -131,7 +131,7 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
                      live=live)
     done = run(setup, target)
     estimated_m, estimated_rad = target.final_error()
-    true = true_final_error(done.log, walking_model, target.goal) if target.final_feet else None
+    true = true_final_error(done.log, walking_model, goal) if target.final_feet else None
     error_m, error_rad = (estimated_m, estimated_rad) if true is None else true
     distance = math.hypot(goal[0], goal[1])
     walking_s = target.walking_s
@@ -150,23 +150,36 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
     return result
 
 
-def true_final_error(log: LogData, model: RobotModel, goal: Stance,
+def true_final_error(log: LogData, model: RobotModel, goal: tuple[float, float, float],
                      rows: int = FINAL_ROWS) -> tuple[float, float] | None:
-    """The final stance's distance (m) and heading error (rad) from ``goal`` as the
-    simulator's truth has it: the soles placed by the torso's true pose in the log and the
-    legs' kinematics of the measured joints, each averaged over the last ``rows`` rows (a
-    report's figure: nothing acts on it). None where the log has no true torso position."""
-    T_world_torso = log.poses("torso")[-rows:]
-    if not len(T_world_torso) or not np.all(np.isfinite(T_world_torso)):
+    """How far the walk ended from ``goal`` (forward, left, turn from the start stance) as the
+    simulator's truth has it: the stances at the start and at the end, each from the torso's
+    true pose in the log and the legs' kinematics of the measured joints averaged over
+    ``rows`` rows, the end seen from the start (a report's figure: nothing acts on it).
+    Distance (m) and heading error (rad); None where the log has no true torso position."""
+    T_world_torso = log.poses("torso")
+    if len(T_world_torso) < rows or not np.all(np.isfinite(T_world_torso[[0, -1]])):
         return None
-    q = log.joints("q")[-rows:]
-    soles = {}
+    q = log.joints("q")
+    start, end = (_true_stance(model, T_world_torso[part], q[part])
+                  for part in (slice(0, rows), slice(-rows, None)))
+    c, s = math.cos(start.yaw_rad), math.sin(start.yaw_rad)
+    forward, left, turn = goal
+    aimed = Stance(start.x_m + c * forward - s * left, start.y_m + s * forward + c * left,
+                   start.yaw_rad + turn)
+    return (math.hypot(end.x_m - aimed.x_m, end.y_m - aimed.y_m),
+            abs(math.remainder(end.yaw_rad - aimed.yaw_rad, math.tau)))
+
+
+def _true_stance(model: RobotModel, T_world_torso: np.ndarray, q: np.ndarray) -> Stance:
+    """The stance of the soles that the torso poses and joints (rows) put them in, averaged."""
+    feet = {}
     for side, leg in SIDE_LEG.items():
         limb, part = Limb(model, leg), model.limb_slice(leg)
         poses = np.array([T @ limb.fk(q_k[part]) for T, q_k in zip(T_world_torso, q,
                                                                    strict=True)])
-        soles[side] = poses.mean(axis=0)  # the rotations differ by noise: near a rotation
-    return stance_error(soles, goal)
+        feet[side] = footstep_of(side, poses.mean(axis=0))  # rotations differ by noise only
+    return stance_of(feet["right"], feet["left"])
 
 
 PLOT_NAME = "walk.png"
