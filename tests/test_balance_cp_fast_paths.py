@@ -27,6 +27,7 @@ from hubo_cli.estimation.keys import (
     CONTACT,
     QUAT_WORLD_TORSO,
     T_WORLD_SOLES,
+    WRENCHES,
 )
 from hubo_cli.posture import home_posture
 from hubo_cli.state import FT_SENSORS, RobotState
@@ -130,6 +131,7 @@ def test_compiled_balancer_period_matches_python(model):
                            imu_quat_wxyz=quat, ft=ft)
         store = Store()  # the estimate: the attitude as the IMU reads it here
         store[QUAT_WORLD_TORSO], store[CONTACT] = quat, (True, period % 4 != 0)
+        store[WRENCHES] = ft  # and the wrenches as the sensors read them
         cycle = Cycle(period * dt, dt, store=store)
         got = balancer.update(q_cmd, state, cycle)
         expected, bad = python.update(q_cmd, state, store[CONTACT], dt)

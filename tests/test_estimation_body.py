@@ -7,7 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from hubo_cli.control.estop import EmergencyStopper
+from hubo_cli.control.module import Cycle
 from hubo_cli.dataflow import Store
+from hubo_cli.drivers.hardware import HardwareDriver
 from hubo_cli.drivers.sim import SimDriver
 from hubo_cli.estimation.build import build_estimator
 from hubo_cli.estimation.centre_of_mass import CentreOfMass
@@ -198,3 +201,31 @@ def _assert_same(value, expected, name):
             np.testing.assert_array_equal(value[k], expected[k], err_msg=name)
     else:
         np.testing.assert_array_equal(value, expected, err_msg=name)
+
+
+@pytest.mark.parametrize("moments_nm", [(1.5, 0.0), (0.0, 1.5), (1.1, 1.1)])
+def test_both_wrist_moments_from_hubo_ach_reach_the_wrist_stop(model, tmp_path, moments_nm):
+    """hubo-ach's right-hand m_x, m_y (its sensor's two bending moments, 1.5 N m or 1.56 N m
+    across both, over the 1.21 N m limit) through the hardware driver and the estimate stop
+    the robot on the wrist torque, whichever axis carries them."""
+    hw = HardwareDriver(model, armed=True, sink="file", sink_path=tmp_path / "hubo-ref.bin")
+    try:
+        hw.start()
+        advance = hw.source.advance
+
+        def loaded(ref_rad, mode):
+            frame = advance(ref_rad, mode)
+            frame.ft_mx_my_fz[0] = (*moments_nm, 0.0)  # R hand: m_x, m_y, f_z
+            return frame
+
+        hw.source.advance = loaded
+        state = hw.step()
+    finally:
+        hw.close()
+    store = build_estimator(model, {}, DT).reset(state)
+    stopper = EmergencyStopper(model, DT, sources=("wrist-torque",))
+    stopper.reset(state.q_rad, state, store)
+    cycle = Cycle(0.0, DT, store=store)
+    stopper.update(state.q_rad, state, cycle)
+    assert "wrist-torque" in cycle.estop_requests
+    assert cycle.info["wrist_torque_nm"] == pytest.approx(np.hypot(*moments_nm), abs=0.1)

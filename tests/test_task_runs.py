@@ -11,7 +11,7 @@ from hubo_cli.balance_report import bit_poses, flutes_in_wall
 from hubo_cli.cli.main import main
 from hubo_cli.control.log import load_log
 from hubo_cli.dataflow import Store
-from hubo_cli.estimation.keys import QUAT_WORLD_TORSO
+from hubo_cli.estimation.keys import QUAT_WORLD_TORSO, WRENCHES
 from hubo_cli.geometry import rpy_to_quat_wxyz
 from hubo_cli.kinematics.torso import torso_in_stance
 from hubo_cli.model import load_model
@@ -62,6 +62,7 @@ def test_the_task_corrects_the_arm_by_the_measured_torso_lean(rectangle_plan):
     T_S_N = torso_in_stance(body, q, lean.imu_quat_wxyz)  # as the robot measures it
     store = Store()
     store[QUAT_WORLD_TORSO] = lean.imu_quat_wxyz  # the estimate: the IMU's attitude
+    store[WRENCHES] = lean.ft  # and nothing on the wrists
     target = TaskTarget(plan)
     target.attach(None, [], store)
     for k in range(300):

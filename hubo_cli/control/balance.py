@@ -45,7 +45,7 @@ import numpy as np
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.phase import BALANCERS_REST
 from hubo_cli.dataflow import Store
-from hubo_cli.estimation.keys import CONTACT, QUAT_WORLD_TORSO
+from hubo_cli.estimation.keys import CONTACT, QUAT_WORLD_TORSO, WRENCHES
 from hubo_cli.geometry import GIMBAL_LOCK_COS
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
@@ -92,7 +92,7 @@ class AnkleBalancer(Module):
     """
 
     name = "balance"
-    reads = (QUAT_WORLD_TORSO,)
+    reads = (QUAT_WORLD_TORSO, WRENCHES)
     follows = (BALANCERS_REST,)
     log_columns = ("balance.right_pitch_rad", "balance.right_roll_rad",
                    "balance.left_pitch_rad", "balance.left_roll_rad")
@@ -115,18 +115,19 @@ class AnkleBalancer(Module):
         """Start with no correction."""
         self.offsets_rad = {leg: np.zeros(2) for leg, _ in FEET}
 
-    def rates_rad_s(self, state: RobotState, quat_wxyz) -> dict[str, np.ndarray]:
+    def rates_rad_s(self, wrenches: dict, quat_wxyz) -> dict[str, np.ndarray]:
         """Ankle (pitch, roll) velocities of eq. 11-12 for each leg (rad/s), before clipping,
-        with the torso attitude ``quat_wxyz`` (w, x, y, z; the estimate's)."""
-        return {leg: np.array(rate) for leg, rate in self._rates(state, quat_wxyz).items()}
+        from the ankle wrenches (the estimate's, ``WRENCHES``) and the torso attitude
+        ``quat_wxyz`` (w, x, y, z; the estimate's)."""
+        return {leg: np.array(rate) for leg, rate in self._rates(wrenches, quat_wxyz).items()}
 
-    def _rates(self, state: RobotState, quat_wxyz) -> dict[str, tuple[float, float]]:
+    def _rates(self, wrenches: dict, quat_wxyz) -> dict[str, tuple[float, float]]:
         w, x, y, z = (float(v) for v in quat_wxyz)
         roll_deg = math.degrees(math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)))
         pitch_deg = math.degrees(math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x)))))
         rates = {}
         for leg, sensor in FEET:
-            wrench = state.ft.get(sensor)
+            wrench = wrenches.get(sensor)
             # moment of the sole on the ground (about y, about x): minus the ground's on the sole
             m_y, m_x = (0.0, 0.0) if wrench is None else (-float(wrench[4]), -float(wrench[3]))
             sign_pitch, sign_roll = self._signs[leg]
@@ -139,7 +140,7 @@ class AnkleBalancer(Module):
         if cycle.store.get(BALANCERS_REST, False):  # a phase moves the CoM: start afresh
             self.reset(q_rad, state, cycle.store)
         q = np.array(q_rad, dtype=float)
-        rates = self._rates(state, cycle.store[QUAT_WORLD_TORSO])
+        rates = self._rates(cycle.store[WRENCHES], cycle.store[QUAT_WORLD_TORSO])
         lower, upper = self.model.lower_rad, self.model.upper_rad
         max_rate, max_offset = self.max_rate_rad_s, self.max_offset_rad
         for leg, _ in FEET:
@@ -224,7 +225,7 @@ class DampingBalancer(Module):
     """
 
     name = "balance"
-    reads = (QUAT_WORLD_TORSO, CONTACT)
+    reads = (QUAT_WORLD_TORSO, CONTACT, WRENCHES)
     follows = (BALANCERS_REST,)
     log_columns = AnkleBalancer.log_columns
 
@@ -286,9 +287,9 @@ class DampingBalancer(Module):
                         *np.zeros((3, 2, 2)), self._lower, self._upper, *[1.0] * 7)
         command_configuration(np.zeros(len(names)), np.zeros(len(names)), np.zeros(len(names)),
                            np.zeros(self._robot.model.nq), self._robot.q_index)
-        self._step(np.zeros(len(names)), RobotState(0.0, np.zeros(len(names)),
-                                                     np.zeros(len(names))),
-                   np.array([1.0, 0.0, 0.0, 0.0]), True, 0.005)
+        state = RobotState(0.0, np.zeros(len(names)), np.zeros(len(names)))
+        self._step(np.zeros(len(names)), state, state.ft, np.array([1.0, 0.0, 0.0, 0.0]), True,
+                   0.005)
         self.reset(np.zeros(len(names)), None, None)
 
     def reset(self, q_rad: np.ndarray, state: RobotState | None,
@@ -332,7 +333,8 @@ class DampingBalancer(Module):
             self.reset(q_rad, state, cycle.store)
         q = np.array(q_rad, dtype=float)
         store = cycle.store
-        if self._step(q, state, store[QUAT_WORLD_TORSO], all(store[CONTACT]), cycle.dt_s):
+        if self._step(q, state, store[WRENCHES], store[QUAT_WORLD_TORSO], all(store[CONTACT]),
+                      cycle.dt_s):
             cycle.flags.add("balance-bad-sensor")
         (right_pitch, right_roll), (left_pitch, left_roll) = self._offsets.tolist()
         cycle.info["balance.right_pitch_rad"] = right_pitch
@@ -341,12 +343,13 @@ class DampingBalancer(Module):
         cycle.info["balance.left_roll_rad"] = left_roll
         return q
 
-    def _step(self, q: np.ndarray, state: RobotState, quat_wxyz, both: bool, dt: float) -> bool:
-        """One period on the command ``q`` (in place) with the torso attitude ``quat_wxyz``
-        (w, x, y, z) and ``both`` feet in contact (the estimate's); True when a sensor reads
-        non-finite."""
+    def _step(self, q: np.ndarray, state: RobotState, wrenches: dict, quat_wxyz, both: bool,
+              dt: float) -> bool:
+        """One period on the command ``q`` (in place) with the ankle wrenches, the torso
+        attitude ``quat_wxyz`` (w, x, y, z) and ``both`` feet in contact (the estimate's); True
+        when a sensor reads non-finite."""
         reference = self._reference_now = self._reference_moment(q, state.q_rad)
-        right, left = (state.ft.get(sensor) for _, sensor in FEET)
+        right, left = (wrenches.get(sensor) for _, sensor in FEET)
         as_array = np.asarray
         return _balance_step(
             q, self._ankles, self._ankle_signs,

@@ -50,7 +50,13 @@ from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.phase import BALANCERS_REST
 from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError
-from hubo_cli.estimation.keys import CAPTURE_POINT_WORLD, COM_WORLD, T_WORLD_SOLES, ZMP_WORLD
+from hubo_cli.estimation.keys import (
+    CAPTURE_POINT_WORLD,
+    COM_WORLD,
+    T_WORLD_SOLES,
+    WRENCHES,
+    ZMP_WORLD,
+)
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.pin_robot import load_pin_robot
@@ -90,7 +96,7 @@ class Stabilizer(Module):
     """
 
     name = "stabilizer"
-    reads = (COM_WORLD, CAPTURE_POINT_WORLD, T_WORLD_SOLES, ZMP_WORLD)
+    reads = (COM_WORLD, CAPTURE_POINT_WORLD, T_WORLD_SOLES, ZMP_WORLD, WRENCHES)
     follows = (BALANCERS_REST,)
     log_columns = ("stabilizer.com_error_x_m", "stabilizer.com_error_y_m",
                    "stabilizer.zmp_error_x_m", "stabilizer.zmp_error_y_m",
@@ -205,7 +211,7 @@ class Stabilizer(Module):
         measured = R_feet_T @ (point - mid[:2])
         total_fz = 0.0
         for _, sensor, _ in LEGS:
-            wrench = state.ft.get(sensor)
+            wrench = store[WRENCHES].get(sensor)
             if wrench is None or not np.all(np.isfinite(wrench)):
                 return measured, None
             total_fz += max(float(wrench[2]), 0.0)

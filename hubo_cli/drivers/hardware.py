@@ -564,7 +564,13 @@ class HardwareDriver(Driver):
         frame = self._frame
         ft = {}
         for k, sensor in enumerate(FT_SENSORS):
-            mx, my, fz = frame.ft_mx_my_fz[k]  # hubo-ach order: R hand, L hand, R foot, L foot
+            # hubo-ach's hubo_ft_t (order R hand, L hand, R foot, L foot) is the three axes a
+            # Hubo sensor measures in its own frame: f_z along its axis (a wrist's along the
+            # forearm), m_x and m_y across it. RobotState.ft is in the sensors' own frames
+            # (state.T_frame_sensor), so they go where they are: both of a wrist's bending
+            # moments reach the wrist stop (|m_x, m_y| of the estimate's compensated wrench;
+            # read as the hand's axes before, the stop took |m_y, m_z| = |m_y| and missed m_x)
+            mx, my, fz = frame.ft_mx_my_fz[k]
             ft[sensor] = np.array([0.0, 0.0, fz, mx, my, 0.0])
         flags = list(dict.fromkeys(self._flags))
         self._flags = []

@@ -43,7 +43,7 @@ from hubo_cli.control.module import Module
 from hubo_cli.control.target import Target
 from hubo_cli.dataflow import Store
 from hubo_cli.drivers.base import SimulatedWorld
-from hubo_cli.estimation.keys import QUAT_WORLD_TORSO
+from hubo_cli.estimation.keys import QUAT_WORLD_TORSO, WRENCHES
 from hubo_cli.kinematics.torso import TorsoCorrection, TorsoEstimator
 from hubo_cli.scene import WallPlacement, WallSize
 from hubo_cli.tasks.plan import EDGE_NONE, Plan
@@ -72,7 +72,7 @@ class TaskTarget(Target):
     run has none) and ``scene`` what was placed in the simulator.
     """
 
-    reads = (QUAT_WORLD_TORSO,)
+    reads = (QUAT_WORLD_TORSO, WRENCHES)
     log_columns = ("step_code", "phase_code", "goal_x_m", "goal_y_m", "goal_z_m", "actual_x_m",
                    "actual_y_m", "actual_z_m", "error_m", "cutting", "edge_code",
                    "task_wrist_torque_nm")
@@ -260,7 +260,7 @@ class TaskTarget(Target):
         T_N_E = self.body.arms[self.limb].fk(state.q_rad[self.slice])
         self.T_S_N = self.estimator(state, self.store[QUAT_WORLD_TORSO])
         actual = (self.T_S_N @ T_N_E)[:3, 3]
-        self.torque_nm = wrist_torque_nm(state.ft.get(self.sensor))
+        self.torque_nm = wrist_torque_nm(self.store[WRENCHES].get(self.sensor))
         running = self.phase != "raise"
         k = self.k
         goal = self.plan.goal_S_m[k] if running else actual
