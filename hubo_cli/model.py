@@ -21,7 +21,6 @@ ARMS = ("right-arm", "left-arm")
 LEGS = ("right-leg", "left-leg")
 LIMB_NAMES = ARMS + LEGS
 TOOL_NAMES = ("none", "hand", "drill")
-GRAVITY_M_S2 = 9.80665  # standard gravity: the estimation layer's (the simulator's is its own)
 
 
 @dataclass(frozen=True)
@@ -220,6 +219,11 @@ class RobotModel:
         return _read_toml(self.source).get("impedance", {})
 
     @property
+    def raw_estimation(self) -> dict:
+        """The robot file's ``[estimation]`` table (read by :mod:`hubo_cli.estimation`)."""
+        return _read_toml(self.source).get("estimation", {})
+
+    @property
     def raw_walking(self) -> dict:
         """The robot file's ``[walking]`` table (read by :mod:`hubo_cli.walking.params`)."""
         return _read_toml(self.source).get("walking", {})
@@ -275,9 +279,10 @@ def _shape(kind, raw: dict, table: str, path: Path):
 
 
 def _estimation(raw: dict, path: Path) -> EstimationConfig:
-    """The ``[estimation]`` table: every field given, a positive number (the release time may
-    be 0)."""
-    table = raw.get("estimation", {})
+    """The ``[estimation]`` table's own keys: every field given, a positive number (the release
+    time may be 0)."""
+    table = {key: value for key, value in raw.get("estimation", {}).items()
+             if not isinstance(value, dict)}  # sub-tables: their observers read them
     unknown = set(table) - {f.name for f in fields(EstimationConfig)}
     if unknown:
         raise ConfigError(f"unknown key(s) {', '.join(sorted(unknown))}", path=str(path),

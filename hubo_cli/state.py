@@ -19,6 +19,7 @@ import numpy as np
 from hubo_cli.geometry import roll_pitch_of_quat_wxyz
 
 FT_SENSORS = ("right-wrist", "left-wrist", "right-ankle", "left-ankle")
+GRAVITY_M_S2 = 9.80665  # standard gravity: what an accelerometer at rest reads (m/s^2)
 FT_MEASURED = (2, 3, 4)
 """What Hubo's three-axis force-torque sensors measure of [fx, fy, fz, mx, my, mz]: f_z, m_x,
 m_y (hubo-ach ``hubo_ft_t``); the other components read 0."""
@@ -27,6 +28,15 @@ m_y (hubo-ach ``hubo_ft_t``); the other components read 0."""
 # m_y the two bending moments) = the hand's y and z. The ankle sensors' frames are the soles'.
 R_HAND_WRIST_SENSOR = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 R_HAND_WRIST_SENSOR.flags.writeable = False
+
+
+def T_frame_sensor(sensor: str) -> np.ndarray:
+    """A force-torque sensor's axes in its frame (4x4): a wrist's in the hand frame
+    (R_HAND_WRIST_SENSOR), an ankle's are the sole's (identity)."""
+    T = np.eye(4)
+    if sensor.endswith("wrist"):
+        T[:3, :3] = R_HAND_WRIST_SENSOR
+    return T
 
 
 @dataclass(frozen=True)
@@ -54,7 +64,10 @@ class RobotState:
         time_s: driver time since start (s).
         q_rad, dq_rad_s: joint positions (rad) and velocities (rad/s), joint_names order.
         imu_quat_wxyz: torso (IMU) orientation in the world frame, unit quaternion w, x, y, z.
-        imu_gyro_rad_s: torso angular rate in the IMU frame (rad/s).
+        imu_gyro_rad_s: torso angular rate in the IMU frame (rad/s), as the gyro reads it
+            (with its noise and bias).
+        imu_accel_m_s2: the accelerometer's specific force in the IMU frame (m/s^2): the
+            acceleration minus gravity, in the torso axes; about [0, 0, +9.81] upright at rest.
         ft: per sensor in FT_SENSORS, the wrench [fx, fy, fz, mx, my, mz] (N, N m) the sensor
             reads, in its own frame (wrists: z along the forearm, R_HAND_WRIST_SENSOR; ankles:
             the sole frame), about its origin (the hand point, the sole's middle): what the
@@ -72,6 +85,8 @@ class RobotState:
     dq_rad_s: np.ndarray
     imu_quat_wxyz: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))
     imu_gyro_rad_s: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    imu_accel_m_s2: np.ndarray = field(
+        default_factory=lambda: np.array([0.0, 0.0, GRAVITY_M_S2]))
     ft: dict[str, np.ndarray] = field(
         default_factory=lambda: {name: np.zeros(6) for name in FT_SENSORS})
     tau_nm: np.ndarray | None = None

@@ -74,6 +74,26 @@ def assert_within_limits(model, commands: np.ndarray, dt: float) -> None:
     assert bad == {"nonfinite": 0.0, "position": 0.0, "velocity": 0.0, "acceleration": 0.0}, bad
 
 
+def sensed_cycle(t_s: float, dt_s: float, state, **fields):
+    """A :class:`~hubo_cli.control.module.Cycle` whose store holds the estimate's wrenches as
+    the test's state gives them (taken as already compensated: a module's unit test)."""
+    from hubo_cli.control.module import Cycle
+    from hubo_cli.estimation.keys import WRENCHES
+
+    cycle = Cycle(t_s, dt_s, **fields)
+    cycle.store[WRENCHES] = state.ft
+    return cycle
+
+
+def compensated_wrenches(model, state, tools=None) -> dict:
+    """The estimate's wrenches of one state (RemoveForceOffset with the state's attitude): the
+    sensors' readings with the hand's, the tool's and the foot's weight removed."""
+    from hubo_cli.estimation.build import build_estimator
+    from hubo_cli.estimation.keys import WRENCHES
+
+    return build_estimator(model, tools or {}).reset(state)[WRENCHES]
+
+
 class SensedAsGiven(Observer):
     """Test input for the estimate: the attitude as the state's IMU reads it, the contact
     given, the wrenches as the sensors read them (no filter, no debounce, no offsets removed),

@@ -7,7 +7,7 @@ import signal
 
 import numpy as np
 import pytest
-from control_support import assert_within_limits, ideal
+from control_support import assert_within_limits, ideal, sensed_cycle
 
 from hubo_cli.control.estop import BRAKE_FLAG, RELIEF_S, EmergencyStopper, stop_on_signal
 from hubo_cli.control.log import load_log
@@ -41,7 +41,7 @@ def _revert_run(model, speed_rad_s, t_emer_s=2.0, end_s=6.0, **options):
     stopper.reset(q0, state, Store())
     inputs, outputs = [], []
     for k in range(int(round(end_s / DT))):
-        cycle = Cycle(k * DT, DT)
+        cycle = sensed_cycle(k * DT, DT, state)
         if k == int(round(t_emer_s / DT)):
             cycle.estop_requests.add("operator")
         q = q0.copy()
@@ -245,7 +245,7 @@ def test_a_release_while_the_wrist_stop_brakes_or_relieves_blends_back_smoothly(
             stopper.release()
         q = q0.copy()
         q[:4] -= smooth_ramp(t, 0.3)
-        outputs.append(stopper.update(q, state, Cycle(t, DT)))
+        outputs.append(stopper.update(q, state, sensed_cycle(t, DT, state)))
     outputs = np.array(outputs)
     assert stopper.events[-1].kind == "release" and stopper.mode in ("recover", "release")
     steps = np.abs(np.diff(outputs, axis=0)) / DT
@@ -259,9 +259,9 @@ def test_latch_release_and_sources(model):
     stopper.reset(q0, state, Store())
 
     def step(k, requests=(), torque_nm=0.0):
-        cycle = Cycle(k * DT, DT, estop_requests=set(requests))
         s = RobotState(k * DT, q0, np.zeros(24))
         s.ft["left-wrist"] = np.array([0, 0, 0, 0, torque_nm, 0.0])  # bending, across the forearm
+        cycle = sensed_cycle(k * DT, DT, s, estop_requests=set(requests))
         stopper.update(q0, s, cycle)
         return cycle
 
@@ -305,7 +305,7 @@ def test_operator_signal_latches(model):
     restore = stop_on_signal([stopper])
     try:
         os.kill(os.getpid(), signal.SIGUSR1)
-        stopper.update(q0, state, Cycle(0.0, DT))
+        stopper.update(q0, state, sensed_cycle(0.0, DT, state))
     finally:
         restore()
     assert stopper.stopped and stopper.events[0].sources == ("operator",)

@@ -35,13 +35,7 @@ ALLOWED = {
     "hubo_cli/control/log.py": "the per-period log writes the truth beside the estimate, for "
                                "reports and plots only",
 }
-# truth reads in walking and experiments code, which the flow-walk branch moves onto the
-# estimate: the integrator drops these entries when merging it (the last test fails until then)
-PENDING_FLOW_WALK = {
-    "hubo_cli/walking/target.py", "hubo_cli/walking/capture_step.py",
-    "hubo_cli/walking/approach.py", "hubo_cli/experiments/push_wall.py",
-    "hubo_cli/experiments/standing.py",
-}
+PENDING_FLOW_WALK: set[str] = set()  # walking and experiments now act on the estimate
 
 
 def _names_world(node: ast.expr) -> bool:

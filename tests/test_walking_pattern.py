@@ -182,10 +182,9 @@ def test_joint_plan_reaches_the_feet_within_limits(forward_gait, walking_model, 
 def test_capture_point_uses_the_planned_support(walking_model, params):
     """With the left foot in the air (a swing) and the CoM between the feet, the measured
     contacts alone put the CP outside the right sole; the walk's planned support (the swing
-    foot counted where it lands) keeps it inside. Without an override nothing changes."""
-    import pinocchio as pin
-
+    foot counted where it lands, :class:`SupportPlan`) keeps it inside."""
     from hubo_cli.control.capture_point import CapturePointMonitor
+    from hubo_cli.control.phase import SUPPORT_PLAN, SupportPlan
     from hubo_cli.estimation.keys import (
         CAPTURE_POINT_WORLD,
         COM_VELOCITY_WORLD,
@@ -193,23 +192,19 @@ def test_capture_point_uses_the_planned_support(walking_model, params):
         CONTACT,
         T_WORLD_SOLES,
     )
-    from hubo_cli.pin_robot import load_pin_robot
     from hubo_cli.state import RobotState
     from hubo_cli.walking.body import pose_of_row
 
-    q, T_world_neck = walking_posture(walking_model, params.step_width_m, params.crouch_m)
+    q, _ = walking_posture(walking_model, params.step_width_m, params.crouch_m)
     monitor = CapturePointMonitor(walking_model, walking_model.control_period_s)
-
-    # the estimate of the robot standing so, the left foot out of contact
-    robot = load_pin_robot(walking_model, floating=True)
-    data = robot.model.createData()
-    com = pin.centerOfMass(robot.model, data, robot.configuration(q, T_world_neck), False)
-    store = Store()
-    store[COM_WORLD], store[COM_VELOCITY_WORLD] = com.copy(), np.zeros(3)
-    store[CAPTURE_POINT_WORLD], store[CONTACT] = com[:2].copy(), (True, False)
-    store[T_WORLD_SOLES] = np.array([
-        pin.updateFramePlacement(robot.model, data, robot.frame_id(f)).homogeneous
-        for f in ("right_sole", "left_sole")])
+    w = params.step_width_m / 2
+    store = Store()  # the estimate: the CoM standing still between the soles, the left one up
+    store[T_WORLD_SOLES] = np.array([pose_of_row(np.array([0.0, -w, 0.0, 0.0])),
+                                     pose_of_row(np.array([0.0, w, 0.02, 0.0]))])
+    store[CONTACT] = (True, False)
+    store[COM_WORLD] = np.array([0.0, 0.0, 0.6])
+    store[COM_VELOCITY_WORLD] = np.zeros(3)
+    store[CAPTURE_POINT_WORLD] = np.zeros(2)
 
     def flagged() -> bool:
         monitor.reset(q, None, store)
@@ -217,11 +212,11 @@ def test_capture_point_uses_the_planned_support(walking_model, params):
                                     store) for k in range(5)])
 
     assert flagged() and monitor.outside_m > 0.03
-    w = params.step_width_m / 2
-    planned = np.array([pose_of_row(np.array([0.0, -w, 0.0, 0.0])),
-                        pose_of_row(np.array([0.1, w, 0.0, 0.0]))])
-    monitor.support_override = lambda t_s: planned
+    store[SUPPORT_PLAN] = SupportPlan(np.array([pose_of_row(np.array([0.0, -w, 0.0, 0.0])),
+                                                pose_of_row(np.array([0.1, w, 0.0, 0.0]))]))
     assert not flagged() and monitor.outside_m < -0.03
+    store[SUPPORT_PLAN] = None  # the phase has ended: the estimated soles again
+    assert flagged()
 
 
 def test_measured_feet_a_fraction_of_a_mm_off_take_no_extra_steps(params):

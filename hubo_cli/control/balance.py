@@ -43,6 +43,7 @@ import numba as nb
 import numpy as np
 
 from hubo_cli.control.module import Cycle, Module
+from hubo_cli.control.phase import BALANCERS_REST
 from hubo_cli.dataflow import Store
 from hubo_cli.estimation.keys import CONTACT, QUAT_WORLD_TORSO
 from hubo_cli.geometry import GIMBAL_LOCK_COS
@@ -92,6 +93,7 @@ class AnkleBalancer(Module):
 
     name = "balance"
     reads = (QUAT_WORLD_TORSO,)
+    follows = (BALANCERS_REST,)
     log_columns = ("balance.right_pitch_rad", "balance.right_roll_rad",
                    "balance.left_pitch_rad", "balance.left_roll_rad")
 
@@ -134,6 +136,8 @@ class AnkleBalancer(Module):
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         """Integrate the ankle velocities over one period and add the offsets to the ankles."""
+        if cycle.store.get(BALANCERS_REST, False):  # a phase moves the CoM: start afresh
+            self.reset(q_rad, state, cycle.store)
         q = np.array(q_rad, dtype=float)
         rates = self._rates(state, cycle.store[QUAT_WORLD_TORSO])
         lower, upper = self.model.lower_rad, self.model.upper_rad
@@ -221,6 +225,7 @@ class DampingBalancer(Module):
 
     name = "balance"
     reads = (QUAT_WORLD_TORSO, CONTACT)
+    follows = (BALANCERS_REST,)
     log_columns = AnkleBalancer.log_columns
 
     def __init__(self, model: RobotModel, drill: bool = False,
@@ -323,6 +328,8 @@ class DampingBalancer(Module):
         return self._last_reference
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
+        if cycle.store.get(BALANCERS_REST, False):  # a phase moves the CoM: start afresh
+            self.reset(q_rad, state, cycle.store)
         q = np.array(q_rad, dtype=float)
         store = cycle.store
         if self._step(q, state, store[QUAT_WORLD_TORSO], all(store[CONTACT]), cycle.dt_s):

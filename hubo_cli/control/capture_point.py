@@ -25,18 +25,17 @@ AutoBalancer's reference CoM); ``cp_error`` = actual CP - reference CP.
 While walking, the feet that carry the robot change every step and a swing foot leaves the
 ground on purpose; the CP then lies between the stance foot and where the swing foot will land
 (and must, for the robot's hips, which only abduct). A walking target therefore gives the
-monitor its *planned support* (:attr:`CapturePointMonitor.support_override`): the soles on the
-ground in this phase of the step, the swing foot counted at its landing place. The polygon is
-then their hull (flat on the ground, shrunk by the margin as before): the CP leaving it means
-the step cannot catch the robot. Without an override (standing, tasks) nothing changes.
-The planned support is shrunk by ``planned_margin_m`` (the margin unless the override's owner
-sets it: a capture step judges the CP against its planned and stepped stance unshrunk).
+monitor its *planned support* (the store key :data:`~hubo_cli.control.phase.SUPPORT_PLAN`,
+written by the phase's target every period): the soles on the ground in this phase of the
+step, the swing foot counted at its landing place. The polygon is then their hull (flat on
+the ground, shrunk by the plan's margin: a capture step judges the CP against its planned and
+stepped stance unshrunk): the CP leaving it means the step cannot catch the robot. Without a
+plan (standing, tasks, or a phase that writes None) nothing changes.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 
 import numba as nb
 import numpy as np
@@ -45,6 +44,7 @@ import pinocchio as pin
 from hubo_cli.control.balance import command_configuration
 from hubo_cli.control.keys import SUPPORT_BOX_WORLD
 from hubo_cli.control.module import Cycle, Module
+from hubo_cli.control.phase import SUPPORT_PLAN
 from hubo_cli.control.status import SupportStatus
 from hubo_cli.dataflow import Store
 from hubo_cli.estimation.keys import (
@@ -217,15 +217,13 @@ class CapturePointMonitor(Module):
     min y, max y of the soles in contact taken flat, shrunk by the margin: the nominal
     thresholds), ``flag``.
 
-    ``support_override``: None (the measured soles in contact), or a function of the time (s)
-    returning the planned support's sole poses in the world (2 x 4 x 4: right, left; a swing
-    foot at its landing place) or None for the measured soles in that period. Set by a
-    walking target in its ``attach``. ``planned_margin_m`` (default ``margin_m``): the shrink
-    of that planned support.
+    It follows :data:`~hubo_cli.control.phase.SUPPORT_PLAN` (a phase's planned support, its
+    sole poses and margin; None or unwritten: the estimated soles in contact).
     """
 
     name = "capture-point"
     reads = (COM_WORLD, COM_VELOCITY_WORLD, CAPTURE_POINT_WORLD, CONTACT, T_WORLD_SOLES)
+    follows = (SUPPORT_PLAN,)
     writes = (SUPPORT_BOX_WORLD,)
     log_columns = ("com_x_m", "com_y_m", "com_z_m", "cp_x_m", "cp_y_m", "cp_ref_x_m",
                    "cp_ref_y_m", "cp_error_x_m", "cp_error_y_m", "cp_outside_m",
@@ -260,8 +258,6 @@ class CapturePointMonitor(Module):
         self.ground_z_m = 0.0
         self.support_box_m = np.zeros(4)
         self.flag = False
-        self.support_override: Callable[[float], np.ndarray | None] | None = None
-        self.planned_margin_m = float(margin_m)
         self._margin_used_m = float(margin_m)
         self.reset_watch()
         # numba compiles a kernel on its first call: make that now, not in the first period
@@ -317,11 +313,11 @@ class CapturePointMonitor(Module):
         self.cp_m = np.ascontiguousarray(store[CAPTURE_POINT_WORLD][:2], dtype=float)
         measured = store[CONTACT]
         contact = measured = (bool(measured[0]), bool(measured[1]))
-        planned = None if self.support_override is None else self.support_override(state.time_s)
+        plan = store.get(SUPPORT_PLAN)
         margin = self.margin_m
-        if planned is not None:
-            poses, contact = np.ascontiguousarray(planned, dtype=float), (True, True)
-            margin = self.planned_margin_m
+        if plan is not None:
+            poses, contact = np.ascontiguousarray(plan.T_world_soles, dtype=float), (True, True)
+            margin = self.margin_m if plan.margin_m is None else plan.margin_m
         else:  # the estimated soles
             poses = np.ascontiguousarray(store[T_WORLD_SOLES], dtype=float)
         self._margin_used_m = margin

@@ -221,6 +221,8 @@ class ControlLoop:
         columns = [c for m in self.modules for c in m.log_columns]
         columns += self.target.log_columns
         columns += self.driver.log_columns
+        if self.estimator is not None:
+            columns += self.estimator.log_columns
         return list(dict.fromkeys(columns))
 
     def _pace(self) -> float:
@@ -339,6 +341,8 @@ class ControlLoop:
                     if isinstance(value, (int, float)):
                         extras[key] = value
                 extras.update(driver.log_values())
+                if self.estimator is not None:
+                    extras.update(self.estimator.log_values())
                 self._write(t_s, cycle.flags, compute_s, late_s, target_logged, applied, state,
                             extras)
                 self.period += 1

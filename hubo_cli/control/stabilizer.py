@@ -47,6 +47,7 @@ import numpy as np
 import pinocchio as pin
 
 from hubo_cli.control.module import Cycle, Module
+from hubo_cli.control.phase import BALANCERS_REST
 from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError
 from hubo_cli.estimation.keys import CAPTURE_POINT_WORLD, COM_WORLD, T_WORLD_SOLES, ZMP_WORLD
@@ -90,6 +91,7 @@ class Stabilizer(Module):
 
     name = "stabilizer"
     reads = (COM_WORLD, CAPTURE_POINT_WORLD, T_WORLD_SOLES, ZMP_WORLD)
+    follows = (BALANCERS_REST,)
     log_columns = ("stabilizer.com_error_x_m", "stabilizer.com_error_y_m",
                    "stabilizer.zmp_error_x_m", "stabilizer.zmp_error_y_m",
                    "stabilizer.shift_x_m", "stabilizer.shift_y_m", "stabilizer.hip_rad")
@@ -228,6 +230,8 @@ class Stabilizer(Module):
         return self._last_ref
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
+        if cycle.store.get(BALANCERS_REST, False):  # a phase moves the CoM: start afresh
+            self.reset(q_rad, state, cycle.store)
         q = np.array(q_rad, dtype=float)
         dt = cycle.dt_s
         q_cmd = np.where(np.isfinite(q), q, state.q_rad)

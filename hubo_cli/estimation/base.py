@@ -1,20 +1,38 @@
 """The floating base and the soles in the world, from the legs' kinematics anchored at the loaded
 sole, with the estimated attitude.
 
-One sole is the anchor: its position and heading in the world are held while it carries the
-robot (a sole that carries load is taken not to slip; a slip is not seen, as on the real robot).
-Each period, from the legs' forward kinematics of the measured joints (T_torso_sole, the
-limbs' chains, :mod:`hubo_cli.kinematics.limb`) and the attitude ``QUAT_WORLD_TORSO``:
+One sole is the anchor: its heading and its contact point in the world are held while it
+carries the robot (a sole that carries load is taken not to slip; a slip is not seen, as on
+the real robot). The contact point is the sole's centre of pressure (its compensated ankle
+wrench, ``WRENCHES``, kept inside the sole's outline): a sole that rolls onto its toe or heel
+edge (a push, a capture step) turns about that edge and its middle rises, as it does. Each
+period, from the legs' forward kinematics of the measured joints (T_torso_sole, the limbs'
+chains, :mod:`hubo_cli.kinematics.limb`) and the attitude ``QUAT_WORLD_TORSO``:
 
 * the torso's rotation is the attitude turned about the world's vertical so that the anchor
   sole keeps its heading (the tilt is the attitude's, the heading the legs': the IMU's yaw
-  drifts);
-* the torso's position puts the anchor sole's origin where it is held;
+  drifts), then turned about the contact point by what the gyro's yaw rate adds to it,
+  high-passed with ``HEADING_TAU_S``: a stance sole that twists on the floor under a push
+  turns the robot, which the gyro sees and the legs do not (a 150 N push turned the capture
+  step's stance foot by some degrees, and the step, planned on the legs' heading alone,
+  landed 5 cm long and the robot fell), while the gyro's bias and drift fade (and so does a
+  twist the foot keeps: over seconds the legs' heading holds, as without the gyro). The turn
+  is laid over the legs' estimate, never folded into it: when the other sole takes the anchor,
+  it goes on from the pose the legs gave it (walking, whose soles twist a little and back on
+  every step, kept its accuracy only so: folded in at each change, the turns added up to
+  24 mm in 1 m);
+* the torso's position puts the anchor sole's contact point of this period where that point
+  of the sole was in the last period's estimate (a flat sole whose centre of pressure moves
+  stays where it is; one rolling on an edge keeps the edge on the floor);
 * both soles follow from the torso through the legs.
 
-The anchor changes when it loses contact (``CONTACT``) and the other sole has it: the new anchor
-keeps the pose estimated for it in that period, so the estimate does not jump. Without any
-contact (a jump, a fall, a lifted robot) the anchor stays.
+The anchor changes when it loses contact (``CONTACT``) and the other sole has it, or when the
+other sole in contact carries ``ANCHOR_SWITCH_N`` more than it (the compensated ankle F_z): a
+foot that lifts is still in contact for the debounce's delay, and held as the anchor meanwhile
+it would carry the whole estimate up with it (a capture step's swing foot lifted the estimated
+torso by 30 mm and sank the stance sole as far). The new anchor keeps the pose estimated for it
+in that period, so the estimate does not jump. Without any contact (a jump, a fall, a lifted
+robot) the anchor stays.
 
 Start: the world frame is the simulator's (:mod:`hubo_cli.drivers.sim`): the torso's neck frame
 at the start, dropped onto the floor (x forward, y left, z up, the origin on the floor under the
@@ -49,6 +67,11 @@ from hubo_cli.model import LEGS, RobotModel
 from hubo_cli.state import RobotState
 
 ANKLES = ("right-ankle", "left-ankle")
+MIN_FZ_N = 10.0  # [chosen] a sole pressing less than this: its last centre of pressure
+HEADING_TAU_S = 1.0  # [chosen] the gyro's share of the heading fades with this time constant
+ANCHOR_SWITCH_N = 40.0  # [chosen] the other sole carrying this much more takes the anchor
+#                         (about a tenth of the robot's weight: quiet standing's noise and
+#                         the two feet's uneven load never reach it)
 
 
 @nb.njit(cache=True, nogil=True)
@@ -73,9 +96,11 @@ def _heading(R) -> float:
 
 
 @nb.njit(cache=True, nogil=True)
-def _place(quat_wxyz, T_torso_soles, anchor, T_world_anchor, T_world_torso, T_world_soles):
+def _place(quat_wxyz, T_torso_soles, anchor, T_world_anchor, cx, cy, T_world_torso,
+           T_world_soles):
     """The torso and soles in the world (in place) from the attitude, the legs and the anchor
-    sole's held pose (its position and heading)."""
+    sole's last pose ``T_world_anchor``: its heading kept, its point (cx, cy) on the sole
+    (sole frame, m) kept where it was."""
     R = np.empty((3, 3))
     quat_to_matrix_into(quat_wxyz, R)
     T_ta = T_torso_soles[anchor]
@@ -90,8 +115,12 @@ def _place(quat_wxyz, T_torso_soles, anchor, T_world_anchor, T_world_torso, T_wo
         T[1, c] = st * R[0, c] + ct * R[1, c]
         T[2, c] = R[2, c]
     for r in range(3):
-        T[r, 3] = T_world_anchor[r, 3] - (T[r, 0] * T_ta[0, 3] + T[r, 1] * T_ta[1, 3]
-                                          + T[r, 2] * T_ta[2, 3])
+        held = (T_world_anchor[r, 0] * cx + T_world_anchor[r, 1] * cy
+                + T_world_anchor[r, 3])  # where the contact point was
+        p = np.empty(3)  # the contact point in the torso frame
+        for i in range(3):
+            p[i] = T_ta[i, 0] * cx + T_ta[i, 1] * cy + T_ta[i, 3]
+        T[r, 3] = held - (T[r, 0] * p[0] + T[r, 1] * p[1] + T[r, 2] * p[2])
     T[3, 0], T[3, 1], T[3, 2], T[3, 3] = 0.0, 0.0, 0.0, 1.0
     for k in range(2):
         S, W = T_torso_soles[k], T_world_soles[k]
@@ -99,6 +128,15 @@ def _place(quat_wxyz, T_torso_soles, anchor, T_world_anchor, T_world_torso, T_wo
             for c in range(4):
                 W[r, c] = (T[r, 0] * S[0, c] + T[r, 1] * S[1, c] + T[r, 2] * S[2, c]
                            + T[r, 3] * S[3, c])
+
+
+def _turn_about(point: np.ndarray, angle_rad: float) -> np.ndarray:
+    """The turn (4x4) by ``angle_rad`` about the vertical through ``point`` (world)."""
+    c, s = math.cos(angle_rad), math.sin(angle_rad)
+    turn = np.eye(4)
+    turn[:2, :2] = ((c, -s), (s, c))
+    turn[:2, 3] = point[:2] - turn[:2, :2] @ point[:2]
+    return turn
 
 
 def _flat(T: np.ndarray) -> np.ndarray:
@@ -141,8 +179,16 @@ class FloatingBase(Observer):
         self._T_world_torso = np.eye(4)
         self._T_world_soles = np.tile(np.eye(4), (2, 1, 1))
         self._quat = np.array([1.0, 0.0, 0.0, 0.0])
+        corners = model.feet.sole_corners_m()
+        self._sole_box = (float(corners[:, 0].min()), float(corners[:, 0].max()),
+                          float(corners[:, 1].min()), float(corners[:, 1].max()))
+        self._contact_point = (0.0, 0.0)  # on the anchor sole (sole frame, m)
+        self._dt_s = model.control_period_s
+        self._keep = HEADING_TAU_S / (HEADING_TAU_S + self._dt_s)  # the turn's fade a period
+        self._turn_rad = 0.0  # the gyro's turn on top of the legs' heading
+        self._R_legs: np.ndarray | None = None  # the legs' torso rotation, last period
         _legs_fk(np.zeros(self._joints), *self._chain, self._T_torso_soles)  # compile now
-        _place(self._quat, self._T_torso_soles, 0, self._T_world_anchor, np.eye(4),
+        _place(self._quat, self._T_torso_soles, 0, self._T_world_anchor, 0.0, 0.0, np.eye(4),
                np.zeros((2, 4, 4)))
 
     def _inputs(self, state: RobotState, store: Store) -> bool:
@@ -160,6 +206,7 @@ class FloatingBase(Observer):
         self.anchor = 1 if fz[1] > fz[0] else 0  # a NaN compares False: the right sole
         self._T_world_torso = np.eye(4)
         self._T_world_soles = np.tile(np.eye(4), (2, 1, 1))
+        self._turn_rad, self._R_legs = 0.0, None
         if not self._inputs(state, store):
             self._write(store)
             return
@@ -175,11 +222,49 @@ class FloatingBase(Observer):
         self._place()
         self._write(store)
 
-    def _place(self) -> None:
+    def _centre_of_pressure(self, store: Store) -> tuple[float, float]:
+        """The anchor sole's centre of pressure (sole frame, m) inside its outline; the last
+        one while it presses less than MIN_FZ_N or reads non-finite."""
+        wrench = store[WRENCHES][ANKLES[self.anchor]]
+        fz, mx, my = float(wrench[2]), float(wrench[3]), float(wrench[4])
+        if not (fz > MIN_FZ_N and math.isfinite(mx) and math.isfinite(my)):
+            return self._contact_point
+        x_lo, x_hi, y_lo, y_hi = self._sole_box
+        return min(max(-my / fz, x_lo), x_hi), min(max(mx / fz, y_lo), y_hi)
+
+    def _place(self, contact_point: tuple[float, float] = (0.0, 0.0),
+                gyro_rad_s: np.ndarray | None = None) -> None:
+        """This period's torso and soles: the legs' placement (the anchor's held contact point
+        and heading), turned about the contact point by the gyro's high-passed share of the
+        heading (``gyro_rad_s``: the IMU's rate in the torso frame; None: none)."""
         T_world_torso, T_world_soles = np.empty((4, 4)), np.empty((2, 4, 4))
         _place(self._quat, self._T_torso_soles, self.anchor, self._T_world_anchor,
-               T_world_torso, T_world_soles)
+               *contact_point, T_world_torso, T_world_soles)
+        self._T_world_anchor = T_world_soles[self.anchor].copy()  # the legs' own
+        self._contact_point = contact_point
+        R = T_world_torso[:3, :3]
+        if gyro_rad_s is not None and self._R_legs is not None:
+            # both rates about the world's vertical: the gyro's, and the legs' (the rotation
+            # from the last period's, small: its skew part)
+            yaw_rate = float(R[2] @ gyro_rad_s)
+            step = R @ self._R_legs.T
+            legs_rate = 0.5 * float(step[1, 0] - step[0, 1]) / self._dt_s
+            if math.isfinite(yaw_rate):
+                self._turn_rad = self._keep * (self._turn_rad
+                                               + (yaw_rate - legs_rate) * self._dt_s)
+        self._R_legs = R.copy()
+        if self._turn_rad:
+            pivot = self._T_world_anchor @ np.array([*contact_point, 0.0, 1.0])
+            turn = _turn_about(pivot, self._turn_rad)
+            T_world_torso, T_world_soles = turn @ T_world_torso, turn @ T_world_soles
         self._T_world_torso, self._T_world_soles = T_world_torso, T_world_soles
+
+    def _take_anchor(self, side: int) -> None:
+        """Sole ``side`` takes the anchor as estimated, the gyro's turn included."""
+        self.anchor = side
+        self._T_world_anchor = self._T_world_soles[side].copy()
+        self._contact_point = (0.0, 0.0)  # its own, read next period
+        self._turn_rad, self._R_legs = 0.0, None
 
     def _write(self, store: Store) -> None:
         store[T_WORLD_TORSO] = self._T_world_torso
@@ -187,10 +272,13 @@ class FloatingBase(Observer):
 
     def update(self, state: RobotState, store: Store) -> None:
         if self._inputs(state, store):
-            self._place()
+            self._place(self._centre_of_pressure(store),
+                        np.asarray(state.imu_gyro_rad_s, dtype=float))
             contact = store[CONTACT]
             other = 1 - self.anchor
-            if not contact[self.anchor] and contact[other]:
-                self.anchor = other  # it keeps the pose just estimated for it
-                self._T_world_anchor = self._T_world_soles[other].copy()
+            wrenches = store[WRENCHES]
+            heavier = (float(wrenches[ANKLES[other]][2])
+                       > float(wrenches[ANKLES[self.anchor]][2]) + ANCHOR_SWITCH_N)
+            if contact[other] and (heavier or not contact[self.anchor]):
+                self._take_anchor(other)
         self._write(store)

@@ -24,6 +24,10 @@ def build_estimator(model: RobotModel, tools: Mapping[str, str] | None = None,
             sensor and to the CoM).
         period_s: the control period (s; default the model's).
     """
+    # The attitude is the driver's (ReportedAttitude) until the Kalman filter of gyro and
+    # accelerometer (estimation/attitude.py, AttitudeObserver) is tuned: on the nominal robot
+    # pushed with 60 N for 0.1 s its pitch was 3-4 deg off the simulator's while the torso
+    # swayed (its gyro bias ran to 0.07 rad/s), which put the torso 80 mm off through the legs.
     tools = tools or {}
     drill = tools.get("right-arm") == "drill"
     dt_s = model.control_period_s if period_s is None else float(period_s)

@@ -38,9 +38,9 @@ from hubo_cli.estimation.keys import (
 from hubo_cli.estimation.observer import Observer
 from hubo_cli.estimation.wrenches import joint_vector
 from hubo_cli.geometry import matrix_to_quat_into
-from hubo_cli.model import GRAVITY_M_S2, RobotModel
+from hubo_cli.model import RobotModel
 from hubo_cli.pin_robot import load_pin_robot
-from hubo_cli.state import RobotState
+from hubo_cli.state import GRAVITY_M_S2, RobotState
 
 ANKLES = ("right-ankle", "left-ankle")
 MIN_SOLE_FZ_N = 1.0  # a sole pressing less than this gives no centre of pressure

@@ -34,22 +34,14 @@ from hubo_cli.estimation.observer import Observer
 from hubo_cli.geometry import quat_to_matrix_into
 from hubo_cli.kinematics.dh import chain_fk
 from hubo_cli.kinematics.limb import Limb
-from hubo_cli.model import GRAVITY_M_S2, RobotModel
+from hubo_cli.model import RobotModel
 from hubo_cli.pin_robot import load_pin_robot
-from hubo_cli.state import FT_MEASURED, FT_SENSORS, R_HAND_WRIST_SENSOR, RobotState
+from hubo_cli.state import FT_MEASURED, FT_SENSORS, GRAVITY_M_S2, RobotState, T_frame_sensor
 
 # per sensor in FT_SENSORS: its limb and the URDF frame whose origin is the sensor's
 SENSOR_LIMBS = {"right-wrist": ("right-arm", "right_hand"), "left-wrist": ("left-arm", "left_hand"),
                 "right-ankle": ("right-leg", "right_sole"), "left-ankle": ("left-leg", "left_sole")}
 
-
-def T_frame_sensor(sensor: str) -> np.ndarray:
-    """The sensor's axes in its URDF frame (4x4): a wrist's z along the forearm
-    (:data:`~hubo_cli.state.R_HAND_WRIST_SENSOR`), an ankle's the sole's."""
-    T = np.eye(4)
-    if sensor.endswith("wrist"):
-        T[:3, :3] = R_HAND_WRIST_SENSOR
-    return T
 
 
 def sensor_loads(model: RobotModel, drill: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -110,6 +102,21 @@ def _finite(x) -> bool:
 
 
 @nb.njit(cache=True, nogil=True)
+def _offset(qk, R, k, base, offset, alpha, a, d, end, mass, com, gravity, T, out):
+    """The weight's wrench on sensor ``k`` (``out``, 6) for its limb's joints ``qk`` and the
+    torso rotation ``R``."""
+    chain_fk(qk, base[k], offset[k], alpha[k], a[k], d[k], end[k], T)
+    # gravity in the sensor's axes: -g times world z seen in them (R_world_sensor's row 2)
+    for i in range(3):
+        z = R[2, 0] * T[0, i] + R[2, 1] * T[1, i] + R[2, 2] * T[2, i]
+        out[i] = -gravity * z * mass[k]
+    c = com[k]
+    out[3] = c[1] * out[2] - c[2] * out[1]
+    out[4] = c[2] * out[0] - c[0] * out[2]
+    out[5] = c[0] * out[1] - c[1] * out[0]
+
+
+@nb.njit(cache=True, nogil=True)
 def compensate(q, quat_wxyz, raw, index, base, offset, alpha, a, d, end, mass, com, gravity,
                measured, last, out):
     """The compensated wrenches (``out``, n x 6) of the readings ``raw`` (n x 6) for the joints
@@ -122,6 +129,7 @@ def compensate(q, quat_wxyz, raw, index, base, offset, alpha, a, d, end, mass, c
         quat_to_matrix_into(quat_wxyz, R)
     T = np.empty((4, 4))
     qk = np.empty(6)
+    weight = np.empty(6)
     for k in range(raw.shape[0]):
         for j in range(6):
             qk[j] = q[index[k, j]]
@@ -129,17 +137,34 @@ def compensate(q, quat_wxyz, raw, index, base, offset, alpha, a, d, end, mass, c
             for j in range(6):
                 out[k, j] = last[k, j]
             continue
-        chain_fk(qk, base[k], offset[k], alpha[k], a[k], d[k], end[k], T)
-        # gravity in the sensor's axes: -g times world z seen in them (R_world_sensor's row 2)
-        g = np.empty(3)
-        for i in range(3):
-            z = R[2, 0] * T[0, i] + R[2, 1] * T[1, i] + R[2, 2] * T[2, i]
-            g[i] = -gravity * z * mass[k]
-        c = com[k]
-        offset_wrench = (g[0], g[1], g[2], c[1] * g[2] - c[2] * g[1],
-                         c[2] * g[0] - c[0] * g[2], c[0] * g[1] - c[1] * g[0])
+        _offset(qk, R, k, base, offset, alpha, a, d, end, mass, com, gravity, T, weight)
         for j in range(6):
-            out[k, j] = (raw[k, j] - offset_wrench[j]) * measured[j]
+            out[k, j] = (raw[k, j] - weight[j]) * measured[j]
+
+
+@nb.njit(cache=True, nogil=True)
+def hanging_readings(q, quat_wxyz, index, base, offset, alpha, a, d, end, mass, com, gravity,
+                     measured, out):
+    """What the sensors read with nothing but the weight beyond them (``out``, n x 6): a
+    perfectly modelled robot touching nothing (the ideal driver's sensors)."""
+    R = np.empty((3, 3))
+    quat_to_matrix_into(quat_wxyz, R)
+    T = np.empty((4, 4))
+    qk = np.empty(6)
+    weight = np.empty(6)
+    for k in range(out.shape[0]):
+        for j in range(6):
+            qk[j] = q[index[k, j]]
+        _offset(qk, R, k, base, offset, alpha, a, d, end, mass, com, gravity, T, weight)
+        for j in range(6):
+            out[k, j] = weight[j] * measured[j]
+
+
+def measured_mask() -> np.ndarray:
+    """1 for the wrench components the sensors measure (``FT_MEASURED``), 0 elsewhere."""
+    mask = np.zeros(6)
+    mask[list(FT_MEASURED)] = 1.0
+    return mask
 
 
 class RemoveForceOffset(Observer):
@@ -158,8 +183,7 @@ class RemoveForceOffset(Observer):
     def __init__(self, model: RobotModel, drill: bool = False) -> None:
         self.mass_kg, self.com_sensor_m = sensor_loads(model, drill)
         self._chains = sensor_chains(model)
-        self._measured = np.zeros(6)
-        self._measured[list(FT_MEASURED)] = 1.0
+        self._measured = measured_mask()
         self._nan = np.full(6, np.nan)
         self._last = np.zeros((len(FT_SENSORS), 6))
         self._raw = np.zeros((len(FT_SENSORS), 6))
@@ -180,10 +204,9 @@ class RemoveForceOffset(Observer):
     def update(self, state: RobotState, store: Store) -> None:
         raw = self._raw
         for k, sensor in enumerate(FT_SENSORS):
-            wrench = state.ft.get(sensor, self._nan)
             try:
-                raw[k] = wrench
-            except (TypeError, ValueError):  # not six numbers: this sensor holds
+                raw[k] = np.asarray(state.ft.get(sensor, self._nan), dtype=float).reshape(6)
+            except (TypeError, ValueError, AttributeError):  # not six numbers: it holds
                 raw[k] = self._nan
         out = self._update(joint_vector(state.q_rad, self._joints),
                            np.asarray(store[QUAT_WORLD_TORSO], dtype=float))

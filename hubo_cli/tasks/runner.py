@@ -24,7 +24,7 @@ from hubo_cli.control.loop import LoopResult
 from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.stop_choice import ActiveStops
-from hubo_cli.errors import InputError, SafetyError
+from hubo_cli.errors import SafetyError
 from hubo_cli.interrupts import run_files
 from hubo_cli.model import RobotModel, load_model
 from hubo_cli.posture import home_posture
@@ -125,12 +125,8 @@ def _run_task(plan: Plan, setup: RunSetup, on_start, balance: str) -> TaskRun:
     import hubo_cli.plots.paths  # noqa: F401
     import hubo_cli.plots.task  # noqa: F401
 
-    driver = setup.driver
     target = TaskTarget(plan, resumable=setup.operator is not None)
     start = plan.spec.stance.start_m
-    if start is not None and driver != "sim":
-        raise InputError(f"stance.start_mm walks the robot to its stance: the simulator only, "
-                         f"not the {driver} driver", hint="leave out stance.start_mm")
     if start is None:
         done = run(setup, target, on_start=on_start)
     else:  # walk to the working stance first (hubo_cli.walking.approach)

@@ -261,7 +261,7 @@ class TaskTarget(Target):
         T_N_E = self.body.arms[self.limb].fk(state.q_rad[self.slice])
         self.T_S_N = self.estimator(state, self.store[QUAT_WORLD_TORSO])
         actual = (self.T_S_N @ T_N_E)[:3, 3]
-        self.torque_nm = wrist_torque_nm(state, self.sensor)
+        self.torque_nm = wrist_torque_nm(state.ft.get(self.sensor))
         running = self.phase != "raise"
         k = self.k
         goal = self.plan.goal_S_m[k] if running else actual
