@@ -35,7 +35,6 @@ ALLOWED = {
     "hubo_cli/control/log.py": "the per-period log writes the truth beside the estimate, for "
                                "reports and plots only",
 }
-PENDING_FLOW_WALK: set[str] = set()  # walking and experiments now act on the estimate
 
 
 def _names_world(node: ast.expr) -> bool:
@@ -148,7 +147,7 @@ def test_no_module_target_or_planner_reads_the_simulators_truth():
     violations = {}
     for path in files:
         name = _relative(path)
-        if name in ALLOWED or name in PENDING_FLOW_WALK:
+        if name in ALLOWED:
             continue
         found = truth_reads(path.read_text())
         if found:
@@ -162,7 +161,7 @@ def test_nothing_they_import_brings_in_the_simulator():
     graph = _import_graph()
     chains = {}
     for path in _scanned_files():
-        if _relative(path) in ALLOWED or _relative(path) in PENDING_FLOW_WALK:
+        if _relative(path) in ALLOWED:
             continue
         chain = forbidden_import_chain(graph, module_name(path))
         if chain:
@@ -170,9 +169,9 @@ def test_nothing_they_import_brings_in_the_simulator():
     assert not chains, chains
 
 
-def test_the_allowed_and_pending_entries_are_still_needed():
-    """An entry whose file no longer reads the truth is dropped (the lists only shrink)."""
-    for name in (*ALLOWED, *PENDING_FLOW_WALK):
+def test_the_allowed_entries_are_still_needed():
+    """An entry whose file no longer reads the truth is dropped (the list only shrinks)."""
+    for name in ALLOWED:
         path = ROOT / name
         assert path.exists(), name
         assert truth_reads(path.read_text()), f"{name} no longer reads the truth: drop it"

@@ -49,7 +49,6 @@ from hubo_cli.control.status import SupportStatus
 from hubo_cli.dataflow import Store
 from hubo_cli.estimation.keys import (
     CAPTURE_POINT_WORLD,
-    COM_VELOCITY_WORLD,
     COM_WORLD,
     CONTACT,
     T_WORLD_SOLES,
@@ -211,18 +210,17 @@ class CapturePointMonitor(Module):
     :data:`~hubo_cli.control.keys.SUPPORT_BOX_WORLD` (the hip strategy's input). What it
     publishes for a viewer is :meth:`status` (:class:`SupportStatus`).
 
-    Attributes after each update: ``com_m`` (3,), ``cp_m`` (2,) and ``velocity_m_s`` (3,) as
-    the estimate gave them, ``cp_ref_m`` (2,), ``outside_m`` (CP beyond the shrunk polygon, m;
-    > 0 = flag), ``ground_z_m`` (lowest sole in contact), ``support_box_m`` (min x, max x,
-    min y, max y of the soles in contact taken flat, shrunk by the margin: the nominal
-    thresholds), ``flag``.
+    Attributes after each update: ``com_m`` (3,) and ``cp_m`` (2,) as the estimate gave
+    them, ``cp_ref_m`` (2,), ``outside_m`` (CP beyond the shrunk polygon, m; > 0 = flag),
+    ``ground_z_m`` (lowest sole in contact), ``support_box_m`` (min x, max x, min y, max y of
+    the soles in contact taken flat, shrunk by the margin: the nominal thresholds), ``flag``.
 
     It follows :data:`~hubo_cli.control.phase.SUPPORT_PLAN` (a phase's planned support, its
     sole poses and margin; None or unwritten: the estimated soles in contact).
     """
 
     name = "capture-point"
-    reads = (COM_WORLD, COM_VELOCITY_WORLD, CAPTURE_POINT_WORLD, CONTACT, T_WORLD_SOLES)
+    reads = (COM_WORLD, CAPTURE_POINT_WORLD, CONTACT, T_WORLD_SOLES)
     follows = (SUPPORT_PLAN,)
     writes = (SUPPORT_BOX_WORLD,)
     log_columns = ("com_x_m", "com_y_m", "com_z_m", "cp_x_m", "cp_y_m", "cp_ref_x_m",
@@ -250,7 +248,6 @@ class CapturePointMonitor(Module):
         self._in_sole: np.ndarray | None = None  # the reference CoM in the sole's frame
         self._in_sole_foot = -1
         self._flat_sole = np.tile(np.eye(4), (2, 1, 1))
-        self.velocity_m_s = np.zeros(3)
         self.com_m = np.zeros(3)
         self.cp_m = np.zeros(2)
         self.cp_ref_m = np.zeros(2)
@@ -309,7 +306,6 @@ class CapturePointMonitor(Module):
         rad); return True when the CP has been outside the shrunk support polygon with a foot
         on the ground for ``confirm_periods`` periods."""
         self.com_m = np.asarray(store[COM_WORLD], dtype=float)
-        self.velocity_m_s = np.asarray(store[COM_VELOCITY_WORLD], dtype=float)
         self.cp_m = np.ascontiguousarray(store[CAPTURE_POINT_WORLD][:2], dtype=float)
         measured = store[CONTACT]
         contact = measured = (bool(measured[0]), bool(measured[1]))

@@ -27,13 +27,15 @@ class Target(ABC):
         robot_flags: the flags of the robot's latest state (set by the loop every period;
             the live view shows the driver's, e.g. ``stale-state``).
         name: the target's name in flow errors.
-        reads: the store keys it reads (the estimate's; checked when the loop is built).
+        reads, writes, follows: the store keys it reads (the estimate's), writes (for the
+            modules) and reads when written (checked when the loop is built).
     """
 
     name = "target"
     log_columns: tuple[str, ...] = ()
     reads: tuple[Key, ...] = ()
     writes: tuple[Key, ...] = ()
+    follows: tuple[Key, ...] = ()
     robot_flags: tuple[str, ...] = ()
 
     @abstractmethod

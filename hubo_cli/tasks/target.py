@@ -199,7 +199,8 @@ class TaskTarget(Target):
 
     def __call__(self, t_s: float, state) -> tuple[np.ndarray, dict]:
         info: dict = {}
-        stopped = self.stopper is not None and self.stopper.stopped
+        mode = "release" if self.stopper is None else self.stopper.status().mode
+        stopped = mode != "release"
         if stopped and self.phase != "stopped":
             self._phase_before_stop = self.phase
             self.phase, self.t_stop_s = "stopped", t_s
@@ -222,7 +223,7 @@ class TaskTarget(Target):
                 info["done"] = True
         elif self.phase == "stopped":
             # the revert can outlast T2 under the limits: count the hold from its start
-            holding = self.stopper.mode == "hold"
+            holding = mode == "hold"
             if holding and self._t_hold_s is None:
                 self._t_hold_s = t_s
             still = holding and np.max(np.abs(state.dq_rad_s)) < 0.05
