@@ -43,7 +43,8 @@ def _tilt_error_deg(quat_est, R_true: np.ndarray) -> float:
 def _synthetic(R_of_t, seconds: float, bias_rad_s, rng, quat0=(1.0, 0.0, 0.0, 0.0)):
     """Run the observer on the readings of the motion R_of_t(t) (world <- torso): gyro as the
     mean rate over each period plus ``bias_rad_s`` and noise, accelerometer gravity plus
-    noise. Returns the times, the true rotations and the store after each period."""
+    noise. Returns the times, the true rotations and, each period, the estimate's attitude,
+    bias and rate."""
     observer, store = AttitudeObserver(PARAMS, DT), Store()
     times = np.arange(int(round(seconds / DT)) + 1) * DT
     Rs, out = [R_of_t(t) for t in times], []
@@ -179,6 +180,7 @@ def test_the_parameters_come_from_the_robot_file_and_are_checked(tmp_path):
         attitude_params(load_model(path=missing))
     with pytest.raises(ConfigError):
         AttitudeObserver(PARAMS, 0.0)
+    assert AttitudeObserver.for_model(MODEL).params == PARAMS
 
 
 # ------------------------------------------------------------------ the drivers' IMU

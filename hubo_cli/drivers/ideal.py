@@ -5,8 +5,8 @@ command and the velocities are its finite difference; the feet stay flat on the 
 IMU reads the torso orientation the legs give it (the lower sole flat, heading 0: upright in
 the home posture), its gyro that orientation's rate over the period and its accelerometer
 gravity alone (nothing accelerates: :func:`imu_readings`); the force/torque sensors read zero,
-torques are unknown. Commands pass the
-same checks as on the other drivers (NaN keeps the joint, position limits clip).
+torques are unknown. Commands pass the same checks as on the other drivers (NaN keeps the
+joint, position limits clip).
 """
 
 from __future__ import annotations
