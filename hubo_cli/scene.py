@@ -134,3 +134,10 @@ def place_wall_ahead(world: SimulatedWorld, frame: str, gap_m: float, wall: Wall
             "height_m": wall.height_m, "width_m": wall.width_m,
             "thickness_m": wall.thickness_m, "centre_y_m": wall.centre_y_m}
 
+
+def robot_offset_world_m(world: SimulatedWorld, frame: str, T_N_frame: np.ndarray) -> np.ndarray:
+    """Where the simulator has the robot's ``frame`` now, less where the kinematics put it
+    (``T_N_frame``, in the neck frame N): the shift (3, m) that places a scene's objects, planned
+    in N, in front of the robot as the physics set it down (its settled lean included). Placing
+    the scene is the simulator's business; no controller sees this."""
+    return world.frame_pose(frame)[:3, 3] - np.asarray(T_N_frame, dtype=float)[:3, 3]

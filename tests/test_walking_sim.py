@@ -48,6 +48,24 @@ def test_walk_goes_forward_without_falling(short_walk):
     assert last["x_m"] == pytest.approx(0.3, abs=0.002)
 
 
+@pytest.mark.physical
+def test_the_estimate_follows_the_walking_robot(short_walk):
+    """The estimation layer's torso position (the legs anchored at the loaded sole) against the
+    simulator's, both in the log, over the whole walk (no slip on the nominal robot)."""
+    import numpy as np
+
+    from hubo_cli.control.log import load_log
+
+    _, out = short_walk
+    log = load_log(out)
+    error = np.array([log[f"est_torso_{axis}_m"] - log[f"torso_{axis}_m"] for axis in "xyz"])
+    walked = np.all(np.isfinite(error), axis=0)
+    assert walked.sum() > 1000
+    # measured (AVX-512): 0.70 mm across, 0.61 mm in height at most; bounds about 3x
+    assert np.max(np.hypot(*error[:2, walked])) < 2.0e-3
+    assert np.max(np.abs(error[2, walked])) < 2.0e-3
+
+
 def test_walk_refuses_a_bad_goal():
     result = CliRunner().invoke(main, ["walk", "--to", "inf", "0", "0"])
     assert result.exit_code == 2
@@ -79,10 +97,8 @@ def test_walk_sideways_without_falling(side_walk):
     # mm and 0.05-0.09 deg, AVX-512 / portable: 20x and 30x)
     assert summary["final_error_mm"] < 40.0
     assert summary["final_error_deg"] < 3.0
-    # the ZMP of the soles in contact (their wrenches low-passed at 5 Hz) stayed inside their
-    # hull in every period (the unfiltered reading jumps at landings: 0.98-0.99 measured)
-    assert summary["zmp_inside_fraction"] >= 0.99
-    assert summary["zmp_inside_fraction_raw"] > 0.8
+    # the estimate's ZMP inside the hull of the soles the estimate has in contact
+    assert summary["zmp_inside_fraction"] >= 0.95
     last = summary["footsteps"][-2:]
     assert sorted(s["y_m"] for s in last) == pytest.approx([0.0, 0.24], abs=0.002)
 

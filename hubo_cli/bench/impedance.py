@@ -10,6 +10,7 @@ import numpy as np
 
 from hubo_cli.control.impedance import ImpedanceController
 from hubo_cli.control.module import Cycle
+from hubo_cli.dataflow import Store
 from hubo_cli.model import load_model
 from hubo_cli.posture import home_posture
 from hubo_cli.state import RobotState
@@ -25,7 +26,7 @@ def run(report) -> None:
     q[[0, 3, 6, 9]] = -0.3, -1.2, -0.3, -1.2  # both hands forward, elbows bent
     ic = ImpedanceController(model, dt)
     state = RobotState(0.0, q, np.zeros(len(q)))
-    ic.reset(q, state)
+    ic.reset(q, state, Store())
     times = []
     clock = time.perf_counter
     for k in range(PERIODS):  # a few newtons and a tenth of a newton metre, turning

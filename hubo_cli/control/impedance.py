@@ -19,14 +19,13 @@ So a step of force is followed exactly at every period and a ramp to within its 
 stability limit on dt as with Euler. With no force (u = 0 and s = 0) s stays exactly 0 and the
 command passes through unchanged, bit for bit: the hand tracks its reference exactly.
 
-Force input: ``state.ft["right-wrist"]`` / ``["left-wrist"]``, the wrench the environment
-applies to the hand in the sensor frame S, which :class:`~hubo_cli.state.RobotState` defines
-as the hand frame (``T_hand_sensor`` = identity; another mounting is one argument). It is
-moved to the hand origin in hand axes (f_H = R_HS f_S, m_H = R_HS m_S + p_HS x f_H), then
-turned into N by the hand's measured orientation (forward kinematics of the measured joints).
-The reading is taken as given: the estimation layer that removes the tool's weight and the
-sensor's offset (hrpsys RemoveForceOffset) does not exist yet (issue 36 names it), so a tool's
-weight, unless the sensor was zeroed with it, deflects the hand by weight / K.
+Force input: the estimate's wrist wrenches (``WRENCHES``: the hand's and the tool's weight
+removed, hrpsys RemoveForceOffset), the wrench the environment applies to the hand in the
+sensor frame S (:func:`~hubo_cli.state.T_frame_sensor`: z along the forearm; another mounting
+is one argument, ``T_hand_sensor``). It is moved to the hand origin in hand axes
+(f_H = R_HS f_S, m_H = R_HS m_S + p_HS x f_H), then turned into N by the hand's measured
+orientation (forward kinematics of the measured joints). Hubo's wrist sensors read the force
+along the forearm and the two moments across it only: the hand yields to those.
 
 Offset to joints: the target pose is (p_ref + x_p, Exp(x_r) R_ref) in N, with the reference
 pose FK(commanded arm joints); the arm's closed-form IK (paper II-B,
@@ -63,17 +62,19 @@ import numpy as np
 import scipy.linalg
 
 from hubo_cli.control.module import Cycle, Module
+from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError
+from hubo_cli.estimation.keys import WRENCHES
 from hubo_cli.geometry import min_jerk
 from hubo_cli.kinematics.choice import EXACT, solve_limb
 from hubo_cli.kinematics.dh import JIT, chain_fk
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import ARMS, RobotModel
 from hubo_cli.motion.limits import all_finite, hold_nan
-from hubo_cli.state import RobotState
+from hubo_cli.state import RobotState, T_frame_sensor
 
 HAND_SENSORS = {"right-arm": "right-wrist", "left-arm": "left-wrist"}
-T_HAND_SENSOR = np.eye(4)   # RobotState: a wrist reading is in the hand frame
+T_HAND_SENSOR = T_frame_sensor("right-wrist")  # the wrist sensors' axes in the hand frame
 MODES = ("on", "release", "off")
 MODE_CODE = {name: i for i, name in enumerate(MODES)}
 LIMIT_FLAG, BAD_FLAG, UNREACHABLE_FLAG, RELEASE_FLAG = (
@@ -278,6 +279,7 @@ class ImpedanceController(Module):
     """
 
     name = "impedance"
+    reads = (WRENCHES,)
 
     def __init__(self, model: RobotModel, dt_s: float, M=None, D=None, K=None,
                  max_offset_m: float | None = None, max_rotation_rad: float | None = None,
@@ -369,7 +371,7 @@ class ImpedanceController(Module):
         all_finite(scratch)
         hold_nan(self._last_in, self._last_in, self._last_in.copy())
 
-    def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
+    def reset(self, q_rad: np.ndarray, state: RobotState, store: Store) -> None:
         """Start with zero offsets (switched on if built ``active``)."""
         self._last_in = np.where(np.isfinite(q_rad), q_rad, state.q_rad).astype(float)
         self._clear()
@@ -399,9 +401,10 @@ class ImpedanceController(Module):
             cycle.flags.add(RELEASE_FLAG)
             self._release_step()
         out = q_in
+        wrenches = cycle.store[WRENCHES] if self.mode == "on" else {}
         for h in self.hands:
             if self.mode == "on":
-                wrench_S = state.ft.get(h.sensor)
+                wrench_S = wrenches.get(h.sensor)
                 if wrench_S is None:
                     wrench_S = np.zeros(6)
                 if not all_finite(wrench_S):

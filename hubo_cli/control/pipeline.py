@@ -194,6 +194,11 @@ class SafetyProfile:
             file's ``[impedance]`` gains; off by default.
         tracker_sync: within each of ``otg``'s trackers, ``phase`` (the joints arrive together
             on a straight line in joint space) or ``none`` (each joint time-optimal).
+        limit_set: the robot file's joint-limit set the limiter enforces (``table4``, the
+            paper's, or e.g. ``walking``, whose legs are fast enough to step and to bow the
+            trunk); None: the set the run's model was loaded with. Where a use case needs a
+            set (the standing experiment's hip strategy or stepping) it names it here, and
+            :class:`~hubo_cli.session.RunSetup` refuses a model that carries another.
     """
 
     estop: bool = True
@@ -211,6 +216,7 @@ class SafetyProfile:
     impedance: bool = False
     removed: tuple[str, ...] = ()
     removed_by: str = ""
+    limit_set: str | None = None
 
     def __post_init__(self) -> None:
         if self.balance_mode not in BALANCE_MODES:

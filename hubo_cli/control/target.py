@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hubo_cli.dataflow import Key
+from hubo_cli.dataflow import Key, Store
 from hubo_cli.state import RobotState
 
 if TYPE_CHECKING:
@@ -27,23 +27,27 @@ class Target(ABC):
         robot_flags: the flags of the robot's latest state (set by the loop every period;
             the live view shows the driver's, e.g. ``stale-state``).
         name: the target's name in flow errors.
-        reads: the store keys it reads (the estimate's; checked when the loop is built).
+        reads, writes, follows: the store keys it reads (the estimate's), writes (for the
+            modules) and reads when written (checked when the loop is built).
     """
 
     name = "target"
     log_columns: tuple[str, ...] = ()
     reads: tuple[Key, ...] = ()
     writes: tuple[Key, ...] = ()
+    follows: tuple[Key, ...] = ()
     robot_flags: tuple[str, ...] = ()
 
     @abstractmethod
     def __call__(self, t_s: float, state: RobotState) -> TargetOutput:
         """The joint target for the period starting at ``t_s`` (rad; None = hold) and info."""
 
-    def attach(self, world: SimulatedWorld | None, modules: Sequence[Module]) -> None:
+    def attach(self, world: SimulatedWorld | None, modules: Sequence[Module],
+               store: Store) -> None:
         """Called once the robot has started, before the first period: the simulator's world
-        (to place a scene in, to push; None on a real robot) and the pipeline that will run
-        (to watch a stopper)."""
+        (to place a scene in, to push; None on a real robot; never to read its truth), the
+        pipeline that will run (to watch a stopper) and the run's store (the estimate: the
+        keys in :attr:`reads`, read each period)."""
 
 
 class FunctionTarget(Target):

@@ -19,12 +19,14 @@ class Observer(ABC):
     Attributes:
         name: the observer's name (in errors and the bench).
         reads: store keys it reads (written by earlier observers).
+        follows: keys it reads when an earlier stage writes them (none so far).
         writes: store keys it writes every period, including the first.
     """
 
     name = "observer"
     reads: tuple[Key, ...] = ()
     writes: tuple[Key, ...] = ()
+    follows: tuple[Key, ...] = ()
 
     def reset(self, state: RobotState, store: Store) -> None:
         """Start from the robot's first state: called before the first period (and again when

@@ -48,16 +48,21 @@ import numpy as np
 from hubo_cli.control.collision import SelfCollisionChecker
 from hubo_cli.control.estop import EmergencyStopper
 from hubo_cli.control.pipeline import SafetyProfile
+from hubo_cli.dataflow import Store
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.errors import ConfigError, InputError
+from hubo_cli.estimation.keys import T_WORLD_TORSO, WRENCHES
 from hubo_cli.experiments.push_wall import ARM_START_RAD, hand_box_extent_m
 from hubo_cli.experiments.watch import WatchedTarget
 from hubo_cli.geometry import min_jerk
 from hubo_cli.hinged_objects import DOOR_OPENS, Door, Valve
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
+from hubo_cli.pin_robot import load_pin_robot
 from hubo_cli.posture import home_posture
+from hubo_cli.scene import robot_offset_world_m
 from hubo_cli.session import RunObserver, RunResult, RunSetup, run
+from hubo_cli.state import R_HAND_WRIST_SENSOR
 
 KINDS = ("turn-valve", "push-door")
 ARM = "right-arm"
@@ -248,6 +253,7 @@ class ManipulationTargets(WatchedTarget):
         ConfigError: a pose of the plan has no exact IK solution (nothing moved).
     """
 
+    reads = (*WatchedTarget.reads, WRENCHES)
     log_columns = ("hand_fx_n", "hand_fy_n", "hand_fz_n", "hand_force_n", "object_angle_deg",
                    "holding_flag", "arm_torque_ratio", "tilt_deg", "torso_z_m", "sole_lift_m",
                    "segment_code")
@@ -272,7 +278,7 @@ class ManipulationTargets(WatchedTarget):
         self.duration_s = float(self.ends_s[-1])
         self.q_prev = q_start[self.slice].copy()
         self._check_reach()
-        self._effort = _arm_effort(self.robot, model)
+        self._effort = _arm_effort(load_pin_robot(model), model)
         self.grasp_miss_m: float | None = None  # the rim's distance at the last try (m)
         self.grasped_at_s: float | None = None
         self.placed: dict = {}
@@ -325,14 +331,15 @@ class ManipulationTargets(WatchedTarget):
                     hint="the scene constants in hubo_cli/experiments/manipulation.py were "
                          "chosen for the arm's reach; keep turn_deg and door_deg in range")
 
-    def attach(self, world: SimulatedWorld | None, modules) -> None:
+    def attach(self, world: SimulatedWorld | None, modules, store: Store) -> None:
         if world is None:
             raise ConfigError(f"the {self.spec.kind} experiment needs the simulator",
                               hint="run it with the sim driver")
+        super().attach(world, modules, store)
         self.world = world
         self.stopper = next((m for m in modules if isinstance(m, EmergencyStopper)), None)
         # N -> world: the hand's start point as the physics has it (the robot's settled lean)
-        shift = world.frame_pose(HAND)[:3, 3] - self.T_start[:3, 3]
+        shift = robot_offset_world_m(world, HAND, self.T_start)
         if isinstance(self.seen, Valve):
             true_centre = np.asarray(self.seen.centre_world_m) + shift - self.spec.seen_offset_m
             valve = replace(self.seen, centre_world_m=tuple(float(v) for v in true_centre))
@@ -353,7 +360,7 @@ class ManipulationTargets(WatchedTarget):
     def __call__(self, t_s: float, state):
         tilt_deg, z = self.watch(t_s, state)
         k, T = self.goal(t_s)
-        stopped = self.stopper is not None and self.stopper.stopped
+        stopped = self.stopper is not None and self.stopper.status().mode != "release"
         if self.segments[k].grasp and not self.world.holding(HAND) and not stopped:
             self.grasp_miss_m = self.world.grasp(HAND, "valve", self.clearance_m + GRIP_REACH_M)
             if self.world.holding(HAND):
@@ -362,7 +369,10 @@ class ManipulationTargets(WatchedTarget):
         self.q_prev = result.q_rad
         q = self.q_start.copy()
         q[self.slice] = result.q_rad
-        force = self.world.frame_pose(HAND)[:3, :3] @ state.ft[WRIST][:3]
+        # the compensated wrist force (hubo's sensor measures f_z, along the forearm) turned
+        # into the world by the estimated torso and the arm's kinematics
+        R_world_hand = self.store[T_WORLD_TORSO][:3, :3] @ self.limb.fk(result.q_rad)[:3, :3]
+        force = R_world_hand @ R_HAND_WRIST_SENSOR @ self.store[WRENCHES][WRIST][:3]
         magnitude = float(np.linalg.norm(force))
         self.max_force_n = max(self.max_force_n, magnitude)
         ratio = float(np.max(np.abs(state.tau_nm[self.slice]) / self._effort))

@@ -30,13 +30,14 @@ from hubo_cli.control.estop import EmergencyStopper
 from hubo_cli.control.log import LogData
 from hubo_cli.control.loop import LoopResult
 from hubo_cli.control.pipeline import SafetyProfile
+from hubo_cli.dataflow import Store
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.errors import ConfigError, InputError
 from hubo_cli.experiments.watch import TIP_LIFT_M, WatchedTarget
 from hubo_cli.falls import FALL_TILT_DEG
 from hubo_cli.geometry import min_jerk
 from hubo_cli.kinematics.limb import Limb
-from hubo_cli.model import RobotModel
+from hubo_cli.model import LEGS, RobotModel
 from hubo_cli.pin_robot import load_pin_robot
 from hubo_cli.posture import home_posture
 from hubo_cli.session import RunObserver, RunResult, RunSetup, run
@@ -123,6 +124,7 @@ class PushTargets(WatchedTarget):
     robot stands it places the obstacle (:meth:`attach`).
     """
 
+    name = "push-wall"
     log_columns = ("push_offset_m", "tilt_deg", "torso_z_m", "sole_lift_m")
 
     def __init__(self, model: RobotModel, spec: PushSpec, q_start: np.ndarray) -> None:
@@ -137,10 +139,11 @@ class PushTargets(WatchedTarget):
         self.ik_status: dict[str, int] = {}
         self.obstacle: dict = {}
 
-    def attach(self, world: SimulatedWorld | None, modules) -> None:
+    def attach(self, world: SimulatedWorld | None, modules, store: Store) -> None:
         if world is None:
             raise ConfigError("the push-wall experiment needs the simulator",
                               hint="run it with the sim driver")
+        super().attach(world, modules, store)
         self.obstacle = _place_obstacle(world, self.model, self.spec, self.q_start)
 
     def __call__(self, t_s: float, state):
@@ -162,13 +165,14 @@ class PushTargets(WatchedTarget):
 
 def _place_obstacle(world: SimulatedWorld, model: RobotModel, spec: PushSpec,
                     q_start: np.ndarray) -> dict:
-    """A wall in front of both hands, or a block on the left of the left hand (world frame)."""
-    neck_height_m = float(world.frame_pose("torso")[2, 3])
+    """A wall in front of both hands, or a block on the left of the left hand (world frame:
+    the robot as the simulator sets it down in ``q_start``, its neck over the origin, the
+    lower sole on the floor)."""
+    neck_height_m = -min(float(Limb(model, leg).fk(q_start[model.limb_slice(leg)])[2, 3])
+                         for leg in LEGS)
     arm = spec.arms[0]
     box = hand_box_extent_m(model, q_start, arm)
-    frame = "right_hand" if arm == "right-arm" else "left_hand"
-    T_neck_hand = Limb(model, arm, "hand").fk(q_start[model.limb_slice(arm)])
-    offset = world.frame_pose(frame)[:3, 3] - T_neck_hand[:3, 3]  # neck frame -> world
+    offset = np.array([0.0, 0.0, neck_height_m])  # neck frame -> world
     lo, hi = box[0] + offset, box[1] + offset
     if spec.direction == "forward":
         distance_m = float(hi[0] + spec.wall_gap_m)

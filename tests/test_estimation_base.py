@@ -1,0 +1,122 @@
+"""The floating base's anchor on hand-made sensor readings (no simulator): a sole rolling onto
+its toe turns about the toe, a lifting foot still in contact hands the anchor to the loaded
+one, a sole twisting on its edge turns the estimate with the gyro, and a robot standing on two
+soles does not turn with the gyro's bias."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from hubo_cli.dataflow import Store
+from hubo_cli.estimation.base import FloatingBase
+from hubo_cli.estimation.keys import (
+    CONTACT,
+    QUAT_WORLD_TORSO,
+    T_WORLD_SOLES,
+    T_WORLD_TORSO,
+    WRENCHES,
+)
+from hubo_cli.posture import home_posture
+from hubo_cli.state import FT_SENSORS, RobotState
+
+DT = 0.005
+
+
+def wrench(fz_n: float, cop_x_m: float = 0.0, cop_y_m: float = 0.0) -> np.ndarray:
+    """The floor's wrench on a sole pressing ``fz_n`` at (cop_x_m, cop_y_m) of its frame."""
+    return np.array([0.0, 0.0, fz_n, fz_n * cop_y_m, -fz_n * cop_x_m, 0.0])
+
+
+def quat_about(axis: str, angle_rad: float) -> np.ndarray:
+    q = np.array([math.cos(angle_rad / 2), 0.0, 0.0, 0.0])
+    q["xyz".index(axis) + 1] = math.sin(angle_rad / 2)
+    return q
+
+
+def step(base: FloatingBase, store: Store, q_rad, quat, right, left, contact,
+         gyro=(0.0, 0.0, 0.0)) -> None:
+    store[QUAT_WORLD_TORSO] = np.asarray(quat, dtype=float)
+    store[WRENCHES] = {name: np.zeros(6) for name in FT_SENSORS} | {
+        "right-ankle": right, "left-ankle": left}
+    store[CONTACT] = contact
+    base.update(RobotState(0.0, q_rad, np.zeros_like(q_rad), imu_gyro_rad_s=np.array(gyro)),
+                store)
+
+
+def started(model, q_rad, right, left) -> tuple[FloatingBase, Store]:
+    base, store = FloatingBase(model), Store()
+    store[QUAT_WORLD_TORSO] = np.array([1.0, 0.0, 0.0, 0.0])
+    store[WRENCHES] = {name: np.zeros(6) for name in FT_SENSORS} | {
+        "right-ankle": right, "left-ankle": left}
+    store[CONTACT] = (True, True)
+    base.reset(RobotState(0.0, q_rad, np.zeros_like(q_rad)), store)
+    return base, store
+
+
+def test_a_sole_rolling_onto_its_toe_turns_about_the_toe(model):
+    """The robot pitched forward rigidly by 5 deg about the right toe (the joints as they
+    were, the left foot up): the estimated right sole keeps its toe edge on the floor and its
+    middle rises by the toe's distance times sin 5 deg (the former estimate held the middle on
+    the floor and put the torso 9 mm low)."""
+    q = home_posture(model)
+    toe_m = float(model.feet.sole_corners_m()[:, 0].max())
+    base, store = started(model, q, wrench(300.0), wrench(80.0))
+    for _ in range(5):  # the centre of pressure moves to the toe, the sole still flat
+        step(base, store, q, (1.0, 0.0, 0.0, 0.0), wrench(380.0, toe_m), wrench(0.0),
+             (True, False))
+    flat = store[T_WORLD_SOLES][0].copy()
+    angle = math.radians(5.0)
+    step(base, store, q, quat_about("y", angle), wrench(380.0, toe_m), wrench(0.0),
+         (True, False))
+    sole = store[T_WORLD_SOLES][0]
+    toe = np.array([toe_m, 0.0, 0.0, 1.0])
+    np.testing.assert_allclose(sole @ toe, flat @ toe, atol=1e-9)
+    assert sole[2, 3] - flat[2, 3] == pytest.approx(toe_m * math.sin(angle), abs=1e-9)
+
+
+def test_a_lifting_foot_still_in_contact_hands_the_anchor_to_the_loaded_one(model):
+    """The left sole anchors the start (the more loaded); then it unloads while the contact's
+    debounce still counts it down, and its leg bends: the torso stays where the right sole,
+    now carrying the robot, holds it, and the left sole rises in the estimate."""
+    q = home_posture(model)
+    base, store = started(model, q, wrench(150.0), wrench(230.0))
+    assert base.anchor == 1
+    torso = store[T_WORLD_TORSO].copy()
+    step(base, store, q, (1.0, 0.0, 0.0, 0.0), wrench(380.0), wrench(0.0), (True, True))
+    assert base.anchor == 0
+    lifted = q.copy()
+    names = list(model.joint_names)
+    lifted[names.index("LKN")] += 0.3
+    lifted[names.index("LHP")] -= 0.15
+    step(base, store, lifted, (1.0, 0.0, 0.0, 0.0), wrench(380.0), wrench(0.0), (True, True))
+    np.testing.assert_allclose(store[T_WORLD_TORSO], torso, atol=1e-9)
+    assert store[T_WORLD_SOLES][1][2, 3] > 0.01
+
+
+def test_a_sole_twisting_on_its_edge_turns_the_estimate_a_standing_robot_does_not(model):
+    """On the right toe alone the gyro reads 0.2 rad/s of yaw for 0.25 s, the legs none: the
+    estimate turns about the toe by about that (the turn fades over HEADING_TAU_S). Standing
+    on both soles, a gyro reading only its bias (0.5 deg/s) for 2 s does not turn it."""
+    q = home_posture(model)
+    toe_m = float(model.feet.sole_corners_m()[:, 0].max())
+    base, store = started(model, q, wrench(190.0), wrench(190.0))
+    heading0 = math.atan2(store[T_WORLD_TORSO][1, 0], store[T_WORLD_TORSO][0, 0])
+    for _ in range(400):
+        step(base, store, q, (1.0, 0.0, 0.0, 0.0), wrench(190.0), wrench(190.0), (True, True),
+             gyro=(0.0, 0.0, math.radians(0.5)))
+    heading = math.atan2(store[T_WORLD_TORSO][1, 0], store[T_WORLD_TORSO][0, 0])
+    assert heading == pytest.approx(heading0, abs=1e-12)
+    for _ in range(2):
+        step(base, store, q, (1.0, 0.0, 0.0, 0.0), wrench(380.0, toe_m), wrench(0.0),
+             (True, False))
+    toe = store[T_WORLD_SOLES][0] @ np.array([toe_m, 0.0, 0.0, 1.0])
+    for _ in range(50):
+        step(base, store, q, (1.0, 0.0, 0.0, 0.0), wrench(380.0, toe_m), wrench(0.0),
+             (True, False), gyro=(0.0, 0.0, 0.2 + math.radians(0.5)))
+    turned = math.atan2(store[T_WORLD_TORSO][1, 0], store[T_WORLD_TORSO][0, 0]) - heading
+    assert 0.8 * 0.05 < turned <= 0.05  # 0.2 rad/s for 0.25 s, less the fade
+    np.testing.assert_allclose(store[T_WORLD_SOLES][0] @ np.array([toe_m, 0.0, 0.0, 1.0]),
+                               toe, atol=1e-9)
