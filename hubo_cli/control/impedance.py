@@ -19,9 +19,23 @@ So a step of force is followed exactly at every period and a ramp to within its 
 stability limit on dt as with Euler. With no force (u = 0 and s = 0) s stays exactly 0 and the
 command passes through unchanged, bit for bit: the hand tracks its reference exactly.
 
-Force input: ``state.ft["right-wrist"]`` / ``["left-wrist"]``, the wrench the environment
-applies to the hand in the sensor frame S, which :class:`~hubo_cli.state.RobotState` defines
-as the hand frame (``T_hand_sensor`` = identity; another mounting is one argument). It is
+Force setpoint: with ``reference`` (a store key, :data:`~hubo_cli.control.wrench.HAND_WRENCH_REF`)
+F_ref is read from the per-period store every period (a task step's thrust, reverted by the
+emergency stopper with the motion); else :meth:`set_reference_wrench` sets it. With a nonzero
+reference force and ``force_tracking_m_per_n_s`` > 0 the spring's centre c moves along that
+force's direction d at ``force_tracking_m_per_n_s ((F_N - F_ref) . d)`` (m/s): the spring
+still yields at once, and the centre creeps until the measured force along d equals the
+reference, wherever the surface is (a wall nearer or farther than planned). In free air it
+advances at ``|F_ref| force_tracking_m_per_n_s``, toward the surface. The centre is part of the
+offset (eq. 3 with K (x - c)), clamped with it, and decays back to zero (time constant
+``release_s``) once the reference force is zero. ``axes`` leaves some axes stiff: the input on
+the others is dropped (the drill yields along its bit only, and tracks the path across it).
+
+Force input: ``state.ft["right-wrist"]`` / ``["left-wrist"]`` (read through
+:func:`~hubo_cli.control.wrench.measured_hand_wrench`, the one place it is read), the wrench
+the environment applies to the hand in the sensor frame S, which
+:class:`~hubo_cli.state.RobotState` defines as the hand frame (``T_hand_sensor`` = identity;
+another mounting is one argument). It is
 moved to the hand origin in hand axes (f_H = R_HS f_S, m_H = R_HS m_S + p_HS x f_H), then
 turned into N by the hand's measured orientation (forward kinematics of the measured joints).
 The reading is taken as given: the estimation layer that removes the tool's weight and the
@@ -63,6 +77,13 @@ import numpy as np
 import scipy.linalg
 
 from hubo_cli.control.module import Cycle, Module
+from hubo_cli.control.wrench import (
+    MEASURED_WRENCH_READS,
+    WRENCH_AXES,
+    measured_hand_wrench,
+    wrench_of,
+)
+from hubo_cli.dataflow import Key
 from hubo_cli.errors import ConfigError
 from hubo_cli.geometry import min_jerk
 from hubo_cli.kinematics.choice import EXACT, solve_limb
@@ -130,9 +151,10 @@ def _check_gains(M, D, K) -> None:
 
 
 @nb.njit(**JIT)
-def advance(s, Ad, Bd, wrench_S, T_H_S, R_N_H, wrench_ref_N, s_next) -> None:
-    """s_next = A_d s + B_d (F_N - F_ref_N), with F_N the sensor's wrench moved to the hand
-    origin (f_H = R_HS f_S, m_H = R_HS m_S + p_HS x f_H) and turned into N axes."""
+def advance(s, Ad, Bd, wrench_S, T_H_S, R_N_H, wrench_ref_N, mask, s_next) -> None:
+    """s_next = A_d s + B_d u, u = mask (F_N - F_ref_N), with F_N the sensor's wrench moved to
+    the hand origin (f_H = R_HS f_S, m_H = R_HS m_S + p_HS x f_H) and turned into N axes, and
+    ``mask`` 1 on the axes that yield, 0 on the stiff ones."""
     f_H = np.empty(3)
     m_H = np.empty(3)
     for i in range(3):
@@ -145,9 +167,9 @@ def advance(s, Ad, Bd, wrench_S, T_H_S, R_N_H, wrench_ref_N, s_next) -> None:
     u = np.empty(6)
     for i in range(3):
         u[i] = (R_N_H[i, 0] * f_H[0] + R_N_H[i, 1] * f_H[1] + R_N_H[i, 2] * f_H[2]
-                - wrench_ref_N[i])
+                - wrench_ref_N[i]) * mask[i]
         u[3 + i] = (R_N_H[i, 0] * m_H[0] + R_N_H[i, 1] * m_H[1] + R_N_H[i, 2] * m_H[2]
-                    - wrench_ref_N[3 + i])
+                    - wrench_ref_N[3 + i]) * mask[3 + i]
     for r in range(12):
         acc = 0.0
         for c in range(12):
@@ -247,6 +269,8 @@ class _Hand:
         self.s = np.zeros(12)
         self.s_next = np.zeros(12)
         self.wrench_ref_N = np.zeros(6)
+        self.wrench_ref_eff_N = np.zeros(6)  # F_ref - K [c, 0]: the spring centred on c
+        self.centre_m = np.zeros(3)  # the force tracking's spring centre c (N axes, m)
         self.dq_rad = np.zeros(6)
         self.x_good = np.zeros(6)  # the offset dq_rad reaches
         self.T_N_H = np.empty((4, 4))
@@ -255,6 +279,8 @@ class _Hand:
         side = arm.split("-")[0]
         self.offset_column = f"impedance_{side}_offset_m"
         self.rotation_column = f"impedance_{side}_rotation_rad"
+        self.force_ref_columns = tuple(f"impedance_{side}_force_ref_{a}_n" for a in "xyz")
+        self.centre_column = f"impedance_{side}_centre_m"
 
 
 class ImpedanceController(Module):
@@ -270,11 +296,19 @@ class ImpedanceController(Module):
         arms: the hands it acts on (default both).
         T_hand_sensor: the wrist sensor's frame in the hand frame (4x4, m).
         active: start switched on (True) or off.
+        reference: the store key of the reference wrenches (arm -> 6-vector; read every
+            period), or None: :meth:`set_reference_wrench` sets them.
+        axes: the axes that yield (of ``x y z rx ry rz``, neck-frame axes); the input on the
+            others is dropped. Default all.
+        force_tracking_m_per_n_s: how fast the spring's centre moves per newton of force error
+            along a nonzero reference force (m/s per N; 0: never); None: the robot file's.
 
     Flags: ``impedance-limit`` (an offset clamped), ``impedance-bad-wrench`` (a non-finite
     reading: offset held), ``impedance-unreachable`` (joint offset held), ``impedance-release``.
     Info: ``impedance_mode_code`` (0 on, 1 release, 2 off) and per hand
-    ``impedance_<side>_offset_m`` and ``impedance_<side>_rotation_rad`` (norms of x).
+    ``impedance_<side>_offset_m`` and ``impedance_<side>_rotation_rad`` (norms of x),
+    ``impedance_<side>_force_ref_{x,y,z}_n`` (the reference force used, N axes) and
+    ``impedance_<side>_centre_m`` (how far force tracking moved the spring's centre).
     """
 
     name = "impedance"
@@ -282,7 +316,9 @@ class ImpedanceController(Module):
     def __init__(self, model: RobotModel, dt_s: float, M=None, D=None, K=None,
                  max_offset_m: float | None = None, max_rotation_rad: float | None = None,
                  release_s: float | None = None, arms: tuple[str, ...] = ARMS,
-                 T_hand_sensor: np.ndarray = T_HAND_SENSOR, active: bool = True) -> None:
+                 T_hand_sensor: np.ndarray = T_HAND_SENSOR, active: bool = True,
+                 reference: Key | None = None, axes: tuple[str, ...] = WRENCH_AXES,
+                 force_tracking_m_per_n_s: float | None = None) -> None:
         raw = model.raw_impedance
         defaults = default_gains(model) if M is None or D is None or K is None else {}
         self.M, self.D, self.K = (
@@ -295,12 +331,26 @@ class ImpedanceController(Module):
             self.max_rotation_rad = float(raw["max_rotation_rad"] if max_rotation_rad is None
                                           else max_rotation_rad)
             self.release_s = float(raw["release_s"] if release_s is None else release_s)
+            self.force_tracking_m_per_n_s = float(
+                raw["force_tracking_m_per_n_s"] if force_tracking_m_per_n_s is None
+                else force_tracking_m_per_n_s)
         except (KeyError, TypeError, ValueError) as exc:
-            raise ConfigError("[impedance] needs numbers max_offset_m, max_rotation_rad and "
-                              "release_s", path=str(model.source), hint=str(exc)) from None
+            raise ConfigError("[impedance] needs numbers max_offset_m, max_rotation_rad, "
+                              "release_s and force_tracking_m_per_n_s", path=str(model.source),
+                              hint=str(exc)) from None
         if not (self.max_offset_m >= 0 and self.max_rotation_rad >= 0 and self.release_s >= 0
-                and math.isfinite(self.max_offset_m + self.max_rotation_rad + self.release_s)):
-            raise ConfigError("impedance limits and release time must be finite and >= 0")
+                and self.force_tracking_m_per_n_s >= 0
+                and math.isfinite(self.max_offset_m + self.max_rotation_rad + self.release_s
+                                  + self.force_tracking_m_per_n_s)):
+            raise ConfigError("impedance limits, release time and force tracking rate must be "
+                              "finite and >= 0")
+        unknown_axes = [a for a in axes if a not in WRENCH_AXES]
+        if unknown_axes:
+            raise ConfigError(f"impedance on unknown axis {unknown_axes[0]!r}",
+                              hint=f"use some of {' '.join(WRENCH_AXES)}")
+        self.axes_mask = np.array([a in axes for a in WRENCH_AXES], dtype=float)
+        self.reference = reference
+        self.reads = MEASURED_WRENCH_READS + (() if reference is None else (reference,))
         unknown = [a for a in arms if a not in HAND_SENSORS]
         if unknown:
             raise ConfigError(f"impedance on unknown arm {unknown[0]!r}",
@@ -311,7 +361,8 @@ class ImpedanceController(Module):
         self.hands = [_Hand(model, arm, self.dt_s) for arm in arms]
         self._initially_active = active
         self.log_columns = ("impedance_mode_code",) + tuple(
-            c for h in self.hands for c in (h.offset_column, h.rotation_column))
+            c for h in self.hands for c in (h.offset_column, h.rotation_column,
+                                             *h.force_ref_columns, h.centre_column))
         self._last_in = np.zeros(len(model.joint_names))
         self._clear()
         self._warm_up()
@@ -325,6 +376,7 @@ class ImpedanceController(Module):
             for h in self.hands:
                 h.release_from = h.s[:6].copy()
                 h.dq_release_rad = h.dq_rad.copy()
+                h.centre_m[:] = 0.0
 
     def switch_on(self) -> None:
         """Resume eq. 3 from the current offset (and its rate while blending back)."""
@@ -340,6 +392,7 @@ class ImpedanceController(Module):
         for h in self.hands:
             if h.arm == arm:
                 h.wrench_ref_N[:] = w
+                h.wrench_ref_eff_N[:] = w
                 return
         raise ConfigError(f"no impedance on {arm!r}",
                           hint=f"it acts on {', '.join(h.arm for h in self.hands)}")
@@ -356,6 +409,8 @@ class ImpedanceController(Module):
             h.s[:] = 0.0
             h.dq_rad[:] = 0.0
             h.x_good[:] = 0.0
+            h.centre_m[:] = 0.0
+            h.wrench_ref_eff_N[:] = h.wrench_ref_N
 
     def _warm_up(self) -> None:
         """Compile the kernels now, not in a control period."""
@@ -363,7 +418,7 @@ class ImpedanceController(Module):
         scratch = h.s.copy()
         chain_fk(np.zeros(6), *h.fk_chain, h.T_N_H)
         advance(scratch, self.Ad, self.Bd, np.zeros(6), self.T_hand_sensor, h.T_N_H[:3, :3],
-                h.wrench_ref_N, h.s_next)
+                h.wrench_ref_N, self.axes_mask, h.s_next)
         clamp_offset(scratch, 1.0, 1.0)
         offset_joints(np.zeros(6), *h.ik, np.zeros(6), np.zeros(6))
         all_finite(scratch)
@@ -391,6 +446,28 @@ class ImpedanceController(Module):
                 h.s[:] = 0.0
                 h.dq_rad[:] = 0.0
 
+    def _track_force(self, h: _Hand, wrench_S: np.ndarray) -> None:
+        """Move the spring's centre c along the reference force (see the module docstring) and
+        set the input's reference to F_ref - K [c, 0]. Called with a finite reading after
+        ``h.T_N_H`` holds the measured hand pose."""
+        f_ref = h.wrench_ref_N[:3]
+        size = math.sqrt(float(f_ref @ f_ref))
+        if size > 0.0 and self.force_tracking_m_per_n_s > 0.0:
+            d = f_ref / size
+            f_N = h.T_N_H[:3, :3] @ (self.T_hand_sensor[:3, :3] @ wrench_S[:3])
+            step = self.force_tracking_m_per_n_s * self.dt_s * float((f_N - f_ref) @ d)
+            h.centre_m += step * d * self.axes_mask[:3]
+            n = math.sqrt(float(h.centre_m @ h.centre_m))
+            if n > self.max_offset_m:
+                h.centre_m *= self.max_offset_m / n
+        elif h.centre_m.any():  # no reference force: the centre decays back to zero
+            h.centre_m *= max(0.0, 1.0 - self.dt_s / max(self.release_s, self.dt_s))
+            if math.sqrt(float(h.centre_m @ h.centre_m)) < 1e-9:
+                h.centre_m[:] = 0.0
+        h.wrench_ref_eff_N[:] = h.wrench_ref_N
+        if h.centre_m.any():
+            h.wrench_ref_eff_N -= self.K[:, :3] @ h.centre_m
+
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         q_in = np.empty(self._last_in.shape[0])
         hold_nan(np.ascontiguousarray(q_rad, dtype=float), self._last_in, q_in)
@@ -399,9 +476,13 @@ class ImpedanceController(Module):
             cycle.flags.add(RELEASE_FLAG)
             self._release_step()
         out = q_in
+        references = None if self.reference is None else cycle.store.get(self.reference)
         for h in self.hands:
+            if self.reference is not None:
+                w = wrench_of(references, h.arm)
+                h.wrench_ref_N[:] = 0.0 if w is None else w
             if self.mode == "on":
-                wrench_S = state.ft.get(h.sensor)
+                wrench_S = measured_hand_wrench(state, cycle.store, h.sensor)
                 if wrench_S is None:
                     wrench_S = np.zeros(6)
                 if not all_finite(wrench_S):
@@ -411,8 +492,9 @@ class ImpedanceController(Module):
                     if not all_finite(q_hand):
                         q_hand = q_in[h.slice]
                     chain_fk(q_hand, *h.fk_chain, h.T_N_H)
+                    self._track_force(h, wrench_S)
                     advance(h.s, self.Ad, self.Bd, wrench_S, self.T_hand_sensor,
-                            h.T_N_H[:3, :3], h.wrench_ref_N, h.s_next)
+                            h.T_N_H[:3, :3], h.wrench_ref_eff_N, self.axes_mask, h.s_next)
                     if all_finite(h.s_next):  # else (overflow) the offset is held
                         h.s, h.s_next = h.s_next, h.s
                     else:
@@ -422,6 +504,9 @@ class ImpedanceController(Module):
             x = h.s[:6]
             cycle.info[h.offset_column] = float(np.linalg.norm(x[:3]))
             cycle.info[h.rotation_column] = float(np.linalg.norm(x[3:]))
+            for column, value in zip(h.force_ref_columns, h.wrench_ref_N[:3], strict=True):
+                cycle.info[column] = float(value)
+            cycle.info[h.centre_column] = float(np.linalg.norm(h.centre_m))
             if not x.any():
                 h.dq_rad[:] = 0.0
                 h.x_good[:] = 0.0

@@ -186,6 +186,7 @@ class ControlLoop:
                     hint="build the pipeline with the driver's period (driver.period_s)")
         self.estimator = estimator
         self.store = estimator.store if estimator is not None else Store()
+        self.target.store = self.store
         check_flow([self.target, *self.modules],
                    provided=estimator.writes if estimator is not None else ())
         self.clock = clock

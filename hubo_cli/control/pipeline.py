@@ -29,8 +29,9 @@ from hubo_cli.control.balance import BALANCE_MODES
 from hubo_cli.control.estop import SOFT_SOURCES
 from hubo_cli.control.module import Module
 from hubo_cli.control.stop_choice import ActiveStops
+from hubo_cli.control.wrench import HAND_WRENCH_PLAN, HAND_WRENCH_REF, WRENCH_AXES
 from hubo_cli.errors import ConfigError
-from hubo_cli.model import RobotModel
+from hubo_cli.model import ARMS, RobotModel
 
 BALANCE_CHOICES = (*BALANCE_MODES, "off")  # ``--balance``: a balancer's mode, or none
 DEFAULT_ORDER = ("otg", "capture-point", "estop", "balance", "collision", "hard-estop",
@@ -194,6 +195,11 @@ class SafetyProfile:
             file's ``[impedance]`` gains; off by default.
         tracker_sync: within each of ``otg``'s trackers, ``phase`` (the joints arrive together
             on a straight line in joint space) or ``none`` (each joint time-optimal).
+        wrench_reference: the target writes hand wrench references
+            (:mod:`hubo_cli.control.wrench`): the soft stopper reverts them with the motion and
+            the impedance controller (if on) takes them as its force setpoint.
+        impedance_arms, impedance_axes: the hands the impedance controller acts on and the
+            axes they yield along (neck-frame ``x y z rx ry rz``).
     """
 
     estop: bool = True
@@ -209,6 +215,9 @@ class SafetyProfile:
     tracker_groups: str = "body"
     tracker_sync: str = "phase"
     impedance: bool = False
+    wrench_reference: bool = False
+    impedance_arms: tuple[str, ...] = ARMS
+    impedance_axes: tuple[str, ...] = WRENCH_AXES
     removed: tuple[str, ...] = ()
     removed_by: str = ""
 
@@ -280,11 +289,17 @@ class SafetyProfile:
     def options(self, tools: Mapping[str, str]) -> dict[str, dict]:
         """Per-module options for a robot holding ``tools`` (arm -> tool)."""
         drill = tools.get("right-arm") == "drill"
+        reference = None
+        if self.wrench_reference:
+            reference = HAND_WRENCH_REF if self.estop else HAND_WRENCH_PLAN
         return {
             "otg": {"groups": self.tracker_groups, "synchronization": self.tracker_sync},
             "estop": {"sources": tuple(self.sources), "revert_s": self.revert_s,
                       "stop_s": self.stop_s,
-                      "wrist_torque_limit_nm": self.wrist_torque_limit_nm},
+                      "wrist_torque_limit_nm": self.wrist_torque_limit_nm,
+                      "wrench_reference": self.wrench_reference},
+            "impedance": {"reference": reference, "arms": tuple(self.impedance_arms),
+                          "axes": tuple(self.impedance_axes)},
             "capture-point": {"request_estop": self.estop, "drill": drill},
             "collision": {"drill": drill},
             "balance": {"mode": self.balance_mode, "drill": drill},

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hubo_cli.dataflow import Key
+from hubo_cli.dataflow import Key, Store
 from hubo_cli.state import RobotState
 
 if TYPE_CHECKING:
@@ -28,9 +28,13 @@ class Target(ABC):
             the live view shows the driver's, e.g. ``stale-state``).
         name: the target's name in flow errors.
         reads: the store keys it reads (the estimate's; checked when the loop is built).
+        writes: the store keys it writes every period (e.g. hand wrench references).
+        store: the run's per-period store (set by the loop when it is built; a target reads
+            and writes only the keys it declares).
     """
 
     name = "target"
+    store: Store | None = None
     log_columns: tuple[str, ...] = ()
     reads: tuple[Key, ...] = ()
     writes: tuple[Key, ...] = ()

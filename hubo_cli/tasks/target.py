@@ -29,6 +29,15 @@ it keeps the commanded and measured tool positions and the wrist torque, with th
 belong to. The world positions are taken relative to where the tool stood when the wall was
 placed, so they trace the hole as it is cut into the wall (the body's sway and any change of
 its lean included).
+
+A plan with a thrust (:attr:`Plan.has_force`) runs under force control: every period the target
+writes the plan's hand force, turned into the measured neck frame, as the hand wrench
+reference (:data:`~hubo_cli.control.wrench.HAND_WRENCH_PLAN`; the emergency stopper reverts it,
+the ImpedanceController presses with it), logs it with the measured thrust, and lets the
+waist lean into the force the hand really meets: a
+:class:`~hubo_cli.control.reference_force.ReferenceForceUpdater` follows the measured force
+along the bit, and the legs take the plan's CoM shift moved by eq. 6's slope
+(:attr:`Placement.shift_per_force_m_n`) times its difference from the plan's force.
 """
 
 from __future__ import annotations
@@ -40,9 +49,13 @@ import numpy as np
 
 from hubo_cli.control.estop import EmergencyStopper, wrist_torque_nm
 from hubo_cli.control.module import Module
+from hubo_cli.control.reference_force import ReferenceForceUpdater
 from hubo_cli.control.target import Target
+from hubo_cli.control.wrench import HAND_WRENCH_PLAN, MEASURED_WRENCH_READS, measured_hand_wrench
 from hubo_cli.drivers.base import SimulatedWorld
+from hubo_cli.kinematics.limb import Limb
 from hubo_cli.kinematics.torso import TorsoCorrection, TorsoEstimator
+from hubo_cli.kinematics.wholebody import MAX_SHIFT_M
 from hubo_cli.scene import WallPlacement, WallSize
 from hubo_cli.tasks.plan import EDGE_NONE, Plan
 from hubo_cli.urdf import tool_frame
@@ -73,6 +86,7 @@ class TaskTarget(Target):
     log_columns = ("step_code", "phase_code", "goal_x_m", "goal_y_m", "goal_z_m", "actual_x_m",
                    "actual_y_m", "actual_z_m", "error_m", "cutting", "edge_code",
                    "task_wrist_torque_nm")
+    force_columns = ("thrust_ref_n", "thrust_n", "balance_thrust_n", "waist_shift_m")
 
     def __init__(self, plan: Plan, correction: bool = True, resumable: bool = False) -> None:
         self.plan = plan
@@ -112,6 +126,17 @@ class TaskTarget(Target):
         self.torque_nm = 0.0
         self.error_m = float("nan")
         self.T_S_N: np.ndarray | None = None  # the torso pose last measured (S, m)
+        # force control (a plan with a thrust): the hand frame's arm, the balance's force
+        self.force = plan.has_force
+        self.cut_thrust_n: list[float] = []
+        self.cut_thrust_ref_n: list[float] = []
+        self.thrust_n = 0.0
+        if self.force:
+            self.writes = (HAND_WRENCH_PLAN,)
+            self.reads = MEASURED_WRENCH_READS
+            self.log_columns = self.log_columns + self.force_columns
+            self.hand = Limb(body.model, self.limb, "hand")
+            self.rfu = ReferenceForceUpdater((1.0, 0.0, 0.0), plan.dt_s)
 
     def attach(self, world: SimulatedWorld | None, modules: Sequence[Module]) -> None:
         self.world = world
@@ -163,7 +188,7 @@ class TaskTarget(Target):
         scene = spec.scene
         self.scene = WallPlacement(
             tool_frame(spec.stance.limb, spec.stance.tool),
-            placement.wall_distance_m - self.plan.T_first_S[0, 3],
+            placement.wall_distance_m - self.plan.T_first_S[0, 3] + scene.wall_misplaced_m,
             WallSize(scene.wall_height_m, scene.wall_width_m, scene.wall_thickness_m),
         ).place(self.world)
 
@@ -229,10 +254,38 @@ class TaskTarget(Target):
                 self.t_held_s = t_s
             if still and not self.resumable and t_s - self._t_hold_s >= STOP_HOLD_S:
                 info["done"] = True
-        self.q_out = (self.q_target if self.correction is None
-                      else self.correction(self.q_target, state))
+        q_target = self._leaning(self.q_target, info) if self.force else self.q_target
+        self.q_out = (q_target if self.correction is None
+                      else self.correction(q_target, state))
         self._measure(t_s, state, info)
         return self.q_out, info
+
+    def _plan_force_S_n(self) -> np.ndarray:
+        """The plan's hand force (N, in S) this period: zero until the plan runs."""
+        return self.plan.hand_force_S_n(self.k) if self.phase != "raise" else np.zeros(3)
+
+    def _leaning(self, q_rad: np.ndarray, info: dict) -> np.ndarray:
+        """Force control: write the plan's hand force as the wrench reference (in the neck
+        frame last measured) and return ``q_rad`` with the legs leaning into the force the
+        hand meets (eq. 6 with the ReferenceForceUpdater's force instead of the plan's)."""
+        force_S = self._plan_force_S_n()
+        R_N_S = np.eye(3) if self.T_S_N is None else self.T_S_N[:3, :3].T
+        if self.store is not None:
+            self.store[HAND_WRENCH_PLAN] = {self.limb: np.concatenate([R_N_S @ force_S,
+                                                                       np.zeros(3)])}
+        placement = self.plan.placement
+        lean_m = placement.shift_per_force_m_n * (self.rfu.reference_n - force_S[0])
+        info["balance_thrust_n"] = -self.rfu.reference_n
+        info["waist_shift_m"] = placement.shift_m + lean_m
+        if abs(lean_m) < 1e-6:
+            return q_rad
+        body = self.body
+        goal = self.plan.T_first_S.copy()
+        if self.phase != "raise":
+            goal[:3, 3] = self.plan.goal_S_m[self.k]
+        shift = min(max(placement.shift_m + lean_m, -MAX_SHIFT_M), MAX_SHIFT_M)
+        solved = body.solve({self.limb: goal}, q_rad, lift_m=body.lift_of(q_rad), shift_m=shift)
+        return solved.q_rad if solved.arms[self.limb].exact else q_rad
 
     def _resume(self, t_s: float) -> None:
         """Go on from where the plan froze (the stopper has blended back to its target)."""
@@ -268,6 +321,8 @@ class TaskTarget(Target):
         self.T_S_N = self.estimator(state)
         actual = (self.T_S_N @ T_N_E)[:3, 3]
         self.torque_nm = wrist_torque_nm(state, self.sensor)
+        if self.force:
+            self._measure_force(state, info)
         running = self.phase != "raise"
         k = self.k
         goal = self.plan.goal_S_m[k] if running else actual
@@ -281,6 +336,9 @@ class TaskTarget(Target):
                      "edge_code": float(self.plan.edge[k] if cutting else EDGE_NONE),
                      "task_wrist_torque_nm": self.torque_nm})
         if cutting:
+            if self.force:
+                self.cut_thrust_n.append(self.thrust_n)
+                self.cut_thrust_ref_n.append(float(self.plan.thrust_n[k]))
             self.cut_goal_m.append(goal.copy())
             self.cut_actual_m.append(actual)
             self.cut_torque_nm.append(self.torque_nm)
@@ -289,3 +347,17 @@ class TaskTarget(Target):
             world = self._tool_world(state, T_N_E)
             if world is not None and self.offset_world_m is not None:
                 self.cut_world_m.append(world - self.offset_world_m)
+
+    def _measure_force(self, state, info: dict) -> None:
+        """The thrust the tool presses into the wall with (N, along S's x: minus the wall's
+        force on the hand, through the measured hand pose and torso), the plan's, and the
+        ReferenceForceUpdater's update."""
+        wrench_H = measured_hand_wrench(state, self.store, self.sensor)
+        force_S = np.full(3, np.nan)
+        if wrench_H is not None:
+            T_N_H = self.hand.fk(state.q_rad[self.slice])
+            force_S = self.T_S_N[:3, :3] @ (T_N_H[:3, :3] @ np.asarray(wrench_H[:3], float))
+        self.thrust_n = -float(force_S[0])
+        self.rfu.update(force_S)
+        info["thrust_n"] = self.thrust_n
+        info["thrust_ref_n"] = -float(self._plan_force_S_n()[0])
