@@ -496,10 +496,10 @@ def make_plan(spec: TaskSpec, model: RobotModel, placement: Placement | None = N
 
 def _ramped(values: np.ndarray, periods: int) -> np.ndarray:
     """``values`` with each change spread linearly over the following ``periods`` rows (a
-    causal moving average; the first value held before the start)."""
+    causal moving average; zero before the start: the first move presses on nothing)."""
     if periods <= 1 or not values.any():
         return values.astype(float)
-    padded = np.concatenate([np.full(periods - 1, values[0]), values]).astype(float)
+    padded = np.concatenate([np.zeros(periods - 1), values]).astype(float)
     return np.convolve(padded, np.ones(periods) / periods, mode="valid")
 
 

@@ -372,7 +372,7 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
         "estop": stop,
         "scene": target.scene | ({"misplaced_mm": spec.scene.wall_misplaced_m * 1000}
                                  if spec.scene.wall_misplaced_m else {}),
-        "thrust_n": _thrust_summary(target) if target.force else None,
+        "thrust_n": _thrust_summary(target),
     }
 
 
@@ -380,9 +380,13 @@ THRUST_BAND_N = 2.0  # the issue's band around the reference thrust while cuttin
 
 
 def _thrust_summary(target: TaskTarget) -> dict:
-    """The measured thrust against its reference while cutting (N)."""
+    """The measured thrust against its reference (0 for position control) while cutting (N;
+    a reading that is not finite, no wrist sensor, is left out)."""
     thrust = np.asarray(target.cut_thrust_n, dtype=float)
-    error = thrust - np.asarray(target.cut_thrust_ref_n, dtype=float)
+    reference = np.asarray(target.cut_thrust_ref_n, dtype=float)
+    finite = np.isfinite(thrust)
+    thrust, reference = thrust[finite], reference[finite]
+    error = thrust - reference
     if not len(thrust):
         return {"samples": 0}
     return {"samples": len(thrust), "mean": float(thrust.mean()),
@@ -391,7 +395,7 @@ def _thrust_summary(target: TaskTarget) -> dict:
             "rms_error": float(np.sqrt(np.mean(error**2))),
             "share_within_band": float(np.mean(np.abs(error) <= THRUST_BAND_N)),
             "band": THRUST_BAND_N,
-            "reference_mean": float(np.mean(target.cut_thrust_ref_n))}
+            "reference_mean": float(reference.mean()), "force_control": target.force}
 
 
 def run_experiment(spec: TaskSpec, *, out: str | Path | None = None, gui: bool = False,

@@ -85,8 +85,8 @@ class TaskTarget(Target):
 
     log_columns = ("step_code", "phase_code", "goal_x_m", "goal_y_m", "goal_z_m", "actual_x_m",
                    "actual_y_m", "actual_z_m", "error_m", "cutting", "edge_code",
-                   "task_wrist_torque_nm")
-    force_columns = ("thrust_ref_n", "thrust_n", "balance_thrust_n", "waist_shift_m")
+                   "task_wrist_torque_nm", "thrust_n")
+    force_columns = ("thrust_ref_n", "balance_thrust_n", "waist_shift_m")
 
     def __init__(self, plan: Plan, correction: bool = True, resumable: bool = False) -> None:
         self.plan = plan
@@ -131,11 +131,11 @@ class TaskTarget(Target):
         self.cut_thrust_n: list[float] = []
         self.cut_thrust_ref_n: list[float] = []
         self.thrust_n = 0.0
+        self.hand = Limb(body.model, self.limb, "hand")  # the wrist sensor's frame
+        self.reads = MEASURED_WRENCH_READS
         if self.force:
             self.writes = (HAND_WRENCH_PLAN,)
-            self.reads = MEASURED_WRENCH_READS
             self.log_columns = self.log_columns + self.force_columns
-            self.hand = Limb(body.model, self.limb, "hand")
             self.rfu = ReferenceForceUpdater((1.0, 0.0, 0.0), plan.dt_s)
 
     def attach(self, world: SimulatedWorld | None, modules: Sequence[Module]) -> None:
@@ -321,8 +321,7 @@ class TaskTarget(Target):
         self.T_S_N = self.estimator(state)
         actual = (self.T_S_N @ T_N_E)[:3, 3]
         self.torque_nm = wrist_torque_nm(state, self.sensor)
-        if self.force:
-            self._measure_force(state, info)
+        self._measure_force(state, info)
         running = self.phase != "raise"
         k = self.k
         goal = self.plan.goal_S_m[k] if running else actual
@@ -336,9 +335,8 @@ class TaskTarget(Target):
                      "edge_code": float(self.plan.edge[k] if cutting else EDGE_NONE),
                      "task_wrist_torque_nm": self.torque_nm})
         if cutting:
-            if self.force:
-                self.cut_thrust_n.append(self.thrust_n)
-                self.cut_thrust_ref_n.append(float(self.plan.thrust_n[k]))
+            self.cut_thrust_n.append(self.thrust_n)
+            self.cut_thrust_ref_n.append(float(self.plan.thrust_n[k]))
             self.cut_goal_m.append(goal.copy())
             self.cut_actual_m.append(actual)
             self.cut_torque_nm.append(self.torque_nm)
@@ -350,14 +348,15 @@ class TaskTarget(Target):
 
     def _measure_force(self, state, info: dict) -> None:
         """The thrust the tool presses into the wall with (N, along S's x: minus the wall's
-        force on the hand, through the measured hand pose and torso), the plan's, and the
-        ReferenceForceUpdater's update."""
+        force on the hand, through the measured hand pose and torso; NaN without a wrist
+        sensor); under force control also the plan's and the ReferenceForceUpdater's update."""
         wrench_H = measured_hand_wrench(state, self.store, self.sensor)
         force_S = np.full(3, np.nan)
         if wrench_H is not None:
             T_N_H = self.hand.fk(state.q_rad[self.slice])
             force_S = self.T_S_N[:3, :3] @ (T_N_H[:3, :3] @ np.asarray(wrench_H[:3], float))
         self.thrust_n = -float(force_S[0])
-        self.rfu.update(force_S)
         info["thrust_n"] = self.thrust_n
-        info["thrust_ref_n"] = -float(self._plan_force_S_n()[0])
+        if self.force:
+            self.rfu.update(force_S)
+            info["thrust_ref_n"] = -float(self._plan_force_S_n()[0])
