@@ -13,7 +13,9 @@ second stopper (freeze preset, reacting only to the ``hard`` source) and ``limit
 error limiter. The capture-point monitor passes the command through; it sits before ``estop``
 so that its request is seen in the same period. ``hoff-arbib`` can replace ``otg``.
 ``impedance`` (hrpsys ``ic``, eq. 3) is optional and off by default: with
-``SafetyProfile(impedance=True)`` it follows the soft stopper (before the balancer).
+``SafetyProfile(impedance=True)`` it follows the soft stopper (before the balancer); with
+``wrench_reference=True`` the stopper passes the target's hand wrench references on to it,
+reverted with the motion (:mod:`hubo_cli.control.wrench`).
 The limiter must stay last: it is what guarantees the limits.
 
 A :class:`SafetyProfile` decides the order and the options of one run's pipeline; every robot

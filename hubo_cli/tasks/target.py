@@ -181,7 +181,7 @@ class TaskTarget(Target):
     def _place_wall(self) -> None:
         """The wall at the task's distance from the tool as the robot now holds it (the
         standing robot leans a little under the balancer; an operator walks it up to the wall
-        as it stands)."""
+        as it stands), moved by the scene's ``wall_misplaced_m`` (a wall the plan misjudged)."""
         if self.world is None:
             return
         spec, placement = self.plan.spec, self.plan.placement
