@@ -1,5 +1,6 @@
 """The ImpedanceController (eq. 3) on both hands for one period: reading both wrist wrenches,
-the zero-order-hold update, the clamp and the closed-form IK of each hand's offset pose.
+the force tracking of a reference force, the zero-order-hold update, the clamp and the
+closed-form IK of each hand's offset pose.
 Target (issue 36): <= 30 us per hand per period."""
 
 from __future__ import annotations
@@ -26,6 +27,8 @@ def run(report) -> None:
     ic = ImpedanceController(model, dt)
     state = RobotState(0.0, q, np.zeros(len(q)))
     ic.reset(q, state)
+    for arm in ("right-arm", "left-arm"):  # pressing: the force tracking runs too
+        ic.set_reference_wrench(arm, [-2.0, 0.0, 0.0, 0.0, 0.0, 0.0])
     times = []
     clock = time.perf_counter
     for k in range(PERIODS):  # a few newtons and a tenth of a newton metre, turning

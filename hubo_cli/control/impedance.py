@@ -252,6 +252,43 @@ def offset_joints(q_cmd, chain, lengths, lower, upper, max_step_rad, x, dq_out) 
     return True
 
 
+@nb.njit(**JIT)
+def track_force(centre, wrench_ref_N, wrench_S, T_H_S, T_N_H, mask, K, gain_m_per_n, decay,
+                max_offset_m, wrench_ref_eff_N) -> None:
+    """One period of force tracking: with a nonzero reference force F_ref (N axes) the centre
+    c moves by ``gain_m_per_n ((F_N - F_ref) . d) d`` (d = F_ref / |F_ref|, masked axes only,
+    |c| clamped to ``max_offset_m``); without one it shrinks by the factor ``1 - decay``. Then
+    wrench_ref_eff_N = F_ref - K [c, 0]."""
+    size = math.sqrt(wrench_ref_N[0] ** 2 + wrench_ref_N[1] ** 2 + wrench_ref_N[2] ** 2)
+    if size > 0.0 and gain_m_per_n > 0.0:
+        f_H = np.empty(3)
+        for j in range(3):
+            f_H[j] = (T_H_S[j, 0] * wrench_S[0] + T_H_S[j, 1] * wrench_S[1]
+                      + T_H_S[j, 2] * wrench_S[2])
+        along = 0.0  # (F_N - F_ref) . d
+        for i in range(3):
+            f_N = T_N_H[i, 0] * f_H[0] + T_N_H[i, 1] * f_H[1] + T_N_H[i, 2] * f_H[2]
+            along += (f_N - wrench_ref_N[i]) * wrench_ref_N[i] / size
+        for i in range(3):
+            centre[i] += gain_m_per_n * along * wrench_ref_N[i] / size * mask[i]
+        n = math.sqrt(centre[0] ** 2 + centre[1] ** 2 + centre[2] ** 2)
+        if n > max_offset_m:
+            for i in range(3):
+                centre[i] *= max_offset_m / n
+    else:
+        keep = max(0.0, 1.0 - decay)
+        n = 0.0
+        for i in range(3):
+            centre[i] *= keep
+            n += centre[i] ** 2
+        if math.sqrt(n) < 1e-9:
+            for i in range(3):
+                centre[i] = 0.0
+    for r in range(6):
+        wrench_ref_eff_N[r] = wrench_ref_N[r] - (K[r, 0] * centre[0] + K[r, 1] * centre[1]
+                                                 + K[r, 2] * centre[2])
+
+
 class _Hand:
     """One hand's state: the limb, its joints' slice, sensor, s = [x, x'], the reference
     wrench and the joint offset last applied."""
@@ -420,6 +457,8 @@ class ImpedanceController(Module):
         advance(scratch, self.Ad, self.Bd, np.zeros(6), self.T_hand_sensor, h.T_N_H[:3, :3],
                 h.wrench_ref_N, self.axes_mask, h.s_next)
         clamp_offset(scratch, 1.0, 1.0)
+        track_force(np.zeros(3), h.wrench_ref_N, np.zeros(6), self.T_hand_sensor, h.T_N_H,
+                    self.axes_mask, self.K, 0.0, 0.0, 1.0, h.wrench_ref_eff_N.copy())
         offset_joints(np.zeros(6), *h.ik, np.zeros(6), np.zeros(6))
         all_finite(scratch)
         hold_nan(self._last_in, self._last_in, self._last_in.copy())
@@ -450,23 +489,10 @@ class ImpedanceController(Module):
         """Move the spring's centre c along the reference force (see the module docstring) and
         set the input's reference to F_ref - K [c, 0]. Called with a finite reading after
         ``h.T_N_H`` holds the measured hand pose."""
-        f_ref = h.wrench_ref_N[:3]
-        size = math.sqrt(float(f_ref @ f_ref))
-        if size > 0.0 and self.force_tracking_m_per_n_s > 0.0:
-            d = f_ref / size
-            f_N = h.T_N_H[:3, :3] @ (self.T_hand_sensor[:3, :3] @ wrench_S[:3])
-            step = self.force_tracking_m_per_n_s * self.dt_s * float((f_N - f_ref) @ d)
-            h.centre_m += step * d * self.axes_mask[:3]
-            n = math.sqrt(float(h.centre_m @ h.centre_m))
-            if n > self.max_offset_m:
-                h.centre_m *= self.max_offset_m / n
-        elif h.centre_m.any():  # no reference force: the centre decays back to zero
-            h.centre_m *= max(0.0, 1.0 - self.dt_s / max(self.release_s, self.dt_s))
-            if math.sqrt(float(h.centre_m @ h.centre_m)) < 1e-9:
-                h.centre_m[:] = 0.0
-        h.wrench_ref_eff_N[:] = h.wrench_ref_N
-        if h.centre_m.any():
-            h.wrench_ref_eff_N -= self.K[:, :3] @ h.centre_m
+        track_force(h.centre_m, h.wrench_ref_N, wrench_S, self.T_hand_sensor, h.T_N_H,
+                    self.axes_mask, self.K, self.force_tracking_m_per_n_s * self.dt_s,
+                    self.dt_s / max(self.release_s, self.dt_s), self.max_offset_m,
+                    h.wrench_ref_eff_N)
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         q_in = np.empty(self._last_in.shape[0])
