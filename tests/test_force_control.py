@@ -322,3 +322,35 @@ def test_the_depth_guide_pushes_out_never_pulls_and_slides_with_friction():
     assert guide.guide_force_n(0.001, (-1.0, 0.0, 0.0))[0] == 0.0  # withdrawing fast: no pull
     fx, fy, fz = guide.guide_force_n(0.002, (0.0, 0.05, -0.05))
     assert fy < 0 < fz and math.hypot(fy, fz) <= guide.guide_friction * -fx + 1e-12
+
+
+def test_the_task_target_writes_the_plans_force_and_measures_the_thrust(model, tmp_path):
+    """Once the plan runs, the target writes the plan's hand force (N axes) to the store every
+    period and reads the wrist: a 5 N push back along the bit is a 5 N thrust. A task without a
+    thrust declares and writes nothing."""
+    from hubo_cli.tasks.target import TaskTarget
+
+    plan = make_plan(load_task(_task(tmp_path, PRESS)), model)
+    target = TaskTarget(plan, correction=False)
+    assert target.writes == (HAND_WRENCH_PLAN,)
+    target.store = store = Store()
+    sl = model.limb_slice(ARM)
+    q = plan.q_first_rad.copy()
+    R_N_H = Limb(model, ARM, "hand").fk(q[sl])[:3, :3]
+    ft = {"right-wrist": np.concatenate([R_N_H.T @ (-5.0, 0, 0), np.zeros(3)])}
+    moving = RobotState(0.0, q, np.full(len(q), 0.1), ft=ft)
+    _, info = target(0.0, moving)  # the raise (the robot still moving): no force yet
+    assert target.phase == "raise" and np.allclose(store[HAND_WRENCH_PLAN][ARM], 0.0)
+    assert info["thrust_n"] == pytest.approx(5.0, abs=1e-6)
+    state = RobotState(0.0, q, np.zeros(len(q)), ft=ft)
+    target(DT, state)  # still: the plan runs from its first row, the ramp's first step
+    assert target.phase == "run"
+    assert np.allclose(store[HAND_WRENCH_PLAN][ARM], (-4.0 / round(FORCE_RAMP_S / DT), 0, 0, 0, 0, 0))
+    k = round(FORCE_RAMP_S / DT) + 10
+    target(DT + k * DT, state)
+    assert np.allclose(store[HAND_WRENCH_PLAN][ARM], (-4.0, 0, 0, 0, 0, 0), atol=1e-3)
+    plain = TaskTarget(make_plan(load_task(_task(tmp_path, PRESS.replace("thrust_n = 4.0", ""))),
+                                 model))
+    plain.store = Store()
+    plain(0.0, state)
+    assert plain.writes == () and HAND_WRENCH_PLAN not in plain.store
