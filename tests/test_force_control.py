@@ -345,7 +345,8 @@ def test_the_task_target_writes_the_plans_force_and_measures_the_thrust(model, t
     state = RobotState(0.0, q, np.zeros(len(q)), ft=ft)
     target(DT, state)  # still: the plan runs from its first row, the ramp's first step
     assert target.phase == "run"
-    assert np.allclose(store[HAND_WRENCH_PLAN][ARM], (-4.0 / round(FORCE_RAMP_S / DT), 0, 0, 0, 0, 0))
+    first = -4.0 / round(FORCE_RAMP_S / DT)
+    assert np.allclose(store[HAND_WRENCH_PLAN][ARM], (first, 0, 0, 0, 0, 0))
     k = round(FORCE_RAMP_S / DT) + 10
     target(DT + k * DT, state)
     assert np.allclose(store[HAND_WRENCH_PLAN][ARM], (-4.0, 0, 0, 0, 0, 0), atol=1e-3)
