@@ -72,7 +72,12 @@ class Store:
 
 
 class Stage(Protocol):
-    """Anything that takes part in the flow: a name and the keys it reads and writes."""
+    """Anything that takes part in the flow: a name and the keys it reads and writes.
+
+    A stage may also declare ``follows``: keys it reads when some stage writes them and does
+    without otherwise (``store.get(key, default)``), such as the support a walking phase plans
+    for the capture-point monitor; a writer of one must still come before it.
+    """
 
     name: str
     reads: tuple[Key, ...]
@@ -86,8 +91,14 @@ def check_flow(stages: Iterable[Stage], provided: Iterable[Key] = ()) -> None:
     Raises:
         FlowError: naming the stage and the key.
     """
+    stages = list(stages)
     writer: dict[Key, str] = {key: "the loop" for key in provided}
+    later = {key: stage.name for stage in stages for key in stage.writes}
     for stage in stages:
+        for key in getattr(stage, "follows", ()):
+            if key not in writer and key in later:
+                raise FlowError(f"{stage.name} follows {key.name}, which {later[key]} writes "
+                                "after it", hint="put the stage that writes it first")
         for key in stage.reads:
             if key not in writer:
                 raise FlowError(

@@ -6,6 +6,7 @@ their joint names and limits, and the tools. Everything is immutable and cheap t
 
 from __future__ import annotations
 
+import math
 import tomllib
 from dataclasses import dataclass, field, fields
 from functools import cache, cached_property
@@ -92,6 +93,25 @@ class FootShape:
 
 
 @dataclass(frozen=True)
+class EstimationConfig:
+    """The estimation layer's settings (robot file's ``[estimation]``, see
+    :mod:`hubo_cli.estimation`).
+
+    Attributes:
+        contact_threshold_n: a sole is loaded while its ankle's filtered F_z (the floor's
+            force, the foot's weight removed) exceeds this (N).
+        contact_cutoff_hz: the first-order low-pass of the ankles' F_z before the threshold.
+        contact_release_s: a sole still counts as down this long after it was last loaded.
+        com_velocity_cutoff_hz: the first-order low-pass of the CoM's differenced velocity.
+    """
+
+    contact_threshold_n: float = 25.0
+    contact_cutoff_hz: float = 5.0
+    contact_release_s: float = 0.05
+    com_velocity_cutoff_hz: float = 4.0
+
+
+@dataclass(frozen=True)
 class RobotModel:
     """A HUBO 2+ model for one parameter set and one limit set.
 
@@ -104,6 +124,7 @@ class RobotModel:
         feet: the feet's shape (:class:`FootShape`).
         hardware_guards: the hardware driver's checks of the measured state (robot file's
             ``[hardware_guards]``, see :mod:`hubo_cli.drivers.servo_guard`).
+        estimation: the estimation layer's settings (robot file's ``[estimation]``).
     """
 
     params_name: str
@@ -118,6 +139,7 @@ class RobotModel:
     drill: DrillShape
     feet: FootShape
     hardware_guards: dict = field(default_factory=dict)
+    estimation: EstimationConfig = field(default_factory=EstimationConfig)
     joint_names: tuple[str, ...] = field(init=False)
 
     def __post_init__(self) -> None:
@@ -197,6 +219,11 @@ class RobotModel:
         return _read_toml(self.source).get("impedance", {})
 
     @property
+    def raw_estimation(self) -> dict:
+        """The robot file's ``[estimation]`` table (read by :mod:`hubo_cli.estimation`)."""
+        return _read_toml(self.source).get("estimation", {})
+
+    @property
     def raw_walking(self) -> dict:
         """The robot file's ``[walking]`` table (read by :mod:`hubo_cli.walking.params`)."""
         return _read_toml(self.source).get("walking", {})
@@ -251,6 +278,31 @@ def _shape(kind, raw: dict, table: str, path: Path):
     return kind(**values)
 
 
+def _estimation(raw: dict, path: Path) -> EstimationConfig:
+    """The ``[estimation]`` table's own keys: every field given, a positive number (the release
+    time may be 0)."""
+    table = {key: value for key, value in raw.get("estimation", {}).items()
+             if not isinstance(value, dict)}  # sub-tables: their observers read them
+    unknown = set(table) - {f.name for f in fields(EstimationConfig)}
+    if unknown:
+        raise ConfigError(f"unknown key(s) {', '.join(sorted(unknown))}", path=str(path),
+                          field="estimation",
+                          hint=f"use {', '.join(f.name for f in fields(EstimationConfig))}")
+    values = {}
+    for f in fields(EstimationConfig):
+        if f.name not in table:
+            raise ConfigError("missing key", path=str(path), field=f"estimation.{f.name}")
+        value = table[f.name]
+        ok = (not isinstance(value, bool) and isinstance(value, int | float)
+              and math.isfinite(value)
+              and (value >= 0 if f.name == "contact_release_s" else value > 0))
+        if not ok:
+            raise ConfigError(f"must be a positive number, got {value!r}", path=str(path),
+                              field=f"estimation.{f.name}")
+        values[f.name] = float(value)
+    return EstimationConfig(**values)
+
+
 @cache
 def load_model(params: str = "as-built", limits: str = "table4",
                path: Path | None = None) -> RobotModel:
@@ -279,4 +331,5 @@ def load_model(params: str = "as-built", limits: str = "table4",
                       control_period_s=float(raw["robot"]["control_period_s"]), source=path,
                       drill=_shape(DrillShape, raw, "tools.drill", path),
                       feet=_shape(FootShape, raw, "feet", path),
-                      hardware_guards=raw.get("hardware_guards", {}))
+                      hardware_guards=raw.get("hardware_guards", {}),
+                      estimation=_estimation(raw, path))

@@ -12,7 +12,17 @@ What is drawn (the ranges of the project's issue, chosen as a real lab's spread)
 - the feet's friction coefficient U(0.4, 1.0) (the floor's is 1; PyBullet multiplies the two);
 - joint encoder noise, N(0, 0.5 mrad) on every measured joint angle;
 - IMU orientation noise N(0, 0.2 deg) about each axis plus a constant bias, a rotation of
-  U(0, 0.5) deg about a random horizontal axis;
+  U(0, 0.5) deg about a random horizontal axis (the orientation the IMU's own filter reports,
+  ``imu_quat_wxyz``);
+- the IMU's raw sensors, as a MEMS IMU reads them: the gyro with white noise of density
+  0.03 deg/s/sqrt(Hz) (per 5 ms sample, sampled at 200 Hz with a 100 Hz band: 0.3 deg/s) and a
+  constant bias of U(-0.5, 0.5) deg/s on each axis; the accelerometer with white noise of density
+  150 ug/sqrt(Hz) (1.5 mg = 0.015 m/s^2 a sample) and a constant bias of U(-0.5, 0.5) mg on each
+  axis. [chosen] MEMS IMUs of the kind a humanoid's torso carries: Bosch's BMI088 datasheet gives
+  0.014 deg/s/sqrt(Hz) and 175 ug/sqrt(Hz) (x, y), with a zero-rate offset of up to 1 deg/s; the
+  gyro's bias is left uncalibrated (the attitude filter estimates it), the accelerometer's is
+  what a lab's level calibration leaves: it is not observable from gravity and reads as a tilt
+  of up to 0.04 deg;
 - force/torque noise N(0, 1 N) on forces and N(0, 0.05 N m) on moments, every sensor;
 - a command-to-motion delay of U{0..10} physics steps (1 ms each at the default 1 kHz);
 - a floor tilted by U(0, 0.5) deg about a random horizontal axis through the origin; the robot
@@ -35,6 +45,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from hubo_cli.errors import ConfigError
+from hubo_cli.state import FT_MEASURED
 
 MASS_SCALE_RANGE = (0.9, 1.1)
 COM_OFFSET_MAX_M = 0.010
@@ -42,13 +53,19 @@ FOOT_FRICTION_RANGE = (0.4, 1.0)
 ENCODER_NOISE_RAD = 0.5e-3
 IMU_NOISE_RAD = math.radians(0.2)
 IMU_BIAS_MAX_RAD = math.radians(0.5)
+GYRO_NOISE_DENSITY = math.radians(0.03)   # rad/s/sqrt(Hz)
+GYRO_BIAS_MAX_RAD_S = math.radians(0.5)   # each axis
+ACCEL_NOISE_DENSITY = 150e-6 * 9.80665    # m/s^2/sqrt(Hz)
+ACCEL_BIAS_MAX_M_S2 = 0.5e-3 * 9.80665    # each axis
 FT_FORCE_NOISE_N = 1.0
 FT_MOMENT_NOISE_NM = 0.05
 DELAY_MAX_S = 0.010
 FLOOR_TILT_MAX_RAD = math.radians(0.5)
 FOOT_LINKS = ("RAR_link", "LAR_link")
 
-_DRAWS, _NOISE = 0, 1  # the two streams of one seed
+# the streams of one seed: the draws and the per-period noise; the IMU's raw sensors' draws and
+# noise come from streams of their own, so adding them left every other draw as it was
+_DRAWS, _NOISE, _IMU_DRAWS, _IMU_NOISE = 0, 1, 2, 3
 
 
 def _rotation(axis: np.ndarray, angle_rad: float) -> np.ndarray:
@@ -70,6 +87,10 @@ class Perturbation:
         encoder_noise_rad: standard deviation of the joint-angle noise.
         imu_noise_rad: standard deviation of the IMU orientation noise about each axis.
         imu_bias_rad: the IMU's constant bias as a rotation vector (x, y, z).
+        gyro_noise_density: the gyro's white noise (rad/s/sqrt(Hz)).
+        gyro_bias_rad_s: the gyro's constant bias (x, y, z; torso axes).
+        accel_noise_density: the accelerometer's white noise (m/s^2/sqrt(Hz)).
+        accel_bias_m_s2: the accelerometer's constant bias (x, y, z; torso axes).
         ft_force_noise_n: standard deviation of every force component.
         ft_moment_noise_nm: standard deviation of every moment component.
         delay_s: command-to-motion delay.
@@ -83,6 +104,10 @@ class Perturbation:
     encoder_noise_rad: float = 0.0
     imu_noise_rad: float = 0.0
     imu_bias_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    gyro_noise_density: float = 0.0
+    gyro_bias_rad_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    accel_noise_density: float = 0.0
+    accel_bias_m_s2: tuple[float, float, float] = (0.0, 0.0, 0.0)
     ft_force_noise_n: float = 0.0
     ft_moment_noise_nm: float = 0.0
     delay_s: float = 0.0
@@ -105,6 +130,10 @@ class Perturbation:
             "encoder_noise_sigma_mrad": 1000 * self.encoder_noise_rad,
             "imu_noise_sigma_deg": math.degrees(self.imu_noise_rad),
             "imu_bias_deg": [math.degrees(v) for v in self.imu_bias_rad],
+            "gyro_noise_density_deg_s_rt_hz": math.degrees(self.gyro_noise_density),
+            "gyro_bias_deg_s": [math.degrees(v) for v in self.gyro_bias_rad_s],
+            "accel_noise_density_m_s2_rt_hz": self.accel_noise_density,
+            "accel_bias_m_s2": list(self.accel_bias_m_s2),
             "ft_noise_sigma": {"force_n": self.ft_force_noise_n,
                                "moment_nm": self.ft_moment_noise_nm},
             "delay_ms": 1000 * self.delay_s,
@@ -158,9 +187,10 @@ class Perturbation:
         """The command delay in whole physics steps."""
         return int(round(self.delay_s / physics_dt_s))
 
-    def noise(self) -> SensorNoise:
-        """A fresh per-period noise source (restart it whenever the simulation starts)."""
-        return SensorNoise(self)
+    def noise(self, period_s: float = 0.005) -> SensorNoise:
+        """A fresh per-period noise source for samples ``period_s`` apart (restart it whenever
+        the simulation starts)."""
+        return SensorNoise(self, period_s)
 
 
 def _link_names(urdf_text: str) -> list[str]:
@@ -201,6 +231,10 @@ def draw(seed: int | None, urdf_text: str, physics_dt_s: float = 0.001) -> Pertu
     def horizontal(angle: float, heading: float) -> tuple[float, float, float]:
         return (angle * math.cos(heading), angle * math.sin(heading), 0.0)
 
+    imu = np.random.default_rng([int(seed), _IMU_DRAWS])
+    gyro_bias = imu.uniform(-GYRO_BIAS_MAX_RAD_S, GYRO_BIAS_MAX_RAD_S, 3)
+    accel_bias = imu.uniform(-ACCEL_BIAS_MAX_M_S2, ACCEL_BIAS_MAX_M_S2, 3)
+
     return Perturbation(
         seed=int(seed),
         mass_scale=tuple((n, float(s)) for n, s in zip(links, masses, strict=True)),
@@ -208,6 +242,10 @@ def draw(seed: int | None, urdf_text: str, physics_dt_s: float = 0.001) -> Pertu
                            for n, d in zip(links, offsets, strict=True)),
         foot_friction=float(friction), encoder_noise_rad=ENCODER_NOISE_RAD,
         imu_noise_rad=IMU_NOISE_RAD, imu_bias_rad=horizontal(bias_angle, bias_heading),
+        gyro_noise_density=GYRO_NOISE_DENSITY,
+        gyro_bias_rad_s=tuple(float(v) for v in gyro_bias),
+        accel_noise_density=ACCEL_NOISE_DENSITY,
+        accel_bias_m_s2=tuple(float(v) for v in accel_bias),
         ft_force_noise_n=FT_FORCE_NOISE_N, ft_moment_noise_nm=FT_MOMENT_NOISE_NM,
         delay_s=delay_steps * physics_dt_s, floor_tilt_rad=horizontal(tilt_angle, tilt_heading))
 
@@ -229,20 +267,27 @@ def _matrix_to_quat_wxyz(R: np.ndarray) -> np.ndarray:
 
 
 class SensorNoise:
-    """The per-period sensor noise of one run (encoders, IMU, force/torque sensors)."""
+    """The per-period sensor noise of one run (encoders, IMU, force/torque sensors), for
+    samples ``period_s`` apart: a white noise of density D has the standard deviation
+    D sqrt(1 / (2 period_s)) a sample (its band up to half the sampling rate)."""
 
-    def __init__(self, perturbation: Perturbation) -> None:
+    def __init__(self, perturbation: Perturbation, period_s: float = 0.005) -> None:
         self.p = perturbation
         seed = 0 if perturbation.seed is None else perturbation.seed
         self._rng = np.random.default_rng([seed, _NOISE])
+        self._imu_rng = np.random.default_rng([seed, _IMU_NOISE])
+        band = math.sqrt(0.5 / period_s)
+        self._gyro_sigma = perturbation.gyro_noise_density * band
+        self._accel_sigma = perturbation.accel_noise_density * band
+        self._gyro_bias = np.array(perturbation.gyro_bias_rad_s)
+        self._accel_bias = np.array(perturbation.accel_bias_m_s2)
         bias = np.array(perturbation.imu_bias_rad)
         angle = float(np.linalg.norm(bias))
         self._R_bias = np.eye(3) if angle == 0.0 else _rotation(bias / angle, angle)
 
     def measure(self, state):
         """A copy of ``state`` (a :class:`~hubo_cli.drivers.base.RobotState`) as the noisy
-        sensors read it. The simulator's ground truth (``T_world_torso``) and the contact flags
-        are left as they are."""
+        sensors read it. The simulator's ground truth (``state.truth``) is left as it is."""
         p, rng = self.p, self._rng
         if p.nominal:
             return state
@@ -252,9 +297,14 @@ class SensorNoise:
         R_noise = np.eye(3) if angle == 0.0 else _rotation(noise / angle, angle)
         R_imu = self._R_bias @ R_noise @ _quat_wxyz_to_matrix(state.imu_quat_wxyz)
         sigma = np.array([p.ft_force_noise_n] * 3 + [p.ft_moment_noise_nm] * 3)
+        sigma[[k for k in range(6) if k not in FT_MEASURED]] = 0.0  # what the sensors lack
         ft = {name: wrench + rng.normal(0.0, 1.0, 6) * sigma
               for name, wrench in sorted(state.ft.items())}
-        return replace(state, q_rad=q, imu_quat_wxyz=_matrix_to_quat_wxyz(R_imu), ft=ft)
+        imu = self._imu_rng.normal(0.0, 1.0, 6)
+        gyro = state.imu_gyro_rad_s + self._gyro_bias + self._gyro_sigma * imu[:3]
+        accel = state.imu_accel_m_s2 + self._accel_bias + self._accel_sigma * imu[3:]
+        return replace(state, q_rad=q, imu_quat_wxyz=_matrix_to_quat_wxyz(R_imu), ft=ft,
+                       imu_gyro_rad_s=gyro, imu_accel_m_s2=accel)
 
 
 class CommandDelay:

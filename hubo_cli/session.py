@@ -49,7 +49,8 @@ from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.target import Target
 from hubo_cli.drivers.base import RunContext
 from hubo_cli.drivers.registry import driver_class, make_driver
-from hubo_cli.errors import DeviceError, HuboError, InputError
+from hubo_cli.errors import ConfigError, DeviceError, HuboError, InputError
+from hubo_cli.estimation.build import build_estimator
 from hubo_cli.interrupts import loop_ended, loop_starting, run_files
 from hubo_cli.model import RobotModel
 from hubo_cli.runs import discard_if_unused, make_run_dir, release_run_dir, write_json
@@ -114,6 +115,14 @@ class RunSetup:
     perturb_seed: int | None = None
     operator: OperatorKeys | None = None
     live: RunObserver | None = None
+
+    def __post_init__(self) -> None:
+        wanted = self.safety.limit_set
+        if wanted is not None and wanted != self.model.limits_name:
+            raise ConfigError(
+                f"the run's safety profile enforces the {wanted!r} joint-limit set but its "
+                f"model was loaded with {self.model.limits_name!r}",
+                hint=f"load the model with load_model(..., {wanted!r})")
 
     def real_time_reason(self) -> str | None:
         """Why this run must go at wall-clock pace, or None when it need not."""
@@ -239,9 +248,11 @@ def _run_in(setup: RunSetup, target: Target, on_start, speed: float | None,
             modules = setup.safety.build(setup.model, driver.period_s, setup.tools)
             driver.start(setup.q_start_rad)
             world = driver.world
-            target.attach(world, modules)
             loop = ControlLoop(driver, modules, target, speed=speed, log_path=run_dir,
-                               operator=setup.operator, observer=setup.live)
+                               operator=setup.operator, observer=setup.live,
+                               estimator=build_estimator(setup.model, setup.tools,
+                                                         driver.period_s))
+            target.attach(world, modules, loop.store)
             if on_start is not None:
                 on_start(target, loop)
             result = _run_loop(loop, setup, world)
@@ -256,7 +267,8 @@ def _run_in(setup: RunSetup, target: Target, on_start, speed: float | None,
     except HuboError:
         discard_if_unused(run_dir)  # nothing moved: leave no empty run folder behind
         raise
-    metadata |= {"command": setup.command, "balance": setup.safety.balance_choice}
+    metadata |= {"command": setup.command, "balance": setup.safety.balance_choice,
+                 "limit_set": setup.model.limits_name}
     update_log_metadata(run_dir, metadata)
     summary = common_summary(setup, speed, result, modules, run_dir) | driver_summary
     done = RunResult(run_dir, result, modules, summary)
@@ -318,6 +330,7 @@ def common_summary(setup: RunSetup, speed: float | None, loop: LoopResult,
         "estop_removed": {"sources": list(setup.safety.removed),
                           "by": setup.safety.removed_by} if setup.safety.removed else None,
         "balance": setup.safety.balance_choice,
+        "limit_set": setup.model.limits_name,
         "ended": loop.ended,
         "finished_by_operator": setup.operator is not None and setup.operator.finished,
         "error": loop.error,

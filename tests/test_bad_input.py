@@ -18,6 +18,7 @@ import pytest
 from click.testing import CliRunner
 
 from hubo_cli.cli.main import COMMANDS, main
+from hubo_cli.dataflow import Store
 from hubo_cli.errors import InputError
 from hubo_cli.fastrak.capture import CHUNK_HEAD, parse_capture, read_recording_bytes
 from hubo_cli.resources import data_file
@@ -349,7 +350,7 @@ def test_the_way_back_from_a_collision_hold_does_not_cross_the_body(model):
     assert min(way[0], way[-1]) > 0.03 and min(way) < -0.01  # the premise
     inside = a + np.linspace(0, 1, 101)[int(np.argmin(way))] * (b - a)
     state = RobotState(0.0, a, np.zeros(len(a)))
-    detector.reset(a, state)
+    detector.reset(a, state, Store())
     distances = []
     for k in range(int(6.0 / dt)):
         q_in = a if k < 20 else (inside if k < 60 else b)  # into the body, then beyond it

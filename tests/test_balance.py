@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
+from control_support import estimate_of
 
 from hubo_cli.control.balance import (
     K_C_RAD_S_PER_NM,
@@ -44,10 +45,11 @@ def _state(pitch_deg=0.0, roll_deg=0.0, moment_y=0.0, moment_x=0.0) -> RobotStat
 def _offsets_after(state, periods=1, **gains):
     balancer = AnkleBalancer(MODEL, **gains)
     q0 = home_posture(MODEL)
-    balancer.reset(q0, state)
+    store = estimate_of(MODEL, state)
+    balancer.reset(q0, state, store)
     q = q0
     for k in range(periods):
-        q = balancer.update(q0, state, Cycle(k * DT, DT))
+        q = balancer.update(q0, state, Cycle(k * DT, DT, store=store))
     return {leg: q[list(idx)] - q0[list(idx)] for leg, idx in ANKLES.items()}
 
 
@@ -96,7 +98,7 @@ def test_a_bad_sensor_is_flagged_and_ignored():
     state = _state()
     state.ft["right-ankle"][3] = np.nan
     balancer = AnkleBalancer(MODEL)
-    cycle = Cycle(0.0, DT)
+    cycle = Cycle(0.0, DT, store=estimate_of(MODEL, state))
     q = balancer.update(home_posture(MODEL), state, cycle)
     assert np.all(np.isfinite(q))
     assert "balance-bad-sensor" in cycle.flags

@@ -1,7 +1,6 @@
 """The default balancer's and the capture-point monitor's compiled periods give what their
 Python forms gave: the balancer against its period written in Python floats and numpy, the
-monitor's pinocchio configuration against ``PinRobot.configuration`` (``pin.Quaternion``), its
-CoM velocity filter against numpy's, and its held reference CoM against a fresh one."""
+monitor's held reference CoM against a fresh one."""
 
 from __future__ import annotations
 
@@ -18,9 +17,18 @@ from hubo_cli.control.balance import (
     DampingBalancer,
     _follow_offsets,
 )
-from hubo_cli.control.capture_point import CapturePointMonitor, _configure, _measure
+from hubo_cli.control.capture_point import CapturePointMonitor
 from hubo_cli.control.module import Cycle
-from hubo_cli.geometry import quat_wxyz_to_matrix, rpy_to_matrix
+from hubo_cli.dataflow import Store
+from hubo_cli.estimation.keys import (
+    CAPTURE_POINT_WORLD,
+    COM_VELOCITY_WORLD,
+    COM_WORLD,
+    CONTACT,
+    QUAT_WORLD_TORSO,
+    T_WORLD_SOLES,
+    WRENCHES,
+)
 from hubo_cli.posture import home_posture
 from hubo_cli.state import FT_SENSORS, RobotState
 
@@ -51,7 +59,8 @@ class _PythonBalancer:
         self.last_cmd, self.reference = q_ref.copy(), -b._weight_n * x / 2
         return self.reference
 
-    def update(self, q_rad: np.ndarray, state: RobotState, dt: float) -> tuple[np.ndarray, bool]:
+    def update(self, q_rad: np.ndarray, state: RobotState, contact: tuple[bool, bool],
+               dt: float) -> tuple[np.ndarray, bool]:
         b, bad = self.b, False
         q = np.array(q_rad, dtype=float)
         q_ref = np.where(np.isfinite(q), q, state.q_rad)
@@ -78,7 +87,7 @@ class _PythonBalancer:
         if b.edge_margin_m > 0 and fz > 0.5 * b._weight_n and not x_lo < -moment_y / fz < x_hi:
             rate[0] = -self.common[0] / b.common_leak_s
         self.common = [self.common[k] + rate[k] * dt for k in (0, 1)]
-        both = state.feet_contact is None or all(state.feet_contact)
+        both = all(contact)
         _follow_offsets(q, b._ankles, b._ankle_signs, *right, *left, *mean, *self.common, both,
                         self.differential, self.offsets, self.rate, b._lower, b._upper,
                         b.max_offset_rad, b.k_d, b.differential_leak_s,
@@ -117,12 +126,15 @@ def test_compiled_balancer_period_matches_python(model):
             ft["right-ankle"][3] = math.nan
         if period % 53 == 0:
             del ft["left-ankle"]
+        quat = quat / np.linalg.norm(quat)
         state = RobotState(period * dt, q_home + rng.normal(0.0, 1e-3, n), np.zeros(n),
-                           imu_quat_wxyz=quat / np.linalg.norm(quat), ft=ft,
-                           feet_contact=(True, period % 4 != 0))
-        cycle = Cycle(period * dt, dt)
+                           imu_quat_wxyz=quat, ft=ft)
+        store = Store()  # the estimate: the attitude as the IMU reads it here
+        store[QUAT_WORLD_TORSO], store[CONTACT] = quat, (True, period % 4 != 0)
+        store[WRENCHES] = ft  # and the wrenches as the sensors read them
+        cycle = Cycle(period * dt, dt, store=store)
         got = balancer.update(q_cmd, state, cycle)
-        expected, bad = python.update(q_cmd, state, dt)
+        expected, bad = python.update(q_cmd, state, store[CONTACT], dt)
         assert np.allclose(got, expected, rtol=0.0, atol=TOL, equal_nan=True), period
         assert np.array_equal(np.isnan(got), np.isnan(q_cmd))
         assert ("balance-bad-sensor" in cycle.flags) == bad, period
@@ -135,50 +147,19 @@ def test_compiled_balancer_period_matches_python(model):
     assert np.abs(python.offsets).max() > 1e-3  # the corrections moved: the test means something
 
 
-def test_compiled_configuration_matches_pinocchio(model):
-    monitor = CapturePointMonitor(model, model.control_period_s)
-    robot = monitor.robot
-    rng = np.random.default_rng(12)
-    n = len(model.joint_names)
-    q = np.empty(robot.model.nq)
-    for k in range(400):
-        q_rad = rng.uniform(-1.0, 1.0, n)
-        quat = rng.normal(0.0, 1.0, 4)
-        T = np.eye(4)
-        T[:3, :3] = rpy_to_matrix(*rng.uniform(-math.pi, math.pi, 3))  # every branch
-        T[:3, 3] = rng.normal(0.0, 1.0, 3)
-        _configure(q, robot.q_index, q_rad, T, True, quat)
-        assert np.allclose(q, robot.configuration(q_rad, T), rtol=0.0, atol=TOL), k
-        _configure(q, robot.q_index, q_rad, T, False, quat)
-        T_imu = np.eye(4)
-        T_imu[:3, :3] = quat_wxyz_to_matrix(quat)
-        assert np.allclose(q, robot.configuration(q_rad, T_imu), rtol=0.0, atol=TOL), k
-
-
-def test_compiled_velocity_filter_and_held_reference_match_numpy(model):
+def test_the_held_reference_matches_a_fresh_one(model):
     dt = model.control_period_s
     monitor = CapturePointMonitor(model, dt)
     rng = np.random.default_rng(13)
-    velocity, prev, filtered = np.zeros(3), np.zeros(3), False
-    expected = np.zeros(3)
-    previous = None
     poses = np.tile(np.eye(4), (2, 1, 1))
     poses[0, 1, 3], poses[1, 1, 3] = -0.1, 0.1
-    for _ in range(200):
-        com = rng.normal(0.0, 0.01, 3) + (0.0, 0.0, 0.8)
-        _measure(com, prev, filtered, velocity, monitor.alpha, dt, poses, True, True,
-                 monitor._corners, 0.03, 9.80665, 0.005, np.zeros(2), np.zeros(4),
-                 np.tile(np.eye(4), (2, 1, 1)))
-        filtered = True
-        if previous is not None:
-            expected += monitor.alpha * ((com - previous) / dt - expected)
-        previous = com
-        assert np.allclose(velocity, expected, rtol=0.0, atol=TOL)
-    assert np.abs(expected).max() > 0.1
-
+    store = Store()
+    store[COM_WORLD], store[COM_VELOCITY_WORLD] = np.array([0.0, 0.0, 0.8]), np.zeros(3)
+    store[CAPTURE_POINT_WORLD], store[CONTACT] = np.zeros(2), (True, True)
+    store[T_WORLD_SOLES] = poses
     q_home = home_posture(model)
     state = RobotState(0.0, q_home, np.zeros(len(q_home)))
-    monitor.measure(state, q_home)
+    monitor.measure(state, store, q_home)
     for k in range(40):
         q_cmd = q_home + (rng.normal(0.0, 0.05, len(q_home)) if k % 2 else 0.0)
         q_cmd[k % len(q_home)] = math.nan

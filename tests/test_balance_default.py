@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from control_support import estimate_of
 
 from hubo_cli.control.balance import (
     MAX_CORRECTION_ACCEL_RAD_S2,
@@ -28,25 +29,30 @@ def _state(model, moment_y_each_nm: float, pitch_deg: float = 0.0) -> RobotState
     ft = {name: np.zeros(6) for name in ("right-wrist", "left-wrist")}
     for foot in ("right-ankle", "left-ankle"):
         ft[foot] = np.array([0.0, 0.0, 190.0, 0.0, moment_y_each_nm, 0.0])
-    return RobotState(0.0, home_posture(model), np.zeros(24), imu_quat_wxyz=quat, ft=ft,
-                      feet_contact=(True, True))
+    return RobotState(0.0, home_posture(model), np.zeros(24), imu_quat_wxyz=quat, ft=ft)
+
+
+def _cycle(model, state: RobotState, k: int) -> Cycle:
+    """Period k with the estimate of ``state`` (both feet in contact)."""
+    return Cycle(k * DT, DT, store=estimate_of(model, state))
 
 
 def test_a_robot_standing_as_commanded_gets_no_correction(model):
     home = home_posture(model)
     probe = DampingBalancer(model)
-    probe.update(home, _state(model, 0.0), Cycle(0.0, DT))
+    upright = _state(model, 0.0)
+    probe.update(home, upright, _cycle(model, upright, 0))
     reference = probe.reference_moment_nm[0]  # the CoM ahead of the ankles: M_y < 0
     assert reference < -5.0
     balancer = DampingBalancer(model)
     state = _state(model, reference / 2)  # each foot carries half of it: as commanded
     for k in range(400):
-        q = balancer.update(home, state, Cycle(k * DT, DT))
+        q = balancer.update(home, state, _cycle(model, state, k))
     assert np.abs(q - home).max() < 1e-9
     # the paper's law leans with that same moment
     paper = make_balancer(model, "paper")
     for k in range(400):
-        q = paper.update(home, state, Cycle(k * DT, DT))
+        q = paper.update(home, state, _cycle(model, state, k))
     assert np.abs(q - home).max() > 0.01
 
 
@@ -56,7 +62,7 @@ def test_corrections_stay_inside_the_limiters_rate_and_acceleration(model):
     state = _state(model, 10.0, pitch_deg=3.0)  # a large error: the filter saturates
     offsets = []
     for k in range(300):
-        balancer.update(home, state, Cycle(k * DT, DT))
+        balancer.update(home, state, _cycle(model, state, k))
         offsets.append(balancer.offsets_rad["right-leg"].copy())
     rate = np.diff(np.array(offsets), axis=0) / DT
     accel = np.diff(rate, axis=0) / DT
@@ -71,8 +77,9 @@ def test_a_foot_tipping_over_its_edge_stops_the_common_mode(model):
     # the same tilt; the centre of pressure at -53 mm (inside the sole) or at -105 mm (past
     # the heel's margin: the body rotates about the heel)
     for k in range(100):
-        flat.update(home, _state(model, 10.0, pitch_deg=3.0), Cycle(k * DT, DT))
-        tipping.update(home, _state(model, 20.0, pitch_deg=3.0), Cycle(k * DT, DT))
+        for balancer, moment_nm in ((flat, 10.0), (tipping, 20.0)):
+            state = _state(model, moment_nm, pitch_deg=3.0)
+            balancer.update(home, state, _cycle(model, state, k))
     assert np.abs(flat.offsets_rad["right-leg"]).max() > 1e-3
     assert np.abs(tipping.offsets_rad["right-leg"]).max() < 1e-9
 

@@ -12,6 +12,7 @@ from hubo_cli.control.collision import (
     _lower_bound,
 )
 from hubo_cli.control.module import Cycle
+from hubo_cli.dataflow import Store
 from hubo_cli.model import LEGS
 from hubo_cli.posture import home_posture
 from hubo_cli.state import RobotState
@@ -119,7 +120,7 @@ def _drive(model, drill, inputs, skip):
     detector = CollisionDetector(model, dt, drill=drill)
     detector.skip = skip
     state = RobotState(0.0, inputs[0], np.zeros(len(inputs[0])))
-    detector.reset(inputs[0], state)
+    detector.reset(inputs[0], state, Store())
     outs, modes, ahead = [], [], []
     for k, q in enumerate(inputs):
         cycle = Cycle(k * dt, dt)

@@ -7,13 +7,14 @@ import signal
 
 import numpy as np
 import pytest
-from control_support import assert_within_limits, ideal
+from control_support import assert_within_limits, ideal, sensed_cycle
 
 from hubo_cli.control.estop import BRAKE_FLAG, RELIEF_S, EmergencyStopper, stop_on_signal
 from hubo_cli.control.log import load_log
 from hubo_cli.control.loop import ControlLoop
 from hubo_cli.control.module import Cycle
 from hubo_cli.control.pipeline import build_pipeline, find_module
+from hubo_cli.dataflow import Store
 from hubo_cli.motion.limits import JointLimits
 from hubo_cli.posture import home_posture
 from hubo_cli.state import RobotState
@@ -37,10 +38,10 @@ def _revert_run(model, speed_rad_s, t_emer_s=2.0, end_s=6.0, **options):
     stopper = EmergencyStopper(model, DT, **options)
     q0 = home_posture(model)
     state = RobotState(0.0, q0, np.zeros(24))
-    stopper.reset(q0, state)
+    stopper.reset(q0, state, Store())
     inputs, outputs = [], []
     for k in range(int(round(end_s / DT))):
-        cycle = Cycle(k * DT, DT)
+        cycle = sensed_cycle(k * DT, DT, state)
         if k == int(round(t_emer_s / DT)):
             cycle.estop_requests.add("operator")
         q = q0.copy()
@@ -230,7 +231,7 @@ def test_a_release_while_the_wrist_stop_brakes_or_relieves_blends_back_smoothly(
     the live input from where it is, no step (each period's move within the velocity limit)."""
     stopper = EmergencyStopper(model, DT)
     q0 = home_posture(model)
-    stopper.reset(q0, RobotState(0.0, q0, np.zeros(24)))
+    stopper.reset(q0, RobotState(0.0, q0, np.zeros(24)), Store())
     delta = np.zeros(24)
     delta[:6] = [0.03, 0.02, -0.02, 0.04, 0.01, -0.03]
     stopper.relief = lambda q: q + np.linspace(0.0, 1.0, 4)[1:, None] * delta
@@ -244,7 +245,7 @@ def test_a_release_while_the_wrist_stop_brakes_or_relieves_blends_back_smoothly(
             stopper.release()
         q = q0.copy()
         q[:4] -= smooth_ramp(t, 0.3)
-        outputs.append(stopper.update(q, state, Cycle(t, DT)))
+        outputs.append(stopper.update(q, state, sensed_cycle(t, DT, state)))
     outputs = np.array(outputs)
     assert stopper.events[-1].kind == "release" and stopper.mode in ("recover", "release")
     steps = np.abs(np.diff(outputs, axis=0)) / DT
@@ -255,12 +256,12 @@ def test_latch_release_and_sources(model):
     stopper = EmergencyStopper(model, DT, sources=("operator", "wrist-torque"))
     q0 = home_posture(model)
     state = RobotState(0.0, q0, np.zeros(24))
-    stopper.reset(q0, state)
+    stopper.reset(q0, state, Store())
 
     def step(k, requests=(), torque_nm=0.0):
-        cycle = Cycle(k * DT, DT, estop_requests=set(requests))
         s = RobotState(k * DT, q0, np.zeros(24))
         s.ft["left-wrist"] = np.array([0, 0, 0, 0, torque_nm, 0.0])  # bending, across the forearm
+        cycle = sensed_cycle(k * DT, DT, s, estop_requests=set(requests))
         stopper.update(q0, s, cycle)
         return cycle
 
@@ -279,7 +280,7 @@ def test_latch_release_and_sources(model):
     assert stopper.mode == "recover"
     step(11, ["operator"])               # a new request during recovery stops again
     assert stopper.mode in ("stop", "hold") and stopper.events[-1].sources == ("operator",)
-    stopper.reset(q0, state)             # deactivation releases (hrpsys)
+    stopper.reset(q0, state, Store())             # deactivation releases (hrpsys)
     assert stopper.mode == "release"
 
 
@@ -289,7 +290,7 @@ def test_hard_stop_reacts_only_to_hard_source(model):
     assert hard.sources == frozenset({"hard"}) and hard.is_freeze
     q0 = home_posture(model)
     state = RobotState(0.0, q0, np.zeros(24))
-    hard.reset(q0, state)
+    hard.reset(q0, state, Store())
     hard.update(q0, state, Cycle(0.0, DT, estop_requests={"operator", "capture-point"}))
     assert not hard.stopped
     hard.update(q0, state, Cycle(DT, DT, estop_requests={"hard"}))
@@ -300,11 +301,11 @@ def test_operator_signal_latches(model):
     stopper = EmergencyStopper(model, DT)
     q0 = home_posture(model)
     state = RobotState(0.0, q0, np.zeros(24))
-    stopper.reset(q0, state)
+    stopper.reset(q0, state, Store())
     restore = stop_on_signal([stopper])
     try:
         os.kill(os.getpid(), signal.SIGUSR1)
-        stopper.update(q0, state, Cycle(0.0, DT))
+        stopper.update(q0, state, sensed_cycle(0.0, DT, state))
     finally:
         restore()
     assert stopper.stopped and stopper.events[0].sources == ("operator",)

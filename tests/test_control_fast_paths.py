@@ -14,6 +14,7 @@ from hubo_cli.control.limiter import (
 )
 from hubo_cli.control.module import Cycle
 from hubo_cli.control.otg import TargetInput
+from hubo_cli.dataflow import Store
 from hubo_cli.model import load_model
 from hubo_cli.motion.limits import JointLimits, all_finite, hold_nan
 from hubo_cli.state import RobotState
@@ -109,7 +110,7 @@ def test_the_limiters_clamp_bits_are_its_mask():
     n = len(model.joint_names)
     rng = np.random.default_rng(2)
     q0 = np.clip(np.zeros(n), limiter.limits.lower_rad, limiter.limits.upper_rad)
-    limiter.reset(q0, RobotState(0.0, q0, np.zeros(n)))
+    limiter.reset(q0, RobotState(0.0, q0, np.zeros(n)), Store())
     names = {CLAMP_POSITION: "joint-limit", CLAMP_RATE: "slowing",
              CLAMP_TRACKING: "tracking-error"}
     seen = set()

@@ -11,12 +11,22 @@ from control_support import assert_within_limits, ideal
 from hubo_cli.control.capture_point import CapturePointMonitor, convex_hull, outside_distance
 from hubo_cli.control.collision import SelfCollisionChecker
 from hubo_cli.control.hoff_arbib import hoff_arbib_step
+from hubo_cli.control.keys import SUPPORT_BOX_WORLD
 from hubo_cli.control.limiter import SoftErrorLimiter
 from hubo_cli.control.loop import ControlLoop
 from hubo_cli.control.module import Cycle
 from hubo_cli.control.otg import TrajectoryGenerator
 from hubo_cli.control.pipeline import build_pipeline, find_module
+from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError
+from hubo_cli.estimation.keys import (
+    CAPTURE_POINT_WORLD,
+    COM_VELOCITY_WORLD,
+    COM_WORLD,
+    CONTACT,
+    T_WORLD_SOLES,
+)
+from hubo_cli.geometry import quat_wxyz_to_matrix
 from hubo_cli.motion.limits import JointLimits
 from hubo_cli.motion.tracker import JointTracker
 from hubo_cli.posture import home_posture
@@ -34,7 +44,7 @@ def _state(model, q=None, **fields):
 def test_limiter_turns_a_jump_into_a_limited_move_without_ringing(model):
     limiter = SoftErrorLimiter(model, DT)
     q0 = home_posture(model)
-    limiter.reset(q0, _state(model))
+    limiter.reset(q0, _state(model), Store())
     goal = q0.copy()
     goal[0] += 0.8
     out = np.array([limiter.step(goal) for _ in range(800)])
@@ -48,7 +58,7 @@ def test_limiter_position_band_only_blocks_moving_further_out(model):
     upper = model.upper_rad[1]                     # RSR upper limit 0.3
     q_out = home_posture(model)
     q_out[1] = upper + 0.05                        # start outside the limit
-    limiter.reset(q_out, _state(model, q_out))
+    limiter.reset(q_out, _state(model, q_out), Store())
     further = q_out.copy()
     further[1] += 0.2
     assert limiter.step(further)[1] == pytest.approx(q_out[1])  # no further out
@@ -69,7 +79,7 @@ def test_a_joint_resting_on_its_limit_is_no_event_but_one_pushed_beyond_it_is(mo
     q0 = home_posture(model)
     hip = model.joint_names.index("RHY")
     assert q0[hip] == model.upper_rad[hip] == 0.0
-    limiter.reset(q0, _state(model))
+    limiter.reset(q0, _state(model), Store())
     rng = np.random.default_rng(7)
     for k in range(300):
         want = q0.copy()
@@ -87,7 +97,7 @@ def test_a_joint_resting_on_its_limit_is_no_event_but_one_pushed_beyond_it_is(mo
 def test_limiter_tracking_error_band(model):
     limiter = SoftErrorLimiter(model, DT)
     q0 = home_posture(model)
-    limiter.reset(q0, _state(model))
+    limiter.reset(q0, _state(model), Store())
     measured = q0.copy()                           # the joint is stuck at q0
     goal = q0.copy()
     goal[0] += 0.5
@@ -99,7 +109,7 @@ def test_limiter_tracking_error_band(model):
 def test_limiter_holds_nan(model):
     limiter = SoftErrorLimiter(model, DT)
     q0 = home_posture(model)
-    limiter.reset(q0, _state(model))
+    limiter.reset(q0, _state(model), Store())
     want = q0.copy()
     want[4] = np.nan
     out = limiter.step(want)
@@ -141,7 +151,7 @@ def test_tracker_synchronization_phase_keeps_a_straight_line_none_does_not(model
 def test_otg_clamps_targets_and_goes_stale(model):
     otg = TrajectoryGenerator(model, DT, stale_timeout_s=0.1)
     q0 = home_posture(model)
-    otg.reset(q0, _state(model))
+    otg.reset(q0, _state(model), Store())
     far = q0.copy()
     far[1] = 5.0                                   # RSR above its 0.3 rad limit
     cycle = Cycle(0.0, DT)
@@ -258,54 +268,89 @@ def test_hull_and_outside_distance():
     assert outside_distance(hull, np.array([1.2, 0.5])) == pytest.approx(0.2)
 
 
+def _estimate(model, q, T_world_torso=None, contact=(True, True), cp_xy=None,
+              velocity=(0.0, 0.0, 0.0)) -> Store:
+    """A store holding what the estimation layer would write for joints ``q`` and a torso pose
+    (pinocchio on the URDF; default upright with the soles on the floor): the CoM, its
+    velocity, the capture point (default: under the CoM), the contact and the soles."""
+    import pinocchio as pin
+
+    from hubo_cli.pin_robot import load_pin_robot
+
+    robot = load_pin_robot(model, floating=True)
+    data = robot.model.createData()
+    T = np.eye(4) if T_world_torso is None else T_world_torso
+    pose = robot.configuration(q, T)
+    com = pin.centerOfMass(robot.model, data, pose, False).copy()
+    soles = np.array([pin.updateFramePlacement(robot.model, data, robot.frame_id(f)).homogeneous
+                      for f in ("right_sole", "left_sole")])
+    if T_world_torso is None:  # stand the soles on the floor
+        lift = -soles[:, 2, 3].min()
+        com[2] += lift
+        soles[:, 2, 3] += lift
+    store = Store()
+    store[COM_WORLD] = com
+    store[COM_VELOCITY_WORLD] = np.asarray(velocity, dtype=float)
+    store[CAPTURE_POINT_WORLD] = com[:2].copy() if cp_xy is None else np.asarray(cp_xy, float)
+    store[CONTACT] = contact
+    store[T_WORLD_SOLES] = soles
+    return store
+
+
 def test_capture_point_standing_still_is_inside(model):
     monitor = CapturePointMonitor(model, DT)
     state = _state(model)
-    monitor.reset(state.q_rad, state)
-    cycle = Cycle(0.0, DT)
+    store = _estimate(model, state.q_rad)
+    monitor.reset(state.q_rad, state, store)
+    cycle = Cycle(0.0, DT, store=store)
     monitor.update(state.q_rad, state, cycle)
     assert not monitor.flag and monitor.outside_m < -0.03
     box = monitor.support_box_m
     assert box[0] < monitor.cp_m[0] < box[1] and box[2] < monitor.cp_m[1] < box[3]
     assert monitor.com_m[2] - monitor.ground_z_m > 0.4   # well above the soles
+    assert np.array_equal(store[SUPPORT_BOX_WORLD], box)  # published for the hip strategy
+    status = monitor.status()
+    assert status.feet_loaded == (True, True) and status.margin_m > 0.06
 
 
-def test_capture_point_flags_a_fast_backward_motion(model):
+def test_capture_point_flags_a_capture_point_moving_out_behind_the_heels(model):
+    """The estimate's capture point backing out of the soles at 0.5 m/s: the flag comes on
+    the confirm_periods-th period beyond the shrunk rear edge, not before, and the e-stop
+    request with it."""
     monitor = CapturePointMonitor(model, DT)
     q = home_posture(model)
-    flagged_at = None
+    store = _estimate(model, q)
+    monitor.reset(q, _state(model), store)
+    cp0 = store[CAPTURE_POINT_WORLD].copy()
+    outside = 0
     for k in range(200):
-        T = np.eye(4)
-        T[0, 3] = -0.4 * k * DT                    # torso (and CoM) drifting back at 0.4 m/s
-        state = RobotState(k * DT, q, np.zeros(24), T_world_torso=T,
-                           feet_contact=(True, True))
-        cycle = Cycle(k * DT, DT)
-        monitor.update(q, state, cycle)
-        if "capture-point" in cycle.estop_requests:
-            flagged_at = k * DT
+        store[CAPTURE_POINT_WORLD] = cp0 - (0.5 * k * DT, 0.0)
+        cycle = Cycle(k * DT, DT, store=store)
+        monitor.update(q, _state(model), cycle)
+        outside = outside + 1 if monitor.outside_m > 0 else 0
+        assert ("capture-point" in cycle.estop_requests) is (outside >= monitor.confirm_periods)
+        if outside >= monitor.confirm_periods:
             break
-    # feet move with the torso here, so only the CoM velocity term pushes the CP back:
-    # v / omega = 0.4 / sqrt(9.81 / ~0.6) = 0.1 m, beyond the 0.06 m rear margin once filtered
-    assert flagged_at is not None and flagged_at < 0.6
+    assert outside == monitor.confirm_periods
     assert monitor.cp_m[0] < monitor.support_box_m[0]
 
 
 def test_capture_point_ignores_a_robot_in_the_air(model):
     monitor = CapturePointMonitor(model, DT)
     q = home_posture(model)
-    state = RobotState(0.0, q, np.zeros(24), feet_contact=(False, False))
-    cycle = Cycle(0.0, DT)
-    monitor.update(q, state, cycle)
+    store = _estimate(model, q, contact=(False, False), cp_xy=(5.0, 5.0))
+    cycle = Cycle(0.0, DT, store=store)
+    monitor.update(q, _state(model), cycle)
     assert not cycle.estop_requests and not monitor.flag
 
 
 def test_capture_point_reference_matches_a_still_robot(model):
     monitor = CapturePointMonitor(model, DT)
     q = home_posture(model)
-    state = RobotState(0.0, q, np.zeros(24), feet_contact=(True, True))
-    monitor.reset(q, state)
-    cycle = Cycle(0.0, DT)
-    monitor.update(q, state, cycle)
+    store = _estimate(model, q)
+    monitor.reset(q, _state(model), store)
+    cycle = Cycle(0.0, DT, store=store)
+    monitor.update(q, _state(model), cycle)
     assert abs(cycle.info["cp_error_x_m"]) < 1e-9 and abs(cycle.info["cp_error_y_m"]) < 1e-9
 
 
@@ -321,12 +366,11 @@ def test_capture_point_flags_feet_tipping_on_their_heels(model):
     q = home_posture(model)
     for angle_deg, expected in ((0.5, False), (3.0, True)):
         monitor = CapturePointMonitor(model, DT)
-        state = RobotState(0.0, q, np.zeros(24), T_world_torso=_pitched(np.radians(-angle_deg)),
-                           feet_contact=(True, True))
-        monitor.reset(q, state)
+        store = _estimate(model, q, _pitched(np.radians(-angle_deg)))
+        monitor.reset(q, _state(model), store)
         for k in range(monitor.confirm_periods):
             assert not monitor.flag
-            monitor.update(q, state, Cycle(k * DT, DT))
+            monitor.update(q, _state(model), Cycle(k * DT, DT, store=store))
         assert monitor.flag is expected, angle_deg
 
 
@@ -334,33 +378,31 @@ def test_capture_point_ignores_a_one_period_outlier(model):
     """One period of tipped soles (a measurement outlier) is not a fall; three are."""
     q = home_posture(model)
     monitor = CapturePointMonitor(model, DT)
-    upright = RobotState(0.0, q, np.zeros(24), T_world_torso=np.eye(4),
-                         feet_contact=(True, True))
-    tipped = RobotState(0.0, q, np.zeros(24), T_world_torso=_pitched(np.radians(-3.0)),
-                        feet_contact=(True, True))
-    monitor.reset(q, upright)
-    for k, state in enumerate([upright, tipped, upright, tipped, tipped, tipped]):
-        cycle = Cycle(k * DT, DT)
-        monitor.update(q, state, cycle)
+    upright = _estimate(model, q, np.eye(4))
+    tipped = _estimate(model, q, _pitched(np.radians(-3.0)))
+    monitor.reset(q, _state(model), upright)
+    for k, store in enumerate([upright, tipped, upright, tipped, tipped, tipped]):
+        cycle = Cycle(k * DT, DT, store=store)
+        monitor.update(q, _state(model), cycle)
         assert ("capture-point" in cycle.estop_requests) is (k == 5), k
 
 
-def test_capture_point_ignores_a_one_period_contact_flicker(model):
+def test_capture_point_judges_the_feet_the_estimate_has_in_contact(model):
+    """The support is the soles in contact as the estimate says (its one filter and
+    debounce): with the left foot out of contact the capture point between the feet lies
+    outside the right sole, and the monitor counts the contact loss (after 20 ms)."""
     monitor = CapturePointMonitor(model, DT)
     q = home_posture(model)
-    flags = []
-    for k in range(20):
-        contact = (True, k != 10)                  # the left foot "lifts" for one period
-        state = RobotState(k * DT, q, np.zeros(24), feet_contact=contact)
-        cycle = Cycle(k * DT, DT)
-        monitor.update(q, state, cycle)
-        flags.append(monitor.flag)
-    assert not any(flags)
-    for k in range(20, 40):                        # a real lift (longer than 50 ms) counts
-        state = RobotState(k * DT, q, np.zeros(24), feet_contact=(True, False))
-        monitor.update(q, state, Cycle(k * DT, DT))
-    assert monitor.flag
-
+    both = _estimate(model, q)
+    monitor.reset(q, _state(model), both)
+    for k in range(10):
+        monitor.update(q, _state(model), Cycle(k * DT, DT, store=both))
+    assert not monitor.flag and monitor.status().contact_losses == 0
+    right_only = _estimate(model, q, contact=(True, False))
+    for k in range(10, 20):
+        monitor.update(q, _state(model), Cycle(k * DT, DT, store=right_only))
+    assert monitor.flag and monitor.status().feet_loaded == (True, False)
+    assert monitor.status().contact_losses == 1
 
 
 COMPILE_CHECK = """
@@ -372,7 +414,7 @@ from hubo_cli.motion import limits
 from hubo_cli.experiments.standing import stand
 from hubo_cli.model import load_model
 
-kernels = (capture_point._measure, capture_point._configure, balance._balance_step,
+kernels = (capture_point._support, balance._balance_step,
            balance.command_configuration, limiter.limit_step, limits._braking_distance)
 model = load_model()
 capture_point.CapturePointMonitor(model, 0.005)
@@ -415,7 +457,10 @@ def test_ideal_driver_keeps_the_feet_flat_so_a_leaning_posture_stays_supported(m
     robot.send(q)
     state = robot.step()
     assert abs(np.degrees(np.hypot(*state.tilt_rad())) - 2.0) < 0.05
+    T_world_torso = np.eye(4)
+    T_world_torso[:3, :3] = quat_wxyz_to_matrix(state.imu_quat_wxyz)
+    store = _estimate(model, q, T_world_torso)  # the torso placed by the ideal IMU's attitude
     monitor = CapturePointMonitor(model, DT)
-    monitor.reset(q, state)
-    monitor.update(q, state, Cycle(0.0, DT))
+    monitor.reset(q, state, store)
+    monitor.update(q, state, Cycle(0.0, DT, store=store))
     assert not monitor.flag and monitor.outside_m < -0.03

@@ -69,3 +69,19 @@ def test_the_loop_runs_the_estimator_before_the_modules_and_checks_the_flow():
     # period k sees the estimate of the state after period k - 1's step (period 0: the start)
     assert np.allclose(np.diff(reader.seen), driver.period_s)
     assert loop.store[B] == 2 * reader.seen[-1]
+
+
+class Follows(Module):
+    name, follows = "follows-a", (A,)
+
+    def update(self, q_rad, state, cycle):
+        return q_rad
+
+
+def test_a_followed_key_needs_no_writer_but_one_after_the_follower_is_a_build_error():
+    """A phase's key (the planned support) is followed when written and done without
+    otherwise; its writer must still come first."""
+    check_flow([Follows()])
+    check_flow([Writes(), Follows()])
+    with pytest.raises(FlowError, match="follows-a follows a_m, which writes-a writes after it"):
+        check_flow([Follows(), Writes()])

@@ -40,13 +40,15 @@ def _check_state(state: RobotState) -> None:
     assert state.imu_quat_wxyz.shape == (4,)
     assert np.linalg.norm(state.imu_quat_wxyz) == pytest.approx(1.0, abs=1e-9)
     assert state.imu_gyro_rad_s.shape == (3,) and np.all(np.isfinite(state.imu_gyro_rad_s))
+    assert state.imu_accel_m_s2.shape == (3,) and np.all(np.isfinite(state.imu_accel_m_s2))
     assert set(state.ft) == set(FT_SENSORS)
     for wrench in state.ft.values():
         assert wrench.shape == (6,) and np.all(np.isfinite(wrench))
     if state.tau_nm is not None:
         assert state.tau_nm.shape == (N,) and np.all(np.isfinite(state.tau_nm))
-    if state.T_world_torso is not None:
-        assert state.T_world_torso.shape == (4, 4)
+    if state.truth is not None:  # the simulator's ground truth, beside the sensors
+        assert state.truth.T_world_torso.shape == (4, 4)
+        assert len(state.truth.feet_contact) == 2
     assert isinstance(state.flags, tuple) and all(isinstance(f, str) for f in state.flags)
     roll, pitch = state.tilt_rad()
     assert abs(roll) < 0.1 and abs(pitch) < 0.1
@@ -76,6 +78,9 @@ def test_start_in_home_posture_with_sane_state(driver):
     _check_state(state)
     assert np.allclose(state.q_rad, home_posture(MODEL), atol=2e-3)
     assert driver.read().time_s == state.time_s
+    # at rest the accelerometer reads gravity (9.81 m/s^2), along the torso's z when upright
+    assert np.linalg.norm(state.imu_accel_m_s2) == pytest.approx(9.81, abs=0.01)
+    assert state.imu_accel_m_s2[2] > 9.7
 
 
 def test_start_in_a_given_posture(driver):

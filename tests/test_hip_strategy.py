@@ -8,9 +8,12 @@ import numpy as np
 import pytest
 
 from hubo_cli.control.hip_strategy import BOW_JOINTS_RAD, MAX_BOW_RAD, START_M, HipStrategy
+from hubo_cli.control.keys import SUPPORT_BOX_WORLD
 from hubo_cli.control.module import Cycle
 from hubo_cli.control.pipeline import SafetyProfile
+from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError
+from hubo_cli.estimation.keys import CAPTURE_POINT_WORLD
 from hubo_cli.experiments.standing import stand, standing_posture
 from hubo_cli.posture import home_posture
 from hubo_cli.state import RobotState
@@ -22,10 +25,11 @@ BOX_X_M = (-0.06, 0.10)  # the shrunk support box's back and front edges (the st
 def _run(module: HipStrategy, q_rad: np.ndarray, cp_x_m: float, periods: int) -> np.ndarray:
     state = RobotState(0.0, q_rad, np.zeros(len(q_rad)))
     out = q_rad
+    store = Store()  # what the estimate and the capture-point monitor write
+    store[CAPTURE_POINT_WORLD] = np.array([cp_x_m, 0.0])
+    store[SUPPORT_BOX_WORLD] = np.array([BOX_X_M[0], BOX_X_M[1], -0.15, 0.15])
     for k in range(periods):
-        cycle = Cycle(k * DT, DT, info={"cp_x_m": cp_x_m, "support_min_x_m": BOX_X_M[0],
-                                        "support_max_x_m": BOX_X_M[1]})
-        out = module.update(q_rad, state, cycle)
+        out = module.update(q_rad, state, Cycle(k * DT, DT, store=store))
     return out
 
 

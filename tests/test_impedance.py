@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 import scipy.linalg
+from control_support import sensed_cycle
 
 from hubo_cli.control.impedance import (
     BAD_FLAG,
@@ -17,8 +18,8 @@ from hubo_cli.control.impedance import (
     ImpedanceController,
     default_gains,
 )
-from hubo_cli.control.module import Cycle
 from hubo_cli.control.pipeline import DEFAULT_ORDER, SafetyProfile
+from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError
 from hubo_cli.kinematics.dh import pose_error
 from hubo_cli.kinematics.limb import Limb
@@ -40,8 +41,10 @@ def _state(model, q=None, wrench_right=None, wrench_left=None):
 
 
 def _controller(model, q, **options):
+    """The module on wrenches given in the hand's axes (the mounting is one argument)."""
+    options.setdefault("T_hand_sensor", np.eye(4))
     ic = ImpedanceController(model, DT, **options)
-    ic.reset(q, _state(model, q))
+    ic.reset(q, _state(model, q), Store())
     return ic
 
 
@@ -105,7 +108,7 @@ def _run(model, q, ic, wrench_N_of_t, periods, arm="right-arm"):
     state = _state(model, q)
     for k in range(periods):
         state.ft[sensor] = _sensor_wrench(R, wrench_N_of_t(k * DT))
-        cycle = Cycle(k * DT, DT)
+        cycle = sensed_cycle(k * DT, DT, state)
         ic.update(q, state, cycle)
         assert not cycle.flags, cycle.flags  # the dynamics alone: no clamp, no hold
         out[k] = ic.offset(arm)
@@ -181,13 +184,13 @@ def test_the_wrench_is_turned_from_hand_axes_into_the_neck_frame(model):
     K = default_gains(model)["K"]
     state = _state(model, q, wrench_right=[4.0, 0, 0, 0, 0, 0])
     for k in range(3000):  # 15 s: settled (0.5 Hz, critically damped)
-        ic.update(q, state, Cycle(k * DT, DT))
+        ic.update(q, state, sensed_cycle(k * DT, DT, state))
     np.testing.assert_allclose(ic.offset("right-arm")[:3], R[:, 0] * 4.0 / K[0, 0], atol=1e-6)
     T_H_S = np.eye(4)
     T_H_S[:3, 3] = [0.0, 0.0, 0.05]  # sensor 5 cm along the hand's z
     ic = _controller(model, q, T_hand_sensor=T_H_S)
     for k in range(3000):
-        ic.update(q, state, Cycle(k * DT, DT))
+        ic.update(q, state, sensed_cycle(k * DT, DT, state))
     m_H = np.cross([0.0, 0.0, 0.05], [4.0, 0.0, 0.0])  # = (0, 0.2, 0) N m
     np.testing.assert_allclose(ic.offset("right-arm")[3:], R @ m_H / K[3, 3], atol=1e-6)
 
@@ -200,7 +203,7 @@ def test_no_force_is_the_identity_bit_for_bit(model):
     state = _state(model, q0)
     for k in range(200):
         q = q0 + rng.normal(scale=0.3, size=q0.shape)
-        out = ic.update(q, state, Cycle(k * DT, DT))
+        out = ic.update(q, state, sensed_cycle(k * DT, DT, state))
         assert np.array_equal(out, q)
 
 
@@ -230,8 +233,8 @@ def test_hostile_readings_never_give_nan_and_never_exceed_the_limits(model):
                 ic.switch_on()
         mode = ic.mode
         before = {arm: ic.offset(arm) for arm in ("right-arm", "left-arm")}
-        cycle = Cycle(k * DT, DT)
         state = _state(model, q0.copy(), *wrenches)
+        cycle = sensed_cycle(k * DT, DT, state)
         if rng.random() < 0.05:  # a garbled measured joint too
             state.q_rad[rng.integers(len(q0))] = np.nan
         out = ic.update(q, state, cycle)
@@ -251,9 +254,9 @@ def test_a_nan_reading_holds_the_offset_and_the_command(model):
     ic = _controller(model, q)
     state = _state(model, q, wrench_right=[5.0, 2.0, 0, 0, 0.1, 0])
     for k in range(100):
-        out = ic.update(q, state, Cycle(k * DT, DT))
+        out = ic.update(q, state, sensed_cycle(k * DT, DT, state))
     state.ft["right-wrist"] = np.array([np.nan, 0, 0, 0, 0, 0])
-    cycle = Cycle(0.5, DT)
+    cycle = sensed_cycle(0.5, DT, state)
     held = ic.update(q, state, cycle)
     assert BAD_FLAG in cycle.flags
     np.testing.assert_array_equal(held, out)
@@ -267,7 +270,7 @@ def test_the_offset_is_clamped_and_does_not_wind_up(model):
     state = _state(model, q, wrench_right=_sensor_wrench(R, np.array([0, 0, -60.0, 0, 0, 5])))
     flags = set()
     for k in range(600):
-        cycle = Cycle(k * DT, DT)
+        cycle = sensed_cycle(k * DT, DT, state)
         ic.update(q, state, cycle)
         flags |= cycle.flags
     assert LIMIT_FLAG in flags
@@ -275,7 +278,8 @@ def test_the_offset_is_clamped_and_does_not_wind_up(model):
     assert np.linalg.norm(x[:3]) == pytest.approx(ic.max_offset_m)
     assert np.linalg.norm(x[3:]) == pytest.approx(ic.max_rotation_rad)
     state.ft["right-wrist"] = np.zeros(6)
-    ic.update(q, state, Cycle(2.0, DT))  # released: it leaves the limit at once (no wind-up)
+    # released: it leaves the limit at once (no wind-up)
+    ic.update(q, state, sensed_cycle(2.0, DT, state))
     assert np.linalg.norm(ic.offset("right-arm")[:3]) < ic.max_offset_m
 
 
@@ -301,7 +305,7 @@ def test_joint_offset_puts_the_hand_at_the_offset_pose(model):
         state = _state(model, q, wrench_right=_sensor_wrench(R, w_N))
         flags = set()
         for k in range(50):
-            cycle = Cycle(k * DT, DT)
+            cycle = sensed_cycle(k * DT, DT, state)
             out = ic.update(q, state, cycle)
             flags |= cycle.flags
         if UNREACHABLE_FLAG in flags:
@@ -326,13 +330,13 @@ def test_release_blends_back_smoothly_then_passes_through(model):
     state = _state(model, q, wrench_right=[8.0, 0, 3.0, 0, 0.2, 0])
     outs = []
     for k in range(600):
-        outs.append(ic.update(q, state, Cycle(k * DT, DT)))
+        outs.append(ic.update(q, state, sensed_cycle(k * DT, DT, state)))
     start = np.linalg.norm(ic.offset("right-arm"))
     ic.switch_off()
     n = round(ic.release_s / DT)
     norms, flags = [], set()
     for k in range(600, 600 + n + 20):
-        cycle = Cycle(k * DT, DT)
+        cycle = sensed_cycle(k * DT, DT, state)
         outs.append(ic.update(q, state, cycle))  # the force is still there: ignored
         flags |= cycle.flags
         norms.append(np.linalg.norm(ic.offset("right-arm")))
@@ -344,7 +348,7 @@ def test_release_blends_back_smoothly_then_passes_through(model):
     # whole offset (~0.05 rad on the elbow)
     assert np.all(steps <= model.velocity_rad_s * DT * (1 + 1e-9))
     ic.switch_on()
-    ic.update(q, state, Cycle(10.0, DT))
+    ic.update(q, state, sensed_cycle(10.0, DT, state))
     assert np.linalg.norm(ic.offset("right-arm")) > 0
 
 
@@ -356,7 +360,7 @@ def test_a_reference_wrench_is_where_the_hand_settles(model):
     ic.set_reference_wrench("right-arm", ref)
     state = _state(model, q, wrench_right=_sensor_wrench(R, ref))
     for k in range(100):
-        out = ic.update(q, state, Cycle(k * DT, DT))
+        out = ic.update(q, state, sensed_cycle(k * DT, DT, state))
     # measured == reference: no offset (but for the rounding of turning the wrench into N)
     assert np.max(np.abs(ic.offset("right-arm"))) < 1e-15
     np.testing.assert_allclose(out, q, rtol=0, atol=1e-12)
@@ -386,7 +390,8 @@ def test_the_safety_profile_adds_it_only_on_request(model):
 
 
 class _Pushed:
-    """An ideal driver whose right wrist feels ``wrench`` (hand axes) from ``t_on_s``."""
+    """An ideal driver whose right wrist feels ``wrench`` (the sensor's axes, on top of the
+    hand's weight) from ``t_on_s``."""
 
     def __init__(self, recorder, wrench, t_on_s) -> None:
         self.recorder, self.wrench, self.t_on_s = recorder, np.asarray(wrench), t_on_s
@@ -397,14 +402,15 @@ class _Pushed:
     def step(self):
         state = self.recorder.step()
         if state.time_s >= self.t_on_s:
-            state.ft["right-wrist"] = self.wrench.copy()
+            state.ft["right-wrist"] = state.ft["right-wrist"] + self.wrench
         return state
 
 
 def test_in_the_pipeline_it_changes_nothing_without_force_and_stays_within_limits(model):
     """The ideal driver (no force): the commands of the profile with the module are those
-    without it, bit for bit. Then a 10 N push along the forearm and a 0.3 N m twist from 0.5 s:
-    the hand yields, every command finite and within the joints' limits."""
+    without it, bit for bit. Then a 10 N push along the forearm and a 0.3 N m bending moment
+    across it from 0.5 s (what the three-axis wrist sensor reads): the hand yields, every
+    command finite and within the joints' limits."""
     from control_support import assert_within_limits, ideal
 
     from hubo_cli.control.loop import ControlLoop
@@ -423,7 +429,7 @@ def test_in_the_pipeline_it_changes_nothing_without_force_and_stays_within_limit
     robot = ideal(model)
     q0 = robot.read().q_rad.copy()
     modules = SafetyProfile(impedance=True).build(model, DT, {})
-    result = ControlLoop(_Pushed(robot, [-10.0, 0, 0, 0.3, 0, 0], 0.5), modules,
+    result = ControlLoop(_Pushed(robot, [0, 0, -10.0, 0.3, 0, 0], 0.5), modules,
                          hold).run(duration_s=3.0)
     commands = robot.commands(q0)
     assert np.all(np.isfinite(commands))
@@ -446,8 +452,8 @@ def test_no_control_period_compiles_a_kernel(model):
     state = _state(model, q, wrench_right=[3.0, 1, 2, 0.1, 0, 0.05], wrench_left=[-3.0, 1, 0,
                                                                                   0, 0.1, 0])
     for k in range(100):
-        ic.update(q, state, Cycle(k * DT, DT))
+        ic.update(q, state, sensed_cycle(k * DT, DT, state))
     ic.switch_off()
     for k in range(100, 400):
-        ic.update(q, state, Cycle(k * DT, DT))
+        ic.update(q, state, sensed_cycle(k * DT, DT, state))
     assert [len(k.signatures) for k in kernels] == built

@@ -105,12 +105,13 @@ def test_the_csv_made_at_close_is_the_row_text(tmp_path):
 def test_a_state_row_logs_its_feet_and_extras(tmp_path):
     """With a state: the ankles' normal forces and the contact flags (NaN where the driver
     has none), the extras it reported and NaN for the others."""
-    from hubo_cli.state import RobotState
+    from hubo_cli.state import RobotState, Truth
 
     q = np.array([0.1, -0.2, 0.3])
     ft = {"right-ankle": np.array([1.0, 2.0, 301.25, 0.0, 0.0, 0.0])}
-    states = [RobotState(0.0, q, np.zeros(3), ft=ft, feet_contact=(True, np.False_)),
-              RobotState(0.005, q, np.zeros(3), ft={}, feet_contact=None)]
+    truth = Truth(np.eye(4), (True, np.False_), np.array([1.0, 0.0, 0.0, 0.0]))
+    states = [RobotState(0.0, q, np.zeros(3), ft=ft, truth=truth),
+              RobotState(0.005, q, np.zeros(3), ft={}, truth=None)]
     log = PeriodLog(tmp_path / LOG_NAME, JOINTS, EXTRAS)
     log.write(0, 0.0, 0, 1.0, 0.0, set(), q, q, q, {"x_m": np.float64(0.25)}, state=states[0])
     log.write(1, 0.005, 0, 1.0, 0.0, set(), q, q, q, None, state=states[1])
@@ -123,8 +124,10 @@ def test_a_state_row_logs_its_feet_and_extras(tmp_path):
                                    "right_foot_contact_flag", "left_foot_contact_flag",
                                    "x_m", "y_count")]
     assert all(math.isnan(v) for v in second)
-    # no world position from this driver; the orientation is the IMU's (level)
-    assert np.isnan(data["torso_x_m"]).all() and (data["torso_roll_rad"] == 0.0).all()
+    # the first row: the simulator's truth; the second, without one: no world position, the
+    # orientation the IMU's (level)
+    assert data["torso_x_m"][0] == 0.0 and np.isnan(data["torso_x_m"][1])
+    assert (data["torso_roll_rad"] == 0.0).all()
 
 
 def test_the_records_grow_past_their_first_block(tmp_path):

@@ -13,6 +13,7 @@ from hubo_cli.control.loop import ControlLoop
 from hubo_cli.control.module import Cycle
 from hubo_cli.control.otg import TrajectoryGenerator, tracker_groups
 from hubo_cli.control.pipeline import SafetyProfile, build_pipeline, find_module
+from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError
 from hubo_cli.model import ARMS, LEGS
 from hubo_cli.motion.limits import JointLimits
@@ -29,7 +30,7 @@ def _state(model):
 
 def _run(otg, model, goal, periods):
     q0 = home_posture(model)
-    otg.reset(q0, _state(model))
+    otg.reset(q0, _state(model), Store())
     return np.array([otg.update(goal, _state(model), Cycle(k * DT, DT)).copy()
                      for k in range(periods)])
 
@@ -76,7 +77,7 @@ def test_an_arm_does_not_wait_for_the_legs_with_its_own_tracker(model):
 def test_limbs_groups_clamp_hold_and_go_stale(model):
     otg = TrajectoryGenerator(model, DT, stale_timeout_s=0.1, groups="limbs")
     q0 = home_posture(model)
-    otg.reset(q0, _state(model))
+    otg.reset(q0, _state(model), Store())
     far = q0.copy()
     far[1] = 5.0                                    # RSR above its 0.3 rad limit
     cycle = Cycle(0.0, DT)
@@ -104,7 +105,7 @@ def test_a_ruckig_error_in_one_group_brakes_every_group(model):
     jerk = limits.jerk_rad_s3.copy()
     otg = TrajectoryGenerator(model, DT, groups="limbs", limits=limits)
     q0 = home_posture(model)
-    otg.reset(q0, _state(model))
+    otg.reset(q0, _state(model), Store())
     goal = q0.copy()
     goal[0] += 0.5                                  # right shoulder pitch
     goal[model.joint_names.index("RKN")] += 0.3

@@ -16,7 +16,7 @@ from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import load_model
 from hubo_cli.posture import home_posture
 from hubo_cli.session import settled_objects
-from hubo_cli.state import RobotState
+from hubo_cli.state import RobotState, Truth
 
 
 def test_log_hand_poses_match_numpy_kinematics(tmp_path):
@@ -26,7 +26,8 @@ def test_log_hand_poses_match_numpy_kinematics(tmp_path):
     T_world_torso = np.eye(4)
     T_world_torso[:3, :3] = rpy_to_matrix(0.02, -0.05, 0.4)
     T_world_torso[:3, 3] = (0.1, -0.2, 0.9)
-    state = RobotState(0.0, q, np.zeros(len(q)), T_world_torso=T_world_torso)
+    state = RobotState(0.0, q, np.zeros(len(q)),
+                       truth=Truth(T_world_torso, (True, True), np.array([1.0, 0.0, 0.0, 0.0])))
     log = PeriodLog(tmp_path / "log.csv", model.joint_names, (), model=model)
     log.write(0, 0.0, 0, 0.0, 0.0, set(), q, q, q, None, state=state)
     log.close()

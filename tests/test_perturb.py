@@ -55,6 +55,9 @@ def test_draws_stay_within_their_ranges():
         assert np.linalg.norm(p.floor_tilt_rad) <= math.radians(0.5)
         assert np.linalg.norm(p.imu_bias_rad) <= math.radians(0.5)
         assert p.encoder_noise_rad == 0.5e-3 and p.ft_force_noise_n == 1.0
+        assert np.all(np.abs(p.gyro_bias_rad_s) <= math.radians(0.5))
+        assert np.all(np.abs(p.accel_bias_m_s2) <= 0.5e-3 * 9.80665)
+        assert p.gyro_noise_density > 0 and p.accel_noise_density > 0
 
 
 def test_perturbed_urdf_scales_the_masses_and_moves_the_centres_of_mass():
@@ -90,7 +93,7 @@ def _trace(seed, periods=100):
             sim.send(q + 0.05 * math.sin(k * 0.05))  # the arms and legs move
             s = sim.step()
             rows.append(np.concatenate([s.q_rad, s.imu_quat_wxyz, s.ft["right-ankle"],
-                                        s.T_world_torso[:3, 3]]))
+                                        s.truth.T_world_torso[:3, 3]]))
         return np.array(rows), sim.perturbation
 
 

@@ -11,6 +11,7 @@ from hubo_cli.control.pipeline import DEFAULT_ORDER, SafetyProfile, build_pipeli
 from hubo_cli.control.stop_choice import ActiveStops
 from hubo_cli.drivers.registry import make_driver
 from hubo_cli.errors import ConfigError, InputError
+from hubo_cli.estimation.build import build_estimator
 from hubo_cli.experiments.push_wall import push_wall_setup
 from hubo_cli.posture import home_posture
 from hubo_cli.session import RunSetup
@@ -79,21 +80,24 @@ def test_every_info_key_a_module_writes_is_a_declared_log_column(model):
                                                wrist_torque_limit_nm=1.21)]
     for profile in profiles:
         modules = profile.build(model, dt, {"right-arm": "drill"})
+        estimator = build_estimator(model, {"right-arm": "drill"}, dt)
         with make_driver("ideal", model) as robot:
             state = robot.start(home_posture(model))
+            store = estimator.reset(state)
             for m in modules:
-                m.reset(state.q_rad.copy(), state)
+                m.reset(state.q_rad.copy(), state, store)
             q_goal = home_posture(model)
             q_goal[model.limb_slice("right-arm")] += 0.3
             for k in range(40):
                 q = q_goal.copy()
                 for m in modules:
-                    cycle = Cycle(k * dt, dt)
+                    cycle = Cycle(k * dt, dt, store=store)
                     q = m.update(q, state, cycle)
                     undeclared = set(cycle.info) - set(m.log_columns)
                     assert not undeclared, f"{m.name} writes undeclared {undeclared}"
                 robot.send(q)
                 state = robot.step()
+                estimator.update(state)
 
 
 def test_a_pipeline_built_for_another_period_is_refused(model):
@@ -190,3 +194,13 @@ def test_a_stream_that_swings_the_drill_into_the_torso_is_held_by_the_collision_
     assert first["t_s"] > 1.0  # not during the approach
     assert any(name.startswith(("drill", "R")) for name in first["pair"])
     assert any(name.startswith("torso") for name in first["pair"])
+
+
+def test_the_limit_set_is_the_profile_s_and_a_model_with_another_is_refused(model):
+    from hubo_cli.model import load_model
+
+    walking = load_model(model.params_name, "walking")
+    assert RunSetup("x", walking, safety=SafetyProfile(limit_set="walking")).model is walking
+    assert RunSetup("x", model).model is model  # None: the model's own set
+    with pytest.raises(ConfigError, match="'walking' joint-limit set .* loaded with 'table4'"):
+        RunSetup("x", model, safety=SafetyProfile(limit_set="walking"))

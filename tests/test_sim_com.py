@@ -25,9 +25,8 @@ def test_physics_com_equals_the_model_com_in_random_postures(model, rng, drill):
         for _ in range(4):
             q = np.clip(home + rng.normal(0.0, 0.4, home.size), model.lower_rad, model.upper_rad)
             state = sim.start(q)
-            com_model = pin.centerOfMass(robot.model, data,
-                                         robot.configuration(state.q_rad, state.T_world_torso),
-                                         False)
+            q_pin = robot.configuration(state.q_rad, state.truth.T_world_torso)
+            com_model = pin.centerOfMass(robot.model, data, q_pin, False)
             worst = max(worst, float(np.linalg.norm(sim.com_world_m() - com_model)))
     assert worst < 0.001  # measured 5e-16 m on both code paths (AVX-512 / portable)
 
@@ -43,14 +42,14 @@ def test_a_foot_is_in_contact_while_its_low_passed_load_exceeds_25_n(model):
     dt = model.control_period_s
     with SimDriver(model) as sim:
         state = sim.start(home)
-        assert state.feet_contact == (True, True)
+        assert state.truth.feet_contact == (True, True)
         assert min(state.ft["right-ankle"][2], state.ft["left-ankle"][2]) > 100.0
         fz, touching = [], []
         for _ in range(40):  # 0.2 s: the foot comes up before the robot tips far
             sim.send(lifted)
             state = sim.step()
             fz.append(state.ft["left-ankle"][2])
-            touching.append(state.feet_contact[1])
+            touching.append(state.truth.feet_contact[1])
     fz, touching = np.array(fz), np.array(touching)
     unloaded = int(np.argmax(fz < 1.0))  # first period without load
     assert fz[unloaded:].max() < 1.0 and touching[unloaded] and not touching[-1]

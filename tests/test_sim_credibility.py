@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from hubo_cli.control.balance import AnkleBalancer
-from hubo_cli.control.capture_point import CapturePointMonitor
 from hubo_cli.control.module import Cycle
 from hubo_cli.drivers.sim import FAST_PHYSICS, LEGACY_PHYSICS, SimDriver
+from hubo_cli.estimation.build import build_estimator
 from hubo_cli.posture import home_posture
 from hubo_cli.urdf import DRILL_FRAME
 
@@ -23,19 +23,21 @@ def _stand(model, physics: dict, duration_s: float, push_n: float = 0.0):
     q_home = home_posture(model)
     dt = model.control_period_s
     balancer = AnkleBalancer(model)
-    monitor = CapturePointMonitor(model, dt, request_estop=False)
+    estimator = build_estimator(model, period_s=dt)
     tilts, coms = [], []
     with SimDriver(model, **physics) as robot:
         state = robot.start(q_home)
-        balancer.reset(q_home, state)
+        store = estimator.reset(state)
+        balancer.reset(q_home, state, store)
         for k in range(int(round(duration_s / dt))):
             if push_n and k == int(round(PUSH_AT_S / dt)):
                 robot.push_torso([push_n, 0.0, 0.0], PUSH_S)
-            robot.send(balancer.update(q_home, state, Cycle(k * dt, dt)))
+            robot.send(balancer.update(q_home, state, Cycle(k * dt, dt, store=store)))
             state = robot.step()
-            tilts.append(np.degrees(np.arccos(min(1.0, state.T_world_torso[2, 2]))))
-            monitor.measure(state)
-            coms.append(monitor.com_m.copy())
+            estimator.update(state)
+            # the simulator's truth: this test compares two physics settings
+            tilts.append(np.degrees(np.arccos(min(1.0, state.truth.T_world_torso[2, 2]))))
+            coms.append(robot.com_world_m())
     return np.array(tilts), np.array(coms)
 
 
@@ -75,11 +77,13 @@ def _cut(model, physics: dict, duration_s: float = 2.5):
     q_home = home_posture(model)
     dt = model.control_period_s
     balancer = AnkleBalancer(model)
+    estimator = build_estimator(model, {"right-arm": "drill"}, dt)
     i_roll = model.joint_names.index("RSR")
     bits, forces = [], []
     with SimDriver(model, drill=True, **physics) as robot:
         state = robot.start(q_home)
-        balancer.reset(q_home, state)
+        store = estimator.reset(state)
+        balancer.reset(q_home, state, store)
         bit_x, bit_y = robot.frame_pose(DRILL_FRAME)[:2, 3]
         # a board 100 mm wide beside the bit's outer side: the drill's body (a collision shape,
         # nearer the torso) stays off it, the contact would differ between the step sizes
@@ -88,8 +92,9 @@ def _cut(model, physics: dict, duration_s: float = 2.5):
         for k in range(int(round(duration_s / dt))):
             q = q_home.copy()
             q[i_roll] -= 0.03 * (1 - np.cos(2 * np.pi * k * dt / duration_s))  # about 3 cm
-            robot.send(balancer.update(q, state, Cycle(k * dt, dt)))
+            robot.send(balancer.update(q, state, Cycle(k * dt, dt, store=store)))
             state = robot.step()
+            estimator.update(state)
             bits.append(robot.frame_pose(DRILL_FRAME)[:3, 3])
             forces.append(np.linalg.norm(robot.cutting_force_n))
     return np.array(bits), np.array(forces)

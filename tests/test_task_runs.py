@@ -10,6 +10,8 @@ from click.testing import CliRunner
 from hubo_cli.balance_report import bit_poses, flutes_in_wall
 from hubo_cli.cli.main import main
 from hubo_cli.control.log import load_log
+from hubo_cli.dataflow import Store
+from hubo_cli.estimation.keys import QUAT_WORLD_TORSO, WRENCHES
 from hubo_cli.geometry import rpy_to_quat_wxyz
 from hubo_cli.kinematics.torso import torso_in_stance
 from hubo_cli.model import load_model
@@ -58,7 +60,11 @@ def test_the_task_corrects_the_arm_by_the_measured_torso_lean(rectangle_plan):
     lean = RobotState(0.0, q, np.zeros_like(q), imu_quat_wxyz=rpy_to_quat_wxyz(
         0.0, np.radians(0.5), 0.0))
     T_S_N = torso_in_stance(body, q, lean.imu_quat_wxyz)  # as the robot measures it
+    store = Store()
+    store[QUAT_WORLD_TORSO] = lean.imu_quat_wxyz  # the estimate: the IMU's attitude
+    store[WRENCHES] = lean.ft  # and nothing on the wrists
     target = TaskTarget(plan)
+    target.attach(None, [], store)
     for k in range(300):
         q_out, _ = target(k * plan.dt_s, lean)
     plain = target.q_target  # the plan's joints for this period
@@ -68,7 +74,9 @@ def test_the_task_corrects_the_arm_by_the_measured_torso_lean(rectangle_plan):
     assert np.linalg.norm(uncorrected - goal) > 0.004
     assert np.linalg.norm(corrected - goal) < 0.0005
     assert corrected[0] < uncorrected[0] - 0.003  # held back against the forward lean
-    assert np.array_equal(TaskTarget(plan, correction=False)(0.0, lean)[0], plan.q_first_rad)
+    plain_target = TaskTarget(plan, correction=False)
+    plain_target.attach(None, [], store)
+    assert np.array_equal(plain_target(0.0, lean)[0], plan.q_first_rad)
 
 
 @pytest.mark.parametrize("seed", range(3))

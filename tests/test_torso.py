@@ -35,6 +35,11 @@ def _state(q, pitch_rad=0.0, roll_rad=0.0, t_s=0.0):
                                                                               pitch_rad, 0.0))
 
 
+def _measured(state):
+    """A state and the attitude the estimate gives with it (here the IMU's reading)."""
+    return state, state.imu_quat_wxyz
+
+
 def _working_pose(body):
     q = body.solve({}, body.q_home, lift_m=-0.03).q_rad
     q[SL] = Q_ARM
@@ -67,7 +72,7 @@ def test_a_leaning_torso_moves_the_arm_goal_so_the_bit_stays_in_the_stance_frame
     lean = _state(q, pitch_rad=np.radians(1.0), roll_rad=np.radians(-0.5))
     correction = TorsoCorrection(body, (ARM,), DT)
     for _ in range(int(3.0 / DT)):  # 18 mm of lean at 10 mm/s, then the low-pass settles
-        q_out = correction(q, lean)
+        q_out = correction(q, lean, lean.imu_quat_wxyz)
     T_S_N = torso_in_stance(body, q, lean.imu_quat_wxyz)  # what the robot measures
     uncorrected = (T_S_N @ body.arms[ARM].fk(q[SL]))[:3, 3]
     corrected = (T_S_N @ body.arms[ARM].fk(q_out[SL]))[:3, 3]
@@ -86,13 +91,13 @@ def test_the_correction_is_bounded_and_never_jumps(body):
     q = _working_pose(body)
     settings = CorrectionSettings()
     correction = TorsoCorrection(body, (ARM,), DT, settings)
-    correction(q, _state(q))
+    correction(q, *_measured(_state(q)))
     lever = np.linalg.norm(body.arms[ARM].fk(q[SL])[:3, 3])
     max_step = (settings.max_speed_m_s + lever * settings.max_rate_rad_s) * DT
-    bit = body.arms[ARM].fk(correction(q, _state(q))[SL])[:3, 3]
+    bit = body.arms[ARM].fk(correction(q, *_measured(_state(q)))[SL])[:3, 3]
     for k in range(int(5.0 / DT)):  # an IMU step of 10 degrees
         fallen = _state(q, pitch_rad=np.radians(10.0), t_s=(k + 1) * DT)
-        after = body.arms[ARM].fk(correction(q, fallen)[SL])[:3, 3]
+        after = body.arms[ARM].fk(correction(q, *_measured(fallen))[SL])[:3, 3]
         assert np.linalg.norm(after - bit) <= max_step * 1.05
         bit = after
     assert np.linalg.norm(correction.rotation_rad) == pytest.approx(settings.max_tilt_rad,
@@ -109,7 +114,7 @@ def test_the_imu_heading_is_referenced_at_the_first_measurement(body):
     def heading_deg(yaw_deg, t_s):
         state = RobotState(t_s, q, np.zeros_like(q), imu_quat_wxyz=rpy_to_quat_wxyz(
             0.0, 0.0, np.radians(yaw_deg)))
-        T = estimator(state)
+        T = estimator(state, state.imu_quat_wxyz)
         return np.degrees(np.arctan2(T[1, 0], T[0, 0]))
 
     assert heading_deg(30.0, 0.0) == pytest.approx(0.0, abs=1e-9)  # the stance's heading
@@ -132,7 +137,7 @@ def test_the_estimator_takes_a_slow_lean_from_the_imu_and_not_its_noise(body):
     for k in range(int(5.0 / DT)):
         imu = matrix_to_quat_wxyz(rotation_exp(rng.normal(0.0, np.radians(0.2), 3)) @ R_lean)
         state = RobotState(k * DT, q, np.zeros_like(q), imu_quat_wxyz=imu)
-        fused.append((estimator(state) @ T_N_E)[:3, 3])
+        fused.append((estimator(state, state.imu_quat_wxyz) @ T_N_E)[:3, 3])
         raw.append((torso_in_stance(body, q, imu, estimator.imu_heading_rad) @ T_N_E)[:3, 3])
     fused, raw = np.array(fused[-400:]), np.array(raw[-400:])  # the last 2 s
     # the heading is referenced at the first (noisy) reading, the IMU's only heading reference
@@ -149,11 +154,11 @@ def test_a_garbled_measurement_leaves_the_correction_as_it_was(body):
     q = _working_pose(body)
     correction = TorsoCorrection(body, (ARM,), DT)
     for _ in range(100):
-        correction(q, _state(q, pitch_rad=np.radians(0.5)))
+        correction(q, *_measured(_state(q, pitch_rad=np.radians(0.5))))
     before = correction.deviation()
     garbled = _state(q)
     garbled.imu_quat_wxyz = np.array([np.nan, 0.0, 0.0, 0.0])
-    q_out = correction(q, garbled)
+    q_out = correction(q, garbled, garbled.imu_quat_wxyz)
     assert np.all(np.isfinite(q_out)) and np.allclose(correction.deviation(), before)
     assert correction.weight[ARM] == 1.0
 
@@ -253,7 +258,7 @@ def test_at_a_wrist_limit_the_correction_holds_the_bit_and_lets_its_orientation_
     for settings, holds in ((CorrectionSettings(), True), (fading, False)):
         correction = TorsoCorrection(body, (ARM,), DT, settings)
         for _ in range(int(3.0 / DT)):
-            q_out = correction(q, lean)
+            q_out = correction(q, lean, lean.imu_quat_wxyz)
         T_S_E = T_S_N @ limb.fk(q_out[SL])
         assert not limb.solve(np.linalg.inv(correction.deviation()) @ limb.fk(q[SL]),
                               q[SL]).exact
@@ -322,8 +327,8 @@ def test_the_compiled_estimator_is_the_numpy_formula(body):
         t_s += DT * (3 if k % 50 == 7 else 1)
         state = RobotState(t_s, q, np.zeros_like(q), imu_quat_wxyz=imu)
         T_ref = reference(state)
-        assert np.allclose(compiled(state), T_ref, rtol=0, atol=1e-12)
-        assert np.allclose(compiled(state), T_ref, rtol=0, atol=1e-12)  # the same reading
+        assert np.allclose(compiled(state, imu), T_ref, rtol=0, atol=1e-12)
+        assert np.allclose(compiled(state, imu), T_ref, rtol=0, atol=1e-12)  # the same reading
     assert compiled.imu_heading_rad == pytest.approx(reference.heading, abs=1e-12)
     assert np.allclose(compiled.imu_offset_rad, reference.offset, rtol=0, atol=1e-12)
     assert np.linalg.norm(reference.offset) > 1e-3  # the IMU's part is not trivial

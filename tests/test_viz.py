@@ -41,7 +41,7 @@ class SwayTarget(Target):
         self.world = None
         self.walled = False
 
-    def attach(self, world, modules) -> None:
+    def attach(self, world, modules, store) -> None:
         self.world = world
 
     def __call__(self, t_s: float, state):

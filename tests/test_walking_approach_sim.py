@@ -27,7 +27,7 @@ class Session(Target):
         self.times_s = []
         self.attached = False
 
-    def attach(self, world, modules):
+    def attach(self, world, modules, store):
         self.attached = True
 
     def __call__(self, t_s, state):

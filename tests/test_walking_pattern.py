@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from hubo_cli.control.capture_point import convex_hull, outside_distance
+from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError, InputError
 from hubo_cli.model import load_model
 from hubo_cli.walking.body import WalkingBody, walking_posture
@@ -181,27 +182,41 @@ def test_joint_plan_reaches_the_feet_within_limits(forward_gait, walking_model, 
 def test_capture_point_uses_the_planned_support(walking_model, params):
     """With the left foot in the air (a swing) and the CoM between the feet, the measured
     contacts alone put the CP outside the right sole; the walk's planned support (the swing
-    foot counted where it lands) keeps it inside. Without an override nothing changes."""
+    foot counted where it lands, :class:`SupportPlan`) keeps it inside."""
     from hubo_cli.control.capture_point import CapturePointMonitor
+    from hubo_cli.control.phase import SUPPORT_PLAN, SupportPlan
+    from hubo_cli.estimation.keys import (
+        CAPTURE_POINT_WORLD,
+        COM_VELOCITY_WORLD,
+        COM_WORLD,
+        CONTACT,
+        T_WORLD_SOLES,
+    )
     from hubo_cli.state import RobotState
     from hubo_cli.walking.body import pose_of_row
 
-    q, T_world_neck = walking_posture(walking_model, params.step_width_m, params.crouch_m)
+    q, _ = walking_posture(walking_model, params.step_width_m, params.crouch_m)
     monitor = CapturePointMonitor(walking_model, walking_model.control_period_s)
+    w = params.step_width_m / 2
+    store = Store()  # the estimate: the CoM standing still between the soles, the left one up
+    store[T_WORLD_SOLES] = np.array([pose_of_row(np.array([0.0, -w, 0.0, 0.0])),
+                                     pose_of_row(np.array([0.0, w, 0.02, 0.0]))])
+    store[CONTACT] = (True, False)
+    store[COM_WORLD] = np.array([0.0, 0.0, 0.6])
+    store[COM_VELOCITY_WORLD] = np.zeros(3)
+    store[CAPTURE_POINT_WORLD] = np.zeros(2)
 
     def flagged() -> bool:
-        monitor.reset(q, None)
-        return any([monitor.measure(RobotState(time_s=0.005 * k, q_rad=q, dq_rad_s=0 * q,
-                                               T_world_torso=T_world_neck,
-                                               feet_contact=(True, False)))
-                    for k in range(5)])
+        monitor.reset(q, None, store)
+        return any([monitor.measure(RobotState(time_s=0.005 * k, q_rad=q, dq_rad_s=0 * q),
+                                    store) for k in range(5)])
 
     assert flagged() and monitor.outside_m > 0.03
-    w = params.step_width_m / 2
-    planned = np.array([pose_of_row(np.array([0.0, -w, 0.0, 0.0])),
-                        pose_of_row(np.array([0.1, w, 0.0, 0.0]))])
-    monitor.support_override = lambda t_s: planned
+    store[SUPPORT_PLAN] = SupportPlan(np.array([pose_of_row(np.array([0.0, -w, 0.0, 0.0])),
+                                                pose_of_row(np.array([0.1, w, 0.0, 0.0]))]))
     assert not flagged() and monitor.outside_m < -0.03
+    store[SUPPORT_PLAN] = None  # the phase has ended: the estimated soles again
+    assert flagged()
 
 
 def test_measured_feet_a_fraction_of_a_mm_off_take_no_extra_steps(params):

@@ -3,7 +3,16 @@
 import numpy as np
 import pytest
 
+from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError
+from hubo_cli.estimation.keys import (
+    COM_WORLD,
+    CONTACT,
+    T_WORLD_SOLES,
+    T_WORLD_TORSO,
+    WRENCHES,
+    ZMP_WORLD,
+)
 from hubo_cli.geometry import quat_wxyz_to_matrix
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import load_model
@@ -13,13 +22,7 @@ from hubo_cli.walking.footsteps import Footstep, Stance, plan_footsteps
 from hubo_cli.walking.gait import make_gait
 from hubo_cli.walking.params import walking_params
 from hubo_cli.walking.stabilizer import SoleDamper, StabilizerGains, TorsoOffset, Touchdown
-from hubo_cli.walking.target import (
-    WalkTarget,
-    imu_z_axis,
-    measured_zmp,
-    rigid_inverse,
-    tilt_between,
-)
+from hubo_cli.walking.target import WalkTarget, rigid_inverse, zmp_outside_m
 
 DT = 0.005
 SOLE = (-0.09, 0.13, -0.065, 0.065)  # the sole box in its own frame (m)
@@ -103,21 +106,10 @@ def test_second_preview_stage_cancels_the_swing_legs_zmp():
     assert np.abs(after[inner]).max() < 0.016
 
 
-def test_per_period_geometry_in_floats_matches_numpy():
-    """The stabilizer's per-period helpers (plain floats, for the period budget) agree with
-    the matrix formulas: the tilt turns one axis onto the other and is a rotation, the IMU's
-    z axis is its rotation's third column, the rigid inverse is the inverse."""
+def test_the_rigid_inverse_is_the_inverse():
     rng = np.random.default_rng(3)
     for _ in range(50):
-        a, b = rng.normal(size=3), rng.normal(size=3)
-        a, b = a / np.linalg.norm(a), b / np.linalg.norm(b)
-        columns = np.zeros((3, 3))  # the kernels take a column of a rotation, as the target
-        columns[:, 2] = a           # passes it: one compiled signature, not two
-        R = tilt_between(columns[:, 2], b)
-        assert np.allclose(R @ a, b, atol=1e-12) and np.allclose(R @ R.T, np.eye(3), atol=1e-12)
         q = rng.normal(size=4)
-        assert np.allclose(imu_z_axis(q), quat_wxyz_to_matrix(q / np.linalg.norm(q))[:, 2],
-                           atol=1e-12)
         T = np.eye(4)
         T[:3, :3] = quat_wxyz_to_matrix(q / np.linalg.norm(q))
         T[:3, 3] = rng.normal(size=3)
@@ -126,76 +118,61 @@ def test_per_period_geometry_in_floats_matches_numpy():
                            atol=1e-12)
 
 
-def test_measured_zmp_weights_the_soles_and_measures_the_hull():
-    """Two soles 0.24 m apart, the right one carrying three quarters at its centre: the ZMP
-    lies a quarter of the way to the left sole, inside their hull by the distance to its
-    nearest edge (the soles' toe line, 0.11 m ahead of the centre with forward_m 0)."""
-    corners = np.array([[-0.11, -0.065, 0.0], [0.11, -0.065, 0.0], [0.11, 0.065, 0.0],
-                        [-0.11, 0.065, 0.0]])
+CORNERS = np.array([[-0.11, -0.065, 0.0], [0.11, -0.065, 0.0], [0.11, 0.065, 0.0],
+                    [-0.11, 0.065, 0.0]])
+
+
+def test_a_zmp_between_the_soles_lies_inside_their_hull():
+    """Two soles 0.24 m apart in contact: a ZMP a quarter of the way from the right one to the
+    left lies inside their hull by the distance to its nearest edge (the toe line, 0.11 m
+    ahead); with neither in contact, or no ZMP, there is no hull to measure."""
     poses = np.array([np.eye(4), np.eye(4)])  # right, left
     poses[:, :2, 3] = (1.0, -0.12), (1.0, 0.12)
-    zmp, outside = measured_zmp(poses, np.array([wrench_at(0.0, 0.0, 300.0),
-                                                 wrench_at(0.0, 0.0, 100.0)]), corners)
-    assert zmp == pytest.approx([1.0, -0.06], abs=1e-12)
-    assert outside == pytest.approx(-0.11, abs=1e-12)
-    none, far = measured_zmp(poses, np.array([wrench_at(0.0, 0.0, 5.0),
-                                              wrench_at(0.0, 0.0, 5.0)]), corners)
-    assert none is None and far == float("inf")
+    zmp = np.array([1.0, -0.06])
+    assert zmp_outside_m(zmp, poses, CORNERS, (True, True)) == pytest.approx(-0.11, abs=1e-12)
+    assert zmp_outside_m(zmp, poses, CORNERS, (False, False)) == float("inf")
+    assert zmp_outside_m(np.full(2, np.nan), poses, CORNERS, (True, True)) == float("inf")
 
 
-def test_one_loaded_sole_measures_against_its_own_outline():
-    """One loaded sole: the hull is the sole itself (its corners counter-clockwise), a CoP 5 mm
-    inside its outer edge lies 5 mm inside, one on that edge is not inside."""
-    corners = np.array([[-0.11, -0.065, 0.0], [0.11, -0.065, 0.0], [0.11, 0.065, 0.0],
-                        [-0.11, 0.065, 0.0]])
+def test_one_sole_in_contact_measures_against_its_own_outline():
+    """One sole in contact: the hull is the sole itself (its corners counter-clockwise), a ZMP
+    5 mm inside its outer edge lies 5 mm inside, one on that edge is not inside, and the other
+    sole's place does not count."""
     poses = np.array([np.eye(4), np.eye(4)])  # right, left
     poses[1, 1, 3] = 0.24
-    idle = wrench_at(0.0, 0.0, 0.0)
-    zmp, outside = measured_zmp(poses, np.array([wrench_at(0.0, -0.06, 300.0), idle]), corners)
-    assert zmp == pytest.approx([0.0, -0.06], abs=1e-12)
-    assert outside == pytest.approx(-0.005, abs=1e-9)
-    _, on_edge = measured_zmp(poses, np.array([wrench_at(0.0, -0.065, 300.0), idle]), corners)
-    assert on_edge > -0.001
+    inside = zmp_outside_m(np.array([0.0, -0.06]), poses, CORNERS, (True, False))
+    assert inside == pytest.approx(-0.005, abs=1e-9)
+    assert zmp_outside_m(np.array([0.0, -0.065]), poses, CORNERS, (True, False)) > -0.001
+    assert zmp_outside_m(np.array([0.0, 0.12]), poses, CORNERS, (True, False)) > 0.05
 
 
-def test_contact_wrenches_average_a_jumping_reading_and_follow_a_landing():
-    """A sole's F_z jumping between 0 and 760 N every period (what the simulated sensor reads
-    at transitions) averages to about 380 N and keeps the sole in contact; a landing from 0 to
-    380 N is followed at 5 Hz: past 25 N within 2 periods, 63 % within about 32 ms."""
-    from hubo_cli.walking.target import ContactWrenches
-
-    wrenches = ContactWrenches(DT)
-    unread = np.full(6, np.nan)
-    readings = []
-    for k in range(200):
-        filtered = wrenches.update(np.array([wrench_at(0.01, 0.0, 760.0 * (k % 2)), unread]))
-        readings.append(filtered[0, 2])
-    assert np.isnan(filtered[1]).all()  # a sole never read stays unknown
-    assert min(readings[100:]) > 300.0 and max(readings[100:]) < 460.0
-    landing = ContactWrenches(DT)
-    landing.update(np.array([unread, wrench_at(0.0, 0.0, 0.0)]))
-    fz = [landing.update(np.array([unread, wrench_at(0.0, 0.0, 380.0)]))[1, 2]
-          for _ in range(12)]
-    assert fz[1] > 25.0
-    assert 0.5 * 380.0 < fz[5] < 0.75 * 380.0
-
-
-class StandingWorld:
-    """The soles and the torso of the walking posture, where a simulator reports them; the
-    right sole turned by ``right_yaw_rad`` about its vertical."""
-
-    def __init__(self, model, q_rad, T_world_neck, right_yaw_rad=0.0):
-        self.poses = {"torso": T_world_neck}
-        for frame, name in (("right_sole", "right-leg"), ("left_sole", "left-leg")):
-            T_neck_sole = Limb(model, name).fk(q_rad[model.limb_slice(name)])
-            self.poses[frame] = T_world_neck @ T_neck_sole
-        turn = np.eye(4)
-        c, s = np.cos(right_yaw_rad), np.sin(right_yaw_rad)
-        turn[:2, :2] = ((c, -s), (s, c))
-        self.poses["right_sole"] = self.poses["right_sole"] @ turn
-
-    def frame_pose(self, frame):
-        return self.poses[frame].copy()
+def standing_store(model, q_rad, T_world_neck, right_yaw_rad=0.0, pitch_rad=0.0,
+                   fz_n=190.0) -> Store:
+    """The estimate of the walking posture standing still: the soles where the legs put them
+    (the right one turned by ``right_yaw_rad`` about its vertical), both in contact carrying
+    ``fz_n`` at their middles, and the CoM of the torso pitched by ``pitch_rad`` about the
+    soles (as the IMU would read it)."""
+    store = Store()
+    soles = []
+    for name in ("right-leg", "left-leg"):
+        soles.append(T_world_neck @ Limb(model, name).fk(q_rad[model.limb_slice(name)]))
+    c, s = np.cos(right_yaw_rad), np.sin(right_yaw_rad)
+    turn = np.eye(4)
+    turn[:2, :2] = ((c, -s), (s, c))
+    soles[0] = soles[0] @ turn
+    body = WalkingBody(model, q_rad, T_world_neck)
+    com_in_neck = body.com_in_neck(q_rad)
+    R = quat_wxyz_to_matrix(np.array([np.cos(pitch_rad / 2), 0.0, np.sin(pitch_rad / 2), 0.0]))
+    ground = np.mean([T[:3, 3] for T in soles], axis=0)
+    store[T_WORLD_SOLES] = np.array(soles)
+    store[T_WORLD_TORSO] = T_world_neck
+    store[CONTACT] = (True, True)
+    store[COM_WORLD] = ground + R @ (T_world_neck[:3, :3] @ com_in_neck + T_world_neck[:3, 3]
+                                     - ground)
+    store[WRENCHES] = {name: np.zeros(6) for name in FT_SENSORS} | {
+        "right-ankle": wrench_at(0.0, 0.0, fz_n), "left-ankle": wrench_at(0.0, 0.0, fz_n)}
+    store[ZMP_WORLD] = ground[:2]
+    return store
 
 
 @pytest.mark.physical
@@ -212,17 +189,13 @@ def test_torso_offset_reaches_the_legs_with_the_hip_yaw_at_its_limit():
     q_start, T_world_neck = walking_posture(model, params.step_width_m, params.crouch_m)
     target = WalkTarget(model, params, (0.3, 0.0, 0.0), q_start, T_world_neck, corrections=0,
                         stabilizer=StabilizerGains())
-    target.attach(StandingWorld(model, q_start, T_world_neck, right_yaw_rad=1e-4), [])
-    pitch = np.radians(1.0)
-    ft = {name: np.zeros(6) for name in FT_SENSORS}
-    ft["right-ankle"] = ft["left-ankle"] = wrench_at(0.0, 0.0, 190.0)
+    store = standing_store(model, q_start, T_world_neck, right_yaw_rad=1e-4,
+                           pitch_rad=np.radians(1.0))
+    target.attach(None, [], store)
     for k in range(60):  # 0.3 s of the start's double support, the robot on the pattern
-        q_plan = target.plan.q_rad[k]
-        state = RobotState(time_s=k * DT, q_rad=q_plan.copy(), dq_rad_s=np.zeros_like(q_plan),
-                           imu_quat_wxyz=np.array([np.cos(pitch / 2), 0.0, np.sin(pitch / 2),
-                                                   0.0]),
-                           ft=ft, T_world_torso=T_world_neck)
+        state = RobotState(time_s=k * DT, q_rad=q_start.copy(), dq_rad_s=np.zeros_like(q_start))
         q, _ = target(k * DT, state)
+        q_plan = target.plan.q_rad[k]
     offset = target.torso_offset.offset_m
     # -14.2 mm on both code paths (AVX-512 / portable): 2.8x; the soles follow it equally on both
     assert offset[0] < -0.005  # pulled back by more than 5 mm
@@ -230,26 +203,3 @@ def test_torso_offset_reaches_the_legs_with_the_hip_yaw_at_its_limit():
         leg, part = Limb(model, name), model.limb_slice(name)
         moved = leg.fk(q[part])[:3, 3] - leg.fk(q_plan[part])[:3, 3]
         assert moved[:2] == pytest.approx(-offset, abs=0.001)
-
-
-def test_the_compiled_com_offset_from_a_sole_is_the_matrix_formula(model):
-    """``_com_from_sole`` (one compiled call a period) against the same quantity built from the
-    leg's FK and matrix products: R = tilt(plan z -> IMU z) @ R_plan, then R @ (c - p_sole)."""
-    from hubo_cli.geometry import rpy_to_matrix
-    from hubo_cli.kinematics.limb import Limb
-    from hubo_cli.walking.target import _com_from_sole
-
-    rng = np.random.default_rng(7)
-    for leg in ("right-leg", "left-leg"):
-        limb = Limb(model, leg)
-        for _ in range(200):
-            q_leg = limb.random_q(rng)
-            com_in_neck = rng.uniform(-0.3, 0.3, 3)
-            T_plan = np.eye(4)  # the plan's pose: the kernel gets a view, as the target passes it
-            T_plan[:3, :3] = rpy_to_matrix(*rng.uniform(-0.2, 0.2, 2), rng.uniform(-np.pi, np.pi))
-            R_plan = T_plan[:3, :3]
-            q_imu = rng.normal(size=4)
-            R = tilt_between(R_plan[:, 2], imu_z_axis(q_imu)) @ R_plan
-            expected = (R @ (com_in_neck - limb.fk(q_leg)[:3, 3]))[:2]
-            got = _com_from_sole(q_leg, limb.chain, com_in_neck, R_plan, q_imu)
-            assert np.allclose(got, expected, rtol=0, atol=1e-12)

@@ -130,8 +130,7 @@ def measure_walk() -> dict:
                       "fell": s["fell"], "final_error_mm": s["final_error_mm"],
                       "final_error_deg": s["final_error_deg"], "steps": s["steps"],
                       "average_speed_m_s": s["average_speed_m_s"],
-                      "zmp_inside_percent": 100 * s["zmp_inside_fraction"],
-                      "zmp_inside_raw_percent": 100 * s["zmp_inside_fraction_raw"]}
+                      "zmp_inside_percent": 100 * s["zmp_inside_fraction"]}
 
 
 def measure_teleop() -> dict:

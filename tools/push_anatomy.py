@@ -63,8 +63,8 @@ class PushAnatomy(Target):
         self.rows: list[dict] = []
         self.last_x_m: float | None = None
 
-    def attach(self, world, modules) -> None:
-        self.stand.attach(world, modules)
+    def attach(self, world, modules, store) -> None:
+        self.stand.attach(world, modules, store)
         self.world = world
         self.monitor = next(m for m in modules if isinstance(m, CapturePointMonitor))
 
@@ -88,7 +88,7 @@ class PushAnatomy(Target):
         self.last_x_m = x_m
         fz = state.ft["right-ankle"][2] + state.ft["left-ankle"][2]
         my = state.ft["right-ankle"][4] + state.ft["left-ankle"][4]
-        R_torso = state.T_world_torso[:3, :3]
+        R_torso = state.truth.T_world_torso[:3, :3]
         self.rows.append({
             "t_s": round(t_s, 3), "com_mm": 1e3 * x_m, "v_m_s": v_m_s,
             "cp_mm": 1e3 * (x_m + v_m_s / OMEGA_1_S),

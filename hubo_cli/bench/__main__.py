@@ -9,7 +9,7 @@ import time
 
 import hubo_cli.bench as bench_pkg
 
-ON_REQUEST = {"robustness"}  # slow (tens of minutes): only when named, e.g. BENCH=robustness
+ON_REQUEST = {"robustness", "walk_sweep"}  # slow (minutes): only when named, e.g. BENCH=robustness
 
 
 def main(argv: list[str]) -> int:

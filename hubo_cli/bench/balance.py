@@ -26,6 +26,7 @@ def _timed(model, choice: str) -> tuple[dict[str, np.ndarray], np.ndarray, np.nd
     from hubo_cli.control.module import Cycle
     from hubo_cli.control.pipeline import SafetyProfile
     from hubo_cli.drivers.sim import SimDriver
+    from hubo_cli.estimation.build import build_estimator
     from hubo_cli.posture import home_posture
 
     dt = model.control_period_s
@@ -34,12 +35,14 @@ def _timed(model, choice: str) -> tuple[dict[str, np.ndarray], np.ndarray, np.nd
     each = {m.name: np.zeros(PERIODS) for m in modules if m.name not in OTHER_MODULES}
     balance, total, cpu = np.zeros(PERIODS), np.zeros(PERIODS), np.zeros(PERIODS)
     clock, cpu_clock = time.perf_counter, time.thread_time
+    estimator = build_estimator(model, TOOLS, dt)  # the estimate, timed in its own bench line
     with SimDriver(model, drill=True) as robot:
         state = robot.start(q_home)
+        store = estimator.reset(state)
         for m in modules:
-            m.reset(q_home.copy(), state)
+            m.reset(q_home.copy(), state, store)
         for k in range(PERIODS):
-            cycle = Cycle(k * dt, dt)
+            cycle = Cycle(k * dt, dt, store=store)
             q = q_home
             for m in modules:
                 c0, t0 = cpu_clock(), clock()
@@ -52,6 +55,7 @@ def _timed(model, choice: str) -> tuple[dict[str, np.ndarray], np.ndarray, np.nd
                     cpu[k] += cpu_spent
             robot.send(q)
             state = robot.step()
+            estimator.update(state)
     each = {name: times[WARMUP:] for name, times in each.items()}
     return each, balance[WARMUP:], total[WARMUP:], cpu[WARMUP:]
 

@@ -11,6 +11,7 @@ import numpy as np
 
 from hubo_cli.control.impedance import ImpedanceController
 from hubo_cli.control.module import Cycle
+from hubo_cli.dataflow import Store
 from hubo_cli.model import load_model
 from hubo_cli.posture import home_posture
 from hubo_cli.state import RobotState
@@ -26,7 +27,7 @@ def run(report) -> None:
     q[[0, 3, 6, 9]] = -0.3, -1.2, -0.3, -1.2  # both hands forward, elbows bent
     ic = ImpedanceController(model, dt)
     state = RobotState(0.0, q, np.zeros(len(q)))
-    ic.reset(q, state)
+    ic.reset(q, state, Store())
     for arm in ("right-arm", "left-arm"):  # pressing: the force tracking runs too
         ic.set_reference_wrench(arm, [-2.0, 0.0, 0.0, 0.0, 0.0, 0.0])
     times = []

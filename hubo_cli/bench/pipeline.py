@@ -14,6 +14,7 @@ from hubo_cli.control.log import PeriodLog
 from hubo_cli.control.module import Cycle
 from hubo_cli.control.pipeline import build_pipeline
 from hubo_cli.drivers.registry import make_driver
+from hubo_cli.estimation.build import build_estimator
 from hubo_cli.kinematics import get_limb
 from hubo_cli.model import ARMS, LEGS, load_model
 
@@ -47,8 +48,10 @@ def run(report) -> None:
     slices = {name: model.limb_slice(name) for name in limbs}
     q0 = {name: q0_all[slices[name]] for name in limbs}
     modules = build_pipeline(model)
+    estimator = build_estimator(model, period_s=dt)  # the estimate: its own bench line
+    store = estimator.reset(state)
     for m in modules:
-        m.reset(q0_all.copy(), state)
+        m.reset(q0_all.copy(), state, store)
     goal_sets = [_goals(limbs, q0, k * dt) for k in range(PERIODS)]
     q_prev = {name: q0[name].copy() for name in limbs}
     per_module = {m.name: [] for m in modules}
@@ -56,7 +59,7 @@ def run(report) -> None:
     clock = time.perf_counter
     cpu_clock = time.thread_time  # CPU time of this thread: excludes time other processes ran
     for k in range(PERIODS):
-        cycle = Cycle(k * dt, dt)
+        cycle = Cycle(k * dt, dt, store=store)
         cpu_started = cpu_clock()
         started = clock()
         target = np.empty(len(q0_all))
@@ -72,6 +75,7 @@ def run(report) -> None:
             per_module[m.name].append(clock() - t0)
         driver.send(q)
         state = driver.step()
+        estimator.update(state)
         totals.append(clock() - started)
         cpu_totals.append(cpu_clock() - cpu_started)
         ik_times.append(after_ik - started)

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import time
 
+from hubo_cli.estimation.build import build_estimator
 from hubo_cli.model import load_model
 from hubo_cli.posture import home_posture
 
@@ -57,12 +58,13 @@ def _sim_figures(report, model) -> None:
     q_home = home_posture(model)
     for mode in ("default", "paper"):
         balancer = make_balancer(model, mode)
-        balancer.reset(q_home, state)
+        store = build_estimator(model).reset(state)  # the estimate of the last state
+        balancer.reset(q_home, state, store)
         n = 2000
         t0 = time.perf_counter()
         for k in range(n):
-            balancer.update(q_home, state,
-                            Cycle(k * model.control_period_s, model.control_period_s))
+            balancer.update(q_home, state, Cycle(k * model.control_period_s,
+                                                 model.control_period_s, store=store))
         report(f"balance module update ({mode})", (time.perf_counter() - t0) / n * 1e6, "us",
                "target <= 250 us")
 

@@ -13,17 +13,14 @@ function and one entry there.
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
 from rich.text import Text
 
-from hubo_cli.control.capture_point import CP_MARGIN_M, CapturePointMonitor
-from hubo_cli.control.collision import CollisionDetector
-from hubo_cli.control.estop import EmergencyStopper
-from hubo_cli.control.limiter import SoftErrorLimiter
+from hubo_cli.control.capture_point import CP_MARGIN_M
+from hubo_cli.control.status import CollisionStatus, LimiterStatus, StopperStatus, SupportStatus
 
 FLASH_S = 1.0
 REACH_STATUSES = {"capped": "at its reach limit (capped)", "held": "out of reach (held)",
@@ -110,33 +107,33 @@ ROBOT_WORDS = {  # driver flags of the robot's state the operator must see
 
 
 def read_balance(modules: Iterable, world=None) -> BalanceWatch:
-    """How well the body is held so far: from the capture-point monitor and the limiter of a
-    pipeline, and the simulator's true tilt where there is one (``world``)."""
+    """How well the body is held so far: from what the capture-point monitor and the limiter
+    of a pipeline publish (their ``status()``), and the simulator's true tilt where there is
+    one (``world``: a viewer may show the truth)."""
     watch = BalanceWatch(balancer=False,
                          max_tilt_deg=None if world is None else world.max_tilt_deg)
     for module in modules:
         if module.name == "balance":
             watch.balancer = True
-        elif isinstance(module, CapturePointMonitor):
-            if math.isfinite(module.outside_m):
-                watch.margin_m = module.margin_m - module.outside_m
-            if math.isfinite(module.min_margin_m):
-                watch.min_margin_m = module.min_margin_m
-                watch.min_margin_t_s = module.min_margin_t_s
-            watch.feet_loaded = module.feet_loaded
-            watch.contact_losses = module.contact_losses
-        elif isinstance(module, SoftErrorLimiter) and module.periods:
-            watch.ankle_clamp_fraction = module.ankle_clamped_periods / module.periods
+        status = module.status()
+        if isinstance(status, SupportStatus):
+            watch.margin_m = status.margin_m
+            watch.min_margin_m = status.min_margin_m
+            watch.min_margin_t_s = status.min_margin_t_s
+            watch.feet_loaded = status.feet_loaded
+            watch.contact_losses = status.contact_losses
+        elif isinstance(status, LimiterStatus):
+            watch.ankle_clamp_fraction = status.ankle_clamp_fraction
     return watch
 
 
 def read_safety(modules: Iterable, hands: Iterable[HandSafety] = (),
                 world=None, loop=None, robot_flags: Iterable[str] = ()) -> SafetyState:
-    """The safety state of a pipeline's modules (the soft and hard emergency stoppers, the
-    collision detector, and for the balance line the capture-point monitor and the limiter;
-    others are ignored); ``world``: the simulator, for the torso's true tilt; ``loop``: the
-    control loop, for its overruns and skipped wall time; ``robot_flags``: the flags of the
-    robot's latest state (the driver's trouble)."""
+    """The safety state a pipeline's modules publish (their ``status()``: the soft and hard
+    emergency stoppers, the collision detector, and for the balance line the capture-point
+    monitor and the limiter; others publish none); ``world``: the simulator, for the torso's
+    true tilt; ``loop``: the control loop, for its overruns and skipped wall time;
+    ``robot_flags``: the flags of the robot's latest state (the driver's trouble)."""
     modules = list(modules)
     robot = next((ROBOT_WORDS[f] for f in robot_flags if f in ROBOT_WORDS), "")
     state = SafetyState(hands=list(hands), balance=read_balance(modules, world), robot=robot)
@@ -144,23 +141,21 @@ def read_safety(modules: Iterable, hands: Iterable[HandSafety] = (),
         state.overruns, state.skipped_s = loop.overruns, loop.skipped_s
     latest = None
     for module in modules:
-        if isinstance(module, EmergencyStopper):
+        status = module.status()
+        if isinstance(status, StopperStatus):
             if module.name == "estop":
-                state.soft_estop, state.active_sources = True, tuple(sorted(module.sources))
-            stops = [e for e in module.events if e.kind == "stop"]
-            state.stops += len(stops)
-            if module.mode != "release" and (latest is None or module.mode == "hold"):
-                latest = module
-        elif isinstance(module, CollisionDetector):
-            state.collision = COLLISION_WORDS.get(module.mode, "clear")
-            clearance = module.last_clearance
-            if clearance is not None:
-                state.collision_pair = clearance.pair
-                state.collision_distance_m = clearance.distance_m
+                state.soft_estop, state.active_sources = True, status.sources
+            state.stops += status.stops
+            if status.mode != "release" and (latest is None or status.mode == "hold"):
+                latest = status
+        elif isinstance(status, CollisionStatus):
+            state.collision = COLLISION_WORDS.get(status.mode, "clear")
+            if status.pair is not None:
+                state.collision_pair = status.pair
+                state.collision_distance_m = status.distance_m
     if latest is not None:
         state.estop = ESTOP_WORDS[latest.mode]
-        stops = [e for e in latest.events if e.kind == "stop"]
-        state.estop_sources = stops[-1].sources if stops else ()
+        state.estop_sources = latest.last_stop_sources
     return state
 
 

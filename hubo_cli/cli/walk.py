@@ -70,9 +70,10 @@ def walk(goal: tuple[float, float, float], corrections: int, no_estop: bool,
         console.print(f"steps             {result.steps} in {result.walking_s:.2f} s "
                       f"({result.average_speed_m_s:.3f} m/s)")
         console.print(f"final error       {result.final_error_mm:.1f} mm, "
-                      f"{result.final_error_deg:.2f} deg")
-        console.print(f"ZMP inside        {100 * result.zmp_inside_fraction:.1f} % of periods "
-                      f"(unfiltered sensors {100 * result.zmp_inside_fraction_raw:.1f} %)")
+                      f"{result.final_error_deg:.2f} deg (estimated "
+                      f"{result.estimated_final_error_mm:.1f} mm, "
+                      f"{result.estimated_final_error_deg:.2f} deg)")
+        console.print(f"ZMP inside        {100 * result.zmp_inside_fraction:.1f} % of periods")
         console.print(f"e-stop events     {result.estop_events}")
         console.print(f"run folder        {result.run_dir} (log, snapshot.png, summary.json)")
     exit_if_interrupted(fields)

@@ -11,7 +11,8 @@ at the ankle (so a foot that is not flat rotates until it is, instead of the clo
 through both legs building up large torques).
 
 Units (the paper gives none; these make its gains K_r = 0.009 and K_c = 0.0015 sensible)
-    phi     torso tilt in DEGREES, about the world x (roll) and y (pitch) axes, from the IMU.
+    phi     torso tilt in DEGREES, about the world x (roll) and y (pitch) axes, from the
+            estimated attitude (the store's QUAT_WORLD_TORSO).
     M       moment in N m that the sole exerts on the ground, about the sole frame's x and y
             axes (the opposite of the ground reaction in ``RobotState.ft``).
     omega   ankle joint velocity in rad/s, per second (not per control period).
@@ -42,6 +43,9 @@ import numba as nb
 import numpy as np
 
 from hubo_cli.control.module import Cycle, Module
+from hubo_cli.control.phase import BALANCERS_REST
+from hubo_cli.dataflow import Store
+from hubo_cli.estimation.keys import CONTACT, QUAT_WORLD_TORSO, WRENCHES
 from hubo_cli.geometry import GIMBAL_LOCK_COS
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
@@ -88,6 +92,8 @@ class AnkleBalancer(Module):
     """
 
     name = "balance"
+    reads = (QUAT_WORLD_TORSO, WRENCHES)
+    follows = (BALANCERS_REST,)
     log_columns = ("balance.right_pitch_rad", "balance.right_roll_rad",
                    "balance.left_pitch_rad", "balance.left_roll_rad")
 
@@ -105,21 +111,23 @@ class AnkleBalancer(Module):
         self._signs = ankle_axis_signs(model)
         self.offsets_rad = {leg: np.zeros(2) for leg, _ in FEET}  # (pitch, roll)
 
-    def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
+    def reset(self, q_rad: np.ndarray, state: RobotState, store: Store) -> None:
         """Start with no correction."""
         self.offsets_rad = {leg: np.zeros(2) for leg, _ in FEET}
 
-    def rates_rad_s(self, state: RobotState) -> dict[str, np.ndarray]:
-        """Ankle (pitch, roll) velocities of eq. 11-12 for each leg (rad/s), before clipping."""
-        return {leg: np.array(rate) for leg, rate in self._rates(state).items()}
+    def rates_rad_s(self, wrenches: dict, quat_wxyz) -> dict[str, np.ndarray]:
+        """Ankle (pitch, roll) velocities of eq. 11-12 for each leg (rad/s), before clipping,
+        from the ankle wrenches (the estimate's, ``WRENCHES``) and the torso attitude
+        ``quat_wxyz`` (w, x, y, z; the estimate's)."""
+        return {leg: np.array(rate) for leg, rate in self._rates(wrenches, quat_wxyz).items()}
 
-    def _rates(self, state: RobotState) -> dict[str, tuple[float, float]]:
-        w, x, y, z = (float(v) for v in state.imu_quat_wxyz)
+    def _rates(self, wrenches: dict, quat_wxyz) -> dict[str, tuple[float, float]]:
+        w, x, y, z = (float(v) for v in quat_wxyz)
         roll_deg = math.degrees(math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)))
         pitch_deg = math.degrees(math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x)))))
         rates = {}
         for leg, sensor in FEET:
-            wrench = state.ft.get(sensor)
+            wrench = wrenches.get(sensor)
             # moment of the sole on the ground (about y, about x): minus the ground's on the sole
             m_y, m_x = (0.0, 0.0) if wrench is None else (-float(wrench[4]), -float(wrench[3]))
             sign_pitch, sign_roll = self._signs[leg]
@@ -129,8 +137,10 @@ class AnkleBalancer(Module):
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         """Integrate the ankle velocities over one period and add the offsets to the ankles."""
+        if cycle.store.get(BALANCERS_REST, False):  # a phase moves the CoM: start afresh
+            self.reset(q_rad, state, cycle.store)
         q = np.array(q_rad, dtype=float)
-        rates = self._rates(state)
+        rates = self._rates(cycle.store[WRENCHES], cycle.store[QUAT_WORLD_TORSO])
         lower, upper = self.model.lower_rad, self.model.upper_rad
         max_rate, max_offset = self.max_rate_rad_s, self.max_offset_rad
         for leg, _ in FEET:
@@ -179,9 +189,10 @@ class DampingBalancer(Module):
     soles together (about their own origins, sole axes), M_ref the moment the ground exerts
     when the centre of pressure lies under the centre of mass of the *commanded* posture (pitch:
     -W * x_com, W the weight; roll: 0, each foot loaded on its centre line), D the damping, tilt
-    the torso's tilt (degrees, IMU; the commanded torso is upright) and T the leak back to the
-    command. A robot that stands as commanded has nothing to correct, so it does not lean with
-    every load as the paper's pure compliance toward zero moment does.
+    the torso's tilt (degrees, from the estimated attitude; the commanded torso is upright) and
+    T the leak back to the command. A robot that stands as commanded has nothing to correct,
+    so it does not lean with every load as the paper's pure compliance toward zero moment
+    does.
 
     Differential mode (between the feet, only while both carry load): each foot turns with
     ``K_d * (M_foot - M_mean) - offset_d / T_d``, the paper's foot-evening compliance with K_d
@@ -214,6 +225,8 @@ class DampingBalancer(Module):
     """
 
     name = "balance"
+    reads = (QUAT_WORLD_TORSO, CONTACT, WRENCHES)
+    follows = (BALANCERS_REST,)
     log_columns = AnkleBalancer.log_columns
 
     def __init__(self, model: RobotModel, drill: bool = False,
@@ -268,17 +281,19 @@ class DampingBalancer(Module):
         self._ankle_signs = np.array([self._signs[leg] for leg, _ in FEET], dtype=float)
         self._last_reference = 0.0
         self._no_wrench = np.zeros(6)
-        self.reset(np.zeros(len(names)), None)
+        self.reset(np.zeros(len(names)), None, None)
         # numba compiles (or loads its cache) on the first call: now, not in the first period
         _follow_offsets(np.zeros(len(names)), self._ankles, self._ankle_signs, *[0.0] * 8, True,
                         *np.zeros((3, 2, 2)), self._lower, self._upper, *[1.0] * 7)
         command_configuration(np.zeros(len(names)), np.zeros(len(names)), np.zeros(len(names)),
                            np.zeros(self._robot.model.nq), self._robot.q_index)
-        self._step(np.zeros(len(names)), RobotState(0.0, np.zeros(len(names)),
-                                                     np.zeros(len(names))), 0.005)
-        self.reset(np.zeros(len(names)), None)
+        state = RobotState(0.0, np.zeros(len(names)), np.zeros(len(names)))
+        self._step(np.zeros(len(names)), state, state.ft, np.array([1.0, 0.0, 0.0, 0.0]), True,
+                   0.005)
+        self.reset(np.zeros(len(names)), None, None)
 
-    def reset(self, q_rad: np.ndarray, state: RobotState | None) -> None:
+    def reset(self, q_rad: np.ndarray, state: RobotState | None,
+              store: Store | None) -> None:
         """Start with no correction."""
         # the filter's state: the common mode in Python floats (pitch, roll), the per-leg
         # parts as (leg, axis) arrays (FEET order; pitch, roll) for the compiled step
@@ -314,8 +329,12 @@ class DampingBalancer(Module):
         return self._last_reference
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
+        if cycle.store.get(BALANCERS_REST, False):  # a phase moves the CoM: start afresh
+            self.reset(q_rad, state, cycle.store)
         q = np.array(q_rad, dtype=float)
-        if self._step(q, state, cycle.dt_s):
+        store = cycle.store
+        if self._step(q, state, store[WRENCHES], store[QUAT_WORLD_TORSO], all(store[CONTACT]),
+                      cycle.dt_s):
             cycle.flags.add("balance-bad-sensor")
         (right_pitch, right_roll), (left_pitch, left_roll) = self._offsets.tolist()
         cycle.info["balance.right_pitch_rad"] = right_pitch
@@ -324,17 +343,19 @@ class DampingBalancer(Module):
         cycle.info["balance.left_roll_rad"] = left_roll
         return q
 
-    def _step(self, q: np.ndarray, state: RobotState, dt: float) -> bool:
-        """One period on the command ``q`` (in place); True when a sensor reads non-finite."""
+    def _step(self, q: np.ndarray, state: RobotState, wrenches: dict, quat_wxyz, both: bool,
+              dt: float) -> bool:
+        """One period on the command ``q`` (in place) with the ankle wrenches, the torso
+        attitude ``quat_wxyz`` (w, x, y, z) and ``both`` feet in contact (the estimate's); True
+        when a sensor reads non-finite."""
         reference = self._reference_now = self._reference_moment(q, state.q_rad)
-        right, left = (state.ft.get(sensor) for _, sensor in FEET)
+        right, left = (wrenches.get(sensor) for _, sensor in FEET)
         as_array = np.asarray
-        both = state.feet_contact is None or all(state.feet_contact)
         return _balance_step(
             q, self._ankles, self._ankle_signs,
             self._no_wrench if right is None else as_array(right, dtype=float), right is not None,
             self._no_wrench if left is None else as_array(left, dtype=float), left is not None,
-            as_array(state.imu_quat_wxyz, dtype=float), both,
+            as_array(quat_wxyz, dtype=float), both,
             reference, self._weight_n, self._flat_x_m[0], self._flat_x_m[1],
             self.edge_margin_m > 0, self.damping, self.k_r, self.common_leak_s, self._common,
             self._differential, self._offsets, self._rate, self._lower, self._upper,
@@ -362,7 +383,7 @@ def _balance_step(q, ankles, signs, right_wrench, has_right, left_wrench, has_le
                   common, differential, offsets, rate, lower, upper, limit, k_d, leak, max_rate,
                   max_step, smoothing_s, dt):
     """:class:`DampingBalancer`'s period, compiled (the arithmetic of its Python form, in the
-    same order): the feet's moments, the torso tilt (IMU quaternion w, x, y, z), the common
+    same order): the feet's moments, the torso tilt (attitude quaternion w, x, y, z), the common
     mode (``common``, pitch and roll, in place) resting its pitch while the feet tip over an
     edge, then :func:`_follow_offsets`. Returns True when a sensor reads non-finite (its
     term is then zero)."""

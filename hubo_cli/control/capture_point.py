@@ -1,17 +1,14 @@
 """Capture-point monitor (hrpsys Stabilizer's CP check): flags a coming fall, asks for an e-stop.
 
-Each period, from the *measured* joints and the torso pose in the world (the driver's
-``T_world_torso``; without one, the IMU orientation at the origin, which is enough because only
-relative positions matter):
+Each period, from the estimate in the store (:mod:`hubo_cli.estimation.keys`: one pinocchio
+pass for every module, in the estimation layer):
 
-* the centre of mass x_G of the URDF (pinocchio);
-* its velocity, finite-differenced and low-passed at 4 Hz (first order, as hrpsys);
-* the capture point CP = x_G + v_G / omega with omega = sqrt(g / (z_G - z_ground)), z_ground
-  being the lowest sole in contact;
-* the support polygon: the convex hull of the sole corners that touch the ground, i.e. of the
-  feet in contact (both when the driver does not say; a lost contact counts after 50 ms)
-  the corners within 5 mm of the lowest
-  one, shrunk by ``margin_m`` (3 cm, hrpsys ``cp_check_margin``). A foot that starts to tip
+* the centre of mass x_G (``COM_WORLD``) and the capture point CP = x_G + v_G / omega
+  (``CAPTURE_POINT_WORLD``; omega = sqrt(g / (z_G - z_ground)), z_ground the lowest sole in
+  contact, v_G low-passed at 4 Hz as hrpsys);
+* the support polygon: the convex hull of the sole corners (``T_WORLD_SOLES``) of the feet in
+  contact (``CONTACT``: one filter, one debounce) within 5 mm of the lowest one, shrunk by
+  ``margin_m`` (3 cm, hrpsys ``cp_check_margin``). A foot that starts to tip
   about its heel therefore supports only along the heel edge; the hull then collapses to a
   segment, which has no inside, and the CP is flagged as outside. (The linear-inverted-pendulum
   capture point assumes flat feet; an external push such as a wall's reaction can tip the robot
@@ -28,34 +25,41 @@ AutoBalancer's reference CoM); ``cp_error`` = actual CP - reference CP.
 While walking, the feet that carry the robot change every step and a swing foot leaves the
 ground on purpose; the CP then lies between the stance foot and where the swing foot will land
 (and must, for the robot's hips, which only abduct). A walking target therefore gives the
-monitor its *planned support* (:attr:`CapturePointMonitor.support_override`): the soles on the
-ground in this phase of the step, the swing foot counted at its landing place. The polygon is
-then their hull (flat on the ground, shrunk by the margin as before): the CP leaving it means
-the step cannot catch the robot. Without an override (standing, tasks) nothing changes.
-The planned support is shrunk by ``planned_margin_m`` (the margin unless the override's owner
-sets it: a capture step judges the CP against its planned and stepped stance unshrunk).
+monitor its *planned support* (the store key :data:`~hubo_cli.control.phase.SUPPORT_PLAN`,
+written by the phase's target every period): the soles on the ground in this phase of the
+step, the swing foot counted at its landing place. The polygon is then their hull (flat on
+the ground, shrunk by the plan's margin: a capture step judges the CP against its planned and
+stepped stance unshrunk): the CP leaving it means the step cannot catch the robot. Without a
+plan (standing, tasks, or a phase that writes None) nothing changes.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 
 import numba as nb
 import numpy as np
 import pinocchio as pin
 
 from hubo_cli.control.balance import command_configuration
+from hubo_cli.control.keys import SUPPORT_BOX_WORLD
 from hubo_cli.control.module import Cycle, Module
+from hubo_cli.control.phase import SUPPORT_PLAN
+from hubo_cli.control.status import SupportStatus
+from hubo_cli.dataflow import Store
+from hubo_cli.estimation.keys import (
+    CAPTURE_POINT_WORLD,
+    COM_VELOCITY_WORLD,
+    COM_WORLD,
+    CONTACT,
+    T_WORLD_SOLES,
+)
 from hubo_cli.model import RobotModel
 from hubo_cli.pin_robot import PinRobot, load_pin_robot
 from hubo_cli.state import RobotState
 
-GRAVITY_M_S2 = 9.80665
 CP_MARGIN_M = 0.03        # hrpsys cp_check_margin
 CORNER_TOLERANCE_M = 0.005  # a sole corner higher than this above the lowest one is lifted
-CONTACT_HOLD_S = 0.05       # a foot still counts as down this long after its last contact
-VELOCITY_CUTOFF_HZ = 4.0  # hrpsys CoM velocity low-pass
 SOLE_FRAMES = ("right_sole", "left_sole")
 CONTACT_LOSS_MIN_S = 0.020  # a foot unloaded longer than this while standing: a contact loss
 
@@ -131,13 +135,14 @@ def outside_distance(hull: np.ndarray, p: np.ndarray) -> float:
 
 
 @nb.njit(cache=True, nogil=True)
-def _support(sole_pose, right_down, left_down, corners, com, velocity, margin, gravity,
-             corner_tolerance, cp_out, box_out, flat_out):
-    """Support polygon, capture point and how far it lies outside (see CapturePointMonitor).
+def _support(sole_pose, right_down, left_down, corners, cp, margin, corner_tolerance,
+             box_out, flat_out):
+    """Support polygon and how far the capture point ``cp`` (x, y) lies outside it (see
+    CapturePointMonitor).
 
-    Writes the CP (2,), the soles laid flat on the ground (same x, y and heading; 2 x 4 x 4)
-    and the box of the flat soles in contact, shrunk (4,); returns (outside m, ground z m).
-    Without a foot on the ground: CP = CoM, outside = -inf.
+    Writes the soles laid flat on the ground (same x, y and heading; 2 x 4 x 4) and the box of
+    the flat soles in contact, shrunk (4,); returns (outside m, ground z m). Without a foot on
+    the ground: outside = -inf.
     """
     down = (right_down, left_down)
     n = 0
@@ -152,7 +157,6 @@ def _support(sole_pose, right_down, left_down, corners, com, velocity, margin, g
                                  + T[row, 2] * corners[c, 2] + T[row, 3])
             n += 1
     if n == 0:
-        cp_out[0], cp_out[1] = com[0], com[1]
         return -np.inf, np.inf
     ground_z = world[:n, 2].min()
     points = np.empty((n, 2))
@@ -162,10 +166,6 @@ def _support(sole_pose, right_down, left_down, corners, com, velocity, margin, g
             points[m, 0] = world[i, 0]
             points[m, 1] = world[i, 1]
             m += 1
-    height = max(com[2] - ground_z, 1e-3)
-    omega = math.sqrt(gravity / height)
-    cp_out[0] = com[0] + velocity[0] / omega
-    cp_out[1] = com[1] + velocity[1] / omega
     # the soles laid flat where they are, and their box shrunk: the nominal thresholds
     box_out[0], box_out[1] = np.inf, -np.inf
     box_out[2], box_out[3] = np.inf, -np.inf
@@ -190,70 +190,7 @@ def _support(sole_pose, right_down, left_down, corners, com, velocity, margin, g
     box_out[2] += margin
     box_out[3] -= margin
     hull = convex_hull(points[:m])
-    return outside_distance(hull, cp_out) + margin, ground_z
-
-
-@nb.njit(cache=True, nogil=True)
-def _configure(q, index, q_rad, T_world_torso, has_pose, quat_wxyz):
-    """Pinocchio's floating-base ``q`` (in place): the joints ``q_rad`` at ``index``, the torso
-    pose ``T_world_torso`` (4x4) or without one (``has_pose`` False) the rotation of the
-    quaternion w, x, y, z at the origin. The same arithmetic as
-    :func:`hubo_cli.geometry.quat_wxyz_to_matrix` and Eigen's rotation-matrix-to-quaternion
-    (trace m00 + (m11 + m22)) that ``pin.Quaternion`` runs."""
-    for i in range(q_rad.shape[0]):
-        q[index[i]] = q_rad[i]
-    R = np.empty((3, 3))
-    if has_pose:
-        for r in range(3):
-            q[r] = T_world_torso[r, 3]
-            for c in range(3):
-                R[r, c] = T_world_torso[r, c]
-    else:
-        w, x, y, z = quat_wxyz[0], quat_wxyz[1], quat_wxyz[2], quat_wxyz[3]
-        n = math.sqrt(w * w + x * x + y * y + z * z)
-        w, x, y, z = w / n, x / n, y / n, z / n
-        R[0, 0], R[1, 1], R[2, 2] = (1 - 2 * (y * y + z * z), 1 - 2 * (x * x + z * z),
-                                     1 - 2 * (x * x + y * y))
-        R[0, 1], R[0, 2], R[1, 2] = 2 * (x * y - w * z), 2 * (x * z + w * y), 2 * (y * z - w * x)
-        R[1, 0], R[2, 0], R[2, 1] = 2 * (x * y + w * z), 2 * (x * z - w * y), 2 * (y * z + w * x)
-        q[0] = q[1] = q[2] = 0.0
-    t = R[0, 0] + (R[1, 1] + R[2, 2])
-    if t > 0.0:  # q[3:7]: x, y, z, w
-        t = math.sqrt(t + 1.0)
-        q[6] = 0.5 * t
-        t = 0.5 / t
-        q[3] = (R[2, 1] - R[1, 2]) * t
-        q[4] = (R[0, 2] - R[2, 0]) * t
-        q[5] = (R[1, 0] - R[0, 1]) * t
-    else:
-        i = 0
-        if R[1, 1] > R[0, 0]:
-            i = 1
-        if R[2, 2] > R[i, i]:
-            i = 2
-        j = (i + 1) % 3
-        k = (j + 1) % 3
-        t = math.sqrt(R[i, i] - R[j, j] - R[k, k] + 1.0)
-        q[3 + i] = 0.5 * t
-        t = 0.5 / t
-        q[6] = (R[k, j] - R[j, k]) * t
-        q[3 + j] = (R[j, i] + R[i, j]) * t
-        q[3 + k] = (R[k, i] + R[i, k]) * t
-
-
-@nb.njit(cache=True, nogil=True)
-def _measure(com, prev_com, filtered, velocity, alpha, dt, sole_pose, right_down, left_down,
-             corners, margin, gravity, corner_tolerance, cp_out, box_out, flat_out):
-    """The CoM velocity low-passed in place (``velocity``: zero unless ``filtered``, with the
-    previous CoM ``prev_com``), then :func:`_support`; ``prev_com`` becomes ``com``."""
-    for i in range(3):
-        if filtered:
-            velocity[i] = velocity[i] + alpha * ((com[i] - prev_com[i]) / dt - velocity[i])
-        else:
-            velocity[i] = 0.0
-        prev_com[i] = com[i]
-    return _support(sole_pose, right_down, left_down, corners, com, velocity, margin, gravity,
-                    corner_tolerance, cp_out, box_out, flat_out)
+    return outside_distance(hull, cp) + margin, ground_z
 
 
 class CapturePointMonitor(Module):
@@ -265,65 +202,54 @@ class CapturePointMonitor(Module):
         margin_m: shrink of the support polygon (m).
         corner_tolerance_m: a sole corner more than this above the lowest sole point no longer
             supports (the foot is tipping on an edge), m.
-        contact_hold_s: a foot counts as in contact until it has reported none this long (s).
-        cutoff_hz: low-pass cut-off of the CoM velocity (Hz).
         request_estop: request an emergency stop when the CP leaves the polygon.
         confirm_periods: periods in a row the CP must be outside before the flag.
-        drill: the robot holds the drill in its right hand (its mass counts in the CoM).
+        drill: the robot holds the drill in its right hand (its mass counts in the reference
+            CoM of the commanded posture).
 
-    Attributes after each update: ``com_m`` (3,), ``cp_m`` (2,), ``cp_ref_m`` (2,),
-    ``outside_m`` (CP beyond the shrunk polygon, m; > 0 = flag), ``ground_z_m`` (lowest sole
-    in contact), ``support_box_m`` (min x, max x, min y, max y of the soles in contact taken
-    flat, shrunk by the margin: the nominal thresholds), ``flag``; over the run (the live
-    view): ``min_margin_m`` and ``min_margin_t_s`` (the capture point's smallest distance inside
-    the support polygon, unshrunk, and when), ``feet_loaded`` (the driver's contacts, right and
-    left, None unknown) and ``contact_losses`` (intervals longer than CONTACT_LOSS_MIN_S with a
-    foot unloaded).
+    It reads the estimate's CoM, capture point, contact and sole poses and writes
+    :data:`~hubo_cli.control.keys.SUPPORT_BOX_WORLD` (the hip strategy's input). What it
+    publishes for a viewer is :meth:`status` (:class:`SupportStatus`).
 
-    ``support_override``: None (the measured soles in contact), or a function of the time (s)
-    returning the planned support's sole poses in the world (2 x 4 x 4: right, left; a swing
-    foot at its landing place) or None for the measured soles in that period. Set by a
-    walking target in its ``attach``. ``planned_margin_m`` (default ``margin_m``): the shrink
-    of that planned support.
+    Attributes after each update: ``com_m`` (3,), ``cp_m`` (2,) and ``velocity_m_s`` (3,) as
+    the estimate gave them, ``cp_ref_m`` (2,), ``outside_m`` (CP beyond the shrunk polygon, m;
+    > 0 = flag), ``ground_z_m`` (lowest sole in contact), ``support_box_m`` (min x, max x,
+    min y, max y of the soles in contact taken flat, shrunk by the margin: the nominal
+    thresholds), ``flag``.
+
+    It follows :data:`~hubo_cli.control.phase.SUPPORT_PLAN` (a phase's planned support, its
+    sole poses and margin; None or unwritten: the estimated soles in contact).
     """
 
     name = "capture-point"
+    reads = (COM_WORLD, COM_VELOCITY_WORLD, CAPTURE_POINT_WORLD, CONTACT, T_WORLD_SOLES)
+    follows = (SUPPORT_PLAN,)
+    writes = (SUPPORT_BOX_WORLD,)
     log_columns = ("com_x_m", "com_y_m", "com_z_m", "cp_x_m", "cp_y_m", "cp_ref_x_m",
                    "cp_ref_y_m", "cp_error_x_m", "cp_error_y_m", "cp_outside_m",
                    "support_min_x_m", "support_max_x_m", "support_min_y_m", "support_max_y_m",
                    "cp_flag")
 
     def __init__(self, model: RobotModel, dt_s: float, margin_m: float = CP_MARGIN_M,
-                 cutoff_hz: float = VELOCITY_CUTOFF_HZ, request_estop: bool = True,
-                 corner_tolerance_m: float = CORNER_TOLERANCE_M,
-                 contact_hold_s: float = CONTACT_HOLD_S, confirm_periods: int = 3,
-                 drill: bool = False) -> None:
+                 request_estop: bool = True, corner_tolerance_m: float = CORNER_TOLERANCE_M,
+                 confirm_periods: int = 3, drill: bool = False) -> None:
         self.dt_s = float(dt_s)
         self.confirm_periods = max(1, int(confirm_periods))
         self._outside_periods = 0
-        self.contact_hold_s = float(contact_hold_s)
-        self._last_contact_s: list[float | None] = [None, None]
         self.margin_m = float(margin_m)
         self.corner_tolerance_m = float(corner_tolerance_m)
         self.request_estop = request_estop
-        tau = 1.0 / (2 * math.pi * cutoff_hz)
-        self.alpha = self.dt_s / (self.dt_s + tau)
-        # the body as it is: with the drill's 0.6 kg on the right hand
+        # the reference: the commanded posture, with the drill's 0.6 kg on the right hand
         self.robot: PinRobot = load_pin_robot(model, floating=True,
                                               urdf_path=model.urdf_path(drill))
         self.data = self.robot.model.createData()
         self._sole_ids = [self.robot.frame_id(f) for f in SOLE_FRAMES]
         self._corners = model.feet.sole_corners_m()
-        self._q = np.zeros(self.robot.model.nq)
         self._q_ref = self.robot.configuration(np.zeros(len(model.joint_names)))  # at origin
         self._last_cmd = np.full(len(model.joint_names), np.nan)  # of the reference CoM
         self._in_sole: np.ndarray | None = None  # the reference CoM in the sole's frame
         self._in_sole_foot = -1
-        self._eye = np.eye(4)
-        self._sole_pose = np.zeros((2, 4, 4))
         self._flat_sole = np.tile(np.eye(4), (2, 1, 1))
-        self._prev_com = np.zeros(3)
-        self._filtered = False  # the velocity has a previous CoM to difference
         self.velocity_m_s = np.zeros(3)
         self.com_m = np.zeros(3)
         self.cp_m = np.zeros(2)
@@ -332,17 +258,12 @@ class CapturePointMonitor(Module):
         self.ground_z_m = 0.0
         self.support_box_m = np.zeros(4)
         self.flag = False
-        self.support_override: Callable[[float], np.ndarray | None] | None = None
-        self.planned_margin_m = float(margin_m)
         self._margin_used_m = float(margin_m)
         self.reset_watch()
         # numba compiles a kernel on its first call: make that now, not in the first period
         # of a run (seconds on a fresh install; cached afterwards)
-        _measure(np.zeros(3), np.zeros(3), True, np.zeros(3), self.alpha, self.dt_s,
-                 self._flat_sole.copy(), True, True, self._corners, self.margin_m, GRAVITY_M_S2,
-                 self.corner_tolerance_m, np.zeros(2), np.zeros(4), self._flat_sole.copy())
-        _configure(self._q, self.robot.q_index, np.zeros(len(model.joint_names)), self._eye,
-                   True, np.array([1.0, 0.0, 0.0, 0.0]))
+        _support(self._flat_sole.copy(), True, True, self._corners, np.zeros(2), self.margin_m,
+                 self.corner_tolerance_m, np.zeros(4), self._flat_sole.copy())
         command_configuration(np.zeros(len(model.joint_names)), np.zeros(len(model.joint_names)),
                               np.zeros(len(model.joint_names)), np.zeros(self.robot.model.nq),
                               self.robot.q_index)
@@ -355,22 +276,26 @@ class CapturePointMonitor(Module):
         self.contact_losses = 0
         self._unloaded_periods = 0
 
-    def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
-        self._filtered = False
-        self._last_contact_s = [None, None]
-        self.velocity_m_s = np.zeros(3)
+    def reset(self, q_rad: np.ndarray, state: RobotState, store: Store) -> None:
         self.flag = False
         self._outside_periods = 0
         self.reset_watch()
 
-    def watch(self, state: RobotState) -> None:
+    def status(self) -> SupportStatus:
+        """What a viewer shows of the balance (see :class:`SupportStatus`)."""
+        return SupportStatus(
+            margin_m=self.margin_m - self.outside_m if math.isfinite(self.outside_m) else None,
+            min_margin_m=self.min_margin_m if math.isfinite(self.min_margin_m) else None,
+            min_margin_t_s=self.min_margin_t_s, feet_loaded=self.feet_loaded,
+            contact_losses=self.contact_losses)
+
+    def watch(self, t_s: float, contact: tuple[bool, bool]) -> None:
         """The run's worst margin and contact losses (as the balance report counts them)."""
         margin = self._margin_used_m - self.outside_m
         if margin < self.min_margin_m:
-            self.min_margin_m, self.min_margin_t_s = margin, state.time_s
-        contact = state.feet_contact
-        self.feet_loaded = None if contact is None else (bool(contact[0]), bool(contact[1]))
-        if contact is None or all(contact):
+            self.min_margin_m, self.min_margin_t_s = margin, t_s
+        self.feet_loaded = contact
+        if all(contact):
             self._unloaded_periods = 0
             return
         self._unloaded_periods += 1
@@ -378,61 +303,35 @@ class CapturePointMonitor(Module):
         if lasted > CONTACT_LOSS_MIN_S + 1e-9 >= lasted - self.dt_s:
             self.contact_losses += 1
 
-    def _configuration(self, state: RobotState) -> np.ndarray:
-        """Pinocchio's q of the measured joints and torso pose (without one, the IMU
-        orientation at the origin: only relative positions matter)."""
-        T = state.T_world_torso
-        _configure(self._q, self.robot.q_index, np.asarray(state.q_rad, dtype=float),
-                   self._eye if T is None else np.ascontiguousarray(T, dtype=float),
-                   T is not None, np.asarray(state.imu_quat_wxyz, dtype=float))
-        return self._q
-
-    def _debounced_contact(self, state: RobotState) -> tuple[bool, bool]:
-        """Feet contacts, each held for ``contact_hold_s`` after it was last reported (a
-        simulated or sensed contact flickers for a period now and then)."""
-        if state.feet_contact is None:
-            return True, True
-        held = []
-        for k, touching in enumerate(state.feet_contact):
-            if touching:
-                self._last_contact_s[k] = state.time_s
-            last = self._last_contact_s[k]
-            held.append(bool(touching or (last is not None
-                                          and state.time_s - last <= self.contact_hold_s)))
-        return held[0], held[1]
-
-    def measure(self, state: RobotState, q_cmd_rad: np.ndarray | None = None) -> bool:
-        """Update the estimate from ``state`` (and the reference from the command, rad);
-        return True when the CP has been outside the shrunk support polygon with a foot on the
-        ground for ``confirm_periods`` periods."""
-        pmodel, data = self.robot.model, self.data
-        q = self._configuration(state)
-        com = pin.centerOfMass(pmodel, data, q, False).copy()
-        contact = self._debounced_contact(state)
-        self.com_m = com
-        planned = None if self.support_override is None else self.support_override(state.time_s)
+    def measure(self, state: RobotState, store: Store,
+                q_cmd_rad: np.ndarray | None = None) -> bool:
+        """Judge this period's estimate in ``store`` (and the reference from the command,
+        rad); return True when the CP has been outside the shrunk support polygon with a foot
+        on the ground for ``confirm_periods`` periods."""
+        self.com_m = np.asarray(store[COM_WORLD], dtype=float)
+        self.velocity_m_s = np.asarray(store[COM_VELOCITY_WORLD], dtype=float)
+        self.cp_m = np.ascontiguousarray(store[CAPTURE_POINT_WORLD][:2], dtype=float)
+        measured = store[CONTACT]
+        contact = measured = (bool(measured[0]), bool(measured[1]))
+        plan = store.get(SUPPORT_PLAN)
         margin = self.margin_m
-        if planned is not None:
-            poses, contact = np.ascontiguousarray(planned, dtype=float), (True, True)
-            margin = self.planned_margin_m
-        else:  # the measured soles (the placements of the joints' kinematics above)
-            poses = self._sole_pose
-            for k, fid in enumerate(self._sole_ids):
-                poses[k] = pin.updateFramePlacement(pmodel, data, fid).homogeneous
+        if plan is not None:
+            poses, contact = np.ascontiguousarray(plan.T_world_soles, dtype=float), (True, True)
+            margin = self.margin_m if plan.margin_m is None else plan.margin_m
+        else:  # the estimated soles
+            poses = np.ascontiguousarray(store[T_WORLD_SOLES], dtype=float)
         self._margin_used_m = margin
-        outside, ground_z = _measure(com, self._prev_com, self._filtered, self.velocity_m_s,
-                                     self.alpha, self.dt_s, poses, bool(contact[0]),
-                                     bool(contact[1]), self._corners, margin, GRAVITY_M_S2,
-                                     self.corner_tolerance_m, self.cp_m, self.support_box_m,
+        self.support_box_m = np.zeros(4)
+        outside, ground_z = _support(poses, contact[0], contact[1], self._corners, self.cp_m,
+                                     margin, self.corner_tolerance_m, self.support_box_m,
                                      self._flat_sole)
-        self._filtered = True
         self.outside_m = outside
         self.ground_z_m = ground_z
         if q_cmd_rad is not None and (contact[0] or contact[1]):
             self.cp_ref_m = self._reference_com(q_cmd_rad, state, 0 if contact[0] else 1)
         self._outside_periods = self._outside_periods + 1 if outside > 0.0 else 0
         self.flag = self._outside_periods >= self.confirm_periods
-        self.watch(state)
+        self.watch(state.time_s, measured)
         return self.flag
 
     def _reference_com(self, q_cmd_rad: np.ndarray, state: RobotState, foot: int) -> np.ndarray:
@@ -449,7 +348,8 @@ class CapturePointMonitor(Module):
         return flat[:2, :3] @ self._in_sole + flat[:2, 3]
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
-        flag = self.measure(state, q_rad)
+        flag = self.measure(state, cycle.store, q_rad)
+        cycle.store[SUPPORT_BOX_WORLD] = self.support_box_m
         if flag:
             cycle.flags.add("cp-outside")
             if self.request_estop:

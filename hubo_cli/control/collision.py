@@ -70,7 +70,8 @@ import pinocchio as pin
 
 from hubo_cli.control.estop import BRAKE_FLAG
 from hubo_cli.control.module import Cycle, Module
-from hubo_cli.control.status import SafetyEvent
+from hubo_cli.control.status import CollisionStatus, SafetyEvent
+from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError
 from hubo_cli.geometry import rpy_to_matrix
 from hubo_cli.model import LEGS, DrillShape, RobotModel
@@ -475,7 +476,13 @@ class CollisionDetector(Module):
         self._blocked_in: np.ndarray | None = None  # input when the way back was blocked
         self._blocked_t_s = 0.0
 
-    def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
+    def status(self) -> CollisionStatus:
+        """What a viewer shows of the detector: its mode and the closest pair at its output."""
+        clearance = self.last_clearance
+        return CollisionStatus(self.mode, None if clearance is None else clearance.pair,
+                               None if clearance is None else clearance.distance_m)
+
+    def reset(self, q_rad: np.ndarray, state: RobotState, store: Store) -> None:
         q = np.where(np.isfinite(q_rad), q_rad, state.q_rad).astype(float)
         self._clear_state(q)
         self.tracker.reset(q[self.index])

@@ -38,7 +38,8 @@ blend back to the live references over the recovery time.
 
 The flag is latched: any request from an enabled source (``cycle.estop_requests``, a call to
 :meth:`stop` -- e.g. from the operator's key or, through :func:`stop_on_signal`, a signal -- or
-a wrist torque above ``model.safety["wrist_torque_limit_nm"]``) stops; only an
+a wrist torque above ``model.safety["wrist_torque_limit_nm"]``: the bending moment of the
+estimate's wrist wrenches, the hand's and the tool's weight removed, ``WRENCHES``) stops; only an
 explicit release lets go, and a request that is still present in the next period stops again.
 The pipeline uses two instances: ``estop`` early in the chain and ``hard-estop`` after the
 balance and collision layers.
@@ -54,9 +55,11 @@ from collections.abc import Callable, Iterable
 import numpy as np
 
 from hubo_cli.control.module import Cycle, Module
-from hubo_cli.control.status import SafetyEvent
+from hubo_cli.control.status import SafetyEvent, StopperStatus
 from hubo_cli.control.stop_choice import SOFT_SOURCES
 from hubo_cli.control.wrench import HAND_WRENCH_PLAN, HAND_WRENCH_REF, wrench_of
+from hubo_cli.dataflow import Store
+from hubo_cli.estimation.keys import WRENCHES
 from hubo_cli.geometry import (
     MIN_JERK_PEAK_ACCELERATION,
     MIN_JERK_PEAK_JERK,
@@ -78,12 +81,11 @@ RELIEVE_SOURCES = frozenset({"wrist-torque"})  # stops that brake hard and relie
 BRAKE_FLAG = "estop-brake"  # the stopper brakes at the emergency limits this period
 
 
-def wrist_torque_nm(state: RobotState, sensor: str) -> float:
-    """The bending moment on the wrist (N m): |(my, mz)| of the wrist wrench in the hand axes,
-    whose x runs along the forearm out through the palm (as Hubo's wrist F/T sensor reads the
-    two moments across the forearm); 0 when the sensor is absent."""
-    wrench = state.ft.get(sensor)
-    return 0.0 if wrench is None else math.hypot(*wrench[4:6].tolist())
+def wrist_torque_nm(wrench: np.ndarray | None) -> float:
+    """The bending moment on the wrist (N m): |(m_x, m_y)| of a wrist wrench in the sensor's
+    frame, whose z runs along the forearm (the two moments across the forearm that Hubo's wrist
+    sensor reads); 0 when the sensor is absent."""
+    return 0.0 if wrench is None else math.hypot(float(wrench[3]), float(wrench[4]))
 MODE_CODE = {name: i for i, name in enumerate(MODES)}
 
 
@@ -164,8 +166,6 @@ class EmergencyStopper(Module):
                  wrist_torque_limit_nm: float | None = None,
                  wrench_reference: bool = False) -> None:
         self.name = name
-        if wrench_reference:
-            self.reads, self.writes = (HAND_WRENCH_PLAN,), (HAND_WRENCH_REF,)
         self.limits = limits or JointLimits.from_model(model)
         self.dt_s = float(dt_s)
         self.revert_s = max(float(revert_s), self.dt_s)
@@ -181,6 +181,9 @@ class EmergencyStopper(Module):
         self._wrist_torque = "wrist-torque" in self.sources
         if self._wrist_torque:
             self.log_columns += ("wrist_torque_nm",)
+            self.reads = (WRENCHES,)
+        if wrench_reference:
+            self.reads, self.writes = self.reads + (HAND_WRENCH_PLAN,), (HAND_WRENCH_REF,)
         self.tracker = JointTracker(self.limits, self.dt_s)
         self.brake_tracker = JointTracker(self.limits.for_emergency_brake(model), self.dt_s)
         self.relief: Callable[[np.ndarray], np.ndarray | None] | None = None
@@ -236,7 +239,13 @@ class EmergencyStopper(Module):
         return self.mode != "release"
 
     # ------------------------------------------------------------------ module
-    def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
+    def status(self) -> StopperStatus:
+        """What a viewer shows of this stopper."""
+        stops = [e for e in self.events if e.kind == "stop"]
+        return StopperStatus(self.mode, tuple(sorted(self.sources)), len(stops),
+                             stops[-1].sources if stops else ())
+
+    def reset(self, q_rad: np.ndarray, state: RobotState, store: Store) -> None:
         """Start released, passing ``q_rad`` through (deactivation releases, as in hrpsys)."""
         q = np.where(np.isfinite(q_rad), q_rad, state.q_rad).astype(float)
         self._clear(q)
@@ -249,7 +258,8 @@ class EmergencyStopper(Module):
             self._pending.clear()
         if self._wrist_torque:
             right, left = WRIST_SENSORS
-            torque = max(wrist_torque_nm(state, right), wrist_torque_nm(state, left))
+            wrenches = cycle.store[WRENCHES]  # the hand's and the tool's weight removed
+            torque = max(wrist_torque_nm(wrenches.get(right)), wrist_torque_nm(wrenches.get(left)))
             cycle.info["wrist_torque_nm"] = torque
             if torque > self.wrist_torque_limit_nm:
                 wanted.add("wrist-torque")

@@ -7,11 +7,12 @@ rotates about that edge as one piece. What is left is to rotate the trunk relati
 the ankles saturate): bowing the trunk toward the fall stores angular momentum in it and pushes
 the hips the other way, which slows the centre of mass.
 
-Each period, from the capture-point monitor's numbers of the same period (``cp_x_m`` and the
-shrunk support box ``support_min_x_m`` / ``support_max_x_m``, world x, along the standing
-robot's feet): while the capture point lies within ``start_m`` of the box's front (back) edge,
-the bow grows forward (backward) at ``gain`` rad/s per metre of the excess over that band, at
-most ``max_rate_rad_s``, up to ``max_bow_rad``. The bow turns both hip pitches, with the knees
+Each period, from the store (declared in ``reads``): the estimate's capture point
+(``CAPTURE_POINT_WORLD``) and the capture-point monitor's shrunk support box of the same period
+(``SUPPORT_BOX_WORLD``), world x, along the standing robot's feet: while the capture point
+lies within ``start_m`` of the box's front (back) edge, the bow grows forward (backward) at
+``gain`` rad/s per metre of the excess over that band, at most ``max_rate_rad_s``, up to
+``max_bow_rad``. The bow turns both hip pitches, with the knees
 and ankles moving along so that the model's centre of mass keeps its x and height
 (:data:`BOW_JOINTS_RAD`, per rad of bow). Once the capture point has stayed inside the band
 for ``hold_s``, the bow returns to zero with time constant ``return_s`` (at most
@@ -32,8 +33,11 @@ import math
 
 import numpy as np
 
+from hubo_cli.control.keys import SUPPORT_BOX_WORLD
 from hubo_cli.control.module import Cycle, Module
+from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError
+from hubo_cli.estimation.keys import CAPTURE_POINT_WORLD
 from hubo_cli.model import RobotModel
 from hubo_cli.state import RobotState
 
@@ -68,6 +72,7 @@ class HipStrategy(Module):
     """
 
     name = "hip"
+    reads = (CAPTURE_POINT_WORLD, SUPPORT_BOX_WORLD)
     log_columns = ("hip_bow_rad",)
 
     def __init__(self, model: RobotModel, dt_s: float, start_m: float = START_M,
@@ -88,9 +93,10 @@ class HipStrategy(Module):
         self._joints = [(names.index(side + joint), per_rad)
                         for joint, per_rad in BOW_JOINTS_RAD.items() for side in "RL"]
         self._lower, self._upper = model.lower_rad, model.upper_rad
-        self.reset(np.zeros(len(names)), None)
+        self.reset(np.zeros(len(names)), None, None)
 
-    def reset(self, q_rad: np.ndarray, state: RobotState | None) -> None:
+    def reset(self, q_rad: np.ndarray, state: RobotState | None,
+              store: Store | None) -> None:
         """Start upright."""
         self.bow_rad = 0.0
         self.max_abs_bow_rad = 0.0
@@ -99,10 +105,11 @@ class HipStrategy(Module):
 
     def _excess_m(self, cycle: Cycle) -> float:
         """The capture point's signed excess over the band: > 0 toward the front edge, < 0
-        toward the back, 0 inside (m); 0 without the monitor's numbers."""
-        info = cycle.info
-        cp_x, lo, hi = (info.get(k) for k in ("cp_x_m", "support_min_x_m", "support_max_x_m"))
-        if cp_x is None or lo is None or hi is None or not math.isfinite(cp_x + lo + hi):
+        toward the back, 0 inside (m); 0 without a finite capture point or support box."""
+        store = cycle.store
+        cp_x = float(store[CAPTURE_POINT_WORLD][0])
+        lo, hi = (float(v) for v in store[SUPPORT_BOX_WORLD][:2])
+        if not math.isfinite(cp_x + lo + hi):
             return 0.0
         forward = cp_x - (hi - self.start_m)
         backward = (lo + self.start_m) - cp_x

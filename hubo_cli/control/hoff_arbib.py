@@ -18,6 +18,7 @@ import numpy as np
 
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.otg import STALE_TIMEOUT_S, TargetInput
+from hubo_cli.dataflow import Store
 from hubo_cli.geometry import (
     MIN_JERK_PEAK_ACCELERATION,
     MIN_JERK_PEAK_JERK,
@@ -97,7 +98,7 @@ class HoffArbibGenerator(Module):
         self.remaining_s = 0.0
         self._stopping = False
 
-    def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
+    def reset(self, q_rad: np.ndarray, state: RobotState, store: Store) -> None:
         q = np.where(np.isfinite(q_rad), q_rad, state.q_rad).astype(float)
         self.input.reset(q)
         self.x = q.copy()

@@ -31,16 +31,14 @@ offset (eq. 3 with K (x - c)), clamped with it, and decays back to zero (time co
 ``release_s``) once the reference force is zero. ``axes`` leaves some axes stiff: the input on
 the others is dropped (the drill yields along its bit only, and tracks the path across it).
 
-Force input: ``state.ft["right-wrist"]`` / ``["left-wrist"]`` (read through
-:func:`~hubo_cli.control.wrench.measured_hand_wrench`, the one place it is read), the wrench
-the environment applies to the hand in the sensor frame S, which
-:class:`~hubo_cli.state.RobotState` defines as the hand frame (``T_hand_sensor`` = identity;
-another mounting is one argument). It is
-moved to the hand origin in hand axes (f_H = R_HS f_S, m_H = R_HS m_S + p_HS x f_H), then
-turned into N by the hand's measured orientation (forward kinematics of the measured joints).
-The reading is taken as given: the estimation layer that removes the tool's weight and the
-sensor's offset (hrpsys RemoveForceOffset) does not exist yet (issue 36 names it), so a tool's
-weight, unless the sensor was zeroed with it, deflects the hand by weight / K.
+Force input: the estimate's wrist wrenches (``WRENCHES``: the hand's and the tool's weight
+removed, hrpsys RemoveForceOffset; read through
+:func:`~hubo_cli.control.wrench.measured_hand_wrench`), the wrench the environment applies to
+the hand in the sensor frame S (:func:`~hubo_cli.state.T_frame_sensor`: z along the forearm;
+another mounting is one argument, ``T_hand_sensor``). It is moved to the hand origin in hand
+axes (f_H = R_HS f_S, m_H = R_HS m_S + p_HS x f_H), then turned into N by the hand's measured
+orientation (forward kinematics of the measured joints). Hubo's wrist sensors read the force
+along the forearm and the two moments across it only: the hand yields to those.
 
 Offset to joints: the target pose is (p_ref + x_p, Exp(x_r) R_ref) in N, with the reference
 pose FK(commanded arm joints); the arm's closed-form IK (paper II-B,
@@ -78,23 +76,26 @@ import scipy.linalg
 
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.wrench import (
+    ALONG_MIN,
+    MEASURED_FORCE_AXES,
     MEASURED_WRENCH_READS,
     WRENCH_AXES,
     measured_hand_wrench,
     wrench_of,
 )
-from hubo_cli.dataflow import Key
+from hubo_cli.dataflow import Key, Store
 from hubo_cli.errors import ConfigError
+from hubo_cli.estimation.keys import WRENCHES
 from hubo_cli.geometry import min_jerk
 from hubo_cli.kinematics.choice import EXACT, solve_limb
 from hubo_cli.kinematics.dh import JIT, chain_fk
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import ARMS, RobotModel
 from hubo_cli.motion.limits import all_finite, hold_nan
-from hubo_cli.state import RobotState
+from hubo_cli.state import RobotState, T_frame_sensor
 
 HAND_SENSORS = {"right-arm": "right-wrist", "left-arm": "left-wrist"}
-T_HAND_SENSOR = np.eye(4)   # RobotState: a wrist reading is in the hand frame
+T_HAND_SENSOR = T_frame_sensor("right-wrist")  # the wrist sensors' axes in the hand frame
 MODES = ("on", "release", "off")
 MODE_CODE = {name: i for i, name in enumerate(MODES)}
 LIMIT_FLAG, BAD_FLAG, UNREACHABLE_FLAG, RELEASE_FLAG = (
@@ -253,22 +254,31 @@ def offset_joints(q_cmd, chain, lengths, lower, upper, max_step_rad, x, dq_out) 
 
 
 @nb.njit(**JIT)
-def track_force(centre, wrench_ref_N, wrench_S, T_H_S, T_N_H, mask, K, gain_m_per_n, decay,
-                max_offset_m, wrench_ref_eff_N) -> None:
+def track_force(centre, wrench_ref_N, wrench_S, T_H_S, T_N_H, measured, mask, K, gain_m_per_n,
+                decay, max_offset_m, wrench_ref_eff_N) -> None:
     """One period of force tracking: with a nonzero reference force F_ref (N axes) the centre
-    c moves by ``gain_m_per_n ((F_N - F_ref) . d) d`` (d = F_ref / |F_ref|, masked axes only,
-    |c| clamped to ``max_offset_m``); without one it shrinks by the factor ``1 - decay``. Then
-    wrench_ref_eff_N = F_ref - K [c, 0]."""
+    c moves by ``gain_m_per_n (F_d - |F_ref|) d`` (d = F_ref / |F_ref|, masked axes only,
+    |c| clamped to ``max_offset_m``), F_d the force along d as
+    :func:`~hubo_cli.control.wrench.force_along` reads it from the sensor's ``measured`` force
+    axes (1 measured, 0 not; held where the sensor cannot see d); without a reference it
+    shrinks by the factor ``1 - decay``. Then wrench_ref_eff_N = F_ref - K [c, 0]."""
     size = math.sqrt(wrench_ref_N[0] ** 2 + wrench_ref_N[1] ** 2 + wrench_ref_N[2] ** 2)
     if size > 0.0 and gain_m_per_n > 0.0:
-        f_H = np.empty(3)
-        for j in range(3):
-            f_H[j] = (T_H_S[j, 0] * wrench_S[0] + T_H_S[j, 1] * wrench_S[1]
-                      + T_H_S[j, 2] * wrench_S[2])
-        along = 0.0  # (F_N - F_ref) . d
-        for i in range(3):
-            f_N = T_N_H[i, 0] * f_H[0] + T_N_H[i, 1] * f_H[1] + T_N_H[i, 2] * f_H[2]
-            along += (f_N - wrench_ref_N[i]) * wrench_ref_N[i] / size
+        num = den = 0.0
+        for i in range(3):  # the sensor's force axis i in N, against d
+            if measured[i] == 0.0:
+                continue
+            c = 0.0
+            for r in range(3):
+                a_r = (T_N_H[r, 0] * T_H_S[0, i] + T_N_H[r, 1] * T_H_S[1, i]
+                       + T_N_H[r, 2] * T_H_S[2, i])
+                c += a_r * wrench_ref_N[r] / size
+            num += wrench_S[i] * c
+            den += c * c
+        if den < ALONG_MIN:
+            along = 0.0  # the sensor cannot see a force along d: hold the centre
+        else:
+            along = num / den - size  # F_d - |F_ref|
         for i in range(3):
             centre[i] += gain_m_per_n * along * wrench_ref_N[i] / size * mask[i]
         n = math.sqrt(centre[0] ** 2 + centre[1] ** 2 + centre[2] ** 2)
@@ -349,6 +359,7 @@ class ImpedanceController(Module):
     """
 
     name = "impedance"
+    reads = (WRENCHES,)
 
     def __init__(self, model: RobotModel, dt_s: float, M=None, D=None, K=None,
                  max_offset_m: float | None = None, max_rotation_rad: float | None = None,
@@ -386,6 +397,7 @@ class ImpedanceController(Module):
             raise ConfigError(f"impedance on unknown axis {unknown_axes[0]!r}",
                               hint=f"use some of {' '.join(WRENCH_AXES)}")
         self.axes_mask = np.array([a in axes for a in WRENCH_AXES], dtype=float)
+        self.measured_force = np.array([i in MEASURED_FORCE_AXES for i in range(3)], dtype=float)
         self.reference = reference
         self.reads = MEASURED_WRENCH_READS + (() if reference is None else (reference,))
         unknown = [a for a in arms if a not in HAND_SENSORS]
@@ -458,12 +470,13 @@ class ImpedanceController(Module):
                 h.wrench_ref_N, self.axes_mask, h.s_next)
         clamp_offset(scratch, 1.0, 1.0)
         track_force(np.zeros(3), h.wrench_ref_N, np.zeros(6), self.T_hand_sensor, h.T_N_H,
-                    self.axes_mask, self.K, 0.0, 0.0, 1.0, h.wrench_ref_eff_N.copy())
+                    self.measured_force, self.axes_mask, self.K, 0.0, 0.0, 1.0,
+                    h.wrench_ref_eff_N.copy())
         offset_joints(np.zeros(6), *h.ik, np.zeros(6), np.zeros(6))
         all_finite(scratch)
         hold_nan(self._last_in, self._last_in, self._last_in.copy())
 
-    def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
+    def reset(self, q_rad: np.ndarray, state: RobotState, store: Store) -> None:
         """Start with zero offsets (switched on if built ``active``)."""
         self._last_in = np.where(np.isfinite(q_rad), q_rad, state.q_rad).astype(float)
         self._clear()
@@ -490,7 +503,8 @@ class ImpedanceController(Module):
         set the input's reference to F_ref - K [c, 0]. Called with a finite reading after
         ``h.T_N_H`` holds the measured hand pose."""
         track_force(h.centre_m, h.wrench_ref_N, wrench_S, self.T_hand_sensor, h.T_N_H,
-                    self.axes_mask, self.K, self.force_tracking_m_per_n_s * self.dt_s,
+                    self.measured_force, self.axes_mask, self.K,
+                    self.force_tracking_m_per_n_s * self.dt_s,
                     self.dt_s / max(self.release_s, self.dt_s), self.max_offset_m,
                     h.wrench_ref_eff_N)
 

@@ -26,6 +26,8 @@ import numpy as np
 
 from hubo_cli.control.estop import BRAKE_FLAG
 from hubo_cli.control.module import Cycle, Module
+from hubo_cli.control.status import LimiterStatus
+from hubo_cli.dataflow import Store
 from hubo_cli.model import RobotModel
 from hubo_cli.motion.limits import JointLimits, brake_speed
 from hubo_cli.state import RobotState
@@ -179,7 +181,12 @@ class SoftErrorLimiter(Module):
                    self._zeros, self._zeros, self.error_limit_rad, np.zeros(n),
                    self._mask.copy(), self._catching.copy())
 
-    def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
+    def status(self) -> LimiterStatus:
+        """What a viewer shows of the limiter: the share of periods with an ankle clamped."""
+        return LimiterStatus(self.ankle_clamped_periods / self.periods if self.periods
+                             else None)
+
+    def reset(self, q_rad: np.ndarray, state: RobotState, store: Store) -> None:
         q = np.where(np.isfinite(q_rad), q_rad, state.q_rad)
         self.q1 = np.array(q, dtype=float)
         self.q2 = self.q1.copy()

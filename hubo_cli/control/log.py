@@ -11,15 +11,17 @@ A run folder's log is three files:
   ``target_<joint>_rad`` (NaN when no target came that period), ``cmd_<joint>_rad`` (what the
   driver was sent), ``q_<joint>_rad`` (measured after the step); the torso (base) pose in the
   world ``torso_{x,y,z}_m, torso_{roll,pitch,yaw}_rad`` (URDF convention,
-  R = Rz(yaw) Ry(pitch) Rx(roll); the position is NaN where the driver does not know it, and the
-  orientation then comes from the IMU); when the log knows the robot model, the measured hand
-  frames in the world ``{right,left}_hand_{x,y,z}_m, ..._{roll,pitch,yaw}_rad`` (forward
-  kinematics of the measured arm joints through the torso pose; NaN where the torso position is
-  unknown); the feet as the driver senses them: ``{right,left}_foot_fz_n`` (the ankle F/T
-  sensor's normal force) and ``{right,left}_foot_contact_flag`` (the driver's contact decision;
-  NaN where it has none); then the modules' and the caller's extra columns (NaN when not
-  reported that period; e.g. a task's commanded and measured tool positions ``goal_*_m``,
-  ``actual_*_m`` in its stance frame).
+  R = Rz(yaw) Ry(pitch) Rx(roll); the simulator's truth, ``RobotState.truth``; on a robot
+  without one the position is NaN and the orientation the IMU's); when the log knows the robot
+  model, the measured hand frames in the world ``{right,left}_hand_{x,y,z}_m,
+  ..._{roll,pitch,yaw}_rad`` (forward kinematics of the measured arm joints through the torso
+  pose; NaN where the torso position is unknown); the feet: ``{right,left}_foot_fz_n`` (the
+  ankle F/T sensor's normal force) and ``{right,left}_foot_contact_flag`` (the simulator's
+  true contact; NaN without a simulator); then the modules' and the caller's extra columns
+  (NaN when not reported that period; e.g. a task's commanded and measured tool positions
+  ``goal_*_m``, ``actual_*_m`` in its stance frame), the estimate's beside the truth last
+  (``est_torso_{x,y,z}_m``, ``est_tilt_rad``, ``est_com_{x,y,z}_m``:
+  :attr:`~hubo_cli.estimation.estimator.Estimator.log_columns`).
 * ``log.json`` (sidecar): the format name and version, when the run started (``started_utc``,
   UTC ISO 8601) and the ``hubo_cli_version`` that wrote it, the unit legend, the status codes, the
   joint names, the columns, the row count and the run's metadata (:meth:`PeriodLog.set_metadata`:
@@ -156,13 +158,15 @@ def _rotation_from_quat_wxyz(q) -> np.ndarray:
 
 
 def _feet_values(state) -> list[float]:
-    """The FEET_COLUMNS of a state: the ankles' F_z (N) and the contact flags (NaN unknown)."""
+    """The FEET_COLUMNS of a state: the ankles' F_z (N) and the true contact flags (NaN
+    without a simulator's truth)."""
     values = []
     for sensor in FEET_SENSORS:
         wrench = state.ft.get(sensor)
         values.append(math.nan if wrench is None else float(wrench[2]))
-    contact = state.feet_contact
-    values += [math.nan, math.nan] if contact is None else [float(bool(c)) for c in contact]
+    truth = state.truth
+    values += ([math.nan, math.nan] if truth is None
+               else [float(bool(c)) for c in truth.feet_contact])
     return values
 
 
@@ -340,7 +344,7 @@ class PeriodLog:
         if state is None:
             record[at:self._at_extras] = math.nan
             return
-        T_world_torso = state.T_world_torso
+        T_world_torso = None if state.truth is None else state.truth.T_world_torso
         if T_world_torso is None:
             T_world_torso = np.eye(4)
             T_world_torso[:3, :3] = _rotation_from_quat_wxyz(state.imu_quat_wxyz)

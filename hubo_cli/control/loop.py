@@ -157,8 +157,10 @@ class ControlLoop:
         observer: shown every period (:class:`PeriodObserver`); ``observer_error`` says why
             it was dropped, if it was.
         estimator: the estimation layer, run on every state the driver returns, before the
-            target and the modules (None: an empty store, for modules that read nothing).
-            The flow of keys from it through the target and the modules is checked now.
+            target and the modules (None: the robot's own,
+            :func:`~hubo_cli.estimation.build.build_estimator` of the driver's model without a
+            tool, where the target or a module reads a key; else none, an empty store). The
+            flow of keys from it through the target and the modules is checked now.
     """
 
     def __init__(self, driver: Driver, modules: list[Module], target: TargetSource, *,
@@ -184,6 +186,10 @@ class ControlLoop:
                     f"the {m.name} module was built for a {m.dt_s * 1000:g} ms period but the "
                     f"{driver.name} driver runs at {self.dt_s * 1000:g} ms",
                     hint="build the pipeline with the driver's period (driver.period_s)")
+        if estimator is None and (self.target.reads or any(m.reads for m in self.modules)):
+            from hubo_cli.estimation.build import build_estimator
+
+            estimator = build_estimator(driver.model, period_s=self.dt_s)
         self.estimator = estimator
         self.store = estimator.store if estimator is not None else Store()
         self.target.store = self.store
@@ -216,6 +222,8 @@ class ControlLoop:
         columns = [c for m in self.modules for c in m.log_columns]
         columns += self.target.log_columns
         columns += self.driver.log_columns
+        if self.estimator is not None:
+            columns += self.estimator.log_columns
         return list(dict.fromkeys(columns))
 
     def _pace(self) -> float:
@@ -276,7 +284,7 @@ class ControlLoop:
             q0 = np.array(state.q_rad, dtype=float)
             self._cmd = self._cmd_prev = self._cmd_prev2 = q0
             for m in self.modules:
-                m.reset(q0.copy(), state)
+                m.reset(q0.copy(), state, self.store)
             while duration_s is None or self.period * self.dt_s < duration_s - 1e-9:
                 t_s = self.period * self.dt_s
                 late_s = self._pace()
@@ -334,6 +342,8 @@ class ControlLoop:
                     if isinstance(value, (int, float)):
                         extras[key] = value
                 extras.update(driver.log_values())
+                if self.estimator is not None:
+                    extras.update(self.estimator.log_values())
                 self._write(t_s, cycle.flags, compute_s, late_s, target_logged, applied, state,
                             extras)
                 self.period += 1

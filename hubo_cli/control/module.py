@@ -8,8 +8,10 @@ and returns the command it passes on. It reports what it did by adding flags to 
 
 Optional behaviour is declared here with defaults, never probed: ``log_columns`` (the
 ``cycle.info`` keys a module writes, logged every period), ``events`` (the safety events it
-recorded), ``release()`` (let go of a latched stop) and ``dt_s`` (the control period the module
-was built for; the loop refuses a module built for another period than its driver's).
+recorded), ``status()`` (a small snapshot a viewer shows), ``release()`` (let go of a latched
+stop), ``dt_s`` (the control period the module was built for; the loop refuses a module built
+for another period than its driver's) and ``reads``/``writes`` (the store keys it exchanges
+with the estimate and the other modules: a module never reads another's attributes).
 """
 
 from __future__ import annotations
@@ -67,12 +69,19 @@ class Module(ABC):
     log_columns: tuple[str, ...] = ()
     events: Sequence[SafetyEvent] = ()
 
+    def status(self) -> object | None:
+        """A small snapshot of the module's state for a viewer (the safety view): a
+        dataclass of :mod:`hubo_cli.control.status` (``StopperStatus``, ``CollisionStatus``,
+        ``SupportStatus``, ``LimiterStatus``), or None for a module with nothing to show."""
+        return None
+
     def release(self) -> None:
         """Let go of a latched emergency stop; modules without one ignore it."""
 
-    def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
-        """Start from the command ``q_rad`` (rad) and the robot's state; called once before the
-        first period and again whenever the loop restarts."""
+    def reset(self, q_rad: np.ndarray, state: RobotState, store: Store) -> None:
+        """Start from the command ``q_rad`` (rad), the robot's state and the run's store (the
+        first estimate written); called once before the first period and again whenever the
+        loop restarts."""
 
     @abstractmethod
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:

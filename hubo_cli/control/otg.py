@@ -18,6 +18,7 @@ import numba as nb
 import numpy as np
 
 from hubo_cli.control.module import Cycle, Module
+from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError
 from hubo_cli.model import ARMS, LEGS, RobotModel
 from hubo_cli.motion.limits import JointLimits
@@ -173,7 +174,7 @@ class TrajectoryGenerator(Module):
         """Every tracker's velocity and acceleration are (numerically) zero."""
         return all(t.at_rest for t in self.trackers)
 
-    def reset(self, q_rad: np.ndarray, state: RobotState) -> None:
+    def reset(self, q_rad: np.ndarray, state: RobotState, store: Store) -> None:
         q = np.where(np.isfinite(q_rad), q_rad, state.q_rad)
         for index, tracker in zip(self._index, self.trackers, strict=True):
             tracker.reset(q[index])

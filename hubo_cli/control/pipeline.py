@@ -202,6 +202,11 @@ class SafetyProfile:
             the impedance controller (if on) takes them as its force setpoint.
         impedance_arms, impedance_axes: the hands the impedance controller acts on and the
             axes they yield along (neck-frame ``x y z rx ry rz``).
+        limit_set: the robot file's joint-limit set the limiter enforces (``table4``, the
+            paper's, or e.g. ``walking``, whose legs are fast enough to step and to bow the
+            trunk); None: the set the run's model was loaded with. Where a use case needs a
+            set (the standing experiment's hip strategy or stepping) it names it here, and
+            :class:`~hubo_cli.session.RunSetup` refuses a model that carries another.
     """
 
     estop: bool = True
@@ -222,6 +227,7 @@ class SafetyProfile:
     impedance_axes: tuple[str, ...] = WRENCH_AXES
     removed: tuple[str, ...] = ()
     removed_by: str = ""
+    limit_set: str | None = None
 
     def __post_init__(self) -> None:
         if self.balance_mode not in BALANCE_MODES:

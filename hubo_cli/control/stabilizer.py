@@ -1,12 +1,14 @@
 """CoM feedback on the waist (hrpsys Stabilizer, TPCC form), with a hip strategy.
 
-Each period the module estimates, in the *feet frame* F (origin midway between the soles, x
-along the feet's heading, z up):
+Each period the module takes, in the *feet frame* F (origin midway between the estimated
+soles, level, x along the right sole's heading, z up):
 
-* the measured centre of mass ``c`` (pinocchio, measured joints, torso orientation from the IMU);
-* the reference ``c_ref``: the commanded posture's CoM with the torso upright;
-* the measured ZMP ``z`` from the two ankle F/T sensors (centre of pressure of each sole,
-  weighted by its normal force) and its reference ``z_ref = c_ref`` (standing: static);
+* the measured centre of mass ``c`` or its capture point (the estimate's ``COM_WORLD``,
+  ``CAPTURE_POINT_WORLD``: one pinocchio pass for every module, in the estimation layer);
+* the reference ``c_ref``: the commanded posture's CoM with the torso upright (its own
+  pinocchio pass on the command, held while the command does not change);
+* the measured ZMP ``z`` (the estimate's ``ZMP_WORLD``: the soles' centres of pressure weighted
+  by their normal forces) and its reference ``z_ref = c_ref`` (standing: static);
 
 and moves the commanded CoM by a correction ``d`` (m) that follows Choi's law as hrpsys writes
 it (``Stabilizer.cpp``, TPCC)::
@@ -45,8 +47,16 @@ import numpy as np
 import pinocchio as pin
 
 from hubo_cli.control.module import Cycle, Module
+from hubo_cli.control.phase import BALANCERS_REST
+from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError
-from hubo_cli.geometry import quat_wxyz_to_matrix
+from hubo_cli.estimation.keys import (
+    CAPTURE_POINT_WORLD,
+    COM_WORLD,
+    T_WORLD_SOLES,
+    WRENCHES,
+    ZMP_WORLD,
+)
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.pin_robot import load_pin_robot
@@ -61,7 +71,6 @@ MAX_SHIFT_ACCEL_M_S2 = 0.25  # about 0.45 rad/s^2 at the ankle: inside the limit
 MAX_HIP_RAD = 0.12
 HIP_LEAK_S = 1.0
 SHIFT_LEAK_S = 0.5   # without load on the feet, the correction returns in this time
-VELOCITY_CUTOFF_HZ = 4.0
 LEGS = (("right-leg", "right-ankle", "right_sole"), ("left-leg", "left-ankle", "left_sole"))
 
 
@@ -87,6 +96,8 @@ class Stabilizer(Module):
     """
 
     name = "stabilizer"
+    reads = (COM_WORLD, CAPTURE_POINT_WORLD, T_WORLD_SOLES, ZMP_WORLD, WRENCHES)
+    follows = (BALANCERS_REST,)
     log_columns = ("stabilizer.com_error_x_m", "stabilizer.com_error_y_m",
                    "stabilizer.zmp_error_x_m", "stabilizer.zmp_error_y_m",
                    "stabilizer.shift_x_m", "stabilizer.shift_y_m", "stabilizer.hip_rad")
@@ -119,7 +130,6 @@ class Stabilizer(Module):
         self._robot = load_pin_robot(model, floating=True, urdf_path=model.urdf_path(drill))
         self._data = self._robot.model.createData()
         self._q = np.zeros(self._robot.model.nq)
-        self._R_feet = np.eye(3)
         self._sole_ids = [self._robot.frame_id(sole) for _, _, sole in LEGS]
         self._weight_n = float(pin.computeTotalMass(self._robot.model)) * GRAVITY_M_S2
         self._legs = {leg: Limb(model, leg) for leg, _, _ in LEGS}
@@ -127,8 +137,6 @@ class Stabilizer(Module):
         names = model.joint_names
         self._roll = [names.index(model.limb(leg).joints[5]) for leg, _, _ in LEGS]
         self._hip_pitch = [names.index(model.limb(leg).joints[2]) for leg, _, _ in LEGS]
-        tau = 1.0 / (2 * math.pi * VELOCITY_CUTOFF_HZ)
-        self._alpha = self.dt_s / (self.dt_s + tau)
         self._last_cmd: np.ndarray | None = None
         self._last_ref = np.zeros(3)
         from hubo_cli.posture import home_posture
@@ -137,7 +145,7 @@ class Stabilizer(Module):
         self._roll_per_m = 1.0 / self._sensitivity(home, self._roll, 1)
         self._hip_per_m = 1.0 / self._sensitivity(home, self._hip_pitch, 0)
         self.com_offset_m = self._checked_offset(com_offset_m, home)
-        self.reset(home, None)
+        self.reset(home, None, None)
 
     def _checked_offset(self, offset_m: tuple[float, float], home: np.ndarray) -> np.ndarray:
         """The CoM offset (m) if the home posture's CoM moved by it lies inside the feet's
@@ -146,7 +154,7 @@ class Stabilizer(Module):
         if offset.shape != (2,) or not np.all(np.isfinite(offset)):
             raise ConfigError(f"the CoM offset must be two finite numbers (m), got {offset_m}",
                               hint="e.g. com_offset_m=(0.0, 0.0)")
-        com = self._com_in_feet(home, None)[:2] + offset
+        com = self._com_in_feet(home)[:2] + offset
         corners = self.model.feet.sole_corners_m()
         data = self._data
         mid = 0.5 * (data.oMf[self._sole_ids[0]].translation
@@ -163,28 +171,17 @@ class Stabilizer(Module):
                 hint="keep com_offset_m within the feet")
         return offset
 
-    # ------------------------------------------------------------------ estimation
-    def _com_in_feet(self, q_rad: np.ndarray, R_world_torso: np.ndarray | None) -> np.ndarray:
-        """The CoM (x, y, height) in the feet frame F for joints ``q_rad`` and a torso
-        orientation from the IMU (None: upright, the soles then taken as flat).
-
-        F is level: its axes are the world's turned by the right sole's heading, so a body
-        that tips over its toes (feet and all) shows its CoM moving out over them."""
+    # ------------------------------------------------------------------ reference
+    def _com_in_feet(self, q_rad: np.ndarray) -> np.ndarray:
+        """The CoM (x, y, height) in the feet frame F of the posture ``q_rad`` standing
+        upright with its soles flat (the reference)."""
         model, data = self._robot.model, self._data
         q = self._robot.configuration(q_rad, None, out=self._q)
-        if R_world_torso is not None:
-            q[3:7] = pin.Quaternion(R_world_torso).coeffs()
         com = pin.centerOfMass(model, data, q, False)
         p = np.zeros(3)
         for fid in self._sole_ids:
             p += 0.5 * pin.updateFramePlacement(model, data, fid).translation
-        R_sole = data.oMf[self._sole_ids[0]].rotation
-        if R_world_torso is None:
-            return R_sole.T @ (com - p)
-        heading = math.atan2(R_sole[1, 0], R_sole[0, 0])
-        c, s = math.cos(heading), math.sin(heading)
-        self._R_feet = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        return self._R_feet.T @ (com - p)
+        return data.oMf[self._sole_ids[0]].rotation.T @ (com - p)
 
     def _sensitivity(self, q_rad: np.ndarray, joints: list[int], axis: int) -> float:
         """d(CoM in F)[axis] / d(angle of both ``joints``), numerically (m/rad)."""
@@ -192,67 +189,64 @@ class Stabilizer(Module):
         up, down = q_rad.copy(), q_rad.copy()
         up[joints] += eps
         down[joints] -= eps
-        return float((self._com_in_feet(up, None)[axis]
-                      - self._com_in_feet(down, None)[axis]) / (2 * eps))
+        return float((self._com_in_feet(up)[axis]
+                      - self._com_in_feet(down)[axis]) / (2 * eps))
 
-    def _zmp_in_feet(self, state: RobotState) -> np.ndarray | None:
-        """The measured ZMP (x, y) in F from the ankle sensors (needs the frames of the last
-        :meth:`_com_in_feet` call), or None without the body's weight on the feet."""
-        data = self._data
-        total_fz, moment = 0.0, np.zeros(2)
-        mid = 0.5 * (data.oMf[self._sole_ids[0]].translation
-                     + data.oMf[self._sole_ids[1]].translation)
-        R0 = self._R_feet
-        for (_, sensor, _), fid in zip(LEGS, self._sole_ids, strict=True):
-            wrench = state.ft.get(sensor)
-            if wrench is None or not np.all(np.isfinite(wrench)):
-                return None
-            fz = float(wrench[2])
-            if fz <= 1.0:
-                continue
-            oMf = data.oMf[fid]
-            cop_sole = np.array([-wrench[4] / fz, wrench[3] / fz, 0.0])
-            cop = oMf.translation + oMf.rotation @ cop_sole - mid
-            moment += fz * (R0.T @ cop)[:2]
-            total_fz += fz
-        if total_fz < 0.5 * self._weight_n:
+    def _measured_in_feet(self, state: RobotState, store: Store
+                          ) -> tuple[np.ndarray, np.ndarray | None] | None:
+        """The estimate in F: the CoM (or, with ``use_capture_point``, the capture point;
+        x, y) and the ZMP (x, y; None without the body's weight on the ankle sensors or with a
+        bad one); None when the estimate is not finite."""
+        soles = np.asarray(store[T_WORLD_SOLES], dtype=float)
+        com = np.asarray(store[COM_WORLD], dtype=float)
+        cp = np.asarray(store[CAPTURE_POINT_WORLD], dtype=float)
+        if not (np.all(np.isfinite(soles)) and np.all(np.isfinite(com))
+                and np.all(np.isfinite(cp))):
             return None
-        return moment / total_fz
+        mid = 0.5 * (soles[0, :3, 3] + soles[1, :3, 3])
+        heading = math.atan2(soles[0, 1, 0], soles[0, 0, 0])
+        c, s = math.cos(heading), math.sin(heading)
+        R_feet_T = np.array([[c, s], [-s, c]])  # the level feet frame's axes, transposed
+        point = cp[:2] if self.use_capture_point else com[:2]
+        measured = R_feet_T @ (point - mid[:2])
+        total_fz = 0.0
+        for _, sensor, _ in LEGS:
+            wrench = store[WRENCHES].get(sensor)
+            if wrench is None or not np.all(np.isfinite(wrench)):
+                return measured, None
+            total_fz += max(float(wrench[2]), 0.0)
+        zmp = np.asarray(store[ZMP_WORLD], dtype=float)
+        if total_fz < 0.5 * self._weight_n or not np.all(np.isfinite(zmp[:2])):
+            return measured, None
+        return measured, R_feet_T @ (zmp[:2] - mid[:2])
 
     # ------------------------------------------------------------------ the module
-    def reset(self, q_rad: np.ndarray, state: RobotState | None) -> None:
+    def reset(self, q_rad: np.ndarray, state: RobotState | None,
+              store: Store | None) -> None:
         self.shift_m = np.zeros(2)
         self.rate_m_s = np.zeros(2)
         self.hip_rad = 0.0
-        self._prev_com: np.ndarray | None = None
-        self.velocity_m_s = np.zeros(2)
         self.com_error_m = np.zeros(2)
         self.zmp_error_m = np.zeros(2)
 
     def _reference(self, q_cmd: np.ndarray) -> np.ndarray:
         if self._last_cmd is not None and np.array_equal(q_cmd, self._last_cmd):
             return self._last_ref
-        self._last_cmd, self._last_ref = q_cmd.copy(), self._com_in_feet(q_cmd, None)
+        self._last_cmd, self._last_ref = q_cmd.copy(), self._com_in_feet(q_cmd)
         return self._last_ref
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
+        if cycle.store.get(BALANCERS_REST, False):  # a phase moves the CoM: start afresh
+            self.reset(q_rad, state, cycle.store)
         q = np.array(q_rad, dtype=float)
         dt = cycle.dt_s
         q_cmd = np.where(np.isfinite(q), q, state.q_rad)
         reference = self._reference(q_cmd)
         wanted_rate = -self.shift_m / SHIFT_LEAK_S  # no feedback: return to the command
-        ok = bool(np.all(np.isfinite(state.q_rad)) and np.all(np.isfinite(state.imu_quat_wxyz)))
+        estimate = self._measured_in_feet(state, cycle.store)
+        ok = estimate is not None
         if ok:
-            com = self._com_in_feet(state.q_rad, quat_wxyz_to_matrix(state.imu_quat_wxyz))
-            zmp = self._zmp_in_feet(state)
-            if self._prev_com is not None:
-                self.velocity_m_s += self._alpha * ((com[:2] - self._prev_com) / dt
-                                                    - self.velocity_m_s)
-            self._prev_com = com[:2].copy()
-            measured = com[:2].copy()
-            if self.use_capture_point:
-                omega = math.sqrt(GRAVITY_M_S2 / max(com[2], 0.1))
-                measured += self.velocity_m_s / omega
+            measured, zmp = estimate
             if zmp is not None:
                 # c_ref is the command's CoM moved by the correction already sent
                 target = reference[:2] + self.com_offset_m

@@ -66,3 +66,50 @@ class SafetyEvent:
     t_s: float
     kind: str
     sources: tuple[str, ...]
+
+
+# ------------------------------------------------------------- what modules publish to a viewer
+# Each safety module answers ``status()`` with one of these small snapshots (declared on
+# :class:`~hubo_cli.control.module.Module`); a viewer reads them, never a module's internals.
+
+
+@dataclass(frozen=True)
+class StopperStatus:
+    """An emergency stopper's state: ``mode`` (``run``, ``stop``, ``hold``, ``release``), the
+    sources it acts on, its stops so far (releases not counted) and the latest stop's
+    sources."""
+
+    mode: str
+    sources: tuple[str, ...]
+    stops: int
+    last_stop_sources: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class CollisionStatus:
+    """The collision detector's state: ``mode`` (``run``, ``hold``, ``recover``) and the
+    closest pair of links with their distance (m; negative: overlapping), None if unknown."""
+
+    mode: str
+    pair: tuple[str, str] | None
+    distance_m: float | None
+
+
+@dataclass(frozen=True)
+class SupportStatus:
+    """The capture-point monitor's view of the balance: the capture point's margin inside the
+    support polygon now and at its smallest (m, and when, s; None before a measurement), the
+    feet in contact (right, left; the estimate's) and the contact losses so far."""
+
+    margin_m: float | None
+    min_margin_m: float | None
+    min_margin_t_s: float | None
+    feet_loaded: tuple[bool, bool] | None
+    contact_losses: int
+
+
+@dataclass(frozen=True)
+class LimiterStatus:
+    """The soft error limiter's share of periods with an ankle clamped (None before any)."""
+
+    ankle_clamp_fraction: float | None

@@ -44,10 +44,12 @@ class Target(ABC):
     def __call__(self, t_s: float, state: RobotState) -> TargetOutput:
         """The joint target for the period starting at ``t_s`` (rad; None = hold) and info."""
 
-    def attach(self, world: SimulatedWorld | None, modules: Sequence[Module]) -> None:
+    def attach(self, world: SimulatedWorld | None, modules: Sequence[Module],
+               store: Store) -> None:
         """Called once the robot has started, before the first period: the simulator's world
-        (to place a scene in, to push; None on a real robot) and the pipeline that will run
-        (to watch a stopper)."""
+        (to place a scene in, to push; None on a real robot; never to read its truth), the
+        pipeline that will run (to watch a stopper) and the run's store (the estimate: the
+        keys in :attr:`reads`, read each period)."""
 
 
 class FunctionTarget(Target):

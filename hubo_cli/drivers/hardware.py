@@ -3,12 +3,13 @@
 Every 5 ms control period (200 Hz) the driver puts one ``struct hubo_ref`` (462 bytes, see
 :mod:`hubo_cli.drivers.hubo_ach`) on hubo-ach's ``hubo-ref`` channel through libach and reads
 hubo-daemon's ``struct hubo_state`` from ``hubo-state``: the body IMU's tilt angles and rates
-become the torso quaternion and gyro, ``ft`` the four wrenches, ``joint[].pos/vel`` the joints
-and ``time`` the driver's clock. It waits (up to ``state_wait_s``) for the daemon's next state
-each period, so the robot's own 200 Hz loop paces the run. References are in hubo-ach joint
-order (``model.hubo_ach["index"]``); joints the model does not drive (neck, waist, wrist roll,
-fingers) keep the position measured at start, so nothing moves that the pipeline does not
-command.
+become the torso quaternion, the gyro and the accelerometer's specific force
+(:func:`~hubo_cli.drivers.hubo_ach.accel_from_tilt`: the gravity the tilts imply), ``ft`` the
+four wrenches, ``joint[].pos/vel`` the joints and ``time`` the driver's clock. It waits (up to
+``state_wait_s``) for the daemon's next state each period, so the robot's own 200 Hz loop paces
+the run. References are in hubo-ach joint order (``model.hubo_ach["index"]``); joints the
+model does not drive (neck, waist, wrist roll, fingers) keep the position measured at start, so
+nothing moves that the pipeline does not command.
 
 Without a robot, ``sink="file"`` (``--dry-run``) writes the same 462-byte frames to
 ``sink_path`` (``"fifo"``: a named pipe, opened without waiting for a reader; a full pipe drops
@@ -563,7 +564,13 @@ class HardwareDriver(Driver):
         frame = self._frame
         ft = {}
         for k, sensor in enumerate(FT_SENSORS):
-            mx, my, fz = frame.ft_mx_my_fz[k]  # hubo-ach order: R hand, L hand, R foot, L foot
+            # hubo-ach's hubo_ft_t (order R hand, L hand, R foot, L foot) is the three axes a
+            # Hubo sensor measures in its own frame: f_z along its axis (a wrist's along the
+            # forearm), m_x and m_y across it. RobotState.ft is in the sensors' own frames
+            # (state.T_frame_sensor), so they go where they are: both of a wrist's bending
+            # moments reach the wrist stop (|m_x, m_y| of the estimate's compensated wrench;
+            # read as the hand's axes before, the stop took |m_y, m_z| = |m_y| and missed m_x)
+            mx, my, fz = frame.ft_mx_my_fz[k]
             ft[sensor] = np.array([0.0, 0.0, fz, mx, my, 0.0])
         flags = list(dict.fromkeys(self._flags))
         self._flags = []
@@ -576,5 +583,7 @@ class HardwareDriver(Driver):
         return RobotState(time_s=frame.time_s - self._t0, q_rad=frame.pos_rad[self.ach_index],
                           dq_rad_s=frame.vel_rad_s[self.ach_index],
                           imu_quat_wxyz=hubo_ach.quat_from_tilt(frame.imu_tilt_rad),
-                          imu_gyro_rad_s=frame.imu_rate_rad_s.copy(), ft=ft, flags=tuple(flags))
+                          imu_gyro_rad_s=frame.imu_rate_rad_s.copy(),
+                          imu_accel_m_s2=hubo_ach.accel_from_tilt(frame.imu_tilt_rad), ft=ft,
+                          flags=tuple(flags))
 

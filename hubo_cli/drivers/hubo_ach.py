@@ -8,7 +8,7 @@ are the contract with the robot; a test checks every size and offset against the
 Conversions to this project's units and frames live here too: the reference in hubo-ach joint
 order (:func:`encode_ref`, :func:`decode_ref`), hubo-daemon's reference filter
 (:func:`reference_filter`) and the state's IMU tilt angles to a quaternion
-(:func:`quat_from_tilt`).
+(:func:`quat_from_tilt`) and to the specific force they imply (:func:`accel_from_tilt`).
 """
 
 from __future__ import annotations
@@ -17,6 +17,8 @@ import ctypes
 from dataclasses import dataclass
 
 import numpy as np
+
+from hubo_cli.state import GRAVITY_M_S2
 
 JOINT_COUNT = 42          # HUBO_JOINT_COUNT
 JMC_COUNT = 0x36          # HUBO_JMC_COUNT (motor controller boards)
@@ -243,3 +245,19 @@ def quat_from_tilt(tilt_rad) -> np.ndarray:
                               np.cos(yaw), np.sin(yaw))
     return np.array([cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
                      cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy])
+
+
+def accel_from_tilt(tilt_rad) -> np.ndarray:
+    """The accelerometer's specific force (m/s^2, IMU axes) that the IMU's tilt angles a_x
+    (roll), a_y (pitch) imply at rest: gravity, [0, 0, g] in the world, carried into the IMU
+    frame of :func:`quat_from_tilt` (R = Rz(a_z) Ry(a_y) Rx(a_x)), R^T [0, 0, g] =
+    g [-sin a_y, sin a_x cos a_y, cos a_x cos a_y]; a_z does not enter it.
+
+    Assumed: hubo-ach's a_x, a_y are the roll and pitch of that rotation (a positive a_x tips
+    the torso's y axis up, i.e. the robot leans to its right; a positive a_y tips the x axis
+    down, forward), as hubo-daemon's inclinometer reading is converted to radians; the body
+    IMU reports no raw accelerations, so the dynamic part is lost (it reads as rest).
+    """
+    roll, pitch = float(tilt_rad[0]), float(tilt_rad[1])
+    cp = np.cos(pitch)
+    return GRAVITY_M_S2 * np.array([-np.sin(pitch), np.sin(roll) * cp, np.cos(roll) * cp])

@@ -15,9 +15,10 @@ sensors and ``--perturb`` draws unchanged) runs one 5 ms period. What it measure
   hardware driver decodes, :func:`~hubo_cli.drivers.hubo_ach.tilt_from_quat`) and its angular
   rates w_x, w_y, w_z (rad/s, torso axes). The foot tilt sensors (``imu[0]``, ``imu[1]``) are
   not modelled (zero).
-- ``ft[4]`` (R hand, L hand, R foot, L foot): m_x, m_y (N m) and f_z (N) of the wrench the
-  environment applies, in the sensor frames the hardware driver reads them in (hand and sole
-  frames, as the sim driver's ``RobotState.ft``).
+- ``ft[4]`` (R hand, L hand, R foot, L foot): m_x, m_y (N m) and f_z (N) as the simulated
+  three-axis sensors read them in their own frames (the sim driver's ``RobotState.ft``: the
+  environment's wrench and the weight beyond the sensor), the frames the hardware driver
+  reads them in.
 - ``cur``, ``heat``, ``tmp`` and the boards' ``temp`` stay zero: the model has no motor
   constants, gear ratios or thermal model to turn the simulated joint torques into currents or
   temperatures.

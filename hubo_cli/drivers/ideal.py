@@ -3,24 +3,36 @@
 Used by pipeline tests and benchmarks. Each period the measured joints equal the last applied
 command and the velocities are its finite difference; the feet stay flat on the floor, so the
 IMU reads the torso orientation the legs give it (the lower sole flat, heading 0: upright in
-the home posture); the force/torque sensors read zero, torques are unknown. Commands pass the
+the home posture), its gyro that orientation's rate over the period and its accelerometer
+gravity alone (nothing accelerates: :func:`imu_readings`); the force/torque sensors read the
+weight of what hangs beyond them and nothing else (the hand, the drill with option ``drill``,
+the foot: :func:`~hubo_cli.estimation.wrenches.hanging_readings`, so the estimate's
+compensated wrenches are zero), torques are unknown. Commands pass the
 same checks as on the other drivers (NaN keeps the joint, position limits clip).
 """
 
 from __future__ import annotations
 
+import math
+
 import numba as nb
 import numpy as np
 
 from hubo_cli.drivers import checks
-from hubo_cli.drivers.base import Driver
+from hubo_cli.drivers.base import Driver, RunContext
 from hubo_cli.errors import ConfigError, DeviceError
+from hubo_cli.estimation.wrenches import (
+    hanging_readings,
+    measured_mask,
+    sensor_chains,
+    sensor_loads,
+)
 from hubo_cli.geometry import matrix_to_quat_into
 from hubo_cli.kinematics.dh import JIT, chain_fk, kernel_array
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import LEGS, RobotModel
 from hubo_cli.posture import home_posture
-from hubo_cli.state import RobotState
+from hubo_cli.state import FT_SENSORS, GRAVITY_M_S2, RobotState
 
 
 # A period's state in one compiled call (with the command check's kernel, send's): the numpy
@@ -51,15 +63,46 @@ def _reach_command(cmd, q_prev, period_s, starts, base, offset, alpha, a, d, end
     matrix_to_quat_into(R, quat_out)
 
 
+def imu_readings(quat_prev_wxyz, quat_wxyz, period_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """The gyro (rad/s, torso axes) of a turn from ``quat_prev_wxyz`` to ``quat_wxyz`` over
+    ``period_s`` (the rotation vector of q_prev^-1 q over the period) and the accelerometer's
+    specific force at rest in ``quat_wxyz``: gravity in the torso axes (m/s^2)."""
+    w0, x0, y0, z0 = (float(v) for v in quat_prev_wxyz)
+    w1, x1, y1, z1 = (float(v) for v in quat_wxyz)
+    # d = conj(q_prev) q, the turn in the torso's axes
+    dw = w0 * w1 + x0 * x1 + y0 * y1 + z0 * z1
+    dx = w0 * x1 - x0 * w1 - y0 * z1 + z0 * y1
+    dy = w0 * y1 + x0 * z1 - y0 * w1 - z0 * x1
+    dz = w0 * z1 - x0 * y1 + y0 * x1 - z0 * w1
+    if dw < 0.0:
+        dw, dx, dy, dz = -dw, -dx, -dy, -dz
+    s = math.sqrt(dx * dx + dy * dy + dz * dz)
+    scale = 2.0 / period_s if s < 1e-12 else 2.0 * math.atan2(s, dw) / s / period_s
+    n2 = w1 * w1 + x1 * x1 + y1 * y1 + z1 * z1
+    g = GRAVITY_M_S2 / n2  # R^T e_z is the third row of R
+    accel = (2.0 * (x1 * z1 - w1 * y1) * g, 2.0 * (y1 * z1 + w1 * x1) * g,
+             (w1 * w1 - x1 * x1 - y1 * y1 + z1 * z1) * g)
+    return np.array((dx * scale, dy * scale, dz * scale)), np.array(accel)
+
+
 class IdealDriver(Driver):
-    """State = command. No options."""
+    """State = command. Option ``drill``: the right hand holds the drill (its weight on the
+    wrist sensor)."""
 
     name = "ideal"
 
-    def __init__(self, model: RobotModel, **options) -> None:
+    @classmethod
+    def run_options(cls, run: RunContext) -> dict:
+        """The drill in the right hand."""
+        return {"drill": run.tools.get("right-arm") == "drill"}
+
+    def __init__(self, model: RobotModel, drill: bool = False, **options) -> None:
         if options:
-            raise ConfigError(f"the ideal driver takes no options (got {', '.join(options)})")
+            raise ConfigError(f"the ideal driver takes no options but drill "
+                              f"(got {', '.join(options)})")
         super().__init__(model)
+        masses, coms = sensor_loads(model, bool(drill))
+        self._sensors = (*sensor_chains(model), masses, coms, GRAVITY_M_S2, measured_mask())
         self._cmd = np.zeros(len(self.joint_names))
         self._q = self._cmd.copy()
         self._t = 0.0
@@ -89,7 +132,7 @@ class IdealDriver(Driver):
         self._stopped = False
         self._flags = []
         self._q, q, _, quat = self._advance()
-        self._state = self._make_state(q, np.zeros_like(q), quat)
+        self._state = self._make_state(q, np.zeros_like(q), quat, quat)
         return self._state
 
     def read(self) -> RobotState:
@@ -115,7 +158,7 @@ class IdealDriver(Driver):
         self._require_started()
         self._q, q, dq, quat = self._advance()
         self._t += self.period_s
-        self._state = self._make_state(q, dq, quat)
+        self._state = self._make_state(q, dq, quat, self._state.imu_quat_wxyz)
         return self._state
 
     def stop(self) -> None:
@@ -141,12 +184,17 @@ class IdealDriver(Driver):
         _reach_command(self._cmd, self._q, self.period_s, *self._legs, q, q_state, dq, quat)
         return q, q_state, dq, quat
 
-    def _make_state(self, q: np.ndarray, dq: np.ndarray, quat: np.ndarray) -> RobotState:
+    def _make_state(self, q: np.ndarray, dq: np.ndarray, quat: np.ndarray,
+                    quat_prev: np.ndarray) -> RobotState:
         if self._flags:
             flags, self._flags = list(dict.fromkeys(self._flags)), []
         else:
             flags = []
         if self._stopped and "stopped" not in flags:
             flags.append("stopped")
+        gyro, accel = imu_readings(quat_prev, quat, self.period_s)
+        readings = np.empty((len(FT_SENSORS), 6))
+        hanging_readings(q, quat, *self._sensors, readings)
         return RobotState(time_s=self._t, q_rad=q, dq_rad_s=dq, flags=tuple(flags),
-                          imu_quat_wxyz=quat)
+                          imu_quat_wxyz=quat, imu_gyro_rad_s=gyro, imu_accel_m_s2=accel,
+                          ft=dict(zip(FT_SENSORS, readings, strict=True)))

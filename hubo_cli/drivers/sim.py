@@ -48,13 +48,28 @@ Physics and control
     (a jump in the command is followed fast and hard, as on the robot, but not in one step).
 
 Sensors (:class:`~hubo_cli.drivers.base.RobotState`)
-    IMU: torso orientation in the world and its angular rate in the torso frame. Force/torque:
-    computed, not read from joint reactions: the wrench [fx, fy, fz, mx, my, mz] (N, N m) that
-    the environment applies to the foot (contacts with the floor or a wall) about the sole frame
-    origin in sole axes, and to the hand with its tool (contacts plus the drilling force) about
-    the hand frame origin in hand axes. So a wrist reading is that of a sensor zeroed with the
-    tool attached; standing, an ankle reads fz = + its share of the weight. Joint torques are the
-    motors' applied torques. Feet contacts: a foot is in contact while its ankle's F_z, low-passed
+    IMU, at the torso frame's origin (the neck frame N) in the torso's axes: the orientation in
+    the world, the gyro's angular rate and the accelerometer's specific force, the acceleration
+    of that point less gravity (upright at rest [0, 0, +9.81] m/s^2). Both are means over the
+    control period, as a sensor's anti-aliasing filter gives them: the rate is the turn from the
+    last period's orientation (its rotation vector over the period), the acceleration the
+    point's velocity differenced over the period. (The instantaneous rate, sampled every second
+    physics step, aliases the soles' vibration: integrated, it drifted 5 deg in 4 s of a walk.)
+    The first state, after the settling, reads the instantaneous rate and gravity alone. A
+    perturbed robot adds the raw sensors' noise and biases (:mod:`hubo_cli.perturb`).
+    Force/torque:
+    computed, not read from joint reactions, as Hubo's three-axis sensors read them (f_z, m_x,
+    m_y of [fx, fy, fz, mx, my, mz], N and N m; the others 0) in their own frames
+    (:func:`~hubo_cli.state.T_frame_sensor`: an ankle's is the sole frame, a wrist's sits at the
+    hand frame's origin with z along the forearm): the wrench the environment applies to the
+    foot (contacts with the floor or a wall) or to the hand with its tool (contacts plus the
+    drilling force), plus the load of the body beyond the sensor (the whole last link of the
+    limb: the foot; the hand with the drill), m (g - a) at its centre of mass, a its
+    acceleration differenced over the period (its rotational inertia is left out). So a still
+    hand in the air reads its own and its tool's weight; standing, an ankle reads f_z = its
+    share of the weight minus the foot's. Joint torques are the motors' applied torques. Feet
+    contacts (the simulator's truth, for reports): a foot is in contact while the floor's F_z
+    on it, low-passed
     at ``CONTACT_CUTOFF_HZ`` (5 Hz), exceeds ``CONTACT_THRESHOLD_N`` (25 N), as hrpsys decides
     it: a foot that only brushes the floor (a rocking sole touching with a few newtons) does not
     count as support.
@@ -98,16 +113,19 @@ import numpy as np
 from hubo_cli.drivers import checks
 from hubo_cli.drivers.base import Driver, RunContext, SimulatedWorld
 from hubo_cli.errors import ConfigError, DeviceError
-from hubo_cli.geometry import matrix_to_quat_wxyz
+from hubo_cli.geometry import matrix_to_quat_wxyz, rotation_log
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.perturb import FOOT_LINKS, CommandDelay, Perturbation
 from hubo_cli.perturb import draw as draw_perturbation
 from hubo_cli.posture import home_posture
 from hubo_cli.scene import CuttingModel
-from hubo_cli.state import FT_SENSORS, RobotState
+from hubo_cli.state import FT_MEASURED, FT_SENSORS, RobotState, T_frame_sensor, Truth
 from hubo_cli.urdf import DRILL_FRAME, PHYSICS_DRILL_URDF, PHYSICS_URDF, link_frames
 
+GRAVITY_SIM_M_S2 = 9.81     # the simulated world's gravity
+FT_MASK = np.zeros(6)
+FT_MASK[list(FT_MEASURED)] = 1.0  # Hubo's three-axis sensors: f_z, m_x, m_y
 CONTACT_THRESHOLD_N = 25.0  # hrpsys contact_decision_threshold
 CONTACT_CUTOFF_HZ = 5.0     # low-pass of the ankles' F_z before the threshold
 HAND_FRAMES = {"right-wrist": ("RWP_link", "right_hand"), "left-wrist": ("LWP_link", "left_hand")}
@@ -116,6 +134,7 @@ SENSOR_FRAMES = HAND_FRAMES | SOLE_FRAMES
 SENSOR_LINKS = ("RWP_link", "LWP_link", "RAR_link", "LAR_link")
 FRAME_PARENTS = {"right_hand": "RWP_link", "left_hand": "LWP_link", "right_sole": "RAR_link",
                  "left_sole": "LAR_link", DRILL_FRAME: "RWP_link"}
+
 
 
 def _flush_c_stdio() -> None:
@@ -386,7 +405,8 @@ class SimDriver(Driver, SimulatedWorld):
         self._cut_points: list[tuple] = []  # (time s, where the bit crossed a wall), per period
         self._physics_wall_s = 0.0
         self._perturbation = Perturbation()  # drawn from perturb_seed when the world is built
-        self._noise = self._perturbation.noise()
+        self._noise = self._perturbation.noise(self.period_s)
+        self._imu_last: tuple[np.ndarray, np.ndarray] | None = None  # last (v_world, R)
         self._max_tilt_deg = 0.0
         self._delay: CommandDelay | None = None
         self._physics_step = 0
@@ -418,7 +438,7 @@ class SimDriver(Driver, SimulatedWorld):
     def _build_world(self, q0: np.ndarray) -> None:
         p, cid = self._p, self._cid
         p.resetSimulation(physicsClientId=cid)
-        p.setGravity(0, 0, -9.81, physicsClientId=cid)
+        p.setGravity(0, 0, -GRAVITY_SIM_M_S2, physicsClientId=cid)
         p.setPhysicsEngineParameter(fixedTimeStep=self.options.physics_dt_s,
                                     numSolverIterations=self.options.solver_iterations,
                                     solverResidualThreshold=self.options.solver_residual_threshold,
@@ -451,11 +471,15 @@ class SimDriver(Driver, SimulatedWorld):
         self._sensor_link_ids = [self._links[n] for n in SENSOR_LINKS]
         # per F/T sensor, in FT_SENSORS order: its link's index in PyBullet and in the sensor
         # links' batch, the link-to-sensor pose, which ankle (0, 1, None), the drill's wrist
+        # and the mass beyond the sensor: the whole link (the hand and a held tool, the foot)
         ankles = iter(range(2))
         self._sensor_table = tuple(
-            (sensor, self._links[link], SENSOR_LINKS.index(link), self._T_link_frame[frame],
-             next(ankles) if sensor.endswith("ankle") else None, sensor == "right-wrist")
+            (sensor, self._links[link], SENSOR_LINKS.index(link),
+             self._T_link_frame[frame] @ T_frame_sensor(sensor),
+             next(ankles) if sensor.endswith("ankle") else None, sensor == "right-wrist",
+             p.getDynamicsInfo(self._robot, self._links[link], physicsClientId=cid)[0])
             for sensor, (link, frame) in ((s, SENSOR_FRAMES[s]) for s in FT_SENSORS))
+        self._sensor_velocity: list[tuple | None] = [None] * len(FT_SENSORS)
         self._effort = [p.getJointInfo(self._robot, j, physicsClientId=cid)[10]
                         for j in self._idx]
         n = len(self._idx)  # the motors' gains, as setJointMotorControlArray takes them
@@ -523,7 +547,7 @@ class SimDriver(Driver, SimulatedWorld):
         self._p.resetBasePositionAndOrientation(self._floor, [0, 0, 0],
                                                 self.perturbation.floor_quat_xyzw(),
                                                 physicsClientId=self._cid)
-        self._noise = self.perturbation.noise()
+        self._noise = self.perturbation.noise(self.period_s)
         steps = self.perturbation.delay_steps(self.options.physics_dt_s)
         self._delay = CommandDelay(steps) if steps else None
         self._physics_step = 0
@@ -556,6 +580,7 @@ class SimDriver(Driver, SimulatedWorld):
         self._stopped = False
         self._t = 0.0
         self._fz_filtered_n = [None, None]
+        self._imu_last = None
         self._build_world(q0)
         self._state = self._measure()
         return self._state
@@ -764,28 +789,38 @@ class SimDriver(Driver, SimulatedWorld):
         q, dq, tau = np.array(q), np.array(dq), np.array(tau)
         com, orn = p.getBasePositionAndOrientation(self._robot, physicsClientId=cid)
         T_world_torso = _pose(com, orn) @ self._T_com_torso
-        _, omega_world = p.getBaseVelocity(self._robot, physicsClientId=cid)
+        v_com, omega_world = p.getBaseVelocity(self._robot, physicsClientId=cid)
         R = T_world_torso[:3, :3]
+        gyro, accel = self._imu(np.asarray(com), np.asarray(v_com), np.asarray(omega_world),
+                                T_world_torso)
         link_states = self._link_states = p.getLinkStates(
-            self._robot, self._sensor_link_ids, computeForwardKinematics=1, physicsClientId=cid)
+            self._robot, self._sensor_link_ids, computeLinkVelocity=1,
+            computeForwardKinematics=1, physicsClientId=cid)
         contacts = self._contact_rows()
         cutting = self._cutting_set and any(self._cutting_floats[0])
         ft = {}
         contact = [False, False]
         filtered = self._fz_filtered_n
-        for sensor, link_id, k_state, T_link_sensor, ankle, wrist in self._sensor_table:
+        velocities = self._sensor_velocity
+        for k, (sensor, link_id, k_state, T_link_sensor, ankle, wrist,
+                mass) in enumerate(self._sensor_table):
             extra = moment = None
             if wrist and cutting:  # the cutting wrench as Python floats (cutting_force_n ...)
                 force, moment, at = self._cutting_floats
                 extra = (force, at)
-            rows = contacts.get(link_id)
-            if rows or extra is not None:
-                ls = link_states[k_state]
-                T_world_sensor = _pose(ls[4], ls[5]) @ T_link_sensor
-                wrench = ft[sensor] = self._wrench(rows or [], T_world_sensor, extra, moment)
-            else:  # nothing touches it (a hand in the air): no pose needed
-                wrench = ft[sensor] = np.zeros(6)
-            if ankle is not None:
+            ls = link_states[k_state]
+            T_world_sensor = _pose(ls[4], ls[5]) @ T_link_sensor
+            wrench = self._wrench(contacts.get(link_id, []), T_world_sensor, extra, moment)
+            # the body beyond the sensor loads it with its weight and its inertia, m (g - a),
+            # at its centre of mass (a: its velocity differenced over the period)
+            previous, velocities[k] = velocities[k], ls[6]
+            ax = ay = az = 0.0
+            if previous is not None:
+                ax, ay, az = ((v - u) / self.period_s for v, u in zip(ls[6], previous,
+                                                                        strict=True))
+            load = (mass * -ax, mass * -ay, mass * (-GRAVITY_SIM_M_S2 - az))
+            ft[sensor] = (wrench + self._wrench([], T_world_sensor, (load, ls[0]))) * FT_MASK
+            if ankle is not None:  # contact: the floor's push alone (the simulator's truth)
                 fz = float(wrench[2])
                 if filtered[ankle] is None:  # at start: no history to filter
                     filtered[ankle] = fz
@@ -794,14 +829,30 @@ class SimDriver(Driver, SimulatedWorld):
         flags, self._flags = tuple(dict.fromkeys(self._flags)), []
         if self._stopped:
             flags = tuple(dict.fromkeys((*flags, "stopped")))
-        state = RobotState(time_s=self._t, q_rad=q, dq_rad_s=dq,
-                           imu_quat_wxyz=matrix_to_quat_wxyz(R),
-                           imu_gyro_rad_s=R.T @ np.asarray(omega_world), ft=ft, tau_nm=tau,
-                           T_world_torso=T_world_torso, feet_contact=(contact[0], contact[1]),
+        quat = matrix_to_quat_wxyz(R)
+        state = RobotState(time_s=self._t, q_rad=q, dq_rad_s=dq, imu_quat_wxyz=quat,
+                           imu_gyro_rad_s=gyro, imu_accel_m_s2=accel, ft=ft, tau_nm=tau,
+                           truth=Truth(T_world_torso, (contact[0], contact[1]), quat.copy()),
                            flags=flags)
         tilt_deg = math.degrees(math.acos(max(-1.0, min(1.0, float(R[2, 2])))))
         self._max_tilt_deg = max(self._max_tilt_deg, tilt_deg)
         return self._noise.measure(state)
+
+    def _imu(self, com_world: np.ndarray, v_com_world: np.ndarray, omega_world: np.ndarray,
+             T_world_torso: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The IMU's gyro (rad/s) and specific force (m/s^2), in the torso axes, at the torso
+        frame's origin, as means over the period: the turn from the last period's orientation,
+        and the base's velocity carried there (v + omega x r) differenced, gravity removed."""
+        R = T_world_torso[:3, :3]
+        v = v_com_world + np.cross(omega_world, T_world_torso[:3, 3] - com_world)
+        last = self._imu_last
+        self._imu_last = (v, R)
+        if last is None:
+            a, gyro = np.zeros(3), R.T @ omega_world
+        else:
+            a, gyro = (v - last[0]) / self.period_s, rotation_log(last[1].T @ R) / self.period_s
+        a[2] += GRAVITY_SIM_M_S2
+        return gyro, R.T @ a
 
     # ------------------------------------------------------------------ extras
     def frame_pose(self, frame: str) -> np.ndarray:
@@ -809,7 +860,7 @@ class SimDriver(Driver, SimulatedWorld):
         ``right_sole``, ``left_sole``, ``right_drill_bit``)."""
         self._require_started()
         if frame == "torso":
-            return self._state.T_world_torso.copy()
+            return self._state.truth.T_world_torso.copy()
         if frame not in FRAME_PARENTS:
             raise ConfigError(f"unknown frame {frame!r}",
                               hint=f"use torso, {', '.join(FRAME_PARENTS)}")

@@ -4,9 +4,17 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import numpy as np
+
 from hubo_cli.dataflow import Key, Store, check_flow
+from hubo_cli.estimation.keys import COM_WORLD, QUAT_WORLD_TORSO, T_WORLD_TORSO
 from hubo_cli.estimation.observer import Observer
+from hubo_cli.geometry import tilt_rad_of_quat_wxyz
 from hubo_cli.state import RobotState
+
+LOG_COLUMNS = {T_WORLD_TORSO: ("est_torso_x_m", "est_torso_y_m", "est_torso_z_m"),
+               QUAT_WORLD_TORSO: ("est_tilt_rad",),
+               COM_WORLD: ("est_com_x_m", "est_com_y_m", "est_com_z_m")}
 
 
 class Estimator:
@@ -24,6 +32,30 @@ class Estimator:
         self.observers = list(observers)
         check_flow(self.observers)
         self.store = Store()
+
+    @property
+    def log_columns(self) -> tuple[str, ...]:
+        """The estimate's log columns (beside the simulator's truth, for reports): the torso's
+        position and tilt from upright, the CoM; those of keys an observer writes."""
+        written = set(self.writes)
+        return tuple(column for key, columns in LOG_COLUMNS.items() if key in written
+                     for column in columns)
+
+    def log_values(self) -> dict[str, float]:
+        """This period's :attr:`log_columns` (NaN where a key is not written yet)."""
+        store, values = self.store, {}
+        T = store.get(T_WORLD_TORSO)
+        if T is not None:
+            T = np.asarray(T, dtype=float)
+            values.update(zip(LOG_COLUMNS[T_WORLD_TORSO], T[:3, 3].tolist(), strict=True))
+        quat = store.get(QUAT_WORLD_TORSO)
+        if quat is not None:
+            values["est_tilt_rad"] = float(tilt_rad_of_quat_wxyz(np.asarray(quat, dtype=float)))
+        com = store.get(COM_WORLD)
+        if com is not None:
+            values.update(zip(LOG_COLUMNS[COM_WORLD], np.asarray(com, dtype=float).tolist(),
+                              strict=True))
+        return values
 
     @property
     def writes(self) -> tuple[Key, ...]:

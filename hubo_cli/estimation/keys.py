@@ -23,6 +23,9 @@ GYRO_BIAS = Key("gyro_bias_torso_rad_s", np.ndarray,
                 "the gyro's estimated bias in the torso frame (rad/s)")
 OMEGA_TORSO = Key("omega_torso_rad_s", np.ndarray,
                   "torso angular rate in the torso frame, bias removed (rad/s)")
+IMU_REJECTED = Key("imu_rejected", tuple,
+                   "(gyro, accelerometer): this period's reading was not used (not finite or "
+                   "beyond the sensor's range); a rejected gyro holds the attitude")
 T_WORLD_TORSO = Key("T_world_torso", np.ndarray,
                     "torso pose in the world (4x4, m), from the legs anchored at the loaded "
                     "sole and the estimated attitude")
@@ -36,5 +39,6 @@ CAPTURE_POINT_WORLD = Key("capture_point_world_m", np.ndarray,
 ZMP_WORLD = Key("zmp_world_m", np.ndarray,
                 "ZMP of the soles in contact on the floor (x, y; m); NaN with no contact")
 
-ESTIMATE_KEYS = (CONTACT, WRENCHES, QUAT_WORLD_TORSO, GYRO_BIAS, OMEGA_TORSO, T_WORLD_TORSO,
-                 T_WORLD_SOLES, COM_WORLD, COM_VELOCITY_WORLD, CAPTURE_POINT_WORLD, ZMP_WORLD)
+ESTIMATE_KEYS = (CONTACT, WRENCHES, QUAT_WORLD_TORSO, GYRO_BIAS, OMEGA_TORSO, IMU_REJECTED,
+                 T_WORLD_TORSO, T_WORLD_SOLES, COM_WORLD, COM_VELOCITY_WORLD,
+                 CAPTURE_POINT_WORLD, ZMP_WORLD)

@@ -32,12 +32,14 @@ from hubo_cli.control.log import LogData
 from hubo_cli.control.loop import LoopResult
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.target import Target
+from hubo_cli.dataflow import Store
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.errors import ConfigError, InputError
+from hubo_cli.estimation.keys import T_WORLD_SOLES, T_WORLD_TORSO
 from hubo_cli.falls import FALL_TILT_DEG, has_fallen
-from hubo_cli.geometry import min_jerk, tilt_rad_of_matrix, tilt_rad_of_quat_wxyz
+from hubo_cli.geometry import min_jerk, tilt_rad_of_matrix
 from hubo_cli.kinematics.limb import Limb
-from hubo_cli.model import RobotModel
+from hubo_cli.model import LEGS, RobotModel
 from hubo_cli.pin_robot import load_pin_robot
 from hubo_cli.posture import home_posture
 from hubo_cli.session import RunObserver, RunResult, RunSetup, run
@@ -126,6 +128,8 @@ class PushTargets(Target):
     robot stands it places the obstacle (:meth:`attach`).
     """
 
+    name = "push-wall"
+    reads = (T_WORLD_TORSO, T_WORLD_SOLES)
     log_columns = ("push_offset_m", "tilt_deg", "torso_z_m", "sole_lift_m")
 
     def __init__(self, model: RobotModel, spec: PushSpec, q_start: np.ndarray) -> None:
@@ -141,48 +145,37 @@ class PushTargets(Target):
         self.start_z_m: float | None = None
         self.t_fall_s: float | None = None
         self.min_z_m = math.inf
-        self.robot = load_pin_robot(model, floating=True)
-        self._data = self.robot.model.createData()
-        self._soles = [self.robot.frame_id(f) for f in ("right_sole", "left_sole")]
+        self.store: Store | None = None
         self._corners = model.feet.sole_corners_m()
         self._sole_start_z: np.ndarray | None = None
         self.max_lift_m = 0.0
         self.obstacle: dict = {}
 
-    def attach(self, world: SimulatedWorld | None, modules) -> None:
+    def attach(self, world: SimulatedWorld | None, modules, store: Store) -> None:
         if world is None:
             raise ConfigError("the push-wall experiment needs the simulator",
                               hint="run it with the sim driver")
+        self.store = store
         self.obstacle = _place_obstacle(world, self.model, self.spec, self.q_start)
 
-    def _sole_lift_m(self, state) -> float:
-        """How far the highest sole corner has risen above its start height (m)."""
-        if state.T_world_torso is None:
-            return 0.0
-        q = self.robot.configuration(state.q_rad, state.T_world_torso)
-        pin.framesForwardKinematics(self.robot.model, self._data, q)
-        z = []
-        for fid in self._soles:
-            oMf = self._data.oMf[fid]
-            z.append(self._corners @ oMf.rotation[2] + oMf.translation[2])
-        z = np.concatenate(z)
+    def _sole_lift_m(self) -> float:
+        """How far the highest sole corner has risen above its start height (m; the
+        estimate's soles)."""
+        z = np.concatenate([self._corners @ T[2, :3] + T[2, 3]
+                            for T in self.store[T_WORLD_SOLES]])
         if self._sole_start_z is None:
             self._sole_start_z = z
         return float(np.max(z - self._sole_start_z))
 
     def _watch(self, t_s: float, state) -> tuple[float, float]:
-        T = state.T_world_torso
-        if T is None:
-            tilt_deg = math.degrees(tilt_rad_of_quat_wxyz(state.imu_quat_wxyz))
-            z = 0.0
-        else:
-            tilt_deg = math.degrees(tilt_rad_of_matrix(T[:3, :3]))
-            z = float(T[2, 3])
+        T = self.store[T_WORLD_TORSO]
+        tilt_deg = math.degrees(tilt_rad_of_matrix(T[:3, :3]))
+        z = float(T[2, 3])
         if self.start_z_m is None:
             self.start_z_m = z
         self.max_tilt_deg = max(self.max_tilt_deg, tilt_deg)
         self.min_z_m = min(self.min_z_m, z)
-        self.lift_m = self._sole_lift_m(state)
+        self.lift_m = self._sole_lift_m()
         self.max_lift_m = max(self.max_lift_m, self.lift_m)
         fallen = has_fallen(tilt_deg, self.start_z_m - z)
         if fallen and self.t_fall_s is None:
@@ -208,13 +201,14 @@ class PushTargets(Target):
 
 def _place_obstacle(world: SimulatedWorld, model: RobotModel, spec: PushSpec,
                     q_start: np.ndarray) -> dict:
-    """A wall in front of both hands, or a block on the left of the left hand (world frame)."""
-    neck_height_m = float(world.frame_pose("torso")[2, 3])
+    """A wall in front of both hands, or a block on the left of the left hand (world frame:
+    the robot as the simulator sets it down in ``q_start``, its neck over the origin, the
+    lower sole on the floor)."""
+    neck_height_m = -min(float(Limb(model, leg).fk(q_start[model.limb_slice(leg)])[2, 3])
+                         for leg in LEGS)
     arm = spec.arms[0]
     box = hand_box_extent_m(model, q_start, arm)
-    frame = "right_hand" if arm == "right-arm" else "left_hand"
-    T_neck_hand = Limb(model, arm, "hand").fk(q_start[model.limb_slice(arm)])
-    offset = world.frame_pose(frame)[:3, 3] - T_neck_hand[:3, 3]  # neck frame -> world
+    offset = np.array([0.0, 0.0, neck_height_m])  # neck frame -> world
     lo, hi = box[0] + offset, box[1] + offset
     if spec.direction == "forward":
         distance_m = float(hi[0] + spec.wall_gap_m)

@@ -16,8 +16,10 @@ from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.stop_choice import ActiveStops
 from hubo_cli.control.target import Target
+from hubo_cli.dataflow import Store
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.errors import ConfigError, InputError
+from hubo_cli.estimation.keys import CONTACT, T_WORLD_SOLES, T_WORLD_TORSO, WRENCHES
 from hubo_cli.falls import has_fallen
 from hubo_cli.geometry import tilt_rad_of_matrix
 from hubo_cli.model import RobotModel
@@ -114,8 +116,11 @@ def check_standing_args(duration_s: float, push_n: float) -> None:
 
 
 class StandTarget(Target):
-    """Hold the home posture; push the torso once; watch tilt, soles and falls each period."""
+    """Hold the home posture; push the torso once; watch tilt, soles and falls each period
+    (the estimate's torso, soles and contact; the simulator only pushes)."""
 
+    name = "stand"
+    reads = (T_WORLD_TORSO, T_WORLD_SOLES, CONTACT, WRENCHES)
     log_columns = ("tilt_deg", "feet_moment_difference_nm", "max_sole_tilt_deg")
 
     def __init__(self, q_home_rad: np.ndarray, n_periods: int, push_world_n: np.ndarray,
@@ -125,6 +130,7 @@ class StandTarget(Target):
         self.push_at_s = push_at_s
         self.push_duration_s = push_duration_s
         self.world: SimulatedWorld | None = None
+        self.store: Store | None = None
         self.times_s = np.zeros(n_periods)
         self.tilts_deg = np.zeros(n_periods)
         self.differences_nm = np.zeros(n_periods)
@@ -136,35 +142,38 @@ class StandTarget(Target):
         self.wall_start_s = self.wall_end_s = 0.0
         self.physics_start_s = 0.0
 
-    def attach(self, world: SimulatedWorld | None, modules) -> None:
+    def attach(self, world: SimulatedWorld | None, modules, store: Store) -> None:
         if world is None:
-            raise ConfigError("the standing experiment needs the simulator",
-                              hint="run it with the sim driver")
-        self.world = world
+            raise ConfigError("the standing experiment needs the simulator (it pushes the "
+                              "torso)", hint="run it with the sim driver")
+        self.world, self.store = world, store
         self.physics_start_s = world.physics_wall_s
         self.wall_start_s = time.perf_counter()
 
     def __call__(self, t_s: float, state) -> tuple[np.ndarray, dict]:
-        world, k = self.world, self.k
+        world, store, k = self.world, self.store, self.k
         if np.any(self.push_world_n) and abs(t_s - self.push_at_s) < 0.0025:
             world.push_torso(self.push_world_n, self.push_duration_s)
-        tilt = math.degrees(tilt_rad_of_matrix(state.T_world_torso[:3, :3]))
+        T_world_torso = store[T_WORLD_TORSO]
+        tilt = math.degrees(tilt_rad_of_matrix(T_world_torso[:3, :3]))
         if self.torso_z0_m is None:
-            self.torso_z0_m = float(state.T_world_torso[2, 3])
-        difference = state.ft["right-ankle"][3:5] - state.ft["left-ankle"][3:5]
+            self.torso_z0_m = float(T_world_torso[2, 3])
+        wrenches = store[WRENCHES]
+        difference = wrenches["right-ankle"][3:5] - wrenches["left-ankle"][3:5]
         if k < len(self.times_s):
             self.times_s[k], self.tilts_deg[k] = state.time_s, tilt
             self.differences_nm[k] = float(np.linalg.norm(difference))
             self.k += 1
-        for sole, touching in zip(("right_sole", "left_sole"), state.feet_contact, strict=True):
-            T_world_sole = world.frame_pose(sole)
+        for sole, T_world_sole, touching in zip(("right_sole", "left_sole"),
+                                                store[T_WORLD_SOLES], store[CONTACT],
+                                                strict=True):
             sole_tilt = math.degrees(tilt_rad_of_matrix(T_world_sole[:3, :3]))
             start = self.soles_start_m.setdefault(sole, T_world_sole[:2, 3].copy())
             self.max_foot_shift_m = max(self.max_foot_shift_m,
                                         float(np.linalg.norm(T_world_sole[:2, 3] - start)))
             self.max_sole_deg = max(self.max_sole_deg, sole_tilt)
             self.feet_flat &= bool(touching) and sole_tilt <= FLAT_TOLERANCE_DEG
-        if has_fallen(tilt, self.torso_z0_m - state.T_world_torso[2, 3]):
+        if has_fallen(tilt, self.torso_z0_m - T_world_torso[2, 3]):
             self.fell = True
         self.wall_end_s = time.perf_counter()
         return self.q_home_rad, {"tilt_deg": tilt, "feet_moment_difference_nm":
@@ -224,18 +233,22 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
     target = stepper = StandTarget(q_home, n_periods, push_n * direction, push_at_s,
                                    push_duration_s)
     hip = hip_strategy and not step and default
-    if step or hip:
+    # the legs' limits are part of the run's configuration, decided here once: stepping and
+    # the hip strategy need the robot file's walking set, the rest the model's own (Table IV)
+    safety = SafetyProfile(balance=balance, balance_mode=balance_mode, hip_strategy=hip,
+                           limit_set="walking" if step or hip else model.limits_name
+                           ).with_stops(stops)
+    if model.limits_name != safety.limit_set:
         from hubo_cli.model import load_model
 
-        model = load_model(model.params_name, "walking")
+        model = load_model(model.params_name, safety.limit_set)
     if step:
         from hubo_cli.walking.capture_step import CaptureStepper
         from hubo_cli.walking.params import walking_params
 
         stepper = CaptureStepper(target, model, walking_params(model), q_home)
     setup = RunSetup(command="sim", model=model, driver="sim", gui=gui, out=out,
-                     safety=SafetyProfile(balance=balance, balance_mode=balance_mode,
-                                          hip_strategy=hip).with_stops(stops),
+                     safety=safety,
                      duration_s=n_periods * model.control_period_s, q_start_rad=q_home,
                      perturb_seed=perturb_seed, operator=operator, live=live)
     done = run(setup, stepper)

@@ -1,6 +1,10 @@
 """The walking experiment: the simulated robot walks to a goal stance through the full
 pipeline (trajectory generator, capture-point monitor, emergency stoppers, collision detector,
-limiter) and we measure where it arrived, how fast, and where its ZMP was."""
+limiter) and we measure where it arrived, how fast, and where its ZMP was.
+
+The walk acts on the estimate; where it arrived is measured here, after the run, against the
+simulator's truth in the log (the torso's true pose and the measured joints), beside where the
+estimate put it."""
 
 from __future__ import annotations
 
@@ -8,18 +12,24 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
+from hubo_cli.control.log import LogData
 from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.stop_choice import ActiveStops
 from hubo_cli.errors import InputError
+from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.session import RunObserver, RunSetup, run
-from hubo_cli.walking.body import walking_posture
+from hubo_cli.walking.body import SIDE_LEG, walking_posture
+from hubo_cli.walking.footsteps import Stance, stance_of
 from hubo_cli.walking.params import WalkingParams, walking_params
 from hubo_cli.walking.stabilizer import StabilizerGains
-from hubo_cli.walking.target import WalkTarget
+from hubo_cli.walking.target import WalkTarget, footstep_of
 
 MAX_GOAL_M = 10.0
+FINAL_ROWS = 20  # the final stance: the mean over the log's last rows (encoder noise averages)
 DEFAULT_GAINS = StabilizerGains()
 
 
@@ -28,20 +38,19 @@ class WalkResult:
     """What a walk showed.
 
     Attributes:
-        fell: the torso fell (:func:`hubo_cli.falls.has_fallen`).
+        fell: the torso fell (:func:`hubo_cli.falls.has_fallen`, on the estimated torso).
         final_error_mm, final_error_deg: the final stance (midway between the soles) from the
-            goal.
+            goal, as the simulator's truth has it (:func:`true_final_error`; the estimate's
+            where the log has no true torso position).
+        estimated_final_error_mm, estimated_final_error_deg: the same as the estimate has it
+            (what the walk's corrections act on).
         steps: footsteps planned (all taken unless the run ended early).
         average_speed_m_s: the goal's distance over the time from the start to the last
             step's end.
         zmp_inside_fraction: of the periods with a sole in contact, the share whose ZMP lay
             inside the convex hull of the soles in contact by at least 1 mm (the ground cannot
-            push outside the hull: a ZMP on its edge means a sole tipping). The ZMP and the
-            contacts are those of the ankles' force/torque low-passed at 5 Hz, contact above
-            25 N, as the simulator and the reports decide contact
-            (:class:`~hubo_cli.walking.target.ContactWrenches` says why).
-        zmp_inside_fraction_raw: the same from each period's unfiltered reading, a sole
-            counting above 10 N.
+            push outside the hull: a ZMP on its edge means a sole tipping). The ZMP, the soles
+            and the contacts are the estimate's (:mod:`hubo_cli.estimation.keys`).
         ended: how the loop ended.
         run_dir: the run folder.
     """
@@ -49,10 +58,11 @@ class WalkResult:
     fell: bool
     final_error_mm: float
     final_error_deg: float
+    estimated_final_error_mm: float
+    estimated_final_error_deg: float
     steps: int
     average_speed_m_s: float
     zmp_inside_fraction: float
-    zmp_inside_fraction_raw: float
     walking_s: float
     ended: str
     estop_events: int
@@ -61,11 +71,11 @@ class WalkResult:
 
     def summary(self) -> dict:
         return {"fell": self.fell, "final_error_mm": self.final_error_mm,
-                "final_error_deg": self.final_error_deg, "steps": self.steps,
-                "average_speed_m_s": self.average_speed_m_s,
-                "zmp_inside_fraction": self.zmp_inside_fraction,
-                "zmp_inside_fraction_raw": self.zmp_inside_fraction_raw,
-                "walking_s": self.walking_s,
+                "final_error_deg": self.final_error_deg,
+                "estimated_final_error_mm": self.estimated_final_error_mm,
+                "estimated_final_error_deg": self.estimated_final_error_deg,
+                "steps": self.steps, "average_speed_m_s": self.average_speed_m_s,
+                "zmp_inside_fraction": self.zmp_inside_fraction, "walking_s": self.walking_s,
                 "footsteps": self.footsteps}
 
 
@@ -120,23 +130,56 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
                      q_start_rad=q_start, perturb_seed=perturb_seed, operator=operator,
                      live=live)
     done = run(setup, target)
-    error_m, error_rad = target.final_error()
+    estimated_m, estimated_rad = target.final_error()
+    true = true_final_error(done.log, walking_model, goal) if target.final_feet else None
+    error_m, error_rad = (estimated_m, estimated_rad) if true is None else true
     distance = math.hypot(goal[0], goal[1])
     walking_s = target.walking_s
     result = WalkResult(
         fell=target.fell, final_error_mm=1000 * error_m, final_error_deg=math.degrees(error_rad),
-        steps=len(target.steps),
+        estimated_final_error_mm=1000 * estimated_m,
+        estimated_final_error_deg=math.degrees(estimated_rad), steps=len(target.steps),
         average_speed_m_s=distance / walking_s if walking_s > 0 else 0.0,
         zmp_inside_fraction=(target.zmp_inside_periods / target.zmp_periods
                              if target.zmp_periods else 0.0),
-        zmp_inside_fraction_raw=(target.raw_zmp_inside_periods / target.raw_zmp_periods
-                                 if target.raw_zmp_periods else 0.0),
         walking_s=walking_s, ended=done.loop.ended,
         estop_events=len(done.summary["estop_events"]),
         footsteps=[s.to_json() for s in target.steps], run_dir=done.run_dir)
     done.save_summary(result.summary())
     plot_footprints(done, target, walking_model)
     return result
+
+
+def true_final_error(log: LogData, model: RobotModel, goal: tuple[float, float, float],
+                     rows: int = FINAL_ROWS) -> tuple[float, float] | None:
+    """How far the walk ended from ``goal`` (forward, left, turn from the start stance) as the
+    simulator's truth has it: the stances at the start and at the end, each from the torso's
+    true pose in the log and the legs' kinematics of the measured joints averaged over
+    ``rows`` rows, the end seen from the start (a report's figure: nothing acts on it).
+    Distance (m) and heading error (rad); None where the log has no true torso position."""
+    T_world_torso = log.poses("torso")
+    if len(T_world_torso) < rows or not np.all(np.isfinite(T_world_torso[[0, -1]])):
+        return None
+    q = log.joints("q")
+    start, end = (_true_stance(model, T_world_torso[part], q[part])
+                  for part in (slice(0, rows), slice(-rows, None)))
+    c, s = math.cos(start.yaw_rad), math.sin(start.yaw_rad)
+    forward, left, turn = goal
+    aimed = Stance(start.x_m + c * forward - s * left, start.y_m + s * forward + c * left,
+                   start.yaw_rad + turn)
+    return (math.hypot(end.x_m - aimed.x_m, end.y_m - aimed.y_m),
+            abs(math.remainder(end.yaw_rad - aimed.yaw_rad, math.tau)))
+
+
+def _true_stance(model: RobotModel, T_world_torso: np.ndarray, q: np.ndarray) -> Stance:
+    """The stance of the soles that the torso poses and joints (rows) put them in, averaged."""
+    feet = {}
+    for side, leg in SIDE_LEG.items():
+        limb, part = Limb(model, leg), model.limb_slice(leg)
+        poses = np.array([T @ limb.fk(q_k[part]) for T, q_k in zip(T_world_torso, q,
+                                                                   strict=True)])
+        feet[side] = footstep_of(side, poses.mean(axis=0))  # rotations differ by noise only
+    return stance_of(feet["right"], feet["left"])
 
 
 PLOT_NAME = "walk.png"

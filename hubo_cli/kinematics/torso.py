@@ -9,8 +9,9 @@ tracking error turn the body without showing in the leg joints): its tilt as it 
 heading referenced to the encoders' heading at the first measurement (the IMU's yaw has no
 absolute reference; over one run its drift is small). Each foot then pivots about its sole
 origin: the neck sits at ``p_S_sole - R_S_N p_N_sole``; the two feet's estimates are averaged.
-A real robot has the same inputs (``RobotState.q_rad`` and ``imu_quat_wxyz``); no simulator
-ground truth is used.
+A real robot has the same inputs: the encoders (``RobotState.q_rad``) and the estimated
+attitude (the store's :data:`~hubo_cli.estimation.keys.QUAT_WORLD_TORSO`, which the caller
+passes); no simulator ground truth is used.
 
 The estimator fuses the two orientations as a complementary filter: the encoders' orientation
 as it is (its noise is the encoders', about 0.5 mrad), times the IMU's rotation from it,
@@ -59,19 +60,20 @@ IMU_HEADING_TIME_CONSTANT_S = 0.1
 """Low-pass time constant of the IMU's correction of the encoders' heading (s)."""
 
 
-def torso_in_stance(body: WholeBody, q_rad, imu_quat_wxyz=None,
+def torso_in_stance(body: WholeBody, q_rad, quat_world_torso_wxyz=None,
                     imu_heading_rad: float | None = None) -> np.ndarray:
     """T_S_N, the neck frame in the stance frame (4x4, m), from the leg joints and the IMU.
 
     Args:
         body: the whole-body solver (its legs and the soles' places in S).
         q_rad: the full joint vector (measured, or commanded for the nominal pose).
-        imu_quat_wxyz: the torso's orientation in the world (w, x, y, z); None: the encoders'
-            orientation alone.
+        quat_world_torso_wxyz: the torso's estimated orientation in the world (w, x, y, z);
+            None: the encoders' orientation alone.
         imu_heading_rad: the IMU's heading (rad) of S's x axis: the IMU's orientation is then
             used whole, turned by it; None: the IMU's tilt under the encoders' heading.
     """
-    R_imu = None if imu_quat_wxyz is None else quat_wxyz_to_matrix(imu_quat_wxyz)
+    quat = quat_world_torso_wxyz
+    R_imu = None if quat is None else quat_wxyz_to_matrix(quat)
     return stance_legs(body).pose(q_rad, R_imu, imu_heading_rad)  # compiled (torso_kernels)
 
 
@@ -121,9 +123,10 @@ class TorsoEstimator:
                                           1.0))
         return self._alpha[1]
 
-    def __call__(self, state) -> np.ndarray:
-        """T_S_N (4x4, m) from a :class:`~hubo_cli.state.RobotState`'s joints and IMU (a
-        reading that is not finite leaves the IMU's part as it was).
+    def __call__(self, state, quat_world_torso_wxyz: np.ndarray) -> np.ndarray:
+        """T_S_N (4x4, m) from a :class:`~hubo_cli.state.RobotState`'s joints and the
+        estimated torso attitude ``quat_world_torso_wxyz`` (w, x, y, z; the store's
+        QUAT_WORLD_TORSO; a reading that is not finite leaves the IMU's part as it was).
 
         The legs' kinematics, the orientations' mean, the filter step and the pose are one
         compiled call (:func:`~hubo_cli.kinematics.torso_kernels.estimate_pose`); a second call
@@ -132,10 +135,10 @@ class TorsoEstimator:
         state_last, t_last, q_last, imu_last, T_last = self._last
         if q_last is not None and t_last == state.time_s and (state is state_last or (
                 np.array_equal(q_last, state.q_rad)
-                and np.array_equal(imu_last, state.imu_quat_wxyz))):
+                and np.array_equal(imu_last, quat_world_torso_wxyz))):
             return T_last
         q = np.asarray(state.q_rad, dtype=float)
-        imu = np.asarray(state.imu_quat_wxyz, dtype=float)
+        imu = np.asarray(quat_world_torso_wxyz, dtype=float)
         first = False
         alpha = self._no_weights
         if np.isfinite(imu).all():
@@ -148,7 +151,7 @@ class TorsoEstimator:
             imu = None
         T = self._legs.estimate(q, imu, first, self._heading, self._offset, alpha)
         self._last = (state, state.time_s, q.copy(),
-                      np.array(state.imu_quat_wxyz, dtype=float), T)
+                      np.array(quat_world_torso_wxyz, dtype=float), T)
         return T
 
     _no_weights = np.ones(3)  # the first reading is taken as it is; without one, unused
@@ -245,13 +248,14 @@ class TorsoCorrection:
         T[:3, :3], T[:3, 3] = rotation_exp(self.rotation_rad), self.offset_m
         return T
 
-    def update(self, q_cmd_rad, state) -> np.ndarray:
-        """Advance the filter with this period's measurement; returns T_dev (4x4). A
-        measurement that is not finite (a garbled IMU or encoder reading) leaves it as it was."""
+    def update(self, q_cmd_rad, state, quat_world_torso_wxyz: np.ndarray) -> np.ndarray:
+        """Advance the filter with this period's measurement (the joints of ``state``, the
+        estimated attitude ``quat_world_torso_wxyz``); returns T_dev (4x4). A measurement that
+        is not finite (a garbled attitude or encoder reading) leaves it as it was."""
         s = self.settings
-        if not (np.isfinite(state.q_rad).all() and np.isfinite(state.imu_quat_wxyz).all()):
+        if not (np.isfinite(state.q_rad).all() and np.isfinite(quat_world_torso_wxyz).all()):
             return self._T_dev
-        T_meas = self.estimator(state)
+        T_meas = self.estimator(state, quat_world_torso_wxyz)
         legs = np.asarray(q_cmd_rad, dtype=float)[self._leg_index]
         if self._T_cmd is None or (legs != self._q_legs_cmd).any():  # the same 12 joints
             self._T_cmd = torso_in_stance(self.body, q_cmd_rad)
@@ -311,9 +315,9 @@ class TorsoCorrection:
             return result
         return None
 
-    def __call__(self, q_cmd_rad, state) -> np.ndarray:
+    def __call__(self, q_cmd_rad, state, quat_world_torso_wxyz: np.ndarray) -> np.ndarray:
         """:meth:`update` then :meth:`apply`."""
-        self.update(q_cmd_rad, state)
+        self.update(q_cmd_rad, state, quat_world_torso_wxyz)
         return self.apply(q_cmd_rad)
 
 

@@ -24,7 +24,7 @@ from hubo_cli.control.loop import LoopResult
 from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.stop_choice import ActiveStops
-from hubo_cli.errors import InputError, SafetyError
+from hubo_cli.errors import SafetyError
 from hubo_cli.interrupts import run_files
 from hubo_cli.model import RobotModel, load_model
 from hubo_cli.posture import home_posture
@@ -136,12 +136,8 @@ def _run_task(plan: Plan, setup: RunSetup, on_start, balance: str) -> TaskRun:
     import hubo_cli.plots.paths  # noqa: F401
     import hubo_cli.plots.task  # noqa: F401
 
-    driver = setup.driver
     target = TaskTarget(plan, resumable=setup.operator is not None)
     start = plan.spec.stance.start_m
-    if start is not None and driver != "sim":
-        raise InputError(f"stance.start_mm walks the robot to its stance: the simulator only, "
-                         f"not the {driver} driver", hint="leave out stance.start_mm")
     if start is None:
         done = run(setup, target, on_start=on_start)
     else:  # walk to the working stance first (hubo_cli.walking.approach)
@@ -276,14 +272,42 @@ def _cut_at(target: TaskTarget, times_s, points_m: np.ndarray) -> np.ndarray:
     return points_m[rows].reshape(-1, 3)
 
 
-def _hole_in_wall_frame(log, target: TaskTarget, T_S_W: np.ndarray) -> np.ndarray | None:
+def _bit_world_m(log, plan: Plan, times_s) -> np.ndarray:
+    """The bit's true world position (m, K x 3) as the task target saw the robot at each of
+    ``times_s`` (its periods' times: it sees the state the previous period's row logged): the
+    measured arm's forward kinematics through the log's torso pose, the simulator's truth; NaN
+    without one (a real robot)."""
+    limb = plan.spec.stance.limb
+    t = log["t_s"]
+    rows = np.searchsorted(t, np.asarray(times_s, dtype=float) - 0.5 * plan.dt_s)
+    rows = np.minimum(rows, len(t) - 1)
+    q_arm = np.column_stack([log[f"q_{j}_rad"][rows]
+                             for j in plan.body.model.limb(limb).joints])
+    return (log.poses("torso")[rows] @ plan.body.arms[limb].fk_batch(q_arm))[:, :3, 3]
+
+
+def _cut_world_m(log, plan: Plan, target: TaskTarget) -> tuple[np.ndarray, np.ndarray | None]:
+    """The bit's true world path while cutting (K x 3, m), taken relative to where it stood
+    when the wall was placed (so it traces the hole as cut, the body's sway included), and that
+    offset (world bit - commanded bit, m); an empty path and None without the truth."""
+    if target.t_placed_s is None or not target.cut_t_s:
+        return np.zeros((0, 3)), None
+    bit = _bit_world_m(log, plan, [target.t_placed_s, *target.cut_t_s])
+    if not np.isfinite(bit).all():
+        return np.zeros((0, 3)), None
+    offset = bit[0] - plan.T_first_S[:3, 3]
+    return bit[1:] - offset, offset
+
+
+def _hole_in_wall_frame(log, offset_world_m: np.ndarray | None,
+                        T_S_W: np.ndarray) -> np.ndarray | None:
     """The hole as cut (the simulator's world points where the bit's flutes crossed the wall)
     in the wall frame of the path plot, placed as the hole's RMS error places the bit's world
     path; None without them."""
     points = log.metadata.get("scene", {}).get("hole_world_m", [])
-    if not points or target.offset_world_m is None:
+    if not points or offset_world_m is None:
         return None
-    return np.asarray(points, dtype=float) - target.offset_world_m - T_S_W[:3, 3]
+    return np.asarray(points, dtype=float) - offset_world_m - T_S_W[:3, 3]
 
 
 def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
@@ -296,7 +320,7 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
     goal = np.array(target.cut_goal_m).reshape(-1, 3)
     actual = np.array(target.cut_actual_m).reshape(-1, 3)
     errors = np.linalg.norm(goal - actual, axis=1)
-    world = np.array(target.cut_world_m).reshape(-1, 3)
+    world, offset_world_m = _cut_world_m(log, plan, target)
     edge = np.array(target.cut_edge, dtype=int)
     torque = np.array(target.cut_torque_nm)
     torque_stats = {name: _stats(torque[edge == code]) for code, name in EDGE_NAMES.items()}
@@ -313,7 +337,7 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
                                    "cutting",
                              rms_error_mm=rms,
                              actual_label="bit measured (arm FK through the torso estimate)",
-                             hole_m=_hole_in_wall_frame(log, target, T_S_W),
+                             hole_m=_hole_in_wall_frame(log, offset_world_m, T_S_W),
                              hole_rms_error_mm=hole_rms,
                              stops_m=_cut_at(target, [e[1] for e in stops], actual)
                              - T_S_W[:3, 3])

@@ -16,19 +16,19 @@ Phases:
    resumes after an emergency. A stop on the wrist torque brakes, then backs the tool out of
    the wall along its normal (:meth:`TaskTarget.relieve`, the stopper's relief).
 
-Each period the measured torso pose (leg encoders and IMU, :mod:`hubo_cli.kinematics.torso`)
-corrects the arm's joint target: the plan's tool goal, given in S (the wall's frame), is solved
-in the measured neck frame, low-passed and bounded, so the body's residual sway moves the arm
-and not the hole. The correction runs from the first period on (``correction=False`` turns it
+Each period the measured torso pose (leg encoders and the estimated attitude, the store's
+QUAT_WORLD_TORSO; :mod:`hubo_cli.kinematics.torso`) corrects the arm's joint target: the
+plan's tool goal, given in S (the wall's frame), is solved in the measured neck frame,
+low-passed and bounded, so the body's residual sway moves the arm and not the hole. The
+correction runs from the first period on (``correction=False`` turns it
 off), so the wall is placed in front of a tool that already holds its place.
 
 Each period it measures the tool as the robot does (FK of the measured arm, through the
-measured torso pose in the stance frame S) and, where the driver knows the torso's pose, in
-the world; while the plan cuts
-it keeps the commanded and measured tool positions and the wrist torque, with the edge they
-belong to. The world positions are taken relative to where the tool stood when the wall was
-placed, so they trace the hole as it is cut into the wall (the body's sway and any change of
-its lean included).
+measured torso pose in the stance frame S); while the plan cuts it keeps the commanded and
+measured tool positions, the wrist torque and the edge they belong to, with the times, and
+it notes when the wall was placed: the task's report (:mod:`hubo_cli.tasks.runner`) traces
+the hole as it was cut from the log's true world poses at those times. The target itself
+never reads the simulator's truth.
 
 A plan with a thrust (:attr:`Plan.has_force`) runs under force control: every period the target
 writes the plan's hand force, turned into the measured neck frame, as the hand wrench
@@ -51,12 +51,15 @@ from hubo_cli.control.estop import EmergencyStopper, wrist_torque_nm
 from hubo_cli.control.module import Module
 from hubo_cli.control.reference_force import ReferenceForceUpdater
 from hubo_cli.control.target import Target
-from hubo_cli.control.wrench import HAND_WRENCH_PLAN, MEASURED_WRENCH_READS, measured_hand_wrench
+from hubo_cli.control.wrench import HAND_WRENCH_PLAN, force_along, measured_hand_wrench
+from hubo_cli.dataflow import Store
 from hubo_cli.drivers.base import SimulatedWorld
+from hubo_cli.estimation.keys import QUAT_WORLD_TORSO, WRENCHES
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.kinematics.torso import TorsoCorrection, TorsoEstimator
 from hubo_cli.kinematics.wholebody import MAX_SHIFT_M
 from hubo_cli.scene import WallPlacement, WallSize
+from hubo_cli.state import T_frame_sensor
 from hubo_cli.tasks.plan import EDGE_NONE, Plan
 from hubo_cli.urdf import tool_frame
 
@@ -83,6 +86,7 @@ class TaskTarget(Target):
     run has none) and ``scene`` what was placed in the simulator.
     """
 
+    reads = (QUAT_WORLD_TORSO, WRENCHES)
     log_columns = ("step_code", "phase_code", "goal_x_m", "goal_y_m", "goal_z_m", "actual_x_m",
                    "actual_y_m", "actual_z_m", "error_m", "cutting", "edge_code",
                    "task_wrist_torque_nm", "thrust_n")
@@ -115,11 +119,10 @@ class TaskTarget(Target):
         self.step_stopped: int | None = None
         self._phase_before_stop = "raise"
         self.resumed_t_s: list[float] = []  # when the plan went on after a released stop
-        self.offset_world_m: np.ndarray | None = None  # world bit - commanded bit, when ready
+        self.t_placed_s: float | None = None  # when the wall was placed (the cut's origin)
         # while cutting: commanded and measured tool positions (S, m), wrist torque (N m), edge
         self.cut_goal_m: list[np.ndarray] = []
         self.cut_actual_m: list[np.ndarray] = []
-        self.cut_world_m: list[np.ndarray] = []
         self.cut_torque_nm: list[float] = []
         self.cut_edge: list[int] = []
         self.cut_t_s: list[float] = []
@@ -131,15 +134,17 @@ class TaskTarget(Target):
         self.cut_thrust_n: list[float] = []
         self.cut_thrust_ref_n: list[float] = []
         self.thrust_n = 0.0
-        self.hand = Limb(body.model, self.limb, "hand")  # the wrist sensor's frame
-        self.reads = MEASURED_WRENCH_READS
+        self.hand = Limb(body.model, self.limb, "hand")  # the wrist sensor's on it
+        self.R_hand_sensor = T_frame_sensor(self.sensor)[:3, :3]
+        self.bit_S = np.array([1.0, 0.0, 0.0])  # the bit's axis: S's x, into the wall
         if self.force:
             self.writes = (HAND_WRENCH_PLAN,)
             self.log_columns = self.log_columns + self.force_columns
             self.rfu = ReferenceForceUpdater((1.0, 0.0, 0.0), plan.dt_s)
 
-    def attach(self, world: SimulatedWorld | None, modules: Sequence[Module]) -> None:
-        self.world = world
+    def attach(self, world: SimulatedWorld | None, modules: Sequence[Module],
+               store: Store) -> None:
+        self.world, self.store = world, store
         self.modules = list(modules)  # the pipeline, for the live view's safety state
         self.stopper = next((m for m in modules if isinstance(m, EmergencyStopper)
                              and m.name == "estop"), None)
@@ -231,9 +236,7 @@ class TaskTarget(Target):
         if self.phase == "raise":
             if (self._still(state) and self._on_first_pose(state)) or t_s >= SETTLE_TIMEOUT_S:
                 self._place_wall()
-                world = self._tool_world(state)
-                if world is not None:
-                    self.offset_world_m = world - self.plan.T_first_S[:3, 3]
+                self.t_placed_s = t_s
                 self.phase, self.t_run_s = "run", t_s
         if self.phase == "run":
             self.k = int(round((t_s - self.t_run_s) / self.plan.dt_s))
@@ -256,7 +259,7 @@ class TaskTarget(Target):
                 info["done"] = True
         q_target = self._leaning(self.q_target, info) if self.force else self.q_target
         self.q_out = (q_target if self.correction is None
-                      else self.correction(q_target, state))
+                      else self.correction(q_target, state, self.store[QUAT_WORLD_TORSO]))
         self._measure(t_s, state, info)
         return self.q_out, info
 
@@ -304,23 +307,15 @@ class TaskTarget(Target):
         if self.correction is None:
             return True
         T_N_E = self.body.arms[self.limb].fk(state.q_rad[self.slice])
-        tool = (self.estimator(state) @ T_N_E)[:3, 3]
+        tool = (self.estimator(state, self.store[QUAT_WORLD_TORSO]) @ T_N_E)[:3, 3]
         return bool(np.linalg.norm(tool - self.plan.T_first_S[:3, 3]) < ON_POSE_M)
-
-    def _tool_world(self, state, T_N_E: np.ndarray | None = None) -> np.ndarray | None:
-        """The tool's position in the world (m), where the driver knows the torso's pose
-        (``T_N_E``: the measured arm's forward kinematics, when already computed)."""
-        if state.T_world_torso is None:
-            return None
-        T = self.body.arms[self.limb].fk(state.q_rad[self.slice]) if T_N_E is None else T_N_E
-        return (state.T_world_torso @ T)[:3, 3]
 
     def _measure(self, t_s: float, state, info: dict) -> None:
         # through the measured torso pose: the legs' lift and the waist's CoM shift included
         T_N_E = self.body.arms[self.limb].fk(state.q_rad[self.slice])
-        self.T_S_N = self.estimator(state)
+        self.T_S_N = self.estimator(state, self.store[QUAT_WORLD_TORSO])
         actual = (self.T_S_N @ T_N_E)[:3, 3]
-        self.torque_nm = wrist_torque_nm(state, self.sensor)
+        self.torque_nm = wrist_torque_nm(self.store[WRENCHES].get(self.sensor))
         self._measure_force(state, info)
         running = self.phase != "raise"
         k = self.k
@@ -342,20 +337,19 @@ class TaskTarget(Target):
             self.cut_torque_nm.append(self.torque_nm)
             self.cut_edge.append(int(self.plan.edge[k]))
             self.cut_t_s.append(t_s)
-            world = self._tool_world(state, T_N_E)
-            if world is not None and self.offset_world_m is not None:
-                self.cut_world_m.append(world - self.offset_world_m)
 
     def _measure_force(self, state, info: dict) -> None:
         """The thrust the tool presses into the wall with (N, along S's x: minus the wall's
         force on the hand, through the measured hand pose and torso; NaN without a wrist
         sensor); under force control also the plan's and the ReferenceForceUpdater's update."""
-        wrench_H = measured_hand_wrench(state, self.store, self.sensor)
-        force_S = np.full(3, np.nan)
-        if wrench_H is not None:
-            T_N_H = self.hand.fk(state.q_rad[self.slice])
-            force_S = self.T_S_N[:3, :3] @ (T_N_H[:3, :3] @ np.asarray(wrench_H[:3], float))
-        self.thrust_n = -float(force_S[0])
+        wrench = measured_hand_wrench(state, self.store, self.sensor)
+        along = math.nan
+        if wrench is not None:
+            R_S_sensor = (self.T_S_N[:3, :3] @ self.hand.fk(state.q_rad[self.slice])[:3, :3]
+                          @ self.R_hand_sensor)
+            along = force_along(wrench, R_S_sensor, self.bit_S)
+        force_S = along * self.bit_S
+        self.thrust_n = -along
         info["thrust_n"] = self.thrust_n
         if self.force:
             self.rfu.update(force_S)

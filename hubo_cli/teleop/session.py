@@ -220,10 +220,6 @@ def run_teleop(settings: TeleopSettings, on_ready=None) -> TeleopRun:
             duration = source.recorded_s + target.approach_timeout_s + 30.0
         setup, runs = teleop_setup(settings, body, duration), target
         if settings.walk_from_m is not None:  # the operator takes over at the stance
-            if settings.driver != "sim":
-                raise InputError("--walk-from walks the robot to its stance: the simulator "
-                                 f"only, not the {settings.driver} driver",
-                                 hint="leave out --walk-from")
             from hubo_cli.walking.approach import walk_first_setup
 
             runs, setup = walk_first_setup(setup, target, settings.walk_from_m,

@@ -56,7 +56,9 @@ import numpy as np
 
 from hubo_cli.control.otg import TrajectoryGenerator
 from hubo_cli.control.target import Target
+from hubo_cli.dataflow import Store
 from hubo_cli.drivers.base import SimulatedWorld
+from hubo_cli.estimation.keys import QUAT_WORLD_TORSO, T_WORLD_TORSO
 from hubo_cli.geometry import tilt_rad_of_quat_wxyz
 from hubo_cli.input.device import InputDevice
 from hubo_cli.kinematics.arm_reach import ArmReach, BranchMove, ReachSettings
@@ -172,6 +174,8 @@ class TeleopTarget(Target):
         correction_settings: its filter and bounds (None: the defaults).
     """
 
+    reads = (QUAT_WORLD_TORSO, T_WORLD_TORSO)
+
     def __init__(self, model: RobotModel, source: InputDevice, mapper: HandMapper,
                  body: WholeBody, approach: dict[str, PosePath], q_start_rad: np.ndarray,
                  *, live: bool = False, stale_timeout_s: float = 0.25, settle_s: float = 1.0,
@@ -249,8 +253,8 @@ class TeleopTarget(Target):
                       "actual_z_m", "error_m", "ik_code", "rot_error_rad", "reach_limit_m",
                       "speed_scale")) + ("phase_code", "lift_m", "latency_s")
 
-    def attach(self, world: SimulatedWorld | None, modules) -> None:
-        self.world = world
+    def attach(self, world: SimulatedWorld | None, modules, store: Store) -> None:
+        self.world, self.store = world, store
         self.modules = list(modules)  # the pipeline, for the live view's safety state
 
     # ------------------------------------------------------------------ measurement
@@ -258,18 +262,18 @@ class TeleopTarget(Target):
         """T_S_E of an arm's tool from the measured joints (4x4, m): arm FK lifted by leg FK."""
         T_N_E = self.body.arms[arm].fk(state.q_rad[self.slices[arm]])
         if self.correction is not None and arm in self.correction.arms:
-            return self.estimator(state) @ T_N_E
+            return self.estimator(state, self.store[QUAT_WORLD_TORSO]) @ T_N_E
         T_N_E[2, 3] += self.body.lift_of(state.q_rad)
         return T_N_E
 
-    def hand_position_world(self, arm: str, state) -> np.ndarray | None:
-        """The tool's position in S through the measured torso pose (m), or None if unknown."""
-        if state.T_world_torso is None:
-            return None
+    def hand_position_world(self, arm: str, state) -> np.ndarray:
+        """The tool's position in S through the estimated torso pose in the world (the store's
+        T_WORLD_TORSO, taken relative to the first one: S), m."""
+        T_world_torso = self.store[T_WORLD_TORSO]
         if self.T_world_S is None:
-            self.T_world_S = np.array(state.T_world_torso, dtype=float)
+            self.T_world_S = np.array(T_world_torso, dtype=float)
         T_N_E = self.body.arms[arm].fk(state.q_rad[self.slices[arm]])
-        return (np.linalg.solve(self.T_world_S, state.T_world_torso) @ T_N_E)[:3, 3]
+        return (np.linalg.solve(self.T_world_S, T_world_torso) @ T_N_E)[:3, 3]
 
     def hand_pose_commanded(self, arm: str) -> np.ndarray:
         """T_S_E of an arm's tool for the current joint target (4x4, m)."""
@@ -312,7 +316,8 @@ class TeleopTarget(Target):
                     t_s - self.t_settle_s >= 4 * self.settle_s):
                 info["done"] = True
         self.q_out = (self.q_target if self.correction is None
-                      else self.correction(self.q_target, state))
+                      else self.correction(self.q_target, state,
+                                           self.store[QUAT_WORLD_TORSO]))
         self._q_out_of = self.q_target
         self._pace_arms()
         self._measure(t_s, state, info)
@@ -575,8 +580,8 @@ class TeleopTarget(Target):
 
     def _measure(self, t_s: float, state, info: dict) -> None:
         info["phase_code"] = PHASES.index(self.phase)
-        if state.T_world_torso is not None and self.T_world_S is None:
-            self.T_world_S = np.array(state.T_world_torso, dtype=float)
+        if self.T_world_S is None:
+            self.T_world_S = np.array(self.store[T_WORLD_TORSO], dtype=float)
         info["lift_m"] = float(self.body.lift_of(self.q_target))
         info["latency_s"] = self.latencies_s[-1] if self.latencies_s else 0.0
         for arm, hand in self.hands.items():
@@ -607,11 +612,9 @@ class TeleopTarget(Target):
                     self.path_times_s[arm].append(t_s)
                     self.paths[arm].append((hand.goal_m.copy(), actual.copy()))
                     world = self.hand_position_world(arm, state)
-                    if world is not None:
-                        self.world_errors_m[arm].append(float(np.linalg.norm(hand.goal_m
-                                                                             - world)))
+                    self.world_errors_m[arm].append(float(np.linalg.norm(hand.goal_m - world)))
         self.max_tilt_rad = max(self.max_tilt_rad,
-                                float(tilt_rad_of_quat_wxyz(state.imu_quat_wxyz)))
+                                float(tilt_rad_of_quat_wxyz(self.store[QUAT_WORLD_TORSO])))
 
     def hand_of(self, arm: str) -> str:
         """The operator's hand that drives ``arm``."""

@@ -208,7 +208,7 @@ class LiveServer:
         k, self._k = self._k, self._k + 1
         if k % self.every:
             return
-        T = state.T_world_torso
+        T = None if state.truth is None else state.truth.T_world_torso  # a viewer: truth
         self._latest = _Snapshot(t_s, state.q_rad.copy(), state.dq_rad_s.copy(),
                                  None if T is None else T.copy(), state.imu_quat_wxyz.copy(),
                                  int(status), tuple(flags), dict(extras or {}))

@@ -6,23 +6,28 @@ Phases (``approach.phase_code`` in the log):
 
 0. ``walk``: a :class:`~hubo_cli.walking.target.WalkTarget` to the working stance, its last
    two steps closing the feet to the session posture's width; the capture-point monitor
-   watches the planned support (as in ``hubo walk``) and the standing balancers rest (their
-   :meth:`~hubo_cli.control.module.Module.reset` every period: their reference assumes both
-   feet down and the CoM over them, which walking breaks);
+   watches the planned support (as in ``hubo walk``) and the standing balancers rest
+   (:data:`~hubo_cli.control.phase.BALANCERS_REST`: their reference assumes both feet down
+   and the CoM over them, which walking breaks);
 1. ``rise``: both feet down, from the walk's last posture (crouched) to the session's start
    posture in ``RISE_S`` (:func:`rise_rows`: each sole's pose in the neck frame moves along a
    quintic and the legs' closed-form IK follows it, so the feet keep their distance; the arms
    move in joint space), through the whole pipeline (the trajectory generator and the limiter
-   keep the limits); the monitor watches the measured soles again and the balancers act; then
+   keep the limits); the monitor watches the estimated soles again and the balancers act; then
    a wait until the robot is still (at most ``STILL_TIMEOUT_S``);
 2. ``then``: the session's target, called with its own clock (zero at the hand-over) as if the
    run had started there; the loop ends when it says so.
+
+Each phase is a state with a start (:meth:`WalkFirst._start_rise`, :meth:`WalkFirst._start_then`)
+and a run; what it asks of the pipeline (:data:`PHASE_REST`, the planned support) it writes to
+the store every period, so no module is reset or reprogrammed by the target.
 
 The simulated wall of a task or a drill session is placed by the session's target as it is
 without a walk (once the tool is ready, ahead of it); while walking the robot is kept clear of
 the plane the wall will stand in: the footsteps are refused if a sole would come within
 ``WALL_MARGIN_M`` of it (:func:`wall_clearance_m`), and the run measures how close the
-robot's foremost points (soles' toes, hands, the tool) came (``wall_clearance_mm``).
+robot's foremost points (soles' toes, hands, the tool) came (``wall_clearance_mm``, from the
+estimated torso pose and the measured joints).
 """
 
 from __future__ import annotations
@@ -32,17 +37,22 @@ from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
+import pinocchio as pin
 
-from hubo_cli.control.capture_point import CapturePointMonitor
 from hubo_cli.control.module import Module
+from hubo_cli.control.phase import BALANCERS_REST, SUPPORT_PLAN
 from hubo_cli.control.target import Target, TargetOutput
+from hubo_cli.dataflow import Store
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.errors import InputError
+from hubo_cli.estimation.keys import T_WORLD_TORSO
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import LEGS, RobotModel, load_model
+from hubo_cli.pin_robot import load_pin_robot
 from hubo_cli.posture import home_posture
 from hubo_cli.session import RunSetup
 from hubo_cli.state import RobotState
+from hubo_cli.urdf import DRILL_FRAME
 from hubo_cli.walking.body import walking_posture
 from hubo_cli.walking.footsteps import Footstep, Stance, closing_steps, plan_footsteps
 from hubo_cli.walking.gait import smoothstep5
@@ -50,10 +60,10 @@ from hubo_cli.walking.params import WalkingParams, walking_params
 from hubo_cli.walking.target import WalkTarget
 
 PHASES = ("walk", "rise", "then")
+PHASE_REST = {"walk": True, "rise": False, "then": False}  # the standing balancers rest
 RISE_S = 4.0            # walking crouch -> the session's posture (5 cm up)
 STILL_TIMEOUT_S = 2.0   # after the rise, wait at most this long for the robot to be still
 STILL_RAD_S = 0.05      # every joint slower than this counts as still
-RESTING = ("balance", "stabilizer")  # the standing balancers, at rest while walking
 WALL_MARGIN_M = 0.05    # no sole within this of the wall's plane on the way
 HANDS = ("right_hand", "left_hand")
 
@@ -130,22 +140,29 @@ class WalkFirst(Target):
         self.points.update((f, np.array([0.0, 0.0, 0.0, 1.0])) for f in frames)
         self.log_columns = tuple(dict.fromkeys(
             (*walk.log_columns, "approach.phase_code", *then.log_columns)))
+        self.reads = tuple(dict.fromkeys((*walk.reads, T_WORLD_TORSO, *then.reads)))
+        self.writes = tuple(dict.fromkeys((*walk.writes, BALANCERS_REST, *then.writes)))
         self.phase = "walk"
         self.world: SimulatedWorld | None = None
         self.modules: list[Module] = []
-        self.resting: list[Module] = []
-        self.monitor: CapturePointMonitor | None = None
+        self.store: Store | None = None
         self.t_phase_s = 0.0
         self.rise: np.ndarray | None = None  # the rise's joint rows, one per period
         self.handover_s: float | None = None
         self.wall_clearance_m = math.inf
 
-    def attach(self, world: SimulatedWorld | None, modules: Sequence[Module]) -> None:
-        self.world = world
+    name = "walk-first"
+
+    def attach(self, world: SimulatedWorld | None, modules: Sequence[Module],
+               store: Store) -> None:
+        self.world, self.store = world, store
         self.modules = list(modules)
-        self.walk.attach(world, modules)
-        self.resting = [m for m in modules if m.name in RESTING]
-        self.monitor = next((m for m in modules if isinstance(m, CapturePointMonitor)), None)
+        self.walk.attach(world, modules, store)
+        model = self.walk.model
+        self._robot = load_pin_robot(model, floating=True,
+                                     urdf_path=model.urdf_path(DRILL_FRAME in self.points))
+        self._data = self._robot.model.createData()
+        self._frames = [(self._robot.frame_id(f), p) for f, p in self.points.items()]
 
     @property
     def inner(self) -> Target:
@@ -153,42 +170,52 @@ class WalkFirst(Target):
         return self.then if self.phase == "then" else self.walk
 
     def __call__(self, t_s: float, state: RobotState) -> TargetOutput:
-        if self.phase == "walk":
+        phase = self.phase
+        if phase == "walk":
             q, info = self.walk(t_s, state)
-            for module in self.resting:
-                module.reset(q, state)
-            self._measure_clearance()
+            self._measure_clearance(state)
             if info.pop("done", False):
                 if self.walk.fell:
                     info["done"] = True
                 else:
                     self._start_rise(t_s, q)
-            return q, info | {"approach.phase_code": float(PHASES.index("walk"))}
-        if self.phase == "rise":
+        elif phase == "rise":
             k = int(round((t_s - self.t_phase_s) / self.walk.gait.period_s))
-            q = self.rise[min(k, len(self.rise) - 1)]
+            q, info = self.rise[min(k, len(self.rise) - 1)], {}
             still = float(np.max(np.abs(state.dq_rad_s))) < STILL_RAD_S
             if k >= len(self.rise) and (still or t_s - self.t_phase_s
                                         >= RISE_S + STILL_TIMEOUT_S):
-                self.phase, self.handover_s = "then", t_s
-                self.then.attach(self.world, self.modules)
-            else:
-                return q, {"approach.phase_code": float(PHASES.index("rise"))}
-        q, info = self.then(t_s - self.handover_s, state)
-        return q, info | {"approach.phase_code": float(PHASES.index("then"))}
+                self._start_then(t_s)
+                phase = "then"
+        if phase == "then":
+            q, info = self.then(t_s - self.handover_s, state)
+        # what the phase that made this period's command asks of the pipeline
+        self.store[BALANCERS_REST] = PHASE_REST[phase]
+        if phase != "walk":
+            self.store[SUPPORT_PLAN] = None  # both feet down: the estimated soles
+        return q, info | {"approach.phase_code": float(PHASES.index(phase))}
 
     def _start_rise(self, t_s: float, q_rad: np.ndarray) -> None:
+        """The walk has ended on its stance: rise from its last command into the session's
+        posture (both feet down; the balancers act again)."""
         self.phase, self.t_phase_s = "rise", t_s
         period = self.walk.gait.period_s
         self.rise = rise_rows(self.walk.model, q_rad, self.q_then, int(round(RISE_S / period)))
-        if self.monitor is not None:
-            self.monitor.support_override = None  # both feet down: the measured soles
 
-    def _measure_clearance(self) -> None:
-        if self.wall_x_m is None or self.world is None:
+    def _start_then(self, t_s: float) -> None:
+        """The robot stands still in the session's posture: hand over to its target."""
+        self.phase, self.handover_s = "then", t_s
+        self.then.attach(self.world, self.modules, self.store)
+
+    def _measure_clearance(self, state: RobotState) -> None:
+        """The foremost point's distance to the wall's plane: the estimated torso pose, the
+        measured joints."""
+        if self.wall_x_m is None:
             return
-        foremost = max(float((self.world.frame_pose(f) @ p)[0])
-                       for f, p in self.points.items())
+        robot, data = self._robot, self._data
+        q = robot.configuration(state.q_rad, self.store[T_WORLD_TORSO])
+        pin.framesForwardKinematics(robot.model, data, q)
+        foremost = max(float((data.oMf[fid].homogeneous @ p)[0]) for fid, p in self._frames)
         self.wall_clearance_m = min(self.wall_clearance_m, self.wall_x_m - foremost)
 
     def summary(self) -> dict:
@@ -204,8 +231,6 @@ class WalkFirst(Target):
             "average_speed_m_s": distance / walking_s if walking_s > 0 else 0.0,
             "zmp_inside_fraction": (walk.zmp_inside_periods / walk.zmp_periods
                                     if walk.zmp_periods else 0.0),
-            "zmp_inside_fraction_raw": (walk.raw_zmp_inside_periods / walk.raw_zmp_periods
-                                        if walk.raw_zmp_periods else 0.0),
             "walking_s": walking_s, "handover_s": self.handover_s,
             "wall_clearance_mm": (1000 * self.wall_clearance_m
                                   if math.isfinite(self.wall_clearance_m) else None),

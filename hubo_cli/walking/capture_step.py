@@ -3,10 +3,11 @@ toward it (the capture step), then bring the other foot back beside it.
 
 The robot stands (a standing target, e.g. :class:`~hubo_cli.experiments.standing.StandTarget`,
 gives the posture and does its own measuring). Each period the :class:`CaptureStepper` reads
-the capture-point monitor (the CP, CoM and its velocity of the period before); when the CP
-lies beyond the support polygon shrunk by the monitor's margin (``outside_m > 0``: where the
-ankle and hip strategies run out) it plans, from the measured feet and CoM, on the linear
-inverted pendulum (omega^2 = g / z_c):
+the estimate (:mod:`hubo_cli.estimation.keys`: the soles, the torso, contact, the ankles'
+compensated wrenches, the CoM, its velocity and the capture point); when the CP comes within
+``TRIGGER_M`` of the soles' hull shrunk by the capture-point monitor's margin (where the ankle
+and hip strategies run out) it plans, from the estimated feet and CoM, on the linear inverted
+pendulum (omega^2 = g / z_c):
 
 1. *capture step*, ``SINGLE_SUPPORT_S``: the foot on the CP's side (the less loaded one when
    the CP lies between the feet) swings; the ZMP sits on the stance sole ``ZMP_AHEAD_M`` ahead
@@ -54,15 +55,20 @@ with its measured ground moment (the walking stabilizer's foot damping,
 the sole's outer edge over the shift and tipped toward the swing foot in the single support.
 
 The pattern's joints come from :class:`~hubo_cli.walking.body.WalkingBody` (the legs' IK, the
-neck placed so that the model's CoM follows the pattern), one period at a time. While it
-steps and catches, the capture-point monitor watches the planned support (the swing foot at
-its landing place, as when walking; then the stepped stance) with no margin: the stepping is
-the answer to the capture point leaving the shrunk polygon, and the stop, which freezes a
-recoverable catch, is left for a capture point beyond the stepped stance itself. The
-standing balancers rest (reset every period) while it steps, in a short step's catch and
-return step and in the lunge's return until the back foot is down; afterwards the robot
-holds the pattern's last posture, the balancers act and the monitor watches the measured
-soles with its margin again. At most two steps per push; one plan at a time.
+neck placed so that the model's CoM follows the pattern), one period at a time. The phases
+(``PHASE_CODES``: stand, step, catch, return, stood) are states, each started once
+(:meth:`CaptureStepper._start`, :meth:`~CaptureStepper._touch_down`,
+:meth:`~CaptureStepper._plan_lunge_return`); what a phase asks of the pipeline the stepper
+writes to the store every period (:mod:`hubo_cli.control.phase`), never touching a module.
+While it steps and catches, the capture-point monitor watches the planned support (the swing
+foot at its landing place, as when walking; then the stepped stance) with no margin: the
+stepping is the answer to the capture point leaving the shrunk polygon, and the stop, which
+freezes a recoverable catch, is left for a capture point beyond the stepped stance itself.
+The standing balancers rest (:data:`~hubo_cli.control.phase.BALANCERS_REST`) while it
+steps, in a short step's catch and return step and in the lunge's return until the back foot
+is down; afterwards the robot holds the pattern's last posture, the balancers act and the
+monitor watches the estimated soles with its margin again. At most two steps per push; one
+plan at a time.
 """
 
 from __future__ import annotations
@@ -73,11 +79,22 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from hubo_cli.control.capture_point import CapturePointMonitor
+from hubo_cli.control.capture_point import CP_MARGIN_M
 from hubo_cli.control.module import Module
+from hubo_cli.control.phase import BALANCERS_REST, SUPPORT_PLAN, SupportPlan
 from hubo_cli.control.target import Target, TargetOutput
+from hubo_cli.dataflow import Store
 from hubo_cli.drivers.base import SimulatedWorld
-from hubo_cli.errors import ConfigError, InputError
+from hubo_cli.errors import InputError
+from hubo_cli.estimation.keys import (
+    CAPTURE_POINT_WORLD,
+    COM_VELOCITY_WORLD,
+    COM_WORLD,
+    CONTACT,
+    T_WORLD_SOLES,
+    T_WORLD_TORSO,
+    WRENCHES,
+)
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.state import RobotState
@@ -87,7 +104,13 @@ from hubo_cli.walking.gait import SWING_MOVE, Gait, make_gait, smoothstep5
 from hubo_cli.walking.params import WalkingParams
 from hubo_cli.walking.preview import GRAVITY_M_S2, CoMPath
 from hubo_cli.walking.stabilizer import SoleDamper, StabilizerGains
-from hubo_cli.walking.target import SOLES, SOLES_SENSOR, footstep_of, planned_support
+from hubo_cli.walking.target import (
+    SIDES,
+    ankle_wrenches,
+    estimated_feet,
+    planned_support,
+    zmp_outside_m,
+)
 
 SINGLE_SUPPORT_S = 0.40  # [chosen] the capture step's swing: short, the pendulum diverges
 SWING_HEIGHT_M = 0.04    # [chosen] sole clearance at mid-swing
@@ -122,8 +145,6 @@ MAX_TOE_OFF_RAD = 0.8    # [chosen] ... and the back foot's heel rises at most t
 TOE_OFF_STEP_RAD = 0.025  # [chosen] the heel's rise is searched in steps of this
 MAX_DROP_M = 0.08        # [chosen] the torso lowers at most this much for the legs' reach
 MAX_SOLE_ERROR_M = 0.2   # [chosen] the legs' capped solutions accepted this far off their soles
-SOLE_FRAME = {"right": "right_sole", "left": "left_sole"}
-RESTING = ("balance", "stabilizer")
 TRIGGER_M = 0.05         # [chosen] step once the CP is within this of the shrunk polygon's edge
 REPLAN_FRACTION = 0.6    # [chosen] the landing follows the measured CP over this much of the swing
 PHASE_CODES = {"stand": 0.0, "step": 1.0, "catch": 2.0, "return": 3.0, "stood": 4.0}
@@ -222,9 +243,10 @@ class CaptureStepper(Target):
         self.q_stand = np.asarray(q_stand_rad, dtype=float)
         self.log_columns = (*stand.log_columns, "capture.phase_code", "capture.com_ref_x_m",
                             "capture.com_ref_y_m")
-        self.world: SimulatedWorld | None = None
-        self.monitor: CapturePointMonitor | None = None
-        self.resting: list[Module] = []
+        self.reads = tuple(dict.fromkeys((*stand.reads, *self.reads)))
+        self.writes = tuple(dict.fromkeys((*stand.writes, *self.writes)))
+        self.store: Store | None = None
+        self.corners = np.ascontiguousarray(model.feet.sole_corners_m()[:, :3])
         self.phase = "stand"
         self.body: WalkingBody | None = None
         self.rest: Gait | None = None  # the catch and the return step, planned at touch-down
@@ -239,22 +261,29 @@ class CaptureStepper(Target):
         self.stood_s: float | None = None
         self.stood_feet: list[Footstep] = []
 
-    def attach(self, world: SimulatedWorld | None, modules: Sequence[Module]) -> None:
-        if world is None:
-            raise ConfigError("stepping needs the simulator (the soles' poses in the world)",
-                              hint="leave out --step on the hardware driver")
-        self.world = world
-        self.stand.attach(world, modules)
-        self.monitor = next((m for m in modules if isinstance(m, CapturePointMonitor)), None)
-        if self.monitor is None:
-            raise ConfigError("stepping needs the capture-point monitor in the pipeline",
-                              hint="keep capture-point in the module order")
-        self.resting = [m for m in modules if m.name in RESTING]
+    name = "capture-step"
+    reads = (T_WORLD_SOLES, T_WORLD_TORSO, CONTACT, WRENCHES, COM_WORLD, COM_VELOCITY_WORLD,
+             CAPTURE_POINT_WORLD)
+    writes = (SUPPORT_PLAN, BALANCERS_REST)
+
+    def attach(self, world: SimulatedWorld | None, modules: Sequence[Module],
+               store: Store) -> None:
+        self.store = store
+        self.stand.attach(world, modules, store)
+
+    def outside_m(self) -> float:
+        """How far the estimated capture point lies beyond the hull of the soles in contact
+        shrunk by the capture-point monitor's margin (m; > 0 outside; -inf with no sole in
+        contact: nothing to step from)."""
+        store = self.store
+        outside = zmp_outside_m(store[CAPTURE_POINT_WORLD], store[T_WORLD_SOLES], self.corners,
+                                store[CONTACT])
+        return outside + CP_MARGIN_M if math.isfinite(outside) else -math.inf
 
     def __call__(self, t_s: float, state: RobotState) -> TargetOutput:
         q_stand, info = self.stand(t_s, state)
         if self.phase == "stand" and self.trigger_s is None and state.time_s > 0 \
-                and self.monitor.outside_m > -TRIGGER_M:
+                and self.outside_m() > -TRIGGER_M:
             self._start(t_s, state)
         q, ref = (q_stand if self.q_hold is None else self.q_hold), (math.nan, math.nan)
         if self.phase == "step":
@@ -263,36 +292,39 @@ class CaptureStepper(Target):
             q, ref = self._rest_period(state)
             if self.phase == "stood":  # where the feet stand when the pattern ends
                 self.stood_s = t_s
-                self.stood_feet = [footstep_of(side, self.world.frame_pose(frame))
-                                   for side, frame, _ in SOLES]
+                feet = estimated_feet(self.store)
+                self.stood_feet = [feet[side] for side in SIDES]
         lunge_catch = self.phase == "catch" and self.track is not None
         if self.lunge_return and self.k >= self.landed_k:  # the back foot is beside: stand
             lunge_catch = True
-        if self.phase in ("step", "catch", "return") and not lunge_catch:
-            for module in self.resting:
-                module.reset(q, state)
+        # what this phase asks of the pipeline: the balancers rest while the pattern moves the
+        # CoM; the monitor watches the planned support, unshrunk, until the robot stands
+        stepping = self.phase in ("step", "catch", "return")
+        self.store[BALANCERS_REST] = stepping and not lunge_catch
+        self.store[SUPPORT_PLAN] = SupportPlan(self._support_at(), 0.0) if stepping else None
         return q, info | {"capture.phase_code": PHASE_CODES[self.phase],
                           "capture.com_ref_x_m": ref[0], "capture.com_ref_y_m": ref[1]}
 
     # ------------------------------------------------------------------ the capture step
     def _start(self, t_s: float, state: RobotState) -> None:
         """Choose the swing foot and the stance ZMP; the step starts this period."""
-        world, monitor = self.world, self.monitor
-        feet = {side: footstep_of(side, world.frame_pose(frame)) for side, frame, _ in SOLES}
+        store = self.store
+        feet = estimated_feet(store)
         self.feet = feet
         self.start_feet = [feet["right"], feet["left"]]
-        self.sole_z_m = float(world.frame_pose("right_sole")[2, 3])
-        self.height_m = float(monitor.com_m[2]) - self.sole_z_m
+        self.sole_z_m = float(store[T_WORLD_SOLES][0, 2, 3])
+        self.height_m = float(store[COM_WORLD][2]) - self.sole_z_m
         self.omega = math.sqrt(GRAVITY_M_S2 / self.height_m)
-        cp, velocity = monitor.cp_m.copy(), monitor.velocity_m_s[:2].copy()
+        cp = np.array(store[CAPTURE_POINT_WORLD][:2], dtype=float)
+        velocity = np.array(store[COM_VELOCITY_WORLD][:2], dtype=float)
         middle = stance_of(feet["right"], feet["left"])
         across = (-math.sin(middle.yaw_rad) * (cp[0] - middle.x_m)
                   + math.cos(middle.yaw_rad) * (cp[1] - middle.y_m))
         if abs(across) > 0.01:
             swing = "left" if across > 0 else "right"
         else:  # between the feet: the less loaded one lifts
-            swing = ("right" if state.ft["right-ankle"][2] < state.ft["left-ankle"][2]
-                     else "left")
+            wrenches = ankle_wrenches(store)
+            swing = "right" if wrenches[0, 2] < wrenches[1, 2] else "left"
         self.swing, self.stance_side = swing, "left" if swing == "right" else "right"
         stance = feet[self.stance_side]
         self.width_m = math.hypot(feet["right"].x_m - feet["left"].x_m,
@@ -306,8 +338,7 @@ class CaptureStepper(Target):
         self.min_ahead_m = way * MIN_STEP_M
         self.zmp_m = (np.array([stance.x_m, stance.y_m]) + (forward + ahead) * self.heading
                       + ZMP_INSET_M * inward)
-        T_world_neck = (state.T_world_torso.copy() if state.T_world_torso is not None
-                        else world.frame_pose("torso"))
+        T_world_neck = np.array(store[T_WORLD_TORSO], dtype=float)
         self.body = WalkingBody(self.model, self.q_stand, T_world_neck)
         # a long step asks the legs for their full reach (the torso lowering follows): take
         # their capped solutions rather than freeze the joints
@@ -320,20 +351,19 @@ class CaptureStepper(Target):
         self.k, self.t_start_s, self.trigger_s = 0, t_s, t_s
         self.land = feet[swing]
         self.phase = "step"
-        self.monitor.support_override = self._support_at
-        self.monitor.planned_margin_m = 0.0
 
     def _step_period(self, state: RobotState) -> tuple[np.ndarray, tuple[float, float]]:
         """One period of the capture step: the landing follows the measured capture point
         (until REPLAN_FRACTION of the swing), the CoM the pendulum from the measured state."""
-        monitor, period, omega = self.monitor, self.model.control_period_s, self.omega
+        store, period, omega = self.store, self.model.control_period_s, self.omega
         k, n = self.k, self.n_step
         stance = self.feet[self.stance_side]
         if k <= REPLAN_FRACTION * n:
-            xi = self.zmp_m + (monitor.cp_m - self.zmp_m) * math.exp(omega * (n - k) * period)
+            xi = self.zmp_m + ((store[CAPTURE_POINT_WORLD][:2] - self.zmp_m)
+                               * math.exp(omega * (n - k) * period))
             self.land = landing(stance, self.swing, xi, self.model.feet.forward_m, self.width_m,
                                 self.min_ahead_m)
-        com, velocity = monitor.com_m[:2], monitor.velocity_m_s[:2]
+        com, velocity = store[COM_WORLD][:2], store[COM_VELOCITY_WORLD][:2]
         c, v, a = pendulum(com, velocity, self.zmp_m, omega, np.array([period]))
         swing_row = capture_swing_rows(self.feet[self.swing], self.land, n, SWING_HEIGHT_M,
                                        self.sole_z_m)[min(k, n - 1)]
@@ -345,7 +375,7 @@ class CaptureStepper(Target):
         q = self._solve(c, v, a, self.zmp_m, feet, support)
         # the swing foot lands flat where it should in the world whatever the torso's tilt:
         # its goal in the measured neck frame
-        T_world_neck = self._measured_neck(state)
+        T_world_neck = np.array(store[T_WORLD_TORSO], dtype=float)
         leg, part = self.legs[self.swing], self.model.limb_slice(SIDE_LEG[self.swing])
         result = leg.solve(np.linalg.inv(T_world_neck) @ pose_of_row(swing_row), q[part])
         if result.status in ("exact", "capped"):
@@ -355,8 +385,9 @@ class CaptureStepper(Target):
         self.k += 1
         # the swing foot lags its pattern under the limits: the step ends when it is down
         # (or LAND_WAIT_S after the pattern's end)
-        height = float(self.world.frame_pose(SOLE_FRAME[self.swing])[2, 3]) - self.sole_z_m
-        loaded = float(state.ft[SOLES_SENSOR[self.swing]][2]) > TOUCH_N
+        swing = SIDES.index(self.swing)
+        height = float(store[T_WORLD_SOLES][swing, 2, 3]) - self.sole_z_m
+        loaded = float(ankle_wrenches(store)[swing, 2]) > TOUCH_N
         if (self.k >= TOUCH_FRACTION * n and loaded) or (
                 self.k >= n and (height < LANDED_M or self.k >= n + LAND_WAIT_S / period)):
             self.R_touch_down = T_world_neck[:3, :3].copy()
@@ -369,8 +400,7 @@ class CaptureStepper(Target):
         # from where the feet are now (the swing foot lags its pattern under the limits and
         # lands short of its goal; the stance foot may have slid): the catch and the return
         # step start from the measured soles, so the legs do not fight each other
-        measured = {side: footstep_of(side, self.world.frame_pose(frame))
-                    for side, frame, _ in SOLES}
+        measured = estimated_feet(self.store)
         land, stance = measured[self.swing], measured[self.stance_side]
         self.land = land
         forward = self.model.feet.forward_m
@@ -459,7 +489,7 @@ class CaptureStepper(Target):
         (time constant REST_TAU_S), the CoM converges on it as the pendulum's stable part,
         c' = w (r - c)."""
         tr, period, omega = self.track, self.model.control_period_s, self.omega
-        target = self._in_stance(self.monitor.cp_m[:2])
+        target = self._in_stance(self.store[CAPTURE_POINT_WORLD][:2])
         tr["rest"] = tr["rest"] + min(period / REST_TAU_S, 1.0) * (target - tr["rest"])
         v = omega * (tr["rest"] - tr["com"])
         tr["com"] = tr["com"] + v * period
@@ -495,7 +525,7 @@ class CaptureStepper(Target):
             q = q + (1.0 - self._lead_in(k)) * self.q_jump
             # the front sole complies with its ground moment (the walking stabilizer's foot
             # damping): it stays flat instead of rocking onto an edge
-            delta = self.damper.update(state.ft[SOLES_SENSOR[self.swing]])
+            delta = self.damper.update(ankle_wrenches(self.store)[SIDES.index(self.swing)])
             leg = "R" if self.swing == "right" else "L"
             names = list(self.model.joint_names)
             q[names.index(leg + "AR")] += delta[0]
@@ -521,8 +551,6 @@ class CaptureStepper(Target):
             self._plan_lunge_return()
         elif self.k >= rest.n:
             self.phase, self.q_hold = "stood", q
-            self.monitor.support_override = None
-            self.monitor.planned_margin_m = self.monitor.margin_m
         return q, (float(c[0, 0]), float(c[0, 1]))
 
     def _plan_lunge_return(self) -> None:
@@ -533,8 +561,7 @@ class CaptureStepper(Target):
         when walking (:meth:`_return_drop`) and the back heel rises (:meth:`_toe_off_pose`)
         for the legs' reach; the front sole's foot damping starts from rest."""
         period, forward = self.model.control_period_s, self.model.feet.forward_m
-        measured = {side: footstep_of(side, self.world.frame_pose(frame))
-                    for side, frame, _ in SOLES}
+        measured = estimated_feet(self.store)
         front = measured[self.swing]
         beside = SIDE_SIGN[self.stance_side] * self.width_m
         s, co = math.sin(front.yaw_rad), math.cos(front.yaw_rad)
@@ -672,11 +699,7 @@ class CaptureStepper(Target):
         self.body.q_start = q
         return q
 
-    def _measured_neck(self, state: RobotState) -> np.ndarray:
-        return (state.T_world_torso if state.T_world_torso is not None
-                else self.world.frame_pose("torso"))
-
-    def _support_at(self, t_s: float) -> np.ndarray:
+    def _support_at(self) -> np.ndarray:
         """The planned support (right, left sole poses) now: the swing foot at its landing."""
         if self.phase == "step":
             feet = {self.stance_side: self.feet[self.stance_side], self.swing: self.land}

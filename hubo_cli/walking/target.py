@@ -1,5 +1,10 @@
-"""The walking target: plans the walk from where the feet stand when the robot has started,
-then sends the pattern's joints one period at a time and measures what the robot did."""
+"""The walking target: plans the walk from where the estimate puts the feet in its first
+period, then sends the pattern's joints one period at a time and measures what the robot did.
+
+It acts on the estimation layer's keys (:mod:`hubo_cli.estimation.keys`: the soles' and the
+torso's poses, contact, compensated wrenches, CoM, ZMP), never on the simulator's frames, so it
+walks on any driver; it tells the capture-point monitor the support it plans
+(:data:`~hubo_cli.control.phase.SUPPORT_PLAN`) through the store."""
 
 from __future__ import annotations
 
@@ -9,14 +14,21 @@ from collections.abc import Sequence
 import numba as nb
 import numpy as np
 
-from hubo_cli.balance_report import CONTACT_CUTOFF_HZ, CONTACT_THRESHOLD_N
-from hubo_cli.control.capture_point import CapturePointMonitor, convex_hull, outside_distance
+from hubo_cli.control.capture_point import convex_hull, outside_distance
+from hubo_cli.control.phase import SUPPORT_PLAN, SupportPlan
 from hubo_cli.control.target import Target, TargetOutput
-from hubo_cli.drivers.base import SimulatedWorld
-from hubo_cli.errors import ConfigError
+from hubo_cli.dataflow import Store
+from hubo_cli.estimation.keys import (
+    COM_WORLD,
+    CONTACT,
+    T_WORLD_SOLES,
+    T_WORLD_TORSO,
+    WRENCHES,
+    ZMP_WORLD,
+)
 from hubo_cli.falls import has_fallen
 from hubo_cli.kinematics.choice import CAPPED, EXACT, solve_limb
-from hubo_cli.kinematics.dh import JIT, TRUE, chain_fk
+from hubo_cli.kinematics.dh import JIT, TRUE
 from hubo_cli.model import RobotModel
 from hubo_cli.state import RobotState
 from hubo_cli.walking.body import SIDE_LEG, JointPlan, WalkingBody, pose_of_row
@@ -35,7 +47,6 @@ ARRIVED_M = 0.008                  # closer than this to the goal stance needs n
 ARRIVED_RAD = math.radians(1.5)
 ZMP_INSIDE_MARGIN_M = 0.001  # a ZMP closer than this to the hull's edge counts as on it (a sole
                              # tipping about that edge: the physics keeps the ZMP on the hull)
-LOADED_N = 10.0  # a sole carrying more than this counts in the measured ZMP and the support
 LEG_STEP_RAD = 0.005  # the stabilizer's correction of a leg's joints (torso offset, touchdown
                      # hold) changes by at most this much a period: an IK solution further from
                      # the last one (another branch, or off the goal) keeps the last correction
@@ -46,6 +57,19 @@ LEG_CAPPED_RAD = 1e-3  # reaches it: each hip yaw stands at its limit, 0, while 
                        # stayed zero from the first capped period on while the offset grew
 SOLES = (("right", "right_sole", "right-ankle"), ("left", "left_sole", "left-ankle"))
 SOLES_SENSOR = {side: sensor for side, _, sensor in SOLES}
+SIDES = ("right", "left")  # the estimate's order of the feet
+
+
+def estimated_feet(store: Store) -> dict[str, Footstep]:
+    """The footsteps the estimate's soles stand on (right, left)."""
+    poses = store[T_WORLD_SOLES]
+    return {side: footstep_of(side, poses[k]) for k, side in enumerate(SIDES)}
+
+
+def ankle_wrenches(store: Store) -> np.ndarray:
+    """The ankles' compensated wrenches (2 x 6: right, left; sole frame, N and N m)."""
+    wrenches = store[WRENCHES]
+    return np.array([wrenches[SOLES_SENSOR[side]] for side in SIDES], dtype=float)
 
 
 def footstep_of(side: str, T_world_sole: np.ndarray) -> Footstep:
@@ -54,94 +78,35 @@ def footstep_of(side: str, T_world_sole: np.ndarray) -> Footstep:
                     math.atan2(T_world_sole[1, 0], T_world_sole[0, 0]))
 
 
-def measured_zmp(poses: np.ndarray, wrenches: np.ndarray, corners_m: np.ndarray,
-                 loaded_n: float = LOADED_N) -> tuple[np.ndarray | None, float]:
-    """The ZMP from the ankles' force/torque (world x, y; None when no sole is loaded) and how
-    far it lies outside the loaded soles' convex hull (m; <= 0 inside). A sole is loaded when
-    its F_z exceeds ``loaded_n`` (N).
-
-    Args:
-        poses: T_world_sole of the right and the left sole (2 x 4 x 4).
-        wrenches: their [fx, fy, fz, mx, my, mz] of the ground on the sole, about the sole
-            frame's origin in sole axes (2 x 6; N, N m).
-        corners_m: the sole's corners in its own frame (4 x 3), counter-clockwise.
-    """
-    zmp = np.empty(2)
-    outside = _zmp_outside(np.ascontiguousarray(poses, dtype=float),
-                           np.ascontiguousarray(wrenches, dtype=float), corners_m,
-                           float(loaded_n), zmp)
-    return (None, math.inf) if outside == math.inf else (zmp, outside)  # inf: none loaded
+def zmp_outside_m(zmp_m: np.ndarray, poses: np.ndarray, corners_m: np.ndarray,
+                  contact: tuple[bool, bool]) -> float:
+    """How far the ZMP ``zmp_m`` (world x, y) lies outside the convex hull of the soles in
+    ``contact`` (m; <= 0 inside; inf with none in contact or a non-finite ZMP)."""
+    if not (contact[0] or contact[1]) or not np.all(np.isfinite(zmp_m[:2])):
+        return math.inf
+    return _hull_outside(np.ascontiguousarray(poses, dtype=float), corners_m,
+                         np.array(contact, dtype=np.bool_),
+                         np.ascontiguousarray(zmp_m[:2], dtype=float))
 
 
 @nb.njit(cache=True, nogil=True)
-def _zmp_outside(poses, wrenches, corners, loaded_n, zmp_out):
-    """:func:`measured_zmp` compiled (one call a period instead of some twenty array
-    operations): writes the ZMP to ``zmp_out``, returns how far it lies outside the hull
-    (inf when no sole is loaded). One loaded sole is its own outline, corners in order."""
-    total = weighted_x = weighted_y = 0.0
+def _hull_outside(poses, corners, contact, point):
+    """How far ``point`` lies outside the hull of the soles in ``contact`` (one sole: its own
+    outline, corners in order)."""
     points = np.empty((poses.shape[0] * corners.shape[0], 2))
     n = loaded = 0
     for s in range(poses.shape[0]):
-        fz = wrenches[s, 2]
-        if not fz > loaded_n:
+        if not contact[s]:
             continue
-        px, py = -wrenches[s, 4] / fz, wrenches[s, 3] / fz  # the sole's CoP: -m_y/f_z, m_x/f_z
         T = poses[s]
-        weighted_x += fz * (T[0, 0] * px + T[0, 1] * py + T[0, 3])
-        weighted_y += fz * (T[1, 0] * px + T[1, 1] * py + T[1, 3])
-        total += fz
         for c in range(corners.shape[0]):
             points[n, 0] = corners[c, 0] * T[0, 0] + corners[c, 1] * T[0, 1] + T[0, 3]
             points[n, 1] = corners[c, 0] * T[1, 0] + corners[c, 1] * T[1, 1] + T[1, 3]
             n += 1
         loaded += 1
-    if loaded == 0:
-        return math.inf
-    zmp_out[0] = weighted_x / total
-    zmp_out[1] = weighted_y / total
     if loaded == 1:
-        return outside_distance(points[:n], zmp_out)
-    return outside_distance(convex_hull(points[:n]), zmp_out)
-
-
-class ContactWrenches:
-    """The soles' wrenches as the walk's ZMP figure reads them: each ankle's F_z, m_x and m_y
-    low-passed at CONTACT_CUTOFF_HZ (first order, started at the first reading), the filter
-    that decides contact in the simulator and the reports (a sole counts as support while its
-    filtered F_z exceeds CONTACT_THRESHOLD_N).
-
-    The simulated ankle sensors read the contact forces of the last physics step, which jump
-    between the feet at touch-down and lift-off: for 0.1 s after a landing the two F_z sum to
-    100-160 N (the robot weighs about 380 N) while the torso's height stays within 0.5 mm, a
-    reading no motion of the robot produces. Averaged over the filter's 32 ms, they keep the
-    momentum the ground actually gave."""
-
-    def __init__(self, period_s: float) -> None:
-        tau = 1.0 / (2.0 * math.pi * CONTACT_CUTOFF_HZ)
-        self.alpha = period_s / (period_s + tau)
-        self.filtered = np.full((2, 6), np.nan)  # right, left; NaN until a first reading
-
-    def update(self, wrenches: np.ndarray) -> np.ndarray:
-        """One period's raw wrenches (2 x 6: the right and the left sole's [fx, fy, fz, mx, my,
-        mz]); the filtered ones (2 x 6). A sole's reading with a non-finite value is skipped."""
-        _low_pass(self.filtered, np.ascontiguousarray(wrenches, dtype=float), self.alpha)
-        return self.filtered
-
-
-@nb.njit(cache=True, nogil=True)
-def _low_pass(filtered, wrenches, alpha):
-    """:meth:`ContactWrenches.update` in place, compiled (a few array operations cost more
-    than the arithmetic): a row with a non-finite value is skipped, a first reading taken."""
-    for s in range(wrenches.shape[0]):
-        finite = True
-        for i in range(wrenches.shape[1]):
-            finite = finite and math.isfinite(wrenches[s, i])
-        if not finite:
-            continue
-        for i in range(wrenches.shape[1]):
-            last = filtered[s, i]
-            filtered[s, i] = wrenches[s, i] if math.isnan(last) else (
-                last + alpha * (wrenches[s, i] - last))
+        return outside_distance(points[:n], point)
+    return outside_distance(convex_hull(points[:n]), point)
 
 
 @nb.njit(**JIT)
@@ -189,66 +154,6 @@ def _correct_leg(T_neck_goal, leg, q, delta, step_rad):
         part[j] += delta[j]
 
 
-@nb.njit(**JIT)
-def tilt_between(z_from: np.ndarray, z_to: np.ndarray) -> np.ndarray:
-    """The smallest rotation (3x3) turning the unit vector ``z_from`` onto ``z_to`` (Rodrigues'
-    formula; compiled: it runs every control period)."""
-    ax, ay, az = z_from[0], z_from[1], z_from[2]
-    bx, by, bz = z_to[0], z_to[1], z_to[2]
-    kx, ky, kz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
-    s = math.sqrt(kx * kx + ky * ky + kz * kz)
-    if s < 1e-12:
-        return np.eye(3)
-    c = ax * bx + ay * by + az * bz
-    kx, ky, kz = kx / s, ky / s, kz / s
-    angle = math.atan2(s, c)
-    sn, vc = math.sin(angle), 1.0 - math.cos(angle)
-    R = np.empty((3, 3))
-    R[0, 0] = 1.0 - vc * (ky * ky + kz * kz)
-    R[0, 1] = -sn * kz + vc * kx * ky
-    R[0, 2] = sn * ky + vc * kx * kz
-    R[1, 0] = sn * kz + vc * kx * ky
-    R[1, 1] = 1.0 - vc * (kx * kx + kz * kz)
-    R[1, 2] = -sn * kx + vc * ky * kz
-    R[2, 0] = -sn * ky + vc * kx * kz
-    R[2, 1] = sn * kx + vc * ky * kz
-    R[2, 2] = 1.0 - vc * (kx * kx + ky * ky)
-    return R
-
-
-@nb.njit(**JIT)
-def imu_z_axis(q_wxyz: np.ndarray) -> np.ndarray:
-    """The world's view of the torso's z axis (3,) from the IMU's quaternion (w, x, y, z;
-    normalised here): the third column of its rotation matrix."""
-    w, x, y, z = q_wxyz[0], q_wxyz[1], q_wxyz[2], q_wxyz[3]
-    n2 = w * w + x * x + y * y + z * z
-    axis = np.empty(3)
-    axis[0] = 2.0 * (x * z + w * y) / n2
-    axis[1] = 2.0 * (y * z - w * x) / n2
-    axis[2] = 1.0 - 2.0 * (x * x + y * y) / n2
-    return axis
-
-
-@nb.njit(**JIT)
-def _com_from_sole(q_leg, chain, com_in_neck, R_world_neck, q_imu_wxyz):
-    """The CoM's world x, y offset from a sole (m): ``com_in_neck`` less the sole's place in
-    the neck frame (the leg's FK at ``q_leg``), turned into the world by the planned torso
-    rotation ``R_world_neck`` tilted as the IMU's quaternion says (:func:`tilt_between`)."""
-    base, _, offset, alpha, a, d, end, _ = chain
-    T = np.empty((4, 4))
-    chain_fk(q_leg, base, offset, alpha, a, d, end, T)
-    tilt = tilt_between(R_world_neck[:, 2], imu_z_axis(q_imu_wxyz))
-    r0, r1, r2 = (com_in_neck[0] - T[0, 3], com_in_neck[1] - T[1, 3],
-                  com_in_neck[2] - T[2, 3])
-    xy = np.zeros(2)
-    for i in range(2):
-        for j in range(3):
-            R_ij = (tilt[i, 0] * R_world_neck[0, j] + tilt[i, 1] * R_world_neck[1, j]
-                    + tilt[i, 2] * R_world_neck[2, j])
-            xy[i] += R_ij * (r0 if j == 0 else (r1 if j == 1 else r2))
-    return xy[0], xy[1]
-
-
 def rigid_inverse(T: np.ndarray) -> np.ndarray:
     """The inverse of rigid transforms (4x4, or a stack of them: ... x 4 x 4): [R^T, -R^T p]."""
     T = np.asarray(T, dtype=float)
@@ -283,18 +188,22 @@ def planned_support(gait: Gait) -> np.ndarray:
 class WalkTarget(Target):
     """Walk to ``goal`` (forward, left, turn relative to the stance at the start).
 
-    The plan is made in :meth:`attach` from the soles' poses in the simulator; each period
-    sends the pattern's joints and logs the reference and measured ZMP and CoM. When the
-    pattern has ended (its last ``settle_s`` standing) and the feet, which slip a little on
-    every step, stand further than ARRIVED_M / ARRIVED_RAD from the goal, it plans again from
-    where they stand, up to ``corrections`` times. The run ends then, or on a fall.
+    Its first period plans the walk from the estimate's soles and torso; each period sends the
+    pattern's joints, writes the planned support for the capture-point monitor and logs the
+    reference and estimated ZMP and CoM. When the pattern has ended (its last ``settle_s``
+    standing) and the estimated feet, which slip a little on every step, stand further than
+    ARRIVED_M / ARRIVED_RAD from the goal, it plans again from where they stand, up to
+    ``corrections`` times. The run ends then, or on a fall.
 
     ``end_width_m`` (None: the walking width) ends every walk with the feet this far apart
     (:func:`~hubo_cli.walking.footsteps.closing_steps`): the stance a task starts from.
     """
 
+    name = "walk"
+    reads = (T_WORLD_SOLES, T_WORLD_TORSO, CONTACT, WRENCHES, COM_WORLD, ZMP_WORLD)
+    writes = (SUPPORT_PLAN,)
     log_columns = ("walk.zmp_ref_x_m", "walk.zmp_ref_y_m", "walk.com_ref_x_m",
-                   "walk.com_ref_y_m", "walk.zmp_x_m", "walk.zmp_y_m", "walk.zmp_outside_m",
+                   "walk.com_ref_y_m", "walk.zmp_x_m", "walk.zmp_y_m",
                    "walk.contact_zmp_outside_m", "walk.step", "walk.tilt_deg",
                    "planned_right_foot_contact_flag", "planned_left_foot_contact_flag",
                    "walk.offset_x_m", "walk.offset_y_m", "walk.right_lift_m", "walk.left_lift_m",
@@ -311,7 +220,7 @@ class WalkTarget(Target):
         self.goal_relative = goal
         self.q_start = np.asarray(q_start_rad, dtype=float)
         self.T_world_neck_start = T_world_neck_start
-        self.world: SimulatedWorld | None = None
+        self.store: Store | None = None
         self.gait: Gait | None = None
         self.plan: JointPlan | None = None
         self.start: Stance | None = None
@@ -321,9 +230,6 @@ class WalkTarget(Target):
         self.fell = False
         self.zmp_periods = 0
         self.zmp_inside_periods = 0
-        self.raw_zmp_periods = 0
-        self.raw_zmp_inside_periods = 0
-        self.contact_wrenches = ContactWrenches(model.control_period_s)
         self.torso_z0_m: float | None = None
         self.final_feet: dict[str, np.ndarray] = {}
         self.steps: list[Footstep] = []
@@ -337,48 +243,33 @@ class WalkTarget(Target):
         xs, ys = self.corners[:, 0], self.corners[:, 1]
         box = (float(xs.min()), float(xs.max()), float(ys.min()), float(ys.max()))
         if stabilizer is not None:
-            self.dampers = {side: SoleDamper(stabilizer, box, dt) for side in ("right", "left")}
+            self.dampers = {side: SoleDamper(stabilizer, box, dt) for side in SIDES}
             self.torso_offset = TorsoOffset(stabilizer, dt)
-            self.touchdowns = {side: Touchdown(stabilizer, dt) for side in ("right", "left")}
+            self.touchdowns = {side: Touchdown(stabilizer, dt) for side in SIDES}
             self._leg_delta = np.zeros((2, 6))  # the legs' corrections: right, left
         names = list(model.joint_names)
         self._ankle = {"right": (names.index("RAR"), names.index("RAP")),
                        "left": (names.index("LAR"), names.index("LAP"))}
 
-    def attach(self, world: SimulatedWorld | None, modules: Sequence) -> None:
-        if world is None:
-            raise ConfigError("walking needs the simulator (the soles' poses in the world)",
-                              hint="run it with the sim driver")
-        self.world = world
-        feet = self._measured_feet()
+    def attach(self, world, modules: Sequence, store: Store) -> None:
+        self.store = store
+
+    def _start(self, t_s: float) -> None:
+        """The walk's first period: the goal from the estimated stance, the first plan."""
+        feet = estimated_feet(self.store)
         self.start_feet = [feet["right"], feet["left"]]
         self.start = stance_of(feet["right"], feet["left"])
         forward, left, turn = self.goal_relative
         c, s = math.cos(self.start.yaw_rad), math.sin(self.start.yaw_rad)
         self.goal = Stance(self.start.x_m + c * forward - s * left,
                            self.start.y_m + s * forward + c * left, self.start.yaw_rad + turn)
-        self._plan(self.q_start, 0.0)
-        if self.stabilizer is not None:
-            # numba compiles a kernel on its first call: make that now with the run's types,
-            # not in the first period (seconds on a fresh install; cached afterwards)
-            q, body = self.q_start.copy(), self.body
-            _correct_legs(self._T_neck_soles[0], self._R_neck_world[0], 0.0, 0.0, 0.0, 0.0, q,
-                          np.zeros((2, 6)), *self._leg_kernel, LEG_STEP_RAD)
-            leg = SIDE_LEG["right"]
-            _com_from_sole(q[body.slices[leg]], body.legs[leg].chain, body.com_in_neck(q),
-                           self.plan.T_world_neck[0, :3, :3], np.array((1.0, 0.0, 0.0, 0.0)))
-        for module in modules:
-            if isinstance(module, CapturePointMonitor):
-                module.support_override = self.support_at
-
-    def _measured_feet(self) -> dict[str, Footstep]:
-        return {side: footstep_of(side, self.world.frame_pose(frame)) for side, frame, _ in SOLES}
+        self._plan(self.q_start, t_s)
 
     def _plan(self, q_rad: np.ndarray, t_s: float) -> None:
-        """Plan the walk from where the feet stand now (the stance frame moves with them),
-        starting at loop time ``t_s`` from the commanded joints ``q_rad``."""
-        world = self.world
-        feet = self._measured_feet()
+        """Plan the walk from where the estimate puts the feet now (the stance frame moves
+        with them), starting at loop time ``t_s`` from the commanded joints ``q_rad``."""
+        store = self.store
+        feet = estimated_feet(store)
         steps = plan_footsteps(feet["right"], feet["left"], self.goal, self.params)
         if self.end_width_m is not None:
             placed = {step.side: step for step in steps}
@@ -386,11 +277,11 @@ class WalkTarget(Target):
             steps = steps + closing_steps(placed.get("right", feet["right"]),
                                           placed.get("left", feet["left"]), self.goal,
                                           self.end_width_m, first)
-        T_world_neck = world.frame_pose("torso")
+        T_world_neck = np.array(store[T_WORLD_TORSO], dtype=float)
         T_world_neck[2, 3] = self.T_world_neck_start[2, 3] if self.gait is None \
             else self.plan.T_world_neck[-1, 2, 3]
         body = WalkingBody(self.model, q_rad, T_world_neck, self.params.lean_rad_per_m)
-        sole_z = float(world.frame_pose("right_sole")[2, 3])
+        sole_z = float(store[T_WORLD_SOLES][0, 2, 3])
         com = body.com_in_neck(q_rad)
         com_world = T_world_neck[:3, :3] @ com + T_world_neck[:3, 3]
         self.gait = make_gait(feet["right"], feet["left"], steps, self.params,
@@ -404,82 +295,74 @@ class WalkTarget(Target):
         self._leg_kernel = tuple(
             (leg.chain, leg.lengths_m, leg.spec.is_arm, leg.lower_rad, leg.upper_rad, leg.hold_m,
              body.slices[name].start)
-            for leg, name in ((body.legs[SIDE_LEG[side]], SIDE_LEG[side])
-                              for side in ("right", "left")))
+            for leg, name in ((body.legs[SIDE_LEG[side]], SIDE_LEG[side]) for side in SIDES))
         self._support_poses = planned_support(self.gait)
         # per-period rows as plain floats and bools for the loop (cheaper than numpy scalars)
         gait = self.gait
         self._rows = {"support": gait.support.tolist(), "zmp_ref": gait.zmp_ref_m.tolist(),
                       "com_ref": gait.com.com_m.tolist(), "plan_com": self.plan.com_m.tolist(),
                       "step": gait.step_index.tolist(),
-                      **{side: gait.feet[side].tolist() for side in ("right", "left")}}
-        self._sole_z0 = {side: float(gait.feet[side][0, 2]) for side in ("right", "left")}
+                      **{side: gait.feet[side].tolist() for side in SIDES}}
+        self._sole_z0 = {side: float(gait.feet[side][0, 2]) for side in SIDES}
         # the soles' goals in the planned torso's frame, per period: the stabilizer only moves
         # them by its torso offset and a touchdown's lift (:meth:`_stabilized`)
         T_neck_world = rigid_inverse(self.plan.T_world_neck)
         self._R_neck_world = T_neck_world[:, :3, :3].copy()
         self._T_neck_soles = np.stack([T_neck_world @ np.array([pose_of_row(row)
                                                                 for row in gait.feet[side]])
-                                       for side in ("right", "left")], axis=1)  # n x 2 x 4 x 4
+                                       for side in SIDES], axis=1)  # n x 2 x 4 x 4
         self.plan_start_s = t_s
         self.k = 0
         self.steps.extend(steps)
-
-    def support_at(self, t_s: float) -> np.ndarray:
-        """The planned support at time ``t_s`` (see :func:`planned_support`)."""
-        k = int(round((t_s - self.plan_start_s) / self.gait.period_s))
-        return self._support_poses[min(max(k, 0), self.gait.n - 1)]
 
     @property
     def walking_s(self) -> float:
         """From the start to the end of the last step's double support (s)."""
         gait = self.gait
+        if gait is None:
+            return 0.0
         moving = np.nonzero(gait.step_index >= 0)[0]
         if not len(moving):
             return self.last_step_end_s
         return self.plan_start_s + float((moving[-1] + 1) * gait.period_s)
 
     def __call__(self, t_s: float, state: RobotState) -> TargetOutput:
-        if self.k >= self.gait.n and not self.fell and self.corrections_left > 0 \
+        store = self.store
+        if self.gait is None:
+            self._start(t_s)
+        elif self.k >= self.gait.n and not self.fell and self.corrections_left > 0 \
                 and not self.arrived():
             self.corrections_left -= 1
             self.last_step_end_s = self.walking_s
             self._plan(self.plan.q_rad[-1], t_s)
-        gait, plan, world = self.gait, self.plan, self.world
+        gait, plan = self.gait, self.plan
         k = min(self.k, gait.n - 1)
         self.k += 1
-        (_, _, r02, _), (_, _, r12, _), (_, _, r22, torso_z) = \
-            state.T_world_torso[:3].tolist()
+        (_, _, r02, _), (_, _, r12, _), (_, _, r22, torso_z) = store[T_WORLD_TORSO][:3].tolist()
         tilt = math.degrees(math.atan2(math.hypot(r02, r12), r22))  # tilt_rad_of_matrix
         if self.torso_z0_m is None:
             self.torso_z0_m = torso_z
         if has_fallen(tilt, self.torso_z0_m - torso_z):
             self.fell = True
-        poses = np.array([world.frame_pose(frame) for _, frame, _ in SOLES])
-        wrenches = np.array([state.ft[sensor] for _, _, sensor in SOLES])
-        zmp, outside = measured_zmp(poses, wrenches, self.corners)
-        if zmp is not None:
-            self.raw_zmp_periods += 1
-            self.raw_zmp_inside_periods += outside <= -ZMP_INSIDE_MARGIN_M
-        support_zmp, support_outside = measured_zmp(
-            poses, self.contact_wrenches.update(wrenches), self.corners, CONTACT_THRESHOLD_N)
-        if support_zmp is not None:
+        poses = store[T_WORLD_SOLES]
+        zmp = np.asarray(store[ZMP_WORLD], dtype=float)
+        outside = zmp_outside_m(zmp, poses, self.corners, store[CONTACT])
+        if math.isfinite(outside):
             self.zmp_periods += 1
-            self.zmp_inside_periods += support_outside <= -ZMP_INSIDE_MARGIN_M
-        self.final_feet = {"right": poses[0], "left": poses[1]}
+            self.zmp_inside_periods += outside <= -ZMP_INSIDE_MARGIN_M
+        self.final_feet = {"right": poses[0].copy(), "left": poses[1].copy()}
+        store[SUPPORT_PLAN] = SupportPlan(self._support_poses[k], None)
         q = plan.q_rad[k]
         if self.stabilizer is not None:
-            q = self._stabilized(k, q.copy(), state, zmp)
+            q = self._stabilized(k, q.copy(), zmp if math.isfinite(outside) else None)
         rows = self._rows
-        zmp_x, zmp_y = (math.nan, math.nan) if zmp is None else zmp.tolist()
+        zmp_x, zmp_y = zmp[:2].tolist()
         support = rows["support"][k]
         (zmp_ref_x, zmp_ref_y), (com_ref_x, com_ref_y) = rows["zmp_ref"][k], rows["com_ref"][k]
         info = {"walk.zmp_ref_x_m": zmp_ref_x, "walk.zmp_ref_y_m": zmp_ref_y,
                 "walk.com_ref_x_m": com_ref_x, "walk.com_ref_y_m": com_ref_y,
                 "walk.zmp_x_m": zmp_x, "walk.zmp_y_m": zmp_y,
-                "walk.zmp_outside_m": outside if math.isfinite(outside) else math.nan,
-                "walk.contact_zmp_outside_m": (support_outside if math.isfinite(support_outside)
-                                               else math.nan),
+                "walk.contact_zmp_outside_m": outside if math.isfinite(outside) else math.nan,
                 "walk.step": float(rows["step"][k]), "walk.tilt_deg": tilt,
                 "planned_right_foot_contact_flag": float(support[0]),
                 "planned_left_foot_contact_flag": float(support[1]),
@@ -502,55 +385,60 @@ class WalkTarget(Target):
                 "walk.left_sole_roll_rad": float(left[0]),
                 "walk.left_sole_pitch_rad": float(left[1])}
 
-    def _measured_com(self, k: int, state: RobotState) -> tuple[float, float]:
-        """The whole-body CoM's world x, y as a real robot can measure it: the torso tilted as
-        the IMU says (heading from the pattern), placed by the measured leg kinematics of the
-        more loaded planned support sole standing where the pattern put it."""
-        body = self.body
+    def _measured_com(self, k: int, wrenches: np.ndarray) -> tuple[float, float]:
+        """The estimate's CoM (world x, y) seen from the more loaded planned support sole
+        standing where the pattern put it: its offset from that sole's estimated place added
+        to the sole's planned place (the pattern's frame, which a sole's slip does not move)."""
         right_down, left_down = self._rows["support"][k]
-        ranks = {"right": (right_down, float(state.ft[SOLES_SENSOR["right"]][2])),
-                 "left": (left_down, float(state.ft[SOLES_SENSOR["left"]][2]))}
+        ranks = {"right": (right_down, float(wrenches[0, 2])),
+                 "left": (left_down, float(wrenches[1, 2]))}
         side = "left" if ranks["left"] > ranks["right"] else "right"
-        name = SIDE_LEG[side]
-        x, y = _com_from_sole(state.q_rad[body.slices[name]], body.legs[name].chain,
-                              body.com_in_neck(state.q_rad), self.plan.T_world_neck[k, :3, :3],
-                              state.imu_quat_wxyz)
-        sole_x, sole_y = self._rows[side][k][:2]
-        return sole_x + x, sole_y + y
+        sole = self.store[T_WORLD_SOLES][SIDES.index(side)]
+        com = self.store[COM_WORLD]
+        planned_x, planned_y = self._rows[side][k][:2]
+        return (planned_x + float(com[0] - sole[0, 3]), planned_y + float(com[1] - sole[1, 3]))
 
-    def _stabilized(self, k: int, q: np.ndarray, state: RobotState,
-                    zmp: np.ndarray | None) -> np.ndarray:
+    def _stabilized(self, k: int, q: np.ndarray, zmp: np.ndarray | None) -> np.ndarray:
         """The pattern's joints ``q`` with the stabilizer's corrections (see
         :mod:`hubo_cli.walking.stabilizer`)."""
         rows = self._rows
+        wrenches = ankle_wrenches(self.store)
         offset_x, offset_y = self.torso_offset.update(
-            zmp, rows["zmp_ref"][k], self._measured_com(k, state), rows["plan_com"][k]).tolist()
+            zmp, rows["zmp_ref"][k], self._measured_com(k, wrenches),
+            rows["plan_com"][k]).tolist()
         lifts = [self.touchdowns[side].update(not down, rows[side][k][2] - self._sole_z0[side],
-                                              float(state.ft[SOLES_SENSOR[side]][2]))
-                 for side, down in zip(("right", "left"), rows["support"][k], strict=True)]
+                                              float(wrenches[column, 2]))
+                 for column, (side, down) in enumerate(zip(SIDES, rows["support"][k],
+                                                           strict=True))]
         _correct_legs(self._T_neck_soles[k], self._R_neck_world[k], offset_x, offset_y, *lifts,
                       q, self._leg_delta, *self._leg_kernel, LEG_STEP_RAD)
-        for side in ("right", "left"):
-            delta = self.dampers[side].update(state.ft[SOLES_SENSOR[side]])
+        for column, side in enumerate(SIDES):
+            delta = self.dampers[side].update(wrenches[column])
             roll, pitch = self._ankle[side]
             q[roll] += delta[0]
             q[pitch] += delta[1]
         return q
 
     def arrived(self) -> bool:
-        """The feet stand within ARRIVED_M and ARRIVED_RAD of the goal stance."""
+        """The estimated feet stand within ARRIVED_M and ARRIVED_RAD of the goal stance."""
         if not self.final_feet:
             return False
         error_m, error_rad = self.final_error()
         return error_m <= ARRIVED_M and error_rad <= ARRIVED_RAD
 
     def final_error(self) -> tuple[float, float]:
-        """The final stance's distance (m) and heading error (rad) from the goal; NaN when
-        the walk ended (Ctrl-C, SIGTERM, an error) before its last step came down."""
+        """The estimated final stance's distance (m) and heading error (rad) from the goal;
+        NaN when the walk ended (Ctrl-C, SIGTERM, an error) before its last step came down."""
         if not self.final_feet:
             return math.nan, math.nan
-        feet = {side: footstep_of(side, T) for side, T in self.final_feet.items()}
-        reached = stance_of(feet["right"], feet["left"])
-        return (math.hypot(reached.x_m - self.goal.x_m, reached.y_m - self.goal.y_m),
-                abs(math.atan2(math.sin(reached.yaw_rad - self.goal.yaw_rad),
-                               math.cos(reached.yaw_rad - self.goal.yaw_rad))))
+        return stance_error(self.final_feet, self.goal)
+
+
+def stance_error(T_world_soles: dict[str, np.ndarray], goal: Stance) -> tuple[float, float]:
+    """The distance (m) and heading error (rad) of the stance the soles (``right``, ``left``:
+    4x4 world poses) stand in from ``goal``."""
+    feet = {side: footstep_of(side, T) for side, T in T_world_soles.items()}
+    reached = stance_of(feet["right"], feet["left"])
+    return (math.hypot(reached.x_m - goal.x_m, reached.y_m - goal.y_m),
+            abs(math.atan2(math.sin(reached.yaw_rad - goal.yaw_rad),
+                           math.cos(reached.yaw_rad - goal.yaw_rad))))

@@ -1,0 +1,316 @@
+"""The floating base and the soles in the world, from the legs' kinematics anchored at the loaded
+sole, with the estimated attitude.
+
+One sole is the anchor: its heading and its contact point in the world are held while it
+carries the robot (a sole that carries load is taken not to slip; a slip is not seen, as on
+the real robot). The contact point is the sole's centre of pressure (its compensated ankle
+wrench, ``WRENCHES``, kept inside the sole's outline): a sole that rolls onto its toe or heel
+edge (a push, a capture step) turns about that edge and its middle rises, as it does. Each
+period, from the legs' forward kinematics of the measured joints (T_torso_sole, the limbs'
+chains, :mod:`hubo_cli.kinematics.limb`) and the attitude ``QUAT_WORLD_TORSO``:
+
+* the torso's rotation is the attitude turned about the world's vertical so that the anchor
+  sole keeps its heading (the tilt is the attitude's, the heading the legs': the IMU's yaw
+  drifts), then turned about the anchor's contact point by the gyro's yaw rate beyond the
+  legs' while one sole alone carries the robot rolling on its edge (its centre of pressure
+  within ``EDGE_M`` of the outline: little holds it from twisting then; walking keeps it
+  further in, and there the gyro's bias would only turn the estimate), less the gyro's bias
+  (on two soles the robot
+  cannot twist unless pushed: the difference there within ``STILL_YAW_RAD_S``, low-passed with
+  ``GYRO_BIAS_TAU_S``, is the bias; a robot standing does not turn); the turn fades with
+  ``HEADING_TAU_S``: a stance sole that twists on
+  the floor under a push turns the robot, which the gyro sees and the legs do not (a 150 N
+  push twisted the capture step's stance foot by degrees; planned on the legs' heading alone
+  the step landed 5 cm long and the robot fell). When the other sole takes the anchor it
+  keeps its pose as estimated, the turn included, and the turn starts again from zero;
+* the torso's position puts the anchor sole's contact point of this period where that point
+  of the sole was in the last period's estimate (a flat sole whose centre of pressure moves
+  stays where it is; one rolling on an edge keeps the edge on the floor);
+* both soles follow from the torso through the legs.
+
+The anchor changes when it loses contact (``CONTACT``) and the other sole has it, or when the
+other sole in contact carries ``ANCHOR_SWITCH_N`` more than it (the compensated ankle F_z): a
+foot that lifts is still in contact for the debounce's delay, and held as the anchor meanwhile
+it would carry the whole estimate up with it (a capture step's swing foot lifted the estimated
+torso by 30 mm and sank the stance sole as far). The new anchor keeps the pose estimated for it
+in that period, so the estimate does not jump. Without any contact (a jump, a fall, a lifted
+robot) the anchor stays.
+
+Start: the world frame is the simulator's (:mod:`hubo_cli.drivers.sim`): the torso's neck frame
+at the start, dropped onto the floor (x forward, y left, z up, the origin on the floor under the
+neck). The torso's heading is taken as zero and its position over the origin; the anchor is the
+more loaded sole, laid flat on the floor (z = 0, its heading kept). So the estimate and the
+simulator's truth start together on the nominal robot (the truth has settled 0.3 s by then).
+
+Non-finite joints or attitude keep the last estimate.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from hubo_cli.dataflow import Store
+from hubo_cli.estimation.keys import (
+    CONTACT,
+    QUAT_WORLD_TORSO,
+    T_WORLD_SOLES,
+    T_WORLD_TORSO,
+    WRENCHES,
+)
+from hubo_cli.estimation.observer import Observer
+from hubo_cli.estimation.wrenches import joint_vector
+from hubo_cli.geometry import quat_to_matrix_into
+from hubo_cli.kinematics.dh import chain_fk
+from hubo_cli.kinematics.limb import Limb
+from hubo_cli.model import LEGS, RobotModel
+from hubo_cli.state import RobotState
+
+ANKLES = ("right-ankle", "left-ankle")
+MIN_FZ_N = 10.0  # [chosen] a sole pressing less than this: its last centre of pressure
+HEADING_TAU_S = 1.0  # [chosen] the gyro's share of the heading fades with this time constant
+GYRO_BIAS_TAU_S = 1.0  # [chosen] the gyro's yaw bias: its rate beyond the legs' on two soles
+#                        while still, low-passed (the perturbation's bias, up to 0.5 deg/s,
+#                        integrated over a walk's single supports turned the estimate 2 deg)
+EDGE_M = 0.015  # [chosen] a centre of pressure this close to the sole's outline: it rolls on
+#                 an edge (the walking stabilizer keeps it 25 mm inside)
+STILL_YAW_RAD_S = 0.02  # [chosen] ... still: within this of the bias (2.3x the perturbation's
+#                         largest bias; a push twisting the feet on the floor is not learnt)
+ANCHOR_SWITCH_N = 40.0  # [chosen] the other sole carrying this much more takes the anchor
+#                         (about a tenth of the robot's weight: quiet standing's noise and
+#                         the two feet's uneven load never reach it)
+
+
+@nb.njit(cache=True, nogil=True)
+def _legs_fk(q, index, base, offset, alpha, a, d, end, out) -> bool:
+    """T_torso_sole of both legs (``out``, 2 x 4 x 4); False (``out`` untouched) when a joint
+    is not finite."""
+    qk = np.empty((2, 6))
+    for k in range(2):
+        for j in range(6):
+            v = q[index[k, j]]
+            if not math.isfinite(v):
+                return False
+            qk[k, j] = v
+    for k in range(2):
+        chain_fk(qk[k], base[k], offset[k], alpha[k], a[k], d[k], end[k], out[k])
+    return True
+
+
+@nb.njit(cache=True, nogil=True)
+def _heading(R) -> float:
+    return math.atan2(R[1, 0], R[0, 0])
+
+
+@nb.njit(cache=True, nogil=True)
+def _place(quat_wxyz, T_torso_soles, anchor, T_world_anchor, cx, cy, T_world_torso,
+           T_world_soles):
+    """The torso and soles in the world (in place) from the attitude, the legs and the anchor
+    sole's last pose ``T_world_anchor``: its heading kept, its point (cx, cy) on the sole
+    (sole frame, m) kept where it was."""
+    R = np.empty((3, 3))
+    quat_to_matrix_into(quat_wxyz, R)
+    T_ta = T_torso_soles[anchor]
+    # the anchor's heading through the chain, against its held heading
+    c00 = R[0, 0] * T_ta[0, 0] + R[0, 1] * T_ta[1, 0] + R[0, 2] * T_ta[2, 0]
+    c10 = R[1, 0] * T_ta[0, 0] + R[1, 1] * T_ta[1, 0] + R[1, 2] * T_ta[2, 0]
+    turn = _heading(T_world_anchor) - math.atan2(c10, c00)
+    ct, st = math.cos(turn), math.sin(turn)
+    T = T_world_torso
+    for c in range(3):
+        T[0, c] = ct * R[0, c] - st * R[1, c]
+        T[1, c] = st * R[0, c] + ct * R[1, c]
+        T[2, c] = R[2, c]
+    for r in range(3):
+        held = (T_world_anchor[r, 0] * cx + T_world_anchor[r, 1] * cy
+                + T_world_anchor[r, 3])  # where the contact point was
+        p = np.empty(3)  # the contact point in the torso frame
+        for i in range(3):
+            p[i] = T_ta[i, 0] * cx + T_ta[i, 1] * cy + T_ta[i, 3]
+        T[r, 3] = held - (T[r, 0] * p[0] + T[r, 1] * p[1] + T[r, 2] * p[2])
+    T[3, 0], T[3, 1], T[3, 2], T[3, 3] = 0.0, 0.0, 0.0, 1.0
+    for k in range(2):
+        S, W = T_torso_soles[k], T_world_soles[k]
+        for r in range(4):
+            for c in range(4):
+                W[r, c] = (T[r, 0] * S[0, c] + T[r, 1] * S[1, c] + T[r, 2] * S[2, c]
+                           + T[r, 3] * S[3, c])
+
+
+def _gyro(state: RobotState) -> np.ndarray | None:
+    """The IMU's rate (3,; rad/s, torso axes), None unless three finite numbers."""
+    try:
+        gyro = np.asarray(state.imu_gyro_rad_s, dtype=float).reshape(3)
+    except (TypeError, ValueError):
+        return None
+    return gyro if np.all(np.isfinite(gyro)) else None
+
+
+def _turn_about(point: np.ndarray, angle_rad: float) -> np.ndarray:
+    """The turn (4x4) by ``angle_rad`` about the vertical through ``point`` (world)."""
+    c, s = math.cos(angle_rad), math.sin(angle_rad)
+    turn = np.eye(4)
+    turn[:2, :2] = ((c, -s), (s, c))
+    turn[:2, 3] = point[:2] - turn[:2, :2] @ point[:2]
+    return turn
+
+
+def _flat(T: np.ndarray) -> np.ndarray:
+    """The pose laid flat on the floor: same x, y and heading, z = 0, upright."""
+    heading = math.atan2(T[1, 0], T[0, 0])
+    flat = np.eye(4)
+    flat[:2, :2] = [[math.cos(heading), -math.sin(heading)],
+                    [math.sin(heading), math.cos(heading)]]
+    flat[:2, 3] = T[:2, 3]
+    return flat
+
+
+class FloatingBase(Observer):
+    """Writes ``T_WORLD_TORSO`` and ``T_WORLD_SOLES`` (see the module docstring).
+
+    Args:
+        model: the robot model (the legs' kinematics).
+
+    Attributes:
+        anchor: the sole holding the estimate (0 right, 1 left).
+    """
+
+    name = "floating-base"
+    reads = (QUAT_WORLD_TORSO, WRENCHES, CONTACT)
+    writes = (T_WORLD_TORSO, T_WORLD_SOLES)
+
+    def __init__(self, model: RobotModel) -> None:
+        rows = []
+        for leg in LEGS:
+            base, _, offset, alpha, a, d, end, _ = Limb(model, leg).chain
+            sl = model.limb_slice(leg)
+            rows.append((np.arange(sl.start, sl.stop), base, offset, alpha, a, d, end))
+        self._chain = (np.array([r[0] for r in rows], dtype=np.int64),
+                       *(np.ascontiguousarray([r[k] for r in rows], dtype=float)
+                         for k in range(1, 7)))
+        self._joints = len(model.joint_names)
+        self._T_torso_soles = np.tile(np.eye(4), (2, 1, 1))
+        self.anchor = 0
+        self._T_world_anchor = np.eye(4)
+        self._T_world_torso = np.eye(4)
+        self._T_world_soles = np.tile(np.eye(4), (2, 1, 1))
+        self._quat = np.array([1.0, 0.0, 0.0, 0.0])
+        corners = model.feet.sole_corners_m()
+        self._sole_box = (float(corners[:, 0].min()), float(corners[:, 0].max()),
+                          float(corners[:, 1].min()), float(corners[:, 1].max()))
+        self._contact_point = (0.0, 0.0)  # on the anchor sole (sole frame, m)
+        self._dt_s = model.control_period_s
+        self._keep = HEADING_TAU_S / (HEADING_TAU_S + self._dt_s)  # the turn's fade a period
+        self._turn_rad = 0.0  # the gyro's turn on top of the legs' heading
+        self._R_legs: np.ndarray | None = None  # the legs' torso rotation, last period
+        self._bias_rad_s = 0.0  # the gyro's yaw bias about the world's vertical
+        self._bias_gain = self._dt_s / (GYRO_BIAS_TAU_S + self._dt_s)
+        _legs_fk(np.zeros(self._joints), *self._chain, self._T_torso_soles)  # compile now
+        _place(self._quat, self._T_torso_soles, 0, self._T_world_anchor, 0.0, 0.0, np.eye(4),
+               np.zeros((2, 4, 4)))
+
+    def _inputs(self, state: RobotState, store: Store) -> bool:
+        """The legs' kinematics and the attitude of this period; False when not finite."""
+        quat = np.asarray(store[QUAT_WORLD_TORSO], dtype=float)
+        if not np.all(np.isfinite(quat)):
+            return False
+        self._quat = quat
+        return bool(_legs_fk(joint_vector(state.q_rad, self._joints), *self._chain,
+                             self._T_torso_soles))
+
+    def reset(self, state: RobotState, store: Store) -> None:
+        wrenches = store[WRENCHES]
+        fz = [float(wrenches[s][2]) for s in ANKLES]
+        self.anchor = 1 if fz[1] > fz[0] else 0  # a NaN compares False: the right sole
+        self._T_world_torso = np.eye(4)
+        self._T_world_soles = np.tile(np.eye(4), (2, 1, 1))
+        self._turn_rad, self._R_legs, self._bias_rad_s = 0.0, None, 0.0
+        if not self._inputs(state, store):
+            self._write(store)
+            return
+        # the torso over the origin heading along x, its tilt the attitude's
+        R = np.empty((3, 3))
+        quat_to_matrix_into(self._quat, R)
+        heading = math.atan2(R[1, 0], R[0, 0])
+        T_start = np.eye(4)
+        T_start[:3, :3] = np.array([[math.cos(heading), math.sin(heading), 0.0],
+                                    [-math.sin(heading), math.cos(heading), 0.0],
+                                    [0.0, 0.0, 1.0]]) @ R
+        self._T_world_anchor = _flat(T_start @ self._T_torso_soles[self.anchor])
+        self._place()
+        self._write(store)
+
+    def _centre_of_pressure(self, store: Store) -> tuple[float, float]:
+        """The anchor sole's centre of pressure (sole frame, m) inside its outline; the last
+        one while it presses less than MIN_FZ_N or reads non-finite."""
+        wrench = store[WRENCHES][ANKLES[self.anchor]]
+        fz, mx, my = float(wrench[2]), float(wrench[3]), float(wrench[4])
+        if not (fz > MIN_FZ_N and math.isfinite(mx) and math.isfinite(my)):
+            return self._contact_point
+        x_lo, x_hi, y_lo, y_hi = self._sole_box
+        return min(max(-my / fz, x_lo), x_hi), min(max(mx / fz, y_lo), y_hi)
+
+    def _place(self, contact_point: tuple[float, float] = (0.0, 0.0),
+                gyro_rad_s: np.ndarray | None = None, rolling: bool = False) -> None:
+        """This period's torso and soles: the legs' placement (the anchor's held contact point
+        and heading), turned about the contact point by the gyro's high-passed share of the
+        heading (``gyro_rad_s``: the IMU's rate in the torso frame; None: none; counted while
+        ``rolling``: one sole alone in contact, on its edge)."""
+        T_world_torso, T_world_soles = np.empty((4, 4)), np.empty((2, 4, 4))
+        _place(self._quat, self._T_torso_soles, self.anchor, self._T_world_anchor,
+               *contact_point, T_world_torso, T_world_soles)
+        self._T_world_anchor = T_world_soles[self.anchor].copy()  # the legs' own
+        self._contact_point = contact_point
+        R = T_world_torso[:3, :3]
+        if gyro_rad_s is not None and self._R_legs is not None:
+            # both rates about the world's vertical: the gyro's, and the legs' (the rotation
+            # from the last period's, small: its skew part)
+            yaw_rate = float(R[2] @ gyro_rad_s)
+            step = R @ self._R_legs.T
+            legs_rate = 0.5 * float(step[1, 0] - step[0, 1]) / self._dt_s
+            twist = yaw_rate - legs_rate  # the stance foot's twist, and the gyro's bias
+            if not math.isfinite(twist):
+                twist = 0.0
+            elif rolling:
+                twist -= self._bias_rad_s
+            else:  # on two soles, still, the robot does not twist: what the gyro reads is bias
+                if abs(twist - self._bias_rad_s) < STILL_YAW_RAD_S:
+                    self._bias_rad_s += self._bias_gain * (twist - self._bias_rad_s)
+                twist = 0.0
+            self._turn_rad = self._keep * (self._turn_rad + twist * self._dt_s)
+        self._R_legs = R.copy()
+        if self._turn_rad:
+            pivot = self._T_world_anchor @ np.array([*contact_point, 0.0, 1.0])
+            turn = _turn_about(pivot, self._turn_rad)
+            T_world_torso, T_world_soles = turn @ T_world_torso, turn @ T_world_soles
+        self._T_world_torso, self._T_world_soles = T_world_torso, T_world_soles
+
+    def _take_anchor(self, side: int) -> None:
+        """Sole ``side`` takes the anchor as estimated, the gyro's turn included."""
+        self.anchor = side
+        self._T_world_anchor = self._T_world_soles[side].copy()
+        self._contact_point = (0.0, 0.0)  # its own, read next period
+        self._turn_rad, self._R_legs = 0.0, None
+
+    def _write(self, store: Store) -> None:
+        store[T_WORLD_TORSO] = self._T_world_torso
+        store[T_WORLD_SOLES] = self._T_world_soles
+
+    def update(self, state: RobotState, store: Store) -> None:
+        if self._inputs(state, store):
+            contact = store[CONTACT]
+            point = self._centre_of_pressure(store)
+            x_lo, x_hi, y_lo, y_hi = self._sole_box
+            on_edge = min(point[0] - x_lo, x_hi - point[0], point[1] - y_lo,
+                          y_hi - point[1]) < EDGE_M
+            self._place(point, _gyro(state),
+                        bool(contact[0]) != bool(contact[1]) and on_edge)
+            other = 1 - self.anchor
+            wrenches = store[WRENCHES]
+            heavier = (float(wrenches[ANKLES[other]][2])
+                       > float(wrenches[ANKLES[self.anchor]][2]) + ANCHOR_SWITCH_N)
+            if contact[other] and (heavier or not contact[self.anchor]):
+                self._take_anchor(other)
+        self._write(store)
