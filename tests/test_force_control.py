@@ -347,7 +347,10 @@ def test_the_task_target_writes_the_plans_force_and_measures_the_thrust(model, t
     plan = make_plan(load_task(_task(tmp_path, PRESS)), model)
     target = TaskTarget(plan, correction=False)
     assert target.writes == (HAND_WRENCH_PLAN,)
-    target.store = store = Store()
+    store = Store()
+    impedance = ImpedanceController(model, DT, active=False)  # as force_control builds it
+    impedance.reset(plan.q_first_rad, RobotState(0.0, plan.q_first_rad, np.zeros(24)), store)
+    target.attach(None, [impedance], store)
     sl = model.limb_slice(ARM)
     q = plan.q_first_rad.copy()
     R_N_H = Limb(model, ARM, "hand").fk(q[sl])[:3, :3]
@@ -356,10 +359,11 @@ def test_the_task_target_writes_the_plans_force_and_measures_the_thrust(model, t
     moving = RobotState(0.0, q, np.full(len(q), 0.1))
     _, info = target(0.0, moving)  # the raise (the robot still moving): no force yet
     assert target.phase == "raise" and np.allclose(store[HAND_WRENCH_PLAN][ARM], 0.0)
+    assert impedance.mode == "off"  # the first move swings the arm up without it
     assert info["thrust_n"] == pytest.approx(5.0, abs=1e-6)
     state = RobotState(0.0, q, np.zeros(len(q)))
     target(DT, state)  # still: the plan runs from its first row, the ramp's first step
-    assert target.phase == "run"
+    assert target.phase == "run" and impedance.mode == "on"
     first = -4.0 / round(FORCE_RAMP_S / DT)
     assert np.allclose(store[HAND_WRENCH_PLAN][ARM], (first, 0, 0, 0, 0, 0))
     k = round(FORCE_RAMP_S / DT) + 10

@@ -202,6 +202,8 @@ class SafetyProfile:
             the impedance controller (if on) takes them as its force setpoint.
         impedance_arms, impedance_axes: the hands the impedance controller acts on and the
             axes they yield along (neck-frame ``x y z rx ry rz``).
+        impedance_active: it starts switched on (False: off until its ``switch_on()``, e.g.
+            from a task once its plan runs).
         limit_set: the robot file's joint-limit set the limiter enforces (``table4``, the
             paper's, or e.g. ``walking``, whose legs are fast enough to step and to bow the
             trunk); None: the set the run's model was loaded with. Where a use case needs a
@@ -225,6 +227,7 @@ class SafetyProfile:
     wrench_reference: bool = False
     impedance_arms: tuple[str, ...] = ARMS
     impedance_axes: tuple[str, ...] = WRENCH_AXES
+    impedance_active: bool = True
     removed: tuple[str, ...] = ()
     removed_by: str = ""
     limit_set: str | None = None
@@ -307,7 +310,8 @@ class SafetyProfile:
                       "wrist_torque_limit_nm": self.wrist_torque_limit_nm,
                       "wrench_reference": self.wrench_reference},
             "impedance": {"reference": reference, "arms": tuple(self.impedance_arms),
-                          "axes": tuple(self.impedance_axes)},
+                          "axes": tuple(self.impedance_axes),
+                          "active": self.impedance_active},
             "capture-point": {"request_estop": self.estop, "drill": drill},
             "collision": {"drill": drill},
             "balance": {"mode": self.balance_mode, "drill": drill},

@@ -62,10 +62,11 @@ def force_control(plan: Plan) -> dict:
     """The safety profile's settings for a plan's hand forces: none for a position-only plan;
     with a thrust, the ImpedanceController on the task's hand, yielding along the bit only
     (neck-frame x; the path across it stays stiff), its setpoint the plan's force reverted by
-    the stopper with the motion."""
+    the stopper with the motion, switched on by the task once the plan runs (the first move
+    swings the arm up from hanging, past its straight elbow)."""
     if not plan.has_force:
         return {}
-    return {"impedance": True, "wrench_reference": True,
+    return {"impedance": True, "wrench_reference": True, "impedance_active": False,
             "impedance_arms": (plan.spec.stance.limb,), "impedance_axes": ("x",)}
 
 

@@ -48,6 +48,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from hubo_cli.control.estop import EmergencyStopper, wrist_torque_nm
+from hubo_cli.control.impedance import ImpedanceController
 from hubo_cli.control.module import Module
 from hubo_cli.control.reference_force import ReferenceForceUpdater
 from hubo_cli.control.target import Target
@@ -97,6 +98,7 @@ class TaskTarget(Target):
         self.resumable = resumable
         self.body = body = plan.body
         self.stopper: EmergencyStopper | None = None
+        self.impedance: ImpedanceController | None = None
         self.world: SimulatedWorld | None = None
         self.modules: list = []  # set by attach()
         self.scene: dict = {}
@@ -150,6 +152,7 @@ class TaskTarget(Target):
                              and m.name == "estop"), None)
         if self.stopper is not None:
             self.stopper.relief = self.relieve
+        self.impedance = next((m for m in modules if isinstance(m, ImpedanceController)), None)
 
     def relieve(self, q_rad: np.ndarray) -> np.ndarray | None:
         """The path that relieves the wrist after a wrist-torque stop braked the command
@@ -238,6 +241,8 @@ class TaskTarget(Target):
                 self._place_wall()
                 self.t_placed_s = t_s
                 self.phase, self.t_run_s = "run", t_s
+                if self.force and self.impedance is not None:  # force control from the plan on
+                    self.impedance.switch_on()
         if self.phase == "run":
             self.k = int(round((t_s - self.t_run_s) / self.plan.dt_s))
             if self.k >= len(self.plan.t_s):
