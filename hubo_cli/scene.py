@@ -35,7 +35,14 @@ class CuttingModel:
     - about the bit (spindle): the material brakes the spinning bit with ``spindle_torque_nm``
       times the flutes' engagement (the share of the wall's thickness they fill) times the
       cutting activity ``|smooth(v)|``; the drill's body takes the reaction, a torque about
-      -x of the bit frame (the bit turns clockwise seen from behind the drill, about +x).
+      -x of the bit frame (the bit turns clockwise seen from behind the drill, about +x);
+    - the depth guide (only with ``guide_depth_m`` > 0): a ring on the bit, ``guide_depth_m``
+      behind the bit's middle, that rests on the wall face, as a router's depth guide does. Its
+      face pressed ``p`` into the wall pushes the tool back out with ``guide_stiffness_n_m p +
+      guide_damping_n_s_m v_in`` (never pulling), and slides on the face with Coulomb friction
+      ``guide_friction`` times that (smoothed as above). So the bit cuts at most
+      ``guide_depth_m`` deep (its middle past the face) and a tool pressed onto the wall feels
+      a steady thrust, which the cutting alone gives only while the point feeds. Off by default.
 
     Attributes:
         coulomb_n: speed-independent part of the force across the bit (N).
@@ -45,6 +52,11 @@ class CuttingModel:
         spindle_torque_nm: the material's braking torque on the bit while cutting (N m).
         smooth_m_s: speed (m/s) below which the speed-independent parts fade smoothly to zero
             (the position-controlled arm jitters by about 1 mm/s when holding still).
+        guide_depth_m: the depth guide's distance behind the bit's middle (m; 0: no guide); at
+            most the flutes' half length, so the bit crosses the wall wherever the guide rests.
+        guide_stiffness_n_m, guide_damping_n_s_m: the guide's contact with the wall face
+            (N/m, N s/m; cardboard yields).
+        guide_friction: the guide's sliding friction on the face (ratio to the normal force).
     """
 
     coulomb_n: float = _bounded(0.5, 1000.0)
@@ -53,6 +65,10 @@ class CuttingModel:
     thrust_n_s_per_m: float = _bounded(200.0, 1e5)
     spindle_torque_nm: float = _bounded(0.02, 10.0)
     smooth_m_s: float = _bounded(0.005, 1.0, positive=True)
+    guide_depth_m: float = _bounded(0.0, 0.02)
+    guide_stiffness_n_m: float = _bounded(2000.0, 1e6, positive=True)
+    guide_damping_n_s_m: float = _bounded(20.0, 1e4)
+    guide_friction: float = _bounded(0.2, 2.0)
 
     def _smooth(self, speed_m_s: float) -> float:
         return 1.0 / math.hypot(speed_m_s, self.smooth_m_s)
@@ -80,6 +96,17 @@ class CuttingModel:
         """The torque (N m, about the bit's axis, + = the spindle's turning sense) that the
         material puts on the drill: negative, braking, while the flutes cut."""
         return self._spindle(float(np.linalg.norm(v_m_s)), engagement)
+
+    def guide_force_n(self, pressed_m: float, v_m_s) -> tuple[float, float, float]:
+        """The force (N, world; out of the wall is -x) the wall face puts on the depth guide
+        pressed ``pressed_m`` into it (<= 0: not touching) moving at ``v_m_s`` (world, m/s);
+        zero without a guide."""
+        if self.guide_depth_m <= 0.0 or pressed_m <= 0.0:
+            return (0.0, 0.0, 0.0)
+        vx, vy, vz = v_m_s
+        normal = max(0.0, self.guide_stiffness_n_m * pressed_m + self.guide_damping_n_s_m * vx)
+        slide = -self.guide_friction * normal * self._smooth(math.sqrt(vy * vy + vz * vz))
+        return (-normal, slide * vy, slide * vz)
 
     def wrench_on_bit(self, v_m_s, axis, flutes: float, point_in_m: float
                       ) -> tuple[tuple[float, float, float], tuple[float, float, float]]:

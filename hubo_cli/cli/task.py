@@ -164,7 +164,11 @@ def show(name: str, as_json: bool) -> None:
                   f"{sc.wall_thickness_m * 1000:g} mm; cutting {sc.cutting.coulomb_n:g} N + "
                   f"{sc.cutting.viscous_n_s_per_m:g} N s/m, thrust {sc.cutting.thrust_n:g} N + "
                   f"{sc.cutting.thrust_n_s_per_m:g} N s/m, spindle "
-                  f"{sc.cutting.spindle_torque_nm:g} N m")
+                  f"{sc.cutting.spindle_torque_nm:g} N m"
+                  + (f"; depth guide {sc.cutting.guide_depth_m * 1000:g} mm behind the bit's "
+                     "middle" if sc.cutting.guide_depth_m else "")
+                  + (f"; the wall {sc.wall_misplaced_m * 1000:+g} mm off the plan"
+                     if sc.wall_misplaced_m else ""))
     console.print(f"safety      e-stop on {', '.join(sa.estop_sources)}; wrist torque limit "
                   f"{sa.wrist_torque_limit_nm:g} N m; revert {sa.revert_s:g} s, "
                   f"stop {sa.stop_s:g} s")
@@ -438,6 +442,12 @@ def _print_cut(summary: dict, run_dir) -> None:
     if parts:
         console.print(f"  wrist       {', '.join(parts)} N m while cutting (limit "
                       f"{torque['limit']:g}; paper 0.14 / 0.23 and 0.15 / 0.35)")
+    thrust = summary.get("thrust_n") or {}
+    if thrust.get("force_control") and thrust.get("samples"):
+        console.print(f"  thrust      {thrust['mean']:.1f} N mean, {thrust['min']:.1f} to "
+                      f"{thrust['max']:.1f} N while cutting (reference "
+                      f"{thrust['reference_mean']:.1f} N; {thrust['share_within_band']:.1%} "
+                      f"within +-{thrust['band']:g} N)")
     stop = summary["estop"]
     if stop is None:
         console.print("  e-stop      none")

@@ -28,6 +28,14 @@ backs the tool out of the wall along its normal, checked against the wall) on a 
 time scale of at least ``RELIEF_S`` within those limits, and holds its end; without a relief
 (or when it returns None) it holds where it braked.
 
+Wrench references (eq. 15 for forces; option ``wrench_reference``): the stopper reads the
+hand wrenches the motion asks for (:data:`~hubo_cli.control.wrench.HAND_WRENCH_PLAN`) and
+passes them on (:data:`~hubo_cli.control.wrench.HAND_WRENCH_REF`, what the ImpedanceController
+pushes with). A stop that reverts the motion reverts them with it: they blend on a minimum-jerk
+profile over T2 to the references of t_emer - T1; a freeze or a wrist-torque stop blends them
+to zero over T2 (the hand stops pushing). They hold while the stop holds, and after a release
+blend back to the live references over the recovery time.
+
 The flag is latched: any request from an enabled source (``cycle.estop_requests``, a call to
 :meth:`stop` -- e.g. from the operator's key or, through :func:`stop_on_signal`, a signal -- or
 a wrist torque above ``model.safety["wrist_torque_limit_nm"]``: the bending moment of the
@@ -49,6 +57,7 @@ import numpy as np
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.status import SafetyEvent, StopperStatus
 from hubo_cli.control.stop_choice import SOFT_SOURCES
+from hubo_cli.control.wrench import HAND_WRENCH_PLAN, HAND_WRENCH_REF, wrench_of
 from hubo_cli.dataflow import Store
 from hubo_cli.estimation.keys import WRENCHES
 from hubo_cli.geometry import (
@@ -80,6 +89,49 @@ def wrist_torque_nm(wrench: np.ndarray | None) -> float:
 MODE_CODE = {name: i for i, name in enumerate(MODES)}
 
 
+class WrenchRevert:
+    """The stopper's wrench references: their history over T1 and the blend of a stop, a hold
+    and a recovery (see the module docstring). Wrenches are arm -> 6-vector (N, N m)."""
+
+    def __init__(self, history_len: int) -> None:
+        self.history: deque[dict] = deque([{}] * history_len, maxlen=history_len)
+        self.out: dict[str, np.ndarray] = {}
+        self._from: dict[str, np.ndarray] = {}
+        self._to: dict[str, np.ndarray] | None = {}  # None: the live references
+        self._t0_s = 0.0
+        self._blend_s = 0.0
+
+    def clear(self) -> None:
+        self.history.extend([{}] * self.history.maxlen)
+        self.out, self._from, self._to = {}, {}, {}
+
+    def start(self, t_s: float, blend_s: float, to: dict | None) -> None:
+        """Blend from the current output to ``to`` (None: the live references) over
+        ``blend_s`` from ``t_s``."""
+        self._from = {arm: w.copy() for arm, w in self.out.items()}
+        self._to = to
+        self._t0_s, self._blend_s = t_s, blend_s
+
+    def update(self, t_s: float, live: dict | None, mode: str) -> dict[str, np.ndarray]:
+        """This period's references for the stopper in ``mode`` with the motion's ``live``."""
+        now = {}
+        for arm in (live or {}):
+            w = wrench_of(live, arm)
+            if w is not None:
+                now[arm] = w.copy()
+        self.history.append(now)
+        if mode == "release":
+            self.out = now
+            return self.out
+        to = now if self._to is None else self._to
+        u = 1.0 if self._blend_s <= 0 else float(min_jerk(min(1.0, max(
+            0.0, (t_s - self._t0_s) / self._blend_s))))
+        zero = np.zeros(6)
+        self.out = {arm: (1.0 - u) * self._from.get(arm, zero) + u * to.get(arm, zero)
+                    for arm in set(self._from) | set(to)}
+        return self.out
+
+
 class EmergencyStopper(Module):
     """Latched emergency stop that reverts the motion (eq. 15) and holds until released.
 
@@ -93,6 +145,8 @@ class EmergencyStopper(Module):
         name: module name (``estop`` or ``hard-estop``); it prefixes the log column.
         limits: override the model's limits (tests).
         wrist_torque_limit_nm: override the model's wrist torque limit (N m).
+        wrench_reference: pass the hand wrench references on, reverted with the motion (reads
+            ``HAND_WRENCH_PLAN``, writes ``HAND_WRENCH_REF``; see the module docstring).
 
     Flags: ``estop`` while stopping or holding, ``recovering`` while blending back,
     ``estop-brake`` while a wrist-torque stop brakes and relieves.
@@ -109,7 +163,8 @@ class EmergencyStopper(Module):
                  stop_s: float = 0.5, recover_s: float = RECOVER_S,
                  sources: tuple[str, ...] | set[str] = SOFT_SOURCES, name: str = "estop",
                  limits: JointLimits | None = None,
-                 wrist_torque_limit_nm: float | None = None) -> None:
+                 wrist_torque_limit_nm: float | None = None,
+                 wrench_reference: bool = False) -> None:
         self.name = name
         self.limits = limits or JointLimits.from_model(model)
         self.dt_s = float(dt_s)
@@ -127,6 +182,8 @@ class EmergencyStopper(Module):
         if self._wrist_torque:
             self.log_columns += ("wrist_torque_nm",)
             self.reads = (WRENCHES,)
+        if wrench_reference:
+            self.reads, self.writes = self.reads + (HAND_WRENCH_PLAN,), (HAND_WRENCH_REF,)
         self.tracker = JointTracker(self.limits, self.dt_s)
         self.brake_tracker = JointTracker(self.limits.for_emergency_brake(model), self.dt_s)
         self.relief: Callable[[np.ndarray], np.ndarray | None] | None = None
@@ -135,6 +192,7 @@ class EmergencyStopper(Module):
         self._path_periods = 1
         self._path_k = 0
         self._history_len = max(1, int(round(self.revert_s / self.dt_s))) + 1
+        self.wrenches = WrenchRevert(self._history_len) if wrench_reference else None
         self.events: list[SafetyEvent] = []
         self._clear(np.zeros(self.limits.size))
         hold_nan(self.last_in, self.last_in, self.out1.copy())  # compile now, not in a period
@@ -163,6 +221,8 @@ class EmergencyStopper(Module):
         self._release = False
         self._brake_only = False
         self._relieving: str | None = None  # "brake", then "move" (wrist-torque stops)
+        if getattr(self, "wrenches", None) is not None:
+            self.wrenches.clear()
 
     # ------------------------------------------------------------------ commands
     def stop(self, source: str = "operator") -> None:
@@ -225,6 +285,9 @@ class EmergencyStopper(Module):
         if sources & RELIEVE_SOURCES:
             self.brake_tracker.reset(*self._output_state())
             self._relieving = "brake"
+        if self.wrenches is not None:  # eq. 15 for the wrenches: back to t_emer - T1, or off
+            back = self._brake_only or self._relieving
+            self.wrenches.start(t_s, self.stop_s, {} if back else dict(self.wrenches.history[0]))
 
     def _relieve(self) -> np.ndarray:
         """One period of a wrist-torque stop: brake at the emergency limits, then play the
@@ -284,6 +347,8 @@ class EmergencyStopper(Module):
                 self._relieving = None
             self.mode = "recover"
             self.t_recover_end_s = cycle.t_s + self.recover_s
+            if self.wrenches is not None:
+                self.wrenches.start(cycle.t_s, self.recover_s, None)
             self.events.append(SafetyEvent(cycle.t_s, "release", ()))
         self._release = False
 
@@ -320,6 +385,9 @@ class EmergencyStopper(Module):
         elif self.mode == "recover":
             cycle.flags.add("recovering")
         cycle.info[self._mode_column] = float(MODE_CODE[self.mode])
+        if self.wrenches is not None:
+            cycle.store[HAND_WRENCH_REF] = self.wrenches.update(
+                cycle.t_s, cycle.store.get(HAND_WRENCH_PLAN), self.mode)
         out = np.array(out, dtype=float)
         self.out3, self.out2, self.out1 = self.out2, self.out1, out
         return out

@@ -19,11 +19,24 @@ So a step of force is followed exactly at every period and a ramp to within its 
 stability limit on dt as with Euler. With no force (u = 0 and s = 0) s stays exactly 0 and the
 command passes through unchanged, bit for bit: the hand tracks its reference exactly.
 
+Force setpoint: with ``reference`` (a store key, :data:`~hubo_cli.control.wrench.HAND_WRENCH_REF`)
+F_ref is read from the per-period store every period (a task step's thrust, reverted by the
+emergency stopper with the motion); else :meth:`set_reference_wrench` sets it. With a nonzero
+reference force and ``force_tracking_m_per_n_s`` > 0 the spring's centre c moves along that
+force's direction d at ``force_tracking_m_per_n_s ((F_N - F_ref) . d)`` (m/s): the spring
+still yields at once, and the centre creeps until the measured force along d equals the
+reference, wherever the surface is (a wall nearer or farther than planned). In free air it
+advances at ``|F_ref| force_tracking_m_per_n_s``, toward the surface. The centre is part of the
+offset (eq. 3 with K (x - c)), clamped with it, and decays back to zero (time constant
+``release_s``) once the reference force is zero. ``axes`` leaves some axes stiff: the input on
+the others is dropped (the drill yields along its bit only, and tracks the path across it).
+
 Force input: the estimate's wrist wrenches (``WRENCHES``: the hand's and the tool's weight
-removed, hrpsys RemoveForceOffset), the wrench the environment applies to the hand in the
-sensor frame S (:func:`~hubo_cli.state.T_frame_sensor`: z along the forearm; another mounting
-is one argument, ``T_hand_sensor``). It is moved to the hand origin in hand axes
-(f_H = R_HS f_S, m_H = R_HS m_S + p_HS x f_H), then turned into N by the hand's measured
+removed, hrpsys RemoveForceOffset; read through
+:func:`~hubo_cli.control.wrench.measured_hand_wrench`), the wrench the environment applies to
+the hand in the sensor frame S (:func:`~hubo_cli.state.T_frame_sensor`: z along the forearm;
+another mounting is one argument, ``T_hand_sensor``). It is moved to the hand origin in hand
+axes (f_H = R_HS f_S, m_H = R_HS m_S + p_HS x f_H), then turned into N by the hand's measured
 orientation (forward kinematics of the measured joints). Hubo's wrist sensors read the force
 along the forearm and the two moments across it only: the hand yields to those.
 
@@ -62,7 +75,15 @@ import numpy as np
 import scipy.linalg
 
 from hubo_cli.control.module import Cycle, Module
-from hubo_cli.dataflow import Store
+from hubo_cli.control.wrench import (
+    ALONG_MIN,
+    MEASURED_FORCE_AXES,
+    MEASURED_WRENCH_READS,
+    WRENCH_AXES,
+    measured_hand_wrench,
+    wrench_of,
+)
+from hubo_cli.dataflow import Key, Store
 from hubo_cli.errors import ConfigError
 from hubo_cli.estimation.keys import WRENCHES
 from hubo_cli.geometry import min_jerk
@@ -131,9 +152,10 @@ def _check_gains(M, D, K) -> None:
 
 
 @nb.njit(**JIT)
-def advance(s, Ad, Bd, wrench_S, T_H_S, R_N_H, wrench_ref_N, s_next) -> None:
-    """s_next = A_d s + B_d (F_N - F_ref_N), with F_N the sensor's wrench moved to the hand
-    origin (f_H = R_HS f_S, m_H = R_HS m_S + p_HS x f_H) and turned into N axes."""
+def advance(s, Ad, Bd, wrench_S, T_H_S, R_N_H, wrench_ref_N, mask, s_next) -> None:
+    """s_next = A_d s + B_d u, u = mask (F_N - F_ref_N), with F_N the sensor's wrench moved to
+    the hand origin (f_H = R_HS f_S, m_H = R_HS m_S + p_HS x f_H) and turned into N axes, and
+    ``mask`` 1 on the axes that yield, 0 on the stiff ones."""
     f_H = np.empty(3)
     m_H = np.empty(3)
     for i in range(3):
@@ -146,9 +168,9 @@ def advance(s, Ad, Bd, wrench_S, T_H_S, R_N_H, wrench_ref_N, s_next) -> None:
     u = np.empty(6)
     for i in range(3):
         u[i] = (R_N_H[i, 0] * f_H[0] + R_N_H[i, 1] * f_H[1] + R_N_H[i, 2] * f_H[2]
-                - wrench_ref_N[i])
+                - wrench_ref_N[i]) * mask[i]
         u[3 + i] = (R_N_H[i, 0] * m_H[0] + R_N_H[i, 1] * m_H[1] + R_N_H[i, 2] * m_H[2]
-                    - wrench_ref_N[3 + i])
+                    - wrench_ref_N[3 + i]) * mask[3 + i]
     for r in range(12):
         acc = 0.0
         for c in range(12):
@@ -231,6 +253,52 @@ def offset_joints(q_cmd, chain, lengths, lower, upper, max_step_rad, x, dq_out) 
     return True
 
 
+@nb.njit(**JIT)
+def track_force(centre, wrench_ref_N, wrench_S, T_H_S, T_N_H, measured, mask, K, gain_m_per_n,
+                decay, max_offset_m, wrench_ref_eff_N) -> None:
+    """One period of force tracking: with a nonzero reference force F_ref (N axes) the centre
+    c moves by ``gain_m_per_n (F_d - |F_ref|) d`` (d = F_ref / |F_ref|, masked axes only,
+    |c| clamped to ``max_offset_m``), F_d the force along d as
+    :func:`~hubo_cli.control.wrench.force_along` reads it from the sensor's ``measured`` force
+    axes (1 measured, 0 not; held where the sensor cannot see d); without a reference it
+    shrinks by the factor ``1 - decay``. Then wrench_ref_eff_N = F_ref - K [c, 0]."""
+    size = math.sqrt(wrench_ref_N[0] ** 2 + wrench_ref_N[1] ** 2 + wrench_ref_N[2] ** 2)
+    if size > 0.0 and gain_m_per_n > 0.0:
+        num = den = 0.0
+        for i in range(3):  # the sensor's force axis i in N, against d
+            if measured[i] == 0.0:
+                continue
+            c = 0.0
+            for r in range(3):
+                a_r = (T_N_H[r, 0] * T_H_S[0, i] + T_N_H[r, 1] * T_H_S[1, i]
+                       + T_N_H[r, 2] * T_H_S[2, i])
+                c += a_r * wrench_ref_N[r] / size
+            num += wrench_S[i] * c
+            den += c * c
+        if den < ALONG_MIN:
+            along = 0.0  # the sensor cannot see a force along d: hold the centre
+        else:
+            along = num / den - size  # F_d - |F_ref|
+        for i in range(3):
+            centre[i] += gain_m_per_n * along * wrench_ref_N[i] / size * mask[i]
+        n = math.sqrt(centre[0] ** 2 + centre[1] ** 2 + centre[2] ** 2)
+        if n > max_offset_m:
+            for i in range(3):
+                centre[i] *= max_offset_m / n
+    else:
+        keep = max(0.0, 1.0 - decay)
+        n = 0.0
+        for i in range(3):
+            centre[i] *= keep
+            n += centre[i] ** 2
+        if math.sqrt(n) < 1e-9:
+            for i in range(3):
+                centre[i] = 0.0
+    for r in range(6):
+        wrench_ref_eff_N[r] = wrench_ref_N[r] - (K[r, 0] * centre[0] + K[r, 1] * centre[1]
+                                                 + K[r, 2] * centre[2])
+
+
 class _Hand:
     """One hand's state: the limb, its joints' slice, sensor, s = [x, x'], the reference
     wrench and the joint offset last applied."""
@@ -248,6 +316,8 @@ class _Hand:
         self.s = np.zeros(12)
         self.s_next = np.zeros(12)
         self.wrench_ref_N = np.zeros(6)
+        self.wrench_ref_eff_N = np.zeros(6)  # F_ref - K [c, 0]: the spring centred on c
+        self.centre_m = np.zeros(3)  # the force tracking's spring centre c (N axes, m)
         self.dq_rad = np.zeros(6)
         self.x_good = np.zeros(6)  # the offset dq_rad reaches
         self.T_N_H = np.empty((4, 4))
@@ -256,6 +326,8 @@ class _Hand:
         side = arm.split("-")[0]
         self.offset_column = f"impedance_{side}_offset_m"
         self.rotation_column = f"impedance_{side}_rotation_rad"
+        self.force_ref_columns = tuple(f"impedance_{side}_force_ref_{a}_n" for a in "xyz")
+        self.centre_column = f"impedance_{side}_centre_m"
 
 
 class ImpedanceController(Module):
@@ -271,11 +343,19 @@ class ImpedanceController(Module):
         arms: the hands it acts on (default both).
         T_hand_sensor: the wrist sensor's frame in the hand frame (4x4, m).
         active: start switched on (True) or off.
+        reference: the store key of the reference wrenches (arm -> 6-vector; read every
+            period), or None: :meth:`set_reference_wrench` sets them.
+        axes: the axes that yield (of ``x y z rx ry rz``, neck-frame axes); the input on the
+            others is dropped. Default all.
+        force_tracking_m_per_n_s: how fast the spring's centre moves per newton of force error
+            along a nonzero reference force (m/s per N; 0: never); None: the robot file's.
 
     Flags: ``impedance-limit`` (an offset clamped), ``impedance-bad-wrench`` (a non-finite
     reading: offset held), ``impedance-unreachable`` (joint offset held), ``impedance-release``.
     Info: ``impedance_mode_code`` (0 on, 1 release, 2 off) and per hand
-    ``impedance_<side>_offset_m`` and ``impedance_<side>_rotation_rad`` (norms of x).
+    ``impedance_<side>_offset_m`` and ``impedance_<side>_rotation_rad`` (norms of x),
+    ``impedance_<side>_force_ref_{x,y,z}_n`` (the reference force used, N axes) and
+    ``impedance_<side>_centre_m`` (how far force tracking moved the spring's centre).
     """
 
     name = "impedance"
@@ -284,7 +364,9 @@ class ImpedanceController(Module):
     def __init__(self, model: RobotModel, dt_s: float, M=None, D=None, K=None,
                  max_offset_m: float | None = None, max_rotation_rad: float | None = None,
                  release_s: float | None = None, arms: tuple[str, ...] = ARMS,
-                 T_hand_sensor: np.ndarray = T_HAND_SENSOR, active: bool = True) -> None:
+                 T_hand_sensor: np.ndarray = T_HAND_SENSOR, active: bool = True,
+                 reference: Key | None = None, axes: tuple[str, ...] = WRENCH_AXES,
+                 force_tracking_m_per_n_s: float | None = None) -> None:
         raw = model.raw_impedance
         defaults = default_gains(model) if M is None or D is None or K is None else {}
         self.M, self.D, self.K = (
@@ -297,12 +379,27 @@ class ImpedanceController(Module):
             self.max_rotation_rad = float(raw["max_rotation_rad"] if max_rotation_rad is None
                                           else max_rotation_rad)
             self.release_s = float(raw["release_s"] if release_s is None else release_s)
+            self.force_tracking_m_per_n_s = float(
+                raw["force_tracking_m_per_n_s"] if force_tracking_m_per_n_s is None
+                else force_tracking_m_per_n_s)
         except (KeyError, TypeError, ValueError) as exc:
-            raise ConfigError("[impedance] needs numbers max_offset_m, max_rotation_rad and "
-                              "release_s", path=str(model.source), hint=str(exc)) from None
+            raise ConfigError("[impedance] needs numbers max_offset_m, max_rotation_rad, "
+                              "release_s and force_tracking_m_per_n_s", path=str(model.source),
+                              hint=str(exc)) from None
         if not (self.max_offset_m >= 0 and self.max_rotation_rad >= 0 and self.release_s >= 0
-                and math.isfinite(self.max_offset_m + self.max_rotation_rad + self.release_s)):
-            raise ConfigError("impedance limits and release time must be finite and >= 0")
+                and self.force_tracking_m_per_n_s >= 0
+                and math.isfinite(self.max_offset_m + self.max_rotation_rad + self.release_s
+                                  + self.force_tracking_m_per_n_s)):
+            raise ConfigError("impedance limits, release time and force tracking rate must be "
+                              "finite and >= 0")
+        unknown_axes = [a for a in axes if a not in WRENCH_AXES]
+        if unknown_axes:
+            raise ConfigError(f"impedance on unknown axis {unknown_axes[0]!r}",
+                              hint=f"use some of {' '.join(WRENCH_AXES)}")
+        self.axes_mask = np.array([a in axes for a in WRENCH_AXES], dtype=float)
+        self.measured_force = np.array([i in MEASURED_FORCE_AXES for i in range(3)], dtype=float)
+        self.reference = reference
+        self.reads = MEASURED_WRENCH_READS + (() if reference is None else (reference,))
         unknown = [a for a in arms if a not in HAND_SENSORS]
         if unknown:
             raise ConfigError(f"impedance on unknown arm {unknown[0]!r}",
@@ -313,7 +410,8 @@ class ImpedanceController(Module):
         self.hands = [_Hand(model, arm, self.dt_s) for arm in arms]
         self._initially_active = active
         self.log_columns = ("impedance_mode_code",) + tuple(
-            c for h in self.hands for c in (h.offset_column, h.rotation_column))
+            c for h in self.hands for c in (h.offset_column, h.rotation_column,
+                                             *h.force_ref_columns, h.centre_column))
         self._last_in = np.zeros(len(model.joint_names))
         self._clear()
         self._warm_up()
@@ -327,6 +425,7 @@ class ImpedanceController(Module):
             for h in self.hands:
                 h.release_from = h.s[:6].copy()
                 h.dq_release_rad = h.dq_rad.copy()
+                h.centre_m[:] = 0.0
 
     def switch_on(self) -> None:
         """Resume eq. 3 from the current offset (and its rate while blending back)."""
@@ -342,6 +441,7 @@ class ImpedanceController(Module):
         for h in self.hands:
             if h.arm == arm:
                 h.wrench_ref_N[:] = w
+                h.wrench_ref_eff_N[:] = w
                 return
         raise ConfigError(f"no impedance on {arm!r}",
                           hint=f"it acts on {', '.join(h.arm for h in self.hands)}")
@@ -358,6 +458,8 @@ class ImpedanceController(Module):
             h.s[:] = 0.0
             h.dq_rad[:] = 0.0
             h.x_good[:] = 0.0
+            h.centre_m[:] = 0.0
+            h.wrench_ref_eff_N[:] = h.wrench_ref_N
 
     def _warm_up(self) -> None:
         """Compile the kernels now, not in a control period."""
@@ -365,8 +467,11 @@ class ImpedanceController(Module):
         scratch = h.s.copy()
         chain_fk(np.zeros(6), *h.fk_chain, h.T_N_H)
         advance(scratch, self.Ad, self.Bd, np.zeros(6), self.T_hand_sensor, h.T_N_H[:3, :3],
-                h.wrench_ref_N, h.s_next)
+                h.wrench_ref_N, self.axes_mask, h.s_next)
         clamp_offset(scratch, 1.0, 1.0)
+        track_force(np.zeros(3), h.wrench_ref_N, np.zeros(6), self.T_hand_sensor, h.T_N_H,
+                    self.measured_force, self.axes_mask, self.K, 0.0, 0.0, 1.0,
+                    h.wrench_ref_eff_N.copy())
         offset_joints(np.zeros(6), *h.ik, np.zeros(6), np.zeros(6))
         all_finite(scratch)
         hold_nan(self._last_in, self._last_in, self._last_in.copy())
@@ -393,6 +498,16 @@ class ImpedanceController(Module):
                 h.s[:] = 0.0
                 h.dq_rad[:] = 0.0
 
+    def _track_force(self, h: _Hand, wrench_S: np.ndarray) -> None:
+        """Move the spring's centre c along the reference force (see the module docstring) and
+        set the input's reference to F_ref - K [c, 0]. Called with a finite reading after
+        ``h.T_N_H`` holds the measured hand pose."""
+        track_force(h.centre_m, h.wrench_ref_N, wrench_S, self.T_hand_sensor, h.T_N_H,
+                    self.measured_force, self.axes_mask, self.K,
+                    self.force_tracking_m_per_n_s * self.dt_s,
+                    self.dt_s / max(self.release_s, self.dt_s), self.max_offset_m,
+                    h.wrench_ref_eff_N)
+
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         q_in = np.empty(self._last_in.shape[0])
         hold_nan(np.ascontiguousarray(q_rad, dtype=float), self._last_in, q_in)
@@ -401,10 +516,13 @@ class ImpedanceController(Module):
             cycle.flags.add(RELEASE_FLAG)
             self._release_step()
         out = q_in
-        wrenches = cycle.store[WRENCHES] if self.mode == "on" else {}
+        references = None if self.reference is None else cycle.store.get(self.reference)
         for h in self.hands:
+            if self.reference is not None:
+                w = wrench_of(references, h.arm)
+                h.wrench_ref_N[:] = 0.0 if w is None else w
             if self.mode == "on":
-                wrench_S = wrenches.get(h.sensor)
+                wrench_S = measured_hand_wrench(state, cycle.store, h.sensor)
                 if wrench_S is None:
                     wrench_S = np.zeros(6)
                 if not all_finite(wrench_S):
@@ -414,8 +532,9 @@ class ImpedanceController(Module):
                     if not all_finite(q_hand):
                         q_hand = q_in[h.slice]
                     chain_fk(q_hand, *h.fk_chain, h.T_N_H)
+                    self._track_force(h, wrench_S)
                     advance(h.s, self.Ad, self.Bd, wrench_S, self.T_hand_sensor,
-                            h.T_N_H[:3, :3], h.wrench_ref_N, h.s_next)
+                            h.T_N_H[:3, :3], h.wrench_ref_eff_N, self.axes_mask, h.s_next)
                     if all_finite(h.s_next):  # else (overflow) the offset is held
                         h.s, h.s_next = h.s_next, h.s
                     else:
@@ -425,6 +544,9 @@ class ImpedanceController(Module):
             x = h.s[:6]
             cycle.info[h.offset_column] = float(np.linalg.norm(x[:3]))
             cycle.info[h.rotation_column] = float(np.linalg.norm(x[3:]))
+            for column, value in zip(h.force_ref_columns, h.wrench_ref_N[:3], strict=True):
+                cycle.info[column] = float(value)
+            cycle.info[h.centre_column] = float(np.linalg.norm(h.centre_m))
             if not x.any():
                 h.dq_rad[:] = 0.0
                 h.x_good[:] = 0.0

@@ -192,6 +192,7 @@ class ControlLoop:
             estimator = build_estimator(driver.model, period_s=self.dt_s)
         self.estimator = estimator
         self.store = estimator.store if estimator is not None else Store()
+        self.target.store = self.store
         check_flow([self.target, *self.modules],
                    provided=estimator.writes if estimator is not None else ())
         self.clock = clock

@@ -13,7 +13,9 @@ second stopper (freeze preset, reacting only to the ``hard`` source) and ``limit
 error limiter. The capture-point monitor passes the command through; it sits before ``estop``
 so that its request is seen in the same period. ``hoff-arbib`` can replace ``otg``.
 ``impedance`` (hrpsys ``ic``, eq. 3) is optional and off by default: with
-``SafetyProfile(impedance=True)`` it follows the soft stopper (before the balancer).
+``SafetyProfile(impedance=True)`` it follows the soft stopper (before the balancer); with
+``wrench_reference=True`` the stopper passes the target's hand wrench references on to it,
+reverted with the motion (:mod:`hubo_cli.control.wrench`).
 The limiter must stay last: it is what guarantees the limits.
 
 A :class:`SafetyProfile` decides the order and the options of one run's pipeline; every robot
@@ -29,8 +31,9 @@ from hubo_cli.control.balance import BALANCE_MODES
 from hubo_cli.control.estop import SOFT_SOURCES
 from hubo_cli.control.module import Module
 from hubo_cli.control.stop_choice import ActiveStops
+from hubo_cli.control.wrench import HAND_WRENCH_PLAN, HAND_WRENCH_REF, WRENCH_AXES
 from hubo_cli.errors import ConfigError
-from hubo_cli.model import RobotModel
+from hubo_cli.model import ARMS, RobotModel
 
 BALANCE_CHOICES = (*BALANCE_MODES, "off")  # ``--balance``: a balancer's mode, or none
 DEFAULT_ORDER = ("otg", "capture-point", "estop", "balance", "collision", "hard-estop",
@@ -194,6 +197,13 @@ class SafetyProfile:
             file's ``[impedance]`` gains; off by default.
         tracker_sync: within each of ``otg``'s trackers, ``phase`` (the joints arrive together
             on a straight line in joint space) or ``none`` (each joint time-optimal).
+        wrench_reference: the target writes hand wrench references
+            (:mod:`hubo_cli.control.wrench`): the soft stopper reverts them with the motion and
+            the impedance controller (if on) takes them as its force setpoint.
+        impedance_arms, impedance_axes: the hands the impedance controller acts on and the
+            axes they yield along (neck-frame ``x y z rx ry rz``).
+        impedance_active: it starts switched on (False: off until its ``switch_on()``, e.g.
+            from a task once its plan runs).
         limit_set: the robot file's joint-limit set the limiter enforces (``table4``, the
             paper's, or e.g. ``walking``, whose legs are fast enough to step and to bow the
             trunk); None: the set the run's model was loaded with. Where a use case needs a
@@ -214,6 +224,10 @@ class SafetyProfile:
     tracker_groups: str = "body"
     tracker_sync: str = "phase"
     impedance: bool = False
+    wrench_reference: bool = False
+    impedance_arms: tuple[str, ...] = ARMS
+    impedance_axes: tuple[str, ...] = WRENCH_AXES
+    impedance_active: bool = True
     removed: tuple[str, ...] = ()
     removed_by: str = ""
     limit_set: str | None = None
@@ -286,11 +300,18 @@ class SafetyProfile:
     def options(self, tools: Mapping[str, str]) -> dict[str, dict]:
         """Per-module options for a robot holding ``tools`` (arm -> tool)."""
         drill = tools.get("right-arm") == "drill"
+        reference = None
+        if self.wrench_reference:
+            reference = HAND_WRENCH_REF if self.estop else HAND_WRENCH_PLAN
         return {
             "otg": {"groups": self.tracker_groups, "synchronization": self.tracker_sync},
             "estop": {"sources": tuple(self.sources), "revert_s": self.revert_s,
                       "stop_s": self.stop_s,
-                      "wrist_torque_limit_nm": self.wrist_torque_limit_nm},
+                      "wrist_torque_limit_nm": self.wrist_torque_limit_nm,
+                      "wrench_reference": self.wrench_reference},
+            "impedance": {"reference": reference, "arms": tuple(self.impedance_arms),
+                          "axes": tuple(self.impedance_axes),
+                          "active": self.impedance_active},
             "capture-point": {"request_estop": self.estop, "drill": drill},
             "collision": {"drill": drill},
             "balance": {"mode": self.balance_mode, "drill": drill},

@@ -28,10 +28,14 @@ class Target(ABC):
             the live view shows the driver's, e.g. ``stale-state``).
         name: the target's name in flow errors.
         reads, writes, follows: the store keys it reads (the estimate's), writes (for the
-            modules) and reads when written (checked when the loop is built).
+            modules, e.g. hand wrench references) and reads when written (checked when the
+            loop is built).
+        store: the run's per-period store, given in :meth:`attach` (a target reads and writes
+            only the keys it declares).
     """
 
     name = "target"
+    store: Store | None = None
     log_columns: tuple[str, ...] = ()
     reads: tuple[Key, ...] = ()
     writes: tuple[Key, ...] = ()

@@ -251,6 +251,22 @@ class Wall:
         return min(1.0, flutes), min(1.0, point)
 
 
+def _with_guide(force, torque, cutting: CuttingModel, wall: Wall, rows: list, bit_xyz, v):
+    """The cutting wrench (force at ``bit_xyz``, torque; world) plus the depth guide's contact
+    with the wall face (:meth:`CuttingModel.guide_force_n`), the guide's force moved to
+    ``bit_xyz``: both lie on the bit's axis. ``rows``: the bit frame's pose in the world."""
+    (ax, _, _, mx), (ay, _, _, my), (az, _, _, mz), _ = rows
+    d = cutting.guide_depth_m
+    gx, gy, gz = mx - d * ax, my - d * ay, mz - d * az  # the guide's face on the axis
+    if not (abs(gy - wall.centre_y_m) <= wall.width_m / 2 and 0.0 <= gz <= wall.height_m):
+        return force, torque
+    fx, fy, fz = cutting.guide_force_n(gx - wall.distance_m, v)
+    rx, ry, rz = gx - bit_xyz[0], gy - bit_xyz[1], gz - bit_xyz[2]
+    return ((force[0] + fx, force[1] + fy, force[2] + fz),
+            (torque[0] + ry * fz - rz * fy, torque[1] + rz * fx - rx * fz,
+             torque[2] + rx * fy - ry * fx))
+
+
 @dataclass
 class _Push:
     force_world_n: np.ndarray
@@ -796,7 +812,10 @@ class SimDriver(Driver, SimulatedWorld):
             (ax, _, _, mx), (ay, _, _, _), (az, _, _, _), _ = rows
             flutes, point = wall._engagement(ax, mx, drill.bit_half_length_m,
                                              drill.bit_radius_m)
-            force, torque = self.options.cutting.wrench_on_bit(v, (ax, ay, az), flutes, point)
+            cutting = self.options.cutting
+            force, torque = cutting.wrench_on_bit(v, (ax, ay, az), flutes, point)
+            if cutting.guide_depth_m > 0.0:  # the depth guide on the face: moved to bit_xyz
+                force, torque = _with_guide(force, torque, cutting, wall, rows, bit_xyz, v)
             self._cutting_floats = (force, torque, bit_xyz)  # cutting_force_n ... as floats
             self._cutting_set = True
             p.applyExternalForce(self._robot, link, force, bit_xyz, p.WORLD_FRAME,

@@ -10,6 +10,11 @@ the same lift filter, each solution seeded with the previous one -- so the joint
 known before the robot starts and pre-flight checks every period's pose, not a sample of them.
 A pose whose arm solution is not exact makes pre-flight refuse the task, naming the step and
 how far the pose lies beyond the arm's reach.
+
+Steps with a ``thrust_n`` give each period a reference thrust (:attr:`Plan.thrust_n`, ramped
+over ``FORCE_RAMP_S`` at each change): the force the tool presses into the wall with, along
+S's x. The waist's CoM shift plans for it (the multi-layer paper's eq. 6: the wall pushes the
+hand back with the task's largest thrust).
 """
 
 from __future__ import annotations
@@ -44,6 +49,9 @@ class Placement:
         shift_m: the waist's shift forward over the feet for the whole task (m, CoM control;
             the auto wall distance includes it, so the arm meets the work where the map found
             it reachable).
+        shift_per_force_m_n: how far that shift moves per newton of hand force along S's x
+            (m/N, eq. 6 at the task's middle height; 0 without CoM control): the run leans
+            into the force the hand really meets (:mod:`hubo_cli.control.reference_force`).
     """
 
     wall_distance_m: float
@@ -52,6 +60,7 @@ class Placement:
     auto: bool = False
     room_m: float | None = None
     shift_m: float = 0.0
+    shift_per_force_m_n: float = 0.0
 
     def T_S_W(self) -> np.ndarray:
         """The wall frame in the stance frame (4x4, m): a translation."""
@@ -148,6 +157,8 @@ class Plan:
         preflight: the reachability verdict.
         body: the whole-body solver (and so the model and tool) the plan was made with; the
             run uses the same one.
+        thrust_n: (N,) the reference thrust: the force the tool presses into the wall with,
+            along S's x (N; 0: position control).
     """
 
     spec: TaskSpec
@@ -164,10 +175,20 @@ class Plan:
     step_times_s: list[tuple[float, float]]
     preflight: Preflight
     body: WholeBody
+    thrust_n: np.ndarray | None = None
 
     @property
     def duration_s(self) -> float:
         return float(self.t_s[-1]) if len(self.t_s) else 0.0
+
+    @property
+    def has_force(self) -> bool:
+        """Some step presses with a thrust (the run needs force control)."""
+        return self.thrust_n is not None and bool(np.any(self.thrust_n > 0))
+
+    def hand_force_S_n(self, k: int) -> np.ndarray:
+        """The force (N, in S) the wall should exert on the tool at plan row ``k``."""
+        return np.array([-float(self.thrust_n[k]), 0.0, 0.0])
 
 
 PLAN_MAX_S = 1800.0  # a task's whole timeline (s): longer is a typo (and would not fit memory)
@@ -180,6 +201,10 @@ LIFT_MARGIN_M = 0.01  # the arm's vertical room kept around the working height (
 # correction holding the bit in the world it costs the hole little and buys the capture point
 # 20 mm: default cut, support margin 101 vs 81 mm, hole RMS 1.36 vs 1.29 mm, tilt 0.26 vs 0.25 deg
 COM_CONTROL = True
+FORCE_RAMP_S = 0.5  # a step's thrust is reached (or let go) linearly over this time (s)
+# the auto placement keeps a pressing step's poses reachable this much deeper and shallower:
+# force control moves the tool along the bit to where the wall really is
+FORCE_REACH_M = 0.025
 
 
 def place(spec: TaskSpec, model: RobotModel) -> Placement:
@@ -197,6 +222,11 @@ def place(spec: TaskSpec, model: RobotModel) -> Placement:
     stance = spec.stance
     T_first, pieces = _pieces(spec, np.eye(4))
     samples = _sample_positions(T_first, pieces)  # in W: (depth, y, z)
+    if any(step.thrust_n > 0 for step in spec.steps):  # force control may go find the wall
+        pressed = _sample_positions(T_first, [p for p in pieces
+                                              if spec.steps[p.step].thrust_n > 0])
+        samples = np.vstack([samples] + [pressed + (d, 0.0, 0.0)
+                                         for d in (-FORCE_REACH_M, FORCE_REACH_M)])
     top_W = float(samples[:, 2].max())
     if stance.wall_distance_m is not None and stance.centre_m is not None:
         return Placement(stance.wall_distance_m, stance.centre_m, stance.centre_m[1] + top_W)
@@ -267,15 +297,26 @@ def _with_com_shift(spec: TaskSpec, model: RobotModel, placement: Placement) -> 
                      com_control=True)
     T_first, pieces = _pieces(spec, placement.T_S_W())
     samples = _sample_positions(T_first, pieces)
+    thrust = max(step.thrust_n for step in spec.steps)
+    forces = {limb: np.array([-thrust, 0.0, 0.0])} if thrust > 0 else None  # eq. 6
     shifts = []
     for z in (samples[:, 2].max(), samples[:, 2].min()):
         T = T_first.copy()
         T[2, 3] = z
         shifts.append(body.solve({limb: T}, home_posture(model),
-                                 lift_m=body.lift_for({limb: T})).shift_m)
+                                 lift_m=body.lift_for({limb: T}), hand_forces_n=forces).shift_m)
     shift = float(np.mean(shifts))
+    per_force = 0.0
+    if forces is not None:  # the slope of eq. 6's shift at the middle height, +-1 N
+        T = T_first.copy()
+        T[2, 3] = 0.5 * (samples[:, 2].max() + samples[:, 2].min())
+        lift = body.lift_for({limb: T})
+        ends = [body.solve({limb: T}, home_posture(model), lift_m=lift,
+                           hand_forces_n={limb: forces[limb] + (f, 0.0, 0.0)}).shift_m
+                for f in (-1.0, 1.0)]
+        per_force = 0.5 * (ends[1] - ends[0])
     return Placement(placement.wall_distance_m + shift, placement.centre_m,
-                     placement.working_height_m, True, placement.room_m, shift)
+                     placement.working_height_m, True, placement.room_m, shift, per_force)
 
 
 def _fallback(spec: TaskSpec, wmap, top_W: float) -> Placement:
@@ -442,13 +483,24 @@ def make_plan(spec: TaskSpec, model: RobotModel, placement: Placement | None = N
             cutting[i] = piece.cutting
             edge[i] = piece.edge
     warnings = _limit_warnings(spec, model, q, step_index, dt)
+    thrust = _ramped(np.array([spec.steps[k].thrust_n for k in step_index]),
+                     int(round(FORCE_RAMP_S / dt)))
     step_times = [(0.0, 0.0)]
     for k in range(1, len(spec.steps)):
         mine = [j for j, p in enumerate(pieces) if p.step == k]
         step_times.append((float(starts[mine[0]]), float(starts[mine[-1] + 1])) if mine
                           else (step_times[-1][1],) * 2)
     return Plan(spec, placement, dt, first.q_rad, T_first, t, step_index, goal, q, cutting, edge,
-                step_times, Preflight(misses, n + 1, warnings), body)
+                step_times, Preflight(misses, n + 1, warnings), body, thrust)
+
+
+def _ramped(values: np.ndarray, periods: int) -> np.ndarray:
+    """``values`` with each change spread linearly over the following ``periods`` rows (a
+    causal moving average; zero before the start: the first move presses on nothing)."""
+    if periods <= 1 or not values.any():
+        return values.astype(float)
+    padded = np.concatenate([np.zeros(periods - 1), values]).astype(float)
+    return np.convolve(padded, np.ones(periods) / periods, mode="valid")
 
 
 def _limit_warnings(spec: TaskSpec, model: RobotModel, q: np.ndarray, step_index: np.ndarray,

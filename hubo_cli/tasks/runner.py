@@ -59,6 +59,18 @@ def check_task(spec: TaskSpec, model: RobotModel | None = None) -> Plan:
     return make_plan(spec, model or load_model())
 
 
+def force_control(plan: Plan) -> dict:
+    """The safety profile's settings for a plan's hand forces: none for a position-only plan;
+    with a thrust, the ImpedanceController on the task's hand, yielding along the bit only
+    (neck-frame x; the path across it stays stiff), its setpoint the plan's force reverted by
+    the stopper with the motion, switched on by the task once the plan runs (the first move
+    swings the arm up from hanging, past its straight elbow)."""
+    if not plan.has_force:
+        return {}
+    return {"impedance": True, "wrench_reference": True, "impedance_active": False,
+            "impedance_arms": (plan.spec.stance.limb,), "impedance_axes": ("x",)}
+
+
 def task_setup(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
                gui: bool = False, stops: ActiveStops | None = None,
                driver_options: dict | None = None, perturb_seed: int | None = None,
@@ -77,8 +89,8 @@ def task_setup(plan: Plan, *, driver: str = "sim", out: str | Path | None = None
         driver_options=dict(driver_options or {}),
         safety=SafetyProfile(sources=tuple(safety.estop_sources),
                              revert_s=safety.revert_s, stop_s=safety.stop_s,
-                             wrist_torque_limit_nm=safety.wrist_torque_limit_nm
-                             ).with_stops(stops).with_balance(balance),
+                             wrist_torque_limit_nm=safety.wrist_torque_limit_nm,
+                             **force_control(plan)).with_stops(stops).with_balance(balance),
         gui=gui, out=out, q_start_rad=home_posture(plan.body.model),
         duration_s=plan.duration_s + 3 * SETTLE_TIMEOUT_S + 10.0,
         cutting=asdict(spec.scene.cutting),
@@ -384,8 +396,32 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
             "paper": PAPER_TORQUE_NM},
         "paper_rms_error_mm": PAPER_RMS_ERROR_MM,
         "estop": stop,
-        "scene": target.scene,
+        "scene": target.scene | ({"misplaced_mm": spec.scene.wall_misplaced_m * 1000}
+                                 if spec.scene.wall_misplaced_m else {}),
+        "thrust_n": _thrust_summary(target),
     }
+
+
+THRUST_BAND_N = 2.0  # the issue's band around the reference thrust while cutting
+
+
+def _thrust_summary(target: TaskTarget) -> dict:
+    """The measured thrust against its reference (0 for position control) while cutting (N;
+    a reading that is not finite, no wrist sensor, is left out)."""
+    thrust = np.asarray(target.cut_thrust_n, dtype=float)
+    reference = np.asarray(target.cut_thrust_ref_n, dtype=float)
+    finite = np.isfinite(thrust)
+    thrust, reference = thrust[finite], reference[finite]
+    error = thrust - reference
+    if not len(thrust):
+        return {"samples": 0}
+    return {"samples": len(thrust), "mean": float(thrust.mean()),
+            "min": float(thrust.min()), "max": float(thrust.max()),
+            "max_error": float(np.abs(error).max()),
+            "rms_error": float(np.sqrt(np.mean(error**2))),
+            "share_within_band": float(np.mean(np.abs(error) <= THRUST_BAND_N)),
+            "band": THRUST_BAND_N,
+            "reference_mean": float(reference.mean()), "force_control": target.force}
 
 
 def run_experiment(spec: TaskSpec, *, out: str | Path | None = None, gui: bool = False,

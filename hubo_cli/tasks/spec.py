@@ -17,10 +17,14 @@ the step runner, :mod:`hubo_cli.tasks.runner`) or ``experiment`` (a built-in pro
     from the working stance, x forward and y left in the stance frame, and walks there first;
     [-1000, 0] is 1 m behind it).
 ``[scene.wall]``
-    ``width_mm``, ``height_mm``, ``thickness_mm`` of the wall (``[scene.cutting]``: the
+    ``width_mm``, ``height_mm``, ``thickness_mm`` of the wall and ``misplaced_mm``: how much
+    farther the simulated wall stands than the plan puts it (negative: nearer; default 0), a
+    wall the robot's recognition misjudged (``[scene.cutting]``: the
     simulated material's reaction to the drill, any field of
     :class:`hubo_cli.scene.CuttingModel` by name: ``coulomb_n``, ``viscous_n_s_per_m``,
-    ``thrust_n``, ``thrust_n_s_per_m``, ``spindle_torque_nm``, ``smooth_m_s``).
+    ``thrust_n``, ``thrust_n_s_per_m``, ``spindle_torque_nm``, ``smooth_m_s``, and the drill's
+    depth guide ``guide_depth_m``, ``guide_stiffness_n_m``, ``guide_damping_n_s_m``,
+    ``guide_friction``).
 ``[safety]``
     ``estop_sources`` (of ``operator``, ``capture-point``, ``wrist-torque``,
     ``stale-input``; the first three always), ``wrist_torque_limit_nm`` (at most the robot
@@ -43,6 +47,14 @@ the step runner, :mod:`hubo_cli.tasks.runner`) or ``experiment`` (a built-in pro
     - ``retract``: straight back along the bit to ``depth_mm`` at ``speed_mm_s``.
     - ``wait``: hold still for ``duration_s``.
 
+    ``plunge``, ``follow`` and ``wait`` take an optional ``thrust_n``: the force (N, > 0) with
+    which the tool presses into the wall along the bit during the step (default 0: position
+    control only). A task with a thrust runs the hand under force control: the
+    ImpedanceController yields along the bit and holds the measured thrust at the step's, so
+    the depth follows the wall rather than the plan (a wall nearer or farther than planned is
+    still cut); across the bit the tool keeps its path. The reference ramps over
+    ``FORCE_RAMP_S`` at each change and is 0 outside these steps.
+
 Frames: the wall frame W has its origin on the wall face at ``centre_mm``, x into the wall
 (the bit's direction), y to the robot's left and z up, parallel to the stance frame S (the home
 neck frame). Lengths are in millimetres in the file and metres in the objects built from it.
@@ -54,7 +66,7 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
 from hubo_cli.control.stop_choice import SOFT_SOURCES, TASK_SOURCES, stops_words
@@ -78,6 +90,8 @@ STEP_MAX_S = 600.0           # one move or wait
 STOP_MAX_S = 5.0             # T1 and T2 of the emergency stopper (paper: 0.5 s)
 WRIST_TORQUE_MAX_NM = 50.0
 WALL_MAX_MM = 10000.0
+THRUST_MAX_N = 15.0          # the impedance spring's 500 N/m over its 30 mm offset limit
+MISPLACED_MAX_MM = 100.0     # a wall misjudged by more is not a recognition error to test
 START_MAX_MM = 10000.0       # a walk to the working stance (``hubo walk``'s longest goal)
 
 
@@ -107,12 +121,14 @@ class Stance:
 
 @dataclass(frozen=True)
 class Scene:
-    """The wall (m) and the material's reaction to the drill."""
+    """The wall (m), the material's reaction to the drill, and how much farther the wall
+    stands than the plan puts it (m; negative: nearer)."""
 
     wall_width_m: float = 1.2
     wall_height_m: float = 2.0
     wall_thickness_m: float = 0.005
     cutting: CuttingModel = field(default_factory=CuttingModel)
+    wall_misplaced_m: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -139,6 +155,8 @@ class Step:
         speed_m_s: move (optional), plunge, follow, retract.
         accel_m_s2: follow: the bit's acceleration at each corner (None: the planner's).
         duration_s: move (optional), wait.
+        thrust_n: plunge, follow, wait: the force the tool presses into the wall with (N;
+            0: position control).
         path: follow: ``rectangle`` or ``polyline`` (what the file said, for ``show``).
         shape: follow rectangle: width, height, start, direction (for ``show``).
     """
@@ -152,6 +170,7 @@ class Step:
     speed_m_s: float | None = None
     accel_m_s2: float | None = None
     duration_s: float | None = None
+    thrust_n: float = 0.0
     path: str = ""
     shape: dict = field(default_factory=dict)
 
@@ -169,12 +188,13 @@ class Step:
                 return f" at {mm(self.speed_m_s)} mm/s"
             return f" in {self.duration_s:g} s"
 
+        pressing = f", pressing {self.thrust_n:g} N" if self.thrust_n else ""
         if self.kind == "move":
             where = ("the start of the next path" if self.to_m is None
                      else f"y {mm(self.to_m[0])}, z {mm(self.to_m[1])} mm")
             return f"move the tool to {where}, depth {mm(self.depth_m)} mm{at()}"
         if self.kind in ("plunge", "retract"):
-            return f"{self.kind} to depth {mm(self.depth_m)} mm{at()}"
+            return f"{self.kind} to depth {mm(self.depth_m)} mm{at()}{pressing}"
         if self.kind == "follow":
             if self.path == "rectangle":
                 s = self.shape
@@ -182,8 +202,8 @@ class Step:
                         f"{s['start']} corner, {s['direction']}")
             else:
                 what = f"polyline of {len(self.points_m)} points"
-            return f"cut along a {what}{at()}"
-        return f"wait {self.duration_s:g} s"
+            return f"cut along a {what}{at()}{pressing}"
+        return f"wait {self.duration_s:g} s{pressing}"
 
 
 @dataclass(frozen=True)
@@ -465,7 +485,9 @@ class _Loader:
                 f.name: cutting.number(f.name, minimum=0.0, positive=f.metadata["positive"],
                                        maximum=f.metadata["maximum"],
                                        default=f.default)
-                for f in fields(CuttingModel)}))
+                for f in fields(CuttingModel)}),
+            wall_misplaced_m=wall.number("misplaced_mm", minimum=-MISPLACED_MAX_MM,
+                                         maximum=MISPLACED_MAX_MM, default=0.0) / 1000)
         wall.finish()
         cutting.finish()
         t.finish()
@@ -541,18 +563,24 @@ class _Loader:
         return Step(kind, name, number, to_m=None if to is None else (to[0] / 1000, to[1] / 1000),
                     depth_m=depth / 1000, speed_m_s=speed, duration_s=duration)
 
-    def _plunge(self, t: _Table, kind: str, name: str, number: int) -> Step:
+    def _retract(self, t: _Table, kind: str, name: str, number: int) -> Step:
         return Step(kind, name, number,
                     depth_m=t.number("depth_mm", minimum=-LENGTH_MAX_MM,
                                      maximum=LENGTH_MAX_MM) / 1000,
                     speed_m_s=t.number("speed_mm_s", positive=True,
                                        maximum=TOOL_SPEED_MAX_MM_S) / 1000)
 
-    _retract = _plunge
+    def _plunge(self, t: _Table, kind: str, name: str, number: int) -> Step:
+        return replace(self._retract(t, kind, name, number), thrust_n=self._thrust(t))
+
+    @staticmethod
+    def _thrust(t: _Table) -> float:
+        return t.number("thrust_n", minimum=0.0, maximum=THRUST_MAX_N, default=0.0)
 
     def _wait(self, t: _Table, kind: str, name: str, number: int) -> Step:
         return Step(kind, name, number,
-                    duration_s=t.number("duration_s", minimum=0.0, maximum=STEP_MAX_S))
+                    duration_s=t.number("duration_s", minimum=0.0, maximum=STEP_MAX_S),
+                    thrust_n=self._thrust(t))
 
     def _follow(self, t: _Table, kind: str, name: str, number: int) -> Step:
         path = t.choice("path", ("rectangle", "polyline"))
@@ -564,7 +592,8 @@ class _Loader:
             points = t.points("points_mm")
             return Step(kind, name, number, points_m=tuple((y / 1000, z / 1000)
                                                            for y, z in points),
-                        speed_m_s=speed, accel_m_s2=accel, path=path)
+                        speed_m_s=speed, accel_m_s2=accel, path=path,
+                        thrust_n=self._thrust(t))
         width = t.number("width_mm", positive=True, maximum=LENGTH_MAX_MM) / 1000
         height = t.number("height_mm", positive=True, maximum=LENGTH_MAX_MM) / 1000
         centre = t.point("centre_mm", default=(0.0, 0.0))
@@ -574,7 +603,7 @@ class _Loader:
                                   direction)
         shape = {"width_m": width, "height_m": height, "start": start, "direction": direction}
         return Step(kind, name, number, points_m=points, speed_m_s=speed, accel_m_s2=accel,
-                    path=path, shape=shape)
+                    path=path, shape=shape, thrust_n=self._thrust(t))
 
 
 def rectangle_points(width_m: float, height_m: float, centre_m: tuple[float, float],

@@ -29,6 +29,15 @@ measured tool positions, the wrist torque and the edge they belong to, with the 
 it notes when the wall was placed: the task's report (:mod:`hubo_cli.tasks.runner`) traces
 the hole as it was cut from the log's true world poses at those times. The target itself
 never reads the simulator's truth.
+
+A plan with a thrust (:attr:`Plan.has_force`) runs under force control: every period the target
+writes the plan's hand force, turned into the measured neck frame, as the hand wrench
+reference (:data:`~hubo_cli.control.wrench.HAND_WRENCH_PLAN`; the emergency stopper reverts it,
+the ImpedanceController presses with it), logs it with the measured thrust, and lets the
+waist lean into the force the hand really meets: a
+:class:`~hubo_cli.control.reference_force.ReferenceForceUpdater` follows the measured force
+along the bit, and the legs take the plan's CoM shift moved by eq. 6's slope
+(:attr:`Placement.shift_per_force_m_n`) times its difference from the plan's force.
 """
 
 from __future__ import annotations
@@ -39,13 +48,19 @@ from collections.abc import Sequence
 import numpy as np
 
 from hubo_cli.control.estop import EmergencyStopper, wrist_torque_nm
+from hubo_cli.control.impedance import ImpedanceController
 from hubo_cli.control.module import Module
+from hubo_cli.control.reference_force import ReferenceForceUpdater
 from hubo_cli.control.target import Target
+from hubo_cli.control.wrench import HAND_WRENCH_PLAN, force_along, measured_hand_wrench
 from hubo_cli.dataflow import Store
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.estimation.keys import QUAT_WORLD_TORSO, WRENCHES
+from hubo_cli.kinematics.limb import Limb
 from hubo_cli.kinematics.torso import TorsoCorrection, TorsoEstimator
+from hubo_cli.kinematics.wholebody import MAX_SHIFT_M
 from hubo_cli.scene import WallPlacement, WallSize
+from hubo_cli.state import T_frame_sensor
 from hubo_cli.tasks.plan import EDGE_NONE, Plan
 from hubo_cli.urdf import tool_frame
 
@@ -75,13 +90,15 @@ class TaskTarget(Target):
     reads = (QUAT_WORLD_TORSO, WRENCHES)
     log_columns = ("step_code", "phase_code", "goal_x_m", "goal_y_m", "goal_z_m", "actual_x_m",
                    "actual_y_m", "actual_z_m", "error_m", "cutting", "edge_code",
-                   "task_wrist_torque_nm")
+                   "task_wrist_torque_nm", "thrust_n")
+    force_columns = ("thrust_ref_n", "balance_thrust_n", "waist_shift_m")
 
     def __init__(self, plan: Plan, correction: bool = True, resumable: bool = False) -> None:
         self.plan = plan
         self.resumable = resumable
         self.body = body = plan.body
         self.stopper: EmergencyStopper | None = None
+        self.impedance: ImpedanceController | None = None
         self.world: SimulatedWorld | None = None
         self.modules: list = []  # set by attach()
         self.scene: dict = {}
@@ -114,6 +131,18 @@ class TaskTarget(Target):
         self.torque_nm = 0.0
         self.error_m = float("nan")
         self.T_S_N: np.ndarray | None = None  # the torso pose last measured (S, m)
+        # force control (a plan with a thrust): the hand frame's arm, the balance's force
+        self.force = plan.has_force
+        self.cut_thrust_n: list[float] = []
+        self.cut_thrust_ref_n: list[float] = []
+        self.thrust_n = 0.0
+        self.hand = Limb(body.model, self.limb, "hand")  # the wrist sensor's on it
+        self.R_hand_sensor = T_frame_sensor(self.sensor)[:3, :3]
+        self.bit_S = np.array([1.0, 0.0, 0.0])  # the bit's axis: S's x, into the wall
+        if self.force:
+            self.writes = (HAND_WRENCH_PLAN,)
+            self.log_columns = self.log_columns + self.force_columns
+            self.rfu = ReferenceForceUpdater((1.0, 0.0, 0.0), plan.dt_s)
 
     def attach(self, world: SimulatedWorld | None, modules: Sequence[Module],
                store: Store) -> None:
@@ -123,6 +152,7 @@ class TaskTarget(Target):
                              and m.name == "estop"), None)
         if self.stopper is not None:
             self.stopper.relief = self.relieve
+        self.impedance = next((m for m in modules if isinstance(m, ImpedanceController)), None)
 
     def relieve(self, q_rad: np.ndarray) -> np.ndarray | None:
         """The path that relieves the wrist after a wrist-torque stop braked the command
@@ -159,14 +189,14 @@ class TaskTarget(Target):
     def _place_wall(self) -> None:
         """The wall at the task's distance from the tool as the robot now holds it (the
         standing robot leans a little under the balancer; an operator walks it up to the wall
-        as it stands)."""
+        as it stands), moved by the scene's ``wall_misplaced_m`` (a wall the plan misjudged)."""
         if self.world is None:
             return
         spec, placement = self.plan.spec, self.plan.placement
         scene = spec.scene
         self.scene = WallPlacement(
             tool_frame(spec.stance.limb, spec.stance.tool),
-            placement.wall_distance_m - self.plan.T_first_S[0, 3],
+            placement.wall_distance_m - self.plan.T_first_S[0, 3] + scene.wall_misplaced_m,
             WallSize(scene.wall_height_m, scene.wall_width_m, scene.wall_thickness_m),
         ).place(self.world)
 
@@ -212,6 +242,8 @@ class TaskTarget(Target):
                 self._place_wall()
                 self.t_placed_s = t_s
                 self.phase, self.t_run_s = "run", t_s
+                if self.force and self.impedance is not None:  # force control from the plan on
+                    self.impedance.switch_on()
         if self.phase == "run":
             self.k = int(round((t_s - self.t_run_s) / self.plan.dt_s))
             if self.k >= len(self.plan.t_s):
@@ -231,10 +263,38 @@ class TaskTarget(Target):
                 self.t_held_s = t_s
             if still and not self.resumable and t_s - self._t_hold_s >= STOP_HOLD_S:
                 info["done"] = True
-        self.q_out = (self.q_target if self.correction is None
-                      else self.correction(self.q_target, state, self.store[QUAT_WORLD_TORSO]))
+        q_target = self._leaning(self.q_target, info) if self.force else self.q_target
+        self.q_out = (q_target if self.correction is None
+                      else self.correction(q_target, state, self.store[QUAT_WORLD_TORSO]))
         self._measure(t_s, state, info)
         return self.q_out, info
+
+    def _plan_force_S_n(self) -> np.ndarray:
+        """The plan's hand force (N, in S) this period: zero until the plan runs."""
+        return self.plan.hand_force_S_n(self.k) if self.phase != "raise" else np.zeros(3)
+
+    def _leaning(self, q_rad: np.ndarray, info: dict) -> np.ndarray:
+        """Force control: write the plan's hand force as the wrench reference (in the neck
+        frame last measured) and return ``q_rad`` with the legs leaning into the force the
+        hand meets (eq. 6 with the ReferenceForceUpdater's force instead of the plan's)."""
+        force_S = self._plan_force_S_n()
+        R_N_S = np.eye(3) if self.T_S_N is None else self.T_S_N[:3, :3].T
+        if self.store is not None:
+            self.store[HAND_WRENCH_PLAN] = {self.limb: np.concatenate([R_N_S @ force_S,
+                                                                       np.zeros(3)])}
+        placement = self.plan.placement
+        lean_m = placement.shift_per_force_m_n * (self.rfu.reference_n - force_S[0])
+        info["balance_thrust_n"] = -self.rfu.reference_n
+        info["waist_shift_m"] = placement.shift_m + lean_m
+        if abs(lean_m) < 1e-6:
+            return q_rad
+        body = self.body
+        goal = self.plan.T_first_S.copy()
+        if self.phase != "raise":
+            goal[:3, 3] = self.plan.goal_S_m[self.k]
+        shift = min(max(placement.shift_m + lean_m, -MAX_SHIFT_M), MAX_SHIFT_M)
+        solved = body.solve({self.limb: goal}, q_rad, lift_m=body.lift_of(q_rad), shift_m=shift)
+        return solved.q_rad if solved.arms[self.limb].exact else q_rad
 
     def _resume(self, t_s: float) -> None:
         """Go on from where the plan froze (the stopper has blended back to its target)."""
@@ -262,6 +322,7 @@ class TaskTarget(Target):
         self.T_S_N = self.estimator(state, self.store[QUAT_WORLD_TORSO])
         actual = (self.T_S_N @ T_N_E)[:3, 3]
         self.torque_nm = wrist_torque_nm(self.store[WRENCHES].get(self.sensor))
+        self._measure_force(state, info)
         running = self.phase != "raise"
         k = self.k
         goal = self.plan.goal_S_m[k] if running else actual
@@ -275,8 +336,27 @@ class TaskTarget(Target):
                      "edge_code": float(self.plan.edge[k] if cutting else EDGE_NONE),
                      "task_wrist_torque_nm": self.torque_nm})
         if cutting:
+            self.cut_thrust_n.append(self.thrust_n)
+            self.cut_thrust_ref_n.append(float(self.plan.thrust_n[k]))
             self.cut_goal_m.append(goal.copy())
             self.cut_actual_m.append(actual)
             self.cut_torque_nm.append(self.torque_nm)
             self.cut_edge.append(int(self.plan.edge[k]))
             self.cut_t_s.append(t_s)
+
+    def _measure_force(self, state, info: dict) -> None:
+        """The thrust the tool presses into the wall with (N, along S's x: minus the wall's
+        force on the hand, through the measured hand pose and torso; NaN without a wrist
+        sensor); under force control also the plan's and the ReferenceForceUpdater's update."""
+        wrench = measured_hand_wrench(state, self.store, self.sensor)
+        along = math.nan
+        if wrench is not None:
+            R_S_sensor = (self.T_S_N[:3, :3] @ self.hand.fk(state.q_rad[self.slice])[:3, :3]
+                          @ self.R_hand_sensor)
+            along = force_along(wrench, R_S_sensor, self.bit_S)
+        force_S = along * self.bit_S
+        self.thrust_n = -along
+        info["thrust_n"] = self.thrust_n
+        if self.force:
+            self.rfu.update(force_S)
+            info["thrust_ref_n"] = -float(self._plan_force_S_n()[0])

@@ -1,0 +1,72 @@
+"""Hand wrenches in the control layer: the references a motion asks for, and the one place the
+measured hand wrench is read.
+
+A task step may ask for a hand force (a plunge held at a thrust, a push held at a force). The
+target writes it every period as :data:`HAND_WRENCH_PLAN`; the soft emergency stopper passes it
+on as :data:`HAND_WRENCH_REF`, reverted with the motion when it stops (eq. 15); the
+ImpedanceController takes that as its spring's force setpoint (eq. 3's F_ref). A wrench here is
+[fx, fy, fz, mx, my, mz] (N, N m) that the environment exerts on the hand, about the hand
+frame's origin, in the neck frame N's axes: a hand pushing a wall in front of the robot with
+3 N feels fx = -3.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from hubo_cli.dataflow import Key, Store
+from hubo_cli.estimation.keys import WRENCHES
+from hubo_cli.state import FT_MEASURED, RobotState
+
+HAND_WRENCH_PLAN = Key("hand_wrench_plan", dict,
+                       "arm -> [fx fy fz mx my mz] (N, N m) the motion asks the environment to "
+                       "exert on the hand, about the hand origin, neck-frame axes")
+HAND_WRENCH_REF = Key("hand_wrench_ref", dict,
+                      "arm -> the planned hand wrench after the emergency stopper (reverted with "
+                      "the motion when it stops); same frame and units")
+WRENCH_AXES = ("x", "y", "z", "rx", "ry", "rz")
+
+MEASURED_FORCE_AXES = tuple(i for i in FT_MEASURED if i < 3)  # Hubo's: f_z only
+ALONG_MIN = 0.1  # the least sum (a_i . d)^2 force_along trusts (d within 72 deg of an axis)
+
+# the store keys measured_hand_wrench reads
+MEASURED_WRENCH_READS: tuple[Key, ...] = (WRENCHES,)
+
+
+def measured_hand_wrench(state: RobotState, store: Store, sensor: str) -> np.ndarray | None:
+    """The wrench the environment applies to the hand at ``sensor`` (``right-wrist``,
+    ``left-wrist``), in the sensor's frame (N, N m), or None when the robot has no such sensor.
+
+    Every controller that uses a measured hand wrench reads it here: the estimation layer's
+    compensated wrenches (:data:`hubo_cli.estimation.keys.WRENCHES`, the hand's and the tool's
+    weight removed), so a caller declares :data:`MEASURED_WRENCH_READS`. ``state`` is the
+    robot's (kept for a reading the estimate lacks)."""
+    return store[WRENCHES].get(sensor)
+
+
+def force_along(wrench_S, R_frame_sensor: np.ndarray, d_frame: np.ndarray) -> float:
+    """The force (N) the environment applies along the unit direction ``d_frame`` (any frame),
+    from a sensor's reading ``wrench_S`` (sensor axes, ``R_frame_sensor`` turning them into
+    that frame) of which only the force components ``FT_MEASURED`` are real, assuming the
+    force lies along d (a thrust): F_d = sum f_i (a_i . d) / sum (a_i . d)^2 over the measured
+    force axes a_i (a full sensor: f . d). NaN where d lies nearly across every measured axis
+    (sum (a_i . d)^2 < ``ALONG_MIN``: the sensor cannot see such a force)."""
+    num = den = 0.0
+    for i in MEASURED_FORCE_AXES:
+        c = float(R_frame_sensor[:, i] @ d_frame)
+        num += float(wrench_S[i]) * c
+        den += c * c
+    return num / den if den >= ALONG_MIN else math.nan
+
+
+def wrench_of(references: dict | None, arm: str) -> np.ndarray | None:
+    """``arm``'s finite 6-vector in a reference dict (None when absent or not finite)."""
+    if not references:
+        return None
+    value = references.get(arm)
+    if value is None:
+        return None
+    w = np.asarray(value, dtype=float).reshape(-1)
+    return w if w.shape == (6,) and np.all(np.isfinite(w)) else None

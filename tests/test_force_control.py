@@ -1,0 +1,377 @@
+"""Force control (issue 36 parts 2-4): hand wrench references from task steps through the
+emergency stopper (reverted with the motion) to the ImpedanceController's force setpoint, force
+tracking against walls wherever they are, the ReferenceForceUpdater, the plan's thrust and its
+CoM shift (eq. 6), the drill's depth guide. The cut under force control on misplaced walls is
+measured in docs/history/impedance.md (about a minute of simulation each)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from hubo_cli.control.estop import EmergencyStopper
+from hubo_cli.control.impedance import LIMIT_FLAG, ImpedanceController
+from hubo_cli.control.module import Cycle
+from hubo_cli.control.pipeline import SafetyProfile, find_module
+from hubo_cli.control.reference_force import ReferenceForceUpdater
+from hubo_cli.control.target import FunctionTarget
+from hubo_cli.control.wrench import HAND_WRENCH_PLAN, HAND_WRENCH_REF
+from hubo_cli.dataflow import FlowError, Store, check_flow
+from hubo_cli.errors import ConfigError
+from hubo_cli.estimation.keys import ESTIMATE_KEYS, QUAT_WORLD_TORSO, WRENCHES
+from hubo_cli.geometry import min_jerk
+from hubo_cli.kinematics.limb import Limb
+from hubo_cli.posture import home_posture
+from hubo_cli.scene import CuttingModel
+from hubo_cli.state import RobotState, T_frame_sensor
+from hubo_cli.tasks.plan import FORCE_RAMP_S, Placement, _ramped, _with_com_shift, make_plan
+from hubo_cli.tasks.spec import load_task
+
+DT = 0.005
+ARM = "right-arm"
+
+
+# ------------------------------------------------------------------ force tracking (eq. 3)
+def _press_run(model, wall_ahead_m, thrust_n, wall_n_m, seconds=10.0, lateral_n=0.0):
+    """The right hand, ideal arm (measured = commanded), pressing a spring wall that stands
+    ``wall_ahead_m`` ahead of it along N's x (negative: already pressed in), with the reference
+    thrust ``thrust_n`` through the store; a sideways force ``lateral_n`` (N's y) on the hand
+    while touching. Returns the measured force along x (N, on the hand), the hand positions
+    (N, m) and the flags per period."""
+    q0 = home_posture(model)
+    limb = Limb(model, ARM, "hand")
+    sl = model.limb_slice(ARM)
+    p0 = limb.fk(q0[sl])[:3, 3]
+    ic = ImpedanceController(model, DT, reference=HAND_WRENCH_REF, axes=("x",), arms=(ARM,))
+    state = RobotState(0.0, q0.copy(), np.zeros(len(q0)))
+    store = Store()
+    store[WRENCHES] = {}
+    ic.reset(q0, state, store)
+    forces, positions, flags = [], [], []
+    fx = 0.0
+    for k in range(int(seconds / DT)):
+        T = limb.fk(state.q_rad[sl])
+        pressed = T[0, 3] - (p0[0] + wall_ahead_m)
+        fx = -wall_n_m * pressed if pressed > 0 else 0.0
+        f_N = np.array([fx, lateral_n if pressed > 0 else 0.0, 0.0])
+        store[WRENCHES] = {"right-wrist": _hubo_reading(T[:3, :3], f_N)}
+        store[HAND_WRENCH_REF] = {ARM: np.array([-thrust_n, 0, 0, 0, 0, 0], dtype=float)}
+        cycle = Cycle(k * DT, DT, store=store)
+        out = ic.update(q0, state, cycle)
+        state = RobotState(k * DT, out, np.zeros(len(out)))
+        forces.append(fx)
+        positions.append(T[:3, 3])
+        flags.append(cycle.flags)
+    return np.array(forces), np.array(positions) - p0, flags
+
+
+def _hubo_reading(R_N_H, f_N):
+    """What Hubo's wrist sensor reads of a force f_N (neck axes) on the hand: its sensor-frame
+    components, only f_z (along the forearm) real (FT_MEASURED), no moments."""
+    f_S = (R_N_H @ T_frame_sensor("right-wrist")[:3, :3]).T @ f_N
+    reading = np.zeros(6)
+    reading[2] = f_S[2]
+    return reading
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_force_tracking_holds_the_thrust_wherever_the_wall_is(model, seed):
+    """Walls from 10 mm pressed in to 18 mm ahead, thrusts of 1-8 N, faces of 500-5000 N/m
+    (random), read by Hubo's wrist sensor (the force along the forearm only): the force along
+    the reference settles on it (force tracking moves the spring's centre), the hand never
+    moves across x (only x yields), and it ends pressed into the wall by thrust / stiffness.
+    Seen over these seeds: within 1e-4 N and 0.1 um after 10 s (plain arithmetic, no physics);
+    bounds 0.05 N and 50 um."""
+    rng = np.random.default_rng(seed)
+    wall = rng.uniform(-0.010, 0.018)
+    thrust, stiffness = rng.uniform(1.0, 8.0), rng.uniform(500.0, 5000.0)
+    force, position, _ = _press_run(model, wall, thrust, stiffness)
+    assert abs(force[-1] + thrust) < 0.05
+    assert np.abs(position[:, 1:]).max() < 1e-9
+    assert position[-1, 0] == pytest.approx(wall + thrust / stiffness, abs=5e-5)
+
+
+def test_force_tracking_stops_at_the_offset_limit(model):
+    """A wall beyond the 30 mm offset limit: the hand advances to the limit and no further,
+    flagged, never touching it."""
+    force, position, flags = _press_run(model, 0.05, 3.0, 2000.0, seconds=12.0)
+    assert not force.any()
+    assert position[:, 0].max() <= 0.030 + 1e-9
+    assert position[-1, 0] == pytest.approx(0.030, abs=1e-4)
+    assert LIMIT_FLAG in flags[-1]
+
+
+def test_without_a_reference_nothing_moves(model):
+    """A zero reference and no contact: the command passes through bit for bit."""
+    q0 = home_posture(model)
+    ic = ImpedanceController(model, DT, reference=HAND_WRENCH_REF, axes=("x",))
+    state = RobotState(0.0, q0, np.zeros(len(q0)))
+    store = Store()
+    store[HAND_WRENCH_REF], store[WRENCHES] = {}, {}
+    ic.reset(q0, state, store)
+    for k in range(100):
+        assert np.array_equal(ic.update(q0, state, Cycle(k * DT, DT, store=store)), q0)
+
+
+def test_bad_impedance_settings_are_refused(model):
+    with pytest.raises(ConfigError, match="unknown axis"):
+        ImpedanceController(model, DT, axes=("x", "w"))
+    with pytest.raises(ConfigError, match="force tracking"):
+        ImpedanceController(model, DT, force_tracking_m_per_n_s=-1.0)
+    with pytest.raises(ConfigError, match="force tracking"):
+        ImpedanceController(model, DT, force_tracking_m_per_n_s=math.inf)
+
+
+# ------------------------------------------------------------------ the flow of references
+def test_the_pipeline_takes_references_from_the_stopper_or_the_target(model):
+    profile = SafetyProfile(impedance=True, wrench_reference=True)
+    modules = profile.build(model, DT, {})
+    assert find_module(modules, "impedance").reads == (WRENCHES, HAND_WRENCH_REF)
+    assert find_module(modules, "estop").writes == (HAND_WRENCH_REF,)
+    writer = FunctionTarget(lambda t, s: (None, {}))
+    writer.writes = (HAND_WRENCH_PLAN,)
+    check_flow([writer, *modules], provided=ESTIMATE_KEYS)
+    with pytest.raises(FlowError, match=HAND_WRENCH_PLAN.name):  # nobody writes the plan's
+        check_flow([FunctionTarget(lambda t, s: (None, {})), *modules], provided=ESTIMATE_KEYS)
+    no_stop = SafetyProfile(impedance=True, wrench_reference=True, estop=False)
+    assert find_module(no_stop.build(model, DT, {}),
+                       "impedance").reads == (WRENCHES, HAND_WRENCH_PLAN)
+    assert find_module(SafetyProfile(impedance=True).build(model, DT, {}),
+                       "impedance").reads == (WRENCHES,)
+
+
+def _stopper_run(model, wrench_at, t_emer_s=2.0, t_release_s=None, end_s=8.0,
+                 source="operator", **options):
+    """A stopper passing the plan's wrench ``wrench_at(t)`` (6-vector or None) through; a stop
+    from ``source`` at ``t_emer_s`` (``wrist-torque``: a 2 N m wrist moment in that period),
+    a release at ``t_release_s``. Returns the times, the plan's x force and the stopper's x
+    force per period."""
+    stopper = EmergencyStopper(model, DT, wrench_reference=True, **options)
+    q0 = home_posture(model)
+    store = Store()
+    store[WRENCHES] = {}
+    stopper.reset(q0, RobotState(0.0, q0, np.zeros(len(q0))), store)
+    t, planned, out = [], [], []
+    for k in range(int(end_s / DT)):
+        state = RobotState(k * DT, q0, np.zeros(len(q0)))
+        cycle = Cycle(k * DT, DT, store=store)
+        store[WRENCHES] = {}
+        if k == round(t_emer_s / DT):
+            if source == "wrist-torque":
+                store[WRENCHES] = {"right-wrist": np.array([0.0, 0.0, 0.0, 0.0, 2.0, 0.0])}
+            else:
+                cycle.estop_requests.add(source)
+        if t_release_s is not None and k == round(t_release_s / DT):
+            stopper.release()
+        w = wrench_at(k * DT)
+        store[HAND_WRENCH_PLAN] = {} if w is None else {ARM: w}
+        stopper.update(q0, state, cycle)
+        ref = store[HAND_WRENCH_REF].get(ARM, np.zeros(6))
+        assert np.all(np.isfinite(ref))
+        t.append(k * DT)
+        planned.append(np.nan if w is None else w[0])
+        out.append(ref[0])
+    return np.array(t), np.array(planned), np.array(out)
+
+
+def _ramp(t):
+    return np.array([-2.0 * t, 0, 0, 0, 0, 0])
+
+
+def test_a_stop_reverts_the_wrench_with_the_motion_then_recovers(model):
+    """eq. 15 for forces: from the stop at 2 s the reference blends (minimum jerk, T2 = 0.5 s)
+    to the plan's of t_emer - T1 = 1.5 s, holds it while the plan goes on, and after the
+    release at 5 s blends back to the live plan over the 2.5 s recovery."""
+    t, planned, out = _stopper_run(model, _ramp, t_release_s=5.0, end_s=8.5)
+    k_emer = round(2.0 / DT)
+    assert np.array_equal(out[:k_emer], planned[:k_emer])  # passed through until the stop
+    back = -2.0 * (2.0 - 0.5 - DT)  # the plan's of T1 before the stop (one period's lag)
+    u = np.array([min_jerk(min(1.0, (x - 2.0) / 0.5)) for x in t[k_emer:k_emer + 100]])
+    at_stop = out[k_emer - 1]
+    assert np.allclose(out[k_emer:k_emer + 100], at_stop + u * (back - at_stop), atol=0.03)
+    held = (t > 2.6) & (t < 5.0)
+    assert np.allclose(out[held], back, atol=0.03)
+    assert np.allclose(out[t > 7.6], planned[t > 7.6])
+    assert np.abs(np.diff(out)).max() < 0.05  # no jump: at most 10 N/s per period
+
+
+@pytest.mark.parametrize("preset", ["freeze", "wrist-torque"])
+def test_a_freeze_or_a_wrist_stop_lets_go_of_the_force(model, preset):
+    """The freeze preset (T1 = T2 = one period) and the wrist-torque stop (which backs the tool
+    out) do not push on: the reference goes to zero within T2, monotonically, and stays."""
+    options = {"revert_s": DT, "stop_s": DT} if preset == "freeze" else {}
+    t, _, out = _stopper_run(model, lambda t: np.array([-4.0, 0, 0, 0, 0, 0]), end_s=4.0,
+                             source="wrist-torque" if preset == "wrist-torque" else "operator",
+                             **options)
+    t2 = DT if preset == "freeze" else 0.5
+    assert np.allclose(out[t < 2.0], -4.0)
+    assert np.all(np.diff(out[t >= 2.0 - DT]) >= -1e-12)
+    assert np.all(out[t >= 2.0 + t2 + DT] == 0.0)
+
+
+def test_garbled_plan_wrenches_never_leave_the_stopper(model):
+    """NaN, infinite or wrongly shaped plan wrenches count as no wrench: zero, never NaN."""
+    bad = [np.full(6, np.nan), np.array([np.inf, 0, 0, 0, 0, 0]), np.zeros(3), None]
+    t, _, out = _stopper_run(model, lambda t: bad[int(t / DT) % len(bad)], end_s=3.0)
+    assert np.all(out == 0.0)
+
+
+# ------------------------------------------------------------------ ReferenceForceUpdater
+def test_the_balance_force_follows_the_measured_one_rate_limited():
+    rfu = ReferenceForceUpdater((1.0, 0.0, 0.0), DT, max_rate_n_s=1.0, gain_per_s=2.0)
+    values = [rfu.update((-5.0, 3.0, 1.0)) for _ in range(int(8 / DT))]
+    steps = np.diff([0.0, *values])
+    assert np.abs(steps).max() <= 1.0 * DT + 1e-12  # never faster than 1 N/s
+    assert values[int(2 / DT)] == pytest.approx(-2.0, abs=0.05)  # rate-limited at first
+    assert values[-1] == pytest.approx(-5.0, abs=0.01)  # then on the measured force
+    assert np.allclose(rfu.force_n, (values[-1], 0.0, 0.0))
+    rfu.update((np.nan, 0.0, 0.0))  # a garbled reading is skipped
+    assert math.isfinite(rfu.reference_n)
+    rfu.hold()
+    held = rfu.reference_n
+    for _ in range(100):
+        rfu.update((10.0, 0.0, 0.0))
+    assert rfu.reference_n == held
+    with pytest.raises(ValueError):
+        ReferenceForceUpdater((0.0, 0.0, 0.0), DT)
+
+
+# ------------------------------------------------------------------ task files and plans
+def _task(tmp_path, steps: str, wall: str = "") -> str:
+    path = tmp_path / "press.toml"
+    path.write_text(f"""\
+name = "press"
+[stance]
+wall_distance_mm = 450.0
+centre_mm = [-250.0, 50.0]
+[scene.wall]
+{wall}
+[[steps]]
+kind = "move"
+depth_mm = -20.0
+duration_s = 1.0
+{steps}""", encoding="utf-8")
+    return path
+
+
+PRESS = """
+[[steps]]
+kind = "plunge"
+depth_mm = 2.5
+speed_mm_s = 10.0
+thrust_n = 4.0
+[[steps]]
+kind = "wait"
+duration_s = 1.0
+thrust_n = 4.0
+[[steps]]
+kind = "retract"
+depth_mm = -20.0
+speed_mm_s = 20.0
+"""
+
+
+def test_thrust_steps_are_read_and_checked(tmp_path):
+    spec = load_task(_task(tmp_path, PRESS, "misplaced_mm = -15.0"))
+    assert [s.thrust_n for s in spec.steps] == [0.0, 4.0, 4.0, 0.0]
+    assert "pressing 4 N" in spec.steps[1].describe()
+    assert spec.scene.wall_misplaced_m == pytest.approx(-0.015)
+    for bad, field in ((PRESS.replace("thrust_n = 4.0\n[[steps]]\nkind = \"wait\"",
+                                      "thrust_n = -1.0\n[[steps]]\nkind = \"wait\""), "thrust_n"),
+                       (PRESS.replace("4.0", "16.0"), "thrust_n"),
+                       (PRESS.replace("4.0", '"hard"'), "thrust_n"),
+                       (PRESS + "thrust_n = 2.0\n", "thrust_n")):  # a retract cannot press
+        with pytest.raises(ConfigError, match=field):
+            load_task(_task(tmp_path, bad))
+    with pytest.raises(ConfigError, match="misplaced_mm"):
+        load_task(_task(tmp_path, PRESS, "misplaced_mm = 150.0"))
+
+
+def test_the_plan_ramps_the_thrust_and_only_a_thrust_asks_for_force(model, tmp_path):
+    plan = make_plan(load_task(_task(tmp_path, PRESS)), model)
+    assert plan.preflight.ok and plan.has_force
+    thrust = plan.thrust_n
+    n = round(FORCE_RAMP_S / DT)
+    start = int(np.argmax(plan.step_index == 1))
+    assert start == 0  # the plan starts with the plunge, from no force
+    assert np.allclose(thrust[start:start + n], 4.0 * np.arange(1, n + 1) / n)
+    assert np.abs(np.diff(thrust)).max() <= 4.0 / n + 1e-12  # never a jump
+    end = int(np.argmax(plan.step_index == 3))
+    assert thrust[end + n:].max() == pytest.approx(0.0, abs=1e-12)
+    assert np.allclose(plan.hand_force_S_n(start + n), (-4.0, 0.0, 0.0))
+    assert not make_plan(load_task(_task(tmp_path, PRESS.replace("thrust_n = 4.0", ""))),
+                         model).has_force
+
+
+def test_ramped_spreads_each_change():
+    out = _ramped(np.array([0.0, 0, 3, 3, 3, 3, 0, 0, 0, 0]), 2)
+    assert np.allclose(out, [0, 0, 1.5, 3, 3, 3, 1.5, 0, 0, 0])
+    assert np.allclose(_ramped(np.array([4.0, 4, 4]), 2), [2, 4, 4])  # from zero at the start
+    assert np.array_equal(_ramped(np.zeros(5), 10), np.zeros(5))
+
+
+def test_the_waist_leans_into_the_thrust_eq6(model, tmp_path):
+    """Eq. 6: the plan's CoM shift with a thrust lies ahead of the one without, by about the
+    slope it reports times the thrust; the slope is negative (a force pushing the hand back,
+    -x, moves the waist forward)."""
+    pressing, plain = (load_task(_task(tmp_path, PRESS.replace("4.0", f)))
+                       for f in ("8.0", "0.0"))
+    found = Placement(0.45, (-0.25, 0.05), 0.1, True, 0.1)
+    with_force, without = (_with_com_shift(s, model, found) for s in (pressing, plain))
+    assert with_force.shift_per_force_m_n < -0.001
+    assert without.shift_per_force_m_n == 0.0
+    lean = with_force.shift_m - without.shift_m
+    assert lean == pytest.approx(-8.0 * with_force.shift_per_force_m_n, rel=0.1)
+
+
+# ------------------------------------------------------------------ the depth guide
+def test_the_depth_guide_pushes_out_never_pulls_and_slides_with_friction():
+    none, guide = CuttingModel(), CuttingModel(guide_depth_m=0.0025)
+    assert none.guide_force_n(0.002, (0.0, 0.01, 0.0)) == (0.0, 0.0, 0.0)
+    assert guide.guide_force_n(-0.001, (0.0, 0.01, 0.0)) == (0.0, 0.0, 0.0)
+    fx, fy, fz = guide.guide_force_n(0.002, (0.0, 0.0, 0.0))
+    assert fx == pytest.approx(-guide.guide_stiffness_n_m * 0.002) and fy == fz == 0.0
+    assert guide.guide_force_n(0.001, (-1.0, 0.0, 0.0))[0] == 0.0  # withdrawing fast: no pull
+    fx, fy, fz = guide.guide_force_n(0.002, (0.0, 0.05, -0.05))
+    assert fy < 0 < fz and math.hypot(fy, fz) <= guide.guide_friction * -fx + 1e-12
+
+
+def test_the_task_target_writes_the_plans_force_and_measures_the_thrust(model, tmp_path):
+    """Once the plan runs, the target writes the plan's hand force (N axes) to the store every
+    period and reads the wrist: a 5 N push back along the bit is a 5 N thrust. A task without a
+    thrust declares and writes nothing."""
+    from hubo_cli.tasks.target import TaskTarget
+
+    plan = make_plan(load_task(_task(tmp_path, PRESS)), model)
+    target = TaskTarget(plan, correction=False)
+    assert target.writes == (HAND_WRENCH_PLAN,)
+    store = Store()
+    impedance = ImpedanceController(model, DT, active=False)  # as force_control builds it
+    impedance.reset(plan.q_first_rad, RobotState(0.0, plan.q_first_rad, np.zeros(24)), store)
+    target.attach(None, [impedance], store)
+    sl = model.limb_slice(ARM)
+    q = plan.q_first_rad.copy()
+    R_N_H = Limb(model, ARM, "hand").fk(q[sl])[:3, :3]
+    store[WRENCHES] = {"right-wrist": _hubo_reading(R_N_H, np.array([-5.0, 0.0, 0.0]))}
+    store[QUAT_WORLD_TORSO] = np.array([1.0, 0.0, 0.0, 0.0])
+    moving = RobotState(0.0, q, np.full(len(q), 0.1))
+    _, info = target(0.0, moving)  # the raise (the robot still moving): no force yet
+    assert target.phase == "raise" and np.allclose(store[HAND_WRENCH_PLAN][ARM], 0.0)
+    assert impedance.mode == "off"  # the first move swings the arm up without it
+    assert info["thrust_n"] == pytest.approx(5.0, abs=1e-6)
+    state = RobotState(0.0, q, np.zeros(len(q)))
+    target(DT, state)  # still: the plan runs from its first row, the ramp's first step
+    assert target.phase == "run" and impedance.mode == "on"
+    first = -4.0 / round(FORCE_RAMP_S / DT)
+    assert np.allclose(store[HAND_WRENCH_PLAN][ARM], (first, 0, 0, 0, 0, 0))
+    k = round(FORCE_RAMP_S / DT) + 10
+    target(DT + k * DT, state)
+    assert np.allclose(store[HAND_WRENCH_PLAN][ARM], (-4.0, 0, 0, 0, 0, 0), atol=1e-3)
+    plain = TaskTarget(make_plan(load_task(_task(tmp_path, PRESS.replace("thrust_n = 4.0", ""))),
+                                 model))
+    plain.store = Store()
+    plain.store[WRENCHES], plain.store[QUAT_WORLD_TORSO] = store[WRENCHES], store[QUAT_WORLD_TORSO]
+    plain(0.0, state)
+    assert plain.writes == () and HAND_WRENCH_PLAN not in plain.store
