@@ -55,9 +55,8 @@ LEG_CAPPED_RAD = 1e-3  # reaches it: each hip yaw stands at its limit, 0, while 
                        # ahead, and feet toed in by microradians (as the simulator reads them
                        # after a few steps) cap it; taking only exact solutions, the correction
                        # stayed zero from the first capped period on while the offset grew
-SOLES = (("right", "right_sole", "right-ankle"), ("left", "left_sole", "left-ankle"))
-SOLES_SENSOR = {side: sensor for side, _, sensor in SOLES}
 SIDES = ("right", "left")  # the estimate's order of the feet
+ANKLES = ("right-ankle", "left-ankle")  # their force-torque sensors
 
 
 def estimated_feet(store: Store) -> dict[str, Footstep]:
@@ -69,7 +68,7 @@ def estimated_feet(store: Store) -> dict[str, Footstep]:
 def ankle_wrenches(store: Store) -> np.ndarray:
     """The ankles' compensated wrenches (2 x 6: right, left; sole frame, N and N m)."""
     wrenches = store[WRENCHES]
-    return np.array([wrenches[SOLES_SENSOR[side]] for side in SIDES], dtype=float)
+    return np.array([wrenches[sensor] for sensor in ANKLES], dtype=float)
 
 
 def footstep_of(side: str, T_world_sole: np.ndarray) -> Footstep:
