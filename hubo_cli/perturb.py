@@ -45,7 +45,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from hubo_cli.errors import ConfigError
-from hubo_cli.state import FT_MEASURED
+from hubo_cli.state import FT_MEASURED, GRAVITY_M_S2
 
 MASS_SCALE_RANGE = (0.9, 1.1)
 COM_OFFSET_MAX_M = 0.010
@@ -55,8 +55,8 @@ IMU_NOISE_RAD = math.radians(0.2)
 IMU_BIAS_MAX_RAD = math.radians(0.5)
 GYRO_NOISE_DENSITY = math.radians(0.03)   # rad/s/sqrt(Hz)
 GYRO_BIAS_MAX_RAD_S = math.radians(0.5)   # each axis
-ACCEL_NOISE_DENSITY = 150e-6 * 9.80665    # m/s^2/sqrt(Hz)
-ACCEL_BIAS_MAX_M_S2 = 0.5e-3 * 9.80665    # each axis
+ACCEL_NOISE_DENSITY = 150e-6 * GRAVITY_M_S2    # m/s^2/sqrt(Hz)
+ACCEL_BIAS_MAX_M_S2 = 0.5e-3 * GRAVITY_M_S2    # each axis
 FT_FORCE_NOISE_N = 1.0
 FT_MOMENT_NOISE_NM = 0.05
 DELAY_MAX_S = 0.010

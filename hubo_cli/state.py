@@ -19,6 +19,7 @@ import numpy as np
 from hubo_cli.geometry import roll_pitch_of_quat_wxyz
 
 FT_SENSORS = ("right-wrist", "left-wrist", "right-ankle", "left-ankle")
+ANKLE_SENSORS = FT_SENSORS[2:]  # (right, left), as the feet are always ordered
 GRAVITY_M_S2 = 9.80665  # standard gravity: what an accelerometer at rest reads (m/s^2)
 FT_MEASURED = (2, 3, 4)
 """What Hubo's three-axis force-torque sensors measure of [fx, fy, fz, mx, my, mz]: f_z, m_x,

@@ -43,7 +43,8 @@ def _tilt_error_deg(quat_est, R_true: np.ndarray) -> float:
 def _synthetic(R_of_t, seconds: float, bias_rad_s, rng, quat0=(1.0, 0.0, 0.0, 0.0)):
     """Run the observer on the readings of the motion R_of_t(t) (world <- torso): gyro as the
     mean rate over each period plus ``bias_rad_s`` and noise, accelerometer gravity plus
-    noise. Returns the times, the true rotations and the store after each period."""
+    noise. Returns the times, the true rotations and, each period, the estimate's attitude,
+    bias and rate."""
     observer, store = AttitudeObserver(PARAMS, DT), Store()
     times = np.arange(int(round(seconds / DT)) + 1) * DT
     Rs, out = [R_of_t(t) for t in times], []
@@ -179,6 +180,25 @@ def test_the_parameters_come_from_the_robot_file_and_are_checked(tmp_path):
         attitude_params(load_model(path=missing))
     with pytest.raises(ConfigError):
         AttitudeObserver(PARAMS, 0.0)
+    assert AttitudeObserver.for_model(MODEL).params == PARAMS
+
+
+def test_the_observer_runs_in_the_control_loop_on_the_ideal_robot():
+    """Wired as the estimation layer: its keys are provided to the loop's flow check and
+    written each period; the ideal robot holds still and upright, so the estimate does too."""
+    from hubo_cli.control.loop import ControlLoop
+    from hubo_cli.estimation.estimator import Estimator
+
+    estimator = Estimator([AttitudeObserver.for_model(MODEL)])
+    assert set(AttitudeObserver.writes) <= set(estimator.writes)
+    with IdealDriver(MODEL) as robot:
+        robot.start()
+        loop = ControlLoop(robot, [], lambda t, s: (None, {}), estimator=estimator)
+        assert loop.run(0.5).ok
+        R_true = quat_wxyz_to_matrix(robot.read().imu_quat_wxyz)
+    assert _tilt_error_deg(loop.store[QUAT_WORLD_TORSO], R_true) < 1e-6
+    assert np.allclose(loop.store[GYRO_BIAS], 0.0, atol=1e-9)
+    assert loop.store[IMU_REJECTED] == (False, False)
 
 
 # ------------------------------------------------------------------ the drivers' IMU

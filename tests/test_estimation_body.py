@@ -229,3 +229,33 @@ def test_both_wrist_moments_from_hubo_ach_reach_the_wrist_stop(model, tmp_path, 
     stopper.update(state.q_rad, state, cycle)
     assert "wrist-torque" in cycle.estop_requests
     assert cycle.info["wrist_torque_nm"] == pytest.approx(np.hypot(*moments_nm), abs=0.1)
+
+
+@pytest.mark.parametrize("line", ["contact_threshold_n = -25.0", "contact_cutoff_hz = 0.0",
+                                  "contact_release_s = -0.05", "com_velocity_cutoff_hz = nan",
+                                  'contact_threshold_n = "25"', "contact_threshold_n = true",
+                                  "contact_debounce_s = 0.05", "", "contact_threshold_n = 30"])
+def test_a_bad_estimation_table_is_a_config_error(model, tmp_path, line):
+    """The robot file's [estimation] table: a value that is not a positive number (the release
+    may be 0), an unknown key or a missing one is refused when the model loads."""
+    from hubo_cli.errors import ConfigError
+    from hubo_cli.model import load_model
+
+    text = model.source.read_text(encoding="utf-8")
+    head, table = text.split("\n[estimation]\n", 1)
+    body, rest = table.split("\n\n", 1)
+    keys = dict(kv.split(" = ", 1) for kv in body.splitlines())
+    if line:
+        key, value = line.split(" = ", 1)
+        keys[key] = value
+    else:
+        del keys["contact_release_s"]
+    body = "\n".join(f"{key} = {value}" for key, value in keys.items())
+    path = tmp_path / "robot.toml"
+    path.write_text(f"{head}\n[estimation]\n{body}\n\n{rest}", encoding="utf-8")
+    (tmp_path / model.raw_robot["urdf"]).symlink_to(model.urdf_path())
+    if line == "contact_threshold_n = 30":  # a good value (an integer) loads
+        assert load_model(path=path).estimation.contact_threshold_n == 30.0
+        return
+    with pytest.raises(ConfigError, match="estimation"):
+        load_model(path=path)

@@ -17,7 +17,7 @@ WARMUP = 50
 def run(report) -> None:
     from hubo_cli.dataflow import Store
     from hubo_cli.drivers.sim import SimDriver
-    from hubo_cli.estimation.attitude import AttitudeObserver, attitude_params
+    from hubo_cli.estimation.attitude import AttitudeObserver
     from hubo_cli.model import load_model
     from hubo_cli.posture import home_posture
 
@@ -28,7 +28,7 @@ def run(report) -> None:
         for _ in range(PERIODS):
             robot.send(q)
             states.append(robot.step())
-    observer, store = AttitudeObserver(attitude_params(model), model.control_period_s), Store()
+    observer, store = AttitudeObserver.for_model(model), Store()
     clock, cpu_clock = time.perf_counter, time.thread_time
     wall, cpu = [], []
     for _ in range(REPEATS):

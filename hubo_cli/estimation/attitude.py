@@ -345,6 +345,12 @@ class AttitudeObserver(Observer):
         self._t_s = 0.0
         self.rejected_periods = 0
 
+    @classmethod
+    def for_model(cls, model) -> AttitudeObserver:
+        """The observer of ``model``'s robot file (its ``[estimation.attitude]`` table) at its
+        control period."""
+        return cls(attitude_params(model), model.control_period_s)
+
     def reset(self, state: RobotState, store: Store) -> None:
         p = self.params
         self._q = initial_attitude(state)

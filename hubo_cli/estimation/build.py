@@ -26,7 +26,7 @@ def build_estimator(model: RobotModel, tools: Mapping[str, str] | None = None,
     """
     # The attitude is the driver's (ReportedAttitude) until the Kalman filter of gyro and
     # accelerometer (estimation/attitude.py, AttitudeObserver) holds up under the estimate's
-    # users. Measured with it here (est-attitude 5d59f74/b53db28, nominal robot): pushed 60 N
+    # users. Measured with it here (est-attitude up to 215c1dc, nominal robot): pushed 60 N
     # for 0.1 s the torso 3.2 mm and the capture point 10 mm off the truth's (0.07 and 0.08 mm
     # with the driver's attitude); `hubo walk --to 0.3 0 0` stopped on the capture point at
     # 0.015 s (the estimate 35 mm off at the start) and did not walk.

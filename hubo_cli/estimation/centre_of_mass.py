@@ -6,8 +6,8 @@
   4 Hz as hrpsys' Stabilizer); zero in the first period.
 * Capture point: CP = x_G + v_G / omega, omega = sqrt(g / (z_G - z_ground)), z_ground the
   lowest corner of the soles in contact (``T_WORLD_SOLES``, ``CONTACT``); without contact the
-  CoM's x, y. The same arithmetic as the capture-point monitor's
-  (:mod:`hubo_cli.control.capture_point`).
+  CoM's x, y. The arithmetic the capture-point monitor (:mod:`hubo_cli.control.capture_point`)
+  ran on the simulator's truth before the estimate existed; it now judges these keys.
 * ZMP: each sole in contact with a positive F_z gives its centre of pressure from its ankle
   sensor's compensated wrench in the sole frame (``WRENCHES``: p = (-m_y / f_z, m_x / f_z) on
   the sole, exact for a sensor at the sole whatever the shear), put in the world through its
@@ -40,9 +40,8 @@ from hubo_cli.estimation.wrenches import joint_vector
 from hubo_cli.geometry import matrix_to_quat_into
 from hubo_cli.model import RobotModel
 from hubo_cli.pin_robot import load_pin_robot
-from hubo_cli.state import GRAVITY_M_S2, RobotState
+from hubo_cli.state import ANKLE_SENSORS, GRAVITY_M_S2, RobotState
 
-ANKLES = ("right-ankle", "left-ankle")
 MIN_SOLE_FZ_N = 1.0  # a sole pressing less than this gives no centre of pressure
 
 
@@ -154,11 +153,11 @@ class CentreOfMass(Observer):
             com = pin.centerOfMass(self.robot.model, self.data, self._q, False)
             velocity, cp, zmp = self._velocity.copy(), np.empty(2), np.empty(2)
             contact = store[CONTACT]
-            wrenches = store[WRENCHES]
+            right, left = (store[WRENCHES][sensor] for sensor in ANKLE_SENSORS)
             support(com, self._prev_com, velocity, self.alpha, self.dt_s, self._first,
                     np.ascontiguousarray(store[T_WORLD_SOLES], dtype=float), bool(contact[0]),
-                    bool(contact[1]), self._corners, wrenches[ANKLES[0]], wrenches[ANKLES[1]],
-                    GRAVITY_M_S2, MIN_SOLE_FZ_N, cp, zmp)
+                    bool(contact[1]), self._corners, right, left, GRAVITY_M_S2, MIN_SOLE_FZ_N,
+                    cp, zmp)
             self._first = False
             self._com, self._velocity, self._cp, self._zmp = com.copy(), velocity, cp, zmp
         store[COM_WORLD] = self._com

@@ -22,9 +22,7 @@ from hubo_cli.dataflow import Store
 from hubo_cli.estimation.keys import CONTACT, WRENCHES
 from hubo_cli.estimation.observer import Observer
 from hubo_cli.model import EstimationConfig
-from hubo_cli.state import RobotState
-
-ANKLES = ("right-ankle", "left-ankle")
+from hubo_cli.state import ANKLE_SENSORS, RobotState
 
 
 class ContactObserver(Observer):
@@ -63,7 +61,7 @@ class ContactObserver(Observer):
     def update(self, state: RobotState, store: Store) -> None:
         wrenches = store[WRENCHES]
         down = []
-        for k, sensor in enumerate(ANKLES):
+        for k, sensor in enumerate(ANKLE_SENSORS):
             fz = float(wrenches[sensor][2])
             if math.isfinite(fz):
                 previous = self.filtered_fz_n[k]

@@ -29,6 +29,7 @@ import numba as nb
 import numpy as np
 
 from hubo_cli.dataflow import Store
+from hubo_cli.errors import ConfigError
 from hubo_cli.estimation.keys import QUAT_WORLD_TORSO, WRENCHES
 from hubo_cli.estimation.observer import Observer
 from hubo_cli.geometry import quat_to_matrix_into
@@ -43,7 +44,6 @@ SENSOR_LIMBS = {"right-wrist": ("right-arm", "right_hand"), "left-wrist": ("left
                 "right-ankle": ("right-leg", "right_sole"), "left-ankle": ("left-leg", "left_sole")}
 
 
-
 def sensor_loads(model: RobotModel, drill: bool) -> tuple[np.ndarray, np.ndarray]:
     """Mass (kg, per sensor in FT_SENSORS) and centre of mass (m, in the sensor's frame) of
     the body beyond each sensor: the URDF's bodies on the limb's last joint (pinocchio merges
@@ -56,7 +56,9 @@ def sensor_loads(model: RobotModel, drill: bool) -> tuple[np.ndarray, np.ndarray
         joint_id = pmodel.getJointId(model.limbs[limb].joints[-1])
         placement = pmodel.frames[robot.frame_id(frame)]
         if placement.parentJoint != joint_id:
-            raise AssertionError(f"the URDF's {frame} is not on {limb}'s last joint")
+            raise ConfigError(f"the URDF's {frame} frame is not on {limb}'s last joint",
+                              path=str(robot.urdf_path),
+                              hint="regenerate it with tools/make_urdf.py")
         T_joint_sensor = placement.placement.homogeneous @ T_frame_sensor(sensor)
         inertia = pmodel.inertias[joint_id]
         masses[k] = inertia.mass
