@@ -53,6 +53,7 @@ pose too (without it the body's lean would not show in their error).
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -239,6 +240,7 @@ class TeleopTarget(Target):
         self.t_settle_s: float | None = None
         self.T_world_S: np.ndarray | None = None
         self.latencies_s: list[float] = []
+        self.operate_call_s: list[float] = []  # this target's own time per operating period
         self.samples_used = 0
         self.last_sample_s: dict[str, float] = {}
         self.errors_m: dict[str, list[float]] = {arm: [] for arm in self.arms}
@@ -292,6 +294,7 @@ class TeleopTarget(Target):
 
     # ------------------------------------------------------------------ the loop's call
     def __call__(self, t_s: float, state) -> tuple[np.ndarray | None, dict]:
+        t0 = time.perf_counter()
         info: dict = {}
         flags: list[str] = []
         keys = self.keys.take()
@@ -321,6 +324,8 @@ class TeleopTarget(Target):
         self._measure(t_s, state, info)
         if flags:
             info["flags"] = flags
+        if self.phase == "operate":
+            self.operate_call_s.append(time.perf_counter() - t0)
         return self.q_out, info
 
     def _pace_arms(self) -> None:
