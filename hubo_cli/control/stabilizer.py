@@ -60,9 +60,8 @@ from hubo_cli.estimation.keys import (
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.pin_robot import load_pin_robot
-from hubo_cli.state import RobotState
+from hubo_cli.state import GRAVITY_M_S2, RobotState
 
-GRAVITY_M_S2 = 9.80665
 K_ZMP = 0.2          # hrpsys k_tpcc_p (1/s)
 K_COM = 4.0          # hrpsys k_tpcc_x (1/s)
 MAX_SHIFT_M = 0.03   # the waist's correction, each axis
