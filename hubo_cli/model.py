@@ -114,8 +114,9 @@ class EstimationConfig:
         swing_touchdown_n: a capture step's swing sole carrying this much has touched down.
         sole_damping_min_fz_n: the walking stabilizer damps a sole carrying more than this;
             lighter, the sole returns to the pattern.
-        ankle_balance_min_weight_fraction: the standing balancer corrects the ankles from
-            the soles' moments only while they carry more than this share of the weight.
+        body_on_soles_weight_fraction: the soles carry the body while their F_z exceeds this
+            share of its weight: only then do the standing balancer (the soles' moments) and
+            the CoM stabilizer (the ZMP) use them.
     """
 
     contact_threshold_n: float = 25.0
@@ -128,7 +129,7 @@ class EstimationConfig:
     zmp_sole_min_fz_n: float = 1.0
     swing_touchdown_n: float = 60.0
     sole_damping_min_fz_n: float = 30.0
-    ankle_balance_min_weight_fraction: float = 0.5
+    body_on_soles_weight_fraction: float = 0.5
 
 
 @dataclass(frozen=True)
@@ -326,9 +327,11 @@ def _estimation(raw: dict, path: Path) -> EstimationConfig:
         value = table[f.name]
         ok = (not isinstance(value, bool) and isinstance(value, int | float)
               and math.isfinite(value)
-              and (value >= 0 if f.name == "contact_release_s" else value > 0))
+              and (value >= 0 if f.name == "contact_release_s" else value > 0)
+              and (value <= 1 or not f.name.endswith("_fraction")))
         if not ok:
-            raise ConfigError(f"must be a positive number, got {value!r}", path=str(path),
+            what = "a share in (0, 1]" if f.name.endswith("_fraction") else "a positive number"
+            raise ConfigError(f"must be {what}, got {value!r}", path=str(path),
                               field=f"estimation.{f.name}")
         values[f.name] = float(value)
     return EstimationConfig(**values)

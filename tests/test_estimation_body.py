@@ -235,7 +235,9 @@ def test_both_wrist_moments_from_hubo_ach_reach_the_wrist_stop(model, tmp_path, 
 @pytest.mark.parametrize("line", ["contact_threshold_n = -25.0", "contact_cutoff_hz = 0.0",
                                   "contact_release_s = -0.05", "com_velocity_cutoff_hz = nan",
                                   'contact_threshold_n = "25"', "contact_threshold_n = true",
-                                  "contact_debounce_s = 0.05", "", "contact_threshold_n = 30"])
+                                  "contact_debounce_s = 0.05", "", "contact_threshold_n = 30",
+                                  "body_on_soles_weight_fraction = 1.5",
+                                  "swing_touchdown_n = 0", "anchor_switch_n = inf"])
 def test_a_bad_estimation_table_is_a_config_error(model, tmp_path, line):
     """The robot file's [estimation] table: a value that is not a positive number (the release
     may be 0), an unknown key or a missing one is refused when the model loads."""

@@ -269,7 +269,7 @@ class DampingBalancer(Module):
 
         self._pin = pin
         self._weight_n = float(pin.computeTotalMass(self._robot.model)) * GRAVITY_M_S2
-        self._loaded_n = model.estimation.ankle_balance_min_weight_fraction * self._weight_n
+        self._loaded_n = model.estimation.body_on_soles_weight_fraction * self._weight_n
         self._sole_ids = [self._robot.frame_id(f) for f in ("right_sole", "left_sole")]
         self._q = self._robot.configuration(np.zeros(len(names)))  # torso at the origin
         self._last_ref = np.full(len(names), np.nan)  # the command of the last reference

@@ -131,6 +131,7 @@ class Stabilizer(Module):
         self._q = np.zeros(self._robot.model.nq)
         self._sole_ids = [self._robot.frame_id(sole) for _, _, sole in LEGS]
         self._weight_n = float(pin.computeTotalMass(self._robot.model)) * GRAVITY_M_S2
+        self._loaded_n = model.estimation.body_on_soles_weight_fraction * self._weight_n
         self._legs = {leg: Limb(model, leg) for leg, _, _ in LEGS}
         self._slices = {leg: model.limb_slice(leg) for leg, _, _ in LEGS}
         names = model.joint_names
@@ -215,7 +216,7 @@ class Stabilizer(Module):
                 return measured, None
             total_fz += max(float(wrench[2]), 0.0)
         zmp = np.asarray(store[ZMP_WORLD], dtype=float)
-        if total_fz < 0.5 * self._weight_n or not np.all(np.isfinite(zmp[:2])):
+        if total_fz < self._loaded_n or not np.all(np.isfinite(zmp[:2])):
             return measured, None
         return measured, R_feet_T @ (zmp[:2] - mid[:2])
 
