@@ -235,7 +235,7 @@ def standing_options(duration_s: float = 5.0, push_n: float = 0.0, *,
     needs = "stepping (--step)" if step else "the hip strategy" if hip else None
     if needs is None:
         chosen = limit_set or default_limit_set
-        reason = ("as chosen (--limits)" if limit_set
+        reason = ("named by --limits" if limit_set
                   else "neither stepping nor the hip strategy runs")
     elif limit_set not in (None, WALKING_LIMITS):
         raise ConfigError(f"{needs} needs the {WALKING_LIMITS!r} joint-limit set, not "
