@@ -9,11 +9,12 @@ run folder can be reported again after the fact and the tests can feed synthetic
   the soles on the ground (the capture-point monitor's ``cp_outside_m`` is measured against the
   polygon shrunk by ``CP_MARGIN_M``), with when and where (``min_support_margin_at``). Negative:
   the capture point was outside.
-* ``contact_losses``: intervals longer than ``CONTACT_LOSS_MIN_S`` (20 ms) in which a foot that
-  should stand on the ground (always while standing; where a walk's plan puts it down, its
-  ``planned_{right,left}_foot_contact_flag`` columns) carried no load (its contact flag: F_z
-  low-passed at 5 Hz above 25 N, as the simulator and hrpsys decide it; recomputed from the
-  logged F_z where a driver gives no flag), each with its start, length and foot.
+* ``contact_losses``: intervals longer than the robot file's ``contact_loss_min_s`` in which a
+  foot that should stand on the ground (always while standing; where a walk's plan puts it
+  down, its ``planned_{right,left}_foot_contact_flag`` columns) carried no load (its contact
+  flag: F_z low-passed and thresholded as the robot file's ``[estimation]`` says, as the
+  simulator and hrpsys decide it; recomputed from the logged F_z where a driver gives no
+  flag), each with its start, length and foot.
 * ``ankle_clamp_fraction``: the share of periods in which the soft error limiter clamped an
   ankle joint (``limiter_ankle_clamped_count``).
 * ``cutting_fraction`` (runs with the drill and a wall): the share of the cut's time in which
@@ -29,12 +30,12 @@ import math
 
 import numpy as np
 
-from hubo_cli.control.capture_point import CONTACT_LOSS_MIN_S, CP_MARGIN_M
+from hubo_cli.control.capture_point import CP_MARGIN_M
 from hubo_cli.control.log import LogData
 from hubo_cli.geometry import quat_wxyz_to_matrix
+from hubo_cli.model import EstimationConfig
 
-CONTACT_THRESHOLD_N = 25.0    # hrpsys contact_decision_threshold (as the simulator's)
-CONTACT_CUTOFF_HZ = 5.0       # low-pass of the ankles' F_z before the threshold
+ESTIMATION = EstimationConfig()  # the robot file's [estimation] when no model is given
 LISTED_LOSSES = 20            # contact losses listed one by one in the summary
 FEET = ("right", "left")
 
@@ -71,8 +72,8 @@ def support_margin(log: LogData) -> dict | None:
 
 
 def contact_from_fz(fz_n: np.ndarray, period_s: float,
-                    threshold_n: float = CONTACT_THRESHOLD_N,
-                    cutoff_hz: float = CONTACT_CUTOFF_HZ) -> np.ndarray:
+                    threshold_n: float = ESTIMATION.contact_threshold_n,
+                    cutoff_hz: float = ESTIMATION.contact_cutoff_hz) -> np.ndarray:
     """Contact per period from a foot's F_z (N): first-order low-pass at ``cutoff_hz``, started
     at the first finite value, above ``threshold_n``; a period without a reading holds."""
     tau = 1.0 / (2.0 * math.pi * cutoff_hz)
@@ -86,7 +87,7 @@ def contact_from_fz(fz_n: np.ndarray, period_s: float,
     return contact
 
 
-def feet_contact(log: LogData) -> np.ndarray | None:
+def feet_contact(log: LogData, config: EstimationConfig = ESTIMATION) -> np.ndarray | None:
     """(N, 2) contact of the right and left foot per period, None when the log has neither the
     contact flags nor ankle forces that ever carried the robot (a driver without force
     sensing, e.g. the ideal one, reads 0 N throughout: that says nothing about contact)."""
@@ -94,20 +95,21 @@ def feet_contact(log: LogData) -> np.ndarray | None:
     period = _period_s(log)
     forces = [log[f"{foot}_foot_fz_n"] for foot in FEET if f"{foot}_foot_fz_n" in log.columns]
     sensed = len(forces) == 2 and max(np.nanmax(f, initial=-np.inf) for f in forces) > (
-        CONTACT_THRESHOLD_N)
+        config.contact_threshold_n)
     for foot in FEET:
         flag, fz = f"{foot}_foot_contact_flag", f"{foot}_foot_fz_n"
         if flag in log.columns and np.any(np.isfinite(log[flag])):
             columns.append(log[flag] > 0.5)
         elif sensed:
-            columns.append(contact_from_fz(log[fz], period))
+            columns.append(contact_from_fz(log[fz], period, config.contact_threshold_n,
+                                          config.contact_cutoff_hz))
         else:
             return None
     return np.column_stack(columns)
 
 
 def contact_losses(t_s: np.ndarray, contact: np.ndarray, period_s: float,
-                   min_s: float = CONTACT_LOSS_MIN_S) -> list[dict]:
+                   min_s: float = ESTIMATION.contact_loss_min_s) -> list[dict]:
     """The intervals in which a foot was unloaded for longer than ``min_s``.
 
     Args:
@@ -226,14 +228,15 @@ def balance_report(log: LogData, model=None, drill: bool = False) -> dict:
     cannot give is None. ``model`` and ``drill`` (the right hand holds the drill) are needed
     for ``cutting_fraction``."""
     margin = support_margin(log)
-    contact = feet_contact(log)
+    config = ESTIMATION if model is None else model.estimation
+    contact = feet_contact(log, config)
     if contact is not None and all(f"planned_{foot}_foot_contact_flag" in log.columns
                                    for foot in FEET):
         planned = np.column_stack([log[f"planned_{foot}_foot_contact_flag"] > 0.5
                                    for foot in FEET])
         contact = contact | ~planned  # a foot in the air by plan is not a lost contact
     losses = (None if contact is None
-              else contact_losses(log["t_s"], contact, _period_s(log)))
+              else contact_losses(log["t_s"], contact, _period_s(log), config.contact_loss_min_s))
     report = {
         "max_torso_tilt_deg": max_tilt_deg(log),
         "min_support_margin_mm": None if margin is None else margin["mm"],

@@ -103,12 +103,33 @@ class EstimationConfig:
         contact_cutoff_hz: the first-order low-pass of the ankles' F_z before the threshold.
         contact_release_s: a sole still counts as down this long after it was last loaded.
         com_velocity_cutoff_hz: the first-order low-pass of the CoM's differenced velocity.
+        contact_loss_min_s: a foot out of contact longer than this counts as a contact loss
+            (the capture-point monitor's and the balance report's count).
+        anchor_switch_n: the floating base's anchor passes to the other sole in contact once
+            that one carries this much more (compensated ankle F_z).
+        anchor_cop_min_fz_n: a sole pressing less than this keeps its last centre of pressure
+            (the floating base's rolling-edge check).
+        zmp_sole_min_fz_n: a sole in contact pressing less than this adds no centre of
+            pressure to the ZMP.
+        swing_touchdown_n: a capture step's swing sole carrying this much has touched down.
+        sole_damping_min_fz_n: the walking stabilizer damps a sole carrying more than this;
+            lighter, the sole returns to the pattern.
+        body_on_soles_weight_fraction: the soles carry the body while their F_z exceeds this
+            share of its weight: only then do the standing balancer (the soles' moments) and
+            the CoM stabilizer (the ZMP) use them.
     """
 
     contact_threshold_n: float = 25.0
     contact_cutoff_hz: float = 5.0
     contact_release_s: float = 0.05
     com_velocity_cutoff_hz: float = 4.0
+    contact_loss_min_s: float = 0.02
+    anchor_switch_n: float = 40.0
+    anchor_cop_min_fz_n: float = 10.0
+    zmp_sole_min_fz_n: float = 1.0
+    swing_touchdown_n: float = 60.0
+    sole_damping_min_fz_n: float = 30.0
+    body_on_soles_weight_fraction: float = 0.5
 
 
 @dataclass(frozen=True)
@@ -306,9 +327,11 @@ def _estimation(raw: dict, path: Path) -> EstimationConfig:
         value = table[f.name]
         ok = (not isinstance(value, bool) and isinstance(value, int | float)
               and math.isfinite(value)
-              and (value >= 0 if f.name == "contact_release_s" else value > 0))
+              and (value >= 0 if f.name == "contact_release_s" else value > 0)
+              and (value <= 1 or not f.name.endswith("_fraction")))
         if not ok:
-            raise ConfigError(f"must be a positive number, got {value!r}", path=str(path),
+            what = "a share in (0, 1]" if f.name.endswith("_fraction") else "a positive number"
+            raise ConfigError(f"must be {what}, got {value!r}", path=str(path),
                               field=f"estimation.{f.name}")
         values[f.name] = float(value)
     return EstimationConfig(**values)

@@ -18,7 +18,7 @@ from hubo_cli.control.lip_feedback import (
 )
 from hubo_cli.errors import ConfigError
 from hubo_cli.model import load_model
-from hubo_cli.walking.preview import GRAVITY_M_S2
+from hubo_cli.state import GRAVITY_M_S2
 
 
 def test_gains_by_hand():

@@ -22,6 +22,7 @@ from hubo_cli.experiments.manipulation import (
     start_posture,
 )
 from hubo_cli.hinged_objects import Door, Valve
+from hubo_cli.state import GRAVITY_M_S2
 
 PNG = b"\x89PNG\r\n\x1a\n"
 
@@ -89,7 +90,7 @@ def test_parameters_from_task_files_are_checked(rng):
 def bullet():
     p = import_pybullet()
     cid = p.connect(p.DIRECT)
-    p.setGravity(0, 0, -9.81, physicsClientId=cid)
+    p.setGravity(0, 0, -GRAVITY_M_S2, physicsClientId=cid)
     p.setTimeStep(0.0025, physicsClientId=cid)
     yield p, cid
     p.disconnect(physicsClientId=cid)

@@ -17,10 +17,11 @@ from hubo_cli.kinematics.torso import TorsoEstimator
 from hubo_cli.kinematics.wholebody import WholeBody
 from hubo_cli.model import load_model
 from hubo_cli.posture import home_posture
+from hubo_cli.state import GRAVITY_M_S2
 from hubo_cli.urdf import total_mass_kg
 
 MODEL = load_model()
-G = 9.81
+G = GRAVITY_M_S2
 
 
 @pytest.fixture

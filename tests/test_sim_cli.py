@@ -32,7 +32,8 @@ def test_text_report(tmp_path):
     result = CliRunner().invoke(main, ["sim", "--duration", "0.2", "--no-balance", "--out",
                                        str(tmp_path)])
     assert result.exit_code == 0, result.output
-    for words in ("max tilt", "feet flat", "fell", "real-time factor", "snapshot.png"):
+    for words in ("max tilt", "feet flat", "fell", "real-time factor", "snapshot.png",
+                  "leg limits        table4"):
         assert words in result.output
 
 
@@ -62,3 +63,37 @@ def test_the_push_directions_offered_are_the_ones_the_experiment_knows():
 
     option = next(p for p in sim.params if p.name == "push_direction")
     assert set(option.type.choices) == set(PUSH_DIRECTIONS)
+
+
+@pytest.mark.parametrize("balance", ["default", "paper", "off"])
+@pytest.mark.parametrize("step", [False, True])
+@pytest.mark.parametrize("hip", [False, True])
+@pytest.mark.parametrize("limit_set", [None, "table4", "walking"])
+def test_the_limit_set_is_decided_once_in_the_options(balance, step, hip, limit_set):
+    """Every combination of --balance, --step, --no-hip and --limits: stepping or the hip
+    strategy (default balancer only, not with a step) run on the walking set, and a named set
+    they cannot run on is refused; without them the named set or Table IV's."""
+    from hubo_cli.errors import ConfigError
+    from hubo_cli.experiments.standing import standing_options
+
+    needs_walking = step or (hip and balance == "default")
+    if needs_walking and limit_set == "table4":
+        with pytest.raises(ConfigError, match="walking"):
+            standing_options(1.0, balance=balance, step=step, hip_strategy=hip,
+                             limit_set=limit_set)
+        return
+    options = standing_options(1.0, balance=balance, step=step, hip_strategy=hip,
+                               limit_set=limit_set)
+    expected = "walking" if needs_walking else (limit_set or "table4")
+    assert options.safety.limit_set == expected
+    assert options.safety.hip_strategy == (hip and not step and balance == "default")
+    assert options.safety.balance_choice == balance and options.step == step
+
+
+def test_a_limit_set_the_options_cannot_run_on_is_refused_before_the_run(tmp_path):
+    for args in (["--step", "--limits", "table4"], ["--limits", "no-such-set"]):
+        result = CliRunner().invoke(main, ["sim", "--duration", "0.1", *args,
+                                           "--out", str(tmp_path / "run")])
+        assert result.exit_code == 2, result.output
+        assert "limit" in result.output
+        assert not (tmp_path / "run").exists()

@@ -33,10 +33,15 @@ from hubo_cli.cli.output import console, exit_if_interrupted, print_json
               help="Leave out the hip strategy (the trunk bows when a push brings the capture "
                    "point near the toes or heels; it runs on the robot file's walking limits, "
                    "with the default balancer only) and stand on Table IV's limits.")
+@click.option("--limits", "limit_set", default=None, metavar="NAME",
+              help="The legs' joint-limit set the limiter enforces (the robot file's "
+                   "table4 or a [limit_sets] name). Default: walking with --step or the hip "
+                   "strategy (their legs must be fast enough), table4 otherwise; a set they "
+                   "cannot run on is refused.")
 @robot_run_options("sim")
 @perturb_option
 def sim(duration: float, push: float, push_direction: str, balance: str, no_balance: bool,
-        step: bool, no_hip: bool, no_estop: bool, estop_sources: str | None,
+        step: bool, no_hip: bool, limit_set: str | None, no_estop: bool, estop_sources: str | None,
         accept_reduced_safety: bool, gui: bool, as_json: bool, out: str | None,
         live: bool, live_host: str | None, live_port: int | None,
         perturb_seed: int | None) -> None:
@@ -45,38 +50,45 @@ def sim(duration: float, push: float, push_direction: str, balance: str, no_bala
     Example: hubo sim --duration 5 --push 30 --push-direction backward
     """
     from hubo_cli.cli.keys import announce_keys, operator_keys
-    from hubo_cli.control.pipeline import SafetyProfile
     from hubo_cli.control.stop_choice import SOFT_SOURCES
-    from hubo_cli.experiments.standing import PUSH_DIRECTIONS, check_standing_args, stand
+    from hubo_cli.experiments.standing import (
+        PUSH_DIRECTIONS,
+        check_standing_args,
+        run_standing,
+        standing_options,
+    )
     from hubo_cli.model import load_model
     from hubo_cli.runs import reserved_run_dir
 
-    check_standing_args(duration, push)
+    check_standing_args(duration, push)  # before any notice about the stop sources
     stops = active_stops(SOFT_SOURCES, "sim", no_estop=no_estop, estop_sources=estop_sources,
                          accept_reduced_safety=accept_reduced_safety, quiet=as_json)
-    profile = SafetyProfile().with_balance("off" if no_balance else balance)
+    # the run's one configuration, every option decided here (the limit set among them)
+    options = standing_options(duration, push, balance="off" if no_balance else balance,
+                               step=step, hip_strategy=not no_hip, limit_set=limit_set,
+                               stops=stops, push_direction=PUSH_DIRECTIONS[push_direction],
+                               perturb_seed=perturb_seed)
+    model = load_model(limits=options.safety.limit_set)
     with (reserved_run_dir("sim", out) as run_dir,  # a bad --out fails before anything runs
           live_server(live, live_host, live_port, quiet=as_json) as server,
           operator_keys() as keys):
         announce_keys(keys, quiet=as_json)
-        result = stand(load_model(), duration, push, balance=profile.balance, gui=gui,
-                       out=run_dir, stops=stops, perturb_seed=perturb_seed,
-                       balance_mode=profile.balance_mode, step=step, hip_strategy=not no_hip,
-                       push_direction=PUSH_DIRECTIONS[push_direction], operator=keys,
-                       live=server)
+        result = run_standing(model, options, gui=gui, out=run_dir, operator=keys,
+                              live=server)
     # the run's whole summary (as in summary.json: pipeline, e-stops, perturbation draws ...)
     summary = (json.loads((run_dir / "summary.json").read_text(encoding="utf-8"))
                | {"run_dir": str(run_dir)})
     if as_json:
         print_json(summary)
     else:
-        _print(summary, result, profile, push, push_direction, duration, step, run_dir)
+        _print(summary, result, options, push_direction, run_dir)
     exit_if_interrupted(summary)
 
 
-def _print(summary: dict, result, profile, push: float, push_direction: str, duration: float,
-           step: bool, run_dir) -> None:
+def _print(summary: dict, result, options, push_direction: str, run_dir) -> None:
     from hubo_cli.cli.safety_view import balance_summary_line
+
+    profile, push, duration = options.safety, options.push_n, options.duration_s
 
     balance = {"default": "default (common + differential damping)",
                "paper": "paper (eq. 11-12: K_r 0.009 rad/s/deg, K_c 0.0015 rad/s/N m)",
@@ -87,12 +99,13 @@ def _print(summary: dict, result, profile, push: float, push_direction: str, dur
     console.print(f"stood             {result.simulated_s:.2f} s of {duration:g} s{interrupted}")
     console.print(f"balance           {balance}")
     console.print(f"push              {push_text}")
+    console.print(f"leg limits        {profile.limit_set} ({options.limit_set_reason})")
     console.print(f"max tilt          {result.max_tilt_deg:.3f} deg "
                   f"(final {result.final_tilt_deg:.3f} deg)")
     console.print(f"feet flat         {'yes' if result.feet_flat else 'no'} "
                   f"(max sole tilt {result.max_sole_tilt_deg:.3f} deg)")
     console.print(f"fell              {'YES' if result.fell else 'no'}")
-    if step:
+    if options.step:
         stepped = summary["capture_step"]
         console.print(f"stepped           {stepped['steps']} step(s)" + (
             f" from t = {stepped['trigger_s']:.2f} s" if stepped["stepped"] else ""))

@@ -50,7 +50,7 @@ from hubo_cli.geometry import GIMBAL_LOCK_COS
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.posture import home_posture
-from hubo_cli.state import RobotState
+from hubo_cli.state import GRAVITY_M_S2, RobotState
 
 K_R_RAD_S_PER_DEG = 0.009
 K_C_RAD_S_PER_NM = 0.0015
@@ -168,7 +168,6 @@ class AnkleBalancer(Module):
 
 
 # ---------------------------------------------------------------------- the default balancer
-GRAVITY_M_S2 = 9.80665
 DAMPING_NM_S_PER_RAD = 667.0     # 1 / K_c: the paper's compliance, now toward a reference
 COMMON_LEAK_S = 1.0              # hrpsys EEFM time constant of the return to the command
 CHAIN_STIFFNESS_NM_PER_RAD = 1.0e5  # between the feet, the simulated legs (issue 15's figure)
@@ -270,6 +269,7 @@ class DampingBalancer(Module):
 
         self._pin = pin
         self._weight_n = float(pin.computeTotalMass(self._robot.model)) * GRAVITY_M_S2
+        self._loaded_n = model.estimation.body_on_soles_weight_fraction * self._weight_n
         self._sole_ids = [self._robot.frame_id(f) for f in ("right_sole", "left_sole")]
         self._q = self._robot.configuration(np.zeros(len(names)))  # torso at the origin
         self._last_ref = np.full(len(names), np.nan)  # the command of the last reference
@@ -356,7 +356,7 @@ class DampingBalancer(Module):
             self._no_wrench if right is None else as_array(right, dtype=float), right is not None,
             self._no_wrench if left is None else as_array(left, dtype=float), left is not None,
             as_array(quat_wxyz, dtype=float), both,
-            reference, self._weight_n, self._flat_x_m[0], self._flat_x_m[1],
+            reference, self._loaded_n, self._flat_x_m[0], self._flat_x_m[1],
             self.edge_margin_m > 0, self.damping, self.k_r, self.common_leak_s, self._common,
             self._differential, self._offsets, self._rate, self._lower, self._upper,
             self.max_offset_rad, self.k_d, self.differential_leak_s, MAX_CORRECTION_RATE_RAD_S,
@@ -379,7 +379,7 @@ def command_configuration(q, q_measured, last, q_pin, index):
 
 @nb.njit(cache=True, nogil=True)
 def _balance_step(q, ankles, signs, right_wrench, has_right, left_wrench, has_left, quat, both,
-                  reference, weight_n, flat_lo, flat_hi, edge_check, damping, k_r, common_leak,
+                  reference, loaded_n, flat_lo, flat_hi, edge_check, damping, k_r, common_leak,
                   common, differential, offsets, rate, lower, upper, limit, k_d, leak, max_rate,
                   max_step, smoothing_s, dt):
     """:class:`DampingBalancer`'s period, compiled (the arithmetic of its Python form, in the
@@ -420,11 +420,11 @@ def _balance_step(q, ankles, signs, right_wrench, has_right, left_wrench, has_le
         fz, moment_y = fz + left_wrench[2], moment_y + left_wrench[4]
     mean_pitch, mean_roll = (right_pitch + left_pitch) / 2, (right_roll + left_roll) / 2
     error_pitch = error_roll = 0.0
-    if fz > 0.5 * weight_n:
+    if fz > loaded_n:  # the soles carry the body: their moments mean balance
         error_pitch, error_roll = mean_pitch - reference / 2, mean_roll - 0.0 / 2
     rate_pitch = error_pitch / damping + k_r * tilt_pitch - common[0] / common_leak
     rate_roll = error_roll / damping + k_r * tilt_roll - common[1] / common_leak
-    if edge_check and fz > 0.5 * weight_n and not flat_lo < -moment_y / fz < flat_hi:
+    if edge_check and fz > loaded_n and not flat_lo < -moment_y / fz < flat_hi:
         rate_pitch = -common[0] / common_leak  # tipping: only the leak
     common[0] = common[0] + rate_pitch * dt
     common[1] = common[1] + rate_roll * dt

@@ -60,7 +60,6 @@ from hubo_cli.state import RobotState
 CP_MARGIN_M = 0.03        # hrpsys cp_check_margin
 CORNER_TOLERANCE_M = 0.005  # a sole corner higher than this above the lowest one is lifted
 SOLE_FRAMES = ("right_sole", "left_sole")
-CONTACT_LOSS_MIN_S = 0.020  # a foot unloaded longer than this while standing: a contact loss
 
 
 @nb.njit(cache=True, nogil=True)
@@ -232,6 +231,7 @@ class CapturePointMonitor(Module):
                  request_estop: bool = True, corner_tolerance_m: float = CORNER_TOLERANCE_M,
                  confirm_periods: int = 3, drill: bool = False) -> None:
         self.dt_s = float(dt_s)
+        self._contact_loss_min_s = model.estimation.contact_loss_min_s
         self.confirm_periods = max(1, int(confirm_periods))
         self._outside_periods = 0
         self.margin_m = float(margin_m)
@@ -297,7 +297,7 @@ class CapturePointMonitor(Module):
             return
         self._unloaded_periods += 1
         lasted = self._unloaded_periods * self.dt_s
-        if lasted > CONTACT_LOSS_MIN_S + 1e-9 >= lasted - self.dt_s:
+        if lasted > self._contact_loss_min_s + 1e-9 >= lasted - self.dt_s:
             self.contact_losses += 1
 
     def measure(self, state: RobotState, store: Store,

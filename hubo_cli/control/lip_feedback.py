@@ -35,7 +35,7 @@ import numpy as np
 
 from hubo_cli.errors import ConfigError
 from hubo_cli.model import RobotModel
-from hubo_cli.walking.preview import GRAVITY_M_S2
+from hubo_cli.state import GRAVITY_M_S2
 
 
 @dataclass(frozen=True)

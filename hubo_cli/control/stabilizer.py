@@ -60,9 +60,8 @@ from hubo_cli.estimation.keys import (
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.pin_robot import load_pin_robot
-from hubo_cli.state import RobotState
+from hubo_cli.state import GRAVITY_M_S2, RobotState
 
-GRAVITY_M_S2 = 9.80665
 K_ZMP = 0.2          # hrpsys k_tpcc_p (1/s)
 K_COM = 4.0          # hrpsys k_tpcc_x (1/s)
 MAX_SHIFT_M = 0.03   # the waist's correction, each axis
@@ -132,6 +131,7 @@ class Stabilizer(Module):
         self._q = np.zeros(self._robot.model.nq)
         self._sole_ids = [self._robot.frame_id(sole) for _, _, sole in LEGS]
         self._weight_n = float(pin.computeTotalMass(self._robot.model)) * GRAVITY_M_S2
+        self._loaded_n = model.estimation.body_on_soles_weight_fraction * self._weight_n
         self._legs = {leg: Limb(model, leg) for leg, _, _ in LEGS}
         self._slices = {leg: model.limb_slice(leg) for leg, _, _ in LEGS}
         names = model.joint_names
@@ -216,7 +216,7 @@ class Stabilizer(Module):
                 return measured, None
             total_fz += max(float(wrench[2]), 0.0)
         zmp = np.asarray(store[ZMP_WORLD], dtype=float)
-        if total_fz < 0.5 * self._weight_n or not np.all(np.isfinite(zmp[:2])):
+        if total_fz < self._loaded_n or not np.all(np.isfinite(zmp[:2])):
             return measured, None
         return measured, R_feet_T @ (zmp[:2] - mid[:2])
 

@@ -69,8 +69,8 @@ Sensors (:class:`~hubo_cli.drivers.base.RobotState`)
     hand in the air reads its own and its tool's weight; standing, an ankle reads f_z = its
     share of the weight minus the foot's. Joint torques are the motors' applied torques. Feet
     contacts (the simulator's truth, for reports): a foot is in contact while the floor's F_z
-    on it, low-passed
-    at ``CONTACT_CUTOFF_HZ`` (5 Hz), exceeds ``CONTACT_THRESHOLD_N`` (25 N), as hrpsys decides
+    on it, low-passed at the robot file's ``estimation.contact_cutoff_hz``, exceeds its
+    ``estimation.contact_threshold_n`` (the estimate's contact filter), as hrpsys decides
     it: a foot that only brushes the floor (a rocking sole touching with a few newtons) does not
     count as support.
     With hinged objects in the scene (:meth:`add_valve`, :meth:`add_door`) a wrist reads its
@@ -131,14 +131,18 @@ from hubo_cli.perturb import FOOT_LINKS, CommandDelay, Perturbation
 from hubo_cli.perturb import draw as draw_perturbation
 from hubo_cli.posture import home_posture
 from hubo_cli.scene import CuttingModel
-from hubo_cli.state import FT_MEASURED, FT_SENSORS, RobotState, T_frame_sensor, Truth
+from hubo_cli.state import (
+    FT_MEASURED,
+    FT_SENSORS,
+    GRAVITY_M_S2,
+    RobotState,
+    T_frame_sensor,
+    Truth,
+)
 from hubo_cli.urdf import DRILL_FRAME, PHYSICS_DRILL_URDF, PHYSICS_URDF, link_frames
 
-GRAVITY_SIM_M_S2 = 9.81     # the simulated world's gravity
 FT_MASK = np.zeros(6)
 FT_MASK[list(FT_MEASURED)] = 1.0  # Hubo's three-axis sensors: f_z, m_x, m_y
-CONTACT_THRESHOLD_N = 25.0  # hrpsys contact_decision_threshold
-CONTACT_CUTOFF_HZ = 5.0     # low-pass of the ankles' F_z before the threshold
 HAND_FRAMES = {"right-wrist": ("RWP_link", "right_hand"), "left-wrist": ("LWP_link", "left_hand")}
 HAND_LINK_OF = {frame: link for link, frame in HAND_FRAMES.values()}
 SOLE_FRAMES = {"right-ankle": ("RAR_link", "right_sole"), "left-ankle": ("LAR_link", "left_sole")}
@@ -427,7 +431,8 @@ class SimDriver(Driver, SimulatedWorld):
         self._max_tilt_deg = 0.0
         self._delay: CommandDelay | None = None
         self._physics_step = 0
-        tau = 1.0 / (2.0 * math.pi * CONTACT_CUTOFF_HZ)
+        tau = 1.0 / (2.0 * math.pi * model.estimation.contact_cutoff_hz)
+        self._contact_threshold_n = model.estimation.contact_threshold_n
         self._contact_alpha = self.period_s / (self.period_s + tau)
         self._fz_filtered_n: list[float | None] = [None, None]
         frames = link_frames(model)
@@ -455,7 +460,7 @@ class SimDriver(Driver, SimulatedWorld):
     def _build_world(self, q0: np.ndarray) -> None:
         p, cid = self._p, self._cid
         p.resetSimulation(physicsClientId=cid)
-        p.setGravity(0, 0, -GRAVITY_SIM_M_S2, physicsClientId=cid)
+        p.setGravity(0, 0, -GRAVITY_M_S2, physicsClientId=cid)
         p.setPhysicsEngineParameter(fixedTimeStep=self.options.physics_dt_s,
                                     numSolverIterations=self.options.solver_iterations,
                                     solverResidualThreshold=self.options.solver_residual_threshold,
@@ -937,14 +942,14 @@ class SimDriver(Driver, SimulatedWorld):
             if previous is not None:
                 ax, ay, az = ((v - u) / self.period_s for v, u in zip(ls[6], previous,
                                                                         strict=True))
-            load = (mass * -ax, mass * -ay, mass * (-GRAVITY_SIM_M_S2 - az))
+            load = (mass * -ax, mass * -ay, mass * (-GRAVITY_M_S2 - az))
             ft[sensor] = (wrench + self._wrench([], T_world_sensor, (load, ls[0]))) * FT_MASK
             if ankle is not None:  # contact: the floor's push alone (the simulator's truth)
                 fz = float(wrench[2])
                 if filtered[ankle] is None:  # at start: no history to filter
                     filtered[ankle] = fz
                 filtered[ankle] += self._contact_alpha * (fz - filtered[ankle])
-                contact[ankle] = filtered[ankle] > CONTACT_THRESHOLD_N
+                contact[ankle] = filtered[ankle] > self._contact_threshold_n
         flags, self._flags = tuple(dict.fromkeys(self._flags)), []
         if self._stopped:
             flags = tuple(dict.fromkeys((*flags, "stopped")))
@@ -970,7 +975,7 @@ class SimDriver(Driver, SimulatedWorld):
             a, gyro = np.zeros(3), R.T @ omega_world
         else:
             a, gyro = (v - last[0]) / self.period_s, rotation_log(last[1].T @ R) / self.period_s
-        a[2] += GRAVITY_SIM_M_S2
+        a[2] += GRAVITY_M_S2
         return gyro, R.T @ a
 
     # ------------------------------------------------------------------ extras

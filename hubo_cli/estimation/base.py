@@ -29,12 +29,12 @@ chains, :mod:`hubo_cli.kinematics.limb`) and the attitude ``QUAT_WORLD_TORSO``:
 * both soles follow from the torso through the legs.
 
 The anchor changes when it loses contact (``CONTACT``) and the other sole has it, or when the
-other sole in contact carries ``ANCHOR_SWITCH_N`` more than it (the compensated ankle F_z): a
-foot that lifts is still in contact for the debounce's delay, and held as the anchor meanwhile
-it would carry the whole estimate up with it (a capture step's swing foot lifted the estimated
-torso by 30 mm and sank the stance sole as far). The new anchor keeps the pose estimated for it
-in that period, so the estimate does not jump. Without any contact (a jump, a fall, a lifted
-robot) the anchor stays.
+other sole in contact carries the robot file's ``estimation.anchor_switch_n`` more than it (the
+compensated ankle F_z): a foot that lifts is still in contact for the debounce's delay, and
+held as the anchor meanwhile it would carry the whole estimate up with it (a capture step's
+swing foot lifted the estimated torso by 30 mm and sank the stance sole as far). The new anchor
+keeps the pose estimated for it in that period, so the estimate does not jump. Without any
+contact (a jump, a fall, a lifted robot) the anchor stays.
 
 Start: the world frame is the simulator's (:mod:`hubo_cli.drivers.sim`): the torso's neck frame
 at the start, dropped onto the floor (x forward, y left, z up, the origin on the floor under the
@@ -69,7 +69,6 @@ from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import LEGS, RobotModel
 from hubo_cli.state import ANKLE_SENSORS, RobotState
 
-MIN_FZ_N = 10.0  # [chosen] a sole pressing less than this: its last centre of pressure
 HEADING_TAU_S = 1.0  # [chosen] the gyro's share of the heading fades with this time constant
 GYRO_BIAS_TAU_S = 1.0  # [chosen] the gyro's yaw bias: its rate beyond the legs' on two soles
 #                        while still, low-passed (the perturbation's bias, up to 0.5 deg/s,
@@ -79,9 +78,6 @@ EDGE_M = 0.015  # [chosen] a centre of pressure this close to the sole's outline
 STILL_YAW_RAD_S = 0.02  # [chosen] ... still: within this of the bias (2.3x the perturbation's
 #                         largest bias; a push twisting the feet on the floor is not learnt)
 LANDED_PERIODS = 20  # [chosen] a sole takes the anchor where it stood these last periods
-ANCHOR_SWITCH_N = 40.0  # [chosen] the other sole carrying this much more takes the anchor
-#                         (about a tenth of the robot's weight: quiet standing's noise and
-#                         the two feet's uneven load never reach it)
 
 
 @nb.njit(cache=True, nogil=True)
@@ -203,6 +199,8 @@ class FloatingBase(Observer):
                           float(corners[:, 1].min()), float(corners[:, 1].max()))
         self._contact_point = (0.0, 0.0)  # on the anchor sole (sole frame, m)
         self._dt_s = model.control_period_s
+        self._cop_min_fz_n = model.estimation.anchor_cop_min_fz_n
+        self._anchor_switch_n = model.estimation.anchor_switch_n
         self._keep = HEADING_TAU_S / (HEADING_TAU_S + self._dt_s)  # the turn's fade a period
         self._turn_rad = 0.0  # the gyro's turn on top of the legs' heading
         self._R_legs: np.ndarray | None = None  # the legs' torso rotation, last period
@@ -248,10 +246,10 @@ class FloatingBase(Observer):
 
     def _centre_of_pressure(self, store: Store) -> tuple[float, float]:
         """The anchor sole's centre of pressure (sole frame, m) inside its outline; the last
-        one while it presses less than MIN_FZ_N or reads non-finite."""
+        one while it presses less than ``anchor_cop_min_fz_n`` or reads non-finite."""
         wrench = store[WRENCHES][ANKLE_SENSORS[self.anchor]]
         fz, mx, my = float(wrench[2]), float(wrench[3]), float(wrench[4])
-        if not (fz > MIN_FZ_N and math.isfinite(mx) and math.isfinite(my)):
+        if not (fz > self._cop_min_fz_n and math.isfinite(mx) and math.isfinite(my)):
             return self._contact_point
         x_lo, x_hi, y_lo, y_hi = self._sole_box
         return min(max(-my / fz, x_lo), x_hi), min(max(mx / fz, y_lo), y_hi)
@@ -323,7 +321,7 @@ class FloatingBase(Observer):
             other = 1 - self.anchor
             wrenches = store[WRENCHES]
             heavier = (float(wrenches[ANKLE_SENSORS[other]][2])
-                       > float(wrenches[ANKLE_SENSORS[self.anchor]][2]) + ANCHOR_SWITCH_N)
+                       > float(wrenches[ANKLE_SENSORS[self.anchor]][2]) + self._anchor_switch_n)
             if not contact[other]:
                 self._landed.clear()
             elif heavier or not contact[self.anchor]:

@@ -42,8 +42,6 @@ from hubo_cli.model import RobotModel
 from hubo_cli.pin_robot import load_pin_robot
 from hubo_cli.state import ANKLE_SENSORS, GRAVITY_M_S2, RobotState
 
-MIN_SOLE_FZ_N = 1.0  # a sole pressing less than this gives no centre of pressure
-
 
 @nb.njit(cache=True, nogil=True)
 def configure(q, index, q_rad, T_world_torso) -> bool:
@@ -128,6 +126,7 @@ class CentreOfMass(Observer):
         self.dt_s = float(period_s)
         tau_s = 1.0 / (2.0 * math.pi * model.estimation.com_velocity_cutoff_hz)
         self.alpha = self.dt_s / (self.dt_s + tau_s)
+        self._min_fz_n = model.estimation.zmp_sole_min_fz_n
         self._corners = np.ascontiguousarray(model.feet.sole_corners_m())
         self._joints = len(model.joint_names)
         self._q = self.robot.configuration(np.zeros(self._joints))
@@ -140,7 +139,7 @@ class CentreOfMass(Observer):
         configure(self._q.copy(), self.robot.q_index, np.zeros(self._joints), np.eye(4))
         support(np.zeros(3), np.zeros(3), np.zeros(3), self.alpha, self.dt_s, True,
                 np.tile(np.eye(4), (2, 1, 1)), True, True, self._corners, np.zeros(6),
-                np.zeros(6), GRAVITY_M_S2, MIN_SOLE_FZ_N, np.zeros(2), np.zeros(2))
+                np.zeros(6), GRAVITY_M_S2, self._min_fz_n, np.zeros(2), np.zeros(2))
 
     def reset(self, state: RobotState, store: Store) -> None:
         self._first = True
@@ -156,7 +155,7 @@ class CentreOfMass(Observer):
             right, left = (store[WRENCHES][sensor] for sensor in ANKLE_SENSORS)
             support(com, self._prev_com, velocity, self.alpha, self.dt_s, self._first,
                     np.ascontiguousarray(store[T_WORLD_SOLES], dtype=float), bool(contact[0]),
-                    bool(contact[1]), self._corners, right, left, GRAVITY_M_S2, MIN_SOLE_FZ_N,
+                    bool(contact[1]), self._corners, right, left, GRAVITY_M_S2, self._min_fz_n,
                     cp, zmp)
             self._first = False
             self._com, self._velocity, self._cp, self._zmp = com.copy(), velocity, cp, zmp

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -181,6 +181,76 @@ class StandTarget(Target):
                                  "max_sole_tilt_deg": self.max_sole_deg, "done": self.fell}
 
 
+WALKING_LIMITS = "walking"  # the robot file's limit set whose legs step and bow the trunk
+
+
+@dataclass(frozen=True)
+class StandingOptions:
+    """One standing run's options, decided once by :func:`standing_options` and passed through
+    unchanged (the CLI builds them, loads the model with ``safety.limit_set`` and calls
+    :func:`run_standing`).
+
+    Attributes:
+        duration_s, push_n, push_direction, push_at_s, push_duration_s, step, perturb_seed:
+            as :func:`stand` takes them (``push_direction`` normalised).
+        safety: the run's safety profile: balancer and its mode, hip strategy, stop sources
+            and the legs' joint-limit set (``limit_set``, never None here).
+        limit_set_reason: why the run has its limit set (for the summary).
+    """
+
+    duration_s: float
+    push_n: float
+    push_direction: tuple[float, float, float]
+    push_at_s: float
+    push_duration_s: float
+    step: bool
+    perturb_seed: int | None
+    safety: SafetyProfile
+    limit_set_reason: str
+
+
+def standing_options(duration_s: float = 5.0, push_n: float = 0.0, *,
+                     balance: str = "default", step: bool = False, hip_strategy: bool = True,
+                     limit_set: str | None = None, default_limit_set: str = "table4",
+                     stops: ActiveStops | None = None, push_direction=(1.0, 0.0, 0.0),
+                     push_at_s: float = 1.0, push_duration_s: float = 0.2,
+                     perturb_seed: int | None = None) -> StandingOptions:
+    """The standing run's options, every choice made here once.
+
+    ``balance`` is ``--balance``'s choice (``default``, ``paper`` or ``off``). The hip strategy
+    runs only with the default balancer and not with ``step``. Stepping and the hip strategy
+    need the robot file's ``walking`` limit set (legs fast enough to step and to bow the
+    trunk); otherwise the run stands on ``default_limit_set`` (Table IV's, as published).
+    ``limit_set`` names the set explicitly (``--limits``); one those options cannot run on is
+    a ConfigError."""
+    check_standing_args(duration_s, push_n)
+    direction = np.asarray(push_direction, dtype=float)
+    if direction.shape != (3,) or not np.all(np.isfinite(direction)) or not direction.any():
+        raise InputError(f"the push direction must be a non-zero 3-vector, got {push_direction}",
+                         hint="e.g. (1, 0, 0), forward")
+    direction = direction / np.linalg.norm(direction)
+    safety = SafetyProfile().with_balance(balance)
+    default = safety.balance and safety.balance_mode == "default"
+    hip = hip_strategy and not step and default
+    needs = "stepping (--step)" if step else "the hip strategy" if hip else None
+    if needs is None:
+        chosen = limit_set or default_limit_set
+        reason = ("named by --limits" if limit_set
+                  else "neither stepping nor the hip strategy runs")
+    elif limit_set not in (None, WALKING_LIMITS):
+        raise ConfigError(f"{needs} needs the {WALKING_LIMITS!r} joint-limit set, not "
+                          f"{limit_set!r}",
+                          hint="leave --limits out" + ("" if step else ", or add --no-hip"))
+    else:
+        chosen, reason = WALKING_LIMITS, f"{needs} needs its legs' speed"
+    safety = replace(safety, hip_strategy=hip, limit_set=chosen).with_stops(stops)
+    return StandingOptions(duration_s=float(duration_s), push_n=float(push_n),
+                           push_direction=tuple(float(v) for v in direction),
+                           push_at_s=float(push_at_s), push_duration_s=float(push_duration_s),
+                           step=step, perturb_seed=perturb_seed, safety=safety,
+                           limit_set_reason=reason)
+
+
 def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
           balance: bool = True, *, push_at_s: float = 1.0, push_duration_s: float = 0.2,
           push_direction=(1.0, 0.0, 0.0), gui: bool = False, out: str | Path | None = None,
@@ -188,7 +258,9 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
           balance_mode: str = "default", step: bool = False,
           hip_strategy: bool = True, operator: OperatorKeys | None = None,
           live: RunObserver | None = None) -> StandingResult:
-    """Stand the simulated robot for ``duration_s`` and measure how it copes.
+    """Stand the simulated robot for ``duration_s`` and measure how it copes (the library's
+    form of ``hubo sim``: :func:`standing_options` then :func:`run_standing`, with ``model``
+    loaded again for the limit set the options need).
 
     With the default balancer the robot stands in :func:`standing_posture` (the home posture
     with the model's CoM over the soles' centre); with the paper's or none, in the home posture.
@@ -222,27 +294,32 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
         operator: the operator's keys (space stop, r release, q finish), if any.
         live: the live viewer's publisher (``--live``), if any.
     """
-    check_standing_args(duration_s, push_n)
-    direction = np.asarray(push_direction, dtype=float)
-    direction = direction / np.linalg.norm(direction)
-    default = balance and balance_mode == "default"
-    # the paper's balancer (fidelity runs) and no balancer stand as before: the home posture,
-    # Table IV's limits
-    q_home = standing_posture(model) if default else home_posture(model)
-    n_periods = int(round(duration_s / model.control_period_s))
-    target = stepper = StandTarget(q_home, n_periods, push_n * direction, push_at_s,
-                                   push_duration_s)
-    hip = hip_strategy and not step and default
-    # the legs' limits are part of the run's configuration, decided here once: stepping and
-    # the hip strategy need the robot file's walking set, the rest the model's own (Table IV)
-    safety = SafetyProfile(balance=balance, balance_mode=balance_mode, hip_strategy=hip,
-                           limit_set="walking" if step or hip else model.limits_name
-                           ).with_stops(stops)
-    if model.limits_name != safety.limit_set:
+    options = standing_options(duration_s, push_n, balance=balance_mode if balance else "off",
+                               step=step, hip_strategy=hip_strategy,
+                               default_limit_set=model.limits_name, stops=stops,
+                               push_direction=push_direction, push_at_s=push_at_s,
+                               push_duration_s=push_duration_s, perturb_seed=perturb_seed)
+    if model.limits_name != options.safety.limit_set:
         from hubo_cli.model import load_model
 
-        model = load_model(model.params_name, safety.limit_set)
-    if step:
+        model = load_model(model.params_name, options.safety.limit_set)
+    return run_standing(model, options, gui=gui, out=out, operator=operator, live=live)
+
+
+def run_standing(model: RobotModel, options: StandingOptions, *, gui: bool = False,
+                 out: str | Path | None = None, operator: OperatorKeys | None = None,
+                 live: RunObserver | None = None) -> StandingResult:
+    """Run the standing experiment ``options`` describe on ``model``, which must carry the
+    options' limit set (:class:`~hubo_cli.session.RunSetup` refuses another)."""
+    safety = options.safety
+    default = safety.balance and safety.balance_mode == "default"
+    # the paper's balancer (fidelity runs) and no balancer stand as before: the home posture
+    q_home = standing_posture(model) if default else home_posture(model)
+    n_periods = int(round(options.duration_s / model.control_period_s))
+    direction = np.asarray(options.push_direction)
+    target = stepper = StandTarget(q_home, n_periods, options.push_n * direction,
+                                   options.push_at_s, options.push_duration_s)
+    if options.step:
         from hubo_cli.walking.capture_step import CaptureStepper
         from hubo_cli.walking.params import walking_params
 
@@ -250,12 +327,13 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
     setup = RunSetup(command="sim", model=model, driver="sim", gui=gui, out=out,
                      safety=safety,
                      duration_s=n_periods * model.control_period_s, q_start_rad=q_home,
-                     perturb_seed=perturb_seed, operator=operator, live=live)
+                     perturb_seed=options.perturb_seed, operator=operator, live=live)
     done = run(setup, stepper)
-    result = _result(target, done, duration_s, push_n, balance, model.control_period_s)
-    result.push_direction = tuple(float(v) for v in direction)
+    result = _result(target, done, options.duration_s, options.push_n, safety.balance,
+                     model.control_period_s)
+    result.push_direction = options.push_direction
     done.save_summary(result.summary())
-    if step:
+    if options.step:
         done.save_summary({"capture_step": stepper.summary()})
     bow = done.module("hip")
     if bow is not None:  # how far the trunk bowed, and that it stands upright again

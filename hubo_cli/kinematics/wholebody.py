@@ -35,6 +35,7 @@ from hubo_cli.errors import ConfigError
 from hubo_cli.kinematics.limb import IKResult, Limb
 from hubo_cli.model import ARMS, LEGS, RobotModel
 from hubo_cli.posture import home_posture
+from hubo_cli.state import GRAVITY_M_S2
 
 
 @dataclass(frozen=True)
@@ -61,7 +62,6 @@ class WholeBodyResult:
     balance_error_m: float = 0.0
 
 
-GRAVITY_M_S2 = 9.80665
 COM_GAIN = 0.8         # hrpsys SimpleFullbodyInverseKinematicsSolver: 0.8 x the CoM error
 MAX_SHIFT_M = 0.12     # the waist's reach forward or back over the feet
 MAX_SHIFT_STEP_M = 0.0005  # per solve: 0.1 m/s at 200 Hz

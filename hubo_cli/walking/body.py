@@ -27,9 +27,10 @@ from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import LEGS, RobotModel
 from hubo_cli.pin_robot import load_pin_robot
 from hubo_cli.posture import home_posture
+from hubo_cli.state import GRAVITY_M_S2
 from hubo_cli.walking.footsteps import wrap_angle
 from hubo_cli.walking.gait import Gait
-from hubo_cli.walking.preview import GRAVITY_M_S2, CoMPath, com_from_zmp, preview_gains
+from hubo_cli.walking.preview import CoMPath, com_from_zmp, preview_gains
 
 SIDE_LEG = {"right": "right-leg", "left": "left-leg"}
 MAX_SOLE_ERROR_M = 0.05  # a capped leg solution further than this from its sole: out of reach

@@ -21,8 +21,8 @@ pendulum (omega^2 = g / z_c):
    near the mean) and lifts as sin(pi tau). The torso lowers over the swing as far as the
    legs need to reach both soles with the pelvis midway between them, each leg no longer hip
    to ankle than standing (the model's thigh, shin and hip offsets; :meth:`_reach_drop_m`).
-   The step ends when the swing sole carries ``TOUCH_N`` (after ``TOUCH_FRACTION`` of the
-   swing) or is down;
+   The step ends when the swing sole carries the robot file's ``estimation.swing_touchdown_n``
+   (after ``TOUCH_FRACTION`` of the swing) or is down;
 2. *catch*, ``CATCH_S``: both feet down, the ZMP on the landed sole's middle (= xi); the CoM
    comes to rest there, c(t) = xi + (c_T - xi) exp(-w t);
 3. *return*: one walking step of :func:`~hubo_cli.walking.gait.make_gait` brings the other foot
@@ -97,12 +97,12 @@ from hubo_cli.estimation.keys import (
 )
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
-from hubo_cli.state import RobotState
+from hubo_cli.state import GRAVITY_M_S2, RobotState
 from hubo_cli.walking.body import SIDE_LEG, WalkingBody, pose_of_row
 from hubo_cli.walking.footsteps import SIDE_SIGN, Footstep, stance_of, wrap_angle
 from hubo_cli.walking.gait import SWING_MOVE, Gait, make_gait, smoothstep5
 from hubo_cli.walking.params import WalkingParams
-from hubo_cli.walking.preview import GRAVITY_M_S2, CoMPath
+from hubo_cli.walking.preview import CoMPath
 from hubo_cli.walking.stabilizer import SoleDamper, StabilizerGains
 from hubo_cli.walking.target import (
     SIDES,
@@ -124,8 +124,8 @@ CATCH_S = 1.0            # [chosen] both feet down, the CoM comes to rest on the
 CATCH_EDGE_M = 0.03      # [chosen] the catch's ZMP stays this far inside the landed sole's ends
 LANDED_M = 0.003         # a swing sole this close to the ground has landed
 LAND_WAIT_S = 0.2        # [chosen] wait at most this long after the swing for it to land
-TOUCH_N = 60.0           # [chosen] a swing sole carrying this much (ankle F/T) is down ...
-TOUCH_FRACTION = 0.5     # [chosen] ... once this much of the swing has passed
+TOUCH_FRACTION = 0.5     # [chosen] a swing sole carrying estimation.swing_touchdown_n is
+#                          down once this much of the swing has passed
 LONG_STEP_M = 0.15       # [chosen] a capture step longer than this: the robot stays in the lunge
 LUNGE_CATCH_S = 2.0      # [chosen] ... while the CoM comes to rest in it
 UPRIGHT_S = 0.3          # [chosen] ... and the torso turns back upright over this long
@@ -387,7 +387,8 @@ class CaptureStepper(Target):
         # (or LAND_WAIT_S after the pattern's end)
         swing = SIDES.index(self.swing)
         height = float(store[T_WORLD_SOLES][swing, 2, 3]) - self.sole_z_m
-        loaded = float(ankle_wrenches(store)[swing, 2]) > TOUCH_N
+        loaded = (float(ankle_wrenches(store)[swing, 2])
+                  > self.model.estimation.swing_touchdown_n)
         if (self.k >= TOUCH_FRACTION * n and loaded) or (
                 self.k >= n and (height < LANDED_M or self.k >= n + LAND_WAIT_S / period)):
             self.R_touch_down = T_world_neck[:3, :3].copy()
@@ -585,7 +586,8 @@ class CaptureStepper(Target):
         feet = self.model.feet
         box = (feet.forward_m - feet.length_m / 2, feet.forward_m + feet.length_m / 2,
                -feet.width_m / 2, feet.width_m / 2)
-        self.damper = SoleDamper(StabilizerGains(), box, period)
+        self.damper = SoleDamper(StabilizerGains(), box, period,
+                                 self.model.estimation.sole_damping_min_fz_n)
         # the back leg reaches its sole with the heel raised (:meth:`_toe_off_pose`), not flat
         self.body.max_error_m = math.inf
         self.track, self.lunge_return = None, True

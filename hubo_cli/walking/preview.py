@@ -25,8 +25,7 @@ import numpy as np
 from scipy.linalg import solve_discrete_are
 
 from hubo_cli.errors import ConfigError
-
-GRAVITY_M_S2 = 9.80665
+from hubo_cli.state import GRAVITY_M_S2
 
 
 @dataclass(frozen=True)

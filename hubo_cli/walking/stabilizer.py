@@ -42,8 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hubo_cli.errors import ConfigError
-
-LOADED_N = 30.0  # a sole carrying more than this complies; lighter, it returns to the pattern
+from hubo_cli.model import EstimationConfig
 
 
 @dataclass(frozen=True)
@@ -97,14 +96,18 @@ class SoleDamper:
         gains: the stabilizer's gains.
         sole_box_m: (x_min, x_max, y_min, y_max) of the sole in its own frame (m).
         dt_s: the control period (s).
+        min_fz_n: the sole complies while it carries more than this (N; the robot file's
+            ``estimation.sole_damping_min_fz_n``); lighter, it returns to the pattern.
 
     Attributes:
         delta_rad: the sole's rotation (about x, about y) added to the pattern (rad).
     """
 
     def __init__(self, gains: StabilizerGains, sole_box_m: tuple[float, float, float, float],
-                 dt_s: float) -> None:
+                 dt_s: float,
+                 min_fz_n: float = EstimationConfig.sole_damping_min_fz_n) -> None:
         self.gains = gains
+        self.min_fz_n = float(min_fz_n)
         x0, x1, y0, y1 = sole_box_m
         m = gains.edge_margin_m
         if x1 - x0 <= 2 * m or y1 - y0 <= 2 * m:
@@ -125,7 +128,7 @@ class SoleDamper:
         g = self.gains
         fx, fy, fz, mx, my, mz = np.asarray(wrench, dtype=float).tolist()  # plain floats
         roll, pitch = float(self.delta_rad[0]), float(self.delta_rad[1])
-        if fz > LOADED_N and math.isfinite(mx + my + fx + fy + mz):
+        if fz > self.min_fz_n and math.isfinite(mx + my + fx + fy + mz):
             x0, x1, y0, y1 = self.safe
             px = min(max(-my / fz, x0), x1)
             py = min(max(mx / fz, y0), y1)

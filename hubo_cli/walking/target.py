@@ -241,7 +241,9 @@ class WalkTarget(Target):
         xs, ys = self.corners[:, 0], self.corners[:, 1]
         box = (float(xs.min()), float(xs.max()), float(ys.min()), float(ys.max()))
         if stabilizer is not None:
-            self.dampers = {side: SoleDamper(stabilizer, box, dt) for side in SIDES}
+            self.dampers = {side: SoleDamper(stabilizer, box, dt,
+                                             model.estimation.sole_damping_min_fz_n)
+                            for side in SIDES}
             self.torso_offset = TorsoOffset(stabilizer, dt)
             self.touchdowns = {side: Touchdown(stabilizer, dt) for side in SIDES}
             self._leg_delta = np.zeros((2, 6))  # the legs' corrections: right, left
