@@ -51,10 +51,15 @@ step missed the pose by up to 1 mm / 8 mrad even where the arm is well condition
 When the offset pose has no exact solution within the joint limits, or its joint offset would
 change by more than the joint's speed limit times the period (a branch switch, or the arm
 nearing a singular posture such as a straight elbow, where a millimetre asks for ever larger
-joint moves), the offset and its joints are held at the last good period's, its rate set to
-zero (the hand rests at the edge of what the arm can follow and leaves it continuously), and
-the flag ``impedance-unreachable`` is set. The limiter downstream keeps every joint within
-its limits and rates.
+joint moves), the joint offset steps back toward zero at the joints' speed limit, the offset
+becomes the one those joints really give (its rate zero), and the flag
+``impedance-unreachable`` is set; the dynamics go on from there the next period (the hand
+rests at the edge of what the arm can follow, or rejoins its reference, continuously). A
+joint offset merely held goes stale while the commanded posture moves (issue 36: held through
+the swing past a straight elbow it never matched the new posture again). Anti-windup: while
+the offset is held (unreachable, or its position at ``max_offset_m``) force tracking does not
+move the spring's centre. The limiter downstream keeps every joint within its limits and
+rates.
 
 Limits: the position offset's norm is clamped to ``max_offset_m`` and the rotation's to
 ``max_rotation_rad`` (the velocity pushing outward is dropped, so the state does not wind up);
@@ -254,6 +259,41 @@ def offset_joints(q_cmd, chain, lengths, lower, upper, max_step_rad, x, dq_out) 
 
 
 @nb.njit(**JIT)
+def retreat_offset(q_cmd, chain, max_step_rad, dq, x_out) -> None:
+    """One period of an unreachable offset: move the joint offset ``dq`` toward zero (the
+    reference pose, which the commanded joints reach) by at most ``max_step_rad`` per joint;
+    x_out is the offset (position m, rotation vector rad, N) the new ``dq`` gives.
+
+    A joint offset held as it was goes stale as the commanded posture moves (the same joints
+    give another offset, and the offset's own joints change by more than a period's step ever
+    after): stepping it back at the joints' speed limit keeps the output continuous, and the
+    dynamics take over again from the offset it really gives."""
+    base, _, offset, alpha, a, d, end, _ = chain
+    T_ref = np.empty((4, 4))
+    chain_fk(q_cmd, base, offset, alpha, a, d, end, T_ref)
+    for k in range(6):
+        dq[k] -= min(max(dq[k], -max_step_rad[k]), max_step_rad[k])
+    q_out = np.empty(6)
+    for k in range(6):
+        q_out[k] = q_cmd[k] + dq[k]
+    T_out = np.empty((4, 4))
+    chain_fk(q_out, base, offset, alpha, a, d, end, T_out)
+    for i in range(3):
+        x_out[i] = T_out[i, 3] - T_ref[i, 3]
+    # the rotation vector of R_out R_ref^T (atan2 form, accurate near zero)
+    E = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            E[i, j] = (T_out[i, 0] * T_ref[j, 0] + T_out[i, 1] * T_ref[j, 1]
+                       + T_out[i, 2] * T_ref[j, 2])
+    vx, vy, vz = E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1]
+    norm = math.sqrt(vx * vx + vy * vy + vz * vz)
+    angle = math.atan2(0.5 * norm, 0.5 * (E[0, 0] + E[1, 1] + E[2, 2] - 1.0))
+    scale = angle / norm if norm > 1e-300 else 0.5
+    x_out[3], x_out[4], x_out[5] = vx * scale, vy * scale, vz * scale
+
+
+@nb.njit(**JIT)
 def track_force(centre, wrench_ref_N, wrench_S, T_H_S, T_N_H, measured, mask, K, gain_m_per_n,
                 decay, max_offset_m, wrench_ref_eff_N) -> None:
     """One period of force tracking: with a nonzero reference force F_ref (N axes) the centre
@@ -319,7 +359,7 @@ class _Hand:
         self.wrench_ref_eff_N = np.zeros(6)  # F_ref - K [c, 0]: the spring centred on c
         self.centre_m = np.zeros(3)  # the force tracking's spring centre c (N axes, m)
         self.dq_rad = np.zeros(6)
-        self.x_good = np.zeros(6)  # the offset dq_rad reaches
+        self.held = False  # last period's offset was held (unreachable or at its limit)
         self.T_N_H = np.empty((4, 4))
         self.release_from = np.zeros(6)
         self.dq_release_rad = np.zeros(6)
@@ -457,7 +497,7 @@ class ImpedanceController(Module):
         for h in self.hands:
             h.s[:] = 0.0
             h.dq_rad[:] = 0.0
-            h.x_good[:] = 0.0
+            h.held = False
             h.centre_m[:] = 0.0
             h.wrench_ref_eff_N[:] = h.wrench_ref_N
 
@@ -473,6 +513,7 @@ class ImpedanceController(Module):
                     self.measured_force, self.axes_mask, self.K, 0.0, 0.0, 1.0,
                     h.wrench_ref_eff_N.copy())
         offset_joints(np.zeros(6), *h.ik, np.zeros(6), np.zeros(6))
+        retreat_offset(np.zeros(6), h.limb.chain, h.ik[-1], np.zeros(6), np.zeros(6))
         all_finite(scratch)
         hold_nan(self._last_in, self._last_in, self._last_in.copy())
 
@@ -502,11 +543,14 @@ class ImpedanceController(Module):
         """Move the spring's centre c along the reference force (see the module docstring) and
         set the input's reference to F_ref - K [c, 0]. Called with a finite reading after
         ``h.T_N_H`` holds the measured hand pose."""
+        # anti-windup: while the offset is held (unreachable, or at its limit) the centre
+        # stays where it is; without a reference force it still decays
+        frozen = h.held and bool(h.wrench_ref_N[:3].any())
         track_force(h.centre_m, h.wrench_ref_N, wrench_S, self.T_hand_sensor, h.T_N_H,
                     self.measured_force, self.axes_mask, self.K,
-                    self.force_tracking_m_per_n_s * self.dt_s,
-                    self.dt_s / max(self.release_s, self.dt_s), self.max_offset_m,
-                    h.wrench_ref_eff_N)
+                    0.0 if frozen else self.force_tracking_m_per_n_s * self.dt_s,
+                    0.0 if frozen else self.dt_s / max(self.release_s, self.dt_s),
+                    self.max_offset_m, h.wrench_ref_eff_N)
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         q_in = np.empty(self._last_in.shape[0])
@@ -518,6 +562,7 @@ class ImpedanceController(Module):
         out = q_in
         references = None if self.reference is None else cycle.store.get(self.reference)
         for h in self.hands:
+            stepped = False  # eq. 3 advanced this period (not on a bad reading)
             if self.reference is not None:
                 w = wrench_of(references, h.arm)
                 h.wrench_ref_N[:] = 0.0 if w is None else w
@@ -535,7 +580,8 @@ class ImpedanceController(Module):
                     self._track_force(h, wrench_S)
                     advance(h.s, self.Ad, self.Bd, wrench_S, self.T_hand_sensor,
                             h.T_N_H[:3, :3], h.wrench_ref_eff_N, self.axes_mask, h.s_next)
-                    if all_finite(h.s_next):  # else (overflow) the offset is held
+                    stepped = all_finite(h.s_next)
+                    if stepped:  # else (overflow) the offset is held
                         h.s, h.s_next = h.s_next, h.s
                     else:
                         cycle.flags.add(BAD_FLAG)
@@ -549,16 +595,16 @@ class ImpedanceController(Module):
             cycle.info[h.centre_column] = float(np.linalg.norm(h.centre_m))
             if not x.any():
                 h.dq_rad[:] = 0.0
-                h.x_good[:] = 0.0
+                h.held = False
                 continue  # exact tracking: this arm's command passes through unchanged
-            if self.mode == "on":
+            if stepped:
                 q_arm = np.ascontiguousarray(q_in[h.slice])
-                if offset_joints(q_arm, *h.ik, x, h.dq_rad):
-                    h.x_good[:] = x
-                else:  # hold the last offset the arm could take (h.dq_rad keeps its joints)
+                h.held = not offset_joints(q_arm, *h.ik, x, h.dq_rad)
+                if h.held:  # the joint offset steps back toward zero
                     cycle.flags.add(UNREACHABLE_FLAG)
-                    h.s[:6] = h.x_good
+                    retreat_offset(q_arm, h.limb.chain, h.ik[-1], h.dq_rad, h.s)
                     h.s[6:] = 0.0
+                h.held = h.held or np.linalg.norm(h.s[:3]) >= self.max_offset_m * (1 - 1e-9)
             if out is q_in:
                 out = q_in.copy()
             out[h.slice] += h.dq_rad
