@@ -51,7 +51,8 @@ step missed the pose by up to 1 mm / 8 mrad even where the arm is well condition
 When the offset pose has no exact solution within the joint limits, or its joint offset would
 change by more than the joint's speed limit times the period (a branch switch, or the arm
 nearing a singular posture such as a straight elbow, where a millimetre asks for ever larger
-joint moves), the joint offset steps back toward zero at the joints' speed limit, the offset
+joint moves), the joint offset decays toward zero (time constant ``release_s``, at most the
+joints' speed limit), the offset
 becomes the one those joints really give (its rate zero), and the flag
 ``impedance-unreachable`` is set; the dynamics go on from there the next period (the hand
 rests at the edge of what the arm can follow, or rejoins its reference, continuously). A
@@ -259,20 +260,21 @@ def offset_joints(q_cmd, chain, lengths, lower, upper, max_step_rad, x, dq_out) 
 
 
 @nb.njit(**JIT)
-def retreat_offset(q_cmd, chain, max_step_rad, dq, x_out) -> None:
-    """One period of an unreachable offset: move the joint offset ``dq`` toward zero (the
-    reference pose, which the commanded joints reach) by at most ``max_step_rad`` per joint;
-    x_out is the offset (position m, rotation vector rad, N) the new ``dq`` gives.
+def retreat_offset(q_cmd, chain, max_step_rad, fraction, dq, x_out) -> None:
+    """One period of an unreachable offset: shrink the joint offset ``dq`` toward zero (the
+    reference pose, which the commanded joints reach) by ``fraction`` of itself, at most
+    ``max_step_rad`` per joint; x_out is the offset (position m, rotation vector rad, N) the
+    new ``dq`` gives.
 
     A joint offset held as it was goes stale as the commanded posture moves (the same joints
     give another offset, and the offset's own joints change by more than a period's step ever
-    after): stepping it back at the joints' speed limit keeps the output continuous, and the
-    dynamics take over again from the offset it really gives."""
+    after): letting it decay keeps the output continuous, and the dynamics take over again
+    from the offset it really gives."""
     base, _, offset, alpha, a, d, end, _ = chain
     T_ref = np.empty((4, 4))
     chain_fk(q_cmd, base, offset, alpha, a, d, end, T_ref)
     for k in range(6):
-        dq[k] -= min(max(dq[k], -max_step_rad[k]), max_step_rad[k])
+        dq[k] -= min(max(fraction * dq[k], -max_step_rad[k]), max_step_rad[k])
     q_out = np.empty(6)
     for k in range(6):
         q_out[k] = q_cmd[k] + dq[k]
@@ -446,6 +448,7 @@ class ImpedanceController(Module):
                               hint=f"use {', '.join(HAND_SENSORS)}")
         self.dt_s = float(dt_s)
         self.Ad, self.Bd = discretize(self.M, self.D, self.K, self.dt_s)
+        self._retreat = self.dt_s / max(self.release_s, self.dt_s)  # time constant release_s
         self.T_hand_sensor = np.ascontiguousarray(T_hand_sensor, dtype=float)
         self.hands = [_Hand(model, arm, self.dt_s) for arm in arms]
         self._initially_active = active
@@ -513,7 +516,7 @@ class ImpedanceController(Module):
                     self.measured_force, self.axes_mask, self.K, 0.0, 0.0, 1.0,
                     h.wrench_ref_eff_N.copy())
         offset_joints(np.zeros(6), *h.ik, np.zeros(6), np.zeros(6))
-        retreat_offset(np.zeros(6), h.limb.chain, h.ik[-1], np.zeros(6), np.zeros(6))
+        retreat_offset(np.zeros(6), h.limb.chain, h.ik[-1], 0.5, np.zeros(6), np.zeros(6))
         all_finite(scratch)
         hold_nan(self._last_in, self._last_in, self._last_in.copy())
 
@@ -602,7 +605,7 @@ class ImpedanceController(Module):
                 h.held = not offset_joints(q_arm, *h.ik, x, h.dq_rad)
                 if h.held:  # the joint offset steps back toward zero
                     cycle.flags.add(UNREACHABLE_FLAG)
-                    retreat_offset(q_arm, h.limb.chain, h.ik[-1], h.dq_rad, h.s)
+                    retreat_offset(q_arm, h.limb.chain, h.ik[-1], self._retreat, h.dq_rad, h.s)
                     h.s[6:] = 0.0
                 h.held = h.held or np.linalg.norm(h.s[:3]) >= self.max_offset_m * (1 - 1e-9)
             if out is q_in:
