@@ -211,6 +211,42 @@ def test_a_freeze_or_a_wrist_stop_lets_go_of_the_force(model, preset):
     assert np.all(out[t >= 2.0 + t2 + DT] == 0.0)
 
 
+@pytest.mark.parametrize("soft_stop_too", [False, True])
+def test_a_hard_stop_lets_go_of_the_force_smoothly_until_released(model, soft_stop_too):
+    """A hard stop (the hard-estop downstream freezes the joints) takes the wrench reference
+    to zero on a minimum-jerk blend over the soft stopper's T2 (0.5 s), holds zero until the
+    release at 5 s, then blends back to the live plan over the 2.5 s recovery, never jumping;
+    the same when the soft stopper stops in the same period (its revert gives way to zero)."""
+    stopper = EmergencyStopper(model, DT, wrench_reference=True)
+    assert stopper.hard_sources == {"hard"}
+    q0 = home_posture(model)
+    store = Store()
+    store[WRENCHES] = {}
+    stopper.reset(q0, RobotState(0.0, q0, np.zeros(len(q0))), store)
+    t, out = np.arange(0.0, 8.5, DT), []
+    for k, tk in enumerate(t):
+        cycle = Cycle(tk, DT, store=store)
+        if 2.0 <= tk < 3.0:  # the hard request stays a while: it latches once
+            cycle.estop_requests.add("hard")
+            if soft_stop_too and k == round(2.0 / DT):
+                cycle.estop_requests.add("operator")
+        if k == round(5.0 / DT):
+            stopper.release()
+        store[HAND_WRENCH_PLAN] = {ARM: _ramp(tk)}
+        stopper.update(q0, RobotState(tk, q0, np.zeros(len(q0))), cycle)
+        out.append(store[HAND_WRENCH_REF].get(ARM, np.zeros(6))[0])
+    out = np.array(out)
+    k_emer = round(2.0 / DT)
+    at_stop = out[k_emer - 1]
+    u = np.array([min_jerk(min(1.0, (x - 2.0) / 0.5)) for x in t[k_emer:k_emer + 100]])
+    assert np.allclose(out[k_emer:k_emer + 100], at_stop * (1.0 - u), atol=1e-9)
+    assert np.all(out[(t >= 2.5) & (t < 5.0)] == 0.0)  # held at zero until the release
+    assert np.allclose(out[t > 7.6], -2.0 * t[t > 7.6])  # back on the live plan
+    # no jump: the recovery joins a plan 15-17 N away in 2.5 s (min-jerk peak 1.875 x 6.5 N/s
+    # + the plan's 2 N/s: 0.075 N per period); a step would be 10 N
+    assert np.abs(np.diff(out)).max() < 0.1
+
+
 def test_garbled_plan_wrenches_never_leave_the_stopper(model):
     """NaN, infinite or wrongly shaped plan wrenches count as no wrench: zero, never NaN."""
     bad = [np.full(6, np.nan), np.array([np.inf, 0, 0, 0, 0, 0]), np.zeros(3), None]
