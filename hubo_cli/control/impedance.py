@@ -85,8 +85,10 @@ from hubo_cli.control.wrench import (
     ALONG_MIN,
     MEASURED_FORCE_AXES,
     MEASURED_WRENCH_READS,
+    TIP_MIN_M,
     WRENCH_AXES,
     measured_hand_wrench,
+    tool_point_S_m,
     wrench_of,
 )
 from hubo_cli.dataflow import Key, Store
@@ -101,6 +103,7 @@ from hubo_cli.motion.limits import all_finite, hold_nan
 from hubo_cli.state import RobotState, T_frame_sensor
 
 HAND_SENSORS = {"right-arm": "right-wrist", "left-arm": "left-wrist"}
+CONTACT_TOOLS = ("drill",)  # tools whose force acts at their frame's origin (the bit)
 T_HAND_SENSOR = T_frame_sensor("right-wrist")  # the wrist sensors' axes in the hand frame
 MODES = ("on", "release", "off")
 MODE_CODE = {name: i for i, name in enumerate(MODES)}
@@ -296,16 +299,45 @@ def retreat_offset(q_cmd, chain, max_step_rad, fraction, dq, x_out) -> None:
 
 
 @nb.njit(**JIT)
+def _move_centre(centre, step_m, wrench_ref_N, size, mask, max_offset_m) -> None:
+    """centre += step_m d (d = F_ref / size, masked axes), its norm clamped to max_offset_m."""
+    for i in range(3):
+        centre[i] += step_m * wrench_ref_N[i] / size * mask[i]
+    n = math.sqrt(centre[0] ** 2 + centre[1] ** 2 + centre[2] ** 2)
+    if n > max_offset_m:
+        for i in range(3):
+            centre[i] *= max_offset_m / n
+
+
+@nb.njit(**JIT)
 def track_force(centre, wrench_ref_N, wrench_S, T_H_S, T_N_H, measured, mask, K, gain_m_per_n,
-                decay, max_offset_m, wrench_ref_eff_N) -> None:
+                decay, max_offset_m, contact_S, has_contact, wrench_ref_eff_N) -> None:
     """One period of force tracking: with a nonzero reference force F_ref (N axes) the centre
     c moves by ``gain_m_per_n (F_d - |F_ref|) d`` (d = F_ref / |F_ref|, masked axes only,
     |c| clamped to ``max_offset_m``), F_d the force along d as
     :func:`~hubo_cli.control.wrench.force_along` reads it from the sensor's ``measured`` force
-    axes (1 measured, 0 not; held where the sensor cannot see d); without a reference it
-    shrinks by the factor ``1 - decay``. Then wrench_ref_eff_N = F_ref - K [c, 0]."""
+    axes (1 measured, 0 not; held where the sensor cannot see d), or with ``has_contact``
+    the force at the tool's point ``contact_S`` (sensor frame, m) as
+    :func:`~hubo_cli.control.wrench.force_at_point` finds it (all of it, from f_z and the
+    moments); without a reference it shrinks by the factor ``1 - decay``. Then
+    wrench_ref_eff_N = F_ref - K [c, 0]."""
     size = math.sqrt(wrench_ref_N[0] ** 2 + wrench_ref_N[1] ** 2 + wrench_ref_N[2] ** 2)
-    if size > 0.0 and gain_m_per_n > 0.0:
+    if size > 0.0 and gain_m_per_n > 0.0 and has_contact:
+        f = np.empty(3)
+        if measured[0] != 0.0 and measured[1] != 0.0:  # a full sensor
+            f[0], f[1] = wrench_S[0], wrench_S[1]
+        else:  # m = r x f at the tool's point (r_z checked when the point was set)
+            rx, ry, rz = contact_S[0], contact_S[1], contact_S[2]
+            f[0] = (wrench_S[4] + rx * wrench_S[2]) / rz
+            f[1] = (ry * wrench_S[2] - wrench_S[3]) / rz
+        f[2] = wrench_S[2]
+        along = -size
+        for r in range(3):
+            f_H = T_H_S[r, 0] * f[0] + T_H_S[r, 1] * f[1] + T_H_S[r, 2] * f[2]
+            for c in range(3):
+                along += T_N_H[c, r] * f_H * wrench_ref_N[c] / size
+        _move_centre(centre, gain_m_per_n * along, wrench_ref_N, size, mask, max_offset_m)
+    elif size > 0.0 and gain_m_per_n > 0.0:
         num = den = 0.0
         for i in range(3):  # the sensor's force axis i in N, against d
             if measured[i] == 0.0:
@@ -321,12 +353,7 @@ def track_force(centre, wrench_ref_N, wrench_S, T_H_S, T_N_H, measured, mask, K,
             along = 0.0  # the sensor cannot see a force along d: hold the centre
         else:
             along = num / den - size  # F_d - |F_ref|
-        for i in range(3):
-            centre[i] += gain_m_per_n * along * wrench_ref_N[i] / size * mask[i]
-        n = math.sqrt(centre[0] ** 2 + centre[1] ** 2 + centre[2] ** 2)
-        if n > max_offset_m:
-            for i in range(3):
-                centre[i] *= max_offset_m / n
+        _move_centre(centre, gain_m_per_n * along, wrench_ref_N, size, mask, max_offset_m)
     else:
         keep = max(0.0, 1.0 - decay)
         n = 0.0
@@ -360,6 +387,8 @@ class _Hand:
         self.wrench_ref_N = np.zeros(6)
         self.wrench_ref_eff_N = np.zeros(6)  # F_ref - K [c, 0]: the spring centred on c
         self.centre_m = np.zeros(3)  # the force tracking's spring centre c (N axes, m)
+        self.contact_S_m = np.zeros(3)  # the tool's point in the sensor frame (m) ...
+        self.has_contact = False  # ... if force tracking reads the force there
         self.dq_rad = np.zeros(6)
         self.held = False  # last period's offset was held (unreachable or at its limit)
         self.T_N_H = np.empty((4, 4))
@@ -391,6 +420,9 @@ class ImpedanceController(Module):
             others is dropped. Default all.
         force_tracking_m_per_n_s: how fast the spring's centre moves per newton of force error
             along a nonzero reference force (m/s per N; 0: never); None: the robot file's.
+        tools: arm -> the tool it holds; for a drill force tracking reads the whole force at
+            the bit (f_z and the two moments, :func:`~hubo_cli.control.wrench.force_at_point`)
+            instead of assuming it lies along the reference.
 
     Flags: ``impedance-limit`` (an offset clamped), ``impedance-bad-wrench`` (a non-finite
     reading: offset held), ``impedance-unreachable`` (joint offset held), ``impedance-release``.
@@ -408,7 +440,8 @@ class ImpedanceController(Module):
                  release_s: float | None = None, arms: tuple[str, ...] = ARMS,
                  T_hand_sensor: np.ndarray = T_HAND_SENSOR, active: bool = True,
                  reference: Key | None = None, axes: tuple[str, ...] = WRENCH_AXES,
-                 force_tracking_m_per_n_s: float | None = None) -> None:
+                 force_tracking_m_per_n_s: float | None = None,
+                 tools: dict[str, str] | None = None) -> None:
         raw = model.raw_impedance
         defaults = default_gains(model) if M is None or D is None or K is None else {}
         self.M, self.D, self.K = (
@@ -451,6 +484,11 @@ class ImpedanceController(Module):
         self._retreat = self.dt_s / max(self.release_s, self.dt_s)  # time constant release_s
         self.T_hand_sensor = np.ascontiguousarray(T_hand_sensor, dtype=float)
         self.hands = [_Hand(model, arm, self.dt_s) for arm in arms]
+        for h in self.hands:
+            tool = (tools or {}).get(h.arm)
+            if tool in CONTACT_TOOLS:
+                h.contact_S_m[:] = tool_point_S_m(model, tool, self.T_hand_sensor)
+                h.has_contact = abs(h.contact_S_m[2]) >= TIP_MIN_M
         self._initially_active = active
         self.log_columns = ("impedance_mode_code",) + tuple(
             c for h in self.hands for c in (h.offset_column, h.rotation_column,
@@ -512,9 +550,10 @@ class ImpedanceController(Module):
         advance(scratch, self.Ad, self.Bd, np.zeros(6), self.T_hand_sensor, h.T_N_H[:3, :3],
                 h.wrench_ref_N, self.axes_mask, h.s_next)
         clamp_offset(scratch, 1.0, 1.0)
-        track_force(np.zeros(3), h.wrench_ref_N, np.zeros(6), self.T_hand_sensor, h.T_N_H,
-                    self.measured_force, self.axes_mask, self.K, 0.0, 0.0, 1.0,
-                    h.wrench_ref_eff_N.copy())
+        for has_contact in (False, True):
+            track_force(np.zeros(3), np.ones(6), np.zeros(6), self.T_hand_sensor, h.T_N_H,
+                        self.measured_force, self.axes_mask, self.K, 1e-9, 0.0, 1.0,
+                        np.ones(3), has_contact, h.wrench_ref_eff_N.copy())
         offset_joints(np.zeros(6), *h.ik, np.zeros(6), np.zeros(6))
         retreat_offset(np.zeros(6), h.limb.chain, h.ik[-1], 0.5, np.zeros(6), np.zeros(6))
         all_finite(scratch)
@@ -553,7 +592,7 @@ class ImpedanceController(Module):
                     self.measured_force, self.axes_mask, self.K,
                     0.0 if frozen else self.force_tracking_m_per_n_s * self.dt_s,
                     0.0 if frozen else self.dt_s / max(self.release_s, self.dt_s),
-                    self.max_offset_m, h.wrench_ref_eff_N)
+                    self.max_offset_m, h.contact_S_m, h.has_contact, h.wrench_ref_eff_N)
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         q_in = np.empty(self._last_in.shape[0])
