@@ -314,9 +314,9 @@ def track_force(centre, wrench_ref_N, wrench_S, T_H_S, T_N_H, measured, mask, K,
                 decay, max_offset_m, contact_S, has_contact, wrench_ref_eff_N) -> None:
     """One period of force tracking: with a nonzero reference force F_ref (N axes) the centre
     c moves by ``gain_m_per_n (F_d - |F_ref|) d`` (d = F_ref / |F_ref|, masked axes only,
-    |c| clamped to ``max_offset_m``), F_d the force along d as
-    :func:`~hubo_cli.control.wrench.force_along` reads it from the sensor's ``measured`` force
-    axes (1 measured, 0 not; held where the sensor cannot see d), or with ``has_contact``
+    |c| clamped to ``max_offset_m``), F_d the force along d from the sensor's ``measured``
+    force axes a_i (1 measured, 0 not) assuming it lies along d, sum f_i (a_i . d) /
+    sum (a_i . d)^2 (held where that sum is under ``ALONG_MIN``), or with ``has_contact``
     the force at the tool's point ``contact_S`` (sensor frame, m) as
     :func:`~hubo_cli.control.wrench.force_at_point` finds it (all of it, from f_z and the
     moments); without a reference it shrinks by the factor ``1 - decay``. Then

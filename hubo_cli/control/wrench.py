@@ -30,7 +30,7 @@ WRENCH_AXES = ("x", "y", "z", "rx", "ry", "rz")
 
 MEASURED_FORCE_AXES = tuple(i for i in FT_MEASURED if i < 3)  # Hubo's: f_z only
 TIP_MIN_M = 0.05  # a tool point at least this far along the forearm from the wrist sensor
-ALONG_MIN = 0.1  # the least sum (a_i . d)^2 force_along trusts (d within 72 deg of an axis)
+ALONG_MIN = 0.1  # the least sum (a_i . d)^2 force tracking trusts (d within 72 deg of an axis)
 
 # the store keys measured_hand_wrench reads
 MEASURED_WRENCH_READS: tuple[Key, ...] = (WRENCHES,)
@@ -45,21 +45,6 @@ def measured_hand_wrench(state: RobotState, store: Store, sensor: str) -> np.nda
     weight removed), so a caller declares :data:`MEASURED_WRENCH_READS`. ``state`` is the
     robot's (kept for a reading the estimate lacks)."""
     return store[WRENCHES].get(sensor)
-
-
-def force_along(wrench_S, R_frame_sensor: np.ndarray, d_frame: np.ndarray) -> float:
-    """The force (N) the environment applies along the unit direction ``d_frame`` (any frame),
-    from a sensor's reading ``wrench_S`` (sensor axes, ``R_frame_sensor`` turning them into
-    that frame) of which only the force components ``FT_MEASURED`` are real, assuming the
-    force lies along d (a thrust): F_d = sum f_i (a_i . d) / sum (a_i . d)^2 over the measured
-    force axes a_i (a full sensor: f . d). NaN where d lies nearly across every measured axis
-    (sum (a_i . d)^2 < ``ALONG_MIN``: the sensor cannot see such a force)."""
-    num = den = 0.0
-    for i in MEASURED_FORCE_AXES:
-        c = float(R_frame_sensor[:, i] @ d_frame)
-        num += float(wrench_S[i]) * c
-        den += c * c
-    return num / den if den >= ALONG_MIN else math.nan
 
 
 def force_at_point(wrench_S, r_S_m: np.ndarray) -> np.ndarray:
