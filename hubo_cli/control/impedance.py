@@ -52,10 +52,10 @@ When the offset pose has no exact solution within the joint limits, or its joint
 change by more than the joint's speed limit times the period (a branch switch, or the arm
 nearing a singular posture such as a straight elbow, where a millimetre asks for ever larger
 joint moves), the joint offset decays toward zero (time constant ``release_s``, at most the
-joints' speed limit), the offset
-becomes the one those joints really give (its rate zero), and the flag
-``impedance-unreachable`` is set; the dynamics go on from there the next period (the hand
-rests at the edge of what the arm can follow, or rejoins its reference, continuously). A
+joints' speed limit), the offset becomes the one those joints really give (its rate zero),
+and the flag ``impedance-unreachable`` is set; the dynamics go on from there the next period
+(the hand rests at the edge of what the arm can follow, or rejoins its reference,
+continuously). A
 joint offset merely held goes stale while the commanded posture moves (issue 36: held through
 the swing past a straight elbow it never matched the new posture again). Anti-windup: while
 the offset is held (unreachable, or its position at ``max_offset_m``) force tracking does not
@@ -642,7 +642,7 @@ class ImpedanceController(Module):
             if stepped:
                 q_arm = np.ascontiguousarray(q_in[h.slice])
                 h.held = not offset_joints(q_arm, *h.ik, x, h.dq_rad)
-                if h.held:  # the joint offset steps back toward zero
+                if h.held:  # the joint offset decays toward zero
                     cycle.flags.add(UNREACHABLE_FLAG)
                     retreat_offset(q_arm, h.limb.chain, h.ik[-1], self._retreat, h.dq_rad, h.s)
                     h.s[6:] = 0.0
