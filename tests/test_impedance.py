@@ -505,6 +505,6 @@ def test_an_unreachable_offset_recovers_and_force_tracking_does_not_wind_up(mode
     # up 24 mm while held at -3 N)
     growth = [centre_mm[k] - centre_mm[k - 1] for k in range(1, 1000) if unreachable[k - 1]]
     assert max(growth, default=0.0) <= 1e-9
-    # the hand never leaves its reference by more than the offset limit (measured: 11 mm with
-    # no reference force, 30.0 mm (the limit, free air) with one)
-    assert max(deviation_m) <= ic.max_offset_m + 1e-6
+    # the hand never leaves its reference by more than the offset limit (measured: 1.7 mm with
+    # no reference force, 30.0 mm (the limit, free air) with one; the IK is exact to 1e-6 m)
+    assert max(deviation_m) <= ic.max_offset_m + 2e-6
