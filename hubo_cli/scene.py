@@ -158,10 +158,10 @@ class SceneActions:
     """What a target may do to the simulated scene (issue 33): build walls and hinged objects,
     push the torso, close and open a hand. It has no readers: a target learns how its actions
     went from the robot's sensors (the estimate, the grip flag
-    :func:`~hubo_cli.drivers.base.grip_flag`), as on a
-    Hubo. What an action returns is the simulator's truth, for the run's reports only (summary,
-    log metadata), never to steer by. :attr:`physics_wall_s` is the simulator's CPU clock (a
-    benchmark figure, not the world's state)."""
+    :func:`~hubo_cli.drivers.base.grip_flag`), as on a Hubo. What an action returns is the
+    simulator's truth, for the run's reports only (summary, log metadata), never to steer by.
+    :attr:`physics_wall_s` is the simulator's CPU clock (a benchmark figure, not the world's
+    state)."""
 
     __slots__ = ("_world",)
 

@@ -349,6 +349,21 @@ def test_the_session_gives_targets_the_actions():
 
 
 # ------------------------------------------------------------------ the checker itself
+# the independent review's ten misses (REVIEW33 item 4), each a line the old checker passed
+REVIEW_MISSES = [
+    "def f(self):\n    return self.world._p.getBasePositionAndOrientation(self.world._robot)\n",
+    "def f(self):\n    return self.world.hinge_angle_rad('valve')\n",
+    "def f(self):\n    return self.world.holding('right_hand')\n",
+    "def f(world):\n    return world.cutting_force_n\n",
+    "def f(world):\n    return world.walls[0].distance_m\n",
+    "def f(self):\n    return self.sim.max_tilt_deg\n",
+    "def f(driver):\n    return driver.perturbation\n",
+    "def f(state):\n    return getattr(state, 'tru' + 'th').T_world_torso\n",
+    "import importlib\n\ndef f():\n    return importlib.import_module('pybullet')\n",
+    "from hubo_cli.scene import _robot_offset_world_m\n",
+]
+
+
 @pytest.fixture(scope="module")
 def truth_modules() -> frozenset[str]:
     return _truth_modules()
@@ -368,17 +383,7 @@ def truth_modules() -> frozenset[str]:
     "from pybullet_utils import bullet_client\n",
     "def f():\n    from hubo_cli.drivers.sim import SimDriver\n",
     "from hubo_cli.drivers import sim\n",
-    # the independent review's ten misses (REVIEW33 item 4)
-    "def f(self):\n    return self.world._p.getBasePositionAndOrientation(self.world._robot)\n",
-    "def f(self):\n    return self.world.hinge_angle_rad('valve')\n",
-    "def f(self):\n    return self.world.holding('right_hand')\n",
-    "def f(world):\n    return world.cutting_force_n\n",
-    "def f(world):\n    return world.walls[0].distance_m\n",
-    "def f(self):\n    return self.sim.max_tilt_deg\n",
-    "def f(driver):\n    return driver.perturbation\n",
-    "def f(state):\n    return getattr(state, 'tru' + 'th').T_world_torso\n",
-    "import importlib\n\ndef f():\n    return importlib.import_module('pybullet')\n",
-    "from hubo_cli.scene import _robot_offset_world_m\n",
+    *REVIEW_MISSES,
     # and their kin: a helper module that reads the truth, whatever the object is called
     "from hubo_cli.viz.live import LiveServer\n",
     "def f(x):\n    return x.holding('right_hand')\n",
@@ -440,3 +445,14 @@ def test_a_violation_planted_in_a_real_module_is_found():
     assert truth_reads(source) == []
     planted = source + "\n\ndef _cheat(state):\n    return state.truth.feet_contact\n"
     assert truth_reads(planted) == [f"{len(planted.splitlines())}: state.truth"]
+
+
+@pytest.mark.parametrize("planted", REVIEW_MISSES)
+def test_each_review_miss_planted_in_a_real_target_fails_the_scan(planted, truth_modules):
+    """The valve/door target's own source passes; with one of the review's misses appended
+    (a function of its own) the scan finds it."""
+    name = "hubo_cli/experiments/manipulation.py"
+    source = (ROOT / name).read_text()
+    assert truth_reads(source, truth_modules) == []
+    found = truth_reads(source + "\n\n" + planted, truth_modules)
+    assert found and all(int(f.split(":")[0]) > len(source.splitlines()) for f in found)
