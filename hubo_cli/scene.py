@@ -1,16 +1,22 @@
 """The scene a run places in the simulator: walls put where the robot holds its tool, the
 wall material's reaction to the drill (:class:`CuttingModel`, a task file's ``[scene.cutting]``),
 and, from :mod:`hubo_cli.hinged_objects`, the manipulation experiments' valve and door.
+
+A target never holds the simulator: it gets :class:`SceneActions` (issue 33), which acts on the
+scene (walls, a valve, a door, a push, the hand's grip) and reads nothing back that a controller
+could steer by. Placing the scene where the robot truly stands is the simulator's business and
+happens here; what an action returns is for the run's reports only.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from hubo_cli.drivers.base import SimulatedWorld
+from hubo_cli.hinged_objects import Door, Valve
 
 
 def _bounded(default: float, maximum: float, positive: bool = False):
@@ -143,12 +149,75 @@ class WallPlacement:
     gap_m: float
     size: WallSize
 
-    def place(self, world: SimulatedWorld) -> dict:
-        """Place it now; returns what was placed."""
-        return place_wall_ahead(world, self.frame, self.gap_m, self.size)
+    def place(self, actions: SceneActions) -> dict:
+        """Place it now; returns what was placed (for the run's reports only)."""
+        return actions.place_wall(self)
 
 
-def place_wall_ahead(world: SimulatedWorld, frame: str, gap_m: float, wall: WallSize) -> dict:
+class SceneActions:
+    """What a target may do to the simulated scene (issue 33): build walls and hinged objects,
+    push the torso, close and open a hand. It has no readers: a target learns how its actions
+    went from the robot's sensors (the estimate, the grip flag
+    :func:`~hubo_cli.drivers.base.grip_flag`), as on a Hubo. What an action returns is the
+    simulator's truth, for the run's reports only (summary, log metadata), never to steer by.
+    :attr:`physics_wall_s` is the simulator's CPU clock (a benchmark figure, not the world's
+    state)."""
+
+    __slots__ = ("_world",)
+
+    def __init__(self, world: SimulatedWorld) -> None:
+        self._world = world
+
+    def add_wall(self, distance_m: float, height_m: float, width_m: float = 1.2,
+                 thickness_m: float = 0.01, centre_y_m: float = 0.0) -> None:
+        """A wall at the plan's own numbers (world, m: the robot as the simulator sets it
+        down, its neck over the origin)."""
+        self._world.add_wall(distance_m, height_m, width_m, thickness_m, centre_y_m)
+
+    def place_wall(self, placement: WallPlacement) -> dict:
+        """A wall ``placement.gap_m`` ahead of where its frame truly is now (an operator walks
+        the robot up to the wall). Returns what was placed, for the reports only."""
+        return _place_wall_ahead(self._world, placement.frame, placement.gap_m,
+                                 placement.size)
+
+    def place_object(self, spec: Valve | Door, frame: str, T_N_frame: np.ndarray,
+                     name: str) -> Valve | Door:
+        """A valve or a door planned in the robot's neck frame N (``spec``'s world fields are
+        N's), put where the simulator has the robot: moved by where ``frame`` truly is less
+        where the kinematics put it (``T_N_frame``), the settled lean included. Returns the
+        object as placed (world), for the reports only."""
+        shift = _robot_offset_world_m(self._world, frame, T_N_frame)
+        if isinstance(spec, Valve):
+            placed = replace(spec, centre_world_m=tuple(
+                float(v) for v in np.asarray(spec.centre_world_m) + shift))
+            self._world.add_valve(placed, name)
+        else:
+            placed = replace(spec, near_face_x_m=spec.near_face_x_m + float(shift[0]),
+                             hinge_y_m=spec.hinge_y_m + float(shift[1]))
+            self._world.add_door(placed, name)
+        return placed
+
+    def push_torso(self, force_world_n, duration_s: float) -> None:
+        """Push the torso at its centre of mass (world force, N) for ``duration_s`` (s)."""
+        self._world.push_torso(force_world_n, duration_s)
+
+    def grasp(self, frame: str, name: str, tolerance_m: float) -> float:
+        """Close the hand ``frame`` on object ``name`` (it holds when within ``tolerance_m``
+        of a grip). Returns the hand's distance from the grip (m), for the reports only; the
+        hand's grip flag in the next state says whether it holds."""
+        return self._world.grasp(frame, name, tolerance_m)
+
+    def release(self, frame: str) -> None:
+        """Open the hand ``frame``."""
+        self._world.release(frame)
+
+    @property
+    def physics_wall_s(self) -> float:
+        """Wall-clock time the simulator spent stepping its physics (s; a benchmark clock)."""
+        return self._world.physics_wall_s
+
+
+def _place_wall_ahead(world: SimulatedWorld, frame: str, gap_m: float, wall: WallSize) -> dict:
     """Put a wall's near face ``gap_m`` ahead (world +x) of where ``frame`` is now.
 
     A task or a drill session places its wall once the robot holds its tool ready, as an
@@ -162,7 +231,8 @@ def place_wall_ahead(world: SimulatedWorld, frame: str, gap_m: float, wall: Wall
             "thickness_m": wall.thickness_m, "centre_y_m": wall.centre_y_m}
 
 
-def robot_offset_world_m(world: SimulatedWorld, frame: str, T_N_frame: np.ndarray) -> np.ndarray:
+def _robot_offset_world_m(world: SimulatedWorld, frame: str, T_N_frame: np.ndarray
+                          ) -> np.ndarray:
     """Where the simulator has the robot's ``frame`` now, less where the kinematics put it
     (``T_N_frame``, in the neck frame N): the shift (3, m) that places a scene's objects, planned
     in N, in front of the robot as the physics set it down (its settled lean included). Placing

@@ -54,6 +54,7 @@ from hubo_cli.estimation.build import build_estimator
 from hubo_cli.interrupts import loop_ended, loop_starting, run_files
 from hubo_cli.model import RobotModel
 from hubo_cli.runs import discard_if_unused, make_run_dir, release_run_dir, write_json
+from hubo_cli.scene import SceneActions
 
 SUMMARY_NAME = "summary.json"
 SNAPSHOT_NAME = "snapshot.png"
@@ -252,7 +253,8 @@ def _run_in(setup: RunSetup, target: Target, on_start, speed: float | None,
                                operator=setup.operator, observer=setup.live,
                                estimator=build_estimator(setup.model, setup.tools,
                                                          driver.period_s))
-            target.attach(world, modules, loop.store)
+            # the target may act on the scene, never read it (issue 33)
+            target.attach(None if world is None else SceneActions(world), modules, loop.store)
             if on_start is not None:
                 on_start(target, loop)
             result = _run_loop(loop, setup, world)

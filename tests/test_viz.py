@@ -21,6 +21,7 @@ from hubo_cli.control.log import load_log, pose_columns
 from hubo_cli.control.target import Target
 from hubo_cli.model import load_model
 from hubo_cli.posture import home_posture
+from hubo_cli.scene import WallPlacement, WallSize
 from hubo_cli.session import RunSetup, run
 from hubo_cli.viz.camera import DEFAULT_PRESET, PRESETS, camera_for
 from hubo_cli.viz.replay import KinematicReplay
@@ -49,8 +50,8 @@ class SwayTarget(Target):
         q = self.q0 + (self.raised - self.q0) * (0.5 - 0.5 * np.cos(np.pi * ramp))
         if t_s >= 0.8:
             if not self.walled:  # the wall through the bit, once the arm is up
-                bit_x = self.world.frame_pose("right_drill_bit")[0, 3]
-                self.world.add_wall(bit_x - 0.005, 1.4, 1.2, 0.01)
+                self.world.place_wall(WallPlacement("right_drill_bit", -0.005,
+                                                    WallSize(1.4, 1.2, 0.01)))
                 self.walled = True
             phase = min((t_s - 0.8) / 1.0, 1.0)
             q[self.arm.start + 2] = 0.25 * (0.5 - 0.5 * np.cos(2 * np.pi * phase))

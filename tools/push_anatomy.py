@@ -65,7 +65,6 @@ class PushAnatomy(Target):
 
     def attach(self, world, modules, store) -> None:
         self.stand.attach(world, modules, store)
-        self.world = world
         self.monitor = next(m for m in modules if isinstance(m, CapturePointMonitor))
 
     def __call__(self, t_s: float, state):
@@ -81,9 +80,9 @@ class PushAnatomy(Target):
         return q, info | {"bow_rad": self.bow_rad}
 
     def _record(self, t_s: float, state) -> None:
-        T_world_sole = self.world.frame_pose("right_sole")
+        T_world_sole = self.truth.frame_pose("right_sole")
         toe_world_m = T_world_sole[:3, :3] @ np.array([self.toe_m, 0.0, 0.0]) + T_world_sole[:3, 3]
-        x_m = float(self.world.com_world_m()[0] - toe_world_m[0])
+        x_m = float(self.truth.com_world_m()[0] - toe_world_m[0])
         v_m_s = 0.0 if self.last_x_m is None else (x_m - self.last_x_m) / self.period_s
         self.last_x_m = x_m
         fz = state.ft["right-ankle"][2] + state.ft["left-ankle"][2]
@@ -123,7 +122,9 @@ def main(argv: list[str] | None = None) -> int:
     setup = RunSetup(command="sim", model=model, driver="sim", out=args.out,
                      safety=SafetyProfile(estop=not args.bow_gain),
                      duration_s=n * model.control_period_s, q_start_rad=q_home)
-    done = run(setup, target)
+    # this diagnosis measures the true push: it takes the simulator itself (a target gets the
+    # scene's actions only)
+    done = run(setup, target, on_start=lambda t, loop: setattr(t, "truth", loop.driver.world))
     rows = pl.DataFrame(target.rows)
     log = pl.read_csv(done.run_dir / "log.csv")
     wanted = ("t_s", "limiter_clamped_count", "limiter_ankle_clamped_count", "estop_mode_code",

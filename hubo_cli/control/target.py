@@ -14,7 +14,7 @@ from hubo_cli.state import RobotState
 
 if TYPE_CHECKING:
     from hubo_cli.control.module import Module
-    from hubo_cli.drivers.base import SimulatedWorld
+    from hubo_cli.scene import SceneActions
 
 TargetOutput = tuple[np.ndarray | None, dict]
 
@@ -46,10 +46,10 @@ class Target(ABC):
     def __call__(self, t_s: float, state: RobotState) -> TargetOutput:
         """The joint target for the period starting at ``t_s`` (rad; None = hold) and info."""
 
-    def attach(self, world: SimulatedWorld | None, modules: Sequence[Module],
+    def attach(self, world: SceneActions | None, modules: Sequence[Module],
                store: Store) -> None:
-        """Called once the robot has started, before the first period: the simulator's world
-        (to place a scene in, to push; None on a real robot; never to read its truth), the
+        """Called once the robot has started, before the first period: the simulator's scene
+        actions (to place a scene, to push, to grip; None on a real robot; nothing to read), the
         pipeline that will run (to watch a stopper) and the run's store (the estimate: the
         keys in :attr:`reads`, read each period)."""
 

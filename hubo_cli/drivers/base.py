@@ -52,11 +52,20 @@ class RunContext:
     perturb_seed: int | None = None
 
 
+def grip_flag(frame: str) -> str:
+    """The state flag a driver raises every period the hand ``frame``'s grip holds an object
+    (its fingers closed on it, as the hand's grip sensor reports): how a target learns that a
+    grasp took, since it never reads the world (:class:`hubo_cli.scene.SceneActions`)."""
+    return f"gripping-{frame}"
+
+
 class SimulatedWorld(ABC):
     """What a simulator offers beyond the driver contract: a scene, forces, frames, pictures.
 
     A real robot has none of it: :attr:`Driver.world` is None there, so callers ask for the
-    capability once instead of probing a driver for methods.
+    capability once instead of probing a driver for methods. Only the run (session: the scene,
+    snapshot and ground truth for the reports) holds it; targets get its actions alone
+    (:class:`hubo_cli.scene.SceneActions`).
     """
 
     @abstractmethod

@@ -114,7 +114,7 @@ from pathlib import Path
 import numpy as np
 
 from hubo_cli.drivers import checks
-from hubo_cli.drivers.base import Driver, RunContext, SimulatedWorld
+from hubo_cli.drivers.base import Driver, RunContext, SimulatedWorld, grip_flag
 from hubo_cli.drivers.sim_objects import (
     Grip,
     HingedBody,
@@ -333,6 +333,7 @@ class SimOptions:
     max_speed_factor: float = 3.0
     cutting: CuttingModel = field(default_factory=CuttingModel)
     perturb_seed: int | None = None  # hubo_cli.perturb: None or 0 = the nominal robot and world
+    logged_object: str | None = None  # a hinged object whose angle the log gets (reports)
 
 
 @contextlib.contextmanager
@@ -439,6 +440,18 @@ class SimDriver(Driver, SimulatedWorld):
         self._T_link_frame = {child: origin for (_, kind, parent, child, origin, _)
                               in frames.joints if kind == "fixed" and child in FRAME_PARENTS}
         self._T_link_bit = self._T_link_frame.get(DRILL_FRAME)  # the drill's bit on its wrist
+        if self.options.logged_object is not None:
+            self.log_columns = ("object_angle_deg",)
+
+    def log_values(self) -> dict[str, float]:
+        """The logged object's hinge angle (deg; NaN before it is placed): the simulator's
+        truth, for the reports and plots (a target cannot read it)."""
+        name = self.options.logged_object
+        if name is None:
+            return {}
+        body = self._objects.get(name)
+        return {"object_angle_deg": math.nan if body is None
+                else math.degrees(body.angle_rad(self._p, self._cid))}
 
     # ------------------------------------------------------------------ set-up
     def _connect(self) -> None:
@@ -950,6 +963,7 @@ class SimDriver(Driver, SimulatedWorld):
                     filtered[ankle] = fz
                 filtered[ankle] += self._contact_alpha * (fz - filtered[ankle])
                 contact[ankle] = filtered[ankle] > self._contact_threshold_n
+        self._flags += [grip_flag(frame) for frame in self._grips if self.holding(frame)]
         flags, self._flags = tuple(dict.fromkeys(self._flags)), []
         if self._stopped:
             flags = tuple(dict.fromkeys((*flags, "stopped")))

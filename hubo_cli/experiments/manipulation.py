@@ -6,7 +6,7 @@ Valve (``turn-valve``)
     stands in front of the robot's right shoulder, its axis along x, on a stem from a panel
     behind it. The plan (Fig. 13 alpha, beta): reach up and over the rim, lower the hand onto the
     rim's top, close the hand (the grip holds only if the rim is really there:
-    :meth:`~hubo_cli.drivers.base.SimulatedWorld.grasp`), then carry the grip clockwise (as
+    :meth:`~hubo_cli.scene.SceneActions.grasp`), then carry the grip clockwise (as
     the robot sees it) along the rim's circle through ``turn_deg`` and hold.
 Door (``push-door``)
     A door (:class:`~hubo_cli.hinged_objects.Door`, 0.9 m wide, hinged on the robot's left, a closer
@@ -49,7 +49,7 @@ from hubo_cli.control.collision import SelfCollisionChecker
 from hubo_cli.control.estop import EmergencyStopper
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.dataflow import Store
-from hubo_cli.drivers.base import SimulatedWorld
+from hubo_cli.drivers.base import grip_flag
 from hubo_cli.errors import ConfigError, InputError
 from hubo_cli.estimation.keys import WRENCHES
 from hubo_cli.experiments.push_wall import ARM_START_RAD, hand_box_extent_m
@@ -60,7 +60,7 @@ from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.pin_robot import load_pin_robot
 from hubo_cli.posture import home_posture
-from hubo_cli.scene import robot_offset_world_m
+from hubo_cli.scene import SceneActions
 from hubo_cli.session import RunObserver, RunResult, RunSetup, run
 
 KINDS = ("turn-valve", "push-door")
@@ -264,7 +264,7 @@ class ManipulationTargets(WatchedTarget):
     """
 
     reads = (*WatchedTarget.reads, WRENCHES)
-    log_columns = ("hand_axial_n", "wrist_moment_nm", "object_angle_deg",
+    log_columns = ("hand_axial_n", "wrist_moment_nm",
                    "holding_flag", "arm_torque_ratio", "tilt_deg", "torso_z_m", "sole_lift_m",
                    "segment_code")
 
@@ -292,7 +292,7 @@ class ManipulationTargets(WatchedTarget):
         self.grasp_miss_m: float | None = None  # the rim's distance at the last try (m)
         self.grasped_at_s: float | None = None
         self.placed: dict = {}
-        self.world: SimulatedWorld | None = None
+        self.world: SceneActions | None = None
         self.stopper: EmergencyStopper | None = None  # no grasp while it stops the motion
         self.overload_periods = 0
         self.max_torque_ratio = 0.0
@@ -342,28 +342,25 @@ class ManipulationTargets(WatchedTarget):
                     hint="the scene constants in hubo_cli/experiments/manipulation.py were "
                          "chosen for the arm's reach; keep turn_deg and door_deg in range")
 
-    def attach(self, world: SimulatedWorld | None, modules, store: Store) -> None:
+    def attach(self, world: SceneActions | None, modules, store: Store) -> None:
         if world is None:
             raise ConfigError(f"the {self.spec.kind} experiment needs the simulator",
                               hint="run it with the sim driver")
         super().attach(world, modules, store)
         self.world = world
         self.stopper = next((m for m in modules if isinstance(m, EmergencyStopper)), None)
-        # N -> world: the hand's start point as the physics has it (the robot's settled lean)
-        shift = robot_offset_world_m(world, HAND, self.T_start)
+        # planned in N; the scene module puts it where the robot truly stands (its lean)
         if isinstance(self.seen, Valve):
-            true_centre = np.asarray(self.seen.centre_world_m) + shift - self.spec.seen_offset_m
-            valve = replace(self.seen, centre_world_m=tuple(float(v) for v in true_centre))
-            world.add_valve(valve)
+            centre = np.asarray(self.seen.centre_world_m) - self.spec.seen_offset_m
+            valve = world.place_object(replace(self.seen, centre_world_m=tuple(
+                float(v) for v in centre)), HAND, self.T_start, "valve")
+            seen = np.asarray(valve.centre_world_m) + self.spec.seen_offset_m
             self.placed = {"kind": "valve", "true_centre_world_m": valve.centre_world_m,
-                           "seen_centre_world_m": tuple(
-                               float(v) for v in np.asarray(self.seen.centre_world_m) + shift),
+                           "seen_centre_world_m": tuple(float(v) for v in seen),
                            "radius_m": valve.radius_m, "friction_nm": valve.friction_nm}
         else:
-            door = replace(self.seen, near_face_x_m=self.seen.near_face_x_m + float(shift[0]),
-                           hinge_y_m=self.seen.hinge_y_m + float(shift[1]),
-                           opens=self.spec.door_opens)
-            world.add_door(door)
+            door = world.place_object(replace(self.seen, opens=self.spec.door_opens), HAND,
+                                      self.T_start, "door")
             self.placed = {"kind": "door", "near_face_x_world_m": door.near_face_x_m,
                            "hinge_y_world_m": door.hinge_y_m, "opens": door.opens,
                            "planned_as": "away", "push_lever_m": DOOR_LEVER_M}
@@ -372,10 +369,11 @@ class ManipulationTargets(WatchedTarget):
         tilt_deg, z = self.watch(t_s, state)
         k, T = self.goal(t_s)
         stopped = self.stopper is not None and self.stopper.status().mode != "release"
-        if self.segments[k].grasp and not self.world.holding(HAND) and not stopped:
+        holding = grip_flag(HAND) in state.flags  # the hand's grip sensor
+        if holding and self.grasped_at_s is None:
+            self.grasped_at_s = t_s
+        if self.segments[k].grasp and not holding and not stopped:
             self.grasp_miss_m = self.world.grasp(HAND, "valve", self.clearance_m + GRIP_REACH_M)
-            if self.world.holding(HAND):
-                self.grasped_at_s = t_s
         result = self.limb.solve(T, self.q_prev)
         self.q_prev = result.q_rad
         q = self.q_start.copy()
@@ -391,10 +389,8 @@ class ManipulationTargets(WatchedTarget):
         ratio = float(np.max(np.abs(state.tau_nm[self.slice]) / self._effort))
         self.max_torque_ratio = max(self.max_torque_ratio, ratio)
         self.overload_periods += ratio >= OVERLOAD_RATIO
-        name = "valve" if self.spec.kind == "turn-valve" else "door"
         return q, {"hand_axial_n": axial_n, "wrist_moment_nm": moment_nm,
-                   "object_angle_deg": math.degrees(self.world.hinge_angle_rad(name)),
-                   "holding_flag": float(self.world.holding(HAND)),
+                   "holding_flag": float(holding),
                    "arm_torque_ratio": ratio, "tilt_deg": tilt_deg, "torso_z_m": z,
                    "sole_lift_m": self.lift_m, "segment_code": float(k),
                    "done": self.fall_done(t_s)}
@@ -419,7 +415,8 @@ def manipulation_setup(model: RobotModel, spec: ManipulationSpec, estop: bool = 
         tools={"right-arm": "hand", "left-arm": "hand"}, driver="sim",
         safety=SafetyProfile(estop=estop, sources=("operator", "capture-point"),
                              impedance=spec.impedance, impedance_arms=(ARM,))
-        .with_balance(balance), gui=gui, out=out, q_start_rad=start_posture(model))
+        .with_balance(balance), gui=gui, out=out, q_start_rad=start_posture(model),
+        driver_options={"logged_object": "valve" if spec.kind == "turn-valve" else "door"})
 
 
 def run_manipulation(model: RobotModel, spec: ManipulationSpec, estop: bool = True,

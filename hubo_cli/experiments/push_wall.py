@@ -31,7 +31,6 @@ from hubo_cli.control.log import LogData
 from hubo_cli.control.loop import LoopResult
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.dataflow import Store
-from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.errors import ConfigError, InputError
 from hubo_cli.experiments.watch import TIP_LIFT_M, WatchedTarget
 from hubo_cli.falls import FALL_TILT_DEG
@@ -40,6 +39,7 @@ from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import LEGS, RobotModel
 from hubo_cli.pin_robot import load_pin_robot
 from hubo_cli.posture import home_posture
+from hubo_cli.scene import SceneActions
 from hubo_cli.session import RunObserver, RunResult, RunSetup, run
 
 DIRECTIONS = ("forward", "left")
@@ -139,7 +139,7 @@ class PushTargets(WatchedTarget):
         self.ik_status: dict[str, int] = {}
         self.obstacle: dict = {}
 
-    def attach(self, world: SimulatedWorld | None, modules, store: Store) -> None:
+    def attach(self, world: SceneActions | None, modules, store: Store) -> None:
         if world is None:
             raise ConfigError("the push-wall experiment needs the simulator",
                               hint="run it with the sim driver")
@@ -163,7 +163,7 @@ class PushTargets(WatchedTarget):
                    "sole_lift_m": self.lift_m, "done": done}
 
 
-def _place_obstacle(world: SimulatedWorld, model: RobotModel, spec: PushSpec,
+def _place_obstacle(world: SceneActions, model: RobotModel, spec: PushSpec,
                     q_start: np.ndarray) -> dict:
     """A wall in front of both hands, or a block on the left of the left hand (world frame:
     the robot as the simulator sets it down in ``q_start``, its neck over the origin, the

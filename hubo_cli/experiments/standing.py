@@ -17,13 +17,13 @@ from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.stop_choice import ActiveStops
 from hubo_cli.control.target import Target
 from hubo_cli.dataflow import Store
-from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.errors import ConfigError, InputError
 from hubo_cli.estimation.keys import CONTACT, T_WORLD_SOLES, T_WORLD_TORSO, WRENCHES
 from hubo_cli.falls import has_fallen
 from hubo_cli.geometry import tilt_rad_of_matrix
 from hubo_cli.model import RobotModel
 from hubo_cli.posture import home_posture
+from hubo_cli.scene import SceneActions
 from hubo_cli.session import RunObserver, RunResult, RunSetup, run
 
 FLAT_TOLERANCE_DEG = 1.0  # a sole tilted more than this (or without contact) is not flat
@@ -129,7 +129,7 @@ class StandTarget(Target):
         self.push_world_n = push_world_n
         self.push_at_s = push_at_s
         self.push_duration_s = push_duration_s
-        self.world: SimulatedWorld | None = None
+        self.world: SceneActions | None = None
         self.store: Store | None = None
         self.times_s = np.zeros(n_periods)
         self.tilts_deg = np.zeros(n_periods)
@@ -142,7 +142,7 @@ class StandTarget(Target):
         self.wall_start_s = self.wall_end_s = 0.0
         self.physics_start_s = 0.0
 
-    def attach(self, world: SimulatedWorld | None, modules, store: Store) -> None:
+    def attach(self, world: SceneActions | None, modules, store: Store) -> None:
         if world is None:
             raise ConfigError("the standing experiment needs the simulator (it pushes the "
                               "torso)", hint="run it with the sim driver")

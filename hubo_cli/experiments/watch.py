@@ -13,11 +13,11 @@ import numpy as np
 
 from hubo_cli.control.target import Target
 from hubo_cli.dataflow import Store
-from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.estimation.keys import T_WORLD_SOLES, T_WORLD_TORSO
 from hubo_cli.falls import has_fallen
 from hubo_cli.geometry import tilt_rad_of_matrix
 from hubo_cli.model import RobotModel
+from hubo_cli.scene import SceneActions
 
 TIP_LIFT_M = 0.02      # a sole corner this far above its start height: the robot tipped
 STOP_AFTER_FALL_S = 0.5
@@ -41,7 +41,7 @@ class WatchedTarget(Target):
         self._corners = model.feet.sole_corners_m()
         self._sole_start_z: np.ndarray | None = None
 
-    def attach(self, world: SimulatedWorld | None, modules, store: Store) -> None:
+    def attach(self, world: SceneActions | None, modules, store: Store) -> None:
         self.store = store
 
     def _sole_lift_m(self) -> float:

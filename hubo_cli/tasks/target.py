@@ -59,12 +59,11 @@ from hubo_cli.control.wrench import (
     tool_point_S_m,
 )
 from hubo_cli.dataflow import Store
-from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.estimation.keys import QUAT_WORLD_TORSO, WRENCHES
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.kinematics.torso import TorsoCorrection, TorsoEstimator
 from hubo_cli.kinematics.wholebody import MAX_SHIFT_M
-from hubo_cli.scene import WallPlacement, WallSize
+from hubo_cli.scene import SceneActions, WallPlacement, WallSize
 from hubo_cli.state import T_frame_sensor
 from hubo_cli.tasks.plan import EDGE_NONE, Plan
 from hubo_cli.urdf import tool_frame
@@ -104,7 +103,7 @@ class TaskTarget(Target):
         self.body = body = plan.body
         self.stopper: EmergencyStopper | None = None
         self.impedance: ImpedanceController | None = None
-        self.world: SimulatedWorld | None = None
+        self.world: SceneActions | None = None
         self.modules: list = []  # set by attach()
         self.scene: dict = {}
         self.limb = plan.spec.stance.limb
@@ -153,7 +152,7 @@ class TaskTarget(Target):
             self.log_columns = self.log_columns + self.force_columns
             self.rfu = ReferenceForceUpdater((1.0, 0.0, 0.0), plan.dt_s)
 
-    def attach(self, world: SimulatedWorld | None, modules: Sequence[Module],
+    def attach(self, world: SceneActions | None, modules: Sequence[Module],
                store: Store) -> None:
         self.world, self.store = world, store
         self.modules = list(modules)  # the pipeline, for the live view's safety state

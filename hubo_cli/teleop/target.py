@@ -61,7 +61,6 @@ import numpy as np
 from hubo_cli.control.otg import TrajectoryGenerator
 from hubo_cli.control.target import Target
 from hubo_cli.dataflow import Store
-from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.estimation.keys import QUAT_WORLD_TORSO, T_WORLD_TORSO
 from hubo_cli.geometry import tilt_rad_of_quat_wxyz
 from hubo_cli.input.device import InputDevice
@@ -75,7 +74,7 @@ from hubo_cli.kinematics.torso import CorrectionSettings, TorsoCorrection, Torso
 from hubo_cli.kinematics.wholebody import LiftFilter, WholeBody
 from hubo_cli.model import ARMS, RobotModel
 from hubo_cli.motion.tracker import JointTracker
-from hubo_cli.scene import WallPlacement
+from hubo_cli.scene import SceneActions, WallPlacement
 from hubo_cli.teleop.mapping import HandMapper
 
 PHASES = ("approach", "operate", "settle")
@@ -219,7 +218,7 @@ class TeleopTarget(Target):
         self.approach_s = max((p.duration_s for p in approach.values()), default=0.0)
         self.t_path_s: float | None = None
         self.wall = wall
-        self.world: SimulatedWorld | None = None
+        self.world: SceneActions | None = None
         self.modules: list = []  # set by attach()
         self.scene: dict = {}
         self.goals: dict[str, np.ndarray] = dict(firsts)
@@ -258,7 +257,7 @@ class TeleopTarget(Target):
                       "actual_z_m", "error_m", "ik_code", "rot_error_rad", "reach_limit_m",
                       "speed_scale")) + ("phase_code", "lift_m", "latency_s")
 
-    def attach(self, world: SimulatedWorld | None, modules, store: Store) -> None:
+    def attach(self, world: SceneActions | None, modules, store: Store) -> None:
         self.world, self.store = world, store
         self.modules = list(modules)  # the pipeline, for the live view's safety state
 

@@ -43,13 +43,13 @@ from hubo_cli.control.module import Module
 from hubo_cli.control.phase import BALANCERS_REST, SUPPORT_PLAN
 from hubo_cli.control.target import Target, TargetOutput
 from hubo_cli.dataflow import Store
-from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.errors import InputError
 from hubo_cli.estimation.keys import T_WORLD_TORSO
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import LEGS, RobotModel, load_model
 from hubo_cli.pin_robot import load_pin_robot
 from hubo_cli.posture import home_posture
+from hubo_cli.scene import SceneActions
 from hubo_cli.session import RunSetup
 from hubo_cli.state import RobotState
 from hubo_cli.urdf import DRILL_FRAME
@@ -143,7 +143,7 @@ class WalkFirst(Target):
         self.reads = tuple(dict.fromkeys((*walk.reads, T_WORLD_TORSO, *then.reads)))
         self.writes = tuple(dict.fromkeys((*walk.writes, BALANCERS_REST, *then.writes)))
         self.phase = "walk"
-        self.world: SimulatedWorld | None = None
+        self.world: SceneActions | None = None
         self.modules: list[Module] = []
         self.store: Store | None = None
         self.t_phase_s = 0.0
@@ -153,7 +153,7 @@ class WalkFirst(Target):
 
     name = "walk-first"
 
-    def attach(self, world: SimulatedWorld | None, modules: Sequence[Module],
+    def attach(self, world: SceneActions | None, modules: Sequence[Module],
                store: Store) -> None:
         self.world, self.store = world, store
         self.modules = list(modules)

@@ -84,7 +84,6 @@ from hubo_cli.control.module import Module
 from hubo_cli.control.phase import BALANCERS_REST, SUPPORT_PLAN, SupportPlan
 from hubo_cli.control.target import Target, TargetOutput
 from hubo_cli.dataflow import Store
-from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.errors import InputError
 from hubo_cli.estimation.keys import (
     CAPTURE_POINT_WORLD,
@@ -97,6 +96,7 @@ from hubo_cli.estimation.keys import (
 )
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
+from hubo_cli.scene import SceneActions
 from hubo_cli.state import GRAVITY_M_S2, RobotState
 from hubo_cli.walking.body import SIDE_LEG, WalkingBody, pose_of_row
 from hubo_cli.walking.footsteps import SIDE_SIGN, Footstep, stance_of, wrap_angle
@@ -266,7 +266,7 @@ class CaptureStepper(Target):
              CAPTURE_POINT_WORLD)
     writes = (SUPPORT_PLAN, BALANCERS_REST)
 
-    def attach(self, world: SimulatedWorld | None, modules: Sequence[Module],
+    def attach(self, world: SceneActions | None, modules: Sequence[Module],
                store: Store) -> None:
         self.store = store
         self.stand.attach(world, modules, store)

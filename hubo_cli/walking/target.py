@@ -30,6 +30,7 @@ from hubo_cli.falls import has_fallen
 from hubo_cli.kinematics.choice import CAPPED, EXACT, solve_limb
 from hubo_cli.kinematics.dh import JIT, TRUE
 from hubo_cli.model import RobotModel
+from hubo_cli.scene import SceneActions
 from hubo_cli.state import ANKLE_SENSORS, RobotState
 from hubo_cli.walking.body import SIDE_LEG, JointPlan, WalkingBody, pose_of_row
 from hubo_cli.walking.footsteps import (
@@ -251,7 +252,7 @@ class WalkTarget(Target):
         self._ankle = {"right": (names.index("RAR"), names.index("RAP")),
                        "left": (names.index("LAR"), names.index("LAP"))}
 
-    def attach(self, world, modules: Sequence, store: Store) -> None:
+    def attach(self, world: SceneActions | None, modules: Sequence, store: Store) -> None:
         self.store = store
 
     def _start(self, t_s: float) -> None:
