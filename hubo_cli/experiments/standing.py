@@ -18,12 +18,12 @@ from hubo_cli.control.stop_choice import ActiveStops
 from hubo_cli.control.target import Target
 from hubo_cli.dataflow import Store
 from hubo_cli.drivers.base import SimulatedWorld
-from hubo_cli.errors import ConfigError, InputError
+from hubo_cli.errors import ConfigError, HuboError, InputError
 from hubo_cli.estimation.keys import CONTACT, T_WORLD_SOLES, T_WORLD_TORSO, WRENCHES
 from hubo_cli.falls import has_fallen
 from hubo_cli.geometry import tilt_rad_of_matrix
 from hubo_cli.model import RobotModel
-from hubo_cli.posture import home_posture
+from hubo_cli.posture import check_stands_in, home_posture
 from hubo_cli.session import RunObserver, RunResult, RunSetup, run
 
 FLAT_TOLERANCE_DEG = 1.0  # a sole tilted more than this (or without contact) is not flat
@@ -52,6 +52,7 @@ class StandingResult:
             the start (mm): a foot that slid or stepped (a sole rocking on its heel or toe
             moves it a few mm).
         times_s, tilts_deg, feet_moment_difference_nm: traces, one sample per control period.
+        failure: the error the run ended with (e.g. the robot's state lost, exit 3), if any.
     """
 
     duration_s: float
@@ -74,6 +75,7 @@ class StandingResult:
     tilts_deg: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
     feet_moment_difference_nm: np.ndarray = field(default_factory=lambda: np.zeros(0),
                                                   repr=False)
+    failure: HuboError | None = None
 
     def summary(self) -> dict:
         """The headline numbers as a plain dict (for JSON; the run's common summary says which
@@ -124,8 +126,10 @@ class StandTarget(Target):
     log_columns = ("tilt_deg", "feet_moment_difference_nm", "max_sole_tilt_deg")
 
     def __init__(self, q_home_rad: np.ndarray, n_periods: int, push_world_n: np.ndarray,
-                 push_at_s: float, push_duration_s: float) -> None:
+                 push_at_s: float, push_duration_s: float, model: RobotModel | None = None,
+                 posture: str = "home") -> None:
         self.q_home_rad = q_home_rad
+        self.model, self.posture = model, posture  # what a robot without a world must stand in
         self.push_world_n = push_world_n
         self.push_at_s = push_at_s
         self.push_duration_s = push_duration_s
@@ -143,15 +147,20 @@ class StandTarget(Target):
         self.physics_start_s = 0.0
 
     def attach(self, world: SimulatedWorld | None, modules, store: Store) -> None:
-        if world is None:
-            raise ConfigError("the standing experiment needs the simulator (it pushes the "
-                              "torso)", hint="run it with the sim driver")
+        if world is None and np.any(self.push_world_n):
+            raise ConfigError("the standing experiment's push needs the simulator (it pushes "
+                              "the torso)", hint="run it with the sim driver, or push the "
+                                                 "robot yourself (the simulated daemon: hubo "
+                                                 "hardware sim-daemon --push)")
         self.world, self.store = world, store
-        self.physics_start_s = world.physics_wall_s
+        self.physics_start_s = world.physics_wall_s if world is not None else 0.0
         self.wall_start_s = time.perf_counter()
 
     def __call__(self, t_s: float, state) -> tuple[np.ndarray, dict]:
         world, store, k = self.world, self.store, self.k
+        if k == 0 and world is None and self.model is not None:  # a robot through hubo-ach
+            # stands where it was left
+            check_stands_in(self.model, state.q_rad, self.q_home_rad, self.posture)
         if np.any(self.push_world_n) and abs(t_s - self.push_at_s) < 0.0025:
             world.push_torso(self.push_world_n, self.push_duration_s)
         T_world_torso = store[T_WORLD_TORSO]
@@ -187,8 +196,9 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
           stops: ActiveStops | None = None, perturb_seed: int | None = None,
           balance_mode: str = "default", step: bool = False,
           hip_strategy: bool = True, operator: OperatorKeys | None = None,
-          live: RunObserver | None = None) -> StandingResult:
-    """Stand the simulated robot for ``duration_s`` and measure how it copes.
+          live: RunObserver | None = None, driver: str = "sim",
+          driver_options: dict | None = None) -> StandingResult:
+    """Stand the robot for ``duration_s`` and measure how it copes.
 
     With the default balancer the robot stands in :func:`standing_posture` (the home posture
     with the model's CoM over the soles' centre); with the paper's or none, in the home posture.
@@ -221,6 +231,10 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
             as published), and not with ``step``, which answers such a push by stepping.
         operator: the operator's keys (space stop, r release, q finish), if any.
         live: the live viewer's publisher (``--live``), if any.
+        driver, driver_options: the robot's back end and its options; only the simulator
+            pushes (``push_n`` must be 0 on another: the hardware driver's robot is pushed by
+            whatever pushes it, the simulated daemon's ``--push``), and the robot must stand
+            in the posture the run holds (:func:`standing_posture` with the default balancer).
     """
     check_standing_args(duration_s, push_n)
     direction = np.asarray(push_direction, dtype=float)
@@ -231,7 +245,8 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
     q_home = standing_posture(model) if default else home_posture(model)
     n_periods = int(round(duration_s / model.control_period_s))
     target = stepper = StandTarget(q_home, n_periods, push_n * direction, push_at_s,
-                                   push_duration_s)
+                                   push_duration_s, model,
+                                   "standing" if default else "home")
     hip = hip_strategy and not step and default
     # the legs' limits are part of the run's configuration, decided here once: stepping and
     # the hip strategy need the robot file's walking set, the rest the model's own (Table IV)
@@ -247,12 +262,13 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
         from hubo_cli.walking.params import walking_params
 
         stepper = CaptureStepper(target, model, walking_params(model), q_home)
-    setup = RunSetup(command="sim", model=model, driver="sim", gui=gui, out=out,
-                     safety=safety,
+    setup = RunSetup(command="sim", model=model, driver=driver,
+                     driver_options=driver_options or {}, gui=gui, out=out, safety=safety,
                      duration_s=n_periods * model.control_period_s, q_start_rad=q_home,
                      perturb_seed=perturb_seed, operator=operator, live=live)
     done = run(setup, stepper)
     result = _result(target, done, duration_s, push_n, balance, model.control_period_s)
+    result.failure = done.loop.failure(done.run_dir)
     result.push_direction = tuple(float(v) for v in direction)
     done.save_summary(result.summary())
     if step:
@@ -269,7 +285,9 @@ def _result(target: StandTarget, done: RunResult, duration_s: float, push_n: flo
     n = max(target.k, 1)
     wall = target.wall_end_s - target.wall_start_s
     simulated = target.k * period_s
-    physics = target.world.physics_wall_s - target.physics_start_s
+    # a robot through hubo-ach has no physics here (its own runs in its own time)
+    physics = (0.0 if target.world is None else
+               target.world.physics_wall_s - target.physics_start_s)
     return StandingResult(
         duration_s=duration_s, push_n=push_n, balance=balance,
         max_tilt_deg=float(target.tilts_deg[:n].max()),

@@ -30,6 +30,7 @@ from hubo_cli.falls import has_fallen
 from hubo_cli.kinematics.choice import CAPPED, EXACT, solve_limb
 from hubo_cli.kinematics.dh import JIT, TRUE
 from hubo_cli.model import RobotModel
+from hubo_cli.posture import check_stands_in
 from hubo_cli.state import RobotState
 from hubo_cli.walking.body import SIDE_LEG, JointPlan, WalkingBody, pose_of_row
 from hubo_cli.walking.footsteps import (
@@ -254,8 +255,15 @@ class WalkTarget(Target):
     def attach(self, world, modules: Sequence, store: Store) -> None:
         self.store = store
 
-    def _start(self, t_s: float) -> None:
-        """The walk's first period: the goal from the estimated stance, the first plan."""
+    def _start(self, t_s: float, q_rad: np.ndarray) -> None:
+        """The walk's first period: the measured joints ``q_rad`` checked against the walking
+        posture, the goal from the estimated stance, the first plan.
+
+        Raises:
+            SafetyError: a joint more than :data:`~hubo_cli.posture.START_TOLERANCE_RAD` from
+                the walking posture.
+        """
+        check_stands_in(self.model, q_rad, self.q_start, "walking")
         feet = estimated_feet(self.store)
         self.start_feet = [feet["right"], feet["left"]]
         self.start = stance_of(feet["right"], feet["left"])
@@ -329,7 +337,7 @@ class WalkTarget(Target):
     def __call__(self, t_s: float, state: RobotState) -> TargetOutput:
         store = self.store
         if self.gait is None:
-            self._start(t_s)
+            self._start(t_s, state.q_rad)
         elif self.k >= self.gait.n and not self.fell and self.corrections_left > 0 \
                 and not self.arrived():
             self.corrections_left -= 1
