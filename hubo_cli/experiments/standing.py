@@ -158,8 +158,7 @@ class StandTarget(Target):
 
     def __call__(self, t_s: float, state) -> tuple[np.ndarray, dict]:
         world, store, k = self.world, self.store, self.k
-        if k == 0 and world is None and self.model is not None:  # a robot through hubo-ach
-            # stands where it was left
+        if k == 0 and world is None and self.model is not None:  # not placed by a simulator
             check_stands_in(self.model, state.q_rad, self.q_home_rad, self.posture)
         if np.any(self.push_world_n) and abs(t_s - self.push_at_s) < 0.0025:
             world.push_torso(self.push_world_n, self.push_duration_s)

@@ -222,6 +222,7 @@ class WalkTarget(Target):
         self.q_start = np.asarray(q_start_rad, dtype=float)
         self.T_world_neck_start = T_world_neck_start
         self.store: Store | None = None
+        self.placed = True
         self.gait: Gait | None = None
         self.plan: JointPlan | None = None
         self.start: Stance | None = None
@@ -254,16 +255,19 @@ class WalkTarget(Target):
 
     def attach(self, world, modules: Sequence, store: Store) -> None:
         self.store = store
+        self.placed = world is not None  # a simulator starts the robot in the posture
 
     def _start(self, t_s: float, q_rad: np.ndarray) -> None:
         """The walk's first period: the measured joints ``q_rad`` checked against the walking
-        posture, the goal from the estimated stance, the first plan.
+        posture (a robot through hubo-ach stands where it was left), the goal from the
+        estimated stance, the first plan.
 
         Raises:
             SafetyError: a joint more than :data:`~hubo_cli.posture.START_TOLERANCE_RAD` from
                 the walking posture.
         """
-        check_stands_in(self.model, q_rad, self.q_start, "walking")
+        if not self.placed:
+            check_stands_in(self.model, q_rad, self.q_start, "walking")
         feet = estimated_feet(self.store)
         self.start_feet = [feet["right"], feet["left"]]
         self.start = stance_of(feet["right"], feet["left"])
