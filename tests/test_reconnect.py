@@ -15,6 +15,7 @@ from click.testing import CliRunner
 
 from hubo_cli.cli.main import main
 from hubo_cli.drivers.registry import make_driver
+from hubo_cli.estimation.build import build_estimator
 from hubo_cli.fastrak.emulator import make_emulator
 from hubo_cli.fastrak.opener import open_source
 from hubo_cli.input.fastrak import FastrakInput
@@ -33,6 +34,8 @@ class Operator:
     def __init__(self, model, target, driver) -> None:
         self.target, self.driver = target, driver
         self.state = driver.read()
+        self.estimator = build_estimator(model, period_s=driver.period_s)  # as the loop does
+        target.store = self.estimator.reset(self.state)
         self.t_s = 0.0
         self.dt_s = model.control_period_s
         self.flags: list[set[str]] = []
@@ -42,6 +45,7 @@ class Operator:
         q, info = self.target(self.t_s, self.state)
         self.driver.send(q)
         self.state = self.driver.step()
+        self.estimator.update(self.state)
         self.flags.append(set(info.get("flags", ())))
         goal = self.target.goals.get("right-arm")
         self.goals.append(goal[:3, 3].copy())

@@ -12,6 +12,7 @@ prints the distribution). Few short streams here; the bench replays more.
 import numpy as np
 import pytest
 
+from hubo_cli.estimation.build import build_estimator
 from hubo_cli.input.operator_stream import StreamSettings
 from hubo_cli.teleop.stream_runs import replay_generated
 
@@ -70,10 +71,13 @@ def test_the_devices_clutch_holds_the_hand_and_recentres_without_a_jump(model):
         target = TeleopTarget(model, device, HandMapper(mapping), body,
                               approach_paths(body, ["right-arm"], scene), home_posture(model))
         state, t_s, goals = driver.read(), 0.0, []
+        estimator = build_estimator(model, period_s=driver.period_s)  # as the loop runs it
+        target.store = estimator.reset(state)
         while target.phase != "settle" and t_s < 30.0:
             q, _ = target(t_s, state)
             driver.send(q)
             state = driver.step()
+            estimator.update(state)
             if target.phase == "operate" and target.mapper.is_calibrated("right"):
                 goals.append((t_s - target.t_operate_s, target.goals["right-arm"][:3, 3].copy()))
             t_s += model.control_period_s

@@ -1,16 +1,21 @@
 """How soon can a hand parked at its reach limit be back on a goal that walks back into reach?
 
 The goal of the out-of-reach test (tests/test_teleop_reach.py) walks the right hand straight
-forward from the free-mode ready pose to 30 cm beyond its reach and back along the same line
-(minimum-jerk, ``--back`` seconds). Near the straight elbow only the elbow moves the hand
-inward, so the question is one of the elbow: this script takes the elbow angle of the exact
-position-only solution along the path and an ideal elbow that starts from rest at its parked
-bend the moment the goal passes the parked hand, accelerates at the elbow's acceleration limit
-up to its speed limit (no jerk limit, no braking, no speed scale: a lower bound), and prints
-the first time it is back within 2 mm of the goal (measured along the path) after the goal is
-reachable again, and the largest gap before that.
+forward from the free-mode ready pose to ``--beyond`` (30 cm) beyond its reach and back along
+the same line (minimum-jerk, ``--back`` seconds). Near the straight elbow only the elbow moves
+the hand inward, so the question is one of the elbow: this script takes the elbow angle of the
+exact position-only solution along the path and prints two floors for an ideal elbow (its
+speed and acceleration limits, no jerk limit, no braking, no speed scale):
 
-    python tools/reach_return_bound.py [--back 8] [--parked-bend 0.1 0.64]
+- *reactive*: it starts from rest at its parked bend the moment the goal passes the parked
+  hand (a controller that only reacts to where the goal is), accelerates at the limit up to
+  its speed limit; the first time it is back within 2 mm of the goal (along the path) after
+  the goal is reachable again, and the largest gap before that;
+- *perfect prediction*: it may start whenever it likes (it knows the goal's future): the first
+  time after re-entry from which it can stay within 2 mm of the goal, starting from rest at
+  the parked bend (linear programs, see :func:`_perfect_meet_s`).
+
+    python tools/reach_return_bound.py [--back 8] [--beyond 0.3] [--parked-bend 0.1 0.64]
 """
 
 from __future__ import annotations
@@ -18,6 +23,7 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
+from scipy.optimize import linprog
 
 from hubo_cli.kinematics import get_limb
 from hubo_cli.kinematics.reach import branch_of, nearest_on_branch
@@ -55,6 +61,8 @@ def elbow_along_path(ahead_m: np.ndarray) -> tuple[np.ndarray, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--back", type=float, default=8.0, help="walk back duration (s)")
+    parser.add_argument("--beyond", type=float, default=0.3,
+                        help="how far beyond the reach the walk goes (m)")
     parser.add_argument("--parked-bend", type=float, nargs="+", default=[0.1, 0.64],
                         help="elbow bend (rad from straight) where the hand waits")
     args = parser.parse_args()
@@ -64,7 +72,7 @@ def main() -> None:
     bend, edge_m = elbow_along_path(ahead)
     inside = np.isfinite(bend)
     t_s = np.arange(0.0, args.back, 0.001)
-    goal_m = (edge_m + 0.3) * (1.0 - _min_jerk(t_s / args.back))
+    goal_m = (edge_m + args.beyond) * (1.0 - _min_jerk(t_s / args.back))
     goal_in = goal_m <= ahead[inside][-1]
     t_cross = t_s[np.argmax(goal_in)]
     goal_bend = np.interp(goal_m, ahead[inside], bend[inside])
@@ -88,10 +96,45 @@ def main() -> None:
             t_back = t_s[caught[0]] if len(caught) else np.inf
         before = (t_s >= t_pass) & (t_s <= t_back)
         parked_mm = 1e3 * (np.interp(bend0, bend[inside][::-1], ahead[inside][::-1]) - edge_m)
+        t_meet = _perfect_meet_s(t_s, goal_m, ahead[inside], bend[inside], t_cross, bend0,
+                                 elbow_speed, elbow_accel)
         print(f"parked at {bend0:.2f} rad from straight ({parked_mm:+.0f} mm along the path): "
-              f"the goal passes the hand {t_pass - t_cross:.2f} s after it is reachable; the "
-              f"ideal elbow is back within 2 mm {t_back - t_cross:.2f} s after it is reachable, "
-              f"the gap up to {1e3 * np.max(gap_m[before]):.0f} mm")
+              f"the goal passes the hand {t_pass - t_cross:.2f} s after it is reachable; "
+              f"reactive floor: back within 2 mm {t_back - t_cross:.2f} s after it is "
+              f"reachable (the gap up to {1e3 * np.max(gap_m[before]):.0f} mm); perfect "
+              f"prediction floor: within 2 mm from {t_meet - t_cross:.2f} s after it on")
+
+
+def _perfect_meet_s(t_s, goal_m, ahead_m, bend, t_cross, bend0, speed, accel, step_s=0.02):
+    """The first time after re-entry from which an elbow that knows the goal's future can stay
+    within 2 mm of it (see the module docstring): bisection on that time over feasibility
+    linear programs in the elbow's piecewise-constant acceleration (from rest at ``bend0``
+    2 s before re-entry, within the acceleration and speed limits), the bend kept between the
+    bends of the goal's position +-2 mm from that time on."""
+    grid = np.arange(t_cross - 2.0, t_s[-1], step_s)
+    goal = np.interp(grid, t_s, goal_m)
+    lo = np.interp(goal + 0.002, ahead_m, bend)  # the bend falls as the hand goes out
+    hi = np.interp(goal - 0.002, ahead_m, bend)
+    n = len(grid)
+    tk = np.arange(n) * step_s
+    position = np.maximum(tk[:, None] - tk[None, :] - step_s / 2, 0.0) * step_s
+    position[tk[:, None] <= tk[None, :]] = 0.0  # bend_k = bend0 + sum_j position_kj u_j
+    velocity = np.tril(np.ones((n, n)), -1) * step_s
+
+    def feasible(t_meet):
+        rows = grid >= t_meet
+        A = np.vstack([position[rows], -position[rows], velocity, -velocity])
+        b = np.concatenate([hi[rows] - bend0, bend0 - lo[rows], np.full(2 * n, speed)])
+        res = linprog(np.zeros(n), A_ub=A, b_ub=b, bounds=(-accel, accel), method="highs")
+        return res.status == 0
+
+    lo_s, hi_s = t_cross, grid[-1]
+    if not feasible(hi_s):
+        return np.inf
+    for _ in range(12):
+        mid = (lo_s + hi_s) / 2
+        lo_s, hi_s = (lo_s, mid) if feasible(mid) else (mid, hi_s)
+    return float(hi_s)
 
 
 if __name__ == "__main__":

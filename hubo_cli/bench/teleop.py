@@ -7,6 +7,8 @@ import os
 import tempfile
 import time
 
+import numpy as np
+
 from hubo_cli.resources import data_file
 from hubo_cli.teleop.session import TeleopSettings, run_teleop
 
@@ -62,6 +64,12 @@ def generated(report, max_speed_m_s: float, count: int, seconds: float) -> list:
            f"limits exceeded by {max(r.limit_excess_rad for r in runs):.2g} rad, all finite "
            f"{all(r.finite for r in runs)}, largest step {max(r.max_step_ratio for r in runs):.2f}"
            " x speed limit")
+    medians = [r.target_us["median"] for r in runs if r.target_us["median"] is not None]
+    report("  teleop target per operating period (both arms), median over the streams",
+           float(np.median(medians)), "us",
+           f"worst stream's median {max(medians):.0f} us, worst p99 "
+           f"{max(r.target_us['p99'] for r in runs if r.target_us['p99'] is not None):.0f} us"
+           " (target: median <= 300 us)")
     for arm in runs[0].hands:
         for key, label, unit, low_is_bad in FIGURES:
             d = distribution([r.hands[arm][key] for r in runs], low_is_bad)

@@ -159,7 +159,7 @@ def _view(target, panel) -> Group:
                    "reach limit and another branch reaches the goal; otherwise only on key b.")
 @click.option("--walk-from", "walk_from", type=float, nargs=2, default=None, metavar="X Y",
               help="Start this far (m, x forward, y left) from the working stance and walk "
-                   "there before the operator takes over (simulator).")
+                   "there before the operator takes over (on the estimate: any driver).")
 @robot_run_options("teleop")
 @click.option("--video", is_flag=True,
               help="After the run, render video.mp4 from its log (needs hubo-cli[viz]).")

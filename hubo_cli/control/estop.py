@@ -221,7 +221,7 @@ class EmergencyStopper(Module):
         self._release = False
         self._brake_only = False
         self._relieving: str | None = None  # "brake", then "move" (wrist-torque stops)
-        if getattr(self, "wrenches", None) is not None:
+        if self.wrenches is not None:
             self.wrenches.clear()
 
     # ------------------------------------------------------------------ commands

@@ -67,9 +67,8 @@ from hubo_cli.geometry import quat_to_matrix_into
 from hubo_cli.kinematics.dh import chain_fk
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import LEGS, RobotModel
-from hubo_cli.state import RobotState
+from hubo_cli.state import ANKLE_SENSORS, RobotState
 
-ANKLES = ("right-ankle", "left-ankle")
 MIN_FZ_N = 10.0  # [chosen] a sole pressing less than this: its last centre of pressure
 HEADING_TAU_S = 1.0  # [chosen] the gyro's share of the heading fades with this time constant
 GYRO_BIAS_TAU_S = 1.0  # [chosen] the gyro's yaw bias: its rate beyond the legs' on two soles
@@ -226,7 +225,7 @@ class FloatingBase(Observer):
 
     def reset(self, state: RobotState, store: Store) -> None:
         wrenches = store[WRENCHES]
-        fz = [float(wrenches[s][2]) for s in ANKLES]
+        fz = [float(wrenches[s][2]) for s in ANKLE_SENSORS]
         self.anchor = 1 if fz[1] > fz[0] else 0  # a NaN compares False: the right sole
         self._T_world_torso = np.eye(4)
         self._T_world_soles = np.tile(np.eye(4), (2, 1, 1))
@@ -250,7 +249,7 @@ class FloatingBase(Observer):
     def _centre_of_pressure(self, store: Store) -> tuple[float, float]:
         """The anchor sole's centre of pressure (sole frame, m) inside its outline; the last
         one while it presses less than MIN_FZ_N or reads non-finite."""
-        wrench = store[WRENCHES][ANKLES[self.anchor]]
+        wrench = store[WRENCHES][ANKLE_SENSORS[self.anchor]]
         fz, mx, my = float(wrench[2]), float(wrench[3]), float(wrench[4])
         if not (fz > MIN_FZ_N and math.isfinite(mx) and math.isfinite(my)):
             return self._contact_point
@@ -323,8 +322,8 @@ class FloatingBase(Observer):
                         bool(contact[0]) != bool(contact[1]) and on_edge)
             other = 1 - self.anchor
             wrenches = store[WRENCHES]
-            heavier = (float(wrenches[ANKLES[other]][2])
-                       > float(wrenches[ANKLES[self.anchor]][2]) + ANCHOR_SWITCH_N)
+            heavier = (float(wrenches[ANKLE_SENSORS[other]][2])
+                       > float(wrenches[ANKLE_SENSORS[self.anchor]][2]) + ANCHOR_SWITCH_N)
             if not contact[other]:
                 self._landed.clear()
             elif heavier or not contact[self.anchor]:

@@ -49,8 +49,8 @@ class StandingResult:
             how unevenly the two feet are loaded (the balancer's compliance evens them out).
         push_direction: world direction of the push (unit vector, x forward, y left).
         max_foot_shift_mm: largest horizontal distance of either sole from where it stood at
-            the start (mm): a foot that slid or stepped (a sole rocking on its heel or toe
-            moves it a few mm).
+            the start (mm), as the estimate has the soles: a foot that stepped (a sole rocking
+            on its heel or toe moves it a few mm; a slide is not seen, as on the robot).
         times_s, tilts_deg, feet_moment_difference_nm: traces, one sample per control period.
         failure: the error the run ended with (e.g. the robot's state lost, exit 3), if any.
     """

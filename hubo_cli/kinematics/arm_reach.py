@@ -124,7 +124,7 @@ class ArmReach:
         self.settings = settings or ReachSettings()
         self.branch: int | None = None
         self._R_smooth: np.ndarray | None = None
-        self._margins = np.array([self.settings.elbow_margin, self.settings.wrist_margin,
+        self.margins = np.array([self.settings.elbow_margin, self.settings.wrist_margin,
                                   self.settings.shoulder_margin])
 
     def start(self, q_rad: np.ndarray) -> None:
@@ -165,7 +165,7 @@ class ArmReach:
         q = np.empty(6)
         status, pos, rot = choice.solve_limb_on_branch(
             np.ascontiguousarray(T_N_goal, dtype=float), limb.chain, limb.lengths_m,
-            lower, upper, q_prev, self.branch, self._margins, 1.0,
+            lower, upper, q_prev, self.branch, self.margins, 1.0,
             self.settings.orientation_weight_m_per_rad, self.settings.iterations, q)
         return IKResult(q, choice.STATUS_NAMES[status], pos, rot)
 

@@ -1,13 +1,24 @@
-"""Collision room at the edge of reach: arm targets keep out of the collision detector's band.
+"""Collision room: arm targets keep the collision detector's measured clearance plus a margin.
 
 The pipeline's collision detector (:mod:`hubo_cli.control.collision`) holds the arms when the
 command, where it is or where it would stop, comes closer than its tolerance (10 mm) to the body.
 An operator's goal that passes just outside the body (a hand brushing past the torso) would trip
 that hold although nothing is wrong. :class:`CollisionRoom` treats such postures as not
-reachable: an arm target closer than ``room_m`` to the body is pushed back to ``room_m`` along
-the gradient of the closest pair's distance with respect to the joints of the arms in that pair
-(a few Newton steps, finite differences), so the hand slides along the band instead of stopping
-at it; if that fails, the target goes as far as it can along its step from the last target
+reachable: an arm target closer than ``room_m`` to the body (the detector's own distance, coal
+on the URDF's primitives) is replaced.
+
+With the arms' goals (:meth:`CollisionRoom.keep` given ``goals``), the replacement is the pose
+nearest to the goal among the clear ones, position first: from the last target, a few damped
+least-squares steps toward the goal (orientation weighted ``ORIENTATION_WEIGHT_M_PER_RAD``
+against the position), within the joint limits and the branch's box, each step the one of
+least weighted error whose linearised clearance is the room (a step toward the body slides
+along it, turning the hand where that costs least), accepted when it keeps the room and the
+error falls. A 6-joint arm reaches most positions in front of the chest with its hand turned:
+with the start orientation the upper arm and elbow meet the torso 4-6 cm inward of the
+free-mode ready pose (the shoulder roll moves them in); turned 15-20 deg, they pass outside it.
+Without goals (or when that search ends inside the band), the target is pushed back along the
+closest pair's gradient with respect to the arms' joints (a few Newton steps, finite
+differences), and if that fails goes as far as it can along its step from the last target
 (bisection). A target never goes deeper into the band than the last one was.
 """
 
@@ -16,12 +27,16 @@ from __future__ import annotations
 import numpy as np
 
 from hubo_cli.control.collision import TOLERANCE_M, SelfCollisionChecker
+from hubo_cli.kinematics.reach import DAMPING, MAX_STEP_RAD, branch_box, jacobian, rotation_error
 from hubo_cli.model import ARMS, RobotModel
 
 ROOM_M = TOLERANCE_M + 0.005  # the detector's band and 5 mm for the command's braking look-ahead
 NEWTON_STEPS = 3
 BISECTIONS = 8
 DIFF_RAD = 1e-4              # finite-difference step of the distance's gradient
+SEARCH_STEPS = 3             # the clear search's steps per call (it goes on the next period)
+ORIENTATION_WEIGHT_M_PER_RAD = 0.01  # the clear search's: position first (1 deg = 0.17 mm)
+AIM_M = 0.001                # its steps aim this far beyond the room (the body's curvature)
 
 
 class CollisionRoom:
@@ -36,6 +51,7 @@ class CollisionRoom:
     Attributes:
         pushed_periods: per arm, how many calls moved its target out of the band.
         last_clearance_m: the closest pair's distance at the last returned target (m).
+        moved: the arms whose targets the last call replaced.
     """
 
     def __init__(self, model: RobotModel, drill: bool = False, room_m: float = ROOM_M,
@@ -53,6 +69,7 @@ class CollisionRoom:
         if drill and "right-arm" in self.arms:
             self._link_arm["drill"] = "right-arm"
         self.pushed_periods = dict.fromkeys(self.arms, 0)
+        self.moved: set[str] = set()  # the arms the last call moved
         self.last_clearance_m = np.inf
 
     def _arms_of(self, pair: tuple[str, str]) -> list[str]:
@@ -67,15 +84,26 @@ class CollisionRoom:
         c = self.checker.check(q_rad)
         return c.distance_m, c.pair
 
-    def keep(self, q_prev_rad: np.ndarray, q_next_rad: np.ndarray) -> np.ndarray:
-        """The target to use instead of ``q_next_rad`` (24 joints, rad) after ``q_prev_rad``."""
+    def keep(self, q_prev_rad: np.ndarray, q_next_rad: np.ndarray,
+             goals: dict | None = None) -> np.ndarray:
+        """The target to use instead of ``q_next_rad`` (24 joints, rad) after ``q_prev_rad``.
+
+        Args:
+            goals: arm -> (its :class:`~hubo_cli.kinematics.arm_reach.ArmReach`, its goal
+                T_N_E 4x4 in the neck frame): search the nearest clear pose to the goal.
+        """
         q_next = np.asarray(q_next_rad, dtype=float)
         d, pair = self._distance(q_next)
         if d >= self.room_m:
             self.last_clearance_m = d
+            self.moved = set()
             return q_next
+        if goals:
+            q, d_q, moved = self._clear_search(np.asarray(q_prev_rad, dtype=float), q_next, goals)
+            if d_q >= self.room_m:
+                return self._done(q, d_q, moved)
         q = q_next.copy()
-        moved: set[str] = set()
+        moved = set()
         for _ in range(NEWTON_STEPS):
             arms = self._arms_of(pair)
             if not arms:  # the legs alone: nothing an arm target can do
@@ -113,8 +141,80 @@ class CollisionRoom:
         moved = {a for a in self.arms if np.any(q_next[self._index[a]] != q[self._index[a]])}
         return self._done(q, self._distance(q)[0], moved)
 
+    def _clear_search(self, q_prev: np.ndarray, q_next: np.ndarray,
+                      goals: dict) -> tuple[np.ndarray, float, set[str]]:
+        """The arms in the band: from their last targets toward their goals, clear of the body
+        (see the module docstring). Returns (joints, their clearance, the arms moved)."""
+        q = q_next.copy()
+        d, pair = self._distance(q)
+        moved: set[str] = set()
+        for _ in range(len(self.arms)):  # the arms of the closest pair, one after the other
+            arms = [a for a in self._arms_of(pair) if a in goals and a not in moved]
+            if d >= self.room_m or not arms:
+                break
+            arm = arms[0]
+            index = self._index[arm]
+            q[index] = q_prev[index]
+            d = self._distance(q)[0]
+            reach, T_goal = goals[arm]
+            q, d = self._search_arm(q, d, index, reach, np.ascontiguousarray(T_goal, float))
+            moved.add(arm)
+            d, pair = self._distance(q)
+        return q, d, moved
+
+    def _search_arm(self, q: np.ndarray, d: float, index: np.ndarray, reach,
+                    T_goal: np.ndarray) -> tuple[np.ndarray, float]:
+        limb = reach.limb
+        base, _, offset, alpha, a, dd, end, _ = limb.chain
+        w = np.array([1.0, 1.0, 1.0] + [ORIENTATION_WEIGHT_M_PER_RAD] * 3)
+        lo, hi = np.empty(6), np.empty(6)
+        T, J, e = np.empty((4, 4)), np.empty((6, 6)), np.empty(6)
+        branch = -1 if reach.branch is None else reach.branch
+        branch_box(q[index], branch, reach.margins, limb.lower_rad, limb.upper_rad, lo, hi)
+
+        def cost(q_arm):
+            jacobian(q_arm, base, offset, alpha, a, dd, end, T, J)
+            e[:3] = T_goal[:3, 3] - T[:3, 3]
+            rotation_error(T, T_goal, e[3:])
+            e[:] *= w
+            return float(e @ e)
+
+        c = cost(q[index])
+        for _ in range(SEARCH_STEPS):
+            Jw = J * w[:, None]
+            H = Jw.T @ Jw + DAMPING**2 * np.eye(6)
+            dq = np.linalg.solve(H, Jw.T @ e)
+            grad = np.empty(6)
+            for k, i in enumerate(index):
+                q_d = q.copy()
+                q_d[i] += DIFF_RAD
+                grad[k] = (self._distance(q_d)[0] - d) / DIFF_RAD
+            need = self.room_m + AIM_M - d
+            if np.all(np.isfinite(grad)) and grad @ dq < need:
+                # the step of least weighted error whose linearised clearance is the room: it
+                # slides along the body, turning the hand where that costs the least
+                h_grad = np.linalg.solve(H, grad)
+                if grad @ h_grad > 1e-12:
+                    dq += (need - grad @ dq) / (grad @ h_grad) * h_grad
+            biggest = float(np.max(np.abs(dq)))
+            if biggest < 1e-9:
+                break
+            dq *= min(1.0, MAX_STEP_RAD / biggest)
+            for scale in (1.0, 0.5, 0.25):
+                q_try = q.copy()
+                q_try[index] = np.clip(q[index] + scale * dq, lo, hi)
+                d_try = self._distance(q_try)[0]
+                c_try = cost(q_try[index])
+                if d_try >= min(self.room_m, d) and (c_try < c or d < self.room_m <= d_try):
+                    q, d, c = q_try, d_try, c_try
+                    break
+            else:
+                break
+        return q, d
+
     def _done(self, q: np.ndarray, d: float, moved: set[str]) -> np.ndarray:
         self.last_clearance_m = d
+        self.moved = set(moved)
         for arm in moved:
             self.pushed_periods[arm] += 1
         return q

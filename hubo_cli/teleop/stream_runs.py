@@ -32,6 +32,7 @@ class StreamRun:
         max_step_ratio: the largest one-period joint step over the joint's speed limit times
             the period (<= 1: no jump).
         ended: how the run ended (``done`` when the stream ran out).
+        target_us: the teleop target's own time per operating period, median and p99 (us).
         wall_s: the replay's wall-clock time.
     """
 
@@ -43,6 +44,7 @@ class StreamRun:
     max_step_ratio: float
     ended: str
     wall_s: float
+    target_us: dict
 
 
 def replay_generated(seed: int, settings: StreamSettings, driver: str = "ideal",
@@ -70,7 +72,7 @@ def replay_generated(seed: int, settings: StreamSettings, driver: str = "ideal",
     return StreamRun(seed, settings.max_speed_m_s, run.summary["reach"],
                      float(max(0.0, np.nanmax(excess))) if finite else float("inf"), finite,
                      float(np.nanmax(steps)) if len(steps) else 0.0,
-                     run.summary["ended"], wall_s)
+                     run.summary["ended"], wall_s, run.summary["target_us"])
 
 
 ISSUE_TARGETS = {"reachable_position_rms_mm": 10.0, "reachable_orientation_rms_deg": 3.0,

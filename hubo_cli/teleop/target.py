@@ -24,8 +24,11 @@ operator's request (key ``b``) or, with ``allow_branch_change``, when the hand r
 limit and another branch reaches the goal: a slow joint-space move, announced in the live view.
 Near singular configurations the arm's joint speeds are scaled down
 (:mod:`hubo_cli.kinematics.conditioning`). Postures within the collision detector's band count
-as out of reach too: an arm target keeps ``collision_room_m`` from the body and slides along it
-(:mod:`hubo_cli.teleop.room`), so a goal brushing past the torso does not trip a collision hold.
+as out of reach too: an arm target keeps ``collision_room_m`` from the body, measured by the
+detector's own geometry, and goes to the clear pose nearest to the goal, position first (the
+hand turns to pass the upper arm outside the torso; :mod:`hubo_cli.teleop.room`), so a goal
+in front of the chest is reached and one brushing past the torso does not trip a collision
+hold.
 While operating, each arm's joints are timed by the trajectory generator's own tracker for that
 arm (the session builds ``otg`` with a tracker per limb), so a hand does not wait for the legs.
 Each period the arm's joints go unsynchronised (each joint time-optimal: the hand keeps up
@@ -50,6 +53,7 @@ pose too (without it the body's lean would not show in their error).
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -240,6 +244,7 @@ class TeleopTarget(Target):
         self.t_settle_s: float | None = None
         self.T_world_S: np.ndarray | None = None
         self.latencies_s: list[float] = []
+        self.operate_call_s: list[float] = []  # this target's own time per operating period
         self.samples_used = 0
         self.last_sample_s: dict[str, float] = {}
         self.errors_m: dict[str, list[float]] = {arm: [] for arm in self.arms}
@@ -293,6 +298,7 @@ class TeleopTarget(Target):
 
     # ------------------------------------------------------------------ the loop's call
     def __call__(self, t_s: float, state) -> tuple[np.ndarray | None, dict]:
+        t0 = time.perf_counter()
         info: dict = {}
         flags: list[str] = []
         keys = self.keys.take()
@@ -323,6 +329,8 @@ class TeleopTarget(Target):
         self._measure(t_s, state, info)
         if flags:
             info["flags"] = flags
+        if self.phase == "operate":
+            self.operate_call_s.append(time.perf_counter() - t0)
         return self.q_out, info
 
     def _pace_arms(self) -> None:
@@ -466,6 +474,7 @@ class TeleopTarget(Target):
         """Legs to the lift, each arm on its branch (nearest pose, branch moves, speed scale)."""
         legs = self.body.solve({}, self.q_target, lift_m=lift_m)
         q = legs.q_rad
+        solved = {}  # arm -> (its reach, its goal in N) for the collision room's search
         for arm, T_S_goal in self.goals.items():
             sl = self.slices[arm]
             q_now = self.q_target[sl]
@@ -473,6 +482,7 @@ class TeleopTarget(Target):
             T_N_goal = reach.smoothed(T_S_goal, t_s - self._t_solved_s.get(arm, t_s))
             self._t_solved_s[arm] = t_s
             T_N_goal[2, 3] -= legs.lift_m
+            solved[arm] = (reach, T_N_goal)
             result = reach.solve(T_N_goal, q_now)
             hand = self.hands.get(arm)
             q_arm = result.q_rad
@@ -490,7 +500,18 @@ class TeleopTarget(Target):
                 q_arm = self._branch_policy(t_s, arm, hand, T_N_goal, q_now, q_arm, branch_key)
             q[sl] = self._speed_scaled(arm, q_now, q_arm, hand)
         if self.room is not None:
-            q = self.room.keep(self.q_target, q)
+            moving = {a: g for a, g in solved.items()
+                      if a not in self.hands or self.hands[a].branch_move is None}
+            q = self.room.keep(self.q_target, q, moving)
+            for arm in self.room.moved & set(self.hands):  # the clear pose is what is reached
+                reach, T_N_goal = solved[arm]
+                hand = self.hands[arm]
+                pos, rot = pose_error(reach.limb.fk(q[self.slices[arm]]), T_N_goal)
+                hand.position_error_m, hand.rotation_error_rad = float(pos), float(rot)
+                hand.reachable = (pos <= REACHABLE_POSITION_M
+                                  and rot <= REACHABLE_ROTATION_RAD)
+                hand.missing_m = (None if hand.reachable else T_N_goal[:3, 3]
+                                  - reach.limb.fk(q[self.slices[arm]])[:3, 3])
         self.q_target = q
 
     def _branch_policy(self, t_s, arm, hand: HandTrack, T_N_goal, q_now, q_arm,

@@ -31,7 +31,7 @@ from hubo_cli.kinematics.choice import CAPPED, EXACT, solve_limb
 from hubo_cli.kinematics.dh import JIT, TRUE
 from hubo_cli.model import RobotModel
 from hubo_cli.posture import check_stands_in
-from hubo_cli.state import RobotState
+from hubo_cli.state import ANKLE_SENSORS, RobotState
 from hubo_cli.walking.body import SIDE_LEG, JointPlan, WalkingBody, pose_of_row
 from hubo_cli.walking.footsteps import (
     Footstep,
@@ -56,9 +56,7 @@ LEG_CAPPED_RAD = 1e-3  # reaches it: each hip yaw stands at its limit, 0, while 
                        # ahead, and feet toed in by microradians (as the simulator reads them
                        # after a few steps) cap it; taking only exact solutions, the correction
                        # stayed zero from the first capped period on while the offset grew
-SOLES = (("right", "right_sole", "right-ankle"), ("left", "left_sole", "left-ankle"))
-SOLES_SENSOR = {side: sensor for side, _, sensor in SOLES}
-SIDES = ("right", "left")  # the estimate's order of the feet
+SIDES = ("right", "left")  # the estimate's order of the feet (and of ANKLE_SENSORS)
 
 
 def estimated_feet(store: Store) -> dict[str, Footstep]:
@@ -70,7 +68,7 @@ def estimated_feet(store: Store) -> dict[str, Footstep]:
 def ankle_wrenches(store: Store) -> np.ndarray:
     """The ankles' compensated wrenches (2 x 6: right, left; sole frame, N and N m)."""
     wrenches = store[WRENCHES]
-    return np.array([wrenches[SOLES_SENSOR[side]] for side in SIDES], dtype=float)
+    return np.array([wrenches[sensor] for sensor in ANKLE_SENSORS], dtype=float)
 
 
 def footstep_of(side: str, T_world_sole: np.ndarray) -> Footstep:
