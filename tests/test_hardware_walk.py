@@ -4,8 +4,8 @@ skipped with the reason without it) a short walk through the simulated daemon me
 against the daemon's truth, then the daemon killed mid-walk.
 
 The 1 m walk and the 120 N push with ``--step`` take real time (about 15 s each plus the
-daemon's start): their figures are in docs/history/hardware.md, measured with
-tools/daemon_walk.py.
+daemon's start and need real-time priority on a loaded machine): their figures are in
+docs/history/hardware.md, the walk's measured with ``tools/daemon_walk.py --run``.
 """
 
 from __future__ import annotations
@@ -111,9 +111,11 @@ def test_a_short_walk_through_the_simulated_daemon_arrives_and_a_killed_daemon_e
     references braked to rest. (The truth log is read as the killed daemon left it: whole
     rows, line-buffered, under the temporary name of :func:`hubo_cli.outputs.replacing`.)
 
-    Measured on this 2-core machine (load 7-8, no real-time priority): true final error
-    0.5 mm, true tilt 8.4 deg (the gait's lean: the sim driver's 1 m walk 8.5); bounded at
-    15 mm (the issue's) and the fall's tilt. The kill ended the run 1.6-3.7 s later."""
+    Measured on this 2-core machine (load 6-9, no real-time priority, five runs): true final
+    error 0.4-1.3 mm, true tilt 8.4-8.9 deg (the gait's lean: the sim driver's 1 m walk 8.5);
+    bounded at 15 mm (the issue's) and the fall's tilt. The kill ended the run 1.4-1.5 s later.
+    One run of the five lost the daemon's state in the first walk (exit 3) at load 8.6, cause
+    not found. The test takes 33-41 s (two walks in real time, the daemon's start)."""
     import threading
 
     from hubo_cli.drivers.ach import load_libach
