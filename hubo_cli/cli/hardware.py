@@ -280,11 +280,12 @@ def sim_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: bo
         pushed = {}  # the push's spec -> when it began (None: not reached)
         if push is not None:
             force = push.force_n * np.array(PUSH_DIRECTIONS[push.direction])
-            pushed[f"push {push.describe()}"] = None
+            name = f"push {push.describe()}"
+            pushed[name] = None
 
             def push_now() -> None:
                 body.push_torso(force, push.for_s)
-                pushed[f"push {push.describe()}"] = round(daemon.fault_time_s(), 4)
+                pushed[name] = round(daemon.fault_time_s(), 4)
             scheduled.append((push.at_s, push_now))
         # closes the body if it cannot start
         daemon = HuboDaemon(lib, body, ach_ref, ach_state, faults=played,
