@@ -21,3 +21,28 @@ def home_posture(model: RobotModel) -> np.ndarray:
     for limb in ("right-leg", "left-leg"):
         q[model.limb_slice(limb)] = CROUCH_LEG_RAD
     return q
+
+
+# a robot measured further than this from the posture a run starts holding (a real one stands
+# where it was left) is refused: the first references would throw it into the posture
+START_TOLERANCE_RAD = 0.05
+
+
+def check_stands_in(model: RobotModel, q_measured_rad, q_posture_rad, posture: str) -> None:
+    """Refuse a run whose robot is measured more than START_TOLERANCE_RAD from the posture
+    (``posture``: its name, e.g. ``walking``) it starts holding.
+
+    Raises:
+        SafetyError: a joint that far (or not finite), named with the hint to stand it so.
+    """
+    from hubo_cli.errors import SafetyError
+
+    off = np.abs(np.asarray(q_measured_rad, dtype=float) - np.asarray(q_posture_rad))
+    if np.all(off <= START_TOLERANCE_RAD):
+        return
+    i = int(np.argmax(np.where(np.isfinite(off), off, np.inf)))
+    raise SafetyError(f"the robot does not stand in the {posture} posture: "
+                      f"{model.joint_names[i]} is {off[i]:.3f} rad from it "
+                      f"(at most {START_TOLERANCE_RAD:g})",
+                      hint=f"stand it in the {posture} posture first (the simulated daemon: "
+                           f"hubo hardware sim-daemon --posture {posture})")

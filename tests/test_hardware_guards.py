@@ -179,12 +179,34 @@ def _soles(driver, forces):
 
 @pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf, 3500.0, -1200.0])
 def test_an_impossible_sole_force_trips(tmp_path, bad):
+    """A non-finite force at once, a finite one beyond the limit once it has lasted the
+    window (a broken sensor's reading stays)."""
     with _driver(tmp_path) as driver:
         driver.start()
         _soles(driver, lambda n: (300.0, bad) if n > 10 else (300.0, 300.0))
         flags, trip = _move(driver, 0.1, 100)
     assert isinstance(trip, SoleForceError) and trip.exit_code == 3
-    assert len(flags) == 10 and "left sole" in trip.message and "\n" not in trip.message
+    late = 0 if not np.isfinite(bad) else int(GUARDS["sole_force_window_periods"]) - 1
+    assert len(flags) == 10 + late
+    assert "left sole" in trip.message and "\n" not in trip.message
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_touchdown_impacts_shorter_than_the_window_never_trip(tmp_path, seed):
+    """Impacts beyond the limit (up to 4x it) on either sole, each shorter than the window,
+    at random times: no trip."""
+    rng = np.random.default_rng(seed)
+    window = int(GUARDS["sole_force_window_periods"])
+    forces = rng.uniform(250.0, 600.0, (400, 2))
+    for start in rng.choice(np.arange(20, 390, window + 1), 30, replace=False):
+        span = int(rng.integers(1, window))
+        forces[start:start + span, int(rng.integers(0, 2))] = rng.uniform(
+            GUARDS["sole_force_max_n"] + 1, 4 * GUARDS["sole_force_max_n"], span)
+    with _driver(tmp_path) as driver:
+        driver.start()
+        _soles(driver, lambda n: forces[min(n, 399)])
+        flags, trip = _move(driver, 0.0, 399)
+    assert trip is None
 
 
 def test_a_standing_robot_off_the_ground_trips_after_the_grace(tmp_path):

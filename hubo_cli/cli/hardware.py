@@ -98,6 +98,7 @@ def _daemon_options(function):
     return function
 
 
+POSTURES = ("home", "standing", "walking")  # sim-daemon --posture
 WALL_AT_S = 4.5  # after the shipped cut's raise (about 4 s), before its plunge (about 9 s)
 
 
@@ -212,33 +213,52 @@ def fake_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: b
               help="Write the right hand's tool's true world position (the drill bit with "
                    "--drill) with each published state's time, at the end: a run's hole as "
                    "the simulator has it (tools/daemon_hole.py compares it with the run).")
+@click.option("--truth-log", type=click.Path(dir_okay=False, writable=True), default=None,
+              metavar="FILE.csv",
+              help="Write the simulator's truth with each published state's time: the torso's "
+                   "position and tilt, the soles' places on the floor (tools/daemon_walk.py "
+                   "measures a walk's arrival from it).")
+@click.option("--posture", type=click.Choice(POSTURES), default="home", show_default=True,
+              help="What the robot stands in: home, standing (hubo sim's, the CoM over the "
+                   "soles) or walking (hubo walk's start, the walking limit set's).")
+@click.option("--push", "push_spec", default=None, metavar="N,at=S[,dir=D][,for=S]",
+              help="Push the torso at its centre of mass with N newtons, S seconds after the "
+                   "first reference (counted as --fault's), dir forward (default), backward, "
+                   "left or right, for 0.2 s unless for= says: what hubo sim --push does on "
+                   "the sim driver.")
 def sim_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: bool,
                perturb_seed: int | None, faults: tuple[str, ...], drill: bool,
-               wall_mm: float | None, wall_at_s: float | None, tool_log: str | None) -> None:
+               wall_mm: float | None, wall_at_s: float | None, tool_log: str | None,
+               truth_log: str | None, posture: str, push_spec: str | None) -> None:
     """Play hubo-daemon with the simulated robot behind it: read hubo-ref, apply references as
     hubo-daemon does (mode 0 through its reference filter, mode 1 directly, per joint), run the
     PyBullet Hubo (the sim driver's world) in real time and publish what it measures on
     hubo-state at 200 Hz: encoders, the body IMU, the four force-torque sensors, and the motors'
     currents and temperatures from the simulated torques (the robot file's [motors]). The robot
-    stands in the home posture. --fault plays a bus's or a motor's fault on request. Channels
-    as the fake daemon (created, taken over from a dead daemon, removed at the end; another
-    live daemon's refused, exit 3). The loop's overruns and times and the faults played are
-    reported at the end (--json: also the hottest motor and the simulator's true tilt).
+    stands in --posture. --fault plays a bus's or a motor's fault on request, --push a push.
+    Channels as the fake daemon (created, taken over from a dead daemon, removed at the end;
+    another live daemon's refused, exit 3). The loop's overruns and times and the faults played
+    are reported at the end (--json: also the hottest motor and the simulator's true tilt).
 
     \b
     Examples:
       hubo hardware sim-daemon --perturb 3 --drill   (then, in another terminal:
         hubo task cut-rectangle --driver hardware --arm)
       hubo hardware sim-daemon --fault frozen,joint=REB,at=2
+      hubo hardware sim-daemon --posture walking --truth-log truth.csv   (then:
+        hubo walk --to 1 0 0 --driver hardware --arm)
+      hubo hardware sim-daemon --posture standing --push 120,at=2   (then:
+        hubo sim --driver hardware --arm --step --duration 6)
     """
+    import numpy as np
+
     from hubo_cli.drivers.ach import load_libach
     from hubo_cli.drivers.hardware import hubo_ach_vector
     from hubo_cli.drivers.hubo_ach_daemon import HuboDaemon
-    from hubo_cli.drivers.hubo_ach_faults import parse_fault
-    from hubo_cli.drivers.hubo_ach_sim_body import PhysicsBody
+    from hubo_cli.drivers.hubo_ach_faults import parse_fault, parse_push
+    from hubo_cli.drivers.hubo_ach_sim_body import TRUTH_COLUMNS, PhysicsBody
+    from hubo_cli.experiments.standing import PUSH_DIRECTIONS
     from hubo_cli.model import load_model
-    from hubo_cli.outputs import OutputFile
-    from hubo_cli.posture import home_posture
 
     _check_duration(duration)
     if wall_at_s is not None and wall_mm is None:
@@ -246,33 +266,83 @@ def sim_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: bo
     wall_at_s = WALL_AT_S if wall_at_s is None else wall_at_s
     model = load_model()
     played = tuple(parse_fault(spec, model.joint_names) for spec in faults)
+    push = None if push_spec is None else parse_push(push_spec)
     # checked now, written as the daemon runs (a daemon's log: an existing file is replaced)
-    output = None if tool_log is None else OutputFile(tool_log, option="--tool-log",
-                                                      force=True)
+    tool_out = _csv_log(tool_log, "--tool-log", ("x_m", "y_m", "z_m"))
+    truth_out = _csv_log(truth_log, "--truth-log", TRUTH_COLUMNS)
     lib = load_libach()
     with contextlib.ExitStack() as stack:
-        track = None
-        if output is not None:  # rows as they come, the file renamed into place at the end
-            out = stack.enter_context(open(stack.enter_context(output.writing(
-                keep_partial=True)), "w", encoding="utf-8"))
-            out.write("time_s,x_m,y_m,z_m\n")
+        body = PhysicsBody(model, hubo_ach_vector(model, _posture(model, posture)),
+                           perturb_seed, track_tool=tool_out and tool_out(stack),
+                           track_truth=truth_out and truth_out(stack), drill=drill)
+        scheduled = [] if wall_mm is None else [(wall_at_s,
+                                                 lambda: body.place_wall(wall_mm / 1000))]
+        pushed = {}  # the push's spec -> when it began (None: not reached)
+        if push is not None:
+            force = push.force_n * np.array(PUSH_DIRECTIONS[push.direction])
+            name = f"push {push.describe()}"
+            pushed[name] = None
 
-            def track(t_s, xyz_m) -> None:
-                try:
-                    out.write(f"{t_s:.6f},{xyz_m[0]:.7f},{xyz_m[1]:.7f},{xyz_m[2]:.7f}\n")
-                except OSError as exc:  # a full disk: the daemon stops, its channels removed
-                    raise DeviceError(f"cannot write the tool log {output.path}: "
-                                      f"{exc.strerror or exc}",
-                                      hint="free space or leave out --tool-log") from None
-
-        body = PhysicsBody(model, hubo_ach_vector(model, home_posture(model)), perturb_seed,
-                           track_tool=track, drill=drill)
-        scheduled = (() if wall_mm is None else
-                     ((wall_at_s, lambda: body.place_wall(wall_mm / 1000)),))
+            def push_now() -> None:
+                body.push_torso(force, push.for_s)
+                pushed[name] = round(daemon.fault_time_s(), 4)
+            scheduled.append((push.at_s, push_now))
         # closes the body if it cannot start
-        daemon = HuboDaemon(lib, body, ach_ref, ach_state, faults=played, scheduled=scheduled)
+        daemon = HuboDaemon(lib, body, ach_ref, ach_state, faults=played,
+                            scheduled=tuple(scheduled))
         _serve(daemon, "simulated hubo-daemon", duration, as_json,
-               lambda daemon: _sim_extra(model, daemon.body))
+               lambda daemon: _sim_extra(model, daemon.body) | {"pushes": pushed})
+        if not as_json:
+            for spec, began in pushed.items():
+                err_console.print(f"{spec}: " + ("not reached" if began is None else
+                                                 f"began {began:.3f} s after the first "
+                                                 "reference"))
+
+
+
+def _posture(model, name: str):
+    """The limb joints of a --posture (rad)."""
+    from hubo_cli.posture import home_posture
+
+    if name == "standing":
+        from hubo_cli.experiments.standing import standing_posture
+
+        return standing_posture(model)
+    if name == "walking":
+        from hubo_cli.model import load_model
+        from hubo_cli.walking.body import walking_posture
+        from hubo_cli.walking.params import walking_params
+
+        walking_model = load_model(model.params_name, "walking")
+        params = walking_params(walking_model)
+        return walking_posture(walking_model, params.step_width_m, params.crouch_m)[0]
+    return home_posture(model)
+
+
+def _csv_log(path: str | None, option: str, columns: tuple[str, ...]):
+    """A daemon's CSV log (``time_s`` and ``columns``), checked now: None without a path, else
+    a function of an ExitStack that opens it and returns the row writer (rows as they come, the
+    file renamed into place at the end; a full disk stops the daemon, exit 3)."""
+    from hubo_cli.outputs import OutputFile
+
+    if path is None:
+        return None
+    output = OutputFile(path, option=option, force=True)
+
+    def open_in(stack: contextlib.ExitStack):
+        # line-buffered: what a killed daemon leaves is whole rows up to its end
+        out = stack.enter_context(open(stack.enter_context(output.writing(keep_partial=True)),
+                                       "w", encoding="utf-8", buffering=1))
+        out.write(",".join(("time_s", *columns)) + "\n")
+
+        def write(t_s: float, values) -> None:
+            try:
+                out.write(f"{t_s:.6f}," + ",".join(f"{v:.7f}" for v in values) + "\n")
+            except OSError as exc:  # a full disk: the daemon stops, its channels removed
+                raise DeviceError(f"cannot write {output.path}: {exc.strerror or exc}",
+                                  hint=f"free space or leave out {option}") from None
+        return write
+    return open_in
 
 
 def _sim_extra(model, body) -> dict:

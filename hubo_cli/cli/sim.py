@@ -6,6 +6,7 @@ import json
 
 import click
 
+from hubo_cli.cli.hardware import driver_options, hardware_options
 from hubo_cli.cli.options import (
     active_stops,
     balance_option,
@@ -14,6 +15,8 @@ from hubo_cli.cli.options import (
     robot_run_options,
 )
 from hubo_cli.cli.output import console, exit_if_interrupted, print_json
+from hubo_cli.drivers.registry import DRIVER_NAMES
+from hubo_cli.errors import InputError
 
 
 @click.command("sim")
@@ -38,16 +41,30 @@ from hubo_cli.cli.output import console, exit_if_interrupted, print_json
                    "table4 or a [limit_sets] name). Default: walking with --step or the hip "
                    "strategy (their legs must be fast enough), table4 otherwise; a set they "
                    "cannot run on is refused.")
+@click.option("--driver", type=click.Choice(DRIVER_NAMES), default=DRIVER_NAMES[0],
+              show_default=True, help="Robot back end (only the simulator pushes: on another, "
+                                      "--push is refused).")
+@click.option("--arm", "armed", is_flag=True, help="Arm the hardware driver (required by it).")
 @robot_run_options("sim")
 @perturb_option
+@hardware_options
 def sim(duration: float, push: float, push_direction: str, balance: str, no_balance: bool,
-        step: bool, no_hip: bool, limit_set: str | None, no_estop: bool, estop_sources: str | None,
-        accept_reduced_safety: bool, gui: bool, as_json: bool, out: str | None,
-        live: bool, live_host: str | None, live_port: int | None,
-        perturb_seed: int | None) -> None:
-    """Stand the simulated HUBO 2+ in its home posture and report tilt, feet and falls.
+        step: bool, no_hip: bool, limit_set: str | None, driver: str, armed: bool,
+        no_estop: bool, estop_sources: str | None, accept_reduced_safety: bool, gui: bool,
+        as_json: bool, out: str | None, live: bool, live_host: str | None,
+        live_port: int | None, perturb_seed: int | None, **hardware) -> None:
+    """Stand the HUBO 2+ in its home posture and report tilt, feet and falls.
 
-    Example: hubo sim --duration 5 --push 30 --push-direction backward
+    On the hardware driver the robot must stand in the posture the run holds (with the default
+    balancer hubo hardware sim-daemon's --posture standing; refused otherwise, exit 4) and
+    whatever pushes it is outside (the simulated daemon's --push); the tilt and feet are the
+    estimate's.
+
+    \b
+    Examples:
+      hubo sim --duration 5 --push 30 --push-direction backward
+      hubo sim --driver hardware --arm --step --duration 6   (against hubo hardware
+        sim-daemon --posture standing --push 120,at=2)
     """
     from hubo_cli.cli.keys import announce_keys, operator_keys
     from hubo_cli.control.stop_choice import SOFT_SOURCES
@@ -61,13 +78,20 @@ def sim(duration: float, push: float, push_direction: str, balance: str, no_bala
     from hubo_cli.runs import reserved_run_dir
 
     check_standing_args(duration, push)  # before any notice about the stop sources
-    stops = active_stops(SOFT_SOURCES, "sim", no_estop=no_estop, estop_sources=estop_sources,
+    driver_settings = driver_options(driver, armed, **hardware)
+    if push and driver != "sim":
+        raise InputError(f"--push needs the simulator; the {driver} driver's robot is pushed "
+                         "from outside",
+                         hint="leave out --push (the simulated daemon pushes: hubo hardware "
+                              "sim-daemon --push N,at=S)")
+    stops = active_stops(SOFT_SOURCES, driver, no_estop=no_estop, estop_sources=estop_sources,
                          accept_reduced_safety=accept_reduced_safety, quiet=as_json)
     # the run's one configuration, every option decided here (the limit set among them)
     options = standing_options(duration, push, balance="off" if no_balance else balance,
                                step=step, hip_strategy=not no_hip, limit_set=limit_set,
                                stops=stops, push_direction=PUSH_DIRECTIONS[push_direction],
-                               perturb_seed=perturb_seed)
+                               perturb_seed=perturb_seed, driver=driver,
+                               driver_options=driver_settings)
     model = load_model(limits=options.safety.limit_set)
     with (reserved_run_dir("sim", out) as run_dir,  # a bad --out fails before anything runs
           live_server(live, live_host, live_port, quiet=as_json) as server,
@@ -83,6 +107,8 @@ def sim(duration: float, push: float, push_direction: str, balance: str, no_bala
     else:
         _print(summary, result, options, push_direction, run_dir)
     exit_if_interrupted(summary)
+    if result.failure is not None:  # e.g. the robot's state lost: exit 3, the robot braked
+        raise result.failure
 
 
 def _print(summary: dict, result, options, push_direction: str, run_dir) -> None:
@@ -94,7 +120,8 @@ def _print(summary: dict, result, options, push_direction: str, run_dir) -> None
                "paper": "paper (eq. 11-12: K_r 0.009 rad/s/deg, K_c 0.0015 rad/s/N m)",
                "off": "off"}[profile.balance_choice]
     push_text = (f"{push:g} N {push_direction} for 0.2 s at t = 1 s" if push > 0
-                 else "none")
+                 else "none" if summary["driver"] == "sim" else "none from this run (the "
+                 "robot is pushed from outside)")
     interrupted = " (interrupted)" if summary["ended"] == "interrupted" else ""
     console.print(f"stood             {result.simulated_s:.2f} s of {duration:g} s{interrupted}")
     console.print(f"balance           {balance}")
@@ -110,6 +137,7 @@ def _print(summary: dict, result, options, push_direction: str, run_dir) -> None
         console.print(f"stepped           {stepped['steps']} step(s)" + (
             f" from t = {stepped['trigger_s']:.2f} s" if stepped["stepped"] else ""))
     console.print(f"support           {balance_summary_line(summary)}", soft_wrap=True)
-    console.print(f"real-time factor  {result.realtime_factor:.2f} "
-                  f"({100 * result.physics_share:.0f} % of the time in physics)")
+    if summary["driver"] == "sim":
+        console.print(f"real-time factor  {result.realtime_factor:.2f} "
+                      f"({100 * result.physics_share:.0f} % of the time in physics)")
     console.print(f"run folder        {run_dir} (log.csv, snapshot.png, summary.json)")

@@ -25,7 +25,7 @@ from hubo_cli.cli.output import (
 from hubo_cli.control.operator import KEYS_HELP
 from hubo_cli.control.stop_choice import SOFT_SOURCES, TASK_SOURCES
 from hubo_cli.drivers.registry import DRIVER_NAMES
-from hubo_cli.errors import HuboError, InputError, SafetyError
+from hubo_cli.errors import InputError, SafetyError
 from hubo_cli.runs import shown_name
 
 EXIT_INTERRUPTED = 130
@@ -337,11 +337,9 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, st
 
 def _finish(ctx: click.Context, done, as_json: bool, printer) -> None:
     loop = done.loop
-    if isinstance(loop.exception, HuboError):
-        raise loop.exception
-    if loop.ended in ("module-error", "target-error", "estimation-error", "driver-error"):
-        raise HuboError(f"the run stopped early: {loop.error}",
-                        hint=f"the log up to the stop is in {done.run_dir / 'log.csv'}")
+    failure = loop.failure(done.run_dir)
+    if failure is not None:
+        raise failure
     if as_json:
         print_json({"run_dir": str(done.run_dir), **done.summary})
     else:

@@ -1,4 +1,4 @@
-"""``hubo walk``: walk the simulated robot to a goal stance and report how it went."""
+"""``hubo walk``: walk the robot (simulated or through hubo-ach) to a goal stance."""
 
 from __future__ import annotations
 
@@ -6,6 +6,7 @@ import math
 
 import click
 
+from hubo_cli.cli.hardware import driver_options, hardware_options
 from hubo_cli.cli.options import (
     active_stops,
     balance_option_with,
@@ -14,6 +15,7 @@ from hubo_cli.cli.options import (
     robot_run_options,
 )
 from hubo_cli.cli.output import console, exit_if_interrupted, print_json
+from hubo_cli.drivers.registry import DRIVER_NAMES
 
 
 @click.command("walk")
@@ -23,22 +25,32 @@ from hubo_cli.cli.output import console, exit_if_interrupted, print_json
 @click.option("--corrections", type=click.IntRange(0, 5), default=1, show_default=True,
               help="Walk again from where the feet stand when they slipped more than 8 mm or "
                    "1.5 deg off the goal, up to this many times.")
+@click.option("--driver", type=click.Choice(DRIVER_NAMES), default=DRIVER_NAMES[0],
+              show_default=True, help="Robot back end.")
+@click.option("--arm", "armed", is_flag=True, help="Arm the hardware driver (required by it).")
 @robot_run_options("walk")
 @perturb_option
 @balance_option_with("off", "Walking: off by default (the standing balancers' reference "
                             "assumes both feet down).")
-def walk(goal: tuple[float, float, float], corrections: int, no_estop: bool,
-         estop_sources: str | None, accept_reduced_safety: bool, gui: bool,
+@hardware_options
+def walk(goal: tuple[float, float, float], corrections: int, driver: str, armed: bool,
+         no_estop: bool, estop_sources: str | None, accept_reduced_safety: bool, gui: bool,
          as_json: bool, out: str | None, live: bool, live_host: str | None,
-         live_port: int | None, perturb_seed: int | None, balance: str) -> None:
-    """Walk the simulated HUBO 2+ to a goal stance (ZMP preview control, footsteps, leg IK).
+         live_port: int | None, perturb_seed: int | None, balance: str, **hardware) -> None:
+    """Walk the HUBO 2+ to a goal stance (ZMP preview control, footsteps, leg IK).
 
     The robot starts standing in its walking posture (feet 0.26 m apart, 5 cm crouched) and
     walks through the full pipeline: trajectory generator, capture-point monitor (on the
     planned support), emergency stoppers, collision detector, limiter (the robot file's
-    `walking` limit set). Exit code 1 when it fell.
+    `walking` limit set). Exit code 1 when it fell. On the hardware driver the robot must
+    stand in the walking posture (refused otherwise, exit 4) and the final error is the
+    estimate's (the robot has no truth; the simulated daemon's --truth-log does).
 
-    Example: hubo walk --to 1.0 0 0
+    \b
+    Examples:
+      hubo walk --to 1.0 0 0
+      hubo walk --to 1.0 0 0 --driver hardware --arm   (against hubo hardware sim-daemon
+        --posture walking, or a real robot standing so)
     """
     from hubo_cli.cli.keys import announce_keys, operator_keys
     from hubo_cli.control.stop_choice import SOFT_SOURCES
@@ -48,7 +60,8 @@ def walk(goal: tuple[float, float, float], corrections: int, no_estop: bool,
     from hubo_cli.runs import reserved_run_dir
 
     check_goal(goal)
-    stops = active_stops(SOFT_SOURCES, "sim", no_estop=no_estop, estop_sources=estop_sources,
+    options = driver_options(driver, armed, **hardware)
+    stops = active_stops(SOFT_SOURCES, driver, no_estop=no_estop, estop_sources=estop_sources,
                          accept_reduced_safety=accept_reduced_safety, quiet=as_json)
     with (reserved_run_dir("walk", out) as run_dir,  # a bad --out fails before anything runs
           live_server(live, live_host, live_port, quiet=as_json) as server,
@@ -56,7 +69,8 @@ def walk(goal: tuple[float, float, float], corrections: int, no_estop: bool,
         announce_keys(keys, quiet=as_json)
         result = walk_to(load_model(), goal, gui=gui, out=run_dir, stops=stops,
                          perturb_seed=perturb_seed, corrections=corrections,
-                         balance=balance, operator=keys, live=server)
+                         balance=balance, operator=keys, live=server, driver=driver,
+                         driver_options=options)
     fields = result.summary() | {"ended": result.ended, "estop_events": result.estop_events,
                                  "run_dir": str(result.run_dir)}
     if as_json:
@@ -77,5 +91,7 @@ def walk(goal: tuple[float, float, float], corrections: int, no_estop: bool,
         console.print(f"e-stop events     {result.estop_events}")
         console.print(f"run folder        {result.run_dir} (log, snapshot.png, summary.json)")
     exit_if_interrupted(fields)
+    if result.failure is not None:  # e.g. the robot's state lost: exit 3, the robot braked
+        raise result.failure
     if result.fell:
         raise SystemExit(1)

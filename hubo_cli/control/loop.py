@@ -121,6 +121,18 @@ class LoopResult:
         """True when the run ended as planned (duration reached or the source finished)."""
         return self.ended in ("finished", "done")
 
+    def failure(self, run_dir: Path) -> HuboError | None:
+        """The error a command ends with after this run (its summary written): the driver's or
+        a module's own (a lost robot state is a DeviceError, exit 3), or one line for a part
+        that failed inside; None when the run ended without one (done, finished,
+        interrupted)."""
+        if isinstance(self.exception, HuboError):
+            return self.exception
+        if self.ended in ("module-error", "target-error", "estimation-error", "driver-error"):
+            return HuboError(f"the run stopped early: {self.error}",
+                             hint=f"the log up to the stop is in {Path(run_dir) / LOG_NAME}")
+        return None
+
 
 def _as_requests(value) -> Iterable[str]:
     if not value:

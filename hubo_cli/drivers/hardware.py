@@ -220,7 +220,8 @@ class HardwareDriver(Driver):
         self.sole_guard = SoleForceGuard(guards["sole_force_max_n"],
                                          guards["sole_standing_min_n"],
                                          guards["sole_unloaded_n"],
-                                         guards["sole_unloaded_grace_s"])
+                                         guards["sole_unloaded_grace_s"],
+                                         int(guards["sole_force_window_periods"]))
         self.thermal = ThermalLimiter(self.joint_names, self.ach_index,
                                       guards["motor_warning_temperature_c"],
                                       guards["motor_max_temperature_c"])

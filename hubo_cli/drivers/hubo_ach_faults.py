@@ -116,3 +116,62 @@ def parse_fault(spec: str, joint_names) -> Fault:
                          f"({', '.join(joint_names)})", hint=HINT)
     return Fault(kind, numbers["at"], numbers.get("for"), joint, numbers.get("by", 0.0),
                  numbers.get("rate", 0.0))
+
+
+PUSH_HINT = "e.g. --push 120,at=3,dir=forward  (dir forward, backward, left or right; for=0.2 s)"
+PUSH_FOR_S = 0.2  # as hubo sim --push
+
+
+@dataclass(frozen=True)
+class Push:
+    """A push on the simulated torso (``hubo hardware sim-daemon --push SPEC``): ``force_n``
+    along ``direction`` (a name of :data:`~hubo_cli.experiments.standing.PUSH_DIRECTIONS`)
+    from ``at_s`` (s after the first reference frame, as a fault's) for ``for_s``."""
+
+    force_n: float
+    at_s: float
+    direction: str = "forward"
+    for_s: float = PUSH_FOR_S
+
+    def describe(self) -> str:
+        return f"{self.force_n:g},at={self.at_s:g},dir={self.direction},for={self.for_s:g}"
+
+
+def parse_push(spec: str) -> Push:
+    """A :class:`Push` from ``N,at=S[,dir=NAME][,for=S]``.
+
+    Raises:
+        InputError: a force that is not a number of 0 to MAX_PUSH_N newtons, an unknown
+            field or direction, a time out of range.
+    """
+    from hubo_cli.experiments.standing import MAX_PUSH_N, PUSH_DIRECTIONS
+
+    text = str(spec).strip()
+    force, *pairs = [part.strip() for part in text.split(",")]
+    values: dict[str, str] = {}
+    for pair in pairs:
+        key, sep, value = pair.partition("=")
+        key = key.strip()
+        if not sep or key not in ("at", "dir", "for") or key in values:
+            raise InputError(f"--push {text!r}: {pair!r} is not one of its fields (at=S, "
+                             "dir=NAME, for=S, each once)", hint=PUSH_HINT)
+        values[key] = value.strip()
+    if "at" not in values:
+        raise InputError(f"--push {text!r}: when? it needs at=S", hint=PUSH_HINT)
+    direction = values.get("dir", "forward")
+    if direction not in PUSH_DIRECTIONS:
+        raise InputError(f"--push {text!r}: dir={direction!r} is not one of "
+                         f"{', '.join(PUSH_DIRECTIONS)}", hint=PUSH_HINT)
+    numbers = {}
+    for key, text_value, low, high in (("force", force, 0.0, MAX_PUSH_N),
+                                       ("at", values["at"], 0.0, MAX_S),
+                                       ("for", values.get("for", str(PUSH_FOR_S)), 1e-9, 10.0)):
+        try:
+            number = float(text_value)
+        except ValueError:
+            number = math.nan
+        if not (math.isfinite(number) and low <= number <= high):
+            raise InputError(f"--push {text!r}: {key} {text_value!r} is not a number in "
+                             f"[{low:g}, {high:g}]", hint=PUSH_HINT)
+        numbers[key] = number
+    return Push(numbers["force"], numbers["at"], direction, numbers["for"])

@@ -23,6 +23,11 @@ sensors and ``--perturb`` draws unchanged) runs one 5 ms period. What it measure
   temperatures from the simulated joint torques (:mod:`hubo_cli.drivers.hubo_ach_motors`, the
   robot file's ``[motors]``). The boards' ``driver[].temp`` stay 0, which hubo-daemon publishes
   for "no temperature reading".
+- the simulator's truth on request (``track_truth``, ``--truth-log``): the torso's true
+  position and tilt and the soles' true places (:data:`TRUTH_COLUMNS`), what a walk's arrival
+  is measured against outside the robot (the hardware driver never sees it).
+- a push on the torso on request (:meth:`PhysicsBody.push_torso`, ``--push``): the hardware
+  driver has no world to push, the daemon's physics does it.
 - motor faults on request (:mod:`hubo_cli.drivers.hubo_ach_faults`): a ``frozen`` joint's
   motor is held where the joint was (its encoder stays there, ``joint[].ref`` goes on following
   the references, ``status[].jam`` set); a ``hot`` motor heats faster than its load makes it.
@@ -30,6 +35,7 @@ sensors and ``--perturb`` draws unchanged) runs one 5 ms period. What it measure
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -45,6 +51,12 @@ from hubo_cli.state import FT_SENSORS
 from hubo_cli.tasks.spec import Scene
 from hubo_cli.urdf import DRILL_FRAME
 
+# the truth log's columns after time_s: the torso's true position (m) and tilt from upright
+# (deg), each sole's true place on the floor (m, m, rad)
+TRUTH_COLUMNS = ("torso_x_m", "torso_y_m", "torso_z_m", "torso_tilt_deg",
+                 "right_x_m", "right_y_m", "right_yaw_rad", "left_x_m", "left_y_m",
+                 "left_yaw_rad")
+
 
 class PhysicsBody(DaemonBody):
     """The simulated robot behind hubo-daemon's channels (with its motors' faults).
@@ -58,6 +70,8 @@ class PhysicsBody(DaemonBody):
         track_tool: called with each published state's time (s) and the right hand's tool's
             true world position (m; the drill bit with ``drill=True``, else the hand): what a
             run's hole would be, measured outside the robot (None: not tracked).
+        track_truth: called with each published state's time (s) and the simulator's truth
+            (:data:`TRUTH_COLUMNS`; None: not tracked).
         sim_options: further :class:`~hubo_cli.drivers.sim.SimOptions` (``drill=True``: the
             drill in the right hand, as the task's robot holds it).
     """
@@ -67,6 +81,7 @@ class PhysicsBody(DaemonBody):
     def __init__(self, model: RobotModel, posture_rad, perturb_seed: int | None = None,
                  filter_length: int = hubo_ach.REF_FILTER_LENGTH,
                  track_tool: Callable[[float, np.ndarray], None] | None = None,
+                 track_truth: Callable[[float, np.ndarray], None] | None = None,
                  **sim_options) -> None:
         posture = np.asarray(posture_rad, dtype=float)
         if posture.shape != (JOINT_COUNT,) or not np.all(np.isfinite(posture)):
@@ -78,6 +93,7 @@ class PhysicsBody(DaemonBody):
         self.frozen_rad: dict[int, float] = {}  # limb joint (model order) -> where it stuck
         self.tool_frame = DRILL_FRAME if sim_options.get("drill") else "right_hand"
         self.track_tool = track_tool
+        self.track_truth = track_truth
         self.sim = SimDriver(model, perturb_seed=perturb_seed, **sim_options)
         try:
             self._state = self.sim.start(posture[self.index])
@@ -110,6 +126,21 @@ class PhysicsBody(DaemonBody):
         self.sim.add_wall(distance_m, wall.wall_height_m, wall.wall_width_m,
                           wall.wall_thickness_m)
 
+    def push_torso(self, force_world_n, duration_s: float) -> None:
+        """Push the torso at its centre of mass with a world force (N) for ``duration_s``,
+        from now (as ``hubo sim --push`` does on the sim driver)."""
+        self.sim.push_torso(force_world_n, duration_s)
+
+    def truth(self) -> np.ndarray:
+        """The simulator's truth now (:data:`TRUTH_COLUMNS`)."""
+        T_world_torso = self.sim.frame_pose("torso")
+        row = [*T_world_torso[:3, 3],
+               math.degrees(math.acos(min(1.0, max(-1.0, float(T_world_torso[2, 2])))))]
+        for sole in ("right_sole", "left_sole"):
+            T = self.sim.frame_pose(sole)
+            row += [T[0, 3], T[1, 3], math.atan2(T[1, 0], T[0, 0])]
+        return np.array(row)
+
     def begin_fault(self, fault: Fault) -> None:
         i = self.joint_names.index(fault.joint)
         if fault.kind == "frozen":
@@ -123,6 +154,8 @@ class PhysicsBody(DaemonBody):
         measured = self._state
         if self.track_tool is not None:
             self.track_tool(time_s, self.sim.frame_pose(self.tool_frame)[:3, 3])
+        if self.track_truth is not None:
+            self.track_truth(time_s, self.truth())
         pos, vel = self._filtered.copy(), self._filter_vel.copy()
         pos[self.index], vel[self.index] = measured.q_rad, measured.dq_rad_s
         # FT_SENSORS is hubo-ach's ft[] order (R hand, L hand, R foot, L foot): m_x, m_y, f_z

@@ -7,8 +7,9 @@ ThermoLimiter): each looks at one fresh ``hubo_state`` and says whether the run 
   reference filter run on the references sent (the filter's 0.2 s lag is expected, not an
   error); in mode 1 it is the reference itself. The error is the smallest over the last
   ``servo_error_window_periods`` expected positions: the bus and the motor's own lag.
-- :class:`SoleForceGuard`: a sole's vertical force that is not finite or beyond
-  ``sole_force_max_n`` (about 3x the robot's weight), or, once the robot has stood (both soles
+- :class:`SoleForceGuard`: a sole's vertical force that is not finite, or beyond
+  ``sole_force_max_n`` (about 3x the robot's weight) in ``sole_force_window_periods``
+  consecutive states (a touchdown's impact lasts less), or, once the robot has stood (both soles
   together carrying ``sole_standing_min_n``), both soles under ``sole_unloaded_n`` for longer
   than ``sole_unloaded_grace_s``: the robot is no longer on the ground.
 - :class:`ThermalLimiter`: a motor's temperature (``joint[].tmp``, degrees C) between
@@ -73,7 +74,8 @@ def guard_parameters(model) -> dict[str, float]:
         ConfigError: a missing or inconsistent parameter.
     """
     names = ("servo_error_limit_rad", "servo_error_window_periods", "sole_force_max_n",
-             "sole_standing_min_n", "sole_unloaded_n", "sole_unloaded_grace_s",
+             "sole_force_window_periods", "sole_standing_min_n", "sole_unloaded_n",
+             "sole_unloaded_grace_s",
              "motor_warning_temperature_c", "motor_max_temperature_c")
     raw = model.hardware_guards
     missing = [n for n in names if n not in raw]
@@ -82,7 +84,7 @@ def guard_parameters(model) -> dict[str, float]:
                           path=str(model.source))
     p = {n: float(raw[n]) for n in names}
     if not (all(np.isfinite(v) for v in p.values()) and p["servo_error_limit_rad"] > 0
-            and p["servo_error_window_periods"] >= 1
+            and p["servo_error_window_periods"] >= 1 and p["sole_force_window_periods"] >= 1
             and 0 < p["sole_unloaded_n"] < p["sole_standing_min_n"] < p["sole_force_max_n"]
             and p["sole_unloaded_grace_s"] >= 0
             and p["motor_warning_temperature_c"] < p["motor_max_temperature_c"]):
@@ -141,21 +143,26 @@ class SoleForceGuard:
     """The soles' vertical forces: possible, and on the ground once standing."""
 
     def __init__(self, max_n: float, standing_min_n: float, unloaded_n: float,
-                 grace_s: float) -> None:
+                 grace_s: float, window_periods: int = 1) -> None:
         self.max_n, self.standing_min_n = float(max_n), float(standing_min_n)
         self.unloaded_n, self.grace_s = float(unloaded_n), float(grace_s)
+        self.window_periods = int(window_periods)
         self.reset()
 
     def reset(self) -> None:
         """Not standing yet (a robot hanging from its gantry reads ~0 N)."""
         self.stood = False
         self._unloaded_since_s: float | None = None
+        self._beyond = {side: 0 for side, _ in SOLES}  # consecutive states beyond max_n
 
     def check(self, ft_mx_my_fz: np.ndarray, t_s: float) -> SoleForceError | None:
-        """The trip if a sole reads the impossible or the robot has left the ground."""
+        """The trip if a sole reads the impossible (not finite, or beyond ``max_n`` in
+        ``window_periods`` consecutive states) or the robot has left the ground."""
         fz = {side: float(ft_mx_my_fz[k][2]) for side, k in SOLES}
         for side, f in fz.items():
-            if not np.isfinite(f) or abs(f) > self.max_n:
+            beyond = not np.isfinite(f) or abs(f) > self.max_n
+            self._beyond[side] = self._beyond[side] + 1 if beyond else 0
+            if beyond and (not np.isfinite(f) or self._beyond[side] >= self.window_periods):
                 return SoleForceError(f"the {side} sole reads {f:.0f} N (possible: within "
                                       f"{self.max_n:.0f} N)", t_s)
         if sum(fz.values()) >= self.standing_min_n:

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -17,12 +18,12 @@ from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.stop_choice import ActiveStops
 from hubo_cli.control.target import Target
 from hubo_cli.dataflow import Store
-from hubo_cli.errors import ConfigError, InputError
+from hubo_cli.errors import ConfigError, HuboError, InputError
 from hubo_cli.estimation.keys import CONTACT, T_WORLD_SOLES, T_WORLD_TORSO, WRENCHES
 from hubo_cli.falls import has_fallen
 from hubo_cli.geometry import tilt_rad_of_matrix
 from hubo_cli.model import RobotModel
-from hubo_cli.posture import home_posture
+from hubo_cli.posture import check_stands_in, home_posture
 from hubo_cli.scene import SceneActions
 from hubo_cli.session import RunObserver, RunResult, RunSetup, run
 
@@ -52,6 +53,7 @@ class StandingResult:
             the start (mm), as the estimate has the soles: a foot that stepped (a sole rocking
             on its heel or toe moves it a few mm; a slide is not seen, as on the robot).
         times_s, tilts_deg, feet_moment_difference_nm: traces, one sample per control period.
+        failure: the error the run ended with (e.g. the robot's state lost, exit 3), if any.
     """
 
     duration_s: float
@@ -74,6 +76,7 @@ class StandingResult:
     tilts_deg: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
     feet_moment_difference_nm: np.ndarray = field(default_factory=lambda: np.zeros(0),
                                                   repr=False)
+    failure: HuboError | None = None
 
     def summary(self) -> dict:
         """The headline numbers as a plain dict (for JSON; the run's common summary says which
@@ -124,8 +127,10 @@ class StandTarget(Target):
     log_columns = ("tilt_deg", "feet_moment_difference_nm", "max_sole_tilt_deg")
 
     def __init__(self, q_home_rad: np.ndarray, n_periods: int, push_world_n: np.ndarray,
-                 push_at_s: float, push_duration_s: float) -> None:
+                 push_at_s: float, push_duration_s: float, model: RobotModel | None = None,
+                 posture: str = "home") -> None:
         self.q_home_rad = q_home_rad
+        self.model, self.posture = model, posture  # what a robot without a world must stand in
         self.push_world_n = push_world_n
         self.push_at_s = push_at_s
         self.push_duration_s = push_duration_s
@@ -143,15 +148,19 @@ class StandTarget(Target):
         self.physics_start_s = 0.0
 
     def attach(self, world: SceneActions | None, modules, store: Store) -> None:
-        if world is None:
-            raise ConfigError("the standing experiment needs the simulator (it pushes the "
-                              "torso)", hint="run it with the sim driver")
+        if world is None and np.any(self.push_world_n):
+            raise ConfigError("the standing experiment's push needs the simulator (it pushes "
+                              "the torso)", hint="run it with the sim driver, or push the "
+                                                 "robot yourself (the simulated daemon: hubo "
+                                                 "hardware sim-daemon --push)")
         self.world, self.store = world, store
-        self.physics_start_s = world.physics_wall_s
+        self.physics_start_s = world.physics_wall_s if world is not None else 0.0
         self.wall_start_s = time.perf_counter()
 
     def __call__(self, t_s: float, state) -> tuple[np.ndarray, dict]:
         world, store, k = self.world, self.store, self.k
+        if k == 0 and world is None and self.model is not None:  # not placed by a simulator
+            check_stands_in(self.model, state.q_rad, self.q_home_rad, self.posture)
         if np.any(self.push_world_n) and abs(t_s - self.push_at_s) < 0.0025:
             world.push_torso(self.push_world_n, self.push_duration_s)
         T_world_torso = store[T_WORLD_TORSO]
@@ -196,6 +205,10 @@ class StandingOptions:
         safety: the run's safety profile: balancer and its mode, hip strategy, stop sources
             and the legs' joint-limit set (``limit_set``, never None here).
         limit_set_reason: why the run has its limit set (for the summary).
+        driver, driver_options: the robot's back end and its options; only the simulator
+            pushes (``push_n`` must be 0 on another: the hardware driver's robot is pushed by
+            whatever pushes it, the simulated daemon's ``--push``), and the robot must stand
+            in the posture the run holds (:func:`standing_posture` with the default balancer).
     """
 
     duration_s: float
@@ -207,6 +220,8 @@ class StandingOptions:
     perturb_seed: int | None
     safety: SafetyProfile
     limit_set_reason: str
+    driver: str = "sim"
+    driver_options: Mapping[str, object] = field(default_factory=dict)
 
 
 def standing_options(duration_s: float = 5.0, push_n: float = 0.0, *,
@@ -214,7 +229,8 @@ def standing_options(duration_s: float = 5.0, push_n: float = 0.0, *,
                      limit_set: str | None = None, default_limit_set: str = "table4",
                      stops: ActiveStops | None = None, push_direction=(1.0, 0.0, 0.0),
                      push_at_s: float = 1.0, push_duration_s: float = 0.2,
-                     perturb_seed: int | None = None) -> StandingOptions:
+                     perturb_seed: int | None = None, driver: str = "sim",
+                     driver_options: Mapping[str, object] | None = None) -> StandingOptions:
     """The standing run's options, every choice made here once.
 
     ``balance`` is ``--balance``'s choice (``default``, ``paper`` or ``off``). The hip strategy
@@ -248,7 +264,8 @@ def standing_options(duration_s: float = 5.0, push_n: float = 0.0, *,
                            push_direction=tuple(float(v) for v in direction),
                            push_at_s=float(push_at_s), push_duration_s=float(push_duration_s),
                            step=step, perturb_seed=perturb_seed, safety=safety,
-                           limit_set_reason=reason)
+                           limit_set_reason=reason, driver=driver,
+                           driver_options=dict(driver_options or {}))
 
 
 def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
@@ -257,10 +274,11 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
           stops: ActiveStops | None = None, perturb_seed: int | None = None,
           balance_mode: str = "default", step: bool = False,
           hip_strategy: bool = True, operator: OperatorKeys | None = None,
-          live: RunObserver | None = None) -> StandingResult:
-    """Stand the simulated robot for ``duration_s`` and measure how it copes (the library's
-    form of ``hubo sim``: :func:`standing_options` then :func:`run_standing`, with ``model``
-    loaded again for the limit set the options need).
+          live: RunObserver | None = None, driver: str = "sim",
+          driver_options: dict | None = None) -> StandingResult:
+    """Stand the robot for ``duration_s`` and measure how it copes (the library's form of
+    ``hubo sim``: :func:`standing_options` then :func:`run_standing`, with ``model`` loaded
+    again for the limit set the options need).
 
     With the default balancer the robot stands in :func:`standing_posture` (the home posture
     with the model's CoM over the soles' centre); with the paper's or none, in the home posture.
@@ -293,12 +311,17 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
             as published), and not with ``step``, which answers such a push by stepping.
         operator: the operator's keys (space stop, r release, q finish), if any.
         live: the live viewer's publisher (``--live``), if any.
+        driver, driver_options: the robot's back end and its options; only the simulator
+            pushes (``push_n`` must be 0 on another: the hardware driver's robot is pushed by
+            whatever pushes it, the simulated daemon's ``--push``), and the robot must stand
+            in the posture the run holds (:func:`standing_posture` with the default balancer).
     """
     options = standing_options(duration_s, push_n, balance=balance_mode if balance else "off",
                                step=step, hip_strategy=hip_strategy,
                                default_limit_set=model.limits_name, stops=stops,
                                push_direction=push_direction, push_at_s=push_at_s,
-                               push_duration_s=push_duration_s, perturb_seed=perturb_seed)
+                               push_duration_s=push_duration_s, perturb_seed=perturb_seed,
+                               driver=driver, driver_options=driver_options)
     if model.limits_name != options.safety.limit_set:
         from hubo_cli.model import load_model
 
@@ -318,19 +341,22 @@ def run_standing(model: RobotModel, options: StandingOptions, *, gui: bool = Fal
     n_periods = int(round(options.duration_s / model.control_period_s))
     direction = np.asarray(options.push_direction)
     target = stepper = StandTarget(q_home, n_periods, options.push_n * direction,
-                                   options.push_at_s, options.push_duration_s)
+                                   options.push_at_s, options.push_duration_s, model,
+                                   "standing" if default else "home")
     if options.step:
         from hubo_cli.walking.capture_step import CaptureStepper
         from hubo_cli.walking.params import walking_params
 
         stepper = CaptureStepper(target, model, walking_params(model), q_home)
-    setup = RunSetup(command="sim", model=model, driver="sim", gui=gui, out=out,
+    setup = RunSetup(command="sim", model=model, driver=options.driver,
+                     driver_options=dict(options.driver_options), gui=gui, out=out,
                      safety=safety,
                      duration_s=n_periods * model.control_period_s, q_start_rad=q_home,
                      perturb_seed=options.perturb_seed, operator=operator, live=live)
     done = run(setup, stepper)
     result = _result(target, done, options.duration_s, options.push_n, safety.balance,
                      model.control_period_s)
+    result.failure = done.loop.failure(done.run_dir)
     result.push_direction = options.push_direction
     done.save_summary(result.summary())
     if options.step:
@@ -347,7 +373,9 @@ def _result(target: StandTarget, done: RunResult, duration_s: float, push_n: flo
     n = max(target.k, 1)
     wall = target.wall_end_s - target.wall_start_s
     simulated = target.k * period_s
-    physics = target.world.physics_wall_s - target.physics_start_s
+    # a robot through hubo-ach has no physics here (its own runs in its own time)
+    physics = (0.0 if target.world is None else
+               target.world.physics_wall_s - target.physics_start_s)
     return StandingResult(
         duration_s=duration_s, push_n=push_n, balance=balance,
         max_tilt_deg=float(target.tilts_deg[:n].max()),

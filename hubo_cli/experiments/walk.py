@@ -18,7 +18,7 @@ from hubo_cli.control.log import LogData
 from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.stop_choice import ActiveStops
-from hubo_cli.errors import InputError
+from hubo_cli.errors import HuboError, InputError
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.session import RunObserver, RunSetup, run
@@ -53,6 +53,8 @@ class WalkResult:
             and the contacts are the estimate's (:mod:`hubo_cli.estimation.keys`).
         ended: how the loop ended.
         run_dir: the run folder.
+        failure: the error the run ended with (:meth:`~hubo_cli.control.loop.LoopResult.failure`:
+            e.g. the robot's state lost, exit 3), None if none.
     """
 
     fell: bool
@@ -68,6 +70,7 @@ class WalkResult:
     estop_events: int
     footsteps: list[dict]
     run_dir: Path
+    failure: HuboError | None = None
 
     def summary(self) -> dict:
         return {"fell": self.fell, "final_error_mm": self.final_error_mm,
@@ -95,8 +98,9 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
          perturb_seed: int | None = None, corrections: int = 1,
          balance: str = "off", operator: OperatorKeys | None = None,
          live: RunObserver | None = None,
-         stabilizer: StabilizerGains | None = DEFAULT_GAINS) -> WalkResult:
-    """Walk the simulated robot to ``goal`` = (forward m, left m, turn rad) from its stance.
+         stabilizer: StabilizerGains | None = DEFAULT_GAINS, driver: str = "sim",
+         driver_options: dict | None = None) -> WalkResult:
+    """Walk the robot to ``goal`` = (forward m, left m, turn rad) from its stance.
 
     Args:
         model: the robot model; its ``walking`` limit set is used for the run.
@@ -114,6 +118,9 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
         live: the live viewer's publisher (``--live``), if any.
         stabilizer: the walking stabilizer's gains (:mod:`hubo_cli.walking.stabilizer`);
             None walks the pattern open loop.
+        driver, driver_options: the robot's back end and its options (the hardware driver's
+            robot must stand in the walking posture: the walk refuses it otherwise, exit 4;
+            its log has no truth, so the final error is the estimate's).
     """
     check_goal(goal)
     from hubo_cli.model import load_model
@@ -125,7 +132,8 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
         raise InputError(f"corrections must be 0 to 5, got {corrections}", hint="e.g. 1")
     target = WalkTarget(walking_model, params, goal, q_start, T_world_neck, corrections,
                         stabilizer=stabilizer)
-    setup = RunSetup(command="walk", model=walking_model, driver="sim", gui=gui, out=out,
+    setup = RunSetup(command="walk", model=walking_model, driver=driver,
+                     driver_options=driver_options or {}, gui=gui, out=out,
                      safety=SafetyProfile().with_stops(stops).with_balance(balance),
                      q_start_rad=q_start, perturb_seed=perturb_seed, operator=operator,
                      live=live)
@@ -144,7 +152,8 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
                              if target.zmp_periods else 0.0),
         walking_s=walking_s, ended=done.loop.ended,
         estop_events=len(done.summary["estop_events"]),
-        footsteps=[s.to_json() for s in target.steps], run_dir=done.run_dir)
+        footsteps=[s.to_json() for s in target.steps], run_dir=done.run_dir,
+        failure=done.loop.failure(done.run_dir))
     done.save_summary(result.summary())
     plot_footprints(done, target, walking_model)
     return result
@@ -163,6 +172,13 @@ def true_final_error(log: LogData, model: RobotModel, goal: tuple[float, float, 
     q = log.joints("q")
     start, end = (_true_stance(model, T_world_torso[part], q[part])
                   for part in (slice(0, rows), slice(-rows, None)))
+    return arrival_error(start, end, goal)
+
+
+def arrival_error(start: Stance, end: Stance, goal: tuple[float, float, float]
+                  ) -> tuple[float, float]:
+    """How far ``end`` is from ``goal`` (forward, left, turn) seen from ``start``: distance (m)
+    and heading error (rad)."""
     c, s = math.cos(start.yaw_rad), math.sin(start.yaw_rad)
     forward, left, turn = goal
     aimed = Stance(start.x_m + c * forward - s * left, start.y_m + s * forward + c * left,

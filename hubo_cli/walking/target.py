@@ -30,6 +30,7 @@ from hubo_cli.falls import has_fallen
 from hubo_cli.kinematics.choice import CAPPED, EXACT, solve_limb
 from hubo_cli.kinematics.dh import JIT, TRUE
 from hubo_cli.model import RobotModel
+from hubo_cli.posture import check_stands_in
 from hubo_cli.scene import SceneActions
 from hubo_cli.state import ANKLE_SENSORS, RobotState
 from hubo_cli.walking.body import SIDE_LEG, JointPlan, WalkingBody, pose_of_row
@@ -220,6 +221,7 @@ class WalkTarget(Target):
         self.q_start = np.asarray(q_start_rad, dtype=float)
         self.T_world_neck_start = T_world_neck_start
         self.store: Store | None = None
+        self.placed = True
         self.gait: Gait | None = None
         self.plan: JointPlan | None = None
         self.start: Stance | None = None
@@ -254,9 +256,19 @@ class WalkTarget(Target):
 
     def attach(self, world: SceneActions | None, modules: Sequence, store: Store) -> None:
         self.store = store
+        self.placed = world is not None  # a simulator starts the robot in the posture
 
-    def _start(self, t_s: float) -> None:
-        """The walk's first period: the goal from the estimated stance, the first plan."""
+    def _start(self, t_s: float, q_rad: np.ndarray) -> None:
+        """The walk's first period: the measured joints ``q_rad`` checked against the walking
+        posture (a robot through hubo-ach stands where it was left), the goal from the
+        estimated stance, the first plan.
+
+        Raises:
+            SafetyError: a joint more than :data:`~hubo_cli.posture.START_TOLERANCE_RAD` from
+                the walking posture.
+        """
+        if not self.placed:
+            check_stands_in(self.model, q_rad, self.q_start, "walking")
         feet = estimated_feet(self.store)
         self.start_feet = [feet["right"], feet["left"]]
         self.start = stance_of(feet["right"], feet["left"])
@@ -330,7 +342,7 @@ class WalkTarget(Target):
     def __call__(self, t_s: float, state: RobotState) -> TargetOutput:
         store = self.store
         if self.gait is None:
-            self._start(t_s)
+            self._start(t_s, state.q_rad)
         elif self.k >= self.gait.n and not self.fell and self.corrections_left > 0 \
                 and not self.arrived():
             self.corrections_left -= 1
