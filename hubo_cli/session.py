@@ -252,7 +252,7 @@ def _run_in(setup: RunSetup, target: Target, on_start, speed: float | None,
                                operator=setup.operator, observer=setup.live,
                                estimator=build_estimator(setup.model, setup.tools,
                                                          driver.period_s))
-            target.attach(world, modules, loop.store)
+            target.attach(world, modules, loop.target_store)
             if on_start is not None:
                 on_start(target, loop)
             result = _run_loop(loop, setup, world)

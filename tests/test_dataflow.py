@@ -85,3 +85,63 @@ def test_a_followed_key_needs_no_writer_but_one_after_the_follower_is_a_build_er
     check_flow([Writes(), Follows()])
     with pytest.raises(FlowError, match="follows-a follows a_m, which writes-a writes after it"):
         check_flow([Follows(), Writes()])
+
+
+class Sneaks(Module):
+    """Declares nothing, then reads (or writes) a key anyway."""
+
+    name = "sneaks"
+
+    def __init__(self, write: bool) -> None:
+        self.write = write
+
+    def update(self, q_rad, state, cycle):
+        if self.write:
+            cycle.store[B] = 1.0
+        else:
+            cycle.store.get(A)
+        return q_rad
+
+
+@pytest.mark.parametrize("write", [False, True])
+def test_a_stage_that_touches_a_key_it_did_not_declare_stops_the_run(write):
+    model = load_model()
+    with make_driver("ideal", model) as driver:
+        driver.start()
+        loop = ControlLoop(driver, [Sneaks(write)], lambda t, s: (None, {}),
+                           estimator=Estimator([Writes()]))
+        result = loop.run(0.02)
+    assert not result.ok and result.ended == "module-error"
+    verb, key = ("writes", "b_m") if write else ("reads", "a_m")
+    assert f"sneaks {verb} {key}, which it does not declare" in result.error
+
+
+def test_a_view_reads_only_declared_keys_and_writes_only_written_ones():
+    store = Store()
+    store[A] = 1.0
+    view = store.view(Reads())
+    assert view[A] == 1.0 and A in view and view.get(B, 2.0) == 2.0
+    view[B] = 3.0
+    assert store[B] == 3.0 and view[B] == 3.0  # a stage may read back what it writes
+    with pytest.raises(FlowError, match="reads-a writes a_m, which it does not declare"):
+        view[A] = 2.0
+    follower = store.view(Follows())
+    assert follower.get(A) == 1.0
+    with pytest.raises(FlowError, match="follows-a reads b_m, which it does not declare"):
+        follower[B]
+    with pytest.raises(FlowError, match="follows-a asks for b_m"):
+        B in follower  # noqa: B015
+
+
+def test_an_observer_touching_an_undeclared_key_is_refused():
+    class Wrong(Observer):
+        name, writes = "wrong", (A,)
+
+        def update(self, state, store):
+            store[B] = 0.0
+
+    model = load_model()
+    with make_driver("ideal", model) as driver:
+        driver.start()
+        with pytest.raises(FlowError, match="wrong writes b_m"):
+            Estimator([Wrong()]).reset(driver.read())
