@@ -80,7 +80,7 @@ class Store:
 
 class StoreView:
     """One stage's view of a :class:`Store`: the same values, but reading a key the stage did
-    not declare (``reads``, ``follows``, ``writes``) or writing one it did not declare
+    not declare (``reads``, ``follows``, ``previous``, ``writes``) or writing one it did not declare
     (``writes``) raises :class:`FlowError`. The declarations are taken when the view is made."""
 
     __slots__ = ("_values", "_readable", "_writable", "_name")
@@ -89,7 +89,8 @@ class StoreView:
         self._values = store._values
         self._name = stage.name
         self._writable = frozenset(stage.writes)
-        self._readable = frozenset((*stage.reads, *stage.follows)) | self._writable
+        self._readable = frozenset((*stage.reads, *stage.follows, *stage.previous)
+                                   ) | self._writable
 
     def _refuse(self, verb: str, key: Key, declaration: str) -> FlowError:
         return FlowError(f"{self._name} {verb} {key.name}, which it does not declare",
@@ -128,12 +129,17 @@ class Stage(Protocol):
     ``follows``: keys it reads when some stage writes them and does without otherwise
     (``store.get(key, default)``), such as the support a walking phase plans for the
     capture-point monitor; a writer of one must still come before it.
+
+    ``previous``: keys it reads as the previous period's value (``store.get(key, default)``),
+    written by any stage, a later one too: a declared feedback, such as the stopper's mode a
+    target reads before the stopper runs.
     """
 
     name: str
     reads: tuple[Key, ...]
     writes: tuple[Key, ...]
     follows: tuple[Key, ...]
+    previous: tuple[Key, ...]
 
 
 def check_flow(stages: Iterable[Stage], provided: Iterable[Key] = ()) -> None:

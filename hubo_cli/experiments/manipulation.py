@@ -47,6 +47,7 @@ import numpy as np
 
 from hubo_cli.control.collision import SelfCollisionChecker
 from hubo_cli.control.estop import EmergencyStopper
+from hubo_cli.control.keys import STOP_MODE
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.dataflow import Store
 from hubo_cli.drivers.base import SimulatedWorld
@@ -254,6 +255,7 @@ class ManipulationTargets(WatchedTarget):
     """
 
     reads = (*WatchedTarget.reads, WRENCHES)
+    previous = (STOP_MODE,)  # the soft stopper's mode: no grasp while it stops the motion
     log_columns = ("hand_fx_n", "hand_fy_n", "hand_fz_n", "hand_force_n", "object_angle_deg",
                    "holding_flag", "arm_torque_ratio", "tilt_deg", "torso_z_m", "sole_lift_m",
                    "segment_code")
@@ -283,7 +285,6 @@ class ManipulationTargets(WatchedTarget):
         self.grasped_at_s: float | None = None
         self.placed: dict = {}
         self.world: SimulatedWorld | None = None
-        self.stopper: EmergencyStopper | None = None  # no grasp while it stops the motion
         self.overload_periods = 0
         self.max_torque_ratio = 0.0
         self.max_force_n = 0.0
@@ -337,7 +338,6 @@ class ManipulationTargets(WatchedTarget):
                               hint="run it with the sim driver")
         super().attach(world, modules, store)
         self.world = world
-        self.stopper = next((m for m in modules if isinstance(m, EmergencyStopper)), None)
         # N -> world: the hand's start point as the physics has it (the robot's settled lean)
         shift = robot_offset_world_m(world, HAND, self.T_start)
         if isinstance(self.seen, Valve):
@@ -360,7 +360,7 @@ class ManipulationTargets(WatchedTarget):
     def __call__(self, t_s: float, state):
         tilt_deg, z = self.watch(t_s, state)
         k, T = self.goal(t_s)
-        stopped = self.stopper is not None and self.stopper.status().mode != "release"
+        stopped = self.store.get(STOP_MODE, "release") != "release"
         if self.segments[k].grasp and not self.world.holding(HAND) and not stopped:
             self.grasp_miss_m = self.world.grasp(HAND, "valve", self.clearance_m + GRIP_REACH_M)
             if self.world.holding(HAND):
