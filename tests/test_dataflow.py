@@ -145,3 +145,47 @@ def test_an_observer_touching_an_undeclared_key_is_refused():
         driver.start()
         with pytest.raises(FlowError, match="wrong writes b_m"):
             Estimator([Wrong()]).reset(driver.read())
+
+
+def test_no_target_reaches_into_a_pipeline_module():
+    """Targets exchange with the modules only through store keys: none picks a module out of
+    the pipeline by its class, asks it for its status or mode, switches it, or sets its
+    attributes (the stopper's relief, the impedance controller, otg's trackers)."""
+    import ast
+    from pathlib import Path
+
+    import hubo_cli
+    import hubo_cli.control as control
+
+    for path in Path(control.__file__).parent.glob("*.py"):  # every module class's name
+        __import__(f"hubo_cli.control.{path.stem}")
+    module_classes = set()
+    todo = [Module]
+    while todo:
+        cls = todo.pop()
+        module_classes.add(cls.__name__)
+        todo += cls.__subclasses__()
+    reaching = {"status", "switch_on", "switch_off", "synchronize", "release", "stop", "reset"}
+    root = Path(hubo_cli.__file__).parent
+    found = []
+    for package in ("tasks", "teleop", "walking", "experiments"):
+        for path in sorted((root / package).glob("*.py")):
+            tree = ast.parse(path.read_text())
+            for node in ast.walk(tree):
+                if not isinstance(node, ast.ClassDef):
+                    continue
+                bases = {getattr(b, "id", getattr(b, "attr", "")) for b in node.bases}
+                if not bases & {"Target", "WatchedTarget"}:
+                    continue
+                for inner in ast.walk(node):
+                    where = f"{path.name}:{getattr(inner, 'lineno', 0)}"
+                    if (isinstance(inner, ast.Call) and getattr(inner.func, "id", "")
+                            == "isinstance" and len(inner.args) == 2
+                            and getattr(inner.args[1], "id", "") in module_classes):
+                        found.append(f"{where} picks a {inner.args[1].id} by its class")
+                    if (isinstance(inner, ast.Attribute) and inner.attr in reaching
+                            and isinstance(inner.value, ast.Name)
+                            and inner.value.id in {"m", "module", "stopper", "impedance"}):
+                        found.append(f"{where} calls {inner.value.id}.{inner.attr}")
+    assert {"EmergencyStopper", "ImpedanceController", "TrajectoryGenerator"} <= module_classes
+    assert not found, found
