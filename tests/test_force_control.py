@@ -77,6 +77,63 @@ def _hubo_reading(R_N_H, f_N):
     return reading
 
 
+def test_the_whole_force_at_the_bit_from_hubos_three_axis_sensor(model):
+    """f_z with the moments m_x, m_y of a force at the bit's known point give the whole
+    force, the part across the forearm included (what f_z alone, 45 deg off the bit, cannot
+    see); a moment about the bit (the spindle) leaves the thrust alone; a point near the
+    sensor along the forearm, or a garbled reading, gives NaN, never a number."""
+    from hubo_cli.control.wrench import TIP_MIN_M, force_at_point, tool_point_S_m
+
+    r_S = tool_point_S_m(model, "drill", T_frame_sensor("right-wrist"))
+    T_6_S = model.tool_transform("hand") @ T_frame_sensor("right-wrist")
+    bit_S = np.linalg.inv(T_6_S)[:3, :3] @ model.tool_transform("drill")[:3, 0]
+    assert abs(r_S[2]) > TIP_MIN_M
+    rng = np.random.default_rng(36)
+    for _ in range(200):
+        f_S = rng.normal(size=3) * rng.uniform(0.1, 30.0)
+        spindle_nm = rng.uniform(-0.1, 0.1)
+        m_S = np.cross(r_S, f_S) + spindle_nm * bit_S
+        reading = np.array([0.0, 0.0, f_S[2], m_S[0], m_S[1], 0.0])  # Hubo: fz, mx, my
+        found = force_at_point(reading, r_S)
+        # the spindle's moment along the bit reads into the force across it, never the thrust
+        assert found @ bit_S == pytest.approx(f_S @ bit_S, abs=1e-9)
+        if spindle_nm == 0.0:
+            np.testing.assert_allclose(found, f_S, atol=1e-9)
+    assert np.all(np.isnan(force_at_point(np.ones(6), np.array([0.1, 0.0, 0.01]))))
+    assert np.all(np.isnan(force_at_point(np.full(6, np.nan), r_S)))
+
+
+def test_force_tracking_on_the_drill_reads_the_force_across_the_forearm(model):
+    """With the drill's point, force tracking sees the thrust along the bit even with a force
+    across it (the cut's): pressing exactly the reference along N's x with 2 N across, the
+    spring's centre stays put; read from f_z alone it creeps (the lateral force reads in)."""
+    q0 = home_posture(model)
+    sl = model.limb_slice(ARM)
+    T_N_H = Limb(model, ARM, "hand").fk(q0[sl])
+    R_N_S = T_N_H[:3, :3] @ T_frame_sensor("right-wrist")[:3, :3]
+    from hubo_cli.control.wrench import tool_point_S_m
+
+    r_S = tool_point_S_m(model, "drill", T_frame_sensor("right-wrist"))
+    f_N = np.array([-3.0, 0.0, 2.0])  # 3 N back along x (the reference), 2 N across
+    f_S = R_N_S.T @ f_N
+    m_S = np.cross(r_S, f_S)
+    reading = np.array([0.0, 0.0, f_S[2], m_S[0], m_S[1], 0.0])
+    moved = {}
+    for tools in ({ARM: "drill"}, None):
+        ic = ImpedanceController(model, DT, reference=HAND_WRENCH_REF, axes=("x",), arms=(ARM,),
+                                 tools=tools)
+        state = RobotState(0.0, q0.copy(), np.zeros(len(q0)))
+        store = Store()
+        store[WRENCHES] = {"right-wrist": reading}
+        ic.reset(q0, state, store)
+        for k in range(200):
+            store[HAND_WRENCH_REF] = {ARM: np.array([-3.0, 0, 0, 0, 0, 0])}
+            ic.update(q0, state, Cycle(k * DT, DT, store=store))
+        moved[tools is not None] = float(np.linalg.norm(ic.hands[0].centre_m))
+    assert moved[True] < 1e-9
+    assert moved[False] > 1e-4  # 1 s at 2 mm/s per N of misread force
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_force_tracking_holds_the_thrust_wherever_the_wall_is(model, seed):
     """Walls from 10 mm pressed in to 18 mm ahead, thrusts of 1-8 N, faces of 500-5000 N/m
@@ -210,6 +267,42 @@ def test_a_freeze_or_a_wrist_stop_lets_go_of_the_force(model, preset):
     assert np.allclose(out[t < 2.0], -4.0)
     assert np.all(np.diff(out[t >= 2.0 - DT]) >= -1e-12)
     assert np.all(out[t >= 2.0 + t2 + DT] == 0.0)
+
+
+@pytest.mark.parametrize("soft_stop_too", [False, True])
+def test_a_hard_stop_lets_go_of_the_force_smoothly_until_released(model, soft_stop_too):
+    """A hard stop (the hard-estop downstream freezes the joints) takes the wrench reference
+    to zero on a minimum-jerk blend over the soft stopper's T2 (0.5 s), holds zero until the
+    release at 5 s, then blends back to the live plan over the 2.5 s recovery, never jumping;
+    the same when the soft stopper stops in the same period (its revert gives way to zero)."""
+    stopper = EmergencyStopper(model, DT, wrench_reference=True)
+    assert stopper.hard_sources == {"hard"}
+    q0 = home_posture(model)
+    store = Store()
+    store[WRENCHES] = {}
+    stopper.reset(q0, RobotState(0.0, q0, np.zeros(len(q0))), store)
+    t, out = np.arange(0.0, 8.5, DT), []
+    for k, tk in enumerate(t):
+        cycle = Cycle(tk, DT, store=store)
+        if 2.0 <= tk < 3.0:  # the hard request stays a while: it latches once
+            cycle.estop_requests.add("hard")
+            if soft_stop_too and k == round(2.0 / DT):
+                cycle.estop_requests.add("operator")
+        if k == round(5.0 / DT):
+            stopper.release()
+        store[HAND_WRENCH_PLAN] = {ARM: _ramp(tk)}
+        stopper.update(q0, RobotState(tk, q0, np.zeros(len(q0))), cycle)
+        out.append(store[HAND_WRENCH_REF].get(ARM, np.zeros(6))[0])
+    out = np.array(out)
+    k_emer = round(2.0 / DT)
+    at_stop = out[k_emer - 1]
+    u = np.array([min_jerk(min(1.0, (x - 2.0) / 0.5)) for x in t[k_emer:k_emer + 100]])
+    assert np.allclose(out[k_emer:k_emer + 100], at_stop * (1.0 - u), atol=1e-9)
+    assert np.all(out[(t >= 2.5) & (t < 5.0)] == 0.0)  # held at zero until the release
+    assert np.allclose(out[t > 7.6], -2.0 * t[t > 7.6])  # back on the live plan
+    # no jump: the recovery joins a plan 15-17 N away in 2.5 s (min-jerk peak 1.875 x 6.5 N/s
+    # + the plan's 2 N/s: 0.075 N per period); a step would be 10 N
+    assert np.abs(np.diff(out)).max() < 0.1
 
 
 def test_garbled_plan_wrenches_never_leave_the_stopper(model):

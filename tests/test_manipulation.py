@@ -66,6 +66,11 @@ def test_parameters_from_task_files_are_checked(rng):
     assert spec.case == "seen-x+131mm-z+33mm" and spec.misrecognised
     assert spec_from_parameters("push-door", {"door_opens": "toward"}).case == "opens-toward"
     assert spec_from_parameters("push-door", {}).case == "nominal"
+    assert spec_from_parameters("push-door", {"impedance": True}).impedance
+    assert not spec_from_parameters("push-door", {}).impedance
+    for value in (1, "yes", None, 0.0):
+        with pytest.raises(InputError, match="impedance"):
+            spec_from_parameters("turn-valve", {"impedance": value})
     hostile = [[1, 2], [1, 2, 3, 4], "abc", 3.0, [math.nan, 0, 0], [math.inf, 0, 0],
                [True, 0, 0], ["1", 0, 0], [1e9, 0, 0], [0, -501, 0], None, {}]
     for value in hostile:
@@ -207,10 +212,10 @@ def test_valve_turned_on_the_nominal_scene(model, tmp_path):
 def test_door_pushed_open_on_the_nominal_scene(model, tmp_path):
     s = run_manipulation(model, ManipulationSpec("push-door"), out=tmp_path).summary
     # pushed 25.53 deg open (planned 24) on both code paths, 25.5-25.9 on perturbed robots,
-    # with 15-19 N at the hand against the closer (42 N at most)
+    # with 15-19 N at the hand against the closer (42 N at most along the forearm)
     assert s["object_angle_deg"] >= 20.0 and s["t_emergency_s"] is None
     assert not s["fell"] and not s["tipped"]
-    assert 5.0 < s["max_hand_force_n"] < 100.0
+    assert 5.0 < s["max_axial_force_n"] < 100.0 and s["impedance"] == "off"
 
 
 @pytest.mark.slow

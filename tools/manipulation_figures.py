@@ -1,12 +1,14 @@
 """Run the manipulation experiments' cases (IV-C.2 of the multi-layer paper) and keep their plots
 for the docs:
 
-    python tools/manipulation_figures.py [--out DIR] [--perturb SEED]
+    python tools/manipulation_figures.py [--out DIR] [--perturb SEED] [--impedance]
 
 Runs turn-valve and push-door on the nominal scene (with the stop) and each recognition error
 with and without the stop (8 runs, about 10 s of CPU each), copies each run's
 ``manipulation.png`` to docs/figures/manipulation/ and prints the table of docs/history/
-manipulation.md (the figures of this machine; the run folders stay under --out).
+manipulation.md (the figures of this machine; the run folders stay under --out). With
+``--impedance`` the right hand's ImpedanceController is on (the paper's was), and the plots
+are not copied.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import argparse
 import shutil
 import sys
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -43,7 +46,8 @@ def row(summary: dict) -> str:
     flag = summary["t_emergency_s"]
     return (f"| {summary['experiment']} | {summary['case']} | {summary['estop']} | "
             f"{'-' if flag is None else f'{flag:.2f} s'} | {summary['object_angle_deg']:.1f} | "
-            f"{summary['max_cp_error_mm']:.0f} | {summary['max_hand_force_n']:.0f} | "
+            f"{summary['max_cp_error_mm']:.0f} | {summary['max_axial_force_n']:.0f} | "
+            f"{summary['max_wrist_moment_nm']:.1f} | "
             f"{summary['max_arm_torque_ratio'] * 100:.0f} % | {summary['max_tilt_deg']:.1f} | "
             f"{summary['max_sole_lift_mm']:.0f} | {outcome} |")
 
@@ -52,18 +56,22 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=None, help="where the run folders go")
     parser.add_argument("--perturb", type=int, default=None, help="a perturbed robot's seed")
+    parser.add_argument("--impedance", action="store_true",
+                        help="the right hand's ImpedanceController on")
     args = parser.parse_args()
     out = args.out or Path(tempfile.mkdtemp(prefix="manipulation-"))
     model = load_model()
     FIGURES.mkdir(parents=True, exist_ok=True)
     print("| experiment | case | stop | flag | angle (deg) | max CP error (mm) | "
-          "max hand force (N) | arm torque | max tilt (deg) | sole lift (mm) | outcome |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+          "max wrist f_z (N) | max wrist moment (N m) | arm torque | max tilt (deg) | "
+          "sole lift (mm) | outcome |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for spec, estop in CASES:
+        spec = replace(spec, impedance=args.impedance)
         name = f"{spec.kind}-{spec.case}-{'estop' if estop else 'no-estop'}"
         done = run_manipulation(model, spec, estop=estop, out=out / name,
                                 perturb_seed=args.perturb)
-        if args.perturb is None:
+        if args.perturb is None and not args.impedance:
             shutil.copy(done.run_dir / "manipulation.png", FIGURES / f"{name}.png")
         print(row(done.summary), flush=True)
 

@@ -26,7 +26,7 @@ def run(report) -> None:
     dt = model.control_period_s
     q = home_posture(model)
     q[[0, 3, 6, 9]] = -0.3, -1.2, -0.3, -1.2  # both hands forward, elbows bent
-    ic = ImpedanceController(model, dt)
+    ic = ImpedanceController(model, dt, tools={"right-arm": "drill"})  # the bit's force on one
     state = RobotState(0.0, q, np.zeros(len(q)))
     store = Store()
     store[WRENCHES] = {}

@@ -526,7 +526,9 @@ def _print_manipulation(summary: dict, run_dir) -> None:
     console.print(f"robot             {outcome}: max tilt {summary['max_tilt_deg']:.1f} deg, "
                   f"sole lift {summary['max_sole_lift_mm']:.0f} mm")
     console.print(f"max CP error      {summary['max_cp_error_mm']:.1f} mm")
-    console.print(f"max hand force    {summary['max_hand_force_n']:.0f} N; arm motors up to "
+    console.print(f"wrist sensor      {summary['max_axial_force_n']:.0f} N along the forearm, "
+                  f"{summary['max_wrist_moment_nm']:.1f} N m bending at most")
+    console.print(f"arm motors        up to "
                   f"{summary['max_arm_torque_ratio'] * 100:.0f} % of their limit")
     console.print(f"ended             {summary['ended']} after {summary['duration_s']:.2f} s")
     console.print(f"run folder        {run_dir}", soft_wrap=True)

@@ -35,7 +35,14 @@ passes them on (:data:`~hubo_cli.control.wrench.HAND_WRENCH_REF`, what the Imped
 pushes with). A stop that reverts the motion reverts them with it: they blend on a minimum-jerk
 profile over T2 to the references of t_emer - T1; a freeze or a wrist-torque stop blends them
 to zero over T2 (the hand stops pushing). They hold while the stop holds, and after a release
-blend back to the live references over the recovery time.
+blend back to the live references over the recovery time. A hard stop (a ``hard`` request,
+which the ``hard-estop`` instance downstream answers by freezing the joints) blends them to
+zero over this stopper's T2 too, and holds zero until the release: the hard stopper sits after
+the ImpedanceController, so the hand cannot move to meet a force while it holds, and a held
+nonzero reference would have force tracking move the spring's centre toward the wall all the
+while (up to ``max_offset_m``, pushed in once released); at zero the centre decays and the
+release starts from no push, as after a freeze. The wrench references live in this stopper
+only: without it (``--no-estop``) they pass from the plan to the controller unreverted.
 
 The flag is latched: any request from an enabled source (``cycle.estop_requests``, a call to
 :meth:`stop` -- e.g. from the operator's key or, through :func:`stop_on_signal`, a signal -- or
@@ -173,6 +180,7 @@ class EmergencyStopper(Module):
         self.stop_s = max(float(stop_s), self.dt_s)
         self.recover_s = float(recover_s)
         self.sources = frozenset(sources)
+        self.hard_sources = frozenset(HARD_SOURCES) - self.sources  # another instance's stops
         self.wrist_torque_limit_nm = float(
             model.safety.get("wrist_torque_limit_nm", np.inf) if wrist_torque_limit_nm is None
             else wrist_torque_limit_nm)
@@ -224,6 +232,8 @@ class EmergencyStopper(Module):
         self._release = False
         self._brake_only = False
         self._relieving: str | None = None  # "brake", then "move" (wrist-torque stops)
+        self._hard_wrench: str | None = None  # a hard stop's wrenches: "stop", then "recover"
+        self._hard_recover_end_s = 0.0
         if self.wrenches is not None:
             self.wrenches.clear()
 
@@ -289,8 +299,31 @@ class EmergencyStopper(Module):
             self.brake_tracker.reset(*self._output_state())
             self._relieving = "brake"
         if self.wrenches is not None:  # eq. 15 for the wrenches: back to t_emer - T1, or off
-            back = self._brake_only or self._relieving
+            back = self._brake_only or self._relieving or self._hard_wrench == "stop"
             self.wrenches.start(t_s, self.stop_s, {} if back else dict(self.wrenches.history[0]))
+
+    def _hard_wrenches(self, cycle: Cycle) -> None:
+        """A hard request blends the wrench references to zero over T2 and holds them there;
+        a release blends them back to the live ones over the recovery time."""
+        if self.hard_sources & cycle.estop_requests:
+            if self._hard_wrench != "stop":
+                self._hard_wrench = "stop"
+                self.wrenches.start(cycle.t_s, self.stop_s, {})
+        elif self._release and self._hard_wrench == "stop":
+            self._hard_wrench = "recover"
+            self._hard_recover_end_s = cycle.t_s + self.recover_s
+            if self.mode not in ("stop", "hold"):  # else the soft stop's release blends back
+                self.wrenches.start(cycle.t_s, self.recover_s, None)
+
+    def _wrench_mode(self, t_s: float) -> str:
+        """The mode the wrench references follow: this stopper's, or a hard stop's."""
+        if self._hard_wrench == "stop":
+            return "stop"
+        if self._hard_wrench == "recover":
+            if t_s < self._hard_recover_end_s or self.mode != "release":
+                return "recover"
+            self._hard_wrench = None
+        return self.mode
 
     def _relieve(self, relief: Callable[[np.ndarray], np.ndarray | None] | None) -> np.ndarray:
         """One period of a wrist-torque stop: brake at the emergency limits, then play the
@@ -353,6 +386,8 @@ class EmergencyStopper(Module):
             if self.wrenches is not None:
                 self.wrenches.start(cycle.t_s, self.recover_s, None)
             self.events.append(SafetyEvent(cycle.t_s, "release", ()))
+        if self.wrenches is not None:
+            self._hard_wrenches(cycle)
         self._release = False
 
         if self.mode == "release":
@@ -392,7 +427,7 @@ class EmergencyStopper(Module):
             cycle.store[self._mode_key] = self.mode
         if self.wrenches is not None:
             cycle.store[HAND_WRENCH_REF] = self.wrenches.update(
-                cycle.t_s, cycle.store.get(HAND_WRENCH_PLAN), self.mode)
+                cycle.t_s, cycle.store.get(HAND_WRENCH_PLAN), self._wrench_mode(cycle.t_s))
         out = np.array(out, dtype=float)
         self.out3, self.out2, self.out1 = self.out2, self.out1, out
         return out

@@ -51,10 +51,16 @@ step missed the pose by up to 1 mm / 8 mrad even where the arm is well condition
 When the offset pose has no exact solution within the joint limits, or its joint offset would
 change by more than the joint's speed limit times the period (a branch switch, or the arm
 nearing a singular posture such as a straight elbow, where a millimetre asks for ever larger
-joint moves), the offset and its joints are held at the last good period's, its rate set to
-zero (the hand rests at the edge of what the arm can follow and leaves it continuously), and
-the flag ``impedance-unreachable`` is set. The limiter downstream keeps every joint within
-its limits and rates.
+joint moves), the joint offset decays toward zero (time constant ``release_s``, at most the
+joints' speed limit), the offset becomes the one those joints really give (its rate zero),
+and the flag ``impedance-unreachable`` is set; the dynamics go on from there the next period
+(the hand rests at the edge of what the arm can follow, or rejoins its reference,
+continuously). A
+joint offset merely held goes stale while the commanded posture moves (issue 36: held through
+the swing past a straight elbow it never matched the new posture again). Anti-windup: while
+the offset is held (unreachable, or its position at ``max_offset_m``) force tracking does not
+move the spring's centre. The limiter downstream keeps every joint within its limits and
+rates.
 
 Limits: the position offset's norm is clamped to ``max_offset_m`` and the rotation's to
 ``max_rotation_rad`` (the velocity pushing outward is dropped, so the state does not wind up);
@@ -82,8 +88,10 @@ from hubo_cli.control.wrench import (
     ALONG_MIN,
     MEASURED_FORCE_AXES,
     MEASURED_WRENCH_READS,
+    TIP_MIN_M,
     WRENCH_AXES,
     measured_hand_wrench,
+    tool_point_S_m,
     wrench_of,
 )
 from hubo_cli.dataflow import Key, Store
@@ -98,6 +106,7 @@ from hubo_cli.motion.limits import all_finite, hold_nan
 from hubo_cli.state import RobotState, T_frame_sensor
 
 HAND_SENSORS = {"right-arm": "right-wrist", "left-arm": "left-wrist"}
+CONTACT_TOOLS = ("drill",)  # tools whose force acts at their frame's origin (the bit)
 T_HAND_SENSOR = T_frame_sensor("right-wrist")  # the wrist sensors' axes in the hand frame
 MODES = ("on", "release", "off")
 MODE_CODE = {name: i for i, name in enumerate(MODES)}
@@ -257,16 +266,81 @@ def offset_joints(q_cmd, chain, lengths, lower, upper, max_step_rad, x, dq_out) 
 
 
 @nb.njit(**JIT)
+def retreat_offset(q_cmd, chain, max_step_rad, fraction, dq, x_out) -> None:
+    """One period of an unreachable offset: shrink the joint offset ``dq`` toward zero (the
+    reference pose, which the commanded joints reach) by ``fraction`` of itself, at most
+    ``max_step_rad`` per joint; x_out is the offset (position m, rotation vector rad, N) the
+    new ``dq`` gives.
+
+    A joint offset held as it was goes stale as the commanded posture moves (the same joints
+    give another offset, and the offset's own joints change by more than a period's step ever
+    after): letting it decay keeps the output continuous, and the dynamics take over again
+    from the offset it really gives."""
+    base, _, offset, alpha, a, d, end, _ = chain
+    T_ref = np.empty((4, 4))
+    chain_fk(q_cmd, base, offset, alpha, a, d, end, T_ref)
+    for k in range(6):
+        dq[k] -= min(max(fraction * dq[k], -max_step_rad[k]), max_step_rad[k])
+    q_out = np.empty(6)
+    for k in range(6):
+        q_out[k] = q_cmd[k] + dq[k]
+    T_out = np.empty((4, 4))
+    chain_fk(q_out, base, offset, alpha, a, d, end, T_out)
+    for i in range(3):
+        x_out[i] = T_out[i, 3] - T_ref[i, 3]
+    # the rotation vector of R_out R_ref^T (atan2 form, accurate near zero)
+    E = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            E[i, j] = (T_out[i, 0] * T_ref[j, 0] + T_out[i, 1] * T_ref[j, 1]
+                       + T_out[i, 2] * T_ref[j, 2])
+    vx, vy, vz = E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1]
+    norm = math.sqrt(vx * vx + vy * vy + vz * vz)
+    angle = math.atan2(0.5 * norm, 0.5 * (E[0, 0] + E[1, 1] + E[2, 2] - 1.0))
+    scale = angle / norm if norm > 1e-300 else 0.5
+    x_out[3], x_out[4], x_out[5] = vx * scale, vy * scale, vz * scale
+
+
+@nb.njit(**JIT)
+def _move_centre(centre, step_m, wrench_ref_N, size, mask, max_offset_m) -> None:
+    """centre += step_m d (d = F_ref / size, masked axes), its norm clamped to max_offset_m."""
+    for i in range(3):
+        centre[i] += step_m * wrench_ref_N[i] / size * mask[i]
+    n = math.sqrt(centre[0] ** 2 + centre[1] ** 2 + centre[2] ** 2)
+    if n > max_offset_m:
+        for i in range(3):
+            centre[i] *= max_offset_m / n
+
+
+@nb.njit(**JIT)
 def track_force(centre, wrench_ref_N, wrench_S, T_H_S, T_N_H, measured, mask, K, gain_m_per_n,
-                decay, max_offset_m, wrench_ref_eff_N) -> None:
+                decay, max_offset_m, contact_S, has_contact, wrench_ref_eff_N) -> None:
     """One period of force tracking: with a nonzero reference force F_ref (N axes) the centre
     c moves by ``gain_m_per_n (F_d - |F_ref|) d`` (d = F_ref / |F_ref|, masked axes only,
-    |c| clamped to ``max_offset_m``), F_d the force along d as
-    :func:`~hubo_cli.control.wrench.force_along` reads it from the sensor's ``measured`` force
-    axes (1 measured, 0 not; held where the sensor cannot see d); without a reference it
-    shrinks by the factor ``1 - decay``. Then wrench_ref_eff_N = F_ref - K [c, 0]."""
+    |c| clamped to ``max_offset_m``), F_d the force along d from the sensor's ``measured``
+    force axes a_i (1 measured, 0 not) assuming it lies along d, sum f_i (a_i . d) /
+    sum (a_i . d)^2 (held where that sum is under ``ALONG_MIN``), or with ``has_contact``
+    the force at the tool's point ``contact_S`` (sensor frame, m) as
+    :func:`~hubo_cli.control.wrench.force_at_point` finds it (all of it, from f_z and the
+    moments); without a reference it shrinks by the factor ``1 - decay``. Then
+    wrench_ref_eff_N = F_ref - K [c, 0]."""
     size = math.sqrt(wrench_ref_N[0] ** 2 + wrench_ref_N[1] ** 2 + wrench_ref_N[2] ** 2)
-    if size > 0.0 and gain_m_per_n > 0.0:
+    if size > 0.0 and gain_m_per_n > 0.0 and has_contact:
+        f = np.empty(3)
+        if measured[0] != 0.0 and measured[1] != 0.0:  # a full sensor
+            f[0], f[1] = wrench_S[0], wrench_S[1]
+        else:  # m = r x f at the tool's point (r_z checked when the point was set)
+            rx, ry, rz = contact_S[0], contact_S[1], contact_S[2]
+            f[0] = (wrench_S[4] + rx * wrench_S[2]) / rz
+            f[1] = (ry * wrench_S[2] - wrench_S[3]) / rz
+        f[2] = wrench_S[2]
+        along = -size
+        for r in range(3):
+            f_H = T_H_S[r, 0] * f[0] + T_H_S[r, 1] * f[1] + T_H_S[r, 2] * f[2]
+            for c in range(3):
+                along += T_N_H[c, r] * f_H * wrench_ref_N[c] / size
+        _move_centre(centre, gain_m_per_n * along, wrench_ref_N, size, mask, max_offset_m)
+    elif size > 0.0 and gain_m_per_n > 0.0:
         num = den = 0.0
         for i in range(3):  # the sensor's force axis i in N, against d
             if measured[i] == 0.0:
@@ -282,12 +356,7 @@ def track_force(centre, wrench_ref_N, wrench_S, T_H_S, T_N_H, measured, mask, K,
             along = 0.0  # the sensor cannot see a force along d: hold the centre
         else:
             along = num / den - size  # F_d - |F_ref|
-        for i in range(3):
-            centre[i] += gain_m_per_n * along * wrench_ref_N[i] / size * mask[i]
-        n = math.sqrt(centre[0] ** 2 + centre[1] ** 2 + centre[2] ** 2)
-        if n > max_offset_m:
-            for i in range(3):
-                centre[i] *= max_offset_m / n
+        _move_centre(centre, gain_m_per_n * along, wrench_ref_N, size, mask, max_offset_m)
     else:
         keep = max(0.0, 1.0 - decay)
         n = 0.0
@@ -321,8 +390,10 @@ class _Hand:
         self.wrench_ref_N = np.zeros(6)
         self.wrench_ref_eff_N = np.zeros(6)  # F_ref - K [c, 0]: the spring centred on c
         self.centre_m = np.zeros(3)  # the force tracking's spring centre c (N axes, m)
+        self.contact_S_m = np.zeros(3)  # the tool's point in the sensor frame (m) ...
+        self.has_contact = False  # ... if force tracking reads the force there
         self.dq_rad = np.zeros(6)
-        self.x_good = np.zeros(6)  # the offset dq_rad reaches
+        self.held = False  # last period's offset was held (unreachable or at its limit)
         self.T_N_H = np.empty((4, 4))
         self.release_from = np.zeros(6)
         self.dq_release_rad = np.zeros(6)
@@ -352,6 +423,9 @@ class ImpedanceController(Module):
             others is dropped. Default all.
         force_tracking_m_per_n_s: how fast the spring's centre moves per newton of force error
             along a nonzero reference force (m/s per N; 0: never); None: the robot file's.
+        tools: arm -> the tool it holds; for a drill force tracking reads the whole force at
+            the bit (f_z and the two moments, :func:`~hubo_cli.control.wrench.force_at_point`)
+            instead of assuming it lies along the reference.
 
     Flags: ``impedance-limit`` (an offset clamped), ``impedance-bad-wrench`` (a non-finite
     reading: offset held), ``impedance-unreachable`` (joint offset held), ``impedance-release``.
@@ -370,7 +444,8 @@ class ImpedanceController(Module):
                  release_s: float | None = None, arms: tuple[str, ...] = ARMS,
                  T_hand_sensor: np.ndarray = T_HAND_SENSOR, active: bool = True,
                  reference: Key | None = None, axes: tuple[str, ...] = WRENCH_AXES,
-                 force_tracking_m_per_n_s: float | None = None) -> None:
+                 force_tracking_m_per_n_s: float | None = None,
+                 tools: dict[str, str] | None = None) -> None:
         raw = model.raw_impedance
         defaults = default_gains(model) if M is None or D is None or K is None else {}
         self.M, self.D, self.K = (
@@ -410,8 +485,14 @@ class ImpedanceController(Module):
                               hint=f"use {', '.join(HAND_SENSORS)}")
         self.dt_s = float(dt_s)
         self.Ad, self.Bd = discretize(self.M, self.D, self.K, self.dt_s)
+        self._retreat = self.dt_s / max(self.release_s, self.dt_s)  # time constant release_s
         self.T_hand_sensor = np.ascontiguousarray(T_hand_sensor, dtype=float)
         self.hands = [_Hand(model, arm, self.dt_s) for arm in arms]
+        for h in self.hands:
+            tool = (tools or {}).get(h.arm)
+            if tool in CONTACT_TOOLS:
+                h.contact_S_m[:] = tool_point_S_m(model, tool, self.T_hand_sensor)
+                h.has_contact = abs(h.contact_S_m[2]) >= TIP_MIN_M
         self._initially_active = active
         self.log_columns = ("impedance_mode_code",) + tuple(
             c for h in self.hands for c in (h.offset_column, h.rotation_column,
@@ -461,7 +542,7 @@ class ImpedanceController(Module):
         for h in self.hands:
             h.s[:] = 0.0
             h.dq_rad[:] = 0.0
-            h.x_good[:] = 0.0
+            h.held = False
             h.centre_m[:] = 0.0
             h.wrench_ref_eff_N[:] = h.wrench_ref_N
 
@@ -473,10 +554,12 @@ class ImpedanceController(Module):
         advance(scratch, self.Ad, self.Bd, np.zeros(6), self.T_hand_sensor, h.T_N_H[:3, :3],
                 h.wrench_ref_N, self.axes_mask, h.s_next)
         clamp_offset(scratch, 1.0, 1.0)
-        track_force(np.zeros(3), h.wrench_ref_N, np.zeros(6), self.T_hand_sensor, h.T_N_H,
-                    self.measured_force, self.axes_mask, self.K, 0.0, 0.0, 1.0,
-                    h.wrench_ref_eff_N.copy())
+        for has_contact in (False, True):
+            track_force(np.zeros(3), np.ones(6), np.zeros(6), self.T_hand_sensor, h.T_N_H,
+                        self.measured_force, self.axes_mask, self.K, 1e-9, 0.0, 1.0,
+                        np.ones(3), has_contact, h.wrench_ref_eff_N.copy())
         offset_joints(np.zeros(6), *h.ik, np.zeros(6), np.zeros(6))
+        retreat_offset(np.zeros(6), h.limb.chain, h.ik[-1], 0.5, np.zeros(6), np.zeros(6))
         all_finite(scratch)
         hold_nan(self._last_in, self._last_in, self._last_in.copy())
 
@@ -506,11 +589,14 @@ class ImpedanceController(Module):
         """Move the spring's centre c along the reference force (see the module docstring) and
         set the input's reference to F_ref - K [c, 0]. Called with a finite reading after
         ``h.T_N_H`` holds the measured hand pose."""
+        # anti-windup: while the offset is held (unreachable, or at its limit) the centre
+        # stays where it is; without a reference force it still decays
+        frozen = h.held and bool(h.wrench_ref_N[:3].any())
         track_force(h.centre_m, h.wrench_ref_N, wrench_S, self.T_hand_sensor, h.T_N_H,
                     self.measured_force, self.axes_mask, self.K,
-                    self.force_tracking_m_per_n_s * self.dt_s,
-                    self.dt_s / max(self.release_s, self.dt_s), self.max_offset_m,
-                    h.wrench_ref_eff_N)
+                    0.0 if frozen else self.force_tracking_m_per_n_s * self.dt_s,
+                    0.0 if frozen else self.dt_s / max(self.release_s, self.dt_s),
+                    self.max_offset_m, h.contact_S_m, h.has_contact, h.wrench_ref_eff_N)
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         q_in = np.empty(self._last_in.shape[0])
@@ -528,6 +614,7 @@ class ImpedanceController(Module):
         out = q_in
         references = None if self.reference is None else cycle.store.get(self.reference)
         for h in self.hands:
+            stepped = False  # eq. 3 advanced this period (not on a bad reading)
             if self.reference is not None:
                 w = wrench_of(references, h.arm)
                 h.wrench_ref_N[:] = 0.0 if w is None else w
@@ -545,7 +632,8 @@ class ImpedanceController(Module):
                     self._track_force(h, wrench_S)
                     advance(h.s, self.Ad, self.Bd, wrench_S, self.T_hand_sensor,
                             h.T_N_H[:3, :3], h.wrench_ref_eff_N, self.axes_mask, h.s_next)
-                    if all_finite(h.s_next):  # else (overflow) the offset is held
+                    stepped = all_finite(h.s_next)
+                    if stepped:  # else (overflow) the offset is held
                         h.s, h.s_next = h.s_next, h.s
                     else:
                         cycle.flags.add(BAD_FLAG)
@@ -559,16 +647,16 @@ class ImpedanceController(Module):
             cycle.info[h.centre_column] = float(np.linalg.norm(h.centre_m))
             if not x.any():
                 h.dq_rad[:] = 0.0
-                h.x_good[:] = 0.0
+                h.held = False
                 continue  # exact tracking: this arm's command passes through unchanged
-            if self.mode == "on":
+            if stepped:
                 q_arm = np.ascontiguousarray(q_in[h.slice])
-                if offset_joints(q_arm, *h.ik, x, h.dq_rad):
-                    h.x_good[:] = x
-                else:  # hold the last offset the arm could take (h.dq_rad keeps its joints)
+                h.held = not offset_joints(q_arm, *h.ik, x, h.dq_rad)
+                if h.held:  # the joint offset decays toward zero
                     cycle.flags.add(UNREACHABLE_FLAG)
-                    h.s[:6] = h.x_good
+                    retreat_offset(q_arm, h.limb.chain, h.ik[-1], self._retreat, h.dq_rad, h.s)
                     h.s[6:] = 0.0
+                h.held = h.held or np.linalg.norm(h.s[:3]) >= self.max_offset_m * (1 - 1e-9)
             if out is q_in:
                 out = q_in.copy()
             out[h.slice] += h.dq_rad

@@ -311,7 +311,7 @@ class SafetyProfile:
                       "wrench_reference": self.wrench_reference},
             "impedance": {"reference": reference, "arms": tuple(self.impedance_arms),
                           "axes": tuple(self.impedance_axes),
-                          "active": self.impedance_active},
+                          "active": self.impedance_active, "tools": dict(tools)},
             "capture-point": {"request_estop": self.estop, "drill": drill},
             "collision": {"drill": drill},
             "balance": {"mode": self.balance_mode, "drill": drill},

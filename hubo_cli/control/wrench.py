@@ -29,7 +29,8 @@ HAND_WRENCH_REF = Key("hand_wrench_ref", dict,
 WRENCH_AXES = ("x", "y", "z", "rx", "ry", "rz")
 
 MEASURED_FORCE_AXES = tuple(i for i in FT_MEASURED if i < 3)  # Hubo's: f_z only
-ALONG_MIN = 0.1  # the least sum (a_i . d)^2 force_along trusts (d within 72 deg of an axis)
+TIP_MIN_M = 0.05  # a tool point at least this far along the forearm from the wrist sensor
+ALONG_MIN = 0.1  # the least sum (a_i . d)^2 force tracking trusts (d within 72 deg of an axis)
 
 # the store keys measured_hand_wrench reads
 MEASURED_WRENCH_READS: tuple[Key, ...] = (WRENCHES,)
@@ -46,19 +47,32 @@ def measured_hand_wrench(state: RobotState, store: Store, sensor: str) -> np.nda
     return store[WRENCHES].get(sensor)
 
 
-def force_along(wrench_S, R_frame_sensor: np.ndarray, d_frame: np.ndarray) -> float:
-    """The force (N) the environment applies along the unit direction ``d_frame`` (any frame),
-    from a sensor's reading ``wrench_S`` (sensor axes, ``R_frame_sensor`` turning them into
-    that frame) of which only the force components ``FT_MEASURED`` are real, assuming the
-    force lies along d (a thrust): F_d = sum f_i (a_i . d) / sum (a_i . d)^2 over the measured
-    force axes a_i (a full sensor: f . d). NaN where d lies nearly across every measured axis
-    (sum (a_i . d)^2 < ``ALONG_MIN``: the sensor cannot see such a force)."""
-    num = den = 0.0
-    for i in MEASURED_FORCE_AXES:
-        c = float(R_frame_sensor[:, i] @ d_frame)
-        num += float(wrench_S[i]) * c
-        den += c * c
-    return num / den if den >= ALONG_MIN else math.nan
+def force_at_point(wrench_S, r_S_m: np.ndarray) -> np.ndarray:
+    """The force (N, sensor axes) the environment applies at the point ``r_S_m`` (m, sensor
+    frame), from a reading of which only ``FT_MEASURED`` are real, assuming it is a force at
+    that point and no moment about it (a tool's tip: a drill bit's cutting and thrust).
+
+    Hubo's wrist sensor reads f_z and the moments m_x, m_y; with m = r x f,
+    f_x = (m_y + r_x f_z) / r_z and f_y = (r_y f_z - m_x) / r_z: the force across the forearm
+    is seen through the moment it makes at the tool, wherever the tip lies off the sensor
+    along the forearm (r_z != 0). A point nearer the sensor than ``TIP_MIN_M`` along z gives
+    NaN (the moments cannot carry the force). A full sensor's force is returned as it is."""
+    w = np.asarray(wrench_S, dtype=float)
+    if set(FT_MEASURED) >= {0, 1, 2}:
+        return w[:3].copy()
+    rx, ry, rz = (float(v) for v in r_S_m)
+    if not abs(rz) >= TIP_MIN_M:
+        return np.full(3, math.nan)
+    fz = float(w[2])
+    return np.array([(float(w[4]) + rx * fz) / rz, (ry * fz - float(w[3])) / rz, fz])
+
+
+def tool_point_S_m(model, tool: str, T_hand_sensor: np.ndarray) -> np.ndarray:
+    """The origin of ``tool``'s frame (a drill: the bit's middle) in the frame of a wrist
+    sensor mounted at ``T_hand_sensor`` (m): where :func:`force_at_point` takes a tool's force
+    to act."""
+    T_6_S = model.tool_transform("hand") @ T_hand_sensor
+    return (np.linalg.inv(T_6_S) @ model.tool_transform(tool)[:, 3])[:3]
 
 
 def wrench_of(references: dict | None, arm: str) -> np.ndarray | None:

@@ -52,7 +52,7 @@ from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.dataflow import Store
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.errors import ConfigError, InputError
-from hubo_cli.estimation.keys import T_WORLD_TORSO, WRENCHES
+from hubo_cli.estimation.keys import WRENCHES
 from hubo_cli.experiments.push_wall import ARM_START_RAD, hand_box_extent_m
 from hubo_cli.experiments.watch import WatchedTarget
 from hubo_cli.geometry import min_jerk
@@ -63,7 +63,6 @@ from hubo_cli.pin_robot import load_pin_robot
 from hubo_cli.posture import home_posture
 from hubo_cli.scene import robot_offset_world_m
 from hubo_cli.session import RunObserver, RunResult, RunSetup, run
-from hubo_cli.state import R_HAND_WRIST_SENSOR
 
 KINDS = ("turn-valve", "push-door")
 ARM = "right-arm"
@@ -117,6 +116,8 @@ class ManipulationSpec:
         turn_deg: the valve's planned turn (deg, clockwise as the robot sees it).
         door_deg: the door's planned opening (deg).
         end_hold_s: holding still after the motion (s).
+        impedance: the ImpedanceController on the right hand (the paper's was on; no
+            reference force: the hand yields to what it meets, up to its offset limits).
     """
 
     kind: str
@@ -125,6 +126,7 @@ class ManipulationSpec:
     turn_deg: float = 95.0
     door_deg: float = 24.0
     end_hold_s: float = 1.0
+    impedance: bool = False
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
@@ -177,6 +179,13 @@ def spec_from_parameters(kind: str, params: dict) -> ManipulationSpec:
                              hint=f"e.g. --set {name}={default:g}")
         return float(value)
 
+    def flag(name: str) -> bool:
+        value = params.get(name, False)
+        if not isinstance(value, bool):
+            raise InputError(f"parameter {name} must be true or false, got {value!r}",
+                             hint=f"e.g. --set {name}=true")
+        return value
+
     offset = params.get("seen_offset_mm", [0.0, 0.0, 0.0])
     if not (isinstance(offset, list | tuple) and len(offset) == 3 and all(
             isinstance(v, int | float) and not isinstance(v, bool) for v in offset)):
@@ -186,7 +195,8 @@ def spec_from_parameters(kind: str, params: dict) -> ManipulationSpec:
     return ManipulationSpec(kind, seen_offset_m=tuple(float(v) / 1000.0 for v in offset),
                             door_opens=str(params.get("door_opens", "away")),
                             turn_deg=number("turn_deg", defaults.turn_deg),
-                            door_deg=number("door_deg", defaults.door_deg))
+                            door_deg=number("door_deg", defaults.door_deg),
+                            impedance=flag("impedance"))
 
 
 def start_posture(model: RobotModel) -> np.ndarray:
@@ -256,7 +266,7 @@ class ManipulationTargets(WatchedTarget):
 
     reads = (*WatchedTarget.reads, WRENCHES)
     previous = (STOP_MODE,)  # the soft stopper's mode: no grasp while it stops the motion
-    log_columns = ("hand_fx_n", "hand_fy_n", "hand_fz_n", "hand_force_n", "object_angle_deg",
+    log_columns = ("hand_axial_n", "wrist_moment_nm", "object_angle_deg",
                    "holding_flag", "arm_torque_ratio", "tilt_deg", "torso_z_m", "sole_lift_m",
                    "segment_code")
 
@@ -287,7 +297,8 @@ class ManipulationTargets(WatchedTarget):
         self.world: SimulatedWorld | None = None
         self.overload_periods = 0
         self.max_torque_ratio = 0.0
-        self.max_force_n = 0.0
+        self.max_axial_n = 0.0  # the largest |f_z| along the forearm (N)
+        self.max_moment_nm = 0.0  # the largest wrist bending moment (N m)
 
     def _hand(self, point_m, roll_rad: float) -> np.ndarray:
         """The hand goal (4x4, N): at ``point_m``, rolled by ``roll_rad`` from its start."""
@@ -369,18 +380,19 @@ class ManipulationTargets(WatchedTarget):
         self.q_prev = result.q_rad
         q = self.q_start.copy()
         q[self.slice] = result.q_rad
-        # the compensated wrist force (hubo's sensor measures f_z, along the forearm) turned
-        # into the world by the estimated torso and the arm's kinematics
-        R_world_hand = self.store[T_WORLD_TORSO][:3, :3] @ self.limb.fk(result.q_rad)[:3, :3]
-        force = R_world_hand @ R_HAND_WRIST_SENSOR @ self.store[WRENCHES][WRIST][:3]
-        magnitude = float(np.linalg.norm(force))
-        self.max_force_n = max(self.max_force_n, magnitude)
+        # what Hubo's wrist sensor sees (compensated): the force along the forearm f_z (+: the
+        # hand pulled out along it) and the bending moment |m_x, m_y|, which a force across the
+        # forearm makes at its lever (a push at the fingertips, a grip on the rim); a force
+        # across the forearm is not read as a force (the sensor has no f_x, f_y)
+        wrench = self.store[WRENCHES][WRIST]
+        axial_n, moment_nm = float(wrench[2]), math.hypot(float(wrench[3]), float(wrench[4]))
+        self.max_axial_n = max(self.max_axial_n, abs(axial_n))
+        self.max_moment_nm = max(self.max_moment_nm, moment_nm)
         ratio = float(np.max(np.abs(state.tau_nm[self.slice]) / self._effort))
         self.max_torque_ratio = max(self.max_torque_ratio, ratio)
         self.overload_periods += ratio >= OVERLOAD_RATIO
         name = "valve" if self.spec.kind == "turn-valve" else "door"
-        return q, {"hand_fx_n": float(force[0]), "hand_fy_n": float(force[1]),
-                   "hand_fz_n": float(force[2]), "hand_force_n": magnitude,
+        return q, {"hand_axial_n": axial_n, "wrist_moment_nm": moment_nm,
                    "object_angle_deg": math.degrees(self.world.hinge_angle_rad(name)),
                    "holding_flag": float(self.world.holding(HAND)),
                    "arm_torque_ratio": ratio, "tilt_deg": tilt_deg, "torso_z_m": z,
@@ -402,9 +414,11 @@ def manipulation_setup(model: RobotModel, spec: ManipulationSpec, estop: bool = 
     """The experiment's run set-up: the simulated robot, both hands free, the stopper
     listening to the operator and the capture point (as the push-wall experiment)."""
     return RunSetup(
-        command=f"{spec.kind}-{spec.case}-{'estop' if estop else 'no-estop'}", model=model,
+        command=f"{spec.kind}-{spec.case}-{'estop' if estop else 'no-estop'}"
+        + ("-impedance" if spec.impedance else ""), model=model,
         tools={"right-arm": "hand", "left-arm": "hand"}, driver="sim",
-        safety=SafetyProfile(estop=estop, sources=("operator", "capture-point"))
+        safety=SafetyProfile(estop=estop, sources=("operator", "capture-point"),
+                             impedance=spec.impedance, impedance_arms=(ARM,))
         .with_balance(balance), gui=gui, out=out, q_start_rad=start_posture(model))
 
 
@@ -459,7 +473,9 @@ def manipulation_summary(spec: ManipulationSpec, estop: bool, targets: Manipulat
         "emergency_sources": list(stops[0][3]) if stops else [],
         "t_cp_flag_s": float(log["t_s"][cp_flags[0]]) if len(cp_flags) else None,
         "max_cp_error_mm": round(float(np.nanmax(error)) * 1000, 1),
-        "max_hand_force_n": round(targets.max_force_n, 1),
+        "max_axial_force_n": round(targets.max_axial_n, 1),
+        "max_wrist_moment_nm": round(targets.max_moment_nm, 2),
+        "impedance": "on" if spec.impedance else "off",
         "object_angle_deg": round(float(angle[np.isfinite(angle)][-1]), 2),
         "max_object_angle_deg": round(float(np.nanmax(np.abs(angle))), 2),
         "grasped_at_s": targets.grasped_at_s,

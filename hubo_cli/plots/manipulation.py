@@ -66,13 +66,19 @@ def plot_manipulation(log, summary: dict, path: str | Path) -> Path:
         outcome += ", arm overloaded"
     ax_cp.set_title(f"{summary['experiment']} ({summary['case']}), emergency stop "
                     f"{summary['estop']}: {outcome}", fontsize=10)
-    for name, colour in (("hand_fx_n", "#1f77b4"), ("hand_fy_n", "#2ca02c"),
-                         ("hand_fz_n", "#9467bd")):
-        ax_f.plot(t, log[name], color=colour, lw=0.9, alpha=0.85,
-                  label=f"{name[5:7]} (world)")
-    ax_f.plot(t, log["hand_force_n"], color="#111111", lw=1.5, label="|F|")
-    ax_f.set_ylabel("hand force [N]")
-    ax_f.legend(loc="upper left", fontsize=7, framealpha=0.9, ncol=4)
+    # Hubo's wrist sensor: the force along the forearm and the bending moment (a force across
+    # the forearm shows only as the moment it makes at its lever)
+    ax_f.plot(t, log["hand_axial_n"], color="#111111", lw=1.5,
+              label="f_z along the forearm (+ pulls the hand out)")
+    ax_f.set_ylabel("wrist f_z [N]")
+    ax_m = ax_f.twinx()
+    ax_m.plot(t, log["wrist_moment_nm"], color="#9467bd", lw=1.0, alpha=0.85,
+              label="bending moment |m_x, m_y|")
+    ax_m.set_ylabel("wrist moment [N m]", color="#9467bd")
+    lines = ax_f.get_legend_handles_labels()
+    more = ax_m.get_legend_handles_labels()
+    ax_f.legend(lines[0] + more[0], lines[1] + more[1], loc="upper left", fontsize=7,
+                framealpha=0.9, ncol=2)
     object_name = "valve" if summary["experiment"] == "turn-valve" else "door"
     ax_a.plot(t, log["object_angle_deg"], color="#8c564b", lw=1.6,
               label=f"{object_name} angle")

@@ -55,7 +55,12 @@ from hubo_cli.control.keys import IMPEDANCE_ON, STOP_MODE, WRIST_RELIEF
 from hubo_cli.control.module import Module
 from hubo_cli.control.reference_force import ReferenceForceUpdater
 from hubo_cli.control.target import Target
-from hubo_cli.control.wrench import HAND_WRENCH_PLAN, force_along, measured_hand_wrench
+from hubo_cli.control.wrench import (
+    HAND_WRENCH_PLAN,
+    force_at_point,
+    measured_hand_wrench,
+    tool_point_S_m,
+)
 from hubo_cli.dataflow import Store
 from hubo_cli.drivers.base import SimulatedWorld
 from hubo_cli.estimation.keys import QUAT_WORLD_TORSO, WRENCHES
@@ -141,6 +146,10 @@ class TaskTarget(Target):
         self.hand = Limb(body.model, self.limb, "hand")  # the wrist sensor's on it
         self.R_hand_sensor = T_frame_sensor(self.sensor)[:3, :3]
         self.bit_S = np.array([1.0, 0.0, 0.0])  # the bit's axis: S's x, into the wall
+        # where the tool's force acts, in the sensor frame: its moments carry the force across
+        # the forearm (Hubo's sensor has one force axis, 45 deg off the bit)
+        self.tool_point_S_m = tool_point_S_m(body.model, body.tools[self.limb],
+                                             T_frame_sensor(self.sensor))
         if self.force:
             self.writes = self.writes + (HAND_WRENCH_PLAN, IMPEDANCE_ON)
             self.log_columns = self.log_columns + self.force_columns
@@ -342,15 +351,17 @@ class TaskTarget(Target):
             self.cut_t_s.append(t_s)
 
     def _measure_force(self, state, info: dict) -> None:
-        """The thrust the tool presses into the wall with (N, along S's x: minus the wall's
-        force on the hand, through the measured hand pose and torso; NaN without a wrist
-        sensor); under force control also the plan's and the ReferenceForceUpdater's update."""
+        """The thrust the tool presses into the wall with (N, along S's x: minus the force
+        on the tool, :func:`force_at_point` at the tool's point, through the measured hand
+        pose and torso; NaN without a wrist sensor); under force control also the plan's and
+        the ReferenceForceUpdater's update."""
         wrench = measured_hand_wrench(state, self.store, self.sensor)
         along = math.nan
         if wrench is not None:
             R_S_sensor = (self.T_S_N[:3, :3] @ self.hand.fk(state.q_rad[self.slice])[:3, :3]
                           @ self.R_hand_sensor)
-            along = force_along(wrench, R_S_sensor, self.bit_S)
+            along = float(R_S_sensor @ force_at_point(wrench, self.tool_point_S_m)
+                          @ self.bit_S)
         force_S = along * self.bit_S
         self.thrust_n = -along
         info["thrust_n"] = self.thrust_n
