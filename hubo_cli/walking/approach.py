@@ -209,6 +209,8 @@ class WalkFirst(Target):
             (*walk.log_columns, "approach.phase_code", *then.log_columns)))
         self.reads = tuple(dict.fromkeys((*walk.reads, T_WORLD_TORSO, *then.reads)))
         self.writes = tuple(dict.fromkeys((*walk.writes, BALANCERS_REST, *then.writes)))
+        self.follows = tuple(dict.fromkeys((*walk.follows, *then.follows)))
+        self.previous = tuple(dict.fromkeys((*walk.previous, *then.previous)))
         self.phases = Phases([_Walk(self), _Rise(self), _Then(self)])
         self.world: SimulatedWorld | None = None
         self.modules: list[Module] = []
