@@ -254,7 +254,8 @@ def _run_in(setup: RunSetup, target: Target, on_start, speed: float | None,
                                estimator=build_estimator(setup.model, setup.tools,
                                                          driver.period_s))
             # the target may act on the scene, never read it (issue 33)
-            target.attach(None if world is None else SceneActions(world), modules, loop.store)
+            target.attach(None if world is None else SceneActions(world), modules,
+                          loop.target_store)
             if on_start is not None:
                 on_start(target, loop)
             result = _run_loop(loop, setup, world)

@@ -10,10 +10,12 @@ import pytest
 from control_support import assert_within_limits, ideal, sensed_cycle
 
 from hubo_cli.control.estop import BRAKE_FLAG, RELIEF_S, EmergencyStopper, stop_on_signal
+from hubo_cli.control.keys import WRIST_RELIEF
 from hubo_cli.control.log import load_log
 from hubo_cli.control.loop import ControlLoop
 from hubo_cli.control.module import Cycle
 from hubo_cli.control.pipeline import build_pipeline, find_module
+from hubo_cli.control.target import Target
 from hubo_cli.dataflow import Store
 from hubo_cli.motion.limits import JointLimits
 from hubo_cli.posture import home_posture
@@ -154,15 +156,19 @@ def _wrist_stop_run(model, tmp_path, relief=None, source="wrist-torque", speed_r
     names = model.joint_names
     joints = [names.index(j) for j in ("RSP", "RSR", "REB")]
 
-    def target(t_s, state):
-        q = q0.copy()
-        q[joints] -= smooth_ramp(t_s, speed_rad_s)
-        return q, ({"estop": source} if abs(t_s - 2.0) < 1e-9 else {})
+    class Ramp(Target):
+        writes = (WRIST_RELIEF,)
+
+        def __call__(self, t_s, state):
+            if relief is not None:  # as the task writes it: the stopper follows it
+                self.store[WRIST_RELIEF] = relief
+            q = q0.copy()
+            q[joints] -= smooth_ramp(t_s, speed_rad_s)
+            return q, ({"estop": source} if abs(t_s - 2.0) < 1e-9 else {})
 
     modules = build_pipeline(model)
     stopper = find_module(modules, "estop")
-    stopper.relief = relief
-    ControlLoop(robot, modules, target, log_path=tmp_path).run(duration_s=3.5)
+    ControlLoop(robot, modules, Ramp(), log_path=tmp_path).run(duration_s=3.5)
     log = load_log(tmp_path)
     return (stopper, find_module(modules, "limiter"), log["t_s"], log.joints("cmd"),
             log.flags, joints)
@@ -234,7 +240,7 @@ def test_a_release_while_the_wrist_stop_brakes_or_relieves_blends_back_smoothly(
     stopper.reset(q0, RobotState(0.0, q0, np.zeros(24)), Store())
     delta = np.zeros(24)
     delta[:6] = [0.03, 0.02, -0.02, 0.04, 0.01, -0.03]
-    stopper.relief = lambda q: q + np.linspace(0.0, 1.0, 4)[1:, None] * delta
+    relief = lambda q: q + np.linspace(0.0, 1.0, 4)[1:, None] * delta  # noqa: E731
     outputs = []
     for k in range(int(round(5.0 / DT))):
         t = k * DT
@@ -245,7 +251,9 @@ def test_a_release_while_the_wrist_stop_brakes_or_relieves_blends_back_smoothly(
             stopper.release()
         q = q0.copy()
         q[:4] -= smooth_ramp(t, 0.3)
-        outputs.append(stopper.update(q, state, sensed_cycle(t, DT, state)))
+        cycle = sensed_cycle(t, DT, state)
+        cycle.store[WRIST_RELIEF] = relief
+        outputs.append(stopper.update(q, state, cycle))
     outputs = np.array(outputs)
     assert stopper.events[-1].kind == "release" and stopper.mode in ("recover", "release")
     steps = np.abs(np.diff(outputs, axis=0)) / DT

@@ -85,3 +85,107 @@ def test_a_followed_key_needs_no_writer_but_one_after_the_follower_is_a_build_er
     check_flow([Writes(), Follows()])
     with pytest.raises(FlowError, match="follows-a follows a_m, which writes-a writes after it"):
         check_flow([Follows(), Writes()])
+
+
+class Sneaks(Module):
+    """Declares nothing, then reads (or writes) a key anyway."""
+
+    name = "sneaks"
+
+    def __init__(self, write: bool) -> None:
+        self.write = write
+
+    def update(self, q_rad, state, cycle):
+        if self.write:
+            cycle.store[B] = 1.0
+        else:
+            cycle.store.get(A)
+        return q_rad
+
+
+@pytest.mark.parametrize("write", [False, True])
+def test_a_stage_that_touches_a_key_it_did_not_declare_stops_the_run(write):
+    model = load_model()
+    with make_driver("ideal", model) as driver:
+        driver.start()
+        loop = ControlLoop(driver, [Sneaks(write)], lambda t, s: (None, {}),
+                           estimator=Estimator([Writes()]))
+        result = loop.run(0.02)
+    assert not result.ok and result.ended == "module-error"
+    verb, key = ("writes", "b_m") if write else ("reads", "a_m")
+    assert f"sneaks {verb} {key}, which it does not declare" in result.error
+
+
+def test_a_view_reads_only_declared_keys_and_writes_only_written_ones():
+    store = Store()
+    store[A] = 1.0
+    view = store.view(Reads())
+    assert view[A] == 1.0 and A in view and view.get(B, 2.0) == 2.0
+    view[B] = 3.0
+    assert store[B] == 3.0 and view[B] == 3.0  # a stage may read back what it writes
+    with pytest.raises(FlowError, match="reads-a writes a_m, which it does not declare"):
+        view[A] = 2.0
+    follower = store.view(Follows())
+    assert follower.get(A) == 1.0
+    with pytest.raises(FlowError, match="follows-a reads b_m, which it does not declare"):
+        follower[B]
+    with pytest.raises(FlowError, match="follows-a asks for b_m"):
+        B in follower  # noqa: B015
+
+
+def test_an_observer_touching_an_undeclared_key_is_refused():
+    class Wrong(Observer):
+        name, writes = "wrong", (A,)
+
+        def update(self, state, store):
+            store[B] = 0.0
+
+    model = load_model()
+    with make_driver("ideal", model) as driver:
+        driver.start()
+        with pytest.raises(FlowError, match="wrong writes b_m"):
+            Estimator([Wrong()]).reset(driver.read())
+
+
+def test_no_target_reaches_into_a_pipeline_module():
+    """Targets exchange with the modules only through store keys: none picks a module out of
+    the pipeline by its class, asks it for its status or mode, switches it, or sets its
+    attributes (the stopper's relief, the impedance controller, otg's trackers)."""
+    import ast
+    from pathlib import Path
+
+    import hubo_cli
+    import hubo_cli.control as control
+
+    for path in Path(control.__file__).parent.glob("*.py"):  # every module class's name
+        __import__(f"hubo_cli.control.{path.stem}")
+    module_classes = set()
+    todo = [Module]
+    while todo:
+        cls = todo.pop()
+        module_classes.add(cls.__name__)
+        todo += cls.__subclasses__()
+    reaching = {"status", "switch_on", "switch_off", "synchronize", "release", "stop", "reset"}
+    root = Path(hubo_cli.__file__).parent
+    found = []
+    for package in ("tasks", "teleop", "walking", "experiments"):
+        for path in sorted((root / package).glob("*.py")):
+            tree = ast.parse(path.read_text())
+            for node in ast.walk(tree):
+                if not isinstance(node, ast.ClassDef):
+                    continue
+                bases = {getattr(b, "id", getattr(b, "attr", "")) for b in node.bases}
+                if not bases & {"Target", "WatchedTarget"}:
+                    continue
+                for inner in ast.walk(node):
+                    where = f"{path.name}:{getattr(inner, 'lineno', 0)}"
+                    if (isinstance(inner, ast.Call) and getattr(inner.func, "id", "")
+                            == "isinstance" and len(inner.args) == 2
+                            and getattr(inner.args[1], "id", "") in module_classes):
+                        found.append(f"{where} picks a {inner.args[1].id} by its class")
+                    if (isinstance(inner, ast.Attribute) and inner.attr in reaching
+                            and isinstance(inner.value, ast.Name)
+                            and inner.value.id in {"m", "module", "stopper", "impedance"}):
+                        found.append(f"{where} calls {inner.value.id}.{inner.attr}")
+    assert {"EmergencyStopper", "ImpedanceController", "TrajectoryGenerator"} <= module_classes
+    assert not found, found

@@ -13,6 +13,7 @@ import pytest
 
 from hubo_cli.control.estop import EmergencyStopper
 from hubo_cli.control.impedance import LIMIT_FLAG, ImpedanceController
+from hubo_cli.control.keys import IMPEDANCE_ON, STOP_MODE, WRIST_RELIEF
 from hubo_cli.control.module import Cycle
 from hubo_cli.control.pipeline import SafetyProfile, find_module
 from hubo_cli.control.reference_force import ReferenceForceUpdater
@@ -186,7 +187,7 @@ def test_the_pipeline_takes_references_from_the_stopper_or_the_target(model):
     profile = SafetyProfile(impedance=True, wrench_reference=True)
     modules = profile.build(model, DT, {})
     assert find_module(modules, "impedance").reads == (WRENCHES, HAND_WRENCH_REF)
-    assert find_module(modules, "estop").writes == (HAND_WRENCH_REF,)
+    assert find_module(modules, "estop").writes == (HAND_WRENCH_REF, STOP_MODE)
     writer = FunctionTarget(lambda t, s: (None, {}))
     writer.writes = (HAND_WRENCH_PLAN,)
     check_flow([writer, *modules], provided=ESTIMATE_KEYS)
@@ -439,7 +440,7 @@ def test_the_task_target_writes_the_plans_force_and_measures_the_thrust(model, t
 
     plan = make_plan(load_task(_task(tmp_path, PRESS)), model)
     target = TaskTarget(plan, correction=False)
-    assert target.writes == (HAND_WRENCH_PLAN,)
+    assert target.writes == (WRIST_RELIEF, HAND_WRENCH_PLAN, IMPEDANCE_ON)
     store = Store()
     impedance = ImpedanceController(model, DT, active=False)  # as force_control builds it
     impedance.reset(plan.q_first_rad, RobotState(0.0, plan.q_first_rad, np.zeros(24)), store)
@@ -452,11 +453,13 @@ def test_the_task_target_writes_the_plans_force_and_measures_the_thrust(model, t
     moving = RobotState(0.0, q, np.full(len(q), 0.1))
     _, info = target(0.0, moving)  # the raise (the robot still moving): no force yet
     assert target.phase == "raise" and np.allclose(store[HAND_WRENCH_PLAN][ARM], 0.0)
+    impedance.update(q, moving, Cycle(0.0, DT, store=store))  # it follows IMPEDANCE_ON
     assert impedance.mode == "off"  # the first move swings the arm up without it
     assert info["thrust_n"] == pytest.approx(5.0, abs=1e-6)
     state = RobotState(0.0, q, np.zeros(len(q)))
     target(DT, state)  # still: the plan runs from its first row, the ramp's first step
-    assert target.phase == "run" and impedance.mode == "on"
+    impedance.update(q, state, Cycle(DT, DT, store=store))
+    assert target.phase == "run" and store[IMPEDANCE_ON] and impedance.mode == "on"
     first = -4.0 / round(FORCE_RAMP_S / DT)
     assert np.allclose(store[HAND_WRENCH_PLAN][ARM], (first, 0, 0, 0, 0, 0))
     k = round(FORCE_RAMP_S / DT) + 10
@@ -467,4 +470,4 @@ def test_the_task_target_writes_the_plans_force_and_measures_the_thrust(model, t
     plain.store = Store()
     plain.store[WRENCHES], plain.store[QUAT_WORLD_TORSO] = store[WRENCHES], store[QUAT_WORLD_TORSO]
     plain(0.0, state)
-    assert plain.writes == () and HAND_WRENCH_PLAN not in plain.store
+    assert plain.writes == (WRIST_RELIEF,) and HAND_WRENCH_PLAN not in plain.store

@@ -7,6 +7,7 @@ import json
 import numpy as np
 import pytest
 
+from hubo_cli.control.keys import STOP_MODE
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.target import Target
 from hubo_cli.model import load_model
@@ -18,20 +19,24 @@ pytestmark = [pytest.mark.slow, pytest.mark.physical]
 
 
 class Session(Target):
-    """Holds the home posture for 0.3 s of its own clock and records what it saw."""
+    """Holds the home posture for 0.3 s of its own clock and records what it saw, the soft
+    stopper's mode among it (a key read through the walk-first target's store view)."""
 
     log_columns = ("session_t_s",)
+    previous = (STOP_MODE,)
 
     def __init__(self, q_rad):
         self.q_rad = q_rad
         self.times_s = []
         self.attached = False
+        self.modes = []
 
     def attach(self, world, modules, store):
-        self.attached = True
+        self.attached, self.store = True, store
 
     def __call__(self, t_s, state):
         self.times_s.append(t_s)
+        self.modes.append(self.store.get(STOP_MODE, "release"))
         return self.q_rad, {"session_t_s": t_s, "done": t_s >= 0.3}
 
 
@@ -50,6 +55,7 @@ def test_the_session_takes_over_on_its_own_clock(handed_over):
     target, session, done = handed_over
     assert done.loop.ended == "done"
     assert target.phase == "then" and session.attached
+    assert set(session.modes) == {"release"}  # the stopper's mode, through the walk-first view
     assert session.times_s[0] == pytest.approx(0.0)
     phases = np.asarray(done.log["approach.phase_code"])
     phases = phases[np.isfinite(phases)]  # the loop's closing row has no target

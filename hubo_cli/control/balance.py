@@ -110,10 +110,12 @@ class AnkleBalancer(Module):
                              names.index(model.limb(leg).joints[5])) for leg, _ in FEET}
         self._signs = ankle_axis_signs(model)
         self.offsets_rad = {leg: np.zeros(2) for leg, _ in FEET}  # (pitch, roll)
+        self._resting = False
 
     def reset(self, q_rad: np.ndarray, state: RobotState, store: Store) -> None:
         """Start with no correction."""
         self.offsets_rad = {leg: np.zeros(2) for leg, _ in FEET}
+        self._resting = False
 
     def rates_rad_s(self, wrenches: dict, quat_wxyz) -> dict[str, np.ndarray]:
         """Ankle (pitch, roll) velocities of eq. 11-12 for each leg (rad/s), before clipping,
@@ -136,10 +138,16 @@ class AnkleBalancer(Module):
         return rates
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
-        """Integrate the ankle velocities over one period and add the offsets to the ankles."""
-        if cycle.store.get(BALANCERS_REST, False):  # a phase moves the CoM: start afresh
-            self.reset(q_rad, state, cycle.store)
+        """Integrate the ankle velocities over one period and add the offsets to the ankles;
+        switched off (BALANCERS_REST) pass the command through, no correction, and start
+        afresh when switched on again."""
         q = np.array(q_rad, dtype=float)
+        if cycle.store.get(BALANCERS_REST, False):  # a phase moves the CoM itself
+            if not self._resting:  # switched off: drop the correction once, then rest
+                self.reset(q_rad, state, cycle.store)
+                self._resting = True
+            return self._report(q, cycle)
+        self._resting = False
         rates = self._rates(cycle.store[WRENCHES], cycle.store[QUAT_WORLD_TORSO])
         lower, upper = self.model.lower_rad, self.model.upper_rad
         max_rate, max_offset = self.max_rate_rad_s, self.max_offset_rad
@@ -159,6 +167,9 @@ class AnkleBalancer(Module):
                     q[i] = target
                 else:  # no command for this joint: it stays NaN (the next modules hold it)
                     offset[k] = wanted
+        return self._report(q, cycle)
+
+    def _report(self, q: np.ndarray, cycle: Cycle) -> np.ndarray:
         side = self.offsets_rad
         cycle.info["balance.right_pitch_rad"] = float(side["right-leg"][0])
         cycle.info["balance.right_roll_rad"] = float(side["right-leg"][1])
@@ -302,6 +313,7 @@ class DampingBalancer(Module):
         self._offsets = np.zeros((2, 2))  # what is sent
         self._rate = np.zeros((2, 2))
         self._reference_now = 0.0
+        self._resting = False
 
     @property
     def reference_moment_nm(self) -> np.ndarray:
@@ -329,13 +341,17 @@ class DampingBalancer(Module):
         return self._last_reference
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
-        if cycle.store.get(BALANCERS_REST, False):  # a phase moves the CoM: start afresh
-            self.reset(q_rad, state, cycle.store)
         q = np.array(q_rad, dtype=float)
         store = cycle.store
-        if self._step(q, state, store[WRENCHES], store[QUAT_WORLD_TORSO], all(store[CONTACT]),
-                      cycle.dt_s):
-            cycle.flags.add("balance-bad-sensor")
+        if store.get(BALANCERS_REST, False):  # a phase moves the CoM itself: switched off
+            if not self._resting:  # drop the correction once, pass the command through
+                self.reset(q_rad, state, store)
+                self._resting = True
+        else:  # switched on (again: from the reset of the rest's start)
+            self._resting = False
+            if self._step(q, state, store[WRENCHES], store[QUAT_WORLD_TORSO],
+                          all(store[CONTACT]), cycle.dt_s):
+                cycle.flags.add("balance-bad-sensor")
         (right_pitch, right_roll), (left_pitch, left_roll) = self._offsets.tolist()
         cycle.info["balance.right_pitch_rad"] = right_pitch
         cycle.info["balance.right_roll_rad"] = right_roll

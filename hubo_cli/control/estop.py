@@ -23,8 +23,9 @@ it through the material, and eq. 15's revert, which first runs on under the arms
 limits and then drives the tool back along its path within T2, adds load instead of removing it.
 So the ``relieve`` stop brakes every joint as fast as the emergency braking limits allow
 (:meth:`JointLimits.for_emergency_brake`; flag ``estop-brake`` lets the limiter admit them),
-then follows the path :attr:`EmergencyStopper.relief` returns for the braked posture (the task
-backs the tool out of the wall along its normal, checked against the wall) on a minimum-jerk
+then follows the path the store's :data:`~hubo_cli.control.keys.WRIST_RELIEF` returns for the
+braked posture (the task backs the tool out of the wall along its normal, checked against the
+wall) on a minimum-jerk
 time scale of at least ``RELIEF_S`` within those limits, and holds its end; without a relief
 (or when it returns None) it holds where it braked.
 
@@ -49,7 +50,8 @@ a wrist torque above ``model.safety["wrist_torque_limit_nm"]``: the bending mome
 estimate's wrist wrenches, the hand's and the tool's weight removed, ``WRENCHES``) stops; only an
 explicit release lets go, and a request that is still present in the next period stops again.
 The pipeline uses two instances: ``estop`` early in the chain and ``hard-estop`` after the
-balance and collision layers.
+balance and collision layers; ``estop`` writes its mode every period
+(:data:`~hubo_cli.control.keys.STOP_MODE`, what a target reads of it).
 """
 
 from __future__ import annotations
@@ -61,6 +63,7 @@ from collections.abc import Callable, Iterable
 
 import numpy as np
 
+from hubo_cli.control.keys import STOP_MODE, WRIST_RELIEF
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.status import SafetyEvent, StopperStatus
 from hubo_cli.control.stop_choice import SOFT_SOURCES
@@ -159,11 +162,9 @@ class EmergencyStopper(Module):
     ``estop-brake`` while a wrist-torque stop brakes and relieves.
     Info: ``<name>_mode_code`` (0 release, 1 stop, 2 hold, 3 recover), ``wrist_torque_nm``.
 
-    Attributes:
-        relief: called once a wrist-torque stop has braked to rest, with the braked joint
-            command (rad); returns the postures (m x joints, rad) of the path that relieves
-            the tool, the last one to hold, or None to hold where it braked. Set by the task
-            target (None: hold where braked).
+    Store: the wrist-torque stop follows ``WRIST_RELIEF`` (called once it has braked to rest,
+    with the braked joint command; not written: hold where braked); ``estop`` writes
+    ``STOP_MODE``.
     """
 
     def __init__(self, model: RobotModel, dt_s: float, revert_s: float = 0.5,
@@ -189,12 +190,14 @@ class EmergencyStopper(Module):
         self._wrist_torque = "wrist-torque" in self.sources
         if self._wrist_torque:
             self.log_columns += ("wrist_torque_nm",)
-            self.reads = (WRENCHES,)
+            self.reads, self.follows = (WRENCHES,), (WRIST_RELIEF,)
         if wrench_reference:
             self.reads, self.writes = self.reads + (HAND_WRENCH_PLAN,), (HAND_WRENCH_REF,)
+        self._mode_key = STOP_MODE if name == "estop" else None
+        if self._mode_key is not None:
+            self.writes += (self._mode_key,)
         self.tracker = JointTracker(self.limits, self.dt_s)
         self.brake_tracker = JointTracker(self.limits.for_emergency_brake(model), self.dt_s)
-        self.relief: Callable[[np.ndarray], np.ndarray | None] | None = None
         self._path = np.zeros((1, self.limits.size))  # the relief path being played
         self._path_s = np.zeros(1)  # its normalised arc positions (0 .. 1)
         self._path_periods = 1
@@ -322,15 +325,15 @@ class EmergencyStopper(Module):
             self._hard_wrench = None
         return self.mode
 
-    def _relieve(self) -> np.ndarray:
+    def _relieve(self, relief: Callable[[np.ndarray], np.ndarray | None] | None) -> np.ndarray:
         """One period of a wrist-torque stop: brake at the emergency limits, then play the
-        relief path, then hold its end."""
+        ``relief`` path (the store's WRIST_RELIEF), then hold its end."""
         tracker = self.brake_tracker
         if self._relieving == "brake":
             out = tracker.brake()
             if not tracker.at_rest:
                 return out
-            path = None if self.relief is None else self.relief(out.copy())
+            path = None if relief is None else relief(out.copy())
             if path is None or not len(path) or not np.all(np.isfinite(path)):
                 self.hold_rad = out.copy()
                 self.mode, self._relieving = "hold", None
@@ -392,7 +395,7 @@ class EmergencyStopper(Module):
         elif self.mode == "stop":
             if self._relieving:
                 cycle.flags.add(BRAKE_FLAG)
-                out = self._relieve()
+                out = self._relieve(cycle.store.get(WRIST_RELIEF))
             elif self._brake_only:
                 out = self.tracker.brake()
                 if self.tracker.at_rest:
@@ -420,6 +423,8 @@ class EmergencyStopper(Module):
         elif self.mode == "recover":
             cycle.flags.add("recovering")
         cycle.info[self._mode_column] = float(MODE_CODE[self.mode])
+        if self._mode_key is not None:
+            cycle.store[self._mode_key] = self.mode
         if self.wrenches is not None:
             cycle.store[HAND_WRENCH_REF] = self.wrenches.update(
                 cycle.t_s, cycle.store.get(HAND_WRENCH_PLAN), self._wrench_mode(cycle.t_s))

@@ -70,6 +70,8 @@ finite one. Release: :meth:`switch_off` blends the offset back to zero on a mini
 profile over ``release_s`` (flag ``impedance-release``), in joint space (the joint offset
 scaled down, always reachable and smooth; the reported x is scaled alike), then the command
 passes through unchanged; :meth:`switch_on` resumes the dynamics from where the blend is.
+In a run a target switches it through the store (:data:`~hubo_cli.control.keys.IMPEDANCE_ON`,
+followed at the start of each period), never by calling these.
 """
 
 from __future__ import annotations
@@ -80,6 +82,7 @@ import numba as nb
 import numpy as np
 import scipy.linalg
 
+from hubo_cli.control.keys import IMPEDANCE_ON
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.wrench import (
     ALONG_MIN,
@@ -434,6 +437,7 @@ class ImpedanceController(Module):
 
     name = "impedance"
     reads = (WRENCHES,)
+    follows = (IMPEDANCE_ON,)
 
     def __init__(self, model: RobotModel, dt_s: float, M=None, D=None, K=None,
                  max_offset_m: float | None = None, max_rotation_rad: float | None = None,
@@ -598,6 +602,12 @@ class ImpedanceController(Module):
         q_in = np.empty(self._last_in.shape[0])
         hold_nan(np.ascontiguousarray(q_rad, dtype=float), self._last_in, q_in)
         self._last_in = q_in
+        on = cycle.store.get(IMPEDANCE_ON)  # a target's phase switches it on or off
+        if on is not None and bool(on) != (self.mode == "on"):
+            if on:
+                self.switch_on()
+            else:
+                self.switch_off()
         if self.mode == "release":
             cycle.flags.add(RELEASE_FLAG)
             self._release_step()

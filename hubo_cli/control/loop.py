@@ -204,9 +204,11 @@ class ControlLoop:
             estimator = build_estimator(driver.model, period_s=self.dt_s)
         self.estimator = estimator
         self.store = estimator.store if estimator is not None else Store()
-        self.target.store = self.store
         check_flow([self.target, *self.modules],
                    provided=estimator.writes if estimator is not None else ())
+        # each stage sees the store through its view: an undeclared key is a FlowError
+        self.target_store = self.target.store = self.store.view(self.target)
+        self._views = [self.store.view(m) for m in self.modules]
         self.clock = clock
         self.sleep = sleep
         self.max_lag_periods = max_lag_periods
@@ -295,8 +297,8 @@ class ControlLoop:
                 self.estimator.reset(state)
             q0 = np.array(state.q_rad, dtype=float)
             self._cmd = self._cmd_prev = self._cmd_prev2 = q0
-            for m in self.modules:
-                m.reset(q0.copy(), state, self.store)
+            for m, view in zip(self.modules, self._views, strict=True):
+                m.reset(q0.copy(), state, view)
             while duration_s is None or self.period * self.dt_s < duration_s - 1e-9:
                 t_s = self.period * self.dt_s
                 late_s = self._pace()
@@ -316,7 +318,8 @@ class ControlLoop:
                     q = self._nan if q_target is None else np.asarray(q_target, dtype=float)
                     target_logged = q
                     stage = "module"
-                    for m in self.modules:
+                    for m, view in zip(self.modules, self._views, strict=True):
+                        cycle.store = view
                         q = m.update(q, state, cycle)
                 except Exception as err:  # noqa: BLE001 (any failure ends in a smooth stop)
                     ended = f"{stage}-error"

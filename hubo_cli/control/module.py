@@ -60,13 +60,15 @@ class Module(ABC):
         log_columns: every ``cycle.info`` key the module writes (logged each period).
         events: safety events the module recorded (stops, releases, collision holds).
         reads, writes: the store keys it reads and writes (checked when the loop is built);
-            follows: keys it reads when a stage writes them (:class:`~hubo_cli.dataflow.Stage`).
+            follows: keys it reads when a stage writes them; previous: keys it reads as the
+            previous period's (:class:`~hubo_cli.dataflow.Stage`).
     """
 
     name = "module"
     reads: tuple[Key, ...] = ()
     writes: tuple[Key, ...] = ()
     follows: tuple[Key, ...] = ()
+    previous: tuple[Key, ...] = ()
     dt_s: float | None = None
     log_columns: tuple[str, ...] = ()
     events: Sequence[SafetyEvent] = ()

@@ -10,13 +10,20 @@ tracker (``groups="body"``: every joint phase-synchronised, an arm waits for the
 joint) or by one tracker per group (``groups="limbs"``: each arm on its own, the legs together,
 so a hand is not slowed by the other hand or the legs); the safety behaviour is the same: a
 ruckig error in any group brakes every group to rest.
+
+With ``groups="limbs"`` it writes its trackers' states every period (the store's
+:data:`~hubo_cli.control.keys.TRACKER_STATES`) and follows the synchronization a target asks
+of each arm's tracker (:data:`~hubo_cli.control.keys.ARM_SYNC`), applied before it tracks.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numba as nb
 import numpy as np
 
+from hubo_cli.control.keys import ARM_SYNC, TRACKER_STATES
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError
@@ -51,6 +58,18 @@ def take_target(q_rad, held_rad, lower_rad, upper_rad, out_rad):
             clamped = True
         out_rad[i] = x
     return fresh, clamped
+
+
+@dataclass(frozen=True)
+class TrackerState:
+    """One tracker of the trajectory generator after its update: its limits and period, and
+    its position (rad), velocity (rad/s) and acceleration (rad/s^2)."""
+
+    limits: JointLimits
+    dt_s: float
+    q_rad: np.ndarray
+    v_rad_s: np.ndarray
+    a_rad_s2: np.ndarray
 
 
 def tracker_groups(model: RobotModel, groups: str) -> dict[str, np.ndarray]:
@@ -151,6 +170,8 @@ class TrajectoryGenerator(Module):
         self.trackers = [JointTracker(self.limits.subset(i), self.dt_s, synchronization)
                          for i in self._index]
         self._single = len(self.trackers) == 1
+        if groups == "limbs":
+            self.writes, self.follows = (TRACKER_STATES,), (ARM_SYNC,)
         self._q = np.zeros(self.limits.size)
         self._fault = False
         self.errors = 0
@@ -201,6 +222,17 @@ class TrajectoryGenerator(Module):
         return self._q.copy(), failed
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
+        if not self.writes:
+            return self._update(q_rad, cycle)
+        for group, synchronization in (cycle.store.get(ARM_SYNC) or {}).items():
+            self.synchronize(synchronization, groups=(group,))
+        q = self._update(q_rad, cycle)
+        cycle.store[TRACKER_STATES] = {
+            name: TrackerState(t.limits, self.dt_s, t.q.copy(), t.v.copy(), t.a.copy())
+            for name, t in zip(self.group_names, self.trackers, strict=True)}
+        return q
+
+    def _update(self, q_rad: np.ndarray, cycle: Cycle) -> np.ndarray:
         stale = self.input.take(q_rad, cycle)
         cycle.info["otg_error_flag"] = 0.0
         if stale:

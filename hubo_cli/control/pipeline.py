@@ -202,8 +202,8 @@ class SafetyProfile:
             the impedance controller (if on) takes them as its force setpoint.
         impedance_arms, impedance_axes: the hands the impedance controller acts on and the
             axes they yield along (neck-frame ``x y z rx ry rz``).
-        impedance_active: it starts switched on (False: off until its ``switch_on()``, e.g.
-            from a task once its plan runs).
+        impedance_active: it starts switched on (False: off until a target writes
+            ``IMPEDANCE_ON``, e.g. a task once its plan runs).
         limit_set: the robot file's joint-limit set the limiter enforces (``table4``, the
             paper's, or e.g. ``walking``, whose legs are fast enough to step and to bow the
             trunk); None: the set the run's model was loaded with. Where a use case needs a

@@ -228,6 +228,7 @@ class Stabilizer(Module):
         self.hip_rad = 0.0
         self.com_error_m = np.zeros(2)
         self.zmp_error_m = np.zeros(2)
+        self._resting = False
 
     def _reference(self, q_cmd: np.ndarray) -> np.ndarray:
         if self._last_cmd is not None and np.array_equal(q_cmd, self._last_cmd):
@@ -236,9 +237,13 @@ class Stabilizer(Module):
         return self._last_ref
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
-        if cycle.store.get(BALANCERS_REST, False):  # a phase moves the CoM: start afresh
-            self.reset(q_rad, state, cycle.store)
         q = np.array(q_rad, dtype=float)
+        if cycle.store.get(BALANCERS_REST, False):  # a phase moves the CoM itself: off
+            if not self._resting:  # drop the correction once, pass the command through
+                self.reset(q_rad, state, cycle.store)
+                self._resting = True
+            return self._report(q, cycle.info)
+        self._resting = False
         dt = cycle.dt_s
         q_cmd = np.where(np.isfinite(q), q, state.q_rad)
         reference = self._reference(q_cmd)
@@ -275,8 +280,9 @@ class Stabilizer(Module):
         hip_rate = excess * self._hip_per_m - self.hip_rad / HIP_LEAK_S
         hip_rate = max(-0.1, min(0.1, hip_rate))
         self.hip_rad = max(-self.max_hip_rad, min(self.max_hip_rad, self.hip_rad + hip_rate * dt))
-        q = self._apply(q, q_cmd)
-        info = cycle.info
+        return self._report(self._apply(q, q_cmd), cycle.info)
+
+    def _report(self, q: np.ndarray, info: dict) -> np.ndarray:
         info["stabilizer.com_error_x_m"], info["stabilizer.com_error_y_m"] = (
             float(v) for v in self.com_error_m)
         info["stabilizer.zmp_error_x_m"], info["stabilizer.zmp_error_y_m"] = (

@@ -27,9 +27,10 @@ class Target(ABC):
         robot_flags: the flags of the robot's latest state (set by the loop every period;
             the live view shows the driver's, e.g. ``stale-state``).
         name: the target's name in flow errors.
-        reads, writes, follows: the store keys it reads (the estimate's), writes (for the
-            modules, e.g. hand wrench references) and reads when written (checked when the
-            loop is built).
+        reads, writes, follows, previous: the store keys it reads (the estimate's), writes
+            (for the modules, e.g. hand wrench references), reads when written (checked when
+            the loop is built) and reads as the previous period's (a module's, e.g. the
+            stopper's mode).
         store: the run's per-period store, given in :meth:`attach` (a target reads and writes
             only the keys it declares).
     """
@@ -40,6 +41,7 @@ class Target(ABC):
     reads: tuple[Key, ...] = ()
     writes: tuple[Key, ...] = ()
     follows: tuple[Key, ...] = ()
+    previous: tuple[Key, ...] = ()
     robot_flags: tuple[str, ...] = ()
 
     @abstractmethod

@@ -32,6 +32,7 @@ class Estimator:
         self.observers = list(observers)
         check_flow(self.observers)
         self.store = Store()
+        self._views = [self.store.view(o) for o in self.observers]  # each its declared keys
 
     @property
     def log_columns(self) -> tuple[str, ...]:
@@ -64,12 +65,12 @@ class Estimator:
 
     def reset(self, state: RobotState) -> Store:
         """Start from the first state; returns the store."""
-        for observer in self.observers:
-            observer.reset(state, self.store)
+        for observer, view in zip(self.observers, self._views, strict=True):
+            observer.reset(state, view)
         return self.store
 
     def update(self, state: RobotState) -> Store:
         """This period's estimate from ``state``; returns the store."""
-        for observer in self.observers:
-            observer.update(state, self.store)
+        for observer, view in zip(self.observers, self._views, strict=True):
+            observer.update(state, view)
         return self.store

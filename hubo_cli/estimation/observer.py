@@ -27,6 +27,7 @@ class Observer(ABC):
     reads: tuple[Key, ...] = ()
     writes: tuple[Key, ...] = ()
     follows: tuple[Key, ...] = ()
+    previous: tuple[Key, ...] = ()
 
     def reset(self, state: RobotState, store: Store) -> None:
         """Start from the robot's first state: called before the first period (and again when

@@ -47,6 +47,7 @@ import numpy as np
 
 from hubo_cli.control.collision import SelfCollisionChecker
 from hubo_cli.control.estop import EmergencyStopper
+from hubo_cli.control.keys import STOP_MODE
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.dataflow import Store
 from hubo_cli.drivers.base import grip_flag
@@ -264,6 +265,7 @@ class ManipulationTargets(WatchedTarget):
     """
 
     reads = (*WatchedTarget.reads, WRENCHES)
+    previous = (STOP_MODE,)  # the soft stopper's mode: no grasp while it stops the motion
     log_columns = ("hand_axial_n", "wrist_moment_nm",
                    "holding_flag", "arm_torque_ratio", "tilt_deg", "torso_z_m", "sole_lift_m",
                    "segment_code")
@@ -293,7 +295,6 @@ class ManipulationTargets(WatchedTarget):
         self.grasped_at_s: float | None = None
         self.placed: dict = {}
         self.world: SceneActions | None = None
-        self.stopper: EmergencyStopper | None = None  # no grasp while it stops the motion
         self.overload_periods = 0
         self.max_torque_ratio = 0.0
         self.max_axial_n = 0.0  # the largest |f_z| along the forearm (N)
@@ -348,7 +349,6 @@ class ManipulationTargets(WatchedTarget):
                               hint="run it with the sim driver")
         super().attach(world, modules, store)
         self.world = world
-        self.stopper = next((m for m in modules if isinstance(m, EmergencyStopper)), None)
         # planned in N; the scene module puts it where the robot truly stands (its lean)
         if isinstance(self.seen, Valve):
             centre = np.asarray(self.seen.centre_world_m) - self.spec.seen_offset_m
@@ -368,7 +368,7 @@ class ManipulationTargets(WatchedTarget):
     def __call__(self, t_s: float, state):
         tilt_deg, z = self.watch(t_s, state)
         k, T = self.goal(t_s)
-        stopped = self.stopper is not None and self.stopper.status().mode != "release"
+        stopped = self.store.get(STOP_MODE, "release") != "release"
         holding = grip_flag(HAND) in state.flags  # the hand's grip sensor
         if holding and self.grasped_at_s is None:
             self.grasped_at_s = t_s

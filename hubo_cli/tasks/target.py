@@ -14,7 +14,9 @@ Phases:
    the operator finishes the run (q) or releases the stop (r): once the stopper has blended
    back to the frozen plan, the plan goes on from where it froze, as hrpsys's sequence player
    resumes after an emergency. A stop on the wrist torque brakes, then backs the tool out of
-   the wall along its normal (:meth:`TaskTarget.relieve`, the stopper's relief).
+   the wall along its normal (:meth:`TaskTarget.relieve`, written as the store's
+   WRIST_RELIEF for the stopper). The target knows of the stopper only its mode, the store's
+   STOP_MODE of the previous period.
 
 Each period the measured torso pose (leg encoders and the estimated attitude, the store's
 QUAT_WORLD_TORSO; :mod:`hubo_cli.kinematics.torso`) corrects the arm's joint target: the
@@ -33,7 +35,8 @@ never reads the simulator's truth.
 A plan with a thrust (:attr:`Plan.has_force`) runs under force control: every period the target
 writes the plan's hand force, turned into the measured neck frame, as the hand wrench
 reference (:data:`~hubo_cli.control.wrench.HAND_WRENCH_PLAN`; the emergency stopper reverts it,
-the ImpedanceController presses with it), logs it with the measured thrust, and lets the
+the ImpedanceController presses with it, switched on through the store's IMPEDANCE_ON once the
+plan runs), logs it with the measured thrust, and lets the
 waist lean into the force the hand really meets: a
 :class:`~hubo_cli.control.reference_force.ReferenceForceUpdater` follows the measured force
 along the bit, and the legs take the plan's CoM shift moved by eq. 6's slope
@@ -47,8 +50,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hubo_cli.control.estop import EmergencyStopper, wrist_torque_nm
-from hubo_cli.control.impedance import ImpedanceController
+from hubo_cli.control.estop import wrist_torque_nm
+from hubo_cli.control.keys import IMPEDANCE_ON, STOP_MODE, WRIST_RELIEF
 from hubo_cli.control.module import Module
 from hubo_cli.control.reference_force import ReferenceForceUpdater
 from hubo_cli.control.target import Target
@@ -87,11 +90,12 @@ class TaskTarget(Target):
         resumable: an operator at a keyboard can release a stop and resume the plan; without
             one a stop ends the run once held.
 
-    After :meth:`attach`: ``stopper`` is the pipeline's soft emergency stopper (None when the
-    run has none) and ``scene`` what was placed in the simulator.
+    After :meth:`attach`: ``scene`` is what was placed in the simulator.
     """
 
     reads = (QUAT_WORLD_TORSO, WRENCHES)
+    writes = (WRIST_RELIEF,)
+    previous = (STOP_MODE,)
     log_columns = ("step_code", "phase_code", "goal_x_m", "goal_y_m", "goal_z_m", "actual_x_m",
                    "actual_y_m", "actual_z_m", "error_m", "cutting", "edge_code",
                    "task_wrist_torque_nm", "thrust_n")
@@ -101,8 +105,6 @@ class TaskTarget(Target):
         self.plan = plan
         self.resumable = resumable
         self.body = body = plan.body
-        self.stopper: EmergencyStopper | None = None
-        self.impedance: ImpedanceController | None = None
         self.world: SceneActions | None = None
         self.modules: list = []  # set by attach()
         self.scene: dict = {}
@@ -148,7 +150,7 @@ class TaskTarget(Target):
         self.tool_point_S_m = tool_point_S_m(body.model, body.tools[self.limb],
                                              T_frame_sensor(self.sensor))
         if self.force:
-            self.writes = (HAND_WRENCH_PLAN,)
+            self.writes = self.writes + (HAND_WRENCH_PLAN, IMPEDANCE_ON)
             self.log_columns = self.log_columns + self.force_columns
             self.rfu = ReferenceForceUpdater((1.0, 0.0, 0.0), plan.dt_s)
 
@@ -156,11 +158,6 @@ class TaskTarget(Target):
                store: Store) -> None:
         self.world, self.store = world, store
         self.modules = list(modules)  # the pipeline, for the live view's safety state
-        self.stopper = next((m for m in modules if isinstance(m, EmergencyStopper)
-                             and m.name == "estop"), None)
-        if self.stopper is not None:
-            self.stopper.relief = self.relieve
-        self.impedance = next((m for m in modules if isinstance(m, ImpedanceController)), None)
 
     def relieve(self, q_rad: np.ndarray) -> np.ndarray | None:
         """The path that relieves the wrist after a wrist-torque stop braked the command
@@ -237,7 +234,8 @@ class TaskTarget(Target):
 
     def __call__(self, t_s: float, state) -> tuple[np.ndarray, dict]:
         info: dict = {}
-        mode = "release" if self.stopper is None else self.stopper.status().mode
+        mode = self.store.get(STOP_MODE, "release")  # the stopper's, after last period
+        self.store[WRIST_RELIEF] = self.relieve
         stopped = mode != "release"
         if stopped and self.phase != "stopped":
             self._phase_before_stop = self.phase
@@ -250,8 +248,6 @@ class TaskTarget(Target):
                 self._place_wall()
                 self.t_placed_s = t_s
                 self.phase, self.t_run_s = "run", t_s
-                if self.force and self.impedance is not None:  # force control from the plan on
-                    self.impedance.switch_on()
         if self.phase == "run":
             self.k = int(round((t_s - self.t_run_s) / self.plan.dt_s))
             if self.k >= len(self.plan.t_s):
@@ -290,6 +286,7 @@ class TaskTarget(Target):
         if self.store is not None:
             self.store[HAND_WRENCH_PLAN] = {self.limb: np.concatenate([R_N_S @ force_S,
                                                                        np.zeros(3)])}
+            self.store[IMPEDANCE_ON] = self.t_run_s is not None  # force control from the run on
         placement = self.plan.placement
         lean_m = placement.shift_per_force_m_n * (self.rfu.reference_n - force_S[0])
         info["balance_thrust_n"] = -self.rfu.reference_n

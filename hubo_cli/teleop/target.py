@@ -58,7 +58,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hubo_cli.control.otg import TrajectoryGenerator
+from hubo_cli.control.keys import ARM_SYNC, TRACKER_STATES
 from hubo_cli.control.target import Target
 from hubo_cli.dataflow import Store
 from hubo_cli.estimation.keys import QUAT_WORLD_TORSO, T_WORLD_TORSO
@@ -178,6 +178,8 @@ class TeleopTarget(Target):
     """
 
     reads = (QUAT_WORLD_TORSO, T_WORLD_TORSO)
+    writes = (ARM_SYNC,)  # each arm's synchronization, for otg (groups limbs)
+    previous = (TRACKER_STATES,)  # otg's trackers after last period
 
     def __init__(self, model: RobotModel, source: InputDevice, mapper: HandMapper,
                  body: WholeBody, approach: dict[str, PosePath], q_start_rad: np.ndarray,
@@ -227,7 +229,9 @@ class TeleopTarget(Target):
         self.reach = {arm: ArmReach(body.arms[arm], self.reach_settings) for arm in approach}
         self.singularity = singularity or self.reach_settings.singularity
         self.room = None  # arm targets keep out of the collision detector's band
-        self._otg = None  # the trajectory generator, once operating, if it has arm trackers
+        # once operating, where the trajectory generator has a tracker per arm: a copy of each
+        # (its limits, set each period to its state) to preview the arm's way with
+        self._trackers: dict[str, JointTracker] | None = None
         if self.reach_settings.mode == "nearest" and self.reach_settings.collision_room_m > 0:
             from hubo_cli.teleop.room import CollisionRoom
 
@@ -335,15 +339,18 @@ class TeleopTarget(Target):
     def _pace_arms(self) -> None:
         """Each arm's tracker: unsynchronised unless that way to the target swings the hand more
         than ``SWING_M`` off the straight line to it, phase synchronised then."""
-        if self._otg is None:
+        if self._trackers is None:
             return
+        states, synchronization = self.store[TRACKER_STATES], {}
         for arm in self.arms:
-            tracker = self._otg.trackers[self._otg.group_names.index(arm)]
+            tracker, now = self._trackers[arm], states[arm]
+            tracker.reset(now.q_rad, now.v_rad_s, now.a_rad_s2)
             target = self.q_out[self.slices[arm]]
             sync = OPERATE_SYNCHRONIZATION
             if self.swing_m(arm, tracker, target) > SWING_M:
                 sync = "phase"
-            self._otg.synchronize(sync, groups=(arm,))
+            synchronization[arm] = sync
+        self.store[ARM_SYNC] = synchronization
 
     def swing_m(self, arm: str, tracker: JointTracker, target_rad: np.ndarray) -> float:
         """How far (m) the hand strays from the straight line between its commanded position and
@@ -386,9 +393,10 @@ class TeleopTarget(Target):
         if self._settled(state) or t_path >= self.approach_s + self.approach_timeout_s:
             self.phase = "operate"
             self.t_operate_s = t_s
-            for module in self.modules:  # the arms' trackers, when they have their own
-                if isinstance(module, TrajectoryGenerator) and module.groups == "limbs":
-                    self._otg = module
+            states = self.store.get(TRACKER_STATES)  # the arms' trackers, with their own
+            if states is not None and all(arm in states for arm in self.arms):
+                self._trackers = {arm: JointTracker(states[arm].limits, states[arm].dt_s)
+                                  for arm in self.arms}
             for arm, reach in self.reach.items():
                 reach.start(self.q_target[self.slices[arm]])
 

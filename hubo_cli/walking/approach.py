@@ -18,9 +18,10 @@ Phases (``approach.phase_code`` in the log):
 2. ``then``: the session's target, called with its own clock (zero at the hand-over) as if the
    run had started there; the loop ends when it says so.
 
-Each phase is a state with a start (:meth:`WalkFirst._start_rise`, :meth:`WalkFirst._start_then`)
-and a run; what it asks of the pipeline (:data:`PHASE_REST`, the planned support) it writes to
-the store every period, so no module is reset or reprogrammed by the target.
+Each phase is a :class:`~hubo_cli.control.phase.Phase` (start, run, stop) of one
+:class:`~hubo_cli.control.phase.Phases` machine; what the phase that made a period's command
+asks of the pipeline (:data:`PHASE_REST`, the planned support) the target writes to the store
+every period, so no module is reset or reprogrammed by the target.
 
 The simulated wall of a task or a drill session is placed by the session's target as it is
 without a walk (once the tool is ready, ahead of it); while walking the robot is kept clear of
@@ -40,7 +41,7 @@ import numpy as np
 import pinocchio as pin
 
 from hubo_cli.control.module import Module
-from hubo_cli.control.phase import BALANCERS_REST, SUPPORT_PLAN
+from hubo_cli.control.phase import BALANCERS_REST, SUPPORT_PLAN, Phase, Phases
 from hubo_cli.control.target import Target, TargetOutput
 from hubo_cli.dataflow import Store
 from hubo_cli.errors import InputError
@@ -114,6 +115,72 @@ def wall_clearance_m(feet: Sequence[Footstep], wall_x_m: float, toe_m: float) ->
     return min(wall_x_m - (f.x_m + math.cos(f.yaw_rad) * toe_m) for f in feet)
 
 
+class _Walk(Phase[TargetOutput]):
+    """Walk to the working stance; on arrival hand over to the rise (the walk's last command
+    stands this period), on a fall end the run."""
+
+    name = "walk"
+
+    def __init__(self, owner: WalkFirst) -> None:
+        self.owner = owner
+
+    def run(self, t_s: float, state: RobotState) -> tuple[TargetOutput, str | None]:
+        owner = self.owner
+        q, info = owner.walk(t_s, state)
+        owner.measure_clearance(state)
+        if info.pop("done", False):
+            if owner.walk.fell:
+                info["done"] = True
+            else:
+                owner.q_walked = q
+                return (q, info), "rise"
+        return (q, info), None
+
+
+class _Rise(Phase[TargetOutput]):
+    """Both feet down, from the walk's last command into the session's posture, then a wait
+    until the robot is still."""
+
+    name = "rise"
+    runs_at_start = False  # the walk's last command stands in the period it ends
+
+    def __init__(self, owner: WalkFirst) -> None:
+        self.owner = owner
+        self.t_start_s = 0.0
+        self.rows: np.ndarray | None = None  # the rise's joint rows, one per period
+
+    def start(self, t_s: float, state: RobotState) -> None:
+        walk = self.owner.walk
+        self.t_start_s = t_s
+        self.rows = rise_rows(walk.model, self.owner.q_walked, self.owner.q_then,
+                              int(round(RISE_S / walk.gait.period_s)))
+
+    def run(self, t_s: float, state: RobotState) -> tuple[TargetOutput, str | None]:
+        k = int(round((t_s - self.t_start_s) / self.owner.walk.gait.period_s))
+        q = self.rows[min(k, len(self.rows) - 1)]
+        still = float(np.max(np.abs(state.dq_rad_s))) < STILL_RAD_S
+        if k >= len(self.rows) and (still or t_s - self.t_start_s >= RISE_S + STILL_TIMEOUT_S):
+            return (q, {}), "then"
+        return (q, {}), None
+
+
+class _Then(Phase[TargetOutput]):
+    """The session's target, with its own clock from the hand-over (it runs in that period)."""
+
+    name = "then"
+
+    def __init__(self, owner: WalkFirst) -> None:
+        self.owner = owner
+
+    def start(self, t_s: float, state: RobotState) -> None:
+        owner = self.owner
+        owner.handover_s = t_s
+        owner.then.attach(owner.world, owner.modules, owner.store)
+
+    def run(self, t_s: float, state: RobotState) -> tuple[TargetOutput, str | None]:
+        return self.owner.then(t_s - self.owner.handover_s, state), None
+
+
 class WalkFirst(Target):
     """Walk to the working stance, rise into ``q_then_rad``, then run ``then`` (see the module
     docstring).
@@ -142,12 +209,13 @@ class WalkFirst(Target):
             (*walk.log_columns, "approach.phase_code", *then.log_columns)))
         self.reads = tuple(dict.fromkeys((*walk.reads, T_WORLD_TORSO, *then.reads)))
         self.writes = tuple(dict.fromkeys((*walk.writes, BALANCERS_REST, *then.writes)))
-        self.phase = "walk"
+        self.follows = tuple(dict.fromkeys((*walk.follows, *then.follows)))
+        self.previous = tuple(dict.fromkeys((*walk.previous, *then.previous)))
+        self.phases = Phases([_Walk(self), _Rise(self), _Then(self)])
         self.world: SceneActions | None = None
         self.modules: list[Module] = []
         self.store: Store | None = None
-        self.t_phase_s = 0.0
-        self.rise: np.ndarray | None = None  # the rise's joint rows, one per period
+        self.q_walked: np.ndarray | None = None  # the walk's last command
         self.handover_s: float | None = None
         self.wall_clearance_m = math.inf
 
@@ -165,49 +233,25 @@ class WalkFirst(Target):
         self._frames = [(self._robot.frame_id(f), p) for f, p in self.points.items()]
 
     @property
+    def phase(self) -> str:
+        """The phase in force: ``walk``, ``rise`` or ``then``."""
+        return self.phases.current.name
+
+    @property
     def inner(self) -> Target:
         """The target driving the robot now."""
         return self.then if self.phase == "then" else self.walk
 
     def __call__(self, t_s: float, state: RobotState) -> TargetOutput:
-        phase = self.phase
-        if phase == "walk":
-            q, info = self.walk(t_s, state)
-            self._measure_clearance(state)
-            if info.pop("done", False):
-                if self.walk.fell:
-                    info["done"] = True
-                else:
-                    self._start_rise(t_s, q)
-        elif phase == "rise":
-            k = int(round((t_s - self.t_phase_s) / self.walk.gait.period_s))
-            q, info = self.rise[min(k, len(self.rise) - 1)], {}
-            still = float(np.max(np.abs(state.dq_rad_s))) < STILL_RAD_S
-            if k >= len(self.rise) and (still or t_s - self.t_phase_s
-                                        >= RISE_S + STILL_TIMEOUT_S):
-                self._start_then(t_s)
-                phase = "then"
-        if phase == "then":
-            q, info = self.then(t_s - self.handover_s, state)
+        q, info = self.phases(t_s, state)
+        phase = self.phases.ran.name
         # what the phase that made this period's command asks of the pipeline
         self.store[BALANCERS_REST] = PHASE_REST[phase]
         if phase != "walk":
             self.store[SUPPORT_PLAN] = None  # both feet down: the estimated soles
         return q, info | {"approach.phase_code": float(PHASES.index(phase))}
 
-    def _start_rise(self, t_s: float, q_rad: np.ndarray) -> None:
-        """The walk has ended on its stance: rise from its last command into the session's
-        posture (both feet down; the balancers act again)."""
-        self.phase, self.t_phase_s = "rise", t_s
-        period = self.walk.gait.period_s
-        self.rise = rise_rows(self.walk.model, q_rad, self.q_then, int(round(RISE_S / period)))
-
-    def _start_then(self, t_s: float) -> None:
-        """The robot stands still in the session's posture: hand over to its target."""
-        self.phase, self.handover_s = "then", t_s
-        self.then.attach(self.world, self.modules, self.store)
-
-    def _measure_clearance(self, state: RobotState) -> None:
+    def measure_clearance(self, state: RobotState) -> None:
         """The foremost point's distance to the wall's plane: the estimated torso pose, the
         measured joints."""
         if self.wall_x_m is None:

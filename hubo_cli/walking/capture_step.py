@@ -245,6 +245,8 @@ class CaptureStepper(Target):
                             "capture.com_ref_y_m")
         self.reads = tuple(dict.fromkeys((*stand.reads, *self.reads)))
         self.writes = tuple(dict.fromkeys((*stand.writes, *self.writes)))
+        self.follows = tuple(dict.fromkeys((*stand.follows, *self.follows)))
+        self.previous = tuple(dict.fromkeys((*stand.previous, *self.previous)))
         self.store: Store | None = None
         self.corners = np.ascontiguousarray(model.feet.sole_corners_m()[:, :3])
         self.phase = "stand"
