@@ -308,7 +308,7 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, st
             return
         modules = target.modules
         keys = state["keys"]
-        panel = SafetyPanel(lambda: read_safety(modules, world=target.world, loop=loop,
+        panel = SafetyPanel(lambda: read_safety(modules, world=loop.driver.world, loop=loop,
                                                 robot_flags=target.robot_flags),
                             bell=err_console.bell,
                             release_key="r" if keys else None)

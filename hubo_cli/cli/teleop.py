@@ -312,7 +312,7 @@ def _run(settings, as_json: bool):
         modules = target.modules
         if as_json:
             return
-        panel = SafetyPanel(lambda: read_safety(modules, hand_safety(target), target.world,
+        panel = SafetyPanel(lambda: read_safety(modules, hand_safety(target), loop.driver.world,
                                                 loop, target.robot_flags),
                             bell=err_console.bell)
         view = LiveView(lambda: _view(target, panel),
