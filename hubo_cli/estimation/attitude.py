@@ -102,6 +102,8 @@ class AttitudeParams:
         legs_min_fz_n: a sole measures the tilt while it presses at least this ...
         legs_cop_margin_m: ... with its centre of pressure at least this inside its outline.
         initial_floor_tilt_rad: the floor's tilt's uncertainty at start.
+        still_learn_s: the accelerometer teaches the bias and the floor's tilt once the torso
+            has been still this long.
     """
 
     gyro_noise_rad_s_rt_hz: float
@@ -120,6 +122,7 @@ class AttitudeParams:
     legs_min_fz_n: float
     legs_cop_margin_m: float
     initial_floor_tilt_rad: float
+    still_learn_s: float
 
     def as_array(self) -> np.ndarray:
         """The fields in order, for the kernel."""
@@ -147,7 +150,7 @@ def attitude_params(model) -> AttitudeParams:
 # indices into the kernel's parameter array (AttitudeParams' field order)
 (_GYRO_NOISE, _BIAS_WALK, _ACCEL_NOISE, _STILL_ACCEL, _STILL_GYRO, _MOTION_TIME, _MOTION_GAIN,
  _ACCEL_REJECT, _TILT0, _BIAS0, _GYRO_RANGE, _ACCEL_RANGE, _LEGS_NOISE, _LEGS_FZ, _LEGS_MARGIN,
- _FLOOR0) = range(16)
+ _FLOOR0, _STILL_LEARN) = range(17)
 GATE_D2 = 16.3  # a direction's residual beyond this Mahalanobis square (chi-square, 3 degrees
 #                 of freedom, 0.1 %) counts with its noise grown to match it
 NX = 8  # the error state: attitude (3), gyro bias (3), the floor's tilt about world x and y (2)
@@ -248,7 +251,7 @@ def _filter_step(q, b, n, P, gyro, accel, legs, dt, gravity, params, q_out, b_ou
     """One period of the filter from (q, b, n, P) into (q_out, b_out, n_out, P_out), the
     bias-corrected rate into ``omega_out``, the motion's low-passed mean squares (| |a| - g |,
     the bias-corrected rate, the accelerometer's vibration) and the accelerometer's low-passed
-    mean (torso axes) updated in ``motion`` (6); ``legs`` (2 x 4): per sole, 1 and the floor's
+    mean (torso axes) and the time still updated in ``motion`` (7); ``legs`` (2 x 4): per sole, 1 and the floor's
     normal in the torso axes from the leg when it measures the tilt this period, else 0;
     returns the rejection bits (GYRO_REJECTED ...). With RESULT_REJECTED the outputs are the
     inputs unchanged."""
@@ -311,12 +314,31 @@ def _filter_step(q, b, n, P, gyro, accel, legs, dt, gravity, params, q_out, b_ou
             vibration2 += d * d
             motion[3 + i] += alpha * d
         motion[2] += alpha * (vibration2 - motion[2])
-    # a single reading that departs from g by several times still's is motion already (the
-    # torso jolted when the run started: the low-passed RMS saw it only after the bias took it)
+    # a single reading (|a| - g, the rate, the reading's departure from the gravity expected)
+    # several times still's is motion already (a walk sways the torso sideways from its first
+    # period, |a| hardly changing: the low-passed RMS saw it only after the floor's tilt had
+    # learnt 0.65 deg of it)
+    rate = math.sqrt(omega_out[0] ** 2 + omega_out[1] ** 2 + omega_out[2] ** 2) if gyro_ok \
+        else 0.0
+    sway = 0.0  # the reading's departure from the gravity expected, m/s^2 (sideways too)
+    if accel_ok:
+        w, x, y, z = q_out[0], q_out[1], q_out[2], q_out[3]
+        sway = math.sqrt((accel[0] - gravity * 2 * (x * z - w * y)) ** 2
+                         + (accel[1] - gravity * 2 * (y * z + w * x)) ** 2
+                         + (accel[2] - gravity * (w * w - x * x - y * y + z * z)) ** 2)
     moving = max(math.sqrt(motion[0]) / params[_STILL_ACCEL],
                  math.sqrt(motion[1]) / params[_STILL_GYRO],
-                 departure / (3.0 * params[_STILL_ACCEL]))
-    if accel_ok and dt > 0.0:
+                 departure / (3.0 * params[_STILL_ACCEL]), rate / (3.0 * params[_STILL_GYRO]),
+                 sway / (2.0 * params[_STILL_ACCEL]))
+    if dt > 0.0:
+        motion[6] = motion[6] + dt if moving <= 1.0 else 0.0
+    # a walk comes to rest swaying for a few tenths of a second after the RMS says still: the
+    # floor's tilt learnt then was 0.7 deg off on a level floor
+    settled = motion[6] >= params[_STILL_LEARN]
+    legs_measure = legs[0, 0] == 1.0 or legs[1, 0] == 1.0
+    if accel_ok and dt > 0.0 and (settled or not legs_measure):
+        # not settled, the legs tell the tilt far better than an accelerometer that feels the
+        # sway (the legs pulling back a tilt the sway pushed turned the bias by 0.7 deg/s)
         if departure > params[_ACCEL_REJECT]:
             code |= ACCEL_IGNORED
         else:
@@ -329,11 +351,11 @@ def _filter_step(q, b, n, P, gyro, accel, legs, dt, gravity, params, q_out, b_ou
             predicted[2] = w * w - x * x - y * y + z * z
             for i in range(3):
                 measured[i] = accel[i] / norm
-            # of the unit direction; the bias and the floor's tilt are learnt from it only while
-            # still (a walk's sway is 0.5-2.5 m/s^2 sideways for a fifth of a second and more,
-            # 3-15 deg of gravity's direction: it moved the floor by tenths of a degree)
+            # of the unit direction; the bias and the floor's tilt are learnt from it only once
+            # settled (a walk's sway is 0.5-2.5 m/s^2 sideways for a fifth of a second and
+            # more, 3-15 deg of gravity's direction: it moved the floor by tenths of a degree)
             _vertical_update(q_out, b_out, n_out, P_out, measured, predicted,
-                             sigma2 / (gravity * gravity), False, moving <= 1.0, moving <= 1.0)
+                             sigma2 / (gravity * gravity), False, settled, settled)
     # the legs: a loaded flat sole lies on the floor, its normal the floor's
     for k in range(2):
         if legs[k, 0] == 1.0:
@@ -453,7 +475,7 @@ class AttitudeObserver(Observer):
         self._n, self._n_next = np.array([0.0, 0.0, 1.0]), np.empty(3)
         self._P, self._P_next = np.zeros((NX, NX)), np.empty((NX, NX))
         self._omega = np.zeros(3)
-        self._motion = np.zeros(6)
+        self._motion = np.zeros(7)
         self._t_s = 0.0
         self._legs = None if model is None else LegsKinematics(model)
         self.previous = () if model is None else (CONTACT, WRENCHES)
@@ -487,7 +509,8 @@ class AttitudeObserver(Observer):
         # the vibration unknown yet: as much as still allows
         self._motion[:3] = 0.0, 0.0, p.still_accel_m_s2 ** 2
         accel = _vector(state.imu_accel_m_s2, 3)
-        self._motion[3:] = accel if np.all(np.isfinite(accel)) else (0.0, 0.0, GRAVITY_M_S2)
+        self._motion[3:6] = accel if np.all(np.isfinite(accel)) else (0.0, 0.0, GRAVITY_M_S2)
+        self._motion[6] = p.still_learn_s  # settled: a robot is set down and settles first
         self.rejected_periods = self.legs_periods = 0
         self._write(store, 0)
 
