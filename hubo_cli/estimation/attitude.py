@@ -13,16 +13,19 @@ and the floor's small tilt about the world's x and y, with an 8 x 8 covariance.
   R^T e_z, while the torso does not accelerate. While it is still (the motion below), its
   noise is ``accel_noise_m_s2`` (the sensor's own) and the vibration measured (the RMS,
   low-passed over ``motion_time_s``, of the reading's departure from its own low-passed
-  mean, that mean turned with the gyro), and the correction reaches the bias too: standing
-  still is when the bias is learnt.
+  mean, that mean turned with the gyro); once the torso has been still ``still_learn_s``
+  (settled; a robot is set down and settles before a run starts) the correction reaches the
+  bias and the floor's tilt too: standing still is when they are learnt.
 - Motion: the root mean square, low-passed over ``motion_time_s``, of the departure of |a|
-  from g and of the bias-corrected rate; the torso is still while both stay below
-  ``still_accel_m_s2`` and ``still_gyro_rad_s``. Beyond, by the factor m (the larger ratio),
-  the accelerometer's noise grows by the factor ``1 + motion_noise_gain (m - 1)`` and the
-  bias is not corrected: a walk's sway and a push accelerate the torso sideways for a second
-  and more, which the accelerometer cannot tell from a tilt (its norm hardly changes, the
-  rate does). A reading whose |a| departs from g by more than ``accel_reject_m_s2`` (an
-  impact) is not used at all.
+  from g and of the bias-corrected rate, and this reading's |a| - g, rate and departure from
+  the gravity expected (sideways too); the torso is still while they stay below
+  ``still_accel_m_s2`` and ``still_gyro_rad_s`` (the readings' below 3 and 2 times that).
+  Beyond, by the factor m (the larger ratio), the accelerometer's noise grows by the factor
+  ``1 + motion_noise_gain (m - 1)``: a walk's sway and a push accelerate the torso sideways
+  for a second and more, which the accelerometer cannot tell from a tilt (its norm hardly
+  changes, the rate does). Not settled while the legs tell the tilt, the accelerometer is not
+  used (they tell it far better). A reading whose |a| departs from g by more than
+  ``accel_reject_m_s2`` (an impact) is not used at all.
 - Heading: gravity says nothing about it, nor about the bias about the vertical. While still,
   the torso does not turn about the vertical, so the gyro's vertical component is read as
   that bias (a zero-rate update, its noise the rate's measured vibration, unless it departs
@@ -35,14 +38,14 @@ and the floor's small tilt about the world's x and y, with an 8 x 8 covariance.
   R^T n, to the encoders' noise and the sole's compliance (``legs_tilt_noise_rad``), walking
   or not; that correction reaches the bias too (the bias across gravity is learnt while
   walking), not the floor's tilt: only gravity tells that, so the floor is learnt from the
-  accelerometer while still. The contact and the wrenches are the last period's (they come
+  accelerometer once settled. The contact and the wrenches are the last period's (they come
   after the attitude in the period: the wrenches need it).
 - Start: the first attitude is the first accelerometer reading's tilt (the simulator's first
   reading is gravity alone: no velocity to difference yet) and the IMU's reported heading,
   no bias; the floor's normal is the soles' (both stand on it at the start, as the floating
   base has them) through the legs and that attitude. A walk moves the torso from its first
-  period (0.5-2.5 m/s^2 sideways), so neither could be learnt from the accelerometer before
-  it; a residual beyond the filter's expectation (chi-square, :data:`GATE_D2`) counts with
+  period (0.5-2.5 m/s^2 sideways), so neither could be learnt from the accelerometer after
+  it. A residual beyond the filter's expectation (chi-square, :data:`GATE_D2`) counts with
   its noise grown to match it.
 - A reading that is not finite or beyond the sensor's range is not used: a bad gyro holds the
   attitude (no prediction), a bad accelerometer skips the correction; :data:`IMU_REJECTED`
@@ -251,8 +254,9 @@ def _filter_step(q, b, n, P, gyro, accel, legs, dt, gravity, params, q_out, b_ou
     """One period of the filter from (q, b, n, P) into (q_out, b_out, n_out, P_out), the
     bias-corrected rate into ``omega_out``, the motion's low-passed mean squares (| |a| - g |,
     the bias-corrected rate, the accelerometer's vibration) and the accelerometer's low-passed
-    mean (torso axes) and the time still updated in ``motion`` (7); ``legs`` (2 x 4): per sole, 1 and the floor's
-    normal in the torso axes from the leg when it measures the tilt this period, else 0;
+    mean (torso axes) and the time still updated in ``motion`` (7); ``legs`` (2 x 4): per
+    sole, 1 and the floor's normal in the torso axes from the leg when it measures the tilt
+    this period, else 0;
     returns the rejection bits (GYRO_REJECTED ...). With RESULT_REJECTED the outputs are the
     inputs unchanged."""
     code = 0
