@@ -87,8 +87,7 @@ class Stage(Protocol):
 
 def check_flow(stages: Iterable[Stage], provided: Iterable[Key] = ()) -> None:
     """Check that every key a stage reads is written by an earlier stage (or ``provided``)
-    and that no key has two writers; a stage's ``previous`` keys (read as the last period left
-    them) need a writer anywhere.
+    and that no key has two writers.
 
     Raises:
         FlowError: naming the stage and the key.
@@ -106,10 +105,6 @@ def check_flow(stages: Iterable[Stage], provided: Iterable[Key] = ()) -> None:
                 raise FlowError(
                     f"{stage.name} reads {key.name}, which no earlier stage writes",
                     hint="add the stage that writes it, or put it before this one")
-        for key in getattr(stage, "previous", ()):  # the last period's value
-            if key not in later and key not in writer:
-                raise FlowError(f"{stage.name} reads the last period's {key.name}, which no "
-                                "stage writes", hint="add the stage that writes it")
         for key in stage.writes:
             if key in writer:
                 raise FlowError(f"{key.name} is written by both {writer[key]} and {stage.name}",
