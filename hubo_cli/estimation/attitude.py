@@ -568,11 +568,6 @@ class AttitudeObserver(Observer):
             if point is not None and x_lo < point[0] < x_hi and y_lo < point[1] < y_hi:
                 legs[k, 0] = 1.0
                 legs[k, 1:] = self._T_torso_soles[k, :3, 2]
-        if legs[0, 0] and legs[1, 0]:  # both: one measurement, their mean normal (a third
-            #                             less time a period; their noise taken as one sole's)
-            mean = legs[0, 1:] + legs[1, 1:]
-            legs[0, 1:] = mean / math.sqrt(float(mean @ mean))
-            legs[1, 0] = 0.0
         if legs[0, 0] or legs[1, 0]:
             self.legs_periods += 1
         return legs
