@@ -598,7 +598,6 @@ class TeleopTarget(Target):
 
     def _measure(self, t_s: float, state, info: dict) -> None:
         info["phase_code"] = PHASES.index(self.phase)
-        self._T_S_N()  # S placed in the world at the first period
         info["lift_m"] = float(self.body.lift_of(self.q_target))
         info["latency_s"] = self.latencies_s[-1] if self.latencies_s else 0.0
         for arm, hand in self.hands.items():
