@@ -45,6 +45,16 @@ class Key(Generic[T]):
         return f"Key({self.name})"
 
 
+def _written(values: dict, key: Key[T]) -> T:
+    """``key``'s value in ``values``; FlowError when nothing has written it yet."""
+    try:
+        return values[key]
+    except KeyError:
+        raise FlowError(f"nothing has written {key.name} yet",
+                        hint="declare a stage that writes it before the one that reads it"
+                        ) from None
+
+
 class Store:
     """The values of one run's keys: each stage writes its keys every period, later stages
     read them. Reading a key nobody has written yet raises :class:`FlowError`."""
@@ -55,12 +65,7 @@ class Store:
         self._values: dict[Key, object] = {}
 
     def __getitem__(self, key: Key[T]) -> T:
-        try:
-            return self._values[key]  # type: ignore[return-value]
-        except KeyError:
-            raise FlowError(f"nothing has written {key.name} yet",
-                            hint="declare a stage that writes it before the one that reads it"
-                            ) from None
+        return _written(self._values, key)
 
     def __setitem__(self, key: Key[T], value: T) -> None:
         self._values[key] = value
@@ -99,12 +104,7 @@ class StoreView:
     def __getitem__(self, key: Key[T]) -> T:
         if key not in self._readable:
             raise self._refuse("reads", key, "reads (or follows)")
-        try:
-            return self._values[key]  # type: ignore[return-value]
-        except KeyError:
-            raise FlowError(f"nothing has written {key.name} yet",
-                            hint="declare a stage that writes it before the one that reads it"
-                            ) from None
+        return _written(self._values, key)
 
     def __setitem__(self, key: Key[T], value: T) -> None:
         if key not in self._writable:

@@ -64,3 +64,34 @@ class Timeline(Generic[T]):
         """Hand out from the first item again."""
         self._cursor = 0
         self._now = -math.inf
+
+
+class OnTimeline:
+    """What a source that releases a :class:`Timeline` (``self._timeline``) by the caller's
+    clock tells of it: first and last times, span, whether all is out, and its clock."""
+
+    _timeline: Timeline
+
+    @property
+    def start_s(self) -> float:
+        """Time of the first item (s)."""
+        return self._timeline.start_s
+
+    @property
+    def end_s(self) -> float:
+        """Time of the last item (s)."""
+        return self._timeline.end_s
+
+    @property
+    def done(self) -> bool:
+        """True once every item has been released."""
+        return self._timeline.done
+
+    @property
+    def recorded_s(self) -> float:
+        """From the first item to the last (s)."""
+        return self._timeline.recorded_s
+
+    def now_s(self) -> float:
+        """The latest time released up to (before any: the first item's)."""
+        return self._timeline.now_s()

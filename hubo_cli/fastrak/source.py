@@ -20,7 +20,7 @@ import numpy as np
 
 from hubo_cli.fastrak.records import SUSPECT_STATUS, RecordBatch
 from hubo_cli.geometry import quat_wxyz_to_matrix
-from hubo_cli.timeline import Timeline
+from hubo_cli.timeline import OnTimeline, Timeline
 
 
 @dataclass(frozen=True, eq=False)
@@ -180,7 +180,7 @@ class PoseSource(ABC):
         self.close()
 
 
-class ReplaySource(PoseSource):
+class ReplaySource(OnTimeline, PoseSource):
     """Samples from a recording, released by the caller's clock.
 
     Args:
@@ -196,26 +196,6 @@ class ReplaySource(PoseSource):
         self.stats = stats
 
     @property
-    def start_s(self) -> float:
-        """Receive time of the first sample, seconds."""
-        return self._timeline.start_s
-
-    @property
-    def end_s(self) -> float:
-        """Receive time of the last sample, seconds."""
-        return self._timeline.end_s
-
-    @property
-    def done(self) -> bool:
-        """True once every sample has been delivered."""
-        return self._timeline.done
-
-    @property
-    def recorded_s(self) -> float:
-        """From the first sample to the last (s)."""
-        return self._timeline.recorded_s
-
-    @property
     def stations(self) -> tuple[int, ...]:
         """Stations present in the recording."""
         return tuple(sorted({s.station for s in self._timeline.items}))
@@ -226,10 +206,6 @@ class ReplaySource(PoseSource):
         if out:
             self._seen(out)
         return out
-
-    def now_s(self) -> float:
-        """The latest ``t_s`` passed to :meth:`read_until`."""
-        return self._timeline.now_s()
 
     def rewind(self) -> None:
         """Start delivering from the first sample again."""

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hubo_cli.timeline import Timeline
+from hubo_cli.timeline import OnTimeline, Timeline
 
 HANDS = ("right", "left")
 ARM_OF_HAND = {"right": "right-arm", "left": "left-arm"}  # the robot arm a hand drives
@@ -131,7 +131,7 @@ class InputDevice(ABC):
         self.close()
 
 
-class RecordedInput(InputDevice):
+class RecordedInput(OnTimeline, InputDevice):
     """Hand poses known in advance (a decoded recording, a generated stream), released by the
     caller's clock.
 
@@ -146,27 +146,5 @@ class RecordedInput(InputDevice):
         self.info = info
         self.hands = tuple(h for h in HANDS if any(p.hand == h for p in self._timeline.items))
 
-    @property
-    def start_s(self) -> float:
-        """Time of the first pose, seconds."""
-        return self._timeline.start_s
-
-    @property
-    def end_s(self) -> float:
-        """Time of the last pose, seconds."""
-        return self._timeline.end_s
-
-    @property
-    def done(self) -> bool:
-        return self._timeline.done
-
-    @property
-    def recorded_s(self) -> float:
-        return self._timeline.recorded_s
-
     def _read(self, t_s: float) -> list[HandPose]:
         return self._timeline.take_until(t_s)
-
-    def now_s(self) -> float:
-        """The latest ``t_s`` passed to :meth:`read_until` (before any: the first pose's)."""
-        return self._timeline.now_s()
