@@ -361,10 +361,12 @@ def run_standing(model: RobotModel, options: StandingOptions, *, gui: bool = Fal
     done.save_summary(result.summary())
     if options.step:
         done.save_summary({"capture_step": stepper.summary()})
-    bow = done.module("hip")
-    if bow is not None:  # how far the trunk bowed, and that it stands upright again
-        done.save_summary({"hip_strategy": {"max_bow_rad": bow.max_abs_bow_rad,
-                                            "final_bow_rad": bow.bow_rad}})
+    if "hip" in done.loop.module_status:  # how far the trunk bowed, and that it stands up
+        bow = done.log["hip_bow_rad"]  # the hip strategy's output (NaN in the smooth stop)
+        bow = bow[np.isfinite(bow)]
+        done.save_summary({"hip_strategy": {
+            "max_bow_rad": float(np.max(np.abs(bow), initial=0.0)),
+            "final_bow_rad": float(bow[-1]) if len(bow) else 0.0}})
     return result
 
 

@@ -353,7 +353,7 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
     if stops:
         module, t_stop, _, sources = stops[0]
         step = spec.steps[target.step_stopped] if target.step_stopped is not None else None
-        stopper = done.module("estop")
+        stopper = done.loop.module_status.get("estop")
         after_stop = log["t_s"] > t_stop + 1e-9
         relieved = bool(RELIEVE_SOURCES.intersection(sources))
         stop = {"t_s": t_stop, "sources": list(sources),
@@ -361,7 +361,7 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
                 "reverted_to_t_s": None if relieved else t_stop - spec.safety.revert_s,
                 "retreat_mm": None if target.retreat_m is None else target.retreat_m * 1000,
                 "held": target.phase == "stopped" and stopper is not None
-                and stopper.status().mode == "hold",
+                and stopper.mode == "hold",
                 "resumed_at_t_s": target.resumed_t_s,
                 "held_after_s": None if target.t_held_s is None else target.t_held_s - t_stop,
                 "wrist_torque_nm": float(np.nanmax(all_torque[~after_stop]))

@@ -106,7 +106,6 @@ class TaskTarget(Target):
         self.resumable = resumable
         self.body = body = plan.body
         self.world: SceneActions | None = None
-        self.modules: list = []  # set by attach()
         self.scene: dict = {}
         self.limb = plan.spec.stance.limb
         self.slice = body.model.limb_slice(self.limb)
@@ -157,7 +156,6 @@ class TaskTarget(Target):
     def attach(self, world: SceneActions | None, modules: Sequence[Module],
                store: Store) -> None:
         self.world, self.store = world, store
-        self.modules = list(modules)  # the pipeline, for the live view's safety state
 
     def relieve(self, q_rad: np.ndarray) -> np.ndarray | None:
         """The path that relieves the wrist after a wrist-torque stop braked the command

@@ -221,7 +221,6 @@ class TeleopTarget(Target):
         self.t_path_s: float | None = None
         self.wall = wall
         self.world: SceneActions | None = None
-        self.modules: list = []  # set by attach()
         self.scene: dict = {}
         self.goals: dict[str, np.ndarray] = dict(firsts)
         self.hands = {arm: HandTrack() for arm in self.arms}
@@ -263,7 +262,6 @@ class TeleopTarget(Target):
 
     def attach(self, world: SceneActions | None, modules, store: Store) -> None:
         self.world, self.store = world, store
-        self.modules = list(modules)  # the pipeline, for the live view's safety state
 
     # ------------------------------------------------------------------ measurement
     def hand_pose_measured(self, arm: str, state) -> np.ndarray:
