@@ -31,9 +31,10 @@ from hubo_cli.model import RobotModel, load_model
 from hubo_cli.posture import home_posture
 from hubo_cli.runs import shown_name
 from hubo_cli.session import RunObserver, RunResult, RunSetup, run, settled_objects
+from hubo_cli.tasks.phases import SETTLE_TIMEOUT_S
 from hubo_cli.tasks.plan import EDGE_NAMES, Plan, make_plan
 from hubo_cli.tasks.spec import TaskSpec, format_override
-from hubo_cli.tasks.target import SETTLE_TIMEOUT_S, TaskTarget
+from hubo_cli.tasks.target import TaskTarget
 
 PAPER_TORQUE_NM = {"horizontal": {"mean": 0.14, "max": 0.23},
                    "vertical": {"mean": 0.15, "max": 0.35}}
