@@ -358,7 +358,7 @@ def run_standing(model: RobotModel, options: StandingOptions, *, gui: bool = Fal
                      model.control_period_s)
     result.failure = done.loop.failure(done.run_dir)
     result.push_direction = options.push_direction
-    done.save_summary(result.summary())
+    done.save_summary(result.summary() | {"limit_set_reason": options.limit_set_reason})
     if options.step:
         done.save_summary({"capture_step": stepper.summary()})
     if "hip" in done.loop.module_status:  # how far the trunk bowed, and that it stands up
