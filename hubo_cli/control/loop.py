@@ -217,7 +217,7 @@ class ControlLoop:
         # each stage sees the store through its view: an undeclared key is a FlowError
         self.target_store = self.target.store = self.store.view(self.target)
         self._views = [self.store.view(m) for m in self.modules]
-        self.watching_status = False
+        self._watching_status = False
         self.module_status = self._published()
         self.clock = clock
         self.sleep = sleep
@@ -256,7 +256,7 @@ class ControlLoop:
     def watch_status(self) -> None:
         """Refresh :attr:`module_status` after every period from now on (a viewer watches;
         about 20 us a period, so runs without one take it only at the start and the end)."""
-        self.watching_status = True
+        self._watching_status = True
 
     def _pace(self) -> float:
         """Wait for this period's deadline; return the lateness after waiting (s)."""
@@ -377,7 +377,7 @@ class ControlLoop:
                 extras.update(driver.log_values())
                 if self.estimator is not None:
                     extras.update(self.estimator.log_values())
-                if self.watching_status:
+                if self._watching_status:
                     self.module_status = self._published()
                 self._write(t_s, cycle.flags, compute_s, late_s, target_logged, applied, state,
                             extras)
