@@ -50,7 +50,9 @@ class Raise(TaskPhase):
 
 class Run(TaskPhase):
     """The plan's joint targets period by period, from the row it is at (0, or where a stop
-    froze it: the same row in the period it resumes, the rest in its own time)."""
+    froze it: the same row in the period it resumes, the rest in its own time). From its first
+    start on, a plan with a thrust has the impedance controller on (the target writes
+    IMPEDANCE_ON once ``t_run_s`` is set)."""
 
     name = "run"
 
