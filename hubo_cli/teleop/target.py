@@ -78,7 +78,7 @@ from hubo_cli.model import ARMS, RobotModel
 from hubo_cli.motion.tracker import JointTracker
 from hubo_cli.scene import SceneActions, WallPlacement
 from hubo_cli.teleop.mapping import HandMapper
-from hubo_cli.teleop.phases import Approach, Operate, Settle
+from hubo_cli.teleop.phases import PHASES, Approach, Operate, Settle
 
 SHORT = {"right-arm": "r", "left-arm": "l"}
 REST_RADIUS_M = 0.005  # a goal that stays within this for REST_S is at rest
@@ -614,7 +614,7 @@ class TeleopTarget(Target):
         return report
 
     def _measure(self, t_s: float, state, info: dict) -> None:
-        info["phase_code"] = self.phases.code
+        info["phase_code"] = PHASES.index(self.phase)
         if self.T_world_S is None:
             self.T_world_S = np.array(self.store[T_WORLD_TORSO], dtype=float)
         info["lift_m"] = float(self.body.lift_of(self.q_target))
