@@ -184,7 +184,7 @@ def cut_periods(log: LogData, inside: np.ndarray) -> tuple[np.ndarray, str]:
     if "cutting" in log.columns:
         return log["cutting"] > 0.5, "plan"
     if log.metadata.get("command") == "teleop" and "phase_code" in log.columns:
-        from hubo_cli.teleop.target import PHASES
+        from hubo_cli.teleop.phases import PHASES
 
         return log["phase_code"] == PHASES.index("operate"), "operating"
     window = np.zeros(len(log), dtype=bool)

@@ -159,19 +159,14 @@ class RunResult:
 
     Attributes:
         run_dir: the run folder.
-        loop: how the control loop ended.
-        modules: the pipeline that ran (to read a module's state after the run).
+        loop: how the control loop ended (with what its modules published at the end,
+            ``loop.module_status``: a use case reads that, never a module).
         summary: the summary as written to ``summary.json``.
     """
 
     run_dir: Path
     loop: LoopResult
-    modules: list[Module]
     summary: dict
-
-    def module(self, name: str) -> Module | None:
-        """The pipeline module called ``name``, or None when it did not run."""
-        return next((m for m in self.modules if m.name == name), None)
 
     @cached_property
     def log(self) -> LogData:
@@ -274,7 +269,7 @@ def _run_in(setup: RunSetup, target: Target, on_start, speed: float | None,
                  "limit_set": setup.model.limits_name}
     update_log_metadata(run_dir, metadata)
     summary = common_summary(setup, speed, result, modules, run_dir) | driver_summary
-    done = RunResult(run_dir, result, modules, summary)
+    done = RunResult(run_dir, result, summary)
     summary["started_utc"] = done.log.started_utc  # the log's, the one home of the fact
     summary["hubo_cli_version"] = done.log.hubo_cli_version
     summary["max_joint_velocity_ratio"] = max_velocity_ratio(setup.model, done.log)

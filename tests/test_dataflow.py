@@ -189,3 +189,54 @@ def test_no_target_reaches_into_a_pipeline_module():
                         found.append(f"{where} calls {inner.value.id}.{inner.attr}")
     assert {"EmergencyStopper", "ImpedanceController", "TrajectoryGenerator"} <= module_classes
     assert not found, found
+
+
+def test_nothing_outside_the_control_loop_reads_a_module():
+    """What the modules publish reaches a viewer or a use case through the loop's record
+    (``module_status``) and the store, never from a module: outside ``control/`` (the loop and
+    the modules) and ``bench/`` (which times the modules themselves), no code asks a module
+    for its status, picks one out of a pipeline, or keeps the pipeline to read later."""
+    import ast
+    from pathlib import Path
+
+    import hubo_cli
+
+    root = Path(hubo_cli.__file__).parent
+    found = []
+    for path in sorted(root.rglob("*.py")):
+        part = path.relative_to(root).parts[0]
+        if part in ("control", "bench"):
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            where = f"{path.relative_to(root)}:{getattr(node, 'lineno', 0)}"
+            if isinstance(node, ast.Call):
+                name = getattr(node.func, "attr", getattr(node.func, "id", ""))
+                if name == "status" and not node.args:
+                    found.append(f"{where} asks for a status()")
+                if name in ("find_module", "module"):
+                    found.append(f"{where} picks a module by name")
+            if (isinstance(node, ast.Assign) and any(
+                    isinstance(t, ast.Attribute) and t.attr == "modules" for t in node.targets)
+                    and path.parts[-2] != "walking"):  # (walking hands its pipeline on)
+                found.append(f"{where} keeps the pipeline")
+    assert not found, found
+
+
+def test_a_real_pipeline_without_a_producer_is_refused_when_the_loop_is_built():
+    """The impedance controller takes the hand wrench plan from the target when no soft
+    stopper reverts it: a target that does not write it is a build error of the loop, before
+    the robot moves; with the writer declared, the loop builds."""
+    from hubo_cli.control.pipeline import SafetyProfile
+    from hubo_cli.control.target import FunctionTarget
+    from hubo_cli.control.wrench import HAND_WRENCH_PLAN
+
+    model = load_model()
+    profile = SafetyProfile(impedance=True, wrench_reference=True, estop=False)
+    with make_driver("ideal", model) as driver:
+        driver.start()
+        modules = profile.build(model, driver.period_s, {})
+        with pytest.raises(FlowError, match="impedance reads hand_wrench_plan"):
+            ControlLoop(driver, modules, lambda t, s: (None, {}))
+        writer = FunctionTarget(lambda t, s: (None, {}))
+        writer.writes = (HAND_WRENCH_PLAN,)
+        ControlLoop(driver, modules, writer)

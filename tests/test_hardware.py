@@ -394,9 +394,9 @@ def test_the_view_and_the_status_say_state_stale():
     assert status_from_flags({"stale-hold", "holding"}) == Status.STATE_STALE
     for flags, words in ((("stale-state", "ref-wait"), "no fresh robot state"),
                          (("stale-hold",), "robot state back")):
-        text = safety_text(read_safety([], robot_flags=flags)).plain
+        text = safety_text(read_safety(robot_flags=flags)).plain
         assert text.startswith("STATE STALE") and words in text and "the run ends" in text
-    assert "STATE STALE" not in safety_text(read_safety([], robot_flags=("ref-wait",))).plain
+    assert "STATE STALE" not in safety_text(read_safety(robot_flags=("ref-wait",))).plain
 
 
 @pytest.mark.parametrize("seed", range(6))

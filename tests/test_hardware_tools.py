@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hubo_cli.tasks.target import PHASES
+from hubo_cli.tasks.phases import PHASES
 
 TOOLS = Path(__file__).resolve().parent.parent / "tools"
 

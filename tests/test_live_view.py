@@ -29,7 +29,7 @@ from hubo_cli.cli.output import ProgressLines
 from hubo_cli.cli.safety_view import HandSafety, SafetyPanel, SafetyState, read_safety, safety_text
 from hubo_cli.cli.teleop import KEYS_HELP, _view, hand_safety
 from hubo_cli.control.loop import ControlLoop
-from hubo_cli.control.pipeline import find_module
+from hubo_cli.control.pipeline import build_pipeline
 from hubo_cli.fastrak.opener import open_source
 from hubo_cli.resources import data_file
 from hubo_cli.teleop.session import TeleopSettings, run_teleop
@@ -71,24 +71,26 @@ def test_live_view_shows_the_operator_stop_and_counts_it_once(tmp_path):
     captured: dict = {}
     bells: list[float] = []
 
-    def operator(target, modules, panel):
-        estop = find_module(modules, "estop")
+    def operator(target, loop, panel):
+        def stopper_mode():  # what the loop's record says, as the view reads it
+            return loop.module_status["estop"].mode
+
         if not _wait(lambda: target.phase == "operate"):
             return
         target.keys.estop = True
-        if _wait(lambda: estop.mode == "hold"):
+        if _wait(lambda: stopper_mode() == "hold"):
             captured["held"] = _text(_view(target, panel))
         target.keys.release = True
-        if _wait(lambda: estop.mode == "recover"):
+        if _wait(lambda: stopper_mode() == "recover"):
             captured["released"] = _text(_view(target, panel))
         target.keys.quit = True
 
     def on_ready(target, loop):
-        modules = target.modules
-        panel = SafetyPanel(lambda: read_safety(modules, hand_safety(target)),
+        loop.watch_status()
+        panel = SafetyPanel(lambda: read_safety(loop, hand_safety(target)),
                             bell=lambda: bells.append(time.monotonic()))
         captured["first"] = _text(_view(target, panel))
-        threading.Thread(target=operator, args=(target, modules, panel), daemon=True).start()
+        threading.Thread(target=operator, args=(target, loop, panel), daemon=True).start()
 
     run = run_teleop(TeleopSettings(replay=FREE_CSV, driver="ideal", speed=1.0,
                                     out=tmp_path / "run"), on_ready=on_ready)
@@ -100,7 +102,40 @@ def test_live_view_shows_the_operator_stop_and_counts_it_once(tmp_path):
     assert len(bells) == 1
     kinds = [e["kind"] for e in run.summary["estop_events"]]
     assert kinds == ["stop", "release"]
-    assert read_safety([]).stops == 0
+    assert read_safety().stops == 0
+
+
+def test_the_view_reads_the_loops_record_not_the_modules(model):
+    """The safety view reads what the loop recorded of the pipeline: the record taken when the
+    loop is built (the stopper ready), refreshed every period once a viewer watches (the
+    operator's stop seen in the period after it latched), and the last one in the result."""
+    robot = ideal(model)
+    q0 = robot.read().q_rad.copy()
+    seen: dict[int, str] = {}
+    loop_ref: list[ControlLoop] = []
+
+    def target(t_s, state):
+        k = round(t_s / DT)
+        if k in (5, 21, 60):
+            seen[k] = read_safety(loop_ref[0]).estop
+        info = {"done": k >= 80}
+        if k == 20:
+            info["estop"] = "operator"
+        if k == 40:
+            info["release"] = True
+        return q0, info
+
+    loop = ControlLoop(robot, build_pipeline(model), target)
+    loop_ref.append(loop)
+    before = read_safety(loop)
+    assert before.soft_estop and before.estop == "off" and before.stops == 0
+    assert "operator" in before.active_sources and before.balance.balancer
+    loop.watch_status()
+    result = loop.run()
+    assert seen == {5: "off", 21: "stopping", 60: "releasing"}, seen
+    assert result.module_status["estop"].stops == 1
+    assert result.module_status["estop"].last_stop_sources == ("operator",)
+    assert result.module_status["otg"] is None  # a module with nothing to show
 
 
 @pytest.mark.skipif(shutil.which("tmux") is None, reason="tmux is not installed")
@@ -144,7 +179,7 @@ def test_the_loop_falling_behind_shows_as_it_happens(model):
     def target(t_s, state):
         k = round(t_s / DT)
         if k in (40, 60, 150):
-            seen[k] = SafetyPanel(lambda: read_safety([], loop=loop_ref[0])).words()
+            seen[k] = SafetyPanel(lambda: read_safety(loop_ref[0])).words()
         if k in (50, 120):
             clock.now_s += {50: 1.0, 120: 0.5}[k]  # a stall far beyond the loop's lag limit
         return None, {}

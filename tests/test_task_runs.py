@@ -50,6 +50,69 @@ def test_default_plan_passes_preflight_and_follows_the_rectangle(rectangle_plan)
         assert np.linalg.norm(bit - plan.goal_S_m[k]) < 1e-9
 
 
+def test_the_task_phases_hand_over_and_a_released_stop_resumes_the_frozen_row(rectangle_plan):
+    """The task's phases as explicit states: raise -> run once the robot is still on the first
+    pose; a stop latched (the stopper's mode, the store's STOP_MODE) freezes the plan's row;
+    released, the run goes on from that very row; at the plan's end, settle waits from the next
+    period and ends the run once the robot is still. Without an operator a held stop ends the
+    run after STOP_HOLD_S of stillness."""
+    from hubo_cli.control.keys import STOP_MODE
+    from hubo_cli.drivers.registry import make_driver
+    from hubo_cli.estimation.build import build_estimator
+    from hubo_cli.tasks.phases import PHASES, STOP_HOLD_S
+
+    plan, dt = rectangle_plan, rectangle_plan.dt_s
+    rows = len(plan.t_s)
+
+    def target_on_still_robot(resumable):
+        target = TaskTarget(plan, correction=False, resumable=resumable)
+        estimator = build_estimator(plan.body.model, dict(plan.body.tools))
+        with make_driver("ideal", plan.body.model) as driver:
+            driver.start(plan.q_first_rad)
+            estimator.reset(driver.read())  # every estimate key the target reads
+        target.attach(None, [], estimator.store)
+        return target, estimator.store
+
+    def still(q):
+        return RobotState(0.0, q, np.zeros(len(q)))
+
+    target, store = target_on_still_robot(resumable=True)
+    codes = []
+    for k in range(11):
+        _, info = target(k * dt, still(plan.q_first_rad))
+        codes.append(info["phase_code"])
+    assert target.phase == "run" and target.k == 10 and codes[0] == PHASES.index("run")
+    store[STOP_MODE] = "stop"
+    _, info = target(11 * dt, still(plan.q_first_rad))
+    assert target.phase == "stopped" and info["phase_code"] == PHASES.index("stopped")
+    assert target.t_stop_s == 11 * dt and target.k == 10
+    store[STOP_MODE] = "hold"
+    for k in range(12, 12 + round(2 * STOP_HOLD_S / dt)):  # an operator: it holds on
+        _, info = target(k * dt, still(plan.q_first_rad))
+        assert "done" not in info
+    store[STOP_MODE] = "release"
+    t_resume = 500 * dt
+    q, _ = target(t_resume, still(plan.q_first_rad))
+    assert target.phase == "run" and target.k == 10 and target.resumed_t_s == [t_resume]
+    assert np.array_equal(q, plan.q_rad[10])
+    t_end = t_resume + (rows - 10) * dt
+    _, info = target(t_end, still(plan.q_rad[-1]))  # past the last row: settle next period
+    assert target.phase == "settle" and target.k == rows - 1 and "done" not in info
+    _, info = target(t_end + dt, still(plan.q_rad[-1]))
+    assert info["done"] and info["phase_code"] == PHASES.index("settle")
+
+    target, store = target_on_still_robot(resumable=False)
+    target(0.0, still(plan.q_first_rad))
+    store[STOP_MODE] = "hold"
+    t_held = dt
+    for k in range(1, round(STOP_HOLD_S / dt) + 1):
+        _, info = target(k * dt, still(plan.q_first_rad))
+        assert "done" not in info
+    assert target.t_held_s == t_held and target.step_stopped == plan.step_index[0]
+    _, info = target(t_held + STOP_HOLD_S + dt, still(plan.q_first_rad))
+    assert info["done"]
+
+
 def test_the_task_corrects_the_arm_by_the_measured_torso_lean(rectangle_plan):
     """A torso leaning 0.5 deg forward (IMU): the target's arm joints put the bit back on the
     plan's goal in S (through the measured torso pose); the plan's own joints, which the target

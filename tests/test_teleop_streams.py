@@ -51,6 +51,7 @@ def test_the_devices_clutch_holds_the_hand_and_recentres_without_a_jump(model):
     from hubo_cli.input.device import HandPose, RecordedInput
     from hubo_cli.posture import home_posture
     from hubo_cli.teleop.mapping import HandMapper
+    from hubo_cli.teleop.phases import PHASES
     from hubo_cli.teleop.session import TeleopSettings, approach_paths, prepare
     from hubo_cli.teleop.target import TeleopTarget
 
@@ -70,11 +71,12 @@ def test_the_devices_clutch_holds_the_hand_and_recentres_without_a_jump(model):
         driver.start(home_posture(model))
         target = TeleopTarget(model, device, HandMapper(mapping), body,
                               approach_paths(body, ["right-arm"], scene), home_posture(model))
-        state, t_s, goals = driver.read(), 0.0, []
+        state, t_s, goals, phases = driver.read(), 0.0, [], []
         estimator = build_estimator(model, period_s=driver.period_s)  # as the loop runs it
         target.store = estimator.reset(state)
         while target.phase != "settle" and t_s < 30.0:
-            q, _ = target(t_s, state)
+            q, info = target(t_s, state)
+            phases.append((target.phase, info["phase_code"]))
             driver.send(q)
             state = driver.step()
             estimator.update(state)
@@ -84,6 +86,8 @@ def test_the_devices_clutch_holds_the_hand_and_recentres_without_a_jump(model):
     times = np.array([g[0] for g in goals])
     x = np.array([g[1][0] for g in goals]) - goals[0][1][0]
     assert target.phase == "settle"
+    # the phases in order, each period's log code its own (the balance report reads them)
+    assert list(dict.fromkeys(phases)) == [(name, PHASES.index(name)) for name in PHASES]
     clutched = (times >= 2.45) & (times < 3.6)
     assert np.ptp(x[clutched]) < 1e-12  # held while the clutch is down
     assert x[clutched][0] == pytest.approx(0.05, abs=2e-3)

@@ -19,7 +19,7 @@ import argparse
 import numpy as np
 
 from hubo_cli.control.log import load_log
-from hubo_cli.tasks.target import PHASES
+from hubo_cli.tasks.phases import PHASES
 
 
 def hole_rms_mm(log, track: np.ndarray) -> tuple[float, int, float]:

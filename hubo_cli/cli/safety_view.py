@@ -1,4 +1,6 @@
-"""The safety state the operator must always see, read from the pipeline, as a rich renderable.
+"""The safety state the operator must always see, as a rich renderable: read from what the
+control loop records of the pipeline each period (the modules' published status), never from a
+module.
 
 One line per concern, each in words and in colour: the emergency stop (its source; stopping,
 held, or blending back after a release; the key that releases it), the collision layer (holding
@@ -14,7 +16,7 @@ function and one entry there.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 
 from rich.text import Text
@@ -106,16 +108,13 @@ ROBOT_WORDS = {  # driver flags of the robot's state the operator must see
 }
 
 
-def read_balance(modules: Iterable, world=None) -> BalanceWatch:
+def read_balance(published: Mapping[str, object], world=None) -> BalanceWatch:
     """How well the body is held so far: from what the capture-point monitor and the limiter
-    of a pipeline publish (their ``status()``), and the simulator's true tilt where there is
-    one (``world``: a viewer may show the truth)."""
-    watch = BalanceWatch(balancer=False,
+    published (``published``: the loop's record, module name -> status snapshot), and the
+    simulator's true tilt where there is one (``world``: a viewer may show the truth)."""
+    watch = BalanceWatch(balancer="balance" in published,
                          max_tilt_deg=None if world is None else world.max_tilt_deg)
-    for module in modules:
-        if module.name == "balance":
-            watch.balancer = True
-        status = module.status()
+    for status in published.values():
         if isinstance(status, SupportStatus):
             watch.margin_m = status.margin_m
             watch.min_margin_m = status.min_margin_m
@@ -127,23 +126,22 @@ def read_balance(modules: Iterable, world=None) -> BalanceWatch:
     return watch
 
 
-def read_safety(modules: Iterable, hands: Iterable[HandSafety] = (),
-                world=None, loop=None, robot_flags: Iterable[str] = ()) -> SafetyState:
-    """The safety state a pipeline's modules publish (their ``status()``: the soft and hard
-    emergency stoppers, the collision detector, and for the balance line the capture-point
-    monitor and the limiter; others publish none); ``world``: the simulator, for the torso's
-    true tilt; ``loop``: the control loop, for its overruns and skipped wall time;
-    ``robot_flags``: the flags of the robot's latest state (the driver's trouble)."""
-    modules = list(modules)
+def read_safety(loop=None, hands: Iterable[HandSafety] = (), world=None,
+                robot_flags: Iterable[str] = ()) -> SafetyState:
+    """The safety state the control ``loop``'s record says (its ``module_status``: what the
+    soft and hard emergency stoppers, the collision detector, and for the balance line the
+    capture-point monitor and the limiter published; its overruns and skipped wall time; None:
+    no loop yet); ``world``: the simulator, for the torso's true tilt; ``robot_flags``: the
+    flags of the robot's latest state (the driver's trouble)."""
+    published: Mapping[str, object] = {} if loop is None else loop.module_status
     robot = next((ROBOT_WORDS[f] for f in robot_flags if f in ROBOT_WORDS), "")
-    state = SafetyState(hands=list(hands), balance=read_balance(modules, world), robot=robot)
+    state = SafetyState(hands=list(hands), balance=read_balance(published, world), robot=robot)
     if loop is not None:
         state.overruns, state.skipped_s = loop.overruns, loop.skipped_s
     latest = None
-    for module in modules:
-        status = module.status()
+    for name, status in published.items():
         if isinstance(status, StopperStatus):
-            if module.name == "estop":
+            if name == "estop":
                 state.soft_estop, state.active_sources = True, status.sources
             state.stops += status.stops
             if status.mode != "release" and (latest is None or status.mode == "hold"):

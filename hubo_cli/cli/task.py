@@ -306,9 +306,9 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, st
     def on_start(target, loop) -> None:
         if as_json:
             return
-        modules = target.modules
         keys = state["keys"]
-        panel = SafetyPanel(lambda: read_safety(modules, world=loop.driver.world, loop=loop,
+        loop.watch_status()
+        panel = SafetyPanel(lambda: read_safety(loop, world=loop.driver.world,
                                                 robot_flags=target.robot_flags),
                             bell=err_console.bell,
                             release_key="r" if keys else None)

@@ -309,11 +309,11 @@ def _run(settings, as_json: bool):
 
     def on_ready(target, loop) -> None:
         state["target"] = target
-        modules = target.modules
         if as_json:
             return
-        panel = SafetyPanel(lambda: read_safety(modules, hand_safety(target), loop.driver.world,
-                                                loop, target.robot_flags),
+        loop.watch_status()
+        panel = SafetyPanel(lambda: read_safety(loop, hand_safety(target), loop.driver.world,
+                                                target.robot_flags),
                             bell=err_console.bell)
         view = LiveView(lambda: _view(target, panel),
                         lambda: f"teleop {target.phase}: samples {target.samples_used} | "

@@ -13,6 +13,11 @@ Each period of ``dt`` (the model's 5 ms):
 3. send the result to the driver, step it, and write one log row with the period's status;
    an ``observer`` (:class:`PeriodObserver`, e.g. the live view) is shown the period too.
 
+What the modules publish for a viewer (their ``status()`` snapshots) is the loop's
+:attr:`ControlLoop.module_status` record: taken when the loop is built and when it ends, and
+after every period once a viewer asks for it (:meth:`ControlLoop.watch_status`). A viewer reads
+that record, never a module: the record is replaced whole, in the loop's thread.
+
 Pacing uses absolute deadlines (``next += period``), so it does not drift: ``speed=None`` runs as
 fast as possible, ``1.0`` in real time, ``x`` at x times real time. A period more than
 ``max_lag_periods`` late re-anchors the schedule (counted in ``overruns``).
@@ -95,6 +100,8 @@ class LoopResult:
             real-time run did not get to run.
         log_path: the per-period log, if one was written.
         final_command_rad: the last command sent.
+        module_status: what each module published at the end (name -> its ``status()``
+            snapshot, None for a module with nothing to show).
     """
 
     ended: str
@@ -110,6 +117,7 @@ class LoopResult:
     log_path: Path | None = None
     final_command_rad: np.ndarray | None = None
     exception: BaseException | None = None
+    module_status: dict[str, object] = field(default_factory=dict)
 
     @property
     def smooth_stop_s(self) -> float:
@@ -209,6 +217,8 @@ class ControlLoop:
         # each stage sees the store through its view: an undeclared key is a FlowError
         self.target_store = self.target.store = self.store.view(self.target)
         self._views = [self.store.view(m) for m in self.modules]
+        self._watching_status = False
+        self.module_status = self._published()
         self.clock = clock
         self.sleep = sleep
         self.max_lag_periods = max_lag_periods
@@ -239,6 +249,14 @@ class ControlLoop:
         if self.estimator is not None:
             columns += self.estimator.log_columns
         return list(dict.fromkeys(columns))
+
+    def _published(self) -> dict[str, object]:
+        return {m.name: m.status() for m in self.modules}
+
+    def watch_status(self) -> None:
+        """Refresh :attr:`module_status` after every period from now on (a viewer watches;
+        about 20 us a period, so runs without one take it only at the start and the end)."""
+        self._watching_status = True
 
     def _pace(self) -> float:
         """Wait for this period's deadline; return the lateness after waiting (s)."""
@@ -359,6 +377,8 @@ class ControlLoop:
                 extras.update(driver.log_values())
                 if self.estimator is not None:
                     extras.update(self.estimator.log_values())
+                if self._watching_status:
+                    self.module_status = self._published()
                 self._write(t_s, cycle.flags, compute_s, late_s, target_logged, applied, state,
                             extras)
                 self.period += 1
@@ -385,6 +405,7 @@ class ControlLoop:
                     error = (error + "; " if error else "") + self.log.error
                     if ended in ("finished", "done"):
                         ended = "log-error"
+        self.module_status = self._published()
         return LoopResult(
             ended=ended, periods=self.period, t_end_s=self.period * self.dt_s, error=error,
             stop_periods=stop_periods, status_counts=dict(self._statuses),
@@ -392,7 +413,8 @@ class ControlLoop:
             safety_events=[(m.name, e.t_s, e.kind, e.sources) for m in self.modules
                           for e in m.events],
             overruns=self.overruns, skipped_s=self.skipped_s, log_path=self.log_path,
-            final_command_rad=self._cmd.copy(), exception=exc)
+            final_command_rad=self._cmd.copy(), exception=exc,
+            module_status=self.module_status)
 
     def _smooth_stop(self) -> int:
         """Brake the command to rest within the limits, sending every period. Returns periods."""

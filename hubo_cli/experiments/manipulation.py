@@ -46,7 +46,6 @@ from pathlib import Path
 import numpy as np
 
 from hubo_cli.control.collision import SelfCollisionChecker
-from hubo_cli.control.estop import EmergencyStopper
 from hubo_cli.control.keys import STOP_MODE
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.dataflow import Store
@@ -430,9 +429,8 @@ def run_manipulation(model: RobotModel, spec: ManipulationSpec, estop: bool = Tr
     setup = replace(setup, perturb_seed=perturb_seed, live=live, duration_s=targets.duration_s)
     done = run(setup, targets)
     summary = manipulation_summary(spec, estop, targets, done)
-    stopper = done.module("estop")
-    if isinstance(stopper, EmergencyStopper):
-        summary |= {"revert_s": stopper.revert_s, "stop_s": stopper.stop_s}
+    if setup.safety.estop:  # the soft stopper's T1 and T2, as the profile built it
+        summary |= {"revert_s": setup.safety.revert_s, "stop_s": setup.safety.stop_s}
     done.save_summary(summary)
     from hubo_cli.plots.manipulation import plot_manipulation
 

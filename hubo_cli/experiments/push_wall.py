@@ -26,7 +26,6 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from hubo_cli.control.estop import EmergencyStopper
 from hubo_cli.control.log import LogData
 from hubo_cli.control.loop import LoopResult
 from hubo_cli.control.pipeline import SafetyProfile
@@ -264,10 +263,9 @@ def run_push_wall(model: RobotModel, direction: str = "forward", estop: bool = T
     done = run(setup, targets)
     summary = _summary(spec, estop, targets, done.loop, done.log, targets.obstacle)
     summary["interpolator"] = interpolator
-    stopper = done.module("estop")
-    if isinstance(stopper, EmergencyStopper):
-        summary["revert_s"] = stopper.revert_s
-        summary["stop_s"] = stopper.stop_s
+    if setup.safety.estop:  # the soft stopper's T1 and T2, as the profile built it
+        summary["revert_s"] = setup.safety.revert_s
+        summary["stop_s"] = setup.safety.stop_s
     done.save_summary(summary)
     plot_cp_error(done.log, done.summary, done.run_dir / "cp_error.png")
     done.add_file("cp_error.png")

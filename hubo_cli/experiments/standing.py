@@ -358,13 +358,15 @@ def run_standing(model: RobotModel, options: StandingOptions, *, gui: bool = Fal
                      model.control_period_s)
     result.failure = done.loop.failure(done.run_dir)
     result.push_direction = options.push_direction
-    done.save_summary(result.summary())
+    done.save_summary(result.summary() | {"limit_set_reason": options.limit_set_reason})
     if options.step:
         done.save_summary({"capture_step": stepper.summary()})
-    bow = done.module("hip")
-    if bow is not None:  # how far the trunk bowed, and that it stands upright again
-        done.save_summary({"hip_strategy": {"max_bow_rad": bow.max_abs_bow_rad,
-                                            "final_bow_rad": bow.bow_rad}})
+    if "hip" in done.loop.module_status:  # how far the trunk bowed, and that it stands up
+        bow = done.log["hip_bow_rad"]  # the hip strategy's output (NaN in the smooth stop)
+        bow = bow[np.isfinite(bow)]
+        done.save_summary({"hip_strategy": {
+            "max_bow_rad": float(np.max(np.abs(bow), initial=0.0)),
+            "final_bow_rad": float(bow[-1]) if len(bow) else 0.0}})
     return result
 
 

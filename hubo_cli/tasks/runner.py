@@ -31,9 +31,10 @@ from hubo_cli.model import RobotModel, load_model
 from hubo_cli.posture import home_posture
 from hubo_cli.runs import shown_name
 from hubo_cli.session import RunObserver, RunResult, RunSetup, run, settled_objects
+from hubo_cli.tasks.phases import SETTLE_TIMEOUT_S
 from hubo_cli.tasks.plan import EDGE_NAMES, Plan, make_plan
 from hubo_cli.tasks.spec import TaskSpec, format_override
-from hubo_cli.tasks.target import SETTLE_TIMEOUT_S, TaskTarget
+from hubo_cli.tasks.target import TaskTarget
 
 PAPER_TORQUE_NM = {"horizontal": {"mean": 0.14, "max": 0.23},
                    "vertical": {"mean": 0.15, "max": 0.35}}
@@ -353,7 +354,7 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
     if stops:
         module, t_stop, _, sources = stops[0]
         step = spec.steps[target.step_stopped] if target.step_stopped is not None else None
-        stopper = done.module("estop")
+        stopper = done.loop.module_status.get("estop")
         after_stop = log["t_s"] > t_stop + 1e-9
         relieved = bool(RELIEVE_SOURCES.intersection(sources))
         stop = {"t_s": t_stop, "sources": list(sources),
@@ -361,7 +362,7 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
                 "reverted_to_t_s": None if relieved else t_stop - spec.safety.revert_s,
                 "retreat_mm": None if target.retreat_m is None else target.retreat_m * 1000,
                 "held": target.phase == "stopped" and stopper is not None
-                and stopper.status().mode == "hold",
+                and stopper.mode == "hold",
                 "resumed_at_t_s": target.resumed_t_s,
                 "held_after_s": None if target.t_held_s is None else target.t_held_s - t_stop,
                 "wrist_torque_nm": float(np.nanmax(all_torque[~after_stop]))

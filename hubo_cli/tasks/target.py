@@ -1,6 +1,7 @@
 """The task's target source: plays a checked :class:`~hubo_cli.tasks.plan.Plan` in the loop.
 
-Phases:
+Phases (explicit states, :mod:`hubo_cli.tasks.phases`, run one at a time by a
+:class:`~hubo_cli.control.phase.Phases` machine):
 
 1. ``raise``: the joint-space move of the first step (joint target ``plan.q_first_rad``), then
    a wait until the robot is still with the tool on its first pose (within
@@ -53,6 +54,7 @@ import numpy as np
 from hubo_cli.control.estop import wrist_torque_nm
 from hubo_cli.control.keys import IMPEDANCE_ON, STOP_MODE, WRIST_RELIEF
 from hubo_cli.control.module import Module
+from hubo_cli.control.phase import Phases
 from hubo_cli.control.reference_force import ReferenceForceUpdater
 from hubo_cli.control.target import Target
 from hubo_cli.control.wrench import (
@@ -68,13 +70,11 @@ from hubo_cli.kinematics.torso import TorsoCorrection, TorsoEstimator
 from hubo_cli.kinematics.wholebody import MAX_SHIFT_M
 from hubo_cli.scene import SceneActions, WallPlacement, WallSize
 from hubo_cli.state import T_frame_sensor
+from hubo_cli.tasks.phases import Raise, Run, Settle, Stopped
 from hubo_cli.tasks.plan import EDGE_NONE, Plan
 from hubo_cli.urdf import tool_frame
 
-PHASES = ("raise", "run", "settle", "stopped")
-SETTLE_TIMEOUT_S = 6.0
 ON_POSE_M = 0.0005  # the raise ends with the tool this close to its first pose
-STOP_HOLD_S = 1.0  # after a stop, keep holding this long (still) before ending the run
 RETREAT_M = 0.005  # a wrist-torque stop backs the tool this far out of the wall (its normal)
 RETREAT_ALONG_M = 0.0005  # ... moving it at most this far along the wall on the way
 RETREAT_STEPS = 8  # postures of that path
@@ -106,12 +106,12 @@ class TaskTarget(Target):
         self.resumable = resumable
         self.body = body = plan.body
         self.world: SceneActions | None = None
-        self.modules: list = []  # set by attach()
         self.scene: dict = {}
         self.limb = plan.spec.stance.limb
         self.slice = body.model.limb_slice(self.limb)
         self.sensor = "right-wrist" if self.limb == "right-arm" else "left-wrist"
-        self.phase = "raise"
+        self.phases = Phases([Raise(self), Run(self), Settle(self), Stopped(self)])
+        self.stop_mode = "release"  # the stopper's, after the previous period (STOP_MODE)
         self.q_target = plan.q_first_rad.copy()  # the plan's joint target
         self.q_out = self.q_target.copy()           # ... corrected by the torso pose
         self.estimator = TorsoEstimator(body)  # the torso pose the robot measures
@@ -119,13 +119,11 @@ class TaskTarget(Target):
                                            estimator=self.estimator) if correction else None)
         self.k = 0                       # the plan row being commanded
         self.t_run_s: float | None = None
-        self.t_phase_s = 0.0
         self.t_stop_s: float | None = None
-        self._t_hold_s: float | None = None  # when the stopper reached its hold
         self.t_held_s: float | None = None  # ... with the robot still (joints < 0.05 rad/s)
         self.retreat_m: float | None = None  # how far a wrist-torque stop backed the tool out
         self.step_stopped: int | None = None
-        self._phase_before_stop = "raise"
+        self._phase_before_stop = "raise"  # the phase a released stop resumes
         self.resumed_t_s: list[float] = []  # when the plan went on after a released stop
         self.t_placed_s: float | None = None  # when the wall was placed (the cut's origin)
         # while cutting: commanded and measured tool positions (S, m), wrist torque (N m), edge
@@ -157,7 +155,6 @@ class TaskTarget(Target):
     def attach(self, world: SceneActions | None, modules: Sequence[Module],
                store: Store) -> None:
         self.world, self.store = world, store
-        self.modules = list(modules)  # the pipeline, for the live view's safety state
 
     def relieve(self, q_rad: np.ndarray) -> np.ndarray | None:
         """The path that relieves the wrist after a wrist-torque stop braked the command
@@ -191,7 +188,7 @@ class TaskTarget(Target):
         self.retreat_m = RETREAT_M
         return out
 
-    def _place_wall(self) -> None:
+    def place_wall(self) -> None:
         """The wall at the task's distance from the tool as the robot now holds it (the
         standing robot leans a little under the balancer; an operator walks it up to the wall
         as it stands), moved by the scene's ``wall_misplaced_m`` (a wall the plan misjudged)."""
@@ -206,6 +203,11 @@ class TaskTarget(Target):
         ).place(self.world)
 
     # ------------------------------------------------------------------ progress (live view)
+    @property
+    def phase(self) -> str:
+        """The phase in force (one of :data:`~hubo_cli.tasks.phases.PHASES`)."""
+        return self.phases.current.name
+
     @property
     def step(self) -> int:
         """Index of the step in progress."""
@@ -228,45 +230,23 @@ class TaskTarget(Target):
         return float(np.clip((t - start) / (end - start), 0.0, 1.0))
 
     # ------------------------------------------------------------------ the loop's call
-    def _still(self, state, tolerance_rad: float = 0.01) -> bool:
+    def still(self, state, tolerance_rad: float = 0.01) -> bool:
+        """The robot is at the last output (within ``tolerance_rad``) and still."""
         return bool(np.max(np.abs(state.q_rad - self.q_out)) < tolerance_rad
                     and np.max(np.abs(state.dq_rad_s)) < 0.05)
 
     def __call__(self, t_s: float, state) -> tuple[np.ndarray, dict]:
         info: dict = {}
-        mode = self.store.get(STOP_MODE, "release")  # the stopper's, after last period
+        self.stop_mode = mode = self.store.get(STOP_MODE, "release")
         self.store[WRIST_RELIEF] = self.relieve
         stopped = mode != "release"
-        if stopped and self.phase != "stopped":
+        if stopped and self.phase != "stopped":  # latched: the plan freezes where it is
             self._phase_before_stop = self.phase
-            self.phase, self.t_stop_s = "stopped", t_s
-            self.step_stopped = self.step
-        elif not stopped and self.phase == "stopped":  # released and blended back
-            self._resume(t_s)
-        if self.phase == "raise":
-            if (self._still(state) and self._on_first_pose(state)) or t_s >= SETTLE_TIMEOUT_S:
-                self._place_wall()
-                self.t_placed_s = t_s
-                self.phase, self.t_run_s = "run", t_s
-        if self.phase == "run":
-            self.k = int(round((t_s - self.t_run_s) / self.plan.dt_s))
-            if self.k >= len(self.plan.t_s):
-                self.k = len(self.plan.t_s) - 1
-                self.phase, self.t_phase_s = "settle", t_s
-            self.q_target = self.plan.q_rad[self.k]
-        elif self.phase == "settle":
-            if self._still(state) or t_s - self.t_phase_s >= SETTLE_TIMEOUT_S:
-                info["done"] = True
-        elif self.phase == "stopped":
-            # the revert can outlast T2 under the limits: count the hold from its start
-            holding = mode == "hold"
-            if holding and self._t_hold_s is None:
-                self._t_hold_s = t_s
-            still = holding and np.max(np.abs(state.dq_rad_s)) < 0.05
-            if still and self.t_held_s is None:
-                self.t_held_s = t_s
-            if still and not self.resumable and t_s - self._t_hold_s >= STOP_HOLD_S:
-                info["done"] = True
+            self.phases.go("stopped", t_s, state)
+        elif not stopped and self.phase == "stopped":  # released and blended back: go on
+            self.phases.go(self._phase_before_stop, t_s, state)
+        if self.phases(t_s, state):
+            info["done"] = True
         q_target = self._leaning(self.q_target, info) if self.force else self.q_target
         self.q_out = (q_target if self.correction is None
                       else self.correction(q_target, state, self.store[QUAT_WORLD_TORSO]))
@@ -301,17 +281,7 @@ class TaskTarget(Target):
         solved = body.solve({self.limb: goal}, q_rad, lift_m=body.lift_of(q_rad), shift_m=shift)
         return solved.q_rad if solved.arms[self.limb].exact else q_rad
 
-    def _resume(self, t_s: float) -> None:
-        """Go on from where the plan froze (the stopper has blended back to its target)."""
-        self.phase = self._phase_before_stop
-        self._t_hold_s = None
-        self.resumed_t_s.append(t_s)
-        if self.phase == "run":  # the same plan row next period, the rest in its own time
-            self.t_run_s = t_s - self.k * self.plan.dt_s
-        elif self.phase == "settle":
-            self.t_phase_s = t_s
-
-    def _on_first_pose(self, state) -> bool:
+    def on_first_pose(self, state) -> bool:
         """The tool, as the robot measures it, is within ON_POSE_M of the plan's first pose
         (the torso correction may still be bringing it there when the joints look still);
         without the correction nothing would bring it closer than the joints."""
@@ -334,7 +304,7 @@ class TaskTarget(Target):
         cutting = self.phase == "run" and bool(self.plan.cutting[k])
         d = goal - actual
         self.error_m = math.sqrt(d.dot(d))  # np.linalg.norm's arithmetic, without its checks
-        info.update({"step_code": float(self.step), "phase_code": float(PHASES.index(self.phase)),
+        info.update({"step_code": float(self.step), "phase_code": self.phases.code,
                      "goal_x_m": goal[0], "goal_y_m": goal[1], "goal_z_m": goal[2],
                      "actual_x_m": actual[0], "actual_y_m": actual[1], "actual_z_m": actual[2],
                      "error_m": self.error_m, "cutting": float(cutting),

@@ -1,7 +1,8 @@
 """The teleoperation target source: operator hand poses -> hand goals -> whole-body joint targets.
 
 It is called by the control loop once per period (``target(t_s, state)``) and goes through
-three phases:
+three phases (explicit states, :mod:`hubo_cli.teleop.phases`, run one at a time by a
+:class:`~hubo_cli.control.phase.Phases` machine):
 
 1. *approach*: a joint-space move to the first pose of each hand's approach path (drill mode:
    the bit a few centimetres before the wall), then the Cartesian paths (straight into the
@@ -59,6 +60,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hubo_cli.control.keys import ARM_SYNC, TRACKER_STATES
+from hubo_cli.control.phase import Phases
 from hubo_cli.control.target import Target
 from hubo_cli.dataflow import Store
 from hubo_cli.estimation.keys import QUAT_WORLD_TORSO, T_WORLD_TORSO
@@ -76,8 +78,8 @@ from hubo_cli.model import ARMS, RobotModel
 from hubo_cli.motion.tracker import JointTracker
 from hubo_cli.scene import SceneActions, WallPlacement
 from hubo_cli.teleop.mapping import HandMapper
+from hubo_cli.teleop.phases import PHASES, Approach, Operate, Settle
 
-PHASES = ("approach", "operate", "settle")
 SHORT = {"right-arm": "r", "left-arm": "l"}
 REST_RADIUS_M = 0.005  # a goal that stays within this for REST_S is at rest
 REST_S = 0.5
@@ -221,7 +223,6 @@ class TeleopTarget(Target):
         self.t_path_s: float | None = None
         self.wall = wall
         self.world: SceneActions | None = None
-        self.modules: list = []  # set by attach()
         self.scene: dict = {}
         self.goals: dict[str, np.ndarray] = dict(firsts)
         self.hands = {arm: HandTrack() for arm in self.arms}
@@ -242,7 +243,9 @@ class TeleopTarget(Target):
         self.path_times_s: dict[str, list[float]] = {arm: [] for arm in self.arms}
         self._t_solved_s: dict[str, float] = {}
         self._q_measured = self.q_target.copy()
-        self.phase = "approach"
+        self.phases = Phases([Approach(self), Operate(self), Settle(self)])
+        self.info: dict = {}  # this period's, which the phases add to
+        self.keys_now = Keys()  # the operator's keys taken this period
         self.t_operate_s: float | None = None
         self.t_settle_s: float | None = None
         self.T_world_S: np.ndarray | None = None
@@ -263,7 +266,6 @@ class TeleopTarget(Target):
 
     def attach(self, world: SceneActions | None, modules, store: Store) -> None:
         self.world, self.store = world, store
-        self.modules = list(modules)  # the pipeline, for the live view's safety state
 
     # ------------------------------------------------------------------ measurement
     def hand_pose_measured(self, arm: str, state) -> np.ndarray:
@@ -299,12 +301,16 @@ class TeleopTarget(Target):
                         hand.branch_changes += 1
                     hand.last_branch = branch
 
+    @property
+    def phase(self) -> str:
+        """The phase in force (one of :data:`~hubo_cli.teleop.phases.PHASES`)."""
+        return self.phases.current.name
+
     # ------------------------------------------------------------------ the loop's call
     def __call__(self, t_s: float, state) -> tuple[np.ndarray | None, dict]:
         t0 = time.perf_counter()
-        info: dict = {}
-        flags: list[str] = []
-        keys = self.keys.take()
+        self.info = info = {}
+        self.keys_now = keys = self.keys.take()
         self._q_measured = state.q_rad
         if keys.estop:
             info["estop"] = "operator"
@@ -312,26 +318,13 @@ class TeleopTarget(Target):
             info["release"] = True
         if keys.quit:
             info["done"] = True
-        if self.phase == "approach":
-            self._approach(t_s, state)
-        elif self.phase == "operate":
-            flags += self._operate(t_s, keys.clutch, keys.branch)
-        if self.phase == "settle":
-            if self.reach_settings.mode == "nearest" and self._converging():
-                self._solve_on_branches(t_s, self.body.lift_of(self.q_target), False)
-            moving = np.max(np.abs(state.dq_rad_s)) if len(state.dq_rad_s) else 0.0
-            at_goal = np.max(np.abs(state.q_rad - self.q_out)) < 0.02
-            if (t_s - self.t_settle_s >= self.settle_s and moving < 0.02 and at_goal) or (
-                    t_s - self.t_settle_s >= 4 * self.settle_s):
-                info["done"] = True
+        self.phases(t_s, state)
         self.q_out = (self.q_target if self.correction is None
                       else self.correction(self.q_target, state,
                                            self.store[QUAT_WORLD_TORSO]))
         self._q_out_of = self.q_target
         self._pace_arms()
         self._measure(t_s, state, info)
-        if flags:
-            info["flags"] = flags
         if self.phase == "operate":
             self.operate_call_s.append(time.perf_counter() - t0)
         return self.q_out, info
@@ -375,35 +368,42 @@ class TeleopTarget(Target):
         return bool(np.max(np.abs(state.q_rad - q)) < 0.01
                     and np.max(np.abs(state.dq_rad_s)) < 0.05)
 
-    def _approach(self, t_s: float, state) -> None:
+    def approach_step(self, t_s: float, state) -> bool:
+        """One period of the approach; True once it has ended (the robot still at the paths'
+        ends, or the approach's timeout)."""
         if self.t_path_s is None:  # step 1: joint-space move to the pre-pose, then settle
             self.q_target = self.q_pre
             if self._settled(state) or t_s >= self.approach_timeout_s:
                 self.t_path_s = t_s
                 if self.world is not None and self.wall is not None:
                     self.scene = self.wall.place(self.world)
-            return
+            return False
         t_path = t_s - self.t_path_s
         if t_path <= self.approach_s + self.dt_guard_s:  # step 2: the Cartesian paths
             self.goals = {arm: path.at(t_path) for arm, path in self.approach.items()}
             solved = self.body.solve(self.goals, self.q_target, lift_m=self.lift.lift_m)
             self.q_target = solved.q_rad
             self._record_ik(solved)
-            return
-        if self._settled(state) or t_path >= self.approach_s + self.approach_timeout_s:
-            self.phase = "operate"
-            self.t_operate_s = t_s
-            states = self.store.get(TRACKER_STATES)  # the arms' trackers, with their own
-            if states is not None and all(arm in states for arm in self.arms):
-                self._trackers = {arm: JointTracker(states[arm].limits, states[arm].dt_s)
-                                  for arm in self.arms}
-            for arm, reach in self.reach.items():
-                reach.start(self.q_target[self.slices[arm]])
+            return False
+        return self._settled(state) or t_path >= self.approach_s + self.approach_timeout_s
+
+    def start_operating(self, t_s: float) -> None:
+        """The operator takes over at ``t_s``: each arm's tracker copied from otg's (the
+        store's TRACKER_STATES), each reach search started from the arm's joint target."""
+        self.t_operate_s = t_s
+        states = self.store.get(TRACKER_STATES)  # the arms' trackers, with their own
+        if states is not None and all(arm in states for arm in self.arms):
+            self._trackers = {arm: JointTracker(states[arm].limits, states[arm].dt_s)
+                              for arm in self.arms}
+        for arm, reach in self.reach.items():
+            reach.start(self.q_target[self.slices[arm]])
 
     def _source_time(self, t_s: float) -> float:
         return self.source.now_s() if self.live else t_s - self.t_operate_s
 
-    def _operate(self, t_s: float, clutch: bool, branch_key: bool = False) -> list[str]:
+    def operate_step(self, t_s: float, clutch: bool, branch_key: bool = False) -> list[str]:
+        """One period of the operator's control (``clutch``: re-centre; ``branch_key``: the
+        operator asks for another IK branch); returns the period's status flags."""
         t_src = self._source_time(t_s)
         while self.clutch_at_s and t_src >= self.clutch_at_s[0]:
             self.clutch_at_s.pop(0)
@@ -467,10 +467,17 @@ class TeleopTarget(Target):
                         self.hands[arm].reachable = result.status == "exact"
             else:
                 self._solve_on_branches(t_s, lift, branch_key)
-        if self.source.done:
-            self.phase = "settle"
-            self.t_settle_s = t_s
         return flags
+
+    def settle_step(self, t_s: float, state) -> bool:
+        """One period of the settling after a replay; True once the robot is still at its
+        goals (after at least ``settle_s``) or four times that has passed."""
+        if self.reach_settings.mode == "nearest" and self._converging():
+            self._solve_on_branches(t_s, self.body.lift_of(self.q_target), False)
+        moving = np.max(np.abs(state.dq_rad_s)) if len(state.dq_rad_s) else 0.0
+        at_goal = np.max(np.abs(state.q_rad - self.q_out)) < 0.02
+        return bool((t_s - self.t_settle_s >= self.settle_s and moving < 0.02 and at_goal)
+                    or t_s - self.t_settle_s >= 4 * self.settle_s)
 
     def _converging(self) -> bool:
         """An arm target is still on its way (nearest-pose search, slowed step, branch move)."""
