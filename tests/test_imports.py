@@ -3,7 +3,9 @@ the estimation layer below everything that reads its estimate.
 
 The graph is read from the source with ``ast`` (nothing is imported): every ``import`` and
 ``from ... import`` statement counts, at module level or inside a function, with relative
-imports resolved and ``from package import module`` pointing at the module.
+imports resolved and ``from package import module`` pointing at the module. The layering tests
+count the imports made only for type checking (``if TYPE_CHECKING:``) too; the cycle test does
+not, since those are never executed (a phase annotated with the target that runs it).
 """
 
 from __future__ import annotations
@@ -50,15 +52,27 @@ def _owner(name: str, modules: dict[str, Path]) -> str | None:
     return None
 
 
+def _type_checking_only(tree: ast.Module) -> set[ast.AST]:
+    """The import statements inside ``if TYPE_CHECKING:`` blocks."""
+    return {node for block in ast.walk(tree)
+            if isinstance(block, ast.If) and "TYPE_CHECKING" in ast.unparse(block.test)
+            for statement in block.body for node in ast.walk(statement)}
+
+
 @functools.cache
-def import_graph() -> dict[str, set[str]]:
-    """Module -> the package modules it imports (anywhere in its body); read once per process
-    (the tests only read it)."""
+def import_graph(runtime_only: bool = False) -> dict[str, set[str]]:
+    """Module -> the package modules it imports (anywhere in its body; with ``runtime_only``
+    not those imported for type checking alone); read once per process (the tests only read
+    it)."""
     modules = _module_names()
     graph: dict[str, set[str]] = {name: set() for name in modules}
     for name, path in modules.items():
         is_package = path.name == "__init__.py"
-        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        tree = ast.parse(path.read_text(), str(path))
+        skipped = _type_checking_only(tree) if runtime_only else set()
+        for node in ast.walk(tree):
+            if node in skipped:
+                continue
             targets: list[str] = []
             if isinstance(node, ast.Import):
                 targets = [alias.name for alias in node.names]
@@ -131,6 +145,15 @@ def test_relative_imports_resolve():
     assert _resolve("hubo_cli.fastrak", True, node) == "hubo_cli.fastrak.source"
 
 
+def test_type_checking_imports_are_runtime_free():
+    tree = ast.parse("from typing import TYPE_CHECKING\nimport a\nif TYPE_CHECKING:\n"
+                     "    from b import c\n")
+    assert [type(n).__name__ for n in _type_checking_only(tree)] == ["ImportFrom", "alias"]
+    # the layering tests see the type-only import; the cycle test does not
+    assert "hubo_cli.tasks.target" in import_graph()["hubo_cli.tasks.phases"]
+    assert "hubo_cli.tasks.target" not in import_graph(runtime_only=True)["hubo_cli.tasks.phases"]
+
+
 def test_a_cycle_is_found():
     toy = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}
     assert strongly_connected(toy) == [{"a", "b", "c"}]
@@ -138,7 +161,7 @@ def test_a_cycle_is_found():
 
 
 def test_no_import_cycle():
-    cycles = [sorted(c) for c in strongly_connected(import_graph())]
+    cycles = [sorted(c) for c in strongly_connected(import_graph(runtime_only=True))]
     assert cycles == [], f"import cycles: {cycles}"
 
 
