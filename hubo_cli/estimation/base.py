@@ -14,12 +14,8 @@ chains, :mod:`hubo_cli.kinematics.limb`) and the attitude ``QUAT_WORLD_TORSO``:
   drifts), then turned about the anchor's contact point by the gyro's yaw rate beyond the
   legs' while one sole alone carries the robot rolling on its edge (its centre of pressure
   within ``EDGE_M`` of the outline: little holds it from twisting then; walking keeps it
-  further in, and there the gyro's bias would only turn the estimate), and while both soles
-  are in contact and the difference lies beyond ``STILL_YAW_RAD_S`` of the bias (pushed: the
-  feet twist on the floor, or one lifts while the contact's debounce still counts it down;
-  counted on one sole only, a 150 N capture step's stance foot twisted 2 deg in those 60 ms
-  unseen, its swing foot landed 20 mm off the estimate and the lunge fell), less the gyro's
-  bias (on two soles the robot
+  further in, and there the gyro's bias would only turn the estimate), less the gyro's bias
+  (on two soles the robot
   cannot twist unless pushed: the difference there within ``STILL_YAW_RAD_S``, low-passed with
   ``GYRO_BIAS_TAU_S``, is the bias; a robot standing does not turn); the turn fades with
   ``HEADING_TAU_S``: a stance sole that twists on
@@ -259,13 +255,11 @@ class FloatingBase(Observer):
         return min(max(-my / fz, x_lo), x_hi), min(max(mx / fz, y_lo), y_hi)
 
     def _place(self, contact_point: tuple[float, float] = (0.0, 0.0),
-                gyro_rad_s: np.ndarray | None = None, rolling: bool = False,
-                two_soles: bool = False) -> None:
+                gyro_rad_s: np.ndarray | None = None, rolling: bool = False) -> None:
         """This period's torso and soles: the legs' placement (the anchor's held contact point
         and heading), turned about the contact point by the gyro's high-passed share of the
         heading (``gyro_rad_s``: the IMU's rate in the torso frame; None: none; counted while
-        ``rolling``: one sole alone in contact, on its edge, and on ``two_soles`` beyond the
-        still band: pushed)."""
+        ``rolling``: one sole alone in contact, on its edge)."""
         T_world_torso, T_world_soles = np.empty((4, 4)), np.empty((2, 4, 4))
         _place(self._quat, self._T_torso_soles, self.anchor, self._T_world_anchor,
                *contact_point, T_world_torso, T_world_soles)
@@ -281,9 +275,7 @@ class FloatingBase(Observer):
             twist = yaw_rate - legs_rate  # the stance foot's twist, and the gyro's bias
             if not math.isfinite(twist):
                 twist = 0.0
-            elif rolling or (two_soles and abs(twist - self._bias_rad_s) >= STILL_YAW_RAD_S):
-                # on an edge, or pushed on two soles (one perhaps lifting, still in contact for
-                # the debounce's delay): the feet twist on the floor
+            elif rolling:
                 twist -= self._bias_rad_s
             else:  # on two soles, still, the robot does not twist: what the gyro reads is bias
                 if abs(twist - self._bias_rad_s) < STILL_YAW_RAD_S:
@@ -325,8 +317,7 @@ class FloatingBase(Observer):
             on_edge = min(point[0] - x_lo, x_hi - point[0], point[1] - y_lo,
                           y_hi - point[1]) < EDGE_M
             self._place(point, _gyro(state),
-                        bool(contact[0]) != bool(contact[1]) and on_edge,
-                        bool(contact[0]) and bool(contact[1]))
+                        bool(contact[0]) != bool(contact[1]) and on_edge)
             other = 1 - self.anchor
             wrenches = store[WRENCHES]
             heavier = (float(wrenches[ANKLE_SENSORS[other]][2])
