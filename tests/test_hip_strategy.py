@@ -190,7 +190,8 @@ def test_a_90_n_push_is_held_in_place_with_the_hips(model, direction, tmp_path):
     assert result.final_tilt_deg < 4.0  # standing again (bow 0)
     assert result.max_foot_shift_mm < 9.0  # no step, no slide
     # the heel-to-toe rocking the bow's return damps: the largest tilt from 3 s after the push
-    # on, measured 3.5 / 3.6 deg forward / backward on the 2-core development machine (its
-    # code path without AVX-512 not measured), 8.3 / 7.1 deg with the return alone: bound 1.5x
+    # on, measured 3.5-4.2 / 3.4-3.6 deg forward / backward on the 2-core development machine
+    # (runs with and without an extra PyBullet query each period; the code path without
+    # AVX-512 not measured), 8.3 / 7.1 deg with the return alone: bound 1.5x
     late = result.times_s >= 1.0 + 3.0
-    assert result.tilts_deg[late].max() < 5.5
+    assert result.tilts_deg[late].max() < 6.3

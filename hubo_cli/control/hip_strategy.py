@@ -25,7 +25,8 @@ damps that rocking (the body tipping onto its toes and heels as one piece): its 
 the toes, from their pitch standing before the bow), so the trunk turns toward the side the
 body tips to and its reaction turns the body back (the bow may change sign then). Measured
 on the nominal simulated robot after a 90 N push: the torso's largest tilt from 3 s after
-the push on 3.5 deg forward / 3.6 deg backward with it, 8.3 / 7.1 deg with the return alone.
+the push on 3.5-4.2 deg forward / 3.4-3.6 deg backward with it, 8.3 / 7.1 deg with the
+return alone.
 
 The bow needs legs faster than Table IV's 0.6 rad/s^2: the limiter clamps it there (the robot
 file's ``walking`` limit set, legs 2.6 rad/s and 150 rad/s^2, lets it act). It never acts while
