@@ -126,6 +126,9 @@ def test_bad_settings_are_refused(model):
         HipStrategy(model, DT, max_bow_rad=0.0)
     with pytest.raises(ConfigError):
         HipStrategy(model, DT, start_m=-0.01)
+    for rock_gain in (-1.0, float("nan"), float("inf")):
+        with pytest.raises(ConfigError):
+            HipStrategy(model, DT, rock_gain=rock_gain)
 
 
 def test_it_is_in_the_standing_pipeline_only_when_asked(model):

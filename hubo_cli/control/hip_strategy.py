@@ -100,8 +100,10 @@ class HipStrategy(Module):
         values = (start_m, gain, max_rate_rad_s, max_bow_rad, return_s, return_rate_rad_s)
         if not all(math.isfinite(v) and v > 0 for v in values) or not hold_s >= 0 \
                 or not (math.isfinite(rock_gain) and rock_gain >= 0):
-            raise ConfigError("hip strategy gains, bounds and times must be positive",
-                              hint=f"e.g. start_m={START_M}, max_bow_rad={MAX_BOW_RAD}")
+            raise ConfigError("hip strategy gains, bounds and times must be positive (the "
+                              "rocking gain finite and >= 0)",
+                              hint=f"e.g. start_m={START_M}, max_bow_rad={MAX_BOW_RAD}, "
+                                   f"rock_gain={ROCK_GAIN}")
         self.dt_s = float(dt_s)
         self.start_m, self.gain = float(start_m), float(gain)
         self.max_rate_rad_s, self.max_bow_rad = float(max_rate_rad_s), float(max_bow_rad)
