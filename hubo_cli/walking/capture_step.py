@@ -35,7 +35,10 @@ upright over ``UPRIGHT_S`` and the CoM comes to rest, c' = w (r - c), on a point
 follows the measured capture point (time constant ``REST_TAU_S``) held on the line through
 the soles' middles, from ``REST_BACK_FRACTION`` of the way from the back sole's middle to the
 front one's up to ``CATCH_EDGE_M`` inside the front toe (both soles carry the robot: resting
-over the back foot alone, it rocked sideways and tipped as the return began).
+over the back foot alone, it rocked sideways and tipped as the return began). Meanwhile the
+torso lowers as far as the legs need to reach both soles from a pelvis over the pattern's CoM
+(at most ``RETURN_MAX_DROP_M``, at ``CATCH_LOWER_M_S``) and the back heel rises for the rest
+(:meth:`CaptureStepper._toe_off_pose`), so the back foot stays on the floor.
 The pattern so follows where the landing (its impact took an unknown part of the momentum)
 left the robot instead of driving it on toward its own capture point; the standing balancers
 act meanwhile. Then the return (:meth:`CaptureStepper._plan_lunge_return`): one walking step
@@ -144,6 +147,10 @@ RETURN_MAX_DROP_M = 0.11  # [chosen] the torso lowers at most this much while it
 MAX_TOE_OFF_RAD = 0.8    # [chosen] ... and the back foot's heel rises at most this far
 TOE_OFF_STEP_RAD = 0.025  # [chosen] the heel's rise is searched in steps of this
 MAX_DROP_M = 0.08        # [chosen] the torso lowers at most this much for the legs' reach
+CATCH_LOWER_M_S = 0.2    # [chosen] ... and in the lunge's catch at most this fast, down to
+#                          RETURN_MAX_DROP_M, the back heel rising for the rest (with the
+#                          back foot flat out of the leg's reach it lifted for 0.4-0.8 s and
+#                          the robot balanced on the front foot alone)
 MAX_SOLE_ERROR_M = 0.2   # [chosen] the legs' capped solutions accepted this far off their soles
 TRIGGER_M = 0.05         # [chosen] step once the CP is within this of the shrunk polygon's edge
 REPLAN_FRACTION = 0.6    # [chosen] the landing follows the measured CP over this much of the swing
@@ -468,6 +475,7 @@ class CaptureStepper(Target):
                       "back": back,
                       "reach": self.model.feet.length_m / 2 - CATCH_EDGE_M}
         self.track["rest"] = self._in_stance(xi_m)
+        self.reach_m: float | None = None  # the back leg's reach at touch-down (_toe_off_pose)
         self.rest_support = planned_support(self.rest)
         self.n_upright = max(1, int(round(UPRIGHT_S / period)))
         self.n_catch = n
@@ -508,18 +516,21 @@ class CaptureStepper(Target):
             self._return_drop(k, rest.com.com_m[k], feet)
         if self.track is not None:
             c, v, a, zmp = self._lunge_com()
+            self._catch_drop(c[0], feet)
         else:
             c, v, a = (rest.com.com_m[k:k + 1], rest.com.com_velocity_m_s[k:k + 1],
                        rest.com.com_acceleration_m_s2[k:k + 1])
             zmp = rest.zmp_ref_m[k]
-        if self.lunge_return:  # the back leg's ankle where the raised heel puts it
+        # the lunge (its catch and return): the back leg's ankle where the raised heel puts it
+        back_reaches = self.lunge_return or self.track is not None
+        if back_reaches:
             rear = feet[self.stance_side]
             T_world_foot = self._toe_off_pose(c[0], rear)
             feet = feet | {self.stance_side: np.append(
                 T_world_foot[:3, 3] + (T_world_foot[:3, 2] - [0.0, 0.0, 1.0])
                 * self.model.lengths_m["lL5"], rear[3])}
         q = self._solve(c, v, a, zmp, feet, rest.support[k:k + 1])
-        if self.lunge_return and self.toe_off_rad > 0.0:
+        if back_reaches and self.toe_off_rad > 0.0:
             q = self._solve_leg(q, self.stance_side, T_world_foot)
         if self.lunge_return:  # from the lunge's last joints (a capped leg's solution may
             # differ): their difference fades over the pattern's lead-in
@@ -604,6 +615,18 @@ class CaptureStepper(Target):
         at most RETURN_RISE_M_S; RETURN_LEAN_FRACTION of the walking lean (the front hip
         only abducts: without it the robot fell). Over the
         pattern's lead-in both blend in from the lunge's."""
+        b = self._lead_in(k)
+        drop = self.drop_m + b * (self._reach_need_m(com_m, feet) - self.drop_m)
+        # the torso rises slowly (a quick rise on one leg hops the robot)
+        drop = max(drop, self.neck_z0_m - self.body.neck_z_m
+                   - RETURN_RISE_M_S * self.model.control_period_s)
+        self.body.lean_rad_per_m = b * RETURN_LEAN_FRACTION * self.params.lean_rad_per_m
+        self.body.neck_z_m = self.neck_z0_m - drop
+
+    def _reach_need_m(self, com_m: np.ndarray, feet: dict) -> float:
+        """How much lower than standing the torso must be for each leg to reach its sole
+        flat from a pelvis over ``com_m``, no longer hip to ankle than standing: at most
+        RETURN_MAX_DROP_M."""
         hip_m = self.model.lengths_m["lL1"]
         normal = np.array([-self.heading[1], self.heading[0]])
         need = 0.0
@@ -612,12 +635,16 @@ class CaptureStepper(Target):
             hip = np.asarray(com_m, dtype=float) + SIDE_SIGN[side] * hip_m * normal
             r = float(np.hypot(*(row[:2] - hip)))
             need = max(need, h - math.sqrt(max(h * h - r * r, 0.0)))
-        b = self._lead_in(k)
-        drop = self.drop_m + b * (min(need, RETURN_MAX_DROP_M) - self.drop_m)
-        # the torso rises slowly (a quick rise on one leg hops the robot)
-        drop = max(drop, self.neck_z0_m - self.body.neck_z_m
-                   - RETURN_RISE_M_S * self.model.control_period_s)
-        self.body.lean_rad_per_m = b * RETURN_LEAN_FRACTION * self.params.lean_rad_per_m
+        return min(need, RETURN_MAX_DROP_M)
+
+    def _catch_drop(self, com_m: np.ndarray, feet: dict) -> None:
+        """The torso's height in a period of the lunge's catch: as low as the legs need
+        (:meth:`_reach_need_m`), lowering at most CATCH_LOWER_M_S and rising at most
+        RETURN_RISE_M_S (the back heel's rise does the rest, :meth:`_toe_off_pose`)."""
+        period = self.model.control_period_s
+        now = self.neck_z0_m - self.body.neck_z_m
+        drop = min(max(self._reach_need_m(com_m, feet), now - RETURN_RISE_M_S * period),
+                   now + CATCH_LOWER_M_S * period)
         self.body.neck_z_m = self.neck_z0_m - drop
 
     def _lead_in(self, k: int) -> float:
