@@ -175,6 +175,7 @@ class TeleopTarget(Target):
         correction: correct these arms' goals by the measured torso pose (see the module
             docstring); empty: none.
         correction_settings: its filter and bounds (None: the defaults).
+        lift: the legs' lift filter (None: :class:`LiftFilter`'s defaults).
     """
 
     reads = (QUAT_WORLD_TORSO, T_WORLD_TORSO, T_WORLD_SOLES)
@@ -187,7 +188,8 @@ class TeleopTarget(Target):
                  approach_timeout_s: float = 5.0, clutch_at_s: tuple[float, ...] = (),
                  wall: WallPlacement | None = None, reach: ReachSettings | None = None,
                  singularity: SingularityScale | None = None, correction: tuple[str, ...] = (),
-                 correction_settings: CorrectionSettings | None = None) -> None:
+                 correction_settings: CorrectionSettings | None = None,
+                 lift: LiftFilter | None = None) -> None:
         self.model = model
         self.source = source
         self.mapper = mapper
@@ -208,7 +210,7 @@ class TeleopTarget(Target):
         self.correction = (TorsoCorrection(body, correction, model.control_period_s,
                                            correction_settings)
                            if correction else None)
-        self.lift = LiftFilter()
+        self.lift = lift or LiftFilter()
         # approach step 1: joint space to the paths' first poses (legs straight to their lift)
         firsts = {a: p.at(0.0) for a, p in approach.items()}
         self.lift.reset(body.lift_for(firsts))
