@@ -78,13 +78,13 @@ def test_drill_rectangle_on_the_simulated_robot(drill_rectangle_run):
         assert (run.run_dir / name).exists()
 
 
-@pytest.mark.parametrize("wall_distance_m", [None, 0.38, 0.44, 0.53])
+@pytest.mark.parametrize("wall_distance_m", [None, 0.38, 0.44, 0.53, 0.55])
 def test_the_drill_goes_into_the_wall_along_its_bit_from_a_pose_within_reach(wall_distance_m):
     """The pose the robot holds while the wall is placed is the approach's own (exact IK, not
     the capped pose 39 mm and 8.5 deg short of it that the default stance had with a 50 mm
     standoff), its flutes clear of the cardboard; the bit then moves along its axis only while
     it goes in, and across the wall only inside the hole, up its edge to the start point."""
-    from hubo_cli.errors import InputError
+    from hubo_cli.errors import SafetyError
     from hubo_cli.posture import home_posture
     from hubo_cli.teleop.session import (
         PAPER_HOLE_M,
@@ -98,8 +98,8 @@ def test_the_drill_goes_into_the_wall_along_its_bit_from_a_pose_within_reach(wal
     model, body, _, scene = prepare(TeleopSettings(mode="drill", wall_distance_m=wall_distance_m))
     try:
         path = approach_paths(body, ["right-arm"], scene)["right-arm"]
-    except InputError as err:  # no way in near the corner: refused before anything moves
-        assert "--wall-distance" in err.hint
+    except SafetyError as err:  # no way in near the corner: refused before anything moves
+        assert "--wall-distance" in err.hint and "nothing moved" in str(err)
         return
     start = np.asarray(scene["start_m"])
     plunge, *route = path.segments

@@ -12,7 +12,7 @@ from hubo_cli.control.loop import LoopResult
 from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.stop_choice import ActiveStops
-from hubo_cli.errors import InputError
+from hubo_cli.errors import InputError, SafetyError
 from hubo_cli.input.device import HAND_OF_ARM, InputDevice
 from hubo_cli.input.opener import open_input
 from hubo_cli.input.operator_stream import StreamSettings
@@ -289,7 +289,7 @@ def drill_approach(body: WholeBody, start_m) -> PosePath:
     the cardboard to catch up with it.
 
     Raises:
-        InputError: no way in within the hole's height (the stance's rectangle leaves none).
+        SafetyError: no way in within the hole's height (the stance's rectangle leaves none).
     """
     T_start = np.eye(4)
     T_start[:3, 3] = start_m
@@ -305,10 +305,12 @@ def drill_approach(body: WholeBody, start_m) -> PosePath:
         path = PosePath(segments)
         if _reached_exactly(body, path):
             return path
-    raise InputError(f"the drill cannot go into the wall along its axis near the hole's corner "
-                     f"({start_m[0] * 1000:.0f}, {start_m[1] * 1000:.0f}, "
-                     f"{start_m[2] * 1000:.0f}) mm", hint="choose another --wall-distance or "
-                     "leave it out (the workspace map's best stance)")
+    raise SafetyError(f"the drill cannot reach the wall there along its bit: no way in within "
+                      f"{PAPER_HOLE_M[1] * 1000:.0f} mm below the hole's corner "
+                      f"({start_m[0] * 1000:.0f}, {start_m[1] * 1000:.0f}, "
+                      f"{start_m[2] * 1000:.0f}) mm in S; nothing moved",
+                      hint="leave out --wall-distance (the workspace map's best stance) or "
+                           "choose another")
 
 
 def _reached_exactly(body: WholeBody, path: PosePath, samples: int = 12) -> bool:
