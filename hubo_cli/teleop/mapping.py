@@ -66,7 +66,7 @@ class MappingConfig:
             raise ConfigError(f"scale {self.scale} is not in (0, 10]", hint="use e.g. --scale 1")
         if not (np.isfinite(self.wall_speed_m_s) and self.wall_speed_m_s > 0):
             raise ConfigError(f"the drill's speed across the wall {self.wall_speed_m_s} m/s is "
-                              "not a positive number", hint="use e.g. 0.03")
+                              "not a positive number", hint="use e.g. 0.025")
         arms = list(self.hand_arm.values())
         unknown = [h for h, a in self.hand_arm.items() if h not in ARM_OF_HAND or a not in ARMS]
         if unknown or len(set(arms)) != len(arms):
