@@ -189,7 +189,7 @@ def test_a_stream_that_swings_the_drill_into_the_torso_is_held_by_the_collision_
                                     reach=ReachSettings(mode="paper"), out=tmp_path / "run"))
     s = run.summary
     assert s["tools"]["right-arm"] == "drill" and "collision" in s["pipeline"]
-    # 547 periods, the first hold at 7.685 s, on both code paths (AVX-512 / portable)
+    # 1891 periods, the first hold at 11.635 s, on both code paths (AVX-512 / portable)
     assert s["collision_periods"] > 20, s["status_counts"]
     first = s["collision_holds"][0]
     assert first["t_s"] > 1.0  # not during the approach
