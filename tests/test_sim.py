@@ -244,12 +244,14 @@ def test_standing_soles_do_not_creep_so_the_torso_estimate_stays_on_the_body():
     # solver's friction without anchors lets both feet walk away together (14 mm over a
     # perturbed robot's 60 s cut), which no onboard sensor sees. Measured (AVX-512 / portable):
     # anchored drift 0.031-0.032 mm (bound 1.9x); free drift 0.226-0.229 mm (1.5x). The
-    # floating base's error (one machine): anchored 0.0024 mm (bound 40x), free 0.209 mm
-    # (1.7x)
+    # floating base's error with the attitude filter is its tilt under the push (the
+    # accelerometer feels the push's acceleration; 0.07 deg at the torso's height), not the
+    # creep: anchored 1.25 / 1.11 mm (bound 1.5x), free 0.77 / 0.77 mm (it was 0.0024 and
+    # 0.209 mm with the simulator's ideal orientation)
     drift, error = _creep_under_a_side_push(anchor=True)
-    assert drift < 0.06e-3 and error < 0.1e-3
-    drift_free, error_free = _creep_under_a_side_push(anchor=False)
-    assert drift_free > 0.15e-3 and error_free > 0.12e-3
+    assert drift < 0.06e-3 and error < 1.9e-3
+    drift_free, _ = _creep_under_a_side_push(anchor=False)
+    assert drift_free > 0.15e-3
 
 
 def _solver_iterations_used(robot, steps):
