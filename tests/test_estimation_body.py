@@ -80,17 +80,21 @@ def standing_push(model):
 def test_standing_and_pushed_the_estimate_follows_the_simulator(standing_push):
     worst = {key: max(row[key] for row in standing_push)
              for key in ("torso", "torso_z", "soles", "com", "cp")}
-    # measured (nominal robot, this push), horizontal: torso 0.07 mm, soles 0.07 mm, CoM (the
-    # URDF's against PyBullet's bodies) 0.08 mm, capture point 0.08 mm from the same arithmetic
-    # on the truth (the capture-point monitor's before the estimate); vertical: the torso 1.0
-    # mm, the simulated rubber soles' compression under the push, which an estimate that puts
-    # the sole on the floor does not see; bounds >= 2x
-    assert worst["torso"] < 0.3e-3
+    # measured (nominal robot, this push, the attitude filtered from gyro, accelerometer and
+    # legs), horizontal: torso 1.14 mm, soles 0.07 mm, CoM (the URDF's against PyBullet's
+    # bodies) 0.72 mm, capture point 2.5 mm from the same arithmetic on the truth (the
+    # capture-point monitor's before the estimate): the push rolls both soles onto their toes
+    # for 0.35 s, when the legs do not tell the tilt and the filter's is 0.06 deg off (with
+    # the simulator's ideal orientation they were 0.07, 0.07, 0.08 and 0.08 mm); vertical:
+    # the torso 0.56 mm (1.0 before), the simulated rubber soles' compression under the
+    # push, which an estimate that puts the sole on the floor does not see; bounds >= 2x
+    assert worst["torso"] < 2.5e-3
     assert worst["soles"] < 0.3e-3
-    assert worst["com"] < 0.5e-3
-    assert worst["cp"] < 0.3e-3
+    assert worst["com"] < 1.5e-3
+    assert worst["cp"] < 5.0e-3
     assert worst["torso_z"] < 2.0e-3
-    # the push moved the capture point forward (the estimate saw it): 25 mm measured
+    # the push moved the capture point forward (the estimate saw it): 15 mm measured (25 with
+    # the simulator's orientation)
     assert max(row["cp_x"] for row in standing_push) - standing_push[100]["cp_x"] > 0.010
     assert all(row["contact"] == (True, True) == row["truth_contact"] for row in standing_push)
     assert all(np.all(np.isfinite(row["zmp"])) for row in standing_push)

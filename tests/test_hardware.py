@@ -45,6 +45,31 @@ def _ramp(driver, joint: int, step_rad: float, periods: int):
     return q, state
 
 
+def test_the_imus_a_z_is_no_heading(hw):
+    """hubo-ach's a_z is not a heading (docs/hardware.md): whatever it carries, the attitude the
+    driver reports has the tilt a_x, a_y and yaw 0."""
+    from hubo_cli.geometry import quat_wxyz_to_matrix, roll_pitch_of_quat_wxyz
+
+    q = hw.start().q_rad
+    advance = hw.source.advance
+    rng = np.random.default_rng(41)
+    tilt = np.zeros(3)
+
+    def tilted(ref_rad, mode):
+        frame = advance(ref_rad, mode)
+        frame.imu_tilt_rad = tilt.copy()
+        return frame
+
+    hw.source.advance = tilted
+    for a_z in (0.0, 1.3, -3.0, np.pi, *rng.uniform(-10.0, 10.0, 20)):
+        tilt[:] = *rng.uniform(-0.3, 0.3, 2), a_z
+        hw.send(q)
+        quat = hw.step().imu_quat_wxyz
+        R = quat_wxyz_to_matrix(quat)
+        assert np.arctan2(R[1, 0], R[0, 0]) == pytest.approx(0.0, abs=1e-12)
+        assert np.allclose(roll_pitch_of_quat_wxyz(quat), tilt[:2], atol=1e-12)
+
+
 @pytest.mark.parametrize("sink", ["ach", "file", "fifo"])
 def test_refuses_to_start_unless_armed(tmp_path, sink):
     driver = HardwareDriver(MODEL, sink=sink, sink_path=tmp_path / "hubo-ref.bin")

@@ -398,7 +398,8 @@ def test_the_imu_and_the_wrenches_reach_the_driver_in_hubo_achs_conventions():
             body.advance(HOME42, mode, PERIOD_S)
             packed = hubo_ach.decode_state(hubo_ach.encode_state(body.state(float(k))))
             truth = body._state
-            quat = hubo_ach.quat_from_tilt(packed.imu_tilt_rad)
+            assert packed.imu_tilt_rad[2] == 0.0  # a_z: no heading, the true yaw not sent
+            quat = hubo_ach.body_imu_quat(packed.imu_tilt_rad)
             assert np.allclose(roll_pitch_of_quat_wxyz(quat),
                                roll_pitch_of_quat_wxyz(truth.imu_quat_wxyz), atol=1e-9)
             assert np.allclose(packed.imu_rate_rad_s, truth.imu_gyro_rad_s, atol=1e-12)

@@ -176,9 +176,10 @@ def test_a_stream_that_swings_the_drill_into_the_torso_is_held_by_the_collision_
     _, corner, _ = drill_stance(0.38)
     dy, dz = -0.10 - corner[1], 0.04 - corner[2]  # robot frame: y left, z up
     rows = ["t_s,station,x_m,y_m,z_m,qw,qx,qy,qz,status"]
-    # 3.6 s at 60 Hz: the swing (0.5 s to 3.5 s) and its end; the detector holds the arm
-    # about 2.4 s in. The tracker frame has y right, z down.
-    for k in range(217):
+    # 12 s at 60 Hz: the operator's swing (0.5 s to 3.5 s), then he holds his hand there while
+    # the drill goal follows at drill mode's speed across the wall (wall_speed_m_s, 25 mm/s:
+    # 0.22 m in about 9 s). The tracker frame has y right, z down.
+    for k in range(721):
         t = k / 60.0
         s = min(max((t - 0.5) / 3.0, 0.0), 1.0)
         rows.append(f"{t:.6f},1,0.3,{-dy * s:.6f},{-dz * s:.6f},1,0,0,0,")
@@ -188,7 +189,7 @@ def test_a_stream_that_swings_the_drill_into_the_torso_is_held_by_the_collision_
                                     reach=ReachSettings(mode="paper"), out=tmp_path / "run"))
     s = run.summary
     assert s["tools"]["right-arm"] == "drill" and "collision" in s["pipeline"]
-    # 547 periods, the first hold at 7.685 s, on both code paths (AVX-512 / portable)
+    # 1891 periods, the first hold at 11.635 s, on both code paths (AVX-512 / portable)
     assert s["collision_periods"] > 20, s["status_counts"]
     first = s["collision_holds"][0]
     assert first["t_s"] > 1.0  # not during the approach

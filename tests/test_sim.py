@@ -11,10 +11,10 @@ from control_support import compensated_wrenches
 
 from hubo_cli.drivers.sim import CuttingModel, SimDriver
 from hubo_cli.errors import ConfigError, DeviceError
+from hubo_cli.estimation.build import build_estimator
+from hubo_cli.estimation.keys import T_WORLD_TORSO
 from hubo_cli.estimation.wrenches import sensor_loads
 from hubo_cli.kinematics import get_limb
-from hubo_cli.kinematics.torso import TorsoEstimator
-from hubo_cli.kinematics.wholebody import WholeBody
 from hubo_cli.model import load_model
 from hubo_cli.posture import home_posture
 from hubo_cli.state import GRAVITY_M_S2
@@ -215,39 +215,43 @@ def test_a_jump_in_the_command_is_followed_at_the_motor_top_speed(sim):
 
 
 def _creep_under_a_side_push(anchor: bool) -> tuple[float, float]:
-    """Both soles' largest horizontal drift in the world and the torso estimator's horizontal
+    """Both soles' largest horizontal drift in the world and the torso estimate's horizontal
     error (m) after 2 s of a 40 N sideways push on feet of friction 0.5 (far inside the cone)."""
-    body = WholeBody(MODEL, {})
-    estimator = TorsoEstimator(body)
+    estimator = build_estimator(MODEL)
     with SimDriver(MODEL, friction=0.5, sole_friction_anchor=anchor) as robot:
         robot.start()
         state = _hold(robot, home_posture(MODEL), 20)
-        T_world_S = state.truth.T_world_torso @ np.linalg.inv(
-            estimator(state, state.imu_quat_wxyz))
+        estimator.reset(state)
+        T_truth_estimate = state.truth.T_world_torso @ np.linalg.inv(
+            estimator.store[T_WORLD_TORSO])
         soles = ("right_sole", "left_sole")
         before = [robot.frame_pose(name)[:3, 3] for name in soles]
         robot.push_torso([0.0, 40.0, 0.0], 2.0)
         for _ in range(int(2.0 / robot.period_s)):
             robot.send(home_posture(MODEL))
             state = robot.step()
-            T_S_N = estimator(state, state.imu_quat_wxyz)
+            estimator.update(state)
         drift = max(float(np.linalg.norm((robot.frame_pose(name)[:3, 3] - p)[:2]))
                     for name, p in zip(soles, before, strict=True))
-        error = float(np.linalg.norm(((T_world_S @ T_S_N) - state.truth.T_world_torso)[:2, 3]))
+        error = float(np.linalg.norm(((T_truth_estimate @ estimator.store[T_WORLD_TORSO])
+                                      - state.truth.T_world_torso)[:2, 3]))
     return drift, error
 
 
 @pytest.mark.physical
 def test_standing_soles_do_not_creep_so_the_torso_estimate_stays_on_the_body():
-    # the estimator assumes the feet stay where they stood; the solver's friction without
-    # anchors lets both feet walk away together (14 mm over a perturbed robot's 60 s cut),
-    # which no onboard sensor sees. Measured (AVX-512 / portable): anchored drift 0.031-0.032
-    # mm (bound 1.9x), error 0.021-0.058 mm (1.7x); free drift 0.229 mm (1.5x), error 0.183 mm
-    # (1.5x)
+    # the estimate (estimation/base.py) assumes a loaded sole stays where it stood; the
+    # solver's friction without anchors lets both feet walk away together (14 mm over a
+    # perturbed robot's 60 s cut), which no onboard sensor sees. Measured (AVX-512 / portable):
+    # anchored drift 0.031-0.032 mm (bound 1.9x); free drift 0.226-0.229 mm (1.5x). The
+    # floating base's error with the attitude filter is its tilt under the push (the
+    # accelerometer feels the push's acceleration; 0.07 deg at the torso's height), not the
+    # creep: anchored 1.25 / 1.11 mm (bound 1.5x), free 0.77 / 0.77 mm (it was 0.0024 and
+    # 0.209 mm with the simulator's ideal orientation)
     drift, error = _creep_under_a_side_push(anchor=True)
-    assert drift < 0.06e-3 and error < 0.1e-3
-    drift_free, error_free = _creep_under_a_side_push(anchor=False)
-    assert drift_free > 0.15e-3 and error_free > 0.12e-3
+    assert drift < 0.06e-3 and error < 1.9e-3
+    drift_free, _ = _creep_under_a_side_push(anchor=False)
+    assert drift_free > 0.15e-3
 
 
 def _solver_iterations_used(robot, steps):

@@ -11,7 +11,7 @@ from hubo_cli.balance_report import bit_poses, flutes_in_wall
 from hubo_cli.cli.main import main
 from hubo_cli.control.log import load_log
 from hubo_cli.dataflow import Store
-from hubo_cli.estimation.keys import QUAT_WORLD_TORSO, WRENCHES
+from hubo_cli.estimation.keys import T_WORLD_SOLES, T_WORLD_TORSO, WRENCHES
 from hubo_cli.geometry import rpy_to_quat_wxyz
 from hubo_cli.kinematics.torso import torso_in_stance
 from hubo_cli.model import load_model
@@ -114,17 +114,20 @@ def test_the_task_phases_hand_over_and_a_released_stop_resumes_the_frozen_row(re
 
 
 def test_the_task_corrects_the_arm_by_the_measured_torso_lean(rectangle_plan):
-    """A torso leaning 0.5 deg forward (IMU): the target's arm joints put the bit back on the
-    plan's goal in S (through the measured torso pose); the plan's own joints, which the target
-    plays without the correction, leave it several millimetres off."""
+    """A torso leaning 0.5 deg forward (the estimate's torso pose, S where the soles stand):
+    the target's arm joints put the bit back on the plan's goal in S; the plan's own joints,
+    which the target plays without the correction, leave it several millimetres off."""
     plan = rectangle_plan
     body, sl = plan.body, plan.body.model.limb_slice("right-arm")
     q = plan.q_first_rad.copy()
-    lean = RobotState(0.0, q, np.zeros_like(q), imu_quat_wxyz=rpy_to_quat_wxyz(
-        0.0, np.radians(0.5), 0.0))
-    T_S_N = torso_in_stance(body, q, lean.imu_quat_wxyz)  # as the robot measures it
+    lean = RobotState(0.0, q, np.zeros_like(q))
+    T_S_N = torso_in_stance(body, q, rpy_to_quat_wxyz(0.0, np.radians(0.5), 0.0))
+    T_world_S = np.eye(4)
+    T_world_S[:3, 3] = 0.4, -0.2, 0.9  # the estimate's world: S anywhere
     store = Store()
-    store[QUAT_WORLD_TORSO] = lean.imu_quat_wxyz  # the estimate: the IMU's attitude
+    store[T_WORLD_TORSO] = T_world_S @ T_S_N  # the estimate: the body leaning on its soles
+    store[T_WORLD_SOLES] = np.array([T_world_S @ body.T_S_sole[leg]
+                                     for leg in ("right-leg", "left-leg")])
     store[WRENCHES] = lean.ft  # and nothing on the wrists
     target = TaskTarget(plan)
     target.attach(None, [], store)

@@ -49,10 +49,41 @@ def test_drill_mode_follows_only_y_and_z():
     first = mapper.goal("right", sensor(0, 0, 0), 0.0, T_HAND0)
     assert first.T_S_goal[0, 3] == pytest.approx(0.48)
     assert np.allclose(first.T_S_goal[:3, :3], np.eye(3))
-    goal = mapper.goal("right", sensor(0.05, -0.03, -0.02, 0.4, 0.2, 0.1), 0.01, T_HAND0)
+    goal = mapper.goal("right", sensor(0.05, -0.03, -0.02, 0.4, 0.2, 0.1), 2.0, T_HAND0)
     assert goal.T_S_goal[0, 3] == pytest.approx(0.48)
     assert np.allclose(goal.T_S_goal[:3, :3], np.eye(3))
     assert np.allclose(goal.T_S_goal[1:3, 3], T_HAND0[1:3, 3] + [0.03, 0.02])
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_drill_goals_cross_the_wall_no_faster_than_the_bound_and_catch_up(seed):
+    """Random strokes, jitter, glitches and repeated or disordered sample times: the drill
+    goal never moves across the wall faster than ``wall_speed_m_s`` by the samples' times, and
+    reaches the operator's hand once it rests."""
+    rng = np.random.default_rng(seed)
+    config = MappingConfig(mode="drill", wall_distance_m=0.48, wall_speed_m_s=0.03)
+    mapper = HandMapper(config)
+    times = np.cumsum(rng.choice([0.0, 1 / 120, 1 / 60, 0.1], size=600, p=[0.05, 0.8, 0.1, 0.05]))
+    times[rng.integers(0, 600, 10)] -= 0.05  # a few out of order
+    positions = np.cumsum(rng.normal(0.0, 0.003, (600, 3)), axis=0)  # up to ~0.4 m/s strokes
+    positions[rng.integers(0, 600, 5)] += 1.0  # glitches
+    goals, last_t = [], None
+    for t, p in zip(times, positions, strict=True):
+        goal = mapper.goal("right", sensor(*p), float(t), T_HAND0)
+        if goal is not None:
+            goals.append((max(float(t), last_t if last_t is not None else float(t)),
+                          goal.T_S_goal.copy()))
+            last_t = goals[-1][0]
+    assert mapper.rejected >= 5
+    for (t0, a), (t1, b) in zip(goals, goals[1:], strict=False):
+        assert b[0, 3] == pytest.approx(0.48) and np.allclose(b[:3, :3], np.eye(3))
+        assert np.linalg.norm(b[1:3, 3] - a[1:3, 3]) <= 0.03 * (t1 - t0) + 1e-12
+    # the operator rests: the goal comes to his hand's place at the bound's speed
+    t_end, rest = times.max(), positions[-1] if positions[-1][0] < 0.5 else positions[-2]
+    for k in range(1, 4000):
+        goal = mapper.goal("right", sensor(*rest), t_end + k / 120, T_HAND0)
+    wanted = mapper.goal("right", sensor(*rest), t_end + 4000 / 120 + 100, T_HAND0).T_S_goal
+    assert np.allclose(goal.T_S_goal, wanted, atol=1e-9)
 
 
 def test_hands_are_independent_and_unmapped_ones_ignored():

@@ -24,7 +24,7 @@ from hubo_cli.cli.output import (
     print_json,
 )
 from hubo_cli.drivers.registry import DRIVER_NAMES, driver_class
-from hubo_cli.errors import HuboError, InputError, SafetyError
+from hubo_cli.errors import HuboError, InputError
 
 KEYS_HELP = "keys: space e-stop, r release, c clutch, b change branch, q quit"
 DIRECTIONS = (("fwd", "back"), ("left", "right"), ("up", "down"))  # +/- x, y, z of the stance
@@ -275,19 +275,13 @@ def _check_replay_stations(replay: str, settings) -> None:
 
 
 def _check_wall_reach(settings) -> None:
-    """Drill mode with a given wall distance: the bit must reach the start of the cut there."""
+    """Drill mode with a given wall distance: the bit must have a way into the wall within the
+    arm's exact reach there (:func:`~hubo_cli.teleop.session.drill_approach` refuses one
+    without, SafetyError), before anything moves."""
     from hubo_cli.teleop.session import approach_paths, prepare
 
     _, body, mapping, scene = prepare(settings)
-    for arm, path in approach_paths(body, mapping.hand_arm.values(), scene).items():
-        for T in (path.at(0.0), path.at(path.duration_s)):
-            result = body.solve({arm: T}, None, lift_m=body.lift_for({arm: T}))
-            if result.arms[arm].status != "exact":
-                raise SafetyError(
-                    f"--wall-distance {scene['wall_distance_m'] * 1000:g} mm: the drill cannot "
-                    f"reach the wall there ({arm} {result.arms[arm].status}); nothing moved",
-                    hint="leave out --wall-distance (the workspace map's best, 470 mm) or "
-                         "stay within about 400-520 mm")
+    approach_paths(body, mapping.hand_arm.values(), scene)
 
 
 def _run(settings, as_json: bool):

@@ -3,7 +3,8 @@
 Every 5 ms control period (200 Hz) the driver puts one ``struct hubo_ref`` (462 bytes, see
 :mod:`hubo_cli.drivers.hubo_ach`) on hubo-ach's ``hubo-ref`` channel through libach and reads
 hubo-daemon's ``struct hubo_state`` from ``hubo-state``: the body IMU's tilt angles and rates
-become the torso quaternion, the gyro and the accelerometer's specific force
+become the torso quaternion (its tilt: a_z is no heading,
+:func:`~hubo_cli.drivers.hubo_ach.body_imu_quat`), the gyro and the accelerometer's specific force
 (:func:`~hubo_cli.drivers.hubo_ach.accel_from_tilt`: the gravity the tilts imply), ``ft`` the
 four wrenches, ``joint[].pos/vel`` the joints and ``time`` the driver's clock. It waits (up to
 ``state_wait_s``) for the daemon's next state each period, so the robot's own 200 Hz loop paces
@@ -595,7 +596,7 @@ class HardwareDriver(Driver):
         flags += self.stale.flags()
         return RobotState(time_s=frame.time_s - self._t0, q_rad=frame.pos_rad[self.ach_index],
                           dq_rad_s=frame.vel_rad_s[self.ach_index],
-                          imu_quat_wxyz=hubo_ach.quat_from_tilt(frame.imu_tilt_rad),
+                          imu_quat_wxyz=hubo_ach.body_imu_quat(frame.imu_tilt_rad),
                           imu_gyro_rad_s=frame.imu_rate_rad_s.copy(),
                           imu_accel_m_s2=hubo_ach.accel_from_tilt(frame.imu_tilt_rad), ft=ft,
                           flags=tuple(flags))

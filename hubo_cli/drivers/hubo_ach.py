@@ -249,15 +249,30 @@ def tilt_from_quat(q_wxyz) -> np.ndarray:
 def quat_from_tilt(tilt_rad) -> np.ndarray:
     """Unit quaternion w, x, y, z of the torso from the IMU's tilt angles (rad).
 
-    hubo-ach's IMU reports a_x (roll about x) and a_y (pitch about y) from its inclinometers; a_z
-    (yaw) is not observable from gravity and is taken as given. The rotation is
-    Rz(a_z) Ry(a_y) Rx(a_x), whose roll and pitch are a_x and a_y again.
+    The rotation is Rz(a_z) Ry(a_y) Rx(a_x), whose roll and pitch are a_x and a_y again.
+    hubo-ach's IMU reports a_x (roll about x) and a_y (pitch about y) from its inclinometers; its
+    a_z is no heading (gravity does not show one, and the body IMU has no other reference): the
+    hardware driver passes a_z = 0 (:func:`body_imu_quat`).
     """
     roll, pitch, yaw = (0.5 * float(v) for v in tilt_rad)
     cr, sr, cp, sp, cy, sy = (np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch),
                               np.cos(yaw), np.sin(yaw))
     return np.array([cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
                      cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy])
+
+
+def body_imu_tilt(q_wxyz) -> np.ndarray:
+    """The body IMU's a_x, a_y, a_z (rad) as the simulated daemon publishes them for a torso
+    orientation: its roll and pitch (:func:`tilt_from_quat`), a_z 0 (no heading)."""
+    tilt = tilt_from_quat(q_wxyz)
+    tilt[2] = 0.0
+    return tilt
+
+
+def body_imu_quat(tilt_rad) -> np.ndarray:
+    """The torso attitude the hardware driver reports from the body IMU's a_x, a_y (rad): its
+    tilt, yaw 0; a_z is not read (it is no heading, see :func:`quat_from_tilt`)."""
+    return quat_from_tilt((float(tilt_rad[0]), float(tilt_rad[1]), 0.0))
 
 
 def accel_from_tilt(tilt_rad) -> np.ndarray:

@@ -11,10 +11,11 @@ sensors and ``--perturb`` draws unchanged) runs one 5 ms period. What it measure
 - ``joint[].pos``, ``vel``: the 24 limb joints' encoders (rad, rad/s; with the draw's sensor
   noise); ``joint[].ref``: the filter's output. The joints the simulated robot has not (neck,
   waist, wrist roll, fingers) are ideal motors at the filter's output, as in the fake daemon.
-- ``imu[2]`` (the body IMU): the torso's tilt angles a_x, a_y, a_z (rad, the inverse of what the
-  hardware driver decodes, :func:`~hubo_cli.drivers.hubo_ach.tilt_from_quat`) and its angular
-  rates w_x, w_y, w_z (rad/s, torso axes). The foot tilt sensors (``imu[0]``, ``imu[1]``) are
-  not modelled (zero).
+- ``imu[2]`` (the body IMU): the torso's tilt angles a_x, a_y (rad, roll and pitch, the inverse
+  of what the hardware driver decodes, :func:`~hubo_cli.drivers.hubo_ach.body_imu_tilt`), a_z 0
+  (a Hubo's body IMU gives no heading; the simulator's true yaw stays in the simulator) and its
+  angular rates w_x, w_y, w_z (rad/s, torso axes). The foot tilt sensors (``imu[0]``,
+  ``imu[1]``) are not modelled (zero).
 - ``ft[4]`` (R hand, L hand, R foot, L foot): m_x, m_y (N m) and f_z (N) as the simulated
   three-axis sensors read them in their own frames (the sim driver's ``RobotState.ft``: the
   environment's wrench and the weight beyond the sensor), the frames the hardware driver
@@ -163,7 +164,7 @@ class PhysicsBody(DaemonBody):
         jam = np.zeros(JOINT_COUNT, dtype=np.uint8)
         jam[self.index[list(self.frozen_rad)]] = 1
         motors = self.motors
-        return StateFrame(time_s, hubo_ach.tilt_from_quat(measured.imu_quat_wxyz),
+        return StateFrame(time_s, hubo_ach.body_imu_tilt(measured.imu_quat_wxyz),
                           np.array(measured.imu_gyro_rad_s, dtype=float), ft, pos, vel,
                           ref_rad=self._filtered.copy(), tmp_c=motors.tmp_c.copy(),
                           cur_a=motors.cur_a.copy(), heat_j=motors.heat_j.copy(),

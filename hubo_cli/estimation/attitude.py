@@ -1,10 +1,11 @@
-"""The torso's attitude from the IMU's gyro and accelerometer: a Kalman filter that estimates the
-gyro's bias (the multi-layer paper's KalmanFilter component, as hrpsys-base runs it ahead of
-its stabilizer).
+"""The torso's attitude from the IMU's gyro and accelerometer and the legs' kinematics: a Kalman
+filter that estimates the gyro's bias (the multi-layer paper's KalmanFilter component, as
+hrpsys-base runs it ahead of its stabilizer) and the floor's tilt.
 
 The filter is a multiplicative (error-state) extended Kalman filter on the quaternion
-q_world_torso and the gyro bias b (torso axes). Its error state is the small rotation dtheta
-(torso axes: the true attitude is q exp(dtheta)) and the bias error db, with a 6 x 6 covariance.
+q_world_torso, the gyro bias b (torso axes) and the floor's normal n (world). Its error state is
+the small rotation dtheta (torso axes: the true attitude is q exp(dtheta)), the bias error db
+and the floor's small tilt about the world's x and y, with an 8 x 8 covariance.
 
 - Predict, each period dt: the bias-corrected rate omega = gyro - b turns q by omega dt; the
   covariance grows by the gyro's white noise (angle random walk) and the bias's random walk.
@@ -12,21 +13,40 @@ q_world_torso and the gyro bias b (torso axes). Its error state is the small rot
   R^T e_z, while the torso does not accelerate. While it is still (the motion below), its
   noise is ``accel_noise_m_s2`` (the sensor's own) and the vibration measured (the RMS,
   low-passed over ``motion_time_s``, of the reading's departure from its own low-passed
-  mean, that mean turned with the gyro), and the correction reaches the bias too: standing
-  still is when the bias is learnt.
+  mean, that mean turned with the gyro); once the torso has been still ``still_learn_s``
+  (settled; a robot is set down and settles before a run starts) the correction reaches the
+  bias and the floor's tilt too: standing still is when they are learnt.
 - Motion: the root mean square, low-passed over ``motion_time_s``, of the departure of |a|
-  from g and of the bias-corrected rate; the torso is still while both stay below
-  ``still_accel_m_s2`` and ``still_gyro_rad_s``. Beyond, by the factor m (the larger ratio),
-  the accelerometer's noise grows by the factor ``1 + motion_noise_gain (m - 1)`` and the
-  bias is not corrected: a walk's sway and a push accelerate the torso sideways for a second
-  and more, which the accelerometer cannot tell from a tilt (its norm hardly changes, the
-  rate does). A reading whose |a| departs from g by more than ``accel_reject_m_s2`` (an
-  impact) is not used at all.
+  from g and of the bias-corrected rate, and this reading's |a| - g, rate and departure from
+  the gravity expected (sideways too); the torso is still while they stay below
+  ``still_accel_m_s2`` and ``still_gyro_rad_s`` (the readings' below 3 and 2 times that).
+  Beyond, by the factor m (the larger ratio), the accelerometer's noise grows by the factor
+  ``1 + motion_noise_gain (m - 1)``: a walk's sway and a push accelerate the torso sideways
+  for a second and more, which the accelerometer cannot tell from a tilt (its norm hardly
+  changes, the rate does). Not settled while the legs tell the tilt, the accelerometer is not
+  used (they tell it far better). A reading whose |a| departs from g by more than
+  ``accel_reject_m_s2`` (an impact) is not used at all.
 - Heading: gravity says nothing about it, nor about the bias about the vertical. While still,
   the torso does not turn about the vertical, so the gyro's vertical component is read as
   that bias (a zero-rate update, its noise the rate's measured vibration, unless it departs
   by more than 3 sigma). The yaw follows the bias-corrected gyro, from the heading the IMU
   reports in the first state.
+- The legs: a sole that lies flat on the floor (in ``CONTACT``, pressing ``legs_min_fz_n``
+  with its centre of pressure ``legs_cop_margin_m`` inside its outline) has the floor's
+  normal for its own z axis, so the legs' forward kinematics of the measured joints
+  (:class:`~hubo_cli.estimation.base.LegsKinematics`) give the torso's tilt from the floor,
+  R^T n, to the encoders' noise and the sole's compliance (``legs_tilt_noise_rad``), walking
+  or not; that correction reaches the bias too (the bias across gravity is learnt while
+  walking), not the floor's tilt: only gravity tells that, so the floor is learnt from the
+  accelerometer once settled. The contact and the wrenches are the last period's (they come
+  after the attitude in the period: the wrenches need it).
+- Start: the first attitude is the first accelerometer reading's tilt (the simulator's first
+  reading is gravity alone: no velocity to difference yet) and the IMU's reported heading,
+  no bias; the floor's normal is the soles' (both stand on it at the start, as the floating
+  base has them) through the legs and that attitude. A walk moves the torso from its first
+  period (0.5-2.5 m/s^2 sideways), so neither could be learnt from the accelerometer after
+  it. A residual beyond the filter's expectation (chi-square, :data:`GATE_D2`) counts with
+  its noise grown to match it.
 - A reading that is not finite or beyond the sensor's range is not used: a bad gyro holds the
   attitude (no prediction), a bad accelerometer skips the correction; :data:`IMU_REJECTED`
   says which this period. A result that would not be finite is never written: the last
@@ -46,10 +66,18 @@ import numpy as np
 
 from hubo_cli.dataflow import Key, Store
 from hubo_cli.errors import ConfigError
-from hubo_cli.estimation.keys import GYRO_BIAS, IMU_REJECTED, OMEGA_TORSO, QUAT_WORLD_TORSO
+from hubo_cli.estimation.base import LegsKinematics, centre_of_pressure
+from hubo_cli.estimation.keys import (
+    CONTACT,
+    GYRO_BIAS,
+    IMU_REJECTED,
+    OMEGA_TORSO,
+    QUAT_WORLD_TORSO,
+    WRENCHES,
+)
 from hubo_cli.estimation.observer import Observer
-from hubo_cli.geometry import JIT
-from hubo_cli.state import GRAVITY_M_S2, RobotState
+from hubo_cli.geometry import JIT, quat_wxyz_to_matrix
+from hubo_cli.state import ANKLE_SENSORS, GRAVITY_M_S2, RobotState
 
 
 @dataclass(frozen=True)
@@ -72,6 +100,13 @@ class AttitudeParams:
         initial_gyro_bias_rad_s: the gyro bias's uncertainty at start (per axis).
         gyro_range_rad_s: the gyro's measuring range; a larger reading is rejected.
         accel_range_m_s2: the accelerometer's measuring range; a larger reading is rejected.
+        legs_tilt_noise_rad: the legs' tilt measurement's noise (the encoders' noise through
+            the leg and the sole's compliance on the floor).
+        legs_min_fz_n: a sole measures the tilt while it presses at least this ...
+        legs_cop_margin_m: ... with its centre of pressure at least this inside its outline.
+        initial_floor_tilt_rad: the floor's tilt's uncertainty at start.
+        still_learn_s: the accelerometer teaches the bias and the floor's tilt once the torso
+            has been still this long.
     """
 
     gyro_noise_rad_s_rt_hz: float
@@ -86,6 +121,11 @@ class AttitudeParams:
     initial_gyro_bias_rad_s: float
     gyro_range_rad_s: float
     accel_range_m_s2: float
+    legs_tilt_noise_rad: float
+    legs_min_fz_n: float
+    legs_cop_margin_m: float
+    initial_floor_tilt_rad: float
+    still_learn_s: float
 
     def as_array(self) -> np.ndarray:
         """The fields in order, for the kernel."""
@@ -112,7 +152,11 @@ def attitude_params(model) -> AttitudeParams:
 
 # indices into the kernel's parameter array (AttitudeParams' field order)
 (_GYRO_NOISE, _BIAS_WALK, _ACCEL_NOISE, _STILL_ACCEL, _STILL_GYRO, _MOTION_TIME, _MOTION_GAIN,
- _ACCEL_REJECT, _TILT0, _BIAS0, _GYRO_RANGE, _ACCEL_RANGE) = range(12)
+ _ACCEL_REJECT, _TILT0, _BIAS0, _GYRO_RANGE, _ACCEL_RANGE, _LEGS_NOISE, _LEGS_FZ, _LEGS_MARGIN,
+ _FLOOR0, _STILL_LEARN) = range(17)
+GATE_D2 = 16.3  # a direction's residual beyond this Mahalanobis square (chi-square, 3 degrees
+#                 of freedom, 0.1 %) counts with its noise grown to match it
+NX = 8  # the error state: attitude (3), gyro bias (3), the floor's tilt about world x and y (2)
 GYRO_REJECTED, ACCEL_REJECTED, ACCEL_IGNORED, RESULT_REJECTED = 1, 2, 4, 8
 
 
@@ -137,36 +181,93 @@ def _quat_times_rotvec(q, vx, vy, vz, out):
 
 
 @nb.njit(**JIT)
-def _correct(q, b, P, K, H, res, r):
-    """Apply the correction K res to (q, b) and its covariance to P (Joseph form: right for
+def _correct(q, b, n, P, K, H, res, r):
+    """Apply the correction K res to (q, b, n) and its covariance to P (Joseph form: right for
     any gain, the bias's rows zeroed too, and stays symmetric), in place."""
     dx = K @ res
-    IKH = np.eye(6) - K @ H
+    IKH = np.eye(NX) - K @ H
     P[:, :] = IKH @ P @ IKH.T + r * (K @ K.T)
     q_prior = q.copy()
     _quat_times_rotvec(q_prior, dx[0], dx[1], dx[2], q)
     for i in range(3):
         b[i] += dx[i + 3]
+    # the floor's normal turned by (dx6, dx7, 0) about the world's axes
+    nx, ny, nz = n[0], n[1], n[2]
+    n[0], n[1], n[2] = nx + dx[7] * nz, ny - dx[6] * nz, nz + dx[6] * ny - dx[7] * nx
+    norm = math.sqrt(n[0] ** 2 + n[1] ** 2 + n[2] ** 2)
+    for i in range(3):
+        n[i] /= norm
 
 
-@nb.njit("int64(float64[::1], float64[::1], float64[:, ::1], float64[::1], float64[::1], "
-         "float64, float64, float64[::1], float64[::1], float64[::1], float64[:, ::1], "
-         "float64[::1], float64[::1])", **JIT)
-def _filter_step(q, b, P, gyro, accel, dt, gravity, params, q_out, b_out, P_out, omega_out,
-                 motion):
-    """One period of the filter from (q, b, P) into (q_out, b_out, P_out), the bias-corrected
-    rate into ``omega_out``, the motion's low-passed mean squares (| |a| - g |, the
-    bias-corrected rate, the accelerometer's vibration) and the accelerometer's low-passed
-    mean (torso axes) updated in ``motion`` (6); returns the rejection bits (GYRO_REJECTED
-    ...). With RESULT_REJECTED the outputs are the inputs unchanged."""
+@nb.njit(**JIT)
+def _vertical_update(q, b, n, P, measured, predicted, r, floor, learn_bias, learn_floor):
+    """Correct (q, b, n, P) in place by a measured direction in the torso axes: gravity's
+    (``floor`` False: predicted R^T e_z) or the floor's normal (``floor``: predicted R^T n),
+    each component's noise variance ``r``; the bias and the floor's tilt are corrected only
+    with ``learn_bias`` and ``learn_floor``."""
+    ux, uy, uz = predicted[0], predicted[1], predicted[2]
+    H = np.zeros((3, NX))  # [[u]x, 0, -R^T [n]x (x, y columns)]
+    H[0, 1], H[0, 2] = -uz, uy
+    H[1, 0], H[1, 2] = uz, -ux
+    H[2, 0], H[2, 1] = -uy, ux
+    if floor:
+        w, x, y, z = q[0], q[1], q[2], q[3]
+        R = np.empty((3, 3))
+        R[0, 0], R[0, 1], R[0, 2] = 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), \
+            2 * (x * z + w * y)
+        R[1, 0], R[1, 1], R[1, 2] = 2 * (x * y + w * z), 1 - 2 * (x * x + z * z), \
+            2 * (y * z - w * x)
+        R[2, 0], R[2, 1], R[2, 2] = 2 * (x * z - w * y), 2 * (y * z + w * x), \
+            1 - 2 * (x * x + y * y)
+        for i in range(3):  # columns x, y of [n]x: (0, nz, -ny), (-nz, 0, nx)
+            H[i, 6] = -(R[1, i] * n[2] - R[2, i] * n[1])
+            H[i, 7] = -(-R[0, i] * n[2] + R[2, i] * n[0])
+    res = np.empty(3)
+    for i in range(3):
+        res[i] = measured[i] - predicted[i]
+    PHt = P @ H.T
+    S = H @ PHt
+    for i in range(3):
+        S[i, i] += r
+    S_inv = np.linalg.inv(S)
+    d2 = res @ S_inv @ res
+    if d2 > GATE_D2:  # more than the filter expects: weighed as if that noisy (a jolt's
+        #               sideways acceleration hardly changes |a|; a sole that tips)
+        extra = r * (d2 / GATE_D2 - 1.0)
+        r += extra
+        for i in range(3):
+            S[i, i] += extra
+        S_inv = np.linalg.inv(S)
+    K = PHt @ S_inv
+    if not learn_bias:
+        K[3:6, :] = 0.0
+    if not learn_floor:
+        K[6:, :] = 0.0
+    _correct(q, b, n, P, K, H, res, r)
+
+
+@nb.njit("int64(float64[::1], float64[::1], float64[::1], float64[:, ::1], float64[::1], "
+         "float64[::1], float64[:, ::1], float64, float64, float64[::1], float64[::1], "
+         "float64[::1], float64[::1], float64[:, ::1], float64[::1], float64[::1])", **JIT)
+def _filter_step(q, b, n, P, gyro, accel, legs, dt, gravity, params, q_out, b_out, n_out,
+                 P_out, omega_out, motion):
+    """One period of the filter from (q, b, n, P) into (q_out, b_out, n_out, P_out), the
+    bias-corrected rate into ``omega_out``, the motion's low-passed mean squares (| |a| - g |,
+    the bias-corrected rate, the accelerometer's vibration) and the accelerometer's low-passed
+    mean (torso axes) and the time still updated in ``motion`` (7); ``legs`` (2 x 4): per
+    sole, 1 and the floor's normal in the torso axes from the leg when it measures the tilt
+    this period, else 0;
+    returns the rejection bits (GYRO_REJECTED ...). With RESULT_REJECTED the outputs are the
+    inputs unchanged."""
     code = 0
     omega_in = omega_out.copy()
     for i in range(4):
         q_out[i] = q[i]
     for i in range(3):
         b_out[i] = b[i]
-    for i in range(6):
-        for j in range(6):
+        n_out[i] = n[i]
+    for i in range(NX):
+        for j in range(NX):
             P_out[i, j] = P[i, j]
     gyro_ok = True
     for i in range(3):
@@ -184,7 +285,7 @@ def _filter_step(q, b, P, gyro, accel, dt, gravity, params, q_out, b_out, P_out,
         motion[5] -= (wx * my - wy * mx) * dt
         _quat_times_rotvec(q, wx * dt, wy * dt, wz * dt, q_out)
         # F = [[I - [w dt]x, -I dt], [0, I]]; P = F P F^T + Q
-        F = np.eye(6)
+        F = np.eye(NX)
         F[0, 1], F[0, 2] = wz * dt, -wy * dt
         F[1, 0], F[1, 2] = -wz * dt, wx * dt
         F[2, 0], F[2, 1] = wy * dt, -wx * dt
@@ -217,38 +318,69 @@ def _filter_step(q, b, P, gyro, accel, dt, gravity, params, q_out, b_out, P_out,
             vibration2 += d * d
             motion[3 + i] += alpha * d
         motion[2] += alpha * (vibration2 - motion[2])
+    # a single reading (|a| - g, the rate, the reading's departure from the gravity expected)
+    # several times still's is motion already (a walk sways the torso sideways from its first
+    # period, |a| hardly changing: the low-passed RMS saw it only after the floor's tilt had
+    # learnt 0.65 deg of it)
+    rate = math.sqrt(omega_out[0] ** 2 + omega_out[1] ** 2 + omega_out[2] ** 2) if gyro_ok \
+        else 0.0
+    sway = 0.0  # the reading's departure from the gravity expected, m/s^2 (sideways too)
+    if accel_ok:
+        w, x, y, z = q_out[0], q_out[1], q_out[2], q_out[3]
+        sway = math.sqrt((accel[0] - gravity * 2 * (x * z - w * y)) ** 2
+                         + (accel[1] - gravity * 2 * (y * z + w * x)) ** 2
+                         + (accel[2] - gravity * (w * w - x * x - y * y + z * z)) ** 2)
     moving = max(math.sqrt(motion[0]) / params[_STILL_ACCEL],
-                 math.sqrt(motion[1]) / params[_STILL_GYRO])
-    if accel_ok and dt > 0.0:
+                 math.sqrt(motion[1]) / params[_STILL_GYRO],
+                 departure / (3.0 * params[_STILL_ACCEL]), rate / (3.0 * params[_STILL_GYRO]),
+                 sway / (2.0 * params[_STILL_ACCEL]))
+    if dt > 0.0:
+        motion[6] = motion[6] + dt if moving <= 1.0 else 0.0
+    # a walk comes to rest swaying for a few tenths of a second after the RMS says still: the
+    # floor's tilt learnt then was 0.7 deg off on a level floor
+    settled = motion[6] >= params[_STILL_LEARN]
+    legs_measure = legs[0, 0] == 1.0 or legs[1, 0] == 1.0
+    if accel_ok and dt > 0.0 and (settled or not legs_measure):
+        # not settled, the legs tell the tilt far better than an accelerometer that feels the
+        # sway (the legs pulling back a tilt the sway pushed turned the bias by 0.7 deg/s)
         if departure > params[_ACCEL_REJECT]:
             code |= ACCEL_IGNORED
         else:
             factor = 1.0 + params[_MOTION_GAIN] * max(0.0, moving - 1.0)
-            sigma2 = (params[_ACCEL_NOISE] ** 2 + motion[2]) * factor * factor
-            r = sigma2 / (gravity * gravity)  # of the unit direction
+            sigma2 = (params[_ACCEL_NOISE] ** 2 + motion[2] + departure * departure) \
+                * factor * factor
             w, x, y, z = q_out[0], q_out[1], q_out[2], q_out[3]
-            zx, zy, zz = 2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z
-            res = np.empty(3)
-            res[0], res[1], res[2] = accel[0] / norm - zx, accel[1] / norm - zy, \
-                accel[2] / norm - zz
-            H = np.zeros((3, 6))  # [[z]x, 0]
-            H[0, 1], H[0, 2] = -zz, zy
-            H[1, 0], H[1, 2] = zz, -zx
-            H[2, 0], H[2, 1] = -zy, zx
-            PHt = P_out @ H.T
-            S = H @ PHt
+            predicted, measured = np.empty(3), np.empty(3)
+            predicted[0], predicted[1] = 2 * (x * z - w * y), 2 * (y * z + w * x)
+            predicted[2] = w * w - x * x - y * y + z * z
             for i in range(3):
-                S[i, i] += r
-            K = PHt @ np.linalg.inv(S)
-            if moving > 1.0:  # the bias is learnt only while still
-                K[3:, :] = 0.0
-            _correct(q_out, b_out, P_out, K, H, res, r)
+                measured[i] = accel[i] / norm
+            # of the unit direction; the bias and the floor's tilt are learnt from it only once
+            # settled (a walk's sway is 0.5-2.5 m/s^2 sideways for a fifth of a second and
+            # more, 3-15 deg of gravity's direction: it moved the floor by tenths of a degree)
+            _vertical_update(q_out, b_out, n_out, P_out, measured, predicted,
+                             sigma2 / (gravity * gravity), False, settled, settled)
+    # the legs: a loaded flat sole lies on the floor, its normal the floor's
+    for k in range(2):
+        if legs[k, 0] == 1.0:
+            w, x, y, z = q_out[0], q_out[1], q_out[2], q_out[3]
+            predicted = np.empty(3)  # R^T n
+            predicted[0] = ((1 - 2 * (y * y + z * z)) * n_out[0] + 2 * (x * y + w * z) * n_out[1]
+                            + 2 * (x * z - w * y) * n_out[2])
+            predicted[1] = (2 * (x * y - w * z) * n_out[0] + (1 - 2 * (x * x + z * z)) * n_out[1]
+                            + 2 * (y * z + w * x) * n_out[2])
+            predicted[2] = (2 * (x * z + w * y) * n_out[0] + 2 * (y * z - w * x) * n_out[1]
+                            + (1 - 2 * (x * x + y * y)) * n_out[2])
+            # the floor's tilt is not corrected by it: the legs tell the torso's tilt from the
+            # floor, only gravity the floor's
+            _vertical_update(q_out, b_out, n_out, P_out, legs[k, 1:], predicted,
+                             params[_LEGS_NOISE] ** 2, True, True, False)
     if gyro_ok and dt > 0.0 and moving <= 1.0:
         # still: the torso does not turn about the vertical, so the gyro's vertical component
         # is its bias's (a zero-rate update; gravity tells the bias across it), with the rate's
         # measured vibration as its noise, unless it departs by more than 3 sigma
         w, x, y, z = q_out[0], q_out[1], q_out[2], q_out[3]
-        H = np.zeros((1, 6))
+        H = np.zeros((1, NX))
         H[0, 3], H[0, 4], H[0, 5] = 2 * (x * z - w * y), 2 * (y * z + w * x), \
             w * w - x * x - y * y + z * z
         res = np.empty(1)
@@ -258,7 +390,7 @@ def _filter_step(q, b, P, gyro, accel, dt, gravity, params, q_out, b_out, P_out,
         PHt = P_out @ H.T
         s = (H @ PHt)[0, 0] + r
         if res[0] * res[0] <= 9.0 * s:
-            _correct(q_out, b_out, P_out, PHt / s, H, res, r)
+            _correct(q_out, b_out, n_out, P_out, PHt / s, H, res, r)
     if gyro_ok:
         for i in range(3):
             omega_out[i] = gyro[i] - b_out[i]
@@ -266,9 +398,10 @@ def _filter_step(q, b, P, gyro, accel, dt, gravity, params, q_out, b_out, P_out,
     for i in range(4):
         finite = finite and math.isfinite(q_out[i])
     for i in range(3):
-        finite = finite and math.isfinite(b_out[i]) and math.isfinite(omega_out[i])
-    for i in range(6):
-        for j in range(6):
+        finite = finite and math.isfinite(b_out[i]) and math.isfinite(omega_out[i]) \
+            and math.isfinite(n_out[i])
+    for i in range(NX):
+        for j in range(NX):
             finite = finite and math.isfinite(P_out[i, j])
     if not finite:
         code |= RESULT_REJECTED
@@ -278,8 +411,9 @@ def _filter_step(q, b, P, gyro, accel, dt, gravity, params, q_out, b_out, P_out,
             q_out[i] = q[i]
         for i in range(3):
             b_out[i] = b[i]
-        for i in range(6):
-            for j in range(6):
+            n_out[i] = n[i]
+        for i in range(NX):
+            for j in range(NX):
                 P_out[i, j] = P[i, j]
     return code
 
@@ -321,16 +455,19 @@ class AttitudeObserver(Observer):
     Args:
         params: the filter's parameters (:func:`attitude_params` of the robot file).
         period_s: the control period, used when the state's clock does not advance sensibly.
+        model: the robot model, for the legs' tilt measurement (None: gyro and accelerometer
+            alone).
 
     Attributes:
         rejected_periods: how many periods some reading was rejected since the reset.
+        legs_periods: how many periods a sole measured the tilt since the reset.
     """
 
     name = "attitude"
     writes: tuple[Key, ...] = (QUAT_WORLD_TORSO, GYRO_BIAS, OMEGA_TORSO, IMU_REJECTED)
     MAX_DT_PERIODS = 20  # a longer gap in the state's clock counts as one period
 
-    def __init__(self, params: AttitudeParams, period_s: float) -> None:
+    def __init__(self, params: AttitudeParams, period_s: float, model=None) -> None:
         if not (math.isfinite(period_s) and period_s > 0):
             raise ConfigError(f"the control period must be > 0 s, got {period_s!r}")
         self.params = params
@@ -339,23 +476,36 @@ class AttitudeObserver(Observer):
         self._gravity = GRAVITY_M_S2
         self._q, self._q_next = np.array([1.0, 0.0, 0.0, 0.0]), np.empty(4)
         self._b, self._b_next = np.zeros(3), np.empty(3)
-        self._P, self._P_next = np.zeros((6, 6)), np.empty((6, 6))
+        self._n, self._n_next = np.array([0.0, 0.0, 1.0]), np.empty(3)
+        self._P, self._P_next = np.zeros((NX, NX)), np.empty((NX, NX))
         self._omega = np.zeros(3)
-        self._motion = np.zeros(6)
+        self._motion = np.zeros(7)
         self._t_s = 0.0
-        self.rejected_periods = 0
+        self._legs = None if model is None else LegsKinematics(model)
+        self.previous = () if model is None else (CONTACT, WRENCHES)
+        self._T_torso_soles = np.tile(np.eye(4), (2, 1, 1))
+        self._legs_tilt = np.zeros((2, 4))
+        if model is not None:  # the outline less the margin, where the sole is flat
+            corners, margin = model.feet.sole_corners_m(), params.legs_cop_margin_m
+            self._inside = (float(corners[:, 0].min()) + margin,
+                            float(corners[:, 0].max()) - margin,
+                            float(corners[:, 1].min()) + margin,
+                            float(corners[:, 1].max()) - margin)
+        self.rejected_periods = self.legs_periods = 0
 
     @classmethod
     def for_model(cls, model) -> AttitudeObserver:
         """The observer of ``model``'s robot file (its ``[estimation.attitude]`` table) at its
-        control period."""
-        return cls(attitude_params(model), model.control_period_s)
+        control period, with the legs' tilt measurement."""
+        return cls(attitude_params(model), model.control_period_s, model)
 
     def reset(self, state: RobotState, store: Store) -> None:
         p = self.params
         self._q = initial_attitude(state)
         self._b = np.zeros(3)
-        self._P = np.diag([p.initial_tilt_rad ** 2] * 3 + [p.initial_gyro_bias_rad_s ** 2] * 3)
+        self._n = self._initial_floor(state)
+        self._P = np.diag([p.initial_tilt_rad ** 2] * 3 + [p.initial_gyro_bias_rad_s ** 2] * 3
+                          + [p.initial_floor_tilt_rad ** 2] * 2)
         gyro = _vector(state.imu_gyro_rad_s, 3)
         self._omega = gyro if np.all(np.abs(gyro) <= p.gyro_range_rad_s) else np.zeros(3)
         t_s = _seconds(state.time_s)
@@ -363,8 +513,9 @@ class AttitudeObserver(Observer):
         # the vibration unknown yet: as much as still allows
         self._motion[:3] = 0.0, 0.0, p.still_accel_m_s2 ** 2
         accel = _vector(state.imu_accel_m_s2, 3)
-        self._motion[3:] = accel if np.all(np.isfinite(accel)) else (0.0, 0.0, GRAVITY_M_S2)
-        self.rejected_periods = 0
+        self._motion[3:6] = accel if np.all(np.isfinite(accel)) else (0.0, 0.0, GRAVITY_M_S2)
+        self._motion[6] = p.still_learn_s  # settled: a robot is set down and settles first
+        self.rejected_periods = self.legs_periods = 0
         self._write(store, 0)
 
     def update(self, state: RobotState, store: Store) -> None:
@@ -379,13 +530,47 @@ class AttitudeObserver(Observer):
             gyro = _vector(gyro, 3)
         if type(accel) is not np.ndarray or accel.dtype != np.float64 or accel.shape != (3,):
             accel = _vector(accel, 3)
-        code = _filter_step(self._q, self._b, self._P, gyro, accel, dt, self._gravity,
-                            self._params, self._q_next, self._b_next, self._P_next, self._omega,
-                            self._motion)
+        code = _filter_step(self._q, self._b, self._n, self._P, gyro, accel,
+                            self._legs_measurement(state, store), dt, self._gravity,
+                            self._params, self._q_next, self._b_next, self._n_next,
+                            self._P_next, self._omega, self._motion)
         self._q, self._q_next = self._q_next, self._q
         self._b, self._b_next = self._b_next, self._b
+        self._n, self._n_next = self._n_next, self._n
         self._P, self._P_next = self._P_next, self._P
         self._write(store, code)
+
+    def _initial_floor(self, state: RobotState) -> np.ndarray:
+        """The floor's normal in the world at start: both soles stand flat on it (as the
+        floating base has them), so it is their mean normal through the legs, turned into the
+        world by the first attitude (the accelerometer's tilt); level without the legs."""
+        if self._legs is None or not self._legs.solve(state.q_rad, self._T_torso_soles):
+            return np.array([0.0, 0.0, 1.0])
+        normal = quat_wxyz_to_matrix(self._q) @ self._T_torso_soles[:, :3, 2].sum(axis=0)
+        return normal / np.linalg.norm(normal)
+
+    def _legs_measurement(self, state: RobotState, store: Store) -> np.ndarray:
+        """Per sole (right, left): 1 and its normal in the torso axes (the legs' kinematics of
+        this period's joints) when it lies flat on the floor, else 0. Flat: in contact and
+        pressing ``legs_min_fz_n`` with its centre of pressure ``legs_cop_margin_m`` inside
+        its outline, as the last period's estimate has them (the contact and the wrenches come
+        after the attitude in the period: a sole on its edge would say the floor tilts)."""
+        legs = self._legs_tilt
+        legs[:, 0] = 0.0
+        contact, wrenches = store.get(CONTACT), store.get(WRENCHES)
+        if self._legs is None or contact is None or wrenches is None \
+                or not self._legs.solve(state.q_rad, self._T_torso_soles):
+            return legs
+        x_lo, x_hi, y_lo, y_hi = self._inside
+        for k, sensor in enumerate(ANKLE_SENSORS):
+            point = centre_of_pressure(wrenches[sensor], self.params.legs_min_fz_n) \
+                if contact[k] else None
+            if point is not None and x_lo < point[0] < x_hi and y_lo < point[1] < y_hi:
+                legs[k, 0] = 1.0
+                legs[k, 1:] = self._T_torso_soles[k, :3, 2]
+        if legs[0, 0] or legs[1, 0]:
+            self.legs_periods += 1
+        return legs
 
     def _write(self, store: Store, code: int) -> None:
         if code & (GYRO_REJECTED | ACCEL_REJECTED | RESULT_REJECTED):
@@ -398,9 +583,14 @@ class AttitudeObserver(Observer):
 
     @property
     def covariance(self) -> np.ndarray:
-        """The error state's covariance (6 x 6: the attitude's rotation in rad, the bias in
-        rad/s)."""
+        """The error state's covariance (8 x 8: the attitude's rotation in rad, the bias in
+        rad/s, the floor's tilt about the world's x and y in rad)."""
         return self._P.copy()
+
+    @property
+    def floor_normal(self) -> np.ndarray:
+        """The floor's estimated normal in the world (unit vector): its tilt from level."""
+        return self._n.copy()
 
 
 def _vector(values, n: int) -> np.ndarray:

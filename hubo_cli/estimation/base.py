@@ -136,6 +136,38 @@ def _place(quat_wxyz, T_torso_soles, anchor, T_world_anchor, cx, cy, T_world_tor
                            + T[r, 3] * S[3, c])
 
 
+class LegsKinematics:
+    """Both legs' forward kinematics, T_torso_sole (the limbs' chains,
+    :mod:`hubo_cli.kinematics.limb`), from the measured joints: one home for the estimation
+    layer's leg kinematics (the floating base, the attitude's tilt from the legs)."""
+
+    def __init__(self, model: RobotModel) -> None:
+        rows = []
+        for leg in LEGS:
+            base, _, offset, alpha, a, d, end, _ = Limb(model, leg).chain
+            sl = model.limb_slice(leg)
+            rows.append((np.arange(sl.start, sl.stop), base, offset, alpha, a, d, end))
+        self._chain = (np.array([r[0] for r in rows], dtype=np.int64),
+                       *(np.ascontiguousarray([r[k] for r in rows], dtype=float)
+                         for k in range(1, 7)))
+        self._joints = len(model.joint_names)
+        _legs_fk(np.zeros(self._joints), *self._chain, np.empty((2, 4, 4)))  # compile now
+
+    def solve(self, q_rad, T_torso_soles: np.ndarray) -> bool:
+        """T_torso_sole of (right, left) into ``T_torso_soles`` (2 x 4 x 4); False (left
+        untouched) when the joints are not ``model``'s number of finite angles."""
+        return bool(_legs_fk(joint_vector(q_rad, self._joints), *self._chain, T_torso_soles))
+
+
+def centre_of_pressure(wrench, min_fz_n: float) -> tuple[float, float] | None:
+    """A sole's centre of pressure (x, y in its frame, m) from its ankle's compensated wrench
+    [fx fy fz mx my mz]; None while it presses less than ``min_fz_n`` or reads non-finite."""
+    fz, mx, my = float(wrench[2]), float(wrench[3]), float(wrench[4])
+    if not (fz > min_fz_n and math.isfinite(mx) and math.isfinite(my)):
+        return None
+    return -my / fz, mx / fz
+
+
 def _gyro(state: RobotState) -> np.ndarray | None:
     """The IMU's rate (3,; rad/s, torso axes), None unless three finite numbers."""
     try:
@@ -179,15 +211,7 @@ class FloatingBase(Observer):
     writes = (T_WORLD_TORSO, T_WORLD_SOLES)
 
     def __init__(self, model: RobotModel) -> None:
-        rows = []
-        for leg in LEGS:
-            base, _, offset, alpha, a, d, end, _ = Limb(model, leg).chain
-            sl = model.limb_slice(leg)
-            rows.append((np.arange(sl.start, sl.stop), base, offset, alpha, a, d, end))
-        self._chain = (np.array([r[0] for r in rows], dtype=np.int64),
-                       *(np.ascontiguousarray([r[k] for r in rows], dtype=float)
-                         for k in range(1, 7)))
-        self._joints = len(model.joint_names)
+        self._legs = LegsKinematics(model)
         self._T_torso_soles = np.tile(np.eye(4), (2, 1, 1))
         self.anchor = 0
         self._T_world_anchor = np.eye(4)
@@ -208,7 +232,6 @@ class FloatingBase(Observer):
         self._landed: deque[tuple[float, ...]] = deque(maxlen=LANDED_PERIODS)
         self._bias_rad_s = 0.0  # the gyro's yaw bias about the world's vertical
         self._bias_gain = self._dt_s / (GYRO_BIAS_TAU_S + self._dt_s)
-        _legs_fk(np.zeros(self._joints), *self._chain, self._T_torso_soles)  # compile now
         _place(self._quat, self._T_torso_soles, 0, self._T_world_anchor, 0.0, 0.0, np.eye(4),
                np.zeros((2, 4, 4)))
 
@@ -218,8 +241,7 @@ class FloatingBase(Observer):
         if not np.all(np.isfinite(quat)):
             return False
         self._quat = quat
-        return bool(_legs_fk(joint_vector(state.q_rad, self._joints), *self._chain,
-                             self._T_torso_soles))
+        return self._legs.solve(state.q_rad, self._T_torso_soles)
 
     def reset(self, state: RobotState, store: Store) -> None:
         wrenches = store[WRENCHES]
@@ -247,12 +269,12 @@ class FloatingBase(Observer):
     def _centre_of_pressure(self, store: Store) -> tuple[float, float]:
         """The anchor sole's centre of pressure (sole frame, m) inside its outline; the last
         one while it presses less than ``anchor_cop_min_fz_n`` or reads non-finite."""
-        wrench = store[WRENCHES][ANKLE_SENSORS[self.anchor]]
-        fz, mx, my = float(wrench[2]), float(wrench[3]), float(wrench[4])
-        if not (fz > self._cop_min_fz_n and math.isfinite(mx) and math.isfinite(my)):
+        point = centre_of_pressure(store[WRENCHES][ANKLE_SENSORS[self.anchor]],
+                                   self._cop_min_fz_n)
+        if point is None:
             return self._contact_point
         x_lo, x_hi, y_lo, y_hi = self._sole_box
-        return min(max(-my / fz, x_lo), x_hi), min(max(mx / fz, y_lo), y_hi)
+        return min(max(point[0], x_lo), x_hi), min(max(point[1], y_lo), y_hi)
 
     def _place(self, contact_point: tuple[float, float] = (0.0, 0.0),
                 gyro_rad_s: np.ndarray | None = None, rolling: bool = False) -> None:

@@ -6,7 +6,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hubo_cli.dataflow import Key, Store, check_flow
+from hubo_cli.dataflow import FlowError, Key, Store, check_flow
 from hubo_cli.estimation.keys import COM_WORLD, QUAT_WORLD_TORSO, T_WORLD_TORSO
 from hubo_cli.estimation.observer import Observer
 from hubo_cli.geometry import tilt_rad_of_quat_wxyz
@@ -22,7 +22,8 @@ class Estimator:
 
     Args:
         observers: the ordered observers; their reads and writes are checked now
-            (:class:`~hubo_cli.dataflow.FlowError` on a key read before it is written).
+            (:class:`~hubo_cli.dataflow.FlowError` on a key read before it is written, or
+            read from the last period and written by none).
 
     Attributes:
         store: the run's per-period store (the estimate; modules add their keys to it).
@@ -31,6 +32,12 @@ class Estimator:
     def __init__(self, observers: Sequence[Observer]) -> None:
         self.observers = list(observers)
         check_flow(self.observers)
+        written = {key for o in self.observers for key in o.writes}
+        for observer in self.observers:
+            for key in observer.previous:  # read as the last period left it
+                if key not in written:
+                    raise FlowError(f"{observer.name} reads the last period's {key.name}, which "
+                                    "no observer writes", hint="add the observer that writes it")
         self.store = Store()
         self._views = [self.store.view(o) for o in self.observers]  # each its declared keys
 

@@ -20,6 +20,8 @@ class Observer(ABC):
         name: the observer's name (in errors and the bench).
         reads: store keys it reads (written by earlier observers).
         follows: keys it reads when an earlier stage writes them (none so far).
+        previous: keys it reads as the last period left them (written by a later stage;
+            absent in the first period: ``store.get``).
         writes: store keys it writes every period, including the first.
     """
 

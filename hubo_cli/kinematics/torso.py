@@ -1,28 +1,13 @@
-"""The torso's pose in the stance frame as the robot measures it, and the hand-goal correction
-that holds a tool in the world while the body sways.
+"""The torso's pose in the stance frame S, and the hand-goal correction that holds a tool in the
+world while the body sways.
 
-Measurement (:func:`torso_in_stance`, :class:`TorsoEstimator`): the feet stand where the stance
-frame S puts them, so each leg's forward kinematics from the measured joints gives the neck
-frame N in S (the encoders). The IMU corrects the encoders' orientation (a sole rocking on its
-edge, the soles' compliance, the feet twisting on the floor, a tilted floor and the ankles'
-tracking error turn the body without showing in the leg joints): its tilt as it is, its
-heading referenced to the encoders' heading at the first measurement (the IMU's yaw has no
-absolute reference; over one run its drift is small). Each foot then pivots about its sole
-origin: the neck sits at ``p_S_sole - R_S_N p_N_sole``; the two feet's estimates are averaged.
-A real robot has the same inputs: the encoders (``RobotState.q_rad``) and the estimated
-attitude (the store's :data:`~hubo_cli.estimation.keys.QUAT_WORLD_TORSO`, which the caller
-passes); no simulator ground truth is used.
-
-The estimator fuses the two orientations as a complementary filter: the encoders' orientation
-as it is (its noise is the encoders', about 0.5 mrad), times the IMU's rotation from it,
-low-passed. About the horizontal axes (:data:`IMU_TILT_TIME_CONSTANT_S`) what the encoders
-miss changes slowly (a floor's tilt, an IMU's bias, the soles' compliance under a slowly
-moving load), while an IMU's orientation noise (0.2 deg per reading on the perturbed robots)
-would otherwise move the measured neck by 3 mm and the measured bit by 4 mm from one period to
-the next: the torso correction then chased the noise at its rate bounds instead of the body's
-sway. About the vertical axis (:data:`IMU_HEADING_TIME_CONSTANT_S`) the IMU alone sees the
-feet twisting on the floor, which on a perturbed robot (foot friction 0.4-1.0) turns the body
-by up to 2.4 deg within a cut, at up to 0.5 deg/s: its filter is short.
+Measurement (:class:`MeasuredTorso`): the torso's pose has one home, the estimation layer's
+floating base (:mod:`hubo_cli.estimation.base`, the store's T_WORLD_TORSO: the legs anchored
+at the loaded sole, the estimated attitude's tilt, the heading the legs' and the gyro's, never
+the IMU's yaw, which has no absolute reference on a Hubo). Here it is only seen from S, which
+is placed in the world once where the estimated soles stand. :func:`torso_in_stance` is the
+stance's kinematics: the neck frame N in S that given leg joints put there (the commanded
+pose), each foot pivoting about its sole origin.
 
 Correction (:class:`TorsoCorrection`): the joint targets of a plan or of the teleoperation
 solver put a hand goal ``T_S_E`` in the neck frame the *commanded* legs give (upright,
@@ -54,107 +39,66 @@ from hubo_cli.kinematics.torso_kernels import follow_deviation, stance_legs
 from hubo_cli.kinematics.wholebody import WholeBody
 from hubo_cli.model import LEGS
 
-IMU_TILT_TIME_CONSTANT_S = 0.5
-"""Low-pass time constant of the IMU's correction of the encoders' tilt (s)."""
-IMU_HEADING_TIME_CONSTANT_S = 0.1
-"""Low-pass time constant of the IMU's correction of the encoders' heading (s)."""
 
-
-def torso_in_stance(body: WholeBody, q_rad, quat_world_torso_wxyz=None,
-                    imu_heading_rad: float | None = None) -> np.ndarray:
-    """T_S_N, the neck frame in the stance frame (4x4, m), from the leg joints and the IMU.
+def torso_in_stance(body: WholeBody, q_rad, quat_world_torso_wxyz=None) -> np.ndarray:
+    """T_S_N, the neck frame in the stance frame (4x4, m), that leg joints give with the feet
+    where S puts them.
 
     Args:
         body: the whole-body solver (its legs and the soles' places in S).
-        q_rad: the full joint vector (measured, or commanded for the nominal pose).
-        quat_world_torso_wxyz: the torso's estimated orientation in the world (w, x, y, z);
-            None: the encoders' orientation alone.
-        imu_heading_rad: the IMU's heading (rad) of S's x axis: the IMU's orientation is then
-            used whole, turned by it; None: the IMU's tilt under the encoders' heading.
+        q_rad: the full joint vector (commanded, for the nominal pose).
+        quat_world_torso_wxyz: a torso orientation (w, x, y, z) whose tilt is taken under the
+            legs' heading; None: the legs' orientation alone.
     """
     quat = quat_world_torso_wxyz
     R_imu = None if quat is None else quat_wxyz_to_matrix(quat)
-    return stance_legs(body).pose(q_rad, R_imu, imu_heading_rad)  # compiled (torso_kernels)
+    return stance_legs(body).pose(q_rad, R_imu)  # compiled (torso_kernels)
 
 
-class TorsoEstimator:
-    """The torso pose from the leg encoders and the IMU, fused (see the module docstring): the
-    IMU's heading is referenced once (at the first measurement it is taken to be the encoders':
-    the robot stands on its stance), and its rotation from the encoders' orientation is
-    low-passed over the states' time.
+class MeasuredTorso:
+    """T_S_N, the neck frame in the stance frame, as the estimation layer has it: the store's
+    T_WORLD_TORSO (:mod:`hubo_cli.estimation.base`: the legs anchored at the loaded sole, the
+    estimated attitude's tilt, the heading the legs' and the gyro's) seen from S. S is placed
+    in the world once, at the first reading, where the estimated soles stand (T_WORLD_SOLES;
+    each sole is at its ``T_S_sole``, S upright: the feet stand where the stance puts them);
+    afterwards only the estimate moves. A reading that is not finite gives the last pose.
 
     Args:
-        body: the whole-body solver (legs, soles).
-        tilt_time_constant_s, heading_time_constant_s: the low-pass time constants of the
-            IMU's part about the neck's x and y axes and about its z axis (0: the IMU's
-            orientation as it is, each reading).
+        body: the whole-body solver (the soles' places in S).
     """
 
-    def __init__(self, body: WholeBody,
-                 tilt_time_constant_s: float = IMU_TILT_TIME_CONSTANT_S,
-                 heading_time_constant_s: float = IMU_HEADING_TIME_CONSTANT_S) -> None:
+    def __init__(self, body: WholeBody) -> None:
         self.body = body
-        self.time_constants_s = np.array([tilt_time_constant_s, tilt_time_constant_s,
-                                          heading_time_constant_s], dtype=float)
-        self._legs = stance_legs(body)  # compiles the kernels now, not in a control period
-        self._heading = np.zeros(1)  # the filter's state (in place in the compiled kernel):
-        self._offset = np.zeros(3)   # the IMU's heading of S's x axis and its rotation offset
-        self._referenced = False     # ... set by the first finite IMU reading
-        self._alpha = (None, None)   # (dt s, the filter's weights for it)
-        self._t_s = 0.0  # the time of the filter's last reading
-        self._last: tuple = (None, None, None, None, None)  # (state, time, joints, IMU, T_S_N)
+        self.T_world_S: np.ndarray | None = None
+        self._T_S_world = np.eye(4)
+        self._T_S_N = np.eye(4)
 
-    @property
-    def imu_heading_rad(self) -> float | None:
-        """The IMU's heading (rad) of S's x axis, referenced at its first reading (None before)."""
-        return float(self._heading[0]) if self._referenced else None
+    def _place_stance(self, T_world_soles: np.ndarray) -> None:
+        """S upright, its heading the soles' mean, its origin the mean of where each sole's
+        middle puts it (a sole rocking on its edge does not swing S's origin about it)."""
+        T_S_soles = [self.body.T_S_sole[leg] for leg in LEGS]
+        headings = [np.arctan2(W[1, 0], W[0, 0]) - np.arctan2(S[1, 0], S[0, 0])
+                    for W, S in zip(T_world_soles, T_S_soles, strict=True)]
+        heading = np.arctan2(np.mean(np.sin(headings)), np.mean(np.cos(headings)))
+        T_world_S = np.eye(4)
+        T_world_S[:2, :2] = [[np.cos(heading), -np.sin(heading)],
+                             [np.sin(heading), np.cos(heading)]]
+        T_world_S[:3, 3] = np.mean([W[:3, 3] - T_world_S[:3, :3] @ S[:3, 3]
+                                    for W, S in zip(T_world_soles, T_S_soles, strict=True)],
+                                   axis=0)
+        self.T_world_S, self._T_S_world = T_world_S, _rigid_inverse(T_world_S)
 
-    @property
-    def imu_offset_rad(self) -> np.ndarray | None:
-        """The filter's state: the IMU's rotation from the encoders' orientation (a rotation
-        vector in the neck frame, rad), None before the first IMU reading."""
-        return self._offset.copy() if self._referenced else None
-
-    def _weights(self, dt_s: float) -> np.ndarray:
-        """The filter's weights on a new reading ``dt_s`` after the last one (per neck axis)."""
-        if self._alpha[0] != dt_s:
-            tau = self.time_constants_s
-            self._alpha = (dt_s, np.where(tau > 0.0, -np.expm1(-dt_s / np.maximum(tau, 1e-12)),
-                                          1.0))
-        return self._alpha[1]
-
-    def __call__(self, state, quat_world_torso_wxyz: np.ndarray) -> np.ndarray:
-        """T_S_N (4x4, m) from a :class:`~hubo_cli.state.RobotState`'s joints and the
-        estimated torso attitude ``quat_world_torso_wxyz`` (w, x, y, z; the store's
-        QUAT_WORLD_TORSO; a reading that is not finite leaves the IMU's part as it was).
-
-        The legs' kinematics, the orientations' mean, the filter step and the pose are one
-        compiled call (:func:`~hubo_cli.kinematics.torso_kernels.estimate_pose`); a second call
-        with the same reading (the task target measures twice a period) returns the same pose.
-        """
-        state_last, t_last, q_last, imu_last, T_last = self._last
-        if q_last is not None and t_last == state.time_s and (state is state_last or (
-                np.array_equal(q_last, state.q_rad)
-                and np.array_equal(imu_last, quat_world_torso_wxyz))):
-            return T_last
-        q = np.asarray(state.q_rad, dtype=float)
-        imu = np.asarray(quat_world_torso_wxyz, dtype=float)
-        first = False
-        alpha = self._no_weights
-        if np.isfinite(imu).all():
-            first = not self._referenced
-            if not first:
-                alpha = self._weights(max(0.0, float(state.time_s) - self._t_s))
-            self._referenced = True
-            self._t_s = float(state.time_s)
-        else:
-            imu = None
-        T = self._legs.estimate(q, imu, first, self._heading, self._offset, alpha)
-        self._last = (state, state.time_s, q.copy(),
-                      np.array(quat_world_torso_wxyz, dtype=float), T)
-        return T
-
-    _no_weights = np.ones(3)  # the first reading is taken as it is; without one, unused
+    def __call__(self, T_world_torso: np.ndarray, T_world_soles: np.ndarray) -> np.ndarray:
+        """T_S_N (4x4, m) from the store's T_WORLD_TORSO and T_WORLD_SOLES (right, left)."""
+        T_world_torso = np.asarray(T_world_torso, dtype=float)
+        if self.T_world_S is None:
+            T_world_soles = np.asarray(T_world_soles, dtype=float)
+            if not np.all(np.isfinite(T_world_soles)):
+                return self._T_S_N
+            self._place_stance(T_world_soles)
+        if np.all(np.isfinite(T_world_torso)):
+            self._T_S_N = self._T_S_world @ T_world_torso
+        return self._T_S_N
 
 
 @dataclass(frozen=True)
@@ -207,14 +151,11 @@ class TorsoCorrection:
         arms: the arms to correct.
         dt_s: the control period (s).
         settings: filter and bounds.
-        estimator: the torso pose measurement (None: a new :class:`TorsoEstimator`).
     """
 
     def __init__(self, body: WholeBody, arms, dt_s: float,
-                 settings: CorrectionSettings | None = None,
-                 estimator: TorsoEstimator | None = None) -> None:
+                 settings: CorrectionSettings | None = None) -> None:
         self.body = body
-        self.estimator = estimator or TorsoEstimator(body)
         self.arms = tuple(arms)
         self._slices = tuple((arm, body.model.limb_slice(arm)) for arm in self.arms)
         self.dt_s = dt_s
@@ -248,14 +189,14 @@ class TorsoCorrection:
         T[:3, :3], T[:3, 3] = rotation_exp(self.rotation_rad), self.offset_m
         return T
 
-    def update(self, q_cmd_rad, state, quat_world_torso_wxyz: np.ndarray) -> np.ndarray:
-        """Advance the filter with this period's measurement (the joints of ``state``, the
-        estimated attitude ``quat_world_torso_wxyz``); returns T_dev (4x4). A measurement that
-        is not finite (a garbled attitude or encoder reading) leaves it as it was."""
+    def update(self, q_cmd_rad, T_S_N_measured: np.ndarray) -> np.ndarray:
+        """Advance the filter with this period's measured neck frame ``T_S_N_measured`` (4x4,
+        :class:`MeasuredTorso`); returns T_dev (4x4). A measurement that is not finite leaves
+        it as it was."""
         s = self.settings
-        if not (np.isfinite(state.q_rad).all() and np.isfinite(quat_world_torso_wxyz).all()):
+        T_meas = np.asarray(T_S_N_measured, dtype=float)
+        if not np.isfinite(T_meas).all():
             return self._T_dev
-        T_meas = self.estimator(state, quat_world_torso_wxyz)
         legs = np.asarray(q_cmd_rad, dtype=float)[self._leg_index]
         if self._T_cmd is None or (legs != self._q_legs_cmd).any():  # the same 12 joints
             self._T_cmd = torso_in_stance(self.body, q_cmd_rad)
@@ -315,9 +256,9 @@ class TorsoCorrection:
             return result
         return None
 
-    def __call__(self, q_cmd_rad, state, quat_world_torso_wxyz: np.ndarray) -> np.ndarray:
+    def __call__(self, q_cmd_rad, T_S_N_measured: np.ndarray) -> np.ndarray:
         """:meth:`update` then :meth:`apply`."""
-        self.update(q_cmd_rad, state, quat_world_torso_wxyz)
+        self.update(q_cmd_rad, T_S_N_measured)
         return self.apply(q_cmd_rad)
 
 

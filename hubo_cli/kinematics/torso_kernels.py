@@ -1,10 +1,9 @@
 """The per-period arithmetic of :mod:`hubo_cli.kinematics.torso`, compiled with numba.
 
-:func:`hubo_cli.kinematics.torso.torso_in_stance` runs every control period (the measured torso
-pose, and the commanded one whenever the legs' command changes), and so do the torso estimator
-(its fused pose) and the correction's filter step. Done with numpy each was about twenty
-small-array calls; here each is one compiled call: :func:`stance_pose` and
-:func:`estimate_pose` on the legs' DH chains packed once per
+:func:`hubo_cli.kinematics.torso.torso_in_stance` runs whenever the legs' command changes (the
+commanded torso pose), and the correction's filter step every control period. Done with numpy
+each was about twenty small-array calls; here each is one compiled call: :func:`stance_pose` on
+the legs' DH chains packed once per
 :class:`~hubo_cli.kinematics.wholebody.WholeBody` (:class:`StanceLegs`), and
 :func:`follow_deviation`. The arithmetic is that of the numpy versions (tests/test_torso.py
 compares them to 1e-12).
@@ -18,13 +17,11 @@ import weakref
 import numba as nb
 import numpy as np
 
-from hubo_cli.geometry import quat_to_matrix_into
 from hubo_cli.kinematics.dh import JIT, chain_fk, invert4
 from hubo_cli.model import LEGS
 
 ENCODERS = 0      # the mean of the two legs' orientations
 IMU_TILT = 1      # the IMU's tilt under the legs' mean heading
-IMU_HEADING = 2   # the IMU's orientation whole, turned by a given heading
 
 
 @nb.njit(**JIT)
@@ -145,7 +142,7 @@ def _neck_on_soles(R, p, soles, out):
 
 
 @nb.njit(**JIT)
-def stance_pose(q, first, bases, dh, ends, soles, R_imu, heading, mode, out):
+def stance_pose(q, first, bases, dh, ends, soles, R_imu, mode, out):
     """out = T_S_N (4x4) from the legs' joints.
 
     Args:
@@ -156,8 +153,7 @@ def stance_pose(q, first, bases, dh, ends, soles, R_imu, heading, mode, out):
         ends: per leg the end transform of its DH chain (2, 4, 4).
         soles: T_S_sole per leg (2, 4, 4).
         R_imu: the IMU's rotation matrix (3, 3); unused for ``ENCODERS``.
-        heading: the IMU's heading (rad) for ``IMU_HEADING``.
-        mode: ``ENCODERS``, ``IMU_TILT`` or ``IMU_HEADING``.
+        mode: ``ENCODERS`` or ``IMU_TILT``.
         out: T_S_N (4x4).
     """
     R_legs = np.empty((2, 3, 3))
@@ -166,62 +162,10 @@ def stance_pose(q, first, bases, dh, ends, soles, R_imu, heading, mode, out):
     R = np.empty((3, 3))
     if mode == ENCODERS:
         _legs_mean(R_legs, R)
-    elif mode == IMU_TILT:
+    else:
         h = (math.atan2(R_legs[0, 1, 0], R_legs[0, 0, 0])
              + math.atan2(R_legs[1, 1, 0], R_legs[1, 0, 0])) / 2
         _turn(h - math.atan2(R_imu[1, 0], R_imu[0, 0]), R_imu, R)
-    else:
-        _turn(-heading, R_imu, R)
-    _neck_on_soles(R, p, soles, out)
-
-
-NO_IMU = 0        # estimate_pose: no usable IMU reading this period
-IMU = 1           # ... an IMU reading, its heading already referenced
-IMU_FIRST = 2     # ... the first IMU reading: reference its heading, start the filter on it
-
-
-@nb.njit(**JIT)
-def estimate_pose(q, first, bases, dh, ends, soles, quat_wxyz, mode, heading, offset, alpha,
-                  out):
-    """One period of :class:`~hubo_cli.kinematics.torso.TorsoEstimator` (the numpy formulas
-    of its module, tests/test_torso.py compares them): out = T_S_N (4x4).
-
-    The encoders' orientation is the mean of the two legs'; with an IMU reading (``mode``
-    ``IMU`` or ``IMU_FIRST``) its rotation from the encoders' orientation, in the neck frame,
-    is low-passed into ``offset`` (3,) in place with weights ``alpha`` (3,) (``IMU_FIRST``:
-    ``heading[0]`` is set to the IMU's heading less the legs' mean heading, and ``offset``
-    starts at the reading); the fused orientation ``R_encoders exp(offset)`` places the neck
-    with each foot pivoting about its sole origin.
-    """
-    R_legs = np.empty((2, 3, 3))
-    p = np.zeros(3)
-    _legs_fk(q, first, bases, dh, ends, soles, R_legs, p)
-    R_enc = np.empty((3, 3))
-    _legs_mean(R_legs, R_enc)
-    D = np.empty((3, 3))
-    w = np.empty(3)
-    E = np.empty((3, 3))
-    if mode != NO_IMU:
-        R_imu = np.empty((3, 3))
-        quat_to_matrix_into(quat_wxyz, R_imu)
-        if mode == IMU_FIRST:
-            legs = (math.atan2(R_legs[0, 1, 0], R_legs[0, 0, 0])
-                    + math.atan2(R_legs[1, 1, 0], R_legs[1, 0, 0])) / 2
-            heading[0] = math.atan2(R_imu[1, 0], R_imu[0, 0]) - legs
-            for i in range(3):
-                offset[i] = 0.0
-        R_imu_S = np.empty((3, 3))
-        _turn(-heading[0], R_imu, R_imu_S)
-        for i in range(3):  # D = R_enc^T R_imu_S
-            for j in range(3):
-                D[i, j] = R_enc[0, i] * R_imu_S[0, j] + R_enc[1, i] * R_imu_S[1, j] \
-                    + R_enc[2, i] * R_imu_S[2, j]
-        _log3(D, w)
-        for i in range(3):
-            offset[i] = offset[i] + alpha[i] * (w[i] - offset[i])
-    _exp3(offset, E)
-    R = np.empty((3, 3))
-    _mul3(R_enc, E, R)
     _neck_on_soles(R, p, soles, out)
 
 
@@ -303,39 +247,18 @@ class StanceLegs:
             self.bases[k], self.dh[k], self.ends[k] = base, (offset, alpha, a, d), end
             self.soles[k] = body.T_S_sole[leg]
         self._none = np.zeros((3, 3))
-        self._no_quat = np.array([1.0, 0.0, 0.0, 0.0])
         self.pose(body.q_home)  # compile (or load) the kernels now, not in a control period
-        self.estimate(body.q_home, self._no_quat, True, np.zeros(1), np.zeros(3), np.ones(3))
 
-    def pose(self, q_rad: np.ndarray, R_imu: np.ndarray | None = None,
-             heading_rad: float | None = None) -> np.ndarray:
+    def pose(self, q_rad: np.ndarray, R_imu: np.ndarray | None = None) -> np.ndarray:
         """T_S_N (4x4, m); see :func:`hubo_cli.kinematics.torso.torso_in_stance`."""
         out = np.empty((4, 4))
         if R_imu is None:
-            mode, R, h = ENCODERS, self._none, 0.0
-        elif heading_rad is None:
-            mode, R, h = IMU_TILT, R_imu, 0.0
+            mode, R = ENCODERS, self._none
         else:
-            mode, R, h = IMU_HEADING, R_imu, float(heading_rad)
+            mode, R = IMU_TILT, R_imu
         stance_pose(np.ascontiguousarray(q_rad, dtype=np.float64), self.first, self.bases,
                     self.dh, self.ends, self.soles, np.ascontiguousarray(R, dtype=np.float64),
-                    h, mode, out)
-        return out
-
-
-    def estimate(self, q_rad: np.ndarray, imu_quat_wxyz: np.ndarray | None, first_reading: bool,
-                 heading: np.ndarray, offset: np.ndarray, alpha: np.ndarray) -> np.ndarray:
-        """T_S_N (4x4, m) of :func:`estimate_pose` (``heading`` (1,) and ``offset`` (3,) are the
-        estimator's state, updated in place; ``imu_quat_wxyz`` None: no usable reading)."""
-        out = np.empty((4, 4))
-        if imu_quat_wxyz is None:
-            mode, quat = NO_IMU, self._no_quat
-        else:
-            mode, quat = IMU_FIRST if first_reading else IMU, imu_quat_wxyz
-        estimate_pose(np.ascontiguousarray(q_rad, dtype=np.float64), self.first, self.bases,
-                      self.dh, self.ends, self.soles,
-                      np.ascontiguousarray(quat, dtype=np.float64), mode, heading, offset,
-                      alpha, out)
+                    mode, out)
         return out
 
 

@@ -19,8 +19,8 @@ Phases (explicit states, :mod:`hubo_cli.tasks.phases`, run one at a time by a
    WRIST_RELIEF for the stopper). The target knows of the stopper only its mode, the store's
    STOP_MODE of the previous period.
 
-Each period the measured torso pose (leg encoders and the estimated attitude, the store's
-QUAT_WORLD_TORSO; :mod:`hubo_cli.kinematics.torso`) corrects the arm's joint target: the
+Each period the measured torso pose (the estimate's, the store's T_WORLD_TORSO in S;
+:mod:`hubo_cli.kinematics.torso`) corrects the arm's joint target: the
 plan's tool goal, given in S (the wall's frame), is solved in the measured neck frame,
 low-passed and bounded, so the body's residual sway moves the arm and not the hole. The
 correction runs from the first period on (``correction=False`` turns it
@@ -64,9 +64,9 @@ from hubo_cli.control.wrench import (
     tool_point_S_m,
 )
 from hubo_cli.dataflow import Store
-from hubo_cli.estimation.keys import QUAT_WORLD_TORSO, WRENCHES
+from hubo_cli.estimation.keys import T_WORLD_SOLES, T_WORLD_TORSO, WRENCHES
 from hubo_cli.kinematics.limb import Limb
-from hubo_cli.kinematics.torso import TorsoCorrection, TorsoEstimator
+from hubo_cli.kinematics.torso import MeasuredTorso, TorsoCorrection
 from hubo_cli.kinematics.wholebody import MAX_SHIFT_M
 from hubo_cli.scene import SceneActions, WallPlacement, WallSize
 from hubo_cli.state import T_frame_sensor
@@ -93,7 +93,7 @@ class TaskTarget(Target):
     After :meth:`attach`: ``scene`` is what was placed in the simulator.
     """
 
-    reads = (QUAT_WORLD_TORSO, WRENCHES)
+    reads = (T_WORLD_TORSO, T_WORLD_SOLES, WRENCHES)
     writes = (WRIST_RELIEF,)
     previous = (STOP_MODE,)
     log_columns = ("step_code", "phase_code", "goal_x_m", "goal_y_m", "goal_z_m", "actual_x_m",
@@ -114,9 +114,9 @@ class TaskTarget(Target):
         self.stop_mode = "release"  # the stopper's, after the previous period (STOP_MODE)
         self.q_target = plan.q_first_rad.copy()  # the plan's joint target
         self.q_out = self.q_target.copy()           # ... corrected by the torso pose
-        self.estimator = TorsoEstimator(body)  # the torso pose the robot measures
-        self.correction = (TorsoCorrection(body, (self.limb,), plan.dt_s,
-                                           estimator=self.estimator) if correction else None)
+        self.torso = MeasuredTorso(body)  # the estimate's torso pose, in S
+        self.correction = (TorsoCorrection(body, (self.limb,), plan.dt_s)
+                           if correction else None)
         self.k = 0                       # the plan row being commanded
         self.t_run_s: float | None = None
         self.t_stop_s: float | None = None
@@ -249,7 +249,7 @@ class TaskTarget(Target):
             info["done"] = True
         q_target = self._leaning(self.q_target, info) if self.force else self.q_target
         self.q_out = (q_target if self.correction is None
-                      else self.correction(q_target, state, self.store[QUAT_WORLD_TORSO]))
+                      else self.correction(q_target, self._T_S_N()))
         self._measure(t_s, state, info)
         return self.q_out, info
 
@@ -288,13 +288,17 @@ class TaskTarget(Target):
         if self.correction is None:
             return True
         T_N_E = self.body.arms[self.limb].fk(state.q_rad[self.slice])
-        tool = (self.estimator(state, self.store[QUAT_WORLD_TORSO]) @ T_N_E)[:3, 3]
+        tool = (self._T_S_N() @ T_N_E)[:3, 3]
         return bool(np.linalg.norm(tool - self.plan.T_first_S[:3, 3]) < ON_POSE_M)
+
+    def _T_S_N(self) -> np.ndarray:
+        """The measured neck frame in S (4x4, m): the estimate's torso pose."""
+        return self.torso(self.store[T_WORLD_TORSO], self.store[T_WORLD_SOLES])
 
     def _measure(self, t_s: float, state, info: dict) -> None:
         # through the measured torso pose: the legs' lift and the waist's CoM shift included
         T_N_E = self.body.arms[self.limb].fk(state.q_rad[self.slice])
-        self.T_S_N = self.estimator(state, self.store[QUAT_WORLD_TORSO])
+        self.T_S_N = self._T_S_N()
         actual = (self.T_S_N @ T_N_E)[:3, 3]
         self.torque_nm = wrist_torque_nm(self.store[WRENCHES].get(self.sensor))
         self._measure_force(state, info)

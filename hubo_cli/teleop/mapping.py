@@ -15,7 +15,8 @@ the operator's motion relative to that reference:
 
 Modes: ``free`` follows position and orientation; ``drill`` (paper IV) keeps the bit on the
 wall plane x = wall_distance_m and orthogonal to it (identity orientation in S) and follows only
-the operator's y and z.
+the operator's y and z, at most ``wall_speed_m_s`` fast: the goal follows the operator's hand
+at that speed while the hand moves faster, and catches up once it slows.
 """
 
 from __future__ import annotations
@@ -44,6 +45,11 @@ class MappingConfig:
         wall_distance_m: drill mode: the wall plane's x in the stance frame.
         max_step_m: a sample that moves the goal further than this from the previous goal is
             implausible (tracker glitch) and ignored.
+        wall_speed_m_s: drill mode: the goal's largest speed across the wall (by the samples'
+            times). The cardboard drags the bit across (80 N s/m and 0.5 N in the default
+            cutting model) about 0.2 m from the wrist sensor: the drill replay's wrist moment
+            rose about 0.018 N m per mm/s of the bit's speed across the wall, to 0.93-1.22 N m
+            at its fastest stroke (55-65 mm/s), at the 1.21 N m wrist-torque stop.
     """
 
     hand_arm: dict[str, str] = field(default_factory=lambda: dict(ARM_OF_HAND))
@@ -51,12 +57,16 @@ class MappingConfig:
     mode: str = "free"
     wall_distance_m: float = 0.484
     max_step_m: float = 0.15
+    wall_speed_m_s: float = 0.025
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
             raise ConfigError(f"unknown teleop mode {self.mode!r}", hint="use free or drill")
         if not (np.isfinite(self.scale) and 0 < self.scale <= 10):
             raise ConfigError(f"scale {self.scale} is not in (0, 10]", hint="use e.g. --scale 1")
+        if not (np.isfinite(self.wall_speed_m_s) and self.wall_speed_m_s > 0):
+            raise ConfigError(f"the drill's speed across the wall {self.wall_speed_m_s} m/s is "
+                              "not a positive number", hint="use e.g. 0.025")
         arms = list(self.hand_arm.values())
         unknown = [h for h, a in self.hand_arm.items() if h not in ARM_OF_HAND or a not in ARMS]
         if unknown or len(set(arms)) != len(arms):
@@ -68,7 +78,9 @@ class MappingConfig:
 class _Reference:
     T_O_ref: np.ndarray
     T_S_hand0: np.ndarray
-    last_goal: np.ndarray
+    last_goal: np.ndarray   # the last goal given (drill mode: speed-bounded)
+    last_mapped: np.ndarray  # the last sample's mapped pose (what the glitch check compares)
+    last_t_s: float | None = None
 
 
 @dataclass(frozen=True)
@@ -103,7 +115,7 @@ class HandMapper:
             T_S_hand[:3, :3] = np.eye(3)
             T_S_hand[0, 3] = self.config.wall_distance_m
         self._refs[hand] = _Reference(np.array(T_O_hand, dtype=float), T_S_hand,
-                                      T_S_hand.copy())
+                                      T_S_hand.copy(), T_S_hand.copy())
 
     def forget(self, hand: str | None = None) -> None:
         """Drop the calibration of ``hand`` (None: of every hand); its next pose calibrates
@@ -136,6 +148,7 @@ class HandMapper:
         if hand not in self._refs:
             self.recenter(hand, T_O, T_S_hand_now)
             ref = self._refs[hand]
+            ref.last_t_s = t_s
             return HandGoal(arm, ref.T_S_hand0.copy(), t_s, calibrated_now=True)
         ref = self._refs[hand]
         T_goal = np.eye(4)
@@ -147,8 +160,19 @@ class HandMapper:
         else:
             T_goal[:3, :3] = T_O[:3, :3] @ ref.T_O_ref[:3, :3].T @ ref.T_S_hand0[:3, :3]
             T_goal[:3, 3] = ref.T_S_hand0[:3, 3] + delta_S
-        if np.linalg.norm(T_goal[:3, 3] - ref.last_goal[:3, 3]) > self.config.max_step_m:
+        if np.linalg.norm(T_goal[:3, 3] - ref.last_mapped[:3, 3]) > self.config.max_step_m:
             self.rejected += 1
             return None
+        ref.last_mapped = T_goal.copy()
+        if self.config.mode == "drill":
+            elapsed_s = t_s - ref.last_t_s if np.isfinite(t_s) and ref.last_t_s is not None \
+                else 0.0
+            step = T_goal[1:3, 3] - ref.last_goal[1:3, 3]
+            room = self.config.wall_speed_m_s * max(elapsed_s, 0.0)
+            length = float(np.linalg.norm(step))
+            if length > room:
+                T_goal[1:3, 3] = ref.last_goal[1:3, 3] + step * (room / length)
+        if np.isfinite(t_s) and (ref.last_t_s is None or t_s > ref.last_t_s):
+            ref.last_t_s = t_s
         ref.last_goal = T_goal
         return HandGoal(arm, T_goal, t_s)

@@ -12,13 +12,13 @@ from hubo_cli.control.loop import LoopResult
 from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.stop_choice import ActiveStops
-from hubo_cli.errors import InputError
+from hubo_cli.errors import InputError, SafetyError
 from hubo_cli.input.device import HAND_OF_ARM, InputDevice
 from hubo_cli.input.opener import open_input
 from hubo_cli.input.operator_stream import StreamSettings
 from hubo_cli.kinematics.arm_reach import ReachSettings
 from hubo_cli.kinematics.interpolate import PosePath, PoseSegment, segment_duration
-from hubo_cli.kinematics.wholebody import WholeBody
+from hubo_cli.kinematics.wholebody import LiftFilter, WholeBody
 from hubo_cli.model import RobotModel, load_model
 from hubo_cli.plots.paths import plot_path_comparison
 from hubo_cli.posture import home_posture
@@ -30,7 +30,23 @@ from hubo_cli.urdf import DRILL_FRAME, tool_frame
 
 PAPER_HOLE_M = (0.150, 0.100)  # the paper's cut (V): drill mode starts at its upper-left corner
 APPROACH_SPEED_M_S = 0.05      # mean speed of the bit's move into the wall
-STANDOFF_M = 0.05              # drill mode: the bit stops this far before the wall, then goes in
+# drill mode: the bit stops this far before the wall, then goes in along its axis. The flutes
+# reach 20 mm either side of the bit's middle (the robot file's bit_half_length_m), so they
+# stand 7.5 mm clear of the cardboard's face. At 50 mm the paper hole's upper-left corner of
+# the default stance has no such pose within the arm's reach (the wrist at its limits): the
+# joint-space move ended 39 mm and 8.5 deg short of it, the straight move in started from
+# there, and the bit went into the cardboard sweeping 34-54 mm/s sideways (0.8-1.3 N m on the
+# wrist at once, against the 1.21 N m stop).
+STANDOFF_M = 0.03
+# drill mode: the legs follow the goal's height at most this fast, speeding up and slowing down
+# at most this (the bit is in the cardboard: the legs' default 20 mm/s, started and stopped at
+# once, swayed the body and moved the bit across the wall and along it by up to 20 mm/s more
+# than the goal)
+DRILL_LIFT_SPEED_M_S = 0.008
+DRILL_LIFT_ACCEL_M_S2 = 0.02
+ENTRY_STEP_M = 0.002           # the search for a way in goes down the hole's edge in these steps
+ROUTE_SPEED_M_S = 0.008        # mean speed of the bit in the wall from where it went in up to
+#                                the start point (the cardboard drags it across: 80 N s/m)
 # free mode: forearms forward, hands 30 cm in front of the chest, 23 cm below the shoulders:
 # 92-94 % of an 8 cm cube around it is reachable at the same hand orientation
 FREE_READY_ARM_RAD = {"right-arm": (0.0, -0.15, 0.0, -1.4, 0.0, 0.0),
@@ -214,7 +230,10 @@ def run_teleop(settings: TeleopSettings, on_ready=None) -> TeleopRun:
         target = TeleopTarget(model, source, HandMapper(mapping), body, approach, q_start,
                               live=source.live, clutch_at_s=settings.clutch_at_s, wall=wall,
                               reach=settings.reach,
-                              correction=("right-arm",) if settings.mode == "drill" else ())
+                              correction=("right-arm",) if settings.mode == "drill" else (),
+                              lift=LiftFilter(DRILL_LIFT_SPEED_M_S,
+                                              max_accel_m_s2=DRILL_LIFT_ACCEL_M_S2)
+                              if settings.mode == "drill" else None)
         duration = settings.duration_s
         if duration is None and source.recorded_s is not None:
             duration = source.recorded_s + target.approach_timeout_s + 30.0
@@ -249,22 +268,63 @@ def drill_wall(scene: dict) -> WallPlacement:
 def approach_paths(body: WholeBody, arms, scene: dict) -> dict[str, PosePath]:
     """Each driven hand's approach path (goals in S); its first pose is reached in joint space.
 
-    Free mode: the hands' ready pose (forearms forward). Drill mode: from ``STANDOFF_M`` before
-    the wall, orthogonal to it, straight in to the start point.
+    Free mode: the hands' ready pose (forearms forward). Drill mode: :func:`drill_approach`.
     """
     paths = {}
     for arm in arms:
         T_ready = body.arms[arm].fk(np.array(FREE_READY_ARM_RAD[arm]))
         if scene and arm == "right-arm":
-            T_wall = np.eye(4)
-            T_wall[:3, 3] = scene["start_m"]
-            T_off = T_wall.copy()
-            T_off[0, 3] -= STANDOFF_M
-            paths[arm] = PosePath([PoseSegment(T_off, T_wall, segment_duration(
-                T_off, T_wall, APPROACH_SPEED_M_S))])
+            paths[arm] = drill_approach(body, scene["start_m"])
         else:
             paths[arm] = PosePath([PoseSegment(T_ready, T_ready, 0.0)])
     return paths
+
+
+def drill_approach(body: WholeBody, start_m) -> PosePath:
+    """The bit's way to the start point (S, m), orthogonal to the wall: from ``STANDOFF_M``
+    before the wall straight in along the bit, at the start point or, where the arm does not
+    reach that straight way exactly, at the highest point below it on the hole's edge where it
+    does, then up the edge to the start point at ``ROUTE_SPEED_M_S``. So the pose the robot
+    holds while the wall is placed is the path's own, and the bit never sweeps sideways through
+    the cardboard to catch up with it.
+
+    Raises:
+        SafetyError: no way in within the hole's height (the stance's rectangle leaves none).
+    """
+    T_start = np.eye(4)
+    T_start[:3, 3] = start_m
+    for k in range(int(round(PAPER_HOLE_M[1] / ENTRY_STEP_M)) + 1):
+        T_in = T_start.copy()
+        T_in[2, 3] -= k * ENTRY_STEP_M
+        T_off = T_in.copy()
+        T_off[0, 3] -= STANDOFF_M
+        segments = [PoseSegment(T_off, T_in, segment_duration(T_off, T_in, APPROACH_SPEED_M_S))]
+        if k:
+            segments.append(PoseSegment(T_in, T_start, segment_duration(T_in, T_start,
+                                                                        ROUTE_SPEED_M_S)))
+        path = PosePath(segments)
+        if _reached_exactly(body, path):
+            return path
+    raise SafetyError(f"the drill cannot reach the wall there along its bit: no way in within "
+                      f"{PAPER_HOLE_M[1] * 1000:.0f} mm below the hole's corner "
+                      f"({start_m[0] * 1000:.0f}, {start_m[1] * 1000:.0f}, "
+                      f"{start_m[2] * 1000:.0f}) mm in S; nothing moved",
+                      hint="leave out --wall-distance (the workspace map's best stance) or "
+                           "choose another")
+
+
+def _reached_exactly(body: WholeBody, path: PosePath, samples: int = 12) -> bool:
+    """Every pose of ``path`` (``samples`` along each segment) has an exact arm solution at
+    the legs' lift for its first pose, as the approach solves them."""
+    first = {"right-arm": path.at(0.0)}
+    lift_m, q = body.lift_for(first), None
+    for k, segment in enumerate(path.segments):
+        for t in np.linspace(0.0, segment.duration_s, samples):
+            solved = body.solve({"right-arm": path.at(path.starts_s[k] + t)}, q, lift_m=lift_m)
+            if solved.arms["right-arm"].status != "exact":
+                return False
+            q = solved.q_rad
+    return True
 
 
 def summarise(settings: TeleopSettings, target: TeleopTarget, done: RunResult,

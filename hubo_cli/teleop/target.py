@@ -40,12 +40,12 @@ and put through the arm's forward kinematics); then they keep the straight joint
 
 Goals live in the stance frame S (the home neck frame, fixed to the ground). The actual
 end-effector pose is what the robot measures, as on the paper's robot: FK of the measured arm
-joints, lifted by the FK of the measured legs (feet flat on the ground). Where the driver knows
-the torso's pose in the world (the simulation), the tool's world position is tracked as well:
-it also contains the whole body's sway and lean (the ankle controller of eq. 11-12 complies
+joints, lifted by the FK of the measured legs (feet flat on the ground). The tool's position
+through the estimated torso pose (the store's T_WORLD_TORSO in S) is tracked as well: it
+also contains the whole body's sway and lean (the ankle controller of eq. 11-12 complies
 with the ankle moments, so the robot leans when its centre of mass moves forward).
 
-With ``correction`` (drill mode), the measured torso pose (leg encoders and IMU,
+With ``correction`` (drill mode), the measured torso pose (the estimate's,
 :mod:`hubo_cli.kinematics.torso`) corrects the corrected arms' joint targets every period: the
 goal in S is solved in the measured neck frame, low-passed and bounded, so the sway moves the
 arm and not the bit in the wall. Those arms' measured pose then goes through the measured torso
@@ -63,7 +63,7 @@ from hubo_cli.control.keys import ARM_SYNC, TRACKER_STATES
 from hubo_cli.control.phase import Phases
 from hubo_cli.control.target import Target
 from hubo_cli.dataflow import Store
-from hubo_cli.estimation.keys import QUAT_WORLD_TORSO, T_WORLD_TORSO
+from hubo_cli.estimation.keys import QUAT_WORLD_TORSO, T_WORLD_SOLES, T_WORLD_TORSO
 from hubo_cli.geometry import tilt_rad_of_quat_wxyz
 from hubo_cli.input.device import InputDevice
 from hubo_cli.kinematics.arm_reach import ArmReach, BranchMove, ReachSettings
@@ -72,7 +72,7 @@ from hubo_cli.kinematics.conditioning import SingularityScale, condition_number
 from hubo_cli.kinematics.dh import pose_error
 from hubo_cli.kinematics.interpolate import PosePath
 from hubo_cli.kinematics.reach import branch_of
-from hubo_cli.kinematics.torso import CorrectionSettings, TorsoCorrection, TorsoEstimator
+from hubo_cli.kinematics.torso import CorrectionSettings, MeasuredTorso, TorsoCorrection
 from hubo_cli.kinematics.wholebody import LiftFilter, WholeBody
 from hubo_cli.model import ARMS, RobotModel
 from hubo_cli.motion.tracker import JointTracker
@@ -177,9 +177,10 @@ class TeleopTarget(Target):
         correction: correct these arms' goals by the measured torso pose (see the module
             docstring); empty: none.
         correction_settings: its filter and bounds (None: the defaults).
+        lift: the legs' lift filter (None: :class:`LiftFilter`'s defaults).
     """
 
-    reads = (QUAT_WORLD_TORSO, T_WORLD_TORSO)
+    reads = (QUAT_WORLD_TORSO, T_WORLD_TORSO, T_WORLD_SOLES)
     writes = (ARM_SYNC,)  # each arm's synchronization, for otg (groups limbs)
     previous = (TRACKER_STATES,)  # otg's trackers after last period
 
@@ -189,7 +190,8 @@ class TeleopTarget(Target):
                  approach_timeout_s: float = 5.0, clutch_at_s: tuple[float, ...] = (),
                  wall: WallPlacement | None = None, reach: ReachSettings | None = None,
                  singularity: SingularityScale | None = None, correction: tuple[str, ...] = (),
-                 correction_settings: CorrectionSettings | None = None) -> None:
+                 correction_settings: CorrectionSettings | None = None,
+                 lift: LiftFilter | None = None) -> None:
         self.model = model
         self.source = source
         self.mapper = mapper
@@ -206,11 +208,11 @@ class TeleopTarget(Target):
         self.q_target = np.array(q_start_rad, dtype=float)
         self.q_out = self.q_target.copy()  # q_target corrected by the measured torso pose
         self._q_out_of = self.q_target.copy()  # the q_target that q_out corrects
-        self.estimator = TorsoEstimator(body)  # the torso pose the robot measures
+        self.torso = MeasuredTorso(body)  # the estimate's torso pose, in S
         self.correction = (TorsoCorrection(body, correction, model.control_period_s,
-                                           correction_settings, self.estimator)
+                                           correction_settings)
                            if correction else None)
-        self.lift = LiftFilter()
+        self.lift = lift or LiftFilter()
         # approach step 1: joint space to the paths' first poses (legs straight to their lift)
         firsts = {a: p.at(0.0) for a, p in approach.items()}
         self.lift.reset(body.lift_for(firsts))
@@ -248,7 +250,6 @@ class TeleopTarget(Target):
         self.keys_now = Keys()  # the operator's keys taken this period
         self.t_operate_s: float | None = None
         self.t_settle_s: float | None = None
-        self.T_world_S: np.ndarray | None = None
         self.latencies_s: list[float] = []
         self.operate_call_s: list[float] = []  # this target's own time per operating period
         self.samples_used = 0
@@ -272,18 +273,18 @@ class TeleopTarget(Target):
         """T_S_E of an arm's tool from the measured joints (4x4, m): arm FK lifted by leg FK."""
         T_N_E = self.body.arms[arm].fk(state.q_rad[self.slices[arm]])
         if self.correction is not None and arm in self.correction.arms:
-            return self.estimator(state, self.store[QUAT_WORLD_TORSO]) @ T_N_E
+            return self._T_S_N() @ T_N_E
         T_N_E[2, 3] += self.body.lift_of(state.q_rad)
         return T_N_E
 
     def hand_position_world(self, arm: str, state) -> np.ndarray:
-        """The tool's position in S through the estimated torso pose in the world (the store's
-        T_WORLD_TORSO, taken relative to the first one: S), m."""
-        T_world_torso = self.store[T_WORLD_TORSO]
-        if self.T_world_S is None:
-            self.T_world_S = np.array(T_world_torso, dtype=float)
+        """The tool's position in S through the estimated torso pose (m)."""
         T_N_E = self.body.arms[arm].fk(state.q_rad[self.slices[arm]])
-        return (np.linalg.solve(self.T_world_S, T_world_torso) @ T_N_E)[:3, 3]
+        return (self._T_S_N() @ T_N_E)[:3, 3]
+
+    def _T_S_N(self) -> np.ndarray:
+        """The measured neck frame in S (4x4, m): the estimate's torso pose."""
+        return self.torso(self.store[T_WORLD_TORSO], self.store[T_WORLD_SOLES])
 
     def hand_pose_commanded(self, arm: str) -> np.ndarray:
         """T_S_E of an arm's tool for the current joint target (4x4, m)."""
@@ -320,8 +321,7 @@ class TeleopTarget(Target):
             info["done"] = True
         self.phases(t_s, state)
         self.q_out = (self.q_target if self.correction is None
-                      else self.correction(self.q_target, state,
-                                           self.store[QUAT_WORLD_TORSO]))
+                      else self.correction(self.q_target, self._T_S_N()))
         self._q_out_of = self.q_target
         self._pace_arms()
         self._measure(t_s, state, info)
@@ -615,8 +615,6 @@ class TeleopTarget(Target):
 
     def _measure(self, t_s: float, state, info: dict) -> None:
         info["phase_code"] = PHASES.index(self.phase)
-        if self.T_world_S is None:
-            self.T_world_S = np.array(self.store[T_WORLD_TORSO], dtype=float)
         info["lift_m"] = float(self.body.lift_of(self.q_target))
         info["latency_s"] = self.latencies_s[-1] if self.latencies_s else 0.0
         for arm, hand in self.hands.items():
