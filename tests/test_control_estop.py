@@ -8,7 +8,12 @@ import signal
 
 import numpy as np
 import pytest
-from control_support import assert_within_limits, ideal, sensed_cycle
+from control_support import (
+    assert_within_braking_limits,
+    assert_within_limits,
+    ideal,
+    sensed_cycle,
+)
 
 from hubo_cli.control.estop import BRAKE_FLAG, RELIEF_S, EmergencyStopper, stop_on_signal
 from hubo_cli.control.keys import WRIST_RELIEF
@@ -65,11 +70,8 @@ def _assert_braked_then_within_limits(model, outputs, k_emer, brake_s):
     """Every command within the emergency braking limits (its acceleration) and the model's
     position and velocity limits; after the first ``brake_s`` from the latch within the
     trajectory limits too (the revert goes back under them)."""
-    brake = JointLimits.from_model(model).for_emergency_brake(model)
     commands = np.vstack([outputs[:1], outputs])
-    a = np.diff(commands, 2, axis=0) / DT**2
-    assert np.all(np.abs(a) <= brake.acceleration_rad_s2 * (1 + 1e-6) + 1e-6)
-    assert np.all(np.abs(np.diff(commands, axis=0)) / DT <= model.velocity_rad_s * (1 + 1e-6))
+    assert_within_braking_limits(model, commands, DT)
     after = k_emer + int(math.ceil(brake_s / DT)) + 2
     assert_within_limits(model, commands[after:], DT)
 

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from control_support import limit_violations
+from control_support import assert_within_braking_limits
 
 from hubo_cli.cli.main import main
 from hubo_cli.control.log import load_log
@@ -22,9 +22,8 @@ def _commands_ok(model, run_dir):
     log = load_log(run_dir)
     commands = log.joints("cmd")
     commands = np.vstack([commands[:1], commands[:1], commands])
-    bad = limit_violations(model, commands, model.control_period_s)
-    assert bad["nonfinite"] == 0 and bad["position"] == 0
-    assert bad["velocity"] == 0 and bad["acceleration"] == 0, bad
+    # the stop's revert brakes at the emergency limits before it goes back
+    assert_within_braking_limits(model, commands, model.control_period_s)
     return log
 
 

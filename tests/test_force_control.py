@@ -482,3 +482,27 @@ def test_the_task_target_writes_the_plans_force_and_measures_the_thrust(model, t
     plain.store[WRENCHES], plain.store[QUAT_WORLD_TORSO] = store[WRENCHES], store[QUAT_WORLD_TORSO]
     plain(0.0, state)
     assert plain.writes == (WRIST_RELIEF,) and HAND_WRENCH_PLAN not in plain.store
+
+
+@pytest.mark.slow
+@pytest.mark.physical
+@pytest.mark.parametrize("misplaced_mm", [15.0, -15.0])
+def test_the_cut_holds_its_thrust_on_a_misplaced_wall(model, tmp_path, misplaced_mm):
+    """cut-rectangle-force on a 60 x 40 mm rectangle (its four corners and both kinds of edge,
+    in 37 s of simulation), the wall 15 mm farther or nearer than planned: it completes, the
+    hole RMS is 1.34 mm on both walls (bound 3 mm, the issue's: 2.2x), and while cutting (the
+    path, after the plunge and the 2 s press) the thrust stayed within +-2 N of its 3 N
+    reference all the time: errors of at most 1.43 N (farther) and 1.82 N (nearer), RMS 0.55
+    and 0.59 N (one run each, this code path). The bounds: 98 % of the cut within +-2 N (the
+    full 150 x 100 mm rectangle misses 0.5 %, at its top-right corner: docs/history/
+    impedance.md) and an RMS error of 0.9 N (1.5x)."""
+    from hubo_cli.tasks.runner import check_task, run_task
+
+    spec = load_task("cut-rectangle-force", {"misplaced_mm": misplaced_mm, "width_mm": 60.0,
+                                             "height_mm": 40.0})
+    s = run_task(check_task(spec, model), out=tmp_path).summary
+    assert s["completed"] and not s["estop_events"]
+    assert s["hole_rms_error_mm"] <= 3.0
+    thrust = s["thrust_n"]
+    assert thrust["force_control"] and thrust["reference_mean"] == pytest.approx(3.0)
+    assert thrust["share_within_band"] >= 0.98 and thrust["rms_error"] <= 0.9
