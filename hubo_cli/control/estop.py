@@ -25,9 +25,9 @@ robot. The freeze preset
 stopped.
 
 A stop on the wrist torque relieves the wrist instead: the load on the tool comes from driving
-it through the material, and eq. 15's revert, which first runs on under the arms' trajectory
-limits and then drives the tool back along its path within T2, adds load instead of removing it.
-So the ``relieve`` stop brakes every joint as fast as the emergency braking limits allow
+it through the material, and eq. 15's revert, which drives the tool back along its path within
+T2, adds load instead of removing it. So the ``relieve`` stop brakes every joint as fast as the
+emergency braking limits allow (as the revert does before it goes back)
 (:meth:`JointLimits.for_emergency_brake`; flag ``estop-brake`` lets the limiter admit them),
 then follows the path the store's :data:`~hubo_cli.control.keys.WRIST_RELIEF` returns for the
 braked posture (the task backs the tool out of the wall along its normal, checked against the
