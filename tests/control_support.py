@@ -74,6 +74,19 @@ def assert_within_limits(model, commands: np.ndarray, dt: float) -> None:
     assert bad == {"nonfinite": 0.0, "position": 0.0, "velocity": 0.0, "acceleration": 0.0}, bad
 
 
+def assert_within_braking_limits(model, commands: np.ndarray, dt: float) -> None:
+    """Fail if any command breaks a position or velocity limit, or accelerates harder than the
+    emergency braking limits (the stopper's revert and wrist-torque stop brake at those)."""
+    from hubo_cli.motion.limits import JointLimits
+
+    brake = JointLimits.from_model(model).for_emergency_brake(model)
+    bad = limit_violations(model, commands, dt)
+    assert bad["nonfinite"] == bad["position"] == bad["velocity"] == 0.0, bad
+    a = np.diff(commands, 2, axis=0) / dt**2
+    assert np.all(np.abs(a) <= brake.acceleration_rad_s2 * (1 + ACC_TOL) + ABS_TOL), \
+        float(np.max(np.abs(a) / brake.acceleration_rad_s2))
+
+
 def sensed_cycle(t_s: float, dt_s: float, state, **fields):
     """A :class:`~hubo_cli.control.module.Cycle` whose store holds the estimate's wrenches as
     the test's state gives them (taken as already compensated: a module's unit test)."""

@@ -2,12 +2,18 @@
 
 from __future__ import annotations
 
+import math
 import os
 import signal
 
 import numpy as np
 import pytest
-from control_support import assert_within_limits, ideal, sensed_cycle
+from control_support import (
+    assert_within_braking_limits,
+    assert_within_limits,
+    ideal,
+    sensed_cycle,
+)
 
 from hubo_cli.control.estop import BRAKE_FLAG, RELIEF_S, EmergencyStopper, stop_on_signal
 from hubo_cli.control.keys import WRIST_RELIEF
@@ -60,22 +66,34 @@ def _settled_at(values: np.ndarray, final: float) -> float:
     return (away[-1] + 1) * DT if len(away) else 0.0
 
 
+def _assert_braked_then_within_limits(model, outputs, k_emer, brake_s):
+    """Every command within the emergency braking limits (its acceleration) and the model's
+    position and velocity limits; after the first ``brake_s`` from the latch within the
+    trajectory limits too (the revert goes back under them)."""
+    commands = np.vstack([outputs[:1], outputs])
+    assert_within_braking_limits(model, commands, DT)
+    after = k_emer + int(math.ceil(brake_s / DT)) + 2
+    assert_within_limits(model, commands[after:], DT)
+
+
 def test_revert_oracle_issue_ramp(model):
     """0.5 rad/s ramp on RSP, emergency at 2.0 s, T1 = T2 = 0.5 s: the hold is the command of
-    1.5 s, without overshoot. RSP's 0.8 rad/s^2 cannot turn 0.5 rad/s around within 0.5 s, so the
-    revert takes longer (about 2.3 s) but stays within every limit."""
+    1.5 s, without overshoot. It first brakes to rest at the emergency limits (8 rad/s^2,
+    400 rad/s^3): within v/2 (v/a + a/j) = 0.0206 rad and v/a + a/j = 0.0825 s (at the
+    trajectories' 0.8 rad/s^2 and 4 rad/s^3 it ran on 0.206 rad); RSP's 0.8 rad/s^2 cannot
+    bring it back within 0.5 s, so the way back takes longer (settled 3.455 s measured) but
+    keeps to the trajectory limits."""
     inputs, outputs = _revert_run(model, 0.5)
     k_emer, k_rev = 400, 300
     hold = outputs[-1, 0]
     assert hold == pytest.approx(inputs[k_rev, 0], abs=1e-12)
     assert hold - home_posture(model)[0] == pytest.approx(0.375, abs=1e-9)  # 0.5*0.75
     assert np.min(outputs[k_emer:, 0]) >= hold - 1e-12            # no overshoot below it
-    # it first brakes: jerk-limited, 0.5 rad/s stops within v/2 (v/a + a/j) = 0.206 rad
-    brake_rad = 0.5 / 2 * (0.5 / 0.8 + 0.8 / 4.0)
-    assert np.max(outputs[k_emer:, 0]) <= inputs[k_emer, 0] + brake_rad
+    brake_rad, brake_s = 0.5 / 2 * (0.5 / 8.0 + 8.0 / 400.0), 0.5 / 8.0 + 8.0 / 400.0
+    assert np.max(outputs[k_emer:, 0]) <= inputs[k_emer, 0] + brake_rad + 1e-9
     settled = _settled_at(outputs[:, 0], hold)
     assert 2.5 <= settled <= 4.5
-    assert_within_limits(model, np.vstack([outputs[:1], outputs]), DT)
+    _assert_braked_then_within_limits(model, outputs, k_emer, brake_s)
 
 
 def test_revert_oracle_within_t2_on_a_slow_ramp(model):
@@ -86,7 +104,7 @@ def test_revert_oracle_within_t2_on_a_slow_ramp(model):
     assert hold == pytest.approx(inputs[300, 0], abs=1e-12)
     assert _settled_at(outputs[:, 0], hold) <= 2.5 + 1e-9
     assert np.min(outputs[400:, 0]) >= hold - 1e-12
-    assert_within_limits(model, np.vstack([outputs[:1], outputs]), DT)
+    _assert_braked_then_within_limits(model, outputs, 400, 0.02 / 8.0 + 8.0 / 400.0)
 
 
 def test_freeze_preset_brakes_and_holds(model):
@@ -136,7 +154,11 @@ def test_stop_table_hrpsys(model, tmp_path, preset):
     assert np.abs(cmd[-1] - goal).max() < 1e-3
     recovered = np.nonzero((t > 8.0) & (mode == 0))[0]
     assert len(recovered) and t[recovered[0]] >= 8.0 + 2.5 - 1e-9
-    assert_within_limits(model, robot.commands(q0), DT)
+    if preset == "freeze":
+        assert_within_limits(model, robot.commands(q0), DT)
+    else:  # the revert brakes at the emergency limits, then keeps to the trajectory limits
+        _assert_braked_then_within_limits(model, robot.commands(q0)[1:],
+                                          int(np.searchsorted(t, 4.0)), 0.1)
     assert find_module(modules, "estop").events[0].sources == ("operator",)
     # the stop, the revert and the blend back kept to the limits on their own
     assert find_module(modules, "limiter").clamped_periods == 0
@@ -177,10 +199,9 @@ def _wrist_stop_run(model, tmp_path, relief=None, source="wrist-torque", speed_r
 def test_wrist_torque_stop_brakes_at_the_emergency_limits_then_relieves(model, tmp_path):
     """A wrist-torque stop brakes at the robot file's emergency braking limits (8 rad/s^2,
     400 rad/s^3 on the arms): from 0.35 rad/s the command is at rest v/a + a/j = 0.064 s after
-    the latch, 0.35^2/16 + 0.35*8/800 = 11 mrad on (eq. 15's revert under the arms' 0.8 rad/s^2
-    and 4 rad/s^3 runs on 0.11 rad first); then it follows the relief path on a minimum-jerk
-    time scale (RELIEF_S) to its end and holds there. Every command keeps to the braking
-    limits and the limiter never has to clamp it."""
+    the latch, 0.35^2/16 + 0.35*8/800 = 11 mrad on (as eq. 15's revert brakes); then it
+    follows the relief path on a minimum-jerk time scale (RELIEF_S) to its end and holds there.
+    Every command keeps to the braking limits and the limiter never has to clamp it."""
     delta = np.zeros(24)
     delta[:6] = [0.02, 0.03, -0.01, 0.04, 0.0, -0.02]
     relief_calls = []
@@ -209,7 +230,8 @@ def test_wrist_torque_stop_brakes_at_the_emergency_limits_then_relieves(model, t
     assert np.all(np.abs(np.diff(cmd, axis=0)) / DT <= model.velocity_rad_s + 1e-9)
     assert limiter.clamped_periods == 0
 
-    # the same input stopped by the operator: eq. 15 under the trajectory limits runs on further
+    # the same input stopped by the operator: eq. 15 brakes alike, then goes back along the
+    # path to the command of T1 before (further than the relief)
     _, _, _, cmd_op, _, _ = _wrist_stop_run(model, _dir(tmp_path, "o"), relief,
                                            source="operator")
     overrun_op = np.max(np.abs(cmd_op[k0:, joints] - cmd_op[k0, joints]))

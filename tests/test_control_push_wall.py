@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from control_support import limit_violations
+from control_support import assert_within_braking_limits
 
 from hubo_cli.cli.main import main
 from hubo_cli.control.log import load_log
@@ -22,9 +22,8 @@ def _commands_ok(model, run_dir):
     log = load_log(run_dir)
     commands = log.joints("cmd")
     commands = np.vstack([commands[:1], commands[:1], commands])
-    bad = limit_violations(model, commands, model.control_period_s)
-    assert bad["nonfinite"] == 0 and bad["position"] == 0
-    assert bad["velocity"] == 0 and bad["acceleration"] == 0, bad
+    # the stop's revert brakes at the emergency limits before it goes back
+    assert_within_braking_limits(model, commands, model.control_period_s)
     return log
 
 
@@ -34,7 +33,9 @@ def test_push_wall_forward_with_estop_stays_up(model, tmp_path):
     s = result.summary
     # measured the same on both code paths (AVX-512 / portable): tilt 3.25 deg (bound 3.1x),
     # stop at 2.09 s (2.1x inside its window), elbows bent back 0.37 rad (3.7x), final tilt
-    # 0.0016 deg
+    # 0.0016 deg; since the revert brakes at the emergency limits (this code path only): tilt
+    # 1.53 deg (6.5x), stop at 2.09 s, elbows bent back 0.18 rad (1.8x: they run on less before
+    # they turn), final tilt 0.0006 deg
     assert SUMMARY_KEYS <= set(s)
     assert s["estop"] == "on" and not s["fell"] and not s["tipped"] and s["max_tilt_deg"] < 10.0
     assert s["t_emergency_s"] is not None and s["emergency_sources"] == ["capture-point"]

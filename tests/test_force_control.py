@@ -103,10 +103,13 @@ def test_the_whole_force_at_the_bit_from_hubos_three_axis_sensor(model):
     assert np.all(np.isnan(force_at_point(np.full(6, np.nan), r_S)))
 
 
-def test_force_tracking_on_the_drill_reads_the_force_across_the_forearm(model):
-    """With the drill's point, force tracking sees the thrust along the bit even with a force
-    across it (the cut's): pressing exactly the reference along N's x with 2 N across, the
-    spring's centre stays put; read from f_z alone it creeps (the lateral force reads in)."""
+def test_the_drill_yields_to_the_thrust_not_to_the_force_across_the_bit(model):
+    """With the drill's point, eq. 3 and force tracking see the thrust along the bit even with
+    a force across it (the cut's, turning at a corner): pressing exactly the reference along
+    N's x with 2 N across that then reverses, neither the hand nor the spring's centre moves
+    (issue 36: read from f_z alone, the force across read into the spring's input and every
+    turn of the cut's direction moved the hand along the bit: the thrust left +-2 N). Read
+    from f_z alone both move."""
     q0 = home_posture(model)
     sl = model.limb_slice(ARM)
     T_N_H = Limb(model, ARM, "hand").fk(q0[sl])
@@ -114,24 +117,32 @@ def test_force_tracking_on_the_drill_reads_the_force_across_the_forearm(model):
     from hubo_cli.control.wrench import tool_point_S_m
 
     r_S = tool_point_S_m(model, "drill", T_frame_sensor("right-wrist"))
-    f_N = np.array([-3.0, 0.0, 2.0])  # 3 N back along x (the reference), 2 N across
-    f_S = R_N_S.T @ f_N
-    m_S = np.cross(r_S, f_S)
-    reading = np.array([0.0, 0.0, f_S[2], m_S[0], m_S[1], 0.0])
-    moved = {}
+
+    def reading(across_n):
+        f_S = R_N_S.T @ np.array([-3.0, 0.0, across_n])  # 3 N back along x (the reference)
+        m_S = np.cross(r_S, f_S)
+        return np.array([0.0, 0.0, f_S[2], m_S[0], m_S[1], 0.0])
+
+    moved, offset = {}, {}
     for tools in ({ARM: "drill"}, None):
         ic = ImpedanceController(model, DT, reference=HAND_WRENCH_REF, axes=("x",), arms=(ARM,),
                                  tools=tools)
         state = RobotState(0.0, q0.copy(), np.zeros(len(q0)))
         store = Store()
-        store[WRENCHES] = {"right-wrist": reading}
+        store[WRENCHES] = {"right-wrist": reading(2.0)}
         ic.reset(q0, state, store)
-        for k in range(200):
+        largest = centre = 0.0
+        for k in range(400):
+            store[WRENCHES] = {"right-wrist": reading(2.0 if k < 200 else -2.0)}
             store[HAND_WRENCH_REF] = {ARM: np.array([-3.0, 0, 0, 0, 0, 0])}
             ic.update(q0, state, Cycle(k * DT, DT, store=store))
-        moved[tools is not None] = float(np.linalg.norm(ic.hands[0].centre_m))
-    assert moved[True] < 1e-9
+            largest = max(largest, float(np.linalg.norm(ic.offset(ARM))))
+            centre = max(centre, float(np.linalg.norm(ic.hands[0].centre_m)))
+        moved[tools is not None] = centre
+        offset[tools is not None] = largest
+    assert moved[True] < 1e-9 and offset[True] < 1e-9
     assert moved[False] > 1e-4  # 1 s at 2 mm/s per N of misread force
+    assert offset[False] > 1e-3  # the misread force on the 500 N/m spring
 
 
 @pytest.mark.parametrize("seed", range(4))
@@ -471,3 +482,27 @@ def test_the_task_target_writes_the_plans_force_and_measures_the_thrust(model, t
     plain.store[WRENCHES], plain.store[QUAT_WORLD_TORSO] = store[WRENCHES], store[QUAT_WORLD_TORSO]
     plain(0.0, state)
     assert plain.writes == (WRIST_RELIEF,) and HAND_WRENCH_PLAN not in plain.store
+
+
+@pytest.mark.slow
+@pytest.mark.physical
+@pytest.mark.parametrize("misplaced_mm", [15.0, -15.0])
+def test_the_cut_holds_its_thrust_on_a_misplaced_wall(model, tmp_path, misplaced_mm):
+    """cut-rectangle-force on a 60 x 40 mm rectangle (its four corners and both kinds of edge,
+    in 37 s of simulation), the wall 15 mm farther or nearer than planned: it completes, the
+    hole RMS is 1.34 mm on both walls (bound 3 mm, the issue's: 2.2x), and while cutting (the
+    path, after the plunge and the 2 s press) the thrust stayed within +-2 N of its 3 N
+    reference all the time: errors of at most 1.43 N (farther) and 1.82 N (nearer), RMS 0.55
+    and 0.59 N (one run each, this code path). The bounds: 98 % of the cut within +-2 N (the
+    full 150 x 100 mm rectangle misses 0.5 %, at its top-right corner: docs/history/
+    impedance.md) and an RMS error of 0.9 N (1.5x)."""
+    from hubo_cli.tasks.runner import check_task, run_task
+
+    spec = load_task("cut-rectangle-force", {"misplaced_mm": misplaced_mm, "width_mm": 60.0,
+                                             "height_mm": 40.0})
+    s = run_task(check_task(spec, model), out=tmp_path).summary
+    assert s["completed"] and not s["estop_events"]
+    assert s["hole_rms_error_mm"] <= 3.0
+    thrust = s["thrust_n"]
+    assert thrust["force_control"] and thrust["reference_mean"] == pytest.approx(3.0)
+    assert thrust["share_within_band"] >= 0.98 and thrust["rms_error"] <= 0.9

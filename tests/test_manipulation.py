@@ -226,8 +226,10 @@ def test_door_that_opens_toward_the_robot_with_and_without_the_stop(model, tmp_p
     stopped = run_manipulation(model, spec, out=tmp_path / "on").summary
     free = run_manipulation(model, spec, estop=False, out=tmp_path / "off").summary
     # the same on both code paths: with the stop flagged at 2.485 s, tilt 2.59 deg, sole lift
-    # 9.9 mm; without it the robot rocks onto its heels (sole lift 31.3 mm against the 20 mm
+    # 9.9 mm (1.45 deg, 5.5 mm since the revert brakes at the emergency limits, this code path
+    # only); without it the robot rocks onto its heels (sole lift 31.3 mm against the 20 mm
     # criterion, tilt 8.18 deg) and stays propped on the door; CP error 94.8 against 33.2 mm
+    # (23.4 mm now)
     assert stopped["t_emergency_s"] is not None and stopped["emergency_sources"] == [
         "capture-point"]
     assert not stopped["fell"] and not stopped["tipped"] and stopped["max_tilt_deg"] < 5.0
@@ -253,3 +255,24 @@ def test_cli_refuses_bad_recognition_errors(tmp_path):
         assert not out.exists()
     listed = CliRunner().invoke(main, ["task", "list"])
     assert "turn-valve" in listed.output and "push-door" in listed.output
+
+
+@pytest.mark.slow
+@pytest.mark.physical
+def test_valve_seen_195_mm_to_the_left_with_and_without_the_stop(model, tmp_path):
+    """Seen 195 mm left of where it is (the paper's Fig. 11 b-1): the turning hand meets the
+    real rim from outside and the contact lifts the right sole
+    before the capture point flags (0.14 s later). The stop's revert now brakes the arm to rest
+    at the emergency limits before it goes back: braking at the trajectories' 0.8 rad/s^2 the
+    elbow ran on 0.55 rad into the rim for a second and the robot tipped onto its left foot
+    (38 mm, 5.6 deg). Measured once on this code path: with the stop 6.4-6.8 mm of sole lift
+    and 1.06-1.13 deg (the bound is 20 mm, the tip criterion: 2.9x; and 3 deg: 2.6x); without
+    it 48.4 mm and 8.1 deg, motors at their limit (tipped: 2.4x the 20 mm criterion)."""
+    spec = ManipulationSpec("turn-valve", seen_offset_m=(0.0, 0.195, 0.0))
+    stopped = run_manipulation(model, spec, out=tmp_path / "on").summary
+    free = run_manipulation(model, spec, estop=False, out=tmp_path / "off").summary
+    assert stopped["emergency_sources"] == ["capture-point"]
+    assert not stopped["fell"] and not stopped["tipped"] and stopped["max_tilt_deg"] < 3.0
+    assert free["t_emergency_s"] is None and free["tipped"]
+    for run in ("on", "off"):
+        assert (tmp_path / run / "manipulation.png").read_bytes()[:8] == PNG

@@ -14,8 +14,8 @@ used.
 Only the arm joints are held (hrpsys ``collision_mask``); the legs pass through so that the
 balancer keeps working. Each period the input command is checked where it is and on its way to
 where it would stop if it braked now (its position plus the jerk-limited braking distance of its
-velocity and acceleration, per joint, at the emergency braking limits while a wrist-torque
-stop brakes, flag ``estop-brake``; sampled every 0.05 rad, so a fast motion cannot step over
+velocity and acceleration, per joint, at the emergency braking limits while a stopper
+brakes, flag ``estop-brake``; sampled every 0.05 rad, so a fast motion cannot step over
 a thin part of the body), so the hold can start early enough to stay clear. A pair closer than
 ``tolerance_m`` is a collision: the arms go back to the last safe input (jerk-limited, within
 the joint limits) and hold; once the input is clear again they recover toward the live

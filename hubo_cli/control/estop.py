@@ -14,14 +14,20 @@ recover   after release, join the live input again; re-planned every period so t
 Every transition is a jerk-limited ruckig trajectory started from the output's own position,
 velocity and acceleration (:class:`~hubo_cli.motion.tracker.JointTracker`), so the revert obeys the
 joint limits: when the limits cannot turn the motion around within T2 the revert takes longer
-and still ends exactly on the posture of t_emer - T1 (no overshoot past it). The freeze preset
+and still ends exactly on the posture of t_emer - T1 (no overshoot past it). The revert first
+brakes to rest at the emergency braking limits (as the wrist-torque stop, flag
+``estop-brake``), then goes back under the trajectories' limits, by t_emer + T2 where they
+allow it: braking at the trajectories' 0.8 rad/s^2 and 4 rad/s^3, an arm moving at 0.75
+rad/s ran on 0.5 rad for a second before turning, and a hand that had met an object where the
+plan did not expect it (the valve seen 195 mm to the left) kept pushing it and tipped the
+robot. The freeze preset
 (T1 = T2 = one period, hrpsys' default) brakes as hard as the limits allow and holds where it
 stopped.
 
 A stop on the wrist torque relieves the wrist instead: the load on the tool comes from driving
-it through the material, and eq. 15's revert, which first runs on under the arms' trajectory
-limits and then drives the tool back along its path within T2, adds load instead of removing it.
-So the ``relieve`` stop brakes every joint as fast as the emergency braking limits allow
+it through the material, and eq. 15's revert, which drives the tool back along its path within
+T2, adds load instead of removing it. So the ``relieve`` stop brakes every joint as fast as the
+emergency braking limits allow (as the revert does before it goes back)
 (:meth:`JointLimits.for_emergency_brake`; flag ``estop-brake`` lets the limiter admit them),
 then follows the path the store's :data:`~hubo_cli.control.keys.WRIST_RELIEF` returns for the
 braked posture (the task backs the tool out of the wall along its normal, checked against the
@@ -232,6 +238,7 @@ class EmergencyStopper(Module):
         self._release = False
         self._brake_only = False
         self._relieving: str | None = None  # "brake", then "move" (wrist-torque stops)
+        self._turning = False  # a revert still braking to rest (at the brake limits)
         self._hard_wrench: str | None = None  # a hard stop's wrenches: "stop", then "recover"
         self._hard_recover_end_s = 0.0
         if self.wrenches is not None:
@@ -296,8 +303,10 @@ class EmergencyStopper(Module):
         self.hold_rad = self.history[0].copy()
         self._relieving = None
         if sources & RELIEVE_SOURCES:
-            self.brake_tracker.reset(*self._output_state())
             self._relieving = "brake"
+        if not self._brake_only:  # a revert or a relief turns the motion at the brake limits
+            self.brake_tracker.reset(*self._output_state())
+        self._turning = not (self._brake_only or self._relieving)
         if self.wrenches is not None:  # eq. 15 for the wrenches: back to t_emer - T1, or off
             back = self._brake_only or self._relieving or self._hard_wrench == "stop"
             self.wrenches.start(t_s, self.stop_s, {} if back else dict(self.wrenches.history[0]))
@@ -378,9 +387,9 @@ class EmergencyStopper(Module):
         if requests and self.mode in ("release", "recover"):
             self._latch(cycle.t_s, requests)
         elif self._release and self.mode in ("stop", "hold"):
-            if self._relieving:  # released while braking or relieving: blend back from there
-                self.tracker.reset(*self._output_state())
-                self._relieving = None
+            if self.mode == "stop" and not self._brake_only:  # released while reverting or
+                self.tracker.reset(*self._output_state())  # relieving: blend back from there
+                self._relieving, self._turning = None, False
             self.mode = "recover"
             self.t_recover_end_s = cycle.t_s + self.recover_s
             if self.wrenches is not None:
@@ -401,8 +410,16 @@ class EmergencyStopper(Module):
                 if self.tracker.at_rest:
                     self.hold_rad = out.copy()
                     self.mode = "hold"
-            else:
-                out = self.tracker.track(self.hold_rad, min_duration_s=self.stop_s)
+            elif self._turning:  # eq. 15's revert: first brake to rest at the brake limits
+                cycle.flags.add(BRAKE_FLAG)
+                out = self.brake_tracker.brake()
+                if self.brake_tracker.at_rest:
+                    self._turning = False
+                    self.tracker.reset(out)
+            else:  # ... then back to the posture of t_emer - T1 under the trajectory limits
+                remaining = self.t_emer_s + self.stop_s - cycle.t_s
+                out = self.tracker.track(self.hold_rad,
+                                         min_duration_s=remaining if remaining > 0 else None)
                 if self.tracker.finished:
                     out = self.hold_rad.copy()
                     self.mode = "hold"

@@ -38,7 +38,12 @@ the hand in the sensor frame S (:func:`~hubo_cli.state.T_frame_sensor`: z along 
 another mounting is one argument, ``T_hand_sensor``). It is moved to the hand origin in hand
 axes (f_H = R_HS f_S, m_H = R_HS m_S + p_HS x f_H), then turned into N by the hand's measured
 orientation (forward kinematics of the measured joints). Hubo's wrist sensors read the force
-along the forearm and the two moments across it only: the hand yields to those.
+along the forearm and the two moments across it only: a hand yields to those; a hand holding a
+contact tool (a drill) to the whole force at the tool's point, which those three give
+(:func:`contact_wrench`). Read along the forearm alone (45 degrees off the bit), the force
+across the bit (the cutting and the depth guide's friction, ~1.9 N at 10 mm/s) read into the
+thrust the spring saw and changed with every turn of a cut's direction; force tracking then
+took its ~1.25 s time constant to undo the spring's answer.
 
 Offset to joints: the target pose is (p_ref + x_p, Exp(x_r) R_ref) in N, with the reference
 pose FK(commanded arm joints); the arm's closed-form IK (paper II-B,
@@ -313,27 +318,33 @@ def _move_centre(centre, step_m, wrench_ref_N, size, mask, max_offset_m) -> None
 
 
 @nb.njit(**JIT)
+def contact_wrench(wrench_S, contact_S, measured, out) -> None:
+    """out: the reading with its force replaced by the whole force at the tool's point
+    ``contact_S`` (sensor frame, m), as :func:`~hubo_cli.control.wrench.force_at_point` finds
+    it from f_z and the moments (m = r x f; a full sensor's force as it is); the moments about
+    the sensor stay the measured ones."""
+    for i in range(6):
+        out[i] = wrench_S[i]
+    if not (measured[0] != 0.0 and measured[1] != 0.0):  # r_z checked when the point was set
+        rx, ry, rz = contact_S[0], contact_S[1], contact_S[2]
+        out[0] = (wrench_S[4] + rx * wrench_S[2]) / rz
+        out[1] = (ry * wrench_S[2] - wrench_S[3]) / rz
+
+
+@nb.njit(**JIT)
 def track_force(centre, wrench_ref_N, wrench_S, T_H_S, T_N_H, measured, mask, K, gain_m_per_n,
-                decay, max_offset_m, contact_S, has_contact, wrench_ref_eff_N) -> None:
+                decay, max_offset_m, has_contact, wrench_ref_eff_N) -> None:
     """One period of force tracking: with a nonzero reference force F_ref (N axes) the centre
     c moves by ``gain_m_per_n (F_d - |F_ref|) d`` (d = F_ref / |F_ref|, masked axes only,
     |c| clamped to ``max_offset_m``), F_d the force along d from the sensor's ``measured``
     force axes a_i (1 measured, 0 not) assuming it lies along d, sum f_i (a_i . d) /
     sum (a_i . d)^2 (held where that sum is under ``ALONG_MIN``), or with ``has_contact``
-    the force at the tool's point ``contact_S`` (sensor frame, m) as
-    :func:`~hubo_cli.control.wrench.force_at_point` finds it (all of it, from f_z and the
-    moments); without a reference it shrinks by the factor ``1 - decay``. Then
+    the whole force of ``wrench_S`` (a :func:`contact_wrench`: the force at the tool's point);
+    without a reference it shrinks by the factor ``1 - decay``. Then
     wrench_ref_eff_N = F_ref - K [c, 0]."""
     size = math.sqrt(wrench_ref_N[0] ** 2 + wrench_ref_N[1] ** 2 + wrench_ref_N[2] ** 2)
     if size > 0.0 and gain_m_per_n > 0.0 and has_contact:
-        f = np.empty(3)
-        if measured[0] != 0.0 and measured[1] != 0.0:  # a full sensor
-            f[0], f[1] = wrench_S[0], wrench_S[1]
-        else:  # m = r x f at the tool's point (r_z checked when the point was set)
-            rx, ry, rz = contact_S[0], contact_S[1], contact_S[2]
-            f[0] = (wrench_S[4] + rx * wrench_S[2]) / rz
-            f[1] = (ry * wrench_S[2] - wrench_S[3]) / rz
-        f[2] = wrench_S[2]
+        f = wrench_S
         along = -size
         for r in range(3):
             f_H = T_H_S[r, 0] * f[0] + T_H_S[r, 1] * f[1] + T_H_S[r, 2] * f[2]
@@ -391,7 +402,8 @@ class _Hand:
         self.wrench_ref_eff_N = np.zeros(6)  # F_ref - K [c, 0]: the spring centred on c
         self.centre_m = np.zeros(3)  # the force tracking's spring centre c (N axes, m)
         self.contact_S_m = np.zeros(3)  # the tool's point in the sensor frame (m) ...
-        self.has_contact = False  # ... if force tracking reads the force there
+        self.has_contact = False  # ... if eq. 3 and force tracking read the force there
+        self.wrench_contact = np.zeros(6)  # this period's reading with the force at that point
         self.dq_rad = np.zeros(6)
         self.held = False  # last period's offset was held (unreachable or at its limit)
         self.T_N_H = np.empty((4, 4))
@@ -423,9 +435,10 @@ class ImpedanceController(Module):
             others is dropped. Default all.
         force_tracking_m_per_n_s: how fast the spring's centre moves per newton of force error
             along a nonzero reference force (m/s per N; 0: never); None: the robot file's.
-        tools: arm -> the tool it holds; for a drill force tracking reads the whole force at
-            the bit (f_z and the two moments, :func:`~hubo_cli.control.wrench.force_at_point`)
-            instead of assuming it lies along the reference.
+        tools: arm -> the tool it holds; for a drill eq. 3 and force tracking read the whole
+            force at the bit (f_z and the two moments, :func:`contact_wrench`) instead of the
+            force along the forearm alone, and force tracking no longer assumes it lies along
+            the reference.
 
     Flags: ``impedance-limit`` (an offset clamped), ``impedance-bad-wrench`` (a non-finite
     reading: offset held), ``impedance-unreachable`` (joint offset held), ``impedance-release``.
@@ -557,7 +570,8 @@ class ImpedanceController(Module):
         for has_contact in (False, True):
             track_force(np.zeros(3), np.ones(6), np.zeros(6), self.T_hand_sensor, h.T_N_H,
                         self.measured_force, self.axes_mask, self.K, 1e-9, 0.0, 1.0,
-                        np.ones(3), has_contact, h.wrench_ref_eff_N.copy())
+                        has_contact, h.wrench_ref_eff_N.copy())
+        contact_wrench(np.zeros(6), np.ones(3), self.measured_force, np.zeros(6))
         offset_joints(np.zeros(6), *h.ik, np.zeros(6), np.zeros(6))
         retreat_offset(np.zeros(6), h.limb.chain, h.ik[-1], 0.5, np.zeros(6), np.zeros(6))
         all_finite(scratch)
@@ -596,7 +610,7 @@ class ImpedanceController(Module):
                     self.measured_force, self.axes_mask, self.K,
                     0.0 if frozen else self.force_tracking_m_per_n_s * self.dt_s,
                     0.0 if frozen else self.dt_s / max(self.release_s, self.dt_s),
-                    self.max_offset_m, h.contact_S_m, h.has_contact, h.wrench_ref_eff_N)
+                    self.max_offset_m, h.has_contact, h.wrench_ref_eff_N)
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         q_in = np.empty(self._last_in.shape[0])
@@ -629,6 +643,10 @@ class ImpedanceController(Module):
                     if not all_finite(q_hand):
                         q_hand = q_in[h.slice]
                     chain_fk(q_hand, *h.fk_chain, h.T_N_H)
+                    if h.has_contact:  # the tool's whole force, at its point
+                        contact_wrench(wrench_S, h.contact_S_m, self.measured_force,
+                                       h.wrench_contact)
+                        wrench_S = h.wrench_contact
                     self._track_force(h, wrench_S)
                     advance(h.s, self.Ad, self.Bd, wrench_S, self.T_hand_sensor,
                             h.T_N_H[:3, :3], h.wrench_ref_eff_N, self.axes_mask, h.s_next)

@@ -11,7 +11,8 @@ applied in this order, a later band winning if two cannot both hold:
 4. position: the command may approach a limit only as fast as it can still brake before it
    (:func:`~hubo_cli.motion.limits.brake_speed`), and never moves further out once outside.
 
-While an emergency stopper brakes a wrist-torque stop (flag ``estop-brake``), band 2 takes the
+While an emergency stopper brakes (a wrist-torque stop, a revert turning the motion around;
+flag ``estop-brake``), band 2 takes the
 emergency braking acceleration (:meth:`~hubo_cli.motion.limits.JointLimits.for_emergency_brake`).
 
 When a band clamps, the wanted velocity is also capped so that the command can stop on the

@@ -289,13 +289,14 @@ class ManipulationTargets(WatchedTarget):
         self.duration_s = float(self.ends_s[-1])
         self.q_prev = q_start[self.slice].copy()
         self._check_reach()
-        self._effort = _arm_effort(load_pin_robot(model), model)
+        self.effort_nm = _arm_effort(load_pin_robot(model), model)
         self.grasp_miss_m: float | None = None  # the rim's distance at the last try (m)
         self.grasped_at_s: float | None = None
         self.placed: dict = {}
         self.world: SceneActions | None = None
         self.overload_periods = 0
         self.max_torque_ratio = 0.0
+        self.max_torque_nm = np.zeros(len(self.effort_nm))  # each arm joint's largest |tau| (N m)
         self.max_axial_n = 0.0  # the largest |f_z| along the forearm (N)
         self.max_moment_nm = 0.0  # the largest wrist bending moment (N m)
 
@@ -385,7 +386,10 @@ class ManipulationTargets(WatchedTarget):
         axial_n, moment_nm = float(wrench[2]), math.hypot(float(wrench[3]), float(wrench[4]))
         self.max_axial_n = max(self.max_axial_n, abs(axial_n))
         self.max_moment_nm = max(self.max_moment_nm, moment_nm)
-        ratio = float(np.max(np.abs(state.tau_nm[self.slice]) / self._effort))
+        tau_nm = np.abs(state.tau_nm[self.slice])
+        np.maximum(self.max_torque_nm, np.where(np.isfinite(tau_nm), tau_nm, 0.0),
+                   out=self.max_torque_nm)
+        ratio = float(np.max(tau_nm / self.effort_nm))
         self.max_torque_ratio = max(self.max_torque_ratio, ratio)
         self.overload_periods += ratio >= OVERLOAD_RATIO
         return q, {"hand_axial_n": axial_n, "wrist_moment_nm": moment_nm,
@@ -463,6 +467,11 @@ def manipulation_summary(spec: ManipulationSpec, estop: bool, targets: Manipulat
         "overloaded": targets.overload_periods * period_s >= OVERLOAD_S,
         "overload_s": round(targets.overload_periods * period_s, 3),
         "max_arm_torque_ratio": round(targets.max_torque_ratio, 3),
+        # each arm joint's largest torque against its motor's limit (N m, the URDF's effort)
+        "peak_arm_torque_nm": {
+            name: [round(float(peak), 1), float(limit)] for name, peak, limit in zip(
+                targets.model.joint_names[targets.slice], targets.max_torque_nm,
+                targets.effort_nm, strict=True)},
         "max_tilt_deg": round(targets.max_tilt_deg, 2),
         "t_emergency_s": stops[0][1] if stops else None,
         "emergency_sources": list(stops[0][3]) if stops else [],
