@@ -30,7 +30,8 @@ from hubo_cli.drivers.registry import DRIVER_NAMES
 @click.option("--arm", "armed", is_flag=True, help="Arm the hardware driver (required by it).")
 @click.option("--toe-heel/--flat-feet", "toe_heel", default=None,
               help="Roll the soles on toe and heel (the multi-layer paper's eq. 4, Fig. 4; the "
-                   "robot file's [toe_heel]) or land them flat. Default: see docs/walking.md.")
+                   "robot file's [toe_heel]) or land them flat (the default: see "
+                   "docs/stabilizer.md).")
 @click.option("--lip-feedback", is_flag=True,
               help="The stabilizer's soles track the multi-layer paper's LIP state feedback "
                    "(eq. 7-8) split between the feet by its QP (eq. 9-14).")

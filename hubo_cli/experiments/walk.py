@@ -99,7 +99,7 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
          perturb_seed: int | None = None, corrections: int = 1,
          balance: str = "off", operator: OperatorKeys | None = None,
          live: RunObserver | None = None,
-         stabilizer: StabilizerGains | None = DEFAULT_GAINS, toe_heel: bool = True,
+         stabilizer: StabilizerGains | None = DEFAULT_GAINS, toe_heel: bool = False,
          lip_feedback: bool = False,
          driver: str = "sim",
          driver_options: dict | None = None) -> WalkResult:

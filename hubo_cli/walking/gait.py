@@ -24,7 +24,8 @@ robot file's 1.0 s step). The ZMP reference is eq. 4's blend of the feet's CoPs 
 foot's moving from toe to heel, every CoP ``zmp_inset_m`` inside its foot's centre line), the
 swing foot rolls on its toe as it leaves and on its heel as it lands (its pitch and pivot in
 ``Gait.toe_heel``; its rows are the sole's origin, moved as the roll moves it:
-:func:`~hubo_cli.walking.toe_heel.ankle_offset`). A short or sideways step lands flat.
+:func:`~hubo_cli.walking.toe_heel.ankle_offset`). A short or sideways step lands flat; a walk
+of such steps only (a correction of a few millimetres) is the flat pattern.
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ from hubo_cli.walking.toe_heel import (
     ToeHeelPlan,
     ankle_offset,
     plan_toe_heel_walk,
+    step_direction,
 )
 
 SWING_MOVE = (0.1, 0.9)  # fraction of single support during which the swing foot travels
@@ -148,7 +150,7 @@ def make_gait(right: Footstep, left: Footstep, steps: list[Footstep], params: Wa
         toe_heel, sole: walk on toe and heel (see the module docstring) with these phases
             and angles on this sole (both needed); None: flat feet.
     """
-    if toe_heel is not None and steps:
+    if toe_heel is not None and _rolls(right, left, steps, toe_heel.min_step_m):
         if sole is None:
             raise ValueError("toe-heel walking needs the sole's shape")
         return _toe_heel_gait(right, left, steps, params, period_s, com_height_m, sole_z_m,
@@ -207,6 +209,16 @@ def make_gait(right: Footstep, left: Footstep, steps: list[Footstep], params: Wa
                 np.concatenate(index))
 
 
+def _rolls(right: Footstep, left: Footstep, steps: list[Footstep], min_step_m: float) -> bool:
+    """Some step is long enough to roll on toe and heel (the others land flat)."""
+    feet = {"right": right, "left": left}
+    for step in steps:
+        if step_direction(feet[step.side], step, min_step_m) != 0:
+            return True
+        feet[step.side] = step
+    return False
+
+
 def _toe_heel_gait(right: Footstep, left: Footstep, steps: list[Footstep],
                    params: WalkingParams, period_s: float, com_height_m: float,
                    sole_z_m: float, com_start_m: np.ndarray | None, toe_heel: ToeHeelParams,
@@ -223,7 +235,7 @@ def _toe_heel_gait(right: Footstep, left: Footstep, steps: list[Footstep],
                               2 * half * period_s, period_s, stand_s=lead * period_s,
                               inset_m=params.zmp_inset_m)
     rows = np.r_[np.arange(walk_n), np.full(settle, walk_n)]  # settle: the plan's standing row
-    plan = ToeHeelPlan(*(getattr(plan, f)[rows] for f in plan.__dataclass_fields__))
+    plan = plan.take(rows)
     plan.t_s = np.arange(n) * period_s
     zmp_ref = plan.zmp_m.copy()
     start = zmp_ref[lead] if com_start_m is None else np.asarray(com_start_m, dtype=float)

@@ -185,6 +185,13 @@ class ToeHeelPlan:
     swing: np.ndarray
     direction: np.ndarray
 
+    def take(self, rows: np.ndarray) -> ToeHeelPlan:
+        """The plan at these rows (indices into its periods), in their order."""
+        return ToeHeelPlan(self.t_s[rows], self.cop_offset_m[rows], self.foot_angle_rad[rows],
+                           self.pivot_m[rows], self.foot_pose[rows], self.cop_m[rows],
+                           self.ratio[rows], self.zmp_m[rows], self.swing[rows],
+                           self.direction[rows])
+
 
 def step_direction(start: Footstep, landing: Footstep, min_step_m: float) -> int:
     """+1, -1 or 0: the swing foot's travel along its own heading at the start."""
