@@ -82,7 +82,13 @@ def test_a_sole_on_the_ground_keeps_its_pivot_on_the_floor(gait, walking_model):
         assert rolled > 0
 
 
-def test_the_legs_reach_the_rolled_soles(gait, walking_model, params):
+def test_the_legs_reach_the_rolled_soles(walking_model, params):
+    w = params.step_width_m / 2
+    right, left = Footstep("right", 0.0, -w, 0.0), Footstep("left", 0.0, w, 0.0)
+    gait = make_gait(right, left, plan_footsteps(right, left, Stance(0.6, 0.0, 0.2), params),
+                     params, walking_model.control_period_s, 0.59, 0.0, 0.02,
+                     toe_heel=ToeHeelParams.from_model(walking_model), sole=walking_model.feet)
+    assert np.any(gait.toe_heel.foot_angle_rad != 0.0)
     q_start, T_world_neck = walking_posture(walking_model, params.step_width_m, params.crouch_m)
     body = WalkingBody(walking_model, q_start, T_world_neck, params.lean_rad_per_m)
     plan = body.solve(gait)
