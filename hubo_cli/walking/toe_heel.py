@@ -225,6 +225,8 @@ def plan_toe_heel_walk(right: Footstep, left: Footstep, steps: list[Footstep],
         raise ConfigError(f"period {period_s!r} s must be positive and a tenth of a step or less")
     if not (math.isfinite(stand_s) and stand_s >= 0):
         raise ConfigError(f"standing time {stand_s!r} s must be >= 0")
+    if not (math.isfinite(inset_m) and abs(inset_m) < feet.width_m / 2):
+        raise ConfigError(f"CoP inset {inset_m!r} m must lie within the sole's half width")
     current = {"right": right, "left": left}
     for k, step in enumerate([right, left, *steps]):
         if step.side not in FOOT_INDEX:
