@@ -1,7 +1,8 @@
 """Walking control's cost per 5 ms period: the simulated robot walks 0.3 m forward through the
 full pipeline (``hubo walk``), and the loop's own per-period compute time (the walking target
-with its stabilizer, then every pipeline module; physics excluded) is read from the run's log.
-Target: median <= 10 % of the control period."""
+with its stabilizer, then every pipeline module; physics excluded) is read from the run's log;
+then again walking on toe and heel with the LIP feedback and the force-distribution QP
+(``hubo walk --toe-heel --lip-feedback``). Target: median <= 10 % of the control period."""
 
 from __future__ import annotations
 
@@ -19,12 +20,15 @@ def run(report) -> None:
 
     model = load_model()
     period_us = model.control_period_s * 1e6
-    with tempfile.TemporaryDirectory() as tmp:
-        result = walk(model, GOAL, out=tmp, corrections=0)
-        compute = np.asarray(load_log(result.run_dir)["compute_us"], dtype=float)
-    compute = compute[np.isfinite(compute)]
-    median = float(np.median(compute))
-    report("walking control per period (target + stabilizer + pipeline), median", median, "us",
-           f"{100 * median / period_us:.1f} % of the period; target <= 10 %")
-    report("  99th percentile", float(np.percentile(compute, 99)), "us",
-           f"{compute.size} periods, {result.steps} steps, fell: {result.fell}")
+    for label, options in (("", {}),
+                           (" toe-heel, LIP feedback and QP",
+                            {"toe_heel": True, "lip_feedback": True})):
+        with tempfile.TemporaryDirectory() as tmp:
+            result = walk(model, GOAL, out=tmp, corrections=0, **options)
+            compute = np.asarray(load_log(result.run_dir)["compute_us"], dtype=float)
+        compute = compute[np.isfinite(compute)]
+        median = float(np.median(compute))
+        report(f"walking control per period (target + stabilizer + pipeline){label}, median",
+               median, "us", f"{100 * median / period_us:.1f} % of the period; target <= 10 %")
+        report("  99th percentile", float(np.percentile(compute, 99)), "us",
+               f"{compute.size} periods, {result.steps} steps, fell: {result.fell}")

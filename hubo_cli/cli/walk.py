@@ -28,12 +28,20 @@ from hubo_cli.drivers.registry import DRIVER_NAMES
 @click.option("--driver", type=click.Choice(DRIVER_NAMES), default=DRIVER_NAMES[0],
               show_default=True, help="Robot back end.")
 @click.option("--arm", "armed", is_flag=True, help="Arm the hardware driver (required by it).")
+@click.option("--toe-heel/--flat-feet", "toe_heel", default=None,
+              help="Roll the soles on toe and heel (the multi-layer paper's eq. 4, Fig. 4; the "
+                   "robot file's [toe_heel]) or land them flat (the default: see "
+                   "docs/stabilizer.md).")
+@click.option("--lip-feedback", is_flag=True,
+              help="The stabilizer's soles track the multi-layer paper's LIP state feedback "
+                   "(eq. 7-8) split between the feet by its QP (eq. 9-14).")
 @robot_run_options("walk")
 @perturb_option
 @balance_option_with("off", "Walking: off by default (the standing balancers' reference "
                             "assumes both feet down).")
 @hardware_options
-def walk(goal: tuple[float, float, float], corrections: int, driver: str, armed: bool,
+def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | None,
+         lip_feedback: bool, driver: str, armed: bool,
          no_estop: bool, estop_sources: str | None, accept_reduced_safety: bool, gui: bool,
          as_json: bool, out: str | None, live: bool, live_host: str | None,
          live_port: int | None, perturb_seed: int | None, balance: str, **hardware) -> None:
@@ -70,7 +78,8 @@ def walk(goal: tuple[float, float, float], corrections: int, driver: str, armed:
         result = walk_to(load_model(), goal, gui=gui, out=run_dir, stops=stops,
                          perturb_seed=perturb_seed, corrections=corrections,
                          balance=balance, operator=keys, live=server, driver=driver,
-                         driver_options=options)
+                         driver_options=options, lip_feedback=lip_feedback,
+                         **({} if toe_heel is None else {"toe_heel": toe_heel}))
     fields = result.summary() | {"ended": result.ended, "estop_events": result.estop_events,
                                  "run_dir": str(result.run_dir)}
     if as_json:

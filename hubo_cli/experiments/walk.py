@@ -27,6 +27,7 @@ from hubo_cli.walking.footsteps import Stance, stance_of
 from hubo_cli.walking.params import WalkingParams, walking_params
 from hubo_cli.walking.stabilizer import StabilizerGains
 from hubo_cli.walking.target import WalkTarget, footstep_of
+from hubo_cli.walking.toe_heel import ToeHeelParams
 
 MAX_GOAL_M = 10.0
 FINAL_ROWS = 20  # the final stance: the mean over the log's last rows (encoder noise averages)
@@ -98,7 +99,9 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
          perturb_seed: int | None = None, corrections: int = 1,
          balance: str = "off", operator: OperatorKeys | None = None,
          live: RunObserver | None = None,
-         stabilizer: StabilizerGains | None = DEFAULT_GAINS, driver: str = "sim",
+         stabilizer: StabilizerGains | None = DEFAULT_GAINS, toe_heel: bool = False,
+         lip_feedback: bool = False,
+         driver: str = "sim",
          driver_options: dict | None = None) -> WalkResult:
     """Walk the robot to ``goal`` = (forward m, left m, turn rad) from its stance.
 
@@ -118,6 +121,11 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
         live: the live viewer's publisher (``--live``), if any.
         stabilizer: the walking stabilizer's gains (:mod:`hubo_cli.walking.stabilizer`);
             None walks the pattern open loop.
+        toe_heel: walk on toe and heel (the robot file's ``[toe_heel]``,
+            :mod:`hubo_cli.walking.gait`); False lands every sole flat.
+        lip_feedback: the stabilizer's CoM feedback is the multi-layer paper's (eq. 7-14:
+            :class:`~hubo_cli.walking.stabilizer.LipStabilizer`) instead of the TPCC torso
+            offset.
         driver, driver_options: the robot's back end and its options (the hardware driver's
             robot must stand in the walking posture: the walk refuses it otherwise, exit 4;
             its log has no truth, so the final error is the estimate's).
@@ -131,7 +139,9 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
     if not 0 <= corrections <= 5:
         raise InputError(f"corrections must be 0 to 5, got {corrections}", hint="e.g. 1")
     target = WalkTarget(walking_model, params, goal, q_start, T_world_neck, corrections,
-                        stabilizer=stabilizer)
+                        stabilizer=stabilizer,
+                        toe_heel=ToeHeelParams.from_model(walking_model) if toe_heel else None,
+                        lip_feedback=lip_feedback)
     setup = RunSetup(command="walk", model=walking_model, driver=driver,
                      driver_options=driver_options or {}, gui=gui, out=out,
                      safety=SafetyProfile().with_stops(stops).with_balance(balance),
@@ -156,6 +166,8 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
         failure=done.loop.failure(done.run_dir))
     done.save_summary(result.summary())
     plot_footprints(done, target, walking_model)
+    if target.toe_heel is not None:
+        plot_fig4(done, target)
     return result
 
 
@@ -199,6 +211,26 @@ def _true_stance(model: RobotModel, T_world_torso: np.ndarray, q: np.ndarray) ->
 
 
 PLOT_NAME = "walk.png"
+FIG4_NAME = "toe_heel.png"
+
+
+def plot_fig4(done, target: WalkTarget) -> None:
+    """The multi-layer paper's Fig. 4 for this walk (``toe_heel.png`` in the run folder):
+    the soles' CoPs and angles, planned and measured, the ZMP and the CoM along x."""
+    from hubo_cli.plots.toe_heel import plot_toe_heel
+
+    log = done.log
+    names = [f"walk.{side}_{what}" for side in ("right", "left")
+             for what in ("cop_ref_m", "cop_m", "angle_ref_rad", "angle_rad")]
+    names += ["walk.zmp_ref_x_m", "walk.zmp_x_m", "walk.com_ref_x_m", "com_x_m"]
+    phases = ", ".join(f"{t:g}" for t in target.toe_heel.scaled_to(
+        target.params.step_s).phase_s)
+    plot_toe_heel(np.asarray(log["t_s"], dtype=float),
+                  {name: np.asarray(log[name], dtype=float) for name in names},
+                  done.run_dir / FIG4_NAME,
+                  title=f"walk to {target.goal_relative}: toe-heel phases (i)-(v) {phases} s")
+    done.add_file(FIG4_NAME)
+    done.save_summary({})
 
 
 def plot_footprints(done, target: WalkTarget, model: RobotModel, rows=None) -> None:

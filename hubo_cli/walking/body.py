@@ -47,11 +47,17 @@ def roll_matrix(roll_rad: float) -> np.ndarray:
     return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
 
-def pose_of_row(row: np.ndarray) -> np.ndarray:
-    """T_world_sole (4x4) of a (x, y, z, yaw) row, the sole flat."""
+def pose_of_row(row: np.ndarray, pitch_rad: float = 0.0) -> np.ndarray:
+    """T_world_sole (4x4) of a (x, y, z, yaw) row, the sole flat or turned by ``pitch_rad``
+    about its own y axis (> 0: heel up; toe-heel walking, :mod:`hubo_cli.walking.gait`)."""
     x, y, z, yaw = row.tolist() if isinstance(row, np.ndarray) else (float(v) for v in row)
     c, s = math.cos(yaw), math.sin(yaw)  # plain floats: the stabilizer runs this every period
-    return np.array([[c, -s, 0.0, x], [s, c, 0.0, y], [0.0, 0.0, 1.0, z], [0.0, 0.0, 0.0, 1.0]])
+    if pitch_rad == 0.0:
+        return np.array([[c, -s, 0.0, x], [s, c, 0.0, y], [0.0, 0.0, 1.0, z],
+                         [0.0, 0.0, 0.0, 1.0]])
+    cp, sp = math.cos(pitch_rad), math.sin(pitch_rad)  # Rz(yaw) Ry(pitch)
+    return np.array([[c * cp, -s, c * sp, x], [s * cp, c, s * sp, y], [-sp, 0.0, cp, z],
+                     [0.0, 0.0, 0.0, 1.0]])
 
 
 @dataclass(frozen=True)
@@ -128,10 +134,11 @@ class WalkingBody:
                 T_world_neck[:2, 3] = gait.com.com_m[k] - (R @ offset)[:2]
                 T_world_neck[2, 3] = self.neck_z_m
                 T_neck_world = np.linalg.inv(T_world_neck)
-                for side, row in (("right", right), ("left", left)):
+                for side, row, pitch in zip(("right", "left"), (right, left),
+                                            gait.foot_pitch_rad(k), strict=True):
                     name = SIDE_LEG[side]
                     leg = self.legs[name]
-                    goal = T_neck_world @ pose_of_row(row)
+                    goal = T_neck_world @ pose_of_row(row, pitch)
                     result = leg.solve(goal, q[self.slices[name]])
                     if (result.status not in ("exact", "capped")
                             or result.position_error_m > self.max_error_m):

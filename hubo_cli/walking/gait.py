@@ -15,6 +15,17 @@ On a stance foot the ZMP reference is the middle of the sole (``feet.forward_m``
 ankle) moved ``zmp_inset_m`` toward the other foot. A swing foot lifts, moves only while it is
 at least 9 % of ``swing_height_m`` up (the middle 80 % of the phase, quintic in time),
 turns with it, and lands flat; its height is ``swing_height_m * sin^2(pi * tau)``.
+
+**Toe-heel walking** (``toe_heel`` given; multi-layer paper eq. 4 and Fig. 4,
+:mod:`~hubo_cli.walking.toe_heel`): each step lasts the walking's single plus double support,
+centred on its single support (half a double support before, half after), and its five
+phases are the robot file's ``[toe_heel]`` ones scaled to that time (the paper's with the
+robot file's 1.0 s step). The ZMP reference is eq. 4's blend of the feet's CoPs (the swing
+foot's moving from toe to heel, every CoP ``zmp_inset_m`` inside its foot's centre line), the
+swing foot rolls on its toe as it leaves and on its heel as it lands (its pitch and pivot in
+``Gait.toe_heel``; its rows are the sole's origin, moved as the roll moves it:
+:func:`~hubo_cli.walking.toe_heel.ankle_offset`). A short or sideways step lands flat; a walk
+of such steps only (a correction of a few millimetres) is the flat pattern.
 """
 
 from __future__ import annotations
@@ -24,9 +35,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hubo_cli.model import FootShape
 from hubo_cli.walking.footsteps import SIDE_SIGN, Footstep, stance_of, wrap_angle
 from hubo_cli.walking.params import WalkingParams
 from hubo_cli.walking.preview import CoMPath, com_from_zmp, preview_gains
+from hubo_cli.walking.toe_heel import (
+    ToeHeelParams,
+    ToeHeelPlan,
+    ankle_offset,
+    plan_toe_heel_walk,
+    step_direction,
+)
 
 SWING_MOVE = (0.1, 0.9)  # fraction of single support during which the swing foot travels
 
@@ -49,6 +68,8 @@ class Gait:
         feet: the soles' poses per period, side -> (n, 4) rows of (x, y, z, yaw) (m, rad).
         support: which feet carry the robot, (n, 2) booleans (right, left).
         step_index: the footstep being taken (-1 before the first and after the last), (n,).
+        toe_heel: the toe-heel plan row for row (its feet's angles, pivots and CoPs); None for
+            flat feet.
     """
 
     period_s: float
@@ -59,6 +80,14 @@ class Gait:
     feet: dict[str, np.ndarray]
     support: np.ndarray
     step_index: np.ndarray
+    toe_heel: ToeHeelPlan | None = None
+
+    def foot_pitch_rad(self, k: int) -> tuple[float, float]:
+        """The soles' pitch (right, left) in period k (rad; > 0 heel up, on the toe)."""
+        if self.toe_heel is None:
+            return 0.0, 0.0
+        right, left = self.toe_heel.foot_angle_rad[k].tolist()
+        return right, left
 
     @property
     def n(self) -> int:
@@ -104,7 +133,8 @@ def swing_rows(start: Footstep, end: Footstep, n: int, height_m: float,
 
 def make_gait(right: Footstep, left: Footstep, steps: list[Footstep], params: WalkingParams,
               period_s: float, com_height_m: float, sole_z_m: float = 0.0,
-              zmp_forward_m: float = 0.0, com_start_m: np.ndarray | None = None) -> Gait:
+              zmp_forward_m: float = 0.0, com_start_m: np.ndarray | None = None,
+              toe_heel: ToeHeelParams | None = None, sole: FootShape | None = None) -> Gait:
     """Sample the walking pattern for ``steps`` starting from the feet ``right`` and ``left``.
 
     Args:
@@ -117,7 +147,15 @@ def make_gait(right: Footstep, left: Footstep, steps: list[Footstep], params: Wa
         zmp_forward_m: the sole's middle ahead of its frame origin (m).
         com_start_m: the CoM at the start (x, y; m; default the middle between the feet);
             the ZMP reference starts under it.
+        toe_heel, sole: walk on toe and heel (see the module docstring) with these phases
+            and angles on this sole (both needed); None: flat feet.
     """
+    if toe_heel is not None and _rolls(right, left, steps, toe_heel.min_step_m):
+        if sole is None:
+            raise ValueError("toe-heel walking needs the sole's shape")
+        return _toe_heel_gait(right, left, steps, params, period_s, com_height_m, sole_z_m,
+                              com_start_m, toe_heel, sole)
+
     def periods(duration_s: float) -> int:
         return max(1, int(round(duration_s / period_s)))
 
@@ -169,3 +207,68 @@ def make_gait(right: Footstep, left: Footstep, steps: list[Footstep], params: Wa
     return Gait(period_s, tuple(steps), com_height_m, zmp_ref, com,
                 {side: np.vstack(r) for side, r in rows.items()}, np.vstack(support),
                 np.concatenate(index))
+
+
+def _rolls(right: Footstep, left: Footstep, steps: list[Footstep], min_step_m: float) -> bool:
+    """Some step is long enough to roll on toe and heel (the others land flat)."""
+    feet = {"right": right, "left": left}
+    for step in steps:
+        if step_direction(feet[step.side], step, min_step_m) != 0:
+            return True
+        feet[step.side] = step
+    return False
+
+
+def _toe_heel_gait(right: Footstep, left: Footstep, steps: list[Footstep],
+                   params: WalkingParams, period_s: float, com_height_m: float,
+                   sole_z_m: float, com_start_m: np.ndarray | None, toe_heel: ToeHeelParams,
+                   sole: FootShape) -> Gait:
+    """:func:`make_gait` walking on toe and heel (see the module docstring)."""
+    lead = max(1, int(round(params.start_s / period_s)))
+    half = max(1, int(round(params.double_support_s / 2 / period_s)))
+    single = max(1, int(round(params.single_support_s / period_s)))
+    step_n = single + 2 * half
+    settle = max(1, int(round(params.settle_s / period_s)))
+    walk_n = lead + len(steps) * step_n
+    n = walk_n + settle
+    plan = plan_toe_heel_walk(right, left, steps, toe_heel.scaled_to(step_n * period_s), sole,
+                              2 * half * period_s, period_s, stand_s=lead * period_s,
+                              inset_m=params.zmp_inset_m)
+    rows = np.r_[np.arange(walk_n), np.full(settle, walk_n)]  # settle: the plan's standing row
+    plan = plan.take(rows)
+    plan.t_s = np.arange(n) * period_s
+    zmp_ref = plan.zmp_m.copy()
+    start = zmp_ref[lead] if com_start_m is None else np.asarray(com_start_m, dtype=float)
+    zmp_ref[:lead] = start + smoothstep5((np.arange(lead) + 1.0) / lead)[:, None] * (
+        zmp_ref[lead] - start)  # the lead-in: from under the CoM to between the feet
+    feet = {"right": right, "left": left}
+    foot_rows = {side: np.empty((n, 4)) for side in feet}
+    support = np.ones((n, 2), dtype=bool)
+    index = np.full(n, -1)
+    for side in feet:
+        foot_rows[side][:lead + 1] = _row(feet[side], sole_z_m)
+    for i, step in enumerate(steps):
+        base = lead + i * step_n
+        column = 0 if step.side == "right" else 1
+        other = "left" if column == 0 else "right"
+        foot_rows[other][base:base + step_n] = _row(feet[other], sole_z_m)
+        foot_rows[step.side][base:base + half] = _row(feet[step.side], sole_z_m)
+        foot_rows[step.side][base + half:base + half + single] = swing_rows(
+            feet[step.side], step, single, params.swing_height_m, sole_z_m)
+        foot_rows[step.side][base + half + single:base + step_n] = _row(step, sole_z_m)
+        support[base + half:base + half + single, column] = False
+        index[base:base + step_n] = i
+        feet[step.side] = step
+    for side in feet:
+        foot_rows[side][walk_n:] = _row(feet[side], sole_z_m)
+        column = 0 if side == "right" else 1
+        dx, dz = ankle_offset(plan.foot_angle_rad[:, column], plan.pivot_m[:, column])
+        yaw = foot_rows[side][:, 3]
+        foot_rows[side][:, 0] += np.cos(yaw) * dx
+        foot_rows[side][:, 1] += np.sin(yaw) * dx
+        foot_rows[side][:, 2] += dz
+    gains = preview_gains(period_s, com_height_m, params.preview_s, params.zmp_weight,
+                          params.jerk_weight)
+    com = com_from_zmp(zmp_ref, gains, start)
+    return Gait(period_s, tuple(steps), com_height_m, zmp_ref, com, foot_rows, support, index,
+                plan)

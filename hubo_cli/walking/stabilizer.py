@@ -41,6 +41,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hubo_cli.control.lip_feedback import LipFeedback, lip_ground_force
+from hubo_cli.control.wrench_distribution import UNLOADED_N, Contact, WrenchDistributor
 from hubo_cli.errors import ConfigError
 from hubo_cli.model import EstimationConfig
 
@@ -122,16 +124,23 @@ class SoleDamper:
     def reset(self) -> None:
         self.delta_rad[:] = 0.0
 
-    def update(self, wrench: np.ndarray) -> np.ndarray:
+    def update(self, wrench: np.ndarray,
+               cop_ref_m: tuple[float, float] | None = None) -> np.ndarray:
         """One period with the sole's measured wrench [fx, fy, fz, mx, my, mz] (about the sole
-        frame's origin, sole axes); returns ``delta_rad``."""
+        frame's origin, sole axes); returns ``delta_rad``. ``cop_ref_m`` (x, y in the sole
+        frame; the force distribution's, :class:`LipStabilizer`) is the CoP the reference
+        moment puts the measured normal force at; None: the measured CoP clipped to the safe
+        region."""
         g = self.gains
         fx, fy, fz, mx, my, mz = np.asarray(wrench, dtype=float).tolist()  # plain floats
         roll, pitch = float(self.delta_rad[0]), float(self.delta_rad[1])
         if fz > self.min_fz_n and math.isfinite(mx + my + fx + fy + mz):
-            x0, x1, y0, y1 = self.safe
-            px = min(max(-my / fz, x0), x1)
-            py = min(max(mx / fz, y0), y1)
+            if cop_ref_m is None:
+                x0, x1, y0, y1 = self.safe
+                px = min(max(-my / fz, x0), x1)
+                py = min(max(mx / fz, y0), y1)
+            else:
+                px, py = cop_ref_m
             rate_roll = (mx - fz * py) / max(self._damping_roll, 1e-9) - roll / g.time_constant_s
             rate_pitch = ((my + fz * px) / max(self._damping_pitch, 1e-9)
                           - pitch / g.time_constant_s)
@@ -212,3 +221,60 @@ class Touchdown:
                 self._held_z_m = None
             self.lift_m *= self.decay
         return self.lift_m
+
+
+class LipStabilizer:
+    """The multi-layer paper's Stabilizer for walking (III-D, eq. 7-14): each period the LIP
+    state feedback (:class:`~hubo_cli.control.lip_feedback.LipFeedback`, eq. 8) turns the
+    pattern's CoM, CoM velocity and ZMP and the estimated ones into a ZMP command; the
+    pendulum's ground force at that command is split between the soles the pattern has on the
+    ground by the QP of eq. 9-14 (:class:`~hubo_cli.control.wrench_distribution.
+    WrenchDistributor`; a sole rolling on its toe or heel touches along that edge); each
+    sole's CoP in the split becomes its :class:`SoleDamper`'s reference (the foot damping
+    control of III-D.3). The TPCC torso offset (:class:`TorsoOffset`) still moves the CoM:
+    on a position-controlled robot the dampers alone, compliant enough to absorb a landing,
+    realise the command too slowly (the LIP feedback without it fell on the first 0.8 s
+    steps of a 2 m walk).
+
+    Args:
+        feedback: eq. 8 at the pattern's CoM height.
+        distributor: eq. 9-14 for the robot's soles.
+        mass_kg: the robot's mass (the pendulum's).
+
+    Attributes:
+        zmp_command_m: the last ZMP command u (x, y; m), after the distribution made it
+            feasible; NaN before the first or when no distribution was found.
+    """
+
+    def __init__(self, feedback: LipFeedback, distributor: WrenchDistributor,
+                 mass_kg: float) -> None:
+        self.feedback = feedback
+        self.distributor = distributor
+        self.mass_kg = float(mass_kg)
+        self.zmp_command_m = np.full(2, math.nan)
+
+    def cop_references(self, com_ref_m, com_velocity_ref_m_s, zmp_ref_m, com_m,
+                       com_velocity_m_s, zmp_m, contacts: tuple[Contact | None, Contact | None]
+                       ) -> list[tuple[float, float] | None]:
+        """Each sole's reference CoP in its own frame (x, y; m), right then left; None for a
+        sole in the air or when no distribution was found (its damper then keeps the measured
+        CoP inside its safe region). Positions are (x, y) in one frame (the pattern's)."""
+        u = self.feedback.zmp_command(com_ref_m, com_velocity_ref_m_s, zmp_ref_m, com_m,
+                                      com_velocity_m_s, zmp_m)
+        force = lip_ground_force(com_m if np.all(np.isfinite(com_m[:2])) else com_ref_m, u,
+                                 self.mass_kg, self.feedback.omega_1_s)
+        split = self.distributor.distribute(force, u, *contacts)
+        if not split.found:
+            self.zmp_command_m[:] = math.nan
+            return [None, None]
+        self.zmp_command_m[:] = split.zmp_m
+        references: list[tuple[float, float] | None] = []
+        for foot, contact in enumerate(contacts):
+            if contact is None or split.force_n[foot, 2] <= UNLOADED_N:
+                references.append(None)
+                continue
+            c, s = math.cos(contact.yaw_rad), math.sin(contact.yaw_rad)
+            dx = float(split.cop_m[foot, 0]) - contact.position_m[0]
+            dy = float(split.cop_m[foot, 1]) - contact.position_m[1]
+            references.append((c * dx + s * dy, -s * dx + c * dy))
+        return references

@@ -13,12 +13,16 @@ from collections.abc import Sequence
 
 import numba as nb
 import numpy as np
+import pinocchio as pin
 
 from hubo_cli.control.capture_point import convex_hull, outside_distance
+from hubo_cli.control.lip_feedback import LipFeedback
 from hubo_cli.control.phase import SUPPORT_PLAN, SupportPlan
 from hubo_cli.control.target import Target, TargetOutput
+from hubo_cli.control.wrench_distribution import Contact, WrenchDistributor
 from hubo_cli.dataflow import Store
 from hubo_cli.estimation.keys import (
+    COM_VELOCITY_WORLD,
     COM_WORLD,
     CONTACT,
     T_WORLD_SOLES,
@@ -43,7 +47,14 @@ from hubo_cli.walking.footsteps import (
 )
 from hubo_cli.walking.gait import Gait, make_gait
 from hubo_cli.walking.params import WalkingParams
-from hubo_cli.walking.stabilizer import SoleDamper, StabilizerGains, TorsoOffset, Touchdown
+from hubo_cli.walking.stabilizer import (
+    LipStabilizer,
+    SoleDamper,
+    StabilizerGains,
+    TorsoOffset,
+    Touchdown,
+)
+from hubo_cli.walking.toe_heel import ToeHeelParams, ankle_offset
 
 ARRIVED_M = 0.008                  # closer than this to the goal stance needs no correction
 ARRIVED_RAD = math.radians(1.5)
@@ -165,6 +176,30 @@ def rigid_inverse(T: np.ndarray) -> np.ndarray:
     return out
 
 
+def planned_contacts(gait: Gait) -> list[tuple[Contact | None, Contact | None]]:
+    """Per period the soles the pattern has on the ground as the force distribution takes
+    them (right, left; None in the air): where the footstep stands, its reference CoP (the
+    toe-heel plan's; flat feet: the sole's origin) and, rolling on its toe or heel, that
+    edge."""
+    plan = gait.toe_heel
+    contacts = []
+    for k in range(gait.n):
+        pair = []
+        for column, side in enumerate(SIDES):
+            if not gait.support[k, column]:
+                pair.append(None)
+            elif plan is None:
+                x, y, _, yaw = gait.feet[side][k].tolist()
+                pair.append(Contact((x, y), yaw))
+            else:
+                x, y, yaw = plan.foot_pose[k, column].tolist()
+                rolling = plan.foot_angle_rad[k, column] != 0.0
+                pair.append(Contact((x, y), yaw, tuple(plan.cop_m[k, column].tolist()),
+                                    float(plan.pivot_m[k, column]) if rolling else None))
+        contacts.append(tuple(pair))
+    return contacts
+
+
 def planned_support(gait: Gait) -> np.ndarray:
     """Per period the soles that carry the robot in this phase of the step, the swing foot at
     its landing place: (n, 2, 4, 4) world poses (right, left), for the capture-point monitor."""
@@ -200,12 +235,17 @@ class WalkTarget(Target):
     """
 
     name = "walk"
-    reads = (T_WORLD_SOLES, T_WORLD_TORSO, CONTACT, WRENCHES, COM_WORLD, ZMP_WORLD)
+    reads = (T_WORLD_SOLES, T_WORLD_TORSO, CONTACT, WRENCHES, COM_WORLD, COM_VELOCITY_WORLD,
+             ZMP_WORLD)
     writes = (SUPPORT_PLAN,)
     log_columns = ("walk.zmp_ref_x_m", "walk.zmp_ref_y_m", "walk.com_ref_x_m",
                    "walk.com_ref_y_m", "walk.zmp_x_m", "walk.zmp_y_m",
                    "walk.contact_zmp_outside_m", "walk.step", "walk.tilt_deg",
                    "planned_right_foot_contact_flag", "planned_left_foot_contact_flag",
+                   "walk.right_cop_ref_m", "walk.left_cop_ref_m", "walk.right_cop_m",
+                   "walk.left_cop_m", "walk.right_angle_ref_rad", "walk.left_angle_ref_rad",
+                   "walk.right_angle_rad", "walk.left_angle_rad",
+                   "walk.zmp_command_x_m", "walk.zmp_command_y_m",
                    "walk.offset_x_m", "walk.offset_y_m", "walk.right_lift_m", "walk.left_lift_m",
                    "walk.right_sole_roll_rad", "walk.right_sole_pitch_rad",
                    "walk.left_sole_roll_rad", "walk.left_sole_pitch_rad")
@@ -213,8 +253,12 @@ class WalkTarget(Target):
     def __init__(self, model: RobotModel, params: WalkingParams, goal: tuple[float, float, float],
                  q_start_rad: np.ndarray, T_world_neck_start: np.ndarray,
                  corrections: int = 1, end_width_m: float | None = None,
-                 stabilizer: StabilizerGains | None = None) -> None:
+                 stabilizer: StabilizerGains | None = None,
+                 toe_heel: ToeHeelParams | None = None, lip_feedback: bool = False) -> None:
         self.model = model
+        self.toe_heel = toe_heel
+        self.lip_feedback = lip_feedback and stabilizer is not None
+        self.lip: LipStabilizer | None = None
         self.end_width_m = end_width_m
         self.params = params
         self.goal_relative = goal
@@ -299,11 +343,17 @@ class WalkTarget(Target):
         com_world = T_world_neck[:3, :3] @ com + T_world_neck[:3, 3]
         self.gait = make_gait(feet["right"], feet["left"], steps, self.params,
                               self.model.control_period_s, float(com_world[2]) - sole_z, sole_z,
-                              self.model.feet.forward_m, com_start_m=com_world[:2])
+                              self.model.feet.forward_m, com_start_m=com_world[:2],
+                              toe_heel=self.toe_heel, sole=self.model.feet)
         params = self.params
         self.gait, self.plan = body.solve_corrected(self.gait, sole_z, params.preview_s,
                                                     params.zmp_weight, params.jerk_weight)
         self.body = body
+        if self.lip_feedback:
+            self.lip = LipStabilizer(LipFeedback.from_model(self.model, self.gait.com_height_m),
+                                     WrenchDistributor.from_model(self.model),
+                                     pin.computeTotalMass(body.robot.model))
+            self._contacts = planned_contacts(self.gait)
         # each leg's IK data as :func:`_correct_legs` takes them (right, left)
         self._leg_kernel = tuple(
             (leg.chain, leg.lengths_m, leg.spec.is_arm, leg.lower_rad, leg.upper_rad, leg.hold_m,
@@ -314,16 +364,27 @@ class WalkTarget(Target):
         gait = self.gait
         self._rows = {"support": gait.support.tolist(), "zmp_ref": gait.zmp_ref_m.tolist(),
                       "com_ref": gait.com.com_m.tolist(), "plan_com": self.plan.com_m.tolist(),
+                      "com_velocity_ref": gait.com.com_velocity_m_s.tolist(),
                       "step": gait.step_index.tolist(),
                       **{side: gait.feet[side].tolist() for side in SIDES}}
         self._sole_z0 = {side: float(gait.feet[side][0, 2]) for side in SIDES}
+        # each sole's lowest point above its landing height (a rolled sole's origin is raised)
+        self._clearance = {side: (gait.feet[side][:, 2] - self._sole_z0[side]).tolist()
+                           for side in SIDES}
+        if gait.toe_heel is not None:
+            for column, side in enumerate(SIDES):
+                _, dz = ankle_offset(gait.toe_heel.foot_angle_rad[:, column],
+                                     gait.toe_heel.pivot_m[:, column])
+                self._clearance[side] = (gait.feet[side][:, 2] - self._sole_z0[side]
+                                         - dz).tolist()
         # the soles' goals in the planned torso's frame, per period: the stabilizer only moves
         # them by its torso offset and a touchdown's lift (:meth:`_stabilized`)
         T_neck_world = rigid_inverse(self.plan.T_world_neck)
         self._R_neck_world = T_neck_world[:, :3, :3].copy()
-        self._T_neck_soles = np.stack([T_neck_world @ np.array([pose_of_row(row)
-                                                                for row in gait.feet[side]])
-                                       for side in SIDES], axis=1)  # n x 2 x 4 x 4
+        self._T_neck_soles = np.stack([T_neck_world @ np.array(
+            [pose_of_row(row, gait.foot_pitch_rad(k)[column])
+             for k, row in enumerate(gait.feet[side])])
+            for column, side in enumerate(SIDES)], axis=1)  # n x 2 x 4 x 4
         self.plan_start_s = t_s
         self.k = 0
         self.steps.extend(steps)
@@ -379,10 +440,32 @@ class WalkTarget(Target):
                 "walk.step": float(rows["step"][k]), "walk.tilt_deg": tilt,
                 "planned_right_foot_contact_flag": float(support[0]),
                 "planned_left_foot_contact_flag": float(support[1]),
-                **self._stabilizer_info(),
+                **self._stabilizer_info(), **self._toe_heel_info(k, poses),
                 "done": self.fell or (self.k >= gait.n and (self.corrections_left == 0
                                                              or self.arrived()))}
         return q, info
+
+    def _toe_heel_info(self, k: int, poses: np.ndarray) -> dict[str, float]:
+        """Fig. 4's quantities for the log: each sole's planned CoP along it (x from its
+        origin, m) and its angle (rad, > 0 on the toe), NaN walking flat; the measured ones
+        (the compensated ankle wrench's CoP while loaded, the estimated sole's pitch); the
+        LIP feedback's ZMP command (NaN without it)."""
+        info = {}
+        wrenches = ankle_wrenches(self.store)
+        plan = self.gait.toe_heel
+        for column, side in enumerate(SIDES):
+            fx, fy, fz, mx, my, mz = wrenches[column].tolist()
+            T = poses[column]
+            info[f"walk.{side}_cop_ref_m"] = (math.nan if plan is None
+                                              else float(plan.cop_offset_m[k, column]))
+            info[f"walk.{side}_angle_ref_rad"] = (math.nan if plan is None
+                                                  else float(plan.foot_angle_rad[k, column]))
+            info[f"walk.{side}_cop_m"] = (-my / fz if fz > self.model.estimation
+                                          .sole_damping_min_fz_n else math.nan)
+            info[f"walk.{side}_angle_rad"] = math.asin(max(-1.0, min(1.0, -float(T[2, 0]))))
+        command = self.lip.zmp_command_m if self.lip is not None else (math.nan, math.nan)
+        info["walk.zmp_command_x_m"], info["walk.zmp_command_y_m"] = (float(v) for v in command)
+        return info
 
     def _stabilizer_info(self) -> dict[str, float]:
         """The stabilizer's corrections for the log (NaN without a stabilizer)."""
@@ -398,8 +481,9 @@ class WalkTarget(Target):
                 "walk.left_sole_roll_rad": float(left[0]),
                 "walk.left_sole_pitch_rad": float(left[1])}
 
-    def _measured_com(self, k: int, wrenches: np.ndarray) -> tuple[float, float]:
-        """The estimate's CoM (world x, y) seen from the more loaded planned support sole
+    def _in_pattern(self, k: int, wrenches: np.ndarray, point_m: np.ndarray
+                    ) -> tuple[float, float]:
+        """An estimated point (world x, y) seen from the more loaded planned support sole
         standing where the pattern put it: its offset from that sole's estimated place added
         to the sole's planned place (the pattern's frame, which a sole's slip does not move)."""
         right_down, left_down = self._rows["support"][k]
@@ -407,26 +491,33 @@ class WalkTarget(Target):
                  "left": (left_down, float(wrenches[1, 2]))}
         side = "left" if ranks["left"] > ranks["right"] else "right"
         sole = self.store[T_WORLD_SOLES][SIDES.index(side)]
-        com = self.store[COM_WORLD]
         planned_x, planned_y = self._rows[side][k][:2]
-        return (planned_x + float(com[0] - sole[0, 3]), planned_y + float(com[1] - sole[1, 3]))
+        return (planned_x + float(point_m[0] - sole[0, 3]),
+                planned_y + float(point_m[1] - sole[1, 3]))
 
     def _stabilized(self, k: int, q: np.ndarray, zmp: np.ndarray | None) -> np.ndarray:
         """The pattern's joints ``q`` with the stabilizer's corrections (see
         :mod:`hubo_cli.walking.stabilizer`)."""
         rows = self._rows
         wrenches = ankle_wrenches(self.store)
+        com = self._in_pattern(k, wrenches, self.store[COM_WORLD])
         offset_x, offset_y = self.torso_offset.update(
-            zmp, rows["zmp_ref"][k], self._measured_com(k, wrenches),
-            rows["plan_com"][k]).tolist()
-        lifts = [self.touchdowns[side].update(not down, rows[side][k][2] - self._sole_z0[side],
+            zmp, rows["zmp_ref"][k], com, rows["plan_com"][k]).tolist()
+        cop_refs = [None, None]
+        if self.lip is not None:  # eq. 8 and 9-14: the soles' reference CoPs for their dampers
+            zmp_pattern = (math.nan, math.nan) if zmp is None \
+                else self._in_pattern(k, wrenches, zmp)
+            cop_refs = self.lip.cop_references(
+                rows["plan_com"][k], rows["com_velocity_ref"][k], rows["zmp_ref"][k], com,
+                self.store[COM_VELOCITY_WORLD][:2], zmp_pattern, self._contacts[k])
+        lifts = [self.touchdowns[side].update(not down, self._clearance[side][k],
                                               float(wrenches[column, 2]))
                  for column, (side, down) in enumerate(zip(SIDES, rows["support"][k],
                                                            strict=True))]
         _correct_legs(self._T_neck_soles[k], self._R_neck_world[k], offset_x, offset_y, *lifts,
                       q, self._leg_delta, *self._leg_kernel, LEG_STEP_RAD)
         for column, side in enumerate(SIDES):
-            delta = self.dampers[side].update(wrenches[column])
+            delta = self.dampers[side].update(wrenches[column], cop_refs[column])
             roll, pitch = self._ankle[side]
             q[roll] += delta[0]
             q[pitch] += delta[1]

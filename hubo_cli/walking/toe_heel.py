@@ -85,6 +85,12 @@ class ToeHeelParams:
         """One step: the five phases (s)."""
         return float(sum(self.phase_s))
 
+    def scaled_to(self, step_s: float) -> ToeHeelParams:
+        """The same phases in proportion, lasting ``step_s`` in all (s): the walking's step."""
+        factor = float(step_s) / self.step_s
+        return ToeHeelParams(tuple(factor * t for t in self.phase_s), self.toe_angle_rad,
+                             self.heel_angle_rad, self.min_step_m)
+
     @classmethod
     def from_model(cls, model: RobotModel) -> ToeHeelParams:
         raw = model.raw_table("toe_heel")
@@ -179,6 +185,13 @@ class ToeHeelPlan:
     swing: np.ndarray
     direction: np.ndarray
 
+    def take(self, rows: np.ndarray) -> ToeHeelPlan:
+        """The plan at these rows (indices into its periods), in their order."""
+        return ToeHeelPlan(self.t_s[rows], self.cop_offset_m[rows], self.foot_angle_rad[rows],
+                           self.pivot_m[rows], self.foot_pose[rows], self.cop_m[rows],
+                           self.ratio[rows], self.zmp_m[rows], self.swing[rows],
+                           self.direction[rows])
+
 
 def step_direction(start: Footstep, landing: Footstep, min_step_m: float) -> int:
     """+1, -1 or 0: the swing foot's travel along its own heading at the start."""
@@ -189,7 +202,8 @@ def step_direction(start: Footstep, landing: Footstep, min_step_m: float) -> int
 
 def plan_toe_heel_walk(right: Footstep, left: Footstep, steps: list[Footstep],
                        params: ToeHeelParams, feet: FootShape, double_support_s: float,
-                       period_s: float, stand_s: float = 0.5) -> ToeHeelPlan:
+                       period_s: float, stand_s: float = 0.5,
+                       inset_m: float = 0.0) -> ToeHeelPlan:
     """The CoP offsets, foot angles and reference ZMP (eq. 4) of a walk.
 
     Args:
@@ -201,6 +215,8 @@ def plan_toe_heel_walk(right: Footstep, left: Footstep, steps: list[Footstep],
         double_support_s: each double support, centred on a step boundary (s, < a step).
         period_s: the sample period (s).
         stand_s: standing before the first step and after the last (s).
+        inset_m: every CoP lies this far inside its foot's centre line, toward the other foot
+            (m; the walking's ``zmp_inset_m``: the CoM sways less).
     """
     step_s = params.step_s
     if not (math.isfinite(double_support_s) and 0 < double_support_s < step_s):
@@ -209,6 +225,8 @@ def plan_toe_heel_walk(right: Footstep, left: Footstep, steps: list[Footstep],
         raise ConfigError(f"period {period_s!r} s must be positive and a tenth of a step or less")
     if not (math.isfinite(stand_s) and stand_s >= 0):
         raise ConfigError(f"standing time {stand_s!r} s must be >= 0")
+    if not (math.isfinite(inset_m) and abs(inset_m) < feet.width_m / 2):
+        raise ConfigError(f"CoP inset {inset_m!r} m must lie within the sole's half width")
     current = {"right": right, "left": left}
     for k, step in enumerate([right, left, *steps]):
         if step.side not in FOOT_INDEX:
@@ -246,7 +264,10 @@ def plan_toe_heel_walk(right: Footstep, left: Footstep, steps: list[Footstep],
         swing[rows], direction[rows] = s, d
         foot_pose[t >= t0 + step_s / 2 - 1e-9, s] = (step.x_m, step.y_m, step.yaw_rad)
     heading = np.stack([np.cos(foot_pose[..., 2]), np.sin(foot_pose[..., 2])], axis=-1)
-    cop = foot_pose[..., :2] + cop_offset[..., None] * heading
+    normal = np.stack([-heading[..., 1], heading[..., 0]], axis=-1)  # the foot's left
+    toward_other = np.array([1.0, -1.0]) * float(inset_m)  # right foot: left; left: right
+    cop = (foot_pose[..., :2] + cop_offset[..., None] * heading
+           + toward_other[None, :, None] * normal)
     zmp = (1 - ratio)[:, None] * cop[:, RIGHT] + ratio[:, None] * cop[:, LEFT]
     return ToeHeelPlan(t, cop_offset, angle, pivot, foot_pose, cop, ratio, zmp, swing,
                        direction)
