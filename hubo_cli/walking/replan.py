@@ -73,15 +73,18 @@ def pattern_from(current: Gait, k: int, row: int, start: tuple[Footstep, Footste
         current: the pattern being played; ``k`` its period now, ``row`` that period's
             index on the plan's timeline (the pattern :func:`make_gait` made from ``start``).
         start: the feet (right, left) the plan started from.
-        steps: the plan's footsteps, changed from the step in progress on (none: stand).
+        steps: the plan's footsteps, changed from the step in progress on (none: stand
+            where the feet are, both down).
         params, sole_z_m, zmp_forward_m, com_start_m: as the plan was made.
     """
     period = current.period_s
     if steps:
         full = make_gait(*start, steps, params, period, current.com_height_m, sole_z_m,
                          zmp_forward_m, com_start_m=com_start_m)
-    else:  # no step taken yet: stand where the feet are, the ZMP between them
-        full = make_gait(*start, [], params, period, current.com_height_m, sole_z_m,
+    else:  # no step to take: stand where the feet are now, the ZMP between them
+        here = [Footstep(side, *current.feet[side][k][[0, 1, 3]].tolist())
+                for side in ("right", "left")]
+        full = make_gait(*here, [], params, period, current.com_height_m, sole_z_m,
                          zmp_forward_m)
         row = 0
     row = min(row, full.n - 1)

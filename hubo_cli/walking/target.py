@@ -346,16 +346,22 @@ class WalkTarget(Target):
         self._adopt(gait, body, t_s)
         self.steps.extend(steps)
 
-    def _adopt(self, gait: Gait, body: WalkingBody, t_s: float) -> None:
-        """Play ``gait`` from loop time ``t_s`` on: its joints (``body``) and per-period rows.
+    def _adopt(self, gait: Gait, body: WalkingBody, t_s: float, fix_start=None) -> None:
+        """Play ``gait`` from loop time ``t_s`` on: its joints (``body``, the multi-body
+        correction from ``fix_start``: see :meth:`WalkingBody.solve_corrected`) and rows.
 
         Raises:
             InputError: a sole the legs cannot reach.
         """
         params = self.params
         sole_z = self._basis[2]
-        self.gait, self.plan = body.solve_corrected(gait, sole_z, params.preview_s,
-                                                    params.zmp_weight, params.jerk_weight)
+        corrected, plan = body.solve_corrected(gait, sole_z, params.preview_s,
+                                               params.zmp_weight, params.jerk_weight, fix_start)
+        # the cart-table pattern and its multi-body correction, each continued by a re-plan
+        self._cart, com, cart = gait, corrected.com, gait.com
+        self._fix = (com.com_m - cart.com_m, com.com_velocity_m_s - cart.com_velocity_m_s,
+                     com.com_acceleration_m_s2 - cart.com_acceleration_m_s2)
+        self.gait, self.plan = corrected, plan
         self.body = body
         # each leg's IK data as :func:`_correct_legs` takes them (right, left)
         self._leg_kernel = tuple(
@@ -394,11 +400,11 @@ class WalkTarget(Target):
         """
         k = min(self.k, self.gait.n - 1)
         start, _, sole_z, com_start = self._basis
-        gait = pattern_from(self.gait, k, self._row0 + k, start, steps, self.params, sole_z,
+        gait = pattern_from(self._cart, k, self._row0 + k, start, steps, self.params, sole_z,
                             self.model.feet.forward_m, com_start)
         body = WalkingBody(self.model, self.plan.q_rad[k], self.plan.T_world_neck[k],
                            self.params.lean_rad_per_m)
-        self._adopt(gait, body, t_s)
+        self._adopt(gait, body, t_s, tuple(part[k] for part in self._fix))
         self._row0 = self._row0 + k if steps else 0
         self._basis = (start, list(steps), sole_z, com_start)
         self.steps[self._steps_before:] = steps
@@ -407,6 +413,7 @@ class WalkTarget(Target):
         """The stopper latched: finish the step in progress into a double-support stance (none
         before the first step; nothing changes once the last one is down)."""
         self.phase, self.stopped_s, self.corrections_left = "stopping", t_s, 0
+        self._shift = (-1, np.zeros(2), None)  # the stop's steps are the base from now on
         k = min(self.k, self.gait.n - 1)
         step = self._rows["step"][k]
         steps = self._basis[1]
