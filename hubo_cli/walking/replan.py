@@ -65,7 +65,8 @@ def shift_steps(steps: list[Footstep], index: int, moved: Footstep) -> list[Foot
 
 def pattern_from(current: Gait, k: int, row: int, start: tuple[Footstep, Footstep],
                  steps: list[Footstep], params: WalkingParams, sole_z_m: float,
-                 zmp_forward_m: float, com_start_m: np.ndarray) -> Gait:
+                 zmp_forward_m: float, com_start_m: np.ndarray,
+                 planted: int | None = None) -> Gait:
     """The pattern of ``steps`` from period ``k`` of ``current`` on (its ``steps`` and
     ``step_index`` the plan's: all of ``steps``, indices into them).
 
@@ -76,6 +77,9 @@ def pattern_from(current: Gait, k: int, row: int, start: tuple[Footstep, Footste
         steps: the plan's footsteps, changed from the step in progress on (none: stand
             where the feet are, both down).
         params, sole_z_m, zmp_forward_m, com_start_m: as the plan was made.
+        planted: the index of a step (onto its foot's own place) whose foot stays down: its
+            single support keeps both feet on the ground, the ZMP on the other foot (a
+            weight shift without a step).
     """
     period = current.period_s
     if steps:
@@ -89,7 +93,12 @@ def pattern_from(current: Gait, k: int, row: int, start: tuple[Footstep, Footste
         row = 0
     row = min(row, full.n - 1)
     feet = {side: rows[row:].copy() for side, rows in full.feet.items()}
-    support = full.support[row:]
+    support = full.support[row:].copy()
+    if planted is not None:
+        held = full.step_index[row:] == planted
+        place = feet[steps[planted].side]
+        place[held] = place[np.nonzero(held)[0][-1]]  # where it stands, down all along
+        support[held] = True
     for column, side in enumerate(("right", "left")):
         # a foot in the air moves from its old path onto the new one by its landing
         down = np.nonzero(support[:, column])[0]

@@ -83,7 +83,7 @@ SIDES = ("right", "left")  # the estimate's order of the feet (and of ANKLE_SENS
 WALK_PHASES = ("walk", "stopping", "stood")
 STOOD_S = 1.0          # [chosen] a stopped walk holds its stance this long, then ends
 STOP_SPARE_S = 1.0     # [chosen] the stopper's deadline: the stop's pattern and this much
-CP_WINDOW = 0.5        # [chosen] a landing moves only over this first part of its swing
+CP_WINDOW = 0.75       # [chosen] a landing moves only over this first part of its swing
 CP_REPLAN_M = 0.01     # [chosen] a landing moves again once its goal changed by this much
 
 
@@ -391,7 +391,7 @@ class WalkTarget(Target):
         self.plan_start_s = t_s
         self.k = 0
 
-    def _replan(self, steps: list[Footstep], t_s: float) -> None:
+    def _replan(self, steps: list[Footstep], t_s: float, planted: int | None = None) -> None:
         """Play the plan's pattern with ``steps`` (changed from the step in progress on) from
         this period on (:func:`~hubo_cli.walking.replan.pattern_from`).
 
@@ -401,13 +401,13 @@ class WalkTarget(Target):
         k = min(self.k, self.gait.n - 1)
         start, _, sole_z, com_start = self._basis
         gait = pattern_from(self._cart, k, self._row0 + k, start, steps, self.params, sole_z,
-                            self.model.feet.forward_m, com_start)
+                            self.model.feet.forward_m, com_start, planted)
         body = WalkingBody(self.model, self.plan.q_rad[k], self.plan.T_world_neck[k],
                            self.params.lean_rad_per_m)
         self._adopt(gait, body, t_s, tuple(part[k] for part in self._fix))
         self._row0 = self._row0 + k if steps else 0
         self._basis = (start, list(steps), sole_z, com_start)
-        self.steps[self._steps_before:] = steps
+        self.steps[self._steps_before:] = steps if planted is None else steps[:planted]
 
     def _stop(self, t_s: float) -> None:
         """The stopper latched: finish the step in progress into a double-support stance (none
@@ -417,16 +417,26 @@ class WalkTarget(Target):
         k = min(self.k, self.gait.n - 1)
         step = self._rows["step"][k]
         steps = self._basis[1]
+        planted = None
         if step >= 0:
             kept = steps[:step + 1]
+            if all(self._rows["support"][k]) and step + 1 < len(steps):
+                # the step has landed and the weight moves onto it: the CoM turns back over
+                # that foot as walking would (a single support's time, the other foot down),
+                # then comes to rest between the feet (turned at once, it tipped the robot
+                # over the new stance foot's outer edge)
+                other = steps[step + 1].side
+                x, y, _, yaw = self._rows[other][k]
+                kept = [*kept, Footstep(other, x, y, yaw)]
+                planted = step + 1
         elif any(i >= 0 for i in self._rows["step"][k:]):
             kept = []  # the lead-in: no step yet
         else:
             return  # the last step is down: the pattern settles between the feet already
-        if len(kept) == len(steps):
+        if len(kept) == len(steps) and planted is None:
             return
         try:
-            self._replan(kept, t_s)
+            self._replan(kept, t_s, planted)
         except InputError:
             self.stop_failed = True  # the stopper brakes and holds instead
 
