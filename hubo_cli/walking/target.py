@@ -10,7 +10,7 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
 
 * ``walk``: the pattern. While a foot swings (up to CP_WINDOW of its single support), the
   estimated capture point's error from the pattern's beyond a margin, as it will have grown by
-  the landing (exp(omega t)), moves that landing and every later footstep
+  the landing (exp(omega t), at most CP_GAIN_MAX), moves that landing and every later footstep
   (:func:`~hubo_cli.walking.replan.shifted_landing`: hrpsys AutoBalancer's footstep
   modification, within step limits, never across the stance leg); the pattern is re-planned
   from that period on (:func:`~hubo_cli.walking.replan.pattern_from`).
@@ -84,7 +84,10 @@ WALK_PHASES = ("walk", "stopping", "stood")
 STOOD_S = 1.0          # [chosen] a stopped walk holds its stance this long, then ends
 STOP_SPARE_S = 1.0     # [chosen] the stopper's deadline: the stop's pattern and this much
 CP_WINDOW = 0.75       # [chosen] a landing moves only over this first part of its swing
-CP_REPLAN_M = 0.01     # [chosen] a landing moves again once its goal changed by this much
+CP_REPLAN_M = 0.02     # [chosen] a landing moves again once its goal changed by this much
+CP_GAIN_MAX = 3.0      # [chosen] the error's growth by the landing counted at most this much
+                       # (exp(omega t) is 17 at a swing's start: a 1 cm error of the estimate's
+                       # capture point moved the landing by 17 cm)
 
 
 def estimated_feet(store: Store) -> dict[str, Footstep]:
@@ -459,7 +462,7 @@ class WalkTarget(Target):
         if shifted_step != step:
             shifted_step, applied, base = step, np.zeros(2), list(self._basis[1])
         excess = np.sign(self._cp_error) * np.maximum(np.abs(self._cp_error) - CP_MARGIN_M, 0.0)
-        wanted = excess * math.exp(self._omega * remaining_s)
+        wanted = excess * min(math.exp(self._omega * remaining_s), CP_GAIN_MAX)
         self._shift = (shifted_step, applied, base)
         if (not np.any(excess) and not np.any(applied)) or \
                 float(np.hypot(*(wanted - applied))) < CP_REPLAN_M:
