@@ -223,3 +223,25 @@ def test_an_operator_stop_in_mid_swing_ends_standing(tmp_path, model):
     # the torso leans toward the stance foot by design (about 8 deg); measured max tilt:
     # (filled in below from the run) bound 1.5x
     assert summary["max_torso_tilt_deg"] < 15.0
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--push", "nan"], "--push must be a force"),
+    (["--push", "-5"], "--push must be a force"),
+    (["--push", "1e9"], "--push must be a force"),
+    (["--push", "100", "--push-at", "nan"], "--push-at must be a time"),
+    (["--push", "100", "--push-at", "-1"], "--push-at must be a time"),
+    (["--stop-at", "inf"], "--stop-at must be a time"),
+    (["--stop-at", "-0.1"], "--stop-at must be a time"),
+    (["--push", "100", "--driver", "hardware", "--arm"], "--push needs the simulator"),
+])
+def test_hubo_walk_refuses_a_bad_disturbance_clearly(tmp_path, args, words):
+    from click.testing import CliRunner
+
+    from hubo_cli.cli.main import main
+
+    result = CliRunner().invoke(main, ["walk", "--to", "1", "0", "0", *args,
+                                       "--out", str(tmp_path / "run")])
+    assert result.exit_code == 2, result.output
+    assert words in result.output and "Traceback" not in result.output
+    assert not (tmp_path / "run").exists()  # refused before anything ran

@@ -120,8 +120,9 @@ class Disturbed(Target):
     def __init__(self, walk: WalkTarget, disturbances: Sequence[Disturbance]) -> None:
         self.walk = walk
         self.pending = sorted(disturbances, key=lambda d: d.at_s)
-        for name in ("name", "log_columns", "reads", "writes", "follows", "previous"):
-            setattr(self, name, getattr(walk, name))
+        self.name, self.log_columns = walk.name, walk.log_columns
+        self.reads, self.writes = walk.reads, walk.writes
+        self.follows, self.previous = walk.follows, walk.previous
         self.world: SceneActions | None = None
 
     def attach(self, world: SceneActions | None, modules, store) -> None:
@@ -140,6 +141,29 @@ class Disturbed(Target):
             if event.stop:
                 info = info | {"estop": "operator"}
         return q, info
+
+
+def check_disturbances(push_n: float, direction: tuple[float, float, float], push_at_s: float,
+                       stop_at_s: float | None, driver: str) -> list[Disturbance]:
+    """``hubo walk --push/--push-at/--stop-at`` as disturbances; InputError for a force
+    outside 0..MAX_PUSH_N, a time that is not a finite number >= 0, or a push on another
+    driver than the simulator."""
+    from hubo_cli.experiments.standing import MAX_PUSH_N
+
+    if not (math.isfinite(push_n) and 0.0 <= push_n <= MAX_PUSH_N):
+        raise InputError(f"--push must be a force of 0 to {MAX_PUSH_N:g} N, got {push_n}",
+                         hint="e.g. --push 100")
+    for name, value in (("--push-at", push_at_s), ("--stop-at", stop_at_s)):
+        if value is not None and not (math.isfinite(value) and 0.0 <= value <= 3600.0):
+            raise InputError(f"{name} must be a time of 0 to 3600 s, got {value}",
+                             hint=f"e.g. {name} 2.5")
+    if push_n and driver != "sim":
+        raise InputError(f"--push needs the simulator; the {driver} driver's robot is pushed "
+                         "by whatever pushes it", hint="leave out --push")
+    events = [Disturbance(push_at_s, push_n, direction)] if push_n else []
+    if stop_at_s is not None:
+        events.append(Disturbance(stop_at_s, stop=True))
+    return events
 
 
 def walk(model: RobotModel, goal: tuple[float, float, float], *,
