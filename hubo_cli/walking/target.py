@@ -85,9 +85,10 @@ STOOD_S = 1.0          # [chosen] a stopped walk holds its stance this long, the
 STOP_SPARE_S = 1.0     # [chosen] the stopper's deadline: the stop's pattern and this much
 CP_WINDOW = 0.75       # [chosen] a landing moves only over this first part of its swing
 CP_REPLAN_M = 0.02     # [chosen] a landing moves again once its goal changed by this much
-CP_GAIN_MAX = 3.0      # [chosen] the error's growth by the landing counted at most this much
+CP_GAIN_MAX = 1.0      # [chosen] the error's growth by the landing counted at most this much
                        # (exp(omega t) is 17 at a swing's start: a 1 cm error of the estimate's
-                       # capture point moved the landing by 17 cm)
+                       # capture point moved the landing by 17 cm; 3x stepped too far back
+                       # after a backward push, and the robot fell forward)
 
 
 def estimated_feet(store: Store) -> dict[str, Footstep]:
@@ -416,10 +417,13 @@ class WalkTarget(Target):
         """The stopper latched: finish the step in progress into a double-support stance (none
         before the first step; nothing changes once the last one is down)."""
         self.phase, self.stopped_s, self.corrections_left = "stopping", t_s, 0
-        self._shift = (-1, np.zeros(2), None)  # the stop's steps are the base from now on
         k = min(self.k, self.gait.n - 1)
         step = self._rows["step"][k]
         steps = self._basis[1]
+        shifted_step, applied, base = self._shift
+        # a landing the capture point moved keeps its shift (and the steps it shifted from)
+        self._shift = ((step, applied, base[:step + 1]) if shifted_step == step >= 0
+                       else (-1, np.zeros(2), None))
         planted = None
         if step >= 0:
             kept = steps[:step + 1]
