@@ -8,8 +8,9 @@ last one's landing) and, for pushes, a direction from ``--directions``; the walk
 (``hubo walk --to DISTANCE 0 0`` through the full pipeline) then runs with the operator's stop
 (``stop``), with a 0.2 s push on the torso (``push``), or, ``stop --source capture-point``, with
 a push of ``--force`` (default 100 N, sideways) left to the capture-point monitor to stop it.
-One JSON line per run (seed, moment, direction, fell, stopped, stood, shifts, e-stop events,
-max tilt), then a summary line. Run folders go under ``--out``.
+One JSON line per run (seed, moment, direction, fell, stopped, stood, both feet down over the
+run's last 0.5 s, the soft stopper holding at the end, footstep changes, e-stop events, max
+tilt), then a summary line. Run folders go under ``--out``.
 """
 
 from __future__ import annotations
@@ -21,6 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
+from hubo_cli.control.estop import MODE_CODE
+from hubo_cli.control.log import load_log
 from hubo_cli.experiments.standing import PUSH_DIRECTIONS
 from hubo_cli.experiments.walk import Disturbance, walk
 from hubo_cli.model import load_model
@@ -66,10 +69,16 @@ def main() -> int:
         result = walk(model, (args.distance, 0.0, 0.0), out=Path(args.out) / f"{args.kind}-{seed}",
                       disturbances=events)
         summary = json.loads((result.run_dir / "summary.json").read_text())
+        log = load_log(result.run_dir / "log.parquet")
+        mode = np.asarray(log["estop_mode_code"], dtype=float)
+        rows = np.isfinite(mode)  # the loop's closing rows have no pipeline
+        down = np.column_stack([np.asarray(log[f"{side}_foot_contact_flag"], dtype=float)[rows]
+                                for side in ("right", "left")])[-100:]
         row = {"seed": seed, "at_s": round(at_s, 3),
                "direction": None if args.kind == "stop" and args.source == "operator"
                else direction, "fell": result.fell, "stopped_s": result.stopped_s,
-               "stood": result.stood, "shifts": result.shifts,
+               "stood": result.stood, "both_feet_down": bool(np.all(down == 1)),
+               "held": bool(mode[rows][-1] == MODE_CODE["hold"]), "shifts": result.shifts,
                "estop_events": len(summary.get("estop_events", [])),
                "max_torso_tilt_deg": summary.get("max_torso_tilt_deg"),
                "final_error_mm": result.final_error_mm}
