@@ -75,7 +75,7 @@ def test_a_phase_that_stops_itself_is_passed_through_then_held(model):
     # settled: held at that period's posture, for good (the stop is still the stopper's)
     assert set(modes[settle_k:]) == {"hold"}
     assert np.allclose(outputs[settle_k:], inputs[settle_k])
-    assert [e.kind for e in stopper.events] == ["stop"]
+    assert [e.kind for e in stopper.events] == ["stop", "finish"]  # both in the summary
     assert MODE_CODE["finish"] == 4
 
 
@@ -210,7 +210,7 @@ def test_an_operator_stop_in_mid_swing_ends_standing(tmp_path, model):
     summary = json.loads((result.run_dir / "summary.json").read_text())
     assert result.fell is False and result.stood is True
     assert result.stopped_s == pytest.approx(2.205, abs=0.011)  # the next period sees it
-    assert [e["kind"] for e in summary["estop_events"]] == ["stop"]
+    assert [e["kind"] for e in summary["estop_events"]] == ["stop", "finish"]
     assert len(result.footsteps) == 2  # the step in the air was finished, no more
     log = load_log(result.run_dir / "log.parquet")
     modes = np.asarray(log["estop_mode_code"], dtype=float)

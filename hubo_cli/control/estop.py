@@ -21,7 +21,8 @@ it lifted off while the centre of mass travels on), so a walking phase finishes 
 a double-support stance instead. Which stop a run gets is not a choice a task file or a
 target can make: every latch is still this stopper's (logged as a ``stop`` event, flagged
 ``estop``, held until released); the phase only supplies the motion into the stance, within a
-deadline this stopper enforces.
+deadline this stopper enforces, and says so in the log (mode code 4) and in the run's events (a
+``finish`` event beside the ``stop``).
 
 Every transition is a jerk-limited ruckig trajectory started from the output's own position,
 velocity and acceleration (:class:`~hubo_cli.motion.tracker.JointTracker`), so the revert obeys the
@@ -307,7 +308,9 @@ class EmergencyStopper(Module):
         self.t_emer_s = t_s
         self.events.append(SafetyEvent(t_s, "stop", tuple(sorted(sources))))
         if isinstance(phase_stop, PhaseStop) and not recovering:
-            # the phase stops itself (a walk finishes its step): pass it through, see finish
+            # the phase stops itself (a walk finishes its step): pass it through, see finish;
+            # the summary's events say so beside the stop
+            self.events.append(SafetyEvent(t_s, "finish", ()))
             self.mode = "finish"
             self.t_finish_end_s = t_s + min(max(float(phase_stop.within_s), 0.0),
                                             MAX_FINISH_S)
