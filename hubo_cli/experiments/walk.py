@@ -229,7 +229,7 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
         zmp_inside_fraction=(target.zmp_inside_periods / target.zmp_periods
                              if target.zmp_periods else 0.0),
         walking_s=walking_s, ended=done.loop.ended,
-        estop_events=len(done.summary["estop_events"]),
+        estop_events=sum(e["kind"] == "stop" for e in done.summary["estop_events"]),
         footsteps=[s.to_json() for s in target.steps], run_dir=done.run_dir,
         failure=done.loop.failure(done.run_dir))
     done.save_summary(result.summary())
