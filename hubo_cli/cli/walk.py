@@ -57,9 +57,9 @@ def walk(goal: tuple[float, float, float], corrections: int, push_n: float,
     planned support), emergency stoppers, collision detector, limiter (the robot file's
     `walking` limit set). An emergency stop (the space key, --stop-at, the capture point)
     finishes the step in the air into a double-support stance and holds there. Exit code 1
-    when it fell. On the hardware driver the robot must stand in the walking posture
-    (refused otherwise, exit 4) and the final error is the estimate's (the robot has no
-    truth; the simulated daemon's --truth-log does).
+    when it fell or was stopped short of the goal. On the hardware driver the robot must
+    stand in the walking posture (refused otherwise, exit 4) and the final error is the
+    estimate's (the robot has no truth; the simulated daemon's --truth-log does).
 
     \b
     Examples:
@@ -119,5 +119,5 @@ def walk(goal: tuple[float, float, float], corrections: int, push_n: float,
     exit_if_interrupted(fields)
     if result.failure is not None:  # e.g. the robot's state lost: exit 3, the robot braked
         raise result.failure
-    if result.fell:
+    if result.fell or result.stopped_s is not None:  # fell, or stopped short of the goal
         raise SystemExit(1)
