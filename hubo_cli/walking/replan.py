@@ -32,15 +32,15 @@ CP_STEP_FORWARD_M = 0.25    # [chosen] a moved landing at most this far ahead of
 CP_STEP_BACKWARD_M = 0.15   # [chosen] ... behind it
 CP_WIDTH_MAX_M = 0.36       # [chosen] ... and at most this far from it sideways
 CP_GAP_M = 0.04             # [chosen] the soles' inner edges stay this far apart: no crossing
-CP_MAX_SHIFT_M = 0.2        # [chosen] no footstep moves further than this in all
+CP_MAX_SHIFT_M = 0.2        # [chosen] a shift longer than this is shortened to it
 
 
 def shifted_landing(stance: Footstep, planned: Footstep, shift_m: np.ndarray,
                     sole_width_m: float, step_width_m: float) -> Footstep:
-    """The landing ``planned`` moved by ``shift_m`` (world x, y; m), seen from ``stance``:
-    at most CP_STEP_FORWARD_M ahead and CP_STEP_BACKWARD_M behind it, toward the swing side
-    at least a sole's width and CP_GAP_M (the legs never cross) and at most CP_WIDTH_MAX_M
-    (nor narrower than ``step_width_m`` less the shift's share, whichever is less)."""
+    """The landing ``planned`` moved by ``shift_m`` (world x, y; m; at most CP_MAX_SHIFT_M
+    of it), seen from ``stance``: at most CP_STEP_FORWARD_M ahead and CP_STEP_BACKWARD_M
+    behind it, toward the swing side at least a sole's width and CP_GAP_M (the legs never
+    cross; the walking width ``step_width_m`` if that is less) and at most CP_WIDTH_MAX_M."""
     shift = np.asarray(shift_m, dtype=float)
     norm = float(np.hypot(*shift))
     if norm > CP_MAX_SHIFT_M:
