@@ -64,7 +64,7 @@ def walk(goal: tuple[float, float, float], corrections: int, push_n: float,
     \b
     Examples:
       hubo walk --to 1.0 0 0
-      hubo walk --to 1.0 0 0 --push 100 --push-direction left --push-at 2.9
+      hubo walk --to 1.0 0 0 --push 100 --push-direction backward --push-at 4.8
       hubo walk --to 1.0 0 0 --stop-at 2.2
       hubo walk --to 1.0 0 0 --driver hardware --arm   (against hubo hardware sim-daemon
         --posture walking, or a real robot standing so)
