@@ -335,7 +335,8 @@ def common_summary(setup: RunSetup, speed: float | None, loop: LoopResult,
         "collision_holds": [{"t_s": t, "pair": list(pair)}
                             for _, t, kind, pair in loop.safety_events if kind == "collision"],
         "estop_events": [{"module": m, "t_s": t, "kind": k, "sources": list(s)}
-                         for m, t, k, s in loop.safety_events if k in ("stop", "release")],
+                         for m, t, k, s in loop.safety_events
+                         if k in ("stop", "release", "finish", "finish-deadline")],
         "overruns": loop.overruns,
         "overrun_skipped_s": loop.skipped_s,
         "stale_state_periods": loop.flag_counts.get("stale-state", 0),

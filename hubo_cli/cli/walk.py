@@ -25,6 +25,17 @@ from hubo_cli.drivers.registry import DRIVER_NAMES
 @click.option("--corrections", type=click.IntRange(0, 5), default=1, show_default=True,
               help="Walk again from where the feet stand when they slipped more than 8 mm or "
                    "1.5 deg off the goal, up to this many times.")
+@click.option("--push", "push_n", type=float, default=0.0, show_default=True,
+              help="Push the torso with this force (N) for 0.2 s at --push-at (the simulator "
+                   "only): the capture point moves the next footsteps, and its monitor stops "
+                   "the walk into a stance if they cannot catch it.")
+@click.option("--push-direction", type=click.Choice(["forward", "backward", "left", "right"]),
+              default="left", show_default=True, help="Which way the push acts.")
+@click.option("--push-at", "push_at_s", type=float, default=2.5, show_default=True,
+              help="When the push starts (s into the walk).")
+@click.option("--stop-at", "stop_at_s", type=float, default=None,
+              help="Stop the walk as the operator's space key would, this far into it (s): "
+                   "the step in the air lands, the robot stands in double support and holds.")
 @click.option("--driver", type=click.Choice(DRIVER_NAMES), default=DRIVER_NAMES[0],
               show_default=True, help="Robot back end.")
 @click.option("--arm", "armed", is_flag=True, help="Arm the hardware driver (required by it).")
@@ -41,7 +52,8 @@ from hubo_cli.drivers.registry import DRIVER_NAMES
                             "assumes both feet down).")
 @hardware_options
 def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | None,
-         lip_feedback: bool, driver: str, armed: bool,
+         lip_feedback: bool, push_n: float, push_direction: str, push_at_s: float,
+         stop_at_s: float | None, driver: str, armed: bool,
          no_estop: bool, estop_sources: str | None, accept_reduced_safety: bool, gui: bool,
          as_json: bool, out: str | None, live: bool, live_host: str | None,
          live_port: int | None, perturb_seed: int | None, balance: str, **hardware) -> None:
@@ -50,24 +62,31 @@ def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | No
     The robot starts standing in its walking posture (feet 0.26 m apart, 5 cm crouched) and
     walks through the full pipeline: trajectory generator, capture-point monitor (on the
     planned support), emergency stoppers, collision detector, limiter (the robot file's
-    `walking` limit set). Exit code 1 when it fell. On the hardware driver the robot must
+    `walking` limit set). An emergency stop (the space key, --stop-at, the capture point)
+    finishes the step in the air into a double-support stance and holds there. Exit code 1
+    when it fell or was stopped short of the goal. On the hardware driver the robot must
     stand in the walking posture (refused otherwise, exit 4) and the final error is the
     estimate's (the robot has no truth; the simulated daemon's --truth-log does).
 
     \b
     Examples:
       hubo walk --to 1.0 0 0
+      hubo walk --to 1.0 0 0 --push 100 --push-direction backward --push-at 4.8
+      hubo walk --to 1.0 0 0 --stop-at 2.2
       hubo walk --to 1.0 0 0 --driver hardware --arm   (against hubo hardware sim-daemon
         --posture walking, or a real robot standing so)
     """
     from hubo_cli.cli.keys import announce_keys, operator_keys
     from hubo_cli.control.stop_choice import SOFT_SOURCES
-    from hubo_cli.experiments.walk import check_goal
+    from hubo_cli.experiments.standing import PUSH_DIRECTIONS
+    from hubo_cli.experiments.walk import check_disturbances, check_goal
     from hubo_cli.experiments.walk import walk as walk_to
     from hubo_cli.model import load_model
     from hubo_cli.runs import reserved_run_dir
 
     check_goal(goal)
+    disturbances = check_disturbances(push_n, PUSH_DIRECTIONS[push_direction], push_at_s,
+                                      stop_at_s, driver)
     options = driver_options(driver, armed, **hardware)
     stops = active_stops(SOFT_SOURCES, driver, no_estop=no_estop, estop_sources=estop_sources,
                          accept_reduced_safety=accept_reduced_safety, quiet=as_json)
@@ -78,7 +97,8 @@ def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | No
         result = walk_to(load_model(), goal, gui=gui, out=run_dir, stops=stops,
                          perturb_seed=perturb_seed, corrections=corrections,
                          balance=balance, operator=keys, live=server, driver=driver,
-                         driver_options=options, lip_feedback=lip_feedback,
+                         driver_options=options, disturbances=disturbances,
+                         lip_feedback=lip_feedback,
                          **({} if toe_heel is None else {"toe_heel": toe_heel}))
     fields = result.summary() | {"ended": result.ended, "estop_events": result.estop_events,
                                  "run_dir": str(result.run_dir)}
@@ -87,6 +107,12 @@ def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | No
     else:
         console.print(f"goal              {goal[0]:g} m forward, {goal[1]:g} m left, "
                       f"{math.degrees(goal[2]):.1f} deg")
+        if result.stopped_s is not None:
+            console.print(f"stopped           at {result.stopped_s:.2f} s: "
+                          f"{'standing in double support' if result.stood else 'did not stand'}"
+                          f", {result.shifts} footstep changes after the capture point")
+        elif result.shifts:
+            console.print(f"capture point     moved the footsteps {result.shifts} times")
         if result.ended == "interrupted":
             console.print("ended             interrupted: braked to a stop before the goal")
         console.print(f"fell              {'YES' if result.fell else 'no'}")
@@ -102,5 +128,5 @@ def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | No
     exit_if_interrupted(fields)
     if result.failure is not None:  # e.g. the robot's state lost: exit 3, the robot braked
         raise result.failure
-    if result.fell:
+    if result.fell or result.stopped_s is not None:  # fell, or stopped short of the goal
         raise SystemExit(1)

@@ -9,7 +9,20 @@ stop      latched at t_emer: go back to the input of t_emer - T1 (``revert_s``),
 hold      output that posture until :meth:`EmergencyStopper.release` is called
 recover   after release, join the live input again; re-planned every period so that it
           arrives no sooner than ``recover_s`` (2.5 s) after the release, then ``release``
+finish    latched while the target's phase stops itself (a walk in mid-step: the store's
+          :data:`~hubo_cli.control.phase.PHASE_STOP`): pass the phase's own stopping motion
+          through until it says it stands (then ``hold`` that posture); a phase that does not
+          settle within its ``within_s`` (at most ``MAX_FINISH_S``) or stops saying how it
+          stops is braked (``stop``, as the freeze preset) and held where it came to rest
 ========  ==============================================================================
+
+Reverting a walk in mid-step does not keep the robot up (the swing foot comes back down where
+it lifted off while the centre of mass travels on), so a walking phase finishes its step into
+a double-support stance instead. Which stop a run gets is not a choice a task file or a
+target can make: every latch is still this stopper's (logged as a ``stop`` event, flagged
+``estop``, held until released); the phase only supplies the motion into the stance, within a
+deadline this stopper enforces, and says so in the log (mode code 4) and in the run's events (a
+``finish`` event beside the ``stop``).
 
 Every transition is a jerk-limited ruckig trajectory started from the output's own position,
 velocity and acceleration (:class:`~hubo_cli.motion.tracker.JointTracker`), so the revert obeys the
@@ -71,6 +84,7 @@ import numpy as np
 
 from hubo_cli.control.keys import STOP_MODE, WRIST_RELIEF
 from hubo_cli.control.module import Cycle, Module
+from hubo_cli.control.phase import PHASE_STOP, PhaseStop
 from hubo_cli.control.status import SafetyEvent, StopperStatus
 from hubo_cli.control.stop_choice import SOFT_SOURCES
 from hubo_cli.control.wrench import HAND_WRENCH_PLAN, HAND_WRENCH_REF, wrench_of
@@ -92,7 +106,8 @@ RECOVER_S = 2.5          # hrpsys default_recover_time
 RELIEF_S = 0.25          # the shortest move along the relief path (s)
 WRIST_SENSORS = ("right-wrist", "left-wrist")
 
-MODES = ("release", "stop", "hold", "recover")
+MODES = ("release", "stop", "hold", "recover", "finish")
+MAX_FINISH_S = 5.0       # a phase stopping itself settles within this long, or is braked
 RELIEVE_SOURCES = frozenset({"wrist-torque"})  # stops that brake hard and relieve the tool
 BRAKE_FLAG = "estop-brake"  # the stopper brakes at the emergency limits this period
 
@@ -202,6 +217,7 @@ class EmergencyStopper(Module):
         self._mode_key = STOP_MODE if name == "estop" else None
         if self._mode_key is not None:
             self.writes += (self._mode_key,)
+            self.follows += (PHASE_STOP,)  # only the soft stopper lets a phase stop itself
         self.tracker = JointTracker(self.limits, self.dt_s)
         self.brake_tracker = JointTracker(self.limits.for_emergency_brake(model), self.dt_s)
         self._path = np.zeros((1, self.limits.size))  # the relief path being played
@@ -234,6 +250,7 @@ class EmergencyStopper(Module):
         self.hold_rad = q.copy()
         self.t_emer_s: float | None = None
         self.t_recover_end_s = 0.0
+        self.t_finish_end_s = 0.0
         self._pending: set[str] = set()
         self._release = False
         self._brake_only = False
@@ -292,11 +309,22 @@ class EmergencyStopper(Module):
         a = (self.out1 - 2 * self.out2 + self.out3) / dt**2
         return self.out1.copy(), v + 0.5 * a * dt, a
 
-    def _latch(self, t_s: float, sources: set[str]) -> None:
+    def _latch(self, t_s: float, sources: set[str], phase_stop: PhaseStop | None) -> None:
         recovering = self.mode == "recover"
         self.tracker.reset(*self._output_state())
         self.t_emer_s = t_s
         self.events.append(SafetyEvent(t_s, "stop", tuple(sorted(sources))))
+        if isinstance(phase_stop, PhaseStop) and not recovering:
+            # the phase stops itself (a walk finishes its step): pass it through, see finish;
+            # the summary's events say so beside the stop
+            self.events.append(SafetyEvent(t_s, "finish", ()))
+            self.mode, self._turning = "finish", False
+            self.t_finish_end_s = t_s + min(max(float(phase_stop.within_s), 0.0),
+                                            MAX_FINISH_S)
+            self._relieving = None
+            if self.wrenches is not None:
+                self.wrenches.start(t_s, self.stop_s, {})
+            return
         self.mode = "stop"
         # while blending back, the input of T1 ago may be far from the output: stop in place
         self._brake_only = self.is_freeze or recovering
@@ -333,6 +361,22 @@ class EmergencyStopper(Module):
                 return "recover"
             self._hard_wrench = None
         return self.mode
+
+    def _finish(self, q_in: np.ndarray, phase_stop: PhaseStop | None, t_s: float) -> np.ndarray:
+        """One period of ``finish``: the phase's stopping motion ``q_in`` passes; once the
+        phase stands, hold it; past the deadline, or when the phase no longer says how it
+        stops, brake from the output's motion and hold where it comes to rest."""
+        if isinstance(phase_stop, PhaseStop) and phase_stop.settled:
+            self.hold_rad = q_in.copy()
+            self.mode = "hold"
+            return q_in
+        if isinstance(phase_stop, PhaseStop) and t_s <= self.t_finish_end_s:
+            return q_in
+        self.events.append(SafetyEvent(t_s, "finish-deadline", ()))
+        self.tracker.reset(*self._output_state())
+        self._brake_only = True
+        self.mode = "stop"
+        return self.tracker.brake()
 
     def _relieve(self, relief: Callable[[np.ndarray], np.ndarray | None] | None) -> np.ndarray:
         """One period of a wrist-torque stop: brake at the emergency limits, then play the
@@ -384,11 +428,14 @@ class EmergencyStopper(Module):
         last_in, self.last_in = self.last_in, q_in
         self.history.append(q_in)
         requests = self._requests(state, cycle)
+        phase_stop = None if self._mode_key is None else cycle.store.get(PHASE_STOP)
         if requests and self.mode in ("release", "recover"):
-            self._latch(cycle.t_s, requests)
-        elif self._release and self.mode in ("stop", "hold"):
-            if self.mode == "stop" and not self._brake_only:  # released while reverting or
-                self.tracker.reset(*self._output_state())  # relieving: blend back from there
+            self._latch(cycle.t_s, requests, phase_stop)
+        elif self._release and self.mode in ("stop", "hold", "finish"):
+            if self.mode == "finish" or (self.mode == "stop" and not self._brake_only):
+                # released while finishing, reverting or relieving: the tracker has not made
+                # the output; blend back from the output
+                self.tracker.reset(*self._output_state())
                 self._relieving, self._turning = None, False
             self.mode = "recover"
             self.t_recover_end_s = cycle.t_s + self.recover_s
@@ -399,7 +446,9 @@ class EmergencyStopper(Module):
             self._hard_wrenches(cycle)
         self._release = False
 
-        if self.mode == "release":
+        if self.mode == "finish":
+            out = self._finish(q_in, phase_stop, cycle.t_s)
+        elif self.mode == "release":
             out = q_in
         elif self.mode == "stop":
             if self._relieving:
@@ -435,7 +484,7 @@ class EmergencyStopper(Module):
                     and np.max(np.abs(self.tracker.v - w_in)) < 1e-3):
                 out = q_in
                 self.mode = "release"
-        if self.mode in ("stop", "hold"):
+        if self.mode in ("stop", "hold", "finish"):
             cycle.flags.add("estop")
         elif self.mode == "recover":
             cycle.flags.add("recovering")

@@ -11,7 +11,9 @@ A target switches the modules through these keys, never through their attributes
 resetting them: the capture-point monitor judges the capture point against the support the
 phase plans (:data:`SUPPORT_PLAN`), the standing balancers are switched off while a phase
 moves the centre of mass itself (:data:`BALANCERS_REST`: they drop their correction once,
-pass the command through while off, and start afresh when switched on).
+pass the command through while off, and start afresh when switched on), and a phase that
+cannot stop by reverting (a step in the air) tells the soft stopper how it stops itself
+(:data:`PHASE_STOP`).
 """
 
 from __future__ import annotations
@@ -123,4 +125,28 @@ BALANCERS_REST = Key("standing_balancers_rest", bool,
                      "True while a phase moves the centre of mass itself: the standing "
                      "balancers send no correction and start afresh when it ends")
 
-PHASE_KEYS = (SUPPORT_PLAN, BALANCERS_REST)
+
+
+@dataclass(frozen=True)
+class PhaseStop:
+    """How this phase stops itself when the soft stopper latches: a walk cannot revert in
+    mid-step (the swing foot in the air), so it finishes the step into a double-support stance
+    and holds there. The stop itself stays the stopper's: it latches, flags ``estop`` and waits
+    for a release as always; it only passes the phase's own stopping motion through (mode
+    ``finish``) until the phase says it stands (``settled``), then holds that posture. A phase
+    that does not settle within ``within_s`` of the latch (or stops writing this key) is braked
+    and held where it is (:mod:`hubo_cli.control.estop`).
+
+    Attributes:
+        settled: the phase stands in its stop stance: hold from this period on.
+        within_s: it settles within this long of a stop latched now (s; the stopper caps it).
+    """
+
+    settled: bool
+    within_s: float
+
+
+PHASE_STOP = Key("phase_stop", object,
+                 "PhaseStop of this period, or None: a stop reverts the motion (eq. 15)")
+
+PHASE_KEYS = (SUPPORT_PLAN, BALANCERS_REST, PHASE_STOP)

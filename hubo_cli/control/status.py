@@ -61,8 +61,8 @@ def status_from_flags(flags) -> Status:
 
 @dataclass
 class SafetyEvent:
-    """One thing a safety module did: time (s), kind (``stop``, ``release``, ``collision``)
-    and the sources or link names involved."""
+    """One thing a safety module did: time (s), kind (``stop``, ``release``, ``collision``,
+    ``finish``, ``finish-deadline``) and the sources or link names involved."""
 
     t_s: float
     kind: str

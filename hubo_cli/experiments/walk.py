@@ -9,6 +9,7 @@ estimate put it."""
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,10 +19,13 @@ from hubo_cli.control.log import LogData
 from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.stop_choice import ActiveStops
+from hubo_cli.control.target import Target, TargetOutput
 from hubo_cli.errors import HuboError, InputError
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
+from hubo_cli.scene import SceneActions
 from hubo_cli.session import RunObserver, RunSetup, run
+from hubo_cli.state import RobotState
 from hubo_cli.walking.body import SIDE_LEG, walking_posture
 from hubo_cli.walking.footsteps import Stance, stance_of
 from hubo_cli.walking.params import WalkingParams, walking_params
@@ -30,6 +34,7 @@ from hubo_cli.walking.target import WalkTarget, footstep_of
 from hubo_cli.walking.toe_heel import ToeHeelParams
 
 MAX_GOAL_M = 10.0
+PUSH_S = 0.2  # a push lasts this long (as ``hubo sim --push``)
 FINAL_ROWS = 20  # the final stance: the mean over the log's last rows (encoder noise averages)
 DEFAULT_GAINS = StabilizerGains()
 
@@ -59,6 +64,9 @@ class WalkResult:
     """
 
     fell: bool
+    stopped_s: float | None
+    stood: bool
+    shifts: int
     final_error_mm: float
     final_error_deg: float
     estimated_final_error_mm: float
@@ -74,7 +82,8 @@ class WalkResult:
     failure: HuboError | None = None
 
     def summary(self) -> dict:
-        return {"fell": self.fell, "final_error_mm": self.final_error_mm,
+        return {"fell": self.fell, "stopped_s": self.stopped_s, "stood": self.stood,
+                "shifts": self.shifts, "final_error_mm": self.final_error_mm,
                 "final_error_deg": self.final_error_deg,
                 "estimated_final_error_mm": self.estimated_final_error_mm,
                 "estimated_final_error_deg": self.estimated_final_error_deg,
@@ -93,6 +102,71 @@ def check_goal(goal: tuple[float, float, float]) -> None:
                          hint="walk there in shorter legs")
 
 
+@dataclass(frozen=True)
+class Disturbance:
+    """What happens to a walk at ``at_s`` (loop time, s): a push on the torso of ``push_n``
+    (N) along ``direction`` (world, unit) for PUSH_S (the simulator only), and/or the
+    operator's stop (``stop``: as the space key)."""
+
+    at_s: float
+    push_n: float = 0.0
+    direction: tuple[float, float, float] = (1.0, 0.0, 0.0)
+    stop: bool = False
+
+
+class Disturbed(Target):
+    """``walk`` with ``disturbances`` played on it (pushes through the scene, stops as the
+    operator's requests); everything else is the walk's."""
+
+    def __init__(self, walk: WalkTarget, disturbances: Sequence[Disturbance]) -> None:
+        self.walk = walk
+        self.pending = sorted(disturbances, key=lambda d: d.at_s)
+        self.name, self.log_columns = walk.name, walk.log_columns
+        self.reads, self.writes = walk.reads, walk.writes
+        self.follows, self.previous = walk.follows, walk.previous
+        self.world: SceneActions | None = None
+
+    def attach(self, world: SceneActions | None, modules, store) -> None:
+        if world is None and any(d.push_n for d in self.pending):
+            raise InputError("a push needs the simulator", hint="leave out the push")
+        self.world, self.store = world, store
+        self.walk.attach(world, modules, store)
+
+    def __call__(self, t_s: float, state: RobotState) -> TargetOutput:
+        q, info = self.walk(t_s, state)
+        while self.pending and t_s >= self.pending[0].at_s - 1e-9:
+            event = self.pending.pop(0)
+            if event.push_n:
+                self.world.push_torso(event.push_n * np.asarray(event.direction, dtype=float),
+                                      PUSH_S)
+            if event.stop:
+                info = info | {"estop": "operator"}
+        return q, info
+
+
+def check_disturbances(push_n: float, direction: tuple[float, float, float], push_at_s: float,
+                       stop_at_s: float | None, driver: str) -> list[Disturbance]:
+    """``hubo walk --push/--push-at/--stop-at`` as disturbances; InputError for a force
+    outside 0..MAX_PUSH_N, a time that is not a finite number >= 0, or a push on another
+    driver than the simulator."""
+    from hubo_cli.experiments.standing import MAX_PUSH_N
+
+    if not (math.isfinite(push_n) and 0.0 <= push_n <= MAX_PUSH_N):
+        raise InputError(f"--push must be a force of 0 to {MAX_PUSH_N:g} N, got {push_n}",
+                         hint="e.g. --push 100")
+    for name, value in (("--push-at", push_at_s), ("--stop-at", stop_at_s)):
+        if value is not None and not (math.isfinite(value) and 0.0 <= value <= 3600.0):
+            raise InputError(f"{name} must be a time of 0 to 3600 s, got {value}",
+                             hint=f"e.g. {name} 2.5")
+    if push_n and driver != "sim":
+        raise InputError(f"--push needs the simulator; the {driver} driver's robot is pushed "
+                         "by whatever pushes it", hint="leave out --push")
+    events = [Disturbance(push_at_s, push_n, direction)] if push_n else []
+    if stop_at_s is not None:
+        events.append(Disturbance(stop_at_s, stop=True))
+    return events
+
+
 def walk(model: RobotModel, goal: tuple[float, float, float], *,
          params: WalkingParams | None = None, gui: bool = False,
          out: str | Path | None = None, stops: ActiveStops | None = None,
@@ -100,9 +174,9 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
          balance: str = "off", operator: OperatorKeys | None = None,
          live: RunObserver | None = None,
          stabilizer: StabilizerGains | None = DEFAULT_GAINS, toe_heel: bool = False,
-         lip_feedback: bool = False,
-         driver: str = "sim",
-         driver_options: dict | None = None) -> WalkResult:
+         lip_feedback: bool = False, driver: str = "sim",
+         driver_options: dict | None = None,
+         disturbances: Sequence[Disturbance] = ()) -> WalkResult:
     """Walk the robot to ``goal`` = (forward m, left m, turn rad) from its stance.
 
     Args:
@@ -129,6 +203,7 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
         driver, driver_options: the robot's back end and its options (the hardware driver's
             robot must stand in the walking posture: the walk refuses it otherwise, exit 4;
             its log has no truth, so the final error is the estimate's).
+        disturbances: pushes and stops played on the walk (:class:`Disturbance`).
     """
     check_goal(goal)
     from hubo_cli.model import load_model
@@ -147,21 +222,23 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
                      safety=SafetyProfile().with_stops(stops).with_balance(balance),
                      q_start_rad=q_start, perturb_seed=perturb_seed, operator=operator,
                      live=live)
-    done = run(setup, target)
+    done = run(setup, Disturbed(target, disturbances) if disturbances else target)
     estimated_m, estimated_rad = target.final_error()
     true = true_final_error(done.log, walking_model, goal) if target.final_feet else None
     error_m, error_rad = (estimated_m, estimated_rad) if true is None else true
     distance = math.hypot(goal[0], goal[1])
     walking_s = target.walking_s
     result = WalkResult(
-        fell=target.fell, final_error_mm=1000 * error_m, final_error_deg=math.degrees(error_rad),
+        fell=target.fell, stopped_s=target.stopped_s, stood=target.phase == "stood",
+        shifts=target.shifts, final_error_mm=1000 * error_m,
+        final_error_deg=math.degrees(error_rad),
         estimated_final_error_mm=1000 * estimated_m,
         estimated_final_error_deg=math.degrees(estimated_rad), steps=len(target.steps),
         average_speed_m_s=distance / walking_s if walking_s > 0 else 0.0,
         zmp_inside_fraction=(target.zmp_inside_periods / target.zmp_periods
                              if target.zmp_periods else 0.0),
         walking_s=walking_s, ended=done.loop.ended,
-        estop_events=len(done.summary["estop_events"]),
+        estop_events=sum(e["kind"] == "stop" for e in done.summary["estop_events"]),
         footsteps=[s.to_json() for s in target.steps], run_dir=done.run_dir,
         failure=done.loop.failure(done.run_dir))
     done.save_summary(result.summary())

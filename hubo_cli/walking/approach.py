@@ -6,7 +6,8 @@ Phases (``approach.phase_code`` in the log):
 
 0. ``walk``: a :class:`~hubo_cli.walking.target.WalkTarget` to the working stance, its last
    two steps closing the feet to the session posture's width; the capture-point monitor
-   watches the planned support (as in ``hubo walk``) and the standing balancers rest
+   watches the planned support (as in ``hubo walk``), an emergency stop finishes the step in
+   progress and the run ends in that stance (no rise, no session), and the standing balancers rest
    (:data:`~hubo_cli.control.phase.BALANCERS_REST`: their reference assumes both feet down
    and the CoM over them, which walking breaks);
 1. ``rise``: both feet down, from the walk's last posture (crouched) to the session's start
@@ -41,7 +42,7 @@ import numpy as np
 import pinocchio as pin
 
 from hubo_cli.control.module import Module
-from hubo_cli.control.phase import BALANCERS_REST, SUPPORT_PLAN, Phase, Phases
+from hubo_cli.control.phase import BALANCERS_REST, PHASE_STOP, SUPPORT_PLAN, Phase, Phases
 from hubo_cli.control.target import Target, TargetOutput
 from hubo_cli.dataflow import Store
 from hubo_cli.errors import InputError
@@ -129,7 +130,7 @@ class _Walk(Phase[TargetOutput]):
         q, info = owner.walk(t_s, state)
         owner.measure_clearance(state)
         if info.pop("done", False):
-            if owner.walk.fell:
+            if owner.walk.fell or owner.walk.phase != "walk":  # fell, or stopped: held there
                 info["done"] = True
             else:
                 owner.q_walked = q
@@ -249,6 +250,7 @@ class WalkFirst(Target):
         self.store[BALANCERS_REST] = PHASE_REST[phase]
         if phase != "walk":
             self.store[SUPPORT_PLAN] = None  # both feet down: the estimated soles
+            self.store[PHASE_STOP] = None  # a stop reverts the motion again
         return q, info | {"approach.phase_code": float(PHASES.index(phase))}
 
     def measure_clearance(self, state: RobotState) -> None:

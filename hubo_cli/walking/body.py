@@ -155,10 +155,15 @@ class WalkingBody:
         return JointPlan(q_all, T_all, com_all, worst)
 
     def solve_corrected(self, gait: Gait, ground_z_m: float, preview_s: float,
-                        zmp_weight: float, jerk_weight: float) -> tuple[Gait, JointPlan]:
+                        zmp_weight: float, jerk_weight: float,
+                        fix_start: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+                        ) -> tuple[Gait, JointPlan]:
         """The second preview stage (see the module docstring): the gait with its CoM path
         corrected for the multi-body ZMP, and its joints. ``ground_z_m`` is the soles' height;
-        the other arguments are the preview controller's (:func:`preview_gains`)."""
+        the other arguments are the preview controller's (:func:`preview_gains`).
+        ``fix_start``: the correction's position, velocity and acceleration (2, each) at the
+        gait's start (a pattern re-planned in motion continues its correction; None: at
+        rest at zero)."""
         plan = self.solve(gait)
         error = multibody_zmp(self, plan, ground_z_m, gait.period_s) - gait.zmp_ref_m
         # the ends hold still; their one-sided differences are not motion (and a step in the
@@ -167,7 +172,8 @@ class WalkingBody:
         error[-END_PERIODS:] = 0.0
         gains = preview_gains(gait.period_s, gait.com_height_m, preview_s, zmp_weight,
                               jerk_weight)
-        fix = com_from_zmp(-error, gains, np.zeros(2))
+        fix = (com_from_zmp(-error, gains, np.zeros(2)) if fix_start is None else
+               com_from_zmp(-error, gains, fix_start[0], (fix_start[1], fix_start[2])))
         com = gait.com
         corrected = replace(gait, com=CoMPath(
             com.com_m + fix.com_m, com.com_velocity_m_s + fix.com_velocity_m_s,

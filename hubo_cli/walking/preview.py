@@ -113,11 +113,14 @@ class CoMPath:
 
 
 def com_from_zmp(zmp_ref_m: np.ndarray, gains: PreviewGains,
-                 com_start_m: np.ndarray | None = None) -> CoMPath:
+                 com_start_m: np.ndarray | None = None,
+                 com_motion_start: tuple[np.ndarray, np.ndarray] | None = None) -> CoMPath:
     """The CoM path whose ZMP follows ``zmp_ref_m`` (n x 2, m), one sample per period.
 
     The reference past its end is held at its last value (the robot stands there). The CoM
-    starts at rest at ``com_start_m`` (2,) (default: the first reference point).
+    starts at ``com_start_m`` (2,) (default: the first reference point), at rest unless
+    ``com_motion_start`` gives its velocity and acceleration (2, each; a pattern re-planned in
+    motion continues from its own state).
     """
     ref = np.asarray(zmp_ref_m, dtype=float)
     if ref.ndim != 2 or ref.shape[1] != 2 or len(ref) == 0 or not np.all(np.isfinite(ref)):
@@ -126,6 +129,8 @@ def com_from_zmp(zmp_ref_m: np.ndarray, gains: PreviewGains,
     padded = np.vstack([ref, np.repeat(ref[-1:], n_preview, axis=0)])
     x = np.zeros((3, 2))  # rows: c, c', c''; columns: x, y
     x[0] = ref[0] if com_start_m is None else np.asarray(com_start_m, dtype=float)
+    if com_motion_start is not None:
+        x[1], x[2] = (np.asarray(v, dtype=float) for v in com_motion_start)
     error_sum = np.zeros(2)
     com, velocity, acceleration, zmp = (np.empty((n, 2)) for _ in range(4))
     A, B, C = gains.A, gains.B, gains.C

@@ -2,9 +2,27 @@
 period, then sends the pattern's joints one period at a time and measures what the robot did.
 
 It acts on the estimation layer's keys (:mod:`hubo_cli.estimation.keys`: the soles' and the
-torso's poses, contact, compensated wrenches, CoM, ZMP), never on the simulator's frames, so it
-walks on any driver; it tells the capture-point monitor the support it plans
-(:data:`~hubo_cli.control.phase.SUPPORT_PLAN`) through the store."""
+torso's poses, contact, compensated wrenches, CoM, ZMP, capture point), never on the
+simulator's frames, so it walks on any driver; it tells the capture-point monitor the support it
+plans (:data:`~hubo_cli.control.phase.SUPPORT_PLAN`) through the store.
+
+Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
+
+* ``walk``: the pattern. While a foot swings (up to CP_WINDOW of its single support), the
+  estimated capture point's error from the pattern's beyond a margin, as it will have grown by
+  the landing (exp(omega t), at most CP_GAIN_MAX), moves that landing and every later footstep
+  (:func:`~hubo_cli.walking.replan.shifted_landing`: hrpsys AutoBalancer's footstep
+  modification, within step limits, never across the stance leg); the pattern is re-planned
+  from that period on (:func:`~hubo_cli.walking.replan.pattern_from`).
+* ``stopping``: entered when the soft stopper has latched (its mode, the previous period's
+  :data:`~hubo_cli.control.keys.STOP_MODE`, is no longer ``release``): the step in progress is
+  finished (the swing foot lands; before the first step, none is taken) into a double-support
+  stance, the CoM comes to rest between the feet over ``settle_s``. Every period the walk tells
+  the stopper that it stops itself so (:data:`~hubo_cli.control.phase.PHASE_STOP`), and the
+  stopper passes this motion through instead of reverting it.
+* ``stood``: the stance is reached; the stopper holds it; the run ends STOOD_S later. A
+  release does not resume the walk.
+"""
 
 from __future__ import annotations
 
@@ -16,12 +34,15 @@ import numpy as np
 import pinocchio as pin
 
 from hubo_cli.control.capture_point import convex_hull, outside_distance
+from hubo_cli.control.keys import STOP_MODE
 from hubo_cli.control.lip_feedback import LipFeedback
-from hubo_cli.control.phase import SUPPORT_PLAN, SupportPlan
+from hubo_cli.control.phase import PHASE_STOP, SUPPORT_PLAN, PhaseStop, SupportPlan
 from hubo_cli.control.target import Target, TargetOutput
 from hubo_cli.control.wrench_distribution import Contact, WrenchDistributor
 from hubo_cli.dataflow import Store
+from hubo_cli.errors import InputError
 from hubo_cli.estimation.keys import (
+    CAPTURE_POINT_WORLD,
     COM_VELOCITY_WORLD,
     COM_WORLD,
     CONTACT,
@@ -36,7 +57,7 @@ from hubo_cli.kinematics.dh import JIT, TRUE
 from hubo_cli.model import RobotModel
 from hubo_cli.posture import check_stands_in
 from hubo_cli.scene import SceneActions
-from hubo_cli.state import ANKLE_SENSORS, RobotState
+from hubo_cli.state import ANKLE_SENSORS, GRAVITY_M_S2, RobotState
 from hubo_cli.walking.body import SIDE_LEG, JointPlan, WalkingBody, pose_of_row
 from hubo_cli.walking.footsteps import (
     Footstep,
@@ -47,6 +68,7 @@ from hubo_cli.walking.footsteps import (
 )
 from hubo_cli.walking.gait import Gait, make_gait
 from hubo_cli.walking.params import WalkingParams
+from hubo_cli.walking.replan import CP_MARGIN_M, pattern_from, shift_steps, shifted_landing
 from hubo_cli.walking.stabilizer import (
     LipStabilizer,
     SoleDamper,
@@ -69,6 +91,15 @@ LEG_CAPPED_RAD = 1e-3  # reaches it: each hip yaw stands at its limit, 0, while 
                        # after a few steps) cap it; taking only exact solutions, the correction
                        # stayed zero from the first capped period on while the offset grew
 SIDES = ("right", "left")  # the estimate's order of the feet (and of ANKLE_SENSORS)
+WALK_PHASES = ("walk", "stopping", "stood")
+STOOD_S = 1.0          # [chosen] a stopped walk holds its stance this long, then ends
+STOP_SPARE_S = 1.0     # [chosen] the stopper's deadline: the stop's pattern and this much
+CP_WINDOW = 0.75       # [chosen] a landing moves only over this first part of its swing
+CP_REPLAN_M = 0.02     # [chosen] a landing moves again once its goal changed by this much
+CP_GAIN_MAX = 1.0      # [chosen] the error's growth by the landing counted at most this much
+                       # (exp(omega t) is 17 at a swing's start: a 1 cm error of the estimate's
+                       # capture point moved the landing by 17 cm; 3x stepped too far back
+                       # after a backward push, and the robot fell forward)
 
 
 def estimated_feet(store: Store) -> dict[str, Footstep]:
@@ -236,8 +267,9 @@ class WalkTarget(Target):
 
     name = "walk"
     reads = (T_WORLD_SOLES, T_WORLD_TORSO, CONTACT, WRENCHES, COM_WORLD, COM_VELOCITY_WORLD,
-             ZMP_WORLD)
-    writes = (SUPPORT_PLAN,)
+             ZMP_WORLD, CAPTURE_POINT_WORLD)
+    writes = (SUPPORT_PLAN, PHASE_STOP)
+    previous = (STOP_MODE,)
     log_columns = ("walk.zmp_ref_x_m", "walk.zmp_ref_y_m", "walk.com_ref_x_m",
                    "walk.com_ref_y_m", "walk.zmp_x_m", "walk.zmp_y_m",
                    "walk.contact_zmp_outside_m", "walk.step", "walk.tilt_deg",
@@ -246,6 +278,8 @@ class WalkTarget(Target):
                    "walk.left_cop_m", "walk.right_angle_ref_rad", "walk.left_angle_ref_rad",
                    "walk.right_angle_rad", "walk.left_angle_rad",
                    "walk.zmp_command_x_m", "walk.zmp_command_y_m",
+                   "walk.phase_code", "walk.cp_error_x_m", "walk.cp_error_y_m",
+                   "walk.cp_shift_x_m", "walk.cp_shift_y_m",
                    "walk.offset_x_m", "walk.offset_y_m", "walk.right_lift_m", "walk.left_lift_m",
                    "walk.right_sole_roll_rad", "walk.right_sole_pitch_rad",
                    "walk.left_sole_roll_rad", "walk.left_sole_pitch_rad")
@@ -284,6 +318,13 @@ class WalkTarget(Target):
         self.last_step_end_s = 0.0
         self.body: WalkingBody | None = None
         self.stabilizer = stabilizer
+        self.phase = "walk"
+        self.stopped_s: float | None = None  # when the walk began to stop (loop time, s)
+        self.stop_failed = False  # the stop's pattern could not be made: the stopper brakes
+        self.shifts = 0  # landings moved after the capture point
+        self._shift = (-1, np.zeros(2), None)  # (step, shift applied, steps before it)
+        self._cp_error = np.full(2, math.nan)
+        self._omega = 1.0
         dt = model.control_period_s
         xs, ys = self.corners[:, 0], self.corners[:, 1]
         box = (float(xs.min()), float(xs.max()), float(ys.min()), float(ys.max()))
@@ -341,13 +382,34 @@ class WalkTarget(Target):
         sole_z = float(store[T_WORLD_SOLES][0, 2, 3])
         com = body.com_in_neck(q_rad)
         com_world = T_world_neck[:3, :3] @ com + T_world_neck[:3, 3]
-        self.gait = make_gait(feet["right"], feet["left"], steps, self.params,
-                              self.model.control_period_s, float(com_world[2]) - sole_z, sole_z,
-                              self.model.feet.forward_m, com_start_m=com_world[:2],
-                              toe_heel=self.toe_heel, sole=self.model.feet)
+        gait = make_gait(feet["right"], feet["left"], steps, self.params,
+                         self.model.control_period_s, float(com_world[2]) - sole_z, sole_z,
+                         self.model.feet.forward_m, com_start_m=com_world[:2],
+                         toe_heel=self.toe_heel, sole=self.model.feet)
+        # what the plan was made from, for re-planning it in motion (:meth:`_replan`)
+        self._basis = ((feet["right"], feet["left"]), list(steps), sole_z, com_world[:2].copy())
+        self._row0 = 0  # the pattern's first period on the plan's timeline
+        self._steps_before = len(self.steps)
+        self._omega = math.sqrt(GRAVITY_M_S2 / gait.com_height_m)
+        self._adopt(gait, body, t_s)
+        self.steps.extend(steps)
+
+    def _adopt(self, gait: Gait, body: WalkingBody, t_s: float, fix_start=None) -> None:
+        """Play ``gait`` from loop time ``t_s`` on: its joints (``body``, the multi-body
+        correction from ``fix_start``: see :meth:`WalkingBody.solve_corrected`) and rows.
+
+        Raises:
+            InputError: a sole the legs cannot reach.
+        """
         params = self.params
-        self.gait, self.plan = body.solve_corrected(self.gait, sole_z, params.preview_s,
-                                                    params.zmp_weight, params.jerk_weight)
+        sole_z = self._basis[2]
+        corrected, plan = body.solve_corrected(gait, sole_z, params.preview_s,
+                                               params.zmp_weight, params.jerk_weight, fix_start)
+        # the cart-table pattern and its multi-body correction, each continued by a re-plan
+        self._cart, com, cart = gait, corrected.com, gait.com
+        self._fix = (com.com_m - cart.com_m, com.com_velocity_m_s - cart.com_velocity_m_s,
+                     com.com_acceleration_m_s2 - cart.com_acceleration_m_s2)
+        self.gait, self.plan = corrected, plan
         self.body = body
         if self.lip_feedback:
             self.lip = LipStabilizer(LipFeedback.from_model(self.model, self.gait.com_height_m),
@@ -385,9 +447,115 @@ class WalkTarget(Target):
             [pose_of_row(row, gait.foot_pitch_rad(k)[column])
              for k, row in enumerate(gait.feet[side])])
             for column, side in enumerate(SIDES)], axis=1)  # n x 2 x 4 x 4
+        n = gait.n
+        index = np.arange(n)
+        # per period: the next period with both feet down (a swing's landing)
+        both = np.where(gait.support.all(axis=1), index, n)
+        self._landing = np.minimum.accumulate(both[::-1])[::-1].tolist()
         self.plan_start_s = t_s
         self.k = 0
-        self.steps.extend(steps)
+
+    def _replan(self, steps: list[Footstep], t_s: float, planted: int | None = None) -> None:
+        """Play the plan's pattern with ``steps`` (changed from the step in progress on) from
+        this period on (:func:`~hubo_cli.walking.replan.pattern_from`).
+
+        Raises:
+            InputError: a sole the legs cannot reach (the pattern playing is kept).
+        """
+        k = min(self.k, self.gait.n - 1)
+        start, _, sole_z, com_start = self._basis
+        gait = pattern_from(self._cart, k, self._row0 + k, start, steps, self.params, sole_z,
+                            self.model.feet.forward_m, com_start, planted)
+        body = WalkingBody(self.model, self.plan.q_rad[k], self.plan.T_world_neck[k],
+                           self.params.lean_rad_per_m)
+        self._adopt(gait, body, t_s, tuple(part[k] for part in self._fix))
+        self._row0 = self._row0 + k if steps else 0
+        self._basis = (start, list(steps), sole_z, com_start)
+        self.steps[self._steps_before:] = steps if planted is None else steps[:planted]
+
+    def _stop(self, t_s: float) -> None:
+        """The stopper latched: finish the step in progress into a double-support stance (none
+        before the first step; nothing changes once the last one is down)."""
+        self.phase, self.stopped_s, self.corrections_left = "stopping", t_s, 0
+        if self.toe_heel is not None:
+            # a re-plan makes a flat-foot pattern (walking/replan.py): a rolled sole would be
+            # turned flat at once, so a toe-heel walk's stop is the stopper's brake and hold
+            self.stop_failed = True
+            return
+        k = min(self.k, self.gait.n - 1)
+        step = self._rows["step"][k]
+        steps = self._basis[1]
+        shifted_step, applied, base = self._shift
+        # a landing the capture point moved keeps its shift (and the steps it shifted from)
+        self._shift = ((step, applied, base[:step + 1]) if shifted_step == step >= 0
+                       else (-1, np.zeros(2), None))
+        planted = None
+        if step >= 0:
+            kept = steps[:step + 1]
+            if all(self._rows["support"][k]) and step + 1 < len(steps):
+                # the step has landed and the weight moves onto it: the CoM turns back over
+                # that foot as walking would (a single support's time, the other foot down),
+                # then comes to rest between the feet (turned at once, it tipped the robot
+                # over the new stance foot's outer edge)
+                other = steps[step + 1].side
+                x, y, _, yaw = self._rows[other][k]
+                kept = [*kept, Footstep(other, x, y, yaw)]
+                planted = step + 1
+        elif any(i >= 0 for i in self._rows["step"][k:]):
+            kept = []  # the lead-in: no step yet
+        else:
+            return  # the last step is down: the pattern settles between the feet already
+        if len(kept) == len(steps) and planted is None:
+            return
+        try:
+            self._replan(kept, t_s, planted)
+        except InputError:
+            self.stop_failed = True  # the stopper brakes and holds instead
+
+    def _follow_capture_point(self, t_s: float) -> None:
+        """While a foot swings (the first CP_WINDOW of it): move its landing, and every later
+        footstep, by the estimated capture point's error from the pattern's beyond
+        CP_MARGIN_M, as it will have grown by the landing (see the module docstring)."""
+        k, rows, gait = self.k, self._rows, self.gait
+        if k >= gait.n or self.toe_heel is not None:  # no flat re-plan of a toe-heel walk
+            return
+        step, support = rows["step"][k], rows["support"][k]
+        self._cp_error = self._capture_point_error(k)
+        if step < 0 or (support[0] and support[1]):
+            return
+        period = gait.period_s
+        remaining_s = (self._landing[k] - k) * period
+        if remaining_s < (1.0 - CP_WINDOW) * self.params.single_support_s:
+            return
+        shifted_step, applied, base = self._shift
+        if shifted_step != step:
+            shifted_step, applied, base = step, np.zeros(2), list(self._basis[1])
+        excess = np.sign(self._cp_error) * np.maximum(np.abs(self._cp_error) - CP_MARGIN_M, 0.0)
+        wanted = excess * min(math.exp(self._omega * remaining_s), CP_GAIN_MAX)
+        self._shift = (shifted_step, applied, base)
+        if (not np.any(excess) and not np.any(applied)) or \
+                float(np.hypot(*(wanted - applied))) < CP_REPLAN_M:
+            return
+        stance_side = "right" if support[0] else "left"
+        x, y, _, yaw = rows[stance_side][k]
+        moved = shifted_landing(Footstep(stance_side, x, y, yaw), base[step], wanted,
+                                self.model.feet.width_m, self.params.step_width_m)
+        try:
+            self._replan(shift_steps(base, step, moved), t_s)
+        except InputError:
+            return  # out of the legs' reach: the pattern playing stands
+        self.shifts += 1
+        self._shift = (step, np.array([moved.x_m - base[step].x_m,
+                                       moved.y_m - base[step].y_m]), base)
+
+    def _capture_point_error(self, k: int) -> np.ndarray:
+        """The estimated capture point (seen from the more loaded planned support sole
+        standing where the pattern put it, as :meth:`_in_pattern`) less the pattern's
+        (its CoM plus velocity over omega): world x, y (m)."""
+        com = self.gait.com
+        planned = (np.asarray(com.com_m[k]) + np.asarray(com.com_velocity_m_s[k]) / self._omega)
+        return np.asarray(self._in_pattern(k, ankle_wrenches(self.store),
+                                           self.store[CAPTURE_POINT_WORLD])) - planned
 
     @property
     def walking_s(self) -> float:
@@ -404,11 +572,22 @@ class WalkTarget(Target):
         store = self.store
         if self.gait is None:
             self._start(t_s, state.q_rad)
-        elif self.k >= self.gait.n and not self.fell and self.corrections_left > 0 \
-                and not self.arrived():
+        elif self.phase == "walk" and store.get(STOP_MODE, "release") != "release":
+            self._stop(t_s)
+        elif self.phase == "walk" and self.k >= self.gait.n and not self.fell \
+                and self.corrections_left > 0 and not self.arrived():
             self.corrections_left -= 1
             self.last_step_end_s = self.walking_s
             self._plan(self.plan.q_rad[-1], t_s)
+        elif self.phase in ("walk", "stopping"):  # a stop's last step follows it too
+            self._follow_capture_point(t_s)
+        if self.phase == "stopping" and self.k >= self.gait.n:
+            self.phase = "stood"
+        # how this phase stops: finishing the step (settled once it stands), or by the
+        # stopper's own brake when the stop's pattern could not be made
+        store[PHASE_STOP] = None if self.stop_failed else PhaseStop(
+            self.phase == "stood",
+            self.params.step_s + self.params.settle_s + STOP_SPARE_S)
         gait, plan = self.gait, self.plan
         k = min(self.k, gait.n - 1)
         self.k += 1
@@ -440,10 +619,22 @@ class WalkTarget(Target):
                 "walk.step": float(rows["step"][k]), "walk.tilt_deg": tilt,
                 "planned_right_foot_contact_flag": float(support[0]),
                 "planned_left_foot_contact_flag": float(support[1]),
+                "walk.phase_code": float(WALK_PHASES.index(self.phase)),
+                "walk.cp_error_x_m": float(self._cp_error[0]),
+                "walk.cp_error_y_m": float(self._cp_error[1]),
+                "walk.cp_shift_x_m": float(self._shift[1][0]),
+                "walk.cp_shift_y_m": float(self._shift[1][1]),
                 **self._stabilizer_info(), **self._toe_heel_info(k, poses),
-                "done": self.fell or (self.k >= gait.n and (self.corrections_left == 0
-                                                             or self.arrived()))}
+                "done": self.fell or self._done(t_s)}
         return q, info
+
+    def _done(self, t_s: float) -> bool:
+        """The walk has ended: the pattern played (and no correction is due), or a stop's
+        stance held STOOD_S."""
+        if self.phase == "walk":
+            return self.k >= self.gait.n and (self.corrections_left == 0 or self.arrived())
+        return self.phase == "stood" and self.k >= self.gait.n + round(STOOD_S
+                                                                       / self.gait.period_s)
 
     def _toe_heel_info(self, k: int, poses: np.ndarray) -> dict[str, float]:
         """Fig. 4's quantities for the log: each sole's planned CoP along it (x from its

@@ -1,0 +1,117 @@
+"""Changing a walk's pattern while it runs: the step in progress finished into a stance (a stop),
+or the next footsteps moved after the capture point (a push).
+
+Both re-plan the pattern from the period they act in (:func:`pattern_from`): the footsteps
+(the plan's, changed from the step in progress on) make a new pattern on the same timeline
+(:func:`~hubo_cli.walking.gait.make_gait`, from the plan's start), and its rows from that
+period on replace the rest of the current one. The CoM continues from the current pattern's
+own state (position, velocity, acceleration) under the new ZMP reference (preview control), and
+a swing foot in the air moves from its old path onto the new one by its landing: nothing
+jumps.
+
+The footstep change after a push (:func:`shifted_landing`) is hrpsys AutoBalancer's
+(``modify_footsteps_for_recovery``): the capture point's error beyond a margin moves the
+landing of the step in progress, within step limits and never across the stance leg, and
+every later footstep by as much.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from hubo_cli.walking.footsteps import SIDE_SIGN, Footstep
+from hubo_cli.walking.gait import Gait, make_gait, smoothstep5
+from hubo_cli.walking.params import WalkingParams
+from hubo_cli.walking.preview import com_from_zmp, preview_gains
+
+CP_MARGIN_M = 0.02          # [chosen] a capture-point error within this moves no footstep
+CP_STEP_FORWARD_M = 0.25    # [chosen] a moved landing at most this far ahead of the stance foot
+CP_STEP_BACKWARD_M = 0.15   # [chosen] ... behind it
+CP_WIDTH_MAX_M = 0.36       # [chosen] ... and at most this far from it sideways
+CP_GAP_M = 0.04             # [chosen] the soles' inner edges stay this far apart: no crossing
+CP_MAX_SHIFT_M = 0.2        # [chosen] a shift longer than this is shortened to it
+
+
+def shifted_landing(stance: Footstep, planned: Footstep, shift_m: np.ndarray,
+                    sole_width_m: float, step_width_m: float) -> Footstep:
+    """The landing ``planned`` moved by ``shift_m`` (world x, y; m; at most CP_MAX_SHIFT_M
+    of it), seen from ``stance``: at most CP_STEP_FORWARD_M ahead and CP_STEP_BACKWARD_M
+    behind it, toward the swing side at least a sole's width and CP_GAP_M (the legs never
+    cross; the walking width ``step_width_m`` if that is less) and at most CP_WIDTH_MAX_M."""
+    shift = np.asarray(shift_m, dtype=float)
+    norm = float(np.hypot(*shift))
+    if norm > CP_MAX_SHIFT_M:
+        shift = shift * (CP_MAX_SHIFT_M / norm)
+    x, y = planned.x_m + shift[0], planned.y_m + shift[1]
+    c, s = math.cos(stance.yaw_rad), math.sin(stance.yaw_rad)
+    dx, dy = x - stance.x_m, y - stance.y_m
+    ahead = min(max(c * dx + s * dy, -CP_STEP_BACKWARD_M), CP_STEP_FORWARD_M)
+    across = SIDE_SIGN[planned.side] * (-s * dx + c * dy)  # toward the swing side: positive
+    across = min(max(across, min(sole_width_m + CP_GAP_M, step_width_m)), CP_WIDTH_MAX_M)
+    left = SIDE_SIGN[planned.side] * across
+    return Footstep(planned.side, stance.x_m + c * ahead - s * left,
+                    stance.y_m + s * ahead + c * left, planned.yaw_rad)
+
+
+def shift_steps(steps: list[Footstep], index: int, moved: Footstep) -> list[Footstep]:
+    """``steps`` with step ``index`` at ``moved`` and every later one moved by as much."""
+    dx, dy = moved.x_m - steps[index].x_m, moved.y_m - steps[index].y_m
+    return [*steps[:index], moved,
+            *(Footstep(s.side, s.x_m + dx, s.y_m + dy, s.yaw_rad) for s in steps[index + 1:])]
+
+
+def pattern_from(current: Gait, k: int, row: int, start: tuple[Footstep, Footstep],
+                 steps: list[Footstep], params: WalkingParams, sole_z_m: float,
+                 zmp_forward_m: float, com_start_m: np.ndarray,
+                 planted: int | None = None) -> Gait:
+    """The pattern of ``steps`` from period ``k`` of ``current`` on (its ``steps`` and
+    ``step_index`` the plan's: all of ``steps``, indices into them).
+
+    Args:
+        current: the pattern being played; ``k`` its period now, ``row`` that period's
+            index on the plan's timeline (the pattern :func:`make_gait` made from ``start``).
+        start: the feet (right, left) the plan started from.
+        steps: the plan's footsteps, changed from the step in progress on (none: stand
+            where the feet are, both down).
+        params, sole_z_m, zmp_forward_m, com_start_m: as the plan was made.
+        planted: the index of a step (onto its foot's own place) whose foot stays down: its
+            single support keeps both feet on the ground, the ZMP on the other foot (a
+            weight shift without a step).
+    """
+    period = current.period_s
+    if steps:
+        full = make_gait(*start, steps, params, period, current.com_height_m, sole_z_m,
+                         zmp_forward_m, com_start_m=com_start_m)
+    else:  # no step to take: stand where the feet are now, the ZMP between them
+        here = [Footstep(side, *current.feet[side][k][[0, 1, 3]].tolist())
+                for side in ("right", "left")]
+        full = make_gait(*here, [], params, period, current.com_height_m, sole_z_m,
+                         zmp_forward_m)
+        row = 0
+    row = min(row, full.n - 1)
+    feet = {side: rows[row:].copy() for side, rows in full.feet.items()}
+    support = full.support[row:].copy()
+    if planted is not None:
+        held = full.step_index[row:] == planted
+        place = feet[steps[planted].side]
+        place[held] = place[np.nonzero(held)[0][-1]]  # where it stands, down all along
+        support[held] = True
+    for column, side in enumerate(("right", "left")):
+        # a foot in the air moves from its old path onto the new one by its landing
+        down = np.nonzero(support[:, column])[0]
+        landing = int(down[0]) if len(down) else len(support)
+        old = current.feet[side][k:k + landing]
+        if landing > 0 and len(old) == landing:
+            blend = smoothstep5((np.arange(landing) + 1.0) / landing)[:, None]
+            feet[side][:landing] = old + blend * (feet[side][:landing] - old)
+    zmp_ref = full.zmp_ref_m[row:]
+    com = current.com
+    gains = preview_gains(period, current.com_height_m, params.preview_s, params.zmp_weight,
+                          params.jerk_weight)
+    path = com_from_zmp(zmp_ref, gains, com.com_m[k],
+                        (com.com_velocity_m_s[k], com.com_acceleration_m_s2[k]))
+    return replace(full, zmp_ref_m=zmp_ref, com=path, feet=feet, support=support,
+                   step_index=full.step_index[row:])

@@ -1,0 +1,95 @@
+"""Disturb simulated walks at random moments and count the falls (issue 37's measurements).
+
+    python tools/walk_disturbances.py stop --seeds 1-20 [--source operator|capture-point]
+    python tools/walk_disturbances.py push --seeds 1-20 --force 100 --directions left,right,backward
+
+Each seed draws a moment uniformly over the walk's steps (from the first step's lift-off to the
+last one's landing) and, for pushes, a direction from ``--directions``; the walk
+(``hubo walk --to DISTANCE 0 0`` through the full pipeline) then runs with the operator's stop
+(``stop``), with a 0.2 s push on the torso (``push``), or, ``stop --source capture-point``, with
+a push of ``--force`` (default 100 N, sideways) left to the capture-point monitor to stop it.
+One JSON line per run (seed, moment, direction, fell, stopped, stood, both feet down over the
+run's last 0.5 s, the soft stopper holding at the end, footstep changes, e-stop events, max
+tilt), then a summary line. Run folders go under ``--out``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from hubo_cli.control.estop import MODE_CODE
+from hubo_cli.control.log import load_log
+from hubo_cli.experiments.standing import PUSH_DIRECTIONS
+from hubo_cli.experiments.walk import Disturbance, walk
+from hubo_cli.model import load_model
+from hubo_cli.walking.params import walking_params
+
+
+def seeds_of(text: str) -> list[int]:
+    """``1-20`` or ``1,4,7``."""
+    if "-" in text:
+        first, last = (int(v) for v in text.split("-"))
+        return list(range(first, last + 1))
+    return [int(v) for v in text.split(",")]
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("kind", choices=("stop", "push"))
+    parser.add_argument("--seeds", default="1-20")
+    parser.add_argument("--distance", type=float, default=1.0, help="walk forward (m)")
+    parser.add_argument("--force", type=float, default=100.0, help="push (N), 0.2 s")
+    parser.add_argument("--directions", default="left,right,backward",
+                        help="push directions drawn from (forward, backward, left, right)")
+    parser.add_argument("--source", choices=("operator", "capture-point"), default="operator")
+    parser.add_argument("--out", default="/tmp/walk_disturbances")
+    args = parser.parse_args()
+    model = load_model()
+    params = walking_params(load_model(model.params_name, "walking"))
+    directions = args.directions.split(",")
+    # the steps of a walk of this length (as plan_footsteps gives them): from the first
+    # lift-off (after start_s and one double support) to the last landing
+    n_steps = 2 * int(np.ceil(args.distance / params.max_step_forward_m / 2 + 0.5))
+    first_s = params.start_s + params.double_support_s
+    last_s = first_s + n_steps * params.step_s - params.double_support_s
+    results = []
+    for seed in seeds_of(args.seeds):
+        rng = np.random.default_rng(seed)
+        at_s = float(rng.uniform(first_s, last_s))
+        direction = directions[int(rng.integers(len(directions)))]
+        if args.kind == "stop" and args.source == "operator":
+            events = [Disturbance(at_s, stop=True)]
+        else:
+            events = [Disturbance(at_s, args.force, PUSH_DIRECTIONS[direction])]
+        result = walk(model, (args.distance, 0.0, 0.0), out=Path(args.out) / f"{args.kind}-{seed}",
+                      disturbances=events)
+        summary = json.loads((result.run_dir / "summary.json").read_text())
+        log = load_log(result.run_dir / "log.parquet")
+        mode = np.asarray(log["estop_mode_code"], dtype=float)
+        rows = np.isfinite(mode)  # the loop's closing rows have no pipeline
+        down = np.column_stack([np.asarray(log[f"{side}_foot_contact_flag"], dtype=float)[rows]
+                                for side in ("right", "left")])[-100:]
+        row = {"seed": seed, "at_s": round(at_s, 3),
+               "direction": None if args.kind == "stop" and args.source == "operator"
+               else direction, "fell": result.fell, "stopped_s": result.stopped_s,
+               "stood": result.stood, "both_feet_down": bool(np.all(down == 1)),
+               "held": bool(mode[rows][-1] == MODE_CODE["hold"]), "shifts": result.shifts,
+               "estop_events": len(summary.get("estop_events", [])),
+               "max_torso_tilt_deg": summary.get("max_torso_tilt_deg"),
+               "final_error_mm": result.final_error_mm}
+        results.append(row)
+        print(json.dumps(row), flush=True)
+    falls = sum(r["fell"] for r in results)
+    print(json.dumps({"kind": args.kind, "source": args.source, "force_n": args.force,
+                      "runs": len(results), "falls": falls,
+                      "stood": sum(bool(r["stood"]) for r in results)}), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
