@@ -14,7 +14,7 @@ import pytest
 
 from hubo_cli.estimation.build import build_estimator
 from hubo_cli.input.operator_stream import StreamSettings
-from hubo_cli.teleop.stream_runs import replay_generated
+from hubo_cli.teleop.stream_runs import meets_targets, replay_generated
 
 # the seeds are drawn, not picked (a new draw is a new test of the same properties)
 SEEDS = np.random.default_rng(3434).integers(0, 2**31, 2).tolist()
@@ -91,3 +91,47 @@ def test_the_devices_clutch_holds_the_hand_and_recentres_without_a_jump(model):
     # no step: at most the operator's own motion in a period (0.05 m min-jerk in 1 s peaks at
     # 0.094 m/s, 0.8 mm per 1/120 s)
     assert np.max(np.abs(np.diff(x))) < 1e-3
+
+
+# Many short streams no one tuned on (drawn, not picked), followed by the teleop target and the
+# trajectory generator alone (stream_runs.follow_generated: about 0.7 s of CPU each): 50 at the
+# accuracy test's hand speed, 10 at the swing test's.
+MANY = np.random.default_rng(34).integers(0, 2**31, 60).tolist()
+MANY_SETS = {0.25: MANY[:50], 0.6: MANY[50:]}
+MANY_S = 1.5
+
+
+@pytest.fixture(scope="module")
+def many_streams():
+    from hubo_cli.teleop.stream_runs import follow_generated
+
+    return {speed: [follow_generated(seed, StreamSettings(duration_s=MANY_S,
+                                                          max_speed_m_s=speed))
+                    for seed in seeds] for speed, seeds in MANY_SETS.items()}
+
+
+def test_many_generated_streams_keep_the_limits_and_the_goals_path(many_streams):
+    """Every stream: no command beyond a joint limit, none not finite, no jump, no branch
+    change; the largest excursion and the position RMS over the reachable time within 1.5x the
+    worst measured (see MANY_BOUNDS)."""
+    for speed, runs in many_streams.items():
+        for run in runs:
+            assert run.ended == "done", run
+            assert run.finite and run.limit_excess_rad <= 1e-9, run
+            assert run.max_step_ratio <= 1.0 + 1e-6, run
+            for arm, figures in run.hands.items():
+                assert figures["branch_changes"] == 0, (arm, run)
+                for key, bound in MANY_BOUNDS[speed].items():
+                    assert (figures[key] or 0.0) <= bound, (key, arm, run)
+
+
+@pytest.mark.xfail(strict=True, reason="issue 34's accuracy targets are not met: the arms' "
+                   "0.8 rad/s^2 acceleration limit (see the report in docs/history/teleop.md)")
+def test_many_generated_streams_meet_issue_34s_accuracy_targets(many_streams):
+    """Issue 34: at hand speeds up to 0.25 m/s, over the time the goal is reachable, position
+    RMS <= 10 mm and orientation RMS <= 3 deg per hand per stream, excursion <= 15 mm; up to
+    0.6 m/s, excursion <= 15 mm."""
+    for run in many_streams[0.25]:
+        assert all(meets_targets(figures) for figures in run.hands.values()), run
+    for run in many_streams[0.6]:
+        assert all(figures["max_excursion_mm"] <= 15.0 for figures in run.hands.values()), run
