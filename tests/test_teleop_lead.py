@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hubo_cli.control.keys import ARM_TARGET_VELOCITY, TRACKER_STATES
+from hubo_cli.control.keys import ARM_TARGET_VELOCITY
 from hubo_cli.control.module import Cycle
 from hubo_cli.control.otg import TrajectoryGenerator
 from hubo_cli.dataflow import Store

@@ -20,6 +20,12 @@ Without goals (or when that search ends inside the band), the target is pushed b
 closest pair's gradient with respect to the arms' joints (a few Newton steps, finite
 differences), and if that fails goes as far as it can along its step from the last target
 (bisection). A target never goes deeper into the band than the last one was.
+
+Distances are the checker's :meth:`~hubo_cli.control.collision.SelfCollisionChecker.check_near`
+(exact near the room, Lipschitz lower bounds for the pairs far from it, which it does not
+compute). An arm whose clear search came to rest (no step left that helps) is not searched
+again while its goal stays within ``STILL_GOAL_M`` and ``STILL_GOAL_RAD`` of that goal and its
+last target is still clear: the search would find the same pose.
 """
 
 from __future__ import annotations
@@ -38,7 +44,7 @@ SEARCH_STEPS = 3             # the clear search's steps per call (it goes on the
 ORIENTATION_WEIGHT_M_PER_RAD = 0.01  # the clear search's: position first (1 deg = 0.17 mm)
 AIM_M = 0.001                # its steps aim this far beyond the room (the body's curvature)
 STILL_GOAL_M = 0.0005       # a goal this close (and STILL_GOAL_RAD) to the one a clear search
-STILL_GOAL_RAD = np.radians(0.5)  # came to rest at is not searched again (see keep)
+STILL_GOAL_RAD = np.radians(0.5)  # came to rest at is not searched again
 NEAR_M = 0.05  # distances are exact up to the room and this much more, lower bounds beyond
 # (the checker's Lipschitz bounds skip the pairs that cannot be that close)
 
