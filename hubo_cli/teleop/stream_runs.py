@@ -2,7 +2,8 @@
 what the robot did: per hand the errors, the excursion and the share of time the goal was
 reachable; for the whole robot whether a command left the joint limits, was not finite, or
 jumped (a joint step beyond its speed limit for one period). Used by the bench
-(:mod:`hubo_cli.bench.teleop`) and the property test over generated streams.
+(:mod:`hubo_cli.bench.teleop`) and the property tests over generated streams
+(:func:`follow_generated` for many short ones).
 """
 
 from __future__ import annotations
@@ -133,8 +134,10 @@ def follow_generated(seed: int, settings: StreamSettings) -> StreamRun:
     """The stream of ``seed`` followed by the teleop target and the trajectory generator alone
     (free mode, ideal driver, the arms starting at the ready pose; no balancer, stopper,
     collision detector, log or run folder): the same figures as :func:`replay_generated` at a
-    fraction of its cost, for properties over many streams. The safety pipeline's modules only
-    ever take over from the generator, so what the generator commands is what is judged."""
+    fraction of its cost (a 1.5 s stream about 0.8 s of CPU), for properties over many
+    streams. The figures are the target's and the generator's own: the safety modules after it
+    hold, brake or clamp what it commands (on an 8 s stream, seed 2: 13.5 / 24.8 mm reachable
+    position RMS here, 13.5 / 25.3 mm through the whole session)."""
     from hubo_cli.control.loop import ControlLoop
     from hubo_cli.control.otg import TrajectoryGenerator
     from hubo_cli.drivers.registry import make_driver
