@@ -6,7 +6,9 @@ limit, none not finite, no jump (a joint step beyond its speed limit in one peri
 largest excursion within 1.5x the worst measured over the bench's streams. It does not assert
 the issue's accuracy targets (position RMS <= 10 mm, orientation RMS <= 3 deg over the time the
 goal is reachable, excursion <= 15 mm): they are not met today (``make bench BENCH=teleop``
-prints the distribution). Few short streams here; the bench replays more.
+prints the distribution). Few short streams through the whole session here; the bench replays
+more. Many shorter ones go through the teleop target and the trajectory generator alone
+(``stream_runs.follow_generated``), with the issue's targets as a strict expected failure.
 """
 
 import numpy as np
@@ -14,7 +16,7 @@ import pytest
 
 from hubo_cli.estimation.build import build_estimator
 from hubo_cli.input.operator_stream import StreamSettings
-from hubo_cli.teleop.stream_runs import replay_generated
+from hubo_cli.teleop.stream_runs import meets_targets, replay_generated
 
 # the seeds are drawn, not picked (a new draw is a new test of the same properties)
 SEEDS = np.random.default_rng(3434).integers(0, 2**31, 2).tolist()
@@ -95,3 +97,54 @@ def test_the_devices_clutch_holds_the_hand_and_recentres_without_a_jump(model):
     # no step: at most the operator's own motion in a period (0.05 m min-jerk in 1 s peaks at
     # 0.094 m/s, 0.8 mm per 1/120 s)
     assert np.max(np.abs(np.diff(x))) < 1e-3
+
+
+# Many short streams no one tuned on (drawn, not picked), followed by the teleop target and the
+# trajectory generator alone (stream_runs.follow_generated: about 0.7 s of CPU each): 50 at the
+# accuracy test's hand speed, 10 at the swing test's.
+MANY = np.random.default_rng(34).integers(0, 2**31, 60).tolist()
+MANY_SETS = {0.25: MANY[:50], 0.6: MANY[50:]}
+MANY_S = 1.5
+# The worst over each set (one run here, ideal driver; the same seeds on main before the
+# feed-forward: 30.3 / 44.9 mm and 17.8 / 30.8 mm): reachable position RMS 30.7 mm (0.25 m/s)
+# and 45.3 mm (0.6 m/s), largest excursion 14.0 and 28.6 mm. The bounds are 1.5x those. (The
+# medians: 7.4 / 7.0 mm RMS per hand, 2.2 / 2.7 deg, at 0.25 m/s; 46.7 s of CPU for the 60.)
+MANY_BOUNDS = {0.25: {"reachable_position_rms_mm": 1.5 * 30.7, "max_excursion_mm": 1.5 * 14.0},
+               0.6: {"reachable_position_rms_mm": 1.5 * 45.3, "max_excursion_mm": 1.5 * 28.6}}
+
+
+@pytest.fixture(scope="module")
+def many_streams():
+    from hubo_cli.teleop.stream_runs import follow_generated
+
+    return {speed: [follow_generated(seed, StreamSettings(duration_s=MANY_S,
+                                                          max_speed_m_s=speed))
+                    for seed in seeds] for speed, seeds in MANY_SETS.items()}
+
+
+def test_many_generated_streams_keep_the_limits_and_the_goals_path(many_streams):
+    """Every stream: no command beyond a joint limit, none not finite, no jump, no branch
+    change; the largest excursion and the position RMS over the reachable time within 1.5x the
+    worst measured (see MANY_BOUNDS)."""
+    for speed, runs in many_streams.items():
+        for run in runs:
+            assert run.ended == "done", run
+            assert run.finite and run.limit_excess_rad <= 1e-9, run
+            assert run.max_step_ratio <= 1.0 + 1e-6, run
+            for arm, figures in run.hands.items():
+                assert figures["branch_changes"] == 0, (arm, run)
+                for key, bound in MANY_BOUNDS[speed].items():
+                    assert (figures[key] or 0.0) <= bound, (key, arm, run)
+
+
+@pytest.mark.xfail(strict=True, reason="issue 34's accuracy targets are not met (worst stream "
+                   "30.7 mm, 19.6 deg RMS; docs/history/teleop.md, 'Following generated "
+                   "streams')")
+def test_many_generated_streams_meet_issue_34s_accuracy_targets(many_streams):
+    """Issue 34: at hand speeds up to 0.25 m/s, over the time the goal is reachable, position
+    RMS <= 10 mm and orientation RMS <= 3 deg per hand per stream, excursion <= 15 mm; up to
+    0.6 m/s, excursion <= 15 mm."""
+    for run in many_streams[0.25]:
+        assert all(meets_targets(figures) for figures in run.hands.values()), run
+    for run in many_streams[0.6]:
+        assert all(figures["max_excursion_mm"] <= 15.0 for figures in run.hands.values()), run

@@ -14,7 +14,19 @@ of issue 34's targets (position RMS <= 10 mm and orientation RMS <= 3 deg over t
 time) on that run's goals. It prints the floor's position and orientation RMS, the certificate,
 and what the run did.
 
-    python tools/teleop_lag_floor.py RUN_DIR [--accel 0.8] [--window 3] [--step 0.05]
+That floor knows the operator's future. The *onset floor* does not: where the goal has rested
+(``REST_S`` with its joints within ``REST_RAD``) and starts to move, a controller that holds
+the hand on the resting goal moves its joints at most at the resting goal's speed, taken
+generously as u = 2 REST_RAD / REST_S, so each joint is at most min(u t + a t^2 / 2, v t)
+from where it rested t seconds later, whatever it knows; the hand's error
+then is at least the distance (linearised about the goal's joints) from the goal to the poses
+of that box of joints. Counted over the stroke that follows each onset (until the goal rests
+again, ``ONSET_HORIZON_S`` at most) and zero elsewhere, it is a floor for any controller that
+keeps the hand on the goal while the goal rests and cannot know when the operator will move.
+
+    python tools/teleop_lag_floor.py RUN_DIR [--accel 0.8] [--window 3] [--step 0.05] [--onset]
+
+(``--onset``: the onset floor alone, in seconds instead of minutes.)
 """
 
 from __future__ import annotations
@@ -83,6 +95,45 @@ def floor_errors(t_s, q_target, weight, accel_rad_s2, window_s, step_s, limb, w_
     return errors, rot_errors
 
 
+REST_S = 0.3           # the goal rests: its joints moved less than REST_RAD over this long
+REST_RAD = 0.02        # (the generated operator's slow wander moves a resting hand 1-3 mm)
+ONSET_HORIZON_S = 1.5  # an onset's stroke is counted this long at most
+
+
+def onset_floor_errors(t_s, q_target, weight, accel_rad_s2, velocity_rad_s, limb):
+    """Per sample (0 outside the strokes that follow a rest, NaN where not reachable), the onset
+    floor's linearised position error (m) and rotation error (rad) (see the module
+    docstring)."""
+    base, _, offset, alpha, a, d, end, _ = limb.chain
+    T, J = np.empty((4, 4)), np.empty((6, 6))
+    pos, rot = np.zeros(len(t_s)), np.zeros(len(t_s))
+    back = np.searchsorted(t_s, t_s - REST_S)
+    moved = np.array([np.max(np.abs(q_target[b:i + 1] - q_target[i]))
+                      for i, b in enumerate(back)])
+    resting = moved < REST_RAD
+    i = 0
+    while i < len(t_s) - 1:
+        if not (resting[i] and not resting[i + 1]):
+            i += 1
+            continue
+        t0, q0 = t_s[i], q_target[i]
+        k = i + 1
+        while k < len(t_s) and not resting[k] and t_s[k] - t0 <= ONSET_HORIZON_S:
+            if weight[k]:
+                dt = t_s[k] - t0
+                box = np.minimum(2 * REST_RAD / REST_S * dt + 0.5 * accel_rad_s2 * dt * dt,
+                                 velocity_rad_s * dt)
+                jacobian(np.ascontiguousarray(q_target[k]), base, offset, alpha, a, d, end, T, J)
+                delta = q_target[k] - q0  # the joints' way the box must cover
+                for rows, out in ((J[:3], pos), (J[3:], rot)):
+                    x = lsq_linear(rows, rows @ delta, bounds=(-box, box)).x
+                    out[k] = float(np.linalg.norm(rows @ (x - delta)))
+            k += 1
+        i = k
+    pos[~weight], rot[~weight] = np.nan, np.nan
+    return pos, rot
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("run_dir", type=Path)
@@ -93,6 +144,7 @@ def main() -> None:
     parser.add_argument("--weight", type=float, default=TARGET_POSITION_M / TARGET_ROTATION_RAD,
                         help="metres of position error one radian is worth (default 10 mm / "
                              "3 deg)")
+    parser.add_argument("--onset", action="store_true", help="the onset floor alone")
     args = parser.parse_args()
     log = pl.read_parquet(args.run_dir / "log.parquet").filter(pl.col("phase_code") == 1)
     t = log["t_s"].to_numpy()
@@ -105,10 +157,20 @@ def main() -> None:
         q = np.column_stack([log[f"target_{j}_rad"].to_numpy() for j in joints])
         reachable = log[f"reach_limit_m_{key}"].to_numpy() == 0.0
         accel = args.accel or float(model.limb(arm).acceleration_rad_s2[0])
-        pos, rot = floor_errors(t, q, reachable, accel, args.window, args.step, limb,
-                                args.weight)
         error = log[f"error_m_{key}"].to_numpy()[reachable]
         rot_run = log[f"rot_error_rad_{key}"].to_numpy()[reachable]
+        vmax = float(model.limb(arm).velocity_rad_s[0])
+        pos, rot = onset_floor_errors(t, q, reachable, accel, vmax, limb)
+        print(f"{arm}: over the reachable time ({reachable.mean():.0%}) the run "
+              f"{1e3 * np.sqrt(np.mean(error**2)):.1f} mm / "
+              f"{np.degrees(np.sqrt(np.mean(rot_run**2))):.1f} deg RMS; the onset floor (no "
+              f"knowledge of when the operator moves) at {accel:g} rad/s^2 "
+              f"{1e3 * np.sqrt(np.nanmean(pos**2)):.1f} mm / "
+              f"{np.degrees(np.sqrt(np.nanmean(rot**2))):.1f} deg RMS")
+        if args.onset:
+            continue
+        pos, rot = floor_errors(t, q, reachable, accel, args.window, args.step, limb,
+                                args.weight)
         cost = float(np.nanmean(pos**2 + (args.weight * rot) ** 2))
         bound = TARGET_POSITION_M**2 + (args.weight * TARGET_ROTATION_RAD) ** 2
         print(f"{arm}: goal reachable {reachable.mean():.0%} of the time; over it the run "

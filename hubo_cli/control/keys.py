@@ -36,3 +36,8 @@ TRACKER_STATES = Key(
     "group -> TrackerState (limits, q_rad, v_rad_s, a_rad_s2) of the trajectory generator's "
     "trackers after its update (groups limbs); read by the teleoperation target as the "
     "previous period's (previous)")
+ARM_TARGET_VELOCITY = Key(
+    "arm_target_velocity", dict,
+    "arm -> the velocity (rad/s, its joints) the trajectory generator's tracker of that arm "
+    "arrives at its target with this period (the goal's own, feed-forward; absent: zero); "
+    "written by the teleoperation target, followed by otg (groups limbs)")

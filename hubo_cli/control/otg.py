@@ -13,7 +13,9 @@ ruckig error in any group brakes every group to rest.
 
 With ``groups="limbs"`` it writes its trackers' states every period (the store's
 :data:`~hubo_cli.control.keys.TRACKER_STATES`) and follows the synchronization a target asks
-of each arm's tracker (:data:`~hubo_cli.control.keys.ARM_SYNC`), applied before it tracks.
+of each arm's tracker (:data:`~hubo_cli.control.keys.ARM_SYNC`), applied before it tracks, and
+the velocity the target asks an arm to arrive with (:data:`~hubo_cli.control.keys.
+ARM_TARGET_VELOCITY`: the goal's own, so the arm does not plan to stop at a moving goal).
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
-from hubo_cli.control.keys import ARM_SYNC, TRACKER_STATES
+from hubo_cli.control.keys import ARM_SYNC, ARM_TARGET_VELOCITY, TRACKER_STATES
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError
@@ -171,7 +173,7 @@ class TrajectoryGenerator(Module):
                          for i in self._index]
         self._single = len(self.trackers) == 1
         if groups == "limbs":
-            self.writes, self.follows = (TRACKER_STATES,), (ARM_SYNC,)
+            self.writes, self.follows = (TRACKER_STATES,), (ARM_SYNC, ARM_TARGET_VELOCITY)
         self._q = np.zeros(self.limits.size)
         self._fault = False
         self.errors = 0
@@ -210,14 +212,20 @@ class TrajectoryGenerator(Module):
             self._q[index] = tracker.brake()
         return self._q.copy()
 
-    def _track(self, target: np.ndarray) -> tuple[np.ndarray, bool]:
-        """One period toward ``target``; returns (sample, whether any group's ruckig failed)."""
+    def _track(self, target: np.ndarray, velocities: dict | None = None
+               ) -> tuple[np.ndarray, bool]:
+        """One period toward ``target`` (with ``velocities``: group -> the velocity that group
+        arrives with, rad/s; default zero); returns (sample, whether any group's ruckig
+        failed)."""
         if self._single:
             tracker = self.trackers[0]
             return tracker.track(target), bool(tracker.error)
         failed = False
-        for index, tracker in zip(self._index, self.trackers, strict=True):
-            self._q[index] = tracker.track(target[index])  # a failing group brakes already
+        velocities = velocities or {}
+        for name, index, tracker in zip(self.group_names, self._index, self.trackers,
+                                        strict=True):
+            self._q[index] = tracker.track(target[index],  # a failing group brakes already
+                                           target_v_rad_s=velocities.get(name))
             failed = failed or bool(tracker.error)
         return self._q.copy(), failed
 
@@ -226,13 +234,14 @@ class TrajectoryGenerator(Module):
             return self._update(q_rad, cycle)
         for group, synchronization in (cycle.store.get(ARM_SYNC) or {}).items():
             self.synchronize(synchronization, groups=(group,))
-        q = self._update(q_rad, cycle)
+        q = self._update(q_rad, cycle, cycle.store.get(ARM_TARGET_VELOCITY))
         cycle.store[TRACKER_STATES] = {
             name: TrackerState(t.limits, self.dt_s, t.q.copy(), t.v.copy(), t.a.copy())
             for name, t in zip(self.group_names, self.trackers, strict=True)}
         return q
 
-    def _update(self, q_rad: np.ndarray, cycle: Cycle) -> np.ndarray:
+    def _update(self, q_rad: np.ndarray, cycle: Cycle, velocities: dict | None = None
+                ) -> np.ndarray:
         stale = self.input.take(q_rad, cycle)
         cycle.info["otg_error_flag"] = 0.0
         if stale:
@@ -243,7 +252,7 @@ class TrajectoryGenerator(Module):
             if self.at_rest:
                 self._fault = False
             return q
-        q, failed = self._track(self.input.target)
+        q, failed = self._track(self.input.target, velocities)
         if failed:
             self.errors += 1
             self._fault = True

@@ -25,7 +25,7 @@ from ruckig import (
 )
 
 from hubo_cli.errors import ConfigError
-from hubo_cli.motion.limits import JointLimits
+from hubo_cli.motion.limits import JointLimits, all_finite
 
 SYNCHRONIZATIONS = {"phase": Synchronization.Phase, "none": Synchronization.No}
 
@@ -95,11 +95,13 @@ class JointTracker:
         if self._mode == "position":
             self._inp.synchronization = self._sync
 
-    def preview(self, target_rad: np.ndarray, synchronization: str, samples: int) -> np.ndarray:
+    def preview(self, target_rad: np.ndarray, synchronization: str, samples: int,
+                target_v_rad_s: np.ndarray | None = None) -> np.ndarray:
         """The positions ``track`` would pass through on its way to ``target_rad`` (a fixed
-        target, target velocity 0) from the current state with this synchronization, at
-        ``samples`` evenly spaced times from now to arrival (samples x n, rad). Nothing of the
-        tracker changes. On a ruckig error: the current position alone (1 x n)."""
+        target, arriving with ``target_v_rad_s``, default 0, clipped as ``track`` clips it)
+        from the current state with this synchronization, at ``samples`` evenly spaced times
+        from now to arrival (samples x n, rad). Nothing of the tracker changes. On a ruckig
+        error: the current position alone (1 x n)."""
         if synchronization not in SYNCHRONIZATIONS:
             raise ConfigError(f"unknown synchronization {synchronization!r}",
                               hint=f"use one of {', '.join(SYNCHRONIZATIONS)}")
@@ -114,7 +116,9 @@ class JointTracker:
         inp.current_position = self.q
         inp.current_velocity = self.v
         inp.current_acceleration = self.a
-        inp.target_position = target_rad
+        inp.target_position = np.asarray(target_rad, dtype=float).tolist()  # a list: faster
+        inp.target_velocity = (self._zeros if target_v_rad_s is None
+                               else self._target_velocity(target_v_rad_s))
         inp.synchronization = SYNCHRONIZATIONS[synchronization]
         try:
             result = otg.calculate(inp, trajectory)
@@ -122,8 +126,9 @@ class JointTracker:
             return self.q[None, :].copy()
         if result not in (Result.Working, Result.Finished):
             return self.q[None, :].copy()
-        times = np.linspace(0.0, trajectory.duration, max(int(samples), 2))
-        return np.array([trajectory.at_time(t)[0] for t in times])
+        k = max(int(samples), 2)
+        duration = trajectory.duration
+        return np.array([trajectory.at_time(duration * i / (k - 1))[0] for i in range(k)])
 
     def _set_current(self) -> None:
         if self._synced:  # the last sample, passed on inside ruckig (the same numbers)
@@ -177,8 +182,7 @@ class JointTracker:
                 inp.target_velocity = self._zeros
                 self._target_v_zero = True
         else:
-            vmax = 0.9 * self.limits.velocity_rad_s
-            inp.target_velocity = np.clip(np.nan_to_num(target_v_rad_s), -vmax, vmax)
+            inp.target_velocity = self._target_velocity(target_v_rad_s)
             self._target_v_zero = False
         inp.minimum_duration = min_duration_s
         if self._run():
@@ -188,6 +192,13 @@ class JointTracker:
         out = self.brake()
         self.error = message
         return out
+
+    def _target_velocity(self, target_v_rad_s: np.ndarray) -> np.ndarray:
+        v = np.asarray(target_v_rad_s, dtype=float)
+        if not all_finite(v):
+            v = np.nan_to_num(v)
+        vmax = 0.9 * self.limits.velocity_rad_s
+        return np.clip(v, -vmax, vmax)
 
     def brake(self) -> np.ndarray:
         """Advance one period of a velocity-interface stop (target velocity 0); returns the

@@ -20,6 +20,12 @@ Without goals (or when that search ends inside the band), the target is pushed b
 closest pair's gradient with respect to the arms' joints (a few Newton steps, finite
 differences), and if that fails goes as far as it can along its step from the last target
 (bisection). A target never goes deeper into the band than the last one was.
+
+Distances are the checker's :meth:`~hubo_cli.control.collision.SelfCollisionChecker.check_near`
+(exact near the room, Lipschitz lower bounds for the pairs far from it, which it does not
+compute). An arm whose clear search came to rest (no step left that helps) is not searched
+again while its goal stays within ``STILL_GOAL_M`` and ``STILL_GOAL_RAD`` of that goal and its
+last target is still clear: the search would find the same pose.
 """
 
 from __future__ import annotations
@@ -37,6 +43,10 @@ DIFF_RAD = 1e-4              # finite-difference step of the distance's gradient
 SEARCH_STEPS = 3             # the clear search's steps per call (it goes on the next period)
 ORIENTATION_WEIGHT_M_PER_RAD = 0.01  # the clear search's: position first (1 deg = 0.17 mm)
 AIM_M = 0.001                # its steps aim this far beyond the room (the body's curvature)
+STILL_GOAL_M = 0.0005       # a goal this close (and STILL_GOAL_RAD) to the one a clear search
+STILL_GOAL_RAD = np.radians(0.5)  # came to rest at is not searched again
+NEAR_M = 0.05  # distances are exact up to the room and this much more, lower bounds beyond
+# (the checker's Lipschitz bounds skip the pairs that cannot be that close)
 
 
 class CollisionRoom:
@@ -50,7 +60,8 @@ class CollisionRoom:
 
     Attributes:
         pushed_periods: per arm, how many calls moved its target out of the band.
-        last_clearance_m: the closest pair's distance at the last returned target (m).
+        last_clearance_m: the closest pair's distance at the last returned target (m; a lower
+            bound of it when it exceeds the room by more than ``NEAR_M``).
         moved: the arms whose targets the last call replaced.
     """
 
@@ -70,6 +81,8 @@ class CollisionRoom:
             self._link_arm["drill"] = "right-arm"
         self.pushed_periods = dict.fromkeys(self.arms, 0)
         self.moved: set[str] = set()  # the arms the last call moved
+        self._rested: dict[str, tuple | None] = {}  # arm -> (goal, joints) a search rested at
+        self.skipped = 0  # clear searches skipped: the goal still where one came to rest
         self.last_clearance_m = np.inf
 
     def _arms_of(self, pair: tuple[str, str]) -> list[str]:
@@ -81,7 +94,9 @@ class CollisionRoom:
         return found
 
     def _distance(self, q_rad: np.ndarray) -> tuple[float, tuple[str, str]]:
-        c = self.checker.check(q_rad)
+        """The closest pair's distance (m; exact up to ``room_m + NEAR_M``, a lower bound
+        beyond) and names."""
+        c = self.checker.check_near(q_rad, self.room_m + NEAR_M)
         return c.distance_m, c.pair
 
     def keep(self, q_prev_rad: np.ndarray, q_next_rad: np.ndarray,
@@ -157,13 +172,33 @@ class CollisionRoom:
             q[index] = q_prev[index]
             d = self._distance(q)[0]
             reach, T_goal = goals[arm]
-            q, d = self._search_arm(q, d, index, reach, np.ascontiguousarray(T_goal, float))
+            T_goal = np.ascontiguousarray(T_goal, float)
             moved.add(arm)
+            if d >= self.room_m and self._still(arm, q[index], T_goal):
+                self.skipped += 1
+                d, pair = self._distance(q)
+                continue
+            q, d, rested = self._search_arm(q, d, index, reach, T_goal)
+            self._rested[arm] = (T_goal, q[index].copy()) if rested else None
             d, pair = self._distance(q)
         return q, d, moved
 
+    def _still(self, arm: str, q_arm: np.ndarray, T_goal: np.ndarray) -> bool:
+        """The arm's last search came to rest at ``q_arm`` for a goal within STILL_GOAL_M and
+        STILL_GOAL_RAD of ``T_goal``: searching again would find the same pose."""
+        rested = self._rested.get(arm)
+        if rested is None or not np.array_equal(rested[1], q_arm):
+            return False
+        T_was = rested[0]
+        if np.linalg.norm(T_goal[:3, 3] - T_was[:3, 3]) > STILL_GOAL_M:
+            return False
+        cos = (np.trace(T_was[:3, :3].T @ T_goal[:3, :3]) - 1.0) / 2.0
+        return bool(cos >= np.cos(STILL_GOAL_RAD))
+
     def _search_arm(self, q: np.ndarray, d: float, index: np.ndarray, reach,
-                    T_goal: np.ndarray) -> tuple[np.ndarray, float]:
+                    T_goal: np.ndarray) -> tuple[np.ndarray, float, bool]:
+        """A few steps of the clear search for one arm (see the module docstring); returns
+        (joints, clearance, whether it came to rest: no step left that helps)."""
         limb = reach.limb
         base, _, offset, alpha, a, dd, end, _ = limb.chain
         w = np.array([1.0, 1.0, 1.0] + [ORIENTATION_WEIGHT_M_PER_RAD] * 3)
@@ -198,7 +233,7 @@ class CollisionRoom:
                     dq += (need - grad @ dq) / (grad @ h_grad) * h_grad
             biggest = float(np.max(np.abs(dq)))
             if biggest < 1e-9:
-                break
+                return q, d, True
             dq *= min(1.0, MAX_STEP_RAD / biggest)
             for scale in (1.0, 0.5, 0.25):
                 q_try = q.copy()
@@ -209,8 +244,8 @@ class CollisionRoom:
                     q, d, c = q_try, d_try, c_try
                     break
             else:
-                break
-        return q, d
+                return q, d, True
+        return q, d, False
 
     def _done(self, q: np.ndarray, d: float, moved: set[str]) -> np.ndarray:
         self.last_clearance_m = d

@@ -59,7 +59,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hubo_cli.control.keys import ARM_SYNC, TRACKER_STATES
+from hubo_cli.control.keys import ARM_SYNC, ARM_TARGET_VELOCITY, TRACKER_STATES
 from hubo_cli.control.phase import Phases
 from hubo_cli.control.target import Target
 from hubo_cli.dataflow import Store
@@ -69,7 +69,7 @@ from hubo_cli.input.device import InputDevice
 from hubo_cli.kinematics.arm_reach import ArmReach, BranchMove, ReachSettings
 from hubo_cli.kinematics.choice import STATUS_NAMES
 from hubo_cli.kinematics.conditioning import SingularityScale, condition_number
-from hubo_cli.kinematics.dh import pose_error
+from hubo_cli.kinematics.dh import chain_fk, pose_error
 from hubo_cli.kinematics.interpolate import PosePath
 from hubo_cli.kinematics.reach import branch_of
 from hubo_cli.kinematics.torso import CorrectionSettings, MeasuredTorso, TorsoCorrection
@@ -77,6 +77,7 @@ from hubo_cli.kinematics.wholebody import LiftFilter, WholeBody
 from hubo_cli.model import ARMS, RobotModel
 from hubo_cli.motion.tracker import JointTracker
 from hubo_cli.scene import SceneActions, WallPlacement
+from hubo_cli.teleop.lead import GoalVelocity, reachable_velocity
 from hubo_cli.teleop.mapping import HandMapper
 from hubo_cli.teleop.phases import PHASES, Approach, Operate, Settle
 
@@ -181,7 +182,8 @@ class TeleopTarget(Target):
     """
 
     reads = (QUAT_WORLD_TORSO, T_WORLD_TORSO, T_WORLD_SOLES)
-    writes = (ARM_SYNC,)  # each arm's synchronization, for otg (groups limbs)
+    writes = (ARM_SYNC, ARM_TARGET_VELOCITY)  # each arm's synchronization and its goal's
+    # velocity, for otg (groups limbs)
     previous = (TRACKER_STATES,)  # otg's trackers after last period
 
     def __init__(self, model: RobotModel, source: InputDevice, mapper: HandMapper,
@@ -235,6 +237,9 @@ class TeleopTarget(Target):
         # once operating, where the trajectory generator has a tracker per arm: a copy of each
         # (its limits, set each period to its state) to preview the arm's way with
         self._trackers: dict[str, JointTracker] | None = None
+        self._goal_velocity: dict[str, GoalVelocity] = {}  # and the goals' velocities
+        self._swing_T = np.empty((4, 4))  # swing_m's forward kinematics
+        self._conditions: dict[str, tuple] = {}  # arm -> the last (joints, condition number)s
         if self.reach_settings.mode == "nearest" and self.reach_settings.collision_room_m > 0:
             from hubo_cli.teleop.room import CollisionRoom
 
@@ -330,37 +335,59 @@ class TeleopTarget(Target):
         return self.q_out, info
 
     def _pace_arms(self) -> None:
-        """Each arm's tracker: unsynchronised unless that way to the target swings the hand more
-        than ``SWING_M`` off the straight line to it, phase synchronised then."""
+        """Each arm's tracker: arriving with the goal's velocity while the hand follows it
+        (:mod:`hubo_cli.teleop.lead`), unsynchronised unless that way to the target swings the
+        hand more than ``SWING_M`` off the straight line to it, phase synchronised then."""
         if self._trackers is None:
             return
-        states, synchronization = self.store[TRACKER_STATES], {}
+        states, synchronization, velocity = self.store[TRACKER_STATES], {}, {}
         for arm in self.arms:
             tracker, now = self._trackers[arm], states[arm]
             tracker.reset(now.q_rad, now.v_rad_s, now.a_rad_s2)
             target = self.q_out[self.slices[arm]]
+            velocity[arm] = reachable_velocity(
+                self._goal_velocity[arm].update(target, self._following(arm)), target,
+                now.q_rad, now.v_rad_s, now.limits)
             sync = OPERATE_SYNCHRONIZATION
-            if self.swing_m(arm, tracker, target) > SWING_M:
+            if self.swing_m(arm, tracker, target, velocity[arm]) > SWING_M:
                 sync = "phase"
             synchronization[arm] = sync
         self.store[ARM_SYNC] = synchronization
+        self.store[ARM_TARGET_VELOCITY] = velocity
 
-    def swing_m(self, arm: str, tracker: JointTracker, target_rad: np.ndarray) -> float:
+    def _following(self, arm: str) -> bool:
+        """The arm's target follows its goal freely this period (operating, the goal within
+        reach and clear of the body, the hand neither held nor slowed nor changing branch)."""
+        hand = self.hands[arm]
+        return (self.phase == "operate" and hand.reachable and not hand.at_limit
+                and not (hand.stale or hand.lost or hand.needs_clutch or hand.clutched)
+                and hand.branch_move is None and hand.speed_scale >= 1.0
+                and (self.room is None or arm not in self.room.moved))
+
+    def swing_m(self, arm: str, tracker: JointTracker, target_rad: np.ndarray,
+                target_v_rad_s: np.ndarray | None = None) -> float:
         """How far (m) the hand strays from the straight line between its commanded position and
-        the target's on the tracker's unsynchronised way to ``target_rad`` (arm joints, rad)."""
+        the target's on the tracker's unsynchronised way to ``target_rad`` (arm joints, rad),
+        arriving with ``target_v_rad_s`` (default 0)."""
         if np.max(np.abs(target_rad - tracker.q)) < 1e-6:
             return 0.0
         limb = self.body.arms[arm]
-        path = tracker.preview(target_rad, OPERATE_SYNCHRONIZATION, SWING_SAMPLES)
-        p0 = limb.fk(tracker.q)[:3, 3]
-        line = limb.fk(target_rad)[:3, 3] - p0
+        path = tracker.preview(target_rad, OPERATE_SYNCHRONIZATION, SWING_SAMPLES,
+                               target_v_rad_s)
+        if len(path) < 3:
+            return 0.0
+        base, _, offset, alpha, a, d, end, _ = limb.chain
+        T = self._swing_T
+        points = np.empty((len(path), 3))  # from the commanded position to the target's
+        for k, q in enumerate(path):
+            chain_fk(q, base, offset, alpha, a, d, end, T)
+            points[k] = T[:3, 3]
+        p = points[1:-1] - points[0]
+        line = points[-1] - points[0]
         length2 = float(line @ line)
-        worst = 0.0
-        for q in path[1:-1]:
-            p = limb.fk(q)[:3, 3] - p0
-            along = 0.0 if length2 < 1e-18 else min(1.0, max(0.0, float(p @ line) / length2))
-            worst = max(worst, float(np.linalg.norm(p - along * line)))
-        return worst
+        along = (np.zeros(len(p)) if length2 < 1e-18
+                 else np.clip(p @ line / length2, 0.0, 1.0))
+        return float(np.sqrt(np.max(np.sum((p - along[:, None] * line) ** 2, axis=1))))
 
     def _settled(self, state) -> bool:
         # against the output; a target set this period has none yet: against the target
@@ -389,12 +416,15 @@ class TeleopTarget(Target):
 
     def start_operating(self, t_s: float) -> None:
         """The operator takes over at ``t_s``: each arm's tracker copied from otg's (the
-        store's TRACKER_STATES), each reach search started from the arm's joint target."""
+        store's TRACKER_STATES) with its goal-velocity estimate, each reach search started
+        from the arm's joint target."""
         self.t_operate_s = t_s
         states = self.store.get(TRACKER_STATES)  # the arms' trackers, with their own
         if states is not None and all(arm in states for arm in self.arms):
             self._trackers = {arm: JointTracker(states[arm].limits, states[arm].dt_s)
                               for arm in self.arms}
+            self._goal_velocity = {arm: GoalVelocity(states[arm].limits, states[arm].dt_s)
+                                   for arm in self.arms}
         for arm, reach in self.reach.items():
             reach.start(self.q_target[self.slices[arm]])
 
@@ -562,8 +592,8 @@ class TeleopTarget(Target):
         the distance in which the jerk-limited trajectory generator stops from that speed, so
         the joints themselves stay near it."""
         limb = self.reach[arm].limb
-        scale = self.singularity.scale(condition_number(limb, q_now),
-                                       condition_number(limb, q_next))
+        scale = self.singularity.scale(self._condition(arm, q_now),
+                                       self._condition(arm, q_next))
         if hand is not None:
             hand.speed_scale = scale
         if scale >= 1.0:
@@ -577,6 +607,17 @@ class TeleopTarget(Target):
         lead = (speed**2 / (2 * spec.acceleration_rad_s2)
                 + speed * spec.acceleration_rad_s2 / (2 * spec.jerk_rad_s3))
         return np.clip(q, q_measured - lead, q_measured + lead)
+
+    def _condition(self, arm: str, q_rad: np.ndarray) -> float:
+        """:func:`condition_number` of the arm at ``q_rad``, remembered for the last joints
+        asked of each arm (the next period's ``q_now`` is mostly this period's ``q_next``)."""
+        cached = self._conditions.get(arm)
+        for q_known, kappa in cached or ():
+            if np.array_equal(q_known, q_rad):
+                return kappa
+        kappa = condition_number(self.reach[arm].limb, q_rad)
+        self._conditions[arm] = ((np.array(q_rad, dtype=float), kappa), *(cached or ())[:1])
+        return kappa
 
     def reach_report(self) -> dict[str, dict]:
         """Per hand, while operating: position and orientation RMS, time at the reach limit,
