@@ -17,10 +17,10 @@ pendulum (omega^2 = g / z_c):
    xi = c + c' / w (within ``MAX_STEP_M`` of the stance foot and at least the standing width
    from it sideways; a landing too far gives up its sideways part first, down to the standing
    width, then its forward one). It travels from the first period on at a trapezoidal speed
-   (:func:`travel`: the legs' speed limit bounds the foot's peak speed, which a trapezoid keeps
-   near the mean) and lifts as sin(pi tau). The torso lowers over the swing as far as the
-   legs need to reach both soles with the pelvis midway between them, each leg no longer hip
-   to ankle than standing (the model's thigh, shin and hip offsets;
+   (:func:`~.capture_phases.travel`: the legs' speed limit bounds the foot's peak speed, which a
+   trapezoid keeps near the mean) and lifts as sin(pi tau). The torso lowers over the swing as
+   far as the legs need to reach both soles with the pelvis midway between them, each leg no
+   longer hip to ankle than standing (the model's thigh, shin and hip offsets;
    :meth:`~CaptureStepper.reach_drop_m`).
    The step ends when the swing sole carries the robot file's ``estimation.swing_touchdown_n``
    (after ``TOUCH_FRACTION`` of the swing) or is down;
