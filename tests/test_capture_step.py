@@ -9,9 +9,14 @@ import pytest
 
 from hubo_cli.experiments.standing import stand
 from hubo_cli.model import load_model
-from hubo_cli.walking.capture_step import (
+from hubo_cli.walking.capture_phases import (
+    CATCH_S,
+    LONG_STEP_M,
+    LUNGE_CATCH_S,
     MAX_STEP_M,
     RAMP_FRACTION,
+    SINGLE_SUPPORT_S,
+    TOUCH_FRACTION,
     TRAVEL_END,
     capture_swing_rows,
     landing,
@@ -131,3 +136,110 @@ def test_a_far_landing_gives_up_its_sideways_part_first():
     assert ahead == pytest.approx(math.sqrt(MAX_STEP_M**2 - 0.18**2))
     near = landing(stance, "left", np.array([0.2, 0.2]), 0.02, 0.18)  # within reach: as asked
     assert near.x_m == pytest.approx(0.18) and near.y_m == pytest.approx(0.2)
+
+
+@pytest.mark.parametrize(("landed_ahead_m", "catch_s"), [(0.10, CATCH_S), (0.30, LUNGE_CATCH_S)])
+def test_the_capture_phases_hand_over_from_stand_to_stood(landed_ahead_m, catch_s):
+    """The stepper's phases as explicit states, on a still robot whose estimate the test sets
+    (no simulation): stand until the capture point leaves the shrunk soles (never in the first
+    period); step in that very period (the balancers rest, the monitor watches the swing foot
+    at its landing place, unshrunk); catch from the period the estimate has the swing sole down
+    (the step's output stands then) for the catch's length (a short step's rest over the landed
+    sole, a long step's lunge with the balancers on); return (the balancers rest; after the
+    lunge until the back foot is down); stood once the pattern ends: the pattern's last joints
+    held, the balancers on and the monitor back on the estimated soles with its margin."""
+    from hubo_cli.control.phase import BALANCERS_REST, SUPPORT_PLAN
+    from hubo_cli.drivers.registry import make_driver
+    from hubo_cli.estimation.build import build_estimator
+    from hubo_cli.estimation.keys import (
+        CAPTURE_POINT_WORLD,
+        COM_VELOCITY_WORLD,
+        CONTACT,
+        T_WORLD_SOLES,
+        WRENCHES,
+    )
+    from hubo_cli.experiments.standing import StandTarget, standing_posture
+    from hubo_cli.state import RobotState
+    from hubo_cli.walking.capture_phases import PHASES
+    from hubo_cli.walking.capture_step import CaptureStepper
+    from hubo_cli.walking.params import walking_params
+
+    model = load_model()
+    dt, q_stand = model.control_period_s, standing_posture(model)
+    estimator = build_estimator(model)
+    with make_driver("ideal", model) as driver:
+        driver.start(q_stand)
+        estimator.reset(driver.read())  # every estimate key the stepper reads
+    store = estimator.store
+    stepper = CaptureStepper(StandTarget(q_stand, 1, np.zeros(3), 1.0, 0.2, model, "standing"),
+                             model, walking_params(model), q_stand)
+    stepper.attach(None, [], store)
+    soles = store[T_WORLD_SOLES].copy()
+    records = []
+
+    def period(k):
+        q, info = stepper(k * dt, RobotState(k * dt, q_stand, np.zeros(len(q_stand))))
+        assert np.all(np.isfinite(q))
+        plan = store[SUPPORT_PLAN]
+        records.append((info["capture.phase_code"], store[BALANCERS_REST],
+                        None if plan is None else plan.margin_m,
+                        math.isfinite(info["capture.com_ref_x_m"]), q))
+
+    # both soles down and loaded, the capture point 0.3 m ahead of them and a little to the
+    # left, moving forward: it is outside, but the first period never steps
+    wrenches = {name: np.array([0.0, 0.0, 200.0, 0.0, 0.0, 0.0]) if name.endswith("ankle")
+                else w for name, w in store[WRENCHES].items()}
+    store[CONTACT], store[WRENCHES] = (True, True), wrenches
+    middle = soles[:, :2, 3].mean(axis=0)
+    store[CAPTURE_POINT_WORLD] = middle + [0.3, 0.05]
+    store[COM_VELOCITY_WORLD] = np.array([0.3, 0.0, 0.0])
+    period(0)
+    assert records[-1][:4] == (PHASES.index("stand"), False, None, False)
+    period(1)
+    assert stepper.phase == "step" and stepper.swing == "left" and stepper.trigger_s == dt
+    assert records[-1][:4] == (PHASES.index("step"), True, 0.0, True)
+    # the swing: the left sole off the ground and unloaded; then down where it landed, but a
+    # loaded swing sole counts only after TOUCH_FRACTION of the swing (the step's period 1 is
+    # the loop's period 1)
+    lifted = soles.copy()
+    lifted[1, 2, 3] += 0.02
+    store[T_WORLD_SOLES], store[CONTACT] = lifted, (True, False)
+    store[WRENCHES] = wrenches | {"left-ankle": np.zeros(6)}
+    down_k = round(TOUCH_FRACTION * SINGLE_SUPPORT_S / dt)
+    for k in range(2, down_k - 10):
+        period(k)
+    landed = soles.copy()
+    landed[1, 0, 3] += landed_ahead_m
+    store[T_WORLD_SOLES], store[WRENCHES], store[CONTACT] = landed, wrenches, (True, True)
+    store[CAPTURE_POINT_WORLD] = landed[:, :2, 3].mean(axis=0)
+    for k in range(down_k - 10, down_k):
+        period(k)
+    assert stepper.phase == "step"
+    k = down_k
+    period(k)
+    touch_down = len(records) - 1
+    assert stepper.phase == "catch" and records[-1][0] == PHASES.index("catch")
+    while stepper.phase != "stood" and k < 3000:
+        k += 1
+        period(k)
+    codes = np.array([r[0] for r in records])
+    # each phase once, in order, the catch for its length from the touch-down
+    assert [int(c) for c in codes[np.r_[True, np.diff(codes) != 0]]] == list(range(5))
+    assert np.count_nonzero(codes == PHASES.index("catch")) == round(catch_s / dt)
+    assert np.nonzero(codes == PHASES.index("catch"))[0][0] == touch_down
+    rest = [r[1] for r, c in zip(records, codes, strict=True) if c == PHASES.index("catch")]
+    assert rest == [landed_ahead_m <= LONG_STEP_M] * len(rest)  # the lunge: the balancers act
+    returning = [r for r, c in zip(records, codes, strict=True) if c == PHASES.index("return")]
+    assert returning[0][1] and all(r[2] == 0.0 and r[3] for r in returning)
+    if landed_ahead_m > LONG_STEP_M:  # the back foot down: the balancers act again
+        assert not returning[-1][1]
+    assert stepper.stood_s == k * dt
+    summary = stepper.summary()
+    assert summary["steps"] == 2 and summary["trigger_s"] == dt
+    assert summary["footsteps"][0]["x_m"] == pytest.approx(landed[1, 0, 3])  # as measured
+    held = records[-1][4]
+    for j in range(k + 1, k + 4):
+        period(j)
+        assert records[-1][0] == PHASES.index("stood") and records[-1][1:4] == (False, None,
+                                                                                 False)
+        assert np.array_equal(records[-1][4], held)

@@ -19,7 +19,7 @@ from hubo_cli.walking.approach import (
     wall_clearance_m,
 )
 from hubo_cli.walking.body import walking_posture
-from hubo_cli.walking.capture_step import MAX_STEP_M, MAX_WIDTH_M, landing, pendulum
+from hubo_cli.walking.capture_phases import MAX_STEP_M, MAX_WIDTH_M, landing, pendulum
 from hubo_cli.walking.footsteps import Footstep, Stance, closing_steps, plan_footsteps
 from hubo_cli.walking.params import walking_params
 

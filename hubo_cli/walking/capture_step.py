@@ -17,10 +17,11 @@ pendulum (omega^2 = g / z_c):
    xi = c + c' / w (within ``MAX_STEP_M`` of the stance foot and at least the standing width
    from it sideways; a landing too far gives up its sideways part first, down to the standing
    width, then its forward one). It travels from the first period on at a trapezoidal speed
-   (:func:`travel`: the legs' speed limit bounds the foot's peak speed, which a trapezoid keeps
-   near the mean) and lifts as sin(pi tau). The torso lowers over the swing as far as the
-   legs need to reach both soles with the pelvis midway between them, each leg no longer hip
-   to ankle than standing (the model's thigh, shin and hip offsets; :meth:`_reach_drop_m`).
+   (:func:`~.capture_phases.travel`: the legs' speed limit bounds the foot's peak speed, which a
+   trapezoid keeps near the mean) and lifts as sin(pi tau). The torso lowers over the swing as
+   far as the legs need to reach both soles with the pelvis midway between them, each leg no
+   longer hip to ankle than standing (the model's thigh, shin and hip offsets;
+   :meth:`~CaptureStepper.reach_drop_m`).
    The step ends when the swing sole carries the robot file's ``estimation.swing_touchdown_n``
    (after ``TOUCH_FRACTION`` of the swing) or is down;
 2. *catch*, ``CATCH_S``: both feet down, the ZMP on the landed sole's middle (= xi); the CoM
@@ -41,9 +42,9 @@ torso lowers as far as the legs need to reach both soles from a pelvis over the 
 (:meth:`CaptureStepper._toe_off_pose`), so the back foot stays on the floor.
 The pattern so follows where the landing (its impact took an unknown part of the momentum)
 left the robot instead of driving it on toward its own capture point; the standing balancers
-act meanwhile. Then the return (:meth:`CaptureStepper._plan_lunge_return`): one walking step
-of :func:`~hubo_cli.walking.gait.make_gait` from the measured soles (its lead-in from the
-lunge's CoM, a ``RETURN_SHIFT_S`` double support that moves the CoM over the front sole, a
+act meanwhile. Then the return (:meth:`~hubo_cli.walking.capture_phases.Return.start`): one
+walking step of :func:`~hubo_cli.walking.gait.make_gait` from the measured soles (its lead-in
+from the lunge's CoM, a ``RETURN_SHIFT_S`` double support that moves the CoM over the front sole, a
 swing whose smoothstep peaks at ``RETURN_FOOT_SPEED_M_S``, the settle between the feet)
 brings the back foot beside the front one at the standing width: two steps in all. With the
 CoM over the front sole the back foot is out of a flat leg's reach (the former quick swing-in
@@ -59,10 +60,10 @@ the sole's outer edge over the shift and tipped toward the swing foot in the sin
 
 The pattern's joints come from :class:`~hubo_cli.walking.body.WalkingBody` (the legs' IK, the
 neck placed so that the model's CoM follows the pattern), one period at a time. The phases
-(``PHASE_CODES``: stand, step, catch, return, stood) are states, each started once
-(:meth:`CaptureStepper._start`, :meth:`~CaptureStepper._touch_down`,
-:meth:`~CaptureStepper._plan_lunge_return`); what a phase asks of the pipeline the stepper
-writes to the store every period (:mod:`hubo_cli.control.phase`), never touching a module.
+(stand, step, catch, return, stood: :mod:`hubo_cli.walking.capture_phases`, with the capture
+step's pattern) are explicit states run by a :class:`~hubo_cli.control.phase.Phases` machine,
+each planning when it starts; what the phase in force asks of the pipeline the stepper writes
+to the store every period (:mod:`hubo_cli.control.phase`), never touching a module.
 While it steps and catches, the capture-point monitor watches the planned support (the swing
 foot at its landing place, as when walking; then the stepped stance) with no margin: the
 stepping is the answer to the capture point leaving the shrunk polygon, and the stop, which
@@ -84,7 +85,7 @@ from scipy.spatial.transform import Rotation
 
 from hubo_cli.control.capture_point import CP_MARGIN_M
 from hubo_cli.control.module import Module
-from hubo_cli.control.phase import BALANCERS_REST, SUPPORT_PLAN, SupportPlan
+from hubo_cli.control.phase import BALANCERS_REST, SUPPORT_PLAN, Phases, SupportPlan
 from hubo_cli.control.target import Target, TargetOutput
 from hubo_cli.dataflow import Store
 from hubo_cli.errors import InputError
@@ -97,52 +98,26 @@ from hubo_cli.estimation.keys import (
     T_WORLD_TORSO,
     WRENCHES,
 )
-from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.scene import SceneActions
-from hubo_cli.state import GRAVITY_M_S2, RobotState
+from hubo_cli.state import RobotState
 from hubo_cli.walking.body import SIDE_LEG, WalkingBody, pose_of_row
-from hubo_cli.walking.footsteps import SIDE_SIGN, Footstep, stance_of, wrap_angle
-from hubo_cli.walking.gait import SWING_MOVE, Gait, make_gait, smoothstep5
+from hubo_cli.walking.capture_phases import Catch, Return, Stand, Step, Stood
+from hubo_cli.walking.footsteps import SIDE_SIGN, Footstep
+from hubo_cli.walking.gait import Gait, smoothstep5
 from hubo_cli.walking.params import WalkingParams
 from hubo_cli.walking.preview import CoMPath
-from hubo_cli.walking.stabilizer import SoleDamper, StabilizerGains
-from hubo_cli.walking.target import (
-    SIDES,
-    ankle_wrenches,
-    estimated_feet,
-    planned_support,
-    zmp_outside_m,
-)
+from hubo_cli.walking.target import SIDES, ankle_wrenches, zmp_outside_m
 
-SINGLE_SUPPORT_S = 0.40  # [chosen] the capture step's swing: short, the pendulum diverges
-SWING_HEIGHT_M = 0.04    # [chosen] sole clearance at mid-swing
-ZMP_AHEAD_M = 0.09       # [chosen] stance ZMP ahead of the sole's middle, toward the push
-ZMP_INSET_M = 0.04       # [chosen] ... and inside, toward the swing foot
-MIN_STEP_M = 0.10        # [chosen] the step goes at least this far the push's way
-MAX_STEP_M = 0.50        # [chosen] landing within this of the stance foot (the legs reach it
-#                          with the torso lowered, see _reach_drop_m: 0.05 m for 0.48 m ahead)
-MAX_WIDTH_M = 0.35       # [chosen] the feet at most this far apart sideways
-CATCH_S = 1.0            # [chosen] both feet down, the CoM comes to rest on the landed foot
-CATCH_EDGE_M = 0.03      # [chosen] the catch's ZMP stays this far inside the landed sole's ends
-LANDED_M = 0.003         # a swing sole this close to the ground has landed
-LAND_WAIT_S = 0.2        # [chosen] wait at most this long after the swing for it to land
-TOUCH_FRACTION = 0.5     # [chosen] a swing sole carrying estimation.swing_touchdown_n is
-#                          down once this much of the swing has passed
-LONG_STEP_M = 0.15       # [chosen] a capture step longer than this: the robot stays in the lunge
-LUNGE_CATCH_S = 2.0      # [chosen] ... while the CoM comes to rest in it
-UPRIGHT_S = 0.3          # [chosen] ... and the torso turns back upright over this long
 REST_TAU_S = 0.1         # [chosen] the lunge's rest point follows the measured CP this fast
 REST_BACK_FRACTION = 0.5  # [chosen] ... held no further back than this part of the way from
 #                          the back sole's middle to the front one's (none: the CoM came to
 #                          rest over the back foot, which carried it alone, the robot rocked
 #                          sideways, 125 N fell and 130 N stopped; 0.4 to 0.6 caught both)
-RETURN_FOOT_SPEED_M_S = 0.5  # [chosen] the return swing's peak foot speed (its smoothstep's)
 RETURN_RISE_M_S = 0.05   # [chosen] the torso rises at most this fast while it returns
 RETURN_LEAN_FRACTION = 0.8  # [chosen] this much of the walking lean (all of it: 120 and
 #                             160 N fell; 0.6: 140 N; none: 150 N)
 RETURN_BEND_S = 1.0      # [chosen] the back knee bends from the lunge's reach over this long
-RETURN_SHIFT_S = 1.0     # [chosen] the return's double support: the CoM over the front foot
 RETURN_MAX_DROP_M = 0.11  # [chosen] the torso lowers at most this much while it returns ...
 MAX_TOE_OFF_RAD = 0.8    # [chosen] ... and the back foot's heel rises at most this far
 TOE_OFF_STEP_RAD = 0.025  # [chosen] the heel's rise is searched in steps of this
@@ -151,83 +126,6 @@ CATCH_LOWER_M_S = 0.2    # [chosen] ... and in the lunge's catch at most this fa
 #                          RETURN_MAX_DROP_M, the back heel rising for the rest (with the
 #                          back foot flat out of the leg's reach it lifted for 0.4-0.8 s and
 #                          the robot balanced on the front foot alone)
-MAX_SOLE_ERROR_M = 0.2   # [chosen] the legs' capped solutions accepted this far off their soles
-TRIGGER_M = 0.05         # [chosen] step once the CP is within this of the shrunk polygon's edge
-REPLAN_FRACTION = 0.6    # [chosen] the landing follows the measured CP over this much of the swing
-PHASE_CODES = {"stand": 0.0, "step": 1.0, "catch": 2.0, "return": 3.0, "stood": 4.0}
-
-
-def pendulum(c0: np.ndarray, v0: np.ndarray, p: np.ndarray, omega: float,
-             t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The linear inverted pendulum over a fixed ZMP ``p`` (2,): CoM position, velocity and
-    acceleration (len(t), 2) from (c0, v0) at t = 0."""
-    ch, sh = np.cosh(omega * t_s)[:, None], np.sinh(omega * t_s)[:, None]
-    d0, w = c0 - p, omega
-    c = p + d0 * ch + v0 / w * sh
-    v = d0 * w * sh + v0 * ch
-    return c, v, w * w * (c - p)
-
-
-RAMP_FRACTION = 0.2      # [chosen] the capture swing's speed ramps over this much of its travel
-TRAVEL_END = 0.9         # [chosen] ... which ends at this fraction of the swing
-
-
-def travel(tau: np.ndarray) -> np.ndarray:
-    """The capture swing's progress (0..1) at swing fractions ``tau``: a trapezoidal speed
-    from the swing's start to TRAVEL_END, each ramp RAMP_FRACTION of that. The legs' speed
-    limit bounds the swing foot's peak speed: a trapezoid needs 1 / (1 - r) of the mean
-    (1.25), the walking swing's fifth-order smoothstep over 0.1..0.9 of the swing 2.3 times."""
-    u = np.clip(np.asarray(tau, dtype=float) / TRAVEL_END, 0.0, 1.0)
-    r = RAMP_FRACTION
-    peak = 1.0 / (1.0 - r)
-    return np.where(u < r, peak * u**2 / (2 * r),
-                    np.where(u > 1 - r, 1.0 - peak * (1 - u)**2 / (2 * r),
-                             peak * (u - r / 2)))
-
-
-def capture_swing_rows(start: Footstep, end: Footstep, n: int, height_m: float,
-                       z_m: float) -> np.ndarray:
-    """The capture step's swing foot: (n, 4) rows of (x, y, z, yaw), sample k at
-    tau = (k + 1) / n; it travels from the first period on (:func:`travel`) and lifts as
-    sin(pi tau) (off the ground early, down late: a foot that lags its pattern under the
-    speed limit still clears the ground)."""
-    tau = (np.arange(n) + 1.0) / n
-    s = travel(tau)
-    rows = np.empty((n, 4))
-    rows[:, 0] = start.x_m + s * (end.x_m - start.x_m)
-    rows[:, 1] = start.y_m + s * (end.y_m - start.y_m)
-    rows[:, 2] = z_m + height_m * np.sin(np.pi * tau)
-    rows[:, 3] = start.yaw_rad + s * wrap_angle(end.yaw_rad - start.yaw_rad)
-    return rows
-
-
-def _row(foot: Footstep, z_m: float) -> np.ndarray:
-    return np.array([foot.x_m, foot.y_m, z_m, foot.yaw_rad])
-
-
-def landing(stance: Footstep, side: str, xi_m: np.ndarray, forward_m: float,
-            width_m: float, min_ahead_m: float = 0.0) -> Footstep:
-    """Where the swing foot ``side`` lands: its sole's middle on ``xi_m`` (world x, y), within
-    MAX_STEP_M of the stance foot, ``width_m`` to MAX_WIDTH_M from it sideways, at least
-    ``min_ahead_m`` ahead of it (negative: at least that far behind; the push's way), heading
-    as the stance foot. A landing too far gives up its sideways part first (down to
-    ``width_m``), then its forward one: the length the push's way is what catches it."""
-    c, s = math.cos(stance.yaw_rad), math.sin(stance.yaw_rad)
-    dx, dy = xi_m[0] - stance.x_m, xi_m[1] - stance.y_m
-    ahead = c * dx + s * dy - forward_m          # the ankle goes forward_m behind the middle
-    if min_ahead_m > 0:
-        ahead = max(ahead, min_ahead_m)
-    elif min_ahead_m < 0:
-        ahead = min(ahead, min_ahead_m)
-    across = SIDE_SIGN[side] * (-s * dx + c * dy)  # toward the swing side: positive
-    across = min(max(across, width_m), MAX_WIDTH_M)
-    if math.hypot(ahead, across) > MAX_STEP_M:
-        across = max(math.sqrt(max(MAX_STEP_M**2 - ahead**2, 0.0)), width_m)
-        ahead = math.copysign(min(abs(ahead),
-                                  math.sqrt(max(MAX_STEP_M**2 - across**2, 0.0))), ahead)
-    left = SIDE_SIGN[side] * across
-    return Footstep(side, stance.x_m + c * ahead - s * left, stance.y_m + s * ahead + c * left,
-                    stance.yaw_rad)
 
 
 class CaptureStepper(Target):
@@ -256,16 +154,16 @@ class CaptureStepper(Target):
         self.previous = tuple(dict.fromkeys((*stand.previous, *self.previous)))
         self.store: Store | None = None
         self.corners = np.ascontiguousarray(model.feet.sole_corners_m()[:, :3])
-        self.phase = "stand"
+        self.phases = Phases([Stand(self), Step(self), Catch(self), Return(self), Stood(self)])
+        self.q_standing = self.q_stand  # the standing target's posture this period
         self.body: WalkingBody | None = None
         self.rest: Gait | None = None  # the catch and the return step, planned at touch-down
-        self.k = 0
-        self.t_start_s = 0.0
-        self.q_hold: np.ndarray | None = None
+        self.k = 0  # the pattern's period
+        self.q_last: np.ndarray | None = None  # the pattern's last joints
         self.steps: list[Footstep] = []
         self.start_feet: list[Footstep] = []
         self.trigger_s: float | None = None
-        self.track: dict | None = None  # the lunge's catch (see _touch_down)
+        self.track: dict | None = None  # the lunge's catch (Catch.start)
         self.lunge_return = False
         self.stood_s: float | None = None
         self.stood_feet: list[Footstep] = []
@@ -289,200 +187,26 @@ class CaptureStepper(Target):
                                 store[CONTACT])
         return outside + CP_MARGIN_M if math.isfinite(outside) else -math.inf
 
+    @property
+    def phase(self) -> str:
+        """The phase in force (one of :data:`~hubo_cli.walking.capture_phases.PHASES`)."""
+        return self.phases.current.name
+
     def __call__(self, t_s: float, state: RobotState) -> TargetOutput:
-        q_stand, info = self.stand(t_s, state)
-        if self.phase == "stand" and self.trigger_s is None and state.time_s > 0 \
-                and self.outside_m() > -TRIGGER_M:
-            self._start(t_s, state)
-        q, ref = (q_stand if self.q_hold is None else self.q_hold), (math.nan, math.nan)
-        if self.phase == "step":
-            q, ref = self._step_period(state)
-        elif self.phase in ("catch", "return"):
-            q, ref = self._rest_period(state)
-            if self.phase == "stood":  # where the feet stand when the pattern ends
-                self.stood_s = t_s
-                feet = estimated_feet(self.store)
-                self.stood_feet = [feet[side] for side in SIDES]
-        lunge_catch = self.phase == "catch" and self.track is not None
-        if self.lunge_return and self.k >= self.landed_k:  # the back foot is beside: stand
-            lunge_catch = True
-        # what this phase asks of the pipeline: the balancers rest while the pattern moves the
-        # CoM; the monitor watches the planned support, unshrunk, until the robot stands
-        stepping = self.phase in ("step", "catch", "return")
-        self.store[BALANCERS_REST] = stepping and not lunge_catch
-        self.store[SUPPORT_PLAN] = SupportPlan(self._support_at(), 0.0) if stepping else None
-        return q, info | {"capture.phase_code": PHASE_CODES[self.phase],
+        self.q_standing, info = self.stand(t_s, state)
+        q, ref = self.phases(t_s, state)
+        # what the phase in force asks of the pipeline: the balancers rest while the pattern
+        # moves the CoM; the monitor watches the planned support, unshrunk, until the robot
+        # stands
+        phase = self.phases.current
+        self.store[BALANCERS_REST] = phase.balancers_rest()
+        soles = phase.planned_soles()
+        self.store[SUPPORT_PLAN] = None if soles is None else SupportPlan(soles, 0.0)
+        return q, info | {"capture.phase_code": self.phases.code,
                           "capture.com_ref_x_m": ref[0], "capture.com_ref_y_m": ref[1]}
 
-    # ------------------------------------------------------------------ the capture step
-    def _start(self, t_s: float, state: RobotState) -> None:
-        """Choose the swing foot and the stance ZMP; the step starts this period."""
-        store = self.store
-        feet = estimated_feet(store)
-        self.feet = feet
-        self.start_feet = [feet["right"], feet["left"]]
-        self.sole_z_m = float(store[T_WORLD_SOLES][0, 2, 3])
-        self.height_m = float(store[COM_WORLD][2]) - self.sole_z_m
-        self.omega = math.sqrt(GRAVITY_M_S2 / self.height_m)
-        cp = np.array(store[CAPTURE_POINT_WORLD][:2], dtype=float)
-        velocity = np.array(store[COM_VELOCITY_WORLD][:2], dtype=float)
-        middle = stance_of(feet["right"], feet["left"])
-        across = (-math.sin(middle.yaw_rad) * (cp[0] - middle.x_m)
-                  + math.cos(middle.yaw_rad) * (cp[1] - middle.y_m))
-        if abs(across) > 0.01:
-            swing = "left" if across > 0 else "right"
-        else:  # between the feet: the less loaded one lifts
-            wrenches = ankle_wrenches(store)
-            swing = "right" if wrenches[0, 2] < wrenches[1, 2] else "left"
-        self.swing, self.stance_side = swing, "left" if swing == "right" else "right"
-        stance = feet[self.stance_side]
-        self.width_m = math.hypot(feet["right"].x_m - feet["left"].x_m,
-                                  feet["right"].y_m - feet["left"].y_m)
-        c, s = math.cos(stance.yaw_rad), math.sin(stance.yaw_rad)
-        self.heading = np.array([c, s])
-        inward = -SIDE_SIGN[self.stance_side] * np.array([-s, c])
-        forward = self.model.feet.forward_m
-        way = float(np.sign(velocity @ self.heading))  # forward (1) or backward (-1) push
-        ahead = way * ZMP_AHEAD_M
-        self.min_ahead_m = way * MIN_STEP_M
-        self.zmp_m = (np.array([stance.x_m, stance.y_m]) + (forward + ahead) * self.heading
-                      + ZMP_INSET_M * inward)
-        T_world_neck = np.array(store[T_WORLD_TORSO], dtype=float)
-        self.body = WalkingBody(self.model, self.q_stand, T_world_neck)
-        # a long step asks the legs for their full reach (the torso lowering follows): take
-        # their capped solutions rather than freeze the joints
-        self.body.max_error_m = MAX_SOLE_ERROR_M
-        self.neck_z0_m = self.body.neck_z_m
-        L = self.model.lengths_m  # the hip joints above the ankles, standing
-        self.hip_height_m = (self.neck_z0_m - L["lT"] - L["lL2"]) - (self.sole_z_m + L["lL5"])
-        self.legs = {side: Limb(self.model, SIDE_LEG[side]) for side in ("right", "left")}
-        self.n_step = max(1, int(round(SINGLE_SUPPORT_S / self.model.control_period_s)))
-        self.k, self.t_start_s, self.trigger_s = 0, t_s, t_s
-        self.land = feet[swing]
-        self.phase = "step"
-
-    def _step_period(self, state: RobotState) -> tuple[np.ndarray, tuple[float, float]]:
-        """One period of the capture step: the landing follows the measured capture point
-        (until REPLAN_FRACTION of the swing), the CoM the pendulum from the measured state."""
-        store, period, omega = self.store, self.model.control_period_s, self.omega
-        k, n = self.k, self.n_step
-        stance = self.feet[self.stance_side]
-        if k <= REPLAN_FRACTION * n:
-            xi = self.zmp_m + ((store[CAPTURE_POINT_WORLD][:2] - self.zmp_m)
-                               * math.exp(omega * (n - k) * period))
-            self.land = landing(stance, self.swing, xi, self.model.feet.forward_m, self.width_m,
-                                self.min_ahead_m)
-        com, velocity = store[COM_WORLD][:2], store[COM_VELOCITY_WORLD][:2]
-        c, v, a = pendulum(com, velocity, self.zmp_m, omega, np.array([period]))
-        swing_row = capture_swing_rows(self.feet[self.swing], self.land, n, SWING_HEIGHT_M,
-                                       self.sole_z_m)[min(k, n - 1)]
-        feet = {self.stance_side: _row(stance, self.sole_z_m), self.swing: swing_row}
-        support = np.zeros((1, 2), dtype=bool)
-        support[0, 0 if self.stance_side == "right" else 1] = True
-        drop = self._reach_drop_m(stance, self.land) * float(smoothstep5(min((k + 1) / n, 1.0)))
-        self.body.neck_z_m = self.neck_z0_m - drop
-        q = self._solve(c, v, a, self.zmp_m, feet, support)
-        # the swing foot lands flat where it should in the world whatever the torso's tilt:
-        # its goal in the measured neck frame
-        T_world_neck = np.array(store[T_WORLD_TORSO], dtype=float)
-        leg, part = self.legs[self.swing], self.model.limb_slice(SIDE_LEG[self.swing])
-        result = leg.solve(np.linalg.inv(T_world_neck) @ pose_of_row(swing_row), q[part])
-        if result.status in ("exact", "capped"):
-            q = q.copy()
-            q[part] = result.q_rad
-            self.body.q_start = q
-        self.k += 1
-        # the swing foot lags its pattern under the limits: the step ends when it is down
-        # (or LAND_WAIT_S after the pattern's end)
-        swing = SIDES.index(self.swing)
-        height = float(store[T_WORLD_SOLES][swing, 2, 3]) - self.sole_z_m
-        loaded = (float(ankle_wrenches(store)[swing, 2])
-                  > self.model.estimation.swing_touchdown_n)
-        if (self.k >= TOUCH_FRACTION * n and loaded) or (
-                self.k >= n and (height < LANDED_M or self.k >= n + LAND_WAIT_S / period)):
-            self.R_touch_down = T_world_neck[:3, :3].copy()
-            self._touch_down(c[0], v[0])
-        return q, (float(c[0, 0]), float(c[0, 1]))
-
-    def _touch_down(self, com_m: np.ndarray, velocity_m_s: np.ndarray) -> None:
-        """The swing foot is down: plan the catch and the return step."""
-        period, omega = self.model.control_period_s, self.omega
-        # from where the feet are now (the swing foot lags its pattern under the limits and
-        # lands short of its goal; the stance foot may have slid): the catch and the return
-        # step start from the measured soles, so the legs do not fight each other
-        measured = estimated_feet(self.store)
-        land, stance = measured[self.swing], measured[self.stance_side]
-        self.land = land
-        forward = self.model.feet.forward_m
-        sole_middle = np.array([land.x_m, land.y_m]) + forward * self.heading
-        xi = com_m + velocity_m_s / omega
-        # the ZMP can only be held on the landed sole: the CoM comes to rest within it
-        ahead = float(np.array([land.x_m - stance.x_m, land.y_m - stance.y_m]) @ self.heading)
-        long_step = abs(ahead) > LONG_STEP_M
-        reach = self.model.feet.length_m / 2 - CATCH_EDGE_M
-        xi = sole_middle + np.clip(xi - sole_middle, -reach, reach)
-        after = {self.swing: land, self.stance_side: stance}
-        beside = SIDE_SIGN[self.stance_side] * self.width_m
-        s, co = self.heading[1], self.heading[0]
-        back = Footstep(self.stance_side, land.x_m - s * beside, land.y_m + co * beside,
-                        land.yaw_rad)
-        if long_step:
-            self._lunge(land, stance, sole_middle, com_m, xi)
-            return
-        n = max(1, int(round(CATCH_S / period)))
-        t = (np.arange(n) + 1.0) * period
-        # the CoM from (c, v) to rest over the landed sole (the ZMP held at its middle, the
-        # capture point's excess decays with the stable root): c = m + (xi - m) ... shaped as
-        # the pendulum's converging part plus the stable decay
-        d = com_m - sole_middle
-        e = xi - sole_middle  # the part that diverges: the ZMP is held on it below
-        decay = np.exp(-omega * t)[:, None]
-        c = sole_middle + e + (d - e) * decay
-        v = -omega * (d - e) * decay
-        a = omega**2 * (d - e) * decay
-        zmp = np.tile(sole_middle + e, (n, 1))
-        self.n_upright = n
-        ret = make_gait(after["right"], after["left"], [back], self.params, period,
-                        self.height_m, self.sole_z_m, forward, com_start_m=c[-1])
-        rows = {side: np.vstack([np.tile(_row(after[side], self.sole_z_m), (n, 1)),
-                                 ret.feet[side]]) for side in ("right", "left")}
-        self.rest = Gait(period, (back,), self.height_m, np.vstack([zmp, ret.zmp_ref_m]),
-                         CoMPath(np.vstack([c, ret.com.com_m]),
-                                 np.vstack([v, ret.com.com_velocity_m_s]),
-                                 np.vstack([a, ret.com.com_acceleration_m_s2]),
-                                 np.vstack([zmp, ret.com.zmp_m])),
-                         rows, np.vstack([np.ones((n, 2), dtype=bool), ret.support]),
-                         np.concatenate([np.full(n, -1), ret.step_index]))
-        self.rest_support = planned_support(self.rest)
-        self.n_catch = n
-        self.steps = [land, back]
-        self.k, self.phase = 0, "catch"
-
-    def _lunge(self, land: Footstep, stance: Footstep, sole_middle: np.ndarray,
-               com_m: np.ndarray, xi_m: np.ndarray) -> None:
-        """After a long step: both feet stay down (the stepped stance, one step); the CoM
-        comes to rest where the measured capture point says (:meth:`_lunge_com`)."""
-        period = self.model.control_period_s
-        n = max(1, int(round(LUNGE_CATCH_S / period)))
-        rows = {self.swing: np.tile(_row(land, self.sole_z_m), (n, 1)),
-                self.stance_side: np.tile(_row(stance, self.sole_z_m), (n, 1))}
-        c = np.tile(com_m, (n, 1))
-        zmp = np.tile(sole_middle, (n, 1))
-        self.rest = Gait(period, (), self.height_m, zmp, CoMPath(c, 0 * c, 0 * c, zmp), rows,
-                         np.ones((n, 2), dtype=bool), np.full(n, -1))
-        back = np.array([stance.x_m, stance.y_m]) + self.model.feet.forward_m * self.heading
-        self.track = {"com": np.asarray(com_m, dtype=float).copy(), "front": sole_middle,
-                      "back": back,
-                      "reach": self.model.feet.length_m / 2 - CATCH_EDGE_M}
-        self.track["rest"] = self._in_stance(xi_m)
-        self.reach_m: float | None = None  # the back leg's reach at touch-down (_toe_off_pose)
-        self.rest_support = planned_support(self.rest)
-        self.n_upright = max(1, int(round(UPRIGHT_S / period)))
-        self.n_catch = n
-        self.steps = [land]
-        self.k, self.phase = 0, "catch"
-
-    def _in_stance(self, point_m: np.ndarray) -> np.ndarray:
+    # ------------------------------------------------------------------ the pattern's period
+    def in_stance(self, point_m: np.ndarray) -> np.ndarray:
         """``point_m`` projected on the line through the lunge's soles' middles, from
         REST_BACK_FRACTION of the way from the back one to the front one up to ``reach``
         ahead of the front one."""
@@ -500,16 +224,17 @@ class CaptureStepper(Target):
         (time constant REST_TAU_S), the CoM converges on it as the pendulum's stable part,
         c' = w (r - c)."""
         tr, period, omega = self.track, self.model.control_period_s, self.omega
-        target = self._in_stance(self.store[CAPTURE_POINT_WORLD][:2])
+        target = self.in_stance(self.store[CAPTURE_POINT_WORLD][:2])
         tr["rest"] = tr["rest"] + min(period / REST_TAU_S, 1.0) * (target - tr["rest"])
         v = omega * (tr["rest"] - tr["com"])
         tr["com"] = tr["com"] + v * period
         return (tr["com"].reshape(1, 2), v.reshape(1, 2), (-omega * v).reshape(1, 2),
                 tr["rest"].copy())
 
-    def _rest_period(self, state: RobotState) -> tuple[np.ndarray, tuple[float, float]]:
-        """One period of the catch or the return step (the planned pattern); over the catch
-        the torso turns from its tilt at touch-down back upright (both soles stay flat)."""
+    def pattern_period(self) -> tuple[np.ndarray, tuple[float, float]]:
+        """One period of the catch or the return step (the planned pattern): the joints and
+        the CoM reference; over the catch the torso turns from its tilt at touch-down back
+        upright (both soles stay flat)."""
         rest, k = self.rest, self.k
         feet = {side: rows[k] for side, rows in rest.feet.items()}
         if self.track is None and self.lunge_return:
@@ -529,7 +254,7 @@ class CaptureStepper(Target):
             feet = feet | {self.stance_side: np.append(
                 T_world_foot[:3, 3] + (T_world_foot[:3, 2] - [0.0, 0.0, 1.0])
                 * self.model.lengths_m["lL5"], rear[3])}
-        q = self._solve(c, v, a, zmp, feet, rest.support[k:k + 1])
+        q = self.solve_period(c, v, a, zmp, feet, rest.support[k:k + 1])
         if back_reaches and self.toe_off_rad > 0.0:
             q = self._solve_leg(q, self.stance_side, T_world_foot)
         if self.lunge_return:  # from the lunge's last joints (a capped leg's solution may
@@ -560,53 +285,7 @@ class CaptureStepper(Target):
                     q[part] = result.q_rad
         self.q_last = q
         self.k += 1
-        self.phase = "catch" if self.k < self.n_catch else "return"
-        if self.k >= rest.n and self.track is not None:
-            self._plan_lunge_return()
-        elif self.k >= rest.n:
-            self.phase, self.q_hold = "stood", q
         return q, (float(c[0, 0]), float(c[0, 1]))
-
-    def _plan_lunge_return(self) -> None:
-        """The lunge has settled: one walking step (:func:`~hubo_cli.walking.gait.make_gait`,
-        the robot file's walking parameters but a RETURN_SHIFT_S double support and a swing
-        whose smoothstep peaks at RETURN_FOOT_SPEED_M_S) from the measured soles brings the
-        back foot beside the front one at the standing width. The torso lowers and leans as
-        when walking (:meth:`_return_drop`) and the back heel rises (:meth:`_toe_off_pose`)
-        for the legs' reach; the front sole's foot damping starts from rest."""
-        period, forward = self.model.control_period_s, self.model.feet.forward_m
-        measured = estimated_feet(self.store)
-        front = measured[self.swing]
-        beside = SIDE_SIGN[self.stance_side] * self.width_m
-        s, co = math.sin(front.yaw_rad), math.cos(front.yaw_rad)
-        back = Footstep(self.stance_side, front.x_m - s * beside, front.y_m + co * beside,
-                        front.yaw_rad)
-        rear = measured[self.stance_side]
-        distance = math.hypot(back.x_m - rear.x_m, back.y_m - rear.y_m)
-        lo, hi = SWING_MOVE
-        single = max(self.params.single_support_s,
-                     distance * 1.875 / (hi - lo) / RETURN_FOOT_SPEED_M_S)
-        params = self.params.with_changes(single_support_s=single,
-                                          double_support_s=RETURN_SHIFT_S,
-                                          swing_height_m=SWING_HEIGHT_M)
-        self.rest = make_gait(measured["right"], measured["left"], [back], params, period,
-                              self.height_m, self.sole_z_m, forward,
-                              com_start_m=self.track["com"].copy())
-        self.rest_support = planned_support(self.rest)
-        self.landed_k = int(np.nonzero(~self.rest.support.all(axis=1))[0][-1]) + 1
-        self.drop_m = self.neck_z0_m - self.body.neck_z_m
-        self.reach_m: float | None = None
-        feet = self.model.feet
-        box = (feet.forward_m - feet.length_m / 2, feet.forward_m + feet.length_m / 2,
-               -feet.width_m / 2, feet.width_m / 2)
-        self.damper = SoleDamper(StabilizerGains(), box, period,
-                                 self.model.estimation.sole_damping_min_fz_n)
-        # the back leg reaches its sole with the heel raised (:meth:`_toe_off_pose`), not flat
-        self.body.max_error_m = math.inf
-        self.track, self.lunge_return = None, True
-        self.n_catch, self.n_upright = 0, 1
-        self.steps = [front, back]
-        self.k, self.phase = 0, "return"
 
     def _return_drop(self, k: int, com_m: np.ndarray, feet: dict) -> None:
         """The torso's height and lean in period ``k`` of the return: low enough for each leg
@@ -701,7 +380,7 @@ class CaptureStepper(Target):
             self.body.q_start = q
         return q
 
-    def _reach_drop_m(self, stance: Footstep, land: Footstep) -> float:
+    def reach_drop_m(self, stance: Footstep, land: Footstep) -> float:
         """How much lower the torso must stand for each leg, with the pelvis midway between
         the soles, to be no longer hip to ankle than standing (its knee keeps the standing
         bend; the hips ``lL1`` either side of the pelvis, the model's lengths): at most
@@ -715,7 +394,7 @@ class CaptureStepper(Target):
         h = self.hip_height_m
         return min(h - math.sqrt(max(h * h - r * r, 0.0)), MAX_DROP_M)
 
-    def _solve(self, c, v, a, zmp, feet: dict, support: np.ndarray) -> np.ndarray:
+    def solve_period(self, c, v, a, zmp, feet: dict, support: np.ndarray) -> np.ndarray:
         """The body's IK for one period of pattern (CoM rows (1, 2), feet rows (4,))."""
         period = self.model.control_period_s
         zmp = np.asarray(zmp, dtype=float).reshape(1, 2)
@@ -729,14 +408,6 @@ class CaptureStepper(Target):
         q, self.body_neck = plan.q_rad[0], plan.T_world_neck[0]
         self.body.q_start = q
         return q
-
-    def _support_at(self) -> np.ndarray:
-        """The planned support (right, left sole poses) now: the swing foot at its landing."""
-        if self.phase == "step":
-            feet = {self.stance_side: self.feet[self.stance_side], self.swing: self.land}
-            return np.array([pose_of_row(_row(feet[side], self.sole_z_m))
-                             for side in ("right", "left")])
-        return self.rest_support[min(self.k, self.rest.n - 1)]
 
     def summary(self) -> dict:
         """What the stepping did, for the run's summary (``capture_step``)."""
