@@ -340,3 +340,38 @@ def test_operator_signal_latches(model):
         restore()
     assert stopper.stopped and stopper.events[0].sources == ("operator",)
     assert signal.getsignal(signal.SIGUSR1) is signal.SIG_DFL
+
+
+@pytest.mark.parametrize("events, options", [
+    # a wrist-torque stop, released, then latched again while blending back
+    ([(1.0, "wrist-torque"), (2.0, "release"), (3.5, "wrist-torque")], {}),
+    # a revert released while it still brakes (turns)
+    ([(1.0, "operator"), (1.02, "release")], {}),
+    # the freeze preset (it only brakes) with a wrist-torque stop, released while braking
+    ([(1.0, "wrist-torque"), (1.03, "release")], {"revert_s": 0.005, "stop_s": 0.005}),
+    # an operator stop latched during the recovery of another, then released
+    ([(1.0, "operator"), (2.0, "release"), (3.0, "operator"), (3.02, "release")], {}),
+], ids=["wrist-relatch-in-recover", "release-while-turning", "freeze-wrist-release",
+        "relatch-in-recover"])
+def test_no_latch_or_release_jumps_the_command(model, events, options):
+    """Every latch and release goes on from the output's own motion, whichever tracker made
+    it (a brake tracker left stale once jumped a re-latched wrist stop by 0.39 rad)."""
+    dt, speed = 0.005, 0.35
+    stopper = EmergencyStopper(model, dt, sources=("operator", "wrist-torque"), **options)
+    q0 = home_posture(model)
+    state = RobotState(0.0, q0, np.zeros(24))
+    stopper.reset(q0, state, Store())
+    at = {round(t_s / dt): what for t_s, what in events}
+    outputs = []
+    for k in range(round(5.0 / dt)):
+        cycle = sensed_cycle(k * dt, dt, state)
+        if at.get(k) == "release":
+            stopper.release()
+        elif k in at:
+            cycle.estop_requests.add(at[k])
+        q = q0.copy()
+        q[0] += speed * k * dt
+        outputs.append(stopper.update(q, state, cycle))
+    steps = np.abs(np.diff(np.array(outputs)[:, 0]))
+    # measured at most 0.0039 rad a period (the ramp's own 0.00175 plus braking): 1.5x
+    assert steps.max() < 0.006, steps.max()

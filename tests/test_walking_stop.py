@@ -79,16 +79,19 @@ def test_a_phase_that_stops_itself_is_passed_through_then_held(model):
     assert MODE_CODE["finish"] == 4
 
 
-@pytest.mark.parametrize("phase_stops, braked_k, why", [
-    (lambda k: PhaseStop(False, 0.5), 3 + round(0.5 / DT) + 1, "never settles within 0.5 s"),
-    (lambda k: PhaseStop(False, 1e9), 3 + round(MAX_FINISH_S / DT) + 1,
+@pytest.mark.parametrize("phase_stops, braked_k, event, why", [
+    (lambda k: PhaseStop(False, 0.5), 3 + round(0.5 / DT) + 1, "finish-deadline",
+     "never settles within 0.5 s"),
+    (lambda k: PhaseStop(False, 1e9), 3 + round(MAX_FINISH_S / DT) + 1, "finish-deadline",
      "asks for more than MAX_FINISH_S"),
-    (lambda k: PhaseStop(False, 2.0) if k < 50 else None, 50, "stops saying how it stops"),
+    (lambda k: PhaseStop(False, 2.0) if k < 50 else None, 50, "finish-lost",
+     "stops saying how it stops"),
 ])
-def test_a_phase_that_does_not_settle_is_braked_and_held(model, phase_stops, braked_k, why):
+def test_a_phase_that_does_not_settle_is_braked_and_held(model, phase_stops, braked_k, event,
+                                                         why):
     inputs, outputs, modes, stopper = _stopper_run(model, phase_stops, periods=braked_k + 200)
     assert modes.index("stop") == braked_k, why
-    assert "finish-deadline" in [e.kind for e in stopper.events], why
+    assert event in [e.kind for e in stopper.events], why
     assert modes[-1] == "hold", why
     # braked from its motion: no jump beyond one period's travel at the input's speed
     assert np.max(np.abs(np.diff(outputs[:, 0]))) < 0.2 * DT * 1.5

@@ -179,9 +179,11 @@ class EmergencyStopper(Module):
         wrench_reference: pass the hand wrench references on, reverted with the motion (reads
             ``HAND_WRENCH_PLAN``, writes ``HAND_WRENCH_REF``; see the module docstring).
 
-    Flags: ``estop`` while stopping or holding, ``recovering`` while blending back,
-    ``estop-brake`` while a wrist-torque stop brakes and relieves.
-    Info: ``<name>_mode_code`` (0 release, 1 stop, 2 hold, 3 recover), ``wrist_torque_nm``.
+    Flags: ``estop`` while stopping, finishing or holding, ``recovering`` while blending
+    back, ``estop-brake`` while it brakes at the emergency limits (a revert turning, a
+    wrist-torque stop braking and relieving, a finish that lost its phase or its deadline).
+    Info: ``<name>_mode_code`` (the index in :data:`MODES`: 0 release, 1 stop, 2 hold,
+    3 recover, 4 finish), ``wrist_torque_nm``.
 
     Store: the wrist-torque stop follows ``WRIST_RELIEF`` (called once it has braked to rest,
     with the braked joint command; not written: hold where braked); ``estop`` writes
@@ -256,6 +258,7 @@ class EmergencyStopper(Module):
         self._brake_only = False
         self._relieving: str | None = None  # "brake", then "move" (wrist-torque stops)
         self._turning = False  # a revert still braking to rest (at the brake limits)
+        self._relief_allowed = True  # a relief brake may play the store's WRIST_RELIEF
         self._hard_wrench: str | None = None  # a hard stop's wrenches: "stop", then "recover"
         self._hard_recover_end_s = 0.0
         if self.wrenches is not None:
@@ -325,15 +328,16 @@ class EmergencyStopper(Module):
             if self.wrenches is not None:
                 self.wrenches.start(t_s, self.stop_s, {})
             return
-        self.mode = "stop"
+        self.mode, self._relief_allowed = "stop", True
         # while blending back, the input of T1 ago may be far from the output: stop in place
         self._brake_only = self.is_freeze or recovering
         self.hold_rad = self.history[0].copy()
         self._relieving = None
         if sources & RELIEVE_SOURCES:
             self._relieving = "brake"
-        if not self._brake_only:  # a revert or a relief turns the motion at the brake limits
-            self.brake_tracker.reset(*self._output_state())
+        # a revert or a relief turns the motion at the brake limits, from the output's motion
+        # (reset at every latch: a relief also brakes on it when the stop only brakes)
+        self.brake_tracker.reset(*self._output_state())
         self._turning = not (self._brake_only or self._relieving)
         if self.wrenches is not None:  # eq. 15 for the wrenches: back to t_emer - T1, or off
             back = self._brake_only or self._relieving or self._hard_wrench == "stop"
@@ -372,11 +376,14 @@ class EmergencyStopper(Module):
             return q_in
         if isinstance(phase_stop, PhaseStop) and t_s <= self.t_finish_end_s:
             return q_in
-        self.events.append(SafetyEvent(t_s, "finish-deadline", ()))
-        self.tracker.reset(*self._output_state())
-        self._brake_only = True
+        lost = not isinstance(phase_stop, PhaseStop)
+        self.events.append(SafetyEvent(t_s, "finish-lost" if lost else "finish-deadline", ()))
+        # brake at the emergency limits (as a revert turns), then hold where it comes to rest
+        self.brake_tracker.reset(*self._output_state())
+        self._brake_only, self._relieving, self._turning = True, "brake", False
+        self._relief_allowed = False  # a walk's legs: brake and hold, no wrist relief
         self.mode = "stop"
-        return self.tracker.brake()
+        return self._relieve(None)
 
     def _relieve(self, relief: Callable[[np.ndarray], np.ndarray | None] | None) -> np.ndarray:
         """One period of a wrist-torque stop: brake at the emergency limits, then play the
@@ -432,11 +439,10 @@ class EmergencyStopper(Module):
         if requests and self.mode in ("release", "recover"):
             self._latch(cycle.t_s, requests, phase_stop)
         elif self._release and self.mode in ("stop", "hold", "finish"):
-            if self.mode == "finish" or (self.mode == "stop" and not self._brake_only):
-                # released while finishing, reverting or relieving: the tracker has not made
-                # the output; blend back from the output
-                self.tracker.reset(*self._output_state())
-                self._relieving, self._turning = None, False
+            # blend back from the output, whoever made it (the phase finishing, the brake
+            # tracker turning, braking or relieving, or this tracker)
+            self.tracker.reset(*self._output_state())
+            self._relieving, self._turning = None, False
             self.mode = "recover"
             self.t_recover_end_s = cycle.t_s + self.recover_s
             if self.wrenches is not None:
@@ -453,7 +459,8 @@ class EmergencyStopper(Module):
         elif self.mode == "stop":
             if self._relieving:
                 cycle.flags.add(BRAKE_FLAG)
-                out = self._relieve(cycle.store.get(WRIST_RELIEF))
+                out = self._relieve(cycle.store.get(WRIST_RELIEF) if self._relief_allowed
+                                    else None)
             elif self._brake_only:
                 out = self.tracker.brake()
                 if self.tracker.at_rest:
