@@ -52,6 +52,17 @@ def _wait(condition) -> bool:
     return condition()
 
 
+def test_every_stopper_mode_has_words_and_a_stopped_one_says_so():
+    from hubo_cli.cli.safety_view import ESTOP_WORDS, STOPPED_HOW
+    from hubo_cli.control.estop import MODES
+    assert set(ESTOP_WORDS) == set(MODES) - {"release"}
+    for mode in ("stop", "finish", "hold"):
+        state = SafetyState(estop=ESTOP_WORDS[mode], estop_sources=("operator",), stops=1)
+        text = safety_text(state).plain
+        assert f"E-STOP (operator) — press r to release ({STOPPED_HOW[ESTOP_WORDS[mode]]})" \
+            in text, text
+
+
 def test_safety_text_in_words():
     state = SafetyState(estop="held", estop_sources=("operator",), stops=1, collision="holding",
                         collision_pair=("REB_link_0", "torso_0"), collision_distance_m=0.004,

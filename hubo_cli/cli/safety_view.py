@@ -100,7 +100,10 @@ class SafetyState:
     robot: str = ""
 
 
-ESTOP_WORDS = {"stop": "stopping", "hold": "held", "recover": "releasing"}
+# the stopper's modes (control.estop.MODES but release) as the view says them; while stopped
+# (STOPPED_HOW), how the stop goes
+ESTOP_WORDS = {"stop": "stopping", "finish": "finishing", "hold": "held", "recover": "releasing"}
+STOPPED_HOW = {"stopping": "reverting", "finishing": "finishing the step", "held": "held"}
 COLLISION_WORDS = {"hold": "holding", "recover": "recovering"}
 ROBOT_WORDS = {  # driver flags of the robot's state the operator must see
     "stale-state": "STATE STALE: no fresh robot state — braked and holding; the run ends",
@@ -175,8 +178,8 @@ class Look:
 
 def _estop_line(state: SafetyState, look: Look) -> Text:
     sources = ", ".join(state.estop_sources) or "unknown"
-    if state.estop in ("stopping", "held"):
-        how = "reverting" if state.estop == "stopping" else "held"
+    if state.estop in STOPPED_HOW:
+        how = STOPPED_HOW[state.estop]
         key = f" — press {look.release_key} to release" if look.release_key else ""
         text = Text(f"E-STOP ({sources}){key} ({how})",
                     style="bold white on red" if look.flash else "bold red")

@@ -461,10 +461,12 @@ def _stop_words(stop: dict) -> str:
     """The e-stop line of the text summary: what latched it, what the stopper did, and the
     wrist torque and bit travel after the latch apart from those before it."""
     before = stop["wrist_torque_nm"]
-    words = (f"[red]{', '.join(stop['sources'])}[/] at {stop['t_s']:.2f} s in step "
-             f"'{stop['step']}'" + (f" (wrist {before:.2f} N m)" if before is not None else "")
-             + ": ")
-    if stop["reverted_to_t_s"] is not None:
+    where = f"step '{stop['step']}'" if stop["step"] is not None else "the approach"
+    words = (f"[red]{', '.join(stop['sources'])}[/] at {stop['t_s']:.2f} s in {where}"
+             + (f" (wrist {before:.2f} N m)" if before is not None else "") + ": ")
+    if stop.get("finished_step"):
+        words += "finished the walk's step into a double-support stance"
+    elif stop["reverted_to_t_s"] is not None:
         words += f"reverted to the command of {stop['reverted_to_t_s']:.2f} s"
     elif stop["retreat_mm"] is not None:
         words += f"braked and backed the bit {stop['retreat_mm']:.0f} mm out of the wall"

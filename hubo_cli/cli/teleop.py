@@ -91,7 +91,8 @@ def _view(target, panel) -> Group:
     IK status, reach (limit and direction of the missing part, branch changes, slowing); input
     and latency."""
     safety = panel()
-    phase = "E-STOPPED" if panel.last.estop in ("stopping", "held") else target.phase
+    from hubo_cli.cli.safety_view import STOPPED_HOW
+    phase = "E-STOPPED" if panel.last.estop in STOPPED_HOW else target.phase
     table = Table(title=f"hubo teleop — {phase}   ({KEYS_HELP})", title_justify="left")
     for column in ("hand", "goal (mm)", "actual (mm)", "pos err (mm)", "rot err (deg)", "IK",
                    "reach", "input"):
@@ -360,7 +361,7 @@ def _report(run, as_json: bool, video: bool = False) -> None:
                             "that time")
                     console.print(f"    goal reachable {r['reachable_share']:.0%} of the "
                                   f"time{over}")
-        releases = len(summary["estop_events"]) - len(stops)
+        releases = sum(e["kind"] == "release" for e in summary["estop_events"])
         console.print(f"  e-stops {len(stops)} (released {releases}), statuses "
                       f"{summary['status_counts']}, max velocity "
                       f"{summary['max_joint_velocity_ratio']:.0%} of limit")

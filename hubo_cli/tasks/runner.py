@@ -357,11 +357,15 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
         stopper = done.loop.module_status.get("estop")
         after_stop = log["t_s"] > t_stop + 1e-9
         relieved = bool(RELIEVE_SOURCES.intersection(sources))
+        # a stop in the approach walk finishes the step in progress instead of reverting
+        finished = any(e[2] == "finish" and e[1] == t_stop for e in result.safety_events)
         stop = {"t_s": t_stop, "sources": list(sources),
                 "step": None if step is None else step.name,
-                "reverted_to_t_s": None if relieved else t_stop - spec.safety.revert_s,
+                "finished_step": finished,
+                "reverted_to_t_s": (None if relieved or finished
+                                    else t_stop - spec.safety.revert_s),
                 "retreat_mm": None if target.retreat_m is None else target.retreat_m * 1000,
-                "held": target.phase == "stopped" and stopper is not None
+                "held": (target.phase == "stopped" or finished) and stopper is not None
                 and stopper.mode == "hold",
                 "resumed_at_t_s": target.resumed_t_s,
                 "held_after_s": None if target.t_held_s is None else target.t_held_s - t_stop,
