@@ -116,8 +116,9 @@ def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | No
         if result.ended == "interrupted":
             console.print("ended             interrupted: braked to a stop before the goal")
         console.print(f"fell              {'YES' if result.fell else 'no'}")
-        console.print(f"steps             {result.steps} in {result.walking_s:.2f} s "
-                      f"({result.average_speed_m_s:.3f} m/s)")
+        speed = result.average_speed_m_s
+        console.print(f"steps             {result.steps} in {result.walking_s:.2f} s"
+                      + ("" if speed is None else f" ({speed:.3f} m/s)"))
         console.print(f"final error       {result.final_error_mm:.1f} mm, "
                       f"{result.final_error_deg:.2f} deg (estimated "
                       f"{result.estimated_final_error_mm:.1f} mm, "

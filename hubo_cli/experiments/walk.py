@@ -52,7 +52,7 @@ class WalkResult:
             (what the walk's corrections act on).
         steps: footsteps planned (all taken unless the run ended early).
         average_speed_m_s: the goal's distance over the time from the start to the last
-            step's end.
+            step's end; None for a walk a stop ended short of its goal.
         zmp_inside_fraction: of the periods with a sole in contact, the share whose ZMP lay
             inside the convex hull of the soles in contact by at least 1 mm (the ground cannot
             push outside the hull: a ZMP on its edge means a sole tipping). The ZMP, the soles
@@ -72,7 +72,7 @@ class WalkResult:
     estimated_final_error_mm: float
     estimated_final_error_deg: float
     steps: int
-    average_speed_m_s: float
+    average_speed_m_s: float | None
     zmp_inside_fraction: float
     walking_s: float
     ended: str
@@ -229,12 +229,14 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
     distance = math.hypot(goal[0], goal[1])
     walking_s = target.walking_s
     result = WalkResult(
-        fell=target.fell, stopped_s=target.stopped_s, stood=target.phase == "stood",
+        fell=target.fell, stopped_s=target.stopped_s,
+        stood=target.phase == "stood" and not target.stop_failed,  # failed: braked in place
         shifts=target.shifts, final_error_mm=1000 * error_m,
         final_error_deg=math.degrees(error_rad),
         estimated_final_error_mm=1000 * estimated_m,
         estimated_final_error_deg=math.degrees(estimated_rad), steps=len(target.steps),
-        average_speed_m_s=distance / walking_s if walking_s > 0 else 0.0,
+        average_speed_m_s=(None if target.stopped_s is not None
+                           else distance / walking_s if walking_s > 0 else 0.0),
         zmp_inside_fraction=(target.zmp_inside_periods / target.zmp_periods
                              if target.zmp_periods else 0.0),
         walking_s=walking_s, ended=done.loop.ended,
