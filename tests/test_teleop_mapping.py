@@ -80,10 +80,46 @@ def test_drill_goals_cross_the_wall_no_faster_than_the_bound_and_catch_up(seed):
         assert np.linalg.norm(b[1:3, 3] - a[1:3, 3]) <= 0.03 * (t1 - t0) + 1e-12
     # the operator rests: the goal comes to his hand's place at the bound's speed
     t_end, rest = times.max(), positions[-1] if positions[-1][0] < 0.5 else positions[-2]
-    for k in range(1, 4000):
+    # (along the path drawn: at most MAX_PENDING points of it, ~1 m here: 33 s at 30 mm/s)
+    for k in range(1, 8000):
         goal = mapper.goal("right", sensor(*rest), t_end + k / 120, T_HAND0)
-    wanted = mapper.goal("right", sensor(*rest), t_end + 4000 / 120 + 100, T_HAND0).T_S_goal
+    wanted = mapper.goal("right", sensor(*rest), t_end + 8000 / 120 + 100, T_HAND0).T_S_goal
     assert np.allclose(goal.T_S_goal, wanted, atol=1e-9)
+
+
+def _off_polyline_m(point: np.ndarray, corners: list[np.ndarray]) -> float:
+    """The distance (m) from ``point`` to the polyline through ``corners``."""
+    best = np.inf
+    for a, b in zip(corners, corners[1:], strict=False):
+        u = np.clip(np.dot(point - a, b - a) / np.dot(b - a, b - a), 0.0, 1.0)
+        best = min(best, float(np.linalg.norm(point - (a + u * (b - a)))))
+    return best
+
+
+@pytest.mark.parametrize("speed_m_s", [0.06, 0.2])
+def test_a_drill_goal_slower_than_the_hand_follows_the_path_drawn(speed_m_s):
+    """An L drawn faster than the bound (150 mm one way, then 100 mm another), with the
+    tracker's noise: the goal keeps to the L (it cut the corner by 56 mm when it headed
+    straight for the latest sample) and ends where the hand rests."""
+    rng = np.random.default_rng(1)
+    mapper = HandMapper(MappingConfig(mode="drill", wall_distance_m=0.48))
+    drawn = HandMapper(MappingConfig(mode="drill", wall_distance_m=0.48, wall_speed_m_s=1e3))
+    corners = [np.zeros(3), np.array([0.0, -0.150, 0.0]), np.array([0.0, -0.150, -0.100])]
+    path = [corners[0] + (corners[1] - corners[0]) * u
+            for u in np.arange(0.0, 1.0, speed_m_s / 120 / 0.150)]
+    path += [corners[1] + (corners[2] - corners[1]) * u
+             for u in np.arange(0.0, 1.0, speed_m_s / 120 / 0.100)]
+    path += [corners[2]] * (120 * 12)  # then rests 12 s
+    L = [drawn.goal("right", sensor(*c), float(k), T_HAND0).T_S_goal[1:3, 3]
+         for k, c in enumerate(corners)]  # the L on the wall (S)
+    offsets = []
+    for k, p in enumerate(path):
+        noisy = p + rng.normal(0.0, 0.0002, 3)  # 0.2 mm of tracker noise
+        goal = mapper.goal("right", sensor(*noisy), k / 120, T_HAND0)
+        offsets.append(_off_polyline_m(goal.T_S_goal[1:3, 3], L))
+    # off the L by the noise and the path's 2 mm steps only
+    assert max(offsets) < 0.003, max(offsets)
+    assert np.linalg.norm(goal.T_S_goal[1:3, 3] - L[-1]) < 0.001
 
 
 def test_hands_are_independent_and_unmapped_ones_ignored():

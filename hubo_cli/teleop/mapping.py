@@ -21,6 +21,7 @@ at that speed while the hand moves faster, and catches up once it slows.
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -31,6 +32,12 @@ from hubo_cli.model import ARMS
 
 MODES = ("free", "drill")
 MAX_OPERATOR_RANGE_M = 100.0  # a tracker reads a few metres; far beyond is garbage
+# drill mode: the speed-bounded goal follows the operator's path through points at least
+# PATH_STEP_M apart (a tracker's noise draws no path; a corner is cut by at most about that),
+# at most MAX_PENDING of them ahead (0.4 m of path at least, 16 s at 25 mm/s; beyond, the
+# oldest is dropped: a chord across two points)
+PATH_STEP_M = 0.002
+MAX_PENDING = 200
 
 
 @dataclass
@@ -81,6 +88,8 @@ class _Reference:
     last_goal: np.ndarray   # the last goal given (drill mode: speed-bounded)
     last_mapped: np.ndarray  # the last sample's mapped pose (what the glitch check compares)
     last_t_s: float | None = None
+    # drill mode: the operator's points on the wall (y, z in S, m) the goal has yet to pass
+    pending: deque = field(default_factory=lambda: deque(maxlen=MAX_PENDING))
 
 
 @dataclass(frozen=True)
@@ -167,12 +176,33 @@ class HandMapper:
         if self.config.mode == "drill":
             elapsed_s = t_s - ref.last_t_s if np.isfinite(t_s) and ref.last_t_s is not None \
                 else 0.0
-            step = T_goal[1:3, 3] - ref.last_goal[1:3, 3]
-            room = self.config.wall_speed_m_s * max(elapsed_s, 0.0)
-            length = float(np.linalg.norm(step))
-            if length > room:
-                T_goal[1:3, 3] = ref.last_goal[1:3, 3] + step * (room / length)
+            here = T_goal[1:3, 3].copy()
+            behind = ref.pending[-1] if ref.pending else ref.last_goal[1:3, 3]
+            if np.linalg.norm(here - behind) >= PATH_STEP_M:
+                ref.pending.append(here)
+            T_goal[1:3, 3] = _along(ref.pending, here, ref.last_goal[1:3, 3],
+                                    self.config.wall_speed_m_s * max(elapsed_s, 0.0))
         if np.isfinite(t_s) and (ref.last_t_s is None or t_s > ref.last_t_s):
             ref.last_t_s = t_s
         ref.last_goal = T_goal
         return HandGoal(arm, T_goal, t_s)
+
+
+def _along(pending: deque, latest: np.ndarray, start: np.ndarray, room_m: float) -> np.ndarray:
+    """The point ``room_m`` further from ``start`` along the operator's path: the ``pending``
+    points still ahead, in order (those passed are removed), then his hand's ``latest`` point.
+    A goal slower than the operator's hand follows the path drawn; it does not cut across its
+    corners."""
+    at = np.array(start, dtype=float)
+    while room_m > 0.0:
+        ahead = (pending[0] if pending else latest) - at
+        length = float(np.linalg.norm(ahead))
+        if length <= room_m:
+            at = at + ahead
+            room_m -= length
+            if not pending:
+                return at
+            pending.popleft()
+        else:
+            return at + ahead * (room_m / length)
+    return at
