@@ -326,7 +326,9 @@ class FloatingBase(Observer):
         """Sole ``side`` takes the anchor as estimated, the gyro's turn included: its place and
         heading the mean of its last LANDED_PERIODS estimates on the floor (one period's
         estimate carries the encoders' and the IMU's noise through the legs into every later
-        step: perturbed robots' estimates drifted 10 mm in a 1 m walk)."""
+        step: perturbed robots' estimates drifted 10 mm in a 1 m walk), or, when it gave the
+        anchor up and has stayed in contact since, the pose it had then; the anchor it leaves
+        keeps its own for the same."""
         self._planted[self.anchor] = self._T_world_soles[self.anchor].copy()
         self.anchor = side
         T = self._T_world_soles[side].copy()
