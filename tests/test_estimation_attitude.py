@@ -26,7 +26,7 @@ from hubo_cli.geometry import quat_wxyz_to_matrix, rotation_exp, rotation_log, r
 from hubo_cli.model import load_model
 from hubo_cli.perturb import ACCEL_NOISE_DENSITY, GYRO_NOISE_DENSITY, draw
 from hubo_cli.posture import home_posture
-from hubo_cli.state import GRAVITY_M_S2, RobotState
+from hubo_cli.state import ANKLE_SENSORS, GRAVITY_M_S2, RobotState
 
 MODEL = load_model()
 PARAMS = attitude_params(MODEL)
@@ -402,3 +402,26 @@ def test_walking_attitude_against_the_simulators_truth(walking):
         drawn = np.array(perturbation.gyro_bias_rad_s)
         assert np.degrees(np.abs(bias - drawn))[:2].max() < 0.1, (seed, bias, drawn)
         assert observer.legs_periods > 0.45 * len(rows)  # a sole flat 70-86 % of the walk
+
+
+@pytest.mark.parametrize("stuck_rad_s, flagged", [(0.5, True), (0.02, False)])
+def test_a_gyro_stuck_at_a_rate_no_gyro_has_as_bias_is_flagged(stuck_rad_s, flagged):
+    """The robot stands still on flat loaded soles while the gyro reads a constant rate: it is
+    learnt as a bias (the attitude comes back level), and beyond gyro_bias_max_rad_s the gyro
+    is reported rejected (a fault, not a bias)."""
+    model = load_model()
+    q = home_posture(model)
+    observer, store = AttitudeObserver.for_model(model), Store()
+    store[CONTACT] = (True, True)
+    store[WRENCHES] = {sensor: np.array([0.0, 0.0, 300.0, 0.0, 0.0, 0.0])
+                       for sensor in ANKLE_SENSORS}
+    still = np.array([0.0, 0.0, GRAVITY_M_S2])
+    observer.reset(RobotState(0.0, q, np.zeros(N), imu_gyro_rad_s=np.zeros(3),
+                              imu_accel_m_s2=still), store)
+    for k in range(1, round(20.0 / DT) + 1):
+        observer.update(RobotState(k * DT, q, np.zeros(N), imu_quat_wxyz=np.array([1.0, 0, 0, 0]),
+                                   imu_gyro_rad_s=np.array([stuck_rad_s, 0.0, 0.0]),
+                                   imu_accel_m_s2=still), store)
+    assert store[GYRO_BIAS][0] == pytest.approx(stuck_rad_s, abs=0.01)
+    assert _tilt_error_deg(store[QUAT_WORLD_TORSO], np.eye(3)) < 0.5
+    assert store[IMU_REJECTED][0] is flagged

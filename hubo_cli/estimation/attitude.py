@@ -107,6 +107,10 @@ class AttitudeParams:
         initial_floor_tilt_rad: the floor's tilt's uncertainty at start.
         still_learn_s: the accelerometer teaches the bias and the floor's tilt once the torso
             has been still this long.
+        gyro_bias_max_rad_s: the largest bias a working gyro has (per axis): an estimate
+            beyond it reports the gyro rejected (a gyro stuck at a rate is a fault, not a
+            bias; the filter still learns it as one, which keeps the attitude: held within
+            the bound, a gyro stuck at 0.5 rad/s turned the estimate over).
     """
 
     gyro_noise_rad_s_rt_hz: float
@@ -126,6 +130,7 @@ class AttitudeParams:
     legs_cop_margin_m: float
     initial_floor_tilt_rad: float
     still_learn_s: float
+    gyro_bias_max_rad_s: float
 
     def as_array(self) -> np.ndarray:
         """The fields in order, for the kernel."""
@@ -538,6 +543,9 @@ class AttitudeObserver(Observer):
         self._b, self._b_next = self._b_next, self._b
         self._n, self._n_next = self._n_next, self._n
         self._P, self._P_next = self._P_next, self._P
+        bound = self.params.gyro_bias_max_rad_s
+        if not (abs(self._b[0]) <= bound and abs(self._b[1]) <= bound and abs(self._b[2]) <= bound):
+            code |= GYRO_REJECTED  # a bias no working gyro has: flagged
         self._write(store, code)
 
     def _initial_floor(self, state: RobotState) -> np.ndarray:

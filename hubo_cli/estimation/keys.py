@@ -25,7 +25,8 @@ OMEGA_TORSO = Key("omega_torso_rad_s", np.ndarray,
                   "torso angular rate in the torso frame, bias removed (rad/s)")
 IMU_REJECTED = Key("imu_rejected", tuple,
                    "(gyro, accelerometer): this period's reading was not used (not finite or "
-                   "beyond the sensor's range); a rejected gyro holds the attitude")
+                   "beyond the sensor's range; a rejected gyro holds the attitude), or the "
+                   "gyro's estimated bias is beyond any working gyro's")
 T_WORLD_TORSO = Key("T_world_torso", np.ndarray,
                     "torso pose in the world (4x4, m), from the legs anchored at the loaded "
                     "sole and the estimated attitude")
