@@ -17,6 +17,7 @@ the preview controller turns the difference into a CoM correction, and the legs 
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -58,6 +59,22 @@ def pose_of_row(row: np.ndarray, pitch_rad: float = 0.0) -> np.ndarray:
     cp, sp = math.cos(pitch_rad), math.sin(pitch_rad)  # Rz(yaw) Ry(pitch)
     return np.array([[c * cp, -s, c * sp, x], [s * cp, c, s * sp, y], [-sp, 0.0, cp, z],
                      [0.0, 0.0, 0.0, 1.0]])
+
+
+def poses_of_rows(rows: np.ndarray, pitch_rad: np.ndarray | None = None) -> np.ndarray:
+    """:func:`pose_of_row` of every row of ``rows`` (n x 4) at once: (n, 4, 4), each turned by
+    its ``pitch_rad`` (n,; None: flat)."""
+    rows = np.asarray(rows, dtype=float)
+    c, s = np.cos(rows[:, 3]), np.sin(rows[:, 3])
+    pitch = np.zeros(len(rows)) if pitch_rad is None else np.asarray(pitch_rad, dtype=float)
+    cp, sp = np.cos(pitch), np.sin(pitch)
+    T = np.zeros((len(rows), 4, 4))
+    T[:, 0, 0], T[:, 0, 1], T[:, 0, 2] = c * cp, -s, c * sp
+    T[:, 1, 0], T[:, 1, 1], T[:, 1, 2] = s * cp, c, s * sp
+    T[:, 2, 0], T[:, 2, 2] = -sp, cp
+    T[:, :3, 3] = rows[:, :3]
+    T[:, 3, 3] = 1.0
+    return T
 
 
 @dataclass(frozen=True)
@@ -115,6 +132,12 @@ class WalkingBody:
         Raises:
             InputError: a sole the legs cannot reach (the step is too long for this posture).
         """
+        return run_slices(self.solve_slices(gait, gait.n))
+
+    def solve_slices(self, gait: Gait, rows_per_slice: int) -> Iterator[None]:
+        """:meth:`solve` ``rows_per_slice`` rows at a time: yields after each slice (a
+        re-plan spread over control periods, :mod:`hubo_cli.walking.replan`); returns the
+        :class:`JointPlan`."""
         n = gait.n
         q_all = np.empty((n, len(self.q_start)))
         T_all = np.empty((n, 4, 4))
@@ -123,6 +146,8 @@ class WalkingBody:
         offset = self.com_in_neck(q)
         worst = 0.0
         for k in range(n):
+            if k and k % rows_per_slice == 0:
+                yield
             right, left = gait.feet["right"][k], gait.feet["left"][k]
             yaw = float(right[3]) + wrap_angle(float(left[3] - right[3])) / 2
             sideways = (-math.sin(yaw) * (gait.com.com_m[k, 0] - (right[0] + left[0]) / 2)
@@ -130,10 +155,12 @@ class WalkingBody:
             R = yaw_matrix(yaw) @ roll_matrix(-self.lean_rad_per_m * sideways)
             T_world_neck = np.eye(4)
             T_world_neck[:3, :3] = R
+            T_neck_world = np.eye(4)
+            T_neck_world[:3, :3] = R.T
             for _ in range(2):  # the CoM offset at the joints being solved
                 T_world_neck[:2, 3] = gait.com.com_m[k] - (R @ offset)[:2]
                 T_world_neck[2, 3] = self.neck_z_m
-                T_neck_world = np.linalg.inv(T_world_neck)
+                T_neck_world[:3, 3] = -(R.T @ T_world_neck[:3, 3])
                 for side, row, pitch in zip(("right", "left"), (right, left),
                                             gait.foot_pitch_rad(k), strict=True):
                     name = SIDE_LEG[side]
@@ -151,7 +178,7 @@ class WalkingBody:
                 offset = self.com_in_neck(q)
             q_all[k] = q
             T_all[k] = T_world_neck
-            com_all[k] = T_world_neck[:3, :3] @ offset + T_world_neck[:3, 3]
+            com_all[k] = R @ offset + T_world_neck[:3, 3]
         return JointPlan(q_all, T_all, com_all, worst)
 
     def solve_corrected(self, gait: Gait, ground_z_m: float, preview_s: float,
@@ -164,8 +191,20 @@ class WalkingBody:
         ``fix_start``: the correction's position, velocity and acceleration (2, each) at the
         gait's start (a pattern re-planned in motion continues its correction; None: at
         rest at zero)."""
-        plan = self.solve(gait)
-        error = multibody_zmp(self, plan, ground_z_m, gait.period_s) - gait.zmp_ref_m
+        return run_slices(self.solve_corrected_slices(gait, ground_z_m, preview_s, zmp_weight,
+                                                      jerk_weight, fix_start, gait.n))
+
+    def solve_corrected_slices(self, gait: Gait, ground_z_m: float, preview_s: float,
+                               zmp_weight: float, jerk_weight: float,
+                               fix_start: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
+                               rows_per_slice: int) -> Iterator[None]:
+        """:meth:`solve_corrected` ``rows_per_slice`` rows at a time (yields after each slice
+        of its three passes over the rows: solve, multi-body ZMP, solve again)."""
+        plan = yield from self.solve_slices(gait, rows_per_slice)
+        yield
+        multibody = yield from multibody_zmp_slices(self, plan, ground_z_m, gait.period_s,
+                                                    rows_per_slice)
+        error = multibody - gait.zmp_ref_m
         # the ends hold still; their one-sided differences are not motion (and a step in the
         # correction's reference at the start would itself move the ZMP)
         error[:END_PERIODS] = 0.0
@@ -178,7 +217,18 @@ class WalkingBody:
         corrected = replace(gait, com=CoMPath(
             com.com_m + fix.com_m, com.com_velocity_m_s + fix.com_velocity_m_s,
             com.com_acceleration_m_s2 + fix.com_acceleration_m_s2, com.zmp_m + fix.zmp_m))
-        return corrected, self.solve(corrected)
+        yield
+        plan = yield from self.solve_slices(corrected, rows_per_slice)
+        return corrected, plan
+
+
+def run_slices(slices: Iterator[None]):
+    """Run a sliced computation (a generator yielding between slices) to its end: its value."""
+    while True:
+        try:
+            next(slices)
+        except StopIteration as done:
+            return done.value
 
 
 def multibody_zmp(body: WalkingBody, plan: JointPlan, ground_z_m: float,
@@ -186,13 +236,24 @@ def multibody_zmp(body: WalkingBody, plan: JointPlan, ground_z_m: float,
     """The ZMP (n, 2; m, world) of the whole body moving through ``plan``: from the CoM and
     the centroidal momentum's rate (pinocchio; velocities and rates by central differences,
     the ends repeat their neighbours) on flat ground at height ``ground_z_m``."""
+    return run_slices(multibody_zmp_slices(body, plan, ground_z_m, period_s, len(plan.q_rad)))
+
+
+def multibody_zmp_slices(body: WalkingBody, plan: JointPlan, ground_z_m: float,
+                         period_s: float, rows_per_slice: int) -> Iterator[None]:
+    """:func:`multibody_zmp` ``rows_per_slice`` rows at a time (yields after each slice)."""
     model, data = body.robot.model, body.data
     n = len(plan.q_rad)
-    qs = np.array([body.robot.configuration(plan.q_rad[k], plan.T_world_neck[k]).copy()
-                   for k in range(n)])
+    qs = np.zeros((n, model.nq))
+    for k in range(n):
+        if k and k % rows_per_slice == 0:
+            yield
+        body.robot.configuration(plan.q_rad[k], plan.T_world_neck[k], out=qs[k])
     momentum = np.zeros((n, 6))
     com = np.zeros((n, 3))
     for k in range(n):
+        if k and k % rows_per_slice == 0:
+            yield
         before, after = qs[max(k - 1, 0)], qs[min(k + 1, n - 1)]
         span = (min(k + 1, n - 1) - max(k - 1, 0)) * period_s
         v = pin.difference(model, before, after) / span if span > 0 else np.zeros(model.nv)
