@@ -20,10 +20,13 @@ import math
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
 
+import numba as nb
 import numpy as np
 import pinocchio as pin
 
 from hubo_cli.errors import InputError
+from hubo_cli.kinematics.choice import CAPPED, EXACT, STATUS_NAMES, solve_limb
+from hubo_cli.kinematics.dh import JIT, TRUE
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import LEGS, RobotModel
 from hubo_cli.pin_robot import load_pin_robot
@@ -117,6 +120,12 @@ class WalkingBody:
         self.neck_z_m = float(T_world_neck_start[2, 3])
         self.legs = {name: Limb(model, name) for name in LEGS}
         self.slices = {name: model.limb_slice(name) for name in LEGS}
+        # each leg's IK data as :func:`_solve_legs` takes them (right, left)
+        self.leg_kernels = tuple(
+            (leg.chain, leg.lengths_m, leg.spec.is_arm, leg.lower_rad, leg.upper_rad, leg.hold_m,
+             self.slices[name].start)
+            for leg, name in ((self.legs[SIDE_LEG[side]], SIDE_LEG[side])
+                              for side in ("right", "left")))
         self.robot = load_pin_robot(model, floating=True)
         self.data = self.robot.model.createData()
         self._q_pin = np.zeros(self.robot.model.nq)
@@ -145,6 +154,9 @@ class WalkingBody:
         q = self.q_start.copy()
         offset = self.com_in_neck(q)
         worst = 0.0
+        status, error = np.empty(2, dtype=np.int64), np.empty(2)
+        pitch = (np.zeros((n, 2)) if gait.toe_heel is None
+                 else np.ascontiguousarray(gait.toe_heel.foot_angle_rad, dtype=float))
         for k in range(n):
             if k and k % rows_per_slice == 0:
                 yield
@@ -152,7 +164,11 @@ class WalkingBody:
             yaw = float(right[3]) + wrap_angle(float(left[3] - right[3])) / 2
             sideways = (-math.sin(yaw) * (gait.com.com_m[k, 0] - (right[0] + left[0]) / 2)
                         + math.cos(yaw) * (gait.com.com_m[k, 1] - (right[1] + left[1]) / 2))
-            R = yaw_matrix(yaw) @ roll_matrix(-self.lean_rad_per_m * sideways)
+            c, s = math.cos(yaw), math.sin(yaw)  # yaw_matrix(yaw) @ roll_matrix(roll)
+            c_roll, s_roll = (math.cos(-self.lean_rad_per_m * sideways),
+                              math.sin(-self.lean_rad_per_m * sideways))
+            R = np.array([[c, -s * c_roll, s * s_roll], [s, c * c_roll, -c * s_roll],
+                          [0.0, s_roll, c_roll]])
             T_world_neck = np.eye(4)
             T_world_neck[:3, :3] = R
             T_neck_world = np.eye(4)
@@ -161,20 +177,17 @@ class WalkingBody:
                 T_world_neck[:2, 3] = gait.com.com_m[k] - (R @ offset)[:2]
                 T_world_neck[2, 3] = self.neck_z_m
                 T_neck_world[:3, 3] = -(R.T @ T_world_neck[:3, 3])
-                for side, row, pitch in zip(("right", "left"), (right, left),
-                                            gait.foot_pitch_rad(k), strict=True):
-                    name = SIDE_LEG[side]
-                    leg = self.legs[name]
-                    goal = T_neck_world @ pose_of_row(row, pitch)
-                    result = leg.solve(goal, q[self.slices[name]])
-                    if (result.status not in ("exact", "capped")
-                            or result.position_error_m > self.max_error_m):
+                _solve_legs(T_neck_world, right, left, pitch[k], q, *self.leg_kernels, status,
+                            error)
+                for side in range(2):
+                    if (status[side] not in (EXACT, CAPPED)
+                            or error[side] > self.max_error_m):
+                        name = SIDE_LEG[("right", "left")[side]]
                         raise InputError(
                             f"the {name} cannot reach its sole at t = {k * gait.period_s:.2f} s "
-                            f"({result.status}, {result.position_error_m * 1000:.0f} mm off)",
+                            f"({STATUS_NAMES[status[side]]}, {error[side] * 1000:.0f} mm off)",
                             hint="take shorter steps (walking.max_step_*_m in the robot file)")
-                    q[self.slices[name]] = result.q_rad
-                    worst = max(worst, result.position_error_m)
+                worst = max(worst, float(error.max()))
                 offset = self.com_in_neck(q)
             q_all[k] = q
             T_all[k] = T_world_neck
@@ -222,6 +235,37 @@ class WalkingBody:
         return corrected, plan
 
 
+@nb.njit(**JIT)
+def _solve_legs(T_neck_world, right_row, left_row, pitch_rad, q, right, left, status, error):
+    """Both legs solved for their soles (rows of (x, y, z, yaw), each turned by its
+    ``pitch_rad``: :func:`pose_of_row`) seen from the torso (``T_neck_world``), from the legs'
+    joints in ``q`` (each leg ``(chain, lengths, is_arm, lower, upper, hold_m, start)``);
+    the solutions written into ``q``, each leg's status and position error into ``status``
+    and ``error`` (right, left). Compiled: :meth:`WalkingBody.solve` runs it on every row."""
+    sole = np.zeros((4, 4))
+    goal = np.empty((4, 4))
+    solved = np.empty(6)
+    for side in range(2):
+        row = right_row if side == 0 else left_row
+        c, s = math.cos(row[3]), math.sin(row[3])
+        cp, sp = math.cos(pitch_rad[side]), math.sin(pitch_rad[side])
+        sole[0, 0], sole[0, 1], sole[0, 2], sole[0, 3] = c * cp, -s, c * sp, row[0]
+        sole[1, 0], sole[1, 1], sole[1, 2], sole[1, 3] = s * cp, c, s * sp, row[1]
+        sole[2, 0], sole[2, 1], sole[2, 2], sole[2, 3] = -sp, 0.0, cp, row[2]
+        sole[3, 3] = 1.0
+        for r in range(4):
+            for col in range(4):
+                goal[r, col] = (T_neck_world[r, 0] * sole[0, col] + T_neck_world[r, 1]
+                                * sole[1, col] + T_neck_world[r, 2] * sole[2, col]
+                                + T_neck_world[r, 3] * sole[3, col])
+        chain, lengths, is_arm, lower, upper, hold_m, start = right if side == 0 else left
+        part = q[start:start + 6]
+        status[side], error[side], _ = solve_limb(goal, chain, lengths, is_arm, lower, upper,
+                                                  part, TRUE[0], hold_m, TRUE[0], solved)
+        for j in range(6):
+            part[j] = solved[j]
+
+
 def run_slices(slices: Iterator[None]):
     """Run a sliced computation (a generator yielding between slices) to its end: its value."""
     while True:
@@ -245,15 +289,14 @@ def multibody_zmp_slices(body: WalkingBody, plan: JointPlan, ground_z_m: float,
     model, data = body.robot.model, body.data
     n = len(plan.q_rad)
     qs = np.zeros((n, model.nq))
-    for k in range(n):
-        if k and k % rows_per_slice == 0:
-            yield
-        body.robot.configuration(plan.q_rad[k], plan.T_world_neck[k], out=qs[k])
+    body.robot.configuration(plan.q_rad[0], plan.T_world_neck[0], out=qs[0])
     momentum = np.zeros((n, 6))
     com = np.zeros((n, 3))
     for k in range(n):
         if k and k % rows_per_slice == 0:
             yield
+        if k + 1 < n:
+            body.robot.configuration(plan.q_rad[k + 1], plan.T_world_neck[k + 1], out=qs[k + 1])
         before, after = qs[max(k - 1, 0)], qs[min(k + 1, n - 1)]
         span = (min(k + 1, n - 1) - max(k - 1, 0)) * period_s
         v = pin.difference(model, before, after) / span if span > 0 else np.zeros(model.nv)
