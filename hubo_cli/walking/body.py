@@ -32,23 +32,12 @@ from hubo_cli.model import LEGS, RobotModel
 from hubo_cli.pin_robot import load_pin_robot
 from hubo_cli.posture import home_posture
 from hubo_cli.state import GRAVITY_M_S2
-from hubo_cli.walking.footsteps import wrap_angle
 from hubo_cli.walking.gait import Gait
 from hubo_cli.walking.preview import CoMPath, com_from_zmp, preview_gains
 
 SIDE_LEG = {"right": "right-leg", "left": "left-leg"}
 MAX_SOLE_ERROR_M = 0.05  # a capped leg solution further than this from its sole: out of reach
 END_PERIODS = 10  # the multi-body ZMP correction leaves out this many periods at either end
-
-
-def yaw_matrix(yaw_rad: float) -> np.ndarray:
-    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def roll_matrix(roll_rad: float) -> np.ndarray:
-    c, s = math.cos(roll_rad), math.sin(roll_rad)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
 
 def pose_of_row(row: np.ndarray, pitch_rad: float = 0.0) -> np.ndarray:
@@ -157,41 +146,27 @@ class WalkingBody:
         status, error = np.empty(2, dtype=np.int64), np.empty(2)
         pitch = (np.zeros((n, 2)) if gait.toe_heel is None
                  else np.ascontiguousarray(gait.toe_heel.foot_angle_rad, dtype=float))
+        feet = [np.ascontiguousarray(gait.feet[side], dtype=float) for side in ("right", "left")]
+        com_m = np.ascontiguousarray(gait.com.com_m, dtype=float)
         for k in range(n):
             if k and k % rows_per_slice == 0:
                 yield
-            right, left = gait.feet["right"][k], gait.feet["left"][k]
-            yaw = float(right[3]) + wrap_angle(float(left[3] - right[3])) / 2
-            sideways = (-math.sin(yaw) * (gait.com.com_m[k, 0] - (right[0] + left[0]) / 2)
-                        + math.cos(yaw) * (gait.com.com_m[k, 1] - (right[1] + left[1]) / 2))
-            c, s = math.cos(yaw), math.sin(yaw)  # yaw_matrix(yaw) @ roll_matrix(roll)
-            c_roll, s_roll = (math.cos(-self.lean_rad_per_m * sideways),
-                              math.sin(-self.lean_rad_per_m * sideways))
-            R = np.array([[c, -s * c_roll, s * s_roll], [s, c * c_roll, -c * s_roll],
-                          [0.0, s_roll, c_roll]])
-            T_world_neck = np.eye(4)
-            T_world_neck[:3, :3] = R
-            T_neck_world = np.eye(4)
-            T_neck_world[:3, :3] = R.T
             for _ in range(2):  # the CoM offset at the joints being solved
-                T_world_neck[:2, 3] = gait.com.com_m[k] - (R @ offset)[:2]
-                T_world_neck[2, 3] = self.neck_z_m
-                T_neck_world[:3, 3] = -(R.T @ T_world_neck[:3, 3])
-                _solve_legs(T_neck_world, right, left, pitch[k], q, *self.leg_kernels, status,
-                            error)
-                for side in range(2):
-                    if (status[side] not in (EXACT, CAPPED)
-                            or error[side] > self.max_error_m):
-                        name = SIDE_LEG[("right", "left")[side]]
-                        raise InputError(
-                            f"the {name} cannot reach its sole at t = {k * gait.period_s:.2f} s "
-                            f"({STATUS_NAMES[status[side]]}, {error[side] * 1000:.0f} mm off)",
-                            hint="take shorter steps (walking.max_step_*_m in the robot file)")
-                worst = max(worst, float(error.max()))
+                row_worst = _solve_row(feet[0][k], feet[1][k], com_m[k], self.lean_rad_per_m,
+                                       self.neck_z_m, offset, pitch[k], q, *self.leg_kernels,
+                                       self.max_error_m, T_all[k], status, error)
+                if row_worst < 0.0:
+                    side = 0 if status[0] not in (EXACT, CAPPED) \
+                        or error[0] > self.max_error_m else 1
+                    name = SIDE_LEG[("right", "left")[side]]
+                    raise InputError(
+                        f"the {name} cannot reach its sole at t = {k * gait.period_s:.2f} s "
+                        f"({STATUS_NAMES[status[side]]}, {error[side] * 1000:.0f} mm off)",
+                        hint="take shorter steps (walking.max_step_*_m in the robot file)")
+                worst = max(worst, row_worst)
                 offset = self.com_in_neck(q)
             q_all[k] = q
-            T_all[k] = T_world_neck
-            com_all[k] = R @ offset + T_world_neck[:3, 3]
+            com_all[k] = T_all[k, :3, :3] @ offset + T_all[k, :3, 3]
         return JointPlan(q_all, T_all, com_all, worst)
 
     def solve_corrected(self, gait: Gait, ground_z_m: float, preview_s: float,
@@ -264,6 +239,48 @@ def _solve_legs(T_neck_world, right_row, left_row, pitch_rad, q, right, left, st
                                                   part, TRUE[0], hold_m, TRUE[0], solved)
         for j in range(6):
             part[j] = solved[j]
+
+
+@nb.njit(**JIT)
+def _solve_row(right_row, left_row, com_xy, lean_rad_per_m, neck_z_m, offset, pitch_rad, q,
+               right, left, max_error_m, T_world_neck, status, error):
+    """One row of :meth:`WalkingBody.solve`, compiled: the torso's pose (heading the feet's
+    mean, rolled by the lean, placed so that the CoM ``offset`` from it (neck frame) lies
+    over ``com_xy`` at ``neck_z_m``; written to ``T_world_neck``), then both legs
+    (:func:`_solve_legs`). Returns the legs' worse position error, or -1 when a leg is
+    neither exact nor capped within ``max_error_m``."""
+    turn = left_row[3] - right_row[3]
+    yaw = right_row[3] + math.atan2(math.sin(turn), math.cos(turn)) / 2
+    c, s = math.cos(yaw), math.sin(yaw)
+    sideways = (-s * (com_xy[0] - (right_row[0] + left_row[0]) / 2)
+                + c * (com_xy[1] - (right_row[1] + left_row[1]) / 2))
+    roll = -lean_rad_per_m * sideways
+    c_roll, s_roll = math.cos(roll), math.sin(roll)
+    R = np.empty((3, 3))  # Rz(yaw) Rx(roll)
+    R[0, 0], R[0, 1], R[0, 2] = c, -s * c_roll, s * s_roll
+    R[1, 0], R[1, 1], R[1, 2] = s, c * c_roll, -c * s_roll
+    R[2, 0], R[2, 1], R[2, 2] = 0.0, s_roll, c_roll
+    T_neck_world = np.zeros((4, 4))
+    for r in range(4):
+        for col in range(4):
+            T_world_neck[r, col] = 0.0
+    for r in range(3):
+        for col in range(3):
+            T_world_neck[r, col] = R[r, col]
+            T_neck_world[r, col] = R[col, r]
+    for r in range(2):
+        T_world_neck[r, 3] = com_xy[r] - (R[r, 0] * offset[0] + R[r, 1] * offset[1]
+                                          + R[r, 2] * offset[2])
+    T_world_neck[2, 3] = neck_z_m
+    T_world_neck[3, 3] = T_neck_world[3, 3] = 1.0
+    for r in range(3):
+        T_neck_world[r, 3] = -(R[0, r] * T_world_neck[0, 3] + R[1, r] * T_world_neck[1, 3]
+                               + R[2, r] * T_world_neck[2, 3])
+    _solve_legs(T_neck_world, right_row, left_row, pitch_rad, q, right, left, status, error)
+    for side in range(2):
+        if (status[side] != EXACT and status[side] != CAPPED) or error[side] > max_error_m:
+            return -1.0
+    return max(error[0], error[1])
 
 
 def run_slices(slices: Iterator[None]):

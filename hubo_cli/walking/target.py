@@ -105,9 +105,9 @@ CP_WINDOW = 0.75       # [chosen] a landing moves only over this first part of i
 CP_REPLAN_M = 0.02     # [chosen] a landing moves again once its goal changed by this much
 CP_BLEND_PERIODS = 20  # [chosen] a moved landing's pattern is played at least this long before
                        # the foot lands (its swing moves onto the new path by then)
-REPLAN_ROWS_PER_PERIOD = 40  # [chosen] a re-plan's work per control period, in pattern rows
+REPLAN_ROWS_PER_PERIOD = 60  # [chosen] a re-plan's work per control period, in pattern rows
                              # of one of its passes (the legs solved, the multi-body ZMP, the
-                             # legs solved again): <= 50 us a row on the dev machine, so
+                             # legs solved again): <= 30 us a row on the dev machine, so
                              # <= 2 ms of the 5 ms period
 CP_GAIN_MAX = 1.0      # [chosen] the error's growth by the landing counted at most this much
                        # (exp(omega t) is 17 at a swing's start: a 1 cm error of the estimate's
