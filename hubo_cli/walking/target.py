@@ -13,9 +13,12 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
   the landing (exp(omega t), at most CP_GAIN_MAX), moves that landing and every later footstep
   (:func:`~hubo_cli.walking.replan.shifted_landing`: hrpsys AutoBalancer's footstep
   modification, within step limits, never across the stance leg); the pattern is re-planned
-  from that period on (:func:`~hubo_cli.walking.replan.pattern_from`).
+  (:func:`~hubo_cli.walking.replan.pattern_from`) from a period a little ahead, computed a
+  slice a period until then (REPLAN_ROWS_PER_PERIOD; too late for this landing
+  (CP_BLEND_PERIODS before it): not moved), one re-plan at a time.
 * ``stopping``: entered when the soft stopper has latched (its mode, the previous period's
-  :data:`~hubo_cli.control.keys.STOP_MODE`, is no longer ``release``): the step in progress is
+  :data:`~hubo_cli.control.keys.STOP_MODE`, is no longer ``release``): the step in progress
+  where its re-plan is played (computed as a landing's move; it replaces one being computed) is
   finished (the swing foot lands; before the first step, none is taken) into a double-support
   stance, the CoM comes to rest between the feet over ``settle_s``. Every period the walk tells
   the stopper that it stops itself so (:data:`~hubo_cli.control.phase.PHASE_STOP`), and the
@@ -62,7 +65,6 @@ from hubo_cli.walking.body import (
     SIDE_LEG,
     JointPlan,
     WalkingBody,
-    pose_of_row,
     poses_of_rows,
     run_slices,
 )
@@ -75,7 +77,12 @@ from hubo_cli.walking.footsteps import (
 )
 from hubo_cli.walking.gait import Gait, make_gait
 from hubo_cli.walking.params import WalkingParams
-from hubo_cli.walking.replan import CP_MARGIN_M, pattern_from, shift_steps, shifted_landing
+from hubo_cli.walking.replan import (
+    CP_MARGIN_M,
+    pattern_from_slices,
+    shift_steps,
+    shifted_landing,
+)
 from hubo_cli.walking.stabilizer import (
     LipStabilizer,
     SoleDamper,
@@ -248,19 +255,16 @@ def planned_support(gait: Gait) -> np.ndarray:
     """Per period the soles that carry the robot in this phase of the step, the swing foot at
     its landing place: (n, 2, 4, 4) world poses (right, left), for the capture-point monitor."""
     poses = np.empty((gait.n, 2, 4, 4))
+    index = np.arange(gait.n)
     for column, side in enumerate(("right", "left")):
         rows = gait.feet[side].copy()
-        swinging = ~gait.support[:, column]
         # a swing phase ends with the foot down: each swinging period takes the row where the
-        # swing ends (the next period on the ground)
-        landing = rows[-1].copy()
-        for i in range(gait.n - 1, -1, -1):
-            if swinging[i]:
-                rows[i] = landing
-            else:
-                landing = rows[i].copy()
+        # swing ends (the next period on the ground; the last row if none)
+        down = np.where(gait.support[:, column], index, gait.n - 1)
+        landing = np.minimum.accumulate(down[::-1])[::-1]
+        rows = rows[np.where(gait.support[:, column], index, landing)]
         rows[:, 2] = gait.feet[side][0, 2]
-        poses[:, column] = np.array([pose_of_row(r) for r in rows])
+        poses[:, column] = poses_of_rows(rows)
     return poses
 
 
@@ -488,7 +492,7 @@ class WalkTarget(Target):
         pattern holds it once played). Its work (the pattern, two leg solutions and the
         multi-body ZMP, then its rows) is spread over the periods until then,
         REPLAN_ROWS_PER_PERIOD rows a period, while this pattern plays on."""
-        at_k = self.k + 3 + 3 * math.ceil(rows_bound / REPLAN_ROWS_PER_PERIOD)
+        at_k = self.k + 4 + 3 * math.ceil(rows_bound / REPLAN_ROWS_PER_PERIOD)
         return at_k, min(at_k, self.gait.n - 1)
 
     def _replan(self, steps: list[Footstep], when: tuple[int, int],
@@ -507,8 +511,9 @@ class WalkTarget(Target):
         """:meth:`_replan`'s work, REPLAN_ROWS_PER_PERIOD rows at a time; returns what
         :meth:`_install` sets."""
         start, _, sole_z, com_start = self._basis
-        gait = pattern_from(self._cart, k, self._row0 + k, start, steps, self.params, sole_z,
-                            self.model.feet.forward_m, com_start, planted)
+        gait = yield from pattern_from_slices(self._cart, k, self._row0 + k, start, steps,
+                                              self.params, sole_z, self.model.feet.forward_m,
+                                              com_start, planted)
         yield
         body = WalkingBody(self.model, self.plan.q_rad[k], self.plan.T_world_neck[k],
                            self.params.lean_rad_per_m)
