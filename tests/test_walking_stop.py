@@ -15,7 +15,7 @@ from hubo_cli.control.keys import STOP_MODE
 from hubo_cli.control.module import Cycle
 from hubo_cli.control.phase import PHASE_STOP, PhaseStop
 from hubo_cli.dataflow import Store
-from hubo_cli.estimation.keys import WRENCHES
+from hubo_cli.estimation.keys import COM_WORLD, WRENCHES
 from hubo_cli.model import load_model
 from hubo_cli.posture import home_posture
 from hubo_cli.state import RobotState
@@ -266,3 +266,80 @@ def test_a_push_from_the_front_is_caught_by_the_capture_point_stop(tmp_path, mod
     # measured max tilt 10.2 deg (AVX-512; 12.9 deg with the footsteps left as planned),
     # bound 19.5 deg = 1.5x the larger (a fall: 30)
     assert summary["max_torso_tilt_deg"] < 19.5
+
+
+@pytest.mark.parametrize("rows_per_slice", [1, 7, 40, 10_000])
+def test_a_sliced_solution_is_the_whole_one(walk_pattern, rows_per_slice):
+    """The re-plan's work spread over periods (a slice of rows each) makes exactly the joints
+    and corrected CoM of the solution in one go."""
+    from hubo_cli.walking.body import WalkingBody, run_slices, walking_posture
+
+    params, walking, start, steps, gait = walk_pattern
+    q0, T0 = walking_posture(walking, params.step_width_m, params.crouch_m)
+    args = (gait, 0.0, params.preview_s, params.zmp_weight, params.jerk_weight)
+    lean = params.lean_rad_per_m
+    whole_gait, whole = WalkingBody(walking, q0, T0, lean).solve_corrected(*args)
+    sliced_gait, sliced = run_slices(WalkingBody(walking, q0, T0, lean).solve_corrected_slices(
+        *args, None, rows_per_slice))
+    assert np.array_equal(sliced.q_rad, whole.q_rad)
+    assert np.array_equal(sliced_gait.com.com_m, whole_gait.com.com_m)
+
+
+@pytest.mark.parametrize("stop_k", [150, 300, 430])  # the lead-in, a double support, a swing
+def test_a_stop_re_plans_a_bounded_share_each_period(monkeypatch, stop_k):
+    """The stop's re-plan never stalls the loop: each period solves the legs for at most
+    REPLAN_ROWS_PER_PERIOD rows (twice each, the CoM offset's iteration) and the multi-body
+    ZMP of as many, whatever period the stop comes in; it is played from the period it was
+    decided for, and the walk stands in double support at its end. (Counted work, not time:
+    a time would measure the machine's load.)"""
+    import pinocchio as pin
+
+    from hubo_cli.estimation.keys import CAPTURE_POINT_WORLD, COM_VELOCITY_WORLD
+    from hubo_cli.walking import body as body_module
+    from hubo_cli.walking.body import walking_posture
+    from hubo_cli.walking.target import REPLAN_ROWS_PER_PERIOD, WalkTarget
+    from tests.test_walking_stabilizer import standing_store
+
+    walking = load_model("as-built", "walking")
+    params = walking_params(walking)
+    q0, T0 = walking_posture(walking, params.step_width_m, params.crouch_m)
+    target = WalkTarget(walking, params, (0.3, 0.0, 0.0), q0, T0, corrections=0,
+                        stabilizer=None)
+    store = standing_store(walking, q0, T0)
+    store[COM_VELOCITY_WORLD] = np.zeros(3)
+    target.attach(None, [], store)
+    counts = {"legs": 0, "momentum": 0}
+    solve_legs, momentum = body_module._solve_legs, pin.computeCentroidalMomentum
+
+    def counted_legs(*args):
+        counts["legs"] += 1
+        return solve_legs(*args)
+
+    def counted_momentum(*args):
+        counts["momentum"] += 1
+        return momentum(*args)
+
+    monkeypatch.setattr(body_module, "_solve_legs", counted_legs)
+    monkeypatch.setattr(pin, "computeCentroidalMomentum", counted_momentum)
+    state = RobotState(0.0, q0, np.zeros_like(q0))
+    per_period, installed_k = [], None
+    for k in range(3000):
+        store[CAPTURE_POINT_WORLD] = np.array(target._rows["com_ref"][min(
+            target.k, target.gait.n - 1)]) if target.gait is not None else store[COM_WORLD][:2]
+        store[STOP_MODE] = "finish" if k >= stop_k else "release"
+        before = dict(counts)
+        pending = target._pending
+        _, info = target(k * DT, state)
+        if k > 0:
+            per_period.append((counts["legs"] - before["legs"],
+                               counts["momentum"] - before["momentum"]))
+        if pending is not None and target._pending is None:
+            installed_k = k
+        if info["done"]:
+            break
+    assert target.phase == "stood" and not target.stop_failed
+    assert installed_k is not None and installed_k > stop_k  # played after it was computed
+    legs, moments = np.array(per_period).T
+    assert legs.max() <= 2 * REPLAN_ROWS_PER_PERIOD, legs.max()
+    assert moments.max() <= REPLAN_ROWS_PER_PERIOD, moments.max()
+    assert np.all(target.gait.support[-1])  # both feet down at the end

@@ -20,7 +20,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
+import numba as nb
 import numpy as np
 from scipy.linalg import solve_discrete_are
 
@@ -58,7 +60,8 @@ def cart_table(period_s: float, com_height_m: float) -> tuple[np.ndarray, np.nda
 
 def preview_gains(period_s: float, com_height_m: float, preview_s: float = 1.6,
                   q_error: float = 1.0, r_jerk: float = 1e-6) -> PreviewGains:
-    """Solve the Riccati equation of the augmented system and return the gains.
+    """Solve the Riccati equation of the augmented system and return the gains (kept for
+    the same arguments: a walk's re-plans reuse them).
 
     Args:
         period_s: control period T (s).
@@ -67,6 +70,13 @@ def preview_gains(period_s: float, com_height_m: float, preview_s: float = 1.6,
         q_error: weight Q_e on the ZMP error.
         r_jerk: weight R on the jerk (Kajita 2003 uses Q_e = 1, R = 1e-6).
     """
+    return _preview_gains(*(float(v) for v in (period_s, com_height_m, preview_s, q_error,
+                                               r_jerk)))
+
+
+@lru_cache(maxsize=64)
+def _preview_gains(period_s: float, com_height_m: float, preview_s: float, q_error: float,
+                   r_jerk: float) -> PreviewGains:
     values = (period_s, com_height_m, preview_s, q_error, r_jerk)
     if not all(math.isfinite(v) and v > 0 for v in values):
         raise ConfigError("preview control needs a positive period, CoM height, horizon and "
@@ -92,7 +102,11 @@ def preview_gains(period_s: float, com_height_m: float, preview_s: float = 1.6,
     for j in range(1, n_preview):
         preview[j] = scale * float(B_aug[:, 0] @ X)
         X = closed.T @ X
-    return PreviewGains(A, B, C, float(K[0]), K[1:].copy(), preview)
+    for array in (A, B, C, preview):
+        array.flags.writeable = False  # shared by every caller with these arguments
+    state = K[1:].copy()
+    state.flags.writeable = False
+    return PreviewGains(A, B, C, float(K[0]), state, preview)
 
 
 @dataclass(frozen=True)
@@ -131,14 +145,37 @@ def com_from_zmp(zmp_ref_m: np.ndarray, gains: PreviewGains,
     x[0] = ref[0] if com_start_m is None else np.asarray(com_start_m, dtype=float)
     if com_motion_start is not None:
         x[1], x[2] = (np.asarray(v, dtype=float) for v in com_motion_start)
-    error_sum = np.zeros(2)
     com, velocity, acceleration, zmp = (np.empty((n, 2)) for _ in range(4))
-    A, B, C = gains.A, gains.B, gains.C
-    for k in range(n):
-        p = C @ x
-        com[k], velocity[k], acceleration[k], zmp[k] = x[0], x[1], x[2], p
-        error_sum += p - ref[k]
-        future = gains.preview @ padded[k + 1:k + 1 + n_preview]
-        u = -gains.integral * error_sum - gains.state @ x - future
-        x = A @ x + np.outer(B, u)
+    _preview_run(ref, padded, x, gains.A, gains.B, gains.C, gains.integral, gains.state,
+                 gains.preview, com, velocity, acceleration, zmp)
     return CoMPath(com, velocity, acceleration, zmp)
+
+
+@nb.njit(cache=True, nogil=True)
+def _preview_run(ref, padded, x, A, B, C, integral, state, preview, com, velocity,
+                 acceleration, zmp):
+    """:func:`com_from_zmp`'s loop, compiled: the state ``x`` (3 x 2) driven through every
+    row of ``ref`` into the four outputs (n x 2)."""
+    n, n_preview = ref.shape[0], preview.shape[0]
+    error_sum = np.zeros(2)
+    future = np.empty(2)
+    u = np.empty(2)
+    nxt = np.empty(3)
+    for k in range(n):
+        for axis in range(2):
+            p = C[0] * x[0, axis] + C[1] * x[1, axis] + C[2] * x[2, axis]
+            com[k, axis], velocity[k, axis], acceleration[k, axis] = x[0, axis], x[1, axis], \
+                x[2, axis]
+            zmp[k, axis] = p
+            error_sum[axis] += p - ref[k, axis]
+            future[axis] = 0.0
+            for j in range(n_preview):
+                future[axis] += preview[j] * padded[k + 1 + j, axis]
+            u[axis] = (-integral * error_sum[axis] - (state[0] * x[0, axis]
+                       + state[1] * x[1, axis] + state[2] * x[2, axis]) - future[axis])
+        for axis in range(2):  # x = A x + B u
+            for r in range(3):
+                nxt[r] = (A[r, 0] * x[0, axis] + A[r, 1] * x[1, axis] + A[r, 2] * x[2, axis]
+                          + B[r] * u[axis])
+            for r in range(3):
+                x[r, axis] = nxt[r]

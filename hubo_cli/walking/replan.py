@@ -9,6 +9,14 @@ own state (position, velocity, acceleration) under the new ZMP reference (previe
 a swing foot in the air moves from its old path onto the new one by its landing: nothing
 jumps.
 
+A re-plan does not fit in one control period (the legs solved twice and the multi-body ZMP
+over every row of the new pattern: tens of milliseconds), and a stalled loop is a hazard on
+the real-time hardware exactly when the robot is stopped or pushed. The walk's pattern is
+deterministic, so the walking target decides a re-plan for a period ahead of the one playing
+(:meth:`~hubo_cli.walking.target.WalkTarget._replan_row`), computes it a slice of rows a
+period while the current pattern plays on (the body's ``*_slices`` generators), and plays it
+from that period.
+
 The footstep change after a push (:func:`shifted_landing`) is hrpsys AutoBalancer's
 (``modify_footsteps_for_recovery``): the capture point's error beyond a margin moves the
 landing of the step in progress, within step limits and never across the stance leg, and
@@ -18,10 +26,12 @@ every later footstep by as much.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import replace
 
 import numpy as np
 
+from hubo_cli.walking.body import run_slices
 from hubo_cli.walking.footsteps import SIDE_SIGN, Footstep
 from hubo_cli.walking.gait import Gait, make_gait, smoothstep5
 from hubo_cli.walking.params import WalkingParams
@@ -81,6 +91,16 @@ def pattern_from(current: Gait, k: int, row: int, start: tuple[Footstep, Footste
             single support keeps both feet on the ground, the ZMP on the other foot (a
             weight shift without a step).
     """
+    return run_slices(pattern_from_slices(current, k, row, start, steps, params, sole_z_m,
+                                          zmp_forward_m, com_start_m, planted))
+
+
+def pattern_from_slices(current: Gait, k: int, row: int, start: tuple[Footstep, Footstep],
+                        steps: list[Footstep], params: WalkingParams, sole_z_m: float,
+                        zmp_forward_m: float, com_start_m: np.ndarray,
+                        planted: int | None = None) -> Iterator[None]:
+    """:func:`pattern_from` in two slices (yields once: after the plan's pattern, before the
+    CoM's path)."""
     period = current.period_s
     if steps:
         full = make_gait(*start, steps, params, period, current.com_height_m, sole_z_m,
@@ -107,6 +127,7 @@ def pattern_from(current: Gait, k: int, row: int, start: tuple[Footstep, Footste
         if landing > 0 and len(old) == landing:
             blend = smoothstep5((np.arange(landing) + 1.0) / landing)[:, None]
             feet[side][:landing] = old + blend * (feet[side][:landing] - old)
+    yield
     zmp_ref = full.zmp_ref_m[row:]
     com = current.com
     gains = preview_gains(period, current.com_height_m, params.preview_s, params.zmp_weight,

@@ -13,9 +13,12 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
   the landing (exp(omega t), at most CP_GAIN_MAX), moves that landing and every later footstep
   (:func:`~hubo_cli.walking.replan.shifted_landing`: hrpsys AutoBalancer's footstep
   modification, within step limits, never across the stance leg); the pattern is re-planned
-  from that period on (:func:`~hubo_cli.walking.replan.pattern_from`).
+  (:func:`~hubo_cli.walking.replan.pattern_from`) from a period a little ahead, computed a
+  slice a period until then (REPLAN_ROWS_PER_PERIOD; too late for this landing
+  (CP_BLEND_PERIODS before it): not moved), one re-plan at a time.
 * ``stopping``: entered when the soft stopper has latched (its mode, the previous period's
-  :data:`~hubo_cli.control.keys.STOP_MODE`, is no longer ``release``): the step in progress is
+  :data:`~hubo_cli.control.keys.STOP_MODE`, is no longer ``release``): the step in progress
+  where its re-plan is played (computed as a landing's move; it replaces one being computed) is
   finished (the swing foot lands; before the first step, none is taken) into a double-support
   stance, the CoM comes to rest between the feet over ``settle_s``. Every period the walk tells
   the stopper that it stops itself so (:data:`~hubo_cli.control.phase.PHASE_STOP`), and the
@@ -27,7 +30,7 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Sequence
 
 import numba as nb
 import numpy as np
@@ -58,7 +61,13 @@ from hubo_cli.model import RobotModel
 from hubo_cli.posture import check_stands_in
 from hubo_cli.scene import SceneActions
 from hubo_cli.state import ANKLE_SENSORS, GRAVITY_M_S2, RobotState
-from hubo_cli.walking.body import SIDE_LEG, JointPlan, WalkingBody, pose_of_row
+from hubo_cli.walking.body import (
+    SIDE_LEG,
+    JointPlan,
+    WalkingBody,
+    poses_of_rows,
+    run_slices,
+)
 from hubo_cli.walking.footsteps import (
     Footstep,
     Stance,
@@ -68,7 +77,12 @@ from hubo_cli.walking.footsteps import (
 )
 from hubo_cli.walking.gait import Gait, make_gait
 from hubo_cli.walking.params import WalkingParams
-from hubo_cli.walking.replan import CP_MARGIN_M, pattern_from, shift_steps, shifted_landing
+from hubo_cli.walking.replan import (
+    CP_MARGIN_M,
+    pattern_from_slices,
+    shift_steps,
+    shifted_landing,
+)
 from hubo_cli.walking.stabilizer import (
     LipStabilizer,
     SoleDamper,
@@ -96,6 +110,12 @@ STOOD_S = 1.0          # [chosen] a stopped walk holds its stance this long, the
 STOP_SPARE_S = 1.0     # [chosen] the stopper's deadline: the stop's pattern and this much
 CP_WINDOW = 0.75       # [chosen] a landing moves only over this first part of its swing
 CP_REPLAN_M = 0.02     # [chosen] a landing moves again once its goal changed by this much
+CP_BLEND_PERIODS = 20  # [chosen] a moved landing's pattern is played at least this long before
+                       # the foot lands (its swing moves onto the new path by then)
+REPLAN_ROWS_PER_PERIOD = 60  # [chosen] a re-plan's work per control period, in pattern rows
+                             # of one of its passes (the legs solved, the multi-body ZMP, the
+                             # legs solved again): <= 30 us a row on the dev machine, so
+                             # <= 2 ms of the 5 ms period
 CP_GAIN_MAX = 1.0      # [chosen] the error's growth by the landing counted at most this much
                        # (exp(omega t) is 17 at a swing's start: a 1 cm error of the estimate's
                        # capture point moved the landing by 17 cm; 3x stepped too far back
@@ -235,19 +255,16 @@ def planned_support(gait: Gait) -> np.ndarray:
     """Per period the soles that carry the robot in this phase of the step, the swing foot at
     its landing place: (n, 2, 4, 4) world poses (right, left), for the capture-point monitor."""
     poses = np.empty((gait.n, 2, 4, 4))
+    index = np.arange(gait.n)
     for column, side in enumerate(("right", "left")):
         rows = gait.feet[side].copy()
-        swinging = ~gait.support[:, column]
         # a swing phase ends with the foot down: each swinging period takes the row where the
-        # swing ends (the next period on the ground)
-        landing = rows[-1].copy()
-        for i in range(gait.n - 1, -1, -1):
-            if swinging[i]:
-                rows[i] = landing
-            else:
-                landing = rows[i].copy()
+        # swing ends (the next period on the ground; the last row if none)
+        down = np.where(gait.support[:, column], index, gait.n - 1)
+        landing = np.minimum.accumulate(down[::-1])[::-1]
+        rows = rows[np.where(gait.support[:, column], index, landing)]
         rows[:, 2] = gait.feet[side][0, 2]
-        poses[:, column] = np.array([pose_of_row(r) for r in rows])
+        poses[:, column] = poses_of_rows(rows)
     return poses
 
 
@@ -324,6 +341,8 @@ class WalkTarget(Target):
         self.shifts = 0  # landings moved after the capture point
         self._shift = (-1, np.zeros(2), None)  # (step, shift applied, steps before it)
         self._cp_error = np.full(2, math.nan)
+        self._pending = None  # a re-plan being computed (_replan)
+        self._stop_lead_s = 0.0  # from a stop to its re-plan's first period (s)
         self._omega = 1.0
         dt = model.control_period_s
         xs, ys = self.corners[:, 0], self.corners[:, 1]
@@ -401,77 +420,134 @@ class WalkTarget(Target):
         Raises:
             InputError: a sole the legs cannot reach.
         """
+        self._install(run_slices(self._adoption(gait, body, fix_start, gait.n)), t_s)
+
+    def _adoption(self, gait: Gait, body: WalkingBody, fix_start, rows_per_slice: int
+                  ) -> Iterator[None]:
+        """What :meth:`_adopt` computes, ``rows_per_slice`` rows at a time (yields between
+        slices); returns the attributes :meth:`_install` sets."""
         params = self.params
-        sole_z = self._basis[2]
-        corrected, plan = body.solve_corrected(gait, sole_z, params.preview_s,
-                                               params.zmp_weight, params.jerk_weight, fix_start)
+        corrected, plan = yield from body.solve_corrected_slices(
+            gait, self._basis[2], params.preview_s, params.zmp_weight, params.jerk_weight,
+            fix_start, rows_per_slice)
+        yield
         # the cart-table pattern and its multi-body correction, each continued by a re-plan
-        self._cart, com, cart = gait, corrected.com, gait.com
-        self._fix = (com.com_m - cart.com_m, com.com_velocity_m_s - cart.com_velocity_m_s,
-                     com.com_acceleration_m_s2 - cart.com_acceleration_m_s2)
-        self.gait, self.plan = corrected, plan
-        self.body = body
+        com, cart = corrected.com, gait.com
+        new = {"_cart": gait, "gait": corrected, "plan": plan, "body": body,
+               "_fix": (com.com_m - cart.com_m, com.com_velocity_m_s - cart.com_velocity_m_s,
+                        com.com_acceleration_m_s2 - cart.com_acceleration_m_s2)}
+        gait = corrected
         if self.lip_feedback:
-            self.lip = LipStabilizer(LipFeedback.from_model(self.model, self.gait.com_height_m),
-                                     WrenchDistributor.from_model(self.model),
-                                     pin.computeTotalMass(body.robot.model))
-            self._contacts = planned_contacts(self.gait)
+            new["_contacts"] = planned_contacts(gait)
         # each leg's IK data as :func:`_correct_legs` takes them (right, left)
-        self._leg_kernel = tuple(
+        new["_leg_kernel"] = tuple(
             (leg.chain, leg.lengths_m, leg.spec.is_arm, leg.lower_rad, leg.upper_rad, leg.hold_m,
              body.slices[name].start)
             for leg, name in ((body.legs[SIDE_LEG[side]], SIDE_LEG[side]) for side in SIDES))
-        self._support_poses = planned_support(self.gait)
+        new["_support_poses"] = planned_support(gait)
         # per-period rows as plain floats and bools for the loop (cheaper than numpy scalars)
-        gait = self.gait
-        self._rows = {"support": gait.support.tolist(), "zmp_ref": gait.zmp_ref_m.tolist(),
-                      "com_ref": gait.com.com_m.tolist(), "plan_com": self.plan.com_m.tolist(),
-                      "com_velocity_ref": gait.com.com_velocity_m_s.tolist(),
-                      "step": gait.step_index.tolist(),
-                      **{side: gait.feet[side].tolist() for side in SIDES}}
-        self._sole_z0 = {side: float(gait.feet[side][0, 2]) for side in SIDES}
+        new["_rows"] = {"support": gait.support.tolist(), "zmp_ref": gait.zmp_ref_m.tolist(),
+                        "com_ref": gait.com.com_m.tolist(), "plan_com": plan.com_m.tolist(),
+                        "com_velocity_ref": gait.com.com_velocity_m_s.tolist(),
+                        "step": gait.step_index.tolist(),
+                        **{side: gait.feet[side].tolist() for side in SIDES}}
+        sole_z0 = new["_sole_z0"] = {side: float(gait.feet[side][0, 2]) for side in SIDES}
         # each sole's lowest point above its landing height (a rolled sole's origin is raised)
-        self._clearance = {side: (gait.feet[side][:, 2] - self._sole_z0[side]).tolist()
-                           for side in SIDES}
+        clearance = new["_clearance"] = {side: (gait.feet[side][:, 2] - sole_z0[side]).tolist()
+                                         for side in SIDES}
         if gait.toe_heel is not None:
             for column, side in enumerate(SIDES):
                 _, dz = ankle_offset(gait.toe_heel.foot_angle_rad[:, column],
                                      gait.toe_heel.pivot_m[:, column])
-                self._clearance[side] = (gait.feet[side][:, 2] - self._sole_z0[side]
-                                         - dz).tolist()
+                clearance[side] = (gait.feet[side][:, 2] - sole_z0[side] - dz).tolist()
         # the soles' goals in the planned torso's frame, per period: the stabilizer only moves
         # them by its torso offset and a touchdown's lift (:meth:`_stabilized`)
-        T_neck_world = rigid_inverse(self.plan.T_world_neck)
-        self._R_neck_world = T_neck_world[:, :3, :3].copy()
-        self._T_neck_soles = np.stack([T_neck_world @ np.array(
-            [pose_of_row(row, gait.foot_pitch_rad(k)[column])
-             for k, row in enumerate(gait.feet[side])])
+        T_neck_world = rigid_inverse(plan.T_world_neck)
+        new["_R_neck_world"] = T_neck_world[:, :3, :3].copy()
+        new["_T_neck_soles"] = np.stack([T_neck_world @ poses_of_rows(
+            gait.feet[side], None if gait.toe_heel is None
+            else gait.toe_heel.foot_angle_rad[:, column])
             for column, side in enumerate(SIDES)], axis=1)  # n x 2 x 4 x 4
         n = gait.n
         index = np.arange(n)
         # per period: the next period with both feet down (a swing's landing)
         both = np.where(gait.support.all(axis=1), index, n)
-        self._landing = np.minimum.accumulate(both[::-1])[::-1].tolist()
+        new["_landing"] = np.minimum.accumulate(both[::-1])[::-1].tolist()
+        return new
+
+    def _install(self, new: dict, t_s: float) -> None:
+        """Play the pattern :meth:`_adoption` made from loop time ``t_s`` on."""
+        for name, value in new.items():
+            setattr(self, name, value)
+        if self.lip_feedback:
+            self.lip = LipStabilizer(LipFeedback.from_model(self.model, self.gait.com_height_m),
+                                     WrenchDistributor.from_model(self.model),
+                                     pin.computeTotalMass(self.body.robot.model))
         self.plan_start_s = t_s
         self.k = 0
 
-    def _replan(self, steps: list[Footstep], t_s: float, planted: int | None = None) -> None:
-        """Play the plan's pattern with ``steps`` (changed from the step in progress on) from
-        this period on (:func:`~hubo_cli.walking.replan.pattern_from`).
+    def _replan_row(self, rows_bound: int) -> tuple[int, int]:
+        """When a re-plan decided now, of at most ``rows_bound`` rows, is played: its period
+        (``self.k`` then) and the row of the pattern playing it starts from (its last: the
+        pattern holds it once played). Its work (the pattern, two leg solutions and the
+        multi-body ZMP, then its rows) is spread over the periods until then,
+        REPLAN_ROWS_PER_PERIOD rows a period, while this pattern plays on."""
+        at_k = self.k + 4 + 3 * math.ceil(rows_bound / REPLAN_ROWS_PER_PERIOD)
+        return at_k, min(at_k, self.gait.n - 1)
 
-        Raises:
-            InputError: a sole the legs cannot reach (the pattern playing is kept).
-        """
-        k = min(self.k, self.gait.n - 1)
+    def _replan(self, steps: list[Footstep], when: tuple[int, int],
+                planted: int | None = None, failed: Callable[[], None] | None = None,
+                done: Callable[[], None] | None = None) -> None:
+        """Play the plan's pattern with ``steps`` (changed from the step in progress on)
+        from ``when`` (:meth:`_replan_row`: a period and the row of the pattern playing it
+        continues; :func:`~hubo_cli.walking.replan.pattern_from`), computed a slice a period
+        until then (:meth:`_advance_replan`); then ``done``. A sole the legs cannot reach
+        keeps the pattern playing and calls ``failed``."""
+        at_k, row = when
+        self._pending = (at_k, self._replanning(steps, row, planted), (failed, done), None)
+
+    def _replanning(self, steps: list[Footstep], k: int, planted: int | None
+                    ) -> Iterator[None]:
+        """:meth:`_replan`'s work, REPLAN_ROWS_PER_PERIOD rows at a time; returns what
+        :meth:`_install` sets."""
         start, _, sole_z, com_start = self._basis
-        gait = pattern_from(self._cart, k, self._row0 + k, start, steps, self.params, sole_z,
-                            self.model.feet.forward_m, com_start, planted)
+        gait = yield from pattern_from_slices(self._cart, k, self._row0 + k, start, steps,
+                                              self.params, sole_z, self.model.feet.forward_m,
+                                              com_start, planted)
+        yield
         body = WalkingBody(self.model, self.plan.q_rad[k], self.plan.T_world_neck[k],
                            self.params.lean_rad_per_m)
-        self._adopt(gait, body, t_s, tuple(part[k] for part in self._fix))
-        self._row0 = self._row0 + k if steps else 0
-        self._basis = (start, list(steps), sole_z, com_start)
-        self.steps[self._steps_before:] = steps if planted is None else steps[:planted]
+        new = yield from self._adoption(gait, body, tuple(part[k] for part in self._fix),
+                                        REPLAN_ROWS_PER_PERIOD)
+        new["_row0"] = self._row0 + k if steps else 0
+        new["_basis"] = (start, list(steps), sole_z, com_start)
+        new["steps"] = [*self.steps[:self._steps_before],
+                        *(steps if planted is None else steps[:planted])]
+        return new
+
+    def _advance_replan(self, t_s: float) -> None:
+        """One period's slice of a pending re-plan; played once its period has come (its
+        rest computed then, should the slices not have sufficed)."""
+        at_k, slices, (failed, done), new = self._pending
+        try:
+            if new is None and self.k < at_k:
+                try:
+                    next(slices)
+                except StopIteration as finished:
+                    self._pending = (at_k, slices, (failed, done), finished.value)
+                return
+            if new is None:
+                new = run_slices(slices)
+        except InputError:
+            self._pending = None
+            if failed is not None:
+                failed()
+            return
+        if self.k >= at_k:
+            self._pending = None
+            self._install(new, t_s)
+            if done is not None:
+                done()
 
     def _stop(self, t_s: float) -> None:
         """The stopper latched: finish the step in progress into a double-support stance (none
@@ -482,7 +558,12 @@ class WalkTarget(Target):
             # turned flat at once, so a toe-heel walk's stop is the stopper's brake and hold
             self.stop_failed = True
             return
-        k = min(self.k, self.gait.n - 1)
+        # the stop finishes the step in progress where its re-plan is played (_replan_row):
+        # at most two steps' and the settling's rows
+        when = self._replan_row(min(self.gait.n - self.k, round(
+            (2 * self.params.step_s + self.params.settle_s) / self.gait.period_s) + 1))
+        self._stop_lead_s = (when[0] - self.k) * self.gait.period_s
+        k = when[1]
         step = self._rows["step"][k]
         steps = self._basis[1]
         shifted_step, applied, base = self._shift
@@ -507,10 +588,11 @@ class WalkTarget(Target):
             return  # the last step is down: the pattern settles between the feet already
         if len(kept) == len(steps) and planted is None:
             return
-        try:
-            self._replan(kept, t_s, planted)
-        except InputError:
+
+        def failed() -> None:
             self.stop_failed = True  # the stopper brakes and holds instead
+
+        self._replan(kept, when, planted, failed)
 
     def _follow_capture_point(self, t_s: float) -> None:
         """While a foot swings (the first CP_WINDOW of it): move its landing, and every later
@@ -521,7 +603,7 @@ class WalkTarget(Target):
             return
         step, support = rows["step"][k], rows["support"][k]
         self._cp_error = self._capture_point_error(k)
-        if step < 0 or (support[0] and support[1]):
+        if step < 0 or (support[0] and support[1]) or self._pending is not None:
             return
         period = gait.period_s
         remaining_s = (self._landing[k] - k) * period
@@ -536,17 +618,20 @@ class WalkTarget(Target):
         if (not np.any(excess) and not np.any(applied)) or \
                 float(np.hypot(*(wanted - applied))) < CP_REPLAN_M:
             return
+        when = self._replan_row(gait.n - k)  # the same timeline: as many rows as remain
+        if when[0] + CP_BLEND_PERIODS > self._landing[k]:
+            return  # played too late to move this landing
         stance_side = "right" if support[0] else "left"
         x, y, _, yaw = rows[stance_side][k]
         moved = shifted_landing(Footstep(stance_side, x, y, yaw), base[step], wanted,
                                 self.model.feet.width_m, self.params.step_width_m)
-        try:
-            self._replan(shift_steps(base, step, moved), t_s)
-        except InputError:
-            return  # out of the legs' reach: the pattern playing stands
-        self.shifts += 1
-        self._shift = (step, np.array([moved.x_m - base[step].x_m,
-                                       moved.y_m - base[step].y_m]), base)
+
+        def done() -> None:  # (out of the legs' reach: the pattern playing stands)
+            self.shifts += 1
+            self._shift = (step, np.array([moved.x_m - base[step].x_m,
+                                           moved.y_m - base[step].y_m]), base)
+
+        self._replan(shift_steps(base, step, moved), when, done=done)
 
     def _capture_point_error(self, k: int) -> np.ndarray:
         """The estimated capture point (seen from the more loaded planned support sole
@@ -570,24 +655,26 @@ class WalkTarget(Target):
 
     def __call__(self, t_s: float, state: RobotState) -> TargetOutput:
         store = self.store
+        if self._pending is not None:
+            self._advance_replan(t_s)
         if self.gait is None:
             self._start(t_s, state.q_rad)
         elif self.phase == "walk" and store.get(STOP_MODE, "release") != "release":
             self._stop(t_s)
         elif self.phase == "walk" and self.k >= self.gait.n and not self.fell \
-                and self.corrections_left > 0 and not self.arrived():
+                and self._pending is None and self.corrections_left > 0 and not self.arrived():
             self.corrections_left -= 1
             self.last_step_end_s = self.walking_s
             self._plan(self.plan.q_rad[-1], t_s)
         elif self.phase in ("walk", "stopping"):  # a stop's last step follows it too
             self._follow_capture_point(t_s)
-        if self.phase == "stopping" and self.k >= self.gait.n:
+        if self.phase == "stopping" and self.k >= self.gait.n and self._pending is None:
             self.phase = "stood"
         # how this phase stops: finishing the step (settled once it stands), or by the
         # stopper's own brake when the stop's pattern could not be made
         store[PHASE_STOP] = None if self.stop_failed else PhaseStop(
             self.phase == "stood",
-            self.params.step_s + self.params.settle_s + STOP_SPARE_S)
+            self.params.step_s + self.params.settle_s + self._stop_lead_s + STOP_SPARE_S)
         gait, plan = self.gait, self.plan
         k = min(self.k, gait.n - 1)
         self.k += 1
@@ -631,6 +718,8 @@ class WalkTarget(Target):
     def _done(self, t_s: float) -> bool:
         """The walk has ended: the pattern played (and no correction is due), or a stop's
         stance held STOOD_S."""
+        if self._pending is not None:
+            return False
         if self.phase == "walk":
             return self.k >= self.gait.n and (self.corrections_left == 0 or self.arrived())
         return self.phase == "stood" and self.k >= self.gait.n + round(STOOD_S
