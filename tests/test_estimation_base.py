@@ -122,13 +122,11 @@ def test_a_sole_twisting_on_its_edge_turns_the_estimate_a_standing_robot_does_no
                                toe, atol=1e-9)
 
 
-def test_a_landed_sole_takes_the_anchor_once_stood_and_gives_it_back_in_place(model, rng):
+def test_a_landed_sole_takes_the_anchor_once_it_has_stood(model, rng):
     """Right single support, then the left sole lands with its touchdown's force peak: the
-    right sole keeps the anchor until the left has stood LANDED_PERIODS. Then the anchor goes
-    back and forth between the two soles on the floor (each heavier in turn, as the loads cross
-    at a touchdown) with encoder noise on the joints: each sole keeps the place and heading it
-    had when it gave the anchor up (a round trip through the legs' kinematics moved the
-    perturbed robots' estimates by about 1 mm a time, 10 mm over a 1 m walk)."""
+    right sole keeps the anchor until the left has stood LANDED_PERIODS (taken at the peak,
+    the anchor went back and forth while the loads crossed, and each pass through the legs'
+    kinematics moved the perturbed robots' estimates by about 1 mm, 10 mm over a 1 m walk)."""
     from hubo_cli.estimation.base import LANDED_PERIODS
 
     q = home_posture(model)
@@ -147,14 +145,6 @@ def test_a_landed_sole_takes_the_anchor_once_stood_and_gives_it_back_in_place(mo
         assert base.anchor == 0
     step(base, store, noisy(), level, wrench(150.0), wrench(230.0), (True, True))
     assert base.anchor == 1
-    kept = {0: store[T_WORLD_SOLES][0].copy()}
-    for side in (0, 1, 0, 1, 0):
-        loads = (wrench(300.0), wrench(80.0)) if side == 0 else (wrench(80.0), wrench(300.0))
-        step(base, store, noisy(), level, *loads, (True, True))
-        assert base.anchor == side
-        kept[1 - side] = store[T_WORLD_SOLES][1 - side].copy()
-        step(base, store, noisy(), level, *loads, (True, True))
-        sole = store[T_WORLD_SOLES][side]  # its middle (the centre of pressure) and heading
-        np.testing.assert_allclose(sole[:3, 3], kept[side][:3, 3], atol=1e-12)
-        assert math.atan2(sole[1, 0], sole[0, 0]) == pytest.approx(
-            math.atan2(kept[side][1, 0], kept[side][0, 0]), abs=1e-12)
+    # the anchor lifting off hands over at once, settled or not
+    step(base, store, noisy(), level, wrench(380.0), wrench(0.0), (True, True))
+    assert base.anchor == 0

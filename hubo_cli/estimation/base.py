@@ -35,14 +35,15 @@ held as the anchor meanwhile it would carry the whole estimate up with it (a cap
 swing foot lifted the estimated torso by 30 mm and sank the stance sole as far). A sole that
 has just landed takes the anchor by weight only once it has stood ``LANDED_PERIODS`` (its
 touchdown's force peak passes the anchor's load for a few periods), unless the anchor lifts
-off (presses less than ``anchor_cop_min_fz_n``). The new anchor keeps the pose estimated for
-it (the mean of its last LANDED_PERIODS estimates on the floor), so the estimate does not
-jump; a sole that gave the anchor up and has stayed in contact since takes it back where it
-was then (the anchor passes back and forth while the loads cross at a touchdown: each pass
-through the legs' kinematics carried the encoders' and the attitude's noise and error into the
-estimate, ~1 mm a pass, and perturbed robots' estimates drifted 10 mm sideways and 1 deg in
-heading over a 1 m walk). Without any contact (a jump, a fall, a lifted robot) the anchor
-stays.
+off (presses less than ``anchor_cop_min_fz_n``): the anchor passed back and forth while the
+loads crossed at a touchdown, and each pass through the legs' kinematics carried the encoders'
+and the attitude's noise and error into the estimate (~1 mm a pass: perturbed robots'
+estimates drifted 10 mm sideways and 1 deg in heading over a 1 m walk). The new anchor keeps
+the pose estimated for it (the mean of its last LANDED_PERIODS estimates on the floor), so the
+estimate does not jump. (Taking a sole that gave the anchor up back where it was then, while
+it stays in contact, was tried: a lunge's back foot dragged forward while counted in contact
+was then put back where it started, and the 150 N capture step's return failed.) Without any
+contact (a jump, a fall, a lifted robot) the anchor stays.
 
 Start: the world frame is the simulator's (:mod:`hubo_cli.drivers.sim`): the torso's neck frame
 at the start, dropped onto the floor (x forward, y left, z up, the origin on the floor under the
@@ -238,8 +239,6 @@ class FloatingBase(Observer):
         self._R_legs: np.ndarray | None = None  # the legs' torso rotation, last period
         # the other sole's last estimates on the floor: x, y, z, cos and sin of its heading
         self._landed: deque[tuple[float, ...]] = deque(maxlen=LANDED_PERIODS)
-        # each sole's pose when it last gave the anchor up, while it has stayed in contact since
-        self._planted: list[np.ndarray | None] = [None, None]
         self._bias_rad_s = 0.0  # the gyro's yaw bias about the world's vertical
         self._bias_gain = self._dt_s / (GYRO_BIAS_TAU_S + self._dt_s)
         _place(self._quat, self._T_torso_soles, 0, self._T_world_anchor, 0.0, 0.0, np.eye(4),
@@ -261,7 +260,6 @@ class FloatingBase(Observer):
         self._T_world_soles = np.tile(np.eye(4), (2, 1, 1))
         self._turn_rad, self._R_legs, self._bias_rad_s = 0.0, None, 0.0
         self._landed.clear()
-        self._planted = [None, None]
         if not self._inputs(state, store):
             self._write(store)
             return
@@ -326,15 +324,10 @@ class FloatingBase(Observer):
         """Sole ``side`` takes the anchor as estimated, the gyro's turn included: its place and
         heading the mean of its last LANDED_PERIODS estimates on the floor (one period's
         estimate carries the encoders' and the IMU's noise through the legs into every later
-        step: perturbed robots' estimates drifted 10 mm in a 1 m walk), or, when it gave the
-        anchor up and has stayed in contact since, the pose it had then; the anchor it leaves
-        keeps its own for the same."""
-        self._planted[self.anchor] = self._T_world_soles[self.anchor].copy()
+        step: perturbed robots' estimates drifted 10 mm in a 1 m walk)."""
         self.anchor = side
         T = self._T_world_soles[side].copy()
-        if self._planted[side] is not None:  # it gave the anchor up and has not lifted since
-            T = self._planted[side]
-        elif self._landed:
+        if self._landed:
             x, y, z, c, s = np.mean(self._landed, axis=0)
             T = _turn_about(T[:3, 3], math.atan2(s, c) - math.atan2(T[1, 0], T[0, 0])) @ T
             T[:3, 3] = x, y, z
@@ -363,11 +356,9 @@ class FloatingBase(Observer):
                        > fz_anchor + self._anchor_switch_n)
             # a sole just landed takes the anchor by weight only once it has stood (its
             # touchdown's force peak passed), unless the anchor lifts off
-            settled = (len(self._landed) == LANDED_PERIODS or self._planted[other] is not None
-                       or not fz_anchor >= self._cop_min_fz_n)
+            settled = len(self._landed) == LANDED_PERIODS or not fz_anchor >= self._cop_min_fz_n
             if not contact[other]:
                 self._landed.clear()
-                self._planted[other] = None
             elif (heavier and settled) or not contact[self.anchor]:
                 self._take_anchor(other)
             else:  # on the floor, not yet the anchor: where it stands, for when it is
