@@ -21,7 +21,13 @@ from hubo_cli.control.target import FunctionTarget
 from hubo_cli.control.wrench import HAND_WRENCH_PLAN, HAND_WRENCH_REF
 from hubo_cli.dataflow import FlowError, Store, check_flow
 from hubo_cli.errors import ConfigError
-from hubo_cli.estimation.keys import ESTIMATE_KEYS, QUAT_WORLD_TORSO, WRENCHES
+from hubo_cli.estimation.keys import (
+    ESTIMATE_KEYS,
+    QUAT_WORLD_TORSO,
+    T_WORLD_SOLES,
+    T_WORLD_TORSO,
+    WRENCHES,
+)
 from hubo_cli.geometry import min_jerk
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.posture import home_posture
@@ -461,6 +467,8 @@ def test_the_task_target_writes_the_plans_force_and_measures_the_thrust(model, t
     R_N_H = Limb(model, ARM, "hand").fk(q[sl])[:3, :3]
     store[WRENCHES] = {"right-wrist": _hubo_reading(R_N_H, np.array([-5.0, 0.0, 0.0]))}
     store[QUAT_WORLD_TORSO] = np.array([1.0, 0.0, 0.0, 0.0])
+    store[T_WORLD_TORSO] = np.eye(4)  # the estimate's torso and soles, standing at the origin
+    store[T_WORLD_SOLES] = np.stack([np.eye(4), np.eye(4)])
     moving = RobotState(0.0, q, np.full(len(q), 0.1))
     _, info = target(0.0, moving)  # the raise (the robot still moving): no force yet
     assert target.phase == "raise" and np.allclose(store[HAND_WRENCH_PLAN][ARM], 0.0)
@@ -479,7 +487,8 @@ def test_the_task_target_writes_the_plans_force_and_measures_the_thrust(model, t
     plain = TaskTarget(make_plan(load_task(_task(tmp_path, PRESS.replace("thrust_n = 4.0", ""))),
                                  model))
     plain.store = Store()
-    plain.store[WRENCHES], plain.store[QUAT_WORLD_TORSO] = store[WRENCHES], store[QUAT_WORLD_TORSO]
+    for key in (WRENCHES, QUAT_WORLD_TORSO, T_WORLD_TORSO, T_WORLD_SOLES):
+        plain.store[key] = store[key]
     plain(0.0, state)
     assert plain.writes == (WRIST_RELIEF,) and HAND_WRENCH_PLAN not in plain.store
 

@@ -7,7 +7,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from control_support import assert_within_limits, ideal
+from control_support import assert_within_braking_limits, assert_within_limits, ideal
 
 from hubo_cli.control.loop import ControlLoop
 from hubo_cli.control.module import Cycle
@@ -146,9 +146,12 @@ def test_teleop_pipeline_with_limbs_groups_keeps_to_the_limits_and_reverts(model
 
     ControlLoop(robot, modules, target).run(duration_s=8.0)
     commands = robot.commands(q0)
-    assert_within_limits(model, commands, DT)
-    assert find_module(modules, "limiter").clamped_periods == 0
     k_stop = int(round(stop_at / DT)) + 2            # the two rest rows in front
+    # the step within the trajectory limits; the stop's revert first brakes to rest at the
+    # emergency ones
+    assert_within_limits(model, commands[:k_stop], DT)
+    assert_within_braking_limits(model, commands, DT)
+    assert find_module(modules, "limiter").clamped_periods == 0
     k_back = k_stop - int(round(0.5 / DT))
     near = np.abs(commands[k_back - 3:k_back + 4] - commands[-1]).max(axis=1)
     assert near.min() < 1e-9                        # reverted to a command of 0.5 s before

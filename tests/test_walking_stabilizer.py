@@ -6,6 +6,7 @@ import pytest
 from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError
 from hubo_cli.estimation.keys import (
+    CAPTURE_POINT_WORLD,
     COM_WORLD,
     CONTACT,
     T_WORLD_SOLES,
@@ -172,6 +173,7 @@ def standing_store(model, q_rad, T_world_neck, right_yaw_rad=0.0, pitch_rad=0.0,
     store[WRENCHES] = {name: np.zeros(6) for name in FT_SENSORS} | {
         "right-ankle": wrench_at(0.0, 0.0, fz_n), "left-ankle": wrench_at(0.0, 0.0, fz_n)}
     store[ZMP_WORLD] = ground[:2]
+    store[CAPTURE_POINT_WORLD] = store[COM_WORLD][:2].copy()  # standing still
     return store
 
 
