@@ -40,10 +40,10 @@ loads crossed at a touchdown, and each pass through the legs' kinematics carried
 and the attitude's noise and error into the estimate (~1 mm a pass: perturbed robots'
 estimates drifted 10 mm sideways and 1 deg in heading over a 1 m walk). The new anchor keeps
 the pose estimated for it (the mean of its last LANDED_PERIODS estimates on the floor), so the
-estimate does not jump. (Taking a sole that gave the anchor up back where it was then, while
-it stays in contact, was tried: a lunge's back foot dragged forward while counted in contact
-was then put back where it started, and the 150 N capture step's return failed.) Without any
-contact (a jump, a fall, a lifted robot) the anchor stays.
+estimate does not jump. (Also taking a sole that gave the anchor up back where it was then,
+while it stays in contact, was tried: with it the 150 N capture step's return step never left
+the floor, the back foot loaded with 130-140 N to the end.) Without any contact (a jump, a
+fall, a lifted robot) the anchor stays.
 
 Start: the world frame is the simulator's (:mod:`hubo_cli.drivers.sim`): the torso's neck frame
 at the start, dropped onto the floor (x forward, y left, z up, the origin on the floor under the
