@@ -41,10 +41,10 @@ def model():
     return load_model()
 
 
-def _stopper_run(model, phase_stops, latch_k=3, periods=400):
+def _stopper_run(model, phase_stops, latch_k=3, periods=400, release_k=None):
     """Feed a moving joint command through the soft stopper; the store's PHASE_STOP per
-    period from ``phase_stops(k)``; an operator stop at ``latch_k``. Returns (inputs,
-    outputs, modes, stopper)."""
+    period from ``phase_stops(k)``; an operator stop at ``latch_k``, released at
+    ``release_k`` (None: never). Returns (inputs, outputs, modes, stopper)."""
     stopper = EmergencyStopper(model, DT)
     q0 = home_posture(model)
     state = RobotState(0.0, q0, np.zeros(24))
@@ -57,6 +57,8 @@ def _stopper_run(model, phase_stops, latch_k=3, periods=400):
         store[PHASE_STOP] = phase_stops(k)
         if k == latch_k:
             cycle.estop_requests.add("operator")
+        if k == release_k:
+            stopper.release()
         q = q0.copy()
         q[0] += 0.2 * math.sin(k * DT)  # a slow motion (within every limit)
         outputs.append(stopper.update(q, state, cycle))
@@ -103,21 +105,9 @@ def test_without_a_phase_stop_the_stop_reverts_as_before(model):
 
 
 def test_a_release_during_finish_blends_back(model):
-    stopper = EmergencyStopper(model, DT)
-    q0 = home_posture(model)
-    state = RobotState(0.0, q0, np.zeros(24))
-    store = Store()
-    store[WRENCHES] = state.ft
-    stopper.reset(q0, state, store)
-    for k in range(20):
-        cycle = Cycle(k * DT, DT, store=store)
-        store[PHASE_STOP] = PhaseStop(False, 2.0)
-        if k == 2:
-            cycle.estop_requests.add("operator")
-        if k == 10:
-            stopper.release()
-        stopper.update(q0, state, cycle)
-    assert store[STOP_MODE] in ("recover", "release")
+    _, _, modes, _ = _stopper_run(model, lambda k: PhaseStop(False, 2.0), latch_k=2,
+                                  periods=20, release_k=10)
+    assert modes[-1] in ("recover", "release")
 
 
 @pytest.fixture(scope="module")

@@ -82,13 +82,6 @@ class Gait:
     step_index: np.ndarray
     toe_heel: ToeHeelPlan | None = None
 
-    def foot_pitch_rad(self, k: int) -> tuple[float, float]:
-        """The soles' pitch (right, left) in period k (rad; > 0 heel up, on the toe)."""
-        if self.toe_heel is None:
-            return 0.0, 0.0
-        right, left = self.toe_heel.foot_angle_rad[k].tolist()
-        return right, left
-
     @property
     def n(self) -> int:
         return len(self.zmp_ref_m)
