@@ -20,8 +20,9 @@ AXIS_COLOURS = {"x": "#d62728", "y": "#ff7f0e"}
 
 def plot_manipulation(log, summary: dict, path: str | Path) -> Path:
     """Three panels over time: the capture-point error along x and y with the support
-    polygon's edges (shrunk by the monitor's margin) as thresholds; the force the object puts
-    on the hand (world x, y, z and its size); the object's angle with the torso tilt.
+    polygon's edges (shrunk by the monitor's margin) as thresholds; the wrist sensor's reading
+    of the hand's load (the force along the forearm, the bending moment against the wrist's
+    limit); the object's angle with the torso tilt.
 
     Args:
         log: the run's :class:`~hubo_cli.control.log.LogData` (the capture-point monitor's
