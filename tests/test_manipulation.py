@@ -236,9 +236,10 @@ def test_door_that_opens_toward_the_robot_with_and_without_the_stop(model, tmp_p
     assert free["t_emergency_s"] is None and free["tipped"]
     assert free["max_cp_error_mm"] > 1.5 * stopped["max_cp_error_mm"]
     # without the stop it does not fall: once the plan's 142 mm push past the leaf is used up
-    # it stands on its heels, its CoM 31 mm inside the soles (nominal and seed 3), tilted
-    # 7.85-8.25 deg at the end (nominal, seeds 1-3), the wrist beyond its 1.21 N m for
-    # 1.66-1.77 s (the bound 0.25 s); with the stop it ends at 0.26-0.49 deg (both code paths)
+    # it stands on its heels, its CoM 28-34 mm inside the soles (nominal, seeds 3-8), tilted
+    # 7.85-8.33 deg at the end (nominal, seeds 1-8), the wrist beyond its 1.21 N m for
+    # 1.63-1.77 s (the bound 0.25 s); with the stop it ends at 0.26-0.49 deg (nominal, seeds
+    # 1-3, both code paths)
     assert not free["fell"] and free["min_com_inside_mm"] > 10.0
     assert free["end_tilt_deg"] > 5.0 and stopped["end_tilt_deg"] < 1.5
     assert free["wrist_overloaded"]
@@ -293,12 +294,13 @@ def test_valve_seen_195_mm_to_the_left_with_and_without_the_stop(model, tmp_path
 @pytest.mark.physical
 def test_valve_seen_131_mm_too_far_with_and_without_the_stop(model, tmp_path):
     """Seen 131 mm too far and 33 mm too high (the paper's Fig. 11 a-1): the hand reaches over
-    the real wheel into its panel. Measured on the nominal robot and seeds 1-3: with the stop
-    1.4-1.6 deg and 5-8 mm of sole lift; without it 24.9-25.8 mm (the 20 mm tip criterion is
-    4.9 mm below, 5x the 0.9 mm spread) and 6.2-6.7 deg, but no fall: the plan's 131 mm past
-    the wheel is used up with the CoM still 46-47 mm inside the soles (nominal, seed 3). The
-    wrist sensor's bending moment is beyond the robot's 1.21 N m for 1.72-1.87 s without the
-    stop (and 1.0-1.2 s with it: the capture point flags only once the body leans)."""
+    the real wheel into its panel. With the stop 1.4-1.6 deg and 5-8 mm of sole lift (nominal,
+    seeds 1-3); without it 24.8-25.8 mm (nominal, seeds 1-8; the 20 mm tip criterion is
+    4.8 mm below, 4.8x the 1.0 mm spread) and 6.2-6.7 deg, but no fall: the plan's 131 mm
+    past the wheel is used up with the CoM still 44-51 mm inside the soles (nominal, seeds
+    3-8). The wrist sensor's bending moment is beyond the robot's 1.21 N m for 1.28-2.10 s
+    without the stop (and 1.0-1.2 s with it: the capture point flags only once the body
+    leans). Both code paths."""
     spec = ManipulationSpec("turn-valve", seen_offset_m=(0.131, 0.0, 0.033))
     stopped = run_manipulation(model, spec, out=tmp_path / "on").summary
     free = run_manipulation(model, spec, estop=False, out=tmp_path / "off").summary
