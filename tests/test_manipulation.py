@@ -235,6 +235,14 @@ def test_door_that_opens_toward_the_robot_with_and_without_the_stop(model, tmp_p
     assert not stopped["fell"] and not stopped["tipped"] and stopped["max_tilt_deg"] < 5.0
     assert free["t_emergency_s"] is None and free["tipped"]
     assert free["max_cp_error_mm"] > 1.5 * stopped["max_cp_error_mm"]
+    # without the stop it does not fall: once the plan's 142 mm push past the leaf is used up
+    # it stands on its heels, its CoM 28-34 mm inside the soles (nominal, seeds 3-8), tilted
+    # 7.85-8.33 deg at the end (nominal, seeds 1-8), the wrist beyond its 1.21 N m for
+    # 1.63-1.77 s (the bound 0.25 s); with the stop it ends at 0.26-0.49 deg (nominal, seeds
+    # 1-3, both code paths)
+    assert not free["fell"] and free["min_com_inside_mm"] > 10.0
+    assert free["end_tilt_deg"] > 5.0 and stopped["end_tilt_deg"] < 1.5
+    assert free["wrist_overloaded"]
     assert stopped["object_angle_deg"] == pytest.approx(0.0, abs=0.5)  # it never opened
     for run in ("on", "off"):
         assert (tmp_path / run / "manipulation.png").read_bytes()[:8] == PNG
@@ -262,17 +270,41 @@ def test_cli_refuses_bad_recognition_errors(tmp_path):
 def test_valve_seen_195_mm_to_the_left_with_and_without_the_stop(model, tmp_path):
     """Seen 195 mm left of where it is (the paper's Fig. 11 b-1): the turning hand meets the
     real rim from outside and the contact lifts the right sole
-    before the capture point flags (0.14 s later). The stop's revert now brakes the arm to rest
-    at the emergency limits before it goes back: braking at the trajectories' 0.8 rad/s^2 the
-    elbow ran on 0.55 rad into the rim for a second and the robot tipped onto its left foot
-    (38 mm, 5.6 deg). Measured once on this code path: with the stop 6.4-6.8 mm of sole lift
-    and 1.06-1.13 deg (the bound is 20 mm, the tip criterion: 2.9x; and 3 deg: 2.6x); without
-    it 48.4 mm and 8.1 deg, motors at their limit (tipped: 2.4x the 20 mm criterion)."""
+    before the capture point flags (0.14 s later). The stop's revert brakes the arm to rest
+    at the emergency limits before it goes back. Without the stop the robot tips onto its left
+    foot, and whether it falls depends on the robot: the nominal one stands there (8.2 deg),
+    perturbed robots 2, 3, 4 and 8 of seeds 1-8 turn on the left foot (yaw 17-18 deg at
+    10 deg of tilt) and fall backward, 5 and 6 are still tipping when the plan ends (and fall
+    at 8.68 and 8.43 s if the hold is 3 s longer). Seed 4 (the lowest foot friction, 0.46)
+    fell to 90 deg at 7.63 s (7.65 s on the portable code path); with the stop 1.53 deg and
+    7.5-7.8 mm of sole lift (both paths), and 1.09-1.53 deg, 7.1-7.8 mm on the nominal and
+    seeds 1-8 (the bounds 3 deg, 2x, and the 20 mm tip criterion, 2.6x)."""
     spec = ManipulationSpec("turn-valve", seen_offset_m=(0.0, 0.195, 0.0))
+    stopped = run_manipulation(model, spec, out=tmp_path / "on", perturb_seed=4).summary
+    free = run_manipulation(model, spec, estop=False, out=tmp_path / "off",
+                            perturb_seed=4).summary
+    assert stopped["emergency_sources"] == ["capture-point"]
+    assert not stopped["fell"] and not stopped["tipped"] and stopped["max_tilt_deg"] < 3.0
+    assert free["t_emergency_s"] is None and free["fell"] and free["min_com_inside_mm"] < 0.0
+    for run in ("on", "off"):
+        assert (tmp_path / run / "manipulation.png").read_bytes()[:8] == PNG
+
+
+@pytest.mark.slow
+@pytest.mark.physical
+def test_valve_seen_131_mm_too_far_with_and_without_the_stop(model, tmp_path):
+    """Seen 131 mm too far and 33 mm too high (the paper's Fig. 11 a-1): the hand reaches over
+    the real wheel into its panel. With the stop 1.4-1.6 deg and 5-8 mm of sole lift (nominal,
+    seeds 1-3); without it 24.8-25.8 mm (nominal, seeds 1-8; the 20 mm tip criterion is
+    4.8 mm below, 4.8x the 1.0 mm spread) and 6.2-6.7 deg, but no fall: the plan's 131 mm
+    past the wheel is used up with the CoM still 44-51 mm inside the soles (nominal, seeds
+    3-8). The wrist sensor's bending moment is beyond the robot's 1.21 N m for 1.28-2.10 s
+    without the stop (and 1.0-1.2 s with it: the capture point flags only once the body
+    leans). Both code paths."""
+    spec = ManipulationSpec("turn-valve", seen_offset_m=(0.131, 0.0, 0.033))
     stopped = run_manipulation(model, spec, out=tmp_path / "on").summary
     free = run_manipulation(model, spec, estop=False, out=tmp_path / "off").summary
     assert stopped["emergency_sources"] == ["capture-point"]
     assert not stopped["fell"] and not stopped["tipped"] and stopped["max_tilt_deg"] < 3.0
-    assert free["t_emergency_s"] is None and free["tipped"]
-    for run in ("on", "off"):
-        assert (tmp_path / run / "manipulation.png").read_bytes()[:8] == PNG
+    assert free["t_emergency_s"] is None and free["tipped"] and not free["fell"]
+    assert free["min_com_inside_mm"] > 20.0 and free["wrist_overloaded"]

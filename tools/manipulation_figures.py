@@ -43,13 +43,16 @@ def row(summary: dict) -> str:
     outcome = ("fell" if summary["fell"] else "tipped" if summary["tipped"] else "stayed up")
     if summary["overloaded"]:
         outcome += ", overloaded"
+    if summary["wrist_overloaded"]:
+        outcome += ", wrist overloaded"
     flag = summary["t_emergency_s"]
     return (f"| {summary['experiment']} | {summary['case']} | {summary['estop']} | "
             f"{'-' if flag is None else f'{flag:.2f} s'} | {summary['object_angle_deg']:.1f} | "
             f"{summary['max_cp_error_mm']:.0f} | {summary['max_axial_force_n']:.0f} | "
-            f"{summary['max_wrist_moment_nm']:.1f} | "
+            f"{summary['max_wrist_moment_nm']:.1f} | {summary['wrist_over_limit_s']:.2f} s | "
             f"{summary['max_arm_torque_ratio'] * 100:.0f} % | {summary['max_tilt_deg']:.1f} | "
-            f"{summary['max_sole_lift_mm']:.0f} | {outcome} |")
+            f"{summary['end_tilt_deg']:.1f} | {summary['max_sole_lift_mm']:.0f} | "
+            f"{summary['min_com_inside_mm']:.0f} | {outcome} |")
 
 
 def main() -> None:
@@ -63,9 +66,10 @@ def main() -> None:
     model = load_model()
     FIGURES.mkdir(parents=True, exist_ok=True)
     print("| experiment | case | stop | flag | angle (deg) | max CP error (mm) | "
-          "max wrist f_z (N) | max wrist moment (N m) | arm torque | max tilt (deg) | "
-          "sole lift (mm) | outcome |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "max wrist f_z (N) | max wrist moment (N m) | wrist beyond its limit | arm torque | "
+          "max tilt (deg) | end tilt (deg) | sole lift (mm) | CoM inside soles (mm) | "
+          "outcome |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for spec, estop in CASES:
         spec = replace(spec, impedance=args.impedance)
         name = f"{spec.kind}-{spec.case}-{'estop' if estop else 'no-estop'}"

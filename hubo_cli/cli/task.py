@@ -511,6 +511,8 @@ def _print_manipulation(summary: dict, run_dir) -> None:
     outcome = "FELL" if summary["fell"] else "tipped" if summary["tipped"] else "stayed up"
     if summary["overloaded"]:
         outcome += ", arm OVERLOADED"
+    if summary["wrist_overloaded"]:
+        outcome += ", wrist OVERLOADED"
     flag = summary["t_emergency_s"]
     what = "valve" if summary["experiment"] == "turn-valve" else "door"
     console.print(f"experiment        {summary['experiment']} ({escape(summary['case'])})")
@@ -525,9 +527,15 @@ def _print_manipulation(summary: dict, run_dir) -> None:
                      ", never gripped" if what == "valve" else ""))
     console.print(f"robot             {outcome}: max tilt {summary['max_tilt_deg']:.1f} deg, "
                   f"sole lift {summary['max_sole_lift_mm']:.0f} mm")
+    if summary["min_com_inside_mm"] is not None and summary["end_tilt_deg"] is not None:
+        console.print(f"centre of mass    {summary['min_com_inside_mm']:.0f} mm inside the soles "
+                      f"at the least; tilt {summary['end_tilt_deg']:.1f} deg at the end")
     console.print(f"max CP error      {summary['max_cp_error_mm']:.1f} mm")
+    limit = summary["wrist_limit_nm"]
     console.print(f"wrist sensor      {summary['max_axial_force_n']:.0f} N along the forearm, "
-                  f"{summary['max_wrist_moment_nm']:.1f} N m bending at most")
+                  f"{summary['max_wrist_moment_nm']:.1f} N m bending at most"
+                  + (f", beyond the wrist's {limit:g} N m for "
+                     f"{summary['wrist_over_limit_s']:.2f} s" if limit is not None else ""))
     console.print(f"arm motors        up to "
                   f"{summary['max_arm_torque_ratio'] * 100:.0f} % of their limit")
     console.print(f"ended             {summary['ended']} after {summary['duration_s']:.2f} s")

@@ -28,7 +28,11 @@ it (``--no-estop``); the ankle balancer as in the push-wall experiment. Outcomes
 at its torque limit (the URDF's effort) for ``OVERLOAD_S`` in all, the arm stalled against
 the object. The run folder holds ``log.csv`` (the hand force, the object's angle, the torso
 tilt per period), ``summary.json`` and ``manipulation.png``: the capture-point error and the
-hand force over time, as the paper's Figs. 11-12.
+hand force over time, as the paper's Figs. 11-12. The wrist is judged apart from the motors:
+``wrist_overloaded`` when the wrist sensor's bending moment stays beyond the robot's wrist
+torque limit (``[safety] wrist_torque_limit_nm``, 1.21 N m, the limit the teleoperation paper
+determined on the robot) for ``OVERLOAD_S`` in all; the simulated wrist motors themselves are
+modelled stronger (their URDF effort).
 
 Hand geometry: the hand keeps its start orientation (fingers forward) rolled outward by
 ``HAND_ROLL_RAD`` on the way (so the upper arm clears the torso); its collision box (from the
@@ -51,7 +55,7 @@ from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.dataflow import Store
 from hubo_cli.drivers.base import grip_flag
 from hubo_cli.errors import ConfigError, InputError
-from hubo_cli.estimation.keys import WRENCHES
+from hubo_cli.estimation.keys import COM_WORLD, T_WORLD_SOLES, WRENCHES
 from hubo_cli.experiments.push_wall import ARM_START_RAD, hand_box_extent_m
 from hubo_cli.experiments.watch import WatchedTarget
 from hubo_cli.geometry import min_jerk
@@ -263,9 +267,9 @@ class ManipulationTargets(WatchedTarget):
         ConfigError: a pose of the plan has no exact IK solution (nothing moved).
     """
 
-    reads = (*WatchedTarget.reads, WRENCHES)
+    reads = (*WatchedTarget.reads, WRENCHES, COM_WORLD)
     previous = (STOP_MODE,)  # the soft stopper's mode: no grasp while it stops the motion
-    log_columns = ("hand_axial_n", "wrist_moment_nm",
+    log_columns = ("hand_axial_n", "wrist_moment_nm", "com_inside_m",
                    "holding_flag", "arm_torque_ratio", "tilt_deg", "torso_z_m", "sole_lift_m",
                    "segment_code")
 
@@ -299,6 +303,12 @@ class ManipulationTargets(WatchedTarget):
         self.max_torque_nm = np.zeros(len(self.effort_nm))  # each arm joint's largest |tau| (N m)
         self.max_axial_n = 0.0  # the largest |f_z| along the forearm (N)
         self.max_moment_nm = 0.0  # the largest wrist bending moment (N m)
+        self.wrist_limit_nm = float(model.safety.get("wrist_torque_limit_nm", math.inf))
+        self.wrist_over_periods = 0  # periods with the bending moment beyond wrist_limit_nm
+        # the centre of mass's ground point inside the box of both soles (lifted or not, m):
+        # while it stays inside, gravity alone brings a robot tipped onto its heels or onto one
+        # foot back onto both soles; once it leaves, the robot falls unless something holds it
+        self.min_com_inside_m = math.inf
 
     def _hand(self, point_m, roll_rad: float) -> np.ndarray:
         """The hand goal (4x4, N): at ``point_m``, rolled by ``roll_rad`` from its start."""
@@ -343,6 +353,15 @@ class ManipulationTargets(WatchedTarget):
                     hint="the scene constants in hubo_cli/experiments/manipulation.py were "
                          "chosen for the arm's reach; keep turn_deg and door_deg in range")
 
+    def _com_inside_m(self) -> float:
+        """How far the centre of mass's ground point lies inside the box of both soles' corners
+        (the estimate; negative: outside), m."""
+        corners = np.concatenate([self._corners @ T[:3, :3].T + T[:3, 3]
+                                  for T in self.store[T_WORLD_SOLES]])[:, :2]
+        com = self.store[COM_WORLD][:2]
+        return float(np.min(np.concatenate([com - corners.min(axis=0),
+                                            corners.max(axis=0) - com])))
+
     def attach(self, world: SceneActions | None, modules, store: Store) -> None:
         if world is None:
             raise ConfigError(f"the {self.spec.kind} experiment needs the simulator",
@@ -367,6 +386,8 @@ class ManipulationTargets(WatchedTarget):
 
     def __call__(self, t_s: float, state):
         tilt_deg, z = self.watch(t_s, state)
+        com_inside_m = self._com_inside_m()
+        self.min_com_inside_m = min(self.min_com_inside_m, com_inside_m)
         k, T = self.goal(t_s)
         stopped = self.store.get(STOP_MODE, "release") != "release"
         holding = grip_flag(HAND) in state.flags  # the hand's grip sensor
@@ -386,6 +407,7 @@ class ManipulationTargets(WatchedTarget):
         axial_n, moment_nm = float(wrench[2]), math.hypot(float(wrench[3]), float(wrench[4]))
         self.max_axial_n = max(self.max_axial_n, abs(axial_n))
         self.max_moment_nm = max(self.max_moment_nm, moment_nm)
+        self.wrist_over_periods += moment_nm > self.wrist_limit_nm
         tau_nm = np.abs(state.tau_nm[self.slice])
         np.maximum(self.max_torque_nm, np.where(np.isfinite(tau_nm), tau_nm, 0.0),
                    out=self.max_torque_nm)
@@ -393,6 +415,7 @@ class ManipulationTargets(WatchedTarget):
         self.max_torque_ratio = max(self.max_torque_ratio, ratio)
         self.overload_periods += ratio >= OVERLOAD_RATIO
         return q, {"hand_axial_n": axial_n, "wrist_moment_nm": moment_nm,
+                   "com_inside_m": com_inside_m,
                    "holding_flag": float(holding),
                    "arm_torque_ratio": ratio, "tilt_deg": tilt_deg, "torso_z_m": z,
                    "sole_lift_m": self.lift_m, "segment_code": float(k),
@@ -452,6 +475,7 @@ def manipulation_summary(spec: ManipulationSpec, estop: bool, targets: Manipulat
     cp_flags = np.nonzero(log["cp_flag"] > 0.5)[0]
     error = np.hypot(log["cp_error_x_m"], log["cp_error_y_m"])
     angle = log["object_angle_deg"]
+    tilt = log["tilt_deg"][np.isfinite(log["tilt_deg"])]
     period_s = targets.model.control_period_s
     return {
         "experiment": spec.kind,
@@ -473,12 +497,20 @@ def manipulation_summary(spec: ManipulationSpec, estop: bool, targets: Manipulat
                 targets.model.joint_names[targets.slice], targets.max_torque_nm,
                 targets.effort_nm, strict=True)},
         "max_tilt_deg": round(targets.max_tilt_deg, 2),
+        "end_tilt_deg": round(float(tilt[-1]), 2) if len(tilt) else None,
+        "min_com_inside_mm": round(targets.min_com_inside_m * 1000, 1)
+        if math.isfinite(targets.min_com_inside_m) else None,
         "t_emergency_s": stops[0][1] if stops else None,
         "emergency_sources": list(stops[0][3]) if stops else [],
         "t_cp_flag_s": float(log["t_s"][cp_flags[0]]) if len(cp_flags) else None,
         "max_cp_error_mm": round(float(np.nanmax(error)) * 1000, 1),
         "max_axial_force_n": round(targets.max_axial_n, 1),
         "max_wrist_moment_nm": round(targets.max_moment_nm, 2),
+        # the wrist judged against the robot's wrist torque limit (the robot file's [safety])
+        "wrist_limit_nm": targets.wrist_limit_nm if math.isfinite(targets.wrist_limit_nm)
+        else None,
+        "wrist_over_limit_s": round(targets.wrist_over_periods * period_s, 3),
+        "wrist_overloaded": targets.wrist_over_periods * period_s >= OVERLOAD_S,
         "impedance": "on" if spec.impedance else "off",
         "object_angle_deg": round(float(angle[np.isfinite(angle)][-1]), 2),
         "max_object_angle_deg": round(float(np.nanmax(np.abs(angle))), 2),

@@ -20,8 +20,9 @@ AXIS_COLOURS = {"x": "#d62728", "y": "#ff7f0e"}
 
 def plot_manipulation(log, summary: dict, path: str | Path) -> Path:
     """Three panels over time: the capture-point error along x and y with the support
-    polygon's edges (shrunk by the monitor's margin) as thresholds; the force the object puts
-    on the hand (world x, y, z and its size); the object's angle with the torso tilt.
+    polygon's edges (shrunk by the monitor's margin) as thresholds; the wrist sensor's reading
+    of the hand's load (the force along the forearm, the bending moment against the wrist's
+    limit); the object's angle with the torso tilt.
 
     Args:
         log: the run's :class:`~hubo_cli.control.log.LogData` (the capture-point monitor's
@@ -64,6 +65,8 @@ def plot_manipulation(log, summary: dict, path: str | Path) -> Path:
                if summary["tipped"] else "stayed up")
     if summary.get("overloaded"):
         outcome += ", arm overloaded"
+    if summary.get("wrist_overloaded"):
+        outcome += ", wrist overloaded"
     ax_cp.set_title(f"{summary['experiment']} ({summary['case']}), emergency stop "
                     f"{summary['estop']}: {outcome}", fontsize=10)
     # Hubo's wrist sensor: the force along the forearm and the bending moment (a force across
@@ -74,6 +77,10 @@ def plot_manipulation(log, summary: dict, path: str | Path) -> Path:
     ax_m = ax_f.twinx()
     ax_m.plot(t, log["wrist_moment_nm"], color="#9467bd", lw=1.0, alpha=0.85,
               label="bending moment |m_x, m_y|")
+    if summary.get("wrist_limit_nm") is not None:
+        ax_m.axhline(summary["wrist_limit_nm"], color="#9467bd", ls="--", lw=0.9,
+                     label=f"wrist limit {summary['wrist_limit_nm']:g} N m "
+                           f"(beyond it {summary['wrist_over_limit_s']:.2f} s)")
     ax_m.set_ylabel("wrist moment [N m]", color="#9467bd")
     lines = ax_f.get_legend_handles_labels()
     more = ax_m.get_legend_handles_labels()
