@@ -677,8 +677,8 @@ class WalkTarget(Target):
             return
         step, support = rows["step"][k], rows["support"][k]
         self._cp_error = self._capture_point_error(k)
-        if step < 0 or (support[0] and support[1]):
-            return
+        if step < 0 or (support[0] and support[1]) or not np.all(np.isfinite(self._cp_error)):
+            return  # (no estimate of the capture point: nothing moves)
         period = gait.period_s
         remaining_s = (self._landing[k] - k) * period
         if remaining_s < (1.0 - CP_WINDOW) * self.params.single_support_s:
@@ -728,10 +728,9 @@ class WalkTarget(Target):
 
     def __call__(self, t_s: float, state: RobotState) -> TargetOutput:
         store = self.store
-        if self._prefix is not None:
-            self._advance_prefix(t_s)
-        if self._pending is not None:
-            self._advance_replan(t_s)
+        if self._pending is not None and self.k >= self._pending[0]:
+            self._advance_replan(t_s)  # a re-plan's rest is due: played from this period
+        work = self._prefix, self._pending
         if self.gait is None:
             self._start(t_s, state.q_rad)
         elif self.phase == "walk" and store.get(STOP_MODE, "release") != "release":
@@ -743,6 +742,11 @@ class WalkTarget(Target):
             self._plan(self.plan.q_rad[-1], t_s)
         elif self.phase in ("walk", "stopping"):  # a stop's last step follows it too
             self._follow_capture_point(t_s)
+        if self._prefix is work[0] and self._pending is work[1]:  # (a re-plan decided now
+            if self._prefix is not None:                           # has done its share)
+                self._advance_prefix(t_s)
+            if self._pending is not None:
+                self._advance_replan(t_s)
         if self.phase == "stopping" and self.k >= self.gait.n and self._pending is None:
             self.phase = "stood"
         # how this phase stops: finishing the step (settled once it stands), or by the
