@@ -14,13 +14,14 @@ ZMP over every row of the new pattern: tens of milliseconds), and a stalled loop
 on the real-time hardware exactly when the robot is stopped or pushed; but a re-plan played
 0.2-0.4 s late (computed a slice a period first) moves a pushed walk's landing too late. So the
 walking target (:meth:`~hubo_cli.walking.target.WalkTarget._replan`) plays it from the period
-it is decided in: that period computes the new pattern's cart-table rows (cheap) and solves the
-legs for its first rows only (:func:`prefix_rows`: as many as the rest takes to compute), their
-multi-body correction continued from the pattern playing (:func:`continued_fix`, :func:`with_fix`:
-the correction changes slowly and a moved landing hardly changes it over a few tenths of a
-second); the rest (:func:`gait_rows`), with its own multi-body correction continued from the
-first rows' end, is computed a slice of rows a period while they play (the body's ``*_slices``
-generators) and follows them.
+it is decided in: that period computes the new pattern's cart-table rows (a few milliseconds)
+and the legs for its first rows (:func:`prefix_rows`: as many as the rest takes to compute),
+a few rows a period from then on, always ahead of the row played; their multi-body correction
+is the playing pattern's, continued (:func:`continued_fix`, :func:`with_fix`: the correction
+changes slowly and a moved landing hardly changes it over a few tenths of a second). The rest
+(:func:`rest_of`), with its own multi-body correction continued from the first rows' end, is
+computed a slice of rows a period while they play (the body's ``*_slices`` generators) and
+follows them.
 
 The footstep change after a push (:func:`shifted_landing`) is hrpsys AutoBalancer's
 (``modify_footsteps_for_recovery``): the capture point's error beyond a margin moves the
