@@ -214,7 +214,8 @@ def test_an_operator_stop_in_mid_swing_ends_standing(tmp_path, model):
                                for s in ("right", "left")])
     assert np.all(contact == 1)  # both feet down the last 0.5 s
     # the torso leans toward the stance foot by design: measured max tilt 8.37 deg (AVX-512;
-    # 8.37-8.58 deg over 20 random stops of a 1 m walk), bound 15 deg = 1.7x (a fall: 30)
+    # 8.37-8.58 deg over 20 random stops of a 1 m walk, 8.37-8.84 over seeds 1-5 with the
+    # re-plan played at once), bound 15 deg = 1.7x (a fall: 30)
     assert summary["max_torso_tilt_deg"] < 15.0
 
 
