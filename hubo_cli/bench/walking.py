@@ -4,7 +4,7 @@ with its stabilizer, then every pipeline module; physics excluded) is read from 
 then again walking on toe and heel with the LIP feedback and the force-distribution QP
 (``hubo walk --toe-heel --lip-feedback``). Target: median <= 10 % of the control period.
 Last, the walk stopped in mid-swing (``--stop-at 2.2``): the worst period from the stop on,
-while its re-plan is computed a slice a period (:mod:`hubo_cli.walking.replan`); target: within
+while its re-plan is computed a part a period (:mod:`hubo_cli.walking.replan`); target: within
 the period."""
 
 from __future__ import annotations
@@ -42,6 +42,6 @@ def run(report) -> None:
         compute = np.asarray(log["compute_us"], dtype=float)
         stopping = np.asarray(log["walk.phase_code"], dtype=float) >= 1
     worst = float(np.nanmax(compute[stopping]))
-    report("worst period from a stop in mid-swing on (its re-plan spread over periods)", worst,
+    report("worst period from a stop in mid-swing on (its re-plan a part a period)", worst,
            "us", f"{100 * worst / period_us:.0f} % of the period; median before the stop "
            f"{float(np.nanmedian(compute[~stopping])):.0f} us; stood: {result.stood}")

@@ -16,6 +16,7 @@ the preview controller turns the difference into a CoM correction, and the legs 
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
@@ -119,6 +120,14 @@ class WalkingBody:
         self.data = self.robot.model.createData()
         self._q_pin = np.zeros(self.robot.model.nq)
 
+    def seeded(self, q_start_rad: np.ndarray, T_world_neck_start: np.ndarray) -> WalkingBody:
+        """This body starting from other joints and torso pose (its model, legs and scratch data
+        shared: no method keeps anything in them from one call to the next)."""
+        body = copy.copy(self)
+        body.q_start = np.asarray(q_start_rad, dtype=float)
+        body.neck_z_m = float(T_world_neck_start[2, 3])
+        return body
+
     def com_in_neck(self, q_rad: np.ndarray) -> np.ndarray:
         """The whole-body CoM in the neck frame (3,; m) for joints ``q_rad``."""
         q = self.robot.configuration(q_rad, None, out=self._q_pin)
@@ -132,14 +141,15 @@ class WalkingBody:
         """
         return run_slices(self.solve_slices(gait, gait.n))
 
-    def solve_slices(self, gait: Gait, rows_per_slice: int) -> Iterator[None]:
+    def solve_slices(self, gait: Gait, rows_per_slice: int, out: JointPlan | None = None
+                     ) -> Iterator[None]:
         """:meth:`solve` ``rows_per_slice`` rows at a time: yields after each slice (a
-        re-plan spread over control periods, :mod:`hubo_cli.walking.replan`); returns the
+        re-plan spread over control periods, :mod:`hubo_cli.walking.replan`), the rows solved
+        so far written into ``out``'s arrays when given (:func:`unsolved_plan`); returns the
         :class:`JointPlan`."""
         n = gait.n
-        q_all = np.empty((n, len(self.q_start)))
-        T_all = np.empty((n, 4, 4))
-        com_all = np.empty((n, 3))
+        out = unsolved_plan(n, len(self.q_start)) if out is None else out
+        q_all, T_all, com_all = out.q_rad, out.T_world_neck, out.com_m
         q = self.q_start.copy()
         offset = self.com_in_neck(q)
         worst = 0.0
@@ -281,6 +291,11 @@ def _solve_row(right_row, left_row, com_xy, lean_rad_per_m, neck_z_m, offset, pi
         if (status[side] != EXACT and status[side] != CAPPED) or error[side] > max_error_m:
             return -1.0
     return max(error[0], error[1])
+
+
+def unsolved_plan(n: int, joints: int) -> JointPlan:
+    """A :class:`JointPlan` of ``n`` rows to be solved (:meth:`WalkingBody.solve_slices`)."""
+    return JointPlan(np.zeros((n, joints)), np.tile(np.eye(4), (n, 1, 1)), np.zeros((n, 3)), 0.0)
 
 
 def run_slices(slices: Iterator[None]):

@@ -127,7 +127,8 @@ def swing_rows(start: Footstep, end: Footstep, n: int, height_m: float,
 def make_gait(right: Footstep, left: Footstep, steps: list[Footstep], params: WalkingParams,
               period_s: float, com_height_m: float, sole_z_m: float = 0.0,
               zmp_forward_m: float = 0.0, com_start_m: np.ndarray | None = None,
-              toe_heel: ToeHeelParams | None = None, sole: FootShape | None = None) -> Gait:
+              toe_heel: ToeHeelParams | None = None, sole: FootShape | None = None,
+              com_rows: int | None = None) -> Gait:
     """Sample the walking pattern for ``steps`` starting from the feet ``right`` and ``left``.
 
     Args:
@@ -142,6 +143,8 @@ def make_gait(right: Footstep, left: Footstep, steps: list[Footstep], params: Wa
             the ZMP reference starts under it.
         toe_heel, sole: walk on toe and heel (see the module docstring) with these phases
             and angles on this sole (both needed); None: flat feet.
+        com_rows: the flat pattern's CoM path only over its first rows (the rest previewed;
+            at least one): a re-plan computes its own (:mod:`hubo_cli.walking.replan`).
     """
     if toe_heel is not None and _rolls(right, left, steps, toe_heel.min_step_m):
         if sole is None:
@@ -196,7 +199,7 @@ def make_gait(right: Footstep, left: Footstep, steps: list[Footstep], params: Wa
     zmp_ref = np.vstack(zmp)
     gains = preview_gains(period_s, com_height_m, params.preview_s, params.zmp_weight,
                           params.jerk_weight)
-    com = com_from_zmp(zmp_ref, gains, start)
+    com = com_from_zmp(zmp_ref, gains, start, rows=com_rows)
     return Gait(period_s, tuple(steps), com_height_m, zmp_ref, com,
                 {side: np.vstack(r) for side, r in rows.items()}, np.vstack(support),
                 np.concatenate(index))

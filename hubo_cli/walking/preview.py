@@ -128,8 +128,10 @@ class CoMPath:
 
 def com_from_zmp(zmp_ref_m: np.ndarray, gains: PreviewGains,
                  com_start_m: np.ndarray | None = None,
-                 com_motion_start: tuple[np.ndarray, np.ndarray] | None = None) -> CoMPath:
-    """The CoM path whose ZMP follows ``zmp_ref_m`` (n x 2, m), one sample per period.
+                 com_motion_start: tuple[np.ndarray, np.ndarray] | None = None,
+                 rows: int | None = None) -> CoMPath:
+    """The CoM path whose ZMP follows ``zmp_ref_m`` (n x 2, m), one sample per period (its
+    first ``rows`` only, when given: the rest of the reference is only previewed).
 
     The reference past its end is held at its last value (the robot stands there). The CoM
     starts at ``com_start_m`` (2,) (default: the first reference point), at rest unless
@@ -140,12 +142,13 @@ def com_from_zmp(zmp_ref_m: np.ndarray, gains: PreviewGains,
     if ref.ndim != 2 or ref.shape[1] != 2 or len(ref) == 0 or not np.all(np.isfinite(ref)):
         raise ConfigError("the ZMP reference must be a finite n x 2 array of metres")
     n, n_preview = len(ref), len(gains.preview)
+    out = n if rows is None else max(1, min(int(rows), n))
     padded = np.vstack([ref, np.repeat(ref[-1:], n_preview, axis=0)])
     x = np.zeros((3, 2))  # rows: c, c', c''; columns: x, y
     x[0] = ref[0] if com_start_m is None else np.asarray(com_start_m, dtype=float)
     if com_motion_start is not None:
         x[1], x[2] = (np.asarray(v, dtype=float) for v in com_motion_start)
-    com, velocity, acceleration, zmp = (np.empty((n, 2)) for _ in range(4))
+    com, velocity, acceleration, zmp = (np.empty((out, 2)) for _ in range(4))
     _preview_run(ref, padded, x, gains.A, gains.B, gains.C, gains.integral, gains.state,
                  gains.preview, com, velocity, acceleration, zmp)
     return CoMPath(com, velocity, acceleration, zmp)
@@ -154,9 +157,9 @@ def com_from_zmp(zmp_ref_m: np.ndarray, gains: PreviewGains,
 @nb.njit(cache=True, nogil=True)
 def _preview_run(ref, padded, x, A, B, C, integral, state, preview, com, velocity,
                  acceleration, zmp):
-    """:func:`com_from_zmp`'s loop, compiled: the state ``x`` (3 x 2) driven through every
-    row of ``ref`` into the four outputs (n x 2)."""
-    n, n_preview = ref.shape[0], preview.shape[0]
+    """:func:`com_from_zmp`'s loop, compiled: the state ``x`` (3 x 2) driven through the
+    rows of ``ref`` the four outputs hold (their length)."""
+    n, n_preview = com.shape[0], preview.shape[0]
     error_sum = np.zeros(2)
     future = np.empty(2)
     u = np.empty(2)

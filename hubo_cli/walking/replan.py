@@ -9,13 +9,19 @@ own state (position, velocity, acceleration) under the new ZMP reference (previe
 a swing foot in the air moves from its old path onto the new one by its landing: nothing
 jumps.
 
-A re-plan does not fit in one control period (the legs solved twice and the multi-body ZMP
-over every row of the new pattern: tens of milliseconds), and a stalled loop is a hazard on
-the real-time hardware exactly when the robot is stopped or pushed. The walk's pattern is
-deterministic, so the walking target decides a re-plan for a period ahead of the one playing
-(:meth:`~hubo_cli.walking.target.WalkTarget._replan_row`), computes it a slice of rows a
-period while the current pattern plays on (the body's ``*_slices`` generators), and plays it
-from that period.
+A whole re-plan does not fit in one control period (the legs solved twice and the multi-body
+ZMP over every row of the new pattern: tens of milliseconds), and a stalled loop is a hazard
+on the real-time hardware exactly when the robot is stopped or pushed; but a re-plan played
+0.2-0.4 s late (computed a slice a period first) moves a pushed walk's landing too late. So the
+walking target (:meth:`~hubo_cli.walking.target.WalkTarget._replan`) plays it from the period
+it is decided in: that period computes the new pattern's cart-table rows (a few milliseconds)
+and the legs for its first rows (:func:`prefix_rows`: as many as the rest takes to compute),
+a few rows a period from then on, always ahead of the row played; their multi-body correction
+is the playing pattern's, continued (:func:`continued_fix`, :func:`with_fix`: the correction
+changes slowly and a moved landing hardly changes it over a few tenths of a second). The rest
+(:func:`rest_of`), with its own multi-body correction continued from the first rows' end, is
+computed a slice of rows a period while they play (the body's ``*_slices`` generators) and
+follows them.
 
 The footstep change after a push (:func:`shifted_landing`) is hrpsys AutoBalancer's
 (``modify_footsteps_for_recovery``): the capture point's error beyond a margin moves the
@@ -26,16 +32,15 @@ every later footstep by as much.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
 from dataclasses import replace
 
 import numpy as np
 
-from hubo_cli.walking.body import run_slices
+from hubo_cli.state import GRAVITY_M_S2
 from hubo_cli.walking.footsteps import SIDE_SIGN, Footstep
 from hubo_cli.walking.gait import Gait, make_gait, smoothstep5
 from hubo_cli.walking.params import WalkingParams
-from hubo_cli.walking.preview import com_from_zmp, preview_gains
+from hubo_cli.walking.preview import CoMPath, com_from_zmp, preview_gains
 
 CP_MARGIN_M = 0.02          # [chosen] a capture-point error within this moves no footstep
 CP_STEP_FORWARD_M = 0.25    # [chosen] a moved landing at most this far ahead of the stance foot
@@ -43,6 +48,10 @@ CP_STEP_BACKWARD_M = 0.15   # [chosen] ... behind it
 CP_WIDTH_MAX_M = 0.36       # [chosen] ... and at most this far from it sideways
 CP_GAP_M = 0.04             # [chosen] the soles' inner edges stay this far apart: no crossing
 CP_MAX_SHIFT_M = 0.2        # [chosen] a shift longer than this is shortened to it
+PREFIX_LEAD_PERIODS = 4     # [chosen] a re-plan's first rows: the rest's slices and this many
+
+Fix = tuple[np.ndarray, np.ndarray, np.ndarray]  # a multi-body correction of the CoM path per
+                                                 # row: position, velocity, acceleration (n x 2)
 
 
 def shifted_landing(stance: Footstep, planned: Footstep, shift_m: np.ndarray,
@@ -76,7 +85,7 @@ def shift_steps(steps: list[Footstep], index: int, moved: Footstep) -> list[Foot
 def pattern_from(current: Gait, k: int, row: int, start: tuple[Footstep, Footstep],
                  steps: list[Footstep], params: WalkingParams, sole_z_m: float,
                  zmp_forward_m: float, com_start_m: np.ndarray,
-                 planted: int | None = None) -> Gait:
+                 planted: int | None = None, rows_per_period: int | None = None) -> Gait:
     """The pattern of ``steps`` from period ``k`` of ``current`` on (its ``steps`` and
     ``step_index`` the plan's: all of ``steps``, indices into them).
 
@@ -90,26 +99,19 @@ def pattern_from(current: Gait, k: int, row: int, start: tuple[Footstep, Footste
         planted: the index of a step (onto its foot's own place) whose foot stays down: its
             single support keeps both feet on the ground, the ZMP on the other foot (a
             weight shift without a step).
+        rows_per_period: the CoM path only over the first rows a re-plan solving this many
+            rows a period solves at once (:func:`prefix_rows`) and one more (the state
+            :func:`rest_of` continues from); None: all.
     """
-    return run_slices(pattern_from_slices(current, k, row, start, steps, params, sole_z_m,
-                                          zmp_forward_m, com_start_m, planted))
-
-
-def pattern_from_slices(current: Gait, k: int, row: int, start: tuple[Footstep, Footstep],
-                        steps: list[Footstep], params: WalkingParams, sole_z_m: float,
-                        zmp_forward_m: float, com_start_m: np.ndarray,
-                        planted: int | None = None) -> Iterator[None]:
-    """:func:`pattern_from` in two slices (yields once: after the plan's pattern, before the
-    CoM's path)."""
     period = current.period_s
     if steps:
         full = make_gait(*start, steps, params, period, current.com_height_m, sole_z_m,
-                         zmp_forward_m, com_start_m=com_start_m)
+                         zmp_forward_m, com_start_m=com_start_m, com_rows=1)
     else:  # no step to take: stand where the feet are now, the ZMP between them
         here = [Footstep(side, *current.feet[side][k][[0, 1, 3]].tolist())
                 for side in ("right", "left")]
         full = make_gait(*here, [], params, period, current.com_height_m, sole_z_m,
-                         zmp_forward_m)
+                         zmp_forward_m, com_rows=1)
         row = 0
     row = min(row, full.n - 1)
     feet = {side: rows[row:].copy() for side, rows in full.feet.items()}
@@ -127,12 +129,65 @@ def pattern_from_slices(current: Gait, k: int, row: int, start: tuple[Footstep, 
         if landing > 0 and len(old) == landing:
             blend = smoothstep5((np.arange(landing) + 1.0) / landing)[:, None]
             feet[side][:landing] = old + blend * (feet[side][:landing] - old)
-    yield
     zmp_ref = full.zmp_ref_m[row:]
     com = current.com
     gains = preview_gains(period, current.com_height_m, params.preview_s, params.zmp_weight,
                           params.jerk_weight)
+    rows = None if rows_per_period is None else prefix_rows(len(zmp_ref), rows_per_period) + 1
     path = com_from_zmp(zmp_ref, gains, com.com_m[k],
-                        (com.com_velocity_m_s[k], com.com_acceleration_m_s2[k]))
+                        (com.com_velocity_m_s[k], com.com_acceleration_m_s2[k]), rows)
     return replace(full, zmp_ref_m=zmp_ref, com=path, feet=feet, support=support,
                    step_index=full.step_index[row:])
+
+
+def prefix_rows(n: int, rows_per_period: int) -> int:
+    """How many of a re-plan's ``n`` rows are solved at once: the periods the rest (three
+    passes over at most ``n`` rows, ``rows_per_period`` a period) takes to compute, and
+    PREFIX_LEAD_PERIODS; all ``n`` when that is more."""
+    return min(n, PREFIX_LEAD_PERIODS + 3 * math.ceil(n / rows_per_period))
+
+
+def gait_rows(gait: Gait, first: int, last: int | None = None) -> Gait:
+    """Rows ``first:last`` of a flat ``gait`` (its footsteps all kept)."""
+    com = gait.com
+    return replace(gait, zmp_ref_m=gait.zmp_ref_m[first:last],
+                   com=CoMPath(com.com_m[first:last], com.com_velocity_m_s[first:last],
+                               com.com_acceleration_m_s2[first:last], com.zmp_m[first:last]),
+                   feet={side: rows[first:last] for side, rows in gait.feet.items()},
+                   support=gait.support[first:last], step_index=gait.step_index[first:last])
+
+
+def rest_of(cart: Gait, first: int, params: WalkingParams) -> Gait:
+    """Rows ``first:`` of a re-plan's ``cart`` (:func:`pattern_from`, its CoM path computed
+    over them at least up to row ``first``) with their CoM path, continued from its state at
+    that row."""
+    rest = gait_rows(cart, first)
+    com = rest.com
+    gains = preview_gains(cart.period_s, cart.com_height_m, params.preview_s,
+                          params.zmp_weight, params.jerk_weight)
+    return replace(rest, com=com_from_zmp(rest.zmp_ref_m, gains, com.com_m[0],
+                                          (com.com_velocity_m_s[0],
+                                           com.com_acceleration_m_s2[0])))
+
+
+def continued_fix(fix: Fix, k: int, n: int) -> Fix:
+    """The multi-body correction ``fix`` from row ``k`` on, ``n`` rows: cut, or held at its
+    last position (at rest) past its end."""
+    position, velocity, acceleration = (np.asarray(part[k:k + n], dtype=float) for part in fix)
+    short = n - len(position)
+    if short > 0:
+        last = position[-1] if len(position) else np.asarray(fix[0][-1], dtype=float)
+        position = np.vstack([position, np.tile(last, (short, 1))])
+        velocity, acceleration = (np.vstack([part, np.zeros((short, 2))])
+                                  for part in (velocity, acceleration))
+    return position, velocity, acceleration
+
+
+def with_fix(gait: Gait, fix: Fix) -> Gait:
+    """``gait`` with its CoM path moved by the multi-body correction ``fix`` (as many rows),
+    its cart-table ZMP moved as that motion moves it (p = c - z_c / g c'')."""
+    com = gait.com
+    position, velocity, acceleration = fix
+    zmp = position - gait.com_height_m / GRAVITY_M_S2 * acceleration
+    return replace(gait, com=CoMPath(com.com_m + position, com.com_velocity_m_s + velocity,
+                                     com.com_acceleration_m_s2 + acceleration, com.zmp_m + zmp))

@@ -13,13 +13,13 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
   the landing (exp(omega t), at most CP_GAIN_MAX), moves that landing and every later footstep
   (:func:`~hubo_cli.walking.replan.shifted_landing`: hrpsys AutoBalancer's footstep
   modification, within step limits, never across the stance leg); the pattern is re-planned
-  (:func:`~hubo_cli.walking.replan.pattern_from`) from a period a little ahead, computed a
-  slice a period until then (REPLAN_ROWS_PER_PERIOD; too late for this landing
-  (CP_BLEND_PERIODS before it): not moved), one re-plan at a time.
+  (:func:`~hubo_cli.walking.replan.pattern_from`) from the period it is decided in, its first
+  rows solved then and the rest a slice a period while they play (REPLAN_ROWS_PER_PERIOD; too
+  late for this landing (CP_BLEND_PERIODS before it): not moved); a later re-plan replaces a
+  rest being computed.
 * ``stopping``: entered when the soft stopper has latched (its mode, the previous period's
   :data:`~hubo_cli.control.keys.STOP_MODE`, is no longer ``release``): the step in progress
-  where its re-plan is played (computed as a landing's move; it replaces one being computed) is
-  finished (the swing foot lands; before the first step, none is taken) into a double-support
+  is finished (the swing foot lands; before the first step, none is taken) into a double-support
   stance, the CoM comes to rest between the feet over ``settle_s``. Every period the walk tells
   the stopper that it stops itself so (:data:`~hubo_cli.control.phase.PHASE_STOP`), and the
   stopper passes this motion through instead of reverting it.
@@ -67,6 +67,7 @@ from hubo_cli.walking.body import (
     WalkingBody,
     poses_of_rows,
     run_slices,
+    unsolved_plan,
 )
 from hubo_cli.walking.footsteps import (
     Footstep,
@@ -79,9 +80,15 @@ from hubo_cli.walking.gait import Gait, make_gait
 from hubo_cli.walking.params import WalkingParams
 from hubo_cli.walking.replan import (
     CP_MARGIN_M,
-    pattern_from_slices,
+    Fix,
+    continued_fix,
+    gait_rows,
+    pattern_from,
+    prefix_rows,
+    rest_of,
     shift_steps,
     shifted_landing,
+    with_fix,
 )
 from hubo_cli.walking.stabilizer import (
     LipStabilizer,
@@ -112,6 +119,8 @@ CP_WINDOW = 0.75       # [chosen] a landing moves only over this first part of i
 CP_REPLAN_M = 0.02     # [chosen] a landing moves again once its goal changed by this much
 CP_BLEND_PERIODS = 20  # [chosen] a moved landing's pattern is played at least this long before
                        # the foot lands (its swing moves onto the new path by then)
+PREFIX_ROWS_PER_PERIOD = 8  # [chosen] a re-plan's first rows solved a period (the legs twice
+                            # each): the row played is always solved
 REPLAN_ROWS_PER_PERIOD = 60  # [chosen] a re-plan's work per control period, in pattern rows
                              # of one of its passes (the legs solved, the multi-body ZMP, the
                              # legs solved again): <= 30 us a row on the dev machine, so
@@ -341,8 +350,8 @@ class WalkTarget(Target):
         self.shifts = 0  # landings moved after the capture point
         self._shift = (-1, np.zeros(2), None)  # (step, shift applied, steps before it)
         self._cp_error = np.full(2, math.nan)
-        self._pending = None  # a re-plan being computed (_replan)
-        self._stop_lead_s = 0.0  # from a stop to its re-plan's first period (s)
+        self._pending = None  # a re-plan's rest being computed (_replan)
+        self._prefix = None  # a re-plan's first rows being solved (_replan)
         self._omega = 1.0
         dt = model.control_period_s
         xs, ys = self.corners[:, 0], self.corners[:, 1]
@@ -431,12 +440,20 @@ class WalkTarget(Target):
             gait, self._basis[2], params.preview_s, params.zmp_weight, params.jerk_weight,
             fix_start, rows_per_slice)
         yield
-        # the cart-table pattern and its multi-body correction, each continued by a re-plan
         com, cart = corrected.com, gait.com
-        new = {"_cart": gait, "gait": corrected, "plan": plan, "body": body,
-               "_fix": (com.com_m - cart.com_m, com.com_velocity_m_s - cart.com_velocity_m_s,
-                        com.com_acceleration_m_s2 - cart.com_acceleration_m_s2)}
-        gait = corrected
+        fix = (com.com_m - cart.com_m, com.com_velocity_m_s - cart.com_velocity_m_s,
+               com.com_acceleration_m_s2 - cart.com_acceleration_m_s2)
+        return self._playing(gait, corrected, plan, body, fix)
+
+    def _playing(self, cart: Gait, gait: Gait, plan: JointPlan, body: WalkingBody, fix: Fix,
+                 whole: Gait | None = None) -> dict:
+        """The attributes :meth:`_install` sets to play ``gait`` (the multi-body corrected
+        pattern) with the joints ``plan``: ``cart`` the cart-table pattern and ``fix`` the
+        correction (each continued by a re-plan), per-period rows for the loop. ``whole``: the
+        pattern ``gait`` is the first rows of (a re-plan's, :meth:`_replan`), whose landings
+        and planned support they take."""
+        whole = gait if whole is None else whole
+        new = {"_cart": cart, "gait": gait, "plan": plan, "body": body, "_fix": fix}
         if self.lip_feedback:
             new["_contacts"] = planned_contacts(gait)
         # each leg's IK data as :func:`_correct_legs` takes them (right, left)
@@ -444,7 +461,8 @@ class WalkTarget(Target):
             (leg.chain, leg.lengths_m, leg.spec.is_arm, leg.lower_rad, leg.upper_rad, leg.hold_m,
              body.slices[name].start)
             for leg, name in ((body.legs[SIDE_LEG[side]], SIDE_LEG[side]) for side in SIDES))
-        new["_support_poses"] = planned_support(gait)
+        n = gait.n
+        new["_support_poses"] = planned_support(whole)[:n]
         # per-period rows as plain floats and bools for the loop (cheaper than numpy scalars)
         new["_rows"] = {"support": gait.support.tolist(), "zmp_ref": gait.zmp_ref_m.tolist(),
                         "com_ref": gait.com.com_m.tolist(), "plan_com": plan.com_m.tolist(),
@@ -468,15 +486,16 @@ class WalkTarget(Target):
             gait.feet[side], None if gait.toe_heel is None
             else gait.toe_heel.foot_angle_rad[:, column])
             for column, side in enumerate(SIDES)], axis=1)  # n x 2 x 4 x 4
-        n = gait.n
-        index = np.arange(n)
+        index = np.arange(whole.n)
         # per period: the next period with both feet down (a swing's landing)
-        both = np.where(gait.support.all(axis=1), index, n)
-        new["_landing"] = np.minimum.accumulate(both[::-1])[::-1].tolist()
+        both = np.where(whole.support.all(axis=1), index, whole.n)
+        new["_landing"] = np.minimum.accumulate(both[::-1])[::-1][:n].tolist()
         return new
 
     def _install(self, new: dict, t_s: float) -> None:
-        """Play the pattern :meth:`_adoption` made from loop time ``t_s`` on."""
+        """Play the pattern :meth:`_adoption` made from loop time ``t_s`` on (a re-plan being
+        computed is dropped)."""
+        self._pending = self._prefix = None
         for name, value in new.items():
             setattr(self, name, value)
         if self.lip_feedback:
@@ -486,68 +505,122 @@ class WalkTarget(Target):
         self.plan_start_s = t_s
         self.k = 0
 
-    def _replan_row(self, rows_bound: int) -> tuple[int, int]:
-        """When a re-plan decided now, of at most ``rows_bound`` rows, is played: its period
-        (``self.k`` then) and the row of the pattern playing it starts from (its last: the
-        pattern holds it once played). Its work (the pattern, two leg solutions and the
-        multi-body ZMP, then its rows) is spread over the periods until then,
-        REPLAN_ROWS_PER_PERIOD rows a period, while this pattern plays on."""
-        at_k = self.k + 4 + 3 * math.ceil(rows_bound / REPLAN_ROWS_PER_PERIOD)
-        return at_k, min(at_k, self.gait.n - 1)
-
-    def _replan(self, steps: list[Footstep], when: tuple[int, int],
-                planted: int | None = None, failed: Callable[[], None] | None = None,
+    def _replan(self, steps: list[Footstep], t_s: float, planted: int | None = None,
+                failed: Callable[[], None] | None = None,
                 done: Callable[[], None] | None = None) -> None:
-        """Play the plan's pattern with ``steps`` (changed from the step in progress on)
-        from ``when`` (:meth:`_replan_row`: a period and the row of the pattern playing it
-        continues; :func:`~hubo_cli.walking.replan.pattern_from`), computed a slice a period
-        until then (:meth:`_advance_replan`); then ``done``. A sole the legs cannot reach
-        keeps the pattern playing and calls ``failed``."""
-        at_k, row = when
-        self._pending = (at_k, self._replanning(steps, row, planted), (failed, done), None)
-
-    def _replanning(self, steps: list[Footstep], k: int, planted: int | None
-                    ) -> Iterator[None]:
-        """:meth:`_replan`'s work, REPLAN_ROWS_PER_PERIOD rows at a time; returns what
-        :meth:`_install` sets."""
+        """Play the plan's pattern with ``steps`` (changed from the step in progress on;
+        ``planted``: :func:`~hubo_cli.walking.replan.pattern_from`) from this period on, then
+        ``done`` (see :mod:`hubo_cli.walking.replan`): its first rows
+        (:func:`~hubo_cli.walking.replan.prefix_rows`) are solved PREFIX_ROWS_PER_PERIOD a
+        period from this one on (:meth:`_advance_prefix`), the rest a slice a period while
+        they play (:meth:`_advance_replan`). It replaces a re-plan still being computed. A sole
+        the legs cannot reach by the swing's landing keeps the pattern playing and calls
+        ``failed``; later, the step in progress is finished into a stance
+        (:meth:`_finish_step`)."""
+        k = min(self.k, self.gait.n - 1)
         start, _, sole_z, com_start = self._basis
-        gait = yield from pattern_from_slices(self._cart, k, self._row0 + k, start, steps,
-                                              self.params, sole_z, self.model.feet.forward_m,
-                                              com_start, planted)
+        # the legs' solutions playing seed the new ones (those solved: see _advance_prefix)
+        solved = len(self.plan.q_rad) if self._prefix is None else self._prefix[1]
+        old = self.plan.q_rad[:solved], self.plan.T_world_neck[:solved]
+        try:
+            cart = pattern_from(self._cart, k, self._row0 + k, start, steps, self.params,
+                                sole_z, self.model.feet.forward_m, com_start, planted,
+                                REPLAN_ROWS_PER_PERIOD)
+            fix = continued_fix(self._fix, k, cart.n)
+            m = prefix_rows(cart.n, REPLAN_ROWS_PER_PERIOD)
+            first = with_fix(gait_rows(cart, 0, m), tuple(part[:m] for part in fix))
+            body = self.body.seeded(old[0][k], old[1][k])
+            landing = int(np.argmax(np.append(first.support.all(axis=1), True)))
+            if PREFIX_ROWS_PER_PERIOD <= landing < m:  # the swing's landing reached (else: later)
+                j = min(k + landing, len(old[0]) - 1)
+                body.seeded(old[0][j], old[1][j]).solve(gait_rows(first, landing, landing + 1))
+            plan = unsolved_plan(m, len(self.q_start))
+            slices = body.solve_slices(first, PREFIX_ROWS_PER_PERIOD, plan)
+            next(slices, None)  # the first rows now
+        except InputError:
+            if failed is not None:
+                failed()
+            return
+        new = self._playing(cart, first, plan, body, fix, whole=cart)
+        row0 = new["_row0"] = self._row0 + k if steps else 0
+        basis = new["_basis"] = (start, list(steps), sole_z, com_start)
+        kept = new["steps"] = [*self.steps[:self._steps_before],
+                               *(steps if planted is None else steps[:planted])]
+        self._install(new, t_s)
+        self._prefix = (slices, 0)
+        self._solved(min(PREFIX_ROWS_PER_PERIOD, m))
+        if done is not None:
+            done()
+        if m < cart.n:
+            j = min(k + m, len(old[0]) - 1)
+            self._pending = (m, self._rest(cart, m, self.body.seeded(old[0][j], old[1][j]),
+                                           tuple(part[m] for part in fix),
+                                           {"_row0": row0 + m, "_basis": basis, "steps": kept}),
+                             None)
+
+    def _solved(self, rows: int) -> None:
+        """The playing re-plan's first ``rows`` are solved (:meth:`_advance_prefix`): their
+        per-period rows that come from the joints."""
+        slices, done = self._prefix
+        plan, gait = self.plan, self.gait
+        rows = min(rows, gait.n)
+        part = slice(done, rows)
+        T_neck_world = rigid_inverse(plan.T_world_neck[part])
+        self._R_neck_world[part] = T_neck_world[:, :3, :3]
+        self._T_neck_soles[part] = np.stack([T_neck_world @ poses_of_rows(gait.feet[side][part])
+                                             for side in SIDES], axis=1)
+        self._rows["plan_com"][part] = plan.com_m[part].tolist()
+        self._prefix = None if rows >= gait.n else (slices, rows)
+
+    def _advance_prefix(self, t_s: float) -> None:
+        """The next PREFIX_ROWS_PER_PERIOD rows of the playing re-plan's first rows (always
+        ahead of the row played: it started with as many). A row the legs cannot reach: the
+        rows after the last solved one hold it, and the step in progress is finished into a
+        stance (:meth:`_finish_step`)."""
+        slices, done = self._prefix
+        try:
+            next(slices)
+            self._solved(done + PREFIX_ROWS_PER_PERIOD)
+        except StopIteration:
+            self._solved(self.gait.n)
+        except InputError:
+            plan = self.plan
+            for part in (plan.q_rad, plan.T_world_neck, plan.com_m):
+                part[done:] = part[done - 1]
+            self._solved(self.gait.n)
+            self._pending = None
+            self._finish_step(t_s)
+
+    def _rest(self, cart: Gait, first: int, body: WalkingBody, fix_start: tuple, keep: dict
+              ) -> Iterator[None]:
+        """A re-plan's rows from ``first`` on (:meth:`_replan`): the CoM path, then its
+        multi-body correction continued from ``fix_start``, REPLAN_ROWS_PER_PERIOD rows at a
+        time; returns what :meth:`_install` sets (and ``keep``)."""
+        rest = rest_of(cart, first, self.params)
         yield
-        body = WalkingBody(self.model, self.plan.q_rad[k], self.plan.T_world_neck[k],
-                           self.params.lean_rad_per_m)
-        new = yield from self._adoption(gait, body, tuple(part[k] for part in self._fix),
-                                        REPLAN_ROWS_PER_PERIOD)
-        new["_row0"] = self._row0 + k if steps else 0
-        new["_basis"] = (start, list(steps), sole_z, com_start)
-        new["steps"] = [*self.steps[:self._steps_before],
-                        *(steps if planted is None else steps[:planted])]
-        return new
+        new = yield from self._adoption(rest, body, fix_start, REPLAN_ROWS_PER_PERIOD)
+        return {**new, **keep}
 
     def _advance_replan(self, t_s: float) -> None:
-        """One period's slice of a pending re-plan; played once its period has come (its
-        rest computed then, should the slices not have sufficed)."""
-        at_k, slices, (failed, done), new = self._pending
+        """One period's slice of a re-plan's rest; played once its first rows have (its rest
+        computed then, should the slices not have sufficed). Its legs out of reach: the step
+        in progress is finished into a stance (:meth:`_finish_step`)."""
+        at_k, slices, new = self._pending
         try:
             if new is None and self.k < at_k:
                 try:
                     next(slices)
                 except StopIteration as finished:
-                    self._pending = (at_k, slices, (failed, done), finished.value)
+                    self._pending = (at_k, slices, finished.value)
                 return
             if new is None:
                 new = run_slices(slices)
         except InputError:
             self._pending = None
-            if failed is not None:
-                failed()
+            self._finish_step(t_s)
             return
         if self.k >= at_k:
-            self._pending = None
             self._install(new, t_s)
-            if done is not None:
-                done()
 
     def _stop(self, t_s: float) -> None:
         """The stopper latched: finish the step in progress into a double-support stance (none
@@ -558,12 +631,13 @@ class WalkTarget(Target):
             # turned flat at once, so a toe-heel walk's stop is the stopper's brake and hold
             self.stop_failed = True
             return
-        # the stop finishes the step in progress where its re-plan is played (_replan_row):
-        # at most two steps' and the settling's rows
-        when = self._replan_row(min(self.gait.n - self.k, round(
-            (2 * self.params.step_s + self.params.settle_s) / self.gait.period_s) + 1))
-        self._stop_lead_s = (when[0] - self.k) * self.gait.period_s
-        k = when[1]
+        self._finish_step(t_s)
+
+    def _finish_step(self, t_s: float) -> None:
+        """Finish the step in progress into a double-support stance from this period on (none
+        before the first step; nothing changes once the last one is down); its legs out of
+        reach: :attr:`stop_failed` (the stopper brakes and holds instead)."""
+        k = min(self.k, self.gait.n - 1)
         step = self._rows["step"][k]
         steps = self._basis[1]
         shifted_step, applied, base = self._shift
@@ -590,9 +664,9 @@ class WalkTarget(Target):
             return
 
         def failed() -> None:
-            self.stop_failed = True  # the stopper brakes and holds instead
+            self.stop_failed = True
 
-        self._replan(kept, when, planted, failed)
+        self._replan(kept, t_s, planted, failed)
 
     def _follow_capture_point(self, t_s: float) -> None:
         """While a foot swings (the first CP_WINDOW of it): move its landing, and every later
@@ -603,8 +677,8 @@ class WalkTarget(Target):
             return
         step, support = rows["step"][k], rows["support"][k]
         self._cp_error = self._capture_point_error(k)
-        if step < 0 or (support[0] and support[1]) or self._pending is not None:
-            return
+        if step < 0 or (support[0] and support[1]) or not np.all(np.isfinite(self._cp_error)):
+            return  # (no estimate of the capture point: nothing moves)
         period = gait.period_s
         remaining_s = (self._landing[k] - k) * period
         if remaining_s < (1.0 - CP_WINDOW) * self.params.single_support_s:
@@ -618,9 +692,8 @@ class WalkTarget(Target):
         if (not np.any(excess) and not np.any(applied)) or \
                 float(np.hypot(*(wanted - applied))) < CP_REPLAN_M:
             return
-        when = self._replan_row(gait.n - k)  # the same timeline: as many rows as remain
-        if when[0] + CP_BLEND_PERIODS > self._landing[k]:
-            return  # played too late to move this landing
+        if k + CP_BLEND_PERIODS > self._landing[k]:
+            return  # too late to move this landing
         stance_side = "right" if support[0] else "left"
         x, y, _, yaw = rows[stance_side][k]
         moved = shifted_landing(Footstep(stance_side, x, y, yaw), base[step], wanted,
@@ -631,7 +704,7 @@ class WalkTarget(Target):
             self._shift = (step, np.array([moved.x_m - base[step].x_m,
                                            moved.y_m - base[step].y_m]), base)
 
-        self._replan(shift_steps(base, step, moved), when, done=done)
+        self._replan(shift_steps(base, step, moved), t_s, done=done)
 
     def _capture_point_error(self, k: int) -> np.ndarray:
         """The estimated capture point (seen from the more loaded planned support sole
@@ -655,8 +728,9 @@ class WalkTarget(Target):
 
     def __call__(self, t_s: float, state: RobotState) -> TargetOutput:
         store = self.store
-        if self._pending is not None:
-            self._advance_replan(t_s)
+        if self._pending is not None and self.k >= self._pending[0]:
+            self._advance_replan(t_s)  # a re-plan's rest is due: played from this period
+        work = self._prefix, self._pending
         if self.gait is None:
             self._start(t_s, state.q_rad)
         elif self.phase == "walk" and store.get(STOP_MODE, "release") != "release":
@@ -668,13 +742,18 @@ class WalkTarget(Target):
             self._plan(self.plan.q_rad[-1], t_s)
         elif self.phase in ("walk", "stopping"):  # a stop's last step follows it too
             self._follow_capture_point(t_s)
+        if self._prefix is work[0] and self._pending is work[1]:  # (a re-plan decided now
+            if self._prefix is not None:                           # has done its share)
+                self._advance_prefix(t_s)
+            if self._pending is not None:
+                self._advance_replan(t_s)
         if self.phase == "stopping" and self.k >= self.gait.n and self._pending is None:
             self.phase = "stood"
         # how this phase stops: finishing the step (settled once it stands), or by the
         # stopper's own brake when the stop's pattern could not be made
         store[PHASE_STOP] = None if self.stop_failed else PhaseStop(
             self.phase == "stood",
-            self.params.step_s + self.params.settle_s + self._stop_lead_s + STOP_SPARE_S)
+            self.params.step_s + self.params.settle_s + STOP_SPARE_S)
         gait, plan = self.gait, self.plan
         k = min(self.k, gait.n - 1)
         self.k += 1
