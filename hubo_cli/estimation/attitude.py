@@ -66,7 +66,7 @@ import numpy as np
 
 from hubo_cli.dataflow import Key, Store
 from hubo_cli.errors import ConfigError
-from hubo_cli.estimation.base import LegsKinematics, centre_of_pressure
+from hubo_cli.estimation.base import LegsKinematics
 from hubo_cli.estimation.keys import (
     CONTACT,
     GYRO_BIAS,
@@ -507,6 +507,32 @@ def _filter_step(q, b, n, P, gyro, accel, legs, dt, gravity, params, q_out, b_ou
     return code
 
 
+@nb.njit(**JIT)
+def _flat_soles(T_torso_soles, right_down, left_down, wrench_right, wrench_left, min_fz_n,
+                inside, legs) -> bool:
+    """Per sole, 1 and its normal in the torso axes into ``legs`` (2 x 4) when it lies flat:
+    in contact, pressing more than ``min_fz_n`` with its centre of pressure
+    (:func:`~hubo_cli.estimation.base.centre_of_pressure` of its ankle wrench) within
+    ``inside`` (x_lo, x_hi, y_lo, y_hi); whether one does."""
+    x_lo, x_hi, y_lo, y_hi = inside
+    flat = False
+    for k in range(2):
+        down = right_down if k == 0 else left_down
+        w = wrench_right if k == 0 else wrench_left
+        if not down or w.shape[0] < 5:  # (never read beyond a short row)
+            continue
+        fz, mx, my = w[2], w[3], w[4]
+        if not (fz > min_fz_n and math.isfinite(mx) and math.isfinite(my)):
+            continue
+        px, py = -my / fz, mx / fz
+        if x_lo < px < x_hi and y_lo < py < y_hi:
+            legs[k, 0] = 1.0
+            for i in range(3):
+                legs[k, 1 + i] = T_torso_soles[k, i, 2]
+            flat = True
+    return flat
+
+
 def initial_attitude(state: RobotState) -> np.ndarray:
     """The first attitude (quaternion w, x, y, z): the tilt of the accelerometer's reading
     (the gravity it sees), the heading of the IMU's reported orientation (ZYX yaw); either
@@ -580,6 +606,8 @@ class AttitudeObserver(Observer):
                             float(corners[:, 0].max()) - margin,
                             float(corners[:, 1].min()) + margin,
                             float(corners[:, 1].max()) - margin)
+            _flat_soles(self._T_torso_soles, False, False, np.zeros(6), np.zeros(6), 1.0,
+                        self._inside, np.zeros((2, 4)))  # compiled now
         self.rejected_periods = self.legs_periods = 0
 
     @classmethod
@@ -648,19 +676,15 @@ class AttitudeObserver(Observer):
         its outline, as the last period's estimate has them (the contact and the wrenches come
         after the attitude in the period: a sole on its edge would say the floor tilts)."""
         legs = self._legs_tilt
-        legs[:, 0] = 0.0
+        legs[0, 0] = legs[1, 0] = 0.0
         contact, wrenches = store.get(CONTACT), store.get(WRENCHES)
         if self._legs is None or contact is None or wrenches is None \
                 or not self._legs.solve(state.q_rad, self._T_torso_soles):
             return legs
-        x_lo, x_hi, y_lo, y_hi = self._inside
-        for k, sensor in enumerate(ANKLE_SENSORS):
-            point = centre_of_pressure(wrenches[sensor], self.params.legs_min_fz_n) \
-                if contact[k] else None
-            if point is not None and x_lo < point[0] < x_hi and y_lo < point[1] < y_hi:
-                legs[k, 0] = 1.0
-                legs[k, 1:] = self._T_torso_soles[k, :3, 2]
-        if legs[0, 0] or legs[1, 0]:
+        if _flat_soles(self._T_torso_soles, bool(contact[0]), bool(contact[1]),
+                       np.asarray(wrenches[ANKLE_SENSORS[0]], dtype=float),
+                       np.asarray(wrenches[ANKLE_SENSORS[1]], dtype=float),
+                       self.params.legs_min_fz_n, self._inside, legs):
             self.legs_periods += 1
         return legs
 
