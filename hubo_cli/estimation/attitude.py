@@ -66,7 +66,7 @@ import numpy as np
 
 from hubo_cli.dataflow import Key, Store
 from hubo_cli.errors import ConfigError
-from hubo_cli.estimation.base import LegsKinematics, centre_of_pressure
+from hubo_cli.estimation.base import LegsKinematics
 from hubo_cli.estimation.keys import (
     CONTACT,
     GYRO_BIAS,
@@ -189,9 +189,34 @@ def _quat_times_rotvec(q, vx, vy, vz, out):
 def _correct(q, b, n, P, K, H, res, r):
     """Apply the correction K res to (q, b, n) and its covariance to P (Joseph form: right for
     any gain, the bias's rows zeroed too, and stays symmetric), in place."""
-    dx = K @ res
-    IKH = np.eye(NX) - K @ H
-    P[:, :] = IKH @ P @ IKH.T + r * (K @ K.T)
+    m = H.shape[0]
+    dx = np.empty(NX)  # K res
+    IKH = np.empty((NX, NX))  # I - K H
+    for i in range(NX):
+        acc = 0.0
+        for k in range(m):
+            acc += K[i, k] * res[k]
+        dx[i] = acc
+        for j in range(NX):
+            acc = 0.0
+            for k in range(m):
+                acc += K[i, k] * H[k, j]
+            IKH[i, j] = (1.0 if i == j else 0.0) - acc
+    A = np.empty((NX, NX))  # (I - K H) P
+    for i in range(NX):
+        for j in range(NX):
+            acc = 0.0
+            for k in range(NX):
+                acc += IKH[i, k] * P[k, j]
+            A[i, j] = acc
+    for i in range(NX):  # P = A (I - K H)^T + r K K^T
+        for j in range(NX):
+            acc = kk = 0.0
+            for k in range(NX):
+                acc += A[i, k] * IKH[j, k]
+            for k in range(m):
+                kk += K[i, k] * K[j, k]
+            P[i, j] = acc + r * kk
     q_prior = q.copy()
     _quat_times_rotvec(q_prior, dx[0], dx[1], dx[2], q)
     for i in range(3):
@@ -202,6 +227,27 @@ def _correct(q, b, n, P, K, H, res, r):
     norm = math.sqrt(n[0] ** 2 + n[1] ** 2 + n[2] ** 2)
     for i in range(3):
         n[i] /= norm
+
+
+@nb.njit(**JIT)
+def _inverse3(S, out):
+    """out = S^-1 of a 3 x 3 matrix (the adjugate over the determinant); NaN when singular
+    (the period's result is then rejected)."""
+    a, b, c = S[0, 0], S[0, 1], S[0, 2]
+    d, e, f = S[1, 0], S[1, 1], S[1, 2]
+    g, h, k = S[2, 0], S[2, 1], S[2, 2]
+    c00, c01, c02 = e * k - f * h, f * g - d * k, d * h - e * g
+    det = a * c00 + b * c01 + c * c02
+    if det == 0.0:
+        for i in range(3):
+            for j in range(3):
+                out[i, j] = np.nan
+        return
+    out[0, 0], out[1, 0], out[2, 0] = c00 / det, c01 / det, c02 / det
+    out[0, 1], out[1, 1], out[2, 1] = (c * h - b * k) / det, (a * k - c * g) / det, \
+        (b * g - a * h) / det
+    out[0, 2], out[1, 2], out[2, 2] = (b * f - c * e) / det, (c * d - a * f) / det, \
+        (a * e - b * d) / det
 
 
 @nb.njit(**JIT)
@@ -230,20 +276,38 @@ def _vertical_update(q, b, n, P, measured, predicted, r, floor, learn_bias, lear
     res = np.empty(3)
     for i in range(3):
         res[i] = measured[i] - predicted[i]
-    PHt = P @ H.T
-    S = H @ PHt
+    PHt = np.empty((NX, 3))  # P H^T
+    for i in range(NX):
+        for j in range(3):
+            acc = 0.0
+            for k in range(NX):
+                acc += P[i, k] * H[j, k]
+            PHt[i, j] = acc
+    S = np.empty((3, 3))  # H P H^T + r I
+    for i in range(3):
+        for j in range(3):
+            acc = 0.0
+            for k in range(NX):
+                acc += H[i, k] * PHt[k, j]
+            S[i, j] = acc
     for i in range(3):
         S[i, i] += r
-    S_inv = np.linalg.inv(S)
-    d2 = res @ S_inv @ res
+    S_inv = np.empty((3, 3))
+    _inverse3(S, S_inv)
+    d2 = 0.0  # res^T S^-1 res
+    for j in range(3):
+        d2 += (res[0] * S_inv[0, j] + res[1] * S_inv[1, j] + res[2] * S_inv[2, j]) * res[j]
     if d2 > GATE_D2:  # more than the filter expects: weighed as if that noisy (a jolt's
         #               sideways acceleration hardly changes |a|; a sole that tips)
         extra = r * (d2 / GATE_D2 - 1.0)
         r += extra
         for i in range(3):
             S[i, i] += extra
-        S_inv = np.linalg.inv(S)
-    K = PHt @ S_inv
+        _inverse3(S, S_inv)
+    K = np.empty((NX, 3))  # P H^T S^-1
+    for i in range(NX):
+        for j in range(3):
+            K[i, j] = PHt[i, 0] * S_inv[0, j] + PHt[i, 1] * S_inv[1, j] + PHt[i, 2] * S_inv[2, j]
     if not learn_bias:
         K[3:6, :] = 0.0
     if not learn_floor:
@@ -296,14 +360,24 @@ def _filter_step(q, b, n, P, gyro, accel, legs, dt, gravity, params, q_out, b_ou
         F[2, 0], F[2, 1] = wy * dt, -wx * dt
         for i in range(3):
             F[i, i + 3] = -dt
-        FP = F @ P
-        P_new = FP @ F.T
+        FP = np.empty((NX, NX))
+        for i in range(NX):
+            for j in range(NX):
+                acc = 0.0
+                for k in range(NX):
+                    acc += F[i, k] * P[k, j]
+                FP[i, j] = acc
+        for i in range(NX):  # F P F^T
+            for j in range(NX):
+                acc = 0.0
+                for k in range(NX):
+                    acc += FP[i, k] * F[j, k]
+                P_out[i, j] = acc
         qa = params[_GYRO_NOISE] ** 2 * dt
         qb = params[_BIAS_WALK] ** 2 * dt
         for i in range(3):
-            P_new[i, i] += qa
-            P_new[i + 3, i + 3] += qb
-        P_out[:, :] = P_new
+            P_out[i, i] += qa
+            P_out[i + 3, i + 3] += qb
     elif not gyro_ok:
         code |= GYRO_REJECTED
     accel_ok = True
@@ -392,10 +466,20 @@ def _filter_step(q, b, n, P, gyro, accel, legs, dt, gravity, params, q_out, b_ou
         res[0] = (H[0, 3] * (gyro[0] - b_out[0]) + H[0, 4] * (gyro[1] - b_out[1])
                   + H[0, 5] * (gyro[2] - b_out[2]))
         r = max(motion[1] / 3.0, params[_GYRO_NOISE] ** 2 / (2.0 * dt))
-        PHt = P_out @ H.T
-        s = (H @ PHt)[0, 0] + r
+        PHt = np.empty((NX, 1))  # P H^T
+        for i in range(NX):
+            acc = 0.0
+            for k in range(NX):
+                acc += P_out[i, k] * H[0, k]
+            PHt[i, 0] = acc
+        s = 0.0
+        for k in range(NX):
+            s += H[0, k] * PHt[k, 0]
+        s += r
         if res[0] * res[0] <= 9.0 * s:
-            _correct(q_out, b_out, n_out, P_out, PHt / s, H, res, r)
+            for i in range(NX):
+                PHt[i, 0] /= s
+            _correct(q_out, b_out, n_out, P_out, PHt, H, res, r)
     if gyro_ok:
         for i in range(3):
             omega_out[i] = gyro[i] - b_out[i]
@@ -421,6 +505,32 @@ def _filter_step(q, b, n, P, gyro, accel, legs, dt, gravity, params, q_out, b_ou
             for j in range(NX):
                 P_out[i, j] = P[i, j]
     return code
+
+
+@nb.njit(**JIT)
+def _flat_soles(T_torso_soles, right_down, left_down, wrench_right, wrench_left, min_fz_n,
+                inside, legs) -> bool:
+    """Per sole, 1 and its normal in the torso axes into ``legs`` (2 x 4) when it lies flat:
+    in contact, pressing more than ``min_fz_n`` with its centre of pressure
+    (:func:`~hubo_cli.estimation.base.centre_of_pressure` of its ankle wrench) within
+    ``inside`` (x_lo, x_hi, y_lo, y_hi); whether one does."""
+    x_lo, x_hi, y_lo, y_hi = inside
+    flat = False
+    for k in range(2):
+        down = right_down if k == 0 else left_down
+        w = wrench_right if k == 0 else wrench_left
+        if not down or w.shape[0] < 5:  # (never read beyond a short row)
+            continue
+        fz, mx, my = w[2], w[3], w[4]
+        if not (fz > min_fz_n and math.isfinite(mx) and math.isfinite(my)):
+            continue
+        px, py = -my / fz, mx / fz
+        if x_lo < px < x_hi and y_lo < py < y_hi:
+            legs[k, 0] = 1.0
+            for i in range(3):
+                legs[k, 1 + i] = T_torso_soles[k, i, 2]
+            flat = True
+    return flat
 
 
 def initial_attitude(state: RobotState) -> np.ndarray:
@@ -496,6 +606,8 @@ class AttitudeObserver(Observer):
                             float(corners[:, 0].max()) - margin,
                             float(corners[:, 1].min()) + margin,
                             float(corners[:, 1].max()) - margin)
+            _flat_soles(self._T_torso_soles, False, False, np.zeros(6), np.zeros(6), 1.0,
+                        self._inside, np.zeros((2, 4)))  # compiled now
         self.rejected_periods = self.legs_periods = 0
 
     @classmethod
@@ -564,19 +676,15 @@ class AttitudeObserver(Observer):
         its outline, as the last period's estimate has them (the contact and the wrenches come
         after the attitude in the period: a sole on its edge would say the floor tilts)."""
         legs = self._legs_tilt
-        legs[:, 0] = 0.0
+        legs[0, 0] = legs[1, 0] = 0.0
         contact, wrenches = store.get(CONTACT), store.get(WRENCHES)
         if self._legs is None or contact is None or wrenches is None \
                 or not self._legs.solve(state.q_rad, self._T_torso_soles):
             return legs
-        x_lo, x_hi, y_lo, y_hi = self._inside
-        for k, sensor in enumerate(ANKLE_SENSORS):
-            point = centre_of_pressure(wrenches[sensor], self.params.legs_min_fz_n) \
-                if contact[k] else None
-            if point is not None and x_lo < point[0] < x_hi and y_lo < point[1] < y_hi:
-                legs[k, 0] = 1.0
-                legs[k, 1:] = self._T_torso_soles[k, :3, 2]
-        if legs[0, 0] or legs[1, 0]:
+        if _flat_soles(self._T_torso_soles, bool(contact[0]), bool(contact[1]),
+                       np.asarray(wrenches[ANKLE_SENSORS[0]], dtype=float),
+                       np.asarray(wrenches[ANKLE_SENSORS[1]], dtype=float),
+                       self.params.legs_min_fz_n, self._inside, legs):
             self.legs_periods += 1
         return legs
 

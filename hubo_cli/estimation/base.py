@@ -71,7 +71,7 @@ from hubo_cli.estimation.keys import (
     WRENCHES,
 )
 from hubo_cli.estimation.observer import Observer
-from hubo_cli.estimation.wrenches import joint_vector
+from hubo_cli.estimation.wrenches import _finite, joint_vector
 from hubo_cli.geometry import quat_to_matrix_into
 from hubo_cli.kinematics.dh import chain_fk
 from hubo_cli.kinematics.limb import Limb
@@ -145,6 +145,62 @@ def _place(quat_wxyz, T_torso_soles, anchor, T_world_anchor, cx, cy, T_world_tor
                            + T[r, 3] * S[3, c])
 
 
+@nb.njit(cache=True, nogil=True)
+def _turn_in_place(T, c, s, px, py) -> None:
+    """T (4 x 4, in place) = the turn by the angle of (cos, sin) = (c, s) about the vertical
+    through (px, py) (world), times T."""
+    tx, ty = px - (c * px - s * py), py - (s * px + c * py)
+    for col in range(4):
+        x, y = T[0, col], T[1, col]
+        T[0, col] = c * x - s * y + tx * T[3, col]
+        T[1, col] = s * x + c * y + ty * T[3, col]
+
+
+@nb.njit(cache=True, nogil=True)
+def _place_turned(quat_wxyz, T_torso_soles, anchor, T_world_anchor, cx, cy, gyro, use_gyro,
+                  R_legs, rolling, turn_bias, dt, keep, bias_gain, T_world_torso,
+                  T_world_soles, T_anchor_out, R_out):
+    """:func:`_place`, then the gyro's turn about the anchor's contact point (see
+    :meth:`FloatingBase._place`): the legs' own anchor pose into ``T_anchor_out``, the legs'
+    torso rotation into ``R_out``; ``turn_bias`` (the turn, the yaw bias) updated in place.
+    ``use_gyro``: ``gyro`` is finite and ``R_legs`` is last period's."""
+    _place(quat_wxyz, T_torso_soles, anchor, T_world_anchor, cx, cy, T_world_torso,
+           T_world_soles)
+    A = T_world_soles[anchor]
+    for r in range(4):
+        for c in range(4):
+            T_anchor_out[r, c] = A[r, c]
+    for r in range(3):
+        for c in range(3):
+            R_out[r, c] = T_world_torso[r, c]
+    R = R_out
+    if use_gyro:
+        # both rates about the world's vertical: the gyro's, and the legs' (the rotation from
+        # the last period's, small: its skew part)
+        yaw_rate = R[2, 0] * gyro[0] + R[2, 1] * gyro[1] + R[2, 2] * gyro[2]
+        step_10 = R[1, 0] * R_legs[0, 0] + R[1, 1] * R_legs[0, 1] + R[1, 2] * R_legs[0, 2]
+        step_01 = R[0, 0] * R_legs[1, 0] + R[0, 1] * R_legs[1, 1] + R[0, 2] * R_legs[1, 2]
+        legs_rate = 0.5 * (step_10 - step_01) / dt
+        twist = yaw_rate - legs_rate  # the stance foot's twist, and the gyro's bias
+        if not math.isfinite(twist):
+            twist = 0.0
+        elif rolling:
+            twist -= turn_bias[1]
+        else:  # on two soles, still, the robot does not twist: what the gyro reads is bias
+            if abs(twist - turn_bias[1]) < STILL_YAW_RAD_S:
+                turn_bias[1] += bias_gain * (twist - turn_bias[1])
+            twist = 0.0
+        turn_bias[0] = keep * (turn_bias[0] + twist * dt)
+    if turn_bias[0]:
+        A = T_anchor_out
+        px = A[0, 0] * cx + A[0, 1] * cy + A[0, 3]
+        py = A[1, 0] * cx + A[1, 1] * cy + A[1, 3]
+        c, s = math.cos(turn_bias[0]), math.sin(turn_bias[0])
+        _turn_in_place(T_world_torso, c, s, px, py)
+        for k in range(2):
+            _turn_in_place(T_world_soles[k], c, s, px, py)
+
+
 class LegsKinematics:
     """Both legs' forward kinematics, T_torso_sole (the limbs' chains,
     :mod:`hubo_cli.kinematics.limb`), from the measured joints: one home for the estimation
@@ -179,11 +235,14 @@ def centre_of_pressure(wrench, min_fz_n: float) -> tuple[float, float] | None:
 
 def _gyro(state: RobotState) -> np.ndarray | None:
     """The IMU's rate (3,; rad/s, torso axes), None unless three finite numbers."""
-    try:
-        gyro = np.asarray(state.imu_gyro_rad_s, dtype=float).reshape(3)
-    except (TypeError, ValueError):
-        return None
-    return gyro if np.all(np.isfinite(gyro)) else None
+    gyro = state.imu_gyro_rad_s
+    if type(gyro) is not np.ndarray or gyro.dtype != np.float64 or gyro.shape != (3,) \
+            or not gyro.flags.c_contiguous:
+        try:
+            gyro = np.ascontiguousarray(np.asarray(gyro, dtype=float).reshape(3))
+        except (TypeError, ValueError):
+            return None
+    return gyro if _finite(gyro) else None
 
 
 def _turn_about(point: np.ndarray, angle_rad: float) -> np.ndarray:
@@ -236,18 +295,23 @@ class FloatingBase(Observer):
         self._anchor_switch_n = model.estimation.anchor_switch_n
         self._keep = HEADING_TAU_S / (HEADING_TAU_S + self._dt_s)  # the turn's fade a period
         self._turn_rad = 0.0  # the gyro's turn on top of the legs' heading
+        self._turn_bias = np.zeros(2)  # the kernel's (turn, yaw bias)
+        self._no_gyro, self._no_gyro_R = np.zeros(3), np.zeros((3, 3))
         self._R_legs: np.ndarray | None = None  # the legs' torso rotation, last period
         # the other sole's last estimates on the floor: x, y, z, cos and sin of its heading
         self._landed: deque[tuple[float, ...]] = deque(maxlen=LANDED_PERIODS)
         self._bias_rad_s = 0.0  # the gyro's yaw bias about the world's vertical
         self._bias_gain = self._dt_s / (GYRO_BIAS_TAU_S + self._dt_s)
-        _place(self._quat, self._T_torso_soles, 0, self._T_world_anchor, 0.0, 0.0, np.eye(4),
-               np.zeros((2, 4, 4)))
+        _place_turned(self._quat, self._T_torso_soles, 0, self._T_world_anchor, 0.0, 0.0,
+                      self._no_gyro, True, np.eye(3), False, np.zeros(2), self._dt_s,
+                      self._keep, self._bias_gain, np.eye(4), np.zeros((2, 4, 4)),
+                      np.empty((4, 4)), np.empty((3, 3)))  # compiled now
+        _finite(self._quat)
 
     def _inputs(self, state: RobotState, store: Store) -> bool:
         """The legs' kinematics and the attitude of this period; False when not finite."""
         quat = np.asarray(store[QUAT_WORLD_TORSO], dtype=float)
-        if not np.all(np.isfinite(quat)):
+        if not _finite(quat):
             return False
         self._quat = quat
         return self._legs.solve(state.q_rad, self._T_torso_soles)
@@ -292,32 +356,20 @@ class FloatingBase(Observer):
         heading (``gyro_rad_s``: the IMU's rate in the torso frame; None: none; counted while
         ``rolling``: one sole alone in contact, on its edge)."""
         T_world_torso, T_world_soles = np.empty((4, 4)), np.empty((2, 4, 4))
-        _place(self._quat, self._T_torso_soles, self.anchor, self._T_world_anchor,
-               *contact_point, T_world_torso, T_world_soles)
-        self._T_world_anchor = T_world_soles[self.anchor].copy()  # the legs' own
+        T_world_anchor, R_legs = np.empty((4, 4)), np.empty((3, 3))
+        use_gyro = gyro_rad_s is not None and self._R_legs is not None
+        turn_bias = self._turn_bias
+        turn_bias[0], turn_bias[1] = self._turn_rad, self._bias_rad_s
+        _place_turned(self._quat, self._T_torso_soles, self.anchor, self._T_world_anchor,
+                      contact_point[0], contact_point[1],
+                      gyro_rad_s if use_gyro else self._no_gyro, use_gyro,
+                      self._R_legs if use_gyro else self._no_gyro_R, rolling, turn_bias,
+                      self._dt_s, self._keep, self._bias_gain, T_world_torso, T_world_soles,
+                      T_world_anchor, R_legs)
+        self._turn_rad, self._bias_rad_s = float(turn_bias[0]), float(turn_bias[1])
+        self._T_world_anchor = T_world_anchor  # the legs' own
         self._contact_point = contact_point
-        R = T_world_torso[:3, :3]
-        if gyro_rad_s is not None and self._R_legs is not None:
-            # both rates about the world's vertical: the gyro's, and the legs' (the rotation
-            # from the last period's, small: its skew part)
-            yaw_rate = float(R[2] @ gyro_rad_s)
-            step = R @ self._R_legs.T
-            legs_rate = 0.5 * float(step[1, 0] - step[0, 1]) / self._dt_s
-            twist = yaw_rate - legs_rate  # the stance foot's twist, and the gyro's bias
-            if not math.isfinite(twist):
-                twist = 0.0
-            elif rolling:
-                twist -= self._bias_rad_s
-            else:  # on two soles, still, the robot does not twist: what the gyro reads is bias
-                if abs(twist - self._bias_rad_s) < STILL_YAW_RAD_S:
-                    self._bias_rad_s += self._bias_gain * (twist - self._bias_rad_s)
-                twist = 0.0
-            self._turn_rad = self._keep * (self._turn_rad + twist * self._dt_s)
-        self._R_legs = R.copy()
-        if self._turn_rad:
-            pivot = self._T_world_anchor @ np.array([*contact_point, 0.0, 1.0])
-            turn = _turn_about(pivot, self._turn_rad)
-            T_world_torso, T_world_soles = turn @ T_world_torso, turn @ T_world_soles
+        self._R_legs = R_legs
         self._T_world_torso, self._T_world_soles = T_world_torso, T_world_soles
 
     def _take_anchor(self, side: int) -> None:

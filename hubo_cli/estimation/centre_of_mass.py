@@ -123,6 +123,7 @@ class CentreOfMass(Observer):
     def __init__(self, model: RobotModel, period_s: float, drill: bool = False) -> None:
         self.robot = load_pin_robot(model, floating=True, urdf_path=model.urdf_path(drill))
         self.data = self.robot.model.createData()
+        self._pin_model, self._q_index = self.robot.model, self.robot.q_index
         self.dt_s = float(period_s)
         tau_s = 1.0 / (2.0 * math.pi * model.estimation.com_velocity_cutoff_hz)
         self.alpha = self.dt_s / (self.dt_s + tau_s)
@@ -148,11 +149,12 @@ class CentreOfMass(Observer):
 
     def update(self, state: RobotState, store: Store) -> None:
         T = np.asarray(store[T_WORLD_TORSO], dtype=float)
-        if configure(self._q, self.robot.q_index, joint_vector(state.q_rad, self._joints), T):
-            com = pin.centerOfMass(self.robot.model, self.data, self._q, False)
+        if configure(self._q, self._q_index, joint_vector(state.q_rad, self._joints), T):
+            com = pin.centerOfMass(self._pin_model, self.data, self._q, False)
             velocity, cp, zmp = self._velocity.copy(), np.empty(2), np.empty(2)
             contact = store[CONTACT]
-            right, left = (store[WRENCHES][sensor] for sensor in ANKLE_SENSORS)
+            wrenches = store[WRENCHES]
+            right, left = wrenches[ANKLE_SENSORS[0]], wrenches[ANKLE_SENSORS[1]]
             support(com, self._prev_com, velocity, self.alpha, self.dt_s, self._first,
                     np.ascontiguousarray(store[T_WORLD_SOLES], dtype=float), bool(contact[0]),
                     bool(contact[1]), self._corners, right, left, GRAVITY_M_S2, self._min_fz_n,

@@ -207,7 +207,12 @@ class RemoveForceOffset(Observer):
         raw = self._raw
         for k, sensor in enumerate(FT_SENSORS):
             try:
-                raw[k] = np.asarray(state.ft.get(sensor, self._nan), dtype=float).reshape(6)
+                reading = state.ft.get(sensor, self._nan)
+                if type(reading) is np.ndarray and reading.dtype == np.float64 \
+                        and reading.shape == (6,):
+                    raw[k] = reading  # the drivers' own: taken as it is
+                else:
+                    raw[k] = np.asarray(reading, dtype=float).reshape(6)
             except (TypeError, ValueError, AttributeError):  # not six numbers: it holds
                 raw[k] = self._nan
         out = self._update(joint_vector(state.q_rad, self._joints),
