@@ -96,6 +96,14 @@ def test_the_limit_set_is_decided_once_in_the_options(balance, step, hip, limit_
                                "standing" if balance == "default" else "home")
 
 
+def test_an_unknown_standing_posture_is_refused(model):
+    from hubo_cli.errors import ConfigError
+    from hubo_cli.experiments.standing import posture_of
+
+    with pytest.raises(ConfigError, match="posture"):
+        posture_of(model, "crouched")
+
+
 def test_a_limit_set_the_options_cannot_run_on_is_refused_before_the_run(tmp_path):
     for args in (["--step", "--limits", "table4"], ["--limits", "no-such-set"]):
         result = CliRunner().invoke(main, ["sim", "--duration", "0.1", *args,

@@ -116,10 +116,18 @@ def standing_posture(model: RobotModel, lift_m: float = 0.0) -> np.ndarray:
 
 def posture_of(model: RobotModel, name: str) -> np.ndarray:
     """A standing run's posture by name (rad): ``standing`` (:func:`standing_posture`),
-    ``braced`` (the same, crouched by :data:`BRACE_LIFT_M`: the hip strategy's) or ``home``."""
+    ``braced`` (the same, crouched by :data:`BRACE_LIFT_M`: the hip strategy's) or ``home``.
+
+    Raises:
+        ConfigError: another name.
+    """
     if name == "braced":
         return standing_posture(model, BRACE_LIFT_M)
-    return standing_posture(model) if name == "standing" else home_posture(model)
+    if name == "standing":
+        return standing_posture(model)
+    if name == "home":
+        return home_posture(model)
+    raise ConfigError(f"unknown standing posture {name!r}", hint="use standing, braced or home")
 
 
 MAX_PUSH_N = 10_000.0  # N; 0.2 s of far less throws the robot, more is a typing error
