@@ -91,6 +91,17 @@ def test_the_limit_set_is_decided_once_in_the_options(balance, step, hip, limit_
     assert options.safety.limit_set == expected
     assert options.safety.hip_strategy == (hip and not step and balance == "default")
     assert options.safety.balance_choice == balance and options.step == step
+    # the hip strategy's runs stand braced (crouched), the default balancer's others standing
+    assert options.posture == ("braced" if options.safety.hip_strategy else
+                               "standing" if balance == "default" else "home")
+
+
+def test_an_unknown_standing_posture_is_refused(model):
+    from hubo_cli.errors import ConfigError
+    from hubo_cli.experiments.standing import posture_of
+
+    with pytest.raises(ConfigError, match="posture"):
+        posture_of(model, "crouched")
 
 
 def test_a_limit_set_the_options_cannot_run_on_is_refused_before_the_run(tmp_path):

@@ -98,7 +98,7 @@ def _daemon_options(function):
     return function
 
 
-POSTURES = ("home", "standing", "walking")  # sim-daemon --posture
+POSTURES = ("home", "standing", "braced", "walking")  # sim-daemon --posture
 WALL_AT_S = 4.5  # after the shipped cut's raise (about 4 s), before its plunge (about 9 s)
 
 
@@ -219,8 +219,10 @@ def fake_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: b
                    "position and tilt, the soles' places on the floor (tools/daemon_walk.py "
                    "measures a walk's arrival from it).")
 @click.option("--posture", type=click.Choice(POSTURES), default="home", show_default=True,
-              help="What the robot stands in: home, standing (hubo sim's, the CoM over the "
-                   "soles) or walking (hubo walk's start, the walking limit set's).")
+              help="What the robot stands in: home, standing (hubo sim's with --step or "
+                   "--no-hip, the CoM over the soles), braced (hubo sim's with the hip "
+                   "strategy: standing, crouched) or walking (hubo walk's start, the walking "
+                   "limit set's).")
 @click.option("--push", "push_spec", default=None, metavar="N,at=S[,dir=D][,for=S]",
               help="Push the torso at its centre of mass with N newtons, S seconds after the "
                    "first reference (counted as --fault's), dir forward (default), backward, "
@@ -304,10 +306,10 @@ def _posture(model, name: str):
     """The limb joints of a --posture (rad)."""
     from hubo_cli.posture import home_posture
 
-    if name == "standing":
-        from hubo_cli.experiments.standing import standing_posture
+    if name in ("standing", "braced"):
+        from hubo_cli.experiments.standing import posture_of
 
-        return standing_posture(model)
+        return posture_of(model, name)
     if name == "walking":
         from hubo_cli.model import load_model
         from hubo_cli.walking.body import walking_posture

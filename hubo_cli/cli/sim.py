@@ -56,7 +56,8 @@ def sim(duration: float, push: float, push_direction: str, balance: str, no_bala
     """Stand the HUBO 2+ in its home posture and report tilt, feet and falls.
 
     On the hardware driver the robot must stand in the posture the run holds (with the default
-    balancer hubo hardware sim-daemon's --posture standing; refused otherwise, exit 4) and
+    balancer hubo hardware sim-daemon's --posture braced, with --step or --no-hip --posture
+    standing; refused otherwise, exit 4) and
     whatever pushes it is outside (the simulated daemon's --push); the tilt and feet are the
     estimate's.
 

@@ -26,7 +26,8 @@ the toes, from their pitch standing before the bow), so the trunk turns toward t
 body tips to and its reaction turns the body back (the bow may change sign then). Measured
 on the nominal simulated robot after a 90 N push: the torso's largest tilt from 3 s after
 the push on 3.5-4.2 deg forward / 3.4-3.6 deg backward with it, 8.3 / 7.1 deg with the
-return alone.
+return alone, standing in the standing posture; 1.08 / 0.92 deg braced (the standing
+experiment's posture with it, ``hubo_cli.experiments.standing.BRACE_LIFT_M``).
 
 The bow needs legs faster than Table IV's 0.6 rad/s^2: the limiter clamps it there (the robot
 file's ``walking`` limit set, legs 2.6 rad/s and 150 rad/s^2, lets it act). It never acts while
@@ -50,7 +51,11 @@ from hubo_cli.state import RobotState
 
 # joint offsets per rad of trunk bow (hip pitch, knee, ankle pitch), solved on the model so that
 # the torso pitches forward by 1 rad with the CoM's x and height unchanged to first order
-# (pinocchio; at a 0.2 rad bow the CoM moves 0.4 mm along x and 3 mm down, a test checks it)
+# (pinocchio; at a 0.2 rad bow the CoM moves 0.4 mm along x and 3 mm down, a test checks it).
+# Solved in the standing posture; in the braced one the hip strategy runs in (10 cm lower) the
+# same bow moves the CoM 3.5 mm toward the bow. Offsets solved for an 8 cm brace (-1.306,
+# -0.020, 0.326) kept it within 0.4 mm there but damped the rocking after a 90 N push worse on
+# the perturbed robots (docs/history/balance.md), so these stay.
 BOW_JOINTS_RAD = {"HP": -1.258, "KN": -0.028, "AP": 0.287}
 START_M = 0.02           # act once the capture point is this close to the shrunk support edge
 GAIN_RAD_S_PER_M = 60.0  # bow rate per metre of the capture point's excess over that band

@@ -93,16 +93,41 @@ class StandingResult:
                 "snapshot": str(self.snapshot) if self.snapshot else None}
 
 
-def standing_posture(model: RobotModel) -> np.ndarray:
+# the hip strategy's stance: the legs crouch this much below the standing posture (the CoM
+# 0.556 m above the soles instead of 0.628). A push's capture point lies v/omega beyond the
+# CoM, v/omega ~ sqrt(height): 6 % less. 90 N pushes forward and backward on perturbation
+# seeds 1-10, 5 of which fell standing taller, were all held, and the nominal robot's rocking
+# settles faster (docs/history/balance.md)
+BRACE_LIFT_M = -0.10
+
+
+def standing_posture(model: RobotModel, lift_m: float = 0.0) -> np.ndarray:
     """The home posture with the waist moved over the feet so that the model's centre of mass
     (pinocchio, empty hands) sits over the centre of the soles, as the tasks' CoM control
     (:class:`~hubo_cli.kinematics.wholebody.WholeBody`, hrpsys AutoBalancer) places it: the
     crouched home posture has it about 4 mm ahead of the centre, which leaves the toes less
-    room than the heels (a forward push held 84 N, a backward one 90 N). Torso upright, soles
-    flat (rad)."""
+    room than the heels (a forward push held 84 N, a backward one 90 N). ``lift_m`` raises
+    the waist (m, < 0 crouches; :data:`BRACE_LIFT_M` is the braced stance). Torso upright,
+    soles flat (rad)."""
     from hubo_cli.kinematics.wholebody import WholeBody
 
-    return WholeBody(model, com_control=True).solve({}).q_rad
+    return WholeBody(model, com_control=True).solve({}, lift_m=lift_m).q_rad
+
+
+def posture_of(model: RobotModel, name: str) -> np.ndarray:
+    """A standing run's posture by name (rad): ``standing`` (:func:`standing_posture`),
+    ``braced`` (the same, crouched by :data:`BRACE_LIFT_M`: the hip strategy's) or ``home``.
+
+    Raises:
+        ConfigError: another name.
+    """
+    if name == "braced":
+        return standing_posture(model, BRACE_LIFT_M)
+    if name == "standing":
+        return standing_posture(model)
+    if name == "home":
+        return home_posture(model)
+    raise ConfigError(f"unknown standing posture {name!r}", hint="use standing, braced or home")
 
 
 MAX_PUSH_N = 10_000.0  # N; 0.2 s of far less throws the robot, more is a typing error
@@ -205,10 +230,12 @@ class StandingOptions:
         safety: the run's safety profile: balancer and its mode, hip strategy, stop sources
             and the legs' joint-limit set (``limit_set``, never None here).
         limit_set_reason: why the run has its limit set (for the summary).
+        posture: what the robot stands in (:func:`posture_of`): ``braced`` with the hip
+            strategy, ``standing`` otherwise with the default balancer, else ``home``.
         driver, driver_options: the robot's back end and its options; only the simulator
             pushes (``push_n`` must be 0 on another: the hardware driver's robot is pushed by
             whatever pushes it, the simulated daemon's ``--push``), and the robot must stand
-            in the posture the run holds (:func:`standing_posture` with the default balancer).
+            in the posture the run holds (``posture``; the simulated daemon's ``--posture``).
     """
 
     duration_s: float
@@ -220,6 +247,7 @@ class StandingOptions:
     perturb_seed: int | None
     safety: SafetyProfile
     limit_set_reason: str
+    posture: str = "standing"
     driver: str = "sim"
     driver_options: Mapping[str, object] = field(default_factory=dict)
 
@@ -264,7 +292,9 @@ def standing_options(duration_s: float = 5.0, push_n: float = 0.0, *,
                            push_direction=tuple(float(v) for v in direction),
                            push_at_s=float(push_at_s), push_duration_s=float(push_duration_s),
                            step=step, perturb_seed=perturb_seed, safety=safety,
-                           limit_set_reason=reason, driver=driver,
+                           limit_set_reason=reason,
+                           posture="braced" if hip else "standing" if default else "home",
+                           driver=driver,
                            driver_options=dict(driver_options or {}))
 
 
@@ -281,7 +311,8 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
     again for the limit set the options need).
 
     With the default balancer the robot stands in :func:`standing_posture` (the home posture
-    with the model's CoM over the soles' centre); with the paper's or none, in the home posture.
+    with the model's CoM over the soles' centre), crouched by :data:`BRACE_LIFT_M` when the hip
+    strategy runs; with the paper's or none, in the home posture.
 
     Args:
         model: robot model.
@@ -314,7 +345,7 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
         driver, driver_options: the robot's back end and its options; only the simulator
             pushes (``push_n`` must be 0 on another: the hardware driver's robot is pushed by
             whatever pushes it, the simulated daemon's ``--push``), and the robot must stand
-            in the posture the run holds (:func:`standing_posture` with the default balancer).
+            in the posture the run holds (``posture``; the simulated daemon's ``--posture``).
     """
     options = standing_options(duration_s, push_n, balance=balance_mode if balance else "off",
                                step=step, hip_strategy=hip_strategy,
@@ -335,14 +366,12 @@ def run_standing(model: RobotModel, options: StandingOptions, *, gui: bool = Fal
     """Run the standing experiment ``options`` describe on ``model``, which must carry the
     options' limit set (:class:`~hubo_cli.session.RunSetup` refuses another)."""
     safety = options.safety
-    default = safety.balance and safety.balance_mode == "default"
-    # the paper's balancer (fidelity runs) and no balancer stand as before: the home posture
-    q_home = standing_posture(model) if default else home_posture(model)
+    posture = options.posture
+    q_home = posture_of(model, posture)
     n_periods = int(round(options.duration_s / model.control_period_s))
     direction = np.asarray(options.push_direction)
     target = stepper = StandTarget(q_home, n_periods, options.push_n * direction,
-                                   options.push_at_s, options.push_duration_s, model,
-                                   "standing" if default else "home")
+                                   options.push_at_s, options.push_duration_s, model, posture)
     if options.step:
         from hubo_cli.walking.capture_step import CaptureStepper
         from hubo_cli.walking.params import walking_params
@@ -358,7 +387,8 @@ def run_standing(model: RobotModel, options: StandingOptions, *, gui: bool = Fal
                      model.control_period_s)
     result.failure = done.loop.failure(done.run_dir)
     result.push_direction = options.push_direction
-    done.save_summary(result.summary() | {"limit_set_reason": options.limit_set_reason})
+    done.save_summary(result.summary() | {"limit_set_reason": options.limit_set_reason,
+                                          "posture": posture})
     if options.step:
         done.save_summary({"capture_step": stepper.summary()})
     if "hip" in done.loop.module_status:  # how far the trunk bowed, and that it stands up
