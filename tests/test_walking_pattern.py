@@ -11,7 +11,7 @@ from hubo_cli.errors import ConfigError, InputError
 from hubo_cli.model import load_model
 from hubo_cli.walking.body import WalkingBody, walking_posture
 from hubo_cli.walking.footsteps import Footstep, Stance, plan_footsteps, stance_of
-from hubo_cli.walking.gait import make_gait
+from hubo_cli.walking.gait import cruise_profile, make_gait, smoothstep5
 from hubo_cli.walking.params import walking_params
 from hubo_cli.walking.preview import com_from_zmp, preview_gains
 
@@ -254,3 +254,54 @@ def test_sideways_walk_keeps_the_ankle_rolls_off_their_limits(walking_model, par
         q = plan.q_rad[:, i]
         inside = min(q.min() - walking_model.lower_rad[i], walking_model.upper_rad[i] - q.max())
         assert inside >= margin, (joint, inside)
+
+
+@pytest.mark.parametrize("ramp", [0.5, 0.3, 0.2, 0.05])
+def test_the_swing_cruise_profile_is_smooth_and_bounded(ramp):
+    """0 -> 1 without a jump in position or speed; 0.5 is the quintic itself; the peak speed
+    is 1 / (1 - 14 ramp / 15) times the mean (the quintic's 1.875)."""
+    u = np.linspace(0.0, 1.0, 20001)
+    s = cruise_profile(u, ramp)
+    assert s[0] == 0.0 and s[-1] == pytest.approx(1.0, abs=1e-12)
+    speed = np.diff(s) / np.diff(u)
+    assert np.all(speed >= 0.0)
+    assert speed.max() == pytest.approx(1.0 / (1.0 - 14.0 * ramp / 15.0), rel=1e-3)
+    assert np.abs(np.diff(speed)).max() < 0.01  # continuous speed (0.0012 at ramp 0.05)
+    if ramp == 0.5:
+        assert np.array_equal(s, smoothstep5(u))
+
+
+def test_the_swing_travel_and_ramp_are_checked(params):
+    with pytest.raises(ConfigError):
+        params.with_changes(swing_ramp_fraction=0.6)
+    with pytest.raises(ConfigError):
+        params.with_changes(swing_travel_fraction=1.2)
+
+
+def test_a_fifth_of_a_metre_a_second_needs_the_swing_to_cruise(walking_model, params):
+    """Issue 37's bound, as planned: 2 m in ten 0.223 m steps of 0.9 s (0.208 m/s from the
+    start to the last step's end, the lead-in included) asks up to 3.4 rad/s of a leg joint
+    (the pattern with its multi-body correction) with today's swing (the quintic over the
+    middle 80 % of single support); travelling over 96 % of it and cruising between a 20 %
+    speeding up and slowing down, 2.1 rad/s: within hubo-motion-rt's leg MaxSpeed, 2.5 rad/s
+    (control.table; the walking set's 2.6 rad/s is above it). The sim robot fell on such
+    gaits (docs/history/walking.md): this is the joints' bound only."""
+    fast = params.with_changes(max_step_forward_m=0.223, single_support_s=0.7,
+                               double_support_s=0.2, start_s=0.4)
+    q_start, T_world_neck = walking_posture(walking_model, fast.step_width_m, fast.crouch_m)
+    right, left = start_feet(fast)
+    steps = plan_footsteps(right, left, Stance(2.0, 0.0, 0.0), fast)
+    peaks = []
+    for swing in ({}, {"swing_travel_fraction": 0.96, "swing_ramp_fraction": 0.2}):
+        walk = fast.with_changes(**swing)
+        gait = make_gait(right, left, steps, walk, 0.005, 0.59, 0.0, 0.02)
+        walking_s = (np.nonzero(gait.step_index >= 0)[0][-1] + 1) * gait.period_s
+        assert 2.0 / walking_s >= 0.2  # whole periods of the plan, the same on every CPU
+        body = WalkingBody(walking_model, q_start, T_world_neck, walk.lean_rad_per_m)
+        gait, plan = body.solve_corrected(gait, 0.0, walk.preview_s, walk.zmp_weight,
+                                          walk.jerk_weight)
+        assert plan.worst_ik_error_m < 1e-6
+        peaks.append(float(np.abs(np.diff(plan.q_rad[:, 12:24], axis=0)).max()
+                           / gait.period_s))
+    # the plan's figures, the same on both code paths: 3.38 and 2.07 rad/s
+    assert peaks[0] > 3.0 and peaks[1] < 2.3

@@ -157,6 +157,26 @@ def test_a_replanned_pattern_continues_without_a_jump(walk_pattern, seed):
     assert np.all(np.isfinite(suffix.com.com_m))
 
 
+def test_a_pattern_replanned_mid_swing_plans_its_support_on_the_floor(walk_pattern):
+    """A landing moved while its foot is up (the re-plan's first row has the foot 19 mm up):
+    the capture-point monitor's planned support still has both soles on the floor (it drops
+    a sole 5 mm above the other; with the first row's height the swing foot's landing was
+    dropped and the monitor stopped fast walks whose landing moved)."""
+    from hubo_cli.walking.target import planned_support
+
+    params, walking, start, steps, gait = walk_pattern
+    swinging = np.nonzero(~gait.support.all(axis=1))[0]
+    k = int(swinging[np.argmax(gait.feet["right"][swinging, 2] + gait.feet["left"][swinging, 2])])
+    step = int(gait.step_index[k])
+    new = shift_steps(steps, step, Footstep(steps[step].side, steps[step].x_m + 0.02,
+                                            steps[step].y_m, steps[step].yaw_rad))
+    suffix = pattern_from(gait, k, k, start, new, params, 0.0, walking.feet.forward_m,
+                          np.zeros(2))
+    assert max(suffix.feet[side][0, 2] for side in ("right", "left")) > 0.015
+    heights = planned_support(suffix)[:, :, 2, 3]
+    assert np.all(heights == 0.0)
+
+
 @pytest.mark.parametrize("seed", range(40))
 def test_a_moved_landing_keeps_the_limits_and_never_crosses(model, seed):
     """Hostile shifts, headings and sides: the landing stays within the step limits seen from

@@ -12,9 +12,10 @@ Timeline (one sample per control period):
 3. ``settle_s`` standing, the ZMP between the feet.
 
 On a stance foot the ZMP reference is the middle of the sole (``feet.forward_m`` ahead of the
-ankle) moved ``zmp_inset_m`` toward the other foot. A swing foot lifts, moves only while it is
-at least 9 % of ``swing_height_m`` up (the middle 80 % of the phase, quintic in time),
-turns with it, and lands flat; its height is ``swing_height_m * sin^2(pi * tau)``.
+ankle) moved ``zmp_inset_m`` toward the other foot. A swing foot lifts, moves during the middle
+``swing_travel_fraction`` of the phase (0.8: while it is at least 9 % of ``swing_height_m``
+up) on :func:`cruise_profile` (``swing_ramp_fraction`` 0.5: quintic in time), turns with it, and
+lands flat; its height is ``swing_height_m * sin^2(pi * tau)``.
 
 **Toe-heel walking** (``toe_heel`` given; multi-layer paper eq. 4 and Fig. 4,
 :mod:`~hubo_cli.walking.toe_heel`): each step lasts the walking's single plus double support,
@@ -47,7 +48,8 @@ from hubo_cli.walking.toe_heel import (
     step_direction,
 )
 
-SWING_MOVE = (0.1, 0.9)  # fraction of single support during which the swing foot travels
+SWING_MOVE = (0.1, 0.9)  # fraction of single support during which a capture step's swing
+                         # foot travels (a walk's: WalkingParams.swing_travel_fraction)
 
 
 def smoothstep5(s):
@@ -108,13 +110,32 @@ def _row(foot: Footstep, z_m: float) -> np.ndarray:
     return np.array([foot.x_m, foot.y_m, z_m, foot.yaw_rad])
 
 
+def cruise_profile(u, ramp: float):
+    """0 -> 1 over u in [0, 1] (clipped): the quintic's velocity bell split at its peak, with a
+    cruise at that speed between the halves; each half lasts ``ramp`` of the time (0 < ramp
+    <= 0.5). ``ramp`` 0.5 is :func:`smoothstep5` itself (peak speed 1.875 times the mean);
+    0.25 peaks at 1.30 times the mean, its acceleration at 1.39 times the quintic's."""
+    u = np.clip(u, 0.0, 1.0)
+    if ramp >= 0.5:
+        return smoothstep5(u)
+    peak = 1.0 / (1.0 - 14.0 * ramp / 15.0)  # the rising half covers peak * ramp * 8 / 15
+
+    def rise(x):  # the bell 30 x^2 (1 - x)^2 over [0, 2 ramp], its first half, integrated
+        x = x / (2.0 * ramp)
+        return peak * 2.0 * ramp * 16.0 * (x**3 / 3 - x**4 / 2 + x**5 / 5)
+
+    return np.where(u < ramp, rise(u), np.where(
+        u > 1.0 - ramp, 1.0 - rise(1.0 - u), peak * (8.0 * ramp / 15.0 + u - ramp)))
+
+
 def swing_rows(start: Footstep, end: Footstep, n: int, height_m: float,
-               z_m: float) -> np.ndarray:
+               z_m: float, travel: float, ramp: float) -> np.ndarray:
     """The swing foot over one single-support phase of n periods: (n, 4) rows of
-    (x, y, z, yaw); the sample k is at tau = (k + 1) / n (the last one has landed)."""
+    (x, y, z, yaw); the sample k is at tau = (k + 1) / n (the last one has landed). It
+    travels during the middle ``travel`` of the phase on :func:`cruise_profile` (``ramp``)."""
     tau = (np.arange(n) + 1.0) / n
-    lo, hi = SWING_MOVE
-    s = smoothstep5((tau - lo) / (hi - lo))
+    lo = (1.0 - travel) / 2
+    s = cruise_profile((tau - lo) / travel, ramp)
     turn = wrap_angle(end.yaw_rad - start.yaw_rad)
     rows = np.empty((n, 4))
     rows[:, 0] = start.x_m + s * (end.x_m - start.x_m)
@@ -184,7 +205,8 @@ def make_gait(right: Footstep, left: Footstep, steps: list[Footstep], params: Wa
         zmp.append(np.tile(here, (n, 1)))
         rows[stance_side].append(np.tile(_row(feet[stance_side], sole_z_m), (n, 1)))
         rows[step.side].append(swing_rows(feet[step.side], step, n, params.swing_height_m,
-                                          sole_z_m))
+                                          sole_z_m, params.swing_travel_fraction,
+                                          params.swing_ramp_fraction))
         on_ground = np.zeros((n, 2), dtype=bool)
         on_ground[:, 0 if stance_side == "right" else 1] = True
         support.append(on_ground)
@@ -250,7 +272,8 @@ def _toe_heel_gait(right: Footstep, left: Footstep, steps: list[Footstep],
         foot_rows[other][base:base + step_n] = _row(feet[other], sole_z_m)
         foot_rows[step.side][base:base + half] = _row(feet[step.side], sole_z_m)
         foot_rows[step.side][base + half:base + half + single] = swing_rows(
-            feet[step.side], step, single, params.swing_height_m, sole_z_m)
+            feet[step.side], step, single, params.swing_height_m, sole_z_m,
+            params.swing_travel_fraction, params.swing_ramp_fraction)
         foot_rows[step.side][base + half + single:base + step_n] = _row(step, sole_z_m)
         support[base + half:base + half + single, column] = False
         index[base:base + step_n] = i

@@ -31,6 +31,12 @@ class WalkingParams:
         lean_rad_per_m: torso roll toward the stance foot per metre of the CoM's sideways
             offset from between the feet (rad/m).
         crouch_m: the torso walks this much lower than in the home posture (m).
+        swing_travel_fraction: the middle share of single support during which the swing foot
+            travels (the rest it only lifts and lands; at most 1).
+        swing_ramp_fraction: the share of that travel during which the swing foot speeds up,
+            and again slows down, on the quintic's velocity bell split at its peak, cruising
+            between (at most 0.5: the plain quintic, whose peak speed is 1.875 times the mean;
+            0.25: 1.30 times; :func:`~hubo_cli.walking.gait.cruise_profile`).
     """
 
     preview_s: float
@@ -49,6 +55,8 @@ class WalkingParams:
     zmp_inset_m: float
     lean_rad_per_m: float
     crouch_m: float
+    swing_travel_fraction: float
+    swing_ramp_fraction: float
 
     @property
     def step_s(self) -> float:
@@ -67,6 +75,10 @@ def _checked(params: WalkingParams, where: str) -> WalkingParams:
                 or not (math.isfinite(value) and value > 0):
             raise ConfigError(f"must be a positive number, got {value!r}", path=where,
                               field=f"walking.{f.name}")
+    for name, most in (("swing_travel_fraction", 1.0), ("swing_ramp_fraction", 0.5)):
+        if getattr(params, name) > most:
+            raise ConfigError(f"must be at most {most:g}, got {getattr(params, name)!r}",
+                              path=where, field=f"walking.{name}")
     return params
 
 
