@@ -243,3 +243,44 @@ def test_the_capture_phases_hand_over_from_stand_to_stood(landed_ahead_m, catch_
         assert records[-1][0] == PHASES.index("stood") and records[-1][1:4] == (False, None,
                                                                                  False)
         assert np.array_equal(records[-1][4], held)
+
+
+@pytest.mark.parametrize("way", [1.0, -1.0])
+def test_the_lunge_turns_the_stance_foot_about_its_edge_facing_the_landed_foot(way):
+    """A lunge whose stance foot is out of a flat leg's reach (0.42 m behind the hip after a
+    forward push, ahead of it after a backward one): the foot turns about its sole's edge
+    facing the landed foot (its toe behind, its heel ahead), which stays on the floor where it
+    was, the other end rises, and hip to ankle comes within the straight leg. (Turned about
+    the toe ahead of the hip as well, the foot stood on its toe out of reach: the 150 N
+    backward lunge hung its front foot 8 cm up and the robot fell off the landed foot.)"""
+    from types import SimpleNamespace
+
+    from hubo_cli.experiments.standing import StandTarget, standing_posture
+    from hubo_cli.walking.capture_step import STRAIGHT_MARGIN_M, CaptureStepper
+    from hubo_cli.walking.params import walking_params
+
+    model = load_model()
+    q_stand = standing_posture(model)
+    stepper = CaptureStepper(StandTarget(q_stand, 1, np.zeros(3), 1.0, 0.2, model, "standing"),
+                             model, walking_params(model), q_stand)
+    L, feet = model.lengths_m, model.feet
+    neck_z_m = 0.95
+    stepper.body_neck = np.eye(4)
+    stepper.body_neck[2, 3] = neck_z_m
+    stepper.body = SimpleNamespace(neck_z_m=neck_z_m)
+    stepper.stance_side, stepper.way, stepper.reach_m, stepper.k = "right", way, None, 0
+    stepper.hip_height_m = 0.55
+    ankle_x_m = -way * 0.42  # the stance foot on the side away from the landed one
+    row = np.array([ankle_x_m, -L["lL1"], 0.0, 0.0])
+    T_world_foot = stepper._toe_off_pose(np.zeros(2), row)
+    edge_x_m = feet.forward_m + way * feet.length_m / 2  # toe (way 1) or heel (way -1)
+    far_x_m = feet.forward_m - way * feet.length_m / 2
+    edge = T_world_foot @ np.array([edge_x_m, 0.0, 0.0, 1.0])
+    far = T_world_foot @ np.array([far_x_m, 0.0, 0.0, 1.0])
+    assert edge[:3] == pytest.approx([ankle_x_m + edge_x_m, -L["lL1"], 0.0], abs=1e-9)
+    assert far[2] > 0.02  # the other end rose
+    hip = np.array([0.0, -L["lL1"], neck_z_m - L["lT"] - L["lL2"]])
+    ankle = T_world_foot[:3, 3] + T_world_foot[:3, 2] * L["lL5"]
+    flat_ankle = np.array([ankle_x_m, -L["lL1"], L["lL5"]])
+    assert np.linalg.norm(flat_ankle - hip) > L["lL3"] + L["lL4"]  # flat: out of reach
+    assert np.linalg.norm(ankle - hip) <= L["lL3"] + L["lL4"] - STRAIGHT_MARGIN_M + 1e-3
