@@ -122,8 +122,6 @@ RETURN_BEND_S = 1.0      # [chosen] the back knee bends from the lunge's reach o
 RETURN_MAX_DROP_M = 0.11  # [chosen] the torso lowers at most this much while it returns ...
 MAX_TOE_OFF_RAD = 0.8    # [chosen] ... and the back foot's heel rises at most this far
 TOE_OFF_STEP_RAD = 0.025  # [chosen] the heel's rise is searched in steps of this
-STRAIGHT_MARGIN_M = 0.01  # [chosen] the toe-off keeps hip to ankle this much short of the
-#                           straight leg (thigh and shin; the knee 0.36 rad bent)
 MAX_DROP_M = 0.08        # [chosen] the torso lowers at most this much for the legs' reach
 CATCH_LOWER_M_S = 0.2    # [chosen] ... and in the lunge's catch at most this fast, down to
 #                          RETURN_MAX_DROP_M, the back heel rising for the rest (with the
@@ -362,12 +360,8 @@ class CaptureStepper(Target):
                           edge_m * np.sin(turns) + L["lL5"] * np.cos(turns)], axis=1)
         ankle_world = ankle @ T_world_sole[:3, :3].T + T_world_sole[:3, 3]
         reach = np.linalg.norm(ankle_world - hip, axis=1)
-        if self.reach_m is None:  # the lunge's own reach (its back knee may be straight),
-            # no more than the leg's: beyond it the leg's solution is capped and the foot hangs
-            # in the air (the momentum carried the robot over the landed foot, the stance foot
-            # rose 7-10 cm and the robot hopped on the landed foot alone)
-            straight_m = L["lL3"] + L["lL4"] - STRAIGHT_MARGIN_M
-            self.reach_m = max(self.hip_height_m, min(float(reach[0]), straight_m))
+        if self.reach_m is None:  # the lunge's own reach (its back knee may be straight)
+            self.reach_m = max(self.hip_height_m, float(reach[0]))
         # from it the allowed reach shrinks to standing's over RETURN_BEND_S: the knee bends
         b = float(smoothstep5(self.k * self.model.control_period_s / RETURN_BEND_S))
         allowed = self.reach_m + b * (self.hip_height_m - self.reach_m)
