@@ -292,9 +292,10 @@ def test_a_perturbed_robot_standing_still_does_not_step(tmp_path):
     """``--step`` on a perturbed robot (its IMU's noise and bias, its joints' offsets) with no
     push: the estimated capture point's noise never brings it to the trigger, so no step.
     Measured on seeds 1-5 (3 s each, the attitude filter in the estimate): the capture point
-    wanders 12.8-17.9 mm peak to peak (2.3 mm RMS) and comes within 21.6-24.4 mm of the
-    trigger line at its nearest (last round, before the filter, every seed stepped within
-    0.26 s). Seed 2 wandered most; the bound is 10 mm, 2.2x under the nearest."""
+    wanders 12.8-17.9 mm peak to peak (2.3 mm RMS) and comes within 20.2-23.0 mm of the
+    trigger line at its nearest (seed 2: 21.6 mm; last round, before the filter, every seed
+    stepped within 0.26 s). Seed 2 wandered most; the bound is 10 mm, 2x under the
+    nearest."""
     from hubo_cli.control.log import load_log
     from hubo_cli.walking.capture_phases import TRIGGER_M
 
