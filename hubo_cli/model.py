@@ -128,7 +128,7 @@ class EstimationConfig:
     contact_loss_min_s: float = 0.02
     anchor_switch_n: float = 40.0
     anchor_cop_min_fz_n: float = 10.0
-    anchor_hold_min_fz_n: float = 10.0
+    anchor_hold_min_fz_n: float = 40.0
     zmp_sole_min_fz_n: float = 1.0
     swing_touchdown_n: float = 60.0
     sole_damping_min_fz_n: float = 30.0

@@ -53,9 +53,7 @@ velocity more than doubled (0.9 m/s against 0.4) and the estimated capture point
 landed toe while the true one was 95-111 mm inside it, which stopped the robot (150 N forward
 pushed at 1.05 s fell). Going on at the torso's last velocity instead spoilt later hops (the
 velocity from the periods of a 1,700 N landing) and 0.8-1.1 s fell; standing still loses the
-flight's 10-20 mm of true motion, which stays as a shift of the whole estimate. The
-threshold is low (the robot file's 10 N): at 40 N a walk's landings, both soles light for a
-period or two, dropped the anchor and perturbed walks ended 19-20 mm off.
+flight's 10-20 mm of true motion, which stays as a shift of the whole estimate.
 
 Start: the world frame is the simulator's (:mod:`hubo_cli.drivers.sim`): the torso's neck frame
 at the start, dropped onto the floor (x forward, y left, z up, the origin on the floor under the
@@ -367,6 +365,7 @@ class FloatingBase(Observer):
         self._T_world_soles = T_world_torso @ self._T_torso_soles
         self._T_world_anchor = self._T_world_soles[self.anchor].copy()
         self._turn_rad, self._R_legs = 0.0, None
+        self._landed.clear()
 
     def update(self, state: RobotState, store: Store) -> None:
         if self._inputs(state, store):
