@@ -109,8 +109,6 @@ class EstimationConfig:
             that one carries this much more (compensated ankle F_z).
         anchor_cop_min_fz_n: a sole pressing less than this keeps its last centre of pressure
             (the floating base's rolling-edge check).
-        anchor_hold_min_fz_n: while neither sole presses this much (a bounce, a jump) no sole
-            holds the floating base: the torso stays where it was.
         zmp_sole_min_fz_n: a sole in contact pressing less than this adds no centre of
             pressure to the ZMP.
         swing_touchdown_n: a capture step's swing sole carrying this much has touched down.
@@ -128,7 +126,6 @@ class EstimationConfig:
     contact_loss_min_s: float = 0.02
     anchor_switch_n: float = 40.0
     anchor_cop_min_fz_n: float = 10.0
-    anchor_hold_min_fz_n: float = 40.0
     zmp_sole_min_fz_n: float = 1.0
     swing_touchdown_n: float = 60.0
     sole_damping_min_fz_n: float = 30.0

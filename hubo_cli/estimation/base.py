@@ -42,18 +42,8 @@ estimates drifted 10 mm sideways and 1 deg in heading over a 1 m walk). The new 
 the pose estimated for it (the mean of its last LANDED_PERIODS estimates on the floor), so the
 estimate does not jump. (Also taking a sole that gave the anchor up back where it was then,
 while it stays in contact, was tried: with it the 150 N capture step's return step never left
-the floor, the back foot loaded with 130-140 N to the end.)
-
-In flight (neither sole pressing ``estimation.anchor_hold_min_fz_n``: a bounce, a jump, a fall,
-a lifted robot) no sole holds the estimate: the torso stays where it was, its tilt the
-attitude's and its heading kept, and the soles follow it through the legs; the anchor takes up
-from where its sole then is. A capture step's landed foot bounced for 30-40 ms at 0-30 N and
-slid back 26 mm meanwhile: held, it carried the estimate 30 mm forward in 60 ms, the CoM's
-velocity more than doubled (0.9 m/s against 0.4) and the estimated capture point went past the
-landed toe while the true one was 95-111 mm inside it, which stopped the robot (150 N forward
-pushed at 1.05 s fell). Going on at the torso's last velocity instead spoilt later hops (the
-velocity from the periods of a 1,700 N landing) and 0.8-1.1 s fell; standing still loses the
-flight's 10-20 mm of true motion, which stays as a shift of the whole estimate.
+the floor, the back foot loaded with 130-140 N to the end.) Without any contact (a jump, a
+fall, a lifted robot) the anchor stays.
 
 Start: the world frame is the simulator's (:mod:`hubo_cli.drivers.sim`): the torso's neck frame
 at the start, dropped onto the floor (x forward, y left, z up, the origin on the floor under the
@@ -243,7 +233,6 @@ class FloatingBase(Observer):
         self._contact_point = (0.0, 0.0)  # on the anchor sole (sole frame, m)
         self._dt_s = model.control_period_s
         self._cop_min_fz_n = model.estimation.anchor_cop_min_fz_n
-        self._hold_min_fz_n = model.estimation.anchor_hold_min_fz_n
         self._anchor_switch_n = model.estimation.anchor_switch_n
         self._keep = HEADING_TAU_S / (HEADING_TAU_S + self._dt_s)  # the turn's fade a period
         self._turn_rad = 0.0  # the gyro's turn on top of the legs' heading
@@ -351,29 +340,8 @@ class FloatingBase(Observer):
         store[T_WORLD_TORSO] = self._T_world_torso
         store[T_WORLD_SOLES] = self._T_world_soles
 
-    def _fly(self) -> None:
-        """A period in flight: the torso where it was, tilted as the attitude says, its heading
-        kept; the soles through the legs; the anchor where its sole now is."""
-        R = np.empty((3, 3))
-        quat_to_matrix_into(self._quat, R)
-        turn = _heading(self._T_world_torso[:3, :3]) - _heading(R)
-        c, s = math.cos(turn), math.sin(turn)
-        T_world_torso = np.eye(4)
-        T_world_torso[:3, :3] = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ R
-        T_world_torso[:3, 3] = self._T_world_torso[:3, 3]
-        self._T_world_torso = T_world_torso
-        self._T_world_soles = T_world_torso @ self._T_torso_soles
-        self._T_world_anchor = self._T_world_soles[self.anchor].copy()
-        self._turn_rad, self._R_legs = 0.0, None
-        self._landed.clear()
-
     def update(self, state: RobotState, store: Store) -> None:
         if self._inputs(state, store):
-            wrenches = store[WRENCHES]
-            if all(float(wrenches[s][2]) < self._hold_min_fz_n for s in ANKLE_SENSORS):
-                self._fly()  # (a NaN F_z compares False: not in flight)
-                self._write(store)
-                return
             contact = store[CONTACT]
             point = self._centre_of_pressure(store)
             x_lo, x_hi, y_lo, y_hi = self._sole_box
@@ -382,6 +350,7 @@ class FloatingBase(Observer):
             self._place(point, _gyro(state),
                         bool(contact[0]) != bool(contact[1]) and on_edge)
             other = 1 - self.anchor
+            wrenches = store[WRENCHES]
             fz_anchor = float(wrenches[ANKLE_SENSORS[self.anchor]][2])
             heavier = (float(wrenches[ANKLE_SENSORS[other]][2])
                        > fz_anchor + self._anchor_switch_n)
