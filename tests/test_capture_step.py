@@ -243,3 +243,65 @@ def test_the_capture_phases_hand_over_from_stand_to_stood(landed_ahead_m, catch_
         assert records[-1][0] == PHASES.index("stood") and records[-1][1:4] == (False, None,
                                                                                  False)
         assert np.array_equal(records[-1][4], held)
+
+
+@pytest.mark.parametrize("way", [1.0, -1.0])
+def test_the_lunge_turns_the_stance_foot_about_its_edge_facing_the_landed_foot(way):
+    """A lunge whose stance foot is out of a flat leg's reach (behind the hip after a forward
+    push, ahead of it after a backward one), once its knee has bent to standing's: the foot
+    turns about its sole's edge facing the landed foot (its toe behind, its heel ahead), which
+    stays on the floor where it was, the other end rises, and hip to ankle comes within the
+    standing leg's. (Turned about its toe ahead of the hip as well, the front foot of a 150 N
+    backward lunge stood on its toe, 0.77 rad, with the knee straight.)"""
+    from types import SimpleNamespace
+
+    from hubo_cli.experiments.standing import StandTarget, standing_posture
+    from hubo_cli.walking.capture_step import RETURN_BEND_S, CaptureStepper
+    from hubo_cli.walking.params import walking_params
+
+    model = load_model()
+    q_stand = standing_posture(model)
+    stepper = CaptureStepper(StandTarget(q_stand, 1, np.zeros(3), 1.0, 0.2, model, "standing"),
+                             model, walking_params(model), q_stand)
+    L, feet = model.lengths_m, model.feet
+    neck_z_m = 0.95
+    stepper.body_neck = np.eye(4)
+    stepper.body_neck[2, 3] = neck_z_m
+    stepper.body = SimpleNamespace(neck_z_m=neck_z_m)
+    stepper.stance_side, stepper.way, stepper.reach_m = "right", way, None
+    stepper.k = int(RETURN_BEND_S / model.control_period_s) + 1  # the knee bent to standing's
+    stepper.hip_height_m = 0.55
+    ankle_x_m = -way * 0.36  # the stance foot on the side away from the landed one
+    row = np.array([ankle_x_m, -L["lL1"], 0.0, 0.0])
+    T_world_foot = stepper._toe_off_pose(np.zeros(2), row)
+    edge_x_m = feet.forward_m + way * feet.length_m / 2  # toe (way 1) or heel (way -1)
+    far_x_m = feet.forward_m - way * feet.length_m / 2
+    edge = T_world_foot @ np.array([edge_x_m, 0.0, 0.0, 1.0])
+    far = T_world_foot @ np.array([far_x_m, 0.0, 0.0, 1.0])
+    assert edge[:3] == pytest.approx([ankle_x_m + edge_x_m, -L["lL1"], 0.0], abs=1e-9)
+    assert far[2] > 0.02  # the other end rose
+    hip = np.array([0.0, -L["lL1"], neck_z_m - L["lT"] - L["lL2"]])
+    ankle = T_world_foot[:3, 3] + T_world_foot[:3, 2] * L["lL5"]
+    flat_ankle = np.array([ankle_x_m, -L["lL1"], L["lL5"]])
+    assert np.linalg.norm(flat_ankle - hip) > stepper.hip_height_m + 0.03  # flat: too far
+    assert np.linalg.norm(ankle - hip) <= stepper.hip_height_m + 1e-3
+
+
+@pytest.mark.physical
+def test_a_perturbed_robot_standing_still_does_not_step(tmp_path):
+    """``--step`` on a perturbed robot (its IMU's noise and bias, its joints' offsets) with no
+    push: the estimated capture point's noise never brings it to the trigger, so no step.
+    Measured on seeds 1-5 (3 s each, the attitude filter in the estimate): the capture point
+    wanders 12.8-17.9 mm peak to peak (2.3 mm RMS) and comes within 20.2-23.0 mm of the
+    trigger line at its nearest (seed 2: 21.6 mm; last round, before the filter, every seed
+    stepped within 0.26 s). Seed 2 wandered most; the bound is 10 mm, 2x under the
+    nearest."""
+    from hubo_cli.control.log import load_log
+    from hubo_cli.walking.capture_phases import TRIGGER_M
+
+    result = stand(load_model(), 1.5, 0.0, step=True, perturb_seed=2, out=tmp_path / "run")
+    summary = json.loads((result.run_dir / "summary.json").read_text())
+    assert result.fell is False
+    assert summary["capture_step"]["stepped"] is False
+    outside_m = np.asarray(load_log(result.run_dir)["cp_outside_m"], dtype=float)
+    assert np.nanmax(outside_m) < -TRIGGER_M - 0.010

@@ -370,6 +370,8 @@ class Catch(PatternPhase):
         s.rest = Gait(period, (), s.height_m, zmp, CoMPath(c, 0 * c, 0 * c, zmp), rows,
                       np.ones((n, 2), dtype=bool), np.full(n, -1))
         back = np.array([stance.x_m, stance.y_m]) + s.model.feet.forward_m * s.heading
+        # the landed foot ahead of the stance foot (1, a forward push) or behind it (-1)
+        s.way = 1.0 if (sole_middle - back) @ s.heading >= 0.0 else -1.0
         s.track = {"com": np.asarray(com_m, dtype=float).copy(), "front": sole_middle,
                    "back": back, "reach": s.model.feet.length_m / 2 - CATCH_EDGE_M}
         s.track["rest"] = s.in_stance(xi_m)

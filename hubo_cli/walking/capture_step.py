@@ -39,7 +39,8 @@ front one's up to ``CATCH_EDGE_M`` inside the front toe (both soles carry the ro
 over the back foot alone, it rocked sideways and tipped as the return began). Meanwhile the
 torso lowers as far as the legs need to reach both soles from a pelvis over the pattern's CoM
 (at most ``RETURN_MAX_DROP_M``, at ``CATCH_LOWER_M_S``) and the back heel rises for the rest
-(:meth:`CaptureStepper._toe_off_pose`), so the back foot stays on the floor.
+(after a backward push the stance foot is the front one: its toe rises;
+:meth:`CaptureStepper._toe_off_pose`), so the stance foot stays on the floor.
 The pattern so follows where the landing (its impact took an unknown part of the momentum)
 left the robot instead of driving it on toward its own capture point; the standing balancers
 act meanwhile. Then the return (:meth:`~hubo_cli.walking.capture_phases.Return.start`): one
@@ -165,6 +166,7 @@ class CaptureStepper(Target):
         self.trigger_s: float | None = None
         self.track: dict | None = None  # the lunge's catch (Catch.start)
         self.lunge_return = False
+        self.way = 1.0  # the lunge's landed foot ahead (1) or behind (-1; Catch)
         self.stood_s: float | None = None
         self.stood_feet: list[Footstep] = []
 
@@ -332,23 +334,30 @@ class CaptureStepper(Target):
                                                         / self.model.control_period_s))))
 
     def _toe_off_pose(self, com_m: np.ndarray, row: np.ndarray) -> np.ndarray:
-        """T_world_foot of the back foot (on the ground or swinging) with its heel raised
-        about the toe as far as the leg needs to reach it from the hip where the last period's
-        neck had it: hip to ankle no longer than standing (from the lunge's reach, its knee
-        perhaps straight, over RETURN_BEND_S); at most MAX_TOE_OFF_RAD. Sets
-        ``toe_off_rad``."""
+        """T_world_foot of the stance foot of the capture step (on the ground or swinging)
+        turned about its sole's edge facing the landed foot as far as the leg needs to reach
+        it from the hip where the last period's neck had it: after a forward push it is the
+        back foot and its heel rises about the toe; after a backward one it is the front foot
+        and its toe rises about the heel (raised about its toe as a back foot's heel, the
+        front foot's ankle went further from the hip, its knee straight, and the foot stood on
+        its toe, 0.77 rad, leaving the robot on the landed foot alone). Hip to ankle no
+        longer than standing (from the lunge's reach, its knee perhaps straight, over
+        RETURN_BEND_S); at most MAX_TOE_OFF_RAD. Sets
+        ``toe_off_rad`` (the turn's size)."""
         L, feet = self.model.lengths_m, self.model.feet
         side = self.stance_side
         # the hip where the last period's neck had it (its height this period's)
         T = self.body_neck
         hip = T[:3, :3] @ np.array([0.0, SIDE_SIGN[side] * L["lL1"], -L["lT"] - L["lL2"]])
         hip = hip + np.append(T[:2, 3], self.body.neck_z_m)
-        toe_m = feet.forward_m + feet.length_m / 2
+        way = self.way  # 1: the landed foot ahead (toe, heel up); -1: behind (heel, toe up)
+        edge_m = feet.forward_m + way * feet.length_m / 2
         T_world_sole = pose_of_row(row)
         angles = np.arange(0.0, MAX_TOE_OFF_RAD + 1e-9, TOE_OFF_STEP_RAD)
-        ankle = np.stack([toe_m - toe_m * np.cos(angles) + L["lL5"] * np.sin(angles),
+        turns = way * angles  # about the sole's y axis (> 0: heel up)
+        ankle = np.stack([edge_m - edge_m * np.cos(turns) + L["lL5"] * np.sin(turns),
                           np.zeros_like(angles),
-                          toe_m * np.sin(angles) + L["lL5"] * np.cos(angles)], axis=1)
+                          edge_m * np.sin(turns) + L["lL5"] * np.cos(turns)], axis=1)
         ankle_world = ankle @ T_world_sole[:3, :3].T + T_world_sole[:3, 3]
         reach = np.linalg.norm(ankle_world - hip, axis=1)
         if self.reach_m is None:  # the lunge's own reach (its back knee may be straight)
@@ -364,9 +373,9 @@ class CaptureStepper(Target):
             angle -= TOE_OFF_STEP_RAD * (allowed - reach[i]) / (reach[i - 1] - reach[i])
         self.toe_off_rad = angle
         pivot = np.eye(4)
-        pivot[0, 3] = toe_m
+        pivot[0, 3] = edge_m
         turn = np.eye(4)
-        turn[:3, :3] = Rotation.from_rotvec([0.0, angle, 0.0]).as_matrix()
+        turn[:3, :3] = Rotation.from_rotvec([0.0, way * angle, 0.0]).as_matrix()
         return T_world_sole @ pivot @ turn @ np.linalg.inv(pivot)
 
     def _solve_leg(self, q: np.ndarray, side: str, T_world_foot: np.ndarray) -> np.ndarray:
