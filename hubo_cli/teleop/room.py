@@ -61,7 +61,7 @@ class CollisionRoom:
     Attributes:
         pushed_periods: per arm, how many calls moved its target out of the band.
         last_clearance_m: the closest pair's distance at the last returned target (m; a lower
-            bound of it when it exceeds the room by more than ``NEAR_M``).
+            bound of it when it exceeds the room).
         moved: the arms whose targets the last call replaced.
     """
 
@@ -108,7 +108,10 @@ class CollisionRoom:
                 T_N_E 4x4 in the neck frame): search the nearest clear pose to the goal.
         """
         q_next = np.asarray(q_next_rad, dtype=float)
-        d, pair = self._distance(q_next)
+        # whether it keeps the room: the pairs whose bounds come within it are computed (the
+        # distance is exact where it is below the room, a lower bound beyond it)
+        c = self.checker.check_near(q_next, self.room_m)
+        d, pair = c.distance_m, c.pair
         if d >= self.room_m:
             self.last_clearance_m = d
             self.moved = set()
