@@ -54,6 +54,7 @@ pose too (without it the body's lean would not show in their error).
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -557,8 +558,8 @@ class TeleopTarget(Target):
         """Start, follow or finish a slow branch change; returns the arm's joints."""
         reach = self.reach[arm]
         goal_m = T_N_goal[:3, 3]
-        if hand.rest_anchor_m is None or np.linalg.norm(goal_m - hand.rest_anchor_m) > \
-                REST_RADIUS_M:
+        moved = None if hand.rest_anchor_m is None else goal_m - hand.rest_anchor_m
+        if moved is None or math.sqrt(moved.dot(moved)) > REST_RADIUS_M:  # np.linalg.norm
             hand.rest_anchor_m, hand.rest_since_s = goal_m.copy(), t_s
         at_rest = t_s - hand.rest_since_s >= REST_S
         if hand.branch_move is None and hand.at_limit and (
@@ -672,7 +673,8 @@ class TeleopTarget(Target):
             x, y, z = actual
             info.update(zip(names[:6], (
                 x, y, z, STATUS_NAMES.index(hand.ik_status) if hand.ik_status in STATUS_NAMES
-                else -1, 0.0 if hand.missing_m is None else float(np.linalg.norm(hand.missing_m)),
+                else -1, 0.0 if hand.missing_m is None
+                else math.sqrt(hand.missing_m.dot(hand.missing_m)),  # np.linalg.norm's
                 hand.speed_scale), strict=True))
             if goal is None:
                 continue
