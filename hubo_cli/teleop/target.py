@@ -76,6 +76,7 @@ from hubo_cli.kinematics.reach import branch_of
 from hubo_cli.kinematics.torso import CorrectionSettings, MeasuredTorso, TorsoCorrection
 from hubo_cli.kinematics.wholebody import LiftFilter, WholeBody
 from hubo_cli.model import ARMS, RobotModel
+from hubo_cli.motion.limits import JointLimits
 from hubo_cli.motion.tracker import JointTracker
 from hubo_cli.scene import SceneActions, WallPlacement
 from hubo_cli.teleop.lead import GoalVelocity, reachable_velocity
@@ -249,6 +250,7 @@ class TeleopTarget(Target):
             self.room = CollisionRoom(model, drill=body.tools.get("right-arm") == "drill",
                                       room_m=self.reach_settings.collision_room_m,
                                       arms=tuple(self.arms))
+        self._compile_kernels()
         self.rotation_errors_rad: dict[str, list[float]] = {arm: [] for arm in self.arms}
         self.path_times_s: dict[str, list[float]] = {arm: [] for arm in self.arms}
         self._t_solved_s: dict[str, float] = {}
@@ -281,6 +283,26 @@ class TeleopTarget(Target):
             for c in ("goal_x_m", "goal_y_m", "goal_z_m", "actual_x_m", "actual_y_m",
                       "actual_z_m", "error_m", "ik_code", "rot_error_rad", "reach_limit_m",
                       "speed_scale")) + ("phase_code", "lift_m", "latency_s")
+
+    def _compile_kernels(self) -> None:
+        """Call each compiled per-period kernel once: compiled (or loaded from numba's cache)
+        here, before the loop runs, and not in its first operating period."""
+        zeros = np.zeros(6)
+        limits = JointLimits(zeros - 1.0, zeros + 1.0, zeros + 1.0, zeros + 1.0, zeros + 1.0)
+        goal_velocity = GoalVelocity(limits, self.dt_guard_s)
+        for _ in range(len(goal_velocity._q)):
+            goal_velocity.update(zeros, True)
+        reachable_velocity(zeros, zeros, zeros, zeros, limits)
+        for reach in self.reach.values():
+            limb = reach.limb
+            condition_number(limb, zeros)
+            smoothing = ArmReach(limb, reach.settings)
+            smoothing.smoothed(_EYE4, 0.0)  # the first goal starts it, the second is smoothed
+            smoothing.smoothed(_EYE4, 0.0)
+            base, _, offset, alpha, a, d, end, _ = limb.chain
+            path_swing_m(np.zeros((3, 6)), base, offset, alpha, a, d, end)
+            hand_errors(zeros, base, offset, alpha, a, d, end, False, 0.0, _EYE4, _EYE4, True,
+                        np.empty((4, 4)))
 
     def attach(self, world: SceneActions | None, modules, store: Store) -> None:
         self.world, self.store = world, store
