@@ -84,11 +84,11 @@ def _stop_speed(room, a, j):
     """:func:`stop_speed_rad_s` of one joint."""
     if room < 0.0:
         room = 0.0
-    low = np.cbrt(room * room * j)  # v sqrt(v / j) = room, below v = a^2 / j
-    if low <= a * a / j:
-        return low
     knee = a * a / j
-    return 0.5 * (-a * a / j + math.sqrt(knee * knee + 8.0 * a * room))  # v^2/2a + va/2j
+    low = np.cbrt(room * room * j)  # v sqrt(v / j) = room, below v = a^2 / j
+    if low <= knee:
+        return low
+    return 0.5 * (-knee + math.sqrt(knee * knee + 8.0 * a * room))  # v^2/2a + va/2j
 
 
 def reachable_velocity(v_goal_rad_s: np.ndarray, q_target_rad: np.ndarray, q_rad: np.ndarray,
