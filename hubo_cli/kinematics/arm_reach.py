@@ -8,13 +8,16 @@ plans the slow joint-space move that changes branch when the operator allows it.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
+import numba as nb
 import numpy as np
 
 from hubo_cli.errors import ConfigError
 from hubo_cli.kinematics import choice
 from hubo_cli.kinematics.conditioning import SingularityScale
+from hubo_cli.kinematics.dh import JIT
 from hubo_cli.kinematics.limb import IKResult, Limb
 from hubo_cli.kinematics.reach import branch_of, on_branch
 
@@ -141,17 +144,7 @@ class ArmReach:
         if self._R_smooth is None:
             self._R_smooth = T[:3, :3].copy()
         else:
-            alpha = dt_s / (tau + dt_s)
-            R_rel = self._R_smooth.T @ T[:3, :3]
-            angle = float(np.arccos(np.clip((np.trace(R_rel) - 1) / 2, -1.0, 1.0)))
-            if angle > 1e-12:
-                axis = np.array([R_rel[2, 1] - R_rel[1, 2], R_rel[0, 2] - R_rel[2, 0],
-                                 R_rel[1, 0] - R_rel[0, 1]])
-                norm = np.linalg.norm(axis)
-                if norm > 1e-12:
-                    self._R_smooth = self._R_smooth @ _axis_angle(axis / norm, alpha * angle)
-                else:  # a half turn: jump (it cannot come from a continuous stream)
-                    self._R_smooth = T[:3, :3].copy()
+            _smooth_rotation(self._R_smooth, T, dt_s / (tau + dt_s))
         T[:3, :3] = self._R_smooth
         return T
 
@@ -196,7 +189,35 @@ class ArmReach:
                           t_s, duration, int(branch_of(np.asarray(q_to_rad, dtype=float))))
 
 
-def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
-    """Rotation matrix of ``angle`` (rad) about a unit ``axis`` (Rodrigues)."""
-    K = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
-    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * (K @ K)
+@nb.njit(**JIT)
+def _smooth_rotation(R, T_goal, alpha):
+    """One step of :meth:`ArmReach.smoothed`'s filter, in place: ``R`` (3x3) turns by the
+    share ``alpha`` of its rotation to the goal's (``T_goal``'s rotation block) about that
+    rotation's axis (Rodrigues); to the goal's at once from half a turn away."""
+    R_rel = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            R_rel[i, j] = R[0, i] * T_goal[0, j] + R[1, i] * T_goal[1, j] + R[2, i] * T_goal[2, j]
+    angle = math.acos(min(max((R_rel[0, 0] + R_rel[1, 1] + R_rel[2, 2] - 1) / 2, -1.0), 1.0))
+    if not angle > 1e-12:
+        return
+    x, y, z = R_rel[2, 1] - R_rel[1, 2], R_rel[0, 2] - R_rel[2, 0], R_rel[1, 0] - R_rel[0, 1]
+    norm = math.sqrt(x * x + y * y + z * z)
+    if not norm > 1e-12:  # a half turn: jump (it cannot come from a continuous stream)
+        for i in range(3):
+            for j in range(3):
+                R[i, j] = T_goal[i, j]
+        return
+    x, y, z = x / norm, y / norm, z / norm
+    turn = alpha * angle
+    sin_t, one_cos = math.sin(turn), 1 - math.cos(turn)
+    K = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    step = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            KK = K[i, 0] * K[0, j] + K[i, 1] * K[1, j] + K[i, 2] * K[2, j]
+            step[i, j] = (1.0 if i == j else 0.0) + sin_t * K[i, j] + one_cos * KK
+    for i in range(3):
+        r0, r1, r2 = R[i, 0], R[i, 1], R[i, 2]
+        for j in range(3):
+            R[i, j] = r0 * step[0, j] + r1 * step[1, j] + r2 * step[2, j]

@@ -15,23 +15,68 @@ instead of halting there.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
+import numba as nb
 import numpy as np
 
+from hubo_cli.kinematics.dh import JIT, kernel_array
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.kinematics.reach import jacobian
+
+JACOBI_SWEEPS = 30  # one-sided Jacobi sweeps at most (a 6x6 Jacobian converges in 5-8)
 
 
 def condition_number(limb: Limb, q_rad: np.ndarray) -> float:
     """The length-scaled Jacobian condition number of an arm at joints q (>= 1, inf if singular)."""
     base, _, offset, alpha, a, d, end, _ = limb.chain
+    return _condition(kernel_array(q_rad), base, offset, alpha, a, d, end,
+                      float(limb.lengths_m[0] + limb.lengths_m[1]))
+
+
+@nb.njit(**JIT)
+def _condition(q, base, offset, alpha, a, d, end, length_m):
+    """:func:`condition_number` in one compiled call: the Jacobian, its linear rows divided by
+    ``length_m``, its singular values by one-sided Jacobi rotations (Hestenes; the column
+    norms once the columns are orthogonal, to a few ulps of LAPACK's)."""
     T = np.empty((4, 4))
     J = np.empty((6, 6))
-    jacobian(np.ascontiguousarray(q_rad, dtype=float), base, offset, alpha, a, d, end, T, J)
-    J[:3] /= float(limb.lengths_m[0] + limb.lengths_m[1])
-    s = np.linalg.svd(J, compute_uv=False)
-    return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+    jacobian(q, base, offset, alpha, a, d, end, T, J)
+    for i in range(3):
+        for j in range(6):
+            J[i, j] /= length_m
+    for _ in range(JACOBI_SWEEPS):
+        rotated = False
+        for i in range(5):
+            for j in range(i + 1, 6):
+                alpha_ii = beta_jj = gamma = 0.0
+                for k in range(6):
+                    alpha_ii += J[k, i] * J[k, i]
+                    beta_jj += J[k, j] * J[k, j]
+                    gamma += J[k, i] * J[k, j]
+                if abs(gamma) <= 1e-15 * math.sqrt(alpha_ii * beta_jj):
+                    continue
+                rotated = True
+                zeta = (beta_jj - alpha_ii) / (2.0 * gamma)
+                t = math.copysign(1.0, zeta) / (abs(zeta) + math.sqrt(1.0 + zeta * zeta))
+                c = 1.0 / math.sqrt(1.0 + t * t)
+                s = c * t
+                for k in range(6):
+                    x, y = J[k, i], J[k, j]
+                    J[k, i] = c * x - s * y
+                    J[k, j] = s * x + c * y
+        if not rotated:
+            break
+    largest, smallest = 0.0, math.inf
+    for j in range(6):
+        norm = 0.0
+        for k in range(6):
+            norm += J[k, j] * J[k, j]
+        norm = math.sqrt(norm)
+        largest = max(largest, norm)
+        smallest = min(smallest, norm)
+    return largest / smallest if smallest > 0 else math.inf
 
 
 @dataclass(frozen=True)

@@ -113,12 +113,12 @@ class JointTracker:
             inp.max_acceleration = self.limits.acceleration_rad_s2
             inp.max_jerk = self.limits.jerk_rad_s3
         otg, inp, trajectory = self._preview
-        inp.current_position = self.q
-        inp.current_velocity = self.v
-        inp.current_acceleration = self.a
-        inp.target_position = np.asarray(target_rad, dtype=float).tolist()  # a list: faster
+        inp.current_position = self.q.tolist()  # lists: faster than arrays into ruckig
+        inp.current_velocity = self.v.tolist()
+        inp.current_acceleration = self.a.tolist()
+        inp.target_position = np.asarray(target_rad, dtype=float).tolist()
         inp.target_velocity = (self._zeros if target_v_rad_s is None
-                               else self._target_velocity(target_v_rad_s))
+                               else self._target_velocity(target_v_rad_s)).tolist()
         inp.synchronization = SYNCHRONIZATIONS[synchronization]
         try:
             result = otg.calculate(inp, trajectory)
@@ -128,7 +128,8 @@ class JointTracker:
             return self.q[None, :].copy()
         k = max(int(samples), 2)
         duration = trajectory.duration
-        return np.array([trajectory.at_time(duration * i / (k - 1))[0] for i in range(k)])
+        at_time = trajectory.at_time
+        return np.array([at_time(duration * i / (k - 1))[0] for i in range(k)])
 
     def _set_current(self) -> None:
         if self._synced:  # the last sample, passed on inside ruckig (the same numbers)

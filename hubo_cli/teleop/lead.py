@@ -29,8 +29,12 @@ up as before.
 
 from __future__ import annotations
 
+import math
+
+import numba as nb
 import numpy as np
 
+from hubo_cli.kinematics.dh import JIT, kernel_array
 from hubo_cli.motion.limits import JointLimits
 
 WINDOW_S = 0.1  # the slope's window: the issue's "constant goal velocity over the last 0.1 s"
@@ -51,19 +55,40 @@ def stop_distance_rad(speed_rad_s: np.ndarray, accel_rad_s2: np.ndarray,
     """Per joint, the distance (rad) a jerk-limited stop from ``speed_rad_s`` (>= 0, no
     acceleration at the start) covers, and so the distance a start from rest to that speed
     takes: :func:`hubo_cli.motion.limits.braking_distance` at zero acceleration."""
-    a, j, v = accel_rad_s2, jerk_rad_s3, speed_rad_s
-    return np.where(v <= a * a / j, v * np.sqrt(v / j), v * v / (2 * a) + v * a / (2 * j))
+    v, a, j = np.broadcast_arrays(*(np.asarray(x, dtype=float)
+                                    for x in (speed_rad_s, accel_rad_s2, jerk_rad_s3)))
+    return np.array([_stop_distance(*x) for x in zip(v.flat, a.flat, j.flat, strict=True)]
+                    ).reshape(v.shape)
 
 
 def stop_speed_rad_s(room_rad: np.ndarray, accel_rad_s2: np.ndarray,
                      jerk_rad_s3: np.ndarray) -> np.ndarray:
     """Per joint, the largest speed (rad/s) whose :func:`stop_distance_rad` is at most
     ``room_rad`` (its inverse; 0 for no room)."""
-    a, j = accel_rad_s2, jerk_rad_s3
-    room = np.maximum(room_rad, 0.0)
+    r, a, j = np.broadcast_arrays(*(np.asarray(x, dtype=float)
+                                    for x in (room_rad, accel_rad_s2, jerk_rad_s3)))
+    return np.array([_stop_speed(*x) for x in zip(r.flat, a.flat, j.flat, strict=True)]
+                    ).reshape(r.shape)
+
+
+@nb.njit(**JIT)
+def _stop_distance(v, a, j):
+    """:func:`stop_distance_rad` of one joint."""
+    if v <= a * a / j:
+        return v * math.sqrt(v / j)
+    return v * v / (2 * a) + v * a / (2 * j)
+
+
+@nb.njit(**JIT)
+def _stop_speed(room, a, j):
+    """:func:`stop_speed_rad_s` of one joint."""
+    if room < 0.0:
+        room = 0.0
+    knee = a * a / j
     low = np.cbrt(room * room * j)  # v sqrt(v / j) = room, below v = a^2 / j
-    high = 0.5 * (-a * a / j + np.sqrt((a * a / j) ** 2 + 8.0 * a * room))  # v^2/2a + va/2j
-    return np.where(low <= a * a / j, low, high)
+    if low <= knee:
+        return low
+    return 0.5 * (-knee + math.sqrt(knee * knee + 8.0 * a * room))  # v^2/2a + va/2j
 
 
 def reachable_velocity(v_goal_rad_s: np.ndarray, q_target_rad: np.ndarray, q_rad: np.ndarray,
@@ -74,14 +99,39 @@ def reachable_velocity(v_goal_rad_s: np.ndarray, q_target_rad: np.ndarray, q_rad
     limit) without first moving away from it (zero where the joint is past its target), times
     the share that has caught up: 1 - |d| / (|v_goal| CATCH_UP_S) within [0, 1], d the
     distance to the target (rad/s)."""
-    s = np.sign(v_goal_rad_s)
-    d = (q_target_rad - q_rad) * s
-    u = np.maximum(v_rad_s * s, 0.0)
-    speed = np.abs(v_goal_rad_s)
-    a, j = share * limits.acceleration_rad_s2, limits.jerk_rad_s3
-    run_up = np.where(d > 0, stop_speed_rad_s(d + stop_distance_rad(u, a, j), a, j), 0.0)
-    caught_up = np.clip(1.0 - np.abs(d) / (speed * CATCH_UP_S + 1e-12), 0.0, 1.0)
-    return s * np.minimum(speed, run_up) * caught_up
+    out = np.empty(len(v_goal_rad_s))
+    _reachable(kernel_array(v_goal_rad_s), kernel_array(q_target_rad), kernel_array(q_rad),
+               kernel_array(v_rad_s), limits.acceleration_rad_s2, limits.jerk_rad_s3,
+               float(share), out)
+    return out
+
+
+@nb.njit(**JIT)
+def _reachable(v_goal, q_target, q, v, accel, jerk, share, out):
+    """:func:`reachable_velocity` into ``out``, one joint at a time."""
+    for i in range(out.shape[0]):
+        s = np.sign(v_goal[i])
+        d = (q_target[i] - q[i]) * s
+        u = max(v[i] * s, 0.0)
+        speed = abs(v_goal[i])
+        a, j = share * accel[i], jerk[i]
+        run_up = _stop_speed(d + _stop_distance(u, a, j), a, j) if d > 0 else 0.0
+        caught_up = min(max(1.0 - abs(d) / (speed * CATCH_UP_S + 1e-12), 0.0), 1.0)
+        out[i] = s * min(speed, run_up) * caught_up
+
+
+@nb.njit(**JIT)
+def _estimate(weights, Q, q_target, lower, upper, velocity, accel, jerk, out):
+    """:meth:`GoalVelocity.update`'s estimate into ``out``: the slope of the targets ``Q``
+    (ring buffer rows) with ``weights``, within 90 % of the speed limit and the speed that
+    still stops before the position limit ahead."""
+    for i in range(out.shape[0]):
+        v = 0.0
+        for k in range(weights.shape[0]):
+            v += weights[k] * Q[k, i]
+        room = upper[i] - q_target[i] if v > 0 else q_target[i] - lower[i]
+        cap = min(0.9 * velocity[i], _stop_speed(room, accel[i], jerk[i]))
+        out[i] = min(max(v, -cap), cap)
 
 
 class GoalVelocity:
@@ -122,9 +172,8 @@ class GoalVelocity:
             self.v_rad_s = np.zeros(self.limits.size)
             return self.v_rad_s
         lim = self.limits
-        v = self._weights[self._slot] @ self._q
-        room = np.where(v > 0, lim.upper_rad - q_target_rad, q_target_rad - lim.lower_rad)
-        cap = np.minimum(0.9 * lim.velocity_rad_s,
-                         stop_speed_rad_s(room, lim.acceleration_rad_s2, lim.jerk_rad_s3))
-        self.v_rad_s = np.clip(v, -cap, cap)
+        self.v_rad_s = np.empty(lim.size)
+        _estimate(self._weights[self._slot], self._q, kernel_array(q_target_rad), lim.lower_rad,
+                  lim.upper_rad, lim.velocity_rad_s, lim.acceleration_rad_s2, lim.jerk_rad_s3,
+                  self.v_rad_s)
         return self.v_rad_s

@@ -21,6 +21,7 @@ at that speed while the hand moves faster, and catches up once it slows.
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from dataclasses import dataclass, field
 
@@ -151,7 +152,7 @@ class HandMapper:
             return None
         T_O = np.asarray(T_O_hand, dtype=float)
         # non-finite, or beyond any tracker's range (and large enough to overflow in the maths)
-        if not np.all(np.isfinite(T_O)) or np.max(np.abs(T_O[:3, 3])) > MAX_OPERATOR_RANGE_M:
+        if not np.isfinite(T_O).all() or np.abs(T_O[:3, 3]).max() > MAX_OPERATOR_RANGE_M:
             self.rejected += 1
             return None
         if hand not in self._refs:
@@ -169,7 +170,8 @@ class HandMapper:
         else:
             T_goal[:3, :3] = T_O[:3, :3] @ ref.T_O_ref[:3, :3].T @ ref.T_S_hand0[:3, :3]
             T_goal[:3, 3] = ref.T_S_hand0[:3, 3] + delta_S
-        if np.linalg.norm(T_goal[:3, 3] - ref.last_mapped[:3, 3]) > self.config.max_step_m:
+        step = T_goal[:3, 3] - ref.last_mapped[:3, 3]
+        if math.sqrt(step.dot(step)) > self.config.max_step_m:  # np.linalg.norm's arithmetic
             self.rejected += 1
             return None
         ref.last_mapped = T_goal.copy()

@@ -61,7 +61,7 @@ class CollisionRoom:
     Attributes:
         pushed_periods: per arm, how many calls moved its target out of the band.
         last_clearance_m: the closest pair's distance at the last returned target (m; a lower
-            bound of it when it exceeds the room by more than ``NEAR_M``).
+            bound of it when it exceeds the room).
         moved: the arms whose targets the last call replaced.
     """
 
@@ -99,6 +99,13 @@ class CollisionRoom:
         c = self.checker.check_near(q_rad, self.room_m + NEAR_M)
         return c.distance_m, c.pair
 
+    def _distance_to_room(self, q_rad: np.ndarray) -> tuple[float, tuple[str, str]]:
+        """:meth:`_distance` computing only the pairs whose bounds come within the room: exact
+        where it is below the room, a lower bound beyond it (enough to tell whether the target
+        keeps the room; most periods no pair is computed)."""
+        c = self.checker.check_near(q_rad, self.room_m)
+        return c.distance_m, c.pair
+
     def keep(self, q_prev_rad: np.ndarray, q_next_rad: np.ndarray,
              goals: dict | None = None) -> np.ndarray:
         """The target to use instead of ``q_next_rad`` (24 joints, rad) after ``q_prev_rad``.
@@ -108,7 +115,7 @@ class CollisionRoom:
                 T_N_E 4x4 in the neck frame): search the nearest clear pose to the goal.
         """
         q_next = np.asarray(q_next_rad, dtype=float)
-        d, pair = self._distance(q_next)
+        d, pair = self._distance_to_room(q_next)
         if d >= self.room_m:
             self.last_clearance_m = d
             self.moved = set()

@@ -54,6 +54,7 @@ pose too (without it the body's lean would not show in their error).
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -69,19 +70,22 @@ from hubo_cli.input.device import InputDevice
 from hubo_cli.kinematics.arm_reach import ArmReach, BranchMove, ReachSettings
 from hubo_cli.kinematics.choice import STATUS_NAMES
 from hubo_cli.kinematics.conditioning import SingularityScale, condition_number
-from hubo_cli.kinematics.dh import chain_fk, pose_error
+from hubo_cli.kinematics.dh import kernel_array, pose_error
 from hubo_cli.kinematics.interpolate import PosePath
 from hubo_cli.kinematics.reach import branch_of
 from hubo_cli.kinematics.torso import CorrectionSettings, MeasuredTorso, TorsoCorrection
 from hubo_cli.kinematics.wholebody import LiftFilter, WholeBody
 from hubo_cli.model import ARMS, RobotModel
+from hubo_cli.motion.limits import JointLimits
 from hubo_cli.motion.tracker import JointTracker
 from hubo_cli.scene import SceneActions, WallPlacement
 from hubo_cli.teleop.lead import GoalVelocity, reachable_velocity
 from hubo_cli.teleop.mapping import HandMapper
 from hubo_cli.teleop.phases import PHASES, Approach, Operate, Settle
+from hubo_cli.teleop.target_kernels import hand_errors, path_swing_m
 
 SHORT = {"right-arm": "r", "left-arm": "l"}
+_EYE4 = np.eye(4)  # read only
 REST_RADIUS_M = 0.005  # a goal that stays within this for REST_S is at rest
 REST_S = 0.5
 EXCURSION_WINDOW_S = 1.0  # max_excursion_mm: nearest goal sample within +-this
@@ -238,14 +242,15 @@ class TeleopTarget(Target):
         # (its limits, set each period to its state) to preview the arm's way with
         self._trackers: dict[str, JointTracker] | None = None
         self._goal_velocity: dict[str, GoalVelocity] = {}  # and the goals' velocities
-        self._swing_T = np.empty((4, 4))  # swing_m's forward kinematics
-        self._conditions: dict[str, tuple] = {}  # arm -> the last (joints, condition number)s
+        self._conditions: dict[str, tuple] = {}  # arm -> the last (joints' bytes, condition
+        # number)s
         if self.reach_settings.mode == "nearest" and self.reach_settings.collision_room_m > 0:
             from hubo_cli.teleop.room import CollisionRoom
 
             self.room = CollisionRoom(model, drill=body.tools.get("right-arm") == "drill",
                                       room_m=self.reach_settings.collision_room_m,
                                       arms=tuple(self.arms))
+        self._compile_kernels()
         self.rotation_errors_rad: dict[str, list[float]] = {arm: [] for arm in self.arms}
         self.path_times_s: dict[str, list[float]] = {arm: [] for arm in self.arms}
         self._t_solved_s: dict[str, float] = {}
@@ -264,36 +269,57 @@ class TeleopTarget(Target):
         self.world_errors_m: dict[str, list[float]] = {arm: [] for arm in self.arms}
         self.max_tilt_rad = 0.0
         self.paths: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {a: [] for a in self.arms}
+        self._info_names = {arm: tuple(f"{c}_{SHORT[arm]}" for c in (
+            "actual_x_m", "actual_y_m", "actual_z_m", "ik_code", "reach_limit_m", "speed_scale",
+            "goal_x_m", "goal_y_m", "goal_z_m", "error_m", "rot_error_rad")) for arm in self.arms}
+        self._hand_of: dict[str, str] = {}  # arm -> the operator's hand that drives it
+        for hand_name, arm in mapper.config.hand_arm.items():
+            self._hand_of.setdefault(arm, hand_name)
+        self._right_leg = model.limb_slice("right-leg")  # lift_of reads it
+        self._lifts: dict[bytes, float] = {}  # _lift_of's memory
+        self._T_S_N_now: np.ndarray | None = None  # _T_S_N's, this period
         self.log_columns = tuple(
             f"{c}_{SHORT[a]}" for a in self.arms
             for c in ("goal_x_m", "goal_y_m", "goal_z_m", "actual_x_m", "actual_y_m",
                       "actual_z_m", "error_m", "ik_code", "rot_error_rad", "reach_limit_m",
                       "speed_scale")) + ("phase_code", "lift_m", "latency_s")
 
+    def _compile_kernels(self) -> None:
+        """Call each compiled per-period kernel once: compiled (or loaded from numba's cache)
+        here, before the loop runs, and not in its first operating period."""
+        zeros = np.zeros(6)
+        limits = JointLimits(zeros - 1.0, zeros + 1.0, zeros + 1.0, zeros + 1.0, zeros + 1.0)
+        goal_velocity = GoalVelocity(limits, self.dt_guard_s)
+        for _ in range(len(goal_velocity._q)):
+            goal_velocity.update(zeros, True)
+        reachable_velocity(zeros, zeros, zeros, zeros, limits)
+        for reach in self.reach.values():
+            limb = reach.limb
+            condition_number(limb, zeros)
+            smoothing = ArmReach(limb, reach.settings)
+            smoothing.smoothed(_EYE4, 0.0)  # the first goal starts it, the second is smoothed
+            smoothing.smoothed(_EYE4, 0.0)
+            base, _, offset, alpha, a, d, end, _ = limb.chain
+            path_swing_m(np.zeros((3, 6)), base, offset, alpha, a, d, end)
+            hand_errors(zeros, base, offset, alpha, a, d, end, False, 0.0, _EYE4, _EYE4, True,
+                        np.empty((4, 4)))
+
     def attach(self, world: SceneActions | None, modules, store: Store) -> None:
         self.world, self.store = world, store
 
     # ------------------------------------------------------------------ measurement
-    def hand_pose_measured(self, arm: str, state) -> np.ndarray:
-        """T_S_E of an arm's tool from the measured joints (4x4, m): arm FK lifted by leg FK."""
-        T_N_E = self.body.arms[arm].fk(state.q_rad[self.slices[arm]])
-        if self.correction is not None and arm in self.correction.arms:
-            return self._T_S_N() @ T_N_E
-        T_N_E[2, 3] += self.body.lift_of(state.q_rad)
-        return T_N_E
-
-    def hand_position_world(self, arm: str, state) -> np.ndarray:
-        """The tool's position in S through the estimated torso pose (m)."""
-        T_N_E = self.body.arms[arm].fk(state.q_rad[self.slices[arm]])
-        return (self._T_S_N() @ T_N_E)[:3, 3]
-
     def _T_S_N(self) -> np.ndarray:
-        """The measured neck frame in S (4x4, m): the estimate's torso pose."""
-        return self.torso(self.store[T_WORLD_TORSO], self.store[T_WORLD_SOLES])
+        """The measured neck frame in S (4x4, m): the estimate's torso pose (computed once a
+        period, when first asked)."""
+        if self._T_S_N_now is None:
+            self._T_S_N_now = self.torso(self.store[T_WORLD_TORSO], self.store[T_WORLD_SOLES])
+        return self._T_S_N_now
 
     def hand_pose_commanded(self, arm: str) -> np.ndarray:
         """T_S_E of an arm's tool for the current joint target (4x4, m)."""
-        return self.goals.get(arm, self.body.arms[arm].fk(self.q_target[self.slices[arm]]))
+        goal = self.goals.get(arm)
+        return goal if goal is not None else self.body.arms[arm].fk(
+            self.q_target[self.slices[arm]])
 
     def _record_ik(self, solved) -> None:
         for arm, result in solved.arms.items():
@@ -318,6 +344,7 @@ class TeleopTarget(Target):
         self.info = info = {}
         self.keys_now = keys = self.keys.take()
         self._q_measured = state.q_rad
+        self._T_S_N_now = None
         if keys.estop:
             info["estop"] = "operator"
         if keys.release:
@@ -330,6 +357,7 @@ class TeleopTarget(Target):
         self._q_out_of = self.q_target
         self._pace_arms()
         self._measure(t_s, state, info)
+        self._T_S_N_now = None  # outside a period, asked anew
         if self.phase == "operate":
             self.operate_call_s.append(time.perf_counter() - t0)
         return self.q_out, info
@@ -377,17 +405,7 @@ class TeleopTarget(Target):
         if len(path) < 3:
             return 0.0
         base, _, offset, alpha, a, d, end, _ = limb.chain
-        T = self._swing_T
-        points = np.empty((len(path), 3))  # from the commanded position to the target's
-        for k, q in enumerate(path):
-            chain_fk(q, base, offset, alpha, a, d, end, T)
-            points[k] = T[:3, 3]
-        p = points[1:-1] - points[0]
-        line = points[-1] - points[0]
-        length2 = float(line @ line)
-        along = (np.zeros(len(p)) if length2 < 1e-18
-                 else np.clip(p @ line / length2, 0.0, 1.0))
-        return float(np.sqrt(np.max(np.sum((p - along[:, None] * line) ** 2, axis=1))))
+        return path_swing_m(path, base, offset, alpha, a, d, end)
 
     def _settled(self, state) -> bool:
         # against the output; a target set this period has none yet: against the target
@@ -486,8 +504,7 @@ class TeleopTarget(Target):
                 elif hand.needs_clutch:
                     flags.append("holding")
         lift = self.lift.step(self.body.lift_for(self.goals), self.dt_guard_s)
-        if changed or self._converging() or branch_key or lift != self.body.lift_of(
-                self.q_target):
+        if changed or self._converging() or branch_key or lift != self._lift_of(self.q_target):
             if self.reach_settings.mode == "paper":
                 solved = self.body.solve(self.goals, self.q_target, lift_m=lift)
                 self.q_target = solved.q_rad
@@ -563,8 +580,8 @@ class TeleopTarget(Target):
         """Start, follow or finish a slow branch change; returns the arm's joints."""
         reach = self.reach[arm]
         goal_m = T_N_goal[:3, 3]
-        if hand.rest_anchor_m is None or np.linalg.norm(goal_m - hand.rest_anchor_m) > \
-                REST_RADIUS_M:
+        moved = None if hand.rest_anchor_m is None else goal_m - hand.rest_anchor_m
+        if moved is None or math.sqrt(moved.dot(moved)) > REST_RADIUS_M:  # np.linalg.norm
             hand.rest_anchor_m, hand.rest_since_s = goal_m.copy(), t_s
         at_rest = t_s - hand.rest_since_s >= REST_S
         if hand.branch_move is None and hand.at_limit and (
@@ -611,12 +628,13 @@ class TeleopTarget(Target):
     def _condition(self, arm: str, q_rad: np.ndarray) -> float:
         """:func:`condition_number` of the arm at ``q_rad``, remembered for the last joints
         asked of each arm (the next period's ``q_now`` is mostly this period's ``q_next``)."""
+        key = q_rad.tobytes()
         cached = self._conditions.get(arm)
         for q_known, kappa in cached or ():
-            if np.array_equal(q_known, q_rad):
+            if q_known == key:
                 return kappa
         kappa = condition_number(self.reach[arm].limb, q_rad)
-        self._conditions[arm] = ((np.array(q_rad, dtype=float), kappa), *(cached or ())[:1])
+        self._conditions[arm] = ((key, kappa), *(cached or ())[:1])
         return kappa
 
     def reach_report(self) -> dict[str, dict]:
@@ -656,43 +674,59 @@ class TeleopTarget(Target):
 
     def _measure(self, t_s: float, state, info: dict) -> None:
         info["phase_code"] = PHASES.index(self.phase)
-        info["lift_m"] = float(self.body.lift_of(self.q_target))
+        info["lift_m"] = self._lift_of(self.q_target)
         info["latency_s"] = self.latencies_s[-1] if self.latencies_s else 0.0
+        operating = self.phase == "operate"
         for arm, hand in self.hands.items():
-            key = SHORT[arm]
-            T_actual = self.hand_pose_measured(arm, state)
-            actual = T_actual[:3, 3]
+            names = self._info_names[arm]
             goal = self.goals.get(arm)
+            corrected = self.correction is not None and arm in self.correction.arms
+            world = (goal is not None and operating
+                     and self.mapper.is_calibrated(self._hand_of[arm]))
+            T_S_N = self._T_S_N() if corrected or world else _EYE4
+            base, _, offset, alpha, a, d, end, _ = self.body.arms[arm].chain
+            T_actual = np.empty((4, 4))
+            error, rot_error, world_error = hand_errors(
+                kernel_array(state.q_rad[self.slices[arm]]), base, offset, alpha, a, d, end,
+                corrected, 0.0 if corrected else self._lift_of(state.q_rad), T_S_N,
+                _EYE4 if goal is None else kernel_array(goal), world, T_actual)
+            actual = T_actual[:3, 3]
             hand.actual_m = actual
-            if goal is not None:
-                hand.goal_m = goal[:3, 3]
-            info.update({f"actual_x_m_{key}": actual[0], f"actual_y_m_{key}": actual[1],
-                         f"actual_z_m_{key}": actual[2],
-                         f"ik_code_{key}": STATUS_NAMES.index(hand.ik_status)
-                         if hand.ik_status in STATUS_NAMES else -1,
-                         f"reach_limit_m_{key}": 0.0 if hand.missing_m is None
-                         else float(np.linalg.norm(hand.missing_m)),
-                         f"speed_scale_{key}": hand.speed_scale})
-            if hand.goal_m is not None:
-                error = float(np.linalg.norm(hand.goal_m - actual))
-                rot_error = float(pose_error(T_actual, np.asarray(goal, dtype=float))[1])
-                info.update({f"goal_x_m_{key}": hand.goal_m[0], f"goal_y_m_{key}": hand.goal_m[1],
-                             f"goal_z_m_{key}": hand.goal_m[2], f"error_m_{key}": error,
-                             f"rot_error_rad_{key}": rot_error})
-                if self.phase == "operate" and self.mapper.is_calibrated(self.hand_of(arm)):
-                    self.errors_m[arm].append(error)
-                    self.reachable[arm].append(hand.reachable)
-                    self.rotation_errors_rad[arm].append(rot_error)
-                    self.path_times_s[arm].append(t_s)
-                    self.paths[arm].append((hand.goal_m.copy(), actual.copy()))
-                    world = self.hand_position_world(arm, state)
-                    self.world_errors_m[arm].append(float(np.linalg.norm(hand.goal_m - world)))
+            x, y, z = actual
+            info.update(zip(names[:6], (
+                x, y, z, STATUS_NAMES.index(hand.ik_status) if hand.ik_status in STATUS_NAMES
+                else -1, 0.0 if hand.missing_m is None
+                else math.sqrt(hand.missing_m.dot(hand.missing_m)),  # np.linalg.norm's
+                hand.speed_scale), strict=True))
+            if goal is None:
+                continue
+            hand.goal_m = goal_m = goal[:3, 3]
+            x, y, z = goal_m
+            info.update(zip(names[6:], (x, y, z, error, rot_error), strict=True))
+            if world:
+                self.errors_m[arm].append(error)
+                self.reachable[arm].append(hand.reachable)
+                self.rotation_errors_rad[arm].append(rot_error)
+                self.path_times_s[arm].append(t_s)
+                self.paths[arm].append((goal_m.copy(), actual.copy()))
+                self.world_errors_m[arm].append(world_error)
         self.max_tilt_rad = max(self.max_tilt_rad,
                                 float(tilt_rad_of_quat_wxyz(self.store[QUAT_WORLD_TORSO])))
 
+    def _lift_of(self, q_rad: np.ndarray) -> float:
+        """:meth:`WholeBody.lift_of` of a joint vector, remembered for the last few leg
+        postures asked (the joint target and the measured joints are asked every period)."""
+        key = q_rad[self._right_leg].tobytes()
+        lift = self._lifts.get(key)
+        if lift is None:
+            if len(self._lifts) >= 4:
+                self._lifts.clear()
+            lift = self._lifts[key] = float(self.body.lift_of(q_rad))
+        return lift
+
     def hand_of(self, arm: str) -> str:
         """The operator's hand that drives ``arm``."""
-        return next(h for h, a in self.mapper.config.hand_arm.items() if a == arm)
+        return self._hand_of[arm]
 
 
 def max_excursion_m(t_s: np.ndarray, goals_m: np.ndarray, actual_m: np.ndarray,

@@ -1,0 +1,309 @@
+"""The teleop target's compiled per-period arithmetic gives what the plain numpy code gave.
+
+Each compiled part against its numpy version as it was written before (kept here as the
+reference), on drawn and hostile inputs; then the whole target against a reference target built
+from those numpy versions (and the collision room's first check over every pair within 5 cm of
+the room, as before), closed loop over generated operator streams: every period the same joint
+targets to 1e-9 rad, the same joints commanded by the trajectory generator and the same target
+velocities given to it (to 1e-8 rad and 1e-7 rad/s), and the same summary figures.
+
+Closed loop, the two runs differ by rounding from the first period on (numpy's BLAS products and
+the compiled loops round differently; 1e-13 rad over 4 s, seeds 3400 and 3401). The collision
+room's clear search decides some steps on an exact tie (a step that leaves the closest pair's
+distance unchanged is accepted when the new distance is not below the old one): such a tie,
+broken the other way by a last-bit difference, sends the runs apart (seed 3402, 0.25 m/s,
+4 s: at 1.845 s the left arm's search took a 0.1 rad step in one run and not the other). Any
+change of rounding does that, the base code's own on another BLAS kernel too; the streams here
+have no such tie.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from hubo_cli.control.keys import ARM_TARGET_VELOCITY
+from hubo_cli.input.operator_stream import StreamSettings
+from hubo_cli.kinematics.arm_reach import ArmReach
+from hubo_cli.kinematics.conditioning import condition_number
+from hubo_cli.kinematics.dh import pose_error
+from hubo_cli.kinematics.limb import get_limb
+from hubo_cli.kinematics.reach import jacobian
+from hubo_cli.model import load_model
+from hubo_cli.motion.limits import JointLimits
+from hubo_cli.teleop import lead
+from hubo_cli.teleop import target as target_module
+from hubo_cli.teleop.room import CollisionRoom
+from hubo_cli.teleop.stream_runs import follow_generated
+from hubo_cli.teleop.target_kernels import hand_errors, path_swing_m
+
+# ---------------------------------------------------------------- the numpy code, as it was
+
+
+def numpy_condition_number(limb, q_rad):
+    base, _, offset, alpha, a, d, end, _ = limb.chain
+    T = np.empty((4, 4))
+    J = np.empty((6, 6))
+    jacobian(np.ascontiguousarray(q_rad, dtype=float), base, offset, alpha, a, d, end, T, J)
+    J[:3] /= float(limb.lengths_m[0] + limb.lengths_m[1])
+    s = np.linalg.svd(J, compute_uv=False)
+    return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+
+
+def numpy_stop_distance(v, a, j):
+    return np.where(v <= a * a / j, v * np.sqrt(v / j), v * v / (2 * a) + v * a / (2 * j))
+
+
+def numpy_stop_speed(room_rad, a, j):
+    room = np.maximum(room_rad, 0.0)
+    low = np.cbrt(room * room * j)
+    high = 0.5 * (-a * a / j + np.sqrt((a * a / j) ** 2 + 8.0 * a * room))
+    return np.where(low <= a * a / j, low, high)
+
+
+def numpy_reachable_velocity(v_goal, q_target, q, v, limits, share=lead.RUN_UP_SHARE):
+    s = np.sign(v_goal)
+    d = (q_target - q) * s
+    u = np.maximum(v * s, 0.0)
+    speed = np.abs(v_goal)
+    a, j = share * limits.acceleration_rad_s2, limits.jerk_rad_s3
+    run_up = np.where(d > 0, numpy_stop_speed(d + numpy_stop_distance(u, a, j), a, j), 0.0)
+    caught_up = np.clip(1.0 - np.abs(d) / (speed * lead.CATCH_UP_S + 1e-12), 0.0, 1.0)
+    return s * np.minimum(speed, run_up) * caught_up
+
+
+class NumpyGoalVelocity(lead.GoalVelocity):
+    def update(self, q_target_rad, follow):
+        k = len(self._q)
+        self._slot = (self._slot + 1) % k
+        self._q[self._slot] = q_target_rad
+        self._count = min(self._count + 1, k)
+        if not follow or self._count < k:
+            self.v_rad_s = np.zeros(self.limits.size)
+            return self.v_rad_s
+        lim = self.limits
+        v = self._weights[self._slot] @ self._q
+        room = np.where(v > 0, lim.upper_rad - q_target_rad, q_target_rad - lim.lower_rad)
+        cap = np.minimum(0.9 * lim.velocity_rad_s,
+                         numpy_stop_speed(room, lim.acceleration_rad_s2, lim.jerk_rad_s3))
+        self.v_rad_s = np.clip(v, -cap, cap)
+        return self.v_rad_s
+
+
+def _axis_angle(axis, angle):
+    K = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * (K @ K)
+
+
+class NumpyReach(ArmReach):
+    def smoothed(self, T_goal, dt_s):
+        tau = self.settings.orientation_time_constant_s
+        T = np.array(T_goal, dtype=float)
+        if tau <= 0 or self.settings.mode == "paper":
+            return T
+        if self._R_smooth is None:
+            self._R_smooth = T[:3, :3].copy()
+        else:
+            alpha = dt_s / (tau + dt_s)
+            R_rel = self._R_smooth.T @ T[:3, :3]
+            angle = float(np.arccos(np.clip((np.trace(R_rel) - 1) / 2, -1.0, 1.0)))
+            if angle > 1e-12:
+                axis = np.array([R_rel[2, 1] - R_rel[1, 2], R_rel[0, 2] - R_rel[2, 0],
+                                 R_rel[1, 0] - R_rel[0, 1]])
+                norm = np.linalg.norm(axis)
+                if norm > 1e-12:
+                    self._R_smooth = self._R_smooth @ _axis_angle(axis / norm, alpha * angle)
+                else:
+                    self._R_smooth = T[:3, :3].copy()
+        T[:3, :3] = self._R_smooth
+        return T
+
+
+def numpy_path_swing_m(limb, path):
+    points = np.array([limb.fk(q)[:3, 3] for q in path])
+    p = points[1:-1] - points[0]
+    line = points[-1] - points[0]
+    length2 = float(line @ line)
+    along = np.zeros(len(p)) if length2 < 1e-18 else np.clip(p @ line / length2, 0.0, 1.0)
+    return float(np.sqrt(np.max(np.sum((p - along[:, None] * line) ** 2, axis=1))))
+
+
+class ReferenceRoom(CollisionRoom):
+    def _distance_to_room(self, q_rad):  # as before: every pair within NEAR_M of the room
+        return self._distance(q_rad)
+
+
+class ReferenceTarget(target_module.TeleopTarget):
+    """The teleop target with the numpy code above in place of the compiled parts."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.reach = {arm: NumpyReach(r.limb, r.settings) for arm, r in self.reach.items()}
+        if self.room is not None:
+            self.room.__class__ = ReferenceRoom
+
+    def start_operating(self, t_s):
+        super().start_operating(t_s)
+        self._goal_velocity = {arm: NumpyGoalVelocity(g.limits, self.dt_guard_s)
+                               for arm, g in self._goal_velocity.items()}
+
+    def _condition(self, arm, q_rad):
+        return numpy_condition_number(self.reach[arm].limb, q_rad)
+
+    def swing_m(self, arm, tracker, target_rad, target_v_rad_s=None):
+        if np.max(np.abs(target_rad - tracker.q)) < 1e-6:
+            return 0.0
+        path = tracker.preview(target_rad, target_module.OPERATE_SYNCHRONIZATION,
+                               target_module.SWING_SAMPLES, target_v_rad_s)
+        return 0.0 if len(path) < 3 else numpy_path_swing_m(self.body.arms[arm], path)
+
+
+# ---------------------------------------------------------------- the compiled parts alone
+
+
+@pytest.fixture(scope="module")
+def arm_limits():
+    model = load_model(limits="teleop")
+    return JointLimits.from_model(model).subset(np.arange(24)[model.limb_slice("right-arm")])
+
+
+def test_the_condition_number_matches_numpys_svd():
+    """To 1e-12 relative up to 1000 (the speed scale acts between 30 and 170), near the
+    straight elbow, the wrist yaw's and the shoulder roll's singular values included."""
+    rng = np.random.default_rng(41)
+    for name in ("right-arm", "left-arm"):
+        limb = get_limb(name)
+        Q = limb.random_q(rng, 3000)
+        Q[:500, 3] = rng.uniform(-0.02, 0.02, 500)
+        Q[500:1000, 4] = np.pi / 2 + rng.uniform(-0.02, 0.02, 500)
+        Q[1000:1500, 1] = np.pi / 2 + rng.uniform(-0.02, 0.02, 500)
+        for q in Q:
+            expected = numpy_condition_number(limb, q)
+            if expected < 1000:
+                assert condition_number(limb, q) == pytest.approx(expected, rel=1e-12), q
+
+
+def test_the_lead_kernels_match_numpy(arm_limits):
+    rng = np.random.default_rng(42)
+    a, j = arm_limits.acceleration_rad_s2, arm_limits.jerk_rad_s3
+    for _ in range(2000):
+        scale = rng.choice([1e-9, 1e-3, 1.0, 10.0])
+        room = rng.uniform(-0.5, 2.0, 6) * scale
+        assert np.allclose(lead.stop_speed_rad_s(room, a, j), numpy_stop_speed(room, a, j),
+                           rtol=1e-12, atol=1e-15)
+        v = np.abs(rng.normal(size=6)) * scale
+        assert np.allclose(lead.stop_distance_rad(v, a, j), numpy_stop_distance(v, a, j),
+                           rtol=1e-12, atol=1e-15)
+        v_goal, q_target, q, v = rng.normal(size=(4, 6)) * rng.choice([1e-6, 0.1, 1.0])
+        v_goal[rng.random(6) < 0.2] = 0.0
+        at_target = rng.random(6) < 0.2
+        q_target[at_target] = q[at_target]  # some joints at their targets
+        assert np.allclose(lead.reachable_velocity(v_goal, q_target, q, v, arm_limits),
+                           numpy_reachable_velocity(v_goal, q_target, q, v, arm_limits),
+                           rtol=1e-12, atol=1e-15)
+    fast, plain = lead.GoalVelocity(arm_limits, 0.005), NumpyGoalVelocity(arm_limits, 0.005)
+    q = rng.uniform(arm_limits.lower_rad, arm_limits.upper_rad)
+    for _ in range(3000):  # random walks, some to the limits, some periods not following
+        q = np.clip(q + rng.normal(size=6) * rng.choice([1e-4, 0.01, 0.05]),
+                    arm_limits.lower_rad, arm_limits.upper_rad)
+        follow = bool(rng.random() > 0.05)
+        assert np.allclose(fast.update(q, follow), plain.update(q, follow), rtol=1e-12,
+                           atol=1e-12)
+
+
+def test_the_orientation_smoothing_matches_numpy():
+    """Slow turns, half turns (the jump) and goals equal to the smoothed orientation."""
+    limb = get_limb("right-arm")
+    fast, plain = ArmReach(limb), NumpyReach(limb)
+    rng = np.random.default_rng(43)
+    R = Rotation.random(random_state=4)
+    for k in range(6000):
+        if k % 400 == 0:
+            R = Rotation.random(random_state=k)
+        elif k % 400 == 200:
+            R = Rotation.from_rotvec(np.pi * np.array([0.0, 0.0, 1.0])) * R
+        elif k % 7:
+            R = Rotation.from_rotvec(rng.normal(size=3) * rng.choice([1e-9, 0.01, 0.1])) * R
+        T = np.eye(4)
+        T[:3, :3] = R.as_matrix()
+        T[:3, 3] = rng.normal(size=3)
+        dt = float(rng.choice([0.005, 0.0, 0.02]))
+        assert np.allclose(fast.smoothed(T, dt), plain.smoothed(T, dt), rtol=0, atol=1e-12)
+
+
+def test_the_swing_and_the_hand_errors_match_numpy():
+    rng = np.random.default_rng(44)
+    for name in ("right-arm", "left-arm"):
+        limb = get_limb(name)
+        base, _, offset, alpha, a, d, end, _ = limb.chain
+        for k in range(500):
+            q0 = limb.random_q(rng)
+            path = q0 + np.cumsum(rng.normal(size=(8, 6)) * rng.choice([1e-8, 0.01, 0.2]),
+                                  axis=0)
+            if k % 50 == 0:
+                path[:] = q0  # no way at all: the line has no length
+            assert path_swing_m(path, base, offset, alpha, a, d, end) == pytest.approx(
+                numpy_path_swing_m(limb, path), rel=1e-9, abs=1e-12)
+            T_goal = limb.fk(limb.random_q(rng))
+            T_S_N = np.eye(4)
+            T_S_N[:3, :3] = Rotation.random(random_state=k).as_matrix()
+            T_S_N[:3, 3] = rng.normal(size=3) * 0.05
+            lift = float(rng.uniform(-0.1, 0.1))
+            T_N_E = limb.fk(q0)
+            for corrected in (False, True):
+                expected = T_S_N @ T_N_E if corrected else T_N_E + np.outer(
+                    [0, 0, 1, 0], [0, 0, 0, lift])
+                T_actual = np.empty((4, 4))
+                pos, rot, world = hand_errors(q0, base, offset, alpha, a, d, end, corrected,
+                                              lift, T_S_N, T_goal, True, T_actual)
+                assert np.allclose(T_actual, expected, rtol=0, atol=1e-13)
+                assert np.allclose((pos, rot), pose_error(expected, T_goal), rtol=0,
+                                   atol=1e-12)
+                assert world == pytest.approx(
+                    np.linalg.norm(T_goal[:3, 3] - (T_S_N @ T_N_E)[:3, 3]), abs=1e-12)
+
+
+# ---------------------------------------------------------------- the whole target, closed loop
+
+
+STREAMS = [(3400, 0.25), (3401, 0.25), (3402, 0.6)]  # 2 s each (see the module docstring)
+
+
+def _joint_targets(monkeypatch, target_class, seed, max_speed):
+    """Per period of a generated stream (follow_generated's loop): the target's joint targets,
+    the joints the arms were at (the trajectory generator's last command, on the ideal
+    driver) and the arms' target velocities for it; and the run."""
+    recorded = []
+
+    class Recorded(target_class):
+        def __call__(self, t_s, state):
+            q, info = super().__call__(t_s, state)
+            velocity = self.store.get(ARM_TARGET_VELOCITY) or {}
+            recorded.append(np.concatenate([q, state.q_rad] + [
+                velocity.get(arm, np.zeros(6)) for arm in ("right-arm", "left-arm")]))
+            return q, info
+
+    with monkeypatch.context() as patch:
+        patch.setattr(target_module, "TeleopTarget", Recorded)
+        if target_class is ReferenceTarget:
+            patch.setattr(target_module, "reachable_velocity", numpy_reachable_velocity)
+        run = follow_generated(seed, StreamSettings(duration_s=2.0, max_speed_m_s=max_speed))
+    return np.array(recorded), run
+
+
+@pytest.mark.parametrize("seed, max_speed", STREAMS)
+def test_the_compiled_target_moves_the_arms_as_the_numpy_target(monkeypatch, seed, max_speed):
+    fast, fast_run = _joint_targets(monkeypatch, target_module.TeleopTarget, seed, max_speed)
+    plain, plain_run = _joint_targets(monkeypatch, ReferenceTarget, seed, max_speed)
+    assert fast.shape == plain.shape
+    # measured on these streams: joint targets 3e-14 rad apart, the generator's commands
+    # 3e-10 rad and the target velocities 4e-9 rad/s (ruckig's time-optimal profiles and the
+    # velocity's catch-up share magnify the rounding), bounds 30x and more over them
+    difference = np.abs(fast - plain)
+    assert np.max(difference[:, :24]) <= 1e-9
+    assert np.max(difference[:, 24:48]) <= 1e-8
+    assert np.max(difference[:, 48:]) <= 1e-7
+    for arm, figures in plain_run.hands.items():
+        for key, value in figures.items():
+            assert fast_run.hands[arm][key] == pytest.approx(value, rel=1e-9, abs=1e-9), key
