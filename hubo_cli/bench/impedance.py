@@ -1,6 +1,6 @@
 """The ImpedanceController (eq. 3) on both hands for one period: reading both wrist wrenches,
 the force tracking of a reference force, the zero-order-hold update, the clamp and the
-closed-form IK of each hand's offset pose; the drill's hand holds its reference in the world too.
+closed-form IK of each hand's offset pose.
 Target (issue 36): <= 30 us per hand per period."""
 
 from __future__ import annotations
@@ -10,11 +10,9 @@ import time
 import numpy as np
 
 from hubo_cli.control.impedance import ImpedanceController
-from hubo_cli.control.keys import TOOL_GOAL_N
 from hubo_cli.control.module import Cycle
 from hubo_cli.dataflow import Store
 from hubo_cli.estimation.keys import WRENCHES
-from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import load_model
 from hubo_cli.posture import home_posture
 from hubo_cli.state import RobotState
@@ -28,10 +26,8 @@ def run(report) -> None:
     dt = model.control_period_s
     q = home_posture(model)
     q[[0, 3, 6, 9]] = -0.3, -1.2, -0.3, -1.2  # both hands forward, elbows bent
-    # the bit's force and the hold in the world on one hand
-    ic = ImpedanceController(model, dt, tools={"right-arm": "drill"}, goal=TOOL_GOAL_N)
+    ic = ImpedanceController(model, dt, tools={"right-arm": "drill"})  # the bit's force on one
     state = RobotState(0.0, q, np.zeros(len(q)))
-    bit_N = Limb(model, "right-arm", "drill").fk(q[model.limb_slice("right-arm")])[:3, 3]
     store = Store()
     store[WRENCHES] = {}
     ic.reset(q, state, store)
@@ -44,7 +40,6 @@ def run(report) -> None:
         wrench = np.array([3 * np.cos(phase), 3 * np.sin(phase), 2.0, 0.1, 0.1 * np.sin(phase),
                            0.05])
         store[WRENCHES] = {"right-wrist": wrench, "left-wrist": -wrench}
-        store[TOOL_GOAL_N] = {"right-arm": bit_N + [0.002 * np.sin(phase), 0.0, 0.0]}  # sway
         cycle = Cycle(k * dt, dt, store=store)
         t0 = clock()
         ic.update(q, state, cycle)

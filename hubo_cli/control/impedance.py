@@ -67,18 +67,6 @@ the offset is held (unreachable, or its position at ``max_offset_m``) force trac
 move the spring's centre. The limiter downstream keeps every joint within its limits and
 rates.
 
-Hold in the world (``goal``, the store's :data:`~hubo_cli.control.keys.TOOL_GOAL_N`): a hand
-holding a contact tool moves its reference, along the axes that yield only, to the point where
-the motion wants the tool as seen from the body as the estimate has it this period (the task
-target's plan goal in the measured neck frame, unfiltered), low-passed here
-(:func:`follow_goal`), less the tool point its input command gives, at most FOLLOW_MAX_M. The
-arm's own correction for the measured torso comes late (the target's 0.1 s low-pass, then the
-trajectory generator timing it): at a corner of the cut the commanded body (the legs' lift
-ending, the ankle balancer's pitch) moved the bit 3-4 mm along itself in 0.3 s and the thrust
-fell to 0 N (issue 36, docs/history/impedance.md). The hold lets go (the command's own point)
-while the soft stopper moves the command (STOP_MODE not ``release``: its revert and a
-wrist-torque stop's backing out move the hand in the world) and without a goal.
-
 Limits: the position offset's norm is clamped to ``max_offset_m`` and the rotation's to
 ``max_rotation_rad`` (the velocity pushing outward is dropped, so the state does not wind up);
 flag ``impedance-limit``. A non-finite wrench holds the last offset (the state is not
@@ -99,7 +87,7 @@ import numba as nb
 import numpy as np
 import scipy.linalg
 
-from hubo_cli.control.keys import IMPEDANCE_ON, STOP_MODE
+from hubo_cli.control.keys import IMPEDANCE_ON
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.wrench import (
     ALONG_MIN,
@@ -129,17 +117,6 @@ MODES = ("on", "release", "off")
 MODE_CODE = {name: i for i, name in enumerate(MODES)}
 LIMIT_FLAG, BAD_FLAG, UNREACHABLE_FLAG, RELEASE_FLAG = (
     "impedance-limit", "impedance-bad-wrench", "impedance-unreachable", "impedance-release")
-
-# the hold in the world (see the module docstring): the most it moves a hand's reference (the
-# body's motion at a corner of the cut: ~4 mm along the bit in 0.3 s), its speed, its
-# acceleration (the arm's joints have 0.8 rad/s^2 for the path's own corners too: at 1 m/s^2
-# the limiter's band held the command back and it caught up past the goal) and the goal's
-# critically damped filter (the estimate's jitter; lag 2 / omega = 16 ms)
-FOLLOW_MAX_M = 0.003
-FOLLOW_SPEED_M_S = 0.05
-FOLLOW_ACCEL_M_S2 = 0.1
-FOLLOW_OMEGA_RAD_S = 2 * math.pi * 20.0
-_NO_GOAL = np.full(3, np.nan)
 
 # the robot file's [impedance] keys and the diagonal entries they fill
 _DIAGONALS = {"M": ("mass_kg", "inertia_kg_m2"),
@@ -330,69 +307,6 @@ def retreat_offset(q_cmd, chain, max_step_rad, fraction, dq, x_out) -> None:
 
 
 @nb.njit(**JIT)
-def follow_goal(q_cmd, base, offset, alpha, a, d, end, tool_H, goal_N, mask, max_m, dt_s,
-                held, rate, follow) -> None:
-    """One period of the hold in the world. ``held`` (N, m; NaN: not started) is where the
-    tool is held, ``rate`` its rate (m/s): a critically damped second-order filter
-    (FOLLOW_OMEGA_RAD_S; acceleration and speed bounded, FOLLOW_ACCEL_M_S2 and
-    FOLLOW_SPEED_M_S) toward ``goal_N``, or toward the command's own tool point where
-    ``goal_N`` is not finite (no goal: letting go). ``follow`` = ``held`` minus the tool point
-    ``tool_H`` (hand frame, m) that FK(``q_cmd``) puts in N, on the masked axes only, its norm
-    at most ``max_m``: the reference's move. The filter is on the goal alone (the estimate's
-    jitter), never on the command, which is known exactly: the hand's reference along the
-    masked axes is the filtered goal however late the command's own correction comes."""
-    T = np.empty((4, 4))
-    chain_fk(q_cmd, base, offset, alpha, a, d, end, T)
-    p = np.empty(3)
-    for i in range(3):
-        p[i] = T[i, 0] * tool_H[0] + T[i, 1] * tool_H[1] + T[i, 2] * tool_H[2] + T[i, 3]
-    has_goal = np.isfinite(goal_N[0]) and np.isfinite(goal_N[1]) and np.isfinite(goal_N[2])
-    if not np.isfinite(held[0]):  # start where the command holds the tool, at rest
-        for i in range(3):
-            held[i] = p[i]
-            rate[i] = 0.0
-    reach = np.zeros(3)  # the goal from the command's tool point, at most max_m
-    if has_goal:
-        for i in range(3):
-            reach[i] = (goal_N[i] - p[i]) * mask[i]
-        _bound(reach, max_m)
-    w = FOLLOW_OMEGA_RAD_S
-    acc = np.empty(3)
-    gap = 0.0
-    for i in range(3):
-        acc[i] = w * w * (p[i] + reach[i] - held[i]) - 2.0 * w * rate[i]
-        gap += (p[i] + reach[i] - held[i]) ** 2
-    _bound(acc, FOLLOW_ACCEL_M_S2)
-    for i in range(3):
-        rate[i] += acc[i] * dt_s
-    # no faster than it can brake in: an acceleration-bounded step does not overshoot
-    _bound(rate, min(FOLLOW_SPEED_M_S, math.sqrt(2.0 * FOLLOW_ACCEL_M_S2 * math.sqrt(gap))
-                     + FOLLOW_ACCEL_M_S2 * dt_s))
-    for i in range(3):
-        held[i] += rate[i] * dt_s
-        if mask[i] == 0.0:  # the stiff axes keep the command's
-            held[i] = p[i]
-            rate[i] = 0.0
-        follow[i] = held[i] - p[i]
-    _bound(follow, max_m)
-    if not has_goal and abs(follow[0]) + abs(follow[1]) + abs(follow[2]) < 1e-9:
-        for i in range(3):  # let go: back to the command bit for bit
-            follow[i] = 0.0
-            held[i] = math.nan
-
-
-@nb.njit(**JIT)
-def _bound(v, limit) -> bool:
-    """Scale the 3-vector ``v`` down to the norm ``limit``; True if it was longer."""
-    n = math.sqrt(v[0] ** 2 + v[1] ** 2 + v[2] ** 2)
-    if n > limit:
-        for i in range(3):
-            v[i] *= limit / n
-        return True
-    return False
-
-
-@nb.njit(**JIT)
 def _move_centre(centre, step_m, wrench_ref_N, size, mask, max_offset_m) -> None:
     """centre += step_m d (d = F_ref / size, masked axes), its norm clamped to max_offset_m."""
     for i in range(3):
@@ -491,11 +405,6 @@ class _Hand:
         self.has_contact = False  # ... if eq. 3 and force tracking read the force there
         self.wrench_contact = np.zeros(6)  # this period's reading with the force at that point
         self.dq_rad = np.zeros(6)
-        self.tool_H_m = np.zeros(3)  # the contact tool's point in the hand frame (m)
-        self.follow_m = np.zeros(3)  # the hold in the world: the reference moved by (N, m)
-        self.held_m = np.full(3, np.nan)  # ... to hold the tool here (N, m; NaN: not yet)
-        self.held_rate_m_s = np.zeros(3)  # ... moving at this rate
-        self.x_goal = np.zeros(6)  # the offset the joints take: x with follow_m added
         self.held = False  # last period's offset was held (unreachable or at its limit)
         self.T_N_H = np.empty((4, 4))
         self.release_from = np.zeros(6)
@@ -505,7 +414,6 @@ class _Hand:
         self.rotation_column = f"impedance_{side}_rotation_rad"
         self.force_ref_columns = tuple(f"impedance_{side}_force_ref_{a}_n" for a in "xyz")
         self.centre_column = f"impedance_{side}_centre_m"
-        self.follow_column = f"impedance_{side}_follow_m"
 
 
 class ImpedanceController(Module):
@@ -531,10 +439,6 @@ class ImpedanceController(Module):
             force at the bit (f_z and the two moments, :func:`contact_wrench`) instead of the
             force along the forearm alone, and force tracking no longer assumes it lies along
             the reference.
-        goal: the store key of the tool goals (:data:`~hubo_cli.control.keys.TOOL_GOAL_N`,
-            arm -> the tool point the motion wants, in the neck frame as measured this
-            period), or None. With it a hand holding a contact tool holds its reference in
-            the world along the axes that yield (see the module docstring).
 
     Flags: ``impedance-limit`` (an offset clamped), ``impedance-bad-wrench`` (a non-finite
     reading: offset held), ``impedance-unreachable`` (joint offset held), ``impedance-release``.
@@ -554,7 +458,7 @@ class ImpedanceController(Module):
                  T_hand_sensor: np.ndarray = T_HAND_SENSOR, active: bool = True,
                  reference: Key | None = None, axes: tuple[str, ...] = WRENCH_AXES,
                  force_tracking_m_per_n_s: float | None = None,
-                 tools: dict[str, str] | None = None, goal: Key | None = None) -> None:
+                 tools: dict[str, str] | None = None) -> None:
         raw = model.raw_impedance
         defaults = default_gains(model) if M is None or D is None or K is None else {}
         self.M, self.D, self.K = (
@@ -588,9 +492,6 @@ class ImpedanceController(Module):
         self.measured_force = np.array([i in MEASURED_FORCE_AXES for i in range(3)], dtype=float)
         self.reference = reference
         self.reads = MEASURED_WRENCH_READS + (() if reference is None else (reference,))
-        self.goal = goal
-        if goal is not None:  # held in the world unless the soft stopper moves the command
-            self.follows = (IMPEDANCE_ON, STOP_MODE, goal)
         unknown = [a for a in arms if a not in HAND_SENSORS]
         if unknown:
             raise ConfigError(f"impedance on unknown arm {unknown[0]!r}",
@@ -605,13 +506,10 @@ class ImpedanceController(Module):
             if tool in CONTACT_TOOLS:
                 h.contact_S_m[:] = tool_point_S_m(model, tool, self.T_hand_sensor)
                 h.has_contact = abs(h.contact_S_m[2]) >= TIP_MIN_M
-                h.tool_H_m[:] = self.T_hand_sensor[:3, :3] @ h.contact_S_m \
-                    + self.T_hand_sensor[:3, 3]
         self._initially_active = active
         self.log_columns = ("impedance_mode_code",) + tuple(
             c for h in self.hands for c in (h.offset_column, h.rotation_column,
-                                             *h.force_ref_columns, h.centre_column)) + tuple(
-            h.follow_column for h in self.hands if goal is not None)
+                                             *h.force_ref_columns, h.centre_column))
         self._last_in = np.zeros(len(model.joint_names))
         self._clear()
         self._warm_up()
@@ -624,10 +522,8 @@ class ImpedanceController(Module):
             self._release_k = 0
             for h in self.hands:
                 h.release_from = h.s[:6].copy()
-                h.dq_release_rad = h.dq_rad.copy()  # the hold in the world's part too
+                h.dq_release_rad = h.dq_rad.copy()
                 h.centre_m[:] = 0.0
-                h.follow_m[:] = 0.0
-                h.held_m[:] = np.nan
 
     def switch_on(self) -> None:
         """Resume eq. 3 from the current offset (and its rate while blending back)."""
@@ -661,8 +557,6 @@ class ImpedanceController(Module):
             h.dq_rad[:] = 0.0
             h.held = False
             h.centre_m[:] = 0.0
-            h.follow_m[:] = 0.0
-            h.held_m[:] = np.nan
             h.wrench_ref_eff_N[:] = h.wrench_ref_N
 
     def _warm_up(self) -> None:
@@ -678,8 +572,6 @@ class ImpedanceController(Module):
                         self.measured_force, self.axes_mask, self.K, 1e-9, 0.0, 1.0,
                         has_contact, h.wrench_ref_eff_N.copy())
         contact_wrench(np.zeros(6), np.ones(3), self.measured_force, np.zeros(6))
-        follow_goal(np.zeros(6), *h.fk_chain, h.tool_H_m, _NO_GOAL, self.axes_mask, 0.01,
-                    self.dt_s, np.full(3, np.nan), np.zeros(3), np.zeros(3))
         offset_joints(np.zeros(6), *h.ik, np.zeros(6), np.zeros(6))
         retreat_offset(np.zeros(6), h.limb.chain, h.ik[-1], 0.5, np.zeros(6), np.zeros(6))
         all_finite(scratch)
@@ -720,17 +612,6 @@ class ImpedanceController(Module):
                     0.0 if frozen else self.dt_s / max(self.release_s, self.dt_s),
                     self.max_offset_m, h.has_contact, h.wrench_ref_eff_N)
 
-    @staticmethod
-    def _goal_of(goals, h: _Hand) -> np.ndarray:
-        """The hand's tool goal (N, m) from the store's goals; NaN (none) for a hand without
-        a contact tool or without a finite 3-vector."""
-        g = goals.get(h.arm) if h.has_contact and isinstance(goals, dict) else None
-        try:
-            g = np.asarray(g, dtype=float)
-        except (TypeError, ValueError):
-            return _NO_GOAL
-        return g if g.shape == (3,) else _NO_GOAL
-
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         q_in = np.empty(self._last_in.shape[0])
         hold_nan(np.ascontiguousarray(q_rad, dtype=float), self._last_in, q_in)
@@ -746,10 +627,6 @@ class ImpedanceController(Module):
             self._release_step()
         out = q_in
         references = None if self.reference is None else cycle.store.get(self.reference)
-        # the hold in the world: only while the soft stopper passes the motion through (its
-        # revert and a wrist-torque stop's backing out must move the hand in the world)
-        goals = (cycle.store.get(self.goal) if self.goal is not None and self.mode == "on"
-                 and cycle.store.get(STOP_MODE, "release") == "release" else None)
         for h in self.hands:
             stepped = False  # eq. 3 advanced this period (not on a bad reading)
             if self.reference is not None:
@@ -780,30 +657,22 @@ class ImpedanceController(Module):
                         cycle.flags.add(BAD_FLAG)
                     if clamp_offset(h.s, self.max_offset_m, self.max_rotation_rad):
                         cycle.flags.add(LIMIT_FLAG)
-                if self.goal is not None:
-                    follow_goal(np.ascontiguousarray(q_in[h.slice]), *h.fk_chain, h.tool_H_m,
-                                self._goal_of(goals, h), self.axes_mask, FOLLOW_MAX_M,
-                                self.dt_s, h.held_m, h.held_rate_m_s, h.follow_m)
-                    cycle.info[h.follow_column] = float(np.linalg.norm(h.follow_m))
             x = h.s[:6]
             cycle.info[h.offset_column] = float(np.linalg.norm(x[:3]))
             cycle.info[h.rotation_column] = float(np.linalg.norm(x[3:]))
             for column, value in zip(h.force_ref_columns, h.wrench_ref_N[:3], strict=True):
                 cycle.info[column] = float(value)
             cycle.info[h.centre_column] = float(np.linalg.norm(h.centre_m))
-            if not x.any() and not h.follow_m.any():
+            if not x.any():
                 h.dq_rad[:] = 0.0
                 h.held = False
                 continue  # exact tracking: this arm's command passes through unchanged
             if stepped:
                 q_arm = np.ascontiguousarray(q_in[h.slice])
-                h.x_goal[:] = x
-                h.x_goal[:3] += h.follow_m
-                h.held = not offset_joints(q_arm, *h.ik, h.x_goal, h.dq_rad)
+                h.held = not offset_joints(q_arm, *h.ik, x, h.dq_rad)
                 if h.held:  # the joint offset decays toward zero
                     cycle.flags.add(UNREACHABLE_FLAG)
                     retreat_offset(q_arm, h.limb.chain, h.ik[-1], self._retreat, h.dq_rad, h.s)
-                    h.s[:3] -= h.follow_m
                     h.s[6:] = 0.0
                 h.held = h.held or np.linalg.norm(h.s[:3]) >= self.max_offset_m * (1 - 1e-9)
             if out is q_in:

@@ -26,12 +26,6 @@ IMPEDANCE_ON = Key(
     "True: the ImpedanceController runs eq. 3; False: it blends its offset back to zero and "
     "passes through; written by a target whose phase presses with a force, followed by the "
     "controller (not written: as it was built)")
-TOOL_GOAL_N = Key(
-    "tool_goal_neck_m", dict,
-    "arm -> the point (m, 3) where the motion wants the hand's tool this period, in the neck "
-    "frame as measured this period (the estimate's torso pose): the tool's place in the world "
-    "seen from the body as it now stands; written by the task target under force control, "
-    "followed by the ImpedanceController along the axes that yield")
 ARM_SYNC = Key(
     "arm_synchronization", dict,
     "arm -> 'phase' or 'none': how the trajectory generator's tracker of that arm times its "

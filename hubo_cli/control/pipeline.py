@@ -29,7 +29,6 @@ from dataclasses import dataclass, replace
 
 from hubo_cli.control.balance import BALANCE_MODES
 from hubo_cli.control.estop import SOFT_SOURCES
-from hubo_cli.control.keys import TOOL_GOAL_N
 from hubo_cli.control.module import Module
 from hubo_cli.control.stop_choice import ActiveStops
 from hubo_cli.control.wrench import HAND_WRENCH_PLAN, HAND_WRENCH_REF, WRENCH_AXES
@@ -200,8 +199,7 @@ class SafetyProfile:
             on a straight line in joint space) or ``none`` (each joint time-optimal).
         wrench_reference: the target writes hand wrench references
             (:mod:`hubo_cli.control.wrench`): the soft stopper reverts them with the motion and
-            the impedance controller (if on) takes them as its force setpoint, and holds a
-            contact tool's reference in the world by the target's tool goals (``TOOL_GOAL_N``).
+            the impedance controller (if on) takes them as its force setpoint.
         impedance_arms, impedance_axes: the hands the impedance controller acts on and the
             axes they yield along (neck-frame ``x y z rx ry rz``).
         impedance_active: it starts switched on (False: off until a target writes
@@ -313,8 +311,7 @@ class SafetyProfile:
                       "wrench_reference": self.wrench_reference},
             "impedance": {"reference": reference, "arms": tuple(self.impedance_arms),
                           "axes": tuple(self.impedance_axes),
-                          "active": self.impedance_active, "tools": dict(tools),
-                          "goal": TOOL_GOAL_N if self.wrench_reference else None},
+                          "active": self.impedance_active, "tools": dict(tools)},
             "capture-point": {"request_estop": self.estop, "drill": drill},
             "collision": {"drill": drill},
             "balance": {"mode": self.balance_mode, "drill": drill},

@@ -52,7 +52,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from hubo_cli.control.estop import wrist_torque_nm
-from hubo_cli.control.keys import IMPEDANCE_ON, STOP_MODE, TOOL_GOAL_N, WRIST_RELIEF
+from hubo_cli.control.keys import IMPEDANCE_ON, STOP_MODE, WRIST_RELIEF
 from hubo_cli.control.module import Module
 from hubo_cli.control.phase import Phases
 from hubo_cli.control.reference_force import ReferenceForceUpdater
@@ -148,7 +148,7 @@ class TaskTarget(Target):
         self.tool_point_S_m = tool_point_S_m(body.model, body.tools[self.limb],
                                              T_frame_sensor(self.sensor))
         if self.force:
-            self.writes = self.writes + (HAND_WRENCH_PLAN, IMPEDANCE_ON, TOOL_GOAL_N)
+            self.writes = self.writes + (HAND_WRENCH_PLAN, IMPEDANCE_ON)
             self.log_columns = self.log_columns + self.force_columns
             self.rfu = ReferenceForceUpdater((1.0, 0.0, 0.0), plan.dt_s)
 
@@ -251,20 +251,7 @@ class TaskTarget(Target):
         self.q_out = (q_target if self.correction is None
                       else self.correction(q_target, self._T_S_N()))
         self._measure(t_s, state, info)
-        if self.force:
-            self._write_tool_goal()
         return self.q_out, info
-
-    def _write_tool_goal(self) -> None:
-        """Force control: the plan's tool goal in the neck frame as measured this period
-        (TOOL_GOAL_N), unfiltered: the ImpedanceController holds the tool there in the world
-        along the bit, where the arm's torso correction (low-passed, then timed by the
-        trajectory generator) still lags the body's motion."""
-        if not (self.phase == "run" and self.plan.cutting[self.k]):
-            self.store[TOOL_GOAL_N] = {}  # only while cutting
-            return
-        R_S_N, p_S_N = self.T_S_N[:3, :3], self.T_S_N[:3, 3]
-        self.store[TOOL_GOAL_N] = {self.limb: R_S_N.T @ (self.plan.goal_S_m[self.k] - p_S_N)}
 
     def _plan_force_S_n(self) -> np.ndarray:
         """The plan's hand force (N, in S) this period: zero until the plan runs."""
