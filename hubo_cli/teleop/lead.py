@@ -146,6 +146,7 @@ class GoalVelocity:
     def __init__(self, limits: JointLimits, dt_s: float, window_s: float = WINDOW_S) -> None:
         self.limits = limits
         k = max(3, int(round(window_s / dt_s)) + 1)
+        self.samples = k  # the window's length in periods
         t = np.arange(k) * dt_s
         slope = (t - t.mean()) / np.sum((t - t.mean()) ** 2)  # oldest sample first
         # row i: the slope's weights for the ring buffer whose newest entry is slot i

@@ -290,7 +290,7 @@ class TeleopTarget(Target):
         zeros = np.zeros(6)
         limits = JointLimits(zeros - 1.0, zeros + 1.0, zeros + 1.0, zeros + 1.0, zeros + 1.0)
         goal_velocity = GoalVelocity(limits, self.dt_guard_s)
-        for _ in range(len(goal_velocity._q)):
+        for _ in range(goal_velocity.samples):
             goal_velocity.update(zeros, True)
         reachable_velocity(zeros, zeros, zeros, zeros, limits)
         for reach in self.reach.values():

@@ -75,10 +75,11 @@ def _checked(params: WalkingParams, where: str) -> WalkingParams:
                 or not (math.isfinite(value) and value > 0):
             raise ConfigError(f"must be a positive number, got {value!r}", path=where,
                               field=f"walking.{f.name}")
-    for name, most in (("swing_travel_fraction", 1.0), ("swing_ramp_fraction", 0.5)):
-        if getattr(params, name) > most:
-            raise ConfigError(f"must be at most {most:g}, got {getattr(params, name)!r}",
-                              path=where, field=f"walking.{name}")
+    for name, value, most in (("swing_travel_fraction", params.swing_travel_fraction, 1.0),
+                              ("swing_ramp_fraction", params.swing_ramp_fraction, 0.5)):
+        if value > most:
+            raise ConfigError(f"must be at most {most:g}, got {value!r}", path=where,
+                              field=f"walking.{name}")
     return params
 
 
