@@ -702,6 +702,11 @@ class WalkTarget(Target):
         x, y, _, yaw = rows[stance_side][k]
         moved = shifted_landing(Footstep(stance_side, x, y, yaw), base[step], wanted,
                                 self.model.feet.width_m, self.params.step_width_m)
+        # the landing as the step's limits let it move: where they hold it where it already
+        # is, a capture point beyond them re-plans nothing (not a re-plan every period)
+        if float(np.hypot(moved.x_m - base[step].x_m - applied[0],
+                          moved.y_m - base[step].y_m - applied[1])) < CP_REPLAN_M:
+            return
 
         def done() -> None:  # (out of the legs' reach: the pattern playing stands)
             self.shifts += 1
