@@ -157,6 +157,41 @@ def test_a_replanned_pattern_continues_without_a_jump(walk_pattern, seed):
     assert np.all(np.isfinite(suffix.com.com_m))
 
 
+@pytest.mark.parametrize("seed", range(8))
+def test_a_swing_ended_early_puts_the_foot_down_without_a_jump(walk_pattern, seed):
+    """A swing foot down early at a random period of its swing (past a third of it), within
+    2 cm of where the pattern has it (the estimate's sole, pushed down): the re-plan plays from that landing's row on, the foot
+    is down from this period and moves from its command onto the new place within
+    TOUCH_BLEND_ROWS without a jump, the other foot stays, and the CoM continues."""
+    from hubo_cli.walking.replan import TOUCH_BLEND_ROWS
+
+    params, walking, start, steps, gait = walk_pattern
+    rng = np.random.default_rng(seed)
+    swinging = np.nonzero(~gait.support.all(axis=1) & (gait.step_index >= 0))[0]
+    k = int(rng.choice(swinging[len(swinging) // 3:]))
+    step = int(gait.step_index[k])
+    side = steps[step].side
+    column = 0 if side == "right" else 1
+    landing = k + int(np.argmax(gait.support[k:].all(axis=1)))
+    x, y, _, yaw = gait.feet[side][k] + np.append(rng.uniform(-0.02, 0.02, 2), [0.0, 0.0])
+    moved = Footstep(side, x, y, yaw)
+    suffix = pattern_from(gait, k, landing, start, shift_steps(steps, step, moved), params,
+                          0.0, walking.feet.forward_m, np.zeros(2))
+    assert suffix.support[0].all()  # down at once, the double support from now
+    foot = suffix.feet[side]
+    assert _continuous(gait.feet[side][k], foot[0], 0.2 * abs(gait.feet[side][k, 2]) + 1e-3)
+    np.testing.assert_allclose(foot[TOUCH_BLEND_ROWS - 1:TOUCH_BLEND_ROWS + 5, :2],
+                               np.tile([moved.x_m, moved.y_m], (6, 1)), atol=1e-9)
+    # 2 cm (and the swing height, <= 2 cm) over TOUCH_BLEND_ROWS: at most 1.875 x 2 cm / 10
+    # a row (the quintic's peak speed); a swing moves up to 5 mm a row
+    assert np.all(np.abs(np.diff(foot[:, :3], axis=0)) <= 0.006)
+    other = "left" if side == "right" else "right"
+    np.testing.assert_allclose(suffix.feet[other][0], gait.feet[other][k], atol=1e-9)
+    assert _continuous(gait.com.com_m[k], suffix.com.com_m[0], 1e-9)
+    assert _continuous(gait.com.com_velocity_m_s[k], suffix.com.com_velocity_m_s[0], 1e-9)
+    assert not gait.support[k, column]
+
+
 @pytest.mark.parametrize("seed", range(40))
 def test_a_moved_landing_keeps_the_limits_and_never_crosses(model, seed):
     """Hostile shifts, headings and sides: the landing stays within the step limits seen from
