@@ -160,9 +160,10 @@ def test_a_replanned_pattern_continues_without_a_jump(walk_pattern, seed):
 @pytest.mark.parametrize("seed", range(8))
 def test_a_swing_ended_early_puts_the_foot_down_without_a_jump(walk_pattern, seed):
     """A swing foot down early at a random period of its swing (past a third of it), within
-    2 cm of where the pattern has it (the estimate's sole, pushed down): the re-plan plays from that landing's row on, the foot
-    is down from this period and moves from its command onto the new place within
-    TOUCH_BLEND_ROWS without a jump, the other foot stays, and the CoM continues."""
+    2 cm of where the pattern has it (the estimate's sole, pushed down): the re-plan plays
+    from that landing's row on, the foot is down from this period and moves from its command
+    onto the new place within TOUCH_BLEND_ROWS without a jump, the other foot stays, and the
+    CoM continues."""
     from hubo_cli.walking.replan import TOUCH_BLEND_ROWS
 
     params, walking, start, steps, gait = walk_pattern
@@ -312,6 +313,26 @@ def test_a_push_from_the_front_mid_walk_moves_the_landing_at_once(tmp_path, mode
     assert result.shifts >= 1
     # measured max tilt 12.2 / 11.1 deg (AVX-512); the 10 caught pushes of the 20-seed sweep
     # peaked at 10.5-16.1 deg: bound 25 deg = 1.55x the sweep's worst (a fall: 30)
+    assert summary["max_torso_tilt_deg"] < 25.0
+
+
+@pytest.mark.physical
+@pytest.mark.slow
+def test_a_side_push_that_puts_the_swing_foot_down_ends_the_swing_there(tmp_path, model):
+    """hubo walk --to 1.0 0 0 pushed 100 N for 0.2 s from the left in the fourth step's
+    swing (right foot swinging; seed 19 of tools/walk_disturbances.py): the swing foot is
+    pushed onto the floor 0.17 s later; the swing ends there (the estimate's sole loaded, the
+    step lands where it stands), the walk stops and stands. It fell while the pattern lifted
+    that foot again under the robot's weight."""
+    from hubo_cli.experiments.walk import Disturbance, walk
+
+    result = walk(model, (1.0, 0.0, 0.0), out=tmp_path / "run",
+                  disturbances=[Disturbance(4.13692, 100.0, (0.0, -1.0, 0.0))])
+    summary = json.loads((result.run_dir / "summary.json").read_text())
+    assert result.fell is False and result.stood is True
+    assert result.touchdowns_early == 1
+    # measured max tilt 8.6 deg (AVX-512); the five pushes toward the swing foot the rule
+    # caught peaked at 8.6-16.0 deg: bound 25 deg = 1.55x the worst (a fall: 30)
     assert summary["max_torso_tilt_deg"] < 25.0
 
 

@@ -127,8 +127,9 @@ REPLAN_ROWS_PER_PERIOD = 60  # [chosen] a re-plan's work per control period, in 
                              # <= 2 ms of the 5 ms period
 TOUCH_FRACTION = 1 / 3  # [chosen] a swing foot loaded beyond estimation.swing_touchdown_n past
                         # this part of its single support has touched down early ...
-TOUCH_EARLY_S = 0.05    # [chosen] ... when its landing is still this far ahead (a normal
-                        # landing loads the sole a period or two early)
+TOUCH_MIN_HEIGHT_M = 0.002  # [chosen] ... while the pattern still has it this high (a normal
+                            # landing of perturbed robot 1 loaded its sole 0.055 s early, 1.0 mm
+                            # up; a sole pushed down: 3.4-19 mm up, seeds 2, 5, 8, 19, 20)
 CP_GAIN_MAX = 1.0      # [chosen] the error's growth by the landing counted at most this much
                        # (exp(omega t) is 17 at a swing's start: a 1 cm error of the estimate's
                        # capture point moved the landing by 17 cm; 3x stepped too far back
@@ -717,7 +718,8 @@ class WalkTarget(Target):
     def _touched_early(self, k: int, step: int, support: list[bool], t_s: float) -> bool:
         """A swing foot down early (pushed onto the floor): the estimate has its sole in
         contact and carrying more than ``estimation.swing_touchdown_n`` past TOUCH_FRACTION
-        of its single support, TOUCH_EARLY_S or more before its landing. The swing ends there:
+        of its single support, the pattern's sole still TOUCH_MIN_HEIGHT_M or more above its
+        landing (lower, the stabilizer's :class:`Touchdown` holds it). The swing ends there:
         the step lands where the estimate's sole stands (seen from the stance sole, in the
         pattern's frame), the rest of the timeline from that landing on is played from now
         (the double support, the next step, whose landing the capture point moves as it
@@ -727,7 +729,7 @@ class WalkTarget(Target):
         column = 0 if not support[0] else 1
         period, single_s = self.gait.period_s, self.params.single_support_s
         remaining = self._landing[k] - k
-        if remaining * period < TOUCH_EARLY_S or \
+        if self._clearance[SIDES[column]][k] < TOUCH_MIN_HEIGHT_M or \
                 (single_s - remaining * period) < TOUCH_FRACTION * single_s:
             return False
         if not (self.store[CONTACT][column] and ankle_wrenches(self.store)[column, 2]
