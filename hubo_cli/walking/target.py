@@ -16,7 +16,11 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
   (:func:`~hubo_cli.walking.replan.pattern_from`) from the period it is decided in, its first
   rows solved then and the rest a slice a period while they play (REPLAN_ROWS_PER_PERIOD; too
   late for this landing (CP_BLEND_PERIODS before it): not moved); a later re-plan replaces a
-  rest being computed.
+  rest being computed. A swing foot pushed onto the floor (the estimate's sole in contact and
+  loaded, past TOUCH_FRACTION of its swing, TOUCH_MIN_HEIGHT_M or more above its landing in
+  the pattern) ends its swing there: the step lands where that sole stands and the timeline
+  from the landing on plays at once (:meth:`WalkTarget._touched_early`); lifted again under
+  the robot's weight, it fell.
 * ``stopping``: entered when the soft stopper has latched (its mode, the previous period's
   :data:`~hubo_cli.control.keys.STOP_MODE`, is no longer ``release``): the step in progress
   is finished (the swing foot lands; before the first step, none is taken) into a double-support
