@@ -131,9 +131,11 @@ REPLAN_ROWS_PER_PERIOD = 60  # [chosen] a re-plan's work per control period, in 
                              # <= 2 ms of the 5 ms period
 TOUCH_FRACTION = 1 / 3  # [chosen] a swing foot loaded beyond estimation.swing_touchdown_n past
                         # this part of its single support has touched down early ...
-TOUCH_MIN_HEIGHT_M = 0.002  # [chosen] ... while the pattern still has it this high (a normal
-                            # landing of perturbed robot 1 loaded its sole 0.055 s early, 1.0 mm
-                            # up; a sole pushed down: 3.4-19 mm up, seeds 2, 5, 8, 19, 20)
+TOUCH_MIN_HEIGHT_M = 0.006  # [chosen] ... while the pattern still has it this high: lower, the
+                            # stabilizer's Touchdown (its touchdown_height_m) holds it. Normal
+                            # landings of perturbed robots 1, 4, 8 loaded their soles at most
+                            # 1.2 mm up, 0.06 s early; soles pushed down mid-swing: 15-20 mm up.
+                            # 2 mm: seed 8's 3.4 mm touchdown was caught, seed 17's lost
 CP_GAIN_MAX = 1.0      # [chosen] the error's growth by the landing counted at most this much
                        # (exp(omega t) is 17 at a swing's start: a 1 cm error of the estimate's
                        # capture point moved the landing by 17 cm; 3x stepped too far back
@@ -733,7 +735,9 @@ class WalkTarget(Target):
         column = 0 if not support[0] else 1
         period, single_s = self.gait.period_s, self.params.single_support_s
         remaining = self._landing[k] - k
-        if self._clearance[SIDES[column]][k] < TOUCH_MIN_HEIGHT_M or \
+        # (above the floor the plan stands on: a re-plan's ``_clearance`` counts from its
+        # first row, in the air when it began in a swing)
+        if self._rows[SIDES[column]][k][2] - self._basis[2] < TOUCH_MIN_HEIGHT_M or \
                 (single_s - remaining * period) < TOUCH_FRACTION * single_s:
             return False
         if not (self.store[CONTACT][column] and ankle_wrenches(self.store)[column, 2]
