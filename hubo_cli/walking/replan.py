@@ -49,8 +49,9 @@ CP_WIDTH_MAX_M = 0.36       # [chosen] ... and at most this far from it sideways
 CP_GAP_M = 0.04             # [chosen] the soles' inner edges stay this far apart: no crossing
 CP_MAX_SHIFT_M = 0.2        # [chosen] a shift longer than this is shortened to it
 PREFIX_LEAD_PERIODS = 4     # [chosen] a re-plan's first rows: the rest's slices and this many
-TOUCH_BLEND_ROWS = 10       # [chosen] a swing foot down early moves from its command onto its
-                            # landing place over this many rows (it stands there already)
+TOUCH_BLEND_ROWS = 20       # [chosen] a swing foot down early moves from its command onto its
+                            # landing place over this many rows (it stands there already;
+                            # over 10, its joints met the walking limit set's speed limit)
 
 Fix = tuple[np.ndarray, np.ndarray, np.ndarray]  # a multi-body correction of the CoM path per
                                                  # row: position, velocity, acceleration (n x 2)
