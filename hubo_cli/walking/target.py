@@ -750,7 +750,7 @@ class WalkTarget(Target):
         x, y, _, yaw = self._rows[stance_side][k]
         c, s = math.cos(yaw - stance.yaw_rad), math.sin(yaw - stance.yaw_rad)
         dx, dy = touched.x_m - stance.x_m, touched.y_m - stance.y_m
-        shifted_step, applied, base = self._shift
+        shifted_step, _, base = self._shift
         if shifted_step != step:
             base = list(self._basis[1])
         landed = Footstep(side, x + c * dx - s * dy, y + s * dx + c * dy,
