@@ -79,6 +79,7 @@ def main() -> int:
                else direction, "fell": result.fell, "stopped_s": result.stopped_s,
                "stood": result.stood, "both_feet_down": bool(np.all(down == 1)),
                "held": bool(mode[rows][-1] == MODE_CODE["hold"]), "shifts": result.shifts,
+               "touchdowns_early": result.touchdowns_early,
                "estop_events": len(summary.get("estop_events", [])),
                "max_torso_tilt_deg": summary.get("max_torso_tilt_deg"),
                "final_error_mm": result.final_error_mm}

@@ -113,6 +113,9 @@ def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | No
                           f", {result.shifts} footstep changes after the capture point")
         elif result.shifts:
             console.print(f"capture point     moved the footsteps {result.shifts} times")
+        if result.touchdowns_early:
+            console.print(f"pushed down       {result.touchdowns_early} swing(s) ended where "
+                          "the foot touched the floor early")
         if result.ended == "interrupted":
             console.print("ended             interrupted: braked to a stop before the goal")
         console.print(f"fell              {'YES' if result.fell else 'no'}")

@@ -45,6 +45,8 @@ class WalkResult:
 
     Attributes:
         fell: the torso fell (:func:`hubo_cli.falls.has_fallen`, on the estimated torso).
+        touchdowns_early: swings ended where the foot was pushed onto the floor early
+            (:meth:`~hubo_cli.walking.target.WalkTarget._touched_early`).
         final_error_mm, final_error_deg: the final stance (midway between the soles) from the
             goal, as the simulator's truth has it (:func:`true_final_error`; the estimate's
             where the log has no true torso position).
@@ -67,6 +69,7 @@ class WalkResult:
     stopped_s: float | None
     stood: bool
     shifts: int
+    touchdowns_early: int
     final_error_mm: float
     final_error_deg: float
     estimated_final_error_mm: float
@@ -83,7 +86,8 @@ class WalkResult:
 
     def summary(self) -> dict:
         return {"fell": self.fell, "stopped_s": self.stopped_s, "stood": self.stood,
-                "shifts": self.shifts, "final_error_mm": self.final_error_mm,
+                "shifts": self.shifts, "touchdowns_early": self.touchdowns_early,
+                "final_error_mm": self.final_error_mm,
                 "final_error_deg": self.final_error_deg,
                 "estimated_final_error_mm": self.estimated_final_error_mm,
                 "estimated_final_error_deg": self.estimated_final_error_deg,
@@ -231,7 +235,8 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
     result = WalkResult(
         fell=target.fell, stopped_s=target.stopped_s,
         stood=target.phase == "stood" and not target.stop_failed,  # failed: braked in place
-        shifts=target.shifts, final_error_mm=1000 * error_m,
+        shifts=target.shifts, touchdowns_early=target.touchdowns_early,
+        final_error_mm=1000 * error_m,
         final_error_deg=math.degrees(error_rad),
         estimated_final_error_mm=1000 * estimated_m,
         estimated_final_error_deg=math.degrees(estimated_rad), steps=len(target.steps),

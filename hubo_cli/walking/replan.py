@@ -49,6 +49,9 @@ CP_WIDTH_MAX_M = 0.36       # [chosen] ... and at most this far from it sideways
 CP_GAP_M = 0.04             # [chosen] the soles' inner edges stay this far apart: no crossing
 CP_MAX_SHIFT_M = 0.2        # [chosen] a shift longer than this is shortened to it
 PREFIX_LEAD_PERIODS = 4     # [chosen] a re-plan's first rows: the rest's slices and this many
+TOUCH_BLEND_ROWS = 20       # [chosen] a swing foot down early moves from its command onto its
+                            # landing place over this many rows (it stands there already;
+                            # over 10, its joints met the walking limit set's speed limit)
 
 Fix = tuple[np.ndarray, np.ndarray, np.ndarray]  # a multi-body correction of the CoM path per
                                                  # row: position, velocity, acceleration (n x 2)
@@ -90,8 +93,11 @@ def pattern_from(current: Gait, k: int, row: int, start: tuple[Footstep, Footste
     ``step_index`` the plan's: all of ``steps``, indices into them).
 
     Args:
-        current: the pattern being played; ``k`` its period now, ``row`` that period's
-            index on the plan's timeline (the pattern :func:`make_gait` made from ``start``).
+        current: the pattern being played; ``k`` its period now, ``row`` the index on the
+            plan's timeline (the pattern :func:`make_gait` made from ``start``) played from
+            then on: that period's, or a later one (a swing ended early: its landing's row,
+            the rest of the timeline moved that much earlier; the foot touched down moves
+            onto its landing place over TOUCH_BLEND_ROWS).
         start: the feet (right, left) the plan started from.
         steps: the plan's footsteps, changed from the step in progress on (none: stand
             where the feet are, both down).
@@ -129,6 +135,13 @@ def pattern_from(current: Gait, k: int, row: int, start: tuple[Footstep, Footste
         if landing > 0 and len(old) == landing:
             blend = smoothstep5((np.arange(landing) + 1.0) / landing)[:, None]
             feet[side][:landing] = old + blend * (feet[side][:landing] - old)
+        elif landing == 0 and not current.support[min(k, current.n - 1), column]:
+            # down at once (a swing ended early, ``row`` past its landing): from the command
+            # now onto the landing place, where the foot already stands
+            n = min(TOUCH_BLEND_ROWS, len(support))
+            now = current.feet[side][min(k, current.n - 1)]
+            blend = smoothstep5((np.arange(n) + 1.0) / n)[:, None]
+            feet[side][:n] = now + blend * (feet[side][:n] - now)
     zmp_ref = full.zmp_ref_m[row:]
     com = current.com
     gains = preview_gains(period, current.com_height_m, params.preview_s, params.zmp_weight,

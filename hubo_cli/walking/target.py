@@ -16,7 +16,11 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
   (:func:`~hubo_cli.walking.replan.pattern_from`) from the period it is decided in, its first
   rows solved then and the rest a slice a period while they play (REPLAN_ROWS_PER_PERIOD; too
   late for this landing (CP_BLEND_PERIODS before it): not moved); a later re-plan replaces a
-  rest being computed.
+  rest being computed. A swing foot pushed onto the floor (the estimate's sole in contact and
+  loaded, past TOUCH_FRACTION of its swing, TOUCH_MIN_HEIGHT_M or more above its landing in
+  the pattern) ends its swing there: the step lands where that sole stands and the timeline
+  from the landing on plays at once (:meth:`WalkTarget._touched_early`); lifted again under
+  the robot's weight, it fell.
 * ``stopping``: entered when the soft stopper has latched (its mode, the previous period's
   :data:`~hubo_cli.control.keys.STOP_MODE`, is no longer ``release``): the step in progress
   is finished (the swing foot lands; before the first step, none is taken) into a double-support
@@ -125,6 +129,13 @@ REPLAN_ROWS_PER_PERIOD = 60  # [chosen] a re-plan's work per control period, in 
                              # of one of its passes (the legs solved, the multi-body ZMP, the
                              # legs solved again): <= 30 us a row on the dev machine, so
                              # <= 2 ms of the 5 ms period
+TOUCH_FRACTION = 1 / 3  # [chosen] a swing foot loaded beyond estimation.swing_touchdown_n past
+                        # this part of its single support has touched down early ...
+TOUCH_MIN_HEIGHT_M = 0.006  # [chosen] ... while the pattern still has it this high: lower, the
+                            # stabilizer's Touchdown (its touchdown_height_m) holds it. Normal
+                            # landings of perturbed robots 1, 4, 8 loaded their soles at most
+                            # 1.2 mm up, 0.06 s early; soles pushed down mid-swing: 15-20 mm up.
+                            # 2 mm: seed 8's 3.4 mm touchdown was caught, seed 17's lost
 CP_GAIN_MAX = 1.0      # [chosen] the error's growth by the landing counted at most this much
                        # (exp(omega t) is 17 at a swing's start: a 1 cm error of the estimate's
                        # capture point moved the landing by 17 cm; 3x stepped too far back
@@ -352,6 +363,7 @@ class WalkTarget(Target):
         self.stopped_s: float | None = None  # when the walk began to stop (loop time, s)
         self.stop_failed = False  # the stop's pattern could not be made: the stopper brakes
         self.shifts = 0  # landings moved after the capture point
+        self.touchdowns_early = 0  # swings ended where the foot touched down early
         self._shift = (-1, np.zeros(2), None)  # (step, shift applied, steps before it)
         self._cp_error = np.full(2, math.nan)
         self._pending = None  # a re-plan's rest being computed (_replan)
@@ -511,13 +523,14 @@ class WalkTarget(Target):
 
     def _replan(self, steps: list[Footstep], t_s: float, planted: int | None = None,
                 failed: Callable[[], None] | None = None,
-                done: Callable[[], None] | None = None) -> None:
+                done: Callable[[], None] | None = None, skip: int = 0) -> None:
         """Play the plan's pattern with ``steps`` (changed from the step in progress on;
         ``planted``: :func:`~hubo_cli.walking.replan.pattern_from`) from this period on, then
         ``done`` (see :mod:`hubo_cli.walking.replan`): its first rows
         (:func:`~hubo_cli.walking.replan.prefix_rows`) are solved PREFIX_ROWS_PER_PERIOD a
         period from this one on (:meth:`_advance_prefix`), the rest a slice a period while
-        they play (:meth:`_advance_replan`). It replaces a re-plan still being computed. A sole
+        they play (:meth:`_advance_replan`); ``skip`` rows of the plan's timeline left out from
+        this period (a swing ended early). It replaces a re-plan still being computed. A sole
         the legs cannot reach by the swing's landing keeps the pattern playing and calls
         ``failed``; later, the step in progress is finished into a stance
         (:meth:`_finish_step`)."""
@@ -527,7 +540,7 @@ class WalkTarget(Target):
         solved = len(self.plan.q_rad) if self._prefix is None else self._prefix[1]
         old = self.plan.q_rad[:solved], self.plan.T_world_neck[:solved]
         try:
-            cart = pattern_from(self._cart, k, self._row0 + k, start, steps, self.params,
+            cart = pattern_from(self._cart, k, self._row0 + k + skip, start, steps, self.params,
                                 sole_z, self.model.feet.forward_m, com_start, planted,
                                 REPLAN_ROWS_PER_PERIOD)
             fix = continued_fix(self._fix, k, cart.n)
@@ -546,7 +559,7 @@ class WalkTarget(Target):
                 failed()
             return
         new = self._playing(cart, first, plan, body, fix, whole=cart)
-        row0 = new["_row0"] = self._row0 + k if steps else 0
+        row0 = new["_row0"] = self._row0 + k + skip if steps else 0
         basis = new["_basis"] = (start, list(steps), sole_z, com_start)
         kept = new["steps"] = [*self.steps[:self._steps_before],
                                *(steps if planted is None else steps[:planted])]
@@ -680,6 +693,8 @@ class WalkTarget(Target):
         if k >= gait.n or self.toe_heel is not None:  # no flat re-plan of a toe-heel walk
             return
         step, support = rows["step"][k], rows["support"][k]
+        if self._touched_early(k, step, support, t_s):
+            return
         self._cp_error = self._capture_point_error(k)
         if step < 0 or (support[0] and support[1]) or not np.all(np.isfinite(self._cp_error)):
             return  # (no estimate of the capture point: nothing moves)
@@ -714,6 +729,49 @@ class WalkTarget(Target):
                                            moved.y_m - base[step].y_m]), base)
 
         self._replan(shift_steps(base, step, moved), t_s, done=done)
+
+    def _touched_early(self, k: int, step: int, support: list[bool], t_s: float) -> bool:
+        """A swing foot down early (pushed onto the floor): the estimate has its sole in
+        contact and carrying more than ``estimation.swing_touchdown_n`` past TOUCH_FRACTION
+        of its single support, the pattern's sole still TOUCH_MIN_HEIGHT_M or more above its
+        landing (lower, the stabilizer's :class:`Touchdown` holds it). The swing ends there:
+        the step lands where the estimate's sole stands (seen from the stance sole, in the
+        pattern's frame), the rest of the timeline from that landing on is played from now
+        (the double support, the next step, whose landing the capture point moves as it
+        swings). Returns whether it re-planned."""
+        if step < 0 or support[0] == support[1]:
+            return False
+        column = 0 if not support[0] else 1
+        period, single_s = self.gait.period_s, self.params.single_support_s
+        remaining = self._landing[k] - k
+        # (above the floor the plan stands on: a re-plan's ``_clearance`` counts from its
+        # first row, in the air when it began in a swing)
+        if self._rows[SIDES[column]][k][2] - self._basis[2] < TOUCH_MIN_HEIGHT_M or \
+                (single_s - remaining * period) < TOUCH_FRACTION * single_s:
+            return False
+        if not (self.store[CONTACT][column] and ankle_wrenches(self.store)[column, 2]
+                > self.model.estimation.swing_touchdown_n):
+            return False
+        side, stance_side = SIDES[column], SIDES[1 - column]
+        poses = self.store[T_WORLD_SOLES]
+        touched = footstep_of(side, poses[column])
+        stance = footstep_of(stance_side, poses[1 - column])
+        x, y, _, yaw = self._rows[stance_side][k]
+        c, s = math.cos(yaw - stance.yaw_rad), math.sin(yaw - stance.yaw_rad)
+        dx, dy = touched.x_m - stance.x_m, touched.y_m - stance.y_m
+        shifted_step, _, base = self._shift
+        if shifted_step != step:
+            base = list(self._basis[1])
+        landed = Footstep(side, x + c * dx - s * dy, y + s * dx + c * dy,
+                          yaw + touched.yaw_rad - stance.yaw_rad)
+
+        def done() -> None:
+            self.touchdowns_early += 1
+            self._shift = (step, np.array([landed.x_m - base[step].x_m,
+                                           landed.y_m - base[step].y_m]), base)
+
+        self._replan(shift_steps(base, step, landed), t_s, done=done, skip=remaining)
+        return True
 
     def _capture_point_error(self, k: int) -> np.ndarray:
         """The estimated capture point (seen from the more loaded planned support sole
