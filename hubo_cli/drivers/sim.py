@@ -379,14 +379,14 @@ def _pose_times(position, quat_xyzw, T_rows: list[float]) -> tuple[float, ...]:
             a20 * b02 + a21 * b12 + a22 * b22, a20 * bx + a21 * by + a22 * bz + pz)
 
 
-def _sensor_reading(rows: list[tuple], T_world_sensor: tuple[float, ...], extra=None,
-                    extra_moment=None, load=(0.0, 0.0, 0.0),
-                    load_at=(0.0, 0.0, 0.0)) -> tuple[float, np.ndarray]:
+def _sensor_reading(rows: list[tuple], T_world_sensor: tuple[float, ...], extra, extra_moment,
+                    load, load_at) -> tuple[float, np.ndarray]:
     """A three-axis F/T sensor's reading and the floor's (contacts') f_z alone (N) in it.
 
     The external wrench on the sensor's link about the sensor frame's origin, in its axes,
     from its contact rows (see :meth:`SimDriver._contact_rows`), a known force at a point
-    (``extra``: force N, point m) and a pure moment (``extra_moment``, N m); plus ``load``
+    (``extra``: force N, point m, or None) and a pure moment (``extra_moment``, N m, or
+    None); plus ``load``
     (N) at ``load_at`` (m): the body beyond the sensor, all in the world.
     ``T_world_sensor`` is the sensor's pose's first three rows, flat. Returns ``(f_z of the
     contacts and extra, [0, 0, f_z, m_x, m_y, 0])`` (what :data:`~hubo_cli.state.FT_MEASURED`
