@@ -417,6 +417,10 @@ def rotation_exp(v) -> np.ndarray:
 def tilt_rad_of_matrix(R):
     """Angle (rad, [0, pi]) between a frame's z axis and the world's z axis, for rotation
     matrices (..., 3, 3) of the frame in the world (torso, sole)."""
+    one = _one_matrix(R)
+    if one is not None:  # one matrix (several a period): the same in Python floats
+        (_, _, r02), (_, _, r12), (_, _, r22) = one
+        return math.atan2(math.hypot(r02, r12), r22)
     R = np.asarray(R, dtype=np.float64)
     return np.arctan2(np.hypot(R[..., 0, 2], R[..., 1, 2]), R[..., 2, 2])
 

@@ -222,3 +222,20 @@ def test_a_90_n_push_on_a_perturbed_robot_is_held_braced(model, seed, direction,
     assert not result.fell
     assert result.max_tilt_deg > 10.0  # the push did tip it and the trunk bowed
     assert result.max_foot_shift_mm < 9.0
+
+
+def test_the_soles_pitch_is_numpys_on_hostile_poses():
+    """The soles' mean pitch in floats equals the numpy formula it replaced (to 1e-12) on
+    random rotations, far tilts, and NaN or infinite entries (then 0)."""
+    rng = np.random.default_rng(33)
+    for k in range(300):
+        soles = rng.normal(size=(2, 4, 4))
+        if k % 10 == 0:
+            soles[rng.integers(2), rng.integers(3), 0] = rng.choice([np.nan, np.inf, -np.inf])
+        store = Store()
+        store[T_WORLD_SOLES] = soles
+        expected = float(np.mean(np.arctan2(-soles[:, 2, 0], np.hypot(soles[:, 0, 0],
+                                                                       soles[:, 1, 0]))))
+        expected = expected if np.isfinite(expected) else 0.0
+        got = HipStrategy._soles_pitch_rad(Cycle(0.0, DT, store=store))
+        assert abs(got - expected) <= 1e-12, (soles, got, expected)

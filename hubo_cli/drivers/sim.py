@@ -132,7 +132,6 @@ from hubo_cli.perturb import draw as draw_perturbation
 from hubo_cli.posture import home_posture
 from hubo_cli.scene import CuttingModel
 from hubo_cli.state import (
-    FT_MEASURED,
     FT_SENSORS,
     GRAVITY_M_S2,
     RobotState,
@@ -141,8 +140,6 @@ from hubo_cli.state import (
 )
 from hubo_cli.urdf import DRILL_FRAME, PHYSICS_DRILL_URDF, PHYSICS_URDF, link_frames
 
-FT_MASK = np.zeros(6)
-FT_MASK[list(FT_MEASURED)] = 1.0  # Hubo's three-axis sensors: f_z, m_x, m_y
 HAND_FRAMES = {"right-wrist": ("RWP_link", "right_hand"), "left-wrist": ("LWP_link", "left_hand")}
 HAND_LINK_OF = {frame: link for link, frame in HAND_FRAMES.values()}
 SOLE_FRAMES = {"right-ankle": ("RAR_link", "right_sole"), "left-ankle": ("LAR_link", "left_sole")}
@@ -362,6 +359,73 @@ def _pose(position, quat_xyzw) -> np.ndarray:
                      (0.0, 0.0, 0.0, 1.0)))
 
 
+def _pose_times(position, quat_xyzw, T_rows: list[float]) -> tuple[float, ...]:
+    """The first three rows, flat, of the pose from a PyBullet position and quaternion (the
+    arithmetic of :func:`_pose`) times a constant pose given the same way: in Python floats
+    (a numpy 4x4 product and its array builds cost more, several times a period)."""
+    x, y, z, w = quat_xyzw
+    n = math.sqrt(w * w + x * x + y * y + z * z)
+    w, x, y, z = w / n, x / n, y / n, z / n
+    a00, a01, a02 = 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)
+    a10, a11, a12 = 2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)
+    a20, a21, a22 = 2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)
+    b00, b01, b02, bx, b10, b11, b12, by, b20, b21, b22, bz = T_rows
+    px, py, pz = position
+    return (a00 * b00 + a01 * b10 + a02 * b20, a00 * b01 + a01 * b11 + a02 * b21,
+            a00 * b02 + a01 * b12 + a02 * b22, a00 * bx + a01 * by + a02 * bz + px,
+            a10 * b00 + a11 * b10 + a12 * b20, a10 * b01 + a11 * b11 + a12 * b21,
+            a10 * b02 + a11 * b12 + a12 * b22, a10 * bx + a11 * by + a12 * bz + py,
+            a20 * b00 + a21 * b10 + a22 * b20, a20 * b01 + a21 * b11 + a22 * b21,
+            a20 * b02 + a21 * b12 + a22 * b22, a20 * bx + a21 * by + a22 * bz + pz)
+
+
+def _sensor_reading(rows: list[tuple], T_world_sensor: tuple[float, ...], extra, extra_moment,
+                    load, load_at) -> tuple[float, np.ndarray]:
+    """A three-axis F/T sensor's reading and the floor's (contacts') f_z alone (N) in it.
+
+    The external wrench on the sensor's link about the sensor frame's origin, in its axes,
+    from its contact rows (see :meth:`SimDriver._contact_rows`), a known force at a point
+    (``extra``: force N, point m, or None) and a pure moment (``extra_moment``, N m, or
+    None); plus ``load``
+    (N) at ``load_at`` (m): the body beyond the sensor, all in the world.
+    ``T_world_sensor`` is the sensor's pose's first three rows, flat. Returns ``(f_z of the
+    contacts and extra, [0, 0, f_z, m_x, m_y, 0])`` (what :data:`~hubo_cli.state.FT_MEASURED`
+    keeps). Plain floats: a foot has four contact points, too few for array operations to
+    pay."""
+    r00, r01, r02, ox, r10, r11, r12, oy, r20, r21, r22, oz = T_world_sensor
+    # the contacts' and the extra force's wrench about the world origin, then the sensor's
+    fx = fy = fz = mx = my = mz = 0.0
+    for px, py, pz, nx, ny, nz, fn, f1, d1x, d1y, d1z, f2, d2x, d2y, d2z in rows:
+        gx = nx * fn + d1x * f1 + d2x * f2
+        gy = ny * fn + d1y * f1 + d2y * f2
+        gz = nz * fn + d1z * f1 + d2z * f2
+        fx, fy, fz = fx + gx, fy + gy, fz + gz
+        mx += py * gz - pz * gy
+        my += pz * gx - px * gz
+        mz += px * gy - py * gx
+    if extra is not None:
+        (gx, gy, gz), (px, py, pz) = extra
+        fx, fy, fz = fx + gx, fy + gy, fz + gz
+        mx += py * gz - pz * gy
+        my += pz * gx - px * gz
+        mz += px * gy - py * gx
+    if extra_moment is not None:
+        mx, my, mz = mx + extra_moment[0], my + extra_moment[1], mz + extra_moment[2]
+    mx, my = mx - (oy * fz - oz * fy), my - (oz * fx - ox * fz)
+    mz = mz - (ox * fy - oy * fx)
+    contact_fz = fx * r02 + fy * r12 + fz * r22
+    contact_mx = mx * r00 + my * r10 + mz * r20
+    contact_my = mx * r01 + my * r11 + mz * r21
+    # the load's, the same way
+    (gx, gy, gz), (px, py, pz) = load, load_at
+    mx, my, mz = py * gz - pz * gy, pz * gx - px * gz, px * gy - py * gx
+    mx, my = mx - (oy * gz - oz * gy), my - (oz * gx - ox * gz)
+    mz = mz - (ox * gy - oy * gx)
+    return contact_fz, np.array((0.0, 0.0, contact_fz + (gx * r02 + gy * r12 + gz * r22),
+                                 contact_mx + (mx * r00 + my * r10 + mz * r20),
+                                 contact_my + (mx * r01 + my * r11 + mz * r21), 0.0))
+
+
 class SimDriver(Driver, SimulatedWorld):
     """The HUBO 2+ in PyBullet. Options: see :class:`SimOptions` (``gui``, ``drill``, ...).
 
@@ -428,7 +492,7 @@ class SimDriver(Driver, SimulatedWorld):
         self._physics_wall_s = 0.0
         self._perturbation = Perturbation()  # drawn from perturb_seed when the world is built
         self._noise = self._perturbation.noise(self.period_s)
-        self._imu_last: tuple[np.ndarray, np.ndarray] | None = None  # last (v_world, R)
+        self._imu_last: tuple[tuple, np.ndarray] | None = None  # last (v_world, R)
         self._max_tilt_deg = 0.0
         self._delay: CommandDelay | None = None
         self._physics_step = 0
@@ -506,12 +570,13 @@ class SimDriver(Driver, SimulatedWorld):
         self._hand_link_ids = [self._links[link] for link, _ in HAND_FRAMES.values()]
         self._sensor_link_ids = [self._links[n] for n in SENSOR_LINKS]
         # per F/T sensor, in FT_SENSORS order: its link's index in PyBullet and in the sensor
-        # links' batch, the link-to-sensor pose, which ankle (0, 1, None), the drill's wrist
-        # and the mass beyond the sensor: the whole link (the hand and a held tool, the foot)
+        # links' batch, the link-to-sensor pose (its first three rows, flat), which ankle (0,
+        # 1, None), the drill's wrist and the mass beyond the sensor: the whole link (the hand
+        # and a held tool, the foot)
         ankles = iter(range(2))
         self._sensor_table = tuple(
             (sensor, self._links[link], SENSOR_LINKS.index(link),
-             self._T_link_frame[frame] @ T_frame_sensor(sensor),
+             (self._T_link_frame[frame] @ T_frame_sensor(sensor))[:3].ravel().tolist(),
              next(ankles) if sensor.endswith("ankle") else None, sensor == "right-wrist",
              p.getDynamicsInfo(self._robot, self._links[link], physicsClientId=cid)[0])
             for sensor, (link, frame) in ((s, SENSOR_FRAMES[s]) for s in FT_SENSORS))
@@ -553,6 +618,7 @@ class SimDriver(Driver, SimulatedWorld):
         # base = torso link; PyBullet poses the base by its centre of mass
         info = p.getDynamicsInfo(self._robot, -1, physicsClientId=cid)
         self._T_com_torso = np.linalg.inv(_pose(info[3], info[4]))
+        self._rows_com_torso = self._T_com_torso[:3].ravel().tolist()  # for _pose_times
         self._place(q0)
         for wall in self._pending_walls:
             self._create_wall(*wall)
@@ -867,35 +933,6 @@ class SimDriver(Driver, SimulatedWorld):
                                                *cp[13]))
         return rows
 
-    @staticmethod
-    def _wrench(rows: list[tuple], T_world_sensor: np.ndarray, extra=None,
-                extra_moment=None) -> np.ndarray:
-        """External wrench on a link about the sensor frame origin, in sensor axes, from its
-        contact rows (see :meth:`_contact_rows`), a known force at a point (``extra``: force N,
-        point m) and a pure moment (``extra_moment``, N m), all in the world. Summed in plain
-        floats: a foot has four contact points, too few for array operations to pay."""
-        if extra is not None:  # a known force (N) at a point, as one more "contact"
-            f, at = extra
-            rows = [*rows, (*at, *f, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)]
-        if not rows and extra_moment is None:
-            return np.zeros(6)
-        fx = fy = fz = mx = my = mz = 0.0
-        for px, py, pz, nx, ny, nz, fn, f1, d1x, d1y, d1z, f2, d2x, d2y, d2z in rows:
-            gx = nx * fn + d1x * f1 + d2x * f2
-            gy = ny * fn + d1y * f1 + d2y * f2
-            gz = nz * fn + d1z * f1 + d2z * f2
-            fx, fy, fz = fx + gx, fy + gy, fz + gz
-            mx += py * gz - pz * gy
-            my += pz * gx - px * gz
-            mz += px * gy - py * gx
-        if extra_moment is not None:
-            mx, my, mz = mx + extra_moment[0], my + extra_moment[1], mz + extra_moment[2]
-        (r00, r01, r02, ox), (r10, r11, r12, oy), (r20, r21, r22, oz), _ = T_world_sensor.tolist()
-        mx, my, mz = mx - (oy * fz - oz * fy), my - (oz * fx - ox * fz), mz - (ox * fy - oy * fx)
-        return np.array((fx * r00 + fy * r10 + fz * r20, fx * r01 + fy * r11 + fz * r21,
-                         fx * r02 + fy * r12 + fz * r22, mx * r00 + my * r10 + mz * r20,
-                         mx * r01 + my * r11 + mz * r21, mx * r02 + my * r12 + mz * r22))
-
     def _hand_rows(self, link_id: int, rows: list[tuple]) -> list[tuple]:
         """A hand's rows when the scene has hinged objects: its contacts averaged over the
         period's physics steps (a hand pushing a door slowly meets it in one of the two steps
@@ -922,11 +959,10 @@ class SimDriver(Driver, SimulatedWorld):
         q, dq, _, tau = zip(*js, strict=True)  # the reaction forces (24 x 6) are not read
         q, dq, tau = np.array(q), np.array(dq), np.array(tau)
         com, orn = p.getBasePositionAndOrientation(self._robot, physicsClientId=cid)
-        T_world_torso = _pose(com, orn) @ self._T_com_torso
+        torso = _pose_times(com, orn, self._rows_com_torso)
+        T_world_torso = np.array((torso[0:4], torso[4:8], torso[8:12], (0.0, 0.0, 0.0, 1.0)))
         v_com, omega_world = p.getBaseVelocity(self._robot, physicsClientId=cid)
-        R = T_world_torso[:3, :3]
-        gyro, accel = self._imu(np.asarray(com), np.asarray(v_com), np.asarray(omega_world),
-                                T_world_torso)
+        gyro, accel = self._imu(com, v_com, omega_world, T_world_torso, torso)
         link_states = self._link_states = p.getLinkStates(
             self._robot, self._sensor_link_ids, computeLinkVelocity=1,
             computeForwardKinematics=1, physicsClientId=cid)
@@ -936,29 +972,28 @@ class SimDriver(Driver, SimulatedWorld):
         contact = [False, False]
         filtered = self._fz_filtered_n
         velocities = self._sensor_velocity
+        period = self.period_s
         for k, (sensor, link_id, k_state, T_link_sensor, ankle, wrist,
                 mass) in enumerate(self._sensor_table):
             extra = moment = None
             if wrist and cutting:  # the cutting wrench as Python floats (cutting_force_n ...)
                 force, moment, at = self._cutting_floats
                 extra = (force, at)
-            rows = contacts.get(link_id, [])
+            rows = contacts.get(link_id, ())
             if self._objects and ankle is None:  # a hand among hinged objects
                 rows = self._hand_rows(link_id, rows)
             ls = link_states[k_state]
-            T_world_sensor = _pose(ls[4], ls[5]) @ T_link_sensor
-            wrench = self._wrench(rows, T_world_sensor, extra, moment)
             # the body beyond the sensor loads it with its weight and its inertia, m (g - a),
             # at its centre of mass (a: its velocity differenced over the period)
             previous, velocities[k] = velocities[k], ls[6]
             ax = ay = az = 0.0
             if previous is not None:
-                ax, ay, az = ((v - u) / self.period_s for v, u in zip(ls[6], previous,
-                                                                        strict=True))
+                (vx, vy, vz), (ux, uy, uz) = ls[6], previous
+                ax, ay, az = (vx - ux) / period, (vy - uy) / period, (vz - uz) / period
             load = (mass * -ax, mass * -ay, mass * (-GRAVITY_M_S2 - az))
-            ft[sensor] = (wrench + self._wrench([], T_world_sensor, (load, ls[0]))) * FT_MASK
+            fz, ft[sensor] = _sensor_reading(rows, _pose_times(ls[4], ls[5], T_link_sensor),
+                                             extra, moment, load, ls[0])
             if ankle is not None:  # contact: the floor's push alone (the simulator's truth)
-                fz = float(wrench[2])
                 if filtered[ankle] is None:  # at start: no history to filter
                     filtered[ankle] = fz
                 filtered[ankle] += self._contact_alpha * (fz - filtered[ankle])
@@ -967,33 +1002,42 @@ class SimDriver(Driver, SimulatedWorld):
         flags, self._flags = tuple(dict.fromkeys(self._flags)), []
         if self._stopped:
             flags = tuple(dict.fromkeys((*flags, "stopped")))
-        quat = matrix_to_quat_wxyz(R)
+        quat = matrix_to_quat_wxyz(T_world_torso[:3, :3])
         state = RobotState(time_s=self._t, q_rad=q, dq_rad_s=dq, imu_quat_wxyz=quat,
                            imu_gyro_rad_s=gyro, imu_accel_m_s2=accel, ft=ft, tau_nm=tau,
                            truth=Truth(T_world_torso, (contact[0], contact[1]), quat.copy()),
                            flags=flags)
-        tilt_deg = math.degrees(math.acos(max(-1.0, min(1.0, float(R[2, 2])))))
+        tilt_deg = math.degrees(math.acos(max(-1.0, min(1.0, torso[10]))))
         self._max_tilt_deg = max(self._max_tilt_deg, tilt_deg)
         return self._noise.measure(state)
 
-    def _imu(self, com_world: np.ndarray, v_com_world: np.ndarray, omega_world: np.ndarray,
-             T_world_torso: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _imu(self, com_world, v_com_world, omega_world, T_world_torso: np.ndarray,
+             rows_world_torso: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
         """The IMU's gyro (rad/s) and specific force (m/s^2), in the torso axes, at the torso
         frame's origin, as means over the period: the turn from the last period's orientation,
-        and the base's velocity carried there (v + omega x r) differenced, gravity removed."""
+        and the base's velocity carried there (v + omega x r) differenced, gravity removed.
+        3-vectors as Python floats (``rows_world_torso``: ``T_world_torso``'s first three rows,
+        flat)."""
+        r00, r01, r02, tx, r10, r11, r12, ty, r20, r21, r22, tz = rows_world_torso
+        w0, w1, w2 = omega_world
+        c0, c1, c2 = com_world
+        r0, r1, r2 = tx - c0, ty - c1, tz - c2
+        u0, u1, u2 = v_com_world
+        v = (u0 + (w1 * r2 - w2 * r1), u1 + (w2 * r0 - w0 * r2), u2 + (w0 * r1 - w1 * r0))
         R = T_world_torso[:3, :3]
-        # omega x r in plain floats (np.cross's arithmetic, without its dispatch: 15 us)
-        w0, w1, w2 = omega_world.tolist()
-        r0, r1, r2 = (T_world_torso[:3, 3] - com_world).tolist()
-        v = v_com_world + np.array((w1 * r2 - w2 * r1, w2 * r0 - w0 * r2, w0 * r1 - w1 * r0))
         last = self._imu_last
         self._imu_last = (v, R)
         if last is None:
-            a, gyro = np.zeros(3), R.T @ omega_world
+            a0 = a1 = a2 = 0.0
+            gyro = np.array((r00 * w0 + r10 * w1 + r20 * w2, r01 * w0 + r11 * w1 + r21 * w2,
+                             r02 * w0 + r12 * w1 + r22 * w2))
         else:
-            a, gyro = (v - last[0]) / self.period_s, rotation_log(last[1].T @ R) / self.period_s
-        a[2] += GRAVITY_M_S2
-        return gyro, R.T @ a
+            (l0, l1, l2), period = last[0], self.period_s
+            a0, a1, a2 = (v[0] - l0) / period, (v[1] - l1) / period, (v[2] - l2) / period
+            gyro = rotation_log(last[1].T @ R) / period
+        a2 += GRAVITY_M_S2
+        return gyro, np.array((r00 * a0 + r10 * a1 + r20 * a2, r01 * a0 + r11 * a1 + r21 * a2,
+                               r02 * a0 + r12 * a1 + r22 * a2))
 
     # ------------------------------------------------------------------ extras
     def frame_pose(self, frame: str) -> np.ndarray:

@@ -157,6 +157,7 @@ class StandTarget(Target):
         self.q_home_rad = q_home_rad
         self.model, self.posture = model, posture  # what a robot without a world must stand in
         self.push_world_n = push_world_n
+        self._pushes = bool(np.any(push_world_n))
         self.push_at_s = push_at_s
         self.push_duration_s = push_duration_s
         self.world: SceneActions | None = None
@@ -166,14 +167,14 @@ class StandTarget(Target):
         self.differences_nm = np.zeros(n_periods)
         self.k = 0
         self.feet_flat, self.fell, self.max_sole_deg = True, False, 0.0
-        self.soles_start_m: dict[str, np.ndarray] = {}
+        self.soles_start_m: dict[str, tuple[float, float]] = {}  # x, y (m)
         self.max_foot_shift_m = 0.0
         self.torso_z0_m: float | None = None
         self.wall_start_s = self.wall_end_s = 0.0
         self.physics_start_s = 0.0
 
     def attach(self, world: SceneActions | None, modules, store: Store) -> None:
-        if world is None and np.any(self.push_world_n):
+        if world is None and self._pushes:
             raise ConfigError("the standing experiment's push needs the simulator (it pushes "
                               "the torso)", hint="run it with the sim driver, or push the "
                                                  "robot yourself (the simulated daemon: hubo "
@@ -186,28 +187,30 @@ class StandTarget(Target):
         world, store, k = self.world, self.store, self.k
         if k == 0 and world is None and self.model is not None:  # not placed by a simulator
             check_stands_in(self.model, state.q_rad, self.q_home_rad, self.posture)
-        if np.any(self.push_world_n) and abs(t_s - self.push_at_s) < 0.0025:
+        if self._pushes and abs(t_s - self.push_at_s) < 0.0025:
             world.push_torso(self.push_world_n, self.push_duration_s)
         T_world_torso = store[T_WORLD_TORSO]
         tilt = math.degrees(tilt_rad_of_matrix(T_world_torso[:3, :3]))
+        torso_z_m = float(T_world_torso[2, 3])
         if self.torso_z0_m is None:
-            self.torso_z0_m = float(T_world_torso[2, 3])
+            self.torso_z0_m = torso_z_m
         wrenches = store[WRENCHES]
-        difference = wrenches["right-ankle"][3:5] - wrenches["left-ankle"][3:5]
+        (_, _, _, rx, ry, _), (_, _, _, lx, ly, _) = (wrenches["right-ankle"].tolist(),
+                                                      wrenches["left-ankle"].tolist())
         if k < len(self.times_s):
             self.times_s[k], self.tilts_deg[k] = state.time_s, tilt
-            self.differences_nm[k] = float(np.linalg.norm(difference))
+            self.differences_nm[k] = math.hypot(rx - lx, ry - ly)
             self.k += 1
         for sole, T_world_sole, touching in zip(("right_sole", "left_sole"),
                                                 store[T_WORLD_SOLES], store[CONTACT],
                                                 strict=True):
             sole_tilt = math.degrees(tilt_rad_of_matrix(T_world_sole[:3, :3]))
-            start = self.soles_start_m.setdefault(sole, T_world_sole[:2, 3].copy())
-            self.max_foot_shift_m = max(self.max_foot_shift_m,
-                                        float(np.linalg.norm(T_world_sole[:2, 3] - start)))
+            x, y = T_world_sole[:2, 3].tolist()
+            x0, y0 = self.soles_start_m.setdefault(sole, (x, y))
+            self.max_foot_shift_m = max(self.max_foot_shift_m, math.hypot(x - x0, y - y0))
             self.max_sole_deg = max(self.max_sole_deg, sole_tilt)
             self.feet_flat &= bool(touching) and sole_tilt <= FLAT_TOLERANCE_DEG
-        if has_fallen(tilt, self.torso_z0_m - T_world_torso[2, 3]):
+        if has_fallen(tilt, self.torso_z0_m - torso_z_m):
             self.fell = True
         self.wall_end_s = time.perf_counter()
         return self.q_home_rad, {"tilt_deg": tilt, "feet_moment_difference_nm":
