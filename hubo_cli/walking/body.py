@@ -38,8 +38,6 @@ from hubo_cli.walking.preview import CoMPath, com_from_zmp, preview_gains
 
 SIDE_LEG = {"right": "right-leg", "left": "left-leg"}
 MAX_SOLE_ERROR_M = 0.05  # a capped leg solution further than this from its sole: out of reach
-# the first row's CoM-offset iterations at most (converged within 1e-7 m: they stop early)
-ROW0_ITERATIONS = 12
 END_PERIODS = 10  # the multi-body ZMP correction leaves out this many periods at either end
 
 
@@ -163,11 +161,7 @@ class WalkingBody:
         for k in range(n):
             if k and k % rows_per_slice == 0:
                 yield
-            # the CoM offset at the joints being solved: twice a row, seeded by the row
-            # before; the first row's seed may be far (a re-plan's rest seeded from the
-            # joints playing), so it iterates until the offset settles
-            for iteration in range(ROW0_ITERATIONS if k == 0 else 2):
-                previous = offset
+            for _ in range(2):  # the CoM offset at the joints being solved
                 row_worst = _solve_row(feet[0][k], feet[1][k], com_m[k], self.lean_rad_per_m,
                                        self.neck_z_m, offset, pitch[k], q, *self.leg_kernels,
                                        self.max_error_m, T_all[k], status, error)
@@ -181,8 +175,6 @@ class WalkingBody:
                         hint="take shorter steps (walking.max_step_*_m in the robot file)")
                 worst = max(worst, row_worst)
                 offset = self.com_in_neck(q)
-                if k == 0 and iteration and np.max(np.abs(offset - previous)) < 1e-7:
-                    break
             q_all[k] = q
             com_all[k] = T_all[k, :3, :3] @ offset + T_all[k, :3, 3]
         return JointPlan(q_all, T_all, com_all, worst)

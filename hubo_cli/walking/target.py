@@ -283,11 +283,7 @@ def planned_support(gait: Gait) -> np.ndarray:
         down = np.where(gait.support[:, column], index, gait.n - 1)
         landing = np.minimum.accumulate(down[::-1])[::-1]
         rows = rows[np.where(gait.support[:, column], index, landing)]
-        # on the floor: the lowest height the foot stands at (a re-plan can start with the
-        # foot in the air, and the monitor drops a sole 5 mm above the other; a rolled sole's
-        # origin is raised)
-        down_z = gait.feet[side][gait.support[:, column], 2]
-        rows[:, 2] = down_z.min() if len(down_z) else gait.feet[side][0, 2]
+        rows[:, 2] = gait.feet[side][0, 2]
         poses[:, column] = poses_of_rows(rows)
     return poses
 
