@@ -303,13 +303,7 @@ def sim_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: bo
 
 
 def _posture(model, name: str):
-    """The limb joints of a --posture (rad)."""
-    from hubo_cli.posture import home_posture
-
-    if name in ("standing", "braced"):
-        from hubo_cli.experiments.standing import posture_of
-
-        return posture_of(model, name)
+    """The limb joints of a --posture (rad): the walking start, or a standing run's."""
     if name == "walking":
         from hubo_cli.model import load_model
         from hubo_cli.walking.body import walking_posture
@@ -318,7 +312,9 @@ def _posture(model, name: str):
         walking_model = load_model(model.params_name, "walking")
         params = walking_params(walking_model)
         return walking_posture(walking_model, params.step_width_m, params.crouch_m)[0]
-    return home_posture(model)
+    from hubo_cli.experiments.standing import posture_of
+
+    return posture_of(model, name)
 
 
 def _csv_log(path: str | None, option: str, columns: tuple[str, ...]):

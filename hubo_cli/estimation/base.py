@@ -71,7 +71,7 @@ from hubo_cli.estimation.keys import (
     WRENCHES,
 )
 from hubo_cli.estimation.observer import Observer
-from hubo_cli.estimation.wrenches import _finite, joint_vector
+from hubo_cli.estimation.wrenches import all_finite, joint_vector
 from hubo_cli.geometry import quat_to_matrix_into
 from hubo_cli.kinematics.dh import chain_fk
 from hubo_cli.kinematics.limb import Limb
@@ -242,7 +242,7 @@ def _gyro(state: RobotState) -> np.ndarray | None:
             gyro = np.ascontiguousarray(np.asarray(gyro, dtype=float).reshape(3))
         except (TypeError, ValueError):
             return None
-    return gyro if _finite(gyro) else None
+    return gyro if all_finite(gyro) else None
 
 
 def _turn_about(point: np.ndarray, angle_rad: float) -> np.ndarray:
@@ -306,12 +306,12 @@ class FloatingBase(Observer):
                       self._no_gyro, True, np.eye(3), False, np.zeros(2), self._dt_s,
                       self._keep, self._bias_gain, np.eye(4), np.zeros((2, 4, 4)),
                       np.empty((4, 4)), np.empty((3, 3)))  # compiled now
-        _finite(self._quat)
+        all_finite(self._quat)
 
     def _inputs(self, state: RobotState, store: Store) -> bool:
         """The legs' kinematics and the attitude of this period; False when not finite."""
         quat = np.asarray(store[QUAT_WORLD_TORSO], dtype=float)
-        if not _finite(quat):
+        if not all_finite(quat):
             return False
         self._quat = quat
         return self._legs.solve(state.q_rad, self._T_torso_soles)

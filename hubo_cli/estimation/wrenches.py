@@ -96,7 +96,7 @@ def joint_vector(q_rad, joints: int) -> np.ndarray:
 
 
 @nb.njit(cache=True, nogil=True)
-def _finite(x) -> bool:
+def all_finite(x) -> bool:
     for v in x.flat:
         if not math.isfinite(v):
             return False
@@ -125,7 +125,7 @@ def compensate(q, quat_wxyz, raw, index, base, offset, alpha, a, d, end, mass, c
     ``q`` (rad) and the torso attitude ``quat_wxyz``; a sensor with a non-finite input keeps
     its row of ``last``. ``measured``: 1 for the components the sensors read, 0 elsewhere."""
     R = np.empty((3, 3))
-    attitude_ok = _finite(quat_wxyz) and (quat_wxyz[0] ** 2 + quat_wxyz[1] ** 2
+    attitude_ok = all_finite(quat_wxyz) and (quat_wxyz[0] ** 2 + quat_wxyz[1] ** 2
                                           + quat_wxyz[2] ** 2 + quat_wxyz[3] ** 2) > 1e-12
     if attitude_ok:
         quat_to_matrix_into(quat_wxyz, R)
@@ -135,7 +135,7 @@ def compensate(q, quat_wxyz, raw, index, base, offset, alpha, a, d, end, mass, c
     for k in range(raw.shape[0]):
         for j in range(6):
             qk[j] = q[index[k, j]]
-        if not (attitude_ok and _finite(qk) and _finite(raw[k])):
+        if not (attitude_ok and all_finite(qk) and all_finite(raw[k])):
             for j in range(6):
                 out[k, j] = last[k, j]
             continue
