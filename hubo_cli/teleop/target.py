@@ -82,7 +82,12 @@ from hubo_cli.scene import SceneActions, WallPlacement
 from hubo_cli.teleop.lead import GoalVelocity, reachable_velocity
 from hubo_cli.teleop.mapping import HandMapper
 from hubo_cli.teleop.phases import PHASES, Approach, Operate, Settle
-from hubo_cli.teleop.target_kernels import hand_errors, path_swing_m
+from hubo_cli.teleop.target_kernels import (
+    free_goal,
+    hand_errors,
+    operator_pose_plausible,
+    path_swing_m,
+)
 
 SHORT = {"right-arm": "r", "left-arm": "l"}
 _EYE4 = np.eye(4)  # read only
@@ -293,6 +298,8 @@ class TeleopTarget(Target):
         for _ in range(len(goal_velocity._q)):
             goal_velocity.update(zeros, True)
         reachable_velocity(zeros, zeros, zeros, zeros, limits)
+        operator_pose_plausible(_EYE4, 1.0)
+        free_goal(_EYE4, _EYE4, _EYE4, _EYE4, 1.0, 1.0, np.empty((4, 4)))
         for reach in self.reach.values():
             limb = reach.limb
             condition_number(limb, zeros)
