@@ -37,7 +37,7 @@ from hubo_cli.teleop import target as target_module
 from hubo_cli.teleop.mapping import MAX_OPERATOR_RANGE_M, HandGoal, HandMapper, MappingConfig
 from hubo_cli.teleop.room import CollisionRoom
 from hubo_cli.teleop.stream_runs import follow_generated
-from hubo_cli.teleop.target_kernels import hand_errors, path_swing_m
+from hubo_cli.teleop.target_kernels import hand_errors, max_abs_difference, path_swing_m
 
 # ---------------------------------------------------------------- the numpy code, as it was
 
@@ -336,6 +336,18 @@ def test_the_free_mapping_matches_numpy():
                 other = plain._refs[hand_name]
                 assert (ref.last_t_s == other.last_t_s
                         or (np.isnan(ref.last_t_s) and np.isnan(other.last_t_s)))
+
+
+def test_the_largest_joint_difference_matches_numpy():
+    rng = np.random.default_rng(46)
+    for _ in range(3000):
+        x, y = rng.normal(size=(2, 6)) * rng.choice([1e-9, 1e-6, 1.0])
+        if rng.random() < 0.1:
+            y[:] = x
+        if rng.random() < 0.1:
+            y[rng.integers(6)] = rng.choice([np.nan, np.inf])
+        expected = np.max(np.abs(x - y))
+        assert max_abs_difference(x, y) == pytest.approx(expected, rel=0, abs=0, nan_ok=True)
 
 
 # ---------------------------------------------------------------- the whole target, closed loop

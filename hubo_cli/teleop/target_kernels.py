@@ -102,3 +102,16 @@ def free_goal(T_O, T_O_ref, T_S_hand0, last_mapped, scale, max_step_m, T_goal):
         T_goal[3, i] = 0.0
     T_goal[3, 3] = 1.0
     return math.sqrt(step2) <= max_step_m
+
+
+@nb.njit(**JIT)
+def max_abs_difference(x, y):
+    """``np.max(np.abs(x - y))`` of two vectors (NaN if any difference is NaN)."""
+    worst = 0.0
+    for i in range(x.shape[0]):
+        d = abs(x[i] - y[i])
+        if d != d:
+            return d
+        if d > worst:
+            worst = d
+    return worst
