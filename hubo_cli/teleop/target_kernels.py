@@ -2,8 +2,9 @@
 
 Each period the target previews each arm's way to its target (:func:`path_swing_m`: how far
 the hand strays from a straight line on it) and measures each hand (:func:`hand_errors`: its
-pose from the measured joints, its errors to the goal). Done with numpy each was a dozen or more
-small-array calls; here each is one compiled call.
+pose from the measured joints, its errors to the goal); the hand mapper checks each operator
+sample and maps it (:func:`operator_pose_plausible`, :func:`free_goal`). Done with numpy each
+was a dozen or more small-array calls; here each is one compiled call.
 """
 
 from __future__ import annotations
