@@ -34,9 +34,10 @@ from hubo_cli.model import load_model
 from hubo_cli.motion.limits import JointLimits
 from hubo_cli.teleop import lead
 from hubo_cli.teleop import target as target_module
+from hubo_cli.teleop.mapping import MAX_OPERATOR_RANGE_M, HandGoal, HandMapper, MappingConfig
 from hubo_cli.teleop.room import CollisionRoom
 from hubo_cli.teleop.stream_runs import follow_generated
-from hubo_cli.teleop.target_kernels import hand_errors, path_swing_m
+from hubo_cli.teleop.target_kernels import hand_errors, max_abs_difference, path_swing_m
 
 # ---------------------------------------------------------------- the numpy code, as it was
 
@@ -129,6 +130,38 @@ def numpy_path_swing_m(limb, path):
     return float(np.sqrt(np.max(np.sum((p - along[:, None] * line) ** 2, axis=1))))
 
 
+class NumpyMapper(HandMapper):
+    def goal(self, hand, T_O_hand, t_s, T_S_hand_now):  # free mode, as it was
+        if self.config.mode == "drill":
+            return super().goal(hand, T_O_hand, t_s, T_S_hand_now)
+        arm = self.config.hand_arm.get(hand)
+        if arm is None:
+            return None
+        T_O = np.asarray(T_O_hand, dtype=float)
+        if not np.isfinite(T_O).all() or np.abs(T_O[:3, 3]).max() > MAX_OPERATOR_RANGE_M:
+            self.rejected += 1
+            return None
+        if hand not in self._refs:
+            self.recenter(hand, T_O, T_S_hand_now)
+            ref = self._refs[hand]
+            ref.last_t_s = t_s
+            return HandGoal(arm, ref.T_S_hand0.copy(), t_s, calibrated_now=True)
+        ref = self._refs[hand]
+        T_goal = np.eye(4)
+        delta_S = self.config.scale * (T_O[:3, 3] - ref.T_O_ref[:3, 3])
+        T_goal[:3, :3] = T_O[:3, :3] @ ref.T_O_ref[:3, :3].T @ ref.T_S_hand0[:3, :3]
+        T_goal[:3, 3] = ref.T_S_hand0[:3, 3] + delta_S
+        step = T_goal[:3, 3] - ref.last_mapped[:3, 3]
+        if np.linalg.norm(step) > self.config.max_step_m:
+            self.rejected += 1
+            return None
+        ref.last_mapped = T_goal.copy()
+        if np.isfinite(t_s) and (ref.last_t_s is None or t_s > ref.last_t_s):
+            ref.last_t_s = t_s
+        ref.last_goal = T_goal
+        return HandGoal(arm, T_goal, t_s)
+
+
 class ReferenceRoom(CollisionRoom):
     def _distance_to_room(self, q_rad):  # as before: every pair within NEAR_M of the room
         return self._distance(q_rad)
@@ -140,6 +173,7 @@ class ReferenceTarget(target_module.TeleopTarget):
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self.reach = {arm: NumpyReach(r.limb, r.settings) for arm, r in self.reach.items()}
+        self.mapper.__class__ = NumpyMapper
         if self.room is not None:
             self.room.__class__ = ReferenceRoom
 
@@ -262,6 +296,58 @@ def test_the_swing_and_the_hand_errors_match_numpy():
                                    atol=1e-12)
                 assert world == pytest.approx(
                     np.linalg.norm(T_goal[:3, 3] - (T_S_N @ T_N_E)[:3, 3]), abs=1e-12)
+
+
+def test_the_free_mapping_matches_numpy():
+    """Random walks of both hands with turns, jumps beyond the step limit, garbage (NaN, inf,
+    beyond the range), clutches and repeated or older sample times."""
+    rng = np.random.default_rng(45)
+    for scale in (1.0, 0.5, 2.5):
+        config = MappingConfig(mode="free", scale=scale)
+        fast, plain = HandMapper(config), NumpyMapper(config)
+        T_now = {hand: np.eye(4) for hand in ("right", "left")}
+        T_S_hand = get_limb("right-arm").fk(np.zeros(6))
+        t = 0.0
+        for k in range(3000):
+            hand = ("right", "left")[k % 2]
+            R = Rotation.from_rotvec(rng.normal(size=3) * rng.choice([1e-3, 0.05, 1.0]))
+            T_now[hand][:3, :3] = R.as_matrix() @ T_now[hand][:3, :3]
+            T_now[hand][:3, 3] += rng.normal(size=3) * rng.choice([1e-4, 0.003, 0.01])
+            T_O = T_now[hand].copy()
+            draw = rng.random()
+            if draw < 0.05:  # a jump of the samples alone (beyond the step limit mostly)
+                T_O[:3, 3] += rng.normal(size=3) * 0.15
+            elif draw < 0.08:
+                T_O[rng.integers(4), rng.integers(4)] = rng.choice([np.nan, np.inf, -np.inf])
+            elif draw < 0.11:
+                T_O[rng.integers(3), 3] = rng.choice([-1.0, 1.0]) * rng.uniform(99.0, 1e300)
+            elif draw < 0.13:
+                fast.forget(hand)
+                plain.forget(hand)
+            t += float(rng.choice([0.005, 0.0, -0.01]))
+            t_s = np.nan if rng.random() < 0.02 else t
+            got, expected = (m.goal(hand, T_O, t_s, T_S_hand) for m in (fast, plain))
+            assert (got is None) == (expected is None), k
+            if got is not None:
+                assert got.arm == expected.arm and got.calibrated_now == expected.calibrated_now
+                assert np.allclose(got.T_S_goal, expected.T_S_goal, rtol=0, atol=1e-13), k
+            assert fast.rejected == plain.rejected
+            for hand_name, ref in fast._refs.items():
+                other = plain._refs[hand_name]
+                assert (ref.last_t_s == other.last_t_s
+                        or (np.isnan(ref.last_t_s) and np.isnan(other.last_t_s)))
+
+
+def test_the_largest_joint_difference_matches_numpy():
+    rng = np.random.default_rng(46)
+    for _ in range(3000):
+        x, y = rng.normal(size=(2, 6)) * rng.choice([1e-9, 1e-6, 1.0])
+        if rng.random() < 0.1:
+            y[:] = x
+        if rng.random() < 0.1:
+            y[rng.integers(6)] = rng.choice([np.nan, np.inf])
+        expected = np.max(np.abs(x - y))
+        assert max_abs_difference(x, y) == pytest.approx(expected, rel=0, abs=0, nan_ok=True)
 
 
 # ---------------------------------------------------------------- the whole target, closed loop

@@ -30,6 +30,7 @@ import numpy as np
 from hubo_cli.errors import ConfigError
 from hubo_cli.input.device import ARM_OF_HAND
 from hubo_cli.model import ARMS
+from hubo_cli.teleop.target_kernels import free_goal, operator_pose_plausible
 
 MODES = ("free", "drill")
 MAX_OPERATOR_RANGE_M = 100.0  # a tracker reads a few metres; far beyond is garbage
@@ -150,9 +151,9 @@ class HandMapper:
         arm = self.config.hand_arm.get(hand)
         if arm is None:
             return None
-        T_O = np.asarray(T_O_hand, dtype=float)
+        T_O = np.ascontiguousarray(T_O_hand, dtype=float)
         # non-finite, or beyond any tracker's range (and large enough to overflow in the maths)
-        if not np.isfinite(T_O).all() or np.abs(T_O[:3, 3]).max() > MAX_OPERATOR_RANGE_M:
+        if T_O.shape != (4, 4) or not operator_pose_plausible(T_O, MAX_OPERATOR_RANGE_M):
             self.rejected += 1
             return None
         if hand not in self._refs:
@@ -161,6 +162,17 @@ class HandMapper:
             ref.last_t_s = t_s
             return HandGoal(arm, ref.T_S_hand0.copy(), t_s, calibrated_now=True)
         ref = self._refs[hand]
+        if self.config.mode != "drill":  # one compiled call: the same arithmetic as below
+            T_goal = np.empty((4, 4))
+            if not free_goal(T_O, ref.T_O_ref, ref.T_S_hand0, ref.last_mapped,
+                             self.config.scale, self.config.max_step_m, T_goal):
+                self.rejected += 1
+                return None
+            ref.last_mapped = T_goal.copy()
+            if math.isfinite(t_s) and (ref.last_t_s is None or t_s > ref.last_t_s):
+                ref.last_t_s = t_s
+            ref.last_goal = T_goal
+            return HandGoal(arm, T_goal, t_s)
         T_goal = np.eye(4)
         delta_S = self.config.scale * (T_O[:3, 3] - ref.T_O_ref[:3, 3])
         if self.config.mode == "drill":

@@ -82,7 +82,13 @@ from hubo_cli.scene import SceneActions, WallPlacement
 from hubo_cli.teleop.lead import GoalVelocity, reachable_velocity
 from hubo_cli.teleop.mapping import HandMapper
 from hubo_cli.teleop.phases import PHASES, Approach, Operate, Settle
-from hubo_cli.teleop.target_kernels import hand_errors, path_swing_m
+from hubo_cli.teleop.target_kernels import (
+    free_goal,
+    hand_errors,
+    max_abs_difference,
+    operator_pose_plausible,
+    path_swing_m,
+)
 
 SHORT = {"right-arm": "r", "left-arm": "l"}
 _EYE4 = np.eye(4)  # read only
@@ -293,6 +299,9 @@ class TeleopTarget(Target):
         for _ in range(goal_velocity.samples):
             goal_velocity.update(zeros, True)
         reachable_velocity(zeros, zeros, zeros, zeros, limits)
+        operator_pose_plausible(_EYE4, 1.0)
+        max_abs_difference(zeros, zeros)
+        free_goal(_EYE4, _EYE4, _EYE4, _EYE4, 1.0, 1.0, np.empty((4, 4)))
         for reach in self.reach.values():
             limb = reach.limb
             condition_number(limb, zeros)
@@ -397,7 +406,7 @@ class TeleopTarget(Target):
         """How far (m) the hand strays from the straight line between its commanded position and
         the target's on the tracker's unsynchronised way to ``target_rad`` (arm joints, rad),
         arriving with ``target_v_rad_s`` (default 0)."""
-        if np.max(np.abs(target_rad - tracker.q)) < 1e-6:
+        if max_abs_difference(target_rad, tracker.q) < 1e-6:
             return 0.0
         limb = self.body.arms[arm]
         path = tracker.preview(target_rad, OPERATE_SYNCHRONIZATION, SWING_SAMPLES,

@@ -2,8 +2,9 @@
 
 Each period the target previews each arm's way to its target (:func:`path_swing_m`: how far
 the hand strays from a straight line on it) and measures each hand (:func:`hand_errors`: its
-pose from the measured joints, its errors to the goal). Done with numpy each was a dozen or more
-small-array calls; here each is one compiled call.
+pose from the measured joints, its errors to the goal); the hand mapper checks each operator
+sample and maps it (:func:`operator_pose_plausible`, :func:`free_goal`). Done with numpy each
+was a dozen or more small-array calls; here each is one compiled call.
 """
 
 from __future__ import annotations
@@ -68,3 +69,50 @@ def hand_errors(q, base, offset, alpha, a, d, end, corrected, lift_m, T_S_N, T_g
                       T_goal[2, 3] - T_S_E[2, 3])
         world_m = math.sqrt(dx * dx + dy * dy + dz * dz)
     return position_m, rotation_rad, world_m
+
+
+@nb.njit(**JIT)
+def operator_pose_plausible(T_O, max_range_m):
+    """The operator's hand pose (4x4) is finite and its position within ``max_range_m`` on
+    each axis."""
+    for i in range(4):
+        for j in range(4):
+            if not math.isfinite(T_O[i, j]):
+                return False
+    return max(abs(T_O[0, 3]), abs(T_O[1, 3]), abs(T_O[2, 3])) <= max_range_m
+
+
+@nb.njit(**JIT)
+def free_goal(T_O, T_O_ref, T_S_hand0, last_mapped, scale, max_step_m, T_goal):
+    """The free mode's hand goal into ``T_goal`` (4x4): the orientation (R_now R_ref^T)
+    R_hand0, the position p_hand0 + scale (p_now - p_ref). Returns whether it lies within
+    ``max_step_m`` of ``last_mapped``'s position."""
+    A = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            A[i, j] = (T_O[i, 0] * T_O_ref[j, 0] + T_O[i, 1] * T_O_ref[j, 1]
+                       + T_O[i, 2] * T_O_ref[j, 2])
+    step2 = 0.0
+    for i in range(3):
+        for j in range(3):
+            T_goal[i, j] = (A[i, 0] * T_S_hand0[0, j] + A[i, 1] * T_S_hand0[1, j]
+                            + A[i, 2] * T_S_hand0[2, j])
+        T_goal[i, 3] = T_S_hand0[i, 3] + scale * (T_O[i, 3] - T_O_ref[i, 3])
+        step = T_goal[i, 3] - last_mapped[i, 3]
+        step2 += step * step
+        T_goal[3, i] = 0.0
+    T_goal[3, 3] = 1.0
+    return math.sqrt(step2) <= max_step_m
+
+
+@nb.njit(**JIT)
+def max_abs_difference(x, y):
+    """``np.max(np.abs(x - y))`` of two vectors (NaN if any difference is NaN)."""
+    worst = 0.0
+    for i in range(x.shape[0]):
+        d = abs(x[i] - y[i])
+        if d != d:
+            return d
+        if d > worst:
+            worst = d
+    return worst
