@@ -109,6 +109,9 @@ class EstimationConfig:
             that one carries this much more (compensated ankle F_z).
         anchor_cop_min_fz_n: a sole pressing less than this keeps its last centre of pressure
             (the floating base's rolling-edge check).
+        flight_max_fz_n: neither sole pressing this much for ``flight_confirm_s`` is a flight
+            (a landing's bounce, a jump): no sole holds the floating base then.
+        flight_confirm_s: how long both soles must stay that light before it is a flight.
         zmp_sole_min_fz_n: a sole in contact pressing less than this adds no centre of
             pressure to the ZMP.
         swing_touchdown_n: a capture step's swing sole carrying this much has touched down.
@@ -126,6 +129,8 @@ class EstimationConfig:
     contact_loss_min_s: float = 0.02
     anchor_switch_n: float = 40.0
     anchor_cop_min_fz_n: float = 10.0
+    flight_max_fz_n: float = 20.0
+    flight_confirm_s: float = 0.03
     zmp_sole_min_fz_n: float = 1.0
     swing_touchdown_n: float = 60.0
     sole_damping_min_fz_n: float = 30.0

@@ -148,3 +148,44 @@ def test_a_landed_sole_takes_the_anchor_once_it_has_stood(model, rng):
     # the anchor lifting off hands over at once, settled or not
     step(base, store, noisy(), level, wrench(380.0), wrench(0.0), (True, True))
     assert base.anchor == 0
+
+
+def test_only_a_lasting_flight_lets_go_of_the_anchor(model, rng):
+    """Both soles light (a landing's bounce) for less than ``flight_confirm_s``, the anchor
+    still holds: the torso follows the legs (a walk's touchdowns have a few such periods,
+    which must change nothing). Light longer, the torso stays where it was while the legs
+    move; once a sole presses again the anchor holds from where that sole then is. Random
+    light spells interrupted by one pressing period never fly."""
+    q0 = home_posture(model)
+    knee = model.joint_names.index("RKN")
+    level = (1.0, 0.0, 0.0, 0.0)
+    base, store = started(model, q0, wrench(300.0), wrench(80.0))
+    assert base.anchor == 0
+    light = wrench(model.estimation.flight_max_fz_n * 0.5)
+    confirm = int(round(model.estimation.flight_confirm_s / DT))
+    q = q0.copy()
+    positions = []
+    for _ in range(confirm + 4):
+        q[knee] += 0.01  # the right leg folds: anchored, the torso sinks
+        step(base, store, q, level, light, light, (True, True))
+        positions.append(store[T_WORLD_TORSO][:3, 3].copy())
+    moved = np.linalg.norm(np.diff(positions, axis=0), axis=1)
+    assert np.all(moved[:confirm - 2] > 1e-4)  # still held by the sole: the torso moves
+    np.testing.assert_allclose(moved[confirm - 1:], 0.0, atol=1e-12)  # in flight: it stays
+    sole_in_flight = store[T_WORLD_SOLES][0].copy()
+    step(base, store, q, level, wrench(300.0), light, (True, True))
+    np.testing.assert_allclose(store[T_WORLD_SOLES][0], sole_in_flight, atol=1e-12)
+    q[knee] += 0.01  # pressing again: the sole holds, the torso moves
+    step(base, store, q, level, wrench(300.0), light, (True, True))
+    np.testing.assert_allclose(store[T_WORLD_SOLES][0][:3, 3], sole_in_flight[:3, 3],
+                               atol=1e-9)
+
+    base, store = started(model, q0, wrench(300.0), wrench(80.0))
+    q = q0.copy()
+    for _ in range(10):  # spells one period short of a flight, each ended by a pressing period
+        for _ in range(int(rng.integers(1, confirm))):
+            before = store[T_WORLD_TORSO][:3, 3].copy()
+            q[knee] += 0.005
+            step(base, store, q, level, light, light, (True, True))
+            assert np.linalg.norm(store[T_WORLD_TORSO][:3, 3] - before) > 1e-4
+        step(base, store, q, level, wrench(300.0), light, (True, True))
