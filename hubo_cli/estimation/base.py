@@ -45,9 +45,10 @@ while it stays in contact, was tried: with it the 150 N capture step's return st
 the floor, the back foot loaded with 130-140 N to the end.)
 
 In flight (neither sole pressing ``estimation.flight_max_fz_n`` for ``flight_confirm_s`` in a
-row: a landing's bounce, a jump, a lifted robot) no sole holds the estimate: the torso stays
-where it was, its tilt the attitude's and its heading kept, and the soles follow it through
-the legs; the anchor takes up from where its sole then is. A 150 N capture step's landed foot
+row, after one has pressed since the start: a landing's bounce, a jump, a lifted robot) no sole
+holds the estimate: the torso stays where it was, its tilt the attitude's and its heading
+kept, and the soles follow it through the legs; the anchor takes up from where its sole then
+is. A 150 N capture step's landed foot
 bounces for 55-85 ms below 20 N and slides back meanwhile: held, it carried the estimate
 26-30 mm forward, the CoM's velocity to twice the truth's and the capture point to within
 13 mm of the capture-point stop (past it on another machine: a false stop, a fall). A walk's
@@ -306,6 +307,7 @@ class FloatingBase(Observer):
         self._flight_periods = max(1, int(round(model.estimation.flight_confirm_s
                                                 / self._dt_s)))
         self._light_periods = 0  # periods in a row with both soles lighter than flight_max
+        self._pressed = False  # a sole has pressed since the reset (else no flight is sensed)
         self._keep = HEADING_TAU_S / (HEADING_TAU_S + self._dt_s)  # the turn's fade a period
         self._turn_rad = 0.0  # the gyro's turn on top of the legs' heading
         self._turn_bias = np.zeros(2)  # the kernel's (turn, yaw bias)
@@ -338,6 +340,7 @@ class FloatingBase(Observer):
         self._turn_rad, self._R_legs, self._bias_rad_s = 0.0, None, 0.0
         self._landed.clear()
         self._light_periods = 0
+        self._pressed = any(f >= self._flight_max_fz_n for f in fz)  # (a NaN: not pressed)
         if not self._inputs(state, store):
             self._write(store)
             return
@@ -427,7 +430,11 @@ class FloatingBase(Observer):
             wrenches = store[WRENCHES]
             light = all(float(wrenches[s][2]) < self._flight_max_fz_n for s in ANKLE_SENSORS)
             self._light_periods = self._light_periods + 1 if light else 0  # NaN: not light
-            if self._light_periods >= self._flight_periods:
+            self._pressed = self._pressed or any(
+                float(wrenches[s][2]) >= self._flight_max_fz_n for s in ANKLE_SENSORS)
+            # a robot whose soles never pressed (the ideal driver's, which stands on no
+            # floor; a robot started hanging) has no flight to sense: the anchor holds
+            if self._pressed and self._light_periods >= self._flight_periods:
                 self._fly()
                 self._write(store)
                 return
