@@ -48,12 +48,13 @@ In flight (neither sole pressing ``estimation.flight_max_fz_n`` for ``flight_con
 row, after one has pressed since the start: a landing's bounce, a jump, a lifted robot) no sole
 holds the estimate: the torso stays where it was, its tilt the attitude's and its heading
 kept, and the soles follow it through the legs; the anchor takes up from where its sole then
-is. A 150 N capture step's landed foot
-bounces for 55-85 ms below 20 N and slides back meanwhile: held, it carried the estimate
-26-30 mm forward, the CoM's velocity to twice the truth's and the capture point to within
-13 mm of the capture-point stop (past it on another machine: a false stop, a fall). A walk's
-touchdowns have both soles light for up to 20 ms (4 periods): without the confirmation they
-dropped the anchor and perturbed walks ended 11-38 mm off (docs/history/balance.md).
+is. A 150 N capture step's landed foot bounces for 55-85 ms below 20 N and slides back
+meanwhile: held, it carried the estimate 26-30 mm forward, the CoM's velocity to twice the
+truth's and the capture point to within 13 mm of the capture-point stop (past it on another
+machine: a false stop, a fall). A walk's touchdowns have both soles light for up to 20 ms (4
+periods): without the confirmation they dropped the anchor and perturbed walks ended 11-38 mm
+off (docs/history/balance.md). Soles that never pressed (the ideal driver's, on no floor)
+sense no flight.
 
 Start: the world frame is the simulator's (:mod:`hubo_cli.drivers.sim`): the torso's neck frame
 at the start, dropped onto the floor (x forward, y left, z up, the origin on the floor under the
