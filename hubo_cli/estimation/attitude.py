@@ -186,6 +186,28 @@ def _quat_times_rotvec(q, vx, vy, vz, out):
 
 
 @nb.njit(**JIT)
+def _mul(A, B, out):
+    """out = A B (the sums in index order, as the products written out)."""
+    for i in range(A.shape[0]):
+        for j in range(B.shape[1]):
+            acc = 0.0
+            for k in range(A.shape[1]):
+                acc += A[i, k] * B[k, j]
+            out[i, j] = acc
+
+
+@nb.njit(**JIT)
+def _mul_bt(A, B, out):
+    """out = A B^T."""
+    for i in range(A.shape[0]):
+        for j in range(B.shape[0]):
+            acc = 0.0
+            for k in range(A.shape[1]):
+                acc += A[i, k] * B[j, k]
+            out[i, j] = acc
+
+
+@nb.njit(**JIT)
 def _correct(q, b, n, P, K, H, res, r):
     """Apply the correction K res to (q, b, n) and its covariance to P (Joseph form: right for
     any gain, the bias's rows zeroed too, and stays symmetric), in place."""
@@ -203,12 +225,7 @@ def _correct(q, b, n, P, K, H, res, r):
                 acc += K[i, k] * H[k, j]
             IKH[i, j] = (1.0 if i == j else 0.0) - acc
     A = np.empty((NX, NX))  # (I - K H) P
-    for i in range(NX):
-        for j in range(NX):
-            acc = 0.0
-            for k in range(NX):
-                acc += IKH[i, k] * P[k, j]
-            A[i, j] = acc
+    _mul(IKH, P, A)
     for i in range(NX):  # P = A (I - K H)^T + r K K^T
         for j in range(NX):
             acc = kk = 0.0
@@ -277,19 +294,9 @@ def _vertical_update(q, b, n, P, measured, predicted, r, floor, learn_bias, lear
     for i in range(3):
         res[i] = measured[i] - predicted[i]
     PHt = np.empty((NX, 3))  # P H^T
-    for i in range(NX):
-        for j in range(3):
-            acc = 0.0
-            for k in range(NX):
-                acc += P[i, k] * H[j, k]
-            PHt[i, j] = acc
+    _mul_bt(P, H, PHt)
     S = np.empty((3, 3))  # H P H^T + r I
-    for i in range(3):
-        for j in range(3):
-            acc = 0.0
-            for k in range(NX):
-                acc += H[i, k] * PHt[k, j]
-            S[i, j] = acc
+    _mul(H, PHt, S)
     for i in range(3):
         S[i, i] += r
     S_inv = np.empty((3, 3))
@@ -361,18 +368,8 @@ def _filter_step(q, b, n, P, gyro, accel, legs, dt, gravity, params, q_out, b_ou
         for i in range(3):
             F[i, i + 3] = -dt
         FP = np.empty((NX, NX))
-        for i in range(NX):
-            for j in range(NX):
-                acc = 0.0
-                for k in range(NX):
-                    acc += F[i, k] * P[k, j]
-                FP[i, j] = acc
-        for i in range(NX):  # F P F^T
-            for j in range(NX):
-                acc = 0.0
-                for k in range(NX):
-                    acc += FP[i, k] * F[j, k]
-                P_out[i, j] = acc
+        _mul(F, P, FP)
+        _mul_bt(FP, F, P_out)  # F P F^T
         qa = params[_GYRO_NOISE] ** 2 * dt
         qb = params[_BIAS_WALK] ** 2 * dt
         for i in range(3):
@@ -467,11 +464,7 @@ def _filter_step(q, b, n, P, gyro, accel, legs, dt, gravity, params, q_out, b_ou
                   + H[0, 5] * (gyro[2] - b_out[2]))
         r = max(motion[1] / 3.0, params[_GYRO_NOISE] ** 2 / (2.0 * dt))
         PHt = np.empty((NX, 1))  # P H^T
-        for i in range(NX):
-            acc = 0.0
-            for k in range(NX):
-                acc += P_out[i, k] * H[0, k]
-            PHt[i, 0] = acc
+        _mul_bt(P_out, H, PHt)
         s = 0.0
         for k in range(NX):
             s += H[0, k] * PHt[k, 0]

@@ -429,10 +429,10 @@ class FloatingBase(Observer):
     def update(self, state: RobotState, store: Store) -> None:
         if self._inputs(state, store):
             wrenches = store[WRENCHES]
-            light = all(float(wrenches[s][2]) < self._flight_max_fz_n for s in ANKLE_SENSORS)
+            fz = [float(wrenches[s][2]) for s in ANKLE_SENSORS]  # right, left
+            light = all(f < self._flight_max_fz_n for f in fz)
             self._light_periods = self._light_periods + 1 if light else 0  # NaN: not light
-            self._pressed = self._pressed or any(
-                float(wrenches[s][2]) >= self._flight_max_fz_n for s in ANKLE_SENSORS)
+            self._pressed = self._pressed or any(f >= self._flight_max_fz_n for f in fz)
             # a robot whose soles never pressed (the ideal driver's, which stands on no
             # floor; a robot started hanging) has no flight to sense: the anchor holds
             if self._pressed and self._light_periods >= self._flight_periods:
@@ -447,9 +447,8 @@ class FloatingBase(Observer):
             self._place(point, _gyro(state),
                         bool(contact[0]) != bool(contact[1]) and on_edge)
             other = 1 - self.anchor
-            fz_anchor = float(wrenches[ANKLE_SENSORS[self.anchor]][2])
-            heavier = (float(wrenches[ANKLE_SENSORS[other]][2])
-                       > fz_anchor + self._anchor_switch_n)
+            fz_anchor = fz[self.anchor]
+            heavier = fz[other] > fz_anchor + self._anchor_switch_n
             # a sole just landed takes the anchor by weight only once it has stood (its
             # touchdown's force peak passed), unless the anchor lifts off
             settled = len(self._landed) == LANDED_PERIODS or not fz_anchor >= self._cop_min_fz_n
