@@ -11,7 +11,7 @@ from hubo_cli.errors import ConfigError, InputError
 from hubo_cli.model import load_model
 from hubo_cli.walking.body import WalkingBody, walking_posture
 from hubo_cli.walking.footsteps import Footstep, Stance, plan_footsteps, stance_of
-from hubo_cli.walking.gait import cruise_profile, make_gait, smoothstep5
+from hubo_cli.walking.gait import cruise_profile, make_gait, smoothstep5, swing_rows
 from hubo_cli.walking.params import walking_params
 from hubo_cli.walking.preview import com_from_zmp, preview_gains
 
@@ -276,6 +276,62 @@ def test_the_swing_travel_and_ramp_are_checked(params):
         params.with_changes(swing_ramp_fraction=0.6)
     with pytest.raises(ConfigError):
         params.with_changes(swing_travel_fraction=1.2)
+    for end in (0.7, 1.01, float("nan")):  # before the travel's length, past the phase, NaN
+        with pytest.raises(ConfigError, match="swing_travel_end_fraction"):
+            params.with_changes(swing_travel_end_fraction=end)
+
+
+def test_the_gaits_are_the_robot_files(walking_model, params, tmp_path):
+    """``normal`` is the [walking] table, ``fast`` its sub-table's changes; an unknown gait is
+    bad input, a sub-table naming a field that is no walking parameter a bad robot file."""
+    from hubo_cli.errors import InputError
+    from hubo_cli.model import load_model
+    from hubo_cli.walking.params import gait_names
+
+    assert gait_names(walking_model) == ("normal", "fast")
+    assert walking_params(walking_model, "normal") == params
+    fast = walking_params(walking_model, "fast")
+    assert fast.step_width_m == params.step_width_m and fast.crouch_m == params.crouch_m
+    assert fast.step_s < params.step_s  # the same start posture, shorter steps
+    with pytest.raises(InputError, match="no gait 'run'"):
+        walking_params(walking_model, "run")
+    text = walking_model.source.read_text().replace(
+        "[walking.fast]\n", "[walking.fast]\nstride_m = 0.3\n")
+    bad = tmp_path / "hubo2plus.toml"
+    bad.write_text(text)
+    with pytest.raises(ConfigError, match="walking.fast.stride_m"):
+        walking_params(load_model("as-built", "walking", path=bad), "fast")
+
+
+def test_the_default_swing_ends_its_travel_in_the_middle(params):
+    """swing_travel_end_fraction 0.9 with 0.8 of travel is the former middle, to the bit."""
+    start, end = Footstep("left", 0.0, 0.12, 0.0), Footstep("left", 0.28, 0.12, 0.0)
+    rows = swing_rows(start, end, 140, 0.02, 0.0, 0.8, 0.5, params.swing_travel_end_fraction)
+    assert np.array_equal(rows, swing_rows(start, end, 140, 0.02, 0.0, 0.8, 0.5))
+
+
+def test_the_fast_gait_walks_two_metres_at_a_fifth_of_a_metre_a_second(walking_model):
+    """Issue 37's 2 m at 0.2 m/s as `hubo walk --gait fast` plans it: 12 steps, 0.209 m/s
+    from the start to the last step's end; the legs' joints within hubo-motion-rt's MaxSpeed
+    (2.5 rad/s; the plan with its multi-body correction peaks at 2.48, the same on both code
+    paths); coming down, the swing foot has stopped travelling before it is lower than 3 mm
+    (it touched down still sliding when it travelled until it was a fraction of a mm up)."""
+    fast = walking_params(walking_model, "fast")
+    q_start, T_world_neck = walking_posture(walking_model, fast.step_width_m, fast.crouch_m)
+    right, left = start_feet(fast)
+    steps = plan_footsteps(right, left, Stance(2.0, 0.0, 0.0), fast)
+    gait = make_gait(right, left, steps, fast, 0.005, 0.59, 0.0, 0.02)
+    walking_s = (np.nonzero(gait.step_index >= 0)[0][-1] + 1) * gait.period_s
+    assert len(steps) == 12 and 2.0 / walking_s >= 0.2
+    body = WalkingBody(walking_model, q_start, T_world_neck, fast.lean_rad_per_m)
+    gait, plan = body.solve_corrected(gait, 0.0, fast.preview_s, fast.zmp_weight,
+                                      fast.jerk_weight)
+    assert plan.worst_ik_error_m < 1e-6
+    assert np.abs(np.diff(plan.q_rad[:, 12:24], axis=0)).max() / gait.period_s < 2.5
+    for side in ("right", "left"):
+        rows = gait.feet[side]
+        landing = (np.abs(np.diff(rows[:, 0])) > 1e-9) & (np.diff(rows[:, 2]) < 0)
+        assert rows[1:, 2][landing].min() > 0.003  # 3.3 mm at its last travelling period
 
 
 def test_a_fifth_of_a_metre_a_second_needs_the_swing_to_cruise(walking_model, params):
@@ -292,7 +348,8 @@ def test_a_fifth_of_a_metre_a_second_needs_the_swing_to_cruise(walking_model, pa
     right, left = start_feet(fast)
     steps = plan_footsteps(right, left, Stance(2.0, 0.0, 0.0), fast)
     peaks = []
-    for swing in ({}, {"swing_travel_fraction": 0.96, "swing_ramp_fraction": 0.2}):
+    for swing in ({}, {"swing_travel_fraction": 0.96, "swing_ramp_fraction": 0.2,
+                       "swing_travel_end_fraction": 0.98}):
         walk = fast.with_changes(**swing)
         gait = make_gait(right, left, steps, walk, 0.005, 0.59, 0.0, 0.02)
         walking_s = (np.nonzero(gait.step_index >= 0)[0][-1] + 1) * gait.period_s

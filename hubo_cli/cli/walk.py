@@ -43,6 +43,9 @@ from hubo_cli.drivers.registry import DRIVER_NAMES
               help="Roll the soles on toe and heel (the multi-layer paper's eq. 4, Fig. 4; the "
                    "robot file's [toe_heel]) or land them flat (the default: see "
                    "docs/stabilizer.md).")
+@click.option("--gait", default="normal", show_default=True, metavar="NAME",
+              help="The robot file's gait: normal, or fast (2 m in 12 steps at about 0.2 m/s; "
+                   "see docs/walking.md).")
 @click.option("--lip-feedback", is_flag=True,
               help="The stabilizer's soles track the multi-layer paper's LIP state feedback "
                    "(eq. 7-8) split between the feet by its QP (eq. 9-14).")
@@ -52,7 +55,7 @@ from hubo_cli.drivers.registry import DRIVER_NAMES
                             "assumes both feet down).")
 @hardware_options
 def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | None,
-         lip_feedback: bool, push_n: float, push_direction: str, push_at_s: float,
+         gait: str, lip_feedback: bool, push_n: float, push_direction: str, push_at_s: float,
          stop_at_s: float | None, driver: str, armed: bool,
          no_estop: bool, estop_sources: str | None, accept_reduced_safety: bool, gui: bool,
          as_json: bool, out: str | None, live: bool, live_host: str | None,
@@ -71,6 +74,7 @@ def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | No
     \b
     Examples:
       hubo walk --to 1.0 0 0
+      hubo walk --to 2.0 0 0 --gait fast
       hubo walk --to 1.0 0 0 --push 100 --push-direction backward --push-at 4.8
       hubo walk --to 1.0 0 0 --stop-at 2.2
       hubo walk --to 1.0 0 0 --driver hardware --arm   (against hubo hardware sim-daemon
@@ -98,7 +102,7 @@ def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | No
                          perturb_seed=perturb_seed, corrections=corrections,
                          balance=balance, operator=keys, live=server, driver=driver,
                          driver_options=options, disturbances=disturbances,
-                         lip_feedback=lip_feedback,
+                         lip_feedback=lip_feedback, gait=gait,
                          **({} if toe_heel is None else {"toe_heel": toe_heel}))
     fields = result.summary() | {"ended": result.ended, "estop_events": result.estop_events,
                                  "run_dir": str(result.run_dir)}

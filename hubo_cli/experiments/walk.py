@@ -28,7 +28,7 @@ from hubo_cli.session import RunObserver, RunSetup, run
 from hubo_cli.state import RobotState
 from hubo_cli.walking.body import SIDE_LEG, walking_posture
 from hubo_cli.walking.footsteps import Stance, stance_of
-from hubo_cli.walking.params import WalkingParams, walking_params
+from hubo_cli.walking.params import DEFAULT_GAIT, WalkingParams, walking_params
 from hubo_cli.walking.stabilizer import StabilizerGains
 from hubo_cli.walking.target import WalkTarget, footstep_of
 from hubo_cli.walking.toe_heel import ToeHeelParams
@@ -180,7 +180,7 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
          stabilizer: StabilizerGains | None = DEFAULT_GAINS, toe_heel: bool = False,
          lip_feedback: bool = False, driver: str = "sim",
          driver_options: dict | None = None,
-         disturbances: Sequence[Disturbance] = ()) -> WalkResult:
+         disturbances: Sequence[Disturbance] = (), gait: str = DEFAULT_GAIT) -> WalkResult:
     """Walk the robot to ``goal`` = (forward m, left m, turn rad) from its stance.
 
     Args:
@@ -208,12 +208,14 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
             robot must stand in the walking posture: the walk refuses it otherwise, exit 4;
             its log has no truth, so the final error is the estimate's).
         disturbances: pushes and stops played on the walk (:class:`Disturbance`).
+        gait: the robot file's gait the walk takes its parameters from when ``params`` is None
+            (:func:`~hubo_cli.walking.params.gait_names`: ``normal``, ``fast``).
     """
     check_goal(goal)
     from hubo_cli.model import load_model
 
     walking_model = load_model(model.params_name, "walking")
-    params = params or walking_params(walking_model)
+    params = params or walking_params(walking_model, gait)
     q_start, T_world_neck = walking_posture(walking_model, params.step_width_m, params.crouch_m)
     if not 0 <= corrections <= 5:
         raise InputError(f"corrections must be 0 to 5, got {corrections}", hint="e.g. 1")

@@ -12,9 +12,10 @@ Timeline (one sample per control period):
 3. ``settle_s`` standing, the ZMP between the feet.
 
 On a stance foot the ZMP reference is the middle of the sole (``feet.forward_m`` ahead of the
-ankle) moved ``zmp_inset_m`` toward the other foot. A swing foot lifts, moves during the middle
-``swing_travel_fraction`` of the phase (0.8: while it is at least 9 % of ``swing_height_m``
-up) on :func:`cruise_profile` (``swing_ramp_fraction`` 0.5: quintic in time), turns with it, and
+ankle) moved ``zmp_inset_m`` toward the other foot. A swing foot lifts, moves during
+``swing_travel_fraction`` of the phase, ending at ``swing_travel_end_fraction`` of it (0.8
+ending at 0.9, the middle: while it is at least 9 % of ``swing_height_m`` up) on
+:func:`cruise_profile` (``swing_ramp_fraction`` 0.5: quintic in time), turns with it, and
 lands flat; its height is ``swing_height_m * sin^2(pi * tau)``.
 
 **Toe-heel walking** (``toe_heel`` given; multi-layer paper eq. 4 and Fig. 4,
@@ -129,12 +130,14 @@ def cruise_profile(u, ramp: float):
 
 
 def swing_rows(start: Footstep, end: Footstep, n: int, height_m: float,
-               z_m: float, travel: float, ramp: float) -> np.ndarray:
+               z_m: float, travel: float, ramp: float, travel_end: float | None = None
+               ) -> np.ndarray:
     """The swing foot over one single-support phase of n periods: (n, 4) rows of
     (x, y, z, yaw); the sample k is at tau = (k + 1) / n (the last one has landed). It
-    travels during the middle ``travel`` of the phase on :func:`cruise_profile` (``ramp``)."""
+    travels during ``travel`` of the phase ending at ``travel_end`` (None: the middle) on
+    :func:`cruise_profile` (``ramp``)."""
     tau = (np.arange(n) + 1.0) / n
-    lo = (1.0 - travel) / 2
+    lo = (1.0 - travel) / 2 if travel_end is None else travel_end - travel
     s = cruise_profile((tau - lo) / travel, ramp)
     turn = wrap_angle(end.yaw_rad - start.yaw_rad)
     rows = np.empty((n, 4))
@@ -206,7 +209,8 @@ def make_gait(right: Footstep, left: Footstep, steps: list[Footstep], params: Wa
         rows[stance_side].append(np.tile(_row(feet[stance_side], sole_z_m), (n, 1)))
         rows[step.side].append(swing_rows(feet[step.side], step, n, params.swing_height_m,
                                           sole_z_m, params.swing_travel_fraction,
-                                          params.swing_ramp_fraction))
+                                          params.swing_ramp_fraction,
+                                          params.swing_travel_end_fraction))
         on_ground = np.zeros((n, 2), dtype=bool)
         on_ground[:, 0 if stance_side == "right" else 1] = True
         support.append(on_ground)
@@ -273,7 +277,8 @@ def _toe_heel_gait(right: Footstep, left: Footstep, steps: list[Footstep],
         foot_rows[step.side][base:base + half] = _row(feet[step.side], sole_z_m)
         foot_rows[step.side][base + half:base + half + single] = swing_rows(
             feet[step.side], step, single, params.swing_height_m, sole_z_m,
-            params.swing_travel_fraction, params.swing_ramp_fraction)
+            params.swing_travel_fraction, params.swing_ramp_fraction,
+            params.swing_travel_end_fraction)
         foot_rows[step.side][base + half + single:base + step_n] = _row(step, sole_z_m)
         support[base + half:base + half + single, column] = False
         index[base:base + step_n] = i

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields, replace
 
-from hubo_cli.errors import ConfigError
+from hubo_cli.errors import ConfigError, InputError
 from hubo_cli.model import RobotModel
 
 
@@ -31,8 +31,12 @@ class WalkingParams:
         lean_rad_per_m: torso roll toward the stance foot per metre of the CoM's sideways
             offset from between the feet (rad/m).
         crouch_m: the torso walks this much lower than in the home posture (m).
-        swing_travel_fraction: the middle share of single support during which the swing foot
+        swing_travel_fraction: the share of single support during which the swing foot
             travels (the rest it only lifts and lands; at most 1).
+        swing_travel_end_fraction: the travel ends at this share of single support (at least
+            ``swing_travel_fraction``, at most 1; ``(1 + swing_travel_fraction) / 2``: the
+            middle). Earlier, the foot stands still above its landing place while it comes down
+            the last millimetres, and touches down without sliding.
         swing_ramp_fraction: the share of that travel during which the swing foot speeds up,
             and again slows down, on the quintic's velocity bell split at its peak, cruising
             between (at most 0.5: the plain quintic, whose peak speed is 1.875 times the mean;
@@ -57,6 +61,7 @@ class WalkingParams:
     crouch_m: float
     swing_travel_fraction: float
     swing_ramp_fraction: float
+    swing_travel_end_fraction: float
 
     @property
     def step_s(self) -> float:
@@ -80,15 +85,40 @@ def _checked(params: WalkingParams, where: str) -> WalkingParams:
         if value > most:
             raise ConfigError(f"must be at most {most:g}, got {value!r}", path=where,
                               field=f"walking.{name}")
+    if not (params.swing_travel_fraction <= params.swing_travel_end_fraction <= 1.0):
+        raise ConfigError(f"must lie between swing_travel_fraction and 1, got "
+                          f"{params.swing_travel_end_fraction!r}", path=where,
+                          field="walking.swing_travel_end_fraction")
     return params
 
 
-def walking_params(model: RobotModel) -> WalkingParams:
-    """The model's walking parameters (ConfigError names a missing or bad field)."""
+DEFAULT_GAIT = "normal"
+
+
+def gait_names(model: RobotModel) -> tuple[str, ...]:
+    """The gaits the robot file defines: ``normal`` (the ``[walking]`` table itself) and one
+    per sub-table of it (``[walking.fast]``: the fields it changes)."""
+    return (DEFAULT_GAIT, *sorted(k for k, v in model.raw_walking.items()
+                                  if isinstance(v, dict)))
+
+
+def walking_params(model: RobotModel, gait: str = DEFAULT_GAIT) -> WalkingParams:
+    """The model's walking parameters for ``gait`` (:func:`gait_names`; ConfigError names a
+    missing or bad field, InputError an unknown gait)."""
     raw = model.raw_walking
     values = {}
     for f in fields(WalkingParams):
         if f.name not in raw:
             raise ConfigError("missing key", path=str(model.source), field=f"walking.{f.name}")
         values[f.name] = raw[f.name]
+    if gait != DEFAULT_GAIT:
+        if gait not in gait_names(model):
+            raise InputError(f"no gait {gait!r} in the robot file",
+                             hint=f"one of: {', '.join(gait_names(model))}")
+        names = {f.name for f in fields(WalkingParams)}
+        for key, value in raw[gait].items():
+            if key not in names:
+                raise ConfigError("not a walking parameter", path=str(model.source),
+                                  field=f"walking.{gait}.{key}")
+            values[key] = value
     return _checked(WalkingParams(**values), str(model.source))

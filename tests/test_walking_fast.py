@@ -1,0 +1,30 @@
+"""The fast gait on the simulated robot (``hubo walk --to 2.0 0 0 --gait fast``, issue 37)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from hubo_cli.model import load_model
+
+
+@pytest.mark.physical
+@pytest.mark.slow
+def test_the_fast_gait_walks_two_metres_without_a_fall_or_a_stop(tmp_path):
+    """The nominal robot walks 2 m in the fast gait without a fall, a stop or a moved landing,
+    its commands within the walking set's 2.6 rad/s. Measured: on AVX-512 12 steps at 0.209
+    m/s, 11.4 mm / 0.71 deg off the goal; on the portable path the estimate ended the 12 steps
+    8 mm or more off, a correction took 2 more (0.152 m/s) and the truth ended 14.3 mm / 0.78 deg
+    off (the soles' twist, which the estimate does not see). Bound 25 mm: 1.7x the larger. The
+    speed is the plan's unless a correction walks: 0.209 m/s for the 12 steps
+    (tests/test_walking_pattern.py)."""
+    from hubo_cli.experiments.walk import walk
+
+    result = walk(load_model(), (2.0, 0.0, 0.0), out=tmp_path / "run", gait="fast")
+    summary = json.loads((result.run_dir / "summary.json").read_text())
+    assert result.fell is False and result.stopped_s is None and result.shifts == 0
+    assert summary["max_joint_velocity_ratio"] <= 1.0 + 1e-9
+    assert result.steps in (12, 14)  # 14: a correction's two steps
+    assert result.average_speed_m_s >= (0.2 if result.steps == 12 else 0.15)
+    assert result.final_error_mm < 25.0
