@@ -34,8 +34,8 @@ ARM_SYNC = Key(
 TRACKER_STATES = Key(
     "tracker_states", dict,
     "group -> TrackerState (limits, q_rad, v_rad_s, a_rad_s2) of the trajectory generator's "
-    "trackers after its update (body, or right-arm, left-arm and legs); read by the "
-    "teleoperation and task targets as the previous period's (previous)")
+    "trackers after its update (groups limbs); read by the teleoperation target as the "
+    "previous period's (previous)")
 ARM_TARGET_VELOCITY = Key(
     "arm_target_velocity", dict,
     "arm -> the velocity (rad/s, its joints) the trajectory generator's tracker of that arm "

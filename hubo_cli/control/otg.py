@@ -11,13 +11,11 @@ joint) or by one tracker per group (``groups="limbs"``: each arm on its own, the
 so a hand is not slowed by the other hand or the legs); the safety behaviour is the same: a
 ruckig error in any group brakes every group to rest.
 
-It writes its trackers' states every period (the store's
-:data:`~hubo_cli.control.keys.TRACKER_STATES`: the generator's output, what the joints were
-told before the stopper and the balancer). With ``groups="limbs"`` it follows the
-synchronization a target asks of each arm's tracker (:data:`~hubo_cli.control.keys.
-ARM_SYNC`), applied before it tracks, and the velocity the target asks an arm to arrive with
-(:data:`~hubo_cli.control.keys.ARM_TARGET_VELOCITY`: the goal's own, so the arm does not plan
-to stop at a moving goal).
+With ``groups="limbs"`` it writes its trackers' states every period (the store's
+:data:`~hubo_cli.control.keys.TRACKER_STATES`) and follows the synchronization a target asks
+of each arm's tracker (:data:`~hubo_cli.control.keys.ARM_SYNC`), applied before it tracks, and
+the velocity the target asks an arm to arrive with (:data:`~hubo_cli.control.keys.
+ARM_TARGET_VELOCITY`: the goal's own, so the arm does not plan to stop at a moving goal).
 """
 
 from __future__ import annotations
@@ -89,21 +87,6 @@ def tracker_groups(model: RobotModel, groups: str) -> dict[str, np.ndarray]:
     out = {arm: np.arange(n)[model.limb_slice(arm)] for arm in ARMS}
     out["legs"] = np.concatenate([np.arange(n)[model.limb_slice(leg)] for leg in LEGS])
     return out
-
-
-def generated_rad(states: dict | None, model: RobotModel, q_rad: np.ndarray
-                  ) -> np.ndarray | None:
-    """The joint vector (rad) the generator's trackers ``states`` (the store's TRACKER_STATES)
-    hold, the joints of any group absent from them taken from ``q_rad``; None without
-    states (no ``otg`` in the pipeline, or before its first period)."""
-    if not states:
-        return None
-    q = np.array(q_rad, dtype=float)
-    for groups in TRACKER_GROUPS:
-        for name, index in tracker_groups(model, groups).items():
-            if name in states:
-                q[index] = states[name].q_rad
-    return q
 
 
 class TargetInput:
@@ -189,9 +172,8 @@ class TrajectoryGenerator(Module):
         self.trackers = [JointTracker(self.limits.subset(i), self.dt_s, synchronization)
                          for i in self._index]
         self._single = len(self.trackers) == 1
-        self.writes = (TRACKER_STATES,)
         if groups == "limbs":
-            self.follows = (ARM_SYNC, ARM_TARGET_VELOCITY)
+            self.writes, self.follows = (TRACKER_STATES,), (ARM_SYNC, ARM_TARGET_VELOCITY)
         self._q = np.zeros(self.limits.size)
         self._fault = False
         self.errors = 0
@@ -248,12 +230,11 @@ class TrajectoryGenerator(Module):
         return self._q.copy(), failed
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
-        velocities = None
-        if self.follows:  # groups "limbs": a target may time each arm
-            for group, synchronization in (cycle.store.get(ARM_SYNC) or {}).items():
-                self.synchronize(synchronization, groups=(group,))
-            velocities = cycle.store.get(ARM_TARGET_VELOCITY)
-        q = self._update(q_rad, cycle, velocities)
+        if not self.writes:
+            return self._update(q_rad, cycle)
+        for group, synchronization in (cycle.store.get(ARM_SYNC) or {}).items():
+            self.synchronize(synchronization, groups=(group,))
+        q = self._update(q_rad, cycle, cycle.store.get(ARM_TARGET_VELOCITY))
         cycle.store[TRACKER_STATES] = {
             name: TrackerState(t.limits, self.dt_s, t.q.copy(), t.v.copy(), t.a.copy())
             for name, t in zip(self.group_names, self.trackers, strict=True)}

@@ -189,21 +189,17 @@ class TorsoCorrection:
         T[:3, :3], T[:3, 3] = rotation_exp(self.rotation_rad), self.offset_m
         return T
 
-    def update(self, q_cmd_rad, T_S_N_measured: np.ndarray, q_legs_rad=None) -> np.ndarray:
+    def update(self, q_cmd_rad, T_S_N_measured: np.ndarray) -> np.ndarray:
         """Advance the filter with this period's measured neck frame ``T_S_N_measured`` (4x4,
         :class:`MeasuredTorso`); returns T_dev (4x4). A measurement that is not finite leaves
-        it as it was. The measured frame is compared with the one the legs of ``q_legs_rad``
-        give (a full joint vector, default ``q_cmd_rad``): a caller that knows the legs as
-        the trajectory generator last commanded them passes those, so the generator's lag
-        behind the target's legs, which the arm shares, is not read as the body's sway."""
+        it as it was."""
         s = self.settings
         T_meas = np.asarray(T_S_N_measured, dtype=float)
         if not np.isfinite(T_meas).all():
             return self._T_dev
-        q_legs = np.asarray(q_cmd_rad if q_legs_rad is None else q_legs_rad, dtype=float)
-        legs = q_legs[self._leg_index]
+        legs = np.asarray(q_cmd_rad, dtype=float)[self._leg_index]
         if self._T_cmd is None or (legs != self._q_legs_cmd).any():  # the same 12 joints
-            self._T_cmd = torso_in_stance(self.body, q_legs)
+            self._T_cmd = torso_in_stance(self.body, q_cmd_rad)
             self._T_cmd_inv = _rigid_inverse(self._T_cmd)
             self._q_legs_cmd = legs
         alpha = self.dt_s / (s.time_constant_s + self.dt_s)
@@ -260,9 +256,9 @@ class TorsoCorrection:
             return result
         return None
 
-    def __call__(self, q_cmd_rad, T_S_N_measured: np.ndarray, q_legs_rad=None) -> np.ndarray:
+    def __call__(self, q_cmd_rad, T_S_N_measured: np.ndarray) -> np.ndarray:
         """:meth:`update` then :meth:`apply`."""
-        self.update(q_cmd_rad, T_S_N_measured, q_legs_rad)
+        self.update(q_cmd_rad, T_S_N_measured)
         return self.apply(q_cmd_rad)
 
 

@@ -23,11 +23,6 @@ Each period the measured torso pose (the estimate's, the store's T_WORLD_TORSO i
 :mod:`hubo_cli.kinematics.torso`) corrects the arm's joint target: the
 plan's tool goal, given in S (the wall's frame), is solved in the measured neck frame,
 low-passed and bounded, so the body's residual sway moves the arm and not the hole. The
-measured torso is compared with the one the legs give as the trajectory generator commanded
-them in the previous period (the store's TRACKER_STATES), not as the plan asks: the
-generator's lag behind the plan's legs (at the end of the legs' lift), which the arm shares,
-is then no deviation; what is left is what moves the body after the generator (the ankle
-balancer's pitch) and its own sway. The
 correction runs from the first period on (``correction=False`` turns it
 off), so the wall is placed in front of a tool that already holds its place.
 
@@ -57,9 +52,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from hubo_cli.control.estop import wrist_torque_nm
-from hubo_cli.control.keys import IMPEDANCE_ON, STOP_MODE, TRACKER_STATES, WRIST_RELIEF
+from hubo_cli.control.keys import IMPEDANCE_ON, STOP_MODE, WRIST_RELIEF
 from hubo_cli.control.module import Module
-from hubo_cli.control.otg import generated_rad
 from hubo_cli.control.phase import Phases
 from hubo_cli.control.reference_force import ReferenceForceUpdater
 from hubo_cli.control.target import Target
@@ -101,7 +95,7 @@ class TaskTarget(Target):
 
     reads = (T_WORLD_TORSO, T_WORLD_SOLES, WRENCHES)
     writes = (WRIST_RELIEF,)
-    previous = (STOP_MODE, TRACKER_STATES)
+    previous = (STOP_MODE,)
     log_columns = ("step_code", "phase_code", "goal_x_m", "goal_y_m", "goal_z_m", "actual_x_m",
                    "actual_y_m", "actual_z_m", "error_m", "cutting", "edge_code",
                    "task_wrist_torque_nm", "thrust_n")
@@ -254,11 +248,8 @@ class TaskTarget(Target):
         if self.phases(t_s, state):
             info["done"] = True
         q_target = self._leaning(self.q_target, info) if self.force else self.q_target
-        if self.correction is None:
-            self.q_out = q_target
-        else:  # against the torso of the legs as the generator commanded them last period
-            q_legs = generated_rad(self.store.get(TRACKER_STATES), self.body.model, q_target)
-            self.q_out = self.correction(q_target, self._T_S_N(), q_legs)
+        self.q_out = (q_target if self.correction is None
+                      else self.correction(q_target, self._T_S_N()))
         self._measure(t_s, state, info)
         return self.q_out, info
 
