@@ -11,9 +11,9 @@ from hubo_cli.kinematics.wholebody import LiftFilter, WholeBody
 from hubo_cli.model import LEGS
 from hubo_cli.tasks.plan import (
     LEGS_ACCEL_M_S2,
-    LEGS_SETTLE_M,
     LEGS_SPEED_M_S,
     LEGS_TIME_CONSTANT_S,
+    lift_filter,
     make_plan,
 )
 from hubo_cli.tasks.spec import load_task
@@ -29,14 +29,15 @@ def _reference_legs(body: WholeBody, q_prev: np.ndarray, lift_m: float, shift_m:
             for name in LEGS}
 
 
-@pytest.mark.parametrize("task", ["cut-slot", "cut-rectangle"])
+@pytest.mark.parametrize("task", ["cut-slot", "cut-rectangle", "cut-rectangle-force"])
 def test_a_plans_legs_are_those_of_a_fresh_solve_every_period(model, task):
     """Every period's leg joints (level stretches reuse the last solve) equal a fresh solve
     from the previous period's joints with that period's lift and shift."""
-    plan = make_plan(load_task(task), model)
+    spec = load_task(task)
+    plan = make_plan(spec, model)
     body, shift, limb = plan.body, plan.placement.shift_m, plan.spec.stance.limb
     assert plan.preflight.ok
-    lift = LiftFilter(LEGS_SPEED_M_S, LEGS_TIME_CONSTANT_S, LEGS_ACCEL_M_S2, LEGS_SETTLE_M)
+    lift = lift_filter(spec)
     lift.reset(body.lift_for({limb: plan.T_first_S}))  # as make_plan runs it
     q_prev, lift_prev, level = plan.q_first_rad, None, 0
     for i, (q, goal) in enumerate(zip(plan.q_rad, plan.goal_S_m, strict=True)):
@@ -107,22 +108,3 @@ def test_the_lift_filter_in_python_floats_matches_numpy():
     for w in wanted:
         assert lift.step(float(w), 0.005) == _reference_lift_step(ref, float(w), 0.005)
     assert abs(lift.lift_m - 0.02) > 0.01  # it moved
-
-
-def test_the_lift_settles_on_a_held_goal_without_a_jump():
-    """With ``settle_m`` the lift lands exactly on a wanted lift that holds, at rest, within
-    a few time constants (its smoothing's tail would creep on for dozens); the landing moves it
-    by less than ``settle_m``. Without it, the lift is still off the goal by then."""
-    settled = LiftFilter(LEGS_SPEED_M_S, LEGS_TIME_CONSTANT_S, LEGS_ACCEL_M_S2, LEGS_SETTLE_M)
-    creeping = LiftFilter(LEGS_SPEED_M_S, LEGS_TIME_CONSTANT_S, LEGS_ACCEL_M_S2)
-    n = round(12 * LEGS_TIME_CONSTANT_S / 0.005)
-    for lift in (settled, creeping):
-        lift.reset(0.0)
-    path = np.array([settled.step(-0.03, 0.005) for _ in range(n)])
-    for _ in range(n):
-        creeping.step(-0.03, 0.005)
-    assert settled.lift_m == -0.03 and settled.speed_m_s == 0.0
-    assert creeping.lift_m != -0.03
-    landed = int(np.argmax(path == -0.03))
-    assert 0 < landed and abs(path[landed] - path[landed - 1]) < LEGS_SETTLE_M
-    assert np.abs(np.diff(path)).max() <= LEGS_SPEED_M_S * 0.005 + 1e-12

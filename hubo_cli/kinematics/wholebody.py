@@ -270,17 +270,13 @@ class LiftFilter:
         time_constant_s: first-order smoothing of the wanted lift before the speed limit.
         max_accel_m_s2: the lift's acceleration limit (None: none); the speed then also drops
             in time to stop on the wanted lift.
-        settle_m: once the lift and its smoothed goal are both this close to a wanted lift
-            that holds, the lift is on it (exactly, at rest): the smoothing's tail would
-            otherwise creep by fractions of a micrometre for many time constants (0: never).
     """
 
     def __init__(self, max_speed_m_s: float = 0.02, time_constant_s: float = 0.3,
-                 max_accel_m_s2: float | None = None, settle_m: float = 0.0) -> None:
+                 max_accel_m_s2: float | None = None) -> None:
         self.max_speed_m_s = max_speed_m_s
         self.time_constant_s = time_constant_s
         self.max_accel_m_s2 = max_accel_m_s2
-        self.settle_m = settle_m
         self.lift_m: float | None = None
         self.speed_m_s = 0.0
         self._smoothed: float | None = None
@@ -293,11 +289,6 @@ class LiftFilter:
         """Advance one period toward ``wanted_m``; returns the lift to use (m)."""
         if self.lift_m is None:
             self.reset(wanted_m)
-            return self.lift_m
-        if (abs(wanted_m - self.lift_m) < self.settle_m
-                and abs(wanted_m - self._smoothed) < self.settle_m):
-            self.lift_m = self._smoothed = float(wanted_m)
-            self.speed_m_s = 0.0
             return self.lift_m
         alpha = dt_s / (self.time_constant_s + dt_s)
         self._smoothed += alpha * (wanted_m - self._smoothed)
