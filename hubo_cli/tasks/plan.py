@@ -202,7 +202,8 @@ LEGS_TIME_CONSTANT_S = 0.05
 # the lift decelerates: at 0.05 m/s^2 26 mrad/s, faster than the arm's correction follows, and
 # the bit pressed at 3 N came off the face at the cut's top-right corner (0 N, then 5.6 N). At
 # 0.01 m/s^2 the lift stops within 1 s and 10 mm/s lags its goal by 5.4 mm (the arm takes it,
-# LIFT_MARGIN_M). Position-only plans keep the brisker limit (docs/history/impedance.md)
+# LIFT_MARGIN_M; cut-rectangle-force still plans at 30 mm/s, not at 40, where main's limit
+# plans at 60). Position-only plans keep the brisker limit (docs/history/impedance.md)
 FORCE_LEGS_ACCEL_M_S2 = 0.01
 LIFT_MARGIN_M = 0.01  # the arm's vertical room kept around the working height (legs lag)
 # the legs keep the CoM over the soles' centre (WholeBody's CoM control). With the torso
