@@ -53,6 +53,31 @@ def test_limiter_turns_a_jump_into_a_limited_move_without_ringing(model):
     assert np.max(out[:, 0]) <= goal[0]            # lands without ringing around the goal
 
 
+@pytest.mark.parametrize("speed_rad_s", [0.05, 0.2, -0.4])
+def test_limiter_catches_a_moving_target_and_lands_on_it(model, speed_rad_s):
+    """A ramp starting from rest (its first period a velocity step, clamped): the command
+    catches up within the acceleration band, lands on the ramp and follows it exactly, never
+    ahead of it, and the flags stop. Before the fix the catch-up braked against the target's
+    position now rather than a period ago: the command settled w dt ahead of the ramp (1 mrad
+    at 0.2 rad/s), flagged `slowing` every period while it moved (a task's retract: 492
+    periods on the shoulder roll)."""
+    limiter = SoftErrorLimiter(model, DT, error_limit_rad=0.0)
+    q0 = home_posture(model)
+    limiter.reset(q0, _state(model), Store())
+    gaps, flagged = [], []
+    for k in range(1, 401):
+        want = q0.copy()
+        want[0] += speed_rad_s * k * DT
+        cycle = Cycle(k * DT, DT)
+        out = limiter.update(want, _state(model), cycle)
+        gaps.append((out[0] - want[0]) * np.sign(speed_rad_s))
+        flagged.append(bool(cycle.flags))
+    assert max(gaps) <= 1e-12  # never ahead of the target
+    # the fastest catch-up from rest at 0.8 rad/s^2 takes (1 + sqrt 2) |w| / 0.8 s
+    landed = int(3 * abs(speed_rad_s) / 0.8 / DT) + 10
+    assert not any(flagged[landed:]) and max(abs(g) for g in gaps[landed:]) <= 1e-12
+
+
 def test_limiter_position_band_only_blocks_moving_further_out(model):
     limiter = SoftErrorLimiter(model, DT, error_limit_rad=0.0)
     upper = model.upper_rad[1]                     # RSR upper limit 0.3

@@ -9,7 +9,13 @@ from hubo_cli.geometry import rotation_exp
 from hubo_cli.kinematics.interpolate import PoseSegment
 from hubo_cli.kinematics.wholebody import LiftFilter, WholeBody
 from hubo_cli.model import LEGS
-from hubo_cli.tasks.plan import LEGS_ACCEL_M_S2, LEGS_SPEED_M_S, LEGS_TIME_CONSTANT_S, make_plan
+from hubo_cli.tasks.plan import (
+    LEGS_ACCEL_M_S2,
+    LEGS_SPEED_M_S,
+    LEGS_TIME_CONSTANT_S,
+    lift_filter,
+    make_plan,
+)
 from hubo_cli.tasks.spec import load_task
 
 
@@ -23,14 +29,15 @@ def _reference_legs(body: WholeBody, q_prev: np.ndarray, lift_m: float, shift_m:
             for name in LEGS}
 
 
-@pytest.mark.parametrize("task", ["cut-slot", "cut-rectangle"])
+@pytest.mark.parametrize("task", ["cut-slot", "cut-rectangle", "cut-rectangle-force"])
 def test_a_plans_legs_are_those_of_a_fresh_solve_every_period(model, task):
     """Every period's leg joints (level stretches reuse the last solve) equal a fresh solve
     from the previous period's joints with that period's lift and shift."""
-    plan = make_plan(load_task(task), model)
+    spec = load_task(task)
+    plan = make_plan(spec, model)
     body, shift, limb = plan.body, plan.placement.shift_m, plan.spec.stance.limb
     assert plan.preflight.ok
-    lift = LiftFilter(LEGS_SPEED_M_S, LEGS_TIME_CONSTANT_S, LEGS_ACCEL_M_S2)
+    lift = lift_filter(spec)
     lift.reset(body.lift_for({limb: plan.T_first_S}))  # as make_plan runs it
     q_prev, lift_prev, level = plan.q_first_rad, None, 0
     for i, (q, goal) in enumerate(zip(plan.q_rad, plan.goal_S_m, strict=True)):

@@ -95,12 +95,17 @@ def limit_step(q_want, want_prev, q1, q2, lower, upper, vmax, amax, dt, q_meas, 
         slack = 1e-9 * vmax[i]
         clamped = v_want < lo - slack or v_want > hi + slack
         if clamped or catching[i]:
-            # catching up after a clamp: aim to stop on the (moving) target, not run through it
+            # catching up after a clamp: aim to stop on the (moving) target, not run through it.
+            # The speed relative to the target (v - w) brakes within the gap to where the
+            # target was (its position a period ago, target - w dt): measured to where it is
+            # now, the command settled one period's motion ahead of a moving target and
+            # never landed (the limiter flagged `slowing` until the target stopped)
             w = (q_want[i] - want_prev[i]) / dt
             if not np.isfinite(w):
                 w = 0.0
-            v = _clip(v_want, w - brake_speed(q1[i] - target, amax[i], dt),
-                      w + brake_speed(target - q1[i], amax[i], dt))
+            gap = target - w * dt - q1[i]
+            v = _clip(v_want, w - brake_speed(-gap, amax[i], dt),
+                      w + brake_speed(gap, amax[i], dt))
             v0 = v
             if use_err:
                 v = _clip(v, err_lo, err_hi)

@@ -196,6 +196,15 @@ LEGS_SPEED_M_S = 0.06  # the lift's speed limit in tasks (m/s): the knees stay w
 LEGS_ACCEL_M_S2 = 0.05  # and its acceleration limit (m/s^2), within the knees' 0.6 rad/s^2
 CUT_ACCEL_M_S2 = 0.05  # the bit's acceleration at the ends of each cut edge (joints in limits)
 LEGS_TIME_CONSTANT_S = 0.05
+# ... and under force control the lift's acceleration limit (m/s^2): a lift that ends gently. The
+# trajectory generator lags the legs as they lift (not in their own proportions: the torso
+# pitches ~2 mrad); when the lift stops that lag goes and the torso swings ~4 mrad, as fast as
+# the lift decelerates: at 0.05 m/s^2 26 mrad/s, faster than the arm's correction follows, and
+# the bit pressed at 3 N came off the face at the cut's top-right corner (0 N, then 5.6 N). At
+# 0.01 m/s^2 the lift stops within 1 s and 10 mm/s lags its goal by 5.4 mm (the arm takes it,
+# LIFT_MARGIN_M; cut-rectangle-force still plans at 30 mm/s, not at 40, where main's limit
+# plans at 60). Position-only plans keep the brisker limit (docs/history/impedance.md)
+FORCE_LEGS_ACCEL_M_S2 = 0.01
 LIFT_MARGIN_M = 0.01  # the arm's vertical room kept around the working height (legs lag)
 # the legs keep the CoM over the soles' centre (WholeBody's CoM control). With the torso
 # correction holding the bit in the world it costs the hole little and buys the capture point
@@ -222,7 +231,7 @@ def place(spec: TaskSpec, model: RobotModel) -> Placement:
     stance = spec.stance
     T_first, pieces = _pieces(spec, np.eye(4))
     samples = _sample_positions(T_first, pieces)  # in W: (depth, y, z)
-    if any(step.thrust_n > 0 for step in spec.steps):  # force control may go find the wall
+    if presses(spec):  # force control may go find the wall
         pressed = _sample_positions(T_first, [p for p in pieces
                                               if spec.steps[p.step].thrust_n > 0])
         samples = np.vstack([samples] + [pressed + (d, 0.0, 0.0)
@@ -420,6 +429,17 @@ def _line(T_a: np.ndarray, T_b: np.ndarray, step: Step, k: int, cutting: bool) -
                   cutting, edge if cutting else EDGE_NONE)
 
 
+def presses(spec: TaskSpec) -> bool:
+    """Some step of the task presses with a thrust (its plan runs under force control)."""
+    return any(step.thrust_n > 0 for step in spec.steps)
+
+
+def lift_filter(spec: TaskSpec) -> LiftFilter:
+    """The plan's lift filter (not yet reset): it ends gently under force control."""
+    return LiftFilter(LEGS_SPEED_M_S, LEGS_TIME_CONSTANT_S,
+                      FORCE_LEGS_ACCEL_M_S2 if presses(spec) else LEGS_ACCEL_M_S2)
+
+
 def make_plan(spec: TaskSpec, model: RobotModel, placement: Placement | None = None) -> Plan:
     """Lay out the task in time and solve every period (see the module docstring).
 
@@ -437,7 +457,7 @@ def make_plan(spec: TaskSpec, model: RobotModel, placement: Placement | None = N
     T_first, pieces = _pieces(spec, T_S_W)
 
     misses: list[Miss] = []
-    lift = LiftFilter(LEGS_SPEED_M_S, LEGS_TIME_CONSTANT_S, LEGS_ACCEL_M_S2)
+    lift = lift_filter(spec)
     lift.reset(body.lift_for({limb: T_first}))
     first = body.solve({limb: T_first}, home_posture(model), lift_m=lift.lift_m, shift_m=shift)
     if first.arms[limb].status != "exact":
