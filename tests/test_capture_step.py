@@ -193,6 +193,7 @@ def test_a_long_backward_landing_goes_hip_width_further_out():
         stance, "left", near, 0.02, 0.18, -0.10)
 
 
+@pytest.mark.slow
 @pytest.mark.physical
 def test_a_150_n_backward_push_is_caught_in_a_lunge_both_feet_carry(tmp_path):
     """150 N backward for 0.2 s pushed at 0.3 s, through the lunge's catch (2.9 s): the landed
