@@ -218,7 +218,8 @@ class CaptureStepper(Target):
     def in_stance(self, point_m: np.ndarray) -> np.ndarray:
         """``point_m`` projected on the line through the lunge's soles' middles, from
         REST_BACK_FRACTION of the way from the back one to the front one up to ``reach``
-        ahead of the front one."""
+        ahead of the front one; in a backward lunge no further than the stance leg reaches
+        and sideways within :meth:`in_hip_band`."""
         tr = self.track
         axis = tr["front"] - tr["back"]
         length = float(np.hypot(*axis))
@@ -229,8 +230,8 @@ class CaptureStepper(Target):
             # no further than the stance leg reaches its flat sole from a pelvis over it
             # (its knee bent as standing, the torso lowered by RETURN_MAX_DROP_M)
             h = self.hip_height_m
-            reach = math.sqrt(h * h - (h - RETURN_MAX_DROP_M) ** 2)
-            reachable = ((reach + self.model.feet.forward_m)
+            stance_reach_m = math.sqrt(h * h - (h - RETURN_MAX_DROP_M) ** 2)
+            reachable = ((stance_reach_m + self.model.feet.forward_m)
                          / max(abs(float(axis @ self.heading)), 1e-6))
             along = max(min(along, reachable), REST_BACK_FRACTION * length)
         return self.in_hip_band(tr["back"] + along * axis)
