@@ -215,7 +215,7 @@ def test_a_150_n_backward_push_is_caught_in_a_lunge_both_feet_carry(tmp_path):
     and brakes the robot mid-catch; docs/history/balance.md. The capture-point stop is in:
     the estimated capture point comes within 1.1 mm of (portable: 1.2 mm past) its line for
     one period 0.345 s after the step's trigger (a 13 mm one-period jump of the floating
-    base's torso), the stop's 50 ms debounce ten times that."""
+    base's torso), the monitor confirms over 3 periods in a row."""
     from hubo_cli.control.log import load_log
     from hubo_cli.control.stop_choice import ActiveStops
     from hubo_cli.experiments.standing import PUSH_DIRECTIONS
