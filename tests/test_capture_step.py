@@ -215,7 +215,8 @@ def test_a_150_n_backward_push_is_caught_in_a_lunge_both_feet_carry(tmp_path):
     and brakes the robot mid-catch; docs/history/balance.md. The capture-point stop is in:
     the estimated capture point comes within 1.1 mm of (portable: 1.2 mm past) its line for
     one period 0.345 s after the step's trigger (a 13 mm one-period jump of the floating
-    base's torso), the monitor confirms over 3 periods in a row."""
+    base's torso; pushed at 0.8 s, two periods past), the monitor confirms over 3 periods in
+    a row: a thin margin, the estimation layer's to widen."""
     from hubo_cli.control.log import load_log
     from hubo_cli.control.stop_choice import ActiveStops
     from hubo_cli.experiments.standing import PUSH_DIRECTIONS
