@@ -117,12 +117,16 @@ def _row(foot: Footstep, z_m: float) -> np.ndarray:
 
 
 def landing(stance: Footstep, side: str, xi_m: np.ndarray, forward_m: float,
-            width_m: float, min_ahead_m: float = 0.0) -> Footstep:
+            width_m: float, min_ahead_m: float = 0.0, hip_m: float = 0.0) -> Footstep:
     """Where the swing foot ``side`` lands: its sole's middle on ``xi_m`` (world x, y), within
     MAX_STEP_M of the stance foot, ``width_m`` to MAX_WIDTH_M from it sideways, at least
     ``min_ahead_m`` ahead of it (negative: at least that far behind; the push's way), heading
     as the stance foot. A landing too far gives up its sideways part first (down to
-    ``width_m``), then its forward one: the length the push's way is what catches it."""
+    ``width_m``), then its forward one: the length the push's way is what catches it. A long
+    one (beyond LONG_STEP_M) then goes ``hip_m`` further out (at most MAX_WIDTH_M): the
+    backward lunge's, so that the landed leg's hip stays inside its ankle with the CoM over
+    the capture point (the hip roll joints only abduct: landed under the CoM, the leg could
+    not hold its sole under the pelvis, the pattern froze and the stance foot hung)."""
     c, s = math.cos(stance.yaw_rad), math.sin(stance.yaw_rad)
     dx, dy = xi_m[0] - stance.x_m, xi_m[1] - stance.y_m
     ahead = c * dx + s * dy - forward_m          # the ankle goes forward_m behind the middle
@@ -136,6 +140,8 @@ def landing(stance: Footstep, side: str, xi_m: np.ndarray, forward_m: float,
         across = max(math.sqrt(max(MAX_STEP_M**2 - ahead**2, 0.0)), width_m)
         ahead = math.copysign(min(abs(ahead),
                                   math.sqrt(max(MAX_STEP_M**2 - across**2, 0.0))), ahead)
+    if abs(ahead) > LONG_STEP_M:
+        across = min(across + hip_m, MAX_WIDTH_M)
     left = SIDE_SIGN[side] * across
     return Footstep(side, stance.x_m + c * ahead - s * left, stance.y_m + s * ahead + c * left,
                     stance.yaw_rad)
@@ -240,7 +246,8 @@ class Step(CapturePhase):
             xi = self.zmp_m + ((store[CAPTURE_POINT_WORLD][:2] - self.zmp_m)
                                * math.exp(omega * (n - k) * period))
             self.land = landing(stance, s.swing, xi, s.model.feet.forward_m, s.width_m,
-                                self.min_ahead_m)
+                                self.min_ahead_m,
+                                s.model.lengths_m["lL1"] if self.min_ahead_m < 0 else 0.0)
         com, velocity = store[COM_WORLD][:2], store[COM_VELOCITY_WORLD][:2]
         c, v, a = pendulum(com, velocity, self.zmp_m, omega, np.array([period]))
         swing_row = capture_swing_rows(self.feet[s.swing], self.land, n, SWING_HEIGHT_M,
@@ -373,7 +380,9 @@ class Catch(PatternPhase):
         # the landed foot ahead of the stance foot (1, a forward push) or behind it (-1)
         s.way = 1.0 if (sole_middle - back) @ s.heading >= 0.0 else -1.0
         s.track = {"com": np.asarray(com_m, dtype=float).copy(), "front": sole_middle,
-                   "back": back, "reach": s.model.feet.length_m / 2 - CATCH_EDGE_M}
+                   "back": back, "reach": s.model.feet.length_m / 2 - CATCH_EDGE_M,
+                   "ankles": None if s.way > 0 else {foot.side: np.array([foot.x_m, foot.y_m])
+                                                     for foot in (land, stance)}}
         s.track["rest"] = s.in_stance(xi_m)
         s.reach_m = None  # the back leg's reach at touch-down (toe-off)
         s.rest_support = planned_support(s.rest)

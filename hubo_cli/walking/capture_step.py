@@ -40,7 +40,13 @@ over the back foot alone, it rocked sideways and tipped as the return began). Me
 torso lowers as far as the legs need to reach both soles from a pelvis over the pattern's CoM
 (at most ``RETURN_MAX_DROP_M``, at ``CATCH_LOWER_M_S``) and the back heel rises for the rest
 (after a backward push the stance foot is the front one: its toe rises;
-:meth:`CaptureStepper._toe_off_pose`), so the stance foot stays on the floor.
+:meth:`CaptureStepper._toe_off_pose`), so the stance foot stays on the floor. After a
+backward push the landed foot went hip-width further out than the capture point
+(:func:`~hubo_cli.walking.capture_phases.landing`) and the rest point and the pattern's CoM
+stay where the legs can hold both soles: sideways in the band where each hip is inside its
+ankle (:meth:`CaptureStepper.in_hip_band`; the hip roll joints only abduct), along the
+stance no further than the stance leg reaches its flat sole with the torso lowered by
+``RETURN_MAX_DROP_M``.
 The pattern so follows where the landing (its impact took an unknown part of the momentum)
 left the robot instead of driving it on toward its own capture point; the standing balancers
 act meanwhile. Then the return (:meth:`~hubo_cli.walking.capture_phases.Return.start`): one
@@ -122,6 +128,7 @@ RETURN_BEND_S = 1.0      # [chosen] the back knee bends from the lunge's reach o
 RETURN_MAX_DROP_M = 0.11  # [chosen] the torso lowers at most this much while it returns ...
 MAX_TOE_OFF_RAD = 0.8    # [chosen] ... and the back foot's heel rises at most this far
 TOE_OFF_STEP_RAD = 0.025  # [chosen] the heel's rise is searched in steps of this
+HIP_BAND_MARGIN_M = 0.005  # [chosen] the lunge's pelvis keeps each hip this far inside its ankle
 MAX_DROP_M = 0.08        # [chosen] the torso lowers at most this much for the legs' reach
 CATCH_LOWER_M_S = 0.2    # [chosen] ... and in the lunge's catch at most this fast, down to
 #                          RETURN_MAX_DROP_M, the back heel rising for the rest (with the
@@ -211,14 +218,40 @@ class CaptureStepper(Target):
     def in_stance(self, point_m: np.ndarray) -> np.ndarray:
         """``point_m`` projected on the line through the lunge's soles' middles, from
         REST_BACK_FRACTION of the way from the back one to the front one up to ``reach``
-        ahead of the front one."""
+        ahead of the front one; in a backward lunge no further than the stance leg reaches
+        and sideways within :meth:`in_hip_band`."""
         tr = self.track
         axis = tr["front"] - tr["back"]
         length = float(np.hypot(*axis))
         axis = axis / length
         along = float((np.asarray(point_m, dtype=float) - tr["back"]) @ axis)
-        return tr["back"] + min(max(along, REST_BACK_FRACTION * length),
-                                length + tr["reach"]) * axis
+        along = min(max(along, REST_BACK_FRACTION * length), length + tr["reach"])
+        if tr["ankles"] is not None:  # a backward lunge: the pelvis where the legs reach
+            # no further than the stance leg reaches its flat sole from a pelvis over it
+            # (its knee bent as standing, the torso lowered by RETURN_MAX_DROP_M)
+            h = self.hip_height_m
+            stance_reach_m = math.sqrt(h * h - (h - RETURN_MAX_DROP_M) ** 2)
+            reachable = ((stance_reach_m + self.model.feet.forward_m)
+                         / max(abs(float(axis @ self.heading)), 1e-6))
+            along = max(min(along, reachable), REST_BACK_FRACTION * length)
+        return self.in_hip_band(tr["back"] + along * axis)
+
+    def in_hip_band(self, point_m: np.ndarray) -> np.ndarray:
+        """``point_m`` moved sideways (across the heading) into the band where the pelvis
+        over it keeps each hip no further out than its foot's ankle (less HIP_BAND_MARGIN_M):
+        the hip roll joints only abduct, a leg cannot bring its foot in under a hip beyond
+        it (Table IV). Only in a backward lunge (``track["ankles"]``); otherwise as it is."""
+        tr = self.track
+        if tr["ankles"] is None:
+            return np.asarray(point_m, dtype=float)
+        normal = np.array([-self.heading[1], self.heading[0]])  # to the left
+        hip_m = self.model.lengths_m["lL1"]
+        right = float(tr["ankles"]["right"] @ normal) + hip_m + HIP_BAND_MARGIN_M
+        left = float(tr["ankles"]["left"] @ normal) - hip_m - HIP_BAND_MARGIN_M
+        point = np.asarray(point_m, dtype=float)
+        across = float(point @ normal)
+        lo, hi = (right, left) if right <= left else ((right + left) / 2,) * 2
+        return point + (min(max(across, lo), hi) - across) * normal
 
     def _lunge_com(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The lunge's CoM for this period (rows (1, 2): position, velocity, acceleration)
@@ -229,7 +262,7 @@ class CaptureStepper(Target):
         target = self.in_stance(self.store[CAPTURE_POINT_WORLD][:2])
         tr["rest"] = tr["rest"] + min(period / REST_TAU_S, 1.0) * (target - tr["rest"])
         v = omega * (tr["rest"] - tr["com"])
-        tr["com"] = tr["com"] + v * period
+        tr["com"] = self.in_hip_band(tr["com"] + v * period)
         return (tr["com"].reshape(1, 2), v.reshape(1, 2), (-omega * v).reshape(1, 2),
                 tr["rest"].copy())
 
