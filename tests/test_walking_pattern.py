@@ -301,6 +301,31 @@ def test_the_gaits_are_the_robot_files(walking_model, params, tmp_path):
     bad.write_text(text)
     with pytest.raises(ConfigError, match="walking.fast.stride_m"):
         walking_params(load_model("as-built", "walking", path=bad), "fast")
+    # a bad value in the sub-table is named there, not in [walking] (whose value is fine)
+    # (the fast gait's own travel end replaced: one key each)
+    nan = tmp_path / "nan" / "hubo2plus.toml"
+    nan.parent.mkdir()
+    nan.write_text(walking_model.source.read_text().replace(
+        "swing_travel_end_fraction = 0.86", "swing_travel_end_fraction = nan"))
+    with pytest.raises(ConfigError, match=r"walking\.fast\.swing_travel_end_fraction"):
+        walking_params(load_model("as-built", "walking", path=nan), "fast")
+    # a sub-table named after the [walking] table's own gait would never be read
+    normal = tmp_path / "normal" / "hubo2plus.toml"
+    normal.parent.mkdir()
+    normal.write_text(text.replace("[walking.fast]\nstride_m = 0.3\n",
+                                   "[walking.normal]\nsingle_support_s = -1\n[walking.fast]\n"))
+    with pytest.raises(ConfigError, match="walking.normal"):
+        walking_params(load_model("as-built", "walking", path=normal))
+
+
+@pytest.mark.parametrize("field, value", [("single_support_s", 1e-300),
+                                          ("single_support_s", 0.004),
+                                          ("single_support_s", 1e7), ("settle_s", 1e9)])
+def test_the_phases_durations_are_bounded(params, field, value):
+    """A step of a period or less moves the foot's reference in jumps; a huge one makes a plan
+    too large to hold: both are a bad file, named."""
+    with pytest.raises(ConfigError, match=field):
+        params.with_changes(**{field: value})
 
 
 def test_the_default_swing_ends_its_travel_in_the_middle(params):

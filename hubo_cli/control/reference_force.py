@@ -20,8 +20,15 @@ import math
 import numpy as np
 
 CUTOFF_HZ = 2.0          # [chosen] above the 0.5 Hz impedance spring, below the arm's jitter
-GAIN_PER_S = 2.0         # [chosen] the reference closes on the filtered force in ~0.5 s
-MAX_RATE_N_S = 1.0       # [chosen] the waist shift it drives (~7 mm/N in the tasks) < 10 mm/s
+# [chosen] the closing rate (1/s). The waist leans ~4 mm per newton of the reference in the
+# tasks (eq. 6) and the torso follows the waist: at 2 /s (closing in ~0.5 s) the lean closed a
+# second loop around the thrust, through the torso and the arm's correction, that kept the
+# hand's impedance ringing at ~0.55 Hz (+-1 N, +-1.7 mm of torso, on every vertical edge of a
+# cut) and took the thrust out of +-2 N at the corners. At 0.2 /s (a 5 s time constant, 6 % of
+# the thrust's swing at 0.55 Hz) the lean follows the steady force only
+# (docs/history/impedance.md, round 4).
+GAIN_PER_S = 0.2
+MAX_RATE_N_S = 1.0       # [chosen] the waist shift it drives (~4 mm/N in the tasks) < 10 mm/s
 
 
 class ReferenceForceUpdater:

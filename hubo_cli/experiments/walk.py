@@ -53,6 +53,7 @@ class WalkResult:
         estimated_final_error_mm, estimated_final_error_deg: the same as the estimate has it
             (what the walk's corrections act on).
         steps: footsteps planned (all taken unless the run ended early).
+        gait: the robot file's gait the walk took its parameters from (``custom``: given).
         average_speed_m_s: the goal's distance over the time from the start to the last
             step's end; None for a walk a stop ended short of its goal.
         zmp_inside_fraction: of the periods with a sole in contact, the share whose ZMP lay
@@ -81,6 +82,7 @@ class WalkResult:
     ended: str
     estop_events: int
     footsteps: list[dict]
+    gait: str
     run_dir: Path
     failure: HuboError | None = None
 
@@ -93,7 +95,7 @@ class WalkResult:
                 "estimated_final_error_deg": self.estimated_final_error_deg,
                 "steps": self.steps, "average_speed_m_s": self.average_speed_m_s,
                 "zmp_inside_fraction": self.zmp_inside_fraction, "walking_s": self.walking_s,
-                "footsteps": self.footsteps}
+                "footsteps": self.footsteps, "gait": self.gait}
 
 
 def check_goal(goal: tuple[float, float, float]) -> None:
@@ -215,6 +217,10 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
     from hubo_cli.model import load_model
 
     walking_model = load_model(model.params_name, "walking")
+    if params is not None and gait != DEFAULT_GAIT:
+        raise InputError(f"the gait {gait!r} and given parameters: one or the other",
+                         hint="pass the gait's parameters changed with params.with_changes")
+    gait = gait if params is None else "custom"
     params = params or walking_params(walking_model, gait)
     q_start, T_world_neck = walking_posture(walking_model, params.step_width_m, params.crouch_m)
     if not 0 <= corrections <= 5:
@@ -248,7 +254,7 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
                              if target.zmp_periods else 0.0),
         walking_s=walking_s, ended=done.loop.ended,
         estop_events=sum(e["kind"] == "stop" for e in done.summary["estop_events"]),
-        footsteps=[s.to_json() for s in target.steps], run_dir=done.run_dir,
+        footsteps=[s.to_json() for s in target.steps], gait=gait, run_dir=done.run_dir,
         failure=done.loop.failure(done.run_dir))
     done.save_summary(result.summary())
     plot_footprints(done, target, walking_model)

@@ -102,7 +102,9 @@ class Miss:
         where = f"y {y:+.0f} mm, z {z:+.0f} mm, depth {depth:+.1f} mm"
         if self.legs_lag:
             return (f"{self.step.label} ({self.step.kind}): at {where} the legs cannot lower or "
-                    f"raise the body fast enough (at most {LEGS_SPEED_M_S * 1000:.0f} mm/s)")
+                    f"raise the body fast enough (at most {LEGS_SPEED_M_S * 1000:.0f} mm/s, "
+                    f"accelerating at {LEGS_ACCEL_M_S2 * 1000:.0f} mm/s^2, "
+                    f"{FORCE_LEGS_ACCEL_M_S2 * 1000:.0f} mm/s^2 in a task that presses)")
         if self.miss_m is None:
             return (f"{self.step.label} ({self.step.kind}): the tool pose at {where} is out of "
                     f"reach, and so is the work centre")

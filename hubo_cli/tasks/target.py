@@ -78,14 +78,6 @@ ON_POSE_M = 0.0005  # the raise ends with the tool this close to its first pose
 RETREAT_M = 0.005  # a wrist-torque stop backs the tool this far out of the wall (its normal)
 RETREAT_ALONG_M = 0.0005  # ... moving it at most this far along the wall on the way
 RETREAT_STEPS = 8  # postures of that path
-# how fast the balance's hand force follows the measured thrust (1/s; the ReferenceForceUpdater's
-# gain). The waist leans ~4 mm per newton of it (eq. 6) and the torso follows the waist: at the
-# updater's own 2 /s (1 N/s at most) the lean closed a second loop around the thrust, through
-# the torso and the arm's correction, that kept the hand's impedance ringing at ~0.55 Hz (+-1 N,
-# +-1.7 mm of torso, on every vertical edge) and took the thrust out of +-2 N at the corners.
-# At 0.2 /s (a 5 s time constant, 6 % of the thrust's swing at 0.55 Hz) the lean follows the
-# steady force only (docs/history/impedance.md, round 4)
-LEAN_FOLLOW_PER_S = 0.2
 
 
 class TaskTarget(Target):
@@ -158,8 +150,7 @@ class TaskTarget(Target):
         if self.force:
             self.writes = self.writes + (HAND_WRENCH_PLAN, IMPEDANCE_ON)
             self.log_columns = self.log_columns + self.force_columns
-            self.rfu = ReferenceForceUpdater((1.0, 0.0, 0.0), plan.dt_s,
-                                             gain_per_s=LEAN_FOLLOW_PER_S)
+            self.rfu = ReferenceForceUpdater((1.0, 0.0, 0.0), plan.dt_s)
 
     def attach(self, world: SceneActions | None, modules: Sequence[Module],
                store: Store) -> None:

@@ -14,7 +14,9 @@ Timeline (one sample per control period):
 On a stance foot the ZMP reference is the middle of the sole (``feet.forward_m`` ahead of the
 ankle) moved ``zmp_inset_m`` toward the other foot. A swing foot lifts, moves during
 ``swing_travel_fraction`` of the phase, ending at ``swing_travel_end_fraction`` of it (0.8
-ending at 0.9, the middle: while it is at least 9 % of ``swing_height_m`` up) on
+ending at 0.9, the middle: while it is at least 9 % of ``swing_height_m`` up; a travel that
+starts at lift-off, as the fast gait's 0.86 ending at 0.86, moves the foot while it is still
+low) on
 :func:`cruise_profile` (``swing_ramp_fraction`` 0.5: quintic in time), turns with it, and
 lands flat; its height is ``swing_height_m * sin^2(pi * tau)``.
 

@@ -73,22 +73,34 @@ class WalkingParams:
         return _checked(replace(self, **changes), "overrides")
 
 
-def _checked(params: WalkingParams, where: str) -> WalkingParams:
+# The phases' durations are bounded (s): a step shorter than a few periods moves the foot's
+# reference in jumps, and a long one makes a plan too large to hold.
+DURATION_BOUNDS_S = {"single_support_s": (0.2, 60.0), "double_support_s": (0.0, 60.0),
+                     "start_s": (0.0, 60.0), "settle_s": (0.0, 60.0), "preview_s": (0.1, 60.0)}
+
+
+def _checked(params: WalkingParams, where: str, table: str = "walking") -> WalkingParams:
+    """``params`` if every field is valid; ConfigError naming ``table.field`` otherwise."""
     for f in fields(params):
         value = getattr(params, f.name)
         if isinstance(value, bool) or not isinstance(value, int | float) \
                 or not (math.isfinite(value) and value > 0):
             raise ConfigError(f"must be a positive number, got {value!r}", path=where,
-                              field=f"walking.{f.name}")
+                              field=f"{table}.{f.name}")
+    for name, (least, most) in DURATION_BOUNDS_S.items():
+        value = getattr(params, name)
+        if not least <= value <= most:
+            raise ConfigError(f"must lie between {least:g} and {most:g} s, got {value!r}",
+                              path=where, field=f"{table}.{name}")
     for name, value, most in (("swing_travel_fraction", params.swing_travel_fraction, 1.0),
                               ("swing_ramp_fraction", params.swing_ramp_fraction, 0.5)):
         if value > most:
             raise ConfigError(f"must be at most {most:g}, got {value!r}", path=where,
-                              field=f"walking.{name}")
+                              field=f"{table}.{name}")
     if not (params.swing_travel_fraction <= params.swing_travel_end_fraction <= 1.0):
         raise ConfigError(f"must lie between swing_travel_fraction and 1, got "
                           f"{params.swing_travel_end_fraction!r}", path=where,
-                          field="walking.swing_travel_end_fraction")
+                          field=f"{table}.swing_travel_end_fraction")
     return params
 
 
@@ -111,6 +123,10 @@ def walking_params(model: RobotModel, gait: str = DEFAULT_GAIT) -> WalkingParams
         if f.name not in raw:
             raise ConfigError("missing key", path=str(model.source), field=f"walking.{f.name}")
         values[f.name] = raw[f.name]
+    if isinstance(raw.get(DEFAULT_GAIT), dict):
+        raise ConfigError(f"the [walking] table itself is the {DEFAULT_GAIT!r} gait: a "
+                          "sub-table of that name would never be read", path=str(model.source),
+                          field=f"walking.{DEFAULT_GAIT}")
     if gait != DEFAULT_GAIT:
         if gait not in gait_names(model):
             raise InputError(f"no gait {gait!r} in the robot file",
@@ -121,4 +137,5 @@ def walking_params(model: RobotModel, gait: str = DEFAULT_GAIT) -> WalkingParams
                 raise ConfigError("not a walking parameter", path=str(model.source),
                                   field=f"walking.{gait}.{key}")
             values[key] = value
-    return _checked(WalkingParams(**values), str(model.source))
+    table = "walking" if gait == DEFAULT_GAIT else f"walking.{gait}"
+    return _checked(WalkingParams(**values), str(model.source), table)
