@@ -268,6 +268,7 @@ class TeleopTarget(Target):
         self.t_settle_s: float | None = None
         self.latencies_s: list[float] = []
         self.operate_call_s: list[float] = []  # this target's own time per operating period
+        self.operate_cpu_s: list[float] = []  # and its thread's CPU time
         self.samples_used = 0
         self.last_sample_s: dict[str, float] = {}
         self.errors_m: dict[str, list[float]] = {arm: [] for arm in self.arms}
@@ -350,7 +351,7 @@ class TeleopTarget(Target):
 
     # ------------------------------------------------------------------ the loop's call
     def __call__(self, t_s: float, state) -> tuple[np.ndarray | None, dict]:
-        t0 = time.perf_counter()
+        t0, cpu0 = time.perf_counter(), time.thread_time()
         self.info = info = {}
         self.keys_now = keys = self.keys.take()
         self._q_measured = state.q_rad
@@ -370,6 +371,7 @@ class TeleopTarget(Target):
         self._T_S_N_now = None  # outside a period, asked anew
         if self.phase == "operate":
             self.operate_call_s.append(time.perf_counter() - t0)
+            self.operate_cpu_s.append(time.thread_time() - cpu0)
         return self.q_out, info
 
     def _pace_arms(self) -> None:
