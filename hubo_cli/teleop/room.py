@@ -35,6 +35,8 @@ import numpy as np
 from hubo_cli.control.collision import TOLERANCE_M, SelfCollisionChecker
 from hubo_cli.kinematics.reach import DAMPING, MAX_STEP_RAD, branch_box, jacobian, rotation_error
 from hubo_cli.model import ARMS, RobotModel
+from hubo_cli.motion.limits import all_finite
+from hubo_cli.teleop.target_kernels import max_abs_difference
 
 ROOM_M = TOLERANCE_M + 0.005  # the detector's band and 5 mm for the command's braking look-ahead
 NEWTON_STEPS = 3
@@ -210,7 +212,7 @@ class CollisionRoom:
         base, _, offset, alpha, a, dd, end, _ = limb.chain
         w = np.array([1.0, 1.0, 1.0] + [ORIENTATION_WEIGHT_M_PER_RAD] * 3)
         lo, hi = np.empty(6), np.empty(6)
-        T, J, e = np.empty((4, 4)), np.empty((6, 6)), np.empty(6)
+        T, J, e, zeros = np.empty((4, 4)), np.empty((6, 6)), np.empty(6), np.zeros(6)
         branch = -1 if reach.branch is None else reach.branch
         branch_box(q[index], branch, reach.margins, limb.lower_rad, limb.upper_rad, lo, hi)
 
@@ -232,19 +234,19 @@ class CollisionRoom:
                 q_d[i] += DIFF_RAD
                 grad[k] = (self._distance(q_d)[0] - d) / DIFF_RAD
             need = self.room_m + AIM_M - d
-            if np.all(np.isfinite(grad)) and grad @ dq < need:
+            if all_finite(grad) and grad @ dq < need:
                 # the step of least weighted error whose linearised clearance is the room: it
                 # slides along the body, turning the hand where that costs the least
                 h_grad = np.linalg.solve(H, grad)
                 if grad @ h_grad > 1e-12:
                     dq += (need - grad @ dq) / (grad @ h_grad) * h_grad
-            biggest = float(np.max(np.abs(dq)))
+            biggest = max_abs_difference(dq, zeros)  # np.max(np.abs(dq)), NaN as NaN
             if biggest < 1e-9:
                 return q, d, True
             dq *= min(1.0, MAX_STEP_RAD / biggest)
             for scale in (1.0, 0.5, 0.25):
                 q_try = q.copy()
-                q_try[index] = np.clip(q[index] + scale * dq, lo, hi)
+                q_try[index] = np.minimum(np.maximum(q[index] + scale * dq, lo), hi)  # np.clip
                 d_try = self._distance(q_try)[0]
                 c_try = cost(q_try[index])
                 if d_try >= min(self.room_m, d) and (c_try < c or d < self.room_m <= d_try):
