@@ -2,10 +2,12 @@
 
 Each compiled part against its numpy version as it was written before (kept here as the
 reference), on drawn and hostile inputs; then the whole target against a reference target built
-from those numpy versions (and the collision room's first check over every pair within 5 cm of
-the room, as before), closed loop over generated operator streams: every period the same joint
-targets to 1e-9 rad, the same joints commanded by the trajectory generator and the same target
-velocities given to it (to 1e-8 rad and 1e-7 rad/s), and the same summary figures.
+from those numpy versions (the collision room's first check over every pair within 5 cm of the
+room, its clear search, the measurement, the torso's tilt and the measured neck frame as
+before), closed loop over generated operator streams: every period
+the same joint targets to 1e-9 rad, the same joints commanded by the trajectory generator and
+the same target velocities given to it (to 1e-8 rad and 1e-7 rad/s), the same logged values (to
+1e-9) and the same summary figures.
 
 Closed loop, the two runs differ by rounding from the first period on (numpy's BLAS products and
 the compiled loops round differently; 1e-13 rad over 4 s, seeds 3400 and 3401). The collision
@@ -22,11 +24,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pinocchio as pin
 import pytest
 from scipy.spatial.transform import Rotation
 
-from hubo_cli.control.collision import Clearance, SelfCollisionChecker, _pair_bounds, _take_near
 from hubo_cli.control.keys import ARM_TARGET_VELOCITY
 from hubo_cli.estimation.keys import QUAT_WORLD_TORSO
 from hubo_cli.input.operator_stream import StreamSettings
@@ -189,25 +189,6 @@ def numpy_tilt_rad(q):
     return 2.0 * np.arctan2(np.hypot(q[..., 1], q[..., 2]), np.hypot(q[..., 0], q[..., 3]))
 
 
-class ReferenceChecker(SelfCollisionChecker):
-    def check_near(self, q_rad, band_m):  # its loops as they were
-        if not self.pair_names:
-            return Clearance(np.inf, ("", ""))
-        bounds, near, listed, data = self._bounds_m, self._near, self._listed, self._near_data
-        n_changed, n_near, best = _pair_bounds(q_rad, self.anchor_q, self.anchor_m,
-                                               self.rate_m_rad, band_m, bounds, near, listed)
-        for p in listed[:n_changed]:
-            (data.activateCollisionPair if near[p] else data.deactivateCollisionPair)(int(p))
-        if n_near:
-            pin.computeDistances(self.robot.model, self.data, self.geom, data,
-                                 self.robot.configuration(q_rad, out=self._q))
-            pairs = listed[n_changed:n_changed + n_near]
-            for p in pairs:
-                bounds[p] = self._near_results[p].min_distance
-            best = _take_near(q_rad, pairs, bounds, self.anchor_q, self.anchor_m)
-        return Clearance(float(bounds[best]), self.pair_names[best])
-
-
 class ReferenceRoom(CollisionRoom):
     def _distance_to_room(self, q_rad):  # as before: every pair within NEAR_M of the room
         return self._distance(q_rad)
@@ -269,7 +250,6 @@ class ReferenceTarget(target_module.TeleopTarget):
         self.mapper.__class__ = NumpyMapper
         if self.room is not None:
             self.room.__class__ = ReferenceRoom
-            self.room.checker.__class__ = ReferenceChecker
         self.torso.__class__ = NumpyMeasuredTorso
 
     def start_operating(self, t_s):
