@@ -179,13 +179,16 @@ class CollisionRoom:
             arm = arms[0]
             index = self._index[arm]
             q[index] = q_prev[index]
-            d = self._distance(q)[0]
+            d, pair_here = self._distance(q)
             reach, T_goal = goals[arm]
             T_goal = np.ascontiguousarray(T_goal, float)
             moved.add(arm)
             if d >= self.room_m and self._still(arm, q[index], T_goal):
+                # the same joints asked again would give the same answer: the pairs computed
+                # here are anchored here (their bounds are their distances, recomputed alike),
+                # the others' anchors have not moved
                 self.skipped += 1
-                d, pair = self._distance(q)
+                pair = pair_here
                 continue
             q, d, rested = self._search_arm(q, d, index, reach, T_goal)
             self._rested[arm] = (T_goal, q[index].copy()) if rested else None
