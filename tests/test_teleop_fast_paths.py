@@ -193,6 +193,16 @@ class ReferenceRoom(CollisionRoom):
     def _distance_to_room(self, q_rad):  # as before: every pair within NEAR_M of the room
         return self._distance(q_rad)
 
+    def _still(self, arm, q_arm, T_goal):  # as it was
+        rested = self._rested.get(arm)
+        if rested is None or not np.array_equal(rested[1], q_arm):
+            return False
+        T_was = rested[0]
+        if np.linalg.norm(T_goal[:3, 3] - T_was[:3, 3]) > room_module.STILL_GOAL_M:
+            return False
+        cos = (np.trace(T_was[:3, :3].T @ T_goal[:3, :3]) - 1.0) / 2.0
+        return bool(cos >= np.cos(room_module.STILL_GOAL_RAD))
+
     def _clear_search(self, q_prev, q_next, goals):  # as it was
         q = q_next.copy()
         d, pair = self._distance(q)

@@ -30,6 +30,8 @@ last target is still clear: the search would find the same pose.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from hubo_cli.control.collision import TOLERANCE_M, SelfCollisionChecker
@@ -47,6 +49,7 @@ ORIENTATION_WEIGHT_M_PER_RAD = 0.01  # the clear search's: position first (1 deg
 AIM_M = 0.001                # its steps aim this far beyond the room (the body's curvature)
 STILL_GOAL_M = 0.0005       # a goal this close (and STILL_GOAL_RAD) to the one a clear search
 STILL_GOAL_RAD = np.radians(0.5)  # came to rest at is not searched again
+_STILL_GOAL_COS = np.cos(STILL_GOAL_RAD)
 NEAR_M = 0.05  # distances are exact up to the room and this much more, lower bounds beyond
 # (the checker's Lipschitz bounds skip the pairs that cannot be that close)
 
@@ -199,13 +202,15 @@ class CollisionRoom:
         """The arm's last search came to rest at ``q_arm`` for a goal within STILL_GOAL_M and
         STILL_GOAL_RAD of ``T_goal``: searching again would find the same pose."""
         rested = self._rested.get(arm)
-        if rested is None or not np.array_equal(rested[1], q_arm):
+        # np.array_equal and np.linalg.norm's values without their wrappers (NaN unequal)
+        if rested is None or max_abs_difference(rested[1], q_arm) != 0.0:
             return False
         T_was = rested[0]
-        if np.linalg.norm(T_goal[:3, 3] - T_was[:3, 3]) > STILL_GOAL_M:
+        moved = T_goal[:3, 3] - T_was[:3, 3]
+        if math.sqrt(moved.dot(moved)) > STILL_GOAL_M:
             return False
         cos = (np.trace(T_was[:3, :3].T @ T_goal[:3, :3]) - 1.0) / 2.0
-        return bool(cos >= np.cos(STILL_GOAL_RAD))
+        return bool(cos >= _STILL_GOAL_COS)
 
     def _search_arm(self, q: np.ndarray, d: float, index: np.ndarray, reach,
                     T_goal: np.ndarray) -> tuple[np.ndarray, float, bool]:
