@@ -203,30 +203,6 @@ class ReferenceRoom(CollisionRoom):
         cos = (np.trace(T_was[:3, :3].T @ T_goal[:3, :3]) - 1.0) / 2.0
         return bool(cos >= np.cos(room_module.STILL_GOAL_RAD))
 
-    def _clear_search(self, q_prev, q_next, goals):  # as it was
-        q = q_next.copy()
-        d, pair = self._distance(q)
-        moved = set()
-        for _ in range(len(self.arms)):
-            arms = [a for a in self._arms_of(pair) if a in goals and a not in moved]
-            if d >= self.room_m or not arms:
-                break
-            arm = arms[0]
-            index = self._index[arm]
-            q[index] = q_prev[index]
-            d = self._distance(q)[0]
-            reach, T_goal = goals[arm]
-            T_goal = np.ascontiguousarray(T_goal, float)
-            moved.add(arm)
-            if d >= self.room_m and self._still(arm, q[index], T_goal):
-                self.skipped += 1
-                d, pair = self._distance(q)
-                continue
-            q, d, rested = self._search_arm(q, d, index, reach, T_goal)
-            self._rested[arm] = (T_goal, q[index].copy()) if rested else None
-            d, pair = self._distance(q)
-        return q, d, moved
-
     def _search_arm(self, q, d, index, reach, T_goal):  # as it was
         limb = reach.limb
         base, _, offset, alpha, a, dd, end, _ = limb.chain
@@ -534,6 +510,37 @@ def test_the_tilt_and_the_measured_torso_match_numpy():
         assert np.array_equal(got, expected), k
 
 
+def test_the_collision_room_gives_the_same_targets_to_the_last_bit(monkeypatch):
+    """The room as it is and as it was (the reference room with its first check as it is: the
+    closed-loop test covers that one) called in turn on the inputs a generated stream gave it:
+    the same targets to the last bit, call after call. A last-bit difference is not harmless
+    here: the clear search breaks ties on it (a still goal's second check at the same joints,
+    skipped, gave 5e-15 rad after 393 calls of this stream and 3-10 mrad apart within 6 s of
+    it and two others)."""
+    inputs = []
+    keep = CollisionRoom.keep
+
+    def recorded(self, q_prev, q_next, goals=None):
+        inputs.append((np.array(q_prev, dtype=float), np.array(q_next, dtype=float),
+                       {a: (r, np.array(T)) for a, (r, T) in (goals or {}).items()}))
+        return keep(self, q_prev, q_next, goals)
+
+    with monkeypatch.context() as patch:
+        patch.setattr(CollisionRoom, "keep", recorded)
+        follow_generated(3401, StreamSettings(duration_s=4.0, max_speed_m_s=0.25))
+
+    class Reference(ReferenceRoom):
+        _distance_to_room = CollisionRoom._distance_to_room
+
+    model = load_model(limits="teleop")
+    new = CollisionRoom(model, arms=("left-arm", "right-arm"))
+    old = Reference(model, arms=("left-arm", "right-arm"))
+    for k, (q_prev, q_next, goals) in enumerate(inputs):
+        assert np.array_equal(new.keep(q_prev, q_next, goals), old.keep(q_prev, q_next, goals)), k
+    # measured: 1036 calls, 406 of them with a still goal, 668 moving the left arm out of the band
+    assert new.skipped > 100 and sum(new.pushed_periods.values()) > 200
+
+
 # ---------------------------------------------------------------- the whole target, closed loop
 
 
@@ -587,6 +594,5 @@ def test_the_compiled_target_moves_the_arms_as_the_numpy_target(monkeypatch, see
         for key, value in figures.items():
             assert fast_run.hands[arm][key] == pytest.approx(value, rel=1e-9, abs=1e-9), key
     if (seed, max_speed) == (3402, 0.6):  # the clear search compared: this stream keeps the left
-        # arm's target out of the collision band 3.06 s (of the 2 s stream and its settling),
-        # 120 periods of it with a still goal (no search)
+        # arm's target out of the collision band 3.06 s (of the 2 s stream and its settling)
         assert plain_run.hands["left-arm"]["collision_room_s"] > 1.0

@@ -83,10 +83,10 @@ def generated(report, max_speed_m_s: float, count: int, seconds: float) -> list:
            " x speed limit")
     timed = [r.target_us for r in runs if r.target_us["median"] is not None]
     medians = [t["median"] for t in timed]
-    report("  teleop target per operating period (both arms, reach search, collision room, "
-           "swing preview), median over the streams' medians, wall clock",
+    report("  teleop target per period (both arms, search, room, swing), median",
            float(np.median(medians)), "us",
-           f"thread CPU {np.median([t['cpu_median'] for t in timed]):.0f} us; worst stream's "
+           f"wall clock, of the streams' medians; thread CPU "
+           f"{np.median([t['cpu_median'] for t in timed]):.0f} us; worst stream's "
            f"median {max(medians):.0f} us, worst p99 {max(t['p99'] for t in timed):.0f} us; "
            f"{load} (target: median <= 300 us)")
     for arm in runs[0].hands:

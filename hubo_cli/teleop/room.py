@@ -182,16 +182,13 @@ class CollisionRoom:
             arm = arms[0]
             index = self._index[arm]
             q[index] = q_prev[index]
-            d, pair_here = self._distance(q)
+            d = self._distance(q)[0]
             reach, T_goal = goals[arm]
             T_goal = np.ascontiguousarray(T_goal, float)
             moved.add(arm)
             if d >= self.room_m and self._still(arm, q[index], T_goal):
-                # the same joints asked again would give the same answer: the pairs computed
-                # here are anchored here (their bounds are their distances, recomputed alike),
-                # the others' anchors have not moved
                 self.skipped += 1
-                pair = pair_here
+                d, pair = self._distance(q)
                 continue
             q, d, rested = self._search_arm(q, d, index, reach, T_goal)
             self._rested[arm] = (T_goal, q[index].copy()) if rested else None
@@ -202,8 +199,8 @@ class CollisionRoom:
         """The arm's last search came to rest at ``q_arm`` for a goal within STILL_GOAL_M and
         STILL_GOAL_RAD of ``T_goal``: searching again would find the same pose."""
         rested = self._rested.get(arm)
-        # np.array_equal and np.linalg.norm's values without their wrappers (NaN unequal)
-        if rested is None or max_abs_difference(rested[1], q_arm) != 0.0:
+        # np.array_equal's and np.linalg.norm's values without their wrappers
+        if rested is None or not (rested[1] == q_arm).all():
             return False
         T_was = rested[0]
         moved = T_goal[:3, 3] - T_was[:3, 3]
