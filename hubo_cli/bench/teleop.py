@@ -4,7 +4,8 @@ teleop target's own time per operating period (issue 34: median <= 300 us).
 
 ``HUBO_BENCH_BASE=<git revision>`` also measures that revision's teleop target against this
 tree's, interleaved (base, this, this, base, ...: one process per run, the same streams), and
-reports both medians and their ratio; it needs a git checkout."""
+reports per stream both medians and the median of the paired ratios (each stream of each round
+against itself); it needs a git checkout."""
 
 from __future__ import annotations
 
@@ -28,7 +29,7 @@ from hubo_cli.teleop.session import TeleopSettings, run_teleop
 STREAM_SETS = ((0.25, 20, 20.0), (0.6, 8, 20.0))
 FIRST_SEED = 3400
 BASE_ENV = "HUBO_BENCH_BASE"
-COMPARE = {"seeds": [3400, 3401, 3402], "max_speed_m_s": 0.25, "seconds": 8.0, "rounds": 2}
+COMPARE = {"seeds": [3400, 3401, 3402], "max_speed_m_s": 0.25, "seconds": 8.0, "rounds": 3}
 
 
 def run(report) -> None:
@@ -184,7 +185,12 @@ def compare_with(report, revision: str) -> None:
                f"{COMPARE['max_speed_m_s']:g} m/s, {COMPARE['seconds']:g} s, "
                f"{COMPARE['rounds']} rounds interleaved")
     for column, label in ((0, "wall clock"), (1, "thread CPU")):
-        before = float(np.median([m[column] for m in results["base"]]))
-        after = float(np.median([m[column] for m in results["this"]]))
+        # each stream of each round against itself: the streams' own costs differ by 3x
+        before, after = (np.array([m[column] for m in results[name]]) for name in ("base", "this"))
+        n = len(COMPARE["seeds"])  # results: round after round, each the seeds in order
+        per_seed = ", ".join(
+            f"{seed}: {np.median(before[k::n]):.0f} -> {np.median(after[k::n]):.0f} us"
+            for k, seed in enumerate(COMPARE["seeds"]))
         report(f"  teleop target per operating period, {label}: this tree / {revision}",
-               after / before, "", f"{before:.0f} -> {after:.0f} us ({streams}; {load})")
+               float(np.median(after / before)), "", f"median of the paired ratios; per stream "
+               f"{per_seed} ({streams}; {load})")
