@@ -4,10 +4,10 @@ Each compiled part against its numpy version as it was written before (kept here
 reference), on drawn and hostile inputs; then the whole target against a reference target built
 from those numpy versions (the collision room's first check over every pair within 5 cm of the
 room, its clear search, the measurement, the torso's tilt and the measured neck frame as
-before), closed loop over generated operator streams: every period
-the same joint targets to 1e-9 rad, the same joints commanded by the trajectory generator and
-the same target velocities given to it (to 1e-8 rad and 1e-7 rad/s), the same logged values (to
-1e-9) and the same summary figures.
+before), closed loop over generated operator streams: every period the same joint targets to
+1e-9 rad, the same joints commanded by the trajectory generator and the same target velocities
+given to it (to 1e-8 rad and 1e-7 rad/s), the same logged values (to 1e-9) and the same summary
+figures; and the collision room alone on recorded calls, to the last bit.
 
 Closed loop, the two runs differ by rounding from the first period on (numpy's BLAS products and
 the compiled loops round differently; 1e-13 rad over 4 s, seeds 3400 and 3401). The collision
