@@ -38,6 +38,7 @@ from hubo_cli.kinematics.limb import IKResult
 from hubo_cli.kinematics.torso_kernels import follow_deviation, stance_legs
 from hubo_cli.kinematics.wholebody import WholeBody
 from hubo_cli.model import LEGS
+from hubo_cli.motion.limits import all_finite
 
 
 def torso_in_stance(body: WholeBody, q_rad, quat_world_torso_wxyz=None) -> np.ndarray:
@@ -96,7 +97,7 @@ class MeasuredTorso:
             if not np.all(np.isfinite(T_world_soles)):
                 return self._T_S_N
             self._place_stance(T_world_soles)
-        if np.all(np.isfinite(T_world_torso)):
+        if all_finite(T_world_torso.ravel()):
             self._T_S_N = self._T_S_world @ T_world_torso
         return self._T_S_N
 

@@ -30,11 +30,15 @@ last target is still clear: the search would find the same pose.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from hubo_cli.control.collision import TOLERANCE_M, SelfCollisionChecker
 from hubo_cli.kinematics.reach import DAMPING, MAX_STEP_RAD, branch_box, jacobian, rotation_error
 from hubo_cli.model import ARMS, RobotModel
+from hubo_cli.motion.limits import all_finite
+from hubo_cli.teleop.target_kernels import max_abs_difference
 
 ROOM_M = TOLERANCE_M + 0.005  # the detector's band and 5 mm for the command's braking look-ahead
 NEWTON_STEPS = 3
@@ -45,6 +49,7 @@ ORIENTATION_WEIGHT_M_PER_RAD = 0.01  # the clear search's: position first (1 deg
 AIM_M = 0.001                # its steps aim this far beyond the room (the body's curvature)
 STILL_GOAL_M = 0.0005       # a goal this close (and STILL_GOAL_RAD) to the one a clear search
 STILL_GOAL_RAD = np.radians(0.5)  # came to rest at is not searched again
+_STILL_GOAL_COS = np.cos(STILL_GOAL_RAD)
 NEAR_M = 0.05  # distances are exact up to the room and this much more, lower bounds beyond
 # (the checker's Lipschitz bounds skip the pairs that cannot be that close)
 
@@ -194,13 +199,15 @@ class CollisionRoom:
         """The arm's last search came to rest at ``q_arm`` for a goal within STILL_GOAL_M and
         STILL_GOAL_RAD of ``T_goal``: searching again would find the same pose."""
         rested = self._rested.get(arm)
-        if rested is None or not np.array_equal(rested[1], q_arm):
+        # np.array_equal's and np.linalg.norm's values without their wrappers
+        if rested is None or not (rested[1] == q_arm).all():
             return False
         T_was = rested[0]
-        if np.linalg.norm(T_goal[:3, 3] - T_was[:3, 3]) > STILL_GOAL_M:
+        moved = T_goal[:3, 3] - T_was[:3, 3]
+        if math.sqrt(moved.dot(moved)) > STILL_GOAL_M:
             return False
         cos = (np.trace(T_was[:3, :3].T @ T_goal[:3, :3]) - 1.0) / 2.0
-        return bool(cos >= np.cos(STILL_GOAL_RAD))
+        return bool(cos >= _STILL_GOAL_COS)
 
     def _search_arm(self, q: np.ndarray, d: float, index: np.ndarray, reach,
                     T_goal: np.ndarray) -> tuple[np.ndarray, float, bool]:
@@ -210,7 +217,7 @@ class CollisionRoom:
         base, _, offset, alpha, a, dd, end, _ = limb.chain
         w = np.array([1.0, 1.0, 1.0] + [ORIENTATION_WEIGHT_M_PER_RAD] * 3)
         lo, hi = np.empty(6), np.empty(6)
-        T, J, e = np.empty((4, 4)), np.empty((6, 6)), np.empty(6)
+        T, J, e, zeros = np.empty((4, 4)), np.empty((6, 6)), np.empty(6), np.zeros(6)
         branch = -1 if reach.branch is None else reach.branch
         branch_box(q[index], branch, reach.margins, limb.lower_rad, limb.upper_rad, lo, hi)
 
@@ -232,19 +239,19 @@ class CollisionRoom:
                 q_d[i] += DIFF_RAD
                 grad[k] = (self._distance(q_d)[0] - d) / DIFF_RAD
             need = self.room_m + AIM_M - d
-            if np.all(np.isfinite(grad)) and grad @ dq < need:
+            if all_finite(grad) and grad @ dq < need:
                 # the step of least weighted error whose linearised clearance is the room: it
                 # slides along the body, turning the hand where that costs the least
                 h_grad = np.linalg.solve(H, grad)
                 if grad @ h_grad > 1e-12:
                     dq += (need - grad @ dq) / (grad @ h_grad) * h_grad
-            biggest = float(np.max(np.abs(dq)))
+            biggest = max_abs_difference(dq, zeros)  # np.max(np.abs(dq)), NaN as NaN
             if biggest < 1e-9:
                 return q, d, True
             dq *= min(1.0, MAX_STEP_RAD / biggest)
             for scale in (1.0, 0.5, 0.25):
                 q_try = q.copy()
-                q_try[index] = np.clip(q[index] + scale * dq, lo, hi)
+                q_try[index] = np.minimum(np.maximum(q[index] + scale * dq, lo), hi)  # np.clip
                 d_try = self._distance(q_try)[0]
                 c_try = cost(q_try[index])
                 if d_try >= min(self.room_m, d) and (c_try < c or d < self.room_m <= d_try):

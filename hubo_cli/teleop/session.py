@@ -361,8 +361,9 @@ def summarise(settings: TeleopSettings, target: TeleopTarget, done: RunResult,
         "latency_ms": {"median": float(np.median(latencies)) if len(latencies) else None,
                        "p99": float(np.percentile(latencies, 99)) if len(latencies) else None},
         "target_us": {"median": float(np.median(target.operate_call_s) * 1e6),
-                      "p99": float(np.percentile(target.operate_call_s, 99) * 1e6)}
-        if target.operate_call_s else {"median": None, "p99": None},
+                      "p99": float(np.percentile(target.operate_call_s, 99) * 1e6),
+                      "cpu_median": float(np.median(target.operate_cpu_s) * 1e6)}
+        if target.operate_call_s else {"median": None, "p99": None, "cpu_median": None},
         "samples_used": target.samples_used,
         "samples_rejected": target.mapper.rejected,
         "input_stats": source.stats(),

@@ -34,7 +34,9 @@ class StreamRun:
         max_step_ratio: the largest one-period joint step over the joint's speed limit times
             the period (<= 1: no jump).
         ended: how the run ended (``done`` when the stream ran out).
-        target_us: the teleop target's own time per operating period, median and p99 (us).
+        target_us: the teleop target's own time per operating period, median and p99 (us,
+            wall clock), and from :func:`replay_generated` the median of its thread's CPU time
+            (``cpu_median``).
         wall_s: the replay's wall-clock time.
     """
 

@@ -65,7 +65,6 @@ from hubo_cli.control.phase import Phases
 from hubo_cli.control.target import Target
 from hubo_cli.dataflow import Store
 from hubo_cli.estimation.keys import QUAT_WORLD_TORSO, T_WORLD_SOLES, T_WORLD_TORSO
-from hubo_cli.geometry import tilt_rad_of_quat_wxyz
 from hubo_cli.input.device import InputDevice
 from hubo_cli.kinematics.arm_reach import ArmReach, BranchMove, ReachSettings
 from hubo_cli.kinematics.choice import STATUS_NAMES
@@ -88,6 +87,7 @@ from hubo_cli.teleop.target_kernels import (
     max_abs_difference,
     operator_pose_plausible,
     path_swing_m,
+    tilt_rad,
 )
 
 SHORT = {"right-arm": "r", "left-arm": "l"}
@@ -268,6 +268,7 @@ class TeleopTarget(Target):
         self.t_settle_s: float | None = None
         self.latencies_s: list[float] = []
         self.operate_call_s: list[float] = []  # this target's own time per operating period
+        self.operate_cpu_s: list[float] = []  # and its thread's CPU time
         self.samples_used = 0
         self.last_sample_s: dict[str, float] = {}
         self.errors_m: dict[str, list[float]] = {arm: [] for arm in self.arms}
@@ -300,6 +301,7 @@ class TeleopTarget(Target):
             goal_velocity.update(zeros, True)
         reachable_velocity(zeros, zeros, zeros, zeros, limits)
         operator_pose_plausible(_EYE4, 1.0)
+        tilt_rad(np.array([1.0, 0.0, 0.0, 0.0]))
         max_abs_difference(zeros, zeros)
         free_goal(_EYE4, _EYE4, _EYE4, _EYE4, 1.0, 1.0, np.empty((4, 4)))
         for reach in self.reach.values():
@@ -349,7 +351,7 @@ class TeleopTarget(Target):
 
     # ------------------------------------------------------------------ the loop's call
     def __call__(self, t_s: float, state) -> tuple[np.ndarray | None, dict]:
-        t0 = time.perf_counter()
+        t0, cpu0 = time.perf_counter(), time.thread_time()
         self.info = info = {}
         self.keys_now = keys = self.keys.take()
         self._q_measured = state.q_rad
@@ -369,6 +371,7 @@ class TeleopTarget(Target):
         self._T_S_N_now = None  # outside a period, asked anew
         if self.phase == "operate":
             self.operate_call_s.append(time.perf_counter() - t0)
+            self.operate_cpu_s.append(time.thread_time() - cpu0)
         return self.q_out, info
 
     def _pace_arms(self) -> None:
@@ -682,10 +685,12 @@ class TeleopTarget(Target):
         return report
 
     def _measure(self, t_s: float, state, info: dict) -> None:
-        info["phase_code"] = PHASES.index(self.phase)
+        phase = self.phase
+        info["phase_code"] = PHASES.index(phase)
         info["lift_m"] = self._lift_of(self.q_target)
         info["latency_s"] = self.latencies_s[-1] if self.latencies_s else 0.0
-        operating = self.phase == "operate"
+        operating = phase == "operate"
+        lift_measured_m = None  # the measured legs' lift, computed once when first needed
         for arm, hand in self.hands.items():
             names = self._info_names[arm]
             goal = self.goals.get(arm)
@@ -693,25 +698,28 @@ class TeleopTarget(Target):
             world = (goal is not None and operating
                      and self.mapper.is_calibrated(self._hand_of[arm]))
             T_S_N = self._T_S_N() if corrected or world else _EYE4
+            if not corrected and lift_measured_m is None:
+                lift_measured_m = self._lift_of(state.q_rad)
             base, _, offset, alpha, a, d, end, _ = self.body.arms[arm].chain
             T_actual = np.empty((4, 4))
             error, rot_error, world_error = hand_errors(
                 kernel_array(state.q_rad[self.slices[arm]]), base, offset, alpha, a, d, end,
-                corrected, 0.0 if corrected else self._lift_of(state.q_rad), T_S_N,
+                corrected, 0.0 if corrected else lift_measured_m, T_S_N,
                 _EYE4 if goal is None else kernel_array(goal), world, T_actual)
             actual = T_actual[:3, 3]
             hand.actual_m = actual
-            x, y, z = actual
-            info.update(zip(names[:6], (
-                x, y, z, STATUS_NAMES.index(hand.ik_status) if hand.ik_status in STATUS_NAMES
-                else -1, 0.0 if hand.missing_m is None
-                else math.sqrt(hand.missing_m.dot(hand.missing_m)),  # np.linalg.norm's
-                hand.speed_scale), strict=True))
+            missing = hand.missing_m
+            info[names[0]], info[names[1]], info[names[2]] = actual.tolist()
+            info[names[3]] = (STATUS_NAMES.index(hand.ik_status)
+                              if hand.ik_status in STATUS_NAMES else -1)
+            info[names[4]] = (0.0 if missing is None
+                              else math.sqrt(missing.dot(missing)))  # np.linalg.norm's
+            info[names[5]] = hand.speed_scale
             if goal is None:
                 continue
             hand.goal_m = goal_m = goal[:3, 3]
-            x, y, z = goal_m
-            info.update(zip(names[6:], (x, y, z, error, rot_error), strict=True))
+            info[names[6]], info[names[7]], info[names[8]] = goal_m.tolist()
+            info[names[9]], info[names[10]] = error, rot_error
             if world:
                 self.errors_m[arm].append(error)
                 self.reachable[arm].append(hand.reachable)
@@ -719,8 +727,8 @@ class TeleopTarget(Target):
                 self.path_times_s[arm].append(t_s)
                 self.paths[arm].append((goal_m.copy(), actual.copy()))
                 self.world_errors_m[arm].append(world_error)
-        self.max_tilt_rad = max(self.max_tilt_rad,
-                                float(tilt_rad_of_quat_wxyz(self.store[QUAT_WORLD_TORSO])))
+        self.max_tilt_rad = max(self.max_tilt_rad, tilt_rad(kernel_array(
+            self.store[QUAT_WORLD_TORSO])))
 
     def _lift_of(self, q_rad: np.ndarray) -> float:
         """:meth:`WholeBody.lift_of` of a joint vector, remembered for the last few leg

@@ -116,3 +116,10 @@ def max_abs_difference(x, y):
         if d > worst:
             worst = d
     return worst
+
+
+@nb.njit(**JIT)
+def tilt_rad(q_wxyz):
+    """:func:`hubo_cli.geometry.tilt_rad_of_quat_wxyz` of one quaternion (4,) w, x, y, z (any
+    norm): the same libm calls, as a float."""
+    return 2.0 * math.atan2(math.hypot(q_wxyz[1], q_wxyz[2]), math.hypot(q_wxyz[0], q_wxyz[3]))
