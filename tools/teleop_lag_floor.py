@@ -32,11 +32,15 @@ larger of the two does.
 
     python tools/teleop_lag_floor.py RUN_DIR [--accel 0.8] [--window 3] [--step 0.05] [--onset]
     python tools/teleop_lag_floor.py --generated 50 [--speed 0.25] [--duration 1.5]
+    python tools/teleop_lag_floor.py --rates
 
 (``--onset``: the onset floor alone, in seconds instead of minutes. ``--generated N``: the first
 N streams of tests/test_teleop_streams.py's draw, followed by ``stream_runs.follow_generated``;
 per stream and hand the run's reachable RMS and both floors, the goal's joint targets being the
-exact IK of the goal as the operator gave it, its orientation not smoothed.)
+exact IK of the goal as the operator gave it, its orientation not smoothed. ``--rates``: at
+the free-mode ready pose, the fastest joint a turn of the hand (its position held) and a move
+of the hand (its orientation held) ask per rad/s and per m/s, over the axes and directions, and
+so the turn rate and hand speed the joints' speed limit allows.)
 """
 
 from __future__ import annotations
@@ -144,6 +148,24 @@ def speed_floor_errors(t_s, q_target, weight, velocity_rad_s, window_s, step_s, 
         errors[k[w[k]]] = np.linalg.norm(r[:, :3], axis=1)
         rot_errors[k[w[k]]] = np.linalg.norm(r[:, 3:], axis=1) / w_rot_m
     return errors, rot_errors
+
+
+def joint_speed_per_rate(arm: str, directions: int = 20000) -> dict[str, np.ndarray]:
+    """At the free-mode ready pose, over ``directions`` random unit axes: the fastest joint
+    (rad/s) a hand turn of 1 rad/s about the axis with the hand's position held asks
+    (``turn``), and the fastest a hand speed of 1 m/s along it with the orientation held asks
+    (``move``): the rows of the inverse Jacobian."""
+    from hubo_cli.teleop.session import FREE_READY_ARM_RAD
+
+    base, _, offset, alpha, a, d, end, _ = get_limb(arm, "hand").chain
+    T, J = np.empty((4, 4)), np.empty((6, 6))
+    jacobian(np.array(FREE_READY_ARM_RAD[arm], dtype=float), base, offset, alpha, a, d, end,
+             T, J)
+    J_inv = np.linalg.inv(J)
+    axes = np.random.default_rng(0).normal(size=(3, directions))
+    axes /= np.linalg.norm(axes, axis=0)
+    return {"turn": np.abs(J_inv[:, 3:] @ axes).max(axis=0),
+            "move": np.abs(J_inv[:, :3] @ axes).max(axis=0)}
 
 
 def generated_goals(seed: int, settings) -> tuple[dict, dict]:
@@ -266,6 +288,8 @@ def main() -> None:
     parser.add_argument("run_dir", type=Path, nargs="?")
     parser.add_argument("--generated", type=int, default=0,
                         help="the floors of the first N generated test streams instead of a run")
+    parser.add_argument("--rates", action="store_true",
+                        help="the joint speeds a hand's turn and move ask at the ready pose")
     parser.add_argument("--speed", type=float, default=0.25, help="their hand speed cap (m/s)")
     parser.add_argument("--duration", type=float, default=1.5, help="their length (s)")
     parser.add_argument("--accel", type=float, default=None,
@@ -277,6 +301,19 @@ def main() -> None:
                              "3 deg)")
     parser.add_argument("--onset", action="store_true", help="the onset floor alone")
     args = parser.parse_args()
+    if args.rates:
+        model = load_model(limits="teleop")
+        for arm in SHORT:
+            vmax = float(model.limb(arm).velocity_rad_s.min())
+            need = joint_speed_per_rate(arm)
+            turn = (np.median(need["turn"]), need["turn"].max())
+            move = (np.median(need["move"]), need["move"].max())
+            print(f"{arm} at the ready pose: a turn of 1 rad/s asks a joint for {turn[0]:.2f} "
+                  f"rad/s (median axis), {turn[1]:.2f} (worst): at {vmax:g} rad/s the hand turns "
+                  f"at {np.degrees(vmax / turn[0]):.0f} / {np.degrees(vmax / turn[1]):.0f} "
+                  f"deg/s; a move of 1 m/s {move[0]:.2f} / {move[1]:.2f} rad/s: "
+                  f"{vmax / move[0]:.3f} / {vmax / move[1]:.3f} m/s")
+        return
     if args.generated:
         rows = generated_floors(args.generated, args.speed, args.duration, args.accel,
                                 args.window, args.step, args.weight)
