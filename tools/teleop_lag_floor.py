@@ -24,9 +24,23 @@ of that box of joints. Counted over the stroke that follows each onset (until th
 again, ``ONSET_HORIZON_S`` at most) and zero elsewhere, it is a floor for any controller that
 keeps the hand on the goal while the goal rests and cannot know when the operator will move.
 
-    python tools/teleop_lag_floor.py RUN_DIR [--accel 0.8] [--window 3] [--step 0.05] [--onset]
+The *speed floor* is the same relaxation under the joints' speed limit instead of their
+acceleration limit (piecewise-constant joint velocities within +-the limit, the position at the
+start of each window free): the share of a goal's turn or stroke that asks more of a joint than
+its speed shows there. Both floors bound every controller within the limits from below, so the
+larger of the two does.
 
-(``--onset``: the onset floor alone, in seconds instead of minutes.)
+    python tools/teleop_lag_floor.py RUN_DIR [--accel 0.8] [--window 3] [--step 0.05] [--onset]
+    python tools/teleop_lag_floor.py --generated 50 [--speed 0.25] [--duration 1.5]
+    python tools/teleop_lag_floor.py --rates
+
+(``--onset``: the onset floor alone, in seconds instead of minutes. ``--generated N``: the first
+N streams of tests/test_teleop_streams.py's draw, followed by ``stream_runs.follow_generated``;
+per stream and hand the run's reachable RMS and both floors, the goal's joint targets being the
+exact IK of the goal as the operator gave it, its orientation not smoothed. ``--rates``: at
+the free-mode ready pose, the fastest joint a turn of the hand (its position held) and a move
+of the hand (its orientation held) ask per rad/s and per m/s, over the axes and directions, and
+so the turn rate and hand speed the joints' speed limit allows.)
 """
 
 from __future__ import annotations
@@ -95,6 +109,141 @@ def floor_errors(t_s, q_target, weight, accel_rad_s2, window_s, step_s, limb, w_
     return errors, rot_errors
 
 
+def speed_floor_errors(t_s, q_target, weight, velocity_rad_s, window_s, step_s, limb, w_rot_m):
+    """As :func:`floor_errors` under the speed limit ``velocity_rad_s`` (per joint) instead of
+    an acceleration limit: piecewise-constant velocities within it, free start per window."""
+    grid = np.arange(t_s[0], t_s[-1], step_s)
+    q_star = np.column_stack([np.interp(grid, t_s, q_target[:, j]) for j in range(6)])
+    w = np.interp(grid, t_s, weight.astype(float)) > 0.5
+    base, _, offset, alpha, a, d, end, _ = limb.chain
+    T, J = np.empty((4, 4)), np.empty((6, 6))
+    errors = np.full(len(grid), np.nan)
+    rot_errors = np.full(len(grid), np.nan)
+    scale = np.r_[np.ones(3), np.full(3, w_rot_m)][:, None]
+    per = max(2, int(round(window_s / step_s)))
+    vmax = np.broadcast_to(np.asarray(velocity_rad_s, dtype=float), (6,))
+    for start in range(0, len(grid), per):
+        k = np.arange(start, min(start + per, len(grid)))
+        if not w[k].any():
+            continue
+        n = len(k)
+        rows, rhs = [], []
+        for i, gi in enumerate(k):  # q_i = q0 + h sum_{j < i} v_j
+            if not w[gi]:
+                continue
+            jacobian(np.ascontiguousarray(q_star[gi]), base, offset, alpha, a, d, end, T, J)
+            Jp = J * scale
+            row = np.zeros((6, 6 * (1 + n)))
+            row[:, 0:6] = Jp
+            for j in range(i):
+                row[:, 6 * (1 + j):6 * (2 + j)] = Jp * step_s
+            rows.append(row)
+            rhs.append(Jp @ q_star[gi])
+        A, b = np.vstack(rows), np.concatenate(rhs)
+        lo = np.r_[np.full(6, -np.inf), -np.tile(vmax, n)]
+        hi = -lo
+        hi[:6] = np.inf
+        x = lsq_linear(A, b, bounds=(lo, hi), method="bvls").x
+        r = (A @ x - b).reshape(-1, 6)
+        errors[k[w[k]]] = np.linalg.norm(r[:, :3], axis=1)
+        rot_errors[k[w[k]]] = np.linalg.norm(r[:, 3:], axis=1) / w_rot_m
+    return errors, rot_errors
+
+
+def joint_speed_per_rate(arm: str, directions: int = 20000) -> dict[str, np.ndarray]:
+    """At the free-mode ready pose, over ``directions`` random unit axes: the fastest joint
+    (rad/s) a hand turn of 1 rad/s about the axis with the hand's position held asks
+    (``turn``), and the fastest a hand speed of 1 m/s along it with the orientation held asks
+    (``move``): the rows of the inverse Jacobian."""
+    from hubo_cli.teleop.session import FREE_READY_ARM_RAD
+
+    base, _, offset, alpha, a, d, end, _ = get_limb(arm, "hand").chain
+    T, J = np.empty((4, 4)), np.empty((6, 6))
+    jacobian(np.array(FREE_READY_ARM_RAD[arm], dtype=float), base, offset, alpha, a, d, end,
+             T, J)
+    J_inv = np.linalg.inv(J)
+    axes = np.random.default_rng(0).normal(size=(3, directions))
+    axes /= np.linalg.norm(axes, axis=0)
+    return {"turn": np.abs(J_inv[:, 3:] @ axes).max(axis=0),
+            "move": np.abs(J_inv[:, :3] @ axes).max(axis=0)}
+
+
+def generated_goals(seed: int, settings) -> tuple[dict, dict]:
+    """One generated stream followed by ``stream_runs.follow_generated``: the run's reach
+    figures per arm, and per arm (times (s), the exact IK of the operator's goal on the arm's
+    branch (N x 6 rad), where the goal was reachable in the run and exactly so unsmoothed)."""
+    from hubo_cli.kinematics.arm_reach import ArmReach
+    from hubo_cli.teleop.stream_runs import follow_generated
+    from hubo_cli.teleop.target import REACHABLE_POSITION_M, REACHABLE_ROTATION_RAD
+
+    periods = []
+
+    def observe(target, t_s):
+        if target.phase != "operate":
+            return
+        lift = target.body.lift_of(target.q_target)
+        periods.append((t_s, {arm: (None if target.goals.get(arm) is None
+                                    else target.goals[arm].copy(),
+                                    target.hands[arm].reachable,
+                                    target.q_target[target.slices[arm]].copy())
+                              for arm in target.arms}, lift, target))
+
+    run = follow_generated(seed, settings, observe)
+    target = periods[0][3]
+    out = {}
+    for arm in target.arms:
+        reach = ArmReach(target.body.arms[arm], target.reach_settings)
+        q_prev = periods[0][1][arm][2]
+        reach.start(q_prev)
+        t, q, ok = [], [], []
+        for t_s, arms, lift, _ in periods:
+            T_goal, reachable, _ = arms[arm]
+            if T_goal is None:
+                continue
+            T_N = T_goal.copy()
+            T_N[2, 3] -= lift
+            result = reach.solve(T_N, q_prev)
+            q_prev = result.q_rad
+            t.append(t_s)
+            q.append(result.q_rad)
+            ok.append(reachable and result.position_error_m <= REACHABLE_POSITION_M
+                      and result.rotation_error_rad <= REACHABLE_ROTATION_RAD)
+        out[arm] = (np.array(t), np.array(q), np.array(ok, dtype=bool))
+    return run.hands, out
+
+
+def generated_floors(count: int, speed_m_s: float, duration_s: float, accel: float | None,
+                     window_s: float, step_s: float, w_rot_m: float) -> list[dict]:
+    """Per stream and hand of the test's draw: the run's reachable RMS and both floors'."""
+    from hubo_cli.input.operator_stream import StreamSettings
+
+    seeds = np.random.default_rng(34).integers(0, 2**31, 60).tolist()[:count]
+    model = load_model(limits="teleop")
+    rows = []
+    for seed in seeds:
+        hands, goals = generated_goals(seed, StreamSettings(duration_s=duration_s,
+                                                            max_speed_m_s=speed_m_s))
+        for arm, (t, q, ok) in goals.items():
+            if ok.sum() < 2:
+                continue
+            limits = model.limb(arm)
+            limb = get_limb(arm, "hand")
+            a_max = accel or float(limits.acceleration_rad_s2[0])
+            pa, ra = floor_errors(t, q, ok, a_max, window_s, step_s, limb, w_rot_m)
+            pv, rv = speed_floor_errors(t, q, ok, limits.velocity_rad_s, window_s, step_s / 2,
+                                        limb, w_rot_m)
+            qdot = np.abs(np.diff(q, axis=0)) / np.diff(t)[:, None]
+            rows.append({
+                "seed": seed, "arm": arm, "run_mm": hands[arm]["reachable_position_rms_mm"],
+                "run_deg": hands[arm]["reachable_orientation_rms_deg"],
+                "accel_floor_mm": 1e3 * float(np.sqrt(np.nanmean(pa**2))),
+                "accel_floor_deg": float(np.degrees(np.sqrt(np.nanmean(ra**2)))),
+                "speed_floor_mm": 1e3 * float(np.sqrt(np.nanmean(pv**2))),
+                "speed_floor_deg": float(np.degrees(np.sqrt(np.nanmean(rv**2)))),
+                "goal_joint_speed_max": float(np.max(qdot[ok[1:]])) if ok[1:].any() else 0.0})
+    return rows
+
+
 REST_S = 0.3           # the goal rests: its joints moved less than REST_RAD over this long
 REST_RAD = 0.02        # (the generated operator's slow wander moves a resting hand 1-3 mm)
 ONSET_HORIZON_S = 1.5  # an onset's stroke is counted this long at most
@@ -136,7 +285,13 @@ def onset_floor_errors(t_s, q_target, weight, accel_rad_s2, velocity_rad_s, limb
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("run_dir", type=Path)
+    parser.add_argument("run_dir", type=Path, nargs="?")
+    parser.add_argument("--generated", type=int, default=0,
+                        help="the floors of the first N generated test streams instead of a run")
+    parser.add_argument("--rates", action="store_true",
+                        help="the joint speeds a hand's turn and move ask at the ready pose")
+    parser.add_argument("--speed", type=float, default=0.25, help="their hand speed cap (m/s)")
+    parser.add_argument("--duration", type=float, default=1.5, help="their length (s)")
     parser.add_argument("--accel", type=float, default=None,
                         help="arm joint acceleration limit, rad/s^2 (default: the robot file's)")
     parser.add_argument("--window", type=float, default=3.0, help="window length (s)")
@@ -146,6 +301,35 @@ def main() -> None:
                              "3 deg)")
     parser.add_argument("--onset", action="store_true", help="the onset floor alone")
     args = parser.parse_args()
+    if args.rates:
+        model = load_model(limits="teleop")
+        for arm in SHORT:
+            vmax = float(model.limb(arm).velocity_rad_s.min())
+            need = joint_speed_per_rate(arm)
+            turn = (np.median(need["turn"]), need["turn"].max())
+            move = (np.median(need["move"]), need["move"].max())
+            print(f"{arm} at the ready pose: a turn of 1 rad/s asks a joint for {turn[0]:.2f} "
+                  f"rad/s (median axis), {turn[1]:.2f} (worst): at {vmax:g} rad/s the hand turns "
+                  f"at {np.degrees(vmax / turn[0]):.0f} / {np.degrees(vmax / turn[1]):.0f} "
+                  f"deg/s; a move of 1 m/s {move[0]:.2f} / {move[1]:.2f} rad/s: "
+                  f"{vmax / move[0]:.3f} / {vmax / move[1]:.3f} m/s")
+        return
+    if args.generated:
+        rows = generated_floors(args.generated, args.speed, args.duration, args.accel,
+                                args.window, args.step, args.weight)
+        for r in rows:
+            print(f"seed {r['seed']} {r['arm']}: run {r['run_mm']:.1f} mm / {r['run_deg']:.1f} "
+                  f"deg; acceleration floor {r['accel_floor_mm']:.1f} mm / "
+                  f"{r['accel_floor_deg']:.1f} deg; speed floor {r['speed_floor_mm']:.1f} mm / "
+                  f"{r['speed_floor_deg']:.1f} deg; the goal's fastest joint "
+                  f"{r['goal_joint_speed_max']:.2f} rad/s")
+        for key in ("run_mm", "run_deg", "accel_floor_mm", "accel_floor_deg", "speed_floor_mm",
+                    "speed_floor_deg", "goal_joint_speed_max"):
+            v = np.array([r[key] for r in rows])
+            print(f"{key}: median {np.median(v):.2f}, worst {v.max():.2f}")
+        return
+    if args.run_dir is None:
+        parser.error("give a run folder or --generated N")
     log = pl.read_parquet(args.run_dir / "log.parquet").filter(pl.col("phase_code") == 1)
     t = log["t_s"].to_numpy()
     model = load_model()

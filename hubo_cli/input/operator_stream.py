@@ -17,6 +17,19 @@ A slow wander (0.05-0.5 Hz) and a physiological tremor (8-12 Hz) are added on to
 turns are kept within ``max_turn_deg`` of the start orientation. The speed cap holds exactly:
 where the sum exceeds it, the whole stream is slowed (its time stretched) until it does not.
 Positions and orientations are in the operator's frame O (x forward, y left, z up).
+
+The turn rate is capped at what the arm joints' speed limit lets the robot's hand follow
+(``MAX_TURN_RATE_DEG_S``). Hubo 2+'s arm has six joints and no wrist roll: turning the hand
+with its position held moves the shoulder and elbow as well as the wrist. At the free-mode
+ready pose a turn of 1 rad/s asks the fastest joint for 1.43 rad/s about the median axis and
+2.13 rad/s about the worst (``python tools/teleop_lag_floor.py --rates``: the inverse
+Jacobian's rows), so at the arms' 1.0 rad/s the hand turns at most 40 deg/s about the median
+axis, 27 deg/s about the worst. A turn of 90 deg/s (the cap before) asks 2.2-3.3 rad/s: no
+controller within the joints' limits follows it, and on issue 34's 50 short test streams
+those turns made the worst orientation errors (19.6 deg RMS; 7.7 deg at 40 deg/s, the same
+seeds). The hand speed cap is the issue's own (0.25 m/s for the accuracy test) and stays,
+although at the ready pose 1 m/s of hand speed with the orientation held asks 5.2 rad/s of
+the fastest joint (median direction): a stroke's peak of 0.25 m/s is brief, a turn lasts.
 """
 
 from __future__ import annotations
@@ -34,6 +47,7 @@ RATE_HZ = 120.0  # a FASTRAK's record rate, shared by the hands
 START_M = {"right": np.array([0.30, -0.20, -0.10]), "left": np.array([0.30, 0.20, -0.10])}
 ACCURACY_SPEED_M_S = 0.25  # the issue's accuracy test
 SWING_SPEED_M_S = 0.6      # the issue's swing test (beyond what the joints can follow)
+MAX_TURN_RATE_DEG_S = 40.0  # what the arm joints' 1 rad/s turns the hand at (module docstring)
 
 
 @dataclass(frozen=True)
@@ -44,7 +58,7 @@ class StreamSettings:
         duration_s: length of the stream.
         max_speed_m_s: hand speed cap (m/s).
         max_turn_deg: largest turn of a hand from its start orientation (deg).
-        max_turn_rate_deg_s: largest turn rate of a stroke (deg/s).
+        max_turn_rate_deg_s: largest turn rate of a stroke (deg/s; see the module docstring).
         box_m: per axis of O, the (low, high) offsets from the start a move goes to; y is
             mirrored for the right hand so that high is always inward (toward the midline).
         pause_share, clutch_share, out_of_reach_share: how often a gesture is a pause, a
@@ -56,7 +70,7 @@ class StreamSettings:
     duration_s: float = 30.0
     max_speed_m_s: float = ACCURACY_SPEED_M_S
     max_turn_deg: float = 60.0
-    max_turn_rate_deg_s: float = 90.0
+    max_turn_rate_deg_s: float = MAX_TURN_RATE_DEG_S
     box_m: tuple = ((-0.06, 0.10), (-0.08, 0.12), (-0.08, 0.08))
     pause_share: float = 0.2
     clutch_share: float = 0.06

@@ -132,14 +132,26 @@ class _Commands(Module):
         return q_rad
 
 
-def follow_generated(seed: int, settings: StreamSettings) -> StreamRun:
+class _Observe:
+    """The loop's period observer for :func:`follow_generated`'s ``observe``: calls it with the
+    teleop target and the loop time after each period."""
+
+    def __init__(self, observe, target) -> None:
+        self.observe, self.target = observe, target
+
+    def period(self, t_s, status, flags, state, extras) -> None:
+        self.observe(self.target, t_s)
+
+
+def follow_generated(seed: int, settings: StreamSettings, observe=None) -> StreamRun:
     """The stream of ``seed`` followed by the teleop target and the trajectory generator alone
     (free mode, ideal driver, the arms starting at the ready pose; no balancer, stopper,
     collision detector, log or run folder): the same figures as :func:`replay_generated` at a
     fraction of its cost (a 1.5 s stream about 0.8 s of CPU), for properties over many
     streams. The figures are the target's and the generator's own: the safety modules after it
     hold, brake or clamp what it commands (on an 8 s stream, seed 2: 13.5 / 24.8 mm reachable
-    position RMS here, 13.5 / 25.3 mm through the whole session)."""
+    position RMS here, 13.5 / 25.3 mm through the whole session). ``observe(target, t_s)``, if
+    given, is called after every period with the teleop target (tools read its goals)."""
     from hubo_cli.control.loop import ControlLoop
     from hubo_cli.control.otg import TrajectoryGenerator
     from hubo_cli.drivers.registry import make_driver
@@ -160,7 +172,8 @@ def follow_generated(seed: int, settings: StreamSettings) -> StreamRun:
         target = TeleopTarget(model, source, HandMapper(mapping), body,
                               approach_paths(body, mapping.hand_arm.values(), scene), q_start)
         otg = TrajectoryGenerator(model, model.control_period_s, groups="limbs")
-        result = ControlLoop(driver, [otg, commands], target).run(
+        observer = None if observe is None else _Observe(observe, target)
+        result = ControlLoop(driver, [otg, commands], target, observer=observer).run(
             settings.duration_s + target.approach_timeout_s + 10.0)
     operate = np.asarray(target.operate_call_s) * 1e6
     return StreamRun(seed, settings.max_speed_m_s, target.reach_report(),
