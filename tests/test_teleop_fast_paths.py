@@ -545,7 +545,7 @@ def test_the_collision_room_gives_the_same_targets_to_the_last_bit(monkeypatch):
 # ---------------------------------------------------------------- the whole target, closed loop
 
 
-STREAMS = [(3400, 0.25), (3401, 0.25), (3402, 0.6)]  # 2 s each (see the module docstring)
+STREAMS = [(3400, 0.25), (3401, 0.25), (3407, 0.6)]  # 2 s each (see the module docstring)
 
 
 def _joint_targets(monkeypatch, target_class, seed, max_speed):
@@ -594,6 +594,8 @@ def test_the_compiled_target_moves_the_arms_as_the_numpy_target(monkeypatch, see
     for arm, figures in plain_run.hands.items():
         for key, value in figures.items():
             assert fast_run.hands[arm][key] == pytest.approx(value, rel=1e-9, abs=1e-9), key
-    if (seed, max_speed) == (3402, 0.6):  # the clear search compared: this stream keeps the left
-        # arm's target out of the collision band 3.06 s (of the 2 s stream and its settling)
-        assert plain_run.hands["left-arm"]["collision_room_s"] > 1.0
+    if (seed, max_speed) == (3407, 0.6):  # the clear search compared: this stream keeps the right
+        # arm's target out of the collision band 2.68 s (of the 2 s stream and its settling;
+        # with the generator's 40 deg/s turns seed 3402 no longer comes near the body, and
+        # seeds 3409, 3410 and 3417 meet a tie, see the module docstring)
+        assert max(hand["collision_room_s"] for hand in plain_run.hands.values()) > 1.0
