@@ -1043,8 +1043,8 @@ class SimDriver(Driver, SimulatedWorld):
                     p02 * r00 + p12 * r10 + p22 * r20, p02 * r01 + p12 * r11 + p22 * r21,
                     p02 * r02 + p12 * r12 + p22 * r22)
             log = rotation_log_floats(*turn)
-            gyro = (np.array(log) if log is not None
-                    else rotation_log(np.reshape(turn, (3, 3)))) / period
+            gyro = (np.array((log[0] / period, log[1] / period, log[2] / period))
+                    if log is not None else rotation_log(np.reshape(turn, (3, 3))) / period)
         a2 += GRAVITY_M_S2
         return gyro, np.array((r00 * a0 + r10 * a1 + r20 * a2, r01 * a0 + r11 * a1 + r21 * a2,
                                r02 * a0 + r12 * a1 + r22 * a2))

@@ -73,6 +73,7 @@ from hubo_cli.estimation.keys import (
     IMU_REJECTED,
     OMEGA_TORSO,
     QUAT_WORLD_TORSO,
+    T_TORSO_SOLES,
     WRENCHES,
 )
 from hubo_cli.estimation.observer import Observer
@@ -591,6 +592,8 @@ class AttitudeObserver(Observer):
         self._t_s = 0.0
         self._legs = None if model is None else LegsKinematics(model)
         self.previous = () if model is None else (CONTACT, WRENCHES)
+        if model is not None:  # the legs' kinematics, for the floating base too
+            self.writes = (*AttitudeObserver.writes, T_TORSO_SOLES)
         self._T_torso_soles = np.tile(np.eye(4), (2, 1, 1))
         self._legs_tilt = np.zeros((2, 4))
         if model is not None:  # the outline less the margin, where the sole is flat
@@ -613,7 +616,7 @@ class AttitudeObserver(Observer):
         p = self.params
         self._q = initial_attitude(state)
         self._b = np.zeros(3)
-        self._n = self._initial_floor(state)
+        self._n = self._initial_floor(self._solve_legs(state, store))
         self._P = np.diag([p.initial_tilt_rad ** 2] * 3 + [p.initial_gyro_bias_rad_s ** 2] * 3
                           + [p.initial_floor_tilt_rad ** 2] * 2)
         gyro = _vector(state.imu_gyro_rad_s, 3)
@@ -640,8 +643,9 @@ class AttitudeObserver(Observer):
             gyro = _vector(gyro, 3)
         if type(accel) is not np.ndarray or accel.dtype != np.float64 or accel.shape != (3,):
             accel = _vector(accel, 3)
-        code = _filter_step(self._q, self._b, self._n, self._P, gyro, accel,
-                            self._legs_measurement(state, store), dt, self._gravity,
+        legs = self._legs_measurement(self._solve_legs(state, store), store)
+        code = _filter_step(self._q, self._b, self._n, self._P, gyro, accel, legs, dt,
+                            self._gravity,
                             self._params, self._q_next, self._b_next, self._n_next,
                             self._P_next, self._omega, self._motion)
         self._q, self._q_next = self._q_next, self._q
@@ -653,26 +657,41 @@ class AttitudeObserver(Observer):
             code |= GYRO_REJECTED  # a bias no working gyro has: flagged
         self._write(store, code)
 
-    def _initial_floor(self, state: RobotState) -> np.ndarray:
+    def _solve_legs(self, state: RobotState, store: Store) -> bool:
+        """The legs' kinematics of this period's joints into ``T_TORSO_SOLES`` (a new array;
+        None when the joints are not finite) and ``_T_torso_soles``; whether they were
+        solved (False without the legs)."""
+        if self._legs is None:
+            return False
+        T_torso_soles = np.empty((2, 4, 4))
+        solved = self._legs.solve(state.q_rad, T_torso_soles)
+        if solved:
+            self._T_torso_soles = T_torso_soles
+        store[T_TORSO_SOLES] = T_torso_soles if solved else None
+        return solved
+
+    def _initial_floor(self, legs_solved: bool) -> np.ndarray:
         """The floor's normal in the world at start: both soles stand flat on it (as the
         floating base has them), so it is their mean normal through the legs, turned into the
         world by the first attitude (the accelerometer's tilt); level without the legs."""
-        if self._legs is None or not self._legs.solve(state.q_rad, self._T_torso_soles):
+        if not legs_solved:
             return np.array([0.0, 0.0, 1.0])
         normal = quat_wxyz_to_matrix(self._q) @ self._T_torso_soles[:, :3, 2].sum(axis=0)
         return normal / np.linalg.norm(normal)
 
-    def _legs_measurement(self, state: RobotState, store: Store) -> np.ndarray:
+    def _legs_measurement(self, legs_solved: bool, store: Store) -> np.ndarray:
         """Per sole (right, left): 1 and its normal in the torso axes (the legs' kinematics of
-        this period's joints) when it lies flat on the floor, else 0. Flat: in contact and
-        pressing ``legs_min_fz_n`` with its centre of pressure ``legs_cop_margin_m`` inside
-        its outline, as the last period's estimate has them (the contact and the wrenches come
-        after the attitude in the period: a sole on its edge would say the floor tilts)."""
+        this period's joints, ``legs_solved``) when it lies flat on the floor, else 0. Flat: in
+        contact and pressing ``legs_min_fz_n`` with its centre of pressure
+        ``legs_cop_margin_m`` inside its outline, as the last period's estimate has them (the
+        contact and the wrenches come after the attitude in the period: a sole on its edge
+        would say the floor tilts)."""
         legs = self._legs_tilt
         legs[0, 0] = legs[1, 0] = 0.0
+        if not legs_solved:
+            return legs
         contact, wrenches = store.get(CONTACT), store.get(WRENCHES)
-        if self._legs is None or contact is None or wrenches is None \
-                or not self._legs.solve(state.q_rad, self._T_torso_soles):
+        if contact is None or wrenches is None:
             return legs
         if _flat_soles(self._T_torso_soles, bool(contact[0]), bool(contact[1]),
                        np.asarray(wrenches[ANKLE_SENSORS[0]], dtype=float),

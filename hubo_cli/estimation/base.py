@@ -77,6 +77,7 @@ from hubo_cli.dataflow import Store
 from hubo_cli.estimation.keys import (
     CONTACT,
     QUAT_WORLD_TORSO,
+    T_TORSO_SOLES,
     T_WORLD_SOLES,
     T_WORLD_TORSO,
     WRENCHES,
@@ -287,11 +288,12 @@ class FloatingBase(Observer):
 
     name = "floating-base"
     reads = (QUAT_WORLD_TORSO, WRENCHES, CONTACT)
+    follows = (T_TORSO_SOLES,)  # the attitude's legs, when it runs; else its own
     writes = (T_WORLD_TORSO, T_WORLD_SOLES)
 
     def __init__(self, model: RobotModel) -> None:
         self._legs = LegsKinematics(model)
-        self._T_torso_soles = np.tile(np.eye(4), (2, 1, 1))
+        self._T_torso_soles = self._own_legs = np.tile(np.eye(4), (2, 1, 1))
         self.anchor = 0
         self._T_world_anchor = np.eye(4)
         self._T_world_torso = np.eye(4)
@@ -330,7 +332,15 @@ class FloatingBase(Observer):
         if not all_finite(quat):
             return False
         self._quat = quat
-        return self._legs.solve(state.q_rad, self._T_torso_soles)
+        legs = store.get(T_TORSO_SOLES, self)  # (itself: no stage wrote them)
+        if legs is self:
+            if not self._legs.solve(state.q_rad, self._own_legs):
+                return False
+            legs = self._own_legs
+        elif legs is None:  # not finite
+            return False
+        self._T_torso_soles = legs
+        return True
 
     def reset(self, state: RobotState, store: Store) -> None:
         wrenches = store[WRENCHES]
