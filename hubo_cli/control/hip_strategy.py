@@ -152,8 +152,9 @@ class HipStrategy(Module):
         """The estimated soles' mean pitch (rad, > 0 tipped onto the toes); 0 when not
         finite. In Python floats (numpy's mean and arctan2 on two soles cost more, every
         standing period)."""
-        pitches = [math.atan2(-x[2][0], math.hypot(x[0][0], x[1][0]))
-                   for x in np.asarray(cycle.store[T_WORLD_SOLES], dtype=float).tolist()]
+        pitches = [math.atan2(-z, math.hypot(x, y))  # each sole's x axis (x, y, z)
+                   for x, y, z in np.asarray(cycle.store[T_WORLD_SOLES], dtype=float)[:, :3, 0]
+                   .tolist()]
         pitch = sum(pitches) / len(pitches) if pitches else math.nan
         return pitch if math.isfinite(pitch) else 0.0
 

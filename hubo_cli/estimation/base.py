@@ -439,10 +439,11 @@ class FloatingBase(Observer):
     def update(self, state: RobotState, store: Store) -> None:
         if self._inputs(state, store):
             wrenches = store[WRENCHES]
-            fz = [float(wrenches[s][2]) for s in ANKLE_SENSORS]  # right, left
-            light = all(f < self._flight_max_fz_n for f in fz)
+            fz = [float(wrenches[ANKLE_SENSORS[0]][2]), float(wrenches[ANKLE_SENSORS[1]][2])]
+            flight_n = self._flight_max_fz_n
+            light = fz[0] < flight_n and fz[1] < flight_n
             self._light_periods = self._light_periods + 1 if light else 0  # NaN: not light
-            self._pressed = self._pressed or any(f >= self._flight_max_fz_n for f in fz)
+            self._pressed = self._pressed or fz[0] >= flight_n or fz[1] >= flight_n
             # a robot whose soles never pressed (the ideal driver's, which stands on no
             # floor; a robot started hanging) has no flight to sense: the anchor holds
             if self._pressed and self._light_periods >= self._flight_periods:
@@ -467,6 +468,6 @@ class FloatingBase(Observer):
             elif (heavier and settled) or not contact[self.anchor]:
                 self._take_anchor(other)
             else:  # on the floor, not yet the anchor: where it stands, for when it is
-                T = self._T_world_soles[other]
-                self._landed.append((T[0, 3], T[1, 3], T[2, 3], T[0, 0], T[1, 0]))
+                (c, _, _, x), (s, _, _, y), (_, _, _, z) = self._T_world_soles[other, :3].tolist()
+                self._landed.append((x, y, z, c, s))
         self._write(store)
