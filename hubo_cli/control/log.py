@@ -315,7 +315,7 @@ class PeriodLog:
             except OSError as exc:
                 self._failed(exc, self.rows_path)
                 return
-        self._map[at:at + self._record_bytes] = record.tobytes()
+        self._map[at:at + self._record_bytes] = record  # its buffer: no bytes copy first
         self.rows += 1
         self._map[_COUNT_AT:_HEAD_AT] = self.rows.to_bytes(8, "little")  # the record counts
 
