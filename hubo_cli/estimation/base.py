@@ -102,7 +102,7 @@ LANDED_PERIODS = 20  # [chosen] a sole takes the anchor where it stood these las
 
 
 @nb.njit(cache=True, nogil=True)
-def _legs_fk(q, index, base, offset, alpha, a, d, end, out) -> bool:
+def legs_fk(q, index, base, offset, alpha, a, d, end, out) -> bool:
     """T_torso_sole of both legs (``out``, 2 x 4 x 4); False (``out`` untouched) when a joint
     is not finite."""
     qk = np.empty((2, 6))
@@ -228,12 +228,17 @@ class LegsKinematics:
                        *(np.ascontiguousarray([r[k] for r in rows], dtype=float)
                          for k in range(1, 7)))
         self._joints = len(model.joint_names)
-        _legs_fk(np.zeros(self._joints), *self._chain, np.empty((2, 4, 4)))  # compile now
+        legs_fk(np.zeros(self._joints), *self._chain, np.empty((2, 4, 4)))  # compile now
 
     def solve(self, q_rad, T_torso_soles: np.ndarray) -> bool:
         """T_torso_sole of (right, left) into ``T_torso_soles`` (2 x 4 x 4); False (left
         untouched) when the joints are not ``model``'s number of finite angles."""
-        return bool(_legs_fk(joint_vector(q_rad, self._joints), *self._chain, T_torso_soles))
+        return bool(legs_fk(*self.kernel_arguments(q_rad), T_torso_soles))
+
+    def kernel_arguments(self, q_rad) -> tuple[np.ndarray, ...]:
+        """:func:`legs_fk`'s arguments before its output, for ``q_rad`` (NaN when not
+        ``model``'s number of angles): for a kernel that calls it."""
+        return (joint_vector(q_rad, self._joints), *self._chain)
 
 
 def centre_of_pressure(wrench, min_fz_n: float) -> tuple[float, float] | None:
