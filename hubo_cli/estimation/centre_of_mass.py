@@ -190,6 +190,20 @@ def support(com, prev_com, velocity, alpha, dt, first, soles, right_down, left_d
         zmp_out[0] = zmp_out[1] = np.nan
 
 
+@nb.njit(cache=True, nogil=True)
+def _period(q, q_index, q_rad, T_world_torso, parent, axis, q_at, R_place, p_place, mass, lever,
+            com, prev_com, velocity, alpha, dt, first, soles, right_down, left_down, corners,
+            wrench_right, wrench_left, gravity, min_fz, cp_out, zmp_out) -> bool:
+    """:func:`configure`, :func:`centre_of_mass` into ``com`` and :func:`support` in one
+    call; False (nothing written) when the joints or the torso pose are not finite."""
+    if not configure(q, q_index, q_rad, T_world_torso):
+        return False
+    centre_of_mass(q, parent, axis, q_at, R_place, p_place, mass, lever, com)
+    support(com, prev_com, velocity, alpha, dt, first, soles, right_down, left_down, corners,
+            wrench_right, wrench_left, gravity, min_fz, cp_out, zmp_out)
+    return True
+
+
 class CentreOfMass(Observer):
     """Writes ``COM_WORLD``, ``COM_VELOCITY_WORLD``, ``CAPTURE_POINT_WORLD`` and ``ZMP_WORLD``
     (see the module docstring).
@@ -221,11 +235,10 @@ class CentreOfMass(Observer):
         self._velocity = np.zeros(3)
         self._cp = np.zeros(2)
         self._zmp = np.full(2, np.nan)
-        configure(self._q.copy(), self.robot.q_index, np.zeros(self._joints), np.eye(4))
-        centre_of_mass(self._q, *self._tree, np.empty(3))
-        support(np.zeros(3), np.zeros(3), np.zeros(3), self.alpha, self.dt_s, True,
+        _period(self._q.copy(), self.robot.q_index, np.zeros(self._joints), np.eye(4),
+                *self._tree, np.empty(3), np.zeros(3), np.zeros(3), self.alpha, self.dt_s, True,
                 np.tile(np.eye(4), (2, 1, 1)), True, True, self._corners, np.zeros(6),
-                np.zeros(6), GRAVITY_M_S2, self._min_fz_n, np.zeros(2), np.zeros(2))
+                np.zeros(6), GRAVITY_M_S2, self._min_fz_n, np.zeros(2), np.zeros(2))  # compiled
 
     def reset(self, state: RobotState, store: Store) -> None:
         self._first = True
@@ -234,17 +247,15 @@ class CentreOfMass(Observer):
 
     def update(self, state: RobotState, store: Store) -> None:
         T = np.asarray(store[T_WORLD_TORSO], dtype=float)
-        if configure(self._q, self._q_index, joint_vector(state.q_rad, self._joints), T):
-            com = np.empty(3)
-            centre_of_mass(self._q, *self._tree, com)
-            velocity, cp, zmp = self._velocity.copy(), np.empty(2), np.empty(2)
-            contact = store[CONTACT]
-            wrenches = store[WRENCHES]
-            right, left = wrenches[ANKLE_SENSORS[0]], wrenches[ANKLE_SENSORS[1]]
-            support(com, self._prev_com, velocity, self.alpha, self.dt_s, self._first,
-                    np.ascontiguousarray(store[T_WORLD_SOLES], dtype=float), bool(contact[0]),
-                    bool(contact[1]), self._corners, right, left, GRAVITY_M_S2, self._min_fz_n,
-                    cp, zmp)
+        com, velocity, cp, zmp = np.empty(3), self._velocity.copy(), np.empty(2), np.empty(2)
+        contact = store[CONTACT]
+        wrenches = store[WRENCHES]
+        if _period(self._q, self._q_index, joint_vector(state.q_rad, self._joints), T,
+                   *self._tree, com, self._prev_com, velocity, self.alpha, self.dt_s,
+                   self._first, np.ascontiguousarray(store[T_WORLD_SOLES], dtype=float),
+                   bool(contact[0]), bool(contact[1]), self._corners,
+                   wrenches[ANKLE_SENSORS[0]], wrenches[ANKLE_SENSORS[1]], GRAVITY_M_S2,
+                   self._min_fz_n, cp, zmp):
             self._first = False
             self._com, self._velocity, self._cp, self._zmp = com, velocity, cp, zmp
         store[COM_WORLD] = self._com
