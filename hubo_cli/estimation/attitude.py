@@ -604,11 +604,10 @@ class AttitudeObserver(Observer):
         self._t_s = 0.0
         self._legs = None if model is None else LegsKinematics(model)
         self.previous = () if model is None else (CONTACT, WRENCHES)
-        if model is not None:  # the legs' kinematics, for the floating base too
-            self.writes = (*AttitudeObserver.writes, T_TORSO_SOLES)
         self._T_torso_soles = np.tile(np.eye(4), (2, 1, 1))
         self._legs_tilt = np.zeros((2, 4))
         if model is not None:  # the outline less the margin, where the sole is flat
+            self.writes = (*AttitudeObserver.writes, T_TORSO_SOLES)  # the legs, for the base too
             corners, margin = model.feet.sole_corners_m(), params.legs_cop_margin_m
             self._inside = (float(corners[:, 0].min()) + margin,
                             float(corners[:, 0].max()) - margin,
@@ -659,9 +658,8 @@ class AttitudeObserver(Observer):
             accel = _vector(accel, 3)
         _, legs = self._legs_measurement(state, store)
         code = _filter_step(self._q, self._b, self._n, self._P, gyro, accel, legs, dt,
-                            self._gravity,
-                            self._params, self._q_next, self._b_next, self._n_next,
-                            self._P_next, self._omega, self._motion)
+                            self._gravity, self._params, self._q_next, self._b_next,
+                            self._n_next, self._P_next, self._omega, self._motion)
         self._q, self._q_next = self._q_next, self._q
         self._b, self._b_next = self._b_next, self._b
         self._n, self._n_next = self._n_next, self._n
@@ -707,7 +705,8 @@ class AttitudeObserver(Observer):
                             T_torso_soles, legs)
         if solved:
             self._T_torso_soles = T_torso_soles
-            self.legs_periods += solved == 2
+            if solved == 2:
+                self.legs_periods += 1
         store[T_TORSO_SOLES] = T_torso_soles if solved else None
         return bool(solved), legs
 
