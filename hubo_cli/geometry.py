@@ -238,7 +238,8 @@ def _quat_to_matrix_rows(w: float, x: float, y: float, z: float) -> np.ndarray:
                     ).reshape(3, 3)
 
 
-def _matrix_rows_to_quat(R: list[list[float]]) -> np.ndarray:
+def matrix_rows_to_quat_wxyz(R) -> np.ndarray:
+    """:func:`matrix_to_quat_wxyz` of one rotation given as its three rows of floats."""
     (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = R
     d0 = 1.0 + m00 + m11 + m22
     d1 = 1.0 + m00 - m11 - m22
@@ -302,7 +303,7 @@ def matrix_to_quat_wxyz(R) -> np.ndarray:
     (Shepperd's method: accurate for every rotation, half turns included)."""
     one = _one_matrix(R)
     if one is not None:
-        return _matrix_rows_to_quat(one)
+        return matrix_rows_to_quat_wxyz(one)
     return _each(_matrices_to_quats, R, (3, 3), (4,))
 
 

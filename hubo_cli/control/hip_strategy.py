@@ -136,7 +136,7 @@ class HipStrategy(Module):
         toward the back, 0 inside (m); 0 without a finite capture point or support box."""
         store = cycle.store
         cp_x = float(store[CAPTURE_POINT_WORLD][0])
-        lo, hi = (float(v) for v in store[SUPPORT_BOX_WORLD][:2])
+        lo, hi = np.asarray(store[SUPPORT_BOX_WORLD], dtype=float)[:2].tolist()
         if not math.isfinite(cp_x + lo + hi):
             return 0.0
         forward = cp_x - (hi - self.start_m)

@@ -123,7 +123,12 @@ from hubo_cli.drivers.sim_objects import (
     make_grip,
 )
 from hubo_cli.errors import ConfigError, DeviceError
-from hubo_cli.geometry import matrix_to_quat_wxyz, rotation_log, rotation_log_floats
+from hubo_cli.geometry import (
+    matrix_rows_to_quat_wxyz,
+    matrix_to_quat_wxyz,
+    rotation_log,
+    rotation_log_floats,
+)
 from hubo_cli.hinged_objects import Door, Valve
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
@@ -1002,7 +1007,7 @@ class SimDriver(Driver, SimulatedWorld):
         flags, self._flags = tuple(dict.fromkeys(self._flags)), []
         if self._stopped:
             flags = tuple(dict.fromkeys((*flags, "stopped")))
-        quat = matrix_to_quat_wxyz(T_world_torso[:3, :3])
+        quat = matrix_rows_to_quat_wxyz((torso[0:3], torso[4:7], torso[8:11]))
         state = RobotState(time_s=self._t, q_rad=q, dq_rad_s=dq, imu_quat_wxyz=quat,
                            imu_gyro_rad_s=gyro, imu_accel_m_s2=accel, ft=ft, tau_nm=tau,
                            truth=Truth(T_world_torso, (contact[0], contact[1]), quat.copy()),
