@@ -710,7 +710,7 @@ class SimDriver(Driver, SimulatedWorld):
         if self._stopped:
             self._flags.append("stopped")
             return self._cmd.copy()
-        q, flags, _ = checks.sanitize_command(self.model, self._cmd, q)
+        q, flags = checks.sanitize(self.model, self._cmd, q)
         self._flags += flags
         self._cmd = q
         if self._delay is None:
