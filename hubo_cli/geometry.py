@@ -238,7 +238,8 @@ def _quat_to_matrix_rows(w: float, x: float, y: float, z: float) -> np.ndarray:
                     ).reshape(3, 3)
 
 
-def _matrix_rows_to_quat(R: list[list[float]]) -> np.ndarray:
+def matrix_rows_to_quat_wxyz(R) -> np.ndarray:
+    """:func:`matrix_to_quat_wxyz` of one rotation given as its three rows of floats."""
     (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = R
     d0 = 1.0 + m00 + m11 + m22
     d1 = 1.0 + m00 - m11 - m22
@@ -302,7 +303,7 @@ def matrix_to_quat_wxyz(R) -> np.ndarray:
     (Shepperd's method: accurate for every rotation, half turns included)."""
     one = _one_matrix(R)
     if one is not None:
-        return _matrix_rows_to_quat(one)
+        return matrix_rows_to_quat_wxyz(one)
     return _each(_matrices_to_quats, R, (3, 3), (4,))
 
 
@@ -370,33 +371,39 @@ def fastrak_euler_deg_to_quat_wxyz(az_el_rl_deg) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------- rotation vectors
+def rotation_log_floats(r00: float, r01: float, r02: float, r10: float, r11: float, r12: float,
+                        r20: float, r21: float, r22: float) -> tuple[float, float, float] | None:
+    """:func:`rotation_log` of a rotation of up to a quarter turn given as its nine entries
+    (row by row), in Python floats; None beyond a quarter turn (use :func:`rotation_log`)."""
+    cos_angle = min(1.0, max(-1.0, (r00 + r11 + r22 - 1.0) / 2.0))
+    if cos_angle < 0.0:
+        return None
+    w0, w1, w2 = (r21 - r12) / 2.0, (r02 - r20) / 2.0, (r10 - r01) / 2.0
+    sin_angle = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+    if sin_angle < 1e-12:
+        return w0, w1, w2  # small angle: the vector part is the rotation vector
+    scale = math.atan2(sin_angle, cos_angle) / sin_angle
+    return w0 * scale, w1 * scale, w2 * scale
+
+
 def rotation_log(R) -> np.ndarray:
     """Rotation vector (axis * angle, rad, angle in [0, pi]) of a (3, 3) rotation matrix."""
     R = np.asarray(R, dtype=np.float64)
     # up to a quarter turn (the control loop's case, several times a period) in Python floats:
     # the same operations as the array formula below, without its dispatch
     (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = R.tolist()
+    small = rotation_log_floats(r00, r01, r02, r10, r11, r12, r20, r21, r22)
+    if small is not None:
+        return np.array(small)
+    # beyond a quarter turn (up to a half turn, where w vanishes) the axis k is read from the
+    # symmetric part, (R + R^T) / 2 - cos I = (1 - cos) k k^T, and its sign from w
     cos_angle = min(1.0, max(-1.0, (r00 + r11 + r22 - 1.0) / 2.0))
-    if cos_angle >= 0.0:
-        w0, w1, w2 = (r21 - r12) / 2.0, (r02 - r20) / 2.0, (r10 - r01) / 2.0
-        sin_angle = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
-        if sin_angle < 1e-12:
-            return np.array([w0, w1, w2])  # small angle: the vector part is the rotation vector
-        scale = math.atan2(sin_angle, cos_angle) / sin_angle
-        return np.array([w0 * scale, w1 * scale, w2 * scale])
     w = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / 2.0
-    sin_angle = np.linalg.norm(w)
-    angle = np.arctan2(sin_angle, cos_angle)
-    if cos_angle < 0.0:
-        # beyond a quarter turn (up to a half turn, where w vanishes) the axis k is read from
-        # the symmetric part, (R + R^T) / 2 - cos I = (1 - cos) k k^T, and its sign from w
-        B = (R + R.T) / 2.0 - cos_angle * np.eye(3)
-        column = B[:, np.argmax(np.diagonal(B))]
-        axis = column / np.linalg.norm(column)
-        return (angle if axis @ w >= 0.0 else -angle) * axis
-    if sin_angle < 1e-12:
-        return w  # small angle: the vector part is the rotation vector
-    return w / sin_angle * angle
+    angle = np.arctan2(np.linalg.norm(w), cos_angle)
+    B = (R + R.T) / 2.0 - cos_angle * np.eye(3)
+    column = B[:, np.argmax(np.diagonal(B))]
+    axis = column / np.linalg.norm(column)
+    return (angle if axis @ w >= 0.0 else -angle) * axis
 
 
 def rotation_exp(v) -> np.ndarray:
@@ -428,6 +435,9 @@ def tilt_rad_of_matrix(R):
 def tilt_rad_of_quat_wxyz(q_wxyz):
     """:func:`tilt_rad_of_matrix` of quaternions (..., 4) w, x, y, z (any norm): the body z
     axis makes the angle ``2 atan2(|(x, y)|, |(w, z)|)`` with the world's z axis."""
+    if isinstance(q_wxyz, np.ndarray) and q_wxyz.shape == (4,):  # one (each period): in floats
+        w, x, y, z = q_wxyz.tolist()
+        return 2.0 * math.atan2(math.hypot(x, y), math.hypot(w, z))
     q = np.asarray(q_wxyz, dtype=np.float64)
     return 2.0 * np.arctan2(np.hypot(q[..., 1], q[..., 2]), np.hypot(q[..., 0], q[..., 3]))
 

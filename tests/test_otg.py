@@ -250,3 +250,50 @@ def test_a_tracker_seeded_beyond_its_acceleration_limit_does_not_run_away(model,
     amax, jmax = limits.acceleration_rad_s2, limits.jerk_rad_s3
     assert np.all(np.max(speeds, axis=0) <= np.maximum(np.abs(v0) + amax**2 / (2 * jmax),
                                                        limits.velocity_rad_s) + 1e-9)
+
+
+class _AlwaysRuckig(JointTracker):
+    """The tracker without its resting shortcut: ruckig every period."""
+
+    def track(self, target_rad, min_duration_s=None, target_v_rad_s=None):
+        self._rest = None
+        return super().track(target_rad, min_duration_s, target_v_rad_s)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_resting_tracker_gives_what_ruckig_gives(model, seed):
+    """A tracker at rest on its target does not call ruckig again (the standing robot's every
+    period): the samples, velocities and accelerations are ruckig's bit for bit through random
+    holds, new targets (some a few ulp away), minimum durations, target velocities, brakes,
+    resets and synchronization changes."""
+    rng = np.random.default_rng(seed)
+    limits = JointLimits.from_model(model).subset(np.arange(6))
+    fast, slow = JointTracker(limits, DT), _AlwaysRuckig(limits, DT)
+    goal = np.zeros(6)
+    skipped = 0
+    for k in range(2000):
+        event = rng.random()
+        if event < 0.004:
+            goal = rng.uniform(-0.05, 0.05, 6)
+        elif event < 0.006:
+            goal = np.nextafter(goal, np.inf)  # a target one ulp away: ruckig again
+        kwargs = {}
+        if rng.random() < 0.003:
+            kwargs["min_duration_s"] = float(rng.uniform(0.0, 0.5))
+        if rng.random() < 0.003:
+            kwargs["target_v_rad_s"] = np.zeros(6)
+        for tracker in (fast, slow):
+            if event > 0.998:
+                tracker.reset(goal + 0.001)
+            elif 0.996 < event <= 0.998:
+                tracker.set_synchronization("none" if k % 2 else "phase")
+            if 0.994 < event <= 0.996:
+                out = tracker.brake()
+            else:
+                skipped += tracker is fast and fast._rest is not None
+                out = tracker.track(goal, **kwargs)
+            assert out is tracker.q
+        assert fast.q.tolist() == slow.q.tolist(), k
+        assert fast.v.tolist() == slow.v.tolist() and fast.a.tolist() == slow.a.tolist(), k
+        assert fast.finished == slow.finished and fast.error == slow.error, k
+    assert skipped > 200  # the shortcut was taken (measured 376-608 of the 2000 periods)

@@ -340,8 +340,9 @@ class CapturePointMonitor(Module):
             com_torso = pin.centerOfMass(pmodel, data, self._q_ref, False)  # torso at origin
             oMf = pin.updateFramePlacement(pmodel, data, self._sole_ids[foot])  # T_torso_sole
             self._in_sole, self._in_sole_foot = oMf.actInv(com_torso), foot  # R^T (com - p)
-        flat = self._flat_sole[foot]
-        return flat[:2, :3] @ self._in_sole + flat[:2, 3]
+        (f00, f01, f02, fx), (f10, f11, f12, fy), _, _ = self._flat_sole[foot].tolist()
+        c0, c1, c2 = self._in_sole.tolist()  # flat[:2, :3] @ in_sole + flat[:2, 3] in floats
+        return np.array((f00 * c0 + f01 * c1 + f02 * c2 + fx, f10 * c0 + f11 * c1 + f12 * c2 + fy))
 
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         flag = self.measure(state, cycle.store, q_rad)

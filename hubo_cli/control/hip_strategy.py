@@ -136,7 +136,7 @@ class HipStrategy(Module):
         toward the back, 0 inside (m); 0 without a finite capture point or support box."""
         store = cycle.store
         cp_x = float(store[CAPTURE_POINT_WORLD][0])
-        lo, hi = (float(v) for v in store[SUPPORT_BOX_WORLD][:2])
+        lo, hi = np.asarray(store[SUPPORT_BOX_WORLD], dtype=float)[:2].tolist()
         if not math.isfinite(cp_x + lo + hi):
             return 0.0
         forward = cp_x - (hi - self.start_m)
@@ -152,8 +152,9 @@ class HipStrategy(Module):
         """The estimated soles' mean pitch (rad, > 0 tipped onto the toes); 0 when not
         finite. In Python floats (numpy's mean and arctan2 on two soles cost more, every
         standing period)."""
-        pitches = [math.atan2(-x[2][0], math.hypot(x[0][0], x[1][0]))
-                   for x in np.asarray(cycle.store[T_WORLD_SOLES], dtype=float).tolist()]
+        pitches = [math.atan2(-z, math.hypot(x, y))  # each sole's x axis (x, y, z)
+                   for x, y, z in np.asarray(cycle.store[T_WORLD_SOLES], dtype=float)[:, :3, 0]
+                   .tolist()]
         pitch = sum(pitches) / len(pitches) if pitches else math.nan
         return pitch if math.isfinite(pitch) else 0.0
 

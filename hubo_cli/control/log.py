@@ -232,6 +232,7 @@ class PeriodLog:
         self._at_feet = self._at_joints[3] + 6 * (1 + len(self._hands))
         self._at_extras = self._at_feet + len(FEET_COLUMNS)
         self._hand_chains = _stacked_chains(self._hands.values(), n)
+        self._no_extras = (math.nan,) * len(self.extra_columns)  # a column without a value
         self.metadata: dict = {}
         self.started_utc = utc_now_iso()  # just before the first period
         self.rows = 0
@@ -302,8 +303,9 @@ class PeriodLog:
         self._pose_record(q_rad, state)
         if self.extra_columns:
             if extras:
-                record[self._at_extras:] = [float(extras.get(c, math.nan))
-                                            for c in self.extra_columns]
+                # numpy converts each as float() does
+                record[self._at_extras:] = list(map(extras.get, self.extra_columns,
+                                                    self._no_extras))
             else:
                 record[self._at_extras:] = math.nan
         at = self._data_at + self.rows * self._record_bytes
@@ -315,7 +317,7 @@ class PeriodLog:
             except OSError as exc:
                 self._failed(exc, self.rows_path)
                 return
-        self._map[at:at + self._record_bytes] = record.tobytes()
+        self._map[at:at + self._record_bytes] = record  # its buffer: no bytes copy first
         self.rows += 1
         self._map[_COUNT_AT:_HEAD_AT] = self.rows.to_bytes(8, "little")  # the record counts
 

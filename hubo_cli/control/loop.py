@@ -286,7 +286,8 @@ class ControlLoop:
     def _write(self, t_s, flags, compute_s, late_s, target, cmd, state, extras) -> None:
         status = status_from_flags(flags)
         self._statuses[LABELS[status]] += 1
-        self._flags.update(flags)
+        if flags:  # (Counter.update checks for a Mapping first: most periods have none)
+            self._flags.update(flags)
         if self.log is not None:
             self.log.write(self.period, t_s, status, compute_s * 1e6, late_s * 1e6, flags,
                            target, cmd, state.q_rad, extras, state=state)

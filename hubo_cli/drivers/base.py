@@ -211,7 +211,7 @@ class Driver(ABC):
 
     def full_command(self, last_rad: np.ndarray, q_cmd_rad) -> np.ndarray:
         """Expand a partial mapping command onto the last full command (helper for subclasses)."""
-        if isinstance(q_cmd_rad, Mapping):
+        if type(q_cmd_rad) is not np.ndarray and isinstance(q_cmd_rad, Mapping):  # (an ABC)
             q = np.array(last_rad, dtype=float)
             index = {n: i for i, n in enumerate(self.joint_names)}
             for name, value in q_cmd_rad.items():

@@ -60,7 +60,18 @@ def sanitize_command(model: RobotModel, last_rad: np.ndarray,
         q_rad: the requested full command (24,), rad.
     """
     q = np.array(q_rad, dtype=float)
+    out, flags = _sanitized(model, last_rad, q)
+    return out, flags, ~np.isfinite(q)
+
+
+def sanitize(model: RobotModel, last_rad: np.ndarray, q_rad) -> tuple[np.ndarray, list[str]]:
+    """:func:`sanitize_command` without the mask of frozen joints."""
+    return _sanitized(model, last_rad, kernel_array(q_rad))
+
+
+def _sanitized(model: RobotModel, last_rad: np.ndarray, q: np.ndarray
+               ) -> tuple[np.ndarray, list[str]]:
     out = np.empty(len(q))
     code = sanitize_into(kernel_array(last_rad), q, kernel_array(model.lower_rad),
                          kernel_array(model.upper_rad), out)
-    return out, flags_of(code), ~np.isfinite(q)
+    return out, flags_of(code)

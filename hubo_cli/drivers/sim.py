@@ -123,7 +123,12 @@ from hubo_cli.drivers.sim_objects import (
     make_grip,
 )
 from hubo_cli.errors import ConfigError, DeviceError
-from hubo_cli.geometry import matrix_to_quat_wxyz, rotation_log
+from hubo_cli.geometry import (
+    matrix_rows_to_quat_wxyz,
+    matrix_to_quat_wxyz,
+    rotation_log,
+    rotation_log_floats,
+)
 from hubo_cli.hinged_objects import Door, Valve
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
@@ -492,7 +497,7 @@ class SimDriver(Driver, SimulatedWorld):
         self._physics_wall_s = 0.0
         self._perturbation = Perturbation()  # drawn from perturb_seed when the world is built
         self._noise = self._perturbation.noise(self.period_s)
-        self._imu_last: tuple[tuple, np.ndarray] | None = None  # last (v_world, R)
+        self._imu_last: tuple[tuple, tuple] | None = None  # last (v_world, R_world_torso rows)
         self._max_tilt_deg = 0.0
         self._delay: CommandDelay | None = None
         self._physics_step = 0
@@ -705,7 +710,7 @@ class SimDriver(Driver, SimulatedWorld):
         if self._stopped:
             self._flags.append("stopped")
             return self._cmd.copy()
-        q, flags, _ = checks.sanitize_command(self.model, self._cmd, q)
+        q, flags = checks.sanitize(self.model, self._cmd, q)
         self._flags += flags
         self._cmd = q
         if self._delay is None:
@@ -962,7 +967,7 @@ class SimDriver(Driver, SimulatedWorld):
         torso = _pose_times(com, orn, self._rows_com_torso)
         T_world_torso = np.array((torso[0:4], torso[4:8], torso[8:12], (0.0, 0.0, 0.0, 1.0)))
         v_com, omega_world = p.getBaseVelocity(self._robot, physicsClientId=cid)
-        gyro, accel = self._imu(com, v_com, omega_world, T_world_torso, torso)
+        gyro, accel = self._imu(com, v_com, omega_world, torso)
         link_states = self._link_states = p.getLinkStates(
             self._robot, self._sensor_link_ids, computeLinkVelocity=1,
             computeForwardKinematics=1, physicsClientId=cid)
@@ -1002,7 +1007,7 @@ class SimDriver(Driver, SimulatedWorld):
         flags, self._flags = tuple(dict.fromkeys(self._flags)), []
         if self._stopped:
             flags = tuple(dict.fromkeys((*flags, "stopped")))
-        quat = matrix_to_quat_wxyz(T_world_torso[:3, :3])
+        quat = matrix_rows_to_quat_wxyz((torso[0:3], torso[4:7], torso[8:11]))
         state = RobotState(time_s=self._t, q_rad=q, dq_rad_s=dq, imu_quat_wxyz=quat,
                            imu_gyro_rad_s=gyro, imu_accel_m_s2=accel, ft=ft, tau_nm=tau,
                            truth=Truth(T_world_torso, (contact[0], contact[1]), quat.copy()),
@@ -1011,7 +1016,7 @@ class SimDriver(Driver, SimulatedWorld):
         self._max_tilt_deg = max(self._max_tilt_deg, tilt_deg)
         return self._noise.measure(state)
 
-    def _imu(self, com_world, v_com_world, omega_world, T_world_torso: np.ndarray,
+    def _imu(self, com_world, v_com_world, omega_world,
              rows_world_torso: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
         """The IMU's gyro (rad/s) and specific force (m/s^2), in the torso axes, at the torso
         frame's origin, as means over the period: the turn from the last period's orientation,
@@ -1024,7 +1029,7 @@ class SimDriver(Driver, SimulatedWorld):
         r0, r1, r2 = tx - c0, ty - c1, tz - c2
         u0, u1, u2 = v_com_world
         v = (u0 + (w1 * r2 - w2 * r1), u1 + (w2 * r0 - w0 * r2), u2 + (w0 * r1 - w1 * r0))
-        R = T_world_torso[:3, :3]
+        R = (r00, r01, r02, r10, r11, r12, r20, r21, r22)
         last = self._imu_last
         self._imu_last = (v, R)
         if last is None:
@@ -1034,7 +1039,17 @@ class SimDriver(Driver, SimulatedWorld):
         else:
             (l0, l1, l2), period = last[0], self.period_s
             a0, a1, a2 = (v[0] - l0) / period, (v[1] - l1) / period, (v[2] - l2) / period
-            gyro = rotation_log(last[1].T @ R) / period
+            # the turn over the period, R_last^T R, in floats (a period turns far less than a
+            # quarter turn; beyond, the array form)
+            p00, p01, p02, p10, p11, p12, p20, p21, p22 = last[1]
+            turn = (p00 * r00 + p10 * r10 + p20 * r20, p00 * r01 + p10 * r11 + p20 * r21,
+                    p00 * r02 + p10 * r12 + p20 * r22, p01 * r00 + p11 * r10 + p21 * r20,
+                    p01 * r01 + p11 * r11 + p21 * r21, p01 * r02 + p11 * r12 + p21 * r22,
+                    p02 * r00 + p12 * r10 + p22 * r20, p02 * r01 + p12 * r11 + p22 * r21,
+                    p02 * r02 + p12 * r12 + p22 * r22)
+            log = rotation_log_floats(*turn)
+            gyro = (np.array((log[0] / period, log[1] / period, log[2] / period))
+                    if log is not None else rotation_log(np.reshape(turn, (3, 3))) / period)
         a2 += GRAVITY_M_S2
         return gyro, np.array((r00 * a0 + r10 * a1 + r20 * a2, r01 * a0 + r11 * a1 + r21 * a2,
                                r02 * a0 + r12 * a1 + r22 * a2))

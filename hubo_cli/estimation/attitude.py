@@ -66,13 +66,14 @@ import numpy as np
 
 from hubo_cli.dataflow import Key, Store
 from hubo_cli.errors import ConfigError
-from hubo_cli.estimation.base import LegsKinematics
+from hubo_cli.estimation.base import LegsKinematics, legs_fk
 from hubo_cli.estimation.keys import (
     CONTACT,
     GYRO_BIAS,
     IMU_REJECTED,
     OMEGA_TORSO,
     QUAT_WORLD_TORSO,
+    T_TORSO_SOLES,
     WRENCHES,
 )
 from hubo_cli.estimation.observer import Observer
@@ -526,6 +527,18 @@ def _flat_soles(T_torso_soles, right_down, left_down, wrench_right, wrench_left,
     return flat
 
 
+@nb.njit(**JIT)
+def _legs_tilt(q, index, base, offset, alpha, a, d, end, right_down, left_down, wrench_right,
+               wrench_left, min_fz_n, inside, T_torso_soles, legs) -> int:
+    """The legs' kinematics (:class:`~hubo_cli.estimation.base.LegsKinematics`' kernel) into
+    ``T_torso_soles``, then :func:`_flat_soles` into ``legs``, in one call: 0 when a joint is
+    not finite (nothing written), 2 when a sole lies flat, else 1."""
+    if not legs_fk(q, index, base, offset, alpha, a, d, end, T_torso_soles):
+        return 0
+    return 2 if _flat_soles(T_torso_soles, right_down, left_down, wrench_right, wrench_left,
+                            min_fz_n, inside, legs) else 1
+
+
 def initial_attitude(state: RobotState) -> np.ndarray:
     """The first attitude (quaternion w, x, y, z): the tilt of the accelerometer's reading
     (the gravity it sees), the heading of the IMU's reported orientation (ZYX yaw); either
@@ -594,13 +607,16 @@ class AttitudeObserver(Observer):
         self._T_torso_soles = np.tile(np.eye(4), (2, 1, 1))
         self._legs_tilt = np.zeros((2, 4))
         if model is not None:  # the outline less the margin, where the sole is flat
+            self.writes = (*AttitudeObserver.writes, T_TORSO_SOLES)  # the legs, for the base too
             corners, margin = model.feet.sole_corners_m(), params.legs_cop_margin_m
             self._inside = (float(corners[:, 0].min()) + margin,
                             float(corners[:, 0].max()) - margin,
                             float(corners[:, 1].min()) + margin,
                             float(corners[:, 1].max()) - margin)
-            _flat_soles(self._T_torso_soles, False, False, np.zeros(6), np.zeros(6), 1.0,
-                        self._inside, np.zeros((2, 4)))  # compiled now
+            self._no_wrench = np.zeros(6)
+            _legs_tilt(*self._legs.kernel_arguments(np.zeros(len(model.joint_names))), False,
+                       False, self._no_wrench, self._no_wrench, 1.0, self._inside,
+                       np.empty((2, 4, 4)), np.zeros((2, 4)))  # compiled now
         self.rejected_periods = self.legs_periods = 0
 
     @classmethod
@@ -613,7 +629,7 @@ class AttitudeObserver(Observer):
         p = self.params
         self._q = initial_attitude(state)
         self._b = np.zeros(3)
-        self._n = self._initial_floor(state)
+        self._n = self._initial_floor(self._legs_measurement(state, store, measure=False)[0])
         self._P = np.diag([p.initial_tilt_rad ** 2] * 3 + [p.initial_gyro_bias_rad_s ** 2] * 3
                           + [p.initial_floor_tilt_rad ** 2] * 2)
         gyro = _vector(state.imu_gyro_rad_s, 3)
@@ -640,10 +656,10 @@ class AttitudeObserver(Observer):
             gyro = _vector(gyro, 3)
         if type(accel) is not np.ndarray or accel.dtype != np.float64 or accel.shape != (3,):
             accel = _vector(accel, 3)
-        code = _filter_step(self._q, self._b, self._n, self._P, gyro, accel,
-                            self._legs_measurement(state, store), dt, self._gravity,
-                            self._params, self._q_next, self._b_next, self._n_next,
-                            self._P_next, self._omega, self._motion)
+        _, legs = self._legs_measurement(state, store)
+        code = _filter_step(self._q, self._b, self._n, self._P, gyro, accel, legs, dt,
+                            self._gravity, self._params, self._q_next, self._b_next,
+                            self._n_next, self._P_next, self._omega, self._motion)
         self._q, self._q_next = self._q_next, self._q
         self._b, self._b_next = self._b_next, self._b
         self._n, self._n_next = self._n_next, self._n
@@ -653,33 +669,46 @@ class AttitudeObserver(Observer):
             code |= GYRO_REJECTED  # a bias no working gyro has: flagged
         self._write(store, code)
 
-    def _initial_floor(self, state: RobotState) -> np.ndarray:
+    def _initial_floor(self, legs_solved: bool) -> np.ndarray:
         """The floor's normal in the world at start: both soles stand flat on it (as the
         floating base has them), so it is their mean normal through the legs, turned into the
         world by the first attitude (the accelerometer's tilt); level without the legs."""
-        if self._legs is None or not self._legs.solve(state.q_rad, self._T_torso_soles):
+        if not legs_solved:
             return np.array([0.0, 0.0, 1.0])
         normal = quat_wxyz_to_matrix(self._q) @ self._T_torso_soles[:, :3, 2].sum(axis=0)
         return normal / np.linalg.norm(normal)
 
-    def _legs_measurement(self, state: RobotState, store: Store) -> np.ndarray:
-        """Per sole (right, left): 1 and its normal in the torso axes (the legs' kinematics of
-        this period's joints) when it lies flat on the floor, else 0. Flat: in contact and
+    def _legs_measurement(self, state: RobotState, store: Store,
+                          measure: bool = True) -> tuple[bool, np.ndarray]:
+        """The legs' kinematics of this period's joints into ``T_TORSO_SOLES`` (a new array;
+        None when they are not finite) and, with ``measure``, per sole (right, left): 1 and its
+        normal in the torso axes when it lies flat on the floor, else 0. Flat: in contact and
         pressing ``legs_min_fz_n`` with its centre of pressure ``legs_cop_margin_m`` inside
         its outline, as the last period's estimate has them (the contact and the wrenches come
-        after the attitude in the period: a sole on its edge would say the floor tilts)."""
+        after the attitude in the period: a sole on its edge would say the floor tilts).
+        Returns whether the legs were solved (never without them) and the measurement."""
         legs = self._legs_tilt
         legs[0, 0] = legs[1, 0] = 0.0
-        contact, wrenches = store.get(CONTACT), store.get(WRENCHES)
-        if self._legs is None or contact is None or wrenches is None \
-                or not self._legs.solve(state.q_rad, self._T_torso_soles):
-            return legs
-        if _flat_soles(self._T_torso_soles, bool(contact[0]), bool(contact[1]),
-                       np.asarray(wrenches[ANKLE_SENSORS[0]], dtype=float),
-                       np.asarray(wrenches[ANKLE_SENSORS[1]], dtype=float),
-                       self.params.legs_min_fz_n, self._inside, legs):
-            self.legs_periods += 1
-        return legs
+        if self._legs is None:
+            return False, legs
+        contact, wrenches = (store.get(CONTACT), store.get(WRENCHES)) if measure else (None, None)
+        if contact is None or wrenches is None:
+            right = left = False
+            wrench_right = wrench_left = self._no_wrench
+        else:
+            right, left = bool(contact[0]), bool(contact[1])
+            wrench_right = np.asarray(wrenches[ANKLE_SENSORS[0]], dtype=float)
+            wrench_left = np.asarray(wrenches[ANKLE_SENSORS[1]], dtype=float)
+        T_torso_soles = np.empty((2, 4, 4))
+        solved = _legs_tilt(*self._legs.kernel_arguments(state.q_rad), right, left, wrench_right,
+                            wrench_left, self.params.legs_min_fz_n, self._inside,
+                            T_torso_soles, legs)
+        if solved:
+            self._T_torso_soles = T_torso_soles
+            if solved == 2:
+                self.legs_periods += 1
+        store[T_TORSO_SOLES] = T_torso_soles if solved else None
+        return bool(solved), legs
 
     def _write(self, store: Store, code: int) -> None:
         if code & (GYRO_REJECTED | ACCEL_REJECTED | RESULT_REJECTED):

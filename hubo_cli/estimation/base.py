@@ -77,6 +77,7 @@ from hubo_cli.dataflow import Store
 from hubo_cli.estimation.keys import (
     CONTACT,
     QUAT_WORLD_TORSO,
+    T_TORSO_SOLES,
     T_WORLD_SOLES,
     T_WORLD_TORSO,
     WRENCHES,
@@ -101,7 +102,7 @@ LANDED_PERIODS = 20  # [chosen] a sole takes the anchor where it stood these las
 
 
 @nb.njit(cache=True, nogil=True)
-def _legs_fk(q, index, base, offset, alpha, a, d, end, out) -> bool:
+def legs_fk(q, index, base, offset, alpha, a, d, end, out) -> bool:
     """T_torso_sole of both legs (``out``, 2 x 4 x 4); False (``out`` untouched) when a joint
     is not finite."""
     qk = np.empty((2, 6))
@@ -227,12 +228,17 @@ class LegsKinematics:
                        *(np.ascontiguousarray([r[k] for r in rows], dtype=float)
                          for k in range(1, 7)))
         self._joints = len(model.joint_names)
-        _legs_fk(np.zeros(self._joints), *self._chain, np.empty((2, 4, 4)))  # compile now
+        legs_fk(np.zeros(self._joints), *self._chain, np.empty((2, 4, 4)))  # compile now
 
     def solve(self, q_rad, T_torso_soles: np.ndarray) -> bool:
         """T_torso_sole of (right, left) into ``T_torso_soles`` (2 x 4 x 4); False (left
         untouched) when the joints are not ``model``'s number of finite angles."""
-        return bool(_legs_fk(joint_vector(q_rad, self._joints), *self._chain, T_torso_soles))
+        return bool(legs_fk(*self.kernel_arguments(q_rad), T_torso_soles))
+
+    def kernel_arguments(self, q_rad) -> tuple[np.ndarray, ...]:
+        """:func:`legs_fk`'s arguments before its output, for ``q_rad`` (NaN when not
+        ``model``'s number of angles): for a kernel that calls it."""
+        return (joint_vector(q_rad, self._joints), *self._chain)
 
 
 def centre_of_pressure(wrench, min_fz_n: float) -> tuple[float, float] | None:
@@ -287,11 +293,12 @@ class FloatingBase(Observer):
 
     name = "floating-base"
     reads = (QUAT_WORLD_TORSO, WRENCHES, CONTACT)
+    follows = (T_TORSO_SOLES,)  # the attitude's legs, when it runs; else its own
     writes = (T_WORLD_TORSO, T_WORLD_SOLES)
 
     def __init__(self, model: RobotModel) -> None:
         self._legs = LegsKinematics(model)
-        self._T_torso_soles = np.tile(np.eye(4), (2, 1, 1))
+        self._T_torso_soles = self._own_legs = np.tile(np.eye(4), (2, 1, 1))
         self.anchor = 0
         self._T_world_anchor = np.eye(4)
         self._T_world_torso = np.eye(4)
@@ -330,7 +337,15 @@ class FloatingBase(Observer):
         if not all_finite(quat):
             return False
         self._quat = quat
-        return self._legs.solve(state.q_rad, self._T_torso_soles)
+        legs = store.get(T_TORSO_SOLES, self)  # (itself: no stage wrote them)
+        if legs is self:
+            if not self._legs.solve(state.q_rad, self._own_legs):
+                return False
+            legs = self._own_legs
+        elif legs is None:  # not finite
+            return False
+        self._T_torso_soles = legs
+        return True
 
     def reset(self, state: RobotState, store: Store) -> None:
         wrenches = store[WRENCHES]
@@ -429,10 +444,11 @@ class FloatingBase(Observer):
     def update(self, state: RobotState, store: Store) -> None:
         if self._inputs(state, store):
             wrenches = store[WRENCHES]
-            fz = [float(wrenches[s][2]) for s in ANKLE_SENSORS]  # right, left
-            light = all(f < self._flight_max_fz_n for f in fz)
+            fz = [float(wrenches[ANKLE_SENSORS[0]][2]), float(wrenches[ANKLE_SENSORS[1]][2])]
+            flight_n = self._flight_max_fz_n
+            light = fz[0] < flight_n and fz[1] < flight_n
             self._light_periods = self._light_periods + 1 if light else 0  # NaN: not light
-            self._pressed = self._pressed or any(f >= self._flight_max_fz_n for f in fz)
+            self._pressed = self._pressed or fz[0] >= flight_n or fz[1] >= flight_n
             # a robot whose soles never pressed (the ideal driver's, which stands on no
             # floor; a robot started hanging) has no flight to sense: the anchor holds
             if self._pressed and self._light_periods >= self._flight_periods:
@@ -457,6 +473,6 @@ class FloatingBase(Observer):
             elif (heavier and settled) or not contact[self.anchor]:
                 self._take_anchor(other)
             else:  # on the floor, not yet the anchor: where it stands, for when it is
-                T = self._T_world_soles[other]
-                self._landed.append((T[0, 3], T[1, 3], T[2, 3], T[0, 0], T[1, 0]))
+                (c, _, _, x), (s, _, _, y), (_, _, _, z) = self._T_world_soles[other, :3].tolist()
+                self._landed.append((x, y, z, c, s))
         self._write(store)

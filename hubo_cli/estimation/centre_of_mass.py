@@ -1,7 +1,8 @@
 """The centre of mass, its velocity, the capture point and the ZMP of the soles in contact.
 
-* CoM: one pinocchio pass a period (the URDF's masses, the drill URDF when the right hand
-  holds the drill; the floating base at ``T_WORLD_TORSO``, the measured joints).
+* CoM: one pass down the tree a period (pinocchio's model of the URDF's masses, the drill URDF
+  when the right hand holds the drill; the floating base at ``T_WORLD_TORSO``, the measured
+  joints), pinocchio's ``centerOfMass`` arithmetic compiled (:func:`centre_of_mass`).
 * Its velocity: finite-differenced and low-passed (first order at ``com_velocity_cutoff_hz``,
   4 Hz as hrpsys' Stabilizer); zero in the first period.
 * Capture point: CP = x_G + v_G / omega, omega = sqrt(g / (z_G - z_ground)), z_ground the
@@ -25,6 +26,7 @@ import numpy as np
 import pinocchio as pin
 
 from hubo_cli.dataflow import Store
+from hubo_cli.errors import ConfigError
 from hubo_cli.estimation.keys import (
     CAPTURE_POINT_WORLD,
     COM_VELOCITY_WORLD,
@@ -61,6 +63,88 @@ def configure(q, index, q_rad, T_world_torso) -> bool:
     q[0], q[1], q[2] = T_world_torso[0, 3], T_world_torso[1, 3], T_world_torso[2, 3]
     q[3], q[4], q[5], q[6] = quat[1], quat[2], quat[3], quat[0]
     return True
+
+
+# pinocchio's joint models the kernel knows: the free flyer (the root), revolute about x, y, z
+_AXES = {"JointModelRX": 0, "JointModelRY": 1, "JointModelRZ": 2}
+
+
+def tree_arrays(pmodel: pin.Model) -> tuple[np.ndarray, ...]:
+    """A floating pinocchio model as :func:`centre_of_mass` takes it: per joint its parent,
+    axis (-1 the free flyer), index in q, placement in its parent (rotation, translation),
+    mass and centre of mass in its own frame."""
+    axis = []
+    for j, joint in enumerate(pmodel.joints[1:], start=1):
+        name = joint.shortname()
+        if j == 1 and name == "JointModelFreeFlyer":
+            axis.append(-1)
+        elif name in _AXES:
+            axis.append(_AXES[name])
+        else:
+            raise ConfigError(f"the centre of mass kernel has no {name} (joint "
+                              f"{pmodel.names[j]})", hint="the robot's joints are revolute "
+                              "about x, y or z below a free flyer")
+    joints = range(1, pmodel.njoints)
+    return (np.array([0, *(pmodel.parents[j] for j in joints)], dtype=np.int64),
+            np.array([0, *axis], dtype=np.int64),
+            np.array([0, *(pmodel.joints[j].idx_q for j in joints)], dtype=np.int64),
+            np.array([np.eye(3), *(pmodel.jointPlacements[j].rotation for j in joints)]),
+            np.array([np.zeros(3), *(pmodel.jointPlacements[j].translation for j in joints)]),
+            np.array([0.0, *(pmodel.inertias[j].mass for j in joints)]),
+            np.array([np.zeros(3), *(pmodel.inertias[j].lever for j in joints)]))
+
+
+@nb.njit(cache=True, nogil=True)
+def centre_of_mass(q, parent, axis, q_at, R_place, p_place, mass, lever, out):
+    """The centre of mass (``out``, 3) of pinocchio's configuration ``q`` (free flyer first:
+    x y z, quaternion x y z w) for the model of :func:`tree_arrays`: pinocchio's
+    ``centerOfMass`` (each body's mass moment carried down the tree, child to parent, through
+    its joint's placement), compiled in one call."""
+    n = parent.shape[0]
+    moment = np.empty((n, 3))
+    total = np.empty(n)
+    total[0] = 0.0
+    moment[0, :] = 0.0
+    for i in range(1, n):
+        total[i] = mass[i]
+        for k in range(3):
+            moment[i, k] = mass[i] * lever[i, k]
+    R = np.empty((3, 3))  # the joint's rotation, then its placement's times it
+    M = np.empty((3, 3))
+    for i in range(n - 1, 0, -1):
+        P, t = R_place[i], p_place[i]
+        px, py, pz = t[0], t[1], t[2]
+        if axis[i] < 0:  # the free flyer: Eigen's quaternion to rotation
+            x, y, z, w = q[3], q[4], q[5], q[6]
+            tx, ty, tz = 2.0 * x, 2.0 * y, 2.0 * z
+            twx, twy, twz = tx * w, ty * w, tz * w
+            txx, txy, txz = tx * x, ty * x, tz * x
+            tyy, tyz, tzz = ty * y, tz * y, tz * z
+            R[0, 0], R[0, 1], R[0, 2] = 1.0 - (tyy + tzz), txy - twz, txz + twy
+            R[1, 0], R[1, 1], R[1, 2] = txy + twz, 1.0 - (txx + tzz), tyz - twx
+            R[2, 0], R[2, 1], R[2, 2] = txz - twy, tyz + twx, 1.0 - (txx + tyy)
+            px += P[0, 0] * q[0] + P[0, 1] * q[1] + P[0, 2] * q[2]
+            py += P[1, 0] * q[0] + P[1, 1] * q[1] + P[1, 2] * q[2]
+            pz += P[2, 0] * q[0] + P[2, 1] * q[1] + P[2, 2] * q[2]
+        else:
+            c, s = math.cos(q[q_at[i]]), math.sin(q[q_at[i]])
+            a = axis[i]
+            b, d = (a + 1) % 3, (a + 2) % 3  # the plane it turns
+            R[:, :] = 0.0
+            R[a, a] = 1.0
+            R[b, b], R[b, d], R[d, b], R[d, d] = c, -s, s, c
+        for r in range(3):
+            for k in range(3):
+                M[r, k] = P[r, 0] * R[0, k] + P[r, 1] * R[1, k] + P[r, 2] * R[2, k]
+        j = parent[i]
+        total[j] += total[i]
+        mi = total[i]
+        cx, cy, cz = moment[i, 0], moment[i, 1], moment[i, 2]
+        moment[j, 0] += M[0, 0] * cx + M[0, 1] * cy + M[0, 2] * cz + mi * px
+        moment[j, 1] += M[1, 0] * cx + M[1, 1] * cy + M[1, 2] * cz + mi * py
+        moment[j, 2] += M[2, 0] * cx + M[2, 1] * cy + M[2, 2] * cz + mi * pz
+    for k in range(3):
+        out[k] = moment[0, k] / total[0]
 
 
 @nb.njit(cache=True, nogil=True)
@@ -106,6 +190,20 @@ def support(com, prev_com, velocity, alpha, dt, first, soles, right_down, left_d
         zmp_out[0] = zmp_out[1] = np.nan
 
 
+@nb.njit(cache=True, nogil=True)
+def _period(q, q_index, q_rad, T_world_torso, parent, axis, q_at, R_place, p_place, mass, lever,
+            com, prev_com, velocity, alpha, dt, first, soles, right_down, left_down, corners,
+            wrench_right, wrench_left, gravity, min_fz, cp_out, zmp_out) -> bool:
+    """:func:`configure`, :func:`centre_of_mass` into ``com`` and :func:`support` in one
+    call; False (nothing written) when the joints or the torso pose are not finite."""
+    if not configure(q, q_index, q_rad, T_world_torso):
+        return False
+    centre_of_mass(q, parent, axis, q_at, R_place, p_place, mass, lever, com)
+    support(com, prev_com, velocity, alpha, dt, first, soles, right_down, left_down, corners,
+            wrench_right, wrench_left, gravity, min_fz, cp_out, zmp_out)
+    return True
+
+
 class CentreOfMass(Observer):
     """Writes ``COM_WORLD``, ``COM_VELOCITY_WORLD``, ``CAPTURE_POINT_WORLD`` and ``ZMP_WORLD``
     (see the module docstring).
@@ -122,8 +220,8 @@ class CentreOfMass(Observer):
 
     def __init__(self, model: RobotModel, period_s: float, drill: bool = False) -> None:
         self.robot = load_pin_robot(model, floating=True, urdf_path=model.urdf_path(drill))
-        self.data = self.robot.model.createData()
         self._pin_model, self._q_index = self.robot.model, self.robot.q_index
+        self._tree = tree_arrays(self.robot.model)
         self.dt_s = float(period_s)
         tau_s = 1.0 / (2.0 * math.pi * model.estimation.com_velocity_cutoff_hz)
         self.alpha = self.dt_s / (self.dt_s + tau_s)
@@ -137,10 +235,10 @@ class CentreOfMass(Observer):
         self._velocity = np.zeros(3)
         self._cp = np.zeros(2)
         self._zmp = np.full(2, np.nan)
-        configure(self._q.copy(), self.robot.q_index, np.zeros(self._joints), np.eye(4))
-        support(np.zeros(3), np.zeros(3), np.zeros(3), self.alpha, self.dt_s, True,
+        _period(self._q.copy(), self.robot.q_index, np.zeros(self._joints), np.eye(4),
+                *self._tree, np.empty(3), np.zeros(3), np.zeros(3), self.alpha, self.dt_s, True,
                 np.tile(np.eye(4), (2, 1, 1)), True, True, self._corners, np.zeros(6),
-                np.zeros(6), GRAVITY_M_S2, self._min_fz_n, np.zeros(2), np.zeros(2))
+                np.zeros(6), GRAVITY_M_S2, self._min_fz_n, np.zeros(2), np.zeros(2))  # compiled
 
     def reset(self, state: RobotState, store: Store) -> None:
         self._first = True
@@ -149,18 +247,17 @@ class CentreOfMass(Observer):
 
     def update(self, state: RobotState, store: Store) -> None:
         T = np.asarray(store[T_WORLD_TORSO], dtype=float)
-        if configure(self._q, self._q_index, joint_vector(state.q_rad, self._joints), T):
-            com = pin.centerOfMass(self._pin_model, self.data, self._q, False)
-            velocity, cp, zmp = self._velocity.copy(), np.empty(2), np.empty(2)
-            contact = store[CONTACT]
-            wrenches = store[WRENCHES]
-            right, left = wrenches[ANKLE_SENSORS[0]], wrenches[ANKLE_SENSORS[1]]
-            support(com, self._prev_com, velocity, self.alpha, self.dt_s, self._first,
-                    np.ascontiguousarray(store[T_WORLD_SOLES], dtype=float), bool(contact[0]),
-                    bool(contact[1]), self._corners, right, left, GRAVITY_M_S2, self._min_fz_n,
-                    cp, zmp)
+        com, velocity, cp, zmp = np.empty(3), self._velocity.copy(), np.empty(2), np.empty(2)
+        contact = store[CONTACT]
+        wrenches = store[WRENCHES]
+        if _period(self._q, self._q_index, joint_vector(state.q_rad, self._joints), T,
+                   *self._tree, com, self._prev_com, velocity, self.alpha, self.dt_s,
+                   self._first, np.ascontiguousarray(store[T_WORLD_SOLES], dtype=float),
+                   bool(contact[0]), bool(contact[1]), self._corners,
+                   wrenches[ANKLE_SENSORS[0]], wrenches[ANKLE_SENSORS[1]], GRAVITY_M_S2,
+                   self._min_fz_n, cp, zmp):
             self._first = False
-            self._com, self._velocity, self._cp, self._zmp = com.copy(), velocity, cp, zmp
+            self._com, self._velocity, self._cp, self._zmp = com, velocity, cp, zmp
         store[COM_WORLD] = self._com
         store[COM_VELOCITY_WORLD] = self._velocity
         store[CAPTURE_POINT_WORLD] = self._cp

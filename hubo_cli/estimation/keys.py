@@ -32,6 +32,10 @@ T_WORLD_TORSO = Key("T_world_torso", np.ndarray,
                     "sole and the estimated attitude")
 T_WORLD_SOLES = Key("T_world_soles", np.ndarray,
                     "(2, 4, 4): right and left sole poses in the world (m)")
+T_TORSO_SOLES = Key("T_torso_soles", np.ndarray,
+                    "(2, 4, 4): right and left sole poses in the torso frame (m), the legs' "
+                    "forward kinematics of this period's joints (None when they are not "
+                    "finite): worked out once a period for the layer's observers")
 COM_WORLD = Key("com_world_m", np.ndarray, "centre of mass in the world (3, m)")
 COM_VELOCITY_WORLD = Key("com_velocity_world_m_s", np.ndarray,
                          "centre-of-mass velocity in the world (3, m/s), filtered")

@@ -6,6 +6,10 @@ the velocity interface. A ruckig error switches to braking, and a failure while 
 the position. The pipeline's trajectory generator (:mod:`hubo_cli.control.otg`), the emergency
 stopper, the collision detector and the loop's smooth stop use it, and so does the hardware
 driver's stale-state brake: it sits below both the pipeline and the drivers.
+
+A tracker resting on its target (its last sample at rest, where ruckig returned its input
+unchanged) asked for the same target again returns that sample without asking ruckig: ruckig
+would return it again (a standing robot's every period).
 """
 
 from __future__ import annotations
@@ -69,6 +73,9 @@ class JointTracker:
         self._synced = False  # ruckig's input holds q, v, a (no need to set them again)
         self._target_v_zero = False
         self._preview = None  # ruckig, its input and a trajectory for preview()
+        # (target, minimum duration) of the last ``track`` when it left ruckig's input as it
+        # found it, at rest at a sample that stays put (see :meth:`_resting`); None otherwise
+        self._rest: tuple[list[float], float | None] | None = None
 
     def reset(self, q_rad, v_rad_s=None, a_rad_s2=None) -> None:
         """Start from position ``q_rad`` with the given velocity and acceleration (default 0).
@@ -85,6 +92,7 @@ class JointTracker:
         self.error = ""
         self._mode = None
         self._synced = False
+        self._rest = None
 
     def set_synchronization(self, synchronization: str) -> None:
         """Time the joints of later ``track`` calls this way (``phase`` or ``none``)."""
@@ -92,6 +100,7 @@ class JointTracker:
             raise ConfigError(f"unknown synchronization {synchronization!r}",
                               hint=f"use one of {', '.join(SYNCHRONIZATIONS)}")
         self._sync = SYNCHRONIZATIONS[synchronization]
+        self._rest = None
         if self._mode == "position":
             self._inp.synchronization = self._sync
 
@@ -130,6 +139,10 @@ class JointTracker:
         duration = trajectory.duration
         at_time = trajectory.at_time
         return np.array([at_time(duration * i / (k - 1))[0] for i in range(k)])
+
+    def _resting(self) -> bool:
+        """The last sample is at rest, its velocity and acceleration exactly zero."""
+        return not (self.v.any() or self.a.any())
 
     def _set_current(self) -> None:
         if self._synced:  # the last sample, passed on inside ruckig (the same numbers)
@@ -170,6 +183,13 @@ class JointTracker:
             target_v_rad_s: target velocities (rad/s), default 0; clipped to 90 % of the limit.
         Returns the new sample (rad). On a ruckig error it brakes instead (see ``error``).
         """
+        target = np.asarray(target_rad, dtype=float).tolist()  # a list: 10x faster into ruckig
+        rest = self._rest
+        if rest is not None and target_v_rad_s is None and self._mode == "position" \
+                and rest[1] == min_duration_s and rest[0] == target:
+            # ruckig's input is the one it last took and returned unchanged: so it would again
+            self.q = self.q.copy()
+            return self.q
         inp = self._inp
         if self._mode != "position":
             inp.control_interface = ControlInterface.Position
@@ -177,7 +197,7 @@ class JointTracker:
             inp.target_acceleration = self._zeros
             self._mode = "position"
         self._set_current()
-        inp.target_position = np.asarray(target_rad, dtype=float).tolist()  # a list: 10x faster
+        inp.target_position = target
         if target_v_rad_s is None:
             if not self._target_v_zero:
                 inp.target_velocity = self._zeros
@@ -186,8 +206,12 @@ class JointTracker:
             inp.target_velocity = self._target_velocity(target_v_rad_s)
             self._target_v_zero = False
         inp.minimum_duration = min_duration_s
+        q_before = self.q  # ruckig's current state is (q, v, a), set above or passed on
+        resting = target_v_rad_s is None and self._resting()
         if self._run():
             self.error = ""
+            self._rest = ((target, min_duration_s) if resting and self._resting()
+                          and self.q.tolist() == q_before.tolist() else None)
             return self.q
         message = self.error
         out = self.brake()
@@ -204,6 +228,7 @@ class JointTracker:
     def brake(self) -> np.ndarray:
         """Advance one period of a velocity-interface stop (target velocity 0); returns the
         sample (rad). If even that fails the position is held."""
+        self._rest = None
         inp = self._inp
         if self._mode != "velocity":
             inp.control_interface = ControlInterface.Velocity
