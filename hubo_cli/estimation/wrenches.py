@@ -122,25 +122,28 @@ def all_finite(x) -> bool:
 
 
 @nb.njit(cache=True, nogil=True)
-def _offset(qk, k, base, offset, alpha, a, d, end, mass, com, s_torso, omega, domega, T, out):
+def _offset(qk, k, base, offset, alpha, a, d, end, mass, com, s_torso, scale, omega, domega, T,
+            out):
     """The load on sensor ``k`` (``out``, 6) of the body beyond it, for its limb's joints
     ``qk``: -m times its centre of mass's specific force, that of the torso frame's origin
-    ``s_torso`` (torso axes; gravity's R_world_torso^T (0, 0, g) at rest) carried to it with
-    the torso's rate ``omega`` and angular acceleration ``domega`` (torso axes; 0 and 0: the
-    weight alone)."""
+    (torso axes; ``scale`` times ``s_torso``: at rest -g times world z in the torso axes)
+    carried to it with the torso's rate ``omega`` and angular acceleration ``domega`` (torso
+    axes; 0 and 0: the weight alone, -g in ``scale``)."""
     chain_fk(qk, base[k], offset[k], alpha[k], a[k], d[k], end[k], T)
     c = com[k]
-    p = np.empty(3)  # the centre of mass in the torso frame
-    for i in range(3):
-        p[i] = T[i, 0] * c[0] + T[i, 1] * c[1] + T[i, 2] * c[2] + T[i, 3]
-    wp0 = omega[1] * p[2] - omega[2] * p[1]
-    wp1 = omega[2] * p[0] - omega[0] * p[2]
-    wp2 = omega[0] * p[1] - omega[1] * p[0]
-    s0 = s_torso[0] + domega[1] * p[2] - domega[2] * p[1] + omega[1] * wp2 - omega[2] * wp1
-    s1 = s_torso[1] + domega[2] * p[0] - domega[0] * p[2] + omega[2] * wp0 - omega[0] * wp2
-    s2 = s_torso[2] + domega[0] * p[1] - domega[1] * p[0] + omega[0] * wp1 - omega[1] * wp0
+    # the centre of mass p (torso frame) turning with the torso: + domega x p + w x (w x p)
+    p0 = T[0, 0] * c[0] + T[0, 1] * c[1] + T[0, 2] * c[2] + T[0, 3]
+    p1 = T[1, 0] * c[0] + T[1, 1] * c[1] + T[1, 2] * c[2] + T[1, 3]
+    p2 = T[2, 0] * c[0] + T[2, 1] * c[1] + T[2, 2] * c[2] + T[2, 3]
+    wp0 = omega[1] * p2 - omega[2] * p1
+    wp1 = omega[2] * p0 - omega[0] * p2
+    wp2 = omega[0] * p1 - omega[1] * p0
+    s0 = s_torso[0] + (domega[1] * p2 - domega[2] * p1 + omega[1] * wp2 - omega[2] * wp1)
+    s1 = s_torso[1] + (domega[2] * p0 - domega[0] * p2 + omega[2] * wp0 - omega[0] * wp2)
+    s2 = s_torso[2] + (domega[0] * p1 - domega[1] * p0 + omega[0] * wp1 - omega[1] * wp0)
     for i in range(3):  # in the sensor's axes: R_torso_S^T s
-        out[i] = -mass[k] * (T[0, i] * s0 + T[1, i] * s1 + T[2, i] * s2)
+        z = s0 * T[0, i] + s1 * T[1, i] + s2 * T[2, i]
+        out[i] = scale * z * mass[k]
     out[3] = c[1] * out[2] - c[2] * out[1]
     out[4] = c[2] * out[0] - c[0] * out[2]
     out[5] = c[0] * out[1] - c[1] * out[0]
@@ -158,11 +161,11 @@ def compensate(q, quat_wxyz, accel, omega, domega, inertial, raw, index, base, o
     R = np.empty((3, 3))
     attitude_ok = all_finite(quat_wxyz) and (quat_wxyz[0] ** 2 + quat_wxyz[1] ** 2
                                           + quat_wxyz[2] ** 2 + quat_wxyz[3] ** 2) > 1e-12
-    weight = np.zeros(3)
+    up = np.zeros(3)
     if attitude_ok:
         quat_to_matrix_into(quat_wxyz, R)
-        for i in range(3):  # gravity's specific force in the torso axes: R^T (0, 0, g)
-            weight[i] = gravity * R[2, i]
+        for i in range(3):  # world z in the torso axes: R^T (0, 0, 1)
+            up[i] = R[2, i]
     moving = all_finite(accel) and all_finite(omega) and all_finite(domega)
     still = np.zeros(3)
     T = np.empty((4, 4))
@@ -176,11 +179,11 @@ def compensate(q, quat_wxyz, accel, omega, domega, inertial, raw, index, base, o
                 out[k, j] = last[k, j]
             continue
         if moving and inertial[k]:
-            _offset(qk, k, base, offset, alpha, a, d, end, mass, com, accel, omega, domega, T,
-                    load)
+            _offset(qk, k, base, offset, alpha, a, d, end, mass, com, accel, -1.0, omega, domega,
+                    T, load)
         else:
-            _offset(qk, k, base, offset, alpha, a, d, end, mass, com, weight, still, still, T,
-                    load)
+            _offset(qk, k, base, offset, alpha, a, d, end, mass, com, up, -gravity, still, still,
+                    T, load)
         for j in range(6):
             out[k, j] = (raw[k, j] - load[j]) * measured[j]
 
@@ -192,9 +195,9 @@ def hanging_readings(q, quat_wxyz, index, base, offset, alpha, a, d, end, mass, 
     perfectly modelled robot touching nothing (the ideal driver's sensors)."""
     R = np.empty((3, 3))
     quat_to_matrix_into(quat_wxyz, R)
-    weight = np.empty(3)
+    up = np.empty(3)
     for i in range(3):
-        weight[i] = gravity * R[2, i]
+        up[i] = R[2, i]
     still = np.zeros(3)
     T = np.empty((4, 4))
     qk = np.empty(6)
@@ -202,7 +205,8 @@ def hanging_readings(q, quat_wxyz, index, base, offset, alpha, a, d, end, mass, 
     for k in range(out.shape[0]):
         for j in range(6):
             qk[j] = q[index[k, j]]
-        _offset(qk, k, base, offset, alpha, a, d, end, mass, com, weight, still, still, T, load)
+        _offset(qk, k, base, offset, alpha, a, d, end, mass, com, up, -gravity, still, still, T,
+                load)
         for j in range(6):
             out[k, j] = load[j] * measured[j]
 
