@@ -27,8 +27,10 @@ of mass p (torso frame, from the arm's measured joints) as a rigid body,
 omega the estimate's bias-free rate (``OMEGA_TORSO``) and alpha its difference over the
 period. At rest s_imu is gravity and this is the weight above. The arm's own motion
 relative to the torso is left out (the encoders' noise, differenced twice, would swamp it;
-the arms' trajectories move a hand at most 0.4 m/s^2: about 0.4 N with the drill); so are
-the bodies' rotational inertia, the hand being small. A rejected or non-finite accelerometer
+the arms' trajectories move a hand at most 0.4 m/s^2: about 0.4 N with the drill), so a
+shove of a few milliseconds that makes the arm yield on its joints and whip after the torso
+is not removed and can read worse than the raw sensor; so is the bodies' rotational inertia
+(I alpha; the simulator's sensors leave it out too). A rejected or non-finite accelerometer
 falls back on the weight from the attitude; alpha is 0 unless this period's and the last
 period's gyro were both used. The ankles keep the weight alone: their readings feed the
 contact, the ZMP and the attitude's legs, and a foot's inertia is not what those are tuned on.
