@@ -66,8 +66,9 @@ only: without it (``--no-estop``) they pass from the plan to the controller unre
 The flag is latched: any request from an enabled source (``cycle.estop_requests``, a call to
 :meth:`stop` -- e.g. from the operator's key or, through :func:`stop_on_signal`, a signal -- or
 a wrist torque above ``model.safety["wrist_torque_limit_nm"]``: the bending moment of the
-estimate's wrist wrenches, the hand's and the tool's weight removed, ``WRENCHES``) stops; only an
-explicit release lets go, and a request that is still present in the next period stops again.
+estimate's wrist wrenches, the hand's and the tool's weight and inertia removed, ``WRENCHES``)
+stops; only an explicit release lets go, and a request that is still present in the next period
+stops again.
 The pipeline uses two instances: ``estop`` early in the chain and ``hard-estop`` after the
 balance and collision layers; ``estop`` writes its mode every period
 (:data:`~hubo_cli.control.keys.STOP_MODE`, what a target reads of it).
@@ -298,7 +299,7 @@ class EmergencyStopper(Module):
             self._pending.clear()
         if self._wrist_torque:
             right, left = WRIST_SENSORS
-            wrenches = cycle.store[WRENCHES]  # the hand's and the tool's weight removed
+            wrenches = cycle.store[WRENCHES]  # the hand's and the tool's weight and inertia removed
             torque = max(wrist_torque_nm(wrenches.get(right)), wrist_torque_nm(wrenches.get(left)))
             cycle.info["wrist_torque_nm"] = torque
             if torque > self.wrist_torque_limit_nm:

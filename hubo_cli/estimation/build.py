@@ -16,7 +16,7 @@ from hubo_cli.model import RobotModel
 def build_estimator(model: RobotModel, tools: Mapping[str, str] | None = None,
                     period_s: float | None = None) -> Estimator:
     """The estimation layer of a run: attitude (gyro, accelerometer and the legs' tilt),
-    compensated wrenches, contact, floating base
+    compensated wrenches (weight, and the hands' inertia), contact, floating base
     and soles, centre of mass with the capture point and the ZMP.
 
     Args:
@@ -30,7 +30,7 @@ def build_estimator(model: RobotModel, tools: Mapping[str, str] | None = None,
     dt_s = model.control_period_s if period_s is None else float(period_s)
     return Estimator([
         AttitudeObserver(attitude_params(model), dt_s, model),
-        RemoveForceOffset(model, drill=drill),
+        RemoveForceOffset(model, drill=drill, period_s=dt_s),
         ContactObserver(model.estimation, dt_s),
         FloatingBase(model),
         CentreOfMass(model, dt_s, drill=drill),

@@ -16,7 +16,8 @@ CONTACT = Key("contact_feet", tuple,
               "(right, left): the sole carries load (one filter, one debounce)")
 WRENCHES = Key("wrenches_compensated", dict,
                "sensor name -> [fx fy fz mx my mz] (N, N m) in the sensor's frame, the links' "
-               "and the held tool's weight removed; components a sensor lacks are 0")
+               "and the held tool's weight removed (at the wrists their inertia too); components a "
+               "sensor lacks are 0")
 QUAT_WORLD_TORSO = Key("quat_world_torso_wxyz", np.ndarray,
                        "torso attitude in the world (unit quaternion w x y z), estimated")
 GYRO_BIAS = Key("gyro_bias_torso_rad_s", np.ndarray,

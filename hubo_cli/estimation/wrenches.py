@@ -1,5 +1,5 @@
 """RemoveForceOffset (hrpsys RemoveForceSensorLinkOffset): the force-torque sensors' readings
-with the weight of what hangs beyond each sensor removed.
+with the weight of what hangs beyond each sensor removed, and at the wrists its inertia too.
 
 A sensor reads what the body beyond it and the environment load onto it
 (:class:`~hubo_cli.state.RobotState` ``ft``): beyond a wrist sensor the hand and, when held,
@@ -13,9 +13,29 @@ limb's forward kinematics of the measured joints,
 
 and the compensated wrench is the reading minus (f_off, m_off), with the components the sensor
 does not measure (``FT_MEASURED``: Hubo's read f_z, m_x, m_y) set to 0. A still hand or a
-foot in the air then reads zero, a standing foot the floor's reaction. The bodies' own
-accelerations are not removed (hrpsys does not either): a hand moving at the arms' limits
-(0.4 m/s^2) with the drill reads up to about 0.4 N of it.
+foot in the air then reads zero, a standing foot the floor's reaction.
+
+At the wrists the hand's (and the held tool's) inertia is removed as well: the sensor carries
+m (g - a) at the body's centre of mass, and a hard landing shakes the whole upper body (a
+150 N backward capture step's touchdown: a one-period 2.2 N m on a free hand, over the wrist
+stop's 1.21 N m). The body's specific force there, in the torso axes, is the torso IMU's
+(the accelerometer's specific force s_imu at the torso frame's origin) carried to the centre
+of mass p (torso frame, from the arm's measured joints) as a rigid body,
+
+    s_c = s_imu + alpha x p + omega x (omega x p),   f_off = -m R_torso_S^T s_c,
+
+omega the estimate's bias-free rate (``OMEGA_TORSO``) and alpha its difference over the
+period. At rest s_imu is gravity and this is the weight above. The arm's own motion
+relative to the torso is left out (the encoders' noise, differenced twice, would swamp it;
+the arms' trajectories move a hand at most 0.4 m/s^2: about 0.4 N with the drill), so a
+shove of a few milliseconds that makes the arm yield on its joints and whip after the torso
+is not removed and can read worse than the raw sensor; so is the bodies' rotational inertia
+(I alpha; the simulator's sensors leave it out too). A rejected or non-finite accelerometer
+falls back on the weight from the attitude; alpha is 0 unless this period's and the last
+period's gyro were both used. The ankles keep the weight alone: their readings feed the
+contact, the ZMP and the attitude's legs, and a foot's inertia is not what those are tuned on.
+hubo-ach's body IMU reports tilt, not accelerations (the hardware driver's accelerometer
+reads rest), so there only the rotation's part is removed.
 
 A sensor whose reading, joints or the attitude are not finite (or not six numbers) keeps its
 last compensated wrench (zero before the first good one).
@@ -30,7 +50,7 @@ import numpy as np
 
 from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError
-from hubo_cli.estimation.keys import QUAT_WORLD_TORSO, WRENCHES
+from hubo_cli.estimation.keys import IMU_REJECTED, OMEGA_TORSO, QUAT_WORLD_TORSO, WRENCHES
 from hubo_cli.estimation.observer import Observer
 from hubo_cli.geometry import quat_to_matrix_into
 from hubo_cli.kinematics.dh import chain_fk
@@ -104,34 +124,55 @@ def all_finite(x) -> bool:
 
 
 @nb.njit(cache=True, nogil=True)
-def _offset(qk, R, k, base, offset, alpha, a, d, end, mass, com, gravity, T, out):
-    """The weight's wrench on sensor ``k`` (``out``, 6) for its limb's joints ``qk`` and the
-    torso rotation ``R``."""
+def _offset(qk, k, base, offset, alpha, a, d, end, mass, com, s_torso, scale, omega, domega, T,
+            out):
+    """The load on sensor ``k`` (``out``, 6) of the body beyond it, for its limb's joints
+    ``qk``: -m times its centre of mass's specific force, that of the torso frame's origin
+    (torso axes; ``scale`` times ``s_torso``: at rest -g times world z in the torso axes)
+    carried to it with the torso's rate ``omega`` and angular acceleration ``domega`` (torso
+    axes; 0 and 0: the weight alone, -g in ``scale``)."""
     chain_fk(qk, base[k], offset[k], alpha[k], a[k], d[k], end[k], T)
-    # gravity in the sensor's axes: -g times world z seen in them (R_world_sensor's row 2)
-    for i in range(3):
-        z = R[2, 0] * T[0, i] + R[2, 1] * T[1, i] + R[2, 2] * T[2, i]
-        out[i] = -gravity * z * mass[k]
     c = com[k]
+    # the centre of mass p (torso frame) turning with the torso: + domega x p + w x (w x p)
+    p0 = T[0, 0] * c[0] + T[0, 1] * c[1] + T[0, 2] * c[2] + T[0, 3]
+    p1 = T[1, 0] * c[0] + T[1, 1] * c[1] + T[1, 2] * c[2] + T[1, 3]
+    p2 = T[2, 0] * c[0] + T[2, 1] * c[1] + T[2, 2] * c[2] + T[2, 3]
+    wp0 = omega[1] * p2 - omega[2] * p1
+    wp1 = omega[2] * p0 - omega[0] * p2
+    wp2 = omega[0] * p1 - omega[1] * p0
+    s0 = s_torso[0] + (domega[1] * p2 - domega[2] * p1 + omega[1] * wp2 - omega[2] * wp1)
+    s1 = s_torso[1] + (domega[2] * p0 - domega[0] * p2 + omega[2] * wp0 - omega[0] * wp2)
+    s2 = s_torso[2] + (domega[0] * p1 - domega[1] * p0 + omega[0] * wp1 - omega[1] * wp0)
+    for i in range(3):  # in the sensor's axes: R_torso_S^T s
+        z = s0 * T[0, i] + s1 * T[1, i] + s2 * T[2, i]
+        out[i] = scale * z * mass[k]
     out[3] = c[1] * out[2] - c[2] * out[1]
     out[4] = c[2] * out[0] - c[0] * out[2]
     out[5] = c[0] * out[1] - c[1] * out[0]
 
 
 @nb.njit(cache=True, nogil=True)
-def compensate(q, quat_wxyz, raw, index, base, offset, alpha, a, d, end, mass, com, gravity,
-               measured, last, out):
+def compensate(q, quat_wxyz, accel, omega, domega, inertial, raw, index, base, offset, alpha,
+               a, d, end, mass, com, gravity, measured, last, out):
     """The compensated wrenches (``out``, n x 6) of the readings ``raw`` (n x 6) for the joints
     ``q`` (rad) and the torso attitude ``quat_wxyz``; a sensor with a non-finite input keeps
-    its row of ``last``. ``measured``: 1 for the components the sensors read, 0 elsewhere."""
+    its row of ``last``. ``measured``: 1 for the components the sensors read, 0 elsewhere.
+    The sensors with ``inertial`` 1 have the body's inertia removed too, from the
+    accelerometer's specific force ``accel`` and the torso's rate ``omega`` and angular
+    acceleration ``domega`` (torso axes); a non-finite ``accel``: their weight alone."""
     R = np.empty((3, 3))
     attitude_ok = all_finite(quat_wxyz) and (quat_wxyz[0] ** 2 + quat_wxyz[1] ** 2
                                           + quat_wxyz[2] ** 2 + quat_wxyz[3] ** 2) > 1e-12
+    up = np.zeros(3)
     if attitude_ok:
         quat_to_matrix_into(quat_wxyz, R)
+        for i in range(3):  # world z in the torso axes: R^T (0, 0, 1)
+            up[i] = R[2, i]
+    moving = all_finite(accel) and all_finite(omega) and all_finite(domega)
+    still = np.zeros(3)
     T = np.empty((4, 4))
     qk = np.empty(6)
-    weight = np.empty(6)
+    load = np.empty(6)
     for k in range(raw.shape[0]):
         for j in range(6):
             qk[j] = q[index[k, j]]
@@ -139,9 +180,14 @@ def compensate(q, quat_wxyz, raw, index, base, offset, alpha, a, d, end, mass, c
             for j in range(6):
                 out[k, j] = last[k, j]
             continue
-        _offset(qk, R, k, base, offset, alpha, a, d, end, mass, com, gravity, T, weight)
+        if moving and inertial[k]:
+            _offset(qk, k, base, offset, alpha, a, d, end, mass, com, accel, -1.0, omega, domega,
+                    T, load)
+        else:
+            _offset(qk, k, base, offset, alpha, a, d, end, mass, com, up, -gravity, still, still,
+                    T, load)
         for j in range(6):
-            out[k, j] = (raw[k, j] - weight[j]) * measured[j]
+            out[k, j] = (raw[k, j] - load[j]) * measured[j]
 
 
 @nb.njit(cache=True, nogil=True)
@@ -151,15 +197,20 @@ def hanging_readings(q, quat_wxyz, index, base, offset, alpha, a, d, end, mass, 
     perfectly modelled robot touching nothing (the ideal driver's sensors)."""
     R = np.empty((3, 3))
     quat_to_matrix_into(quat_wxyz, R)
+    up = np.empty(3)
+    for i in range(3):
+        up[i] = R[2, i]
+    still = np.zeros(3)
     T = np.empty((4, 4))
     qk = np.empty(6)
-    weight = np.empty(6)
+    load = np.empty(6)
     for k in range(out.shape[0]):
         for j in range(6):
             qk[j] = q[index[k, j]]
-        _offset(qk, R, k, base, offset, alpha, a, d, end, mass, com, gravity, T, weight)
+        _offset(qk, k, base, offset, alpha, a, d, end, mass, com, up, -gravity, still, still, T,
+                load)
         for j in range(6):
-            out[k, j] = weight[j] * measured[j]
+            out[k, j] = load[j] * measured[j]
 
 
 def measured_mask() -> np.ndarray:
@@ -170,38 +221,67 @@ def measured_mask() -> np.ndarray:
 
 
 class RemoveForceOffset(Observer):
-    """Writes ``WRENCHES``: the sensors' readings with the weight beyond them removed (see the
-    module docstring).
+    """Writes ``WRENCHES``: the sensors' readings with the weight beyond them removed, at the
+    wrists the inertia too (see the module docstring).
 
     Args:
         model: the robot model (URDF, limbs).
         drill: the right hand holds the drill (its mass is beyond the right wrist sensor).
+        period_s: the control period (s; default the model's), over which the rate is
+            differenced.
     """
 
     name = "remove-force-offset"
-    reads = (QUAT_WORLD_TORSO,)
+    reads = (QUAT_WORLD_TORSO, OMEGA_TORSO, IMU_REJECTED)
     writes = (WRENCHES,)
 
-    def __init__(self, model: RobotModel, drill: bool = False) -> None:
+    def __init__(self, model: RobotModel, drill: bool = False,
+                 period_s: float | None = None) -> None:
         self.mass_kg, self.com_sensor_m = sensor_loads(model, drill)
         self._chains = sensor_chains(model)
         self._measured = measured_mask()
+        # the wrists: the hand's (and the tool's) inertia removed too
+        self._inertial = np.array([SENSOR_LIMBS[s][0].endswith("-arm") for s in FT_SENSORS])
+        self._dt_s = model.control_period_s if period_s is None else float(period_s)
         self._nan = np.full(6, np.nan)
+        self._nan3 = np.full(3, np.nan)
+        self._zero3 = np.zeros(3)
+        self._omega_last: np.ndarray | None = None  # the last period's rate, if it was read
         self._last = np.zeros((len(FT_SENSORS), 6))
         self._raw = np.zeros((len(FT_SENSORS), 6))
         self._joints = len(model.joint_names)
-        self._update(np.zeros(self._joints), np.array([1.0, 0.0, 0.0, 0.0]))
+        self._update(np.zeros(self._joints), np.array([1.0, 0.0, 0.0, 0.0]), self._nan3,
+                     self._zero3, self._zero3)
 
     def reset(self, state: RobotState, store: Store) -> None:
         self._last = np.zeros((len(FT_SENSORS), 6))
+        self._omega_last = None
         self.update(state, store)
 
-    def _update(self, q_rad: np.ndarray, quat_wxyz: np.ndarray) -> np.ndarray:
+    def _update(self, q_rad: np.ndarray, quat_wxyz: np.ndarray, accel: np.ndarray,
+                omega: np.ndarray, domega: np.ndarray) -> np.ndarray:
         out = np.empty((len(FT_SENSORS), 6))
-        compensate(q_rad, quat_wxyz, self._raw, *self._chains, self.mass_kg, self.com_sensor_m,
-                   GRAVITY_M_S2, self._measured, self._last, out)
+        compensate(q_rad, quat_wxyz, accel, omega, domega, self._inertial, self._raw,
+                   *self._chains, self.mass_kg, self.com_sensor_m, GRAVITY_M_S2,
+                   self._measured, self._last, out)
         self._last = out
         return out
+
+    def _motion(self, state: RobotState, store: Store) -> tuple[np.ndarray, ...]:
+        """The torso's motion as sensed: the accelerometer's specific force (NaN when
+        rejected), the rate and its difference over the period (0 unless this and the last
+        period's gyro were read), torso axes."""
+        gyro_rejected, accel_rejected = store[IMU_REJECTED]
+        accel = self._nan3
+        if not accel_rejected:
+            try:
+                accel = np.asarray(state.imu_accel_m_s2, dtype=float).reshape(3)
+            except (TypeError, ValueError, AttributeError):
+                accel = self._nan3
+        omega = np.asarray(store[OMEGA_TORSO], dtype=float)
+        last, self._omega_last = self._omega_last, None if gyro_rejected else omega
+        domega = self._zero3 if last is None or gyro_rejected else (omega - last) / self._dt_s
+        return accel, omega, domega
 
     def update(self, state: RobotState, store: Store) -> None:
         raw = self._raw
@@ -216,5 +296,6 @@ class RemoveForceOffset(Observer):
             except (TypeError, ValueError, AttributeError):  # not six numbers: it holds
                 raw[k] = self._nan
         out = self._update(joint_vector(state.q_rad, self._joints),
-                           np.asarray(store[QUAT_WORLD_TORSO], dtype=float))
+                           np.asarray(store[QUAT_WORLD_TORSO], dtype=float),
+                           *self._motion(state, store))
         store[WRENCHES] = dict(zip(FT_SENSORS, out, strict=True))
