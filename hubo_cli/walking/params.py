@@ -4,7 +4,7 @@ sources)."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields, replace
+from dataclasses import asdict, dataclass, fields, replace
 
 from hubo_cli.errors import ConfigError, InputError
 from hubo_cli.model import RobotModel
@@ -87,8 +87,9 @@ def _checked(params: WalkingParams, where: str, table: str = "walking") -> Walki
                 or not (math.isfinite(value) and value > 0):
             raise ConfigError(f"must be a positive number, got {value!r}", path=where,
                               field=f"{table}.{f.name}")
+    values = asdict(params)
     for name, (least, most) in DURATION_BOUNDS_S.items():
-        value = getattr(params, name)
+        value = values[name]
         if not least <= value <= most:
             raise ConfigError(f"must lie between {least:g} and {most:g} s, got {value!r}",
                               path=where, field=f"{table}.{name}")
