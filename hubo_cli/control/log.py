@@ -303,7 +303,7 @@ class PeriodLog:
         self._pose_record(q_rad, state)
         if self.extra_columns:
             if extras:
-                # numpy converts each as float() does
+                # numpy converts each as float() does (a None, which float() refuses, as NaN)
                 record[self._at_extras:] = list(map(extras.get, self.extra_columns,
                                                     self._no_extras))
             else:

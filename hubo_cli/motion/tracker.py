@@ -75,7 +75,7 @@ class JointTracker:
         self._preview = None  # ruckig, its input and a trajectory for preview()
         # (target, minimum duration) of the last ``track`` when it left ruckig's input as it
         # found it, at rest at a sample that stays put (see :meth:`_resting`); None otherwise
-        self._rest: tuple[list[float], float | None] | None = None
+        self._rest: tuple[list[float], float | None, np.ndarray] | None = None
 
     def reset(self, q_rad, v_rad_s=None, a_rad_s2=None) -> None:
         """Start from position ``q_rad`` with the given velocity and acceleration (default 0).
@@ -188,7 +188,8 @@ class JointTracker:
         if rest is not None and target_v_rad_s is None and self._mode == "position" \
                 and rest[1] == min_duration_s and rest[0] == target:
             # ruckig's input is the one it last took and returned unchanged: so it would again
-            self.q = self.q.copy()
+            # (the sample kept apart: a caller may have changed the array it was handed)
+            self.q = rest[2].copy()
             return self.q
         inp = self._inp
         if self._mode != "position":
@@ -210,7 +211,7 @@ class JointTracker:
         resting = target_v_rad_s is None and self._resting()
         if self._run():
             self.error = ""
-            self._rest = ((target, min_duration_s) if resting and self._resting()
+            self._rest = ((target, min_duration_s, self.q.copy()) if resting and self._resting()
                           and self.q.tolist() == q_before.tolist() else None)
             return self.q
         message = self.error
