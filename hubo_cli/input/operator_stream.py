@@ -19,18 +19,19 @@ where the sum exceeds it, the whole stream is slowed (its time stretched) until 
 Positions and orientations are in the operator's frame O (x forward, y left, z up).
 
 The turn rate is capped (``MAX_TURN_RATE_DEG_S``: a choice near what the arm joints' speed
-limit lets the robot's hand follow, not a bound that holds for every turn). Hubo 2+'s arm has six joints and no wrist roll: turning the hand
-with its position held moves the shoulder and elbow as well as the wrist. At the free-mode
-ready pose a turn of 1 rad/s asks the fastest joint for 1.43 rad/s about the median axis and
-2.13 rad/s about the worst (``python tools/teleop_lag_floor.py --rates``: the inverse
-Jacobian's rows), so at the arms' 1.0 rad/s the hand turns at most 40 deg/s about the median
-axis, 27 deg/s about the worst: at 40 deg/s half of the turn axes still ask a joint for more
-than its limit (more with a stroke's motion added), so the streams stay demanding. A turn of 90 deg/s (the cap before) asks 2.2-3.3 rad/s: no
-controller within the joints' limits follows it, and on issue 34's 50 short test streams
+limit lets the robot's hand follow, not a bound that holds for every turn). Hubo 2+'s arm has
+six joints and no wrist roll: turning the hand with its position held moves the shoulder and
+elbow as well as the wrist. At the free-mode ready pose a turn of 1 rad/s asks the fastest
+joint for 1.43 rad/s about the median axis and 2.13 rad/s about the worst (``python
+tools/teleop_lag_floor.py --rates``: the inverse Jacobian's rows), so at the arms' 1.0 rad/s
+the hand turns at most 40 deg/s about the median axis, 27 deg/s about the worst: at 40 deg/s
+half of the turn axes still ask a joint for more than its limit (more with a stroke's motion
+added), so the streams stay demanding. A turn of 90 deg/s (the cap before) asks 2.2-3.3 rad/s:
+no controller within the joints' limits follows it, and on issue 34's 50 short test streams
 those turns made the worst orientation errors (19.6 deg RMS; 7.7 deg at 40 deg/s, the same
 seeds). The hand speed cap is the issue's own (0.25 m/s for the accuracy test) and stays,
-although at the ready pose 1 m/s of hand speed with the orientation held asks 5.2 rad/s of
-the fastest joint (median direction): a stroke's peak of 0.25 m/s is brief, a turn lasts.
+although at the ready pose 1 m/s of hand speed with the orientation held asks 5.2 rad/s of the
+fastest joint (median direction): a stroke's peak of 0.25 m/s is brief, a turn lasts.
 """
 
 from __future__ import annotations
