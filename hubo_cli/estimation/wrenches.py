@@ -59,6 +59,13 @@ from hubo_cli.model import RobotModel
 from hubo_cli.pin_robot import load_pin_robot
 from hubo_cli.state import FT_MEASURED, FT_SENSORS, GRAVITY_M_S2, RobotState, T_frame_sensor
 
+# the inertia removed at a wrist, bounded (module docstring; measured in the 150 N backward lunge)
+INERTIA_SMALL_NM = 0.2  # at most this moment (N m) for as long as the torso accelerates
+INERTIA_LARGE_NM = 2.0  # ... and at most this for INERTIA_BURST_PERIODS in a row (an impact)
+INERTIA_BURST_PERIODS = 12
+INERTIA_FORCE_N = 15.0  # the force removed, at most (N)
+ANGULAR_ACCEL_MAX_RAD_S2 = 300.0  # the torso's angular acceleration, clipped to this
+
 # per sensor in FT_SENSORS: its limb and the URDF frame whose origin is the sensor's
 SENSOR_LIMBS = {"right-wrist": ("right-arm", "right_hand"), "left-wrist": ("left-arm", "left_hand"),
                 "right-ankle": ("right-leg", "right_sole"), "left-ankle": ("left-leg", "left_sole")}
@@ -153,13 +160,16 @@ def _offset(qk, k, base, offset, alpha, a, d, end, mass, com, s_torso, scale, om
 
 @nb.njit(cache=True, nogil=True)
 def compensate(q, quat_wxyz, accel, omega, domega, inertial, raw, index, base, offset, alpha,
-               a, d, end, mass, com, gravity, measured, last, out):
+               a, d, end, mass, com, gravity, measured, gate, last, out):
     """The compensated wrenches (``out``, n x 6) of the readings ``raw`` (n x 6) for the joints
     ``q`` (rad) and the torso attitude ``quat_wxyz``; a sensor with a non-finite input keeps
     its row of ``last``. ``measured``: 1 for the components the sensors read, 0 elsewhere.
     The sensors with ``inertial`` 1 have the body's inertia removed too, from the
     accelerometer's specific force ``accel`` and the torso's rate ``omega`` and angular
-    acceleration ``domega`` (torso axes); a non-finite ``accel``: their weight alone."""
+    acceleration ``domega`` (torso axes), bounded by ``gate`` (:data:`GATE_FIELDS`; its
+    ``burst`` row, per sensor, counts the periods in a row the unbounded inertial moment
+    exceeded ``small_nm``, updated here); a non-finite ``accel``, or one within ``rest_m_s2``
+    of the attitude's gravity: their weight alone."""
     R = np.empty((3, 3))
     attitude_ok = all_finite(quat_wxyz) and (quat_wxyz[0] ** 2 + quat_wxyz[1] ** 2
                                           + quat_wxyz[2] ** 2 + quat_wxyz[3] ** 2) > 1e-12
@@ -168,11 +178,18 @@ def compensate(q, quat_wxyz, accel, omega, domega, inertial, raw, index, base, o
         quat_to_matrix_into(quat_wxyz, R)
         for i in range(3):  # world z in the torso axes: R^T (0, 0, 1)
             up[i] = R[2, i]
-    moving = all_finite(accel) and all_finite(omega) and all_finite(domega)
+    moving = all_finite(accel) and all_finite(omega) and all_finite(domega) and math.sqrt(
+        (accel[0] - gravity * up[0]) ** 2 + (accel[1] - gravity * up[1]) ** 2
+        + (accel[2] - gravity * up[2]) ** 2) > gate[0, 0]
+    small_nm, large_nm, force_n, burst_max = gate[0, 1], gate[0, 2], gate[0, 3], gate[0, 4]
+    clipped = np.empty(3)
+    for i in range(3):  # the angular acceleration within its plausible bound
+        clipped[i] = min(max(domega[i], -gate[0, 5]), gate[0, 5])
     still = np.zeros(3)
     T = np.empty((4, 4))
     qk = np.empty(6)
     load = np.empty(6)
+    extra = np.empty(6)
     for k in range(raw.shape[0]):
         for j in range(6):
             qk[j] = q[index[k, j]]
@@ -180,12 +197,24 @@ def compensate(q, quat_wxyz, accel, omega, domega, inertial, raw, index, base, o
             for j in range(6):
                 out[k, j] = last[k, j]
             continue
-        if moving and inertial[k]:
-            _offset(qk, k, base, offset, alpha, a, d, end, mass, com, accel, -1.0, omega, domega,
-                    T, load)
-        else:
-            _offset(qk, k, base, offset, alpha, a, d, end, mass, com, up, -gravity, still, still,
-                    T, load)
+        _offset(qk, k, base, offset, alpha, a, d, end, mass, com, up, -gravity, still, still,
+                T, load)
+        if not (moving and inertial[k]):
+            gate[1, k] = 0.0
+        else:  # the inertia: what the motion adds to the weight, bounded
+            _offset(qk, k, base, offset, alpha, a, d, end, mass, com, accel, -1.0, omega,
+                    clipped, T, extra)
+            for j in range(6):
+                extra[j] -= load[j]
+            moment = math.sqrt(extra[3] ** 2 + extra[4] ** 2 + extra[5] ** 2)
+            force = math.sqrt(extra[0] ** 2 + extra[1] ** 2 + extra[2] ** 2)
+            gate[1, k] = gate[1, k] + 1.0 if moment > small_nm else 0.0
+            cap_nm = large_nm if gate[1, k] <= burst_max else small_nm
+            scale_f = min(1.0, force_n / max(force, 1e-300))
+            scale_m = min(1.0, cap_nm / max(moment, 1e-300))
+            for j in range(3):
+                load[j] += scale_f * extra[j]
+                load[j + 3] += scale_m * extra[j + 3]
         for j in range(6):
             out[k, j] = (raw[k, j] - load[j]) * measured[j]
 
@@ -236,12 +265,20 @@ class RemoveForceOffset(Observer):
     writes = (WRENCHES,)
 
     def __init__(self, model: RobotModel, drill: bool = False,
-                 period_s: float | None = None) -> None:
+                 period_s: float | None = None, accel_measured: bool = True) -> None:
         self.mass_kg, self.com_sensor_m = sensor_loads(model, drill)
         self._chains = sensor_chains(model)
         self._measured = measured_mask()
-        # the wrists: the hand's (and the tool's) inertia removed too
-        self._inertial = np.array([SENSOR_LIMBS[s][0].endswith("-arm") for s in FT_SENSORS])
+        # the wrists: the hand's (and the tool's) inertia removed too, where the driver
+        # measures the accelerometer (hubo-ach's is rebuilt from the tilt: weight alone)
+        self._inertial = np.array([accel_measured and SENSOR_LIMBS[s][0].endswith("-arm")
+                                   for s in FT_SENSORS])
+        from hubo_cli.estimation.attitude import attitude_params  # it imports this module
+
+        self._gate = np.zeros((2, 6))
+        self._gate[0] = (attitude_params(model).accel_reject_m_s2, INERTIA_SMALL_NM,
+                         INERTIA_LARGE_NM, INERTIA_FORCE_N, INERTIA_BURST_PERIODS,
+                         ANGULAR_ACCEL_MAX_RAD_S2)
         self._dt_s = model.control_period_s if period_s is None else float(period_s)
         self._nan = np.full(6, np.nan)
         self._nan3 = np.full(3, np.nan)
@@ -256,6 +293,7 @@ class RemoveForceOffset(Observer):
     def reset(self, state: RobotState, store: Store) -> None:
         self._last = np.zeros((len(FT_SENSORS), 6))
         self._omega_last = None
+        self._gate[1] = 0.0
         self.update(state, store)
 
     def _update(self, q_rad: np.ndarray, quat_wxyz: np.ndarray, accel: np.ndarray,
@@ -263,7 +301,7 @@ class RemoveForceOffset(Observer):
         out = np.empty((len(FT_SENSORS), 6))
         compensate(q_rad, quat_wxyz, accel, omega, domega, self._inertial, self._raw,
                    *self._chains, self.mass_kg, self.com_sensor_m, GRAVITY_M_S2,
-                   self._measured, self._last, out)
+                   self._measured, self._gate, self._last, out)
         self._last = out
         return out
 
