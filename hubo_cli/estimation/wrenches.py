@@ -25,17 +25,42 @@ of mass p (torso frame, from the arm's measured joints) as a rigid body,
     s_c = s_imu + alpha x p + omega x (omega x p),   f_off = -m R_torso_S^T s_c,
 
 omega the estimate's bias-free rate (``OMEGA_TORSO``) and alpha its difference over the
-period. At rest s_imu is gravity and this is the weight above. The arm's own motion
-relative to the torso is left out (the encoders' noise, differenced twice, would swamp it;
-the arms' trajectories move a hand at most 0.4 m/s^2: about 0.4 N with the drill), so a
-shove of a few milliseconds that makes the arm yield on its joints and whip after the torso
-is not removed and can read worse than the raw sensor; so is the bodies' rotational inertia
-(I alpha; the simulator's sensors leave it out too). A rejected or non-finite accelerometer
-falls back on the weight from the attitude; alpha is 0 unless this period's and the last
-period's gyro were both used. The ankles keep the weight alone: their readings feed the
-contact, the ZMP and the attitude's legs, and a foot's inertia is not what those are tuned on.
-hubo-ach's body IMU reports tilt, not accelerations (the hardware driver's accelerometer
-reads rest), so there only the rotation's part is removed.
+period, clipped to ANGULAR_ACCEL_MAX_RAD_S2 (the lunge's landing: up to 200 rad/s^2; without
+alpha its landing still trips the stop, with 1.76 N m). The arm's own motion relative to the
+torso is left out (the encoders' noise, differenced twice, would swamp it; the arms'
+trajectories move a hand at most 0.4 m/s^2: about 0.4 N with the drill), so a shove of a few
+milliseconds that makes the arm yield on its joints and whip after the torso is not removed
+and can read worse than the raw sensor; so is the bodies' rotational inertia (I alpha; the
+simulator's sensors leave it out too). alpha is 0 unless this period's and the last
+period's gyro were both used.
+
+The inertia is removed only where it is plausible, so that a bad IMU can neither stop a
+still hand nor hide a real load for long:
+
+- Near rest, the weight alone (exactly the weight path): while the accelerometer reads
+  within ``accel_reject_m_s2`` (the attitude's impact threshold, 2 m/s^2) of the attitude's
+  gravity; a gyro glitch on a still robot then changes nothing. So does a rejected or
+  non-finite accelerometer.
+- Bounded: the inertial moment removed (beyond the weight's) is at most INERTIA_LARGE_NM
+  (2.0 N m) for at most INERTIA_BURST_PERIODS (12) periods in a row, then at most
+  INERTIA_SMALL_NM (0.2 N m) until it falls under that again; the force removed is at
+  most INERTIA_FORCE_N (15 N). Measured in the 150 N backward lunge (push, step, landing,
+  catch; the torso departs from rest for 2 s; AVX-512 / portable paths): at most 1.79 /
+  1.92 N m and 8.6 / 8.8 N removed, over 0.2 N m for at most 8 / 6 periods in a row (a
+  landing that needed more than the cap would read the excess, not the whole).
+- Worst case, whatever a finite IMU reads: a real wrist moment is misread (hidden or
+  added) by at most 2.0 N m for at most 12 periods (60 ms) in a row, and by at most 0.2 N m
+  otherwise (a period whose inertial moment is 0.2 N m or less ends the run). An overload
+  above the 1.21 N m stop's limit plus 0.2 N m (1.41 N m) is therefore stopped within 13
+  periods (65 ms). The other way, a glitch while the accelerometer departs from rest (the
+  torso really moving, or the accelerometer itself bad) can add up to 2.0 N m and stop a
+  free hand; a gyro glitch alone on a still robot cannot.
+- No inertia on a driver whose accelerometer is not measured (``Driver.accel_measured``):
+  hubo-ach's body IMU reports tilt, and the hardware driver rebuilds the accelerometer
+  from it (it reads rest), so the wrists there have their weight alone.
+
+The ankles keep the weight alone: their readings feed the contact, the ZMP and the
+attitude's legs, and a foot's inertia is not what those are tuned on.
 
 A sensor whose reading, joints or the attitude are not finite (or not six numbers) keeps its
 last compensated wrench (zero before the first good one).
