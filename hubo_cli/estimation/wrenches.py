@@ -87,7 +87,7 @@ from hubo_cli.state import FT_MEASURED, FT_SENSORS, GRAVITY_M_S2, RobotState, T_
 # the inertia removed at a wrist, bounded (module docstring; measured in the 150 N backward lunge)
 INERTIA_SMALL_NM = 0.2  # at most this moment (N m) for as long as the torso accelerates
 INERTIA_LARGE_NM = 2.0  # ... and at most this for INERTIA_BURST_PERIODS in a row (an impact)
-INERTIA_BURST_PERIODS = 12
+INERTIA_BURST_PERIODS = 12  # 60 ms at 200 Hz
 INERTIA_FORCE_N = 15.0  # the force removed, at most (N)
 ANGULAR_ACCEL_MAX_RAD_S2 = 300.0  # the torso's angular acceleration, clipped to this
 
@@ -191,10 +191,12 @@ def compensate(q, quat_wxyz, accel, omega, domega, inertial, raw, index, base, o
     its row of ``last``. ``measured``: 1 for the components the sensors read, 0 elsewhere.
     The sensors with ``inertial`` 1 have the body's inertia removed too, from the
     accelerometer's specific force ``accel`` and the torso's rate ``omega`` and angular
-    acceleration ``domega`` (torso axes), bounded by ``gate`` (:data:`GATE_FIELDS`; its
-    ``burst`` row, per sensor, counts the periods in a row the unbounded inertial moment
-    exceeded ``small_nm``, updated here); a non-finite ``accel``, or one within ``rest_m_s2``
-    of the attitude's gravity: their weight alone."""
+    acceleration ``domega`` (torso axes), bounded by ``gate`` (2 x 6): row 0 the bounds
+    (the accelerometer's rest band, m/s^2; INERTIA_SMALL_NM, INERTIA_LARGE_NM,
+    INERTIA_FORCE_N, INERTIA_BURST_PERIODS, ANGULAR_ACCEL_MAX_RAD_S2), row 1 per sensor the
+    periods in a row its unbounded inertial moment exceeded the small bound (updated here).
+    A non-finite ``accel``, or one within the rest band of the attitude's gravity: their
+    weight alone."""
     R = np.empty((3, 3))
     attitude_ok = all_finite(quat_wxyz) and (quat_wxyz[0] ** 2 + quat_wxyz[1] ** 2
                                           + quat_wxyz[2] ** 2 + quat_wxyz[3] ** 2) > 1e-12
