@@ -124,3 +124,18 @@ def test_the_hardware_driver_removes_no_inertia(model):
                                             imu_gyro_rad_s=np.array([3.0, 0.0, 0.0])))
         for wrist in ("right-wrist", "left-wrist"):
             np.testing.assert_array_equal(jolted[WRENCHES][wrist], still[wrist])
+
+
+def test_the_loop_builds_the_hardware_estimate_without_inertia(model, tmp_path):
+    """The control loop builds its estimate with the driver's ``accel_measured``: on the
+    hardware driver the wrists' compensation removes no inertia."""
+    from hubo_cli.control.loop import ControlLoop
+    from hubo_cli.estimation.wrenches import RemoveForceOffset
+
+    with HardwareDriver(model, armed=True, sink="file",
+                        sink_path=tmp_path / "hubo-ref.bin") as driver:
+        state = driver.start()
+        stopper = EmergencyStopper(model, driver.period_s, sources=("wrist-torque",))
+        loop = ControlLoop(driver, [stopper], lambda t_s, s: (state.q_rad, {}), speed=None)
+    offsets = [o for o in loop.estimator.observers if isinstance(o, RemoveForceOffset)]
+    assert len(offsets) == 1 and not offsets[0]._inertial.any()
