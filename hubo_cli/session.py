@@ -247,7 +247,8 @@ def _run_in(setup: RunSetup, target: Target, on_start, speed: float | None,
             loop = ControlLoop(driver, modules, target, speed=speed, log_path=run_dir,
                                operator=setup.operator, observer=setup.live,
                                estimator=build_estimator(setup.model, setup.tools,
-                                                         driver.period_s))
+                                                         driver.period_s,
+                                                         driver.accel_measured))
             # the target may act on the scene, never read it (issue 33)
             target.attach(None if world is None else SceneActions(world), modules,
                           loop.target_store)

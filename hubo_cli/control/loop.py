@@ -209,7 +209,8 @@ class ControlLoop:
         if estimator is None and (self.target.reads or any(m.reads for m in self.modules)):
             from hubo_cli.estimation.build import build_estimator
 
-            estimator = build_estimator(driver.model, period_s=self.dt_s)
+            estimator = build_estimator(driver.model, period_s=self.dt_s,
+                                        accel_measured=driver.accel_measured)
         self.estimator = estimator
         self.store = estimator.store if estimator is not None else Store()
         check_flow([self.target, *self.modules],

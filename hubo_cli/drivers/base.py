@@ -142,6 +142,9 @@ class Driver(ABC):
         name: the registry name.
         real_time: the driver moves a real robot (or feeds a process that does), so the loop
             must run at wall-clock pace whatever the caller asked for.
+        accel_measured: the state's ``imu_accel_m_s2`` is a measured specific force (False:
+            rebuilt from the tilt, it reads rest whatever the motion, and the estimate
+            removes no inertia from the wrists' readings).
         log_columns: numbers the driver adds to every log row (see :meth:`log_values`).
 
     Args:
@@ -150,6 +153,7 @@ class Driver(ABC):
 
     name = "abstract"
     real_time: ClassVar[bool] = False
+    accel_measured: ClassVar[bool] = True
     log_columns: tuple[str, ...] = ()
 
     @property

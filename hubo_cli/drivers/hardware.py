@@ -151,6 +151,7 @@ class HardwareDriver(Driver):
 
     name = "hardware"
     real_time = True
+    accel_measured = False  # hubo-ach's body IMU reports tilt: accel_from_tilt reads rest
     log_columns = ("hw_ref_seq", "hw_state_time_s", "hw_state_age_periods", "hw_ref_mode",
                    "hw_state_age_ms", "hw_round_trip_ms", "hw_servo_error_rad",
                    "hw_thermal_scale", "hw_max_motor_temp_c")

@@ -14,7 +14,7 @@ from hubo_cli.model import RobotModel
 
 
 def build_estimator(model: RobotModel, tools: Mapping[str, str] | None = None,
-                    period_s: float | None = None) -> Estimator:
+                    period_s: float | None = None, accel_measured: bool = True) -> Estimator:
     """The estimation layer of a run: attitude (gyro, accelerometer and the legs' tilt),
     compensated wrenches (weight, and the hands' inertia), contact, floating base
     and soles, centre of mass with the capture point and the ZMP.
@@ -24,13 +24,16 @@ def build_estimator(model: RobotModel, tools: Mapping[str, str] | None = None,
         tools: arm -> tool held (``drill`` in the right hand adds its mass beyond the wrist
             sensor and to the CoM).
         period_s: the control period (s; default the model's).
+        accel_measured: the driver measures the accelerometer (``Driver.accel_measured``);
+            else the wrists' compensation removes the hands' weight alone.
     """
     tools = tools or {}
     drill = tools.get("right-arm") == "drill"
     dt_s = model.control_period_s if period_s is None else float(period_s)
     return Estimator([
         AttitudeObserver(attitude_params(model), dt_s, model),
-        RemoveForceOffset(model, drill=drill, period_s=dt_s),
+        RemoveForceOffset(model, drill=drill, period_s=dt_s,
+                          accel_measured=accel_measured),
         ContactObserver(model.estimation, dt_s),
         FloatingBase(model),
         CentreOfMass(model, dt_s, drill=drill),

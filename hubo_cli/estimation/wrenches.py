@@ -25,17 +25,42 @@ of mass p (torso frame, from the arm's measured joints) as a rigid body,
     s_c = s_imu + alpha x p + omega x (omega x p),   f_off = -m R_torso_S^T s_c,
 
 omega the estimate's bias-free rate (``OMEGA_TORSO``) and alpha its difference over the
-period. At rest s_imu is gravity and this is the weight above. The arm's own motion
-relative to the torso is left out (the encoders' noise, differenced twice, would swamp it;
-the arms' trajectories move a hand at most 0.4 m/s^2: about 0.4 N with the drill), so a
-shove of a few milliseconds that makes the arm yield on its joints and whip after the torso
-is not removed and can read worse than the raw sensor; so is the bodies' rotational inertia
-(I alpha; the simulator's sensors leave it out too). A rejected or non-finite accelerometer
-falls back on the weight from the attitude; alpha is 0 unless this period's and the last
-period's gyro were both used. The ankles keep the weight alone: their readings feed the
-contact, the ZMP and the attitude's legs, and a foot's inertia is not what those are tuned on.
-hubo-ach's body IMU reports tilt, not accelerations (the hardware driver's accelerometer
-reads rest), so there only the rotation's part is removed.
+period, clipped to ANGULAR_ACCEL_MAX_RAD_S2 (the lunge's landing: up to 200 rad/s^2; without
+alpha its landing still trips the stop, with 1.76 N m). The arm's own motion relative to the
+torso is left out (the encoders' noise, differenced twice, would swamp it; the arms'
+trajectories move a hand at most 0.4 m/s^2: about 0.4 N with the drill), so a shove of a few
+milliseconds that makes the arm yield on its joints and whip after the torso is not removed
+and can read worse than the raw sensor; so is the bodies' rotational inertia (I alpha; the
+simulator's sensors leave it out too). alpha is 0 unless this period's and the last
+period's gyro were both used.
+
+The inertia is removed only where it is plausible, so that a bad IMU can neither stop a
+still hand nor hide a real load for long:
+
+- Near rest, the weight alone (exactly the weight path): while the accelerometer reads
+  within ``accel_reject_m_s2`` (the attitude's impact threshold, 2 m/s^2) of the attitude's
+  gravity; a gyro glitch on a still robot then changes nothing. So does a rejected or
+  non-finite accelerometer.
+- Bounded: the inertial moment removed (beyond the weight's) is at most INERTIA_LARGE_NM
+  (2.0 N m) for at most INERTIA_BURST_PERIODS (12) periods in a row, then at most
+  INERTIA_SMALL_NM (0.2 N m) until it falls under that again; the force removed is at
+  most INERTIA_FORCE_N (15 N). Measured in the 150 N backward lunge (push, step, landing,
+  catch; the torso departs from rest for 2 s; AVX-512 / portable paths): at most 1.79 /
+  1.92 N m and 8.6 / 8.8 N removed, over 0.2 N m for at most 8 / 6 periods in a row (a
+  landing that needed more than the cap would read the excess, not the whole).
+- Worst case, whatever a finite IMU reads: a real wrist moment is misread (hidden or
+  added) by at most 2.0 N m for at most 12 periods (60 ms) in a row, and by at most 0.2 N m
+  otherwise (a period whose inertial moment is 0.2 N m or less ends the run). An overload
+  above the 1.21 N m stop's limit plus 0.2 N m (1.41 N m) is therefore stopped within 13
+  periods (65 ms). The other way, a glitch while the accelerometer departs from rest (the
+  torso really moving, or the accelerometer itself bad) can add up to 2.0 N m and stop a
+  free hand; a gyro glitch alone on a still robot cannot.
+- No inertia on a driver whose accelerometer is not measured (``Driver.accel_measured``):
+  hubo-ach's body IMU reports tilt, and the hardware driver rebuilds the accelerometer
+  from it (it reads rest), so the wrists there have their weight alone.
+
+The ankles keep the weight alone: their readings feed the contact, the ZMP and the
+attitude's legs, and a foot's inertia is not what those are tuned on.
 
 A sensor whose reading, joints or the attitude are not finite (or not six numbers) keeps its
 last compensated wrench (zero before the first good one).
@@ -58,6 +83,13 @@ from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.pin_robot import load_pin_robot
 from hubo_cli.state import FT_MEASURED, FT_SENSORS, GRAVITY_M_S2, RobotState, T_frame_sensor
+
+# the inertia removed at a wrist, bounded (module docstring; measured in the 150 N backward lunge)
+INERTIA_SMALL_NM = 0.2  # at most this moment (N m) for as long as the torso accelerates
+INERTIA_LARGE_NM = 2.0  # ... and at most this for INERTIA_BURST_PERIODS in a row (an impact)
+INERTIA_BURST_PERIODS = 12  # 60 ms at 200 Hz
+INERTIA_FORCE_N = 15.0  # the force removed, at most (N)
+ANGULAR_ACCEL_MAX_RAD_S2 = 300.0  # the torso's angular acceleration, clipped to this
 
 # per sensor in FT_SENSORS: its limb and the URDF frame whose origin is the sensor's
 SENSOR_LIMBS = {"right-wrist": ("right-arm", "right_hand"), "left-wrist": ("left-arm", "left_hand"),
@@ -153,13 +185,18 @@ def _offset(qk, k, base, offset, alpha, a, d, end, mass, com, s_torso, scale, om
 
 @nb.njit(cache=True, nogil=True)
 def compensate(q, quat_wxyz, accel, omega, domega, inertial, raw, index, base, offset, alpha,
-               a, d, end, mass, com, gravity, measured, last, out):
+               a, d, end, mass, com, gravity, measured, gate, last, out):
     """The compensated wrenches (``out``, n x 6) of the readings ``raw`` (n x 6) for the joints
     ``q`` (rad) and the torso attitude ``quat_wxyz``; a sensor with a non-finite input keeps
     its row of ``last``. ``measured``: 1 for the components the sensors read, 0 elsewhere.
     The sensors with ``inertial`` 1 have the body's inertia removed too, from the
     accelerometer's specific force ``accel`` and the torso's rate ``omega`` and angular
-    acceleration ``domega`` (torso axes); a non-finite ``accel``: their weight alone."""
+    acceleration ``domega`` (torso axes), bounded by ``gate`` (2 x 6): row 0 the bounds
+    (the accelerometer's rest band, m/s^2; INERTIA_SMALL_NM, INERTIA_LARGE_NM,
+    INERTIA_FORCE_N, INERTIA_BURST_PERIODS, ANGULAR_ACCEL_MAX_RAD_S2), row 1 per sensor the
+    periods in a row its unbounded inertial moment exceeded the small bound (updated here).
+    A non-finite ``accel``, or one within the rest band of the attitude's gravity: their
+    weight alone."""
     R = np.empty((3, 3))
     attitude_ok = all_finite(quat_wxyz) and (quat_wxyz[0] ** 2 + quat_wxyz[1] ** 2
                                           + quat_wxyz[2] ** 2 + quat_wxyz[3] ** 2) > 1e-12
@@ -168,11 +205,18 @@ def compensate(q, quat_wxyz, accel, omega, domega, inertial, raw, index, base, o
         quat_to_matrix_into(quat_wxyz, R)
         for i in range(3):  # world z in the torso axes: R^T (0, 0, 1)
             up[i] = R[2, i]
-    moving = all_finite(accel) and all_finite(omega) and all_finite(domega)
+    moving = all_finite(accel) and all_finite(omega) and all_finite(domega) and math.sqrt(
+        (accel[0] - gravity * up[0]) ** 2 + (accel[1] - gravity * up[1]) ** 2
+        + (accel[2] - gravity * up[2]) ** 2) > gate[0, 0]
+    small_nm, large_nm, force_n, burst_max = gate[0, 1], gate[0, 2], gate[0, 3], gate[0, 4]
+    clipped = np.empty(3)
+    for i in range(3):  # the angular acceleration within its plausible bound
+        clipped[i] = min(max(domega[i], -gate[0, 5]), gate[0, 5])
     still = np.zeros(3)
     T = np.empty((4, 4))
     qk = np.empty(6)
     load = np.empty(6)
+    extra = np.empty(6)
     for k in range(raw.shape[0]):
         for j in range(6):
             qk[j] = q[index[k, j]]
@@ -180,12 +224,24 @@ def compensate(q, quat_wxyz, accel, omega, domega, inertial, raw, index, base, o
             for j in range(6):
                 out[k, j] = last[k, j]
             continue
-        if moving and inertial[k]:
-            _offset(qk, k, base, offset, alpha, a, d, end, mass, com, accel, -1.0, omega, domega,
-                    T, load)
-        else:
-            _offset(qk, k, base, offset, alpha, a, d, end, mass, com, up, -gravity, still, still,
-                    T, load)
+        _offset(qk, k, base, offset, alpha, a, d, end, mass, com, up, -gravity, still, still,
+                T, load)
+        if not (moving and inertial[k]):
+            gate[1, k] = 0.0
+        else:  # the inertia: what the motion adds to the weight, bounded
+            _offset(qk, k, base, offset, alpha, a, d, end, mass, com, accel, -1.0, omega,
+                    clipped, T, extra)
+            for j in range(6):
+                extra[j] -= load[j]
+            moment = math.sqrt(extra[3] ** 2 + extra[4] ** 2 + extra[5] ** 2)
+            force = math.sqrt(extra[0] ** 2 + extra[1] ** 2 + extra[2] ** 2)
+            gate[1, k] = gate[1, k] + 1.0 if moment > small_nm else 0.0
+            cap_nm = large_nm if gate[1, k] <= burst_max else small_nm
+            scale_f = min(1.0, force_n / max(force, 1e-300))
+            scale_m = min(1.0, cap_nm / max(moment, 1e-300))
+            for j in range(3):
+                load[j] += scale_f * extra[j]
+                load[j + 3] += scale_m * extra[j + 3]
         for j in range(6):
             out[k, j] = (raw[k, j] - load[j]) * measured[j]
 
@@ -236,12 +292,20 @@ class RemoveForceOffset(Observer):
     writes = (WRENCHES,)
 
     def __init__(self, model: RobotModel, drill: bool = False,
-                 period_s: float | None = None) -> None:
+                 period_s: float | None = None, accel_measured: bool = True) -> None:
         self.mass_kg, self.com_sensor_m = sensor_loads(model, drill)
         self._chains = sensor_chains(model)
         self._measured = measured_mask()
-        # the wrists: the hand's (and the tool's) inertia removed too
-        self._inertial = np.array([SENSOR_LIMBS[s][0].endswith("-arm") for s in FT_SENSORS])
+        # the wrists: the hand's (and the tool's) inertia removed too, where the driver
+        # measures the accelerometer (hubo-ach's is rebuilt from the tilt: weight alone)
+        self._inertial = np.array([accel_measured and SENSOR_LIMBS[s][0].endswith("-arm")
+                                   for s in FT_SENSORS])
+        from hubo_cli.estimation.attitude import attitude_params  # it imports this module
+
+        self._gate = np.zeros((2, 6))
+        self._gate[0] = (attitude_params(model).accel_reject_m_s2, INERTIA_SMALL_NM,
+                         INERTIA_LARGE_NM, INERTIA_FORCE_N, INERTIA_BURST_PERIODS,
+                         ANGULAR_ACCEL_MAX_RAD_S2)
         self._dt_s = model.control_period_s if period_s is None else float(period_s)
         self._nan = np.full(6, np.nan)
         self._nan3 = np.full(3, np.nan)
@@ -256,6 +320,7 @@ class RemoveForceOffset(Observer):
     def reset(self, state: RobotState, store: Store) -> None:
         self._last = np.zeros((len(FT_SENSORS), 6))
         self._omega_last = None
+        self._gate[1] = 0.0
         self.update(state, store)
 
     def _update(self, q_rad: np.ndarray, quat_wxyz: np.ndarray, accel: np.ndarray,
@@ -263,7 +328,7 @@ class RemoveForceOffset(Observer):
         out = np.empty((len(FT_SENSORS), 6))
         compensate(q_rad, quat_wxyz, accel, omega, domega, self._inertial, self._raw,
                    *self._chains, self.mass_kg, self.com_sensor_m, GRAVITY_M_S2,
-                   self._measured, self._last, out)
+                   self._measured, self._gate, self._last, out)
         self._last = out
         return out
 
