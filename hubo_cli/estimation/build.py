@@ -30,9 +30,10 @@ def build_estimator(model: RobotModel, tools: Mapping[str, str] | None = None,
     tools = tools or {}
     drill = tools.get("right-arm") == "drill"
     dt_s = model.control_period_s if period_s is None else float(period_s)
+    attitude = attitude_params(model)
     return Estimator([
-        AttitudeObserver(attitude_params(model), dt_s, model),
-        RemoveForceOffset(model, drill=drill, period_s=dt_s,
+        AttitudeObserver(attitude, dt_s, model),
+        RemoveForceOffset(model, attitude.accel_reject_m_s2, drill=drill, period_s=dt_s,
                           accel_measured=accel_measured),
         ContactObserver(model.estimation, dt_s),
         FloatingBase(model),

@@ -282,6 +282,9 @@ class RemoveForceOffset(Observer):
 
     Args:
         model: the robot model (URDF, limbs).
+        accel_rest_m_s2: the accelerometer within this of gravity (as the attitude has it)
+            reads a robot at rest: the hands' weight alone is removed (the attitude filter's
+            ``accel_reject_m_s2``).
         drill: the right hand holds the drill (its mass is beyond the right wrist sensor).
         period_s: the control period (s; default the model's), over which the rate is
             differenced.
@@ -291,7 +294,7 @@ class RemoveForceOffset(Observer):
     reads = (QUAT_WORLD_TORSO, OMEGA_TORSO, IMU_REJECTED)
     writes = (WRENCHES,)
 
-    def __init__(self, model: RobotModel, drill: bool = False,
+    def __init__(self, model: RobotModel, accel_rest_m_s2: float, drill: bool = False,
                  period_s: float | None = None, accel_measured: bool = True) -> None:
         self.mass_kg, self.com_sensor_m = sensor_loads(model, drill)
         self._chains = sensor_chains(model)
@@ -300,10 +303,8 @@ class RemoveForceOffset(Observer):
         # measures the accelerometer (hubo-ach's is rebuilt from the tilt: weight alone)
         self._inertial = np.array([accel_measured and SENSOR_LIMBS[s][0].endswith("-arm")
                                    for s in FT_SENSORS])
-        from hubo_cli.estimation.attitude import attitude_params  # it imports this module
-
         self._gate = np.zeros((2, 6))
-        self._gate[0] = (attitude_params(model).accel_reject_m_s2, INERTIA_SMALL_NM,
+        self._gate[0] = (accel_rest_m_s2, INERTIA_SMALL_NM,
                          INERTIA_LARGE_NM, INERTIA_FORCE_N, INERTIA_BURST_PERIODS,
                          ANGULAR_ACCEL_MAX_RAD_S2)
         self._dt_s = model.control_period_s if period_s is None else float(period_s)
