@@ -539,6 +539,7 @@ def test_the_collision_room_gives_the_same_targets_to_the_last_bit(monkeypatch):
     for k, (q_prev, q_next, goals) in enumerate(inputs):
         assert np.array_equal(new.keep(q_prev, q_next, goals), old.keep(q_prev, q_next, goals)), k
     # measured: 1036 calls, 406 of them with a still goal, 668 moving the left arm out of the band
+    print("COUNTS", len(inputs), new.skipped, new.pushed_periods)
     assert new.skipped > 100 and sum(new.pushed_periods.values()) > 200
 
 

@@ -61,6 +61,7 @@ both are lower bounds (see above).
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 
 import coal
@@ -137,14 +138,25 @@ class SelfCollisionChecker:
     remembered with the joints it was computed for, and a check costs the legs' pairs only;
     when they move, every pair is computed in one pass as before.
 
+    Repeatable distances (``repeatable=True``): pinocchio's distance requests start each pair's
+    GJK from its last answer (``enable_cached_gjk_guess``), so a distance computed a second time
+    at the same joints differs within GJK's tolerance (1e-6 m; by 3e-9 m median on drawn
+    postures), depending on what was computed before. Started from coal's fixed default guess
+    instead, a pair's distance depends only on its placements, and :meth:`check_near` takes
+    the distance of a pair whose joints (those with a rate for it) are exactly those of its last
+    computed distance without computing it again: the same number by construction. The
+    pipeline's detector keeps the cached guess (its results as they were); the teleop's
+    collision room uses the repeatable checker.
+
     Args:
         model: the robot model.
         drill: add the drill capsules to the right hand.
         pairs: link pairs to check (default :func:`default_pairs`).
+        repeatable: the fixed initial guess, and no second computation of an unmoved pair.
     """
 
     def __init__(self, model: RobotModel, drill: bool = False,
-                 pairs: list[tuple[str, str]] | None = None) -> None:
+                 pairs: list[tuple[str, str]] | None = None, repeatable: bool = False) -> None:
         self.robot: PinRobot = load_pin_robot(model)
         pmodel = self.robot.model
         path = str(self.robot.urdf_path)
@@ -205,6 +217,14 @@ class SelfCollisionChecker:
         # the others' distances are taken at joints up to STILL_RAD away from the check's
         self._still_slack_m = np.where(self._legs_pair, 0.0,
                                        STILL_RAD * self.rate_m_rad.sum(axis=1))
+        self.repeatable = bool(repeatable)
+        if self.repeatable:
+            with warnings.catch_warnings():  # coal marks the flag deprecated; it still rules
+                warnings.simplefilter("ignore", DeprecationWarning)
+                for data in (self.geom_data, *self._split, self._near_data):
+                    for request in data.distanceRequests:
+                        request.enable_cached_gjk_guess = False
+                        request.gjk_initial_guess = coal.GJKInitialGuess.DefaultGuess
 
     def _pair_rates(self) -> np.ndarray:
         """How fast each joint can change each pair's distance: (pairs, joints), m/rad.
@@ -300,7 +320,8 @@ class SelfCollisionChecker:
             return Clearance(np.inf, ("", ""))
         bounds, near, listed, data = self._bounds_m, self._near, self._listed, self._near_data
         n_changed, n_near, best = _pair_bounds(q_rad, self.anchor_q, self.anchor_m,
-                                               self.rate_m_rad, band_m, bounds, near, listed)
+                                               self.rate_m_rad, band_m, self.repeatable, bounds,
+                                               near, listed)
         for p in listed[:n_changed]:  # the near pairs are the active ones of data
             (data.activateCollisionPair if near[p] else data.deactivateCollisionPair)(int(p))
         if n_near:
@@ -361,22 +382,26 @@ def _lower_bound(q_in, ahead, q0, d0, rate):
 
 
 @nb.njit(cache=True, nogil=True)
-def _pair_bounds(q, q0, d0, rate, band_m, bounds, near, changed):
+def _pair_bounds(q, q0, d0, rate, band_m, reuse, bounds, near, changed):
     """Each pair's Lipschitz lower bound at ``q`` from its distance ``d0[p]`` at ``q0[p]``
-    (m, to ``bounds``); ``near`` set to the pairs whose bound is at most ``band_m``, listing in
-    ``changed`` first the pairs whose entry changed, then the near pairs. Returns (how many
-    changed, how many are near, the pair of the smallest bound)."""
+    (m, to ``bounds``); ``near`` set to the pairs whose bound is at most ``band_m`` (with
+    ``reuse``, except those whose joints with a rate are exactly ``q0[p]``'s: their bound is
+    their distance), listing in ``changed`` first the pairs whose entry changed, then the near
+    pairs. Returns (how many changed, how many are near, the pair of the smallest bound)."""
     n_changed, best = 0, 0
     for p in range(d0.shape[0]):
         bound = d0[p]
+        moved = not reuse or d0[p] == -np.inf
         for j in range(q.shape[0]):
             if rate[p, j] > 0.0:
                 bound -= rate[p, j] * abs(q[j] - q0[p, j])
+                moved = moved or q[j] != q0[p, j]
         bounds[p] = bound
         if bound < bounds[best]:
             best = p
-        if (bound <= band_m) != near[p]:
-            near[p] = bound <= band_m
+        compute = moved and bound <= band_m
+        if compute != near[p]:
+            near[p] = compute
             changed[n_changed] = p
             n_changed += 1
     n_near = 0
@@ -458,7 +483,8 @@ class CollisionDetector(Module):
         _lower_bound(*np.zeros((2, self.limits.size)), np.zeros((1, self.limits.size)),
                      np.zeros(1), np.zeros((1, self.limits.size)))
         _pair_bounds(np.zeros(self.limits.size), np.zeros((1, self.limits.size)), np.zeros(1),
-                     np.zeros((1, self.limits.size)), 0.0, np.zeros(1), np.zeros(1, dtype=bool),
+                     np.zeros((1, self.limits.size)), 0.0, False, np.zeros(1),
+                     np.zeros(1, dtype=bool),
                      np.zeros(2, dtype=np.int64))
         _take_near(np.zeros(self.limits.size), np.zeros(1, dtype=np.int64), np.zeros(1),
                    np.zeros((1, self.limits.size)), np.zeros(1))

@@ -74,7 +74,7 @@ class CollisionRoom:
                  arms: tuple[str, ...] = ARMS) -> None:
         self.model = model
         self.room_m = float(room_m)
-        self.checker = SelfCollisionChecker(model, drill=drill)
+        self.checker = SelfCollisionChecker(model, drill=drill, repeatable=True)
         self.arms = tuple(arms)
         self.lower = np.asarray(model.lower_rad, dtype=float)
         self.upper = np.asarray(model.upper_rad, dtype=float)
@@ -182,13 +182,13 @@ class CollisionRoom:
             arm = arms[0]
             index = self._index[arm]
             q[index] = q_prev[index]
-            d = self._distance(q)[0]
+            d, pair_prev = self._distance(q)
             reach, T_goal = goals[arm]
             T_goal = np.ascontiguousarray(T_goal, float)
             moved.add(arm)
             if d >= self.room_m and self._still(arm, q[index], T_goal):
                 self.skipped += 1
-                d, pair = self._distance(q)
+                pair = pair_prev  # the check just made (repeatable: the same a second time)
                 continue
             q, d, rested = self._search_arm(q, d, index, reach, T_goal)
             self._rested[arm] = (T_goal, q[index].copy()) if rested else None
