@@ -203,7 +203,7 @@ class ReferenceRoom(CollisionRoom):
         cos = (np.trace(T_was[:3, :3].T @ T_goal[:3, :3]) - 1.0) / 2.0
         return bool(cos >= np.cos(room_module.STILL_GOAL_RAD))
 
-    def _search_arm(self, q, d, index, reach, T_goal):  # as it was
+    def _search_arm(self, q, d, pair, index, reach, T_goal):  # as it was (its gradient the room's)
         limb = reach.limb
         base, _, offset, alpha, a, dd, end, _ = limb.chain
         w = np.array([1.0, 1.0, 1.0] + [room_module.ORIENTATION_WEIGHT_M_PER_RAD] * 3)
@@ -224,11 +224,7 @@ class ReferenceRoom(CollisionRoom):
             Jw = J * w[:, None]
             H = Jw.T @ Jw + DAMPING**2 * np.eye(6)
             dq = np.linalg.solve(H, Jw.T @ e)
-            grad = np.empty(6)
-            for k, i in enumerate(index):
-                q_d = q.copy()
-                q_d[i] += room_module.DIFF_RAD
-                grad[k] = (self._distance(q_d)[0] - d) / room_module.DIFF_RAD
+            grad = self._gradient(q, d, pair, index)
             need = self.room_m + room_module.AIM_M - d
             if np.all(np.isfinite(grad)) and grad @ dq < need:
                 h_grad = np.linalg.solve(H, grad)
@@ -241,10 +237,10 @@ class ReferenceRoom(CollisionRoom):
             for scale in (1.0, 0.5, 0.25):
                 q_try = q.copy()
                 q_try[index] = np.clip(q[index] + scale * dq, lo, hi)
-                d_try = self._distance(q_try)[0]
+                d_try, pair_try = self._distance(q_try)
                 c_try = cost(q_try[index])
                 if d_try >= min(self.room_m, d) and (c_try < c or d < self.room_m <= d_try):
-                    q, d, c = q_try, d_try, c_try
+                    q, d, c, pair = q_try, d_try, c_try, pair_try
                     break
             else:
                 return q, d, True

@@ -97,6 +97,55 @@ SKIP_MARGIN_M = 0.002  # a period's checks are skipped while the Lipschitz lower
                        # pair over the period's postures stays this far beyond tolerance_m
 
 
+WITNESS_MIN_M = 1e-5  # distance_gradient: closer shapes have no reliable normal
+FLAT_COS = 1e-3  # ... a face or an edge within this (rad) of facing the other shape: flat
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b for 3-vectors (np.cross costs 40 us a call)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
+                     a[0] * b[1] - a[1] * b[0]])
+
+
+def _shape_kind(shape) -> str:
+    """How :func:`_support_span` treats a coal shape."""
+    for kind, cls in (("point", coal.Sphere), ("box", coal.Box), ("cylinder", coal.Cylinder),
+                      ("capsule", coal.Capsule)):
+        if isinstance(shape, cls):
+            return kind
+    return "flat"  # another shape: taken as flat (never a gradient from it)
+
+
+def _support_span(kind: str, R: np.ndarray, n: np.ndarray) -> list[np.ndarray]:
+    """The directions (world) along which a shape of ``kind`` (:func:`_shape_kind`, rotation
+    ``R``) touches its supporting plane of normal +-``n`` within FLAT_COS rad: none (a point),
+    one (an edge, a cylinder's or a capsule's side) or two (a face, a cylinder's cap)."""
+    if kind == "point":
+        return []
+    if kind == "flat":
+        return [R[:, 0], R[:, 1]]
+    cos = (n @ R).tolist()  # n against the shape's axes
+    if kind == "box":
+        return [R[:, k] for k in range(3) if abs(cos[k]) < FLAT_COS]
+    along = abs(cos[2])  # cylinders and capsules lie along their local z
+    if along < FLAT_COS:
+        return [R[:, 2]]
+    if kind == "cylinder" and 1.0 - along * along < FLAT_COS * FLAT_COS:
+        return [R[:, 0], R[:, 1]]
+    return []
+
+
+def _witness_not_unique(span_1: list, span_2: list) -> bool:
+    """The two supports (:func:`_support_span`) meet in more than a point: a face with an edge
+    or a face, or two parallel edges."""
+    if not span_1 or not span_2:
+        return False
+    if len(span_1) == 2 or len(span_2) == 2:
+        return True
+    sine = _cross(span_1[0], span_2[0])
+    return math.sqrt(sine @ sine) < FLAT_COS
+
+
 _REVOLUTE = ("JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned")
 
 
@@ -217,11 +266,18 @@ class SelfCollisionChecker:
         # the others' distances are taken at joints up to STILL_RAD away from the check's
         self._still_slack_m = np.where(self._legs_pair, 0.0,
                                        STILL_RAD * self.rate_m_rad.sum(axis=1))
+        self._grad_data = pmodel.createData()  # distance_gradient's own, repeatable
+        self._pair_shapes = [tuple((g, _shape_kind(geom.geometryObjects[g].geometry),
+                                    geom.geometryObjects[g].parentJoint)
+                                   for g in (pair.first, pair.second))
+                             for pair in geom.collisionPairs]
+        self._grad_geom_data = pin.GeometryData(geom)
         self.repeatable = bool(repeatable)
         if self.repeatable:
             with warnings.catch_warnings():  # coal marks the flag deprecated; it still rules
                 warnings.simplefilter("ignore", DeprecationWarning)
-                for data in (self.geom_data, *self._split, self._near_data):
+                for data in (self.geom_data, *self._split, self._near_data,
+                             self._grad_geom_data):
                     for request in data.distanceRequests:
                         request.enable_cached_gjk_guess = False
                         request.gjk_initial_guess = coal.GJKInitialGuess.DefaultGuess
@@ -286,6 +342,35 @@ class SelfCollisionChecker:
             placement = frame.placement * pin.SE3(R, np.array([x, 0.0, 0.0]))
             obj = pin.GeometryObject(name, frame.parentJoint, placement, shape)
             geom.addGeometryObject(obj)
+
+    def distance_gradient(self, q_rad: np.ndarray, pair: int,
+                          columns: np.ndarray) -> np.ndarray | None:
+        """The gradient of pair ``pair``'s distance with respect to the joints ``columns`` of
+        the 24 ``q_rad`` (m/rad), from coal's witness points p1, p2 and normal n at ``q_rad``:
+        n^T (J_2(p2) - J_1(p1)), the shapes' point Jacobians (world axes). None where that is
+        not the derivative: shapes touching or overlapping (closer than ``WITNESS_MIN_M``), or
+        witness points not unique (within ``FLAT_COS`` of a face on a face or an edge, or two
+        parallel edges: the distance has a kink there)."""
+        pmodel, data, gdata = self.robot.model, self._grad_data, self._grad_geom_data
+        q = self.robot.configuration(q_rad, out=self._q)
+        pin.computeJointJacobians(pmodel, data, q)
+        pin.updateGeometryPlacements(pmodel, data, self.geom, gdata)
+        result = pin.computeDistance(self.geom, gdata, pair)
+        p1, p2 = result.getNearestPoint1(), result.getNearestPoint2()
+        d = float(result.min_distance)
+        if not d > WITNESS_MIN_M:
+            return None
+        n = (p2 - p1) / d
+        shapes = self._pair_shapes[pair]
+        if _witness_not_unique(*(_support_span(kind, gdata.oMg[g].rotation, n)
+                                 for g, kind, _ in shapes)):
+            return None
+        gradient = np.zeros(pmodel.nv)
+        for (_, _, joint), p, sign in zip(shapes, (p1, p2), (-1.0, 1.0), strict=True):
+            J = pin.getJointJacobian(pmodel, data, joint, pin.LOCAL_WORLD_ALIGNED)
+            r = p - data.oMi[joint].translation  # v_p = v_o + w x r: n.v_p = n.v_o + (r x n).w
+            gradient += sign * (n @ J[:3] + _cross(r, n) @ J[3:])
+        return gradient[self.robot.q_index[columns]]
 
     def check(self, q_rad: np.ndarray) -> Clearance:
         """The closest checked pair for the 24 joints ``q_rad`` (rad)."""

@@ -84,6 +84,7 @@ class CollisionRoom:
                           for joint in model.limb(arm).joints}
         if drill and "right-arm" in self.arms:
             self._link_arm["drill"] = "right-arm"
+        self._pair_index = {names: k for k, names in enumerate(self.checker.pair_names)}
         self.pushed_periods = dict.fromkeys(self.arms, 0)
         self.moved: set[str] = set()  # the arms the last call moved
         self._rested: dict[str, tuple | None] = {}  # arm -> (goal, joints) a search rested at
@@ -136,11 +137,7 @@ class CollisionRoom:
             if not arms:  # the legs alone: nothing an arm target can do
                 break
             index = np.concatenate([self._index[a] for a in arms])
-            grad = np.empty(len(index))
-            for k, i in enumerate(index):
-                q_d = q.copy()
-                q_d[i] += DIFF_RAD
-                grad[k] = (self._distance(q_d)[0] - d) / DIFF_RAD
+            grad = self._gradient(q, d, pair, index)
             norm2 = float(grad @ grad)
             if not np.isfinite(norm2) or norm2 < 1e-12:
                 break
@@ -190,7 +187,7 @@ class CollisionRoom:
                 self.skipped += 1
                 pair = pair_prev  # the check just made (repeatable: the same a second time)
                 continue
-            q, d, rested = self._search_arm(q, d, index, reach, T_goal)
+            q, d, rested = self._search_arm(q, d, pair_prev, index, reach, T_goal)
             self._rested[arm] = (T_goal, q[index].copy()) if rested else None
             d, pair = self._distance(q)
         return q, d, moved
@@ -209,8 +206,24 @@ class CollisionRoom:
         cos = (np.trace(T_was[:3, :3].T @ T_goal[:3, :3]) - 1.0) / 2.0
         return bool(cos >= _STILL_GOAL_COS)
 
-    def _search_arm(self, q: np.ndarray, d: float, index: np.ndarray, reach,
-                    T_goal: np.ndarray) -> tuple[np.ndarray, float, bool]:
+    def _gradient(self, q: np.ndarray, d: float, pair: tuple[str, str],
+                  index: np.ndarray) -> np.ndarray:
+        """The gradient of the clearance ``d`` at ``q`` (closest pair ``pair``) with respect to
+        the joints ``index`` (m/rad): coal's witness points and normal
+        (:meth:`~hubo_cli.control.collision.SelfCollisionChecker.distance_gradient`), or
+        where they give none (touching, a face on a face), forward differences of DIFF_RAD."""
+        grad = self.checker.distance_gradient(q, self._pair_index[pair], index)
+        if grad is not None:
+            return grad
+        grad = np.empty(len(index))
+        for k, i in enumerate(index):
+            q_d = q.copy()
+            q_d[i] += DIFF_RAD
+            grad[k] = (self._distance(q_d)[0] - d) / DIFF_RAD
+        return grad
+
+    def _search_arm(self, q: np.ndarray, d: float, pair: tuple[str, str], index: np.ndarray,
+                    reach, T_goal: np.ndarray) -> tuple[np.ndarray, float, bool]:
         """A few steps of the clear search for one arm (see the module docstring); returns
         (joints, clearance, whether it came to rest: no step left that helps)."""
         limb = reach.limb
@@ -233,11 +246,7 @@ class CollisionRoom:
             Jw = J * w[:, None]
             H = Jw.T @ Jw + DAMPING**2 * np.eye(6)
             dq = np.linalg.solve(H, Jw.T @ e)
-            grad = np.empty(6)
-            for k, i in enumerate(index):
-                q_d = q.copy()
-                q_d[i] += DIFF_RAD
-                grad[k] = (self._distance(q_d)[0] - d) / DIFF_RAD
+            grad = self._gradient(q, d, pair, index)
             need = self.room_m + AIM_M - d
             if all_finite(grad) and grad @ dq < need:
                 # the step of least weighted error whose linearised clearance is the room: it
@@ -252,10 +261,10 @@ class CollisionRoom:
             for scale in (1.0, 0.5, 0.25):
                 q_try = q.copy()
                 q_try[index] = np.minimum(np.maximum(q[index] + scale * dq, lo), hi)  # np.clip
-                d_try = self._distance(q_try)[0]
+                d_try, pair_try = self._distance(q_try)
                 c_try = cost(q_try[index])
                 if d_try >= min(self.room_m, d) and (c_try < c or d < self.room_m <= d_try):
-                    q, d, c = q_try, d_try, c_try
+                    q, d, c, pair = q_try, d_try, c_try, pair_try
                     break
             else:
                 return q, d, True
