@@ -47,6 +47,7 @@ DIFF_RAD = 1e-4              # finite-difference step of the distance's gradient
 SEARCH_STEPS = 3             # the clear search's steps per call (it goes on the next period)
 ORIENTATION_WEIGHT_M_PER_RAD = 0.01  # the clear search's: position first (1 deg = 0.17 mm)
 AIM_M = 0.001                # its steps aim this far beyond the room (the body's curvature)
+REST_M = 0.0001               # a search whose weighted error falls less than this is at rest
 STILL_GOAL_M = 0.0005       # a goal this close (and STILL_GOAL_RAD) to the one a clear search
 STILL_GOAL_RAD = np.radians(0.5)  # came to rest at is not searched again
 _STILL_GOAL_COS = np.cos(STILL_GOAL_RAD)
@@ -241,7 +242,7 @@ class CollisionRoom:
             e[:] *= w
             return float(e @ e)
 
-        c = cost(q[index])
+        c = c_start = cost(q[index])
         for _ in range(SEARCH_STEPS):
             Jw = J * w[:, None]
             H = Jw.T @ Jw + DAMPING**2 * np.eye(6)
@@ -268,7 +269,9 @@ class CollisionRoom:
                     break
             else:
                 return q, d, True
-        return q, d, False
+        # creeping along the body (its weighted error falling by less than REST_M a call):
+        # at rest too
+        return q, d, math.sqrt(c_start) - math.sqrt(c) < REST_M
 
     def _done(self, q: np.ndarray, d: float, moved: set[str]) -> np.ndarray:
         self.last_clearance_m = d
