@@ -10,6 +10,8 @@ from hubo_cli.control.collision import (
     CollisionDetector,
     SelfCollisionChecker,
     _lower_bound,
+    _support_span,
+    _witness_not_unique,
 )
 from hubo_cli.control.module import Cycle
 from hubo_cli.dataflow import Store
@@ -145,6 +147,26 @@ def test_a_repeatable_checker_gives_the_same_distances_at_the_same_joints(model)
     assert differed > 10  # the default checker's did differ
 
 
+def test_the_witness_points_are_unique_unless_flat_meets_flat():
+    """The supports' shapes: a sphere touches at a point; a box at a corner, along an edge or a
+    face as the normal meets its axes; a cylinder at its rim, along its side or its cap. Two
+    supports meet in more than a point when one is a face and the other not a point, or both
+    are parallel edges (then distance_gradient declines)."""
+    R = np.eye(3)
+    x, z = np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
+    tilted = np.array([1.0, 1.0, 1.0]) / np.sqrt(3.0)
+    assert _support_span("point", R, x) == []
+    assert len(_support_span("box", R, x)) == 2 and len(_support_span("box", R, tilted)) == 0
+    assert len(_support_span("box", R, np.array([1.0, 1.0, 0.0]) / np.sqrt(2.0))) == 1
+    assert len(_support_span("cylinder", R, z)) == 2 and len(_support_span("capsule", R, z)) == 0
+    assert len(_support_span("cylinder", R, x)) == 1
+    assert len(_support_span("cylinder", R, tilted)) == 0
+    face, edge_z, edge_y = [x, z], [z], [np.array([0.0, 1.0, 0.0])]
+    assert _witness_not_unique(face, edge_z) and _witness_not_unique(face, face)
+    assert _witness_not_unique(edge_z, edge_z) and not _witness_not_unique(edge_z, edge_y)
+    assert not _witness_not_unique([], face)
+
+
 def test_the_distance_gradient_is_the_finite_difference(model):
     """distance_gradient (coal's witness points and normal, the shapes' point Jacobians) against
     central differences (1e-4 rad) of each pair's distance, over random postures with and
@@ -181,11 +203,10 @@ def test_the_distance_gradient_is_the_finite_difference(model):
                     continue  # a kink within 5e-4 rad
                 worst = max(worst, float(np.abs(gradient - fd[0]).max()))
                 compared += 1
-    # measured: the largest difference XXX m/rad over XXX compared gradients (the distances'
-    # GJK tolerance, 1e-6 m, over 2e-6 rad alone allows 0.5 m/rad: seldom reached)
-    print('GRAD', worst, compared, declined)
+    # measured: the largest difference 3.9e-4 m/rad over 297 compared gradients (gradients of
+    # 0.01-1 m/rad), 1 declined (overlapping), 2 near a kink; bounds 2.5x and 2x from those
     assert worst < 1e-3
-    assert compared > 150
+    assert compared > 150 and declined < 20
 
 
 def _smooth(a, b, n):

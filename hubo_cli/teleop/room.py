@@ -17,15 +17,20 @@ error falls. A 6-joint arm reaches most positions in front of the chest with its
 with the start orientation the upper arm and elbow meet the torso 4-6 cm inward of the
 free-mode ready pose (the shoulder roll moves them in); turned 15-20 deg, they pass outside it.
 Without goals (or when that search ends inside the band), the target is pushed back along the
-closest pair's gradient with respect to the arms' joints (a few Newton steps, finite
-differences), and if that fails goes as far as it can along its step from the last target
-(bisection). A target never goes deeper into the band than the last one was.
+closest pair's gradient with respect to the arms' joints (a few Newton steps), and if that
+fails goes as far as it can along its step from the last target (bisection). A target never
+goes deeper into the band than the last one was. The closest pair's gradient comes from coal's
+witness points and normal (one check, exact to GJK's tolerance); where they give none (shapes
+touching, a face against a face) from forward differences of ``DIFF_RAD`` (six checks). It
+only shapes the steps: every step taken is checked.
 
 Distances are the checker's :meth:`~hubo_cli.control.collision.SelfCollisionChecker.check_near`
 (exact near the room, Lipschitz lower bounds for the pairs far from it, which it does not
-compute). An arm whose clear search came to rest (no step left that helps) is not searched
-again while its goal stays within ``STILL_GOAL_M`` and ``STILL_GOAL_RAD`` of that goal and its
-last target is still clear: the search would find the same pose.
+compute), from a repeatable checker: the same joints give the same distances, whatever was
+computed before. An arm whose clear search came to rest (no step left that helps, or its
+weighted error falling by less than ``REST_M`` in a call: creeping along the body) is not
+searched again while its goal stays within ``STILL_GOAL_M`` and ``STILL_GOAL_RAD`` of that goal
+and its last target is still clear; that period takes the check of the last target it made.
 """
 
 from __future__ import annotations
@@ -47,7 +52,7 @@ DIFF_RAD = 1e-4              # finite-difference step of the distance's gradient
 SEARCH_STEPS = 3             # the clear search's steps per call (it goes on the next period)
 ORIENTATION_WEIGHT_M_PER_RAD = 0.01  # the clear search's: position first (1 deg = 0.17 mm)
 AIM_M = 0.001                # its steps aim this far beyond the room (the body's curvature)
-REST_M = 0.0001               # a search whose weighted error falls less than this is at rest
+REST_M = 0.0001              # a search call cutting its weighted error less: at rest
 STILL_GOAL_M = 0.0005       # a goal this close (and STILL_GOAL_RAD) to the one a clear search
 STILL_GOAL_RAD = np.radians(0.5)  # came to rest at is not searched again
 _STILL_GOAL_COS = np.cos(STILL_GOAL_RAD)
