@@ -272,6 +272,12 @@ class SelfCollisionChecker:
                                    for g in (pair.first, pair.second))
                              for pair in geom.collisionPairs]
         self._grad_geom_data = pin.GeometryData(geom)
+        # compile distance_gradient's kernel now (for the layouts pinocchio hands it), not in
+        # the first period that needs it
+        pin.computeJointJacobians(pmodel, self._grad_data, pin.neutral(pmodel))
+        J = pin.getJointJacobian(pmodel, self._grad_data, 1, pin.LOCAL_WORLD_ALIGNED)
+        o = self._grad_data.oMi[1].translation
+        _witness_gradient(o, o, o, J, o, o, J, self.robot.q_index[:1], np.empty(1))
         self.repeatable = bool(repeatable)
         if self.repeatable:
             with warnings.catch_warnings():  # coal marks the flag deprecated; it still rules
@@ -361,16 +367,18 @@ class SelfCollisionChecker:
         if not d > WITNESS_MIN_M:
             return None
         n = (p2 - p1) / d
-        shapes = self._pair_shapes[pair]
-        if _witness_not_unique(*(_support_span(kind, gdata.oMg[g].rotation, n)
-                                 for g, kind, _ in shapes)):
+        (g1, kind1, joint1), (g2, kind2, joint2) = self._pair_shapes[pair]
+        if kind1 != "point" and kind2 != "point" and _witness_not_unique(
+                _support_span(kind1, gdata.oMg[g1].rotation, n),
+                _support_span(kind2, gdata.oMg[g2].rotation, n)):
             return None
-        gradient = np.zeros(pmodel.nv)
-        for (_, _, joint), p, sign in zip(shapes, (p1, p2), (-1.0, 1.0), strict=True):
-            J = pin.getJointJacobian(pmodel, data, joint, pin.LOCAL_WORLD_ALIGNED)
-            r = p - data.oMi[joint].translation  # v_p = v_o + w x r: n.v_p = n.v_o + (r x n).w
-            gradient += sign * (n @ J[:3] + _cross(r, n) @ J[3:])
-        return gradient[self.robot.q_index[columns]]
+        gradient = np.empty(len(columns))
+        _witness_gradient(n, p1, data.oMi[joint1].translation,
+                          pin.getJointJacobian(pmodel, data, joint1, pin.LOCAL_WORLD_ALIGNED),
+                          p2, data.oMi[joint2].translation,
+                          pin.getJointJacobian(pmodel, data, joint2, pin.LOCAL_WORLD_ALIGNED),
+                          self.robot.q_index[columns], gradient)
+        return gradient
 
     def check(self, q_rad: np.ndarray) -> Clearance:
         """The closest checked pair for the 24 joints ``q_rad`` (rad)."""
@@ -427,6 +435,25 @@ class SelfCollisionChecker:
         if best >= len(self.pair_names):
             return np.inf, best
         return float(data.distanceResults[best].min_distance), best
+
+
+@nb.njit(cache=True, nogil=True)
+def _witness_gradient(n, p1, o1, J1, p2, o2, J2, columns, out):
+    """n^T (J_2(p2) - J_1(p1)) on ``columns`` to ``out``: J_k the 6 x nv Jacobian (world axes)
+    of the joint at ``o_k`` carrying shape k, the point's velocity v_o + w x (p - o), so
+    n.v_p = n.v_o + ((p - o) x n).w."""
+    c1, c2 = np.empty(3), np.empty(3)
+    for c, p, o in ((c1, p1, o1), (c2, p2, o2)):
+        rx, ry, rz = p[0] - o[0], p[1] - o[1], p[2] - o[2]
+        c[0] = ry * n[2] - rz * n[1]
+        c[1] = rz * n[0] - rx * n[2]
+        c[2] = rx * n[1] - ry * n[0]
+    for k in range(columns.shape[0]):
+        j = columns[k]
+        g = 0.0
+        for i in range(3):
+            g += n[i] * (J2[i, j] - J1[i, j]) + c2[i] * J2[3 + i, j] - c1[i] * J1[3 + i, j]
+        out[k] = g
 
 
 @nb.njit(cache=True, nogil=True)
