@@ -206,8 +206,8 @@ class ReferenceRoom(CollisionRoom):
         cos = (np.trace(T_was[:3, :3].T @ T_goal[:3, :3]) - 1.0) / 2.0
         return bool(cos >= np.cos(room_module.STILL_GOAL_RAD))
 
-    def _clear_search(self, q_prev, q_next, goals):  # as it was: a still goal checked again
-        q = q_next.copy()
+    def _clear_search(self, q_prev, q_next, goals, d, pair):  # as it was: q_next checked again
+        q = q_next.copy()                                        # and a still goal too
         d, pair = self._distance(q)
         moved = set()
         for _ in range(len(self.arms)):

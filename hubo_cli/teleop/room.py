@@ -133,7 +133,8 @@ class CollisionRoom:
             self.moved = set()
             return q_next
         if goals:
-            q, d_q, moved = self._clear_search(np.asarray(q_prev_rad, dtype=float), q_next, goals)
+            q, d_q, moved = self._clear_search(np.asarray(q_prev_rad, dtype=float), q_next, goals,
+                                               d, pair)
             if d_q >= self.room_m:
                 return self._done(q, d_q, moved)
         q = q_next.copy()
@@ -171,12 +172,12 @@ class CollisionRoom:
         moved = {a for a in self.arms if np.any(q_next[self._index[a]] != q[self._index[a]])}
         return self._done(q, self._distance(q)[0], moved)
 
-    def _clear_search(self, q_prev: np.ndarray, q_next: np.ndarray,
-                      goals: dict) -> tuple[np.ndarray, float, set[str]]:
-        """The arms in the band: from their last targets toward their goals, clear of the body
-        (see the module docstring). Returns (joints, their clearance, the arms moved)."""
+    def _clear_search(self, q_prev: np.ndarray, q_next: np.ndarray, goals: dict, d: float,
+                      pair: tuple[str, str]) -> tuple[np.ndarray, float, set[str]]:
+        """The arms in the band (``q_next``'s closest pair ``pair`` at ``d`` < room, exact):
+        from their last targets toward their goals, clear of the body (see the module
+        docstring). Returns (joints, their clearance, the arms moved)."""
         q = q_next.copy()
-        d, pair = self._distance(q)
         moved: set[str] = set()
         for _ in range(len(self.arms)):  # the arms of the closest pair, one after the other
             arms = [a for a in self._arms_of(pair) if a in goals and a not in moved]
