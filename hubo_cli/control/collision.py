@@ -98,7 +98,7 @@ SKIP_MARGIN_M = 0.002  # a period's checks are skipped while the Lipschitz lower
 
 
 WITNESS_MIN_M = 1e-5  # distance_gradient: closer shapes have no reliable normal
-FLAT_COS = 1e-3  # ... a face or an edge within this (rad) of facing the other shape: flat
+FLAT_RAD = 1e-3  # ... a face or an edge within this angle of facing the other shape: flat
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -118,7 +118,7 @@ def _shape_kind(shape) -> str:
 
 def _support_span(kind: str, R: np.ndarray, n: np.ndarray) -> list[np.ndarray]:
     """The directions (world) along which a shape of ``kind`` (:func:`_shape_kind`, rotation
-    ``R``) touches its supporting plane of normal +-``n`` within FLAT_COS rad: none (a point),
+    ``R``) touches its supporting plane of normal +-``n`` within FLAT_RAD rad: none (a point),
     one (an edge, a cylinder's or a capsule's side) or two (a face, a cylinder's cap)."""
     if kind == "point":
         return []
@@ -126,11 +126,11 @@ def _support_span(kind: str, R: np.ndarray, n: np.ndarray) -> list[np.ndarray]:
         return [R[:, 0], R[:, 1]]
     cos = (n @ R).tolist()  # n against the shape's axes
     if kind == "box":
-        return [R[:, k] for k in range(3) if abs(cos[k]) < FLAT_COS]
+        return [R[:, k] for k in range(3) if abs(cos[k]) < FLAT_RAD]
     along = abs(cos[2])  # cylinders and capsules lie along their local z
-    if along < FLAT_COS:
+    if along < FLAT_RAD:
         return [R[:, 2]]
-    if kind == "cylinder" and 1.0 - along * along < FLAT_COS * FLAT_COS:
+    if kind == "cylinder" and 1.0 - along * along < FLAT_RAD * FLAT_RAD:
         return [R[:, 0], R[:, 1]]
     return []
 
@@ -143,7 +143,7 @@ def _witness_not_unique(span_1: list, span_2: list) -> bool:
     if len(span_1) == 2 or len(span_2) == 2:
         return True
     sine = _cross(span_1[0], span_2[0])
-    return math.sqrt(sine @ sine) < FLAT_COS
+    return math.sqrt(sine @ sine) < FLAT_RAD
 
 
 _REVOLUTE = ("JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned")
@@ -355,7 +355,7 @@ class SelfCollisionChecker:
         the 24 ``q_rad`` (m/rad), from coal's witness points p1, p2 and normal n at ``q_rad``:
         n^T (J_2(p2) - J_1(p1)), the shapes' point Jacobians (world axes). None where that is
         not the derivative: shapes touching or overlapping (closer than ``WITNESS_MIN_M``), or
-        witness points not unique (within ``FLAT_COS`` of a face on a face or an edge, or two
+        witness points not unique (within ``FLAT_RAD`` of a face on a face or an edge, or two
         parallel edges: the distance has a kink there)."""
         pmodel, data, gdata = self.robot.model, self._grad_data, self._grad_geom_data
         q = self.robot.configuration(q_rad, out=self._q)
