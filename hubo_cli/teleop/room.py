@@ -48,7 +48,7 @@ from hubo_cli.teleop.target_kernels import max_abs_difference
 ROOM_M = TOLERANCE_M + 0.005  # the detector's band and 5 mm for the command's braking look-ahead
 NEWTON_STEPS = 3
 BISECTIONS = 8
-DIFF_RAD = 1e-4              # finite-difference step of the distance's gradient
+DIFF_RAD = 1e-4              # finite-difference step of the gradient where witness points fail
 SEARCH_STEPS = 3             # the clear search's steps per call (it goes on the next period)
 ORIENTATION_WEIGHT_M_PER_RAD = 0.01  # the clear search's: position first (1 deg = 0.17 mm)
 AIM_M = 0.001                # its steps aim this far beyond the room (the body's curvature)
