@@ -61,6 +61,7 @@ both are lower bounds (see above).
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 
 import coal
@@ -94,6 +95,55 @@ UNBLOCK_RAD = 0.05   # after the way back was blocked, retry once the input move
                      # (or after recover_s)
 SKIP_MARGIN_M = 0.002  # a period's checks are skipped while the Lipschitz lower bound of every
                        # pair over the period's postures stays this far beyond tolerance_m
+
+
+WITNESS_MIN_M = 1e-5  # distance_gradient: closer shapes have no reliable normal
+FLAT_RAD = 1e-3  # ... a face or an edge within this angle of facing the other shape: flat
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b for 3-vectors (np.cross costs 40 us a call)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
+                     a[0] * b[1] - a[1] * b[0]])
+
+
+def _shape_kind(shape) -> str:
+    """How :func:`_support_span` treats a coal shape."""
+    for kind, cls in (("point", coal.Sphere), ("box", coal.Box), ("cylinder", coal.Cylinder),
+                      ("capsule", coal.Capsule)):
+        if isinstance(shape, cls):
+            return kind
+    return "flat"  # another shape: taken as flat (never a gradient from it)
+
+
+def _support_span(kind: str, R: np.ndarray, n: np.ndarray) -> list[np.ndarray]:
+    """The directions (world) along which a shape of ``kind`` (:func:`_shape_kind`, rotation
+    ``R``) touches its supporting plane of normal +-``n`` within FLAT_RAD rad: none (a point),
+    one (an edge, a cylinder's or a capsule's side) or two (a face, a cylinder's cap)."""
+    if kind == "point":
+        return []
+    if kind == "flat":
+        return [R[:, 0], R[:, 1]]
+    cos = (n @ R).tolist()  # n against the shape's axes
+    if kind == "box":
+        return [R[:, k] for k in range(3) if abs(cos[k]) < FLAT_RAD]
+    along = abs(cos[2])  # cylinders and capsules lie along their local z
+    if along < FLAT_RAD:
+        return [R[:, 2]]
+    if kind == "cylinder" and 1.0 - along * along < FLAT_RAD * FLAT_RAD:
+        return [R[:, 0], R[:, 1]]
+    return []
+
+
+def _witness_not_unique(span_1: list, span_2: list) -> bool:
+    """The two supports (:func:`_support_span`) meet in more than a point: a face with an edge
+    or a face, or two parallel edges."""
+    if not span_1 or not span_2:
+        return False
+    if len(span_1) == 2 or len(span_2) == 2:
+        return True
+    sine = _cross(span_1[0], span_2[0])
+    return math.sqrt(sine @ sine) < FLAT_RAD
 
 
 _REVOLUTE = ("JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned")
@@ -137,14 +187,25 @@ class SelfCollisionChecker:
     remembered with the joints it was computed for, and a check costs the legs' pairs only;
     when they move, every pair is computed in one pass as before.
 
+    Repeatable distances (``repeatable=True``): pinocchio's distance requests start each pair's
+    GJK from its last answer (``enable_cached_gjk_guess``), so a distance computed a second time
+    at the same joints differs within GJK's tolerance (1e-6 m; by 3e-9 m median on drawn
+    postures), depending on what was computed before. Started from coal's fixed default guess
+    instead, a pair's distance depends only on its placements, and :meth:`check_near` takes
+    the distance of a pair whose joints (those with a rate for it) are exactly those of its last
+    computed distance without computing it again: the same number by construction. The
+    pipeline's detector keeps the cached guess (its results as they were); the teleop's
+    collision room uses the repeatable checker.
+
     Args:
         model: the robot model.
         drill: add the drill capsules to the right hand.
         pairs: link pairs to check (default :func:`default_pairs`).
+        repeatable: the fixed initial guess, and no second computation of an unmoved pair.
     """
 
     def __init__(self, model: RobotModel, drill: bool = False,
-                 pairs: list[tuple[str, str]] | None = None) -> None:
+                 pairs: list[tuple[str, str]] | None = None, repeatable: bool = False) -> None:
         self.robot: PinRobot = load_pin_robot(model)
         pmodel = self.robot.model
         path = str(self.robot.urdf_path)
@@ -205,6 +266,27 @@ class SelfCollisionChecker:
         # the others' distances are taken at joints up to STILL_RAD away from the check's
         self._still_slack_m = np.where(self._legs_pair, 0.0,
                                        STILL_RAD * self.rate_m_rad.sum(axis=1))
+        self._grad_data = pmodel.createData()  # distance_gradient's own, repeatable
+        self._pair_shapes = [tuple((g, _shape_kind(geom.geometryObjects[g].geometry),
+                                    geom.geometryObjects[g].parentJoint)
+                                   for g in (pair.first, pair.second))
+                             for pair in geom.collisionPairs]
+        self._grad_geom_data = pin.GeometryData(geom)
+        # compile distance_gradient's kernel now (for the layouts pinocchio hands it), not in
+        # the first period that needs it
+        pin.computeJointJacobians(pmodel, self._grad_data, pin.neutral(pmodel))
+        J = pin.getJointJacobian(pmodel, self._grad_data, 1, pin.LOCAL_WORLD_ALIGNED)
+        o = self._grad_data.oMi[1].translation
+        _witness_gradient(o, o, o, J, o, o, J, self.robot.q_index[:1], np.empty(1))
+        self.repeatable = bool(repeatable)
+        if self.repeatable:
+            with warnings.catch_warnings():  # coal marks the flag deprecated; it still rules
+                warnings.simplefilter("ignore", DeprecationWarning)
+                for data in (self.geom_data, *self._split, self._near_data,
+                             self._grad_geom_data):
+                    for request in data.distanceRequests:
+                        request.enable_cached_gjk_guess = False
+                        request.gjk_initial_guess = coal.GJKInitialGuess.DefaultGuess
 
     def _pair_rates(self) -> np.ndarray:
         """How fast each joint can change each pair's distance: (pairs, joints), m/rad.
@@ -267,6 +349,37 @@ class SelfCollisionChecker:
             obj = pin.GeometryObject(name, frame.parentJoint, placement, shape)
             geom.addGeometryObject(obj)
 
+    def distance_gradient(self, q_rad: np.ndarray, pair: int,
+                          columns: np.ndarray) -> np.ndarray | None:
+        """The gradient of pair ``pair``'s distance with respect to the joints ``columns`` of
+        the 24 ``q_rad`` (m/rad), from coal's witness points p1, p2 and normal n at ``q_rad``:
+        n^T (J_2(p2) - J_1(p1)), the shapes' point Jacobians (world axes). None where that is
+        not the derivative: shapes touching or overlapping (closer than ``WITNESS_MIN_M``), or
+        witness points not unique (within ``FLAT_RAD`` of a face on a face or an edge, or two
+        parallel edges: the distance has a kink there)."""
+        pmodel, data, gdata = self.robot.model, self._grad_data, self._grad_geom_data
+        q = self.robot.configuration(q_rad, out=self._q)
+        pin.computeJointJacobians(pmodel, data, q)
+        pin.updateGeometryPlacements(pmodel, data, self.geom, gdata)
+        result = pin.computeDistance(self.geom, gdata, pair)
+        p1, p2 = result.getNearestPoint1(), result.getNearestPoint2()
+        d = float(result.min_distance)
+        if not d > WITNESS_MIN_M:
+            return None
+        n = (p2 - p1) / d
+        (g1, kind1, joint1), (g2, kind2, joint2) = self._pair_shapes[pair]
+        if kind1 != "point" and kind2 != "point" and _witness_not_unique(
+                _support_span(kind1, gdata.oMg[g1].rotation, n),
+                _support_span(kind2, gdata.oMg[g2].rotation, n)):
+            return None
+        gradient = np.empty(len(columns))
+        _witness_gradient(n, p1, data.oMi[joint1].translation,
+                          pin.getJointJacobian(pmodel, data, joint1, pin.LOCAL_WORLD_ALIGNED),
+                          p2, data.oMi[joint2].translation,
+                          pin.getJointJacobian(pmodel, data, joint2, pin.LOCAL_WORLD_ALIGNED),
+                          self.robot.q_index[columns], gradient)
+        return gradient
+
     def check(self, q_rad: np.ndarray) -> Clearance:
         """The closest checked pair for the 24 joints ``q_rad`` (rad)."""
         q = self.robot.configuration(q_rad, out=self._q)
@@ -300,7 +413,8 @@ class SelfCollisionChecker:
             return Clearance(np.inf, ("", ""))
         bounds, near, listed, data = self._bounds_m, self._near, self._listed, self._near_data
         n_changed, n_near, best = _pair_bounds(q_rad, self.anchor_q, self.anchor_m,
-                                               self.rate_m_rad, band_m, bounds, near, listed)
+                                               self.rate_m_rad, band_m, self.repeatable, bounds,
+                                               near, listed)
         for p in listed[:n_changed]:  # the near pairs are the active ones of data
             (data.activateCollisionPair if near[p] else data.deactivateCollisionPair)(int(p))
         if n_near:
@@ -321,6 +435,25 @@ class SelfCollisionChecker:
         if best >= len(self.pair_names):
             return np.inf, best
         return float(data.distanceResults[best].min_distance), best
+
+
+@nb.njit(cache=True, nogil=True)
+def _witness_gradient(n, p1, o1, J1, p2, o2, J2, columns, out):
+    """n^T (J_2(p2) - J_1(p1)) on ``columns`` to ``out``: J_k the 6 x nv Jacobian (world axes)
+    of the joint at ``o_k`` carrying shape k, the point's velocity v_o + w x (p - o), so
+    n.v_p = n.v_o + ((p - o) x n).w."""
+    c1, c2 = np.empty(3), np.empty(3)
+    for c, p, o in ((c1, p1, o1), (c2, p2, o2)):
+        rx, ry, rz = p[0] - o[0], p[1] - o[1], p[2] - o[2]
+        c[0] = ry * n[2] - rz * n[1]
+        c[1] = rz * n[0] - rx * n[2]
+        c[2] = rx * n[1] - ry * n[0]
+    for k in range(columns.shape[0]):
+        j = columns[k]
+        g = 0.0
+        for i in range(3):
+            g += n[i] * (J2[i, j] - J1[i, j]) + c2[i] * J2[3 + i, j] - c1[i] * J1[3 + i, j]
+        out[k] = g
 
 
 @nb.njit(cache=True, nogil=True)
@@ -361,22 +494,26 @@ def _lower_bound(q_in, ahead, q0, d0, rate):
 
 
 @nb.njit(cache=True, nogil=True)
-def _pair_bounds(q, q0, d0, rate, band_m, bounds, near, changed):
+def _pair_bounds(q, q0, d0, rate, band_m, reuse, bounds, near, changed):
     """Each pair's Lipschitz lower bound at ``q`` from its distance ``d0[p]`` at ``q0[p]``
-    (m, to ``bounds``); ``near`` set to the pairs whose bound is at most ``band_m``, listing in
-    ``changed`` first the pairs whose entry changed, then the near pairs. Returns (how many
-    changed, how many are near, the pair of the smallest bound)."""
+    (m, to ``bounds``); ``near`` set to the pairs whose bound is at most ``band_m`` (with
+    ``reuse``, except those whose joints with a rate are exactly ``q0[p]``'s: their bound is
+    their distance), listing in ``changed`` first the pairs whose entry changed, then the near
+    pairs. Returns (how many changed, how many are near, the pair of the smallest bound)."""
     n_changed, best = 0, 0
     for p in range(d0.shape[0]):
         bound = d0[p]
+        moved = not reuse or d0[p] == -np.inf
         for j in range(q.shape[0]):
             if rate[p, j] > 0.0:
                 bound -= rate[p, j] * abs(q[j] - q0[p, j])
+                moved = moved or q[j] != q0[p, j]
         bounds[p] = bound
         if bound < bounds[best]:
             best = p
-        if (bound <= band_m) != near[p]:
-            near[p] = bound <= band_m
+        compute = moved and bound <= band_m
+        if compute != near[p]:
+            near[p] = compute
             changed[n_changed] = p
             n_changed += 1
     n_near = 0
@@ -458,7 +595,8 @@ class CollisionDetector(Module):
         _lower_bound(*np.zeros((2, self.limits.size)), np.zeros((1, self.limits.size)),
                      np.zeros(1), np.zeros((1, self.limits.size)))
         _pair_bounds(np.zeros(self.limits.size), np.zeros((1, self.limits.size)), np.zeros(1),
-                     np.zeros((1, self.limits.size)), 0.0, np.zeros(1), np.zeros(1, dtype=bool),
+                     np.zeros((1, self.limits.size)), 0.0, False, np.zeros(1),
+                     np.zeros(1, dtype=bool),
                      np.zeros(2, dtype=np.int64))
         _take_near(np.zeros(self.limits.size), np.zeros(1, dtype=np.int64), np.zeros(1),
                    np.zeros((1, self.limits.size)), np.zeros(1))

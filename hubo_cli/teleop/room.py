@@ -17,15 +17,20 @@ error falls. A 6-joint arm reaches most positions in front of the chest with its
 with the start orientation the upper arm and elbow meet the torso 4-6 cm inward of the
 free-mode ready pose (the shoulder roll moves them in); turned 15-20 deg, they pass outside it.
 Without goals (or when that search ends inside the band), the target is pushed back along the
-closest pair's gradient with respect to the arms' joints (a few Newton steps, finite
-differences), and if that fails goes as far as it can along its step from the last target
-(bisection). A target never goes deeper into the band than the last one was.
+closest pair's gradient with respect to the arms' joints (a few Newton steps), and if that
+fails goes as far as it can along its step from the last target (bisection). A target never
+goes deeper into the band than the last one was. The closest pair's gradient comes from coal's
+witness points and normal (one check, exact to GJK's tolerance); where they give none (shapes
+touching, a face against a face) from forward differences of ``DIFF_RAD`` (six checks). It
+only shapes the steps: every step taken is checked.
 
 Distances are the checker's :meth:`~hubo_cli.control.collision.SelfCollisionChecker.check_near`
 (exact near the room, Lipschitz lower bounds for the pairs far from it, which it does not
-compute). An arm whose clear search came to rest (no step left that helps) is not searched
-again while its goal stays within ``STILL_GOAL_M`` and ``STILL_GOAL_RAD`` of that goal and its
-last target is still clear: the search would find the same pose.
+compute), from a repeatable checker: the same joints give the same distances, whatever was
+computed before. An arm whose clear search came to rest (no step left that helps, or its
+weighted error falling by less than ``REST_M`` in a call: creeping along the body) is not
+searched again while its goal stays within ``STILL_GOAL_M`` and ``STILL_GOAL_RAD`` of that goal
+and its last target is still clear; that period takes the check of the last target it made.
 """
 
 from __future__ import annotations
@@ -43,10 +48,11 @@ from hubo_cli.teleop.target_kernels import max_abs_difference
 ROOM_M = TOLERANCE_M + 0.005  # the detector's band and 5 mm for the command's braking look-ahead
 NEWTON_STEPS = 3
 BISECTIONS = 8
-DIFF_RAD = 1e-4              # finite-difference step of the distance's gradient
+DIFF_RAD = 1e-4              # finite-difference step of the gradient where witness points fail
 SEARCH_STEPS = 3             # the clear search's steps per call (it goes on the next period)
 ORIENTATION_WEIGHT_M_PER_RAD = 0.01  # the clear search's: position first (1 deg = 0.17 mm)
 AIM_M = 0.001                # its steps aim this far beyond the room (the body's curvature)
+REST_M = 0.0001              # a search call cutting its weighted error less: at rest
 STILL_GOAL_M = 0.0005       # a goal this close (and STILL_GOAL_RAD) to the one a clear search
 STILL_GOAL_RAD = np.radians(0.5)  # came to rest at is not searched again
 _STILL_GOAL_COS = np.cos(STILL_GOAL_RAD)
@@ -74,7 +80,7 @@ class CollisionRoom:
                  arms: tuple[str, ...] = ARMS) -> None:
         self.model = model
         self.room_m = float(room_m)
-        self.checker = SelfCollisionChecker(model, drill=drill)
+        self.checker = SelfCollisionChecker(model, drill=drill, repeatable=True)
         self.arms = tuple(arms)
         self.lower = np.asarray(model.lower_rad, dtype=float)
         self.upper = np.asarray(model.upper_rad, dtype=float)
@@ -84,6 +90,7 @@ class CollisionRoom:
                           for joint in model.limb(arm).joints}
         if drill and "right-arm" in self.arms:
             self._link_arm["drill"] = "right-arm"
+        self._pair_index = {names: k for k, names in enumerate(self.checker.pair_names)}
         self.pushed_periods = dict.fromkeys(self.arms, 0)
         self.moved: set[str] = set()  # the arms the last call moved
         self._rested: dict[str, tuple | None] = {}  # arm -> (goal, joints) a search rested at
@@ -126,7 +133,8 @@ class CollisionRoom:
             self.moved = set()
             return q_next
         if goals:
-            q, d_q, moved = self._clear_search(np.asarray(q_prev_rad, dtype=float), q_next, goals)
+            q, d_q, moved = self._clear_search(np.asarray(q_prev_rad, dtype=float), q_next, goals,
+                                               d, pair)
             if d_q >= self.room_m:
                 return self._done(q, d_q, moved)
         q = q_next.copy()
@@ -136,11 +144,7 @@ class CollisionRoom:
             if not arms:  # the legs alone: nothing an arm target can do
                 break
             index = np.concatenate([self._index[a] for a in arms])
-            grad = np.empty(len(index))
-            for k, i in enumerate(index):
-                q_d = q.copy()
-                q_d[i] += DIFF_RAD
-                grad[k] = (self._distance(q_d)[0] - d) / DIFF_RAD
+            grad = self._gradient(q, d, pair, index)
             norm2 = float(grad @ grad)
             if not np.isfinite(norm2) or norm2 < 1e-12:
                 break
@@ -168,12 +172,12 @@ class CollisionRoom:
         moved = {a for a in self.arms if np.any(q_next[self._index[a]] != q[self._index[a]])}
         return self._done(q, self._distance(q)[0], moved)
 
-    def _clear_search(self, q_prev: np.ndarray, q_next: np.ndarray,
-                      goals: dict) -> tuple[np.ndarray, float, set[str]]:
-        """The arms in the band: from their last targets toward their goals, clear of the body
-        (see the module docstring). Returns (joints, their clearance, the arms moved)."""
+    def _clear_search(self, q_prev: np.ndarray, q_next: np.ndarray, goals: dict, d: float,
+                      pair: tuple[str, str]) -> tuple[np.ndarray, float, set[str]]:
+        """The arms in the band (``q_next``'s closest pair ``pair`` at ``d`` < room, exact):
+        from their last targets toward their goals, clear of the body (see the module
+        docstring). Returns (joints, their clearance, the arms moved)."""
         q = q_next.copy()
-        d, pair = self._distance(q)
         moved: set[str] = set()
         for _ in range(len(self.arms)):  # the arms of the closest pair, one after the other
             arms = [a for a in self._arms_of(pair) if a in goals and a not in moved]
@@ -182,15 +186,15 @@ class CollisionRoom:
             arm = arms[0]
             index = self._index[arm]
             q[index] = q_prev[index]
-            d = self._distance(q)[0]
+            d, pair_prev = self._distance(q)
             reach, T_goal = goals[arm]
             T_goal = np.ascontiguousarray(T_goal, float)
             moved.add(arm)
             if d >= self.room_m and self._still(arm, q[index], T_goal):
                 self.skipped += 1
-                d, pair = self._distance(q)
+                pair = pair_prev  # the check just made (repeatable: the same a second time)
                 continue
-            q, d, rested = self._search_arm(q, d, index, reach, T_goal)
+            q, d, rested = self._search_arm(q, d, pair_prev, index, reach, T_goal)
             self._rested[arm] = (T_goal, q[index].copy()) if rested else None
             d, pair = self._distance(q)
         return q, d, moved
@@ -209,8 +213,24 @@ class CollisionRoom:
         cos = (np.trace(T_was[:3, :3].T @ T_goal[:3, :3]) - 1.0) / 2.0
         return bool(cos >= _STILL_GOAL_COS)
 
-    def _search_arm(self, q: np.ndarray, d: float, index: np.ndarray, reach,
-                    T_goal: np.ndarray) -> tuple[np.ndarray, float, bool]:
+    def _gradient(self, q: np.ndarray, d: float, pair: tuple[str, str],
+                  index: np.ndarray) -> np.ndarray:
+        """The gradient of the clearance ``d`` at ``q`` (closest pair ``pair``) with respect to
+        the joints ``index`` (m/rad): coal's witness points and normal
+        (:meth:`~hubo_cli.control.collision.SelfCollisionChecker.distance_gradient`), or
+        where they give none (touching, a face on a face), forward differences of DIFF_RAD."""
+        grad = self.checker.distance_gradient(q, self._pair_index[pair], index)
+        if grad is not None:
+            return grad
+        grad = np.empty(len(index))
+        for k, i in enumerate(index):
+            q_d = q.copy()
+            q_d[i] += DIFF_RAD
+            grad[k] = (self._distance(q_d)[0] - d) / DIFF_RAD
+        return grad
+
+    def _search_arm(self, q: np.ndarray, d: float, pair: tuple[str, str], index: np.ndarray,
+                    reach, T_goal: np.ndarray) -> tuple[np.ndarray, float, bool]:
         """A few steps of the clear search for one arm (see the module docstring); returns
         (joints, clearance, whether it came to rest: no step left that helps)."""
         limb = reach.limb
@@ -228,16 +248,12 @@ class CollisionRoom:
             e[:] *= w
             return float(e @ e)
 
-        c = cost(q[index])
+        c = c_start = cost(q[index])
         for _ in range(SEARCH_STEPS):
             Jw = J * w[:, None]
             H = Jw.T @ Jw + DAMPING**2 * np.eye(6)
             dq = np.linalg.solve(H, Jw.T @ e)
-            grad = np.empty(6)
-            for k, i in enumerate(index):
-                q_d = q.copy()
-                q_d[i] += DIFF_RAD
-                grad[k] = (self._distance(q_d)[0] - d) / DIFF_RAD
+            grad = self._gradient(q, d, pair, index)
             need = self.room_m + AIM_M - d
             if all_finite(grad) and grad @ dq < need:
                 # the step of least weighted error whose linearised clearance is the room: it
@@ -252,14 +268,16 @@ class CollisionRoom:
             for scale in (1.0, 0.5, 0.25):
                 q_try = q.copy()
                 q_try[index] = np.minimum(np.maximum(q[index] + scale * dq, lo), hi)  # np.clip
-                d_try = self._distance(q_try)[0]
+                d_try, pair_try = self._distance(q_try)
                 c_try = cost(q_try[index])
                 if d_try >= min(self.room_m, d) and (c_try < c or d < self.room_m <= d_try):
-                    q, d, c = q_try, d_try, c_try
+                    q, d, c, pair = q_try, d_try, c_try, pair_try
                     break
             else:
                 return q, d, True
-        return q, d, False
+        # creeping along the body (its weighted error falling by less than REST_M a call):
+        # at rest too
+        return q, d, math.sqrt(c_start) - math.sqrt(c) < REST_M
 
     def _done(self, q: np.ndarray, d: float, moved: set[str]) -> np.ndarray:
         self.last_clearance_m = d
