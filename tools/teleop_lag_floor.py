@@ -63,9 +63,11 @@ TARGET_POSITION_M = 0.010
 TARGET_ROTATION_RAD = np.radians(3.0)
 
 
-def floor_errors(t_s, q_target, weight, accel_rad_s2, window_s, step_s, limb, w_rot_m):
-    """Per sample of the resampled grid (NaN where not reachable), the floor trajectory's
-    linearised position error (m) and rotation error (rad)."""
+def _windowed_floor(t_s, q_target, weight, window_s, step_s, limb, w_rot_m, row_of, bounds_of):
+    """Per sample of the resampled grid (NaN where not reachable), the linearised position
+    error (m) and rotation error (rad) of the trajectory closest to the goal's joints, window by
+    window: ``row_of(Jp, i, n)`` gives sample i's row of the linear model (Jp the weighted
+    Jacobian there), ``bounds_of(n)`` its variables' bounds (lo, hi)."""
     grid = np.arange(t_s[0], t_s[-1], step_s)
     q_star = np.column_stack([np.interp(grid, t_s, q_target[:, j]) for j in range(6)])
     w = np.interp(grid, t_s, weight.astype(float)) > 0.5
@@ -79,75 +81,71 @@ def floor_errors(t_s, q_target, weight, accel_rad_s2, window_s, step_s, limb, w_
         k = np.arange(start, min(start + per, len(grid)))
         if not w[k].any():
             continue
-        n = len(k)
-        tk = (k - start) * step_s
-        # q_i = q0 + v0 t_i + sum_{j < i} u_j h (t_i - t_j - h / 2), per joint
-        coef = np.maximum(tk[:, None] - tk[None, :] - step_s / 2, 0.0) * step_s
-        coef[tk[:, None] <= tk[None, :]] = 0.0
         rows, rhs = [], []
         for i, gi in enumerate(k):
             if not w[gi]:
                 continue
             jacobian(np.ascontiguousarray(q_star[gi]), base, offset, alpha, a, d, end, T, J)
             Jp = J * scale
-            row = np.zeros((6, 6 * (2 + n)))
-            row[:, 0:6] = Jp
-            row[:, 6:12] = Jp * tk[i]
-            for j in range(n):
-                if coef[i, j]:
-                    row[:, 6 * (2 + j):6 * (3 + j)] = Jp * coef[i, j]
-            rows.append(row)
+            rows.append(row_of(Jp, i, len(k)))
             rhs.append(Jp @ q_star[gi])
         A, b = np.vstack(rows), np.concatenate(rhs)
-        lo = np.r_[np.full(12, -np.inf), np.full(6 * n, -accel_rad_s2)]
-        hi = -lo
-        hi[:12] = np.inf
-        x = lsq_linear(A, b, bounds=(lo, hi), method="bvls").x
+        x = lsq_linear(A, b, bounds=bounds_of(len(k)), method="bvls").x
         r = (A @ x - b).reshape(-1, 6)
         errors[k[w[k]]] = np.linalg.norm(r[:, :3], axis=1)
         rot_errors[k[w[k]]] = np.linalg.norm(r[:, 3:], axis=1) / w_rot_m
     return errors, rot_errors
+
+
+def floor_errors(t_s, q_target, weight, accel_rad_s2, window_s, step_s, limb, w_rot_m):
+    """Per sample of the resampled grid (NaN where not reachable), the floor trajectory's
+    linearised position error (m) and rotation error (rad) under the acceleration limit:
+    piecewise-constant accelerations within it, free start and velocity per window."""
+    per = max(2, int(round(window_s / step_s)))
+    tk = np.arange(per) * step_s
+    # q_i = q0 + v0 t_i + sum_{j < i} u_j h (t_i - t_j - h / 2), per joint
+    coef = np.maximum(tk[:, None] - tk[None, :] - step_s / 2, 0.0) * step_s
+    coef[tk[:, None] <= tk[None, :]] = 0.0
+
+    def row_of(Jp, i, n):
+        row = np.zeros((6, 6 * (2 + n)))
+        row[:, 0:6] = Jp
+        row[:, 6:12] = Jp * tk[i]
+        for j in range(n):
+            if coef[i, j]:
+                row[:, 6 * (2 + j):6 * (3 + j)] = Jp * coef[i, j]
+        return row
+
+    def bounds_of(n):
+        lo = np.r_[np.full(12, -np.inf), np.full(6 * n, -accel_rad_s2)]
+        hi = -lo
+        hi[:12] = np.inf
+        return lo, hi
+
+    return _windowed_floor(t_s, q_target, weight, window_s, step_s, limb, w_rot_m, row_of,
+                           bounds_of)
 
 
 def speed_floor_errors(t_s, q_target, weight, velocity_rad_s, window_s, step_s, limb, w_rot_m):
     """As :func:`floor_errors` under the speed limit ``velocity_rad_s`` (per joint) instead of
     an acceleration limit: piecewise-constant velocities within it, free start per window."""
-    grid = np.arange(t_s[0], t_s[-1], step_s)
-    q_star = np.column_stack([np.interp(grid, t_s, q_target[:, j]) for j in range(6)])
-    w = np.interp(grid, t_s, weight.astype(float)) > 0.5
-    base, _, offset, alpha, a, d, end, _ = limb.chain
-    T, J = np.empty((4, 4)), np.empty((6, 6))
-    errors = np.full(len(grid), np.nan)
-    rot_errors = np.full(len(grid), np.nan)
-    scale = np.r_[np.ones(3), np.full(3, w_rot_m)][:, None]
-    per = max(2, int(round(window_s / step_s)))
     vmax = np.broadcast_to(np.asarray(velocity_rad_s, dtype=float), (6,))
-    for start in range(0, len(grid), per):
-        k = np.arange(start, min(start + per, len(grid)))
-        if not w[k].any():
-            continue
-        n = len(k)
-        rows, rhs = [], []
-        for i, gi in enumerate(k):  # q_i = q0 + h sum_{j < i} v_j
-            if not w[gi]:
-                continue
-            jacobian(np.ascontiguousarray(q_star[gi]), base, offset, alpha, a, d, end, T, J)
-            Jp = J * scale
-            row = np.zeros((6, 6 * (1 + n)))
-            row[:, 0:6] = Jp
-            for j in range(i):
-                row[:, 6 * (1 + j):6 * (2 + j)] = Jp * step_s
-            rows.append(row)
-            rhs.append(Jp @ q_star[gi])
-        A, b = np.vstack(rows), np.concatenate(rhs)
+
+    def row_of(Jp, i, n):  # q_i = q0 + h sum_{j < i} v_j
+        row = np.zeros((6, 6 * (1 + n)))
+        row[:, 0:6] = Jp
+        for j in range(i):
+            row[:, 6 * (1 + j):6 * (2 + j)] = Jp * step_s
+        return row
+
+    def bounds_of(n):
         lo = np.r_[np.full(6, -np.inf), -np.tile(vmax, n)]
         hi = -lo
         hi[:6] = np.inf
-        x = lsq_linear(A, b, bounds=(lo, hi), method="bvls").x
-        r = (A @ x - b).reshape(-1, 6)
-        errors[k[w[k]]] = np.linalg.norm(r[:, :3], axis=1)
-        rot_errors[k[w[k]]] = np.linalg.norm(r[:, 3:], axis=1) / w_rot_m
-    return errors, rot_errors
+        return lo, hi
+
+    return _windowed_floor(t_s, q_target, weight, window_s, step_s, limb, w_rot_m, row_of,
+                           bounds_of)
 
 
 def joint_speed_per_rate(arm: str, directions: int = 20000) -> dict[str, np.ndarray]:
