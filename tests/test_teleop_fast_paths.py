@@ -193,8 +193,8 @@ def numpy_tilt_rad(q):
 
 
 class ReferenceRoom(CollisionRoom):
-    def _distance_to_room(self, q_rad):  # as before: every pair within NEAR_M of the room
-        return self._distance(q_rad)
+    def _distance(self, q_rad, near_m=None):  # as before: every pair within NEAR_M of the room
+        return super()._distance(q_rad)
 
     def _still(self, arm, q_arm, T_goal):  # as it was
         rested = self._rested.get(arm)
@@ -555,7 +555,7 @@ def test_the_collision_room_gives_the_same_targets_to_the_last_bit(monkeypatch):
         follow_generated(3401, StreamSettings(duration_s=4.0, max_speed_m_s=0.25))
 
     class Reference(ReferenceRoom):
-        _distance_to_room = CollisionRoom._distance_to_room
+        _distance = CollisionRoom._distance
 
     model = load_model(limits="teleop")
     new = CollisionRoom(model, arms=("left-arm", "right-arm"))

@@ -83,11 +83,12 @@ from hubo_cli.estimation.keys import (
     WRENCHES,
 )
 from hubo_cli.estimation.observer import Observer
-from hubo_cli.estimation.wrenches import all_finite, joint_vector
+from hubo_cli.estimation.wrenches import joint_vector
 from hubo_cli.geometry import quat_to_matrix_into
 from hubo_cli.kinematics.dh import chain_fk
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import LEGS, RobotModel
+from hubo_cli.motion.limits import all_finite
 from hubo_cli.state import ANKLE_SENSORS, RobotState
 
 HEADING_TAU_S = 1.0  # [chosen] the gyro's share of the heading fades with this time constant

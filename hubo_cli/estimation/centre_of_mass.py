@@ -220,7 +220,7 @@ class CentreOfMass(Observer):
 
     def __init__(self, model: RobotModel, period_s: float, drill: bool = False) -> None:
         self.robot = load_pin_robot(model, floating=True, urdf_path=model.urdf_path(drill))
-        self._pin_model, self._q_index = self.robot.model, self.robot.q_index
+        self._q_index = self.robot.q_index
         self._tree = tree_arrays(self.robot.model)
         self.dt_s = float(period_s)
         tau_s = 1.0 / (2.0 * math.pi * model.estimation.com_velocity_cutoff_hz)
@@ -235,7 +235,7 @@ class CentreOfMass(Observer):
         self._velocity = np.zeros(3)
         self._cp = np.zeros(2)
         self._zmp = np.full(2, np.nan)
-        _period(self._q.copy(), self.robot.q_index, np.zeros(self._joints), np.eye(4),
+        _period(self._q.copy(), self._q_index, np.zeros(self._joints), np.eye(4),
                 *self._tree, np.empty(3), np.zeros(3), np.zeros(3), self.alpha, self.dt_s, True,
                 np.tile(np.eye(4), (2, 1, 1)), True, True, self._corners, np.zeros(6),
                 np.zeros(6), GRAVITY_M_S2, self._min_fz_n, np.zeros(2), np.zeros(2))  # compiled

@@ -81,6 +81,7 @@ from hubo_cli.geometry import quat_to_matrix_into
 from hubo_cli.kinematics.dh import chain_fk
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
+from hubo_cli.motion.limits import all_finite
 from hubo_cli.pin_robot import load_pin_robot
 from hubo_cli.state import FT_MEASURED, FT_SENSORS, GRAVITY_M_S2, RobotState, T_frame_sensor
 
@@ -145,14 +146,6 @@ def joint_vector(q_rad, joints: int) -> np.ndarray:
     if q is None or q.shape != (joints,):
         return np.full(joints, np.nan)
     return q
-
-
-@nb.njit(cache=True, nogil=True)
-def all_finite(x) -> bool:
-    for v in x.flat:
-        if not math.isfinite(v):
-            return False
-    return True
 
 
 @nb.njit(cache=True, nogil=True)

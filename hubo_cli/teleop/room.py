@@ -105,17 +105,12 @@ class CollisionRoom:
                 found.append(arm)
         return found
 
-    def _distance(self, q_rad: np.ndarray) -> tuple[float, tuple[str, str]]:
-        """The closest pair's distance (m; exact up to ``room_m + NEAR_M``, a lower bound
-        beyond) and names."""
-        c = self.checker.check_near(q_rad, self.room_m + NEAR_M)
-        return c.distance_m, c.pair
-
-    def _distance_to_room(self, q_rad: np.ndarray) -> tuple[float, tuple[str, str]]:
-        """:meth:`_distance` computing only the pairs whose bounds come within the room: exact
-        where it is below the room, a lower bound beyond it (enough to tell whether the target
-        keeps the room; most periods no pair is computed)."""
-        c = self.checker.check_near(q_rad, self.room_m)
+    def _distance(self, q_rad: np.ndarray, near_m: float = NEAR_M
+                  ) -> tuple[float, tuple[str, str]]:
+        """The closest pair's distance (m; exact up to ``room_m + near_m``, a lower bound
+        beyond) and names. ``near_m`` 0 computes only the pairs whose bounds come within the
+        room: enough to tell whether a target keeps it (most periods no pair is computed)."""
+        c = self.checker.check_near(q_rad, self.room_m + near_m)
         return c.distance_m, c.pair
 
     def keep(self, q_prev_rad: np.ndarray, q_next_rad: np.ndarray,
@@ -127,7 +122,7 @@ class CollisionRoom:
                 T_N_E 4x4 in the neck frame): search the nearest clear pose to the goal.
         """
         q_next = np.asarray(q_next_rad, dtype=float)
-        d, pair = self._distance_to_room(q_next)
+        d, pair = self._distance(q_next, near_m=0.0)
         if d >= self.room_m:
             self.last_clearance_m = d
             self.moved = set()
