@@ -266,20 +266,20 @@ class SelfCollisionChecker:
         # the others' distances are taken at joints up to STILL_RAD away from the check's
         self._still_slack_m = np.where(self._legs_pair, 0.0,
                                        STILL_RAD * self.rate_m_rad.sum(axis=1))
-        self._grad_data = pmodel.createData()  # distance_gradient's own, repeatable
-        self._pair_shapes = [tuple((g, _shape_kind(geom.geometryObjects[g].geometry),
-                                    geom.geometryObjects[g].parentJoint)
-                                   for g in (pair.first, pair.second))
-                             for pair in geom.collisionPairs]
-        self._grad_geom_data = pin.GeometryData(geom)
-        # compile distance_gradient's kernel now (for the layouts pinocchio hands it), not in
-        # the first period that needs it
-        pin.computeJointJacobians(pmodel, self._grad_data, pin.neutral(pmodel))
-        J = pin.getJointJacobian(pmodel, self._grad_data, 1, pin.LOCAL_WORLD_ALIGNED)
-        o = self._grad_data.oMi[1].translation
-        _witness_gradient(o, o, o, J, o, o, J, self.robot.q_index[:1], np.empty(1))
         self.repeatable = bool(repeatable)
-        if self.repeatable:
+        if self.repeatable:  # distance_gradient's own data (only a repeatable checker has it)
+            self._grad_data = pmodel.createData()
+            self._pair_shapes = [tuple((g, _shape_kind(geom.geometryObjects[g].geometry),
+                                        geom.geometryObjects[g].parentJoint)
+                                       for g in (pair.first, pair.second))
+                                 for pair in geom.collisionPairs]
+            self._grad_geom_data = pin.GeometryData(geom)
+            # compile distance_gradient's kernel now (for the layouts pinocchio hands it), not
+            # in the first period that needs it
+            pin.computeJointJacobians(pmodel, self._grad_data, pin.neutral(pmodel))
+            J = pin.getJointJacobian(pmodel, self._grad_data, 1, pin.LOCAL_WORLD_ALIGNED)
+            o = self._grad_data.oMi[1].translation
+            _witness_gradient(o, o, o, J, o, o, J, self.robot.q_index[:1], np.empty(1))
             with warnings.catch_warnings():  # coal marks the flag deprecated; it still rules
                 warnings.simplefilter("ignore", DeprecationWarning)
                 for data in (self.geom_data, *self._split, self._near_data,
@@ -356,7 +356,10 @@ class SelfCollisionChecker:
         n^T (J_2(p2) - J_1(p1)), the shapes' point Jacobians (world axes). None where that is
         not the derivative: shapes touching or overlapping (closer than ``WITNESS_MIN_M``), or
         witness points not unique (within ``FLAT_RAD`` of a face on a face or an edge, or two
-        parallel edges: the distance has a kink there)."""
+        parallel edges: the distance has a kink there). A repeatable checker's only (the
+        gradient is taken at the distance a repeated check gives)."""
+        if not self.repeatable:
+            raise ValueError("distance_gradient needs a repeatable checker")
         pmodel, data, gdata = self.robot.model, self._grad_data, self._grad_geom_data
         q = self.robot.configuration(q_rad, out=self._q)
         pin.computeJointJacobians(pmodel, data, q)
