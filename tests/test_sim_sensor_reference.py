@@ -174,3 +174,13 @@ def test_wrench_arithmetic_matches_the_reference_on_hostile_inputs():
             load_at)
         _close(reading, expected, "reading")
         _close(fz, contact[2], "contact f_z")
+
+
+def test_the_simulated_sensor_writes_the_components_the_state_says_are_measured():
+    """``drivers.sim._sensor_reading`` writes f_z, m_x, m_y in place (plain floats, no mask):
+    the set the state and the estimate's ``measured_mask`` name. Changing one means the other."""
+    from hubo_cli.estimation.wrenches import measured_mask
+    from hubo_cli.state import FT_MEASURED
+
+    assert FT_MEASURED == (2, 3, 4)
+    assert measured_mask().tolist() == [0.0, 0.0, 1.0, 1.0, 1.0, 0.0]
