@@ -149,19 +149,26 @@ def joint_vector(q_rad, joints: int) -> np.ndarray:
 
 
 @nb.njit(cache=True, nogil=True)
-def _offset(qk, k, base, offset, alpha, a, d, end, mass, com, s_torso, scale, omega, domega, T,
-            out):
-    """The load on sensor ``k`` (``out``, 6) of the body beyond it, for its limb's joints
-    ``qk``: -m times its centre of mass's specific force, that of the torso frame's origin
-    (torso axes; ``scale`` times ``s_torso``: at rest -g times world z in the torso axes)
-    carried to it with the torso's rate ``omega`` and angular acceleration ``domega`` (torso
-    axes; 0 and 0: the weight alone, -g in ``scale``)."""
+def _com_point(qk, k, base, offset, alpha, a, d, end, com, T):
+    """The centre of mass of the body beyond sensor ``k`` in the torso frame (m), for its
+    limb's joints ``qk``; ``T`` gets the sensor's pose (T_torso_S)."""
     chain_fk(qk, base[k], offset[k], alpha[k], a[k], d[k], end[k], T)
     c = com[k]
+    return (T[0, 0] * c[0] + T[0, 1] * c[1] + T[0, 2] * c[2] + T[0, 3],
+            T[1, 0] * c[0] + T[1, 1] * c[1] + T[1, 2] * c[2] + T[1, 3],
+            T[2, 0] * c[0] + T[2, 1] * c[1] + T[2, 2] * c[2] + T[2, 3])
+
+
+@nb.njit(cache=True, nogil=True)
+def _offset_at(T, p, k, mass, com, s_torso, scale, omega, domega, out):
+    """The load on sensor ``k`` (``out``, 6) of the body beyond it, its pose ``T`` and centre
+    of mass ``p`` given (:func:`_com_point`): -m times the centre of mass's specific force,
+    that of the torso frame's origin (torso axes; ``scale`` times ``s_torso``: at rest -g
+    times world z in the torso axes) carried to it with the torso's rate ``omega`` and angular
+    acceleration ``domega`` (torso axes; 0 and 0: the weight alone, -g in ``scale``)."""
+    c = com[k]
+    p0, p1, p2 = p
     # the centre of mass p (torso frame) turning with the torso: + domega x p + w x (w x p)
-    p0 = T[0, 0] * c[0] + T[0, 1] * c[1] + T[0, 2] * c[2] + T[0, 3]
-    p1 = T[1, 0] * c[0] + T[1, 1] * c[1] + T[1, 2] * c[2] + T[1, 3]
-    p2 = T[2, 0] * c[0] + T[2, 1] * c[1] + T[2, 2] * c[2] + T[2, 3]
     wp0 = omega[1] * p2 - omega[2] * p1
     wp1 = omega[2] * p0 - omega[0] * p2
     wp2 = omega[0] * p1 - omega[1] * p0
@@ -217,13 +224,12 @@ def compensate(q, quat_wxyz, accel, omega, domega, inertial, raw, index, base, o
             for j in range(6):
                 out[k, j] = last[k, j]
             continue
-        _offset(qk, k, base, offset, alpha, a, d, end, mass, com, up, -gravity, still, still,
-                T, load)
+        p = _com_point(qk, k, base, offset, alpha, a, d, end, com, T)
+        _offset_at(T, p, k, mass, com, up, -gravity, still, still, load)
         if not (moving and inertial[k]):
             gate[1, k] = 0.0
         else:  # the inertia: what the motion adds to the weight, bounded
-            _offset(qk, k, base, offset, alpha, a, d, end, mass, com, accel, -1.0, omega,
-                    clipped, T, extra)
+            _offset_at(T, p, k, mass, com, accel, -1.0, omega, clipped, extra)
             for j in range(6):
                 extra[j] -= load[j]
             moment = math.sqrt(extra[3] ** 2 + extra[4] ** 2 + extra[5] ** 2)
@@ -256,8 +262,8 @@ def hanging_readings(q, quat_wxyz, index, base, offset, alpha, a, d, end, mass, 
     for k in range(out.shape[0]):
         for j in range(6):
             qk[j] = q[index[k, j]]
-        _offset(qk, k, base, offset, alpha, a, d, end, mass, com, up, -gravity, still, still, T,
-                load)
+        p = _com_point(qk, k, base, offset, alpha, a, d, end, com, T)
+        _offset_at(T, p, k, mass, com, up, -gravity, still, still, load)
         for j in range(6):
             out[k, j] = load[j] * measured[j]
 
