@@ -136,10 +136,10 @@ TOUCH_MIN_HEIGHT_M = 0.006  # [chosen] ... while the pattern still has it this h
                             # landings of perturbed robots 1, 4, 8 loaded their soles at most
                             # 1.2 mm up, 0.06 s early; soles pushed down mid-swing: 15-20 mm up.
                             # 2 mm: seed 8's 3.4 mm touchdown was caught, seed 17's lost
-LEVEL_DEAD_RAD = math.radians(1.0)  # [chosen] a swing leg is turned against the estimated
-                        # torso's tilt from the planned one beyond this (below: walking's own
+LEVEL_DEAD_RAD = math.radians(1.0)  # [chosen] a swing leg is pitched against the estimated
+                        # torso's pitch from the planned one beyond this (below: walking's own
                         # sway; the pattern plays unchanged)
-LEVEL_RATE_RAD_S = 0.6  # [chosen] ... its turn changing at most this fast
+LEVEL_RATE_RAD_S = 0.6  # [chosen] ... that pitch changing at most this fast
 CP_GAIN_MAX = 1.0      # [chosen] the error's growth by the landing counted at most this much
                        # (exp(omega t) is 17 at a swing's start: a 1 cm error of the estimate's
                        # capture point moved the landing by 17 cm; 3x stepped too far back
@@ -324,7 +324,7 @@ class WalkTarget(Target):
                    "walk.offset_x_m", "walk.offset_y_m", "walk.right_lift_m", "walk.left_lift_m",
                    "walk.right_sole_roll_rad", "walk.right_sole_pitch_rad",
                    "walk.left_sole_roll_rad", "walk.left_sole_pitch_rad",
-                   "walk.right_level_rad", "walk.left_level_rad")
+                   "walk.right_level_rad", "walk.left_level_rad", "walk.pitch_error_rad")
 
     def __init__(self, model: RobotModel, params: WalkingParams, goal: tuple[float, float, float],
                  q_start_rad: np.ndarray, T_world_neck_start: np.ndarray,
@@ -380,12 +380,12 @@ class WalkTarget(Target):
             self.torso_offset = TorsoOffset(stabilizer, dt)
             self.touchdowns = {side: Touchdown(stabilizer, dt) for side in SIDES}
             self._leg_delta = np.zeros((2, 6))  # the legs' corrections: right, left
-            self._level = np.zeros((2, 2))  # each swing sole's levelling (world x, y rad)
+            self._level = np.zeros(2)  # each swing leg's pitch against the torso's (rad)
+            self._pitch_error_rad = 0.0  # the estimated torso's pitch from the planned one
         names = list(model.joint_names)
         self._ankle = {"right": (names.index("RAR"), names.index("RAP")),
                        "left": (names.index("LAR"), names.index("LAP"))}
-        self._hip = {side: tuple(names.index(f"{side[0].upper()}H{axis}") for axis in "YRP")
-                     for side in SIDES}
+        self._hip_pitch = (names.index("RHP"), names.index("LHP"))  # (right, left)
 
     def attach(self, world: SceneActions | None, modules: Sequence, store: Store) -> None:
         self.store = store
@@ -900,7 +900,7 @@ class WalkTarget(Target):
     def _stabilizer_info(self) -> dict[str, float]:
         """The stabilizer's corrections for the log (NaN without a stabilizer)."""
         if self.stabilizer is None:
-            return dict.fromkeys(self.log_columns[-10:], math.nan)
+            return dict.fromkeys(self.log_columns[-11:], math.nan)
         right, left = self.dampers["right"].delta_rad, self.dampers["left"].delta_rad
         offset = self.torso_offset.offset_m
         return {"walk.offset_x_m": float(offset[0]), "walk.offset_y_m": float(offset[1]),
@@ -910,8 +910,9 @@ class WalkTarget(Target):
                 "walk.right_sole_pitch_rad": float(right[1]),
                 "walk.left_sole_roll_rad": float(left[0]),
                 "walk.left_sole_pitch_rad": float(left[1]),
-                "walk.right_level_rad": math.hypot(*self._level[0]),
-                "walk.left_level_rad": math.hypot(*self._level[1])}
+                "walk.right_level_rad": float(self._level[0]),
+                "walk.left_level_rad": float(self._level[1]),
+                "walk.pitch_error_rad": self._pitch_error_rad}
 
     def _in_pattern(self, k: int, wrenches: np.ndarray, point_m: np.ndarray
                     ) -> tuple[float, float]:
@@ -957,28 +958,22 @@ class WalkTarget(Target):
         return q
 
     def _level_swing(self, k: int, support: list[bool], q: np.ndarray) -> None:
-        """Turn each swing leg at its hip against the estimated torso's tilt from the planned
-        one (beyond LEVEL_DEAD_RAD; changing at most LEVEL_RATE_RAD_S), in place in ``q``: a
-        body tipped by a push carries a swing foot fixed in its frame with it, toe or edge
-        down, and lands it early on that edge (pushed from the front, it tipped back and the
-        heel came down 7 deg toe-up, 0.05 m short of its moved landing, and bounced). Turned
-        so, the leg keeps its planned attitude in the world and the sole lands flat."""
+        """Pitch each swing leg at its hip against the estimated torso's pitch from the
+        planned one (beyond LEVEL_DEAD_RAD; changing at most LEVEL_RATE_RAD_S), in place in
+        ``q``: a body tipped by a push carries a swing foot fixed in its frame with it and
+        lands it early on an edge (pushed from the front, the body tipped back and the heel
+        came down 7 deg toe-up, 0.05 m short of its moved landing, and bounced). Turned so,
+        the leg keeps its planned pitch in the world and the sole lands flat."""
         R_plan = self.plan.T_world_neck[k, :3, :3]
-        error = pin.log3(R_plan.T @ np.asarray(self.store[T_WORLD_TORSO], dtype=float)[:3, :3])
-        size = math.hypot(error[0], error[1])  # about the torso's x and y (its yaw left out)
-        tilt = error[:2] * (max(size - LEVEL_DEAD_RAD, 0.0) / size) if size > 0 else error[:2]
+        error = float(pin.log3(R_plan.T @ np.asarray(self.store[T_WORLD_TORSO],
+                                                     dtype=float)[:3, :3])[1])
+        self._pitch_error_rad = error  # about the torso's y axis
+        tilt = math.copysign(max(abs(error) - LEVEL_DEAD_RAD, 0.0), error)
         step = LEVEL_RATE_RAD_S * self.model.control_period_s
         for column, down in enumerate(support):
             level = self._level[column]
-            change = (np.zeros(2) if down else tilt) - level
-            size = math.hypot(*change)
-            if size > step:
-                change *= step / size
-            level += change
-            yaw, roll, pitch = self._hip[SIDES[column]]
-            c, s = math.cos(q[yaw]), math.sin(q[yaw])  # the hip's roll and pitch axes
-            q[roll] -= c * level[0] + s * level[1]
-            q[pitch] -= -s * level[0] + c * level[1]
+            self._level[column] = level + min(max((0.0 if down else tilt) - level, -step), step)
+            q[self._hip_pitch[column]] -= self._level[column]
 
     def arrived(self) -> bool:
         """The estimated feet stand within ARRIVED_M and ARRIVED_RAD of the goal stance."""
