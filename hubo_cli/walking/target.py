@@ -963,16 +963,20 @@ class WalkTarget(Target):
         ``q``: a body tipped by a push carries a swing foot fixed in its frame with it and
         lands it early on an edge (pushed from the front, the body tipped back and the heel
         came down 7 deg toe-up, 0.05 m short of its moved landing, and bounced). Turned so,
-        the leg keeps its planned pitch in the world and the sole lands flat."""
+        the leg keeps its planned pitch in the world and the sole lands flat. A leg on the
+        floor (planned down, or in the estimate's contact) keeps its turn; it goes back in the
+        air (turned back under the weight, the landed foot was lifted at its toe or heel)."""
         R_plan = self.plan.T_world_neck[k, :3, :3]
         error = float(pin.log3(R_plan.T @ np.asarray(self.store[T_WORLD_TORSO],
                                                      dtype=float)[:3, :3])[1])
         self._pitch_error_rad = error  # about the torso's y axis
         tilt = math.copysign(max(abs(error) - LEVEL_DEAD_RAD, 0.0), error)
         step = LEVEL_RATE_RAD_S * self.model.control_period_s
+        contact = self.store[CONTACT]
         for column, down in enumerate(support):
             level = self._level[column]
-            self._level[column] = level + min(max((0.0 if down else tilt) - level, -step), step)
+            if not (down or contact[column]):  # (on the floor it holds: see the docstring)
+                self._level[column] = level + min(max(tilt - level, -step), step)
             q[self._hip_pitch[column]] -= self._level[column]
 
     def arrived(self) -> bool:
