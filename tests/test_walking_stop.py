@@ -374,7 +374,7 @@ def test_a_swing_foot_carried_back_by_a_tipping_body_still_lands_flat(tmp_path, 
                   disturbances=[Disturbance(at_s, 100.0, (-1.0, 0.0, 0.0))])
     summary = json.loads((result.run_dir / "summary.json").read_text())
     assert result.fell is False and result.stood is True
-    # measured max tilt 15.3 deg on AVX-512 and on the portable path (a fall: 30); bound 25
+    # measured max tilt 15.5 deg (AVX-512) and 15.3 (portable path); a fall: 30; bound 25
     assert summary["max_torso_tilt_deg"] < 25.0
     log = load_log(result.run_dir / "log.parquet")
     t = np.asarray(log["t_s"], dtype=float)
@@ -383,9 +383,10 @@ def test_a_swing_foot_carried_back_by_a_tipping_body_still_lands_flat(tmp_path, 
     contact = np.asarray(log["right_foot_contact_flag"], dtype=float)[after]
     pitch = np.asarray(log["walk.right_angle_rad"], dtype=float)[after]
     landed = int(np.argmax(contact == 1))
-    assert contact[landed] == 1 and np.nanmax(level[:landed]) > 0.05  # levelled in the air
-    # the estimated sole's pitch as it touches down: measured -0.037 rad levelled, -0.126
-    # (7.2 deg toe-up) without (both CPU paths within 0.005): bound 0.07 rad, 1.9x the first
+    # pitched in the air: measured 0.156-0.157 rad at the landing on both CPU paths
+    assert contact[landed] == 1 and np.max(np.abs(level[:landed])) > 0.08
+    # the estimated sole's pitch as it touches down: measured -0.0345 rad on both CPU paths
+    # levelled, -0.123 (7 deg toe-up) without: bound 0.07 rad, 2x the first
     assert abs(pitch[landed]) < 0.07
 
 
