@@ -975,7 +975,8 @@ class WalkTarget(Target):
         contact = self.store[CONTACT]
         for column, down in enumerate(support):
             level = self._level[column]
-            if not (down or contact[column]):  # (on the floor it holds: see the docstring)
+            # (on the floor it holds: see the docstring; no estimate of the torso: it holds)
+            if not (down or contact[column]) and math.isfinite(tilt):
                 self._level[column] = level + min(max(tilt - level, -step), step)
             q[self._hip_pitch[column]] -= self._level[column]
 
