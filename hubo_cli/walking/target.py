@@ -20,7 +20,9 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
   loaded, past TOUCH_FRACTION of its swing, TOUCH_MIN_HEIGHT_M or more above its landing in
   the pattern) ends its swing there: the step lands where that sole stands and the timeline
   from the landing on plays at once (:meth:`WalkTarget._touched_early`); lifted again under
-  the robot's weight, it fell.
+  the robot's weight, it fell. A swing leg is pitched at its hip against the estimated
+  torso's pitch from the planned one (beyond LEVEL_DEAD_RAD), so that a foot carried by a
+  body tipped by a push lands flat (:meth:`WalkTarget._level_swing`).
 * ``stopping``: entered when the soft stopper has latched (its mode, the previous period's
   :data:`~hubo_cli.control.keys.STOP_MODE`, is no longer ``release``): the step in progress
   is finished (the swing foot lands; before the first step, none is taken) into a double-support
