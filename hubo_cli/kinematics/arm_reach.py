@@ -45,17 +45,9 @@ class ReachSettings:
         shoulder_margin: |cos theta2| stays at least this: the shoulder roll 33 deg from
             +-90 deg (singular too).
         orientation_time_constant_s: the orientation goal is smoothed with this time constant
-            (first order, on the rotation; 0 = off) while the hand lags its goal's position by
-            ``orientation_lag_band_m[1]`` or more: the operator's involuntary wrist wobble
+            (first order, on the rotation; 0 = off): the operator's involuntary wrist wobble
             (0.1-1 Hz) would otherwise make the shoulder and wrist joints oscillate faster than
             their jerk limits let them follow, and the lag moves the hand off its position.
-        orientation_fast_time_constant_s: the time constant while the hand keeps up with its
-            goal (lags it by ``orientation_lag_band_m[0]`` or less); in between, the time
-            constant goes linearly from the one to the other. Position first: a first-order
-            filter lags a steady turn by its time constant (1 s: 40 deg at 40 deg/s), which on
-            generated streams was most of the orientation error; the slow filter where the hand
-            lags keeps the joints for the position.
-        orientation_lag_band_m: (keeps up, lags), the hand's distance to its goal (m).
         allow_branch_change: change branch by itself when the hand is at rest at its reach
             limit and another branch reaches the goal exactly (otherwise only on request).
         branch_move_fraction: a branch change moves the joints at this fraction of their
@@ -76,8 +68,6 @@ class ReachSettings:
     wrist_margin: float = 0.75
     shoulder_margin: float = 0.55
     orientation_time_constant_s: float = 1.0
-    orientation_fast_time_constant_s: float = 0.1
-    orientation_lag_band_m: tuple[float, float] = (0.003, 0.010)
     allow_branch_change: bool = False
     branch_move_fraction: float = 0.25
     singularity: SingularityScale = SingularityScale()
@@ -100,11 +90,6 @@ class ReachSettings:
         if not (np.isfinite(self.collision_room_m) and self.collision_room_m >= 0):
             raise ConfigError(f"collision room {self.collision_room_m} m is not >= 0",
                               hint="use e.g. 0.015 (m), or 0 for none")
-        low, high = self.orientation_lag_band_m
-        if not (0 <= self.orientation_fast_time_constant_s and 0 <= low <= high):
-            raise ConfigError(f"orientation smoothing {self.orientation_fast_time_constant_s} s "
-                              f"over the lag band {self.orientation_lag_band_m} m is not valid",
-                              hint="use a time constant >= 0 and a band 0 <= low <= high")
         if not 0 < self.branch_move_fraction <= 1:
             raise ConfigError(f"branch move fraction {self.branch_move_fraction} is not in (0, 1]",
                               hint="use e.g. 0.25")
@@ -150,32 +135,13 @@ class ArmReach:
         self.branch = int(branch_of(np.asarray(q_rad, dtype=float)))
         self._R_smooth = None
 
-    def orientation_time_constant_s(self, lag_m: float) -> float:
-        """The orientation filter's time constant (s) for a hand ``lag_m`` (m) from its goal:
-        the fast one up to the band's low end, the slow one from its high end, linear between
-        (0 when the slow one is: the filter off; the slow one for a lag not finite)."""
-        s = self.settings
-        slow = s.orientation_time_constant_s
-        if slow <= 0:
-            return 0.0
-        low, high = s.orientation_lag_band_m
-        if lag_m <= low:
-            share = 0.0
-        elif lag_m < high:
-            share = (lag_m - low) / (high - low)
-        else:  # at or beyond the band, or not a number
-            share = 1.0
-        return s.orientation_fast_time_constant_s + share * (
-            slow - s.orientation_fast_time_constant_s)
-
-    def smoothed(self, T_goal: np.ndarray, dt_s: float, lag_m: float = 0.0) -> np.ndarray:
-        """The goal with its orientation smoothed over dt_s, the hand ``lag_m`` (m) from its
-        goal (:meth:`orientation_time_constant_s`)."""
-        tau = self.orientation_time_constant_s(lag_m)
+    def smoothed(self, T_goal: np.ndarray, dt_s: float) -> np.ndarray:
+        """The goal with its orientation smoothed (``orientation_time_constant_s``) over dt_s."""
+        tau = self.settings.orientation_time_constant_s
         T = np.array(T_goal, dtype=float)
-        if self.settings.orientation_time_constant_s <= 0 or self.settings.mode == "paper":
+        if tau <= 0 or self.settings.mode == "paper":
             return T
-        if self._R_smooth is None or tau <= 0:  # (a fast time constant of 0: the goal's)
+        if self._R_smooth is None:
             self._R_smooth = T[:3, :3].copy()
         else:
             _smooth_rotation(self._R_smooth, T, dt_s / (tau + dt_s))

@@ -128,7 +128,6 @@ class HandTrack:
     clutched: bool = False      # the operator holds the device's clutch: re-centre on release
     reachable: bool = True      # the reach search's nearest pose is the goal (within tolerance)
     position_error_m: float = float("nan")
-    lag_m: float = 0.0  # the measured hand's distance to its goal, last period (m)
     rotation_error_rad: float = float("nan")
     missing_m: np.ndarray | None = None  # goal minus the reachable pose's position, at the limit
     speed_scale: float = 1.0
@@ -553,13 +552,12 @@ class TeleopTarget(Target):
             sl = self.slices[arm]
             q_now = self.q_target[sl]
             reach = self.reach[arm]
-            hand = self.hands.get(arm)
-            T_N_goal = reach.smoothed(T_S_goal, t_s - self._t_solved_s.get(arm, t_s),
-                                      0.0 if hand is None else hand.lag_m)
+            T_N_goal = reach.smoothed(T_S_goal, t_s - self._t_solved_s.get(arm, t_s))
             self._t_solved_s[arm] = t_s
             T_N_goal[2, 3] -= legs.lift_m
             solved[arm] = (reach, T_N_goal)
             result = reach.solve(T_N_goal, q_now)
+            hand = self.hands.get(arm)
             q_arm = result.q_rad
             if hand is not None:
                 hand.ik_status = result.status
@@ -722,7 +720,6 @@ class TeleopTarget(Target):
             hand.goal_m = goal_m = goal[:3, 3]
             info[names[6]], info[names[7]], info[names[8]] = goal_m.tolist()
             info[names[9]], info[names[10]] = error, rot_error
-            hand.lag_m = error
             if world:
                 self.errors_m[arm].append(error)
                 self.reachable[arm].append(hand.reachable)
