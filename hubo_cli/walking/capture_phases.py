@@ -167,6 +167,12 @@ class CapturePhase(Phase[Output]):
         with its margin)."""
         return None
 
+    def stop_within_s(self) -> float | None:
+        """How a stop latched now ends this phase: None, the stopper reverts the motion
+        (standing); else the time (s) the phase takes to finish into its double-support
+        stance, where the stopper holds it (0: it stands there now)."""
+        return None
+
 
 class Stand(CapturePhase):
     """The standing target's posture, until the capture point comes within TRIGGER_M of the
@@ -176,7 +182,8 @@ class Stand(CapturePhase):
 
     def run(self, t_s: float, state: RobotState) -> tuple[Output, str | None]:
         stepper = self.stepper
-        triggered = state.time_s > 0 and stepper.outside_m() > -TRIGGER_M
+        triggered = (state.time_s > 0 and stepper.stopped_s is None
+                     and stepper.outside_m() > -TRIGGER_M)
         return (stepper.q_standing, NO_REFERENCE), ("step" if triggered else None)
 
 
@@ -283,6 +290,12 @@ class Step(CapturePhase):
     def balancers_rest(self) -> bool:
         return True
 
+    def stop_within_s(self) -> float:
+        """The swing lands, then the catch (:class:`Catch`)."""
+        period = self.stepper.model.control_period_s
+        return (max(self.n - self.k, 0) * period + LAND_WAIT_S
+                + max(CATCH_S, LUNGE_CATCH_S))
+
     def planned_soles(self) -> np.ndarray:
         """The swing foot at its landing place."""
         s = self.stepper
@@ -293,11 +306,35 @@ class Step(CapturePhase):
 
 class PatternPhase(CapturePhase):
     """A phase that follows the pattern planned at touch-down (the catch and the return);
-    the monitor watches the pattern's support."""
+    the monitor watches the pattern's support, where the estimate has the feet now."""
 
     def planned_soles(self) -> np.ndarray:
+        """The pattern's support this period, in the estimate's frame of now: the estimate's
+        world drifts under a bouncing, sliding foot (the floating base hands its anchor from
+        sole to sole), so the soles planned where the estimate had them at the pattern's
+        start are stale. A foot the pattern keeps where it started is taken where the
+        estimate has it now, laid flat; a foot that swings (or has swung), at its planned
+        landing moved as the landed foot (which the pattern never moves) has moved since."""
         s = self.stepper
-        return s.rest_support[min(s.k, s.rest.n - 1)]
+        k = min(s.k, s.rest.n - 1)
+        plan = s.rest_support[k].copy()
+        now = s.store[T_WORLD_SOLES]
+        z = float(plan[0, 2, 3])
+        flat = [pose_of_row(np.array([T[0, 3], T[1, 3], z, math.atan2(T[1, 0], T[0, 0])]))
+                for T in now]
+        anchor = SIDES.index(s.swing)  # the landed foot
+        moved = flat[anchor] @ np.linalg.inv(s.rest_support[0][anchor])
+        for i, side in enumerate(SIDES):
+            rows = s.rest.feet[side]
+            kept = s.rest.support[k, i] and np.array_equal(rows[k], rows[0])
+            plan[i] = flat[i] if kept else moved @ plan[i]
+        return plan
+
+    def stop_within_s(self) -> float:
+        """The pattern plays on to its stance (the catch's end, or the return's)."""
+        s = self.stepper
+        end = s.n_catch if self.name == "catch" else s.rest.n
+        return max(end - s.k, 0) * s.model.control_period_s
 
 
 class Catch(PatternPhase):
@@ -393,7 +430,10 @@ class Catch(PatternPhase):
     def run(self, t_s: float, state: RobotState) -> tuple[Output, str | None]:
         s = self.stepper
         out = s.pattern_period()
-        return out, ("return" if s.k >= s.n_catch else None)
+        if s.k < s.n_catch:
+            return out, None
+        # a stop latched: the robot stays in the catch's stance (no return step)
+        return out, ("return" if s.stopped_s is None else "stood")
 
     def balancers_rest(self) -> bool:
         return self.stepper.track is None  # in the lunge the balancers act
@@ -477,3 +517,6 @@ class Stood(CapturePhase):
 
     def run(self, t_s: float, state: RobotState) -> tuple[Output, str | None]:
         return (self.q_hold, NO_REFERENCE), None
+
+    def stop_within_s(self) -> float:
+        return 0.0

@@ -91,8 +91,16 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from hubo_cli.control.capture_point import CP_MARGIN_M
+from hubo_cli.control.keys import STOP_MODE
 from hubo_cli.control.module import Module
-from hubo_cli.control.phase import BALANCERS_REST, SUPPORT_PLAN, Phases, SupportPlan
+from hubo_cli.control.phase import (
+    BALANCERS_REST,
+    PHASE_STOP,
+    SUPPORT_PLAN,
+    Phases,
+    PhaseStop,
+    SupportPlan,
+)
 from hubo_cli.control.target import Target, TargetOutput
 from hubo_cli.dataflow import Store
 from hubo_cli.errors import InputError
@@ -129,6 +137,7 @@ RETURN_MAX_DROP_M = 0.11  # [chosen] the torso lowers at most this much while it
 MAX_TOE_OFF_RAD = 0.8    # [chosen] ... and the back foot's heel rises at most this far
 TOE_OFF_STEP_RAD = 0.025  # [chosen] the heel's rise is searched in steps of this
 HIP_BAND_MARGIN_M = 0.005  # [chosen] the lunge's pelvis keeps each hip this far inside its ankle
+STOP_SPARE_S = 0.5       # [chosen] a catch stopping itself settles within its pattern and this
 MAX_DROP_M = 0.08        # [chosen] the torso lowers at most this much for the legs' reach
 CATCH_LOWER_M_S = 0.2    # [chosen] ... and in the lunge's catch at most this fast, down to
 #                          RETURN_MAX_DROP_M, the back heel rising for the rest (with the
@@ -176,11 +185,13 @@ class CaptureStepper(Target):
         self.way = 1.0  # the lunge's landed foot ahead (1) or behind (-1; Catch)
         self.stood_s: float | None = None
         self.stood_feet: list[Footstep] = []
+        self.stopped_s: float | None = None  # when the soft stopper latched (it stays so)
 
     name = "capture-step"
     reads = (T_WORLD_SOLES, T_WORLD_TORSO, CONTACT, WRENCHES, COM_WORLD, COM_VELOCITY_WORLD,
              CAPTURE_POINT_WORLD)
-    writes = (SUPPORT_PLAN, BALANCERS_REST)
+    writes = (SUPPORT_PLAN, BALANCERS_REST, PHASE_STOP)
+    previous = (STOP_MODE,)
 
     def attach(self, world: SceneActions | None, modules: Sequence[Module],
                store: Store) -> None:
@@ -203,14 +214,19 @@ class CaptureStepper(Target):
 
     def __call__(self, t_s: float, state: RobotState) -> TargetOutput:
         self.q_standing, info = self.stand(t_s, state)
+        if self.stopped_s is None and self.store.get(STOP_MODE, "release") != "release":
+            self.stopped_s = t_s  # no step starts now, and a catch ends in its stance
         q, ref = self.phases(t_s, state)
         # what the phase in force asks of the pipeline: the balancers rest while the pattern
         # moves the CoM; the monitor watches the planned support, unshrunk, until the robot
-        # stands
+        # stands; a stop latched while it steps lets it finish into its stance
         phase = self.phases.current
         self.store[BALANCERS_REST] = phase.balancers_rest()
         soles = phase.planned_soles()
         self.store[SUPPORT_PLAN] = None if soles is None else SupportPlan(soles, 0.0)
+        within_s = phase.stop_within_s()
+        self.store[PHASE_STOP] = None if within_s is None else PhaseStop(
+            settled=within_s == 0.0, within_s=within_s + STOP_SPARE_S)
         return q, info | {"capture.phase_code": self.phases.code,
                           "capture.com_ref_x_m": ref[0], "capture.com_ref_y_m": ref[1]}
 
