@@ -13,9 +13,11 @@ from hubo_cli.walking.capture_phases import (
     CATCH_S,
     LONG_STEP_M,
     LUNGE_CATCH_S,
+    LUNGE_WAIT_S,
     MAX_STEP_M,
     MAX_WIDTH_M,
     RAMP_FRACTION,
+    SETTLED_SPEED_M_S,
     SINGLE_SUPPORT_S,
     TOUCH_FRACTION,
     TRAVEL_END,
@@ -248,97 +250,135 @@ def test_a_150_n_backward_push_is_caught_in_a_lunge_both_feet_carry(tmp_path):
     assert np.nanmax(np.asarray(log["wrist_torque_nm"], dtype=float)) < 1.5 * WRIST_NM_MEASURED
 
 
-@pytest.mark.parametrize(("landed_ahead_m", "catch_s"), [(0.10, CATCH_S), (0.30, LUNGE_CATCH_S)])
-def test_the_capture_phases_hand_over_from_stand_to_stood(landed_ahead_m, catch_s):
+class StillRobot:
+    """A capture stepper on a still robot whose estimate a test sets (no simulation): the
+    ideal driver's first estimate, both soles down and loaded."""
+
+    def __init__(self):
+        from hubo_cli.drivers.registry import make_driver
+        from hubo_cli.estimation.build import build_estimator
+        from hubo_cli.estimation.keys import T_WORLD_SOLES, WRENCHES
+        from hubo_cli.experiments.standing import StandTarget, standing_posture
+        from hubo_cli.walking.capture_step import CaptureStepper
+        from hubo_cli.walking.params import walking_params
+
+        model = load_model()
+        self.dt, self.q_stand = model.control_period_s, standing_posture(model)
+        estimator = build_estimator(model)
+        with make_driver("ideal", model) as driver:
+            driver.start(self.q_stand)
+            estimator.reset(driver.read())  # every estimate key the stepper reads
+        self.store = estimator.store
+        self.stepper = CaptureStepper(
+            StandTarget(self.q_stand, 1, np.zeros(3), 1.0, 0.2, model, "standing"), model,
+            walking_params(model), self.q_stand)
+        self.stepper.attach(None, [], self.store)
+        self.soles = self.store[T_WORLD_SOLES].copy()
+        self.wrenches = {name: np.array([0.0, 0.0, 200.0, 0.0, 0.0, 0.0])
+                         if name.endswith("ankle") else w
+                         for name, w in self.store[WRENCHES].items()}
+        self.records = []
+
+    def period(self, k):
+        from hubo_cli.control.phase import BALANCERS_REST, SUPPORT_PLAN
+        from hubo_cli.state import RobotState
+
+        t_s = k * self.dt
+        q, info = self.stepper(t_s, RobotState(t_s, self.q_stand, np.zeros(len(self.q_stand))))
+        assert np.all(np.isfinite(q))
+        plan = self.store[SUPPORT_PLAN]
+        self.records.append((info["capture.phase_code"], self.store[BALANCERS_REST],
+                             None if plan is None else plan.margin_m,
+                             math.isfinite(info["capture.com_ref_x_m"]), q))
+
+    def push(self):
+        """Both soles down and loaded, the capture point 0.3 m ahead of them and a little to
+        the left, moving forward: outside the shrunk soles."""
+        from hubo_cli.estimation.keys import (
+            CAPTURE_POINT_WORLD,
+            COM_VELOCITY_WORLD,
+            CONTACT,
+            WRENCHES,
+        )
+
+        self.store[CONTACT], self.store[WRENCHES] = (True, True), self.wrenches
+        middle = self.soles[:, :2, 3].mean(axis=0)
+        self.store[CAPTURE_POINT_WORLD] = middle + [0.3, 0.05]
+        self.store[COM_VELOCITY_WORLD] = np.array([0.3, 0.0, 0.0])
+
+    def step_and_land(self, landed_ahead_m, speed_m_s=0.0):
+        """From period 1: the left foot swings (off the ground, unloaded), then is down
+        ``landed_ahead_m`` ahead after TOUCH_FRACTION of the swing, the CoM moving at
+        ``speed_m_s`` from then on (the stepper's catch from the period returned)."""
+        from hubo_cli.estimation.keys import (
+            CAPTURE_POINT_WORLD,
+            COM_VELOCITY_WORLD,
+            CONTACT,
+            T_WORLD_SOLES,
+            WRENCHES,
+        )
+
+        store = self.store
+        self.period(1)
+        lifted = self.soles.copy()
+        lifted[1, 2, 3] += 0.02
+        store[T_WORLD_SOLES], store[CONTACT] = lifted, (True, False)
+        store[WRENCHES] = self.wrenches | {"left-ankle": np.zeros(6)}
+        down_k = round(TOUCH_FRACTION * SINGLE_SUPPORT_S / self.dt)
+        for k in range(2, down_k - 10):
+            self.period(k)
+        landed = self.soles.copy()
+        landed[1, 0, 3] += landed_ahead_m
+        store[T_WORLD_SOLES], store[WRENCHES] = landed, self.wrenches
+        store[CONTACT] = (True, True)
+        store[CAPTURE_POINT_WORLD] = landed[:, :2, 3].mean(axis=0)
+        store[COM_VELOCITY_WORLD] = np.array([speed_m_s, 0.0, 0.0])
+        for k in range(down_k - 10, down_k):
+            self.period(k)
+        assert self.stepper.phase == "step"
+        self.period(down_k)
+        assert self.stepper.phase == "catch"
+        return down_k, landed
+
+
+@pytest.mark.parametrize(("landed_ahead_m", "speed_m_s", "catch_s"), [
+    (0.10, 0.2, CATCH_S),  # a short step's catch is planned: its length whatever the speed
+    (0.30, 0.0, LUNGE_CATCH_S),  # the lunge, at rest by the end of its shortest catch
+    (0.30, SETTLED_SPEED_M_S, LUNGE_CATCH_S + LUNGE_WAIT_S),  # never at rest: its longest
+])
+def test_the_capture_phases_hand_over_from_stand_to_stood(landed_ahead_m, speed_m_s, catch_s):
     """The stepper's phases as explicit states, on a still robot whose estimate the test sets
     (no simulation): stand until the capture point leaves the shrunk soles (never in the first
     period); step in that very period (the balancers rest, the monitor watches the swing foot
     at its landing place, unshrunk); catch from the period the estimate has the swing sole down
     (the step's output stands then) for the catch's length (a short step's rest over the landed
-    sole, a long step's lunge with the balancers on); return (the balancers rest; after the
-    lunge until the back foot is down); stood once the pattern ends: the pattern's last joints
+    sole, a long step's lunge until the CoM is at rest in it, at least LUNGE_CATCH_S and at
+    most LUNGE_WAIT_S more; the balancers rest); return (the balancers rest; after the lunge
+    until the back foot is down); stood once the pattern ends: the pattern's last joints
     held, the balancers on and the monitor back on the estimated soles with its margin."""
-    from hubo_cli.control.phase import BALANCERS_REST, SUPPORT_PLAN
-    from hubo_cli.drivers.registry import make_driver
-    from hubo_cli.estimation.build import build_estimator
-    from hubo_cli.estimation.keys import (
-        CAPTURE_POINT_WORLD,
-        COM_VELOCITY_WORLD,
-        CONTACT,
-        T_WORLD_SOLES,
-        WRENCHES,
-    )
-    from hubo_cli.experiments.standing import StandTarget, standing_posture
-    from hubo_cli.state import RobotState
     from hubo_cli.walking.capture_phases import PHASES
-    from hubo_cli.walking.capture_step import CaptureStepper
-    from hubo_cli.walking.params import walking_params
 
-    model = load_model()
-    dt, q_stand = model.control_period_s, standing_posture(model)
-    estimator = build_estimator(model)
-    with make_driver("ideal", model) as driver:
-        driver.start(q_stand)
-        estimator.reset(driver.read())  # every estimate key the stepper reads
-    store = estimator.store
-    stepper = CaptureStepper(StandTarget(q_stand, 1, np.zeros(3), 1.0, 0.2, model, "standing"),
-                             model, walking_params(model), q_stand)
-    stepper.attach(None, [], store)
-    soles = store[T_WORLD_SOLES].copy()
-    records = []
-
-    def period(k):
-        q, info = stepper(k * dt, RobotState(k * dt, q_stand, np.zeros(len(q_stand))))
-        assert np.all(np.isfinite(q))
-        plan = store[SUPPORT_PLAN]
-        records.append((info["capture.phase_code"], store[BALANCERS_REST],
-                        None if plan is None else plan.margin_m,
-                        math.isfinite(info["capture.com_ref_x_m"]), q))
-
-    # both soles down and loaded, the capture point 0.3 m ahead of them and a little to the
-    # left, moving forward: it is outside, but the first period never steps
-    wrenches = {name: np.array([0.0, 0.0, 200.0, 0.0, 0.0, 0.0]) if name.endswith("ankle")
-                else w for name, w in store[WRENCHES].items()}
-    store[CONTACT], store[WRENCHES] = (True, True), wrenches
-    middle = soles[:, :2, 3].mean(axis=0)
-    store[CAPTURE_POINT_WORLD] = middle + [0.3, 0.05]
-    store[COM_VELOCITY_WORLD] = np.array([0.3, 0.0, 0.0])
-    period(0)
+    robot = StillRobot()
+    stepper, records, dt = robot.stepper, robot.records, robot.dt
+    robot.push()
+    robot.period(0)  # outside, but the first period never steps
     assert records[-1][:4] == (PHASES.index("stand"), False, None, False)
-    period(1)
-    assert stepper.phase == "step" and stepper.swing == "left" and stepper.trigger_s == dt
-    assert records[-1][:4] == (PHASES.index("step"), True, 0.0, True)
-    # the swing: the left sole off the ground and unloaded; then down where it landed, but a
-    # loaded swing sole counts only after TOUCH_FRACTION of the swing (the step's period 1 is
-    # the loop's period 1)
-    lifted = soles.copy()
-    lifted[1, 2, 3] += 0.02
-    store[T_WORLD_SOLES], store[CONTACT] = lifted, (True, False)
-    store[WRENCHES] = wrenches | {"left-ankle": np.zeros(6)}
-    down_k = round(TOUCH_FRACTION * SINGLE_SUPPORT_S / dt)
-    for k in range(2, down_k - 10):
-        period(k)
-    landed = soles.copy()
-    landed[1, 0, 3] += landed_ahead_m
-    store[T_WORLD_SOLES], store[WRENCHES], store[CONTACT] = landed, wrenches, (True, True)
-    store[CAPTURE_POINT_WORLD] = landed[:, :2, 3].mean(axis=0)
-    for k in range(down_k - 10, down_k):
-        period(k)
-    assert stepper.phase == "step"
-    k = down_k
-    period(k)
+    down_k, landed = robot.step_and_land(landed_ahead_m, speed_m_s)
+    assert stepper.swing == "left" and stepper.trigger_s == dt
+    assert records[1][:4] == (PHASES.index("step"), True, 0.0, True)
     touch_down = len(records) - 1
-    assert stepper.phase == "catch" and records[-1][0] == PHASES.index("catch")
+    assert records[-1][0] == PHASES.index("catch")
+    k = down_k
     while stepper.phase != "stood" and k < 3000:
         k += 1
-        period(k)
+        robot.period(k)
     codes = np.array([r[0] for r in records])
     # each phase once, in order, the catch for its length from the touch-down
     assert [int(c) for c in codes[np.r_[True, np.diff(codes) != 0]]] == list(range(5))
     assert np.count_nonzero(codes == PHASES.index("catch")) == round(catch_s / dt)
     assert np.nonzero(codes == PHASES.index("catch"))[0][0] == touch_down
     rest = [r[1] for r, c in zip(records, codes, strict=True) if c == PHASES.index("catch")]
-    assert rest == [landed_ahead_m <= LONG_STEP_M] * len(rest)  # the lunge: the balancers act
+    assert all(rest)
     returning = [r for r, c in zip(records, codes, strict=True) if c == PHASES.index("return")]
     assert returning[0][1] and all(r[2] == 0.0 and r[3] for r in returning)
     if landed_ahead_m > LONG_STEP_M:  # the back foot down: the balancers act again
@@ -349,10 +389,65 @@ def test_the_capture_phases_hand_over_from_stand_to_stood(landed_ahead_m, catch_
     assert summary["footsteps"][0]["x_m"] == pytest.approx(landed[1, 0, 3])  # as measured
     held = records[-1][4]
     for j in range(k + 1, k + 4):
-        period(j)
+        robot.period(j)
         assert records[-1][0] == PHASES.index("stood") and records[-1][1:4] == (False, None,
                                                                                  False)
         assert np.array_equal(records[-1][4], held)
+
+
+@pytest.mark.parametrize("landed_ahead_m", [0.10, 0.30])
+def test_a_stop_mid_catch_finishes_into_the_stance_and_holds(landed_ahead_m):
+    """A stop latched while the stepper steps is not reverted (reverting a step does not keep
+    the robot up): the stepper tells the soft stopper that it stops itself (PHASE_STOP), the
+    catch runs to its end in the stepped stance and the robot stands there, no return step
+    (settled: the stopper holds it). Latched while standing, the stopper reverts as always and
+    no step starts. The monitor meanwhile watches the feet where the estimate has them now
+    (its frame drifts under a bouncing foot): a foot the pattern keeps, as estimated."""
+    from hubo_cli.control.keys import STOP_MODE
+    from hubo_cli.control.phase import PHASE_STOP, SUPPORT_PLAN
+    from hubo_cli.estimation.keys import T_WORLD_SOLES
+    from hubo_cli.walking.capture_phases import PHASES
+
+    robot = StillRobot()
+    store, stepper, records, dt = robot.store, robot.stepper, robot.records, robot.dt
+    robot.push()
+    store[STOP_MODE] = "hold"  # latched while standing: no step, the stopper reverts
+    for k in range(3):
+        robot.period(k)
+        assert stepper.phase == "stand" and store[PHASE_STOP] is None
+
+    robot = StillRobot()
+    store, stepper, records = robot.store, robot.stepper, robot.records
+    robot.push()
+    robot.period(0)
+    down_k, landed = robot.step_and_land(landed_ahead_m)
+    assert store[PHASE_STOP].settled is False
+    k = down_k + 20
+    for j in range(down_k + 1, k + 1):
+        robot.period(j)
+    # the estimate's frame drifts 40 mm to the right under the feet: the plan follows
+    drifted = landed.copy()
+    drifted[:, 1, 3] -= 0.04
+    store[T_WORLD_SOLES] = drifted
+    store[STOP_MODE] = "finish"
+    k += 1
+    robot.period(k)
+    planned = store[SUPPORT_PLAN].T_world_soles
+    assert np.allclose(planned[:, :2, 3], drifted[:, :2, 3], atol=1e-12)
+    catch_n = stepper.n_catch if landed_ahead_m <= LONG_STEP_M else stepper.rest.n
+    remaining_s = (catch_n - stepper.k) * dt
+    assert store[PHASE_STOP].settled is False
+    assert store[PHASE_STOP].within_s == pytest.approx(remaining_s + 0.5)
+    while stepper.phase != "stood" and k < 3000:
+        k += 1
+        robot.period(k)
+        assert stepper.phase in ("catch", "stood")  # no return step
+    codes = np.array([r[0] for r in records])
+    assert np.count_nonzero(codes == PHASES.index("catch")) == stepper.n_catch  # in full
+    assert store[PHASE_STOP].settled is True and stepper.stood_s == k * dt
+    robot.period(k + 1)
+    assert records[-1][0] == PHASES.index("stood") and store[PHASE_STOP].settled is True
+    assert np.array_equal(records[-1][4], records[-2][4])
 
 
 @pytest.mark.parametrize("way", [1.0, -1.0])

@@ -59,7 +59,12 @@ LAND_WAIT_S = 0.2        # [chosen] wait at most this long after the swing for i
 TOUCH_FRACTION = 0.5     # [chosen] a swing sole carrying estimation.swing_touchdown_n is
 #                          down once this much of the swing has passed
 LONG_STEP_M = 0.15       # [chosen] a capture step longer than this: the robot stays in the lunge
-LUNGE_CATCH_S = 2.0      # [chosen] ... while the CoM comes to rest in it
+LUNGE_CATCH_S = 2.0      # [chosen] ... while the CoM comes to rest in it, at least, and then
+LUNGE_WAIT_S = 2.0       # [chosen] ... at most this much longer until it is at rest: its
+SETTLED_SPEED_M_S = 0.05  # [chosen] ... estimated speed under this (the return, a walking
+#                          step with the balancers at rest, started in mid-sway after 2 s and
+#                          the sway carried the robot out of the stance: 150 N backward at 1.0
+#                          and 2.0 s)
 UPRIGHT_S = 0.3          # [chosen] ... and the torso turns back upright over this long
 RETURN_FOOT_SPEED_M_S = 0.5  # [chosen] the return swing's peak foot speed (its smoothstep's)
 RETURN_SHIFT_S = 1.0     # [chosen] the return's double support: the CoM over the front foot
@@ -294,7 +299,7 @@ class Step(CapturePhase):
         """The swing lands, then the catch (:class:`Catch`)."""
         period = self.stepper.model.control_period_s
         return (max(self.n - self.k, 0) * period + LAND_WAIT_S
-                + max(CATCH_S, LUNGE_CATCH_S))
+                + max(CATCH_S, LUNGE_CATCH_S + LUNGE_WAIT_S))
 
     def planned_soles(self) -> np.ndarray:
         """The swing foot at its landing place."""
@@ -331,16 +336,22 @@ class PatternPhase(CapturePhase):
         return plan
 
     def stop_within_s(self) -> float:
-        """The pattern plays on to its stance (the catch's end, or the return's)."""
+        """The pattern plays on to its stance (the catch's end, a lunge's at the latest, or
+        the return's)."""
         s = self.stepper
-        end = s.n_catch if self.name == "catch" else s.rest.n
+        end = s.n_catch if self.name == "catch" and s.track is None else s.rest.n
         return max(end - s.k, 0) * s.model.control_period_s
 
 
 class Catch(PatternPhase):
     """Both feet down: after a short step the CoM comes to rest over the landed sole (the
     pattern then goes on into the return step); after a long one (LONG_STEP_M) the robot
-    stays in the lunge while the CoM comes to rest in it and the standing balancers act."""
+    stays in the lunge while the CoM comes to rest in it (LUNGE_CATCH_S, then until the
+    estimated CoM is slower than SETTLED_SPEED_M_S, at most LUNGE_WAIT_S more). The standing
+    balancers rest throughout: acting in the lunge's stance, whose soles are far apart
+    along a diagonal, they rocked the robot sideways ever wider (150 N forward pushed at
+    1.0 s rolled out over the back foot's edge). A stop latched meanwhile ends the catch in
+    its stance (stood), with no return step."""
 
     name = "catch"
     runs_at_start = False  # the step's last output stands in the period it touches down
@@ -406,7 +417,7 @@ class Catch(PatternPhase):
         comes to rest where the measured capture point says (the stepper's pattern period)."""
         s = self.stepper
         period = s.model.control_period_s
-        n = max(1, int(round(LUNGE_CATCH_S / period)))
+        n = max(1, int(round((LUNGE_CATCH_S + LUNGE_WAIT_S) / period)))  # at most
         rows = {s.swing: np.tile(_row(land, s.sole_z_m), (n, 1)),
                 s.stance_side: np.tile(_row(stance, s.sole_z_m), (n, 1))}
         c = np.tile(com_m, (n, 1))
@@ -424,19 +435,20 @@ class Catch(PatternPhase):
         s.reach_m = None  # the back leg's reach at touch-down (toe-off)
         s.rest_support = planned_support(s.rest)
         s.n_upright = max(1, int(round(UPRIGHT_S / period)))
-        s.n_catch = n
+        s.n_catch = max(1, int(round(LUNGE_CATCH_S / period)))  # at least
         s.steps = [land]
 
     def run(self, t_s: float, state: RobotState) -> tuple[Output, str | None]:
         s = self.stepper
         out = s.pattern_period()
-        if s.k < s.n_catch:
+        if s.k < s.n_catch or (s.track is not None and s.k < s.rest.n and float(
+                np.hypot(*s.store[COM_VELOCITY_WORLD][:2])) >= SETTLED_SPEED_M_S):
             return out, None
         # a stop latched: the robot stays in the catch's stance (no return step)
         return out, ("return" if s.stopped_s is None else "stood")
 
     def balancers_rest(self) -> bool:
-        return self.stepper.track is None  # in the lunge the balancers act
+        return True
 
 
 class Return(PatternPhase):
