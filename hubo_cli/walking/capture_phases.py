@@ -152,6 +152,11 @@ def landing(stance: Footstep, side: str, xi_m: np.ndarray, forward_m: float,
                     stance.yaw_rad)
 
 
+def landed_period(gait: Gait) -> int:
+    """The first period of ``gait`` after its last swing, both feet down."""
+    return int(np.nonzero(~gait.support.all(axis=1))[0][-1]) + 1
+
+
 Output = tuple[np.ndarray, tuple[float, float]]
 
 
@@ -336,10 +341,13 @@ class PatternPhase(CapturePhase):
         return plan
 
     def stop_within_s(self) -> float:
-        """The pattern plays on to its stance (the catch's end, a lunge's at the latest, or
-        the return's)."""
+        """The pattern plays on to its stance: the catch's end (a lunge's at the latest), or
+        the return step's landing."""
         s = self.stepper
-        end = s.n_catch if self.name == "catch" and s.track is None else s.rest.n
+        if self.name == "return":
+            end = s.landed_k
+        else:
+            end = s.n_catch if s.track is None else s.rest.n
         return max(end - s.k, 0) * s.model.control_period_s
 
 
@@ -408,6 +416,7 @@ class Catch(PatternPhase):
                       rows, np.vstack([np.ones((n, 2), dtype=bool), ret.support]),
                       np.concatenate([np.full(n, -1), ret.step_index]))
         s.rest_support = planned_support(s.rest)
+        s.landed_k = landed_period(s.rest)
         s.n_catch = n
         s.steps = [land, back]
 
@@ -454,7 +463,7 @@ class Catch(PatternPhase):
 class Return(PatternPhase):
     """One walking step brings the other foot beside the landed one: a short step's pattern
     goes on; after the lunge it is planned now (:meth:`start`). The balancers rest until the
-    back foot is down."""
+    back foot is down. A stop latched meanwhile: the robot stands once that foot is down."""
 
     name = "return"
     runs_at_start = False  # the catch's last output stands
@@ -488,7 +497,7 @@ class Return(PatternPhase):
                            s.height_m, s.sole_z_m, forward,
                            com_start_m=s.track["com"].copy())
         s.rest_support = planned_support(s.rest)
-        s.landed_k = int(np.nonzero(~s.rest.support.all(axis=1))[0][-1]) + 1
+        s.landed_k = landed_period(s.rest)
         s.drop_m = s.neck_z0_m - s.body.neck_z_m
         s.reach_m = None
         feet = s.model.feet
@@ -506,7 +515,9 @@ class Return(PatternPhase):
     def run(self, t_s: float, state: RobotState) -> tuple[Output, str | None]:
         s = self.stepper
         out = s.pattern_period()
-        return out, ("stood" if s.k >= s.rest.n else None)
+        # a stop latched: the robot stands once the back foot is down beside the front one
+        end = s.rest.n if s.stopped_s is None else s.landed_k
+        return out, ("stood" if s.k >= end else None)
 
     def balancers_rest(self) -> bool:
         s = self.stepper  # after the lunge: until the back foot is beside the front one

@@ -31,7 +31,9 @@ pendulum (omega^2 = g / z_c):
    returns between the feet.
 
 After a long step (more than ``LONG_STEP_M`` the push's way) the robot stays in the stepped
-stance, a lunge (one step): over ``LUNGE_CATCH_S`` both feet stay down, the torso turns back
+stance, a lunge (one step): both feet stay down for at least ``LUNGE_CATCH_S`` and then
+until the estimated CoM is slower than ``SETTLED_SPEED_M_S`` (at most ``LUNGE_WAIT_S`` more:
+the return, an open-loop walking step, must not start in mid-sway), the torso turns back
 upright over ``UPRIGHT_S`` and the CoM comes to rest, c' = w (r - c), on a point r that
 follows the measured capture point (time constant ``REST_TAU_S``) held on the line through
 the soles' middles, from ``REST_BACK_FRACTION`` of the way from the back sole's middle to the
@@ -49,7 +51,8 @@ stance no further than the stance leg reaches its flat sole with the torso lower
 ``RETURN_MAX_DROP_M``.
 The pattern so follows where the landing (its impact took an unknown part of the momentum)
 left the robot instead of driving it on toward its own capture point; the standing balancers
-act meanwhile. Then the return (:meth:`~hubo_cli.walking.capture_phases.Return.start`): one
+rest (acting in the lunge's long diagonal stance they rocked it sideways ever wider). Then
+the return (:meth:`~hubo_cli.walking.capture_phases.Return.start`): one
 walking step of :func:`~hubo_cli.walking.gait.make_gait` from the measured soles (its lead-in
 from the lunge's CoM, a ``RETURN_SHIFT_S`` double support that moves the CoM over the front sole, a
 swing whose smoothstep peaks at ``RETURN_FOOT_SPEED_M_S``, the settle between the feet)
@@ -72,11 +75,17 @@ step's pattern) are explicit states run by a :class:`~hubo_cli.control.phase.Pha
 each planning when it starts; what the phase in force asks of the pipeline the stepper writes
 to the store every period (:mod:`hubo_cli.control.phase`), never touching a module.
 While it steps and catches, the capture-point monitor watches the planned support (the swing
-foot at its landing place, as when walking; then the stepped stance) with no margin: the
-stepping is the answer to the capture point leaving the shrunk polygon, and the stop, which
-freezes a recoverable catch, is left for a capture point beyond the stepped stance itself.
-The standing balancers rest (:data:`~hubo_cli.control.phase.BALANCERS_REST`) while it
-steps, in a short step's catch and return step and in the lunge's return until the back foot
+foot at its landing place, as when walking; then the stepped stance, where the estimate has
+the feet now) with no margin: the stepping is the answer to the capture point leaving the
+shrunk polygon, and the stop is left for a capture point beyond the stepped stance itself.
+Such a stop is not reverted (reverting a step does not keep the robot up): as a walk, the
+stepper tells the soft stopper that it stops itself
+(:data:`~hubo_cli.control.phase.PHASE_STOP`): the swing lands, the catch runs to its end in
+the stepped stance and the robot stands there with no return step (a return step under way
+stands once its foot is down), held by the stopper (which brakes it where it is if that
+takes longer than the phase said). No step starts once a stop has latched. The standing
+balancers rest (:data:`~hubo_cli.control.phase.BALANCERS_REST`) while it steps, in every
+catch (a short step's and the lunge's) and return step, after a lunge until the back foot
 is down; afterwards the robot holds the pattern's last posture, the balancers act and the
 monitor watches the estimated soles with its margin again. At most two steps per push; one
 plan at a time.
