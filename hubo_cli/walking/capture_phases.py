@@ -40,7 +40,6 @@ from hubo_cli.walking.stabilizer import SoleDamper, StabilizerGains
 from hubo_cli.walking.target import SIDES, ankle_wrenches, estimated_feet, planned_support
 
 if TYPE_CHECKING:
-    from hubo_cli.model import RobotModel
     from hubo_cli.walking.capture_step import CaptureStepper
 
 PHASES = ("stand", "step", "catch", "return", "stood")  # capture.phase_code is the index
@@ -151,17 +150,6 @@ def landing(stance: Footstep, side: str, xi_m: np.ndarray, forward_m: float,
     left = SIDE_SIGN[side] * across
     return Footstep(side, stance.x_m + c * ahead - s * left, stance.y_m + s * ahead + c * left,
                     stance.yaw_rad)
-
-
-def front_sole_damper(model: RobotModel) -> SoleDamper:
-    """The landed (front) sole's foot damping in the lunge and its return, from rest (the
-    walking stabilizer's: the sole complies with its measured ground moment and stays flat
-    instead of rocking onto an edge)."""
-    feet = model.feet
-    box = (feet.forward_m - feet.length_m / 2, feet.forward_m + feet.length_m / 2,
-           -feet.width_m / 2, feet.width_m / 2)
-    return SoleDamper(StabilizerGains(), box, model.control_period_s,
-                      model.estimation.sole_damping_min_fz_n)
 
 
 def landed_period(gait: Gait) -> int:
@@ -454,7 +442,6 @@ class Catch(PatternPhase):
                                                      for foot in (land, stance)}}
         s.track["rest"] = s.in_stance(xi_m)
         s.reach_m = None  # the back leg's reach at touch-down (toe-off)
-        s.damper = front_sole_damper(s.model)
         s.rest_support = planned_support(s.rest)
         s.n_upright = max(1, int(round(UPRIGHT_S / period)))
         s.n_catch = max(1, int(round(LUNGE_CATCH_S / period)))  # at least
@@ -513,7 +500,11 @@ class Return(PatternPhase):
         s.landed_k = landed_period(s.rest)
         s.drop_m = s.neck_z0_m - s.body.neck_z_m
         s.reach_m = None
-        s.damper = front_sole_damper(s.model)
+        feet = s.model.feet
+        box = (feet.forward_m - feet.length_m / 2, feet.forward_m + feet.length_m / 2,
+               -feet.width_m / 2, feet.width_m / 2)
+        s.damper = SoleDamper(StabilizerGains(), box, period,
+                              s.model.estimation.sole_damping_min_fz_n)
         # the back leg reaches its sole with the heel raised (toe-off), not flat
         s.body.max_error_m = math.inf
         s.track, s.lunge_return = None, True

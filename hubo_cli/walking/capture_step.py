@@ -322,9 +322,8 @@ class CaptureStepper(Target):
             if k == 0:
                 self.q_jump = self.q_last - q
             q = q + (1.0 - self._lead_in(k)) * self.q_jump
-        if back_reaches:  # the lunge and its return: the front sole complies with its ground
-            # moment (the walking stabilizer's foot damping): it stays flat instead of
-            # rocking onto an edge (a roll over it felled 150 N forward pushed at 1.8 s)
+            # the front sole complies with its ground moment (the walking stabilizer's foot
+            # damping): it stays flat instead of rocking onto an edge
             delta = self.damper.update(ankle_wrenches(self.store)[SIDES.index(self.swing)])
             leg = "R" if self.swing == "right" else "L"
             names = list(self.model.joint_names)
