@@ -54,10 +54,13 @@ def assert_stands_after_the_return(summary: dict, duration_s: float) -> None:
     catch would have left the robot in the stepped stance).
 
     Measured on the estimate with the filtered attitude (gyro, accelerometer and legs; 90 /
-    125 / 150 N): stood at 8.33 / 9.02 / 9.11 s, the first steps 0.279 / 0.438 / 0.492 m, tilt
-    9.4 / 9.1 / 11.8 deg (on the simulator's truth, before: 8.28 / 8.72-8.745 / 8.945 s, the
-    code paths 0.005-0.025 s apart); perturbed robots 1-2 stood at 8.435-8.66 s (90 N) and
-    8.91-8.935 s (150 N, robot 1; robot 2 falls at 150 N). The bound is the run's length,
+    125 / 150 N pushed at 0.3 s): stood at 8.33 / 9.02 / 9.11 s, the first steps 0.279 /
+    0.438 / 0.492 m, tilt 9.4 / 9.1 / 11.8 deg (on the simulator's truth, before: 8.28 /
+    8.72-8.745 / 8.945 s, the code paths 0.005-0.025 s apart); perturbed robots 1-2 stood at
+    8.435-8.66 s (90 N) and 8.91-8.935 s (150 N, robot 1; robot 2 falls at 150 N). Since the
+    lunge waits for the CoM to come to rest (0-0.24 s longer at 150 N), 150 N pushed at 1 s
+    stood at 10.065 / 9.88 s (AVX-512 / portable; docs/history/balance.md, the nine push
+    moments: 9.145-11.075 s, T + 8.8-9.1 s). The bound is the run's length,
     chosen to end shortly after the robot stands: a 1.5x margin on the time would mean runs
     half as long again for nothing. Along and across: at most 0.11 and 0.54 mm off (bounds
     30 mm)."""
@@ -87,7 +90,7 @@ def assert_stands_after_the_return(summary: dict, duration_s: float) -> None:
     (125.0, 9.8, 0.15),
     # the issue's push (`hubo sim --push 150 --step`, pushed at its default moment, 1 s): the
     # step lands far, the torso lowered for the legs' reach
-    (150.0, 10.7, 0.28),
+    (150.0, 10.7, 0.26),
 ])
 @pytest.mark.physical
 def test_a_long_step_push_is_caught_by_a_lunge_and_a_return_step(tmp_path, push_n, duration_s,
@@ -96,7 +99,9 @@ def test_a_long_step_push_is_caught_by_a_lunge_and_a_return_step(tmp_path, push_
     stands in the stepped stance (the lunge) until it settles, then one walking step brings
     the back foot beside the front one (its heel rising for the leg's reach): at most two
     steps, no fall, the torso well away from the 30 degrees of a fall, no joint faster than
-    the walking limit set allows, and the robot stands at the standing width with no stop."""
+    the walking limit set allows, and the robot stands at the standing width with no stop.
+    150 N is pushed at the CLI's moment, 1 s: on AVX-512 it fell there before this round
+    (the standing balancers rocked the lunge sideways; a capture-point stop at 3.16 s)."""
     result = stand(load_model(), duration_s, push_n, step=True,
                    push_at_s=1.0 if push_n >= 150.0 else 0.3, out=tmp_path / "run")
     summary = json.loads((result.run_dir / "summary.json").read_text())
@@ -105,11 +110,13 @@ def test_a_long_step_push_is_caught_by_a_lunge_and_a_return_step(tmp_path, push_
     # as landed, measured on the estimate with the filtered attitude 0.279 / 0.438 / 0.492 m
     # for 90 / 125 / 150 N: 1.9x / 2.9x / 1.8x the bounds (on the truth before: 0.258 / 0.336
     # / 0.424-0.437 m; a step that only catches: 0.11 m; perturbed robots 1-2: 0.287-0.299 m
-    # at 90 N, 0.440-0.446 m at 150 N)
+    # at 90 N, 0.440-0.446 m at 150 N); 150 N pushed at 1 s: 0.479 / 0.405 m (AVX-512 /
+    # portable; 0.403-0.483 m at the nine moments 0.3-2.0 s, 1.55x the bound)
     assert summary["capture_step"]["footsteps"][0]["x_m"] > min_first_step_m
     # measured 9.2-10.4 deg with the lunge's back heel raised (unfiltered attitude) and
     # 9.1-11.8 deg on the filtered attitude (before the heel change; 8.7-9.0 on the truth before
-    # both): 1.7x. (Perturbed robot 2 leaned 17.5 deg at 90 N: 1.5x that would be 26 deg, next
+    # both): 1.7x; 150 N at the nine push moments 0.3-2.0 s, both CPU paths: 8.5-12.0 deg
+    # (1.67x). (Perturbed robot 2 leaned 17.5 deg at 90 N: 1.5x that would be 26 deg, next
     # to the 30 deg of a fall, which `fell` already covers.)
     assert result.max_tilt_deg < 20.0
     assert summary["max_joint_velocity_ratio"] <= 1.0 + 1e-9
@@ -201,10 +208,11 @@ def test_a_150_n_backward_push_is_caught_in_a_lunge_both_feet_carry(tmp_path):
     Before (the landed foot under the capture point, 0.13 m out): the landed leg could not
     hold its sole under the pelvis (the body's IK failed every period, the pattern froze), the
     front foot hung 6-11 cm up with 0 N and 150 N backward fell at all 9 push moments
-    0.3-2.0 s. Measured here (AVX-512 / portable): the front foot 204.2 / 202.8 N mean over
-    the catch's last second (the bound, 100 N, 2.0x under), the torso's largest tilt then
-    1.09 / 1.55 deg (bound 4 deg, 2.6x), the landed foot 0.244 / 0.249 m across from the
-    stance foot (standing 0.177; the bound, width + 30 mm, is 2.2x under the excess).
+    0.3-2.0 s. Measured here (AVX-512 / portable), the standing balancers resting in the
+    lunge: the front foot 201.5 / 194.5 N mean over the catch's last second (the bound,
+    100 N, 1.9x under), the torso's largest tilt then 3.19 / 0.77 deg (bound 5 deg, 1.57x;
+    1.09 / 1.55 deg with the balancers acting), the landed foot 0.244 / 0.245 m across from
+    the stance foot (standing 0.177; the bound, width + 30 mm, is 2.2x under the excess).
 
     Every default stop is in. The wrist-torque stop fired at every moment at this catch's
     touchdown while the compensated wrist moments removed only the hand's weight (a
@@ -238,7 +246,7 @@ def test_a_150_n_backward_push_is_caught_in_a_lunge_both_feet_carry(tmp_path):
     late = (t_s > touch_down_s + 1.0) & (t_s <= touch_down_s + 2.0)
     front = np.asarray(log[f"{stance['side']}_foot_fz_n"], dtype=float)
     assert front[late].mean() > 100.0
-    assert np.asarray(log["tilt_deg"], dtype=float)[late].max() < 4.0
+    assert np.asarray(log["tilt_deg"], dtype=float)[late].max() < 5.0
     assert np.nanmax(np.asarray(log["wrist_torque_nm"], dtype=float)) < 1.5 * WRIST_NM_MEASURED
 
 
