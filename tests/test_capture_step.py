@@ -416,7 +416,8 @@ def test_a_stop_mid_catch_finishes_into_the_stance_and_holds(landed_ahead_m, sto
     the robot up): the stepper tells the soft stopper that it stops itself (PHASE_STOP,
     within the time its pattern needs plus STOP_SPARE_S), the catch runs to its end in the
     stepped stance and the robot stands there with no return step, a return step under way
-    until its foot is down (settled: the stopper holds it). The monitor meanwhile watches the
+    until its foot is down (settled: the stopper holds it; in a lunge's stance the balancers
+    keep resting). The monitor meanwhile watches the
     feet where the estimate has them now (its frame drifts under a bouncing foot): a foot the
     pattern keeps, as estimated."""
     from hubo_cli.control.keys import STOP_MODE
@@ -465,6 +466,8 @@ def test_a_stop_mid_catch_finishes_into_the_stance_and_holds(landed_ahead_m, sto
     robot.period(k + 1)
     assert records[-1][0] == PHASES.index("stood") and store[PHASE_STOP].settled is True
     assert np.array_equal(records[-1][4], records[-2][4])
+    # held in the lunge's stance the balancers rest as in its catch; elsewhere they act
+    assert records[-1][1] is (landed_ahead_m > LONG_STEP_M and stopped_in == "catch")
 
 
 @pytest.mark.slow

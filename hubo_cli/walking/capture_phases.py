@@ -525,8 +525,10 @@ class Return(PatternPhase):
 
 
 class Stood(CapturePhase):
-    """The pattern has ended: hold its last posture (the balancers act); where the feet
-    stand is noted for the summary."""
+    """The pattern has ended: hold its last posture (the balancers act, but not in a lunge
+    a stop ended without its return step: in that long diagonal stance they rocked the
+    robot sideways ever wider, as in the catch, and 165 N forward held there 5.5 s fell);
+    where the feet stand is noted for the summary."""
 
     name = "stood"
     runs_at_start = False  # the return's last output stands
@@ -540,6 +542,9 @@ class Stood(CapturePhase):
 
     def run(self, t_s: float, state: RobotState) -> tuple[Output, str | None]:
         return (self.q_hold, NO_REFERENCE), None
+
+    def balancers_rest(self) -> bool:
+        return self.stepper.track is not None  # still in the lunge's stance
 
     def stop_within_s(self) -> float:
         return 0.0

@@ -86,8 +86,9 @@ stands once its foot is down), held by the stopper (which brakes it where it is 
 takes longer than the phase said). No step starts once a stop has latched. The standing
 balancers rest (:data:`~hubo_cli.control.phase.BALANCERS_REST`) while it steps, in every
 catch (a short step's and the lunge's) and return step, after a lunge until the back foot
-is down; afterwards the robot holds the pattern's last posture, the balancers act and the
-monitor watches the estimated soles with its margin again. At most two steps per push; one
+is down; afterwards the robot holds the pattern's last posture, the balancers act (not in
+a lunge a stop ended: they keep resting there) and the monitor watches the estimated soles
+with its margin again. At most two steps per push; one
 plan at a time.
 """
 
