@@ -59,7 +59,12 @@ LAND_WAIT_S = 0.2        # [chosen] wait at most this long after the swing for i
 TOUCH_FRACTION = 0.5     # [chosen] a swing sole carrying estimation.swing_touchdown_n is
 #                          down once this much of the swing has passed
 LONG_STEP_M = 0.15       # [chosen] a capture step longer than this: the robot stays in the lunge
-LUNGE_CATCH_S = 2.0      # [chosen] ... while the CoM comes to rest in it
+LUNGE_CATCH_S = 2.0      # [chosen] ... while the CoM comes to rest in it, at least, and then
+LUNGE_WAIT_S = 2.0       # [chosen] ... at most this much longer until it is at rest: its
+SETTLED_SPEED_M_S = 0.05  # [chosen] ... estimated speed under this (the return, a walking
+#                          step with the balancers at rest, started in mid-sway after 2 s and
+#                          the sway carried the robot out of the stance: 150 N backward at 1.0
+#                          and 2.0 s)
 UPRIGHT_S = 0.3          # [chosen] ... and the torso turns back upright over this long
 RETURN_FOOT_SPEED_M_S = 0.5  # [chosen] the return swing's peak foot speed (its smoothstep's)
 RETURN_SHIFT_S = 1.0     # [chosen] the return's double support: the CoM over the front foot
@@ -147,6 +152,11 @@ def landing(stance: Footstep, side: str, xi_m: np.ndarray, forward_m: float,
                     stance.yaw_rad)
 
 
+def landed_period(gait: Gait) -> int:
+    """The first period of ``gait`` after its last swing, both feet down."""
+    return int(np.nonzero(~gait.support.all(axis=1))[0][-1]) + 1
+
+
 Output = tuple[np.ndarray, tuple[float, float]]
 
 
@@ -167,6 +177,12 @@ class CapturePhase(Phase[Output]):
         with its margin)."""
         return None
 
+    def stop_within_s(self) -> float | None:
+        """How a stop latched now ends this phase: None, the stopper reverts the motion
+        (standing); else the time (s) the phase takes to finish into its double-support
+        stance, where the stopper holds it (0: it stands there now)."""
+        return None
+
 
 class Stand(CapturePhase):
     """The standing target's posture, until the capture point comes within TRIGGER_M of the
@@ -176,7 +192,8 @@ class Stand(CapturePhase):
 
     def run(self, t_s: float, state: RobotState) -> tuple[Output, str | None]:
         stepper = self.stepper
-        triggered = state.time_s > 0 and stepper.outside_m() > -TRIGGER_M
+        triggered = (state.time_s > 0 and stepper.stopped_s is None
+                     and stepper.outside_m() > -TRIGGER_M)
         return (stepper.q_standing, NO_REFERENCE), ("step" if triggered else None)
 
 
@@ -283,6 +300,12 @@ class Step(CapturePhase):
     def balancers_rest(self) -> bool:
         return True
 
+    def stop_within_s(self) -> float:
+        """The swing lands, then the catch (:class:`Catch`)."""
+        period = self.stepper.model.control_period_s
+        return (max(self.n - self.k, 0) * period + LAND_WAIT_S
+                + max(CATCH_S, LUNGE_CATCH_S + LUNGE_WAIT_S))
+
     def planned_soles(self) -> np.ndarray:
         """The swing foot at its landing place."""
         s = self.stepper
@@ -293,17 +316,50 @@ class Step(CapturePhase):
 
 class PatternPhase(CapturePhase):
     """A phase that follows the pattern planned at touch-down (the catch and the return);
-    the monitor watches the pattern's support."""
+    the monitor watches the pattern's support, where the estimate has the feet now."""
 
     def planned_soles(self) -> np.ndarray:
+        """The pattern's support this period, in the estimate's frame of now: the estimate's
+        world drifts under a bouncing, sliding foot (the floating base hands its anchor from
+        sole to sole), so the soles planned where the estimate had them at the pattern's
+        start are stale. A foot the pattern keeps where it started is taken where the
+        estimate has it now, laid flat; a foot that swings (or has swung), at its planned
+        landing moved as the landed foot (which the pattern never moves) has moved since."""
         s = self.stepper
-        return s.rest_support[min(s.k, s.rest.n - 1)]
+        k = min(s.k, s.rest.n - 1)
+        plan = s.rest_support[k].copy()
+        now = s.store[T_WORLD_SOLES]
+        z = float(plan[0, 2, 3])
+        flat = [pose_of_row(np.array([T[0, 3], T[1, 3], z, math.atan2(T[1, 0], T[0, 0])]))
+                for T in now]
+        anchor = SIDES.index(s.swing)  # the landed foot
+        moved = flat[anchor] @ np.linalg.inv(s.rest_support[0][anchor])
+        for i, side in enumerate(SIDES):
+            rows = s.rest.feet[side]
+            kept = s.rest.support[k, i] and np.array_equal(rows[k], rows[0])
+            plan[i] = flat[i] if kept else moved @ plan[i]
+        return plan
+
+    def stop_within_s(self) -> float:
+        """The pattern plays on to its stance: the catch's end (a lunge's at the latest), or
+        the return step's landing."""
+        s = self.stepper
+        if self.name == "return":
+            end = s.landed_k
+        else:
+            end = s.n_catch if s.track is None else s.rest.n
+        return max(end - s.k, 0) * s.model.control_period_s
 
 
 class Catch(PatternPhase):
     """Both feet down: after a short step the CoM comes to rest over the landed sole (the
     pattern then goes on into the return step); after a long one (LONG_STEP_M) the robot
-    stays in the lunge while the CoM comes to rest in it and the standing balancers act."""
+    stays in the lunge while the CoM comes to rest in it (LUNGE_CATCH_S, then until the
+    estimated CoM is slower than SETTLED_SPEED_M_S, at most LUNGE_WAIT_S more). The standing
+    balancers rest throughout: acting in the lunge's stance, whose soles are far apart
+    along a diagonal, they rocked the robot sideways ever wider (150 N forward pushed at
+    1.0 s rolled out over the back foot's edge). A stop latched meanwhile ends the catch in
+    its stance (stood), with no return step."""
 
     name = "catch"
     runs_at_start = False  # the step's last output stands in the period it touches down
@@ -360,6 +416,7 @@ class Catch(PatternPhase):
                       rows, np.vstack([np.ones((n, 2), dtype=bool), ret.support]),
                       np.concatenate([np.full(n, -1), ret.step_index]))
         s.rest_support = planned_support(s.rest)
+        s.landed_k = landed_period(s.rest)
         s.n_catch = n
         s.steps = [land, back]
 
@@ -369,7 +426,7 @@ class Catch(PatternPhase):
         comes to rest where the measured capture point says (the stepper's pattern period)."""
         s = self.stepper
         period = s.model.control_period_s
-        n = max(1, int(round(LUNGE_CATCH_S / period)))
+        n = max(1, int(round((LUNGE_CATCH_S + LUNGE_WAIT_S) / period)))  # at most
         rows = {s.swing: np.tile(_row(land, s.sole_z_m), (n, 1)),
                 s.stance_side: np.tile(_row(stance, s.sole_z_m), (n, 1))}
         c = np.tile(com_m, (n, 1))
@@ -387,22 +444,26 @@ class Catch(PatternPhase):
         s.reach_m = None  # the back leg's reach at touch-down (toe-off)
         s.rest_support = planned_support(s.rest)
         s.n_upright = max(1, int(round(UPRIGHT_S / period)))
-        s.n_catch = n
+        s.n_catch = max(1, int(round(LUNGE_CATCH_S / period)))  # at least
         s.steps = [land]
 
     def run(self, t_s: float, state: RobotState) -> tuple[Output, str | None]:
         s = self.stepper
         out = s.pattern_period()
-        return out, ("return" if s.k >= s.n_catch else None)
+        if s.k < s.n_catch or (s.track is not None and s.k < s.rest.n and float(
+                np.hypot(*s.store[COM_VELOCITY_WORLD][:2])) >= SETTLED_SPEED_M_S):
+            return out, None
+        # a stop latched: the robot stays in the catch's stance (no return step)
+        return out, ("return" if s.stopped_s is None else "stood")
 
     def balancers_rest(self) -> bool:
-        return self.stepper.track is None  # in the lunge the balancers act
+        return True
 
 
 class Return(PatternPhase):
     """One walking step brings the other foot beside the landed one: a short step's pattern
     goes on; after the lunge it is planned now (:meth:`start`). The balancers rest until the
-    back foot is down."""
+    back foot is down. A stop latched meanwhile: the robot stands once that foot is down."""
 
     name = "return"
     runs_at_start = False  # the catch's last output stands
@@ -436,7 +497,7 @@ class Return(PatternPhase):
                            s.height_m, s.sole_z_m, forward,
                            com_start_m=s.track["com"].copy())
         s.rest_support = planned_support(s.rest)
-        s.landed_k = int(np.nonzero(~s.rest.support.all(axis=1))[0][-1]) + 1
+        s.landed_k = landed_period(s.rest)
         s.drop_m = s.neck_z0_m - s.body.neck_z_m
         s.reach_m = None
         feet = s.model.feet
@@ -454,7 +515,9 @@ class Return(PatternPhase):
     def run(self, t_s: float, state: RobotState) -> tuple[Output, str | None]:
         s = self.stepper
         out = s.pattern_period()
-        return out, ("stood" if s.k >= s.rest.n else None)
+        # a stop latched: the robot stands once the back foot is down beside the front one
+        end = s.rest.n if s.stopped_s is None else s.landed_k
+        return out, ("stood" if s.k >= end else None)
 
     def balancers_rest(self) -> bool:
         s = self.stepper  # after the lunge: until the back foot is beside the front one
@@ -462,8 +525,10 @@ class Return(PatternPhase):
 
 
 class Stood(CapturePhase):
-    """The pattern has ended: hold its last posture (the balancers act); where the feet
-    stand is noted for the summary."""
+    """The pattern has ended: hold its last posture (the balancers act, but not in a lunge
+    a stop ended without its return step: in that long diagonal stance they rocked the
+    robot sideways ever wider, as in the catch, and 165 N forward held there 5.5 s fell);
+    where the feet stand is noted for the summary."""
 
     name = "stood"
     runs_at_start = False  # the return's last output stands
@@ -477,3 +542,9 @@ class Stood(CapturePhase):
 
     def run(self, t_s: float, state: RobotState) -> tuple[Output, str | None]:
         return (self.q_hold, NO_REFERENCE), None
+
+    def balancers_rest(self) -> bool:
+        return self.stepper.track is not None  # still in the lunge's stance
+
+    def stop_within_s(self) -> float:
+        return 0.0

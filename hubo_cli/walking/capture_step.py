@@ -31,7 +31,9 @@ pendulum (omega^2 = g / z_c):
    returns between the feet.
 
 After a long step (more than ``LONG_STEP_M`` the push's way) the robot stays in the stepped
-stance, a lunge (one step): over ``LUNGE_CATCH_S`` both feet stay down, the torso turns back
+stance, a lunge (one step): both feet stay down for at least ``LUNGE_CATCH_S`` and then
+until the estimated CoM is slower than ``SETTLED_SPEED_M_S`` (at most ``LUNGE_WAIT_S`` more:
+the return, an open-loop walking step, must not start in mid-sway), the torso turns back
 upright over ``UPRIGHT_S`` and the CoM comes to rest, c' = w (r - c), on a point r that
 follows the measured capture point (time constant ``REST_TAU_S``) held on the line through
 the soles' middles, from ``REST_BACK_FRACTION`` of the way from the back sole's middle to the
@@ -49,7 +51,8 @@ stance no further than the stance leg reaches its flat sole with the torso lower
 ``RETURN_MAX_DROP_M``.
 The pattern so follows where the landing (its impact took an unknown part of the momentum)
 left the robot instead of driving it on toward its own capture point; the standing balancers
-act meanwhile. Then the return (:meth:`~hubo_cli.walking.capture_phases.Return.start`): one
+rest (acting in the lunge's long diagonal stance they rocked it sideways ever wider). Then
+the return (:meth:`~hubo_cli.walking.capture_phases.Return.start`): one
 walking step of :func:`~hubo_cli.walking.gait.make_gait` from the measured soles (its lead-in
 from the lunge's CoM, a ``RETURN_SHIFT_S`` double support that moves the CoM over the front sole, a
 swing whose smoothstep peaks at ``RETURN_FOOT_SPEED_M_S``, the settle between the feet)
@@ -72,13 +75,20 @@ step's pattern) are explicit states run by a :class:`~hubo_cli.control.phase.Pha
 each planning when it starts; what the phase in force asks of the pipeline the stepper writes
 to the store every period (:mod:`hubo_cli.control.phase`), never touching a module.
 While it steps and catches, the capture-point monitor watches the planned support (the swing
-foot at its landing place, as when walking; then the stepped stance) with no margin: the
-stepping is the answer to the capture point leaving the shrunk polygon, and the stop, which
-freezes a recoverable catch, is left for a capture point beyond the stepped stance itself.
-The standing balancers rest (:data:`~hubo_cli.control.phase.BALANCERS_REST`) while it
-steps, in a short step's catch and return step and in the lunge's return until the back foot
-is down; afterwards the robot holds the pattern's last posture, the balancers act and the
-monitor watches the estimated soles with its margin again. At most two steps per push; one
+foot at its landing place, as when walking; then the stepped stance, where the estimate has
+the feet now) with no margin: the stepping is the answer to the capture point leaving the
+shrunk polygon, and the stop is left for a capture point beyond the stepped stance itself.
+Such a stop is not reverted (reverting a step does not keep the robot up): as a walk, the
+stepper tells the soft stopper that it stops itself
+(:data:`~hubo_cli.control.phase.PHASE_STOP`): the swing lands, the catch runs to its end in
+the stepped stance and the robot stands there with no return step (a return step under way
+stands once its foot is down), held by the stopper (which brakes it where it is if that
+takes longer than the phase said). No step starts once a stop has latched. The standing
+balancers rest (:data:`~hubo_cli.control.phase.BALANCERS_REST`) while it steps, in every
+catch (a short step's and the lunge's) and return step, after a lunge until the back foot
+is down; afterwards the robot holds the pattern's last posture, the balancers act (not in
+a lunge a stop ended: they keep resting there) and the monitor watches the estimated soles
+with its margin again. At most two steps per push; one
 plan at a time.
 """
 
@@ -91,8 +101,16 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from hubo_cli.control.capture_point import CP_MARGIN_M
+from hubo_cli.control.keys import STOP_MODE
 from hubo_cli.control.module import Module
-from hubo_cli.control.phase import BALANCERS_REST, SUPPORT_PLAN, Phases, SupportPlan
+from hubo_cli.control.phase import (
+    BALANCERS_REST,
+    PHASE_STOP,
+    SUPPORT_PLAN,
+    Phases,
+    PhaseStop,
+    SupportPlan,
+)
 from hubo_cli.control.target import Target, TargetOutput
 from hubo_cli.dataflow import Store
 from hubo_cli.errors import InputError
@@ -129,6 +147,7 @@ RETURN_MAX_DROP_M = 0.11  # [chosen] the torso lowers at most this much while it
 MAX_TOE_OFF_RAD = 0.8    # [chosen] ... and the back foot's heel rises at most this far
 TOE_OFF_STEP_RAD = 0.025  # [chosen] the heel's rise is searched in steps of this
 HIP_BAND_MARGIN_M = 0.005  # [chosen] the lunge's pelvis keeps each hip this far inside its ankle
+STOP_SPARE_S = 0.5       # [chosen] a catch stopping itself settles within its pattern and this
 MAX_DROP_M = 0.08        # [chosen] the torso lowers at most this much for the legs' reach
 CATCH_LOWER_M_S = 0.2    # [chosen] ... and in the lunge's catch at most this fast, down to
 #                          RETURN_MAX_DROP_M, the back heel rising for the rest (with the
@@ -176,11 +195,13 @@ class CaptureStepper(Target):
         self.way = 1.0  # the lunge's landed foot ahead (1) or behind (-1; Catch)
         self.stood_s: float | None = None
         self.stood_feet: list[Footstep] = []
+        self.stopped_s: float | None = None  # when the soft stopper latched (it stays so)
 
     name = "capture-step"
     reads = (T_WORLD_SOLES, T_WORLD_TORSO, CONTACT, WRENCHES, COM_WORLD, COM_VELOCITY_WORLD,
              CAPTURE_POINT_WORLD)
-    writes = (SUPPORT_PLAN, BALANCERS_REST)
+    writes = (SUPPORT_PLAN, BALANCERS_REST, PHASE_STOP)
+    previous = (STOP_MODE,)
 
     def attach(self, world: SceneActions | None, modules: Sequence[Module],
                store: Store) -> None:
@@ -203,14 +224,19 @@ class CaptureStepper(Target):
 
     def __call__(self, t_s: float, state: RobotState) -> TargetOutput:
         self.q_standing, info = self.stand(t_s, state)
+        if self.stopped_s is None and self.store.get(STOP_MODE, "release") != "release":
+            self.stopped_s = t_s  # no step starts now, and a catch ends in its stance
         q, ref = self.phases(t_s, state)
         # what the phase in force asks of the pipeline: the balancers rest while the pattern
         # moves the CoM; the monitor watches the planned support, unshrunk, until the robot
-        # stands
+        # stands; a stop latched while it steps lets it finish into its stance
         phase = self.phases.current
         self.store[BALANCERS_REST] = phase.balancers_rest()
         soles = phase.planned_soles()
         self.store[SUPPORT_PLAN] = None if soles is None else SupportPlan(soles, 0.0)
+        within_s = phase.stop_within_s()
+        self.store[PHASE_STOP] = None if within_s is None else PhaseStop(
+            settled=within_s == 0.0, within_s=within_s + STOP_SPARE_S)
         return q, info | {"capture.phase_code": self.phases.code,
                           "capture.com_ref_x_m": ref[0], "capture.com_ref_y_m": ref[1]}
 
