@@ -503,3 +503,32 @@ def test_re_plans_within_one_first_part_hand_over_without_a_kink():
     assert len(installs) >= 4, installs
     kink = np.abs(commands[2:] - 2 * commands[1:-1] + commands[:-2]).max(axis=1)
     assert kink.max() <= 0.005, (kink.max(), int(kink.argmax()) + 1, installs)
+
+
+def test_a_landing_moved_mid_swing_keeps_the_monitors_support_on_the_floor(model):
+    """The capture point 6 cm ahead of the pattern's for 25 ms while the first swing foot is
+    16 mm up moves that landing (a re-plan from a row with the foot in the air); back on the
+    pattern, the capture-point monitor never flags: its planned support has both soles on the
+    estimated floor the walk was planned on. (With the re-plan's first row's heights the
+    monitor dropped the landing as a lifted sole and judged the capture point against the
+    stance sole alone: it flagged from the re-plan on, and stopped fast walks.)"""
+    from hubo_cli.control.capture_point import CapturePointMonitor
+    from hubo_cli.control.phase import SUPPORT_PLAN
+
+    walking = load_model("as-built", "walking")
+    monitor = CapturePointMonitor(walking, DT)
+    flags, floors = [], []
+
+    def each(k, target, before):
+        store = target.store
+        floors.append(store[SUPPORT_PLAN].T_world_soles[:, 2, 3] - target._basis[2])
+        monitor.measure(RobotState(k * DT, target.q_start, np.zeros_like(target.q_start)),
+                        store)
+        flags.append(monitor.flag)
+
+    # (the first swing: periods 180-320 of the default gait; 230: tau 0.36, the foot 16 mm up)
+    target, _, installs = _offline_walk((0.6, 0.0, 0.0), 700, cp_offset_m=(0.06, 0.0),
+                                        offset_k=(230, 235), each=each)
+    assert target.shifts >= 1 and any(230 <= k < 235 for k in installs), installs
+    assert np.all(np.array(floors) == 0.0)
+    assert not any(flags[240:]), np.flatnonzero(flags)
