@@ -141,7 +141,8 @@ def test_many_generated_streams_keep_the_limits_and_the_goals_path(many_streams)
 
 @pytest.mark.xfail(strict=True, reason="issue 34's accuracy targets are not met (worst stream "
                    "30.7 mm, 7.7 deg RMS; docs/history/teleop.md, 'Following generated "
-                   "streams', 'What the limits allow on generated streams')")
+                   "streams', 'What the limits allow on generated streams', 'Where the error on "
+                   "generated streams comes from')")
 def test_many_generated_streams_meet_issue_34s_accuracy_targets(many_streams):
     """Issue 34: at hand speeds up to 0.25 m/s, over the time the goal is reachable, position
     RMS <= 10 mm and orientation RMS <= 3 deg per hand per stream, excursion <= 15 mm."""

@@ -205,3 +205,56 @@ def test_torso_offset_reaches_the_legs_with_the_hip_yaw_at_its_limit():
         leg, part = Limb(model, name), model.limb_slice(name)
         moved = leg.fk(q[part])[:3, 3] - leg.fk(q_plan[part])[:3, 3]
         assert moved[:2] == pytest.approx(-offset, abs=0.001)
+
+
+def test_a_swing_leg_is_pitched_against_the_torsos_pitch_and_holds_on_the_floor():
+    """The walk's first period made its plan; then the estimated torso pitched back 3 deg with
+    the right foot in contact and the left one swinging: the left hip pitch turns against the
+    2 deg beyond the 1 deg dead band at 0.6 rad/s, the right leg keeps the pattern's joints.
+    Landed, the left leg keeps its turn; in the air again with the torso upright, it goes back
+    at the same rate. Inside the dead band, or without a finite torso estimate, the joints are
+    the pattern's."""
+    from hubo_cli.walking.target import LEVEL_DEAD_RAD, LEVEL_RATE_RAD_S
+
+    model = load_model("as-built", "walking")
+    params = walking_params(model)
+    q_start, T_world_neck = walking_posture(model, params.step_width_m, params.crouch_m)
+    target = WalkTarget(model, params, (0.3, 0.0, 0.0), q_start, T_world_neck, corrections=0,
+                        stabilizer=StabilizerGains())
+    store = standing_store(model, q_start, T_world_neck)
+    target.attach(None, [], store)
+    target(0.0, RobotState(time_s=0.0, q_rad=q_start.copy(), dq_rad_s=np.zeros_like(q_start)))
+    names = list(model.joint_names)
+    right, left = names.index("RHP"), names.index("LHP")
+    pattern = target.plan.q_rad[0]
+
+    def pitched(deg: float) -> np.ndarray:
+        T = T_world_neck.copy()
+        c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
+        T[:3, :3] = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]]) @ T[:3, :3]
+        return T
+
+    def period(support, contact) -> np.ndarray:
+        store[CONTACT] = contact
+        q = pattern.copy()
+        target._level_swing(0, support, q)
+        return q
+
+    swinging, standing = [True, False], [True, True]
+    store[T_WORLD_TORSO] = pitched(-0.9)  # inside the dead band: untouched
+    assert np.array_equal(period(swinging, (True, False)), pattern)
+    store[T_WORLD_TORSO] = pitched(-3.0)
+    step = LEVEL_RATE_RAD_S * model.control_period_s
+    wanted = np.radians(3.0) - LEVEL_DEAD_RAD
+    for k in range(1, 21):
+        q = period(swinging, (True, False))
+        assert q[right] == pattern[right]
+        assert q[left] - pattern[left] == pytest.approx(min(k * step, wanted), abs=1e-9)
+    store[T_WORLD_TORSO] = T_world_neck  # landed: held though the torso stands upright
+    assert period(standing, (True, True))[left] - pattern[left] == pytest.approx(wanted)
+    assert period(swinging, (True, True))[left] - pattern[left] == pytest.approx(wanted)
+    store[T_WORLD_TORSO] = np.full((4, 4), np.nan)  # no estimate: held, finite
+    q = period(swinging, (True, False))
+    assert np.all(np.isfinite(q)) and q[left] - pattern[left] == pytest.approx(wanted)
+    store[T_WORLD_TORSO] = T_world_neck  # in the air again: back at the same rate
+    assert period(swinging, (True, False))[left] - pattern[left] == pytest.approx(wanted - step)

@@ -355,6 +355,38 @@ def test_a_side_push_that_puts_the_swing_foot_down_ends_the_swing_there(tmp_path
     assert summary["max_torso_tilt_deg"] < 25.0
 
 
+@pytest.mark.physical
+@pytest.mark.slow
+def test_a_swing_foot_carried_back_by_a_tipping_body_still_lands_flat(tmp_path, model):
+    """hubo walk --to 1.0 0 0 pushed from the front (100 N, 0.2 s) in the last step's swing,
+    right foot in the air (seed 4 of tools/walk_disturbances.py): the body tips back over the
+    stance heel. The swing leg is pitched at its hip against the torso's estimated pitch, so
+    the foot lands flat where the capture point moved it and the walk stops standing. With the
+    foot fixed in the torso's frame it came down 7 deg toe-up on its heel, bounced and fell."""
+    from hubo_cli.control.log import load_log
+    from hubo_cli.experiments.walk import Disturbance, walk
+
+    at_s = 8.16153
+    result = walk(model, (1.0, 0.0, 0.0), out=tmp_path / "run",
+                  disturbances=[Disturbance(at_s, 100.0, (-1.0, 0.0, 0.0))])
+    summary = json.loads((result.run_dir / "summary.json").read_text())
+    assert result.fell is False and result.stood is True
+    # measured max tilt 15.5 deg (AVX-512) and 15.3 (portable path); a fall: 30; bound 25
+    assert summary["max_torso_tilt_deg"] < 25.0
+    log = load_log(result.run_dir / "log.parquet")
+    t = np.asarray(log["t_s"], dtype=float)
+    after = t > at_s
+    level = np.asarray(log["walk.right_level_rad"], dtype=float)[after]
+    contact = np.asarray(log["right_foot_contact_flag"], dtype=float)[after]
+    pitch = np.asarray(log["walk.right_angle_rad"], dtype=float)[after]
+    landed = int(np.argmax(contact == 1))
+    # pitched in the air: measured 0.156-0.157 rad at the landing on both CPU paths
+    assert contact[landed] == 1 and np.max(np.abs(level[:landed])) > 0.08
+    # the estimated sole's pitch as it touches down: measured -0.0345 rad on both CPU paths
+    # levelled, -0.123 (7 deg toe-up) without: bound 0.07 rad, 2x the first
+    assert abs(pitch[landed]) < 0.07
+
+
 @pytest.mark.parametrize("rows_per_slice", [1, 7, 40, 10_000])
 def test_a_sliced_solution_is_the_whole_one(walk_pattern, rows_per_slice):
     """The re-plan's work spread over periods (a slice of rows each) makes exactly the joints

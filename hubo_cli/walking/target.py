@@ -20,7 +20,9 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
   loaded, past TOUCH_FRACTION of its swing, TOUCH_MIN_HEIGHT_M or more above its landing in
   the pattern) ends its swing there: the step lands where that sole stands and the timeline
   from the landing on plays at once (:meth:`WalkTarget._touched_early`); lifted again under
-  the robot's weight, it fell.
+  the robot's weight, it fell. A swing leg is pitched at its hip against the estimated
+  torso's pitch from the planned one (beyond LEVEL_DEAD_RAD), so that a foot carried by a
+  body tipped by a push lands flat (:meth:`WalkTarget._level_swing`).
 * ``stopping``: entered when the soft stopper has latched (its mode, the previous period's
   :data:`~hubo_cli.control.keys.STOP_MODE`, is no longer ``release``): the step in progress
   is finished (the swing foot lands; before the first step, none is taken) into a double-support
@@ -136,6 +138,10 @@ TOUCH_MIN_HEIGHT_M = 0.006  # [chosen] ... while the pattern still has it this h
                             # landings of perturbed robots 1, 4, 8 loaded their soles at most
                             # 1.2 mm up, 0.06 s early; soles pushed down mid-swing: 15-20 mm up.
                             # 2 mm: seed 8's 3.4 mm touchdown was caught, seed 17's lost
+LEVEL_DEAD_RAD = math.radians(1.0)  # [chosen] a swing leg is pitched against the estimated
+                        # torso's pitch from the planned one beyond this (below: walking's own
+                        # sway; the pattern plays unchanged)
+LEVEL_RATE_RAD_S = 0.6  # [chosen] ... that pitch changing at most this fast
 CP_GAIN_MAX = 1.0      # [chosen] the error's growth by the landing counted at most this much
                        # (exp(omega t) is 17 at a swing's start: a 1 cm error of the estimate's
                        # capture point moved the landing by 17 cm; 3x stepped too far back
@@ -325,7 +331,8 @@ class WalkTarget(Target):
                    "walk.cp_shift_x_m", "walk.cp_shift_y_m",
                    "walk.offset_x_m", "walk.offset_y_m", "walk.right_lift_m", "walk.left_lift_m",
                    "walk.right_sole_roll_rad", "walk.right_sole_pitch_rad",
-                   "walk.left_sole_roll_rad", "walk.left_sole_pitch_rad")
+                   "walk.left_sole_roll_rad", "walk.left_sole_pitch_rad",
+                   "walk.right_level_rad", "walk.left_level_rad", "walk.pitch_error_rad")
 
     def __init__(self, model: RobotModel, params: WalkingParams, goal: tuple[float, float, float],
                  q_start_rad: np.ndarray, T_world_neck_start: np.ndarray,
@@ -381,9 +388,12 @@ class WalkTarget(Target):
             self.torso_offset = TorsoOffset(stabilizer, dt)
             self.touchdowns = {side: Touchdown(stabilizer, dt) for side in SIDES}
             self._leg_delta = np.zeros((2, 6))  # the legs' corrections: right, left
+            self._level = np.zeros(2)  # each swing leg's pitch against the torso's (rad)
+            self._pitch_error_rad = 0.0  # the estimated torso's pitch from the planned one
         names = list(model.joint_names)
         self._ankle = {"right": (names.index("RAR"), names.index("RAP")),
                        "left": (names.index("LAR"), names.index("LAP"))}
+        self._hip_pitch = (names.index("RHP"), names.index("LHP"))  # (right, left)
 
     def attach(self, world: SceneActions | None, modules: Sequence, store: Store) -> None:
         self.store = store
@@ -898,7 +908,7 @@ class WalkTarget(Target):
     def _stabilizer_info(self) -> dict[str, float]:
         """The stabilizer's corrections for the log (NaN without a stabilizer)."""
         if self.stabilizer is None:
-            return dict.fromkeys(self.log_columns[-8:], math.nan)
+            return dict.fromkeys(self.log_columns[-11:], math.nan)
         right, left = self.dampers["right"].delta_rad, self.dampers["left"].delta_rad
         offset = self.torso_offset.offset_m
         return {"walk.offset_x_m": float(offset[0]), "walk.offset_y_m": float(offset[1]),
@@ -907,7 +917,10 @@ class WalkTarget(Target):
                 "walk.right_sole_roll_rad": float(right[0]),
                 "walk.right_sole_pitch_rad": float(right[1]),
                 "walk.left_sole_roll_rad": float(left[0]),
-                "walk.left_sole_pitch_rad": float(left[1])}
+                "walk.left_sole_pitch_rad": float(left[1]),
+                "walk.right_level_rad": float(self._level[0]),
+                "walk.left_level_rad": float(self._level[1]),
+                "walk.pitch_error_rad": self._pitch_error_rad}
 
     def _in_pattern(self, k: int, wrenches: np.ndarray, point_m: np.ndarray
                     ) -> tuple[float, float]:
@@ -949,7 +962,31 @@ class WalkTarget(Target):
             roll, pitch = self._ankle[side]
             q[roll] += delta[0]
             q[pitch] += delta[1]
+        self._level_swing(k, rows["support"][k], q)
         return q
+
+    def _level_swing(self, k: int, support: list[bool], q: np.ndarray) -> None:
+        """Pitch each swing leg at its hip against the estimated torso's pitch from the
+        planned one (beyond LEVEL_DEAD_RAD; changing at most LEVEL_RATE_RAD_S), in place in
+        ``q``: a body tipped by a push carries a swing foot fixed in its frame with it and
+        lands it early on an edge (pushed from the front, the body tipped back and the heel
+        came down 7 deg toe-up, 0.05 m short of its moved landing, and bounced). Turned so,
+        the leg keeps its planned pitch in the world and the sole lands flat. A leg on the
+        floor (planned down, or in the estimate's contact) keeps its turn; it goes back in the
+        air (turned back under the weight, the landed foot was lifted at its toe or heel)."""
+        R_plan = self.plan.T_world_neck[k, :3, :3]
+        error = float(pin.log3(R_plan.T @ np.asarray(self.store[T_WORLD_TORSO],
+                                                     dtype=float)[:3, :3])[1])
+        self._pitch_error_rad = error  # about the torso's y axis
+        tilt = math.copysign(max(abs(error) - LEVEL_DEAD_RAD, 0.0), error)
+        step = LEVEL_RATE_RAD_S * self.model.control_period_s
+        contact = self.store[CONTACT]
+        for column, down in enumerate(support):
+            level = self._level[column]
+            # (on the floor it holds: see the docstring; no estimate of the torso: it holds)
+            if not (down or contact[column]) and math.isfinite(tilt):
+                self._level[column] = level + min(max(tilt - level, -step), step)
+            q[self._hip_pitch[column]] -= self._level[column]
 
     def arrived(self) -> bool:
         """The estimated feet stand within ARRIVED_M and ARRIVED_RAD of the goal stance."""
