@@ -277,9 +277,15 @@ def planned_contacts(gait: Gait) -> list[tuple[Contact | None, Contact | None]]:
     return contacts
 
 
-def planned_support(gait: Gait) -> np.ndarray:
+def planned_support(gait: Gait, floor_z_m: float | None = None) -> np.ndarray:
     """Per period the soles that carry the robot in this phase of the step, the swing foot at
-    its landing place: (n, 2, 4, 4) world poses (right, left), for the capture-point monitor."""
+    its landing place: (n, 2, 4, 4) world poses (right, left), for the capture-point monitor.
+
+    Every sole lies on the floor at ``floor_z_m`` (the estimated sole height the plan was made
+    from; None: each sole's height in the pattern's first row, a pattern that starts standing).
+    A pattern re-planned mid-swing starts with the swing foot 15-19 mm up: at that height the
+    monitor would drop its landing place as a lifted sole and judge the capture point against
+    the stance sole alone."""
     poses = np.empty((gait.n, 2, 4, 4))
     index = np.arange(gait.n)
     for column, side in enumerate(("right", "left")):
@@ -289,7 +295,7 @@ def planned_support(gait: Gait) -> np.ndarray:
         down = np.where(gait.support[:, column], index, gait.n - 1)
         landing = np.minimum.accumulate(down[::-1])[::-1]
         rows = rows[np.where(gait.support[:, column], index, landing)]
-        rows[:, 2] = gait.feet[side][0, 2]
+        rows[:, 2] = gait.feet[side][0, 2] if floor_z_m is None else floor_z_m
         poses[:, column] = poses_of_rows(rows)
     return poses
 
@@ -484,7 +490,7 @@ class WalkTarget(Target):
              body.slices[name].start)
             for leg, name in ((body.legs[SIDE_LEG[side]], SIDE_LEG[side]) for side in SIDES))
         n = gait.n
-        new["_support_poses"] = planned_support(whole)[:n]
+        new["_support_poses"] = planned_support(whole, self._basis[2])[:n]
         # per-period rows as plain floats and bools for the loop (cheaper than numpy scalars)
         new["_rows"] = {"support": gait.support.tolist(), "zmp_ref": gait.zmp_ref_m.tolist(),
                         "com_ref": gait.com.com_m.tolist(), "plan_com": plan.com_m.tolist(),
