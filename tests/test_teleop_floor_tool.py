@@ -58,23 +58,21 @@ def test_the_generated_turn_rate_is_what_the_arm_joints_follow_about_the_median_
 
 def test_the_error_sources_add_up_on_a_generated_stream():
     """tools/teleop_error_sources.py on one short stream of the test's draw (about 1 s of CPU):
-    per hand the hand's error is at most the target's plus the tracking's (the triangle
-    inequality, period by period and so for the RMS), the target is within the reachable
-    tolerance of the goal (what "reachable" means, so a frame or lift wrong in the tool shows),
-    its rotation is the filter's where nothing else relaxes it, and the shares are shares."""
+    per hand the target is within the reachable tolerance of the goal (what "reachable" means,
+    so a frame or lift wrong in the tool shows), its rotation is the filter's where nothing
+    else relaxes it, and the shares are shares."""
     from hubo_cli.input.operator_stream import StreamSettings
+    from hubo_cli.teleop.stream_runs import GENERATED_SEEDS
     from hubo_cli.teleop.target import REACHABLE_POSITION_M, REACHABLE_ROTATION_RAD
 
     spec = importlib.util.spec_from_file_location(
         "teleop_error_sources", TOOL.parent / "teleop_error_sources.py")
     tool = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(tool)
-    seed = np.random.default_rng(34).integers(0, 2**31, 60).tolist()[0]
+    seed = GENERATED_SEEDS[0]
     hands = tool.error_sources(seed, StreamSettings(duration_s=1.5, max_speed_m_s=0.25))
     assert set(hands) == {"right-arm", "left-arm"}
     for f in hands.values():
-        assert f["position_mm"] <= f["target_position_mm"] + f["tracking_position_mm"] + 1e-9
-        assert f["rotation_deg"] <= f["target_rotation_deg"] + f["tracking_rotation_deg"] + 1e-9
         assert f["target_position_mm"] <= 1e3 * REACHABLE_POSITION_M
         assert abs(f["target_rotation_deg"] - f["filter_rotation_deg"]) <= np.degrees(
             REACHABLE_ROTATION_RAD)

@@ -17,7 +17,7 @@ import pytest
 
 from hubo_cli.estimation.build import build_estimator
 from hubo_cli.input.operator_stream import StreamSettings
-from hubo_cli.teleop.stream_runs import meets_targets, replay_generated
+from hubo_cli.teleop.stream_runs import GENERATED_SETS, meets_targets, replay_generated
 
 # the seeds are drawn, not picked (a new draw is a new test of the same properties)
 SEEDS = np.random.default_rng(3434).integers(0, 2**31, 2).tolist()
@@ -104,8 +104,7 @@ def test_the_devices_clutch_holds_the_hand_and_recentres_without_a_jump(model):
 # Many short streams no one tuned on (drawn, not picked), followed by the teleop target and the
 # trajectory generator alone (stream_runs.follow_generated: about 0.7 s of CPU each): 50 at the
 # accuracy test's hand speed, 10 at the swing test's.
-MANY = np.random.default_rng(34).integers(0, 2**31, 60).tolist()
-MANY_SETS = {0.25: MANY[:50], 0.6: MANY[50:]}
+MANY_SETS = GENERATED_SETS
 MANY_S = 1.5
 # The worst over each set (one run here, ideal driver, the generator's turns at most 40 deg/s;
 # at 90 deg/s before: 30.7 / 45.3 mm and 14.0 / 28.6 mm): reachable position RMS 30.7 mm

@@ -33,7 +33,7 @@ import numpy as np
 from hubo_cli.control.keys import TRACKER_STATES
 from hubo_cli.input.operator_stream import StreamSettings
 from hubo_cli.kinematics.dh import pose_error
-from hubo_cli.teleop.stream_runs import follow_generated
+from hubo_cli.teleop.stream_runs import GENERATED_SETS, follow_generated
 
 FIGURES = ("position_mm", "rotation_deg", "target_position_mm", "target_rotation_deg",
            "tracking_position_mm", "tracking_rotation_deg", "filter_rotation_deg")
@@ -49,7 +49,7 @@ def error_sources(seed: int, settings: StreamSettings) -> dict[str, dict]:
         if target.phase != "operate":
             return
         lift_target, lift_measured = (target.body.lift_of(target.q_target),
-                                      target.body.lift_of(target._q_measured))
+                                      target.body.lift_of(target.q_measured_rad))
         trackers = target.store.get(TRACKER_STATES) or {}
         for arm in target.arms:
             goal = target.goals.get(arm)
@@ -58,11 +58,12 @@ def error_sources(seed: int, settings: StreamSettings) -> dict[str, dict]:
             limb, sl = target.body.arms[arm], target.slices[arm]
             T_target = limb.fk(target.q_target[sl]).copy()
             T_target[2, 3] += lift_target
-            T_actual = limb.fk(target._q_measured[sl]).copy()
+            T_actual = limb.fk(target.q_measured_rad[sl]).copy()
             T_actual[2, 3] += lift_measured
             T_filtered = goal.copy()
-            if target.reach[arm]._R_smooth is not None:
-                T_filtered[:3, :3] = target.reach[arm]._R_smooth
+            R_smoothed = target.reach[arm].R_smoothed
+            if R_smoothed is not None:
+                T_filtered[:3, :3] = R_smoothed
             state = trackers.get(arm)
             chasing = state is not None and bool(np.any(
                 (np.abs(state.a_rad_s2) > 0.95 * state.limits.acceleration_rad_s2)
@@ -101,8 +102,7 @@ def main() -> None:
     parser.add_argument("--speed", type=float, default=0.25)
     parser.add_argument("--duration", type=float, default=1.5)
     args = parser.parse_args()
-    many = np.random.default_rng(34).integers(0, 2**31, 60).tolist()  # the test's draw:
-    seeds = args.seeds or (many[:50] if args.speed <= 0.25 else many[50:])[:args.count]
+    seeds = args.seeds or GENERATED_SETS[0.25 if args.speed <= 0.25 else 0.6][:args.count]
     settings = StreamSettings(duration_s=args.duration, max_speed_m_s=args.speed)
     hands = []
     for seed in seeds:

@@ -214,8 +214,9 @@ def generated_floors(count: int, speed_m_s: float, duration_s: float, accel: flo
                      window_s: float, step_s: float, w_rot_m: float) -> list[dict]:
     """Per stream and hand of the test's draw: the run's reachable RMS and both floors'."""
     from hubo_cli.input.operator_stream import StreamSettings
+    from hubo_cli.teleop.stream_runs import GENERATED_SEEDS
 
-    seeds = np.random.default_rng(34).integers(0, 2**31, 60).tolist()[:count]
+    seeds = GENERATED_SEEDS[:count]
     model = load_model(limits="teleop")
     rows = []
     for seed in seeds:

@@ -135,6 +135,12 @@ class ArmReach:
         self.branch = int(branch_of(np.asarray(q_rad, dtype=float)))
         self._R_smooth = None
 
+    @property
+    def R_smoothed(self) -> np.ndarray | None:
+        """The smoothed goal orientation (3x3, the goal's frame; None before the first goal),
+        a copy."""
+        return None if self._R_smooth is None else self._R_smooth.copy()
+
     def smoothed(self, T_goal: np.ndarray, dt_s: float) -> np.ndarray:
         """The goal with its orientation smoothed (``orientation_time_constant_s``) over dt_s."""
         tau = self.settings.orientation_time_constant_s

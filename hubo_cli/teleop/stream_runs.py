@@ -17,6 +17,11 @@ import numpy as np
 from hubo_cli.control.module import Module
 from hubo_cli.input.operator_stream import StreamSettings
 
+GENERATED_SEEDS = np.random.default_rng(34).integers(0, 2**31, 60).tolist()
+"""The generated streams the teleop tests and tools judge on (drawn, not picked): the first 50
+at the accuracy test's hand speed (0.25 m/s), the last 10 at the swing test's (0.6 m/s)."""
+GENERATED_SETS = {0.25: GENERATED_SEEDS[:50], 0.6: GENERATED_SEEDS[50:]}
+
 
 @dataclass(frozen=True)
 class StreamRun:

@@ -349,6 +349,13 @@ class TeleopTarget(Target):
         """The phase in force (one of :data:`~hubo_cli.teleop.phases.PHASES`)."""
         return self.phases.current.name
 
+    @property
+    def q_measured_rad(self) -> np.ndarray:
+        """The joints as measured this period (24, rad; read-only view)."""
+        view = self._q_measured.view()
+        view.flags.writeable = False
+        return view
+
     # ------------------------------------------------------------------ the loop's call
     def __call__(self, t_s: float, state) -> tuple[np.ndarray | None, dict]:
         t0, cpu0 = time.perf_counter(), time.thread_time()
