@@ -539,7 +539,8 @@ class Return(PatternPhase):
 class Stood(CapturePhase):
     """The pattern has ended: hold its last posture (the balancers act); where the feet
     stand is noted for the summary. After a catch a stop ended, the return step is pending:
-    the robot is held in the catch's stance, the balancers resting (in a lunge's long
+    the robot is held in the catch's stance, the monitor watching it unshrunk as in the
+    catch (:meth:`planned_soles`), the balancers resting (in a lunge's long
     diagonal stance they rocked the robot sideways ever wider, as in the catch, and 165 N
     forward held there 5.5 s fell; and they would move the CoM off the pattern the return
     starts from), and once the soft stopper is released (its blend back over, which here
@@ -564,6 +565,17 @@ class Stood(CapturePhase):
 
     def balancers_rest(self) -> bool:
         return self.stepper.return_pending
+
+    def planned_soles(self) -> np.ndarray | None:
+        """With the return pending, as in the catch: the stepped stance, unshrunk, where the
+        estimate has the feet now (laid flat; with the margin a 150 N lunge's capture point
+        was outside 10 ms into its stance, and its release met a capture-point stop)."""
+        s = self.stepper
+        if not s.return_pending:
+            return None
+        return np.array([pose_of_row(np.array([T[0, 3], T[1, 3], s.sole_z_m,
+                                               math.atan2(T[1, 0], T[0, 0])]))
+                         for T in s.store[T_WORLD_SOLES]])
 
     def stop_within_s(self) -> float:
         return 0.0
