@@ -410,21 +410,22 @@ def test_a_stop_while_standing_reverts_and_no_step_starts():
 
 
 @pytest.mark.parametrize(("landed_ahead_m", "stopped_in"), [
-    (0.30, "catch"), (0.10, "return"), (0.30, "return")])
+    (0.30, "catch"), (0.10, "catch"), (0.10, "return"), (0.30, "return")])
 def test_a_stop_mid_catch_finishes_into_the_stance_and_holds(landed_ahead_m, stopped_in):
     """A stop latched while the stepper steps is not reverted (reverting a step does not keep
     the robot up): the stepper tells the soft stopper that it stops itself (PHASE_STOP,
-    within the time its pattern needs plus STOP_SPARE_S), the catch runs to its end in the
-    stepped stance and the robot stands there with no return step, a return step under way
-    until its foot is down (settled: the stopper holds it; in a lunge's stance the balancers
-    keep resting). The monitor meanwhile watches the
+    within the time its pattern needs plus CATCH_STOP_SPARE_S), the catch runs to its end in
+    the stepped stance and the robot stands there with its return step pending (not in the
+    summary's footsteps; the summary says when the stop latched), a return step under way
+    until its foot is down (settled: the stopper holds it; with the return pending the
+    balancers keep resting). The monitor meanwhile watches the
     feet where the estimate has them now (its frame drifts under a bouncing foot): a foot the
     pattern keeps, as estimated."""
     from hubo_cli.control.keys import STOP_MODE
     from hubo_cli.control.phase import PHASE_STOP, SUPPORT_PLAN
     from hubo_cli.estimation.keys import T_WORLD_SOLES
     from hubo_cli.walking.capture_phases import PHASES
-    from hubo_cli.walking.capture_step import STOP_SPARE_S
+    from hubo_cli.walking.capture_step import CATCH_STOP_SPARE_S
 
     robot = StillRobot()
     store, stepper, records, dt = robot.store, robot.stepper, robot.records, robot.dt
@@ -448,12 +449,14 @@ def test_a_stop_mid_catch_finishes_into_the_stance_and_holds(landed_ahead_m, sto
     store[STOP_MODE] = "finish"
     k += 1
     robot.period(k)
+    latched_s = k * dt
     if stopped_in == "catch":
         end = stepper.n_catch if landed_ahead_m <= LONG_STEP_M else stepper.rest.n
     else:
         end = stepper.landed_k
     assert store[PHASE_STOP].settled is False
-    assert store[PHASE_STOP].within_s == pytest.approx((end - stepper.k) * dt + STOP_SPARE_S)
+    assert store[PHASE_STOP].within_s == pytest.approx((end - stepper.k) * dt
+                                                       + CATCH_STOP_SPARE_S)
     while stepper.phase != "stood" and k < 3000:
         k += 1
         robot.period(k)
@@ -466,8 +469,123 @@ def test_a_stop_mid_catch_finishes_into_the_stance_and_holds(landed_ahead_m, sto
     robot.period(k + 1)
     assert records[-1][0] == PHASES.index("stood") and store[PHASE_STOP].settled is True
     assert np.array_equal(records[-1][4], records[-2][4])
-    # held in the lunge's stance the balancers rest as in its catch; elsewhere they act
-    assert records[-1][1] is (landed_ahead_m > LONG_STEP_M and stopped_in == "catch")
+    # held with the return pending the balancers rest as in the catch; after it they act
+    assert records[-1][1] is (stopped_in == "catch")
+    summary = stepper.summary()
+    assert summary["stop_s"] == latched_s
+    assert summary["steps"] == len(summary["footsteps"]) == (1 if stopped_in == "catch" else 2)
+
+
+@pytest.mark.parametrize("landed_ahead_m", [0.10, 0.30])
+@pytest.mark.parametrize("released_in", ["catch", "stood"])
+def test_a_stop_released_lets_the_stepping_go_on(landed_ahead_m, released_in):
+    """A stop latched in the catch and released (in the catch, or once held in the catch's
+    stance): while the stopper blends back (recover) the robot stays in the stance, then the
+    return step runs (a short step's pattern goes on, the lunge's is planned) and the robot
+    stands with the balancers acting: never left with them resting and no stop holding it.
+    While the return is pending the monitor watches the stance unshrunk, as in the catch
+    (with its margin, a 150 N lunge released met a capture-point stop at once). (Before, a
+    stop was remembered for the rest of the run: no return step, the balancers resting in a
+    lunge's stance for good.)"""
+    from hubo_cli.control.keys import STOP_MODE
+    from hubo_cli.walking.capture_phases import PHASES
+
+    robot = StillRobot()
+    store, stepper, records = robot.store, robot.stepper, robot.records
+    robot.push()
+    robot.period(0)
+    k, _ = robot.step_and_land(landed_ahead_m)
+
+    def run(periods):
+        nonlocal k
+        for _ in range(periods):
+            k += 1
+            robot.period(k)
+
+    run(20)
+    store[STOP_MODE] = "finish"
+    run(20)
+    if released_in == "stood":
+        while stepper.phase != "stood" and k < 3000:
+            run(1)
+        run(100)
+        # held, the balancers resting, the monitor on the stance unshrunk as in the catch
+        assert stepper.phase == "stood" and records[-1][1:3] == (True, 0.0)
+    store[STOP_MODE] = "recover"
+    while stepper.phase == "catch" and k < 3000:
+        run(1)
+    run(100)
+    assert stepper.phase == "stood" and records[-1][1:3] == (True, 0.0)  # no return yet
+    store[STOP_MODE] = "release"
+    while stepper.phase != "stood" or records[-1][0] != PHASES.index("stood") or (
+            stepper.k < stepper.rest.n and k < 5000):
+        run(1)
+    codes = [int(r[0]) for r in records]
+    assert PHASES.index("return") in codes
+    assert stepper.k == stepper.rest.n  # the return's pattern ran to its end
+    run(5)
+    assert records[-1][0] == PHASES.index("stood") and records[-1][1:3] == (False, None)
+    summary = stepper.summary()
+    assert summary["steps"] == 2 and summary["stop_s"] is None
+
+
+def test_a_stop_released_while_standing_still_steps_on_a_push():
+    """A stop latched while standing and released: no step while it holds or blends back,
+    a step as soon as the stopper passes the target through again. (Before, any stop ever
+    latched kept the stepper from stepping for the rest of the run.)"""
+    from hubo_cli.control.keys import STOP_MODE
+
+    robot = StillRobot()
+    robot.store[STOP_MODE] = "hold"
+    robot.period(0)
+    robot.period(1)
+    robot.push()
+    for mode, k in (("hold", 2), ("recover", 3), ("release", 4)):
+        robot.store[STOP_MODE] = mode
+        robot.period(k)
+        assert robot.stepper.phase == ("step" if mode == "release" else "stand")
+
+
+def test_the_worst_stop_finish_fits_the_stoppers_cap():
+    """A stop latched as the capture step starts: the stepper declares the worst finish (the
+    swing, LAND_WAIT_S for a late landing, the lunge's longest catch) plus
+    CATCH_STOP_SPARE_S, within the stopper's MAX_FINISH_S (it clipped 5.095 s to 5.0 s
+    before); the worst path (a swing sole that never reads down, a lunge never at rest)
+    stands within what was declared."""
+    from hubo_cli.control.estop import MAX_FINISH_S
+    from hubo_cli.control.keys import STOP_MODE
+    from hubo_cli.control.phase import PHASE_STOP
+    from hubo_cli.estimation.keys import COM_VELOCITY_WORLD, CONTACT, T_WORLD_SOLES, WRENCHES
+    from hubo_cli.walking.capture_phases import LAND_WAIT_S
+    from hubo_cli.walking.capture_step import CATCH_STOP_SPARE_S
+
+    robot = StillRobot()
+    store, stepper, dt = robot.store, robot.stepper, robot.dt
+    robot.push()
+    robot.period(0)
+    robot.period(1)
+    assert stepper.phase == "step"
+    declared_s = store[PHASE_STOP].within_s
+    worst_s = (SINGLE_SUPPORT_S + LAND_WAIT_S + LUNGE_CATCH_S + LUNGE_WAIT_S
+               + CATCH_STOP_SPARE_S)
+    assert declared_s == pytest.approx(worst_s - dt) and worst_s <= MAX_FINISH_S
+    store[STOP_MODE] = "finish"
+    latched_k = 1
+    late = robot.soles.copy()
+    late[1, 0, 3] += 0.30
+    late[1, 2, 3] += 0.01  # 10 mm up: never down, never loaded
+    store[T_WORLD_SOLES], store[CONTACT] = late, (True, False)
+    store[WRENCHES] = robot.wrenches | {"left-ankle": np.zeros(6)}
+    k = latched_k
+    while stepper.phase == "step":
+        k += 1
+        robot.period(k)
+    store[COM_VELOCITY_WORLD] = np.array([0.3, 0.0, 0.0])  # never at rest
+    while stepper.phase != "stood" and k < 3000:
+        k += 1
+        robot.period(k)
+    assert store[PHASE_STOP].settled is True
+    assert (k - latched_k) * dt <= declared_s - CATCH_STOP_SPARE_S + 2 * dt
 
 
 @pytest.mark.slow

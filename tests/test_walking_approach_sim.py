@@ -93,5 +93,5 @@ def test_sim_step_stands_still_without_a_push(tmp_path):
     fields = json.loads(result.output)
     assert fields["fell"] is False  # and no step, on both code paths (AVX-512 / portable)
     assert fields["capture_step"] == {"stepped": False, "trigger_s": None, "steps": 0,
-                                      "start_feet": [], "stood_s": None, "stood_feet": [],
-                                      "footsteps": []}
+                                      "start_feet": [], "stood_s": None, "stop_s": None,
+                                      "stood_feet": [], "footsteps": []}

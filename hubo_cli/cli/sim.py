@@ -136,7 +136,9 @@ def _print(summary: dict, result, options, push_direction: str, run_dir) -> None
     if options.step:
         stepped = summary["capture_step"]
         console.print(f"stepped           {stepped['steps']} step(s)" + (
-            f" from t = {stepped['trigger_s']:.2f} s" if stepped["stepped"] else ""))
+            f" from t = {stepped['trigger_s']:.2f} s" if stepped["stepped"] else "") + (
+            f", ended in its stance by the stop at {stepped['stop_s']:.2f} s"
+            if stepped["stop_s"] is not None else ""))
     console.print(f"support           {balance_summary_line(summary)}", soft_wrap=True)
     if summary["driver"] == "sim":
         console.print(f"real-time factor  {result.realtime_factor:.2f} "

@@ -108,6 +108,7 @@ RELIEF_S = 0.25          # the shortest move along the relief path (s)
 WRIST_SENSORS = ("right-wrist", "left-wrist")
 
 MODES = ("release", "stop", "hold", "recover", "finish")
+LATCHED_MODES = ("stop", "hold", "finish")  # the stop holds the robot (recover: blending back)
 MAX_FINISH_S = 5.0       # a phase stopping itself settles within this long, or is braked
 RELIEVE_SOURCES = frozenset({"wrist-torque"})  # stops that brake hard and relieve the tool
 BRAKE_FLAG = "estop-brake"  # the stopper brakes at the emergency limits this period

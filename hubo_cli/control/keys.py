@@ -14,8 +14,9 @@ SUPPORT_BOX_WORLD = Key(
 
 STOP_MODE = Key(
     "stop_mode", str,
-    "the soft emergency stopper's mode after its update (release, stop, hold, recover); "
-    "written by the stopper named estop, read by targets as the previous period's (previous)")
+    "the soft emergency stopper's mode after its update (release, stop, hold, recover, "
+    "finish); written by the stopper named estop, read by targets as the previous period's "
+    "(previous)")
 WRIST_RELIEF = Key(
     "wrist_relief", object,
     "function: the braked joint command (rad) -> the postures (m x joints, rad) that relieve "

@@ -186,13 +186,14 @@ class CapturePhase(Phase[Output]):
 
 class Stand(CapturePhase):
     """The standing target's posture, until the capture point comes within TRIGGER_M of the
-    soles' hull shrunk by the monitor's margin (not in the first period)."""
+    soles' hull shrunk by the monitor's margin (not in the first period, nor while the soft
+    stopper is latched or blending back after a release: its output is not the step's)."""
 
     name = "stand"
 
     def run(self, t_s: float, state: RobotState) -> tuple[Output, str | None]:
         stepper = self.stepper
-        triggered = (state.time_s > 0 and stepper.stopped_s is None
+        triggered = (state.time_s > 0 and stepper.stop_released
                      and stepper.outside_m() > -TRIGGER_M)
         return (stepper.q_standing, NO_REFERENCE), ("step" if triggered else None)
 
@@ -341,13 +342,9 @@ class PatternPhase(CapturePhase):
         return plan
 
     def stop_within_s(self) -> float:
-        """The pattern plays on to its stance: the catch's end (a lunge's at the latest), or
-        the return step's landing."""
+        """The pattern plays on to its stance: the catch's end (a lunge's at the latest)."""
         s = self.stepper
-        if self.name == "return":
-            end = s.landed_k
-        else:
-            end = s.n_catch if s.track is None else s.rest.n
+        end = s.n_catch if s.track is None else s.rest.n
         return max(end - s.k, 0) * s.model.control_period_s
 
 
@@ -358,8 +355,10 @@ class Catch(PatternPhase):
     estimated CoM is slower than SETTLED_SPEED_M_S, at most LUNGE_WAIT_S more). The standing
     balancers rest throughout: acting in the lunge's stance, whose soles are far apart
     along a diagonal, they rocked the robot sideways ever wider (150 N forward pushed at
-    1.0 s rolled out over the back foot's edge). A stop latched meanwhile ends the catch in
-    its stance (stood), with no return step."""
+    1.0 s rolled out over the back foot's edge). A catch ending while the soft stopper is
+    latched (or still blending back after a release: the return step, an open-loop pattern,
+    must not play lagged through its blend) goes to stood with the return step pending, held
+    there by the stopper; it follows once the stopper is released (:class:`Stood`)."""
 
     name = "catch"
     runs_at_start = False  # the step's last output stands in the period it touches down
@@ -418,7 +417,7 @@ class Catch(PatternPhase):
         s.rest_support = planned_support(s.rest)
         s.landed_k = landed_period(s.rest)
         s.n_catch = n
-        s.steps = [land, back]
+        s.steps, s.return_step = [land], back  # the return footstep once it starts
 
     def _lunge(self, land: Footstep, stance: Footstep, sole_middle: np.ndarray,
                com_m: np.ndarray, xi_m: np.ndarray) -> None:
@@ -453,8 +452,10 @@ class Catch(PatternPhase):
         if s.k < s.n_catch or (s.track is not None and s.k < s.rest.n and float(
                 np.hypot(*s.store[COM_VELOCITY_WORLD][:2])) >= SETTLED_SPEED_M_S):
             return out, None
-        # a stop latched: the robot stays in the catch's stance (no return step)
-        return out, ("return" if s.stopped_s is None else "stood")
+        if s.stop_released:
+            return out, "return"
+        s.return_pending, s.stop_s = True, s.latch_s  # held in the catch's stance
+        return out, "stood"
 
     def balancers_rest(self) -> bool:
         return True
@@ -463,7 +464,9 @@ class Catch(PatternPhase):
 class Return(PatternPhase):
     """One walking step brings the other foot beside the landed one: a short step's pattern
     goes on; after the lunge it is planned now (:meth:`start`). The balancers rest until the
-    back foot is down. A stop latched meanwhile: the robot stands once that foot is down."""
+    back foot is down. A stop latched meanwhile: the robot stands once that foot is down
+    (the settle between the feet is not played, then or after the release: the feet stand
+    side by side and the balancers act)."""
 
     name = "return"
     runs_at_start = False  # the catch's last output stands
@@ -476,7 +479,9 @@ class Return(PatternPhase):
         walking and the back heel rises for the legs' reach; the front sole's foot damping
         starts from rest."""
         s = self.stepper
+        s.return_pending, s.stop_s = False, None
         if s.track is None:  # a short step: the catch's pattern goes on into the return
+            s.steps = [s.steps[0], s.return_step]
             return
         period, forward = s.model.control_period_s, s.model.feet.forward_m
         measured = estimated_feet(s.store)
@@ -516,8 +521,15 @@ class Return(PatternPhase):
         s = self.stepper
         out = s.pattern_period()
         # a stop latched: the robot stands once the back foot is down beside the front one
-        end = s.rest.n if s.stopped_s is None else s.landed_k
-        return out, ("stood" if s.k >= end else None)
+        if s.stop_latched and s.landed_k <= s.k < s.rest.n:
+            s.stop_s = s.latch_s
+            return out, "stood"
+        return out, ("stood" if s.k >= s.rest.n else None)
+
+    def stop_within_s(self) -> float:
+        """The return step plays on until its foot is down."""
+        s = self.stepper
+        return max(s.landed_k - s.k, 0) * s.model.control_period_s
 
     def balancers_rest(self) -> bool:
         s = self.stepper  # after the lunge: until the back foot is beside the front one
@@ -525,10 +537,16 @@ class Return(PatternPhase):
 
 
 class Stood(CapturePhase):
-    """The pattern has ended: hold its last posture (the balancers act, but not in a lunge
-    a stop ended without its return step: in that long diagonal stance they rocked the
-    robot sideways ever wider, as in the catch, and 165 N forward held there 5.5 s fell);
-    where the feet stand is noted for the summary."""
+    """The pattern has ended: hold its last posture (the balancers act); where the feet
+    stand is noted for the summary. After a catch a stop ended, the return step is pending:
+    the robot is held in the catch's stance, the monitor watching it unshrunk as in the
+    catch (:meth:`planned_soles`), the balancers resting (in a lunge's long
+    diagonal stance they rocked the robot sideways ever wider, as in the catch, and 165 N
+    forward held there 5.5 s fell; and they would move the CoM off the pattern the return
+    starts from), and once the soft stopper is released (its blend back over, which here
+    ends where the pattern stands) the return step follows: a short step's pattern goes on,
+    a lunge's return is planned from the measured soles. The robot so never stands with the
+    balancers resting and no stop holding it."""
 
     name = "stood"
     runs_at_start = False  # the return's last output stands
@@ -541,10 +559,23 @@ class Stood(CapturePhase):
         s.stood_feet = [feet[side] for side in SIDES]
 
     def run(self, t_s: float, state: RobotState) -> tuple[Output, str | None]:
-        return (self.q_hold, NO_REFERENCE), None
+        s = self.stepper
+        resume = s.return_pending and s.stop_released
+        return (self.q_hold, NO_REFERENCE), ("return" if resume else None)
 
     def balancers_rest(self) -> bool:
-        return self.stepper.track is not None  # still in the lunge's stance
+        return self.stepper.return_pending
+
+    def planned_soles(self) -> np.ndarray | None:
+        """With the return pending, as in the catch: the stepped stance, unshrunk, where the
+        estimate has the feet now (laid flat; with the margin a 150 N lunge's capture point
+        was outside 10 ms into its stance, and its release met a capture-point stop)."""
+        s = self.stepper
+        if not s.return_pending:
+            return None
+        return np.array([pose_of_row(np.array([T[0, 3], T[1, 3], s.sole_z_m,
+                                               math.atan2(T[1, 0], T[0, 0])]))
+                         for T in s.store[T_WORLD_SOLES]])
 
     def stop_within_s(self) -> float:
         return 0.0

@@ -81,15 +81,19 @@ shrunk polygon, and the stop is left for a capture point beyond the stepped stan
 Such a stop is not reverted (reverting a step does not keep the robot up): as a walk, the
 stepper tells the soft stopper that it stops itself
 (:data:`~hubo_cli.control.phase.PHASE_STOP`): the swing lands, the catch runs to its end in
-the stepped stance and the robot stands there with no return step (a return step under way
-stands once its foot is down), held by the stopper (which brakes it where it is if that
-takes longer than the phase said). No step starts once a stop has latched. The standing
+the stepped stance and the robot stands there, held by the stopper (which brakes it where it
+is if that takes longer than the phase said), its return step pending (a return step under
+way stands once its foot is down). The stop is read each period from the stopper's mode
+(:data:`~hubo_cli.control.keys.STOP_MODE`), never remembered past a release: a catch that
+ends while the stopper is latched or blending back stands with its return pending, which
+starts once the stopper passes the target through again (:class:`~.capture_phases.Stood`);
+no step starts while it is latched or blending back, and a push after the release is
+caught by stepping again. The standing
 balancers rest (:data:`~hubo_cli.control.phase.BALANCERS_REST`) while it steps, in every
 catch (a short step's and the lunge's) and return step, after a lunge until the back foot
-is down; afterwards the robot holds the pattern's last posture, the balancers act (not in
-a lunge a stop ended: they keep resting there) and the monitor watches the estimated soles
-with its margin again. At most two steps per push; one
-plan at a time.
+is down, and while the return is pending; afterwards the robot holds the pattern's last
+posture, the balancers act and the monitor watches the estimated soles with its margin
+again. At most two steps per push; one plan at a time.
 """
 
 from __future__ import annotations
@@ -101,6 +105,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from hubo_cli.control.capture_point import CP_MARGIN_M
+from hubo_cli.control.estop import LATCHED_MODES
 from hubo_cli.control.keys import STOP_MODE
 from hubo_cli.control.module import Module
 from hubo_cli.control.phase import (
@@ -147,7 +152,12 @@ RETURN_MAX_DROP_M = 0.11  # [chosen] the torso lowers at most this much while it
 MAX_TOE_OFF_RAD = 0.8    # [chosen] ... and the back foot's heel rises at most this far
 TOE_OFF_STEP_RAD = 0.025  # [chosen] the heel's rise is searched in steps of this
 HIP_BAND_MARGIN_M = 0.005  # [chosen] the lunge's pelvis keeps each hip this far inside its ankle
-STOP_SPARE_S = 0.5       # [chosen] a catch stopping itself settles within its pattern and this
+CATCH_STOP_SPARE_S = 0.4  # [chosen] a capture stopping itself settles within its pattern and
+#                           this: the phases end on period counts (the swing at the latest
+#                           LAND_WAIT_S after its pattern, the lunge's catch after LUNGE_CATCH_S
+#                           + LUNGE_WAIT_S), so this only covers the stepper seeing the latch a
+#                           period late; the worst case, 4.6 s from the step's start, and this
+#                           stay within the stopper's MAX_FINISH_S (tests/test_capture_step.py)
 MAX_DROP_M = 0.08        # [chosen] the torso lowers at most this much for the legs' reach
 CATCH_LOWER_M_S = 0.2    # [chosen] ... and in the lunge's catch at most this fast, down to
 #                          RETURN_MAX_DROP_M, the back heel rising for the rest (with the
@@ -195,7 +205,11 @@ class CaptureStepper(Target):
         self.way = 1.0  # the lunge's landed foot ahead (1) or behind (-1; Catch)
         self.stood_s: float | None = None
         self.stood_feet: list[Footstep] = []
-        self.stopped_s: float | None = None  # when the soft stopper latched (it stays so)
+        self.stop_latched = False  # the soft stopper holds the robot (the last period's mode)
+        self.stop_released = True  # ... passes the target through (not even blending back)
+        self.latch_s: float | None = None  # when the stop latched last (kept after a release)
+        self.stop_s: float | None = None  # the latch that ended the stepping in its stance
+        self.return_pending = False  # a stop ended the catch: the return step still to come
 
     name = "capture-step"
     reads = (T_WORLD_SOLES, T_WORLD_TORSO, CONTACT, WRENCHES, COM_WORLD, COM_VELOCITY_WORLD,
@@ -224,8 +238,12 @@ class CaptureStepper(Target):
 
     def __call__(self, t_s: float, state: RobotState) -> TargetOutput:
         self.q_standing, info = self.stand(t_s, state)
-        if self.stopped_s is None and self.store.get(STOP_MODE, "release") != "release":
-            self.stopped_s = t_s  # no step starts now, and a catch ends in its stance
+        # the stop as it stands now (never remembered past a release): latched, a catch ends
+        # in its stance; not released (latched or blending back), no step starts
+        mode = self.store.get(STOP_MODE, "release")
+        if mode in LATCHED_MODES and not self.stop_latched:
+            self.latch_s = t_s
+        self.stop_latched, self.stop_released = mode in LATCHED_MODES, mode == "release"
         q, ref = self.phases(t_s, state)
         # what the phase in force asks of the pipeline: the balancers rest while the pattern
         # moves the CoM; the monitor watches the planned support, unshrunk, until the robot
@@ -236,7 +254,7 @@ class CaptureStepper(Target):
         self.store[SUPPORT_PLAN] = None if soles is None else SupportPlan(soles, 0.0)
         within_s = phase.stop_within_s()
         self.store[PHASE_STOP] = None if within_s is None else PhaseStop(
-            settled=within_s == 0.0, within_s=within_s + STOP_SPARE_S)
+            settled=within_s == 0.0, within_s=within_s + CATCH_STOP_SPARE_S)
         return q, info | {"capture.phase_code": self.phases.code,
                           "capture.com_ref_x_m": ref[0], "capture.com_ref_y_m": ref[1]}
 
@@ -478,10 +496,14 @@ class CaptureStepper(Target):
         return q
 
     def summary(self) -> dict:
-        """What the stepping did, for the run's summary (``capture_step``)."""
+        """What the stepping did, for the run's summary (``capture_step``): the footsteps
+        taken (a return step's once it started), when the pattern stood and where the soles
+        stood then, and ``stop_s``: when the stop latched that ended the stepping in its
+        stance, the catch with its return step pending or the return step once its foot was
+        down (None: none, or the return followed the release)."""
         return {"stepped": self.trigger_s is not None, "trigger_s": self.trigger_s,
                 "steps": len(self.steps) if self.trigger_s is not None else 0,
                 "start_feet": [f.to_json() for f in self.start_feet],
-                "stood_s": self.stood_s,
+                "stood_s": self.stood_s, "stop_s": self.stop_s,
                 "stood_feet": [f.to_json() for f in self.stood_feet],
                 "footsteps": [f.to_json() for f in self.steps]}

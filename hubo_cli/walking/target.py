@@ -120,7 +120,7 @@ LEG_CAPPED_RAD = 1e-3  # reaches it: each hip yaw stands at its limit, 0, while 
 SIDES = ("right", "left")  # the estimate's order of the feet (and of ANKLE_SENSORS)
 WALK_PHASES = ("walk", "stopping", "stood")
 STOOD_S = 1.0          # [chosen] a stopped walk holds its stance this long, then ends
-STOP_SPARE_S = 1.0     # [chosen] the stopper's deadline: the stop's pattern and this much
+WALK_STOP_SPARE_S = 1.0  # [chosen] the stopper's deadline: the stop's pattern and this much
 CP_WINDOW = 0.75       # [chosen] a landing moves only over this first part of its swing
 CP_REPLAN_M = 0.02     # [chosen] a landing moves again once its goal changed by this much
 CP_BLEND_PERIODS = 20  # [chosen] a moved landing's pattern is played at least this long before
@@ -832,7 +832,7 @@ class WalkTarget(Target):
         # stopper's own brake when the stop's pattern could not be made
         store[PHASE_STOP] = None if self.stop_failed else PhaseStop(
             self.phase == "stood",
-            self.params.step_s + self.params.settle_s + STOP_SPARE_S)
+            self.params.step_s + self.params.settle_s + WALK_STOP_SPARE_S)
         gait, plan = self.gait, self.plan
         k = min(self.k, gait.n - 1)
         self.k += 1
