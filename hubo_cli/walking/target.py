@@ -149,8 +149,8 @@ LEVEL_RETURN_RAD_S = 0.1  # [chosen] with both soles loaded a turn goes back at 
                         # (held, it holds the torso at the very pitch it reacts to: the other
                         # sole stood 7.6 deg toe-up on its heel to the end). Given back at
                         # 0.6 rad/s at the touchdown the landed foot was unloaded and the robot
-                        # fell backward (seed 11); at 0.05 a stop's stance (~1.9 s loaded
-                        # before the stopper holds its posture) left 0.04 of 0.16 rad
+                        # fell backward (seed 11); at 0.05 a stop's stance (1.9 s loaded
+                        # before the stopper holds its posture) left 0.065 of 0.16 rad
 CP_GAIN_MAX = 1.0      # [chosen] the error's growth by the landing counted at most this much
                        # (exp(omega t) is 17 at a swing's start: a 1 cm error of the estimate's
                        # capture point moved the landing by 17 cm; 3x stepped too far back
