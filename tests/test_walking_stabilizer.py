@@ -211,10 +211,17 @@ def test_a_swing_leg_is_pitched_against_the_torsos_pitch_and_holds_on_the_floor(
     """The walk's first period made its plan; then the estimated torso pitched back 3 deg with
     the right foot in contact and the left one swinging: the left hip pitch turns against the
     2 deg beyond the 1 deg dead band at 0.6 rad/s, the right leg keeps the pattern's joints.
-    Landed, the left leg keeps its turn; in the air again with the torso upright, it goes back
-    at the same rate. Inside the dead band, or without a finite torso estimate, the joints are
-    the pattern's."""
-    from hubo_cli.walking.target import LEVEL_DEAD_RAD, LEVEL_RATE_RAD_S
+    Landed while one sole is unloaded, the left leg keeps its turn; in the air again with the
+    torso upright, it goes back at the same rate; with both soles planned down and in contact
+    it goes back at LEVEL_RETURN_RAD_S, to exactly the pattern. Pitched back 20 deg, the turn
+    stops at LEVEL_MAX_RAD. Inside the dead band, or without a finite torso estimate, the
+    joints are the pattern's."""
+    from hubo_cli.walking.target import (
+        LEVEL_DEAD_RAD,
+        LEVEL_MAX_RAD,
+        LEVEL_RATE_RAD_S,
+        LEVEL_RETURN_RAD_S,
+    )
 
     model = load_model("as-built", "walking")
     params = walking_params(model)
@@ -250,11 +257,23 @@ def test_a_swing_leg_is_pitched_against_the_torsos_pitch_and_holds_on_the_floor(
         q = period(swinging, (True, False))
         assert q[right] == pattern[right]
         assert q[left] - pattern[left] == pytest.approx(min(k * step, wanted), abs=1e-9)
-    store[T_WORLD_TORSO] = T_world_neck  # landed: held though the torso stands upright
-    assert period(standing, (True, True))[left] - pattern[left] == pytest.approx(wanted)
+    store[T_WORLD_TORSO] = T_world_neck  # landed, one sole unloaded: held, torso upright
+    assert period(standing, (True, False))[left] - pattern[left] == pytest.approx(wanted)
     assert period(swinging, (True, True))[left] - pattern[left] == pytest.approx(wanted)
     store[T_WORLD_TORSO] = np.full((4, 4), np.nan)  # no estimate: held, finite
     q = period(swinging, (True, False))
     assert np.all(np.isfinite(q)) and q[left] - pattern[left] == pytest.approx(wanted)
     store[T_WORLD_TORSO] = T_world_neck  # in the air again: back at the same rate
     assert period(swinging, (True, False))[left] - pattern[left] == pytest.approx(wanted - step)
+    back = LEVEL_RETURN_RAD_S * model.control_period_s  # both soles loaded: back slowly
+    for k in range(1, 4):
+        q = period(standing, (True, True))
+        assert q[left] - pattern[left] == pytest.approx(wanted - step - k * back, abs=1e-9)
+        assert q[right] == pattern[right]
+    for _ in range(round((wanted - step) / back)):
+        q = period(standing, (True, True))
+    assert q[left] == pattern[left] and q[right] == pattern[right]
+    store[T_WORLD_TORSO] = pitched(-20.0)  # far beyond the cap
+    for _ in range(round(LEVEL_MAX_RAD / step) + 10):
+        q = period(swinging, (True, False))
+    assert q[left] - pattern[left] == pytest.approx(LEVEL_MAX_RAD, abs=1e-12)

@@ -362,7 +362,10 @@ def test_a_swing_foot_carried_back_by_a_tipping_body_still_lands_flat(tmp_path, 
     right foot in the air (seed 4 of tools/walk_disturbances.py): the body tips back over the
     stance heel. The swing leg is pitched at its hip against the torso's estimated pitch, so
     the foot lands flat where the capture point moved it and the walk stops standing. With the
-    foot fixed in the torso's frame it came down 7 deg toe-up on its heel, bounced and fell."""
+    foot fixed in the torso's frame it came down 7 deg toe-up on its heel, bounced and fell.
+    Both soles loaded, the turn goes back: the stop's stance ends on both soles, flat, with the
+    torso at its planned pitch (held, the turn held the torso 0.16 rad back and the left sole
+    7.6 deg toe-up on its heel to the end)."""
     from hubo_cli.control.log import load_log
     from hubo_cli.experiments.walk import Disturbance, walk
 
@@ -371,7 +374,7 @@ def test_a_swing_foot_carried_back_by_a_tipping_body_still_lands_flat(tmp_path, 
                   disturbances=[Disturbance(at_s, 100.0, (-1.0, 0.0, 0.0))])
     summary = json.loads((result.run_dir / "summary.json").read_text())
     assert result.fell is False and result.stood is True
-    # measured max tilt 15.5 deg (AVX-512) and 15.3 (portable path); a fall: 30; bound 25
+    # measured max tilt 15.1 deg (AVX-512) and 15.0 (portable path); a fall: 30; bound 25
     assert summary["max_torso_tilt_deg"] < 25.0
     log = load_log(result.run_dir / "log.parquet")
     t = np.asarray(log["t_s"], dtype=float)
@@ -380,11 +383,23 @@ def test_a_swing_foot_carried_back_by_a_tipping_body_still_lands_flat(tmp_path, 
     contact = np.asarray(log["right_foot_contact_flag"], dtype=float)[after]
     pitch = np.asarray(log["walk.right_angle_rad"], dtype=float)[after]
     landed = int(np.argmax(contact == 1))
-    # pitched in the air: measured 0.156-0.157 rad at the landing on both CPU paths
+    # pitched in the air: measured 0.156-0.157 rad before the landing on both CPU paths
     assert contact[landed] == 1 and np.max(np.abs(level[:landed])) > 0.08
     # the estimated sole's pitch as it touches down: measured -0.0345 rad on both CPU paths
     # levelled, -0.123 (7 deg toe-up) without: bound 0.07 rad, 2x the first
     assert abs(pitch[landed]) < 0.07
+    end = t > t[-1] - 0.5  # the stop's stance, held
+
+    def last(name: str) -> np.ndarray:
+        return np.abs(np.asarray(log[name], dtype=float)[end])
+
+    assert np.all(last("walk.right_level_rad") == 0) and np.all(last("walk.left_level_rad") == 0)
+    # measured at most 1.8 mrad (AVX-512) / 1.4 (portable); with the turn held to the end:
+    # the left sole 140 mrad toe-up, the torso 163 mrad back. Bound 30 mrad (1.7 deg)
+    for name in ("walk.right_angle_rad", "walk.left_angle_rad", "walk.pitch_error_rad"):
+        assert last(name).max() < 0.03, name
+    # both feet carry it: measured at least 111 N (AVX-512) / 145 N (portable): bound 50 N
+    assert min(last("right_foot_fz_n").min(), last("left_foot_fz_n").min()) > 50.0
 
 
 @pytest.mark.parametrize("rows_per_slice", [1, 7, 40, 10_000])

@@ -142,6 +142,15 @@ LEVEL_DEAD_RAD = math.radians(1.0)  # [chosen] a swing leg is pitched against th
                         # torso's pitch from the planned one beyond this (below: walking's own
                         # sway; the pattern plays unchanged)
 LEVEL_RATE_RAD_S = 0.6  # [chosen] ... that pitch changing at most this fast
+LEVEL_MAX_RAD = 0.2     # [chosen] ... and at most this large (11.5 deg): 1.2x the largest turn
+                        # of the 20 pushed walks (0.169 rad, docs/history/walking.md), so that
+                        # a torso estimate gone wrong cannot swing a leg further than that
+LEVEL_RETURN_RAD_S = 0.1  # [chosen] with both soles loaded a turn goes back at this rate
+                        # (held, it holds the torso at the very pitch it reacts to: the other
+                        # sole stood 7.6 deg toe-up on its heel to the end). Given back at
+                        # 0.6 rad/s at the touchdown the landed foot was unloaded and the robot
+                        # fell backward (seed 11); at 0.05 a stop's stance (1.9 s loaded
+                        # before the stopper holds its posture) left 0.065 of 0.16 rad
 CP_GAIN_MAX = 1.0      # [chosen] the error's growth by the landing counted at most this much
                        # (exp(omega t) is 17 at a swing's start: a 1 cm error of the estimate's
                        # capture point moved the landing by 17 cm; 3x stepped too far back
@@ -388,7 +397,7 @@ class WalkTarget(Target):
             self.torso_offset = TorsoOffset(stabilizer, dt)
             self.touchdowns = {side: Touchdown(stabilizer, dt) for side in SIDES}
             self._leg_delta = np.zeros((2, 6))  # the legs' corrections: right, left
-            self._level = np.zeros(2)  # each swing leg's pitch against the torso's (rad)
+            self._level_rad = np.zeros(2)  # each swing leg's pitch against the torso's (rad)
             self._pitch_error_rad = 0.0  # the estimated torso's pitch from the planned one
         names = list(model.joint_names)
         self._ankle = {"right": (names.index("RAR"), names.index("RAP")),
@@ -837,10 +846,10 @@ class WalkTarget(Target):
         k = min(self.k, gait.n - 1)
         self.k += 1
         (_, _, r02, _), (_, _, r12, _), (_, _, r22, torso_z) = store[T_WORLD_TORSO][:3].tolist()
-        tilt = math.degrees(math.atan2(math.hypot(r02, r12), r22))  # tilt_rad_of_matrix
+        tilt_deg = math.degrees(math.atan2(math.hypot(r02, r12), r22))  # tilt_rad_of_matrix
         if self.torso_z0_m is None:
             self.torso_z0_m = torso_z
-        if has_fallen(tilt, self.torso_z0_m - torso_z):
+        if has_fallen(tilt_deg, self.torso_z0_m - torso_z):
             self.fell = True
         poses = store[T_WORLD_SOLES]
         zmp = np.asarray(store[ZMP_WORLD], dtype=float)
@@ -861,7 +870,7 @@ class WalkTarget(Target):
                 "walk.com_ref_x_m": com_ref_x, "walk.com_ref_y_m": com_ref_y,
                 "walk.zmp_x_m": zmp_x, "walk.zmp_y_m": zmp_y,
                 "walk.contact_zmp_outside_m": outside if math.isfinite(outside) else math.nan,
-                "walk.step": float(rows["step"][k]), "walk.tilt_deg": tilt,
+                "walk.step": float(rows["step"][k]), "walk.tilt_deg": tilt_deg,
                 "planned_right_foot_contact_flag": float(support[0]),
                 "planned_left_foot_contact_flag": float(support[1]),
                 "walk.phase_code": float(WALK_PHASES.index(self.phase)),
@@ -918,8 +927,8 @@ class WalkTarget(Target):
                 "walk.right_sole_pitch_rad": float(right[1]),
                 "walk.left_sole_roll_rad": float(left[0]),
                 "walk.left_sole_pitch_rad": float(left[1]),
-                "walk.right_level_rad": float(self._level[0]),
-                "walk.left_level_rad": float(self._level[1]),
+                "walk.right_level_rad": float(self._level_rad[0]),
+                "walk.left_level_rad": float(self._level_rad[1]),
                 "walk.pitch_error_rad": self._pitch_error_rad}
 
     def _in_pattern(self, k: int, wrenches: np.ndarray, point_m: np.ndarray
@@ -967,26 +976,35 @@ class WalkTarget(Target):
 
     def _level_swing(self, k: int, support: list[bool], q: np.ndarray) -> None:
         """Pitch each swing leg at its hip against the estimated torso's pitch from the
-        planned one (beyond LEVEL_DEAD_RAD; changing at most LEVEL_RATE_RAD_S), in place in
-        ``q``: a body tipped by a push carries a swing foot fixed in its frame with it and
-        lands it early on an edge (pushed from the front, the body tipped back and the heel
-        came down 7 deg toe-up, 0.05 m short of its moved landing, and bounced). Turned so,
-        the leg keeps its planned pitch in the world and the sole lands flat. A leg on the
-        floor (planned down, or in the estimate's contact) keeps its turn; it goes back in the
-        air (turned back under the weight, the landed foot was lifted at its toe or heel)."""
+        planned one (beyond LEVEL_DEAD_RAD, at most LEVEL_MAX_RAD; changing at most
+        LEVEL_RATE_RAD_S), in place in ``q``: a body tipped by a push carries a swing foot
+        fixed in its frame with it and lands it early on an edge (pushed from the front, the
+        body tipped back and the heel came down 7 deg toe-up, 0.05 m short of its moved
+        landing, and bounced). Turned so, the leg keeps its planned pitch in the world and the
+        sole lands flat. A leg on the floor (planned down, or in the estimate's contact) keeps
+        its turn while the other one swings (turned back under the weight, the landed foot was
+        lifted at its toe or heel); with both soles planned down and in contact, the turns go
+        back to the pattern at LEVEL_RETURN_RAD_S, the torso righting itself over the flat
+        soles. The turn is about the hip's pitch axis, not the torso's: with the hip yawed by
+        psi it leaves sin(psi) of the torso's pitch as the sole's roll (2.7 deg of 9 at 0.3 rad)."""
         R_plan = self.plan.T_world_neck[k, :3, :3]
         error = float(pin.log3(R_plan.T @ np.asarray(self.store[T_WORLD_TORSO],
                                                      dtype=float)[:3, :3])[1])
         self._pitch_error_rad = error  # about the torso's y axis
-        tilt = math.copysign(max(abs(error) - LEVEL_DEAD_RAD, 0.0), error)
+        tilt_rad = min(max(abs(error) - LEVEL_DEAD_RAD, 0.0), LEVEL_MAX_RAD)
+        tilt_rad = math.copysign(tilt_rad, error)
         step = LEVEL_RATE_RAD_S * self.model.control_period_s
         contact = self.store[CONTACT]
+        loaded = all(support) and all(contact)
+        back = LEVEL_RETURN_RAD_S * self.model.control_period_s
         for column, down in enumerate(support):
-            level = self._level[column]
-            # (on the floor it holds: see the docstring; no estimate of the torso: it holds)
-            if not (down or contact[column]) and math.isfinite(tilt):
-                self._level[column] = level + min(max(tilt - level, -step), step)
-            q[self._hip_pitch[column]] -= self._level[column]
+            level = self._level_rad[column]
+            if loaded:
+                self._level_rad[column] = level - min(max(level, -back), back)
+            # (on the floor, one leg swinging: it holds; no estimate of the torso: it holds)
+            elif not (down or contact[column]) and math.isfinite(tilt_rad):
+                self._level_rad[column] = level + min(max(tilt_rad - level, -step), step)
+            q[self._hip_pitch[column]] -= self._level_rad[column]
 
     def arrived(self) -> bool:
         """The estimated feet stand within ARRIVED_M and ARRIVED_RAD of the goal stance."""
