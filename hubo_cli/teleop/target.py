@@ -81,6 +81,7 @@ from hubo_cli.scene import SceneActions, WallPlacement
 from hubo_cli.teleop.lead import GoalVelocity, reachable_velocity
 from hubo_cli.teleop.mapping import HandMapper
 from hubo_cli.teleop.phases import PHASES, Approach, Operate, Settle
+from hubo_cli.teleop.reach_lead import AHEAD_S, ReachLead
 from hubo_cli.teleop.target_kernels import (
     free_goal,
     hand_errors,
@@ -138,6 +139,8 @@ class HandTrack:
     rest_anchor_m: np.ndarray | None = None
     rest_since_s: float = 0.0
     last_branch: int | None = None
+    returning: bool = False  # the goal was out of reach and the hand has not caught up yet
+    leading: bool = False  # the target leads the goal (reach_lead) this period
 
     @property
     def at_limit(self) -> bool:
@@ -242,6 +245,7 @@ class TeleopTarget(Target):
         self.hands = {arm: HandTrack() for arm in self.arms}
         self.reach_settings = reach or ReachSettings.for_mode(mapper.config.mode)
         self.reach = {arm: ArmReach(body.arms[arm], self.reach_settings) for arm in approach}
+        self.leads = {arm: ReachLead() for arm in self.arms}  # at the reach limit
         self.singularity = singularity or self.reach_settings.singularity
         self.room = None  # arm targets keep out of the collision detector's band
         # once operating, where the trajectory generator has a tracker per arm: a copy of each
@@ -399,9 +403,10 @@ class TeleopTarget(Target):
         """The arm's target follows its goal freely this period (operating, the goal within
         reach and clear of the body, the hand neither held nor slowed nor changing branch)."""
         hand = self.hands[arm]
-        return (self.phase == "operate" and hand.reachable and not hand.at_limit
+        return (self.phase == "operate" and (hand.leading or hand.reachable
+                                             and not hand.at_limit)
                 and not (hand.stale or hand.lost or hand.needs_clutch or hand.clutched)
-                and hand.branch_move is None and hand.speed_scale >= 1.0
+                and hand.branch_move is None and (hand.speed_scale >= 1.0 or hand.leading)
                 and (self.room is None or arm not in self.room.moved))
 
     def swing_m(self, arm: str, tracker: JointTracker, target_rad: np.ndarray,
@@ -472,6 +477,8 @@ class TeleopTarget(Target):
             self.mapper.forget()  # the next pose of each hand re-centres it
             for hand in self.hands.values():
                 hand.lost = hand.needs_clutch = False
+            for lead in self.leads.values():
+                lead.clear()
         samples = self.source.read_until(t_src)
         changed = False
         for sample in samples:
@@ -567,9 +574,19 @@ class TeleopTarget(Target):
                 hand.missing_m = None
                 hand.reachable = (result.position_error_m <= REACHABLE_POSITION_M
                                   and result.rotation_error_rad <= REACHABLE_ROTATION_RAD)
+                lead = self.leads[arm]
+                lead.push(t_s, T_N_goal[:3, 3])
+                hand.leading = False
                 if result.status == "nearest":
-                    hand.missing_m = T_N_goal[:3, 3] - reach.limb.fk(result.q_rad)[:3, 3]
+                    T_near = reach.limb.fk(result.q_rad)
+                    hand.missing_m = T_N_goal[:3, 3] - T_near[:3, 3]
                     hand.at_limit_periods += 1
+                    hand.returning = True
+                    q_arm, hand.leading = self._led(reach, lead, T_N_goal, T_near, q_now,
+                                                    q_arm)
+                elif hand.returning:
+                    q_arm, hand.leading = self._led(reach, lead, T_N_goal, None, q_now, q_arm)
+                    hand.returning = hand.leading
                 q_arm = self._branch_policy(t_s, arm, hand, T_N_goal, q_now, q_arm, branch_key)
             q[sl] = self._speed_scaled(arm, q_now, q_arm, hand)
         if self.room is not None:
@@ -586,6 +603,43 @@ class TeleopTarget(Target):
                 hand.missing_m = (None if hand.reachable else T_N_goal[:3, 3]
                                   - reach.limb.fk(q[self.slices[arm]])[:3, 3])
         self.q_target = q
+
+    @staticmethod
+    def _led(reach: ArmReach, lead: ReachLead, T_goal: np.ndarray, T_near: np.ndarray | None,
+             q_now: np.ndarray, q_goal: np.ndarray) -> tuple[np.ndarray, bool]:
+        """The arm's joints led along the goal's velocity (:mod:`hubo_cli.teleop.reach_lead`)
+        toward where it will be: from the goal's pose ``T_goal`` (joints ``q_goal``) while it
+        is reachable, from the nearest reachable pose ``T_near`` while it is not (toward the
+        nearest reachable pose of where it will be ``AHEAD_S`` later, if it heads back), by
+        at most ``lead.lead_m_of`` its speed; on the branch, within the limits and margins;
+        and whether it is led (False: ``q_goal`` as it is)."""
+        v = lead.velocity_m_s()
+        if v is None:
+            return q_goal, False
+        speed = math.sqrt(v.dot(v))
+        cap = lead.lead_m_of(speed)
+        if cap <= 0.0:
+            return q_goal, False
+        if T_near is None:
+            T_from, offset = T_goal, v * (cap / speed)
+        else:
+            cap *= lead.run_up_share(v, T_goal[:3, 3] - T_near[:3, 3])
+            if cap <= 0.0:
+                return q_goal, False
+            T_ahead = T_goal.copy()
+            T_ahead[:3, 3] += v * AHEAD_S
+            T_from = T_near
+            offset = reach.limb.fk(reach.solve(T_ahead, q_now).q_rad)[:3, 3] - T_near[:3, 3]
+            length = math.sqrt(offset.dot(offset))
+            if length > cap:
+                offset *= cap / length
+        T_lead = T_from.copy()
+        T_lead[:3, 3] += offset
+        q_led = reach.solve(T_lead, q_now).q_rad
+        moved = reach.limb.fk(q_led)[:3, 3] - T_from[:3, 3]
+        if math.sqrt(moved.dot(moved)) > cap + 1e-4:
+            return q_goal, False
+        return q_led, True
 
     def _branch_policy(self, t_s, arm, hand: HandTrack, T_N_goal, q_now, q_arm,
                        branch_key: bool) -> np.ndarray:
