@@ -13,9 +13,14 @@ speed and acceleration limits, no jerk limit, no braking, no speed scale):
   the goal is reachable again, and the largest gap before that;
 - *perfect prediction*: it may start whenever it likes (it knows the goal's future): the first
   time after re-entry from which it can stay within 2 mm of the goal, starting from rest at
-  the parked bend (linear programs, see :func:`_perfect_meet_s`).
+  the parked bend and never straighter than that (linear programs, see
+  :func:`_perfect_meet_s`);
+- the same with the hand never more than ``--lead`` (10 mm) inward of the goal's nearest
+  reachable point, the issue's cap on anticipation (teleop/reach_lead.py): a floor for any
+  controller, causal or not, that keeps that cap.
 
     python tools/reach_return_bound.py [--back 8] [--beyond 0.3] [--parked-bend 0.1 0.64]
+        [--lead 0.01]
 """
 
 from __future__ import annotations
@@ -116,8 +121,10 @@ def _perfect_meet_s(t_s, goal_m, ahead_m, bend, t_cross, bend0, speed, accel, st
     """The first time after re-entry from which an elbow that knows the goal's future can stay
     within 2 mm of it (see the module docstring): bisection on that time over feasibility
     linear programs in the elbow's piecewise-constant acceleration (from rest at ``bend0``
-    2 s before re-entry, within the acceleration and speed limits), the bend kept between the
-    bends of the goal's position +-2 mm from that time on."""
+    2 s before re-entry, within the acceleration and speed limits, never straighter than
+    ``bend0``), the bend kept between the bends of the goal's position +-2 mm from that time
+    on, and with ``lead_m`` never more than that inward of the goal's nearest reachable
+    point."""
     grid = np.arange(t_cross - 2.0, t_s[-1], step_s)
     goal = np.interp(grid, t_s, goal_m)
     lo = np.interp(goal + 0.002, ahead_m, bend)  # the bend falls as the hand goes out

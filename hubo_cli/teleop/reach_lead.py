@@ -1,17 +1,26 @@
 """Anticipation at the edge of reach: a hand parked at its reach limit leads a goal that heads
 back into reach, so that it meets the goal instead of chasing it.
 
-Near a straight elbow only the elbow brings the hand inward, and slowly at first (the hand
-moves about 10 mm per rad of elbow 1 mm inside the boundary, 46 mm per rad 10 mm inside): a
-hand that starts when the goal passes it is left behind by a goal coming back at 90 mm/s
-(``tools/reach_return_bound.py``). :class:`ReachLead` estimates the goal's velocity causally
+Near a straight elbow only the elbow brings the hand inward, and slowly at first (about 10 mm
+per rad of elbow 1 mm inside the boundary, 46 mm per rad 10 mm inside): a hand that starts
+when the goal passes it is left behind by a goal coming back at 90 mm/s
+(``tools/reach_return_bound.py``). :class:`ReachLead` estimates the goal's velocity v causally
 (the least-squares slope of its positions over the last ``WINDOW_S``, the issue's "constant
-goal velocity over the last 0.1 s") and, from it, when the goal will be reachable again; over
-the last ``RUN_UP_S`` before that it moves the arm's target off the nearest reachable point
-along the goal's velocity, by up to ``LEAD_M``: the elbow starts bending before the goal is
-back. The lead is a position for the reach search (the arm's limits and margins, the speed
-scale, the collision room and the pipeline after them stay in charge); out of reach the hand
-stays within ``LEAD_M`` of the nearest reachable point.
+goal velocity over the last 0.1 s"). The lead is where the goal will be ``HORIZON_S`` later,
+at most ``LEAD_M`` (:meth:`ReachLead.lead_m_of`):
+
+- while the goal is out of reach and closes in on it, the arm's target moves off the nearest
+  reachable point toward the nearest reachable point of where the goal will be ``AHEAD_S``
+  later (down along the boundary and inward), by that lead times a share that grows from 0 to
+  1 over the ``RUN_UP_S`` before the goal is predicted back in reach (its distance over its
+  closing speed): the elbow starts bending before the goal is back, and the hand stays within
+  ``LEAD_M`` of the nearest reachable point;
+- once the goal is back in reach, the target leads it by the lead along v (continuous with the
+  above at re-entry), with the goal-velocity feed-forward on, until the goal slows below
+  ``MIN_SPEED_M_S``.
+
+The lead is a pose for the arm's reach search: its limits and margins, the speed scale, the
+collision room and the pipeline after them stay in charge.
 """
 
 from __future__ import annotations
@@ -22,10 +31,19 @@ from hubo_cli.teleop.lead import WINDOW_S
 
 LEAD_M = 0.010  # the issue's cap on the lead
 RUN_UP_S = 1.2  # the lead grows over this long before the goal is predicted back in reach
-RUN_UP_POWER = 2.0
+RUN_UP_POWER = 2.0  # the share grows as the square of the time run up (slowly at first, where
+# the elbow near straight moves the hand least). Tuned on the out-of-reach walk at full, half
+# and a quarter of its speed (tests/test_teleop_reach.py): RUN_UP_S 0.8 / 1.0 / 1.2 / 1.5 s,
+# AHEAD_S 0.5 / 0.75 / 1.0 s, HORIZON_S 0.08 / 0.12 / 0.25 s; docs/history/teleop.md
 HORIZON_S = 0.12  # the lead is where the goal will be this much later, up to LEAD_M
 AHEAD_S = 1.0  # out of reach: toward the nearest reachable point of where the goal will be
 # this much later
+HEADING_SHARE = 0.7  # and closing in at this share of its speed at least (heading back, not
+# passing by)
+MAX_SPEED_M_S = 0.2  # nor one faster than this out of reach: at the generated streams' 0.6 m/s
+# a goal heading back often turns away again, and the hand led toward where it would have come
+# back ended up further from it (one hand's largest excursion 288 -> 322 mm over the bench's
+# 8 x 20 s streams)
 MIN_SPEED_M_S = 0.01  # a goal heading back slower than this is not led (a parked hand does
 # not follow the operator's tremor)
 
@@ -72,13 +90,21 @@ class ReachLead:
         ``horizon_s`` later, at most ``lead_m``; zero below ``MIN_SPEED_M_S``."""
         return 0.0 if speed_m_s < MIN_SPEED_M_S else min(self.lead_m, speed_m_s * self.horizon_s)
 
-    def run_up_share(self, v_m_s: np.ndarray, missing_m: np.ndarray) -> float:
-        """For a goal ``missing_m`` beyond the reach moving at ``v_m_s``: the share of the
-        lead to take, (1 - t_back / run_up_s)^2 within [0, 1], t_back the time in which it is
-        predicted back in reach (its distance over the speed at which it closes in); zero when
-        it closes in slower than ``MIN_SPEED_M_S``."""
+    def time_back_s(self, v_m_s: np.ndarray, missing_m: np.ndarray) -> float:
+        """In how long a goal ``missing_m`` beyond the reach, moving at ``v_m_s``, is predicted
+        back in reach (s): its distance over the speed at which it closes in; inf when it closes in
+        slower than ``MIN_SPEED_M_S`` or than ``HEADING_SHARE`` of its speed (it does not head
+        back)."""
         distance = float(np.linalg.norm(missing_m))
         closing = -float(v_m_s @ missing_m) / max(distance, 1e-9)
-        if closing < MIN_SPEED_M_S:
-            return 0.0
-        return min(max(1.0 - distance / closing / self.run_up_s, 0.0), 1.0) ** RUN_UP_POWER
+        speed = float(np.linalg.norm(v_m_s))
+        if closing < max(MIN_SPEED_M_S, HEADING_SHARE * speed) or speed > MAX_SPEED_M_S:
+            return np.inf
+        return distance / closing
+
+    def run_up_share(self, v_m_s: np.ndarray, missing_m: np.ndarray) -> float:
+        """The share of the lead to take for a goal ``missing_m`` beyond the reach moving at
+        ``v_m_s``: (1 - t_back / run_up_s)^RUN_UP_POWER within [0, 1], t_back from
+        :meth:`time_back_s`."""
+        t_back = self.time_back_s(v_m_s, missing_m)
+        return min(max(1.0 - t_back / self.run_up_s, 0.0), 1.0) ** RUN_UP_POWER

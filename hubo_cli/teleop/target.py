@@ -113,6 +113,8 @@ SWING_SAMPLES = 8  # points of the previewed way the swing is measured at (ends 
 # to it (the search stops within a fraction of a millimetre of a reachable goal)
 REACHABLE_POSITION_M = 0.002
 REACHABLE_ROTATION_RAD = np.radians(1.0)
+LEAD_SCALE_SHARE = 0.9  # of the singularity speed scale, for a target led toward a goal coming
+# back into reach (teleop/reach_lead.py)
 
 
 @dataclass
@@ -139,7 +141,7 @@ class HandTrack:
     rest_anchor_m: np.ndarray | None = None
     rest_since_s: float = 0.0
     last_branch: int | None = None
-    returning: bool = False  # the goal was out of reach and the hand has not caught up yet
+    returning: bool = False  # the goal was out of reach and has kept moving since
     leading: bool = False  # the target leads the goal (reach_lead) this period
 
     @property
@@ -403,10 +405,9 @@ class TeleopTarget(Target):
         """The arm's target follows its goal freely this period (operating, the goal within
         reach and clear of the body, the hand neither held nor slowed nor changing branch)."""
         hand = self.hands[arm]
-        return (self.phase == "operate" and (hand.leading or hand.reachable
-                                             and not hand.at_limit)
+        return (self.phase == "operate" and hand.reachable and not hand.at_limit
                 and not (hand.stale or hand.lost or hand.needs_clutch or hand.clutched)
-                and hand.branch_move is None and (hand.speed_scale >= 1.0 or hand.leading)
+                and hand.branch_move is None and hand.speed_scale >= 1.0
                 and (self.room is None or arm not in self.room.moved))
 
     def swing_m(self, arm: str, tracker: JointTracker, target_rad: np.ndarray,
@@ -675,8 +676,13 @@ class TeleopTarget(Target):
         the distance in which the jerk-limited trajectory generator stops from that speed, so
         the joints themselves stay near it."""
         limb = self.reach[arm].limb
-        scale = self.singularity.scale(self._condition(arm, q_now),
-                                       self._condition(arm, q_next))
+        kappa_now, kappa_next = self._condition(arm, q_now), self._condition(arm, q_next)
+        scale = self.singularity.scale(kappa_now, kappa_next)
+        if hand is not None and hand.leading:  # a lead leaves no faster than the approach's
+            # band allows, with a margin for the tracker catching up (0.45 of the speed
+            # limits at kappa 100)
+            scale = LEAD_SCALE_SHARE * self.singularity.scale(kappa_now,
+                                                              max(kappa_now, kappa_next))
         if hand is not None:
             hand.speed_scale = scale
         if scale >= 1.0:
