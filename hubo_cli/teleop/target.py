@@ -113,6 +113,10 @@ SWING_SAMPLES = 8  # points of the previewed way the swing is measured at (ends 
 # to it (the search stops within a fraction of a millimetre of a reachable goal)
 REACHABLE_POSITION_M = 0.002
 REACHABLE_ROTATION_RAD = np.radians(1.0)
+LEAD_BEYOND_M = 0.02  # a hand is led toward a goal coming back from this far out of reach or
+# further (closer, the hand at its limit follows it along the boundary: drill-rectangle.csv's
+# goal, just beyond the right hand's reach for 18 s in free mode, 2.56 mm RMS without a lead,
+# 2.75 mm with it from any distance)
 LEAD_SCALE_SHARE = 0.9  # of the singularity speed scale, for a target led toward a goal coming
 # back into reach (teleop/reach_lead.py)
 
@@ -141,7 +145,8 @@ class HandTrack:
     rest_anchor_m: np.ndarray | None = None
     rest_since_s: float = 0.0
     last_branch: int | None = None
-    returning: bool = False  # the goal was out of reach and has kept moving since
+    beyond_m: float = 0.0  # the goal's largest distance beyond the reach, this time out of it
+    returning: bool = False  # the goal was LEAD_BEYOND_M out of reach and has kept moving since
     leading: bool = False  # the target leads the goal (reach_lead) this period
 
     @property
@@ -582,12 +587,17 @@ class TeleopTarget(Target):
                     T_near = reach.limb.fk(result.q_rad)
                     hand.missing_m = T_N_goal[:3, 3] - T_near[:3, 3]
                     hand.at_limit_periods += 1
-                    hand.returning = True
-                    q_arm, hand.leading = self._led(reach, lead, T_N_goal, T_near, q_now,
-                                                    q_arm)
+                    hand.beyond_m = max(hand.beyond_m, math.sqrt(hand.missing_m.dot(
+                        hand.missing_m)))
+                    hand.returning = hand.beyond_m >= LEAD_BEYOND_M
+                    if hand.returning:
+                        q_arm, hand.leading = self._led(reach, lead, T_N_goal, T_near, q_now,
+                                                        q_arm)
                 elif hand.returning:
                     q_arm, hand.leading = self._led(reach, lead, T_N_goal, None, q_now, q_arm)
                     hand.returning = hand.leading
+                if not hand.returning and hand.missing_m is None:
+                    hand.beyond_m = 0.0
                 q_arm = self._branch_policy(t_s, arm, hand, T_N_goal, q_now, q_arm, branch_key)
             q[sl] = self._speed_scaled(arm, q_now, q_arm, hand)
         if self.room is not None:
