@@ -199,6 +199,36 @@ def test_the_walk_back_into_reach_at_half_and_a_quarter_of_its_speed(tmp_path, b
         assert got["first_s"] <= 0.5, got
 
 
+def test_the_lead_follows_a_goal_heading_back_only():
+    """teleop/reach_lead.py: the goal's velocity is exact for a goal at constant velocity (from
+    half a window on, with the input's uneven sample times); the lead is where the goal will
+    be 0.12 s later, at most 10 mm, zero for a goal slower than 10 mm/s or faster than 0.2 m/s;
+    out of reach, it grows from nothing 1.2 s before the predicted re-entry to all of it at
+    re-entry, and is zero for a goal passing by or moving away."""
+    from hubo_cli.teleop.reach_lead import ReachLead
+
+    rng = np.random.default_rng(5)
+    v = np.array([-0.09, 0.02, 0.01])
+    lead = ReachLead()
+    assert lead.velocity_m_s() is None
+    for t in np.cumsum(rng.uniform(0.004, 0.02, 40)):
+        lead.push(t, np.array([0.5, -0.2, -0.2]) + v * t)
+    assert np.allclose(lead.velocity_m_s(), v, atol=1e-9)
+    assert lead.lead_m_of(0.05) == pytest.approx(0.05 * 0.12)
+    assert lead.lead_m_of(0.15) == 0.010
+    assert lead.lead_m_of(0.005) == 0.0 and lead.lead_m_of(0.3) == 0.0
+    out = -v / np.linalg.norm(v)      # the goal beyond the reach along this, heading back
+    speed = np.linalg.norm(v)
+    assert lead.run_up_share(v, out * speed * 1.3) == 0.0          # back in 1.3 s
+    assert lead.run_up_share(v, out * speed * 0.6) == pytest.approx(0.25)
+    assert lead.run_up_share(v, out * 1e-9) == pytest.approx(1.0)
+    side = np.cross(v, [0.0, 0.0, 1.0])                  # passing by, moving away
+    assert lead.run_up_share(v, side * 0.01 / np.linalg.norm(side)) == 0.0
+    assert lead.run_up_share(v, -out * 0.01) == 0.0
+    lead.clear()
+    assert lead.velocity_m_s() is None
+
+
 def test_a_joint_a_hair_inside_its_margin_does_not_stop_the_nearest_pose_search():
     """The right arm parked with its elbow 0.4 mrad inside the straight-elbow margin (where a
     walk out of reach left it) and the goal coming back to 23 mm beyond reach: the search's step

@@ -19,7 +19,9 @@ at most ``LEAD_M`` (:meth:`ReachLead.lead_m_of`):
   above at re-entry), with the goal-velocity feed-forward on, until the goal slows below
   ``MIN_SPEED_M_S``.
 
-The lead is a pose for the arm's reach search: its limits and margins, the speed scale, the
+Only a goal that went ``LEAD_BEYOND_M`` or more out of reach (:mod:`hubo_cli.teleop.target`)
+and moves between ``MIN_SPEED_M_S`` and ``MAX_SPEED_M_S`` is led. The lead is a pose for the
+arm's reach search: its limits and margins, the speed scale, the
 collision room and the pipeline after them stay in charge.
 """
 
@@ -100,8 +102,7 @@ class ReachLead:
         back)."""
         distance = float(np.linalg.norm(missing_m))
         closing = -float(v_m_s @ missing_m) / max(distance, 1e-9)
-        speed = float(np.linalg.norm(v_m_s))
-        if closing < max(MIN_SPEED_M_S, HEADING_SHARE * speed) or speed > MAX_SPEED_M_S:
+        if closing < max(MIN_SPEED_M_S, HEADING_SHARE * float(np.linalg.norm(v_m_s))):
             return np.inf
         return distance / closing
 
