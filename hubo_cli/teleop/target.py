@@ -146,7 +146,6 @@ class HandTrack:
     rest_since_s: float = 0.0
     last_branch: int | None = None
     beyond_m: float = 0.0  # the goal's largest distance beyond the reach, this time out of it
-    returning: bool = False  # the goal was LEAD_BEYOND_M out of reach and has kept moving since
     leading: bool = False  # the target leads the goal (reach_lead) this period
 
     @property
@@ -589,14 +588,10 @@ class TeleopTarget(Target):
                     hand.at_limit_periods += 1
                     hand.beyond_m = max(hand.beyond_m, math.sqrt(hand.missing_m.dot(
                         hand.missing_m)))
-                    hand.returning = hand.beyond_m >= LEAD_BEYOND_M
-                    if hand.returning:
+                    if hand.beyond_m >= LEAD_BEYOND_M:
                         q_arm, hand.leading = self._led(reach, lead, T_N_goal, T_near, q_now,
                                                         q_arm)
-                elif hand.returning:
-                    q_arm, hand.leading = self._led(reach, lead, T_N_goal, None, q_now, q_arm)
-                    hand.returning = hand.leading
-                if not hand.returning and hand.missing_m is None:
+                else:
                     hand.beyond_m = 0.0
                 q_arm = self._branch_policy(t_s, arm, hand, T_N_goal, q_now, q_arm, branch_key)
             q[sl] = self._speed_scaled(arm, q_now, q_arm, hand)
@@ -616,40 +611,33 @@ class TeleopTarget(Target):
         self.q_target = q
 
     @staticmethod
-    def _led(reach: ArmReach, lead: ReachLead, T_goal: np.ndarray, T_near: np.ndarray | None,
-             q_now: np.ndarray, q_goal: np.ndarray) -> tuple[np.ndarray, bool]:
-        """The arm's joints led along the goal's velocity (:mod:`hubo_cli.teleop.reach_lead`)
-        toward where it will be: from the goal's pose ``T_goal`` (joints ``q_goal``) while it
-        is reachable, from the nearest reachable pose ``T_near`` while it is not (toward the
-        nearest reachable pose of where it will be ``AHEAD_S`` later, if it heads back), by
-        at most ``lead.lead_m_of`` its speed; on the branch, within the limits and margins;
-        and whether it is led (False: ``q_goal`` as it is)."""
+    def _led(reach: ArmReach, lead: ReachLead, T_goal: np.ndarray, T_near: np.ndarray,
+             q_now: np.ndarray, q_near: np.ndarray) -> tuple[np.ndarray, bool]:
+        """The arm's joints for a goal ``T_goal`` beyond its reach, led toward it as it heads
+        back (:mod:`hubo_cli.teleop.reach_lead`): the nearest reachable pose (``T_near``,
+        joints ``q_near``) moved toward the nearest reachable pose of where the goal will be
+        ``AHEAD_S`` later, by at most ``lead.lead_m_of`` its speed times the run-up share; on
+        the branch, within the limits and margins; and whether it is led (False: ``q_near``
+        as it is)."""
         v = lead.velocity_m_s()
         if v is None:
-            return q_goal, False
+            return q_near, False
         speed = math.sqrt(v.dot(v))
-        cap = lead.lead_m_of(speed)
+        cap = lead.lead_m_of(speed) * lead.run_up_share(v, T_goal[:3, 3] - T_near[:3, 3])
         if cap <= 0.0:
-            return q_goal, False
-        if T_near is None:
-            T_from, offset = T_goal, v * (cap / speed)
-        else:
-            cap *= lead.run_up_share(v, T_goal[:3, 3] - T_near[:3, 3])
-            if cap <= 0.0:
-                return q_goal, False
-            T_ahead = T_goal.copy()
-            T_ahead[:3, 3] += v * AHEAD_S
-            T_from = T_near
-            offset = reach.limb.fk(reach.solve(T_ahead, q_now).q_rad)[:3, 3] - T_near[:3, 3]
-            length = math.sqrt(offset.dot(offset))
-            if length > cap:
-                offset *= cap / length
-        T_lead = T_from.copy()
+            return q_near, False
+        T_ahead = T_goal.copy()
+        T_ahead[:3, 3] += v * AHEAD_S
+        offset = reach.limb.fk(reach.solve(T_ahead, q_now).q_rad)[:3, 3] - T_near[:3, 3]
+        length = math.sqrt(offset.dot(offset))
+        if length > cap:
+            offset *= cap / length
+        T_lead = T_near.copy()
         T_lead[:3, 3] += offset
         q_led = reach.solve(T_lead, q_now).q_rad
-        moved = reach.limb.fk(q_led)[:3, 3] - T_from[:3, 3]
+        moved = reach.limb.fk(q_led)[:3, 3] - T_near[:3, 3]
         if math.sqrt(moved.dot(moved)) > cap + 1e-4:
-            return q_goal, False
+            return q_near, False
         return q_led, True
 
     def _branch_policy(self, t_s, arm, hand: HandTrack, T_N_goal, q_now, q_arm,
