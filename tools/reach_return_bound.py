@@ -13,9 +13,14 @@ speed and acceleration limits, no jerk limit, no braking, no speed scale):
   the goal is reachable again, and the largest gap before that;
 - *perfect prediction*: it may start whenever it likes (it knows the goal's future): the first
   time after re-entry from which it can stay within 2 mm of the goal, starting from rest at
-  the parked bend (linear programs, see :func:`_perfect_meet_s`).
+  the parked bend and never straighter than that (linear programs, see
+  :func:`_perfect_meet_s`);
+- the same with the hand never more than ``--lead`` (10 mm) inward of the goal's nearest
+  reachable point, the issue's cap on anticipation (teleop/reach_lead.py): a floor for any
+  controller, causal or not, that keeps that cap.
 
     python tools/reach_return_bound.py [--back 8] [--beyond 0.3] [--parked-bend 0.1 0.64]
+        [--lead 0.01]
 """
 
 from __future__ import annotations
@@ -65,6 +70,8 @@ def main() -> None:
                         help="how far beyond the reach the walk goes (m)")
     parser.add_argument("--parked-bend", type=float, nargs="+", default=[0.1, 0.64],
                         help="elbow bend (rad from straight) where the hand waits")
+    parser.add_argument("--lead", type=float, default=0.010,
+                        help="the hand's largest lead over the goal's nearest reachable point (m)")
     args = parser.parse_args()
     spec = load_model().limb(ARM)
     elbow_speed, elbow_accel = spec.velocity_rad_s[3], spec.acceleration_rad_s2[3]
@@ -98,19 +105,26 @@ def main() -> None:
         parked_mm = 1e3 * (np.interp(bend0, bend[inside][::-1], ahead[inside][::-1]) - edge_m)
         t_meet = _perfect_meet_s(t_s, goal_m, ahead[inside], bend[inside], t_cross, bend0,
                                  elbow_speed, elbow_accel)
+        t_led = _perfect_meet_s(t_s, goal_m, ahead[inside], bend[inside], t_cross, bend0,
+                                elbow_speed, elbow_accel, lead_m=args.lead)
         print(f"parked at {bend0:.2f} rad from straight ({parked_mm:+.0f} mm along the path): "
               f"the goal passes the hand {t_pass - t_cross:.2f} s after it is reachable; "
               f"reactive floor: back within 2 mm {t_back - t_cross:.2f} s after it is "
               f"reachable (the gap up to {1e3 * np.max(gap_m[before]):.0f} mm); perfect "
-              f"prediction floor: within 2 mm from {t_meet - t_cross:.2f} s after it on")
+              f"prediction floor: within 2 mm from {t_meet - t_cross:.2f} s after it on; "
+              f"with the lead within {1e3 * args.lead:.0f} mm of the goal's nearest reachable "
+              f"point: from {t_led - t_cross:.2f} s")
 
 
-def _perfect_meet_s(t_s, goal_m, ahead_m, bend, t_cross, bend0, speed, accel, step_s=0.02):
+def _perfect_meet_s(t_s, goal_m, ahead_m, bend, t_cross, bend0, speed, accel, step_s=0.02,
+                    lead_m=None):
     """The first time after re-entry from which an elbow that knows the goal's future can stay
     within 2 mm of it (see the module docstring): bisection on that time over feasibility
     linear programs in the elbow's piecewise-constant acceleration (from rest at ``bend0``
-    2 s before re-entry, within the acceleration and speed limits), the bend kept between the
-    bends of the goal's position +-2 mm from that time on."""
+    2 s before re-entry, within the acceleration and speed limits, never straighter than
+    ``bend0``), the bend kept between the bends of the goal's position +-2 mm from that time
+    on, and with ``lead_m`` never more than that inward of the goal's nearest reachable
+    point."""
     grid = np.arange(t_cross - 2.0, t_s[-1], step_s)
     goal = np.interp(grid, t_s, goal_m)
     lo = np.interp(goal + 0.002, ahead_m, bend)  # the bend falls as the hand goes out
@@ -121,10 +135,16 @@ def _perfect_meet_s(t_s, goal_m, ahead_m, bend, t_cross, bend0, speed, accel, st
     position[tk[:, None] <= tk[None, :]] = 0.0  # bend_k = bend0 + sum_j position_kj u_j
     velocity = np.tril(np.ones((n, n)), -1) * step_s
 
+    A_lead, b_lead = np.zeros((0, n)), np.zeros(0)
+    if lead_m is not None:  # never more than lead_m inward of the goal's nearest reachable point
+        nearest = np.minimum(goal, ahead_m[-1])
+        A_lead, b_lead = position, np.interp(nearest - lead_m, ahead_m, bend) - bend0
+
     def feasible(t_meet):
         rows = grid >= t_meet
-        A = np.vstack([position[rows], -position[rows], velocity, -velocity])
-        b = np.concatenate([hi[rows] - bend0, bend0 - lo[rows], np.full(2 * n, speed)])
+        A = np.vstack([position[rows], -position[rows], velocity, -velocity, -position, A_lead])
+        b = np.concatenate([hi[rows] - bend0, bend0 - lo[rows], np.full(2 * n, speed),
+                            np.zeros(n), b_lead])
         res = linprog(np.zeros(n), A_ub=A, b_ub=b, bounds=(-accel, accel), method="highs")
         return res.status == 0
 

@@ -11,11 +11,15 @@ from __future__ import annotations
 import tempfile
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from hubo_cli.control.module import Module
 from hubo_cli.input.operator_stream import StreamSettings
+
+if TYPE_CHECKING:
+    from hubo_cli.teleop.session import TeleopSettings
 
 GENERATED_SEEDS = np.random.default_rng(34).integers(0, 2**31, 60).tolist()
 """The generated streams the teleop tests and tools judge on (drawn, not picked): the first 50
@@ -150,39 +154,55 @@ class _Observe:
 
 def follow_generated(seed: int, settings: StreamSettings, observe=None) -> StreamRun:
     """The stream of ``seed`` followed by the teleop target and the trajectory generator alone
-    (free mode, ideal driver, the arms starting at the ready pose; no balancer, stopper,
-    collision detector, log or run folder): the same figures as :func:`replay_generated` at a
-    fraction of its cost (a 1.5 s stream about 0.8 s of CPU), for properties over many
-    streams. The figures are the target's and the generator's own: the safety modules after it
-    hold, brake or clamp what it commands (on an 8 s stream, seed 2: 13.5 / 24.8 mm reachable
-    position RMS here, 13.5 / 25.3 mm through the whole session). ``observe(target, t_s)``, if
-    given, is called after every period with the teleop target (tools read its goals)."""
+    (:func:`follow_input`): the same figures as :func:`replay_generated` at a fraction of its
+    cost (a 1.5 s stream about 0.8 s of CPU), for properties over many streams. The figures
+    are the target's and the generator's own: the safety modules after it hold, brake or clamp
+    what it commands (on an 8 s stream, seed 2: 13.5 / 24.8 mm reachable position RMS here,
+    13.5 / 25.3 mm through the whole session). ``observe(target, t_s)``, if given, is called
+    after every period with the teleop target (tools read its goals)."""
+    from hubo_cli.input.generated import generated_input
+    from hubo_cli.teleop.session import TeleopSettings
+
+    with generated_input(seed, settings) as source:
+        target, commands, ended, wall_s = follow_input(
+            source, TeleopSettings(generate_seed=seed, stream=settings), settings.duration_s,
+            observe)
+    operate = np.asarray(target.operate_call_s) * 1e6
+    return StreamRun(seed, settings.max_speed_m_s, target.reach_report(),
+                     commands.limit_excess_rad, commands.finite, commands.max_step_ratio,
+                     ended, wall_s,
+                     {"median": float(np.median(operate)) if len(operate) else None,
+                      "p99": float(np.percentile(operate, 99)) if len(operate) else None})
+
+
+def follow_input(source, teleop: TeleopSettings, duration_s: float, observe=None):
+    """An input device's poses followed by the teleop target and the trajectory generator
+    alone (free mode, ideal driver, the arms starting at the ready pose; no balancer,
+    stopper, collision detector, log or run folder). ``teleop`` names the input for
+    :func:`~hubo_cli.teleop.session.prepare` (mode, scale, stations); ``duration_s`` is the
+    input's length. Returns the target (its goals, paths and report), the last stage's
+    judgement of the commands (``limit_excess_rad``, ``finite``, ``max_step_ratio``), how the
+    loop ended and its wall-clock time (s)."""
     from hubo_cli.control.loop import ControlLoop
     from hubo_cli.control.otg import TrajectoryGenerator
     from hubo_cli.drivers.registry import make_driver
-    from hubo_cli.input.generated import generated_input
     from hubo_cli.posture import home_posture
     from hubo_cli.teleop.mapping import HandMapper
-    from hubo_cli.teleop.session import FREE_READY_ARM_RAD, TeleopSettings, approach_paths, prepare
+    from hubo_cli.teleop.session import FREE_READY_ARM_RAD, approach_paths, prepare
     from hubo_cli.teleop.target import TeleopTarget
 
-    model, body, mapping, scene = prepare(TeleopSettings(generate_seed=seed, stream=settings))
+    model, body, mapping, scene = prepare(teleop)
     q_start = home_posture(model)
     for arm, q in FREE_READY_ARM_RAD.items():
         q_start[model.limb_slice(arm)] = q
     commands = _Commands(model)
     t0 = time.perf_counter()
-    with make_driver("ideal", model) as driver, generated_input(seed, settings) as source:
+    with make_driver("ideal", model) as driver:
         driver.start(q_start)
         target = TeleopTarget(model, source, HandMapper(mapping), body,
                               approach_paths(body, mapping.hand_arm.values(), scene), q_start)
         otg = TrajectoryGenerator(model, model.control_period_s, groups="limbs")
         observer = None if observe is None else _Observe(observe, target)
         result = ControlLoop(driver, [otg, commands], target, observer=observer).run(
-            settings.duration_s + target.approach_timeout_s + 10.0)
-    operate = np.asarray(target.operate_call_s) * 1e6
-    return StreamRun(seed, settings.max_speed_m_s, target.reach_report(),
-                     commands.limit_excess_rad, commands.finite, commands.max_step_ratio,
-                     result.ended, time.perf_counter() - t0,
-                     {"median": float(np.median(operate)) if len(operate) else None,
-                      "p99": float(np.percentile(operate, 99)) if len(operate) else None})
+            duration_s + target.approach_timeout_s + 10.0)
+    return target, commands, result.ended, time.perf_counter() - t0

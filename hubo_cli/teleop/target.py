@@ -81,6 +81,7 @@ from hubo_cli.scene import SceneActions, WallPlacement
 from hubo_cli.teleop.lead import GoalVelocity, reachable_velocity
 from hubo_cli.teleop.mapping import HandMapper
 from hubo_cli.teleop.phases import PHASES, Approach, Operate, Settle
+from hubo_cli.teleop.reach_lead import AHEAD_S, ReachLead
 from hubo_cli.teleop.target_kernels import (
     free_goal,
     hand_errors,
@@ -112,6 +113,12 @@ SWING_SAMPLES = 8  # points of the previewed way the swing is measured at (ends 
 # to it (the search stops within a fraction of a millimetre of a reachable goal)
 REACHABLE_POSITION_M = 0.002
 REACHABLE_ROTATION_RAD = np.radians(1.0)
+LEAD_BEYOND_M = 0.02  # a hand is led toward a goal coming back from this far out of reach or
+# further (closer, the hand at its limit follows it along the boundary: drill-rectangle.csv's
+# goal, just beyond the right hand's reach for 18 s in free mode, 2.56 mm RMS without a lead,
+# 2.75 mm with it from any distance)
+LEAD_SCALE_SHARE = 0.9  # of the singularity speed scale, for a target led toward a goal coming
+# back into reach (teleop/reach_lead.py)
 
 
 @dataclass
@@ -138,6 +145,8 @@ class HandTrack:
     rest_anchor_m: np.ndarray | None = None
     rest_since_s: float = 0.0
     last_branch: int | None = None
+    beyond_m: float = 0.0  # the goal's largest distance beyond the reach, this time out of it
+    leading: bool = False  # the target leads the goal (reach_lead) this period
 
     @property
     def at_limit(self) -> bool:
@@ -242,6 +251,7 @@ class TeleopTarget(Target):
         self.hands = {arm: HandTrack() for arm in self.arms}
         self.reach_settings = reach or ReachSettings.for_mode(mapper.config.mode)
         self.reach = {arm: ArmReach(body.arms[arm], self.reach_settings) for arm in approach}
+        self.leads = {arm: ReachLead() for arm in self.arms}  # at the reach limit
         self.singularity = singularity or self.reach_settings.singularity
         self.room = None  # arm targets keep out of the collision detector's band
         # once operating, where the trajectory generator has a tracker per arm: a copy of each
@@ -479,6 +489,8 @@ class TeleopTarget(Target):
             self.mapper.forget()  # the next pose of each hand re-centres it
             for hand in self.hands.values():
                 hand.lost = hand.needs_clutch = False
+            for lead in self.leads.values():
+                lead.clear()
         samples = self.source.read_until(t_src)
         changed = False
         for sample in samples:
@@ -574,9 +586,20 @@ class TeleopTarget(Target):
                 hand.missing_m = None
                 hand.reachable = (result.position_error_m <= REACHABLE_POSITION_M
                                   and result.rotation_error_rad <= REACHABLE_ROTATION_RAD)
+                lead = self.leads[arm]
+                lead.push(t_s, T_N_goal[:3, 3])
+                hand.leading = False
                 if result.status == "nearest":
-                    hand.missing_m = T_N_goal[:3, 3] - reach.limb.fk(result.q_rad)[:3, 3]
+                    T_near = reach.limb.fk(result.q_rad)
+                    hand.missing_m = T_N_goal[:3, 3] - T_near[:3, 3]
                     hand.at_limit_periods += 1
+                    hand.beyond_m = max(hand.beyond_m, math.sqrt(hand.missing_m.dot(
+                        hand.missing_m)))
+                    if hand.beyond_m >= LEAD_BEYOND_M:
+                        q_arm, hand.leading = self._led(reach, lead, T_N_goal, T_near, q_now,
+                                                        q_arm)
+                else:
+                    hand.beyond_m = 0.0
                 q_arm = self._branch_policy(t_s, arm, hand, T_N_goal, q_now, q_arm, branch_key)
             q[sl] = self._speed_scaled(arm, q_now, q_arm, hand)
         if self.room is not None:
@@ -593,6 +616,36 @@ class TeleopTarget(Target):
                 hand.missing_m = (None if hand.reachable else T_N_goal[:3, 3]
                                   - reach.limb.fk(q[self.slices[arm]])[:3, 3])
         self.q_target = q
+
+    @staticmethod
+    def _led(reach: ArmReach, lead: ReachLead, T_goal: np.ndarray, T_near: np.ndarray,
+             q_now: np.ndarray, q_near: np.ndarray) -> tuple[np.ndarray, bool]:
+        """The arm's joints for a goal ``T_goal`` beyond its reach, led toward it as it heads
+        back (:mod:`hubo_cli.teleop.reach_lead`): the nearest reachable pose (``T_near``,
+        joints ``q_near``) moved toward the nearest reachable pose of where the goal will be
+        ``AHEAD_S`` later, by at most ``lead.lead_m_of`` its speed times the run-up share; on
+        the branch, within the limits and margins; and whether it is led (False: ``q_near``
+        as it is)."""
+        v = lead.velocity_m_s()
+        if v is None:
+            return q_near, False
+        speed = math.sqrt(v.dot(v))
+        cap = lead.lead_m_of(speed) * lead.run_up_share(v, T_goal[:3, 3] - T_near[:3, 3])
+        if cap <= 0.0:
+            return q_near, False
+        T_ahead = T_goal.copy()
+        T_ahead[:3, 3] += v * AHEAD_S
+        offset = reach.limb.fk(reach.solve(T_ahead, q_now).q_rad)[:3, 3] - T_near[:3, 3]
+        length = math.sqrt(offset.dot(offset))
+        if length > cap:
+            offset *= cap / length
+        T_lead = T_near.copy()
+        T_lead[:3, 3] += offset
+        q_led = reach.solve(T_lead, q_now).q_rad
+        moved = reach.limb.fk(q_led)[:3, 3] - T_near[:3, 3]
+        if math.sqrt(moved.dot(moved)) > cap + 1e-4:
+            return q_near, False
+        return q_led, True
 
     def _branch_policy(self, t_s, arm, hand: HandTrack, T_N_goal, q_now, q_arm,
                        branch_key: bool) -> np.ndarray:
@@ -628,8 +681,13 @@ class TeleopTarget(Target):
         the distance in which the jerk-limited trajectory generator stops from that speed, so
         the joints themselves stay near it."""
         limb = self.reach[arm].limb
-        scale = self.singularity.scale(self._condition(arm, q_now),
-                                       self._condition(arm, q_next))
+        kappa_now, kappa_next = self._condition(arm, q_now), self._condition(arm, q_next)
+        scale = self.singularity.scale(kappa_now, kappa_next)
+        if hand is not None and hand.leading:  # a lead leaves no faster than the approach's
+            # band allows, with a margin for the tracker catching up (0.45 of the speed
+            # limits at kappa 100)
+            scale = LEAD_SCALE_SHARE * self.singularity.scale(kappa_now,
+                                                              max(kappa_now, kappa_next))
         if hand is not None:
             hand.speed_scale = scale
         if scale >= 1.0:
