@@ -207,3 +207,29 @@ def test_only_a_lasting_flight_lets_go_of_the_anchor(model, rng):
             step(base, store, q, level, light, light, (True, True))
             assert np.linalg.norm(store[T_WORLD_TORSO][:3, 3] - before) > 1e-4
         step(base, store, q, level, wrench(300.0), light, (True, True))
+
+
+def test_the_log_has_the_estimated_heading(rng):
+    """The estimate's log columns carry the torso's heading (yaw about the world's vertical,
+    wrapped to +-pi) beside its position, for reports against the truth
+    (tools/estimate_vs_truth.py)."""
+    from hubo_cli.estimation.estimator import Estimator
+    from hubo_cli.estimation.observer import Observer
+
+    yaw = float(rng.uniform(-math.pi, math.pi))
+    T = np.eye(4)
+    T[:2, :2] = ((math.cos(yaw), -math.sin(yaw)), (math.sin(yaw), math.cos(yaw)))
+    T[:3, 3] = rng.uniform(-1.0, 1.0, 3)
+
+    class Fixed(Observer):
+        writes = (T_WORLD_TORSO,)
+
+        def update(self, state, store):
+            store[T_WORLD_TORSO] = T
+
+    estimator = Estimator([Fixed()])
+    estimator.update(None)
+    values = estimator.log_values()
+    assert "est_torso_yaw_rad" in estimator.log_columns
+    assert values["est_torso_yaw_rad"] == pytest.approx(yaw, abs=1e-12)
+    assert [values[f"est_torso_{a}_m"] for a in "xyz"] == pytest.approx(T[:3, 3].tolist())
