@@ -413,7 +413,8 @@ class FloatingBase(Observer):
         sole (a centre of pressure crossing from one edge to the other), shift the held anchor
         so that the turned torso does not jump (by the turn times the point's move: 12.5 mm in
         one period, a 150 N backward capture step's stance sole turned 91 mrad while its centre
-        of pressure crossed 129 mm: the capture point spiked past the monitor's line)."""
+        of pressure crossed 129 mm: the capture point came within 4 mm of the monitor's line,
+        past it on another CPU; docs/history/walking.md)."""
         if not self._turn_rad or point == self._contact_point:
             return
         A = self._T_world_anchor
