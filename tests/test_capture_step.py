@@ -219,10 +219,11 @@ def test_a_150_n_backward_push_is_caught_in_a_lunge_both_feet_carry(tmp_path):
     one-period 1.9-2.3 N m spike on a free wrist 10 ms after a 1.8-2.1 kN landing: the hand's
     inertia); with the inertia removed too the wrists read at most WRIST_NM_MEASURED
     (bound: 1.5x over it, itself 1.47x under the 1.21 N m limit); docs/history/balance.md.
-    The capture-point stop: the estimated capture point comes within 1.1 mm of (portable:
-    1.2 mm past) its line for one period 0.345 s after the step's trigger (a 13 mm one-period
-    jump of the floating base's torso; pushed at 0.8 s, two periods past), the monitor
-    confirms over 3 periods in a row: a thin margin, the estimation layer's to widen."""
+    The capture-point stop: the estimated capture point came within 1.1 mm of (portable:
+    1.2 mm past) its line for one period 0.345 s after the step's trigger, from a 13 mm
+    one-period jump of the floating base's torso (the gyro turn's pivot crossing the stance
+    sole); with the pivot kept continuous its nearest approach is 27.6 / 27.4 mm inside
+    (AVX-512 / portable; pushed at 0.8 s 28.1 mm, main 1.2 mm; docs/history/walking.md)."""
     from hubo_cli.control.log import load_log
     from hubo_cli.experiments.standing import PUSH_DIRECTIONS
 

@@ -122,6 +122,29 @@ def test_a_sole_twisting_on_its_edge_turns_the_estimate_a_standing_robot_does_no
                                toe, atol=1e-9)
 
 
+def test_a_centre_of_pressure_crossing_the_sole_does_not_move_a_turned_torso(model, rng):
+    """On the right toe alone the gyro turned the estimate (0.2 rad/s for 0.25 s about the
+    toe); then the centre of pressure crosses to a random point on the heel's edge in one
+    period, the legs and the attitude still: the torso stays (the turn was about the toe and
+    goes on about the heel; turned about the new pivot the torso jumped by the turn times the
+    pivot's move: 12.5 mm in a 150 N backward capture step, docs/history/walking.md)."""
+    q = home_posture(model)
+    corners = model.feet.sole_corners_m()
+    toe_m, heel_m = float(corners[:, 0].max()), float(corners[:, 0].min())
+    level = (1.0, 0.0, 0.0, 0.0)
+    base, store = started(model, q, wrench(190.0), wrench(190.0))
+    for _ in range(50):
+        step(base, store, q, level, wrench(380.0, toe_m), wrench(0.0), (True, False),
+             gyro=(0.0, 0.0, 0.2))
+    turned = math.atan2(store[T_WORLD_TORSO][1, 0], store[T_WORLD_TORSO][0, 0])
+    assert turned > 0.03
+    before = store[T_WORLD_TORSO][:3, 3].copy()
+    y_m = float(rng.uniform(corners[:, 1].min(), corners[:, 1].max()))
+    step(base, store, q, level, wrench(380.0, heel_m, y_m), wrench(0.0), (True, False))
+    moved_m = np.linalg.norm(store[T_WORLD_TORSO][:2, 3] - before[:2])
+    assert moved_m < 0.3e-3  # the turn's fade and the legs' rate only (without the shift: 9.8 mm)
+
+
 def test_a_landed_sole_takes_the_anchor_once_it_has_stood(model, rng):
     """Right single support, then the left sole lands with its touchdown's force peak: the
     right sole keeps the anchor until the left has stood LANDED_PERIODS (taken at the peak,
@@ -207,3 +230,29 @@ def test_only_a_lasting_flight_lets_go_of_the_anchor(model, rng):
             step(base, store, q, level, light, light, (True, True))
             assert np.linalg.norm(store[T_WORLD_TORSO][:3, 3] - before) > 1e-4
         step(base, store, q, level, wrench(300.0), light, (True, True))
+
+
+def test_the_log_has_the_estimated_heading(rng):
+    """The estimate's log columns carry the torso's heading (yaw about the world's vertical,
+    wrapped to +-pi) beside its position, for reports against the truth
+    (tools/estimate_vs_truth.py)."""
+    from hubo_cli.estimation.estimator import Estimator
+    from hubo_cli.estimation.observer import Observer
+
+    yaw = float(rng.uniform(-math.pi, math.pi))
+    T = np.eye(4)
+    T[:2, :2] = ((math.cos(yaw), -math.sin(yaw)), (math.sin(yaw), math.cos(yaw)))
+    T[:3, 3] = rng.uniform(-1.0, 1.0, 3)
+
+    class Fixed(Observer):
+        writes = (T_WORLD_TORSO,)
+
+        def update(self, state, store):
+            store[T_WORLD_TORSO] = T
+
+    estimator = Estimator([Fixed()])
+    estimator.update(None)
+    values = estimator.log_values()
+    assert "est_torso_yaw_rad" in estimator.log_columns
+    assert values["est_torso_yaw_rad"] == pytest.approx(yaw, abs=1e-12)
+    assert [values[f"est_torso_{a}_m"] for a in "xyz"] == pytest.approx(T[:3, 3].tolist())

@@ -20,7 +20,7 @@ A run folder's log is three files:
   true contact; NaN without a simulator); then the modules' and the caller's extra columns
   (NaN when not reported that period; e.g. a task's commanded and measured tool positions
   ``goal_*_m``, ``actual_*_m`` in its stance frame), the estimate's beside the truth last
-  (``est_torso_{x,y,z}_m``, ``est_tilt_rad``, ``est_com_{x,y,z}_m``:
+  (``est_torso_{x,y,z}_m``, ``est_torso_yaw_rad``, ``est_tilt_rad``, ``est_com_{x,y,z}_m``:
   :attr:`~hubo_cli.estimation.estimator.Estimator.log_columns`).
 * ``log.json`` (sidecar): the format name and version, when the run started (``started_utc``,
   UTC ISO 8601) and the ``hubo_cli_version`` that wrote it, the unit legend, the status codes, the

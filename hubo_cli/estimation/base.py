@@ -22,7 +22,9 @@ chains, :mod:`hubo_cli.kinematics.limb`) and the attitude ``QUAT_WORLD_TORSO``:
   the floor under a push turns the robot, which the gyro sees and the legs do not (a 150 N
   push twisted the capture step's stance foot by degrees; planned on the legs' heading alone
   the step landed 5 cm long and the robot fell). When the other sole takes the anchor it
-  keeps its pose as estimated, the turn included, and the turn starts again from zero;
+  keeps its pose as estimated, the turn included, and the turn starts again from zero; when
+  the contact point moves on the sole while a turn is on, the held anchor shifts with it so
+  that the turned torso does not jump (:meth:`FloatingBase._keep_pivot_continuous`);
 * the torso's position puts the anchor sole's contact point of this period where that point
   of the sole was in the last period's estimate (a flat sole whose centre of pressure moves
   stays where it is; one rolling on an edge keeps the edge on the floor);
@@ -406,6 +408,25 @@ class FloatingBase(Observer):
         self._R_legs = R_legs
         self._T_world_torso, self._T_world_soles = T_world_torso, T_world_soles
 
+    def _keep_pivot_continuous(self, point: tuple[float, float]) -> None:
+        """The gyro's turn is about the anchor's contact point: when that point moves on the
+        sole (a centre of pressure crossing from one edge to the other), shift the held anchor
+        so that the turned torso does not jump (by the turn times the point's move: 12.5 mm in
+        one period, a 150 N backward capture step's stance sole turned 91 mrad while its centre
+        of pressure crossed 129 mm: the capture point came within 4 mm of the monitor's line,
+        past it on another CPU; docs/history/walking.md)."""
+        if not self._turn_rad or point == self._contact_point:
+            return
+        A = self._T_world_anchor
+        (x0, y0), (x1, y1) = self._contact_point, point
+        dx = A[0, 0] * (x0 - x1) + A[0, 1] * (y0 - y1)  # the old point less the new (world)
+        dy = A[1, 0] * (x0 - x1) + A[1, 1] * (y0 - y1)
+        c, s = math.cos(self._turn_rad), math.sin(self._turn_rad)
+        A = A.copy()
+        A[0, 3] += dx - (c * dx - s * dy)  # (I - R(turn)) (old - new)
+        A[1, 3] += dy - (s * dx + c * dy)
+        self._T_world_anchor = A
+
     def _take_anchor(self, side: int) -> None:
         """Sole ``side`` takes the anchor as estimated, the gyro's turn included: its place and
         heading the mean of its last LANDED_PERIODS estimates on the floor (one period's
@@ -461,6 +482,7 @@ class FloatingBase(Observer):
             x_lo, x_hi, y_lo, y_hi = self._sole_box
             on_edge = min(point[0] - x_lo, x_hi - point[0], point[1] - y_lo,
                           y_hi - point[1]) < EDGE_M
+            self._keep_pivot_continuous(point)
             self._place(point, _gyro(state),
                         bool(contact[0]) != bool(contact[1]) and on_edge)
             other = 1 - self.anchor

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -12,7 +13,8 @@ from hubo_cli.estimation.observer import Observer
 from hubo_cli.geometry import tilt_rad_of_quat_wxyz
 from hubo_cli.state import RobotState
 
-LOG_COLUMNS = {T_WORLD_TORSO: ("est_torso_x_m", "est_torso_y_m", "est_torso_z_m"),
+LOG_COLUMNS = {T_WORLD_TORSO: ("est_torso_x_m", "est_torso_y_m", "est_torso_z_m",
+                               "est_torso_yaw_rad"),
                QUAT_WORLD_TORSO: ("est_tilt_rad",),
                COM_WORLD: ("est_com_x_m", "est_com_y_m", "est_com_z_m")}
 
@@ -44,7 +46,7 @@ class Estimator:
     @property
     def log_columns(self) -> tuple[str, ...]:
         """The estimate's log columns (beside the simulator's truth, for reports): the torso's
-        position and tilt from upright, the CoM; those of keys an observer writes."""
+        position, heading (yaw) and tilt from upright, the CoM; those of keys an observer writes."""
         written = set(self.writes)
         return tuple(column for key, columns in LOG_COLUMNS.items() if key in written
                      for column in columns)
@@ -55,7 +57,8 @@ class Estimator:
         T = store.get(T_WORLD_TORSO)
         if T is not None:
             T = np.asarray(T, dtype=float)
-            values.update(zip(LOG_COLUMNS[T_WORLD_TORSO], T[:3, 3].tolist(), strict=True))
+            values.update(zip(LOG_COLUMNS[T_WORLD_TORSO],
+                              (*T[:3, 3].tolist(), math.atan2(T[1, 0], T[0, 0])), strict=True))
         quat = store.get(QUAT_WORLD_TORSO)
         if quat is not None:
             values["est_tilt_rad"] = float(tilt_rad_of_quat_wxyz(np.asarray(quat, dtype=float)))
