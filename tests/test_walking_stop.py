@@ -104,10 +104,37 @@ def test_without_a_phase_stop_the_stop_reverts_as_before(model):
     assert modes[3] == "stop" and "finish" not in modes
 
 
-def test_a_release_during_finish_blends_back(model):
-    _, _, modes, _ = _stopper_run(model, lambda k: PhaseStop(False, 2.0), latch_k=2,
-                                  periods=20, release_k=10)
-    assert modes[-1] in ("recover", "release")
+def test_a_release_during_finish_joins_the_phase_at_once(model):
+    """Released while it passes the phase's motion, the stopper passes it on (release, not a
+    2.5 s blend that would play the open-loop motion late); a second stop is then a finish
+    again, not a brake (review: a blend lagged a capture step's pattern by up to 1.3 rad)."""
+    inputs, outputs, modes, stopper = _stopper_run(model, lambda k: PhaseStop(False, 2.0),
+                                                   latch_k=2, periods=40, release_k=10)
+    assert modes[9] == "finish" and set(modes[10:]) == {"release"}
+    assert np.array_equal(outputs, inputs)  # nothing lagged, before, during or after
+    assert [e.kind for e in stopper.events] == ["stop", "finish", "release"]
+
+    state = RobotState(0.0, inputs[-1], np.zeros(24))
+    cycle = Cycle(40 * DT, DT, store=Store())
+    cycle.store[WRENCHES] = state.ft
+    cycle.store[PHASE_STOP] = PhaseStop(False, 2.0)
+    cycle.estop_requests.add("operator")
+    assert np.array_equal(stopper.update(inputs[-1], state, cycle), inputs[-1])
+    assert cycle.store[STOP_MODE] == "finish"
+
+
+@pytest.mark.parametrize("phase_stops, release_k, why", [
+    (lambda k: PhaseStop(k >= 10, 2.0), 20, "settled and held"),
+    (lambda k: PhaseStop(False, 0.05), 40, "braked at its deadline"),
+])
+def test_a_release_after_the_finish_held_or_braked_blends_back(model, phase_stops, release_k,
+                                                               why):
+    inputs, outputs, modes, _ = _stopper_run(model, phase_stops, latch_k=2, periods=60,
+                                             release_k=release_k)
+    assert modes[release_k - 1] in ("hold", "stop"), why
+    assert modes[release_k] == "recover", why
+    # from the held output, no jump
+    assert np.max(np.abs(outputs[release_k] - outputs[release_k - 1])) < 1e-3, why
 
 
 @pytest.fixture(scope="module")

@@ -13,7 +13,9 @@ finish    latched while the target's phase stops itself (a walk in mid-step: the
           :data:`~hubo_cli.control.phase.PHASE_STOP`): pass the phase's own stopping motion
           through until it says it stands (then ``hold`` that posture); a phase that does not
           settle within its ``within_s`` (at most ``MAX_FINISH_S``) or stops saying how it
-          stops is braked (``stop``, as the freeze preset) and held where it came to rest
+          stops is braked (``stop``, as the freeze preset) and held where it came to rest;
+          released while it passes the phase's motion, ``release`` at once (the output is
+          that motion: nothing to blend, and a blend would play it late)
 ========  ==============================================================================
 
 Reverting a walk in mid-step does not keep the robot up (the swing foot comes back down where
@@ -441,12 +443,17 @@ class EmergencyStopper(Module):
         if requests and self.mode in ("release", "recover"):
             self._latch(cycle.t_s, requests, phase_stop)
         elif self._release and self.mode in ("stop", "hold", "finish"):
-            # blend back from the output, whoever made it (the phase finishing, the brake
-            # tracker turning, braking or relieving, or this tracker)
-            self.tracker.reset(*self._output_state())
-            self._relieving, self._turning = None, False
-            self.mode = "recover"
-            self.t_recover_end_s = cycle.t_s + self.recover_s
+            if self.mode == "finish":
+                # the output is the phase's own motion: join it at once (a blend would play
+                # that open-loop motion late, a second stop meanwhile would only brake it)
+                self.mode = "release"
+            else:
+                # blend back from the output, whoever made it (the phase's stance held, the
+                # brake tracker turning, braking or relieving, or this tracker)
+                self.tracker.reset(*self._output_state())
+                self._relieving, self._turning = None, False
+                self.mode = "recover"
+                self.t_recover_end_s = cycle.t_s + self.recover_s
             if self.wrenches is not None:
                 self.wrenches.start(cycle.t_s, self.recover_s, None)
             self.events.append(SafetyEvent(cycle.t_s, "release", ()))

@@ -208,7 +208,7 @@ class CaptureStepper(Target):
         self.stop_latched = False  # the soft stopper holds the robot (the last period's mode)
         self.stop_released = True  # ... passes the target through (not even blending back)
         self.latch_s: float | None = None  # when the stop latched last (kept after a release)
-        self.stop_s: float | None = None  # the latch that ended the stepping in its stance
+        self.stop_s: float | None = None  # the stop seen that ended the stepping in its stance
         self.return_pending = False  # a stop ended the catch: the return step still to come
 
     name = "capture-step"
@@ -498,8 +498,9 @@ class CaptureStepper(Target):
     def summary(self) -> dict:
         """What the stepping did, for the run's summary (``capture_step``): the footsteps
         taken (a return step's once it started), when the pattern stood and where the soles
-        stood then, and ``stop_s``: when the stop latched that ended the stepping in its
-        stance, the catch with its return step pending or the return step once its foot was
+        stood then, and ``stop_s``: when the stepper saw the stop that ended the stepping in
+        its stance (the period after the stopper latched it: the stopper's mode is read from
+        the previous period), the catch with its return step pending or the return step once its foot was
         down (None: none, or the return followed the release)."""
         return {"stepped": self.trigger_s is not None, "trigger_s": self.trigger_s,
                 "steps": len(self.steps) if self.trigger_s is not None else 0,
