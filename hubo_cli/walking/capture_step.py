@@ -500,8 +500,8 @@ class CaptureStepper(Target):
         taken (a return step's once it started), when the pattern stood and where the soles
         stood then, and ``stop_s``: when the stepper saw the stop that ended the stepping in
         its stance (the period after the stopper latched it: the stopper's mode is read from
-        the previous period), the catch with its return step pending or the return step once its foot was
-        down (None: none, or the return followed the release)."""
+        the previous period), the catch with its return step pending or the return step once
+        its foot was down (None: none, or the return followed the release)."""
         return {"stepped": self.trigger_s is not None, "trigger_s": self.trigger_s,
                 "steps": len(self.steps) if self.trigger_s is not None else 0,
                 "start_feet": [f.to_json() for f in self.start_feet],
