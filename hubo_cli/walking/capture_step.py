@@ -84,11 +84,13 @@ stepper tells the soft stopper that it stops itself
 the stepped stance and the robot stands there, held by the stopper (which brakes it where it
 is if that takes longer than the phase said), its return step pending (a return step under
 way stands once its foot is down). The stop is read each period from the stopper's mode
-(:data:`~hubo_cli.control.keys.STOP_MODE`), never remembered past a release: a catch that
-ends while the stopper is latched or blending back stands with its return pending, which
-starts once the stopper passes the target through again (:class:`~.capture_phases.Stood`);
-no step starts while it is latched or blending back, and a push after the release is
-caught by stepping again. The standing
+(:data:`~hubo_cli.control.keys.STOP_MODE`), never remembered past a release (released while
+the phase still moves, the stopper passes it on at once): a catch that ends while the
+stopper is latched or blending back stands with its return pending, which starts once the
+stopper passes the target through again (:class:`~.capture_phases.Stood`). No step starts
+while it is latched or blending back; a stop released while still standing (before any
+step) leaves the stepper ready to step on a push, but a run steps once: after its return
+(or a stop in it) the robot stands and a second push is the monitor's. The standing
 balancers rest (:data:`~hubo_cli.control.phase.BALANCERS_REST`) while it steps, in every
 catch (a short step's and the lunge's) and return step, after a lunge until the back foot
 is down, and while the return is pending; afterwards the robot holds the pattern's last
