@@ -228,6 +228,42 @@ def test_the_lead_follows_a_goal_heading_back_only():
     assert lead.velocity_m_s() is None
 
 
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_a_goal_not_finite_is_not_led(bad):
+    """A NaN or inf among the goal's recent positions gives no velocity, and a goal not finite
+    gives no lead (the target stays on the nearest reachable pose it was given)."""
+    from hubo_cli.teleop.reach_lead import ReachLead
+    from hubo_cli.teleop.target import TeleopTarget
+
+    arm = "right-arm"
+    limb = get_limb(arm, "hand")
+    reach = ArmReach(limb)
+    q_near = np.array(FREE_READY_ARM_RAD[arm])
+    reach.start(q_near)
+    T_near = limb.fk(q_near)
+    v = np.array([-0.09, 0.0, 0.0])                 # heading back, 10 mm out of reach
+    T_goal = T_near.copy()
+    T_goal[:3, 3] += [0.01, 0.0, 0.0]
+    lead = ReachLead()
+    for i in range(30):
+        p = T_goal[:3, 3] - v * (29 - i) * 0.005
+        if i == 25:
+            p[2] = bad
+        lead.push(i * 0.005, p)
+    assert lead.velocity_m_s() is None
+    assert TeleopTarget._led(reach, lead, T_goal, T_near, q_near, q_near)[1] is False
+    lead.clear()
+    for i in range(30):
+        lead.push(i * 0.005, T_goal[:3, 3] - v * (29 - i) * 0.005)
+    assert np.allclose(lead.velocity_m_s(), v)
+    q_led, led = TeleopTarget._led(reach, lead, T_goal, T_near, q_near, q_near)
+    assert led and not np.array_equal(q_led, q_near)   # finite: led
+    T_bad = T_goal.copy()
+    T_bad[0, 3] = bad
+    q_out, led = TeleopTarget._led(reach, lead, T_bad, T_near, q_near, q_near)
+    assert led is False and q_out is q_near
+
+
 def test_a_joint_a_hair_inside_its_margin_does_not_stop_the_nearest_pose_search():
     """The right arm parked with its elbow 0.4 mrad inside the straight-elbow margin (where a
     walk out of reach left it) and the goal coming back to 23 mm beyond reach: the search's step
