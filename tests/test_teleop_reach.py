@@ -122,11 +122,13 @@ def test_a_walk_out_of_reach_stops_at_the_boundary_and_comes_back(tmp_path):
     back within 2 mm 1.88 s after re-entry at best; knowing the goal's future and never more
     than 10 mm ahead of its nearest reachable point, 0.90 s. Measured here (the same on both
     code paths, AVX-512 / portable): parked within 9.8 / 10.0 mm (left / right hand) of the
-    nearest reachable point (4.7 mm without the lead: the lead's 10 mm and the hand's lag
-    behind the nearest point as it moves down the boundary), first within 2 mm and within
-    2 mm for good 2.45 s after re-entry (2.66 s without the lead), excursion 20.1 / 20.7 mm
-    beyond the goal's own (22.8 / 22.9 without): the issue's 10 mm is met at its edge, its
-    0.5 s / 1.8 s / 15 mm are not (docs/history/teleop.md)."""
+    nearest reachable point (4.7 mm without the lead), first within 2 mm and within 2 mm for
+    good 2.45 s after re-entry (2.66 s without the lead), excursion 20.1 / 20.7 mm beyond the
+    goal's own (22.8 / 22.9 without). The parked figure's largest is 15 ms before re-entry
+    (the goal 1.2 mm out), the hand 9-10 mm off the nearest point across the goal's path
+    whatever the lead's cap (5 / 6 / 8 / 10 mm: 10.0 / 9.8 / 10.6 / 10.0 mm): the issue's 10
+    mm is not met with a margin, nor its 0.5 s / 1.8 s / 15 mm (docs/history/teleop.md). With
+    and without the lead, at three speeds: the next test."""
     model = load_model()
     offset, walk_end_s = _walk_beyond_reach(("right-arm", "left-arm"), 8.0)
     src = _stream(tmp_path / "walk.csv", offset, walk_end_s + 1.0)
@@ -147,9 +149,6 @@ def test_a_walk_out_of_reach_stops_at_the_boundary_and_comes_back(tmp_path):
         assert got["parked_m"] <= 0.015, got        # measured 9.8-10.0 mm: bound 1.5x
         # measured 20.1-20.7 mm (22.8-22.9 without the lead): bound 1.5x
         assert got["excursion_m"] <= 0.035, got
-        # within 2 mm for good 2.45 s after re-entry, 2.66 s without the lead: the bound is
-        # between the two
-        assert got["stays_s"] < 2.56, got
     q_cmd = log.joints("cmd")
     index = [model.joint_names.index(j) for j in log.joint_names]
     lower = np.concatenate([model.limb(n).lower_rad for n in ("right-arm", "left-arm")])
@@ -159,43 +158,61 @@ def test_a_walk_out_of_reach_stops_at_the_boundary_and_comes_back(tmp_path):
     assert np.all(q_cmd[:, arm_cols] >= lower - 1e-9) and np.all(q_cmd[:, arm_cols] <= upper + 1e-9)
 
 
-@pytest.mark.physical
-@pytest.mark.parametrize("back_s", [16.0, 32.0])
-def test_the_walk_back_into_reach_at_half_and_a_quarter_of_its_speed(tmp_path, back_s):
-    """The out-of-reach walk of the right hand with the walk back two and four times slower (the
-    goal back in reach at 45 and 22 mm/s), followed by the teleop target and the trajectory
-    generator alone (stream_runs.follow_input). tools/reach_return_bound.py's floors for an
-    ideal elbow: reacting, 1.57 / 1.20 s; knowing the goal's future within the 10 mm lead,
-    0.10 / 0.00 s.
-    Measured (the same on both code paths, AVX-512 / portable): parked within 6.8 / 5.4 mm of
-    the nearest reachable point (3.4 / 4.2 mm without the lead); first within 2 mm 0.32 /
-    0.42 s after re-entry (0.09 / 0.26 s without the lead: there the goal passes the parked
-    hand); within 2 mm for good after 3.14 / 3.49 s (3.19 / 3.49 s without); excursion 18.9
-    / 9.1 mm (24.2 / 15.9 mm without). After the goal has passed the hand, the hand falls
-    behind near the straight elbow, where the elbow's 0.8 rad/s^2 lags a goal whose joints
-    speed up faster (docs/history/teleop.md)."""
+def _follow_walk(tmp_path, back_s: float, lead: bool) -> dict:
+    """The right hand's out-of-reach walk, walked back in ``back_s``, followed by the teleop
+    target and the trajectory generator alone (stream_runs.follow_input), with its reach lead
+    or without (the lead's cap set to zero): :func:`_return_figures`."""
     from hubo_cli.input.opener import open_input
     from hubo_cli.teleop.stream_runs import follow_input
+
+    def no_lead(target, t_s):
+        for reach_lead in target.leads.values():
+            reach_lead.lead_m = 0.0
 
     arm = "right-arm"
     offset, walk_end_s = _walk_beyond_reach((arm,), back_s)
     src = _stream(tmp_path / "walk.csv", offset, walk_end_s + 1.0)
     with open_input(replay=src) as device:
         target, commands, ended, _ = follow_input(device, TeleopSettings(replay=src),
-                                                  walk_end_s + 1.0)
+                                                  walk_end_s + 1.0, None if lead else no_lead)
     assert ended == "done" and commands.finite and commands.limit_excess_rad <= 1e-9
     assert commands.max_step_ratio <= 1.0 + 1e-6
     assert target.hands[arm].branch_changes == 0
     t = np.asarray(target.path_times_s[arm])
     goal, actual = (np.array([p[k] for p in target.paths[arm]]) for k in (0, 1))
-    got = _return_figures(arm, t - t[0], goal, actual, walk_end_s)
-    assert got["parked_m"] <= 0.010, got
-    assert got["first_s"] <= 0.5, got                 # the issue's 0.5 s
-    # the excursion: between the figures with and without the lead (the quarter's within the
-    # issue's 15 mm); within 2 mm for good: no worse than without the lead (+3 %)
-    excursion_m, stays_s = {16.0: (0.021, 3.28), 32.0: (0.0125, 3.6)}[back_s]
-    assert got["excursion_m"] <= excursion_m, got
-    assert got["stays_s"] <= stays_s, got
+    return _return_figures(arm, t - t[0], goal, actual, walk_end_s)
+
+
+@pytest.mark.physical
+@pytest.mark.parametrize("back_s", [8.0, 16.0, 32.0])
+def test_the_lead_brings_the_hand_back_sooner_and_closer_at_three_speeds(tmp_path, back_s):
+    """The out-of-reach walk of the right hand, walked back at full, half and a quarter of its
+    speed (the goal back in reach at 90, 45 and 22 mm/s), with the reach lead and without it
+    in the same test. tools/reach_return_bound.py's floors for an ideal elbow: reacting, 1.88
+    / 1.57 / 1.20 s; knowing the goal's future within the 10 mm lead, 0.90 / 0.10 / 0.00 s.
+    Measured (the same to 1e-12 m and 1 ms on both code paths, AVX-512 / portable: the spread
+    is nil, so the issue's figures are asserted where met), with / without the lead, at full
+    / half / quarter speed: parked within 10.0 / 4.7, 6.8 / 3.4, 5.4 / 4.2 mm of the nearest
+    reachable point; first within 2 mm 2.45 / 2.66, 0.32 / 0.09, 0.42 / 0.26 s after
+    re-entry (at half and a quarter the goal passes the parked hand without the lead); within
+    2 mm for good 2.46 / 2.66, 3.14 / 3.19, 3.49 / 3.49 s; excursion 20.7 / 22.9, 18.9 / 24.2,
+    9.1 / 15.9 mm (the lead's gain 2.2 / 5.3 / 6.8 mm).
+    After the goal has passed the hand, the hand falls behind near the straight elbow, where
+    the elbow's 0.8 rad/s^2 lags a goal whose joints speed up faster (docs/history/teleop.md)."""
+    got = _follow_walk(tmp_path, back_s, lead=True)
+    without = _follow_walk(tmp_path, back_s, lead=False)
+    if back_s > 8.0:
+        assert got["parked_m"] <= 0.010, got          # the issue's 10 mm
+        assert got["first_s"] <= 0.5, got             # the issue's 0.5 s
+    else:
+        assert got["parked_m"] <= 0.015, got          # not the issue's: 1.5x 10.0 mm
+    if back_s == 32.0:
+        assert got["excursion_m"] <= 0.015, got       # the issue's 15 mm
+    # the lead shortens the excursion (by 2.2-6.8 mm), and never delays the lasting 2 mm by
+    # more than 4 periods (0.05-0.2 s sooner; the same time at a quarter speed: the hand falls
+    # behind after re-entry whichever way it started)
+    assert got["excursion_m"] < without["excursion_m"] - 0.001, (got, without)
+    assert got["stays_s"] <= without["stays_s"] + 0.02, (got, without)
 
 
 def test_the_lead_follows_a_goal_heading_back_only():
@@ -226,6 +243,42 @@ def test_the_lead_follows_a_goal_heading_back_only():
     assert lead.run_up_share(v, -out * 0.01) == 0.0
     lead.clear()
     assert lead.velocity_m_s() is None
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_a_goal_not_finite_is_not_led(bad):
+    """A NaN or inf among the goal's recent positions gives no velocity, and a goal not finite
+    gives no lead (the target stays on the nearest reachable pose it was given)."""
+    from hubo_cli.teleop.reach_lead import ReachLead
+    from hubo_cli.teleop.target import TeleopTarget
+
+    arm = "right-arm"
+    limb = get_limb(arm, "hand")
+    reach = ArmReach(limb)
+    q_near = np.array(FREE_READY_ARM_RAD[arm])
+    reach.start(q_near)
+    T_near = limb.fk(q_near)
+    v = np.array([-0.09, 0.0, 0.0])                 # heading back, 10 mm out of reach
+    T_goal = T_near.copy()
+    T_goal[:3, 3] += [0.01, 0.0, 0.0]
+    lead = ReachLead()
+    for i in range(30):
+        p = T_goal[:3, 3] - v * (29 - i) * 0.005
+        if i == 25:
+            p[2] = bad
+        lead.push(i * 0.005, p)
+    assert lead.velocity_m_s() is None
+    assert TeleopTarget._led(reach, lead, T_goal, T_near, q_near, q_near)[1] is False
+    lead.clear()
+    for i in range(30):
+        lead.push(i * 0.005, T_goal[:3, 3] - v * (29 - i) * 0.005)
+    assert np.allclose(lead.velocity_m_s(), v)
+    q_led, led = TeleopTarget._led(reach, lead, T_goal, T_near, q_near, q_near)
+    assert led and not np.array_equal(q_led, q_near)   # finite: led
+    T_bad = T_goal.copy()
+    T_bad[0, 3] = bad
+    q_out, led = TeleopTarget._led(reach, lead, T_bad, T_near, q_near, q_near)
+    assert led is False and q_out is q_near
 
 
 def test_a_joint_a_hair_inside_its_margin_does_not_stop_the_nearest_pose_search():

@@ -49,7 +49,10 @@ def test_generated_streams_never_exceed_limits_jump_or_swing_beyond_todays_bound
 def test_the_devices_clutch_holds_the_hand_and_recentres_without_a_jump(model):
     """The operator moves 5 cm forward, holds the clutch while going 10 cm back, releases it
     and moves 5 cm forward again: the goal goes 5 cm forward, holds, then 5 cm further, with
-    no step; the robot's hand ends 10 cm forward while the operator's is back where it began."""
+    no step; the robot's hand ends 10 cm forward while the operator's is back where it began.
+    Then the hand is silent for 0.4 s (lost; the replay re-centres it by itself). Each
+    re-centre starts the hand's reach lead anew: a goal position pushed into its history while
+    the hand is held is gone in the period it is re-centred."""
     from hubo_cli.drivers.registry import make_driver
     from hubo_cli.geometry import min_jerk
     from hubo_cli.input.device import HandPose, RecordedInput
@@ -64,7 +67,7 @@ def test_the_devices_clutch_holds_the_hand_and_recentres_without_a_jump(model):
 
     t = np.arange(0.0, 6.0, 1 / 120)
     poses = []
-    for ti in t:
+    for ti in t[(t < 5.2) | (t >= 5.6)]:   # silent from 5.2 s to 5.6 s
         T = np.eye(4)
         T[:3, 3] = [0.3 + x_m(ti), -0.2, -0.1]
         poses.append(HandPose("right", T, float(ti), engaged=not 2.4 <= ti < 3.6))
@@ -78,8 +81,15 @@ def test_the_devices_clutch_holds_the_hand_and_recentres_without_a_jump(model):
         state, t_s, goals, phases = driver.read(), 0.0, [], []
         estimator = build_estimator(model, period_s=driver.period_s)  # as the loop runs it
         target.store = estimator.reset(state)
+        hand, lead, far_m = target.hands["right-arm"], target.leads["right-arm"], np.ones(3)
+        recentred = {}  # why the hand was held -> whether far_m was gone once re-centred
         while target.phase != "settle" and t_s < 30.0:
+            held = [k for k in ("clutched", "lost") if getattr(hand, k)]
             q, info = target(t_s, state)
+            if held and not (hand.clutched or hand.lost):
+                recentred[held[0]] = not any(np.array_equal(p, far_m) for p in lead._p)
+            if target.phase == "operate" and (hand.clutched or hand.lost):
+                lead.push(t_s, far_m)
             phases.append((target.phase, info["phase_code"]))
             driver.send(q)
             state = driver.step()
@@ -99,6 +109,7 @@ def test_the_devices_clutch_holds_the_hand_and_recentres_without_a_jump(model):
     # no step: at most the operator's own motion in a period (0.05 m min-jerk in 1 s peaks at
     # 0.094 m/s, 0.8 mm per 1/120 s)
     assert np.max(np.abs(np.diff(x))) < 1e-3
+    assert recentred == {"clutched": True, "lost": True}
 
 
 # Many short streams no one tuned on (drawn, not picked), followed by the teleop target and the

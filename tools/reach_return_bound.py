@@ -15,12 +15,12 @@ speed and acceleration limits, no jerk limit, no braking, no speed scale):
   time after re-entry from which it can stay within 2 mm of the goal, starting from rest at
   the parked bend and never straighter than that (linear programs, see
   :func:`_perfect_meet_s`);
-- the same with the hand never more than ``--lead`` (10 mm) inward of the goal's nearest
-  reachable point, the issue's cap on anticipation (teleop/reach_lead.py): a floor for any
-  controller, causal or not, that keeps that cap.
+- the same with the hand never more than ``--lead`` (default teleop/reach_lead.py's
+  ``LEAD_M``, within the issue's 10 mm cap on anticipation) inward of the goal's nearest
+  reachable point: a floor for any controller, causal or not, that keeps that cap.
 
     python tools/reach_return_bound.py [--back 8] [--beyond 0.3] [--parked-bend 0.1 0.64]
-        [--lead 0.01]
+        [--lead M]
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ from scipy.optimize import linprog
 from hubo_cli.kinematics import get_limb
 from hubo_cli.kinematics.reach import branch_of, nearest_on_branch
 from hubo_cli.model import load_model
+from hubo_cli.teleop.reach_lead import LEAD_M
 from hubo_cli.teleop.session import FREE_READY_ARM_RAD
 
 ARM = "right-arm"
@@ -70,7 +71,7 @@ def main() -> None:
                         help="how far beyond the reach the walk goes (m)")
     parser.add_argument("--parked-bend", type=float, nargs="+", default=[0.1, 0.64],
                         help="elbow bend (rad from straight) where the hand waits")
-    parser.add_argument("--lead", type=float, default=0.010,
+    parser.add_argument("--lead", type=float, default=LEAD_M,
                         help="the hand's largest lead over the goal's nearest reachable point (m)")
     args = parser.parse_args()
     spec = load_model().limb(ARM)

@@ -50,6 +50,16 @@ CATCH_UP_S = 0.2  # the goal's velocity is given in full where the joint lags it
 # goal that slows faster than it can.
 
 
+def slope_weights(t_s: np.ndarray) -> np.ndarray:
+    """The weights w (oldest sample first) whose sum w @ x over samples x taken at the times
+    ``t_s`` is the least-squares slope of x over time (per unit of time); they sum to zero.
+    Shared by :class:`GoalVelocity` (evenly spaced periods) and
+    :class:`hubo_cli.teleop.reach_lead.ReachLead` (the input's sample times)."""
+    t = np.asarray(t_s, dtype=float)
+    t = t - t.mean()
+    return t / (t @ t)
+
+
 def stop_distance_rad(speed_rad_s: np.ndarray, accel_rad_s2: np.ndarray,
                       jerk_rad_s3: np.ndarray) -> np.ndarray:
     """Per joint, the distance (rad) a jerk-limited stop from ``speed_rad_s`` (>= 0, no
@@ -147,8 +157,7 @@ class GoalVelocity:
         self.limits = limits
         k = max(3, int(round(window_s / dt_s)) + 1)
         self.samples = k  # the window's length in periods
-        t = np.arange(k) * dt_s
-        slope = (t - t.mean()) / np.sum((t - t.mean()) ** 2)  # oldest sample first
+        slope = slope_weights(np.arange(k) * dt_s)  # oldest sample first
         # row i: the slope's weights for the ring buffer whose newest entry is slot i
         self._weights = np.array([np.roll(slope, i + 1) for i in range(k)])
         self._q = np.zeros((k, limits.size))

@@ -17,17 +17,18 @@ reachable goal (leading it further, by its velocity x 0.12 s, brought the walk's
 from 2.45 to 2.24 s but made the generated streams' reachable position RMS worse:
 docs/history/teleop.md).
 
-Only a goal that went ``LEAD_BEYOND_M`` or more out of reach (:mod:`hubo_cli.teleop.target`)
-and moves between ``MIN_SPEED_M_S`` and ``MAX_SPEED_M_S`` is led. The lead is a pose for the
-arm's reach search: its limits and margins, the speed scale, the
-collision room and the pipeline after them stay in charge.
+Only a goal that went ``LEAD_BEYOND_M`` or more out of reach and moves between
+``MIN_SPEED_M_S`` and ``MAX_SPEED_M_S`` is led. The lead is a pose for the arm's reach search
+(:mod:`hubo_cli.teleop.target` applies it): its limits and margins, the speed scale (times
+``LEAD_SCALE_SHARE`` for a led target), the collision room and the pipeline after them stay in
+charge.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from hubo_cli.teleop.lead import WINDOW_S
+from hubo_cli.teleop.lead import WINDOW_S, slope_weights
 
 LEAD_M = 0.010  # the issue's cap on the lead
 RUN_UP_S = 1.2  # the lead grows over this long before the goal is predicted back in reach
@@ -44,6 +45,13 @@ MAX_SPEED_M_S = 0.2  # nor one faster than this: at the generated streams' 0.6 m
 # heading back often turns away again, and a hand led toward where it would have come back ended
 # up further from it (one hand's largest excursion 288 -> 322 mm over the bench's 8 x 20 s
 # streams; with this gate out of reach only, the reachable position RMS p90 82 -> 97 mm)
+LEAD_BEYOND_M = 0.02  # a hand is led toward a goal coming back from this far out of reach or
+# further (closer, the hand at its limit follows it along the boundary: drill-rectangle.csv's
+# goal, just beyond the right hand's reach for 18 s in free mode, 2.56 mm RMS without a lead,
+# 2.75 mm with it from any distance)
+LEAD_SCALE_SHARE = 0.9  # of the singularity speed scale, for a led target: it leaves no faster
+# than the approach's band allows, with a margin for the tracker catching up (0.45 of the speed
+# limits at kappa 100)
 MIN_SPEED_M_S = 0.01  # a goal heading back slower than this is not led (a parked hand does
 # not follow the operator's tremor)
 
@@ -55,6 +63,8 @@ class ReachLead:
         window_s: the velocity's window (s).
         lead_m: the largest lead (m).
         run_up_s: the lead's run-up before the predicted re-entry (s).
+        horizon_s: the lead is where the goal will be this much later (s), at most ``lead_m``
+            (:meth:`lead_m_of`).
     """
 
     def __init__(self, window_s: float = WINDOW_S, lead_m: float = LEAD_M,
@@ -76,14 +86,13 @@ class ReachLead:
             del self._t[0], self._p[0]
 
     def velocity_m_s(self) -> np.ndarray | None:
-        """The goal's velocity (m/s): the least-squares slope over the window, None until the
-        window holds at least half its length."""
+        """The goal's velocity (m/s): the least-squares slope over the window
+        (:func:`hubo_cli.teleop.lead.slope_weights`); None until the window holds at least half
+        its length, and None when it is not finite (a NaN or inf among the positions)."""
         if len(self._t) < 3 or self._t[-1] - self._t[0] < 0.5 * self.window_s:
             return None
-        t = np.asarray(self._t)
-        t = t - t.mean()
-        p = np.asarray(self._p)
-        return t @ (p - p.mean(axis=0)) / (t @ t)
+        v = slope_weights(self._t) @ np.asarray(self._p)
+        return v if np.all(np.isfinite(v)) else None
 
     def lead_m_of(self, speed_m_s: float) -> float:
         """How far (m) the target may lead a goal moving at ``speed_m_s``: where it will be

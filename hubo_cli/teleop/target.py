@@ -81,7 +81,7 @@ from hubo_cli.scene import SceneActions, WallPlacement
 from hubo_cli.teleop.lead import GoalVelocity, reachable_velocity
 from hubo_cli.teleop.mapping import HandMapper
 from hubo_cli.teleop.phases import PHASES, Approach, Operate, Settle
-from hubo_cli.teleop.reach_lead import AHEAD_S, ReachLead
+from hubo_cli.teleop.reach_lead import AHEAD_S, LEAD_BEYOND_M, LEAD_SCALE_SHARE, ReachLead
 from hubo_cli.teleop.target_kernels import (
     free_goal,
     hand_errors,
@@ -113,12 +113,6 @@ SWING_SAMPLES = 8  # points of the previewed way the swing is measured at (ends 
 # to it (the search stops within a fraction of a millimetre of a reachable goal)
 REACHABLE_POSITION_M = 0.002
 REACHABLE_ROTATION_RAD = np.radians(1.0)
-LEAD_BEYOND_M = 0.02  # a hand is led toward a goal coming back from this far out of reach or
-# further (closer, the hand at its limit follows it along the boundary: drill-rectangle.csv's
-# goal, just beyond the right hand's reach for 18 s in free mode, 2.56 mm RMS without a lead,
-# 2.75 mm with it from any distance)
-LEAD_SCALE_SHARE = 0.9  # of the singularity speed scale, for a target led toward a goal coming
-# back into reach (teleop/reach_lead.py)
 
 
 @dataclass
@@ -487,10 +481,9 @@ class TeleopTarget(Target):
             clutch = True
         if clutch:
             self.mapper.forget()  # the next pose of each hand re-centres it
-            for hand in self.hands.values():
+            for arm, hand in self.hands.items():
                 hand.lost = hand.needs_clutch = False
-            for lead in self.leads.values():
-                lead.clear()
+                self._recentre(arm)
         samples = self.source.read_until(t_src)
         changed = False
         for sample in samples:
@@ -506,12 +499,14 @@ class TeleopTarget(Target):
             if hand.clutched:
                 hand.clutched = False
                 self.mapper.forget(sample.hand)
+                self._recentre(arm)
             if hand.lost:
                 if self.live:  # hold until the operator re-centres
                     hand.needs_clutch = True
                     continue
                 hand.lost = False  # a replay re-centres by itself after a gap
                 self.mapper.forget(sample.hand)
+                self._recentre(arm)
             goal = self.mapper.goal(sample.hand, sample.T_operator_hand, sample.t_s,
                                     self.hand_pose_commanded(arm))
             if goal is None:
@@ -617,6 +612,12 @@ class TeleopTarget(Target):
                                   - reach.limb.fk(q[self.slices[arm]])[:3, 3])
         self.q_target = q
 
+    def _recentre(self, arm: str) -> None:
+        """A re-centred hand's goal starts anew (re-anchored where the hand is): its lead
+        forgets the goal's positions before and how far it went out of reach."""
+        self.leads[arm].clear()
+        self.hands[arm].beyond_m = 0.0
+
     @staticmethod
     def _led(reach: ArmReach, lead: ReachLead, T_goal: np.ndarray, T_near: np.ndarray,
              q_now: np.ndarray, q_near: np.ndarray) -> tuple[np.ndarray, bool]:
@@ -631,7 +632,7 @@ class TeleopTarget(Target):
             return q_near, False
         speed = math.sqrt(v.dot(v))
         cap = lead.lead_m_of(speed) * lead.run_up_share(v, T_goal[:3, 3] - T_near[:3, 3])
-        if cap <= 0.0:
+        if not cap > 0.0:  # also a NaN
             return q_near, False
         T_ahead = T_goal.copy()
         T_ahead[:3, 3] += v * AHEAD_S
@@ -683,9 +684,7 @@ class TeleopTarget(Target):
         limb = self.reach[arm].limb
         kappa_now, kappa_next = self._condition(arm, q_now), self._condition(arm, q_next)
         scale = self.singularity.scale(kappa_now, kappa_next)
-        if hand is not None and hand.leading:  # a lead leaves no faster than the approach's
-            # band allows, with a margin for the tracker catching up (0.45 of the speed
-            # limits at kappa 100)
+        if hand is not None and hand.leading:  # as an approach's band, times the share
             scale = LEAD_SCALE_SHARE * self.singularity.scale(kappa_now,
                                                               max(kappa_now, kappa_next))
         if hand is not None:
