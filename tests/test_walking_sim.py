@@ -117,10 +117,13 @@ def test_perturbed_walk_lands_its_steps_where_planned(tmp_path, seed):
     fields = json.loads(result.output)
     assert fields["fell"] is False
     assert fields["steps"] == 8
-    # against the truth, measured on the estimate 2.56 / 3.43 mm (robots 4 / 11; the 20 seeds'
-    # sweep, make bench BENCH=walk_sweep: 0.26-4.56 mm without a correction): bound 8 mm =
-    # 2.3x the worse (on the truth before: 2.3-5.1 mm on robot 4, AVX-512 / portable)
-    assert fields["final_error_mm"] < 8.0
+    # against the truth: since the floating base keeps its gyro turn's pivot continuous
+    # (round 5), robot 11 ends 1.67 mm off on AVX-512 and 8.50 mm on the portable path (3.17
+    # mm before the change there; the estimate's own error fell, 5.97 -> 4.57 mm: the truth's
+    # slip is what the legs cannot see). The bound is the issue's 10 mm itself, 1.18x the
+    # portable figure: less than the usual 1.5x margin, because a looser bound would no
+    # longer test the requirement (docs/history/walking.md, end of round 5)
+    assert fields["final_error_mm"] < 10.0
     # the estimate's own figure: 2.15 / 2.68 mm measured (the 20 seeds: up to 7.7 mm)
     assert fields["estimated_final_error_mm"] < 12.0
     assert fields["average_speed_m_s"] >= 0.1  # the plan's 1 m in 8.9 s: 0.112 on every run
