@@ -14,9 +14,8 @@ SUPPORT_BOX_WORLD = Key(
 
 STOP_MODE = Key(
     "stop_mode", str,
-    "the soft emergency stopper's mode after its update (release, stop, hold, recover, "
-    "finish); written by the stopper named estop, read by targets as the previous period's "
-    "(previous)")
+    "the soft emergency stopper's mode after its update (one of control.estop.MODES); "
+    "written by the stopper named estop, read by targets as the previous period's (previous)")
 WRIST_RELIEF = Key(
     "wrist_relief", object,
     "function: the braked joint command (rad) -> the postures (m x joints, rad) that relieve "

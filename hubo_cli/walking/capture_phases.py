@@ -32,7 +32,7 @@ from hubo_cli.estimation.keys import (
 )
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.state import GRAVITY_M_S2, RobotState
-from hubo_cli.walking.body import SIDE_LEG, WalkingBody, pose_of_row
+from hubo_cli.walking.body import SIDE_LEG, WalkingBody, pose_laid_flat, pose_of_row
 from hubo_cli.walking.footsteps import SIDE_SIGN, Footstep, stance_of, wrap_angle
 from hubo_cli.walking.gait import SWING_MOVE, Gait, make_gait, smoothstep5
 from hubo_cli.walking.preview import CoMPath
@@ -331,8 +331,7 @@ class PatternPhase(CapturePhase):
         plan = s.rest_support[k].copy()
         now = s.store[T_WORLD_SOLES]
         z = float(plan[0, 2, 3])
-        flat = [pose_of_row(np.array([T[0, 3], T[1, 3], z, math.atan2(T[1, 0], T[0, 0])]))
-                for T in now]
+        flat = [pose_laid_flat(T, z) for T in now]
         anchor = SIDES.index(s.swing)  # the landed foot
         moved = flat[anchor] @ np.linalg.inv(s.rest_support[0][anchor])
         for i, side in enumerate(SIDES):
@@ -573,9 +572,7 @@ class Stood(CapturePhase):
         s = self.stepper
         if not s.return_pending:
             return None
-        return np.array([pose_of_row(np.array([T[0, 3], T[1, 3], s.sole_z_m,
-                                               math.atan2(T[1, 0], T[0, 0])]))
-                         for T in s.store[T_WORLD_SOLES]])
+        return np.array([pose_laid_flat(T, s.sole_z_m) for T in s.store[T_WORLD_SOLES]])
 
     def stop_within_s(self) -> float:
         return 0.0
