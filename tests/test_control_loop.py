@@ -156,6 +156,28 @@ def test_ctrl_c_ends_in_a_smooth_stop(model, tmp_path):
     assert log.status[-1] == Status.SLOWING
 
 
+def test_ctrl_c_after_a_periods_record_counts_that_period(model, tmp_path):
+    """SIGTERM / Ctrl-C arrive between any two bytecodes: one that lands after a period's record
+    was written (here in the viewer's call) counts that period, so the summary's ``periods``
+    is the log's length (main: one short, seen once in the suite on a loaded machine)."""
+    robot = ideal(model)
+    q0 = robot.read().q_rad.copy()
+
+    class Interrupting:
+        raised = False
+
+        def period(self, t_s, status, flags, state, extras):
+            if t_s >= 0.75 and not self.raised:
+                self.raised = True
+                raise KeyboardInterrupt
+
+    moving = _moving_target(q0, amplitude=0.5, period_s=3.0)
+    result = ControlLoop(robot, build_pipeline(model), moving, log_path=tmp_path,
+                         observer=Interrupting()).run(5.0)
+    assert result.ended == "interrupted", result.error
+    assert len(load_log(tmp_path)) == result.periods
+
+
 class Exploding(Module):
     name = "exploding"
 

@@ -392,6 +392,8 @@ class ControlLoop:
                     break
         except KeyboardInterrupt as err:
             ended, error, exc = "interrupted", f"interrupted ({interrupt_cause(err)})", err
+            if self.log is not None and self.log.rows == self.period + 1:
+                self.period += 1  # it came after the period's record: that period was run
         try:
             if ended not in ("driver-error", "device"):
                 stop_periods = self._smooth_stop()
