@@ -93,25 +93,27 @@ class CollisionRoom:
         self.arms = tuple(arms)
         self.lower = np.asarray(model.lower_rad, dtype=float)
         self.upper = np.asarray(model.upper_rad, dtype=float)
-        self._index = {arm: np.arange(len(model.joint_names))[model.limb_slice(arm)]
-                       for arm in self.arms}
+        self._slices = {arm: model.limb_slice(arm) for arm in self.arms}
+        self._index = {arm: np.arange(len(model.joint_names))[sl]
+                       for arm, sl in self._slices.items()}
         self._link_arm = {f"{joint}_link": arm for arm in self.arms
                           for joint in model.limb(arm).joints}
         if drill and "right-arm" in self.arms:
             self._link_arm["drill"] = "right-arm"
         self._pair_index = {names: k for k, names in enumerate(self.checker.pair_names)}
+        self._pair_arms: dict[tuple[str, str], tuple[str, ...]] = {}
         self.pushed_periods = dict.fromkeys(self.arms, 0)
         self.moved: set[str] = set()  # the arms the last call moved
         self._rested: dict[str, tuple | None] = {}  # arm -> (goal, joints) a search rested at
         self.skipped = 0  # clear searches skipped: the goal still where one came to rest
         self.last_clearance_m = np.inf
 
-    def _arms_of(self, pair: tuple[str, str]) -> list[str]:
-        found = []
-        for name in pair:
-            arm = self._link_arm.get(name.rsplit("_", 1)[0])
-            if arm is not None and arm not in found:
-                found.append(arm)
+    def _arms_of(self, pair: tuple[str, str]) -> tuple[str, ...]:
+        """The movable arms carrying a shape of ``pair`` (remembered per pair)."""
+        found = self._pair_arms.get(pair)
+        if found is None:
+            arms = (self._link_arm.get(name.rsplit("_", 1)[0]) for name in pair)
+            found = self._pair_arms[pair] = tuple(dict.fromkeys(a for a in arms if a is not None))
         return found
 
     def _distance(self, q_rad: np.ndarray, near_m: float = NEAR_M
@@ -188,18 +190,18 @@ class CollisionRoom:
             if d >= self.room_m or not arms:
                 break
             arm = arms[0]
-            index = self._index[arm]
-            q[index] = q_prev[index]
+            index, sl = self._index[arm], self._slices[arm]
+            q[sl] = q_prev[sl]
             d, pair_prev = self._distance(q)
             reach, T_goal = goals[arm]
             T_goal = np.ascontiguousarray(T_goal, float)
             moved.add(arm)
-            if d >= self.room_m and self._still(arm, q[index], T_goal):
+            if d >= self.room_m and self._still(arm, q[sl], T_goal):
                 self.skipped += 1
                 pair = pair_prev  # the check just made (repeatable: the same a second time)
                 continue
             q, d, rested = self._search_arm(q, d, pair_prev, index, reach, T_goal)
-            self._rested[arm] = (T_goal, q[index].copy()) if rested else None
+            self._rested[arm] = (T_goal, q[sl].copy()) if rested else None
             d, pair = self._distance(q)
         return q, d, moved
 
