@@ -107,6 +107,7 @@ class CollisionRoom:
         self._rested: dict[str, tuple | None] = {}  # arm -> (goal, joints) a search rested at
         self.skipped = 0  # clear searches skipped: the goal still where one came to rest
         self.last_clearance_m = np.inf
+        _compile_kernels()
 
     def _arms_of(self, pair: tuple[str, str]) -> tuple[str, ...]:
         """The movable arms carrying a shape of ``pair`` (remembered per pair)."""
@@ -289,3 +290,13 @@ class CollisionRoom:
         for arm in moved:
             self.pushed_periods[arm] += 1
         return q
+
+
+def _compile_kernels() -> None:
+    """Call each kernel of the clear search once: compiled (or loaded from numba's cache)
+    when the room is made, not in the first period that searches."""
+    eye, zeros = np.eye(4), np.zeros(6)
+    weighted_error(zeros, eye, zeros, zeros, zeros, zeros, eye, eye, _W, np.empty((4, 4)),
+                   np.empty((6, 6)), np.empty(6))
+    clipped_step(np.zeros(24), 0, zeros, 1.0, zeros, zeros, np.empty(24))
+    goal_within(eye, eye, STILL_GOAL_M, _STILL_GOAL_COS)
