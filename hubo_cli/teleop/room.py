@@ -49,7 +49,7 @@ from hubo_cli.teleop.target_kernels import max_abs_difference
 # np.linalg.solve's own gufunc for one right-hand side (the same LAPACK call) without its
 # wrappers (type checks and an error state: H below is damped, positive definite, never
 # singular)
-_solve = np.linalg._umath_linalg.solve1  # noqa: SLF001
+_solve = np.linalg._umath_linalg.solve1
 
 ROOM_M = TOLERANCE_M + 0.005  # the detector's band and 5 mm for the command's braking look-ahead
 NEWTON_STEPS = 3
@@ -210,7 +210,7 @@ class CollisionRoom:
         """The arm's last search came to rest at ``q_arm`` for a goal within STILL_GOAL_M and
         STILL_GOAL_RAD of ``T_goal``: searching again would find the same pose."""
         rested = self._rested.get(arm)
-        # np.array_equal's and np.linalg.norm's values without their wrappers
+        # np.array_equal's value without its wrapper
         if rested is None or not (rested[1] == q_arm).all():
             return False
         return goal_within(rested[0], T_goal, STILL_GOAL_M, _STILL_GOAL_COS)
