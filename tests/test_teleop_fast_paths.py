@@ -48,6 +48,7 @@ from hubo_cli.teleop import room as room_module
 from hubo_cli.teleop import target as target_module
 from hubo_cli.teleop.mapping import MAX_OPERATOR_RANGE_M, HandGoal, HandMapper, MappingConfig
 from hubo_cli.teleop.room import CollisionRoom
+from hubo_cli.teleop.room_kernels import clipped_step, goal_within, weighted_error
 from hubo_cli.teleop.stream_runs import follow_generated
 from hubo_cli.teleop.target_kernels import hand_errors, max_abs_difference, path_swing_m, tilt_rad
 
@@ -498,6 +499,54 @@ def test_the_largest_joint_difference_matches_numpy():
             y[rng.integers(6)] = rng.choice([np.nan, np.inf])
         expected = np.max(np.abs(x - y))
         assert max_abs_difference(x, y) == pytest.approx(expected, rel=0, abs=0, nan_ok=True)
+
+
+def test_the_rooms_step_kernels_match_numpy():
+    """The clear search's compiled parts against the numpy lines they replace: its weighted
+    error to the last bit (it becomes the step) and its square within a rounding (it only
+    decides); the clipped step to the last bit, NaN and infinities included; the still-goal
+    test as numpy decides it (drawn goals, none within 1e-9 of its thresholds)."""
+    rng = np.random.default_rng(47)
+    limb = get_limb("left-arm")
+    base, _, offset, alpha, a, d, end, _ = limb.chain
+    w = room_module._W
+    for _ in range(500):
+        q = rng.uniform(limb.lower_rad, limb.upper_rad)
+        T_goal = limb.fk(rng.uniform(limb.lower_rad, limb.upper_rad))
+        T, J, e = np.empty((4, 4)), np.empty((6, 6)), np.empty(6)
+        c = weighted_error(q, base, offset, alpha, a, d, end, T_goal, w, T, J, e)
+        T_ref, J_ref, e_ref = np.empty((4, 4)), np.empty((6, 6)), np.empty(6)
+        jacobian(q, base, offset, alpha, a, d, end, T_ref, J_ref)
+        e_ref[:3] = T_goal[:3, 3] - T_ref[:3, 3]
+        rotation_error(T_ref, T_goal, e_ref[3:])
+        e_ref[:] *= w
+        assert np.array_equal(e, e_ref) and np.array_equal(J, J_ref)
+        assert c == pytest.approx(float(e_ref @ e_ref), rel=1e-14)  # six terms: a few ulps
+
+        q24, dq = rng.normal(size=24), rng.normal(size=6) * rng.choice([1e-9, 0.1, 10.0])
+        lo, hi = -np.abs(rng.normal(size=6)), np.abs(rng.normal(size=6))
+        if rng.random() < 0.2:
+            dq[rng.integers(6)] = rng.choice([np.nan, np.inf, -np.inf])
+        first, scale = int(rng.choice([0, 6, 12, 18])), float(rng.choice([1.0, 0.5, 0.25]))
+        expected = q24.copy()
+        expected[first:first + 6] = np.clip(q24[first:first + 6] + scale * dq, lo, hi)
+        got = np.empty(24)
+        clipped_step(q24, first, dq, scale, lo, hi, got)
+        assert np.array_equal(got, expected, equal_nan=True)
+
+        T_was = limb.fk(rng.uniform(limb.lower_rad, limb.upper_rad))
+        T_near = T_was.copy()
+        T_near[:3, :3] = Rotation.from_rotvec(rng.normal(size=3) * rng.choice(
+            [1e-3, 1e-2])).as_matrix() @ T_was[:3, :3]
+        T_near[:3, 3] += rng.normal(size=3) * rng.choice([1e-4, 1e-3])
+        moved = np.linalg.norm(T_near[:3, 3] - T_was[:3, 3])
+        cos = (np.trace(T_was[:3, :3].T @ T_near[:3, :3]) - 1.0) / 2.0
+        if (abs(moved - room_module.STILL_GOAL_M) < 1e-9
+                or abs(cos - np.cos(room_module.STILL_GOAL_RAD)) < 1e-9):
+            continue
+        expected = moved <= room_module.STILL_GOAL_M and cos >= np.cos(room_module.STILL_GOAL_RAD)
+        assert goal_within(T_was, T_near, room_module.STILL_GOAL_M,
+                           np.cos(room_module.STILL_GOAL_RAD)) == expected
 
 
 def test_the_tilt_and_the_measured_torso_match_numpy():

@@ -414,18 +414,21 @@ class SelfCollisionChecker:
         exceeds ``band_m`` (a lower bound of it) otherwise."""
         if not self.pair_names:
             return Clearance(np.inf, ("", ""))
-        bounds, near, listed, data = self._bounds_m, self._near, self._listed, self._near_data
+        bounds, listed, data = self._bounds_m, self._listed, self._near_data
         n_changed, n_near, best = _pair_bounds(q_rad, self.anchor_q, self.anchor_m,
                                                self.rate_m_rad, band_m, self.repeatable, bounds,
-                                               near, listed)
-        for p in listed[:n_changed]:  # the near pairs are the active ones of data
-            (data.activateCollisionPair if near[p] else data.deactivateCollisionPair)(int(p))
+                                               self._near, listed)
+        if n_changed:  # the near pairs are the active ones of data
+            near = self._near
+            for p in listed[:n_changed].tolist():
+                (data.activateCollisionPair if near[p] else data.deactivateCollisionPair)(p)
         if n_near:
             pin.computeDistances(self.robot.model, self.data, self.geom, data,
                                  self.robot.configuration(q_rad, out=self._q))
             pairs = listed[n_changed:n_changed + n_near]
-            for p in pairs:
-                bounds[p] = self._near_results[p].min_distance
+            results = self._near_results
+            for p in pairs.tolist():
+                bounds[p] = results[p].min_distance
             best = _take_near(q_rad, pairs, bounds, self.anchor_q, self.anchor_m)
         return Clearance(float(bounds[best]), self.pair_names[best])
 

@@ -40,10 +40,16 @@ import math
 import numpy as np
 
 from hubo_cli.control.collision import TOLERANCE_M, SelfCollisionChecker
-from hubo_cli.kinematics.reach import DAMPING, MAX_STEP_RAD, branch_box, jacobian, rotation_error
+from hubo_cli.kinematics.reach import DAMPING, MAX_STEP_RAD, branch_box
 from hubo_cli.model import ARMS, RobotModel
 from hubo_cli.motion.limits import all_finite
+from hubo_cli.teleop.room_kernels import clipped_step, goal_within, weighted_error
 from hubo_cli.teleop.target_kernels import max_abs_difference
+
+# np.linalg.solve's own gufunc for one right-hand side (the same LAPACK call) without its
+# wrappers (type checks and an error state: H below is damped, positive definite, never
+# singular)
+_solve = np.linalg._umath_linalg.solve1
 
 ROOM_M = TOLERANCE_M + 0.005  # the detector's band and 5 mm for the command's braking look-ahead
 NEWTON_STEPS = 3
@@ -58,6 +64,9 @@ STILL_GOAL_RAD = np.radians(0.5)  # came to rest at is not searched again
 _STILL_GOAL_COS = np.cos(STILL_GOAL_RAD)
 NEAR_M = 0.05  # distances are exact up to the room and this much more, lower bounds beyond
 # (the checker's Lipschitz bounds skip the pairs that cannot be that close)
+_W = np.array([1.0, 1.0, 1.0] + [ORIENTATION_WEIGHT_M_PER_RAD] * 3)  # the search's weights
+_W_ROWS = _W[:, None]
+_DAMPED = DAMPING**2 * np.eye(6)
 
 
 class CollisionRoom:
@@ -84,25 +93,28 @@ class CollisionRoom:
         self.arms = tuple(arms)
         self.lower = np.asarray(model.lower_rad, dtype=float)
         self.upper = np.asarray(model.upper_rad, dtype=float)
-        self._index = {arm: np.arange(len(model.joint_names))[model.limb_slice(arm)]
-                       for arm in self.arms}
+        self._slices = {arm: model.limb_slice(arm) for arm in self.arms}
+        self._index = {arm: np.arange(len(model.joint_names))[sl]
+                       for arm, sl in self._slices.items()}
         self._link_arm = {f"{joint}_link": arm for arm in self.arms
                           for joint in model.limb(arm).joints}
         if drill and "right-arm" in self.arms:
             self._link_arm["drill"] = "right-arm"
         self._pair_index = {names: k for k, names in enumerate(self.checker.pair_names)}
+        self._pair_arms: dict[tuple[str, str], tuple[str, ...]] = {}
         self.pushed_periods = dict.fromkeys(self.arms, 0)
         self.moved: set[str] = set()  # the arms the last call moved
         self._rested: dict[str, tuple | None] = {}  # arm -> (goal, joints) a search rested at
         self.skipped = 0  # clear searches skipped: the goal still where one came to rest
         self.last_clearance_m = np.inf
+        _compile_kernels()
 
-    def _arms_of(self, pair: tuple[str, str]) -> list[str]:
-        found = []
-        for name in pair:
-            arm = self._link_arm.get(name.rsplit("_", 1)[0])
-            if arm is not None and arm not in found:
-                found.append(arm)
+    def _arms_of(self, pair: tuple[str, str]) -> tuple[str, ...]:
+        """The movable arms carrying a shape of ``pair`` (remembered per pair)."""
+        found = self._pair_arms.get(pair)
+        if found is None:
+            arms = (self._link_arm.get(name.rsplit("_", 1)[0]) for name in pair)
+            found = self._pair_arms[pair] = tuple(dict.fromkeys(a for a in arms if a is not None))
         return found
 
     def _distance(self, q_rad: np.ndarray, near_m: float = NEAR_M
@@ -179,18 +191,18 @@ class CollisionRoom:
             if d >= self.room_m or not arms:
                 break
             arm = arms[0]
-            index = self._index[arm]
-            q[index] = q_prev[index]
+            index, sl = self._index[arm], self._slices[arm]
+            q[sl] = q_prev[sl]
             d, pair_prev = self._distance(q)
             reach, T_goal = goals[arm]
             T_goal = np.ascontiguousarray(T_goal, float)
             moved.add(arm)
-            if d >= self.room_m and self._still(arm, q[index], T_goal):
+            if d >= self.room_m and self._still(arm, q[sl], T_goal):
                 self.skipped += 1
                 pair = pair_prev  # the check just made (repeatable: the same a second time)
                 continue
             q, d, rested = self._search_arm(q, d, pair_prev, index, reach, T_goal)
-            self._rested[arm] = (T_goal, q[index].copy()) if rested else None
+            self._rested[arm] = (T_goal, q[sl].copy()) if rested else None
             d, pair = self._distance(q)
         return q, d, moved
 
@@ -198,15 +210,10 @@ class CollisionRoom:
         """The arm's last search came to rest at ``q_arm`` for a goal within STILL_GOAL_M and
         STILL_GOAL_RAD of ``T_goal``: searching again would find the same pose."""
         rested = self._rested.get(arm)
-        # np.array_equal's and np.linalg.norm's values without their wrappers
+        # np.array_equal's value without its wrapper
         if rested is None or not (rested[1] == q_arm).all():
             return False
-        T_was = rested[0]
-        moved = T_goal[:3, 3] - T_was[:3, 3]
-        if math.sqrt(moved.dot(moved)) > STILL_GOAL_M:
-            return False
-        cos = (np.trace(T_was[:3, :3].T @ T_goal[:3, :3]) - 1.0) / 2.0
-        return bool(cos >= _STILL_GOAL_COS)
+        return goal_within(rested[0], T_goal, STILL_GOAL_M, _STILL_GOAL_COS)
 
     def _gradient(self, q: np.ndarray, d: float, pair: tuple[str, str],
                   index: np.ndarray) -> np.ndarray:
@@ -218,10 +225,11 @@ class CollisionRoom:
         if grad is not None:
             return grad
         grad = np.empty(len(index))
-        for k, i in enumerate(index):
-            q_d = q.copy()
-            q_d[i] += DIFF_RAD
+        q_d = q.copy()
+        for k, i in enumerate(index.tolist()):
+            q_d[i] = q[i] + DIFF_RAD
             grad[k] = (self._distance(q_d)[0] - d) / DIFF_RAD
+            q_d[i] = q[i]
         return grad
 
     def _search_arm(self, q: np.ndarray, d: float, pair: tuple[str, str], index: np.ndarray,
@@ -230,41 +238,43 @@ class CollisionRoom:
         (joints, clearance, whether it came to rest: no step left that helps)."""
         limb = reach.limb
         base, _, offset, alpha, a, dd, end, _ = limb.chain
-        w = np.array([1.0, 1.0, 1.0] + [ORIENTATION_WEIGHT_M_PER_RAD] * 3)
         lo, hi = np.empty(6), np.empty(6)
         T, J, e, zeros = np.empty((4, 4)), np.empty((6, 6)), np.empty(6), np.zeros(6)
         branch = -1 if reach.branch is None else reach.branch
-        branch_box(q[index], branch, reach.margins, limb.lower_rad, limb.upper_rad, lo, hi)
-
-        def cost(q_arm):
-            jacobian(q_arm, base, offset, alpha, a, dd, end, T, J)
-            e[:3] = T_goal[:3, 3] - T[:3, 3]
-            rotation_error(T, T_goal, e[3:])
-            e[:] *= w
-            return float(e @ e)
-
-        c = c_start = cost(q[index])
+        first = int(index[0])  # the arm's joints are index: first, first + 1, ... first + 5
+        q_arm = q[first:first + 6]
+        branch_box(q_arm, branch, reach.margins, limb.lower_rad, limb.upper_rad, lo, hi)
+        # the weighted error e and its square c at q: with numpy, e[:3] = p_goal - p, the
+        # rotation error, e *= W, c = e @ e (c decides only: its last bit may differ)
+        c = c_start = weighted_error(q_arm, base, offset, alpha, a, dd, end, T_goal, _W, T, J, e)
         for _ in range(SEARCH_STEPS):
-            Jw = J * w[:, None]
-            H = Jw.T @ Jw + DAMPING**2 * np.eye(6)
-            dq = np.linalg.solve(H, Jw.T @ e)
+            # the linear algebra as numpy does it (its BLAS and LAPACK calls): the step's last
+            # bits, and the ties the search breaks on them, as they were
+            Jw = J * _W_ROWS
+            H = Jw.T @ Jw + _DAMPED
+            dq = _solve(H, Jw.T @ e, signature="dd->d")
             grad = self._gradient(q, d, pair, index)
             need = self.room_m + AIM_M - d
-            if all_finite(grad) and grad @ dq < need:
-                # the step of least weighted error whose linearised clearance is the room: it
-                # slides along the body, turning the hand where that costs the least
-                h_grad = np.linalg.solve(H, grad)
-                if grad @ h_grad > 1e-12:
-                    dq += (need - grad @ dq) / (grad @ h_grad) * h_grad
+            if all_finite(grad):
+                along = grad @ dq
+                if along < need:
+                    # the step of least weighted error whose linearised clearance is the room:
+                    # it slides along the body, turning the hand where that costs the least
+                    h_grad = _solve(H, grad, signature="dd->d")
+                    curvature = grad @ h_grad
+                    if curvature > 1e-12:
+                        dq += (need - along) / curvature * h_grad
             biggest = max_abs_difference(dq, zeros)  # np.max(np.abs(dq)), NaN as NaN
             if biggest < 1e-9:
                 return q, d, True
             dq *= min(1.0, MAX_STEP_RAD / biggest)
             for scale in (1.0, 0.5, 0.25):
-                q_try = q.copy()
-                q_try[index] = np.minimum(np.maximum(q[index] + scale * dq, lo), hi)  # np.clip
+                q_try = np.empty_like(q)
+                clipped_step(q, first, dq, scale, lo, hi, q_try)  # np.clip(q_arm + scale dq)
                 d_try, pair_try = self._distance(q_try)
-                c_try = cost(q_try[index])
+                q_arm = q_try[first:first + 6]
+                c_try = weighted_error(q_arm, base, offset, alpha, a, dd, end, T_goal, _W, T, J,
+                                       e)
                 if d_try >= min(self.room_m, d) and (c_try < c or d < self.room_m <= d_try):
                     q, d, c, pair = q_try, d_try, c_try, pair_try
                     break
@@ -280,3 +290,13 @@ class CollisionRoom:
         for arm in moved:
             self.pushed_periods[arm] += 1
         return q
+
+
+def _compile_kernels() -> None:
+    """Call each kernel of the clear search once: compiled (or loaded from numba's cache)
+    when the room is made, not in the first period that searches."""
+    eye, zeros = np.eye(4), np.zeros(6)
+    weighted_error(zeros, eye, zeros, zeros, zeros, zeros, eye, eye, _W, np.empty((4, 4)),
+                   np.empty((6, 6)), np.empty(6))
+    clipped_step(np.zeros(24), 0, zeros, 1.0, zeros, zeros, np.empty(24))
+    goal_within(eye, eye, STILL_GOAL_M, _STILL_GOAL_COS)
