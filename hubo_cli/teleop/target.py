@@ -80,7 +80,6 @@ from hubo_cli.motion.tracker import JointTracker
 from hubo_cli.scene import SceneActions, WallPlacement
 from hubo_cli.teleop.lead import GoalVelocity, reachable_velocity
 from hubo_cli.teleop.mapping import HandMapper
-from hubo_cli.teleop.orientation_budget import OrientationBudget
 from hubo_cli.teleop.phases import PHASES, Approach, Operate, Settle
 from hubo_cli.teleop.reach_lead import AHEAD_S, LEAD_BEYOND_M, LEAD_SCALE_SHARE, ReachLead
 from hubo_cli.teleop.target_kernels import (
@@ -93,7 +92,6 @@ from hubo_cli.teleop.target_kernels import (
 )
 
 SHORT = {"right-arm": "r", "left-arm": "l"}
-SLOW_AT_LIMIT = False  # experiment
 _EYE4 = np.eye(4)  # read only
 REST_RADIUS_M = 0.005  # a goal that stays within this for REST_S is at rest
 REST_S = 0.5
@@ -248,11 +246,6 @@ class TeleopTarget(Target):
         self.reach_settings = reach or ReachSettings.for_mode(mapper.config.mode)
         self.reach = {arm: ArmReach(body.arms[arm], self.reach_settings) for arm in approach}
         self.leads = {arm: ReachLead() for arm in self.arms}  # at the reach limit
-        # while operating, each hand's orientation target turns with what its joints have left
-        # after the position (nearest mode, where the reach search smooths the orientation)
-        self.orientations = ({arm: OrientationBudget(body.arms[arm].chain) for arm in self.arms}
-                             if self.reach_settings.mode == "nearest"
-                             and self.reach_settings.orientation_time_constant_s > 0 else {})
         self.singularity = singularity or self.reach_settings.singularity
         self.room = None  # arm targets keep out of the collision detector's band
         # once operating, where the trajectory generator has a tracker per arm: a copy of each
@@ -475,8 +468,6 @@ class TeleopTarget(Target):
                                    for arm in self.arms}
         for arm, reach in self.reach.items():
             reach.start(self.q_target[self.slices[arm]])
-        for budget in self.orientations.values():
-            budget.start()
 
     def _source_time(self, t_s: float) -> float:
         return self.source.now_s() if self.live else t_s - self.t_operate_s
@@ -575,7 +566,7 @@ class TeleopTarget(Target):
             sl = self.slices[arm]
             q_now = self.q_target[sl]
             reach = self.reach[arm]
-            T_N_goal = self._oriented(arm, T_S_goal, t_s - self._t_solved_s.get(arm, t_s))
+            T_N_goal = reach.smoothed(T_S_goal, t_s - self._t_solved_s.get(arm, t_s))
             self._t_solved_s[arm] = t_s
             T_N_goal[2, 3] -= legs.lift_m
             solved[arm] = (reach, T_N_goal)
@@ -620,18 +611,6 @@ class TeleopTarget(Target):
                 hand.missing_m = (None if hand.reachable else T_N_goal[:3, 3]
                                   - reach.limb.fk(q[self.slices[arm]])[:3, 3])
         self.q_target = q
-
-    def _oriented(self, arm: str, T_S_goal: np.ndarray, dt_s: float) -> np.ndarray:
-        """The arm's goal with the orientation its reach search is given: turned with what the
-        joints have left after the position (:mod:`hubo_cli.teleop.orientation_budget`) while
-        the arm's tracker is known, else smoothed by the reach's filter."""
-        budget = self.orientations.get(arm)
-        if budget is None or self._trackers is None or not dt_s > 0:
-            return self.reach[arm].smoothed(T_S_goal, dt_s)
-        hand = self.hands[arm]
-        return budget.goal(T_S_goal, dt_s, self.q_target[self.slices[arm]],
-                           self.store[TRACKER_STATES][arm], self.leads[arm].velocity_m_s(),
-                           SLOW_AT_LIMIT and (hand.at_limit or not hand.reachable))
 
     def _recentre(self, arm: str) -> None:
         """A re-centred hand's goal starts anew (re-anchored where the hand is): its lead
