@@ -48,8 +48,8 @@ from hubo_cli.teleop.target_kernels import max_abs_difference
 
 # np.linalg.solve's own gufunc for one right-hand side (the same LAPACK call) without its
 # wrappers (type checks and an error state: H below is damped, positive definite, never
-# singular)
-_solve = np.linalg._umath_linalg.solve1
+# singular); numpy's private module, so np.linalg.solve itself where a numpy moves it
+_solve = getattr(getattr(np.linalg, "_umath_linalg", None), "solve1", None) or np.linalg.solve
 
 ROOM_M = TOLERANCE_M + 0.005  # the detector's band and 5 mm for the command's braking look-ahead
 NEWTON_STEPS = 3
