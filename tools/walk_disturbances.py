@@ -7,10 +7,13 @@ Each seed draws a moment uniformly over the walk's steps (from the first step's 
 last one's landing) and, for pushes, a direction from ``--directions``; the walk
 (``hubo walk --to DISTANCE 0 0`` through the full pipeline) then runs with the operator's stop
 (``stop``), with a 0.2 s push on the torso (``push``), or, ``stop --source capture-point``, with
-a push of ``--force`` (default 100 N, sideways) left to the capture-point monitor to stop it.
-One JSON line per run (seed, moment, direction, fell, stopped, stood, both feet down over the
-run's last 0.5 s, the soft stopper holding at the end, footstep changes, e-stop events, max
-tilt), then a summary line. Run folders go under ``--out``.
+a push of ``--force`` (default 100 N) left to the capture-point monitor to stop it: the same
+runs as ``push`` with the same seeds and directions.
+One JSON line per run (seed, moment, the walk's phase at it, direction, fell, stopped, stood,
+both feet down over the run's last 0.5 s, the soft stopper holding at the end, footstep changes,
+e-stop events, max tilt, the torso's true tilt in the run's last period and its largest over
+the last 0.5 s), then a summary line.
+Run folders go under ``--out``.
 """
 
 from __future__ import annotations
@@ -36,6 +39,15 @@ def seeds_of(text: str) -> list[int]:
         first, last = (int(v) for v in text.split("-"))
         return list(range(first, last + 1))
     return [int(v) for v in text.split(",")]
+
+
+def phase_at(log, at_s: float) -> str:
+    """The walk's pattern at ``at_s``: its step and whether the plan had one sole or both down."""
+    k = int(np.searchsorted(np.asarray(log["t_s"], dtype=float), at_s))
+    step = int(np.asarray(log["walk.step"], dtype=float)[k])
+    both = all(np.asarray(log[f"planned_{side}_foot_contact_flag"], dtype=float)[k] == 1
+               for side in ("right", "left"))
+    return f"step {step} {'double support' if both else 'swing'}"
 
 
 def main() -> int:
@@ -74,7 +86,10 @@ def main() -> int:
         rows = np.isfinite(mode)  # the loop's closing rows have no pipeline
         down = np.column_stack([np.asarray(log[f"{side}_foot_contact_flag"], dtype=float)[rows]
                                 for side in ("right", "left")])[-100:]
-        row = {"seed": seed, "at_s": round(at_s, 3),
+        roll, pitch = (np.asarray(log[f"torso_{axis}_rad"], dtype=float)[rows][-100:]
+                       for axis in ("roll", "pitch"))
+        end_tilt_deg = np.degrees(np.arccos(np.cos(roll) * np.cos(pitch)))
+        row = {"seed": seed, "at_s": round(at_s, 3), "phase": phase_at(log, at_s),
                "direction": None if args.kind == "stop" and args.source == "operator"
                else direction, "fell": result.fell, "stopped_s": result.stopped_s,
                "stood": result.stood, "both_feet_down": bool(np.all(down == 1)),
@@ -82,6 +97,8 @@ def main() -> int:
                "touchdowns_early": result.touchdowns_early,
                "estop_events": len(summary.get("estop_events", [])),
                "max_torso_tilt_deg": summary.get("max_torso_tilt_deg"),
+               "final_tilt_deg": round(float(end_tilt_deg[-1]), 2),
+               "end_max_tilt_deg": round(float(end_tilt_deg.max()), 2),
                "final_error_mm": result.final_error_mm}
         results.append(row)
         print(json.dumps(row), flush=True)
