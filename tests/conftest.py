@@ -1,5 +1,9 @@
 """Shared fixtures, the order of the tests and their grouping on the xdist workers."""
 
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -61,3 +65,21 @@ def pytest_collection_modifyitems(config, items):
         if grouping and mark is not None:
             _group_on_one_worker(item, str(mark.args[0] if mark.args
                                            else mark.kwargs.get("name", "default")))
+
+
+def pytest_configure(config):
+    """Before pytest-xdist starts two or more workers: fill numba's cache with
+    ``tests/warm_kernels.py``'s two workloads, run at once (its docstring says why). In a fresh
+    checkout this compiles each kernel once instead of once per worker; with a warm cache it
+    costs the workloads' few seconds. A workload that fails changes nothing but the time: the
+    workers then compile what they need, and the tests report any fault."""
+    if hasattr(config, "workerinput") or (getattr(config.option, "numprocesses", 0) or 0) < 2:
+        return
+    script = Path(__file__).with_name("warm_kernels.py")
+    warming = [subprocess.Popen([sys.executable, str(script), part], stdout=subprocess.DEVNULL,
+                                stderr=subprocess.DEVNULL) for part in ("arms", "legs")]
+    for process in warming:
+        try:
+            process.wait(timeout=600)
+        except subprocess.TimeoutExpired:
+            process.kill()
