@@ -1,4 +1,5 @@
-"""Rotations, tilt and the minimum-jerk profile: the one home of the geometry hubo-cli shares.
+"""Rotations, tilt, a pose laid flat and the minimum-jerk profile: the one home of the geometry
+hubo-cli shares.
 
 Conventions:
     Quaternions: the function names say the order. ``wxyz`` (scalar first) is the project's
@@ -418,6 +419,18 @@ def rotation_exp(v) -> np.ndarray:
     return np.array([[1.0 - c * (k1 * k1 + k2 * k2), c * k0 * k1 - s * k2, c * k0 * k2 + s * k1],
                      [c * k0 * k1 + s * k2, 1.0 - c * (k0 * k0 + k2 * k2), c * k1 * k2 - s * k0],
                      [c * k0 * k2 - s * k1, c * k1 * k2 + s * k0, 1.0 - c * (k0 * k0 + k1 * k1)]])
+
+
+# ------------------------------------------------------------------------------- poses
+def pose_laid_flat(T_world_frame: np.ndarray, z_m: float = 0.0) -> np.ndarray:
+    """A frame's pose (4x4, in the world) laid flat on a floor at height ``z_m`` (world):
+    the same x, y and heading (the turn of its x axis about the world's vertical,
+    ``atan2(T[1, 0], T[0, 0])``), its z axis the world's (a sole or the torso over the floor)."""
+    T = T_world_frame
+    heading = math.atan2(T[1, 0], T[0, 0])
+    c, s = math.cos(heading), math.sin(heading)
+    return np.array([[c, -s, 0.0, T[0, 3]], [s, c, 0.0, T[1, 3]], [0.0, 0.0, 1.0, z_m],
+                     [0.0, 0.0, 0.0, 1.0]])
 
 
 # ------------------------------------------------------------------------------- tilt

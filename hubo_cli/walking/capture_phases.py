@@ -30,9 +30,10 @@ from hubo_cli.estimation.keys import (
     T_WORLD_SOLES,
     T_WORLD_TORSO,
 )
+from hubo_cli.geometry import pose_laid_flat
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.state import GRAVITY_M_S2, RobotState
-from hubo_cli.walking.body import SIDE_LEG, WalkingBody, pose_laid_flat, pose_of_row
+from hubo_cli.walking.body import SIDE_LEG, WalkingBody, pose_of_row
 from hubo_cli.walking.footsteps import SIDE_SIGN, Footstep, stance_of, wrap_angle
 from hubo_cli.walking.gait import SWING_MOVE, Gait, make_gait, smoothstep5
 from hubo_cli.walking.preview import CoMPath
