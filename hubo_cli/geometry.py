@@ -434,13 +434,19 @@ def pose_laid_flat(T_world_frame: np.ndarray, z_m: float = 0.0) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------- tilt
+def tilt_rad_of_z_axis(x: float, y: float, z: float) -> float:
+    """Angle (rad, [0, pi]) between a frame's z axis, given by its world components (the third
+    column of the frame's rotation in the world), and the world's z axis."""
+    return math.atan2(math.hypot(x, y), z)
+
+
 def tilt_rad_of_matrix(R):
     """Angle (rad, [0, pi]) between a frame's z axis and the world's z axis, for rotation
     matrices (..., 3, 3) of the frame in the world (torso, sole)."""
     one = _one_matrix(R)
     if one is not None:  # one matrix (several a period): the same in Python floats
         (_, _, r02), (_, _, r12), (_, _, r22) = one
-        return math.atan2(math.hypot(r02, r12), r22)
+        return tilt_rad_of_z_axis(r02, r12, r22)
     R = np.asarray(R, dtype=np.float64)
     return np.arctan2(np.hypot(R[..., 0, 2], R[..., 1, 2]), R[..., 2, 2])
 

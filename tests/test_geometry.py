@@ -243,6 +243,8 @@ def test_tilt_is_the_angle_of_the_body_z_axis(rotations):
     expected = np.arctan2(np.linalg.norm(np.cross(z_body, [0.0, 0.0, 1.0]), axis=1),
                           z_body[:, 2])
     assert np.abs(g.tilt_rad_of_matrix(rotations) - expected).max() < TOL
+    assert np.abs([g.tilt_rad_of_z_axis(*R[:, 2].tolist()) for R in rotations]
+                  - expected).max() < TOL
     q = g.matrix_to_quat_wxyz(rotations)
     assert np.abs(g.tilt_rad_of_quat_wxyz(q) - expected).max() < TOL
     assert np.abs(g.tilt_rad_of_quat_wxyz(2.5 * q) - expected).max() < TOL
