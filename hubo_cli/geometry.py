@@ -1,4 +1,5 @@
-"""Rotations, tilt and the minimum-jerk profile: the one home of the geometry hubo-cli shares.
+"""Rotations, tilt, a pose laid flat and the minimum-jerk profile: the one home of the geometry
+hubo-cli shares.
 
 Conventions:
     Quaternions: the function names say the order. ``wxyz`` (scalar first) is the project's
@@ -420,14 +421,32 @@ def rotation_exp(v) -> np.ndarray:
                      [c * k0 * k2 - s * k1, c * k1 * k2 + s * k0, 1.0 - c * (k0 * k0 + k1 * k1)]])
 
 
+# ------------------------------------------------------------------------------- poses
+def pose_laid_flat(T_world_frame: np.ndarray, z_m: float = 0.0) -> np.ndarray:
+    """A frame's pose (4x4, in the world) laid flat on a floor at height ``z_m`` (world):
+    the same x, y and heading (the turn of its x axis about the world's vertical,
+    ``atan2(T[1, 0], T[0, 0])``), its z axis the world's (a sole or the torso over the floor)."""
+    T = T_world_frame
+    heading = math.atan2(T[1, 0], T[0, 0])
+    c, s = math.cos(heading), math.sin(heading)
+    return np.array([[c, -s, 0.0, T[0, 3]], [s, c, 0.0, T[1, 3]], [0.0, 0.0, 1.0, z_m],
+                     [0.0, 0.0, 0.0, 1.0]])
+
+
 # ------------------------------------------------------------------------------- tilt
+def tilt_rad_of_z_axis(x: float, y: float, z: float) -> float:
+    """Angle (rad, [0, pi]) between a frame's z axis, given by its world components (the third
+    column of the frame's rotation in the world), and the world's z axis."""
+    return math.atan2(math.hypot(x, y), z)
+
+
 def tilt_rad_of_matrix(R):
     """Angle (rad, [0, pi]) between a frame's z axis and the world's z axis, for rotation
     matrices (..., 3, 3) of the frame in the world (torso, sole)."""
     one = _one_matrix(R)
     if one is not None:  # one matrix (several a period): the same in Python floats
         (_, _, r02), (_, _, r12), (_, _, r22) = one
-        return math.atan2(math.hypot(r02, r12), r22)
+        return tilt_rad_of_z_axis(r02, r12, r22)
     R = np.asarray(R, dtype=np.float64)
     return np.arctan2(np.hypot(R[..., 0, 2], R[..., 1, 2]), R[..., 2, 2])
 

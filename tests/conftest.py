@@ -8,11 +8,26 @@ import numpy as np
 import pytest
 
 from hubo_cli.model import load_model
+from hubo_cli.walking.params import walking_params
 
 
 @pytest.fixture(scope="session")
 def model():
     return load_model()
+
+
+@pytest.fixture(scope="module")
+def walking_model():
+    """The as-built model with the walking limit set. Module-scoped, as the walking test
+    modules had it: the tests using it form their module's group (see below)."""
+    return load_model(limits="walking")
+
+
+@pytest.fixture(scope="module")
+def params(walking_model):
+    """The walking parameters (normal gait) of :func:`walking_model` (a module may name its
+    own ``params``, as the toe-heel tests do)."""
+    return walking_params(walking_model)
 
 
 @pytest.fixture

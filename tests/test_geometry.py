@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import warnings
 
 import numpy as np
@@ -242,6 +243,8 @@ def test_tilt_is_the_angle_of_the_body_z_axis(rotations):
     expected = np.arctan2(np.linalg.norm(np.cross(z_body, [0.0, 0.0, 1.0]), axis=1),
                           z_body[:, 2])
     assert np.abs(g.tilt_rad_of_matrix(rotations) - expected).max() < TOL
+    assert np.abs([g.tilt_rad_of_z_axis(*R[:, 2].tolist()) for R in rotations]
+                  - expected).max() < TOL
     q = g.matrix_to_quat_wxyz(rotations)
     assert np.abs(g.tilt_rad_of_quat_wxyz(q) - expected).max() < TOL
     assert np.abs(g.tilt_rad_of_quat_wxyz(2.5 * q) - expected).max() < TOL
@@ -254,6 +257,32 @@ def test_tilt_of_known_rotations():
     assert abs(g.tilt_rad_of_quat_wxyz(g.rpy_to_quat_wxyz(0.3, 0.0, -1.2)) - 0.3) < TOL
     # yaw does not tilt
     assert g.tilt_rad_of_quat_wxyz([np.cos(0.4), 0.0, 0.0, np.sin(0.4)]) == 0.0
+
+
+# ------------------------------------------------------------------------------- poses
+def test_a_pose_laid_flat_keeps_its_place_and_heading(rotations):
+    """Laid flat at a height, a pose keeps its x, y and heading (the turn of its x axis about
+    the vertical) and stands upright: to the bit, the walking pattern's flat sole of that
+    (x, y, z, yaw) row. A frame whose x axis is exactly vertical has no heading: it is laid
+    heading along the world's x (or against it)."""
+    from hubo_cli.walking.body import pose_of_row
+
+    rng = np.random.default_rng(7)
+    for R, xyz, z_m in zip(rotations, rng.uniform(-5.0, 5.0, (len(rotations), 3)),
+                           rng.uniform(-0.1, 1.0, len(rotations)), strict=True):
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = R, xyz
+        flat = g.pose_laid_flat(T, z_m)
+        heading = math.atan2(R[1, 0], R[0, 0])  # (numpy's arctan2 may differ in the last bit)
+        assert np.array_equal(flat, pose_of_row(np.array([xyz[0], xyz[1], z_m, heading])))
+        assert np.array_equal(flat[:, 2:], [[0.0, xyz[0]], [0.0, xyz[1]], [1.0, z_m], [0.0, 1.0]])
+        assert np.abs(flat[:3, :3].T @ flat[:3, :3] - np.eye(3)).max() < TOL
+        if np.hypot(R[0, 0], R[1, 0]) > 1e-6:  # the x axis turned as the frame's
+            assert flat[0, 0] * R[1, 0] - flat[1, 0] * R[0, 0] == pytest.approx(0.0, abs=TOL)
+            assert flat[:2, 0] @ R[:2, 0] > 0.0
+        elif R[0, 0] == R[1, 0] == 0.0:
+            assert abs(flat[1, 0]) < 1e-15  # (sin(pi) after a -0.0 in x)
+    assert np.array_equal(g.pose_laid_flat(np.eye(4)), np.eye(4))  # z_m defaults to the floor
 
 
 # ------------------------------------------------------------------------------- minimum jerk

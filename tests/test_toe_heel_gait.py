@@ -9,24 +9,12 @@ import pytest
 
 from hubo_cli.control.lip_feedback import LipFeedback
 from hubo_cli.control.wrench_distribution import WrenchDistributor
-from hubo_cli.model import load_model
 from hubo_cli.walking.body import WalkingBody, pose_of_row, walking_posture
 from hubo_cli.walking.footsteps import Footstep, Stance, plan_footsteps
 from hubo_cli.walking.gait import make_gait
-from hubo_cli.walking.params import walking_params
 from hubo_cli.walking.stabilizer import LipStabilizer, SoleDamper, StabilizerGains
 from hubo_cli.walking.target import planned_contacts
 from hubo_cli.walking.toe_heel import ToeHeelParams, sole_edges_m
-
-
-@pytest.fixture(scope="module")
-def walking_model():
-    return load_model(limits="walking")
-
-
-@pytest.fixture(scope="module")
-def params(walking_model):
-    return walking_params(walking_model)
 
 
 @pytest.fixture(scope="module", params=[(1.0, 0.0, 0.0), (0.4, 0.1, 0.3), (-0.2, 0.0, 0.0)])

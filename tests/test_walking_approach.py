@@ -21,17 +21,11 @@ from hubo_cli.walking.approach import (
 from hubo_cli.walking.body import walking_posture
 from hubo_cli.walking.capture_phases import MAX_STEP_M, MAX_WIDTH_M, landing, pendulum
 from hubo_cli.walking.footsteps import Footstep, Stance, closing_steps, plan_footsteps
-from hubo_cli.walking.params import walking_params
 
 
 @pytest.fixture(scope="module")
 def model():
     return load_model()
-
-
-@pytest.fixture(scope="module")
-def params():
-    return walking_params(load_model(limits="walking"))
 
 
 def hold(model):

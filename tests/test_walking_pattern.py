@@ -18,16 +18,6 @@ from hubo_cli.walking.preview import com_from_zmp, preview_gains
 GOALS = [(1.0, 0.0, 0.0), (0.0, 0.3, 0.0), (0.5, 0.2, 0.5), (-0.2, -0.1, -0.4)]
 
 
-@pytest.fixture(scope="module")
-def walking_model():
-    return load_model(limits="walking")
-
-
-@pytest.fixture(scope="module")
-def params(walking_model):
-    return walking_params(walking_model)
-
-
 def start_feet(params):
     w = params.step_width_m
     return Footstep("right", 0.0, -w / 2, 0.0), Footstep("left", 0.0, w / 2, 0.0)
@@ -285,7 +275,6 @@ def test_the_gaits_are_the_robot_files(walking_model, params, tmp_path):
     """``normal`` is the [walking] table, ``fast`` its sub-table's changes; an unknown gait is
     bad input, a sub-table naming a field that is no walking parameter a bad robot file."""
     from hubo_cli.errors import InputError
-    from hubo_cli.model import load_model
     from hubo_cli.walking.params import gait_names
 
     assert gait_names(walking_model) == ("normal", "fast")

@@ -2,36 +2,23 @@
 
 import numpy as np
 import pytest
+from walking_support import standing_walk, wrench_at
 
-from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError
-from hubo_cli.estimation.keys import (
-    CAPTURE_POINT_WORLD,
-    COM_WORLD,
-    CONTACT,
-    T_WORLD_SOLES,
-    T_WORLD_TORSO,
-    WRENCHES,
-    ZMP_WORLD,
-)
+from hubo_cli.estimation.keys import CONTACT, T_WORLD_TORSO
 from hubo_cli.geometry import quat_wxyz_to_matrix
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import load_model
-from hubo_cli.state import FT_SENSORS, RobotState
+from hubo_cli.state import RobotState
 from hubo_cli.walking.body import WalkingBody, multibody_zmp, walking_posture
 from hubo_cli.walking.footsteps import Footstep, Stance, plan_footsteps
 from hubo_cli.walking.gait import make_gait
 from hubo_cli.walking.params import walking_params
 from hubo_cli.walking.stabilizer import SoleDamper, StabilizerGains, TorsoOffset, Touchdown
-from hubo_cli.walking.target import WalkTarget, rigid_inverse, zmp_outside_m
+from hubo_cli.walking.target import rigid_inverse, zmp_outside_m
 
 DT = 0.005
 SOLE = (-0.09, 0.13, -0.065, 0.065)  # the sole box in its own frame (m)
-
-
-def wrench_at(px, py, fz=380.0):
-    """The ground's wrench on a sole whose centre of pressure is (px, py) in the sole frame."""
-    return np.array([0.0, 0.0, fz, fz * py, -fz * px, 0.0])
 
 
 def test_sole_turns_away_from_the_edge_it_presses_and_returns():
@@ -147,36 +134,6 @@ def test_one_sole_in_contact_measures_against_its_own_outline():
     assert zmp_outside_m(np.array([0.0, 0.12]), poses, CORNERS, (True, False)) > 0.05
 
 
-def standing_store(model, q_rad, T_world_neck, right_yaw_rad=0.0, pitch_rad=0.0,
-                   fz_n=190.0) -> Store:
-    """The estimate of the walking posture standing still: the soles where the legs put them
-    (the right one turned by ``right_yaw_rad`` about its vertical), both in contact carrying
-    ``fz_n`` at their middles, and the CoM of the torso pitched by ``pitch_rad`` about the
-    soles (as the IMU would read it)."""
-    store = Store()
-    soles = []
-    for name in ("right-leg", "left-leg"):
-        soles.append(T_world_neck @ Limb(model, name).fk(q_rad[model.limb_slice(name)]))
-    c, s = np.cos(right_yaw_rad), np.sin(right_yaw_rad)
-    turn = np.eye(4)
-    turn[:2, :2] = ((c, -s), (s, c))
-    soles[0] = soles[0] @ turn
-    body = WalkingBody(model, q_rad, T_world_neck)
-    com_in_neck = body.com_in_neck(q_rad)
-    R = quat_wxyz_to_matrix(np.array([np.cos(pitch_rad / 2), 0.0, np.sin(pitch_rad / 2), 0.0]))
-    ground = np.mean([T[:3, 3] for T in soles], axis=0)
-    store[T_WORLD_SOLES] = np.array(soles)
-    store[T_WORLD_TORSO] = T_world_neck
-    store[CONTACT] = (True, True)
-    store[COM_WORLD] = ground + R @ (T_world_neck[:3, :3] @ com_in_neck + T_world_neck[:3, 3]
-                                     - ground)
-    store[WRENCHES] = {name: np.zeros(6) for name in FT_SENSORS} | {
-        "right-ankle": wrench_at(0.0, 0.0, fz_n), "left-ankle": wrench_at(0.0, 0.0, fz_n)}
-    store[ZMP_WORLD] = ground[:2]
-    store[CAPTURE_POINT_WORLD] = store[COM_WORLD][:2].copy()  # standing still
-    return store
-
-
 @pytest.mark.physical
 def test_torso_offset_reaches_the_legs_with_the_hip_yaw_at_its_limit():
     """Standing with the feet ahead, each hip yaw sits at its joint limit (0): with the feet
@@ -186,14 +143,8 @@ def test_torso_offset_reaches_the_legs_with_the_hip_yaw_at_its_limit():
     forward puts the measured CoM ahead of the pattern's; the offset moves the torso back, so
     both soles move forward in its frame by the offset (and sideways by its part from the
     ZMP's feedback). Before, the offset grew while the legs never followed it."""
-    model = load_model("as-built", "walking")
-    params = walking_params(model)
-    q_start, T_world_neck = walking_posture(model, params.step_width_m, params.crouch_m)
-    target = WalkTarget(model, params, (0.3, 0.0, 0.0), q_start, T_world_neck, corrections=0,
-                        stabilizer=StabilizerGains())
-    store = standing_store(model, q_start, T_world_neck, right_yaw_rad=1e-4,
-                           pitch_rad=np.radians(1.0))
-    target.attach(None, [], store)
+    model, q_start, _, target, _ = standing_walk((0.3, 0.0, 0.0), StabilizerGains(),
+                                                 right_yaw_rad=1e-4, pitch_rad=np.radians(1.0))
     for k in range(60):  # 0.3 s of the start's double support, the robot on the pattern
         state = RobotState(time_s=k * DT, q_rad=q_start.copy(), dq_rad_s=np.zeros_like(q_start))
         q, _ = target(k * DT, state)
@@ -223,13 +174,8 @@ def test_a_swing_leg_is_pitched_against_the_torsos_pitch_and_holds_on_the_floor(
         LEVEL_RETURN_RAD_S,
     )
 
-    model = load_model("as-built", "walking")
-    params = walking_params(model)
-    q_start, T_world_neck = walking_posture(model, params.step_width_m, params.crouch_m)
-    target = WalkTarget(model, params, (0.3, 0.0, 0.0), q_start, T_world_neck, corrections=0,
-                        stabilizer=StabilizerGains())
-    store = standing_store(model, q_start, T_world_neck)
-    target.attach(None, [], store)
+    model, q_start, T_world_neck, target, store = standing_walk((0.3, 0.0, 0.0),
+                                                                StabilizerGains())
     target(0.0, RobotState(time_s=0.0, q_rad=q_start.copy(), dq_rad_s=np.zeros_like(q_start)))
     names = list(model.joint_names)
     right, left = names.index("RHP"), names.index("LHP")

@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 import pytest
+from walking_support import standing_walk
 
 from hubo_cli.control.estop import MAX_FINISH_S, MODE_CODE, EmergencyStopper
 from hubo_cli.control.keys import STOP_MODE
@@ -466,17 +467,10 @@ def _offline_walk(goal_m, periods, stop_k=None, cp_offset_m=(0.0, 0.0), offset_k
         CONTACT,
         T_WORLD_SOLES,
     )
-    from hubo_cli.walking.body import poses_of_rows, walking_posture
-    from hubo_cli.walking.target import WalkTarget
-    from tests.test_walking_stabilizer import standing_store
+    from hubo_cli.walking.body import poses_of_rows
 
-    walking = load_model("as-built", "walking")
-    params = walking_params(walking)
-    q0, T0 = walking_posture(walking, params.step_width_m, params.crouch_m)
-    target = WalkTarget(walking, params, goal_m, q0, T0, corrections=0, stabilizer=None)
-    store = standing_store(walking, q0, T0)
+    _, q0, _, target, store = standing_walk(goal_m, None)
     store[COM_VELOCITY_WORLD] = np.zeros(3)
-    target.attach(None, [], store)
     state = RobotState(0.0, q0, np.zeros_like(q0))
     commands, installs = [], []
     for k in range(periods):

@@ -86,7 +86,7 @@ from hubo_cli.estimation.keys import (
 )
 from hubo_cli.estimation.observer import Observer
 from hubo_cli.estimation.wrenches import joint_vector
-from hubo_cli.geometry import quat_to_matrix_into
+from hubo_cli.geometry import pose_laid_flat, quat_to_matrix_into
 from hubo_cli.kinematics.dh import chain_fk
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import LEGS, RobotModel
@@ -274,16 +274,6 @@ def _turn_about(point: np.ndarray, angle_rad: float) -> np.ndarray:
     return turn
 
 
-def _flat(T: np.ndarray) -> np.ndarray:
-    """The pose laid flat on the floor: same x, y and heading, z = 0, upright."""
-    heading = math.atan2(T[1, 0], T[0, 0])
-    flat = np.eye(4)
-    flat[:2, :2] = [[math.cos(heading), -math.sin(heading)],
-                    [math.sin(heading), math.cos(heading)]]
-    flat[:2, 3] = T[:2, 3]
-    return flat
-
-
 class FloatingBase(Observer):
     """Writes ``T_WORLD_TORSO`` and ``T_WORLD_SOLES`` (see the module docstring).
 
@@ -371,7 +361,7 @@ class FloatingBase(Observer):
         T_start[:3, :3] = np.array([[math.cos(heading), math.sin(heading), 0.0],
                                     [-math.sin(heading), math.cos(heading), 0.0],
                                     [0.0, 0.0, 1.0]]) @ R
-        self._T_world_anchor = _flat(T_start @ self._T_torso_soles[self.anchor])
+        self._T_world_anchor = pose_laid_flat(T_start @ self._T_torso_soles[self.anchor])
         self._place()
         self._write(store)
 

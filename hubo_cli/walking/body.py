@@ -54,12 +54,6 @@ def pose_of_row(row: np.ndarray, pitch_rad: float = 0.0) -> np.ndarray:
                      [0.0, 0.0, 0.0, 1.0]])
 
 
-def pose_laid_flat(T_world_sole: np.ndarray, z_m: float) -> np.ndarray:
-    """:func:`pose_of_row` of a sole's pose laid flat at height ``z_m``: its x, y and heading."""
-    T = T_world_sole
-    return pose_of_row(np.array([T[0, 3], T[1, 3], z_m, math.atan2(T[1, 0], T[0, 0])]))
-
-
 def poses_of_rows(rows: np.ndarray, pitch_rad: np.ndarray | None = None) -> np.ndarray:
     """:func:`pose_of_row` of every row of ``rows`` (n x 4) at once: (n, 4, 4), each turned by
     its ``pitch_rad`` (n,; None: flat)."""

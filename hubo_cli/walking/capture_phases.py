@@ -30,9 +30,10 @@ from hubo_cli.estimation.keys import (
     T_WORLD_SOLES,
     T_WORLD_TORSO,
 )
+from hubo_cli.geometry import pose_laid_flat
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.state import GRAVITY_M_S2, RobotState
-from hubo_cli.walking.body import SIDE_LEG, WalkingBody, pose_laid_flat, pose_of_row
+from hubo_cli.walking.body import SIDE_LEG, WalkingBody, pose_of_row
 from hubo_cli.walking.footsteps import SIDE_SIGN, Footstep, stance_of, wrap_angle
 from hubo_cli.walking.gait import SWING_MOVE, Gait, make_gait, smoothstep5
 from hubo_cli.walking.preview import CoMPath
@@ -319,6 +320,15 @@ class PatternPhase(CapturePhase):
     """A phase that follows the pattern planned at touch-down (the catch and the return);
     the monitor watches the pattern's support, where the estimate has the feet now."""
 
+    def follow(self, rest: Gait) -> None:
+        """The stepper plays ``rest`` from now: with its support (:func:`planned_support`)
+        and the inverse of the landed foot's planned sole at its start, constant while it
+        plays (:meth:`planned_soles` moves the plan by it every period)."""
+        s = self.stepper
+        s.rest = rest
+        s.rest_support = planned_support(rest)
+        s.T_landed_plan_world = np.linalg.inv(s.rest_support[0][SIDES.index(s.swing)])
+
     def planned_soles(self) -> np.ndarray:
         """The pattern's support this period, in the estimate's frame of now: the estimate's
         world drifts under a bouncing, sliding foot (the floating base hands its anchor from
@@ -333,7 +343,7 @@ class PatternPhase(CapturePhase):
         z = float(plan[0, 2, 3])
         flat = [pose_laid_flat(T, z) for T in now]
         anchor = SIDES.index(s.swing)  # the landed foot
-        moved = flat[anchor] @ np.linalg.inv(s.rest_support[0][anchor])
+        moved = flat[anchor] @ s.T_landed_plan_world
         for i, side in enumerate(SIDES):
             rows = s.rest.feet[side]
             kept = s.rest.support[k, i] and np.array_equal(rows[k], rows[0])
@@ -406,14 +416,13 @@ class Catch(PatternPhase):
                         s.height_m, s.sole_z_m, forward, com_start_m=c[-1])
         rows = {side: np.vstack([np.tile(_row(after[side], s.sole_z_m), (n, 1)),
                                  ret.feet[side]]) for side in ("right", "left")}
-        s.rest = Gait(period, (back,), s.height_m, np.vstack([zmp, ret.zmp_ref_m]),
-                      CoMPath(np.vstack([c, ret.com.com_m]),
-                              np.vstack([v, ret.com.com_velocity_m_s]),
-                              np.vstack([a, ret.com.com_acceleration_m_s2]),
-                              np.vstack([zmp, ret.com.zmp_m])),
-                      rows, np.vstack([np.ones((n, 2), dtype=bool), ret.support]),
-                      np.concatenate([np.full(n, -1), ret.step_index]))
-        s.rest_support = planned_support(s.rest)
+        self.follow(Gait(period, (back,), s.height_m, np.vstack([zmp, ret.zmp_ref_m]),
+                         CoMPath(np.vstack([c, ret.com.com_m]),
+                                 np.vstack([v, ret.com.com_velocity_m_s]),
+                                 np.vstack([a, ret.com.com_acceleration_m_s2]),
+                                 np.vstack([zmp, ret.com.zmp_m])),
+                         rows, np.vstack([np.ones((n, 2), dtype=bool), ret.support]),
+                         np.concatenate([np.full(n, -1), ret.step_index])))
         s.landed_k = landed_period(s.rest)
         s.n_catch = n
         s.steps, s.return_step = [land], back  # the return footstep once it starts
@@ -429,8 +438,8 @@ class Catch(PatternPhase):
                 s.stance_side: np.tile(_row(stance, s.sole_z_m), (n, 1))}
         c = np.tile(com_m, (n, 1))
         zmp = np.tile(sole_middle, (n, 1))
-        s.rest = Gait(period, (), s.height_m, zmp, CoMPath(c, 0 * c, 0 * c, zmp), rows,
-                      np.ones((n, 2), dtype=bool), np.full(n, -1))
+        self.follow(Gait(period, (), s.height_m, zmp, CoMPath(c, 0 * c, 0 * c, zmp), rows,
+                         np.ones((n, 2), dtype=bool), np.full(n, -1)))
         back = np.array([stance.x_m, stance.y_m]) + s.model.feet.forward_m * s.heading
         # the landed foot ahead of the stance foot (1, a forward push) or behind it (-1)
         s.way = 1.0 if (sole_middle - back) @ s.heading >= 0.0 else -1.0
@@ -440,7 +449,6 @@ class Catch(PatternPhase):
                                                      for foot in (land, stance)}}
         s.track["rest"] = s.in_stance(xi_m)
         s.reach_m = None  # the back leg's reach at touch-down (toe-off)
-        s.rest_support = planned_support(s.rest)
         s.n_upright = max(1, int(round(UPRIGHT_S / period)))
         s.n_catch = max(1, int(round(LUNGE_CATCH_S / period)))  # at least
         s.steps = [land]
@@ -497,10 +505,9 @@ class Return(PatternPhase):
         params = s.params.with_changes(single_support_s=single,
                                        double_support_s=RETURN_SHIFT_S,
                                        swing_height_m=SWING_HEIGHT_M)
-        s.rest = make_gait(measured["right"], measured["left"], [back], params, period,
-                           s.height_m, s.sole_z_m, forward,
-                           com_start_m=s.track["com"].copy())
-        s.rest_support = planned_support(s.rest)
+        self.follow(make_gait(measured["right"], measured["left"], [back], params, period,
+                              s.height_m, s.sole_z_m, forward,
+                              com_start_m=s.track["com"].copy()))
         s.landed_k = landed_period(s.rest)
         s.drop_m = s.neck_z0_m - s.body.neck_z_m
         s.reach_m = None

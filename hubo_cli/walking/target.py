@@ -61,6 +61,7 @@ from hubo_cli.estimation.keys import (
     ZMP_WORLD,
 )
 from hubo_cli.falls import has_fallen
+from hubo_cli.geometry import tilt_rad_of_z_axis
 from hubo_cli.kinematics.choice import CAPPED, EXACT, solve_limb
 from hubo_cli.kinematics.dh import JIT, TRUE
 from hubo_cli.model import RobotModel
@@ -846,7 +847,7 @@ class WalkTarget(Target):
         k = min(self.k, gait.n - 1)
         self.k += 1
         (_, _, r02, _), (_, _, r12, _), (_, _, r22, torso_z) = store[T_WORLD_TORSO][:3].tolist()
-        tilt_deg = math.degrees(math.atan2(math.hypot(r02, r12), r22))  # tilt_rad_of_matrix
+        tilt_deg = math.degrees(tilt_rad_of_z_axis(r02, r12, r22))
         if self.torso_z0_m is None:
             self.torso_z0_m = torso_z
         if has_fallen(tilt_deg, self.torso_z0_m - torso_z):
