@@ -501,6 +501,20 @@ def test_the_largest_joint_difference_matches_numpy():
         assert max_abs_difference(x, y) == pytest.approx(expected, rel=0, abs=0, nan_ok=True)
 
 
+def test_the_rooms_solve_is_numpys_solve_to_the_last_bit():
+    """The room solves its damped 6x6 systems with numpy's own gufunc (or, where a numpy moves
+    that private function, with np.linalg.solve itself): both give the same bits, so either
+    serves the room's last-bit test below."""
+    from hubo_cli.teleop import room
+
+    rng = np.random.default_rng(34)
+    for _ in range(200):
+        J = rng.normal(size=(6, 6))
+        H = J.T @ J + 0.05**2 * np.eye(6)
+        b = rng.normal(size=6)
+        assert np.array_equal(room._solve(H, b), np.linalg.solve(H, b))
+
+
 def test_the_rooms_step_kernels_match_numpy():
     """The clear search's compiled parts against the numpy lines they replace: its weighted
     error to the last bit (it becomes the step) and its square within a rounding (it only

@@ -46,10 +46,16 @@ from hubo_cli.motion.limits import all_finite
 from hubo_cli.teleop.room_kernels import clipped_step, goal_within, weighted_error
 from hubo_cli.teleop.target_kernels import max_abs_difference
 
-# np.linalg.solve's own gufunc for one right-hand side (the same LAPACK call) without its
-# wrappers (type checks and an error state: H below is damped, positive definite, never
-# singular); numpy's private module, so np.linalg.solve itself where a numpy moves it
-_solve = getattr(getattr(np.linalg, "_umath_linalg", None), "solve1", None) or np.linalg.solve
+try:
+    from numpy.linalg._umath_linalg import solve1 as _solve1
+except ImportError:  # numpy's private module: a numpy that moves it gets np.linalg.solve
+    _solve = np.linalg.solve
+else:
+    def _solve(H: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """np.linalg.solve's own gufunc for one right-hand side (the same LAPACK call)
+        without its wrappers (type checks and an error state: H below is damped, positive
+        definite, never singular)."""
+        return _solve1(H, b, signature="dd->d")
 
 ROOM_M = TOLERANCE_M + 0.005  # the detector's band and 5 mm for the command's braking look-ahead
 NEWTON_STEPS = 3
@@ -252,7 +258,7 @@ class CollisionRoom:
             # bits, and the ties the search breaks on them, as they were
             Jw = J * _W_ROWS
             H = Jw.T @ Jw + _DAMPED
-            dq = _solve(H, Jw.T @ e, signature="dd->d")
+            dq = _solve(H, Jw.T @ e)
             grad = self._gradient(q, d, pair, index)
             need = self.room_m + AIM_M - d
             if all_finite(grad):
@@ -260,7 +266,7 @@ class CollisionRoom:
                 if along < need:
                     # the step of least weighted error whose linearised clearance is the room:
                     # it slides along the body, turning the hand where that costs the least
-                    h_grad = _solve(H, grad, signature="dd->d")
+                    h_grad = _solve(H, grad)
                     curvature = grad @ h_grad
                     if curvature > 1e-12:
                         dq += (need - along) / curvature * h_grad
