@@ -156,26 +156,31 @@ def test_ctrl_c_ends_in_a_smooth_stop(model, tmp_path):
     assert log.status[-1] == Status.SLOWING
 
 
-def test_ctrl_c_after_a_periods_record_counts_that_period(model, tmp_path):
+@pytest.mark.parametrize("interrupts_s", [(0.75,), (0.75, 0.78)], ids=["once", "twice"])
+def test_ctrl_c_after_a_periods_record_counts_that_period(model, tmp_path, interrupts_s):
     """SIGTERM / Ctrl-C arrive between any two bytecodes: one that lands after a period's record
-    was written (here in the viewer's call) counts that period, so the summary's ``periods``
-    is the log's length (main: one short, seen once in the suite on a loaded machine)."""
+    was written (here in the viewer's call) counts that period, in the run and in its smooth
+    stop (a second Ctrl-C), so the summary's ``periods`` is the log's length (main: one short,
+    seen once in the suite on a loaded machine) and ``stop_periods`` counts the stop's."""
     robot = ideal(model)
     q0 = robot.read().q_rad.copy()
 
     class Interrupting:
-        raised = False
+        left = list(interrupts_s)
 
         def period(self, t_s, status, flags, state, extras):
-            if t_s >= 0.75 and not self.raised:
-                self.raised = True
+            if self.left and t_s >= self.left[0]:
+                self.left.pop(0)
                 raise KeyboardInterrupt
 
     moving = _moving_target(q0, amplitude=0.5, period_s=3.0)
     result = ControlLoop(robot, build_pipeline(model), moving, log_path=tmp_path,
                          observer=Interrupting()).run(5.0)
     assert result.ended == "interrupted", result.error
-    assert len(load_log(tmp_path)) == result.periods
+    log = load_log(tmp_path)
+    assert len(log) == result.periods
+    stopping = np.array(["smooth-stop" in f for f in log.flags])
+    assert result.stop_periods == stopping.sum() > 0
 
 
 class Exploding(Module):

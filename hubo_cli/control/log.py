@@ -380,6 +380,8 @@ class PeriodLog:
         ``log.rows`` and ``log.flags``; safe to call twice."""
         if self._map is None:
             return
+        # the count again: an interrupt may have landed between a record and its count
+        self._map[_COUNT_AT:_HEAD_AT] = self.rows.to_bytes(8, "little")
         self._map.close()
         self._map = None
         os.close(self._flags_fd)

@@ -309,7 +309,6 @@ class ControlLoop:
             self.log = PeriodLog(self.log_path, driver.joint_names, self._extra_columns(),
                                  model=driver.model)
         ended, error, exc = "finished", "", None
-        stop_periods = 0
         t_s = 0.0
         try:
             state = driver.read()
@@ -392,12 +391,13 @@ class ControlLoop:
                     break
         except KeyboardInterrupt as err:
             ended, error, exc = "interrupted", f"interrupted ({interrupt_cause(err)})", err
-            if self.log is not None and self.log.rows == self.period + 1:
-                self.period += 1  # it came after the period's record: that period was run
+            self._count_a_logged_period()
+        stopping_from = self.period
         try:
             if ended not in ("driver-error", "device"):
-                stop_periods = self._smooth_stop()
+                self._smooth_stop()
         except KeyboardInterrupt:
+            self._count_a_logged_period()
             error = (error + "; " if error else "") + "second Ctrl-C: stopped without the ramp"
             if ended in ("finished", "done"):
                 ended = "interrupted"
@@ -412,7 +412,7 @@ class ControlLoop:
         self.module_status = self._published()
         return LoopResult(
             ended=ended, periods=self.period, t_end_s=self.period * self.dt_s, error=error,
-            stop_periods=stop_periods, status_counts=dict(self._statuses),
+            stop_periods=self.period - stopping_from, status_counts=dict(self._statuses),
             flag_counts=dict(self._flags),
             safety_events=[(m.name, e.t_s, e.kind, e.sources) for m in self.modules
                           for e in m.events],
@@ -420,19 +420,26 @@ class ControlLoop:
             final_command_rad=self._cmd.copy(), exception=exc,
             module_status=self.module_status)
 
-    def _smooth_stop(self) -> int:
-        """Brake the command to rest within the limits, sending every period. Returns periods."""
+    def _count_a_logged_period(self) -> None:
+        """An interrupt (Ctrl-C, SIGTERM) lands between any two bytecodes: one that came after
+        a period's record was written and before the period was counted counts it, so that
+        ``periods`` is the log's length."""
+        if self.log is not None and self.log.rows == self.period + 1:
+            self.period += 1
+
+    def _smooth_stop(self) -> None:
+        """Brake the command to rest within the limits, sending every period (each counted in
+        ``self.period``)."""
         dt = self.dt_s
         q1, q2, q3 = self._cmd, self._cmd_prev, self._cmd_prev2
         v = (q1 - q2) / dt
         a = (q1 - 2 * q2 + q3) / dt**2
         if np.max(np.abs(v)) < 1e-9 and np.max(np.abs(a)) < 1e-9:
-            return 0
+            return
         tracker = JointTracker(self.limits, dt)
         tracker.reset(q1, v + 0.5 * a * dt, a)
         limiter = SoftErrorLimiter(self.driver.model, dt, error_limit_rad=0.0, limits=self.limits)
         limiter.seed(q1, q2)
-        periods = 0
         for _ in range(int(MAX_STOP_S / dt)):
             late_s = self._pace()
             started = self.clock()
@@ -448,10 +455,8 @@ class ControlLoop:
             self._write(self.period * dt, flags, compute_s, late_s, self._nan, applied, state,
                         None)
             self.period += 1
-            periods += 1
             if tracker.at_rest and np.max(np.abs(limiter.velocity_rad_s)) < 1e-9:
                 break
-        return periods
 
 
 def status_name(code: int) -> str:
