@@ -2,6 +2,7 @@
 
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -9,6 +10,8 @@ import pytest
 
 from hubo_cli.model import load_model
 from hubo_cli.walking.params import walking_params
+
+WARM_DEADLINE_S = 300  # a fresh checkout's compile takes 40-150 s (under load)
 
 
 @pytest.fixture(scope="session")
@@ -83,18 +86,34 @@ def pytest_collection_modifyitems(config, items):
 
 
 def pytest_configure(config):
-    """Before pytest-xdist starts two or more workers: fill numba's cache with
+    """Before pytest-xdist starts two or more workers to run tests: fill numba's cache with
     ``tests/warm_kernels.py``'s two workloads, run at once (its docstring says why). In a fresh
     checkout this compiles each kernel once instead of once per worker; with a warm cache it
-    costs the workloads' few seconds. A workload that fails changes nothing but the time: the
-    workers then compile what they need, and the tests report any fault."""
-    if hasattr(config, "workerinput") or (getattr(config.option, "numprocesses", 0) or 0) < 2:
+    costs the workloads' few seconds. A workload that fails costs only time (the workers then
+    compile what they need, and the tests report any fault); it is said in one warning line."""
+    option = config.option
+    if (hasattr(config, "workerinput") or (getattr(option, "numprocesses", 0) or 0) < 2
+            or option.help or option.collectonly or option.showfixtures):
         return
     script = Path(__file__).with_name("warm_kernels.py")
-    warming = [subprocess.Popen([sys.executable, str(script), part], stdout=subprocess.DEVNULL,
-                                stderr=subprocess.DEVNULL) for part in ("arms", "legs")]
-    for process in warming:
-        try:
-            process.wait(timeout=600)
-        except subprocess.TimeoutExpired:
-            process.kill()
+    warming = {part: subprocess.Popen([sys.executable, str(script), part],
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+               for part in ("arms", "legs")}
+    deadline = time.monotonic() + WARM_DEADLINE_S
+    try:
+        for part, process in warming.items():
+            try:
+                _, err = process.communicate(timeout=max(deadline - time.monotonic(), 0.1))
+            except subprocess.TimeoutExpired:
+                config.issue_config_time_warning(pytest.PytestWarning(
+                    f"warm_kernels.py {part}: not done in {WARM_DEADLINE_S} s"), stacklevel=2)
+                continue
+            if process.returncode:
+                last = (err.decode(errors="replace").strip().splitlines() or ["?"])[-1]
+                config.issue_config_time_warning(pytest.PytestWarning(
+                    f"warm_kernels.py {part} failed: {last}"), stacklevel=2)
+    finally:
+        for process in warming.values():
+            if process.poll() is None:
+                process.kill()
+                process.wait()
