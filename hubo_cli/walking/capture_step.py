@@ -197,6 +197,10 @@ class CaptureStepper(Target):
         self.q_standing = self.q_stand  # the standing target's posture this period
         self.body: WalkingBody | None = None
         self.rest: Gait | None = None  # the catch and the return step, planned at touch-down
+        # (PatternPhase.follow) its support per period ((n, 2, 4, 4) world poses, right and
+        # left: target.planned_support) and the inverse of the landed sole's planned pose
+        self.rest_support: np.ndarray | None = None
+        self.T_landed_plan_world: np.ndarray | None = None
         self.k = 0  # the pattern's period
         self.q_last: np.ndarray | None = None  # the pattern's last joints
         self.steps: list[Footstep] = []
