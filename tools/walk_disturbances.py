@@ -43,8 +43,13 @@ def seeds_of(text: str) -> list[int]:
 
 def phase_at(log, at_s: float) -> str:
     """The walk's pattern at ``at_s``: its step and whether the plan had one sole or both down."""
-    k = int(np.searchsorted(np.asarray(log["t_s"], dtype=float), at_s))
-    step = int(np.asarray(log["walk.step"], dtype=float)[k])
+    t_s = np.asarray(log["t_s"], dtype=float)
+    steps = np.asarray(log["walk.step"], dtype=float)
+    ran = np.flatnonzero(np.isfinite(steps))  # the loop's closing rows have no pipeline
+    if not len(ran) or at_s > t_s[ran[-1]]:
+        return "after the walk's last period"
+    k = ran[min(int(np.searchsorted(t_s[ran], at_s)), len(ran) - 1)]
+    step = int(steps[k])
     both = all(np.asarray(log[f"planned_{side}_foot_contact_flag"], dtype=float)[k] == 1
                for side in ("right", "left"))
     return f"step {step} {'double support' if both else 'swing'}"
