@@ -18,10 +18,10 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
   late for this landing (CP_BLEND_PERIODS before it): not moved); a later re-plan replaces a
   rest being computed. A swing foot pushed onto the floor (the estimate's sole in contact and
   loaded, past TOUCH_FRACTION of its swing, TOUCH_MIN_HEIGHT_M or more above its landing in
-  the pattern) ends its swing there: the step lands where that sole stands and the timeline
-  moves on as far as the capture point is ahead of the pattern's, to the landing's row after
-  a push toward that foot (:meth:`WalkTarget._touched_early`); lifted again under the robot's
-  weight, it fell. A swing leg is pitched at its hip against the estimated
+  the pattern) ends its swing there: the step lands where that sole stands and, the capture
+  point ahead of the pattern's (a push), the timeline from the landing on plays at once, else
+  the foot stays down until the planned landing (:meth:`WalkTarget._touched_early`); lifted
+  again under the robot's weight, it fell. A swing leg is pitched at its hip against the estimated
   torso's pitch from the planned one (beyond LEVEL_DEAD_RAD), so that a foot carried by a
   body tipped by a push lands flat (:meth:`WalkTarget._level_swing`).
 * ``stopping``: entered when the soft stopper has latched (its mode, the previous period's
@@ -762,10 +762,9 @@ class WalkTarget(Target):
         of its single support, the pattern's sole still TOUCH_MIN_HEIGHT_M or more above its
         landing (lower, the stabilizer's :class:`Touchdown` holds it). The swing ends there:
         the step lands where the estimate's sole stands (seen from the stance sole, in the
-        pattern's frame), and the timeline moves on as far as the robot is ahead of it
-        (:meth:`_touch_skip`): pushed toward the swing foot, the rest of it from that landing
-        on is played from now (the double support, the next step, whose landing the capture
-        point moves as it swings); otherwise the foot stays down where it stands and the
+        pattern's frame); pushed (:meth:`_touch_skip`), the rest of the timeline from that
+        landing on is played from now (the double support, the next step, whose landing the
+        capture point moves as it swings), else the foot stays down where it stands and the
         ZMP on the stance foot until the planned landing. Returns whether it re-planned."""
         if step < 0 or support[0] == support[1]:
             return False
@@ -805,25 +804,19 @@ class WalkTarget(Target):
 
     def _touch_skip(self, k: int, remaining: int) -> int:
         """The rows of a swing ended early at period ``k`` (``remaining`` before its landing)
-        that the timeline skips: up to the row whose planned capture point lies nearest the
-        estimated one (:meth:`_in_pattern`) less CP_MARGIN_M on each axis (the error the
-        landings let be), the landing's when the nearest is the last row computed before it,
-        or the estimate is not finite. Skipping to the landing in a walk the robot follows
-        put the pattern's CoM that much time behind its ZMP reference: fast-gait feet down
-        0.13 s early (perturbed robots 8 and 12) drove the pattern's CoM at 0.8 m/s (the
-        walk's 0.25), its capture point 0.22-0.23 m from the robot's, and the landings moved
-        after it, then the stop, tipped the robot over (docs/history/walking.md)."""
-        cp = np.asarray(self._in_pattern(k, ankle_wrenches(self.store),
-                                         self.store[CAPTURE_POINT_WORLD]))
-        last = min(k + remaining, self.gait.n - 1)
-        if not np.all(np.isfinite(cp)) or last <= k:
-            return remaining
-        com = self.gait.com
-        planned = com.com_m[k:last + 1] + com.com_velocity_m_s[k:last + 1] / self._omega
-        error = cp - planned[0]  # (within CP_MARGIN_M: the robot follows its pattern)
-        ahead = planned[0] + np.sign(error) * np.maximum(np.abs(error) - CP_MARGIN_M, 0.0)
-        nearest = int(np.argmin(np.hypot(*(planned - ahead).T)))
-        return remaining if nearest == last - k else nearest
+        that the timeline skips: all of them (on to the landing's row) when the estimated
+        capture point is ahead of the pattern's by more than CP_MARGIN_M on an axis (a push,
+        or no estimate of it), none while it follows the pattern. Skipping to the landing in
+        a walk the robot follows put the pattern's CoM that much time behind its ZMP
+        reference: fast-gait feet down 0.13 s early (perturbed robots 8 and 12, the capture
+        point within 15 mm of the pattern's) drove the pattern's CoM at 0.8 m/s (the walk's
+        0.25), its capture point 0.22-0.23 m from the robot's, and the landings moved after
+        it, then the stop, tipped the robot over. Skipping only to the row whose planned
+        capture point lies nearest the estimated one let a side push's foot (seed 2 of
+        tools/walk_disturbances.py) be held with the ZMP on the stance foot: it fell
+        (docs/history/walking.md)."""
+        error = self._capture_point_error(k)
+        return 0 if np.all(np.abs(error) <= CP_MARGIN_M) else remaining
 
     def _capture_point_error(self, k: int) -> np.ndarray:
         """The estimated capture point (seen from the more loaded planned support sole
