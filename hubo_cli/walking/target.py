@@ -18,11 +18,12 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
   late for this landing (CP_BLEND_PERIODS before it): not moved); a later re-plan replaces a
   rest being computed. A swing foot pushed onto the floor (the estimate's sole in contact and
   loaded, past TOUCH_FRACTION of its swing, TOUCH_MIN_HEIGHT_M or more above its landing in
-  the pattern) ends its swing there: the step lands where that sole stands and the timeline
-  from the landing on plays at once (:meth:`WalkTarget._touched_early`); lifted again under
-  the robot's weight, it fell. A swing leg is pitched at its hip against the estimated
-  torso's pitch from the planned one (beyond LEVEL_DEAD_RAD), so that a foot carried by a
-  body tipped by a push lands flat (:meth:`WalkTarget._level_swing`).
+  the pattern) ends its swing there: the step lands where that sole stands and, the capture
+  point ahead of the pattern's (a push), the timeline from the landing on plays at once, else
+  the foot stays down until the planned landing (:meth:`WalkTarget._touched_early`); lifted
+  again under the robot's weight, it fell. A swing leg is pitched at its hip against the
+  estimated torso's pitch from the planned one (beyond LEVEL_DEAD_RAD), so that a foot carried
+  by a body tipped by a push lands flat (:meth:`WalkTarget._level_swing`).
 * ``stopping``: entered when the soft stopper has latched (its mode, the previous period's
   :data:`~hubo_cli.control.keys.STOP_MODE`, is no longer ``release``): the step in progress
   is finished (the swing foot lands; before the first step, none is taken) into a double-support
@@ -545,9 +546,12 @@ class WalkTarget(Target):
 
     def _replan(self, steps: list[Footstep], t_s: float, planted: int | None = None,
                 failed: Callable[[], None] | None = None,
-                done: Callable[[], None] | None = None, skip: int = 0) -> None:
+                done: Callable[[], None] | None = None, skip: int = 0,
+                held: int | None = None) -> None:
         """Play the plan's pattern with ``steps`` (changed from the step in progress on;
-        ``planted``: :func:`~hubo_cli.walking.replan.pattern_from`) from this period on, then
+        ``planted``: :func:`~hubo_cli.walking.replan.pattern_from`, a step onto its foot's own
+        place ending a stop; ``held``: a step down early, its foot held down as a planted
+        one's and the step kept) from this period on, then
         ``done`` (see :mod:`hubo_cli.walking.replan`): its first rows
         (:func:`~hubo_cli.walking.replan.prefix_rows`) are solved PREFIX_ROWS_PER_PERIOD a
         period from this one on (:meth:`_advance_prefix`), the rest a slice a period while
@@ -563,7 +567,8 @@ class WalkTarget(Target):
         old = self.plan.q_rad[:solved], self.plan.T_world_neck[:solved]
         try:
             cart = pattern_from(self._cart, k, self._row0 + k + skip, start, steps, self.params,
-                                sole_z, self.model.feet.forward_m, com_start, planted,
+                                sole_z, self.model.feet.forward_m, com_start,
+                                planted if held is None else held,
                                 REPLAN_ROWS_PER_PERIOD)
             fix = continued_fix(self._fix, k, cart.n)
             m = prefix_rows(cart.n, REPLAN_ROWS_PER_PERIOD)
@@ -758,9 +763,10 @@ class WalkTarget(Target):
         of its single support, the pattern's sole still TOUCH_MIN_HEIGHT_M or more above its
         landing (lower, the stabilizer's :class:`Touchdown` holds it). The swing ends there:
         the step lands where the estimate's sole stands (seen from the stance sole, in the
-        pattern's frame), the rest of the timeline from that landing on is played from now
-        (the double support, the next step, whose landing the capture point moves as it
-        swings). Returns whether it re-planned."""
+        pattern's frame); pushed (:meth:`_pushed`), the rest of the timeline from that
+        landing on is played from now (the double support, the next step, whose landing the
+        capture point moves as it swings), else the foot stays down where it stands and the
+        ZMP on the stance foot until the planned landing. Returns whether it re-planned."""
         if step < 0 or support[0] == support[1]:
             return False
         column = 0 if not support[0] else 1
@@ -792,8 +798,24 @@ class WalkTarget(Target):
             self._shift = (step, np.array([landed.x_m - base[step].x_m,
                                            landed.y_m - base[step].y_m]), base)
 
-        self._replan(shift_steps(base, step, landed), t_s, done=done, skip=remaining)
+        pushed = self._pushed(k)
+        self._replan(shift_steps(base, step, landed), t_s, done=done,
+                     skip=remaining if pushed else 0, held=None if pushed else step)
         return True
+
+    def _pushed(self, k: int) -> bool:
+        """The estimated capture point is ahead of the pattern's by more than CP_MARGIN_M on
+        an axis, or not finite: a swing ended early at period ``k`` skips the rest of its
+        timeline to the landing (:meth:`_touched_early`). Skipping to the landing in a walk
+        the robot follows put the pattern's CoM that much time behind its ZMP reference:
+        fast-gait feet down 0.13 s early (perturbed robots 8 and 12, the capture point within
+        15 mm of the pattern's) drove the pattern's CoM at 0.8 m/s (the walk's 0.25), its
+        capture point 0.22-0.23 m from the robot's, and the landings moved after it, then the
+        stop, tipped the robot over. Skipping only to the row whose planned capture point lies
+        nearest the estimated one let a side push's foot (seed 2 of
+        tools/walk_disturbances.py) be held with the ZMP on the stance foot: it fell
+        (docs/history/walking.md)."""
+        return not np.all(np.abs(self._capture_point_error(k)) <= CP_MARGIN_M)
 
     def _capture_point_error(self, k: int) -> np.ndarray:
         """The estimated capture point (seen from the more loaded planned support sole
