@@ -29,7 +29,11 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
   is finished (the swing foot lands; before the first step, none is taken) into a double-support
   stance, the CoM comes to rest between the feet over ``settle_s``. Every period the walk tells
   the stopper that it stops itself so (:data:`~hubo_cli.control.phase.PHASE_STOP`), and the
-  stopper passes this motion through instead of reverting it.
+  stopper passes this motion through instead of reverting it. The stabilizer's torso offset
+  holds from the latch on (the soles' damping goes on): its CoM feedback integrates the CoM's
+  error, so in a stance rocking on its sole edges it shifts the torso in phase with the
+  rocking's speed, its weight feeding the rocking until the held stance tipped over its toes
+  (docs/history/walking.md, "The rocking after a stop").
 * ``stood``: the stance is reached; the stopper holds it; the run ends STOOD_S later. A
   release does not resume the walk.
 """
@@ -974,8 +978,9 @@ class WalkTarget(Target):
         rows = self._rows
         wrenches = ankle_wrenches(self.store)
         com = self._in_pattern(k, wrenches, self.store[COM_WORLD])
-        offset_x, offset_y = self.torso_offset.update(
-            zmp, rows["zmp_ref"][k], com, rows["plan_com"][k]).tolist()
+        if self.phase == "walk":  # stopping: the offset holds (see the module docstring)
+            self.torso_offset.update(zmp, rows["zmp_ref"][k], com, rows["plan_com"][k])
+        offset_x, offset_y = self.torso_offset.offset_m.tolist()
         cop_refs = [None, None]
         if self.lip is not None:  # eq. 8 and 9-14: the soles' reference CoPs for their dampers
             zmp_pattern = (math.nan, math.nan) if zmp is None \
