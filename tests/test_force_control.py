@@ -494,8 +494,9 @@ def test_the_task_target_writes_the_plans_force_and_measures_the_thrust(model, t
 
 
 @pytest.mark.slow
-@pytest.mark.physical
-@pytest.mark.parametrize("misplaced_mm", [15.0, -15.0])
+@pytest.mark.parametrize("misplaced_mm", [
+    # the portable code path gives the same to 6e-5 N (below): it checks the far wall only
+    pytest.param(15.0, marks=pytest.mark.physical), -15.0])
 def test_the_cut_holds_its_thrust_on_a_misplaced_wall(model, tmp_path, misplaced_mm):
     """cut-rectangle-force on a 60 x 40 mm rectangle (its four corners and both kinds of edge,
     in 37 s of simulation), the wall 15 mm farther or nearer than planned: it completes, the
