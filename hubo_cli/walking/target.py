@@ -19,7 +19,7 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
   rest being computed. A swing foot pushed onto the floor (the estimate's sole in contact and
   loaded, past TOUCH_FRACTION of its swing, TOUCH_MIN_HEIGHT_M or more above its landing in
   the pattern) ends its swing there: the step lands where that sole stands and, the capture
-  point ahead of the pattern's (a push), the timeline from the landing on plays at once, else
+  point off the pattern's (a push), the timeline from the landing on plays at once, else
   the foot stays down until the planned landing (:meth:`WalkTarget._touched_early`); lifted
   again under the robot's weight, it fell. A swing leg is pitched at its hip against the
   estimated torso's pitch from the planned one (beyond LEVEL_DEAD_RAD), so that a foot carried
@@ -808,8 +808,8 @@ class WalkTarget(Target):
         return True
 
     def _pushed(self, k: int) -> bool:
-        """The estimated capture point is ahead of the pattern's by more than CP_MARGIN_M on
-        an axis, or not finite: a swing ended early at period ``k`` skips the rest of its
+        """The estimated capture point is off the pattern's by more than CP_MARGIN_M on an
+        axis (either way), or not finite: a swing ended early at period ``k`` skips the rest of its
         timeline to the landing (:meth:`_touched_early`). Skipping to the landing in a walk
         the robot follows put the pattern's CoM that much time behind its ZMP reference:
         fast-gait feet down 0.13 s early (perturbed robots 8 and 12, the capture point within
