@@ -35,7 +35,9 @@ def weighted_error(q, base, offset, alpha, a, d, end, T_goal, w, T, J, e):
 @nb.njit(**JIT)
 def clipped_step(q, first, dq, scale, lo, hi, out):
     """``out`` = ``q`` with its entries ``first``... moved by ``scale dq`` and clipped to
-    [``lo``, ``hi``] (as ``np.minimum(np.maximum(q + scale * dq, lo), hi)``: NaN stays NaN)."""
+    [``lo``, ``hi``] (as ``np.minimum(np.maximum(q + scale * dq, lo), hi)`` for the finite,
+    ordered bounds :func:`~hubo_cli.kinematics.reach.branch_box` gives: a NaN in ``q`` or
+    ``dq`` stays NaN; a NaN bound would be ignored, where numpy's would give NaN)."""
     for i in range(q.shape[0]):
         out[i] = q[i]
     for j in range(dq.shape[0]):
