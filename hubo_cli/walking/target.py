@@ -533,6 +533,8 @@ class WalkTarget(Target):
         # per period: the next period with both feet down (a swing's landing)
         both = np.where(whole.support.all(axis=1), index, whole.n)
         new["_landing"] = np.minimum.accumulate(both[::-1])[::-1][:n].tolist()
+        moving = np.nonzero(whole.step_index >= 0)[0]
+        new["_settle_k"] = int(moving[-1]) + 1 if len(moving) else 0  # the pattern's settle
         return new
 
     def _install(self, new: dict, t_s: float) -> None:
@@ -978,7 +980,7 @@ class WalkTarget(Target):
         rows = self._rows
         wrenches = ankle_wrenches(self.store)
         com = self._in_pattern(k, wrenches, self.store[COM_WORLD])
-        if self.phase == "walk":  # stopping: the offset holds (see the module docstring)
+        if self.phase == "walk" and k < self._settle_k:  # stopping, settling: it holds
             self.torso_offset.update(zmp, rows["zmp_ref"][k], com, rows["plan_com"][k])
         offset_x, offset_y = self.torso_offset.offset_m.tolist()
         cop_refs = [None, None]
