@@ -66,6 +66,24 @@ def test_the_estimate_follows_the_walking_robot(short_walk):
     assert np.max(np.abs(error[2, walked])) < 2.0e-3
 
 
+@pytest.mark.physical
+def test_the_torso_offset_holds_in_the_patterns_settle(short_walk):
+    """After the last step's landing the stabilizer's torso offset holds: its integrating CoM
+    feedback, left on there, wound up and set the soles' loads chattering in fast seed 1's
+    settle before the hop that felled it (docs/history/walking.md, "The walk's own settle")."""
+    import numpy as np
+
+    from hubo_cli.control.log import load_log
+
+    log = load_log(short_walk[1])
+    step = np.asarray(log["walk.step"])
+    settle = (np.arange(len(step)) > np.nonzero(step >= 0)[0][-1]) & np.isfinite(step)
+    assert settle.sum() > 100  # the pattern's settle is logged (1.5 s on the short walk)
+    for axis in "xy":
+        offset = np.asarray(log[f"walk.offset_{axis}_m"])[settle]
+        assert np.ptp(offset) == 0.0  # held, not slowly drifting
+
+
 def test_walk_refuses_a_bad_goal():
     result = CliRunner().invoke(main, ["walk", "--to", "inf", "0", "0"])
     assert result.exit_code == 2

@@ -23,7 +23,10 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
   the foot stays down until the planned landing (:meth:`WalkTarget._touched_early`); lifted
   again under the robot's weight, it fell. A swing leg is pitched at its hip against the
   estimated torso's pitch from the planned one (beyond LEVEL_DEAD_RAD), so that a foot carried
-  by a body tipped by a push lands flat (:meth:`WalkTarget._level_swing`).
+  by a body tipped by a push lands flat (:meth:`WalkTarget._level_swing`). From the last
+  step's landing on (the pattern's settle) the stabilizer's torso offset holds, as in
+  ``stopping``: integrating there, it wound up and kept the soles' loads chattering until the
+  next plan's start (docs/history/walking.md, "The walk's own settle").
 * ``stopping``: entered when the soft stopper has latched (its mode, the previous period's
   :data:`~hubo_cli.control.keys.STOP_MODE`, is no longer ``release``): the step in progress
   is finished (the swing foot lands; before the first step, none is taken) into a double-support
@@ -533,6 +536,8 @@ class WalkTarget(Target):
         # per period: the next period with both feet down (a swing's landing)
         both = np.where(whole.support.all(axis=1), index, whole.n)
         new["_landing"] = np.minimum.accumulate(both[::-1])[::-1][:n].tolist()
+        moving = np.nonzero(whole.step_index >= 0)[0]
+        new["_settle_k"] = int(moving[-1]) + 1 if len(moving) else 0  # the pattern's settle
         return new
 
     def _install(self, new: dict, t_s: float) -> None:
@@ -978,7 +983,8 @@ class WalkTarget(Target):
         rows = self._rows
         wrenches = ankle_wrenches(self.store)
         com = self._in_pattern(k, wrenches, self.store[COM_WORLD])
-        if self.phase == "walk":  # stopping: the offset holds (see the module docstring)
+        if self.phase == "walk" and k < self._settle_k:  # settling, stopping: it holds (see
+            # the module docstring)
             self.torso_offset.update(zmp, rows["zmp_ref"][k], com, rows["plan_com"][k])
         offset_x, offset_y = self.torso_offset.offset_m.tolist()
         cop_refs = [None, None]
