@@ -450,12 +450,10 @@ class WalkTarget(Target):
                                           placed.get("left", feet["left"]), self.goal,
                                           self.end_width_m, first)
         T_world_neck = np.array(store[T_WORLD_TORSO], dtype=float)
-        sole_z = float(store[T_WORLD_SOLES][0, 2, 3])
-        # the torso's height: the start's, or (a correction) the last plan's over its soles,
-        # the soles now where the estimate puts them (its height drifts over a walk)
         T_world_neck[2, 3] = self.T_world_neck_start[2, 3] if self.gait is None \
-            else self.plan.T_world_neck[-1, 2, 3] - self._basis[2] + sole_z
+            else self.plan.T_world_neck[-1, 2, 3]
         body = WalkingBody(self.model, q_rad, T_world_neck, self.params.lean_rad_per_m)
+        sole_z = float(store[T_WORLD_SOLES][0, 2, 3])
         com = body.com_in_neck(q_rad)
         com_world = T_world_neck[:3, :3] @ com + T_world_neck[:3, 3]
         gait = make_gait(feet["right"], feet["left"], steps, self.params,
