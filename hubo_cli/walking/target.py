@@ -441,16 +441,7 @@ class WalkTarget(Target):
         """Plan the walk from where the estimate puts the feet now (the stance frame moves
         with them), starting at loop time ``t_s`` from the commanded joints ``q_rad``."""
         store = self.store
-        T_world_neck = np.array(store[T_WORLD_TORSO], dtype=float)
-        if self.gait is None:
-            poses = store[T_WORLD_SOLES]
-            T_world_neck[2, 3] = self.T_world_neck_start[2, 3]
-        else:  # a correction: the soles where the legs hold them (the last plan's, against
-            # its torso), the torso where the estimate puts it
-            T_moved = T_world_neck @ rigid_inverse(self.plan.T_world_neck[-1])
-            poses = T_moved @ np.concatenate([poses_of_rows(self.gait.feet[side][-1:])
-                                              for side in SIDES])
-        feet = {side: footstep_of(side, poses[k]) for k, side in enumerate(SIDES)}
+        feet = estimated_feet(store)
         steps = plan_footsteps(feet["right"], feet["left"], self.goal, self.params)
         if self.end_width_m is not None:
             placed = {step.side: step for step in steps}
@@ -458,8 +449,11 @@ class WalkTarget(Target):
             steps = steps + closing_steps(placed.get("right", feet["right"]),
                                           placed.get("left", feet["left"]), self.goal,
                                           self.end_width_m, first)
+        T_world_neck = np.array(store[T_WORLD_TORSO], dtype=float)
+        T_world_neck[2, 3] = self.T_world_neck_start[2, 3] if self.gait is None \
+            else self.plan.T_world_neck[-1, 2, 3]
         body = WalkingBody(self.model, q_rad, T_world_neck, self.params.lean_rad_per_m)
-        sole_z = float(poses[0, 2, 3])
+        sole_z = float(store[T_WORLD_SOLES][0, 2, 3])
         com = body.com_in_neck(q_rad)
         com_world = T_world_neck[:3, :3] @ com + T_world_neck[:3, 3]
         gait = make_gait(feet["right"], feet["left"], steps, self.params,
