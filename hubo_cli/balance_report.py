@@ -45,16 +45,20 @@ def _period_s(log: LogData) -> float:
     return float(np.median(np.diff(t))) if len(t) > 1 else 0.0
 
 
+def tilt_deg_of_roll_pitch(roll_rad, pitch_rad) -> np.ndarray:
+    """The tilt from upright (deg) of a frame logged as roll and pitch (the log's torso):
+    the cosine of the tilt is the z of the frame's z axis in the world, cos roll cos pitch."""
+    cos_tilt = np.cos(roll_rad) * np.cos(pitch_rad)
+    return np.degrees(np.arccos(np.clip(cos_tilt, -1.0, 1.0)))
+
+
 def max_tilt_deg(log: LogData) -> float | None:
     """The torso's largest tilt from upright over the run (deg), None without its pose."""
     if not log.has_pose("torso") or not len(log):
         return None
-    roll, pitch = log["torso_roll_rad"], log["torso_pitch_rad"]
-    cos_tilt = np.cos(roll) * np.cos(pitch)  # z of the torso's z axis in the world
-    cos_tilt = cos_tilt[np.isfinite(cos_tilt)]
-    if not len(cos_tilt):
-        return None
-    return float(np.degrees(np.arccos(np.clip(cos_tilt.min(), -1.0, 1.0))))
+    tilt = tilt_deg_of_roll_pitch(log["torso_roll_rad"], log["torso_pitch_rad"])
+    tilt = tilt[np.isfinite(tilt)]
+    return float(tilt.max()) if len(tilt) else None
 
 
 def support_margin(log: LogData) -> dict | None:

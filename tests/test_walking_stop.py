@@ -204,6 +204,22 @@ def test_a_pattern_replanned_mid_swing_plans_its_support_on_the_floor(walk_patte
     assert np.all(planned_support(suffix, 0.0)[:, :, 2, 3] == 0.0)
     floor_z = 0.0123  # an estimated floor elsewhere: the soles lie on it
     assert np.all(planned_support(suffix, floor_z)[:, :, 2, 3] == floor_z)
+
+
+def _early_touchdown(gait, steps, seed: int):
+    """A swing foot down early at a random period ``k`` of its swing (past a third of it),
+    within 2 cm of where the pattern has it: (k, its step, side, the planned landing's period,
+    the sole's pattern row (x, y, z, yaw) moved so)."""
+    rng = np.random.default_rng(seed)
+    swinging = np.nonzero(~gait.support.all(axis=1) & (gait.step_index >= 0))[0]
+    k = int(rng.choice(swinging[len(swinging) // 3:]))
+    step = int(gait.step_index[k])
+    side = steps[step].side
+    landing = k + int(np.argmax(gait.support[k:].all(axis=1)))
+    row = gait.feet[side][k] + np.append(rng.uniform(-0.02, 0.02, 2), [0.0, 0.0])
+    return k, step, side, landing, row
+
+
 @pytest.mark.parametrize("seed", range(8))
 def test_a_swing_ended_early_puts_the_foot_down_without_a_jump(walk_pattern, seed):
     """A swing foot down early at a random period of its swing (past a third of it), within
@@ -214,14 +230,8 @@ def test_a_swing_ended_early_puts_the_foot_down_without_a_jump(walk_pattern, see
     from hubo_cli.walking.replan import TOUCH_BLEND_ROWS
 
     params, walking, start, steps, gait = walk_pattern
-    rng = np.random.default_rng(seed)
-    swinging = np.nonzero(~gait.support.all(axis=1) & (gait.step_index >= 0))[0]
-    k = int(rng.choice(swinging[len(swinging) // 3:]))
-    step = int(gait.step_index[k])
-    side = steps[step].side
+    k, step, side, landing, (x, y, _, yaw) = _early_touchdown(gait, steps, seed)
     column = 0 if side == "right" else 1
-    landing = k + int(np.argmax(gait.support[k:].all(axis=1)))
-    x, y, _, yaw = gait.feet[side][k] + np.append(rng.uniform(-0.02, 0.02, 2), [0.0, 0.0])
     moved = Footstep(side, x, y, yaw)
     suffix = pattern_from(gait, k, landing, start, shift_steps(steps, step, moved), params,
                           0.0, walking.feet.forward_m, np.zeros(2))
@@ -250,13 +260,7 @@ def test_a_swing_ended_early_without_a_push_keeps_its_timeline(walk_pattern, see
     from hubo_cli.walking.replan import TOUCH_BLEND_ROWS
 
     params, walking, start, steps, gait = walk_pattern
-    rng = np.random.default_rng(seed)
-    swinging = np.nonzero(~gait.support.all(axis=1) & (gait.step_index >= 0))[0]
-    k = int(rng.choice(swinging[len(swinging) // 3:]))
-    step = int(gait.step_index[k])
-    side = steps[step].side
-    landing = k + int(np.argmax(gait.support[k:].all(axis=1)))
-    x, y, _, yaw = gait.feet[side][k] + np.append(rng.uniform(-0.02, 0.02, 2), [0.0, 0.0])
+    k, step, side, landing, (x, y, _, yaw) = _early_touchdown(gait, steps, seed)
     held = pattern_from(gait, k, k, start, shift_steps(steps, step, Footstep(side, x, y, yaw)),
                         params, 0.0, walking.feet.forward_m, np.zeros(2), step)
     rows = landing - k

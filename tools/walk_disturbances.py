@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hubo_cli.balance_report import tilt_deg_of_roll_pitch
 from hubo_cli.control.estop import MODE_CODE
 from hubo_cli.control.log import load_log
 from hubo_cli.experiments.standing import PUSH_DIRECTIONS
@@ -93,7 +94,7 @@ def main() -> int:
                                 for side in ("right", "left")])[-100:]
         roll, pitch = (np.asarray(log[f"torso_{axis}_rad"], dtype=float)[rows][-100:]
                        for axis in ("roll", "pitch"))
-        end_tilt_deg = np.degrees(np.arccos(np.cos(roll) * np.cos(pitch)))
+        end_tilt_deg = tilt_deg_of_roll_pitch(roll, pitch)
         row = {"seed": seed, "at_s": round(at_s, 3), "phase": phase_at(log, at_s),
                "direction": None if args.kind == "stop" and args.source == "operator"
                else direction, "fell": result.fell, "stopped_s": result.stopped_s,
