@@ -160,6 +160,16 @@ LEVEL_RETURN_RAD_S = 0.1  # [chosen] with both soles loaded a turn goes back at 
                         # 0.6 rad/s at the touchdown the landed foot was unloaded and the robot
                         # fell backward (seed 11); at 0.05 a stop's stance (1.9 s loaded
                         # before the stopper holds its posture) left 0.065 of 0.16 rad
+LIFTOFF_WINDOW_S = 0.1  # [chosen] a foot lifts off only while the soles measured carried, as the
+LIFTOFF_MIN_LOAD = 0.2  # median over this window, at least this part of the body's weight;
+                        # else the timeline waits at the lift-off (the body is in the air: a
+                        # bounce after a landing). Of 969 lift-offs measured (pushed, stopped
+                        # and fast walks, both CPU paths) the least such median came before
+                        # pushed seed 20's 3.54 s lift-off (33 N AVX-512, 37 N portable; it
+                        # fell), the next 132 N (0.35 of 380 N); 0.2 (76 N) is 2x the one and
+                        # 1.7x under the other (docs/history/walking.md, round 7). Held in
+                        # the air the walk waits in its double support until put down (or
+                        # stopped); without the sensors (NaN) it never waits
 CP_GAIN_MAX = 1.0      # [chosen] the error's growth by the landing counted at most this much
                        # (exp(omega t) is 17 at a swing's start: a 1 cm error of the estimate's
                        # capture point moved the landing by 17 cm; 3x stepped too far back
@@ -397,6 +407,11 @@ class WalkTarget(Target):
         self._prefix = None  # a re-plan's first rows being solved (_replan)
         self._omega = 1.0
         dt = model.control_period_s
+        self._loads_n = np.full(max(1, round(LIFTOFF_WINDOW_S / dt)), np.inf)  # the soles'
+        self._load_i = 0                       # measured F_z together, the last periods
+        self._waiting = False  # the timeline waited at a lift-off last period
+        self._weight_n = math.inf  # the body's weight (N; from the first plan's model)
+        self.liftoff_waits = 0  # lift-offs the timeline waited at
         xs, ys = self.corners[:, 0], self.corners[:, 1]
         box = (float(xs.min()), float(xs.max()), float(ys.min()), float(ys.max()))
         if stabilizer is not None:
@@ -436,6 +451,7 @@ class WalkTarget(Target):
         self.goal = Stance(self.start.x_m + c * forward - s * left,
                            self.start.y_m + s * forward + c * left, self.start.yaw_rad + turn)
         self._plan(self.q_start, t_s)
+        self._weight_n = float(pin.computeTotalMass(self.body.robot.model)) * GRAVITY_M_S2
 
     def _plan(self, q_rad: np.ndarray, t_s: float) -> None:
         """Plan the walk from where the estimate puts the feet now (the stance frame moves
@@ -876,7 +892,15 @@ class WalkTarget(Target):
             self.params.step_s + self.params.settle_s + WALK_STOP_SPARE_S)
         gait, plan = self.gait, self.plan
         k = min(self.k, gait.n - 1)
-        self.k += 1
+        self._loads_n[self._load_i] = float(np.sum(ankle_wrenches(store)[:, 2]))
+        self._load_i = (self._load_i + 1) % len(self._loads_n)
+        waiting = self._unloaded_liftoff(k)
+        if waiting:
+            self.liftoff_waits += not self._waiting
+            self.plan_start_s += gait.period_s  # the timeline waits: row k plays again
+        else:
+            self.k += 1
+        self._waiting = waiting
         (_, _, r02, _), (_, _, r12, _), (_, _, r22, torso_z) = store[T_WORLD_TORSO][:3].tolist()
         tilt_deg = math.degrees(tilt_rad_of_z_axis(r02, r12, r22))
         if self.torso_z0_m is None:
@@ -913,6 +937,15 @@ class WalkTarget(Target):
                 **self._stabilizer_info(), **self._toe_heel_info(k, poses),
                 "done": self.fell or self._done(t_s)}
         return q, info
+
+    def _unloaded_liftoff(self, k: int) -> bool:
+        """Row ``k`` has both soles down and the next lifts one, while the soles measured
+        carried less than LIFTOFF_MIN_LOAD of the body's weight (their median over the last
+        LIFTOFF_WINDOW_S): the robot bounces, and the foot lifted would be its only support."""
+        support = self._rows["support"]
+        if k + 1 >= len(support) or not all(support[k]) or all(support[k + 1]):
+            return False
+        return bool(np.median(self._loads_n) < LIFTOFF_MIN_LOAD * self._weight_n)
 
     def _done(self, t_s: float) -> bool:
         """The walk has ended: the pattern played (and no correction is due), or a stop's
