@@ -160,16 +160,16 @@ LEVEL_RETURN_RAD_S = 0.1  # [chosen] with both soles loaded a turn goes back at 
                         # 0.6 rad/s at the touchdown the landed foot was unloaded and the robot
                         # fell backward (seed 11); at 0.05 a stop's stance (1.9 s loaded
                         # before the stopper holds its posture) left 0.065 of 0.16 rad
-LIFTOFF_WINDOW_S = 0.1  # [chosen] a foot lifts off only while the soles measured carried, as the
-LIFTOFF_MIN_LOAD = 0.2  # median over this window, at least this part of the body's weight;
-                        # else the timeline waits at the lift-off (the body is in the air: a
-                        # bounce after a landing). Of 969 lift-offs measured (pushed, stopped
-                        # and fast walks, both CPU paths) the least such median came before
-                        # pushed seed 20's 3.54 s lift-off (33 N AVX-512, 37 N portable; it
-                        # fell), the next 132 N (0.35 of 380 N); 0.2 (76 N) is 2x the one and
-                        # 1.7x under the other (docs/history/walking.md, round 7). Held in
-                        # the air the walk waits in its double support until put down (or
-                        # stopped); without the sensors (NaN) it never waits
+LIFTOFF_WINDOW_S = 0.1  # [chosen] a foot lifts off only while the ankles' F/T sensors read, as
+LIFTOFF_MIN_LOAD = 0.2  # the median of their F_z together over this window, at least this part
+                        # of the body's weight (380 N); else the timeline waits at the lift-off
+                        # (the body is in the air: a bounce after a landing). Of 969 lift-offs
+                        # of round 6's pushed, stopped and fast walks (both CPU paths) the least
+                        # such median came before pushed seed 20's 3.54 s lift-off (35-38 N; it
+                        # fell), the next 129 N: 0.2 (76 N) is 2x over the one and 1.7x under the
+                        # other (docs/history/walking.md, round 7). Held in the air the walk
+                        # waits in its double support until put down (or stopped); without the
+                        # sensors (NaN) it never waits
 CP_GAIN_MAX = 1.0      # [chosen] the error's growth by the landing counted at most this much
                        # (exp(omega t) is 17 at a swing's start: a 1 cm error of the estimate's
                        # capture point moved the landing by 17 cm; 3x stepped too far back
@@ -355,7 +355,8 @@ class WalkTarget(Target):
                    "walk.left_cop_m", "walk.right_angle_ref_rad", "walk.left_angle_ref_rad",
                    "walk.right_angle_rad", "walk.left_angle_rad",
                    "walk.zmp_command_x_m", "walk.zmp_command_y_m",
-                   "walk.phase_code", "walk.cp_error_x_m", "walk.cp_error_y_m",
+                   "walk.phase_code", "walk.soles_fz_n", "walk.liftoff_wait",
+                   "walk.cp_error_x_m", "walk.cp_error_y_m",
                    "walk.cp_shift_x_m", "walk.cp_shift_y_m",
                    "walk.offset_x_m", "walk.offset_y_m", "walk.right_lift_m", "walk.left_lift_m",
                    "walk.right_sole_roll_rad", "walk.right_sole_pitch_rad",
@@ -892,7 +893,9 @@ class WalkTarget(Target):
             self.params.step_s + self.params.settle_s + WALK_STOP_SPARE_S)
         gait, plan = self.gait, self.plan
         k = min(self.k, gait.n - 1)
-        self._loads_n[self._load_i] = float(np.sum(ankle_wrenches(store)[:, 2]))
+        soles_fz = sum(float(state.ft[sensor][2]) if sensor in state.ft else math.nan
+                       for sensor in ANKLE_SENSORS)  # as read (the log's *_foot_fz_n)
+        self._loads_n[self._load_i] = soles_fz
         self._load_i = (self._load_i + 1) % len(self._loads_n)
         waiting = self._unloaded_liftoff(k)
         if waiting:
@@ -930,6 +933,7 @@ class WalkTarget(Target):
                 "planned_right_foot_contact_flag": float(support[0]),
                 "planned_left_foot_contact_flag": float(support[1]),
                 "walk.phase_code": float(WALK_PHASES.index(self.phase)),
+                "walk.soles_fz_n": soles_fz, "walk.liftoff_wait": float(waiting),
                 "walk.cp_error_x_m": float(self._cp_error[0]),
                 "walk.cp_error_y_m": float(self._cp_error[1]),
                 "walk.cp_shift_x_m": float(self._shift[1][0]),
