@@ -165,9 +165,10 @@ LIFTOFF_MIN_LOAD = 0.2  # the median of their F_z together over this window, at 
                         # of the body's weight (380 N); else the timeline waits at the lift-off
                         # (the body is in the air: a bounce after a landing). Of 969 lift-offs
                         # of round 6's pushed, stopped and fast walks (both CPU paths) the least
-                        # such median came before pushed seed 20's 3.54 s lift-off (35-38 N; it
-                        # fell), the next 129 N: 0.2 (76 N) is 2x over the one and 1.7x under the
-                        # other (docs/history/walking.md, round 7). Held in the air the walk
+                        # such median came before pushed seed 20's 3.54 s lift-off (33-37 N; it
+                        # fell: 0.2 is 2x over it), the next 122 N. Perturbed robots' 1 m walks
+                        # bounce too: it waited at 2 of their 322 lift-offs (5-15 ms; both
+                        # arrived; docs/history/walking.md, round 7). Held in the air the walk
                         # waits in its double support until put down (or stopped); without the
                         # sensors (NaN) it never waits
 CP_GAIN_MAX = 1.0      # [chosen] the error's growth by the landing counted at most this much
