@@ -57,7 +57,7 @@ from hubo_cli.control.phase import PHASE_STOP, SUPPORT_PLAN, PhaseStop, SupportP
 from hubo_cli.control.target import Target, TargetOutput
 from hubo_cli.control.wrench_distribution import Contact, WrenchDistributor
 from hubo_cli.dataflow import Store
-from hubo_cli.errors import InputError
+from hubo_cli.errors import DeviceError, InputError
 from hubo_cli.estimation.keys import (
     CAPTURE_POINT_WORLD,
     COM_VELOCITY_WORLD,
@@ -168,9 +168,11 @@ LIFTOFF_MIN_LOAD = 0.2  # the median of their F_z together over this window, at 
                         # such median came before pushed seed 20's 3.54 s lift-off (33-37 N; it
                         # fell: 0.2 is 2x over it), the next 122 N. Perturbed robots' 1 m walks
                         # bounce too: it waited at 2 of their 322 lift-offs (5-15 ms; both
-                        # arrived; docs/history/walking.md, round 7). Held in the air the walk
-                        # waits in its double support until put down (or stopped); without the
-                        # sensors (NaN) it never waits
+                        # arrived; docs/history/walking.md, round 7). Without the sensors
+                        # (NaN) it never waits
+LIFTOFF_WAIT_MAX_S = 1.0  # [chosen] ... and at one lift-off at most this long: then the sensors
+                        # read wrong (zero) or the robot is held in the air, and the walk ends
+                        # there (a DeviceError: the loop's smooth stop, both feet planned down)
 CP_GAIN_MAX = 1.0      # [chosen] the error's growth by the landing counted at most this much
                        # (exp(omega t) is 17 at a swing's start: a 1 cm error of the estimate's
                        # capture point moved the landing by 17 cm; 3x stepped too far back
@@ -412,6 +414,7 @@ class WalkTarget(Target):
         self._loads_n = np.full(max(1, round(LIFTOFF_WINDOW_S / dt)), np.inf)  # the soles'
         self._load_i = 0                       # measured F_z together, the last periods
         self._waiting = False  # the timeline waited at a lift-off last period
+        self._waited_s = 0.0  # ... this long
         self._weight_n = math.inf  # the body's weight (N; from the first plan's model)
         self.liftoff_waits = 0  # lift-offs the timeline waited at
         xs, ys = self.corners[:, 0], self.corners[:, 1]
@@ -899,6 +902,15 @@ class WalkTarget(Target):
         self._loads_n[self._load_i] = soles_fz
         self._load_i = (self._load_i + 1) % len(self._loads_n)
         waiting = self._unloaded_liftoff(k)
+        self._waited_s = self._waited_s + gait.period_s if waiting else 0.0
+        if self._waited_s > LIFTOFF_WAIT_MAX_S:
+            weight_n = LIFTOFF_MIN_LOAD * self._weight_n
+            raise DeviceError(
+                f"the ankle force sensors read {np.median(self._loads_n):.0f} N together "
+                f"(under {weight_n:.0f} N, {LIFTOFF_MIN_LOAD:g} of the robot's weight) for "
+                f"{LIFTOFF_WAIT_MAX_S:g} s before a step: the walk stopped in double support",
+                hint="check the ankle F/T sensors (zero offsets, cables), or put the robot "
+                     "down on its feet")
         if waiting:
             self.liftoff_waits += not self._waiting
             self.plan_start_s += gait.period_s  # the timeline waits: row k plays again
