@@ -26,7 +26,10 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
   by a body tipped by a push lands flat (:meth:`WalkTarget._level_swing`). From the last
   step's landing on (the pattern's settle) the stabilizer's torso offset holds, as in
   ``stopping``: integrating there, it wound up and kept the soles' loads chattering until the
-  next plan's start (docs/history/walking.md, "The walk's own settle").
+  next plan's start (docs/history/walking.md, "The walk's own settle"). A foot lifts off only
+  while the ankles' sensors read the soles carrying the body (LIFTOFF_MIN_LOAD); a landing
+  that bounced the robot into the air makes the timeline wait at the lift-off
+  (:meth:`WalkTarget._unloaded_liftoff`), at most LIFTOFF_WAIT_MAX_S.
 * ``stopping``: entered when the soft stopper has latched (its mode, the previous period's
   :data:`~hubo_cli.control.keys.STOP_MODE`, is no longer ``release``): the step in progress
   is finished (the swing foot lands; before the first step, none is taken) into a double-support
