@@ -19,7 +19,7 @@ from hubo_cli.dataflow import Store
 from hubo_cli.estimation.keys import COM_WORLD, WRENCHES
 from hubo_cli.model import load_model
 from hubo_cli.posture import home_posture
-from hubo_cli.state import RobotState
+from hubo_cli.state import ANKLE_SENSORS, RobotState
 from hubo_cli.walking.footsteps import Footstep, Stance, plan_footsteps
 from hubo_cli.walking.gait import make_gait
 from hubo_cli.walking.params import walking_params
@@ -515,12 +515,12 @@ REPLAN_REVIEW = (
 
 
 def _offline_walk(goal_m, periods, stop_k=None, cp_offset_m=(0.0, 0.0), offset_k=(0, 0),
-                  each=None):
+                  each=None, ankles_fz_n=190.0):
     """A walk's target played offline (no physics): the estimate is where the pattern is
-    (its capture point moved by ``cp_offset_m`` over periods ``offset_k``), the operator's
-    stop from ``stop_k``; ``each(k, target, before)`` runs after every period (``before``:
-    the plan and the pending re-plan before it). Returns the target, its commands and the
-    periods a new pattern was installed."""
+    (its capture point moved by ``cp_offset_m`` over periods ``offset_k``), each ankle's F/T
+    sensor reads ``ankles_fz_n``, the operator's stop from ``stop_k``; ``each(k, target,
+    before)`` runs after every period (``before``: the plan and the pending re-plan before
+    it). Returns the target, its commands and the periods a new pattern was installed."""
     from hubo_cli.estimation.keys import (
         CAPTURE_POINT_WORLD,
         COM_VELOCITY_WORLD,
@@ -531,7 +531,9 @@ def _offline_walk(goal_m, periods, stop_k=None, cp_offset_m=(0.0, 0.0), offset_k
 
     _, q0, _, target, store = standing_walk(goal_m, None)
     store[COM_VELOCITY_WORLD] = np.zeros(3)
-    state = RobotState(0.0, q0, np.zeros_like(q0))
+    state = RobotState(0.0, q0, np.zeros_like(q0),
+                       ft={name: np.array([0.0, 0.0, ankles_fz_n, 0.0, 0.0, 0.0])
+                           for name in ANKLE_SENSORS})
     commands, installs = [], []
     for k in range(periods):
         if target.gait is None:
@@ -555,6 +557,27 @@ def _offline_walk(goal_m, periods, stop_k=None, cp_offset_m=(0.0, 0.0), offset_k
         if info["done"]:
             break
     return target, np.array(commands), installs
+
+
+@pytest.mark.parametrize("ankles_fz_n", [0.0, 30.0])
+def test_a_walk_whose_soles_read_no_load_waits_then_ends_with_a_device_error(ankles_fz_n):
+    """Ankle sensors reading zero (or the robot held in the air): the first lift-off waits
+    (the soles would carry under a fifth of the weight), then the walk ends in its double
+    support with one line naming the sensors, not a step into the air."""
+    from hubo_cli.errors import DeviceError
+    from hubo_cli.walking.target import LIFTOFF_WAIT_MAX_S
+
+    lifted = []
+
+    def each(k, target, before):
+        lifted.append(not all(target._rows["support"][min(target.k, target.gait.n - 1)]))
+
+    with pytest.raises(DeviceError, match="ankle force sensors read") as raised:
+        _offline_walk((0.3, 0.0, 0.0), 1000, each=each, ankles_fz_n=ankles_fz_n)
+    assert "\n" not in str(raised.value) and raised.value.hint
+    assert not any(lifted)  # no foot ever planned up
+    # (the first lift-off at 0.9 s of the default gait, then the wait)
+    assert len(lifted) * DT == pytest.approx(0.9 + LIFTOFF_WAIT_MAX_S, abs=0.15)
 
 
 @pytest.mark.parametrize("stop_k", [150, 300, 430])  # the lead-in, a double support, a swing
@@ -660,3 +683,24 @@ def test_a_landing_moved_mid_swing_keeps_the_monitors_support_on_the_floor(model
     assert target.shifts >= 1 and any(230 <= k < 235 for k in installs), installs
     assert np.all(np.array(floors) == 0.0)
     assert not any(flags[240:]), np.flatnonzero(flags)
+
+
+@pytest.mark.physical
+@pytest.mark.slow
+def test_a_foot_does_not_lift_off_while_the_robot_bounces(tmp_path, model):
+    """hubo walk --to 1.0 0 0 pushed 100 N for 0.2 s from the right in the third step's swing
+    (seed 20 of tools/walk_disturbances.py): the left foot lands hard and the robot bounces,
+    its ankle sensors reading a median 33-37 N of its 380 N (both CPU paths) over the 0.1 s
+    before the right foot's planned lift-off at 3.54 s, 2x under the guard's 76 N. Lifting it
+    then left the robot on no foot, and it fell over the left one's edge. The timeline waits
+    at that lift-off (65 ms) until the soles carry the body again; the capture-point monitor
+    stops the walk and it stands."""
+    from hubo_cli.experiments.walk import Disturbance, walk
+
+    result = walk(model, (1.0, 0.0, 0.0), out=tmp_path / "run",
+                  disturbances=[Disturbance(3.05658, 100.0, (0.0, 1.0, 0.0))])
+    summary = json.loads((result.run_dir / "summary.json").read_text())
+    assert result.liftoff_waits >= 1
+    assert result.fell is False and result.stood is True
+    # measured max tilt 13.8 deg (AVX-512) and 13.4 (portable); a fall: 30; bound 25 (1.8x)
+    assert summary["max_torso_tilt_deg"] < 25.0

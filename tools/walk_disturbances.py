@@ -42,6 +42,19 @@ def seeds_of(text: str) -> list[int]:
     return [int(v) for v in text.split(",")]
 
 
+def draw(model, seed: int, distance_m: float, directions: list[str]) -> tuple[float, str]:
+    """Seed ``seed``'s moment (loop time, s), uniform over the steps of a walk of
+    ``distance_m`` (as plan_footsteps gives them: from the first lift-off, after start_s and
+    one double support, to the last landing), and its push direction from ``directions``."""
+    params = walking_params(load_model(model.params_name, "walking"))
+    n_steps = 2 * int(np.ceil(distance_m / params.max_step_forward_m / 2 + 0.5))
+    first_s = params.start_s + params.double_support_s
+    last_s = first_s + n_steps * params.step_s - params.double_support_s
+    rng = np.random.default_rng(seed)
+    at_s = float(rng.uniform(first_s, last_s))
+    return at_s, directions[int(rng.integers(len(directions)))]
+
+
 def phase_at(log, at_s: float) -> str:
     """The walk's pattern at ``at_s``: its step and whether the plan had one sole or both down."""
     t_s = np.asarray(log["t_s"], dtype=float)
@@ -68,18 +81,10 @@ def main() -> int:
     parser.add_argument("--out", default="/tmp/walk_disturbances")
     args = parser.parse_args()
     model = load_model()
-    params = walking_params(load_model(model.params_name, "walking"))
     directions = args.directions.split(",")
-    # the steps of a walk of this length (as plan_footsteps gives them): from the first
-    # lift-off (after start_s and one double support) to the last landing
-    n_steps = 2 * int(np.ceil(args.distance / params.max_step_forward_m / 2 + 0.5))
-    first_s = params.start_s + params.double_support_s
-    last_s = first_s + n_steps * params.step_s - params.double_support_s
     results = []
     for seed in seeds_of(args.seeds):
-        rng = np.random.default_rng(seed)
-        at_s = float(rng.uniform(first_s, last_s))
-        direction = directions[int(rng.integers(len(directions)))]
+        at_s, direction = draw(model, seed, args.distance, directions)
         if args.kind == "stop" and args.source == "operator":
             events = [Disturbance(at_s, stop=True)]
         else:
@@ -101,6 +106,7 @@ def main() -> int:
                "stood": result.stood, "both_feet_down": bool(np.all(down == 1)),
                "held": bool(mode[rows][-1] == MODE_CODE["hold"]), "shifts": result.shifts,
                "touchdowns_early": result.touchdowns_early,
+               "liftoff_waits": result.liftoff_waits,
                "estop_events": len(summary.get("estop_events", [])),
                "max_torso_tilt_deg": summary.get("max_torso_tilt_deg"),
                "final_tilt_deg": round(float(end_tilt_deg[-1]), 2),

@@ -47,6 +47,9 @@ class WalkResult:
         fell: the torso fell (:func:`hubo_cli.falls.has_fallen`, on the estimated torso).
         touchdowns_early: swings ended where the foot was pushed onto the floor early
             (:meth:`~hubo_cli.walking.target.WalkTarget._touched_early`).
+        liftoff_waits: lift-offs the walk's timeline waited at, the soles measured carrying
+            too little of the body's weight
+            (:meth:`~hubo_cli.walking.target.WalkTarget._unloaded_liftoff`).
         final_error_mm, final_error_deg: the final stance (midway between the soles) from the
             goal, as the simulator's truth has it (:func:`true_final_error`; the estimate's
             where the log has no true torso position).
@@ -71,6 +74,7 @@ class WalkResult:
     stood: bool
     shifts: int
     touchdowns_early: int
+    liftoff_waits: int
     final_error_mm: float
     final_error_deg: float
     estimated_final_error_mm: float
@@ -89,6 +93,7 @@ class WalkResult:
     def summary(self) -> dict:
         return {"fell": self.fell, "stopped_s": self.stopped_s, "stood": self.stood,
                 "shifts": self.shifts, "touchdowns_early": self.touchdowns_early,
+                "liftoff_waits": self.liftoff_waits,
                 "final_error_mm": self.final_error_mm,
                 "final_error_deg": self.final_error_deg,
                 "estimated_final_error_mm": self.estimated_final_error_mm,
@@ -244,6 +249,7 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
         fell=target.fell, stopped_s=target.stopped_s,
         stood=target.phase == "stood" and not target.stop_failed,  # failed: braked in place
         shifts=target.shifts, touchdowns_early=target.touchdowns_early,
+        liftoff_waits=target.liftoff_waits,
         final_error_mm=1000 * error_m,
         final_error_deg=math.degrees(error_rad),
         estimated_final_error_mm=1000 * estimated_m,

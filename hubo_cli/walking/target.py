@@ -26,7 +26,10 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
   by a body tipped by a push lands flat (:meth:`WalkTarget._level_swing`). From the last
   step's landing on (the pattern's settle) the stabilizer's torso offset holds, as in
   ``stopping``: integrating there, it wound up and kept the soles' loads chattering until the
-  next plan's start (docs/history/walking.md, "The walk's own settle").
+  next plan's start (docs/history/walking.md, "The walk's own settle"). A foot lifts off only
+  while the ankles' sensors read the soles carrying the body (LIFTOFF_MIN_LOAD); a landing
+  that bounced the robot into the air makes the timeline wait at the lift-off
+  (:meth:`WalkTarget._unloaded_liftoff`), at most LIFTOFF_WAIT_MAX_S.
 * ``stopping``: entered when the soft stopper has latched (its mode, the previous period's
   :data:`~hubo_cli.control.keys.STOP_MODE`, is no longer ``release``): the step in progress
   is finished (the swing foot lands; before the first step, none is taken) into a double-support
@@ -57,7 +60,7 @@ from hubo_cli.control.phase import PHASE_STOP, SUPPORT_PLAN, PhaseStop, SupportP
 from hubo_cli.control.target import Target, TargetOutput
 from hubo_cli.control.wrench_distribution import Contact, WrenchDistributor
 from hubo_cli.dataflow import Store
-from hubo_cli.errors import InputError
+from hubo_cli.errors import DeviceError, InputError
 from hubo_cli.estimation.keys import (
     CAPTURE_POINT_WORLD,
     COM_VELOCITY_WORLD,
@@ -160,6 +163,19 @@ LEVEL_RETURN_RAD_S = 0.1  # [chosen] with both soles loaded a turn goes back at 
                         # 0.6 rad/s at the touchdown the landed foot was unloaded and the robot
                         # fell backward (seed 11); at 0.05 a stop's stance (1.9 s loaded
                         # before the stopper holds its posture) left 0.065 of 0.16 rad
+LIFTOFF_WINDOW_S = 0.1  # [chosen] a foot lifts off only while the ankles' F/T sensors read, as
+LIFTOFF_MIN_LOAD = 0.2  # the median of their F_z together over this window, at least this part
+                        # of the body's weight (380 N); else the timeline waits at the lift-off
+                        # (the body is in the air: a bounce after a landing). Of 969 lift-offs
+                        # of round 6's pushed, stopped and fast walks (both CPU paths) the least
+                        # such median came before pushed seed 20's 3.54 s lift-off (33-37 N; it
+                        # fell: 0.2 is 2x over it), the next 122 N. Perturbed robots' 1 m walks
+                        # bounce too: it waited at 2 of their 322 lift-offs (5-15 ms; both
+                        # arrived; docs/history/walking.md, round 7). Without the sensors
+                        # (NaN) it never waits
+LIFTOFF_WAIT_MAX_S = 1.0  # [chosen] ... and at one lift-off at most this long: then the sensors
+                        # read wrong (zero) or the robot is held in the air, and the walk ends
+                        # there (a DeviceError: the loop's smooth stop, both feet planned down)
 CP_GAIN_MAX = 1.0      # [chosen] the error's growth by the landing counted at most this much
                        # (exp(omega t) is 17 at a swing's start: a 1 cm error of the estimate's
                        # capture point moved the landing by 17 cm; 3x stepped too far back
@@ -345,7 +361,8 @@ class WalkTarget(Target):
                    "walk.left_cop_m", "walk.right_angle_ref_rad", "walk.left_angle_ref_rad",
                    "walk.right_angle_rad", "walk.left_angle_rad",
                    "walk.zmp_command_x_m", "walk.zmp_command_y_m",
-                   "walk.phase_code", "walk.cp_error_x_m", "walk.cp_error_y_m",
+                   "walk.phase_code", "walk.soles_fz_n", "walk.liftoff_wait",
+                   "walk.cp_error_x_m", "walk.cp_error_y_m",
                    "walk.cp_shift_x_m", "walk.cp_shift_y_m",
                    "walk.offset_x_m", "walk.offset_y_m", "walk.right_lift_m", "walk.left_lift_m",
                    "walk.right_sole_roll_rad", "walk.right_sole_pitch_rad",
@@ -397,6 +414,12 @@ class WalkTarget(Target):
         self._prefix = None  # a re-plan's first rows being solved (_replan)
         self._omega = 1.0
         dt = model.control_period_s
+        self._loads_n = np.full(max(1, round(LIFTOFF_WINDOW_S / dt)), np.inf)  # the soles'
+        self._load_i = 0                       # measured F_z together, the last periods
+        self._waiting = False  # the timeline waited at a lift-off last period
+        self._waited_s = 0.0  # ... this long
+        self._weight_n = math.inf  # the body's weight (N; from the first plan's model)
+        self.liftoff_waits = 0  # lift-offs the timeline waited at
         xs, ys = self.corners[:, 0], self.corners[:, 1]
         box = (float(xs.min()), float(xs.max()), float(ys.min()), float(ys.max()))
         if stabilizer is not None:
@@ -436,6 +459,7 @@ class WalkTarget(Target):
         self.goal = Stance(self.start.x_m + c * forward - s * left,
                            self.start.y_m + s * forward + c * left, self.start.yaw_rad + turn)
         self._plan(self.q_start, t_s)
+        self._weight_n = float(pin.computeTotalMass(self.body.robot.model)) * GRAVITY_M_S2
 
     def _plan(self, q_rad: np.ndarray, t_s: float) -> None:
         """Plan the walk from where the estimate puts the feet now (the stance frame moves
@@ -876,7 +900,26 @@ class WalkTarget(Target):
             self.params.step_s + self.params.settle_s + WALK_STOP_SPARE_S)
         gait, plan = self.gait, self.plan
         k = min(self.k, gait.n - 1)
-        self.k += 1
+        soles_fz = sum(float(state.ft[sensor][2]) if sensor in state.ft else math.nan
+                       for sensor in ANKLE_SENSORS)  # as read (the log's *_foot_fz_n)
+        self._loads_n[self._load_i] = soles_fz
+        self._load_i = (self._load_i + 1) % len(self._loads_n)
+        waiting = self._unloaded_liftoff(k)
+        self._waited_s = self._waited_s + gait.period_s if waiting else 0.0
+        if self._waited_s > LIFTOFF_WAIT_MAX_S:
+            weight_n = LIFTOFF_MIN_LOAD * self._weight_n
+            raise DeviceError(
+                f"the ankle force sensors read {np.median(self._loads_n):.0f} N together "
+                f"(under {weight_n:.0f} N, {LIFTOFF_MIN_LOAD:g} of the robot's weight) for "
+                f"{LIFTOFF_WAIT_MAX_S:g} s before a step: the walk stopped in double support",
+                hint="check the ankle F/T sensors (zero offsets, cables), or put the robot "
+                     "down on its feet")
+        if waiting:
+            self.liftoff_waits += not self._waiting
+            self.plan_start_s += gait.period_s  # the timeline waits: row k plays again
+        else:
+            self.k += 1
+        self._waiting = waiting
         (_, _, r02, _), (_, _, r12, _), (_, _, r22, torso_z) = store[T_WORLD_TORSO][:3].tolist()
         tilt_deg = math.degrees(tilt_rad_of_z_axis(r02, r12, r22))
         if self.torso_z0_m is None:
@@ -906,6 +949,7 @@ class WalkTarget(Target):
                 "planned_right_foot_contact_flag": float(support[0]),
                 "planned_left_foot_contact_flag": float(support[1]),
                 "walk.phase_code": float(WALK_PHASES.index(self.phase)),
+                "walk.soles_fz_n": soles_fz, "walk.liftoff_wait": float(waiting),
                 "walk.cp_error_x_m": float(self._cp_error[0]),
                 "walk.cp_error_y_m": float(self._cp_error[1]),
                 "walk.cp_shift_x_m": float(self._shift[1][0]),
@@ -913,6 +957,15 @@ class WalkTarget(Target):
                 **self._stabilizer_info(), **self._toe_heel_info(k, poses),
                 "done": self.fell or self._done(t_s)}
         return q, info
+
+    def _unloaded_liftoff(self, k: int) -> bool:
+        """Row ``k`` has both soles down and the next lifts one, while the soles measured
+        carried less than LIFTOFF_MIN_LOAD of the body's weight (their median over the last
+        LIFTOFF_WINDOW_S): the robot bounces, and the foot lifted would be its only support."""
+        support = self._rows["support"]
+        if k + 1 >= len(support) or not all(support[k]) or all(support[k + 1]):
+            return False
+        return bool(np.median(self._loads_n) < LIFTOFF_MIN_LOAD * self._weight_n)
 
     def _done(self, t_s: float) -> bool:
         """The walk has ended: the pattern played (and no correction is due), or a stop's

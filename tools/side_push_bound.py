@@ -1,0 +1,238 @@
+"""How far joint motion within the limits could move the capture point of a walk pushed
+toward its stance foot (issue 37's pushes mid-walk), against how far it went past that sole.
+
+    python tools/side_push_bound.py --runs /tmp/walk_disturbances --seeds 6,10,18
+
+Reads the runs of ``tools/walk_disturbances.py push`` (the same seeds, distance and
+directions: the push's moment and direction are drawn again). For each push that comes in a
+single support toward the stance foot it prints, from the run's log:
+
+* the capture point (the estimate's, as the capture-point monitor has it) past the stance
+  sole's outer edge (the sole from the measured legs under the simulator's torso) at the
+  push's end, and when it crossed that edge;
+* **a crossing step**: the swing sole, flat on the floor, with a corner beyond that edge,
+  from the pelvis where the push's end has it (the stance leg cannot move it far in the time
+  left), over a grid of places and turns: how many the swing leg reaches within Table IV (its
+  closed-form IK, exact);
+* **the angular-momentum bound**: with the ZMP on the outer edge (all the ankle can give),
+  only the centroidal angular momentum's rate moves the centroidal moment pivot (CMP) beyond
+  it: cmp_y = zmp_y - dL_x/dt / (m g). Joint motion started at the push's start moves the
+  capture point at the push's end back by at most
+
+      (omega^2 / (m g)) e^(omega T) sum_j |A_j| integral_0^inf qdot_j(u) e^(-omega u) du,
+
+  where A_j is joint j's column of the centroidal map about the edge's axis with the stance
+  sole held on the floor (pinocchio, at the push's end's posture), T the push's 0.2 s, and
+  each joint moves toward its helpful side as fast as the walking limit set lets it
+  (velocity, acceleration) over the range it has left (a bound: braking, the map's change
+  with the posture and the joints' coupling are left out, each in the bound's favour).
+
+The robot is caught by joint motion alone only if the bound exceeds the capture point's
+distance past the edge. Measured numbers go in docs/history/walking.md, not here.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+from walk_disturbances import draw, seeds_of
+
+from hubo_cli.control.collision import SelfCollisionChecker
+from hubo_cli.control.log import load_log
+from hubo_cli.experiments.standing import PUSH_DIRECTIONS
+from hubo_cli.experiments.walk import PUSH_S
+from hubo_cli.geometry import rpy_to_matrix
+from hubo_cli.kinematics import choice
+from hubo_cli.kinematics.limb import Limb
+from hubo_cli.model import load_model
+from hubo_cli.pin_robot import load_pin_robot
+from hubo_cli.state import GRAVITY_M_S2
+
+SIDES = ("right", "left")
+LEG_JOINTS = {"right": ("RHY", "RHR", "RHP", "RKN", "RAP", "RAR"),
+              "left": ("LHY", "LHR", "LHP", "LKN", "LAP", "LAR")}
+CROSS_X_M = np.arange(-0.40, 0.401, 0.02)    # the crossing grid, in the stance sole's frame
+CROSS_Y_M = np.arange(0.0, 0.301, 0.02)      # (outward from its outer edge: the sole's
+CROSS_YAW_RAD = np.arange(-1.8, 1.801, 0.1)  # centre this far beyond it)
+
+
+def best_travel_integral(range_rad: float, velocity: float, acceleration: float,
+                         omega: float) -> float:
+    """max of integral_0^inf qdot(u) e^(-omega u) du over 0 <= qdot <= velocity,
+    |qddot| <= acceleration, integral qdot <= range (rad s): as fast as allowed, as early as
+    allowed, not braked."""
+    if range_rad <= 0:
+        return 0.0
+    du = 1e-4
+    u = np.arange(0.0, 5.0, du)
+    qdot = np.minimum(acceleration * u, velocity)
+    travelled = np.cumsum(qdot) * du
+    qdot = np.where(travelled <= range_rad, qdot, 0.0)
+    return float(np.sum(qdot * np.exp(-omega * u)) * du)
+
+
+def T_world_neck_at(columns, k: int) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3] = rpy_to_matrix(*(float(columns[f"torso_{a}_rad"][k]) for a in ("roll", "pitch",
+                                                                           "yaw")))
+    T[:3, 3] = [float(columns[f"torso_{a}_m"][k]) for a in "xyz"]
+    return T
+
+
+def analyse(model, walking, checker, run_dir: Path, at_s: float, direction: str) -> dict | None:
+    log = load_log(run_dir / "log.parquet")
+    c = log.columns
+    t = np.asarray(c["t_s"], dtype=float)
+    k0 = int(np.searchsorted(t, at_s))
+    k1 = int(np.searchsorted(t, at_s + PUSH_S))
+    planned = [float(c[f"planned_{side}_foot_contact_flag"][k0]) for side in SIDES]
+    push_y = PUSH_DIRECTIONS[direction][1]
+    if sum(planned) != 1 or push_y == 0:
+        return None
+    stance = SIDES[planned.index(1.0)]
+    outward = 1.0 if stance == "left" else -1.0
+    if push_y * outward <= 0:
+        return None  # toward the swing foot
+    swing = SIDES[1 - SIDES.index(stance)]
+    names = list(model.joint_names)
+    q = np.array([float(c[f"q_{n}_rad"][k1]) for n in names])
+    T_world_neck = T_world_neck_at(c, k1)
+    legs = {side: Limb(model, f"{side}-leg") for side in SIDES}
+    leg_q = {side: q[[names.index(j) for j in LEG_JOINTS[side]]] for side in SIDES}
+    T_world_stance = T_world_neck @ legs[stance].fk(leg_q[stance])
+    corners = model.feet.sole_corners_m()
+
+    def past_edge(k: int) -> float:
+        T = T_world_neck_at(c, k) @ legs[stance].fk(
+            np.array([float(c[f"q_{j}_rad"][k]) for j in LEG_JOINTS[stance]]))
+        edge = outward * ((T[:3, :3] @ corners.T).T + T[:3, 3])[:, 1]
+        return float(outward * float(c["cp_y_m"][k]) - edge.max())
+
+    past = [past_edge(k) for k in range(k0, min(k1 + 40, len(t)))]
+    crossed = next((i for i, d in enumerate(past) if d > 0), None)
+    omega = math.sqrt(GRAVITY_M_S2 / float(c["est_com_z_m"][k1]))
+    # the crossing step: the swing sole flat on the floor beyond the stance sole's outer edge
+    half_width = model.feet.width_m / 2
+    grid = []
+    for x in CROSS_X_M:
+        for y in CROSS_Y_M:
+            for yaw in CROSS_YAW_RAD:
+                T = np.eye(4)
+                T[:3, :3] = rpy_to_matrix(0.0, 0.0, float(yaw))
+                T[:3, 3] = [x, outward * (half_width + y), 0.0]
+                grid.append(T)
+    T_neck_stance = np.linalg.inv(T_world_neck) @ T_world_stance
+    T_neck_goals = T_neck_stance @ np.array(grid)
+    solved = legs[swing].solve_batch(T_neck_goals, allow_cap=False)
+    exact = np.flatnonzero(solved.status == choice.STATUS_NAMES.index("exact"))
+    swing_index = [names.index(j) for j in LEG_JOINTS[swing]]
+    q_start = np.array([float(c[f"q_{n}_rad"][k0]) for n in names])
+    swing_velocity = walking.velocity_rad_s[swing_index]
+    landings = []
+    for i in exact:  # the legs' links apart (the URDF's collision shapes)
+        q_landed = q.copy()
+        q_landed[swing_index] = solved.q_rad[i]
+        if checker.check(q_landed).distance_m <= 0.0:
+            continue
+        T = grid[i]
+        reach = float(np.max(outward * ((T[:3, :3] @ corners.T).T + T[:3, 3])[:, 1])
+                      - half_width)  # its outermost corner beyond the stance sole's edge
+        # the least time the swing leg's joints need to get there at the walking limit set's
+        # velocities from where they stood at the push's start (no reaction time, no
+        # acceleration, no way around the stance leg: a lower bound)
+        travel_s = float(np.max(np.abs(solved.q_rad[i] - q_start[swing_index])
+                                / swing_velocity))
+        k = min(k0 + math.ceil(travel_s / model.control_period_s), len(t) - 1)
+        lip = past[k1 - k0] * math.exp(omega * max(travel_s - PUSH_S, 0.0))
+        landings.append((travel_s, reach, past_edge(k) if t[k] - at_s >= travel_s - 1e-9
+                         else math.nan, lip, float(c["walk.tilt_deg"][k]),
+                         float(T[0, 3]), math.atan2(T[1, 0], T[0, 0])))
+    # the angular-momentum bound
+    robot = load_pin_robot(model, floating=True)
+    pm = robot.model
+    data = pm.createData()
+    qp = robot.configuration(q, T_world_neck)
+    A = pin.computeCentroidalMap(pm, data, qp)  # 6 x nv, [linear; angular] at the CoM
+    pin.computeJointJacobians(pm, data, qp)
+    pin.framesForwardKinematics(pm, data, qp)
+    sole = pm.getFrameId(f"{LEG_JOINTS[stance][-1]}_link")
+    J = pin.getFrameJacobian(pm, data, sole, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+    axis = T_world_stance[:3, 0]  # the stance sole's forward axis: its outer edge's direction
+    v_index = [pm.joints[pm.getJointId(n)].idx_v for n in names]
+    # base twist from joint rates with the stance sole held: J_base v_base + J_joints qdot = 0
+    base_of_joint = -np.linalg.solve(J[:, :6], J[:, v_index])
+    A_eff = axis @ (A[3:, v_index] + A[3:, :6] @ base_of_joint)
+    mass = float(pin.computeTotalMass(pm))
+    lower, upper = walking.lower_rad, walking.upper_rad
+    velocity, acceleration = walking.velocity_rad_s, walking.acceleration_rad_s2
+    # helpful: dL/dt along the axis of sign -outward (cmp_y = zmp_y - dL_x/dt / (m g))
+    per_joint = []
+    for j, name in enumerate(names):
+        sign = -outward * np.sign(A_eff[j])  # the joint's helpful direction
+        room = (upper[j] - q[j]) if sign > 0 else (q[j] - lower[j])
+        integral = best_travel_integral(float(room), float(velocity[j]),
+                                        float(acceleration[j]), omega)
+        per_joint.append((abs(A_eff[j]) * integral, name, float(room), float(A_eff[j])))
+    scale = omega ** 2 / (mass * GRAVITY_M_S2) * math.exp(omega * PUSH_S)
+    bound = scale * sum(p[0] for p in per_joint)
+    top = sorted(per_joint, reverse=True)[:4]
+    return {"stance": stance, "past_edge_at_end_mm": 1000 * past_edge(k1),
+            "crossed_after_s": None if crossed is None else round(t[k0 + crossed] - at_s, 3),
+            "omega": omega, "crossing_reached": len(exact), "crossing_tried": len(grid),
+            "landings": sorted(landings),
+            "bound_mm": 1000 * bound,
+            "top": [(n, round(1000 * scale * v, 2), round(room, 3), round(a, 3))
+                    for v, n, room, a in top]}
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", default="/tmp/walk_disturbances",
+                        help="walk_disturbances.py push's --out")
+    parser.add_argument("--seeds", default="1-20")
+    parser.add_argument("--distance", type=float, default=1.0)
+    parser.add_argument("--directions", default="left,right,backward")
+    args = parser.parse_args()
+    model = load_model()
+    walking = load_model(model.params_name, "walking")
+    leg_links = {side: [f"{j}_link" for j in LEG_JOINTS[side]] for side in SIDES}
+    checker = SelfCollisionChecker(model, pairs=[(a, b) for a in leg_links["right"]
+                                                 for b in leg_links["left"]])
+    for seed in seeds_of(args.seeds):
+        at_s, direction = draw(model, seed, args.distance, args.directions.split(","))
+        run_dir = Path(args.runs) / f"push-{seed}"
+        if not (run_dir / "log.parquet").exists():
+            print(f"seed {seed}: no run in {run_dir}")
+            continue
+        result = analyse(model, walking, checker, run_dir, at_s, direction)
+        if result is None:
+            print(f"seed {seed}: pushed {direction} at {at_s:.3f} s, not toward a stance foot "
+                  "in single support")
+            continue
+        r = result
+        print(f"seed {seed}: pushed {direction} at {at_s:.3f} s toward the {r['stance']} "
+              f"(stance) foot: the capture point {r['past_edge_at_end_mm']:+.1f} mm past "
+              f"its outer edge at the push's end (crossed it {r['crossed_after_s']} s after "
+              f"the push's start; omega {r['omega']:.2f} /s)")
+        print(f"  crossing step: {r['crossing_reached']} of {r['crossing_tried']} swing-sole "
+              f"places beyond the edge reached within Table IV, {len(r['landings'])} with the "
+              "legs apart")
+        for travel_s, reach, past_mm, lip, tilt, x, yaw in r["landings"]:
+            measured = "(the run had ended)" if math.isnan(past_mm) else f"{1000 * past_mm:.0f} mm"
+            print(f"    x {x:+.2f} m, turned {yaw:+.2f} rad: reaches {1000 * reach:.0f} mm "
+                  f"beyond the edge; joints there in {travel_s:.2f} s at the least; the "
+                  f"capture point past the edge then: {measured} (the run), {1000 * lip:.0f} "
+                  f"mm (LIP from the push's end); torso tilt then {tilt:.1f} deg")
+        print(f"  joint momentum: at most {r['bound_mm']:.1f} mm back at the push's end; the "
+              "largest: " + ", ".join(f"{n} {v} mm ({room} rad of room)"
+                                      for n, v, room, _ in r["top"]))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
