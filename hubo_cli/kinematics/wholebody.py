@@ -32,6 +32,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from hubo_cli.errors import ConfigError
+from hubo_cli.kinematics.choice import solve_limb
+from hubo_cli.kinematics.dh import kernel_array
+from hubo_cli.kinematics.legs_kernels import neck_from_stance
 from hubo_cli.kinematics.limb import IKResult, Limb
 from hubo_cli.model import ARMS, LEGS, RobotModel
 from hubo_cli.posture import home_posture
@@ -218,6 +221,28 @@ class WholeBody:
             shift = min(max(shift + result.balance_error_m / self.shift_gain, -MAX_SHIFT_M),
                         MAX_SHIFT_M)
         return self._solve(T_S_goal, q_prev_rad, lift_m, shift, hand_forces_n)
+
+    def legs_at(self, q_prev_rad: np.ndarray, lift_m: float) -> tuple[np.ndarray, float]:
+        """``solve({}, q_prev_rad, lift_m=lift_m)``'s joints and lift (the same numbers: each
+        leg's :func:`~hubo_cli.kinematics.choice.solve_limb` with the arguments
+        :meth:`Limb.solve` gives it) without the result objects and numpy's small products
+        around it: the teleoperation solves the legs every period (its lift filter moves every
+        period). With CoM control it is :meth:`solve` (its shift needs the whole solve)."""
+        if self.com_control:
+            result = self.solve({}, q_prev_rad, lift_m=lift_m)
+            return result.q_rad, result.lift_m
+        lo, hi = self.lift_range_m
+        lift = min(max(float(lift_m), lo), hi)
+        q_prev = kernel_array(q_prev_rad)
+        q = q_prev.copy()
+        T_goal, q_leg = np.empty((4, 4)), np.empty(6)
+        for name in LEGS:
+            leg, sl = self.legs[name], self._slices[name]
+            neck_from_stance(self.T_S_sole[name], 0.0, lift, T_goal)
+            solve_limb(T_goal, leg.chain, leg.lengths_m, False, leg.lower_rad, leg.upper_rad,
+                       q_prev[sl], True, leg.hold_m, True, q_leg)
+            q[sl] = q_leg
+        return q, lift
 
     def _solve(self, T_S_goal, q_prev_rad, lift_m, shift_m, hand_forces_n) -> WholeBodyResult:
         q_prev = self.q_home if q_prev_rad is None else np.asarray(q_prev_rad, dtype=float)

@@ -559,8 +559,7 @@ class TeleopTarget(Target):
 
     def _solve_on_branches(self, t_s: float, lift_m: float, branch_key: bool) -> None:
         """Legs to the lift, each arm on its branch (nearest pose, branch moves, speed scale)."""
-        legs = self.body.solve({}, self.q_target, lift_m=lift_m)
-        q = legs.q_rad
+        q, lift_m = self.body.legs_at(self.q_target, lift_m)
         solved = {}  # arm -> (its reach, its goal in N) for the collision room's search
         for arm, T_S_goal in self.goals.items():
             sl = self.slices[arm]
@@ -568,7 +567,7 @@ class TeleopTarget(Target):
             reach = self.reach[arm]
             T_N_goal = reach.smoothed(T_S_goal, t_s - self._t_solved_s.get(arm, t_s))
             self._t_solved_s[arm] = t_s
-            T_N_goal[2, 3] -= legs.lift_m
+            T_N_goal[2, 3] -= lift_m
             solved[arm] = (reach, T_N_goal)
             result = reach.solve(T_N_goal, q_now)
             hand = self.hands.get(arm)
