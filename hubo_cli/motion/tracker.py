@@ -67,6 +67,7 @@ class JointTracker:
         self._zeros = np.zeros(n)
         self._v_max = 0.9 * limits.velocity_rad_s  # a target velocity's bounds (90 %)
         self._v_min = -self._v_max
+        self._v_bounds = list(zip(self._v_min.tolist(), self._v_max.tolist(), strict=True))
         self._a_max = limits.acceleration_rad_s2  # an acceleration reset() takes is clipped
         self._a_min = -self._a_max
         self.q = np.zeros(n)
@@ -78,6 +79,7 @@ class JointTracker:
         self._synced = False  # ruckig's input holds q, v, a (no need to set them again)
         self._target_v_zero = False
         self._preview = None  # ruckig, its input and a trajectory for preview()
+        self._preview_sync = None  # the synchronization set in the preview's input
         # (target, minimum duration) of the last ``track`` when it left ruckig's input as it
         # found it, at rest at a sample that stays put (see :meth:`_resting`); None otherwise
         self._rest: tuple[list[float], float | None, np.ndarray] | None = None
@@ -132,9 +134,14 @@ class JointTracker:
         inp.current_velocity = self.v.tolist()
         inp.current_acceleration = self.a.tolist()
         inp.target_position = np.asarray(target_rad, dtype=float).tolist()
-        inp.target_velocity = (self._zeros if target_v_rad_s is None
-                               else self._target_velocity(target_v_rad_s)).tolist()
-        inp.synchronization = SYNCHRONIZATIONS[synchronization]
+        if target_v_rad_s is None:
+            inp.target_velocity = self._zeros.tolist()
+        else:  # _target_velocity's numbers (NaN as 0, then clipped), on Python floats
+            inp.target_velocity = [min(max(v, lo), hi) if v == v else 0.0 for v, (lo, hi) in zip(
+                np.asarray(target_v_rad_s, dtype=float).tolist(), self._v_bounds, strict=True)]
+        if synchronization != self._preview_sync:
+            inp.synchronization = SYNCHRONIZATIONS[synchronization]
+            self._preview_sync = synchronization
         try:
             result = otg.calculate(inp, trajectory)
         except (RuckigError, RuntimeError, ValueError, TypeError):
