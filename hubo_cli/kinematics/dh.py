@@ -67,6 +67,15 @@ def matmul4(A, B, out):
 
 
 @nb.njit(**JIT)
+def mul4(A, B, out):
+    """out = A @ B (4x4, general: every entry the sum of its four products, in order)."""
+    for i in range(4):
+        for j in range(4):
+            out[i, j] = A[i, 0] * B[0, j] + A[i, 1] * B[1, j] + A[i, 2] * B[2, j] \
+                + A[i, 3] * B[3, j]
+
+
+@nb.njit(**JIT)
 def invert4(T, out):
     """out = T^-1 for a rigid transform (rotation transposed, translation -R^T p)."""
     for i in range(3):
