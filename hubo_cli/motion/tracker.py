@@ -134,11 +134,14 @@ class JointTracker:
         inp.current_velocity = self.v.tolist()
         inp.current_acceleration = self.a.tolist()
         inp.target_position = np.asarray(target_rad, dtype=float).tolist()
-        if target_v_rad_s is None:
-            inp.target_velocity = self._zeros.tolist()
-        else:  # _target_velocity's numbers (NaN as 0, then clipped), on Python floats
-            inp.target_velocity = [min(max(v, lo), hi) if v == v else 0.0 for v, (lo, hi) in zip(
-                np.asarray(target_v_rad_s, dtype=float).tolist(), self._v_bounds, strict=True)]
+        v = self._zeros if target_v_rad_s is None else np.asarray(target_v_rad_s, dtype=float)
+        if v.shape == self._zeros.shape:  # _target_velocity's numbers (NaN as 0, then
+            # clipped) on Python floats
+            inp.target_velocity = [min(max(x, lo), hi) if x == x else 0.0
+                                   for x, (lo, hi) in zip(v.tolist(), self._v_bounds,
+                                                          strict=True)]
+        else:  # one velocity for every joint: numpy broadcasts it
+            inp.target_velocity = self._target_velocity(v).tolist()
         if synchronization != self._preview_sync:
             inp.synchronization = SYNCHRONIZATIONS[synchronization]
             self._preview_sync = synchronization

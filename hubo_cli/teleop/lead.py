@@ -131,16 +131,14 @@ def _reachable(v_goal, q_target, q, v, accel, jerk, share, out):
 
 
 @nb.njit(**JIT)
-def _estimate(slot, weights, Q, q_target, lower, upper, velocity, accel, jerk, out):
-    """:meth:`GoalVelocity.update`'s estimate into ``out``: ``q_target`` pushed into the ring
-    buffer ``Q`` (row ``slot``), then the slope of its rows with ``weights[slot]``, within
-    90 % of the speed limit and the speed that still stops before the position limit ahead."""
-    for i in range(out.shape[0]):
-        Q[slot, i] = q_target[i]
+def _estimate(weights, Q, q_target, lower, upper, velocity, accel, jerk, out):
+    """:meth:`GoalVelocity.update`'s estimate into ``out``: the slope of the targets ``Q``
+    (ring buffer rows) with ``weights``, within 90 % of the speed limit and the speed that
+    still stops before the position limit ahead."""
     for i in range(out.shape[0]):
         v = 0.0
-        for k in range(weights.shape[1]):
-            v += weights[slot, k] * Q[k, i]
+        for k in range(weights.shape[0]):
+            v += weights[k] * Q[k, i]
         room = upper[i] - q_target[i] if v > 0 else q_target[i] - lower[i]
         cap = min(0.9 * velocity[i], _stop_speed(room, accel[i], jerk[i]))
         out[i] = min(max(v, -cap), cap)
@@ -163,8 +161,6 @@ class GoalVelocity:
         # row i: the slope's weights for the ring buffer whose newest entry is slot i
         self._weights = np.array([np.roll(slope, i + 1) for i in range(k)])
         self._q = np.zeros((k, limits.size))
-        self._limits = (limits.lower_rad, limits.upper_rad, limits.velocity_rad_s,
-                        limits.acceleration_rad_s2, limits.jerk_rad_s3)  # as _estimate takes them
         self._slot = -1
         self._count = 0
         self.v_rad_s = np.zeros(limits.size)
@@ -178,14 +174,16 @@ class GoalVelocity:
         """Push this period's joint target; return the target velocity (rad/s) to give the
         tracker: the estimate, within the limits, or zero when ``follow`` is False or the
         window has not filled yet."""
-        k = self.samples
-        self._slot = slot = (self._slot + 1) % k
+        k = len(self._q)
+        self._slot = (self._slot + 1) % k
+        self._q[self._slot] = q_target_rad
         self._count = min(self._count + 1, k)
         if not follow or self._count < k:
-            self._q[slot] = q_target_rad
             self.v_rad_s = np.zeros(self.limits.size)
             return self.v_rad_s
-        self.v_rad_s = np.empty(self.limits.size)
-        _estimate(slot, self._weights, self._q, kernel_array(q_target_rad), *self._limits,
+        lim = self.limits
+        self.v_rad_s = np.empty(lim.size)
+        _estimate(self._weights[self._slot], self._q, kernel_array(q_target_rad), lim.lower_rad,
+                  lim.upper_rad, lim.velocity_rad_s, lim.acceleration_rad_s2, lim.jerk_rad_s3,
                   self.v_rad_s)
         return self.v_rad_s
