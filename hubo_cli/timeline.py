@@ -49,7 +49,7 @@ class Timeline(Generic[T]):
     def take_until(self, t_s: float) -> list[T]:
         """Every item not yet handed out with time <= ``t_s`` (s)."""
         self._now = max(self._now, float(t_s))
-        end = int(np.searchsorted(self._times, t_s, side="right"))
+        end = int(self._times.searchsorted(t_s, side="right"))  # np.searchsorted's, unwrapped
         if end <= self._cursor:
             return []
         out = self.items[self._cursor:end]

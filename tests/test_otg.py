@@ -17,7 +17,7 @@ from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError
 from hubo_cli.model import ARMS, LEGS
 from hubo_cli.motion.limits import JointLimits
-from hubo_cli.motion.tracker import JointTracker
+from hubo_cli.motion.tracker import SYNCHRONIZATIONS, JointTracker
 from hubo_cli.posture import home_posture
 from hubo_cli.state import RobotState
 
@@ -224,6 +224,52 @@ def test_preview_shows_the_way_track_takes_and_leaves_the_tracker_as_it_was(mode
         assert (spread < 0.05) if sync == "phase" else (spread > 0.2), (sync, spread)
     with pytest.raises(ConfigError):
         tracker.preview(goal, "time", 5)
+
+
+def test_the_preview_is_ruckigs_own_samples_to_the_last_bit(model):
+    """The preview's rows are ruckig's ``at_time`` at evenly spaced times of its trajectory
+    (the first is the current position: ``at_time(0)``; a position of exactly -0 may come
+    out +0 there, the same number), its target velocity clipped as ``track`` clips it: the
+    same numbers, on drawn states beyond the limits too, with target velocities that are
+    NaN, infinite, beyond the limits or -0."""
+    from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
+
+    rng = np.random.default_rng(34)
+    limits = JointLimits.from_model(model).subset(np.arange(24)[model.limb_slice("left-arm")])
+    tracker = JointTracker(limits, DT)
+    otg, inp, trajectory = Ruckig(6), InputParameter(6), Trajectory(6)
+    inp.max_velocity, inp.max_acceleration = limits.velocity_rad_s, limits.acceleration_rad_s2
+    inp.max_jerk = limits.jerk_rad_s3
+    odd = np.array([np.nan, np.inf, -np.inf, -0.0, 0.0, 1e308, 3.0, -3.0])
+    compared = 0
+    for k in range(300):
+        q = rng.uniform(limits.lower_rad, limits.upper_rad)
+        if k % 10 == 0:
+            q[:3] = (0.0, -0.0, 0.0)
+        v = rng.normal(0.0, 0.5, 6) * (k % 4 != 0)
+        a = rng.normal(0.0, 1.0, 6) * (k % 3 != 0)  # beyond the limit at times: reset clips
+        target = q + rng.normal(0.0, 0.3, 6) * (k % 7 != 0)
+        v_goal = rng.choice(odd, 6) if k % 5 == 0 else rng.normal(0.0, 0.8, 6)
+        sync = ("none", "phase")[k % 2]
+        tracker.reset(q, v, a)
+        path = tracker.preview(target, sync, 8, None if k % 6 == 0 else v_goal)
+        inp.current_position, inp.current_velocity = tracker.q, tracker.v
+        inp.current_acceleration, inp.target_position = tracker.a, target
+        inp.target_velocity = (np.zeros(6) if k % 6 == 0
+                               else tracker._target_velocity(v_goal))  # track's clip
+        inp.synchronization = SYNCHRONIZATIONS[sync]
+        try:
+            result = otg.calculate(inp, trajectory)
+        except RuckigError:
+            result = None
+        if result not in (Result.Working, Result.Finished):
+            assert path.shape == (1, 6)
+            continue
+        expected = np.array([trajectory.at_time(trajectory.duration * i / 7)[0]
+                             for i in range(8)])
+        assert np.array_equal(path, expected), k
+        compared += 1
+    assert compared > 250
 
 
 @pytest.mark.parametrize("seed", range(4))

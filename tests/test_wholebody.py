@@ -55,6 +55,28 @@ def test_lift_range_is_sane(body):
     assert -0.3 < lo < -0.05 and 0.0 < hi < 0.05
 
 
+def test_the_legs_alone_are_solve_s_legs_to_the_last_bit(body, model):
+    """legs_at (the teleop's every period) gives solve({})'s joints and lift exactly, sign
+    of zero included, from drawn postures and lifts: inside the legs' range, beyond it, tiny,
+    exactly 0, and not finite."""
+    from hubo_cli.posture import home_posture
+
+    rng = np.random.default_rng(3407)
+    q_home = home_posture(model)
+    lo, hi = body.lift_range_m
+    lifts = [0.0, -0.0, lo, hi, lo - 0.1, hi + 0.1, 1e-300, np.nan, np.inf, -np.inf]
+    for k in range(600):
+        q = q_home + rng.normal(0.0, 0.05, q_home.shape) * (k % 3 != 0)
+        lift = lifts[k] if k < len(lifts) else rng.uniform(lo - 0.05, hi + 0.05) * 10.0 ** (
+            -rng.integers(0, 6))
+        body._last_leg.clear()  # solve's own memory of the legs: compare with a fresh solve
+        expected = body.solve({}, q, lift_m=lift)
+        q_legs, lift_m = body.legs_at(q, lift)
+        assert np.array_equal(q_legs, expected.q_rad, equal_nan=True), k
+        assert np.array_equal(np.signbit(q_legs), np.signbit(expected.q_rad)), k
+        assert lift_m == expected.lift_m or (np.isnan(lift_m) and np.isnan(expected.lift_m)), k
+
+
 def test_lift_filter_is_smooth_and_speed_limited():
     from hubo_cli.kinematics.wholebody import LiftFilter
 

@@ -19,11 +19,15 @@ JIT = {"cache": True, "nogil": True, "fastmath": False}
 TRUE = np.ones(1, dtype=np.bool_)
 # The same for a constant int (a joint index, a count): INDEX[3] is a plain int64 of value 3.
 INDEX = np.arange(8)
+_FLOAT64 = np.dtype(np.float64)  # numpy's one float64 descriptor (``is``: cheaper than ==)
+
+
 def kernel_array(x) -> np.ndarray:
     """``x`` itself when a compiled kernel takes it as it is (float64, C-ordered, aligned,
     writable: the one signature every kernel compiles), else such a copy (a read-only or
-    non-contiguous array would compile the kernel once more)."""
-    if type(x) is np.ndarray and x.dtype == np.float64 and x.flags.carray:
+    non-contiguous array would compile the kernel once more; an equal descriptor that is not
+    numpy's own is copied too)."""
+    if type(x) is np.ndarray and x.dtype is _FLOAT64 and x.flags.carray:
         return x
     return np.array(x, dtype=float, order="C")
 
@@ -60,6 +64,15 @@ def matmul4(A, B, out):
     out[3, 1] = 0.0
     out[3, 2] = 0.0
     out[3, 3] = 1.0
+
+
+@nb.njit(**JIT)
+def mul4(A, B, out):
+    """out = A @ B (4x4, general: every entry the sum of its four products, in order)."""
+    for i in range(4):
+        for j in range(4):
+            out[i, j] = A[i, 0] * B[0, j] + A[i, 1] * B[1, j] + A[i, 2] * B[2, j] \
+                + A[i, 3] * B[3, j]
 
 
 @nb.njit(**JIT)

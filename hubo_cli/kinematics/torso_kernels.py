@@ -17,7 +17,7 @@ import weakref
 import numba as nb
 import numpy as np
 
-from hubo_cli.kinematics.dh import JIT, chain_fk, invert4
+from hubo_cli.kinematics.dh import JIT, chain_fk, invert4, mul4
 from hubo_cli.model import LEGS
 
 ENCODERS = 0      # the mean of the two legs' orientations
@@ -197,7 +197,7 @@ def follow_deviation(T_cmd_inv, T_meas, offset, rotation, alpha, bounds, T_dev, 
     ``rotation`` (3,) in place, bounded by ``bounds`` (max offset, max offset step, max tilt,
     max tilt step); writes the filtered T_dev and its inverse (4x4)."""
     raw = np.empty((4, 4))
-    _mul4(T_cmd_inv, T_meas, raw)
+    mul4(T_cmd_inv, T_meas, raw)
     p = np.empty(3)
     for i in range(3):
         p[i] = raw[i, 3]
@@ -216,15 +216,6 @@ def follow_deviation(T_cmd_inv, T_meas, offset, rotation, alpha, bounds, T_dev, 
     T_dev[3, 2] = 0.0
     T_dev[3, 3] = 1.0
     invert4(T_dev, T_dev_inv)
-
-
-@nb.njit(**JIT)
-def _mul4(A, B, out):
-    """out = A @ B (4x4, general)."""
-    for i in range(4):
-        for j in range(4):
-            out[i, j] = A[i, 0] * B[0, j] + A[i, 1] * B[1, j] + A[i, 2] * B[2, j] \
-                + A[i, 3] * B[3, j]
 
 
 class StanceLegs:

@@ -32,6 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from hubo_cli.errors import ConfigError
+from hubo_cli.kinematics.choice import solve_limb
+from hubo_cli.kinematics.dh import kernel_array, mul4
 from hubo_cli.kinematics.limb import IKResult, Limb
 from hubo_cli.model import ARMS, LEGS, RobotModel
 from hubo_cli.posture import home_posture
@@ -218,6 +220,31 @@ class WholeBody:
             shift = min(max(shift + result.balance_error_m / self.shift_gain, -MAX_SHIFT_M),
                         MAX_SHIFT_M)
         return self._solve(T_S_goal, q_prev_rad, lift_m, shift, hand_forces_n)
+
+    def legs_at(self, q_prev_rad: np.ndarray, lift_m: float) -> tuple[np.ndarray, float]:
+        """``solve({}, q_prev_rad, lift_m=lift_m)``'s joints and lift (the same numbers: each
+        leg's :func:`~hubo_cli.kinematics.choice.solve_limb` with the arguments
+        :meth:`Limb.solve` gives it, its goal ``T_N_S @ T_S_sole`` compiled: each entry the
+        sum of four products of which at most one is neither zero nor exact, so numpy's to the
+        last bit and sign) without the result objects: the teleoperation solves the legs every
+        period (its lift filter moves every period). With CoM control it is :meth:`solve`
+        (its shift needs the whole solve)."""
+        if self.com_control:
+            result = self.solve({}, q_prev_rad, lift_m=lift_m)
+            return result.q_rad, result.lift_m
+        lo, hi = self.lift_range_m
+        lift = min(max(float(lift_m), lo), hi)
+        q_prev = kernel_array(q_prev_rad)
+        q = q_prev.copy()
+        T_N_S, T_goal, q_leg = _EYE4.copy(), np.empty((4, 4)), np.empty(6)
+        T_N_S[0, 3], T_N_S[2, 3] = -0.0, -lift  # as _solve's, with no shift
+        for name in LEGS:
+            leg, sl = self.legs[name], self._slices[name]
+            mul4(T_N_S, self.T_S_sole[name], T_goal)
+            solve_limb(T_goal, leg.chain, leg.lengths_m, False, leg.lower_rad, leg.upper_rad,
+                       q_prev[sl], True, leg.hold_m, True, q_leg)
+            q[sl] = q_leg
+        return q, lift
 
     def _solve(self, T_S_goal, q_prev_rad, lift_m, shift_m, hand_forces_n) -> WholeBodyResult:
         q_prev = self.q_home if q_prev_rad is None else np.asarray(q_prev_rad, dtype=float)

@@ -15,6 +15,7 @@ would return it again (a standing robot's every period).
 from __future__ import annotations
 
 import math
+from itertools import chain
 
 import numpy as np
 from ruckig import (
@@ -64,6 +65,11 @@ class JointTracker:
         self._inp.max_acceleration = limits.acceleration_rad_s2
         self._inp.max_jerk = limits.jerk_rad_s3
         self._zeros = np.zeros(n)
+        self._v_max = 0.9 * limits.velocity_rad_s  # a target velocity's bounds (90 %)
+        self._v_min = -self._v_max
+        self._v_bounds = list(zip(self._v_min.tolist(), self._v_max.tolist(), strict=True))
+        self._a_max = limits.acceleration_rad_s2  # an acceleration reset() takes is clipped
+        self._a_min = -self._a_max
         self.q = np.zeros(n)
         self.v = np.zeros(n)
         self.a = np.zeros(n)
@@ -73,6 +79,7 @@ class JointTracker:
         self._synced = False  # ruckig's input holds q, v, a (no need to set them again)
         self._target_v_zero = False
         self._preview = None  # ruckig, its input and a trajectory for preview()
+        self._preview_sync = None  # the synchronization set in the preview's input
         # (target, minimum duration) of the last ``track`` when it left ruckig's input as it
         # found it, at rest at a sample that stays put (see :meth:`_resting`); None otherwise
         self._rest: tuple[list[float], float | None, np.ndarray] | None = None
@@ -85,9 +92,9 @@ class JointTracker:
         while it ramps it down (from 6 rad/s^2 at 4 rad/s^3: 1.5 s, reaching 4 rad/s)."""
         self.q = np.array(q_rad, dtype=float)
         self.v = self._zeros.copy() if v_rad_s is None else np.array(v_rad_s, dtype=float)
-        amax = self.limits.acceleration_rad_s2
         self.a = (self._zeros.copy() if a_rad_s2 is None  # np.clip's values, cheaper:
-                  else np.minimum(np.maximum(np.asarray(a_rad_s2, dtype=float), -amax), amax))
+                  else np.minimum(np.maximum(np.asarray(a_rad_s2, dtype=float), self._a_min),
+                                  self._a_max))
         self.finished = True
         self.error = ""
         self._mode = None
@@ -122,13 +129,22 @@ class JointTracker:
             inp.max_acceleration = self.limits.acceleration_rad_s2
             inp.max_jerk = self.limits.jerk_rad_s3
         otg, inp, trajectory = self._preview
-        inp.current_position = self.q.tolist()  # lists: faster than arrays into ruckig
+        q = self.q.tolist()
+        inp.current_position = q  # lists: faster than arrays into ruckig
         inp.current_velocity = self.v.tolist()
         inp.current_acceleration = self.a.tolist()
         inp.target_position = np.asarray(target_rad, dtype=float).tolist()
-        inp.target_velocity = (self._zeros if target_v_rad_s is None
-                               else self._target_velocity(target_v_rad_s)).tolist()
-        inp.synchronization = SYNCHRONIZATIONS[synchronization]
+        v = self._zeros if target_v_rad_s is None else np.asarray(target_v_rad_s, dtype=float)
+        if v.shape == self._zeros.shape:  # _target_velocity's numbers (NaN as 0, then
+            # clipped) on Python floats
+            inp.target_velocity = [min(max(x, lo), hi) if x == x else 0.0
+                                   for x, (lo, hi) in zip(v.tolist(), self._v_bounds,
+                                                          strict=True)]
+        else:  # one velocity for every joint: numpy broadcasts it
+            inp.target_velocity = self._target_velocity(v).tolist()
+        if synchronization != self._preview_sync:
+            inp.synchronization = SYNCHRONIZATIONS[synchronization]
+            self._preview_sync = synchronization
         try:
             result = otg.calculate(inp, trajectory)
         except (RuckigError, RuntimeError, ValueError, TypeError):
@@ -138,7 +154,9 @@ class JointTracker:
         k = max(int(samples), 2)
         duration = trajectory.duration
         at_time = trajectory.at_time
-        return np.array([at_time(duration * i / (k - 1))[0] for i in range(k)])
+        # the first sample is the current position (ruckig's at_time(0): its profiles' start)
+        rows = [q] + [at_time(duration * i / (k - 1))[0] for i in range(1, k)]
+        return np.fromiter(chain.from_iterable(rows), float, k * len(q)).reshape(k, len(q))
 
     def _resting(self) -> bool:
         """The last sample is at rest, its velocity and acceleration exactly zero."""
@@ -223,8 +241,7 @@ class JointTracker:
         v = np.asarray(target_v_rad_s, dtype=float)
         if not all_finite(v):
             v = np.nan_to_num(v)
-        vmax = 0.9 * self.limits.velocity_rad_s
-        return np.minimum(np.maximum(v, -vmax), vmax)  # np.clip's values, cheaper
+        return np.minimum(np.maximum(v, self._v_min), self._v_max)  # np.clip's values, cheaper
 
     def brake(self) -> np.ndarray:
         """Advance one period of a velocity-interface stop (target velocity 0); returns the

@@ -92,6 +92,7 @@ from hubo_cli.teleop.target_kernels import (
 )
 
 SHORT = {"right-arm": "r", "left-arm": "l"}
+_STATUS_CODE = {name: code for code, name in enumerate(STATUS_NAMES)}  # the log's ik_code
 _EYE4 = np.eye(4)  # read only
 REST_RADIUS_M = 0.005  # a goal that stays within this for REST_S is at rest
 REST_S = 0.5
@@ -287,6 +288,9 @@ class TeleopTarget(Target):
         for hand_name, arm in mapper.config.hand_arm.items():
             self._hand_of.setdefault(arm, hand_name)
         self._right_leg = model.limb_slice("right-leg")  # lift_of reads it
+        # each arm's chain as the compiled kernels take it (base, offset, alpha, a, d, end)
+        self._chains = {arm: tuple(limb.chain[k] for k in (0, 2, 3, 4, 5, 6))
+                        for arm, limb in body.arms.items()}
         self._lifts: dict[bytes, float] = {}  # _lift_of's memory
         self._T_S_N_now: np.ndarray | None = None  # _T_S_N's, this period
         self.log_columns = tuple(
@@ -422,13 +426,11 @@ class TeleopTarget(Target):
         arriving with ``target_v_rad_s`` (default 0)."""
         if max_abs_difference(target_rad, tracker.q) < 1e-6:
             return 0.0
-        limb = self.body.arms[arm]
         path = tracker.preview(target_rad, OPERATE_SYNCHRONIZATION, SWING_SAMPLES,
                                target_v_rad_s)
         if len(path) < 3:
             return 0.0
-        base, _, offset, alpha, a, d, end, _ = limb.chain
-        return path_swing_m(path, base, offset, alpha, a, d, end)
+        return path_swing_m(path, *self._chains[arm])
 
     def _settled(self, state) -> bool:
         # against the output; a target set this period has none yet: against the target
@@ -559,8 +561,7 @@ class TeleopTarget(Target):
 
     def _solve_on_branches(self, t_s: float, lift_m: float, branch_key: bool) -> None:
         """Legs to the lift, each arm on its branch (nearest pose, branch moves, speed scale)."""
-        legs = self.body.solve({}, self.q_target, lift_m=lift_m)
-        q = legs.q_rad
+        q, lift_m = self.body.legs_at(self.q_target, lift_m)
         solved = {}  # arm -> (its reach, its goal in N) for the collision room's search
         for arm, T_S_goal in self.goals.items():
             sl = self.slices[arm]
@@ -568,7 +569,7 @@ class TeleopTarget(Target):
             reach = self.reach[arm]
             T_N_goal = reach.smoothed(T_S_goal, t_s - self._t_solved_s.get(arm, t_s))
             self._t_solved_s[arm] = t_s
-            T_N_goal[2, 3] -= legs.lift_m
+            T_N_goal[2, 3] -= lift_m
             solved[arm] = (reach, T_N_goal)
             result = reach.solve(T_N_goal, q_now)
             hand = self.hands.get(arm)
@@ -755,6 +756,7 @@ class TeleopTarget(Target):
         info["latency_s"] = self.latencies_s[-1] if self.latencies_s else 0.0
         operating = phase == "operate"
         lift_measured_m = None  # the measured legs' lift, computed once when first needed
+        q_measured = state.q_rad
         for arm, hand in self.hands.items():
             names = self._info_names[arm]
             goal = self.goals.get(arm)
@@ -763,19 +765,18 @@ class TeleopTarget(Target):
                      and self.mapper.is_calibrated(self._hand_of[arm]))
             T_S_N = self._T_S_N() if corrected or world else _EYE4
             if not corrected and lift_measured_m is None:
-                lift_measured_m = self._lift_of(state.q_rad)
-            base, _, offset, alpha, a, d, end, _ = self.body.arms[arm].chain
+                lift_measured_m = self._lift_of(q_measured)
+            base, offset, alpha, a, d, end = self._chains[arm]
             T_actual = np.empty((4, 4))
             error, rot_error, world_error = hand_errors(
-                kernel_array(state.q_rad[self.slices[arm]]), base, offset, alpha, a, d, end,
+                kernel_array(q_measured[self.slices[arm]]), base, offset, alpha, a, d, end,
                 corrected, 0.0 if corrected else lift_measured_m, T_S_N,
                 _EYE4 if goal is None else kernel_array(goal), world, T_actual)
             actual = T_actual[:3, 3]
             hand.actual_m = actual
             missing = hand.missing_m
             info[names[0]], info[names[1]], info[names[2]] = actual.tolist()
-            info[names[3]] = (STATUS_NAMES.index(hand.ik_status)
-                              if hand.ik_status in STATUS_NAMES else -1)
+            info[names[3]] = _STATUS_CODE.get(hand.ik_status, -1)
             info[names[4]] = (0.0 if missing is None
                               else math.sqrt(missing.dot(missing)))  # np.linalg.norm's
             info[names[5]] = hand.speed_scale
