@@ -30,7 +30,7 @@ A joint so given its goal still plans to stop at it (or to arrive at the velocit
 to), and lags a goal that keeps moving. :func:`tracking_target` gives it instead the state of
 the goal's prediction (its velocity decaying to rest within ``DECAY_S``) at the first time the
 joint can be there within its acceleration and speed limits: the joint meets the goal instead of
-chasing it, and a goal that stops is overshot by at most ``DECAY_S`` of its motion. Where a
+chasing it, and its target leads the goal by at most ``DECAY_S`` of the goal's motion. Where a
 joint of the arm cannot meet the goal soon (the goal outruns the joint's limits), the other
 joints meeting it would swing the hand off the goal's path: the intercept is then blended back
 to the goal with the reachable velocity (``MEET_FULL_S`` to ``MEET_NONE_S``).
@@ -201,7 +201,7 @@ class GoalVelocity:
 # The intercept (:func:`tracking_target`): where ruckig's stop at the target leaves a joint
 # w^2 / 2a behind a goal moving at w, the joint is given the predicted goal's state at the
 # first time it can be there. The goal is predicted from its velocity decaying to rest with
-# DECAY_S (a goal that stops is overshot by at most its velocity x DECAY_S); the intercept is
+# DECAY_S (the target leads the goal by at most its velocity x DECAY_S); the intercept is
 # used in full where every joint of the arm meets it within MEET_FULL_S, not at all where one
 # needs MEET_NONE_S or more (a joint the goal outruns would swing the hand off the goal's path
 # while the others catch up), blended between. Tuned on the 50 + 10 short generated streams,
