@@ -87,6 +87,63 @@ def numpy_reachable_velocity(v_goal, q_target, q, v, limits, share=lead.RUN_UP_S
     return s * np.minimum(speed, run_up) * caught_up
 
 
+def plain_min_time(x0, v0, x1, v1, accel, speed):
+    """The double integrator's shortest time, each one-switch profile written out."""
+    times = []
+    for s in (1.0, -1.0):
+        dx, a0, a1 = s * (x1 - x0), s * v0, s * v1
+        peak2 = accel * dx + (a0 * a0 + a1 * a1) / 2
+        for peak in ((math.sqrt(peak2), -math.sqrt(peak2)) if peak2 >= 0 else ()):
+            if peak < max(a0, a1) - 1e-12:
+                continue
+            up, down = (min(peak, speed) - a0) / accel, (min(peak, speed) - a1) / accel
+            covered = (min(peak, speed) ** 2 - a0 * a0 + min(peak, speed) ** 2 - a1 * a1) / (
+                2 * accel)
+            times.append(up + down + max(dx - covered, 0.0) / speed)
+    return min(times, default=math.inf)
+
+
+def numpy_tracking_target(v_goal, q_target, q, v, limits):
+    """lead.tracking_target in plain Python over numpy_reachable_velocity."""
+    v_out = numpy_reachable_velocity(v_goal, q_target, q, v, limits)
+    tau = lead.DECAY_S
+
+    def late(t, i):
+        e = math.exp(-t / tau)
+        return plain_min_time(q[i], v[i], q_target[i] + v_goal[i] * tau * (1 - e),
+                              v_goal[i] * e, lead.INTERCEPT_SHARE
+                              * limits.acceleration_rad_s2[i], limits.velocity_rad_s[i]) - t
+
+    meet = np.zeros(len(q))
+    for i in np.nonzero(v_goal)[0]:
+        grid = [0.0] + [lead.MEET_STEP_S * k for k in range(
+            1, int(lead.MEET_NONE_S / lead.MEET_STEP_S + 1e-6) + 1)]
+        meet[i] = lead.MEET_NONE_S
+        if late(0.0, i) <= 0:
+            meet[i] = 0.0
+            continue
+        for lo, hi in zip(grid, grid[1:], strict=False):
+            if late(hi, i) <= 0:
+                for _ in range(4):
+                    mid = (lo + hi) / 2
+                    lo, hi = (lo, mid) if late(mid, i) <= 0 else (mid, hi)
+                meet[i] = lo + (hi - lo) * late(lo, i) / (late(lo, i) - late(hi, i))
+                break
+    share = float(np.clip((lead.MEET_NONE_S - meet.max())
+                          / (lead.MEET_NONE_S - lead.MEET_FULL_S), 0.0, 1.0))
+    if share == 0.0:
+        return np.array(q_target, dtype=float), v_out, 0.0
+    e = np.exp(-meet / tau)
+    p = np.clip(q_target + v_goal * tau * (1 - e), limits.lower_rad, limits.upper_rad)
+    room = np.where(v_goal * e > 0, limits.upper_rad - p, p - limits.lower_rad)
+    cap = np.minimum(0.9 * limits.velocity_rad_s, numpy_stop_speed(
+        room, limits.acceleration_rad_s2, limits.jerk_rad_s3))
+    moving = v_goal != 0
+    q_out = np.where(moving, q_target + share * (p - q_target), q_target)
+    v_out = np.where(moving, share * np.clip(v_goal * e, -cap, cap) + (1 - share) * v_out, v_out)
+    return q_out, v_out, share
+
+
 class NumpyGoalVelocity(lead.GoalVelocity):
     def update(self, q_target_rad, follow):
         k = len(self._q)
@@ -387,6 +444,11 @@ def test_the_lead_kernels_match_numpy(arm_limits):
         assert np.allclose(lead.reachable_velocity(v_goal, q_target, q, v, arm_limits),
                            numpy_reachable_velocity(v_goal, q_target, q, v, arm_limits),
                            rtol=1e-12, atol=1e-15)
+        v = np.clip(v, -arm_limits.velocity_rad_s, arm_limits.velocity_rad_s)
+        for got, expected in zip(lead.tracking_target(v_goal, q_target, q, v, arm_limits),
+                                 numpy_tracking_target(v_goal, q_target, q, v, arm_limits),
+                                 strict=True):
+            assert np.allclose(got, expected, rtol=1e-9, atol=1e-12)
     fast, plain = lead.GoalVelocity(arm_limits, 0.005), NumpyGoalVelocity(arm_limits, 0.005)
     q = rng.uniform(arm_limits.lower_rad, arm_limits.upper_rad)
     for _ in range(3000):  # random walks, some to the limits, some periods not following
@@ -654,7 +716,7 @@ def _joint_targets(monkeypatch, target_class, seed, max_speed):
     with monkeypatch.context() as patch:
         patch.setattr(target_module, "TeleopTarget", Recorded)
         if target_class is ReferenceTarget:
-            patch.setattr(target_module, "reachable_velocity", numpy_reachable_velocity)
+            patch.setattr(target_module, "tracking_target", numpy_tracking_target)
         run = follow_generated(seed, StreamSettings(duration_s=2.0, max_speed_m_s=max_speed))
     return np.array(recorded), logged, run
 

@@ -39,5 +39,6 @@ TRACKER_STATES = Key(
 ARM_TARGET_VELOCITY = Key(
     "arm_target_velocity", dict,
     "arm -> the velocity (rad/s, its joints) the trajectory generator's tracker of that arm "
-    "arrives at its target with this period (the goal's own, feed-forward; absent: zero); "
+    "arrives at its target with this period (the goal's own or its prediction's, feed-forward; "
+    "absent: zero); "
     "written by the teleoperation target, followed by otg (groups limbs)")

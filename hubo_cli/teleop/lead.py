@@ -25,6 +25,15 @@ acceleration limit, and that only in full where it has caught up with its target
 none where it lags by what the goal covers in ``CATCH_UP_S`` (:func:`reachable_velocity`): a
 joint that keeps up loses part of the lag of planning to stop, one that lags further catches
 up as before.
+
+A joint so given its goal still plans to stop at it (or to arrive at the velocity it was cut
+to), and lags a goal that keeps moving. :func:`tracking_target` gives it instead the state of
+the goal's prediction (its velocity decaying to rest within ``DECAY_S``) at the first time the
+joint can be there within its acceleration and speed limits: the joint meets the goal instead of
+chasing it, and its target leads the goal by at most ``DECAY_S`` of the goal's motion. Where a
+joint of the arm cannot meet the goal soon (the goal outruns the joint's limits), the other
+joints meeting it would swing the hand off the goal's path: the intercept is then blended back
+to the goal with the reachable velocity (``MEET_FULL_S`` to ``MEET_NONE_S``).
 """
 
 from __future__ import annotations
@@ -187,3 +196,125 @@ class GoalVelocity:
                   lim.upper_rad, lim.velocity_rad_s, lim.acceleration_rad_s2, lim.jerk_rad_s3,
                   self.v_rad_s)
         return self.v_rad_s
+
+
+# The intercept (:func:`tracking_target`): where ruckig's stop at the target leaves a joint
+# w^2 / 2a behind a goal moving at w, the joint is given the predicted goal's state at the
+# first time it can be there. The goal is predicted from its velocity decaying to rest with
+# DECAY_S (the target leads the goal by at most its velocity x DECAY_S); the intercept is
+# used in full where every joint of the arm meets it within MEET_FULL_S, not at all where one
+# needs MEET_NONE_S or more (a joint the goal outruns would swing the hand off the goal's path
+# while the others catch up), blended between. Tuned on the 50 + 10 short generated streams,
+# the shipped samples in free mode and the out-of-reach walk at three speeds (DECAY_S 0.1 /
+# 0.15 / 0.3 s, gates at 0.5 / 0.7 / 1.0 s and blends 0.2-0.6 / 0.3-0.8 s):
+# docs/history/teleop.md, round 7.
+DECAY_S = 0.1
+MEET_FULL_S = 0.3
+MEET_NONE_S = 0.8
+INTERCEPT_SHARE = 0.9  # of the acceleration limit, for the intercept (the rest for the jerk)
+MEET_STEP_S = 0.05  # the scan for the first time the joint meets the goal, then refined
+
+
+@nb.njit(**JIT)
+def _min_time(x0, v0, x1, v1, accel, speed):
+    """The shortest time (s) in which a double integrator with |acceleration| <= ``accel``
+    and |velocity| <= ``speed`` goes from (x0, v0) to (x1, v1), both speeds within the
+    limit: full acceleration one way, then the other (a cruise at the speed limit between
+    where the peak would pass it)."""
+    best = np.inf
+    for s in (1.0, -1.0):  # first toward +x, then toward -x (mirrored)
+        dx, a0, a1 = s * (x1 - x0), s * v0, s * v1
+        peak2 = accel * dx + 0.5 * (a0 * a0 + a1 * a1)
+        if peak2 < 0.0:
+            continue
+        root = math.sqrt(peak2)
+        for peak in (root, -root):
+            if peak < max(a0, a1) - 1e-12:
+                continue
+            if peak <= speed:
+                t = (2.0 * peak - a0 - a1) / accel
+            else:
+                t = ((2.0 * speed - a0 - a1) / accel
+                     + (dx - (2.0 * speed * speed - a0 * a0 - a1 * a1) / (2.0 * accel)) / speed)
+            best = min(best, t)
+    return best
+
+
+@nb.njit(**JIT)
+def _late_s(t, w, g, q, v, accel, speed):
+    """How much later than ``t`` (s) the joint (``q``, ``v``) can at the soonest be in the
+    predicted goal's state at ``t`` (the goal at ``g`` moving at ``w``, decaying with
+    DECAY_S); <= 0 where it can be there by then."""
+    e = math.exp(-t / DECAY_S)
+    return _min_time(q, v, g + w * DECAY_S * (1.0 - e), w * e, accel, speed) - t
+
+
+@nb.njit(**JIT)
+def _meet_s(w, g, q, v, accel, speed):
+    """The first time (s) at which the joint can be in the predicted goal's state (MEET_NONE_S
+    if not before): a scan, bisection, then the secant (continuous in the joint's state)."""
+    lo, f_lo = 0.0, _late_s(0.0, w, g, q, v, accel, speed)
+    if f_lo <= 0.0:
+        return 0.0
+    t = MEET_STEP_S
+    while t <= MEET_NONE_S + 1e-9:
+        f = _late_s(t, w, g, q, v, accel, speed)
+        if f <= 0.0:
+            hi, f_hi = t, f
+            for _ in range(4):
+                mid = 0.5 * (lo + hi)
+                f_mid = _late_s(mid, w, g, q, v, accel, speed)
+                if f_mid <= 0.0:
+                    hi, f_hi = mid, f_mid
+                else:
+                    lo, f_lo = mid, f_mid
+            return lo + (hi - lo) * f_lo / (f_lo - f_hi)
+        lo, f_lo = t, f
+        t += MEET_STEP_S
+    return MEET_NONE_S
+
+
+@nb.njit(**JIT)
+def _tracking_target(v_goal, q_target, q, v, lower, upper, velocity, accel, jerk, out_q,
+                     out_v):
+    """:func:`tracking_target` into ``out_q`` and ``out_v``; returns the intercept's share."""
+    n = out_q.shape[0]
+    _reachable(v_goal, q_target, q, v, accel, jerk, RUN_UP_SHARE, out_v)
+    meet = np.zeros(n)  # each joint's own (a time common to the arm's joints: excursions
+    # up to 31.7 mm on the 50 streams, docs/history/teleop.md)
+    for i in range(n):
+        out_q[i] = q_target[i]
+        if v_goal[i] != 0.0:
+            meet[i] = _meet_s(v_goal[i], q_target[i], q[i], v[i], INTERCEPT_SHARE * accel[i],
+                              velocity[i])
+    share = min(max((MEET_NONE_S - meet.max()) / (MEET_NONE_S - MEET_FULL_S), 0.0), 1.0)
+    if share == 0.0:
+        return 0.0
+    for i in range(n):
+        w = v_goal[i]
+        if w == 0.0:
+            continue
+        e = math.exp(-meet[i] / DECAY_S)
+        p = min(max(q_target[i] + w * DECAY_S * (1.0 - e), lower[i]), upper[i])
+        vt = w * e  # within the speed that still stops before the position limit from p
+        room = upper[i] - p if vt > 0 else p - lower[i]
+        cap = min(0.9 * velocity[i], _stop_speed(room, accel[i], jerk[i]))
+        out_q[i] = q_target[i] + share * (p - q_target[i])
+        out_v[i] = share * min(max(vt, -cap), cap) + (1.0 - share) * out_v[i]
+    return share
+
+
+def tracking_target(v_goal_rad_s: np.ndarray, q_target_rad: np.ndarray, q_rad: np.ndarray,
+                    v_rad_s: np.ndarray, limits: JointLimits
+                    ) -> tuple[np.ndarray, np.ndarray, float]:
+    """Per joint, the target (position rad, velocity rad/s) to give an arm's trajectory
+    generator, the joints at ``q_rad`` moving at ``v_rad_s``, their goal at ``q_target_rad``
+    moving at ``v_goal_rad_s`` (zero: not followed): :func:`reachable_velocity` at the goal
+    blended with the intercept of the goal's prediction (see DECAY_S); and the intercept's
+    share (0: the goal and the reachable velocity, as they were)."""
+    out_q, out_v = np.empty(len(v_goal_rad_s)), np.empty(len(v_goal_rad_s))
+    share = _tracking_target(kernel_array(v_goal_rad_s), kernel_array(q_target_rad),
+                             kernel_array(q_rad), kernel_array(v_rad_s), limits.lower_rad,
+                             limits.upper_rad, limits.velocity_rad_s,
+                             limits.acceleration_rad_s2, limits.jerk_rad_s3, out_q, out_v)
+    return out_q, out_v, share

@@ -78,7 +78,7 @@ from hubo_cli.model import ARMS, RobotModel
 from hubo_cli.motion.limits import JointLimits
 from hubo_cli.motion.tracker import JointTracker
 from hubo_cli.scene import SceneActions, WallPlacement
-from hubo_cli.teleop.lead import GoalVelocity, reachable_velocity
+from hubo_cli.teleop.lead import GoalVelocity, tracking_target
 from hubo_cli.teleop.mapping import HandMapper
 from hubo_cli.teleop.phases import PHASES, Approach, Operate, Settle
 from hubo_cli.teleop.reach_lead import AHEAD_S, LEAD_BEYOND_M, LEAD_SCALE_SHARE, ReachLead
@@ -307,7 +307,7 @@ class TeleopTarget(Target):
         goal_velocity = GoalVelocity(limits, self.dt_guard_s)
         for _ in range(goal_velocity.samples):
             goal_velocity.update(zeros, True)
-        reachable_velocity(zeros, zeros, zeros, zeros, limits)
+        tracking_target(zeros + 0.1, zeros, zeros, zeros, limits)
         operator_pose_plausible(_EYE4, 1.0)
         tilt_rad(np.array([1.0, 0.0, 0.0, 0.0]))
         max_abs_difference(zeros, zeros)
@@ -390,9 +390,10 @@ class TeleopTarget(Target):
         return self.q_out, info
 
     def _pace_arms(self) -> None:
-        """Each arm's tracker: arriving with the goal's velocity while the hand follows it
-        (:mod:`hubo_cli.teleop.lead`), unsynchronised unless that way to the target swings the
-        hand more than ``SWING_M`` off the straight line to it, phase synchronised then."""
+        """Each arm's tracker: while the hand follows its goal, led to where it meets the
+        goal's prediction and arriving with its velocity (:func:`hubo_cli.teleop.lead.
+        tracking_target`), unsynchronised unless that way to the target swings the hand more
+        than ``SWING_M`` off the straight line to it, phase synchronised then."""
         if self._trackers is None:
             return
         states, synchronization, velocity = self.store[TRACKER_STATES], {}, {}
@@ -400,9 +401,13 @@ class TeleopTarget(Target):
             tracker, now = self._trackers[arm], states[arm]
             tracker.reset(now.q_rad, now.v_rad_s, now.a_rad_s2)
             target = self.q_out[self.slices[arm]]
-            velocity[arm] = reachable_velocity(
+            led, velocity[arm], share = tracking_target(
                 self._goal_velocity[arm].update(target, self._following(arm)), target,
                 now.q_rad, now.v_rad_s, now.limits)
+            if share > 0.0:  # the generator's target leads the goal (q_out is then a copy)
+                if self.q_out is self.q_target:
+                    self.q_out = self.q_target.copy()
+                self.q_out[self.slices[arm]] = target = led
             sync = OPERATE_SYNCHRONIZATION
             if self.swing_m(arm, tracker, target, velocity[arm]) > SWING_M:
                 sync = "phase"
