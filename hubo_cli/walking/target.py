@@ -490,6 +490,11 @@ class WalkTarget(Target):
         self._steps_before = len(self.steps)
         self._omega = math.sqrt(GRAVITY_M_S2 / gait.com_height_m)
         self._adopt(gait, body, t_s)
+        if self.stabilizer is not None:
+            # the plan starts from the estimated torso, which carries the offset the legs held:
+            # kept, the offset moved the torso by it a second time in one period
+            self.torso_offset.reset()
+            self._leg_delta[:] = 0.0
         self.steps.extend(steps)
 
     def _adopt(self, gait: Gait, body: WalkingBody, t_s: float, fix_start=None) -> None:
