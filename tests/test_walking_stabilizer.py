@@ -166,7 +166,8 @@ def test_a_new_plan_from_the_estimate_does_not_apply_the_torso_offset_again():
     leg joints continue the last ones: the plan already carries the offset, so the offset and
     the legs' correction start again from zero. Kept, they moved the torso by the offset a
     second time in one period (pushed seed 17 of tools/walk_disturbances.py: 28 mm back, the
-    hips 4-5 deg; the capture point went behind the heels and the robot fell backward)."""
+    hips 4-5 deg; the capture point went behind the heels, and on the portable path the
+    capture-point stop's stance tipped over them backward)."""
     model, q_start, _, target, store = standing_walk((0.3, 0.0, 0.0), StabilizerGains(),
                                                      pitch_rad=np.radians(1.0))
     for k in range(60):
@@ -179,8 +180,8 @@ def test_a_new_plan_from_the_estimate_does_not_apply_the_torso_offset_again():
     target._plan(target.plan.q_rad[target.k - 1], 60 * DT)
     q_next, _ = target(60 * DT, state)
     legs = np.r_[right, model.limb_slice("left-leg")]
-    # 0.62 deg on both code paths (AVX-512 / portable; the hips' pitch and roll: the new plan's
-    # CoM is from the last plan's joints); the offset applied again: 2.39 deg on both (ankles)
+    # 0.62 deg on both code paths (AVX-512 / portable; the ankles' and hips' pitch: the new
+    # plan's CoM is from the last plan's joints); the offset applied again: 2.39 deg on both
     assert np.degrees(np.max(np.abs(q_next[legs] - q[legs]))) < 1.2
 
 
