@@ -376,3 +376,37 @@ def test_a_fifth_of_a_metre_a_second_needs_the_swing_to_cruise(walking_model, pa
                            / gait.period_s))
     # the plan's figures, the same on both code paths: 3.38 and 2.07 rad/s
     assert peaks[0] > 3.0 and peaks[1] < 2.3
+
+
+def test_a_correction_starts_where_the_legs_hold_the_soles(params):
+    """A correction's pattern (:func:`hubo_cli.walking.target._blend_from_held`) starts at the
+    soles the legs hold and reaches the estimated ones, which it was planned from, by the first
+    lift-off, without a jump; the swings are left as planned. Held soles drawn 5-20 mm and
+    0.5-3 deg off, the first row moves at most a period's share of the quintic."""
+    from hubo_cli.walking.target import SIDES, _blend_from_held
+
+    right, left = start_feet(params)
+    steps = plan_footsteps(right, left, Stance(0.1, 0.03, 0.0), params)
+    rng = np.random.default_rng(37)
+    for _ in range(5):
+        gait = make_gait(right, left, steps, params, 0.005, 0.59, -0.008, 0.02)
+        planned = {side: gait.feet[side].copy() for side in SIDES}
+        held = np.tile(np.eye(4), (2, 1, 1))
+        for column, foot in enumerate((right, left)):
+            off = rng.uniform(0.005, 0.02, 3) * rng.choice([-1.0, 1.0], 3)
+            turn = math.radians(rng.uniform(0.5, 3.0)) * rng.choice([-1.0, 1.0])
+            c, s = math.cos(foot.yaw_rad + turn), math.sin(foot.yaw_rad + turn)
+            held[column, :2, :2] = [[c, -s], [s, c]]
+            held[column, :3, 3] = (foot.x_m + off[0], foot.y_m + off[1], -0.008 + off[2])
+        lead = _blend_from_held(gait, held)
+        assert lead == np.flatnonzero(~gait.support.all(axis=1))[0]
+        first = smoothstep5(1.0 / lead)
+        for column, side in enumerate(SIDES):
+            rows, T = gait.feet[side], held[column]
+            start = np.array([T[0, 3], T[1, 3], T[2, 3], math.atan2(T[1, 0], T[0, 0])])
+            aimed = planned[side][lead - 1]
+            assert np.allclose(rows[0], start + first * (aimed - start), atol=1e-12)
+            assert np.allclose(rows[lead - 1], aimed, atol=1e-12)
+            assert np.array_equal(rows[lead:], planned[side][lead:])
+            steps_between = np.abs(np.diff(rows[:lead], axis=0))
+            assert np.all(steps_between <= 2.0 * np.abs(aimed - start) / lead + 1e-12)

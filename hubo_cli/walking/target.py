@@ -93,8 +93,9 @@ from hubo_cli.walking.footsteps import (
     closing_steps,
     plan_footsteps,
     stance_of,
+    wrap_angle,
 )
-from hubo_cli.walking.gait import Gait, make_gait
+from hubo_cli.walking.gait import Gait, make_gait, smoothstep5
 from hubo_cli.walking.params import WalkingParams
 from hubo_cli.walking.replan import (
     CP_MARGIN_M,
@@ -285,6 +286,26 @@ def rigid_inverse(T: np.ndarray) -> np.ndarray:
     out[..., :3, 3] = -(R_t @ T[..., :3, 3, None])[..., 0]
     out[..., 3, 3] = 1.0
     return out
+
+
+def _blend_from_held(gait: Gait, T_world_held: np.ndarray) -> int:
+    """Start a correction's pattern where the legs hold the soles (``T_world_held``, right
+    and left, placed by the estimated torso), moving them onto the estimated soles it was
+    planned from over its lead-in (the rows before the first lift-off; the quintic), in
+    place. Planned from the estimated soles alone, the legs reached 8.7 mm lower and 18 mm
+    wider at once: the knees' targets stepped 3-7 deg and the robot hopped (docs/history/
+    walking.md, round 7). Returns the number of lead-in rows."""
+    lifted = np.flatnonzero(~gait.support.all(axis=1))
+    lead = int(lifted[0]) if len(lifted) else gait.n
+    s = smoothstep5((np.arange(lead) + 1.0) / lead)[:, None]
+    for column, side in enumerate(SIDES):
+        T = T_world_held[column]
+        held = np.array([T[0, 3], T[1, 3], T[2, 3], math.atan2(T[1, 0], T[0, 0])])
+        rows = gait.feet[side]
+        aimed = rows[lead - 1].copy() if lead else held
+        held[3] = aimed[3] + wrap_angle(held[3] - aimed[3])
+        rows[:lead] = held + s * (aimed - held)
+    return lead
 
 
 def planned_contacts(gait: Gait) -> list[tuple[Contact | None, Contact | None]]:
@@ -485,12 +506,26 @@ class WalkTarget(Target):
                          self.model.control_period_s, float(com_world[2]) - sole_z, sole_z,
                          self.model.feet.forward_m, com_start_m=com_world[:2],
                          toe_heel=self.toe_heel, sole=self.model.feet)
+        held = self.gait is not None and gait.toe_heel is None
+        if held:  # a correction: its lead-in moves the soles from where the legs hold them
+            played = max(min(self.k, self.gait.n) - 1, 0)  # the last row played
+            goals = self._T_neck_soles[played].copy()  # with the stabilizer's last correction
+            if self.stabilizer is not None:
+                offset_x, offset_y = self.torso_offset.offset_m.tolist()
+                for column, side in enumerate(SIDES):
+                    goals[column, :3, 3] += self._R_neck_world[played] @ np.array(
+                        (-offset_x, -offset_y, self.touchdowns[side].lift_m))
+            lead = _blend_from_held(gait, T_world_neck @ goals)
         # what the plan was made from, for re-planning it in motion (:meth:`_replan`)
         self._basis = ((feet["right"], feet["left"]), list(steps), sole_z, com_world[:2].copy())
         self._row0 = 0  # the pattern's first period on the plan's timeline
         self._steps_before = len(self.steps)
         self._omega = math.sqrt(GRAVITY_M_S2 / gait.com_height_m)
         self._adopt(gait, body, t_s)
+        if held:  # the swings' clearance above the estimated soles, not the held ones
+            for side in SIDES:
+                z0 = self._sole_z0[side] = float(gait.feet[side][lead, 2])
+                self._clearance[side] = (gait.feet[side][:, 2] - z0).tolist()
         if self.stabilizer is not None:
             # the estimated torso the plan starts from already carries the torso offset as the
             # legs' correction held it: kept, that correction moved the torso by it a second
