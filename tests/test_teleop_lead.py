@@ -206,8 +206,9 @@ def test_a_goal_that_stops_short_is_run_past_by_less_than_its_prediction_leads_i
     lag = {law: float(-np.min(e[:300])) for law, e in got.items()}  # behind, while it moves
     past = {law: float(np.max(e)) for law, e in got.items()}  # ahead, after the stop
     # measured (deterministic numerics): lag 0.1062 rad stopping at the goal, 0.1060 rad
-    # meeting it (the onset: the joints' 0.8 rad/s^2); run past by 0 and 0.0127 rad
-    assert lag["meet"] <= lag["stop"] + 1e-9, (lag, past)
+    # meeting it (the onset: the joints' 0.8 rad/s^2; the same lag, so 5 % spare, not a
+    # knife edge); run past by 0 and 0.0127 rad
+    assert lag["meet"] <= 1.05 * lag["stop"], (lag, past)
     assert past["meet"] < DECAY_S * 0.4, (lag, past)
     for errors in got.values():
         assert np.max(np.abs(errors[-40:])) < 1e-3  # at rest on the goal at the end

@@ -49,6 +49,10 @@ CP_WIDTH_MAX_M = 0.36       # [chosen] ... and at most this far from it sideways
 CP_GAP_M = 0.04             # [chosen] the soles' inner edges stay this far apart: no crossing
 CP_MAX_SHIFT_M = 0.2        # [chosen] a shift longer than this is shortened to it
 PREFIX_LEAD_PERIODS = 4     # [chosen] a re-plan's first rows: the rest's slices and this many
+HELD_BLEND_ROWS = 60        # [chosen] a foot standing elsewhere than a re-plan has it moves
+                            # onto it over this many rows (0.3 s; a correction's lead-in blends
+                            # over 0.55 s, and a stop in it jumped 4.1 deg of the legs at once)
+HELD_TOLERANCE = 1e-9       # [chosen] (m and rad) a standing foot this close is where it is
 TOUCH_BLEND_ROWS = 20       # [chosen] a swing foot down early moves from its command onto its
                             # landing place over this many rows (it stands there already;
                             # over 10, its joints met the walking limit set's speed limit)
@@ -135,13 +139,23 @@ def pattern_from(current: Gait, k: int, row: int, start: tuple[Footstep, Footste
         if landing > 0 and len(old) == landing:
             blend = smoothstep5((np.arange(landing) + 1.0) / landing)[:, None]
             feet[side][:landing] = old + blend * (feet[side][:landing] - old)
-        elif landing == 0 and not current.support[min(k, current.n - 1), column]:
-            # down at once (a swing ended early, ``row`` past its landing): from the command
-            # now onto the landing place, where the foot already stands
-            n = min(TOUCH_BLEND_ROWS, len(support))
+        elif landing == 0:
             now = current.feet[side][min(k, current.n - 1)]
-            blend = smoothstep5((np.arange(n) + 1.0) / n)[:, None]
-            feet[side][:n] = now + blend * (feet[side][:n] - now)
+            if not current.support[min(k, current.n - 1), column]:
+                # down at once (a swing ended early, ``row`` past its landing): from the
+                # command now onto the landing place, where the foot already stands
+                n = min(TOUCH_BLEND_ROWS, len(support))
+            elif np.max(np.abs(feet[side][0] - now)) > HELD_TOLERANCE:
+                # down now and then, held elsewhere than the new pattern has it (a correction's
+                # lead-in, :func:`~hubo_cli.walking.target._blend_from_held`, not yet done):
+                # onto it over its stance's rows before a lift-off, at most HELD_BLEND_ROWS
+                lifted = np.nonzero(~support[:, column])[0]
+                n = min(int(lifted[0]) if len(lifted) else len(support), HELD_BLEND_ROWS)
+            else:
+                continue
+            if n > 0:
+                blend = smoothstep5((np.arange(n) + 1.0) / n)[:, None]
+                feet[side][:n] = now + blend * (feet[side][:n] - now)
     zmp_ref = full.zmp_ref_m[row:]
     com = current.com
     gains = preview_gains(period, current.com_height_m, params.preview_s, params.zmp_weight,

@@ -524,7 +524,7 @@ class WalkTarget(Target):
         self._adopt(gait, body, t_s)
         if held:  # the swings' clearance above the estimated soles, not the held ones
             for side in SIDES:
-                z0 = self._sole_z0[side] = float(gait.feet[side][lead, 2])
+                z0 = self._sole_z0[side] = float(gait.feet[side][min(lead, gait.n - 1), 2])
                 self._clearance[side] = (gait.feet[side][:, 2] - z0).tolist()
         if self.stabilizer is not None:
             # the estimated torso the plan starts from already carries the torso offset as the
@@ -576,6 +576,7 @@ class WalkTarget(Target):
             for leg, name in ((body.legs[SIDE_LEG[side]], SIDE_LEG[side]) for side in SIDES))
         n = gait.n
         new["_support_poses"] = planned_support(whole, self._basis[2])[:n]
+        new["_whole_support"] = whole.support  # the lift-off guard's next row past a prefix
         # per-period rows as plain floats and bools for the loop (cheaper than numpy scalars)
         new["_rows"] = {"support": gait.support.tolist(), "zmp_ref": gait.zmp_ref_m.tolist(),
                         "com_ref": gait.com.com_m.tolist(), "plan_com": plan.com_m.tolist(),
@@ -1005,10 +1006,11 @@ class WalkTarget(Target):
         """Row ``k`` has both soles down and the next lifts one, while the soles measured
         carried less than LIFTOFF_MIN_LOAD of the body's weight (their median over the last
         LIFTOFF_WINDOW_S): the robot bounces, and the foot lifted would be its only support."""
-        support = self._rows["support"]
-        if k + 1 >= len(support) or not all(support[k]) or all(support[k + 1]):
+        support = self._whole_support  # a re-plan's prefix ends mid-pattern: the next row
+        if k + 1 >= len(support) or not support[k].all() or support[k + 1].all():  # is here
             return False
-        return bool(np.median(self._loads_n) < LIFTOFF_MIN_LOAD * self._weight_n)
+        loads_n = self._loads_n[~np.isnan(self._loads_n)]  # one garbled reading: not ignored
+        return bool(len(loads_n) and np.median(loads_n) < LIFTOFF_MIN_LOAD * self._weight_n)
 
     def _done(self, t_s: float) -> bool:
         """The walk has ended: the pattern played (and no correction is due), or a stop's
