@@ -54,8 +54,6 @@ from hubo_cli.pin_robot import load_pin_robot
 from hubo_cli.state import GRAVITY_M_S2
 
 SIDES = ("right", "left")
-LEG_JOINTS = {"right": ("RHY", "RHR", "RHP", "RKN", "RAP", "RAR"),
-              "left": ("LHY", "LHR", "LHP", "LKN", "LAP", "LAR")}
 CROSS_X_M = np.arange(-0.40, 0.401, 0.02)    # the crossing grid, in the stance sole's frame
 CROSS_Y_M = np.arange(0.0, 0.301, 0.02)      # (outward from its outer edge: the sole's
 CROSS_YAW_RAD = np.arange(-1.8, 1.801, 0.1)  # centre this far beyond it)
@@ -84,8 +82,14 @@ def T_world_neck_at(columns, k: int) -> np.ndarray:
     return T
 
 
+def leg_names(model) -> dict[str, tuple[str, ...]]:
+    """Each leg's joint names, hip yaw to ankle roll (the model's own order)."""
+    return {side: tuple(model.joint_names[model.limb_slice(f"{side}-leg")]) for side in SIDES}
+
+
 def analyse(model, walking, checker, run_dir: Path, at_s: float, direction: str) -> dict | None:
     log = load_log(run_dir / "log.parquet")
+    names_of = leg_names(model)
     c = log.columns
     t = np.asarray(c["t_s"], dtype=float)
     k0 = int(np.searchsorted(t, at_s))
@@ -103,13 +107,13 @@ def analyse(model, walking, checker, run_dir: Path, at_s: float, direction: str)
     q = np.array([float(c[f"q_{n}_rad"][k1]) for n in names])
     T_world_neck = T_world_neck_at(c, k1)
     legs = {side: Limb(model, f"{side}-leg") for side in SIDES}
-    leg_q = {side: q[[names.index(j) for j in LEG_JOINTS[side]]] for side in SIDES}
+    leg_q = {side: q[[names.index(j) for j in names_of[side]]] for side in SIDES}
     T_world_stance = T_world_neck @ legs[stance].fk(leg_q[stance])
     corners = model.feet.sole_corners_m()
 
     def past_edge(k: int) -> float:
         T = T_world_neck_at(c, k) @ legs[stance].fk(
-            np.array([float(c[f"q_{j}_rad"][k]) for j in LEG_JOINTS[stance]]))
+            np.array([float(c[f"q_{j}_rad"][k]) for j in names_of[stance]]))
         edge = outward * ((T[:3, :3] @ corners.T).T + T[:3, 3])[:, 1]
         return float(outward * float(c["cp_y_m"][k]) - edge.max())
 
@@ -130,7 +134,7 @@ def analyse(model, walking, checker, run_dir: Path, at_s: float, direction: str)
     T_neck_goals = T_neck_stance @ np.array(grid)
     solved = legs[swing].solve_batch(T_neck_goals, allow_cap=False)
     exact = np.flatnonzero(solved.status == choice.STATUS_NAMES.index("exact"))
-    swing_index = [names.index(j) for j in LEG_JOINTS[swing]]
+    swing_index = [names.index(j) for j in names_of[swing]]
     q_start = np.array([float(c[f"q_{n}_rad"][k0]) for n in names])
     swing_velocity = walking.velocity_rad_s[swing_index]
     landings = []
@@ -160,7 +164,7 @@ def analyse(model, walking, checker, run_dir: Path, at_s: float, direction: str)
     A = pin.computeCentroidalMap(pm, data, qp)  # 6 x nv, [linear; angular] at the CoM
     pin.computeJointJacobians(pm, data, qp)
     pin.framesForwardKinematics(pm, data, qp)
-    sole = pm.getFrameId(f"{LEG_JOINTS[stance][-1]}_link")
+    sole = pm.getFrameId(f"{names_of[stance][-1]}_link")
     J = pin.getFrameJacobian(pm, data, sole, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
     axis = T_world_stance[:3, 0]  # the stance sole's forward axis: its outer edge's direction
     v_index = [pm.joints[pm.getJointId(n)].idx_v for n in names]
@@ -200,7 +204,7 @@ def main() -> int:
     args = parser.parse_args()
     model = load_model()
     walking = load_model(model.params_name, "walking")
-    leg_links = {side: [f"{j}_link" for j in LEG_JOINTS[side]] for side in SIDES}
+    leg_links = {side: [f"{j}_link" for j in leg_names(model)[side]] for side in SIDES}
     checker = SelfCollisionChecker(model, pairs=[(a, b) for a in leg_links["right"]
                                                  for b in leg_links["left"]])
     for seed in seeds_of(args.seeds):

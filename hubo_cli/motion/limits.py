@@ -10,6 +10,9 @@ import numpy as np
 
 from hubo_cli.model import RobotModel
 
+TARGET_SPEED_SHARE = 0.9  # [chosen] of a joint's speed limit, the most a target velocity asks
+                          # (the trajectory generator's own tracking keeps the rest)
+
 
 @dataclass(frozen=True)
 class JointLimits:

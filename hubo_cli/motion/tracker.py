@@ -30,7 +30,7 @@ from ruckig import (
 )
 
 from hubo_cli.errors import ConfigError
-from hubo_cli.motion.limits import JointLimits, all_finite
+from hubo_cli.motion.limits import TARGET_SPEED_SHARE, JointLimits, all_finite
 
 SYNCHRONIZATIONS = {"phase": Synchronization.Phase, "none": Synchronization.No}
 
@@ -65,7 +65,7 @@ class JointTracker:
         self._inp.max_acceleration = limits.acceleration_rad_s2
         self._inp.max_jerk = limits.jerk_rad_s3
         self._zeros = np.zeros(n)
-        self._v_max = 0.9 * limits.velocity_rad_s  # a target velocity's bounds (90 %)
+        self._v_max = TARGET_SPEED_SHARE * limits.velocity_rad_s  # a target velocity's bounds
         self._v_min = -self._v_max
         self._v_bounds = list(zip(self._v_min.tolist(), self._v_max.tolist(), strict=True))
         self._a_max = limits.acceleration_rad_s2  # an acceleration reset() takes is clipped

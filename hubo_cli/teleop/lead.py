@@ -44,7 +44,7 @@ import numba as nb
 import numpy as np
 
 from hubo_cli.kinematics.dh import JIT, kernel_array
-from hubo_cli.motion.limits import JointLimits
+from hubo_cli.motion.limits import TARGET_SPEED_SHARE, JointLimits
 
 WINDOW_S = 0.1  # the slope's window: the "constant goal velocity over the last 0.1 s"
 RUN_UP_SHARE = 0.5  # of the acceleration limit, for the run-up to the target velocity (a joint
@@ -149,7 +149,7 @@ def _estimate(weights, Q, q_target, lower, upper, velocity, accel, jerk, out):
         for k in range(weights.shape[0]):
             v += weights[k] * Q[k, i]
         room = upper[i] - q_target[i] if v > 0 else q_target[i] - lower[i]
-        cap = min(0.9 * velocity[i], _stop_speed(room, accel[i], jerk[i]))
+        cap = min(TARGET_SPEED_SHARE * velocity[i], _stop_speed(room, accel[i], jerk[i]))
         out[i] = min(max(v, -cap), cap)
 
 
@@ -298,7 +298,7 @@ def _tracking_target(v_goal, q_target, q, v, lower, upper, velocity, accel, jerk
         p = min(max(q_target[i] + w * DECAY_S * (1.0 - e), lower[i]), upper[i])
         vt = w * e  # within the speed that still stops before the position limit from p
         room = upper[i] - p if vt > 0 else p - lower[i]
-        cap = min(0.9 * velocity[i], _stop_speed(room, accel[i], jerk[i]))
+        cap = min(TARGET_SPEED_SHARE * velocity[i], _stop_speed(room, accel[i], jerk[i]))
         out_q[i] = q_target[i] + share * (p - q_target[i])
         out_v[i] = share * min(max(vt, -cap), cap) + (1.0 - share) * out_v[i]
     return share
