@@ -87,21 +87,24 @@ def leg_names(model) -> dict[str, tuple[str, ...]]:
     return {side: tuple(model.joint_names[model.limb_slice(f"{side}-leg")]) for side in SIDES}
 
 
-def analyse(model, walking, checker, run_dir: Path, at_s: float, direction: str) -> dict | None:
+def analyse(model, walking, checker, run_dir: Path, at_s: float, direction: str) -> dict | str:
+    """The bounds of one pushed run, or why there are none for it."""
     log = load_log(run_dir / "log.parquet")
     names_of = leg_names(model)
     c = log.columns
     t = np.asarray(c["t_s"], dtype=float)
     k0 = int(np.searchsorted(t, at_s))
     k1 = int(np.searchsorted(t, at_s + PUSH_S))
+    if k1 >= len(t):
+        return f"its log ends at {t[-1]:.3f} s, before the push's end"
     planned = [float(c[f"planned_{side}_foot_contact_flag"][k0]) for side in SIDES]
     push_y = PUSH_DIRECTIONS[direction][1]
     if sum(planned) != 1 or push_y == 0:
-        return None
+        return "not in single support, or not pushed sideways"
     stance = SIDES[planned.index(1.0)]
     outward = 1.0 if stance == "left" else -1.0
     if push_y * outward <= 0:
-        return None  # toward the swing foot
+        return "pushed toward the swing foot"
     swing = SIDES[1 - SIDES.index(stance)]
     names = list(model.joint_names)
     q = np.array([float(c[f"q_{n}_rad"][k1]) for n in names])
@@ -214,9 +217,8 @@ def main() -> int:
             print(f"seed {seed}: no run in {run_dir}")
             continue
         result = analyse(model, walking, checker, run_dir, at_s, direction)
-        if result is None:
-            print(f"seed {seed}: pushed {direction} at {at_s:.3f} s, not toward a stance foot "
-                  "in single support")
+        if isinstance(result, str):
+            print(f"seed {seed}: pushed {direction} at {at_s:.3f} s: {result}")
             continue
         r = result
         print(f"seed {seed}: pushed {direction} at {at_s:.3f} s toward the {r['stance']} "
