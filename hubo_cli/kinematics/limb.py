@@ -156,15 +156,20 @@ class Limb:
 
     def solve(self, T_N_E, q_prev_rad=None) -> IKResult:
         """Choose one solution for the goal T_N_E (4x4, m) by the rule of :mod:`.choice`."""
+        q = np.empty(6)
+        status, pos, rot = self.solve_into(T_N_E, q_prev_rad, q)
+        return IKResult(q, choice.STATUS_NAMES[status], pos, rot)
+
+    def solve_into(self, T_N_E, q_prev_rad, q_out: np.ndarray) -> tuple[int, float, float]:
+        """:meth:`solve`'s joints into ``q_out`` (6,), without the result object: returns
+        (status code, position error m, rotation error rad); the status's name is
+        ``choice.STATUS_NAMES[code]``."""
         has_prev = q_prev_rad is not None
         # the kernel only reads the goal and q_prev: no copies of arrays it takes as they are
-        T_goal = kernel_array(T_N_E)
-        q_prev = kernel_array(q_prev_rad) if has_prev else np.zeros(6)
-        q = np.empty(6)
-        status, pos, rot = choice.solve_limb(
-            T_goal, self.chain, self.lengths_m, self._is_arm, self.lower_rad, self.upper_rad,
-            q_prev, has_prev, self.hold_m, True, q)
-        return IKResult(q, choice.STATUS_NAMES[status], pos, rot)
+        return choice.solve_limb(
+            kernel_array(T_N_E), self.chain, self.lengths_m, self._is_arm, self.lower_rad,
+            self.upper_rad, kernel_array(q_prev_rad) if has_prev else np.zeros(6), has_prev,
+            self.hold_m, True, q_out)
 
     def solve_batch(self, T_N_E, q_prev_rad=None, allow_cap: bool = True) -> BatchIKResult:
         """Solve N goals (N x 4 x 4, m) on all cores; q_prev_rad is N x 6 or None.

@@ -32,7 +32,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from hubo_cli.errors import ConfigError
-from hubo_cli.kinematics.choice import solve_limb
 from hubo_cli.kinematics.dh import kernel_array, mul4
 from hubo_cli.kinematics.limb import IKResult, Limb
 from hubo_cli.model import ARMS, LEGS, RobotModel
@@ -186,8 +185,7 @@ class WholeBody:
     def lift_for(self, T_S_goal: dict[str, np.ndarray]) -> float:
         """The lift (m) the legs aim for with these goals: mean goal height minus the working
         height, within the legs' range."""
-        lo, hi = self.lift_range_m
-        return min(max(self._mean_goal_height(T_S_goal) - self.working_height_m, lo), hi)
+        return self._lift_within_range(self._mean_goal_height(T_S_goal) - self.working_height_m)
 
     @staticmethod
     def _mean_goal_height(T_S_goal: dict[str, np.ndarray]) -> float:
@@ -223,8 +221,7 @@ class WholeBody:
 
     def legs_at(self, q_prev_rad: np.ndarray, lift_m: float) -> tuple[np.ndarray, float]:
         """``solve({}, q_prev_rad, lift_m=lift_m)``'s joints and lift (the same numbers: each
-        leg's :func:`~hubo_cli.kinematics.choice.solve_limb` with the arguments
-        :meth:`Limb.solve` gives it, its goal ``T_N_S @ T_S_sole`` compiled: each entry the
+        leg's :meth:`Limb.solve_into`, its goal ``T_N_S @ T_S_sole`` compiled: each entry the
         sum of four products of which at most one is neither zero nor exact, so numpy's to the
         last bit and sign) without the result objects: the teleoperation solves the legs every
         period (its lift filter moves every period). With CoM control it is :meth:`solve`
@@ -232,19 +229,28 @@ class WholeBody:
         if self.com_control:
             result = self.solve({}, q_prev_rad, lift_m=lift_m)
             return result.q_rad, result.lift_m
-        lo, hi = self.lift_range_m
-        lift = min(max(float(lift_m), lo), hi)
+        lift = self._lift_within_range(float(lift_m))
         q_prev = kernel_array(q_prev_rad)
         q = q_prev.copy()
-        T_N_S, T_goal, q_leg = _EYE4.copy(), np.empty((4, 4)), np.empty(6)
-        T_N_S[0, 3], T_N_S[2, 3] = -0.0, -lift  # as _solve's, with no shift
+        T_N_S, T_goal = self._T_N_S(lift, 0.0), np.empty((4, 4))
         for name in LEGS:
-            leg, sl = self.legs[name], self._slices[name]
+            sl = self._slices[name]
             mul4(T_N_S, self.T_S_sole[name], T_goal)
-            solve_limb(T_goal, leg.chain, leg.lengths_m, False, leg.lower_rad, leg.upper_rad,
-                       q_prev[sl], True, leg.hold_m, True, q_leg)
-            q[sl] = q_leg
+            self.legs[name].solve_into(T_goal, q_prev[sl], q[sl])
         return q, lift
+
+    def _lift_within_range(self, lift_m: float) -> float:
+        """The lift (m) clipped to the legs' range (a NaN as it is)."""
+        lo, hi = self.lift_range_m
+        return min(max(lift_m, lo), hi)
+
+    @staticmethod
+    def _T_N_S(lift_m: float, shift_m: float) -> np.ndarray:
+        """The stance frame S in the neck frame N with the legs at ``lift_m`` and the waist
+        shifted forward by ``shift_m`` (4x4, m)."""
+        T_N_S = _EYE4.copy()
+        T_N_S[0, 3], T_N_S[2, 3] = -shift_m, -lift_m
+        return T_N_S
 
     def _solve(self, T_S_goal, q_prev_rad, lift_m, shift_m, hand_forces_n) -> WholeBodyResult:
         q_prev = self.q_home if q_prev_rad is None else np.asarray(q_prev_rad, dtype=float)
@@ -253,10 +259,8 @@ class WholeBody:
             wanted = self._mean_goal_height(T_S_goal) - self.working_height_m
         else:
             wanted = float(lift_m)
-        lo, hi = self.lift_range_m
-        lift = min(max(wanted, lo), hi)
-        T_N_S = _EYE4.copy()
-        T_N_S[0, 3], T_N_S[2, 3] = -shift_m, -lift
+        lift = self._lift_within_range(wanted)
+        T_N_S = self._T_N_S(lift, shift_m)
         legs = {}
         for name, leg in self.legs.items():
             sl = self._slices[name]
