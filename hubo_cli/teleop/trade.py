@@ -203,11 +203,11 @@ def traded_goal(q_goal_rad: np.ndarray, v_goal_rad_s: np.ndarray, q_rad: np.ndar
                 v_rad_s: np.ndarray, limits: JointLimits, chain: tuple,
                 horizon_s: float = HORIZON_S, rotation_weight_m: float = ROTATION_WEIGHT_M,
                 cap_rad: float = OFFSET_CAP_RAD) -> tuple[np.ndarray, int]:
-    """An arm's goal (rad) with the joints that can reach theirs ``horizon_s`` ahead offset to
-    make up for those that cannot (see the module docstring), the arm at ``q_rad`` moving at
-    ``v_rad_s``, the goal at ``q_goal_rad`` moving at ``v_goal_rad_s``; ``chain`` the arm's
-    (base, offset, alpha, a, d, end) as the compiled kernels take it. Also how many joints
-    cannot reach (0: the goal as it was)."""
+    """An arm's goal (rad), its joints offset where some cannot reach theirs ``horizon_s``
+    ahead (see the module docstring), the arm at ``q_rad`` moving at ``v_rad_s``, the goal at
+    ``q_goal_rad`` moving at ``v_goal_rad_s``; ``chain`` the arm's (base, offset, alpha, a, d,
+    end) as the compiled kernels take it. Also how many joints cannot reach theirs (0: the
+    goal as it was)."""
     out = np.empty(len(q_goal_rad))
     count = _traded(kernel_array(q_goal_rad), kernel_array(v_goal_rad_s), kernel_array(q_rad),
                     kernel_array(v_rad_s), limits.lower_rad, limits.upper_rad,
