@@ -90,6 +90,7 @@ from hubo_cli.teleop.target_kernels import (
     path_swing_m,
     tilt_rad,
 )
+from hubo_cli.teleop.trade import traded_goal
 
 SHORT = {"right-arm": "r", "left-arm": "l"}
 _STATUS_CODE = {name: code for code, name in enumerate(STATUS_NAMES)}  # the log's ik_code
@@ -320,6 +321,8 @@ class TeleopTarget(Target):
             smoothing.smoothed(_EYE4, 0.0)
             base, _, offset, alpha, a, d, end, _ = limb.chain
             path_swing_m(np.zeros((3, 6)), base, offset, alpha, a, d, end)
+            traded_goal(zeros + 0.1, zeros + 0.1, zeros, zeros, limits,
+                        (base, offset, alpha, a, d, end))
             hand_errors(zeros, base, offset, alpha, a, d, end, False, 0.0, _EYE4, _EYE4, True,
                         np.empty((4, 4)))
 
@@ -401,10 +404,15 @@ class TeleopTarget(Target):
             tracker, now = self._trackers[arm], states[arm]
             tracker.reset(now.q_rad, now.v_rad_s, now.a_rad_s2)
             target = self.q_out[self.slices[arm]]
+            following = self._following(arm)
+            v_goal = self._goal_velocity[arm].update(target, following)
+            traded = 0
+            if following:  # joints that can follow make up for those that cannot
+                goal, traded = traded_goal(target, v_goal, now.q_rad, now.v_rad_s,
+                                           now.limits, self._chains[arm])
             led, velocity[arm], share = tracking_target(
-                self._goal_velocity[arm].update(target, self._following(arm)), target,
-                now.q_rad, now.v_rad_s, now.limits)
-            if share > 0.0:  # the generator's target leads the goal (q_out is then a copy)
+                v_goal, goal if traded else target, now.q_rad, now.v_rad_s, now.limits)
+            if share > 0.0 or traded:  # the generator's target leads or trades (a copy)
                 if self.q_out is self.q_target:
                     self.q_out = self.q_target.copy()
                 self.q_out[self.slices[arm]] = target = led
