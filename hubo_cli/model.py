@@ -290,9 +290,17 @@ def _limb(name: str, raw: dict, override: dict | None, path: Path) -> LimbSpec:
     except KeyError as exc:
         raise ConfigError("missing key", path=str(path),
                           field=f"limbs.{name}.{exc.args[0]}") from None
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"not a number or a list of numbers: {exc}", path=str(path),
+                          field=f"limbs.{name}") from None
     if len(joints) != 6 or lower.shape != (6,) or upper.shape != (6,) or np.any(lower > upper):
         raise ConfigError("needs six joints with lower <= upper limits", path=str(path),
                           field=f"limbs.{name}")
+    for key in ("velocity_rad_s", "acceleration_rad_s2", "jerk_rad_s3"):
+        value = float(spec[key])
+        if not (math.isfinite(value) and value > 0.0):  # the trackers divide by them
+            raise ConfigError(f"must be a positive number, got {value}", path=str(path),
+                              field=f"limbs.{name}.{key}")
     return limb
 
 

@@ -48,3 +48,17 @@ def test_a_missing_or_bad_dimension_is_a_config_error(tmp_path):
     bad.write_text(text.replace("body_front_m = -0.09", "body_front_m = 0.09"))
     with pytest.raises(ConfigError, match="negative"):
         load_model(path=bad)
+
+
+@pytest.mark.parametrize("value", ["0.0", "-0.8", "nan", "inf", '"fast"'])
+def test_a_limb_limit_that_is_not_a_positive_number_is_a_config_error(tmp_path, value):
+    """The trackers divide by the speed, acceleration and jerk limits: a zero, a sign or a
+    word there is the file's error, named with its field, not a traceback mid-period."""
+    text = MODEL.source.read_text()
+    line = "acceleration_rad_s2 = 0.8  # [hma] arms acceleration"
+    assert line in text
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace(line, f"acceleration_rad_s2 = {value}"))
+    with pytest.raises(ConfigError) as info:
+        load_model(path=bad)
+    assert info.value.field is not None and info.value.field.startswith("limbs.")

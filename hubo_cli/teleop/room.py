@@ -131,6 +131,10 @@ class CollisionRoom:
         c = self.checker.check_near(q_rad, self.room_m + near_m)
         return c.distance_m, c.pair
 
+    def clears(self, q_rad: np.ndarray) -> bool:
+        """``q_rad`` (24 joints, rad) keeps the room (the check :meth:`keep` makes first)."""
+        return self._distance(np.asarray(q_rad, dtype=float), near_m=0.0)[0] >= self.room_m
+
     def keep(self, q_prev_rad: np.ndarray, q_next_rad: np.ndarray,
              goals: dict | None = None) -> np.ndarray:
         """The target to use instead of ``q_next_rad`` (24 joints, rad) after ``q_prev_rad``.

@@ -412,6 +412,10 @@ class TeleopTarget(Target):
                                            now.limits, self._chains[arm])
             led, velocity[arm], share = tracking_target(
                 v_goal, goal if traded else target, now.q_rad, now.v_rad_s, now.limits)
+            if traded and not self._traded_clear(arm, led):  # the room holds: untraded
+                traded = 0
+                led, velocity[arm], share = tracking_target(v_goal, target, now.q_rad,
+                                                            now.v_rad_s, now.limits)
             if share > 0.0 or traded:  # the generator's target leads or trades (a copy)
                 if self.q_out is self.q_target:
                     self.q_out = self.q_target.copy()
@@ -422,6 +426,15 @@ class TeleopTarget(Target):
             synchronization[arm] = sync
         self.store[ARM_SYNC] = synchronization
         self.store[ARM_TARGET_VELOCITY] = velocity
+
+    def _traded_clear(self, arm: str, q_arm_rad: np.ndarray) -> bool:
+        """The arm's traded target keeps the collision room (checked as the room checks the
+        untraded one: the trade moves every joint of the arm after the room's search)."""
+        if self.room is None:
+            return True
+        q = self.q_out.copy()
+        q[self.slices[arm]] = q_arm_rad
+        return self.room.clears(q)
 
     def _following(self, arm: str) -> bool:
         """The arm's target follows its goal freely this period (operating, the goal within

@@ -11,9 +11,14 @@ are predicted along their velocity. Where a predicted goal joint lies outside it
 error (position in m, rotation weighted ``ROTATION_WEIGHT_M`` m/rad: position first) within
 those intervals: a 6-joint box-constrained least squares (:func:`_box_lsq`, a primal active
 set, exact), linearised where the arm will be (the short joints at their interval's nearest
-end, the others at the goal) with the exact pose error there. A short joint left at that end
-keeps its goal (it goes for it at full effort); every offset stays within ``OFFSET_CAP_RAD``
-(the linearisation's reach). The pose error is against the arm's goal as the reach search gave
+end, the others at the goal) with the exact pose error there. The offsets found are added to
+the goal's joints, the short joints' too: a short joint's offset is measured from its
+interval's end but added to its goal, so it keeps going for the goal at full effort (an
+empirical choice: adding the offsets where the solve assumed the joints would be, or pinning
+the short joints, followed the generated streams worse; docs/history/teleop.md, round 8's
+review). ``OFFSET_CAP_RAD`` is a guard: at ``HORIZON_S`` an interval is at most
+``ACCEL_SHARE`` x 0.8 rad/s^2 x (0.3 s)^2 = 0.065 rad wide, so it binds only for a longer
+horizon or a faster arm. The pose error is against the arm's goal as the reach search gave
 it (its orientation smoothed): traded against the operator's unsmoothed orientation, the
 generated streams gain in orientation but the shipped samples lose position
 (docs/history/teleop.md, round 8). The trajectory generator and the safety modules after it
@@ -42,9 +47,12 @@ REGULARISATION = 1e-6  # m^2/rad^2 on each offset (a unique solution near a sing
 @nb.njit(**JIT)
 def _max_advance(v, accel, speed, h):
     """The largest displacement (rad) in ``h`` s from speed ``v`` with |a| <= ``accel``,
-    |v| <= ``speed``."""
-    if v >= speed:
-        return speed * h
+    |v| <= ``speed`` (from above the speed limit: slowing down to it at ``accel``)."""
+    if v > speed:
+        t1 = (v - speed) / accel
+        if t1 >= h:
+            return v * h - 0.5 * accel * h * h
+        return v * t1 - 0.5 * accel * t1 * t1 + speed * (h - t1)
     t1 = (speed - v) / accel
     if t1 >= h:
         return v * h + 0.5 * accel * h * h
@@ -157,10 +165,11 @@ def _traded(q_goal, v_goal, q, v, lower, upper, velocity, accel, horizon_s, w_ro
     for i in range(n):
         g[i] = min(max(q_goal[i] + v_goal[i] * horizon_s, lower[i]), upper[i])
         acc = ACCEL_SHARE * accel[i]
-        up = min(q[i] + _max_advance(v[i], acc, velocity[i], horizon_s), upper[i])
-        down = max(q[i] - _max_advance(-v[i], acc, velocity[i], horizon_s), lower[i])
-        if down > up:  # beyond a position limit: the limit's side
-            down = up = min(max(q[i], lower[i]), upper[i])
+        # each end within the position limits (a joint braking into a limit: that limit)
+        up = min(max(q[i] + _max_advance(v[i], acc, velocity[i], horizon_s), lower[i]),
+                 upper[i])
+        down = min(max(q[i] - _max_advance(-v[i], acc, velocity[i], horizon_s), lower[i]),
+                   upper[i])
         lo[i], hi[i] = down - g[i], up - g[i]
         if lo[i] > 0.0 or hi[i] < 0.0:
             count += 1
