@@ -33,13 +33,16 @@ def test_the_box_least_squares_is_exact_against_daqp():
     rng = np.random.default_rng(8)
     for _ in range(300):
         A = rng.normal(size=(6, 6)) * rng.uniform(0.01, 1.0, 6)
+        A[rng.integers(0, 6, rng.integers(0, 4))] = 0.0  # rank 3-6, as near a singular arm
         H = A.T @ A + 1e-6 * np.eye(6)
         f = rng.normal(size=6) * 0.01
         lo = rng.uniform(-0.2, 0.05, 6)
-        hi = lo + rng.uniform(0.0, 0.2, 6)
+        hi = lo + rng.uniform(0.0, 0.2, 6) * (rng.uniform(size=6) > 0.15)  # some lo = hi
         y = np.zeros(6)
         _box_lsq(H, f, lo, hi, y)
-        x, *_ = daqp.solve(H, f, np.zeros((0, 6)), hi, lo, np.zeros(6, dtype=np.int32))
+        x, _, exitflag, _ = daqp.solve(H, f, np.zeros((0, 6)), hi, lo,
+                                       np.zeros(6, dtype=np.int32))
+        assert exitflag == 1  # daqp's optimum
         assert np.all(y >= lo - 1e-15) and np.all(y <= hi + 1e-15)
         assert 0.5 * y @ H @ y + f @ y <= 0.5 * x @ H @ x + f @ x + 1e-12
 
@@ -121,3 +124,41 @@ def test_a_stroke_one_joint_cannot_follow_leaves_the_hand_nearer_its_goal(arm):
     # measured (deterministic numerics): 39.5 mm RMS untraded, 32.4 mm traded (with the
     # elbow at 0.9 / 1.2 rad/s, beyond its speed limit, 75 -> 72 and 115 -> 112 mm)
     assert rms[True] < 0.9 * rms[False], rms
+
+
+def test_the_largest_advance_is_the_brute_force_one():
+    """_max_advance against integrating the fastest speed profile (full acceleration up to
+    the speed limit, or slowing down to it from above) in small steps."""
+    from hubo_cli.teleop.trade import _max_advance
+    for v in (-1.5, -0.3, 0.0, 0.4, 0.99, 1.0, 1.5):
+        for h in (0.05, 0.3, 1.0):
+            n = 20000
+            dt, x, speed = h / n, 0.0, v
+            for _ in range(n):
+                step = min(max(1.0 - speed, -0.72 * dt), 0.72 * dt)  # towards 1.0 rad/s
+                x += (speed + step / 2) * dt
+                speed += step
+            assert _max_advance(v, 0.72, 1.0, h) == pytest.approx(x, abs=1e-6)
+
+
+def test_a_joint_braking_into_its_limit_trades_continuously(arm):
+    """The elbow 0.05-0.06 rad above its lower limit moving toward it at 0.3 rad/s, its goal
+    at the limit, another joint's goal moving: the traded goal moves by little for a small
+    change of the state (an interval that collapsed onto the joint when braking could not
+    stop short of the limit moved the wrist by 0.06 rad for a 0.2 mrad step)."""
+    limits, _, chain = arm
+    elbow, lower = 3, limits.lower_rad[3]
+    goal = Q_READY.copy()
+    goal[elbow] = lower
+    v_goal = np.zeros(6)
+    v_goal[0] = 0.2
+    v = np.zeros(6)
+    v[elbow] = -0.3
+    outs = []
+    for gap in np.linspace(0.05, 0.06, 51):
+        q = Q_READY.copy()
+        q[elbow] = lower + gap
+        out, _ = traded_goal(goal, v_goal, q, v, limits, chain)
+        assert np.all(out >= limits.lower_rad) and np.all(out <= limits.upper_rad)
+        outs.append(out)
+    assert np.max(np.abs(np.diff(outs, axis=0))) < 0.01
