@@ -1,5 +1,6 @@
 """Shared fixtures, the order of the tests and their grouping on the xdist workers."""
 
+import signal
 import subprocess
 import sys
 import time
@@ -12,6 +13,12 @@ from hubo_cli.model import load_model
 from hubo_cli.walking.params import walking_params
 
 WARM_DEADLINE_S = 300  # a fresh checkout's compile takes 40-150 s (under load)
+
+# A shell starting the suite in the background (`make test &`, nohup) hands it SIGINT ignored,
+# and every process it starts inherits that: the Ctrl-C tests would then test the shell's
+# setting. Python's own handler, as in a terminal (exec gives the children the default).
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @pytest.fixture(scope="session")
