@@ -113,6 +113,8 @@ class CollisionRoom:
         self._rested: dict[str, tuple | None] = {}  # arm -> (goal, joints) a search rested at
         self.skipped = 0  # clear searches skipped: the goal still where one came to rest
         self.last_clearance_m = np.inf
+        self._last_key: tuple | None = None  # _distance's last check: (joints' bytes, near_m)
+        self._last = (np.inf, ("", ""))  # ... and its answer
         _compile_kernels()
 
     def _arms_of(self, pair: tuple[str, str]) -> tuple[str, ...]:
@@ -128,8 +130,11 @@ class CollisionRoom:
         """The closest pair's distance (m; exact up to ``room_m + near_m``, a lower bound
         beyond) and names. ``near_m`` 0 computes only the pairs whose bounds come within the
         room: enough to tell whether a target keeps it (most periods no pair is computed)."""
-        c = self.checker.check_near(q_rad, self.room_m + near_m)
-        return c.distance_m, c.pair
+        key = (q_rad.tobytes(), near_m)
+        if key != self._last_key:  # the same joints and band again: nothing would be computed
+            c = self.checker.check_near(q_rad, self.room_m + near_m)
+            self._last_key, self._last = key, (c.distance_m, c.pair)
+        return self._last
 
     def clears(self, q_rad: np.ndarray) -> bool:
         """``q_rad`` (24 joints, rad) keeps the room (the check :meth:`keep` makes first)."""
