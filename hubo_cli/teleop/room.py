@@ -241,9 +241,14 @@ class CollisionRoom:
             return grad
         grad = np.empty(len(index))
         q_d = q.copy()
+        # the closest distance at q_d is at most the pair's, at most d + its rate DIFF_RAD: the
+        # pairs whose bounds lie beyond that need not be computed (the same closest distance,
+        # to the last bit; d is exact here, within the room and NEAR_M)
+        near_m = min(d + DIFF_RAD * float(self.checker.rate_m_rad[self._pair_index[pair]].max())
+                     + 1e-9 - self.room_m, NEAR_M)
         for k, i in enumerate(index.tolist()):
             q_d[i] = q[i] + DIFF_RAD
-            grad[k] = (self._distance(q_d)[0] - d) / DIFF_RAD
+            grad[k] = (self._distance(q_d, near_m)[0] - d) / DIFF_RAD
             q_d[i] = q[i]
         return grad
 
