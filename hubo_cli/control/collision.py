@@ -193,7 +193,9 @@ class SelfCollisionChecker:
     postures), depending on what was computed before. Started from coal's fixed default guess
     instead, a pair's distance depends only on its placements, and :meth:`check_near` takes
     the distance of a pair whose joints (those with a rate for it) are exactly those of its last
-    computed distance without computing it again: the same number by construction. The
+    computed distance, or of the one before, without computing it again: the same number by
+    construction (a posture the teleop's collision room returns to every other check, a still
+    goal's, costs nothing the second time); the one before bounds the pair too. The
     pipeline's detector keeps the cached guess (its results as they were); the teleop's
     collision room uses the repeatable checker.
 

@@ -21,14 +21,16 @@ closest pair's gradient with respect to the arms' joints (a few Newton steps), a
 fails goes as far as it can along its step from the last target (bisection). A target never
 goes deeper into the band than the last one was. The closest pair's gradient comes from coal's
 witness points and normal (one check, exact to GJK's tolerance); where they give none (shapes
-touching, a face against a face) from forward differences of ``DIFF_RAD`` (six checks). It
-only shapes the steps: every step taken is checked.
+touching, a face against a face) from forward differences of ``DIFF_RAD`` (six checks, each
+computing only the pairs that could come closer than the closest pair can move). It only
+shapes the steps: every step taken is checked.
 
 Distances are the checker's :meth:`~hubo_cli.control.collision.SelfCollisionChecker.check_near`
 (exact near the room, Lipschitz lower bounds for the pairs far from it, which it does not
 compute), from a repeatable checker: the same joints give the same distances, whatever was
-computed before. An arm whose clear search came to rest (no step left that helps, or its
-weighted error falling by less than ``REST_M`` in a call: creeping along the body) is not
+computed before (so the same joints and band asked again in a row are not checked again).
+An arm whose clear search came to rest (no step left that helps, or its weighted error
+falling by less than ``REST_M`` in a call: creeping along the body) is not
 searched again while its goal stays within ``STILL_GOAL_M`` and ``STILL_GOAL_RAD`` of that goal
 and its last target is still clear; that period takes the check of the last target it made.
 """
