@@ -63,6 +63,8 @@ ROOM_M = TOLERANCE_M + 0.005  # the detector's band and 5 mm for the command's b
 NEWTON_STEPS = 3
 BISECTIONS = 8
 DIFF_RAD = 1e-4              # finite-difference step of the gradient where witness points fail
+DIFF_SLACK_M = 1e-5          # ... its checks' band beyond the closest pair's reach: ten times
+                             # coal's GJK tolerance (1e-6 m) on each of two distances
 SEARCH_STEPS = 3             # the clear search's steps per call (it goes on the next period)
 ORIENTATION_WEIGHT_M_PER_RAD = 0.01  # the clear search's: position first (1 deg = 0.17 mm)
 AIM_M = 0.001                # its steps aim this far beyond the room (the body's curvature)
@@ -243,11 +245,12 @@ class CollisionRoom:
             return grad
         grad = np.empty(len(index))
         q_d = q.copy()
-        # the closest distance at q_d is at most the pair's, at most d + its rate DIFF_RAD: the
-        # pairs whose bounds lie beyond that need not be computed (the same closest distance,
-        # to the last bit; d is exact here, within the room and NEAR_M)
+        # the closest distance at q_d is at most the pair's, at most d + its rate DIFF_RAD
+        # (each within coal's tolerance): the pairs whose bounds lie beyond that and
+        # DIFF_SLACK_M cannot be the closest and need not be computed (the same closest
+        # distance, to the last bit; d is exact here, within the room and NEAR_M)
         near_m = min(d + DIFF_RAD * float(self.checker.rate_m_rad[self._pair_index[pair]].max())
-                     + 1e-9 - self.room_m, NEAR_M)
+                     + DIFF_SLACK_M - self.room_m, NEAR_M)
         for k, i in enumerate(index.tolist()):
             q_d[i] = q[i] + DIFF_RAD
             grad[k] = (self._distance(q_d, near_m)[0] - d) / DIFF_RAD
