@@ -193,9 +193,11 @@ class SelfCollisionChecker:
     postures), depending on what was computed before. Started from coal's fixed default guess
     instead, a pair's distance depends only on its placements, and :meth:`check_near` takes
     the distance of a pair whose joints (those with a rate for it) are exactly those of its last
-    computed distance, or of the one before, without computing it again: the same number by
-    construction (a posture the teleop's collision room returns to every other check, a still
-    goal's, costs nothing the second time); the one before bounds the pair too. The
+    computed distance, or (all its joints exactly) of the one before, without computing it
+    again: the same number by construction (a posture the teleop's collision room returns to
+    every other check, a still goal's, costs nothing the second time); the one before bounds
+    the pair too. Beyond the band a pair reports a lower bound, which depends on what was
+    computed before (the room's searches take it as such). The
     pipeline's detector keeps the cached guess (its results as they were); the teleop's
     collision room uses the repeatable checker.
 
@@ -532,7 +534,9 @@ def _pair_bounds(q, q0, d0, q1, d1, rate, band_m, reuse, bounds, near, changed):
             for j in range(q.shape[0]):
                 if rate[p, j] > 0.0:
                     earlier -= rate[p, j] * abs(q[j] - q1[p, j])
-                    moved_1 = moved_1 or q[j] != q1[p, j]
+                # every joint, not only those with a rate: a joint moving both shapes leaves
+                # the distance but not its last bits (the earlier posture's taken only whole)
+                moved_1 = moved_1 or q[j] != q1[p, j]
             if not moved_1:  # the earlier joints: the earlier distance, now the last used
                 moved = False
                 for j in range(q.shape[0]):
