@@ -272,3 +272,38 @@ def test_a_checker_without_pairs_skips_nothing(model):
     checker = SelfCollisionChecker(model, pairs=[])
     assert checker.rate_m_rad.shape == (0, len(model.joint_names))
     assert checker.check(home_posture(model)).distance_m == np.inf
+
+
+def test_a_repeatable_checker_takes_the_posture_before_again(model):
+    """A repeatable checker keeps each pair's two last distances: going back to the posture
+    before (a still goal's, every other check in the teleop's collision room) computes no pair
+    and gives the same closest pair to the last bit, and a posture near either one computes
+    only the pairs near the band; the checker that keeps one (the pipeline's) computes them
+    again."""
+    rng = np.random.default_rng(41)
+    lower, upper = model.lower_rad, model.upper_rad
+    arm = model.limb_slice("right-arm")
+    keeps_two = SelfCollisionChecker(model, drill=True, repeatable=True)
+    keeps_one = SelfCollisionChecker(model, drill=True)
+    again = 0
+    for _ in range(30):
+        a = home_posture(model)
+        a[arm] = rng.uniform(lower[arm], upper[arm])
+        b = a.copy()
+        b[arm] += rng.uniform(-0.3, 0.3, 6)
+        first = keeps_two.check_near(a, 0.065)
+        keeps_two.check_near(b, 0.065)
+        back = keeps_two.check_near(a, 0.065)
+        assert not keeps_two._near.any()  # no pair computed
+        assert (back.distance_m, back.pair) == (first.distance_m, first.pair)
+        for checker in (keeps_two, keeps_one):
+            checker.check_near(a, 0.065)
+            checker.check_near(b, 0.065)
+        keeps_one.check_near(a, 0.065)
+        again += int(keeps_one._near.sum())
+        near = keeps_two.check_near(a + 1e-6, 0.065)  # bounded by its distances at a
+        assert np.count_nonzero(keeps_two._near) <= np.count_nonzero(
+            keeps_two.anchor_m <= 0.065 + 2e-5)
+        assert abs(near.distance_m - first.distance_m) <= 1e-4 or min(
+            near.distance_m, first.distance_m) > 0.065
+    assert again > 30  # the one-distance checker did compute pairs again

@@ -193,7 +193,11 @@ class SelfCollisionChecker:
     postures), depending on what was computed before. Started from coal's fixed default guess
     instead, a pair's distance depends only on its placements, and :meth:`check_near` takes
     the distance of a pair whose joints (those with a rate for it) are exactly those of its last
-    computed distance without computing it again: the same number by construction. The
+    computed distance, or (all its joints exactly) of the one before, without computing it
+    again: the same number by construction (a posture the teleop's collision room returns to
+    every other check, a still goal's, costs nothing the second time); the one before bounds
+    the pair too. Beyond the band a pair reports a lower bound, which depends on what was
+    computed before (the room's searches take it as such). The
     pipeline's detector keeps the cached guess (its results as they were); the teleop's
     collision room uses the repeatable checker.
 
@@ -255,6 +259,9 @@ class SelfCollisionChecker:
         # computed at (-inf: none yet)
         self.anchor_q = np.zeros((len(self.pair_names), len(self.robot.q_index)))
         self.anchor_m = np.full(len(self.pair_names), -np.inf)
+        # and the one before (a repeatable checker's bounds and reuse count it too)
+        self.earlier_q = self.anchor_q.copy()
+        self.earlier_m = self.anchor_m.copy()
         self._bounds_m = np.empty(len(self.pair_names))
         self._near = np.zeros(len(self.pair_names), dtype=bool)  # the active pairs of:
         self._near_data = pin.GeometryData(geom)
@@ -416,8 +423,9 @@ class SelfCollisionChecker:
             return Clearance(np.inf, ("", ""))
         bounds, listed, data = self._bounds_m, self._listed, self._near_data
         n_changed, n_near, best = _pair_bounds(q_rad, self.anchor_q, self.anchor_m,
-                                               self.rate_m_rad, band_m, self.repeatable, bounds,
-                                               self._near, listed)
+                                               self.earlier_q, self.earlier_m, self.rate_m_rad,
+                                               band_m, self.repeatable, bounds, self._near,
+                                               listed)
         if n_changed:  # the near pairs are the active ones of data
             near = self._near
             for p in listed[:n_changed].tolist():
@@ -429,7 +437,8 @@ class SelfCollisionChecker:
             results = self._near_results
             for p in pairs.tolist():
                 bounds[p] = results[p].min_distance
-            best = _take_near(q_rad, pairs, bounds, self.anchor_q, self.anchor_m)
+            best = _take_near(q_rad, pairs, bounds, self.anchor_q, self.anchor_m,
+                              self.earlier_q, self.earlier_m)
         return Clearance(float(bounds[best]), self.pair_names[best])
 
     def _closest(self, data: pin.GeometryData) -> tuple[float, int]:
@@ -500,12 +509,17 @@ def _lower_bound(q_in, ahead, q0, d0, rate):
 
 
 @nb.njit(cache=True, nogil=True)
-def _pair_bounds(q, q0, d0, rate, band_m, reuse, bounds, near, changed):
+def _pair_bounds(q, q0, d0, q1, d1, rate, band_m, reuse, bounds, near, changed):
     """Each pair's Lipschitz lower bound at ``q`` from its distance ``d0[p]`` at ``q0[p]``
-    (m, to ``bounds``); ``near`` set to the pairs whose bound is at most ``band_m`` (with
-    ``reuse``, except those whose joints with a rate are exactly ``q0[p]``'s: their bound is
-    their distance), listing in ``changed`` first the pairs whose entry changed, then the near
-    pairs. Returns (how many changed, how many are near, the pair of the smallest bound)."""
+    (m, to ``bounds``); ``near`` set to the pairs whose bound is at most ``band_m``, listing in
+    ``changed`` first the pairs whose entry changed, then the near pairs. Returns (how many
+    changed, how many are near, the pair of the smallest bound).
+
+    With ``reuse``, a pair whose joints with a rate are exactly ``q0[p]``'s is not near (its
+    bound is its distance), and a pair that would be near counts its earlier distance
+    ``d1[p]`` at ``q1[p]`` too: the bound is the larger of the two, and where the joints are
+    exactly ``q1[p]``'s its distance is ``d1[p]`` (the two swap: ``q0``, ``d0`` stay the last
+    one used)."""
     n_changed, best = 0, 0
     for p in range(d0.shape[0]):
         bound = d0[p]
@@ -514,6 +528,23 @@ def _pair_bounds(q, q0, d0, rate, band_m, reuse, bounds, near, changed):
             if rate[p, j] > 0.0:
                 bound -= rate[p, j] * abs(q[j] - q0[p, j])
                 moved = moved or q[j] != q0[p, j]
+        if moved and reuse and bound <= band_m and d1[p] != -np.inf:
+            earlier = d1[p]
+            moved_1 = False
+            for j in range(q.shape[0]):
+                if rate[p, j] > 0.0:
+                    earlier -= rate[p, j] * abs(q[j] - q1[p, j])
+                # every joint, not only those with a rate: a joint moving both shapes leaves
+                # the distance but not its last bits (the earlier posture's taken only whole)
+                moved_1 = moved_1 or q[j] != q1[p, j]
+            if not moved_1:  # the earlier joints: the earlier distance, now the last used
+                moved = False
+                for j in range(q.shape[0]):
+                    q0[p, j], q1[p, j] = q1[p, j], q0[p, j]
+                d0[p], d1[p] = d1[p], d0[p]
+                bound = d0[p]
+            elif earlier > bound:
+                bound = earlier
         bounds[p] = bound
         if bound < bounds[best]:
             best = p
@@ -531,10 +562,13 @@ def _pair_bounds(q, q0, d0, rate, band_m, reuse, bounds, near, changed):
 
 
 @nb.njit(cache=True, nogil=True)
-def _take_near(q, pairs, bounds, q0, d0):
-    """The near ``pairs``' distances (in ``bounds``) become their anchors at ``q``; returns the
-    pair of the smallest entry of ``bounds``."""
+def _take_near(q, pairs, bounds, q0, d0, q1, d1):
+    """The near ``pairs``' distances (in ``bounds``) become their anchors at ``q`` (``q0``,
+    ``d0``; the anchors they replace become ``q1``, ``d1``); returns the pair of the smallest
+    entry of ``bounds``."""
     for p in pairs:
+        q1[p, :] = q0[p, :]
+        d1[p] = d0[p]
         q0[p, :] = q
         d0[p] = bounds[p]
     best = 0
@@ -600,12 +634,11 @@ class CollisionDetector(Module):
                      self.limits.jerk_rad_s3, *np.zeros((3, self.limits.size)))
         _lower_bound(*np.zeros((2, self.limits.size)), np.zeros((1, self.limits.size)),
                      np.zeros(1), np.zeros((1, self.limits.size)))
-        _pair_bounds(np.zeros(self.limits.size), np.zeros((1, self.limits.size)), np.zeros(1),
-                     np.zeros((1, self.limits.size)), 0.0, False, np.zeros(1),
-                     np.zeros(1, dtype=bool),
-                     np.zeros(2, dtype=np.int64))
+        anchors = (np.zeros((1, self.limits.size)), np.zeros(1)) * 2
+        _pair_bounds(np.zeros(self.limits.size), *anchors, np.zeros((1, self.limits.size)), 0.0,
+                     False, np.zeros(1), np.zeros(1, dtype=bool), np.zeros(2, dtype=np.int64))
         _take_near(np.zeros(self.limits.size), np.zeros(1, dtype=np.int64), np.zeros(1),
-                   np.zeros((1, self.limits.size)), np.zeros(1))
+                   *anchors)
 
     def _clear_state(self, q: np.ndarray) -> None:
         self.mode = "safe"

@@ -21,14 +21,16 @@ closest pair's gradient with respect to the arms' joints (a few Newton steps), a
 fails goes as far as it can along its step from the last target (bisection). A target never
 goes deeper into the band than the last one was. The closest pair's gradient comes from coal's
 witness points and normal (one check, exact to GJK's tolerance); where they give none (shapes
-touching, a face against a face) from forward differences of ``DIFF_RAD`` (six checks). It
-only shapes the steps: every step taken is checked.
+touching, a face against a face) from forward differences of ``DIFF_RAD`` (six checks, each
+computing only the pairs that could come closer than the closest pair can move). It only
+shapes the steps: every step taken is checked.
 
 Distances are the checker's :meth:`~hubo_cli.control.collision.SelfCollisionChecker.check_near`
 (exact near the room, Lipschitz lower bounds for the pairs far from it, which it does not
 compute), from a repeatable checker: the same joints give the same distances, whatever was
-computed before. An arm whose clear search came to rest (no step left that helps, or its
-weighted error falling by less than ``REST_M`` in a call: creeping along the body) is not
+computed before (so the same joints and band asked again in a row are not checked again).
+An arm whose clear search came to rest (no step left that helps, or its weighted error
+falling by less than ``REST_M`` in a call: creeping along the body) is not
 searched again while its goal stays within ``STILL_GOAL_M`` and ``STILL_GOAL_RAD`` of that goal
 and its last target is still clear; that period takes the check of the last target it made.
 """
@@ -61,6 +63,8 @@ ROOM_M = TOLERANCE_M + 0.005  # the detector's band and 5 mm for the command's b
 NEWTON_STEPS = 3
 BISECTIONS = 8
 DIFF_RAD = 1e-4              # finite-difference step of the gradient where witness points fail
+DIFF_SLACK_M = 1e-5          # ... its checks' band beyond the closest pair's reach: ten times
+                             # coal's GJK tolerance (1e-6 m) on each of two distances
 SEARCH_STEPS = 3             # the clear search's steps per call (it goes on the next period)
 ORIENTATION_WEIGHT_M_PER_RAD = 0.01  # the clear search's: position first (1 deg = 0.17 mm)
 AIM_M = 0.001                # its steps aim this far beyond the room (the body's curvature)
@@ -113,6 +117,8 @@ class CollisionRoom:
         self._rested: dict[str, tuple | None] = {}  # arm -> (goal, joints) a search rested at
         self.skipped = 0  # clear searches skipped: the goal still where one came to rest
         self.last_clearance_m = np.inf
+        self._last_key: tuple | None = None  # _distance's last check: (joints' bytes, near_m)
+        self._last = (np.inf, ("", ""))  # ... and its answer
         _compile_kernels()
 
     def _arms_of(self, pair: tuple[str, str]) -> tuple[str, ...]:
@@ -128,8 +134,11 @@ class CollisionRoom:
         """The closest pair's distance (m; exact up to ``room_m + near_m``, a lower bound
         beyond) and names. ``near_m`` 0 computes only the pairs whose bounds come within the
         room: enough to tell whether a target keeps it (most periods no pair is computed)."""
-        c = self.checker.check_near(q_rad, self.room_m + near_m)
-        return c.distance_m, c.pair
+        key = (q_rad.tobytes(), near_m)
+        if key != self._last_key:  # the same joints and band again: nothing would be computed
+            c = self.checker.check_near(q_rad, self.room_m + near_m)
+            self._last_key, self._last = key, (c.distance_m, c.pair)
+        return self._last
 
     def clears(self, q_rad: np.ndarray) -> bool:
         """``q_rad`` (24 joints, rad) keeps the room (the check :meth:`keep` makes first)."""
@@ -236,9 +245,15 @@ class CollisionRoom:
             return grad
         grad = np.empty(len(index))
         q_d = q.copy()
+        # the closest distance at q_d is at most the pair's, at most d + its rate DIFF_RAD
+        # (each within coal's tolerance): the pairs whose bounds lie beyond that and
+        # DIFF_SLACK_M cannot be the closest and need not be computed (the same closest
+        # distance, to the last bit; d is exact here, within the room and NEAR_M)
+        near_m = min(d + DIFF_RAD * float(self.checker.rate_m_rad[self._pair_index[pair]].max())
+                     + DIFF_SLACK_M - self.room_m, NEAR_M)
         for k, i in enumerate(index.tolist()):
             q_d[i] = q[i] + DIFF_RAD
-            grad[k] = (self._distance(q_d)[0] - d) / DIFF_RAD
+            grad[k] = (self._distance(q_d, near_m)[0] - d) / DIFF_RAD
             q_d[i] = q[i]
         return grad
 
