@@ -24,7 +24,7 @@ def arm():
     model = load_model(limits="teleop")
     limits = JointLimits.from_model(model).subset(np.arange(24)[model.limb_slice("right-arm")])
     limb = get_limb("right-arm", "hand")
-    return limits, limb, tuple(limb.chain[k] for k in (0, 2, 3, 4, 5, 6))
+    return limits, limb, limb.fk_chain
 
 
 def test_the_box_least_squares_is_exact_against_daqp():

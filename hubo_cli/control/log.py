@@ -177,8 +177,7 @@ def _stacked_chains(hands, joints: int) -> tuple[np.ndarray, ...]:
     hands = list(hands)
     index = np.array([np.arange(joints)[sl] for _, sl in hands],
                      dtype=np.int64).reshape(len(hands), 6)
-    parts = [np.array([limb.chain[k] for limb, _ in hands], dtype=float)
-             for k in (0, 2, 3, 4, 5, 6)]
+    parts = [np.array([limb.fk_chain[k] for limb, _ in hands], dtype=float) for k in range(6)]
     shapes = ((4, 4), (6,), (6,), (6,), (6,), (4, 4))
     parts = [p.reshape(len(hands), *shape) for p, shape in zip(parts, shapes, strict=True)]
     return (index, *parts)

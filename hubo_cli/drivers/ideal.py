@@ -114,8 +114,7 @@ class IdealDriver(Driver):
         starts = [model.limb_slice(name).start for name in LEGS]
         # _reach_command's leg arguments: slice starts, then base, offset, alpha, a, d, end per leg
         self._legs = (np.array(starts, dtype=np.int64),) + tuple(
-            np.array([leg.chain[k] for leg in legs], dtype=float)
-            for k in (0, 2, 3, 4, 5, 6))
+            np.array([leg.fk_chain[k] for leg in legs], dtype=float) for k in range(6))
         self._lower = np.array(model.lower_rad, dtype=float)  # writable: one signature
         self._upper = np.array(model.upper_rad, dtype=float)
 

@@ -289,9 +289,7 @@ class TeleopTarget(Target):
         for hand_name, arm in mapper.config.hand_arm.items():
             self._hand_of.setdefault(arm, hand_name)
         self._right_leg = model.limb_slice("right-leg")  # lift_of reads it
-        # each arm's chain as the compiled kernels take it (base, offset, alpha, a, d, end)
-        self._chains = {arm: tuple(limb.chain[k] for k in (0, 2, 3, 4, 5, 6))
-                        for arm, limb in body.arms.items()}
+        self._chains = {arm: limb.fk_chain for arm, limb in body.arms.items()}
         self._lifts: dict[bytes, float] = {}  # _lift_of's memory
         self._T_S_N_now: np.ndarray | None = None  # _T_S_N's, this period
         self.log_columns = tuple(
@@ -319,12 +317,9 @@ class TeleopTarget(Target):
             smoothing = ArmReach(limb, reach.settings)
             smoothing.smoothed(_EYE4, 0.0)  # the first goal starts it, the second is smoothed
             smoothing.smoothed(_EYE4, 0.0)
-            base, _, offset, alpha, a, d, end, _ = limb.chain
-            path_swing_m(np.zeros((3, 6)), base, offset, alpha, a, d, end)
-            traded_goal(zeros + 0.1, zeros + 0.1, zeros, zeros, limits,
-                        (base, offset, alpha, a, d, end))
-            hand_errors(zeros, base, offset, alpha, a, d, end, False, 0.0, _EYE4, _EYE4, True,
-                        np.empty((4, 4)))
+            path_swing_m(np.zeros((3, 6)), *limb.fk_chain)
+            traded_goal(zeros + 0.1, zeros + 0.1, zeros, zeros, limits, limb.fk_chain)
+            hand_errors(zeros, *limb.fk_chain, False, 0.0, _EYE4, _EYE4, True, np.empty((4, 4)))
 
     def attach(self, world: SceneActions | None, modules, store: Store) -> None:
         self.world, self.store = world, store
