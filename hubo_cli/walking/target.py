@@ -177,6 +177,11 @@ LIFTOFF_MIN_LOAD = 0.2  # the median of their F_z together over this window, at 
 LIFTOFF_WAIT_MAX_S = 1.0  # [chosen] ... and at one lift-off at most this long: then the sensors
                         # read wrong (zero) or the robot is held in the air, and the walk ends
                         # there (a DeviceError: the loop's smooth stop, both feet planned down)
+CP_CAPTURE_MARGIN_M = 0.04  # [chosen] a moved landing puts the predicted capture point this far
+                            # inside the support's heel or toe (WalkTarget._capturing) ...
+CP_ZMP_MARGIN_M = 0.02  # [chosen] ... predicted with the ZMP at most this close to the stance
+                        # sole's heel or toe (on the edge, a sole tips: seed 11's pushed walk
+                        # stood with its capture point on the heel's edge within a few mm)
 CP_GAIN_MAX = 1.0      # [chosen] the error's growth by the landing counted at most this much
                        # (exp(omega t) is 17 at a swing's start: a 1 cm error of the estimate's
                        # capture point moved the landing by 17 cm; 3x stepped too far back
@@ -811,15 +816,17 @@ class WalkTarget(Target):
             shifted_step, applied, base = step, np.zeros(2), list(self._basis[1])
         excess = np.sign(self._cp_error) * np.maximum(np.abs(self._cp_error) - CP_MARGIN_M, 0.0)
         wanted = excess * min(math.exp(self._omega * remaining_s), CP_GAIN_MAX)
+        stance_side = "right" if support[0] else "left"
+        x, y, _, yaw = rows[stance_side][k]
+        stance = Footstep(stance_side, x, y, yaw)
+        wanted = self._capturing(k, stance, base[step], excess, wanted, remaining_s)
         self._shift = (shifted_step, applied, base)
         if (not np.any(excess) and not np.any(applied)) or \
                 float(np.hypot(*(wanted - applied))) < CP_REPLAN_M:
             return
         if k + CP_BLEND_PERIODS > self._landing[k]:
             return  # too late to move this landing
-        stance_side = "right" if support[0] else "left"
-        x, y, _, yaw = rows[stance_side][k]
-        moved = shifted_landing(Footstep(stance_side, x, y, yaw), base[step], wanted,
+        moved = shifted_landing(stance, base[step], wanted,
                                 self.model.feet.width_m, self.params.step_width_m)
         # the landing as the step's limits let it move: where they hold it where it already
         # is, a capture point beyond them re-plans nothing (not a re-plan every period)
@@ -833,6 +840,38 @@ class WalkTarget(Target):
                                            moved.y_m - base[step].y_m]), base)
 
         self._replan(shift_steps(base, step, moved), t_s, done=done)
+
+    def _capturing(self, k: int, stance: Footstep, planned: Footstep, excess: np.ndarray,
+                   wanted: np.ndarray, remaining_s: float) -> np.ndarray:
+        """The landing shift ``wanted`` (world x, y; m) lengthened along the stance sole, in
+        the direction of the capture point's error ``excess``, until the landing sole puts the
+        capture point predicted at touchdown CP_CAPTURE_MARGIN_M inside the support's heel (a
+        push from the front) or toe (from behind): the linear inverted pendulum from the
+        estimated capture point, its ZMP the estimated one held within the stance sole shrunk
+        by CP_ZMP_MARGIN_M, over the ``remaining_s`` to the landing. The error alone put a
+        pushed walk's landing short of its capture point (seed 11's front push: the landing
+        moved back 104 mm, its heel ahead of the capture point). Across the walk the error
+        alone moves it (the pattern's own sway would swing that prediction out)."""
+        wrenches = ankle_wrenches(self.store)
+        points = [self._in_pattern(k, wrenches, self.store[key])
+                  for key in (CAPTURE_POINT_WORLD, ZMP_WORLD)]
+        if not np.all(np.isfinite(points)):
+            return wanted
+        c, s = math.cos(stance.yaw_rad), math.sin(stance.yaw_rad)
+        cp_x, zmp_x = (c * (px - stance.x_m) + s * (py - stance.y_m) for px, py in points)
+        heel_m, toe_m = float(self.corners[:, 0].min()), float(self.corners[:, 0].max())
+        zmp_x = min(max(zmp_x, heel_m + CP_ZMP_MARGIN_M), toe_m - CP_ZMP_MARGIN_M)
+        cp_x = zmp_x + (cp_x - zmp_x) * math.exp(self._omega * remaining_s)
+        along = c * float(excess[0]) + s * float(excess[1])  # the error along the stance sole
+        landing_x = c * (planned.x_m + wanted[0] - stance.x_m) \
+            + s * (planned.y_m + wanted[1] - stance.y_m)
+        if along < 0.0 and cp_x < heel_m + CP_CAPTURE_MARGIN_M:
+            more = min(cp_x - CP_CAPTURE_MARGIN_M - heel_m - landing_x, 0.0)
+        elif along > 0.0 and cp_x > toe_m - CP_CAPTURE_MARGIN_M:
+            more = max(cp_x + CP_CAPTURE_MARGIN_M - toe_m - landing_x, 0.0)
+        else:
+            return wanted
+        return wanted + more * np.array((c, s))
 
     def _touched_early(self, k: int, step: int, support: list[bool], t_s: float) -> bool:
         """A swing foot down early (pushed onto the floor): the estimate has its sole in
