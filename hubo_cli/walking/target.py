@@ -819,8 +819,10 @@ class WalkTarget(Target):
         stance_side = "right" if support[0] else "left"
         x, y, _, yaw = rows[stance_side][k]
         stance = Footstep(stance_side, x, y, yaw)
-        wanted = self._capturing(k, stance, base[step], excess, wanted, remaining_s)
+        wanted, capturing = self._capturing(k, stance, base[step], excess, wanted, remaining_s)
         self._shift = (shifted_step, applied, base)
+        if capturing and self._abandoned(k, step, stance, base, wanted, t_s):
+            return
         if (not np.any(excess) and not np.any(applied)) or \
                 float(np.hypot(*(wanted - applied))) < CP_REPLAN_M:
             return
@@ -842,7 +844,7 @@ class WalkTarget(Target):
         self._replan(shift_steps(base, step, moved), t_s, done=done)
 
     def _capturing(self, k: int, stance: Footstep, planned: Footstep, excess: np.ndarray,
-                   wanted: np.ndarray, remaining_s: float) -> np.ndarray:
+                   wanted: np.ndarray, remaining_s: float) -> tuple[np.ndarray, bool]:
         """The landing shift ``wanted`` (world x, y; m) lengthened along the stance sole, in
         the direction of the capture point's error ``excess``, until the landing sole puts the
         capture point predicted at touchdown CP_CAPTURE_MARGIN_M inside the support's heel (a
@@ -851,12 +853,13 @@ class WalkTarget(Target):
         by CP_ZMP_MARGIN_M, over the ``remaining_s`` to the landing. The error alone put a
         pushed walk's landing short of its capture point (seed 11's front push: the landing
         moved back 104 mm, its heel ahead of the capture point). Across the walk the error
-        alone moves it (the pattern's own sway would swing that prediction out)."""
+        alone moves it (the pattern's own sway would swing that prediction out). Returns the
+        shift and whether the prediction lengthened it."""
         wrenches = ankle_wrenches(self.store)
         points = [self._in_pattern(k, wrenches, self.store[key])
                   for key in (CAPTURE_POINT_WORLD, ZMP_WORLD)]
         if not np.all(np.isfinite(points)):
-            return wanted
+            return wanted, False
         c, s = math.cos(stance.yaw_rad), math.sin(stance.yaw_rad)
         cp_x, zmp_x = (c * (px - stance.x_m) + s * (py - stance.y_m) for px, py in points)
         heel_m, toe_m = float(self.corners[:, 0].min()), float(self.corners[:, 0].max())
@@ -870,8 +873,37 @@ class WalkTarget(Target):
         elif along > 0.0 and cp_x > toe_m - CP_CAPTURE_MARGIN_M:
             more = max(cp_x + CP_CAPTURE_MARGIN_M - toe_m - landing_x, 0.0)
         else:
-            return wanted
-        return wanted + more * np.array((c, s))
+            return wanted, False
+        return wanted + more * np.array((c, s)), more != 0.0
+
+    def _abandoned(self, k: int, step: int, stance: Footstep, base: list[Footstep],
+                   wanted: np.ndarray, t_s: float) -> bool:
+        """The landing that captures the body (``wanted``, :meth:`_capturing`) lies behind
+        where the swing foot is now, along the stance sole (a push from the front early in a
+        swing): the swing is abandoned, the foot put down under its command now (the timeline
+        from its landing on played at once, as a swing down early: :meth:`_touched_early`),
+        instead of swinging on and back; the capture point's stop then turns the CoM over it.
+        Returns whether it re-planned."""
+        side = base[step].side
+        x, y, _, yaw = self._rows[side][self.k]
+        c, s = math.cos(stance.yaw_rad), math.sin(stance.yaw_rad)
+        landing = (base[step].x_m + wanted[0], base[step].y_m + wanted[1])
+        if c * (landing[0] - x) + s * (landing[1] - y) >= 0.0 or \
+                self.k + CP_BLEND_PERIODS > self._landing[self.k]:
+            return False
+        here = shifted_landing(stance, base[step], np.array((x, y)) - (base[step].x_m,
+                                                                      base[step].y_m),
+                               self.model.feet.width_m, self.params.step_width_m)
+        here = Footstep(side, here.x_m, here.y_m, yaw)
+
+        def done() -> None:
+            self.shifts += 1
+            self._shift = (step, np.array([here.x_m - base[step].x_m,
+                                           here.y_m - base[step].y_m]), base)
+
+        self._replan(shift_steps(base, step, here), t_s, done=done,
+                     skip=self._landing[k] - k)
+        return True
 
     def _touched_early(self, k: int, step: int, support: list[bool], t_s: float) -> bool:
         """A swing foot down early (pushed onto the floor): the estimate has its sole in
