@@ -99,6 +99,7 @@ from hubo_cli.walking.gait import Gait, make_gait, smoothstep5
 from hubo_cli.walking.params import WalkingParams
 from hubo_cli.walking.replan import (
     CP_MARGIN_M,
+    TOUCH_BLEND_ROWS,
     Fix,
     continued_fix,
     gait_rows,
@@ -164,6 +165,11 @@ LEVEL_RETURN_RAD_S = 0.1  # [chosen] with both soles loaded a turn goes back at 
                         # 0.6 rad/s at the touchdown the landed foot was unloaded and the robot
                         # fell backward (seed 11); at 0.05 a stop's stance (1.9 s loaded
                         # before the stopper holds its posture) left 0.065 of 0.16 rad
+LEVEL_ROLL_DEAD_RAD = 10.  # [chosen] a leg off the floor is rolled against the estimated
+                          # torso's roll from the planned one beyond this (WalkTarget.
+                          # _level_swing_roll; walking's own sway: see docs/history/walking.md)
+LEVEL_ROLL_RATE_RAD_S = 1.5  # [chosen] ... that roll changing at most this fast (a rebound
+                             # rolls the body back at about 1 rad/s)
 LIFTOFF_WINDOW_S = 0.1  # [chosen] a foot lifts off only while the ankles' F/T sensors read, as
 LIFTOFF_MIN_LOAD = 0.2  # the median of their F_z together over this window, at least this part
                         # of the body's weight (380 N); else the timeline waits at the lift-off
@@ -177,11 +183,15 @@ LIFTOFF_MIN_LOAD = 0.2  # the median of their F_z together over this window, at 
 LIFTOFF_WAIT_MAX_S = 1.0  # [chosen] ... and at one lift-off at most this long: then the sensors
                         # read wrong (zero) or the robot is held in the air, and the walk ends
                         # there (a DeviceError: the loop's smooth stop, both feet planned down)
-CP_CAPTURE_MARGIN_M = 0.04  # [chosen] a moved landing puts the predicted capture point this far
-                            # inside the support's heel or toe (WalkTarget._capturing) ...
+CP_CAPTURE_MARGIN_M = 0.04  # [chosen] after a push from the front, the landing that captures
+                            # the body has its heel this far behind the capture point predicted
+                            # at touchdown (WalkTarget._capture_landing) ...
 CP_ZMP_MARGIN_M = 0.02  # [chosen] ... predicted with the ZMP at most this close to the stance
                         # sole's heel or toe (on the edge, a sole tips: seed 11's pushed walk
                         # stood with its capture point on the heel's edge within a few mm)
+CP_ABANDON_FRACTION = 0.5  # [chosen] ... a swing is abandoned for it only this early (later
+                           # the foot is far up and ahead: pushed seed 4's, put down 0.1 s
+                           # before its landing, hung in the air 0.2 s more and it fell)
 CP_GAIN_MAX = 1.0      # [chosen] the error's growth by the landing counted at most this much
                        # (exp(omega t) is 17 at a swing's start: a 1 cm error of the estimate's
                        # capture point moved the landing by 17 cm; 3x stepped too far back
@@ -393,7 +403,9 @@ class WalkTarget(Target):
                    "walk.offset_x_m", "walk.offset_y_m", "walk.right_lift_m", "walk.left_lift_m",
                    "walk.right_sole_roll_rad", "walk.right_sole_pitch_rad",
                    "walk.left_sole_roll_rad", "walk.left_sole_pitch_rad",
-                   "walk.right_level_rad", "walk.left_level_rad", "walk.pitch_error_rad")
+                   "walk.right_level_rad", "walk.left_level_rad", "walk.pitch_error_rad",
+                   "walk.right_level_roll_rad", "walk.left_level_roll_rad",
+                   "walk.roll_error_rad")
 
     def __init__(self, model: RobotModel, params: WalkingParams, goal: tuple[float, float, float],
                  q_start_rad: np.ndarray, T_world_neck_start: np.ndarray,
@@ -457,10 +469,13 @@ class WalkTarget(Target):
             self._leg_delta = np.zeros((2, 6))  # the legs' corrections: right, left
             self._level_rad = np.zeros(2)  # each swing leg's pitch against the torso's (rad)
             self._pitch_error_rad = 0.0  # the estimated torso's pitch from the planned one
+            self._level_roll_rad = np.zeros(2)  # each swing leg's roll against the torso's
+            self._roll_error_rad = 0.0  # the estimated torso's roll from the planned one
         names = list(model.joint_names)
         self._ankle = {"right": (names.index("RAR"), names.index("RAP")),
                        "left": (names.index("LAR"), names.index("LAP"))}
         self._hip_pitch = (names.index("RHP"), names.index("LHP"))  # (right, left)
+        self._hip_roll = (names.index("RHR"), names.index("LHR"))
 
     def attach(self, world: SceneActions | None, modules: Sequence, store: Store) -> None:
         self.store = store
@@ -819,9 +834,8 @@ class WalkTarget(Target):
         stance_side = "right" if support[0] else "left"
         x, y, _, yaw = rows[stance_side][k]
         stance = Footstep(stance_side, x, y, yaw)
-        wanted, capturing = self._capturing(k, stance, base[step], excess, wanted, remaining_s)
         self._shift = (shifted_step, applied, base)
-        if capturing and self._abandoned(k, step, stance, base, wanted, t_s):
+        if self._abandoned(k, step, stance, base, remaining_s, t_s):
             return
         if (not np.any(excess) and not np.any(applied)) or \
                 float(np.hypot(*(wanted - applied))) < CP_REPLAN_M:
@@ -843,56 +857,58 @@ class WalkTarget(Target):
 
         self._replan(shift_steps(base, step, moved), t_s, done=done)
 
-    def _capturing(self, k: int, stance: Footstep, planned: Footstep, excess: np.ndarray,
-                   wanted: np.ndarray, remaining_s: float) -> tuple[np.ndarray, bool]:
-        """The landing shift ``wanted`` (world x, y; m) lengthened along the stance sole, in
-        the direction of the capture point's error ``excess``, until the landing sole puts the
-        capture point predicted at touchdown CP_CAPTURE_MARGIN_M inside the support's heel (a
-        push from the front) or toe (from behind): the linear inverted pendulum from the
-        estimated capture point, its ZMP the estimated one held within the stance sole shrunk
-        by CP_ZMP_MARGIN_M, over the ``remaining_s`` to the landing. The error alone put a
-        pushed walk's landing short of its capture point (seed 11's front push: the landing
-        moved back 104 mm, its heel ahead of the capture point). Across the walk the error
-        alone moves it (the pattern's own sway would swing that prediction out). Returns the
-        shift and whether the prediction lengthened it."""
+    def _capture_landing(self, k: int, stance: Footstep, remaining_s: float
+                         ) -> tuple[float, float]:
+        """After a push from the front (the capture point's error along the stance sole
+        behind it by more than CP_MARGIN_M): the landing (its origin along the stance sole,
+        m) whose heel lies CP_CAPTURE_MARGIN_M behind the capture point predicted at
+        touchdown, ``remaining_s`` from now (the linear inverted pendulum from the estimated
+        capture point, its ZMP the estimated one held CP_ZMP_MARGIN_M or more inside the
+        stance sole's heel and toe), and the capture point so predicted for a landing
+        TOUCH_BLEND_ROWS from now; NaN, NaN when no landing behind the stance heel's margin
+        is needed. Only :meth:`_abandoned` uses them: the landing moved so far back
+        (:meth:`_follow_capture_point`) made pushed seed 4's foot come down 0.141 m back
+        and bounce, and the robot fell backward, where the error's 0.107 m stands
+        (docs/history/walking.md, round 9)."""
         wrenches = ankle_wrenches(self.store)
         points = [self._in_pattern(k, wrenches, self.store[key])
                   for key in (CAPTURE_POINT_WORLD, ZMP_WORLD)]
-        if not np.all(np.isfinite(points)):
-            return wanted, False
         c, s = math.cos(stance.yaw_rad), math.sin(stance.yaw_rad)
+        along = c * float(self._cp_error[0]) + s * float(self._cp_error[1])
+        if not np.all(np.isfinite(points)) or along > -CP_MARGIN_M:
+            return math.nan, math.nan
         cp_x, zmp_x = (c * (px - stance.x_m) + s * (py - stance.y_m) for px, py in points)
         heel_m, toe_m = float(self.corners[:, 0].min()), float(self.corners[:, 0].max())
         zmp_x = min(max(zmp_x, heel_m + CP_ZMP_MARGIN_M), toe_m - CP_ZMP_MARGIN_M)
-        cp_x = zmp_x + (cp_x - zmp_x) * math.exp(self._omega * remaining_s)
-        along = c * float(excess[0]) + s * float(excess[1])  # the error along the stance sole
-        landing_x = c * (planned.x_m + wanted[0] - stance.x_m) \
-            + s * (planned.y_m + wanted[1] - stance.y_m)
-        if along < 0.0 and cp_x < heel_m + CP_CAPTURE_MARGIN_M:
-            more = min(cp_x - CP_CAPTURE_MARGIN_M - heel_m - landing_x, 0.0)
-        elif along > 0.0 and cp_x > toe_m - CP_CAPTURE_MARGIN_M:
-            more = max(cp_x + CP_CAPTURE_MARGIN_M - toe_m - landing_x, 0.0)
-        else:
-            return wanted, False
-        return wanted + more * np.array((c, s)), more != 0.0
+        landing_cp_x = zmp_x + (cp_x - zmp_x) * math.exp(self._omega * remaining_s)
+        if landing_cp_x >= heel_m + CP_CAPTURE_MARGIN_M:
+            return math.nan, math.nan
+        now_s = TOUCH_BLEND_ROWS * self.gait.period_s
+        return (landing_cp_x - CP_CAPTURE_MARGIN_M - heel_m,
+                zmp_x + (cp_x - zmp_x) * math.exp(self._omega * now_s))
 
     def _abandoned(self, k: int, step: int, stance: Footstep, base: list[Footstep],
-                   wanted: np.ndarray, t_s: float) -> bool:
-        """The landing that captures the body (``wanted``, :meth:`_capturing`) lies behind
-        where the swing foot is now, along the stance sole (a push from the front early in a
-        swing): the swing is abandoned, the foot put down under its command now (the timeline
-        from its landing on played at once, as a swing down early: :meth:`_touched_early`),
-        instead of swinging on and back; the capture point's stop then turns the CoM over it.
-        Returns whether it re-planned."""
-        side = base[step].side
-        x, y, _, yaw = self._rows[side][self.k]
-        c, s = math.cos(stance.yaw_rad), math.sin(stance.yaw_rad)
-        landing = (base[step].x_m + wanted[0], base[step].y_m + wanted[1])
-        if c * (landing[0] - x) + s * (landing[1] - y) >= 0.0 or \
-                self.k + CP_BLEND_PERIODS > self._landing[self.k]:
+                   remaining_s: float, t_s: float) -> bool:
+        """After a push from the front, the landing that captures the body
+        (:meth:`_capture_landing`) lies behind where the swing foot is now along the stance
+        sole, and the foot put down under its command now (the timeline from its landing on
+        played at once, as a swing down early: :meth:`_touched_early`) has its heel
+        CP_CAPTURE_MARGIN_M behind the capture point predicted then: the swing is abandoned
+        there, within the first CP_ABANDON_FRACTION of its single support. Swinging on, seed
+        11's foot pushed at 1.900 s came down 0.57 s after its lift-off, the body tipped 9 deg
+        back over the stance heel, and bounced. Returns whether it re-planned."""
+        if remaining_s < (1.0 - CP_ABANDON_FRACTION) * self.params.single_support_s:
             return False
-        here = shifted_landing(stance, base[step], np.array((x, y)) - (base[step].x_m,
-                                                                      base[step].y_m),
+        landing_x, now_cp_x = self._capture_landing(k, stance, remaining_s)
+        side = base[step].side
+        x, y, _, yaw = self._rows[side][k]
+        c, s = math.cos(stance.yaw_rad), math.sin(stance.yaw_rad)
+        here_x = c * (x - stance.x_m) + s * (y - stance.y_m)
+        heel_m = float(self.corners[:, 0].min())
+        if not (landing_x < here_x and here_x + heel_m <= now_cp_x - CP_CAPTURE_MARGIN_M):
+            return False  # (NaN: no capture landing needed)
+        here = shifted_landing(stance, base[step], np.array((x - base[step].x_m,
+                                                             y - base[step].y_m)),
                                self.model.feet.width_m, self.params.step_width_m)
         here = Footstep(side, here.x_m, here.y_m, yaw)
 
@@ -1118,7 +1134,7 @@ class WalkTarget(Target):
     def _stabilizer_info(self) -> dict[str, float]:
         """The stabilizer's corrections for the log (NaN without a stabilizer)."""
         if self.stabilizer is None:
-            return dict.fromkeys(self.log_columns[-11:], math.nan)
+            return dict.fromkeys(self.log_columns[-14:], math.nan)
         right, left = self.dampers["right"].delta_rad, self.dampers["left"].delta_rad
         offset = self.torso_offset.offset_m
         return {"walk.offset_x_m": float(offset[0]), "walk.offset_y_m": float(offset[1]),
@@ -1130,7 +1146,10 @@ class WalkTarget(Target):
                 "walk.left_sole_pitch_rad": float(left[1]),
                 "walk.right_level_rad": float(self._level_rad[0]),
                 "walk.left_level_rad": float(self._level_rad[1]),
-                "walk.pitch_error_rad": self._pitch_error_rad}
+                "walk.pitch_error_rad": self._pitch_error_rad,
+                "walk.right_level_roll_rad": float(self._level_roll_rad[0]),
+                "walk.left_level_roll_rad": float(self._level_roll_rad[1]),
+                "walk.roll_error_rad": self._roll_error_rad}
 
     def _in_pattern(self, k: int, wrenches: np.ndarray, point_m: np.ndarray
                     ) -> tuple[float, float]:
@@ -1175,6 +1194,7 @@ class WalkTarget(Target):
             q[roll] += delta[0]
             q[pitch] += delta[1]
         self._level_swing(k, rows["support"][k], q)
+        self._level_swing_roll(k, rows["support"][k], q)
         return q
 
     def _level_swing(self, k: int, support: list[bool], q: np.ndarray) -> None:
@@ -1208,6 +1228,36 @@ class WalkTarget(Target):
             elif not (down or contact[column]) and math.isfinite(tilt_rad):
                 self._level_rad[column] = level + min(max(tilt_rad - level, -step), step)
             q[self._hip_pitch[column]] -= self._level_rad[column]
+
+    def _level_swing_roll(self, k: int, support: list[bool], q: np.ndarray) -> None:
+        """Roll each leg out of the estimate's contact at its hip against the estimated
+        torso's roll from the planned one beyond LEVEL_ROLL_DEAD_RAD (walking's own sway),
+        at most LEVEL_MAX_RAD, changing at most LEVEL_ROLL_RATE_RAD_S, in place in ``q``: a
+        body rolled onto a sole's outer edge by a side push carries the other foot up with it
+        and, rolling back, lands it on its edge at about 1 rad/s of roll (the pushes toward the
+        stance foot at 60-70 N, docs/history/walking.md); turned so, the sole stays parallel to
+        the floor, also while the pattern has it down but it is off the floor. In contact
+        with the other foot off the floor it holds its turn; with both soles planned down and
+        in contact the turns go back at LEVEL_RETURN_RAD_S, as the pitch's
+        (:meth:`_level_swing`). The limiter keeps the hip's roll within its limits (an inward
+        roll has 0.05-0.07 rad of room from the walking posture)."""
+        R_plan = self.plan.T_world_neck[k, :3, :3]
+        error = float(pin.log3(R_plan.T @ np.asarray(self.store[T_WORLD_TORSO],
+                                                     dtype=float)[:3, :3])[0])
+        self._roll_error_rad = error  # about the torso's x axis
+        tilt_rad = min(max(abs(error) - LEVEL_ROLL_DEAD_RAD, 0.0), LEVEL_MAX_RAD)
+        tilt_rad = math.copysign(tilt_rad, error)
+        step = LEVEL_ROLL_RATE_RAD_S * self.model.control_period_s
+        contact = self.store[CONTACT]
+        loaded = all(support) and all(contact)
+        back = LEVEL_RETURN_RAD_S * self.model.control_period_s
+        for column in range(2):
+            level = self._level_roll_rad[column]
+            if loaded:
+                self._level_roll_rad[column] = level - min(max(level, -back), back)
+            elif not contact[column] and math.isfinite(tilt_rad):
+                self._level_roll_rad[column] = level + min(max(tilt_rad - level, -step), step)
+            q[self._hip_roll[column]] -= self._level_roll_rad[column]
 
     def arrived(self) -> bool:
         """The estimated feet stand within ARRIVED_M and ARRIVED_RAD of the goal stance."""
