@@ -16,10 +16,14 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
   (:func:`~hubo_cli.walking.replan.pattern_from`) from the period it is decided in, its first
   rows solved then and the rest a slice a period while they play (REPLAN_ROWS_PER_PERIOD; too
   late for this landing (CP_BLEND_PERIODS before it): not moved); a later re-plan replaces a
-  rest being computed. A swing foot pushed onto the floor (the estimate's sole in contact and
-  loaded, past TOUCH_FRACTION of its swing, TOUCH_MIN_HEIGHT_M or more above its landing in
-  the pattern) ends its swing there: the step lands where that sole stands and, the capture
-  point off the pattern's (a push), the timeline from the landing on plays at once, else
+  rest being computed. After a push from the front, early in a swing
+  (CP_ABANDON_FRACTION), a swing foot still behind the landing that would capture the body
+  (the capture point predicted at touchdown by the linear inverted pendulum) is put down
+  where it is instead (:meth:`WalkTarget._abandoned`). A swing foot pushed onto the floor
+  (the estimate's sole in contact and loaded, past TOUCH_FRACTION of its swing,
+  TOUCH_MIN_HEIGHT_M or more above its landing in the pattern) ends its swing there: the
+  step lands where that sole stands and, the capture point off the pattern's (a push), the
+  timeline from the landing on plays at once, else
   the foot stays down until the planned landing (:meth:`WalkTarget._touched_early`); lifted
   again under the robot's weight, it fell. A swing leg is pitched at its hip against the
   estimated torso's pitch from the planned one (beyond LEVEL_DEAD_RAD), so that a foot carried
@@ -165,11 +169,6 @@ LEVEL_RETURN_RAD_S = 0.1  # [chosen] with both soles loaded a turn goes back at 
                         # 0.6 rad/s at the touchdown the landed foot was unloaded and the robot
                         # fell backward (seed 11); at 0.05 a stop's stance (1.9 s loaded
                         # before the stopper holds its posture) left 0.065 of 0.16 rad
-LEVEL_ROLL_DEAD_RAD = 10.  # [chosen] a leg off the floor is rolled against the estimated
-                          # torso's roll from the planned one beyond this (WalkTarget.
-                          # _level_swing_roll; walking's own sway: see docs/history/walking.md)
-LEVEL_ROLL_RATE_RAD_S = 1.5  # [chosen] ... that roll changing at most this fast (a rebound
-                             # rolls the body back at about 1 rad/s)
 LIFTOFF_WINDOW_S = 0.1  # [chosen] a foot lifts off only while the ankles' F/T sensors read, as
 LIFTOFF_MIN_LOAD = 0.2  # the median of their F_z together over this window, at least this part
                         # of the body's weight (380 N); else the timeline waits at the lift-off
@@ -403,9 +402,7 @@ class WalkTarget(Target):
                    "walk.offset_x_m", "walk.offset_y_m", "walk.right_lift_m", "walk.left_lift_m",
                    "walk.right_sole_roll_rad", "walk.right_sole_pitch_rad",
                    "walk.left_sole_roll_rad", "walk.left_sole_pitch_rad",
-                   "walk.right_level_rad", "walk.left_level_rad", "walk.pitch_error_rad",
-                   "walk.right_level_roll_rad", "walk.left_level_roll_rad",
-                   "walk.roll_error_rad")
+                   "walk.right_level_rad", "walk.left_level_rad", "walk.pitch_error_rad")
 
     def __init__(self, model: RobotModel, params: WalkingParams, goal: tuple[float, float, float],
                  q_start_rad: np.ndarray, T_world_neck_start: np.ndarray,
@@ -469,13 +466,10 @@ class WalkTarget(Target):
             self._leg_delta = np.zeros((2, 6))  # the legs' corrections: right, left
             self._level_rad = np.zeros(2)  # each swing leg's pitch against the torso's (rad)
             self._pitch_error_rad = 0.0  # the estimated torso's pitch from the planned one
-            self._level_roll_rad = np.zeros(2)  # each swing leg's roll against the torso's
-            self._roll_error_rad = 0.0  # the estimated torso's roll from the planned one
         names = list(model.joint_names)
         self._ankle = {"right": (names.index("RAR"), names.index("RAP")),
                        "left": (names.index("LAR"), names.index("LAP"))}
         self._hip_pitch = (names.index("RHP"), names.index("LHP"))  # (right, left)
-        self._hip_roll = (names.index("RHR"), names.index("LHR"))
 
     def attach(self, world: SceneActions | None, modules: Sequence, store: Store) -> None:
         self.store = store
@@ -870,12 +864,13 @@ class WalkTarget(Target):
         (:meth:`_follow_capture_point`) made pushed seed 4's foot come down 0.141 m back
         and bounce, and the robot fell backward, where the error's 0.107 m stands
         (docs/history/walking.md, round 9)."""
+        c, s = math.cos(stance.yaw_rad), math.sin(stance.yaw_rad)
+        if c * float(self._cp_error[0]) + s * float(self._cp_error[1]) > -CP_MARGIN_M:
+            return math.nan, math.nan
         wrenches = ankle_wrenches(self.store)
         points = [self._in_pattern(k, wrenches, self.store[key])
                   for key in (CAPTURE_POINT_WORLD, ZMP_WORLD)]
-        c, s = math.cos(stance.yaw_rad), math.sin(stance.yaw_rad)
-        along = c * float(self._cp_error[0]) + s * float(self._cp_error[1])
-        if not np.all(np.isfinite(points)) or along > -CP_MARGIN_M:
+        if not np.all(np.isfinite(points)):
             return math.nan, math.nan
         cp_x, zmp_x = (c * (px - stance.x_m) + s * (py - stance.y_m) for px, py in points)
         heel_m, toe_m = float(self.corners[:, 0].min()), float(self.corners[:, 0].max())
@@ -1134,7 +1129,7 @@ class WalkTarget(Target):
     def _stabilizer_info(self) -> dict[str, float]:
         """The stabilizer's corrections for the log (NaN without a stabilizer)."""
         if self.stabilizer is None:
-            return dict.fromkeys(self.log_columns[-14:], math.nan)
+            return dict.fromkeys(self.log_columns[-11:], math.nan)
         right, left = self.dampers["right"].delta_rad, self.dampers["left"].delta_rad
         offset = self.torso_offset.offset_m
         return {"walk.offset_x_m": float(offset[0]), "walk.offset_y_m": float(offset[1]),
@@ -1146,10 +1141,7 @@ class WalkTarget(Target):
                 "walk.left_sole_pitch_rad": float(left[1]),
                 "walk.right_level_rad": float(self._level_rad[0]),
                 "walk.left_level_rad": float(self._level_rad[1]),
-                "walk.pitch_error_rad": self._pitch_error_rad,
-                "walk.right_level_roll_rad": float(self._level_roll_rad[0]),
-                "walk.left_level_roll_rad": float(self._level_roll_rad[1]),
-                "walk.roll_error_rad": self._roll_error_rad}
+                "walk.pitch_error_rad": self._pitch_error_rad}
 
     def _in_pattern(self, k: int, wrenches: np.ndarray, point_m: np.ndarray
                     ) -> tuple[float, float]:
@@ -1194,7 +1186,6 @@ class WalkTarget(Target):
             q[roll] += delta[0]
             q[pitch] += delta[1]
         self._level_swing(k, rows["support"][k], q)
-        self._level_swing_roll(k, rows["support"][k], q)
         return q
 
     def _level_swing(self, k: int, support: list[bool], q: np.ndarray) -> None:
@@ -1228,36 +1219,6 @@ class WalkTarget(Target):
             elif not (down or contact[column]) and math.isfinite(tilt_rad):
                 self._level_rad[column] = level + min(max(tilt_rad - level, -step), step)
             q[self._hip_pitch[column]] -= self._level_rad[column]
-
-    def _level_swing_roll(self, k: int, support: list[bool], q: np.ndarray) -> None:
-        """Roll each leg out of the estimate's contact at its hip against the estimated
-        torso's roll from the planned one beyond LEVEL_ROLL_DEAD_RAD (walking's own sway),
-        at most LEVEL_MAX_RAD, changing at most LEVEL_ROLL_RATE_RAD_S, in place in ``q``: a
-        body rolled onto a sole's outer edge by a side push carries the other foot up with it
-        and, rolling back, lands it on its edge at about 1 rad/s of roll (the pushes toward the
-        stance foot at 60-70 N, docs/history/walking.md); turned so, the sole stays parallel to
-        the floor, also while the pattern has it down but it is off the floor. In contact
-        with the other foot off the floor it holds its turn; with both soles planned down and
-        in contact the turns go back at LEVEL_RETURN_RAD_S, as the pitch's
-        (:meth:`_level_swing`). The limiter keeps the hip's roll within its limits (an inward
-        roll has 0.05-0.07 rad of room from the walking posture)."""
-        R_plan = self.plan.T_world_neck[k, :3, :3]
-        error = float(pin.log3(R_plan.T @ np.asarray(self.store[T_WORLD_TORSO],
-                                                     dtype=float)[:3, :3])[0])
-        self._roll_error_rad = error  # about the torso's x axis
-        tilt_rad = min(max(abs(error) - LEVEL_ROLL_DEAD_RAD, 0.0), LEVEL_MAX_RAD)
-        tilt_rad = math.copysign(tilt_rad, error)
-        step = LEVEL_ROLL_RATE_RAD_S * self.model.control_period_s
-        contact = self.store[CONTACT]
-        loaded = all(support) and all(contact)
-        back = LEVEL_RETURN_RAD_S * self.model.control_period_s
-        for column in range(2):
-            level = self._level_roll_rad[column]
-            if loaded:
-                self._level_roll_rad[column] = level - min(max(level, -back), back)
-            elif not contact[column] and math.isfinite(tilt_rad):
-                self._level_roll_rad[column] = level + min(max(tilt_rad - level, -step), step)
-            q[self._hip_roll[column]] -= self._level_roll_rad[column]
 
     def arrived(self) -> bool:
         """The estimated feet stand within ARRIVED_M and ARRIVED_RAD of the goal stance."""
