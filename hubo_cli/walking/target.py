@@ -886,8 +886,10 @@ class WalkTarget(Target):
                    remaining_s: float, t_s: float) -> bool:
         """After a push from the front, the landing that captures the body
         (:meth:`_capture_landing`) lies behind where the swing foot is now along the stance
-        sole, and the foot put down under its command now (the timeline from its landing on
-        played at once, as a swing down early: :meth:`_touched_early`) has its heel
+        sole, and the foot put down under its command now (at most CP_MAX_SHIFT_M from its
+        planned landing, within the step's limits: :func:`~hubo_cli.walking.replan.
+        shifted_landing`; the timeline from its landing on played at once, as a swing down
+        early: :meth:`_touched_early`) has its heel
         CP_CAPTURE_MARGIN_M behind the capture point predicted then: the swing is abandoned
         there, within the first CP_ABANDON_FRACTION of its single support. Swinging on, seed
         11's foot pushed at 1.900 s came down 0.57 s after its lift-off, the body tipped 9 deg
