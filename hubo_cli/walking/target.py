@@ -889,11 +889,12 @@ class WalkTarget(Target):
         sole, and the foot put down under its command now (at most CP_MAX_SHIFT_M from its
         planned landing, within the step's limits: :func:`~hubo_cli.walking.replan.
         shifted_landing`; the timeline from its landing on played at once, as a swing down
-        early: :meth:`_touched_early`) has its heel
-        CP_CAPTURE_MARGIN_M behind the capture point predicted then: the swing is abandoned
-        there, within the first CP_ABANDON_FRACTION of its single support. Swinging on, seed
-        11's foot pushed at 1.900 s came down 0.57 s after its lift-off, the body tipped 9 deg
-        back over the stance heel, and bounced. Returns whether it re-planned."""
+        early: :meth:`_touched_early`) has its heel CP_CAPTURE_MARGIN_M behind the capture
+        point predicted then: the swing is abandoned there, within the first
+        CP_ABANDON_FRACTION of its single support. Swinging on (main before round 9), seed
+        11's walk pushed at 1.900 s put that foot down 0.57 s after the push and fell; the foot
+        put back down, it touched 0.475 s after the push and stood (docs/history/walking.md).
+        Returns whether it re-planned."""
         if remaining_s < (1.0 - CP_ABANDON_FRACTION) * self.params.single_support_s:
             return False
         landing_x, now_cp_x = self._capture_landing(k, stance, remaining_s)
