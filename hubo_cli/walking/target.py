@@ -29,7 +29,11 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
   next plan's start (docs/history/walking.md, "The walk's own settle"). A foot lifts off only
   while the ankles' sensors read the soles carrying the body (LIFTOFF_MIN_LOAD); a landing
   that bounced the robot into the air makes the timeline wait at the lift-off
-  (:meth:`WalkTarget._unloaded_liftoff`), at most LIFTOFF_WAIT_MAX_S.
+  (:meth:`WalkTarget._unloaded_liftoff`), at most LIFTOFF_WAIT_MAX_S. At the lift-off of
+  each of the plan's last REAIM_STEPS steps the landings still to come move by the stance
+  sole's drift from its place in the pattern, as the estimate sees it
+  (:meth:`WalkTarget._reaim`): the feet end where the plan put them without the correction
+  walked after the pattern, which stays for the walks that still end off.
 * ``stopping``: entered when the soft stopper has latched (its mode, the previous period's
   :data:`~hubo_cli.control.keys.STOP_MODE`, is no longer ``release``): the step in progress
   is finished (the swing foot lands; before the first step, none is taken) into a double-support
