@@ -870,9 +870,9 @@ class WalkTarget(Target):
         off by the truth: median 1.75 -> 4.3 mm, seed 6 15.3 mm, seed 12 stopped by the
         capture-point monitor). A swing's travel changes by at most REAIM_STEP_M a re-aim;
         steps within the gait's limits stay within them (else the change along the walk is
-        halved, twice at most, or left out). Not in a plan whose landings the capture point or a push has moved (seed 11 of the
-        fast 2 m walks fell after 2 re-aims among 23 such moves; it stood stopped without
-        them), nor while the capture point is off the pattern's by what moves a landing
+        halved, twice at most, or left out). Not in a plan whose landings the capture point
+        or a push has moved (seed 11 of the fast 2 m walks fell after 2 re-aims among 23 such
+        moves; it stood stopped without them), nor while the capture point is off the pattern's by what moves a landing
         (CP_MARGIN_M and CP_REPLAN_M): the correction after the pattern acts then.
         Re-planned as those moves are (:meth:`_replan`): the swing foot moves onto its new
         path by its landing, the CoM continues."""
