@@ -872,10 +872,10 @@ class WalkTarget(Target):
         steps within the gait's limits stay within them (else the change along the walk is
         halved, twice at most, or left out). Not in a plan whose landings the capture point
         or a push has moved (seed 11 of the fast 2 m walks fell after 2 re-aims among 23 such
-        moves; it stood stopped without them), nor while the capture point is off the pattern's by what moves a landing
-        (CP_MARGIN_M and CP_REPLAN_M): the correction after the pattern acts then.
-        Re-planned as those moves are (:meth:`_replan`): the swing foot moves onto its new
-        path by its landing, the CoM continues."""
+        moves; it stood stopped without them), nor while the capture point is off the
+        pattern's by what moves a landing (CP_MARGIN_M and CP_REPLAN_M): the correction after
+        the pattern acts then. Re-planned as those moves are (:meth:`_replan`): the swing foot
+        moves onto its new path by its landing, the CoM continues."""
         k, cart = self.k, self._cart
         if self.toe_heel is not None or k + 1 >= cart.n or not cart.support[k].all() \
                 or cart.support[k + 1].all() \
