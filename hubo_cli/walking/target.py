@@ -892,6 +892,8 @@ class WalkTarget(Target):
         stance = footstep_of(side, self.store[T_WORLD_SOLES][column])
         drift = np.array([x - stance.x_m, y - stance.y_m])  # the pattern's sole less the
         reaimed = self._reaimed_m                             # estimate's
+        if float(np.hypot(*(drift - (reaimed["right"] + reaimed["left"]) / 2))) < ARRIVED_M:
+            return  # the stance would end where no correction walks
         finals = {}
         for foot in SIDES:
             mine = [j for j in range(step, len(steps)) if steps[j].side == foot]
@@ -901,8 +903,6 @@ class WalkTarget(Target):
             foot = steps[-1].side
             mine, d = finals[foot]
             finals[foot] = (mine, d + drift - reaimed[side])
-        if float(np.hypot(*(drift - (reaimed["right"] + reaimed["left"]) / 2))) < ARRIVED_M:
-            return  # the stance would end where no correction walks
         changes = {}
         for mine, d in finals.values():
             n = len(mine)
