@@ -892,7 +892,8 @@ class WalkTarget(Target):
         stance = footstep_of(side, self.store[T_WORLD_SOLES][column])
         drift = np.array([x - stance.x_m, y - stance.y_m])  # the pattern's sole less the
         reaimed = self._reaimed_m                             # estimate's
-        if float(np.hypot(*(drift - (reaimed["right"] + reaimed["left"]) / 2))) < ARRIVED_M:
+        ending_m = float(np.hypot(*(drift - (reaimed["right"] + reaimed["left"]) / 2)))
+        if not ending_m >= ARRIVED_M:  # (no estimate of the sole: NaN, nothing moves)
             return  # the stance would end where no correction walks
         finals = {}
         for foot in SIDES:
