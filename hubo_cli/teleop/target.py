@@ -703,6 +703,8 @@ class TeleopTarget(Target):
             return q_goal, False
         behind_m = (0.0 if hand.goal_m is None or hand.actual_m is None
                     else float((hand.goal_m - hand.actual_m) @ v) / speed)
+        if not math.isfinite(behind_m):  # a position not finite: no lag known
+            behind_m = 0.0
         hand.passed = hand.passed or behind_m > 0.0
         lead_m = lead.back_lead_m(speed, behind_m, hand.passed)
         if not lead_m > 0.0:
