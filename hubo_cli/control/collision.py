@@ -118,28 +118,28 @@ def _support(kind, R, n, first):
     """How many directions (world) a shape of ``kind`` (:data:`SHAPE_KINDS`, rotation ``R``)
     touches its supporting plane of normal +-``n`` along within FLAT_RAD rad: 0 (a point), 1
     (an edge, a cylinder's or a capsule's side) or 2 (a face, a cylinder's cap); the first of
-    them to ``first``."""
+    them (a column of ``R``) to ``first``."""
     if kind == 0:  # a point
         return 0
-    if kind == 1:  # flat
-        first[:] = R[:, 0]
-        return 2
-    count = 0
-    for k in range(3):  # n against the shape's axes
-        cos = n[0] * R[0, k] + n[1] * R[1, k] + n[2] * R[2, k]
-        if kind == 2:  # a box: its axes square to n
-            if abs(cos) < FLAT_RAD:
-                if count == 0:
-                    first[:] = R[:, k]
-                count += 1
-        elif k == 2:  # cylinders and capsules lie along their local z
-            along = abs(cos)
-            if along < FLAT_RAD:
-                first[:] = R[:, 2]
-                return 1
-            if kind == 3 and 1.0 - along * along < FLAT_RAD * FLAT_RAD:
-                first[:] = R[:, 0]
-                return 2
+    count, column = 0, 0
+    if kind == 1:  # flat: its x and y
+        count = 2
+    else:
+        for k in range(3):  # n against the shape's axes
+            cos = n[0] * R[0, k] + n[1] * R[1, k] + n[2] * R[2, k]
+            if kind == 2:  # a box: its axes square to n
+                if abs(cos) < FLAT_RAD:
+                    if count == 0:
+                        column = k
+                    count += 1
+            elif k == 2:  # cylinders and capsules lie along their local z
+                along = abs(cos)
+                if along < FLAT_RAD:
+                    count, column = 1, 2
+                elif kind == 3 and 1.0 - along * along < FLAT_RAD * FLAT_RAD:
+                    count = 2  # a cylinder's cap: its x and y
+    for i in range(3):
+        first[i] = R[i, column]
     return count
 
 
