@@ -7,11 +7,13 @@ import numpy as np
 import pytest
 
 from hubo_cli.control.collision import (
+    FLAT_RAD,
+    SHAPE_KINDS,
     CollisionDetector,
     SelfCollisionChecker,
     _lower_bound,
-    _support_span,
-    _witness_not_unique,
+    _support,
+    _witness_unique,
 )
 from hubo_cli.control.module import Cycle
 from hubo_cli.dataflow import Store
@@ -147,6 +149,37 @@ def test_a_repeatable_checker_gives_the_same_distances_at_the_same_joints(model)
     assert differed > 10  # the default checker's did differ
 
 
+def _support_span(kind: str, R: np.ndarray, n: np.ndarray) -> list[np.ndarray]:
+    """The supports as the Python code had them (the compiled :func:`_support` is held to it):
+    the directions along which a shape touches its supporting plane of normal +-n."""
+    if kind == "point":
+        return []
+    if kind == "flat":
+        return [R[:, 0], R[:, 1]]
+    cos = (n @ R).tolist()
+    if kind == "box":
+        return [R[:, k] for k in range(3) if abs(cos[k]) < FLAT_RAD]
+    along = abs(cos[2])
+    if along < FLAT_RAD:
+        return [R[:, 2]]
+    if kind == "cylinder" and 1.0 - along * along < FLAT_RAD * FLAT_RAD:
+        return [R[:, 0], R[:, 1]]
+    return []
+
+
+def _witness_not_unique(span_1: list, span_2: list) -> bool:
+    if not span_1 or not span_2:
+        return False
+    if len(span_1) == 2 or len(span_2) == 2:
+        return True
+    sine = np.cross(span_1[0], span_2[0])
+    return np.sqrt(sine @ sine) < FLAT_RAD
+
+
+def _span(kind: str, R: np.ndarray, n: np.ndarray) -> int:
+    return _support(SHAPE_KINDS.index(kind), R, n, np.empty(3))
+
+
 def test_the_witness_points_are_unique_unless_flat_meets_flat():
     """The supports' shapes: a sphere touches at a point; a box at a corner, along an edge or a
     face as the normal meets its axes; a cylinder at its rim, along its side or its cap. Two
@@ -155,16 +188,48 @@ def test_the_witness_points_are_unique_unless_flat_meets_flat():
     R = np.eye(3)
     x, z = np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
     tilted = np.array([1.0, 1.0, 1.0]) / np.sqrt(3.0)
-    assert _support_span("point", R, x) == []
-    assert len(_support_span("box", R, x)) == 2 and len(_support_span("box", R, tilted)) == 0
-    assert len(_support_span("box", R, np.array([1.0, 1.0, 0.0]) / np.sqrt(2.0))) == 1
-    assert len(_support_span("cylinder", R, z)) == 2 and len(_support_span("capsule", R, z)) == 0
-    assert len(_support_span("cylinder", R, x)) == 1
-    assert len(_support_span("cylinder", R, tilted)) == 0
-    face, edge_z, edge_y = [x, z], [z], [np.array([0.0, 1.0, 0.0])]
-    assert _witness_not_unique(face, edge_z) and _witness_not_unique(face, face)
-    assert _witness_not_unique(edge_z, edge_z) and not _witness_not_unique(edge_z, edge_y)
-    assert not _witness_not_unique([], face)
+    assert _span("point", R, x) == 0
+    assert _span("box", R, x) == 2 and _span("box", R, tilted) == 0
+    assert _span("box", R, np.array([1.0, 1.0, 0.0]) / np.sqrt(2.0)) == 1
+    assert _span("cylinder", R, z) == 2 and _span("capsule", R, z) == 0
+    assert _span("cylinder", R, x) == 1
+    assert _span("cylinder", R, tilted) == 0
+    box, cylinder = SHAPE_KINDS.index("box"), SHAPE_KINDS.index("cylinder")
+    Rz = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])  # its z along x
+    assert not _witness_unique(box, R, cylinder, R, x)  # a face on an edge
+    assert not _witness_unique(box, R, box, R, x)  # a face on a face
+    assert not _witness_unique(cylinder, R, cylinder, R, x)  # parallel sides
+    assert _witness_unique(cylinder, R, cylinder, Rz, np.array([0.0, 1.0, 0.0]))  # crossed
+    assert _witness_unique(SHAPE_KINDS.index("point"), R, box, R, x)
+
+
+def test_the_compiled_supports_decide_as_the_python_code(rng):
+    """The compiled supports (:func:`_witness_unique`) decide as the Python code did, on drawn
+    rotations and normals and on normals within a few ulp of FLAT_RAD of an axis, each pair of
+    shape kinds."""
+    def near_axis(R, k):  # a normal meeting axis k at about FLAT_RAD, either side
+        other = R[:, (k + 1) % 3]
+        angle = FLAT_RAD * (1.0 + rng.choice([-1.0, 1.0]) * rng.integers(0, 4) * 1e-16)
+        n = np.sin(angle) * R[:, k] + np.cos(angle) * other
+        return n / np.linalg.norm(n)
+
+    for trial in range(3000):
+        R_1, R_2 = (np.linalg.qr(rng.normal(size=(3, 3)))[0] for _ in range(2))
+        if trial % 3 == 0:
+            n = rng.normal(size=3)
+            n /= np.linalg.norm(n)
+        elif trial % 3 == 1:
+            n = near_axis(R_1, int(rng.integers(3)))
+        else:  # the other's axes nearly parallel to the first's too
+            n = near_axis(R_1, 2)
+            R_2 = R_1 @ np.linalg.qr(np.eye(3) + 1e-3 * rng.normal(size=(3, 3)))[0]
+        for kind_1 in SHAPE_KINDS:
+            for kind_2 in SHAPE_KINDS:
+                expected = not _witness_not_unique(_support_span(kind_1, R_1, n),
+                                                   _support_span(kind_2, R_2, n))
+                got = _witness_unique(SHAPE_KINDS.index(kind_1), R_1,
+                                      SHAPE_KINDS.index(kind_2), R_2, n)
+                assert got == expected, (kind_1, kind_2, R_1, R_2, n)
 
 
 def test_the_distance_gradient_is_the_finite_difference(model):

@@ -101,49 +101,62 @@ WITNESS_MIN_M = 1e-5  # distance_gradient: closer shapes have no reliable normal
 FLAT_RAD = 1e-3  # ... a face or an edge within this angle of facing the other shape: flat
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a x b for 3-vectors (np.cross costs 40 us a call)."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
-                     a[0] * b[1] - a[1] * b[0]])
+SHAPE_KINDS = ("point", "flat", "box", "cylinder", "capsule")  # _support's kind, by index
 
 
-def _shape_kind(shape) -> str:
-    """How :func:`_support_span` treats a coal shape."""
+def _shape_kind(shape) -> int:
+    """How :func:`_support` treats a coal shape (an index of :data:`SHAPE_KINDS`)."""
     for kind, cls in (("point", coal.Sphere), ("box", coal.Box), ("cylinder", coal.Cylinder),
                       ("capsule", coal.Capsule)):
         if isinstance(shape, cls):
-            return kind
-    return "flat"  # another shape: taken as flat (never a gradient from it)
+            return SHAPE_KINDS.index(kind)
+    return SHAPE_KINDS.index("flat")  # another shape: taken as flat (never a gradient from it)
 
 
-def _support_span(kind: str, R: np.ndarray, n: np.ndarray) -> list[np.ndarray]:
-    """The directions (world) along which a shape of ``kind`` (:func:`_shape_kind`, rotation
-    ``R``) touches its supporting plane of normal +-``n`` within FLAT_RAD rad: none (a point),
-    one (an edge, a cylinder's or a capsule's side) or two (a face, a cylinder's cap)."""
-    if kind == "point":
-        return []
-    if kind == "flat":
-        return [R[:, 0], R[:, 1]]
-    cos = (n @ R).tolist()  # n against the shape's axes
-    if kind == "box":
-        return [R[:, k] for k in range(3) if abs(cos[k]) < FLAT_RAD]
-    along = abs(cos[2])  # cylinders and capsules lie along their local z
-    if along < FLAT_RAD:
-        return [R[:, 2]]
-    if kind == "cylinder" and 1.0 - along * along < FLAT_RAD * FLAT_RAD:
-        return [R[:, 0], R[:, 1]]
-    return []
+@nb.njit(cache=True, nogil=True)
+def _support(kind, R, n, first):
+    """How many directions (world) a shape of ``kind`` (:data:`SHAPE_KINDS`, rotation ``R``)
+    touches its supporting plane of normal +-``n`` along within FLAT_RAD rad: 0 (a point), 1
+    (an edge, a cylinder's or a capsule's side) or 2 (a face, a cylinder's cap); the first of
+    them (a column of ``R``) to ``first``."""
+    if kind == 0:  # a point
+        return 0
+    count, column = 0, 0
+    if kind == 1:  # flat: its x and y
+        count = 2
+    else:
+        for k in range(3):  # n against the shape's axes
+            cos = n[0] * R[0, k] + n[1] * R[1, k] + n[2] * R[2, k]
+            if kind == 2:  # a box: its axes square to n
+                if abs(cos) < FLAT_RAD:
+                    if count == 0:
+                        column = k
+                    count += 1
+            elif k == 2:  # cylinders and capsules lie along their local z
+                along = abs(cos)
+                if along < FLAT_RAD:
+                    count, column = 1, 2
+                elif kind == 3 and 1.0 - along * along < FLAT_RAD * FLAT_RAD:
+                    count = 2  # a cylinder's cap: its x and y
+    for i in range(3):
+        first[i] = R[i, column]
+    return count
 
 
-def _witness_not_unique(span_1: list, span_2: list) -> bool:
-    """The two supports (:func:`_support_span`) meet in more than a point: a face with an edge
-    or a face, or two parallel edges."""
-    if not span_1 or not span_2:
-        return False
-    if len(span_1) == 2 or len(span_2) == 2:
+@nb.njit(cache=True, nogil=True)
+def _witness_unique(kind_1, R_1, kind_2, R_2, n):
+    """The two shapes' supports (:func:`_support`) meet in a point, not more: neither is a
+    face with an edge or a face, nor are both parallel edges."""
+    e_1, e_2 = np.empty(3), np.empty(3)
+    count_1, count_2 = _support(kind_1, R_1, n, e_1), _support(kind_2, R_2, n, e_2)
+    if count_1 == 0 or count_2 == 0:
         return True
-    sine = _cross(span_1[0], span_2[0])
-    return math.sqrt(sine @ sine) < FLAT_RAD
+    if count_1 == 2 or count_2 == 2:
+        return False
+    sx = e_1[1] * e_2[2] - e_1[2] * e_2[1]  # e_1 x e_2
+    sy = e_1[2] * e_2[0] - e_1[0] * e_2[2]
+    sz = e_1[0] * e_2[1] - e_1[1] * e_2[0]
+    return not math.sqrt(sx * sx + sy * sy + sz * sz) < FLAT_RAD
 
 
 _REVOLUTE = ("JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned")
@@ -285,8 +298,9 @@ class SelfCollisionChecker:
             # in the first period that needs it
             pin.computeJointJacobians(pmodel, self._grad_data, pin.neutral(pmodel))
             J = pin.getJointJacobian(pmodel, self._grad_data, 1, pin.LOCAL_WORLD_ALIGNED)
-            o = self._grad_data.oMi[1].translation
-            _witness_gradient(o, o, o, J, o, o, J, self.robot.q_index[:1], np.empty(1))
+            o, R = self._grad_data.oMi[1].translation, self._grad_data.oMi[1].rotation
+            _witness_gradient(o, o + 1.0, 1.0, 2, R, 3, R, o, J, o, J, self.robot.q_index,
+                              self.robot.q_index[:1], np.empty(1))
             with warnings.catch_warnings():  # coal marks the flag deprecated; it still rules
                 warnings.simplefilter("ignore", DeprecationWarning)
                 for data in (self.geom_data, *self._split, self._near_data,
@@ -372,22 +386,20 @@ class SelfCollisionChecker:
         pin.computeJointJacobians(pmodel, data, q)
         pin.updateGeometryPlacements(pmodel, data, self.geom, gdata)
         result = pin.computeDistance(self.geom, gdata, pair)
-        p1, p2 = result.getNearestPoint1(), result.getNearestPoint2()
         d = float(result.min_distance)
         if not d > WITNESS_MIN_M:
             return None
-        n = (p2 - p1) / d
         (g1, kind1, joint1), (g2, kind2, joint2) = self._pair_shapes[pair]
-        if kind1 != "point" and kind2 != "point" and _witness_not_unique(
-                _support_span(kind1, gdata.oMg[g1].rotation, n),
-                _support_span(kind2, gdata.oMg[g2].rotation, n)):
-            return None
         gradient = np.empty(len(columns))
-        _witness_gradient(n, p1, data.oMi[joint1].translation,
-                          pin.getJointJacobian(pmodel, data, joint1, pin.LOCAL_WORLD_ALIGNED),
-                          p2, data.oMi[joint2].translation,
-                          pin.getJointJacobian(pmodel, data, joint2, pin.LOCAL_WORLD_ALIGNED),
-                          self.robot.q_index[columns], gradient)
+        oMg, oMi, local = gdata.oMg, data.oMi, pin.LOCAL_WORLD_ALIGNED
+        if not _witness_gradient(result.getNearestPoint1(), result.getNearestPoint2(), d,
+                                 kind1, oMg[g1].rotation, kind2, oMg[g2].rotation,
+                                 oMi[joint1].translation,
+                                 pin.getJointJacobian(pmodel, data, joint1, local),
+                                 oMi[joint2].translation,
+                                 pin.getJointJacobian(pmodel, data, joint2, local),
+                                 self.robot.q_index, columns, gradient):
+            return None
         return gradient
 
     def check(self, q_rad: np.ndarray) -> Clearance:
@@ -453,10 +465,17 @@ class SelfCollisionChecker:
 
 
 @nb.njit(cache=True, nogil=True)
-def _witness_gradient(n, p1, o1, J1, p2, o2, J2, columns, out):
-    """n^T (J_2(p2) - J_1(p1)) on ``columns`` to ``out``: J_k the 6 x nv Jacobian (world axes)
-    of the joint at ``o_k`` carrying shape k, the point's velocity v_o + w x (p - o), so
-    n.v_p = n.v_o + ((p - o) x n).w."""
+def _witness_gradient(p1, p2, d, kind1, R1, kind2, R2, o1, J1, o2, J2, q_index, columns, out):
+    """n^T (J_2(p2) - J_1(p1)) on the joints ``columns`` (pinocchio's ``q_index[columns]``)
+    to ``out``, n = (p2 - p1) / d: J_k the 6 x nv Jacobian (world axes) of the joint at
+    ``o_k`` carrying shape k, the point's velocity v_o + w x (p - o), so n.v_p = n.v_o +
+    ((p - o) x n).w. Returns False (``out`` unset) where the witness points are not unique
+    (:func:`_witness_unique`, shapes of kinds ``kind1``, ``kind2``, rotations ``R1``, ``R2``)."""
+    n = np.empty(3)
+    for i in range(3):
+        n[i] = (p2[i] - p1[i]) / d
+    if kind1 != 0 and kind2 != 0 and not _witness_unique(kind1, R1, kind2, R2, n):
+        return False
     c1, c2 = np.empty(3), np.empty(3)
     for c, p, o in ((c1, p1, o1), (c2, p2, o2)):
         rx, ry, rz = p[0] - o[0], p[1] - o[1], p[2] - o[2]
@@ -464,11 +483,12 @@ def _witness_gradient(n, p1, o1, J1, p2, o2, J2, columns, out):
         c[1] = rz * n[0] - rx * n[2]
         c[2] = rx * n[1] - ry * n[0]
     for k in range(columns.shape[0]):
-        j = columns[k]
+        j = q_index[columns[k]]
         g = 0.0
         for i in range(3):
             g += n[i] * (J2[i, j] - J1[i, j]) + c2[i] * J2[3 + i, j] - c1[i] * J1[3 + i, j]
         out[k] = g
+    return True
 
 
 @nb.njit(cache=True, nogil=True)

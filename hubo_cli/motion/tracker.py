@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 from itertools import chain
 
+import numba as nb
 import numpy as np
 from ruckig import (
     ControlInterface,
@@ -67,7 +68,9 @@ class JointTracker:
         self._zeros = np.zeros(n)
         self._v_max = TARGET_SPEED_SHARE * limits.velocity_rad_s  # a target velocity's bounds
         self._v_min = -self._v_max
-        self._v_bounds = list(zip(self._v_min.tolist(), self._v_max.tolist(), strict=True))
+        self._v_clipped = np.empty(n)  # preview's target velocity
+        _clipped_velocity(self._zeros, self._v_min, self._v_max, self._v_clipped)  # compiled
+        # (or loaded) now, not in a period
         self._a_max = limits.acceleration_rad_s2  # an acceleration reset() takes is clipped
         self._a_min = -self._a_max
         self.q = np.zeros(n)
@@ -135,11 +138,9 @@ class JointTracker:
         inp.current_acceleration = self.a.tolist()
         inp.target_position = np.asarray(target_rad, dtype=float).tolist()
         v = self._zeros if target_v_rad_s is None else np.asarray(target_v_rad_s, dtype=float)
-        if v.shape == self._zeros.shape:  # _target_velocity's numbers (NaN as 0, then
-            # clipped) on Python floats
-            inp.target_velocity = [min(max(x, lo), hi) if x == x else 0.0
-                                   for x, (lo, hi) in zip(v.tolist(), self._v_bounds,
-                                                          strict=True)]
+        if v.shape == self._zeros.shape:  # _target_velocity's numbers, compiled
+            inp.target_velocity = _clipped_velocity(v, self._v_min, self._v_max,
+                                                    self._v_clipped).tolist()
         else:  # one velocity for every joint: numpy broadcasts it
             inp.target_velocity = self._target_velocity(v).tolist()
         if synchronization != self._preview_sync:
@@ -268,3 +269,13 @@ class JointTracker:
     def at_rest(self) -> bool:
         """Velocity and acceleration are (numerically) zero."""
         return bool(np.all(np.abs(self.v) < 1e-9) and np.all(np.abs(self.a) < 1e-9))
+
+
+@nb.njit(cache=True, nogil=True)
+def _clipped_velocity(v, lo, hi, out):
+    """``out`` = :meth:`JointTracker._target_velocity`'s numbers for a vector ``v``: NaN as 0,
+    then within [``lo``, ``hi``] (an infinity at its bound, -0 kept); returns ``out``."""
+    for i in range(v.shape[0]):
+        x = v[i]
+        out[i] = min(max(x, lo[i]), hi[i]) if x == x else 0.0
+    return out

@@ -297,10 +297,11 @@ class CollisionRoom:
                 q_try = np.empty_like(q)
                 clipped_step(q, first, dq, scale, lo, hi, q_try)  # np.clip(q_arm + scale dq)
                 d_try, pair_try = self._distance(q_try)
-                q_arm = q_try[first:first + 6]
-                c_try = weighted_error(q_arm, base, offset, alpha, a, dd, end, T_goal, _W, T, J,
-                                       e)
-                if d_try >= min(self.room_m, d) and (c_try < c or d < self.room_m <= d_try):
+                if not d_try >= min(self.room_m, d):  # deeper (or NaN): no need of its error
+                    continue
+                c_try = weighted_error(q_try[first:first + 6], base, offset, alpha, a, dd, end,
+                                       T_goal, _W, T, J, e)
+                if c_try < c or d < self.room_m <= d_try:
                     q, d, c, pair = q_try, d_try, c_try, pair_try
                     break
             else:

@@ -643,12 +643,12 @@ class TeleopTarget(Target):
             for arm in self.room.moved & set(self.hands):  # the clear pose is what is reached
                 reach, T_N_goal = solved[arm]
                 hand = self.hands[arm]
-                pos, rot = pose_error(reach.limb.fk(q[self.slices[arm]]), T_N_goal)
+                T_clear = reach.limb.fk(q[self.slices[arm]])
+                pos, rot = pose_error(T_clear, T_N_goal)
                 hand.position_error_m, hand.rotation_error_rad = float(pos), float(rot)
                 hand.reachable = (pos <= REACHABLE_POSITION_M
                                   and rot <= REACHABLE_ROTATION_RAD)
-                hand.missing_m = (None if hand.reachable else T_N_goal[:3, 3]
-                                  - reach.limb.fk(q[self.slices[arm]])[:3, 3])
+                hand.missing_m = None if hand.reachable else T_N_goal[:3, 3] - T_clear[:3, 3]
         self.q_target = q
 
     def _recentre(self, arm: str) -> None:
