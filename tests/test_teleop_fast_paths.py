@@ -169,7 +169,7 @@ def _axis_angle(axis, angle):
 
 class NumpyReach(ArmReach):
     def smoothed(self, T_goal, dt_s):
-        tau = self.settings.orientation_time_constant_s
+        tau = self.time_constant_s(dt_s)
         T = np.array(T_goal, dtype=float)
         if tau <= 0 or self.settings.mode == "paper":
             return T
