@@ -63,7 +63,7 @@ def ankle_axis_signs(model: RobotModel) -> dict[str, tuple[float, float]]:
     signs = {}
     for leg, _ in FEET:
         limb = Limb(model, leg)
-        _, _, offset, alpha, a, d, _, _ = limb.chain
+        _, offset, alpha, a, d, _ = limb.fk_chain
         q = home_posture(model)[model.limb_slice(leg)]
         T = limb.T_N_base.copy()
         axes = []

@@ -391,8 +391,7 @@ class _Hand:
         self.limb = Limb(model, arm, "hand")
         self.slice = model.limb_slice(arm)
         self.sensor = HAND_SENSORS[arm]
-        base, _, offset, alpha, a, d, end, _ = self.limb.chain
-        self.fk_chain = (base, offset, alpha, a, d, end)  # as chain_fk takes it
+        self.fk_chain = self.limb.fk_chain  # as chain_fk takes it
         # as offset_joints takes it; the offset's joints move at most at the joints' speed limit
         self.ik = (self.limb.chain, self.limb.lengths_m, self.limb.lower_rad,
                    self.limb.upper_rad, self.limb.spec.velocity_rad_s * dt_s)

@@ -224,7 +224,7 @@ class LegsKinematics:
     def __init__(self, model: RobotModel) -> None:
         rows = []
         for leg in LEGS:
-            base, _, offset, alpha, a, d, end, _ = Limb(model, leg).chain
+            base, offset, alpha, a, d, end = Limb(model, leg).fk_chain
             sl = model.limb_slice(leg)
             rows.append((np.arange(sl.start, sl.stop), base, offset, alpha, a, d, end))
         self._chain = (np.array([r[0] for r in rows], dtype=np.int64),

@@ -127,7 +127,7 @@ def sensor_chains(model: RobotModel) -> tuple[np.ndarray, ...]:
     for sensor in FT_SENSORS:
         limb_name, _ = SENSOR_LIMBS[sensor]
         limb = Limb(model, limb_name, "hand")
-        base, _, offset, alpha, a, d, end, _ = limb.chain
+        base, offset, alpha, a, d, end = limb.fk_chain
         sl = model.limb_slice(limb_name)
         rows.append((np.arange(sl.start, sl.stop), base, offset, alpha, a, d,
                      end @ T_frame_sensor(sensor)))

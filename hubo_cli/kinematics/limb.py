@@ -130,16 +130,14 @@ class Limb:
     # ------------------------------------------------------------------ forward kinematics
     def fk(self, q_rad) -> np.ndarray:
         """T_N_E: the end frame in the neck frame (4x4, m) for joints q (6,) in rad."""
-        base, _, offset, alpha, a, d, end, _ = self.chain
         out = np.empty((4, 4))
-        chain_fk(np.array(q_rad, dtype=float, order="C"), base, offset, alpha, a, d, end, out)
+        chain_fk(np.array(q_rad, dtype=float, order="C"), *self.fk_chain, out)
         return out
 
     def fk_batch(self, Q_rad) -> np.ndarray:
         """T_N_E for N joint vectors (N x 6, rad) -> N x 4 x 4 (m)."""
-        base, _, offset, alpha, a, d, end, _ = self.chain
         Q = np.ascontiguousarray(np.atleast_2d(Q_rad), dtype=float)
-        return chain_fk_batch(Q, base, offset, alpha, a, d, end)
+        return chain_fk_batch(Q, *self.fk_chain)
 
     # ------------------------------------------------------------------ inverse kinematics
     def candidates(self, T_N_E, q_prev_rad=None) -> list[Candidate]:

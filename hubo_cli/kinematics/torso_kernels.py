@@ -234,7 +234,7 @@ class StanceLegs:
         self.ends = np.empty((2, 4, 4))
         self.soles = np.empty((2, 4, 4))
         for k, leg in enumerate(LEGS):
-            base, _, offset, alpha, a, d, end, _ = body.legs[leg].chain
+            base, offset, alpha, a, d, end = body.legs[leg].fk_chain
             self.bases[k], self.dh[k], self.ends[k] = base, (offset, alpha, a, d), end
             self.soles[k] = body.T_S_sole[leg]
         self._none = np.zeros((3, 3))

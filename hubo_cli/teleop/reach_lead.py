@@ -13,9 +13,15 @@ be ``HORIZON_S`` later (at most ``LEAD_M``, :meth:`ReachLead.lead_m_of`) times a
 grows from 0 to 1 over the ``RUN_UP_S`` before the goal is predicted back in reach (its
 distance over its closing speed): the elbow starts bending before the goal is back, and the
 hand stays near the nearest reachable point. Once the goal is back, the hand follows it as any
-reachable goal (leading it further, by its velocity x 0.12 s, brought the walk's lasting 2 mm
-from 2.45 to 2.24 s but made the generated streams' reachable position RMS worse:
-docs/history/teleop.md).
+reachable goal, with two differences while it returns from ``LEAD_BEYOND_M`` or more beyond
+the reach and still moves (:meth:`ReachLead.back_lead_m`): the target leads it along its
+velocity, by the lead until the goal has passed the hand and then by no more than the hand lags
+behind it (leading every goal back in reach by its velocity x 0.12 s brought the walk's lasting
+2 mm from 2.45 to 2.24 s but made the generated streams' reachable position RMS worse); and its
+goal is followed (the trajectory generator given the goal's velocity) while the singularity
+scale slows it, the goal moving inward, away from the straight elbow. Without them the target
+falls back from the led pose to the goal's, nearer the straight elbow, and the elbow brakes
+from its run-up at re-entry (docs/history/teleop.md, round 9).
 
 Only a goal that went ``LEAD_BEYOND_M`` or more out of reach and moves between
 ``MIN_SPEED_M_S`` and ``MAX_SPEED_M_S`` is led. The lead is a pose for the arm's reach search
@@ -101,6 +107,14 @@ class ReachLead:
         if not MIN_SPEED_M_S <= speed_m_s <= MAX_SPEED_M_S:
             return 0.0
         return min(self.lead_m, speed_m_s * self.horizon_s)
+
+    def back_lead_m(self, speed_m_s: float, behind_m: float, passed: bool) -> float:
+        """Once the goal moving at ``speed_m_s`` is back in reach: how far (m) the target leads
+        it along its velocity: :meth:`lead_m_of` its speed until the goal has ``passed`` the
+        hand, then at most how far the hand is ``behind_m`` it along that velocity (none once
+        the hand has caught up)."""
+        lead_m = self.lead_m_of(speed_m_s)
+        return min(lead_m, max(behind_m, 0.0)) if passed else lead_m
 
     def time_back_s(self, v_m_s: np.ndarray, missing_m: np.ndarray) -> float:
         """In how long a goal ``missing_m`` beyond the reach, moving at ``v_m_s``, is predicted

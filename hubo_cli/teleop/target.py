@@ -81,7 +81,13 @@ from hubo_cli.scene import SceneActions, WallPlacement
 from hubo_cli.teleop.lead import GoalVelocity, tracking_target
 from hubo_cli.teleop.mapping import HandMapper
 from hubo_cli.teleop.phases import PHASES, Approach, Operate, Settle
-from hubo_cli.teleop.reach_lead import AHEAD_S, LEAD_BEYOND_M, LEAD_SCALE_SHARE, ReachLead
+from hubo_cli.teleop.reach_lead import (
+    AHEAD_S,
+    LEAD_BEYOND_M,
+    LEAD_SCALE_SHARE,
+    MIN_SPEED_M_S,
+    ReachLead,
+)
 from hubo_cli.teleop.target_kernels import (
     free_goal,
     hand_errors,
@@ -143,6 +149,9 @@ class HandTrack:
     last_branch: int | None = None
     beyond_m: float = 0.0  # the goal's largest distance beyond the reach, this time out of it
     leading: bool = False  # the target leads the goal (reach_lead) this period
+    returning: bool = False  # the goal came back into reach from LEAD_BEYOND_M or more beyond
+    # it and still moves (reach_lead.ReachLead.back_lead_m)
+    passed: bool = False  # since then, the goal has passed the hand along its velocity
 
     @property
     def at_limit(self) -> bool:
@@ -433,11 +442,13 @@ class TeleopTarget(Target):
 
     def _following(self, arm: str) -> bool:
         """The arm's target follows its goal freely this period (operating, the goal within
-        reach and clear of the body, the hand neither held nor slowed nor changing branch)."""
+        reach and clear of the body, the hand neither held nor slowed nor changing branch; a
+        hand returning into reach is followed while slowed: its goal moves inward, away from
+        the straight elbow)."""
         hand = self.hands[arm]
         return (self.phase == "operate" and hand.reachable and not hand.at_limit
                 and not (hand.stale or hand.lost or hand.needs_clutch or hand.clutched)
-                and hand.branch_move is None and hand.speed_scale >= 1.0
+                and hand.branch_move is None and (hand.speed_scale >= 1.0 or hand.returning)
                 and (self.room is None or arm not in self.room.moved))
 
     def swing_m(self, arm: str, tracker: JointTracker, target_rad: np.ndarray,
@@ -617,8 +628,14 @@ class TeleopTarget(Target):
                     if hand.beyond_m >= LEAD_BEYOND_M:
                         q_arm, hand.leading = self._led(reach, lead, T_N_goal, T_near, q_now,
                                                         q_arm)
+                    hand.returning = False
                 else:
+                    if hand.beyond_m >= LEAD_BEYOND_M:  # back in reach from beyond it
+                        hand.returning, hand.passed = True, False
                     hand.beyond_m = 0.0
+                    if hand.returning:
+                        q_arm, hand.leading = self._led_back(reach, hand, lead, T_N_goal,
+                                                             q_now, q_arm)
                 q_arm = self._branch_policy(t_s, arm, hand, T_N_goal, q_now, q_arm, branch_key)
             q[sl] = self._speed_scaled(arm, q_now, q_arm, hand)
         if self.room is not None:
@@ -640,7 +657,9 @@ class TeleopTarget(Target):
         """A re-centred hand's goal starts anew (re-anchored where the hand is): its lead
         forgets the goal's positions before and how far it went out of reach."""
         self.leads[arm].clear()
-        self.hands[arm].beyond_m = 0.0
+        hand = self.hands[arm]
+        hand.beyond_m = 0.0
+        hand.returning = False
 
     @staticmethod
     def _led(reach: ArmReach, lead: ReachLead, T_goal: np.ndarray, T_near: np.ndarray,
@@ -671,6 +690,30 @@ class TeleopTarget(Target):
         if math.sqrt(moved.dot(moved)) > cap + 1e-4:
             return q_near, False
         return q_led, True
+
+    @staticmethod
+    def _led_back(reach: ArmReach, hand: HandTrack, lead: ReachLead, T_goal: np.ndarray,
+                  q_now: np.ndarray, q_goal: np.ndarray) -> tuple[np.ndarray, bool]:
+        """The arm's joints for a goal ``T_goal`` back in reach from beyond it (``q_goal``: its
+        own): the goal moved along its velocity by :meth:`ReachLead.back_lead_m`, the hand's
+        lag behind it from the last period's measured positions; and whether it is led. The
+        return is over once the goal has no velocity or moves slower than ``MIN_SPEED_M_S``."""
+        v = lead.velocity_m_s()
+        speed = 0.0 if v is None else math.sqrt(v.dot(v))
+        if v is None or speed < MIN_SPEED_M_S:
+            hand.returning = False
+            return q_goal, False
+        behind_m = (0.0 if hand.goal_m is None or hand.actual_m is None
+                    else float((hand.goal_m - hand.actual_m) @ v) / speed)
+        if not math.isfinite(behind_m):  # a position not finite: no lag known
+            behind_m = 0.0
+        hand.passed = hand.passed or behind_m > 0.0
+        lead_m = lead.back_lead_m(speed, behind_m, hand.passed)
+        if not lead_m > 0.0:
+            return q_goal, False
+        T_lead = T_goal.copy()
+        T_lead[:3, 3] += v * (lead_m / speed)
+        return reach.solve(T_lead, q_now).q_rad, True
 
     def _branch_policy(self, t_s, arm, hand: HandTrack, T_N_goal, q_now, q_arm,
                        branch_key: bool) -> np.ndarray:
