@@ -59,8 +59,8 @@ def test_the_fast_gaits_own_capture_point_lag_abandons_no_swing(tmp_path):
     """Perturbed robot 11 in the fast gait: its capture point lags the pattern's by more than
     20 mm from behind mid-swing without a push (its slips). A swing abandoned for it (put down
     where the foot is, as after a front push: WalkTarget._abandoned, while the walk still
-    walked) fell at 6.455 s; abandoned only once the walk is stopping, the capture-point
-    monitor stops it at 7.925 s (AVX-512 and portable, as main before the abandon) and it
+    walked) fell at 6.455 s (AVX-512); abandoned only once the walk is stopping, the
+    capture-point monitor stops it at 7.925 s (AVX-512, as main) / 8.78 s (portable) and it
     stands (docs/history/walking.md, round 9 addendum)."""
     from hubo_cli.experiments.walk import walk
 
