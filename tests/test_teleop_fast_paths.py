@@ -721,13 +721,15 @@ def _joint_targets(monkeypatch, target_class, seed, max_speed):
         # knife edge 485 periods later (the left arm at its reach limit, slowed to half
         # speed) where they part by 4e-6 rad; not located further (round 8's review)
         patch.setattr(target_module, "traded_goal", lambda q_goal, *_: (q_goal, 0))
-        # and free mode's orientation law (kinematics/arm_reach.py: faster while the arm follows
-        # freely; the same Python in both) held at its slower time constant: with it the two
-        # runs' joint targets agree to 2e-13 rad throughout seed 3407 at 0.6 m/s, but from
-        # period 530 the left arm's synchronisation alternates every period (none / phase) and
-        # the generator's commands part from 1e-10 rad, growing about 1.3x a period, to 1.1e-4
-        patch.setattr(ArmReach, "time_constant_s",
-                      lambda self, dt_s: self.settings.orientation_time_constant_s)
+        # and, on seed 3407 at 0.6 m/s only, free mode's orientation law (kinematics/
+        # arm_reach.py: faster while the arm follows freely; the same Python in both) held at
+        # its slower time constant: with it the two runs' joint targets agree to 2e-13 rad
+        # throughout that stream, but from period 530 the left arm's synchronisation alternates
+        # every period (none / phase) and the generator's commands part from 1e-10 rad, growing
+        # about 1.3x a period, to 1.1e-4 (the other streams compare the law as shipped)
+        if (seed, max_speed) == (3407, 0.6):
+            patch.setattr(ArmReach, "time_constant_s",
+                          lambda self, dt_s: self.settings.orientation_time_constant_s)
         if target_class is ReferenceTarget:
             patch.setattr(target_module, "tracking_target", numpy_tracking_target)
         run = follow_generated(seed, StreamSettings(duration_s=2.0, max_speed_m_s=max_speed))

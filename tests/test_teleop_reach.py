@@ -297,7 +297,8 @@ def test_a_goal_back_in_reach_is_led_until_the_hand_has_caught_up():
     reach_lead.ReachLead.back_lead_m): the target leads it along its velocity by the lead
     (0.12 s of its motion, at most 10 mm) until it has passed the hand, then by no more than
     the hand lags behind it, and not at all once the hand is level or ahead, or the lag is not
-    finite; a goal slower than 10 mm/s ends the return (the goal's own joints)."""
+    finite; a goal slower than 10 mm/s, or no longer closing in on the shoulder, ends the
+    return (the goal's own joints)."""
     from hubo_cli.teleop.reach_lead import ReachLead
     from hubo_cli.teleop.target import HandTrack, TeleopTarget
 
@@ -311,6 +312,8 @@ def test_a_goal_back_in_reach_is_led_until_the_hand_has_caught_up():
     for trial in range(6):
         v = rng.normal(size=3)
         v *= rng.uniform(0.04, 0.15) / np.linalg.norm(v)
+        if v @ (T_goal[:3, 3] - limb.T_N_base[:3, 3]) > 0.0:
+            v = -v  # closing in on the shoulder, as a goal coming back into reach
         speed = float(np.linalg.norm(v))
         lead = ReachLead()
         for i in range(30):
@@ -334,6 +337,14 @@ def test_a_goal_back_in_reach_is_led_until_the_hand_has_caught_up():
         slow.push(i * 0.005, T_goal[:3, 3] + [0.005 * i * 0.005, 0.0, 0.0])  # 5 mm/s
     hand = HandTrack(returning=True)
     q, led = TeleopTarget._led_back(reach, hand, slow, T_goal, q_goal, q_goal)
+    assert q is q_goal and not led and not hand.returning
+    outward = ReachLead()  # 0.1 m/s away from the shoulder, toward the straight elbow
+    away = T_goal[:3, 3] - limb.T_N_base[:3, 3]
+    away *= 0.1 / np.linalg.norm(away)
+    for i in range(30):
+        outward.push(i * 0.005, T_goal[:3, 3] - away * (29 - i) * 0.005)
+    hand = HandTrack(returning=True)
+    q, led = TeleopTarget._led_back(reach, hand, outward, T_goal, q_goal, q_goal)
     assert q is q_goal and not led and not hand.returning
 
 

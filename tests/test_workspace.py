@@ -280,3 +280,22 @@ def test_a_corrupt_cache_file_is_recomputed(tmp_path, monkeypatch):
     path.write_bytes(b"not a zip file")
     assert best_stance(resolution_m=0.02) == fresh
     assert path.stat().st_size > 100  # rewritten
+
+
+@pytest.mark.parametrize("arm", ["right", "left"])
+def test_a_maps_limb_forward_kinematics_ends_where_its_inverse_kinematics_aims(arm, rng):
+    # the left arm's drill is mounted as the mirror image (MirroredToolLimb replaces the chain
+    # after Limb's own init): fk and the IK must use the same tool. Round 9's review found fk
+    # on the unmirrored tool, 251 mm and 180 deg from the IK's exact solution
+    from hubo_cli.kinematics.dh import chain_fk
+    from hubo_cli.workspace.limbs import arm_limb
+
+    limb = arm_limb(arm, "drill")
+    base, _, offset, alpha, a, d, end, _ = limb.chain
+    for _ in range(5):
+        q = rng.uniform(limb.lower_rad, limb.upper_rad)
+        out = np.empty((4, 4))
+        chain_fk(q, base, offset, alpha, a, d, end, out)
+        assert np.allclose(limb.fk(q), out, atol=1e-12)
+        solution = limb.solve(limb.fk(q), q)
+        assert np.allclose(limb.fk(solution.q_rad), limb.fk(q), atol=1e-9)

@@ -116,13 +116,18 @@ class Limb:
         self.chain = (base, np.linalg.inv(base), np.array(dh["offset"], dtype=float),
                       np.array(dh["alpha"], dtype=float), np.array(a, dtype=float),
                       np.array(d, dtype=float), self.T_6_end, np.linalg.inv(self.T_6_end))
-        # the forward kinematics' part of it, as the compiled kernels take it: base, offset,
-        # alpha, a, d, end
-        self.fk_chain = tuple(self.chain[k] for k in (0, 2, 3, 4, 5, 6))
         self.lower_rad = self.spec.lower_rad
         self.upper_rad = self.spec.upper_rad
         self.hold_m = float(model.safety["ik_hold_distance_m"])
         self._is_arm = self.spec.is_arm  # read every solve
+
+    @property
+    def fk_chain(self) -> tuple:
+        """The forward kinematics' part of :attr:`chain`, as the compiled kernels take it:
+        base, offset, alpha, a, d, end (derived each time: a subclass that replaces the chain,
+        as the workspace's mirrored tool does, changes both)."""
+        base, _, offset, alpha, a, d, end, _ = self.chain
+        return base, offset, alpha, a, d, end
 
     def __repr__(self) -> str:
         return f"Limb({self.name!r}, tool={self.tool!r}, params={self.model.params_name!r})"

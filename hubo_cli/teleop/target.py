@@ -697,10 +697,13 @@ class TeleopTarget(Target):
         """The arm's joints for a goal ``T_goal`` back in reach from beyond it (``q_goal``: its
         own): the goal moved along its velocity by :meth:`ReachLead.back_lead_m`, the hand's
         lag behind it from the last period's measured positions; and whether it is led. The
-        return is over once the goal has no velocity or moves slower than ``MIN_SPEED_M_S``."""
+        return is over once the goal has no velocity, moves slower than ``MIN_SPEED_M_S`` or
+        no longer closes in on the shoulder (toward the straight elbow, where the arm is slowed
+        and not followed again: :meth:`_following`)."""
         v = lead.velocity_m_s()
         speed = 0.0 if v is None else math.sqrt(v.dot(v))
-        if v is None or speed < MIN_SPEED_M_S:
+        if v is None or speed < MIN_SPEED_M_S \
+                or not float(v @ (T_goal[:3, 3] - reach.limb.T_N_base[:3, 3])) < 0.0:
             hand.returning = False
             return q_goal, False
         behind_m = (0.0 if hand.goal_m is None or hand.actual_m is None

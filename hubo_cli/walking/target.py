@@ -960,8 +960,10 @@ class WalkTarget(Target):
         drift, the normal gait's 1 m walks, which arrive without a correction, ended further
         off by the truth: median 1.75 -> 4.3 mm, seed 6 15.3 mm, seed 12 stopped by the
         capture-point monitor). A swing's travel changes by at most REAIM_STEP_M a re-aim;
-        steps within the gait's limits stay within them (else the change along the walk is
-        halved, twice at most, or left out). Not in a plan whose landings the capture point
+        the steps stay within the gait's limits (else the change along the walk is halved,
+        twice at most, or left out), and a plan whose steps are not within them (an
+        approach's closing steps to a stance narrower than the gait's) is not re-aimed.
+        Not in a plan whose landings the capture point
         or a push has moved (seed 11 of the fast 2 m walks fell after 2 re-aims among 23 such
         moves; it stood stopped without them), nor while the capture point is off the
         pattern's by what moves a landing (CP_MARGIN_M and CP_REPLAN_M): the correction after
@@ -1001,7 +1003,9 @@ class WalkTarget(Target):
             d = d * min(1.0, REAIM_STEP_M * n / max(float(np.hypot(*d)), 1e-12))
             changes.update({j: d * (i + 1) / n for i, j in enumerate(mine)})
         feet = [Footstep(foot, *cart.feet[foot][k][[0, 1, 3]].tolist()) for foot in SIDES]
-        limited = within_limits(steps[step:], *feet, self.params)
+        if not within_limits(steps[step:], *feet, self.params):
+            return  # (an approach's closing steps to the working stance, narrower than the
+            # gait's lateral bound: unchecked, a re-aim put the soles 0.147 m apart)
         ahead = np.array([math.cos(yaw), math.sin(yaw)])  # the walk's forward here
         for share in (1.0, 0.5, 0.25, 0.0):  # of the change along it (a step's reach)
             moved = []
@@ -1011,7 +1015,7 @@ class WalkTarget(Target):
                     continue
                 d = changes[j] - (1.0 - share) * float(changes[j] @ ahead) * ahead
                 moved.append(Footstep(old.side, old.x_m + d[0], old.y_m + d[1], old.yaw_rad))
-            if not limited or within_limits(moved[step:], *feet, self.params):
+            if within_limits(moved[step:], *feet, self.params):
                 break
         else:
             return
