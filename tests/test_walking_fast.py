@@ -51,3 +51,19 @@ def test_the_fast_gait_walks_on_after_the_capture_point_moved_a_landing(tmp_path
     log = load_log(result.run_dir)
     walking = np.isfinite(np.asarray(log["walk.step"], dtype=float))
     assert np.asarray(log["cp_outside_m"], dtype=float)[walking].max() < -0.021
+
+
+@pytest.mark.physical
+@pytest.mark.slow
+def test_the_fast_gaits_own_capture_point_lag_abandons_no_swing(tmp_path):
+    """Perturbed robot 11 in the fast gait: its capture point lags the pattern's by more than
+    20 mm from behind mid-swing without a push (its slips). A swing abandoned for it (put down
+    where the foot is, as after a front push: WalkTarget._abandoned, while the walk still
+    walked) fell at 6.455 s (AVX-512); abandoned only once the walk is stopping, the
+    capture-point monitor stops it at 7.925 s (AVX-512, as main) / 8.78 s (portable) and it
+    stands (docs/history/walking.md, round 9 addendum)."""
+    from hubo_cli.experiments.walk import walk
+
+    result = walk(load_model(), (2.0, 0.0, 0.0), out=tmp_path / "run", gait="fast",
+                  perturb_seed=11)
+    assert result.fell is False and result.stood is True

@@ -425,6 +425,31 @@ def test_a_push_from_the_front_mid_walk_moves_the_landing_at_once(tmp_path, mode
 
 @pytest.mark.physical
 @pytest.mark.slow
+def test_a_push_from_the_front_early_in_a_swing_puts_the_rear_foot_back_down(tmp_path, model):
+    """hubo walk --to 1.0 0 0 pushed from the front (100 N, 0.2 s) at 1.900 s, as the rear
+    (right) foot lifts off for the first step (seed 11's moment 10 ms later): the landing that
+    would capture the body lies behind that foot, so its swing is abandoned and the foot put
+    back down where it is; the walk stops and stands. Swinging on (main before round 9) it
+    fell (docs/history/walking.md, round 9)."""
+    from hubo_cli.control.log import load_log
+    from hubo_cli.experiments.walk import Disturbance, walk
+
+    at_s = 1.900
+    result = walk(model, (1.0, 0.0, 0.0), out=tmp_path / "run",
+                  disturbances=[Disturbance(at_s, 100.0, (-1.0, 0.0, 0.0))])
+    assert result.fell is False and result.stood is True
+    log = load_log(result.run_dir / "log.parquet")
+    t_s = np.asarray(log["t_s"], dtype=float)
+    planned = np.asarray(log["planned_right_foot_contact_flag"], dtype=float)
+    down_s = t_s[(t_s > at_s) & (planned == 1)][0] - at_s
+    # measured: planned down again 0.220 s (AVX-512) / 0.225 s (portable) after the push,
+    # the planned landing 0.71 s after it: bound 0.45 s, 2.0x the measured and 0.26 s short
+    # of the landing
+    assert down_s < 0.45
+
+
+@pytest.mark.physical
+@pytest.mark.slow
 def test_a_side_push_that_puts_the_swing_foot_down_ends_the_swing_there(tmp_path, model):
     """hubo walk --to 1.0 0 0 pushed 100 N for 0.2 s from the left in the fourth step's
     swing (right foot swinging; seed 19 of tools/walk_disturbances.py): the swing foot is

@@ -16,12 +16,16 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
   (:func:`~hubo_cli.walking.replan.pattern_from`) from the period it is decided in, its first
   rows solved then and the rest a slice a period while they play (REPLAN_ROWS_PER_PERIOD; too
   late for this landing (CP_BLEND_PERIODS before it): not moved); a later re-plan replaces a
-  rest being computed. A swing foot pushed onto the floor (the estimate's sole in contact and
-  loaded, past TOUCH_FRACTION of its swing, TOUCH_MIN_HEIGHT_M or more above its landing in
-  the pattern) ends its swing there: the step lands where that sole stands and, the capture
-  point off the pattern's (a push), the timeline from the landing on plays at once, else
-  the foot stays down until the planned landing (:meth:`WalkTarget._touched_early`); lifted
-  again under the robot's weight, it fell. A swing leg is pitched at its hip against the
+  rest being computed. After a push from the front that stopped the walk (the capture-point
+  monitor), early in a swing (CP_ABANDON_FRACTION), a swing foot still behind the landing
+  that would capture the body (the capture point predicted at touchdown by the linear
+  inverted pendulum) is put down where it is instead (:meth:`WalkTarget._abandoned`). A
+  swing foot pushed onto the floor (the estimate's sole in contact and loaded, past
+  TOUCH_FRACTION of its swing, TOUCH_MIN_HEIGHT_M or more above its landing in the pattern)
+  ends its swing there: the step lands where that sole stands and, the capture point off the
+  pattern's (a push), the timeline from the landing on plays at once, else the foot stays
+  down until the planned landing (:meth:`WalkTarget._touched_early`); lifted again under the
+  robot's weight, it fell. A swing leg is pitched at its hip against the
   estimated torso's pitch from the planned one (beyond LEVEL_DEAD_RAD), so that a foot carried
   by a body tipped by a push lands flat (:meth:`WalkTarget._level_swing`). From the last
   step's landing on (the pattern's settle) the stabilizer's torso offset holds, as in
@@ -104,6 +108,7 @@ from hubo_cli.walking.gait import Gait, make_gait, smoothstep5
 from hubo_cli.walking.params import WalkingParams
 from hubo_cli.walking.replan import (
     CP_MARGIN_M,
+    TOUCH_BLEND_ROWS,
     Fix,
     continued_fix,
     gait_rows,
@@ -182,6 +187,15 @@ LIFTOFF_MIN_LOAD = 0.2  # the median of their F_z together over this window, at 
 LIFTOFF_WAIT_MAX_S = 1.0  # [chosen] ... and at one lift-off at most this long: then the sensors
                         # read wrong (zero) or the robot is held in the air, and the walk ends
                         # there (a DeviceError: the loop's smooth stop, both feet planned down)
+CP_CAPTURE_MARGIN_M = 0.04  # [chosen] after a push from the front, the landing that captures
+                            # the body has its heel this far behind the capture point predicted
+                            # at touchdown (WalkTarget._capture_landing) ...
+CP_ZMP_MARGIN_M = 0.02  # [chosen] ... predicted with the ZMP at most this close to the stance
+                        # sole's heel or toe (on the edge, a sole tips: seed 11's pushed walk
+                        # stood with its capture point on the heel's edge within a few mm)
+CP_ABANDON_FRACTION = 0.5  # [chosen] ... a swing is abandoned for it only this early (later
+                           # the foot is far up and ahead: pushed seed 4's, put down 0.1 s
+                           # before its landing, hung in the air 0.2 s more and it fell)
 REAIM_STEPS = 4        # [chosen] the plan's last this many steps are re-aimed at their lift-offs
                        # from the estimated stance foot (:meth:`WalkTarget._reaim`)
 REAIM_STEP_M = 0.015   # [chosen] a re-aim changes a swing's travel by at most this much
@@ -827,15 +841,18 @@ class WalkTarget(Target):
             shifted_step, applied, base = step, np.zeros(2), list(self._basis[1])
         excess = np.sign(self._cp_error) * np.maximum(np.abs(self._cp_error) - CP_MARGIN_M, 0.0)
         wanted = excess * min(math.exp(self._omega * remaining_s), CP_GAIN_MAX)
+        stance_side = "right" if support[0] else "left"
+        x, y, _, yaw = rows[stance_side][k]
+        stance = Footstep(stance_side, x, y, yaw)
         self._shift = (shifted_step, applied, base)
+        if self._abandoned(k, step, stance, base, remaining_s, t_s):
+            return
         if (not np.any(excess) and not np.any(applied)) or \
                 float(np.hypot(*(wanted - applied))) < CP_REPLAN_M:
             return
         if k + CP_BLEND_PERIODS > self._landing[k]:
             return  # too late to move this landing
-        stance_side = "right" if support[0] else "left"
-        x, y, _, yaw = rows[stance_side][k]
-        moved = shifted_landing(Footstep(stance_side, x, y, yaw), base[step], wanted,
+        moved = shifted_landing(stance, base[step], wanted,
                                 self.model.feet.width_m, self.params.step_width_m)
         # the landing as the step's limits let it move: where they hold it where it already
         # is, a capture point beyond them re-plans nothing (not a re-plan every period)
@@ -849,6 +866,80 @@ class WalkTarget(Target):
                                            moved.y_m - base[step].y_m]), base)
 
         self._replan(shift_steps(base, step, moved), t_s, done=done)
+
+    def _capture_landing(self, k: int, stance: Footstep, remaining_s: float
+                         ) -> tuple[float, float]:
+        """After a push from the front (the capture point's error along the stance sole
+        behind it by more than CP_MARGIN_M): the landing (its origin along the stance sole,
+        m) whose heel lies CP_CAPTURE_MARGIN_M behind the capture point predicted at
+        touchdown, ``remaining_s`` from now (the linear inverted pendulum from the estimated
+        capture point, its ZMP the estimated one held CP_ZMP_MARGIN_M or more inside the
+        stance sole's heel and toe), and the capture point so predicted for a landing
+        TOUCH_BLEND_ROWS from now; NaN, NaN when no landing behind the stance heel's margin
+        is needed. Only :meth:`_abandoned` uses them: the landing moved so far back
+        (:meth:`_follow_capture_point`) made pushed seed 4's foot come down 0.141 m back
+        and bounce, and the robot fell backward, where the error's 0.107 m stands
+        (docs/history/walking.md, round 9)."""
+        c, s = math.cos(stance.yaw_rad), math.sin(stance.yaw_rad)
+        if c * float(self._cp_error[0]) + s * float(self._cp_error[1]) > -CP_MARGIN_M:
+            return math.nan, math.nan
+        wrenches = ankle_wrenches(self.store)
+        points = [self._in_pattern(k, wrenches, self.store[key])
+                  for key in (CAPTURE_POINT_WORLD, ZMP_WORLD)]
+        if not np.all(np.isfinite(points)):
+            return math.nan, math.nan
+        cp_x, zmp_x = (c * (px - stance.x_m) + s * (py - stance.y_m) for px, py in points)
+        heel_m, toe_m = float(self.corners[:, 0].min()), float(self.corners[:, 0].max())
+        zmp_x = min(max(zmp_x, heel_m + CP_ZMP_MARGIN_M), toe_m - CP_ZMP_MARGIN_M)
+        landing_cp_x = zmp_x + (cp_x - zmp_x) * math.exp(self._omega * remaining_s)
+        if landing_cp_x >= heel_m + CP_CAPTURE_MARGIN_M:
+            return math.nan, math.nan
+        now_s = TOUCH_BLEND_ROWS * self.gait.period_s
+        return (landing_cp_x - CP_CAPTURE_MARGIN_M - heel_m,
+                zmp_x + (cp_x - zmp_x) * math.exp(self._omega * now_s))
+
+    def _abandoned(self, k: int, step: int, stance: Footstep, base: list[Footstep],
+                   remaining_s: float, t_s: float) -> bool:
+        """Once the walk is stopping (the capture-point monitor's stop, or the
+        operator's), after a push from the front, the landing that captures the body
+        (:meth:`_capture_landing`) lies behind where the swing foot is now along the stance
+        sole, and the foot put down under its command now (at most CP_MAX_SHIFT_M from its
+        planned landing, within the step's limits: :func:`~hubo_cli.walking.replan.
+        shifted_landing`; the timeline from its landing on played at once, as a swing down
+        early: :meth:`_touched_early`) has its heel CP_CAPTURE_MARGIN_M behind the capture
+        point predicted then: the swing is abandoned there, within the first
+        CP_ABANDON_FRACTION of its single support. Swinging on (main before round 9), seed
+        11's walk pushed at 1.900 s put that foot down 0.57 s after the push and fell; the foot
+        put back down, it touched 0.475 s after the push and stood (docs/history/walking.md).
+        A walk still walking is not abandoned: the fast gait's own lag of the capture point
+        (slips, no push) passed the same test in perturbed robots 8 and 11's 2 m walks, 20-22
+        mm behind with the monitor silent, and the feet put down short fell; a push abandoned
+        its swing 20-55 ms after the monitor's stop, 106-108 mm behind. Returns whether it
+        re-planned."""
+        if self.phase != "stopping" or \
+                remaining_s < (1.0 - CP_ABANDON_FRACTION) * self.params.single_support_s:
+            return False
+        landing_x, now_cp_x = self._capture_landing(k, stance, remaining_s)
+        side = base[step].side
+        x, y, _, yaw = self._rows[side][k]
+        c, s = math.cos(stance.yaw_rad), math.sin(stance.yaw_rad)
+        here_x = c * (x - stance.x_m) + s * (y - stance.y_m)
+        heel_m = float(self.corners[:, 0].min())
+        if not (landing_x < here_x and here_x + heel_m <= now_cp_x - CP_CAPTURE_MARGIN_M):
+            return False  # (NaN: no capture landing needed)
+        here = shifted_landing(stance, base[step], np.array((x - base[step].x_m,
+                                                             y - base[step].y_m)),
+                               self.model.feet.width_m, self.params.step_width_m)
+        here = Footstep(side, here.x_m, here.y_m, yaw)
+
+        def done() -> None:
+            self.shifts += 1
+            self._shift = (step, np.array([here.x_m - base[step].x_m,
+                                           here.y_m - base[step].y_m]), base)
+
+        self._replan(shift_steps(base, step, here), t_s, done=done,
+                     skip=self._landing[k] - k)
+        return True
 
     def _reaim(self, t_s: float) -> None:
         """At the lift-off of each of the plan's last REAIM_STEPS steps (both soles down, the
