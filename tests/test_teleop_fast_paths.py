@@ -168,8 +168,8 @@ def _axis_angle(axis, angle):
 
 
 class NumpyReach(ArmReach):
-    def smoothed(self, T_goal, dt_s):
-        tau = self.time_constant_s(dt_s)
+    def smoothed(self, T_goal, dt_s, follows_freely=False):
+        tau = self.time_constant_s(dt_s, follows_freely)
         T = np.array(T_goal, dtype=float)
         if tau <= 0 or self.settings.mode == "paper":
             return T
@@ -729,7 +729,8 @@ def _joint_targets(monkeypatch, target_class, seed, max_speed):
         # about 1.3x a period, to 1.1e-4 (the other streams compare the law as shipped)
         if (seed, max_speed) == (3407, 0.6):
             patch.setattr(ArmReach, "time_constant_s",
-                          lambda self, dt_s: self.settings.orientation_time_constant_s)
+                          lambda self, dt_s, follows_freely:
+                          self.settings.orientation_time_constant_s)
         if target_class is ReferenceTarget:
             patch.setattr(target_module, "tracking_target", numpy_tracking_target)
         run = follow_generated(seed, StreamSettings(duration_s=2.0, max_speed_m_s=max_speed))

@@ -610,13 +610,11 @@ def test_free_modes_orientation_filter_is_faster_only_while_the_arm_follows_free
     free, drill = (ArmReach(limb, ReachSettings.for_mode(mode)) for mode in ("free", "drill"))
     slow = free.settings.orientation_time_constant_s
     assert FREE_ORIENTATION_TIME_CONSTANT_S < slow == drill.settings.orientation_time_constant_s
-    free.follows_freely = drill.follows_freely = True
-    assert free.time_constant_s(dt) == FREE_ORIENTATION_TIME_CONSTANT_S
-    assert drill.time_constant_s(dt) == slow
-    free.follows_freely = False
-    assert free.time_constant_s(dt) == slow
-    free.follows_freely = True
-    held = [free.time_constant_s(dt) for _ in range(2 * round(FREE_ORIENTATION_HOLD_S / dt))]
+    assert free.time_constant_s(dt, True) == FREE_ORIENTATION_TIME_CONSTANT_S
+    assert drill.time_constant_s(dt, True) == slow
+    assert free.time_constant_s(dt, False) == slow
+    held = [free.time_constant_s(dt, True)
+            for _ in range(2 * round(FREE_ORIENTATION_HOLD_S / dt))]
     first_fast = held.index(FREE_ORIENTATION_TIME_CONSTANT_S)
     assert abs(first_fast * dt - FREE_ORIENTATION_HOLD_S) <= 1.5 * dt
     assert set(held[first_fast:]) == {FREE_ORIENTATION_TIME_CONSTANT_S}
@@ -626,10 +624,9 @@ def test_free_modes_orientation_filter_is_faster_only_while_the_arm_follows_free
     lag_deg = {}
     for follows in (True, False):
         reach = ArmReach(limb, ReachSettings.for_mode("free"))
-        reach.follows_freely = follows
-        reach.smoothed(T0, dt)
+        reach.smoothed(T0, dt, follows)
         for _ in range(round(0.5 / dt)):
-            T = reach.smoothed(T1, dt)
+            T = reach.smoothed(T1, dt, follows)
         lag_deg[follows] = np.degrees(Rotation.from_matrix(T[:3, :3].T @ T1[:3, :3]).magnitude())
     # first order: 30 deg x exp(-0.5 s / tau)
     assert lag_deg[True] == pytest.approx(30 * np.exp(-0.5 / FREE_ORIENTATION_TIME_CONSTANT_S),

@@ -57,10 +57,10 @@ class ReachSettings:
             their jerk limits let them follow, and the lag moves the hand off its position.
         free_orientation_time_constant_s: where not None, the orientation is smoothed with
             this shorter time constant while the arm follows its goal freely
-            (:attr:`ArmReach.follows_freely`: within reach, its target not moved by the
-            collision room) and has done so for ``FREE_ORIENTATION_HOLD_S``; where the reach
-            search or the room relaxes the goal (position first), a faster turn moves the
-            relaxed pose and costs position. :meth:`for_mode` sets it for free mode
+            (:meth:`ArmReach.smoothed`'s ``follows_freely``: within reach, its target not
+            moved by the collision room) and has done so for ``FREE_ORIENTATION_HOLD_S``;
+            where the reach search or the room relaxes the goal (position first), a faster
+            turn moves the relaxed pose and costs position. :meth:`for_mode` sets it for free mode
             (``FREE_ORIENTATION_TIME_CONSTANT_S``).
         allow_branch_change: change branch by itself when the hand is at rest at its reach
             limit and another branch reaches the goal exactly (otherwise only on request).
@@ -145,7 +145,6 @@ class ArmReach:
         self.settings = settings or ReachSettings()
         self.branch: int | None = None
         self._R_smooth: np.ndarray | None = None
-        self.follows_freely = False  # set by the caller before each smoothed()
         self._relaxed_s = 0.0  # how much longer the goal counts as relaxed
         self.margins = np.array([self.settings.elbow_margin, self.settings.wrist_margin,
                                   self.settings.shoulder_margin])
@@ -162,22 +161,26 @@ class ArmReach:
         a copy."""
         return None if self._R_smooth is None else self._R_smooth.copy()
 
-    def time_constant_s(self, dt_s: float) -> float:
-        """The orientation filter's time constant for the next dt_s (counts down the hold after
-        a relaxed goal: call once per :meth:`smoothed`)."""
+    def time_constant_s(self, dt_s: float, follows_freely: bool) -> float:
+        """The orientation filter's time constant for the next dt_s, the arm following its goal
+        freely or not (counts down the hold after a relaxed goal: call once per
+        :meth:`smoothed`)."""
         s = self.settings
         if s.free_orientation_time_constant_s is None:
             return s.orientation_time_constant_s
-        if self.follows_freely:
+        if follows_freely:
             self._relaxed_s = max(0.0, self._relaxed_s - dt_s)
         else:
             self._relaxed_s = FREE_ORIENTATION_HOLD_S
         return (s.orientation_time_constant_s if self._relaxed_s > 0.0
                 else s.free_orientation_time_constant_s)
 
-    def smoothed(self, T_goal: np.ndarray, dt_s: float) -> np.ndarray:
-        """The goal with its orientation smoothed (:meth:`time_constant_s`) over dt_s."""
-        tau = self.time_constant_s(dt_s)
+    def smoothed(self, T_goal: np.ndarray, dt_s: float,
+                 follows_freely: bool = False) -> np.ndarray:
+        """The goal with its orientation smoothed (:meth:`time_constant_s`) over dt_s;
+        ``follows_freely``: the arm's target followed its goal (within reach, not moved by the
+        collision room) the period before."""
+        tau = self.time_constant_s(dt_s, follows_freely)
         T = np.array(T_goal, dtype=float)
         if tau <= 0 or self.settings.mode == "paper":
             return T

@@ -600,9 +600,9 @@ class TeleopTarget(Target):
             q_now = self.q_target[sl]
             reach = self.reach[arm]
             hand = self.hands.get(arm)  # as the last period left it
-            reach.follows_freely = (hand is not None and not hand.at_limit
-                                    and (self.room is None or arm not in self.room.moved))
-            T_N_goal = reach.smoothed(T_S_goal, t_s - self._t_solved_s.get(arm, t_s))
+            T_N_goal = reach.smoothed(T_S_goal, t_s - self._t_solved_s.get(arm, t_s),
+                                      hand is not None and not hand.at_limit
+                                      and (self.room is None or arm not in self.room.moved))
             self._t_solved_s[arm] = t_s
             T_N_goal[2, 3] -= lift_m
             solved[arm] = (reach, T_N_goal)

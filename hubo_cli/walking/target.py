@@ -860,12 +860,7 @@ class WalkTarget(Target):
                           moved.y_m - base[step].y_m - applied[1])) < CP_REPLAN_M:
             return
 
-        def done() -> None:  # (out of the legs' reach: the pattern playing stands)
-            self.shifts += 1
-            self._shift = (step, np.array([moved.x_m - base[step].x_m,
-                                           moved.y_m - base[step].y_m]), base)
-
-        self._replan(shift_steps(base, step, moved), t_s, done=done)
+        self._move_landing(step, moved, base, t_s)
 
     def _capture_landing(self, k: int, stance: Footstep, remaining_s: float
                          ) -> tuple[float, float]:
@@ -932,14 +927,25 @@ class WalkTarget(Target):
                                self.model.feet.width_m, self.params.step_width_m)
         here = Footstep(side, here.x_m, here.y_m, yaw)
 
-        def done() -> None:
-            self.shifts += 1
-            self._shift = (step, np.array([here.x_m - base[step].x_m,
-                                           here.y_m - base[step].y_m]), base)
-
-        self._replan(shift_steps(base, step, here), t_s, done=done,
-                     skip=self._landing[k] - k)
+        self._move_landing(step, here, base, t_s, skip=self._landing[k] - k)
         return True
+
+    def _move_landing(self, step: int, landing: Footstep, base: list[Footstep], t_s: float,
+                      touched: bool = False, **replan) -> None:
+        """Re-plan ``base`` with step ``step`` landing at ``landing`` (:meth:`_replan`, with
+        ``replan``'s options); once installed (out of the legs' reach it is not: the pattern
+        playing stands) it counts as a landing moved by the capture point, or as a swing ended
+        where the foot ``touched`` down early, and the move is kept for the step's later
+        moves (``_shift``)."""
+        def done() -> None:
+            if touched:
+                self.touchdowns_early += 1
+            else:
+                self.shifts += 1
+            self._shift = (step, np.array([landing.x_m - base[step].x_m,
+                                           landing.y_m - base[step].y_m]), base)
+
+        self._replan(shift_steps(base, step, landing), t_s, done=done, **replan)
 
     def _reaim(self, t_s: float) -> None:
         """At the lift-off of each of the plan's last REAIM_STEPS steps (both soles down, the
@@ -1064,14 +1070,9 @@ class WalkTarget(Target):
         landed = Footstep(side, x + c * dx - s * dy, y + s * dx + c * dy,
                           yaw + touched.yaw_rad - stance.yaw_rad)
 
-        def done() -> None:
-            self.touchdowns_early += 1
-            self._shift = (step, np.array([landed.x_m - base[step].x_m,
-                                           landed.y_m - base[step].y_m]), base)
-
         pushed = self._pushed(k)
-        self._replan(shift_steps(base, step, landed), t_s, done=done,
-                     skip=remaining if pushed else 0, held=None if pushed else step)
+        self._move_landing(step, landed, base, t_s, touched=True,
+                           skip=remaining if pushed else 0, held=None if pushed else step)
         return True
 
     def _pushed(self, k: int) -> bool:
