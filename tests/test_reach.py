@@ -6,7 +6,13 @@ import pytest
 from hubo_cli.errors import ConfigError
 from hubo_cli.kinematics import get_limb
 from hubo_cli.kinematics.arm_reach import ArmReach, ReachSettings
-from hubo_cli.kinematics.choice import EXACT, NEAREST, limb_candidates, solve_limb_on_branch
+from hubo_cli.kinematics.choice import (
+    EXACT,
+    NEAREST,
+    STATUS_NAMES,
+    limb_candidates,
+    solve_limb_on_branch,
+)
 from hubo_cli.kinematics.conditioning import SingularityScale, condition_number
 from hubo_cli.kinematics.reach import branch_box, branch_of, jacobian, nearest_on_branch
 from hubo_cli.teleop.target import max_excursion_m
@@ -141,6 +147,21 @@ def test_paper_mode_is_the_five_centimetre_rule(limb):
     nearest.start(READY_RIGHT)
     assert nearest.solve(T_far, READY_RIGHT).status == "nearest"
 
+
+
+@pytest.mark.parametrize("mode", ["nearest", "paper"])
+def test_solve_into_is_solve_without_the_result_object(limb, rng, mode):
+    reach = ArmReach(limb, ReachSettings(mode=mode))
+    reach.start(READY_RIGHT)
+    for k in range(60):  # reachable goals, and goals up to 0.6 m beyond the reach
+        T = limb.fk(limb.random_q(rng))
+        T[:3, 3] += rng.uniform(-0.3, 0.3, 3) * (k % 3)
+        result = reach.solve(T, READY_RIGHT)
+        q = np.empty(6)
+        code, pos, rot = reach.solve_into(T, READY_RIGHT, q)
+        assert STATUS_NAMES[code] == result.status
+        assert (pos, rot) == (result.position_error_m, result.rotation_error_rad)
+        assert np.array_equal(q, result.q_rad)
 
 def test_branch_move_is_slow_and_ends_on_the_new_branch(limb):
     reach = ArmReach(limb)

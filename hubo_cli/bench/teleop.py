@@ -117,7 +117,7 @@ from hubo_cli.teleop import target
 from hubo_cli.teleop.stream_runs import replay_generated
 wall, cpu, call = [], [], target.TeleopTarget.__call__
 def timed(self, t_s, state):
-    t0, c0 = time.perf_counter(), time.thread_time()
+    c0, t0 = time.thread_time(), time.perf_counter()  # the CPU clock's read outside the wall time
     out = call(self, t_s, state)
     if self.phase == "operate":
         wall.append(time.perf_counter() - t0)

@@ -193,17 +193,23 @@ class ArmReach:
 
     def solve(self, T_N_goal: np.ndarray, q_prev_rad: np.ndarray) -> IKResult:
         """Joints for a goal (T_N_E, 4x4 m, in the current neck frame) from the previous ones."""
+        q = np.empty(6)
+        status, pos, rot = self.solve_into(T_N_goal, q_prev_rad, q)
+        return IKResult(q, choice.STATUS_NAMES[status], pos, rot)
+
+    def solve_into(self, T_N_goal: np.ndarray, q_prev_rad: np.ndarray,
+                   q_out: np.ndarray) -> tuple[int, float, float]:
+        """:meth:`solve`'s joints into ``q_out`` (6,), without the result object (the teleop
+        target solves both arms every period): returns (status code, position error m,
+        rotation error rad); the status's name is ``choice.STATUS_NAMES[code]``."""
         q_prev = np.ascontiguousarray(q_prev_rad, dtype=float)
         if self.settings.mode == "paper" or self.branch is None:
-            return self.limb.solve(T_N_goal, q_prev)
+            return self.limb.solve_into(T_N_goal, q_prev, q_out)
         limb = self.limb
-        lower, upper = limb.lower_rad, limb.upper_rad
-        q = np.empty(6)
-        status, pos, rot = choice.solve_limb_on_branch(
+        return choice.solve_limb_on_branch(
             np.ascontiguousarray(T_N_goal, dtype=float), limb.chain, limb.lengths_m,
-            lower, upper, q_prev, self.branch, self.margins, 1.0,
-            self.settings.orientation_weight_m_per_rad, self.settings.iterations, q)
-        return IKResult(q, choice.STATUS_NAMES[status], pos, rot)
+            limb.lower_rad, limb.upper_rad, q_prev, self.branch, self.margins, 1.0,
+            self.settings.orientation_weight_m_per_rad, self.settings.iterations, q_out)
 
     def other_branch(self, T_N_goal: np.ndarray, q_prev_rad: np.ndarray) -> np.ndarray | None:
         """The exact solution on another branch (closest to q_prev), or None if there is none."""

@@ -136,7 +136,7 @@ class Limb:
     def fk(self, q_rad) -> np.ndarray:
         """T_N_E: the end frame in the neck frame (4x4, m) for joints q (6,) in rad."""
         out = np.empty((4, 4))
-        chain_fk(np.array(q_rad, dtype=float, order="C"), *self.fk_chain, out)
+        chain_fk(kernel_array(q_rad), *self.fk_chain, out)  # the kernel only reads q
         return out
 
     def fk_batch(self, Q_rad) -> np.ndarray:

@@ -145,7 +145,7 @@ class WholeBody:
 
     def lift_of(self, q_rad: np.ndarray) -> float:
         """The neck lift (m) that the leg joints of a full joint vector produce (right leg)."""
-        sl = self.model.limb_slice("right-leg")
+        sl = self._slices["right-leg"]
         return float(self.T_S_sole["right-leg"][2, 3] - self.legs["right-leg"].fk(q_rad[sl])[2, 3])
 
     def shift_of(self, q_rad: np.ndarray) -> float:
