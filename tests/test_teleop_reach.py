@@ -218,10 +218,11 @@ def test_the_lead_brings_the_hand_back_sooner_and_closer_at_three_speeds(tmp_pat
     else:
         assert got["parked_m"] <= 0.015, got          # not the issue's: 1.5x 10.0 mm
     assert got["excursion_m"] <= 0.015, got           # the 15 mm
-    # not the 1.8 s: measured 2.34 / 2.60-2.63 / 2.66 s (both code paths; 2.45 /
-    # 2.82 / 2.85 s before teleop/target._led_back), over 13 walks of 7-32 s and 20-40 cm
-    # 2.34-2.72 s (docs/history/teleop.md, round 10)
-    assert got["stays_s"] <= 2.8, got
+    # not the 1.8 s: measured 2.27 / 2.32 / 2.60 s (both code paths; 2.34 / 2.60-2.63
+    # / 2.66 s before a returning hand far behind met the goal's prediction with its measured
+    # decay, reach_lead.RETURN_DECAY_S; 2.45 / 2.82 / 2.85 s before teleop/target._led_back),
+    # over 13 walks of 7-32 s and 20-40 cm 2.04-2.63 s (docs/history/teleop.md, round 10)
+    assert got["stays_s"] <= (2.45 if back_s == 16.0 else 2.8), got
     if back_s == 32.0:
         return  # (without the lead, compared at the two faster speeds: this stream is the longest)
     without = _follow_walk(tmp_path, back_s, lead=False)
