@@ -103,14 +103,14 @@ def plain_min_time(x0, v0, x1, v1, accel, speed):
     return min(times, default=math.inf)
 
 
-def numpy_tracking_target(v_goal, q_target, q, v, limits):
+def numpy_tracking_target(v_goal, q_target, q, v, limits, decay_s=lead.DECAY_S):
     """lead.tracking_target in plain Python over numpy_reachable_velocity."""
     v_out = numpy_reachable_velocity(v_goal, q_target, q, v, limits)
-    tau = lead.DECAY_S
+    tau = np.broadcast_to(np.asarray(decay_s, dtype=float), np.shape(q))
 
     def late(t, i):
-        e = math.exp(-t / tau)
-        return plain_min_time(q[i], v[i], q_target[i] + v_goal[i] * tau * (1 - e),
+        e = math.exp(-t / tau[i])
+        return plain_min_time(q[i], v[i], q_target[i] + v_goal[i] * tau[i] * (1 - e),
                               v_goal[i] * e, lead.INTERCEPT_SHARE
                               * limits.acceleration_rad_s2[i], limits.velocity_rad_s[i]) - t
 
@@ -152,6 +152,7 @@ class NumpyGoalVelocity(lead.GoalVelocity):
         self._count = min(self._count + 1, k)
         if not follow or self._count < k:
             self.v_rad_s = np.zeros(self.limits.size)
+            self._v_count = 0
             return self.v_rad_s
         lim = self.limits
         v = self._weights[self._slot] @ self._q
@@ -159,6 +160,8 @@ class NumpyGoalVelocity(lead.GoalVelocity):
         cap = np.minimum(0.9 * lim.velocity_rad_s,
                          numpy_stop_speed(room, lim.acceleration_rad_s2, lim.jerk_rad_s3))
         self.v_rad_s = np.clip(v, -cap, cap)
+        self._v[self._slot] = self.v_rad_s
+        self._v_count = min(self._v_count + 1, k)
         return self.v_rad_s
 
 
@@ -449,6 +452,11 @@ def test_the_lead_kernels_match_numpy(arm_limits):
                                  numpy_tracking_target(v_goal, q_target, q, v, arm_limits),
                                  strict=True):
             assert np.allclose(got, expected, rtol=1e-9, atol=1e-12)
+        decay = rng.uniform(lead.DECAY_S, 1.0, 6)  # a returning hand's, per joint
+        for got, expected in zip(
+                lead.tracking_target(v_goal, q_target, q, v, arm_limits, decay),
+                numpy_tracking_target(v_goal, q_target, q, v, arm_limits, decay), strict=True):
+            assert np.allclose(got, expected, rtol=1e-9, atol=1e-12)
     fast, plain = lead.GoalVelocity(arm_limits, 0.005), NumpyGoalVelocity(arm_limits, 0.005)
     q = rng.uniform(arm_limits.lower_rad, arm_limits.upper_rad)
     for _ in range(3000):  # random walks, some to the limits, some periods not following
@@ -457,6 +465,7 @@ def test_the_lead_kernels_match_numpy(arm_limits):
         follow = bool(rng.random() > 0.05)
         assert np.allclose(fast.update(q, follow), plain.update(q, follow), rtol=1e-12,
                            atol=1e-12)
+        assert np.allclose(fast.decay_s(0.1, 1.0), plain.decay_s(0.1, 1.0), rtol=1e-12)
 
 
 def test_the_orientation_smoothing_matches_numpy():

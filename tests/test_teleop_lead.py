@@ -54,6 +54,26 @@ def test_the_estimate_is_the_slope_of_the_recent_targets_and_zero_when_not_follo
     assert not goal.update(q0, follow=True).any()  # the window fills again first
 
 
+def test_the_goals_decay_is_measured_from_its_velocity_now_and_a_window_before(arm_limits):
+    """GoalVelocity.decay_s (a returning hand's intercept, teleop/reach_lead.RETURN_DECAY_S):
+    exact for a goal whose joint velocity decays exponentially (the slopes of two windows a
+    window apart differ by exp(-window / tau)); the longest for a goal not slowing, the
+    shortest until the window holds estimates in a row."""
+    q0 = np.array([-0.3, -0.4, 0.0, -1.2, 0.0, 0.0])
+    w0 = np.array([0.4, -0.3, 0.2, -0.5, 0.1, 0.0])
+    tau = np.array([0.3, 0.5, 5.0, 0.05, 0.6, 0.5])
+    goal = GoalVelocity(arm_limits, DT)
+    for k in range(60):
+        goal.update(q0 + w0 * tau * (1.0 - np.exp(-k * DT / tau)), follow=True)
+        if k < 2 * goal.samples - 2:
+            assert np.array_equal(goal.decay_s(0.1, 1.0), np.full(6, 0.1))
+    got = goal.decay_s(0.1, 1.0)
+    assert np.allclose(got[[0, 1, 4]], tau[[0, 1, 4]], rtol=1e-6)
+    assert got[2] == 1.0 and got[3] == 0.1 and got[5] == 1.0  # within the bounds; at rest
+    goal.update(q0, follow=False)
+    assert np.array_equal(goal.decay_s(0.1, 1.0), np.full(6, 0.1))
+
+
 def test_the_estimate_never_asks_more_than_a_joint_can_stop_from_before_its_limit(arm_limits):
     """Per joint, braking from the velocity asked (jerk-limited, from no acceleration) stays
     within the position limit, and the speed stays within 90 % of the speed limit."""

@@ -17,7 +17,12 @@ speed and acceleration limits, no jerk limit, no braking, no speed scale):
   :func:`_perfect_meet_s`);
 - the same with the hand never more than ``--lead`` (default teleop/reach_lead.py's
   ``LEAD_M``, within the issue's 10 mm cap on anticipation) inward of the goal's nearest
-  reachable point: a floor for any controller, causal or not, that keeps that cap.
+  reachable point: a floor for any controller, causal or not, that keeps that cap; with the
+  elbow's bend and speed at re-entry on one way that meets it;
+- *reacting and staying*: the perfect-prediction floor for an elbow at rest until the goal
+  passes the parked hand (the reactive floor's start): the first time from which it can stay
+  within 2 mm (the reactive floor only asks when it is first back within 2 mm, and may pass the
+  goal at full speed).
 
     python tools/reach_return_bound.py [--back 8] [--beyond 0.3] [--parked-bend 0.1 0.64]
         [--lead M]
@@ -104,28 +109,35 @@ def main() -> None:
             t_back = t_s[caught[0]] if len(caught) else np.inf
         before = (t_s >= t_pass) & (t_s <= t_back)
         parked_mm = 1e3 * (np.interp(bend0, bend[inside][::-1], ahead[inside][::-1]) - edge_m)
-        t_meet = _perfect_meet_s(t_s, goal_m, ahead[inside], bend[inside], t_cross, bend0,
-                                 elbow_speed, elbow_accel)
-        t_led = _perfect_meet_s(t_s, goal_m, ahead[inside], bend[inside], t_cross, bend0,
-                                elbow_speed, elbow_accel, lead_m=args.lead)
+        t_meet, _, _ = _perfect_meet_s(t_s, goal_m, ahead[inside], bend[inside], t_cross,
+                                       bend0, elbow_speed, elbow_accel)
+        t_led, bend_led, speed_led = _perfect_meet_s(
+            t_s, goal_m, ahead[inside], bend[inside], t_cross, bend0, elbow_speed, elbow_accel,
+            lead_m=args.lead)
+        t_stays, _, _ = _perfect_meet_s(t_s, goal_m, ahead[inside], bend[inside], t_cross,
+                                        bend0, elbow_speed, elbow_accel, start_s=t_pass)
         print(f"parked at {bend0:.2f} rad from straight ({parked_mm:+.0f} mm along the path): "
               f"the goal passes the hand {t_pass - t_cross:.2f} s after it is reachable; "
               f"reactive floor: back within 2 mm {t_back - t_cross:.2f} s after it is "
               f"reachable (the gap up to {1e3 * np.max(gap_m[before]):.0f} mm); perfect "
               f"prediction floor: within 2 mm from {t_meet - t_cross:.2f} s after it on; "
               f"with the lead within {1e3 * args.lead:.0f} mm of the goal's nearest reachable "
-              f"point: from {t_led - t_cross:.2f} s")
+              f"point: from {t_led - t_cross:.2f} s (the elbow {bend_led:.2f} rad from "
+              f"straight at {speed_led:.2f} rad/s at re-entry on one such way); reacting and "
+              f"staying within 2 mm: from {t_stays - t_cross:.2f} s")
 
 
 def _perfect_meet_s(t_s, goal_m, ahead_m, bend, t_cross, bend0, speed, accel, step_s=0.02,
-                    lead_m=None):
+                    lead_m=None, start_s=-np.inf):
     """The first time after re-entry from which an elbow that knows the goal's future can stay
     within 2 mm of it (see the module docstring): bisection on that time over feasibility
     linear programs in the elbow's piecewise-constant acceleration (from rest at ``bend0``
     2 s before re-entry, within the acceleration and speed limits, never straighter than
     ``bend0``), the bend kept between the bends of the goal's position +-2 mm from that time
     on, and with ``lead_m`` never more than that inward of the goal's nearest reachable
-    point."""
+    point; with ``start_s``, at rest until then (a controller that only reacts: the goal
+    passes the parked hand at ``start_s``). Returns that time and the elbow's bend and speed
+    at re-entry (rad from straight, rad/s) on a way that meets it."""
     grid = np.arange(t_cross - 2.0, t_s[-1], step_s)
     goal = np.interp(grid, t_s, goal_m)
     lo = np.interp(goal + 0.002, ahead_m, bend)  # the bend falls as the hand goes out
@@ -141,21 +153,29 @@ def _perfect_meet_s(t_s, goal_m, ahead_m, bend, t_cross, bend0, speed, accel, st
         nearest = np.minimum(goal, ahead_m[-1])
         A_lead, b_lead = position, np.interp(nearest - lead_m, ahead_m, bend) - bend0
 
-    def feasible(t_meet):
+    bounds = [(0.0, 0.0) if t < start_s else (-accel, accel) for t in grid]
+    k_cross = int(np.argmin(np.abs(grid - t_cross)))
+
+    def solve(t_meet):
         rows = grid >= t_meet
         A = np.vstack([position[rows], -position[rows], velocity, -velocity, -position, A_lead])
         b = np.concatenate([hi[rows] - bend0, bend0 - lo[rows], np.full(2 * n, speed),
                             np.zeros(n), b_lead])
-        res = linprog(np.zeros(n), A_ub=A, b_ub=b, bounds=(-accel, accel), method="highs")
-        return res.status == 0
+        res = linprog(np.zeros(n), A_ub=A, b_ub=b, bounds=bounds, method="highs")
+        return res.x if res.status == 0 else None
 
     lo_s, hi_s = t_cross, grid[-1]
-    if not feasible(hi_s):
-        return np.inf
+    u = solve(hi_s)
+    if u is None:
+        return np.inf, np.nan, np.nan
     for _ in range(12):
         mid = (lo_s + hi_s) / 2
-        lo_s, hi_s = (lo_s, mid) if feasible(mid) else (mid, hi_s)
-    return float(hi_s)
+        u_mid = solve(mid)
+        if u_mid is not None:
+            hi_s, u = mid, u_mid
+        else:
+            lo_s = mid
+    return float(hi_s), float(bend0 + position[k_cross] @ u), float(velocity[k_cross] @ u)
 
 
 if __name__ == "__main__":

@@ -166,6 +166,7 @@ class GoalVelocity:
         self.limits = limits
         k = max(3, int(round(window_s / dt_s)) + 1)
         self.samples = k  # the window's length in periods
+        self.dt_s = dt_s
         slope = slope_weights(np.arange(k) * dt_s)  # oldest sample first
         # row i: the slope's weights for the ring buffer whose newest entry is slot i
         self._weights = np.array([np.roll(slope, i + 1) for i in range(k)])
@@ -173,10 +174,13 @@ class GoalVelocity:
         self._slot = -1
         self._count = 0
         self.v_rad_s = np.zeros(limits.size)
+        self._v = np.zeros((k, limits.size))  # the estimates, in the targets' slots
+        self._v_count = 0  # estimates in a row while following
 
     def clear(self) -> None:
         """Forget the history (the next estimates are zero until the window has filled)."""
         self._count = 0
+        self._v_count = 0
         self.v_rad_s = np.zeros(self.limits.size)
 
     def update(self, q_target_rad: np.ndarray, follow: bool) -> np.ndarray:
@@ -189,13 +193,30 @@ class GoalVelocity:
         self._count = min(self._count + 1, k)
         if not follow or self._count < k:
             self.v_rad_s = np.zeros(self.limits.size)
+            self._v_count = 0
             return self.v_rad_s
         lim = self.limits
         self.v_rad_s = np.empty(lim.size)
         _estimate(self._weights[self._slot], self._q, kernel_array(q_target_rad), lim.lower_rad,
                   lim.upper_rad, lim.velocity_rad_s, lim.acceleration_rad_s2, lim.jerk_rad_s3,
                   self.v_rad_s)
+        self._v[self._slot] = self.v_rad_s
+        self._v_count = min(self._v_count + 1, k)
         return self.v_rad_s
+
+    def decay_s(self, shortest_s: float, longest_s: float) -> np.ndarray:
+        """Per joint, the time constant (s) with which the goal's velocity decays: w = w0
+        exp(-window / tau), w the estimate now and w0 the one a window before (the same sign,
+        slower), within [``shortest_s``, ``longest_s``]; ``longest_s`` where the goal does not
+        slow so, ``shortest_s`` until the window holds estimates in a row."""
+        k = len(self._q)
+        if self._v_count < k:
+            return np.full(self.limits.size, float(shortest_s))
+        w0, w = self._v[(self._slot + 1) % k], self._v[self._slot]
+        out = np.full(self.limits.size, float(longest_s))
+        slowing = (w * w0 > 0.0) & (np.abs(w) < np.abs(w0))
+        out[slowing] = (k - 1) * self.dt_s / np.log(w0[slowing] / w[slowing])
+        return np.clip(out, shortest_s, longest_s)
 
 
 # The intercept (:func:`tracking_target`): where ruckig's stop at the target leaves a joint
@@ -241,29 +262,29 @@ def _min_time(x0, v0, x1, v1, accel, speed):
 
 
 @nb.njit(**JIT)
-def _late_s(t, w, g, q, v, accel, speed):
+def _late_s(t, w, g, q, v, accel, speed, decay):
     """How much later than ``t`` (s) the joint (``q``, ``v``) can at the soonest be in the
-    predicted goal's state at ``t`` (the goal at ``g`` moving at ``w``, decaying with
-    DECAY_S); <= 0 where it can be there by then."""
-    e = math.exp(-t / DECAY_S)
-    return _min_time(q, v, g + w * DECAY_S * (1.0 - e), w * e, accel, speed) - t
+    predicted goal's state at ``t`` (the goal at ``g`` moving at ``w``, decaying with the time
+    constant ``decay``); <= 0 where it can be there by then."""
+    e = math.exp(-t / decay)
+    return _min_time(q, v, g + w * decay * (1.0 - e), w * e, accel, speed) - t
 
 
 @nb.njit(**JIT)
-def _meet_s(w, g, q, v, accel, speed):
+def _meet_s(w, g, q, v, accel, speed, decay):
     """The first time (s) at which the joint can be in the predicted goal's state (MEET_NONE_S
     if not before): a scan, bisection, then the secant (continuous in the joint's state)."""
-    lo, f_lo = 0.0, _late_s(0.0, w, g, q, v, accel, speed)
+    lo, f_lo = 0.0, _late_s(0.0, w, g, q, v, accel, speed, decay)
     if f_lo <= 0.0:
         return 0.0
     t = MEET_STEP_S
     while t <= MEET_NONE_S + 1e-9:
-        f = _late_s(t, w, g, q, v, accel, speed)
+        f = _late_s(t, w, g, q, v, accel, speed, decay)
         if f <= 0.0:
             hi, f_hi = t, f
             for _ in range(4):
                 mid = 0.5 * (lo + hi)
-                f_mid = _late_s(mid, w, g, q, v, accel, speed)
+                f_mid = _late_s(mid, w, g, q, v, accel, speed, decay)
                 if f_mid <= 0.0:
                     hi, f_hi = mid, f_mid
                 else:
@@ -275,8 +296,8 @@ def _meet_s(w, g, q, v, accel, speed):
 
 
 @nb.njit(**JIT)
-def _tracking_target(v_goal, q_target, q, v, lower, upper, velocity, accel, jerk, out_q,
-                     out_v):
+def _tracking_target(v_goal, q_target, q, v, lower, upper, velocity, accel, jerk, decay,
+                     out_q, out_v):
     """:func:`tracking_target` into ``out_q`` and ``out_v``; returns the intercept's share."""
     n = out_q.shape[0]
     _reachable(v_goal, q_target, q, v, accel, jerk, RUN_UP_SHARE, out_v)
@@ -286,7 +307,7 @@ def _tracking_target(v_goal, q_target, q, v, lower, upper, velocity, accel, jerk
         out_q[i] = q_target[i]
         if v_goal[i] != 0.0:
             meet[i] = _meet_s(v_goal[i], q_target[i], q[i], v[i], INTERCEPT_SHARE * accel[i],
-                              velocity[i])
+                              velocity[i], decay[i])
     share = min(max((MEET_NONE_S - meet.max()) / (MEET_NONE_S - MEET_FULL_S), 0.0), 1.0)
     if share == 0.0:
         return 0.0
@@ -294,8 +315,8 @@ def _tracking_target(v_goal, q_target, q, v, lower, upper, velocity, accel, jerk
         w = v_goal[i]
         if w == 0.0:
             continue
-        e = math.exp(-meet[i] / DECAY_S)
-        p = min(max(q_target[i] + w * DECAY_S * (1.0 - e), lower[i]), upper[i])
+        e = math.exp(-meet[i] / decay[i])
+        p = min(max(q_target[i] + w * decay[i] * (1.0 - e), lower[i]), upper[i])
         vt = w * e  # within the speed that still stops before the position limit from p
         room = upper[i] - p if vt > 0 else p - lower[i]
         cap = min(TARGET_SPEED_SHARE * velocity[i], _stop_speed(room, accel[i], jerk[i]))
@@ -305,16 +326,19 @@ def _tracking_target(v_goal, q_target, q, v, lower, upper, velocity, accel, jerk
 
 
 def tracking_target(v_goal_rad_s: np.ndarray, q_target_rad: np.ndarray, q_rad: np.ndarray,
-                    v_rad_s: np.ndarray, limits: JointLimits
+                    v_rad_s: np.ndarray, limits: JointLimits,
+                    decay_s: np.ndarray | float = DECAY_S
                     ) -> tuple[np.ndarray, np.ndarray, float]:
     """Per joint, the target (position rad, velocity rad/s) to give an arm's trajectory
     generator, the joints at ``q_rad`` moving at ``v_rad_s``, their goal at ``q_target_rad``
     moving at ``v_goal_rad_s`` (zero: not followed): :func:`reachable_velocity` at the goal
-    blended with the intercept of the goal's prediction (see DECAY_S); and the intercept's
-    share (0: the goal and the reachable velocity, as they were)."""
+    blended with the intercept of the goal's prediction (its velocity decaying with the time
+    constant ``decay_s``, s, one for every joint or per joint; see DECAY_S); and the
+    intercept's share (0: the goal and the reachable velocity, as they were)."""
     out_q, out_v = np.empty(len(v_goal_rad_s)), np.empty(len(v_goal_rad_s))
     share = _tracking_target(kernel_array(v_goal_rad_s), kernel_array(q_target_rad),
                              kernel_array(q_rad), kernel_array(v_rad_s), limits.lower_rad,
                              limits.upper_rad, limits.velocity_rad_s,
-                             limits.acceleration_rad_s2, limits.jerk_rad_s3, out_q, out_v)
+                             limits.acceleration_rad_s2, limits.jerk_rad_s3,
+                             np.full(len(v_goal_rad_s), decay_s, dtype=float), out_q, out_v)
     return out_q, out_v, share

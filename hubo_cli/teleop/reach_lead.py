@@ -23,6 +23,12 @@ scale slows it, the goal moving inward, away from the straight elbow. Without th
 falls back from the led pose to the goal's, nearer the straight elbow, and the elbow brakes
 from its run-up at re-entry (docs/history/teleop.md, round 9).
 
+While the hand is ``RETURN_BEHIND_M`` or more behind a returning goal, its tracker meets the
+goal's prediction with the goal's joint velocity decaying as measured over the last window
+(at most ``RETURN_DECAY_S``) instead of within :data:`hubo_cli.teleop.lead.DECAY_S`: near the
+straight elbow the goal's joints slow down as the elbow bends, and a tracker that predicts
+them at rest within 0.1 s plans to stop at the goal and creeps up on it.
+
 Only a goal that went ``LEAD_BEYOND_M`` or more out of reach and moves between
 ``MIN_SPEED_M_S`` and ``MAX_SPEED_M_S`` is led. The lead is a pose for the arm's reach search
 (:mod:`hubo_cli.teleop.target` applies it): its limits and margins, the speed scale (times
@@ -60,6 +66,14 @@ LEAD_SCALE_SHARE = 0.9  # of the singularity speed scale, for a led target: it l
 # limits at kappa 100)
 MIN_SPEED_M_S = 0.01  # a goal heading back slower than this is not led (a parked hand does
 # not follow the operator's tremor)
+RETURN_BEHIND_M = 0.005  # a returning hand this far or more behind its goal along the goal's
+# velocity meets the goal's prediction with its joint velocity decaying as measured
+# (teleop/lead.GoalVelocity.decay_s, at most RETURN_DECAY_S), not within lead.DECAY_S: the
+# goal's joints slow as its elbow bends, far slower than the 0.1 s that suits a goal followed
+# closely. The out-of-reach walk over 13 walks (7-32 s back, 20-40 cm beyond), within 2 mm
+# for good 2.04-2.63 s against 2.34-2.72 s; every walk as soon or sooner with 4-8 mm here
+# and 0.5-2 s there; with 2-3 mm half speed's 2.81 s (docs/history/teleop.md, round 10)
+RETURN_DECAY_S = 1.0
 
 
 class ReachLead:

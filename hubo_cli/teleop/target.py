@@ -78,7 +78,7 @@ from hubo_cli.model import ARMS, RobotModel
 from hubo_cli.motion.limits import JointLimits
 from hubo_cli.motion.tracker import JointTracker
 from hubo_cli.scene import SceneActions, WallPlacement
-from hubo_cli.teleop.lead import GoalVelocity, tracking_target
+from hubo_cli.teleop.lead import DECAY_S, GoalVelocity, tracking_target
 from hubo_cli.teleop.mapping import HandMapper
 from hubo_cli.teleop.phases import PHASES, Approach, Operate, Settle
 from hubo_cli.teleop.reach_lead import (
@@ -86,6 +86,8 @@ from hubo_cli.teleop.reach_lead import (
     LEAD_BEYOND_M,
     LEAD_SCALE_SHARE,
     MIN_SPEED_M_S,
+    RETURN_BEHIND_M,
+    RETURN_DECAY_S,
     ReachLead,
 )
 from hubo_cli.teleop.target_kernels import (
@@ -152,6 +154,8 @@ class HandTrack:
     returning: bool = False  # the goal came back into reach from LEAD_BEYOND_M or more beyond
     # it and still moves (reach_lead.ReachLead.back_lead_m)
     passed: bool = False  # since then, the goal has passed the hand along its velocity
+    behind_m: float = 0.0  # while returning: how far the hand is behind the goal along its
+    # velocity (m; last period's positions), 0 when not known
 
     @property
     def at_limit(self) -> bool:
@@ -412,16 +416,20 @@ class TeleopTarget(Target):
             target = self.q_out[self.slices[arm]]
             following = self._following(arm)
             v_goal = self._goal_velocity[arm].update(target, following)
+            hand = self.hands.get(arm)
+            decay = DECAY_S  # a returning hand far behind: the goal's own decay (reach_lead)
+            if hand is not None and hand.returning and hand.behind_m >= RETURN_BEHIND_M:
+                decay = self._goal_velocity[arm].decay_s(DECAY_S, RETURN_DECAY_S)
             traded = 0
             if following:  # joints that can follow make up for those that cannot
                 goal, traded = traded_goal(target, v_goal, now.q_rad, now.v_rad_s,
                                            now.limits, self._chains[arm])
             led, velocity[arm], share = tracking_target(
-                v_goal, goal if traded else target, now.q_rad, now.v_rad_s, now.limits)
+                v_goal, goal if traded else target, now.q_rad, now.v_rad_s, now.limits, decay)
             if traded and not self._traded_clear(arm, led):  # the room holds: untraded
                 traded = 0
                 led, velocity[arm], share = tracking_target(v_goal, target, now.q_rad,
-                                                            now.v_rad_s, now.limits)
+                                                            now.v_rad_s, now.limits, decay)
             if share > 0.0 or traded:  # the generator's target leads or trades (a copy)
                 if self.q_out is self.q_target:
                     self.q_out = self.q_target.copy()
@@ -712,6 +720,7 @@ class TeleopTarget(Target):
                     else float((hand.goal_m - hand.actual_m) @ v) / speed)
         if not math.isfinite(behind_m):  # a position not finite: no lag known
             behind_m = 0.0
+        hand.behind_m = behind_m
         hand.passed = hand.passed or behind_m > 0.0
         lead_m = lead.back_lead_m(speed, behind_m, hand.passed)
         if not lead_m > 0.0:
