@@ -422,10 +422,8 @@ class WalkTarget(Target):
                  q_start_rad: np.ndarray, T_world_neck_start: np.ndarray,
                  corrections: int = 1, end_width_m: float | None = None,
                  stabilizer: StabilizerGains | None = None,
-                 toe_heel: ToeHeelParams | None = None, lip_feedback: bool = False,
-                 landing_wait: bool = True) -> None:
+                 toe_heel: ToeHeelParams | None = None, lip_feedback: bool = False) -> None:
         self.model = model
-        self.landing_wait = landing_wait  # (:meth:`_unloaded_landing`; off: the fast gait)
         self.toe_heel = toe_heel
         self.lip_feedback = lip_feedback and stabilizer is not None
         self.lip: LipStabilizer | None = None
@@ -1241,12 +1239,9 @@ class WalkTarget(Target):
         the floor again, bouncing between the feet; played on, the transfer moved the ZMP
         reference onto the foot in the air, the body rolled onto it and over its outer edge
         (pushed seed 13, docs/history/walking.md, round 10). A re-plan (a stop) begun in that
-        double support keeps the landing; without the sensor (NaN) it never waits. Off
-        (``landing_wait``) for the fast gait: its own landings bounce and its capture point
-        lags the pattern's by more than CP_MARGIN_M without a push; waiting at 4-12 of its
-        landings, 3 of 10 of its 2 m walks fell (docs/history/walking.md, round 10)."""
+        double support keeps the landing; without the sensor (NaN) it never waits."""
         support = self._rows["support"]
-        if not self.landing_wait or not all(support[k]):
+        if not all(support[k]):
             self._landed = None  # (a single support: the landing is past)
             return False
         if k >= 1 and not all(support[k - 1]) and (self._landed is None
