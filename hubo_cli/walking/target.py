@@ -186,10 +186,6 @@ LIFTOFF_MIN_LOAD = 0.2  # the median of their F_z together over this window, at 
                         # (NaN) it never waits
 LANDING_WAIT_MAX_S = 0.5  # [chosen] after a push, a landing's double support waits at most this
                           # long in all for its landed foot to carry (WalkTarget._unloaded_landing)
-LANDING_CARRIED_S = 0.08  # [chosen] ... and none once that foot has carried this long in a row
-                          # (the landing is made: pushed seed 13's landed foot bounced, loaded
-                          # at most 0.035 s in a row; seed 8's carried 0.21 s, then the body
-                          # rocked onto the other foot and waiting there, it fell)
 LIFTOFF_WAIT_MAX_S = 1.0  # [chosen] ... and at one lift-off at most this long: then the sensors
                         # read wrong (zero) or the robot is held in the air, and the walk ends
                         # there (a DeviceError: the loop's smooth stop, both feet planned down)
@@ -477,7 +473,6 @@ class WalkTarget(Target):
         self.landing_waits = 0  # landings whose double support waited for the landed foot
         self._landed: tuple[int, int] | None = None  # the last landing's foot (column) and row
         self._landing_waited_s = 0.0  # ... its double support waited this long in all
-        self._landing_carried_s = 0.0  # ... its foot has carried this long in a row
         self._soles_fz_n = np.full(2, math.nan)  # each sole's F_z as read, this period
         xs, ys = self.corners[:, 0], self.corners[:, 1]
         box = (float(xs.min()), float(xs.max()), float(ys.min()), float(ys.max()))
@@ -1233,8 +1228,7 @@ class WalkTarget(Target):
         sensor reads under ``estimation.swing_touchdown_n`` this period and the estimated
         capture point is off the pattern's (:meth:`_pushed`): the timeline waits at row ``k``,
         the pattern's weight transfer held, until that foot carries again, at most
-        LANDING_WAIT_MAX_S in all over that double support (then it plays on), and no more
-        once the foot has carried LANDING_CARRIED_S in a row. A push just
+        LANDING_WAIT_MAX_S in all over that double support (then it plays on). A push just
         before a landing tips the body back onto the other sole and the landed foot leaves
         the floor again, bouncing between the feet; played on, the transfer moved the ZMP
         reference onto the foot in the air, the body rolled onto it and over its outer edge
@@ -1247,15 +1241,11 @@ class WalkTarget(Target):
         if k >= 1 and not all(support[k - 1]) and (self._landed is None
                                                   or self._landed[1] != k):
             self._landed = (0 if not support[k - 1][0] else 1, k)
-            self._landing_waited_s = self._landing_carried_s = 0.0
+            self._landing_waited_s = 0.0
         if self._landed is None or self._landing_waited_s >= LANDING_WAIT_MAX_S:
             return False
         if not self._soles_fz_n[self._landed[0]] < self.model.estimation.swing_touchdown_n:
-            self._landing_carried_s += self.gait.period_s
-            if self._landing_carried_s >= LANDING_CARRIED_S - 1e-9:
-                self._landed = None  # the landing is made
             return False
-        self._landing_carried_s = 0.0
         return self._pushed(k)
 
     def _done(self, t_s: float) -> bool:
