@@ -106,7 +106,7 @@ def main() -> int:
                "stood": result.stood, "both_feet_down": bool(np.all(down == 1)),
                "held": bool(mode[rows][-1] == MODE_CODE["hold"]), "shifts": result.shifts,
                "touchdowns_early": result.touchdowns_early,
-               "liftoff_waits": result.liftoff_waits,
+               "liftoff_waits": result.liftoff_waits, "landing_waits": result.landing_waits,
                "estop_events": len(summary.get("estop_events", [])),
                "max_torso_tilt_deg": summary.get("max_torso_tilt_deg"),
                "final_tilt_deg": round(float(end_tilt_deg[-1]), 2),

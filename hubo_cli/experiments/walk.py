@@ -50,6 +50,8 @@ class WalkResult:
         liftoff_waits: lift-offs the walk's timeline waited at, the soles measured carrying
             too little of the body's weight
             (:meth:`~hubo_cli.walking.target.WalkTarget._unloaded_liftoff`).
+        landing_waits: landings whose double support waited, after a push, for the landed
+            foot to carry (:meth:`~hubo_cli.walking.target.WalkTarget._unloaded_landing`).
         reaims: the plan's last landings re-aimed from the estimated stance sole at their
             lift-offs (:meth:`~hubo_cli.walking.target.WalkTarget._reaim`).
         final_error_mm, final_error_deg: the final stance (midway between the soles) from the
@@ -77,6 +79,7 @@ class WalkResult:
     shifts: int
     touchdowns_early: int
     liftoff_waits: int
+    landing_waits: int
     reaims: int
     final_error_mm: float
     final_error_deg: float
@@ -96,7 +99,8 @@ class WalkResult:
     def summary(self) -> dict:
         return {"fell": self.fell, "stopped_s": self.stopped_s, "stood": self.stood,
                 "shifts": self.shifts, "touchdowns_early": self.touchdowns_early,
-                "liftoff_waits": self.liftoff_waits, "reaims": self.reaims,
+                "liftoff_waits": self.liftoff_waits, "landing_waits": self.landing_waits,
+                "reaims": self.reaims,
                 "final_error_mm": self.final_error_mm,
                 "final_error_deg": self.final_error_deg,
                 "estimated_final_error_mm": self.estimated_final_error_mm,
@@ -236,7 +240,7 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
     target = WalkTarget(walking_model, params, goal, q_start, T_world_neck, corrections,
                         stabilizer=stabilizer,
                         toe_heel=ToeHeelParams.from_model(walking_model) if toe_heel else None,
-                        lip_feedback=lip_feedback)
+                        lip_feedback=lip_feedback, landing_wait=gait != "fast")
     setup = RunSetup(command="walk", model=walking_model, driver=driver,
                      driver_options=driver_options or {}, gui=gui, out=out,
                      safety=SafetyProfile().with_stops(stops).with_balance(balance),
@@ -252,7 +256,8 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
         fell=target.fell, stopped_s=target.stopped_s,
         stood=target.phase == "stood" and not target.stop_failed,  # failed: braked in place
         shifts=target.shifts, touchdowns_early=target.touchdowns_early,
-        liftoff_waits=target.liftoff_waits, reaims=target.reaims,
+        liftoff_waits=target.liftoff_waits, landing_waits=target.landing_waits,
+        reaims=target.reaims,
         final_error_mm=1000 * error_m,
         final_error_deg=math.degrees(error_rad),
         estimated_final_error_mm=1000 * estimated_m,

@@ -41,7 +41,9 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
 * ``stopping``: entered when the soft stopper has latched (its mode, the previous period's
   :data:`~hubo_cli.control.keys.STOP_MODE`, is no longer ``release``): the step in progress
   is finished (the swing foot lands; before the first step, none is taken) into a double-support
-  stance, the CoM comes to rest between the feet over ``settle_s``. Every period the walk tells
+  stance, the CoM comes to rest between the feet over ``settle_s``; after a push, a landing's
+  weight transfer waits in the periods its landed foot reads unloaded, bounced off the floor
+  (:meth:`WalkTarget._unloaded_landing`). Every period the walk tells
   the stopper that it stops itself so (:data:`~hubo_cli.control.phase.PHASE_STOP`), and the
   stopper passes this motion through instead of reverting it. The stabilizer's torso offset
   holds from the latch on (the soles' damping goes on): its CoM feedback integrates the CoM's
@@ -184,6 +186,12 @@ LIFTOFF_MIN_LOAD = 0.2  # the median of their F_z together over this window, at 
                         # bounce too: it waited at 2 of their 322 lift-offs (5-15 ms; both
                         # arrived; docs/history/walking.md, round 7). Without the sensors
                         # (NaN) it never waits
+LANDING_WAIT_MAX_S = 0.5  # [chosen] after a push, a landing's double support waits at most this
+                          # long in all for its landed foot to carry (WalkTarget._unloaded_landing)
+LANDING_CARRIED_S = 0.08  # [chosen] ... and none once that foot has carried this long in a row
+                          # (the landing is made: pushed seed 13's landed foot bounced, loaded
+                          # at most 0.035 s in a row; seed 8's carried 0.21 s, then the body
+                          # rocked onto the other foot and waiting there, it fell)
 LIFTOFF_WAIT_MAX_S = 1.0  # [chosen] ... and at one lift-off at most this long: then the sensors
                         # read wrong (zero) or the robot is held in the air, and the walk ends
                         # there (a DeviceError: the loop's smooth stop, both feet planned down)
@@ -404,7 +412,7 @@ class WalkTarget(Target):
                    "walk.left_cop_m", "walk.right_angle_ref_rad", "walk.left_angle_ref_rad",
                    "walk.right_angle_rad", "walk.left_angle_rad",
                    "walk.zmp_command_x_m", "walk.zmp_command_y_m",
-                   "walk.phase_code", "walk.soles_fz_n", "walk.liftoff_wait",
+                   "walk.phase_code", "walk.soles_fz_n", "walk.liftoff_wait", "walk.landing_wait",
                    "walk.cp_error_x_m", "walk.cp_error_y_m",
                    "walk.cp_shift_x_m", "walk.cp_shift_y_m",
                    "walk.offset_x_m", "walk.offset_y_m", "walk.right_lift_m", "walk.left_lift_m",
@@ -416,8 +424,10 @@ class WalkTarget(Target):
                  q_start_rad: np.ndarray, T_world_neck_start: np.ndarray,
                  corrections: int = 1, end_width_m: float | None = None,
                  stabilizer: StabilizerGains | None = None,
-                 toe_heel: ToeHeelParams | None = None, lip_feedback: bool = False) -> None:
+                 toe_heel: ToeHeelParams | None = None, lip_feedback: bool = False,
+                 landing_wait: bool = True) -> None:
         self.model = model
+        self.landing_wait = landing_wait  # (:meth:`_unloaded_landing`; off: the fast gait)
         self.toe_heel = toe_heel
         self.lip_feedback = lip_feedback and stabilizer is not None
         self.lip: LipStabilizer | None = None
@@ -468,6 +478,11 @@ class WalkTarget(Target):
         self._waited_s = 0.0  # ... this long
         self._weight_n = math.inf  # the body's weight (N; from the first plan's model)
         self.liftoff_waits = 0  # lift-offs the timeline waited at
+        self.landing_waits = 0  # landings whose double support waited for the landed foot
+        self._landed: tuple[int, int] | None = None  # the last landing's foot (column) and row
+        self._landing_waited_s = 0.0  # ... its double support waited this long in all
+        self._landing_carried_s = 0.0  # ... its foot has carried this long in a row
+        self._soles_fz_n = np.full(2, math.nan)  # each sole's F_z as read, this period
         xs, ys = self.corners[:, 0], self.corners[:, 1]
         box = (float(xs.min()), float(xs.max()), float(ys.min()), float(ys.max()))
         if stabilizer is not None:
@@ -1145,8 +1160,14 @@ class WalkTarget(Target):
                        for sensor in ANKLE_SENSORS)  # as read (the log's *_foot_fz_n)
         self._loads_n[self._load_i] = soles_fz
         self._load_i = (self._load_i + 1) % len(self._loads_n)
-        waiting = self._unloaded_liftoff(k)
-        self._waited_s = self._waited_s + gait.period_s if waiting else 0.0
+        self._soles_fz_n[:] = [float(state.ft[sensor][2]) if sensor in state.ft else math.nan
+                               for sensor in ANKLE_SENSORS]
+        landing_wait = self._unloaded_landing(k)
+        if landing_wait:
+            self.landing_waits += self._landing_waited_s == 0.0
+            self._landing_waited_s += gait.period_s
+        waiting = landing_wait or self._unloaded_liftoff(k)
+        self._waited_s = self._waited_s + gait.period_s if waiting and not landing_wait else 0.0
         if self._waited_s > LIFTOFF_WAIT_MAX_S:
             weight_n = LIFTOFF_MIN_LOAD * self._weight_n
             raise DeviceError(
@@ -1156,11 +1177,11 @@ class WalkTarget(Target):
                 hint="check the ankle F/T sensors (zero offsets, cables), or put the robot "
                      "down on its feet")
         if waiting:
-            self.liftoff_waits += not self._waiting
+            self.liftoff_waits += not (self._waiting or landing_wait)
             self.plan_start_s += gait.period_s  # the timeline waits: row k plays again
         else:
             self.k += 1
-        self._waiting = waiting
+        self._waiting = waiting and not landing_wait
         (_, _, r02, _), (_, _, r12, _), (_, _, r22, torso_z) = store[T_WORLD_TORSO][:3].tolist()
         tilt_deg = math.degrees(tilt_rad_of_z_axis(r02, r12, r22))
         if self.torso_z0_m is None:
@@ -1190,7 +1211,9 @@ class WalkTarget(Target):
                 "planned_right_foot_contact_flag": float(support[0]),
                 "planned_left_foot_contact_flag": float(support[1]),
                 "walk.phase_code": float(WALK_PHASES.index(self.phase)),
-                "walk.soles_fz_n": soles_fz, "walk.liftoff_wait": float(waiting),
+                "walk.soles_fz_n": soles_fz,
+                "walk.liftoff_wait": float(waiting and not landing_wait),
+                "walk.landing_wait": float(landing_wait),
                 "walk.cp_error_x_m": float(self._cp_error[0]),
                 "walk.cp_error_y_m": float(self._cp_error[1]),
                 "walk.cp_shift_x_m": float(self._shift[1][0]),
@@ -1208,6 +1231,43 @@ class WalkTarget(Target):
             return False
         loads_n = self._loads_n[~np.isnan(self._loads_n)]  # one garbled reading: not ignored
         return bool(len(loads_n) and np.median(loads_n) < LIFTOFF_MIN_LOAD * self._weight_n)
+
+    def _unloaded_landing(self, k: int) -> bool:
+        """Row ``k`` is in the double support after a landing, the landed foot's ankle F/T
+        sensor reads under ``estimation.swing_touchdown_n`` this period, the walk is stopping
+        (the capture-point monitor's stop or the operator's) and the estimated capture point
+        is off the pattern's (:meth:`_pushed`): the timeline waits at row ``k``,
+        the pattern's weight transfer held, until that foot carries again, at most
+        LANDING_WAIT_MAX_S in all over that double support (then it plays on), and no more
+        once the foot has carried LANDING_CARRIED_S in a row. A push just
+        before a landing tips the body back onto the other sole and the landed foot leaves
+        the floor again, bouncing between the feet; played on, the transfer moved the ZMP
+        reference onto the foot in the air, the body rolled onto it and over its outer edge
+        (pushed seed 13, docs/history/walking.md, round 10). A re-plan (a stop) begun in that
+        double support keeps the landing; without the sensor (NaN) it never waits. Only once
+        the walk stops: waiting while it walked, perturbed robots' unpushed 1 m walks (their
+        capture point 20-57 mm off the pattern's, landed feet reading under 60 N now and
+        then) waited 0.3-3 s, one fell and 14 of 20 ended over 10 mm off. Off
+        (``landing_wait``) for the fast gait: its own landings bounce and its capture point
+        lags the pattern's by more than CP_MARGIN_M without a push; waiting at 4-12 of its
+        landings, 3 of 10 of its 2 m walks fell (docs/history/walking.md, round 10)."""
+        support = self._rows["support"]
+        if not self.landing_wait or not all(support[k]):
+            self._landed = None  # (a single support: the landing is past)
+            return False
+        if k >= 1 and not all(support[k - 1]) and (self._landed is None
+                                                  or self._landed[1] != k):
+            self._landed = (0 if not support[k - 1][0] else 1, k)
+            self._landing_waited_s = self._landing_carried_s = 0.0
+        if self._landed is None or self._landing_waited_s >= LANDING_WAIT_MAX_S:
+            return False
+        if not self._soles_fz_n[self._landed[0]] < self.model.estimation.swing_touchdown_n:
+            self._landing_carried_s += self.gait.period_s
+            if self._landing_carried_s >= LANDING_CARRIED_S - 1e-9:
+                self._landed = None  # the landing is made
+            return False
+        self._landing_carried_s = 0.0
+        return self.phase == "stopping" and self._pushed(k)
 
     def _done(self, t_s: float) -> bool:
         """The walk has ended: the pattern played (and no correction is due), or a stop's
