@@ -540,11 +540,14 @@ REPLAN_REVIEW = (
 
 
 def _offline_walk(goal_m, periods, stop_k=None, cp_offset_m=(0.0, 0.0), offset_k=(0, 0),
-                  each=None, ankles_fz_n=190.0, drift_m=(0.0, 0.0)):
+                  each=None, ankles_fz_n=190.0, drift_m=(0.0, 0.0), double_only=False,
+                  contact=None):
     """A walk's target played offline (no physics): the estimate is where the pattern is
-    (its capture point moved by ``cp_offset_m`` over periods ``offset_k``; after the first
-    plan, its soles and capture point ``drift_m`` behind the pattern's: world x, y), each
-    ankle's F/T sensor reads ``ankles_fz_n``, the operator's stop from ``stop_k``;
+    (its capture point moved by ``cp_offset_m`` over periods ``offset_k``, ``double_only``: in
+    its double supports only; after the first plan, its soles and capture point ``drift_m``
+    behind the pattern's: world x, y; its contacts the pattern's or ``contact(k)`` where that
+    is not None), each ankle's F/T sensor reads ``ankles_fz_n`` (one value, or right and
+    left), the operator's stop from ``stop_k``;
     ``each(k, target, before)`` runs after every period (``before``: the plan and the pending
     re-plan before it). Returns the target, its commands and the periods a new pattern was
     installed."""
@@ -558,9 +561,10 @@ def _offline_walk(goal_m, periods, stop_k=None, cp_offset_m=(0.0, 0.0), offset_k
 
     _, q0, _, target, store = standing_walk(goal_m, None)
     store[COM_VELOCITY_WORLD] = np.zeros(3)
+    fz_n = np.broadcast_to(np.asarray(ankles_fz_n, dtype=float), (2,))
     state = RobotState(0.0, q0, np.zeros_like(q0),
-                       ft={name: np.array([0.0, 0.0, ankles_fz_n, 0.0, 0.0, 0.0])
-                           for name in ANKLE_SENSORS})
+                       ft={name: np.array([0.0, 0.0, fz, 0.0, 0.0, 0.0])
+                           for name, fz in zip(ANKLE_SENSORS, fz_n, strict=True)})
     commands, installs = [], []
     for k in range(periods):
         if target.gait is None:
@@ -568,13 +572,15 @@ def _offline_walk(goal_m, periods, stop_k=None, cp_offset_m=(0.0, 0.0), offset_k
         else:  # the estimate where the pattern is, the capture point moved as asked
             j = min(target.k, target.gait.n - 1)
             com = target.gait.com
+            offset = offset_k[0] <= k < offset_k[1] and (
+                not double_only or all(target._rows["support"][j]))
             store[CAPTURE_POINT_WORLD] = com.com_m[j] + com.com_velocity_m_s[j] / target._omega \
-                + (np.asarray(cp_offset_m) if offset_k[0] <= k < offset_k[1] else 0.0) \
-                - np.asarray(drift_m)
+                + (np.asarray(cp_offset_m) if offset else 0.0) - np.asarray(drift_m)
             store[T_WORLD_SOLES] = poses_of_rows(np.array([target._rows[side][j]
                                                            for side in ("right", "left")]))
             store[T_WORLD_SOLES][:, :2, 3] -= np.asarray(drift_m)
-            store[CONTACT] = tuple(target._rows["support"][j])  # (no swing foot pushed down)
+            store[CONTACT] = (contact is not None and contact(k)) \
+                or tuple(target._rows["support"][j])  # (no swing foot pushed down)
         store[STOP_MODE] = "finish" if stop_k is not None and k >= stop_k else "release"
         before = target.plan, target._pending
         q, info = target(k * DT, state)
@@ -754,6 +760,40 @@ def test_a_landing_waits_for_its_foot_after_a_push_just_before_it(tmp_path, mode
     assert result.fell is False and result.stood is True
     # measured max tilt 17.7 deg (AVX-512) and 16.5 (portable); a fall: 30; bound 25 (1.4x)
     assert summary["max_torso_tilt_deg"] < 25.0
+
+
+def test_a_pushed_stops_landing_waits_whichever_pattern_it_lands_in():
+    """The landing wait (after a push, once the walk stops) keys on the rows played, not on
+    the pattern's own rows: a stop whose rest is installed at the landing's period, and a
+    swing foot measured down early (its pattern starts at the landing's double support), wait
+    as a landing inside one pattern does. Offline: the landed (right) foot reads 0 N, the
+    capture point 50 mm off the pattern's in double support. Before the review fix the
+    landing at a pattern's row 0 did not wait (a stop at period 495 here; an early
+    touchdown)."""
+    from hubo_cli.walking.target import LANDING_WAIT_MAX_S
+
+    at_install = 0
+    for stop_k in range(490, 501):
+        played = []
+        target, _, installs = _offline_walk(
+            (0.3, 0.0, 0.0), 3000, stop_k=stop_k, cp_offset_m=(0.0, 0.05),
+            offset_k=(stop_k, 3000), double_only=True, ankles_fz_n=(0.0, 380.0),
+            each=lambda k, target, before, played=played: played.append(
+                all(target._played_support)))
+        landing = next(k for k in range(stop_k, len(played)) if played[k] and not played[k - 1])
+        at_install += landing in installs
+        assert target.landing_waits == 1 and target.phase == "stood", stop_k
+    assert at_install >= 1  # the case the fix is for is among them
+    for early in (True, False):
+        waited = []
+        target, _, _ = _offline_walk(
+            (0.3, 0.0, 0.0), 3000, stop_k=430, cp_offset_m=(0.0, 0.05), offset_k=(470, 3000),
+            ankles_fz_n=(0.0, 380.0),
+            contact=lambda k, early=early: (True, True) if early and 470 <= k < 480 else None,
+            each=lambda k, target, before, waited=waited: waited.append(target._landing_waited_s))
+        assert target.touchdowns_early == int(early)
+        assert target.landing_waits == 1 and target.phase == "stood"
+        assert max(waited) == pytest.approx(LANDING_WAIT_MAX_S)
 
 
 @pytest.mark.parametrize("drift_m", [(0.012, -0.009), (-0.015, 0.006), (0.005, 0.004)])

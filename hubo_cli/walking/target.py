@@ -479,7 +479,8 @@ class WalkTarget(Target):
         self._weight_n = math.inf  # the body's weight (N; from the first plan's model)
         self.liftoff_waits = 0  # lift-offs the timeline waited at
         self.landing_waits = 0  # landings whose double support waited for the landed foot
-        self._landed: tuple[int, int] | None = None  # the last landing's foot (column) and row
+        self._landed: int | None = None  # the last landing's foot (its support column)
+        self._played_support: tuple[bool, bool] | None = None  # the row played last period
         self._landing_waited_s = 0.0  # ... its double support waited this long in all
         self._landing_carried_s = 0.0  # ... its foot has carried this long in a row
         self._soles_fz_n = np.full(2, math.nan)  # each sole's F_z as read, this period
@@ -1202,6 +1203,7 @@ class WalkTarget(Target):
         rows = self._rows
         zmp_x, zmp_y = zmp[:2].tolist()
         support = rows["support"][k]
+        self._played_support = (bool(support[0]), bool(support[1]))
         (zmp_ref_x, zmp_ref_y), (com_ref_x, com_ref_y) = rows["zmp_ref"][k], rows["com_ref"][k]
         info = {"walk.zmp_ref_x_m": zmp_ref_x, "walk.zmp_ref_y_m": zmp_ref_y,
                 "walk.com_ref_x_m": com_ref_x, "walk.com_ref_y_m": com_ref_y,
@@ -1251,17 +1253,19 @@ class WalkTarget(Target):
         (``landing_wait``) for the fast gait: its own landings bounce and its capture point
         lags the pattern's by more than CP_MARGIN_M without a push; waiting at 4-12 of its
         landings, 3 of 10 of its 2 m walks fell (docs/history/walking.md, round 10)."""
-        support = self._rows["support"]
-        if not self.landing_wait or not all(support[k]):
+        if not self.landing_wait or not all(self._rows["support"][k]):
             self._landed = None  # (a single support: the landing is past)
             return False
-        if k >= 1 and not all(support[k - 1]) and (self._landed is None
-                                                  or self._landed[1] != k):
-            self._landed = (0 if not support[k - 1][0] else 1, k)
+        played = self._played_support
+        if played is not None and not all(played):
+            # a landing: last period played one sole down, this row has both, whatever
+            # pattern it is in (a stop's rest, an early touchdown or an abandoned swing starts
+            # its pattern at the landing's row 0)
+            self._landed = 0 if not played[0] else 1
             self._landing_waited_s = self._landing_carried_s = 0.0
         if self._landed is None or self._landing_waited_s >= LANDING_WAIT_MAX_S:
             return False
-        if not self._soles_fz_n[self._landed[0]] < self.model.estimation.swing_touchdown_n:
+        if not self._soles_fz_n[self._landed] < self.model.estimation.swing_touchdown_n:
             self._landing_carried_s += self.gait.period_s
             if self._landing_carried_s >= LANDING_CARRIED_S - 1e-9:
                 self._landed = None  # the landing is made
