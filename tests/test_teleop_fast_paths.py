@@ -164,6 +164,19 @@ class NumpyGoalVelocity(lead.GoalVelocity):
         self._v_count = min(self._v_count + 1, k)
         return self.v_rad_s
 
+    def decay_s(self, shortest_s, longest_s):
+        """GoalVelocity.decay_s joint by joint in plain Python (w = w0 exp(-window / tau))."""
+        k = len(self._q)
+        out = []
+        for w0, w in zip(self._v[(self._slot + 1) % k], self._v[self._slot], strict=True):
+            tau = longest_s
+            if self._v_count < k:
+                tau = shortest_s
+            elif w * w0 > 0.0 and abs(w) < abs(w0):
+                tau = (k - 1) * self.dt_s / math.log(w0 / w)
+            out.append(min(max(tau, shortest_s), longest_s))
+        return np.array(out)
+
 
 def _axis_angle(axis, angle):
     K = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
