@@ -483,7 +483,6 @@ class WalkTarget(Target):
         self._played_support: tuple[bool, bool] | None = None  # the row played last period
         self._landing_waited_s = 0.0  # ... its double support waited this long in all
         self._landing_carried_s = 0.0  # ... its foot has carried this long in a row
-        self._soles_fz_n = np.full(2, math.nan)  # each sole's F_z as read, this period
         xs, ys = self.corners[:, 0], self.corners[:, 1]
         box = (float(xs.min()), float(xs.max()), float(ys.min()), float(ys.max()))
         if stabilizer is not None:
@@ -1157,18 +1156,17 @@ class WalkTarget(Target):
             self.params.step_s + self.params.settle_s + WALK_STOP_SPARE_S)
         gait, plan = self.gait, self.plan
         k = min(self.k, gait.n - 1)
-        soles_fz = sum(float(state.ft[sensor][2]) if sensor in state.ft else math.nan
-                       for sensor in ANKLE_SENSORS)  # as read (the log's *_foot_fz_n)
+        right_fz_n, left_fz_n = (float(state.ft[sensor][2]) if sensor in state.ft else math.nan
+                                 for sensor in ANKLE_SENSORS)  # as read (the log's *_foot_fz_n)
+        soles_fz = right_fz_n + left_fz_n
         self._loads_n[self._load_i] = soles_fz
         self._load_i = (self._load_i + 1) % len(self._loads_n)
-        self._soles_fz_n[:] = [float(state.ft[sensor][2]) if sensor in state.ft else math.nan
-                               for sensor in ANKLE_SENSORS]
-        landing_wait = self._unloaded_landing(k)
+        landing_wait = self._unloaded_landing(k, (right_fz_n, left_fz_n))
         if landing_wait:
             self.landing_waits += self._landing_waited_s == 0.0
             self._landing_waited_s += gait.period_s
-        waiting = landing_wait or self._unloaded_liftoff(k)
-        self._waited_s = self._waited_s + gait.period_s if waiting and not landing_wait else 0.0
+        liftoff_wait = not landing_wait and self._unloaded_liftoff(k)
+        self._waited_s = self._waited_s + gait.period_s if liftoff_wait else 0.0
         if self._waited_s > LIFTOFF_WAIT_MAX_S:
             weight_n = LIFTOFF_MIN_LOAD * self._weight_n
             raise DeviceError(
@@ -1177,12 +1175,12 @@ class WalkTarget(Target):
                 f"{LIFTOFF_WAIT_MAX_S:g} s before a step: the walk stopped in double support",
                 hint="check the ankle F/T sensors (zero offsets, cables), or put the robot "
                      "down on its feet")
-        if waiting:
-            self.liftoff_waits += not (self._waiting or landing_wait)
+        if landing_wait or liftoff_wait:
+            self.liftoff_waits += liftoff_wait and not self._waiting
             self.plan_start_s += gait.period_s  # the timeline waits: row k plays again
         else:
             self.k += 1
-        self._waiting = waiting and not landing_wait
+        self._waiting = liftoff_wait
         (_, _, r02, _), (_, _, r12, _), (_, _, r22, torso_z) = store[T_WORLD_TORSO][:3].tolist()
         tilt_deg = math.degrees(tilt_rad_of_z_axis(r02, r12, r22))
         if self.torso_z0_m is None:
@@ -1214,7 +1212,7 @@ class WalkTarget(Target):
                 "planned_left_foot_contact_flag": float(support[1]),
                 "walk.phase_code": float(WALK_PHASES.index(self.phase)),
                 "walk.soles_fz_n": soles_fz,
-                "walk.liftoff_wait": float(waiting and not landing_wait),
+                "walk.liftoff_wait": float(liftoff_wait),
                 "walk.landing_wait": float(landing_wait),
                 "walk.cp_error_x_m": float(self._cp_error[0]),
                 "walk.cp_error_y_m": float(self._cp_error[1]),
@@ -1234,9 +1232,10 @@ class WalkTarget(Target):
         loads_n = self._loads_n[~np.isnan(self._loads_n)]  # one garbled reading: not ignored
         return bool(len(loads_n) and np.median(loads_n) < LIFTOFF_MIN_LOAD * self._weight_n)
 
-    def _unloaded_landing(self, k: int) -> bool:
+    def _unloaded_landing(self, k: int, soles_fz_n: tuple[float, float]) -> bool:
         """Row ``k`` is in the double support after a landing, the landed foot's ankle F/T
-        sensor reads under ``estimation.swing_touchdown_n`` this period, the walk is stopping
+        sensor (``soles_fz_n``: right, left, N, as read) reads under
+        ``estimation.swing_touchdown_n`` this period, the walk is stopping
         (the capture-point monitor's stop or the operator's) and the estimated capture point
         is off the pattern's (:meth:`_pushed`): the timeline waits at row ``k``,
         the pattern's weight transfer held, until that foot carries again, at most
@@ -1265,7 +1264,7 @@ class WalkTarget(Target):
             self._landing_waited_s = self._landing_carried_s = 0.0
         if self._landed is None or self._landing_waited_s >= LANDING_WAIT_MAX_S:
             return False
-        if not self._soles_fz_n[self._landed] < self.model.estimation.swing_touchdown_n:
+        if not soles_fz_n[self._landed] < self.model.estimation.swing_touchdown_n:
             self._landing_carried_s += self.gait.period_s
             if self._landing_carried_s >= LANDING_CARRIED_S - 1e-9:
                 self._landed = None  # the landing is made
