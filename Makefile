@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: run test test-portable bench lint docs clean
+.PHONY: run test test-portable warm bench lint docs clean
 
 LOCK   := requirements.lock
 # the extras make installs: the suite's, the pictures', the docs site's (the suite builds it)
@@ -51,6 +51,14 @@ PORTABLE_ENV := NPY_DISABLE_CPU_FEATURES="AVX512F AVX512CD AVX512_SKX AVX512_CLX
 
 test-portable: $(STAMP)
 	$(PORTABLE_ENV) $(BIN)/python -m pytest -q -m physical
+
+# Compiles the kernels of both code paths into their caches at once, one process each
+# (tests/warm_kernels.py; the two caches stay apart): .ci/run's step before the two test runs,
+# which then only load them. Each path alone compiles in about 60 s of CPU on a cold cache.
+warm: $(STAMP)
+	$(BIN)/python tests/warm_kernels.py arms legs & pid=$$!; \
+	$(PORTABLE_ENV) $(BIN)/python tests/warm_kernels.py arms legs; portable=$$?; \
+	wait $$pid && exit $$portable
 
 bench: $(STAMP)
 	$(BIN)/python -m hubo_cli.bench $(BENCH)

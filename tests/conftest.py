@@ -1,5 +1,6 @@
 """Shared fixtures, the order of the tests and their grouping on the xdist workers."""
 
+import os
 import signal
 import subprocess
 import sys
@@ -97,10 +98,13 @@ def pytest_configure(config):
     ``tests/warm_kernels.py``'s two workloads, run at once (its docstring says why). In a fresh
     checkout this compiles each kernel once instead of once per worker; with a warm cache it
     costs the workloads' few seconds. A workload that fails costs only time (the workers then
-    compile what they need, and the tests report any fault); it is said in one warning line."""
+    compile what they need, and the tests report any fault); it is said in one warning line.
+    ``.ci/run`` fills both CPU paths' caches at once first (``make warm``) and says so with
+    ``HUBO_KERNELS_WARM=1``: then the workloads are not run again."""
     option = config.option
     if (hasattr(config, "workerinput") or (getattr(option, "numprocesses", 0) or 0) < 2
-            or option.help or option.collectonly or option.showfixtures):
+            or option.help or option.collectonly or option.showfixtures
+            or os.environ.get("HUBO_KERNELS_WARM") == "1"):
         return
     script = Path(__file__).with_name("warm_kernels.py")
     warming = {part: subprocess.Popen([sys.executable, str(script), part],
