@@ -31,6 +31,8 @@ REACH_DEAD_RAD = math.radians(1.0)  # [chosen] the torso's roll from the planned
 REACH_MAX_RAD = 0.25    # [chosen] ... at most this much (pushed seed 6 at 60 N rolled 0.19 rad)
 REACH_RATE_RAD_S = 0.8  # [chosen] ... changing at most this fast (the legs' correction moves a
                         # joint at most 1 rad/s: LEG_STEP_RAD a period)
+REACH_STOP_RAD = 0.05   # [chosen] a turn beyond this stops the walk (the body was tipped over
+                        # the stance sole's edge: the walk finishes its step and stands)
 REACH_RETURN_RAD_S = 0.3  # [chosen] a leg planned down and in contact gives its turn back so
 
 
@@ -55,9 +57,11 @@ class FloorReach:
         self.half_width_m = half_width_m  # the sole's outer edge from its origin (m)
         self.dt_s = dt_s
         self.angle_rad = np.zeros(2)  # right, left
+        self.tipped = False  # a turn went beyond REACH_STOP_RAD
 
     def reset(self) -> None:
         self.angle_rad[:] = 0.0
+        self.tipped = False
 
     def update(self, roll_error_rad: float, support: tuple[bool, bool],
                contact: tuple[bool, bool]) -> None:
@@ -77,6 +81,7 @@ class FloorReach:
                                       REACH_MAX_RAD)
                 self.angle_rad[column] = angle + min(max(wanted - angle, -step), step)
             # (on the floor, the other one swinging; no estimate of the torso: it holds)
+        self.tipped = self.tipped or bool(np.any(np.abs(self.angle_rad) > REACH_STOP_RAD))
 
     def turns(self, T_neck_soles: np.ndarray) -> np.ndarray | None:
         """The transforms (2 x 4 x 4, in the torso's frame) to apply to the sole goals

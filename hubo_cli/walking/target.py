@@ -1149,7 +1149,8 @@ class WalkTarget(Target):
         work = self._prefix, self._pending
         if self.gait is None:
             self._start(t_s, state.q_rad)
-        elif self.phase == "walk" and store.get(STOP_MODE, "release") != "release":
+        elif self.phase == "walk" and (store.get(STOP_MODE, "release") != "release"
+                                       or self.stabilizer is not None and self.reach.tipped):
             self._stop(t_s)
         elif self.phase == "walk" and self.k >= self.gait.n and not self.fell \
                 and self._pending is None and self.corrections_left > 0 and not self.arrived():
