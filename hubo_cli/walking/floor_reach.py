@@ -26,12 +26,12 @@ import math
 
 import numpy as np
 
-REACH_DEAD_RAD = math.radians(1.0)  # [chosen] the torso's roll from the planned one beyond this
+REACH_DEAD_RAD = math.radians(2.0)  # [chosen] the torso's roll from the planned one beyond this
                         # is taken out of a swing foot (unpushed walking: under 0.0069 rad, round 9)
 REACH_MAX_RAD = 0.25    # [chosen] ... at most this much (pushed seed 6 at 60 N rolled 0.19 rad)
 REACH_RATE_RAD_S = 0.8  # [chosen] ... changing at most this fast (the legs' correction moves a
                         # joint at most 1 rad/s: LEG_STEP_RAD a period)
-REACH_STOP_RAD = 0.05   # [chosen] a turn beyond this stops the walk (the body was tipped over
+REACH_STOP_RAD = 0.03   # [chosen] a turn beyond this stops the walk (the body was tipped over
                         # the stance sole's edge: the walk finishes its step and stands)
 REACH_RETURN_RAD_S = 0.3  # [chosen] a leg planned down and in contact gives its turn back so
 

@@ -1150,7 +1150,7 @@ class WalkTarget(Target):
         if self.gait is None:
             self._start(t_s, state.q_rad)
         elif self.phase == "walk" and (store.get(STOP_MODE, "release") != "release"
-                                       or self.stabilizer is not None and self.reach.tipped):
+                                       or self._caught(self.k)):
             self._stop(t_s)
         elif self.phase == "walk" and self.k >= self.gait.n and not self.fell \
                 and self._pending is None and self.corrections_left > 0 and not self.arrived():
@@ -1389,6 +1389,13 @@ class WalkTarget(Target):
             q[pitch] += delta[1]
         self._level_swing(k, rows["support"][k], q)
         return q
+
+    def _caught(self, k: int) -> bool:
+        """A swing foot turned beyond REACH_STOP_RAD against the body's roll over the stance
+        sole's edge has landed (row ``k`` has both soles down): the walk stops there
+        (:mod:`hubo_cli.walking.floor_reach`)."""
+        return (self.stabilizer is not None and self.reach.tipped and k < self.gait.n
+                and all(self._rows["support"][k]))
 
     def _reach_floor(self, k: int) -> None:
         """The swing foot kept over the floor against the estimated torso's roll from the
