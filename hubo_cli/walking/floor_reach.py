@@ -17,7 +17,10 @@ the body's roll about that edge is taken back out of the swing foot, which so ke
 height and attitude over the floor and lands flat, on time, where the rebound brings the
 capture point. A leg on the floor keeps its turn while the other swings; with both soles
 planned down and in contact the turns go back at REACH_RETURN_RAD_S (as the pitch's levelling,
-:meth:`~hubo_cli.walking.target.WalkTarget._level_swing`, which keeps the pitch).
+:meth:`~hubo_cli.walking.target.WalkTarget._level_swing`, which keeps the pitch). A turn
+beyond REACH_STOP_RAD marks the walk :attr:`FloorReach.tipped`: the walk stops once that foot
+has landed (the step finished into a double-support stance, as the capture-point monitor's
+stop does).
 """
 
 from __future__ import annotations
@@ -26,14 +29,23 @@ import math
 
 import numpy as np
 
-REACH_DEAD_RAD = math.radians(2.0)  # [chosen] the torso's roll from the planned one beyond this
-                        # is taken out of a swing foot (unpushed walking: under 0.0069 rad, round 9)
+REACH_DEAD_RAD = math.radians(2.0)  # [chosen] the torso's roll from the planned one beyond
+                        # this is taken out of a swing foot (unpushed walking: under 0.0069 rad,
+                        # round 9). 1 deg acted in pushed seed 8's steps after a push away from
+                        # the stance foot (12 mrad of turn) and that walk fell (main: stood)
 REACH_MAX_RAD = 0.25    # [chosen] ... at most this much (pushed seed 6 at 60 N rolled 0.19 rad)
 REACH_RATE_RAD_S = 0.8  # [chosen] ... changing at most this fast (the legs' correction moves a
-                        # joint at most 1 rad/s: LEG_STEP_RAD a period)
-REACH_STOP_RAD = 0.03   # [chosen] a turn beyond this stops the walk (the body was tipped over
-                        # the stance sole's edge: the walk finishes its step and stands)
+                        # joint at most 1 rad/s, LEG_STEP_RAD a period, or holds)
+REACH_STOP_RAD = 0.03   # [chosen] a turn beyond this (the body tipped over the stance sole's
+                        # edge) stops the walk once the foot has landed
+                        # (:meth:`~hubo_cli.walking.target.WalkTarget._caught`): walking on,
+                        # pushed seed 6 at 60 N (turn 0.097 rad) and seed 58 at 50 N caught the
+                        # rebound and fell two steps later; pushed seed 8 (0.043 rad) fell in its
+                        # correction walk. Stopped at once (0.05 rad, a 1 deg dead band) instead
+                        # of at the landing, seed 8 fell
 REACH_RETURN_RAD_S = 0.3  # [chosen] a leg planned down and in contact gives its turn back so
+                          # (at 0.1 rad/s with both soles loaded, as the pitch's levelling, the
+                          # landed leg kept 0.074 rad through seed 6's next step, which bounced)
 
 
 def _turn_about(axis: np.ndarray, angle_rad: float, point: np.ndarray) -> np.ndarray:

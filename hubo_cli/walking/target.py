@@ -27,7 +27,12 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
   down until the planned landing (:meth:`WalkTarget._touched_early`); lifted again under the
   robot's weight, it fell. A swing leg is pitched at its hip against the
   estimated torso's pitch from the planned one (beyond LEVEL_DEAD_RAD), so that a foot carried
-  by a body tipped by a push lands flat (:meth:`WalkTarget._level_swing`). From the last
+  by a body tipped by a push lands flat (:meth:`WalkTarget._level_swing`); against the
+  torso's roll toward the stance side (a side push rolling the body over the stance sole's
+  outer edge) the swing leg's sole goal is turned back about that edge, so the foot keeps its
+  planned place over the floor and lands as the body rolls back, and a walk so tipped stops
+  once that foot has landed (:mod:`~hubo_cli.walking.floor_reach`,
+  :meth:`WalkTarget._caught`). From the last
   step's landing on (the pattern's settle) the stabilizer's torso offset holds, as in
   ``stopping``: integrating there, it wound up and kept the soles' loads chattering until the
   next plan's start (docs/history/walking.md, "The walk's own settle"). A foot lifts off only
@@ -39,7 +44,8 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
   (:meth:`WalkTarget._reaim`): the feet end where the plan put them without the correction
   walked after the pattern, which stays for the walks that still end off.
 * ``stopping``: entered when the soft stopper has latched (its mode, the previous period's
-  :data:`~hubo_cli.control.keys.STOP_MODE`, is no longer ``release``): the step in progress
+  :data:`~hubo_cli.control.keys.STOP_MODE`, is no longer ``release``), or when a foot the
+  floor reach turned has landed (:meth:`WalkTarget._caught`): the step in progress
   is finished (the swing foot lands; before the first step, none is taken) into a double-support
   stance, the CoM comes to rest between the feet over ``settle_s``; after a push, a landing's
   weight transfer waits in the periods its landed foot reads unloaded, bounced off the floor
@@ -1393,9 +1399,10 @@ class WalkTarget(Target):
     def _caught(self, k: int) -> bool:
         """A swing foot turned beyond REACH_STOP_RAD against the body's roll over the stance
         sole's edge has landed (row ``k`` has both soles down): the walk stops there
-        (:mod:`hubo_cli.walking.floor_reach`)."""
-        return (self.stabilizer is not None and self.reach.tipped and k < self.gait.n
-                and all(self._rows["support"][k]))
+        (:mod:`hubo_cli.walking.floor_reach`). Not a toe-heel walk: its stop is the
+        stopper's brake (:meth:`_stop`), and this stop latches no stopper."""
+        return (self.stabilizer is not None and self.toe_heel is None and self.reach.tipped
+                and k < self.gait.n and all(self._rows["support"][k]))
 
     def _reach_floor(self, k: int) -> None:
         """The swing foot kept over the floor against the estimated torso's roll from the
