@@ -36,13 +36,14 @@ REACH_DEAD_RAD = math.radians(2.0)  # [chosen] the torso's roll from the planned
 REACH_MAX_RAD = 0.25    # [chosen] ... at most this much (pushed seed 6 at 60 N rolled 0.19 rad)
 REACH_RATE_RAD_S = 0.8  # [chosen] ... changing at most this fast (the legs' correction moves a
                         # joint at most 1 rad/s, LEG_STEP_RAD a period, or holds)
-REACH_STOP_RAD = 0.03   # [chosen] a turn beyond this (the body tipped over the stance sole's
-                        # edge) stops the walk once the foot has landed
+REACH_STOP_RAD = 0.01   # [chosen] a turn beyond this (the body tipped over the stance sole's
+                        # edge beyond the dead band) stops the walk once the foot has landed
                         # (:meth:`~hubo_cli.walking.target.WalkTarget._caught`): walking on,
                         # pushed seed 6 at 60 N (turn 0.097 rad) and seed 58 at 50 N caught the
                         # rebound and fell two steps later; pushed seed 8 (0.043 rad) fell in its
                         # correction walk. Stopped at once (0.05 rad, a 1 deg dead band) instead
-                        # of at the landing, seed 8 fell
+                        # of at the landing, seed 8 fell. At 0.03 pushed seed 19's walk (0.027
+                        # rad, AVX-512) went on instead of stopping (it arrived 26 mm off)
 REACH_RETURN_RAD_S = 0.3  # [chosen] a leg planned down and in contact gives its turn back so
                           # (at 0.1 rad/s with both soles loaded, as the pitch's levelling, the
                           # landed leg kept 0.074 rad through seed 6's next step, which bounced)
