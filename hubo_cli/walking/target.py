@@ -446,9 +446,10 @@ class WalkTarget(Target):
                  corrections: int = 1, end_width_m: float | None = None,
                  stabilizer: StabilizerGains | None = None,
                  toe_heel: ToeHeelParams | None = None, lip_feedback: bool = False,
-                 landing_wait: bool = True) -> None:
+                 landing_wait: bool = True, floor_reach: bool = True) -> None:
         self.model = model
         self.landing_wait = landing_wait  # (:meth:`_unloaded_landing`; off: the fast gait)
+        self.floor_reach = floor_reach  # (:meth:`_reach_floor`; off: the fast gait)
         self.toe_heel = toe_heel
         self.lip_feedback = lip_feedback and stabilizer is not None
         self.lip: LipStabilizer | None = None
@@ -1406,7 +1407,13 @@ class WalkTarget(Target):
 
     def _reach_floor(self, k: int) -> None:
         """The swing foot kept over the floor against the estimated torso's roll from the
-        planned one toward the stance side (:mod:`hubo_cli.walking.floor_reach`)."""
+        planned one toward the stance side (:mod:`hubo_cli.walking.floor_reach`). Off
+        (``floor_reach``) for the fast gait: its own slips and hops roll the torso beyond
+        REACH_DEAD_RAD without a push (perturbed robots 8, 11 and 12's 2 m walks, turns of
+        0.013-0.033 rad), and each such walk then stopped itself (docs/history/walking.md,
+        round 11)."""
+        if not self.floor_reach:
+            return
         R_plan = self.plan.T_world_neck[k, :3, :3]
         error = float(pin.log3(R_plan.T @ np.asarray(self.store[T_WORLD_TORSO],
                                                      dtype=float)[:3, :3])[0])
