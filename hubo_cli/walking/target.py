@@ -1410,8 +1410,9 @@ class WalkTarget(Target):
         planned one toward the stance side (:mod:`hubo_cli.walking.floor_reach`). Off
         (``floor_reach``) for the fast gait: its own slips and hops roll the torso beyond
         REACH_DEAD_RAD without a push (perturbed robots 8, 11 and 12's 2 m walks, turns of
-        0.013-0.033 rad), and each such walk then stopped itself (docs/history/walking.md,
-        round 11)."""
+        0.013-0.033 rad): robot 12's walk stopped itself (without the reach it arrives 23 mm
+        off), robot 11's 0.175 s before the monitor's stop (docs/history/walking.md, round
+        11)."""
         if not self.floor_reach:
             return
         R_plan = self.plan.T_world_neck[k, :3, :3]
