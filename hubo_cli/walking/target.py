@@ -449,7 +449,8 @@ class WalkTarget(Target):
                  landing_wait: bool = True, floor_reach: bool = True) -> None:
         self.model = model
         self.landing_wait = landing_wait  # (:meth:`_unloaded_landing`; off: the fast gait)
-        self.floor_reach = floor_reach  # (:meth:`_reach_floor`; off: the fast gait)
+        # (:meth:`_reach_floor`; off: the fast gait, and toe-heel walks: not measured with it)
+        self.floor_reach = floor_reach and toe_heel is None
         self.toe_heel = toe_heel
         self.lip_feedback = lip_feedback and stabilizer is not None
         self.lip: LipStabilizer | None = None
@@ -1400,9 +1401,8 @@ class WalkTarget(Target):
     def _caught(self, k: int) -> bool:
         """A swing foot turned beyond REACH_STOP_RAD against the body's roll over the stance
         sole's edge has landed (row ``k`` has both soles down): the walk stops there
-        (:mod:`hubo_cli.walking.floor_reach`). Not a toe-heel walk: its stop is the
-        stopper's brake (:meth:`_stop`), and this stop latches no stopper."""
-        return (self.stabilizer is not None and self.toe_heel is None and self.reach.tipped
+        (:mod:`hubo_cli.walking.floor_reach`; never in a toe-heel walk, whose reach is off)."""
+        return (self.stabilizer is not None and self.reach.tipped
                 and k < self.gait.n and all(self._rows["support"][k]))
 
     def _reach_floor(self, k: int) -> None:
