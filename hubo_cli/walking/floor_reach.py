@@ -15,9 +15,8 @@ estimated torso's roll from the planned one (beyond REACH_DEAD_RAD, toward the s
 at most REACH_MAX_RAD, changing at most REACH_RATE_RAD_S), about the stance sole's outer edge:
 the body's roll about that edge is taken back out of the swing foot, which so keeps its planned
 height and attitude over the floor and lands flat, on time, where the rebound brings the
-capture point. A leg on the floor keeps its turn while the other swings; with both soles
-planned down and in contact the turns go back at REACH_RETURN_RAD_S (as the pitch's levelling,
-:meth:`~hubo_cli.walking.target.WalkTarget._level_swing`, which keeps the pitch). A turn
+capture point. A leg planned down and in contact gives its turn back at REACH_RETURN_RAD_S,
+also while the other swings (at most REACH_STOP_RAD in a walk that goes on). A turn
 beyond REACH_STOP_RAD marks the walk :attr:`FloorReach.tipped`: the walk stops once that foot
 has landed (the step finished into a double-support stance, as the capture-point monitor's
 stop does).
@@ -34,8 +33,10 @@ REACH_DEAD_RAD = math.radians(2.0)  # [chosen] the torso's roll from the planned
                         # round 9). 1 deg acted in pushed seed 8's steps after a push away from
                         # the stance foot (12 mrad of turn) and that walk fell (main: stood)
 REACH_MAX_RAD = 0.25    # [chosen] ... at most this much (pushed seed 6 at 60 N rolled 0.19 rad)
-REACH_RATE_RAD_S = 0.8  # [chosen] ... changing at most this fast (the legs' correction moves a
-                        # joint at most 1 rad/s, LEG_STEP_RAD a period, or holds)
+REACH_RATE_RAD_S = 0.8  # [chosen] ... changing at most this fast. The knee moves about 2.6
+                        # times the turn and the legs' correction LEG_STEP_RAD a period or holds:
+                        # a turn growing faster than about 0.38 rad/s holds that leg's correction
+                        # (round 11's review; the 60 N test's grew at 0.37 rad/s)
 REACH_STOP_RAD = 0.01   # [chosen] a turn beyond this (the body tipped over the stance sole's
                         # edge beyond the dead band) stops the walk once the foot has landed
                         # (:meth:`~hubo_cli.walking.target.WalkTarget._caught`): walking on,
