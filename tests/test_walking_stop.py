@@ -762,6 +762,33 @@ def test_a_landing_waits_for_its_foot_after_a_push_just_before_it(tmp_path, mode
     assert summary["max_torso_tilt_deg"] < 25.0
 
 
+@pytest.mark.physical
+@pytest.mark.slow
+def test_a_side_push_toward_the_stance_foot_is_caught_on_the_swing_foot(tmp_path, model):
+    """hubo walk --to 0.3 0 0 pushed right (60 N, 0.2 s) at 1.285 s, mid-way through the
+    first swing (the left foot's; the push comes toward the right, stance, foot): the body
+    rolls onto the right sole's outer edge; the swing foot, turned back against that roll
+    (:mod:`hubo_cli.walking.floor_reach`), stays over the floor and lands as the body rolls
+    back, and the walk stops there and stands. Without it the foot, lifted with the body,
+    came down after the rebound with the capture point at its outer edge (main before round
+    11: fell at 50, 60 and 70 N, both CPU paths)."""
+    from hubo_cli.control.log import load_log
+    from hubo_cli.experiments.standing import PUSH_DIRECTIONS
+    from hubo_cli.experiments.walk import Disturbance, walk
+    from hubo_cli.walking.floor_reach import REACH_STOP_RAD
+
+    result = walk(model, (0.3, 0.0, 0.0), out=tmp_path / "run",
+                  disturbances=[Disturbance(1.285, 60.0, PUSH_DIRECTIONS["right"])])
+    summary = json.loads((result.run_dir / "summary.json").read_text())
+    assert result.fell is False and result.stood is True
+    # measured max tilt 10.1 deg (AVX-512) and 10.3 deg (portable); 9.0-9.5 deg at 50 and 70 N
+    # on both paths; a fall: 30; bound 15 deg (1.45x the larger at 60 N)
+    assert summary["max_torso_tilt_deg"] < 15.0
+    # the reach did it: the left foot turned beyond the stop's threshold (0.040 rad measured)
+    log = load_log(result.run_dir / "log.parquet")
+    assert np.nanmax(np.abs(log["walk.left_reach_rad"])) > REACH_STOP_RAD
+
+
 def test_a_pushed_stops_landing_waits_whichever_pattern_it_lands_in():
     """The landing wait (after a push, once the walk stops) keys on the rows played, not on
     the pattern's own rows: a stop whose rest is installed at the landing's period, and a

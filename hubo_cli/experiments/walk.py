@@ -240,7 +240,8 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
     target = WalkTarget(walking_model, params, goal, q_start, T_world_neck, corrections,
                         stabilizer=stabilizer,
                         toe_heel=ToeHeelParams.from_model(walking_model) if toe_heel else None,
-                        lip_feedback=lip_feedback, landing_wait=gait != "fast")
+                        lip_feedback=lip_feedback, landing_wait=gait != "fast",
+                        floor_reach=gait != "fast")
     setup = RunSetup(command="walk", model=walking_model, driver=driver,
                      driver_options=driver_options or {}, gui=gui, out=out,
                      safety=SafetyProfile().with_stops(stops).with_balance(balance),

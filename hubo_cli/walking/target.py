@@ -27,7 +27,12 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
   down until the planned landing (:meth:`WalkTarget._touched_early`); lifted again under the
   robot's weight, it fell. A swing leg is pitched at its hip against the
   estimated torso's pitch from the planned one (beyond LEVEL_DEAD_RAD), so that a foot carried
-  by a body tipped by a push lands flat (:meth:`WalkTarget._level_swing`). From the last
+  by a body tipped by a push lands flat (:meth:`WalkTarget._level_swing`); against the
+  torso's roll toward the stance side (a side push rolling the body over the stance sole's
+  outer edge) the swing leg's sole goal is turned back about that edge, so the foot keeps its
+  planned place over the floor and lands as the body rolls back, and a walk so tipped stops
+  once that foot has landed (:mod:`~hubo_cli.walking.floor_reach`,
+  :meth:`WalkTarget._caught`). From the last
   step's landing on (the pattern's settle) the stabilizer's torso offset holds, as in
   ``stopping``: integrating there, it wound up and kept the soles' loads chattering until the
   next plan's start (docs/history/walking.md, "The walk's own settle"). A foot lifts off only
@@ -39,7 +44,8 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
   (:meth:`WalkTarget._reaim`): the feet end where the plan put them without the correction
   walked after the pattern, which stays for the walks that still end off.
 * ``stopping``: entered when the soft stopper has latched (its mode, the previous period's
-  :data:`~hubo_cli.control.keys.STOP_MODE`, is no longer ``release``): the step in progress
+  :data:`~hubo_cli.control.keys.STOP_MODE`, is no longer ``release``), or when a foot the
+  floor reach turned has landed (:meth:`WalkTarget._caught`): the step in progress
   is finished (the swing foot lands; before the first step, none is taken) into a double-support
   stance, the CoM comes to rest between the feet over ``settle_s``; after a push, a landing's
   weight transfer waits in the periods its landed foot reads unloaded, bounced off the floor
@@ -97,6 +103,7 @@ from hubo_cli.walking.body import (
     run_slices,
     unsolved_plan,
 )
+from hubo_cli.walking.floor_reach import FloorReach
 from hubo_cli.walking.footsteps import (
     Footstep,
     Stance,
@@ -264,13 +271,16 @@ def _hull_outside(poses, corners, contact, point):
 
 @nb.njit(**JIT)
 def _correct_legs(T_neck_soles, R_neck_world, offset_x, offset_y, lift_right, lift_left, q,
-                  deltas, right, left, step_rad):
+                  deltas, right, left, step_rad, turns, turned):
     """The stabilizer's correction of both legs, compiled (one call a period): each planned
     sole goal in the torso's frame (``T_neck_soles``: right, left) moved by the torso offset
     (world x, y) and the sole's lift (world z), both turned into the torso's frame by
-    ``R_neck_world``, then :func:`_correct_leg` with the leg's ``(chain, lengths, is_arm,
-    lower, upper, hold_m, start)`` and its row of ``deltas`` (2 x 6)."""
+    ``R_neck_world``, then, ``turned``, by ``turns`` (2 x 4 x 4, in the torso's frame: the
+    swing foot kept over the floor, :class:`~hubo_cli.walking.floor_reach.FloorReach`), then
+    :func:`_correct_leg` with the leg's ``(chain, lengths, is_arm, lower, upper, hold_m,
+    start)`` and its row of ``deltas`` (2 x 6)."""
     goal = np.empty((4, 4))
+    moved = np.empty((4, 4))
     for side in range(2):
         lift = lift_right if side == 0 else lift_left
         for r in range(4):  # a loop, not goal[:, :] = ...: see choice._copy6
@@ -279,6 +289,16 @@ def _correct_legs(T_neck_soles, R_neck_world, offset_x, offset_y, lift_right, li
         for r in range(3):
             goal[r, 3] += (R_neck_world[r, 0] * -offset_x + R_neck_world[r, 1] * -offset_y
                            + R_neck_world[r, 2] * lift)
+        if turned:
+            for r in range(4):
+                for c in range(4):
+                    total = 0.0
+                    for i in range(4):
+                        total += turns[side, r, i] * goal[i, c]
+                    moved[r, c] = total
+            for r in range(4):
+                for c in range(4):
+                    goal[r, c] = moved[r, c]
         _correct_leg(goal, right if side == 0 else left, q, deltas[side], step_rad)
 
 
@@ -418,16 +438,19 @@ class WalkTarget(Target):
                    "walk.offset_x_m", "walk.offset_y_m", "walk.right_lift_m", "walk.left_lift_m",
                    "walk.right_sole_roll_rad", "walk.right_sole_pitch_rad",
                    "walk.left_sole_roll_rad", "walk.left_sole_pitch_rad",
-                   "walk.right_level_rad", "walk.left_level_rad", "walk.pitch_error_rad")
+                   "walk.right_level_rad", "walk.left_level_rad", "walk.pitch_error_rad",
+                   "walk.right_reach_rad", "walk.left_reach_rad")
 
     def __init__(self, model: RobotModel, params: WalkingParams, goal: tuple[float, float, float],
                  q_start_rad: np.ndarray, T_world_neck_start: np.ndarray,
                  corrections: int = 1, end_width_m: float | None = None,
                  stabilizer: StabilizerGains | None = None,
                  toe_heel: ToeHeelParams | None = None, lip_feedback: bool = False,
-                 landing_wait: bool = True) -> None:
+                 landing_wait: bool = True, floor_reach: bool = True) -> None:
         self.model = model
         self.landing_wait = landing_wait  # (:meth:`_unloaded_landing`; off: the fast gait)
+        # (:meth:`_reach_floor`; off: the fast gait, and toe-heel walks: not measured with it)
+        self.floor_reach = floor_reach and toe_heel is None
         self.toe_heel = toe_heel
         self.lip_feedback = lip_feedback and stabilizer is not None
         self.lip: LipStabilizer | None = None
@@ -494,6 +517,8 @@ class WalkTarget(Target):
             self._leg_delta = np.zeros((2, 6))  # the legs' corrections: right, left
             self._level_rad = np.zeros(2)  # each swing leg's pitch against the torso's (rad)
             self._pitch_error_rad = 0.0  # the estimated torso's pitch from the planned one
+            self.reach = FloorReach(float(self.corners[:, 1].max()), dt)
+            self._no_turns = np.zeros((2, 4, 4))
         names = list(model.joint_names)
         self._ankle = {"right": (names.index("RAR"), names.index("RAP")),
                        "left": (names.index("LAR"), names.index("LAP"))}
@@ -578,6 +603,7 @@ class WalkTarget(Target):
             # the capture-point stop's stance tipped over its heels; docs/history/walking.md)
             self.torso_offset.reset()
             self._leg_delta[:] = 0.0
+            self.reach.reset()
         self.steps.extend(steps)
 
     def _adopt(self, gait: Gait, body: WalkingBody, t_s: float, fix_start=None) -> None:
@@ -1131,7 +1157,8 @@ class WalkTarget(Target):
         work = self._prefix, self._pending
         if self.gait is None:
             self._start(t_s, state.q_rad)
-        elif self.phase == "walk" and store.get(STOP_MODE, "release") != "release":
+        elif self.phase == "walk" and (store.get(STOP_MODE, "release") != "release"
+                                       or self._caught(self.k)):
             self._stop(t_s)
         elif self.phase == "walk" and self.k >= self.gait.n and not self.fell \
                 and self._pending is None and self.corrections_left > 0 and not self.arrived():
@@ -1307,7 +1334,7 @@ class WalkTarget(Target):
     def _stabilizer_info(self) -> dict[str, float]:
         """The stabilizer's corrections for the log (NaN without a stabilizer)."""
         if self.stabilizer is None:
-            return dict.fromkeys(self.log_columns[-11:], math.nan)
+            return dict.fromkeys(self.log_columns[-13:], math.nan)
         right, left = self.dampers["right"].delta_rad, self.dampers["left"].delta_rad
         offset = self.torso_offset.offset_m
         return {"walk.offset_x_m": float(offset[0]), "walk.offset_y_m": float(offset[1]),
@@ -1319,7 +1346,9 @@ class WalkTarget(Target):
                 "walk.left_sole_pitch_rad": float(left[1]),
                 "walk.right_level_rad": float(self._level_rad[0]),
                 "walk.left_level_rad": float(self._level_rad[1]),
-                "walk.pitch_error_rad": self._pitch_error_rad}
+                "walk.pitch_error_rad": self._pitch_error_rad,
+                "walk.right_reach_rad": float(self.reach.angle_rad[0]),
+                "walk.left_reach_rad": float(self.reach.angle_rad[1])}
 
     def _in_pattern(self, k: int, wrenches: np.ndarray, point_m: np.ndarray
                     ) -> tuple[float, float]:
@@ -1356,8 +1385,11 @@ class WalkTarget(Target):
                                               float(wrenches[column, 2]))
                  for column, (side, down) in enumerate(zip(SIDES, rows["support"][k],
                                                            strict=True))]
+        self._reach_floor(k)
+        turns = self.reach.turns(self._T_neck_soles[k])
         _correct_legs(self._T_neck_soles[k], self._R_neck_world[k], offset_x, offset_y, *lifts,
-                      q, self._leg_delta, *self._leg_kernel, LEG_STEP_RAD)
+                      q, self._leg_delta, *self._leg_kernel, LEG_STEP_RAD,
+                      self._no_turns if turns is None else turns, turns is not None)
         for column, side in enumerate(SIDES):
             delta = self.dampers[side].update(wrenches[column], cop_refs[column])
             roll, pitch = self._ankle[side]
@@ -1365,6 +1397,31 @@ class WalkTarget(Target):
             q[pitch] += delta[1]
         self._level_swing(k, rows["support"][k], q)
         return q
+
+    def _caught(self, k: int) -> bool:
+        """A swing foot turned beyond REACH_STOP_RAD against the body's roll over the stance
+        sole's edge has landed (row ``k`` has both soles down): the walk stops there
+        (:mod:`hubo_cli.walking.floor_reach`; never in a toe-heel walk, whose reach is off)."""
+        return (self.stabilizer is not None and self.reach.tipped
+                and k < self.gait.n and all(self._rows["support"][k]))
+
+    def _reach_floor(self, k: int) -> None:
+        """The swing foot kept over the floor against the estimated torso's roll from the
+        planned one toward the stance side (:mod:`hubo_cli.walking.floor_reach`). Off
+        (``floor_reach``) for the fast gait: its own slips and hops roll the torso beyond
+        REACH_DEAD_RAD without a push (perturbed robots 8, 11 and 12's 2 m walks, turns of
+        0.013-0.033 rad): robot 12's walk stopped itself (without the reach it arrives 23 mm
+        off), robot 11's 0.175 s before the monitor's stop (docs/history/walking.md, round
+        11)."""
+        if not self.floor_reach:
+            return
+        R_plan = self.plan.T_world_neck[k, :3, :3]
+        error = float(pin.log3(R_plan.T @ np.asarray(self.store[T_WORLD_TORSO],
+                                                     dtype=float)[:3, :3])[0])
+        support = self._rows["support"][k]
+        contact = self.store[CONTACT]
+        self.reach.update(error, (bool(support[0]), bool(support[1])),
+                          (bool(contact[0]), bool(contact[1])))
 
     def _level_swing(self, k: int, support: list[bool], q: np.ndarray) -> None:
         """Pitch each swing leg at its hip against the estimated torso's pitch from the
