@@ -3,7 +3,7 @@
 Once the robot has stopped, the run's summary, plots and (on the command line) its text summary
 are quick to finish, and an interrupt in the middle would leave them half written: a first-draft
 ``summary.json`` contradicting the exit code. So a run is wrapped in :func:`run_files`, and the
-run scaffold calls :func:`loop_ended` as soon as the loop returns; from then until the
+control loop calls :func:`loop_ended` once it has stopped the robot; from then until the
 *outermost* :func:`run_files` exits (or the next run starts, :func:`loop_starting`), Ctrl-C and
 SIGTERM are recorded, not raised. Scopes nest (the command line, the task runner and the run
 scaffold each open one); only the outermost one acts on a recorded interrupt:

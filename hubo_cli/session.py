@@ -42,7 +42,7 @@ from hubo_cli.control.log import (
     max_velocity_ratio,
     update_log_metadata,
 )
-from hubo_cli.control.loop import ControlLoop, LoopResult, PeriodObserver
+from hubo_cli.control.loop import MIN_SPEED, ControlLoop, LoopResult, PeriodObserver
 from hubo_cli.control.module import Module
 from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
@@ -51,7 +51,7 @@ from hubo_cli.drivers.base import RunContext
 from hubo_cli.drivers.registry import driver_class, make_driver
 from hubo_cli.errors import ConfigError, DeviceError, HuboError, InputError
 from hubo_cli.estimation.build import build_estimator
-from hubo_cli.interrupts import loop_ended, loop_starting, run_files
+from hubo_cli.interrupts import loop_starting, run_files
 from hubo_cli.model import RobotModel
 from hubo_cli.runs import discard_if_unused, make_run_dir, release_run_dir, write_json
 from hubo_cli.scene import SceneActions
@@ -139,9 +139,9 @@ class RunSetup:
 
     def pace(self) -> float | None:
         """The loop's speed (None = as fast as possible), checked against real-time needs."""
-        if self.speed is not None and not (np.isfinite(self.speed) and self.speed > 0):
-            raise InputError(f"speed must be a positive number, got {self.speed}",
-                             hint="use 1 for real time")
+        if self.speed is not None and not (np.isfinite(self.speed) and self.speed >= MIN_SPEED):
+            raise InputError(f"speed must be a number of at least {MIN_SPEED:g}, got "
+                             f"{self.speed:g}", hint="use 1 for real time")
         reason = self.real_time_reason()
         if reason is None:
             return self.speed
@@ -255,7 +255,6 @@ def _run_in(setup: RunSetup, target: Target, on_start, speed: float | None,
             if on_start is not None:
                 on_start(target, loop)
             result = _run_loop(loop, setup, world)
-            loop_ended()
             driver_summary = driver.summary_values()
             if result.ended == "log-error":  # a full disk: no snapshot, no log read back
                 _end_without_log(setup, speed, result, modules, run_dir)

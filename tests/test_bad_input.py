@@ -57,6 +57,25 @@ def _suspect_log(path: Path) -> Path:
     return path
 
 
+def _retimed_log(path: Path, times) -> Path:
+    """The short pose log with its rows' times changed by ``times(k, t_s) -> t_s``."""
+    lines = FREE_CSV.read_text().splitlines()[:250]
+    out = [lines[0]]
+    for k, line in enumerate(lines[1:]):
+        cells = line.split(",")
+        cells[0] = repr(times(k, float(cells[0])))
+        out.append(",".join(cells))
+    path.write_text("\n".join(out) + "\n")
+    return path
+
+
+def _ascii_labelled_capture(path: Path) -> Path:
+    """The shipped binary capture whose header says ASCII: no record decodes."""
+    path.write_bytes(FREE_CAPTURE.read_bytes().replace(b'"format": "binary"',
+                                                       b'"format": "ascii"', 1))
+    return path
+
+
 def _corrupt_chunk(path: Path, extra: int) -> Path:
     """The shipped capture with one chunk's length field garbled."""
     blob = read_recording_bytes(FREE_CAPTURE)
@@ -126,6 +145,24 @@ CASES = {
     "teleop-out-user-folder": (lambda d: ["teleop", "--replay", str(_short_log(d / "s.csv")),
                                           "--driver", "ideal", "--out", str(d / "mine")],
                                2, "not a hubo run"),
+    "teleop-speed-1e-9": (lambda d: ["teleop", "--replay", str(_short_log(d / "s.csv")),
+                                     "--speed", "1e-9", "--duration", "0.004"], 2,
+                          "at least 0.01"),
+    "teleop-log-gap-1e300": (lambda d: ["teleop", "--replay", str(_retimed_log(
+        d / "g.csv", lambda k, t: 1e300 if k == 120 else t)), "--duration", "2"], 2,
+        "more than 3600 s after"),
+    "teleop-log-one-time": (lambda d: ["teleop", "--replay", str(_retimed_log(
+        d / "o.csv", lambda k, t: 1.0))], 2, "every row has the same time"),
+    "decode-no-record": (lambda d: ["fastrak", "decode", str(_ascii_labelled_capture(
+        d / "a.fastrak"))], 2, "no valid FASTRAK records"),
+    "task-nested-deeply": (lambda d: ["task", "show", str(_task_with(
+        d / "deep.toml", 'name = "cut-slot"', "a = " + "[" * 10000 + "]" * 10000 + "\nname = "
+        '"deep"'))], 2,
+        "nested too deeply"),
+    "workspace-x-nan": (lambda d: ["workspace-map", "--x-range", "nan", "300", "--out",
+                                   str(d / "ws")], 2, "must be finite"),
+    "workspace-orientation-nan": (lambda d: ["workspace-map", "--orientation", "nan,0,0",
+                                             "--out", str(d / "ws")], 2, "is not finite"),
     "teleop-map-5": (lambda d: ["teleop", "--replay", str(_short_log(d / "s.csv")),
                                 "--map", "5=right-arm"], 2, "stations 1-4"),
     "teleop-map-missing": (lambda d: ["teleop", "--replay", str(_short_log(d / "s.csv")),

@@ -3,15 +3,20 @@ stops on Ctrl-C and on module errors."""
 
 from __future__ import annotations
 
+import os
+import signal
+
 import numpy as np
 import pytest
 from control_support import assert_within_limits, ideal
 
 from hubo_cli.control.log import FLAGS_NAME, LOG_NAME, ROWS_NAME, load_log, read_rows
-from hubo_cli.control.loop import ControlLoop
+from hubo_cli.control.loop import MIN_SPEED, ControlLoop
 from hubo_cli.control.module import Module
 from hubo_cli.control.pipeline import build_pipeline
 from hubo_cli.control.status import Status
+from hubo_cli.errors import Terminated
+from hubo_cli.interrupts import run_files
 
 DT = 0.005
 
@@ -181,6 +186,66 @@ def test_ctrl_c_after_a_periods_record_counts_that_period(model, tmp_path, inter
     assert len(log) == result.periods
     stopping = np.array(["smooth-stop" in f for f in log.flags])
     assert result.stop_periods == stopping.sum() > 0
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["INT", "TERM"])
+def test_interrupts_while_the_loop_cleans_up_wait_for_the_run_files(model, tmp_path, signum):
+    """A Ctrl-C, then two more signals while the loop stops the driver and writes its log (the
+    fuzz review's second Ctrl-C 0.15-0.4 s after the first: main left log.csv header-only and no
+    summary): the log is whole, and the signals wait for the run's scope (raised at its end)."""
+    robot = ideal(model)
+    moving = _moving_target(robot.read().q_rad.copy(), amplitude=0.5, period_s=3.0)
+    stop = robot.stop
+
+    def stop_while_signalled():
+        os.kill(os.getpid(), signum)
+        os.kill(os.getpid(), signal.SIGINT)
+        stop()
+
+    robot.stop = stop_while_signalled
+    previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    try:
+        with pytest.raises(KeyboardInterrupt), run_files():
+            result = ControlLoop(robot, build_pipeline(model), moving, log_path=tmp_path).run(0.5)
+            assert result.ended == "finished", result.error
+            assert len(load_log(tmp_path)) == result.periods
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert not (tmp_path / ROWS_NAME).exists()  # the rows were turned into the CSV
+
+
+def test_a_slowed_runs_stop_goes_at_real_time_at_least(model, tmp_path):
+    """At the slowest pace (MIN_SPEED) a period lasts 100 times its length, and the smooth stop
+    after a Ctrl-C is paced at real time (main: at the run's pace, so at --speed 1e-9 a Ctrl-C
+    waited for days); slower than MIN_SPEED is refused."""
+    robot = ideal(model)
+    moving = _moving_target(robot.read().q_rad.copy(), amplitude=0.5, period_s=3.0)
+    now = [0.0]
+    sleeps = []
+
+    def sleep(s):
+        sleeps.append(s)
+        now[0] += s
+
+    class Interrupting:
+        def period(self, t_s, status, flags, state, extras):
+            if abs(t_s - 0.5) < 1e-9:
+                raise KeyboardInterrupt
+
+    loop = ControlLoop(robot, build_pipeline(model), moving, speed=MIN_SPEED, log_path=tmp_path,
+                       clock=lambda: now[0], sleep=sleep, observer=Interrupting())
+    result = loop.run(5.0)
+    assert result.ended == "interrupted" and result.stop_periods > 10
+    dt = robot.period_s
+    slow = [s for s in sleeps if s > dt + 1e-12]  # all the run's periods but the first
+    assert len(slow) == result.periods - result.stop_periods - 1
+    assert slow == pytest.approx([dt / MIN_SPEED] * len(slow))
+    with pytest.raises(ValueError, match="at least"):
+        ControlLoop(robot, build_pipeline(model), moving, speed=MIN_SPEED / 2)
+
+
+def _raise_terminated(signum, frame):
+    raise Terminated
 
 
 class Exploding(Module):

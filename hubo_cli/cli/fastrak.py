@@ -68,7 +68,13 @@ def decode(file: Path, out: Path | None, force: bool, as_json: bool) -> None:
 
     Reports good records, bytes skipped while resynchronising and per-station rates.
     """
-    from hubo_cli.fastrak.capture import MAGIC, parse_capture, read_recording_bytes, write_pose_log
+    from hubo_cli.fastrak.capture import (
+        MAGIC,
+        no_records_error,
+        parse_capture,
+        read_recording_bytes,
+        write_pose_log,
+    )
     from hubo_cli.outputs import OutputFile
 
     blob = read_recording_bytes(file)
@@ -80,6 +86,8 @@ def decode(file: Path, out: Path | None, force: bool, as_json: bool) -> None:
     pose_log = OutputFile(out, inputs=(file,), force=force)
     cap = parse_capture(blob, str(file))
     batch, bad = cap.decode()
+    if len(batch) == 0:
+        raise no_records_error(file, cap)
     with pose_log.writing() as temporary:
         write_pose_log(temporary, batch)
     h = cap.header

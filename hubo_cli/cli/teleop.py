@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import click
 import numpy as np
@@ -23,6 +24,7 @@ from hubo_cli.cli.output import (
     err_console,
     print_json,
 )
+from hubo_cli.control.loop import MIN_SPEED
 from hubo_cli.drivers.registry import DRIVER_NAMES, driver_class
 from hubo_cli.errors import HuboError, InputError
 
@@ -42,8 +44,9 @@ def _speed(text: str) -> float | None:
     except ValueError:
         raise InputError(f"--speed {text!r} is not a number or 'max'",
                          hint="use --speed 1 (real time), --speed 2, or --speed max") from None
-    if not value > 0:
-        raise InputError("--speed must be positive", hint="use --speed 1 or --speed max")
+    if not value >= MIN_SPEED:
+        raise InputError(f"--speed must be at least {MIN_SPEED:g} (got {text})",
+                         hint="use --speed 1 or --speed max")
     return value
 
 
@@ -255,7 +258,7 @@ def teleop(replay, port, generate_seed, max_speed, reconnect_timeout, baud, driv
         reach=ReachSettings.for_mode(
             mode, mode=reach_mode, allow_branch_change=allow_branch_change,
             orientation_weight_m_per_rad=orientation_weight / 1000 * 180 / np.pi))
-    if replay is not None:
+    if replay is not None and Path(replay).is_file():  # a FIFO is read once: by the run
         _check_replay_stations(replay, settings)
     if wall_distance is not None:
         _check_wall_reach(settings)

@@ -53,6 +53,7 @@ from hubo_cli.dataflow import Store, check_flow
 from hubo_cli.drivers.base import Driver
 from hubo_cli.errors import ConfigError, DeviceError, HuboError, interrupt_cause
 from hubo_cli.estimation.estimator import Estimator
+from hubo_cli.interrupts import loop_ended
 from hubo_cli.motion.limits import JointLimits, all_finite
 from hubo_cli.motion.tracker import JointTracker
 from hubo_cli.state import RobotState
@@ -73,6 +74,7 @@ class PeriodObserver(Protocol):
 LABELS = {status: status.label for status in Status}  # a property's work done once
 ENDINGS = ("finished", "done", "interrupted", "module-error", "target-error", "driver-error",
            "device", "log-error", "estimation-error")
+MIN_SPEED = 0.01  # the slowest a run may be paced: a period of 5 ms lasts 0.5 s of wall time
 MAX_STOP_S = 15.0  # a brake from full speed at the slowest joint's limits takes under 2 s
 
 
@@ -190,8 +192,8 @@ class ControlLoop:
                  max_lag_periods: int = 20, operator: OperatorKeys | None = None,
                  observer: PeriodObserver | None = None,
                  estimator: Estimator | None = None) -> None:
-        if speed is not None and speed <= 0:
-            raise ValueError("speed must be positive or None")
+        if speed is not None and not speed >= MIN_SPEED:
+            raise ValueError(f"speed must be at least {MIN_SPEED} or None")
         self.driver = driver
         self.modules = list(modules)
         self.target = as_target(target)
@@ -259,11 +261,12 @@ class ControlLoop:
         about 20 us a period, so runs without one take it only at the start and the end)."""
         self._watching_status = True
 
-    def _pace(self) -> float:
-        """Wait for this period's deadline; return the lateness after waiting (s)."""
+    def _pace(self, min_speed: float = 0.0) -> float:
+        """Wait for this period's deadline, the loop running at ``self.speed`` but not slower
+        than ``min_speed``; return the lateness after waiting (s)."""
         if self.speed is None:
             return 0.0
-        wall_period = self.dt_s / self.speed
+        wall_period = self.dt_s / max(self.speed, min_speed)
         now = self.clock()
         if self.period == 0 and self._deadline == 0.0:
             self._deadline = now
@@ -402,6 +405,7 @@ class ControlLoop:
             if ended in ("finished", "done"):
                 ended = "interrupted"
         finally:
+            loop_ended()  # an interrupt from here on waits until the run's files are whole
             driver.stop()
             if self.log is not None:
                 self.log.close()
@@ -440,8 +444,10 @@ class ControlLoop:
         tracker.reset(q1, v + 0.5 * a * dt, a)
         limiter = SoftErrorLimiter(self.driver.model, dt, error_limit_rad=0.0, limits=self.limits)
         limiter.seed(q1, q2)
+        # paced from now at real time at least: a slowed replay's stop does not keep Ctrl-C waiting
+        self._deadline = min(self._deadline, self.clock())
         for _ in range(int(MAX_STOP_S / dt)):
-            late_s = self._pace()
+            late_s = self._pace(min_speed=1.0)
             started = self.clock()
             q = limiter.step(tracker.brake())
             compute_s = self.clock() - started

@@ -543,8 +543,18 @@ def parse_pose_log(text: str, where: str = "pose log") -> RecordBatch:
     batch = RecordBatch(station=station, status=status, position_m=values[:, 2:5].copy(),
                         quat_wxyz=q / norm[:, None], stylus=np.full(len(station), -1, np.int8),
                         offset=np.zeros(len(station), dtype=np.int64), t_s=values[:, 0].copy())
+    order = np.argsort(batch.t_s, kind="stable")
     if len(batch) > 1 and (np.diff(batch.t_s) < 0).any():
-        batch = batch.select(np.argsort(batch.t_s, kind="stable"))
+        batch = batch.select(order)
+    gaps = np.diff(batch.t_s)
+    if len(gaps) and (gaps > MAX_CHUNK_GAP_S).any():
+        i = int(np.flatnonzero(gaps > MAX_CHUNK_GAP_S)[0]) + 1  # the row after the gap
+        raise InputError(f"{where}: line {lines[int(order[i]) + 1][0]}: t_s {batch.t_s[i]:g} s "
+                         f"is more than {MAX_CHUNK_GAP_S:g} s after the time before it",
+                         hint="times must be seconds of one recording, without gaps of hours")
+    if len(gaps) and batch.t_s[-1] == batch.t_s[0]:
+        raise InputError(f"{where}: every row has the same time (t_s {batch.t_s[0]:g} s)",
+                         hint="t_s must count the seconds of the recording")
     return batch
 
 
@@ -588,6 +598,14 @@ class Recording:
     info: dict
 
 
+def no_records_error(path: str | Path, cap: Capture) -> InputError:
+    """The error for a raw capture none of whose records decodes."""
+    h = cap.header
+    return InputError(f"{path}: no valid FASTRAK records in {len(cap.data)} bytes",
+                      hint=f"the header says {h.fmt} {','.join(map(str, h.output_list))} in "
+                           f"{h.units}; check it matches what was recorded")
+
+
 def load_recording(path: str | Path, stations=None,
                    plausibility: Plausibility = DEFAULT_PLAUSIBILITY) -> Recording:
     """Read and decode a raw capture or a pose log (recognised from its first bytes).
@@ -611,9 +629,7 @@ def load_recording(path: str | Path, stations=None,
                 "output_list": list(h.output_list), "units": h.units, "baud": h.baud,
                 "stations": list(h.stations), "truncated": cap.truncated, **h.extra}
         if len(batch) == 0:
-            raise InputError(f"{path}: no valid FASTRAK records in {len(cap.data)} bytes",
-                             hint=f"the header says {h.fmt} {','.join(map(str, h.output_list))} "
-                                  f"in {h.units}; check it matches what was recorded")
+            raise no_records_error(path, cap)
     else:
         try:
             text = blob.decode("utf-8")

@@ -33,6 +33,9 @@ POSE_COLUMNS = [f"T{i}{j}" for i in range(4) for j in range(4)]
 PREV_COLUMNS = [f"qprev{k}" for k in range(1, 7)]
 OUT_COLUMNS = ["line", "q1", "q2", "q3", "q4", "q5", "q6", "status", "pos_err_m", "rot_err_rad"]
 _EXTRA = "__extra_field__"  # catches a field past the header's last column
+# the largest batch read (a pose row is about 300 bytes: some 900,000 poses); a bigger file,
+# or an endless one (/dev/zero), is refused, never read whole
+MAX_BATCH_BYTES = 256 << 20
 
 
 @dataclass
@@ -146,10 +149,14 @@ def solve_csv(limb: Limb, in_path: str | Path, out_path: str | Path, *,
     t0 = time.perf_counter()
     in_path, out_path = Path(in_path), Path(out_path)
     try:
-        data = in_path.read_bytes()
+        with in_path.open("rb") as file:
+            data = file.read(MAX_BATCH_BYTES + 1)
     except OSError as exc:
         raise InputError(f"cannot read {in_path}: {exc.strerror}",
                          hint="check the path of --batch") from None
+    if len(data) > MAX_BATCH_BYTES:
+        raise InputError(f"{in_path} is larger than {MAX_BATCH_BYTES >> 20} MiB: not read",
+                         hint="split the poses into smaller files")
     out = OutputFile(out_path, inputs=(in_path,), force=force)
     header = _read_header(in_path, data)
     table = _read_table(data, header)

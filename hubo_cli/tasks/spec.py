@@ -276,8 +276,13 @@ def load_task(name_or_path: str | Path, overrides: dict | None = None, *,
     except OSError as exc:
         raise ConfigError(f"cannot read the task file: {exc.strerror or exc}", path=str(path),
                           hint="check the path and its permissions") from None
+    text = text.removeprefix("\ufeff")  # the byte-order mark some Windows editors write
     try:
         data = tomllib.loads(text)
+    except RecursionError:
+        raise ConfigError("not valid TOML: arrays or tables nested too deeply", path=str(path),
+                          hint="a task file nests a few levels at most; see tasks/README.md"
+                          ) from None
     except tomllib.TOMLDecodeError as exc:
         line = None
         message = str(exc)

@@ -413,7 +413,7 @@ def load_scene(run: str | Path, model: RobotModel | None = None) -> RunScene:
 
     Raises:
         InputError: no log there, an empty one, one that cannot be read, times that are not
-            finite, or a scene in its metadata that cannot be placed.
+            finite, no measured joint columns, or a scene in its metadata that cannot be placed.
     """
     path = Path(run)
     run_dir = path if path.is_dir() else path.parent
@@ -431,6 +431,11 @@ def load_scene(run: str | Path, model: RobotModel | None = None) -> RunScene:
     if tuple(log.joint_names) != tuple(model.joint_names):
         raise InputError(f"the log's joints ({len(log.joint_names)}) are not the model's",
                          hint="replay a run of the HUBO 2+ model")
+    missing = [f"q_{j}_rad" for j in log.joint_names if f"q_{j}_rad" not in log.columns]
+    if missing:
+        raise InputError(f"the log in {run_dir} lacks the measured joints' columns "
+                         f"({', '.join(missing[:3])}{', ...' if len(missing) > 3 else ''})",
+                         hint="give a run folder as hubo wrote it")
     if log.has_pose("torso"):
         T = log.poses("torso")
     else:

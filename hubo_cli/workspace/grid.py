@@ -31,6 +31,9 @@ def orientation_matrix(orientation: str) -> np.ndarray:
     except ValueError:
         raise InputError(f"unknown orientation {orientation!r}",
                          hint="use 'wall' or 'roll,pitch,yaw' in degrees, e.g. 0,10,0") from None
+    if not all(math.isfinite(a) for a in (roll, pitch, yaw)):
+        raise InputError(f"orientation {orientation!r} is not finite",
+                         hint="use 'wall' or 'roll,pitch,yaw' in degrees, e.g. 0,10,0")
     cr, sr = math.cos(roll), math.sin(roll)
     cp, sp = math.cos(pitch), math.sin(pitch)
     cy, sy = math.cos(yaw), math.sin(yaw)
@@ -112,9 +115,12 @@ def make_grid(sphere: ReachSphere, resolution_m: float = 0.005,
             distance only.
         z_range_m: heights to map (m); default the whole reach sphere; (A, A) maps one height.
     """
-    if not resolution_m > 0:
+    if not (resolution_m > 0 and math.isfinite(resolution_m)):
         raise InputError(f"resolution must be positive, got {resolution_m * 1000:g} mm",
                          hint="pass --resolution 5 (mm)")
+    if not all(math.isfinite(v) for v in (*x_range_m, *(z_range_m or ()))):
+        raise InputError("--x-range and --z-range must be finite (mm)",
+                         hint="e.g. --x-range 300 650")
     x = _axis(*x_range_m, resolution_m)
     c, r = sphere.centre_m, sphere.radius_m
     z = _axis(*z_range_m, resolution_m) if z_range_m else _lattice(c[2] - r, c[2] + r,
