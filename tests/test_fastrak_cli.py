@@ -4,6 +4,7 @@ import json
 import re
 import subprocess
 import sys
+import threading
 
 import numpy as np
 from click.testing import CliRunner
@@ -89,6 +90,29 @@ def test_record_from_the_emulator_then_decode(tmp_path):
                              "--json").stdout)
     assert decoded["good_records"] == report["good_records"]
     assert len(csv_path.read_text().splitlines()) == report["good_records"] + 1
+
+
+def test_record_keeps_both_files_when_the_tracker_is_lost(tmp_path, monkeypatch):
+    """The tracker gone mid-recording: exit 3 naming both files, the capture and the pose log
+    kept whole with what arrived (round 11's hostile review: the --csv file was dropped). The
+    reader gives up reconnecting after 0.5 s instead of 10 (the test's time)."""
+    import functools
+
+    import hubo_cli.fastrak.reader as reader
+
+    monkeypatch.setattr(reader, "FastrakReader",
+                        functools.partial(reader.FastrakReader, reconnect_timeout_s=0.5))
+    emu = make_emulator(stations=1).start()
+    out, csv_path = tmp_path / "rec.fastrak", tmp_path / "rec.csv"
+    threading.Timer(0.5, emu.close).start()
+    result = run("record", "--port", emu.port_name, "--out", out, "--duration", "30",
+                 "--csv", csv_path)
+    assert result.exit_code == 3, result.output
+    assert str(csv_path) in result.output and "Traceback" not in result.output
+    decoded = json.loads(run("fastrak", "decode", out, "--out", tmp_path / "d.csv",
+                             "--json").stdout)
+    assert decoded["good_records"] > 0
+    assert len(csv_path.read_text().splitlines()) == decoded["good_records"] + 1
 
 
 def test_record_on_an_absent_port_is_a_device_error(tmp_path):

@@ -10,7 +10,7 @@ import click
 from hubo_cli.cli.checks import check_baud, check_seconds
 from hubo_cli.cli.options import force_option
 from hubo_cli.cli.output import console, err_console, interactive, print_json
-from hubo_cli.errors import InputError
+from hubo_cli.errors import DeviceError, InputError
 
 JSON = click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
 
@@ -204,6 +204,7 @@ def record(port: str, out: Path, duration: float | None, baud: int, fmt: str, ou
                           stations=_parse_stations(stations), capture=temporary)
         samples = []
         next_note = 1.0
+        lost = None  # the device lost mid-recording: what arrived is kept, then it is said
         try:
             while duration is None or src.now_s() < duration:
                 samples += src.read_until(src.now_s())
@@ -215,13 +216,20 @@ def record(port: str, out: Path, duration: float | None, baud: int, fmt: str, ou
             samples += src.read_until(src.now_s())
         except KeyboardInterrupt:
             pass
+        except DeviceError as exc:
+            lost = exc
         finally:
             src.close()
-        samples += src.read_until(src.now_s())  # what closing completed (counted in its stats)
+        if lost is None:
+            samples += src.read_until(src.now_s())  # what closing completed (in its stats)
     batch = samples_batch(samples)
     if pose_log is not None:
         with pose_log.writing() as temporary:
             write_pose_log(temporary, batch)
+    if lost is not None:
+        kept = f"{out} and {csv_path}" if pose_log is not None else str(out)
+        raise DeviceError(f"{lost.message}; what arrived before is kept in {kept}",
+                          hint=lost.hint) from None
     stats = src.stats
     report = {"capture": str(out), "port": port, "format": fmt,
               "output_list": list(src.layout.output_list), "units": units, "baud": baud,

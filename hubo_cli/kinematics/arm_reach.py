@@ -103,7 +103,8 @@ class ReachSettings:
             raise ConfigError(f"unknown reach mode {self.mode!r}", hint="use nearest or paper")
         if not (np.isfinite(self.orientation_weight_m_per_rad)
                 and self.orientation_weight_m_per_rad > 0):
-            raise ConfigError(f"orientation weight {self.orientation_weight_m_per_rad} is not "
+            mm_per_deg = self.orientation_weight_m_per_rad * 1000 * np.pi / 180
+            raise ConfigError(f"orientation weight {mm_per_deg:g} mm per degree is not "
                               "positive", hint="e.g. --orientation-weight 0.9 (mm per degree)")
         if not (np.isfinite(self.collision_room_m) and self.collision_room_m >= 0):
             raise ConfigError(f"collision room {self.collision_room_m} m is not >= 0",

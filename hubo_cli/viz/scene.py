@@ -418,7 +418,7 @@ def load_scene(run: str | Path, model: RobotModel | None = None) -> RunScene:
     path = Path(run)
     run_dir = path if path.is_dir() else path.parent
     if not any((run_dir / name).exists() for name in ("log.csv", "log.parquet", "log.rows")):
-        raise InputError(f"{run_dir} has no period log (log.csv)",
+        raise InputError(f"{path} is not a run folder: {run_dir} has no period log (log.csv)",
                          hint="give a run folder written by hubo task, teleop or push-wall")
     log = load_log(path)
     if len(log) == 0:
