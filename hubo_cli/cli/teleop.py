@@ -233,9 +233,8 @@ def teleop(replay, port, generate_seed, max_speed, reconnect_timeout, baud, driv
         raise InputError(f"--scale {scale:g} must be in (0, 10]", hint="e.g. --scale 1")
     if wall_distance is not None and mode != "drill":
         raise InputError("--wall-distance applies to --mode drill", hint="add --mode drill")
-    if wall_distance is not None and not (math.isfinite(wall_distance) and wall_distance > 0):
-        raise InputError(f"--wall-distance {wall_distance:g} mm must be a positive distance",
-                         hint="e.g. --wall-distance 470 (or leave it out: the workspace map's)")
+    if wall_distance is not None:
+        _check_wall_distance(wall_distance)
     if walk_from is not None and not all(math.isfinite(v) and abs(v) <= 10 for v in walk_from):
         raise InputError(f"--walk-from {walk_from[0]:g} {walk_from[1]:g} must be metres within "
                          "10 m of the working stance", hint="e.g. --walk-from -1 0 (1 m behind)")
@@ -272,6 +271,18 @@ def _check_replay_stations(replay: str, settings) -> None:
 
     with open_fastrak(replay=replay, station_arm=station_map(settings)):
         pass  # opening checks the stations
+
+
+def _check_wall_distance(wall_distance_mm: float) -> None:
+    """A positive distance within a task file's bound on lengths (beyond it a typo: exit 2,
+    as in a task); a wall within it that the drill cannot reach is refused for safety (exit 4,
+    :func:`_check_wall_reach`), as a task's path out of reach is in pre-flight."""
+    from hubo_cli.tasks.spec import LENGTH_MAX_MM
+
+    if not (math.isfinite(wall_distance_mm) and 0 < wall_distance_mm <= LENGTH_MAX_MM):
+        raise InputError(f"--wall-distance {wall_distance_mm:g} mm must be a positive distance "
+                         f"of at most {LENGTH_MAX_MM:g} mm",
+                         hint="e.g. --wall-distance 470 (or leave it out: the workspace map's)")
 
 
 def _check_wall_reach(settings) -> None:

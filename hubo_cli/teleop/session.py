@@ -12,7 +12,7 @@ from hubo_cli.control.loop import LoopResult
 from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.stop_choice import ActiveStops
-from hubo_cli.errors import InputError, SafetyError
+from hubo_cli.errors import SafetyError
 from hubo_cli.input.device import HAND_OF_ARM, InputDevice
 from hubo_cli.input.opener import open_input
 from hubo_cli.input.operator_stream import StreamSettings
@@ -140,7 +140,8 @@ def drill_stance(wall_distance_m: float | None = None) -> tuple[float, np.ndarra
     centred in that rectangle (m, in S), the rectangle's mid height m = the working height).
 
     Raises:
-        InputError: nothing of the wall is reachable at ``wall_distance_m``.
+        SafetyError: nothing of the wall is reachable at ``wall_distance_m`` (exit 4, as a
+            task whose path leaves the arm's reach is refused in pre-flight).
     """
     from hubo_cli.workspace.stance import best_stance
 
@@ -152,10 +153,10 @@ def drill_stance(wall_distance_m: float | None = None) -> tuple[float, np.ndarra
                              wall_distance_m=wall_distance_m)
         wall, rect = wall_distance_m, stance.rectangle
         if rect.y_max_m <= rect.y_min_m:
-            raise InputError(f"the drill reaches nothing of a wall {wall_distance_m * 1000:.0f}"
-                             " mm from the neck",
-                             hint="leave --wall-distance out (the workspace map's best stance)"
-                                  " or see hubo workspace-map")
+            raise SafetyError(f"the drill reaches nothing of a wall {wall_distance_m * 1000:.0f}"
+                              " mm from the neck; nothing moved",
+                              hint="leave --wall-distance out (the workspace map's best stance)"
+                                   " or see hubo workspace-map")
     y_mid, z_mid = (rect.y_min_m + rect.y_max_m) / 2, (rect.z_min_m + rect.z_max_m) / 2
     corner = np.array([wall, y_mid + PAPER_HOLE_M[0] / 2, z_mid + PAPER_HOLE_M[1] / 2])
     return wall, corner, z_mid
