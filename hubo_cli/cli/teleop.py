@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
-from pathlib import Path
 
 import click
 import numpy as np
@@ -253,24 +253,25 @@ def teleop(replay, port, generate_seed, max_speed, reconnect_timeout, baud, driv
         reach=ReachSettings.for_mode(
             mode, mode=reach_mode, allow_branch_change=allow_branch_change,
             orientation_weight_m_per_rad=orientation_weight / 1000 * 180 / np.pi))
-    if replay is not None and Path(replay).is_file():  # a FIFO is read once: by the run
-        _check_replay_stations(replay, settings)
-    if wall_distance is not None:
-        _check_wall_reach(settings)
-    with (reserved_run_dir("teleop", out) as run_dir,
-          live_server(live, live_host, live_port, quiet=as_json) as server):
-        settings.out, settings.live = run_dir, server
-        run = _run(settings, as_json)
+    with _opened_recording(settings) as recording:  # its stations checked before anything
+        if wall_distance is not None:
+            _check_wall_reach(settings)
+        with (reserved_run_dir("teleop", out) as run_dir,
+              live_server(live, live_host, live_port, quiet=as_json) as server):
+            settings.out, settings.live = run_dir, server
+            run = _run(settings, as_json, recording)
     _report(run, as_json, video)
 
 
-def _check_replay_stations(replay: str, settings) -> None:
-    """Every mapped station must be in the recording (before anything moves)."""
-    from hubo_cli.input.fastrak import open_fastrak
-    from hubo_cli.teleop.session import station_map
+def _opened_recording(settings):
+    """A replay's recording opened now, read once (a file or a FIFO alike), checked against
+    the station map and handed to the run; a live port or a generated stream is opened by
+    the run itself (a port once the pace is checked, just before the robot starts)."""
+    from hubo_cli.teleop.session import open_operator_input
 
-    with open_fastrak(replay=replay, station_arm=station_map(settings)):
-        pass  # opening checks the stations
+    if settings.replay is None:
+        return contextlib.nullcontext()
+    return open_operator_input(settings)
 
 
 def _check_wall_distance(wall_distance_mm: float) -> None:
@@ -295,7 +296,7 @@ def _check_wall_reach(settings) -> None:
     approach_paths(body, mapping.hand_arm.values(), scene)
 
 
-def _run(settings, as_json: bool):
+def _run(settings, as_json: bool, recording=None):
     from hubo_cli.cli.keys import operator_keys
     from hubo_cli.cli.live_view import LiveView
     from hubo_cli.cli.safety_view import SafetyPanel, read_safety
@@ -331,7 +332,7 @@ def _run(settings, as_json: bool):
     try:
         with operator_keys(on_key) as keys:
             settings.operator = keys
-            return run_teleop(settings, on_ready=on_ready)
+            return run_teleop(settings, on_ready=on_ready, device=recording)
     finally:
         if "view" in state:
             state["view"].stop()

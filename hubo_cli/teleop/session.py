@@ -3,6 +3,7 @@ folder."""
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -208,13 +209,29 @@ def teleop_setup(settings: TeleopSettings, body: WholeBody, duration_s: float | 
         perturb_seed=settings.perturb_seed, operator=settings.operator, live=settings.live)
 
 
-def run_teleop(settings: TeleopSettings, on_ready=None) -> TeleopRun:
+def open_operator_input(settings: TeleopSettings) -> InputDevice:
+    """The session's operator input, opened: a recording is read (once) and its stations
+    checked against the map; a port configures the tracker.
+
+    Raises:
+        InputError / DeviceError: a bad recording or station map, a missing port.
+    """
+    return open_input(replay=settings.replay, port=settings.port,
+                      generate_seed=settings.generate_seed, stream=settings.stream,
+                      station_arm=station_map(settings), baud=settings.baud,
+                      reconnect_timeout_s=settings.reconnect_timeout_s)
+
+
+def run_teleop(settings: TeleopSettings, on_ready=None,
+               device: InputDevice | None = None) -> TeleopRun:
     """Run one teleoperation session and write its run folder.
 
     Args:
         settings: what to run.
         on_ready: called with the :class:`TeleopTarget` and the control loop once the robot
             has started (the CLI attaches its live view and key reader there).
+        device: the input, opened by the caller with :func:`open_operator_input` (who closes
+            it); None: opened here once the pace is checked.
 
     Raises:
         InputError / DeviceError: a bad recording, a missing port (before anything moves).
@@ -224,10 +241,8 @@ def run_teleop(settings: TeleopSettings, on_ready=None) -> TeleopRun:
     approach = approach_paths(body, mapping.hand_arm.values(), scene)
     wall = drill_wall(scene) if settings.mode == "drill" else None
     teleop_setup(settings, body, None).pace()  # refuse a bad pace before opening the port
-    with open_input(replay=settings.replay, port=settings.port,
-                    generate_seed=settings.generate_seed, stream=settings.stream,
-                    station_arm=station_map(settings), baud=settings.baud,
-                    reconnect_timeout_s=settings.reconnect_timeout_s) as source:
+    with (open_operator_input(settings) if device is None
+          else contextlib.nullcontext(device)) as source:
         target = TeleopTarget(model, source, HandMapper(mapping), body, approach, q_start,
                               live=source.live, clutch_at_s=settings.clutch_at_s, wall=wall,
                               reach=settings.reach,
