@@ -339,11 +339,14 @@ def check_jobs(jobs: Sequence[Job]) -> None:
             unknown ``sim`` parameter or a bad value of one (InputError).
     """
     from hubo_cli.experiments.standing import check_standing_args
-    from hubo_cli.tasks.spec import load_task
+    from hubo_cli.tasks.spec import find_task, load_task
 
     combinations = {(j.command, repr(j.parameters)): (j.command, j.parameters) for j in jobs}
     for command, parameters in combinations.values():
         if command != SIM_COMMAND:
+            if not find_task(command).is_file():  # every run reads it: a FIFO gives it once
+                raise InputError(f"{command}: a sweep reads its task file once per run; a "
+                                 "FIFO gives it once", hint="give a regular .toml file")
             load_task(command, dict(parameters))
             continue
         unknown = [n for n, _ in parameters if n not in SIM_PARAMETERS]
