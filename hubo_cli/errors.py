@@ -8,6 +8,10 @@ errors: see :class:`hubo_cli.kinematics.choice.IKResult`.
 
 from __future__ import annotations
 
+# the most an error message quotes of a value it read (a file's field, a command-line value):
+# enough to recognise it, never a 100,000-item list echoed whole
+QUOTED_CHARS = 60
+
 
 class HuboError(Exception):
     """Root of every error hubo-cli raises on purpose.
@@ -62,9 +66,29 @@ class DeviceError(HuboError):
 
 
 class SafetyError(HuboError):
-    """A safety rule refused an action before anything moved (e.g. the hardware is not armed)."""
+    """A safety rule refused an action before anything moved: the hardware is not armed, or
+    what was asked leaves the robot's reach where it stands (a task's path in pre-flight, a
+    wall the drill cannot reach). A value beyond physical sense (a wall 5 m away) is an
+    :class:`InputError` or :class:`ConfigError` instead, read before any reach is worked out."""
 
     exit_code = 4
+
+
+def quoted(value: object) -> str:
+    """``repr(value)`` for an error message, cut to :data:`QUOTED_CHARS` characters with what
+    was left out said: ``[2, 2, 2, ...] (100,000 items)``, ``'xxxx...' (5,000,000
+    characters)``. Every message that quotes what the user gave goes through here."""
+    try:
+        text = repr(value)
+    except ValueError:  # an integer of more than 4300 digits (Python's limit for its text)
+        return "an integer too long to print"
+    if len(text) <= QUOTED_CHARS:
+        return text
+    try:
+        size = f"{len(value):,} {'characters' if isinstance(value, str | bytes) else 'items'}"
+    except TypeError:  # a number or an object without a length
+        size = f"{len(text):,} characters"
+    return f"{text[:QUOTED_CHARS]}... ({size})"
 
 
 class Terminated(KeyboardInterrupt):

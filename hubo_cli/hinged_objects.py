@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hubo_cli.errors import ConfigError
+from hubo_cli.errors import ConfigError, quoted
 
 
 @dataclass(frozen=True)
@@ -35,7 +35,7 @@ class Valve:
         if isinstance(self.friction_nm, bool) or not (
                 isinstance(self.friction_nm, int | float) and math.isfinite(self.friction_nm)
                 and self.friction_nm >= 0):
-            raise ConfigError(f"valve friction_nm must be >= 0 N m, got {self.friction_nm!r}")
+            raise ConfigError(f"valve friction_nm must be >= 0 N m, got {quoted(self.friction_nm)}")
         if self.tube_radius_m >= self.radius_m:
             raise ConfigError("the valve's tube radius must be smaller than its radius")
 
@@ -66,7 +66,7 @@ class Door:
 
     def __post_init__(self) -> None:
         if self.opens not in DOOR_OPENS:
-            raise ConfigError(f"a door opens {' or '.join(DOOR_OPENS)}, not {self.opens!r}")
+            raise ConfigError(f"a door opens {' or '.join(DOOR_OPENS)}, not {quoted(self.opens)}")
         _check_finite("door near_face_x_m, hinge_y_m", (self.near_face_x_m, self.hinge_y_m), 2)
         _check_positive("door", width_m=self.width_m, height_m=self.height_m,
                         thickness_m=self.thickness_m, mass_kg=self.mass_kg,
@@ -75,7 +75,7 @@ class Door:
             value = getattr(self, name)
             if isinstance(value, bool) or not (isinstance(value, int | float)
                                                and math.isfinite(value) and value >= 0):
-                raise ConfigError(f"door {name} must be >= 0, got {value!r}")
+                raise ConfigError(f"door {name} must be >= 0, got {quoted(value)}")
 
     @property
     def limits_rad(self) -> tuple[float, float]:
@@ -100,13 +100,13 @@ def _check_finite(what: str, values, n: int) -> None:
     try:
         array = np.asarray(values, dtype=float)
     except (TypeError, ValueError):
-        raise ConfigError(f"{what} must be {n} numbers, got {values!r}") from None
+        raise ConfigError(f"{what} must be {n} numbers, got {quoted(values)}") from None
     if array.shape != (n,) or not np.all(np.isfinite(array)):
-        raise ConfigError(f"{what} must be {n} finite numbers, got {values!r}")
+        raise ConfigError(f"{what} must be {n} finite numbers, got {quoted(values)}")
 
 
 def _check_positive(what: str, **values: float) -> None:
     for name, value in values.items():
         if isinstance(value, bool) or not (isinstance(value, int | float)
                                            and math.isfinite(value) and value > 0):
-            raise ConfigError(f"{what} {name} must be a positive number, got {value!r}")
+            raise ConfigError(f"{what} {name} must be a positive number, got {quoted(value)}")

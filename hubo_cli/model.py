@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hubo_cli.errors import ConfigError
+from hubo_cli.errors import ConfigError, quoted
 from hubo_cli.resources import data_file
 
 ARMS = ("right-arm", "left-arm")
@@ -180,7 +180,7 @@ class RobotModel:
         try:
             return self.limbs[name]
         except KeyError:
-            raise ConfigError(f"unknown limb {name!r}",
+            raise ConfigError(f"unknown limb {quoted(name)}",
                               hint=f"use one of {', '.join(LIMB_NAMES)}") from None
 
     def limb_slice(self, name: str) -> slice:
@@ -191,7 +191,8 @@ class RobotModel:
     def tool_transform(self, tool: str) -> np.ndarray:
         """T_6_tool: the tool frame seen from DH frame 6 of an arm (4x4, metres)."""
         if tool not in TOOL_NAMES:
-            raise ConfigError(f"unknown tool {tool!r}", hint=f"use one of {', '.join(TOOL_NAMES)}")
+            raise ConfigError(f"unknown tool {quoted(tool)}",
+                              hint=f"use one of {', '.join(TOOL_NAMES)}")
         T = np.eye(4)
         spec = self.tools[tool]
         if tool == "hand":
@@ -318,7 +319,7 @@ def _shape(kind, raw: dict, table: str, path: Path):
         sign = -1.0 if f.name == "body_front_m" else 1.0
         if isinstance(value, bool) or not isinstance(value, int | float) or not sign * value > 0:
             raise ConfigError(f"must be a {'negative' if sign < 0 else 'positive'} number, "
-                              f"got {value!r}", path=str(path), field=f"{table}.{f.name}")
+                              f"got {quoted(value)}", path=str(path), field=f"{table}.{f.name}")
         values[f.name] = float(value)
     return kind(**values)
 
@@ -344,7 +345,7 @@ def _estimation(raw: dict, path: Path) -> EstimationConfig:
               and (value <= 1 or not f.name.endswith("_fraction")))
         if not ok:
             what = "a share in (0, 1]" if f.name.endswith("_fraction") else "a positive number"
-            raise ConfigError(f"must be {what}, got {value!r}", path=str(path),
+            raise ConfigError(f"must be {what}, got {quoted(value)}", path=str(path),
                               field=f"estimation.{f.name}")
         values[f.name] = float(value)
     return EstimationConfig(**values)
@@ -364,11 +365,11 @@ def load_model(params: str = "as-built", limits: str = "table4",
     raw = _read_toml(path)
     sets = raw.get("params", {})
     if params not in sets:
-        raise ConfigError(f"unknown parameter set {params!r}", path=str(path),
+        raise ConfigError(f"unknown parameter set {quoted(params)}", path=str(path),
                           hint=f"use one of {', '.join(sets)}")
     limit_sets = raw.get("limit_sets", {})
     if limits != "table4" and limits not in limit_sets:
-        raise ConfigError(f"unknown limit set {limits!r}", path=str(path),
+        raise ConfigError(f"unknown limit set {quoted(limits)}", path=str(path),
                           hint=f"use one of table4, {', '.join(limit_sets)}")
     overrides = limit_sets.get(limits, {})
     lengths_m = {k: float(v) / 1000.0 for k, v in sets[params].items()}

@@ -44,7 +44,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from hubo_cli.errors import ConfigError
+from hubo_cli.errors import ConfigError, quoted
 from hubo_cli.state import FT_MEASURED, GRAVITY_M_S2
 
 MASS_SCALE_RANGE = (0.9, 1.1)
@@ -217,7 +217,7 @@ def draw(seed: int | None, urdf_text: str, physics_dt_s: float = 0.001) -> Pertu
     if seed is None or seed == 0:
         return Perturbation()
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
-        raise ConfigError(f"perturbation seed must be a non-negative integer, not {seed!r}",
+        raise ConfigError(f"perturbation seed must be a non-negative integer, not {quoted(seed)}",
                           hint="use --perturb 1 (0 is the nominal robot)")
     rng = np.random.default_rng([int(seed), _DRAWS])
     links = _link_names(urdf_text)

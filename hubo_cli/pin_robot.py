@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from hubo_cli.errors import ConfigError
+from hubo_cli.errors import ConfigError, quoted
 from hubo_cli.model import RobotModel
 
 
@@ -50,7 +50,7 @@ class PinRobot:
     def frame_id(self, name: str) -> int:
         """The id of a URDF frame (link) by name; the error lists the end frames."""
         if not self.model.existFrame(name):
-            raise ConfigError(f"the URDF has no frame {name!r}", path=str(self.urdf_path))
+            raise ConfigError(f"the URDF has no frame {quoted(name)}", path=str(self.urdf_path))
         return self.model.getFrameId(name)
 
 
@@ -80,6 +80,6 @@ def load_pin_robot(model: RobotModel, floating: bool = False,
     index = []
     for joint in model.joint_names:
         if joint not in names:
-            raise ConfigError(f"the URDF has no joint {joint!r}", path=str(path))
+            raise ConfigError(f"the URDF has no joint {quoted(joint)}", path=str(path))
         index.append(pmodel.joints[pmodel.getJointId(joint)].idx_q)
     return PinRobot(pmodel, np.array(index, dtype=int), floating, path)

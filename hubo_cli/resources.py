@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from hubo_cli.errors import ConfigError
+from hubo_cli.errors import ConfigError, quoted
 
 _PACKAGE_DIR = Path(__file__).resolve().parent
 _FOLDERS = ("robots", "tasks", "trajectories")
@@ -21,7 +21,7 @@ def data_dir(folder: str) -> Path:
         folder: ``"robots"``, ``"tasks"`` or ``"trajectories"``.
     """
     if folder not in _FOLDERS:
-        raise ConfigError(f"unknown data folder {folder!r}", hint=f"use one of {_FOLDERS}")
+        raise ConfigError(f"unknown data folder {quoted(folder)}", hint=f"use one of {_FOLDERS}")
     for candidate in (_PACKAGE_DIR / "_data" / folder, _PACKAGE_DIR.parent / folder):
         if candidate.is_dir():
             return candidate
@@ -37,7 +37,7 @@ def data_file(folder: str, relative: str) -> Path:
     if not path.is_file():
         existing = sorted(p.name for p in path.parent.glob("*")) if path.parent.is_dir() else []
         raise ConfigError(
-            f"no file {relative!r} in {folder}/",
+            f"no file {quoted(relative)} in {folder}/",
             path=str(path),
             hint=f"files there: {', '.join(existing) or 'none'}",
         )

@@ -42,7 +42,7 @@ from hubo_cli.control.log import (
     max_velocity_ratio,
     update_log_metadata,
 )
-from hubo_cli.control.loop import MIN_SPEED, ControlLoop, LoopResult, PeriodObserver
+from hubo_cli.control.loop import ControlLoop, LoopResult, PeriodObserver
 from hubo_cli.control.module import Module
 from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
@@ -53,6 +53,7 @@ from hubo_cli.errors import ConfigError, DeviceError, HuboError, InputError
 from hubo_cli.estimation.build import build_estimator
 from hubo_cli.interrupts import loop_starting, run_files
 from hubo_cli.model import RobotModel
+from hubo_cli.pace import check_speed
 from hubo_cli.runs import discard_if_unused, make_run_dir, release_run_dir, write_json
 from hubo_cli.scene import SceneActions
 
@@ -139,12 +140,10 @@ class RunSetup:
 
     def pace(self) -> float | None:
         """The loop's speed (None = as fast as possible), checked against real-time needs."""
-        if self.speed is not None and not (np.isfinite(self.speed) and self.speed >= MIN_SPEED):
-            raise InputError(f"speed must be a number of at least {MIN_SPEED:g}, got "
-                             f"{self.speed:g}", hint="use 1 for real time")
+        speed = check_speed(self.speed)
         reason = self.real_time_reason()
         if reason is None:
-            return self.speed
+            return speed
         if self.speed is not None and abs(self.speed - 1.0) > 1e-9:
             raise InputError(f"this run must go in real time ({reason}); --speed "
                              f"{self.speed:g} is refused",

@@ -29,10 +29,10 @@ import time
 import warnings
 from collections.abc import Callable, Sequence
 from concurrent.futures import CancelledError
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from hubo_cli.errors import DeviceError, HuboError, InputError
+from hubo_cli.errors import DeviceError, HuboError, InputError, quoted
 from hubo_cli.outputs import replacing
 
 SIM_COMMAND = "sim"
@@ -130,17 +130,17 @@ def parse_seeds(text: str) -> list[int]:
         match = re.fullmatch(rf"\s*(\d{{1,{MAX_SEED_DIGITS}}})\s*"
                              rf"(?:-\s*(\d{{1,{MAX_SEED_DIGITS}}})\s*)?", part)
         if not match:
-            raise InputError(f"--seeds {text!r} is not A-B, A or A,B,C (integers >= 0 of at "
+            raise InputError(f"--seeds {quoted(text)} is not A-B, A or A,B,C (integers >= 0 of at "
                              f"most {MAX_SEED_DIGITS} digits)", hint="e.g. --seeds 1-20")
         first = int(match.group(1))
         last = int(match.group(2)) if match.group(2) is not None else first
         if last < first:
-            raise InputError(f"--seeds {part.strip()!r}: the range ends before it starts",
+            raise InputError(f"--seeds {quoted(part.strip())}: the range ends before it starts",
                              hint="e.g. --seeds 1-20")
         ranges.append(range(first, last + 1))
     count = sum(len(r) for r in ranges)  # before listing them: 1-100000000 is refused at once
     if count > MAX_JOBS:
-        raise InputError(f"--seeds {text!r} makes {count:,} runs; a sweep runs at most "
+        raise InputError(f"--seeds {quoted(text)} makes {count:,} runs; a sweep runs at most "
                          f"{MAX_JOBS:,}", hint="split the seeds into several sweeps")
     return list(dict.fromkeys(itertools.chain.from_iterable(ranges)))
 
@@ -159,7 +159,7 @@ def parse_sets(sets: Sequence[str]) -> dict[str, list[object]]:
         name, sep, listed = text.partition("=")
         items = _split_values(listed)
         if not sep or not name.strip() or not all(item.strip() for item in items):
-            raise InputError(f"--set {text!r} is not NAME=V1,V2,... (no empty value)",
+            raise InputError(f"--set {quoted(text)} is not NAME=V1,V2,... (no empty value)",
                              hint="e.g. --set speed_mm_s=10,20,40")
         values[name.strip()] = [parse_override(f"{name}={v}")[1] for v in items]
     return values
@@ -223,7 +223,7 @@ def check_scheduler(address: str) -> str:
                          address)
     port = int(match.group(2)) if match else 0
     if not 0 < port < 65536:
-        raise InputError(f"--scheduler {address!r} is not a Dask scheduler address "
+        raise InputError(f"--scheduler {quoted(address)} is not a Dask scheduler address "
                          f"(tcp://HOST:PORT, port 1-65535)", hint=f"e.g. {SCHEDULER_EXAMPLE}")
     host = match.group(1).strip("[]")
     try:
@@ -339,11 +339,14 @@ def check_jobs(jobs: Sequence[Job]) -> None:
             unknown ``sim`` parameter or a bad value of one (InputError).
     """
     from hubo_cli.experiments.standing import check_standing_args
-    from hubo_cli.tasks.spec import load_task
+    from hubo_cli.tasks.spec import find_task, load_task
 
     combinations = {(j.command, repr(j.parameters)): (j.command, j.parameters) for j in jobs}
     for command, parameters in combinations.values():
         if command != SIM_COMMAND:
+            if not find_task(command).is_file():  # every run reads it: a FIFO gives it once
+                raise InputError(f"{command}: a sweep reads its task file once per run; a "
+                                 "FIFO gives it once", hint="give a regular .toml file")
             load_task(command, dict(parameters))
             continue
         unknown = [n for n, _ in parameters if n not in SIM_PARAMETERS]
@@ -435,6 +438,7 @@ class SweepResult:
     wall_clock_s: float
     interrupted: bool = False
     out_dir: Path | None = None
+    cut_short: list[Path] = field(default_factory=list)
 
 
 def run_sweep(jobs: Sequence[Job], out_dir: str | Path, *, workers: int | None = None,
@@ -459,7 +463,9 @@ def run_sweep(jobs: Sequence[Job], out_dir: str | Path, *, workers: int | None =
     (:func:`version_mismatches`): a difference raises InputError.
 
     A KeyboardInterrupt cancels the jobs still running; the finished rows are kept and
-    written (``interrupted`` is then True).
+    written (``interrupted`` is then True). A run the interrupt cut short in a killed local
+    worker has its log finished as ``hubo export`` would (:func:`recover_runs`; listed in
+    ``cut_short``); it has no summary and no row.
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -494,7 +500,9 @@ def run_sweep(jobs: Sequence[Job], out_dir: str | Path, *, workers: int | None =
     except DeviceError as exc:
         lost = exc
     rows = [done[i] for i in sorted(done)]
-    result = SweepResult(rows, len(jobs), where, time.perf_counter() - t0, interrupted, out_dir)
+    cut = recover_runs(out_dir, [job for i, job in enumerate(jobs) if i not in done])
+    result = SweepResult(rows, len(jobs), where, time.perf_counter() - t0, interrupted, out_dir,
+                         cut)
     write_table(rows, out_dir / TABLE_NAME)
     if rows:
         plot_sweep(rows, out_dir / PLOT_NAME)
@@ -504,6 +512,22 @@ def run_sweep(jobs: Sequence[Job], out_dir: str | Path, *, workers: int | None =
         raise DeviceError(f"{lost} after {len(rows)} of {len(jobs)} runs; the finished rows "
                           f"are in {out_dir / TABLE_NAME}", hint=lost.hint) from None
     return result
+
+
+def recover_runs(out_dir: Path, unfinished: Sequence[Job]) -> list[Path]:
+    """Finish the logs of the unfinished jobs' runs that a killed worker left with only their
+    records (``log.rows``), as ``hubo export`` would; returns those run folders. A run still
+    being written (a remote worker that goes on) is left to finish itself."""
+    from hubo_cli.control.log import ROWS_NAME, recover_log
+
+    recovered = []
+    for job in unfinished:
+        run_dir = out_dir / job.name
+        if (run_dir / ROWS_NAME).exists():
+            with contextlib.suppress(InputError, OSError):  # still running, or unreadable
+                if recover_log(run_dir):
+                    recovered.append(run_dir)
+    return recovered
 
 
 def _run_on_dask(jobs, out_dir: Path, n_workers: int, scheduler: str | None,

@@ -4,6 +4,9 @@ anything moves, and no file the user owns is changed (issue: operator safety and
 The table drives ``hubo`` through click's CliRunner with the ideal driver and short streams.
 """
 
+import json
+import math
+import os
 import re
 import shutil
 import signal
@@ -173,7 +176,11 @@ CASES = {
                                     2, "both drive the left-arm"),
     "teleop-wall-5000": (lambda d: ["teleop", "--replay", str(_short_log(d / "s.csv")),
                                     "--mode", "drill", "--wall-distance", "5000", "--out",
-                                    str(d / "wall-run")], 2, "reaches nothing"),
+                                    str(d / "wall-run")], 2, "at most 1000 mm"),
+    # a wall out of reach is one kind of error: exit 4 in teleop as in a task's pre-flight
+    "teleop-wall-800": (lambda d: ["teleop", "--replay", str(_short_log(d / "s.csv")),
+                                   "--mode", "drill", "--wall-distance", "800", "--out",
+                                   str(d / "wall-run")], 4, "reaches nothing"),
     "teleop-wall-550": (lambda d: ["teleop", "--replay", str(_short_log(d / "s.csv")),
                                    "--mode", "drill", "--wall-distance", "550", "--out",
                                    str(d / "wall-run")], 4, "cannot reach the wall"),
@@ -208,14 +215,65 @@ CASES = {
     "ik-xyz-and-matrix": (lambda d: ["ik", "right-arm", "--xyz", "400", "-200", "0",
                                      "--matrix", *"1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1".split()], 2,
                           "both give the goal"),
-    "ik-1e300": (lambda d: ["ik", "right-arm", "--xyz", "1e300", "0", "0"], 2, "beyond 1e6"),
+    "ik-1e300": (lambda d: ["ik", "right-arm", "--xyz", "1e300", "0", "0"], 2,
+                 "beyond 1,000,000"),
     "emulate-duration-negative": (lambda d: ["fastrak", "emulate", "--pty", "--duration", "-1"],
                                   2, "positive number"),
     "record-over-existing": (lambda d: ["record", "--port", "/dev/null", "--out",
                                         str(_owned(d / "mine.fastrak"))], 2, "exists"),
     "decode-over-existing-csv": (lambda d: ["fastrak", "decode", str(_copy_capture(d))], 2,
                                  "exists"),
+    # round 12: what round 11's review left open
+    "decode-output-list-100000": (lambda d: ["fastrak", "decode", str(_capture_with(
+        d / "l.fastrak", output_list=[2] * 100_000))], 2, "(199,999 characters)"),
+    "decode-output-list-text": (lambda d: ["fastrak", "decode", str(_capture_with(
+        d / "t.fastrak", output_list="x"))], 2, "output_list is 'x', not a list of whole"),
+    "decode-baud-nan": (lambda d: ["fastrak", "decode", str(_capture_with(
+        d / "n.fastrak", baud=math.nan))], 2, "baud is nan, not a baud rate"),
+    "decode-baud-infinite": (lambda d: ["fastrak", "decode", str(_capture_with(
+        d / "i.fastrak", baud=math.inf))], 2, "baud is inf, not a baud rate"),
+    "task-speed-1e-300": (lambda d: ["task", "show", str(_task_with(
+        d / "s.toml", "speed_mm_s = 10.0", "speed_mm_s = 1e-300"))], 2, "at least 0.1, got 1e-300"),
+    "task-list-20000": (lambda d: ["task", "show", str(_task_with(
+        d / "l.toml", "speed_mm_s = 10.0", f"speed_mm_s = {[1.0] * 20_000}"))], 2,
+        "(20,000 items)"),
+    "task-integer-5000-digits": (lambda d: ["task", "show", str(_task_with(
+        d / "i.toml", "speed_mm_s = 10.0", "speed_mm_s = 1" + "0" * 5000))], 2,
+        "an integer too long to read"),
+    "task-dev-zero": (lambda d: ["task", "run", "/dev/zero"], 2, "a device, not a task file"),
+    "task-folder": (lambda d: ["task", "show", str(d / "mine")], 2, "a folder, not a task file"),
+    "ik-batch-1e300": (lambda d: ["ik", "right-arm", "--batch", str(_batch_csv(
+        d / "b.csv", 1e300)), "--out", str(d / "out.csv")], 2, "T03 1e+300 is beyond 1,000,000"),
+    "sweep-fifo-task": (lambda d: ["sweep", str(_fifo(d / "f.toml")), "--seeds", "1",
+                                   "--workers", "0", "--out", str(d / "sw")], 2,
+                        "once per run"),
+    "ik-batch-byte-order-mark": (lambda d: ["ik", "right-arm", "--batch", str(_batch_csv(
+        d / "b.csv", 0.4, bom=True)), "--out", str(d / "out.csv")], 0, "exact 1"),
 }
+
+
+def _capture_with(path: Path, **header) -> Path:
+    """The shipped capture with some of its header's fields replaced."""
+    blob = FREE_CAPTURE.read_bytes()
+    start = blob.index(b"\n") + 1
+    end = blob.index(b"\n", start)
+    fields = json.loads(blob[start:end]) | header
+    path.write_bytes(blob[:start] + json.dumps(fields).encode() + blob[end:])
+    return path
+
+
+def _fifo(path: Path) -> Path:
+    """A FIFO nobody writes (a task run from it would wait)."""
+    os.mkfifo(path)
+    return path
+
+
+def _batch_csv(path: Path, x_m: float, bom: bool = False) -> Path:
+    """One pose (the drill's frame, x_m forward of the neck) for ``hubo ik --batch``."""
+    header = ",".join(f"T{i}{j}" for i in range(4) for j in range(4))
+    row = f"1,0,0,{x_m!r},0,1,0,-0.2,0,0,1,0,0,0,0,1"
+    path.write_text(header + "\n" + row + "\n", encoding="utf-8-sig" if bom else "utf-8")
+    return path
 
 
 def _bytes(path: Path) -> Path:
@@ -251,6 +309,7 @@ def test_bad_input_gives_one_line_and_its_exit_code(case, tmp_path, monkeypatch)
         result.exception, SystemExit), repr(result.exception)
     assert result.exit_code == code, output
     assert text in output, output
+    assert len(output) < 2000, output[:2000]  # no input echoed whole (round 12: 200 kB)
     for path, data in before.items():  # nothing the user had was changed
         assert path.read_bytes() == data, path
     # a refused run leaves no run folder behind

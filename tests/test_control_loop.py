@@ -11,12 +11,13 @@ import pytest
 from control_support import assert_within_limits, ideal
 
 from hubo_cli.control.log import FLAGS_NAME, LOG_NAME, ROWS_NAME, load_log, read_rows
-from hubo_cli.control.loop import MIN_SPEED, ControlLoop
+from hubo_cli.control.loop import ControlLoop
 from hubo_cli.control.module import Module
 from hubo_cli.control.pipeline import build_pipeline
 from hubo_cli.control.status import Status
-from hubo_cli.errors import Terminated
+from hubo_cli.errors import InputError, Terminated
 from hubo_cli.interrupts import run_files
+from hubo_cli.pace import MIN_SPEED, check_speed
 
 DT = 0.005
 
@@ -217,7 +218,7 @@ def test_interrupts_while_the_loop_cleans_up_wait_for_the_run_files(model, tmp_p
 def test_a_slowed_runs_stop_goes_at_real_time_at_least(model, tmp_path):
     """At the slowest pace (MIN_SPEED) a period lasts 100 times its length, and the smooth stop
     after a Ctrl-C is paced at real time (main: at the run's pace, so at --speed 1e-9 a Ctrl-C
-    waited for days); slower than MIN_SPEED is refused."""
+    waited for days); slower than MIN_SPEED is refused (by the run's set-up)."""
     robot = ideal(model)
     moving = _moving_target(robot.read().q_rad.copy(), amplitude=0.5, period_s=3.0)
     now = [0.0]
@@ -240,8 +241,8 @@ def test_a_slowed_runs_stop_goes_at_real_time_at_least(model, tmp_path):
     slow = [s for s in sleeps if s > dt + 1e-12]  # all the run's periods but the first
     assert len(slow) == result.periods - result.stop_periods - 1
     assert slow == pytest.approx([dt / MIN_SPEED] * len(slow))
-    with pytest.raises(ValueError, match="at least"):
-        ControlLoop(robot, build_pipeline(model), moving, speed=MIN_SPEED / 2)
+    with pytest.raises(InputError, match="at least"):
+        check_speed(MIN_SPEED / 2)
 
 
 def _raise_terminated(signum, frame):

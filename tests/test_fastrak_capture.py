@@ -150,7 +150,7 @@ def test_capture_with_garbage_between_chunks_resynchronises(tmp_path):
     (b"", "is empty"),
     (b"\x00\x01\x02\xff" * 10, "neither a raw capture"),
     (MAGIC + b"{not json\n", "not valid JSON"),
-    (MAGIC + b'{"format": "binary"}\n', "lacks or garbles"),
+    (MAGIC + b'{"format": "binary"}\n', "header lacks units"),
     (MAGIC + b'{"format": "binary", "output_list": [2, 11], "units": "cm", '
              b'"stations": [1]}\n', "terminator"),
     (MAGIC + b'{"format": "binary", "output_list": [2, 11, 1], "units": "mm", '

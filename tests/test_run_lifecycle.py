@@ -487,7 +487,8 @@ def test_sigterm_ends_a_sequential_sweep_after_the_run_it_interrupted(tmp_path):
 def test_sigterm_ends_a_local_cluster_sweep_within_a_second_or_so(tmp_path):
     """SIGTERM to a sweep on a local Dask cluster: its worker processes, busy in simulations
     that do not stop for the cluster's graceful close, are ended at once; exit 130 with the
-    finished rows (none yet here) in sweep.csv, no traceback, no worker process left."""
+    finished rows (none yet here) in sweep.csv, no traceback, no worker process left, and the
+    runs cut short with their logs finished and named."""
     import psutil
 
     out = tmp_path / "sweep"
@@ -526,6 +527,10 @@ def test_sigterm_ends_a_local_cluster_sweep_within_a_second_or_so(tmp_path):
     assert exit_s < 15.0, exit_s
     assert running() == []
     assert (out / "sweep.csv").read_text().splitlines()[0].startswith("command,seed")
+    # the runs cut short have their logs finished as `hubo export` would, and are named
+    # (main: their folders kept only log.rows)
+    assert not (first / ROWS_NAME).exists() and len(load_log(first)) >= 200
+    assert "cut short" in err and first.name in err, err
 
 
 # ------------------------------------------------------------------ silent streams, late signals

@@ -10,7 +10,7 @@ from hubo_cli.control.module import Cycle
 from hubo_cli.control.pipeline import DEFAULT_ORDER, SafetyProfile, build_pipeline
 from hubo_cli.control.stop_choice import ActiveStops
 from hubo_cli.drivers.registry import make_driver
-from hubo_cli.errors import ConfigError, InputError
+from hubo_cli.errors import ConfigError, InputError, SafetyError
 from hubo_cli.estimation.build import build_estimator
 from hubo_cli.experiments.push_wall import push_wall_setup
 from hubo_cli.posture import home_posture
@@ -156,7 +156,7 @@ def test_teleop_wall_distance_puts_the_hole_on_that_distance_s_reachable_rectang
         assert rect.y_min_m - 1e-9 <= centre_y <= rect.y_max_m + 1e-9
         assert rect.z_min_m - 1e-9 <= centre_z <= rect.z_max_m + 1e-9
         assert abs(height - (rect.z_min_m + rect.z_max_m) / 2) < 1e-9
-    with pytest.raises(InputError, match="reaches nothing"):
+    with pytest.raises(SafetyError, match="reaches nothing"):  # exit 4, as a task's
         drill_stance(0.95)
 
 

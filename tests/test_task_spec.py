@@ -1,5 +1,8 @@
 """The task file format: shipped tasks load, malformed files name file, line and field."""
 
+import os
+import threading
+
 import pytest
 from click.testing import CliRunner
 
@@ -142,3 +145,17 @@ def test_list_and_show():
     assert "rectangle 150 x 100 mm from the upper-left corner, ccw" in shown.output
     assert "speed_mm_s = 10.0" in shown.output
     assert runner.invoke(main, ["task", "show", "nope"]).exit_code == 2
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="FIFOs as on Linux")
+def test_a_task_from_a_fifo_is_read_once_and_keeps_its_text(tmp_path):
+    """A FIFO task file loads (main: 'no such task file') and the spec keeps the text read, so
+    the run's copy of the task (task.toml) does not read the FIFO a second time."""
+    fifo = tmp_path / "task.toml"
+    os.mkfifo(fifo)
+    text = data_file("tasks", "cut-slot.toml").read_text()
+    writer = threading.Thread(target=fifo.write_text, args=(text,), daemon=True)
+    writer.start()
+    spec = load_task(fifo)
+    writer.join(timeout=5)
+    assert spec.text == text and spec.name == "cut-slot"

@@ -456,6 +456,8 @@ def test_replay_refuses_bad_input_without_a_traceback(run_dir, tmp_path):
                  ["replay", str(run_dir)],
                  ["replay", str(run_dir), "--video", "x.mp4", "--size", "big"],
                  ["replay", str(run_dir), "--video", "x.mp4", "--speed", "0"],
+                 # as teleop's floor (main: ten million frames a second of the run)
+                 ["replay", str(run_dir), "--video", "x.mp4", "--speed", "1e-7"],
                  ["replay", str(run_dir), "--video", "x.mp4", "--from", "50"],
                  ["export", str(run_dir)]):
         result = runner.invoke(main, args)

@@ -10,7 +10,7 @@ import click
 from hubo_cli.cli.checks import check_baud, check_seconds
 from hubo_cli.cli.options import force_option
 from hubo_cli.cli.output import console, err_console, interactive, print_json
-from hubo_cli.errors import DeviceError, InputError
+from hubo_cli.errors import DeviceError, InputError, quoted
 
 JSON = click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
 
@@ -163,7 +163,7 @@ def _parse_stations(text: str | None) -> tuple[int, ...] | None:
     try:
         return tuple(int(v) for v in text.split(",") if v.strip())
     except ValueError:
-        raise InputError(f"--stations {text!r} is not a list of numbers",
+        raise InputError(f"--stations {quoted(text)} is not a list of numbers",
                          hint="write e.g. --stations 1,2") from None
 
 

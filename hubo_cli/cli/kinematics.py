@@ -9,6 +9,7 @@ from rich.table import Table
 from hubo_cli.cli.options import force_option
 from hubo_cli.cli.output import console, fmt_q, print_json
 from hubo_cli.errors import InputError
+from hubo_cli.kinematics.poses import MAX_INPUT_MAGNITUDE
 from hubo_cli.model import LIMB_NAMES, TOOL_NAMES
 
 LIMB = click.Choice(LIMB_NAMES)
@@ -28,8 +29,9 @@ def _finite(option: str, values) -> None:
     array = np.asarray(values, dtype=float)
     if not np.all(np.isfinite(array)):
         raise InputError(f"{option} contains NaN or infinity", hint="give finite numbers")
-    if np.any(np.abs(array) > 1e6):
-        raise InputError(f"{option} contains a number beyond 1e6 ({np.max(np.abs(array)):g})",
+    if np.any(np.abs(array) > MAX_INPUT_MAGNITUDE):
+        raise InputError(f"{option} contains a number beyond {MAX_INPUT_MAGNITUDE:,.0f} "
+                         f"({np.max(np.abs(array)):g})",
                          hint="joints are radians, positions millimetres")
 
 

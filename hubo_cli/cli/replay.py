@@ -20,12 +20,13 @@ def size_option(function):
 
 def parse_size(text: str) -> tuple[int, int]:
     """``"640x480"`` -> (640, 480); bad text is an input error."""
-    from hubo_cli.errors import InputError
+    from hubo_cli.errors import InputError, quoted
 
     try:
         width, height = (int(v) for v in text.lower().split("x"))
     except ValueError:
-        raise InputError(f"bad --size {text!r}", hint="give WIDTHxHEIGHT, e.g. 640x480") from None
+        raise InputError(f"bad --size {quoted(text)}",
+                         hint="give WIDTHxHEIGHT, e.g. 640x480") from None
     return width, height
 
 
@@ -117,13 +118,13 @@ def replay(run, gui, video, speed, camera, size, start_s, end_s, force, as_json)
     """
     from hubo_cli.errors import InputError
     from hubo_cli.outputs import OutputFile
+    from hubo_cli.pace import check_speed
     from hubo_cli.viz.scene import load_scene
 
     if not gui and video is None:
         raise InputError("nothing to do: give --video FILE.mp4 or --gui",
                          hint="e.g. hubo replay RUN --video run.mp4")
-    if speed is not None and not speed > 0:
-        raise InputError(f"--speed must be positive, got {speed}", hint="e.g. --speed 2")
+    check_speed(speed)  # before any work: the window and the video pace by it
     report: dict = {"run_dir": str(run)}
     if video is not None:
         out = OutputFile(video, option="--video", inputs=(run,), force=force)

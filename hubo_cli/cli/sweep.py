@@ -105,10 +105,15 @@ def sweep(command: str, seeds: str, sets: tuple[str, ...], workers: int | None,
     if as_json:
         print_json({"out": str(out_dir), "where": result.where, "jobs": result.jobs,
                     "wall_clock_s": result.wall_clock_s, "interrupted": result.interrupted,
+                    "cut_short": [str(p) for p in result.cut_short],
                     "rows": [row.outcome() | {"wall_clock_s": row.wall_clock_s,
                                               "run_dir": row.run_dir} for row in result.rows]})
     else:
         _print_table(result, command)
+    if result.cut_short:
+        err_console.print(f"cut short by the interrupt, without summary or row (their logs "
+                          f"finished): {', '.join(p.name for p in result.cut_short)}",
+                          highlight=False, soft_wrap=True)
     ctx = click.get_current_context()
     if result.interrupted:
         ctx.exit(130)

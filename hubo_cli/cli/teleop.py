@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
-from pathlib import Path
 
 import click
 import numpy as np
@@ -24,9 +24,8 @@ from hubo_cli.cli.output import (
     err_console,
     print_json,
 )
-from hubo_cli.control.loop import MIN_SPEED
 from hubo_cli.drivers.registry import DRIVER_NAMES, driver_class
-from hubo_cli.errors import HuboError, InputError
+from hubo_cli.errors import HuboError, InputError, quoted
 
 KEYS_HELP = "keys: space e-stop, r release, c clutch, b change branch, q quit"
 DIRECTIONS = (("fwd", "back"), ("left", "right"), ("up", "down"))  # +/- x, y, z of the stance
@@ -42,12 +41,9 @@ def _speed(text: str) -> float | None:
     try:
         value = float(text)
     except ValueError:
-        raise InputError(f"--speed {text!r} is not a number or 'max'",
+        raise InputError(f"--speed {quoted(text)} is not a number or 'max'",
                          hint="use --speed 1 (real time), --speed 2, or --speed max") from None
-    if not value >= MIN_SPEED:
-        raise InputError(f"--speed must be at least {MIN_SPEED:g} (got {text})",
-                         hint="use --speed 1 or --speed max")
-    return value
+    return value  # the run's set-up checks it (hubo_cli.pace)
 
 
 def _station_map(pairs: tuple[str, ...]) -> dict[int, str] | None:
@@ -237,9 +233,8 @@ def teleop(replay, port, generate_seed, max_speed, reconnect_timeout, baud, driv
         raise InputError(f"--scale {scale:g} must be in (0, 10]", hint="e.g. --scale 1")
     if wall_distance is not None and mode != "drill":
         raise InputError("--wall-distance applies to --mode drill", hint="add --mode drill")
-    if wall_distance is not None and not (math.isfinite(wall_distance) and wall_distance > 0):
-        raise InputError(f"--wall-distance {wall_distance:g} mm must be a positive distance",
-                         hint="e.g. --wall-distance 470 (or leave it out: the workspace map's)")
+    if wall_distance is not None:
+        _check_wall_distance(wall_distance)
     if walk_from is not None and not all(math.isfinite(v) and abs(v) <= 10 for v in walk_from):
         raise InputError(f"--walk-from {walk_from[0]:g} {walk_from[1]:g} must be metres within "
                          "10 m of the working stance", hint="e.g. --walk-from -1 0 (1 m behind)")
@@ -258,24 +253,37 @@ def teleop(replay, port, generate_seed, max_speed, reconnect_timeout, baud, driv
         reach=ReachSettings.for_mode(
             mode, mode=reach_mode, allow_branch_change=allow_branch_change,
             orientation_weight_m_per_rad=orientation_weight / 1000 * 180 / np.pi))
-    if replay is not None and Path(replay).is_file():  # a FIFO is read once: by the run
-        _check_replay_stations(replay, settings)
-    if wall_distance is not None:
-        _check_wall_reach(settings)
-    with (reserved_run_dir("teleop", out) as run_dir,
-          live_server(live, live_host, live_port, quiet=as_json) as server):
-        settings.out, settings.live = run_dir, server
-        run = _run(settings, as_json)
+    with _opened_recording(settings) as recording:  # its stations checked before anything
+        if wall_distance is not None:
+            _check_wall_reach(settings)
+        with (reserved_run_dir("teleop", out) as run_dir,
+              live_server(live, live_host, live_port, quiet=as_json) as server):
+            settings.out, settings.live = run_dir, server
+            run = _run(settings, as_json, recording)
     _report(run, as_json, video)
 
 
-def _check_replay_stations(replay: str, settings) -> None:
-    """Every mapped station must be in the recording (before anything moves)."""
-    from hubo_cli.input.fastrak import open_fastrak
-    from hubo_cli.teleop.session import station_map
+def _opened_recording(settings):
+    """A replay's recording opened now, read once (a file or a FIFO alike), checked against
+    the station map and handed to the run; a live port or a generated stream is opened by
+    the run itself (a port once the pace is checked, just before the robot starts)."""
+    from hubo_cli.teleop.session import open_operator_input
 
-    with open_fastrak(replay=replay, station_arm=station_map(settings)):
-        pass  # opening checks the stations
+    if settings.replay is None:
+        return contextlib.nullcontext()
+    return open_operator_input(settings)
+
+
+def _check_wall_distance(wall_distance_mm: float) -> None:
+    """A positive distance within a task file's bound on lengths (beyond it a typo: exit 2,
+    as in a task); a wall within it that the drill cannot reach is refused for safety (exit 4,
+    :func:`_check_wall_reach`), as a task's path out of reach is in pre-flight."""
+    from hubo_cli.tasks.spec import LENGTH_MAX_MM
+
+    if not (math.isfinite(wall_distance_mm) and 0 < wall_distance_mm <= LENGTH_MAX_MM):
+        raise InputError(f"--wall-distance {wall_distance_mm:g} mm must be a positive distance "
+                         f"of at most {LENGTH_MAX_MM:g} mm",
+                         hint="e.g. --wall-distance 470 (or leave it out: the workspace map's)")
 
 
 def _check_wall_reach(settings) -> None:
@@ -288,7 +296,7 @@ def _check_wall_reach(settings) -> None:
     approach_paths(body, mapping.hand_arm.values(), scene)
 
 
-def _run(settings, as_json: bool):
+def _run(settings, as_json: bool, recording=None):
     from hubo_cli.cli.keys import operator_keys
     from hubo_cli.cli.live_view import LiveView
     from hubo_cli.cli.safety_view import SafetyPanel, read_safety
@@ -324,7 +332,7 @@ def _run(settings, as_json: bool):
     try:
         with operator_keys(on_key) as keys:
             settings.operator = keys
-            return run_teleop(settings, on_ready=on_ready)
+            return run_teleop(settings, on_ready=on_ready, device=recording)
     finally:
         if "view" in state:
             state["view"].stop()

@@ -487,12 +487,12 @@ def _follow_offsets(q, ankles, signs, right_pitch, right_roll, left_pitch, left_
 def make_balancer(model: RobotModel, mode: str = "default", **options) -> Module:
     """The balancer of a mode: ``default`` (:class:`DampingBalancer`) or ``paper``
     (:class:`AnkleBalancer`, eq. 11-12 as published)."""
-    from hubo_cli.errors import ConfigError
+    from hubo_cli.errors import ConfigError, quoted
 
     if mode == "paper":
         options.pop("drill", None)
         return AnkleBalancer(model, **options)
     if mode == "default":
         return DampingBalancer(model, **options)
-    raise ConfigError(f"unknown balance mode {mode!r}",
+    raise ConfigError(f"unknown balance mode {quoted(mode)}",
                       hint=f"use {', '.join(BALANCE_MODES)} (or leave the module out: off)")

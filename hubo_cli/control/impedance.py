@@ -100,7 +100,7 @@ from hubo_cli.control.wrench import (
     wrench_of,
 )
 from hubo_cli.dataflow import Key, Store
-from hubo_cli.errors import ConfigError
+from hubo_cli.errors import ConfigError, quoted
 from hubo_cli.estimation.keys import WRENCHES
 from hubo_cli.geometry import min_jerk
 from hubo_cli.kinematics.choice import EXACT, solve_limb
@@ -485,7 +485,7 @@ class ImpedanceController(Module):
                               "finite and >= 0")
         unknown_axes = [a for a in axes if a not in WRENCH_AXES]
         if unknown_axes:
-            raise ConfigError(f"impedance on unknown axis {unknown_axes[0]!r}",
+            raise ConfigError(f"impedance on unknown axis {quoted(unknown_axes[0])}",
                               hint=f"use some of {' '.join(WRENCH_AXES)}")
         self.axes_mask = np.array([a in axes for a in WRENCH_AXES], dtype=float)
         self.measured_force = np.array([i in MEASURED_FORCE_AXES for i in range(3)], dtype=float)
@@ -493,7 +493,7 @@ class ImpedanceController(Module):
         self.reads = MEASURED_WRENCH_READS + (() if reference is None else (reference,))
         unknown = [a for a in arms if a not in HAND_SENSORS]
         if unknown:
-            raise ConfigError(f"impedance on unknown arm {unknown[0]!r}",
+            raise ConfigError(f"impedance on unknown arm {quoted(unknown[0])}",
                               hint=f"use {', '.join(HAND_SENSORS)}")
         self.dt_s = float(dt_s)
         self.Ad, self.Bd = discretize(self.M, self.D, self.K, self.dt_s)
@@ -540,7 +540,7 @@ class ImpedanceController(Module):
                 h.wrench_ref_N[:] = w
                 h.wrench_ref_eff_N[:] = w
                 return
-        raise ConfigError(f"no impedance on {arm!r}",
+        raise ConfigError(f"no impedance on {quoted(arm)}",
                           hint=f"it acts on {', '.join(h.arm for h in self.hands)}")
 
     def offset(self, arm: str) -> np.ndarray:

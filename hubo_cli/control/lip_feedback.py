@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hubo_cli.errors import ConfigError
+from hubo_cli.errors import ConfigError, quoted
 from hubo_cli.model import RobotModel
 from hubo_cli.state import GRAVITY_M_S2
 
@@ -54,13 +54,14 @@ class LipFeedbackParams:
         t = self.zmp_time_constant_s
         if isinstance(t, bool) or not isinstance(t, int | float) or not (
                 math.isfinite(t) and t > 0):
-            raise ConfigError(f"zmp_time_constant_s must be a positive number, got {t!r}",
+            raise ConfigError(f"zmp_time_constant_s must be a positive number, got {quoted(t)}",
                               field="lip_feedback.zmp_time_constant_s")
         poles = self.poles_per_omega
         if len(poles) != 3 or not all(
                 isinstance(p, int | float) and not isinstance(p, bool) and math.isfinite(p)
                 and p < 0 for p in poles):
-            raise ConfigError(f"poles_per_omega must be three negative numbers, got {poles!r}",
+            raise ConfigError(f"poles_per_omega must be three negative numbers, got "
+                              f"{quoted(poles)}",
                               field="lip_feedback.poles_per_omega",
                               hint="a pole >= 0 would leave the pendulum unstable")
 
@@ -112,7 +113,7 @@ class LipFeedback:
 
     def __init__(self, com_height_m: float, params: LipFeedbackParams) -> None:
         if not (math.isfinite(com_height_m) and com_height_m > 0):
-            raise ConfigError(f"the LIP needs a positive CoM height, got {com_height_m!r}",
+            raise ConfigError(f"the LIP needs a positive CoM height, got {quoted(com_height_m)}",
                               hint="the walking pattern's com_height_m (m)")
         self.params = params
         self.omega_1_s = math.sqrt(GRAVITY_M_S2 / com_height_m)

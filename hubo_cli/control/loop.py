@@ -74,7 +74,6 @@ class PeriodObserver(Protocol):
 LABELS = {status: status.label for status in Status}  # a property's work done once
 ENDINGS = ("finished", "done", "interrupted", "module-error", "target-error", "driver-error",
            "device", "log-error", "estimation-error")
-MIN_SPEED = 0.01  # the slowest a run may be paced: a period of 5 ms lasts 0.5 s of wall time
 MAX_STOP_S = 15.0  # a brake from full speed at the slowest joint's limits takes under 2 s
 
 
@@ -170,7 +169,8 @@ class ControlLoop:
             loop's: a module built for another period is refused (ConfigError).
         modules: the ordered pipeline (see :func:`hubo_cli.control.pipeline.build_pipeline`).
         target: the target source (see the module docstring).
-        speed: None = as fast as possible, 1.0 = real time, x = x times real time.
+        speed: None = as fast as possible, 1.0 = real time, x = x times real time (at least
+            :data:`hubo_cli.pace.MIN_SPEED`: the run's set-up checks it).
         log_path: write the per-period CSV here (a folder gets ``log.csv``); None = no log.
         clock, sleep: time functions (s); injectable for tests.
         max_lag_periods: lateness (in periods) that re-anchors the schedule.
@@ -192,8 +192,6 @@ class ControlLoop:
                  max_lag_periods: int = 20, operator: OperatorKeys | None = None,
                  observer: PeriodObserver | None = None,
                  estimator: Estimator | None = None) -> None:
-        if speed is not None and not speed >= MIN_SPEED:
-            raise ValueError(f"speed must be at least {MIN_SPEED} or None")
         self.driver = driver
         self.modules = list(modules)
         self.target = as_target(target)

@@ -28,7 +28,7 @@ import numpy as np
 from hubo_cli.control.keys import ARM_SYNC, ARM_TARGET_VELOCITY, TRACKER_STATES
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.dataflow import Store
-from hubo_cli.errors import ConfigError
+from hubo_cli.errors import ConfigError, quoted
 from hubo_cli.model import ARMS, LEGS, RobotModel
 from hubo_cli.motion.limits import JointLimits
 from hubo_cli.motion.tracker import JointTracker
@@ -79,7 +79,7 @@ def tracker_groups(model: RobotModel, groups: str) -> dict[str, np.ndarray]:
     (``body``), ``limbs`` = the right arm, the left arm (``right-arm``, ``left-arm``) and the
     legs together (``legs``: their joints move the torso as one)."""
     if groups not in TRACKER_GROUPS:
-        raise ConfigError(f"unknown tracker groups {groups!r}",
+        raise ConfigError(f"unknown tracker groups {quoted(groups)}",
                           hint=f"use one of {', '.join(TRACKER_GROUPS)}")
     n = len(model.joint_names)
     if groups == "body":

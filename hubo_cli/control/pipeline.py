@@ -32,7 +32,7 @@ from hubo_cli.control.estop import SOFT_SOURCES
 from hubo_cli.control.module import Module
 from hubo_cli.control.stop_choice import ActiveStops
 from hubo_cli.control.wrench import HAND_WRENCH_PLAN, HAND_WRENCH_REF, WRENCH_AXES
-from hubo_cli.errors import ConfigError
+from hubo_cli.errors import ConfigError, quoted
 from hubo_cli.model import ARMS, RobotModel
 
 BALANCE_CHOICES = (*BALANCE_MODES, "off")  # ``--balance``: a balancer's mode, or none
@@ -136,12 +136,12 @@ def build_pipeline(model: RobotModel, order: Iterable[str] = DEFAULT_ORDER,
     """
     names = list(order)
     if interpolator not in GENERATORS:
-        raise ConfigError(f"unknown interpolator {interpolator!r}",
+        raise ConfigError(f"unknown interpolator {quoted(interpolator)}",
                           hint=f"use one of {', '.join(GENERATORS)}")
     names = [interpolator if n in GENERATORS else n for n in names]
     unknown = [n for n in names if n not in FACTORIES]
     if unknown:
-        raise ConfigError(f"unknown pipeline module {unknown[0]!r}",
+        raise ConfigError(f"unknown pipeline module {quoted(unknown[0])}",
                           hint=f"use some of {', '.join(FACTORIES)}")
     if len(set(names)) != len(names):
         raise ConfigError("a pipeline module is listed twice", hint=", ".join(names))
@@ -234,20 +234,20 @@ class SafetyProfile:
 
     def __post_init__(self) -> None:
         if self.balance_mode not in BALANCE_MODES:
-            raise ConfigError(f"unknown balance mode {self.balance_mode!r}",
+            raise ConfigError(f"unknown balance mode {quoted(self.balance_mode)}",
                               hint=f"use {', '.join(BALANCE_MODES)} (or balance off)")
         unknown = set(self.sources) - set(SOFT_SOURCES)
         if unknown:
-            raise ConfigError(f"unknown emergency-stop source {sorted(unknown)[0]!r}",
+            raise ConfigError(f"unknown emergency-stop source {quoted(sorted(unknown)[0])}",
                               hint=f"use some of {', '.join(SOFT_SOURCES)}")
         from hubo_cli.control.otg import TRACKER_GROUPS
         from hubo_cli.motion.tracker import SYNCHRONIZATIONS
 
         if self.tracker_groups not in TRACKER_GROUPS:
-            raise ConfigError(f"unknown tracker groups {self.tracker_groups!r}",
+            raise ConfigError(f"unknown tracker groups {quoted(self.tracker_groups)}",
                               hint=f"use one of {', '.join(TRACKER_GROUPS)}")
         if self.tracker_sync not in SYNCHRONIZATIONS:
-            raise ConfigError(f"unknown tracker synchronization {self.tracker_sync!r}",
+            raise ConfigError(f"unknown tracker synchronization {quoted(self.tracker_sync)}",
                               hint=f"use one of {', '.join(SYNCHRONIZATIONS)}")
 
     @property
@@ -272,7 +272,7 @@ class SafetyProfile:
         """This profile with the balancer ``--balance CHOICE`` names (one of BALANCE_CHOICES:
         ``default``, ``paper`` or ``off``)."""
         if choice not in BALANCE_CHOICES:
-            raise ConfigError(f"unknown balance choice {choice!r}",
+            raise ConfigError(f"unknown balance choice {quoted(choice)}",
                               hint=f"use one of {', '.join(BALANCE_CHOICES)}")
         if choice == "off":
             return replace(self, balance=False)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from hubo_cli.errors import InputError, SafetyError
+from hubo_cli.errors import InputError, SafetyError, quoted
 
 SOFT_SOURCES = ("operator", "capture-point", "wrist-torque", "stale-input")
 TASK_SOURCES = ("operator", "capture-point", "wrist-torque")  # a scripted task has no input
@@ -30,7 +30,7 @@ def parse_sources(text: str) -> tuple[str, ...]:
         return ()
     unknown = [n for n in names if n not in SOFT_SOURCES]
     if unknown or not names:
-        what = f"unknown stop source {unknown[0]!r}" if unknown else "no stop source given"
+        what = f"unknown stop source {quoted(unknown[0])}" if unknown else "no stop source given"
         raise InputError(f"--estop-sources: {what}",
                          hint=f"a comma-separated list of {', '.join(SOFT_SOURCES)}, or "
                               f"{NONE_WORD}")

@@ -55,7 +55,7 @@ import daqp
 import numba as nb
 import numpy as np
 
-from hubo_cli.errors import ConfigError
+from hubo_cli.errors import ConfigError, quoted
 from hubo_cli.kinematics.dh import JIT
 from hubo_cli.model import FootShape, RobotModel
 
@@ -91,7 +91,7 @@ class DistributionParams:
             value = raw.get(name)
             if isinstance(value, bool) or not isinstance(value, int | float) \
                     or not (math.isfinite(value) and value > 0):
-                raise ConfigError(f"must be a positive number, got {value!r}",
+                raise ConfigError(f"must be a positive number, got {quoted(value)}",
                                   path=str(model.source), field=f"wrench_distribution.{name}")
             values[name] = float(value)
         return cls(**values)

@@ -21,7 +21,7 @@ import os
 import time
 from dataclasses import dataclass
 
-from hubo_cli.errors import DeviceError
+from hubo_cli.errors import DeviceError, quoted
 
 LIBACH_ENV = "HUBO_LIBACH"
 INSTALL_HINT = (
@@ -73,7 +73,7 @@ class AchError(DeviceError):
     """
 
     def __init__(self, call: str, channel: str, status: int, text: str, hint: str = "") -> None:
-        super().__init__(f"{call}({channel!r}) failed: {text} ({status})", hint=hint)
+        super().__init__(f"{call}({quoted(channel)}) failed: {text} ({status})", hint=hint)
         self.call = call
         self.channel = channel
         self.status = status
@@ -257,7 +257,7 @@ class AchChannel:
 
     def _require_open(self) -> None:
         if not self._open:
-            raise DeviceError(f"ach channel {self.name!r} is closed",
+            raise DeviceError(f"ach channel {quoted(self.name)} is closed",
                               hint="open it again with Libach.open")
 
     def __enter__(self) -> AchChannel:

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
-from hubo_cli.errors import ConfigError
+from hubo_cli.errors import ConfigError, quoted
 from hubo_cli.model import RobotModel
 from hubo_cli.perturb import Perturbation
 from hubo_cli.state import RobotState
@@ -220,7 +220,7 @@ class Driver(ABC):
             index = {n: i for i, n in enumerate(self.joint_names)}
             for name, value in q_cmd_rad.items():
                 if name not in index:
-                    raise ConfigError(f"unknown joint {name!r}",
+                    raise ConfigError(f"unknown joint {quoted(name)}",
                                       hint=f"joints: {', '.join(self.joint_names)}")
                 q[index[name]] = float(value)
             return q

@@ -84,7 +84,7 @@ from hubo_cli.drivers.servo_guard import (
     guard_parameters,
 )
 from hubo_cli.drivers.stale_state import StaleStateBrake
-from hubo_cli.errors import ConfigError, DeviceError, SafetyError
+from hubo_cli.errors import ConfigError, DeviceError, SafetyError, quoted
 from hubo_cli.model import RobotModel
 from hubo_cli.posture import home_posture
 from hubo_cli.state import FT_SENSORS, RobotState
@@ -166,7 +166,7 @@ class HardwareDriver(Driver):
                  clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__(model)
         if sink not in SINKS:
-            raise ConfigError(f"unknown sink {sink!r}", hint=f"use one of {', '.join(SINKS)}")
+            raise ConfigError(f"unknown sink {quoted(sink)}", hint=f"use one of {', '.join(SINKS)}")
         if sink != "ach" and sink_path is None:
             raise ConfigError(f"the {sink} sink needs sink_path",
                               hint="give the file's path (the run folder's hubo-ref.bin)")
@@ -180,7 +180,7 @@ class HardwareDriver(Driver):
                               ">= 0 and velocity_margin >= 1")
         for channel in (ach_ref, ach_state):
             if not channel or "/" in channel or len(channel) > 63:
-                raise ConfigError(f"bad ach channel name {channel!r}",
+                raise ConfigError(f"bad ach channel name {quoted(channel)}",
                                   hint="1 to 63 characters, no '/'")
         self.armed = bool(armed)
         self.sink_kind = sink

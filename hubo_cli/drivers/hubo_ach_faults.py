@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from hubo_cli.errors import InputError
+from hubo_cli.errors import InputError, quoted
 
 FIELDS = {"missing": {"at", "for"}, "late": {"at", "for", "by"}, "frozen": {"joint", "at"},
           "hot": {"joint", "at", "rate"}}
@@ -83,19 +83,20 @@ def parse_fault(spec: str, joint_names) -> Fault:
     text = str(spec).strip()
     kind, *pairs = [part.strip() for part in text.split(",")]
     if kind not in FIELDS:
-        raise InputError(f"--fault {text!r}: unknown kind {kind!r} (one of "
+        raise InputError(f"--fault {quoted(text)}: unknown kind {quoted(kind)} (one of "
                          f"{', '.join(FIELDS)})", hint=HINT)
     values: dict[str, str] = {}
     for pair in pairs:
         key, sep, value = pair.partition("=")
         key = key.strip()
         if not sep or key not in FIELDS[kind] or key in values:
-            raise InputError(f"--fault {text!r}: {pair!r} is not one of {kind}'s fields "
-                             f"({', '.join(sorted(FIELDS[kind]))}=VALUE, each once)", hint=HINT)
+            raise InputError(f"--fault {quoted(text)}: {quoted(pair)} is not one of {kind}'s "
+                             f"fields ({', '.join(sorted(FIELDS[kind]))}=VALUE, each once)",
+                             hint=HINT)
         values[key] = value.strip()
     missing = REQUIRED[kind] - values.keys()
     if missing:
-        raise InputError(f"--fault {text!r}: {kind} needs {', '.join(sorted(missing))}",
+        raise InputError(f"--fault {quoted(text)}: {kind} needs {', '.join(sorted(missing))}",
                          hint=HINT)
     numbers = {}
     for key in values.keys() - {"joint"}:
@@ -106,13 +107,13 @@ def parse_fault(spec: str, joint_names) -> Fault:
         low = 0.0 if key == "at" else 1e-9  # for, by, rate: more than 0
         if not (math.isfinite(number) and low <= number <= MAX[key]):
             unit = "kelvin per second" if key == "rate" else "seconds"
-            raise InputError(f"--fault {text!r}: {key}={values[key]!r} is not a number of "
-                             f"{unit} in {'[0' if key == 'at' else '(0'}, {MAX[key]:g}]",
+            raise InputError(f"--fault {quoted(text)}: {key}={quoted(values[key])} is not a "
+                             f"number of {unit} in {'[0' if key == 'at' else '(0'}, {MAX[key]:g}]",
                              hint=HINT)
         numbers[key] = number
     joint = values.get("joint")
     if joint is not None and joint not in joint_names:
-        raise InputError(f"--fault {text!r}: {joint!r} is not a limb joint "
+        raise InputError(f"--fault {quoted(text)}: {quoted(joint)} is not a limb joint "
                          f"({', '.join(joint_names)})", hint=HINT)
     return Fault(kind, numbers["at"], numbers.get("for"), joint, numbers.get("by", 0.0),
                  numbers.get("rate", 0.0))
@@ -153,14 +154,14 @@ def parse_push(spec: str) -> Push:
         key, sep, value = pair.partition("=")
         key = key.strip()
         if not sep or key not in ("at", "dir", "for") or key in values:
-            raise InputError(f"--push {text!r}: {pair!r} is not one of its fields (at=S, "
-                             "dir=NAME, for=S, each once)", hint=PUSH_HINT)
+            raise InputError(f"--push {quoted(text)}: {quoted(pair)} is not one of its fields "
+                             "(at=S, dir=NAME, for=S, each once)", hint=PUSH_HINT)
         values[key] = value.strip()
     if "at" not in values:
-        raise InputError(f"--push {text!r}: when? it needs at=S", hint=PUSH_HINT)
+        raise InputError(f"--push {quoted(text)}: when? it needs at=S", hint=PUSH_HINT)
     direction = values.get("dir", "forward")
     if direction not in PUSH_DIRECTIONS:
-        raise InputError(f"--push {text!r}: dir={direction!r} is not one of "
+        raise InputError(f"--push {quoted(text)}: dir={quoted(direction)} is not one of "
                          f"{', '.join(PUSH_DIRECTIONS)}", hint=PUSH_HINT)
     numbers = {}
     for key, text_value, low, high in (("force", force, 0.0, MAX_PUSH_N),
@@ -171,7 +172,7 @@ def parse_push(spec: str) -> Push:
         except ValueError:
             number = math.nan
         if not (math.isfinite(number) and low <= number <= high):
-            raise InputError(f"--push {text!r}: {key} {text_value!r} is not a number in "
-                             f"[{low:g}, {high:g}]", hint=PUSH_HINT)
+            raise InputError(f"--push {quoted(text)}: {key} {quoted(text_value)} is not a "
+                             f"number in [{low:g}, {high:g}]", hint=PUSH_HINT)
         numbers[key] = number
     return Push(numbers["force"], numbers["at"], direction, numbers["for"])

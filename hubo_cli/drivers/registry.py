@@ -5,7 +5,7 @@ from __future__ import annotations
 import importlib
 
 from hubo_cli.drivers.base import Driver
-from hubo_cli.errors import ConfigError
+from hubo_cli.errors import ConfigError, quoted
 from hubo_cli.model import RobotModel
 
 # name -> "module:class"; the first is the default
@@ -20,7 +20,7 @@ DRIVER_NAMES = tuple(DRIVERS)
 def driver_class(name: str) -> type[Driver]:
     """The driver class registered under ``name``."""
     if name not in DRIVERS:
-        raise ConfigError(f"unknown driver {name!r}", hint=f"use one of {', '.join(DRIVERS)}")
+        raise ConfigError(f"unknown driver {quoted(name)}", hint=f"use one of {', '.join(DRIVERS)}")
     module, attr = DRIVERS[name].split(":")
     return getattr(importlib.import_module(module), attr)
 

@@ -122,7 +122,7 @@ from hubo_cli.drivers.sim_objects import (
     create_valve,
     make_grip,
 )
-from hubo_cli.errors import ConfigError, DeviceError
+from hubo_cli.errors import ConfigError, DeviceError, quoted
 from hubo_cli.geometry import (
     matrix_rows_to_quat_wxyz,
     matrix_to_quat_wxyz,
@@ -800,7 +800,7 @@ class SimDriver(Driver, SimulatedWorld):
 
     def _add_object(self, name: str, spec: Valve | Door) -> None:
         if name in self._pending_objects:
-            raise ConfigError(f"the scene already has an object called {name!r}")
+            raise ConfigError(f"the scene already has an object called {quoted(name)}")
         self._pending_objects[name] = spec
         if self._p is not None and self._robot >= 0 and not self._closed:
             self._create_object(name, spec)
@@ -814,7 +814,7 @@ class SimDriver(Driver, SimulatedWorld):
             p.removeBody(body.body_id, physicsClientId=cid)
             self._pending_objects.pop(name, None)
             link = next((k for k, v in self._links.items() if v == inside[0][3]), "torso")
-            raise ConfigError(f"the {body.kind} {name!r} would stand inside the robot (it "
+            raise ConfigError(f"the {body.kind} {quoted(name)} would stand inside the robot (it "
                               f"touches {link} where it is placed)",
                               hint="place it farther from the robot (a smaller seen offset)")
         self._objects[name] = body
@@ -822,7 +822,7 @@ class SimDriver(Driver, SimulatedWorld):
     def _object(self, name: str) -> HingedBody:
         self._require_started()
         if name not in self._objects:
-            raise ConfigError(f"the scene has no object {name!r}",
+            raise ConfigError(f"the scene has no object {quoted(name)}",
                               hint=f"objects: {', '.join(self._objects) or 'none'}")
         return self._objects[name]
 
@@ -839,7 +839,7 @@ class SimDriver(Driver, SimulatedWorld):
         is within the tolerance."""
         body = self._object(name)
         if frame not in HAND_LINK_OF:
-            raise ConfigError(f"no hand frame {frame!r}", hint="right_hand or left_hand")
+            raise ConfigError(f"no hand frame {quoted(frame)}", hint="right_hand or left_hand")
         point = self.frame_pose(frame)[:3, 3]
         miss_m = body.grip_distance_m(self._p, self._cid, point)
         if miss_m <= tolerance_m and not self.holding(frame):
@@ -1062,7 +1062,7 @@ class SimDriver(Driver, SimulatedWorld):
         if frame == "torso":
             return self._state.truth.T_world_torso.copy()
         if frame not in FRAME_PARENTS:
-            raise ConfigError(f"unknown frame {frame!r}",
+            raise ConfigError(f"unknown frame {quoted(frame)}",
                               hint=f"use torso, {', '.join(FRAME_PARENTS)}")
         # the sensor links' states read with the state (the physics has not moved since)
         ls = self._link_states[SENSOR_LINKS.index(FRAME_PARENTS[frame])]

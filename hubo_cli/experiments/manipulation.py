@@ -54,7 +54,7 @@ from hubo_cli.control.keys import STOP_MODE
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.dataflow import Store
 from hubo_cli.drivers.base import grip_flag
-from hubo_cli.errors import ConfigError, InputError
+from hubo_cli.errors import ConfigError, InputError, quoted
 from hubo_cli.estimation.keys import COM_WORLD, T_WORLD_SOLES, WRENCHES
 from hubo_cli.experiments.push_wall import ARM_START_RAD, hand_box_extent_m
 from hubo_cli.experiments.watch import WatchedTarget
@@ -133,7 +133,7 @@ class ManipulationSpec:
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
-            raise InputError(f"unknown manipulation experiment {self.kind!r}",
+            raise InputError(f"unknown manipulation experiment {quoted(self.kind)}",
                              hint=f"use one of {', '.join(KINDS)}")
         offset = np.asarray(self.seen_offset_m, dtype=float)
         if offset.shape != (3,) or not np.all(np.isfinite(offset)) \
@@ -143,14 +143,15 @@ class ManipulationSpec:
                              hint="e.g. --set seen_offset_mm=[131,0,33]")
         if self.door_opens not in DOOR_OPENS:
             raise InputError(f"door_opens must be {' or '.join(DOOR_OPENS)}, got "
-                             f"{self.door_opens!r}")
+                             f"{quoted(self.door_opens)}")
         if not 0.0 < self.turn_deg <= MAX_TURN_DEG:
-            raise InputError(f"turn_deg must be in (0, {MAX_TURN_DEG:g}], got {self.turn_deg!r}",
+            raise InputError(f"turn_deg must be in (0, {MAX_TURN_DEG:g}], got "
+                             f"{quoted(self.turn_deg)}",
                              hint="the right hand reaches that far along this valve's rim")
         if not 0.0 < self.door_deg <= 30.0:
-            raise InputError(f"door_deg must be in (0, 30], got {self.door_deg!r}")
+            raise InputError(f"door_deg must be in (0, 30], got {quoted(self.door_deg)}")
         if not 0.0 <= self.end_hold_s <= 60.0:
-            raise InputError(f"end_hold_s must be in [0, 60] s, got {self.end_hold_s!r}")
+            raise InputError(f"end_hold_s must be in [0, 60] s, got {quoted(self.end_hold_s)}")
 
     @property
     def misrecognised(self) -> bool:
@@ -178,14 +179,14 @@ def spec_from_parameters(kind: str, params: dict) -> ManipulationSpec:
         value = params.get(name, default)
         if isinstance(value, bool) or not isinstance(value, int | float) \
                 or not math.isfinite(value):
-            raise InputError(f"parameter {name} must be a number, got {value!r}",
+            raise InputError(f"parameter {name} must be a number, got {quoted(value)}",
                              hint=f"e.g. --set {name}={default:g}")
         return float(value)
 
     def flag(name: str) -> bool:
         value = params.get(name, False)
         if not isinstance(value, bool):
-            raise InputError(f"parameter {name} must be true or false, got {value!r}",
+            raise InputError(f"parameter {name} must be true or false, got {quoted(value)}",
                              hint=f"e.g. --set {name}=true")
         return value
 
@@ -193,7 +194,7 @@ def spec_from_parameters(kind: str, params: dict) -> ManipulationSpec:
     if not (isinstance(offset, list | tuple) and len(offset) == 3 and all(
             isinstance(v, int | float) and not isinstance(v, bool) for v in offset)):
         raise InputError(f"parameter seen_offset_mm must be three numbers [x, y, z] in mm, got "
-                         f"{offset!r}", hint="e.g. --set seen_offset_mm=[131,0,33]")
+                         f"{quoted(offset)}", hint="e.g. --set seen_offset_mm=[131,0,33]")
     defaults = ManipulationSpec("turn-valve")
     return ManipulationSpec(kind, seen_offset_m=tuple(float(v) / 1000.0 for v in offset),
                             door_opens=str(params.get("door_opens", "away")),

@@ -30,7 +30,7 @@ from hubo_cli.control.log import LogData
 from hubo_cli.control.loop import LoopResult
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.dataflow import Store
-from hubo_cli.errors import ConfigError, InputError
+from hubo_cli.errors import ConfigError, InputError, quoted
 from hubo_cli.experiments.watch import TIP_LIFT_M, WatchedTarget
 from hubo_cli.falls import FALL_TILT_DEG
 from hubo_cli.geometry import min_jerk
@@ -88,7 +88,7 @@ def push_spec(direction: str) -> PushSpec:
     if direction == "left":
         return PushSpec("left", ("left-arm",), np.array([0.0, 1.0, 0.0]), push_s=2.0,
                         end_s=6.0)
-    raise InputError(f"unknown push direction {direction!r}",
+    raise InputError(f"unknown push direction {quoted(direction)}",
                      hint=f"use one of {', '.join(DIRECTIONS)}")
 
 

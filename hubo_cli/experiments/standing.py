@@ -18,7 +18,7 @@ from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.stop_choice import ActiveStops
 from hubo_cli.control.target import Target
 from hubo_cli.dataflow import Store
-from hubo_cli.errors import ConfigError, HuboError, InputError
+from hubo_cli.errors import ConfigError, HuboError, InputError, quoted
 from hubo_cli.estimation.keys import CONTACT, T_WORLD_SOLES, T_WORLD_TORSO, WRENCHES
 from hubo_cli.falls import has_fallen
 from hubo_cli.geometry import tilt_rad_of_matrix
@@ -127,7 +127,8 @@ def posture_of(model: RobotModel, name: str) -> np.ndarray:
         return standing_posture(model)
     if name == "home":
         return home_posture(model)
-    raise ConfigError(f"unknown standing posture {name!r}", hint="use standing, braced or home")
+    raise ConfigError(f"unknown standing posture {quoted(name)}",
+                      hint="use standing, braced or home")
 
 
 MAX_PUSH_N = 10_000.0  # N; 0.2 s of far less throws the robot, more is a typing error
@@ -285,8 +286,8 @@ def standing_options(duration_s: float = 5.0, push_n: float = 0.0, *,
         reason = ("named by --limits" if limit_set
                   else "neither stepping nor the hip strategy runs")
     elif limit_set not in (None, WALKING_LIMITS):
-        raise ConfigError(f"{needs} needs the {WALKING_LIMITS!r} joint-limit set, not "
-                          f"{limit_set!r}",
+        raise ConfigError(f"{needs} needs the {quoted(WALKING_LIMITS)} joint-limit set, not "
+                          f"{quoted(limit_set)}",
                           hint="leave --limits out" + ("" if step else ", or add --no-hip"))
     else:
         chosen, reason = WALKING_LIMITS, f"{needs} needs its legs' speed"

@@ -20,7 +20,7 @@ from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.stop_choice import ActiveStops
 from hubo_cli.control.target import Target, TargetOutput
-from hubo_cli.errors import HuboError, InputError
+from hubo_cli.errors import HuboError, InputError, quoted
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.scene import SceneActions
@@ -230,7 +230,7 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
 
     walking_model = load_model(model.params_name, "walking")
     if params is not None and gait != DEFAULT_GAIT:
-        raise InputError(f"the gait {gait!r} and given parameters: one or the other",
+        raise InputError(f"the gait {quoted(gait)} and given parameters: one or the other",
                          hint="pass the gait's parameters changed with params.with_changes")
     gait = gait if params is None else "custom"
     params = params or walking_params(walking_model, gait)

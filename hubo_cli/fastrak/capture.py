@@ -31,7 +31,7 @@ from stat import S_ISREG
 
 import numpy as np
 
-from hubo_cli.errors import InputError
+from hubo_cli.errors import InputError, quoted
 from hubo_cli.fastrak.parser import decode_stream
 from hubo_cli.fastrak.records import (
     DEFAULT_PLAUSIBILITY,
@@ -92,26 +92,51 @@ class CaptureHeader:
     @staticmethod
     def from_dict(data: dict, where: str) -> CaptureHeader:
         """Validate a decoded header; raise InputError naming ``where`` if it is malformed."""
-        try:
-            fmt = str(data["format"])
-            output_list = tuple(int(v) for v in data["output_list"])
-            units = str(data["units"])
-            baud = int(data.get("baud", 115200))
-            stations = tuple(int(v) for v in data["stations"])
-        except (KeyError, TypeError, ValueError) as exc:
-            raise InputError(f"{where}: capture header lacks or garbles {exc}",
-                             hint="the header needs format, output_list, units and stations"
-                             ) from None
-        if units not in UNIT_SCALE_M:
-            raise InputError(f"{where}: capture header has units {units!r}",
+        def value(name: str):
+            if name not in data:
+                raise InputError(f"{where}: the capture header lacks {name}", hint=HEADER_HINT)
+            return data[name]
+
+        def whole_numbers(name: str) -> tuple[int, ...]:
+            items = value(name)
+            if not (isinstance(items, list) and all(map(_whole, items))):
+                raise InputError(f"{where}: the capture header's {name} is {quoted(items)}, "
+                                 "not a list of whole numbers", hint=HEADER_HINT)
+            return tuple(int(v) for v in items)
+
+        fmt, units = value("format"), value("units")
+        output_list, stations = whole_numbers("output_list"), whole_numbers("stations")
+        baud = data.get("baud", 115200)
+        if not (_whole(baud) and baud > 0):
+            raise InputError(f"{where}: the capture header's baud is {quoted(baud)}, not a "
+                             "baud rate", hint="baud is the serial line's bits per second, "
+                                               "e.g. 115200")
+        if not isinstance(units, str) or units not in UNIT_SCALE_M:
+            raise InputError(f"{where}: capture header has units {quoted(units)}",
                              hint="units must be cm or in")
         if not stations or any(not 1 <= s <= 4 for s in stations):
-            raise InputError(f"{where}: capture header has stations {list(stations)}",
+            raise InputError(f"{where}: capture header has stations {quoted(list(stations))}",
                              hint="stations are numbered 1 to 4")
-        make_layout(fmt, output_list)
+        if not isinstance(fmt, str):
+            raise InputError(f"{where}: capture header has format {quoted(fmt)}",
+                             hint="format is ascii or binary")
+        try:
+            make_layout(fmt, output_list)
+        except InputError as exc:
+            raise InputError(f"{where}: the capture header's {exc.message}", hint=exc.hint
+                             ) from None
         known = {"format", "output_list", "units", "baud", "stations"}
-        return CaptureHeader(fmt, output_list, units, baud, stations,
+        return CaptureHeader(fmt, output_list, units, int(baud), stations,
                              {k: v for k, v in data.items() if k not in known})
+
+
+HEADER_HINT = "the header needs format, output_list, units and stations"
+
+
+def _whole(v) -> bool:
+    """A JSON whole number (not a boolean, NaN or infinity; 2.0 counts)."""
+    return (isinstance(v, int) and not isinstance(v, bool)) or (
+        isinstance(v, float) and math.isfinite(v) and v.is_integer())
 
 
 @dataclass
@@ -277,7 +302,7 @@ def parse_capture(blob: bytes, where: str = "capture") -> Capture:
                              hint="the chunk's length is garbled; record the capture again")
         if (not math.isfinite(t_s) or t_s < last_t - 1e-9 or t_s < -1e-9
                 or t_s - max(last_t, 0.0) > MAX_CHUNK_GAP_S):
-            raise InputError(f"{where}: chunk at byte {at} has time {t_s!r}",
+            raise InputError(f"{where}: chunk at byte {at} has time {quoted(t_s)}",
                              hint="chunk times must be finite and non-decreasing, without "
                                   "gaps of hours; the file is garbled")
         if pos + n > size:  # a cut-off file misses part of one read
@@ -521,8 +546,8 @@ def parse_pose_log(text: str, where: str = "pose log") -> RecordBatch:
         if "status" in col and col["status"] < len(row):
             text_status = row[col["status"]]
             if len(text_status) > 1:
-                raise InputError(f"{where}: line {line_no}: status {text_status!r} is not one "
-                                 "character", hint="leave it empty when healthy")
+                raise InputError(f"{where}: line {line_no}: status {quoted(text_status)} is not "
+                                 "one character", hint="leave it empty when healthy")
             if text_status:
                 status[row_i] = ord(text_status)
     if not np.isfinite(values).all():

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hubo_cli.errors import InputError
+from hubo_cli.errors import InputError, quoted
 from hubo_cli.geometry import (
     fastrak_euler_deg_to_quat_wxyz,
     matrix_to_fastrak_euler_deg,
@@ -212,7 +212,7 @@ def parse_output_list(text: str | tuple[int, ...] | list[int]) -> tuple[int, ...
             items = tuple(int(part) for part in text.replace(" ", "").split(",") if part != "")
         except ValueError:
             raise InputError(
-                f"output list {text!r} is not a comma-separated list of item numbers",
+                f"output list {quoted(text)} is not a comma-separated list of item numbers",
                 hint="write it like the O command, e.g. 2,11,1",
             ) from None
     else:
@@ -232,13 +232,14 @@ def make_layout(fmt: str, output_list) -> RecordLayout:
         InputError: unknown format or item, no position or orientation item, or no terminator.
     """
     if fmt not in FORMATS:
-        raise InputError(f"unknown FASTRAK record format {fmt!r}", hint="use ascii or binary")
+        raise InputError(f"unknown FASTRAK record format {quoted(fmt)}",
+                         hint="use ascii or binary")
     items = parse_output_list(output_list)
-    listed = ",".join(map(str, items)) or "(empty)"
-    unknown = [c for c in items if c not in _ITEMS]
+    listed = quoted(",".join(map(str, items))) if items else "(empty)"
+    unknown = sorted({c for c in items if c not in _ITEMS})
     if unknown:
         raise InputError(
-            f"output list {listed} has unsupported item(s) {unknown}",
+            f"output list {listed} has unsupported item(s) {quoted(unknown)}",
             hint=f"supported items: {', '.join(map(str, SUPPORTED_ITEMS))}",
         )
     kinds = [_ITEMS[c].kind for c in items]
@@ -615,7 +616,8 @@ def encode_records(layout: RecordLayout, stations, position_m, quat_wxyz, units:
     numbers = _record_numbers(layout, position_m, quat_wxyz, units, relative_m)
     status_byte = status.encode("latin-1")
     if len(status_byte) != 1:
-        raise InputError(f"status {status!r} must be one character", hint="use a space or a letter")
+        raise InputError(f"status {quoted(status)} must be one character",
+                         hint="use a space or a letter")
     if layout.fmt == "binary":
         rec = np.zeros((n, layout.length), dtype=np.uint8)
         rec[:, 0] = 0x30

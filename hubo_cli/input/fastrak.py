@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hubo_cli.errors import InputError
+from hubo_cli.errors import InputError, quoted
 from hubo_cli.fastrak.source import PoseSample, PoseSource
 from hubo_cli.input.device import HAND_OF_ARM, HandPose, InputDevice
 from hubo_cli.model import ARMS
@@ -39,7 +39,7 @@ def check_station_map(station_arm: dict[int, str]) -> dict[int, str]:
             raise InputError(f"station {station} does not exist: a FASTRAK has stations 1-4",
                              hint="e.g. --map 1=right-arm --map 2=left-arm")
         if arm not in ARMS:
-            raise InputError(f"station {station}: unknown arm {arm!r}",
+            raise InputError(f"station {station}: unknown arm {quoted(arm)}",
                              hint=f"use one of {', '.join(ARMS)}")
         if arm in seen:
             raise InputError(f"stations {seen[arm]} and {station} both drive the {arm}",
@@ -55,7 +55,7 @@ def parse_station_map(pairs) -> dict[int, str]:
         station, _, arm = str(pair).partition("=")
         station = station.strip()
         if not station.isdigit() or arm.strip() not in ARMS:
-            raise InputError(f"--map {pair!r} is not STATION=ARM",
+            raise InputError(f"--map {quoted(pair)} is not STATION=ARM",
                              hint="e.g. --map 1=right-arm --map 2=left-arm")
         if int(station) in out:
             raise InputError(f"station {station} is mapped twice", hint="map it once")

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
-from hubo_cli.errors import ConfigError
+from hubo_cli.errors import ConfigError, quoted
 from hubo_cli.kinematics import choice
 from hubo_cli.kinematics.conditioning import SingularityScale
 from hubo_cli.kinematics.dh import JIT
@@ -100,7 +100,8 @@ class ReachSettings:
 
     def __post_init__(self) -> None:
         if self.mode not in REACH_MODES:
-            raise ConfigError(f"unknown reach mode {self.mode!r}", hint="use nearest or paper")
+            raise ConfigError(f"unknown reach mode {quoted(self.mode)}",
+                              hint="use nearest or paper")
         if not (np.isfinite(self.orientation_weight_m_per_rad)
                 and self.orientation_weight_m_per_rad > 0):
             mm_per_deg = self.orientation_weight_m_per_rad * 1000 * np.pi / 180

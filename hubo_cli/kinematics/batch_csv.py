@@ -1,10 +1,12 @@
 """``hubo ik --batch``: solve a CSV of poses, one output row per input row.
 
 Input columns: T00 .. T33 (row-major 4x4 pose in metres, in the neck frame) and optionally
-qprev1 .. qprev6 (rad). Output columns: line, q1 .. q6 (rad), status, pos_err_m, rot_err_rad.
-A bad row is reported by its line number and the field at fault (empty, not a complete number,
-NaN or infinite, a missing or extra field, a pose that is not a rigid transform) and written
-with status ``invalid`` and empty values; every good row is still solved.
+qprev1 .. qprev6 (rad); a UTF-8 byte-order mark before the header is skipped. Output columns:
+line, q1 .. q6 (rad), status, pos_err_m, rot_err_rad. A bad row is reported by its line number
+and the field at fault (empty, not a complete number, NaN or infinite, beyond
+``MAX_INPUT_MAGNITUDE`` as ``hubo ik`` refuses it, a missing or extra field, a pose that is not
+a rigid transform) and written with status ``invalid`` and empty values; every good row is
+still solved.
 
 The file is read and written by polars (its CSV reader parses every field as a float64 in
 compiled code on all cores; a field that is not a complete number becomes null and only those
@@ -23,10 +25,11 @@ import numba as nb
 import numpy as np
 import polars as pl
 
-from hubo_cli.errors import InputError
+from hubo_cli.errors import InputError, quoted
 from hubo_cli.kinematics.choice import STATUS_NAMES
 from hubo_cli.kinematics.dh import JIT
 from hubo_cli.kinematics.limb import Limb
+from hubo_cli.kinematics.poses import MAX_INPUT_MAGNITUDE
 from hubo_cli.outputs import OutputFile
 
 POSE_COLUMNS = [f"T{i}{j}" for i in range(4) for j in range(4)]
@@ -67,7 +70,7 @@ def _why_bad(line: str, header: list[str]) -> str:
         try:
             float(text)
         except ValueError:
-            return f"not a number in {name}: {text.strip()!r}"
+            return f"not a number in {name}: {quoted(text.strip())}"
     return "unreadable row"
 
 
@@ -101,11 +104,18 @@ def _check_rows(values: np.ndarray, names: list[str]) -> dict[int, str]:
     """
     rigid = _rigid(np.ascontiguousarray(values))
     finite = np.isfinite(values[:, 16:]).all(axis=1) if values.shape[1] > 16 else True
+    too_large = np.abs(np.nan_to_num(values, posinf=0.0, neginf=0.0)) > MAX_INPUT_MAGNITUDE
     reasons = {}
-    for i in np.flatnonzero(~(rigid & finite)):
+    for i in np.flatnonzero(~(rigid & finite) | too_large.any(axis=1)):
         bad = np.flatnonzero(~np.isfinite(values[i]))
-        reasons[int(i)] = (f"{values[i, bad[0]]} in {names[bad[0]]}" if len(bad)
-                           else "pose is not a rigid transform")
+        large = np.flatnonzero(too_large[i])
+        if len(bad):
+            reasons[int(i)] = f"{values[i, bad[0]]} in {names[bad[0]]}"
+        elif len(large):  # as `hubo ik --matrix` refuses it
+            reasons[int(i)] = (f"{names[large[0]]} {values[i, large[0]]:g} is beyond "
+                               f"{MAX_INPUT_MAGNITUDE:,.0f}")
+        else:
+            reasons[int(i)] = "pose is not a rigid transform"
     return reasons
 
 
@@ -157,6 +167,7 @@ def solve_csv(limb: Limb, in_path: str | Path, out_path: str | Path, *,
     if len(data) > MAX_BATCH_BYTES:
         raise InputError(f"{in_path} is larger than {MAX_BATCH_BYTES >> 20} MiB: not read",
                          hint="split the poses into smaller files")
+    data = data.removeprefix(b"\xef\xbb\xbf")  # the byte-order mark some Windows editors write
     out = OutputFile(out_path, inputs=(in_path,), force=force)
     header = _read_header(in_path, data)
     table = _read_table(data, header)

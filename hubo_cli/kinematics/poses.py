@@ -5,6 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 
+# the largest magnitude fk and ik take in a number (joints in rad, positions in m or mm, one
+# pose or a batch's row): a Hubo limb reaches within a metre of the neck, so a number beyond it
+# is a typo or garbage, refused rather than solved to an infinite error
+MAX_INPUT_MAGNITUDE = 1e6
+
 
 def make_transform(R: np.ndarray, p_m) -> np.ndarray:
     """4x4 homogeneous transform from a rotation matrix and a position (m)."""

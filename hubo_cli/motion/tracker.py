@@ -30,7 +30,7 @@ from ruckig import (
     Trajectory,
 )
 
-from hubo_cli.errors import ConfigError
+from hubo_cli.errors import ConfigError, quoted
 from hubo_cli.motion.limits import TARGET_SPEED_SHARE, JointLimits, all_finite
 
 SYNCHRONIZATIONS = {"phase": Synchronization.Phase, "none": Synchronization.No}
@@ -53,7 +53,7 @@ class JointTracker:
 
     def __init__(self, limits: JointLimits, dt_s: float, synchronization: str = "phase") -> None:
         if synchronization not in SYNCHRONIZATIONS:
-            raise ConfigError(f"unknown synchronization {synchronization!r}",
+            raise ConfigError(f"unknown synchronization {quoted(synchronization)}",
                               hint=f"use one of {', '.join(SYNCHRONIZATIONS)}")
         n = limits.size
         self._sync = SYNCHRONIZATIONS[synchronization]
@@ -107,7 +107,7 @@ class JointTracker:
     def set_synchronization(self, synchronization: str) -> None:
         """Time the joints of later ``track`` calls this way (``phase`` or ``none``)."""
         if synchronization not in SYNCHRONIZATIONS:
-            raise ConfigError(f"unknown synchronization {synchronization!r}",
+            raise ConfigError(f"unknown synchronization {quoted(synchronization)}",
                               hint=f"use one of {', '.join(SYNCHRONIZATIONS)}")
         self._sync = SYNCHRONIZATIONS[synchronization]
         self._rest = None
@@ -122,7 +122,7 @@ class JointTracker:
         from now to arrival (samples x n, rad). Nothing of the tracker changes. On a ruckig
         error: the current position alone (1 x n)."""
         if synchronization not in SYNCHRONIZATIONS:
-            raise ConfigError(f"unknown synchronization {synchronization!r}",
+            raise ConfigError(f"unknown synchronization {quoted(synchronization)}",
                               hint=f"use one of {', '.join(SYNCHRONIZATIONS)}")
         if self._preview is None:
             n = self.limits.size

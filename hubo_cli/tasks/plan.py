@@ -194,6 +194,11 @@ class Plan:
 
 
 PLAN_MAX_S = 1800.0  # a task's whole timeline (s): longer is a typo (and would not fit memory)
+
+
+def _seconds(t_s: float) -> str:
+    """A duration in a message: ``12,345`` s, or ``1.5e+12`` beyond a million seconds."""
+    return f"{t_s:,.0f}" if t_s < 1e6 else f"{t_s:.3g}"
 LEGS_SPEED_M_S = 0.06  # the lift's speed limit in tasks (m/s): the knees stay within theirs
 LEGS_ACCEL_M_S2 = 0.05  # and its acceleration limit (m/s^2), within the knees' 0.6 rad/s^2
 CUT_ACCEL_M_S2 = 0.05  # the bit's acceleration at the ends of each cut edge (joints in limits)
@@ -469,9 +474,9 @@ def make_plan(spec: TaskSpec, model: RobotModel, placement: Placement | None = N
     starts = np.cumsum([0.0] + [p.segment.duration_s for p in pieces])
     if not starts[-1] <= PLAN_MAX_S:
         slowest = max(pieces, key=lambda p: p.segment.duration_s)
-        raise ConfigError(f"the task would take {starts[-1]:,.0f} s ("
+        raise ConfigError(f"the task would take {_seconds(starts[-1])} s ("
                           f"{spec.steps[slowest.step].label} alone "
-                          f"{slowest.segment.duration_s:,.0f} s); the limit is "
+                          f"{_seconds(slowest.segment.duration_s)} s); the limit is "
                           f"{PLAN_MAX_S:g} s", path=str(spec.path),
                           hint="raise the speeds or shorten the waits")
     n = int(np.floor(starts[-1] / dt + 1e-9)) + 1

@@ -186,7 +186,7 @@ def _write_task_copy(spec: TaskSpec, run_dir: Path, balance: str,
         header.append(f"# parameters changed for this run: hubo task run task.toml {sets}")
     if balance != "default":
         header.append(f"# balance controllers of this run: --balance {balance}")
-    text = _with_safety_as_run(spec.path.read_text(encoding="utf-8"), safety, spec.safety)
+    text = _with_safety_as_run(spec.text, safety, spec.safety)
     (run_dir / "task.toml").write_text("\n".join(header) + "\n" + text, encoding="utf-8")
 
 

@@ -65,12 +65,13 @@ field (``steps[3].speed_mm_s``: steps are numbered from 1, as ``hubo task show``
 from __future__ import annotations
 
 import math
+import stat
 import tomllib
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
 from hubo_cli.control.stop_choice import SOFT_SOURCES, TASK_SOURCES, stops_words
-from hubo_cli.errors import ConfigError
+from hubo_cli.errors import ConfigError, quoted
 from hubo_cli.resources import data_dir
 from hubo_cli.scene import CuttingModel
 from hubo_cli.tasks.toml_lines import field_line
@@ -85,6 +86,9 @@ EXPERIMENTS = ("push-wall", "turn-valve", "push-door")
 # its 1 rad/s joints move the tool at about 0.5 m/s at most; steps and stops are short.
 LENGTH_MAX_MM = 1000.0       # sizes, positions and depths in the wall frame (mm)
 TOOL_SPEED_MAX_MM_S = 500.0  # tool speed: the arm's 1 rad/s joints at its 0.5 m reach
+# the slowest tool speed: at 0.1 mm/s a task's whole 30 minutes (PLAN_MAX_S) cover 180 mm, the
+# shipped tasks' 500 mm cut alone takes 83 minutes; the paper's operator cut at about 10 mm/s
+TOOL_SPEED_MIN_MM_S = 0.1
 TOOL_ACCEL_MAX_MM_S2 = 2000.0
 STEP_MAX_S = 600.0           # one move or wait
 STOP_MAX_S = 5.0             # T1 and T2 of the emergency stopper (paper: 0.5 s)
@@ -92,6 +96,7 @@ WRIST_TORQUE_MAX_NM = 50.0
 WALL_MAX_MM = 10000.0
 THRUST_MAX_N = 15.0          # the impedance spring's 500 N/m over its 30 mm offset limit
 MISPLACED_MAX_MM = 100.0     # a wall misjudged by more is not a recognition error to test
+MAX_TASK_BYTES = 1 << 20      # a task file is a few kB of TOML
 START_MAX_MM = 10000.0       # a walk to the working stance (``hubo walk``'s longest goal)
 
 
@@ -221,6 +226,7 @@ class TaskSpec:
     steps: tuple[Step, ...] = ()
     experiment: str | None = None
     fields_set: dict = field(default_factory=dict)
+    text: str = field(default="", repr=False)  # the file as read (a FIFO can be read only once)
 
     @property
     def overridden(self) -> dict:
@@ -240,15 +246,23 @@ def find_task(name_or_path: str | Path) -> Path:
     """A task file from a path or a shipped task's name (``cut-rectangle``)."""
     path = Path(name_or_path)
     if path.suffix == ".toml" or path.exists():
-        if not path.is_file():
+        try:
+            mode = path.stat().st_mode
+        except OSError:
             raise ConfigError("no such task file", path=str(path),
+                              hint="give a .toml file or a shipped task's name (hubo task list)"
+                              ) from None
+        if not (stat.S_ISREG(mode) or stat.S_ISFIFO(mode)):  # a FIFO is read once
+            what = ("a folder" if stat.S_ISDIR(mode) else
+                    "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else "a socket")
+            raise ConfigError(f"{what}, not a task file", path=str(path),
                               hint="give a .toml file or a shipped task's name (hubo task list)")
         return path
     for candidate in task_files():
         if candidate.stem == str(name_or_path):
             return candidate
     names = ", ".join(p.stem for p in task_files())
-    raise ConfigError(f"no shipped task called {str(name_or_path)!r}",
+    raise ConfigError(f"no shipped task called {quoted(str(name_or_path))}",
                       hint=f"shipped tasks: {names}; or give a .toml file")
 
 
@@ -269,7 +283,13 @@ def load_task(name_or_path: str | Path, overrides: dict | None = None, *,
     """
     path = find_task(name_or_path)
     try:
-        text = path.read_text(encoding="utf-8")
+        with path.open("rb") as file:  # read once: a FIFO gives its text only once
+            blob = file.read(MAX_TASK_BYTES + 1)
+        if len(blob) > MAX_TASK_BYTES:
+            raise ConfigError(f"larger than {MAX_TASK_BYTES >> 10} KiB: not a task file",
+                              path=str(path), hint="a task file is a page of TOML; see "
+                                                   "tasks/README.md")
+        text = blob.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise ConfigError(f"not a text file (byte {exc.start} is not UTF-8)", path=str(path),
                           hint="a task file is TOML text; see tasks/README.md") from None
@@ -283,7 +303,7 @@ def load_task(name_or_path: str | Path, overrides: dict | None = None, *,
         raise ConfigError("not valid TOML: arrays or tables nested too deeply", path=str(path),
                           hint="a task file nests a few levels at most; see tasks/README.md"
                           ) from None
-    except tomllib.TOMLDecodeError as exc:
+    except tomllib.TOMLDecodeError as exc:  # before ValueError: it is one
         line = None
         message = str(exc)
         if "(at line " in message:
@@ -291,7 +311,11 @@ def load_task(name_or_path: str | Path, overrides: dict | None = None, *,
             message = message.split(" (at line ")[0]
         raise ConfigError(f"not valid TOML: {message}", path=str(path), line=line,
                           hint="check the quotes, brackets and '=' on that line") from None
-    return _Loader(path, text, data, overrides or {}, sources_on_command_line).task()
+    except ValueError:  # Python reads no integer of more than 4300 digits
+        raise ConfigError("not valid TOML: an integer too long to read", path=str(path),
+                          hint="a task file's numbers are a few digits long") from None
+    return replace(_Loader(path, text, data, overrides or {}, sources_on_command_line).task(),
+                   text=text)
 
 
 FIELD_TABLES = ("stance", "scene", "safety")  # what a dotted ``--set`` name may reach
@@ -302,7 +326,7 @@ def parse_override(text: str) -> tuple[str, object]:
     text)."""
     name, sep, value = text.partition("=")
     if not sep or not name.strip():
-        raise ConfigError(f"--set {text!r} is not NAME=VALUE",
+        raise ConfigError(f"--set {quoted(text)} is not NAME=VALUE",
                           hint="e.g. --set speed_mm_s=20 (see hubo task show NAME)")
     return name.strip(), _scalar(value.strip())
 
@@ -321,7 +345,7 @@ def _scalar(value: str) -> object:
         try:
             return tomllib.loads(f"v = {value}")["v"]
         except tomllib.TOMLDecodeError:
-            raise ConfigError(f"--set value {value!r} is not a list",
+            raise ConfigError(f"--set value {quoted(value)} is not a list",
                               hint="write lists as in TOML, e.g. [-1000, 0]") from None
     lowered = value.lower()
     if lowered in ("true", "false"):
@@ -365,13 +389,13 @@ class _Loader:
         for name, value in self.overrides.items():
             if name not in defaults:
                 known = ", ".join(defaults) or "none"
-                raise ConfigError(f"the task has no parameter {name!r}", path=str(self.path),
+                raise ConfigError(f"the task has no parameter {quoted(name)}", path=str(self.path),
                                   hint=f"its parameters: {known}")
             default = defaults[name]
             if isinstance(value, str):
                 value = _scalar(value)
             if isinstance(default, bool) and not isinstance(value, bool):
-                raise ConfigError(f"parameter {name} must be true or false, got {value!r}",
+                raise ConfigError(f"parameter {name} must be true or false, got {quoted(value)}",
                                   path=str(self.path), hint=f"e.g. --set {name}=false")
             values[name] = value
         return defaults, values
@@ -380,7 +404,7 @@ class _Loader:
         if isinstance(value, str) and value.startswith("$"):
             name = value[1:]
             if name not in params:
-                raise self.fail(where, f"refers to an unknown parameter {value!r}",
+                raise self.fail(where, f"refers to an unknown parameter {quoted(value)}",
                                 hint=f"declare it under [parameters]; known: "
                                      f"{', '.join(params) or 'none'}")
             self.origin[where] = name
@@ -424,7 +448,7 @@ class _Loader:
             used = set(self.origin.values())
             unused = [name for name in self.overrides if name not in used]
             if unused:
-                raise ConfigError(f"the task declares parameter {unused[0]!r} but never uses "
+                raise ConfigError(f"the task declares parameter {quoted(unused[0])} but never uses "
                                   "it: setting it would change nothing", path=str(self.path),
                                   hint="leave it out (hubo task show NAME lists what each "
                                        "step uses)")
@@ -434,7 +458,7 @@ class _Loader:
         experiment = table.text("experiment", default=None)
         if experiment is not None:
             if experiment not in EXPERIMENTS:
-                raise self.fail("experiment", f"unknown experiment {experiment!r}",
+                raise self.fail("experiment", f"unknown experiment {quoted(experiment)}",
                                 hint=f"use one of {', '.join(EXPERIMENTS)}")
             if params.get("estop", True) is not True:  # only the command line turns it off
                 where = ("set on the command line" if "estop" in self.overrides
@@ -468,7 +492,7 @@ class _Loader:
         if start is not None and not (_is_point(start)
                                       and math.hypot(*start) <= START_MAX_MM):
             raise self.fail(t.key("start_mm"), f"must be [x, y] in mm within "
-                            f"{START_MAX_MM:g} mm of the working stance, got {start!r}",
+                            f"{START_MAX_MM:g} mm of the working stance, got {quoted(start)}",
                             hint="e.g. start_mm = [-1000, 0] (1 m behind it)")
         t.finish()
         return Stance(None if distance is None else distance / 1000,
@@ -507,7 +531,8 @@ class _Loader:
         d = Safety()
         sources = t.value("estop_sources", default=list(d.estop_sources))
         if not isinstance(sources, list) or any(s not in ESTOP_SOURCES for s in sources):
-            raise self.fail(t.key("estop_sources"), f"must be a list of sources, got {sources!r}",
+            raise self.fail(t.key("estop_sources"), f"must be a list of sources, got "
+                            f"{quoted(sources)}",
                             hint=f"choose from {', '.join(ESTOP_SOURCES)}")
         missing = [s for s in TASK_SOURCES if s not in sources]
         if missing and not self.sources_on_command_line:
@@ -529,9 +554,9 @@ class _Loader:
             robot_value = float(robot[robot_key])
             value = float(t.number(name, positive=True, maximum=maximum, default=robot_value))
             if value > robot_value:  # repr: the shortest text that tells two floats apart
-                raise self.fail(t.key(name), f"{value!r} {unit} is above the robot file's "
-                                f"{what} of {robot_value!r} {unit}: a task may only {rule}",
-                                hint=f"give at most {robot_value!r}, or leave it out")
+                raise self.fail(t.key(name), f"{quoted(value)} {unit} is above the robot file's "
+                                f"{what} of {quoted(robot_value)} {unit}: a task may only {rule}",
+                                hint=f"give at most {quoted(robot_value)}, or leave it out")
             values.append(value)
         safety = Safety(tuple(s for s in ESTOP_SOURCES if s in sources), *values)
         t.finish()
@@ -554,7 +579,8 @@ class _Loader:
 
     @staticmethod
     def _timing(t: _Table) -> tuple[float | None, float | None]:
-        speed = t.number("speed_mm_s", positive=True, maximum=TOOL_SPEED_MAX_MM_S, default=None)
+        speed = t.number("speed_mm_s", minimum=TOOL_SPEED_MIN_MM_S, maximum=TOOL_SPEED_MAX_MM_S,
+                         default=None)
         duration = t.number("duration_s", positive=True, maximum=STEP_MAX_S, default=None)
         if (speed is None) == (duration is None):
             raise t.loader.fail(t.key("speed_mm_s"), "give exactly one of speed_mm_s or "
@@ -572,7 +598,7 @@ class _Loader:
         return Step(kind, name, number,
                     depth_m=t.number("depth_mm", minimum=-LENGTH_MAX_MM,
                                      maximum=LENGTH_MAX_MM) / 1000,
-                    speed_m_s=t.number("speed_mm_s", positive=True,
+                    speed_m_s=t.number("speed_mm_s", minimum=TOOL_SPEED_MIN_MM_S,
                                        maximum=TOOL_SPEED_MAX_MM_S) / 1000)
 
     def _plunge(self, t: _Table, kind: str, name: str, number: int) -> Step:
@@ -589,7 +615,8 @@ class _Loader:
 
     def _follow(self, t: _Table, kind: str, name: str, number: int) -> Step:
         path = t.choice("path", ("rectangle", "polyline"))
-        speed = t.number("speed_mm_s", positive=True, maximum=TOOL_SPEED_MAX_MM_S) / 1000
+        speed = t.number("speed_mm_s", minimum=TOOL_SPEED_MIN_MM_S,
+                         maximum=TOOL_SPEED_MAX_MM_S) / 1000
         accel = t.number("accel_mm_s2", positive=True, maximum=TOOL_ACCEL_MAX_MM_S2,
                          default=None)
         accel = None if accel is None else accel / 1000
@@ -646,7 +673,7 @@ class _Table:
         self.used.add(name)
         if name not in self.data:
             if default is ...:
-                raise self.loader.fail(self.key(name), f"missing field {name!r}",
+                raise self.loader.fail(self.key(name), f"missing field {quoted(name)}",
                                        hint=f"add {name} = ... to [{self.where or 'top level'}]")
             return default
         return self.data[name]
@@ -665,14 +692,14 @@ class _Table:
     def text(self, name: str, default=...) -> str | None:
         value = self.value(name, default)
         if value is not None and not isinstance(value, str):
-            raise self.loader.fail(self.key(name), f"must be text, got {value!r}")
+            raise self.loader.fail(self.key(name), f"must be text, got {quoted(value)}")
         return value
 
     def choice(self, name: str, options: tuple[str, ...], default=...) -> str:
         value = self.value(name, default)
         if value not in options:
             raise self.loader.fail(self.key(name), f"must be one of {', '.join(options)}; "
-                                                   f"got {value!r}")
+                                                   f"got {quoted(value)}")
         return value
 
     def number(self, name: str, *, positive: bool = False, minimum: float | None = None,
@@ -682,13 +709,15 @@ class _Table:
             return None
         if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(
                 value):
-            raise self.loader.fail(self.key(name), f"must be a number, got {value!r}")
+            raise self.loader.fail(self.key(name), f"must be a number, got {quoted(value)}")
         if positive and not value > 0:
-            raise self.loader.fail(self.key(name), f"must be positive, got {value!r}")
+            raise self.loader.fail(self.key(name), f"must be positive, got {quoted(value)}")
         if minimum is not None and value < minimum:
-            raise self.loader.fail(self.key(name), f"must be at least {minimum:g}, got {value!r}")
+            raise self.loader.fail(self.key(name),
+                                   f"must be at least {minimum:g}, got {quoted(value)}")
         if maximum is not None and value > maximum:
-            raise self.loader.fail(self.key(name), f"must be at most {maximum:g}, got {value!r}",
+            raise self.loader.fail(self.key(name),
+                                   f"must be at most {maximum:g}, got {quoted(value)}",
                                    hint="a larger value makes no physical sense for Hubo")
         return float(value)
 
@@ -704,9 +733,9 @@ class _Table:
         if value is None and default is None:
             return None
         if not _is_point(value):
-            raise self.loader.fail(self.key(name), f"must be [y, z] in mm, got {value!r}")
+            raise self.loader.fail(self.key(name), f"must be [y, z] in mm, got {quoted(value)}")
         if max(abs(value[0]), abs(value[1])) > LENGTH_MAX_MM:
-            raise self.loader.fail(self.key(name), f"{value!r} lies more than "
+            raise self.loader.fail(self.key(name), f"{quoted(value)} lies more than "
                                    f"{LENGTH_MAX_MM:g} mm out: beyond any arm's reach")
         return float(value[0]), float(value[1])
 
@@ -729,7 +758,7 @@ class _Table:
     def finish(self) -> None:
         unknown = [k for k in self.data if k not in self.used]
         if unknown:
-            raise self.loader.fail(self.key(unknown[0]), f"unknown field {unknown[0]!r}",
+            raise self.loader.fail(self.key(unknown[0]), f"unknown field {quoted(unknown[0])}",
                                    hint=f"fields here: {', '.join(sorted(self.used))}")
 
 

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hubo_cli.errors import ConfigError
+from hubo_cli.errors import ConfigError, quoted
 from hubo_cli.input.device import ARM_OF_HAND
 from hubo_cli.model import ARMS
 from hubo_cli.teleop.target_kernels import free_goal, operator_pose_plausible
@@ -70,7 +70,7 @@ class MappingConfig:
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
-            raise ConfigError(f"unknown teleop mode {self.mode!r}", hint="use free or drill")
+            raise ConfigError(f"unknown teleop mode {quoted(self.mode)}", hint="use free or drill")
         if not (np.isfinite(self.scale) and 0 < self.scale <= 10):
             raise ConfigError(f"scale {self.scale} is not in (0, 10]", hint="use e.g. --scale 1")
         if not (np.isfinite(self.wall_speed_m_s) and self.wall_speed_m_s > 0):

@@ -3,6 +3,7 @@ folder."""
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -12,7 +13,7 @@ from hubo_cli.control.loop import LoopResult
 from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.stop_choice import ActiveStops
-from hubo_cli.errors import InputError, SafetyError
+from hubo_cli.errors import SafetyError
 from hubo_cli.input.device import HAND_OF_ARM, InputDevice
 from hubo_cli.input.opener import open_input
 from hubo_cli.input.operator_stream import StreamSettings
@@ -140,7 +141,8 @@ def drill_stance(wall_distance_m: float | None = None) -> tuple[float, np.ndarra
     centred in that rectangle (m, in S), the rectangle's mid height m = the working height).
 
     Raises:
-        InputError: nothing of the wall is reachable at ``wall_distance_m``.
+        SafetyError: nothing of the wall is reachable at ``wall_distance_m`` (exit 4, as a
+            task whose path leaves the arm's reach is refused in pre-flight).
     """
     from hubo_cli.workspace.stance import best_stance
 
@@ -152,10 +154,10 @@ def drill_stance(wall_distance_m: float | None = None) -> tuple[float, np.ndarra
                              wall_distance_m=wall_distance_m)
         wall, rect = wall_distance_m, stance.rectangle
         if rect.y_max_m <= rect.y_min_m:
-            raise InputError(f"the drill reaches nothing of a wall {wall_distance_m * 1000:.0f}"
-                             " mm from the neck",
-                             hint="leave --wall-distance out (the workspace map's best stance)"
-                                  " or see hubo workspace-map")
+            raise SafetyError(f"the drill reaches nothing of a wall {wall_distance_m * 1000:.0f}"
+                              " mm from the neck; nothing moved",
+                              hint="leave --wall-distance out (the workspace map's best stance)"
+                                   " or see hubo workspace-map")
     y_mid, z_mid = (rect.y_min_m + rect.y_max_m) / 2, (rect.z_min_m + rect.z_max_m) / 2
     corner = np.array([wall, y_mid + PAPER_HOLE_M[0] / 2, z_mid + PAPER_HOLE_M[1] / 2])
     return wall, corner, z_mid
@@ -207,13 +209,29 @@ def teleop_setup(settings: TeleopSettings, body: WholeBody, duration_s: float | 
         perturb_seed=settings.perturb_seed, operator=settings.operator, live=settings.live)
 
 
-def run_teleop(settings: TeleopSettings, on_ready=None) -> TeleopRun:
+def open_operator_input(settings: TeleopSettings) -> InputDevice:
+    """The session's operator input, opened: a recording is read (once) and its stations
+    checked against the map; a port configures the tracker.
+
+    Raises:
+        InputError / DeviceError: a bad recording or station map, a missing port.
+    """
+    return open_input(replay=settings.replay, port=settings.port,
+                      generate_seed=settings.generate_seed, stream=settings.stream,
+                      station_arm=station_map(settings), baud=settings.baud,
+                      reconnect_timeout_s=settings.reconnect_timeout_s)
+
+
+def run_teleop(settings: TeleopSettings, on_ready=None,
+               device: InputDevice | None = None) -> TeleopRun:
     """Run one teleoperation session and write its run folder.
 
     Args:
         settings: what to run.
         on_ready: called with the :class:`TeleopTarget` and the control loop once the robot
             has started (the CLI attaches its live view and key reader there).
+        device: the input, opened by the caller with :func:`open_operator_input` (who closes
+            it); None: opened here once the pace is checked.
 
     Raises:
         InputError / DeviceError: a bad recording, a missing port (before anything moves).
@@ -223,10 +241,8 @@ def run_teleop(settings: TeleopSettings, on_ready=None) -> TeleopRun:
     approach = approach_paths(body, mapping.hand_arm.values(), scene)
     wall = drill_wall(scene) if settings.mode == "drill" else None
     teleop_setup(settings, body, None).pace()  # refuse a bad pace before opening the port
-    with open_input(replay=settings.replay, port=settings.port,
-                    generate_seed=settings.generate_seed, stream=settings.stream,
-                    station_arm=station_map(settings), baud=settings.baud,
-                    reconnect_timeout_s=settings.reconnect_timeout_s) as source:
+    with (open_operator_input(settings) if device is None
+          else contextlib.nullcontext(device)) as source:
         target = TeleopTarget(model, source, HandMapper(mapping), body, approach, q_start,
                               live=source.live, clutch_at_s=settings.clutch_at_s, wall=wall,
                               reach=settings.reach,

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hubo_cli.errors import InputError
+from hubo_cli.errors import InputError, quoted
 
 # preset -> (eye offset from the focus for the right arm (m), vertical field of view (deg))
 PRESETS = {
@@ -103,7 +103,7 @@ def camera_for(preset: str, focus_m, working_arm: str = "right-arm", width: int 
         InputError: unknown preset or bad image size.
     """
     if preset not in PRESETS:
-        raise InputError(f"unknown camera preset {preset!r}",
+        raise InputError(f"unknown camera preset {quoted(preset)}",
                          hint=f"use one of {', '.join(PRESETS)}")
     if width < 16 or height < 16 or width % 2 or height % 2:
         raise InputError(f"image size {width} x {height} is not usable",

@@ -17,7 +17,7 @@ import time
 import numpy as np
 
 from hubo_cli.drivers.sim import FRAME_PARENTS, import_pybullet, quiet_native_output
-from hubo_cli.errors import DeviceError, InputError
+from hubo_cli.errors import DeviceError, InputError, quoted
 from hubo_cli.urdf import link_frames
 from hubo_cli.viz.camera import Camera, body_bounds_m
 from hubo_cli.viz.scene import RunScene
@@ -177,7 +177,7 @@ class KinematicReplay:
         """World pose (4x4, m) of an end frame (``right_hand``, ``left_hand``, ``right_sole``,
         ``left_sole``, ``right_drill_bit`` with the drill) in the replayed posture."""
         if frame not in self._T_link_frame:
-            raise InputError(f"unknown frame {frame!r}",
+            raise InputError(f"unknown frame {quoted(frame)}",
                              hint=f"use {', '.join(sorted(self._T_link_frame))}")
         ls = self._p.getLinkState(self._robot, self._links[FRAME_PARENTS[frame]],
                                   computeForwardKinematics=1, physicsClientId=self._cid)

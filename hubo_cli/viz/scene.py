@@ -25,7 +25,7 @@ import numpy as np
 from hubo_cli import __version__
 from hubo_cli.control.log import LogData, load_log, status_codes
 from hubo_cli.control.status import Status
-from hubo_cli.errors import InputError
+from hubo_cli.errors import InputError, quoted
 from hubo_cli.geometry import quat_wxyz_to_matrix
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import ARMS, LEGS, RobotModel, load_model
@@ -269,7 +269,7 @@ def _start_utc(log: LogData, log_file: Path) -> tuple[int, str]:
     except (TypeError, ValueError, OverflowError, OSError):
         pass
     stamp = log_file.stat().st_mtime_ns
-    why = "no start time" if text is None else f"an unusable start time ({str(text)[:40]!r})"
+    why = "no start time" if text is None else f"an unusable start time ({quoted(str(text))})"
     return stamp, (f"the modification time of {log_file.name} (the log has {why}; that is "
                    "when the log was last written, at or after the run's end)")
 

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from hubo_cli.errors import InputError
+from hubo_cli.pace import check_speed
 from hubo_cli.viz.camera import DEFAULT_PRESET, Camera, fit_camera
 from hubo_cli.viz.deps import require
 from hubo_cli.viz.legend import (
@@ -336,9 +337,7 @@ def render_video(scene: RunScene, out: str | Path, *, speed: float | None = None
         MissingOptionalDependency: imageio-ffmpeg is not installed.
     """
     imageio_ffmpeg = require("imageio_ffmpeg", "the MP4 video")
-    speed = default_speed(scene) if speed is None else float(speed)
-    if not speed > 0:
-        raise InputError(f"speed must be positive, got {speed}", hint="e.g. --speed 2")
+    speed = default_speed(scene) if speed is None else check_speed(speed)
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     periods = frame_periods(scene, speed, fps, start_s, end_s)

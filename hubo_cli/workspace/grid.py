@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hubo_cli.errors import InputError
+from hubo_cli.errors import InputError, quoted
 from hubo_cli.kinematics import Limb
 
 ORIENTATIONS = ("wall",)  # named presets; any "roll,pitch,yaw" in degrees is accepted too
@@ -29,10 +29,10 @@ def orientation_matrix(orientation: str) -> np.ndarray:
     try:
         roll, pitch, yaw = (math.radians(float(v)) for v in orientation.split(","))
     except ValueError:
-        raise InputError(f"unknown orientation {orientation!r}",
+        raise InputError(f"unknown orientation {quoted(orientation)}",
                          hint="use 'wall' or 'roll,pitch,yaw' in degrees, e.g. 0,10,0") from None
     if not all(math.isfinite(a) for a in (roll, pitch, yaw)):
-        raise InputError(f"orientation {orientation!r} is not finite",
+        raise InputError(f"orientation {quoted(orientation)} is not finite",
                          hint="use 'wall' or 'roll,pitch,yaw' in degrees, e.g. 0,10,0")
     cr, sr = math.cos(roll), math.sin(roll)
     cp, sp = math.cos(pitch), math.sin(pitch)

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hubo_cli.errors import InputError
+from hubo_cli.errors import InputError, quoted
 from hubo_cli.workspace.cache import cache_key, load_masks, save_masks
 from hubo_cli.workspace.grid import Grid, make_grid, orientation_matrix, reach_sphere
 from hubo_cli.workspace.limbs import arm_limb
@@ -187,7 +187,7 @@ class WorkspaceMap:
 
 def _check(arm: str, resolution_m: float) -> None:
     if arm not in ARMS:
-        raise InputError(f"unknown arm {arm!r}", hint="use right or left")
+        raise InputError(f"unknown arm {quoted(arm)}", hint="use right or left")
     if resolution_m < 0.0005:
         raise InputError(f"resolution {resolution_m * 1000:g} mm is finer than 0.5 mm",
                          hint="use --resolution 1 or coarser; 5 mm takes about a second")

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
-from hubo_cli.errors import InputError
+from hubo_cli.errors import InputError, quoted
 from hubo_cli.kinematics.dh import JIT
 from hubo_cli.workspace.maps import (
     DEFAULT_RESOLUTION_M,
@@ -157,7 +157,7 @@ def best_stance(tool: str = "drill", arm: str = "right", size_m: tuple[float, fl
         raise InputError(f"hole size must be positive, got {size_m}",
                          hint="give width and height in metres, e.g. (0.15, 0.10)")
     if vertical not in ("arm", "legs"):
-        raise InputError(f"unknown vertical mode {vertical!r}", hint="use 'arm' or 'legs'")
+        raise InputError(f"unknown vertical mode {quoted(vertical)}", hint="use 'arm' or 'legs'")
     wmap = compute_map(arm, tool, orientation, params, limits, resolution_m, x_range_m,
                        refine=False, cache=cache)
     common = dict(vertical=vertical, arm=arm, tool=tool, params=params, limits=limits,
