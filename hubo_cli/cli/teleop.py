@@ -26,6 +26,7 @@ from hubo_cli.cli.output import (
 )
 from hubo_cli.drivers.registry import DRIVER_NAMES, driver_class
 from hubo_cli.errors import HuboError, InputError, quoted
+from hubo_cli.pace import check_speed
 
 KEYS_HELP = "keys: space e-stop, r release, c clutch, b change branch, q quit"
 DIRECTIONS = (("fwd", "back"), ("left", "right"), ("up", "down"))  # +/- x, y, z of the stance
@@ -43,7 +44,7 @@ def _speed(text: str) -> float | None:
     except ValueError:
         raise InputError(f"--speed {quoted(text)} is not a number or 'max'",
                          hint="use --speed 1 (real time), --speed 2, or --speed max") from None
-    return value  # the run's set-up checks it (hubo_cli.pace)
+    return check_speed(value)  # at once, before the set-up's work (the run checks it too)
 
 
 def _station_map(pairs: tuple[str, ...]) -> dict[int, str] | None:
@@ -217,6 +218,7 @@ def teleop(replay, port, generate_seed, max_speed, reconnect_timeout, baud, driv
         raise InputError("--speed max is for replays on the sim or ideal drivers",
                          hint="live input, the hardware driver, --gui and --live run in real "
                               "time; leave --speed out")
+    speed_x = _speed(speed)
     check_seconds("--duration", duration)
     check_seconds("--reconnect-timeout", reconnect_timeout, 3600)
     for t in clutch_at:
@@ -243,7 +245,7 @@ def teleop(replay, port, generate_seed, max_speed, reconnect_timeout, baud, driv
                          accept_reduced_safety=accept_reduced_safety, quiet=as_json)
     settings = TeleopSettings(
         replay=replay, port=port, generate_seed=generate_seed, stream=stream, driver=driver,
-        mode=mode, speed=_speed(speed), scale=scale,
+        mode=mode, speed=speed_x, scale=scale,
         station_arm=stations,
         wall_distance_m=None if wall_distance is None else wall_distance / 1000.0,
         duration_s=duration, clutch_at_s=tuple(clutch_at), out=out, gui=gui, baud=baud,
