@@ -186,7 +186,6 @@ def _perfect_meet_s(t_s, goal_m, ahead_m, bend, t_cross, bend0, speed, accel, st
     if lead_m is not None:  # never more than lead_m inward of the goal's nearest reachable point
         nearest = np.minimum(goal, ahead_m[-1])
         A_lead, b_lead = position, np.interp(nearest - lead_m, ahead_m, bend) - bend0
-
         if stoppable:  # 2 w0 v - w0^2 <= 2 accel (bend_stop - bend), bend_stop the lead's
             # bend before re-entry and the bend excursion_m beyond the goal after it
             stop_room = np.where(grid <= t_cross + step_s / 2, b_lead,
