@@ -80,3 +80,33 @@ def test_the_error_sources_add_up_on_a_generated_stream():
         for share in ("reachable_share", "room_share", "limit_share",
                       "at_acceleration_limit_share"):
             assert 0.0 <= f[share] <= 1.0
+
+
+def _return_tool():
+    path = TOOL.parent / "reach_return_bound.py"
+    spec = importlib.util.spec_from_file_location("reach_return_bound", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_causal_return_floor_keeps_the_elbow_able_to_stop_within_the_lead():
+    """tools/reach_return_bound.py's causal floor on a made-up elbow (the bend falls by 20 rad
+    per m out to the reach 50 mm ahead; the goal comes back at 45 mm/s, 0.9 rad/s of bend,
+    and stops at 1 rad): knowing the goal's future within the 10 mm lead the elbow arrives at
+    re-entry at the lead's 0.2 rad bend at 0.54 rad/s and stays within 2 mm 1.20 s after;
+    able to stop within the lead until re-entry (bend + speed^2 / 2 accel within 0.2 rad, to
+    the tangents' 0.05 rad/s steps) it is there slower and stays within 2 mm 0.20 s later
+    (measured on a 0.1 s grid; linear programs, no simulation, about 0.5 s)."""
+    tool = _return_tool()
+    t_s = np.arange(0.0, 3.0, 0.001)
+    goal_m = np.maximum(0.05 + 0.045 * (1.0 - t_s), 0.0)
+    ahead_m = np.linspace(0.0, 0.05, 501)
+    bend = 1.0 - 20.0 * ahead_m
+    args = (t_s, goal_m, ahead_m, bend, 1.0, 0.0, 1.0, 0.8)
+    t_led, bend_led, speed_led = tool._perfect_meet_s(*args, step_s=0.1, lead_m=0.01)
+    t_causal, bend_in, speed_in = tool._perfect_meet_s(*args, step_s=0.1, lead_m=0.01,
+                                                       stoppable=True)
+    assert bend_led + speed_led**2 / (2 * 0.8) > 0.3      # the non-causal way could not stop
+    assert bend_in + speed_in**2 / (2 * 0.8) <= 0.2 + 0.025**2 / (2 * 0.8) + 1e-6
+    assert t_causal > t_led + 0.1, (t_led, t_causal)      # measured 0.20 s later

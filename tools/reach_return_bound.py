@@ -19,13 +19,21 @@ speed and acceleration limits, no jerk limit, no braking, no speed scale):
   ``LEAD_M``, within the issue's 10 mm cap on anticipation) inward of the goal's nearest
   reachable point: a floor for any controller, causal or not, that keeps that cap; with the
   elbow's bend and speed at re-entry on one way that meets it;
+- the same with two conditions every *causal* elbow (one that knows only the goal's past)
+  must meet: able at every moment before re-entry to stop within that lead (a goal that
+  stops just outside the reach looks the same until then), and after re-entry to stop within
+  ``--excursion`` (15 mm, the issue's) beyond the goal; then with the elbow's jerk limit as
+  well (a floor still: it knows where the goal goes, it only keeps able to stop);
 - *reacting and staying*: the perfect-prediction floor for an elbow at rest until the goal
   passes the parked hand (the reactive floor's start): the first time from which it can stay
   within 2 mm (the reactive floor only asks when it is first back within 2 mm, and may pass the
   goal at full speed).
 
     python tools/reach_return_bound.py [--back 8] [--beyond 0.3] [--parked-bend 0.1 0.64]
-        [--lead M]
+        [--lead M] [--excursion M]
+
+The causal floors take about a minute for the 8 s walk, longer for slower ones (dense linear
+programs).
 """
 
 from __future__ import annotations
@@ -78,9 +86,12 @@ def main() -> None:
                         help="elbow bend (rad from straight) where the hand waits")
     parser.add_argument("--lead", type=float, default=LEAD_M,
                         help="the hand's largest lead over the goal's nearest reachable point (m)")
+    parser.add_argument("--excursion", type=float, default=0.015,
+                        help="how far beyond the goal a causal elbow may have to stop (m)")
     args = parser.parse_args()
     spec = load_model().limb(ARM)
     elbow_speed, elbow_accel = spec.velocity_rad_s[3], spec.acceleration_rad_s2[3]
+    elbow_jerk = spec.jerk_rad_s3[3]
     ahead = np.linspace(0.0, 0.2, 2001)
     bend, edge_m = elbow_along_path(ahead)
     inside = np.isfinite(bend)
@@ -114,6 +125,16 @@ def main() -> None:
         t_led, bend_led, speed_led = _perfect_meet_s(
             t_s, goal_m, ahead[inside], bend[inside], t_cross, bend0, elbow_speed, elbow_accel,
             lead_m=args.lead)
+        t_causal, bend_causal, speed_causal = _perfect_meet_s(
+            t_s, goal_m, ahead[inside], bend[inside], t_cross, bend0, elbow_speed, elbow_accel,
+            lead_m=args.lead, stoppable=True)
+        t_careful, bend_careful, speed_careful = _perfect_meet_s(
+            t_s, goal_m, ahead[inside], bend[inside], t_cross, bend0, elbow_speed, elbow_accel,
+            lead_m=args.lead, stoppable=True, excursion_m=args.excursion)
+        t_jerk, _, _ = _perfect_meet_s(
+            t_s, goal_m, ahead[inside], bend[inside], t_cross, bend0, elbow_speed, elbow_accel,
+            lead_m=args.lead, stoppable=True, excursion_m=args.excursion,
+            jerk=elbow_jerk)
         t_stays, _, _ = _perfect_meet_s(t_s, goal_m, ahead[inside], bend[inside], t_cross,
                                         bend0, elbow_speed, elbow_accel, start_s=t_pass)
         print(f"parked at {bend0:.2f} rad from straight ({parked_mm:+.0f} mm along the path): "
@@ -123,12 +144,19 @@ def main() -> None:
               f"prediction floor: within 2 mm from {t_meet - t_cross:.2f} s after it on; "
               f"with the lead within {1e3 * args.lead:.0f} mm of the goal's nearest reachable "
               f"point: from {t_led - t_cross:.2f} s (the elbow {bend_led:.2f} rad from "
-              f"straight at {speed_led:.2f} rad/s at re-entry on one such way); reacting and "
-              f"staying within 2 mm: from {t_stays - t_cross:.2f} s")
+              f"straight at {speed_led:.2f} rad/s at re-entry on one such way); and able "
+              f"to stop within that lead until re-entry (causal): from "
+              f"{t_causal - t_cross:.2f} s ({bend_causal:.2f} rad, {speed_causal:.2f} rad/s "
+              f"at re-entry), and after it within {1e3 * args.excursion:.0f} mm beyond the "
+              f"goal: from {t_careful - t_cross:.2f} s ({bend_careful:.2f} rad, "
+              f"{speed_careful:.2f} rad/s), and with the elbow's {elbow_jerk:.0f} rad/s^3 "
+              f"jerk limit as well: from {t_jerk - t_cross:.2f} s; reacting and staying "
+              f"within 2 mm: from {t_stays - t_cross:.2f} s")
 
 
 def _perfect_meet_s(t_s, goal_m, ahead_m, bend, t_cross, bend0, speed, accel, step_s=0.02,
-                    lead_m=None, start_s=-np.inf):
+                    lead_m=None, start_s=-np.inf, stoppable=False, excursion_m=np.inf,
+                    jerk=np.inf):
     """The first time after re-entry from which an elbow that knows the goal's future can stay
     within 2 mm of it (see the module docstring): bisection on that time over feasibility
     linear programs in the elbow's piecewise-constant acceleration (from rest at ``bend0``
@@ -136,8 +164,14 @@ def _perfect_meet_s(t_s, goal_m, ahead_m, bend, t_cross, bend0, speed, accel, st
     ``bend0``), the bend kept between the bends of the goal's position +-2 mm from that time
     on, and with ``lead_m`` never more than that inward of the goal's nearest reachable
     point; with ``start_s``, at rest until then (a controller that only reacts: the goal
-    passes the parked hand at ``start_s``). Returns that time and the elbow's bend and speed
-    at re-entry (rad from straight, rad/s) on a way that meets it."""
+    passes the parked hand at ``start_s``); with ``stoppable``, able at every time before
+    re-entry to stop (at the acceleration limit) within that lead as well (a causal
+    controller: the goal's past does not tell a goal that comes back from one that stops just
+    outside the reach; bend + speed^2 / 2 accel within the lead's bend, as tangents in the
+    speed at 0.05 rad/s steps, so the floor is if anything low), and after re-entry to stop
+    within ``excursion_m`` beyond the goal (nor one that stops inside the reach); with
+    ``jerk``, the acceleration changing by at most that (rad/s^3). Returns that time and the
+    elbow's bend and speed at re-entry (rad from straight, rad/s) on a way that meets it."""
     grid = np.arange(t_cross - 2.0, t_s[-1], step_s)
     goal = np.interp(grid, t_s, goal_m)
     lo = np.interp(goal + 0.002, ahead_m, bend)  # the bend falls as the hand goes out
@@ -152,6 +186,21 @@ def _perfect_meet_s(t_s, goal_m, ahead_m, bend, t_cross, bend0, speed, accel, st
     if lead_m is not None:  # never more than lead_m inward of the goal's nearest reachable point
         nearest = np.minimum(goal, ahead_m[-1])
         A_lead, b_lead = position, np.interp(nearest - lead_m, ahead_m, bend) - bend0
+        if stoppable:  # 2 w0 v - w0^2 <= 2 accel (bend_stop - bend), bend_stop the lead's
+            # bend before re-entry and the bend excursion_m beyond the goal after it
+            stop_room = np.where(grid <= t_cross + step_s / 2, b_lead,
+                                 np.interp(goal - excursion_m, ahead_m, bend) - bend0)
+            rows, rhs = [], []
+            for w0 in np.arange(0.05, speed + 1e-9, 0.05):
+                rows.append(2.0 * w0 * velocity + 2.0 * accel * position)
+                rhs.append(2.0 * accel * stop_room + w0 * w0)
+            A_lead = np.vstack([A_lead, *rows])
+            b_lead = np.concatenate([b_lead, *rhs])
+
+    if np.isfinite(jerk):  # |u_k - u_k-1| <= jerk x step
+        diff = np.eye(n)[1:] - np.eye(n)[:-1]
+        A_lead = np.vstack([A_lead, diff, -diff])
+        b_lead = np.concatenate([b_lead, np.full(2 * (n - 1), jerk * step_s)])
 
     bounds = [(0.0, 0.0) if t < start_s else (-accel, accel) for t in grid]
     k_cross = int(np.argmin(np.abs(grid - t_cross)))
