@@ -3,6 +3,7 @@ joint has before the links come within the collision detector's band (synthetic 
 
 from __future__ import annotations
 
+import functools
 import importlib.util
 import math
 import sys
@@ -14,6 +15,7 @@ import numpy as np
 TOOLS = Path(__file__).resolve().parent.parent / "tools"
 
 
+@functools.cache
 def _tool():
     sys.path.insert(0, str(TOOLS))  # (it imports walk_disturbances as a sibling)
     try:

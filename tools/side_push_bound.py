@@ -27,6 +27,17 @@ single support toward the stance foot it prints, from the run's log:
   (velocity, acceleration) over the range it has left (a bound: braking, the map's change
   with the posture and the joints' coupling are left out, each in the bound's favour).
 
+* **a tighter bound**, in steps: (1) each joint from the push's detection on (the logged
+  capture point's error toward the outer side past DETECT_M), braked at the walking set's
+  acceleration to stop at its range's end; (2) that range also within the links' clearance
+  (every pair the collision detector checks, TOLERANCE_M apart) and, for a joint that rolls
+  the torso toward the fall, the torso's tilt left before the fall criterion; (3) the stance
+  sole free to roll about its outer edge, as it is with the ZMP held on that edge: joint
+  motion keeps the momentum about the edge (the pivot's row of the mass matrix), the body
+  turning about the edge against it, and only the centroidal momentum left counts. Still a
+  bound: the stance sole's load (which the hips' accelerations take away), the map's change
+  along the motion and the body's roll after the push are left out.
+
 The robot is caught by joint motion alone only if the bound exceeds the capture point's
 distance past the edge. Measured numbers go in docs/history/walking.md, not here.
 """
