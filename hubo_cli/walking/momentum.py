@@ -61,17 +61,25 @@ SWING_DELAY_S = 0.0   # [chosen] the swing hip roll starts at once
 def profile_step(x: float, v: float, goal: float, v_max: float, a_max: float, dt: float
                  ) -> tuple[float, float]:
     """One period of the time-optimal motion of ``x`` (speed ``v``) to ``goal``: accelerate at
-    ``a_max`` up to ``v_max``, brake at ``a_max`` as late as lets it stop at ``goal``."""
+    ``a_max`` up to ``v_max``, brake at ``a_max`` as late as lets it stop at ``goal``. The
+    speed never changes by more than ``a_max * dt`` a period; the last periods may pass the
+    goal by under ``a_max * dt**2`` (3.5 mrad at 140 rad/s^2) and come back (the goals keep
+    LIMIT_MARGIN_RAD from the limits)."""
     d = goal - x
     if d == 0.0 and v == 0.0:
         return x, 0.0
     direction = 1.0 if d > 0 else -1.0
-    brake = math.sqrt(2.0 * a_max * abs(d))  # the fastest speed that still stops at goal
+    # the fastest speed this period that still stops at goal, braking a_max * dt a period
+    # from the next one on (d = v^2 / (2 a) + v dt / 2)
+    brake = (math.sqrt((a_max * dt) ** 2 + 8.0 * a_max * abs(d)) - a_max * dt) / 2.0
     wanted = direction * min(v_max, brake)
-    v_new = v + min(max(wanted - v, -a_max * dt), a_max * dt)
+    step = a_max * dt
+    v_new = v + min(max(wanted - v, -step), step)
+    if abs(v_new) * dt >= abs(d):  # the last step: onto the goal, as near as a_max lets it
+        v_new = min(max(d / dt, v - step), v + step)
     x_new = x + v_new * dt
-    if (goal - x_new) * direction <= 0.0 or abs(goal - x_new) < 1e-9:
-        return goal, 0.0  # (arrived: the last step is under a_max * dt^2)
+    if abs(goal - x_new) < 1e-12:
+        return goal, v_new  # (arrived; the speed, under a_max * dt, goes to 0 next period)
     return x_new, v_new
 
 
