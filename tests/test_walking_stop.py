@@ -806,7 +806,8 @@ def test_a_side_push_over_the_stance_soles_edge_is_caught_by_the_hips(tmp_path, 
                   disturbances=[Disturbance(2.08, 90.0, PUSH_DIRECTIONS["left"])])
     summary = json.loads((result.run_dir / "summary.json").read_text())
     assert result.fell is False and result.stood is True
-    # measured max tilt 25.3 deg (AVX-512) and 25.2 deg (portable); a fall: 30; bound 28.5 deg
+    # measured max tilt 25.1 deg on both paths (25.3 / 25.2 before the profile braked a period
+    # ahead); a fall: 30; bound 28.5 deg
     assert summary["max_torso_tilt_deg"] < 28.5
     log = load_log(result.run_dir / "log.parquet")  # the hips did it (0.25 rad each)
     assert np.nanmax(np.abs(log["walk.right_momentum_rad"])) > 0.2
