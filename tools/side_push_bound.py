@@ -27,6 +27,17 @@ single support toward the stance foot it prints, from the run's log:
   (velocity, acceleration) over the range it has left (a bound: braking, the map's change
   with the posture and the joints' coupling are left out, each in the bound's favour).
 
+* **a tighter bound**, in steps: (1) each joint from the push's detection on (the logged
+  capture point's error toward the outer side past DETECT_M), braked at the walking set's
+  acceleration to stop at its range's end; (2) that range also within the links' clearance
+  (every pair the collision detector checks, TOLERANCE_M apart) and, for a joint that rolls
+  the torso toward the fall, the torso's tilt left before the fall criterion; (3) the stance
+  sole free to roll about its outer edge, as it is with the ZMP held on that edge: joint
+  motion keeps the momentum about the edge (the pivot's row of the mass matrix), the body
+  turning about the edge against it, and only the centroidal momentum left counts. Still a
+  bound: the stance sole's load (which the hips' accelerations take away), the map's change
+  along the motion and the body's roll after the push are left out.
+
 The robot is caught by joint motion alone only if the bound exceeds the capture point's
 distance past the edge. Measured numbers go in docs/history/walking.md, not here.
 """
@@ -42,10 +53,11 @@ import numpy as np
 import pinocchio as pin
 from walk_disturbances import draw, seeds_of
 
-from hubo_cli.control.collision import SelfCollisionChecker
+from hubo_cli.control.collision import TOLERANCE_M, SelfCollisionChecker
 from hubo_cli.control.log import load_log
 from hubo_cli.experiments.standing import PUSH_DIRECTIONS
 from hubo_cli.experiments.walk import PUSH_S
+from hubo_cli.falls import FALL_TILT_DEG
 from hubo_cli.geometry import rpy_to_matrix
 from hubo_cli.kinematics import choice
 from hubo_cli.kinematics.limb import Limb
@@ -57,6 +69,10 @@ SIDES = ("right", "left")
 CROSS_X_M = np.arange(-0.40, 0.401, 0.02)    # the crossing grid, in the stance sole's frame
 CROSS_Y_M = np.arange(0.0, 0.301, 0.02)      # (outward from its outer edge: the sole's
 CROSS_YAW_RAD = np.arange(-1.8, 1.801, 0.1)  # centre this far beyond it)
+DETECT_M = 0.025  # the capture point's error from the pattern's toward the stance sole's outer
+                  # side that a controller acting on the estimate could take for such a push
+                  # (unpushed 1 m walks: at most 12.8 mm, docs/history/walking.md, round 10)
+COLLISION_STEP_RAD = 0.01  # the collision room is searched in steps of this much
 
 
 def best_travel_integral(range_rad: float, velocity: float, acceleration: float,
@@ -74,6 +90,36 @@ def best_travel_integral(range_rad: float, velocity: float, acceleration: float,
     return float(np.sum(qdot * np.exp(-omega * u)) * du)
 
 
+def braked_travel_integral(range_rad: float, velocity: float, acceleration: float,
+                           omega: float) -> float:
+    """integral_0^inf qdot(u) e^(-omega u) du of the time-optimal motion over ``range_rad``
+    that stops at its end: accelerate at once, run at ``velocity``, brake at
+    ``acceleration`` as late as lets it stop there (rad s)."""
+    if range_rad <= 0:
+        return 0.0
+    peak = min(velocity, math.sqrt(acceleration * range_rad))
+    ramp_s = peak / acceleration
+    coast_s = (range_rad - peak * ramp_s) / peak
+    du = 1e-4
+    u = np.arange(0.0, 2 * ramp_s + coast_s, du)
+    qdot = np.minimum.reduce([acceleration * u, np.full_like(u, peak),
+                              acceleration * (2 * ramp_s + coast_s - u)])
+    return float(np.sum(np.maximum(qdot, 0.0) * np.exp(-omega * u)) * du)
+
+
+def collision_room(checker, q: np.ndarray, j: int, sign: float, room: float) -> float:
+    """How far joint ``j`` turns from ``q`` toward ``sign`` within ``room`` (rad) with every
+    checked pair of links at least TOLERANCE_M apart (the collision detector's band)."""
+    turned = 0.0
+    while turned + COLLISION_STEP_RAD <= room:
+        q_turned = q.copy()
+        q_turned[j] += sign * (turned + COLLISION_STEP_RAD)
+        if checker.check(q_turned).distance_m < TOLERANCE_M:
+            break
+        turned += COLLISION_STEP_RAD
+    return turned if turned + COLLISION_STEP_RAD <= room else room
+
+
 def T_world_neck_at(columns, k: int) -> np.ndarray:
     T = np.eye(4)
     T[:3, :3] = rpy_to_matrix(*(float(columns[f"torso_{a}_rad"][k]) for a in ("roll", "pitch",
@@ -87,7 +133,8 @@ def leg_names(model) -> dict[str, tuple[str, ...]]:
     return {side: tuple(model.joint_names[model.limb_slice(f"{side}-leg")]) for side in SIDES}
 
 
-def analyse(model, walking, checker, run_dir: Path, at_s: float, direction: str) -> dict | str:
+def analyse(model, walking, checker, body_checker, run_dir: Path, at_s: float,
+            direction: str) -> dict | str:
     """The bounds of one pushed run, or why there are none for it."""
     log = load_log(run_dir / "log.parquet")
     names_of = leg_names(model)
@@ -188,13 +235,67 @@ def analyse(model, walking, checker, run_dir: Path, at_s: float, direction: str)
     scale = omega ** 2 / (mass * GRAVITY_M_S2) * math.exp(omega * PUSH_S)
     bound = scale * sum(p[0] for p in per_joint)
     top = sorted(per_joint, reverse=True)[:4]
+    # the tighter bound, in steps: (1) from the push's detection on, each joint braked to stop
+    # at its range's end; (2) that range also within the links' clearance (the collision
+    # detector's band) and the torso's tilt left before the fall criterion; (3) the stance
+    # sole free to roll about its outer edge, as it is with the ZMP held on that edge: joint
+    # motion then keeps the angular momentum about the edge (gravity and the push aside, as
+    # over an instant), the body turning about the edge against it
+    error = outward * np.asarray(c["walk.cp_error_y_m"], dtype=float)[k0:k1 + 1]
+    detected = next((i for i, e in enumerate(error) if e > DETECT_M), None)
+    if detected is None:
+        return f"its capture point's error never passed {1000 * DETECT_M:.0f} mm in the push"
+    detect_s = float(t[k0 + detected] - at_s)
+    scale_detected = scale * math.exp(-omega * detect_s)
+    M = pin.crba(pm, data, qp)
+    M = np.triu(M) + np.triu(M, 1).T
+    p_sole = data.oMf[sole].translation
+    half_width = model.feet.width_m / 2
+    edge = T_world_stance[:3, :3] @ np.array((0.0, outward * half_width, 0.0)) \
+        + T_world_stance[:3, 3]
+    pivot_twist = np.concatenate((np.cross(axis, p_sole - edge), axis))  # LWA, unit rate
+    v_pivot = np.zeros(pm.nv)
+    v_pivot[:6] = np.linalg.solve(J[:, :6], pivot_twist)
+    base_rotation = data.oMi[1].rotation  # the base's velocity is in its own frame
+    tilt_deg = float(c["walk.tilt_deg"][k1])
+    tilt_room_rad = math.radians(FALL_TILT_DEG - tilt_deg)
+    staged = {"braked": 0.0, "ranged": 0.0, "pivot": 0.0}
+    per_joint_tight = []
+    for j, name in enumerate(names):
+        v_joint = np.zeros(pm.nv)
+        v_joint[:6] = base_of_joint[:, j]
+        v_joint[v_index[j]] = 1.0
+        rate = -float(v_pivot @ M @ v_joint) / float(v_pivot @ M @ v_pivot)  # the pivot's
+        v_free = v_joint + rate * v_pivot                                   # turn per rad/s
+        a_pivot = float(axis @ A[3:] @ v_free)
+        for stage, column in (("braked", A_eff[j]), ("ranged", A_eff[j]), ("pivot", a_pivot)):
+            sign = -outward * np.sign(column)
+            room = float((upper[j] - q[j]) if sign > 0 else (q[j] - lower[j]))
+            if stage != "braked":
+                room = collision_room(body_checker, q, j, sign, room)
+                torso_turn = float(axis @ base_rotation @ (v_joint if stage == "ranged"
+                                                           else v_free)[3:6])
+                if sign * torso_turn * outward < 0 and abs(torso_turn) > 1e-9:
+                    # (it rolls the torso toward the fall: > 0 about the axis rolls the left
+                    # side up, the fall toward the left stance foot)
+                    room = min(room, max(tilt_room_rad, 0.0) / abs(torso_turn))
+            integral = braked_travel_integral(room, float(velocity[j]),
+                                              float(acceleration[j]), omega)
+            staged[stage] += abs(column) * integral
+            if stage == "pivot":
+                per_joint_tight.append((abs(column) * integral, name, room, column))
+    top_tight = sorted(per_joint_tight, reverse=True)[:4]
     return {"stance": stance, "past_edge_at_end_mm": 1000 * past_edge(k1),
             "crossed_after_s": None if crossed is None else round(t[k0 + crossed] - at_s, 3),
             "omega": omega, "crossing_reached": len(exact), "crossing_tried": len(grid),
             "landings": sorted(landings),
             "bound_mm": 1000 * bound,
             "top": [(n, round(1000 * scale * v, 2), round(room, 3), round(a, 3))
-                    for v, n, room, a in top]}
+                    for v, n, room, a in top],
+            "detect_s": detect_s, "tilt_deg": tilt_deg,
+            "tight_mm": {k: 1000 * scale_detected * v for k, v in staged.items()},
+            "top_tight": [(n, round(1000 * scale_detected * v, 2), round(room, 3))
+                          for v, n, room, _ in top_tight]}
 
 
 def main() -> int:
@@ -210,13 +311,14 @@ def main() -> int:
     leg_links = {side: [f"{j}_link" for j in leg_names(model)[side]] for side in SIDES}
     checker = SelfCollisionChecker(model, pairs=[(a, b) for a in leg_links["right"]
                                                  for b in leg_links["left"]])
+    body_checker = SelfCollisionChecker(model)  # every pair the collision detector checks
     for seed in seeds_of(args.seeds):
         at_s, direction = draw(model, seed, args.distance, args.directions.split(","))
         run_dir = Path(args.runs) / f"push-{seed}"
         if not (run_dir / "log.parquet").exists():
             print(f"seed {seed}: no run in {run_dir}")
             continue
-        result = analyse(model, walking, checker, run_dir, at_s, direction)
+        result = analyse(model, walking, checker, body_checker, run_dir, at_s, direction)
         if isinstance(result, str):
             print(f"seed {seed}: pushed {direction} at {at_s:.3f} s: {result}")
             continue
@@ -237,6 +339,13 @@ def main() -> int:
         print(f"  joint momentum: at most {r['bound_mm']:.1f} mm back at the push's end; the "
               "largest: " + ", ".join(f"{n} {v} mm ({room} rad of room)"
                                       for n, v, room, _ in r["top"]))
+        tight = r["tight_mm"]
+        print(f"  tighter: from the push's detection ({1000 * r['detect_s']:.0f} ms after its "
+              f"start) and braked to stop {tight['braked']:.1f} mm; within the links' "
+              f"clearance and the torso's tilt ({r['tilt_deg']:.1f} deg at the push's end) "
+              f"{tight['ranged']:.1f} mm; the stance sole free to roll about its outer edge "
+              f"{tight['pivot']:.1f} mm; the largest then: "
+              + ", ".join(f"{n} {v} mm ({room} rad)" for n, v, room in r["top_tight"]))
     return 0
 
 

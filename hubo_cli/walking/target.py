@@ -32,7 +32,10 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
   outer edge) the swing leg's sole goal is turned back about that edge, so the foot keeps its
   planned place over the floor and lands as the body rolls back, and a walk so tipped stops
   once that foot has landed (:mod:`~hubo_cli.walking.floor_reach`,
-  :meth:`WalkTarget._caught`). From the last
+  :meth:`WalkTarget._caught`); a push that would take the capture point over that edge
+  within 0.2 s abducts the hip rolls, the swing one then the stance one, moving the
+  centroidal moment pivot beyond the edge (:mod:`~hubo_cli.walking.momentum`; the floor reach
+  holds meanwhile). From the last
   step's landing on (the pattern's settle) the stabilizer's torso offset holds, as in
   ``stopping``: integrating there, it wound up and kept the soles' loads chattering until the
   next plan's start (docs/history/walking.md, "The walk's own settle"). A foot lifts off only
@@ -114,6 +117,7 @@ from hubo_cli.walking.footsteps import (
     wrap_angle,
 )
 from hubo_cli.walking.gait import Gait, make_gait, smoothstep5
+from hubo_cli.walking.momentum import MomentumStrategy
 from hubo_cli.walking.params import WalkingParams
 from hubo_cli.walking.replan import (
     CP_MARGIN_M,
@@ -439,18 +443,22 @@ class WalkTarget(Target):
                    "walk.right_sole_roll_rad", "walk.right_sole_pitch_rad",
                    "walk.left_sole_roll_rad", "walk.left_sole_pitch_rad",
                    "walk.right_level_rad", "walk.left_level_rad", "walk.pitch_error_rad",
-                   "walk.right_reach_rad", "walk.left_reach_rad")
+                   "walk.right_reach_rad", "walk.left_reach_rad",
+                   "walk.right_momentum_rad", "walk.left_momentum_rad")
 
     def __init__(self, model: RobotModel, params: WalkingParams, goal: tuple[float, float, float],
                  q_start_rad: np.ndarray, T_world_neck_start: np.ndarray,
                  corrections: int = 1, end_width_m: float | None = None,
                  stabilizer: StabilizerGains | None = None,
                  toe_heel: ToeHeelParams | None = None, lip_feedback: bool = False,
-                 landing_wait: bool = True, floor_reach: bool = True) -> None:
+                 landing_wait: bool = True, floor_reach: bool = True,
+                 momentum: bool = True) -> None:
         self.model = model
         self.landing_wait = landing_wait  # (:meth:`_unloaded_landing`; off: the fast gait)
         # (:meth:`_reach_floor`; off: the fast gait, and toe-heel walks: not measured with it)
         self.floor_reach = floor_reach and toe_heel is None
+        # (:meth:`_momentum`; off: the fast gait, and toe-heel walks: not measured with it)
+        self.momentum = momentum and toe_heel is None
         self.toe_heel = toe_heel
         self.lip_feedback = lip_feedback and stabilizer is not None
         self.lip: LipStabilizer | None = None
@@ -519,6 +527,13 @@ class WalkTarget(Target):
             self._pitch_error_rad = 0.0  # the estimated torso's pitch from the planned one
             self.reach = FloorReach(float(self.corners[:, 1].max()), dt)
             self._no_turns = np.zeros((2, 4, 4))
+            hip_rolls = [model.joint_names.index(n) for n in ("RHR", "LHR")]
+            self._hip_roll = tuple(hip_rolls)  # (right, left)
+            lower, upper = model.lower_rad, model.upper_rad
+            self._hip_roll_limits = tuple((float(lower[j]), float(upper[j])) for j in hip_rolls)
+            self._half_width_m = float(self.corners[:, 1].max())
+            self.hips = MomentumStrategy(tuple(float(lower[j]) for j in hip_rolls),
+                                         tuple(float(upper[j]) for j in hip_rolls), dt)
         names = list(model.joint_names)
         self._ankle = {"right": (names.index("RAR"), names.index("RAP")),
                        "left": (names.index("LAR"), names.index("LAP"))}
@@ -1334,7 +1349,7 @@ class WalkTarget(Target):
     def _stabilizer_info(self) -> dict[str, float]:
         """The stabilizer's corrections for the log (NaN without a stabilizer)."""
         if self.stabilizer is None:
-            return dict.fromkeys(self.log_columns[-13:], math.nan)
+            return dict.fromkeys(self.log_columns[-15:], math.nan)
         right, left = self.dampers["right"].delta_rad, self.dampers["left"].delta_rad
         offset = self.torso_offset.offset_m
         return {"walk.offset_x_m": float(offset[0]), "walk.offset_y_m": float(offset[1]),
@@ -1348,7 +1363,9 @@ class WalkTarget(Target):
                 "walk.left_level_rad": float(self._level_rad[1]),
                 "walk.pitch_error_rad": self._pitch_error_rad,
                 "walk.right_reach_rad": float(self.reach.angle_rad[0]),
-                "walk.left_reach_rad": float(self.reach.angle_rad[1])}
+                "walk.left_reach_rad": float(self.reach.angle_rad[1]),
+                "walk.right_momentum_rad": float(self.hips.offset_rad[0]),
+                "walk.left_momentum_rad": float(self.hips.offset_rad[1])}
 
     def _in_pattern(self, k: int, wrenches: np.ndarray, point_m: np.ndarray
                     ) -> tuple[float, float]:
@@ -1396,6 +1413,7 @@ class WalkTarget(Target):
             q[roll] += delta[0]
             q[pitch] += delta[1]
         self._level_swing(k, rows["support"][k], q)
+        self._momentum(k, q)
         return q
 
     def _caught(self, k: int) -> bool:
@@ -1413,7 +1431,7 @@ class WalkTarget(Target):
         0.013-0.033 rad): robot 12's walk stopped itself (without the reach it arrives 23 mm
         off), robot 11's 0.175 s before the monitor's stop (docs/history/walking.md, round
         11)."""
-        if not self.floor_reach:
+        if not self.floor_reach or (self.momentum and self.hips.acting):
             return
         R_plan = self.plan.T_world_neck[k, :3, :3]
         error = float(pin.log3(R_plan.T @ np.asarray(self.store[T_WORLD_TORSO],
@@ -1422,6 +1440,31 @@ class WalkTarget(Target):
         contact = self.store[CONTACT]
         self.reach.update(error, (bool(support[0]), bool(support[1])),
                           (bool(contact[0]), bool(contact[1])))
+
+    def _momentum(self, k: int, q: np.ndarray) -> None:
+        """The hip rolls' momentum strategy against a side push toward the stance foot
+        (:mod:`hubo_cli.walking.momentum`), added in place to ``q`` within the walking set's
+        limits. Off (``momentum``) for the fast gait and toe-heel walks."""
+        if not self.momentum:
+            return
+        support = self._rows["support"][k]
+        contact = self.store[CONTACT]
+        past_m = math.nan  # the estimated capture point past the stance sole's outer edge
+        if support[0] != support[1]:
+            stance = 0 if support[0] else 1
+            T = self.store[T_WORLD_SOLES][stance]
+            cp = np.asarray(self.store[CAPTURE_POINT_WORLD], dtype=float)
+            outward = 1.0 if stance == 1 else -1.0  # the sole's outer side along its y axis
+            past_m = (outward * float((cp[0] - T[0, 3]) * T[0, 1] + (cp[1] - T[1, 3]) * T[1, 1])
+                      - self._half_width_m)
+        offsets = self.hips.update(float(self._cp_error[1]), past_m,
+                                   (bool(support[0]), bool(support[1])),
+                                   (bool(contact[0]), bool(contact[1])),
+                                   (float(q[self._hip_roll[0]]), float(q[self._hip_roll[1]])))
+        for column, j in enumerate(self._hip_roll):
+            if offsets[column]:
+                lower, upper = self._hip_roll_limits[column]
+                q[j] = min(max(q[j] + offsets[column], lower), upper)
 
     def _level_swing(self, k: int, support: list[bool], q: np.ndarray) -> None:
         """Pitch each swing leg at its hip against the estimated torso's pitch from the

@@ -1,0 +1,183 @@
+"""A momentum (hip) strategy against a side push toward the stance foot in single support
+(issue 37's 100 N pushes; docs/history/walking.md, round 12).
+
+Pushed sideways toward the stance foot, the ZMP reaches the stance sole's outer edge and the
+ankle can give no more: only the centroidal angular momentum's rate moves the centroidal
+moment pivot (CMP) beyond that edge, cmp = zmp - dL/dt / (m g). The capture point the joints'
+motion brings back is (omega^2 / (m g)) e^(omega T) sum_j A_j integral qdot_j e^(-omega t) dt
+(tools/side_push_bound.py), A_j joint j's column of the centroidal map about the edge's axis:
+motion early counts most, so each joint accelerates at once, runs at its top speed and brakes
+only as late as its range lets it. The largest columns with the room toward the helpful side
+are the two hip rolls, each abducting (the walking set lets them do nothing else): the stance
+one rolls the torso toward the fall, the swing one lifts the swing leg outward (the flamingo).
+
+:class:`MomentumStrategy` acts on the estimate only (the capture point, the stance sole's
+pose; the plan's support). In a single support whose capture-point error from the pattern's was
+under TRIGGER_M, an error past it toward the stance sole's outer side starts a watch: DECIDE_S
+later, if the capture point would reach that sole's outer edge within EDGE_TIME_S at the speed
+it came (or is past it), the strategy starts; else that step is left alone (the ankle, the
+floor reach and the capture-point stop catch those pushes: round 10's 23 moments at 60 N, and
+main's catches at 100 N, never start it). A step that begins with the error already past
+TRIGGER_M (the rebound after a push) is not watched. Started, the swing hip roll abducts by
+SWING_AMPLITUDE_RAD (at most SWING_HIP_ROLL_MAX_RAD from zero: the hand hangs by the thigh)
+and STANCE_DELAY_S later the stance hip roll by STANCE_AMPLITUDE_RAD (its torque's reaction
+then meets the swing one's braking), each on a time-optimal profile (VELOCITY_RAD_S,
+ACCELERATION_RAD_S2: a ramp, never a jump) within the walking set's limits less
+LIMIT_MARGIN_RAD. They hold, and go back to zero at RETURN_VELOCITY_RAD_S and
+RETURN_ACCELERATION_RAD_S2 once the capture point has come back RETREAT_M from its furthest
+past the edge, or once both soles are planned down and in contact (the stop's stance). Once
+per walk. Measured: docs/history/walking.md, round 12 (100 N on round 10's 23 moments: 9
+without a fall against 5; seeds 6, 10 and 18 of 1-20 still fall).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+DECIDE_S = 0.03  # [chosen] once the error passes TRIGGER_M, the capture point's approach to
+                 # the stance sole's outer edge is watched this long; it starts if that
+EDGE_TIME_S = 0.2  # [chosen] ... approach would reach the edge within this (or it is past)
+RETREAT_M = 0.02  # [chosen] hand back once the capture point came back this far from its
+                  # furthest past that edge
+TRIGGER_M = 0.025  # [chosen] the capture point's error toward the stance sole's outer side
+                   # that starts a watch (unpushed 1 m walks: at most 12.8 mm, round 10)
+VELOCITY_RAD_S = 2.3  # [chosen] under the walking set's 2.6 rad/s: the pattern's own hip
+                      # roll moves meanwhile
+ACCELERATION_RAD_S2 = 140.0  # [chosen] under the walking set's 150 rad/s^2
+RETURN_VELOCITY_RAD_S = 1.0  # [chosen] the way back, slower
+RETURN_ACCELERATION_RAD_S2 = 8.0  # [chosen]
+LIMIT_MARGIN_RAD = 0.02  # [chosen] kept off the walking set's limit
+SWING_HIP_ROLL_MAX_RAD = 0.33  # [measured] the swing hip roll's abduction at most this (from
+                               # zero): the hand hanging by the thigh is 10 mm from it at 0.37
+STANCE_AMPLITUDE_RAD = 0.25  # [chosen] the stance hip roll's abduction
+SWING_AMPLITUDE_RAD = 0.5    # [chosen] the swing hip roll's abduction
+STANCE_DELAY_S = 0.1  # [chosen] the stance hip roll starts this long after the swing one
+                      # (both at once: the stance sole unloaded and the robot hopped)
+SWING_DELAY_S = 0.0   # [chosen] the swing hip roll starts at once
+
+
+def profile_step(x: float, v: float, goal: float, v_max: float, a_max: float, dt: float
+                 ) -> tuple[float, float]:
+    """One period of the time-optimal motion of ``x`` (speed ``v``) to ``goal``: accelerate at
+    ``a_max`` up to ``v_max``, brake at ``a_max`` as late as lets it stop at ``goal``. The
+    speed never changes by more than ``a_max * dt`` a period; the last periods may pass the
+    goal by under ``a_max * dt**2`` (3.5 mrad at 140 rad/s^2) and come back (the goals keep
+    LIMIT_MARGIN_RAD from the limits)."""
+    d = goal - x
+    if d == 0.0 and v == 0.0:
+        return x, 0.0
+    direction = 1.0 if d > 0 else -1.0
+    # the fastest speed this period that still stops at goal, braking a_max * dt a period
+    # from the next one on (d = v^2 / (2 a) + v dt / 2)
+    brake = (math.sqrt((a_max * dt) ** 2 + 8.0 * a_max * abs(d)) - a_max * dt) / 2.0
+    wanted = direction * min(v_max, brake)
+    step = a_max * dt
+    v_new = v + min(max(wanted - v, -step), step)
+    if abs(v_new) * dt >= abs(d):  # the last step: onto the goal, as near as a_max lets it
+        v_new = min(max(d / dt, v - step), v + step)
+    x_new = x + v_new * dt
+    if abs(goal - x_new) < 1e-12:
+        return goal, v_new  # (arrived; the speed, under a_max * dt, goes to 0 next period)
+    return x_new, v_new
+
+
+class MomentumStrategy:
+    """The hip rolls' offsets (rad, right and left, added to the joints sent) of the momentum
+    strategy (see the module docstring)."""
+
+    def __init__(self, lower_rad: tuple[float, float], upper_rad: tuple[float, float],
+                 dt_s: float, stance_amplitude_rad: float = STANCE_AMPLITUDE_RAD,
+                 swing_amplitude_rad: float = SWING_AMPLITUDE_RAD) -> None:
+        self.lower_rad = lower_rad  # the hip rolls' walking limits (right, left)
+        self.upper_rad = upper_rad
+        self.dt_s = dt_s
+        self.stance_amplitude_rad = stance_amplitude_rad
+        self.swing_amplitude_rad = swing_amplitude_rad
+        self.offset_rad = np.zeros(2)
+        self.velocity_rad_s = np.zeros(2)
+        self.goal_rad = np.zeros(2)
+        self.started = False  # it acted in this walk (once)
+        self.delay_s = np.zeros(2)  # each hip roll's time left before it starts
+        self.returning = False
+        self.back = np.zeros(2, dtype=bool)  # each hip roll on its way back
+        self.stance = 0  # the stance column when it started
+        self.past_max_m = -math.inf  # the capture point's furthest past the outer edge since
+        self.watch_s: float | None = None  # a push watched this long (s), or None
+        self.watch_past_m = 0.0  # ... the capture point past the outer edge when it began
+        self.watch_stance = 0
+        self.armed: int | None = None  # the stance column whose single support had the
+                                       # error under TRIGGER_M: a push in it is watched
+        self.decided_in_step = False  # ... once per single support
+
+    def _start(self, stance: int, hip_roll_rad: tuple[float, float]) -> None:
+        self.started = True
+        self.stance = stance
+        for column in range(2):
+            amplitude = (self.stance_amplitude_rad if column == stance
+                         else self.swing_amplitude_rad)
+            self.delay_s[column] = STANCE_DELAY_S if column == stance else SWING_DELAY_S
+            sign = 1.0 if column == 1 else -1.0  # each hip roll's abduction
+            room = (self.upper_rad[column] - hip_roll_rad[column] if sign > 0
+                    else hip_roll_rad[column] - self.lower_rad[column])
+            if column != stance:
+                room = min(room, SWING_HIP_ROLL_MAX_RAD + LIMIT_MARGIN_RAD
+                           - sign * hip_roll_rad[column])
+            self.goal_rad[column] = sign * min(amplitude, max(room - LIMIT_MARGIN_RAD, 0.0))
+
+    @property
+    def acting(self) -> bool:
+        """Started and not yet handing back."""
+        return self.started and not self.returning
+
+    def update(self, cp_error_y_m: float, past_edge_m: float, support: tuple[bool, bool],
+               contact: tuple[bool, bool], hip_roll_rad: tuple[float, float]) -> np.ndarray:
+        """One period: ``cp_error_y_m`` the estimated capture point's sideways error from the
+        pattern's (world y, m; > 0 to the left), ``support`` the pattern's soles down and
+        ``contact`` the estimate's (right, left), ``hip_roll_rad`` the hip rolls about to be
+        sent without the offsets. Returns the offsets (right, left; rad)."""
+        single = support[0] != support[1]
+        stance = 0 if support[0] else 1
+        outward = 1.0 if stance == 1 else -1.0  # the stance sole's outer side (world y)
+        error = outward * cp_error_y_m if single else math.nan
+        if not self.started and self.watch_s is not None and (
+                not single or stance != self.watch_stance or not math.isfinite(past_edge_m)):
+            self.watch_s = None  # (the step ended, or no estimate: watched no more)
+        if not single or (self.armed is not None and self.armed != stance):
+            self.armed = None
+        if not self.started and self.watch_s is None and self.armed is None \
+                and error <= TRIGGER_M and not self.decided_in_step:
+            self.armed = stance  # (this single support under the trigger: a push in it is
+            # watched; a step that begins with the error beyond it, the rebound of an earlier
+            # push, is not)
+        if not single:
+            self.decided_in_step = False
+        if not self.started and self.watch_s is None and self.armed == stance \
+                and error > TRIGGER_M and math.isfinite(past_edge_m):
+            self.watch_s, self.watch_past_m, self.watch_stance = 0.0, past_edge_m, stance
+        elif not self.started and self.watch_s is not None:
+            self.watch_s += self.dt_s
+            if self.watch_s >= DECIDE_S - 1e-9:
+                speed = (past_edge_m - self.watch_past_m) / self.watch_s
+                self.watch_s, self.armed, self.decided_in_step = None, None, True
+                if past_edge_m >= 0.0 or (speed > 0.0 and -past_edge_m / speed < EDGE_TIME_S):
+                    self._start(stance, hip_roll_rad)
+        if self.started and math.isfinite(past_edge_m):
+            self.past_max_m = max(self.past_max_m, past_edge_m)
+        retreated = self.started and (self.past_max_m - past_edge_m > RETREAT_M)
+        if self.started and not self.returning and not np.any(self.velocity_rad_s) and (
+                (all(support) and all(contact)) or retreated):
+            self.returning = True  # the step finished: hand back
+            self.back[:] = True
+            self.goal_rad[:] = 0.0
+        for column in range(2):
+            if self.delay_s[column] > 0.0 and not self.back[column]:
+                self.delay_s[column] -= self.dt_s
+                continue
+            v_max, a_max = ((RETURN_VELOCITY_RAD_S, RETURN_ACCELERATION_RAD_S2)
+                            if self.back[column] else (VELOCITY_RAD_S, ACCELERATION_RAD_S2))
+            self.offset_rad[column], self.velocity_rad_s[column] = profile_step(
+                float(self.offset_rad[column]), float(self.velocity_rad_s[column]),
+                float(self.goal_rad[column]), v_max, a_max, self.dt_s)
+        return self.offset_rad
