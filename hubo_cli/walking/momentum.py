@@ -26,8 +26,8 @@ ACCELERATION_RAD_S2: a ramp, never a jump) within the walking set's limits less
 LIMIT_MARGIN_RAD. They hold, and go back to zero at RETURN_VELOCITY_RAD_S and
 RETURN_ACCELERATION_RAD_S2 once the capture point has come back RETREAT_M from its furthest
 past the edge, or once both soles are planned down and in contact (the stop's stance). Once
-per walk. Measured: docs/history/walking.md, round 12 (100 N on round 10's 23 moments: 9
-without a fall against 5; seeds 6, 10 and 18 of 1-20 still fall).
+per walk. Measured: docs/history/walking.md, round 12 (100 N on round 10's 23 moments: 12
+without a fall against 5, portable 13 against 6; seeds 6, 10 and 18 of 1-20 still fall).
 """
 
 from __future__ import annotations
