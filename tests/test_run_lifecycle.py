@@ -543,10 +543,11 @@ def test_a_fifo_nobody_writes_is_refused_within_its_wait(tmp_path, monkeypatch):
     import threading
 
     import hubo_cli.fastrak.capture as capture
+    import hubo_cli.streams as streams
     from hubo_cli.errors import InputError
     from hubo_cli.fastrak.opener import open_source
 
-    monkeypatch.setattr(capture, "STREAM_WAIT_S", 0.3)
+    monkeypatch.setattr(streams, "STREAM_WAIT_S", 0.3)
     silent = tmp_path / "silent"
     os.mkfifo(silent)
     started = time.monotonic()

@@ -159,3 +159,36 @@ def test_a_task_from_a_fifo_is_read_once_and_keeps_its_text(tmp_path):
     spec = load_task(fifo)
     writer.join(timeout=5)
     assert spec.text == text and spec.name == "cut-slot"
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="FIFOs as on Linux")
+def test_a_task_fifo_nobody_writes_is_refused_within_its_wait(tmp_path, monkeypatch):
+    """A FIFO task file with no writer is refused after STREAM_WAIT_S (round 12's review: a
+    blocking open waited for ever, deaf to Ctrl-C and SIGTERM)."""
+    import time
+
+    import hubo_cli.streams as streams
+    from hubo_cli.errors import InputError
+
+    monkeypatch.setattr(streams, "STREAM_WAIT_S", 0.3)
+    fifo = tmp_path / "silent.toml"
+    os.mkfifo(fifo)
+    raised: list[BaseException] = []
+
+    def load() -> None:
+        try:
+            load_task(fifo)
+        except BaseException as exc:  # noqa: BLE001 (handed to the test's thread)
+            raised.append(exc)
+
+    loader = threading.Thread(target=load, daemon=True)
+    started = time.monotonic()
+    loader.start()
+    loader.join(timeout=3.0)
+    if loader.is_alive():  # (the old code: unblock it, so the test fails instead of hanging)
+        with open(fifo, "wb"):
+            pass
+        pytest.fail("a FIFO task file nobody writes was waited on past 3 s")
+    assert time.monotonic() - started < 3.0
+    assert len(raised) == 1 and isinstance(raised[0], InputError), raised
+    assert "nothing arrived from" in str(raised[0]) and "silent.toml" in str(raised[0])

@@ -21,13 +21,11 @@ import io
 import json
 import math
 import os
-import select
 import struct
 import time
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-from stat import S_ISREG
 
 import numpy as np
 
@@ -44,6 +42,7 @@ from hubo_cli.fastrak.records import (
 from hubo_cli.fastrak.source import PoseSample, ReplaySource, SourceStats, batch_samples
 from hubo_cli.fastrak.track import PoseTrack
 from hubo_cli.geometry import matrix_to_quat_wxyz
+from hubo_cli.streams import open_nonblocking, reader_of
 
 MAGIC = b"FASTRAK-CAPTURE 1\n"
 CHUNK_HEAD = struct.Struct("<dI")
@@ -55,7 +54,6 @@ MAX_RECORDING_BYTES = 256 << 20
 # recording (/dev/zero, random bytes, a binary blob) is refused from them
 FIRST_BYTES = 1 << 20
 # a FIFO or device that gives no byte for this long is refused rather than waited on
-STREAM_WAIT_S = 5.0
 MAX_LINE_BYTES = 65536  # no line of a pose log comes near this
 MAX_CHUNK_GAP_S = 3600.0  # chunks an hour apart are a garbled time, not a recording
 POSE_LOG_COLUMNS = ("t_s", "station", "x_m", "y_m", "z_m", "qw", "qx", "qy", "qz", "status")
@@ -164,7 +162,7 @@ def read_recording_bytes(path: str | Path) -> bytes:
     and the file must not exceed :data:`MAX_RECORDING_BYTES`, so that a file that is no
     recording (``/dev/zero``, random bytes) is refused from its first bytes, never read whole.
     A FIFO or device is opened without waiting for a writer and refused when no byte comes
-    for :data:`STREAM_WAIT_S`.
+    for :data:`hubo_cli.streams.STREAM_WAIT_S`.
 
     Raises:
         InputError: the file is missing, unreadable, too large, silent or not a recording.
@@ -172,7 +170,7 @@ def read_recording_bytes(path: str | Path) -> bytes:
     path = Path(path)
     try:
         # a FIFO or device is opened without waiting for a writer, then read as bytes come
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+        fd = open_nonblocking(path)
         try:
             return _read_fd(fd, path)
         finally:
@@ -188,17 +186,9 @@ def read_recording_bytes(path: str | Path) -> bytes:
 
 def _read_fd(fd: int, path: Path) -> bytes:
     """:func:`read_recording_bytes` on its open file descriptor."""
-    stat = os.fstat(fd)
-    if stat.st_size > MAX_RECORDING_BYTES:
+    if os.fstat(fd).st_size > MAX_RECORDING_BYTES:
         raise _too_large(path)
-    if S_ISREG(stat.st_mode):
-        os.set_blocking(fd, True)
-
-        def read(size: int) -> bytes:
-            return os.read(fd, size)
-    else:
-        def read(size: int) -> bytes:
-            return _read_stream(fd, size, path)
+    read = reader_of(fd, path)
     blob = bytearray(read(FIRST_BYTES))
     more = read(1)
     _check_first_bytes(bytes(blob), str(path), whole=not more)
@@ -208,26 +198,6 @@ def _read_fd(fd: int, path: Path) -> bytes:
             raise _too_large(path)
         more = read(FIRST_BYTES)
     return bytes(blob)
-
-
-def _read_stream(fd: int, size: int, path: Path) -> bytes:
-    """Up to ``size`` bytes of a FIFO or device (fewer only at its end), waiting at most
-    :data:`STREAM_WAIT_S` for each chunk: a stream nobody writes is refused, not waited on."""
-    chunks, got = [], 0
-    while got < size:
-        ready, _, _ = select.select([fd], [], [], STREAM_WAIT_S)
-        if not ready:
-            raise InputError(f"nothing arrived from {path} in {STREAM_WAIT_S:g} s",
-                             hint="start the program writing to it first, or replay a file")
-        try:
-            chunk = os.read(fd, size - got)
-        except BlockingIOError:  # taken by another reader meanwhile
-            continue
-        if not chunk:  # its writer closed it
-            break
-        chunks.append(chunk)
-        got += len(chunk)
-    return b"".join(chunks)
 
 
 def _too_large(path: Path) -> InputError:

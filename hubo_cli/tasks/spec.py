@@ -65,6 +65,7 @@ field (``steps[3].speed_mm_s``: steps are numbered from 1, as ``hubo task show``
 from __future__ import annotations
 
 import math
+import os
 import stat
 import tomllib
 from dataclasses import dataclass, field, fields, replace
@@ -74,6 +75,7 @@ from hubo_cli.control.stop_choice import SOFT_SOURCES, TASK_SOURCES, stops_words
 from hubo_cli.errors import ConfigError, quoted
 from hubo_cli.resources import data_dir
 from hubo_cli.scene import CuttingModel
+from hubo_cli.streams import open_nonblocking, reader_of
 from hubo_cli.tasks.toml_lines import field_line
 
 STEP_KINDS = ("move", "plunge", "follow", "retract", "wait")
@@ -282,11 +284,14 @@ def load_task(name_or_path: str | Path, overrides: dict | None = None, *,
         ConfigError: the file is missing or malformed (file, line, field and a hint).
     """
     path = find_task(name_or_path)
-    try:
-        with path.open("rb") as file:  # read once: a FIFO gives its text only once
-            blob = file.read(MAX_TASK_BYTES + 1)
+    try:  # read once (a FIFO gives its text only once), never waiting on a silent one
+        fd = open_nonblocking(path)
+        try:
+            blob = reader_of(fd, path)(MAX_TASK_BYTES + 1)
+        finally:
+            os.close(fd)
         if len(blob) > MAX_TASK_BYTES:
-            raise ConfigError(f"larger than {MAX_TASK_BYTES >> 10} KiB: not a task file",
+            raise ConfigError(f"larger than {MAX_TASK_BYTES >> 20} MiB: not a task file",
                               path=str(path), hint="a task file is a page of TOML; see "
                                                    "tasks/README.md")
         text = blob.decode("utf-8")
