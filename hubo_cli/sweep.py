@@ -500,12 +500,12 @@ def run_sweep(jobs: Sequence[Job], out_dir: str | Path, *, workers: int | None =
     except DeviceError as exc:
         lost = exc
     rows = [done[i] for i in sorted(done)]
+    write_table(rows, out_dir / TABLE_NAME)  # first: a second Ctrl-C in the logs' recovery
+    if rows:                                 # below leaves the table written (and the cut
+        plot_sweep(rows, out_dir / PLOT_NAME)  # logs recoverable by hubo export)
     cut = recover_runs(out_dir, [job for i, job in enumerate(jobs) if i not in done])
     result = SweepResult(rows, len(jobs), where, time.perf_counter() - t0, interrupted, out_dir,
                          cut)
-    write_table(rows, out_dir / TABLE_NAME)
-    if rows:
-        plot_sweep(rows, out_dir / PLOT_NAME)
     if lost is not None and not rows:
         raise lost
     if lost is not None:

@@ -226,6 +226,8 @@ CASES = {
     # round 12: what round 11's review left open
     "decode-output-list-100000": (lambda d: ["fastrak", "decode", str(_capture_with(
         d / "l.fastrak", output_list=[2] * 100_000))], 2, "(199,999 characters)"),
+    "decode-output-list-decodes-nothing": (lambda d: ["fastrak", "decode", str(_capture_with(
+        d / "z.fastrak", output_list=[2, 11, *[0] * 100_000, 1]))], 2, "(200,006 characters)"),
     "decode-output-list-text": (lambda d: ["fastrak", "decode", str(_capture_with(
         d / "t.fastrak", output_list="x"))], 2, "output_list is 'x', not a list of whole"),
     "decode-baud-nan": (lambda d: ["fastrak", "decode", str(_capture_with(

@@ -596,9 +596,10 @@ class Recording:
 def no_records_error(path: str | Path, cap: Capture) -> InputError:
     """The error for a raw capture none of whose records decodes."""
     h = cap.header
+    items = quoted(",".join(map(str, h.output_list)))
     return InputError(f"{path}: no valid FASTRAK records in {len(cap.data)} bytes",
-                      hint=f"the header says {h.fmt} {','.join(map(str, h.output_list))} in "
-                           f"{h.units}; check it matches what was recorded")
+                      hint=f"the header says {h.fmt} {items} in {h.units}; check it matches "
+                           "what was recorded")
 
 
 def load_recording(path: str | Path, stations=None,
