@@ -96,3 +96,20 @@ def run_files(deliver: bool = True) -> Iterator[LateInterrupt]:
                 signal.signal(s, handler)
     if outermost and deliver and late.cause is not None:
         raise Terminated if late.cause == "SIGTERM" else KeyboardInterrupt
+
+
+@contextmanager
+def stopping() -> Iterator[None]:
+    """A shutdown already under way after an interrupt (a sweep ending its workers and its
+    cluster): a second Ctrl-C or SIGTERM inside is recorded and dropped, not raised, so it
+    cannot cut the shutdown short and leave worker processes the interpreter's exit then waits
+    on for ever (main thread only; elsewhere nothing changes)."""
+    if not _in_main_thread():
+        yield
+        return
+    previous = {s: signal.signal(s, lambda signum, frame: None) for s in _SIGNALS}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)

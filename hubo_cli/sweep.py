@@ -33,6 +33,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from hubo_cli.errors import DeviceError, HuboError, InputError, quoted
+from hubo_cli.interrupts import stopping
 from hubo_cli.outputs import replacing
 
 SIM_COMMAND = "sim"
@@ -622,14 +623,15 @@ def _submit_all(jobs, out_dir: Path, n_workers: int, scheduler: str | None,
         interrupted = True
         raise
     finally:
-        if interrupted and cluster is not None:
-            _kill_local_workers()
-        # after a lost scheduler, cancelling and closing may fail too: nothing to report then
-        with contextlib.suppress(Exception):
-            client.cancel(list(futures))
-            client.close()
-        if cluster is not None:
-            cluster.close()
+        with stopping() if interrupted else contextlib.nullcontext():
+            if interrupted and cluster is not None:
+                _kill_local_workers()
+            # after a lost scheduler, cancelling and closing may fail too: nothing to report
+            with contextlib.suppress(Exception):
+                client.cancel(list(futures))
+                client.close()
+            if cluster is not None:
+                cluster.close()
 
 
 def _kill_local_workers() -> None:

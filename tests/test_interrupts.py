@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import signal
+import time
 
 import pytest
 
@@ -40,3 +41,18 @@ def test_the_command_line_scope_reports_instead_and_a_next_run_raises_it():
     with run_files():  # before the loop ends, interrupts are raised at once
         with pytest.raises(KeyboardInterrupt):
             os.kill(os.getpid(), signal.SIGINT)
+
+
+def test_a_shutdown_under_way_drops_a_second_interrupt_and_restores_the_handlers():
+    """Inside `stopping()` (a sweep ending its workers after a Ctrl-C) a second SIGINT or
+    SIGTERM is dropped, not raised; after it the handlers are the ones before (round 12's
+    review: a second Ctrl-C cut the cluster's shutdown short and the exit waited for ever on
+    a worker left alive)."""
+    from hubo_cli.interrupts import stopping
+
+    before = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    with stopping():
+        os.kill(os.getpid(), signal.SIGINT)
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(0.05)  # (delivered to the main thread at its next bytecode)
+    assert {s: signal.getsignal(s) for s in before} == before
