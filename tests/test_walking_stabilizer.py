@@ -248,7 +248,7 @@ def test_a_swing_leg_is_pitched_against_the_torsos_pitch_and_holds_on_the_floor(
     def period(support, contact) -> np.ndarray:
         store[CONTACT] = contact
         q = pattern.copy()
-        target._level_swing(0, support, q)
+        target._level_swing(support, q, float(target._torso_error_rad(0)[1]))
         return q
 
     swinging, standing = [True, False], [True, True]

@@ -438,13 +438,15 @@ class WalkTarget(Target):
                    "walk.zmp_command_x_m", "walk.zmp_command_y_m",
                    "walk.phase_code", "walk.soles_fz_n", "walk.liftoff_wait", "walk.landing_wait",
                    "walk.cp_error_x_m", "walk.cp_error_y_m",
-                   "walk.cp_shift_x_m", "walk.cp_shift_y_m",
-                   "walk.offset_x_m", "walk.offset_y_m", "walk.right_lift_m", "walk.left_lift_m",
-                   "walk.right_sole_roll_rad", "walk.right_sole_pitch_rad",
-                   "walk.left_sole_roll_rad", "walk.left_sole_pitch_rad",
-                   "walk.right_level_rad", "walk.left_level_rad", "walk.pitch_error_rad",
-                   "walk.right_reach_rad", "walk.left_reach_rad",
-                   "walk.right_momentum_rad", "walk.left_momentum_rad")
+                   "walk.cp_shift_x_m", "walk.cp_shift_y_m")
+    stabilizer_columns = ("walk.offset_x_m", "walk.offset_y_m", "walk.right_lift_m",
+                          "walk.left_lift_m", "walk.right_sole_roll_rad",
+                          "walk.right_sole_pitch_rad", "walk.left_sole_roll_rad",
+                          "walk.left_sole_pitch_rad", "walk.right_level_rad",
+                          "walk.left_level_rad", "walk.pitch_error_rad", "walk.right_reach_rad",
+                          "walk.left_reach_rad", "walk.right_momentum_rad",
+                          "walk.left_momentum_rad")  # (:meth:`_stabilizer_info`'s)
+    log_columns += stabilizer_columns
 
     def __init__(self, model: RobotModel, params: WalkingParams, goal: tuple[float, float, float],
                  q_start_rad: np.ndarray, T_world_neck_start: np.ndarray,
@@ -525,15 +527,13 @@ class WalkTarget(Target):
             self._leg_delta = np.zeros((2, 6))  # the legs' corrections: right, left
             self._level_rad = np.zeros(2)  # each swing leg's pitch against the torso's (rad)
             self._pitch_error_rad = 0.0  # the estimated torso's pitch from the planned one
-            self.reach = FloorReach(float(self.corners[:, 1].max()), dt)
+            self._half_width_m = float(self.corners[:, 1].max())  # the soles' (m)
+            self.reach = FloorReach(self._half_width_m, dt)
             self._no_turns = np.zeros((2, 4, 4))
-            hip_rolls = [model.joint_names.index(n) for n in ("RHR", "LHR")]
-            self._hip_roll = tuple(hip_rolls)  # (right, left)
-            lower, upper = model.lower_rad, model.upper_rad
-            self._hip_roll_limits = tuple((float(lower[j]), float(upper[j])) for j in hip_rolls)
-            self._half_width_m = float(self.corners[:, 1].max())
-            self.hips = MomentumStrategy(tuple(float(lower[j]) for j in hip_rolls),
-                                         tuple(float(upper[j]) for j in hip_rolls), dt)
+            self._hip_roll = tuple(model.joint_names.index(n) for n in ("RHR", "LHR"))
+            self.hips = MomentumStrategy(
+                tuple(float(model.lower_rad[j]) for j in self._hip_roll),
+                tuple(float(model.upper_rad[j]) for j in self._hip_roll), dt)
         names = list(model.joint_names)
         self._ankle = {"right": (names.index("RAR"), names.index("RAP")),
                        "left": (names.index("LAR"), names.index("LAP"))}
@@ -1349,7 +1349,7 @@ class WalkTarget(Target):
     def _stabilizer_info(self) -> dict[str, float]:
         """The stabilizer's corrections for the log (NaN without a stabilizer)."""
         if self.stabilizer is None:
-            return dict.fromkeys(self.log_columns[-15:], math.nan)
+            return dict.fromkeys(self.stabilizer_columns, math.nan)
         right, left = self.dampers["right"].delta_rad, self.dampers["left"].delta_rad
         offset = self.torso_offset.offset_m
         return {"walk.offset_x_m": float(offset[0]), "walk.offset_y_m": float(offset[1]),
@@ -1402,7 +1402,8 @@ class WalkTarget(Target):
                                               float(wrenches[column, 2]))
                  for column, (side, down) in enumerate(zip(SIDES, rows["support"][k],
                                                            strict=True))]
-        self._reach_floor(k)
+        torso_error = self._torso_error_rad(k)
+        self._reach_floor(k, float(torso_error[0]))
         turns = self.reach.turns(self._T_neck_soles[k])
         _correct_legs(self._T_neck_soles[k], self._R_neck_world[k], offset_x, offset_y, *lifts,
                       q, self._leg_delta, *self._leg_kernel, LEG_STEP_RAD,
@@ -1412,7 +1413,7 @@ class WalkTarget(Target):
             roll, pitch = self._ankle[side]
             q[roll] += delta[0]
             q[pitch] += delta[1]
-        self._level_swing(k, rows["support"][k], q)
+        self._level_swing(rows["support"][k], q, float(torso_error[1]))
         self._momentum(k, q)
         return q
 
@@ -1423,9 +1424,16 @@ class WalkTarget(Target):
         return (self.stabilizer is not None and self.reach.tipped
                 and k < self.gait.n and all(self._rows["support"][k]))
 
-    def _reach_floor(self, k: int) -> None:
+    def _torso_error_rad(self, k: int) -> np.ndarray:
+        """The estimated torso's attitude from the planned one at row ``k``, as a rotation
+        vector in the torso's frame (rad: x its roll, y its pitch)."""
+        R_plan = self.plan.T_world_neck[k, :3, :3]
+        return pin.log3(R_plan.T @ np.asarray(self.store[T_WORLD_TORSO], dtype=float)[:3, :3])
+
+    def _reach_floor(self, k: int, roll_error_rad: float) -> None:
         """The swing foot kept over the floor against the estimated torso's roll from the
-        planned one toward the stance side (:mod:`hubo_cli.walking.floor_reach`). Off
+        planned one toward the stance side (``roll_error_rad``,
+        :mod:`hubo_cli.walking.floor_reach`). Off
         (``floor_reach``) for the fast gait: its own slips and hops roll the torso beyond
         REACH_DEAD_RAD without a push (perturbed robots 8, 11 and 12's 2 m walks, turns of
         0.013-0.033 rad): robot 12's walk stopped itself (without the reach it arrives 23 mm
@@ -1433,12 +1441,9 @@ class WalkTarget(Target):
         11)."""
         if not self.floor_reach or (self.momentum and self.hips.acting):
             return
-        R_plan = self.plan.T_world_neck[k, :3, :3]
-        error = float(pin.log3(R_plan.T @ np.asarray(self.store[T_WORLD_TORSO],
-                                                     dtype=float)[:3, :3])[0])
         support = self._rows["support"][k]
         contact = self.store[CONTACT]
-        self.reach.update(error, (bool(support[0]), bool(support[1])),
+        self.reach.update(roll_error_rad, (bool(support[0]), bool(support[1])),
                           (bool(contact[0]), bool(contact[1])))
 
     def _momentum(self, k: int, q: np.ndarray) -> None:
@@ -1463,25 +1468,25 @@ class WalkTarget(Target):
                                    (float(q[self._hip_roll[0]]), float(q[self._hip_roll[1]])))
         for column, j in enumerate(self._hip_roll):
             if offsets[column]:
-                lower, upper = self._hip_roll_limits[column]
-                q[j] = min(max(q[j] + offsets[column], lower), upper)
+                q[j] = min(max(q[j] + offsets[column], self.hips.lower_rad[column]),
+                           self.hips.upper_rad[column])
 
-    def _level_swing(self, k: int, support: list[bool], q: np.ndarray) -> None:
-        """Pitch each swing leg at its hip against the estimated torso's pitch from the
-        planned one (beyond LEVEL_DEAD_RAD, at most LEVEL_MAX_RAD; changing at most
+    def _level_swing(self, support: list[bool], q: np.ndarray, pitch_error_rad: float
+                     ) -> None:
+        """Pitch each swing leg at its hip against the estimated torso's pitch from the planned one
+        (``pitch_error_rad``; beyond LEVEL_DEAD_RAD, at most LEVEL_MAX_RAD; changing at most
         LEVEL_RATE_RAD_S), in place in ``q``: a body tipped by a push carries a swing foot
         fixed in its frame with it and lands it early on an edge (pushed from the front, the
         body tipped back and the heel came down 7 deg toe-up, 0.05 m short of its moved
-        landing, and bounced). Turned so, the leg keeps its planned pitch in the world and the
-        sole lands flat. A leg on the floor (planned down, or in the estimate's contact) keeps
-        its turn while the other one swings (turned back under the weight, the landed foot was
-        lifted at its toe or heel); with both soles planned down and in contact, the turns go
-        back to the pattern at LEVEL_RETURN_RAD_S, the torso righting itself over the flat
-        soles. The turn is about the hip's pitch axis, not the torso's: with the hip yawed by
-        psi it leaves sin(psi) of the torso's pitch as the sole's roll (2.7 deg of 9 at 0.3 rad)."""
-        R_plan = self.plan.T_world_neck[k, :3, :3]
-        error = float(pin.log3(R_plan.T @ np.asarray(self.store[T_WORLD_TORSO],
-                                                     dtype=float)[:3, :3])[1])
+        landing, and bounced). Turned so, the leg keeps its planned pitch in the world and
+        the sole lands flat. A leg on the floor (planned down, or in the estimate's contact)
+        keeps its turn while the other one swings (turned back under the weight, the landed
+        foot was lifted at its toe or heel); with both soles planned down and in contact,
+        the turns go back to the pattern at LEVEL_RETURN_RAD_S, the torso righting itself
+        over the flat soles. The turn is about the hip's pitch axis, not the torso's: with
+        the hip yawed by psi it leaves sin(psi) of the torso's pitch as the sole's roll (2.7
+        deg of 9 at 0.3 rad)."""
+        error = pitch_error_rad
         self._pitch_error_rad = error  # about the torso's y axis
         tilt_rad = min(max(abs(error) - LEVEL_DEAD_RAD, 0.0), LEVEL_MAX_RAD)
         tilt_rad = math.copysign(tilt_rad, error)
