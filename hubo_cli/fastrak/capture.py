@@ -53,7 +53,6 @@ MAX_RECORDING_BYTES = 256 << 20
 # the first bytes of a recording are parsed before the rest is read: a file that is not a
 # recording (/dev/zero, random bytes, a binary blob) is refused from them
 FIRST_BYTES = 1 << 20
-# a FIFO or device that gives no byte for this long is refused rather than waited on
 MAX_LINE_BYTES = 65536  # no line of a pose log comes near this
 MAX_CHUNK_GAP_S = 3600.0  # chunks an hour apart are a garbled time, not a recording
 POSE_LOG_COLUMNS = ("t_s", "station", "x_m", "y_m", "z_m", "qw", "qx", "qy", "qz", "status")

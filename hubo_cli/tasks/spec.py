@@ -319,8 +319,7 @@ def load_task(name_or_path: str | Path, overrides: dict | None = None, *,
     except ValueError:  # Python reads no integer of more than 4300 digits
         raise ConfigError("not valid TOML: an integer too long to read", path=str(path),
                           hint="a task file's numbers are a few digits long") from None
-    return replace(_Loader(path, text, data, overrides or {}, sources_on_command_line).task(),
-                   text=text)
+    return _Loader(path, text, data, overrides or {}, sources_on_command_line).task()
 
 
 FIELD_TABLES = ("stance", "scene", "safety")  # what a dotted ``--set`` name may reach
@@ -476,14 +475,14 @@ class _Loader:
                                        "the command line: --no-estop")
             table.finish()
             return TaskSpec(name, description, self.path, params, defaults,
-                            experiment=experiment)
+                            experiment=experiment, text=self.text)
         stance = self._stance(table.table("stance"))
         scene = self._scene(table.table("scene"))
         safety = self._safety(table.table("safety"))
         steps = self._steps(table.list_of_tables("steps"))
         table.finish()
         return TaskSpec(name, description, self.path, params, defaults, stance, scene, safety,
-                        steps, fields_set=dict(self.fields_set))
+                        steps, fields_set=dict(self.fields_set), text=self.text)
 
     def _stance(self, t: _Table) -> Stance:
         distance = t.number_or_auto("wall_distance_mm", positive=True, maximum=LENGTH_MAX_MM)
