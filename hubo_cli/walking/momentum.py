@@ -101,8 +101,6 @@ class MomentumStrategy:
         self.started = False  # it acted in this walk (once)
         self.delay_s = np.zeros(2)  # each hip roll's time left before it starts
         self.returning = False
-        self.back = np.zeros(2, dtype=bool)  # each hip roll on its way back
-        self.stance = 0  # the stance column when it started
         self.past_max_m = -math.inf  # the capture point's furthest past the outer edge since
         self.watch_s: float | None = None  # a push watched this long (s), or None
         self.watch_past_m = 0.0  # ... the capture point past the outer edge when it began
@@ -113,7 +111,6 @@ class MomentumStrategy:
 
     def _start(self, stance: int, hip_roll_rad: tuple[float, float]) -> None:
         self.started = True
-        self.stance = stance
         for column in range(2):
             amplitude = (self.stance_amplitude_rad if column == stance
                          else self.swing_amplitude_rad)
@@ -168,15 +165,14 @@ class MomentumStrategy:
         retreated = self.started and (self.past_max_m - past_edge_m > RETREAT_M)
         if self.started and not self.returning and not np.any(self.velocity_rad_s) and (
                 (all(support) and all(contact)) or retreated):
-            self.returning = True  # the step finished: hand back
-            self.back[:] = True
+            self.returning = True  # the step finished: hand back (both hip rolls)
             self.goal_rad[:] = 0.0
         for column in range(2):
-            if self.delay_s[column] > 0.0 and not self.back[column]:
+            if self.delay_s[column] > 0.0 and not self.returning:
                 self.delay_s[column] -= self.dt_s
                 continue
             v_max, a_max = ((RETURN_VELOCITY_RAD_S, RETURN_ACCELERATION_RAD_S2)
-                            if self.back[column] else (VELOCITY_RAD_S, ACCELERATION_RAD_S2))
+                            if self.returning else (VELOCITY_RAD_S, ACCELERATION_RAD_S2))
             self.offset_rad[column], self.velocity_rad_s[column] = profile_step(
                 float(self.offset_rad[column]), float(self.velocity_rad_s[column]),
                 float(self.goal_rad[column]), v_max, a_max, self.dt_s)
