@@ -66,6 +66,25 @@ def test_unknown_commands_and_parameters_are_refused_before_anything_runs():
         check_jobs(make_jobs("sim", [1], {"speed": [1]}))
 
 
+def test_a_task_file_is_read_once_and_every_job_runs_its_text(tmp_path):
+    """A FIFO gives its text once: the sweep reads it as it makes the jobs and each job
+    resolves the task from that text (no run reads the file again; a Dask worker need not
+    see it)."""
+    from hubo_cli.tasks.spec import find_task
+
+    text = find_task("cut-slot").read_text()
+    fifo = tmp_path / "slot.toml"
+    os.mkfifo(fifo)
+    writer = threading.Thread(target=fifo.write_text, args=(text,), daemon=True)
+    writer.start()
+    jobs = make_jobs(str(fifo), [1, 2], {"speed_mm_s": [10, 20]})
+    writer.join(5)
+    check_jobs(jobs)
+    specs = [job.spec() for job in jobs]
+    assert [s.parameters["speed_mm_s"] for s in specs] == [10, 20, 10, 20]
+    assert all(s.text == text and s.path == fifo for s in specs)
+
+
 def _ours() -> list[psutil.Process]:
     return [psutil.Process(), *psutil.Process().children(recursive=True)]
 
