@@ -29,7 +29,7 @@ import time
 import warnings
 from collections.abc import Callable, Sequence
 from concurrent.futures import CancelledError
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 from hubo_cli.errors import DeviceError, HuboError, InputError, quoted
@@ -386,8 +386,11 @@ def check_jobs(jobs: Sequence[Job]) -> None:
             raise InputError(f"--set: sim's {exc}", hint="e.g. --set push=0,30") from None
 
 
-def run_job(job: Job, out_dir: str | Path) -> Row:
-    """Run one simulation (in whatever process calls it) into ``out_dir/<job name>``."""
+def run_job(job: Job, out_dir: str | Path, task: tuple[str, str] | None = None) -> Row:
+    """Run one simulation (in whatever process calls it) into ``out_dir/<job name>``;
+    ``task``, if given, is the job's task file and text (sent apart from the job)."""
+    if task is not None:
+        job = replace(job, task=task)
     t0 = time.perf_counter()
     run_dir = Path(out_dir) / job.name
     try:
@@ -617,8 +620,12 @@ def _submit_all(jobs, out_dir: Path, n_workers: int, scheduler: str | None,
         _check_versions(client)
         if on_dashboard is not None:
             on_dashboard(_dashboard_link(client))
+        texts = {}  # a task's text sent to the cluster once, not with every job
         for index, job in enumerate(jobs):
-            future = client.submit(run_job, job, str(out_dir.resolve()), pure=False,
+            if job.task is not None and id(job.task) not in texts:
+                texts[id(job.task)] = client.scatter(job.task, broadcast=True)
+            future = client.submit(run_job, replace(job, task=None), str(out_dir.resolve()),
+                                   texts.get(id(job.task)), pure=False,
                                    key=f"hubo-sweep-{index}-{job.name}")
             futures[future] = index
         for future in as_completed(futures):
