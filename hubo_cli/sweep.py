@@ -620,10 +620,11 @@ def _submit_all(jobs, out_dir: Path, n_workers: int, scheduler: str | None,
         _check_versions(client)
         if on_dashboard is not None:
             on_dashboard(_dashboard_link(client))
-        texts = {}  # a task's text sent to the cluster once, not with every job
-        for index, job in enumerate(jobs):
+        texts = {}  # a task's text sent to the cluster once, not with every job, as a task
+        for index, job in enumerate(jobs):  # (not scattered: a lost worker's copy is redone)
             if job.task is not None and id(job.task) not in texts:
-                texts[id(job.task)] = client.scatter(job.task, broadcast=True)
+                texts[id(job.task)] = client.submit(_same, job.task, pure=False,
+                                                    key=f"hubo-sweep-task-{index}")
             future = client.submit(run_job, replace(job, task=None), str(out_dir.resolve()),
                                    texts.get(id(job.task)), pure=False,
                                    key=f"hubo-sweep-{index}-{job.name}")
@@ -659,6 +660,11 @@ def _submit_all(jobs, out_dir: Path, n_workers: int, scheduler: str | None,
                 client.close()
             if cluster is not None:
                 cluster.close()
+
+
+def _same(value):
+    """``value`` itself: a task's text as a Dask task of its own (see :func:`_submit_all`)."""
+    return value
 
 
 def _kill_local_workers() -> None:

@@ -121,8 +121,11 @@ def _port_free(port: int) -> bool:
 @pytest.mark.physical
 def test_a_local_cluster_of_two_workers_gives_the_sequential_rows(tmp_path):
     """... and opens no dashboard: while it runs, every port it listens on is a loopback one,
-    none is 8787, and 8787 stays free (or is held by a process not of this test)."""
-    jobs = make_jobs("sim", [0, 2, 5], SHORT)
+    none is 8787, and 8787 stays free (or is held by a process not of this test). A task's
+    job gets its text on the cluster as in this process (a cut too slow to plan: an error
+    row at once)."""
+    jobs = make_jobs("sim", [0, 2, 5], SHORT) + make_jobs("cut-slot", [1],
+                                                          {"speed_mm_s": [0.1]})
     sequential = run_sweep(jobs, tmp_path / "seq", workers=0)
     seen: dict = {}
 
@@ -136,13 +139,15 @@ def test_a_local_cluster_of_two_workers_gives_the_sequential_rows(tmp_path):
     assert seen["free"]
     assert "2 worker processes" in parallel.where and not parallel.interrupted
     assert [r.outcome() for r in parallel.rows] == [r.outcome() for r in sequential.rows]
-    assert [r.seed for r in sequential.rows] == [0, 2, 5]
-    assert all(r.ended == "finished" and r.max_tilt_deg is not None for r in sequential.rows)
+    assert [r.seed for r in sequential.rows] == [0, 2, 5, 1]
+    stands, task = sequential.rows[:3], sequential.rows[3]
+    assert all(r.ended == "finished" and r.max_tilt_deg is not None for r in stands)
     # the seeds differ: 0.010, 0.155 and 0.459 deg on both code paths (AVX-512 / portable)
-    assert len({r.max_tilt_deg for r in sequential.rows}) == 3
+    assert len({r.max_tilt_deg for r in stands}) == 3
+    assert task.ended == "error" and "step 3 'cut' alone 3,000 s" in task.error
     with open(tmp_path / "par" / "sweep.csv") as f:
         table = list(csv.DictReader(f))
-    assert [int(r["seed"]) for r in table] == [0, 2, 5] and table[0]["duration"] == "0.6"
+    assert [int(r["seed"]) for r in table] == [0, 2, 5, 1] and table[0]["duration"] == "0.6"
     assert table[0]["hole_rms_mm"] == ""  # standing cuts no hole
     assert (tmp_path / "par" / "sweep.png").stat().st_size > 1000
 
