@@ -29,7 +29,7 @@ import time
 import warnings
 from collections.abc import Callable, Sequence
 from concurrent.futures import CancelledError
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 from hubo_cli.errors import DeviceError, HuboError, InputError, quoted
@@ -64,12 +64,26 @@ class Job:
         seed: the perturbation seed (0: the nominal robot).
         parameters: (name, value) pairs, the task's ``--set`` (or ``sim``'s duration/push).
         balance: the balancer, ``default``, ``paper`` or ``off`` (``--balance``).
+        task: a task's file and text, read once by :func:`make_jobs` (a FIFO gives its text
+            once; a Dask worker need not see the file); None for ``sim``.
     """
 
     command: str
     seed: int
     parameters: tuple[tuple[str, object], ...] = ()
     balance: str = "default"
+    task: tuple[str, str] | None = field(default=None, repr=False, compare=False)
+
+    def spec(self):
+        """The job's task, resolved with its parameters from the text read once.
+
+        Raises:
+            ConfigError: a bad parameter value or task text.
+        """
+        from hubo_cli.tasks.spec import parse_task, read_task
+
+        path, text = self.task or read_task(self.command)
+        return parse_task(Path(path), text, dict(self.parameters))
 
     @property
     def name(self) -> str:
@@ -325,9 +339,19 @@ def _answers_as_dask(address: str) -> bool:
 def make_jobs(command: str, seeds: Sequence[int], sets: dict[str, list[object]],
               balance: str = "default") -> list[Job]:
     """Every combination of seeds and parameter values, seeds outermost, with the balancer
-    ``balance``."""
+    ``balance``; a task's file is read here, once, and each job carries its text.
+
+    Raises:
+        ConfigError: the task file is missing, not a file or unreadable.
+    """
+    from hubo_cli.tasks.spec import read_task
+
+    task = None
+    if command != SIM_COMMAND:
+        path, text = read_task(command)
+        task = (str(path), text)
     names = list(sets)
-    return [Job(command, seed, tuple(zip(names, combo, strict=True)), balance)
+    return [Job(command, seed, tuple(zip(names, combo, strict=True)), balance, task)
             for seed in seeds for combo in itertools.product(*(sets[n] for n in names))]
 
 
@@ -340,15 +364,12 @@ def check_jobs(jobs: Sequence[Job]) -> None:
             unknown ``sim`` parameter or a bad value of one (InputError).
     """
     from hubo_cli.experiments.standing import check_standing_args
-    from hubo_cli.tasks.spec import find_task, load_task
 
-    combinations = {(j.command, repr(j.parameters)): (j.command, j.parameters) for j in jobs}
-    for command, parameters in combinations.values():
+    combinations = {(j.command, repr(j.parameters)): j for j in jobs}
+    for job in combinations.values():
+        command, parameters = job.command, job.parameters
         if command != SIM_COMMAND:
-            if not find_task(command).is_file():  # every run reads it: a FIFO gives it once
-                raise InputError(f"{command}: a sweep reads its task file once per run; a "
-                                 "FIFO gives it once", hint="give a regular .toml file")
-            load_task(command, dict(parameters))
+            job.spec()
             continue
         unknown = [n for n, _ in parameters if n not in SIM_PARAMETERS]
         if unknown:
@@ -365,8 +386,11 @@ def check_jobs(jobs: Sequence[Job]) -> None:
             raise InputError(f"--set: sim's {exc}", hint="e.g. --set push=0,30") from None
 
 
-def run_job(job: Job, out_dir: str | Path) -> Row:
-    """Run one simulation (in whatever process calls it) into ``out_dir/<job name>``."""
+def run_job(job: Job, out_dir: str | Path, task: tuple[str, str] | None = None) -> Row:
+    """Run one simulation (in whatever process calls it) into ``out_dir/<job name>``;
+    ``task``, if given, is the job's task file and text (sent apart from the job)."""
+    if task is not None:
+        job = replace(job, task=task)
     t0 = time.perf_counter()
     run_dir = Path(out_dir) / job.name
     try:
@@ -404,9 +428,8 @@ def _run_sim(job: Job, run_dir: Path) -> Row:
 
 def _run_task(job: Job, run_dir: Path) -> Row:
     from hubo_cli.tasks.runner import check_task, run_experiment, run_task
-    from hubo_cli.tasks.spec import load_task
 
-    spec = load_task(job.command, dict(job.parameters))
+    spec = job.spec()
     if spec.experiment:
         done = run_experiment(spec, out=run_dir, perturb_seed=job.seed, balance=job.balance)
     else:
@@ -597,8 +620,13 @@ def _submit_all(jobs, out_dir: Path, n_workers: int, scheduler: str | None,
         _check_versions(client)
         if on_dashboard is not None:
             on_dashboard(_dashboard_link(client))
-        for index, job in enumerate(jobs):
-            future = client.submit(run_job, job, str(out_dir.resolve()), pure=False,
+        texts = {}  # a task's text sent to the cluster once, not with every job, as a task
+        for index, job in enumerate(jobs):  # (not scattered: a lost worker's copy is redone)
+            if job.task is not None and id(job.task) not in texts:
+                texts[id(job.task)] = client.submit(_same, job.task, pure=False,
+                                                    key=f"hubo-sweep-task-{index}")
+            future = client.submit(run_job, replace(job, task=None), str(out_dir.resolve()),
+                                   texts.get(id(job.task)), pure=False,
                                    key=f"hubo-sweep-{index}-{job.name}")
             futures[future] = index
         for future in as_completed(futures):
@@ -632,6 +660,11 @@ def _submit_all(jobs, out_dir: Path, n_workers: int, scheduler: str | None,
                 client.close()
             if cluster is not None:
                 cluster.close()
+
+
+def _same(value):
+    """``value`` itself: a task's text as a Dask task of its own (see :func:`_submit_all`)."""
+    return value
 
 
 def _kill_local_workers() -> None:

@@ -6,7 +6,6 @@ The table drives ``hubo`` through click's CliRunner with the ideal driver and sh
 
 import json
 import math
-import os
 import re
 import shutil
 import signal
@@ -246,9 +245,6 @@ CASES = {
     "task-folder": (lambda d: ["task", "show", str(d / "mine")], 2, "a folder, not a task file"),
     "ik-batch-1e300": (lambda d: ["ik", "right-arm", "--batch", str(_batch_csv(
         d / "b.csv", 1e300)), "--out", str(d / "out.csv")], 2, "T03 1e+300 is beyond 1,000,000"),
-    "sweep-fifo-task": (lambda d: ["sweep", str(_fifo(d / "f.toml")), "--seeds", "1",
-                                   "--workers", "0", "--out", str(d / "sw")], 2,
-                        "once per run"),
     "ik-batch-byte-order-mark": (lambda d: ["ik", "right-arm", "--batch", str(_batch_csv(
         d / "b.csv", 0.4, bom=True)), "--out", str(d / "out.csv")], 0, "exact 1"),
 }
@@ -261,12 +257,6 @@ def _capture_with(path: Path, **header) -> Path:
     end = blob.index(b"\n", start)
     fields = json.loads(blob[start:end]) | header
     path.write_bytes(blob[:start] + json.dumps(fields).encode() + blob[end:])
-    return path
-
-
-def _fifo(path: Path) -> Path:
-    """A FIFO nobody writes (a task run from it would wait)."""
-    os.mkfifo(path)
     return path
 
 

@@ -66,6 +66,25 @@ def test_unknown_commands_and_parameters_are_refused_before_anything_runs():
         check_jobs(make_jobs("sim", [1], {"speed": [1]}))
 
 
+def test_a_task_file_is_read_once_and_every_job_runs_its_text(tmp_path):
+    """A FIFO gives its text once: the sweep reads it as it makes the jobs and each job
+    resolves the task from that text (no run reads the file again; a Dask worker need not
+    see it)."""
+    from hubo_cli.tasks.spec import find_task
+
+    text = find_task("cut-slot").read_text()
+    fifo = tmp_path / "slot.toml"
+    os.mkfifo(fifo)
+    writer = threading.Thread(target=fifo.write_text, args=(text,), daemon=True)
+    writer.start()
+    jobs = make_jobs(str(fifo), [1, 2], {"speed_mm_s": [10, 20]})
+    writer.join(5)
+    check_jobs(jobs)
+    specs = [job.spec() for job in jobs]
+    assert [s.parameters["speed_mm_s"] for s in specs] == [10, 20, 10, 20]
+    assert all(s.text == text and s.path == fifo for s in specs)
+
+
 def _ours() -> list[psutil.Process]:
     return [psutil.Process(), *psutil.Process().children(recursive=True)]
 
@@ -102,8 +121,11 @@ def _port_free(port: int) -> bool:
 @pytest.mark.physical
 def test_a_local_cluster_of_two_workers_gives_the_sequential_rows(tmp_path):
     """... and opens no dashboard: while it runs, every port it listens on is a loopback one,
-    none is 8787, and 8787 stays free (or is held by a process not of this test)."""
-    jobs = make_jobs("sim", [0, 2, 5], SHORT)
+    none is 8787, and 8787 stays free (or is held by a process not of this test). A task's
+    job gets its text on the cluster as in this process (a cut too slow to plan: an error
+    row at once)."""
+    jobs = make_jobs("sim", [0, 2, 5], SHORT) + make_jobs("cut-slot", [1],
+                                                          {"speed_mm_s": [0.1]})
     sequential = run_sweep(jobs, tmp_path / "seq", workers=0)
     seen: dict = {}
 
@@ -117,13 +139,15 @@ def test_a_local_cluster_of_two_workers_gives_the_sequential_rows(tmp_path):
     assert seen["free"]
     assert "2 worker processes" in parallel.where and not parallel.interrupted
     assert [r.outcome() for r in parallel.rows] == [r.outcome() for r in sequential.rows]
-    assert [r.seed for r in sequential.rows] == [0, 2, 5]
-    assert all(r.ended == "finished" and r.max_tilt_deg is not None for r in sequential.rows)
+    assert [r.seed for r in sequential.rows] == [0, 2, 5, 1]
+    stands, task = sequential.rows[:3], sequential.rows[3]
+    assert all(r.ended == "finished" and r.max_tilt_deg is not None for r in stands)
     # the seeds differ: 0.010, 0.155 and 0.459 deg on both code paths (AVX-512 / portable)
-    assert len({r.max_tilt_deg for r in sequential.rows}) == 3
+    assert len({r.max_tilt_deg for r in stands}) == 3
+    assert task.ended == "error" and "step 3 'cut' alone 3,000 s" in task.error
     with open(tmp_path / "par" / "sweep.csv") as f:
         table = list(csv.DictReader(f))
-    assert [int(r["seed"]) for r in table] == [0, 2, 5] and table[0]["duration"] == "0.6"
+    assert [int(r["seed"]) for r in table] == [0, 2, 5, 1] and table[0]["duration"] == "0.6"
     assert table[0]["hole_rms_mm"] == ""  # standing cuts no hole
     assert (tmp_path / "par" / "sweep.png").stat().st_size > 1000
 

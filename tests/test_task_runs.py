@@ -11,6 +11,7 @@ from hubo_cli.balance_report import bit_poses, flutes_in_wall
 from hubo_cli.cli.main import main
 from hubo_cli.control.log import load_log
 from hubo_cli.dataflow import Store
+from hubo_cli.errors import ConfigError
 from hubo_cli.estimation.keys import T_WORLD_SOLES, T_WORLD_TORSO, WRENCHES
 from hubo_cli.geometry import rpy_to_quat_wxyz
 from hubo_cli.kinematics.torso import torso_in_stance
@@ -211,6 +212,13 @@ def test_a_600_mm_rectangle_is_refused_in_preflight_and_nothing_moves(tmp_path, 
     assert as_json.exit_code == 4 and report["refused"] is True
     cut = next(m for m in report["misses"] if m["kind"] == "follow")
     assert 50 < cut["miss_mm"] < 150  # the reach is about 445 mm wide: 600 mm misses by ~78
+
+
+def test_a_task_too_long_names_its_longest_step_whole():
+    """A rectangle at 0.1 mm/s: the cut, four sides of 1,500 and 1,000 s, is 5,000 s (a side
+    alone is within the 30 min limit and was the figure named)."""
+    with pytest.raises(ConfigError, match=r"step 3 'cut' alone 5,000 s\); the limit is 1800"):
+        make_plan(load_task("cut-rectangle", {"speed_mm_s": 0.1}), load_model())
 
 
 def test_too_fast_for_the_legs_is_refused_with_a_hint(tmp_path):

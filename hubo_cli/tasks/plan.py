@@ -473,10 +473,12 @@ def make_plan(spec: TaskSpec, model: RobotModel, placement: Placement | None = N
 
     starts = np.cumsum([0.0] + [p.segment.duration_s for p in pieces])
     if not starts[-1] <= PLAN_MAX_S:
-        slowest = max(pieces, key=lambda p: p.segment.duration_s)
+        step_s = np.zeros(len(spec.steps))  # a step's pieces (a rectangle's four sides) summed
+        np.add.at(step_s, [p.step for p in pieces], [p.segment.duration_s for p in pieces])
+        slowest = int(np.argmax(step_s))
         raise ConfigError(f"the task would take {_seconds(starts[-1])} s ("
-                          f"{spec.steps[slowest.step].label} alone "
-                          f"{_seconds(slowest.segment.duration_s)} s); the limit is "
+                          f"{spec.steps[slowest].label} alone "
+                          f"{_seconds(step_s[slowest])} s); the limit is "
                           f"{PLAN_MAX_S:g} s", path=str(spec.path),
                           hint="raise the speeds or shorten the waits")
     n = int(np.floor(starts[-1] / dt + 1e-9)) + 1

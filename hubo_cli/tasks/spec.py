@@ -270,21 +270,27 @@ def find_task(name_or_path: str | Path) -> Path:
 
 def load_task(name_or_path: str | Path, overrides: dict | None = None, *,
               sources_on_command_line: bool = False) -> TaskSpec:
-    """Read, check and resolve a task file.
-
-    Args:
-        name_or_path: a ``.toml`` file or the name of a shipped task.
-        overrides: parameter name -> value (strings from the command line are converted to the
-            default's type; ``auto`` stays a string).
-        sources_on_command_line: ``--estop-sources`` or ``--no-estop`` chooses the run's stop
-            sources, so the file's list may lack some (a task file as run records them so);
-            the run keeps the command line's, removing sources from the task's baseline.
+    """Read, check and resolve a task file (:func:`read_task`, then :func:`parse_task`).
 
     Raises:
         ConfigError: the file is missing or malformed (file, line, field and a hint).
     """
+    return parse_task(*read_task(name_or_path), overrides,
+                      sources_on_command_line=sources_on_command_line)
+
+
+def read_task(name_or_path: str | Path) -> tuple[Path, str]:
+    """A task file's path and text, read once (a FIFO gives its text only once), never
+    waiting on a silent one for more than :data:`~hubo_cli.streams.STREAM_WAIT_S`.
+
+    Args:
+        name_or_path: a ``.toml`` file or the name of a shipped task.
+
+    Raises:
+        ConfigError: the file is missing, not a file, too large, not text or unreadable.
+    """
     path = find_task(name_or_path)
-    try:  # read once (a FIFO gives its text only once), never waiting on a silent one
+    try:
         fd = open_nonblocking(path)
         try:
             blob = reader_of(fd, path)(MAX_TASK_BYTES + 1)
@@ -301,7 +307,25 @@ def load_task(name_or_path: str | Path, overrides: dict | None = None, *,
     except OSError as exc:
         raise ConfigError(f"cannot read the task file: {exc.strerror or exc}", path=str(path),
                           hint="check the path and its permissions") from None
-    text = text.removeprefix("\ufeff")  # the byte-order mark some Windows editors write
+    return path, text.removeprefix("\ufeff")  # the byte-order mark some Windows editors write
+
+
+def parse_task(path: Path, text: str, overrides: dict | None = None, *,
+               sources_on_command_line: bool = False) -> TaskSpec:
+    """Check and resolve a task file's text (read by :func:`read_task` from ``path``, which
+    errors name).
+
+    Args:
+        path, text: the file and what it held.
+        overrides: parameter name -> value (strings from the command line are converted to the
+            default's type; ``auto`` stays a string).
+        sources_on_command_line: ``--estop-sources`` or ``--no-estop`` chooses the run's stop
+            sources, so the file's list may lack some (a task file as run records them so);
+            the run keeps the command line's, removing sources from the task's baseline.
+
+    Raises:
+        ConfigError: the text is malformed (file, line, field and a hint).
+    """
     try:
         data = tomllib.loads(text)
     except RecursionError:
