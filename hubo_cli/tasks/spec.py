@@ -568,7 +568,8 @@ class _Loader:
             raise self.fail(t.key("estop_sources"), f"a task may add stop sources but not "
                             f"remove the {stops_words(missing)}",
                             hint=f"to run without the {stops_words(missing)}, say so on "
-                                 f"the command line: --estop-sources {kept}")
+                                 f"hubo task's command line: --estop-sources {kept} (a "
+                                 f"sweep keeps every stop)")
         robot = load_model().safety
         # field, unit, sense bound, its robot file key (the most a task may give), words
         at_most = (("wrist_torque_limit_nm", "N m", WRIST_TORQUE_MAX_NM, "wrist_torque_limit_nm",
