@@ -155,7 +155,9 @@ def _run_task(plan: Plan, setup: RunSetup, on_start, balance: str) -> TaskRun:
                    else lambda _, loop: on_start(target, loop))
     _write_task_copy(plan.spec, done.run_dir, balance, setup.safety)
     done.add_file("task.toml")
-    summary = done.save_summary(summarise(plan, target, done))
+    # the task target runs on its own clock, from the walk's handover (0 without a walk)
+    t_origin_s = (approach.handover_s or 0.0) if start is not None else 0.0
+    summary = done.save_summary(summarise(plan, target, done, t_origin_s))
     if start is not None:
         from hubo_cli.experiments.walk import plot_footprints
 
@@ -289,13 +291,15 @@ def _bit_world_m(log, plan: Plan, times_s) -> np.ndarray:
     return (log.poses("torso")[rows] @ plan.body.arms[limb].fk_batch(q_arm))[:, :3, 3]
 
 
-def _cut_world_m(log, plan: Plan, target: TaskTarget) -> tuple[np.ndarray, np.ndarray | None]:
+def _cut_world_m(log, plan: Plan, target: TaskTarget,
+                 t_origin_s: float) -> tuple[np.ndarray, np.ndarray | None]:
     """The bit's true world path while cutting (K x 3, m), taken relative to where it stood
     when the wall was placed (so it traces the hole as cut, the body's sway included), and that
-    offset (world bit - commanded bit, m); an empty path and None without the truth."""
+    offset (world bit - commanded bit, m); an empty path and None without the truth. The
+    target's times are on its own clock, which starts at the log's ``t_origin_s``."""
     if target.t_placed_s is None or not target.cut_t_s:
         return np.zeros((0, 3)), None
-    bit = _bit_world_m(log, plan, [target.t_placed_s, *target.cut_t_s])
+    bit = _bit_world_m(log, plan, t_origin_s + np.array([target.t_placed_s, *target.cut_t_s]))
     if not np.isfinite(bit).all():
         return np.zeros((0, 3)), None
     offset = bit[0] - plan.T_first_S[:3, 3]
@@ -313,8 +317,10 @@ def _hole_in_wall_frame(log, offset_world_m: np.ndarray | None,
     return np.asarray(points, dtype=float) - offset_world_m - T_S_W[:3, 3]
 
 
-def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
-    """The task's own summary fields; also draws the plots into the run folder."""
+def summarise(plan: Plan, target: TaskTarget, done: RunResult, t_origin_s: float = 0.0) -> dict:
+    """The task's own summary fields; also draws the plots into the run folder.
+    ``t_origin_s``: the run's time at which the task target's own clock starts (a walk to the
+    stance hands over then); the summary's times are the run's (the log's)."""
     from hubo_cli.plots.paths import plot_path_comparison
     from hubo_cli.plots.task import plot_wrist_torque
 
@@ -323,7 +329,7 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
     goal = np.array(target.cut_goal_m).reshape(-1, 3)
     actual = np.array(target.cut_actual_m).reshape(-1, 3)
     errors = np.linalg.norm(goal - actual, axis=1)
-    world, offset_world_m = _cut_world_m(log, plan, target)
+    world, offset_world_m = _cut_world_m(log, plan, target, t_origin_s)
     edge = np.array(target.cut_edge, dtype=int)
     torque = np.array(target.cut_torque_nm)
     torque_stats = {name: _stats(torque[edge == code]) for code, name in EDGE_NAMES.items()}
@@ -342,7 +348,8 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
                              actual_label="bit measured (arm FK through the torso estimate)",
                              hole_m=_hole_in_wall_frame(log, offset_world_m, T_S_W),
                              hole_rms_error_mm=hole_rms,
-                             stops_m=_cut_at(target, [e[1] for e in stops], actual)
+                             stops_m=_cut_at(target, [e[1] - t_origin_s for e in stops],
+                                             actual)
                              - T_S_W[:3, 3])
         done.add_file("path.png")
     plot_wrist_torque(log, run_dir / "wrist_torque.png", limit_nm=limit,
@@ -367,8 +374,9 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult) -> dict:
                 "retreat_mm": None if target.retreat_m is None else target.retreat_m * 1000,
                 "held": (target.phase == "stopped" or finished) and stopper is not None
                 and stopper.mode == "hold",
-                "resumed_at_t_s": target.resumed_t_s,
-                "held_after_s": None if target.t_held_s is None else target.t_held_s - t_stop,
+                "resumed_at_t_s": [t_origin_s + t for t in target.resumed_t_s],
+                "held_after_s": None if target.t_held_s is None
+                else t_origin_s + target.t_held_s - t_stop,
                 "wrist_torque_nm": float(np.nanmax(all_torque[~after_stop]))
                 if len(all_torque) else None,
                 "wrist_torque_after_nm": _nanmax(all_torque[after_stop])} | _travel_after(

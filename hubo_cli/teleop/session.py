@@ -262,7 +262,9 @@ def run_teleop(settings: TeleopSettings, on_ready=None,
                                            frames=[tool_frame(a, t) for a, t in body.tools.items()])
         done = run(setup, runs, on_start=None if on_ready is None
                    else lambda _, loop: on_ready(target, loop))
-    summary = done.save_summary(summarise(settings, target, done, source, scene))
+    # the teleop target runs on its own clock, from the walk's handover (0 without a walk)
+    t_origin_s = 0.0 if runs is target else runs.handover_s or 0.0
+    summary = done.save_summary(summarise(settings, target, done, source, scene, t_origin_s))
     if runs is not target:
         from hubo_cli.experiments.walk import plot_footprints
 
@@ -344,8 +346,10 @@ def _reached_exactly(body: WholeBody, path: PosePath, samples: int = 12) -> bool
 
 
 def summarise(settings: TeleopSettings, target: TeleopTarget, done: RunResult,
-              source: InputDevice, scene: dict) -> dict:
-    """The session's own summary fields; also draws the path plots into the run folder."""
+              source: InputDevice, scene: dict, t_origin_s: float = 0.0) -> dict:
+    """The session's own summary fields; also draws the path plots into the run folder.
+    ``t_origin_s``: the run's time at which the target's own clock starts (a walk to the
+    stance hands over then)."""
     rms, peak = {}, {}
     for arm, errors in target.errors_m.items():
         if errors:
@@ -367,7 +371,8 @@ def summarise(settings: TeleopSettings, target: TeleopTarget, done: RunResult,
         "input_kind": ("port" if settings.port else "replay" if settings.replay
                        else "generated"),
         "mode": settings.mode,
-        "operate_s": None if target.t_operate_s is None else result.t_end_s - target.t_operate_s,
+        "operate_s": None if target.t_operate_s is None
+        else result.t_end_s - t_origin_s - target.t_operate_s,
         "rms_error_mm": rms, "max_error_mm": peak,
         "world_rms_error_mm": {arm: float(np.sqrt(np.mean(np.square(e))) * 1000)
                                for arm, e in target.world_errors_m.items() if e},
