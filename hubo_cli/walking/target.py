@@ -275,12 +275,13 @@ def _hull_outside(poses, corners, contact, point):
 
 @nb.njit(**JIT)
 def _correct_legs(T_neck_soles, R_neck_world, offset_x, offset_y, lift_right, lift_left, q,
-                  deltas, right, left, step_rad, turns, turned):
+                  deltas, right, left, step_rad, turns):
     """The stabilizer's correction of both legs, compiled (one call a period): each planned
     sole goal in the torso's frame (``T_neck_soles``: right, left) moved by the torso offset
     (world x, y) and the sole's lift (world z), both turned into the torso's frame by
-    ``R_neck_world``, then, ``turned``, by ``turns`` (2 x 4 x 4, in the torso's frame: the
-    swing foot kept over the floor, :class:`~hubo_cli.walking.floor_reach.FloorReach`), then
+    ``R_neck_world``, then by ``turns`` (2 x 4 x 4, in the torso's frame: the swing foot kept
+    over the floor, :class:`~hubo_cli.walking.floor_reach.FloorReach`; identities when
+    neither leg is turned), then
     :func:`_correct_leg` with the leg's ``(chain, lengths, is_arm, lower, upper, hold_m,
     start)`` and its row of ``deltas`` (2 x 6)."""
     goal = np.empty((4, 4))
@@ -293,16 +294,15 @@ def _correct_legs(T_neck_soles, R_neck_world, offset_x, offset_y, lift_right, li
         for r in range(3):
             goal[r, 3] += (R_neck_world[r, 0] * -offset_x + R_neck_world[r, 1] * -offset_y
                            + R_neck_world[r, 2] * lift)
-        if turned:
-            for r in range(4):
-                for c in range(4):
-                    total = 0.0
-                    for i in range(4):
-                        total += turns[side, r, i] * goal[i, c]
-                    moved[r, c] = total
-            for r in range(4):
-                for c in range(4):
-                    goal[r, c] = moved[r, c]
+        for r in range(4):
+            for c in range(4):
+                total = 0.0
+                for i in range(4):
+                    total += turns[side, r, i] * goal[i, c]
+                moved[r, c] = total
+        for r in range(4):
+            for c in range(4):
+                goal[r, c] = moved[r, c]
         _correct_leg(goal, right if side == 0 else left, q, deltas[side], step_rad)
 
 
@@ -529,7 +529,7 @@ class WalkTarget(Target):
             self._pitch_error_rad = 0.0  # the estimated torso's pitch from the planned one
             self._half_width_m = float(self.corners[:, 1].max())  # the soles' (m)
             self.reach = FloorReach(self._half_width_m, dt)
-            self._no_turns = np.zeros((2, 4, 4))
+            self._no_turns = np.array((np.eye(4), np.eye(4)))  # (_correct_legs's turns)
             self._hip_roll = tuple(model.joint_names.index(n) for n in ("RHR", "LHR"))
             self.hips = MomentumStrategy(
                 tuple(float(model.lower_rad[j]) for j in self._hip_roll),
@@ -1407,7 +1407,7 @@ class WalkTarget(Target):
         turns = self.reach.turns(self._T_neck_soles[k])
         _correct_legs(self._T_neck_soles[k], self._R_neck_world[k], offset_x, offset_y, *lifts,
                       q, self._leg_delta, *self._leg_kernel, LEG_STEP_RAD,
-                      self._no_turns if turns is None else turns, turns is not None)
+                      self._no_turns if turns is None else turns)
         for column, side in enumerate(SIDES):
             delta = self.dampers[side].update(wrenches[column], cop_refs[column])
             roll, pitch = self._ankle[side]
