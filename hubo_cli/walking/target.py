@@ -452,15 +452,14 @@ class WalkTarget(Target):
                  q_start_rad: np.ndarray, T_world_neck_start: np.ndarray,
                  corrections: int = 1, end_width_m: float | None = None,
                  stabilizer: StabilizerGains | None = None,
-                 toe_heel: ToeHeelParams | None = None, lip_feedback: bool = False,
-                 landing_wait: bool = True, floor_reach: bool = True,
-                 momentum: bool = True) -> None:
+                 toe_heel: ToeHeelParams | None = None, lip_feedback: bool = False) -> None:
         self.model = model
-        self.landing_wait = landing_wait  # (:meth:`_unloaded_landing`; off: the fast gait)
-        # (:meth:`_reach_floor`; off: the fast gait, and toe-heel walks: not measured with it)
-        self.floor_reach = floor_reach and toe_heel is None
-        # (:meth:`_momentum`; off: the fast gait, and toe-heel walks: not measured with it)
-        self.momentum = momentum and toe_heel is None
+        # the push responses (:meth:`_unloaded_landing`, :meth:`_reach_floor`, :meth:`_momentum`)
+        # by the gait's step (WalkingParams.answers_pushes); the floor reach and the momentum
+        # strategy not in toe-heel walks (not measured with them)
+        self.landing_wait = params.answers_pushes
+        self.floor_reach = params.answers_pushes and toe_heel is None
+        self.momentum = params.answers_pushes and toe_heel is None
         self.toe_heel = toe_heel
         self.lip_feedback = lip_feedback and stabilizer is not None
         self.lip: LipStabilizer | None = None
@@ -1291,9 +1290,10 @@ class WalkTarget(Target):
         the walk stops: waiting while it walked, perturbed robots' unpushed 1 m walks (their
         capture point 20-57 mm off the pattern's, landed feet reading under 60 N now and
         then) waited 0.3-3 s, one fell and 14 of 20 ended over 10 mm off. Off
-        (``landing_wait``) for the fast gait: its own landings bounce and its capture point
-        lags the pattern's by more than CP_MARGIN_M without a push; waiting at 4-12 of its
-        landings, 3 of 10 of its 2 m walks fell (docs/history/walking.md, round 10)."""
+        (``landing_wait``) for a gait of short steps (``WalkingParams.answers_pushes``), as
+        the fast gait: its own landings bounce and its capture point lags the pattern's by
+        more than CP_MARGIN_M without a push; waiting at 4-12 of its landings, 3 of 10 of its
+        2 m walks fell (docs/history/walking.md, round 10)."""
         if not self.landing_wait or not all(self._rows["support"][k]):
             self._landed = None  # (a single support: the landing is past)
             return False
@@ -1434,11 +1434,11 @@ class WalkTarget(Target):
         """The swing foot kept over the floor against the estimated torso's roll from the
         planned one toward the stance side (``roll_error_rad``,
         :mod:`hubo_cli.walking.floor_reach`). Off
-        (``floor_reach``) for the fast gait: its own slips and hops roll the torso beyond
-        REACH_DEAD_RAD without a push (perturbed robots 8, 11 and 12's 2 m walks, turns of
-        0.013-0.033 rad): robot 12's walk stopped itself (without the reach it arrives 23 mm
-        off), robot 11's 0.175 s before the monitor's stop (docs/history/walking.md, round
-        11)."""
+        (``floor_reach``) for a gait of short steps (``WalkingParams.answers_pushes``), as
+        the fast gait: its own slips and hops roll the torso beyond REACH_DEAD_RAD without a
+        push (perturbed robots 8, 11 and 12's 2 m walks, turns of 0.013-0.033 rad): robot
+        12's walk stopped itself (without the reach it arrives 23 mm off), robot 11's 0.175 s
+        before the monitor's stop (docs/history/walking.md, round 11)."""
         if not self.floor_reach or (self.momentum and self.hips.acting):
             return
         support = self._rows["support"][k]
@@ -1449,7 +1449,7 @@ class WalkTarget(Target):
     def _momentum(self, k: int, q: np.ndarray) -> None:
         """The hip rolls' momentum strategy against a side push toward the stance foot
         (:mod:`hubo_cli.walking.momentum`), added in place to ``q`` within the walking set's
-        limits. Off (``momentum``) for the fast gait and toe-heel walks."""
+        limits. Off (``momentum``) for a gait of short steps (the fast gait) and toe-heel walks."""
         if not self.momentum:
             return
         support = self._rows["support"][k]
