@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from hubo_cli.walking.momentum import (
@@ -16,14 +18,23 @@ DT = 0.005
 LIMITS = ((-0.6, 0.0), (0.0, 0.6))  # the hip rolls' walking limits: abduction only
 
 
-def _run(errors_m, pasts_m, support=(False, True)):
+def _run(errors_m, pasts_m, support=(False, True), phases=None):
     """Offsets over the periods of a left stance (the right foot swinging) with the given
-    capture-point errors (world y) and distances past the left sole's outer edge."""
+    capture-point errors (world y) and distances past the left sole's outer edge (``support``
+    one per period, or the same for all); each period's phase appended to ``phases``."""
     hips = MomentumStrategy((LIMITS[0][0], LIMITS[1][0]), (LIMITS[0][1], LIMITS[1][1]), DT)
+    supports = support if isinstance(support, list) else [support] * len(errors_m)
     out = []
-    for error, past in zip(errors_m, pasts_m, strict=True):
-        out.append(hips.update(error, past, support, support, (-0.06, 0.05)).copy())
+    for error, past, down in zip(errors_m, pasts_m, supports, strict=True):
+        out.append(hips.update(error, past, down, down, (-0.06, 0.05)).copy())
+        if phases is not None:
+            phases.append(hips.phase)
     return hips, np.array(out)
+
+
+def _runs(phases):
+    """The phases in the order they came, each once per run of periods."""
+    return [p for k, p in enumerate(phases) if k == 0 or p != phases[k - 1]]
 
 
 def test_a_push_rushing_at_the_edge_starts_it_on_a_ramp_within_the_limits():
@@ -52,3 +63,36 @@ def test_a_push_the_ankle_catches_or_a_rebound_step_does_not_start_it():
     rushing = -0.08 + 0.5 * DT * np.arange(n)
     hips, offsets = _run(np.full(n, 0.04), rushing)  # the step began with the error beyond
     assert not hips.started and not np.any(offsets)
+
+
+def test_its_phases_arm_watch_act_return_and_end_once_per_walk():
+    """A single support under the trigger arms it, the push past it is watched DECIDE_S, acts
+    (the rush at the edge), returns once both soles are down and the offsets stand still, and
+    is done: a second push in a later step starts nothing."""
+    n = 200
+    errors = np.r_[np.zeros(10), np.full(n - 10, 0.04), np.zeros(n), np.full(n, 0.04)]
+    pasts = np.r_[-0.08 + 0.5 * DT * np.maximum(np.arange(n) - 10, 0), np.full(n, -0.1),
+                  -0.08 + 0.5 * DT * np.arange(n)]
+    support = [(False, True)] * n + [(True, True)] * n + [(True, False)] * n
+    phases = []
+    _, offsets = _run(errors, pasts, support, phases)
+    assert _runs(phases) == ["armed", "watching", "acting", "returning", "done"]
+    assert phases.index("acting") == 10 + round(DECIDE_S / DT)
+    assert not np.any(offsets[-1])
+
+
+def test_a_push_left_alone_passes_its_step_and_a_missing_estimate_rearms():
+    """A push the ankle catches is passed until its single support ends, then a new step arms
+    again; a watch losing the capture point's estimate goes back to armed."""
+    n = 100
+    slow = -0.12 + 0.2 * DT * np.maximum(np.arange(n) - 10, 0)  # 0.6 s from the edge
+    errors = np.r_[np.zeros(10), np.full(n - 10, 0.04), np.zeros(5), np.zeros(5)]
+    pasts = np.r_[slow, np.full(5, -0.1), np.full(5, -0.1)]
+    support = [(False, True)] * n + [(True, True)] * 5 + [(True, False)] * 5
+    phases = []
+    _run(errors, pasts, support, phases)
+    assert _runs(phases) == ["armed", "watching", "passed", "idle", "armed"]
+    pasts = np.r_[np.full(10, -0.08), -0.07, math.nan, -0.06]
+    phases = []
+    _run(np.r_[np.zeros(10), np.full(3, 0.04)], pasts, phases=phases)
+    assert _runs(phases) == ["armed", "watching", "armed", "watching"]

@@ -307,6 +307,34 @@ def test_the_gaits_are_the_robot_files(walking_model, params, tmp_path):
         walking_params(load_model("as-built", "walking", path=normal))
 
 
+def test_a_gait_answers_pushes_by_its_step_not_its_name(walking_model, tmp_path):
+    """The landing wait, the floor reach and the momentum strategy are on for a gait whose
+    steps last PUSH_RESPONSES_MIN_STEP_S or longer (the normal gait's 1.0 s), off for the fast
+    gait's 0.75 s; a gait added to the robot file gets them by its step; a toe-heel walk has
+    no floor reach and no momentum strategy."""
+    from hubo_cli.walking.stabilizer import StabilizerGains
+    from hubo_cli.walking.target import WalkTarget
+    from hubo_cli.walking.toe_heel import ToeHeelParams
+
+    path = tmp_path / "hubo2plus.toml"
+    path.write_text(walking_model.source.read_text().replace(
+        "[walking.fast]\n", "[walking.quick]\nsingle_support_s = 0.65\ndouble_support_s = 0.2\n"
+        "[walking.stroll]\nsingle_support_s = 0.9\n[walking.fast]\n"))
+    model = load_model("as-built", "walking", path=path)
+
+    def responses(gait, toe_heel=None):
+        params = walking_params(model, gait)
+        q_start, T_world_neck = walking_posture(model, params.step_width_m, params.crouch_m)
+        target = WalkTarget(model, params, (1.0, 0.0, 0.0), q_start, T_world_neck,
+                            stabilizer=StabilizerGains(), toe_heel=toe_heel)
+        assert params.answers_pushes == target.landing_wait
+        return target.landing_wait, target.floor_reach, target.momentum
+
+    on, off = (True, True, True), (False, False, False)
+    assert [responses(g) for g in ("normal", "stroll", "quick", "fast")] == [on, on, off, off]
+    assert responses("normal", ToeHeelParams.from_model(model)) == (True, False, False)
+
+
 @pytest.mark.parametrize("field, value", [("single_support_s", 1e-300),
                                           ("single_support_s", 0.004),
                                           ("single_support_s", 1e7), ("settle_s", 1e9)])

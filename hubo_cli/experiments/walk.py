@@ -237,15 +237,10 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
     q_start, T_world_neck = walking_posture(walking_model, params.step_width_m, params.crouch_m)
     if not 0 <= corrections <= 5:
         raise InputError(f"corrections must be 0 to 5, got {corrections}", hint="e.g. 1")
-    # the landing wait, the floor reach and the momentum strategy answer pushes; the fast
-    # gait's own bounces, slips and hops set the first two off without one
-    # (docs/history/walking.md, rounds 10 and 11); the third was not measured there (round 12)
-    push_responses = gait != "fast"
     target = WalkTarget(walking_model, params, goal, q_start, T_world_neck, corrections,
                         stabilizer=stabilizer,
                         toe_heel=ToeHeelParams.from_model(walking_model) if toe_heel else None,
-                        lip_feedback=lip_feedback, landing_wait=push_responses,
-                        floor_reach=push_responses, momentum=push_responses)
+                        lip_feedback=lip_feedback)
     setup = RunSetup(command="walk", model=walking_model, driver=driver,
                      driver_options=driver_options or {}, gui=gui, out=out,
                      safety=SafetyProfile().with_stops(stops).with_balance(balance),

@@ -83,9 +83,30 @@ def profile_step(x: float, v: float, goal: float, v_max: float, a_max: float, dt
     return x_new, v_new
 
 
+PHASES = ("idle", "armed", "watching", "passed", "acting", "returning", "done")
+"""The strategy's phases (:attr:`MomentumStrategy.phase`), each walk from ``idle``:
+
+* ``idle``: nothing watched; a single support whose error is under TRIGGER_M arms it.
+* ``armed``: this single support (its stance) had the error under TRIGGER_M; an error past it
+  (with an estimate of the capture point past the edge) starts a watch. The support ended or
+  changed: idle.
+* ``watching``: a push watched since its error passed TRIGGER_M; after DECIDE_S, acting if the
+  capture point would reach the outer edge within EDGE_TIME_S (or is past it), else passed. The
+  support ended or changed: idle; no estimate past the edge: armed again.
+* ``passed``: this step's push was left alone (the ankle, the floor reach and the stop catch
+  it); idle once the single support ends.
+* ``acting``: the hip rolls go to their abductions (after their delays) and hold; returning
+  once they stand still and either both soles are planned down and in contact or the capture
+  point came back RETREAT_M from its furthest past the edge.
+* ``returning``: both go back to zero; done once there and still.
+* ``done``: once per walk: nothing more.
+"""
+STARTED = ("acting", "returning", "done")  # the phases after the strategy started
+
+
 class MomentumStrategy:
     """The hip rolls' offsets (rad, right and left, added to the joints sent) of the momentum
-    strategy (see the module docstring)."""
+    strategy (see the module docstring; its phases: :data:`PHASES`)."""
 
     def __init__(self, lower_rad: tuple[float, float], upper_rad: tuple[float, float],
                  dt_s: float, stance_amplitude_rad: float = STANCE_AMPLITUDE_RAD,
@@ -98,19 +119,57 @@ class MomentumStrategy:
         self.offset_rad = np.zeros(2)
         self.velocity_rad_s = np.zeros(2)
         self.goal_rad = np.zeros(2)
-        self.started = False  # it acted in this walk (once)
         self.delay_s = np.zeros(2)  # each hip roll's time left before it starts
-        self.returning = False
-        self.past_max_m = -math.inf  # the capture point's furthest past the outer edge since
-        self.watch_s: float | None = None  # a push watched this long (s), or None
+        self.phase = "idle"
+        self.stance = 0  # armed, watching: the stance column of the single support
+        self.watch_s = 0.0  # watching: the push watched this long (s)
         self.watch_past_m = 0.0  # ... the capture point past the outer edge when it began
-        self.watch_stance = 0
-        self.armed: int | None = None  # the stance column whose single support had the
-                                       # error under TRIGGER_M: a push in it is watched
-        self.decided_in_step = False  # ... once per single support
+        self.past_max_m = -math.inf  # started: the capture point's furthest past that edge
+
+    @property
+    def started(self) -> bool:
+        """It acted in this walk (once)."""
+        return self.phase in STARTED
+
+    @property
+    def acting(self) -> bool:
+        """Started and not yet handing back."""
+        return self.phase == "acting"
+
+    def _next_phase(self, single: bool, stance: int, error: float, past_edge_m: float,
+                    support: tuple[bool, bool], contact: tuple[bool, bool],
+                    hip_roll_rad: tuple[float, float]) -> None:
+        """The phase's transitions (:data:`PHASES`) for one period: ``single`` a single support
+        on the ``stance`` column, ``error`` the capture point's error toward that sole's outer
+        side (NaN in double support), the rest as :meth:`update` has them."""
+        if self.phase in ("armed", "watching") and (not single or stance != self.stance):
+            self.phase = "idle"  # (the step ended: watched no more)
+        elif self.phase == "watching" and not math.isfinite(past_edge_m):
+            self.phase = "armed"  # (no estimate: watched no more, this period)
+        elif self.phase == "armed" and error > TRIGGER_M and math.isfinite(past_edge_m):
+            self.phase, self.watch_s, self.watch_past_m = "watching", 0.0, past_edge_m
+        elif self.phase == "watching":
+            self.watch_s += self.dt_s
+            if self.watch_s >= DECIDE_S - 1e-9:
+                speed = (past_edge_m - self.watch_past_m) / self.watch_s
+                self.phase = "passed"
+                if past_edge_m >= 0.0 or (speed > 0.0 and -past_edge_m / speed < EDGE_TIME_S):
+                    self._start(stance, hip_roll_rad)
+        elif self.phase == "passed" and not single:
+            self.phase = "idle"
+        if self.phase == "idle" and error <= TRIGGER_M:
+            # (this single support under the trigger: a push in it is watched; a step that
+            # begins with the error beyond it, the rebound of an earlier push, is not)
+            self.phase, self.stance = "armed", stance
+        if self.started and math.isfinite(past_edge_m):
+            self.past_max_m = max(self.past_max_m, past_edge_m)
+        if self.phase == "acting" and not np.any(self.velocity_rad_s) and (
+                (all(support) and all(contact)) or self.past_max_m - past_edge_m > RETREAT_M):
+            self.phase = "returning"  # the step finished: hand back (both hip rolls)
+            self.goal_rad[:] = 0.0
 
     def _start(self, stance: int, hip_roll_rad: tuple[float, float]) -> None:
-        self.started = True
+        self.phase = "acting"
         for column in range(2):
             amplitude = (self.stance_amplitude_rad if column == stance
                          else self.swing_amplitude_rad)
@@ -123,11 +182,6 @@ class MomentumStrategy:
                            - sign * hip_roll_rad[column])
             self.goal_rad[column] = sign * min(amplitude, max(room - LIMIT_MARGIN_RAD, 0.0))
 
-    @property
-    def acting(self) -> bool:
-        """Started and not yet handing back."""
-        return self.started and not self.returning
-
     def update(self, cp_error_y_m: float, past_edge_m: float, support: tuple[bool, bool],
                contact: tuple[bool, bool], hip_roll_rad: tuple[float, float]) -> np.ndarray:
         """One period: ``cp_error_y_m`` the estimated capture point's sideways error from the
@@ -138,42 +192,19 @@ class MomentumStrategy:
         stance = 0 if support[0] else 1
         outward = 1.0 if stance == 1 else -1.0  # the stance sole's outer side (world y)
         error = outward * cp_error_y_m if single else math.nan
-        if not self.started and self.watch_s is not None and (
-                not single or stance != self.watch_stance or not math.isfinite(past_edge_m)):
-            self.watch_s = None  # (the step ended, or no estimate: watched no more)
-        if not single or (self.armed is not None and self.armed != stance):
-            self.armed = None
-        if not self.started and self.watch_s is None and self.armed is None \
-                and error <= TRIGGER_M and not self.decided_in_step:
-            self.armed = stance  # (this single support under the trigger: a push in it is
-            # watched; a step that begins with the error beyond it, the rebound of an earlier
-            # push, is not)
-        if not single:
-            self.decided_in_step = False
-        if not self.started and self.watch_s is None and self.armed == stance \
-                and error > TRIGGER_M and math.isfinite(past_edge_m):
-            self.watch_s, self.watch_past_m, self.watch_stance = 0.0, past_edge_m, stance
-        elif not self.started and self.watch_s is not None:
-            self.watch_s += self.dt_s
-            if self.watch_s >= DECIDE_S - 1e-9:
-                speed = (past_edge_m - self.watch_past_m) / self.watch_s
-                self.watch_s, self.armed, self.decided_in_step = None, None, True
-                if past_edge_m >= 0.0 or (speed > 0.0 and -past_edge_m / speed < EDGE_TIME_S):
-                    self._start(stance, hip_roll_rad)
-        if self.started and math.isfinite(past_edge_m):
-            self.past_max_m = max(self.past_max_m, past_edge_m)
-        retreated = self.started and (self.past_max_m - past_edge_m > RETREAT_M)
-        if self.started and not self.returning and not np.any(self.velocity_rad_s) and (
-                (all(support) and all(contact)) or retreated):
-            self.returning = True  # the step finished: hand back (both hip rolls)
-            self.goal_rad[:] = 0.0
+        self._next_phase(single, stance, error, past_edge_m, support, contact, hip_roll_rad)
+        if self.phase not in ("acting", "returning"):
+            return self.offset_rad
+        returning = self.phase == "returning"
         for column in range(2):
-            if self.delay_s[column] > 0.0 and not self.returning:
+            if self.delay_s[column] > 0.0 and not returning:
                 self.delay_s[column] -= self.dt_s
                 continue
             v_max, a_max = ((RETURN_VELOCITY_RAD_S, RETURN_ACCELERATION_RAD_S2)
-                            if self.returning else (VELOCITY_RAD_S, ACCELERATION_RAD_S2))
+                            if returning else (VELOCITY_RAD_S, ACCELERATION_RAD_S2))
             self.offset_rad[column], self.velocity_rad_s[column] = profile_step(
                 float(self.offset_rad[column]), float(self.velocity_rad_s[column]),
                 float(self.goal_rad[column]), v_max, a_max, self.dt_s)
+        if returning and not np.any(self.offset_rad) and not np.any(self.velocity_rad_s):
+            self.phase = "done"
         return self.offset_rad

@@ -68,10 +68,24 @@ class WalkingParams:
         """One step: single plus double support (s)."""
         return self.single_support_s + self.double_support_s
 
+    @property
+    def answers_pushes(self) -> bool:
+        """The walk answers pushes with its landing wait, floor reach and momentum strategy
+        (:class:`~hubo_cli.walking.target.WalkTarget`): its steps last PUSH_RESPONSES_MIN_STEP_S
+        or longer."""
+        return self.step_s >= PUSH_RESPONSES_MIN_STEP_S
+
     def with_changes(self, **changes: float) -> WalkingParams:
         """A copy with some fields changed (checked like the file's values)."""
         return _checked(replace(self, **changes), "overrides")
 
+
+# The push responses (the landing wait, the floor reach and the momentum strategy) were measured
+# on the robot file's 1.0 s steps (0.7 s single, 0.3 s double support). On the fast gait's 0.75 s
+# steps the landings bounce and the capture point lags the pattern's by more than 20 mm without a
+# push, which sets the first two off (with the wait, 3 of 10 perturbed 2 m walks fell;
+# docs/history/walking.md, rounds 10 and 11); the third was not measured on them (round 12).
+PUSH_RESPONSES_MIN_STEP_S = 0.9  # [chosen] between the two; a step between was not measured
 
 # The phases' durations are bounded (s): a step shorter than a few periods moves the foot's
 # reference in jumps, and a long one makes a plan too large to hold.

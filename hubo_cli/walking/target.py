@@ -275,12 +275,13 @@ def _hull_outside(poses, corners, contact, point):
 
 @nb.njit(**JIT)
 def _correct_legs(T_neck_soles, R_neck_world, offset_x, offset_y, lift_right, lift_left, q,
-                  deltas, right, left, step_rad, turns, turned):
+                  deltas, right, left, step_rad, turns):
     """The stabilizer's correction of both legs, compiled (one call a period): each planned
     sole goal in the torso's frame (``T_neck_soles``: right, left) moved by the torso offset
     (world x, y) and the sole's lift (world z), both turned into the torso's frame by
-    ``R_neck_world``, then, ``turned``, by ``turns`` (2 x 4 x 4, in the torso's frame: the
-    swing foot kept over the floor, :class:`~hubo_cli.walking.floor_reach.FloorReach`), then
+    ``R_neck_world``, then by ``turns`` (2 x 4 x 4, in the torso's frame: the swing foot kept
+    over the floor, :class:`~hubo_cli.walking.floor_reach.FloorReach`; identities when
+    neither leg is turned), then
     :func:`_correct_leg` with the leg's ``(chain, lengths, is_arm, lower, upper, hold_m,
     start)`` and its row of ``deltas`` (2 x 6)."""
     goal = np.empty((4, 4))
@@ -293,16 +294,15 @@ def _correct_legs(T_neck_soles, R_neck_world, offset_x, offset_y, lift_right, li
         for r in range(3):
             goal[r, 3] += (R_neck_world[r, 0] * -offset_x + R_neck_world[r, 1] * -offset_y
                            + R_neck_world[r, 2] * lift)
-        if turned:
-            for r in range(4):
-                for c in range(4):
-                    total = 0.0
-                    for i in range(4):
-                        total += turns[side, r, i] * goal[i, c]
-                    moved[r, c] = total
-            for r in range(4):
-                for c in range(4):
-                    goal[r, c] = moved[r, c]
+        for r in range(4):
+            for c in range(4):
+                total = 0.0
+                for i in range(4):
+                    total += turns[side, r, i] * goal[i, c]
+                moved[r, c] = total
+        for r in range(4):
+            for c in range(4):
+                goal[r, c] = moved[r, c]
         _correct_leg(goal, right if side == 0 else left, q, deltas[side], step_rad)
 
 
@@ -452,15 +452,14 @@ class WalkTarget(Target):
                  q_start_rad: np.ndarray, T_world_neck_start: np.ndarray,
                  corrections: int = 1, end_width_m: float | None = None,
                  stabilizer: StabilizerGains | None = None,
-                 toe_heel: ToeHeelParams | None = None, lip_feedback: bool = False,
-                 landing_wait: bool = True, floor_reach: bool = True,
-                 momentum: bool = True) -> None:
+                 toe_heel: ToeHeelParams | None = None, lip_feedback: bool = False) -> None:
         self.model = model
-        self.landing_wait = landing_wait  # (:meth:`_unloaded_landing`; off: the fast gait)
-        # (:meth:`_reach_floor`; off: the fast gait, and toe-heel walks: not measured with it)
-        self.floor_reach = floor_reach and toe_heel is None
-        # (:meth:`_momentum`; off: the fast gait, and toe-heel walks: not measured with it)
-        self.momentum = momentum and toe_heel is None
+        # the push responses (:meth:`_unloaded_landing`, :meth:`_reach_floor`, :meth:`_momentum`)
+        # by the gait's step (WalkingParams.answers_pushes); the floor reach and the momentum
+        # strategy not in toe-heel walks (not measured with them)
+        self.landing_wait = params.answers_pushes
+        self.floor_reach = params.answers_pushes and toe_heel is None
+        self.momentum = params.answers_pushes and toe_heel is None
         self.toe_heel = toe_heel
         self.lip_feedback = lip_feedback and stabilizer is not None
         self.lip: LipStabilizer | None = None
@@ -529,7 +528,7 @@ class WalkTarget(Target):
             self._pitch_error_rad = 0.0  # the estimated torso's pitch from the planned one
             self._half_width_m = float(self.corners[:, 1].max())  # the soles' (m)
             self.reach = FloorReach(self._half_width_m, dt)
-            self._no_turns = np.zeros((2, 4, 4))
+            self._no_turns = np.array((np.eye(4), np.eye(4)))  # (_correct_legs's turns)
             self._hip_roll = tuple(model.joint_names.index(n) for n in ("RHR", "LHR"))
             self.hips = MomentumStrategy(
                 tuple(float(model.lower_rad[j]) for j in self._hip_roll),
@@ -1291,9 +1290,10 @@ class WalkTarget(Target):
         the walk stops: waiting while it walked, perturbed robots' unpushed 1 m walks (their
         capture point 20-57 mm off the pattern's, landed feet reading under 60 N now and
         then) waited 0.3-3 s, one fell and 14 of 20 ended over 10 mm off. Off
-        (``landing_wait``) for the fast gait: its own landings bounce and its capture point
-        lags the pattern's by more than CP_MARGIN_M without a push; waiting at 4-12 of its
-        landings, 3 of 10 of its 2 m walks fell (docs/history/walking.md, round 10)."""
+        (``landing_wait``) for a gait of short steps (``WalkingParams.answers_pushes``), as
+        the fast gait: its own landings bounce and its capture point lags the pattern's by
+        more than CP_MARGIN_M without a push; waiting at 4-12 of its landings, 3 of 10 of its
+        2 m walks fell (docs/history/walking.md, round 10)."""
         if not self.landing_wait or not all(self._rows["support"][k]):
             self._landed = None  # (a single support: the landing is past)
             return False
@@ -1407,7 +1407,7 @@ class WalkTarget(Target):
         turns = self.reach.turns(self._T_neck_soles[k])
         _correct_legs(self._T_neck_soles[k], self._R_neck_world[k], offset_x, offset_y, *lifts,
                       q, self._leg_delta, *self._leg_kernel, LEG_STEP_RAD,
-                      self._no_turns if turns is None else turns, turns is not None)
+                      self._no_turns if turns is None else turns)
         for column, side in enumerate(SIDES):
             delta = self.dampers[side].update(wrenches[column], cop_refs[column])
             roll, pitch = self._ankle[side]
@@ -1434,11 +1434,11 @@ class WalkTarget(Target):
         """The swing foot kept over the floor against the estimated torso's roll from the
         planned one toward the stance side (``roll_error_rad``,
         :mod:`hubo_cli.walking.floor_reach`). Off
-        (``floor_reach``) for the fast gait: its own slips and hops roll the torso beyond
-        REACH_DEAD_RAD without a push (perturbed robots 8, 11 and 12's 2 m walks, turns of
-        0.013-0.033 rad): robot 12's walk stopped itself (without the reach it arrives 23 mm
-        off), robot 11's 0.175 s before the monitor's stop (docs/history/walking.md, round
-        11)."""
+        (``floor_reach``) for a gait of short steps (``WalkingParams.answers_pushes``), as
+        the fast gait: its own slips and hops roll the torso beyond REACH_DEAD_RAD without a
+        push (perturbed robots 8, 11 and 12's 2 m walks, turns of 0.013-0.033 rad): robot
+        12's walk stopped itself (without the reach it arrives 23 mm off), robot 11's 0.175 s
+        before the monitor's stop (docs/history/walking.md, round 11)."""
         if not self.floor_reach or (self.momentum and self.hips.acting):
             return
         support = self._rows["support"][k]
@@ -1449,7 +1449,7 @@ class WalkTarget(Target):
     def _momentum(self, k: int, q: np.ndarray) -> None:
         """The hip rolls' momentum strategy against a side push toward the stance foot
         (:mod:`hubo_cli.walking.momentum`), added in place to ``q`` within the walking set's
-        limits. Off (``momentum``) for the fast gait and toe-heel walks."""
+        limits. Off (``momentum``) for a gait of short steps (the fast gait) and toe-heel walks."""
         if not self.momentum:
             return
         support = self._rows["support"][k]
