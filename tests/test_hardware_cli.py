@@ -45,13 +45,17 @@ def test_without_libach_the_hardware_driver_says_what_to_install(tmp_path):
     assert result.exit_code == 3, result.output
     assert "libach is not available" in result.output
     assert "github.com/golems/ach" in result.output and "HUBO_LIBACH" in result.output
+    assert "without a robot use --dry-run" in result.output
     assert "Traceback" not in result.output
 
 
-def test_without_libach_the_fake_daemon_says_so(tmp_path):
-    result = _run(["hardware", "fake-daemon", "--duration", "0.1"],
+@pytest.mark.parametrize("daemon", ["fake-daemon", "sim-daemon"])
+def test_without_libach_the_daemons_say_so_and_offer_no_dry_run(tmp_path, daemon):
+    """The stand-in daemons have no --dry-run: their hint does not offer one."""
+    result = _run(["hardware", daemon, "--duration", "0.1"],
                   env={"HUBO_LIBACH": str(tmp_path / "missing-libach.so")})
     assert result.exit_code == 3 and "libach is not available" in result.output
+    assert "HUBO_LIBACH" in result.output and "--dry-run" not in result.output
 
 
 @pytest.mark.parametrize("args, message", [

@@ -38,6 +38,10 @@ def test_text_report(tmp_path):
     for words in ("max tilt", "feet flat", "fell", "real-time factor", "snapshot.png",
                   "leg limits        table4"):
         assert words in result.output
+    # the files it lists are the ones it wrote (the summary's list; log.json and log.parquet too)
+    written = sorted(p.name for p in tmp_path.iterdir() if not p.name.startswith("."))
+    files = json.loads((tmp_path / "summary.json").read_text())["files"]
+    assert sorted(files) == written and ", ".join(files) in result.output
 
 
 def test_bad_duration_is_an_input_error(tmp_path):

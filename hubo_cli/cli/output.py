@@ -30,6 +30,13 @@ def exit_if_interrupted(summary: dict) -> None:
         raise SystemExit(130)
 
 
+def print_run_folder(run_dir, files, width: int = 18, indent: str = "") -> None:
+    """The run folder and, below it, the files the run wrote there (the summary's ``files``,
+    which every file is added to as it is written), the label padded to ``width``."""
+    console.print(f"{indent}{'run folder':<{width}}{run_dir}", soft_wrap=True)
+    console.print(f"{indent}{'':<{width}}{', '.join(files)}", soft_wrap=True)
+
+
 def fmt_q(q_rad) -> str:
     """Joint vector as space-separated radians with 4 decimals."""
     return " ".join(f"{v:+.4f}" for v in np.asarray(q_rad, dtype=float))

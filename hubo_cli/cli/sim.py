@@ -14,7 +14,7 @@ from hubo_cli.cli.options import (
     perturb_option,
     robot_run_options,
 )
-from hubo_cli.cli.output import console, exit_if_interrupted, print_json
+from hubo_cli.cli.output import console, exit_if_interrupted, print_json, print_run_folder
 from hubo_cli.drivers.registry import DRIVER_NAMES
 from hubo_cli.errors import InputError
 
@@ -143,4 +143,4 @@ def _print(summary: dict, result, options, push_direction: str, run_dir) -> None
     if summary["driver"] == "sim":
         console.print(f"real-time factor  {result.realtime_factor:.2f} "
                       f"({100 * result.physics_share:.0f} % of the time in physics)")
-    console.print(f"run folder        {run_dir} (log.csv, snapshot.png, summary.json)")
+    print_run_folder(run_dir, summary["files"])

@@ -21,6 +21,7 @@ from hubo_cli.cli.output import (
     console,
     err_console,
     print_json,
+    print_run_folder,
 )
 from hubo_cli.control.operator import KEYS_HELP
 from hubo_cli.control.stop_choice import SOFT_SOURCES, TASK_SOURCES
@@ -453,8 +454,7 @@ def _print_cut(summary: dict, run_dir) -> None:
         console.print(f"  e-stop      {_stop_words(stop)}", soft_wrap=True)
     console.print(f"  velocity    {summary['max_joint_velocity_ratio']:.0%} of the limit at most")
     console.print(f"  balance     {balance_summary_line(summary)}", soft_wrap=True)
-    console.print(f"  run folder  {run_dir}", soft_wrap=True)
-    console.print(f"              {', '.join(summary['files'])}", soft_wrap=True)
+    print_run_folder(run_dir, summary["files"], width=12, indent="  ")
 
 
 def _stop_words(stop: dict) -> str:
@@ -503,8 +503,7 @@ def _print_push_wall(summary: dict, run_dir) -> None:
     console.print(f"max CP error      {summary['max_cp_error_mm']:.1f} mm along "
                   f"{summary['cp_error_axis']}")
     console.print(f"ended             {summary['ended']} after {summary['duration_s']:.2f} s")
-    console.print(f"run folder        {run_dir}", soft_wrap=True)
-    console.print("                  log.csv, summary.json, cp_error.png")
+    print_run_folder(run_dir, summary["files"])
 
 
 def _print_manipulation(summary: dict, run_dir) -> None:
@@ -539,5 +538,4 @@ def _print_manipulation(summary: dict, run_dir) -> None:
     console.print(f"arm motors        up to "
                   f"{summary['max_arm_torque_ratio'] * 100:.0f} % of their limit")
     console.print(f"ended             {summary['ended']} after {summary['duration_s']:.2f} s")
-    console.print(f"run folder        {run_dir}", soft_wrap=True)
-    console.print("                  log.csv, summary.json, manipulation.png")
+    print_run_folder(run_dir, summary["files"])

@@ -23,6 +23,7 @@ from hubo_cli.cli.output import (
     console,
     err_console,
     print_json,
+    print_run_folder,
 )
 from hubo_cli.drivers.registry import DRIVER_NAMES, driver_class
 from hubo_cli.errors import HuboError, InputError, quoted
@@ -379,7 +380,7 @@ def _report(run, as_json: bool, video: bool = False) -> None:
                       f"{summary['status_counts']}, max velocity "
                       f"{summary['max_joint_velocity_ratio']:.0%} of limit")
         console.print(f"  balance: {balance_summary_line(summary)}", soft_wrap=True)
-        console.print(f"  run folder: {run.run_dir}", soft_wrap=True)
+        print_run_folder(run.run_dir, summary["files"], width=12, indent="  ")
         if video:
             console.print(f"  video: {summary['video']['file']}")
     exception = run.loop.exception

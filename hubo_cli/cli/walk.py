@@ -14,7 +14,7 @@ from hubo_cli.cli.options import (
     perturb_option,
     robot_run_options,
 )
-from hubo_cli.cli.output import console, exit_if_interrupted, print_json
+from hubo_cli.cli.output import console, exit_if_interrupted, print_json, print_run_folder
 from hubo_cli.drivers.registry import DRIVER_NAMES
 
 
@@ -132,7 +132,7 @@ def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | No
                       f"{result.estimated_final_error_deg:.2f} deg)")
         console.print(f"ZMP inside        {100 * result.zmp_inside_fraction:.1f} % of periods")
         console.print(f"e-stop events     {result.estop_events}")
-        console.print(f"run folder        {result.run_dir} (log, snapshot.png, summary.json)")
+        print_run_folder(result.run_dir, result.files)
     exit_if_interrupted(fields)
     if result.failure is not None:  # e.g. the robot's state lost: exit 3, the robot braked
         raise result.failure

@@ -27,7 +27,8 @@ LIBACH_ENV = "HUBO_LIBACH"
 INSTALL_HINT = (
     "install libach (github.com/golems/ach: ./configure && make && sudo make install, or build "
     "src/libach*.c into libach.so) and, if it is not on the loader path, set HUBO_LIBACH to "
-    "its path; without a robot use --dry-run")
+    "its path")
+DRY_RUN_HINT = "without a robot use --dry-run"  # the hardware driver's way round it
 
 # enum ach_status (ach/generic.h)
 ACH_OK = 0
@@ -52,11 +53,13 @@ class LibachMissing(DeviceError):
     Args:
         tried: what was looked for (a path or the library name).
         reason: why loading failed.
+        otherwise: the hint's way to go on without libach, where the caller has one.
     """
 
-    def __init__(self, tried: str, reason: str) -> None:
+    def __init__(self, tried: str, reason: str, otherwise: str = "") -> None:
         super().__init__(f"libach is not available ({tried}: {reason}); the hardware driver "
-                         "talks to hubo-ach through it", hint=INSTALL_HINT)
+                         "talks to hubo-ach through it",
+                         hint=f"{INSTALL_HINT}; {otherwise}" if otherwise else INSTALL_HINT)
         self.tried = tried
         self.reason = reason
 
@@ -147,24 +150,29 @@ def _prototype(lib: ctypes.CDLL) -> None:
 _LOADED: dict[str, Libach] = {}
 
 
-def load_libach() -> Libach:
+def load_libach(otherwise: str = "") -> Libach:
     """Load libach (``HUBO_LIBACH`` if set, else the system's ``libach``), once per path.
+
+    Args:
+        otherwise: how the caller goes on without libach, added to the hint (the hardware
+            driver: :data:`DRY_RUN_HINT`; the stand-in daemons have no way round it).
 
     Raises:
         LibachMissing: no library, or one without libach's functions.
     """
     path = os.environ.get(LIBACH_ENV) or ctypes.util.find_library("ach")
     if not path:
-        raise LibachMissing("libach", "not found on the loader path and HUBO_LIBACH is unset")
+        raise LibachMissing("libach", "not found on the loader path and HUBO_LIBACH is unset",
+                            otherwise)
     if path in _LOADED:
         return _LOADED[path]
     try:
         cdll = ctypes.CDLL(path)
         _prototype(cdll)
     except OSError as exc:
-        raise LibachMissing(path, str(exc)) from None
+        raise LibachMissing(path, str(exc), otherwise) from None
     except AttributeError as exc:  # a library without ach_* symbols
-        raise LibachMissing(path, f"not libach: {exc}") from None
+        raise LibachMissing(path, f"not libach: {exc}", otherwise) from None
     _LOADED[path] = Libach(cdll, path)
     return _LOADED[path]
 

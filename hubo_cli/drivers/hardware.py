@@ -66,7 +66,7 @@ from pathlib import Path
 import numpy as np
 
 from hubo_cli.drivers import checks, hubo_ach
-from hubo_cli.drivers.ach import load_libach
+from hubo_cli.drivers.ach import DRY_RUN_HINT, load_libach
 from hubo_cli.drivers.base import Driver, RunContext
 from hubo_cli.drivers.hubo_ach import JOINT_COUNT, RefFrame, StateFrame
 from hubo_cli.drivers.hubo_ach_io import (
@@ -299,7 +299,7 @@ class HardwareDriver(Driver):
         if self.sink is not None:
             return
         if self.sink_kind == "ach":
-            lib = load_libach()
+            lib = load_libach(DRY_RUN_HINT)
             self.sink = AchRefSink(lib, self.ach_ref)
             try:
                 self.source = AchStateSource(lib, self.ach_state, self.state_wait_s,

@@ -71,6 +71,7 @@ class WalkResult:
         run_dir: the run folder.
         failure: the error the run ended with (:meth:`~hubo_cli.control.loop.LoopResult.failure`:
             e.g. the robot's state lost, exit 3), None if none.
+        files: the files written into the run folder (the summary's ``files``, plots included).
     """
 
     fell: bool
@@ -95,6 +96,7 @@ class WalkResult:
     gait: str
     run_dir: Path
     failure: HuboError | None = None
+    files: tuple[str, ...] = ()
 
     def summary(self) -> dict:
         return {"fell": self.fell, "stopped_s": self.stopped_s, "stood": self.stood,
@@ -274,6 +276,7 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
     plot_footprints(done, target, walking_model)
     if target.toe_heel is not None:
         plot_fig4(done, target)
+    result.files = tuple(done.summary["files"])
     return result
 
 
