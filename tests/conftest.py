@@ -81,6 +81,7 @@ def pytest_collection_modifyitems(config, items):
     their module unless the module names one): a run they share happens once, not once per
     worker and again whenever another module's test ran in between."""
     items.sort(key=lambda item: item.get_closest_marker("slow") is None)
+    _check_physical_files_name_the_mark(items)
     grouping = getattr(config.option, "loadgroup", False)  # set on pytest-xdist's workers
     for item in items:
         mark = item.get_closest_marker("xdist_group")
@@ -91,6 +92,18 @@ def pytest_collection_modifyitems(config, items):
         if grouping and mark is not None:
             _group_on_one_worker(item, str(mark.args[0] if mark.args
                                            else mark.kwargs.get("name", "default")))
+
+
+def _check_physical_files_name_the_mark(items) -> None:
+    """``make test-portable`` collects only the test files whose text names ``physical``
+    (the Makefile's PHYSICAL_TESTS): a test marked so from elsewhere would silently leave the
+    portable run. Refused here instead, in every run that collects it."""
+    unnamed = {str(item.path) for item in items if item.get_closest_marker("physical")
+               and "physical" not in item.path.read_text().lower()}
+    if unnamed:
+        raise pytest.UsageError(f"{', '.join(sorted(unnamed))}: tests marked physical in a "
+                                "file that does not name the mark (make test-portable would "
+                                "not collect them): mark them in the file itself")
 
 
 def pytest_configure(config):
