@@ -1370,16 +1370,21 @@ class WalkTarget(Target):
     def _in_pattern(self, k: int, wrenches: np.ndarray, point_m: np.ndarray
                     ) -> tuple[float, float]:
         """An estimated point (world x, y) seen from the more loaded planned support sole
-        standing where the pattern put it: its offset from that sole's estimated place added
-        to the sole's planned place (the pattern's frame, which a sole's slip does not move)."""
+        standing where the pattern put it: its offset from that sole's estimated place, in
+        that sole's frame, from the sole's planned place and heading (the pattern's frame,
+        which a sole's slip or twist does not move: the estimate sees a stance sole's twist,
+        by the gyro, and the CoM ahead of a sole turned 4 deg read as 10 mm sideways off the
+        pattern, which moved landings and stopped walks; docs/history/walking.md)."""
         right_down, left_down = self._rows["support"][k]
         ranks = {"right": (right_down, float(wrenches[0, 2])),
                  "left": (left_down, float(wrenches[1, 2]))}
         side = "left" if ranks["left"] > ranks["right"] else "right"
         sole = self.store[T_WORLD_SOLES][SIDES.index(side)]
-        planned_x, planned_y = self._rows[side][k][:2]
-        return (planned_x + float(point_m[0] - sole[0, 3]),
-                planned_y + float(point_m[1] - sole[1, 3]))
+        planned_x, planned_y, _, planned_yaw = (float(v) for v in self._rows[side][k])
+        turn = planned_yaw - math.atan2(float(sole[1, 0]), float(sole[0, 0]))
+        c, s = math.cos(turn), math.sin(turn)
+        dx, dy = float(point_m[0] - sole[0, 3]), float(point_m[1] - sole[1, 3])
+        return planned_x + c * dx - s * dy, planned_y + s * dx + c * dy
 
     def _stabilized(self, k: int, q: np.ndarray, zmp: np.ndarray | None) -> np.ndarray:
         """The pattern's joints ``q`` with the stabilizer's corrections (see
