@@ -172,14 +172,16 @@ def _turn_in_place(T, c, s, px, py) -> None:
 @nb.njit(cache=True, nogil=True)
 def _slip_turn(slip, twist_rad_s, dt) -> float:
     """The stance sole's slip round the vertical this period (rad), from the heading's
-    disagreement (the gyro's turn beyond the legs', less the yaw bias) ``step_rad`` of this
-    period: its running sum's mean over the last SLIP_WINDOW periods against the window
-    before; a change beyond SLIP_TURN_RAD is a slip, counted from that change (the window's
-    lag) and then period by period while it lasts. The legs' per-period noise (0.1-0.2 rad/s
-    as a rate) averages out in the windows; the bias's error (up to the perturbation's
-    0.0087 rad/s) stays under the threshold, so it counts only while a sole slips, not over
-    the whole walk. ``slip``: [sum, last window's mean, slipping (0/1), periods, turn (rad),
-    bias (rad/s), the sums of the last 2 SLIP_WINDOW periods] (in place)."""
+    disagreement ``twist_rad_s`` (the gyro's yaw rate beyond the legs'), less the yaw bias,
+    summed: the sum's mean over the last SLIP_WINDOW periods against the window before; while
+    they differ by more than SLIP_TURN_RAD a sole slips and the mean's move counts, period by
+    period (the mean moves smoothly: no jump; counting the window's whole change at once when
+    a slip starts did worse on the fast walks' signals, and jumped). The legs' per-period
+    noise (0.1-0.2 rad/s as a rate) averages out in the windows; the bias's error (up to the
+    perturbation's 0.0087 rad/s) stays under the threshold, so it counts only while a sole
+    slips, not over the whole walk, and is learnt from the windows without a slip.
+    ``slip``: [sum, last window's mean, slipping (0/1), periods, turn (rad), bias (rad/s),
+    the sums of the last 2 SLIP_WINDOW periods] (in place)."""
     w = SLIP_WINDOW
     slip[0] += (twist_rad_s - slip[5]) * dt  # the gyro's rate beyond the legs', less the bias
     n = int(slip[3])
@@ -193,12 +195,11 @@ def _slip_turn(slip, twist_rad_s, dt) -> float:
         new += slip[6 + (n - 1 - k) % (2 * w)]
         old += slip[6 + (n - 1 - w - k) % (2 * w)]
     new, old = new / w, old / w
-    turn = 0.0
+    turn = new - slip[1] if n > 2 * w else 0.0  # the mean's move this period
     if abs(new - old) > SLIP_TURN_RAD:
-        turn = new - slip[1] if slip[2] else new - old
         slip[2] = 1.0
     else:  # no slip: the change is the bias's error
-        slip[2] = 0.0
+        turn, slip[2] = 0.0, 0.0
         slip[5] += (new - old) / (w * SLIP_BIAS_TAU_S)
     slip[1] = new
     return turn
