@@ -17,8 +17,11 @@ chains, :mod:`hubo_cli.kinematics.limb`) and the attitude ``QUAT_WORLD_TORSO``:
   periods changing by more than ``SLIP_TURN_RAD`` from the window before is a slip, counted
   while it lasts; otherwise the change is the bias's error, learnt with ``SLIP_BIAS_TAU_S``
   (the legs' noise averages out in the windows; the bias, unknown at the start, counts only
-  while a sole slips). The fast gait's stance soles twist 40-130 mrad/s on the floor under
-  the swing leg's yaw moment, up to 7 deg over a 2 m walk, and a push twists a capture
+  while a sole slips); while one sole alone carries the robot rolling on its edge (its
+  centre of pressure within ``EDGE_M`` of the outline: a push's capture step) the turn fades
+  with ``HEADING_TAU_S``, as main's on-edge turn did (kept unfaded, the 150 N capture step's
+  lunge fell on the portable path). The fast gait's stance soles twist 40-130 mrad/s on the
+  floor under the swing leg's yaw moment, up to 7 deg over a 2 m walk, and a push twists a capture
   step's stance foot by degrees (planned on the legs' heading alone the step landed 5 cm
   long and the robot fell). When the other sole takes the anchor it keeps its pose as
   estimated, the turn included, and the turn starts again from zero; when the contact point
@@ -93,6 +96,10 @@ from hubo_cli.motion.limits import all_finite
 from hubo_cli.state import ANKLE_SENSORS, RobotState
 
 LANDED_PERIODS = 20  # [chosen] a sole takes the anchor where it stood these last periods
+HEADING_TAU_S = 1.0  # [chosen] the slip's turn fades with this while one sole alone rolls on
+#                      its edge (a push's capture step: main's on-edge turn faded so)
+EDGE_M = 0.015  # [chosen] a centre of pressure this close to the sole's outline: it rolls on
+#                 an edge (the walking stabilizer keeps it 25 mm inside)
 SLIP_WINDOW = 20  # [chosen] periods (0.1 s) over which the heading's disagreement is averaged
 SLIP_TURN_RAD = 0.0025  # [chosen] the disagreement's mean changing this much from one window to
 #                         the next is a slip (25 mrad/s: 2.9 times the perturbation's largest
@@ -207,7 +214,8 @@ def _slip_turn(slip, twist_rad_s, dt) -> float:
 
 @nb.njit(cache=True, nogil=True)
 def _place_turned(quat_wxyz, T_torso_soles, anchor, T_world_anchor, cx, cy, gyro, use_gyro,
-                  R_legs, dt, slip, T_world_torso, T_world_soles, T_anchor_out, R_out):
+                  R_legs, rolling, keep, dt, slip, T_world_torso, T_world_soles, T_anchor_out,
+                  R_out):
     """:func:`_place`, then the slip's turn about the anchor's contact point (see
     :meth:`FloatingBase._place`): the legs' own anchor pose into ``T_anchor_out``, the legs'
     torso rotation into ``R_out``; ``slip`` (:func:`_slip_turn`'s state, its turn slip[4])
@@ -232,6 +240,8 @@ def _place_turned(quat_wxyz, T_torso_soles, anchor, T_world_anchor, cx, cy, gyro
         twist = yaw_rate - legs_rate  # the stance foot's twist, and the gyro's bias
         if math.isfinite(twist):
             slip[4] += _slip_turn(slip, twist, dt)
+        if rolling:
+            slip[4] *= keep
     turn = slip[4]
     if turn:
         A = T_anchor_out
@@ -336,13 +346,15 @@ class FloatingBase(Observer):
                                                 / self._dt_s)))
         self._light_periods = 0  # periods in a row with both soles lighter than flight_max
         self._pressed = False  # a sole has pressed since the reset (else no flight is sensed)
+        self._keep = HEADING_TAU_S / (HEADING_TAU_S + self._dt_s)  # the on-edge fade
         self._slip = np.zeros(6 + 2 * SLIP_WINDOW)  # :func:`_slip_turn`'s state
         self._no_gyro, self._no_gyro_R = np.zeros(3), np.zeros((3, 3))
         self._R_legs: np.ndarray | None = None  # the legs' torso rotation, last period
         # the other sole's last estimates on the floor: x, y, z, cos and sin of its heading
         self._landed: deque[tuple[float, ...]] = deque(maxlen=LANDED_PERIODS)
         _place_turned(self._quat, self._T_torso_soles, 0, self._T_world_anchor, 0.0, 0.0,
-                      self._no_gyro, True, np.eye(3), self._dt_s, np.zeros_like(self._slip),
+                      self._no_gyro, True, np.eye(3), False, 1.0, self._dt_s,
+                      np.zeros_like(self._slip),
                       np.eye(4), np.zeros((2, 4, 4)),
                       np.empty((4, 4)), np.empty((3, 3)))  # compiled now
         all_finite(self._quat)
@@ -400,7 +412,7 @@ class FloatingBase(Observer):
         return min(max(point[0], x_lo), x_hi), min(max(point[1], y_lo), y_hi)
 
     def _place(self, contact_point: tuple[float, float] = (0.0, 0.0),
-                gyro_rad_s: np.ndarray | None = None) -> None:
+                gyro_rad_s: np.ndarray | None = None, rolling: bool = False) -> None:
         """This period's torso and soles: the legs' placement (the anchor's held contact point
         and heading), turned about the contact point by the anchor's slip the gyro sees
         (``gyro_rad_s``: the IMU's rate in the torso frame; None: none)."""
@@ -410,7 +422,8 @@ class FloatingBase(Observer):
         _place_turned(self._quat, self._T_torso_soles, self.anchor, self._T_world_anchor,
                       contact_point[0], contact_point[1],
                       gyro_rad_s if use_gyro else self._no_gyro, use_gyro,
-                      self._R_legs if use_gyro else self._no_gyro_R, self._dt_s, self._slip,
+                      self._R_legs if use_gyro else self._no_gyro_R, rolling, self._keep,
+                      self._dt_s, self._slip,
                       T_world_torso, T_world_soles, T_world_anchor, R_legs)
         self._T_world_anchor = T_world_anchor  # the legs' own
         self._contact_point = contact_point
@@ -489,8 +502,12 @@ class FloatingBase(Observer):
                 return
             contact = store[CONTACT]
             point = self._centre_of_pressure(store)
+            x_lo, x_hi, y_lo, y_hi = self._sole_box
+            on_edge = min(point[0] - x_lo, x_hi - point[0], point[1] - y_lo,
+                          y_hi - point[1]) < EDGE_M
             self._keep_pivot_continuous(point)
-            self._place(point, _gyro(state))
+            self._place(point, _gyro(state),
+                        bool(contact[0]) != bool(contact[1]) and on_edge)
             other = 1 - self.anchor
             fz_anchor = fz[self.anchor]
             heavier = fz[other] > fz_anchor + self._anchor_switch_n
