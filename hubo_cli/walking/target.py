@@ -460,6 +460,10 @@ class WalkTarget(Target):
         self.landing_wait = params.answers_pushes
         self.floor_reach = params.answers_pushes and toe_heel is None
         self.momentum = params.answers_pushes and toe_heel is None
+        # the capture-point monitor's planned support where the estimated soles stand
+        # (:meth:`_support_in_estimate`) for the gaits that do not answer pushes (the fast
+        # gait, whose stance soles slip round); the pushed gaits' where the pattern put it
+        self.support_where_standing = not params.answers_pushes
         self.toe_heel = toe_heel
         self.lip_feedback = lip_feedback and stabilizer is not None
         self.lip: LipStabilizer | None = None
@@ -1235,7 +1239,9 @@ class WalkTarget(Target):
             self.zmp_periods += 1
             self.zmp_inside_periods += outside <= -ZMP_INSIDE_MARGIN_M
         self.final_feet = {"right": poses[0].copy(), "left": poses[1].copy()}
-        store[SUPPORT_PLAN] = SupportPlan(self._support_in_estimate(k), None)
+        store[SUPPORT_PLAN] = SupportPlan(self._support_in_estimate(k)
+                                          if self.support_where_standing
+                                          else self._support_poses[k], None)
         q = plan.q_rad[k]
         if self.stabilizer is not None:
             q = self._stabilized(k, q.copy(), zmp if math.isfinite(outside) else None)
@@ -1396,10 +1402,13 @@ class WalkTarget(Target):
     def _support_in_estimate(self, k: int) -> np.ndarray:
         """Row ``k``'s planned support (:func:`planned_support`) placed in the estimate's frame
         as :meth:`_in_pattern` reads the pattern's (its inverse): the capture-point monitor
-        judges the estimated capture point against the soles where the robot stands. Laid
-        where the pattern put them, a robot whose stance sole had slipped round by degrees
-        (seen by the gyro) had its capture point judged against soles 10-30 mm off its own,
-        and the monitor stopped walks the walk itself saw on its pattern
+        judges the estimated capture point against the soles where the robot stands (with
+        ``support_where_standing``; else where the pattern put them). Laid where the pattern
+        put them, fast walks whose stance soles had slipped round by degrees (seen by the
+        gyro) and walked on turned had their capture points judged against soles 10-50 mm
+        off their own, and the monitor stopped walks whose error in the pattern's frame was
+        12 mm. Off for the normal gait: 100 N pushes' stops came 10-55 ms later (the support
+        moved with the pushed stance sole) and two more pushed walks fell
         (docs/history/walking.md, round 13)."""
         planned_x, planned_y, sole_x, sole_y, c, s = self._pattern_frame(
             k, ankle_wrenches(self.store))
