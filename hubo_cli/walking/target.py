@@ -1405,10 +1405,10 @@ class WalkTarget(Target):
         judges the estimated capture point against the soles where the robot stands (with
         ``support_where_standing``; else where the pattern put them). Laid where the pattern
         put them, fast walks whose stance soles had slipped round by degrees (seen by the
-        gyro) and walked on turned had their capture points judged against soles 10-50 mm
-        off their own, and the monitor stopped walks whose error in the pattern's frame was
-        12 mm. Off for the normal gait: 100 N pushes' stops came 10-55 ms later (the support
-        moved with the pushed stance sole) and two more pushed walks fell
+        gyro) and walked on turned had their capture points judged against soles off their
+        own: seed 12's was 13 mm outside while its error in the pattern's frame was 12 mm,
+        and the monitor stopped it. Off for the normal gait: two 100 N pushes' stops came
+        55-435 ms later (the support moved with the pushed stance sole) and those walks fell
         (docs/history/walking.md, round 13)."""
         planned_x, planned_y, sole_x, sole_y, c, s = self._pattern_frame(
             k, ankle_wrenches(self.store))
