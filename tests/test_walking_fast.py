@@ -59,11 +59,19 @@ def test_the_fast_gaits_own_capture_point_lag_abandons_no_swing(tmp_path):
     """Perturbed robot 11 in the fast gait: its capture point lags the pattern's by more than
     20 mm from behind mid-swing without a push (its slips). A swing abandoned for it (put down
     where the foot is, as after a front push: WalkTarget._abandoned, while the walk still
-    walked) fell at 6.455 s (AVX-512); abandoned only once the walk is stopping, the
-    capture-point monitor stops it at 7.925 s (AVX-512, as main) / 8.78 s (portable) and it
-    stands (docs/history/walking.md, round 9 addendum)."""
+    walked) fell at 6.455 s (AVX-512); abandoned only once the walk is stopping, the walk does
+    not fall: on main the capture-point monitor stopped it at 7.925 s (AVX-512) / 8.78 s
+    (portable) and it stood (docs/history/walking.md, round 9 addendum); with round 13's slip
+    turn the monitor stops it on AVX-512 (8.945 s) and on the portable path the walk goes on to
+    its goal, 25 mm off after a correction (round 13). Either end is this test's: no fall,
+    a stop that stands or the walk's end."""
     from hubo_cli.experiments.walk import walk
 
     result = walk(load_model(), (2.0, 0.0, 0.0), out=tmp_path / "run", gait="fast",
                   perturb_seed=11)
-    assert result.fell is False and result.stood is True
+    summary = json.loads((result.run_dir / "summary.json").read_text())
+    assert result.fell is False
+    assert result.stood is True if result.stopped_s is not None else result.ended == "done"
+    # measured max tilt 9.5 deg (AVX-512, stopped) and 7.2 (portable, walked on); a fall: 30;
+    # bound 20 deg = 2.1x the larger
+    assert summary["max_torso_tilt_deg"] < 20.0

@@ -311,7 +311,8 @@ def test_a_gait_answers_pushes_by_its_step_not_its_name(walking_model, tmp_path)
     """The landing wait, the floor reach and the momentum strategy are on for a gait whose
     steps last PUSH_RESPONSES_MIN_STEP_S or longer (the normal gait's 1.0 s), off for the fast
     gait's 0.75 s; a gait added to the robot file gets them by its step; a toe-heel walk has
-    no floor reach and no momentum strategy."""
+    no floor reach and no momentum strategy. A gait without them has its capture-point
+    monitor judge against the soles where the estimate stands them (the same fact)."""
     from hubo_cli.walking.stabilizer import StabilizerGains
     from hubo_cli.walking.target import WalkTarget
     from hubo_cli.walking.toe_heel import ToeHeelParams
@@ -328,6 +329,7 @@ def test_a_gait_answers_pushes_by_its_step_not_its_name(walking_model, tmp_path)
         target = WalkTarget(model, params, (1.0, 0.0, 0.0), q_start, T_world_neck,
                             stabilizer=StabilizerGains(), toe_heel=toe_heel)
         assert params.answers_pushes == target.landing_wait
+        assert target.support_where_standing is not params.answers_pushes
         return target.landing_wait, target.floor_reach, target.momentum
 
     on, off = (True, True, True), (False, False, False)

@@ -454,17 +454,36 @@ def test_a_side_push_that_puts_the_swing_foot_down_ends_the_swing_there(tmp_path
     """hubo walk --to 1.0 0 0 pushed 100 N for 0.2 s from the left in the fourth step's
     swing (right foot swinging; seed 19 of tools/walk_disturbances.py): the swing foot is
     pushed onto the floor 0.17 s later; the swing ends there (the estimate's sole loaded, the
-    step lands where it stands), the walk stops and stands. It fell while the pattern lifted
-    that foot again under the robot's weight."""
+    step lands where it stands: the plan puts that foot down within a period), the walk stops
+    and stands. It fell while the pattern lifted that foot again under the robot's weight.
+    What comes after is not this test's: on main before round 13's slip turn the floor reach
+    stopped the walk at the next landing (1 early touchdown); with the estimate seeing the
+    pushed stance sole's twist the roll stays smaller, the walk goes on a step and the
+    monitor's stop's own swing is put down early too (2; docs/history/walking.md, round 13)."""
+    from hubo_cli.control.log import load_log
     from hubo_cli.experiments.walk import Disturbance, walk
 
+    at_s = 4.13692
     result = walk(model, (1.0, 0.0, 0.0), out=tmp_path / "run",
-                  disturbances=[Disturbance(4.13692, 100.0, (0.0, -1.0, 0.0))])
+                  disturbances=[Disturbance(at_s, 100.0, (0.0, -1.0, 0.0))])
     summary = json.loads((result.run_dir / "summary.json").read_text())
-    assert result.fell is False and result.stood is True
-    assert result.touchdowns_early == 1
-    # measured max tilt 8.6 deg (AVX-512); the six pushes the rule caught (seeds 2, 5, 8, 17,
-    # 19, 20) peaked at 8.4-11.9 deg: bound 25 deg = 2.1x the worst (a fall: 30)
+    assert result.fell is False and result.stood is True and result.stopped_s is not None
+    assert result.touchdowns_early >= 1
+    log = load_log(result.run_dir / "log.parquet")
+    t = np.asarray(log["t_s"], dtype=float)
+    after = t > at_s
+    touched = np.asarray(log["right_foot_contact_flag"], dtype=float)[after] == 1
+    planned = np.asarray(log["planned_right_foot_contact_flag"], dtype=float)[after] == 1
+    down = int(np.argmax(touched))  # the pushed swing foot's touchdown
+    # measured: at 4.310 s, 0.173 s after the push, the plan's foot down 5 ms (one period)
+    # later, on both paths; swung on, it stays up until the planned landing. Bounds: down
+    # within 0.4 s of the push (the swing), the plan within 25 ms (5 periods)
+    assert touched[down] and t[after][down] - at_s < 0.4 and not planned[:down].any()
+    assert t[after][down + int(np.argmax(planned[down:]))] - t[after][down] < 0.025
+    # measured max tilt 8.6 deg (main, AVX-512), 10.0 (AVX-512: 2 early touchdowns, stopped
+    # at 5.895 s) and 12.7 (portable: 1, stopped at 5.315 s as main); the six pushes the rule
+    # caught (seeds 2, 5, 8, 17, 19, 20) peaked at 8.4-11.9 deg: bound 25 deg = 2.0x the
+    # worst (a fall: 30)
     assert summary["max_torso_tilt_deg"] < 25.0
 
 
@@ -902,3 +921,25 @@ def test_a_plan_whose_closing_steps_lie_outside_the_gaits_limits_is_not_re_aimed
     walked, _, _ = _offline_walk((0.5, 0.0, 0.0), 3000, drift_m=(0.0, -0.03))
     assert walked.reaims == 0
     assert walked.final_error()[0] == pytest.approx(0.03, abs=1e-4)  # the drift, as it was
+
+
+def test_the_monitors_planned_support_stands_where_the_estimated_soles_stand():
+    """The walk's first period made its plan; then the estimate's soles turned 0.1 rad and
+    moved 22 mm together (a stance sole slipped round, seen by the gyro): the capture-point
+    monitor's planned support turns and moves with them, as the fast gait has it (on main it
+    stayed where the pattern put it, and the estimated capture point was judged against
+    soles off the robot's own)."""
+    from hubo_cli.control.phase import SUPPORT_PLAN
+    from hubo_cli.estimation.keys import T_WORLD_SOLES
+
+    _, q0, _, target, store = standing_walk((0.3, 0.0, 0.0), None)
+    target.support_where_standing = True  # (the fast gait's)
+    state = RobotState(0.0, q0, np.zeros_like(q0))
+    target(0.0, state)
+    planned = store[SUPPORT_PLAN].T_world_soles.copy()
+    c, s = math.cos(0.1), math.sin(0.1)
+    move = np.array([[c, -s, 0.0, 0.02], [s, c, 0.0, -0.01], [0.0, 0.0, 1.0, 0.0],
+                     [0.0, 0.0, 0.0, 1.0]])
+    store[T_WORLD_SOLES] = move @ store[T_WORLD_SOLES]
+    target(DT, state)
+    np.testing.assert_allclose(store[SUPPORT_PLAN].T_world_soles, move @ planned, atol=1e-6)

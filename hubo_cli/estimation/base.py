@@ -11,20 +11,22 @@ chains, :mod:`hubo_cli.kinematics.limb`) and the attitude ``QUAT_WORLD_TORSO``:
 
 * the torso's rotation is the attitude turned about the world's vertical so that the anchor
   sole keeps its heading (the tilt is the attitude's, the heading the legs': the IMU's yaw
-  drifts), then turned about the anchor's contact point by the gyro's yaw rate beyond the
-  legs' while one sole alone carries the robot rolling on its edge (its centre of pressure
-  within ``EDGE_M`` of the outline: little holds it from twisting then; walking keeps it
-  further in, and there the gyro's bias would only turn the estimate), less the gyro's bias
-  (on two soles the robot
-  cannot twist unless pushed: the difference there within ``STILL_YAW_RAD_S``, low-passed with
-  ``GYRO_BIAS_TAU_S``, is the bias; a robot standing does not turn); the turn fades with
-  ``HEADING_TAU_S``: a stance sole that twists on
-  the floor under a push turns the robot, which the gyro sees and the legs do not (a 150 N
-  push twisted the capture step's stance foot by degrees; planned on the legs' heading alone
-  the step landed 5 cm long and the robot fell). When the other sole takes the anchor it
-  keeps its pose as estimated, the turn included, and the turn starts again from zero; when
-  the contact point moves on the sole while a turn is on, the held anchor shifts with it so
-  that the turned torso does not jump (:meth:`FloatingBase._keep_pivot_continuous`);
+  drifts), then turned about the anchor's contact point by the anchor's slip round the
+  vertical that the gyro sees and the legs do not (:func:`_slip_turn`): the gyro's yaw rate
+  beyond the legs', less its bias, summed; that sum's mean over the last ``SLIP_WINDOW``
+  periods changing by more than ``SLIP_TURN_RAD`` from the window before is a slip, counted
+  while it lasts; otherwise the change is the bias's error, learnt with ``SLIP_BIAS_TAU_S``
+  (the legs' noise averages out in the windows; the bias, unknown at the start, counts only
+  while a sole slips); while one sole alone carries the robot rolling on its edge (its
+  centre of pressure within ``EDGE_M`` of the outline: a push's capture step) the turn fades
+  with ``HEADING_TAU_S``, as main's on-edge turn did (kept unfaded, the 150 N capture step's
+  lunge fell on the portable path). The fast gait's stance soles twist 40-130 mrad/s on the
+  floor under the swing leg's yaw moment, up to 7 deg over a 2 m walk, and a push twists a capture
+  step's stance foot by degrees (planned on the legs' heading alone the step landed 5 cm
+  long and the robot fell). When the other sole takes the anchor it keeps its pose as
+  estimated, the turn included, and the turn starts again from zero; when the contact point
+  moves on the sole while a turn is on, the held anchor shifts with it so that the turned
+  torso does not jump (:meth:`FloatingBase._keep_pivot_continuous`);
 * the torso's position puts the anchor sole's contact point of this period where that point
   of the sole was in the last period's estimate (a flat sole whose centre of pressure moves
   stays where it is; one rolling on an edge keeps the edge on the floor);
@@ -93,15 +95,18 @@ from hubo_cli.model import LEGS, RobotModel
 from hubo_cli.motion.limits import all_finite
 from hubo_cli.state import ANKLE_SENSORS, RobotState
 
-HEADING_TAU_S = 1.0  # [chosen] the gyro's share of the heading fades with this time constant
-GYRO_BIAS_TAU_S = 1.0  # [chosen] the gyro's yaw bias: its rate beyond the legs' on two soles
-#                        while still, low-passed (the perturbation's bias, up to 0.5 deg/s,
-#                        integrated over a walk's single supports turned the estimate 2 deg)
+LANDED_PERIODS = 20  # [chosen] a sole takes the anchor where it stood these last periods
+HEADING_TAU_S = 1.0  # [chosen] the slip's turn fades with this while one sole alone rolls on
+#                      its edge (a push's capture step: main's on-edge turn faded so)
 EDGE_M = 0.015  # [chosen] a centre of pressure this close to the sole's outline: it rolls on
 #                 an edge (the walking stabilizer keeps it 25 mm inside)
-STILL_YAW_RAD_S = 0.02  # [chosen] ... still: within this of the bias (2.3x the perturbation's
-#                         largest bias; a push twisting the feet on the floor is not learnt)
-LANDED_PERIODS = 20  # [chosen] a sole takes the anchor where it stood these last periods
+SLIP_WINDOW = 20  # [chosen] periods (0.1 s) over which the heading's disagreement is averaged
+SLIP_TURN_RAD = 0.0025  # [chosen] the disagreement's mean changing this much from one window to
+#                         the next is a slip (25 mrad/s: 2.9 times the perturbation's largest
+#                         yaw bias, 8.7 mrad/s; the legs' noise averaged, ~0.5 mrad; the fast
+#                         gait's twists run 40-130 mrad/s)
+SLIP_BIAS_TAU_S = 1.0  # [chosen] the gyro's yaw bias learnt from the windows without a slip
+#                        (0.5 and 2 s did worse on the fast walks' logged signals, seeds 1-10)
 
 
 @nb.njit(cache=True, nogil=True)
@@ -172,13 +177,49 @@ def _turn_in_place(T, c, s, px, py) -> None:
 
 
 @nb.njit(cache=True, nogil=True)
+def _slip_turn(slip, twist_rad_s, dt) -> float:
+    """The stance sole's slip round the vertical this period (rad), from the heading's
+    disagreement ``twist_rad_s`` (the gyro's yaw rate beyond the legs'), less the yaw bias,
+    summed: the sum's mean over the last SLIP_WINDOW periods against the window before; while
+    they differ by more than SLIP_TURN_RAD a sole slips and the mean's move counts, period by
+    period (the mean moves smoothly: no jump; counting the window's whole change at once when
+    a slip starts did worse on the fast walks' signals, and jumped). The legs' per-period
+    noise (0.1-0.2 rad/s as a rate) averages out in the windows; the bias's error (up to the
+    perturbation's 0.0087 rad/s) stays under the threshold, so it counts only while a sole
+    slips, not over the whole walk, and is learnt from the windows without a slip.
+    ``slip``: [sum, last window's mean, slipping (0/1), periods, turn (rad), bias (rad/s),
+    the sums of the last 2 SLIP_WINDOW periods] (in place)."""
+    w = SLIP_WINDOW
+    slip[0] += (twist_rad_s - slip[5]) * dt  # the gyro's rate beyond the legs', less the bias
+    n = int(slip[3])
+    slip[6 + n % (2 * w)] = slip[0]
+    n += 1
+    slip[3] = n
+    if n < 2 * w:
+        return 0.0
+    new, old = 0.0, 0.0
+    for k in range(w):
+        new += slip[6 + (n - 1 - k) % (2 * w)]
+        old += slip[6 + (n - 1 - w - k) % (2 * w)]
+    new, old = new / w, old / w
+    turn = new - slip[1] if n > 2 * w else 0.0  # the mean's move this period
+    if abs(new - old) > SLIP_TURN_RAD:
+        slip[2] = 1.0
+    else:  # no slip: the change is the bias's error
+        turn, slip[2] = 0.0, 0.0
+        slip[5] += (new - old) / (w * SLIP_BIAS_TAU_S)
+    slip[1] = new
+    return turn
+
+
+@nb.njit(cache=True, nogil=True)
 def _place_turned(quat_wxyz, T_torso_soles, anchor, T_world_anchor, cx, cy, gyro, use_gyro,
-                  R_legs, rolling, turn_bias, dt, keep, bias_gain, T_world_torso,
-                  T_world_soles, T_anchor_out, R_out):
-    """:func:`_place`, then the gyro's turn about the anchor's contact point (see
+                  R_legs, rolling, keep, dt, slip, T_world_torso, T_world_soles, T_anchor_out,
+                  R_out):
+    """:func:`_place`, then the slip's turn about the anchor's contact point (see
     :meth:`FloatingBase._place`): the legs' own anchor pose into ``T_anchor_out``, the legs'
-    torso rotation into ``R_out``; ``turn_bias`` (the turn, the yaw bias) updated in place.
-    ``use_gyro``: ``gyro`` is finite and ``R_legs`` is last period's."""
+    torso rotation into ``R_out``; ``slip`` (:func:`_slip_turn`'s state, its turn slip[4])
+    updated in place. ``use_gyro``: ``gyro`` is finite and ``R_legs`` is last period's."""
     _place(quat_wxyz, T_torso_soles, anchor, T_world_anchor, cx, cy, T_world_torso,
            T_world_soles)
     A = T_world_soles[anchor]
@@ -197,20 +238,16 @@ def _place_turned(quat_wxyz, T_torso_soles, anchor, T_world_anchor, cx, cy, gyro
         step_01 = R[0, 0] * R_legs[1, 0] + R[0, 1] * R_legs[1, 1] + R[0, 2] * R_legs[1, 2]
         legs_rate = 0.5 * (step_10 - step_01) / dt
         twist = yaw_rate - legs_rate  # the stance foot's twist, and the gyro's bias
-        if not math.isfinite(twist):
-            twist = 0.0
-        elif rolling:
-            twist -= turn_bias[1]
-        else:  # on two soles, still, the robot does not twist: what the gyro reads is bias
-            if abs(twist - turn_bias[1]) < STILL_YAW_RAD_S:
-                turn_bias[1] += bias_gain * (twist - turn_bias[1])
-            twist = 0.0
-        turn_bias[0] = keep * (turn_bias[0] + twist * dt)
-    if turn_bias[0]:
+        if math.isfinite(twist):
+            slip[4] += _slip_turn(slip, twist, dt)
+        if rolling:
+            slip[4] *= keep
+    turn = slip[4]
+    if turn:
         A = T_anchor_out
         px = A[0, 0] * cx + A[0, 1] * cy + A[0, 3]
         py = A[1, 0] * cx + A[1, 1] * cy + A[1, 3]
-        c, s = math.cos(turn_bias[0]), math.sin(turn_bias[0])
+        c, s = math.cos(turn), math.sin(turn)
         _turn_in_place(T_world_torso, c, s, px, py)
         for k in range(2):
             _turn_in_place(T_world_soles[k], c, s, px, py)
@@ -309,18 +346,16 @@ class FloatingBase(Observer):
                                                 / self._dt_s)))
         self._light_periods = 0  # periods in a row with both soles lighter than flight_max
         self._pressed = False  # a sole has pressed since the reset (else no flight is sensed)
-        self._keep = HEADING_TAU_S / (HEADING_TAU_S + self._dt_s)  # the turn's fade a period
-        self._turn_rad = 0.0  # the gyro's turn on top of the legs' heading
-        self._turn_bias = np.zeros(2)  # the kernel's (turn, yaw bias)
+        self._keep = HEADING_TAU_S / (HEADING_TAU_S + self._dt_s)  # the on-edge fade
+        self._slip = np.zeros(6 + 2 * SLIP_WINDOW)  # :func:`_slip_turn`'s state
         self._no_gyro, self._no_gyro_R = np.zeros(3), np.zeros((3, 3))
         self._R_legs: np.ndarray | None = None  # the legs' torso rotation, last period
         # the other sole's last estimates on the floor: x, y, z, cos and sin of its heading
         self._landed: deque[tuple[float, ...]] = deque(maxlen=LANDED_PERIODS)
-        self._bias_rad_s = 0.0  # the gyro's yaw bias about the world's vertical
-        self._bias_gain = self._dt_s / (GYRO_BIAS_TAU_S + self._dt_s)
         _place_turned(self._quat, self._T_torso_soles, 0, self._T_world_anchor, 0.0, 0.0,
-                      self._no_gyro, True, np.eye(3), False, np.zeros(2), self._dt_s,
-                      self._keep, self._bias_gain, np.eye(4), np.zeros((2, 4, 4)),
+                      self._no_gyro, True, np.eye(3), False, 1.0, self._dt_s,
+                      np.zeros_like(self._slip),
+                      np.eye(4), np.zeros((2, 4, 4)),
                       np.empty((4, 4)), np.empty((3, 3)))  # compiled now
         all_finite(self._quat)
 
@@ -346,7 +381,8 @@ class FloatingBase(Observer):
         self.anchor = 1 if fz[1] > fz[0] else 0  # a NaN compares False: the right sole
         self._T_world_torso = np.eye(4)
         self._T_world_soles = np.tile(np.eye(4), (2, 1, 1))
-        self._turn_rad, self._R_legs, self._bias_rad_s = 0.0, None, 0.0
+        self._R_legs = None
+        self._slip[:] = 0.0
         self._landed.clear()
         self._light_periods = 0
         self._pressed = any(f >= self._flight_max_fz_n for f in fz)  # (a NaN: not pressed)
@@ -378,21 +414,17 @@ class FloatingBase(Observer):
     def _place(self, contact_point: tuple[float, float] = (0.0, 0.0),
                 gyro_rad_s: np.ndarray | None = None, rolling: bool = False) -> None:
         """This period's torso and soles: the legs' placement (the anchor's held contact point
-        and heading), turned about the contact point by the gyro's high-passed share of the
-        heading (``gyro_rad_s``: the IMU's rate in the torso frame; None: none; counted while
-        ``rolling``: one sole alone in contact, on its edge)."""
+        and heading), turned about the contact point by the anchor's slip the gyro sees
+        (``gyro_rad_s``: the IMU's rate in the torso frame; None: none)."""
         T_world_torso, T_world_soles = np.empty((4, 4)), np.empty((2, 4, 4))
         T_world_anchor, R_legs = np.empty((4, 4)), np.empty((3, 3))
         use_gyro = gyro_rad_s is not None and self._R_legs is not None
-        turn_bias = self._turn_bias
-        turn_bias[0], turn_bias[1] = self._turn_rad, self._bias_rad_s
         _place_turned(self._quat, self._T_torso_soles, self.anchor, self._T_world_anchor,
                       contact_point[0], contact_point[1],
                       gyro_rad_s if use_gyro else self._no_gyro, use_gyro,
-                      self._R_legs if use_gyro else self._no_gyro_R, rolling, turn_bias,
-                      self._dt_s, self._keep, self._bias_gain, T_world_torso, T_world_soles,
-                      T_world_anchor, R_legs)
-        self._turn_rad, self._bias_rad_s = float(turn_bias[0]), float(turn_bias[1])
+                      self._R_legs if use_gyro else self._no_gyro_R, rolling, self._keep,
+                      self._dt_s, self._slip,
+                      T_world_torso, T_world_soles, T_world_anchor, R_legs)
         self._T_world_anchor = T_world_anchor  # the legs' own
         self._contact_point = contact_point
         self._R_legs = R_legs
@@ -405,13 +437,14 @@ class FloatingBase(Observer):
         one period, a 150 N backward capture step's stance sole turned 91 mrad while its centre
         of pressure crossed 129 mm: the capture point came within 4 mm of the monitor's line,
         past it on another CPU; docs/history/walking.md)."""
-        if not self._turn_rad or point == self._contact_point:
+        turn = float(self._slip[4])
+        if not turn or point == self._contact_point:
             return
         A = self._T_world_anchor
         (x0, y0), (x1, y1) = self._contact_point, point
         dx = A[0, 0] * (x0 - x1) + A[0, 1] * (y0 - y1)  # the old point less the new (world)
         dy = A[1, 0] * (x0 - x1) + A[1, 1] * (y0 - y1)
-        c, s = math.cos(self._turn_rad), math.sin(self._turn_rad)
+        c, s = math.cos(turn), math.sin(turn)
         A = A.copy()
         A[0, 3] += dx - (c * dx - s * dy)  # (I - R(turn)) (old - new)
         A[1, 3] += dy - (s * dx + c * dy)
@@ -431,7 +464,7 @@ class FloatingBase(Observer):
         self._T_world_anchor = T
         self._landed.clear()
         self._contact_point = (0.0, 0.0)  # its own, read next period
-        self._turn_rad, self._R_legs = 0.0, None
+        self._R_legs, self._slip[4] = None, 0.0
 
     def _write(self, store: Store) -> None:
         store[T_WORLD_TORSO] = self._T_world_torso
@@ -450,7 +483,7 @@ class FloatingBase(Observer):
         self._T_world_torso = T_world_torso
         self._T_world_soles = T_world_torso @ self._T_torso_soles
         self._T_world_anchor = self._T_world_soles[self.anchor].copy()
-        self._turn_rad, self._R_legs = 0.0, None
+        self._R_legs, self._slip[4] = None, 0.0
         self._landed.clear()
 
     def update(self, state: RobotState, store: Store) -> None:

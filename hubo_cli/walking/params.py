@@ -72,7 +72,8 @@ class WalkingParams:
     def answers_pushes(self) -> bool:
         """The walk answers pushes with its landing wait, floor reach and momentum strategy
         (:class:`~hubo_cli.walking.target.WalkTarget`): its steps last PUSH_RESPONSES_MIN_STEP_S
-        or longer."""
+        or longer. A walk that does not answer pushes has its capture-point monitor judge
+        against the soles where the estimate stands them (``support_where_standing``)."""
         return self.step_s >= PUSH_RESPONSES_MIN_STEP_S
 
     def with_changes(self, **changes: float) -> WalkingParams:
