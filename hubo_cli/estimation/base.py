@@ -19,7 +19,7 @@ chains, :mod:`hubo_cli.kinematics.limb`) and the attitude ``QUAT_WORLD_TORSO``:
   (the legs' noise averages out in the windows; the bias, unknown at the start, counts only
   while a sole slips); while one sole alone carries the robot rolling on its edge (its
   centre of pressure within ``EDGE_M`` of the outline: a push's capture step) the turn fades
-  with ``HEADING_TAU_S``, as main's on-edge turn did (kept unfaded, the 150 N capture step's
+  with ``HEADING_TAU_S``, as the earlier on-edge turn did (kept unfaded, the 150 N capture step's
   lunge fell on the portable path). The fast gait's stance soles twist 40-130 mrad/s on the
   floor under the swing leg's yaw moment, up to 7 deg over a 2 m walk, and a push twists a capture
   step's stance foot by degrees (planned on the legs' heading alone the step landed 5 cm
@@ -97,7 +97,7 @@ from hubo_cli.state import ANKLE_SENSORS, RobotState
 
 LANDED_PERIODS = 20  # [chosen] a sole takes the anchor where it stood these last periods
 HEADING_TAU_S = 1.0  # [chosen] the slip's turn fades with this while one sole alone rolls on
-#                      its edge (a push's capture step: main's on-edge turn faded so)
+#                      its edge (a push's capture step: the earlier on-edge turn faded so)
 EDGE_M = 0.015  # [chosen] a centre of pressure this close to the sole's outline: it rolls on
 #                 an edge (the walking stabilizer keeps it 25 mm inside)
 SLIP_WINDOW = 20  # [chosen] periods (0.1 s) over which the heading's disagreement is averaged
