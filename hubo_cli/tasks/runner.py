@@ -155,8 +155,7 @@ def _run_task(plan: Plan, setup: RunSetup, on_start, balance: str) -> TaskRun:
                    else lambda _, loop: on_start(target, loop))
     _write_task_copy(plan.spec, done.run_dir, balance, setup.safety)
     done.add_file("task.toml")
-    # the task target runs on its own clock, from the walk's handover (0 without a walk)
-    t_origin_s = (approach.handover_s or 0.0) if start is not None else 0.0
+    t_origin_s = approach.then_origin_s if start is not None else 0.0  # (its own clock's)
     summary = done.save_summary(summarise(plan, target, done, t_origin_s))
     if start is not None:
         from hubo_cli.experiments.walk import plot_footprints

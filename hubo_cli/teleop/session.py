@@ -262,8 +262,7 @@ def run_teleop(settings: TeleopSettings, on_ready=None,
                                            frames=[tool_frame(a, t) for a, t in body.tools.items()])
         done = run(setup, runs, on_start=None if on_ready is None
                    else lambda _, loop: on_ready(target, loop))
-    # the teleop target runs on its own clock, from the walk's handover (0 without a walk)
-    t_origin_s = 0.0 if runs is target else runs.handover_s or 0.0
+    t_origin_s = 0.0 if runs is target else runs.then_origin_s  # (its own clock's)
     summary = done.save_summary(summarise(settings, target, done, source, scene, t_origin_s))
     if runs is not target:
         from hubo_cli.experiments.walk import plot_footprints

@@ -239,6 +239,13 @@ class WalkFirst(Target):
         return self.phases.current.name
 
     @property
+    def then_origin_s(self) -> float:
+        """The run's time at which the target handed over to starts its own clock (it sees
+        ``t_s - then_origin_s``; 0 before the handover): its summary's times are put on the
+        run's clock with it."""
+        return self.handover_s or 0.0
+
+    @property
     def inner(self) -> Target:
         """The target driving the robot now."""
         return self.then if self.phase == "then" else self.walk
