@@ -107,6 +107,11 @@ SLIP_TURN_RAD = 0.0025  # [chosen] the disagreement's mean changing this much fr
 #                         gait's twists run 40-130 mrad/s)
 SLIP_BIAS_TAU_S = 1.0  # [chosen] the gyro's yaw bias learnt from the windows without a slip
 #                        (0.5 and 2 s did worse on the fast walks' logged signals, seeds 1-10)
+# :func:`_slip_turn`'s state (one float array, for the compiled kernels): the disagreement's
+# sum (rad), the last window's mean of it (rad), the periods counted, the slip's turn (rad),
+# the yaw bias (rad/s), then the ring of the last 2 SLIP_WINDOW sums
+SLIP_SUM, SLIP_MEAN, SLIP_PERIODS, SLIP_TURN, SLIP_BIAS, SLIP_SUMS = range(6)
+SLIP_STATE = SLIP_SUMS + 2 * SLIP_WINDOW
 
 
 @nb.njit(cache=True, nogil=True)
@@ -187,28 +192,26 @@ def _slip_turn(slip, twist_rad_s, dt) -> float:
     noise (0.1-0.2 rad/s as a rate) averages out in the windows; the bias's error (up to the
     perturbation's 0.0087 rad/s) stays under the threshold, so it counts only while a sole
     slips, not over the whole walk, and is learnt from the windows without a slip.
-    ``slip``: [sum, last window's mean, slipping (0/1), periods, turn (rad), bias (rad/s),
-    the sums of the last 2 SLIP_WINDOW periods] (in place)."""
+    ``slip``: its state, in place (:data:`SLIP_STATE`: the indices below, then the sums of
+    the last 2 SLIP_WINDOW periods from SLIP_SUMS)."""
     w = SLIP_WINDOW
-    slip[0] += (twist_rad_s - slip[5]) * dt  # the gyro's rate beyond the legs', less the bias
-    n = int(slip[3])
-    slip[6 + n % (2 * w)] = slip[0]
+    slip[SLIP_SUM] += (twist_rad_s - slip[SLIP_BIAS]) * dt  # beyond the legs', less the bias
+    n = int(slip[SLIP_PERIODS])
+    slip[SLIP_SUMS + n % (2 * w)] = slip[SLIP_SUM]
     n += 1
-    slip[3] = n
+    slip[SLIP_PERIODS] = n
     if n < 2 * w:
         return 0.0
     new, old = 0.0, 0.0
     for k in range(w):
-        new += slip[6 + (n - 1 - k) % (2 * w)]
-        old += slip[6 + (n - 1 - w - k) % (2 * w)]
+        new += slip[SLIP_SUMS + (n - 1 - k) % (2 * w)]
+        old += slip[SLIP_SUMS + (n - 1 - w - k) % (2 * w)]
     new, old = new / w, old / w
-    turn = new - slip[1] if n > 2 * w else 0.0  # the mean's move this period
-    if abs(new - old) > SLIP_TURN_RAD:
-        slip[2] = 1.0
-    else:  # no slip: the change is the bias's error
-        turn, slip[2] = 0.0, 0.0
-        slip[5] += (new - old) / (w * SLIP_BIAS_TAU_S)
-    slip[1] = new
+    turn = new - slip[SLIP_MEAN] if n > 2 * w else 0.0  # the mean's move this period
+    if abs(new - old) <= SLIP_TURN_RAD:  # no slip: the change is the bias's error
+        turn = 0.0
+        slip[SLIP_BIAS] += (new - old) / (w * SLIP_BIAS_TAU_S)
+    slip[SLIP_MEAN] = new
     return turn
 
 
@@ -218,7 +221,7 @@ def _place_turned(quat_wxyz, T_torso_soles, anchor, T_world_anchor, cx, cy, gyro
                   R_out):
     """:func:`_place`, then the slip's turn about the anchor's contact point (see
     :meth:`FloatingBase._place`): the legs' own anchor pose into ``T_anchor_out``, the legs'
-    torso rotation into ``R_out``; ``slip`` (:func:`_slip_turn`'s state, its turn slip[4])
+    torso rotation into ``R_out``; ``slip`` (:func:`_slip_turn`'s state, its turn slip[SLIP_TURN])
     updated in place. ``use_gyro``: ``gyro`` is finite and ``R_legs`` is last period's."""
     _place(quat_wxyz, T_torso_soles, anchor, T_world_anchor, cx, cy, T_world_torso,
            T_world_soles)
@@ -239,10 +242,10 @@ def _place_turned(quat_wxyz, T_torso_soles, anchor, T_world_anchor, cx, cy, gyro
         legs_rate = 0.5 * (step_10 - step_01) / dt
         twist = yaw_rate - legs_rate  # the stance foot's twist, and the gyro's bias
         if math.isfinite(twist):
-            slip[4] += _slip_turn(slip, twist, dt)
+            slip[SLIP_TURN] += _slip_turn(slip, twist, dt)
         if rolling:
-            slip[4] *= keep
-    turn = slip[4]
+            slip[SLIP_TURN] *= keep
+    turn = slip[SLIP_TURN]
     if turn:
         A = T_anchor_out
         px = A[0, 0] * cx + A[0, 1] * cy + A[0, 3]
@@ -347,7 +350,7 @@ class FloatingBase(Observer):
         self._light_periods = 0  # periods in a row with both soles lighter than flight_max
         self._pressed = False  # a sole has pressed since the reset (else no flight is sensed)
         self._keep = HEADING_TAU_S / (HEADING_TAU_S + self._dt_s)  # the on-edge fade
-        self._slip = np.zeros(6 + 2 * SLIP_WINDOW)  # :func:`_slip_turn`'s state
+        self._slip = np.zeros(SLIP_STATE)  # :func:`_slip_turn`'s state
         self._no_gyro, self._no_gyro_R = np.zeros(3), np.zeros((3, 3))
         self._R_legs: np.ndarray | None = None  # the legs' torso rotation, last period
         # the other sole's last estimates on the floor: x, y, z, cos and sin of its heading
@@ -437,7 +440,7 @@ class FloatingBase(Observer):
         one period, a 150 N backward capture step's stance sole turned 91 mrad while its centre
         of pressure crossed 129 mm: the capture point came within 4 mm of the monitor's line,
         past it on another CPU; docs/history/walking.md)."""
-        turn = float(self._slip[4])
+        turn = float(self._slip[SLIP_TURN])
         if not turn or point == self._contact_point:
             return
         A = self._T_world_anchor
@@ -464,7 +467,7 @@ class FloatingBase(Observer):
         self._T_world_anchor = T
         self._landed.clear()
         self._contact_point = (0.0, 0.0)  # its own, read next period
-        self._R_legs, self._slip[4] = None, 0.0
+        self._R_legs, self._slip[SLIP_TURN] = None, 0.0
 
     def _write(self, store: Store) -> None:
         store[T_WORLD_TORSO] = self._T_world_torso
@@ -483,7 +486,7 @@ class FloatingBase(Observer):
         self._T_world_torso = T_world_torso
         self._T_world_soles = T_world_torso @ self._T_torso_soles
         self._T_world_anchor = self._T_world_soles[self.anchor].copy()
-        self._R_legs, self._slip[4] = None, 0.0
+        self._R_legs, self._slip[SLIP_TURN] = None, 0.0
         self._landed.clear()
 
     def update(self, state: RobotState, store: Store) -> None:
