@@ -267,6 +267,7 @@ class TeleopTarget(Target):
         # (its limits, set each period to its state) to preview the arm's way with
         self._trackers: dict[str, JointTracker] | None = None
         self._goal_velocity: dict[str, GoalVelocity] = {}  # and the goals' velocities
+        self._decay_s: dict[str, np.ndarray] = {}  # and DECAY_S per joint, for tracking_target
         self._conditions: dict[str, tuple] = {}  # arm -> the last (joints' bytes, condition
         # number)s
         if self.reach_settings.mode == "nearest" and self.reach_settings.collision_room_m > 0:
@@ -417,7 +418,8 @@ class TeleopTarget(Target):
             following = self._following(arm)
             v_goal = self._goal_velocity[arm].update(target, following)
             hand = self.hands.get(arm)
-            decay = DECAY_S  # a returning hand far behind: the goal's own decay (reach_lead)
+            decay = self._decay_s[arm]  # DECAY_S; a returning hand far behind: the goal's own
+            # decay (reach_lead)
             if hand is not None and hand.returning and hand.behind_m >= RETURN_BEHIND_M:
                 decay = self._goal_velocity[arm].decay_s(DECAY_S, RETURN_DECAY_S)
             traded = 0
@@ -510,6 +512,8 @@ class TeleopTarget(Target):
                               for arm in self.arms}
             self._goal_velocity = {arm: GoalVelocity(states[arm].limits, states[arm].dt_s)
                                    for arm in self.arms}
+            self._decay_s = {arm: np.full(states[arm].limits.size, DECAY_S)  # (read only)
+                             for arm in self.arms}
         for arm, reach in self.reach.items():
             reach.start(self.q_target[self.slices[arm]])
 
