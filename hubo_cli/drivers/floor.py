@@ -35,6 +35,7 @@ import numba as nb
 import numpy as np
 
 from hubo_cli.estimation.centre_of_mass import centre_of_mass, configure, tree_arrays
+from hubo_cli.estimation.wrenches import hanging_readings
 from hubo_cli.geometry import quat_to_matrix_into
 from hubo_cli.kinematics.dh import JIT, chain_fk
 from hubo_cli.model import RobotModel
@@ -48,7 +49,7 @@ FLOOR_BAND_M = 0.005
 
 
 def floor_arrays(model: RobotModel, drill: bool) -> tuple:
-    """The arguments of :func:`add_floor_reaction` after the sensors' chains: pinocchio's
+    """The arguments of :func:`standing_readings` after the hanging readings': pinocchio's
     floating configuration (a scratch array), where each joint sits in it, the tree of
     :func:`~hubo_cli.estimation.centre_of_mass.tree_arrays` (the drill's URDF when held), the
     two ankle sensors' rows in FT_SENSORS (right, left) and the sole's centre in its frame
@@ -62,23 +63,26 @@ def floor_arrays(model: RobotModel, drill: bool) -> tuple:
 
 
 @nb.njit(**JIT)
-def add_floor_reaction(q, quat_wxyz, index, base, offset, alpha, a, d, end, gravity, measured,
-                       q_pin, q_index, parent, axis, q_at, R_place, p_place, mass, lever,
-                       ankles, centre, band_m, out):
-    """Add to the ankle sensors' rows of ``out`` (n x 6, FT_SENSORS order) the floor's push on
-    a robot standing still in the joints ``q`` (rad), torso attitude ``quat_wxyz`` (see the
-    module docstring); ``index`` ... ``end`` the sensors' chains
-    (:func:`~hubo_cli.estimation.wrenches.sensor_chains`), then :func:`floor_arrays`."""
+def standing_readings(q, quat_wxyz, index, base, offset, alpha, a, d, end, mass, com, gravity,
+                      measured, q_pin, q_index, parent, axis, q_at, R_place, p_place,
+                      tree_mass, lever, ankles, centre, band_m, out):
+    """What the sensors of a robot standing still read (``out``, n x 6, FT_SENSORS order) in
+    the joints ``q`` (rad), torso attitude ``quat_wxyz``: the weight beyond each
+    (:func:`~hubo_cli.estimation.wrenches.hanging_readings`, its arguments ``index`` ...
+    ``measured``) and at the ankles the floor's push (see the module docstring; the rest
+    :func:`floor_arrays`). One compiled call: the driver's period pays one dispatch."""
+    hanging_readings(q, quat_wxyz, index, base, offset, alpha, a, d, end, mass, com, gravity,
+                     measured, out)
     R = np.empty((3, 3))
     quat_to_matrix_into(quat_wxyz, R)
     T_world_torso = np.eye(4)
     for i in range(3):
         for j in range(3):
             T_world_torso[i, j] = R[i, j]
-    com = np.empty(3)  # from the torso's origin, world axes
+    com_w = np.empty(3)  # the centre of mass from the torso's origin, world axes
     configure(q_pin, q_index, q, T_world_torso)
-    centre_of_mass(q_pin, parent, axis, q_at, R_place, p_place, mass, lever, com)
-    weight = gravity * mass.sum()
+    centre_of_mass(q_pin, parent, axis, q_at, R_place, p_place, tree_mass, lever, com_w)
+    weight = gravity * tree_mass.sum()
     T = np.empty((2, 4, 4))  # the soles in the torso
     qk = np.empty(6)
     for f in range(2):
@@ -106,16 +110,16 @@ def add_floor_reaction(q, quat_wxyz, index, base, offset, alpha, a, d, end, grav
         span2 = ux * ux + uy * uy
         s = 0.5
         if span2 > 1e-12:
-            s = ((com[0] - mid[0, 0]) * ux + (com[1] - mid[0, 1]) * uy) / span2
+            s = ((com_w[0] - mid[0, 0]) * ux + (com_w[1] - mid[0, 1]) * uy) / span2
             s = min(max(s, 0.0), 1.0)
-        dx = com[0] - (mid[0, 0] + s * ux)
-        dy = com[1] - (mid[0, 1] + s * uy)
+        dx = com_w[0] - (mid[0, 0] + s * ux)
+        dy = com_w[1] - (mid[0, 1] + s * uy)
         load[0], load[1] = (1.0 - s) * weight, s * weight
         for f in range(2):
             cop[f, 0], cop[f, 1] = mid[f, 0] + dx, mid[f, 1] + dy
     else:
         load[flat] = weight
-        cop[flat, 0], cop[flat, 1] = com[0], com[1]
+        cop[flat, 0], cop[flat, 1] = com_w[0], com_w[1]
     for f in range(2):
         if load[f] == 0.0:
             continue

@@ -25,10 +25,9 @@ import numpy as np
 
 from hubo_cli.drivers import checks
 from hubo_cli.drivers.base import Driver, RunContext
-from hubo_cli.drivers.floor import FLOOR_BAND_M, add_floor_reaction, floor_arrays
+from hubo_cli.drivers.floor import FLOOR_BAND_M, floor_arrays, standing_readings
 from hubo_cli.errors import ConfigError, DeviceError
 from hubo_cli.estimation.wrenches import (
-    hanging_readings,
     measured_mask,
     sensor_chains,
     sensor_loads,
@@ -108,10 +107,8 @@ class IdealDriver(Driver):
                               f"(got {', '.join(options)})")
         super().__init__(model)
         masses, coms = sensor_loads(model, bool(drill))
-        chains, measured = sensor_chains(model), measured_mask()
-        self._sensors = (*chains, masses, coms, GRAVITY_M_S2, measured)
-        self._floor = (*chains, GRAVITY_M_S2, measured, *floor_arrays(model, bool(drill)),
-                       FLOOR_BAND_M)
+        self._sensors = (*sensor_chains(model), masses, coms, GRAVITY_M_S2, measured_mask(),
+                         *floor_arrays(model, bool(drill)), FLOOR_BAND_M)
         self._cmd = np.zeros(len(self.joint_names))
         self._q = self._cmd.copy()
         self._t = 0.0
@@ -202,8 +199,7 @@ class IdealDriver(Driver):
             flags.append("stopped")
         gyro, accel = imu_readings(quat_prev, quat, self.period_s)
         readings = np.empty((len(FT_SENSORS), 6))
-        hanging_readings(q, quat, *self._sensors, readings)
-        add_floor_reaction(q, quat, *self._floor, readings)
+        standing_readings(q, quat, *self._sensors, readings)
         return RobotState(time_s=self._t, q_rad=q, dq_rad_s=dq, flags=tuple(flags),
                           imu_quat_wxyz=quat, imu_gyro_rad_s=gyro, imu_accel_m_s2=accel,
                           ft=dict(zip(FT_SENSORS, readings, strict=True)))
