@@ -27,12 +27,14 @@ from hubo_cli.sweep import (
     CONFIRM_JOBS,
     MAX_JOBS,
     Job,
+    Row,
     check_jobs,
     check_size,
     make_jobs,
     parse_seeds,
     parse_sets,
     run_sweep,
+    sweep_exit_code,
     version_mismatches,
 )
 
@@ -192,6 +194,13 @@ def _hostile_sweeps() -> dict[str, list[str]]:
         "task-nan-second": ["cut-slot", "--set", "speed_mm_s=10,nan"],
         "task-unknown": ["cut-slot", "--set", "no_such=1"],
         "unknown-command": ["no-such-task"],
+        # what hubo task run refuses (exit 2) before its pre-flight: a task too long, an
+        # experiment's bad parameter (they were rows 'error' of a sweep that ran, exit 1)
+        "task-too-long": ["cut-rectangle", "--set", "speed_mm_s=10,0.1"],
+        "push-wall-direction": ["push-wall", "--set", "direction=up"],
+        "push-wall-interpolator": ["push-wall", "--set", "interpolator=spline"],
+        "valve-offset": ["turn-valve", "--set", "seen_offset_mm=[1,2]"],
+        "door-opens": ["push-door", "--set", "door_opens=sideways"],
         "seeds-empty": ["sim", "--seeds", ""], "seeds-negative": ["sim", "--seeds", "-3"],
         "seeds-backwards": ["sim", "--seeds", "5-2"],
         "seeds-digits": ["sim", "--seeds", "9" * 5000],
@@ -228,6 +237,37 @@ def test_bad_values_are_refused_before_any_job(tmp_path, args):
     assert "internal error" not in result.output and "Traceback" not in result.output
     assert not out.exists()  # refused before its folder, let alone a job
     assert time.perf_counter() - t0 < 5.0  # nothing listed or run: 1e8 seeds are not listed
+
+
+def test_a_run_refused_in_preflight_is_the_row_hubo_task_run_says(tmp_path):
+    """Out of reach at 900 mm: hubo task run refuses it (exit 4, nothing moved, no folder);
+    the sweep's rows say the same words and exit code, name no folder (none was made), and
+    the sweep whose every run was refused exits 4."""
+    out = tmp_path / "sweep"
+    result = CliRunner().invoke(main, ["sweep", "cut-rectangle", "--seeds", "1", "--set",
+                                       "wall_distance_mm=900", "--set", "speed_mm_s=40",
+                                       "--workers", "0", "--out", str(out), "--json"])
+    assert result.exit_code == 4, result.output
+    rows = json.loads(result.output)["rows"]
+    single = CliRunner().invoke(main, ["task", "cut-rectangle", "--wall-distance", "900",
+                                       "--speed", "40", "--out", str(tmp_path / "single")])
+    assert single.exit_code == 4 and not (tmp_path / "single").exists()
+    said = next(line for line in single.output.splitlines() if line.startswith("error: "))
+    for row in rows:
+        assert (row["ended"], row["exit_code"], row["run_dir"]) == ("refused", 4, "")
+        assert "error: " + row["error"] == said
+    assert sorted(p.name for p in out.iterdir()) == [".hubo-run", "sweep.csv", "sweep.png"]
+    with open(out / "sweep.csv") as f:
+        assert [r["exit_code"] for r in csv.DictReader(f)] == ["4"]
+
+
+def test_the_sweep_exits_with_its_rows_code_when_they_agree():
+    def row(code: int) -> Row:
+        return Row("cut-slot", 1, {}, completed=code == 0, exit_code=code)
+
+    assert sweep_exit_code([row(0), row(0)]) == 0
+    assert sweep_exit_code([row(4), row(4)]) == 4
+    assert sweep_exit_code([row(0), row(4)]) == 1 and sweep_exit_code([row(2), row(4)]) == 1
 
 
 def test_an_unreachable_scheduler_is_device_trouble(tmp_path):
