@@ -55,6 +55,9 @@ DASHBOARD_ADDRESS = "127.0.0.1:8787"
 # packages and the interpreter) and what decides a row (hubo-cli and the numerics under it)
 DASK_PACKAGES = ("python", "dask", "distributed", "msgpack", "cloudpickle", "tornado", "toolz")
 ROW_PACKAGES = ("hubo-cli", "numpy", "scipy", "pybullet", "pin", "ruckig", "numba")
+# and hubo-cli's own source files (two checkouts of one version may differ): their fingerprint
+# (hubo_cli.resources.source_fingerprint), compared as if it were one more package
+SOURCES = "hubo-cli sources"
 
 
 @dataclass(frozen=True)
@@ -281,11 +284,12 @@ def check_dashboard() -> None:
 def version_mismatches(versions: dict) -> list[str]:
     """What differs between this client and the cluster, from Dask's ``get_versions``.
 
-    Every worker must have the client's :data:`DASK_PACKAGES` and :data:`ROW_PACKAGES`; the
-    scheduler the client's :data:`DASK_PACKAGES` (it runs no job). Python is compared by its
-    minor version (3.11). Returns one text per difference, e.g. ``"worker
-    tcp://10.0.0.2:40111 has hubo-cli 0.0.9 (this client 0.1.0)"``; empty when everything
-    matches.
+    Every worker must have the client's :data:`DASK_PACKAGES` and :data:`ROW_PACKAGES`, and
+    then its :data:`SOURCES` (the fingerprint of hubo-cli's files, added to each ``packages``
+    by :func:`_check_versions`); the scheduler the client's :data:`DASK_PACKAGES` (it runs no
+    job). Python is compared by its minor version (3.11). Returns one text per difference,
+    e.g. ``"worker tcp://10.0.0.2:40111 has hubo-cli 0.0.9 (this client 0.1.0)"``; empty when
+    everything matches.
     """
 
     def version(packages: dict, name: str) -> str | None:
@@ -300,23 +304,40 @@ def version_mismatches(versions: dict) -> list[str]:
         packages = (info or {}).get("packages") if isinstance(info, dict) else None
         if not isinstance(packages, dict):
             return [f"{who} did not report its versions"]
-        return [f"{who} has {name} {version(packages, name) or 'not installed'} "
-                f"(this client {version(client, name) or 'not installed'})"
+        absent = "not reported" if names == (SOURCES,) else "not installed"
+        return [f"{who} has {name} {version(packages, name) or absent} "
+                f"(this client {version(client, name) or absent})"
                 for name in names if version(packages, name) != version(client, name)]
 
     found = differences("the scheduler", versions.get("scheduler"), DASK_PACKAGES)
     for address, info in sorted((versions.get("workers") or {}).items()):
         found += differences(f"worker {address}", info, DASK_PACKAGES + ROW_PACKAGES)
+    if not found:  # the sources last: a worker of another version has other sources too
+        for address, info in sorted((versions.get("workers") or {}).items()):
+            found += differences(f"worker {address}", info, (SOURCES,))
     return found
 
 
 def _check_versions(client) -> None:
     """Raise InputError when the cluster's versions differ from this client's."""
+    from hubo_cli.resources import source_fingerprint
+
     try:
         versions = client.get_versions(packages=list(ROW_PACKAGES))
+        # a worker whose hubo-cli has no fingerprint (an older one) returns the error: a
+        # difference like any other
+        sources = client.run(source_fingerprint, on_error="return")
     except (OSError, TimeoutError):  # Dask's CommClosedError is one
         raise DeviceError("lost the connection to the Dask scheduler while asking the "
                           "workers' versions", hint="check the scheduler and try again") from None
+    client_packages = (versions.get("client") or {}).get("packages")
+    if isinstance(client_packages, dict):
+        client_packages[SOURCES] = source_fingerprint()
+    for address, info in (versions.get("workers") or {}).items():
+        packages = info.get("packages") if isinstance(info, dict) else None
+        if isinstance(packages, dict):
+            fingerprint = sources.get(address)
+            packages[SOURCES] = fingerprint if isinstance(fingerprint, str) else None
     found = version_mismatches(versions)
     if found:
         more = f" (and {len(found) - 1} more difference{'s' * (len(found) > 2)})" \

@@ -23,9 +23,11 @@ from pty_support import HUBO, run_in_pty
 
 from hubo_cli.cli.main import main
 from hubo_cli.errors import ConfigError, InputError
+from hubo_cli.resources import source_fingerprint, tree_fingerprint
 from hubo_cli.sweep import (
     CONFIRM_JOBS,
     MAX_JOBS,
+    SOURCES,
     Job,
     Row,
     check_jobs,
@@ -435,6 +437,32 @@ def test_version_mismatches_name_each_worker_and_package():
     versions["scheduler"]["packages"]["distributed"] = "0"
     assert version_mismatches(versions) == ["the scheduler has distributed 0 (this client 1)"]
     assert version_mismatches({}) == ["the scheduler did not report its versions"]
+    # two checkouts of one version: their source files' fingerprints tell them apart, named
+    # once the versions agree (another version has other sources anyway)
+    versions = _versions(**{"tcp://h:1": {SOURCES: "b"}, "tcp://h:2": {SOURCES: None}})
+    versions["client"]["packages"][SOURCES] = "a"
+    assert version_mismatches(versions) == [
+        "worker tcp://h:1 has hubo-cli sources b (this client a)",
+        "worker tcp://h:2 has hubo-cli sources not reported (this client a)"]
+    versions["workers"]["tcp://h:1"]["packages"]["hubo-cli"] = "0.0.9"
+    assert version_mismatches(versions) == [
+        "worker tcp://h:1 has hubo-cli 0.0.9 (this client 0.1.0)"]
+
+
+def test_the_source_fingerprint_tells_two_trees_apart(tmp_path):
+    """Equal files anywhere: equal fingerprints; one byte changed, or a file added: another."""
+    for root in (tmp_path / "a", tmp_path / "b"):
+        (root / "pkg" / "__pycache__").mkdir(parents=True)
+        (root / "pkg" / "m.py").write_text("X = 1\n")
+        (root / "pkg" / "__pycache__" / "m.py").write_text(str(root))  # left out
+    a, b = tmp_path / "a" / "pkg", tmp_path / "b" / "pkg"
+    assert tree_fingerprint([("p", a, "*.py")]) == tree_fingerprint([("p", b, "*.py")])
+    (b / "m.py").write_text("X = 2\n")
+    assert tree_fingerprint([("p", a, "*.py")]) != tree_fingerprint([("p", b, "*.py")])
+    (b / "m.py").write_text("X = 1\n")
+    (b / "n.py").write_text("")
+    assert tree_fingerprint([("p", a, "*.py")]) != tree_fingerprint([("p", b, "*.py")])
+    assert re.fullmatch(r"[0-9a-f]{16}", source_fingerprint())
 
 
 PRETEND_OTHER_VERSION = '''
@@ -463,11 +491,29 @@ def test_a_worker_of_another_version_is_refused_before_any_run(tmp_path):
                                            "duration=0.2", "--scheduler",
                                            cluster.scheduler_address, "--out",
                                            str(tmp_path / "b")])
+        # the same version from other source files (another checkout): refused too
+        from distributed import Client
+
+        with Client(cluster.scheduler_address) as client:
+            client.run(exec, PRETEND_OTHER_SOURCES, {})  # in the worker
+        with pytest.raises(InputError, match=r"worker tcp://127\.0\.0\.1:\d+ has hubo-cli "
+                                             r"sources 0{16} \(this client [0-9a-f]{16}\)"):
+            run_sweep(make_jobs("sim", [1], SHORT), tmp_path / "c",
+                      scheduler=cluster.scheduler_address)
     assert result.exit_code == 2, result.output
     lines = result.output.splitlines()
     assert lines[0].startswith("error: the Dask cluster does not run this client's versions")
     assert len(lines) == 2 and lines[1].startswith("hint: ") and "Traceback" not in result.output
     assert not list((tmp_path / "b").glob("*/summary.json"))
+    assert not list((tmp_path / "c").glob("*/summary.json"))
+
+
+PRETEND_OTHER_SOURCES = """
+import distributed.versions as versions
+import hubo_cli.resources as resources
+versions.get_package_info = versions.real_get_package_info  # its own version again
+resources.source_fingerprint = lambda: "0" * 16  # but another checkout's source files
+"""
 
 
 def test_the_dashboard_serves_and_its_link_is_printed(tmp_path, monkeypatch):

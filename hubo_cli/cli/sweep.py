@@ -39,8 +39,8 @@ def sweep(command: str, seeds: str, sets: tuple[str, ...], workers: int | None,
     Writes sweep.csv, sweep.png and one run folder per simulation. Every value, the scheduler's
     address and the sweep's size (more than 10,000 runs: --yes) are checked before anything
     runs. Ctrl-C cancels the simulations still running and keeps the finished rows, as does a
-    lost scheduler. The workers must run this client's versions of Dask, hubo-cli and its
-    numerics (checked before any run) and see --out at the same path. Each
+    lost scheduler. The workers must run this client's versions of Dask, hubo-cli (its source
+    files too) and its numerics (checked before any run) and see --out at the same path. Each
     row has the exit code its run alone gives. Exit code 0 when every run completed, the rows'
     code when they all have the same (4: every run refused in pre-flight), 1 otherwise, 2 for
     a bad value or mismatched worker versions, 3 when the scheduler cannot be reached or is
