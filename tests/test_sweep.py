@@ -242,22 +242,19 @@ def test_bad_values_are_refused_before_any_job(tmp_path, args):
 
 
 def test_a_run_refused_in_preflight_is_the_row_hubo_task_run_says(tmp_path):
-    """Out of reach at 900 mm: hubo task run refuses it (exit 4, nothing moved, no folder);
-    the sweep's rows say the same words and exit code, name no folder (none was made), and
-    the sweep whose every run was refused exits 4."""
+    """Out of reach at 900 mm: hubo task run refuses it (exit 4, nothing moved, no folder;
+    test_task_runs); the sweep's row says the same words (runner.preflight_refusal) and exit
+    code, names no folder (none was made), and the sweep whose every run was refused exits 4.
+    (A 20 mm square: few periods to solve.)"""
     out = tmp_path / "sweep"
     result = CliRunner().invoke(main, ["sweep", "cut-rectangle", "--seeds", "1", "--set",
                                        "wall_distance_mm=900", "--set", "speed_mm_s=40",
+                                       "--set", "width_mm=20", "--set", "height_mm=20",
                                        "--workers", "0", "--out", str(out), "--json"])
     assert result.exit_code == 4, result.output
-    rows = json.loads(result.output)["rows"]
-    single = CliRunner().invoke(main, ["task", "cut-rectangle", "--wall-distance", "900",
-                                       "--speed", "40", "--out", str(tmp_path / "single")])
-    assert single.exit_code == 4 and not (tmp_path / "single").exists()
-    said = next(line for line in single.output.splitlines() if line.startswith("error: "))
-    for row in rows:
-        assert (row["ended"], row["exit_code"], row["run_dir"]) == ("refused", 4, "")
-        assert "error: " + row["error"] == said
+    (row,) = json.loads(result.output)["rows"]
+    assert (row["ended"], row["exit_code"], row["run_dir"]) == ("refused", 4, "")
+    assert row["error"].startswith("cut-rectangle refused in pre-flight, nothing moved: step ")
     assert sorted(p.name for p in out.iterdir()) == [".hubo-run", "sweep.csv", "sweep.png"]
     with open(out / "sweep.csv") as f:
         assert [r["exit_code"] for r in csv.DictReader(f)] == ["4"]
