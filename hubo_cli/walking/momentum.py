@@ -41,6 +41,9 @@ DECIDE_S = 0.03  # [chosen] once the error passes TRIGGER_M, the capture point's
 EDGE_TIME_S = 0.2  # [chosen] ... approach would reach the edge within this (or it is past)
 RETREAT_M = 0.02  # [chosen] hand back once the capture point came back this far from its
                   # furthest past that edge
+PAST_M = 0.01  # [chosen] a push left alone (passed) starts it after all once the capture
+               # point is this far past the stance sole's outer edge (main's catches at 80 N:
+               # 3-5 mm past; its falls at 75-80 N: 14-15 mm, round 14)
 TRIGGER_M = 0.025  # [chosen] the capture point's error toward the stance sole's outer side
                    # that starts a watch (unpushed 1 m walks: at most 12.8 mm, round 10)
 VELOCITY_RAD_S = 2.3  # [chosen] under the walking set's 2.6 rad/s: the pattern's own hip
@@ -125,6 +128,7 @@ class MomentumStrategy:
         self.watch_s = 0.0  # watching: the push watched this long (s)
         self.watch_past_m = 0.0  # ... the capture point past the outer edge when it began
         self.past_max_m = -math.inf  # started: the capture point's furthest past that edge
+        self.late = False  # started past the edge (PAST_M), not by a watch
 
     @property
     def started(self) -> bool:
@@ -157,11 +161,19 @@ class MomentumStrategy:
                     self._start(stance, hip_roll_rad)
         elif self.phase == "passed" and not single:
             self.phase = "idle"
+        elif self.phase == "passed" and past_edge_m >= PAST_M:
+            # (the push left alone went on past the edge: the rest did not catch it)
+            self.late = True
+            self._start(stance, hip_roll_rad)
         if self.phase == "idle" and error <= TRIGGER_M:
             # (this single support under the trigger: a push in it is watched; a step that
             # begins with the error beyond it, the rebound of an earlier push, is not)
             self.phase, self.stance = "armed", stance
-        if self.started and math.isfinite(past_edge_m):
+        if self.started and math.isfinite(past_edge_m) and (not self.late or (
+                np.array_equal(self.offset_rad, self.goal_rad)
+                and not np.any(self.velocity_rad_s))):
+            # (a late start counts from the hips' arrival: the capture point they pull in while
+            # they move goes out again as they brake, and is not the push's end)
             self.past_max_m = max(self.past_max_m, past_edge_m)
         if self.phase == "acting" and not np.any(self.velocity_rad_s) and (
                 (all(support) and all(contact)) or self.past_max_m - past_edge_m > RETREAT_M):
