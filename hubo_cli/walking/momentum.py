@@ -15,14 +15,17 @@ one rolls the torso toward the fall, the swing one lifts the swing leg outward (
 pose; the plan's support). In a single support whose capture-point error from the pattern's was
 under TRIGGER_M, an error past it toward the stance sole's outer side starts a watch: DECIDE_S
 later, if the capture point would reach that sole's outer edge within EDGE_TIME_S at the speed
-it came (or is past it), the strategy starts; else that step is left alone (the ankle, the
-floor reach and the capture-point stop catch those pushes: round 10's 23 moments at 60 N, and
-main's catches at 100 N, never start it). A step that begins with the error already past
-TRIGGER_M (the rebound after a push) is not watched. Started, the swing hip roll abducts by
-SWING_AMPLITUDE_RAD (at most SWING_HIP_ROLL_MAX_RAD from zero: the hand hangs by the thigh)
-and STANCE_DELAY_S later the stance hip roll by STANCE_AMPLITUDE_RAD (its torque's reaction
-then meets the swing one's braking), each on a time-optimal profile (VELOCITY_RAD_S,
-ACCELERATION_RAD_S2: a ramp, never a jump) within the walking set's limits less
+it came (or is past it), the strategy starts; else that step's push is left alone (the ankle,
+the floor reach and the capture-point stop catch those pushes: round 10's 23 moments at 60 N,
+and main's catches at 100 N, never start it) unless, later in the same single support, the
+capture point goes PAST_M past that edge after all (a push a little weaker than the watch's
+starts, as seed 18's at 75-80 N, round 14: the rest could not catch it); such a late start
+counts the capture point's retreat only from the hips' arrival. A step that begins with the
+error already past TRIGGER_M (the rebound after a push) is not watched. Started, the swing hip
+roll abducts by SWING_AMPLITUDE_RAD (at most SWING_HIP_ROLL_MAX_RAD from zero: the hand hangs
+by the thigh) and STANCE_DELAY_S later the stance hip roll by STANCE_AMPLITUDE_RAD (its
+torque's reaction then meets the swing one's braking), each on a time-optimal profile
+(VELOCITY_RAD_S, ACCELERATION_RAD_S2: a ramp, never a jump) within the walking set's limits less
 LIMIT_MARGIN_RAD. They hold, and go back to zero at RETURN_VELOCITY_RAD_S and
 RETURN_ACCELERATION_RAD_S2 once the capture point has come back RETREAT_M from its furthest
 past the edge, or once both soles are planned down and in contact (the stop's stance). Once
@@ -97,10 +100,12 @@ PHASES = ("idle", "armed", "watching", "passed", "acting", "returning", "done")
   capture point would reach the outer edge within EDGE_TIME_S (or is past it), else passed. The
   support ended or changed: idle; no estimate past the edge: armed again.
 * ``passed``: this step's push was left alone (the ankle, the floor reach and the stop catch
-  it); idle once the single support ends.
+  it); idle once the single support ends; acting (a late start) if the capture point goes
+  PAST_M past the outer edge before.
 * ``acting``: the hip rolls go to their abductions (after their delays) and hold; returning
   once they stand still and either both soles are planned down and in contact or the capture
-  point came back RETREAT_M from its furthest past the edge.
+  point came back RETREAT_M from its furthest past the edge (a late start: its furthest since
+  the hips arrived).
 * ``returning``: both go back to zero; done once there and still.
 * ``done``: once per walk: nothing more.
 """
