@@ -30,7 +30,8 @@ LIMIT_MARGIN_RAD. They hold, and go back to zero at RETURN_VELOCITY_RAD_S and
 RETURN_ACCELERATION_RAD_S2 once the capture point has come back RETREAT_M from its furthest
 past the edge, or once both soles are planned down and in contact (the stop's stance). Once
 per walk. Measured: docs/history/walking.md, round 12 (100 N on round 10's 23 moments: 12
-without a fall against 5, portable 13 against 6; seeds 6, 10 and 18 of 1-20 still fall).
+without a fall against 5, portable 13 against 6; seeds 6, 10 and 18 of 1-20 still fall) and
+round 14 (the late start: seed 18 at 75-80 N stands where main falls).
 """
 
 from __future__ import annotations
@@ -45,8 +46,8 @@ EDGE_TIME_S = 0.2  # [chosen] ... approach would reach the edge within this (or 
 RETREAT_M = 0.02  # [chosen] hand back once the capture point came back this far from its
                   # furthest past that edge
 PAST_M = 0.01  # [chosen] a push left alone (passed) starts it after all once the capture
-               # point is this far past the stance sole's outer edge (main's catches at 80 N:
-               # 3-5 mm past; its falls at 75-80 N: 14-15 mm, round 14)
+               # point is this far past the stance sole's outer edge (main's catches at
+               # 75-80 N: 3.2-5.5 mm past; its falls: 15-56 mm; round 14)
 TRIGGER_M = 0.025  # [chosen] the capture point's error toward the stance sole's outer side
                    # that starts a watch (unpushed 1 m walks: at most 12.8 mm, round 10)
 VELOCITY_RAD_S = 2.3  # [chosen] under the walking set's 2.6 rad/s: the pattern's own hip
