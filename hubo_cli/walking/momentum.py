@@ -49,7 +49,8 @@ PAST_M = 0.01  # [chosen] a push left alone (passed) starts it after all once th
                # point is this far past the stance sole's outer edge (main's catches at
                # 75-80 N: 3.2-5.5 mm past; its falls: 15-56 mm; round 14)
 TRIGGER_M = 0.025  # [chosen] the capture point's error toward the stance sole's outer side
-                   # that starts a watch (unpushed 1 m walks: at most 12.8 mm, round 10)
+                   # that starts a watch (unpushed 1 m walks: at most 12.8 mm, round 10; on
+                   # round 14's main up to 31 mm, the capture point 158 mm or more inside)
 VELOCITY_RAD_S = 2.3  # [chosen] under the walking set's 2.6 rad/s: the pattern's own hip
                       # roll moves meanwhile
 ACCELERATION_RAD_S2 = 140.0  # [chosen] under the walking set's 150 rad/s^2
