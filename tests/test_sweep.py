@@ -260,6 +260,49 @@ def test_a_run_refused_in_preflight_is_the_row_hubo_task_run_says(tmp_path):
         assert [r["exit_code"] for r in csv.DictReader(f)] == ["4"]
 
 
+def test_a_run_stopped_on_an_error_is_the_row_hubo_sim_says(tmp_path, monkeypatch):
+    """The robot's state lost at period 20: hubo sim exits 3 with the DeviceError's message
+    (LoopResult.failure); the sweep's row is not completed and says the same, its measurements
+    and how the loop ended kept."""
+    from hubo_cli.drivers.sim import SimDriver
+    from hubo_cli.errors import DeviceError
+    from hubo_cli.sweep import run_job
+
+    step = SimDriver.step
+    calls = {"n": 0}
+
+    def lost(self):
+        calls["n"] += 1
+        if calls["n"] == 20:
+            raise DeviceError("lost the robot's state")
+        return step(self)
+
+    monkeypatch.setattr(SimDriver, "step", lost)
+    row = run_job(make_jobs("sim", [1], {"duration": [0.3]})[0], tmp_path)
+    assert (row.completed, row.ended, row.exit_code) == (False, "device", 3)
+    assert row.error == "lost the robot's state" and row.max_tilt_deg is not None
+    assert row.run_dir == str(tmp_path / row_name("sim", 1, duration=0.3))
+    assert sweep_exit_code([row]) == 3
+
+
+def row_name(command, seed, **parameters) -> str:
+    return Job(command, seed, tuple(parameters.items())).name
+
+
+def test_a_refused_job_names_no_folder_an_earlier_sweep_left(tmp_path):
+    """--out reused: an earlier sweep's run folder of the same job is there; a job refused
+    before its run (a bad parameter value) names no folder, and leaves that one alone."""
+    from hubo_cli.sweep import run_job
+
+    (job,) = make_jobs("cut-rectangle", [1], {"width_mm": [-20]})
+    earlier = tmp_path / job.name
+    earlier.mkdir()
+    (earlier / "summary.json").write_text("{}")
+    row = run_job(job, tmp_path)
+    assert (row.completed, row.ended, row.exit_code, row.run_dir) == (False, "error", 2, "")
+    assert (earlier / "summary.json").read_text() == "{}"
+
+
 def test_the_sweep_exits_with_its_rows_code_when_they_agree():
     def row(code: int) -> Row:
         return Row("cut-slot", 1, {}, completed=code == 0, exit_code=code)
