@@ -58,6 +58,9 @@ ROW_PACKAGES = ("hubo-cli", "numpy", "scipy", "pybullet", "pin", "ruckig", "numb
 # and hubo-cli's own source files (two checkouts of one version may differ): their fingerprint
 # (hubo_cli.resources.source_fingerprint), compared as if it were one more package
 SOURCES = "hubo-cli sources"
+# the versions equal, the files differ: reinstalling the same files would not help
+SOURCES_HINT = ("the versions match but the files differ: compare the checkouts' hubo_cli/*.py "
+                "and robots/ *.toml, *.urdf (git status: an edit or a stray file there counts)")
 
 
 @dataclass(frozen=True)
@@ -345,10 +348,12 @@ def _check_versions(client) -> None:
     if found:
         more = f" (and {len(found) - 1} more difference{'s' * (len(found) > 2)})" \
             if len(found) > 1 else ""
+        sources_only = all(f" {SOURCES} " in difference for difference in found)
         raise InputError(f"the Dask cluster does not run this client's versions: "
                          f"{found[0]}{more}; nothing ran",
-                         hint="install hubo-cli on every worker from the same checkout "
-                              "and lock: pip install -c requirements.lock -e .")
+                         hint=SOURCES_HINT if sources_only else
+                         "install hubo-cli on every worker from the same checkout and lock: "
+                         "pip install -c requirements.lock -e .")
 
 
 def _answers_as_dask(address: str) -> bool:

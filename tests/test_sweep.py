@@ -505,6 +505,51 @@ def test_the_source_fingerprint_tells_two_trees_apart(tmp_path):
     assert re.fullmatch(r"[0-9a-f]{16}", source_fingerprint())
 
 
+def test_stray_files_beside_the_robot_files_leave_the_fingerprint(tmp_path, monkeypatch):
+    """An editor's backup, its swap file or macOS's .DS_Store beside the robot files do not
+    change the workers' fingerprint (they made a same-commit worker refused); an edited robot
+    file or a new URDF does."""
+    import hubo_cli.resources as resources
+
+    robots = tmp_path / "robots"
+    (robots / "hubo2plus").mkdir(parents=True)
+    (robots / "hubo2plus" / "hubo2plus.toml").write_text("[robot]\n")
+    (robots / "hubo2plus" / "hubo2plus.urdf").write_text("<robot/>\n")
+    monkeypatch.setattr(resources, "data_dir", lambda folder: robots)
+    fingerprint = resources.source_fingerprint.__wrapped__
+    clean = fingerprint()
+    for stray in ("hubo2plus.toml~", ".hubo2plus.toml.swp", ".DS_Store", "notes.txt"):
+        (robots / "hubo2plus" / stray).write_text("x")
+    (robots / ".git").mkdir()
+    (robots / ".git" / "x.toml").write_text("x")
+    assert fingerprint() == clean
+    (robots / "hubo2plus" / "hubo2plus-old.urdf").write_text("<robot/>\n")
+    assert fingerprint() != clean
+    (robots / "hubo2plus" / "hubo2plus-old.urdf").unlink()
+    (robots / "hubo2plus" / "hubo2plus.toml").write_text("[robot]\nx = 1\n")
+    assert fingerprint() != clean
+
+
+def test_a_worker_with_other_files_of_the_same_version_is_told_so():
+    """Equal versions, other source files: the hint says the files differ (an edit or a stray
+    file), not to reinstall (which would install the same files again)."""
+    from hubo_cli.sweep import SOURCES_HINT, _check_versions
+
+    class Client:
+        def get_versions(self, packages):
+            def same():
+                return {"packages": {"python": "3.11.7.final.0", "hubo-cli": "0.1.0"}}
+
+            return {"client": same(), "scheduler": same(), "workers": {"tcp://h:1": same()}}
+
+        def run(self, function, on_error):
+            return {"tcp://h:1": "0" * 16}
+
+    with pytest.raises(InputError, match="has hubo-cli sources 0{16}") as refused:
+        _check_versions(Client())
+    assert refused.value.hint == SOURCES_HINT
+
+
 PRETEND_OTHER_VERSION = '''
 import distributed.versions as versions
 if not hasattr(versions, "real_get_package_info"):  # a preload may run more than once
