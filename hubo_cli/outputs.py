@@ -181,12 +181,20 @@ def replacing(path: str | Path, *, check: Callable[[], None] | None = None,
     temporary = Path(name)
     try:
         yield temporary
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(OSError, InputError):
             if keep_partial and temporary.stat().st_size and not os.path.lexists(path):
                 _rename(temporary, path, clobber=False)
         with contextlib.suppress(OSError):
             temporary.unlink()
+        if isinstance(exc, OSError) and exc.errno is not None and exc.filename is not None \
+                and os.fspath(exc.filename) == str(temporary):
+            # the user's file is what could not be written (a full disk), not a name they
+            # never gave (the temporary one is gone)
+            raise OSError(exc.errno, exc.strerror, str(path)) from None
+        if isinstance(exc, HuboError) and str(temporary) in exc.message:  # a writer's failure
+            exc.message = exc.message.replace(str(temporary), str(path))
+            exc.args = (str(exc),)
         raise
     try:
         if check is not None:

@@ -15,6 +15,9 @@ from hubo_cli.errors import ConfigError, quoted
 
 _PACKAGE_DIR = Path(__file__).resolve().parent
 _FOLDERS = ("robots", "tasks", "trajectories")
+# what the package reads from robots/: the robot's TOML (hubo_cli.model) and its URDFs (the
+# TOML names the plain one; the drill and physics variants sit beside it, hubo_cli.urdf)
+ROBOT_FILES = ("*.toml", "*.urdf")
 
 
 def data_dir(folder: str) -> Path:
@@ -50,11 +53,14 @@ def data_file(folder: str, relative: str) -> Path:
 def tree_fingerprint(trees: Sequence[tuple[str, Path, str]]) -> str:
     """A SHA-256 (its first 16 hex digits) of the files under each ``(label, root, glob
     pattern)``, by their paths relative to the root (with its label) and their bytes: equal
-    trees give equal fingerprints wherever they lie (``__pycache__`` is left out)."""
+    trees give equal fingerprints wherever they lie (``__pycache__`` and hidden files, an
+    editor's ``.name.swp`` or macOS's ``.DS_Store``, are left out)."""
     digest = hashlib.sha256()
     for label, root, pattern in trees:
         for path in sorted(p for p in root.rglob(pattern) if p.is_file()
-                           and "__pycache__" not in p.parts):
+                           and "__pycache__" not in p.parts
+                           and not any(part.startswith(".")
+                                       for part in p.relative_to(root).parts)):
             digest.update(f"{label}/{path.relative_to(root).as_posix()}\0".encode())
             digest.update(path.read_bytes())
             digest.update(b"\0")
@@ -64,9 +70,11 @@ def tree_fingerprint(trees: Sequence[tuple[str, Path, str]]) -> str:
 @functools.cache
 def source_fingerprint() -> str:
     """What decides a run beyond the version number: the package's Python source files and
-    the robot files it reads (``robots/``), hashed once per process (about 40 ms). Two
-    checkouts of the same version with different code differ here; ``hubo sweep`` compares it
-    between the client and every worker. The tasks are not in it (a sweep sends a task's
-    text with its jobs)."""
+    the robot files it reads from ``robots/`` (:data:`ROBOT_FILES`: the model's TOML and the
+    URDFs it names, nothing else there, so an editor's ``hubo2plus.toml~`` does not count),
+    hashed once per process (about 40 ms). Two checkouts of the same version with different
+    code differ here; ``hubo sweep`` compares it between the client and every worker. The
+    tasks are not in it (a sweep sends a task's text with its jobs)."""
+    robots = data_dir("robots")
     return tree_fingerprint([("hubo_cli", _PACKAGE_DIR, "*.py"),
-                             ("robots", data_dir("robots"), "*")])
+                             *(("robots", robots, pattern) for pattern in ROBOT_FILES)])

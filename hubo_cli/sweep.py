@@ -58,6 +58,9 @@ ROW_PACKAGES = ("hubo-cli", "numpy", "scipy", "pybullet", "pin", "ruckig", "numb
 # and hubo-cli's own source files (two checkouts of one version may differ): their fingerprint
 # (hubo_cli.resources.source_fingerprint), compared as if it were one more package
 SOURCES = "hubo-cli sources"
+# the versions equal, the files differ: reinstalling the same files would not help
+SOURCES_HINT = ("the versions match but the files differ: compare the checkouts' hubo_cli/*.py "
+                "and robots/ *.toml, *.urdf (git status: an edit or a stray file there counts)")
 
 
 @dataclass(frozen=True)
@@ -106,7 +109,9 @@ class Row:
     """What one simulation showed (the sweep table's columns).
 
     Attributes:
-        completed: the task completed (``sim``: the robot did not fall); False when refused.
+        completed: the task completed (``sim``: the robot did not fall); False when refused
+            or when the run stopped on an error (then :attr:`error` and :attr:`exit_code`
+            are that error's, as the run alone exits with it).
         estop: the sources of the first emergency stop (``+``-joined), "" when none.
         hole_rms_mm: the hole's RMS error in the wall plane (tasks that cut), else None.
         min_support_margin_mm: the smallest distance of the capture point inside the support
@@ -117,7 +122,8 @@ class Row:
         ended: how the control loop ended (or ``refused``: refused for safety before
             anything moved; ``error``: another error, :attr:`exit_code` says which).
         error: the error message, "" when none: what ``hubo task run`` (``hubo sim``) says.
-        run_dir: the job's run folder, "" when it made none (refused before any run).
+        run_dir: the job's run folder, "" when it wrote none (refused before any run; a
+            folder an earlier sweep left in a reused ``--out`` is not named).
         exit_code: the run's outcome as the README's exit codes say it (for a task, what
             ``hubo task run`` exits with): 0 completed, 1 not completed (or another error),
             2 bad input or configuration, 3 device trouble, 4 refused for safety (nothing
@@ -342,10 +348,12 @@ def _check_versions(client) -> None:
     if found:
         more = f" (and {len(found) - 1} more difference{'s' * (len(found) > 2)})" \
             if len(found) > 1 else ""
+        sources_only = all(f" {SOURCES} " in difference for difference in found)
         raise InputError(f"the Dask cluster does not run this client's versions: "
                          f"{found[0]}{more}; nothing ran",
-                         hint="install hubo-cli on every worker from the same checkout "
-                              "and lock: pip install -c requirements.lock -e .")
+                         hint=SOURCES_HINT if sources_only else
+                         "install hubo-cli on every worker from the same checkout and lock: "
+                         "pip install -c requirements.lock -e .")
 
 
 def _answers_as_dask(address: str) -> bool:
@@ -435,10 +443,16 @@ def run_job(job: Job, out_dir: str | Path, task: tuple[str, str] | None = None) 
         job = replace(job, task=task)
     t0 = time.perf_counter()
     run_dir = Path(out_dir) / job.name
+    before = _folder_state(run_dir)  # a reused --out may hold an earlier sweep's folder
     try:
-        row = _run_sim(job, run_dir) if job.command == SIM_COMMAND else _run_task(job, run_dir)
+        row, failure = (_run_sim if job.command == SIM_COMMAND else _run_task)(job, run_dir)
+        if failure is not None:  # the loop stopped on an error: what the run alone exits with
+            row = error_row(job, failure, measured=row)
     except HuboError as exc:
         row = error_row(job, exc)
+        # refused before its run wrote anything: an earlier sweep's folder is not this job's
+        if _folder_state(run_dir) == before:
+            run_dir = None
     row.completed = row.completed and row.ended != "interrupted"  # Ctrl-C or SIGTERM
     if row.ended == "interrupted":
         row.exit_code = EXIT_INTERRUPTED
@@ -446,15 +460,39 @@ def run_job(job: Job, out_dir: str | Path, task: tuple[str, str] | None = None) 
         row.exit_code = EXIT_NOT_COMPLETED
     row.wall_clock_s = time.perf_counter() - t0
     # a run refused before it wrote anything leaves no folder (as hubo task run): none named
-    row.run_dir = str(run_dir) if run_dir.is_dir() else ""
+    row.run_dir = str(run_dir) if run_dir is not None and run_dir.is_dir() else ""
     return row
 
 
-def error_row(job: Job, exc: BaseException) -> Row:
+def _folder_state(folder: Path) -> dict[str, tuple[int, int]]:
+    """Each file's name -> (modification time in ns, size) directly in ``folder`` (its run
+    marker left out: taking the folder rewrites it), {} when there is no such folder: what a
+    job wrote there shows as a difference."""
+    from hubo_cli.runs import MARKER
+
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return {}
+    state = {}
+    for entry in entries:
+        if entry.name != MARKER:
+            with contextlib.suppress(OSError):
+                info = entry.stat(follow_symlinks=False)
+                state[entry.name] = (info.st_mtime_ns, info.st_size)
+    return state
+
+
+def error_row(job: Job, exc: BaseException, measured: Row | None = None) -> Row:
     """The row of a job that ended with ``exc``: ``refused`` for a safety refusal (nothing
-    moved), else ``error``; the message and exit code are what the run alone gives."""
+    moved), else ``error``; the message and exit code are what the run alone gives. With
+    ``measured``, the row of a run whose loop stopped on ``exc`` (its
+    :meth:`~hubo_cli.control.loop.LoopResult.failure`, e.g. the robot's state lost): its
+    measurements and ``ended`` kept, not completed, with that message and exit code."""
     code = exc.exit_code if isinstance(exc, HuboError) else EXIT_NOT_COMPLETED
     message = str(exc) if isinstance(exc, HuboError) else f"{type(exc).__name__}: {exc}"
+    if measured is not None:
+        return replace(measured, completed=False, error=message, exit_code=code)
     return Row(job.command, job.seed, dict(job.parameters), completed=False,
                ended="refused" if isinstance(exc, SafetyError) else "error", error=message,
                exit_code=code)
@@ -472,7 +510,7 @@ def _first_stop(summary: dict) -> str:
     return "+".join(stops[0]["sources"]) if stops else ""
 
 
-def _run_sim(job: Job, run_dir: Path) -> Row:
+def _run_sim(job: Job, run_dir: Path) -> tuple[Row, HuboError | None]:
     from hubo_cli.control.pipeline import SafetyProfile
     from hubo_cli.experiments.standing import stand
     from hubo_cli.model import load_model
@@ -486,10 +524,11 @@ def _run_sim(job: Job, run_dir: Path) -> Row:
     return Row(job.command, job.seed, dict(job.parameters), completed=not result.fell,
                estop=_first_stop(summary),
                min_support_margin_mm=summary["min_support_margin_mm"],
-               max_tilt_deg=summary["max_torso_tilt_deg"], ended=summary["ended"])
+               max_tilt_deg=summary["max_torso_tilt_deg"], ended=summary["ended"]), \
+        result.failure
 
 
-def _run_task(job: Job, run_dir: Path) -> Row:
+def _run_task(job: Job, run_dir: Path) -> tuple[Row, HuboError | None]:
     from hubo_cli.tasks.runner import check_task, run_experiment, run_task
 
     spec = job.spec()
@@ -505,7 +544,8 @@ def _run_task(job: Job, run_dir: Path) -> Row:
     return Row(job.command, job.seed, dict(job.parameters), completed=bool(completed),
                estop=_first_stop(summary), hole_rms_mm=summary.get("hole_rms_error_mm"),
                min_support_margin_mm=summary.get("min_support_margin_mm"),
-               max_tilt_deg=summary["max_torso_tilt_deg"], ended=summary["ended"])
+               max_tilt_deg=summary["max_torso_tilt_deg"], ended=summary["ended"]), \
+        done.loop.failure(done.run_dir)
 
 
 def _read_summary(run_dir: Path) -> dict:

@@ -260,6 +260,49 @@ def test_a_run_refused_in_preflight_is_the_row_hubo_task_run_says(tmp_path):
         assert [r["exit_code"] for r in csv.DictReader(f)] == ["4"]
 
 
+def test_a_run_stopped_on_an_error_is_the_row_hubo_sim_says(tmp_path, monkeypatch):
+    """The robot's state lost at period 20: hubo sim exits 3 with the DeviceError's message
+    (LoopResult.failure); the sweep's row is not completed and says the same, its measurements
+    and how the loop ended kept."""
+    from hubo_cli.drivers.sim import SimDriver
+    from hubo_cli.errors import DeviceError
+    from hubo_cli.sweep import run_job
+
+    step = SimDriver.step
+    calls = {"n": 0}
+
+    def lost(self):
+        calls["n"] += 1
+        if calls["n"] == 20:
+            raise DeviceError("lost the robot's state")
+        return step(self)
+
+    monkeypatch.setattr(SimDriver, "step", lost)
+    row = run_job(make_jobs("sim", [1], {"duration": [0.3]})[0], tmp_path)
+    assert (row.completed, row.ended, row.exit_code) == (False, "device", 3)
+    assert row.error == "lost the robot's state" and row.max_tilt_deg is not None
+    assert row.run_dir == str(tmp_path / row_name("sim", 1, duration=0.3))
+    assert sweep_exit_code([row]) == 3
+
+
+def row_name(command, seed, **parameters) -> str:
+    return Job(command, seed, tuple(parameters.items())).name
+
+
+def test_a_refused_job_names_no_folder_an_earlier_sweep_left(tmp_path):
+    """--out reused: an earlier sweep's run folder of the same job is there; a job refused
+    before its run (a bad parameter value) names no folder, and leaves that one alone."""
+    from hubo_cli.sweep import run_job
+
+    (job,) = make_jobs("cut-rectangle", [1], {"width_mm": [-20]})
+    earlier = tmp_path / job.name
+    earlier.mkdir()
+    (earlier / "summary.json").write_text("{}")
+    row = run_job(job, tmp_path)
+    assert (row.completed, row.ended, row.exit_code, row.run_dir) == (False, "error", 2, "")
+    assert (earlier / "summary.json").read_text() == "{}"
+
+
 def test_the_sweep_exits_with_its_rows_code_when_they_agree():
     def row(code: int) -> Row:
         return Row("cut-slot", 1, {}, completed=code == 0, exit_code=code)
@@ -460,6 +503,51 @@ def test_the_source_fingerprint_tells_two_trees_apart(tmp_path):
     (b / "n.py").write_text("")
     assert tree_fingerprint([("p", a, "*.py")]) != tree_fingerprint([("p", b, "*.py")])
     assert re.fullmatch(r"[0-9a-f]{16}", source_fingerprint())
+
+
+def test_stray_files_beside_the_robot_files_leave_the_fingerprint(tmp_path, monkeypatch):
+    """An editor's backup, its swap file or macOS's .DS_Store beside the robot files do not
+    change the workers' fingerprint (they made a same-commit worker refused); an edited robot
+    file or a new URDF does."""
+    import hubo_cli.resources as resources
+
+    robots = tmp_path / "robots"
+    (robots / "hubo2plus").mkdir(parents=True)
+    (robots / "hubo2plus" / "hubo2plus.toml").write_text("[robot]\n")
+    (robots / "hubo2plus" / "hubo2plus.urdf").write_text("<robot/>\n")
+    monkeypatch.setattr(resources, "data_dir", lambda folder: robots)
+    fingerprint = resources.source_fingerprint.__wrapped__
+    clean = fingerprint()
+    for stray in ("hubo2plus.toml~", ".hubo2plus.toml.swp", ".DS_Store", "notes.txt"):
+        (robots / "hubo2plus" / stray).write_text("x")
+    (robots / ".git").mkdir()
+    (robots / ".git" / "x.toml").write_text("x")
+    assert fingerprint() == clean
+    (robots / "hubo2plus" / "hubo2plus-old.urdf").write_text("<robot/>\n")
+    assert fingerprint() != clean
+    (robots / "hubo2plus" / "hubo2plus-old.urdf").unlink()
+    (robots / "hubo2plus" / "hubo2plus.toml").write_text("[robot]\nx = 1\n")
+    assert fingerprint() != clean
+
+
+def test_a_worker_with_other_files_of_the_same_version_is_told_so():
+    """Equal versions, other source files: the hint says the files differ (an edit or a stray
+    file), not to reinstall (which would install the same files again)."""
+    from hubo_cli.sweep import SOURCES_HINT, _check_versions
+
+    class Client:
+        def get_versions(self, packages):
+            def same():
+                return {"packages": {"python": "3.11.7.final.0", "hubo-cli": "0.1.0"}}
+
+            return {"client": same(), "scheduler": same(), "workers": {"tcp://h:1": same()}}
+
+        def run(self, function, on_error):
+            return {"tcp://h:1": "0" * 16}
+
+    with pytest.raises(InputError, match="has hubo-cli sources 0{16}") as refused:
+        _check_versions(Client())
+    assert refused.value.hint == SOURCES_HINT
 
 
 PRETEND_OTHER_VERSION = '''

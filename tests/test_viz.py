@@ -256,6 +256,52 @@ def _read_mcap(path: Path) -> dict:
     return out
 
 
+def test_a_video_ffmpeg_could_not_finish_is_refused_and_the_old_file_stays(scene, tmp_path,
+                                                                           monkeypatch):
+    """ffmpeg that fails at its end (the index, on a full disk) exits with an error imageio's
+    writer does not raise: the finished file is checked (it was renamed over the user's file,
+    exit 0, unplayable). A full disk is ENOSPC naming the user's file (exit 3), otherwise one
+    line naming it; the old file stays, no temporary file is left."""
+    import errno
+    import shutil
+
+    import imageio_ffmpeg
+
+    from hubo_cli.errors import HuboError
+    from hubo_cli.outputs import replacing, writer_failure
+    from hubo_cli.viz.video import check_mp4, render_video
+
+    write_frames = imageio_ffmpeg.write_frames
+
+    class CutShort:  # ffmpeg's writer, the file then cut as a full disk leaves it
+        def __init__(self, path, *args, **kwargs):
+            self.path, self.writer = path, write_frames(path, *args, **kwargs)
+
+        def send(self, frame):
+            return self.writer.send(frame)
+
+        def close(self):
+            self.writer.close()
+            check_mp4(self.path)  # whole until here
+            os.truncate(self.path, os.path.getsize(self.path) - 100)
+
+    monkeypatch.setattr(imageio_ffmpeg, "write_frames", CutShort)
+    old = tmp_path / "old.mp4"
+    old.write_text("OLD")
+    usage = shutil.disk_usage(tmp_path)
+    monkeypatch.setattr(shutil, "disk_usage", lambda path: usage._replace(free=1000))
+    with pytest.raises(OSError) as full, replacing(old) as temporary:
+        render_video(scene, temporary, speed=1.0, width=64, height=48, start_s=0.0, end_s=0.1)
+    assert (full.value.errno, full.value.filename) == (errno.ENOSPC, str(old))
+    monkeypatch.setattr(shutil, "disk_usage", lambda path: usage._replace(free=10**10))
+    with pytest.raises(HuboError) as stopped, replacing(old) as temporary:
+        raise writer_failure(temporary, "ffmpeg", OSError("the MP4 is incomplete"))
+    assert str(stopped.value) == f"cannot write {old}: ffmpeg stopped (the MP4 is incomplete)"
+    assert old.read_text() == "OLD" and [p.name for p in tmp_path.iterdir()] == ["old.mp4"]
+    with pytest.raises(OSError, match="no index"):
+        check_mp4(old)
+
+
 def test_export_rrd_verifies_with_blueprint_and_mcap_reads_back(scene, run_dir, tmp_path):
     from hubo_cli.viz.mcap_export import LAYOUT_PATH, METADATA_NAME
     from hubo_cli.viz.scene import events, run_metadata

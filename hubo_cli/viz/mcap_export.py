@@ -27,6 +27,7 @@ Import from file) shows the 3D panel, the plots and the event log.
 
 from __future__ import annotations
 
+import logging
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -62,10 +63,18 @@ def export_mcap(scene: RunScene, out: str | Path) -> McapResult:
         HuboError: the SDK's writer stopped otherwise.
     """
     foxglove = require("foxglove", "the MCAP file")
+    # after a failed write the SDK logs one line per message it is still given (13,830 lines
+    # of "McapError(AttemptedWriteAfterFailure)" for a 20 mm cut on a full disk); the
+    # failure is raised once, below
+    sdk_log = logging.getLogger("foxglove")
+    level = sdk_log.level
+    sdk_log.setLevel(logging.CRITICAL + 1)
     try:
         return _write_mcap(foxglove, scene, out)
     except RuntimeError as exc:  # the SDK's writer stopped (FoxgloveError: an I/O error)
         raise writer_failure(out, "the MCAP writer", exc) from None
+    finally:
+        sdk_log.setLevel(level)
 
 
 def _write_mcap(foxglove, scene: RunScene, out: str | Path) -> McapResult:

@@ -361,12 +361,49 @@ def render_video(scene: RunScene, out: str | Path, *, speed: float | None = None
                         on_frame(i + 1, len(periods))
             finally:
                 writer.close()
+            # ffmpeg that fails at the end (its index, the trailer, on a full disk) exits with
+            # an error the writer does not raise: the file itself says whether it is whole
+            check_mp4(out)
         except OSError as exc:  # ffmpeg stopped (a full disk: a broken pipe, pages of text)
             raise writer_failure(out, "ffmpeg", exc) from None
         renderer = "egl" if replay.egl else "tiny"
     return VideoResult(out, len(periods), width, height, speed,
                        float(scene.t_s[periods[-1]] - scene.t_s[0]),
                        time.perf_counter() - started, renderer)
+
+
+def check_mp4(path: str | Path) -> None:
+    """The MP4 file at ``path`` is whole: its top-level boxes (ISO 14496-12: a 32-bit size,
+    or 1 and a 64-bit one, then the type) cover the file exactly, and the index (``moov``) and
+    the frames (``mdat``) are among them. A file ffmpeg left when it failed at the end (a full
+    disk while it wrote the index or moved it to the front for ``+faststart``) is cut short
+    or has no index: no player opens it.
+
+    Raises:
+        OSError: it is not (or cannot be read).
+    """
+    import struct
+
+    found, offset = set(), 0
+    with open(path, "rb") as f:
+        size_bytes = f.seek(0, 2)
+        while offset < size_bytes:
+            f.seek(offset)
+            header = f.read(16)
+            if len(header) < 8:
+                break
+            size, kind = struct.unpack(">I4s", header[:8])
+            if size == 1 and len(header) == 16:
+                size = struct.unpack(">Q", header[8:])[0]
+            elif size == 0:  # the last box runs to the end of the file
+                size = size_bytes - offset
+            if size < 8 or offset + size > size_bytes:
+                break
+            found.add(kind)
+            offset += size
+    if offset != size_bytes or not {b"moov", b"mdat"} <= found:
+        raise OSError(f"the MP4 is incomplete ({size_bytes:,} bytes, "
+                      f"{'no index' if b'moov' not in found else 'cut short'})")
 
 
 def render_still(scene: RunScene, out: str | Path, k: int | None = None, *,
