@@ -471,6 +471,7 @@ class WalkTarget(Target):
         self.params = params
         self.goal_relative = goal
         self.q_start = np.asarray(q_start_rad, dtype=float)
+        self._sent_q = self.q_start  # the joints last sent (a correction starts from them)
         self.T_world_neck_start = T_world_neck_start
         self.store: Store | None = None
         self.placed = True
@@ -593,13 +594,11 @@ class WalkTarget(Target):
                          toe_heel=self.toe_heel, sole=self.model.feet)
         held = self.gait is not None and gait.toe_heel is None
         if held:  # a correction: its lead-in moves the soles from where the legs hold them
-            played = max(min(self.k, self.gait.n) - 1, 0)  # the last row played
-            goals = self._T_neck_soles[played].copy()  # with the stabilizer's last correction
-            if self.stabilizer is not None:
-                offset_x, offset_y = self.torso_offset.offset_m.tolist()
-                for column, side in enumerate(SIDES):
-                    goals[column, :3, 3] += self._R_neck_world[played] @ np.array(
-                        (-offset_x, -offset_y, self.touchdowns[side].lift_m))
+            # the soles where the joints last sent hold them (the stabilizer's corrections
+            # in): rebuilt as the pattern's soles moved by the torso offset and the lifts,
+            # they missed what the legs' correction had reached (it lags, LEG_STEP_RAD)
+            goals = np.stack([body.legs[SIDE_LEG[side]].fk(
+                self._sent_q[body.slices[SIDE_LEG[side]]]) for side in SIDES])
             lead = _blend_from_held(gait, T_world_neck @ goals)
         self._reaimed = -1
         self._reaimed_m = {side: np.zeros(2) for side in SIDES}
@@ -1245,6 +1244,7 @@ class WalkTarget(Target):
         q = plan.q_rad[k]
         if self.stabilizer is not None:
             q = self._stabilized(k, q.copy(), zmp if math.isfinite(outside) else None)
+        self._sent_q = q
         rows = self._rows
         zmp_x, zmp_y = zmp[:2].tolist()
         support = rows["support"][k]
