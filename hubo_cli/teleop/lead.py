@@ -334,11 +334,16 @@ def tracking_target(v_goal_rad_s: np.ndarray, q_target_rad: np.ndarray, q_rad: n
     moving at ``v_goal_rad_s`` (zero: not followed): :func:`reachable_velocity` at the goal
     blended with the intercept of the goal's prediction (its velocity decaying with the time
     constant ``decay_s``, s, one for every joint or per joint; see DECAY_S); and the
-    intercept's share (0: the goal and the reachable velocity, as they were)."""
-    out_q, out_v = np.empty(len(v_goal_rad_s)), np.empty(len(v_goal_rad_s))
+    intercept's share (0: the goal and the reachable velocity, as they were). A ``decay_s``
+    array of the joints' length is taken as it is: a caller calling every period keeps one
+    (not a new numpy ``full`` a call)."""
+    n = len(v_goal_rad_s)
+    out_q, out_v = np.empty(n), np.empty(n)
+    decay = (kernel_array(decay_s) if type(decay_s) is np.ndarray and decay_s.shape == (n,)
+             else np.full(n, decay_s, dtype=float))
     share = _tracking_target(kernel_array(v_goal_rad_s), kernel_array(q_target_rad),
                              kernel_array(q_rad), kernel_array(v_rad_s), limits.lower_rad,
                              limits.upper_rad, limits.velocity_rad_s,
-                             limits.acceleration_rad_s2, limits.jerk_rad_s3,
-                             np.full(len(v_goal_rad_s), decay_s, dtype=float), out_q, out_v)
+                             limits.acceleration_rad_s2, limits.jerk_rad_s3, decay, out_q,
+                             out_v)
     return out_q, out_v, share

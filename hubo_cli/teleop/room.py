@@ -326,3 +326,4 @@ def _compile_kernels() -> None:
                    np.empty((6, 6)), np.empty(6))
     clipped_step(np.zeros(24), 0, zeros, 1.0, zeros, zeros, np.empty(24))
     goal_within(eye, eye, STILL_GOAL_M, _STILL_GOAL_COS)
+    branch_box(zeros, 0, np.zeros(3), zeros - 1.0, zeros + 1.0, np.empty(6), np.empty(6))

@@ -69,7 +69,7 @@ from hubo_cli.input.device import InputDevice
 from hubo_cli.kinematics.arm_reach import ArmReach, BranchMove, ReachSettings
 from hubo_cli.kinematics.choice import STATUS_NAMES
 from hubo_cli.kinematics.conditioning import SingularityScale, condition_number
-from hubo_cli.kinematics.dh import kernel_array, pose_error
+from hubo_cli.kinematics.dh import invert4, kernel_array, mul4, pose_error
 from hubo_cli.kinematics.interpolate import PosePath
 from hubo_cli.kinematics.reach import branch_of
 from hubo_cli.kinematics.torso import CorrectionSettings, MeasuredTorso, TorsoCorrection
@@ -267,6 +267,7 @@ class TeleopTarget(Target):
         # (its limits, set each period to its state) to preview the arm's way with
         self._trackers: dict[str, JointTracker] | None = None
         self._goal_velocity: dict[str, GoalVelocity] = {}  # and the goals' velocities
+        self._decay_s: dict[str, np.ndarray] = {}  # and DECAY_S per joint, for tracking_target
         self._conditions: dict[str, tuple] = {}  # arm -> the last (joints' bytes, condition
         # number)s
         if self.reach_settings.mode == "nearest" and self.reach_settings.collision_room_m > 0:
@@ -313,7 +314,8 @@ class TeleopTarget(Target):
 
     def _compile_kernels(self) -> None:
         """Call each compiled per-period kernel once: compiled (or loaded from numba's cache)
-        here, before the loop runs, and not in its first operating period."""
+        here, before the loop runs, and not in its first operating period (a kernel's first
+        load takes milliseconds: a period's budget is 5 ms)."""
         zeros = np.zeros(6)
         limits = JointLimits(zeros - 1.0, zeros + 1.0, zeros + 1.0, zeros + 1.0, zeros + 1.0)
         goal_velocity = GoalVelocity(limits, self.dt_guard_s)
@@ -324,12 +326,17 @@ class TeleopTarget(Target):
         tilt_rad(np.array([1.0, 0.0, 0.0, 0.0]))
         max_abs_difference(zeros, zeros)
         free_goal(_EYE4, _EYE4, _EYE4, _EYE4, 1.0, 1.0, np.empty((4, 4)))
+        pose_error(_EYE4, _EYE4)  # a moved arm's clear pose
+        invert4(_EYE4, np.empty((4, 4)))  # the measured torso's stance, placed once
+        mul4(_EYE4, _EYE4, np.empty((4, 4)))  # the legs' goals (WholeBody.legs_at)
         for reach in self.reach.values():
             limb = reach.limb
             condition_number(limb, zeros)
-            smoothing = ArmReach(limb, reach.settings)
+            smoothing = ArmReach(limb, reach.settings)  # a throwaway: the arm's own untouched
             smoothing.smoothed(_EYE4, 0.0)  # the first goal starts it, the second is smoothed
             smoothing.smoothed(_EYE4, 0.0)
+            smoothing.start(zeros)  # the branch, then the solve on it
+            smoothing.solve_into(_EYE4, zeros, np.empty(6))
             path_swing_m(np.zeros((3, 6)), *limb.fk_chain)
             traded_goal(zeros + 0.1, zeros + 0.1, zeros, zeros, limits, limb.fk_chain)
             hand_errors(zeros, *limb.fk_chain, False, 0.0, _EYE4, _EYE4, True, np.empty((4, 4)))
@@ -417,7 +424,8 @@ class TeleopTarget(Target):
             following = self._following(arm)
             v_goal = self._goal_velocity[arm].update(target, following)
             hand = self.hands.get(arm)
-            decay = DECAY_S  # a returning hand far behind: the goal's own decay (reach_lead)
+            decay = self._decay_s[arm]  # DECAY_S; a returning hand far behind: the goal's own
+            # decay (reach_lead)
             if hand is not None and hand.returning and hand.behind_m >= RETURN_BEHIND_M:
                 decay = self._goal_velocity[arm].decay_s(DECAY_S, RETURN_DECAY_S)
             traded = 0
@@ -510,6 +518,8 @@ class TeleopTarget(Target):
                               for arm in self.arms}
             self._goal_velocity = {arm: GoalVelocity(states[arm].limits, states[arm].dt_s)
                                    for arm in self.arms}
+            self._decay_s = {arm: np.full(states[arm].limits.size, DECAY_S)  # (read only)
+                             for arm in self.arms}
         for arm, reach in self.reach.items():
             reach.start(self.q_target[self.slices[arm]])
 
