@@ -67,6 +67,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterator, Sequence
+from dataclasses import replace
 
 import numba as nb
 import numpy as np
@@ -362,6 +363,25 @@ def _blend_from_held(gait: Gait, T_world_held: np.ndarray) -> int:
     return lead
 
 
+def _torso_lead(gait: Gait, lead: int, R_world_held: np.ndarray,
+                lean_rad_per_m: float) -> np.ndarray:
+    """A correction's lead-in's torso turn (:attr:`Gait.torso_lead_rad`, ``lead`` rows):
+    from the estimated torso ``R_world_held`` the legs hold the soles from onto the pattern's
+    own heading and lean (:func:`~hubo_cli.walking.body.lean_rad`), on the soles' quintic.
+    The pattern's first torso leans toward the estimated CoM, which the stabilizer's torso
+    offset had moved sideways (2 rad/m x 23 mm: 46 mrad of roll where the robot stood
+    upright); started there, the legs' targets jumped (docs/history/walking.md, round 14)."""
+    right, left = gait.feet["right"][0], gait.feet["left"][0]
+    yaw = right[3] + wrap_angle(left[3] - right[3]) / 2
+    c, s = math.cos(yaw), math.sin(yaw)
+    com = gait.com.com_m[0]
+    sideways = -s * (com[0] - (right[0] + left[0]) / 2) + c * (com[1] - (right[1] + left[1]) / 2)
+    R_pattern = pin.rpy.rpyToMatrix(-lean_rad_per_m * sideways, 0.0, yaw)
+    turn = pin.log3(R_pattern.T @ R_world_held)
+    s = smoothstep5((np.arange(lead) + 1.0) / lead)[:, None]
+    return (1.0 - s) * turn
+
+
 def planned_contacts(gait: Gait) -> list[tuple[Contact | None, Contact | None]]:
     """Per period the soles the pattern has on the ground as the force distribution takes
     them (right, left; None in the air): where the footstep stands, its reference CoP (the
@@ -600,6 +620,8 @@ class WalkTarget(Target):
             goals = np.stack([body.legs[SIDE_LEG[side]].fk(
                 self._sent_q[body.slices[SIDE_LEG[side]]]) for side in SIDES])
             lead = _blend_from_held(gait, T_world_neck @ goals)
+            gait = replace(gait, torso_lead_rad=_torso_lead(
+                gait, lead, T_world_neck[:3, :3], self.params.lean_rad_per_m))
         self._reaimed = -1
         self._reaimed_m = {side: np.zeros(2) for side in SIDES}
         self._moves_before = self.shifts + self.touchdowns_early  # (:meth:`_reaim`)
@@ -1181,7 +1203,9 @@ class WalkTarget(Target):
                 and self._pending is None and self.corrections_left > 0 and not self.arrived():
             self.corrections_left -= 1
             self.last_step_end_s = self.walking_s
-            self._plan(self.plan.q_rad[-1], t_s)
+            # from the joints last sent: the CoM where the legs hold it (the plan's last
+            # row missed the stabilizer's correction: portable seed 1's soles jumped 6 mm)
+            self._plan(self._sent_q, t_s)
         elif self.phase in ("walk", "stopping"):  # a stop's last step follows it too
             if self.phase == "walk":
                 self._reaim(t_s)
