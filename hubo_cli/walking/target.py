@@ -363,6 +363,19 @@ def _blend_from_held(gait: Gait, T_world_held: np.ndarray) -> int:
     return lead
 
 
+def _levelled(R_world_neck: np.ndarray, R_neck_soles: np.ndarray) -> np.ndarray:
+    """The torso's orientation that sets both soles (``R_neck_soles``, right and left, as the
+    legs hold them) flat on the floor, each at the heading ``R_world_neck`` (the estimate) gives
+    it; their mean. The pattern's soles are flat: from the estimated torso's tilt, the ankles'
+    targets stepped by it at a correction's start (10-25 mrad; docs/history/walking.md,
+    round 14)."""
+    each = []
+    for R_neck_sole in R_neck_soles:
+        R = R_world_neck @ R_neck_sole
+        each.append(pin.rpy.rpyToMatrix(0.0, 0.0, math.atan2(R[1, 0], R[0, 0])) @ R_neck_sole.T)
+    return each[0] @ pin.exp3(0.5 * pin.log3(each[0].T @ each[1]))
+
+
 def _torso_lead(gait: Gait, lead: int, R_world_held: np.ndarray,
                 lean_rad_per_m: float) -> np.ndarray:
     """A correction's lead-in's torso turn (:attr:`Gait.torso_lead_rad`, ``lead`` rows):
@@ -605,6 +618,14 @@ class WalkTarget(Target):
         T_world_neck[2, 3] = self.T_world_neck_start[2, 3] if self.gait is None \
             else self.plan.T_world_neck[-1, 2, 3]
         body = WalkingBody(self.model, q_rad, T_world_neck, self.params.lean_rad_per_m)
+        goals = None
+        if self.gait is not None and self.toe_heel is None:  # a correction (held, below)
+            # the soles where the joints last sent hold them (the stabilizer's corrections
+            # in): rebuilt as the pattern's soles moved by the torso offset and the lifts,
+            # they missed what the legs' correction had reached (it lags, LEG_STEP_RAD)
+            goals = np.stack([body.legs[SIDE_LEG[side]].fk(
+                self._sent_q[body.slices[SIDE_LEG[side]]]) for side in SIDES])
+            T_world_neck[:3, :3] = _levelled(T_world_neck[:3, :3], goals[:, :3, :3])
         sole_z = float(store[T_WORLD_SOLES][0, 2, 3])
         com = body.com_in_neck(q_rad)
         com_world = T_world_neck[:3, :3] @ com + T_world_neck[:3, 3]
@@ -612,13 +633,8 @@ class WalkTarget(Target):
                          self.model.control_period_s, float(com_world[2]) - sole_z, sole_z,
                          self.model.feet.forward_m, com_start_m=com_world[:2],
                          toe_heel=self.toe_heel, sole=self.model.feet)
-        held = self.gait is not None and gait.toe_heel is None
+        held = goals is not None and gait.toe_heel is None
         if held:  # a correction: its lead-in moves the soles from where the legs hold them
-            # the soles where the joints last sent hold them (the stabilizer's corrections
-            # in): rebuilt as the pattern's soles moved by the torso offset and the lifts,
-            # they missed what the legs' correction had reached (it lags, LEG_STEP_RAD)
-            goals = np.stack([body.legs[SIDE_LEG[side]].fk(
-                self._sent_q[body.slices[SIDE_LEG[side]]]) for side in SIDES])
             lead = _blend_from_held(gait, T_world_neck @ goals)
             gait = replace(gait, torso_lead_rad=_torso_lead(
                 gait, lead, T_world_neck[:3, :3], self.params.lean_rad_per_m))
