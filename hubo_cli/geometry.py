@@ -308,6 +308,22 @@ def matrix_to_quat_wxyz(R) -> np.ndarray:
     return _each(_matrices_to_quats, R, (3, 3), (4,))
 
 
+def unit_quats(q) -> tuple[np.ndarray, np.ndarray]:
+    """Quaternions (N, 4) made unit, and their norms (N,), without overflow: a quaternion whose
+    squares overflow ([1e300, 0, 0, 0]; q / inf would be a zero quaternion) is scaled by its
+    largest component first (its norm is then inf). A zero quaternion stays zero, its norm 0:
+    the caller refuses it. Components must be finite."""
+    q = np.asarray(q, dtype=np.float64).reshape(-1, 4)
+    with np.errstate(over="ignore"):
+        norm = np.linalg.norm(q, axis=1)
+    unit = q / np.where(norm > 0.0, norm, 1.0)[:, None]
+    over = ~np.isfinite(norm)
+    if over.any():
+        scaled = q[over] / np.abs(q[over]).max(axis=1)[:, None]
+        unit[over] = scaled / np.linalg.norm(scaled, axis=1)[:, None]
+    return unit, norm
+
+
 def slerp_quat_wxyz(q0_wxyz, q1_wxyz, u) -> np.ndarray:
     """Spherical interpolation between unit quaternions (..., 4) at fractions ``u`` (...,),
     along the shorter arc (``u`` = 0 gives q0, 1 gives q1 or -q1)."""

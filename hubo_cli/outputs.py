@@ -13,16 +13,21 @@ failed or interrupted write leaves the old file (or none), never a half one.
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
+import shutil
 import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
-from hubo_cli.errors import InputError
+from hubo_cli.errors import HuboError, InputError
 
 # A folder holding one of these is a run folder: runs.MARKER, session.SUMMARY_NAME and
 # control.log.META_NAME (named here to keep this module light; tests/test_outputs.py checks them)
 RUN_FOLDER_FILES = (".hubo-run", "summary.json", "log.json")
+
+# a writer that fails with less than this free beside its file ran out of space
+NEARLY_FULL_BYTES = 4 * 1024 * 1024
 
 _UMASK = os.umask(0o022)
 os.umask(_UMASK)
@@ -224,3 +229,21 @@ def _rename(temporary: Path, path: Path, *, clobber: bool) -> None:
     except OSError as exc:
         raise InputError(f"cannot write {path}: {exc.strerror or exc}",
                          hint="free disk space or choose a writable path") from None
+
+
+def writer_failure(path: str | Path, writer: str, exc: BaseException) -> Exception:
+    """The error to raise when a library's writer (ffmpeg, Rerun, MCAP) failed writing
+    ``path`` with ``exc``, which says only that it stopped (a broken pipe, a writer thread
+    gone): a full disk (less than :data:`NEARLY_FULL_BYTES` free there) is an OSError
+    ENOSPC, which the command line reports as the device in trouble (exit 3); anything else
+    one line naming the file and the writer (exit 1)."""
+    folder = Path(path).parent
+    try:
+        free = shutil.disk_usage(folder).free
+    except OSError:
+        free = None
+    if free is not None and free < NEARLY_FULL_BYTES:
+        return OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+    reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+    return HuboError(f"cannot write {path}: {writer} stopped ({reason})",
+                     hint="check the folder and try again")

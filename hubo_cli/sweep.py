@@ -32,11 +32,13 @@ from concurrent.futures import CancelledError
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
-from hubo_cli.errors import DeviceError, HuboError, InputError, quoted
+from hubo_cli.errors import DeviceError, HuboError, InputError, SafetyError, quoted
 from hubo_cli.interrupts import stopping
 from hubo_cli.outputs import replacing
 
 SIM_COMMAND = "sim"
+EXIT_NOT_COMPLETED = 1
+EXIT_INTERRUPTED = 130
 SIM_PARAMETERS = {"duration": 5.0, "push": 0.0}
 TABLE_NAME = "sweep.csv"
 PLOT_NAME = "sweep.png"
@@ -53,6 +55,9 @@ DASHBOARD_ADDRESS = "127.0.0.1:8787"
 # packages and the interpreter) and what decides a row (hubo-cli and the numerics under it)
 DASK_PACKAGES = ("python", "dask", "distributed", "msgpack", "cloudpickle", "tornado", "toolz")
 ROW_PACKAGES = ("hubo-cli", "numpy", "scipy", "pybullet", "pin", "ruckig", "numba")
+# and hubo-cli's own source files (two checkouts of one version may differ): their fingerprint
+# (hubo_cli.resources.source_fingerprint), compared as if it were one more package
+SOURCES = "hubo-cli sources"
 
 
 @dataclass(frozen=True)
@@ -109,9 +114,14 @@ class Row:
             the e-stop fires below the monitor's 30 mm), None without the monitor.
         max_tilt_deg: the largest true torso tilt from upright (deg).
         wall_clock_s: how long the job took where it ran (s).
-        ended: how the control loop ended (or ``refused``, ``error``).
-        error: the error message, "" when none.
-        run_dir: the job's run folder.
+        ended: how the control loop ended (or ``refused``: refused for safety before
+            anything moved; ``error``: another error, :attr:`exit_code` says which).
+        error: the error message, "" when none: what ``hubo task run`` (``hubo sim``) says.
+        run_dir: the job's run folder, "" when it made none (refused before any run).
+        exit_code: the run's outcome as the README's exit codes say it (for a task, what
+            ``hubo task run`` exits with): 0 completed, 1 not completed (or another error),
+            2 bad input or configuration, 3 device trouble, 4 refused for safety (nothing
+            moved), 5 no IK solution, 130 interrupted.
     """
 
     command: str
@@ -126,6 +136,7 @@ class Row:
     ended: str = ""
     error: str = ""
     run_dir: str = ""
+    exit_code: int = 0
 
     def outcome(self) -> dict:
         """Everything but the wall-clock and the folder: equal for equal jobs anywhere."""
@@ -273,11 +284,12 @@ def check_dashboard() -> None:
 def version_mismatches(versions: dict) -> list[str]:
     """What differs between this client and the cluster, from Dask's ``get_versions``.
 
-    Every worker must have the client's :data:`DASK_PACKAGES` and :data:`ROW_PACKAGES`; the
-    scheduler the client's :data:`DASK_PACKAGES` (it runs no job). Python is compared by its
-    minor version (3.11). Returns one text per difference, e.g. ``"worker
-    tcp://10.0.0.2:40111 has hubo-cli 0.0.9 (this client 0.1.0)"``; empty when everything
-    matches.
+    Every worker must have the client's :data:`DASK_PACKAGES` and :data:`ROW_PACKAGES`, and
+    then its :data:`SOURCES` (the fingerprint of hubo-cli's files, added to each ``packages``
+    by :func:`_check_versions`); the scheduler the client's :data:`DASK_PACKAGES` (it runs no
+    job). Python is compared by its minor version (3.11). Returns one text per difference,
+    e.g. ``"worker tcp://10.0.0.2:40111 has hubo-cli 0.0.9 (this client 0.1.0)"``; empty when
+    everything matches.
     """
 
     def version(packages: dict, name: str) -> str | None:
@@ -292,23 +304,40 @@ def version_mismatches(versions: dict) -> list[str]:
         packages = (info or {}).get("packages") if isinstance(info, dict) else None
         if not isinstance(packages, dict):
             return [f"{who} did not report its versions"]
-        return [f"{who} has {name} {version(packages, name) or 'not installed'} "
-                f"(this client {version(client, name) or 'not installed'})"
+        absent = "not reported" if names == (SOURCES,) else "not installed"
+        return [f"{who} has {name} {version(packages, name) or absent} "
+                f"(this client {version(client, name) or absent})"
                 for name in names if version(packages, name) != version(client, name)]
 
     found = differences("the scheduler", versions.get("scheduler"), DASK_PACKAGES)
     for address, info in sorted((versions.get("workers") or {}).items()):
         found += differences(f"worker {address}", info, DASK_PACKAGES + ROW_PACKAGES)
+    if not found:  # the sources last: a worker of another version has other sources too
+        for address, info in sorted((versions.get("workers") or {}).items()):
+            found += differences(f"worker {address}", info, (SOURCES,))
     return found
 
 
 def _check_versions(client) -> None:
     """Raise InputError when the cluster's versions differ from this client's."""
+    from hubo_cli.resources import source_fingerprint
+
     try:
         versions = client.get_versions(packages=list(ROW_PACKAGES))
+        # a worker whose hubo-cli has no fingerprint (an older one) returns the error: a
+        # difference like any other
+        sources = client.run(source_fingerprint, on_error="return")
     except (OSError, TimeoutError):  # Dask's CommClosedError is one
         raise DeviceError("lost the connection to the Dask scheduler while asking the "
                           "workers' versions", hint="check the scheduler and try again") from None
+    client_packages = (versions.get("client") or {}).get("packages")
+    if isinstance(client_packages, dict):
+        client_packages[SOURCES] = source_fingerprint()
+    for address, info in (versions.get("workers") or {}).items():
+        packages = info.get("packages") if isinstance(info, dict) else None
+        if isinstance(packages, dict):
+            fingerprint = sources.get(address)
+            packages[SOURCES] = fingerprint if isinstance(fingerprint, str) else None
     found = version_mismatches(versions)
     if found:
         more = f" (and {len(found) - 1} more difference{'s' * (len(found) > 2)})" \
@@ -369,7 +398,7 @@ def check_jobs(jobs: Sequence[Job]) -> None:
     for job in combinations.values():
         command, parameters = job.command, job.parameters
         if command != SIM_COMMAND:
-            job.spec()
+            _check_task(job.spec())
             continue
         unknown = [n for n, _ in parameters if n not in SIM_PARAMETERS]
         if unknown:
@@ -386,6 +415,19 @@ def check_jobs(jobs: Sequence[Job]) -> None:
             raise InputError(f"--set: sim's {exc}", hint="e.g. --set push=0,30") from None
 
 
+def _check_task(spec) -> None:
+    """What ``hubo task run`` refuses of a task before its pre-flight, checked without one:
+    an experiment's parameters, a task's length (ConfigError, InputError: exit 2)."""
+    if spec.experiment:
+        from hubo_cli.tasks.runner import check_experiment
+
+        check_experiment(spec)
+    else:
+        from hubo_cli.tasks.plan import check_duration
+
+        check_duration(spec)
+
+
 def run_job(job: Job, out_dir: str | Path, task: tuple[str, str] | None = None) -> Row:
     """Run one simulation (in whatever process calls it) into ``out_dir/<job name>``;
     ``task``, if given, is the job's task file and text (sent apart from the job)."""
@@ -396,12 +438,33 @@ def run_job(job: Job, out_dir: str | Path, task: tuple[str, str] | None = None) 
     try:
         row = _run_sim(job, run_dir) if job.command == SIM_COMMAND else _run_task(job, run_dir)
     except HuboError as exc:
-        row = Row(job.command, job.seed, dict(job.parameters), completed=False, ended="error",
-                  error=str(exc))
+        row = error_row(job, exc)
     row.completed = row.completed and row.ended != "interrupted"  # Ctrl-C or SIGTERM
+    if row.ended == "interrupted":
+        row.exit_code = EXIT_INTERRUPTED
+    elif not row.completed and row.exit_code == 0:
+        row.exit_code = EXIT_NOT_COMPLETED
     row.wall_clock_s = time.perf_counter() - t0
-    row.run_dir = str(run_dir)
+    # a run refused before it wrote anything leaves no folder (as hubo task run): none named
+    row.run_dir = str(run_dir) if run_dir.is_dir() else ""
     return row
+
+
+def error_row(job: Job, exc: BaseException) -> Row:
+    """The row of a job that ended with ``exc``: ``refused`` for a safety refusal (nothing
+    moved), else ``error``; the message and exit code are what the run alone gives."""
+    code = exc.exit_code if isinstance(exc, HuboError) else EXIT_NOT_COMPLETED
+    message = str(exc) if isinstance(exc, HuboError) else f"{type(exc).__name__}: {exc}"
+    return Row(job.command, job.seed, dict(job.parameters), completed=False,
+               ended="refused" if isinstance(exc, SafetyError) else "error", error=message,
+               exit_code=code)
+
+
+def sweep_exit_code(rows: Sequence[Row]) -> int:
+    """The sweep's exit code from its rows: theirs when they all agree (every run completed:
+    0; every run refused for safety: 4), else 1 (some run did not complete)."""
+    codes = {row.exit_code for row in rows}
+    return codes.pop() if len(codes) == 1 else EXIT_NOT_COMPLETED
 
 
 def _first_stop(summary: dict) -> str:
@@ -432,12 +495,9 @@ def _run_task(job: Job, run_dir: Path) -> Row:
     spec = job.spec()
     if spec.experiment:
         done = run_experiment(spec, out=run_dir, perturb_seed=job.seed, balance=job.balance)
-    else:
-        plan = check_task(spec)
-        if not plan.preflight.ok:
-            return Row(job.command, job.seed, dict(job.parameters), completed=False,
-                       ended="refused", error=plan.preflight.worst_per_step()[0].message())
-        done = run_task(plan, out=run_dir, perturb_seed=job.seed, balance=job.balance)
+    else:  # a plan that fails pre-flight is refused (SafetyError) as by hubo task run
+        done = run_task(check_task(spec), out=run_dir, perturb_seed=job.seed,
+                        balance=job.balance)
     summary = done.summary
     completed = summary.get("completed")
     if completed is None:  # an experiment: it completed unless the robot fell or tipped
@@ -635,10 +695,7 @@ def _submit_all(jobs, out_dir: Path, n_workers: int, scheduler: str | None,
                 if future.status == "cancelled":  # only a lost scheduler cancels them here
                     raise ConnectionError("cancelled")
                 if future.status == "error":
-                    exc = future.exception()
-                    job = jobs[index]
-                    row = Row(job.command, job.seed, dict(job.parameters), completed=False,
-                              ended="error", error=f"{type(exc).__name__}: {exc}")
+                    row = error_row(jobs[index], future.exception())
                 else:
                     row = future.result()
             except (OSError, CancelledError, TimeoutError):  # Dask's CommClosedError is one
@@ -694,7 +751,7 @@ def _dashboard_link(client) -> str | None:
 
 
 COLUMNS = ("command", "seed", "completed", "estop", "hole_rms_mm", "min_support_margin_mm",
-           "max_tilt_deg", "wall_clock_s", "ended", "error", "run_dir")
+           "max_tilt_deg", "wall_clock_s", "ended", "error", "exit_code", "run_dir")
 
 
 def parameter_names(rows: Sequence[Row]) -> list[str]:

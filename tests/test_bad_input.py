@@ -241,6 +241,12 @@ CASES = {
     "task-integer-5000-digits": (lambda d: ["task", "show", str(_task_with(
         d / "i.toml", "speed_mm_s = 10.0", "speed_mm_s = 1" + "0" * 5000))], 2,
         "an integer too long to read"),
+    "set-nested-deeply": (lambda d: ["task", "cut-rectangle", "--set",
+                                     "width_mm=" + "[" * 5000 + "]" * 5000], 2,
+                          "lists nested too deeply"),
+    "set-integer-5000-digits": (lambda d: ["sweep", "cut-slot", "--set",
+                                           "speed_mm_s=[" + "9" * 5000 + "]"], 2,
+                                "an integer too long to read"),
     "task-dev-zero": (lambda d: ["task", "run", "/dev/zero"], 2, "a device, not a task file"),
     "task-folder": (lambda d: ["task", "show", str(d / "mine")], 2, "a folder, not a task file"),
     "ik-batch-1e300": (lambda d: ["ik", "right-arm", "--batch", str(_batch_csv(

@@ -89,12 +89,21 @@ def test_hoff_arbib_pipeline_commands_are_within_limits(model, events):
 
 
 def test_hostile_burst_is_smoothed(model):
-    """A fixed nasty stream: a huge jump, NaN, inf, a gap, an out-of-limit target."""
+    """A fixed nasty stream: a huge jump, NaN, inf, a gap, an out-of-limit target, then every
+    joint scattered beyond its limits. Smoothed at the normal limits until the scattered legs
+    lift a foot with the centre of mass beyond the other sole (the ideal driver's ankles feel
+    it): the capture-point stop then reverts, at the emergency braking limits."""
     events = [("set", 0, 5.0, 40), ("nan", 3, 0.0, 10), ("inf", 1, -1.0, 10),
               ("gap", 0, 0.0, 30), ("set", 9, -6.0, 60), ("scatter", 7, 1.5, 60)]
     robot, q0, result = _run(model, events)
     commands = robot.commands(q0)
-    assert_within_limits(model, commands, model.control_period_s)
+    dt = model.control_period_s
+    stops = [(t_s, sources) for kind, t_s, mode, sources in result.safety_events
+             if kind == "estop" and mode == "stop"]
+    assert [sources for _, sources in stops] == [("capture-point",)]
+    assert stops[0][0] > (40 + 10 + 10 + 30 + 60) * dt  # in the scatter
+    assert_within_limits(model, commands[:int(round(stops[0][0] / dt)) + 1], dt)
+    assert_within_braking_limits(model, commands, dt)
     assert result.status_counts.get(Status.JOINT_LIMIT.label, 0) > 0
 
 

@@ -76,6 +76,8 @@ def test_cli_push_wall_left(tmp_path):
     assert not summary["fell"] and not summary["tipped"]  # on both code paths
     assert summary["t_emergency_s"] is not None  # 1.38 s on both code paths
     assert (out / "log.csv").exists() and (out / "cp_error.png").exists()
+    assert "task.toml" in summary["files"]  # the text that ran, as every task's run folder
+    assert 'direction = "forward"' in (out / "task.toml").read_text()  # the file's default
 
 
 def test_cli_task_group_lists_push_wall():

@@ -215,6 +215,20 @@ def test_pose_log_reader_accepts_comments_and_no_status(tmp_path):
     np.testing.assert_allclose(batch.position_m[0], [0.1, 0.2, 0.3])
 
 
+def test_pose_log_with_a_byte_order_mark_and_huge_quaternions(tmp_path):
+    """A spreadsheet's "CSV UTF-8" starts with a byte-order mark (it was 'missing column(s)
+    t_s'); a quaternion of components 1e300 is a direction like any other (its squares
+    overflowed: a zero quaternion, then a division by zero, an internal error)."""
+    path = tmp_path / "sheet.csv"
+    path.write_bytes(b"\xef\xbb\xbft_s,station,x_m,y_m,z_m,qw,qx,qy,qz\n"
+                     b"0.0,1,0.1,0.2,0.3,1e300,0,0,0\n0.5,1,0.1,0.2,0.4,1e308,-1e308,0,0\n")
+    batch = read_pose_log(path)
+    np.testing.assert_allclose(batch.quat_wxyz, [[1, 0, 0, 0], [0.5**0.5, -0.5**0.5, 0, 0]])
+    np.testing.assert_allclose(quat_wxyz_to_matrix(batch.quat_wxyz[0]), np.eye(3))
+    track = PoseTrack([0.0, 1.0], np.zeros((2, 3)), [[1e300, 0, 0, 0], [0, 0, 0, 2]])
+    np.testing.assert_allclose(track.quat_wxyz, [[1, 0, 0, 0], [0, 0, 0, 1]])
+
+
 def test_replay_ignores_live_port_options(tmp_path):
     path = write_capture(tmp_path / "c.fastrak", two_hand_tracks(0.2))
     with open_source(replay=path, port=None, baud=9600, fmt="ascii", units="in") as src:

@@ -408,9 +408,13 @@ class _Pushed:
 
 def test_in_the_pipeline_it_changes_nothing_without_force_and_stays_within_limits(model):
     """The ideal driver (no force): the commands of the profile with the module are those
-    without it, bit for bit. Then a 10 N push along the forearm and a 0.3 N m bending moment
-    across it from 0.5 s (what the three-axis wrist sensor reads): the hand yields, every
-    command finite and within the joints' limits."""
+    without it, to 1e-7 rad (a twentieth of a micrometre at the hand). Not bit for bit: the
+    ideal driver's soles carry the robot (drivers/floor.py), and the wrist wrenches the
+    estimate compensates keep a residue (the wrist torque up to 6e-9 N m in 1 s of `hubo sim
+    --driver ideal`, 1e-16 while the soles read no weight) that the module integrates: measured
+    1.4e-9 rad after the 1 s here, 9e-9 after 4 s. Then a 10 N push along the forearm and a
+    0.3 N m bending moment across it from 0.5 s (what the three-axis wrist sensor reads): the
+    hand yields, every command finite and within the joints' limits."""
     from control_support import assert_within_limits, ideal
 
     from hubo_cli.control.loop import ControlLoop
@@ -424,7 +428,7 @@ def test_in_the_pipeline_it_changes_nothing_without_force_and_stays_within_limit
         modules = SafetyProfile(impedance=on).build(model, DT, {})
         ControlLoop(robot, modules, hold).run(duration_s=1.0)
         sent[on] = np.array(robot.sent)
-    np.testing.assert_array_equal(sent[True], sent[False])
+    assert np.max(np.abs(sent[True] - sent[False])) <= 1e-7
 
     robot = ideal(model)
     q0 = robot.read().q_rad.copy()

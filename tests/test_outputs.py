@@ -481,3 +481,36 @@ def test_a_summary_and_a_sweep_table_are_written_whole_or_not_at_all(tmp_path, m
     monkeypatch.undo()
     assert (summary.read_text(), table.read_text()) == before
     assert not [p for p in tmp_path.iterdir() if ".part" in p.name]
+
+
+@pytest.mark.parametrize("exporter", ["mcap_export"])  # rerun_export alike (its import: 1.3 s)
+def test_a_writer_that_stops_is_a_full_disk_or_one_line(tmp_path, monkeypatch, exporter):
+    """The Rerun and MCAP writers (and ffmpeg) say only that they stopped: on a full disk
+    (under 4 MiB free) that is the disk's ENOSPC (exit 3, as a run's log says it), otherwise
+    one line naming the file and the writer; it was an internal error (exit 1)."""
+    import importlib
+    import shutil
+
+    from hubo_cli.errors import HuboError
+    from hubo_cli.outputs import writer_failure
+
+    module = importlib.import_module(f"hubo_cli.viz.{exporter}")
+    pytest.importorskip("rerun" if exporter == "rerun_export" else "foxglove")
+    export = module.export_rrd if exporter == "rerun_export" else module.export_mcap
+
+    def stops(*args):
+        raise RuntimeError("File-writer thread shut down prematurely\nand more")
+
+    monkeypatch.setattr(module, "_write_rrd" if exporter == "rerun_export" else "_write_mcap",
+                        stops)
+    usage = shutil.disk_usage(tmp_path)
+    monkeypatch.setattr(shutil, "disk_usage", lambda path: usage._replace(free=1000))
+    with pytest.raises(OSError) as full:
+        export(None, tmp_path / "x.out")
+    assert full.value.errno == errno.ENOSPC and full.value.filename == str(tmp_path / "x.out")
+    monkeypatch.setattr(shutil, "disk_usage", lambda path: usage._replace(free=10**9))
+    with pytest.raises(HuboError, match=r"^cannot write .*x\.out: the .* writer stopped "
+                                        r"\(File-writer thread shut down prematurely\)$"):
+        export(None, tmp_path / "x.out")
+    assert writer_failure(tmp_path / "v.mp4", "ffmpeg", OSError()).message.endswith(
+        "ffmpeg stopped (OSError)")

@@ -23,16 +23,20 @@ from pty_support import HUBO, run_in_pty
 
 from hubo_cli.cli.main import main
 from hubo_cli.errors import ConfigError, InputError
+from hubo_cli.resources import source_fingerprint, tree_fingerprint
 from hubo_cli.sweep import (
     CONFIRM_JOBS,
     MAX_JOBS,
+    SOURCES,
     Job,
+    Row,
     check_jobs,
     check_size,
     make_jobs,
     parse_seeds,
     parse_sets,
     run_sweep,
+    sweep_exit_code,
     version_mismatches,
 )
 
@@ -192,6 +196,13 @@ def _hostile_sweeps() -> dict[str, list[str]]:
         "task-nan-second": ["cut-slot", "--set", "speed_mm_s=10,nan"],
         "task-unknown": ["cut-slot", "--set", "no_such=1"],
         "unknown-command": ["no-such-task"],
+        # what hubo task run refuses (exit 2) before its pre-flight: a task too long, an
+        # experiment's bad parameter (they were rows 'error' of a sweep that ran, exit 1)
+        "task-too-long": ["cut-rectangle", "--set", "speed_mm_s=10,0.1"],
+        "push-wall-direction": ["push-wall", "--set", "direction=up"],
+        "push-wall-interpolator": ["push-wall", "--set", "interpolator=spline"],
+        "valve-offset": ["turn-valve", "--set", "seen_offset_mm=[1,2]"],
+        "door-opens": ["push-door", "--set", "door_opens=sideways"],
         "seeds-empty": ["sim", "--seeds", ""], "seeds-negative": ["sim", "--seeds", "-3"],
         "seeds-backwards": ["sim", "--seeds", "5-2"],
         "seeds-digits": ["sim", "--seeds", "9" * 5000],
@@ -228,6 +239,34 @@ def test_bad_values_are_refused_before_any_job(tmp_path, args):
     assert "internal error" not in result.output and "Traceback" not in result.output
     assert not out.exists()  # refused before its folder, let alone a job
     assert time.perf_counter() - t0 < 5.0  # nothing listed or run: 1e8 seeds are not listed
+
+
+def test_a_run_refused_in_preflight_is_the_row_hubo_task_run_says(tmp_path):
+    """Out of reach at 900 mm: hubo task run refuses it (exit 4, nothing moved, no folder;
+    test_task_runs); the sweep's row says the same words (runner.preflight_refusal) and exit
+    code, names no folder (none was made), and the sweep whose every run was refused exits 4.
+    (A 20 mm square: few periods to solve.)"""
+    out = tmp_path / "sweep"
+    result = CliRunner().invoke(main, ["sweep", "cut-rectangle", "--seeds", "1", "--set",
+                                       "wall_distance_mm=900", "--set", "speed_mm_s=40",
+                                       "--set", "width_mm=20", "--set", "height_mm=20",
+                                       "--workers", "0", "--out", str(out), "--json"])
+    assert result.exit_code == 4, result.output
+    (row,) = json.loads(result.output)["rows"]
+    assert (row["ended"], row["exit_code"], row["run_dir"]) == ("refused", 4, "")
+    assert row["error"].startswith("cut-rectangle refused in pre-flight, nothing moved: step ")
+    assert sorted(p.name for p in out.iterdir()) == [".hubo-run", "sweep.csv", "sweep.png"]
+    with open(out / "sweep.csv") as f:
+        assert [r["exit_code"] for r in csv.DictReader(f)] == ["4"]
+
+
+def test_the_sweep_exits_with_its_rows_code_when_they_agree():
+    def row(code: int) -> Row:
+        return Row("cut-slot", 1, {}, completed=code == 0, exit_code=code)
+
+    assert sweep_exit_code([row(0), row(0)]) == 0
+    assert sweep_exit_code([row(4), row(4)]) == 4
+    assert sweep_exit_code([row(0), row(4)]) == 1 and sweep_exit_code([row(2), row(4)]) == 1
 
 
 def test_an_unreachable_scheduler_is_device_trouble(tmp_path):
@@ -395,6 +434,32 @@ def test_version_mismatches_name_each_worker_and_package():
     versions["scheduler"]["packages"]["distributed"] = "0"
     assert version_mismatches(versions) == ["the scheduler has distributed 0 (this client 1)"]
     assert version_mismatches({}) == ["the scheduler did not report its versions"]
+    # two checkouts of one version: their source files' fingerprints tell them apart, named
+    # once the versions agree (another version has other sources anyway)
+    versions = _versions(**{"tcp://h:1": {SOURCES: "b"}, "tcp://h:2": {SOURCES: None}})
+    versions["client"]["packages"][SOURCES] = "a"
+    assert version_mismatches(versions) == [
+        "worker tcp://h:1 has hubo-cli sources b (this client a)",
+        "worker tcp://h:2 has hubo-cli sources not reported (this client a)"]
+    versions["workers"]["tcp://h:1"]["packages"]["hubo-cli"] = "0.0.9"
+    assert version_mismatches(versions) == [
+        "worker tcp://h:1 has hubo-cli 0.0.9 (this client 0.1.0)"]
+
+
+def test_the_source_fingerprint_tells_two_trees_apart(tmp_path):
+    """Equal files anywhere: equal fingerprints; one byte changed, or a file added: another."""
+    for root in (tmp_path / "a", tmp_path / "b"):
+        (root / "pkg" / "__pycache__").mkdir(parents=True)
+        (root / "pkg" / "m.py").write_text("X = 1\n")
+        (root / "pkg" / "__pycache__" / "m.py").write_text(str(root))  # left out
+    a, b = tmp_path / "a" / "pkg", tmp_path / "b" / "pkg"
+    assert tree_fingerprint([("p", a, "*.py")]) == tree_fingerprint([("p", b, "*.py")])
+    (b / "m.py").write_text("X = 2\n")
+    assert tree_fingerprint([("p", a, "*.py")]) != tree_fingerprint([("p", b, "*.py")])
+    (b / "m.py").write_text("X = 1\n")
+    (b / "n.py").write_text("")
+    assert tree_fingerprint([("p", a, "*.py")]) != tree_fingerprint([("p", b, "*.py")])
+    assert re.fullmatch(r"[0-9a-f]{16}", source_fingerprint())
 
 
 PRETEND_OTHER_VERSION = '''
@@ -423,11 +488,29 @@ def test_a_worker_of_another_version_is_refused_before_any_run(tmp_path):
                                            "duration=0.2", "--scheduler",
                                            cluster.scheduler_address, "--out",
                                            str(tmp_path / "b")])
+        # the same version from other source files (another checkout): refused too
+        from distributed import Client
+
+        with Client(cluster.scheduler_address) as client:
+            client.run(exec, PRETEND_OTHER_SOURCES, {})  # in the worker
+        with pytest.raises(InputError, match=r"worker tcp://127\.0\.0\.1:\d+ has hubo-cli "
+                                             r"sources 0{16} \(this client [0-9a-f]{16}\)"):
+            run_sweep(make_jobs("sim", [1], SHORT), tmp_path / "c",
+                      scheduler=cluster.scheduler_address)
     assert result.exit_code == 2, result.output
     lines = result.output.splitlines()
     assert lines[0].startswith("error: the Dask cluster does not run this client's versions")
     assert len(lines) == 2 and lines[1].startswith("hint: ") and "Traceback" not in result.output
     assert not list((tmp_path / "b").glob("*/summary.json"))
+    assert not list((tmp_path / "c").glob("*/summary.json"))
+
+
+PRETEND_OTHER_SOURCES = """
+import distributed.versions as versions
+import hubo_cli.resources as resources
+versions.get_package_info = versions.real_get_package_info  # its own version again
+resources.source_fingerprint = lambda: "0" * 16  # but another checkout's source files
+"""
 
 
 def test_the_dashboard_serves_and_its_link_is_printed(tmp_path, monkeypatch):

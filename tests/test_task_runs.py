@@ -221,6 +221,37 @@ def test_a_task_too_long_names_its_longest_step_whole():
         make_plan(load_task("cut-rectangle", {"speed_mm_s": 0.1}), load_model())
 
 
+@pytest.mark.parametrize("name", ["push-wall", "turn-valve", "push-door"])
+def test_an_experiment_task_records_the_text_it_ran(tmp_path, monkeypatch, name):
+    """An experiment's run folder has task.toml as the other tasks' do: the text read once (the
+    file edited after it was read does not change it), the --set parameters and the stopper
+    noted at the top. The procedure itself is replaced by one that only makes the folder."""
+    from hubo_cli.experiments import manipulation, push_wall
+    from hubo_cli.session import RunResult
+    from hubo_cli.tasks.runner import run_experiment
+
+    def procedure(model, *args, out, **kwargs):
+        out.mkdir()
+        return RunResult(out, None, {"files": ["log.csv", "summary.json"]})
+
+    monkeypatch.setattr(push_wall, "run_push_wall", procedure)
+    monkeypatch.setattr(manipulation, "run_manipulation", procedure)
+    path = tmp_path / f"{name}.toml"
+    text = load_task(name).path.read_text(encoding="utf-8")
+    path.write_text(text, encoding="utf-8")
+    spec = load_task(path, {"turn_deg": 60} if name == "turn-valve" else {})
+    path.write_text("edited since", encoding="utf-8")
+    done = run_experiment(spec, out=tmp_path / "run", estop=False)
+    copy = (tmp_path / "run" / "task.toml").read_text(encoding="utf-8")
+    assert copy.endswith(text) and "emergency stopper off (--no-estop)" in copy
+    assert ("--set turn_deg=60" in copy) == (name == "turn-valve")
+    assert "task.toml" in done.summary["files"]
+    assert json.loads((tmp_path / "run" / "summary.json").read_text())["files"][-1] == \
+        "task.toml"
+    again = load_task(tmp_path / "run" / "task.toml", spec.overridden)  # as the header says
+    assert again.parameters == spec.parameters and again.experiment == name
+
+
 def test_too_fast_for_the_legs_is_refused_with_a_hint(tmp_path):
     """A vertical cut the legs cannot follow (the arm alone has only a few cm of height)."""
     text = load_task("cut-slot").path.read_text()

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 
 from hubo_cli.walking.momentum import (
     ACCELERATION_RAD_S2,
     DECIDE_S,
+    PAST_M,
+    STANCE_DELAY_S,
     SWING_HIP_ROLL_MAX_RAD,
     VELOCITY_RAD_S,
     MomentumStrategy,
@@ -58,6 +61,7 @@ def test_a_push_the_ankle_catches_or_a_rebound_step_does_not_start_it():
     n = 200
     errors = np.r_[np.zeros(10), np.full(n - 10, 0.04)]
     slow = -0.12 + 0.2 * DT * np.maximum(np.arange(n) - 10, 0)  # 0.6 s from the edge
+    slow = np.minimum(slow, -0.005)  # (caught short of the edge)
     hips, offsets = _run(errors, slow)
     assert not hips.started and not np.any(offsets)
     rushing = -0.08 + 0.5 * DT * np.arange(n)
@@ -96,3 +100,42 @@ def test_a_push_left_alone_passes_its_step_and_a_missing_estimate_rearms():
     phases = []
     _run(np.r_[np.zeros(10), np.full(3, 0.04)], pasts, phases=phases)
     assert _runs(phases) == ["armed", "watching", "armed", "watching"]
+
+
+SEED18 = Path(__file__).parent / "data" / "momentum_push_seed18.csv"
+
+
+def test_a_push_left_alone_that_goes_on_past_the_edge_starts_it_after_all():
+    """Pushed seed 18's recorded capture point (main, 70 and 75 N): the watch passes both (30
+    ms at about 0.3 m/s: 0.23 s from the edge); at 75 N it goes on 15 mm past the edge and the
+    walk fell on main, at 70 N it turned back 5 mm inside and the walk stood. The strategy
+    starts in the first once it is PAST_M past the edge, never in the second."""
+    t_s, error_70, past_70, error_75, past_75 = np.loadtxt(SEED18, delimiter=",",
+                                                           skiprows=5, unpack=True)
+    phases = []
+    hips, _ = _run(error_75 / 1000, past_75 / 1000, phases=phases)
+    assert _runs(phases) == ["armed", "watching", "passed", "acting"]
+    start = phases.index("acting")
+    assert past_75[start] >= PAST_M * 1000 > past_75[start - 1]
+    assert 0.3 < t_s[start] < 0.4  # (the push's start at 0)
+    assert hips.goal_rad[1] > 0.2 and hips.goal_rad[0] < -0.2  # both hips, as a watched start
+    phases = []
+    hips, offsets = _run(error_70 / 1000, past_70 / 1000, phases=phases)
+    assert _runs(phases) == ["armed", "watching", "passed"] and not np.any(offsets)
+
+
+def test_a_late_start_holds_while_its_hips_pull_the_capture_point_in():
+    """Started past the edge, the hips' own motion pulls the capture point in (it goes out again
+    as they brake): its retreat counts only from their arrival, so it holds on, and hands back
+    once both soles are down and in contact."""
+    n = 300
+    errors = np.r_[np.zeros(10), np.full(n - 10, 0.04)]
+    past = np.r_[np.linspace(-0.10, -0.085, 16), np.linspace(-0.08, PAST_M + 0.005, 60),
+                 np.linspace(PAST_M + 0.005, -0.05, 40), np.full(n - 116, -0.03)]
+    support = [(False, True)] * 250 + [(True, True)] * 50
+    phases = []
+    _, offsets = _run(errors, past, support, phases)
+    assert _runs(phases) == ["armed", "watching", "passed", "acting", "returning"]
+    assert phases.index("returning") == 250  # (both soles down: it held till then)
+    held = phases.index("acting") + round(STANCE_DELAY_S / DT) + 1  # (the stance hip's delay)
+    assert np.all(offsets[held:250, 1] > 0.0)

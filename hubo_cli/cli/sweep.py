@@ -39,10 +39,12 @@ def sweep(command: str, seeds: str, sets: tuple[str, ...], workers: int | None,
     Writes sweep.csv, sweep.png and one run folder per simulation. Every value, the scheduler's
     address and the sweep's size (more than 10,000 runs: --yes) are checked before anything
     runs. Ctrl-C cancels the simulations still running and keeps the finished rows, as does a
-    lost scheduler. The workers must run this client's versions of Dask, hubo-cli and its
-    numerics (checked before any run) and see --out at the same path. Exit code 0 when every
-    run completed, 1 otherwise, 2 for a bad value or mismatched worker versions, 3 when the
-    scheduler cannot be reached or is lost, 130 when interrupted.
+    lost scheduler. The workers must run this client's versions of Dask, hubo-cli (its source
+    files too) and its numerics (checked before any run) and see --out at the same path. Each
+    row has the exit code its run alone gives. Exit code 0 when every run completed, the rows'
+    code when they all have the same (4: every run refused in pre-flight), 1 otherwise, 2 for
+    a bad value or mismatched worker versions, 3 when the scheduler cannot be reached or is
+    lost, 130 when interrupted.
 
     Examples: hubo sweep cut-slot --seeds 1-20
               hubo sweep cut-rectangle --seeds 1-5 --set speed_mm_s=10,20
@@ -64,6 +66,7 @@ def sweep(command: str, seeds: str, sets: tuple[str, ...], workers: int | None,
         parse_seeds,
         parse_sets,
         run_sweep,
+        sweep_exit_code,
     )
 
     seed_list, values = parse_seeds(seeds), parse_sets(sets)
@@ -117,12 +120,14 @@ def sweep(command: str, seeds: str, sets: tuple[str, ...], workers: int | None,
     ctx = click.get_current_context()
     if result.interrupted:
         ctx.exit(130)
-    if not all(row.completed for row in result.rows):
-        ctx.exit(1)
+    ctx.exit(sweep_exit_code(result.rows))
 
 
 def _print_table(result, command: str) -> None:
-    """The rows as a table, or as one plain line each on a terminal too narrow for it."""
+    """The rows as a table, or as one plain line each on a terminal too narrow for it; then
+    each error once, with its exit code and how many runs it ended."""
+    from collections import Counter
+
     from rich.table import Table
     from rich.text import Text
 
@@ -138,7 +143,7 @@ def _print_table(result, command: str) -> None:
 
     rows = [(str(row.seed), *(str(row.parameters.get(n, "")) for n in names),
              "yes" if row.completed else "no",
-             row.estop or ("refused" if row.ended == "refused" else ""),
+             row.estop or (row.ended if row.ended in ("refused", "error") else ""),
              number(row.hole_rms_mm), number(row.min_support_margin_mm),
              number(row.max_tilt_deg, 2), number(row.wall_clock_s)) for row in result.rows]
     if console.width < MIN_COLUMNS:
@@ -153,6 +158,10 @@ def _print_table(result, command: str) -> None:
             table.add_row(*map(Text, cells),  # Text: a value's brackets are not markup
                           style=None if cells[len(names) + 1] == "yes" else "red")
         console.print(table)
+    for (ended, code, error), count in Counter(
+            (row.ended, row.exit_code, row.error) for row in result.rows if row.error).items():
+        console.print(f"{ended} (exit {code}), {count} run{'s' * (count > 1)}: {error}",
+                      markup=False, highlight=False, soft_wrap=True)
     done = sum(row.completed for row in result.rows)
     state = " (interrupted: the finished rows are kept)" if result.interrupted else ""
     console.print(f"{done} of {len(result.rows)} runs completed ({result.jobs} planned) on "

@@ -352,6 +352,8 @@ def _finish(ctx: click.Context, done, as_json: bool, printer) -> None:
 
 
 def _refuse(ctx: click.Context, plan, as_json: bool) -> None:
+    from hubo_cli.tasks.runner import preflight_refusal
+
     worst = plan.preflight.worst_per_step()
     if as_json:
         print_json({"task": plan.spec.name, "parameters": plan.spec.parameters,
@@ -367,12 +369,7 @@ def _refuse(ctx: click.Context, plan, as_json: bool) -> None:
                       "each)")
     for miss in worst:
         err_console.print(f"  {miss.message()}")
-    legs = any(m.legs_lag for m in worst)
-    farthest = max(worst, key=lambda m: -1.0 if m.miss_m is None else m.miss_m)
-    raise SafetyError(
-        f"{shown_name(plan.spec.name)} refused in pre-flight, nothing moved: {farthest.message()}",
-        hint="cut more slowly (--speed)" if legs else
-        "make the path smaller, or choose --wall-distance / the stance's centre_mm")
+    raise preflight_refusal(plan)
 
 
 PHASE_WORDS = {"raise": "raising the tool", "run": "running", "settle": "settling",

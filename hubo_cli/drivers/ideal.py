@@ -4,11 +4,16 @@ Used by pipeline tests and benchmarks. Each period the measured joints equal the
 command and the velocities are its finite difference; the feet stay flat on the floor, so the
 IMU reads the torso orientation the legs give it (the lower sole flat, heading 0: upright in
 the home posture), its gyro that orientation's rate over the period and its accelerometer
-gravity alone (nothing accelerates: :func:`imu_readings`); the force/torque sensors read the
-weight of what hangs beyond them and nothing else (the hand, the drill with option ``drill``,
-the foot: :func:`~hubo_cli.estimation.wrenches.hanging_readings`, so the estimate's
-compensated wrenches are zero), torques are unknown. Commands pass the
-same checks as on the other drivers (NaN keeps the joint, position limits clip).
+gravity alone (nothing accelerates: :func:`imu_readings`). The force/torque sensors read
+what a robot standing still in that posture would: the wrists the weight of what hangs beyond
+them (the hand, the drill with option ``drill``:
+:func:`~hubo_cli.estimation.wrenches.hanging_readings`, so the estimate's compensated wrists
+read zero); the ankles the foot's weight plus the floor's push, the whole robot's weight (the
+URDF's masses) carried by the soles on the floor with their total centre of pressure under the
+centre of mass, split between two soles down by the lever rule
+(:mod:`hubo_cli.drivers.floor`); a foot in the air reads its own weight alone. Torques are
+unknown. Commands pass the same checks as on the other drivers (NaN keeps the joint, position
+limits clip).
 """
 
 from __future__ import annotations
@@ -20,9 +25,9 @@ import numpy as np
 
 from hubo_cli.drivers import checks
 from hubo_cli.drivers.base import Driver, RunContext
+from hubo_cli.drivers.floor import FLOOR_BAND_M, floor_arrays, standing_readings
 from hubo_cli.errors import ConfigError, DeviceError
 from hubo_cli.estimation.wrenches import (
-    hanging_readings,
     measured_mask,
     sensor_chains,
     sensor_loads,
@@ -102,7 +107,8 @@ class IdealDriver(Driver):
                               f"(got {', '.join(options)})")
         super().__init__(model)
         masses, coms = sensor_loads(model, bool(drill))
-        self._sensors = (*sensor_chains(model), masses, coms, GRAVITY_M_S2, measured_mask())
+        self._sensors = (*sensor_chains(model), masses, coms, GRAVITY_M_S2, measured_mask(),
+                         *floor_arrays(model, bool(drill)), FLOOR_BAND_M)
         self._cmd = np.zeros(len(self.joint_names))
         self._q = self._cmd.copy()
         self._t = 0.0
@@ -193,7 +199,7 @@ class IdealDriver(Driver):
             flags.append("stopped")
         gyro, accel = imu_readings(quat_prev, quat, self.period_s)
         readings = np.empty((len(FT_SENSORS), 6))
-        hanging_readings(q, quat, *self._sensors, readings)
+        standing_readings(q, quat, *self._sensors, readings)
         return RobotState(time_s=self._t, q_rad=q, dq_rad_s=dq, flags=tuple(flags),
                           imu_quat_wxyz=quat, imu_gyro_rad_s=gyro, imu_accel_m_s2=accel,
                           ft=dict(zip(FT_SENSORS, readings, strict=True)))

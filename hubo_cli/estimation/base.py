@@ -57,8 +57,8 @@ meanwhile: held, it carried the estimate 26-30 mm forward, the CoM's velocity to
 truth's and the capture point to within 13 mm of the capture-point stop (past it on another
 machine: a false stop, a fall). A walk's touchdowns have both soles light for up to 20 ms (4
 periods): without the confirmation they dropped the anchor and perturbed walks ended 11-38 mm
-off (docs/history/balance.md). Soles that never pressed (the ideal driver's, on no floor)
-sense no flight.
+off (docs/history/balance.md). Soles that never pressed (a robot started hanging) sense no
+flight.
 
 Start: the world frame is the simulator's (:mod:`hubo_cli.drivers.sim`): the torso's neck frame
 at the start, dropped onto the floor (x forward, y left, z up, the origin on the floor under the
@@ -497,8 +497,8 @@ class FloatingBase(Observer):
             light = fz[0] < flight_n and fz[1] < flight_n
             self._light_periods = self._light_periods + 1 if light else 0  # NaN: not light
             self._pressed = self._pressed or fz[0] >= flight_n or fz[1] >= flight_n
-            # a robot whose soles never pressed (the ideal driver's, which stands on no
-            # floor; a robot started hanging) has no flight to sense: the anchor holds
+            # a robot whose soles never pressed (started hanging) has no flight to sense:
+            # the anchor holds
             if self._pressed and self._light_periods >= self._flight_periods:
                 self._fly()
                 self._write(store)

@@ -249,7 +249,8 @@ def compensate(q, quat_wxyz, accel, omega, domega, inertial, raw, index, base, o
 def hanging_readings(q, quat_wxyz, index, base, offset, alpha, a, d, end, mass, com, gravity,
                      measured, out):
     """What the sensors read with nothing but the weight beyond them (``out``, n x 6): a
-    perfectly modelled robot touching nothing (the ideal driver's sensors)."""
+    perfectly modelled robot touching nothing (the ideal driver's wrists and its feet in the
+    air; :mod:`hubo_cli.drivers.floor` adds the floor's push under the soles down)."""
     R = np.empty((3, 3))
     quat_to_matrix_into(quat_wxyz, R)
     up = np.empty(3)

@@ -41,7 +41,7 @@ from hubo_cli.fastrak.records import (
 )
 from hubo_cli.fastrak.source import PoseSample, ReplaySource, SourceStats, batch_samples
 from hubo_cli.fastrak.track import PoseTrack
-from hubo_cli.geometry import matrix_to_quat_wxyz
+from hubo_cli.geometry import matrix_to_quat_wxyz, unit_quats
 from hubo_cli.streams import open_nonblocking, reader_of
 
 MAGIC = b"FASTRAK-CAPTURE 1\n"
@@ -484,13 +484,15 @@ def write_pose_log(path: str | Path, records: RecordBatch | Iterable[PoseSample]
 
 
 def parse_pose_log(text: str, where: str = "pose log") -> RecordBatch:
-    """Parse pose-log CSV text (``#`` comment lines allowed; ``status`` column optional).
+    """Parse pose-log CSV text (``#`` comment lines allowed; ``status`` column optional; a
+    UTF-8 byte-order mark before the header is skipped, as spreadsheets write one).
 
     Quaternions are normalised and rows sorted by time.
 
     Raises:
         InputError: missing columns or a row that is not numbers, with its line number.
     """
+    text = text.removeprefix("\ufeff")  # the byte-order mark some Windows programs write
     lines = [(i + 1, line) for i, line in enumerate(text.splitlines())
              if line.strip() and not line.lstrip().startswith("#")]
     if not lines:
@@ -528,14 +530,13 @@ def parse_pose_log(text: str, where: str = "pose log") -> RecordBatch:
         bad = int(np.flatnonzero((station < 1) | (station > 4) | (values[:, 1] != station))[0])
         raise InputError(f"{where}: line {lines[bad + 1][0]}: station must be 1..4",
                          hint="FASTRAK stations are numbered 1 to 4")
-    q = values[:, 5:9]
-    norm = np.linalg.norm(q, axis=1)
+    unit, norm = unit_quats(values[:, 5:9])
     if (norm < 1e-6).any():
         bad = int(np.flatnonzero(norm < 1e-6)[0])
         raise InputError(f"{where}: line {lines[bad + 1][0]}: zero quaternion",
                          hint="qw,qx,qy,qz must be a unit quaternion (scalar first)")
     batch = RecordBatch(station=station, status=status, position_m=values[:, 2:5].copy(),
-                        quat_wxyz=q / norm[:, None], stylus=np.full(len(station), -1, np.int8),
+                        quat_wxyz=unit, stylus=np.full(len(station), -1, np.int8),
                         offset=np.zeros(len(station), dtype=np.int64), t_s=values[:, 0].copy())
     order = np.argsort(batch.t_s, kind="stable")
     if len(batch) > 1 and (np.diff(batch.t_s) < 0).any():

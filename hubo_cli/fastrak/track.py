@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from hubo_cli.errors import InputError
-from hubo_cli.geometry import slerp_quat_wxyz
+from hubo_cli.geometry import slerp_quat_wxyz, unit_quats
 
 
 class PoseTrack:
@@ -33,13 +33,13 @@ class PoseTrack:
         if not (np.isfinite(self.t_s).all() and np.isfinite(self.position_m).all()
                 and np.isfinite(q).all()):
             raise InputError("a pose track holds a NaN or infinite value")
-        norms = np.linalg.norm(q, axis=1)
+        unit, norms = unit_quats(q)
         if (norms < 1e-9).any():
             raise InputError("a pose track holds a zero quaternion")
         if (np.diff(self.t_s) < 0).any():
             raise InputError("pose times must not decrease",
                              hint="sort the poses of each station by time")
-        self.quat_wxyz = q / norms[:, None]
+        self.quat_wxyz = unit
 
     @property
     def start_s(self) -> float:

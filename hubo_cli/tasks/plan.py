@@ -447,6 +447,28 @@ def lift_filter(spec: TaskSpec) -> LiftFilter:
                       FORCE_LEGS_ACCEL_M_S2 if presses(spec) else LEGS_ACCEL_M_S2)
 
 
+def check_duration(spec: TaskSpec) -> float:
+    """The task's timeline (s), refused beyond :data:`PLAN_MAX_S`; worked out from the steps'
+    lengths and speeds alone (a placement moves every pose alike), so it costs no pre-flight:
+    ``hubo sweep`` checks it for every combination of values before any run.
+
+    Raises:
+        ConfigError: too long; the message names the longest step (exit 2).
+    """
+    _, pieces = _pieces(spec, np.eye(4))
+    total_s = float(sum(p.segment.duration_s for p in pieces))
+    if not total_s <= PLAN_MAX_S:
+        step_s = np.zeros(len(spec.steps))  # a step's pieces (a rectangle's four sides) summed
+        np.add.at(step_s, [p.step for p in pieces], [p.segment.duration_s for p in pieces])
+        slowest = int(np.argmax(step_s))
+        raise ConfigError(f"the task would take {_seconds(total_s)} s ("
+                          f"{spec.steps[slowest].label} alone "
+                          f"{_seconds(step_s[slowest])} s); the limit is "
+                          f"{PLAN_MAX_S:g} s", path=str(spec.path),
+                          hint="raise the speeds or shorten the waits")
+    return total_s
+
+
 def make_plan(spec: TaskSpec, model: RobotModel, placement: Placement | None = None) -> Plan:
     """Lay out the task in time and solve every period (see the module docstring).
 
@@ -455,6 +477,7 @@ def make_plan(spec: TaskSpec, model: RobotModel, placement: Placement | None = N
         model: the robot model.
         placement: where the work is (default: resolved from the task's stance).
     """
+    check_duration(spec)  # before the placement: no workspace map for a typo
     placement = placement or place(spec, model)
     T_S_W = placement.T_S_W()
     limb = spec.stance.limb
@@ -472,15 +495,6 @@ def make_plan(spec: TaskSpec, model: RobotModel, placement: Placement | None = N
                             first.arms[limb].status, shift))
 
     starts = np.cumsum([0.0] + [p.segment.duration_s for p in pieces])
-    if not starts[-1] <= PLAN_MAX_S:
-        step_s = np.zeros(len(spec.steps))  # a step's pieces (a rectangle's four sides) summed
-        np.add.at(step_s, [p.step for p in pieces], [p.segment.duration_s for p in pieces])
-        slowest = int(np.argmax(step_s))
-        raise ConfigError(f"the task would take {_seconds(starts[-1])} s ("
-                          f"{spec.steps[slowest].label} alone "
-                          f"{_seconds(step_s[slowest])} s); the limit is "
-                          f"{PLAN_MAX_S:g} s", path=str(spec.path),
-                          hint="raise the speeds or shorten the waits")
     n = int(np.floor(starts[-1] / dt + 1e-9)) + 1
     t = np.arange(n) * dt
     piece_of = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, max(len(pieces) - 1, 0))

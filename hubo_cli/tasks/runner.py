@@ -25,7 +25,7 @@ from hubo_cli.control.loop import LoopResult
 from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.stop_choice import ActiveStops
-from hubo_cli.errors import SafetyError
+from hubo_cli.errors import InputError, SafetyError, quoted
 from hubo_cli.interrupts import run_files
 from hubo_cli.model import RobotModel, load_model
 from hubo_cli.posture import home_posture
@@ -58,6 +58,20 @@ def check_task(spec: TaskSpec, model: RobotModel | None = None) -> Plan:
     ``plan.preflight.worst_per_step()`` what misses and by how much.
     """
     return make_plan(spec, model or load_model())
+
+
+def preflight_refusal(plan: Plan) -> SafetyError:
+    """The error a plan that failed pre-flight is refused with (exit 4, nothing moved): its
+    farthest miss, and what to change (cut more slowly when the legs lag, else a smaller path
+    or another stance). ``hubo task run`` and a sweep's row say the same."""
+    worst = plan.preflight.worst_per_step()
+    farthest = max(worst, key=lambda m: -1.0 if m.miss_m is None else m.miss_m)
+    legs = any(m.legs_lag for m in worst)
+    return SafetyError(
+        f"{shown_name(plan.spec.name)} refused in pre-flight, nothing moved: "
+        f"{farthest.message()}",
+        hint="cut more slowly (--speed)" if legs else
+        "make the path smaller, or choose --wall-distance / the stance's centre_mm")
 
 
 def force_control(plan: Plan) -> dict:
@@ -124,8 +138,7 @@ def run_task(plan: Plan, *, driver: str = "sim", out: str | Path | None = None,
         SafetyError: the plan did not pass pre-flight (nothing moves).
     """
     if not plan.preflight.ok:
-        raise SafetyError(plan.preflight.worst_per_step()[0].message(),
-                          hint="the task was refused in pre-flight; nothing moved")
+        raise preflight_refusal(plan)
     with settled_objects(), run_files():  # the summary and plots too are whole before an interrupt
         setup = task_setup(plan, driver=driver, out=out, gui=gui, stops=stops,
                            driver_options=driver_options, perturb_seed=perturb_seed,
@@ -176,18 +189,26 @@ def _write_task_copy(spec: TaskSpec, run_dir: Path, balance: str,
     """The task file as run; overridden parameters, the balancer and the stops that were
     active are noted at the top (``--set`` them, ``--balance``, ``--estop-sources``)."""
     active = ", ".join(safety.active_sources) or "none"
-    header = [f"# run of {spec.path}",
-              f"# safety of this run: e-stop sources {active}; wrist torque limit "
-              f"{spec.safety.wrist_torque_limit_nm!r} N m"]
+    noted = [f"# safety of this run: e-stop sources {active}; wrist torque limit "
+             f"{spec.safety.wrist_torque_limit_nm!r} N m"]
     if safety.removed:
-        header.append(f"# stop sources removed on the command line: "
-                      f"{', '.join(safety.removed)} ({safety.removed_by})")
+        noted.append(f"# stop sources removed on the command line: "
+                     f"{', '.join(safety.removed)} ({safety.removed_by})")
+    _write_copy(spec, run_dir, balance, noted, _with_safety_as_run(spec.text, safety,
+                                                                   spec.safety))
+
+
+def _write_copy(spec: TaskSpec, run_dir: Path, balance: str, noted: list[str],
+                text: str) -> None:
+    """``task.toml``: the task's ``text`` as it ran (read once: a FIFO or a file edited since
+    is recorded as it was), below a header of comments: the file it came from, the lines
+    ``noted`` (its safety), the parameters changed (``--set``) and the balancer."""
+    header = [f"# run of {spec.path}", *noted]
     if spec.overridden:
         sets = " ".join(f"--set {k}={format_override(v)}" for k, v in spec.overridden.items())
         header.append(f"# parameters changed for this run: hubo task run task.toml {sets}")
     if balance != "default":
         header.append(f"# balance controllers of this run: --balance {balance}")
-    text = _with_safety_as_run(spec.text, safety, spec.safety)
     (run_dir / "task.toml").write_text("\n".join(header) + "\n" + text, encoding="utf-8")
 
 
@@ -436,26 +457,63 @@ def _thrust_summary(target: TaskTarget) -> dict:
             "reference_mean": float(reference.mean()), "force_control": target.force}
 
 
+def check_experiment(spec: TaskSpec) -> None:
+    """An experiment task's parameters checked as its procedure reads them, before anything
+    runs (``hubo sweep`` checks every combination of values so).
+
+    Raises:
+        InputError, ConfigError: a parameter of the wrong kind or out of range (exit 2).
+    """
+    _experiment_arguments(spec)
+
+
+def _experiment_arguments(spec: TaskSpec) -> dict:
+    """The experiment procedure's arguments from the task's parameters (checked)."""
+    params = spec.parameters
+    if spec.experiment in ("turn-valve", "push-door"):
+        from hubo_cli.experiments.manipulation import spec_from_parameters
+
+        return {"spec": spec_from_parameters(spec.experiment, params)}
+    from hubo_cli.control.pipeline import GENERATORS
+    from hubo_cli.experiments.push_wall import push_spec
+
+    direction = str(params.get("direction", "forward"))
+    interpolator = str(params.get("interpolator", "otg"))
+    push_spec(direction)
+    if interpolator not in GENERATORS:
+        raise InputError(f"unknown interpolator {quoted(interpolator)}",
+                         hint=f"use one of {', '.join(GENERATORS)}")
+    return {"direction": direction, "interpolator": interpolator}
+
+
 def run_experiment(spec: TaskSpec, *, out: str | Path | None = None, gui: bool = False,
                    estop: bool = True, perturb_seed: int | None = None,
                    balance: str = "default", live: RunObserver | None = None) -> TaskRun:
     """Run an experiment task (its built-in procedure with the file's parameters);
     ``estop`` is the command line's (``--no-estop``: a file cannot turn the stopper off, see
     :mod:`hubo_cli.tasks.spec`); ``perturb_seed`` perturbs the robot; ``balance`` names the
-    balancer (``--balance``); ``live`` the live viewer's publisher (``--live``)."""
-    params = spec.parameters
-    if spec.experiment in ("turn-valve", "push-door"):
-        from hubo_cli.experiments.manipulation import run_manipulation, spec_from_parameters
+    balancer (``--balance``); ``live`` the live viewer's publisher (``--live``). The run
+    folder gets ``task.toml`` as the other tasks' do: the text that ran.
 
-        result = run_manipulation(load_model(), spec_from_parameters(spec.experiment, params),
-                                  estop=estop, out=out, gui=gui, perturb_seed=perturb_seed,
-                                  balance=balance, live=live)
+    Raises:
+        InputError, ConfigError: a bad parameter (:func:`check_experiment`), nothing run.
+    """
+    arguments = _experiment_arguments(spec)
+    if spec.experiment in ("turn-valve", "push-door"):
+        from hubo_cli.experiments.manipulation import run_manipulation
+
+        result = run_manipulation(load_model(), arguments["spec"], estop=estop, out=out,
+                                  gui=gui, perturb_seed=perturb_seed, balance=balance,
+                                  live=live)
     else:
         from hubo_cli.experiments.push_wall import run_push_wall
 
-        result = run_push_wall(load_model(), direction=str(params.get("direction", "forward")),
-                               estop=estop, out=out, gui=gui,
-                               interpolator=str(params.get("interpolator", "otg")),
+        result = run_push_wall(load_model(), direction=arguments["direction"], estop=estop,
+                               out=out, gui=gui, interpolator=arguments["interpolator"],
                                perturb_seed=perturb_seed, balance=balance, live=live)
-    summary = result.save_summary({"task": spec.name, "parameters": params})
+    stopper = "on" if estop else "off (--no-estop)"
+    _write_copy(spec, result.run_dir, balance,
+                [f"# safety of this run: emergency stopper {stopper}"], spec.text)
+    result.add_file("task.toml")
+    summary = result.save_summary({"task": spec.name, "parameters": spec.parameters})
     return TaskRun(result.run_dir, summary, result.loop)

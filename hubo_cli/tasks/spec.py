@@ -372,9 +372,15 @@ def _scalar(value: str) -> object:
     if value.startswith("["):
         try:
             return tomllib.loads(f"v = {value}")["v"]
-        except tomllib.TOMLDecodeError:
+        except tomllib.TOMLDecodeError:  # before ValueError: it is one
             raise ConfigError(f"--set value {quoted(value)} is not a list",
                               hint="write lists as in TOML, e.g. [-1000, 0]") from None
+        except RecursionError:
+            raise ConfigError(f"--set value {quoted(value)}: lists nested too deeply",
+                              hint="a parameter's list nests a level or two") from None
+        except ValueError:  # Python reads no integer of more than 4300 digits
+            raise ConfigError(f"--set value {quoted(value)}: an integer too long to read",
+                              hint="write numbers of a few digits") from None
     lowered = value.lower()
     if lowered in ("true", "false"):
         return lowered == "true"

@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from hubo_cli.control.log import status_codes
+from hubo_cli.outputs import writer_failure
 from hubo_cli.viz import foxglove_messages as msg
 from hubo_cli.viz.deps import require
 from hubo_cli.viz.foxglove_messages import LAYOUT_PATH, TOPICS, WORLD_FRAME
@@ -57,8 +58,17 @@ def export_mcap(scene: RunScene, out: str | Path) -> McapResult:
 
     Raises:
         MissingOptionalDependency: foxglove-sdk is not installed.
+        OSError: ENOSPC, the disk is full (see :func:`hubo_cli.outputs.writer_failure`).
+        HuboError: the SDK's writer stopped otherwise.
     """
     foxglove = require("foxglove", "the MCAP file")
+    try:
+        return _write_mcap(foxglove, scene, out)
+    except RuntimeError as exc:  # the SDK's writer stopped (FoxgloveError: an I/O error)
+        raise writer_failure(out, "the MCAP writer", exc) from None
+
+
+def _write_mcap(foxglove, scene: RunScene, out: str | Path) -> McapResult:
     import foxglove.messages as fm
 
     started = time.perf_counter()

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hubo_cli.outputs import writer_failure
 from hubo_cli.viz.camera import DEFAULT_PRESET, camera_for
 from hubo_cli.viz.deps import require
 from hubo_cli.viz.replay import ACTUAL_RGB, GOAL_RGB, HOLE_RGB, WALL_RGBA, quat_xyzw
@@ -66,8 +67,17 @@ def export_rrd(scene: RunScene, out: str | Path) -> RrdResult:
 
     Raises:
         MissingOptionalDependency: rerun-sdk is not installed.
+        OSError: ENOSPC, the disk is full (see :func:`hubo_cli.outputs.writer_failure`).
+        HuboError: the SDK's writer stopped otherwise.
     """
     rr = require("rerun", "the Rerun recording")
+    try:
+        return _write_rrd(rr, scene, out)
+    except RuntimeError as exc:  # the SDK's file writer stopped (a full disk, say)
+        raise writer_failure(out, "the Rerun writer", exc) from None
+
+
+def _write_rrd(rr, scene: RunScene, out: str | Path) -> RrdResult:
     from rerun.urdf import UrdfTree
 
     started = time.perf_counter()

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from hubo_cli.errors import InputError
+from hubo_cli.outputs import writer_failure
 from hubo_cli.pace import check_speed
 from hubo_cli.viz.camera import DEFAULT_PRESET, Camera, fit_camera
 from hubo_cli.viz.deps import require
@@ -350,15 +351,18 @@ def render_video(scene: RunScene, out: str | Path, *, speed: float | None = None
             quality=None, bitrate=None, macro_block_size=2,
             output_params=["-crf", "23", "-preset", "veryfast", "-movflags", "+faststart"],
             ffmpeg_log_level="error")
-        writer.send(None)
         try:
-            for i, k in enumerate(periods):
-                replay.show(int(k))
-                writer.send(overlay.draw(replay.render(view), int(k)))
-                if on_frame is not None:
-                    on_frame(i + 1, len(periods))
-        finally:
-            writer.close()
+            writer.send(None)
+            try:
+                for i, k in enumerate(periods):
+                    replay.show(int(k))
+                    writer.send(overlay.draw(replay.render(view), int(k)))
+                    if on_frame is not None:
+                        on_frame(i + 1, len(periods))
+            finally:
+                writer.close()
+        except OSError as exc:  # ffmpeg stopped (a full disk: a broken pipe, pages of text)
+            raise writer_failure(out, "ffmpeg", exc) from None
         renderer = "egl" if replay.egl else "tiny"
     return VideoResult(out, len(periods), width, height, speed,
                        float(scene.t_s[periods[-1]] - scene.t_s[0]),

@@ -15,19 +15,23 @@ one rolls the torso toward the fall, the swing one lifts the swing leg outward (
 pose; the plan's support). In a single support whose capture-point error from the pattern's was
 under TRIGGER_M, an error past it toward the stance sole's outer side starts a watch: DECIDE_S
 later, if the capture point would reach that sole's outer edge within EDGE_TIME_S at the speed
-it came (or is past it), the strategy starts; else that step is left alone (the ankle, the
-floor reach and the capture-point stop catch those pushes: round 10's 23 moments at 60 N, and
-main's catches at 100 N, never start it). A step that begins with the error already past
-TRIGGER_M (the rebound after a push) is not watched. Started, the swing hip roll abducts by
-SWING_AMPLITUDE_RAD (at most SWING_HIP_ROLL_MAX_RAD from zero: the hand hangs by the thigh)
-and STANCE_DELAY_S later the stance hip roll by STANCE_AMPLITUDE_RAD (its torque's reaction
-then meets the swing one's braking), each on a time-optimal profile (VELOCITY_RAD_S,
-ACCELERATION_RAD_S2: a ramp, never a jump) within the walking set's limits less
+it came (or is past it), the strategy starts; else that step's push is left alone (the ankle,
+the floor reach and the capture-point stop catch those pushes: round 10's 23 moments at 60 N,
+and main's catches at 100 N, never start it) unless, later in the same single support, the
+capture point goes PAST_M past that edge after all (a push a little weaker than the watch's
+starts, as seed 18's at 75-80 N, round 14: the rest could not catch it); such a late start
+counts the capture point's retreat only from the hips' arrival. A step that begins with the
+error already past TRIGGER_M (the rebound after a push) is not watched. Started, the swing hip
+roll abducts by SWING_AMPLITUDE_RAD (at most SWING_HIP_ROLL_MAX_RAD from zero: the hand hangs
+by the thigh) and STANCE_DELAY_S later the stance hip roll by STANCE_AMPLITUDE_RAD (its
+torque's reaction then meets the swing one's braking), each on a time-optimal profile
+(VELOCITY_RAD_S, ACCELERATION_RAD_S2: a ramp, never a jump) within the walking set's limits less
 LIMIT_MARGIN_RAD. They hold, and go back to zero at RETURN_VELOCITY_RAD_S and
 RETURN_ACCELERATION_RAD_S2 once the capture point has come back RETREAT_M from its furthest
 past the edge, or once both soles are planned down and in contact (the stop's stance). Once
 per walk. Measured: docs/history/walking.md, round 12 (100 N on round 10's 23 moments: 12
-without a fall against 5, portable 13 against 6; seeds 6, 10 and 18 of 1-20 still fall).
+without a fall against 5, portable 13 against 6; seeds 6, 10 and 18 of 1-20 still fall) and
+round 14 (the late start: seed 18 at 75-80 N stands where main falls).
 """
 
 from __future__ import annotations
@@ -41,8 +45,12 @@ DECIDE_S = 0.03  # [chosen] once the error passes TRIGGER_M, the capture point's
 EDGE_TIME_S = 0.2  # [chosen] ... approach would reach the edge within this (or it is past)
 RETREAT_M = 0.02  # [chosen] hand back once the capture point came back this far from its
                   # furthest past that edge
+PAST_M = 0.01  # [chosen] a push left alone (passed) starts it after all once the capture
+               # point is this far past the stance sole's outer edge (main's catches at
+               # 75-80 N: 3.2-5.5 mm past; its falls: 15-56 mm; round 14)
 TRIGGER_M = 0.025  # [chosen] the capture point's error toward the stance sole's outer side
-                   # that starts a watch (unpushed 1 m walks: at most 12.8 mm, round 10)
+                   # that starts a watch (unpushed 1 m walks: at most 12.8 mm, round 10; on
+                   # round 14's main up to 31 mm, the capture point 158 mm or more inside)
 VELOCITY_RAD_S = 2.3  # [chosen] under the walking set's 2.6 rad/s: the pattern's own hip
                       # roll moves meanwhile
 ACCELERATION_RAD_S2 = 140.0  # [chosen] under the walking set's 150 rad/s^2
@@ -94,10 +102,12 @@ PHASES = ("idle", "armed", "watching", "passed", "acting", "returning", "done")
   capture point would reach the outer edge within EDGE_TIME_S (or is past it), else passed. The
   support ended or changed: idle; no estimate past the edge: armed again.
 * ``passed``: this step's push was left alone (the ankle, the floor reach and the stop catch
-  it); idle once the single support ends.
+  it); idle once the single support ends; acting (a late start) if the capture point goes
+  PAST_M past the outer edge before.
 * ``acting``: the hip rolls go to their abductions (after their delays) and hold; returning
   once they stand still and either both soles are planned down and in contact or the capture
-  point came back RETREAT_M from its furthest past the edge.
+  point came back RETREAT_M from its furthest past the edge (a late start: its furthest since
+  the hips arrived).
 * ``returning``: both go back to zero; done once there and still.
 * ``done``: once per walk: nothing more.
 """
@@ -125,6 +135,7 @@ class MomentumStrategy:
         self.watch_s = 0.0  # watching: the push watched this long (s)
         self.watch_past_m = 0.0  # ... the capture point past the outer edge when it began
         self.past_max_m = -math.inf  # started: the capture point's furthest past that edge
+        self.late = False  # started past the edge (PAST_M), not by a watch
 
     @property
     def started(self) -> bool:
@@ -157,11 +168,19 @@ class MomentumStrategy:
                     self._start(stance, hip_roll_rad)
         elif self.phase == "passed" and not single:
             self.phase = "idle"
+        elif self.phase == "passed" and past_edge_m >= PAST_M:
+            # (the push left alone went on past the edge: the rest did not catch it)
+            self.late = True
+            self._start(stance, hip_roll_rad)
         if self.phase == "idle" and error <= TRIGGER_M:
             # (this single support under the trigger: a push in it is watched; a step that
             # begins with the error beyond it, the rebound of an earlier push, is not)
             self.phase, self.stance = "armed", stance
-        if self.started and math.isfinite(past_edge_m):
+        if self.started and math.isfinite(past_edge_m) and (not self.late or (
+                np.array_equal(self.offset_rad, self.goal_rad)
+                and not np.any(self.velocity_rad_s))):
+            # (a late start counts from the hips' arrival: the capture point they pull in while
+            # they move goes out again as they brake, and is not the push's end)
             self.past_max_m = max(self.past_max_m, past_edge_m)
         if self.phase == "acting" and not np.any(self.velocity_rad_s) and (
                 (all(support) and all(contact)) or self.past_max_m - past_edge_m > RETREAT_M):
