@@ -158,12 +158,17 @@ class WalkingBody:
                  else np.ascontiguousarray(gait.toe_heel.foot_angle_rad, dtype=float))
         feet = [np.ascontiguousarray(gait.feet[side], dtype=float) for side in ("right", "left")]
         com_m = np.ascontiguousarray(gait.com.com_m, dtype=float)
+        lead = np.zeros((n, 3))
+        if gait.torso_lead_rad is not None:
+            rows = min(n, len(gait.torso_lead_rad))
+            lead[:rows] = gait.torso_lead_rad[:rows]
         for k in range(n):
             if k and k % rows_per_slice == 0:
                 yield
             for _ in range(2):  # the CoM offset at the joints being solved
                 row_worst = _solve_row(feet[0][k], feet[1][k], com_m[k], self.lean_rad_per_m,
-                                       self.neck_z_m, offset, pitch[k], q, *self.leg_kernels,
+                                       self.neck_z_m, offset, pitch[k], lead[k], q,
+                                       *self.leg_kernels,
                                        self.max_error_m, T_all[k], status, error)
                 if row_worst < 0.0:
                     side = 0 if status[0] not in (EXACT, CAPPED) \
@@ -252,13 +257,14 @@ def _solve_legs(T_neck_world, right_row, left_row, pitch_rad, q, right, left, st
 
 
 @nb.njit(**JIT)
-def _solve_row(right_row, left_row, com_xy, lean_rad_per_m, neck_z_m, offset, pitch_rad, q,
-               right, left, max_error_m, T_world_neck, status, error):
+def _solve_row(right_row, left_row, com_xy, lean_rad_per_m, neck_z_m, offset, pitch_rad,
+               turn_rad, q, right, left, max_error_m, T_world_neck, status, error):
     """One row of :meth:`WalkingBody.solve`, compiled: the torso's pose (heading the feet's
-    mean, rolled by the lean, placed so that the CoM ``offset`` from it (neck frame) lies
-    over ``com_xy`` at ``neck_z_m``; written to ``T_world_neck``), then both legs
-    (:func:`_solve_legs`). Returns the legs' worse position error, or -1 when a leg is
-    neither exact nor capped within ``max_error_m``."""
+    mean, rolled by the lean, turned further by the rotation vector ``turn_rad`` (its own
+    frame: a correction's lead-in, :attr:`Gait.torso_lead_rad`), placed so that the CoM
+    ``offset`` from it (neck frame) lies over ``com_xy`` at ``neck_z_m``; written to
+    ``T_world_neck``), then both legs (:func:`_solve_legs`). Returns the legs' worse position
+    error, or -1 when a leg is neither exact nor capped within ``max_error_m``."""
     turn = left_row[3] - right_row[3]
     yaw = right_row[3] + math.atan2(math.sin(turn), math.cos(turn)) / 2
     c, s = math.cos(yaw), math.sin(yaw)
@@ -270,6 +276,9 @@ def _solve_row(right_row, left_row, com_xy, lean_rad_per_m, neck_z_m, offset, pi
     R[0, 0], R[0, 1], R[0, 2] = c, -s * c_roll, s * s_roll
     R[1, 0], R[1, 1], R[1, 2] = s, c * c_roll, -c * s_roll
     R[2, 0], R[2, 1], R[2, 2] = 0.0, s_roll, c_roll
+    angle = math.sqrt(turn_rad[0] ** 2 + turn_rad[1] ** 2 + turn_rad[2] ** 2)
+    if angle > 0.0:  # R times the turn's rotation (Rodrigues)
+        R = R @ _rotation(turn_rad, angle)
     T_neck_world = np.zeros((4, 4))
     for r in range(4):
         for col in range(4):
@@ -291,6 +300,19 @@ def _solve_row(right_row, left_row, com_xy, lean_rad_per_m, neck_z_m, offset, pi
         if (status[side] != EXACT and status[side] != CAPPED) or error[side] > max_error_m:
             return -1.0
     return max(error[0], error[1])
+
+
+@nb.njit(**JIT)
+def _rotation(vector, angle):
+    """The rotation matrix of the rotation vector ``vector`` (its norm ``angle`` > 0)."""
+    x, y, z = vector[0] / angle, vector[1] / angle, vector[2] / angle
+    c, s = math.cos(angle), math.sin(angle)
+    t = 1.0 - c
+    out = np.empty((3, 3))
+    out[0, 0], out[0, 1], out[0, 2] = c + x * x * t, x * y * t - z * s, x * z * t + y * s
+    out[1, 0], out[1, 1], out[1, 2] = y * x * t + z * s, c + y * y * t, y * z * t - x * s
+    out[2, 0], out[2, 1], out[2, 2] = z * x * t - y * s, z * y * t + x * s, c + z * z * t
+    return out
 
 
 def unsolved_plan(n: int, joints: int) -> JointPlan:

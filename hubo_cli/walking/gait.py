@@ -75,6 +75,10 @@ class Gait:
         step_index: the footstep being taken (-1 before the first and after the last), (n,).
         toe_heel: the toe-heel plan row for row (its feet's angles, pivots and CoPs); None for
             flat feet.
+        torso_lead_rad: a correction's lead-in (its first rows, fewer than n): the torso turned
+            further by these rotation vectors (rows of 3, rad, in the torso's frame), from
+            where the estimated torso stood onto the pattern's own lean and heading
+            (:func:`~hubo_cli.walking.target._blend_from_held`); None: no lead-in.
     """
 
     period_s: float
@@ -86,6 +90,7 @@ class Gait:
     support: np.ndarray
     step_index: np.ndarray
     toe_heel: ToeHeelPlan | None = None
+    torso_lead_rad: np.ndarray | None = None
 
     @property
     def n(self) -> int:

@@ -163,8 +163,10 @@ def pattern_from(current: Gait, k: int, row: int, start: tuple[Footstep, Footste
     rows = None if rows_per_period is None else prefix_rows(len(zmp_ref), rows_per_period) + 1
     path = com_from_zmp(zmp_ref, gains, com.com_m[k],
                         (com.com_velocity_m_s[k], com.com_acceleration_m_s2[k]), rows)
+    lead = current.torso_lead_rad  # a correction's lead-in in progress: its turn continued
+    lead = None if lead is None or k >= len(lead) else lead[k:]
     return replace(full, zmp_ref_m=zmp_ref, com=path, feet=feet, support=support,
-                   step_index=full.step_index[row:])
+                   step_index=full.step_index[row:], torso_lead_rad=lead)
 
 
 def prefix_rows(n: int, rows_per_period: int) -> int:
@@ -181,7 +183,15 @@ def gait_rows(gait: Gait, first: int, last: int | None = None) -> Gait:
                    com=CoMPath(com.com_m[first:last], com.com_velocity_m_s[first:last],
                                com.com_acceleration_m_s2[first:last], com.zmp_m[first:last]),
                    feet={side: rows[first:last] for side, rows in gait.feet.items()},
-                   support=gait.support[first:last], step_index=gait.step_index[first:last])
+                   support=gait.support[first:last], step_index=gait.step_index[first:last],
+                   torso_lead_rad=_lead_rows(gait.torso_lead_rad, first, last))
+
+
+def _lead_rows(lead: np.ndarray | None, first: int, last: int | None) -> np.ndarray | None:
+    """Rows ``first:last`` of a lead-in's torso turn (None when none is left)."""
+    if lead is None or first >= len(lead):
+        return None
+    return lead[first:last]
 
 
 def rest_of(cart: Gait, first: int, params: WalkingParams) -> Gait:

@@ -67,6 +67,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterator, Sequence
+from dataclasses import replace
 
 import numba as nb
 import numpy as np
@@ -362,6 +363,38 @@ def _blend_from_held(gait: Gait, T_world_held: np.ndarray) -> int:
     return lead
 
 
+def _levelled(R_world_neck: np.ndarray, R_neck_soles: np.ndarray) -> np.ndarray:
+    """The torso's orientation that sets both soles (``R_neck_soles``, right and left, as the
+    legs hold them) flat on the floor, each at the heading ``R_world_neck`` (the estimate) gives
+    it; their mean. The pattern's soles are flat: from the estimated torso's tilt, the ankles'
+    targets stepped by it at a correction's start (10-25 mrad; docs/history/walking.md,
+    round 14)."""
+    each = []
+    for R_neck_sole in R_neck_soles:
+        R = R_world_neck @ R_neck_sole
+        each.append(pin.rpy.rpyToMatrix(0.0, 0.0, math.atan2(R[1, 0], R[0, 0])) @ R_neck_sole.T)
+    return each[0] @ pin.exp3(0.5 * pin.log3(each[0].T @ each[1]))
+
+
+def _torso_lead(gait: Gait, lead: int, R_world_held: np.ndarray,
+                lean_rad_per_m: float) -> np.ndarray:
+    """A correction's lead-in's torso turn (:attr:`Gait.torso_lead_rad`, ``lead`` rows):
+    from the estimated torso ``R_world_held`` the legs hold the soles from onto the pattern's
+    own heading and lean (:func:`~hubo_cli.walking.body.lean_rad`), on the soles' quintic.
+    The pattern's first torso leans toward the estimated CoM, which the stabilizer's torso
+    offset had moved sideways (2 rad/m x 23 mm: 46 mrad of roll where the robot stood
+    upright); started there, the legs' targets jumped (docs/history/walking.md, round 14)."""
+    right, left = gait.feet["right"][0], gait.feet["left"][0]
+    yaw = right[3] + wrap_angle(left[3] - right[3]) / 2
+    c, s = math.cos(yaw), math.sin(yaw)
+    com = gait.com.com_m[0]
+    sideways = -s * (com[0] - (right[0] + left[0]) / 2) + c * (com[1] - (right[1] + left[1]) / 2)
+    R_pattern = pin.rpy.rpyToMatrix(-lean_rad_per_m * sideways, 0.0, yaw)
+    turn = pin.log3(R_pattern.T @ R_world_held)
+    s = smoothstep5((np.arange(lead) + 1.0) / lead)[:, None]
+    return (1.0 - s) * turn
+
+
 def planned_contacts(gait: Gait) -> list[tuple[Contact | None, Contact | None]]:
     """Per period the soles the pattern has on the ground as the force distribution takes
     them (right, left; None in the air): where the footstep stands, its reference CoP (the
@@ -471,6 +504,7 @@ class WalkTarget(Target):
         self.params = params
         self.goal_relative = goal
         self.q_start = np.asarray(q_start_rad, dtype=float)
+        self._sent_q = self.q_start  # the joints last sent (a correction starts from them)
         self.T_world_neck_start = T_world_neck_start
         self.store: Store | None = None
         self.placed = True
@@ -584,6 +618,14 @@ class WalkTarget(Target):
         T_world_neck[2, 3] = self.T_world_neck_start[2, 3] if self.gait is None \
             else self.plan.T_world_neck[-1, 2, 3]
         body = WalkingBody(self.model, q_rad, T_world_neck, self.params.lean_rad_per_m)
+        goals = None
+        if self.gait is not None and self.toe_heel is None:  # a correction (held, below)
+            # the soles where the joints last sent hold them (the stabilizer's corrections
+            # in): rebuilt as the pattern's soles moved by the torso offset and the lifts,
+            # they missed what the legs' correction had reached (it lags, LEG_STEP_RAD)
+            goals = np.stack([body.legs[SIDE_LEG[side]].fk(
+                self._sent_q[body.slices[SIDE_LEG[side]]]) for side in SIDES])
+            T_world_neck[:3, :3] = _levelled(T_world_neck[:3, :3], goals[:, :3, :3])
         sole_z = float(store[T_WORLD_SOLES][0, 2, 3])
         com = body.com_in_neck(q_rad)
         com_world = T_world_neck[:3, :3] @ com + T_world_neck[:3, 3]
@@ -591,16 +633,11 @@ class WalkTarget(Target):
                          self.model.control_period_s, float(com_world[2]) - sole_z, sole_z,
                          self.model.feet.forward_m, com_start_m=com_world[:2],
                          toe_heel=self.toe_heel, sole=self.model.feet)
-        held = self.gait is not None and gait.toe_heel is None
+        held = goals is not None and gait.toe_heel is None
         if held:  # a correction: its lead-in moves the soles from where the legs hold them
-            played = max(min(self.k, self.gait.n) - 1, 0)  # the last row played
-            goals = self._T_neck_soles[played].copy()  # with the stabilizer's last correction
-            if self.stabilizer is not None:
-                offset_x, offset_y = self.torso_offset.offset_m.tolist()
-                for column, side in enumerate(SIDES):
-                    goals[column, :3, 3] += self._R_neck_world[played] @ np.array(
-                        (-offset_x, -offset_y, self.touchdowns[side].lift_m))
             lead = _blend_from_held(gait, T_world_neck @ goals)
+            gait = replace(gait, torso_lead_rad=_torso_lead(
+                gait, lead, T_world_neck[:3, :3], self.params.lean_rad_per_m))
         self._reaimed = -1
         self._reaimed_m = {side: np.zeros(2) for side in SIDES}
         self._moves_before = self.shifts + self.touchdowns_early  # (:meth:`_reaim`)
@@ -1182,7 +1219,9 @@ class WalkTarget(Target):
                 and self._pending is None and self.corrections_left > 0 and not self.arrived():
             self.corrections_left -= 1
             self.last_step_end_s = self.walking_s
-            self._plan(self.plan.q_rad[-1], t_s)
+            # from the joints last sent: the CoM where the legs hold it (the plan's last
+            # row missed the stabilizer's correction: portable seed 1's soles jumped 6 mm)
+            self._plan(self._sent_q, t_s)
         elif self.phase in ("walk", "stopping"):  # a stop's last step follows it too
             if self.phase == "walk":
                 self._reaim(t_s)
@@ -1245,6 +1284,7 @@ class WalkTarget(Target):
         q = plan.q_rad[k]
         if self.stabilizer is not None:
             q = self._stabilized(k, q.copy(), zmp if math.isfinite(outside) else None)
+        self._sent_q = q
         rows = self._rows
         zmp_x, zmp_y = zmp[:2].tolist()
         support = rows["support"][k]
