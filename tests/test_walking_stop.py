@@ -943,3 +943,22 @@ def test_the_monitors_planned_support_stands_where_the_estimated_soles_stand():
     store[T_WORLD_SOLES] = move @ store[T_WORLD_SOLES]
     target(DT, state)
     np.testing.assert_allclose(store[SUPPORT_PLAN].T_world_soles, move @ planned, atol=1e-6)
+
+
+@pytest.mark.parametrize("error_m", [0.05, 0.15])
+def test_a_pushed_landing_that_bounces_while_walking_stops_the_walk(error_m):
+    """A walk nobody stopped: its landed (right) foot reads 0 N in the double supports, the
+    estimated capture point ``error_m`` off the pattern's there. 150 mm off (a 60-90 N side
+    push's landing, seed 2 at 70 N: 121-195 mm; docs/history/walking.md, round 14): the
+    landing waits and the walk stops, finishing into a double-support stance, as a stop
+    latched there would (main walked on, lifting the other foot with the body bouncing
+    between the soles: seeds 2, 5, 19 and 20 fell at 60-90 N). 50 mm off (unpushed walks'
+    errors, 57 mm at most in round 10): no wait, no stop, the walk's own timeline."""
+    target, _, _ = _offline_walk((0.3, 0.0, 0.0), 3000, cp_offset_m=(0.0, error_m),
+                                 offset_k=(400, 3000), double_only=True,
+                                 ankles_fz_n=(0.0, 380.0))
+    if error_m > 0.1:  # (LANDING_WALK_PUSHED_M)
+        assert target.stopped_s is not None and target.phase == "stood"
+        assert target.landing_waits == 1
+    else:
+        assert target.stopped_s is None and target.landing_waits == 0

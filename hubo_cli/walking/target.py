@@ -48,7 +48,9 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
   walked after the pattern, which stays for the walks that still end off.
 * ``stopping``: entered when the soft stopper has latched (its mode, the previous period's
   :data:`~hubo_cli.control.keys.STOP_MODE`, is no longer ``release``), or when a foot the
-  floor reach turned has landed (:meth:`WalkTarget._caught`): the step in progress
+  floor reach turned has landed (:meth:`WalkTarget._caught`), or when a landed foot bounced
+  off the floor with the estimated capture point LANDING_WALK_PUSHED_M or more off the
+  pattern's (:meth:`WalkTarget._unloaded_landing`): the step in progress
   is finished (the swing foot lands; before the first step, none is taken) into a double-support
   stance, the CoM comes to rest between the feet over ``settle_s``; after a push, a landing's
   weight transfer waits in the periods its landed foot reads unloaded, bounced off the floor
@@ -200,6 +202,9 @@ LIFTOFF_MIN_LOAD = 0.2  # the median of their F_z together over this window, at 
                         # (NaN) it never waits
 LANDING_WAIT_MAX_S = 0.5  # [chosen] after a push, a landing's double support waits at most this
                           # long in all for its landed foot to carry (WalkTarget._unloaded_landing)
+LANDING_WALK_PUSHED_M = 0.1  # [chosen] ... and while the walk goes on, once the estimated capture
+# point is this far off the pattern's (unpushed walks: 57 mm at most, round 10; a 70 N push's
+# bounce, seed 2: 121-195 mm; docs/history/walking.md, round 14)
 LANDING_CARRIED_S = 0.08  # [chosen] ... and none once that foot has carried this long in a row
                           # (the landing is made: pushed seed 13's landed foot bounced, loaded
                           # at most 0.035 s in a row; seed 8's carried 0.21 s, then the body
@@ -547,6 +552,7 @@ class WalkTarget(Target):
         self._waiting = False  # the timeline waited at a lift-off last period
         self._waited_s = 0.0  # ... this long
         self._weight_n = math.inf  # the body's weight (N; from the first plan's model)
+        self._bounced = False  # a pushed landing's foot bounced off the floor: the walk stops
         self.liftoff_waits = 0  # lift-offs the timeline waited at
         self.landing_waits = 0  # landings whose double support waited for the landed foot
         self._landed: int | None = None  # the last landing's foot (its support column)
@@ -1213,7 +1219,7 @@ class WalkTarget(Target):
         if self.gait is None:
             self._start(t_s, state.q_rad)
         elif self.phase == "walk" and (store.get(STOP_MODE, "release") != "release"
-                                       or self._caught(self.k)):
+                                       or self._caught(self.k) or self._bounced):
             self._stop(t_s)
         elif self.phase == "walk" and self.k >= self.gait.n and not self.fell \
                 and self._pending is None and self.corrections_left > 0 and not self.arrived():
@@ -1339,7 +1345,13 @@ class WalkTarget(Target):
         (``landing_wait``) for a gait of short steps (``WalkingParams.answers_pushes``), as
         the fast gait: its own landings bounce and its capture point lags the pattern's by
         more than CP_MARGIN_M without a push; waiting at 4-12 of its landings, 3 of 10 of its
-        2 m walks fell (docs/history/walking.md, round 10)."""
+        2 m walks fell (docs/history/walking.md, round 10). While the walk goes on, the
+        same landing with the capture point LANDING_WALK_PUSHED_M or more off the pattern's
+        waits too, and the walk stops (``_bounced``: the stop latches next period, as the
+        operator's): 60-70 N side pushes toward the swing foot (seeds 2, 5 and 19 of
+        tools/walk_disturbances.py) landed, bounced between the soles, the walk played on,
+        lifted the other foot with the body rolling over that sole's outer edge, and fell
+        (docs/history/walking.md, round 14)."""
         if not self.landing_wait or not all(self._rows["support"][k]):
             self._landed = None  # (a single support: the landing is past)
             return False
@@ -1358,7 +1370,11 @@ class WalkTarget(Target):
                 self._landed = None  # the landing is made
             return False
         self._landing_carried_s = 0.0
-        return self.phase == "stopping" and self._pushed(k)
+        if self.phase == "stopping":
+            return self._pushed(k)
+        error = self._capture_point_error(k)
+        self._bounced = not np.all(np.abs(error) <= LANDING_WALK_PUSHED_M)
+        return self._bounced
 
     def _done(self, t_s: float) -> bool:
         """The walk has ended: the pattern played (and no correction is due), or a stop's
