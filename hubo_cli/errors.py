@@ -13,6 +13,12 @@ from __future__ import annotations
 QUOTED_CHARS = 60
 
 
+# The exit codes of a run that raised no error (the errors' own are their ``exit_code``):
+# it ended without completing (a fall, a stop, a goal not met), or Ctrl-C / SIGTERM ended it
+EXIT_NOT_COMPLETED = 1
+EXIT_INTERRUPTED = 130
+
+
 class HuboError(Exception):
     """Root of every error hubo-cli raises on purpose.
 

@@ -32,13 +32,19 @@ from concurrent.futures import CancelledError
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
-from hubo_cli.errors import DeviceError, HuboError, InputError, SafetyError, quoted
+from hubo_cli.errors import (
+    EXIT_INTERRUPTED,
+    EXIT_NOT_COMPLETED,
+    DeviceError,
+    HuboError,
+    InputError,
+    SafetyError,
+    quoted,
+)
 from hubo_cli.interrupts import stopping
 from hubo_cli.outputs import replacing
 
 SIM_COMMAND = "sim"
-EXIT_NOT_COMPLETED = 1
-EXIT_INTERRUPTED = 130
 SIM_PARAMETERS = {"duration": 5.0, "push": 0.0}
 TABLE_NAME = "sweep.csv"
 PLOT_NAME = "sweep.png"

@@ -26,11 +26,8 @@ from hubo_cli.cli.output import (
 from hubo_cli.control.operator import KEYS_HELP
 from hubo_cli.control.stop_choice import SOFT_SOURCES, TASK_SOURCES
 from hubo_cli.drivers.registry import DRIVER_NAMES
-from hubo_cli.errors import InputError, SafetyError
+from hubo_cli.errors import EXIT_INTERRUPTED, EXIT_NOT_COMPLETED, InputError, SafetyError
 from hubo_cli.runs import shown_name
-
-EXIT_INTERRUPTED = 130
-EXIT_NOT_COMPLETED = 1
 
 
 class TaskGroup(click.Group):

@@ -26,7 +26,7 @@ from hubo_cli.cli.output import (
     print_run_folder,
 )
 from hubo_cli.drivers.registry import DRIVER_NAMES, driver_class
-from hubo_cli.errors import HuboError, InputError, quoted
+from hubo_cli.errors import EXIT_INTERRUPTED, EXIT_NOT_COMPLETED, HuboError, InputError, quoted
 from hubo_cli.pace import check_speed
 
 KEYS_HELP = "keys: space e-stop, r release, c clutch, b change branch, q quit"
@@ -34,7 +34,6 @@ DIRECTIONS = (("fwd", "back"), ("left", "right"), ("up", "down"))  # +/- x, y, z
 MOSTLY_REJECTED = 0.5  # a replay with more than this share of samples rejected has failed
 ABSURD_ERROR_MM = 100.0  # an RMS error above this means the hand never followed the operator
 EXIT_BAD_INPUT = 2
-EXIT_NOT_COMPLETED = 1
 
 
 def _speed(text: str) -> float | None:
@@ -389,7 +388,8 @@ def _report(run, as_json: bool, video: bool = False) -> None:
     if summary["error"] and not as_json:
         err_console.print(f"[yellow]{summary['error']}[/]")
     if not run.loop.ok:
-        raise SystemExit(130 if run.loop.ended == "interrupted" else EXIT_NOT_COMPLETED)
+        raise SystemExit(EXIT_INTERRUPTED if run.loop.ended == "interrupted"
+                         else EXIT_NOT_COMPLETED)
     used, rejected = summary["samples_used"], summary["samples_rejected"]
     if used == 0:
         warn("no operator input reached the robot (no pose of a driven hand was usable)")

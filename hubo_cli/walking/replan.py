@@ -163,10 +163,10 @@ def pattern_from(current: Gait, k: int, row: int, start: tuple[Footstep, Footste
     rows = None if rows_per_period is None else prefix_rows(len(zmp_ref), rows_per_period) + 1
     path = com_from_zmp(zmp_ref, gains, com.com_m[k],
                         (com.com_velocity_m_s[k], com.com_acceleration_m_s2[k]), rows)
-    lead = current.torso_lead_rad  # a correction's lead-in in progress: its turn continued
-    lead = None if lead is None or k >= len(lead) else lead[k:]
     return replace(full, zmp_ref_m=zmp_ref, com=path, feet=feet, support=support,
-                   step_index=full.step_index[row:], torso_lead_rad=lead)
+                   step_index=full.step_index[row:],
+                   # a correction's lead-in in progress: its turn continued
+                   torso_lead_rad=_lead_rows(current.torso_lead_rad, k, None))
 
 
 def prefix_rows(n: int, rows_per_period: int) -> int:
