@@ -289,6 +289,7 @@ def analyse(model, walking, checker, run_dir: Path, at_s: float, direction: str,
             local = R_floor.T @ (T[:3, 3] - T_floor[:3, 3])
             row.update(margin_mm=1000 * margin_still, margin_own_mm=1000 * margin,
                        own_mm=1000 * own, reach_mm=1000 * best_reach, x_m=float(local[0]),
+                       out_m=outward * float(local[1]) - half_width,
                        yaw_rad=math.atan2(T[1, 0], T[0, 0]) - yaw0, need_s=need_s,
                        path_clear=bool(path_clear))
         rows.append(row)
@@ -372,7 +373,8 @@ def main() -> int:
                 line += (f"; the best in time: the capture point {row['margin_mm']:+.0f} mm "
                          f"inside the two soles' hull ({row['margin_own_mm']:+.0f} mm with "
                          f"the swing leg's own momentum, {row['own_mm']:+.0f} mm outward); "
-                         f"it reaches {row['reach_mm']:.0f} mm (x {row['x_m']:+.2f} m, turned "
+                         f"it reaches {row['reach_mm']:.0f} mm (x {row['x_m']:+.2f} m, its centre "
+                         f"{row['out_m']:.2f} m beyond the edge, turned "
                          f"{row['yaw_rad']:+.2f} rad, joints {row['need_s']:.3f} s, straight "
                          f"path {'clear' if row['path_clear'] else 'through the stance leg'})")
             print(line)
