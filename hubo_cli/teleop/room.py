@@ -251,9 +251,15 @@ class CollisionRoom:
         # distance, to the last bit; d is exact here, within the room and NEAR_M)
         near_m = min(d + DIFF_RAD * float(self.checker.rate_m_rad[self._pair_index[pair]].max())
                      + DIFF_SLACK_M - self.room_m, NEAR_M)
+        band_m = self.room_m + near_m
         for k, i in enumerate(index.tolist()):
             q_d[i] = q[i] + DIFF_RAD
-            grad[k] = (self._distance(q_d, near_m)[0] - d) / DIFF_RAD
+            # where every pair's bound answers (no pair to compute: the closest pair not
+            # moved by joint i, the others beyond the band), the check's distance without it
+            d_d = self.checker.bound_near(q_d, band_m)
+            if d_d != d_d:
+                d_d = self._distance(q_d, near_m)[0]
+            grad[k] = (d_d - d) / DIFF_RAD
             q_d[i] = q[i]
         return grad
 
