@@ -22,8 +22,11 @@ fails goes as far as it can along its step from the last target (bisection). A t
 goes deeper into the band than the last one was. The closest pair's gradient comes from coal's
 witness points and normal (one check, exact to GJK's tolerance); where they give none (shapes
 touching, a face against a face) from forward differences of ``DIFF_RAD`` (six checks, each
-computing only the pairs that could come closer than the closest pair can move). It only
-shapes the steps: every step taken is checked.
+computing only the pairs that could come closer than the closest pair can move; a check with
+no such pair, the closest pair not moved by the joint and every other pair's bound beyond the
+band, is answered by the bounds alone:
+:meth:`~hubo_cli.control.collision.SelfCollisionChecker.bound_near`, the same distance to the
+last bit). It only shapes the steps: every step taken is checked.
 
 Distances are the checker's :meth:`~hubo_cli.control.collision.SelfCollisionChecker.check_near`
 (exact near the room, Lipschitz lower bounds for the pairs far from it, which it does not
