@@ -301,6 +301,7 @@ class SelfCollisionChecker:
             o, R = self._grad_data.oMi[1].translation, self._grad_data.oMi[1].rotation
             _witness_gradient(o, o + 1.0, 1.0, 2, R, 3, R, o, J, o, J, self.robot.q_index,
                               self.robot.q_index[:1], np.empty(1))
+            self.bound_near(np.zeros(len(self.robot.q_index)), 0.0)  # and bound_near's
             with warnings.catch_warnings():  # coal marks the flag deprecated; it still rules
                 warnings.simplefilter("ignore", DeprecationWarning)
                 for data in (self.geom_data, *self._split, self._near_data,
@@ -453,6 +454,16 @@ class SelfCollisionChecker:
                               self.earlier_q, self.earlier_m)
         return Clearance(float(bounds[best]), self.pair_names[best])
 
+    def bound_near(self, q_rad: np.ndarray, band_m: float) -> float:
+        """The distance :meth:`check_near` would return for ``q_rad`` and ``band_m`` when it
+        would compute no pair (every pair's bound beyond ``band_m`` or its distance reused),
+        to the last bit; NaN when it would compute one. Nothing of the checker changes (a
+        reused earlier distance is not made the last one, as :meth:`check_near` makes it)."""
+        if not self.pair_names:
+            return np.inf
+        return _bound_near(q_rad, self.anchor_q, self.anchor_m, self.earlier_q, self.earlier_m,
+                           self.rate_m_rad, band_m, self.repeatable)
+
     def _closest(self, data: pin.GeometryData) -> tuple[float, int]:
         """(distance, pair index) of the closest active pair of ``data`` at the placements of
         the last forward kinematics; (inf, number of pairs) when it has none."""
@@ -579,6 +590,37 @@ def _pair_bounds(q, q0, d0, q1, d1, rate, band_m, reuse, bounds, near, changed):
             changed[n_changed + n_near] = p
             n_near += 1
     return n_changed, n_near, best
+
+
+@nb.njit(cache=True, nogil=True)
+def _bound_near(q, q0, d0, q1, d1, rate, band_m, reuse):
+    """:func:`_pair_bounds`'s bounds at ``q`` without writing anything: their smallest, or NaN
+    as soon as a pair would be computed (moved, its bound at most ``band_m``)."""
+    best = np.inf
+    for p in range(d0.shape[0]):
+        bound = d0[p]
+        moved = not reuse or d0[p] == -np.inf
+        for j in range(q.shape[0]):
+            if rate[p, j] > 0.0:
+                bound -= rate[p, j] * abs(q[j] - q0[p, j])
+                moved = moved or q[j] != q0[p, j]
+        if moved and reuse and bound <= band_m and d1[p] != -np.inf:
+            earlier = d1[p]
+            moved_1 = False
+            for j in range(q.shape[0]):
+                if rate[p, j] > 0.0:
+                    earlier -= rate[p, j] * abs(q[j] - q1[p, j])
+                moved_1 = moved_1 or q[j] != q1[p, j]
+            if not moved_1:
+                moved = False
+                bound = d1[p]
+            elif earlier > bound:
+                bound = earlier
+        if moved and bound <= band_m:
+            return np.nan
+        if bound < best:
+            best = bound
+    return best
 
 
 @nb.njit(cache=True, nogil=True)

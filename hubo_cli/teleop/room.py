@@ -22,8 +22,11 @@ fails goes as far as it can along its step from the last target (bisection). A t
 goes deeper into the band than the last one was. The closest pair's gradient comes from coal's
 witness points and normal (one check, exact to GJK's tolerance); where they give none (shapes
 touching, a face against a face) from forward differences of ``DIFF_RAD`` (six checks, each
-computing only the pairs that could come closer than the closest pair can move). It only
-shapes the steps: every step taken is checked.
+computing only the pairs that could come closer than the closest pair can move; a check with
+no such pair, the closest pair not moved by the joint and every other pair's bound beyond the
+band, is answered by the bounds alone:
+:meth:`~hubo_cli.control.collision.SelfCollisionChecker.bound_near`, the same distance to the
+last bit). It only shapes the steps: every step taken is checked.
 
 Distances are the checker's :meth:`~hubo_cli.control.collision.SelfCollisionChecker.check_near`
 (exact near the room, Lipschitz lower bounds for the pairs far from it, which it does not
@@ -251,9 +254,15 @@ class CollisionRoom:
         # distance, to the last bit; d is exact here, within the room and NEAR_M)
         near_m = min(d + DIFF_RAD * float(self.checker.rate_m_rad[self._pair_index[pair]].max())
                      + DIFF_SLACK_M - self.room_m, NEAR_M)
+        band_m = self.room_m + near_m
         for k, i in enumerate(index.tolist()):
             q_d[i] = q[i] + DIFF_RAD
-            grad[k] = (self._distance(q_d, near_m)[0] - d) / DIFF_RAD
+            # where every pair's bound answers (no pair to compute: the closest pair not
+            # moved by joint i, the others beyond the band), the check's distance without it
+            d_d = self.checker.bound_near(q_d, band_m)
+            if d_d != d_d:
+                d_d = self._distance(q_d, near_m)[0]
+            grad[k] = (d_d - d) / DIFF_RAD
             q_d[i] = q[i]
         return grad
 
