@@ -291,3 +291,43 @@ def test_target_done_and_operator_release(model):
     assert result.ended == "done" and result.ok
     kinds = [(name, kind) for name, _, kind, _ in result.safety_events]
     assert kinds == [("estop", "stop"), ("estop", "release")]
+
+
+def test_a_swallowed_interrupt_still_ends_the_run_before_anything_moves(model, tmp_path):
+    """Ctrl-C during a cold cache's numba compile raises inside a ctypes callback, which
+    swallows the KeyboardInterrupt ("Exception ignored ..."): on main the run then went on to
+    its end, exit 0. Noted by the handler, the loop sees it before the robot's first command:
+    interrupted, nothing sent."""
+    from hubo_cli import interrupts
+
+    robot = ideal(model)
+    moving = _moving_target(robot.read().q_rad.copy(), amplitude=0.5, period_s=3.0)
+    with interrupts.catching_interrupts():
+        try:  # as a ctypes callback does
+            interrupts._interrupt(signal.SIGINT, None)
+        except KeyboardInterrupt:
+            pass
+        result = ControlLoop(robot, build_pipeline(model), moving, log_path=tmp_path).run(1.0)
+    assert result.ended == "interrupted" and result.error == "interrupted (Ctrl-C)"
+    assert robot.sent == [] and result.periods == 0
+    assert interrupts.interrupt_pending() is None  # acted on: the next run is not ended by it
+
+
+def test_an_interrupt_in_the_loop_is_acted_on_between_periods(model, tmp_path):
+    """Inside the loop the first interrupt is noted, not raised (it cannot land inside a
+    period); the loop brakes from the next period on; a non-walking run brakes as before."""
+    robot = ideal(model)
+    moving = _moving_target(robot.read().q_rad.copy(), amplitude=0.5, period_s=3.0)
+    reached = []
+
+    def target(t_s, state):
+        if abs(t_s - 0.75) < DT / 2:
+            os.kill(os.getpid(), signal.SIGINT)  # noted by the loop's handler: not raised
+            reached.append(t_s)  # (main: never, the interrupt raised above)
+        return moving(t_s, state)
+
+    result = ControlLoop(robot, build_pipeline(model), target, log_path=tmp_path).run(5.0)
+    assert result.ended == "interrupted" and result.error == "interrupted (Ctrl-C)"
+    assert reached == [pytest.approx(0.75)]
+    assert result.periods - result.stop_periods == round(0.75 / DT) + 1  # that period ran
+    assert result.stop_periods > 10 and result.interrupt_stop == ""

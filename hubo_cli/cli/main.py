@@ -8,7 +8,6 @@ import errno
 import gc
 import importlib
 import os
-import signal
 import sys
 import threading
 
@@ -16,7 +15,7 @@ import click
 
 from hubo_cli import __version__
 from hubo_cli.errors import HuboError, Terminated
-from hubo_cli.interrupts import run_files
+from hubo_cli.interrupts import catching_interrupts, run_files
 
 # command name -> "module:attribute" (modules are imported only when the command runs)
 COMMANDS = {
@@ -43,11 +42,6 @@ EXIT_CODES = ("Exit codes: 0 success, 1 other error or a run that did not comple
 
 
 DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
-
-
-def _sigterm_as_interrupt(signum, frame) -> None:
-    """SIGTERM ends a run like Ctrl-C: the loop's smooth stop runs and the summary is written."""
-    raise Terminated
 
 
 def replace_unencodable_output() -> None:
@@ -92,12 +86,12 @@ class LazyGroup(click.Group):
 
     def main(self, *args, **kwargs):
         replace_unencodable_output()  # before anything is written, --help included
-        return super().main(*args, **kwargs)
+        # Ctrl-C and SIGTERM noted as well as raised from the start, the command's imports
+        # included: one swallowed in a numba compile still ends the run before it moves
+        with catching_interrupts():
+            return super().main(*args, **kwargs)
 
     def invoke(self, ctx: click.Context):
-        previous = signal.getsignal(signal.SIGTERM)
-        if previous is signal.SIG_DFL:
-            signal.signal(signal.SIGTERM, _sigterm_as_interrupt)
         late = None
         try:  # an interrupt after a run's loop ended waits until its files and stdout are whole
             with run_files(deliver=False) as late:
@@ -134,8 +128,6 @@ class LazyGroup(click.Group):
             if late is not None and late.cause is not None:
                 click.echo(f"note: {late.cause} came after the run had ended; the run finished "
                            "and its files are complete", err=True)
-            if previous is signal.SIG_DFL:
-                signal.signal(signal.SIGTERM, previous)
 
 
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]},
