@@ -208,11 +208,14 @@ class _StanceStop:
     bound_s: float
     outcome: str = ""
     t_end_s: float | None = None
+    asked: bool = False  # the stop was requested in a period (the stopper could answer)
 
     def over(self, store: Store, t_s: float) -> bool:
         """After a period ending at ``t_s``: the stopper holds (``stood`` when the phase
         says it stands, ``held`` when the stopper braked it), it did not latch, or the bound
         ran out (both ``braked: ...``); sets :attr:`outcome` when it is over."""
+        if not self.asked:  # (begun after this period's modules ran: a log failure)
+            return False
         if self.t_end_s is not None:  # standing: held STANCE_HOLD_S, a fall seen meanwhile
             return t_s - self.t_end_s >= STANCE_HOLD_S - 1e-9
         mode = store.get(STOP_MODE)
@@ -227,6 +230,10 @@ class _StanceStop:
         if self.outcome:
             self.t_end_s = t_s
         return self.outcome.startswith("braked")
+
+    def end(self, outcome: str, t_s: float) -> None:
+        """It ended otherwise at ``t_s``: a second interrupt, the target's end, an error."""
+        self.outcome, self.t_end_s = outcome, t_s
 
     def took_s(self, t_now_s: float) -> float:
         """From the request to its end (s; to the stance, not to the end of its hold)."""
@@ -415,7 +422,7 @@ class ControlLoop:
                 if interrupt_pending() is not None:  # noted (or swallowed): act on it now
                     cause = take_interrupt()
                     if stance is not None:  # (a log failure's stance: a second event)
-                        stance.outcome = f"braked: {cause} while standing up"
+                        stance.end(f"braked: {cause} while standing up", t_s)
                         error = (error + "; " if error else "") + f"interrupted ({cause})"
                         break
                     ended, error = "interrupted", f"interrupted ({cause})"
@@ -434,6 +441,7 @@ class ControlLoop:
                     cycle.estop_requests.update(_as_requests(info.get("estop")))
                     if stance is not None:
                         cycle.estop_requests.add(STOP_SOURCE)
+                        stance.asked = True
                     cycle.flags.update(_as_requests(info.get("flags")))
                     if info.get("release"):
                         for m in self.modules:
@@ -502,7 +510,7 @@ class ControlLoop:
                     if stance is None:
                         ended = "done"
                     elif not stance.outcome:
-                        stance.outcome = "ended: the target finished"
+                        stance.end("ended: the target finished", self.period * self.dt_s)
                     break
             if interrupt_pending() is not None and ended in ("finished", "done"):
                 # noted in the last period: the run ends interrupted (nothing more to do)
@@ -510,14 +518,14 @@ class ControlLoop:
         except KeyboardInterrupt as err:
             cause = interrupt_cause(err)
             if stance is not None:
-                stance.outcome = f"braked: a second interrupt ({cause})"
+                stance.end(f"braked: a second interrupt ({cause})", self.period * self.dt_s)
                 error = (error + "; " if error else "") + f"second interrupt ({cause})"
             else:
                 ended, error = "interrupted", f"interrupted ({cause})"
             exc = err
             self._count_a_logged_period()
         if stance is not None and not stance.outcome:  # an error ended it
-            stance.outcome = f"ended: {ended}"
+            stance.end(f"ended: {ended}", self.period * self.dt_s)
         stopping_from = self.period
         try:
             if ended not in ("driver-error", "device"):
