@@ -8,6 +8,7 @@ import errno
 import gc
 import importlib
 import os
+import signal
 import sys
 import threading
 
@@ -148,8 +149,9 @@ def entry() -> None:
     against 0.02 s with ``os._exit``), which would delay the exit after SIGTERM or a dead
     robot past the second the operator is promised. So the exit handlers run, stray objects
     are finalised (an unclosed file flushes), the standard streams are flushed, and the
-    process ends with ``os._exit``. While a non-daemon thread still runs, the normal exit
-    (which waits for it) is taken instead.
+    process ends with ``os._exit``, Ctrl-C and SIGTERM ignored from then on (the exit code
+    stands). While a non-daemon thread still runs, the normal exit (which waits for it) is
+    taken instead.
     """
     try:
         main()
@@ -164,6 +166,10 @@ def entry() -> None:
     elif not isinstance(code, int):  # sys.exit("message") prints the message, exits 1
         print(code, file=sys.stderr)
         code = 1
+    # the command has ended and its exit code stands: an interrupt now would only print a
+    # traceback from a finaliser ("Exception ignored in: WeakKeyDictionary...") and change nothing
+    for s in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(s, signal.SIG_IGN)
     atexit._run_exitfuncs()
     gc.collect()
     for stream in (sys.stdout, sys.stderr):
