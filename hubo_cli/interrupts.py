@@ -80,8 +80,9 @@ def _interrupt(signum, frame) -> None:
 
 def interrupt_pending() -> str | None:
     """The cause (``Ctrl-C``, ``SIGTERM``) of an interrupt no control loop has acted on yet
-    (one only noted, or one raised but swallowed), or None."""
-    return _noted.pending
+    (one only noted, or one raised but swallowed), or None; always None off the main thread
+    (a loop there is not the one the signal was for)."""
+    return _noted.pending if _in_main_thread() else None
 
 
 def take_interrupt() -> str | None:
@@ -122,9 +123,9 @@ def loop_taking() -> dict:
     """A control loop starts: the first interrupt from now is noted, not raised (Ctrl-C's
     handler installed where Python's default is; SIGTERM's only where
     :func:`catching_interrupts` put it). Returns what :func:`loop_given_back` restores."""
-    _noted.deferring = True
-    if not _in_main_thread():
+    if not _in_main_thread():  # (signals reach the main thread only: nothing to take here)
         return {}
+    _noted.deferring = True
     wanted = {}
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
         wanted[signal.SIGINT] = _interrupt
@@ -135,6 +136,8 @@ def loop_given_back(previous: dict) -> None:
     """The control loop has stopped the robot: interrupts raise again (the handlers
     :func:`loop_taking` replaced are back) and one still pending is dropped (the loop
     acted on it)."""
+    if not _in_main_thread():
+        return
     _noted.pending, _noted.deferring = None, False
     for s, handler in previous.items():
         if signal.getsignal(s) is _interrupt:

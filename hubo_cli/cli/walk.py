@@ -124,6 +124,8 @@ def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | No
         if result.interrupt_stop == "stood":
             console.print("ended             interrupted: the step finished, standing in "
                           "double support")
+        elif result.ended == "interrupted" and not result.steps:  # no plan: never started
+            console.print("ended             interrupted before the walk started")
         elif result.ended == "interrupted":
             console.print("ended             interrupted: braked to a stop before the goal"
                           + (f" ({result.interrupt_stop})" if result.interrupt_stop else ""))
