@@ -16,6 +16,15 @@ scaffold each open one); only the outermost one acts on a recorded interrupt:
   happened: the robot had already stopped, so the signal changed nothing.
 
 Only the main thread can handle signals; elsewhere the scopes do nothing.
+
+An interrupt is also *noted* (:func:`interrupt_pending`), not only raised: the command line
+(:func:`catching_interrupts`) and the control loop (:func:`loop_taking`) install a handler that
+records the cause before it raises. A ``KeyboardInterrupt`` raised where Python cannot pass it on
+(inside a ctypes callback: numba's first compile of a cold cache prints "Exception ignored ...")
+is lost, but the note stays: the control loop looks at it before the robot's first command and
+every period, and ends the run as interrupted. Inside the loop the first interrupt is only noted
+(the loop acts on it at its next period, from a whole period: a walk finishes its step, see
+:mod:`hubo_cli.control.loop`); a second one raises at once.
 """
 
 from __future__ import annotations
@@ -46,6 +55,93 @@ class _State:
 
 
 _state = _State()
+
+
+@dataclass
+class _Noted:
+    pending: str | None = None  # an interrupt no control loop has acted on yet
+    deferring: bool = False  # a loop takes the first interrupt itself: note it, do not raise
+
+
+_noted = _Noted()
+
+
+def _cause(signum: int) -> str:
+    return "SIGTERM" if signum == signal.SIGTERM else "Ctrl-C"
+
+
+def _interrupt(signum, frame) -> None:
+    """Note the interrupt; raise it unless a control loop takes the first one itself."""
+    first = _noted.deferring and _noted.pending is None
+    _noted.pending = _cause(signum)
+    if not first:
+        raise Terminated if signum == signal.SIGTERM else KeyboardInterrupt
+
+
+def interrupt_pending() -> str | None:
+    """The cause (``Ctrl-C``, ``SIGTERM``) of an interrupt no control loop has acted on yet
+    (one only noted, or one raised but swallowed), or None; always None off the main thread
+    (a loop there is not the one the signal was for)."""
+    return _noted.pending if _in_main_thread() else None
+
+
+def take_interrupt() -> str | None:
+    """The loop acts on the pending interrupt (returned, then cleared); every further one
+    raises at once."""
+    cause, _noted.pending, _noted.deferring = _noted.pending, None, False
+    return cause
+
+
+def _install(handlers: dict) -> dict:
+    return {s: signal.signal(s, h) for s, h in handlers.items()}
+
+
+@contextmanager
+def catching_interrupts() -> Iterator[None]:
+    """The command line's scope: Ctrl-C (where Python's default handler is in place) and
+    SIGTERM (where the default, ending the process, is) raise ``KeyboardInterrupt`` /
+    :class:`~hubo_cli.errors.Terminated` and are noted (see the module's docstring)."""
+    if not _in_main_thread():
+        yield
+        return
+    wanted = {}
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        wanted[signal.SIGINT] = _interrupt
+    if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+        wanted[signal.SIGTERM] = _interrupt
+    previous = _install(wanted)
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            if signal.getsignal(s) is _interrupt:
+                signal.signal(s, handler)
+        _noted.pending, _noted.deferring = None, False
+
+
+def loop_taking() -> dict:
+    """A control loop starts: the first interrupt from now is noted, not raised (Ctrl-C's
+    handler installed where Python's default is; SIGTERM's only where
+    :func:`catching_interrupts` put it). Returns what :func:`loop_given_back` restores."""
+    if not _in_main_thread():  # (signals reach the main thread only: nothing to take here)
+        return {}
+    _noted.deferring = True
+    wanted = {}
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        wanted[signal.SIGINT] = _interrupt
+    return _install(wanted)
+
+
+def loop_given_back(previous: dict) -> None:
+    """The control loop has stopped the robot: interrupts raise again (the handlers
+    :func:`loop_taking` replaced are back) and one still pending is dropped (the loop
+    acted on it)."""
+    if not _in_main_thread():
+        return
+    _noted.pending, _noted.deferring = None, False
+    for s, handler in previous.items():
+        if signal.getsignal(s) is _interrupt:
+            signal.signal(s, handler)
 
 
 def _record(signum, frame) -> None:

@@ -294,14 +294,19 @@ def _run_loop(loop: ControlLoop, setup: RunSetup, world) -> LoopResult:
 
 def _end_without_log(setup: RunSetup, speed: float | None, loop: LoopResult,
                      modules: list[Module], run_dir: Path) -> None:
-    """A run whose log could not be written (a full disk) was braked to a stop: write what
-    summary the disk still takes and raise DeviceError (exit 3) saying so."""
+    """A run whose log could not be written (a full disk) was braked to a stop (a walk: its
+    step finished into a stance): write what summary the disk still takes and raise
+    DeviceError (exit 3) saying so."""
     summary = common_summary(setup, speed, loop, modules, run_dir)
     with contextlib.suppress(InputError):  # a summary whole or none (write_json)
         write_json(run_dir / SUMMARY_NAME, summary)
     kept = ("its records are kept in log.rows: `hubo replay` writes log.csv from them once "
             "there is space" if (run_dir / ROWS_NAME).exists() else "")
-    raise DeviceError(f"{loop.error}; the run was braked to a stop after {loop.t_end_s:.2f} s",
+    how = ("the walk finished its step and stood" if loop.interrupt_stop == "stood"
+           else "the run was braked to a stop")
+    dropped = (f" ({loop.log_periods_dropped} periods after the failure not logged)"
+               if loop.log_periods_dropped else "")
+    raise DeviceError(f"{loop.error}; {how} after {loop.t_end_s:.2f} s{dropped}",
                       hint="free space on that disk or choose another --out"
                            + (f" ({kept})" if kept else ""))
 
@@ -329,6 +334,9 @@ def common_summary(setup: RunSetup, speed: float | None, loop: LoopResult,
         "duration_s": loop.t_end_s,
         "periods": loop.periods,
         "smooth_stop_s": loop.smooth_stop_s,
+        "interrupt_stop": loop.interrupt_stop or None,
+        "interrupt_stop_s": loop.interrupt_stop_s if loop.interrupt_stop else None,
+        "log_periods_dropped": loop.log_periods_dropped,
         "status_counts": loop.status_counts,
         "collision_periods": loop.flag_counts.get("collision", 0),
         "collision_holds": [{"t_s": t, "pair": list(pair)}

@@ -3,6 +3,7 @@ stops on Ctrl-C and on module errors."""
 
 from __future__ import annotations
 
+import errno
 import os
 import signal
 
@@ -10,11 +11,14 @@ import numpy as np
 import pytest
 from control_support import assert_within_limits, ideal
 
+from hubo_cli.control.keys import STOP_MODE
 from hubo_cli.control.log import FLAGS_NAME, LOG_NAME, ROWS_NAME, load_log, read_rows
 from hubo_cli.control.loop import ControlLoop
 from hubo_cli.control.module import Module
+from hubo_cli.control.phase import PHASE_STOP, PhaseStop
 from hubo_cli.control.pipeline import build_pipeline
 from hubo_cli.control.status import Status
+from hubo_cli.control.target import Target
 from hubo_cli.errors import InputError, Terminated
 from hubo_cli.interrupts import run_files
 from hubo_cli.pace import MIN_SPEED, check_speed
@@ -291,3 +295,107 @@ def test_target_done_and_operator_release(model):
     assert result.ended == "done" and result.ok
     kinds = [(name, kind) for name, _, kind, _ in result.safety_events]
     assert kinds == [("estop", "stop"), ("estop", "release")]
+
+
+def test_a_swallowed_interrupt_still_ends_the_run_before_anything_moves(model, tmp_path):
+    """Ctrl-C during a cold cache's numba compile raises inside a ctypes callback, which
+    swallows the KeyboardInterrupt ("Exception ignored ..."): on main the run then went on to
+    its end, exit 0. Noted by the handler, the loop sees it before the robot's first command:
+    interrupted, nothing sent."""
+    from hubo_cli import interrupts
+
+    robot = ideal(model)
+    moving = _moving_target(robot.read().q_rad.copy(), amplitude=0.5, period_s=3.0)
+    with interrupts.catching_interrupts():
+        try:  # as a ctypes callback does
+            interrupts._interrupt(signal.SIGINT, None)
+        except KeyboardInterrupt:
+            pass
+        result = ControlLoop(robot, build_pipeline(model), moving, log_path=tmp_path).run(1.0)
+    assert result.ended == "interrupted" and result.error == "interrupted (Ctrl-C)"
+    assert robot.sent == [] and result.periods == 0
+    assert interrupts.interrupt_pending() is None  # acted on: the next run is not ended by it
+
+
+def test_an_interrupt_in_the_loop_is_acted_on_between_periods(model, tmp_path):
+    """Inside the loop the first interrupt is noted, not raised (it cannot land inside a
+    period); the loop brakes from the next period on; a non-walking run brakes as before."""
+    robot = ideal(model)
+    moving = _moving_target(robot.read().q_rad.copy(), amplitude=0.5, period_s=3.0)
+    reached = []
+
+    def target(t_s, state):
+        if abs(t_s - 0.75) < DT / 2:
+            os.kill(os.getpid(), signal.SIGINT)  # noted by the loop's handler: not raised
+            reached.append(t_s)  # (main: never, the interrupt raised above)
+        return moving(t_s, state)
+
+    result = ControlLoop(robot, build_pipeline(model), target, log_path=tmp_path).run(5.0)
+    assert result.ended == "interrupted" and result.error == "interrupted (Ctrl-C)"
+    assert reached == [pytest.approx(0.75)]
+    assert result.periods - result.stop_periods == round(0.75 / DT) + 1  # that period ran
+    assert result.stop_periods > 10 and result.interrupt_stop == ""
+
+
+class _Stepping(Target):
+    """A phase that stops itself (a walk's contract, without the walk): it moves joint 0 and,
+    once the stopper latches, slows to rest over 0.3 s and says it stands (PHASE_STOP) 0.8 s
+    after the latch (the trajectory generator ahead of the stopper at rest by then)."""
+
+    writes = (PHASE_STOP,)
+    previous = (STOP_MODE,)
+
+    def __init__(self, q0, interrupts_s=(), fail_log_s=None, loop=None):
+        self.moving = _moving_target(q0, amplitude=0.2, period_s=3.0)
+        self.interrupts_s, self.fail_log_s, self.loop = list(interrupts_s), fail_log_s, loop
+        self.stopped_s = None
+        self.q = q0
+
+    def __call__(self, t_s, state):
+        if self.interrupts_s and t_s >= self.interrupts_s[0] - 1e-9:
+            self.interrupts_s.pop(0)
+            os.kill(os.getpid(), signal.SIGINT)
+        if self.fail_log_s is not None and t_s >= self.fail_log_s and not self.loop.log.error:
+            self.loop.log._failed(OSError(errno.ENOSPC, "No space left on device"), "log.rows")
+        if self.stopped_s is None and self.store.get(STOP_MODE, "release") != "release":
+            self.stopped_s = t_s
+        if self.stopped_s is None:
+            self.q = self.moving(t_s, state)[0]
+            done = 0.0
+        else:  # the phase's own stop: slow down (the joint's motion scaled to rest)
+            done = min((t_s - self.stopped_s) / 0.3, 1.0)
+            previous, self.q = self.q, self.moving(t_s, state)[0]
+            self.q = previous + (1.0 - done) * (self.q - previous)
+        self.store[PHASE_STOP] = PhaseStop(
+            self.stopped_s is not None and t_s - self.stopped_s >= 0.8 - 1e-9, 2.0)
+        return self.q, {}
+
+
+@pytest.mark.parametrize("event", ["Ctrl-C", "log failure", "Ctrl-C twice"])
+def test_a_phase_that_stops_itself_is_asked_to_after_ctrl_c_or_a_log_failure(model, tmp_path,
+                                                                             event):
+    """Ctrl-C (or a full disk) while the target's phase stops itself: the loop requests the
+    operator's stop and runs on (the log no longer written after a failure) until the stopper
+    holds the phase's stance, then 0.5 s; a second Ctrl-C meanwhile falls back to the brake."""
+    robot = ideal(model)
+    q0 = robot.read().q_rad.copy()
+    target = _Stepping(q0, interrupts_s={"Ctrl-C": (0.5,), "Ctrl-C twice": (0.5, 0.6)}.get(
+        event, ()), fail_log_s=0.5 if event == "log failure" else None)
+    modules = build_pipeline(model, ("estop", "limiter"))  # the phase's motion unfiltered
+    loop = ControlLoop(robot, modules, target, log_path=tmp_path)
+    target.loop = loop
+    result = loop.run(5.0)
+    assert result.ended == ("log-error" if event == "log failure" else "interrupted")
+    assert target.stopped_s == pytest.approx(0.51)  # latched at 0.505, seen the next period
+    if event == "Ctrl-C twice":
+        assert result.interrupt_stop == "braked: a second interrupt (Ctrl-C)"
+        assert result.interrupt_stop_s == pytest.approx(0.1, abs=0.011)  # 0.505 to 0.605
+        assert result.stop_periods > 0  # the loop's brake
+    else:
+        assert result.interrupt_stop == "stood"
+        assert result.interrupt_stop_s == pytest.approx(0.81, abs=0.011)
+        assert result.t_end_s == pytest.approx(target.stopped_s + 0.8 + 0.5, abs=0.011)
+        assert result.stop_periods <= 1  # at rest: the loop's brake had nothing to stop
+    assert result.log_periods_dropped == (result.periods - round(0.5 / DT)
+                                          if event == "log failure" else 0)
+    _assert_smooth_end(model, robot, q0)

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import signal
 
 import numpy as np
 import pytest
@@ -310,18 +312,31 @@ def test_later_footsteps_move_with_the_landing(walk_pattern):
 
 @pytest.mark.physical
 @pytest.mark.slow
-def test_an_operator_stop_in_mid_swing_ends_standing(tmp_path, model):
-    """hubo walk --to 0.3 0 0 stopped by the operator at 2.2 s, half way through the second
-    step's swing (1.9-2.6 s): the step lands, the walk stands in double support and the stopper
-    holds it; no revert, no fall."""
+def test_ctrl_c_in_mid_swing_ends_standing_as_the_operators_stop(tmp_path, model, monkeypatch):
+    """hubo walk --to 0.3 0 0 given Ctrl-C at 2.2 s, half way through the second step's swing
+    (1.9-2.6 s): the loop asks the walk for the operator's stop (the space key's, --stop-at's)
+    instead of braking where it is; the step lands, the walk stands in double support, the
+    stopper holds it (no revert, no fall) and the run ends interrupted once the stance has
+    held 0.5 s. On main the loop's brake stopped the joints in 15 ms with the swing foot in the
+    air (its sole -11 N) and the run ended there. (The operator's own stop by the same path:
+    the next test's.)"""
     from hubo_cli.control.log import load_log
-    from hubo_cli.experiments.walk import Disturbance, walk
+    from hubo_cli.experiments import walk as walking
 
-    result = walk(model, (0.3, 0.0, 0.0), corrections=0, out=tmp_path / "run",
-                  disturbances=[Disturbance(2.2, stop=True)])
+    played = walking.Disturbed.__call__
+
+    def interrupted(self, t_s, state):
+        if abs(t_s - 2.2) < DT / 2:
+            os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C
+        return played(self, t_s, state)
+
+    monkeypatch.setattr(walking.Disturbed, "__call__", interrupted)
+    result = walking.walk(model, (0.3, 0.0, 0.0), corrections=0, out=tmp_path / "run",
+                          disturbances=[walking.Disturbance(99.0, stop=True)])  # (none)
     summary = json.loads((result.run_dir / "summary.json").read_text())
-    assert result.fell is False and result.stood is True
-    assert result.stopped_s == pytest.approx(2.205, abs=0.011)  # the next period sees it
+    assert result.ended == "interrupted" and result.fell is False and result.stood is True
+    assert summary["interrupt_stop"] == "stood"
+    assert result.stopped_s == pytest.approx(2.21, abs=0.011)  # taken at 2.205, seen next
     assert [e["kind"] for e in summary["estop_events"]] == ["stop", "finish"]
     assert len(result.footsteps) == 2  # the step in the air was finished, no more
     log = load_log(result.run_dir / "log.parquet")
@@ -329,6 +344,7 @@ def test_an_operator_stop_in_mid_swing_ends_standing(tmp_path, model):
     modes = modes[np.isfinite(modes)]
     # finish (the walk's own stop passed through), then hold; never the revert's stop mode
     assert MODE_CODE["stop"] not in set(modes) and modes[-1] == MODE_CODE["hold"]
+    assert summary["smooth_stop_s"] < 0.05  # the loop's brake had nothing left to stop
     contact = np.column_stack([np.asarray(log[f"{s}_foot_contact_flag"], dtype=float)[-100:]
                                for s in ("right", "left")])
     assert np.all(contact == 1)  # both feet down the last 0.5 s

@@ -16,7 +16,7 @@ import click
 
 from hubo_cli import __version__
 from hubo_cli.errors import HuboError, Terminated
-from hubo_cli.interrupts import run_files
+from hubo_cli.interrupts import catching_interrupts, run_files
 
 # command name -> "module:attribute" (modules are imported only when the command runs)
 COMMANDS = {
@@ -43,11 +43,6 @@ EXIT_CODES = ("Exit codes: 0 success, 1 other error or a run that did not comple
 
 
 DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
-
-
-def _sigterm_as_interrupt(signum, frame) -> None:
-    """SIGTERM ends a run like Ctrl-C: the loop's smooth stop runs and the summary is written."""
-    raise Terminated
 
 
 def replace_unencodable_output() -> None:
@@ -92,12 +87,12 @@ class LazyGroup(click.Group):
 
     def main(self, *args, **kwargs):
         replace_unencodable_output()  # before anything is written, --help included
-        return super().main(*args, **kwargs)
+        # Ctrl-C and SIGTERM noted as well as raised from the start, the command's imports
+        # included: one swallowed in a numba compile still ends the run before it moves
+        with catching_interrupts():
+            return super().main(*args, **kwargs)
 
     def invoke(self, ctx: click.Context):
-        previous = signal.getsignal(signal.SIGTERM)
-        if previous is signal.SIG_DFL:
-            signal.signal(signal.SIGTERM, _sigterm_as_interrupt)
         late = None
         try:  # an interrupt after a run's loop ended waits until its files and stdout are whole
             with run_files(deliver=False) as late:
@@ -134,8 +129,6 @@ class LazyGroup(click.Group):
             if late is not None and late.cause is not None:
                 click.echo(f"note: {late.cause} came after the run had ended; the run finished "
                            "and its files are complete", err=True)
-            if previous is signal.SIG_DFL:
-                signal.signal(signal.SIGTERM, previous)
 
 
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]},
@@ -156,8 +149,9 @@ def entry() -> None:
     against 0.02 s with ``os._exit``), which would delay the exit after SIGTERM or a dead
     robot past the second the operator is promised. So the exit handlers run, stray objects
     are finalised (an unclosed file flushes), the standard streams are flushed, and the
-    process ends with ``os._exit``. While a non-daemon thread still runs, the normal exit
-    (which waits for it) is taken instead.
+    process ends with ``os._exit``, Ctrl-C and SIGTERM ignored from then on (the exit code
+    stands). While a non-daemon thread still runs, the normal exit (which waits for it) is
+    taken instead.
     """
     try:
         main()
@@ -172,6 +166,10 @@ def entry() -> None:
     elif not isinstance(code, int):  # sys.exit("message") prints the message, exits 1
         print(code, file=sys.stderr)
         code = 1
+    # the command has ended and its exit code stands: an interrupt now would only print a
+    # traceback from a finaliser ("Exception ignored in: WeakKeyDictionary...") and change nothing
+    for s in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(s, signal.SIG_IGN)
     atexit._run_exitfuncs()
     gc.collect()
     for stream in (sys.stdout, sys.stderr):

@@ -25,9 +25,20 @@ def print_json(data: dict) -> None:
 
 
 def exit_if_interrupted(summary: dict) -> None:
-    """Exit 130 after a run that Ctrl-C or SIGTERM ended (its summary already printed)."""
+    """Exit 130 after a run that Ctrl-C or SIGTERM ended (its summary already printed); one
+    line on stderr when a walk's stop after it fell back to the brake."""
+    report_interrupt_stop(summary)
     if summary.get("ended") == "interrupted":
         raise SystemExit(130)
+
+
+def report_interrupt_stop(summary: dict) -> None:
+    """One line on stderr when the stop a walk was asked for after an interrupt or a log
+    failure (the summary's ``interrupt_stop``) did not end standing."""
+    how = summary.get("interrupt_stop")
+    if how and how != "stood":
+        err_console.print(f"warning: the walk did not finish its step into a stance after the "
+                          f"interrupt: {how}", soft_wrap=True)
 
 
 def print_run_folder(run_dir, files, width: int = 18, indent: str = "") -> None:

@@ -22,6 +22,7 @@ from hubo_cli.cli.output import (
     err_console,
     print_json,
     print_run_folder,
+    report_interrupt_stop,
 )
 from hubo_cli.control.operator import KEYS_HELP
 from hubo_cli.control.stop_choice import SOFT_SOURCES, TASK_SOURCES
@@ -342,6 +343,7 @@ def _finish(ctx: click.Context, done, as_json: bool, printer) -> None:
         print_json({"run_dir": str(done.run_dir), **done.summary})
     else:
         printer()
+    report_interrupt_stop(done.summary)
     if loop.ended == "interrupted":
         ctx.exit(EXIT_INTERRUPTED)
     if done.summary.get("completed") is False:

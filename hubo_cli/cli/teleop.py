@@ -24,6 +24,7 @@ from hubo_cli.cli.output import (
     err_console,
     print_json,
     print_run_folder,
+    report_interrupt_stop,
 )
 from hubo_cli.drivers.registry import DRIVER_NAMES, driver_class
 from hubo_cli.errors import EXIT_INTERRUPTED, EXIT_NOT_COMPLETED, HuboError, InputError, quoted
@@ -387,6 +388,7 @@ def _report(run, as_json: bool, video: bool = False) -> None:
         raise exception
     if summary["error"] and not as_json:
         err_console.print(f"[yellow]{summary['error']}[/]")
+    report_interrupt_stop(summary)
     if not run.loop.ok:
         raise SystemExit(EXIT_INTERRUPTED if run.loop.ended == "interrupted"
                          else EXIT_NOT_COMPLETED)

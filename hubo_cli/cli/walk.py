@@ -120,12 +120,23 @@ def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | No
         if result.touchdowns_early:
             console.print(f"pushed down       {result.touchdowns_early} swing(s) ended where "
                           "the foot touched the floor early")
-        if result.ended == "interrupted":
-            console.print("ended             interrupted: braked to a stop before the goal")
+        cut_short = result.ended == "interrupted" and result.interrupt_stop != "stood"
+        if result.interrupt_stop == "stood":
+            console.print("ended             interrupted: the step finished, standing in "
+                          "double support")
+        elif result.ended == "interrupted" and not result.steps:  # no plan: never started
+            console.print("ended             interrupted before the walk started")
+        elif result.ended == "interrupted":
+            console.print("ended             interrupted: braked to a stop before the goal"
+                          + (f" ({result.interrupt_stop})" if result.interrupt_stop else ""))
         console.print(f"fell              {'YES' if result.fell else 'no'}")
         speed = result.average_speed_m_s
-        console.print(f"steps             {result.steps} in {result.walking_s:.2f} s"
-                      + ("" if speed is None else f" ({speed:.3f} m/s)"))
+        if cut_short:  # the plan's steps, not those taken
+            console.print(f"steps             {result.steps} planned, the run ended before "
+                          "the walk did")
+        else:
+            console.print(f"steps             {result.steps} in {result.walking_s:.2f} s"
+                          + ("" if speed is None else f" ({speed:.3f} m/s)"))
         console.print(f"final error       {result.final_error_mm:.1f} mm, "
                       f"{result.final_error_deg:.2f} deg (estimated "
                       f"{result.estimated_final_error_mm:.1f} mm, "

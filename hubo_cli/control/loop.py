@@ -22,18 +22,31 @@ Pacing uses absolute deadlines (``next += period``), so it does not drift: ``spe
 fast as possible, ``1.0`` in real time, ``x`` at x times real time. A period more than
 ``max_lag_periods`` late re-anchors the schedule (counted in ``overruns``).
 
-Ctrl-C (KeyboardInterrupt) and any exception raised by the target source or a module end in a
+Ctrl-C (or SIGTERM) and any exception raised by the target source or a module end in a
 smooth stop: a velocity-interface ruckig brake from the last command, passed through a soft
 error limiter, sent period by period until the command is at rest; then ``driver.stop()``. A
 second Ctrl-C during the brake stops the driver at once. A failing driver is stopped at once
 (one reporting device trouble has braked by itself: ``ended`` is ``device``). A log that cannot
 be written (a full disk: :attr:`PeriodLog.error`) ends the run with a brake (``log-error``; the
 periods after the failure are not logged).
+
+The first Ctrl-C (or SIGTERM) is only noted (:mod:`hubo_cli.interrupts`); the loop acts on it at
+the start of its next period, so it never lands inside a period, and one that Python swallowed
+(a ctypes callback) is still seen, before the robot's first command. While the target's phase
+stops itself (a walk: the store's :data:`~hubo_cli.control.phase.PHASE_STOP`, followed by the
+soft stopper, ``estop``), an interrupt or a log failure does not brake the robot where it is
+(a foot in the air): the loop asks for the operator's stop (the stopper latches and the walk
+finishes its step into a double-support stance, as the space key does) and runs on, the log
+no longer written after a failure, until the stopper holds that stance, within the phase's
+``within_s`` plus :data:`STANCE_SPARE_S` (:attr:`LoopResult.interrupt_stop` says how it went).
+A second interrupt, the bound running out or a stopper that does not latch falls back to the
+brake.
 The loop never raises for these; :class:`LoopResult` says how it ended.
 """
 
 from __future__ import annotations
 
+import math
 import time
 from collections import Counter
 from collections.abc import Callable, Iterable
@@ -43,17 +56,26 @@ from typing import Protocol
 
 import numpy as np
 
+from hubo_cli.control.estop import MAX_FINISH_S
+from hubo_cli.control.keys import STOP_MODE
 from hubo_cli.control.limiter import SoftErrorLimiter
 from hubo_cli.control.log import LOG_NAME, PeriodLog
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.operator import OperatorKeys
+from hubo_cli.control.phase import PHASE_STOP, PhaseStop
 from hubo_cli.control.status import Status, status_from_flags
 from hubo_cli.control.target import Target, TargetOutput, as_target
 from hubo_cli.dataflow import Store, check_flow
 from hubo_cli.drivers.base import Driver
 from hubo_cli.errors import ConfigError, DeviceError, HuboError, interrupt_cause
 from hubo_cli.estimation.estimator import Estimator
-from hubo_cli.interrupts import loop_ended
+from hubo_cli.interrupts import (
+    interrupt_pending,
+    loop_ended,
+    loop_given_back,
+    loop_taking,
+    take_interrupt,
+)
 from hubo_cli.motion.limits import JointLimits, all_finite
 from hubo_cli.motion.tracker import JointTracker
 from hubo_cli.state import RobotState
@@ -75,6 +97,10 @@ LABELS = {status: status.label for status in Status}  # a property's work done o
 ENDINGS = ("finished", "done", "interrupted", "module-error", "target-error", "driver-error",
            "device", "log-error", "estimation-error")
 MAX_STOP_S = 15.0  # a brake from full speed at the slowest joint's limits takes under 2 s
+STANCE_SPARE_S = 1.0  # a phase stopping itself after an interrupt: its within_s (at most the
+                      # stopper's MAX_FINISH_S) and this long for the stopper's own brake
+STANCE_HOLD_S = 0.5  # ... then held this long (the loop sees a fall meanwhile) before it ends
+STOP_SOURCE = "operator"  # the stop an interrupt asks of the stopper (the space key's)
 
 
 @dataclass
@@ -103,6 +129,14 @@ class LoopResult:
         final_command_rad: the last command sent.
         module_status: what each module published at the end (name -> its ``status()``
             snapshot, None for a module with nothing to show).
+        interrupt_stop: how a phase that stops itself (a walk) stopped after an interrupt or
+            a log failure: ``stood`` (it finished its step and the stopper holds the stance),
+            ``held`` (the stopper braked it and holds), ``braked: <why>`` (the loop's brake:
+            a second interrupt, no stance within the bound, a stopper that did not latch),
+            ``ended: <how>`` (the run ended meanwhile: the target's done, an error); "" when
+            no such stop was asked for.
+        interrupt_stop_s: loop time from that request to its end (s; NaN without one).
+        log_periods_dropped: periods run after the log failed, not in it.
     """
 
     ended: str
@@ -119,6 +153,9 @@ class LoopResult:
     final_command_rad: np.ndarray | None = None
     exception: BaseException | None = None
     module_status: dict[str, object] = field(default_factory=dict)
+    interrupt_stop: str = ""
+    interrupt_stop_s: float = float("nan")
+    log_periods_dropped: int = 0
 
     @property
     def smooth_stop_s(self) -> float:
@@ -159,6 +196,48 @@ def _merge_info(info: dict, pressed: dict) -> dict:
     if "estop" in info and "estop" in pressed:
         merged["estop"] = (*_as_requests(info["estop"]), *_as_requests(pressed["estop"]))
     return merged
+
+
+@dataclass
+class _StanceStop:
+    """A phase stopping itself (a walk finishing its step) after an interrupt or a log
+    failure, asked at ``t_start_s``, given ``bound_s`` to stand (loop time); once it stands,
+    held STANCE_HOLD_S before the loop ends."""
+
+    t_start_s: float
+    bound_s: float
+    outcome: str = ""
+    t_end_s: float | None = None
+    asked: bool = False  # the stop was requested in a period (the stopper could answer)
+
+    def over(self, store: Store, t_s: float) -> bool:
+        """After a period ending at ``t_s``: the stopper holds (``stood`` when the phase
+        says it stands, ``held`` when the stopper braked it), it did not latch, or the bound
+        ran out (both ``braked: ...``); sets :attr:`outcome` when it is over."""
+        if not self.asked:  # (begun after this period's modules ran: a log failure)
+            return False
+        if self.t_end_s is not None:  # standing: held STANCE_HOLD_S, a fall seen meanwhile
+            return t_s - self.t_end_s >= STANCE_HOLD_S - 1e-9
+        mode = store.get(STOP_MODE)
+        if mode == "hold":
+            phase_stop = store.get(PHASE_STOP)
+            settled = isinstance(phase_stop, PhaseStop) and phase_stop.settled
+            self.outcome = "stood" if settled else "held"
+        elif mode not in ("finish", "stop"):
+            self.outcome = f"braked: the stopper did not take the {STOP_SOURCE} stop"
+        elif t_s - self.t_start_s > self.bound_s + 1e-9:
+            self.outcome = f"braked: no stance within {self.bound_s:.2f} s"
+        if self.outcome:
+            self.t_end_s = t_s
+        return self.outcome.startswith("braked")
+
+    def end(self, outcome: str, t_s: float) -> None:
+        """It ended otherwise at ``t_s``: a second interrupt, the target's end, an error."""
+        self.outcome, self.t_end_s = outcome, t_s
+
+    def took_s(self, t_now_s: float) -> float:
+        """From the request to its end (s; to the stance, not to the end of its hold)."""
+        return (self.t_end_s if self.t_end_s is not None else t_now_s) - self.t_start_s
 
 
 class ControlLoop:
@@ -305,12 +384,30 @@ class ControlLoop:
 
         Returns a :class:`LoopResult`; the per-period log is closed when it returns.
         """
+        handlers = loop_taking()  # the first interrupt is noted, acted on between periods
+        try:
+            return self._run(duration_s, handlers)
+        finally:
+            loop_given_back(handlers)
+
+    def _stance_stop(self, t_s: float) -> _StanceStop | None:
+        """The stop an interrupt or a log failure asks of a phase that stops itself (a walk
+        in mid-step), or None: no such phase, or no soft stopper following it."""
+        phase_stop, mode = self.store.get(PHASE_STOP), self.store.get(STOP_MODE)
+        if not isinstance(phase_stop, PhaseStop) or mode not in ("release", "finish"):
+            return None
+        return _StanceStop(t_s, min(max(float(phase_stop.within_s), 0.0), MAX_FINISH_S)
+                           + STANCE_SPARE_S)
+
+    def _run(self, duration_s: float | None, handlers: dict) -> LoopResult:
         driver = self.driver
         if self.log_path is not None:
             self.log = PeriodLog(self.log_path, driver.joint_names, self._extra_columns(),
                                  model=driver.model)
         ended, error, exc = "finished", "", None
         t_s = 0.0
+        stance: _StanceStop | None = None  # a phase stopping itself after an interrupt
+        log_failed = False
         try:
             state = driver.read()
             if self.estimator is not None:
@@ -319,9 +416,20 @@ class ControlLoop:
             self._cmd = self._cmd_prev = self._cmd_prev2 = q0
             for m, view in zip(self.modules, self._views, strict=True):
                 m.reset(q0.copy(), state, view)
-            while duration_s is None or self.period * self.dt_s < duration_s - 1e-9:
+            while (duration_s is None or stance is not None
+                   or self.period * self.dt_s < duration_s - 1e-9):
                 t_s = self.period * self.dt_s
-                late_s = self._pace()
+                if interrupt_pending() is not None:  # noted (or swallowed): act on it now
+                    cause = take_interrupt()
+                    if stance is not None:  # (a log failure's stance: a second event)
+                        stance.end(f"braked: {cause} while standing up", t_s)
+                        error = (error + "; " if error else "") + f"interrupted ({cause})"
+                        break
+                    ended, error = "interrupted", f"interrupted ({cause})"
+                    stance = self._stance_stop(t_s)
+                    if stance is None:
+                        break
+                late_s = self._pace(1.0 if stance is not None else 0.0)
                 cycle = Cycle(t_s, self.dt_s, store=self.store)
                 started = self.clock()
                 stage = "target"
@@ -331,6 +439,9 @@ class ControlLoop:
                     if self.operator is not None:
                         info = _merge_info(info, self.operator.take())
                     cycle.estop_requests.update(_as_requests(info.get("estop")))
+                    if stance is not None:
+                        cycle.estop_requests.add(STOP_SOURCE)
+                        stance.asked = True
                     cycle.flags.update(_as_requests(info.get("flags")))
                     if info.get("release"):
                         for m in self.modules:
@@ -384,15 +495,37 @@ class ControlLoop:
                 self._write(t_s, cycle.flags, compute_s, late_s, target_logged, applied, state,
                             extras)
                 self.period += 1
-                if self.log is not None and self.log.error:
-                    ended, error = "log-error", self.log.error
+                if self.log is not None and self.log.error and not log_failed:
+                    log_failed = True  # control goes on without the log (a full disk)
+                    if stance is not None:
+                        error = (error + "; " if error else "") + self.log.error
+                    else:
+                        ended, error = "log-error", self.log.error
+                        stance = self._stance_stop(t_s)
+                        if stance is None:
+                            break
+                if stance is not None and stance.over(self.store, self.period * self.dt_s):
                     break
                 if info.get("done"):
-                    ended = "done"
+                    if stance is None:
+                        ended = "done"
+                    elif not stance.outcome:
+                        stance.end("ended: the target finished", self.period * self.dt_s)
                     break
+            if interrupt_pending() is not None and ended in ("finished", "done"):
+                # noted in the last period: the run ends interrupted (nothing more to do)
+                ended, error = "interrupted", f"interrupted ({take_interrupt()})"
         except KeyboardInterrupt as err:
-            ended, error, exc = "interrupted", f"interrupted ({interrupt_cause(err)})", err
+            cause = interrupt_cause(err)
+            if stance is not None:
+                stance.end(f"braked: a second interrupt ({cause})", self.period * self.dt_s)
+                error = (error + "; " if error else "") + f"second interrupt ({cause})"
+            else:
+                ended, error = "interrupted", f"interrupted ({cause})"
+            exc = err
             self._count_a_logged_period()
+        if stance is not None and not stance.outcome:  # an error ended it
+            stance.end(f"ended: {ended}", self.period * self.dt_s)
         stopping_from = self.period
         try:
             if ended not in ("driver-error", "device"):
@@ -403,6 +536,7 @@ class ControlLoop:
             if ended in ("finished", "done"):
                 ended = "interrupted"
         finally:
+            loop_given_back(handlers)
             loop_ended()  # an interrupt from here on waits until the run's files are whole
             driver.stop()
             if self.log is not None:
@@ -412,6 +546,7 @@ class ControlLoop:
                     if ended in ("finished", "done"):
                         ended = "log-error"
         self.module_status = self._published()
+        dropped = self.period - self.log.rows if self.log is not None and self.log.error else 0
         return LoopResult(
             ended=ended, periods=self.period, t_end_s=self.period * self.dt_s, error=error,
             stop_periods=self.period - stopping_from, status_counts=dict(self._statuses),
@@ -420,7 +555,11 @@ class ControlLoop:
                           for e in m.events],
             overruns=self.overruns, skipped_s=self.skipped_s, log_path=self.log_path,
             final_command_rad=self._cmd.copy(), exception=exc,
-            module_status=self.module_status)
+            module_status=self.module_status,
+            interrupt_stop="" if stance is None else stance.outcome,
+            interrupt_stop_s=math.nan if stance is None else stance.took_s(self.period
+                                                                            * self.dt_s),
+            log_periods_dropped=max(dropped, 0))
 
     def _count_a_logged_period(self) -> None:
         """An interrupt (Ctrl-C, SIGTERM) lands between any two bytecodes: one that came after

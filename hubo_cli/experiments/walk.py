@@ -68,6 +68,9 @@ class WalkResult:
             push outside the hull: a ZMP on its edge means a sole tipping). The ZMP, the soles
             and the contacts are the estimate's (:mod:`hubo_cli.estimation.keys`).
         ended: how the loop ended.
+        interrupt_stop: how the walk stopped after Ctrl-C, SIGTERM or a log failure in
+            mid-walk (:attr:`~hubo_cli.control.loop.LoopResult.interrupt_stop`: ``stood``, or
+            how it fell back to the brake); None without one.
         run_dir: the run folder.
         failure: the error the run ended with (:meth:`~hubo_cli.control.loop.LoopResult.failure`:
             e.g. the robot's state lost, exit 3), None if none.
@@ -97,6 +100,7 @@ class WalkResult:
     run_dir: Path
     failure: HuboError | None = None
     files: tuple[str, ...] = ()
+    interrupt_stop: str | None = None
 
     def summary(self) -> dict:
         return {"fell": self.fell, "stopped_s": self.stopped_s, "stood": self.stood,
@@ -109,7 +113,8 @@ class WalkResult:
                 "estimated_final_error_deg": self.estimated_final_error_deg,
                 "steps": self.steps, "average_speed_m_s": self.average_speed_m_s,
                 "zmp_inside_fraction": self.zmp_inside_fraction, "walking_s": self.walking_s,
-                "footsteps": self.footsteps, "gait": self.gait}
+                "footsteps": self.footsteps, "gait": self.gait,
+                "interrupt_stop": self.interrupt_stop}
 
 
 def check_goal(goal: tuple[float, float, float]) -> None:
@@ -271,7 +276,8 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
         walking_s=walking_s, ended=done.loop.ended,
         estop_events=sum(e["kind"] == "stop" for e in done.summary["estop_events"]),
         footsteps=[s.to_json() for s in target.steps], gait=gait, run_dir=done.run_dir,
-        failure=done.loop.failure(done.run_dir))
+        failure=done.loop.failure(done.run_dir),
+        interrupt_stop=done.loop.interrupt_stop or None)
     done.save_summary(result.summary())
     plot_footprints(done, target, walking_model)
     if target.toe_heel is not None:
