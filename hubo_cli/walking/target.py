@@ -559,6 +559,9 @@ class WalkTarget(Target):
         self._played_support: tuple[bool, bool] | None = None  # the row played last period
         self._landing_waited_s = 0.0  # ... its double support waited this long in all
         self._landing_carried_s = 0.0  # ... its foot has carried this long in a row
+        self._landing_made = False  # ... that long: made (no more waits)
+        self._pushed_down = False  # the swing ending was pushed onto the floor early
+        self._landing_pushed_down = False  # ... the last landing was: watched till lift-off
         xs, ys = self.corners[:, 0], self.corners[:, 1]
         box = (float(xs.min()), float(xs.max()), float(ys.min()), float(ys.max()))
         if stabilizer is not None:
@@ -1173,6 +1176,7 @@ class WalkTarget(Target):
                           yaw + touched.yaw_rad - stance.yaw_rad)
 
         pushed = self._pushed(k)
+        self._pushed_down = pushed  # (till its landing is played: _unloaded_landing)
         self._move_landing(step, landed, base, t_s, touched=True,
                            skip=remaining if pushed else 0, held=None if pushed else step)
         return True
@@ -1362,16 +1366,25 @@ class WalkTarget(Target):
             # its pattern at the landing's row 0)
             self._landed = 0 if not played[0] else 1
             self._landing_waited_s = self._landing_carried_s = 0.0
+            self._landing_made, self._landing_pushed_down = False, self._pushed_down
+            self._pushed_down = False
         if self._landed is None or self._landing_waited_s >= LANDING_WAIT_MAX_S:
             return False
         if not soles_fz_n[self._landed] < self.model.estimation.swing_touchdown_n:
             self._landing_carried_s += self.gait.period_s
             if self._landing_carried_s >= LANDING_CARRIED_S - 1e-9:
-                self._landed = None  # the landing is made
+                self._landing_made = True
+                if not self._landing_pushed_down:
+                    self._landed = None  # the landing is made
             return False
         self._landing_carried_s = 0.0
         if self.phase == "stopping":
-            return self._pushed(k)
+            return not self._landing_made and self._pushed(k)
+        if self._landing_made:
+            # a landing pushed down early, made, whose foot leaves the floor again: the
+            # robot hops off its soles (docs/history/walking.md, round 15)
+            self._bounced = self._pushed(k)
+            return self._bounced
         error = self._capture_point_error(k)
         self._bounced = not np.all(np.abs(error) <= LANDING_WALK_PUSHED_M)
         return self._bounced
