@@ -566,7 +566,7 @@ def _offline_walk(goal_m, periods, stop_k=None, cp_offset_m=(0.0, 0.0), offset_k
     its double supports only; after the first plan, its soles and capture point ``drift_m``
     behind the pattern's: world x, y; its contacts the pattern's or ``contact(k)`` where that
     is not None), each ankle's F/T sensor reads ``ankles_fz_n`` (one value, or right and
-    left), the operator's stop from ``stop_k``;
+    left, or ``ankles_fz_n(k, target)`` giving them), the operator's stop from ``stop_k``;
     ``each(k, target, before)`` runs after every period (``before``: the plan and the pending
     re-plan before it). Returns the target, its commands and the periods a new pattern was
     installed."""
@@ -580,7 +580,8 @@ def _offline_walk(goal_m, periods, stop_k=None, cp_offset_m=(0.0, 0.0), offset_k
 
     _, q0, _, target, store = standing_walk(goal_m, None)
     store[COM_VELOCITY_WORLD] = np.zeros(3)
-    fz_n = np.broadcast_to(np.asarray(ankles_fz_n, dtype=float), (2,))
+    fz_of = ankles_fz_n if callable(ankles_fz_n) else None
+    fz_n = np.broadcast_to(np.asarray(0.0 if fz_of else ankles_fz_n, dtype=float), (2,))
     state = RobotState(0.0, q0, np.zeros_like(q0),
                        ft={name: np.array([0.0, 0.0, fz, 0.0, 0.0, 0.0])
                            for name, fz in zip(ANKLE_SENSORS, fz_n, strict=True)})
@@ -601,6 +602,9 @@ def _offline_walk(goal_m, periods, stop_k=None, cp_offset_m=(0.0, 0.0), offset_k
             store[CONTACT] = (contact is not None and contact(k)) \
                 or tuple(target._rows["support"][j])  # (no swing foot pushed down)
         store[STOP_MODE] = "finish" if stop_k is not None and k >= stop_k else "release"
+        if fz_of is not None:
+            for name, fz in zip(ANKLE_SENSORS, fz_of(k, target), strict=True):
+                state.ft[name][2] = fz
         before = target.plan, target._pending
         q, info = target(k * DT, state)
         commands.append(np.array(q, dtype=float))
@@ -831,6 +835,39 @@ def test_a_side_push_over_the_stance_soles_edge_is_caught_by_the_hips(tmp_path, 
     log = load_log(result.run_dir / "log.parquet")  # the hips did it (0.25 rad each)
     assert np.nanmax(np.abs(log["walk.right_momentum_rad"])) > 0.2
     assert np.nanmax(np.abs(log["walk.left_momentum_rad"])) > 0.2
+
+
+@pytest.mark.parametrize("early", [True, False])
+def test_a_hop_after_a_landing_pushed_down_early_stops_the_walk(early):
+    """A walk nobody stopped, the estimated capture point 80 mm off the pattern's sideways
+    (a 80-90 N side push: 80-107 mm as the robot hops, seeds 5 and 20; under
+    LANDING_WALK_PUSHED_M) from period 470 on. ``early``: the swinging (right) foot is measured
+    down at 470, pushed onto the floor early; it carries for 0.15 s, then reads 0 N for 0.1 s
+    (the robot off its soles, docs/history/walking.md, round 15): the landing, made, is
+    watched till the lift-off, it waits and the walk stops into its double-support stance.
+    Main took the landing as made after LANDING_CARRIED_S and walked on (lifting the other
+    foot with the body hopping toward it: seed 20 fell at 70-90 N). Not pushed down early
+    (the foot lands when planned, the same readings from its landing on): the walk goes on,
+    as on main."""
+    landed = []
+
+    def fz(k, target):
+        if not landed and target._played_support is not None and k > 460 \
+                and all(target._played_support):
+            landed.append(k)  # the right foot's landing played
+        hop = bool(landed) and landed[0] + 30 <= k < landed[0] + 50
+        return (0.0 if hop else 380.0), 380.0
+
+    target, _, _ = _offline_walk(
+        (0.3, 0.0, 0.0), 3000, cp_offset_m=(0.0, 0.08), offset_k=(470, 3000),
+        ankles_fz_n=fz,
+        contact=lambda k: (True, True) if early and 470 <= k < 480 else None)
+    assert target.touchdowns_early == int(early)
+    if early:
+        assert target.stopped_s is not None and target.phase == "stood"
+        assert target.landing_waits == 1
+    else:
+        assert target.stopped_s is None and target.landing_waits == 0
 
 
 def test_a_pushed_stops_landing_waits_whichever_pattern_it_lands_in():

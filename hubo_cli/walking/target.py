@@ -50,7 +50,8 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
   :data:`~hubo_cli.control.keys.STOP_MODE`, is no longer ``release``), or when a foot the
   floor reach turned has landed (:meth:`WalkTarget._caught`), or when a landed foot bounced
   off the floor with the estimated capture point LANDING_WALK_PUSHED_M or more off the
-  pattern's (:meth:`WalkTarget._unloaded_landing`): the step in progress
+  pattern's, or a landing pushed onto the floor early, made, left the floor again with it
+  CP_MARGIN_M or more off (a hop; :meth:`WalkTarget._unloaded_landing`): the step in progress
   is finished (the swing foot lands; before the first step, none is taken) into a double-support
   stance, the CoM comes to rest between the feet over ``settle_s``; after a push, a landing's
   weight transfer waits in the periods its landed foot reads unloaded, bounced off the floor
@@ -208,7 +209,8 @@ LANDING_WALK_PUSHED_M = 0.1  # [chosen] ... and while the walk goes on, once the
 LANDING_CARRIED_S = 0.08  # [chosen] ... and none once that foot has carried this long in a row
                           # (the landing is made: pushed seed 13's landed foot bounced, loaded
                           # at most 0.035 s in a row; seed 8's carried 0.21 s, then the body
-                          # rocked onto the other foot and waiting there, it fell)
+                          # rocked onto the other foot and waiting there, it fell); one pushed
+                          # down early is still watched while the walk goes on (a hop)
 LIFTOFF_WAIT_MAX_S = 1.0  # [chosen] ... and at one lift-off at most this long: then the sensors
                         # read wrong (zero) or the robot is held in the air, and the walk ends
                         # there (a DeviceError: the loop's smooth stop, both feet planned down)
@@ -1355,7 +1357,14 @@ class WalkTarget(Target):
         operator's): 60-70 N side pushes toward the swing foot (seeds 2, 5 and 19 of
         tools/walk_disturbances.py) landed, bounced between the soles, the walk played on,
         lifted the other foot with the body rolling over that sole's outer edge, and fell
-        (docs/history/walking.md, round 14)."""
+        (docs/history/walking.md, round 14). A landing pushed onto the floor early
+        (:meth:`_touched_early`, pushed) is watched till its lift-off, also once made: its
+        foot read unloaded again with the capture point off the pattern's (:meth:`_pushed`)
+        waits and the walk stops. Pushed toward the swing foot (seed 20 at 70-90 N), the
+        landed foot carried 0.1 s, then the other one, trailing and lengthened by the
+        pattern's weight transfer, struck the floor and the robot hopped off both soles (the
+        error 80-107 mm); played on, the next lift-off came as the body came down rolling
+        over the landed sole's outer edge, and it fell (docs/history/walking.md, round 15)."""
         if not self.landing_wait or not all(self._rows["support"][k]):
             self._landed = None  # (a single support: the landing is past)
             return False
