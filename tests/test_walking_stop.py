@@ -844,7 +844,7 @@ def test_a_hop_after_a_landing_pushed_down_early_stops_the_walk(early):
     LANDING_WALK_PUSHED_M) from period 470 on. ``early``: the swinging (right) foot is measured
     down at 470, pushed onto the floor early; it carries for 0.15 s, then reads 0 N for 0.1 s
     (the robot off its soles, docs/history/walking.md, round 15): the landing, made, is
-    watched till the lift-off, it waits and the walk stops into its double-support stance.
+    watched till the lift-off, it waits and the walk stops (finishing into its stance).
     Main took the landing as made after LANDING_CARRIED_S and walked on (lifting the other
     foot with the body hopping toward it: seed 20 fell at 70-90 N). Not pushed down early
     (the foot lands when planned, the same readings from its landing on): the walk goes on,
@@ -858,16 +858,18 @@ def test_a_hop_after_a_landing_pushed_down_early_stops_the_walk(early):
         hop = bool(landed) and landed[0] + 30 <= k < landed[0] + 50
         return (0.0 if hop else 380.0), 380.0
 
-    target, _, _ = _offline_walk(
-        (0.3, 0.0, 0.0), 3000, cp_offset_m=(0.0, 0.08), offset_k=(470, 3000),
+    target, _, _ = _offline_walk(  # (through the landing's double support and the lift-off)
+        (0.3, 0.0, 0.0), 600, cp_offset_m=(0.0, 0.08), offset_k=(470, 3000),
         ankles_fz_n=fz,
         contact=lambda k: (True, True) if early and 470 <= k < 480 else None)
     assert target.touchdowns_early == int(early)
+    assert landed  # (the hop played in the landing's double support)
     if early:
-        assert target.stopped_s is not None and target.phase == "stood"
+        assert target.stopped_s is not None and target.phase == "stopping"
         assert target.landing_waits == 1
     else:
         assert target.stopped_s is None and target.landing_waits == 0
+        assert not all(target._played_support)  # the next step has lifted off
 
 
 def test_a_pushed_stops_landing_waits_whichever_pattern_it_lands_in():
