@@ -839,16 +839,15 @@ def test_a_side_push_over_the_stance_soles_edge_is_caught_by_the_hips(tmp_path, 
 
 @pytest.mark.parametrize("early", [True, False])
 def test_a_hop_after_a_landing_pushed_down_early_stops_the_walk(early):
-    """A walk nobody stopped, the estimated capture point 80 mm off the pattern's sideways
-    (a 80-90 N side push: 80-107 mm as the robot hops, seeds 5 and 20; under
+    """A walk nobody stopped, the estimated capture point 80 mm off the pattern's sideways (a
+    70-90 N side push: 88-118 mm as the robot hops, seed 20; over LANDING_HOP_PUSHED_M, under
     LANDING_WALK_PUSHED_M) from period 470 on. ``early``: the swinging (right) foot is measured
     down at 470, pushed onto the floor early; it carries for 0.15 s, then reads 0 N for 0.1 s
-    (the robot off its soles, docs/history/walking.md, round 15): the landing, made, is
-    watched till the lift-off, it waits and the walk stops (finishing into its stance).
-    Main took the landing as made after LANDING_CARRIED_S and walked on (lifting the other
-    foot with the body hopping toward it: seed 20 fell at 70-90 N). Not pushed down early
-    (the foot lands when planned, the same readings from its landing on): the walk goes on,
-    as on main."""
+    (the robot off its soles, docs/history/walking.md, round 15): the landing, made, is watched
+    till the lift-off, it waits and the walk stops (finishing into its stance). Main took the
+    landing as made after LANDING_CARRIED_S and walked on (lifting the other foot with the body
+    hopping toward it: seed 20 fell at 70-90 N). Not pushed down early (the foot lands when
+    planned, the same readings from its landing on): the walk goes on, as on main."""
     landed = []
 
     def fz(k, target):
