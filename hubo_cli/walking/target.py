@@ -49,9 +49,8 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
 * ``stopping``: entered when the soft stopper has latched (its mode, the previous period's
   :data:`~hubo_cli.control.keys.STOP_MODE`, is no longer ``release``), or when a foot the floor
   reach turned has landed (:meth:`WalkTarget._caught`), or when a landed foot bounced off the
-  floor with the estimated capture point LANDING_WALK_PUSHED_M or more off the pattern's, or a
-  landing pushed onto the floor early, made, left the floor again with it LANDING_HOP_PUSHED_M
-  or more off (a hop; :meth:`WalkTarget._unloaded_landing`): the step in progress is finished
+  floor with the estimated capture point LANDING_WALK_PUSHED_M or more off the pattern's
+  (:meth:`WalkTarget._unloaded_landing`): the step in progress is finished
   (the swing foot lands; before the first step, none is taken) into a double-support stance, the
   CoM comes to rest between the feet over ``settle_s``; after a push, a landing's weight
   transfer waits in the periods its landed foot reads unloaded, bounced off the floor
@@ -210,12 +209,7 @@ LANDING_CARRIED_S = 0.08  # [chosen] ... and none once that foot has carried thi
                           # (the landing is made: pushed seed 13's landed foot bounced, loaded
                           # at most 0.035 s in a row; seed 8's carried 0.21 s, then the body
                           # rocked onto the other foot and waiting there, it fell); one pushed
-                          # down early is still watched while the walk goes on (a hop)
-LANDING_HOP_PUSHED_M = 0.075  # [chosen] ... but a landing pushed down early is watched till its
-# lift-off, and its foot leaving the floor once made (a hop) with the estimated capture point
-# this far off the pattern's stops the walk too (the hops of seed 20 at 70-90 N: 88-118 mm,
-# fell walking on; seed 5's at 90 N: 63 mm, caught by the hips walking on, fell stopped;
-# docs/history/walking.md, round 15)
+                          # down early still waits at a hop while the walk goes on
 LIFTOFF_WAIT_MAX_S = 1.0  # [chosen] ... and at one lift-off at most this long: then the sensors
                         # read wrong (zero) or the robot is held in the air, and the walk ends
                         # there (a DeviceError: the loop's smooth stop, both feet planned down)
@@ -1363,13 +1357,14 @@ class WalkTarget(Target):
         tools/walk_disturbances.py) landed, bounced between the soles, the walk played on,
         lifted the other foot with the body rolling over that sole's outer edge, and fell
         (docs/history/walking.md, round 14). A landing pushed onto the floor early
-        (:meth:`_touched_early`, pushed) is watched till its lift-off, also once made: its
-        foot read unloaded again with the capture point LANDING_HOP_PUSHED_M or more off the
-        pattern's waits and the walk stops. Pushed toward the swing foot (seed 20 at 70-90 N), the
-        landed foot carried 0.1 s, then the other one, trailing and lengthened by the
-        pattern's weight transfer, struck the floor and the robot hopped off both soles (the
-        error 88-118 mm); played on, the next lift-off came as the body came down rolling
-        over the landed sole's outer edge, and it fell (docs/history/walking.md, round 15)."""
+        (:meth:`_touched_early`, pushed) is watched till its lift-off, also once made: while
+        the walk goes on, its foot read unloaded again with the capture point off the
+        pattern's (:meth:`_pushed`) waits (within LANDING_WAIT_MAX_S), and the walk goes on
+        once it carries. Pushed toward the swing foot (seed 20 at 70-90 N), that foot carried
+        0.1 s, then the other one, trailing and lengthened by the pattern's weight transfer,
+        struck the floor and the robot hopped off both soles; played on, the transfer went on
+        in the air, the next lift-off came 20 ms after the body came down, rolling over the
+        landed sole's outer edge, and it fell (docs/history/walking.md, round 15)."""
         if not self.landing_wait or not all(self._rows["support"][k]):
             self._landed = None  # (a single support: the landing is past)
             return False
@@ -1394,11 +1389,13 @@ class WalkTarget(Target):
         self._landing_carried_s = 0.0
         if self.phase == "stopping":
             return not self._landing_made and self._pushed(k)
-        # (made: a landing pushed down early whose foot leaves the floor again, the robot
-        # hopping off its soles; docs/history/walking.md, round 15)
+        if self._landing_made:
+            # a landing pushed down early, made, whose foot leaves the floor again: the robot
+            # hops off its soles; the weight transfer waits, the walk goes on after it
+            # (docs/history/walking.md, round 15)
+            return self._pushed(k)
         error = self._capture_point_error(k)
-        self._bounced = not np.all(np.abs(error) <= (LANDING_HOP_PUSHED_M if self._landing_made
-                                                     else LANDING_WALK_PUSHED_M))
+        self._bounced = not np.all(np.abs(error) <= LANDING_WALK_PUSHED_M)
         return self._bounced
 
     def _done(self, t_s: float) -> bool:
