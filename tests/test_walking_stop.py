@@ -454,12 +454,14 @@ def test_a_side_push_that_puts_the_swing_foot_down_ends_the_swing_there(tmp_path
     """hubo walk --to 1.0 0 0 pushed 100 N for 0.2 s from the left in the fourth step's
     swing (right foot swinging; seed 19 of tools/walk_disturbances.py): the swing foot is
     pushed onto the floor 0.17 s later; the swing ends there (the estimate's sole loaded, the
-    step lands where it stands: the plan puts that foot down within a period), the walk stops
-    and stands. It fell while the pattern lifted that foot again under the robot's weight.
+    step lands where it stands: the plan puts that foot down within a period), and the robot
+    does not fall. It fell while the pattern lifted that foot again under the robot's weight.
     What comes after is not this test's: on main before round 13's slip turn the floor reach
     stopped the walk at the next landing (1 early touchdown); with the estimate seeing the
     pushed stance sole's twist the roll stays smaller, the walk goes on a step and the
-    monitor's stop's own swing is put down early too (2; docs/history/walking.md, round 13)."""
+    monitor's stop's own swing is put down early too (2; docs/history/walking.md, round 13);
+    with round 15's hop wait (that landing's foot off the floor again, the weight transfer
+    held 0.025-0.05 s) the walk goes on to its goal unstopped."""
     from hubo_cli.control.log import load_log
     from hubo_cli.experiments.walk import Disturbance, walk
 
@@ -467,7 +469,7 @@ def test_a_side_push_that_puts_the_swing_foot_down_ends_the_swing_there(tmp_path
     result = walk(model, (1.0, 0.0, 0.0), out=tmp_path / "run",
                   disturbances=[Disturbance(at_s, 100.0, (0.0, -1.0, 0.0))])
     summary = json.loads((result.run_dir / "summary.json").read_text())
-    assert result.fell is False and result.stood is True and result.stopped_s is not None
+    assert result.fell is False and (result.stood is True or result.stopped_s is None)
     assert result.touchdowns_early >= 1
     log = load_log(result.run_dir / "log.parquet")
     t = np.asarray(log["t_s"], dtype=float)
@@ -483,7 +485,7 @@ def test_a_side_push_that_puts_the_swing_foot_down_ends_the_swing_there(tmp_path
     # measured max tilt 8.6 deg (main, AVX-512), 10.0 (AVX-512: 2 early touchdowns, stopped
     # at 5.895 s) and 12.7 (portable: 1, stopped at 5.315 s as main); the six pushes the rule
     # caught (seeds 2, 5, 8, 17, 19, 20) peaked at 8.4-11.9 deg: bound 25 deg = 2.0x the
-    # worst (a fall: 30)
+    # worst (a fall: 30). Round 15 (the hop wait, unstopped): 11.7 deg AVX-512, 10.5 portable
     assert summary["max_torso_tilt_deg"] < 25.0
 
 
