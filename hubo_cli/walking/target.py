@@ -563,7 +563,6 @@ class WalkTarget(Target):
         self._landing_made = False  # ... that long: made (no more waits)
         self._pushed_down = False  # the swing ending was pushed onto the floor early
         self._landing_pushed_down = False  # ... the last landing was: watched till lift-off
-        self._hop_held = False  # ... its foot left the floor once made: held till it carries
         xs, ys = self.corners[:, 0], self.corners[:, 1]
         box = (float(xs.min()), float(xs.max()), float(ys.min()), float(ys.max()))
         if stabilizer is not None:
@@ -1358,15 +1357,14 @@ class WalkTarget(Target):
         tools/walk_disturbances.py) landed, bounced between the soles, the walk played on,
         lifted the other foot with the body rolling over that sole's outer edge, and fell
         (docs/history/walking.md, round 14). A landing pushed onto the floor early
-        (:meth:`_touched_early`, pushed) is watched till its lift-off, also once made: while the
-        walk goes on, its foot read unloaded again with the capture point off the pattern's
-        (:meth:`_pushed`) waits (within LANDING_WAIT_MAX_S) until it has carried
-        LANDING_CARRIED_S again, and the walk goes on. Pushed toward the swing foot (seed 20 at
-        70-90 N), that foot carried 0.1 s, then the other one, trailing and lengthened by the
-        pattern's weight transfer, struck the floor and the robot hopped off both soles; played
-        on, the transfer went on in the air, the next lift-off came 20 ms after the body came
-        down, rolling over the landed sole's outer edge, and it fell (docs/history/walking.md,
-        round 15)."""
+        (:meth:`_touched_early`, pushed) is watched till its lift-off, also once made: while
+        the walk goes on, its foot read unloaded again with the capture point off the
+        pattern's (:meth:`_pushed`) waits (within LANDING_WAIT_MAX_S), and the walk goes on
+        once it carries. Pushed toward the swing foot (seed 20 at 70-90 N), that foot carried
+        0.1 s, then the other one, trailing and lengthened by the pattern's weight transfer,
+        struck the floor and the robot hopped off both soles; played on, the transfer went on
+        in the air, the next lift-off came 20 ms after the body came down, rolling over the
+        landed sole's outer edge, and it fell (docs/history/walking.md, round 15)."""
         if not self.landing_wait or not all(self._rows["support"][k]):
             self._landed = None  # (a single support: the landing is past)
             return False
@@ -1378,16 +1376,11 @@ class WalkTarget(Target):
             self._landed = 0 if not played[0] else 1
             self._landing_waited_s = self._landing_carried_s = 0.0
             self._landing_made, self._landing_pushed_down = False, self._pushed_down
-            self._hop_held = False
             self._pushed_down = False
         if self._landed is None or self._landing_waited_s >= LANDING_WAIT_MAX_S:
             return False
         if not soles_fz_n[self._landed] < self.model.estimation.swing_touchdown_n:
             self._landing_carried_s += self.gait.period_s
-            if self._hop_held and self.phase == "walk":
-                if self._landing_carried_s < LANDING_CARRIED_S - 1e-9:
-                    return True  # (a hop's wait holds till the foot has carried again)
-                self._hop_held = False
             if self._landing_carried_s >= LANDING_CARRIED_S - 1e-9:
                 self._landing_made = True
                 if not self._landing_pushed_down:
@@ -1398,11 +1391,9 @@ class WalkTarget(Target):
             return not self._landing_made and self._pushed(k)
         if self._landing_made:
             # a landing pushed down early, made, whose foot leaves the floor again: the robot
-            # hops off its soles; the weight transfer waits till the foot has carried
-            # LANDING_CARRIED_S again, the walk goes on after it
+            # hops off its soles; the weight transfer waits, the walk goes on after it
             # (docs/history/walking.md, round 15)
-            self._hop_held = self._pushed(k)
-            return self._hop_held
+            return self._pushed(k)
         error = self._capture_point_error(k)
         self._bounced = not np.all(np.abs(error) <= LANDING_WALK_PUSHED_M)
         return self._bounced
