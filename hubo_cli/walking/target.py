@@ -47,20 +47,20 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
   (:meth:`WalkTarget._reaim`): the feet end where the plan put them without the correction
   walked after the pattern, which stays for the walks that still end off.
 * ``stopping``: entered when the soft stopper has latched (its mode, the previous period's
-  :data:`~hubo_cli.control.keys.STOP_MODE`, is no longer ``release``), or when a foot the
-  floor reach turned has landed (:meth:`WalkTarget._caught`), or when a landed foot bounced
-  off the floor with the estimated capture point LANDING_WALK_PUSHED_M or more off the
-  pattern's (:meth:`WalkTarget._unloaded_landing`): the step in progress
-  is finished (the swing foot lands; before the first step, none is taken) into a double-support
-  stance, the CoM comes to rest between the feet over ``settle_s``; after a push, a landing's
-  weight transfer waits in the periods its landed foot reads unloaded, bounced off the floor
-  (:meth:`WalkTarget._unloaded_landing`). Every period the walk tells
-  the stopper that it stops itself so (:data:`~hubo_cli.control.phase.PHASE_STOP`), and the
-  stopper passes this motion through instead of reverting it. The stabilizer's torso offset
-  holds from the latch on (the soles' damping goes on): its CoM feedback integrates the CoM's
-  error, so in a stance rocking on its sole edges it shifts the torso in phase with the
-  rocking's speed, its weight feeding the rocking until the held stance tipped over its toes
-  (docs/history/walking.md, "The rocking after a stop").
+  :data:`~hubo_cli.control.keys.STOP_MODE`, is no longer ``release``), or when a foot the floor
+  reach turned has landed (:meth:`WalkTarget._caught`), or when a landed foot bounced off the
+  floor with the estimated capture point LANDING_WALK_PUSHED_M or more off the pattern's
+  (:meth:`WalkTarget._unloaded_landing`): the step in progress is finished
+  (the swing foot lands; before the first step, none is taken) into a double-support stance, the
+  CoM comes to rest between the feet over ``settle_s``; after a push, a landing's weight
+  transfer waits in the periods its landed foot reads unloaded, bounced off the floor
+  (:meth:`WalkTarget._unloaded_landing`). Every period the walk tells the stopper that it stops
+  itself so (:data:`~hubo_cli.control.phase.PHASE_STOP`), and the stopper passes this motion
+  through instead of reverting it. The stabilizer's torso offset holds from the latch on (the
+  soles' damping goes on): its CoM feedback integrates the CoM's error, so in a stance rocking
+  on its sole edges it shifts the torso in phase with the rocking's speed, its weight feeding
+  the rocking until the held stance tipped over its toes (docs/history/walking.md, "The rocking
+  after a stop").
 * ``stood``: the stance is reached; the stopper holds it; the run ends STOOD_S later. A
   release does not resume the walk.
 """
@@ -208,7 +208,8 @@ LANDING_WALK_PUSHED_M = 0.1  # [chosen] ... and while the walk goes on, once the
 LANDING_CARRIED_S = 0.08  # [chosen] ... and none once that foot has carried this long in a row
                           # (the landing is made: pushed seed 13's landed foot bounced, loaded
                           # at most 0.035 s in a row; seed 8's carried 0.21 s, then the body
-                          # rocked onto the other foot and waiting there, it fell)
+                          # rocked onto the other foot and waiting there, it fell); one pushed
+                          # down early still waits at a hop while the walk goes on
 LIFTOFF_WAIT_MAX_S = 1.0  # [chosen] ... and at one lift-off at most this long: then the sensors
                         # read wrong (zero) or the robot is held in the air, and the walk ends
                         # there (a DeviceError: the loop's smooth stop, both feet planned down)
@@ -559,6 +560,9 @@ class WalkTarget(Target):
         self._played_support: tuple[bool, bool] | None = None  # the row played last period
         self._landing_waited_s = 0.0  # ... its double support waited this long in all
         self._landing_carried_s = 0.0  # ... its foot has carried this long in a row
+        self._landing_made = False  # ... that long: made (no more waits)
+        self._pushed_down = False  # the swing ending was pushed onto the floor early
+        self._landing_pushed_down = False  # ... the last landing was: watched till lift-off
         xs, ys = self.corners[:, 0], self.corners[:, 1]
         box = (float(xs.min()), float(xs.max()), float(ys.min()), float(ys.max()))
         if stabilizer is not None:
@@ -1173,6 +1177,7 @@ class WalkTarget(Target):
                           yaw + touched.yaw_rad - stance.yaw_rad)
 
         pushed = self._pushed(k)
+        self._pushed_down = pushed  # (till its landing is played: _unloaded_landing)
         self._move_landing(step, landed, base, t_s, touched=True,
                            skip=remaining if pushed else 0, held=None if pushed else step)
         return True
@@ -1351,7 +1356,15 @@ class WalkTarget(Target):
         operator's): 60-70 N side pushes toward the swing foot (seeds 2, 5 and 19 of
         tools/walk_disturbances.py) landed, bounced between the soles, the walk played on,
         lifted the other foot with the body rolling over that sole's outer edge, and fell
-        (docs/history/walking.md, round 14)."""
+        (docs/history/walking.md, round 14). A landing pushed onto the floor early
+        (:meth:`_touched_early`, pushed) is watched till its lift-off, also once made: while
+        the walk goes on, its foot read unloaded again with the capture point off the
+        pattern's (:meth:`_pushed`) waits (within LANDING_WAIT_MAX_S), and the walk goes on
+        once it carries. Pushed toward the swing foot (seed 20 at 70-90 N), that foot carried
+        0.1 s, then the other one, trailing and lengthened by the pattern's weight transfer,
+        struck the floor and the robot hopped off both soles; played on, the transfer went on
+        in the air, the next lift-off came 20 ms after the body came down, rolling over the
+        landed sole's outer edge, and it fell (docs/history/walking.md, round 15)."""
         if not self.landing_wait or not all(self._rows["support"][k]):
             self._landed = None  # (a single support: the landing is past)
             return False
@@ -1362,15 +1375,24 @@ class WalkTarget(Target):
             # its pattern at the landing's row 0)
             self._landed = 0 if not played[0] else 1
             self._landing_waited_s = self._landing_carried_s = 0.0
+            self._landing_made, self._landing_pushed_down = False, self._pushed_down
+            self._pushed_down = False
         if self._landed is None or self._landing_waited_s >= LANDING_WAIT_MAX_S:
             return False
         if not soles_fz_n[self._landed] < self.model.estimation.swing_touchdown_n:
             self._landing_carried_s += self.gait.period_s
             if self._landing_carried_s >= LANDING_CARRIED_S - 1e-9:
-                self._landed = None  # the landing is made
+                self._landing_made = True
+                if not self._landing_pushed_down:
+                    self._landed = None  # the landing is made
             return False
         self._landing_carried_s = 0.0
         if self.phase == "stopping":
+            return not self._landing_made and self._pushed(k)
+        if self._landing_made:
+            # a landing pushed down early, made, whose foot leaves the floor again: the robot
+            # hops off its soles; the weight transfer waits, the walk goes on after it
+            # (docs/history/walking.md, round 15)
             return self._pushed(k)
         error = self._capture_point_error(k)
         self._bounced = not np.all(np.abs(error) <= LANDING_WALK_PUSHED_M)
