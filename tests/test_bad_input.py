@@ -165,6 +165,25 @@ CASES = {
                                    str(d / "ws")], 2, "must be finite"),
     "workspace-orientation-nan": (lambda d: ["workspace-map", "--orientation", "nan,0,0",
                                              "--out", str(d / "ws")], 2, "is not finite"),
+    # round 15: a ValueError (exit 1), or 76 s and 3.8 GB for a grid 20 m deep
+    "workspace-x-1e308": (lambda d: ["workspace-map", "--x-range", "-1e308", "1e308", "--out",
+                                     str(d / "ws")], 2, "within ±1000 mm"),
+    "workspace-x-20-m": (lambda d: ["workspace-map", "--x-range", "0", "20000", "--out",
+                                    str(d / "ws")], 2, "within ±1000 mm"),
+    "workspace-grid-too-fine": (lambda d: ["workspace-map", "--resolution", "1", "--out",
+                                           str(d / "ws")], 2, "points (at most 20,000,000)"),
+    "workspace-orientation-1e308": (lambda d: ["workspace-map", "--orientation", "1e308,0,0",
+                                               "--out", str(d / "ws")], 2, "beyond ±360"),
+    # round 15: the times of a pose log that cannot be replayed, named before anything moves
+    "teleop-log-time-back": (lambda d: ["teleop", "--replay", str(_retimed_log(
+        d / "b.csv", lambda k, t: t - 3.0 if k >= 124 else t))], 2,
+        "line 126: t_s -1.9638 s is earlier than the row before it (1.02787 s)"),
+    "teleop-log-dense": (lambda d: ["teleop", "--replay", str(_retimed_log(
+        d / "n.csv", lambda k, t: 1.0 + t * 1e-7))], 2, "249 records within"),
+    "teleop-replay-empty": (lambda d: ["teleop", "--replay", ""], 2, "no recording given"),
+    "task-run-empty": (lambda d: ["task", "run", ""], 2, "no task given"),
+    "teleop-clutch-after-the-end": (lambda d: ["teleop", "--replay", str(_short_log(
+        d / "s.csv")), "--clutch", "1e308"], 2, "after the replay's end"),
     "teleop-map-5": (lambda d: ["teleop", "--replay", str(_short_log(d / "s.csv")),
                                 "--map", "5=right-arm"], 2, "stations 1-4"),
     "teleop-map-missing": (lambda d: ["teleop", "--replay", str(_short_log(d / "s.csv")),
