@@ -471,3 +471,27 @@ def test_the_way_back_from_a_collision_hold_does_not_cross_the_body(model):
         distances.append(detector.last_clearance.distance_m)
     assert detector.events  # it held
     assert min(distances) > 0.0  # 10.2 mm clear on both code paths (AVX-512 / portable)
+
+
+def test_a_push_after_the_walk_ends_is_named(tmp_path, monkeypatch):
+    """``--push-at 3600`` on a walk of a few seconds never pushed, exit 0, no word (round 15):
+    the walk's result names what never came, and the command warns."""
+    from hubo_cli.experiments import walk as walk_module
+
+    def walked(model, goal, disturbances, out, **_):
+        return walk_module.WalkResult(
+            fell=False, stopped_s=None, stood=True, shifts=0, touchdowns_early=0,
+            liftoff_waits=0, landing_waits=0, reaims=0, final_error_mm=1.0,
+            final_error_deg=0.1, estimated_final_error_mm=1.0, estimated_final_error_deg=0.1,
+            steps=4, average_speed_m_s=0.1, zmp_inside_fraction=1.0, walking_s=4.2,
+            ended="done", estop_events=0, footsteps=[], gait="normal", run_dir=Path(out),
+            unplayed=tuple(d for d in disturbances if d.at_s > 4.2))
+
+    monkeypatch.setattr(walk_module, "walk", walked)
+    result = CliRunner().invoke(main, ["walk", "--to", "0.3", "0", "0", "--push", "50",
+                                       "--push-at", "3600", "--out", str(tmp_path / "w")])
+    assert result.exit_code == 0, result.output
+    assert "the walk ended before 3600 s: its push there never came" in result.output
+    result = CliRunner().invoke(main, ["walk", "--to", "0.3", "0", "0", "--push", "50",
+                                       "--push-at", "2", "--out", str(tmp_path / "v")])
+    assert "never came" not in result.output

@@ -289,3 +289,17 @@ def test_recording_times_count_from_the_start_or_are_refused(tmp_path, make, sta
     t_s = load_recording(path).batch.t_s
     assert t_s[0] == pytest.approx(start_s, abs=1e-9)
     assert 0.98 < t_s[-1] - t_s[0] < 1.02  # the recording's own second, kept
+
+
+def test_the_emulator_refuses_a_recording_no_tracker_could_send(tmp_path):
+    """A position beyond the tracker's range went out as inf in binary records, with numpy's
+    overflow warning (round 15)."""
+    from hubo_cli.fastrak.emulator import RecordedMotion
+
+    path = _timed_pose_log(tmp_path / "far.csv", ROWS)
+    lines = path.read_text().splitlines()
+    lines[40] = lines[40].replace("0.1,0.2", "1e300,0.2", 1)
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(InputError, match=r"station 1 at t_s 0.329 s .* beyond a FASTRAK's 3 m"):
+        RecordedMotion.from_file(path)
+    assert RecordedMotion.from_file(_timed_pose_log(tmp_path / "ok.csv", ROWS)).stations == (1,)
