@@ -313,9 +313,10 @@ def parse_capture(blob: bytes, where: str = "capture") -> Capture:
         ends.append(total)
         times.append(t_s)
         pos += n
-    # bytes after the first read, at most twice what the line carries (10 bits a byte)
+    # the bytes after the first read, less a serial buffer's backlog (4 kB), at most twice
+    # what the line carries (10 bits a byte)
     chunk_times = recording_times(np.array(times, dtype=np.float64), where, "chunk",
-                                  (total - (ends[0] if ends else 0), header.baud / 5.0))
+                                  (total - (ends[0] if ends else 0) - 4096, header.baud / 5.0))
     return Capture(header, b"".join(pieces), np.array(ends, dtype=np.int64), chunk_times,
                    truncated)
 
