@@ -55,10 +55,11 @@ MAX_RECORDING_BYTES = 256 << 20
 FIRST_BYTES = 1 << 20
 MAX_LINE_BYTES = 65536  # no line of a pose log comes near this
 MAX_CHUNK_GAP_S = 3600.0  # chunks an hour apart are a garbled time, not a recording
-# a recording whose first time is before 0 or after this (a clock's epoch, a time of day) is
-# counted from its first sample; one that starts within it keeps its times (a live capture's
-# first chunk comes a few milliseconds after its start)
-MAX_START_S = 60.0
+# a recording whose first time is before 0 or after this (a clock's epoch, a time of day, rows
+# cut from the middle of a recording) is counted from its first sample, so it replays from its
+# start; one that starts within it keeps its times (a live capture's first chunk comes a few
+# milliseconds after its start: the shipped ones at 2.9 and 4.7 ms)
+MAX_START_S = 1.0
 # the coarsest step a recording's times may have: float64 resolves 1e12 s to 0.12 ms, 1e16 s to
 # 2 s (every record of a minute at one instant)
 TIME_RESOLUTION_S = 1e-3
