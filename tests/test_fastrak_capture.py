@@ -267,6 +267,7 @@ ROWS = 0.004 + np.arange(120) / 120.0  # 1 s of a station at 120 Hz, as recorded
     (lambda p: _timed_pose_log(p, ROWS), 0.004, None),
     (lambda p: _timed_pose_log(p, 1764500000.0 + ROWS), 0.0, None),
     (lambda p: _timed_pose_log(p, ROWS - 100.0), 0.0, None),
+    (lambda p: _timed_pose_log(p, 30.0 + ROWS), 0.0, None),  # rows cut from a recording
     (lambda p: _timed_pose_log(p, 1e12 + ROWS), 0.0, None),
     (lambda p: _timed_pose_log(p, 1e16 + ROWS), None, "too large to tell apart"),
     (lambda p: _timed_pose_log(p, 1.0 + ROWS * 2e-6), None, "120 records within 1.98e-06 s"),
