@@ -165,6 +165,25 @@ CASES = {
                                    str(d / "ws")], 2, "must be finite"),
     "workspace-orientation-nan": (lambda d: ["workspace-map", "--orientation", "nan,0,0",
                                              "--out", str(d / "ws")], 2, "is not finite"),
+    # round 15: a ValueError (exit 1), or 76 s and 3.8 GB for a grid 20 m deep
+    "workspace-x-1e308": (lambda d: ["workspace-map", "--x-range", "-1e308", "1e308", "--out",
+                                     str(d / "ws")], 2, "within ±1000 mm"),
+    "workspace-x-20-m": (lambda d: ["workspace-map", "--x-range", "0", "20000", "--out",
+                                    str(d / "ws")], 2, "within ±1000 mm"),
+    "workspace-grid-too-fine": (lambda d: ["workspace-map", "--resolution", "1", "--out",
+                                           str(d / "ws")], 2, "points (at most 20,000,000)"),
+    "workspace-orientation-1e308": (lambda d: ["workspace-map", "--orientation", "1e308,0,0",
+                                               "--out", str(d / "ws")], 2, "beyond ±360"),
+    # round 15: the times of a pose log that cannot be replayed, named before anything moves
+    "teleop-log-time-back": (lambda d: ["teleop", "--replay", str(_retimed_log(
+        d / "b.csv", lambda k, t: t - 3.0 if k >= 124 else t))], 2,
+        "line 126: t_s -1.9638 s is earlier than the row before it (1.02787 s)"),
+    "teleop-log-dense": (lambda d: ["teleop", "--replay", str(_retimed_log(
+        d / "n.csv", lambda k, t: 1.0 + t * 1e-7))], 2, "249 records within"),
+    "teleop-replay-empty": (lambda d: ["teleop", "--replay", ""], 2, "no recording given"),
+    "task-run-empty": (lambda d: ["task", "run", ""], 2, "no task given"),
+    "teleop-clutch-after-the-end": (lambda d: ["teleop", "--replay", str(_short_log(
+        d / "s.csv")), "--clutch", "1e308"], 2, "after the replay's end"),
     "teleop-map-5": (lambda d: ["teleop", "--replay", str(_short_log(d / "s.csv")),
                                 "--map", "5=right-arm"], 2, "stations 1-4"),
     "teleop-map-missing": (lambda d: ["teleop", "--replay", str(_short_log(d / "s.csv")),
@@ -452,3 +471,27 @@ def test_the_way_back_from_a_collision_hold_does_not_cross_the_body(model):
         distances.append(detector.last_clearance.distance_m)
     assert detector.events  # it held
     assert min(distances) > 0.0  # 10.2 mm clear on both code paths (AVX-512 / portable)
+
+
+def test_a_push_after_the_walk_ends_is_named(tmp_path, monkeypatch):
+    """``--push-at 3600`` on a walk of a few seconds never pushed, exit 0, no word (round 15):
+    the walk's result names what never came, and the command warns."""
+    from hubo_cli.experiments import walk as walk_module
+
+    def walked(model, goal, disturbances, out, **_):
+        return walk_module.WalkResult(
+            fell=False, stopped_s=None, stood=True, shifts=0, touchdowns_early=0,
+            liftoff_waits=0, landing_waits=0, reaims=0, final_error_mm=1.0,
+            final_error_deg=0.1, estimated_final_error_mm=1.0, estimated_final_error_deg=0.1,
+            steps=4, average_speed_m_s=0.1, zmp_inside_fraction=1.0, walking_s=4.2,
+            ended="done", estop_events=0, footsteps=[], gait="normal", run_dir=Path(out),
+            unplayed=tuple(d for d in disturbances if d.at_s > 4.2))
+
+    monkeypatch.setattr(walk_module, "walk", walked)
+    result = CliRunner().invoke(main, ["walk", "--to", "0.3", "0", "0", "--push", "50",
+                                       "--push-at", "3600", "--out", str(tmp_path / "w")])
+    assert result.exit_code == 0, result.output
+    assert "the walk ended before 3600 s: its push there never came" in result.output
+    result = CliRunner().invoke(main, ["walk", "--to", "0.3", "0", "0", "--push", "50",
+                                       "--push-at", "2", "--out", str(tmp_path / "v")])
+    assert "never came" not in result.output

@@ -39,6 +39,17 @@ def test_fk_text_shows_millimetres_and_degrees():
     assert "position (mm)" in result.output and "deg" in result.output
 
 
+def test_fk_beyond_the_joint_limits_says_so():
+    """The pose is computed all the same, with a note naming the joints past their limits
+    (round 15: none was given)."""
+    result = run("fk", "right-arm", "5", "5", "5", "5", "5", "5")
+    assert result.exit_code == 0 and "position (mm)" in result.output
+    assert "beyond the joint limits" in result.output and "RSR +5.000 rad" in result.output
+    data = json.loads(run("fk", "right-arm", "5", "0", "0", "0", "0", "0", "--json").output)
+    assert data["within_limits"] is False
+    assert "beyond" not in run("fk", "right-arm", *PAPER_Q, "--tool", "drill").output
+
+
 def test_ik_round_trip_and_all_candidates():
     result = run("ik", "right-arm", "--xyz", "484", "-170", "75", "--rpy", "0", "0", "0",
                  "--tool", "drill", "--all", "--json")

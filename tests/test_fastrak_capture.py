@@ -9,6 +9,7 @@ from hubo_cli.errors import InputError
 from hubo_cli.fastrak.capture import (
     CHUNK_HEAD,
     MAGIC,
+    capture_bytes,
     load_recording,
     parse_capture,
     poses_to_capture,
@@ -167,6 +168,7 @@ def test_capture_with_garbage_between_chunks_resynchronises(tmp_path):
     (b"t_s,station,x_m,y_m,z_m,qw,qx,qy,qz\n0,7,0,0,0,1,0,0,0\n", "station"),
     (b"t_s,station,x_m,y_m,z_m,qw,qx,qy,qz\n0,1,0,0,0,0,0,0,0\n", "zero quaternion"),
     (b"t_s,station,x_m,y_m,z_m,qw,qx,qy,qz\n", "no rows"),
+    (MAGIC + b"[" * 5000 + b"]" * 5000 + b"\n", "nested too deeply"),  # was RecursionError
 ])
 def test_garbled_recordings_are_input_errors(tmp_path, content, message):
     path = tmp_path / "bad.rec"
@@ -182,6 +184,8 @@ def test_missing_recording_and_bad_arguments(tmp_path):
     assert "trajectories" in info.value.hint
     with pytest.raises(InputError, match="folder"):
         open_source(replay=tmp_path)
+    with pytest.raises(InputError, match="no recording given"):  # was ". is a folder"
+        open_source(replay="")
     with pytest.raises(InputError, match="exactly one"):
         open_source()
     with pytest.raises(InputError, match="exactly one"):
@@ -208,10 +212,10 @@ def test_capture_header_is_one_json_line(tmp_path):
 def test_pose_log_reader_accepts_comments_and_no_status(tmp_path):
     path = tmp_path / "hand.csv"
     path.write_text("# a hand-made log\nt_s,station,x_m,y_m,z_m,qw,qx,qy,qz\n"
-                    "0.5,1,0.1,0.2,0.4,1,0,0,0\n0.0,1,0.1,0.2,0.3,2,0,0,0\n")
+                    "0.0,1,0.1,0.2,0.3,2,0,0,0\n0.5,1,0.1,0.2,0.4,1,0,0,0\n")
     batch = read_pose_log(path)
     assert len(batch) == 2 and batch.status.tolist() == [32, 32]
-    assert batch.t_s.tolist() == [0.0, 0.5]  # sorted by time
+    assert batch.t_s.tolist() == [0.0, 0.5]
     np.testing.assert_allclose(batch.quat_wxyz[0], [1, 0, 0, 0])
     np.testing.assert_allclose(batch.position_m[0], [0.1, 0.2, 0.3])
 
@@ -235,3 +239,70 @@ def test_replay_ignores_live_port_options(tmp_path):
     with open_source(replay=path, port=None, baud=9600, fmt="ascii", units="in") as src:
         assert src.info["format"] == "binary" and src.info["units"] == "cm"
         assert len(src.read_until(1e9)) == src.stats.good_records
+
+
+def _timed_pose_log(path, times):
+    rows = "".join(f"{float(t)!r},1,0.1,0.2,0.3,1,0,0,0\n" for t in times)
+    path.write_text("t_s,station,x_m,y_m,z_m,qw,qx,qy,qz\n" + rows)
+    return path
+
+
+def _timed_capture(path, retime):
+    """A 3 s capture of two stations (9 kB) with its chunk times changed by
+    ``retime(k, t_s)``."""
+    cap = parse_capture(poses_to_capture(two_hand_tracks(3.0)))
+    starts = np.r_[0, cap.chunk_ends[:-1]]
+    chunks = [(retime(k, t), cap.data[a:b]) for k, (t, a, b) in
+              enumerate(zip(cap.chunk_times, starts, cap.chunk_ends, strict=True))]
+    path.write_bytes(capture_bytes(cap.header, chunks))
+    return path
+
+
+ROWS = 0.004 + np.arange(120) / 120.0  # 1 s of a station at 120 Hz, as recorded
+
+
+@pytest.mark.parametrize("make,start_s,error", [
+    # a pose log's times as time.time() writes them, negative, or far out: counted from the
+    # first row (they stood 41 s then "no operator input", or ended at once, exit 0)
+    (lambda p: _timed_pose_log(p, ROWS), 0.004, None),
+    (lambda p: _timed_pose_log(p, 1764500000.0 + ROWS), 0.0, None),
+    (lambda p: _timed_pose_log(p, ROWS - 100.0), 0.0, None),
+    (lambda p: _timed_pose_log(p, 30.0 + ROWS), 0.0, None),  # rows cut from a recording
+    (lambda p: _timed_pose_log(p, 1e12 + ROWS), 0.0, None),
+    (lambda p: _timed_pose_log(p, 1e16 + ROWS), None, "too large to tell apart"),
+    (lambda p: _timed_pose_log(p, 1.0 + ROWS * 2e-6), None, "120 records within 1.98e-06 s"),
+    (lambda p: _timed_pose_log(p, np.r_[ROWS[:60], ROWS[60:] - 0.5]), None,
+     r"line 62: t_s 0.004 s is earlier than the row before it \(0.4956"),  # was re-sorted
+    (lambda p: _timed_pose_log(p, np.zeros(3)), None, "every row has the same time"),
+    # a raw capture agrees
+    (lambda p: _timed_capture(p, lambda k, t: 1764500000.0 + t), 0.0, None),
+    (lambda p: _timed_capture(p, lambda k, t: t - 100.0), 0.0, None),
+    (lambda p: _timed_capture(p, lambda k, t: 0.0), None, "every chunk has the same time"),
+    (lambda p: _timed_capture(p, lambda k, t: 1e16 + t), None, "too large to tell apart"),
+    (lambda p: _timed_capture(p, lambda k, t: 1.0 + t * 1e-6), None, "bytes within"),
+])
+def test_recording_times_count_from_the_start_or_are_refused(tmp_path, make, start_s, error):
+    path = make(tmp_path / "rec")
+    if error is not None:
+        with pytest.raises(InputError, match=error) as info:
+            load_recording(path)
+        assert info.value.hint and "\n" not in info.value.message
+        return
+    t_s = load_recording(path).batch.t_s
+    assert t_s[0] == pytest.approx(start_s, abs=1e-9)
+    span_s = 3.0 if path.read_bytes().startswith(MAGIC) else 1.0
+    assert span_s - 0.02 < t_s[-1] - t_s[0] < span_s + 0.02  # the recording's own, kept
+
+
+def test_the_emulator_refuses_a_recording_no_tracker_could_send(tmp_path):
+    """A position beyond the tracker's range went out as inf in binary records, with numpy's
+    overflow warning (round 15)."""
+    from hubo_cli.fastrak.emulator import RecordedMotion
+
+    path = _timed_pose_log(tmp_path / "far.csv", ROWS)
+    lines = path.read_text().splitlines()
+    lines[40] = lines[40].replace("0.1,0.2", "1e300,0.2", 1)
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(InputError, match=r"station 1 at t_s 0.329 s .* beyond a FASTRAK's 3 m"):
+        RecordedMotion.from_file(path)
+    assert RecordedMotion.from_file(_timed_pose_log(tmp_path / "ok.csv", ROWS)).stations == (1,)

@@ -213,3 +213,20 @@ def test_metadata_in_one_rewrite_equals_one_key_at_a_time(tmp_path):
                                  "size": [0.5, 3, True]}
     assert metadata["limit"] is None and metadata["balance"] is None
     assert list(metadata) == ["scene", "command", "balance", "limit"]
+
+
+@pytest.mark.parametrize("version,message", [
+    (99, "format version 99; this hubo-cli .* reads up to version 2"),  # was read, exit 0
+    ("2", "not a period log's sidecar"),
+    (True, "not a period log's sidecar"),
+])
+def test_a_log_of_a_newer_or_unknown_format_is_refused(tmp_path, version, message):
+    _write(tmp_path, _rows(5)).close()
+    sidecar = json.loads((tmp_path / META_NAME).read_text())
+    (tmp_path / META_NAME).write_text(json.dumps(sidecar | {"version": version}))
+    with pytest.raises(InputError, match=message) as info:
+        load_log(tmp_path)
+    assert ("upgrade hubo-cli" in info.value.hint) == (version == 99)
+    (tmp_path / META_NAME).write_text("[" * 5000 + "]" * 5000)  # was a RecursionError
+    with pytest.raises(InputError, match="not a period log's sidecar"):
+        load_log(tmp_path)

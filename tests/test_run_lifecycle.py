@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import itertools
 import json
 import os
 import signal
@@ -416,7 +417,6 @@ def test_sigterm_while_a_replay_is_read_ends_it_within_a_second(tmp_path):
     import threading
 
     header = FREE_CSV.read_text().splitlines()[0] + "\n"
-    rows = "".join(f"{k / 120:.6f},1,0.3,-0.2,-0.1,1,0,0,0,\n" for k in range(12000))
     path = tmp_path / "huge.csv"
     os.mkfifo(path)
     reading = threading.Event()
@@ -425,8 +425,9 @@ def test_sigterm_while_a_replay_is_read_ends_it_within_a_second(tmp_path):
         with contextlib.suppress(OSError), open(path, "w") as fifo:
             reading.set()  # the reader opened it
             fifo.write(header)
-            while True:
-                fifo.write(rows)  # some 0.5 MiB
+            for block in itertools.count():  # times in order (a reader refuses them going back)
+                fifo.write("".join(f"{(block * 12000 + k) / 120:.6f},1,0.3,-0.2,-0.1,1,0,0,0,\n"
+                                   for k in range(12000)))  # some 0.5 MiB
                 time.sleep(0.025)
 
     threading.Thread(target=feed, daemon=True).start()

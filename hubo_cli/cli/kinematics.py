@@ -7,7 +7,7 @@ import numpy as np
 from rich.table import Table
 
 from hubo_cli.cli.options import force_option
-from hubo_cli.cli.output import console, fmt_q, print_json
+from hubo_cli.cli.output import console, fmt_q, print_json, warn
 from hubo_cli.errors import InputError
 from hubo_cli.kinematics.poses import MAX_INPUT_MAGNITUDE
 from hubo_cli.model import LIMB_NAMES, TOOL_NAMES
@@ -68,13 +68,20 @@ def fk(limb: str, q: tuple[float, ...], params: str, tool: str, as_json: bool) -
     from hubo_cli.kinematics import get_limb
 
     _finite("Q1..Q6", q)
-    T = get_limb(limb, tool, params).fk(np.array(q))
+    chain = get_limb(limb, tool, params)
+    T = chain.fk(np.array(q))
+    outside = [f"{name} {v:+.3f} rad (limits {lo:+.2f} .. {hi:+.2f})" for name, v, lo, hi in
+               zip(chain.spec.joints, q, chain.lower_rad, chain.upper_rad, strict=True)
+               if not lo <= v <= hi]
     if as_json:
-        print_json({"limb": limb, "tool": tool, "params": params, "q_rad": q, **_pose_json(T)})
+        print_json({"limb": limb, "tool": tool, "params": params, "q_rad": q,
+                    "within_limits": not outside, **_pose_json(T)})
         return
     console.print(f"{limb} ({tool if 'arm' in limb else 'sole'}, {params}), q = {fmt_q(q)} rad")
     for line in _pose_lines(T):
         console.print(line)
+    if outside:  # the pose is computed all the same: the robot could not take it
+        warn("beyond the joint limits (the robot cannot take this pose): " + ", ".join(outside))
 
 
 def _goal_from_options(matrix, xyz, rpy) -> np.ndarray:

@@ -257,6 +257,7 @@ def teleop(replay, port, generate_seed, max_speed, reconnect_timeout, baud, driv
             mode, mode=reach_mode, allow_branch_change=allow_branch_change,
             orientation_weight_m_per_rad=orientation_weight / 1000 * 180 / np.pi))
     with _opened_recording(settings) as recording:  # its stations checked before anything
+        _check_clutch_times(clutch_at, recording)
         if wall_distance is not None:
             _check_wall_reach(settings)
         with (reserved_run_dir("teleop", out) as run_dir,
@@ -275,6 +276,15 @@ def _opened_recording(settings):
     if settings.replay is None:
         return contextlib.nullcontext()
     return open_operator_input(settings)
+
+
+def _check_clutch_times(clutch_at_s, recording) -> None:
+    """Every --clutch time within the replay (one after its end would never fire)."""
+    end_s = None if recording is None else recording.recorded_s
+    for t in clutch_at_s:
+        if end_s is not None and t > end_s:
+            raise InputError(f"--clutch {t:g} is after the replay's end ({end_s:.2f} s)",
+                             hint="give seconds from the replay's start, e.g. --clutch 12.5")
 
 
 def _check_wall_distance(wall_distance_mm: float) -> None:

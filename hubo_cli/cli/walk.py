@@ -14,7 +14,13 @@ from hubo_cli.cli.options import (
     perturb_option,
     robot_run_options,
 )
-from hubo_cli.cli.output import console, exit_if_interrupted, print_json, print_run_folder
+from hubo_cli.cli.output import (
+    console,
+    exit_if_interrupted,
+    print_json,
+    print_run_folder,
+    warn,
+)
 from hubo_cli.drivers.registry import DRIVER_NAMES
 
 
@@ -144,6 +150,10 @@ def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | No
         console.print(f"ZMP inside        {100 * result.zmp_inside_fraction:.1f} % of periods")
         console.print(f"e-stop events     {result.estop_events}")
         print_run_folder(result.run_dir, result.files)
+    for event in result.unplayed:  # e.g. --push-at 3600 on an 8 s walk
+        warn(f"the walk ended before {event.at_s:g} s: its {'push' if event.push_n else 'stop'}"
+             f" there never came (use --{'push' if event.push_n else 'stop'}-at within the "
+             f"walk's {result.walking_s:.1f} s)")
     exit_if_interrupted(fields)
     if result.failure is not None:  # e.g. the robot's state lost: exit 3, the robot braked
         raise result.failure

@@ -60,17 +60,19 @@ def _print_map(wmap, paper_pts) -> None:
               show_default=True, help="End-effector frame whose position is mapped.")
 @click.option("--orientation", default="wall", show_default=True,
               help="Tool orientation: 'wall' (tool x straight ahead, orthogonal to a wall facing "
-                   "the robot) or 'roll,pitch,yaw' in degrees (R = Rz Ry Rx).")
+                   "the robot) or 'roll,pitch,yaw' in degrees, each within ±360 (R = Rz Ry Rx).")
 @click.option("--params", type=click.Choice(["as-built", "table1"]), default="as-built",
               show_default=True, help="Kinematic parameter set.")
 @click.option("--limits", type=click.Choice(["table4", "team-code"]), default="table4",
               show_default=True, help="Joint limit set (team-code: arm joint 5 >= -2.0 rad).")
 @click.option("--resolution", type=float, default=5.0, show_default=True, metavar="MM",
-              help="Grid step in x, y and z (mm).")
+              help="Grid step in x, y and z (mm); the grid has at most 20 million points.")
 @click.option("--x-range", nargs=2, type=float, default=(300.0, 650.0), show_default=True,
-              metavar="A B", help="Wall distances from the neck to search (mm); A A for one.")
+              metavar="A B", help="Wall distances from the neck to search (mm, within ±1000: the "
+                                    "arms reach 630 at most); A A for one.")
 @click.option("--z-range", nargs=2, type=float, default=None, metavar="A B",
-              help="Heights above the neck to search (mm); A A pins the segment to one height. "
+              help="Heights above the neck to search (mm, within ±1000); A A pins the segment "
+                   "to one height. "
                    "Default: every height the arm reaches.")
 @click.option("--no-refine", is_flag=True,
               help="Report the grid's answer only (skip the sub-millimetre zoom).")

@@ -649,6 +649,7 @@ def load_log(path: str | Path) -> LogData:
     csv_path, meta_path, parquet_path = log_paths(path)
     use_parquet = path.suffix == ".parquet" or (path.is_dir() and parquet_path.exists())
     source = parquet_path if use_parquet else csv_path
+    sidecar = _read_sidecar(meta_path)  # first: a newer format is refused before it is parsed
     try:
         frame = pl.read_parquet(parquet_path) if use_parquet else _read_csv(csv_path)
         columns = {name: frame.get_column(name).to_numpy().astype(float, copy=False)
@@ -661,7 +662,6 @@ def load_log(path: str | Path) -> LogData:
                          hint="give a run folder as hubo wrote it (a damaged log.parquet can be "
                               "removed: the log is then read from log.csv)") from None
     joints = tuple(n[4:-4] for n in frame.columns if n.startswith("cmd_") and n.endswith("_rad"))
-    sidecar = _read_sidecar(meta_path)
     return LogData(columns, flags, joints, sidecar.get("metadata", {}),
                    sidecar.get("started_utc"), sidecar.get("hubo_cli_version"))
 
@@ -676,12 +676,19 @@ def _read_sidecar(path: Path) -> dict:
         return {}
     try:
         sidecar = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError):
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError):
         sidecar = None
-    if not isinstance(sidecar, dict) or not isinstance(sidecar.get("metadata", {}), dict):
+    version = sidecar.get("version", FORMAT_VERSION) if isinstance(sidecar, dict) else None
+    if (not isinstance(sidecar, dict) or not isinstance(sidecar.get("metadata", {}), dict)
+            or not isinstance(version, int) or isinstance(version, bool)):
         raise InputError(f"{path} is not a period log's sidecar (a JSON object with its "
                          "metadata)", hint="give a run folder as hubo wrote it (or remove the "
                                            "file to read the log without its metadata)")
+    if version > FORMAT_VERSION:
+        raise InputError(f"{path}: the log is format version {version}; this hubo-cli "
+                         f"({__version__}) reads up to version {FORMAT_VERSION}",
+                         hint="upgrade hubo-cli to read it (hubo-cli "
+                              f"{sidecar.get('hubo_cli_version', '?')} wrote it)")
     return sidecar
 
 

@@ -75,6 +75,7 @@ class WalkResult:
         failure: the error the run ended with (:meth:`~hubo_cli.control.loop.LoopResult.failure`:
             e.g. the robot's state lost, exit 3), None if none.
         files: the files written into the run folder (the summary's ``files``, plots included).
+        unplayed: the pushes and stops the walk ended before (their time came after its end).
     """
 
     fell: bool
@@ -101,6 +102,7 @@ class WalkResult:
     failure: HuboError | None = None
     files: tuple[str, ...] = ()
     interrupt_stop: str | None = None
+    unplayed: tuple[Disturbance, ...] = ()
 
     def summary(self) -> dict:
         return {"fell": self.fell, "stopped_s": self.stopped_s, "stood": self.stood,
@@ -253,7 +255,8 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
                      safety=SafetyProfile().with_stops(stops).with_balance(balance),
                      q_start_rad=q_start, perturb_seed=perturb_seed, operator=operator,
                      live=live)
-    done = run(setup, Disturbed(target, disturbances) if disturbances else target)
+    disturbed = Disturbed(target, disturbances)
+    done = run(setup, disturbed if disturbances else target)
     estimated_m, estimated_rad = target.final_error()
     true = true_final_error(done.log, walking_model, goal) if target.final_feet else None
     error_m, error_rad = (estimated_m, estimated_rad) if true is None else true
@@ -277,7 +280,7 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
         estop_events=sum(e["kind"] == "stop" for e in done.summary["estop_events"]),
         footsteps=[s.to_json() for s in target.steps], gait=gait, run_dir=done.run_dir,
         failure=done.loop.failure(done.run_dir),
-        interrupt_stop=done.loop.interrupt_stop or None)
+        interrupt_stop=done.loop.interrupt_stop or None, unplayed=tuple(disturbed.pending))
     done.save_summary(result.summary())
     plot_footprints(done, target, walking_model)
     if target.toe_heel is not None:

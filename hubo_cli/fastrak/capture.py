@@ -55,6 +55,17 @@ MAX_RECORDING_BYTES = 256 << 20
 FIRST_BYTES = 1 << 20
 MAX_LINE_BYTES = 65536  # no line of a pose log comes near this
 MAX_CHUNK_GAP_S = 3600.0  # chunks an hour apart are a garbled time, not a recording
+# a recording whose first time is before 0 or after this (a clock's epoch, a time of day, rows
+# cut from the middle of a recording) is counted from its first sample, so it replays from its
+# start; one that starts within it keeps its times (a live capture's first chunk comes a few
+# milliseconds after its start: the shipped ones at 2.9 and 4.7 ms)
+MAX_START_S = 1.0
+# the coarsest step a recording's times may have: float64 resolves 1e12 s to 0.12 ms, 1e16 s to
+# 2 s (every record of a minute at one instant)
+TIME_RESOLUTION_S = 1e-3
+# more records a second than any tracker sends (a FASTRAK 120, a generated stream 240 a hand):
+# times squeezed together (6 s of motion in 1.4 us) are garbled
+MAX_RECORDS_PER_S = 10_000.0
 POSE_LOG_COLUMNS = ("t_s", "station", "x_m", "y_m", "z_m", "qw", "qx", "qy", "qz", "status")
 RECORD_RATE_HZ = 120.0
 """Records per second the device emits in continuous mode, shared by the enabled stations."""
@@ -166,6 +177,9 @@ def read_recording_bytes(path: str | Path) -> bytes:
     Raises:
         InputError: the file is missing, unreadable, too large, silent or not a recording.
     """
+    if not str(path).strip():  # Path('') is the current folder
+        raise InputError("no recording given (an empty path)",
+                         hint="give a raw capture or a pose log; samples are in trajectories/")
     path = Path(path)
     try:
         # a FIFO or device is opened without waiting for a writer, then read as bytes come
@@ -261,6 +275,11 @@ def parse_capture(blob: bytes, where: str = "capture") -> Capture:
         raise InputError(f"{where}: the capture header is not valid JSON ({exc})",
                          hint="the header is the second line; it must be one JSON object"
                          ) from None
+    except RecursionError:  # json's decoder recurses once an array or object deep
+        raise InputError(f"{where}: the capture header is not valid JSON (arrays or objects "
+                         "nested too deeply)",
+                         hint="the header is the second line; it must be one JSON object"
+                         ) from None
     header = CaptureHeader.from_dict(header_data, where)
     pos = end + 1
     pieces: list[bytes] = []
@@ -281,8 +300,8 @@ def parse_capture(blob: bytes, where: str = "capture") -> Capture:
             raise InputError(f"{where}: chunk at byte {at} claims {n:,} bytes (one serial read "
                              f"is 1 to {MAX_CHUNK_BYTES:,})",
                              hint="the chunk's length is garbled; record the capture again")
-        if (not math.isfinite(t_s) or t_s < last_t - 1e-9 or t_s < -1e-9
-                or t_s - max(last_t, 0.0) > MAX_CHUNK_GAP_S):
+        if not math.isfinite(t_s) or t_s < last_t - 1e-9 or (
+                pieces and t_s - last_t > MAX_CHUNK_GAP_S):
             raise InputError(f"{where}: chunk at byte {at} has time {quoted(t_s)}",
                              hint="chunk times must be finite and non-decreasing, without "
                                   "gaps of hours; the file is garbled")
@@ -295,8 +314,51 @@ def parse_capture(blob: bytes, where: str = "capture") -> Capture:
         ends.append(total)
         times.append(t_s)
         pos += n
-    return Capture(header, b"".join(pieces), np.array(ends, dtype=np.int64),
-                   np.array(times, dtype=np.float64), truncated)
+    # the bytes after the first read, less a serial buffer's backlog (4 kB), at most twice
+    # what the line carries (10 bits a byte)
+    chunk_times = recording_times(np.array(times, dtype=np.float64), where, "chunk",
+                                  (total - (ends[0] if ends else 0) - 4096, header.baud / 5.0))
+    return Capture(header, b"".join(pieces), np.array(ends, dtype=np.int64), chunk_times,
+                   truncated)
+
+
+def recording_times(t_s: np.ndarray, where: str, what: str = "row",
+                    rate: tuple[float, float] | None = None) -> np.ndarray:
+    """A recording's times (in file order, already checked for going backwards and for gaps),
+    counted from the first when that starts before 0 or after :data:`MAX_START_S`.
+
+    Args:
+        t_s: the times, seconds.
+        where: the file, for the error.
+        what: what carries a time (``row``, ``chunk``), for the error.
+        rate: (how many units the times carry, the most a second) for the density check
+            (default: one record a time, :data:`MAX_RECORDS_PER_S`).
+
+    Raises:
+        InputError: every time at one instant, times too coarse for float64 to tell apart,
+            or more records (bytes) a second than a tracker sends.
+    """
+    if len(t_s) > 1:
+        step_s = float(np.spacing(np.abs(t_s).max()))
+        if step_s > TIME_RESOLUTION_S:
+            raise InputError(f"{where}: times near {t_s[-1]:.6g} s are too large to tell "
+                             f"apart (float64 steps by {step_s:g} s there)",
+                             hint="count t_s in seconds from the recording's start")
+        span_s = float(t_s[-1] - t_s[0])
+        if span_s <= 0.0:
+            raise InputError(f"{where}: every {what} has the same time (t_s {t_s[0]:g} s)",
+                             hint="t_s must count the seconds of the recording")
+        count, most = rate or (len(t_s) - 1, MAX_RECORDS_PER_S)  # records after the first
+        if count / span_s > most:
+            unit = "bytes" if rate else "records"
+            raise InputError(f"{where}: {count + (not rate):,} {unit} within {span_s:.3g} s, "
+                             "more than a "
+                             f"tracker sends ({most:g} a second)",
+                             hint="the times are garbled; t_s must count the seconds of the "
+                                  "recording")
+    if len(t_s) and not 0.0 <= t_s[0] <= MAX_START_S:
+        return t_s - t_s[0]
+    return t_s
 
 
 def read_capture(path: str | Path) -> Capture:
@@ -499,7 +561,8 @@ def parse_pose_log(text: str, where: str = "pose log") -> RecordBatch:
     """Parse pose-log CSV text (``#`` comment lines allowed; ``status`` column optional; a
     UTF-8 byte-order mark before the header is skipped, as spreadsheets write one).
 
-    Quaternions are normalised and rows sorted by time.
+    Quaternions are normalised. The rows must be in time order; times that start before 0 or
+    after :data:`MAX_START_S` are counted from the first row (see :func:`recording_times`).
 
     Raises:
         InputError: missing columns or a row that is not numbers, with its line number.
@@ -550,18 +613,21 @@ def parse_pose_log(text: str, where: str = "pose log") -> RecordBatch:
     batch = RecordBatch(station=station, status=status, position_m=values[:, 2:5].copy(),
                         quat_wxyz=unit, stylus=np.full(len(station), -1, np.int8),
                         offset=np.zeros(len(station), dtype=np.int64), t_s=values[:, 0].copy())
-    order = np.argsort(batch.t_s, kind="stable")
-    if len(batch) > 1 and (np.diff(batch.t_s) < 0).any():
-        batch = batch.select(order)
-    gaps = np.diff(batch.t_s)
-    if len(gaps) and (gaps > MAX_CHUNK_GAP_S).any():
-        i = int(np.flatnonzero(gaps > MAX_CHUNK_GAP_S)[0]) + 1  # the row after the gap
-        raise InputError(f"{where}: line {lines[int(order[i]) + 1][0]}: t_s {batch.t_s[i]:g} s "
-                         f"is more than {MAX_CHUNK_GAP_S:g} s after the time before it",
-                         hint="times must be seconds of one recording, without gaps of hours")
-    if len(gaps) and batch.t_s[-1] == batch.t_s[0]:
-        raise InputError(f"{where}: every row has the same time (t_s {batch.t_s[0]:g} s)",
-                         hint="t_s must count the seconds of the recording")
+    step = np.diff(batch.t_s)
+    bad = (step < -1e-9) | (step > MAX_CHUNK_GAP_S)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])  # the row before the bad step
+        line, t_before, t_after = lines[i + 2][0], batch.t_s[i], batch.t_s[i + 1]
+        if step[i] > 0:
+            raise InputError(f"{where}: line {line}: t_s {t_after:g} s is more than "
+                             f"{MAX_CHUNK_GAP_S:g} s after the time before it",
+                             hint="times must be seconds of one recording, without gaps of "
+                                  "hours")
+        raise InputError(f"{where}: line {line}: t_s {t_after:.6g} s is earlier than the row "
+                         f"before it ({t_before:.6g} s)",
+                         hint="a pose log's rows are in time order, as recorded; two "
+                              "recordings are two files")
+    batch.t_s = recording_times(batch.t_s, where)
     return batch
 
 

@@ -246,6 +246,9 @@ def task_files() -> list[Path]:
 
 def find_task(name_or_path: str | Path) -> Path:
     """A task file from a path or a shipped task's name (``cut-rectangle``)."""
+    if not str(name_or_path).strip():  # Path('') is the current folder
+        raise ConfigError("no task given (an empty name)",
+                          hint="give a .toml file or a shipped task's name (hubo task list)")
     path = Path(name_or_path)
     if path.suffix == ".toml" or path.exists():
         try:

@@ -16,6 +16,13 @@ from hubo_cli.errors import InputError, quoted
 from hubo_cli.kinematics import Limb
 
 ORIENTATIONS = ("wall",)  # named presets; any "roll,pitch,yaw" in degrees is accepted too
+# the farthest a requested x or z may be from the neck (m): no tool point of either arm is more
+# than 0.63 m away (the drill's reach sphere, centre 0.26 m ahead, radius 0.36 m)
+MAX_RANGE_M = 1.0
+# the most grid points a map is solved on (the default grid has 1.5 million; each takes about
+# 45 bytes, so 20 million about 900 MB: the default range at 2.5 mm has 11.8 million)
+MAX_GRID_POINTS = 20_000_000
+MAX_ANGLE_DEG = 360.0  # an orientation's roll, pitch and yaw (degrees)
 
 
 def orientation_matrix(orientation: str) -> np.ndarray:
@@ -33,6 +40,10 @@ def orientation_matrix(orientation: str) -> np.ndarray:
                          hint="use 'wall' or 'roll,pitch,yaw' in degrees, e.g. 0,10,0") from None
     if not all(math.isfinite(a) for a in (roll, pitch, yaw)):
         raise InputError(f"orientation {quoted(orientation)} is not finite",
+                         hint="use 'wall' or 'roll,pitch,yaw' in degrees, e.g. 0,10,0")
+    if not all(abs(a) <= math.radians(MAX_ANGLE_DEG) for a in (roll, pitch, yaw)):
+        raise InputError(f"orientation {quoted(orientation)} has an angle beyond "
+                         f"±{MAX_ANGLE_DEG:g} degrees",
                          hint="use 'wall' or 'roll,pitch,yaw' in degrees, e.g. 0,10,0")
     cr, sr = math.cos(roll), math.sin(roll)
     cp, sp = math.cos(pitch), math.sin(pitch)
@@ -121,12 +132,20 @@ def make_grid(sphere: ReachSphere, resolution_m: float = 0.005,
     if not all(math.isfinite(v) for v in (*x_range_m, *(z_range_m or ()))):
         raise InputError("--x-range and --z-range must be finite (mm)",
                          hint="e.g. --x-range 300 650")
-    x = _axis(*x_range_m, resolution_m)
+    if not all(abs(v) <= MAX_RANGE_M for v in (*x_range_m, *(z_range_m or ()))):
+        raise InputError(f"--x-range and --z-range must be within ±{MAX_RANGE_M * 1000:g} mm "
+                         "of the neck (the arms reach 630 mm at most)",
+                         hint="e.g. --x-range 300 650")
     c, r = sphere.centre_m, sphere.radius_m
-    z = _axis(*z_range_m, resolution_m) if z_range_m else _lattice(c[2] - r, c[2] + r,
-                                                                     resolution_m)
+    z_range_m = z_range_m or (c[2] - r, c[2] + r)
+    points = math.prod(abs(b - a) / resolution_m + 1.0
+                       for a, b in (x_range_m, z_range_m, (c[1] - r, c[1] + r)))
+    if points > MAX_GRID_POINTS:  # counted before any array is made
+        raise InputError(f"the grid would have {points:,.0f} points (at most "
+                         f"{MAX_GRID_POINTS:,})", hint="make --resolution coarser or "
+                                                       "--x-range / --z-range narrower")
+    x, z = _axis(*x_range_m, resolution_m), _axis(*z_range_m, resolution_m)
     if len(x) == 0 or len(z) == 0:
         raise InputError("no grid point in the requested range",
                          hint="widen --x-range / --z-range or make --resolution smaller")
-    y = _lattice(c[1] - r, c[1] + r, resolution_m)
-    return Grid(x, y, z, float(resolution_m))
+    return Grid(x, _lattice(c[1] - r, c[1] + r, resolution_m), z, float(resolution_m))
