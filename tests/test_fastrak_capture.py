@@ -149,6 +149,7 @@ def test_capture_with_garbage_between_chunks_resynchronises(tmp_path):
 @pytest.mark.parametrize("content,message", [
     (b"", "is empty"),
     (b"\x00\x01\x02\xff" * 10, "neither a raw capture"),
+    ("t_s,station,x_m,y_m,z_m,qw,qx,qy,qz\n".encode("utf-16"), "UTF-16 text"),
     (MAGIC + b"{not json\n", "not valid JSON"),
     (MAGIC + b'{"format": "binary"}\n', "header lacks units"),
     (MAGIC + b'{"format": "binary", "output_list": [2, 11], "units": "cm", '

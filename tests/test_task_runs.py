@@ -224,8 +224,9 @@ def test_a_task_too_long_names_its_longest_step_whole():
 @pytest.mark.parametrize("name", ["push-wall", "turn-valve", "push-door"])
 def test_an_experiment_task_records_the_text_it_ran(tmp_path, monkeypatch, name):
     """An experiment's run folder has task.toml as the other tasks' do: the text read once (the
-    file edited after it was read does not change it), the --set parameters and the stopper
-    noted at the top. The procedure itself is replaced by one that only makes the folder."""
+    file edited after it was read does not change it), the --set parameters, the stopper and
+    the perturbed robot (--perturb) noted at the top. The procedure itself is replaced by one
+    that only makes the folder."""
     from hubo_cli.experiments import manipulation, push_wall
     from hubo_cli.session import RunResult
     from hubo_cli.tasks.runner import run_experiment
@@ -241,10 +242,13 @@ def test_an_experiment_task_records_the_text_it_ran(tmp_path, monkeypatch, name)
     path.write_text(text, encoding="utf-8")
     spec = load_task(path, {"turn_deg": 60} if name == "turn-valve" else {})
     path.write_text("edited since", encoding="utf-8")
-    done = run_experiment(spec, out=tmp_path / "run", estop=False)
+    done = run_experiment(spec, out=tmp_path / "run", estop=False,
+                          perturb_seed=7 if name == "push-door" else None)
     copy = (tmp_path / "run" / "task.toml").read_text(encoding="utf-8")
     assert copy.endswith(text) and "emergency stopper off (--no-estop)" in copy
     assert ("--set turn_deg=60" in copy) == (name == "turn-valve")
+    assert ("# perturbed robot and world of this run: --perturb 7" in copy) == \
+        (name == "push-door")
     assert "task.toml" in done.summary["files"]
     assert json.loads((tmp_path / "run" / "summary.json").read_text())["files"][-1] == \
         "task.toml"
@@ -347,6 +351,7 @@ def test_cutting_too_fast_trips_the_wrist_torque_stop_which_relieves_the_wrist(t
     assert stop["bit_along_wall_mm"] <= 10.0 and stop["bit_into_wall_mm"] <= 1.0
     assert stop["bit_out_of_wall_mm"] >= 2.5 and stop["retreat_mm"] == 5.0
     assert stop["held_after_s"] <= 0.6 and stop["reverted_to_t_s"] is None
+    assert ("--perturb 1" in (out / "task.toml").read_text()) == bool(perturb)  # to run again
     # the text summary tells the peak after the latch apart from the one while cutting
     assert f"wrist {stop['wrist_torque_after_nm']:.2f} N m max" in result.output
     assert f"bit {stop['bit_along_wall_mm']:.1f} mm along the wall" in result.output

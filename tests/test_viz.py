@@ -261,7 +261,8 @@ def test_a_video_ffmpeg_could_not_finish_is_refused_and_the_old_file_stays(scene
     """ffmpeg that fails at its end (the index, on a full disk) exits with an error imageio's
     writer does not raise: the finished file is checked (it was renamed over the user's file,
     exit 0, unplayable). A full disk is ENOSPC naming the user's file (exit 3), otherwise one
-    line naming it; the old file stays, no temporary file is left."""
+    line naming it (ffmpeg's own lines silenced); the old file stays, no temporary file is
+    left."""
     import errno
     import shutil
 
@@ -272,10 +273,12 @@ def test_a_video_ffmpeg_could_not_finish_is_refused_and_the_old_file_stays(scene
     from hubo_cli.viz.video import check_mp4, render_video
 
     write_frames = imageio_ffmpeg.write_frames
+    log_levels = []
 
     class CutShort:  # ffmpeg's writer, the file then cut as a full disk leaves it
         def __init__(self, path, *args, **kwargs):
             self.path, self.writer = path, write_frames(path, *args, **kwargs)
+            log_levels.append(kwargs.get("ffmpeg_log_level"))
 
         def send(self, frame):
             return self.writer.send(frame)
@@ -293,6 +296,7 @@ def test_a_video_ffmpeg_could_not_finish_is_refused_and_the_old_file_stays(scene
     with pytest.raises(OSError) as full, replacing(old) as temporary:
         render_video(scene, temporary, speed=1.0, width=64, height=48, start_s=0.0, end_s=0.1)
     assert (full.value.errno, full.value.filename) == (errno.ENOSPC, str(old))
+    assert log_levels == ["quiet"]  # ffmpeg's own lines ("Error writing trailer") not printed
     monkeypatch.setattr(shutil, "disk_usage", lambda path: usage._replace(free=10**10))
     with pytest.raises(HuboError) as stopped, replacing(old) as temporary:
         raise writer_failure(temporary, "ffmpeg", OSError("the MP4 is incomplete"))

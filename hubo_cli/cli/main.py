@@ -117,7 +117,7 @@ class LazyGroup(click.Group):
             where = f" ({exc.filename})" if exc.filename else ""
             click.secho(f"error: {exc.strerror or exc}{where}", fg="red", err=True)
             if exc.errno in DISK_FULL:  # the disk is the device in trouble, not the input
-                click.echo("hint: free space on that disk or choose another --out", err=True)
+                click.echo("hint: free space on that disk or write elsewhere", err=True)
                 ctx.exit(3)
             ctx.exit(2)
         except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):

@@ -219,13 +219,25 @@ def _check_first_bytes(first: bytes, where: str, whole: bool) -> None:
                              f"{MAX_LINE_BYTES >> 10} KiB",
                              hint="replay a file written by `hubo record` or a pose-log CSV")
         first = first[:end]
+    parse_pose_log(decode_pose_log(first, where), where)
+
+
+def decode_pose_log(blob: bytes, where: str) -> str:
+    """A pose log's bytes as text (UTF-8).
+
+    Raises:
+        InputError: bytes that are not UTF-8 text (UTF-16 text said as such).
+    """
     try:
-        text = first.decode("utf-8")
+        return blob.decode("utf-8")
     except UnicodeDecodeError:
+        if blob[:2] in (b"\xff\xfe", b"\xfe\xff"):
+            raise InputError(f"{where} is UTF-16 text; a pose log is UTF-8",
+                             hint="save it as UTF-8 (PowerShell: Out-File -Encoding utf8)"
+                             ) from None
         raise InputError(f"{where} is neither a raw capture nor a text pose log",
                          hint="replay a file written by `hubo record` or a pose-log CSV"
                          ) from None
-    parse_pose_log(text, where)
 
 
 def parse_capture(blob: bytes, where: str = "capture") -> Capture:
@@ -571,13 +583,7 @@ def _csv_rows(lines: list[tuple[int, str]], where: str):
 
 def read_pose_log(path: str | Path) -> RecordBatch:
     """Read a pose-log CSV file (see :func:`parse_pose_log`)."""
-    blob = read_recording_bytes(path)
-    try:
-        text = blob.decode("utf-8")
-    except UnicodeDecodeError:
-        raise InputError(f"{path} is neither a raw capture nor a text pose log",
-                         hint="replay a file written by `hubo record` or a pose-log CSV") from None
-    return parse_pose_log(text, str(path))
+    return parse_pose_log(decode_pose_log(read_recording_bytes(path), str(path)), str(path))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -627,13 +633,7 @@ def load_recording(path: str | Path, stations=None,
         if len(batch) == 0:
             raise no_records_error(path, cap)
     else:
-        try:
-            text = blob.decode("utf-8")
-        except UnicodeDecodeError:
-            raise InputError(f"{path} is neither a raw capture nor a text pose log",
-                             hint="replay a file written by `hubo record` or a pose-log CSV"
-                             ) from None
-        batch = parse_pose_log(text, str(path))
+        batch = parse_pose_log(decode_pose_log(blob, str(path)), str(path))
         stats.add(batch, 0, len(blob))
         info = {"kind": "pose-log", "path": str(path),
                 "stations": sorted(set(batch.station.tolist()))}

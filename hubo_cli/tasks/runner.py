@@ -166,7 +166,7 @@ def _run_task(plan: Plan, setup: RunSetup, on_start, balance: str) -> TaskRun:
         done = run(setup, approach,
                    on_start=None if on_start is None
                    else lambda _, loop: on_start(target, loop))
-    _write_task_copy(plan.spec, done.run_dir, balance, setup.safety)
+    _write_task_copy(plan.spec, done.run_dir, balance, setup.safety, setup.perturb_seed)
     done.add_file("task.toml")
     t_origin_s = approach.then_origin_s if start is not None else 0.0  # (its own clock's)
     summary = done.save_summary(summarise(plan, target, done, t_origin_s))
@@ -185,7 +185,7 @@ def _title_name(name: str) -> str:
 
 
 def _write_task_copy(spec: TaskSpec, run_dir: Path, balance: str,
-                     safety: SafetyProfile) -> None:
+                     safety: SafetyProfile, perturb_seed: int | None) -> None:
     """The task file as run; overridden parameters, the balancer and the stops that were
     active are noted at the top (``--set`` them, ``--balance``, ``--estop-sources``)."""
     active = ", ".join(safety.active_sources) or "none"
@@ -194,21 +194,24 @@ def _write_task_copy(spec: TaskSpec, run_dir: Path, balance: str,
     if safety.removed:
         noted.append(f"# stop sources removed on the command line: "
                      f"{', '.join(safety.removed)} ({safety.removed_by})")
-    _write_copy(spec, run_dir, balance, noted, _with_safety_as_run(spec.text, safety,
-                                                                   spec.safety))
+    _write_copy(spec, run_dir, balance, perturb_seed, noted,
+                _with_safety_as_run(spec.text, safety, spec.safety))
 
 
-def _write_copy(spec: TaskSpec, run_dir: Path, balance: str, noted: list[str],
-                text: str) -> None:
+def _write_copy(spec: TaskSpec, run_dir: Path, balance: str, perturb_seed: int | None,
+                noted: list[str], text: str) -> None:
     """``task.toml``: the task's ``text`` as it ran (read once: a FIFO or a file edited since
     is recorded as it was), below a header of comments: the file it came from, the lines
-    ``noted`` (its safety), the parameters changed (``--set``) and the balancer."""
+    ``noted`` (its safety), the parameters changed (``--set``), the balancer and the
+    perturbed robot (``--perturb``)."""
     header = [f"# run of {spec.path}", *noted]
     if spec.overridden:
         sets = " ".join(f"--set {k}={format_override(v)}" for k, v in spec.overridden.items())
         header.append(f"# parameters changed for this run: hubo task run task.toml {sets}")
     if balance != "default":
         header.append(f"# balance controllers of this run: --balance {balance}")
+    if perturb_seed:
+        header.append(f"# perturbed robot and world of this run: --perturb {perturb_seed}")
     (run_dir / "task.toml").write_text("\n".join(header) + "\n" + text, encoding="utf-8")
 
 
@@ -512,7 +515,7 @@ def run_experiment(spec: TaskSpec, *, out: str | Path | None = None, gui: bool =
                                out=out, gui=gui, interpolator=arguments["interpolator"],
                                perturb_seed=perturb_seed, balance=balance, live=live)
     stopper = "on" if estop else "off (--no-estop)"
-    _write_copy(spec, result.run_dir, balance,
+    _write_copy(spec, result.run_dir, balance, perturb_seed,
                 [f"# safety of this run: emergency stopper {stopper}"], spec.text)
     result.add_file("task.toml")
     summary = result.save_summary({"task": spec.name, "parameters": spec.parameters})

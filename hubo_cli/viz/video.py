@@ -350,7 +350,7 @@ def render_video(scene: RunScene, out: str | Path, *, speed: float | None = None
             str(out), (width, height), fps=fps, codec="libx264", pix_fmt_out="yuv420p",
             quality=None, bitrate=None, macro_block_size=2,
             output_params=["-crf", "23", "-preset", "veryfast", "-movflags", "+faststart"],
-            ffmpeg_log_level="error")
+            ffmpeg_log_level="quiet")  # its failures are ours to say, in one line
         try:
             writer.send(None)
             try:
