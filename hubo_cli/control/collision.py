@@ -540,42 +540,49 @@ def _lower_bound(q_in, ahead, q0, d0, rate):
 
 
 @nb.njit(cache=True, nogil=True)
-def _pair_bounds(q, q0, d0, q1, d1, rate, band_m, reuse, bounds, near, changed):
-    """Each pair's Lipschitz lower bound at ``q`` from its distance ``d0[p]`` at ``q0[p]``
-    (m, to ``bounds``); ``near`` set to the pairs whose bound is at most ``band_m``, listing in
-    ``changed`` first the pairs whose entry changed, then the near pairs. Returns (how many
-    changed, how many are near, the pair of the smallest bound).
-
-    With ``reuse``, a pair whose joints with a rate are exactly ``q0[p]``'s is not near (its
-    bound is its distance), and a pair that would be near counts its earlier distance
-    ``d1[p]`` at ``q1[p]`` too: the bound is the larger of the two, and where the joints are
-    exactly ``q1[p]``'s its distance is ``d1[p]`` (the two swap: ``q0``, ``d0`` stay the last
-    one used)."""
-    n_changed, best = 0, 0
-    for p in range(d0.shape[0]):
-        bound = d0[p]
-        moved = not reuse or d0[p] == -np.inf
+def _pair_bound(p, q, q0, d0, q1, d1, rate, band_m, reuse):
+    """Pair ``p``'s Lipschitz lower bound at ``q`` (m) from its distance ``d0[p]`` at ``q0[p]``:
+    (bound, moved, earlier). ``moved``: its distance must be computed if the bound is within
+    ``band_m``. With ``reuse``, a pair whose joints with a rate are exactly ``q0[p]``'s has not
+    moved (its bound is its distance), and a pair that would be near counts its earlier
+    distance ``d1[p]`` at ``q1[p]`` too: the bound is the larger of the two, and where every
+    joint is exactly ``q1[p]``'s the bound is ``d1[p]``, not moved, and ``earlier`` True."""
+    bound = d0[p]
+    moved = not reuse or d0[p] == -np.inf
+    for j in range(q.shape[0]):
+        if rate[p, j] > 0.0:
+            bound -= rate[p, j] * abs(q[j] - q0[p, j])
+            moved = moved or q[j] != q0[p, j]
+    if moved and reuse and bound <= band_m and d1[p] != -np.inf:
+        earlier = d1[p]
+        moved_1 = False
         for j in range(q.shape[0]):
             if rate[p, j] > 0.0:
-                bound -= rate[p, j] * abs(q[j] - q0[p, j])
-                moved = moved or q[j] != q0[p, j]
-        if moved and reuse and bound <= band_m and d1[p] != -np.inf:
-            earlier = d1[p]
-            moved_1 = False
+                earlier -= rate[p, j] * abs(q[j] - q1[p, j])
+            # every joint, not only those with a rate: a joint moving both shapes leaves
+            # the distance but not its last bits (the earlier posture's taken only whole)
+            moved_1 = moved_1 or q[j] != q1[p, j]
+        if not moved_1:
+            return d1[p], False, True
+        if earlier > bound:
+            bound = earlier
+    return bound, moved, False
+
+
+@nb.njit(cache=True, nogil=True)
+def _pair_bounds(q, q0, d0, q1, d1, rate, band_m, reuse, bounds, near, changed):
+    """Each pair's bound at ``q`` (:func:`_pair_bound`, m, to ``bounds``); ``near`` set to the
+    pairs that moved with a bound at most ``band_m``, listing in ``changed`` first the pairs
+    whose entry changed, then the near pairs. Returns (how many changed, how many are near,
+    the pair of the smallest bound). A pair at its earlier joints swaps its two distances
+    (``q0``, ``d0`` stay the last one used)."""
+    n_changed, best = 0, 0
+    for p in range(d0.shape[0]):
+        bound, moved, earlier = _pair_bound(p, q, q0, d0, q1, d1, rate, band_m, reuse)
+        if earlier:  # the earlier joints: the earlier distance, now the last used
             for j in range(q.shape[0]):
-                if rate[p, j] > 0.0:
-                    earlier -= rate[p, j] * abs(q[j] - q1[p, j])
-                # every joint, not only those with a rate: a joint moving both shapes leaves
-                # the distance but not its last bits (the earlier posture's taken only whole)
-                moved_1 = moved_1 or q[j] != q1[p, j]
-            if not moved_1:  # the earlier joints: the earlier distance, now the last used
-                moved = False
-                for j in range(q.shape[0]):
-                    q0[p, j], q1[p, j] = q1[p, j], q0[p, j]
-                d0[p], d1[p] = d1[p], d0[p]
-                bound = d0[p]
-            elif earlier > bound:
-                bound = earlier
+                q0[p, j], q1[p, j] = q1[p, j], q0[p, j]
+            d0[p], d1[p] = d1[p], d0[p]
         bounds[p] = bound
         if bound < bounds[best]:
             best = p
@@ -598,24 +605,7 @@ def _bound_near(q, q0, d0, q1, d1, rate, band_m, reuse):
     as soon as a pair would be computed (moved, its bound at most ``band_m``)."""
     best = np.inf
     for p in range(d0.shape[0]):
-        bound = d0[p]
-        moved = not reuse or d0[p] == -np.inf
-        for j in range(q.shape[0]):
-            if rate[p, j] > 0.0:
-                bound -= rate[p, j] * abs(q[j] - q0[p, j])
-                moved = moved or q[j] != q0[p, j]
-        if moved and reuse and bound <= band_m and d1[p] != -np.inf:
-            earlier = d1[p]
-            moved_1 = False
-            for j in range(q.shape[0]):
-                if rate[p, j] > 0.0:
-                    earlier -= rate[p, j] * abs(q[j] - q1[p, j])
-                moved_1 = moved_1 or q[j] != q1[p, j]
-            if not moved_1:
-                moved = False
-                bound = d1[p]
-            elif earlier > bound:
-                bound = earlier
+        bound, moved, _ = _pair_bound(p, q, q0, d0, q1, d1, rate, band_m, reuse)
         if moved and bound <= band_m:
             return np.nan
         if bound < best:
