@@ -92,6 +92,17 @@ def take_interrupt() -> str | None:
     return cause
 
 
+def _taken(sigterm: bool) -> dict:
+    """The signals whose handler is still Python's default (Ctrl-C's; SIGTERM's, ending the
+    process, if ``sigterm``), each to :func:`_interrupt`."""
+    wanted = {}
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        wanted[signal.SIGINT] = _interrupt
+    if sigterm and signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+        wanted[signal.SIGTERM] = _interrupt
+    return wanted
+
+
 def _install(handlers: dict) -> dict:
     return {s: signal.signal(s, h) for s, h in handlers.items()}
 
@@ -104,12 +115,7 @@ def catching_interrupts() -> Iterator[None]:
     if not _in_main_thread():
         yield
         return
-    wanted = {}
-    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-        wanted[signal.SIGINT] = _interrupt
-    if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
-        wanted[signal.SIGTERM] = _interrupt
-    previous = _install(wanted)
+    previous = _install(_taken(sigterm=True))
     try:
         yield
     finally:
@@ -126,10 +132,7 @@ def loop_taking() -> dict:
     if not _in_main_thread():  # (signals reach the main thread only: nothing to take here)
         return {}
     _noted.deferring = True
-    wanted = {}
-    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-        wanted[signal.SIGINT] = _interrupt
-    return _install(wanted)
+    return _install(_taken(sigterm=False))
 
 
 def loop_given_back(previous: dict) -> None:
@@ -146,7 +149,7 @@ def loop_given_back(previous: dict) -> None:
 
 def _record(signum, frame) -> None:
     if _state.late is not None and _state.late.cause is None:
-        _state.late.cause = "SIGTERM" if signum == signal.SIGTERM else "Ctrl-C"
+        _state.late.cause = _cause(signum)
 
 
 def _in_main_thread() -> bool:

@@ -352,8 +352,7 @@ def recording_times(t_s: np.ndarray, where: str, what: str = "row",
         if count / span_s > most:
             unit = "bytes" if rate else "records"
             raise InputError(f"{where}: {count + (not rate):,} {unit} within {span_s:.3g} s, "
-                             "more than a "
-                             f"tracker sends ({most:g} a second)",
+                             f"more than a tracker sends ({most:g} a second)",
                              hint="the times are garbled; t_s must count the seconds of the "
                                   "recording")
     if len(t_s) and not 0.0 <= t_s[0] <= MAX_START_S:
