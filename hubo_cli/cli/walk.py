@@ -111,6 +111,7 @@ def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | No
                          lip_feedback=lip_feedback, gait=gait,
                          **({} if toe_heel is None else {"toe_heel": toe_heel}))
     fields = result.summary() | {"ended": result.ended, "estop_events": result.estop_events,
+                                 "interrupt_stop": result.interrupt_stop,
                                  "run_dir": str(result.run_dir)}
     if as_json:
         print_json(fields)
