@@ -399,3 +399,33 @@ def test_a_phase_that_stops_itself_is_asked_to_after_ctrl_c_or_a_log_failure(mod
     assert result.log_periods_dropped == (result.periods - round(0.5 / DT)
                                           if event == "log failure" else 0)
     _assert_smooth_end(model, robot, q0)
+
+
+def test_a_full_disk_during_an_interrupts_stance_says_both_and_exits_as_interrupted(model,
+                                                                                   tmp_path):
+    """Ctrl-C at 0.1 s, then the log fails at 0.2 s while the phase finishes its stop: the
+    run stays ``interrupted`` (the operator's came first: exit 130), the one-line error and
+    the summary name the full disk as well, and no snapshot or log read-back is tried on the
+    full disk (main went on as after a whole log: on a real full disk the snapshot's write
+    failed, a bare OSError, exit 3, no summary)."""
+    import json
+
+    from hubo_cli.control.pipeline import SafetyProfile
+    from hubo_cli.errors import InterruptedRunError
+    from hubo_cli.session import RunSetup, run
+
+    q0 = ideal(model).read().q_rad.copy()
+    target = _Stepping(q0, interrupts_s=(0.1,), fail_log_s=0.2)
+    setup = RunSetup(command="stepping", model=model, driver="ideal", out=tmp_path / "run",
+                     safety=SafetyProfile(balance=False))
+    with pytest.raises(InterruptedRunError) as raised:
+        run(setup, target, on_start=lambda target, loop: setattr(target, "loop", loop))
+    message = str(raised.value)
+    assert raised.value.exit_code == 130
+    assert message.startswith("interrupted (Ctrl-C); cannot write the log ")
+    assert message.count("No space left on device") == 1  # (main said it twice)
+    assert "; the walk finished its step and stood after 1.4" in message
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["ended"] == "interrupted" and summary["interrupt_stop"] == "stood"
+    assert summary["error"].startswith("interrupted (Ctrl-C); cannot write the log ")
+    assert summary["log_periods_dropped"] == summary["periods"] - round(0.2 / DT)
