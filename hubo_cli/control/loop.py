@@ -64,6 +64,7 @@ from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.phase import PHASE_STOP, PhaseStop
 from hubo_cli.control.status import Status, status_from_flags
+from hubo_cli.control.stop_choice import STOP_SOURCE
 from hubo_cli.control.target import Target, TargetOutput, as_target
 from hubo_cli.dataflow import Store, check_flow
 from hubo_cli.drivers.base import Driver
@@ -100,7 +101,6 @@ MAX_STOP_S = 15.0  # a brake from full speed at the slowest joint's limits takes
 STANCE_SPARE_S = 1.0  # a phase stopping itself after an interrupt: its within_s (at most the
                       # stopper's MAX_FINISH_S) and this long for the stopper's own brake
 STANCE_HOLD_S = 0.5  # ... then held this long (the loop sees a fall meanwhile) before it ends
-STOP_SOURCE = "operator"  # the stop an interrupt asks of the stopper (the space key's)
 
 
 @dataclass
