@@ -33,6 +33,7 @@ from hubo_cli.errors import InputError, quoted
 from hubo_cli.fastrak.parser import decode_stream
 from hubo_cli.fastrak.records import (
     DEFAULT_PLAUSIBILITY,
+    STATUS_OK_CHARS,
     UNIT_SCALE_M,
     Plausibility,
     RecordBatch,
@@ -66,6 +67,7 @@ TIME_RESOLUTION_S = 1e-3
 # more records a second than any tracker sends (a FASTRAK 120, a generated stream 240 a hand):
 # times squeezed together (6 s of motion in 1.4 us) are garbled
 MAX_RECORDS_PER_S = 10_000.0
+_STATUS_TEXT = STATUS_OK_CHARS.decode("ascii")  # a pose log's status: a record's own
 POSE_LOG_COLUMNS = ("t_s", "station", "x_m", "y_m", "z_m", "qw", "qx", "qy", "qz", "status")
 RECORD_RATE_HZ = 120.0
 """Records per second the device emits in continuous mode, shared by the enabled stations."""
@@ -599,6 +601,10 @@ def parse_pose_log(text: str, where: str = "pose log") -> RecordBatch:
             if len(text_status) > 1:
                 raise InputError(f"{where}: line {line_no}: status {quoted(text_status)} is not "
                                  "one character", hint="leave it empty when healthy")
+            if text_status and text_status not in _STATUS_TEXT:  # a NUL, a control byte
+                raise InputError(f"{where}: line {line_no}: status {quoted(text_status)} is not "
+                                 "a FASTRAK status", hint="leave it empty when healthy, else "
+                                 "the tracker's error letter (a-z, A-Z)")
             if text_status:
                 status[row_i] = ord(text_status)
     if not np.isfinite(values).all():
