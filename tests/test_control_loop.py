@@ -6,6 +6,7 @@ from __future__ import annotations
 import errno
 import os
 import signal
+import sys
 
 import numpy as np
 import pytest
@@ -315,6 +316,32 @@ def test_a_swallowed_interrupt_still_ends_the_run_before_anything_moves(model, t
     assert result.ended == "interrupted" and result.error == "interrupted (Ctrl-C)"
     assert robot.sent == [] and result.periods == 0
     assert interrupts.interrupt_pending() is None  # acted on: the next run is not ended by it
+
+
+def test_a_swallowed_interrupt_is_not_printed_and_other_lost_errors_still_are(monkeypatch):
+    """Python prints "Exception ignored on calling ctypes callback function ...
+    KeyboardInterrupt" (a traceback) for an interrupt a ctypes callback swallows (numba's
+    compile of a cold cache); noted, it is the loop's to act on: the command line's scope
+    keeps it off stderr. Any other exception such a callback loses is still reported."""
+    import ctypes
+
+    from hubo_cli import interrupts
+
+    reported = []
+
+    def recorded(unraisable):
+        reported.append(type(unraisable.exc_value))
+
+    monkeypatch.setattr(sys, "unraisablehook", recorded)
+    callback = ctypes.CFUNCTYPE(None)
+    interrupted = callback(lambda: interrupts._interrupt(signal.SIGINT, None))
+    failing = callback(lambda: 1 / 0)
+    with interrupts.catching_interrupts():
+        interrupted()
+        assert interrupts.interrupt_pending() == "Ctrl-C"
+        failing()
+    assert reported == [ZeroDivisionError]  # (main: KeyboardInterrupt as well)
+    assert sys.unraisablehook is recorded and interrupts.interrupt_pending() is None
 
 
 def test_an_interrupt_in_the_loop_is_acted_on_between_periods(model, tmp_path):
