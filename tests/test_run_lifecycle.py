@@ -458,6 +458,22 @@ def test_sigterm_while_a_replay_is_read_ends_it_within_a_second(tmp_path):
     assert not (tmp_path / "run").exists()
 
 
+def _sweep_running(out: Path, seeds: str, duration_s: int, workers: int, periods: int):
+    """Start ``hubo sweep sim`` of runs ``duration_s`` long into ``out``; returns (the process,
+    its first run's folder) once that run has stored ``periods`` (or 120 s have passed)."""
+    process = subprocess.Popen([str(HUBO), "sweep", "sim", "--seeds", seeds, "--set",
+                                f"duration={duration_s}", "--workers", str(workers), "--out",
+                                str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True)
+    first = out / f"sim-seed1-duration={float(duration_s)}"
+    deadline = time.monotonic() + 120
+    while _periods_stored(first) < periods and time.monotonic() < deadline:
+        if process.poll() is not None:
+            pytest.fail(f"the sweep ended before its first run went: {process.communicate()}")
+        time.sleep(0.02)
+    return process, first
+
+
 @pytest.mark.slow
 @linux_only
 def test_sigterm_ends_a_sequential_sweep_after_the_run_it_interrupted(tmp_path):
@@ -470,15 +486,8 @@ def test_sigterm_ends_a_sequential_sweep_after_the_run_it_interrupted(tmp_path):
     import psutil
 
     out = tmp_path / "sweep"
-    process = subprocess.Popen([str(HUBO), "sweep", "sim", "--seeds", "1-3", "--set",
-                                "duration=30", "--workers", "0", "--out", str(out)],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process, first = _sweep_running(out, "1-3", 30, 0, 400)
     try:
-        first = out / "sim-seed1-duration=30.0"
-        deadline = time.monotonic() + 120
-        while _periods_stored(first) < 400 and time.monotonic() < deadline:
-            assert process.poll() is None, process.communicate()
-            time.sleep(0.02)
         reaped = resource.getrusage(resource.RUSAGE_CHILDREN)  # (before the sweep is reaped)
         cpu = psutil.Process(process.pid).cpu_times()
         periods_at_signal = _periods_stored(first)
@@ -518,15 +527,8 @@ def test_sigterm_ends_a_local_cluster_sweep_within_a_second_or_so(tmp_path):
     import psutil
 
     out = tmp_path / "sweep"
-    process = subprocess.Popen([str(HUBO), "sweep", "sim", "--seeds", "1-4", "--set",
-                                "duration=60", "--workers", "2", "--out", str(out)],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process, first = _sweep_running(out, "1-4", 60, 2, 200)
     try:
-        first = out / "sim-seed1-duration=60.0"
-        deadline = time.monotonic() + 120
-        while _periods_stored(first) < 200 and time.monotonic() < deadline:
-            assert process.poll() is None, process.communicate()
-            time.sleep(0.02)
         workers = [c for c in psutil.Process(process.pid).children(recursive=True)
                    if not any("resource_tracker" in part for part in c.cmdline())]
 
