@@ -80,6 +80,14 @@ class SafetyError(HuboError):
     exit_code = 4
 
 
+class InterruptedRunError(HuboError):
+    """Ctrl-C or SIGTERM ended a run and something failed during its stop (a full disk while
+    a walk finished its step): the message says both; the exit is the interrupt's, which came
+    first."""
+
+    exit_code = EXIT_INTERRUPTED
+
+
 def quoted(value: object) -> str:
     """``repr(value)`` for an error message, cut to :data:`QUOTED_CHARS` characters with what
     was left out said: ``[2, 2, 2, ...] (100,000 items)``, ``'xxxx...' (5,000,000

@@ -22,7 +22,9 @@ An interrupt is also *noted* (:func:`interrupt_pending`), not only raised: the c
 records the cause before it raises. A ``KeyboardInterrupt`` raised where Python cannot pass it on
 (inside a ctypes callback: numba's first compile of a cold cache prints "Exception ignored ...")
 is lost, but the note stays: the control loop looks at it before the robot's first command and
-every period, and ends the run as interrupted. Inside the loop the first interrupt is only noted
+every period, and ends the run as interrupted. Within :func:`catching_interrupts` Python's
+"Exception ignored" traceback for such a noted interrupt is not printed (``sys.unraisablehook``;
+any other exception a callback loses still is). Inside the loop the first interrupt is only noted
 (the loop acts on it at its next period, from a whole period: a walk finishes its step, see
 :mod:`hubo_cli.control.loop`); a second one raises at once.
 """
@@ -30,6 +32,7 @@ every period, and ends the run as interrupted. Inside the loop the first interru
 from __future__ import annotations
 
 import signal
+import sys
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -116,13 +119,26 @@ def catching_interrupts() -> Iterator[None]:
         yield
         return
     previous = _install(_taken(sigterm=True))
+    previous_hook = sys.unraisablehook
+    sys.unraisablehook = _quiet_noted_interrupt(previous_hook)
     try:
         yield
     finally:
+        sys.unraisablehook = previous_hook
         for s, handler in previous.items():
             if signal.getsignal(s) is _interrupt:
                 signal.signal(s, handler)
         _noted.pending, _noted.deferring = None, False
+
+
+def _quiet_noted_interrupt(previous_hook):
+    """``sys.unraisablehook`` that says nothing of an interrupt a ctypes callback swallowed
+    once it is noted (the control loop acts on the note), and passes anything else on."""
+    def hook(unraisable) -> None:
+        if isinstance(unraisable.exc_value, KeyboardInterrupt) and _noted.pending is not None:
+            return
+        previous_hook(unraisable)
+    return hook
 
 
 def loop_taking() -> dict:

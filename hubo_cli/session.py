@@ -49,7 +49,13 @@ from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.target import Target
 from hubo_cli.drivers.base import RunContext
 from hubo_cli.drivers.registry import driver_class, make_driver
-from hubo_cli.errors import ConfigError, DeviceError, HuboError, InputError
+from hubo_cli.errors import (
+    ConfigError,
+    DeviceError,
+    HuboError,
+    InputError,
+    InterruptedRunError,
+)
 from hubo_cli.estimation.build import build_estimator
 from hubo_cli.interrupts import loop_starting, run_files
 from hubo_cli.model import RobotModel
@@ -255,7 +261,7 @@ def _run_in(setup: RunSetup, target: Target, on_start, speed: float | None,
                 on_start(target, loop)
             result = _run_loop(loop, setup, world)
             driver_summary = driver.summary_values()
-            if result.ended == "log-error":  # a full disk: no snapshot, no log read back
+            if result.log_error:  # a full disk: no snapshot, no log read back
                 _end_without_log(setup, speed, result, modules, run_dir)
             metadata = {}
             if world is not None:
@@ -296,7 +302,8 @@ def _end_without_log(setup: RunSetup, speed: float | None, loop: LoopResult,
                      modules: list[Module], run_dir: Path) -> None:
     """A run whose log could not be written (a full disk) was braked to a stop (a walk: its
     step finished into a stance): write what summary the disk still takes and raise
-    DeviceError (exit 3) saying so."""
+    DeviceError (exit 3) saying so, or InterruptedRunError (exit 130) when Ctrl-C or SIGTERM
+    came first and the log failed during the stop it asked for (the message says both)."""
     summary = common_summary(setup, speed, loop, modules, run_dir)
     with contextlib.suppress(InputError):  # a summary whole or none (write_json)
         write_json(run_dir / SUMMARY_NAME, summary)
@@ -306,9 +313,10 @@ def _end_without_log(setup: RunSetup, speed: float | None, loop: LoopResult,
            else "the run was braked to a stop")
     dropped = (f" ({loop.log_periods_dropped} periods after the failure not logged)"
                if loop.log_periods_dropped else "")
-    raise DeviceError(f"{loop.error}; {how} after {loop.t_end_s:.2f} s{dropped}",
-                      hint="free space on that disk or choose another --out"
-                           + (f" ({kept})" if kept else ""))
+    error = InterruptedRunError if loop.ended == "interrupted" else DeviceError
+    raise error(f"{loop.error}; {how} after {loop.t_end_s:.2f} s{dropped}",
+                hint="free space on that disk or choose another --out"
+                     + (f" ({kept})" if kept else ""))
 
 
 def common_summary(setup: RunSetup, speed: float | None, loop: LoopResult,

@@ -6,6 +6,7 @@ from __future__ import annotations
 import errno
 import os
 import signal
+import sys
 
 import numpy as np
 import pytest
@@ -317,6 +318,32 @@ def test_a_swallowed_interrupt_still_ends_the_run_before_anything_moves(model, t
     assert interrupts.interrupt_pending() is None  # acted on: the next run is not ended by it
 
 
+def test_a_swallowed_interrupt_is_not_printed_and_other_lost_errors_still_are(monkeypatch):
+    """Python prints "Exception ignored on calling ctypes callback function ...
+    KeyboardInterrupt" (a traceback) for an interrupt a ctypes callback swallows (numba's
+    compile of a cold cache); noted, it is the loop's to act on: the command line's scope
+    keeps it off stderr. Any other exception such a callback loses is still reported."""
+    import ctypes
+
+    from hubo_cli import interrupts
+
+    reported = []
+
+    def recorded(unraisable):
+        reported.append(type(unraisable.exc_value))
+
+    monkeypatch.setattr(sys, "unraisablehook", recorded)
+    callback = ctypes.CFUNCTYPE(None)
+    interrupted = callback(lambda: interrupts._interrupt(signal.SIGINT, None))
+    failing = callback(lambda: 1 / 0)
+    with interrupts.catching_interrupts():
+        interrupted()
+        assert interrupts.interrupt_pending() == "Ctrl-C"
+        failing()
+    assert reported == [ZeroDivisionError]  # (main: KeyboardInterrupt as well)
+    assert sys.unraisablehook is recorded and interrupts.interrupt_pending() is None
+
+
 def test_an_interrupt_in_the_loop_is_acted_on_between_periods(model, tmp_path):
     """Inside the loop the first interrupt is noted, not raised (it cannot land inside a
     period); the loop brakes from the next period on; a non-walking run brakes as before."""
@@ -399,3 +426,33 @@ def test_a_phase_that_stops_itself_is_asked_to_after_ctrl_c_or_a_log_failure(mod
     assert result.log_periods_dropped == (result.periods - round(0.5 / DT)
                                           if event == "log failure" else 0)
     _assert_smooth_end(model, robot, q0)
+
+
+def test_a_full_disk_during_an_interrupts_stance_says_both_and_exits_as_interrupted(model,
+                                                                                   tmp_path):
+    """Ctrl-C at 0.1 s, then the log fails at 0.2 s while the phase finishes its stop: the
+    run stays ``interrupted`` (the operator's came first: exit 130), the one-line error and
+    the summary name the full disk as well, and no snapshot or log read-back is tried on the
+    full disk (main went on as after a whole log: on a real full disk the snapshot's write
+    failed, a bare OSError, exit 3, no summary)."""
+    import json
+
+    from hubo_cli.control.pipeline import SafetyProfile
+    from hubo_cli.errors import InterruptedRunError
+    from hubo_cli.session import RunSetup, run
+
+    q0 = ideal(model).read().q_rad.copy()
+    target = _Stepping(q0, interrupts_s=(0.1,), fail_log_s=0.2)
+    setup = RunSetup(command="stepping", model=model, driver="ideal", out=tmp_path / "run",
+                     safety=SafetyProfile(balance=False))
+    with pytest.raises(InterruptedRunError) as raised:
+        run(setup, target, on_start=lambda target, loop: setattr(target, "loop", loop))
+    message = str(raised.value)
+    assert raised.value.exit_code == 130
+    assert message.startswith("interrupted (Ctrl-C); cannot write the log ")
+    assert message.count("No space left on device") == 1  # (main said it twice)
+    assert "; the walk finished its step and stood after 1.4" in message
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["ended"] == "interrupted" and summary["interrupt_stop"] == "stood"
+    assert summary["error"].startswith("interrupted (Ctrl-C); cannot write the log ")
+    assert summary["log_periods_dropped"] == summary["periods"] - round(0.2 / DT)

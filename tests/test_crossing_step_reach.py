@@ -3,32 +3,14 @@ speed profile and the capture point's margin inside the two soles' hull (synthet
 
 from __future__ import annotations
 
-import functools
-import importlib.util
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
-
-TOOLS = Path(__file__).resolve().parent.parent / "tools"
-
-
-@functools.cache
-def _tool():
-    sys.path.insert(0, str(TOOLS))  # (it imports side_push_bound and walk_disturbances)
-    try:
-        spec = importlib.util.spec_from_file_location("crossing_step_reach",
-                                                      TOOLS / "crossing_step_reach.py")
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-    finally:
-        sys.path.remove(str(TOOLS))
-    return module
+from tool_support import load_tool
 
 
 def test_the_slowest_joint_sets_the_travel_time_and_the_profile_covers_its_distance():
-    tool = _tool()
+    tool = load_tool("crossing_step_reach")
     v, a = np.full(2, 2.6), np.full(2, 150.0)
     # 1.4 rad of hip yaw: a ramp, a coast and a brake; 0.01 rad: a triangle
     assert math.isclose(tool.travel_time_s(np.array((1.4, -0.01)), v, a), 1.4 / 2.6 + 2.6 / 150)
@@ -42,7 +24,7 @@ def test_the_slowest_joint_sets_the_travel_time_and_the_profile_covers_its_dista
 
 
 def test_the_hull_margin_is_the_distance_inside_and_negative_outside():
-    tool = _tool()
+    tool = load_tool("crossing_step_reach")
     square = np.array(((0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0), (0.5, 0.5)))
     assert math.isclose(tool.hull_margin_m(square, np.array((0.5, 0.5))), 0.5)
     assert math.isclose(tool.hull_margin_m(square, np.array((0.9, 0.5))), 0.1)

@@ -3,13 +3,13 @@ first screen); its measured figures and the site's generated pages are what
 tools/measure_docs.py renders from the stored measurements; the site builds with every MkDocs
 warning an error (make docs)."""
 
-import importlib.util
 import re
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from tool_support import load_tool
 
 ROOT = Path(__file__).resolve().parent.parent
 README_MAX_LINES = 300
@@ -24,13 +24,6 @@ MEASURED_FIGURE = re.compile(
     r"|\d ?% of (the )?(periods|the operating time)")
 
 
-def _measure_docs():
-    spec = importlib.util.spec_from_file_location("measure_docs",
-                                                  ROOT / "tools" / "measure_docs.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
 
 def test_the_readme_is_a_front_page():
     lines = (ROOT / "README.md").read_text().splitlines()
@@ -38,7 +31,7 @@ def test_the_readme_is_a_front_page():
     first = "\n".join(lines[:FIRST_SCREEN_LINES])
     for command in ("make run", "make test"):
         assert command in first, f"{command!r} is not in the README's first screen"
-    measured = _measure_docs()
+    measured = load_tool("measure_docs")
     cost = measured.install_cost(measured.load())
     assert "not measured" not in cost, "run tools/measure_docs.py install"
     assert cost in first, "the install's time and size are not on the README's first screen"
@@ -47,7 +40,7 @@ def test_the_readme_is_a_front_page():
 def test_the_measured_figures_are_the_stored_ones():
     """Nobody edits a measured figure by hand: the README's block and docs/generated/*.md are
     exactly what the stored measurements render to."""
-    measured = _measure_docs()
+    measured = load_tool("measure_docs")
     figures = measured.load()
     readme = (ROOT / "README.md").read_text()
     block = readme.split(measured.README_BEGIN)[1].split(measured.README_END)[0]
@@ -68,7 +61,7 @@ def test_every_generated_figure_is_shown():
     """Each of tools/measure_docs.py's pages is included by a user page (a measurement nobody
     reads would let the hand-typed figure it replaced come back)."""
     included = "\n".join(page.read_text() for page in _user_pages())
-    for name in _measure_docs().PAGES:
+    for name in load_tool("measure_docs").PAGES:
         assert f'--8<-- "docs/generated/{name}"' in included, f"no page includes {name}"
 
 

@@ -165,6 +165,8 @@ def test_capture_with_garbage_between_chunks_resynchronises(tmp_path):
     (b"t_s,station,x_m\n1,2,3\n", "missing column"),
     (b"t_s,station,x_m,y_m,z_m,qw,qx,qy,qz,status\n0,1,0,0,0,1,0,0,0,\n0.1,1,a,0,0,1,0,0,0,\n",
      "line 3"),
+    (b"t_s,station,x_m,y_m,z_m,qw,qx,qy,qz,status\n0,1,0,0,0,1,0,0,0,\n0.1,1,0,0,0,1,0,0,0,\x00\n",
+     "line 3: status '.x00' is not a FASTRAK status"),  # (main: used as a healthy record)
     (b"t_s,station,x_m,y_m,z_m,qw,qx,qy,qz\n0,7,0,0,0,1,0,0,0\n", "station"),
     (b"t_s,station,x_m,y_m,z_m,qw,qx,qy,qz\n0,1,0,0,0,0,0,0,0\n", "zero quaternion"),
     (b"t_s,station,x_m,y_m,z_m,qw,qx,qy,qz\n", "no rows"),

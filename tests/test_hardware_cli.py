@@ -62,6 +62,7 @@ def test_without_libach_the_daemons_say_so_and_offer_no_dry_run(tmp_path, daemon
     (["--driver", "sim", "--ach-ref", "x"], "only apply to the hardware driver"),
     (["--driver", "ideal", "--dry-run"], "only apply to the hardware driver"),
     (["--driver", "sim", "--ref-mode", "direct"], "only apply to the hardware driver"),
+    (["--driver", "sim", "--arm"], "--arm only apply to the hardware driver"),  # main: ran
     (["--driver", "hardware", "--dry-run", "--sink", "ach"], "contradicts"),
     (["--driver", "hardware", "--dry-run", "--ach-state", "s"], "no ach channel"),
 ])

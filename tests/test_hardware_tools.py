@@ -4,22 +4,11 @@ answers are known."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
+from tool_support import load_tool
 
 from hubo_cli.tasks.phases import PHASES
-
-TOOLS = Path(__file__).resolve().parent.parent / "tools"
-
-
-def _tool(name: str):
-    spec = importlib.util.spec_from_file_location(name, TOOLS / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 @pytest.mark.parametrize("delay_s", [0.0, 0.0015, 0.0425, 0.197])
@@ -28,7 +17,7 @@ def test_the_best_fit_delay_finds_a_known_one(delay_s):
     t = np.arange(0, 6, 0.005)
     cmd = np.column_stack([np.sin(w * t + p) for w, p in rng.uniform(0.5, 4, size=(3, 2))])
     q = np.column_stack([np.interp(t - delay_s, t, c) for c in cmd.T])
-    found, rms, largest = _tool("ref_lag").best_delay(t, cmd, q, 0.3, 0.0005)
+    found, rms, largest = load_tool("ref_lag").best_delay(t, cmd, q, 0.3, 0.0005)
     assert found == pytest.approx(delay_s, abs=0.0005) and rms < 1e-3 and largest < 5e-3
 
 
@@ -52,5 +41,5 @@ def test_the_hole_is_the_true_bit_against_the_commanded_one_from_the_run_phase()
     log = {"hw_state_time_s": state_t + rng.uniform(-2e-5, 2e-5, n), "goal_x_m": goal[:, 0],
            "goal_y_m": goal[:, 1], "goal_z_m": goal[:, 2], "phase_code": phase,
            "cutting": cutting}
-    rms, periods, gap = _tool("daemon_hole").hole_rms_mm(log, track)
+    rms, periods, gap = load_tool("daemon_hole").hole_rms_mm(log, track)
     assert rms == pytest.approx(2.0, abs=1e-6) and periods == n - 80 and gap < 3e-5

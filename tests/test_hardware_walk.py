@@ -10,7 +10,6 @@ docs/history/hardware.md, the walk's measured with ``tools/daemon_walk.py --run`
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
 import signal
@@ -22,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from tool_support import load_tool
 
 from hubo_cli.cli.main import main
 from hubo_cli.control.log import load_log
@@ -35,7 +35,6 @@ from tests.test_hardware_cli import _wait_published, channel_names  # noqa: F401
 AVAILABLE, WHERE = libach_status()
 needs_libach = pytest.mark.skipif(not AVAILABLE, reason=f"needs libach: {WHERE}")
 MODEL = load_model()
-TOOLS = Path(__file__).parents[1] / "tools"
 
 
 def test_a_robot_off_the_start_posture_is_refused_naming_the_joint():
@@ -120,9 +119,7 @@ def test_a_short_walk_through_the_simulated_daemon_arrives_and_a_killed_daemon_e
 
     from hubo_cli.drivers.ach import load_libach
 
-    spec = importlib.util.spec_from_file_location("daemon_walk", TOOLS / "daemon_walk.py")
-    daemon_walk = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(daemon_walk)
+    daemon_walk = load_tool("daemon_walk")
     lib = load_libach()
     ref, state = channel_names
     daemon = _daemon(ref, state, "--truth-log", str(tmp_path / "truth.csv"))

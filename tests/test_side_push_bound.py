@@ -3,33 +3,15 @@ joint has before the links come within the collision detector's band (synthetic 
 
 from __future__ import annotations
 
-import functools
-import importlib.util
 import math
-import sys
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
-
-TOOLS = Path(__file__).resolve().parent.parent / "tools"
-
-
-@functools.cache
-def _tool():
-    sys.path.insert(0, str(TOOLS))  # (it imports walk_disturbances as a sibling)
-    try:
-        spec = importlib.util.spec_from_file_location("side_push_bound",
-                                                      TOOLS / "side_push_bound.py")
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-    finally:
-        sys.path.remove(str(TOOLS))
-    return module
+from tool_support import load_tool
 
 
 def test_braking_weighs_less_than_the_unbraked_bound_and_matches_its_closed_form():
-    tool = _tool()
+    tool = load_tool("side_push_bound")
     omega, v, a = 4.0, 2.6, 150.0
     for range_rad in (0.3, 0.54):  # (below about 0.1 rad the two differ by under 0.2 %)
         braked = tool.braked_travel_integral(range_rad, v, a, omega)
@@ -61,7 +43,7 @@ class _Wall:
 
 
 def test_the_collision_room_stops_before_the_band():
-    tool = _tool()
+    tool = load_tool("side_push_bound")
     q = np.zeros(3)
     room = tool.collision_room(_Wall(), q, 1, 1.0, 0.5)
     assert 0.25 + 0.005 - room >= tool.TOLERANCE_M  # within the band at the next step

@@ -3,24 +3,13 @@ streams' turn-rate cap against the joint speeds it asks at the ready pose (the t
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
+from tool_support import load_tool
 
 from hubo_cli.input.operator_stream import MAX_TURN_RATE_DEG_S
 from hubo_cli.kinematics import get_limb
 from hubo_cli.model import load_model
 from hubo_cli.teleop.session import FREE_READY_ARM_RAD
-
-TOOL = Path(__file__).resolve().parent.parent / "tools" / "teleop_lag_floor.py"
-
-
-def _tool():
-    spec = importlib.util.spec_from_file_location("teleop_lag_floor", TOOL)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def test_the_speed_floor_is_zero_within_the_limit_and_grows_with_the_speed_beyond_it():
@@ -28,7 +17,7 @@ def test_the_speed_floor_is_zero_within_the_limit_and_grows_with_the_speed_beyon
     floor within the limit; beyond it the floor's position error grows with the excess (the
     other joints take up part of it, and the Jacobian changes along the sweep: measured 5.7
     and 13.3 mm, a ratio of 2.3 for an excess twice as large)."""
-    tool = _tool()
+    tool = load_tool("teleop_lag_floor")
     limb = get_limb("right-arm", "hand")
     vmax = np.full(6, 1.0)
     t = np.arange(0.0, 1.0, 0.005)
@@ -51,7 +40,7 @@ def test_the_generated_turn_rate_is_what_the_arm_joints_follow_about_the_median_
     CPU)."""
     model = load_model(limits="teleop")
     for arm in ("right-arm", "left-arm"):
-        need = _tool().joint_speed_per_rate(arm)["turn"]
+        need = load_tool("teleop_lag_floor").joint_speed_per_rate(arm)["turn"]
         vmax = float(model.limb(arm).velocity_rad_s.min())
         assert MAX_TURN_RATE_DEG_S <= np.degrees(vmax / np.median(need))
 
@@ -65,10 +54,7 @@ def test_the_error_sources_add_up_on_a_generated_stream():
     from hubo_cli.teleop.stream_runs import GENERATED_SEEDS
     from hubo_cli.teleop.target import REACHABLE_POSITION_M, REACHABLE_ROTATION_RAD
 
-    spec = importlib.util.spec_from_file_location(
-        "teleop_error_sources", TOOL.parent / "teleop_error_sources.py")
-    tool = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(tool)
+    tool = load_tool("teleop_error_sources")
     seed = GENERATED_SEEDS[0]
     hands = tool.error_sources(seed, StreamSettings(duration_s=1.5, max_speed_m_s=0.25))
     assert set(hands) == {"right-arm", "left-arm"}
@@ -82,14 +68,6 @@ def test_the_error_sources_add_up_on_a_generated_stream():
             assert 0.0 <= f[share] <= 1.0
 
 
-def _return_tool():
-    path = TOOL.parent / "reach_return_bound.py"
-    spec = importlib.util.spec_from_file_location("reach_return_bound", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def test_the_causal_return_floor_keeps_the_elbow_able_to_stop_within_the_lead():
     """tools/reach_return_bound.py's causal floor on a made-up elbow (the bend falls by 20 rad
     per m out to the reach 50 mm ahead; the goal comes back at 45 mm/s, 0.9 rad/s of bend,
@@ -98,7 +76,7 @@ def test_the_causal_return_floor_keeps_the_elbow_able_to_stop_within_the_lead():
     able to stop within the lead until re-entry (bend + speed^2 / 2 accel within 0.2 rad, to
     the tangents' 0.05 rad/s steps) it is there slower and stays within 2 mm 0.20 s later
     (measured on a 0.1 s grid; linear programs, no simulation, about 0.5 s)."""
-    tool = _return_tool()
+    tool = load_tool("reach_return_bound")
     t_s = np.arange(0.0, 3.0, 0.001)
     goal_m = np.maximum(0.05 + 0.045 * (1.0 - t_s), 0.0)
     ahead_m = np.linspace(0.0, 0.05, 501)

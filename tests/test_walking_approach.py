@@ -134,3 +134,28 @@ def test_teleop_refuses_a_bad_walk_start():
                                        "--walk-from", "nan", "0"])
     assert result.exit_code == 2
     assert "--walk-from" in result.output
+
+
+@pytest.mark.parametrize("command", [
+    ["walk", "--to", "1", "0", "0", "--no-estop"],
+    ["walk", "--to", "1", "0", "0", "--estop-sources", "capture-point"],
+    ["walk", "--to", "1", "0", "0", "--estop-sources", "none"],
+    ["teleop", "--replay", "trajectories/drill-rectangle.csv", "--walk-from", "-0.6", "0",
+     "--no-estop"],
+    ["task", "run", "cut-rectangle", "--set", "stance.start_mm=[-600,0]", "--no-estop"],
+])
+def test_a_walk_without_the_operators_stop_is_refused(tmp_path, command):
+    """A walk's Ctrl-C (SIGTERM, a full disk) finishes the step into a stance through the soft
+    stopper's operator stop; without it (``--no-estop``, ``--estop-sources`` leaving it out)
+    main braked the joints where they were, a foot in the air. Refused on one line, exit 4,
+    before anything moves; ``--estop-sources operator`` is what the hint offers."""
+    from click.testing import CliRunner
+
+    from hubo_cli.cli.main import main
+
+    result = CliRunner().invoke(main, [*command, "--out", str(tmp_path / "run")])
+    assert result.exit_code == 4, result.output
+    error = [line for line in result.output.splitlines() if line.startswith("error: ")]
+    assert len(error) == 1 and "needs the operator stop" in error[0]
+    assert "hint: keep it: --estop-sources operator" in result.output
+    assert not (tmp_path / "run").exists()

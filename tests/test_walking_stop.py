@@ -354,6 +354,26 @@ def test_ctrl_c_in_mid_swing_ends_standing_as_the_operators_stop(tmp_path, model
     assert summary["max_torso_tilt_deg"] < 15.0
 
 
+def test_a_walks_summary_fields_are_written_once(tmp_path, model):
+    """summary.json's fields every run has are the session's alone: the walk's own fields
+    repeat none of them (main wrote ``interrupt_stop`` from both, round 15's review)."""
+    from hubo_cli.control.loop import LoopResult
+    from hubo_cli.experiments.walk import WalkResult
+    from hubo_cli.session import RunSetup, common_summary
+
+    common = common_summary(RunSetup(command="walk", model=model), None,
+                            LoopResult("interrupted", 1, DT, interrupt_stop="stood"), [],
+                            tmp_path)
+    walked = WalkResult(
+        fell=False, stopped_s=None, stood=True, shifts=0, touchdowns_early=0, liftoff_waits=0,
+        landing_waits=0, reaims=0, final_error_mm=1.0, final_error_deg=0.1,
+        estimated_final_error_mm=1.0, estimated_final_error_deg=0.1, steps=2,
+        average_speed_m_s=None, zmp_inside_fraction=1.0, walking_s=1.0, ended="interrupted",
+        estop_events=0, footsteps=[], gait="normal", run_dir=tmp_path, interrupt_stop="stood")
+    assert common["interrupt_stop"] == "stood"
+    assert set(walked.summary()).isdisjoint(common)
+
+
 @pytest.mark.physical
 @pytest.mark.slow
 def test_a_stop_late_in_a_swing_comes_to_rest_in_the_held_stance(tmp_path, model):

@@ -41,8 +41,8 @@ def hardware_options(function):
 def driver_options(driver: str, armed: bool, dry_run: bool, sink: str | None,
                    ach_ref: str | None, ach_state: str | None,
                    ref_mode: str | None = None) -> dict:
-    """The driver's options from the command line; hardware options with another driver, or a
-    dry run on the channels, are refused (exit 2).
+    """The driver's options from the command line; hardware options (``--arm`` among them)
+    with another driver, or a dry run on the channels, are refused (exit 2).
 
     A dry run writes a file that no robot reads, so it needs no ``--arm``; every other sink
     reaches (or may reach) a robot and the driver refuses to start without it.
@@ -52,6 +52,8 @@ def driver_options(driver: str, armed: bool, dry_run: bool, sink: str | None,
     if dry_run:
         given.append("--dry-run")
     if driver != "hardware":
+        if armed:  # arms nothing: a script that believes it armed a robot is told
+            given.insert(0, "--arm")
         if given:
             raise InputError(f"{', '.join(given)} only apply to the hardware driver",
                              hint="add --driver hardware or leave them out")

@@ -25,7 +25,7 @@ from hubo_cli.cli.output import (
     report_interrupt_stop,
 )
 from hubo_cli.control.operator import KEYS_HELP
-from hubo_cli.control.stop_choice import SOFT_SOURCES, TASK_SOURCES
+from hubo_cli.control.stop_choice import SOFT_SOURCES, TASK_SOURCES, check_walk_stops
 from hubo_cli.drivers.registry import DRIVER_NAMES
 from hubo_cli.errors import EXIT_INTERRUPTED, EXIT_NOT_COMPLETED, InputError, SafetyError
 from hubo_cli.runs import shown_name
@@ -279,6 +279,8 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
     stops = active_stops(requested, driver, no_estop=no_estop,
                          estop_sources=estop_sources,
                          accept_reduced_safety=accept_reduced_safety, quiet=as_json)
+    if spec.stance.start_m is not None:
+        check_walk_stops(stops, "a task that walks to its stance first")
     with (reserved_run_dir(f"task-{spec.name}", out) as run_dir,
           live_server(live, live_host, live_port, quiet=as_json) as server):
         _run_in(ctx, spec, run_dir, driver=driver, options=options, stops=stops,

@@ -193,7 +193,7 @@ def teleop(replay, port, generate_seed, max_speed, reconnect_timeout, baud, driv
               hubo teleop --port /dev/ttyUSB0
     """
     from hubo_cli.cli.replay import check_video_support
-    from hubo_cli.control.stop_choice import SOFT_SOURCES
+    from hubo_cli.control.stop_choice import SOFT_SOURCES, check_walk_stops
     from hubo_cli.kinematics.arm_reach import ReachSettings
     from hubo_cli.runs import reserved_run_dir
     from hubo_cli.teleop.session import TeleopSettings
@@ -244,6 +244,8 @@ def teleop(replay, port, generate_seed, max_speed, reconnect_timeout, baud, driv
     stations = _station_map(station_map)
     stops = active_stops(SOFT_SOURCES, driver, no_estop=no_estop, estop_sources=estop_sources,
                          accept_reduced_safety=accept_reduced_safety, quiet=as_json)
+    if walk_from is not None:
+        check_walk_stops(stops, "--walk-from (a walk)")
     settings = TeleopSettings(
         replay=replay, port=port, generate_seed=generate_seed, stream=stream, driver=driver,
         mode=mode, speed=speed_x, scale=scale,

@@ -87,7 +87,7 @@ def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | No
         --posture walking, or a real robot standing so)
     """
     from hubo_cli.cli.keys import announce_keys, operator_keys
-    from hubo_cli.control.stop_choice import SOFT_SOURCES
+    from hubo_cli.control.stop_choice import SOFT_SOURCES, check_walk_stops
     from hubo_cli.experiments.standing import PUSH_DIRECTIONS
     from hubo_cli.experiments.walk import check_disturbances, check_goal
     from hubo_cli.experiments.walk import walk as walk_to
@@ -100,6 +100,7 @@ def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | No
     options = driver_options(driver, armed, **hardware)
     stops = active_stops(SOFT_SOURCES, driver, no_estop=no_estop, estop_sources=estop_sources,
                          accept_reduced_safety=accept_reduced_safety, quiet=as_json)
+    check_walk_stops(stops, "a walk")
     with (reserved_run_dir("walk", out) as run_dir,  # a bad --out fails before anything runs
           live_server(live, live_host, live_port, quiet=as_json) as server,
           operator_keys() as keys):
@@ -111,6 +112,7 @@ def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | No
                          lip_feedback=lip_feedback, gait=gait,
                          **({} if toe_heel is None else {"toe_heel": toe_heel}))
     fields = result.summary() | {"ended": result.ended, "estop_events": result.estop_events,
+                                 "interrupt_stop": result.interrupt_stop,
                                  "run_dir": str(result.run_dir)}
     if as_json:
         print_json(fields)

@@ -64,6 +64,7 @@ from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.phase import PHASE_STOP, PhaseStop
 from hubo_cli.control.status import Status, status_from_flags
+from hubo_cli.control.stop_choice import STOP_SOURCE
 from hubo_cli.control.target import Target, TargetOutput, as_target
 from hubo_cli.dataflow import Store, check_flow
 from hubo_cli.drivers.base import Driver
@@ -100,7 +101,6 @@ MAX_STOP_S = 15.0  # a brake from full speed at the slowest joint's limits takes
 STANCE_SPARE_S = 1.0  # a phase stopping itself after an interrupt: its within_s (at most the
                       # stopper's MAX_FINISH_S) and this long for the stopper's own brake
 STANCE_HOLD_S = 0.5  # ... then held this long (the loop sees a fall meanwhile) before it ends
-STOP_SOURCE = "operator"  # the stop an interrupt asks of the stopper (the space key's)
 
 
 @dataclass
@@ -137,6 +137,9 @@ class LoopResult:
             no such stop was asked for.
         interrupt_stop_s: loop time from that request to its end (s; NaN without one).
         log_periods_dropped: periods run after the log failed, not in it.
+        log_error: the log's failure (a full disk), "" when it was written whole; also said
+            in ``error``, whether it ended the run (``log-error``) or came during an
+            interrupt's stop (``interrupted``).
     """
 
     ended: str
@@ -156,6 +159,7 @@ class LoopResult:
     interrupt_stop: str = ""
     interrupt_stop_s: float = float("nan")
     log_periods_dropped: int = 0
+    log_error: str = ""
 
     @property
     def smooth_stop_s(self) -> float:
@@ -541,7 +545,7 @@ class ControlLoop:
             driver.stop()
             if self.log is not None:
                 self.log.close()
-                if self.log.error and ended != "log-error":  # the CSV at close
+                if self.log.error and not log_failed:  # the CSV at close (said once)
                     error = (error + "; " if error else "") + self.log.error
                     if ended in ("finished", "done"):
                         ended = "log-error"
@@ -559,7 +563,8 @@ class ControlLoop:
             interrupt_stop="" if stance is None else stance.outcome,
             interrupt_stop_s=math.nan if stance is None else stance.took_s(self.period
                                                                             * self.dt_s),
-            log_periods_dropped=max(dropped, 0))
+            log_periods_dropped=max(dropped, 0),
+            log_error=self.log.error if self.log is not None else "")
 
     def _count_a_logged_period(self) -> None:
         """An interrupt (Ctrl-C, SIGTERM) lands between any two bytecodes: one that came after

@@ -7,7 +7,8 @@ command starts from its baseline: a task's is :data:`TASK_SOURCES` (its file may
 only tighten that (more sources, a lower wrist-torque limit than the robot file's; the task
 loader refuses anything else, exit 2). Only an explicit command-line option removes a source:
 ``--no-estop`` (all of them) or ``--estop-sources LIST``. On the hardware driver that is
-refused (exit 4) unless :data:`CONFIRM_OPTION` confirms it as well.
+refused (exit 4) unless :data:`CONFIRM_OPTION` confirms it as well. A walk keeps the
+operator's stop whatever is chosen (:func:`check_walk_stops`).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from hubo_cli.errors import InputError, SafetyError, quoted
 SOFT_SOURCES = ("operator", "capture-point", "wrist-torque", "stale-input")
 TASK_SOURCES = ("operator", "capture-point", "wrist-torque")  # a scripted task has no input
 CONFIRM_OPTION = "--accept-reduced-safety"
+STOP_SOURCE = "operator"  # the stop Ctrl-C, SIGTERM and a full disk ask of the stopper
 NONE_WORD = "none"
 
 
@@ -121,3 +123,20 @@ def decide_stops(requested: tuple[str, ...], choice: StopChoice, driver: str) ->
                           hint=f"add {CONFIRM_OPTION} to confirm the reduced safety, or leave "
                                f"out {choice.option.split()[0]}")
     return ActiveStops(active, removed, choice.option if removed else "")
+
+
+def check_walk_stops(stops: ActiveStops, what: str) -> None:
+    """Refuse a walk (``what``: the command's words) whose stopper does not take the operator's
+    stop: Ctrl-C, SIGTERM and a full disk finish the step into a stance through it (the
+    control loop asks the stopper for :data:`STOP_SOURCE`); without it they brake the joints
+    where they are, a foot in the air. ``--estop-sources operator`` keeps only that stop.
+
+    Raises:
+        SafetyError: the operator's stop is removed (exit 4, nothing moved).
+    """
+    if STOP_SOURCE not in stops.sources:
+        raise SafetyError(f"{what} needs the {STOP_SOURCE} stop, which {stops.by or 'the task'}"
+                          " removes: without it Ctrl-C brakes the joints where they are, a "
+                          "foot in the air; refused, nothing moved",
+                          hint=f"keep it: --estop-sources {','.join((STOP_SOURCE, *stops.sources))}"
+                               f", or leave out {(stops.by or '--no-estop').split()[0]}")

@@ -105,6 +105,8 @@ class WalkResult:
     unplayed: tuple[Disturbance, ...] = ()
 
     def summary(self) -> dict:
+        """The walk's own fields of summary.json (those every run has, ``ended`` and
+        ``interrupt_stop`` among them, are :func:`~hubo_cli.session.common_summary`'s)."""
         return {"fell": self.fell, "stopped_s": self.stopped_s, "stood": self.stood,
                 "shifts": self.shifts, "touchdowns_early": self.touchdowns_early,
                 "liftoff_waits": self.liftoff_waits, "landing_waits": self.landing_waits,
@@ -115,8 +117,7 @@ class WalkResult:
                 "estimated_final_error_deg": self.estimated_final_error_deg,
                 "steps": self.steps, "average_speed_m_s": self.average_speed_m_s,
                 "zmp_inside_fraction": self.zmp_inside_fraction, "walking_s": self.walking_s,
-                "footsteps": self.footsteps, "gait": self.gait,
-                "interrupt_stop": self.interrupt_stop}
+                "footsteps": self.footsteps, "gait": self.gait}
 
 
 def check_goal(goal: tuple[float, float, float]) -> None:

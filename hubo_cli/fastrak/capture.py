@@ -33,6 +33,7 @@ from hubo_cli.errors import InputError, quoted
 from hubo_cli.fastrak.parser import decode_stream
 from hubo_cli.fastrak.records import (
     DEFAULT_PLAUSIBILITY,
+    STATUS_OK_CHARS,
     UNIT_SCALE_M,
     Plausibility,
     RecordBatch,
@@ -66,6 +67,7 @@ TIME_RESOLUTION_S = 1e-3
 # more records a second than any tracker sends (a FASTRAK 120, a generated stream 240 a hand):
 # times squeezed together (6 s of motion in 1.4 us) are garbled
 MAX_RECORDS_PER_S = 10_000.0
+_STATUS_TEXT = STATUS_OK_CHARS.decode("ascii")  # a pose log's status: a record's own
 POSE_LOG_COLUMNS = ("t_s", "station", "x_m", "y_m", "z_m", "qw", "qx", "qy", "qz", "status")
 RECORD_RATE_HZ = 120.0
 """Records per second the device emits in continuous mode, shared by the enabled stations."""
@@ -300,8 +302,7 @@ def parse_capture(blob: bytes, where: str = "capture") -> Capture:
             raise InputError(f"{where}: chunk at byte {at} claims {n:,} bytes (one serial read "
                              f"is 1 to {MAX_CHUNK_BYTES:,})",
                              hint="the chunk's length is garbled; record the capture again")
-        if not math.isfinite(t_s) or t_s < last_t - 1e-9 or (
-                pieces and t_s - last_t > MAX_CHUNK_GAP_S):
+        if not math.isfinite(t_s) or (pieces and bad_time_step(t_s - last_t)):
             raise InputError(f"{where}: chunk at byte {at} has time {quoted(t_s)}",
                              hint="chunk times must be finite and non-decreasing, without "
                                   "gaps of hours; the file is garbled")
@@ -320,6 +321,13 @@ def parse_capture(blob: bytes, where: str = "capture") -> Capture:
                                   (total - (ends[0] if ends else 0) - 4096, header.baud / 5.0))
     return Capture(header, b"".join(pieces), np.array(ends, dtype=np.int64), chunk_times,
                    truncated)
+
+
+def bad_time_step(step_s):
+    """True where a recording's time cannot follow the one before it ``step_s`` earlier (s; a
+    number or an array): it goes backwards, or it comes more than :data:`MAX_CHUNK_GAP_S`
+    later. The one rule of both formats (a capture's chunks, a pose log's rows)."""
+    return (step_s < -1e-9) | (step_s > MAX_CHUNK_GAP_S)
 
 
 def recording_times(t_s: np.ndarray, where: str, what: str = "row",
@@ -593,6 +601,10 @@ def parse_pose_log(text: str, where: str = "pose log") -> RecordBatch:
             if len(text_status) > 1:
                 raise InputError(f"{where}: line {line_no}: status {quoted(text_status)} is not "
                                  "one character", hint="leave it empty when healthy")
+            if text_status and text_status not in _STATUS_TEXT:  # a NUL, a control byte
+                raise InputError(f"{where}: line {line_no}: status {quoted(text_status)} is not "
+                                 "a FASTRAK status", hint="leave it empty when healthy, else "
+                                 "the tracker's error letter (a-z, A-Z)")
             if text_status:
                 status[row_i] = ord(text_status)
     if not np.isfinite(values).all():
@@ -613,7 +625,7 @@ def parse_pose_log(text: str, where: str = "pose log") -> RecordBatch:
                         quat_wxyz=unit, stylus=np.full(len(station), -1, np.int8),
                         offset=np.zeros(len(station), dtype=np.int64), t_s=values[:, 0].copy())
     step = np.diff(batch.t_s)
-    bad = (step < -1e-9) | (step > MAX_CHUNK_GAP_S)
+    bad = bad_time_step(step)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])  # the row before the bad step
         line, t_before, t_after = lines[i + 2][0], batch.t_s[i], batch.t_s[i + 1]

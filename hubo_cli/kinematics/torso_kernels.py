@@ -63,7 +63,7 @@ def _log3(R, w):
 
 
 @nb.njit(**JIT)
-def _exp3(v, R):
+def exp3(v, R):
     """R = the rotation of the rotation vector v (Rodrigues, as
     :func:`hubo_cli.geometry.rotation_exp`)."""
     angle = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
@@ -122,7 +122,7 @@ def _legs_mean(R_legs, R):
     for i in range(3):
         w[i] /= 2
     E = np.empty((3, 3))
-    _exp3(w, E)
+    exp3(w, E)
     _mul3(A, E, R)
 
 
@@ -206,7 +206,7 @@ def follow_deviation(T_cmd_inv, T_meas, offset, rotation, alpha, bounds, T_dev, 
     _log3(raw, w)  # the whole 4x4: a block view would compile _log3 once more
     _follow(rotation, w, alpha, bounds[2], bounds[3])
     R = np.empty((3, 3))
-    _exp3(rotation, R)
+    exp3(rotation, R)
     for i in range(3):
         for j in range(3):
             T_dev[i, j] = R[i, j]

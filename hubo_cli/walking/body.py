@@ -29,6 +29,7 @@ from hubo_cli.errors import InputError
 from hubo_cli.kinematics.choice import CAPPED, EXACT, STATUS_NAMES, solve_limb
 from hubo_cli.kinematics.dh import JIT, TRUE
 from hubo_cli.kinematics.limb import Limb
+from hubo_cli.kinematics.torso_kernels import exp3
 from hubo_cli.model import LEGS, RobotModel
 from hubo_cli.pin_robot import load_pin_robot
 from hubo_cli.posture import home_posture
@@ -276,9 +277,10 @@ def _solve_row(right_row, left_row, com_xy, lean_rad_per_m, neck_z_m, offset, pi
     R[0, 0], R[0, 1], R[0, 2] = c, -s * c_roll, s * s_roll
     R[1, 0], R[1, 1], R[1, 2] = s, c * c_roll, -c * s_roll
     R[2, 0], R[2, 1], R[2, 2] = 0.0, s_roll, c_roll
-    angle = math.sqrt(turn_rad[0] ** 2 + turn_rad[1] ** 2 + turn_rad[2] ** 2)
-    if angle > 0.0:  # R times the turn's rotation (Rodrigues)
-        R = R @ _rotation(turn_rad, angle)
+    if turn_rad[0] != 0.0 or turn_rad[1] != 0.0 or turn_rad[2] != 0.0:
+        turn = np.empty((3, 3))  # R times the turn's rotation (Rodrigues)
+        exp3(turn_rad, turn)
+        R = R @ turn
     T_neck_world = np.zeros((4, 4))
     for r in range(4):
         for col in range(4):
@@ -300,19 +302,6 @@ def _solve_row(right_row, left_row, com_xy, lean_rad_per_m, neck_z_m, offset, pi
         if (status[side] != EXACT and status[side] != CAPPED) or error[side] > max_error_m:
             return -1.0
     return max(error[0], error[1])
-
-
-@nb.njit(**JIT)
-def _rotation(vector, angle):
-    """The rotation matrix of the rotation vector ``vector`` (its norm ``angle`` > 0)."""
-    x, y, z = vector[0] / angle, vector[1] / angle, vector[2] / angle
-    c, s = math.cos(angle), math.sin(angle)
-    t = 1.0 - c
-    out = np.empty((3, 3))
-    out[0, 0], out[0, 1], out[0, 2] = c + x * x * t, x * y * t - z * s, x * z * t + y * s
-    out[1, 0], out[1, 1], out[1, 2] = y * x * t + z * s, c + y * y * t, y * z * t - x * s
-    out[2, 0], out[2, 1], out[2, 2] = z * x * t - y * s, z * y * t + x * s, c + z * z * t
-    return out
 
 
 def unsolved_plan(n: int, joints: int) -> JointPlan:
