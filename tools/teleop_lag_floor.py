@@ -425,6 +425,8 @@ def print_causal(rows: list[dict], w_rot_m: float) -> None:
     for name in ("run", "causal", "future"):
         p = np.array([r[f"{name}_mm"] for r in rows])
         o = np.array([r[f"{name}_deg"] for r in rows])
+        if np.isnan(p).all():  # --no-floors
+            continue
         print(f"{name}: position median / worst {np.nanmedian(p):.2f} / {np.nanmax(p):.2f} mm, "
               f"orientation {np.nanmedian(o):.2f} / {np.nanmax(o):.2f} deg; hands over "
               f"{mm:g} mm {int(np.sum(p > mm))}, over {deg:g} deg {int(np.sum(o > deg))}, over "
