@@ -430,13 +430,24 @@ def print_causal(rows: list[dict], w_rot_m: float) -> None:
         print(f"{name}: position median / worst {np.nanmedian(p):.2f} / {np.nanmax(p):.2f} mm, "
               f"orientation {np.nanmedian(o):.2f} / {np.nanmax(o):.2f} deg; hands over "
               f"{mm:g} mm {int(np.sum(p > mm))}, over {deg:g} deg {int(np.sum(o > deg))}, over "
-              f"either {int(np.sum((p > mm) | (o > deg)))} of {len(rows)}")
+              f"either {int(np.sum((p > mm) | (o > deg)))} of {len(rows)}; streams whose "
+              f"hands all meet both {_streams_within(rows, p, o)}")
     for i, member in enumerate(RHC_MEMBERS):
         p = np.array([r["causal_members"][i][0] for r in rows])
         o = np.array([r["causal_members"][i][1] for r in rows])
         print(f"member {' '.join(map(str, member))}: position median {np.median(p):.2f} mm, "
               f"orientation {np.median(o):.2f} deg; hands over either "
-              f"{int(np.sum((p > mm) | (o > deg)))}")
+              f"{int(np.sum((p > mm) | (o > deg)))}; streams whose hands all meet both "
+              f"{_streams_within(rows, p, o)}")
+
+
+def _streams_within(rows: list[dict], p_mm: np.ndarray, o_deg: np.ndarray) -> int:
+    """How many streams have every hand within 10 mm and 3 deg (row i's figures p_mm[i],
+    o_deg[i])."""
+    within = (p_mm <= 1e3 * TARGET_POSITION_M) & (o_deg <= np.degrees(TARGET_ROTATION_RAD))
+    seeds = {r["seed"] for r in rows}
+    return sum(all(w for r, w in zip(rows, within, strict=True) if r["seed"] == s)
+               for s in seeds)
 
 
 def main() -> None:
