@@ -157,12 +157,45 @@ def test_many_generated_streams_keep_the_limits_and_the_goals_path(many_streams)
                    "streams miss, 17 on orientation alone; worst 29.1 mm, 6.6 deg RMS; "
                    "docs/history/teleop.md, 'Following generated streams', 'What the limits "
                    "allow on generated streams', 'Where the error on generated streams comes "
-                   "from', rounds 7 to 9)")
+                   "from', rounds 7 to 9; round 16: a causal controller reaches them on 80 "
+                   "of the 100 hands, the run on 65)")
 def test_many_generated_streams_meet_issue_34s_accuracy_targets(many_streams):
     """Issue 34: at hand speeds up to 0.25 m/s, over the time the goal is reachable, position
     RMS <= 10 mm and orientation RMS <= 3 deg per hand per stream, excursion <= 15 mm."""
     for run in many_streams[0.25]:
         assert all(meets_targets(figures) for figures in run.hands.values()), run
+
+
+# What the run meets of issue 34's targets on the 50 streams at 0.25 m/s (docs/history/teleop.md,
+# "Round 16: a causal floor on generated streams"): 85 hands within 10 mm, 73 within 3 deg, 65
+# meeting all three targets, 20 streams whose both hands do; reachable position RMS median
+# 2.58 mm, orientation 2.19 deg (the same to 5e-12 on both code paths, AVX-512 / portable).
+# With the 1 s orientation filter throughout (round 9's law) 85 / 68 / 61 hands, 16 streams,
+# 2.49 mm / 2.35 deg. The bounds leave three hands, three streams and about 15 % of a median.
+HELD_HANDS = {"position": 82, "orientation": 70, "all": 62}
+HELD_STREAMS = 17
+HELD_MEDIANS = {"reachable_position_rms_mm": 3.0, "reachable_orientation_rms_deg": 2.5}
+
+
+@pytest.mark.physical
+def test_many_generated_streams_keep_what_they_meet_of_issue_34s_targets(many_streams):
+    """What the run meets of issue 34's accuracy targets, held (the issue's own figure, every
+    hand, is the strict expected failure above): the hands within 10 mm, within 3 deg and
+    within all three targets, the streams whose both hands are, and the median errors, each
+    with a margin over what was measured (see HELD_HANDS)."""
+    runs = many_streams[0.25]
+    hands = [figures for run in runs for figures in run.hands.values()]
+    position = np.array([f["reachable_position_rms_mm"] or 0.0 for f in hands])
+    orientation = np.array([f["reachable_orientation_rms_deg"] or 0.0 for f in hands])
+    held = {"position": int(np.sum(position <= 10.0)),
+            "orientation": int(np.sum(orientation <= 3.0)),
+            "all": sum(meets_targets(f) for f in hands)}
+    assert all(held[key] >= bound for key, bound in HELD_HANDS.items()), held
+    streams = sum(all(meets_targets(f) for f in run.hands.values()) for run in runs)
+    assert streams >= HELD_STREAMS, streams
+    medians = {"reachable_position_rms_mm": np.median(position),
+               "reachable_orientation_rms_deg": np.median(orientation)}
+    assert all(medians[key] <= bound for key, bound in HELD_MEDIANS.items()), medians
 
 
 def test_fast_generated_streams_lag_along_the_goals_path(many_streams):

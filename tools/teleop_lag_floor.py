@@ -30,8 +30,20 @@ start of each window free): the share of a goal's turn or stroke that asks more 
 its speed shows there. Both floors bound every controller within the limits from below, so the
 larger of the two does.
 
+Those two know the operator's future. The *receding-horizon family* (``--causal``) knows only
+the past: a controller that every 25 ms plans its joints' accelerations within the limit over
+the next 0.6 s from its own state (not free), to keep the hand on the goal as one member
+predicts it from the goal's joints so far (held where they are; or extrapolated from a line
+or a parabola fitted over the last 0.1-0.3 s, for 0.05-0.2 s, held beyond), applies the plan's
+start and replans; its error is exact (forward kinematics, not linearised). Each member is a
+causal controller within the speed and acceleration limits, so what the best of them does is
+within reach of a controller that knows only the past: a causal bound from above, where the
+two floors bound from below (the best member is chosen per hand knowing the stream, so the
+figure also lists each member for all hands).
+
     python tools/teleop_lag_floor.py RUN_DIR [--accel 0.8] [--window 3] [--step 0.05] [--onset]
     python tools/teleop_lag_floor.py --generated 50 [--speed 0.25] [--duration 1.5]
+    python tools/teleop_lag_floor.py --generated 50 --causal [--no-floors]
     python tools/teleop_lag_floor.py --rates
 
 (``--onset``: the onset floor alone, in seconds instead of minutes. ``--generated N``: the first
@@ -53,7 +65,7 @@ import polars as pl
 from scipy.optimize import lsq_linear
 
 from hubo_cli.kinematics import get_limb
-from hubo_cli.kinematics.reach import jacobian
+from hubo_cli.kinematics.reach import jacobian, rotation_error
 from hubo_cli.model import load_model
 
 SHORT = {"right-arm": "r", "left-arm": "l"}
@@ -211,12 +223,15 @@ def generated_goals(seed: int, settings) -> tuple[dict, dict]:
 
 
 def generated_floors(count: int, speed_m_s: float, duration_s: float, accel: float | None,
-                     window_s: float, step_s: float, w_rot_m: float) -> list[dict]:
-    """Per stream and hand of the test's draw: the run's reachable RMS and both floors'."""
+                     window_s: float, step_s: float, w_rot_m: float, causal: bool = False,
+                     seeds=None, floors: bool = True) -> list[dict]:
+    """Per stream and hand of the test's draw (or of ``seeds``): the run's reachable RMS and
+    both floors'; with ``causal`` also the receding-horizon family's (per member and the best
+    member's by the weighted cost)."""
     from hubo_cli.input.operator_stream import StreamSettings
     from hubo_cli.teleop.stream_runs import GENERATED_SEEDS
 
-    seeds = GENERATED_SEEDS[:count]
+    seeds = GENERATED_SEEDS[:count] if seeds is None else seeds
     model = load_model(limits="teleop")
     rows = []
     for seed in seeds:
@@ -228,11 +243,27 @@ def generated_floors(count: int, speed_m_s: float, duration_s: float, accel: flo
             limits = model.limb(arm)
             limb = get_limb(arm, "hand")
             a_max = accel or float(limits.acceleration_rad_s2[0])
-            pa, ra = floor_errors(t, q, ok, a_max, window_s, step_s, limb, w_rot_m)
-            pv, rv = speed_floor_errors(t, q, ok, limits.velocity_rad_s, window_s, step_s / 2,
-                                        limb, w_rot_m)
+            if floors:
+                pa, ra = floor_errors(t, q, ok, a_max, window_s, step_s, limb, w_rot_m)
+                pv, rv = speed_floor_errors(t, q, ok, limits.velocity_rad_s, window_s,
+                                            step_s / 2, limb, w_rot_m)
+            else:
+                pa = ra = pv = rv = np.full(len(t), np.nan)
             qdot = np.abs(np.diff(q, axis=0)) / np.diff(t)[:, None]
-            rows.append({
+            extra = {}
+            if causal:
+                members = []
+                for member in RHC_MEMBERS:
+                    pc, rc = receding_horizon_errors(t, q, limb, a_max, limits.velocity_rad_s,
+                                                     w_rot_m, member)
+                    p_rms, r_rms = float(np.sqrt(np.mean(pc[ok]**2))), float(np.sqrt(np.mean(
+                        rc[ok]**2)))
+                    members.append((p_rms**2 + (w_rot_m * r_rms)**2, 1e3 * p_rms,
+                                    float(np.degrees(r_rms)), member))
+                best = min(members, key=lambda m: m[0])
+                extra = {"causal_mm": best[1], "causal_deg": best[2], "causal_member": best[3],
+                         "causal_members": [(m[1], m[2], m[3]) for m in members]}
+            rows.append({**extra,
                 "seed": seed, "arm": arm, "run_mm": hands[arm]["reachable_position_rms_mm"],
                 "run_deg": hands[arm]["reachable_orientation_rms_deg"],
                 "accel_floor_mm": 1e3 * float(np.sqrt(np.nanmean(pa**2))),
@@ -241,6 +272,101 @@ def generated_floors(count: int, speed_m_s: float, duration_s: float, accel: flo
                 "speed_floor_deg": float(np.degrees(np.sqrt(np.nanmean(rv**2)))),
                 "goal_joint_speed_max": float(np.max(qdot[ok[1:]])) if ok[1:].any() else 0.0})
     return rows
+
+
+def causal_fits(t_s: np.ndarray, q: np.ndarray, kind: str, window_s: float):
+    """Per sample k, the slope (rad/s) and half the curvature (rad/s^2; 0 for ``velocity``) of
+    the least-squares polynomial through the goal's joints over (t_k - window_s, t_k], in
+    powers of (t - t_k): what a controller knows at k."""
+    order = 1 if kind == "velocity" else 2
+    c1, c2 = np.zeros_like(q), np.zeros_like(q)
+    for k in range(len(t_s)):
+        b = int(np.searchsorted(t_s, t_s[k] - window_s, side="right"))
+        if k - b < order:
+            continue
+        dt = t_s[b:k + 1] - t_s[k]
+        V = np.vander(dt, order + 1, increasing=True)
+        coef = np.linalg.lstsq(V, q[b:k + 1], rcond=None)[0]
+        c1[k] = coef[1]
+        if order == 2:
+            c2[k] = coef[2]
+    return c1, c2
+
+
+RHC_BLOCKS_S = (0.0, 0.05, 0.1, 0.2, 0.3, 0.4, 0.6)
+"""The receding-horizon plan's piecewise-constant accelerations: they change at these times
+after now (finer near now, where the plan is applied), up to its horizon, 0.6 s."""
+RHC_REPLAN_S = 0.025   # replanned this often (the first half of the first block applied)
+RHC_SAMPLE_S = 0.05    # its error counted at this spacing over the horizon
+RHC_MEMBERS = (("hold", 0.0, 0.0),) + tuple(
+    (kind, window, h) for kind, window in (("velocity", 0.1), ("acceleration", 0.3))
+    for h in (0.05, 0.1, 0.2))
+"""The receding-horizon family: the goal's joints predicted from the past (``hold``: where
+they are; else a fit over ``window`` s as in :func:`causal_fits`) for ``h`` s, held there
+beyond. (``future``, not causal, is the planner's check: the goal's future as it comes, for
+``h`` s.)"""
+
+
+def receding_horizon_errors(t_s, q_goal, limb, accel_rad_s2, velocity_rad_s, w_rot_m,
+                            member):
+    """Per sample, the exact position error (m) and rotation error (rad) of a causal
+    controller within the joints' acceleration and speed limits: every ``RHC_REPLAN_S`` it
+    plans piecewise-constant joint accelerations within the limit (``RHC_BLOCKS_S``)
+    from its state (its position and velocity, not free) that minimise the mean of |p error|^2
+    + w^2 |rotation error|^2 (linearised about the predicted goal's joints) against the goal
+    as ``member`` predicts it from the samples up to now, applies the plan's start until the
+    next replan (velocities clipped to the speed limit), and so on. The joints start at rest
+    on the first goal; sample k's error is the state the goals up to k - 1 commanded."""
+    kind, window, h_cap = member
+    c1, c2 = ((np.zeros_like(q_goal), np.zeros_like(q_goal)) if kind in ("hold", "future")
+              else causal_fits(t_s, q_goal, kind, window))
+    a = np.broadcast_to(np.asarray(accel_rad_s2, dtype=float), (6,))
+    vmax = np.broadcast_to(np.asarray(velocity_rad_s, dtype=float), (6,))
+    base, _, offset, alpha, a_dh, d, end, _ = limb.chain
+    T, J, T_goal, e = np.empty((4, 4)), np.empty((6, 6)), np.empty((4, 4)), np.empty(3)
+    scale = np.r_[np.ones(3), np.full(3, w_rot_m)][:, None]
+    edges = np.asarray(RHC_BLOCKS_S)
+    nb_ = len(edges) - 1
+    tau = np.arange(1, int(round(edges[-1] / RHC_SAMPLE_S)) + 1) * RHC_SAMPLE_S  # after now
+    start, stop = edges[None, :-1], edges[None, 1:]
+    inside = np.clip(tau[:, None] - start, 0.0, stop - start)  # each block's time before tau
+    coef = inside * (tau[:, None] - start - inside / 2)  # its acceleration's share of q(tau)
+    bounds = (np.tile(-a, nb_), np.tile(a, nb_))
+    n = len(t_s)
+    q, v = q_goal[0].copy(), np.zeros(6)
+    u = np.zeros(6)
+    next_plan = t_s[0]
+    pos, rot = np.empty(n), np.empty(n)
+    for k in range(n):
+        jacobian(np.ascontiguousarray(q_goal[k]), base, offset, alpha, a_dh, d, end, T_goal, J)
+        jacobian(np.ascontiguousarray(q), base, offset, alpha, a_dh, d, end, T, J)
+        pos[k] = np.linalg.norm(T[:3, 3] - T_goal[:3, 3])
+        rot[k] = rotation_error(T, T_goal, e)
+        if k == n - 1:
+            break
+        if t_s[k] >= next_plan - 1e-9:
+            next_plan = t_s[k] + RHC_REPLAN_S
+            hs = np.minimum(tau, h_cap)[:, None]
+            q_hat = q_goal[k] + c1[k] * hs + c2[k] * hs * hs  # nb x 6
+            if kind == "future":  # the planner's check: the goal's future itself
+                q_hat = np.column_stack([np.interp(t_s[k] + hs[:, 0], t_s, q_goal[:, j])
+                                         for j in range(6)])
+            A = np.zeros((6 * len(tau), 6 * nb_))
+            b = np.empty(6 * len(tau))
+            for i in range(len(tau)):
+                jacobian(np.ascontiguousarray(q_hat[i]), base, offset, alpha, a_dh, d, end, T,
+                         J)
+                Jp = J * scale
+                for j in range(nb_):
+                    if coef[i, j]:
+                        A[6 * i:6 * i + 6, 6 * j:6 * j + 6] = Jp * coef[i, j]
+                b[6 * i:6 * i + 6] = Jp @ (q_hat[i] - q - v * tau[i])
+            u = lsq_linear(A, b, bounds=bounds, method="bvls").x[:6]
+        dt = t_s[k + 1] - t_s[k]
+        v_new = np.clip(v + u * dt, -vmax, vmax)
+        q = q + 0.5 * (v + v_new) * dt
+        v = v_new
+    return pos, rot
 
 
 REST_S = 0.3           # the goal rests: its joints moved less than REST_RAD over this long
@@ -282,6 +408,48 @@ def onset_floor_errors(t_s, q_target, weight, accel_rad_s2, velocity_rad_s, limb
     return pos, rot
 
 
+def print_causal(rows: list[dict], w_rot_m: float) -> None:
+    """Per hand the run, the receding-horizon family's best member (by the weighted cost) and
+    the perfect-future floor (the larger of the acceleration and speed floors); then per
+    figure the median and worst and the hands over the targets, and the family's members
+    one by one (a member for all hands is a causal controller; the best per hand is chosen
+    knowing the stream)."""
+    mm, deg = 1e3 * TARGET_POSITION_M, np.degrees(TARGET_ROTATION_RAD)
+    for r in rows:
+        r["future_mm"] = max(r["accel_floor_mm"], r["speed_floor_mm"])
+        r["future_deg"] = max(r["accel_floor_deg"], r["speed_floor_deg"])
+        print(f"seed {r['seed']} {r['arm']}: run {r['run_mm']:.1f} mm / {r['run_deg']:.2f} "
+              f"deg; causal {r['causal_mm']:.1f} / {r['causal_deg']:.2f} "
+              f"({' '.join(map(str, r['causal_member']))}); perfect future "
+              f"{r['future_mm']:.1f} / {r['future_deg']:.2f}")
+    for name in ("run", "causal", "future"):
+        p = np.array([r[f"{name}_mm"] for r in rows])
+        o = np.array([r[f"{name}_deg"] for r in rows])
+        if np.isnan(p).all():  # --no-floors
+            continue
+        print(f"{name}: position median / worst {np.nanmedian(p):.2f} / {np.nanmax(p):.2f} mm, "
+              f"orientation {np.nanmedian(o):.2f} / {np.nanmax(o):.2f} deg; hands over "
+              f"{mm:g} mm {int(np.sum(p > mm))}, over {deg:g} deg {int(np.sum(o > deg))}, over "
+              f"either {int(np.sum((p > mm) | (o > deg)))} of {len(rows)}; streams whose "
+              f"hands all meet both {_streams_within(rows, p, o)}")
+    for i, member in enumerate(RHC_MEMBERS):
+        p = np.array([r["causal_members"][i][0] for r in rows])
+        o = np.array([r["causal_members"][i][1] for r in rows])
+        print(f"member {' '.join(map(str, member))}: position median {np.median(p):.2f} mm, "
+              f"orientation {np.median(o):.2f} deg; hands over either "
+              f"{int(np.sum((p > mm) | (o > deg)))}; streams whose hands all meet both "
+              f"{_streams_within(rows, p, o)}")
+
+
+def _streams_within(rows: list[dict], p_mm: np.ndarray, o_deg: np.ndarray) -> int:
+    """How many streams have every hand within 10 mm and 3 deg (row i's figures p_mm[i],
+    o_deg[i])."""
+    within = (p_mm <= 1e3 * TARGET_POSITION_M) & (o_deg <= np.degrees(TARGET_ROTATION_RAD))
+    seeds = {r["seed"] for r in rows}
+    return sum(all(w for r, w in zip(rows, within, strict=True) if r["seed"] == s)
+               for s in seeds)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("run_dir", type=Path, nargs="?")
@@ -299,6 +467,10 @@ def main() -> None:
                         help="metres of position error one radian is worth (default 10 mm / "
                              "3 deg)")
     parser.add_argument("--onset", action="store_true", help="the onset floor alone")
+    parser.add_argument("--causal", action="store_true",
+                        help="with --generated: the receding-horizon family too")
+    parser.add_argument("--no-floors", action="store_true",
+                        help="with --generated --causal: the family alone, not the floors")
     args = parser.parse_args()
     if args.rates:
         model = load_model(limits="teleop")
@@ -315,7 +487,11 @@ def main() -> None:
         return
     if args.generated:
         rows = generated_floors(args.generated, args.speed, args.duration, args.accel,
-                                args.window, args.step, args.weight)
+                                args.window, args.step, args.weight, causal=args.causal,
+                                floors=not args.no_floors)
+        if args.causal:
+            print_causal(rows, args.weight)
+            return
         for r in rows:
             print(f"seed {r['seed']} {r['arm']}: run {r['run_mm']:.1f} mm / {r['run_deg']:.1f} "
                   f"deg; acceleration floor {r['accel_floor_mm']:.1f} mm / "
