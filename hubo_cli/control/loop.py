@@ -39,8 +39,9 @@ soft stopper, ``estop``), an interrupt or a log failure does not brake the robot
 finishes its step into a double-support stance, as the space key does) and runs on, the log
 no longer written after a failure, until the stopper holds that stance, within the phase's
 ``within_s`` plus :data:`STANCE_SPARE_S` (:attr:`LoopResult.interrupt_stop` says how it went).
-A second interrupt, the bound running out or a stopper that does not latch falls back to the
-brake.
+A second Ctrl-C, the bound running out or a stopper that does not latch falls back to the
+brake; a second signal of another kind (SIGTERM, SIGHUP, SIGQUIT: nobody insisting) is said
+in ``error`` and the stop goes on.
 The loop never raises for these; :class:`LoopResult` says how it ended.
 """
 
@@ -536,7 +537,10 @@ class ControlLoop:
             if ended in ("finished", "done"):
                 ended = "interrupted"
         finally:
-            loop_given_back(handlers)
+            meanwhile = loop_given_back(handlers)  # (signals after the first, not Ctrl-C)
+            if meanwhile:
+                error = (error + "; " if error else "") + (
+                    f"{', '.join(meanwhile)} during the stop, which went on")
             loop_ended()  # an interrupt from here on waits until the run's files are whole
             driver.stop()
             if self.log is not None:
