@@ -409,6 +409,7 @@ class ControlLoop:
         t_s = 0.0
         stance: _StanceStop | None = None  # a phase stopping itself after an interrupt
         log_failed = False
+        held = False  # the driver failed: it stopped (or holds) by itself, no brake of ours
         try:
             state = driver.read()
             if self.estimator is not None:
@@ -454,7 +455,8 @@ class ControlLoop:
                         cycle.store = view
                         q = m.update(q, state, cycle)
                 except Exception as err:  # noqa: BLE001 (any failure ends in a smooth stop)
-                    ended = f"{stage}-error"
+                    # (a module that finds the robot not following: device trouble, braked)
+                    ended = "device" if isinstance(err, DeviceError) else f"{stage}-error"
                     # a library error is already a message for the user; anything else is a bug
                     error = str(err) if isinstance(err, HuboError) else (
                         f"{type(err).__name__} in {stage}: {err}")
@@ -472,6 +474,7 @@ class ControlLoop:
                     ended = "device" if isinstance(err, DeviceError) else "driver-error"
                     error, exc = f"{type(err).__name__}: {err}", err
                     driver.stop()
+                    held = True  # (the driver braked and holds by itself)
                     break
                 if self.estimator is not None:
                     try:
@@ -529,7 +532,7 @@ class ControlLoop:
             stance.end(f"ended: {ended}", self.period * self.dt_s)
         stopping_from = self.period
         try:
-            if ended not in ("driver-error", "device"):
+            if not held:
                 self._smooth_stop()
         except KeyboardInterrupt:
             self._count_a_logged_period()
