@@ -7,6 +7,7 @@ import contextlib
 import errno
 import gc
 import importlib
+import io
 import os
 import signal
 import sys
@@ -53,6 +54,49 @@ def replace_unencodable_output() -> None:
         if reconfigure is not None:
             with contextlib.suppress(ValueError, OSError):  # a closed or detached stream
                 reconfigure(errors="replace")
+
+
+class _Stdout(io.RawIOBase):
+    """The process's stdout whose reader may go away (``hubo walk | head -1``, ``| true``):
+    once a write finds the pipe closed (EPIPE), the rest of the output is dropped, silently,
+    and the command goes on to its own end and exit code (the Unix way: what nobody reads is
+    not an error; the run's files and exit code still say how it went)."""
+
+    def __init__(self, fd: int) -> None:
+        super().__init__()
+        self.fd, self.gone = fd, False
+
+    def writable(self) -> bool:
+        return True
+
+    def fileno(self) -> int:
+        return self.fd
+
+    def isatty(self) -> bool:
+        return os.isatty(self.fd)
+
+    def write(self, data) -> int:
+        if not self.gone:
+            try:
+                return os.write(self.fd, data)
+            except BrokenPipeError:
+                self.gone = True
+        return len(data)
+
+
+def quiet_broken_pipe() -> None:
+    """Make ``sys.stdout`` drop what it writes after its reader has gone (see :class:`_Stdout`);
+    nothing without a stdout."""
+    stream = sys.stdout
+    try:
+        fd = stream.fileno()
+    except (AttributeError, OSError, ValueError):  # none, or not a file (an embedding)
+        return
+    with contextlib.suppress(Exception):
+        stream.flush()
+    sys.stdout = io.TextIOWrapper(io.BufferedWriter(_Stdout(fd)), encoding=stream.encoding,
+                                  errors=stream.errors, line_buffering=stream.line_buffering,
+                                  write_through=getattr(stream, "write_through", False))
 
 
 def say_now(line: str) -> None:
@@ -161,6 +205,7 @@ def entry() -> None:
     stands). While a non-daemon thread still runs, the normal exit (which waits for it) is
     taken instead.
     """
+    quiet_broken_pipe()
     try:
         main()
         code: object = 0
