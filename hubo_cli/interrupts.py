@@ -156,8 +156,8 @@ def catching_interrupts(say: Callable[[str], None] | None = None) -> Iterator[No
     if not _in_main_thread():
         yield
         return
-    previous = _install(_taken(sigterm=True))
     _noted.say = say
+    previous = _install(_taken(sigterm=True))
     try:
         yield
     finally:
