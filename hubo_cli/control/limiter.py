@@ -15,7 +15,8 @@ While an emergency stopper brakes (a wrist-torque stop, a revert turning the mot
 flag ``estop-brake``), band 2 takes the
 emergency braking acceleration (:meth:`~hubo_cli.motion.limits.JointLimits.for_emergency_brake`).
 
-A joint held at the tracking band without a break for longer than :data:`NOT_FOLLOWING_S` is a
+A joint held at the tracking band without a break for longer than :data:`NOT_FOLLOWING_S`, its
+measured position moving less than :data:`NOT_FOLLOWING_PROGRESS_RAD` meanwhile, is a
 robot that does not follow its commands (a frozen or unpowered joint, a daemon not applying
 references): the band keeps every command within 0.18 rad of the measured joint, so the
 driver's servo-error check (0.2 rad) can never trip against it. :meth:`SoftErrorLimiter.update`
@@ -50,9 +51,14 @@ POSITION_ROUNDING_RAD = 1e-5
 
 # A joint held at the tracking band this long without a break does not follow (see the
 # module's docstring). Healthy runs held it 0.005 s at most (round 16: 321 sim walks on both
-# code paths, sim and hardware dry-run cuts, teleop replays; docs/history/safety.md); a frozen
-# robot on a cut holds it from 0.56 s on, for as long as the plan moves
+# code paths, sim and hardware dry-run cuts, teleop replays; docs/history/safety.md), 1.58 s
+# in hubo-daemon's filtered mode while moving 0.9 rad a second; a frozen robot on a cut holds
+# it from 0.56 s on, for as long as the plan moves
 NOT_FOLLOWING_S = 1.0
+# ... while its measured position moved less than this (rad): a joint that follows slowly (the
+# daemon's reference filter, mode 0: its 0.2 s lag holds a long fast move at the band for
+# seconds) gains 0.18 rad every 0.2 s or so there; a frozen one gains nothing
+NOT_FOLLOWING_PROGRESS_RAD = 0.5 * TRACKING_ERROR_LIMIT_RAD
 
 # bits of the per-joint clamp mask returned by limit_step
 CLAMP_POSITION = 1
@@ -209,6 +215,7 @@ class SoftErrorLimiter(Module):
         self._want_prev = np.zeros(n)
         self._bits = 0  # the or of the last step's clamp bits
         self._held = np.zeros(n, dtype=np.int64)  # periods each joint is held at the band
+        self._held_from = np.zeros(n)  # ... measured where (rad) the count began
         self.longest_held_s = 0.0  # the run's longest such hold (s)
         # numba compiles the kernel on its first call: make that now, not in the first period
         lim = self.limits
@@ -258,11 +265,14 @@ class SoftErrorLimiter(Module):
         self.q1 = out
         return out
 
-    def _not_following(self, t_s: float) -> None:
-        """Count each joint's periods held at the tracking band; raise NotFollowing past
-        NOT_FOLLOWING_S."""
-        held = self._held
-        held[:] = np.where(self._mask & CLAMP_TRACKING, held + 1, 0)
+    def _not_following(self, q_meas: np.ndarray, t_s: float) -> None:
+        """Count each joint's periods held at the tracking band, from where it was measured
+        when the count began (again once it has moved NOT_FOLLOWING_PROGRESS_RAD from there);
+        raise NotFollowing past NOT_FOLLOWING_S."""
+        held, at = self._held, self._mask & CLAMP_TRACKING
+        begin = (held == 0) | (np.abs(q_meas - self._held_from) > NOT_FOLLOWING_PROGRESS_RAD)
+        self._held_from = np.where(at & begin, q_meas, self._held_from)
+        held[:] = np.where(at, np.where(begin, 1, held + 1), 0)
         k = int(np.argmax(held))
         self.longest_held_s = max(self.longest_held_s, held[k] * self.dt_s)
         if held[k] * self.dt_s > NOT_FOLLOWING_S + 1e-9:
@@ -285,7 +295,7 @@ class SoftErrorLimiter(Module):
                 cycle.flags.add("slowing")
             if bits & CLAMP_TRACKING:
                 cycle.flags.add("tracking-error")
-                self._not_following(cycle.t_s)
+                self._not_following(state.q_rad, cycle.t_s)
             ankles = int(np.count_nonzero(mask[self._ankles]))
         self.periods += 1
         if clamped:
