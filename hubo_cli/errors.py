@@ -106,10 +106,16 @@ def quoted(value: object) -> str:
 
 
 class Terminated(KeyboardInterrupt):
-    """SIGTERM, raised where Ctrl-C raises KeyboardInterrupt: a run ends the same way (its
-    smooth stop, its summary, exit 130)."""
+    """SIGTERM (or SIGHUP: the terminal gone; SIGQUIT: Ctrl-\\), raised where Ctrl-C raises
+    KeyboardInterrupt: a run ends the same way (its smooth stop, its summary, exit 130).
+    ``Terminated("SIGHUP")`` names the signal; without one it is SIGTERM."""
+
+    @property
+    def cause(self) -> str:
+        """The signal's name (``SIGTERM``, ``SIGHUP``, ``SIGQUIT``)."""
+        return str(self.args[0]) if self.args else "SIGTERM"
 
 
 def interrupt_cause(exc: BaseException) -> str:
-    """What interrupted a run: ``SIGTERM`` or ``Ctrl-C``."""
-    return "SIGTERM" if isinstance(exc, Terminated) else "Ctrl-C"
+    """What interrupted a run: ``Ctrl-C`` or the signal's name (``SIGTERM``, ...)."""
+    return exc.cause if isinstance(exc, Terminated) else "Ctrl-C"

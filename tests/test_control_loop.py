@@ -398,6 +398,39 @@ class _Stepping(Target):
         return self.q, {}
 
 
+@pytest.mark.skipif(sys.platform == "win32", reason="SIGHUP")
+def test_a_hangup_then_sigterm_lets_the_phase_stop_itself(model, tmp_path):
+    """SIGHUP (the terminal gone) mid-phase takes the phase's own stop as Ctrl-C does; a
+    SIGTERM 0.1 s later (``timeout``, systemd) is said in the error and the stop goes on to
+    the stance (round 16; main: SIGHUP's default action ended the process)."""
+    from hubo_cli import interrupts
+
+    class Hanging(_Stepping):
+        def __call__(self, t_s, state):
+            for at_s, signum in ((0.5, signal.SIGHUP), (0.6, signal.SIGTERM)):
+                if abs(t_s - at_s) < DT / 2:
+                    os.kill(os.getpid(), signum)
+            return super().__call__(t_s, state)
+
+    before = {s: signal.signal(s, signal.SIG_DFL) for s in (signal.SIGHUP, signal.SIGTERM)}
+    try:
+        with interrupts.catching_interrupts():
+            assert signal.getsignal(signal.SIGHUP) is interrupts._interrupt  # (main: SIG_DFL)
+            robot = ideal(model)
+            q0 = robot.read().q_rad.copy()
+            target = Hanging(q0)
+            loop = ControlLoop(robot, build_pipeline(model, ("estop", "limiter")), target,
+                               log_path=tmp_path)
+            result = loop.run(5.0)
+    finally:
+        for s, handler in before.items():
+            signal.signal(s, handler)
+    assert result.ended == "interrupted"
+    assert result.error == "interrupted (SIGHUP); SIGTERM during the stop, which went on"
+    assert result.interrupt_stop == "stood" and result.stop_periods <= 1
+    _assert_smooth_end(model, robot, q0)
+
+
 @pytest.mark.parametrize("event", ["Ctrl-C", "log failure", "Ctrl-C twice"])
 def test_a_phase_that_stops_itself_is_asked_to_after_ctrl_c_or_a_log_failure(model, tmp_path,
                                                                              event):

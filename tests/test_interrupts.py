@@ -4,12 +4,24 @@ from __future__ import annotations
 
 import os
 import signal
+import sys
 import time
 
 import pytest
 
-from hubo_cli.errors import Terminated
-from hubo_cli.interrupts import loop_ended, loop_starting, run_files
+from hubo_cli import interrupts
+from hubo_cli.errors import Terminated, interrupt_cause
+from hubo_cli.interrupts import (
+    catching_interrupts,
+    loop_ended,
+    loop_given_back,
+    loop_starting,
+    loop_taking,
+    run_files,
+    take_interrupt,
+)
+
+posix_only = pytest.mark.skipif(sys.platform == "win32", reason="SIGHUP, SIGQUIT, SIGTSTP")
 
 
 def test_a_late_sigterm_waits_for_the_outermost_scope_then_is_raised():
@@ -56,3 +68,87 @@ def test_a_shutdown_under_way_drops_a_second_interrupt_and_restores_the_handlers
         os.kill(os.getpid(), signal.SIGTERM)
         time.sleep(0.05)  # (delivered to the main thread at its next bytecode)
     assert {s: signal.getsignal(s) for s in before} == before
+
+
+@pytest.fixture
+def default_actions():
+    """SIGTERM, SIGHUP, SIGQUIT and SIGTSTP at their default actions (as in a shell), restored
+    after."""
+    signals = [getattr(signal, n) for n in ("SIGTERM", "SIGHUP", "SIGQUIT", "SIGTSTP")
+               if hasattr(signal, n)]
+    before = {s: signal.signal(s, signal.SIG_DFL) for s in signals}
+    yield
+    for s, handler in before.items():
+        signal.signal(s, handler)
+
+
+def _send(signum: int) -> None:
+    os.kill(os.getpid(), signum)
+    time.sleep(0.02)  # (delivered to the main thread at its next bytecode)
+
+
+@posix_only
+@pytest.mark.parametrize("name", ["SIGTERM", "SIGHUP", "SIGQUIT"])
+def test_the_signals_that_would_end_the_process_are_named_interrupts(default_actions, name):
+    """SIGHUP (the ssh session dropped, the terminal closed) and SIGQUIT (Ctrl-\\) end a run
+    as SIGTERM does: raised as Terminated naming the signal (round 16; main left their default
+    actions: the process died mid-walk with a foot in the air, no stop, no summary)."""
+    signum = getattr(signal, name)
+    with catching_interrupts():
+        assert signal.getsignal(signum) is interrupts._interrupt  # (main: SIG_DFL, not sent)
+        with pytest.raises(Terminated) as raised:
+            _send(signum)
+    assert interrupt_cause(raised.value) == name
+    assert signal.getsignal(signum) is signal.SIG_DFL  # given back
+
+
+@posix_only
+def test_an_ignored_hangup_stays_ignored(default_actions):
+    """``nohup hubo ...``: SIGHUP ignored before the command stays ignored."""
+    signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    with catching_interrupts(), run_files():
+        assert signal.getsignal(signal.SIGHUP) is signal.SIG_IGN
+        loop_ended()
+        assert signal.getsignal(signal.SIGHUP) is signal.SIG_IGN
+
+
+@posix_only
+def test_in_a_loop_only_a_second_ctrl_c_raises_other_signals_are_noted(default_actions):
+    """While a control loop runs, the first interrupt of any kind is noted (the loop stops
+    from a whole period: a walk finishes its step); after it only Ctrl-C, the operator
+    insisting, raises (the brake where the robot is); SIGTERM from ``timeout`` or systemd, a
+    SIGHUP or SIGQUIT are noted and given back when the loop ends (its stop goes on)."""
+    with catching_interrupts():
+        handlers = loop_taking()
+        try:
+            assert signal.getsignal(signal.SIGHUP) is interrupts._interrupt  # (main: SIG_DFL)
+            _send(signal.SIGHUP)
+            assert interrupts.interrupt_pending() == "SIGHUP"
+            _send(signal.SIGTERM)  # before the loop took the first: noted as well
+            assert take_interrupt() == "SIGHUP"
+            _send(signal.SIGQUIT)
+            _send(signal.SIGTERM)
+            with pytest.raises(KeyboardInterrupt):
+                _send(signal.SIGINT)
+        finally:
+            meanwhile = loop_given_back(handlers)
+        assert meanwhile == ("SIGTERM", "SIGQUIT")
+        with pytest.raises(Terminated):  # no loop: raised at once again
+            _send(signal.SIGTERM)
+
+
+@posix_only
+def test_ctrl_z_is_refused_while_a_loop_runs(default_actions):
+    """SIGTSTP (Ctrl-Z) would freeze the loop mid-step (the hardware daemon holding the last
+    reference, a foot in the air): while a loop runs it is ignored and the command line is
+    given one line saying so; outside the loop its default is back."""
+    said = []
+    with catching_interrupts(say=said.append):
+        handlers = loop_taking()
+        try:
+            assert signal.getsignal(signal.SIGTSTP) is not signal.SIG_DFL  # (main: it is)
+            _send(signal.SIGTSTP)
+        finally:
+            loop_given_back(handlers)
+        assert signal.getsignal(signal.SIGTSTP) is signal.SIG_DFL
+    assert said == [interrupts.REFUSED_STOP]

@@ -7,6 +7,7 @@ import contextlib
 import errno
 import gc
 import importlib
+import io
 import os
 import signal
 import sys
@@ -16,7 +17,7 @@ import click
 
 from hubo_cli import __version__
 from hubo_cli.errors import HuboError, Terminated
-from hubo_cli.interrupts import catching_interrupts, run_files
+from hubo_cli.interrupts import INTERRUPT_SIGNALS, catching_interrupts, run_files
 
 # command name -> "module:attribute" (modules are imported only when the command runs)
 COMMANDS = {
@@ -39,7 +40,7 @@ COMMANDS = {
 
 EXIT_CODES = ("Exit codes: 0 success, 1 other error or a run that did not complete, 2 bad input "
               "or configuration, 3 device trouble, 4 refused for safety (nothing moved), "
-              "5 no IK solution, 130 interrupted (Ctrl-C or SIGTERM).")
+              "5 no IK solution, 130 interrupted (Ctrl-C, SIGTERM, SIGHUP or SIGQUIT).")
 
 
 DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
@@ -53,6 +54,56 @@ def replace_unencodable_output() -> None:
         if reconfigure is not None:
             with contextlib.suppress(ValueError, OSError):  # a closed or detached stream
                 reconfigure(errors="replace")
+
+
+class _Stdout(io.RawIOBase):
+    """The process's stdout whose reader may go away (``hubo walk | head -1``, ``| true``):
+    once a write finds the pipe closed (EPIPE), the rest of the output is dropped, silently,
+    and the command goes on to its own end and exit code (the Unix way: what nobody reads is
+    not an error; the run's files and exit code still say how it went)."""
+
+    def __init__(self, fd: int) -> None:
+        super().__init__()
+        self.fd, self.gone = fd, False
+
+    def writable(self) -> bool:
+        return True
+
+    def fileno(self) -> int:
+        return self.fd
+
+    def isatty(self) -> bool:
+        return os.isatty(self.fd)
+
+    def write(self, data) -> int:
+        if not self.gone:
+            try:
+                return os.write(self.fd, data)
+            except BrokenPipeError:
+                self.gone = True
+        return len(data)
+
+
+def quiet_broken_pipe() -> None:
+    """Make ``sys.stdout`` drop what it writes after its reader has gone (see :class:`_Stdout`);
+    nothing without a stdout."""
+    stream = sys.stdout
+    try:
+        fd = stream.fileno()
+    except (AttributeError, OSError, ValueError):  # none, or not a file (an embedding)
+        return
+    with contextlib.suppress(Exception):
+        stream.flush()
+    sys.stdout = io.TextIOWrapper(io.BufferedWriter(_Stdout(fd)), encoding=stream.encoding,
+                                  errors=stream.errors, line_buffering=stream.line_buffering,
+                                  write_through=getattr(stream, "write_through", False))
+
+
+def say_now(line: str) -> None:
+    """One line on stderr from a signal handler: written whole, unbuffered, no lock taken (the
+    interrupted code may be inside a print); nothing if stderr is gone."""
+    with contextlib.suppress(OSError, ValueError):
+        os.write(sys.stderr.fileno(), f"{line}\n".encode(errors="replace"))
 
 
 def report_error(exc: HuboError) -> None:
@@ -89,7 +140,7 @@ class LazyGroup(click.Group):
         replace_unencodable_output()  # before anything is written, --help included
         # Ctrl-C and SIGTERM noted as well as raised from the start, the command's imports
         # included: one swallowed in a numba compile still ends the run before it moves
-        with catching_interrupts():
+        with catching_interrupts(say=say_now):
             return super().main(*args, **kwargs)
 
     def invoke(self, ctx: click.Context):
@@ -101,8 +152,9 @@ class LazyGroup(click.Group):
             report_error(exc)
             ctx.exit(exc.exit_code)
         except KeyboardInterrupt as exc:
-            click.echo("interrupted" + (" (SIGTERM)" if isinstance(exc, Terminated) else ""),
-                       err=True)
+            with contextlib.suppress(OSError):  # (SIGHUP: the terminal may be gone)
+                click.echo("interrupted" + (f" ({exc.cause})" if isinstance(exc, Terminated)
+                                            else ""), err=True)
             ctx.exit(130)
         except MemoryError:
             click.secho("error: out of memory: an input asks for far more than the machine "
@@ -153,6 +205,7 @@ def entry() -> None:
     stands). While a non-daemon thread still runs, the normal exit (which waits for it) is
     taken instead.
     """
+    quiet_broken_pipe()
     try:
         main()
         code: object = 0
@@ -168,7 +221,7 @@ def entry() -> None:
         code = 1
     # the command has ended and its exit code stands: an interrupt now would only print a
     # traceback from a finaliser ("Exception ignored in: WeakKeyDictionary...") and change nothing
-    for s in (signal.SIGINT, signal.SIGTERM):
+    for s in INTERRUPT_SIGNALS:
         signal.signal(s, signal.SIG_IGN)
     atexit._run_exitfuncs()
     gc.collect()

@@ -39,8 +39,9 @@ soft stopper, ``estop``), an interrupt or a log failure does not brake the robot
 finishes its step into a double-support stance, as the space key does) and runs on, the log
 no longer written after a failure, until the stopper holds that stance, within the phase's
 ``within_s`` plus :data:`STANCE_SPARE_S` (:attr:`LoopResult.interrupt_stop` says how it went).
-A second interrupt, the bound running out or a stopper that does not latch falls back to the
-brake.
+A second Ctrl-C, the bound running out or a stopper that does not latch falls back to the
+brake; a second signal of another kind (SIGTERM, SIGHUP, SIGQUIT: nobody insisting) is said
+in ``error`` and the stop goes on.
 The loop never raises for these; :class:`LoopResult` says how it ended.
 """
 
@@ -412,6 +413,7 @@ class ControlLoop:
         t_s = 0.0
         stance: _StanceStop | None = None  # a phase stopping itself after an interrupt
         log_failed = False
+        held = False  # the driver failed: it stopped (or holds) by itself, no brake of ours
         try:
             state = driver.read()
             if self.estimator is not None:
@@ -457,7 +459,8 @@ class ControlLoop:
                         cycle.store = view
                         q = m.update(q, state, cycle)
                 except Exception as err:  # noqa: BLE001 (any failure ends in a smooth stop)
-                    ended = f"{stage}-error"
+                    # (a module that finds the robot not following: device trouble, braked)
+                    ended = "device" if isinstance(err, DeviceError) else f"{stage}-error"
                     # a library error is already a message for the user; anything else is a bug
                     error = str(err) if isinstance(err, HuboError) else (
                         f"{type(err).__name__} in {stage}: {err}")
@@ -475,6 +478,7 @@ class ControlLoop:
                     ended = "device" if isinstance(err, DeviceError) else "driver-error"
                     error, exc = f"{type(err).__name__}: {err}", err
                     driver.stop()
+                    held = True  # (the driver braked and holds by itself)
                     break
                 if self.estimator is not None:
                     try:
@@ -532,7 +536,7 @@ class ControlLoop:
             stance.end(f"ended: {ended}", self.period * self.dt_s)
         stopping_from = self.period
         try:
-            if ended not in ("driver-error", "device"):
+            if not held:
                 self._smooth_stop()
         except KeyboardInterrupt:
             self._count_a_logged_period()
@@ -540,7 +544,10 @@ class ControlLoop:
             if ended in ("finished", "done"):
                 ended = "interrupted"
         finally:
-            loop_given_back(handlers)
+            meanwhile = loop_given_back(handlers)  # (signals after the first, not Ctrl-C)
+            if meanwhile:
+                error = (error + "; " if error else "") + (
+                    f"{', '.join(meanwhile)} during the stop, which went on")
             loop_ended()  # an interrupt from here on waits until the run's files are whole
             driver.stop()
             if self.log is not None:

@@ -100,6 +100,21 @@ MODE_FILTERED, MODE_DIRECT = hubo_ach.MODE_REF_FILTER, hubo_ach.MODE_REF
 REF_MODES = {"direct": MODE_DIRECT, "filtered": MODE_FILTERED}  # --ref-mode's words
 REF_NAMES = {v: k for k, v in REF_MODES.items()}
 SINK_FILE_NAME = "hubo-ref.bin"
+# hubo-daemon's refWait set this long while references are put: the robot is not driven (the
+# servo-error check cannot run meanwhile). The daemon applies references from its first
+# period; the 0.8 s start-up delay without references is waited before the first is put
+REF_WAIT_MAX_S = 0.5
+
+
+class RefWaitError(DeviceError):
+    """hubo-daemon kept refWait set: the references are not applied."""
+
+    def __init__(self, channel: str, for_s: float, t_s: float) -> None:
+        super().__init__(f"{channel} says refWait (references not applied) for {for_s:.2f} s "
+                         f"at t = {t_s:.2f} s: the robot is not following; it holds its last "
+                         "reference",
+                         hint="check hubo-daemon (hubo-console: is it in control of the "
+                              "joints?), then start the run again")
 
 
 def hubo_ach_vector(model: RobotModel, q_rad, rest_rad: float = 0.0) -> np.ndarray:
@@ -327,6 +342,7 @@ class HardwareDriver(Driver):
         self._ages_s, self._round_trips_s = array("d"), array("d")
         self._max_servo_error_rad = 0.0
         self._thermal_periods = 0
+        self._ref_wait_since_s: float | None = None
 
     def _check_start_posture(self) -> None:
         q = self._ref42[self.ach_index]
@@ -549,9 +565,16 @@ class HardwareDriver(Driver):
             self._put_s = None
         self._guard(self.thermal.check(frame.tmp_c, t_s), "motor-hot")
         if self._seq and not frame.ref_wait:  # references are being applied: they must hold
+            self._ref_wait_since_s = None
             self._guard(self.servo_guard.check(frame.pos_rad, t_s), "servo-error")
             self._max_servo_error_rad = max(self._max_servo_error_rad,
                                             float(np.max(self.servo_guard.error_rad)))
+        elif self._seq:  # the daemon does not apply them: for REF_WAIT_MAX_S at most
+            if self._ref_wait_since_s is None:
+                self._ref_wait_since_s = t_s
+            elif t_s - self._ref_wait_since_s > REF_WAIT_MAX_S:
+                self._guard(RefWaitError(self.ach_state, t_s - self._ref_wait_since_s, t_s),
+                            "ref-wait")
 
     def _guard(self, trip: Exception | None, flag: str) -> None:
         """A check's trip latches servo-off (the last reference held) and ends the run."""

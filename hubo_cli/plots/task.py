@@ -42,7 +42,9 @@ def plot_wrist_torque(log, path: str | Path, *, limit_nm: float, title: str = ""
     for i, t_stop in enumerate(stop_times_s):
         ax.axvline(t_stop, color="#c2188b", lw=1.2,
                    label="emergency stop" if i == 0 else None)
-    top = max(limit_nm * 1.25, float(np.nanmax(torque)) * 1.1 if len(torque) else 0.0)
+    finite = np.asarray(torque, dtype=float)
+    finite = finite[np.isfinite(finite)]  # (none during a walk: no wrist reading yet)
+    top = max(limit_nm * 1.25, float(finite.max()) * 1.1 if len(finite) else 0.0)
     ax.set_ylim(0, top)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("wrist torque (N m)")

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from hubo_cli.control.estop import RELIEVE_SOURCES
-from hubo_cli.control.loop import LoopResult
+from hubo_cli.control.loop import STOP_SOURCE, LoopResult
 from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.stop_choice import ActiveStops
@@ -358,6 +358,8 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult, t_origin_s: float
     torque_stats = {name: _stats(torque[edge == code]) for code, name in EDGE_NAMES.items()}
     all_torque = log["task_wrist_torque_nm"]
     stops = [e for e in result.safety_events if e[2] == "stop"]
+    if result.interrupt_stop:  # Ctrl-C's stance stop asked the stopper for the operator's stop:
+        stops = [e for e in stops if tuple(e[3]) != (STOP_SOURCE,)]  # an interrupt, no e-stop
     completed = result.ok and target.phase == "settle"  # after a stop: only if resumed
     T_S_W = plan.placement.T_S_W()
     hole_rms = _plane_rms_mm(goal, world)
@@ -400,8 +402,7 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult, t_origin_s: float
                 "resumed_at_t_s": [t_origin_s + t for t in target.resumed_t_s],
                 "held_after_s": None if target.t_held_s is None
                 else t_origin_s + target.t_held_s - t_stop,
-                "wrist_torque_nm": float(np.nanmax(all_torque[~after_stop]))
-                if len(all_torque) else None,
+                "wrist_torque_nm": _nanmax(all_torque[~after_stop]),
                 "wrist_torque_after_nm": _nanmax(all_torque[after_stop])} | _travel_after(
                     log, plan, ~after_stop)
     return {
@@ -426,7 +427,7 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult, t_origin_s: float
         "wrist_torque_nm": torque_stats | {
             "limit": limit,
             "max_while_cutting": float(torque.max()) if len(torque) else None,
-            "max_whole_run": float(np.nanmax(all_torque)) if len(all_torque) else None,
+            "max_whole_run": _nanmax(all_torque),
             "max_after_stop": None if after_stop is None else _nanmax(all_torque[after_stop]),
             "over_limit": bool(len(torque) and torque.max() > limit),
             "paper": PAPER_TORQUE_NM},

@@ -86,7 +86,8 @@ def _write_mcap(foxglove, scene: RunScene, out: str | Path) -> McapResult:
     t_s = scene.t_s
     t_ns = scene.utc_ns()
     q = scene.log.joints("q")
-    dq = np.gradient(q, t_s, axis=0) if len(t_s) > 1 else np.zeros_like(q)
+    with np.errstate(over="ignore", invalid="ignore"):  # a damaged log's 1e308: inf, no warning
+        dq = np.gradient(q, t_s, axis=0) if len(t_s) > 1 else np.zeros_like(q)
     names = list(scene.log.joint_names)
     columns = [msg.transform_columns(WORLD_FRAME, "torso", scene.T_world_torso)]
     columns += [msg.transform_columns(*joint)
