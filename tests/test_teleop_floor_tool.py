@@ -97,7 +97,7 @@ def test_the_receding_horizon_family_rests_on_a_resting_goal_and_predicts_a_stea
     ends on it and beats the one that holds the goal where it is (measured over the second
     half: 0.27 mm, the one period of delay, against 2.2 mm RMS; asserted: below 0.5 mm and
     above 1.5 mm)."""
-    tool = _tool()
+    tool = load_tool("teleop_lag_floor")
     limb = get_limb("right-arm", "hand")
     t = np.arange(0.0, 0.6, 0.005)
     q = np.tile(np.array(FREE_READY_ARM_RAD["right-arm"], dtype=float), (len(t), 1))
