@@ -267,8 +267,8 @@ def numpy_tilt_rad(q):
 
 
 class ReferenceRoom(CollisionRoom):
-    def _distance(self, q_rad, near_m=None):  # as before: every pair within NEAR_M of the room
-        return super()._distance(q_rad)
+    def _distance(self, q_rad, near_m=None, arm=None):  # as before: every pair within NEAR_M
+        return super()._distance(q_rad, arm=arm)        # of the room
 
     def _still(self, arm, q_arm, T_goal):  # as it was
         rested = self._rested.get(arm)
@@ -291,7 +291,7 @@ class ReferenceRoom(CollisionRoom):
             arm = arms[0]
             index = self._index[arm]
             q[index] = q_prev[index]
-            d, pair = self._distance(q)
+            d, pair = self._distance(q, arm=arm)  # the pairs the arm moves
             reach, T_goal = goals[arm]
             T_goal = np.ascontiguousarray(T_goal, float)
             moved.add(arm)
@@ -299,12 +299,14 @@ class ReferenceRoom(CollisionRoom):
                 self.skipped += 1
                 d, pair = self._distance(q)
                 continue
-            q, d, rested = self._search_arm(q, d, pair, index, reach, T_goal)
+            q, d, rested = self._search_arm(q, d, pair, index, reach, T_goal, arm)
             self._rested[arm] = (T_goal, q[index].copy()) if rested else None
             d, pair = self._distance(q)
         return q, d, moved
 
-    def _search_arm(self, q, d, pair, index, reach, T_goal):  # as it was (its gradient the room's)
+    def _search_arm(self, q, d, pair, index, reach, T_goal, arm):
+        # as it was, on the pairs the arm moves (its gradient the room's; no budget: it never
+        # runs out on these streams)
         limb = reach.limb
         base, _, offset, alpha, a, dd, end, _ = limb.chain
         w = np.array([1.0, 1.0, 1.0] + [room_module.ORIENTATION_WEIGHT_M_PER_RAD] * 3)
@@ -325,7 +327,7 @@ class ReferenceRoom(CollisionRoom):
             Jw = J * w[:, None]
             H = Jw.T @ Jw + DAMPING**2 * np.eye(6)
             dq = np.linalg.solve(H, Jw.T @ e)
-            grad = self._gradient(q, d, pair, index)
+            grad = self._gradient(q, d, pair, index, arm)
             need = self.room_m + room_module.AIM_M - d
             if np.all(np.isfinite(grad)) and grad @ dq < need:
                 h_grad = np.linalg.solve(H, grad)
@@ -338,7 +340,7 @@ class ReferenceRoom(CollisionRoom):
             for scale in (1.0, 0.5, 0.25):
                 q_try = q.copy()
                 q_try[index] = np.clip(q[index] + scale * dq, lo, hi)
-                d_try, pair_try = self._distance(q_try)
+                d_try, pair_try = self._distance(q_try, arm=arm)
                 c_try = cost(q_try[index])
                 if d_try >= min(self.room_m, d) and (c_try < c or d < self.room_m <= d_try):
                     q, d, c, pair = q_try, d_try, c_try, pair_try

@@ -276,6 +276,7 @@ class SelfCollisionChecker:
         self.earlier_q = self.anchor_q.copy()
         self.earlier_m = self.anchor_m.copy()
         self._bounds_m = np.empty(len(self.pair_names))
+        self._every_pair = np.ones(len(self.pair_names), dtype=bool)  # check_near's default
         self._near = np.zeros(len(self.pair_names), dtype=bool)  # the active pairs of:
         self._near_data = pin.GeometryData(geom)
         self._near_data.deactivateAllCollisionPairs()
@@ -427,18 +428,22 @@ class SelfCollisionChecker:
         closest = min(self._closest(legs), self._remembered[1:])  # ties: the first pair
         return Clearance(closest[0], self.pair_names[closest[1]])
 
-    def check_near(self, q_rad: np.ndarray, band_m: float) -> Clearance:
+    def check_near(self, q_rad: np.ndarray, band_m: float,
+                   pairs: np.ndarray | None = None) -> Clearance:
         """:meth:`check` computing only the pairs whose Lipschitz lower bound at ``q_rad`` (from
         their last distance here) comes within ``band_m``; the others report their bound. So
         the result equals the exact closest pair's where that is at most ``band_m`` and
-        exceeds ``band_m`` (a lower bound of it) otherwise."""
+        exceeds ``band_m`` (a lower bound of it) otherwise. ``pairs`` (a boolean per pair of
+        :attr:`pair_names`, default all) limits the check to those pairs: the closest of them
+        (inf if none)."""
         if not self.pair_names:
             return Clearance(np.inf, ("", ""))
         bounds, listed, data = self._bounds_m, self._listed, self._near_data
         n_changed, n_near, best = _pair_bounds(q_rad, self.anchor_q, self.anchor_m,
                                                self.earlier_q, self.earlier_m, self.rate_m_rad,
                                                band_m, self.repeatable, bounds, self._near,
-                                               listed)
+                                               listed, self._every_pair if pairs is None
+                                               else pairs)
         if n_changed:  # the near pairs are the active ones of data
             near = self._near
             for p in listed[:n_changed].tolist():
@@ -454,15 +459,18 @@ class SelfCollisionChecker:
                               self.earlier_q, self.earlier_m)
         return Clearance(float(bounds[best]), self.pair_names[best])
 
-    def bound_near(self, q_rad: np.ndarray, band_m: float) -> float:
-        """The distance :meth:`check_near` would return for ``q_rad`` and ``band_m`` when it
-        would compute no pair (every pair's bound beyond ``band_m`` or its distance reused),
-        to the last bit; NaN when it would compute one. Nothing of the checker changes (a
-        reused earlier distance is not made the last one, as :meth:`check_near` makes it)."""
+    def bound_near(self, q_rad: np.ndarray, band_m: float,
+                   pairs: np.ndarray | None = None) -> float:
+        """The distance :meth:`check_near` would return for ``q_rad``, ``band_m`` and ``pairs``
+        when it would compute no pair (every pair's bound beyond ``band_m`` or its distance
+        reused), to the last bit; NaN when it would compute one. Nothing of the checker
+        changes (a reused earlier distance is not made the last one, as :meth:`check_near`
+        makes it)."""
         if not self.pair_names:
             return np.inf
         return _bound_near(q_rad, self.anchor_q, self.anchor_m, self.earlier_q, self.earlier_m,
-                           self.rate_m_rad, band_m, self.repeatable)
+                           self.rate_m_rad, band_m, self.repeatable,
+                           self._every_pair if pairs is None else pairs)
 
     def _closest(self, data: pin.GeometryData) -> tuple[float, int]:
         """(distance, pair index) of the closest active pair of ``data`` at the placements of
@@ -570,14 +578,22 @@ def _pair_bound(p, q, q0, d0, q1, d1, rate, band_m, reuse):
 
 
 @nb.njit(cache=True, nogil=True)
-def _pair_bounds(q, q0, d0, q1, d1, rate, band_m, reuse, bounds, near, changed):
+def _pair_bounds(q, q0, d0, q1, d1, rate, band_m, reuse, bounds, near, changed, taken):
     """Each pair's bound at ``q`` (:func:`_pair_bound`, m, to ``bounds``); ``near`` set to the
     pairs that moved with a bound at most ``band_m``, listing in ``changed`` first the pairs
     whose entry changed, then the near pairs. Returns (how many changed, how many are near,
     the pair of the smallest bound). A pair at its earlier joints swaps its two distances
-    (``q0``, ``d0`` stay the last one used)."""
+    (``q0``, ``d0`` stay the last one used). Only the pairs ``taken`` count: the others are
+    neither bounded nor computed (their entry of ``bounds`` inf, their anchors untouched)."""
     n_changed, best = 0, 0
     for p in range(d0.shape[0]):
+        if not taken[p]:
+            bounds[p] = np.inf
+            if near[p]:
+                near[p] = False
+                changed[n_changed] = p
+                n_changed += 1
+            continue
         bound, moved, earlier = _pair_bound(p, q, q0, d0, q1, d1, rate, band_m, reuse)
         if earlier:  # the earlier joints: the earlier distance, now the last used
             for j in range(q.shape[0]):
@@ -600,11 +616,14 @@ def _pair_bounds(q, q0, d0, q1, d1, rate, band_m, reuse, bounds, near, changed):
 
 
 @nb.njit(cache=True, nogil=True)
-def _bound_near(q, q0, d0, q1, d1, rate, band_m, reuse):
-    """:func:`_pair_bounds`'s bounds at ``q`` without writing anything: their smallest, or NaN
-    as soon as a pair would be computed (moved, its bound at most ``band_m``)."""
+def _bound_near(q, q0, d0, q1, d1, rate, band_m, reuse, taken):
+    """:func:`_pair_bounds`'s bounds at ``q`` (of the pairs ``taken``) without writing
+    anything: their smallest, or NaN as soon as a pair would be computed (moved, its bound at
+    most ``band_m``)."""
     best = np.inf
     for p in range(d0.shape[0]):
+        if not taken[p]:
+            continue
         bound, moved, _ = _pair_bound(p, q, q0, d0, q1, d1, rate, band_m, reuse)
         if moved and bound <= band_m:
             return np.nan
@@ -688,7 +707,8 @@ class CollisionDetector(Module):
                      np.zeros(1), np.zeros((1, self.limits.size)))
         anchors = (np.zeros((1, self.limits.size)), np.zeros(1)) * 2
         _pair_bounds(np.zeros(self.limits.size), *anchors, np.zeros((1, self.limits.size)), 0.0,
-                     False, np.zeros(1), np.zeros(1, dtype=bool), np.zeros(2, dtype=np.int64))
+                     False, np.zeros(1), np.zeros(1, dtype=bool), np.zeros(2, dtype=np.int64),
+                     np.ones(1, dtype=bool))
         _take_near(np.zeros(self.limits.size), np.zeros(1, dtype=np.int64), np.zeros(1),
                    *anchors)
 

@@ -10,21 +10,25 @@ on the URDF's primitives) is replaced.
 With the arms' goals (:meth:`CollisionRoom.keep` given ``goals``), the replacement is the pose
 nearest to the goal among the clear ones, position first: from the last target, a few damped
 least-squares steps toward the goal (orientation weighted ``ORIENTATION_WEIGHT_M_PER_RAD``
-against the position), within the joint limits and the branch's box, each step the one of
-least weighted error whose linearised clearance is the room (a step toward the body slides
-along it, turning the hand where that costs least), accepted when it keeps the room and the
-error falls. A 6-joint arm reaches most positions in front of the chest with its hand turned:
-with the start orientation the upper arm and elbow meet the torso 4-6 cm inward of the
-free-mode ready pose (the shoulder roll moves them in); turned 15-20 deg, they pass outside it.
-Without goals (or when that search ends inside the band), the target is pushed back along the
-closest pair's gradient with respect to the arms' joints (a few Newton steps), and if that
-fails goes as far as it can along its step from the last target (bisection). A target never
-goes deeper into the band than the last one was. The closest pair's gradient comes from coal's
-witness points and normal (one check, exact to GJK's tolerance); where they give none (shapes
-touching, a face against a face) from forward differences of ``DIFF_RAD`` (six checks, each
-computing only the pairs that could come closer than the closest pair can move; a check with
-no such pair, the closest pair not moved by the joint and every other pair's bound beyond the
-band, is answered by the bounds alone:
+against the position), within the joint limits and the branch's box, each step the one of least
+weighted error whose linearised clearance is the room (a step toward the body slides along it,
+turning the hand where that costs least), accepted when it keeps the room and the error falls.
+The arms in the band are searched one after the other, each against the closest of the pairs
+its own joints move (a shape of that arm on either side): a pair the search cannot change, the
+other arm's target deep in the torso, would give every step the same clearance and a zero
+gradient, and let the searched arm into the body down to that depth. Whether the target keeps
+the room is decided on every pair. A 6-joint arm reaches most positions in front of the chest
+with its hand turned: with the start orientation the upper arm and elbow meet the torso 4-6 cm
+inward of the free-mode ready pose (the shoulder roll moves them in); turned 15-20 deg, they
+pass outside it. Without goals (or when that search ends inside the band), the target is pushed
+back along the closest pair's gradient with respect to the arms' joints (a few Newton steps),
+and if that fails goes as far as it can along its step from the last target (bisection). A
+target never goes deeper into the band than the last one was. The closest pair's gradient comes
+from coal's witness points and normal (one check, exact to GJK's tolerance); where they give
+none (shapes touching, a face against a face) from forward differences of ``DIFF_RAD`` (six
+checks, each computing only the pairs that could come closer than the closest pair can move; a
+check with no such pair, the closest pair not moved by the joint and every other pair's bound
+beyond the band, is answered by the bounds alone:
 :meth:`~hubo_cli.control.collision.SelfCollisionChecker.bound_near`, the same distance to the
 last bit). It only shapes the steps: every step taken is checked.
 
@@ -35,7 +39,15 @@ computed before (so the same joints and band asked again in a row are not checke
 An arm whose clear search came to rest (no step left that helps, or its weighted error
 falling by less than ``REST_M`` in a call: creeping along the body) is not
 searched again while its goal stays within ``STILL_GOAL_M`` and ``STILL_GOAL_RAD`` of that goal
-and its last target is still clear; that period takes the check of the last target it made.
+and its last target (its own pairs) is still clear; that period takes the check of the last
+target it made.
+
+The work of a call is bounded: it makes at most ``MAX_CHECKS`` checks (a coal distance pass
+or a witness gradient, each at most every pair: about 40-50 us warm). A search step, a Newton
+step or the bisection starts only if the most it can take leaves two checks for the end; a
+search that runs out goes on the next period (not at rest), and a call that cannot afford
+the bisection holds the arms at the last target, which keeps the room (the bisection's answer
+before its first halving).
 """
 
 from __future__ import annotations
@@ -65,6 +77,10 @@ else:
 ROOM_M = TOLERANCE_M + 0.005  # the detector's band and 5 mm for the command's braking look-ahead
 NEWTON_STEPS = 3
 BISECTIONS = 8
+MAX_CHECKS = 40              # the checks one keep call may make (a witness gradient counts as
+                             # one): see the module docstring
+_END_CHECKS = 2              # ... two kept for the end: the last target's check, the final one
+_TRIES = (1.0, 0.5, 0.25)    # a search step's tries, each one check
 DIFF_RAD = 1e-4              # finite-difference step of the gradient where witness points fail
 DIFF_SLACK_M = 1e-5          # ... its checks' band beyond the closest pair's reach: ten times
                              # coal's GJK tolerance (1e-6 m) on each of two distances
@@ -96,6 +112,8 @@ class CollisionRoom:
         last_clearance_m: the closest pair's distance at the last returned target (m; a lower
             bound of it when it exceeds the room).
         moved: the arms whose targets the last call replaced.
+        short: how many calls ran out of checks (``MAX_CHECKS``: a step not taken);
+            ``held``: how many of them held the arms at the last target.
     """
 
     def __init__(self, model: RobotModel, drill: bool = False, room_m: float = ROOM_M,
@@ -114,6 +132,10 @@ class CollisionRoom:
         if drill and "right-arm" in self.arms:
             self._link_arm["drill"] = "right-arm"
         self._pair_index = {names: k for k, names in enumerate(self.checker.pair_names)}
+        # per arm, the pairs its joints move (a rate for one of its shapes): the only ones its
+        # clear search can change
+        self._arm_pairs = {arm: self.checker.rate_m_rad[:, index].max(axis=1) > 0.0
+                           for arm, index in self._index.items()}
         self._pair_arms: dict[tuple[str, str], tuple[str, ...]] = {}
         self.pushed_periods = dict.fromkeys(self.arms, 0)
         self.moved: set[str] = set()  # the arms the last call moved
@@ -122,6 +144,10 @@ class CollisionRoom:
         self.last_clearance_m = np.inf
         self._last_key: tuple | None = None  # _distance's last check: (joints' bytes, near_m)
         self._last = (np.inf, ("", ""))  # ... and its answer
+        self._checks_left = MAX_CHECKS  # keep's budget (set anew each call)
+        self.short = 0  # keep calls that ran out of checks (a step or the bisection not taken)
+        self.held = 0  # ... of them, those that held the last target (no bisection)
+        self._short = False  # ... this call did
         _compile_kernels()
 
     def _arms_of(self, pair: tuple[str, str]) -> tuple[str, ...]:
@@ -132,14 +158,17 @@ class CollisionRoom:
             found = self._pair_arms[pair] = tuple(dict.fromkeys(a for a in arms if a is not None))
         return found
 
-    def _distance(self, q_rad: np.ndarray, near_m: float = NEAR_M
+    def _distance(self, q_rad: np.ndarray, near_m: float = NEAR_M, arm: str | None = None
                   ) -> tuple[float, tuple[str, str]]:
         """The closest pair's distance (m; exact up to ``room_m + near_m``, a lower bound
         beyond) and names. ``near_m`` 0 computes only the pairs whose bounds come within the
-        room: enough to tell whether a target keeps it (most periods no pair is computed)."""
-        key = (q_rad.tobytes(), near_m)
+        room: enough to tell whether a target keeps it (most periods no pair is computed).
+        With ``arm``, the closest of the pairs that arm's joints move."""
+        key = (q_rad.tobytes(), near_m, arm)
         if key != self._last_key:  # the same joints and band again: nothing would be computed
-            c = self.checker.check_near(q_rad, self.room_m + near_m)
+            self._checks_left -= 1
+            c = self.checker.check_near(q_rad, self.room_m + near_m,
+                                        None if arm is None else self._arm_pairs[arm])
             self._last_key, self._last = key, (c.distance_m, c.pair)
         return self._last
 
@@ -156,6 +185,8 @@ class CollisionRoom:
                 T_N_E 4x4 in the neck frame): search the nearest clear pose to the goal.
         """
         q_next = np.asarray(q_next_rad, dtype=float)
+        self._checks_left = MAX_CHECKS
+        self._short = False
         d, pair = self._distance(q_next, near_m=0.0)
         if d >= self.room_m:
             self.last_clearance_m = d
@@ -173,6 +204,8 @@ class CollisionRoom:
             if not arms:  # the legs alone: nothing an arm target can do
                 break
             index = np.concatenate([self._index[a] for a in arms])
+            if not self._affords(1 + len(index) + 1):  # its gradient and its check
+                break
             grad = self._gradient(q, d, pair, index)
             norm2 = float(grad @ grad)
             if not np.isfinite(norm2) or norm2 < 1e-12:
@@ -190,6 +223,11 @@ class CollisionRoom:
         if d_prev < self.room_m:  # already inside: never deeper than the last target
             best, d_best = (q, d) if d >= d_prev else (q_prev, d_prev)
             return self._done(best, d_best, moved or set(self._arms_of(pair)))
+        moved = {a for a in self.arms if np.any(q_next[self._index[a]] != q_prev[self._index[a]])}
+        if self._checks_left < BISECTIONS + 1:  # out of checks: the last target holds (clear)
+            self._short = True
+            self.held += 1
+            return self._done(q_prev, d_prev, moved)
         lo, hi = 0.0, 1.0  # the furthest clear point of the arms' step from the last target
         for _ in range(BISECTIONS):
             mid = (lo + hi) / 2
@@ -210,20 +248,25 @@ class CollisionRoom:
         moved: set[str] = set()
         for _ in range(len(self.arms)):  # the arms of the closest pair, one after the other
             arms = [a for a in self._arms_of(pair) if a in goals and a not in moved]
-            if d >= self.room_m or not arms:
+            # an arm's search: its two first checks and the last one
+            if d >= self.room_m or not arms or not self._affords(3):
                 break
             arm = arms[0]
             index, sl = self._index[arm], self._slices[arm]
             q[sl] = q_prev[sl]
             d, pair_prev = self._distance(q)
+            # the arm's own pairs (the others it cannot change: the other arm's elbow deep in
+            # the torso leaves every step of this arm's search the same clearance and a zero
+            # gradient)
+            d_arm, pair_arm = self._distance(q, arm=arm)
             reach, T_goal = goals[arm]
             T_goal = np.ascontiguousarray(T_goal, float)
             moved.add(arm)
-            if d >= self.room_m and self._still(arm, q[sl], T_goal):
+            if d_arm >= self.room_m and self._still(arm, q[sl], T_goal):
                 self.skipped += 1
                 pair = pair_prev  # the check just made (repeatable: the same a second time)
                 continue
-            q, d, rested = self._search_arm(q, d, pair_prev, index, reach, T_goal)
+            q, d, rested = self._search_arm(q, d_arm, pair_arm, index, reach, T_goal, arm)
             self._rested[arm] = (T_goal, q[sl].copy()) if rested else None
             d, pair = self._distance(q)
         return q, d, moved
@@ -238,11 +281,13 @@ class CollisionRoom:
         return goal_within(rested[0], T_goal, STILL_GOAL_M, _STILL_GOAL_COS)
 
     def _gradient(self, q: np.ndarray, d: float, pair: tuple[str, str],
-                  index: np.ndarray) -> np.ndarray:
-        """The gradient of the clearance ``d`` at ``q`` (closest pair ``pair``) with respect to
-        the joints ``index`` (m/rad): coal's witness points and normal
+                  index: np.ndarray, arm: str | None = None) -> np.ndarray:
+        """The gradient of the clearance ``d`` at ``q`` (closest pair ``pair``; with ``arm``,
+        of the pairs that arm moves) with respect to the joints ``index`` (m/rad): coal's
+        witness points and normal
         (:meth:`~hubo_cli.control.collision.SelfCollisionChecker.distance_gradient`), or
         where they give none (touching, a face on a face), forward differences of DIFF_RAD."""
+        self._checks_left -= 1
         grad = self.checker.distance_gradient(q, self._pair_index[pair], index)
         if grad is not None:
             return grad
@@ -259,17 +304,19 @@ class CollisionRoom:
             q_d[i] = q[i] + DIFF_RAD
             # where every pair's bound answers (no pair to compute: the closest pair not
             # moved by joint i, the others beyond the band), the check's distance without it
-            d_d = self.checker.bound_near(q_d, band_m)
+            d_d = self.checker.bound_near(q_d, band_m,
+                                          None if arm is None else self._arm_pairs[arm])
             if d_d != d_d:
-                d_d = self._distance(q_d, near_m)[0]
+                d_d = self._distance(q_d, near_m, arm)[0]
             grad[k] = (d_d - d) / DIFF_RAD
             q_d[i] = q[i]
         return grad
 
     def _search_arm(self, q: np.ndarray, d: float, pair: tuple[str, str], index: np.ndarray,
-                    reach, T_goal: np.ndarray) -> tuple[np.ndarray, float, bool]:
-        """A few steps of the clear search for one arm (see the module docstring); returns
-        (joints, clearance, whether it came to rest: no step left that helps)."""
+                    reach, T_goal: np.ndarray, arm: str) -> tuple[np.ndarray, float, bool]:
+        """A few steps of the clear search for one arm (see the module docstring) from ``q``,
+        whose closest pair among those the arm moves is ``pair`` at ``d``; returns (joints,
+        the clearance of the arm's pairs, whether it came to rest: no step left that helps)."""
         limb = reach.limb
         base, _, offset, alpha, a, dd, end, _ = limb.chain
         lo, hi = np.empty(6), np.empty(6)
@@ -282,12 +329,16 @@ class CollisionRoom:
         # rotation error, e *= W, c = e @ e (c decides only: its last bit may differ)
         c = c_start = weighted_error(q_arm, base, offset, alpha, a, dd, end, T_goal, _W, T, J, e)
         for _ in range(SEARCH_STEPS):
+            # its gradient (the witness, or a check per joint) and its tries, then the
+            # search's last check: if not, not at rest (it goes on the next period)
+            if not self._affords(1 + len(index) + len(_TRIES) + 1):
+                return q, d, False
             # the linear algebra as numpy does it (its BLAS and LAPACK calls): the step's last
             # bits, and the ties the search breaks on them, as they were
             Jw = J * _W_ROWS
             H = Jw.T @ Jw + _DAMPED
             dq = _solve(H, Jw.T @ e)
-            grad = self._gradient(q, d, pair, index)
+            grad = self._gradient(q, d, pair, index, arm)
             need = self.room_m + AIM_M - d
             if all_finite(grad):
                 along = grad @ dq
@@ -302,10 +353,10 @@ class CollisionRoom:
             if biggest < 1e-9:
                 return q, d, True
             dq *= min(1.0, MAX_STEP_RAD / biggest)
-            for scale in (1.0, 0.5, 0.25):
+            for scale in _TRIES:
                 q_try = np.empty_like(q)
                 clipped_step(q, first, dq, scale, lo, hi, q_try)  # np.clip(q_arm + scale dq)
-                d_try, pair_try = self._distance(q_try)
+                d_try, pair_try = self._distance(q_try, arm=arm)
                 if not d_try >= min(self.room_m, d):  # deeper (or NaN): no need of its error
                     continue
                 c_try = weighted_error(q_try[first:first + 6], base, offset, alpha, a, dd, end,
@@ -319,9 +370,17 @@ class CollisionRoom:
         # at rest too
         return q, d, math.sqrt(c_start) - math.sqrt(c) < REST_M
 
+    def _affords(self, checks: int) -> bool:
+        """``checks`` more checks leave keep's last ones (:data:`_END_CHECKS`)."""
+        if self._checks_left - checks >= _END_CHECKS:
+            return True
+        self._short = True
+        return False
+
     def _done(self, q: np.ndarray, d: float, moved: set[str]) -> np.ndarray:
         self.last_clearance_m = d
         self.moved = set(moved)
+        self.short += self._short
         for arm in moved:
             self.pushed_periods[arm] += 1
         return q
