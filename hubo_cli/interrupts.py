@@ -53,10 +53,10 @@ from dataclasses import dataclass, field
 from hubo_cli.errors import Terminated
 
 # Ctrl-C first; the others end the process by default (absent on Windows: skipped)
-INTERRUPT_SIGNALS = tuple(getattr(signal, name)
-                          for name in ("SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT")
-                          if hasattr(signal, name))
-_SIGTSTP = getattr(signal, "SIGTSTP", None)
+_BY_NAME = {s.name: s for s in signal.Signals}
+INTERRUPT_SIGNALS = tuple(_BY_NAME[name] for name in ("SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT")
+                          if name in _BY_NAME)
+_SIGTSTP = _BY_NAME.get("SIGTSTP")
 REFUSED_STOP = ("Ctrl-Z ignored: the control loop must not freeze while the robot moves; "
                 "Ctrl-C stops the run")
 

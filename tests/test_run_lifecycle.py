@@ -101,10 +101,17 @@ def test_a_log_that_cannot_start_refuses_the_run(model, tmp_path, monkeypatch):
 
 # ------------------------------------------------------------------ processes
 
+def _default_hangup() -> None:
+    signal.signal(signal.SIGHUP, signal.SIG_DFL)
+
+
 def _start(args: list[str], run_dir: Path, wait_for: str = ROWS_NAME, **kwargs):
-    """Start ``hubo ARGS`` and return it once ``run_dir/wait_for`` exists (the loop runs)."""
+    """Start ``hubo ARGS`` and return it once ``run_dir/wait_for`` exists (the loop runs).
+    Its SIGHUP is the default's whatever the suite inherited (under ``nohup`` a run keeps
+    ignoring hang-ups, by design)."""
     process = subprocess.Popen([str(HUBO), *args], stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True, **kwargs)
+                               stderr=subprocess.PIPE, text=True,
+                               preexec_fn=_default_hangup, **kwargs)
     deadline = time.monotonic() + 120  # start-up is 5-10 s on a loaded 2-core machine
     while not (run_dir / wait_for).exists():
         if process.poll() is not None or time.monotonic() > deadline:
