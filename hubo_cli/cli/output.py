@@ -13,7 +13,9 @@ from rich.console import Console
 from hubo_cli.runs import _jsonable
 
 NO_ESTOP_HELP = ("Turn the soft emergency stopper off (operator key, capture point, wrist "
-                 "torque, stale input); the hard stopper, collision detector and limiter stay.")
+                 "torque, stale input); the hard stopper, collision detector and limiter stay. "
+                 "Refused for a walk (Ctrl-C's stance stop is the operator's): "
+                 "--estop-sources operator keeps only that one.")
 
 console = Console(highlight=False, soft_wrap=True)
 err_console = Console(stderr=True, highlight=False, soft_wrap=True)
