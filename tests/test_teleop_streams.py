@@ -175,9 +175,10 @@ def test_many_generated_streams_meet_issue_34s_accuracy_targets(many_streams):
 HELD_HANDS = {"position": 82, "orientation": 70, "all": 62}
 HELD_STREAMS = 17
 HELD_MEDIANS = {"reachable_position_rms_mm": 3.0, "reachable_orientation_rms_deg": 2.5}
+# Not marked physical: the streams' figures are the same to 5e-12 on both code paths, and on the
+# portable run this test alone would follow the 60 streams again (19 s of the CI run, round 16).
 
 
-@pytest.mark.physical
 def test_many_generated_streams_keep_what_they_meet_of_issue_34s_targets(many_streams):
     """What the run meets of issue 34's accuracy targets, held (the issue's own figure, every
     hand, is the strict expected failure above): the hands within 10 mm, within 3 deg and
