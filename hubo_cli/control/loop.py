@@ -203,6 +203,11 @@ def _merge_info(info: dict, pressed: dict) -> dict:
     return merged
 
 
+def _joined(error: str, more: str) -> str:
+    """``error`` with ``more`` said after it (``; ``), or ``more`` alone."""
+    return f"{error}; {more}" if error else more
+
+
 @dataclass
 class _StanceStop:
     """A phase stopping itself (a walk finishing its step) after an interrupt or a log
@@ -429,7 +434,7 @@ class ControlLoop:
                     cause = take_interrupt()
                     if stance is not None:  # (a log failure's stance: a second event)
                         stance.end(f"braked: {cause} while standing up", t_s)
-                        error = (error + "; " if error else "") + f"interrupted ({cause})"
+                        error = _joined(error, f"interrupted ({cause})")
                         break
                     ended, error = "interrupted", f"interrupted ({cause})"
                     stance = self._stance_stop(t_s)
@@ -506,7 +511,7 @@ class ControlLoop:
                 if self.log is not None and self.log.error and not log_failed:
                     log_failed = True  # control goes on without the log (a full disk)
                     if stance is not None:
-                        error = (error + "; " if error else "") + self.log.error
+                        error = _joined(error, self.log.error)
                     else:
                         ended, error = "log-error", self.log.error
                         stance = self._stance_stop(t_s)
@@ -527,7 +532,7 @@ class ControlLoop:
             cause = interrupt_cause(err)
             if stance is not None:
                 stance.end(f"braked: a second interrupt ({cause})", self.period * self.dt_s)
-                error = (error + "; " if error else "") + f"second interrupt ({cause})"
+                error = _joined(error, f"second interrupt ({cause})")
             else:
                 ended, error = "interrupted", f"interrupted ({cause})"
             exc = err
@@ -540,20 +545,19 @@ class ControlLoop:
                 self._smooth_stop()
         except KeyboardInterrupt:
             self._count_a_logged_period()
-            error = (error + "; " if error else "") + "second Ctrl-C: stopped without the ramp"
+            error = _joined(error, "second Ctrl-C: stopped without the ramp")
             if ended in ("finished", "done"):
                 ended = "interrupted"
         finally:
             meanwhile = loop_given_back(handlers)  # (signals after the first, not Ctrl-C)
             if meanwhile:
-                error = (error + "; " if error else "") + (
-                    f"{', '.join(meanwhile)} during the stop, which went on")
+                error = _joined(error, f"{', '.join(meanwhile)} during the stop, which went on")
             loop_ended()  # an interrupt from here on waits until the run's files are whole
             driver.stop()
             if self.log is not None:
                 self.log.close()
                 if self.log.error and not log_failed:  # the CSV at close (said once)
-                    error = (error + "; " if error else "") + self.log.error
+                    error = _joined(error, self.log.error)
                     if ended in ("finished", "done"):
                         ended = "log-error"
         self.module_status = self._published()

@@ -21,10 +21,10 @@ from pathlib import Path
 import numpy as np
 
 from hubo_cli.control.estop import RELIEVE_SOURCES
-from hubo_cli.control.loop import STOP_SOURCE, LoopResult
+from hubo_cli.control.loop import LoopResult
 from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
-from hubo_cli.control.stop_choice import ActiveStops
+from hubo_cli.control.stop_choice import STOP_SOURCE, ActiveStops
 from hubo_cli.errors import InputError, SafetyError, quoted
 from hubo_cli.interrupts import run_files
 from hubo_cli.model import RobotModel, load_model

@@ -306,7 +306,7 @@ class CollisionRoom:
             # moved by joint i, the others beyond the band), the check's distance without it
             d_d = self.checker.bound_near(q_d, band_m,
                                           None if arm is None else self._arm_pairs[arm])
-            if d_d != d_d:
+            if math.isnan(d_d):
                 d_d = self._distance(q_d, near_m, arm)[0]
             grad[k] = (d_d - d) / DIFF_RAD
             q_d[i] = q[i]
