@@ -340,6 +340,17 @@ def _hole_in_wall_frame(log, offset_world_m: np.ndarray | None,
     return np.asarray(points, dtype=float) - offset_world_m - T_S_W[:3, 3]
 
 
+def estop_latches(result: LoopResult) -> list:
+    """The run's e-stop latches (``safety_events`` of kind ``stop``), without the one an
+    interrupt's stance stop asked of the stopper (its operator source, from the interrupt's
+    time on: Ctrl-C is no e-stop); the operator's own stops before it are kept."""
+    stops = [e for e in result.safety_events if e[2] == "stop"]
+    if not result.interrupt_stop:
+        return stops
+    return [e for e in stops
+            if tuple(e[3]) != (STOP_SOURCE,) or e[1] < result.interrupt_t_s - 1e-9]
+
+
 def summarise(plan: Plan, target: TaskTarget, done: RunResult, t_origin_s: float = 0.0) -> dict:
     """The task's own summary fields; also draws the plots into the run folder.
     ``t_origin_s``: the run's time at which the task target's own clock starts (a walk to the
@@ -357,9 +368,7 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult, t_origin_s: float
     torque = np.array(target.cut_torque_nm)
     torque_stats = {name: _stats(torque[edge == code]) for code, name in EDGE_NAMES.items()}
     all_torque = log["task_wrist_torque_nm"]
-    stops = [e for e in result.safety_events if e[2] == "stop"]
-    if result.interrupt_stop:  # Ctrl-C's stance stop asked the stopper for the operator's stop:
-        stops = [e for e in stops if tuple(e[3]) != (STOP_SOURCE,)]  # an interrupt, no e-stop
+    stops = estop_latches(result)
     completed = result.ok and target.phase == "settle"  # after a stop: only if resumed
     T_S_W = plan.placement.T_S_W()
     hole_rms = _plane_rms_mm(goal, world)
