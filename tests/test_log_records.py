@@ -175,6 +175,41 @@ def test_a_record_not_yet_counted_is_left_out(tmp_path):
     assert len(load_log(tmp_path)) == 40
 
 
+def test_a_killed_run_in_a_folder_it_cannot_write_is_read_from_its_records(tmp_path,
+                                                                          monkeypatch):
+    """A killed run's folder that cannot be written (read-only; the test makes every
+    ``open`` for writing there fail with EACCES, as chmod would for any user but root):
+    load_log reads the records as they are, writes nothing (main failed: PermissionError),
+    says why, and gives the numbers the finished log gives."""
+    import builtins
+    import errno
+
+    from hubo_cli.control import log as log_module
+
+    log = _write(tmp_path, _rows(40))
+    log._map.close()
+    log._rows_file.close()  # the process's end releases the writer's lock
+
+    def read_only(file, mode="r", *args, **kwargs):
+        if "r" not in mode or "+" in mode:
+            raise PermissionError(errno.EACCES, "Permission denied", str(file))
+        return builtins.open(file, mode, *args, **kwargs)
+
+    before = sorted(p.name for p in tmp_path.iterdir())
+    monkeypatch.setattr(log_module, "open", read_only, raising=False)
+    unfinished = load_log(tmp_path)
+    monkeypatch.undo()
+    assert sorted(p.name for p in tmp_path.iterdir()) == before  # nothing written or removed
+    assert "log.rows" in unfinished.unfinished and "Permission denied" in unfinished.unfinished
+    finished = load_log(tmp_path)  # writable again: the usual CSV
+    assert not finished.unfinished and (tmp_path / LOG_NAME).exists()
+    assert unfinished.flags == finished.flags and len(unfinished) == 40
+    assert unfinished.joint_names == finished.joint_names == JOINTS
+    assert unfinished.columns.keys() == finished.columns.keys()
+    for name, values in finished.columns.items():  # to the CSV's digits (6 for the timings)
+        np.testing.assert_allclose(unfinished[name], values, rtol=1e-5, err_msg=name)
+
+
 def test_the_log_of_a_run_still_going_is_left_alone(tmp_path):
     """Reading a run folder while its run still writes (the writer holds its records' lock)
     is refused with a one-line error, and the records stay for the writer to finish; once it

@@ -361,3 +361,24 @@ def test_cutting_too_fast_trips_the_wrist_torque_stop_which_relieves_the_wrist(t
     cmd = log.joints("cmd")[:, arm]
     held = log["t_s"] > stop["t_s"] + 0.6
     assert np.abs(np.diff(cmd[held], axis=0)).max() < 1e-9   # and holding still
+
+
+def test_an_operator_stop_before_an_interrupt_stays_in_the_summary():
+    """Space in the approach walk, then Ctrl-C while it finishes its step: the interrupt's
+    stance stop asks the stopper for the operator's stop too, and only that latch is the
+    interrupt's. Measured (a 1.2 m approach, space at 2.0 s, SIGINT 0.25 s later): main
+    reported ``estop: null``, the operator's latch dropped."""
+    from hubo_cli.control.loop import LoopResult
+    from hubo_cli.tasks.runner import estop_latches
+
+    key = ("estop", 1.995, "stop", ("operator",))
+    events = [key, ("estop", 1.995, "finish", ()),
+              ("estop", 3.0, "stop", ("capture-point",))]
+    interrupted = LoopResult("interrupted", 600, 3.0, safety_events=events,
+                             interrupt_stop="stood", interrupt_stop_s=1.5, interrupt_t_s=2.245)
+    assert estop_latches(interrupted) == [key, events[2]]
+    # the interrupt's own request of the operator stop, on a stopper that had not latched
+    own = LoopResult("interrupted", 600, 3.0, safety_events=[("estop", 2.245, "stop",
+                                                              ("operator",))],
+                     interrupt_stop="stood", interrupt_stop_s=1.5, interrupt_t_s=2.245)
+    assert estop_latches(own) == []

@@ -5,9 +5,10 @@ from __future__ import annotations
 import dataclasses
 
 import click
+from rich.markup import escape
 
 from hubo_cli.cli.options import force_option
-from hubo_cli.cli.output import busy, console, print_json
+from hubo_cli.cli.output import busy, console, err_console, print_json
 
 
 @click.command("export")
@@ -41,6 +42,10 @@ def export(run, rrd, mcap, force, as_json) -> None:
         for path, option, other in ((rrd, "--rrd", mcap), (mcap, "--mcap", rrd)))
     scene = load_scene(run)
     report: dict = {"run_dir": str(scene.run_dir), "periods": len(scene)}
+    if scene.log.unfinished:  # a killed run in a folder it cannot write: nothing written there
+        report["log_unfinished"] = scene.log.unfinished
+        if not as_json:
+            err_console.print(escape(scene.log.unfinished), soft_wrap=True)
     if rrd_out is not None:
         from hubo_cli.viz.rerun_export import export_rrd
 

@@ -346,10 +346,25 @@ def _finish(ctx: click.Context, done, as_json: bool, printer) -> None:
     else:
         printer()
     report_interrupt_stop(done.summary)
+    report_path_miss(done.summary)
     if loop.ended == "interrupted":
         ctx.exit(EXIT_INTERRUPTED)
     if done.summary.get("completed") is False:
         ctx.exit(EXIT_NOT_COMPLETED)
+
+
+def report_path_miss(summary: dict) -> None:
+    """One line on stderr when the outcome check failed the cut: the measured bit's miss,
+    the limit and what to check (the run exits 1, not completed)."""
+    outcome = summary.get("path_outcome")
+    if (not outcome or not outcome["missed"] or summary["estop"] or summary["ended"] != "done"
+            or summary.get("finished_by_operator")):
+        return  # (a run stopped otherwise says why already)
+    err_console.print(f"[red]not completed:[/] the measured bit missed its path by "
+                      f"{outcome['path_rms_mm']:.1f} mm RMS while cutting (limit "
+                      f"{outcome['limit_mm']:g} mm): check that the joints follow (log.csv's "
+                      "tracking-error flag), the tool's mounting and what pushed the bit",
+                      soft_wrap=True)
 
 
 def _refuse(ctx: click.Context, plan, as_json: bool) -> None:
@@ -418,8 +433,10 @@ def _print_cut(summary: dict, run_dir) -> None:
     from hubo_cli.cli.safety_view import balance_summary_line
 
     stance = summary["stance"]
+    missed = (summary.get("path_outcome") or {}).get("missed")
     why = ("emergency stop" if summary["estop"] else "finished by the operator: q"
-           if summary.get("finished_by_operator") else summary["ended"])
+           if summary.get("finished_by_operator") else "the bit missed its path"
+           if missed and summary["ended"] == "done" else summary["ended"])
     outcome = "completed" if summary["completed"] else f"[red]did not complete[/] ({why})"
     console.print(f"{escape(shown_name(summary['task']))} {outcome} after "
                   f"{summary['duration_s']:.1f} s "

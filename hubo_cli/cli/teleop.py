@@ -8,6 +8,7 @@ import math
 import click
 import numpy as np
 from rich.console import Group
+from rich.markup import escape
 from rich.table import Table
 
 from hubo_cli.cli.checks import check_baud, check_seconds
@@ -353,6 +354,20 @@ def _run(settings, as_json: bool, recording=None):
             state["view"].stop()
 
 
+def report_stale_input(summary: dict) -> None:
+    """One line on stderr when a hand's input was stale during the run (a tracker silent or
+    sending garbage, a gap in a recording): for how long, the longest span and where. The
+    hands held meanwhile, as designed, so the run's exit code is not changed by it."""
+    stale = summary.get("stale_input")
+    if not stale:
+        return
+    err_console.print(f"[yellow]input stale for {stale['total_s']:.2f} s[/] in "
+                      f"{stale['spans']} span{'s' if stale['spans'] > 1 else ''} (the longest "
+                      f"{stale['longest_s']:.2f} s from t = {stale['longest_from_s']:.2f} s): "
+                      f"nothing usable came from {escape(summary['input'])} then (silent or "
+                      "garbled) and the hands held", soft_wrap=True)
+
+
 def _report(run, as_json: bool, video: bool = False) -> None:
     """Print the summary; a run that failed in substance ends with a warning and exit 1 or 2."""
     from hubo_cli.cli.output import warn
@@ -401,6 +416,7 @@ def _report(run, as_json: bool, video: bool = False) -> None:
     if summary["error"] and not as_json:
         err_console.print(f"[yellow]{summary['error']}[/]")
     report_interrupt_stop(summary)
+    report_stale_input(summary)
     if not run.loop.ok:
         raise SystemExit(EXIT_INTERRUPTED if run.loop.ended == "interrupted"
                          else EXIT_NOT_COMPLETED)

@@ -128,20 +128,14 @@ def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | No
         if result.touchdowns_early:
             console.print(f"pushed down       {result.touchdowns_early} swing(s) ended where "
                           "the foot touched the floor early")
-        cut_short = result.ended == "interrupted" and result.interrupt_stop != "stood"
-        if result.interrupt_stop == "stood":
-            console.print("ended             interrupted: the step finished, standing in "
-                          "double support")
-        elif result.ended == "interrupted" and not result.steps:  # no plan: never started
-            console.print("ended             interrupted before the walk started")
-        elif result.ended == "interrupted":
-            console.print("ended             interrupted: braked to a stop before the goal"
-                          + (f" ({result.interrupt_stop})" if result.interrupt_stop else ""))
+        ended = _interrupted_words(result)
+        if ended is not None:
+            console.print(f"ended             {ended}")
         console.print(f"fell              {'YES' if result.fell else 'no'}")
         speed = result.average_speed_m_s
-        if cut_short:  # the plan's steps, not those taken
+        if result.ended == "interrupted" and result.interrupt_stop != "stood":  # cut short
             console.print(f"steps             {result.steps} planned, the run ended before "
-                          "the walk did")
+                          "the walk did")  # the plan's steps, not those taken
         else:
             console.print(f"steps             {result.steps} in {result.walking_s:.2f} s"
                           + ("" if speed is None else f" ({speed:.3f} m/s)"))
@@ -161,3 +155,17 @@ def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | No
         raise result.failure
     if result.fell or result.stopped_s is not None:  # fell, or stopped short of the goal
         raise SystemExit(1)
+
+
+def _interrupted_words(result) -> str | None:
+    """How an interrupted walk ended, for the report's ``ended`` line (None: it was not):
+    its step finished into a stance (also after a log failure), never started (no plan), or
+    braked short of the goal (with the stance stop's outcome, if one was asked)."""
+    if result.interrupt_stop == "stood":
+        return "interrupted: the step finished, standing in double support"
+    if result.ended != "interrupted":
+        return None
+    if not result.steps:
+        return "interrupted before the walk started"
+    return ("interrupted: braked to a stop before the goal"
+            + (f" ({result.interrupt_stop})" if result.interrupt_stop else ""))

@@ -549,8 +549,14 @@ def recover_log(path: str | Path) -> bool:
 
 def _recover(rows_path: Path, flags_path: Path, csv_path: Path, meta_path: Path,
              parquet_path: Path) -> bool:
-    """:func:`recover_log`'s work, with the record file locked."""
-    rows = _csv_from_rows(rows_path, flags_path, csv_path)
+    """:func:`recover_log`'s work, with the record file locked. A CSV it could not write
+    whole (a read-only folder, a full disk) is not left behind."""
+    try:
+        rows = _csv_from_rows(rows_path, flags_path, csv_path)
+    except OSError:
+        with contextlib.suppress(OSError):
+            csv_path.unlink(missing_ok=True)
+        raise
     sidecar = json.loads(meta_path.read_text(encoding="utf-8")) if meta_path.exists() else {}
     metadata = sidecar.pop("metadata", {})
     write_log_parquet(_read_csv(csv_path), parquet_path, sidecar)
@@ -589,6 +595,8 @@ class LogData:
         started_utc: when the run started (UTC, ISO 8601), from the sidecar; None for logs
             written before it was recorded.
         hubo_cli_version: the hubo-cli that wrote the log (None, likewise).
+        unfinished: "" for a finished log; for a killed run's records that could not be
+            made into its CSV (a read-only folder), one line saying so and why.
     """
 
     columns: dict[str, np.ndarray]
@@ -597,6 +605,7 @@ class LogData:
     metadata: dict = field(default_factory=dict)
     started_utc: str | None = None
     hubo_cli_version: str | None = None
+    unfinished: str = ""
 
     def __getitem__(self, name: str) -> np.ndarray:
         return self.columns[name]
@@ -640,13 +649,18 @@ def load_log(path: str | Path) -> LogData:
 
     A run folder is read from ``log.parquet`` when the run closed its log, else from
     ``log.csv``; the sidecar's metadata comes along where there is one. A log whose process
-    died before closing it (``log.rows`` still there) is finished first (:func:`recover_log`).
+    died before closing it (``log.rows`` still there) is finished first (:func:`recover_log`);
+    where its folder cannot be written (read-only, a full disk) the records are read as they
+    are, nothing written, and :attr:`LogData.unfinished` says why.
     """
     import polars as pl
 
     path = Path(path)
-    recover_log(path)
     csv_path, meta_path, parquet_path = log_paths(path)
+    try:
+        recover_log(path)
+    except OSError as exc:
+        return _unfinished_log(csv_path, meta_path, _os_reason(exc))
     use_parquet = path.suffix == ".parquet" or (path.is_dir() and parquet_path.exists())
     source = parquet_path if use_parquet else csv_path
     sidecar = _read_sidecar(meta_path)  # first: a newer format is refused before it is parsed
@@ -664,6 +678,21 @@ def load_log(path: str | Path) -> LogData:
     joints = tuple(n[4:-4] for n in frame.columns if n.startswith("cmd_") and n.endswith("_rad"))
     return LogData(columns, flags, joints, sidecar.get("metadata", {}),
                    sidecar.get("started_utc"), sidecar.get("hubo_cli_version"))
+
+
+def _unfinished_log(csv_path: Path, meta_path: Path, reason: str) -> LogData:
+    """A killed run's log read from its records (``log.rows``, ``log.flags``) where its CSV
+    could not be written: ``reason`` why."""
+    layout, table, flag_texts = read_rows(*_record_paths(csv_path))
+    sidecar = _read_sidecar(meta_path)
+    names = [n for n in layout["columns"] if n != "flags"]
+    columns = {name: table[:, i] for i, name in enumerate(names)}
+    joints = tuple(n[4:-4] for n in names if n.startswith("cmd_") and n.endswith("_rad"))
+    return LogData(columns, [t.split(";") if t else [] for t in flag_texts], joints,
+                   sidecar.get("metadata", {}), sidecar.get("started_utc"),
+                   sidecar.get("hubo_cli_version"),
+                   unfinished=f"{csv_path.parent}: its log was read from log.rows, not made "
+                              f"into log.csv ({reason})")
 
 
 def _read_sidecar(path: Path) -> dict:

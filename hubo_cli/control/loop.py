@@ -137,6 +137,8 @@ class LoopResult:
             ``ended: <how>`` (the run ended meanwhile: the target's done, an error); "" when
             no such stop was asked for.
         interrupt_stop_s: loop time from that request to its end (s; NaN without one).
+        interrupt_t_s: loop time of that request (s; NaN without one): the stopper's
+            ``operator`` latches from then on are the interrupt's, not the operator's key.
         log_periods_dropped: periods run after the log failed, not in it.
         log_error: the log's failure (a full disk), "" when it was written whole; also said
             in ``error``, whether it ended the run (``log-error``) or came during an
@@ -159,6 +161,7 @@ class LoopResult:
     module_status: dict[str, object] = field(default_factory=dict)
     interrupt_stop: str = ""
     interrupt_stop_s: float = float("nan")
+    interrupt_t_s: float = float("nan")
     log_periods_dropped: int = 0
     log_error: str = ""
 
@@ -574,6 +577,7 @@ class ControlLoop:
             interrupt_stop="" if stance is None else stance.outcome,
             interrupt_stop_s=math.nan if stance is None else stance.took_s(self.period
                                                                             * self.dt_s),
+            interrupt_t_s=math.nan if stance is None else stance.t_start_s,
             log_periods_dropped=max(dropped, 0),
             log_error=self.log.error if self.log is not None else "")
 

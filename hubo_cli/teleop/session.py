@@ -344,6 +344,24 @@ def _reached_exactly(body: WholeBody, path: PosePath, samples: int = 12) -> bool
     return True
 
 
+def stale_spans(log, t_origin_s: float = 0.0) -> dict | None:
+    """How long a driven hand's input was stale (flag ``stale-input``: nothing usable came,
+    a silent or garbled tracker, a gap in a recording) while the hands held: the total, the
+    spans and the longest one, on the target's clock (the run's less ``t_origin_s``; s); None
+    when it never was."""
+    stale = np.array(["stale-input" in f for f in log.flags], dtype=bool)
+    if not stale.any():
+        return None
+    t_s = np.asarray(log["t_s"], dtype=float) - t_origin_s
+    dt_s = float(np.median(np.diff(t_s))) if len(t_s) > 1 else 0.0
+    edges = np.diff(np.concatenate([[0], stale.astype(np.int8), [0]]))
+    starts, ends = np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]
+    lengths_s = (ends - starts) * dt_s
+    longest = int(np.argmax(lengths_s))
+    return {"total_s": float(stale.sum() * dt_s), "spans": len(starts),
+            "longest_s": float(lengths_s[longest]), "longest_from_s": float(t_s[starts[longest]])}
+
+
 def summarise(settings: TeleopSettings, target: TeleopTarget, done: RunResult,
               source: InputDevice, scene: dict, t_origin_s: float = 0.0) -> dict:
     """The session's own summary fields; also draws the path plots into the run folder.
@@ -387,6 +405,7 @@ def summarise(settings: TeleopSettings, target: TeleopTarget, done: RunResult,
         "samples_used": target.samples_used,
         "samples_rejected": target.mapper.rejected,
         "input_stats": source.stats(),
+        "stale_input": stale_spans(done.log, t_origin_s),
         "input_info": source.info,
         "scene": target.scene,
     }

@@ -447,8 +447,8 @@ def load_scene(run: str | Path, model: RobotModel | None = None) -> RunScene:
     arm = working_arm(tools, log.columns)
     tool_world = _tool_world(model, log, T, arm, tools[arm])
     hole = np.asarray(scene_meta.get("hole_world_m", []), dtype=float).reshape(-1, 3)
-    log_file = next(f for f in (run_dir / "log.parquet", run_dir / "log.csv", path)
-                    if f.is_file())
+    log_file = next(f for f in (run_dir / "log.parquet", run_dir / "log.csv",
+                                run_dir / "log.rows", path) if f.is_file())
     start_ns, start_source = _start_utc(log, log_file)
     return RunScene(run_dir, log, model, T, estimated, tools, arm, tool_world,
                     _goal_world(log, arm, tool_world), list(scene_meta.get("walls", [])), hole,
