@@ -56,7 +56,7 @@ import math
 
 import numpy as np
 
-from hubo_cli.control.collision import TOLERANCE_M, SelfCollisionChecker
+from hubo_cli.control.collision import SAMPLE_RAD, TOLERANCE_M, SelfCollisionChecker
 from hubo_cli.kinematics.reach import DAMPING, MAX_STEP_RAD, branch_box
 from hubo_cli.model import ARMS, RobotModel
 from hubo_cli.motion.limits import all_finite
@@ -91,6 +91,7 @@ REST_M = 0.0001              # a search call cutting its weighted error less: at
 STILL_GOAL_M = 0.0005       # a goal this close (and STILL_GOAL_RAD) to the one a clear search
 STILL_GOAL_RAD = np.radians(0.5)  # came to rest at is not searched again
 _STILL_GOAL_COS = np.cos(STILL_GOAL_RAD)
+LEAD_RAD = SAMPLE_RAD  # a searched arm's target leads its command by at most this (each joint)
 NEAR_M = 0.05  # distances are exact up to the room and this much more, lower bounds beyond
 # (the checker's Lipschitz bounds skip the pairs that cannot be that close)
 _W = np.array([1.0, 1.0, 1.0] + [ORIENTATION_WEIGHT_M_PER_RAD] * 3)  # the search's weights
@@ -148,6 +149,7 @@ class CollisionRoom:
         self.short = 0  # keep calls that ran out of checks (a step or the bisection not taken)
         self.held = 0  # ... of them, those that held the last target (no bisection)
         self._short = False  # ... this call did
+        self.led = 0  # searched targets brought back to LEAD_RAD from the arm's command
         _compile_kernels()
 
     def _arms_of(self, pair: tuple[str, str]) -> tuple[str, ...]:
@@ -177,12 +179,15 @@ class CollisionRoom:
         return self._distance(np.asarray(q_rad, dtype=float), near_m=0.0)[0] >= self.room_m
 
     def keep(self, q_prev_rad: np.ndarray, q_next_rad: np.ndarray,
-             goals: dict | None = None) -> np.ndarray:
+             goals: dict | None = None, commanded: dict | None = None) -> np.ndarray:
         """The target to use instead of ``q_next_rad`` (24 joints, rad) after ``q_prev_rad``.
 
         Args:
             goals: arm -> (its :class:`~hubo_cli.kinematics.arm_reach.ArmReach`, its goal
                 T_N_E 4x4 in the neck frame): search the nearest clear pose to the goal.
+            commanded: arm -> its commanded joints (6, rad; the trajectory generator's): an
+                arm the search moves gets a target on the straight way from there toward the
+                searched one, at most ``LEAD_RAD`` ahead (see the module docstring).
         """
         q_next = np.asarray(q_next_rad, dtype=float)
         self._checks_left = MAX_CHECKS
@@ -196,6 +201,8 @@ class CollisionRoom:
             q, d_q, moved = self._clear_search(np.asarray(q_prev_rad, dtype=float), q_next, goals,
                                                d, pair)
             if d_q >= self.room_m:
+                if commanded:
+                    q, d_q = self._led_from_command(q, d_q, moved, commanded)
                 return self._done(q, d_q, moved)
         q = q_next.copy()
         moved = set()
@@ -270,6 +277,28 @@ class CollisionRoom:
             self._rested[arm] = (T_goal, q[sl].copy()) if rested else None
             d, pair = self._distance(q)
         return q, d, moved
+
+    def _led_from_command(self, q: np.ndarray, d: float, moved: set[str],
+                          commanded: dict) -> tuple[np.ndarray, float]:
+        """The searched targets ``q`` (clearance ``d``, the room kept) with each moved arm's
+        target more than ``LEAD_RAD`` from its command (``commanded``) brought back along the
+        straight way from the command to it, ``LEAD_RAD`` from the command, if that keeps
+        the room (else as searched). Returns (joints, their clearance)."""
+        for arm in self.arms:
+            if arm not in moved or arm not in commanded:
+                continue
+            sl = self._slices[arm]
+            q_cmd = np.asarray(commanded[arm], dtype=float)
+            lead = max_abs_difference(q[sl], q_cmd)
+            if not lead > LEAD_RAD or not self._affords(1):  # (a NaN command: as searched)
+                continue
+            q_led = q.copy()
+            q_led[sl] = q_cmd + (LEAD_RAD / lead) * (q[sl] - q_cmd)
+            d_led = self._distance(q_led, near_m=0.0)[0]
+            if d_led >= self.room_m:
+                q, d = q_led, d_led
+                self.led += 1
+        return q, d
 
     def _still(self, arm: str, q_arm: np.ndarray, T_goal: np.ndarray) -> bool:
         """The arm's last search came to rest at ``q_arm`` for a goal within STILL_GOAL_M and
