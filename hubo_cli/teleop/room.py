@@ -42,6 +42,19 @@ searched again while its goal stays within ``STILL_GOAL_M`` and ``STILL_GOAL_RAD
 and its last target (its own pairs) is still clear; that period takes the check of the last
 target it made.
 
+An arm the search moves, given its commanded joints (the trajectory generator's, lagging
+behind the target at the joints' speed limits), gets a target at most ``LEAD_RAD`` (0.05 rad,
+the detector's own sampling step along a way) from its command, on the straight joint-space
+way from the command toward the searched pose, if that keeps the room; the teleop target
+tracks such an arm phase synchronised, so the command goes along that short chord. The
+searched pose slides round the body faster than the arm can follow (0.6-0.8 rad/s of its
+joints on generated seed 3409); tracked unsynchronised 0.2 rad behind it, the command's way
+cut inside the band and the detector's braking look-ahead along it held the arms. On a short
+chord between two clear postures, stopped before its end (the tracker can stop at its
+target at the limits the detector brakes at), the look-ahead keeps about the clearance of
+its ends. ``searched`` keeps the searched pose of such an arm for the call (what the target
+is on its way to).
+
 The work of a call is bounded: it makes at most ``MAX_CHECKS`` checks (a coal distance pass
 or a witness gradient, each at most every pair: about 40-50 us warm). A search step, a Newton
 step or the bisection starts only if the most it can take leaves two checks for the end; a
@@ -115,6 +128,9 @@ class CollisionRoom:
         moved: the arms whose targets the last call replaced.
         short: how many calls ran out of checks (``MAX_CHECKS``: a step not taken);
             ``held``: how many of them held the arms at the last target.
+        led: how many searched targets were brought back to ``LEAD_RAD`` from their arm's
+            command; ``searched``: the last call's searched poses of those arms (arm -> 6
+            joints, rad).
     """
 
     def __init__(self, model: RobotModel, drill: bool = False, room_m: float = ROOM_M,
@@ -150,6 +166,7 @@ class CollisionRoom:
         self.held = 0  # ... of them, those that held the last target (no bisection)
         self._short = False  # ... this call did
         self.led = 0  # searched targets brought back to LEAD_RAD from the arm's command
+        self.searched: dict[str, np.ndarray] = {}  # ... the last call's: arm -> its joints
         _compile_kernels()
 
     def _arms_of(self, pair: tuple[str, str]) -> tuple[str, ...]:
@@ -192,6 +209,7 @@ class CollisionRoom:
         q_next = np.asarray(q_next_rad, dtype=float)
         self._checks_left = MAX_CHECKS
         self._short = False
+        self.searched = {}
         d, pair = self._distance(q_next, near_m=0.0)
         if d >= self.room_m:
             self.last_clearance_m = d
@@ -296,6 +314,7 @@ class CollisionRoom:
             q_led[sl] = q_cmd + (LEAD_RAD / lead) * (q[sl] - q_cmd)
             d_led = self._distance(q_led, near_m=0.0)[0]
             if d_led >= self.room_m:
+                self.searched[arm] = q[sl].copy()
                 q, d = q_led, d_led
                 self.led += 1
         return q, d

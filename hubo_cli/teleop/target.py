@@ -671,7 +671,8 @@ class TeleopTarget(Target):
             for arm in self.room.moved & set(self.hands):  # the clear pose is what is reached
                 reach, T_N_goal = solved[arm]
                 hand = self.hands[arm]
-                T_clear = reach.limb.fk(q[self.slices[arm]])
+                # (the searched pose: a target led from the command is on its way there)
+                T_clear = reach.limb.fk(self.room.searched.get(arm, q[self.slices[arm]]))
                 pos, rot = pose_error(T_clear, T_N_goal)
                 hand.position_error_m, hand.rotation_error_rad = float(pos), float(rot)
                 hand.reachable = (pos <= REACHABLE_POSITION_M
