@@ -694,10 +694,11 @@ def test_the_collision_room_gives_the_same_targets_to_the_last_bit(monkeypatch):
     inputs = []
     keep = CollisionRoom.keep
 
-    def recorded(self, q_prev, q_next, goals=None):
+    def recorded(self, q_prev, q_next, goals=None, commanded=None):
+        # (the search compared below; the lead from the command after it is not mirrored)
         inputs.append((np.array(q_prev, dtype=float), np.array(q_next, dtype=float),
                        {a: (r, np.array(T)) for a, (r, T) in (goals or {}).items()}))
-        return keep(self, q_prev, q_next, goals)
+        return keep(self, q_prev, q_next, goals, commanded)
 
     with monkeypatch.context() as patch:
         patch.setattr(CollisionRoom, "keep", recorded)

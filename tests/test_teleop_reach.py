@@ -635,6 +635,65 @@ def test_collision_room_holds_the_last_target_when_its_checks_run_out(monkeypatc
     assert clearance.min() >= ROOM_M - 1e-4
 
 
+@pytest.mark.physical
+def test_a_hand_the_room_moves_keeps_the_detectors_look_ahead_out_of_its_band(tmp_path):
+    """The right hand's goal moves 12 cm inward in 0.6 s (its exact IK into the torso), then
+    10 cm down in 0.8 s: the collision room slides the arm's target round the body. The
+    pipeline's detector holds the arms when the command, or its way to where it would stop if
+    it braked now, comes within 10 mm of the body (computed here as the detector does, from
+    the trajectory generator's state each period). Before round 17 the target slid up to 0.2
+    rad ahead of the lagging command, whose unsynchronised way cut inside the band: 7.9 mm,
+    a hold (seed 3409 held twice so). Now the target leads the command by at most
+    room.LEAD_RAD on the straight way toward the searched pose, tracked phase synchronised:
+    21.7 mm (bound 12.5 mm)."""
+    import math
+
+    from hubo_cli.control.collision import (
+        MAX_SAMPLES,
+        SAMPLE_RAD,
+        TOLERANCE_M,
+        SelfCollisionChecker,
+    )
+    from hubo_cli.control.keys import TRACKER_STATES
+    from hubo_cli.input.opener import open_input
+    from hubo_cli.motion.limits import braking_distance
+    from hubo_cli.teleop.stream_runs import follow_input
+
+    def offset(arm, t):
+        if arm != "right-arm":
+            return np.zeros(3)
+        return np.array([0.0, 0.12 * _min_jerk((t - 0.2) / 0.6),
+                         0.10 * _min_jerk((t - 0.8) / 0.8)])
+
+    model = load_model()
+    checker = SelfCollisionChecker(model)
+    sl = model.limb_slice("right-arm")
+    ahead = []
+
+    def look_ahead(target, t_s):
+        states = target.store.get(TRACKER_STATES)
+        if not states or target.phase != "operate":
+            return
+        q = target.q_out.copy()
+        for arm in ("right-arm", "left-arm"):
+            q[model.limb_slice(arm)] = states[arm].q_rad
+        s = states["right-arm"]
+        stop = s.limits.clip(s.q_rad + braking_distance(s.v_rad_s, s.a_rad_s2, s.limits))
+        travel = float(np.abs(stop - s.q_rad).max())
+        n = min(MAX_SAMPLES, max(1, math.ceil(travel / SAMPLE_RAD)))
+        for k in range(n + 1):
+            q[sl] = s.q_rad + (stop - s.q_rad) * (k / n)
+            ahead.append(checker.check(q).distance_m)
+
+    src = _stream(tmp_path / "inward.csv", offset, 1.7)
+    with open_input(replay=src) as device:
+        target, commands, ended, _ = follow_input(device, TeleopSettings(replay=src), 1.7,
+                                                  look_ahead)
+    assert ended == "done" and commands.finite and commands.limit_excess_rad <= 1e-9
+    assert min(ahead) > TOLERANCE_M + 0.0025, min(ahead)
+    assert target.room.led > 50  # the room led the arm from its command
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("sample", [
     # the same operator in both files: the portable run checks one (the paths differ by

@@ -42,6 +42,19 @@ searched again while its goal stays within ``STILL_GOAL_M`` and ``STILL_GOAL_RAD
 and its last target (its own pairs) is still clear; that period takes the check of the last
 target it made.
 
+An arm the search moves, given its commanded joints (the trajectory generator's, lagging
+behind the target at the joints' speed limits), gets a target at most ``LEAD_RAD`` (0.05 rad,
+the detector's own sampling step along a way) from its command, on the straight joint-space
+way from the command toward the searched pose, if that keeps the room; the teleop target
+tracks such an arm phase synchronised, so the command goes along that short chord. The
+searched pose slides round the body faster than the arm can follow (0.6-0.8 rad/s of its
+joints on generated seed 3409); tracked unsynchronised 0.2 rad behind it, the command's way
+cut inside the band and the detector's braking look-ahead along it held the arms. On a short
+chord between two clear postures, stopped before its end (the tracker can stop at its
+target at the limits the detector brakes at), the look-ahead keeps about the clearance of
+its ends. ``searched`` keeps the searched pose of such an arm for the call (what the target
+is on its way to).
+
 The work of a call is bounded: it makes at most ``MAX_CHECKS`` checks (a coal distance pass
 or a witness gradient, each at most every pair: about 40-50 us warm). A search step, a Newton
 step or the bisection starts only if the most it can take leaves two checks for the end; a
@@ -56,7 +69,7 @@ import math
 
 import numpy as np
 
-from hubo_cli.control.collision import TOLERANCE_M, SelfCollisionChecker
+from hubo_cli.control.collision import SAMPLE_RAD, TOLERANCE_M, SelfCollisionChecker
 from hubo_cli.kinematics.reach import DAMPING, MAX_STEP_RAD, branch_box
 from hubo_cli.model import ARMS, RobotModel
 from hubo_cli.motion.limits import all_finite
@@ -91,6 +104,7 @@ REST_M = 0.0001              # a search call cutting its weighted error less: at
 STILL_GOAL_M = 0.0005       # a goal this close (and STILL_GOAL_RAD) to the one a clear search
 STILL_GOAL_RAD = np.radians(0.5)  # came to rest at is not searched again
 _STILL_GOAL_COS = np.cos(STILL_GOAL_RAD)
+LEAD_RAD = SAMPLE_RAD  # a searched arm's target leads its command by at most this (each joint)
 NEAR_M = 0.05  # distances are exact up to the room and this much more, lower bounds beyond
 # (the checker's Lipschitz bounds skip the pairs that cannot be that close)
 _W = np.array([1.0, 1.0, 1.0] + [ORIENTATION_WEIGHT_M_PER_RAD] * 3)  # the search's weights
@@ -114,6 +128,9 @@ class CollisionRoom:
         moved: the arms whose targets the last call replaced.
         short: how many calls ran out of checks (``MAX_CHECKS``: a step not taken);
             ``held``: how many of them held the arms at the last target.
+        led: how many searched targets were brought back to ``LEAD_RAD`` from their arm's
+            command; ``searched``: the last call's searched poses of those arms (arm -> 6
+            joints, rad).
     """
 
     def __init__(self, model: RobotModel, drill: bool = False, room_m: float = ROOM_M,
@@ -148,6 +165,8 @@ class CollisionRoom:
         self.short = 0  # keep calls that ran out of checks (a step or the bisection not taken)
         self.held = 0  # ... of them, those that held the last target (no bisection)
         self._short = False  # ... this call did
+        self.led = 0  # searched targets brought back to LEAD_RAD from the arm's command
+        self.searched: dict[str, np.ndarray] = {}  # ... the last call's: arm -> its joints
         _compile_kernels()
 
     def _arms_of(self, pair: tuple[str, str]) -> tuple[str, ...]:
@@ -177,16 +196,20 @@ class CollisionRoom:
         return self._distance(np.asarray(q_rad, dtype=float), near_m=0.0)[0] >= self.room_m
 
     def keep(self, q_prev_rad: np.ndarray, q_next_rad: np.ndarray,
-             goals: dict | None = None) -> np.ndarray:
+             goals: dict | None = None, commanded: dict | None = None) -> np.ndarray:
         """The target to use instead of ``q_next_rad`` (24 joints, rad) after ``q_prev_rad``.
 
         Args:
             goals: arm -> (its :class:`~hubo_cli.kinematics.arm_reach.ArmReach`, its goal
                 T_N_E 4x4 in the neck frame): search the nearest clear pose to the goal.
+            commanded: arm -> its commanded joints (6, rad; the trajectory generator's): an
+                arm the search moves gets a target on the straight way from there toward the
+                searched one, at most ``LEAD_RAD`` ahead (see the module docstring).
         """
         q_next = np.asarray(q_next_rad, dtype=float)
         self._checks_left = MAX_CHECKS
         self._short = False
+        self.searched = {}
         d, pair = self._distance(q_next, near_m=0.0)
         if d >= self.room_m:
             self.last_clearance_m = d
@@ -196,6 +219,8 @@ class CollisionRoom:
             q, d_q, moved = self._clear_search(np.asarray(q_prev_rad, dtype=float), q_next, goals,
                                                d, pair)
             if d_q >= self.room_m:
+                if commanded:
+                    q, d_q = self._led_from_command(q, d_q, moved, commanded)
                 return self._done(q, d_q, moved)
         q = q_next.copy()
         moved = set()
@@ -270,6 +295,29 @@ class CollisionRoom:
             self._rested[arm] = (T_goal, q[sl].copy()) if rested else None
             d, pair = self._distance(q)
         return q, d, moved
+
+    def _led_from_command(self, q: np.ndarray, d: float, moved: set[str],
+                          commanded: dict) -> tuple[np.ndarray, float]:
+        """The searched targets ``q`` (clearance ``d``, the room kept) with each moved arm's
+        target more than ``LEAD_RAD`` from its command (``commanded``) brought back along the
+        straight way from the command to it, ``LEAD_RAD`` from the command, if that keeps
+        the room (else as searched). Returns (joints, their clearance)."""
+        for arm in self.arms:
+            if arm not in moved or arm not in commanded:
+                continue
+            sl = self._slices[arm]
+            q_cmd = np.asarray(commanded[arm], dtype=float)
+            lead = max_abs_difference(q[sl], q_cmd)
+            if not lead > LEAD_RAD or not self._affords(1):  # (a NaN command: as searched)
+                continue
+            q_led = q.copy()
+            q_led[sl] = q_cmd + (LEAD_RAD / lead) * (q[sl] - q_cmd)
+            d_led = self._distance(q_led, near_m=0.0)[0]
+            if d_led >= self.room_m:
+                self.searched[arm] = q[sl].copy()
+                q, d = q_led, d_led
+                self.led += 1
+        return q, d
 
     def _still(self, arm: str, q_arm: np.ndarray, T_goal: np.ndarray) -> bool:
         """The arm's last search came to rest at ``q_arm`` for a goal within STILL_GOAL_M and

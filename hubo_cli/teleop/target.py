@@ -443,7 +443,10 @@ class TeleopTarget(Target):
                     self.q_out = self.q_target.copy()
                 self.q_out[self.slices[arm]] = target = led
             sync = OPERATE_SYNCHRONIZATION
-            if self.swing_m(arm, tracker, target, velocity[arm]) > SWING_M:
+            # an arm the room moves goes straight to its target, a short way from its
+            # command (room.LEAD_RAD), clear of the body
+            if ((self.room is not None and arm in self.room.moved)
+                    or self.swing_m(arm, tracker, target, velocity[arm]) > SWING_M):
                 sync = "phase"
             synchronization[arm] = sync
         self.store[ARM_SYNC] = synchronization
@@ -661,11 +664,15 @@ class TeleopTarget(Target):
         if self.room is not None:
             moving = {a: g for a, g in solved.items()
                       if a not in self.hands or self.hands[a].branch_move is None}
-            q = self.room.keep(self.q_target, q, moving)
+            states = self.store.get(TRACKER_STATES) if self._trackers is not None else None
+            commanded = None if states is None else {
+                a: states[a].q_rad for a in moving if a in states}
+            q = self.room.keep(self.q_target, q, moving, commanded)
             for arm in self.room.moved & set(self.hands):  # the clear pose is what is reached
                 reach, T_N_goal = solved[arm]
                 hand = self.hands[arm]
-                T_clear = reach.limb.fk(q[self.slices[arm]])
+                # (the searched pose: a target led from the command is on its way there)
+                T_clear = reach.limb.fk(self.room.searched.get(arm, q[self.slices[arm]]))
                 pos, rot = pose_error(T_clear, T_N_goal)
                 hand.position_error_m, hand.rotation_error_rad = float(pos), float(rot)
                 hand.reachable = (pos <= REACHABLE_POSITION_M
