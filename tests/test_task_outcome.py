@@ -61,6 +61,9 @@ def test_the_check_measures_across_the_bit_under_force_control():
     assert path_outcome(goal[:0], goal[:0], force=False) is None  # nothing cut
 
 
+SAG_END_S = 7.5  # the cut is over by then (36.6 mm RMS either way); the settle then ends at once
+
+
 def test_a_robot_that_follows_but_misses_the_path_does_not_complete(tmp_path, monkeypatch):
     """The hardware dry run's echo with the right elbow measured 0.1 rad beyond every command
     once the drill is up (under the 0.18 rad tracking band: no device fault): exit 1, the
@@ -73,10 +76,13 @@ def test_a_robot_that_follows_but_misses_the_path_does_not_complete(tmp_path, mo
 
     elbow = load_model().hubo_ach["index"]["REB"]
 
-    class Sagging(hubo_ach_io.EchoSource):  # from 5.2 s of its clock (the drill up), over 0.5 s
+    def ramp(t_s: float) -> float:
+        return min(max(t_s / 0.5, 0.0), 1.0)
+
+    class Sagging(hubo_ach_io.EchoSource):  # from 5.2 s of its clock (the drill up) to SAG_END_S
         def _frame(self, vel_rad_s):
             frame = super()._frame(vel_rad_s)
-            frame.pos_rad[elbow] += 0.1 * min(max((self._t - 5.2) / 0.5, 0.0), 1.0)
+            frame.pos_rad[elbow] += 0.1 * (ramp(self._t - 5.2) - ramp(self._t - SAG_END_S))
             return frame
 
     monkeypatch.setattr(hardware, "EchoSource", Sagging)
