@@ -1333,8 +1333,11 @@ class WalkTarget(Target):
         (:meth:`_pushed`): a push the estimate sees, the landed foot in the air, and the body
         would come down on it from the foot lifted (pushed seed 40 at 80 N: that foot read
         -10 N, the capture point 37 mm off, the left foot lifted and the robot fell). While
-        the walk goes on (``landing_wait``), that wait also stops it (``_bounced``, the
-        operator's stop next period). Unpushed, perturbed robots lift off onto a landed foot
+        the walk goes on, that wait also stops it (``_bounced``, the operator's stop next
+        period). Off (``landing_wait``) for a gait of short steps, as the fast gait: its
+        landings bounce and its capture point lags the pattern's beyond CP_MARGIN_M
+        unpushed; waiting there, perturbed robot 11's fast 2 m walk fell (portable path,
+        round 17). Unpushed, perturbed robots lift off onto a landed foot
         reading -12 to +52 N at 56 of 160 lift-offs (8 of 20 walks), the capture point then
         within 15.5 mm of the pattern's: the foot reading alone stopped 8 of those walks after
         their first step (docs/history/walking.md, rounds 16 and 17)."""
@@ -1347,10 +1350,10 @@ class WalkTarget(Target):
             return True
         staying_n = self._loads_n[:, int(np.argmax(support[k + 1]))]
         staying_n = staying_n[~np.isnan(staying_n)]
-        unloaded = bool(len(staying_n)
+        unloaded = bool(self.landing_wait and len(staying_n)
                         and np.median(staying_n) < self.model.estimation.swing_touchdown_n
                         and self._pushed(k))
-        if unloaded and self.phase == "walk" and self.landing_wait:
+        if unloaded and self.phase == "walk":
             self._bounced = True  # the walk stops (the operator's stop, next period)
         return unloaded
 
