@@ -890,8 +890,9 @@ def test_a_hop_after_a_landing_pushed_down_early_holds_the_weight_transfer(early
     lift-off, the timeline waits while the foot is off the floor (one landing wait, 0.1 s),
     and the walk goes on, unstopped. Main took the landing as made after LANDING_CARRIED_S
     and played the weight transfer on in the air (seed 20 fell at 70-90 N). Not pushed down
-    early (the foot lands when planned, the same readings from its landing on): no wait, as
-    on main."""
+    early (the foot lands when planned, the same readings from its landing on): no landing
+    wait, as before; the next lift-off, due while that foot is off the floor with the capture
+    point off the pattern's, waits and stops the walk (round 17's lift-off rule)."""
     landed, waited = [], []
 
     def fz(k, target):
@@ -908,13 +909,43 @@ def test_a_hop_after_a_landing_pushed_down_early_holds_the_weight_transfer(early
         each=lambda k, target, before: waited.append(target._landing_waited_s))
     assert target.touchdowns_early == int(early)
     assert landed  # (the hop played in the landing's double support)
-    assert target.stopped_s is None
-    assert not all(target._played_support)  # the next step has lifted off
     if early:
+        assert target.stopped_s is None
+        assert not all(target._played_support)  # the next step has lifted off
         assert target.landing_waits == 1
         assert max(waited) == pytest.approx(0.1, abs=0.011)
     else:
         assert target.landing_waits == 0
+        assert target.liftoff_waits == 1 and target.stopped_s is not None
+
+
+@pytest.mark.parametrize("pushed", [True, False])
+def test_a_lift_off_onto_a_landed_foot_that_does_not_carry_stops_a_pushed_walk(pushed):
+    """A walk nobody stopped: the right foot lands on time (after period 460) and reads 0 N
+    through its double support while the left carries the body; at the left foot's lift-off
+    the estimated capture point is 40 mm off the pattern's sideways (``pushed``: a push the
+    estimate sees; pushed seed 40 at 80 N, 15-37 mm an axis, fell lifting off onto the foot
+    in the air, docs/history/walking.md, round 17) and the lift-off waits and the walk stops
+    there (main lifted the left foot and the body came down on the right one). Unpushed (the
+    capture point on the pattern's: perturbed robots' bounced landings, at most 15.5 mm an
+    axis at such lift-offs), the left foot lifts off as on main."""
+    landed = []
+
+    def fz(k, target):
+        if not landed and target._played_support is not None and k > 460 \
+                and all(target._played_support):
+            landed.append(k)  # the right foot's landing played
+        return (0.0 if landed else 380.0), (760.0 if landed else 380.0)
+
+    target, _, _ = _offline_walk(
+        (0.3, 0.0, 0.0), 700, cp_offset_m=(0.0, 0.04 if pushed else 0.0),
+        offset_k=(landed_k := 465, 3000), ankles_fz_n=fz)
+    assert landed and landed[0] > landed_k
+    if pushed:
+        assert target.liftoff_waits == 1 and target.stopped_s is not None
+    else:
+        assert target.liftoff_waits == 0 and target.stopped_s is None
+        assert not all(target._played_support)  # the left foot has lifted off
 
 
 def test_a_pushed_stops_landing_waits_whichever_pattern_it_lands_in():
@@ -1037,7 +1068,9 @@ def test_a_pushed_landing_that_bounces_while_walking_stops_the_walk(error_m):
     landing waits and the walk stops, finishing into a double-support stance, as a stop
     latched there would (main walked on, lifting the other foot with the body bouncing
     between the soles: seeds 2, 5, 19 and 20 fell at 60-90 N). 50 mm off (unpushed walks'
-    errors, 57 mm at most in round 10): no wait, no stop, the walk's own timeline."""
+    errors, 57 mm at most in round 10): the landing does not stop the walk; the next
+    lift-off, onto that foot still reading 0 N with the capture point off the pattern's, waits
+    and stops it (round 17's lift-off rule; main walked on), and the stop stands."""
     target, _, _ = _offline_walk((0.3, 0.0, 0.0), 3000, cp_offset_m=(0.0, error_m),
                                  offset_k=(400, 3000), double_only=True,
                                  ankles_fz_n=(0.0, 380.0))
@@ -1045,4 +1078,5 @@ def test_a_pushed_landing_that_bounces_while_walking_stops_the_walk(error_m):
         assert target.stopped_s is not None and target.phase == "stood"
         assert target.landing_waits == 1
     else:
-        assert target.stopped_s is None and target.landing_waits == 0
+        assert target.liftoff_waits == 1
+        assert target.stopped_s is not None and target.phase == "stood"

@@ -50,7 +50,9 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
   :data:`~hubo_cli.control.keys.STOP_MODE`, is no longer ``release``), or when a foot the floor
   reach turned has landed (:meth:`WalkTarget._caught`), or when a landed foot bounced off the
   floor with the estimated capture point LANDING_WALK_PUSHED_M or more off the pattern's
-  (:meth:`WalkTarget._unloaded_landing`): the step in progress is finished
+  (:meth:`WalkTarget._unloaded_landing`), or when a lift-off would leave the body on a foot
+  reading unloaded with the capture point off the pattern's
+  (:meth:`WalkTarget._unloaded_liftoff`): the step in progress is finished
   (the swing foot lands; before the first step, none is taken) into a double-support stance, the
   CoM comes to rest between the feet over ``settle_s``; after a push, a landing's weight
   transfer waits in the periods its landed foot reads unloaded, bounced off the floor
@@ -548,8 +550,8 @@ class WalkTarget(Target):
         self._prefix = None  # a re-plan's first rows being solved (_replan)
         self._omega = 1.0
         dt = model.control_period_s
-        self._loads_n = np.full(max(1, round(LIFTOFF_WINDOW_S / dt)), np.inf)  # the soles'
-        self._load_i = 0                       # measured F_z together, the last periods
+        self._loads_n = np.full((max(1, round(LIFTOFF_WINDOW_S / dt)), 2), np.inf)  # the
+        self._load_i = 0              # soles' measured F_z (right, left), the last periods
         self._waiting = False  # the timeline waited at a lift-off last period
         self._waited_s = 0.0  # ... this long
         self._weight_n = math.inf  # the body's weight (N; from the first plan's model)
@@ -1254,7 +1256,7 @@ class WalkTarget(Target):
         right_fz_n, left_fz_n = (float(state.ft[sensor][2]) if sensor in state.ft else math.nan
                                  for sensor in ANKLE_SENSORS)  # as read (the log's *_foot_fz_n)
         soles_fz = right_fz_n + left_fz_n
-        self._loads_n[self._load_i] = soles_fz
+        self._loads_n[self._load_i] = right_fz_n, left_fz_n
         self._load_i = (self._load_i + 1) % len(self._loads_n)
         landing_wait = self._unloaded_landing(k, (right_fz_n, left_fz_n))
         if landing_wait:
@@ -1265,8 +1267,10 @@ class WalkTarget(Target):
         if self._waited_s > LIFTOFF_WAIT_MAX_S:
             weight_n = LIFTOFF_MIN_LOAD * self._weight_n
             raise DeviceError(
-                f"the ankle force sensors read {np.median(self._loads_n):.0f} N together "
-                f"(under {weight_n:.0f} N, {LIFTOFF_MIN_LOAD:g} of the robot's weight) for "
+                f"the ankle force sensors read {np.median(self._loads_n.sum(axis=1)):.0f} N "
+                f"together (under {weight_n:.0f} N, {LIFTOFF_MIN_LOAD:g} of the robot's "
+                f"weight), or the foot to stay down under "
+                f"{self.model.estimation.swing_touchdown_n:g} N, for "
                 f"{LIFTOFF_WAIT_MAX_S:g} s before a step: the walk stopped in double support",
                 hint="check the ankle F/T sensors (zero offsets, cables), or put the robot "
                      "down on its feet")
@@ -1323,12 +1327,35 @@ class WalkTarget(Target):
     def _unloaded_liftoff(self, k: int) -> bool:
         """Row ``k`` has both soles down and the next lifts one, while the soles measured
         carried less than LIFTOFF_MIN_LOAD of the body's weight (their median over the last
-        LIFTOFF_WINDOW_S): the robot bounces, and the foot lifted would be its only support."""
+        LIFTOFF_WINDOW_S): the robot bounces, and the foot lifted would be its only support;
+        or while the foot to stay down measured under ``estimation.swing_touchdown_n`` (its
+        median over the same window) with the estimated capture point off the pattern's
+        (:meth:`_pushed`): a push the estimate sees, the landed foot in the air, and the body
+        would come down on it from the foot lifted (pushed seed 40 at 80 N: that foot read
+        -10 N, the capture point 37 mm off, the left foot lifted and the robot fell). While
+        the walk goes on, that wait also stops it (``_bounced``, the operator's stop next
+        period). Off (``landing_wait``) for a gait of short steps, as the fast gait: its
+        landings bounce and its capture point lags the pattern's beyond CP_MARGIN_M
+        unpushed; waiting there, perturbed robot 11's fast 2 m walk fell (portable path,
+        round 17). Unpushed, perturbed robots lift off onto a landed foot
+        reading -12 to +52 N at 56 of 160 lift-offs (8 of 20 walks), the capture point then
+        within 15.5 mm of the pattern's: the foot reading alone stopped 8 of those walks after
+        their first step (docs/history/walking.md, rounds 16 and 17)."""
         support = self._whole_support  # a re-plan's prefix ends mid-pattern: the next row
         if k + 1 >= len(support) or not support[k].all() or support[k + 1].all():  # is here
             return False
-        loads_n = self._loads_n[~np.isnan(self._loads_n)]  # one garbled reading: not ignored
-        return bool(len(loads_n) and np.median(loads_n) < LIFTOFF_MIN_LOAD * self._weight_n)
+        together_n = self._loads_n.sum(axis=1)
+        together_n = together_n[~np.isnan(together_n)]  # one garbled reading: not ignored
+        if len(together_n) and np.median(together_n) < LIFTOFF_MIN_LOAD * self._weight_n:
+            return True
+        staying_n = self._loads_n[:, int(np.argmax(support[k + 1]))]
+        staying_n = staying_n[~np.isnan(staying_n)]
+        unloaded = bool(self.landing_wait and len(staying_n)
+                        and np.median(staying_n) < self.model.estimation.swing_touchdown_n
+                        and self._pushed(k))
+        if unloaded and self.phase == "walk":
+            self._bounced = True  # the walk stops (the operator's stop, next period)
+        return unloaded
 
     def _unloaded_landing(self, k: int, soles_fz_n: tuple[float, float]) -> bool:
         """Row ``k`` is in the double support after a landing, the landed foot's ankle F/T
