@@ -22,6 +22,7 @@ The bounds are healthy runs' figures with a margin (docs/history/safety.md, roun
 
 from __future__ import annotations
 
+import numba as nb
 import numpy as np
 
 from hubo_cli.errors import DeviceError
@@ -45,15 +46,17 @@ STILL_MOVED_RAD = 0.001
 # while it went 17.5 mrad), a frozen one for good
 STILL_S = 0.5
 # ... while its command went this far (rad) from where it was when the joint last moved: it
-# does not follow. Healthy runs went XX mrad at most (round 17, docs/history/safety.md); the
-# frozen elbow of the review's cut reaches it 0.9 s after it stopped
+# does not follow. Healthy runs went 4.7 mrad at most so (round 17: a hardware dry-run cut in
+# filtered mode; 322 sim walks, cuts and teleop runs 2.4 mrad); the frozen elbow of the
+# review's cut reaches it 0.9 s after it stopped
 STILL_COMMAND_RAD = 0.015
 # A measured joint faster than this times its velocity limit between two states is not a
-# joint moving (round 17: healthy runs measured 1.46 times the limit at most, an arm in a sim
-# cut; fast walks 1.17 times the walking set's 2.6 rad/s)
+# joint moving (round 17: healthy runs measured 1.46 times the limit at most, an arm in a
+# perturbed sim cut; pushed walks 1.26 times the walking set's 2.6 rad/s)
 MEASURED_SPEED_FACTOR = 4.0
 # The estimated torso's height (the neck frame over the floor the run started on) may leave
-# [0, the straight legs' reach] by this much (m); healthy runs held 0.937-1.039 m (round 17)
+# [0, the straight legs' reach: 1.07 m] by this much (m); healthy runs held 0.926-1.039 m
+# (round 17), the review's noisy encoders carried it to 9.16 m
 TORSO_HEIGHT_MARGIN_M = 0.3
 # A driver that says it holds the robot by itself (servo-off, the stale-state brake and hold, its
 # final hold, a fault, hubo-daemon's refWait) does not follow the pipeline's commands: its own
@@ -62,6 +65,46 @@ DRIVER_HOLDS = frozenset({"servo-off", "stale-state", "stale-hold", "stopped", "
                           "ref-wait"})
 HINT = ("check the joint (powered, not blocked) and its encoder, and hubo-daemon "
         "(hubo-console), then start the run again")
+
+
+JUMPED, STILL = 1, 2  # what _measured_kernel found
+
+
+@nb.njit(cache=True, nogil=True)
+def _measured_kernel(q, last_q, dt, speed_max, cmd, still_q, still_cmd, still_t, t_s,
+                     judge_still, out) -> int:
+    """One state's jump and still checks (numba: 2.5 us of CPU a period; in numpy 37 us).
+
+    Updates ``last_q`` (where ``dt`` != 0: a fresh state; NaN joints keep theirs) and the
+    still anchors ``still_q``, ``still_cmd``, ``still_t`` (where ``judge_still``). Writes
+    ``out``: the joint found and its figure (rad/s for a jump, rad away for a still joint),
+    the state's largest speed over its bound and its largest still command (rad). Returns 0,
+    JUMPED or STILL.
+    """
+    found, k_found, figure = 0, 0, 0.0
+    worst_ratio, worst_away = 0.0, 0.0
+    for k in range(q.shape[0]):
+        qk = q[k]
+        if not np.isfinite(qk):  # the driver and the limiter hold it; judge the others
+            continue
+        if dt > 0.0 and np.isfinite(last_q[k]):  # a fresh state (a daemon may repeat one)
+            speed = abs(qk - last_q[k]) / dt
+            ratio = speed / speed_max[k]
+            worst_ratio = max(worst_ratio, ratio)
+            if ratio > 1.0 and found == 0:
+                found, k_found, figure = JUMPED, k, speed
+        if dt != 0.0:
+            last_q[k] = qk
+        if judge_still:
+            if not abs(qk - still_q[k]) < STILL_MOVED_RAD:  # moved (NaN: the first state)
+                still_q[k], still_cmd[k], still_t[k] = qk, cmd[k], t_s
+            elif t_s - still_t[k] >= STILL_S:
+                away = abs(cmd[k] - still_cmd[k])
+                worst_away = max(worst_away, away)
+                if away > STILL_COMMAND_RAD and found == 0:
+                    found, k_found, figure = STILL, k, away
+    out[0], out[1], out[2], out[3] = k_found, figure, worst_ratio, worst_away
+    return found
 
 
 class NotFollowing(DeviceError):
@@ -108,8 +151,9 @@ class FollowingChecks:
         self._still_q = np.full(n, np.nan)  # measured where each joint last moved (rad)
         self._still_cmd = np.full(n, np.nan)  # ... its command then (rad)
         self._still_t = np.zeros(n)  # ... when (s)
-        self._last_q = np.full(n, np.nan)
+        self._last_q = np.full(n, np.nan)  # the last fresh state's joints (rad)
         self._last_t = np.nan
+        self._out = np.zeros(4)  # the kernel's joint, figure, largest ratio and still command
         self.longest_held_s = 0.0
         self.largest_still_rad = 0.0
         self.largest_speed_ratio = 0.0
@@ -134,44 +178,29 @@ class FollowingChecks:
             ImplausibleMeasurement: a joint jumped. NotFollowing: a joint stood still.
         """
         q = np.asarray(state.q_rad, dtype=float)
-        ok = np.isfinite(q)
-        if not ok.all():  # a NaN joint: the driver and the limiter hold it; judge the others
-            q = np.where(ok, q, self._last_q)
         dt = state.time_s - self._last_t
-        if dt > 0.0:  # a fresh state (a hardware daemon may repeat one)
-            speed = np.abs(q - self._last_q) / dt
-            ratio = speed / self.speed_max_rad_s
-            k = int(np.nanargmax(ratio)) if np.isfinite(ratio).any() else -1
-            if k >= 0:
-                self.largest_speed_ratio = max(self.largest_speed_ratio,
-                                               MEASURED_SPEED_FACTOR * float(ratio[k]))
-                if ratio[k] > 1.0:
-                    raise ImplausibleMeasurement(
-                        f"{self.joint_names[k]} jumped {abs(q[k] - self._last_q[k]):.3f} rad "
-                        f"in {dt * 1e3:.0f} ms ({speed[k]:.1f} rad/s; a joint does at most "
-                        f"{self.speed_max_rad_s[k]:.1f})", t_s)
-        if dt != 0.0:  # (NaN: the first state; < 0: a driver started again)
-            self._last_q, self._last_t = q.copy(), float(state.time_s)
-        if DRIVER_HOLDS.isdisjoint(state.flags):
-            self._still(q, np.asarray(cmd_rad, dtype=float), t_s)
-        else:  # judged afresh once the driver follows again
+        judge_still = DRIVER_HOLDS.isdisjoint(state.flags)
+        if not judge_still:  # judged afresh once the driver follows again
             self._still_q[:] = np.nan
-
-    def _still(self, q: np.ndarray, cmd: np.ndarray, t_s: float) -> None:
-        moved = ~(np.abs(q - self._still_q) < STILL_MOVED_RAD)  # (NaN: the first state)
-        self._still_q = np.where(moved, q, self._still_q)
-        self._still_cmd = np.where(moved, cmd, self._still_cmd)
-        self._still_t = np.where(moved, t_s, self._still_t)
-        away = np.where(t_s - self._still_t >= STILL_S, np.abs(cmd - self._still_cmd), 0.0)
-        if not np.isfinite(away).any():
-            return
-        k = int(np.nanargmax(away))
-        self.largest_still_rad = max(self.largest_still_rad, float(away[k]))
-        if away[k] > STILL_COMMAND_RAD:
+        out = self._out
+        kind = _measured_kernel(q, self._last_q, dt, self.speed_max_rad_s,
+                                np.asarray(cmd_rad, dtype=float), self._still_q, self._still_cmd,
+                                self._still_t, t_s, judge_still, out)
+        self.largest_speed_ratio = max(self.largest_speed_ratio,
+                                       MEASURED_SPEED_FACTOR * out[2])
+        self.largest_still_rad = max(self.largest_still_rad, out[3])
+        if dt != 0.0:  # (NaN: the first state; < 0: a driver started again)
+            self._last_t = float(state.time_s)
+        k = int(out[0])
+        if kind == JUMPED:
+            raise ImplausibleMeasurement(
+                f"{self.joint_names[k]} jumped {out[1] * dt:.3f} rad in {dt * 1e3:.0f} ms "
+                f"({out[1]:.1f} rad/s; a joint does at most {self.speed_max_rad_s[k]:.1f})", t_s)
+        if kind == STILL:
             raise NotFollowing(self.joint_names[k],
                                f"has not moved (within {STILL_MOVED_RAD * 1e3:.0f} mrad) "
                                f"since t = {self._still_t[k]:.2f} s while commanded "
-                               f"{away[k]:.3f} rad away", t_s)
+                               f"{out[1]:.3f} rad away", t_s)
 
     def held(self, at_band: np.ndarray, q_meas: np.ndarray, t_s: float) -> None:
         """Count each joint's periods held at the band (``at_band``), from where it was
