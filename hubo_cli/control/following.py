@@ -46,7 +46,7 @@ STILL_MOVED_RAD = 0.001
 # while it went 17.5 mrad), a frozen one for good
 STILL_S = 0.5
 # ... while its command went this far (rad) from where it was when the joint last moved: it
-# does not follow. Healthy runs went 4.7 mrad at most so (round 17: a hardware dry-run cut in
+# does not follow. Healthy runs went 5.1 mrad at most so (round 17: a hardware dry-run cut in
 # filtered mode; 322 sim walks, cuts and teleop runs 2.4 mrad); the frozen elbow of the
 # review's cut reaches it 0.9 s after it stopped
 STILL_COMMAND_RAD = 0.015
