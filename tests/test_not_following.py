@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from control_support import Recorder, assert_within_limits, ideal
 
+from hubo_cli.control.following import STILL_S
 from hubo_cli.control.limiter import NOT_FOLLOWING_S, TRACKING_ERROR_LIMIT_RAD
 from hubo_cli.control.loop import ControlLoop
 from hubo_cli.control.pipeline import build_pipeline
@@ -23,14 +24,19 @@ SPEED_RAD_S = 0.5
 
 
 class Frozen(Recorder):
-    """A robot whose joints never move from where they started (the state keeps coming)."""
+    """A robot whose joints never move from where they started (the state keeps coming);
+    ``creep_rad``: they read that much either side of it, alternating every 0.1 s (a joint
+    that moves, a little, without getting anywhere)."""
 
-    def __init__(self, driver) -> None:
+    def __init__(self, driver, creep_rad: float = 0.0) -> None:
         super().__init__(driver)
         self.q0 = driver.read().q_rad.copy()
+        self.creep_rad = creep_rad
 
     def step(self):
-        return dataclasses.replace(self.driver.step(), q_rad=self.q0.copy(),
+        state = self.driver.step()
+        side = 1.0 if int(state.time_s / 0.1) % 2 else -1.0
+        return dataclasses.replace(state, q_rad=self.q0 + side * self.creep_rad,
                                    dq_rad_s=np.zeros_like(self.q0))
 
 
@@ -42,20 +48,27 @@ def _away(q0):
     return target
 
 
-def test_a_frozen_robot_is_device_trouble_and_the_command_is_braked(model):
-    """The command reaches the band some 0.36 s in (0.18 rad at 0.5 rad/s, after the
-    trajectory generator's start: measured 0.59 s) and is held there; NOT_FOLLOWING_S later
-    the run ends ``device`` (exit 3) with the loop's brake (main: the run went on to its end,
-    ``finished``)."""
-    robot = Frozen(ideal(model))
+@pytest.mark.parametrize("creep_rad", [0.0, 0.002], ids=["still", "creeping"])
+def test_a_frozen_robot_is_device_trouble_and_the_command_is_braked(model, creep_rad):
+    """Still: the joint has not moved for STILL_S while its command went STILL_COMMAND_RAD
+    away: the run ends ``device`` (exit 3) with the loop's brake, 0.5 s in (round 16: 1.59 s,
+    at the band's hold). Creeping (reading +-2 mrad: not still): the command reaches the band
+    some 0.36 s in (0.18 rad at 0.5 rad/s, after the trajectory generator's start: measured
+    0.59 s) and is held there; NOT_FOLLOWING_S later the run ends the same way (round 15: the
+    run went on to its end, ``finished``)."""
+    robot = Frozen(ideal(model), creep_rad)
     q0 = robot.q0.copy()
     result = ControlLoop(robot, build_pipeline(model), _away(q0)).run(4.0)
     assert result.ended == "device", result.error
     assert isinstance(result.exception, DeviceError) and result.exception.exit_code == 3
-    assert result.error.startswith("the robot does not follow: RSP held")
-    reached_s = TRACKING_ERROR_LIMIT_RAD / SPEED_RAD_S
     ran_s = (result.periods - result.stop_periods) * DT
-    assert reached_s + NOT_FOLLOWING_S < ran_s < reached_s + NOT_FOLLOWING_S + 0.5
+    if creep_rad:
+        assert result.error.startswith("the robot does not follow: RSP held")
+        reached_s = TRACKING_ERROR_LIMIT_RAD / SPEED_RAD_S
+        assert reached_s + NOT_FOLLOWING_S < ran_s < reached_s + NOT_FOLLOWING_S + 0.5
+    else:
+        assert result.error.startswith("the robot does not follow: RSP has not moved")
+        assert STILL_S - 0.01 < ran_s < STILL_S + 0.2
     assert result.stop_periods > 0  # braked to rest within the limits, no jump
     assert_within_limits(model, robot.commands(q0), DT)
 

@@ -15,13 +15,12 @@ While an emergency stopper brakes (a wrist-torque stop, a revert turning the mot
 flag ``estop-brake``), band 2 takes the
 emergency braking acceleration (:meth:`~hubo_cli.motion.limits.JointLimits.for_emergency_brake`).
 
-A joint held at the tracking band without a break for longer than :data:`NOT_FOLLOWING_S`, its
-measured position moving less than :data:`NOT_FOLLOWING_PROGRESS_RAD` meanwhile, is a
-robot that does not follow its commands (a frozen or unpowered joint, a daemon not applying
-references): the band keeps every command within 0.18 rad of the measured joint, so the
-driver's servo-error check (0.2 rad) can never trip against it. :meth:`SoftErrorLimiter.update`
-raises :class:`NotFollowing` (a :class:`~hubo_cli.errors.DeviceError`, exit 3) and the control
-loop brakes the command to rest.
+The limiter also runs :class:`~hubo_cli.control.following.FollowingChecks` every period: a
+joint held at the tracking band too long (the band keeps every command within 0.18 rad of the
+measured joint, so the driver's servo-error check, 0.2 rad, can never trip against it), a joint
+that stands still while its command moves on, or a measured joint that jumps, raise a
+:class:`~hubo_cli.errors.DeviceError` (exit 3) from :meth:`SoftErrorLimiter.update` and the
+control loop brakes the command to rest.
 
 When a band clamps, the wanted velocity is also capped so that the command can stop on the
 wanted position instead of overshooting it, so a jump in the input becomes an acceleration-
@@ -34,10 +33,15 @@ import numba as nb
 import numpy as np
 
 from hubo_cli.control.estop import BRAKE_FLAG
+from hubo_cli.control.following import (  # noqa: F401 (NotFollowing: its home was here)
+    NOT_FOLLOWING_PROGRESS_RAD,
+    NOT_FOLLOWING_S,
+    FollowingChecks,
+    NotFollowing,
+)
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.status import LimiterStatus
 from hubo_cli.dataflow import Store
-from hubo_cli.errors import DeviceError
 from hubo_cli.model import RobotModel
 from hubo_cli.motion.limits import JointLimits, brake_speed
 from hubo_cli.state import RobotState
@@ -49,33 +53,10 @@ TRACKING_ERROR_LIMIT_RAD = 0.18  # hrpsys SoftErrorLimiter default (0.2 servo-of
 # its periods. 1e-5 rad is 13x that, and moves a hand at 0.5 m by 5 micrometres.
 POSITION_ROUNDING_RAD = 1e-5
 
-# A joint held at the tracking band this long without a break does not follow (see the
-# module's docstring). Healthy runs held it 0.005 s at most (round 16: 321 sim walks on both
-# code paths, sim and hardware dry-run cuts, teleop replays; docs/history/safety.md), 1.58 s
-# in hubo-daemon's filtered mode while moving 0.9 rad a second; a frozen robot on a cut holds
-# it from 0.56 s on, for as long as the plan moves
-NOT_FOLLOWING_S = 1.0
-# ... while its measured position moved less than this (rad): a joint that follows slowly (the
-# daemon's reference filter, mode 0: its 0.2 s lag holds a long fast move at the band for
-# seconds) gains 0.18 rad every 0.2 s or so there; a frozen one gains nothing
-NOT_FOLLOWING_PROGRESS_RAD = 0.5 * TRACKING_ERROR_LIMIT_RAD
-
 # bits of the per-joint clamp mask returned by limit_step
 CLAMP_POSITION = 1
 CLAMP_RATE = 2
 CLAMP_TRACKING = 4
-
-
-class NotFollowing(DeviceError):
-    """A joint held at the tracking band too long: the robot does not follow its commands."""
-
-    def __init__(self, joint: str, held_s: float, t_s: float) -> None:
-        super().__init__(f"the robot does not follow: {joint} held {TRACKING_ERROR_LIMIT_RAD} "
-                         f"rad from its measured position for {held_s:.2f} s at t = "
-                         f"{t_s:.2f} s; braked to a stop",
-                         hint="check the joint (powered, not blocked) and hubo-daemon "
-                              "(hubo-console), then start the run again")
-        self.joint = joint
 
 
 @nb.njit(cache=True, nogil=True)
@@ -214,9 +195,8 @@ class SoftErrorLimiter(Module):
         self._zeros = np.zeros(n)
         self._want_prev = np.zeros(n)
         self._bits = 0  # the or of the last step's clamp bits
-        self._held = np.zeros(n, dtype=np.int64)  # periods each joint is held at the band
-        self._held_from = np.zeros(n)  # ... measured where (rad) the count began
-        self.longest_held_s = 0.0  # the run's longest such hold (s)
+        self.checks = FollowingChecks(self._joint_names, self.dt_s, self.limits.velocity_rad_s,
+                                      self.error_limit_rad)
         # numba compiles the kernel on its first call: make that now, not in the first period
         lim = self.limits
         limit_step(self._zeros, self._zeros, self._zeros, self._zeros, lim.lower_rad,
@@ -235,8 +215,7 @@ class SoftErrorLimiter(Module):
         self.q2 = self.q1.copy()
         self._want_prev = self.q1.copy()
         self._catching[:] = False
-        self._held[:] = 0
-        self.longest_held_s = 0.0
+        self.checks.reset()
 
     def seed(self, q1_rad: np.ndarray, q2_rad: np.ndarray) -> None:
         """Continue from the last two commands ``q1_rad`` (newest) and ``q2_rad`` (rad)."""
@@ -265,25 +244,18 @@ class SoftErrorLimiter(Module):
         self.q1 = out
         return out
 
-    def _not_following(self, q_meas: np.ndarray, t_s: float) -> None:
-        """Count each joint's periods held at the tracking band, from where it was measured
-        when the count began (again once it has moved NOT_FOLLOWING_PROGRESS_RAD from there);
-        raise NotFollowing past NOT_FOLLOWING_S."""
-        held, at = self._held, self._mask & CLAMP_TRACKING
-        begin = (held == 0) | (np.abs(q_meas - self._held_from) > NOT_FOLLOWING_PROGRESS_RAD)
-        self._held_from = np.where(at & begin, q_meas, self._held_from)
-        held[:] = np.where(at, np.where(begin, 1, held + 1), 0)
-        k = int(np.argmax(held))
-        self.longest_held_s = max(self.longest_held_s, held[k] * self.dt_s)
-        if held[k] * self.dt_s > NOT_FOLLOWING_S + 1e-9:
-            raise NotFollowing(self._joint_names[k], held[k] * self.dt_s, t_s)
-
     @property
     def velocity_rad_s(self) -> np.ndarray:
         """Finite-difference velocity of the last command (rad/s)."""
         return (self.q1 - self.q2) / self.dt_s
 
+    @property
+    def longest_held_s(self) -> float:
+        """The run's longest hold of a joint at the tracking band (s)."""
+        return self.checks.longest_held_s
+
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
+        self.checks.measured(state, self.q1, cycle.t_s)  # (the command the state followed)
         out = self.step(q_rad, state.q_rad, state.dq_rad_s, BRAKE_FLAG in cycle.flags)
         mask, bits = self._mask, self._bits
         clamped = int(np.count_nonzero(mask)) if bits else 0
@@ -295,15 +267,15 @@ class SoftErrorLimiter(Module):
                 cycle.flags.add("slowing")
             if bits & CLAMP_TRACKING:
                 cycle.flags.add("tracking-error")
-                self._not_following(state.q_rad, cycle.t_s)
+                self.checks.held(mask & CLAMP_TRACKING != 0, state.q_rad, cycle.t_s)
             ankles = int(np.count_nonzero(mask[self._ankles]))
         self.periods += 1
         if clamped:
             self.clamped_periods += 1
         if ankles:
             self.ankle_clamped_periods += 1
-        if not bits & CLAMP_TRACKING and self.longest_held_s:
-            self._held[:] = 0
+        if not bits & CLAMP_TRACKING:
+            self.checks.clear_held()
         cycle.info["limiter_clamped_count"] = float(clamped)
         cycle.info["limiter_ankle_clamped_count"] = float(ankles)
         return out

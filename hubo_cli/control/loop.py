@@ -58,6 +58,7 @@ from typing import Protocol
 import numpy as np
 
 from hubo_cli.control.estop import MAX_FINISH_S
+from hubo_cli.control.following import check_torso_height, torso_height_bounds_m
 from hubo_cli.control.keys import STOP_MODE
 from hubo_cli.control.limiter import SoftErrorLimiter
 from hubo_cli.control.log import LOG_NAME, PeriodLog
@@ -71,6 +72,7 @@ from hubo_cli.dataflow import Store, check_flow
 from hubo_cli.drivers.base import Driver
 from hubo_cli.errors import ConfigError, DeviceError, HuboError, interrupt_cause
 from hubo_cli.estimation.estimator import Estimator
+from hubo_cli.estimation.keys import T_WORLD_TORSO
 from hubo_cli.interrupts import (
     interrupt_pending,
     loop_ended,
@@ -113,8 +115,10 @@ class LoopResult:
             ``interrupted`` (Ctrl-C or SIGTERM), ``module-error``, ``target-error``,
             ``estimation-error`` (an observer failed: the robot is braked from the last command),
             ``driver-error``, ``device`` (the driver reported device trouble, e.g. the robot's
-            state stopped; it has braked and holds by itself) or ``log-error`` (the log could
-            not be written: a full disk).
+            state stopped: it has braked and holds by itself; or a module or the estimate
+            found it, e.g. a joint that does not follow, a torso estimated metres up:
+            :mod:`hubo_cli.control.following`, braked from the last command) or
+            ``log-error`` (the log could not be written: a full disk).
         periods: control periods run (the smooth stop included).
         t_end_s: loop time at the end (s).
         error: one line describing the error or interruption, "" otherwise.
@@ -305,6 +309,9 @@ class ControlLoop:
                                         accel_measured=driver.accel_measured)
         self.estimator = estimator
         self.store = estimator.store if estimator is not None else Store()
+        # an estimated torso beyond these heights is device trouble (following.py)
+        self._torso_bounds_m = (torso_height_bounds_m(driver.model) if estimator is not None
+                                and T_WORLD_TORSO in estimator.writes else None)
         check_flow([self.target, *self.modules],
                    provided=estimator.writes if estimator is not None else ())
         # each stage sees the store through its view: an undeclared key is a FlowError
@@ -491,8 +498,12 @@ class ControlLoop:
                 if self.estimator is not None:
                     try:
                         self.estimator.update(state)
+                        if self._torso_bounds_m is not None:  # before any module acts on it
+                            check_torso_height(self.store.get(T_WORLD_TORSO),
+                                               self._torso_bounds_m, t_s)
                     except Exception as err:  # noqa: BLE001 (ends in a smooth stop)
-                        ended, exc = "estimation-error", err
+                        ended = "device" if isinstance(err, DeviceError) else "estimation-error"
+                        exc = err
                         error = str(err) if isinstance(err, HuboError) else (
                             f"{type(err).__name__} in estimation: {err}")
                         break

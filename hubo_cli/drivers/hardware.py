@@ -35,9 +35,11 @@ Start-up and safety, enforced here whatever the layers above do:
   impossible sole force or a standing robot off the ground, a motor at its maximum temperature
   latch servo-off and :meth:`step` raises the trip (exit 3); a warm motor slows its joint;
 - no fresh state (a new ``hubo-state`` frame whose ``time`` advances) for ``stale_after_s``
-  (:data:`STALE_AFTER_S`, 0.1 s, wall clock): the pipeline's commands are ignored from then
-  on, the reference brakes to rest within the joints' limits and holds (flag ``stale-state``;
-  ``stale-hold`` once the state comes again, which never resumes the motion), and
+  (:data:`STALE_AFTER_S`, 0.1 s, wall clock; a dry run's echo judges it in its own time,
+  :meth:`~hubo_cli.drivers.hubo_ach_io.StateSource.clock_s`): the pipeline's commands are
+  ignored from then on, the reference brakes to rest within the joints' limits and holds
+  (flag ``stale-state``; ``stale-hold`` once the state comes again, which never resumes the
+  motion), and
   ``stale_grace_s`` (:data:`STALE_GRACE_S`, 0.8 s) later, or at the brake's rest if later,
   :meth:`step` raises
   :class:`~hubo_cli.drivers.stale_state.StateLost` (exit 3), which ends the run (see
@@ -90,7 +92,7 @@ from hubo_cli.posture import home_posture
 from hubo_cli.state import FT_SENSORS, RobotState
 
 SINKS = ("ach", "file", "fifo")
-STALE_AFTER_S = 0.1  # no fresh state this long (wall clock): brake and hold
+STALE_AFTER_S = 0.1  # no fresh state this long (the source's clock): brake and hold
 # ... and this long after the brake began the run ends (exit 3): the robot is braked and never
 # resumes by itself, so the grace is only how long a glitch may last before the run is given
 # up; 0.8 s leaves the run's own end (log, summary, plots) room within the 1.5 s that a dead
@@ -161,7 +163,9 @@ class HardwareDriver(Driver):
             periods).
         start_timeout_s: how long :meth:`start` waits for the first state.
         start_tolerance_rad: how far outside its limits a joint may be measured at start.
-        clock: wall-clock time source (s) for the state's age; injectable for tests.
+        clock: wall-clock time source (s) for the state's age and the round trip, and for the
+            stale-state brake; injectable for tests. Default: ``time.monotonic``, the brake
+            on the source's own clock (a dry run's echo: its own time).
     """
 
     name = "hardware"
@@ -178,7 +182,7 @@ class HardwareDriver(Driver):
                  velocity_margin: float = 1.02, stale_after_s: float = STALE_AFTER_S,
                  stale_grace_s: float = STALE_GRACE_S, state_wait_s: float | None = None,
                  start_timeout_s: float = 1.0, start_tolerance_rad: float = 0.02,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+                 clock: Callable[[], float] | None = None) -> None:
         super().__init__(model)
         if sink not in SINKS:
             raise ConfigError(f"unknown sink {quoted(sink)}", hint=f"use one of {', '.join(SINKS)}")
@@ -211,7 +215,6 @@ class HardwareDriver(Driver):
         self.startup_delay_s = float(ach["startup_ref_delay_s"])
         self.filter_length = int(ach["ref_filter_length"])
         self.sink: RefSink | None = None
-        self.source: StateSource | None = None
         self.frozen_joints: set[str] = set()
         self.servo_off = False
         self.fault_message = ""
@@ -223,8 +226,9 @@ class HardwareDriver(Driver):
         self._t0 = 0.0
         self._flags: list[str] = []
         self._stale = 0  # periods since the last fresh state (logged)
+        self.source: StateSource | None = None
         self.stale = StaleStateBrake(model, self.period_s, float(stale_after_s),
-                                     float(stale_grace_s), clock)
+                                     float(stale_grace_s), clock or self._source_clock_s)
         guards = guard_parameters(model)
         if servo_error_limit_rad is not None:
             if not servo_error_limit_rad > 0:
@@ -242,7 +246,7 @@ class HardwareDriver(Driver):
         self.thermal = ThermalLimiter(self.joint_names, self.ach_index,
                                       guards["motor_warning_temperature_c"],
                                       guards["motor_max_temperature_c"])
-        self.clock = clock
+        self.clock = clock or time.monotonic
         self.trip: Exception | None = None  # a guard's DeviceError: the run ends with it
         self._put_s: float | None = None  # wall time of the last put not yet answered
         self._round_trip_s = float("nan")
@@ -536,6 +540,10 @@ class HardwareDriver(Driver):
             self._stale += 1  # nothing new, or a frame whose clock did not advance
             return
         self._take(frame)
+
+    def _source_clock_s(self) -> float:
+        """The clock a state's freshness is judged by: the source's (wall time before one)."""
+        return time.monotonic() if self.source is None else self.source.clock_s()
 
     def _braking(self) -> bool:
         """The stale-state brake still moves the reference (not after a stop or a fault)."""

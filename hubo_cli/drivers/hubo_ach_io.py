@@ -14,6 +14,7 @@ import contextlib
 import errno
 import os
 import stat
+import time
 from abc import ABC, abstractmethod
 from pathlib import Path
 
@@ -59,6 +60,11 @@ class StateSource(ABC):
     @abstractmethod
     def close(self) -> None:
         """Release the channel; safe to call twice."""
+
+    def clock_s(self) -> float:
+        """The time a state's freshness is judged by (s): this computer's wall clock for a
+        real daemon's states (a late one is late for the robot too)."""
+        return time.monotonic()
 
 
 class AchRefSink(RefSink):
@@ -144,6 +150,12 @@ class EchoSource(StateSource):
         self._pos = hubo_ach.reference_filter(previous, ref_rad, mode, self.filter_length)
         self._t += self.period_s
         return self._frame((self._pos - previous) / self.period_s)
+
+    def clock_s(self) -> float:
+        """The echo's own time (s): one period a step, however long the step took on this
+        computer (a dry run has no robot to be late for: a busy machine's pause between two
+        steps is not a lost state)."""
+        return self._t
 
     def _frame(self, vel_rad_s: np.ndarray) -> StateFrame:
         return StateFrame(self._t, np.zeros(3), np.zeros(3), np.zeros((4, 3)), self._pos.copy(),
