@@ -8,7 +8,7 @@ import signal
 
 import click
 
-from hubo_cli.cli.output import err_console, print_json
+from hubo_cli.cli.output import err_console, print_json, warn
 from hubo_cli.errors import DeviceError, InputError
 
 SINK_CHOICES = ("ach", "file", "fifo")
@@ -40,12 +40,14 @@ def hardware_options(function):
 
 def driver_options(driver: str, armed: bool, dry_run: bool, sink: str | None,
                    ach_ref: str | None, ach_state: str | None,
-                   ref_mode: str | None = None) -> dict:
+                   ref_mode: str | None = None, quiet: bool = False) -> dict:
     """The driver's options from the command line; hardware options (``--arm`` among them)
     with another driver, or a dry run on the channels, are refused (exit 2).
 
     A dry run writes a file that no robot reads, so it needs no ``--arm``; every other sink
-    reaches (or may reach) a robot and the driver refuses to start without it.
+    reaches (or may reach) a robot and the driver refuses to start without it. A dry run is
+    told on stderr that its force stops and sensor checks cannot act (the echo reads no force;
+    not with ``quiet``: ``--json``).
     """
     hardware = {"sink": sink, "ach_ref": ach_ref, "ach_state": ach_state, "ref_mode": ref_mode}
     given = [f"--{k.replace('_', '-')}" for k, v in hardware.items() if v is not None]
@@ -66,6 +68,11 @@ def driver_options(driver: str, armed: bool, dry_run: bool, sink: str | None,
             raise InputError("a dry run uses no ach channel",
                              hint="leave out --ach-ref and --ach-state")
         options = {"armed": True, "sink": "file"}
+        # the echo is no sensor (Driver.sensors_measured): say what cannot act, never pretend
+        if not quiet:
+            warn("dry run: the echoed state reads no force and a level, still IMU: the "
+                 "wrist-torque and force stops, the force control and the sensor checks cannot "
+                 "act")
     else:
         options = {"armed": armed, **{k: v for k, v in hardware.items() if v is not None}}
     if ref_mode is not None:

@@ -97,7 +97,7 @@ def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | No
     check_goal(goal)
     disturbances = check_disturbances(push_n, PUSH_DIRECTIONS[push_direction], push_at_s,
                                       stop_at_s, driver)
-    options = driver_options(driver, armed, **hardware)
+    options = driver_options(driver, armed, **hardware, quiet=as_json)
     stops = active_stops(SOFT_SOURCES, driver, no_estop=no_estop, estop_sources=estop_sources,
                          accept_reduced_safety=accept_reduced_safety, quiet=as_json)
     check_walk_stops(stops, "a walk")
@@ -130,14 +130,18 @@ def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | No
                           "the foot touched the floor early")
         cut_short = result.ended == "interrupted" and result.interrupt_stop != "stood"
         if result.interrupt_stop == "stood":
-            console.print("ended             interrupted: the step finished, standing in "
+            why = "a device fault" if result.ended == "device" else "interrupted"
+            console.print(f"ended             {why}: the step finished, standing in "
                           "double support")
         elif result.ended == "interrupted" and not result.steps:  # no plan: never started
             console.print("ended             interrupted before the walk started")
         elif result.ended == "interrupted":
             console.print("ended             interrupted: braked to a stop before the goal"
                           + (f" ({result.interrupt_stop})" if result.interrupt_stop else ""))
-        console.print(f"fell              {'YES' if result.fell else 'no'}")
+        truth = ("" if result.fell_truth is None or result.fell_truth == result.fell
+                 else f" (the simulator's truth: {'YES' if result.fell_truth else 'no'}, "
+                      f"largest torso tilt {result.max_true_tilt_deg:.0f} deg)")
+        console.print(f"fell              {'YES' if result.fell else 'no'}{truth}")
         speed = result.average_speed_m_s
         if cut_short:  # the plan's steps, not those taken
             console.print(f"steps             {result.steps} planned, the run ended before "
@@ -159,5 +163,5 @@ def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | No
     exit_if_interrupted(fields)
     if result.failure is not None:  # e.g. the robot's state lost: exit 3, the robot braked
         raise result.failure
-    if result.fell or result.stopped_s is not None:  # fell, or stopped short of the goal
+    if result.fell or result.fell_truth or result.stopped_s is not None:  # fell, or stopped
         raise SystemExit(1)

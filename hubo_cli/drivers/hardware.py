@@ -167,6 +167,13 @@ class HardwareDriver(Driver):
     name = "hardware"
     real_time = True
     accel_measured = False  # hubo-ach's body IMU reports tilt: accel_from_tilt reads rest
+
+    @property
+    def sensors_measured(self) -> bool:
+        """The robot's sensors through hubo-ach; a dry run's echo reads no force and a level,
+        still IMU (:mod:`hubo_cli.estimation.plausibility` cannot check it, and the force
+        stops never see a force there)."""
+        return self.sink_kind == "ach"
     log_columns = ("hw_ref_seq", "hw_state_time_s", "hw_state_age_periods", "hw_ref_mode",
                    "hw_state_age_ms", "hw_round_trip_ms", "hw_servo_error_rad",
                    "hw_thermal_scale", "hw_max_motor_temp_c")
