@@ -46,7 +46,7 @@ def _states(n: int, **change):
 
 def _estimate(states) -> int:
     """Periods the estimator took before a SensorFault (raises it with the count in a note)."""
-    estimator = build_estimator(MODEL)
+    estimator = build_estimator(MODEL, sensors_measured=True)
     for k, state in enumerate(states):
         if k == 0:
             estimator.reset(state)
@@ -63,7 +63,7 @@ def test_a_frozen_imu_ends_the_run_as_a_device_fault_and_an_echo_is_not_checked(
     """The ideal driver's IMU never changes: declared measured, the run ends a device fault
     (exit 3) IMU_FROZEN_PERIODS periods in, braked; declared made up (as it is), it runs."""
     loop = ControlLoop(MeasuredIdeal(MODEL), [], lambda t, s: (None, {}),
-                       estimator=build_estimator(MODEL))
+                       estimator=build_estimator(MODEL, sensors_measured=True))
     loop.driver.start()
     result = loop.run(0.2)
     assert result.ended == "device" and isinstance(result.exception, SensorFault)

@@ -19,7 +19,7 @@ from hubo_cli.state import GRAVITY_M_S2
 
 def build_estimator(model: RobotModel, tools: Mapping[str, str] | None = None,
                     period_s: float | None = None, accel_measured: bool = True,
-                    sensors_measured: bool = True) -> Estimator:
+                    sensors_measured: bool = False) -> Estimator:
     """The estimation layer of a run: attitude (gyro, accelerometer and the legs' tilt),
     compensated wrenches (weight, and the hands' inertia), contact, floating base
     and soles, centre of mass with the capture point and the ZMP, then the sensors'
@@ -32,8 +32,9 @@ def build_estimator(model: RobotModel, tools: Mapping[str, str] | None = None,
         period_s: the control period (s; default the model's).
         accel_measured: the driver measures the accelerometer (``Driver.accel_measured``);
             else the wrists' compensation removes the hands' weight alone.
-        sensors_measured: the driver's sensors are measured (``Driver.sensors_measured``);
-            else their plausibility is not checked.
+        sensors_measured: the driver's sensors are measured (``Driver.sensors_measured``,
+            which a run passes); else (made-up states: a bench, a test) their plausibility
+            is not checked.
     """
     tools = tools or {}
     drill = tools.get("right-arm") == "drill"
