@@ -253,7 +253,8 @@ def _run_in(setup: RunSetup, target: Target, on_start, speed: float | None,
                                operator=setup.operator, observer=setup.live,
                                estimator=build_estimator(setup.model, setup.tools,
                                                          driver.period_s,
-                                                         driver.accel_measured))
+                                                         driver.accel_measured,
+                                                         driver.sensors_measured))
             # the target may act on the scene, never read it (issue 33)
             target.attach(None if world is None else SceneActions(world), modules,
                           loop.target_store)

@@ -148,7 +148,8 @@ def test_a_task_closes_the_loop_through_the_fake_daemon(tmp_path):
         task.write_text(SHORT_TASK)
         run = tmp_path / "run"
         result = _run(["task", "run", str(task), "--driver", "hardware", "--arm", "--ach-ref",
-                       ref, "--ach-state", state, "--out", str(run), "--json"])
+                       ref, "--ach-state", state, "--echo-sensors", "--out", str(run),
+                       "--json"])  # (the fake daemon's sensors read 0: declared made up)
     finally:
         daemon.send_signal(signal.SIGTERM)
         out, err = daemon.communicate(timeout=20)
@@ -240,6 +241,7 @@ def test_a_daemon_killed_mid_move_ends_the_run_braked_with_exit_3(tmp_path, how,
             client = subprocess.Popen(
                 [sys.executable, "-m", "hubo_cli.cli.main", "task", "run", str(task),
                  "--driver", "hardware", "--arm", "--ach-ref", ref, "--ach-state", state,
+                 "--echo-sensors",
                  "--out", str(run)], stdout=subprocess.DEVNULL, stderr=err_file)
         end = time.monotonic() + 240
         while "short-move: run," not in err_path.read_text():  # the 8 s move has begun

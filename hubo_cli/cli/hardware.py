@@ -8,7 +8,7 @@ import signal
 
 import click
 
-from hubo_cli.cli.output import err_console, print_json
+from hubo_cli.cli.output import err_console, print_json, warn
 from hubo_cli.errors import DeviceError, InputError
 
 SINK_CHOICES = ("ach", "file", "fifo")
@@ -32,6 +32,11 @@ def hardware_options(function):
                      help="hubo-ach reference mode for every joint: direct (mode 1, the "
                           "default, as hubo-motion-rt) or filtered (mode 0, hubo-daemon's "
                           "40-tap filter: 0.2 s of lag). Recorded in the summary."),
+        click.option("--echo-sensors", is_flag=True,
+                     help="The daemon's sensors are made up (hubo hardware fake-daemon): the "
+                          "sensor checks are off and the force stops cannot act (said on "
+                          "stderr). Without it a run against the fake daemon is refused: its "
+                          "wrist sensors read exactly 0."),
     ]
     for option in reversed(options):
         function = option(function)
@@ -40,17 +45,22 @@ def hardware_options(function):
 
 def driver_options(driver: str, armed: bool, dry_run: bool, sink: str | None,
                    ach_ref: str | None, ach_state: str | None,
-                   ref_mode: str | None = None) -> dict:
+                   ref_mode: str | None = None, echo_sensors: bool = False,
+                   quiet: bool = False) -> dict:
     """The driver's options from the command line; hardware options (``--arm`` among them)
     with another driver, or a dry run on the channels, are refused (exit 2).
 
     A dry run writes a file that no robot reads, so it needs no ``--arm``; every other sink
-    reaches (or may reach) a robot and the driver refuses to start without it.
+    reaches (or may reach) a robot and the driver refuses to start without it. A dry run is
+    told on stderr that its force stops and sensor checks cannot act (the echo reads no force;
+    not with ``quiet``: ``--json``).
     """
     hardware = {"sink": sink, "ach_ref": ach_ref, "ach_state": ach_state, "ref_mode": ref_mode}
     given = [f"--{k.replace('_', '-')}" for k, v in hardware.items() if v is not None]
     if dry_run:
         given.append("--dry-run")
+    if echo_sensors:
+        given.append("--echo-sensors")
     if driver != "hardware":
         if armed:  # arms nothing: a script that believes it armed a robot is told
             given.insert(0, "--arm")
@@ -66,10 +76,20 @@ def driver_options(driver: str, armed: bool, dry_run: bool, sink: str | None,
             raise InputError("a dry run uses no ach channel",
                              hint="leave out --ach-ref and --ach-state")
         options = {"armed": True, "sink": "file"}
+        # the echo is no sensor (Driver.sensors_measured): say what cannot act, never pretend
+        if not quiet:
+            warn("dry run: the echoed state reads no force and a level, still IMU: the "
+                 "wrist-torque and force stops, the force control and the sensor checks cannot "
+                 "act")
     else:
         options = {"armed": armed, **{k: v for k, v in hardware.items() if v is not None}}
     if ref_mode is not None:
         options["ref_mode"] = ref_mode
+    if echo_sensors and not dry_run:  # (a dry run's echo is said above)
+        options["echo_sensors"] = True
+        if not quiet:
+            warn("--echo-sensors: the daemon's sensors are taken as made up: the wrist-torque "
+                 "and force stops, the force control and the sensor checks cannot act")
     return options
 
 

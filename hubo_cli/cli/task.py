@@ -250,7 +250,7 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
 
     if video:
         check_video_support()
-    options = driver_options(driver, armed, **hardware)
+    options = driver_options(driver, armed, **hardware, quiet=as_json)
     spec = load_task(name, overrides,
                      sources_on_command_line=no_estop or estop_sources is not None)
     ctx = click.get_current_context()

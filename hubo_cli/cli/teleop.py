@@ -254,7 +254,7 @@ def teleop(replay, port, generate_seed, max_speed, reconnect_timeout, baud, driv
         wall_distance_m=None if wall_distance is None else wall_distance / 1000.0,
         duration_s=duration, clutch_at_s=tuple(clutch_at), out=out, gui=gui, baud=baud,
         reconnect_timeout_s=reconnect_timeout,
-        stops=stops, driver_options=driver_options(driver, armed, **hardware),
+        stops=stops, driver_options=driver_options(driver, armed, **hardware, quiet=as_json),
         perturb_seed=perturb_seed, balance=balance, walk_from_m=walk_from,
         reach=ReachSettings.for_mode(
             mode, mode=reach_mode, allow_branch_change=allow_branch_change,

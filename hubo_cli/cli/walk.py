@@ -97,7 +97,7 @@ def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | No
     check_goal(goal)
     disturbances = check_disturbances(push_n, PUSH_DIRECTIONS[push_direction], push_at_s,
                                       stop_at_s, driver)
-    options = driver_options(driver, armed, **hardware)
+    options = driver_options(driver, armed, **hardware, quiet=as_json)
     stops = active_stops(SOFT_SOURCES, driver, no_estop=no_estop, estop_sources=estop_sources,
                          accept_reduced_safety=accept_reduced_safety, quiet=as_json)
     check_walk_stops(stops, "a walk")
@@ -131,7 +131,10 @@ def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | No
         ended = _interrupted_words(result)
         if ended is not None:
             console.print(f"ended             {ended}")
-        console.print(f"fell              {'YES' if result.fell else 'no'}")
+        truth = ("" if result.fell_truth is None or result.fell_truth == result.fell
+                 else f" (the simulator's truth: {'YES' if result.fell_truth else 'no'}, "
+                      f"largest torso tilt {result.max_true_tilt_deg:.0f} deg)")
+        console.print(f"fell              {'YES' if result.fell else 'no'}{truth}")
         speed = result.average_speed_m_s
         if result.ended == "interrupted" and result.interrupt_stop != "stood":  # cut short
             console.print(f"steps             {result.steps} planned, the run ended before "
@@ -153,7 +156,7 @@ def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | No
     exit_if_interrupted(fields)
     if result.failure is not None:  # e.g. the robot's state lost: exit 3, the robot braked
         raise result.failure
-    if result.fell or result.stopped_s is not None:  # fell, or stopped short of the goal
+    if result.fell or result.fell_truth or result.stopped_s is not None:  # fell, or stopped
         raise SystemExit(1)
 
 
@@ -161,8 +164,9 @@ def _interrupted_words(result) -> str | None:
     """How an interrupted walk ended, for the report's ``ended`` line (None: it was not):
     its step finished into a stance (also after a log failure), never started (no plan), or
     braked short of the goal (with the stance stop's outcome, if one was asked)."""
-    if result.interrupt_stop == "stood":
-        return "interrupted: the step finished, standing in double support"
+    if result.interrupt_stop == "stood":  # Ctrl-C's stance stop, or a sensor fault's
+        why = "a device fault" if result.ended == "device" else "interrupted"
+        return f"{why}: the step finished, standing in double support"
     if result.ended != "interrupted":
         return None
     if not result.steps:

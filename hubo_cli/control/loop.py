@@ -73,6 +73,7 @@ from hubo_cli.drivers.base import Driver
 from hubo_cli.errors import ConfigError, DeviceError, HuboError, interrupt_cause
 from hubo_cli.estimation.estimator import Estimator
 from hubo_cli.estimation.keys import T_WORLD_TORSO
+from hubo_cli.estimation.plausibility import SensorFault
 from hubo_cli.interrupts import (
     interrupt_pending,
     loop_ended,
@@ -306,7 +307,8 @@ class ControlLoop:
             from hubo_cli.estimation.build import build_estimator
 
             estimator = build_estimator(driver.model, period_s=self.dt_s,
-                                        accel_measured=driver.accel_measured)
+                                        accel_measured=driver.accel_measured,
+                                        sensors_measured=driver.sensors_measured)
         self.estimator = estimator
         self.store = estimator.store if estimator is not None else Store()
         # an estimated torso beyond these heights is device trouble (following.py)
@@ -431,14 +433,19 @@ class ControlLoop:
         held = False  # the driver failed: it stopped (or holds) by itself, no brake of ours
         try:
             state = driver.read()
+            refused = None  # a sensor dead at the start: the run ends before anything moves
             if self.estimator is not None:
-                self.estimator.reset(state)
+                try:
+                    self.estimator.reset(state)
+                except SensorFault as err:
+                    refused = err
+                    ended, error, exc = "device", str(err), err
             q0 = np.array(state.q_rad, dtype=float)
             self._cmd = self._cmd_prev = self._cmd_prev2 = q0
             for m, view in zip(self.modules, self._views, strict=True):
                 m.reset(q0.copy(), state, view)
-            while (duration_s is None or stance is not None
-                   or self.period * self.dt_s < duration_s - 1e-9):
+            while refused is None and (duration_s is None or stance is not None
+                                       or self.period * self.dt_s < duration_s - 1e-9):
                 t_s = self.period * self.dt_s
                 if interrupt_pending() is not None:  # noted (or swallowed): act on it now
                     cause = take_interrupt()
@@ -501,6 +508,15 @@ class ControlLoop:
                         if self._torso_bounds_m is not None:  # before any module acts on it
                             check_torso_height(self.store.get(T_WORLD_TORSO),
                                                self._torso_bounds_m, t_s)
+                    except SensorFault as err:  # (raised once: the estimate is whole)
+                        exc = exc or err
+                        if stance is not None:  # already stopping in a stance: said too
+                            error = _joined(error, str(err))
+                        else:  # a walk stops in a stance as after Ctrl-C, the rest brakes
+                            ended, error = "device", str(err)
+                            stance = self._stance_stop(t_s)
+                            if stance is None:
+                                break
                     except Exception as err:  # noqa: BLE001 (ends in a smooth stop)
                         ended = "device" if isinstance(err, DeviceError) else "estimation-error"
                         exc = err

@@ -145,6 +145,9 @@ class Driver(ABC):
         accel_measured: the state's ``imu_accel_m_s2`` is a measured specific force (False:
             rebuilt from the tilt, it reads rest whatever the motion, and the estimate
             removes no inertia from the wrists' readings).
+        sensors_measured: the state's IMU and force sensors are measured, so a reading no
+            working sensor gives is a fault (:mod:`hubo_cli.estimation.plausibility`); False:
+            they are made up (the ideal driver, a hardware dry run's echo) and not checked.
         log_columns: numbers the driver adds to every log row (see :meth:`log_values`).
 
     Args:
@@ -154,6 +157,7 @@ class Driver(ABC):
     name = "abstract"
     real_time: ClassVar[bool] = False
     accel_measured: ClassVar[bool] = True
+    sensors_measured: bool = True
     log_columns: tuple[str, ...] = ()
 
     @property

@@ -157,6 +157,9 @@ class HardwareDriver(Driver):
         servo_error_limit_rad: the servo-error trip (default: the robot file's
             ``[hardware_guards]``; see :mod:`hubo_cli.drivers.servo_guard`).
         velocity_margin: references faster than margin x the velocity limit trip servo-off.
+        echo_sensors: the daemon's sensors are made up (``hubo hardware fake-daemon``: zero
+            force, a level and still IMU), as a dry run's are: not checked
+            (:attr:`sensors_measured`), and the force stops cannot act.
         stale_after_s: wall time without a fresh state before the driver brakes and holds.
         stale_grace_s: how long after the brake began the run ends (:class:`StateLost`).
         state_wait_s: how long each period waits for the daemon's next state (default 1.5
@@ -171,6 +174,13 @@ class HardwareDriver(Driver):
     name = "hardware"
     real_time = True
     accel_measured = False  # hubo-ach's body IMU reports tilt: accel_from_tilt reads rest
+
+    @property
+    def sensors_measured(self) -> bool:
+        """The robot's sensors through hubo-ach; a dry run's echo reads no force and a level,
+        still IMU (:mod:`hubo_cli.estimation.plausibility` cannot check it, and the force
+        stops never see a force there)."""
+        return self.sink_kind == "ach" and not self.echo_sensors
     log_columns = ("hw_ref_seq", "hw_state_time_s", "hw_state_age_periods", "hw_ref_mode",
                    "hw_state_age_ms", "hw_round_trip_ms", "hw_servo_error_rad",
                    "hw_thermal_scale", "hw_max_motor_temp_c")
@@ -182,8 +192,10 @@ class HardwareDriver(Driver):
                  velocity_margin: float = 1.02, stale_after_s: float = STALE_AFTER_S,
                  stale_grace_s: float = STALE_GRACE_S, state_wait_s: float | None = None,
                  start_timeout_s: float = 1.0, start_tolerance_rad: float = 0.02,
+                 echo_sensors: bool = False,
                  clock: Callable[[], float] | None = None) -> None:
         super().__init__(model)
+        self.echo_sensors = bool(echo_sensors)
         if sink not in SINKS:
             raise ConfigError(f"unknown sink {quoted(sink)}", hint=f"use one of {', '.join(SINKS)}")
         if sink != "ach" and sink_path is None:

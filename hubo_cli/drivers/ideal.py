@@ -95,6 +95,7 @@ class IdealDriver(Driver):
     wrist sensor)."""
 
     name = "ideal"
+    sensors_measured = False  # state = command: a still IMU, the drill's weight alone
 
     @classmethod
     def run_options(cls, run: RunContext) -> dict:

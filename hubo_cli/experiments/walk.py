@@ -21,6 +21,7 @@ from hubo_cli.control.pipeline import SafetyProfile
 from hubo_cli.control.stop_choice import ActiveStops
 from hubo_cli.control.target import Target, TargetOutput
 from hubo_cli.errors import HuboError, InputError, quoted
+from hubo_cli.falls import FALL_TILT_DEG
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.scene import SceneActions
@@ -45,6 +46,10 @@ class WalkResult:
 
     Attributes:
         fell: the torso fell (:func:`hubo_cli.falls.has_fallen`, on the estimated torso).
+        fell_truth: the simulator's truth: the torso's largest true tilt since the start
+            passed :data:`~hubo_cli.falls.FALL_TILT_DEG` (None without a simulator). A report's
+            figure: where it disagrees with ``fell`` (a sensor that lied) both are said.
+        max_true_tilt_deg: that largest true tilt (deg; None without a simulator).
         touchdowns_early: swings ended where the foot was pushed onto the floor early
             (:meth:`~hubo_cli.walking.target.WalkTarget._touched_early`).
         liftoff_waits: lift-offs the walk's timeline waited at, the soles measured carrying
@@ -100,6 +105,8 @@ class WalkResult:
     gait: str
     run_dir: Path
     failure: HuboError | None = None
+    fell_truth: bool | None = None
+    max_true_tilt_deg: float | None = None
     files: tuple[str, ...] = ()
     interrupt_stop: str | None = None
     unplayed: tuple[Disturbance, ...] = ()
@@ -107,7 +114,9 @@ class WalkResult:
     def summary(self) -> dict:
         """The walk's own fields of summary.json (those every run has, ``ended`` and
         ``interrupt_stop`` among them, are :func:`~hubo_cli.session.common_summary`'s)."""
-        return {"fell": self.fell, "stopped_s": self.stopped_s, "stood": self.stood,
+        return {"fell": self.fell, "fell_truth": self.fell_truth,
+                "max_true_tilt_deg": self.max_true_tilt_deg,
+                "stopped_s": self.stopped_s, "stood": self.stood,
                 "shifts": self.shifts, "touchdowns_early": self.touchdowns_early,
                 "liftoff_waits": self.liftoff_waits, "landing_waits": self.landing_waits,
                 "reaims": self.reaims,
@@ -263,6 +272,7 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
     error_m, error_rad = (estimated_m, estimated_rad) if true is None else true
     distance = math.hypot(goal[0], goal[1])
     walking_s = target.walking_s
+    true_tilt = done.summary.get("max_torso_tilt_deg")  # the simulator's (None on a robot)
     result = WalkResult(
         fell=target.fell, stopped_s=target.stopped_s,
         stood=target.phase == "stood" and not target.stop_failed,  # failed: braked in place
@@ -281,7 +291,9 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
         estop_events=sum(e["kind"] == "stop" for e in done.summary["estop_events"]),
         footsteps=[s.to_json() for s in target.steps], gait=gait, run_dir=done.run_dir,
         failure=done.loop.failure(done.run_dir),
-        interrupt_stop=done.loop.interrupt_stop or None, unplayed=tuple(disturbed.pending))
+        interrupt_stop=done.loop.interrupt_stop or None, unplayed=tuple(disturbed.pending),
+        fell_truth=None if true_tilt is None else true_tilt > FALL_TILT_DEG,
+        max_true_tilt_deg=true_tilt)
     done.save_summary(result.summary())
     plot_footprints(done, target, walking_model)
     if target.toe_heel is not None:

@@ -1,0 +1,158 @@
+"""Sensors that lie without being NaN: the one home of the plausibility checks on the readings.
+
+A sensor can fail and keep reporting finite numbers: an IMU whose values stop changing, force
+sensors that read far more than the robot weighs, a wrist sensor that reads flat (a dead
+channel reads 0 to the last bit) while its arm moves, a joint encoder whose reading makes the
+estimate say the torso lies on the floor while the soles still carry the robot. The controllers
+act on these readings, so each is a device fault (:class:`SensorFault`, exit 3): the control
+loop stops as it does after Ctrl-C (a walk finishes its step into a double-support stance, any
+other run brakes to rest), and a sensor already dead at the start refuses the run before
+anything moves.
+
+Checks (each bound measured on healthy runs, docs/history/safety.md, round 17):
+
+- the IMU (orientation, gyro and accelerometer together) bit-identical for
+  :data:`IMU_FROZEN_PERIODS` periods in a row (a real IMU has noise; the simulator's moves);
+- the soles' F_z together over :data:`SOLES_MAX_WEIGHTS` times the robot's weight for longer
+  than :data:`SOLES_OVER_S` (a landing's impact is shorter);
+- a wrist sensor bit-identical for :data:`WRIST_FLAT_PERIODS` periods while its arm moves, or
+  reading exactly 0 in every component at the start;
+- the estimated torso fallen (:func:`~hubo_cli.falls.has_fallen`: tilted or dropped) while
+  the soles carry at least :data:`SOLES_CARRY_SHARE` of the weight: not a fall, a joint
+  encoder or the IMU lies (:func:`soles_carry_weight` is also the walk's condition before it
+  says it fell).
+
+Only a driver whose sensors are measured (``Driver.sensors_measured``) is checked: the ideal
+driver's and a hardware dry run's echo (zero force and a level, still IMU) are not sensors.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from hubo_cli.dataflow import Store
+from hubo_cli.errors import DeviceError
+from hubo_cli.estimation.keys import T_WORLD_TORSO
+from hubo_cli.estimation.observer import Observer
+from hubo_cli.falls import has_fallen
+from hubo_cli.geometry import tilt_rad_of_z_axis
+from hubo_cli.model import ARMS, RobotModel
+from hubo_cli.state import ANKLE_SENSORS, RobotState
+
+IMU_FROZEN_PERIODS = 10  # 50 ms; healthy runs: 0 (bit-identical for no period in a row)
+SOLES_MAX_WEIGHTS = 2.5  # the soles' F_z together, in robot weights ...
+SOLES_OVER_S = 0.1       # ... for longer than this (s)
+WRIST_FLAT_PERIODS = 40  # 0.2 s of its arm moving
+ARM_MOVING_RAD_S = 0.02  # an arm moves: one of its joints measured at least this fast
+SOLES_CARRY_SHARE = 0.5  # the soles carry the robot: at least this share of its weight
+WRISTS = ("right-wrist", "left-wrist")
+
+
+class SensorFault(DeviceError):
+    """A sensor reads finite values no working sensor reads (see the module docstring)."""
+
+    def __init__(self, message: str, hint: str = "") -> None:
+        super().__init__(message, hint=hint or "check the sensor (cable, power, hubo-daemon's "
+                                                "reading of it), then start the run again")
+
+
+def soles_carry_weight(soles_fz_n: float, weight_n: float) -> bool:
+    """The soles' F_z together (N) carry the robot of weight ``weight_n`` (N)."""
+    return soles_fz_n >= SOLES_CARRY_SHARE * weight_n
+
+
+class SensorPlausibility(Observer):
+    """Raises :class:`SensorFault` once, the first period a reading is implausible (see the
+    module docstring); it writes no key and runs last, after the estimate it checks.
+
+    Args:
+        model: the robot model (joint names).
+        weight_n: the robot's weight (N), its tools included.
+        period_s: the control period (s).
+        measured: the driver's sensors are measured (``Driver.sensors_measured``); False:
+            nothing is checked.
+    """
+
+    name = "sensor-plausibility"
+    reads = (T_WORLD_TORSO,)
+
+    def __init__(self, model: RobotModel, weight_n: float, period_s: float,
+                 measured: bool = True) -> None:
+        self.weight_n = float(weight_n)
+        self.period_s = float(period_s)
+        self.measured = measured
+        self._arms = {wrist: model.limb_slice(arm) for wrist, arm in zip(WRISTS, ARMS,
+                                                                          strict=True)}
+        self.fault: SensorFault | None = None
+
+    def reset(self, state: RobotState, store: Store) -> None:
+        self.fault = None
+        self._imu = None
+        self._imu_same = 0
+        self._wrist = dict.fromkeys(WRISTS)
+        self._wrist_flat = dict.fromkeys(WRISTS, 0)
+        self._soles_over = 0  # periods in a row over the limit
+        self._z0_m = None  # the estimated torso height at the start (m)
+        if not self.measured:
+            return
+        for wrist in WRISTS:
+            reading = state.ft.get(wrist)
+            if reading is not None and not np.any(np.asarray(reading, dtype=float)):
+                self._raise(f"the {wrist} force-torque sensor reads exactly 0 in every "
+                            "component at the start (a hand weighs something): refused "
+                            "before anything moved")
+        self.update(state, store)
+
+    def update(self, state: RobotState, store: Store) -> None:
+        if not self.measured or self.fault is not None:
+            return
+        imu = np.concatenate([state.imu_quat_wxyz, state.imu_gyro_rad_s, state.imu_accel_m_s2])
+        same = self._imu is not None and np.array_equal(imu, self._imu)
+        self._imu, self._imu_same = imu, self._imu_same + 1 if same else 0
+        if self._imu_same >= IMU_FROZEN_PERIODS:
+            self._raise(f"the IMU read the same values to the last bit for {self._imu_same} "
+                        f"periods ({self._imu_same * self.period_s:.3f} s) at t = "
+                        f"{state.time_s:.2f} s: frozen")
+        soles_n = sum(float(state.ft[s][2]) for s in ANKLE_SENSORS if s in state.ft)
+        over = soles_n > SOLES_MAX_WEIGHTS * self.weight_n
+        self._soles_over = self._soles_over + 1 if over else 0
+        if self._soles_over * self.period_s > SOLES_OVER_S + 1e-9:
+            self._raise(f"the ankle force sensors read {soles_n:.0f} N together "
+                        f"({soles_n / self.weight_n:.1f} times the robot's "
+                        f"{self.weight_n:.0f} N) for {self._soles_over * self.period_s:.3f} s "
+                        f"at t = {state.time_s:.2f} s")
+        dq = np.abs(np.asarray(state.dq_rad_s, dtype=float))
+        for wrist, arm in self._arms.items():
+            reading = state.ft.get(wrist)
+            if reading is None:
+                continue
+            reading = np.asarray(reading, dtype=float)
+            flat = self._wrist[wrist] is not None and np.array_equal(reading, self._wrist[wrist])
+            self._wrist[wrist] = reading.copy()
+            if not flat:
+                self._wrist_flat[wrist] = 0
+            elif np.max(dq[arm]) >= ARM_MOVING_RAD_S:
+                self._wrist_flat[wrist] += 1
+                if self._wrist_flat[wrist] >= WRIST_FLAT_PERIODS:
+                    self._raise(f"the {wrist} force-torque sensor read the same values to "
+                                f"the last bit for {self._wrist_flat[wrist]} periods while "
+                                f"its arm moved, at t = {state.time_s:.2f} s: dead")
+        (_, _, r02, _), (_, _, r12, _), (_, _, r22, z_m) = \
+            np.asarray(store[T_WORLD_TORSO])[:3].tolist()
+        tilt_deg = math.degrees(tilt_rad_of_z_axis(r02, r12, r22))  # as the walk has it
+        if self._z0_m is None:
+            self._z0_m = z_m
+        if has_fallen(tilt_deg, self._z0_m - z_m) \
+                and soles_carry_weight(soles_n, self.weight_n):
+            self._raise(f"the estimate says the torso fell (tilt {tilt_deg:.1f} deg, "
+                        f"{1000 * (self._z0_m - z_m):.0f} mm below its start) while the soles "
+                        f"carry {soles_n:.0f} N of the robot's {self.weight_n:.0f} N, at "
+                        f"t = {state.time_s:.2f} s: a joint encoder or the IMU lies",
+                        hint="check the joint encoders (hubo-console) and the IMU, then start "
+                             "the run again")
+
+    def _raise(self, message: str, hint: str = "") -> None:
+        self.fault = SensorFault(message, hint)
+        raise self.fault
