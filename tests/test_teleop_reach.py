@@ -694,22 +694,49 @@ def test_a_hand_the_room_moves_keeps_the_detectors_look_ahead_out_of_its_band(tm
     assert target.room.led > 50  # the room led the arm from its command
 
 
+def test_the_two_hand_capture_delivers_the_pose_logs_stream_period_by_period():
+    """The shipped two-hand sample's raw FASTRAK capture and its pose log are the same operator:
+    read by the control period (5 ms) from the same input class, each period delivers the same
+    hands' poses in the same order, the same flags, times within 1 us and positions within
+    1 um (measured 0.42 us and 0.50 um: the pose log's six decimals), rotations within 1e-6
+    (measured 1.1e-7). So the next test's run of the pose log is the capture's run as well
+    (the whole run's paths differed by 0.0001 mm when both were run, 11.8 s of CPU each)."""
+    from hubo_cli.input.opener import open_input
+    from hubo_cli.resources import data_file
+
+    with (open_input(replay=data_file("trajectories", "two-hand-free.csv")) as log,
+          open_input(replay=data_file("trajectories", "two-hand-free.fastrak")) as capture):
+        assert type(log) is type(capture) and log.hands == capture.hands == ("right", "left")
+        assert capture.recorded_s == pytest.approx(log.recorded_s, abs=1e-6)
+        k = delivered = 0
+        while not (log.done and capture.done):
+            t_s = k * 0.005
+            k += 1
+            ours, theirs = log.read_until(t_s), capture.read_until(t_s)
+            assert [p.hand for p in ours] == [p.hand for p in theirs], t_s
+            for a, b in zip(ours, theirs, strict=True):
+                assert (a.reliable, a.engaged) == (b.reliable, b.engaged), t_s
+                assert abs(a.t_s - b.t_s) < 1e-6, t_s
+                assert np.abs(a.position_m - b.position_m).max() < 1e-6, t_s
+                assert np.abs(a.T_operator_hand[:3, :3]
+                              - b.T_operator_hand[:3, :3]).max() < 1e-6, t_s
+                delivered += 1
+        assert delivered == log.stats()["good_records"] == capture.stats()["good_records"] == 2880
+
+
+@pytest.mark.physical
 @pytest.mark.slow
-@pytest.mark.parametrize("sample", [
-    # the same operator in both files: the portable run checks one (the paths differ by
-    # 0.0001 mm, below)
-    pytest.param("two-hand-free.csv", marks=pytest.mark.physical), "two-hand-free.fastrak"])
-def test_the_two_hand_sample_keeps_up_with_the_operator(tmp_path, sample):
-    """The shipped two-hand sample (the pose log and the raw FASTRAK capture) in free mode on the
-    simulated robot: each arm on its own trajectory generator (its joints unsynchronised unless
-    that swings the hand off the straight line to the target, the arms' jerk limit 40 rad/s^3
-    of the robot file's teleop limit set) keeps each hand within 7.5 mm RMS of the operator's
-    goal and within 14 mm of the goal's path (measured 5.7-6.5 mm RMS, 12.8-13.3 mm max
-    excursion on both code paths, AVX-512 / portable, free mode's 0.8 s orientation filter;
-    11.4-11.7 mm with the 1 s filter; 11.8 mm RMS with one phase-synchronised
-    tracker for the body at 4 rad/s^3; 15.5 mm excursion on the capture with a switch on the
-    joints' lag), and the goal passing 6 mm from the torso slides the arm along the collision
-    band instead of tripping a hold.
+def test_the_two_hand_sample_keeps_up_with_the_operator(tmp_path):
+    """The shipped two-hand sample (its pose log; the raw FASTRAK capture delivers the same stream,
+    the test above) in free mode on the simulated robot: each arm on its own trajectory generator
+    (its joints unsynchronised unless that swings the hand off the straight line to the target, the
+    arms' jerk limit 40 rad/s^3 of the robot file's teleop limit set) keeps each hand within 7.5 mm
+    RMS of the operator's goal and within 14 mm of the goal's path (measured 5.7-6.5 mm RMS,
+    12.8-13.3 mm max excursion on both code paths, AVX-512 / portable, free mode's 0.8 s orientation
+    filter; 11.4-11.7 mm with the 1 s filter; 11.8 mm RMS with one phase-synchronised tracker for
+    the body at 4 rad/s^3; 15.5 mm excursion on the capture with a switch on the joints' lag), and
+    the goal passing 6 mm from the torso slides the arm along the collision band instead of tripping
+    a hold.
 
     The RMS bound is 1.5x the worst measured (10.5 mm, short of the synchronised tracker's
     11.8). The excursion's stays at 14 mm, 1.05x: 1.5x (19 mm) would pass the 15.5 mm of the
@@ -717,7 +744,7 @@ def test_the_two_hand_sample_keeps_up_with_the_operator(tmp_path, sample):
     hand's, in the collision room's slide), the 0.7 mm left 2.3x that."""
     from hubo_cli.resources import data_file
 
-    run = run_teleop(TeleopSettings(replay=data_file("trajectories", sample),
+    run = run_teleop(TeleopSettings(replay=data_file("trajectories", "two-hand-free.csv"),
                                     out=tmp_path / "run"))
     s = run.summary
     assert s["ended"] == "done" and not s["estop_events"] and not s["collision_holds"]
