@@ -107,6 +107,8 @@ def test_the_limiters_clamp_bits_are_its_mask():
     model = load_model()
     dt = model.control_period_s
     limiter = SoftErrorLimiter(model, dt)
+    limiter.checks.measured = lambda *args: None  # random measurements no robot gives: the
+    # following checks (tests/test_following.py) would end it as a jump at once
     n = len(model.joint_names)
     rng = np.random.default_rng(2)
     q0 = np.clip(np.zeros(n), limiter.limits.lower_rad, limiter.limits.upper_rad)

@@ -62,6 +62,8 @@ def test_limiter_catches_a_moving_target_and_lands_on_it(model, speed_rad_s):
     at 0.2 rad/s), flagged `slowing` every period while it moved (a task's retract: 492
     periods on the shoulder roll)."""
     limiter = SoftErrorLimiter(model, DT, error_limit_rad=0.0)
+    limiter.checks.measured = lambda *args: None  # the measured robot stands still for this
+    # test of the command's arithmetic: the following checks would end it (test_following.py)
     q0 = home_posture(model)
     limiter.reset(q0, _state(model), Store())
     gaps, flagged = [], []

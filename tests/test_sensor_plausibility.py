@@ -118,20 +118,3 @@ def test_a_dead_wrist_sensor_is_refused_at_the_start_and_a_fault_while_its_arm_m
         WRIST_FLAT_PERIODS + 10  # flat while the arm stands still: no evidence
     with pytest.raises(SensorFault, match="right-wrist .* while its arm moved"):
         _estimate(_states(WRIST_FLAT_PERIODS + 10, ft=_wrist_zero(5), dq_rad_s=_arm_moving))
-
-
-def test_an_estimate_that_falls_while_the_soles_carry_the_robot_is_a_sensor_fault():
-    """The knees' encoders lie (review 17: a knee read with its sign flipped, the estimate
-    'fell' 437 mm, the truth 8 deg): the estimated torso drops while the soles carry the
-    robot's weight; the same drop with the soles unloaded is the walk's fall, no fault."""
-    knees = [MODEL.joint_names.index(j) for j in ("RKN", "LKN")]
-
-    def bent(k, s):
-        q = np.array(s.q_rad, dtype=float)
-        if k >= 5:
-            q[knees] = 2.3
-        return q
-
-    with pytest.raises(SensorFault, match="the estimate says the torso fell"):
-        _estimate(_states(10, q_rad=bent))
-    assert _estimate(_states(10, q_rad=bent, ft=_soles(20.0, 5))) == 10

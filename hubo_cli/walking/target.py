@@ -95,7 +95,6 @@ from hubo_cli.estimation.keys import (
     WRENCHES,
     ZMP_WORLD,
 )
-from hubo_cli.estimation.plausibility import soles_carry_weight
 from hubo_cli.falls import has_fallen
 from hubo_cli.geometry import tilt_rad_of_z_axis
 from hubo_cli.kinematics.choice import CAPPED, EXACT, solve_limb
@@ -1285,8 +1284,8 @@ class WalkTarget(Target):
         tilt_deg = math.degrees(tilt_rad_of_z_axis(r02, r12, r22))
         if self.torso_z0_m is None:
             self.torso_z0_m = torso_z
-        if has_fallen(tilt_deg, self.torso_z0_m - torso_z) and not self._soles_carry():
-            self.fell = True  # (loaded soles: the estimate lies, the estimation says so)
+        if has_fallen(tilt_deg, self.torso_z0_m - torso_z):
+            self.fell = True
         poses = store[T_WORLD_SOLES]
         zmp = np.asarray(store[ZMP_WORLD], dtype=float)
         outside = zmp_outside_m(zmp, poses, self.corners, store[CONTACT])
@@ -1324,15 +1323,6 @@ class WalkTarget(Target):
                 **self._stabilizer_info(), **self._toe_heel_info(k, poses),
                 "done": self.fell or self._done(t_s)}
         return q, info
-
-    def _soles_carry(self) -> bool:
-        """The soles measured carried the robot (:func:`~hubo_cli.estimation.plausibility.
-        soles_carry_weight`) over the last LIFTOFF_WINDOW_S, their median: an estimate that
-        says the torso fell meanwhile lies (a joint encoder, the IMU), and a bounce's instant
-        unloading (100 N for 5 ms after a sensor fault's stop, round 17) is no fall."""
-        loads_n = self._loads_n[~np.isnan(self._loads_n)]
-        return bool(loads_n.size) and soles_carry_weight(float(np.median(loads_n)),
-                                                         self._weight_n)
 
     def _unloaded_liftoff(self, k: int) -> bool:
         """Row ``k`` has both soles down and the next lifts one, while the soles measured
