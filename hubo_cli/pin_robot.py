@@ -15,6 +15,7 @@ import pinocchio as pin
 
 from hubo_cli.errors import ConfigError, quoted
 from hubo_cli.model import RobotModel
+from hubo_cli.state import GRAVITY_M_S2
 
 
 @dataclass
@@ -46,6 +47,12 @@ class PinRobot:
                 q[:3] = T_world_torso[:3, 3]
                 q[3:7] = pin.Quaternion(T_world_torso[:3, :3]).coeffs()  # x y z w
         return q
+
+    @property
+    def weight_n(self) -> float:
+        """The robot's weight (N): its total mass (tools in the URDF included) at standard
+        gravity."""
+        return float(pin.computeTotalMass(self.model)) * GRAVITY_M_S2
 
     def frame_id(self, name: str) -> int:
         """The id of a URDF frame (link) by name; the error lists the end frames."""

@@ -50,7 +50,7 @@ from hubo_cli.geometry import GIMBAL_LOCK_COS
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.posture import home_posture
-from hubo_cli.state import GRAVITY_M_S2, RobotState
+from hubo_cli.state import RobotState
 
 K_R_RAD_S_PER_DEG = 0.009
 K_C_RAD_S_PER_NM = 0.0015
@@ -279,7 +279,7 @@ class DampingBalancer(Module):
         import pinocchio as pin
 
         self._pin = pin
-        self._weight_n = float(pin.computeTotalMass(self._robot.model)) * GRAVITY_M_S2
+        self._weight_n = self._robot.weight_n
         self._loaded_n = model.estimation.body_on_soles_weight_fraction * self._weight_n
         self._sole_ids = [self._robot.frame_id(f) for f in ("right_sole", "left_sole")]
         self._q = self._robot.configuration(np.zeros(len(names)))  # torso at the origin

@@ -77,21 +77,17 @@ def _measured_kernel(q, last_q, dt, speed_max, cmd, still_q, still_cmd, still_t,
 
     Updates ``last_q`` (where ``dt`` != 0: a fresh state; NaN joints keep theirs) and the
     still anchors ``still_q``, ``still_cmd``, ``still_t`` (where ``judge_still``). Writes
-    ``out``: the joint found and its figure (rad/s for a jump, rad away for a still joint),
-    the state's largest speed over its bound and its largest still command (rad). Returns 0,
-    JUMPED or STILL.
+    ``out``: the joint found and its figure (rad/s for a jump, rad away for a still joint).
+    Returns 0, JUMPED or STILL.
     """
     found, k_found, figure = 0, 0, 0.0
-    worst_ratio, worst_away = 0.0, 0.0
     for k in range(q.shape[0]):
         qk = q[k]
         if not np.isfinite(qk):  # the driver and the limiter hold it; judge the others
             continue
         if dt > 0.0 and np.isfinite(last_q[k]):  # a fresh state (a daemon may repeat one)
             speed = abs(qk - last_q[k]) / dt
-            ratio = speed / speed_max[k]
-            worst_ratio = max(worst_ratio, ratio)
-            if ratio > 1.0 and found == 0:
+            if speed > speed_max[k] and found == 0:
                 found, k_found, figure = JUMPED, k, speed
         if dt != 0.0:
             last_q[k] = qk
@@ -100,10 +96,9 @@ def _measured_kernel(q, last_q, dt, speed_max, cmd, still_q, still_cmd, still_t,
                 still_q[k], still_cmd[k], still_t[k] = qk, cmd[k], t_s
             elif t_s - still_t[k] >= STILL_S:
                 away = abs(cmd[k] - still_cmd[k])
-                worst_away = max(worst_away, away)
                 if away > STILL_COMMAND_RAD and found == 0:
                     found, k_found, figure = STILL, k, away
-    out[0], out[1], out[2], out[3] = k_found, figure, worst_ratio, worst_away
+    out[0], out[1] = k_found, figure
     return found
 
 
@@ -133,10 +128,6 @@ class FollowingChecks:
         velocity_rad_s: each joint's velocity limit (rad/s).
         band_rad: the limiter's tracking band (rad), for the message.
 
-    Attributes:
-        longest_held_s: the run's longest hold at the band (s).
-        largest_still_rad: the farthest a command went while its joint did not move (rad).
-        largest_speed_ratio: the fastest measured joint over its velocity limit.
     """
 
     def __init__(self, joint_names, dt_s: float, velocity_rad_s: np.ndarray,
@@ -153,10 +144,7 @@ class FollowingChecks:
         self._still_t = np.zeros(n)  # ... when (s)
         self._last_q = np.full(n, np.nan)  # the last fresh state's joints (rad)
         self._last_t = np.nan
-        self._out = np.zeros(4)  # the kernel's joint, figure, largest ratio and still command
-        self.longest_held_s = 0.0
-        self.largest_still_rad = 0.0
-        self.largest_speed_ratio = 0.0
+        self._out = np.zeros(2)  # the kernel's joint and figure
 
     def reset(self) -> None:
         """Start afresh (a new run)."""
@@ -164,7 +152,6 @@ class FollowingChecks:
         self._still_q[:] = np.nan
         self._last_q[:] = np.nan
         self._last_t = np.nan
-        self.longest_held_s = self.largest_still_rad = self.largest_speed_ratio = 0.0
 
     def measured(self, state: RobotState, cmd_rad: np.ndarray, t_s: float) -> None:
         """Check a state against the last one (jumps) and the command it followed (still).
@@ -186,9 +173,6 @@ class FollowingChecks:
         kind = _measured_kernel(q, self._last_q, dt, self.speed_max_rad_s,
                                 np.asarray(cmd_rad, dtype=float), self._still_q, self._still_cmd,
                                 self._still_t, t_s, judge_still, out)
-        self.largest_speed_ratio = max(self.largest_speed_ratio,
-                                       MEASURED_SPEED_FACTOR * out[2])
-        self.largest_still_rad = max(self.largest_still_rad, out[3])
         if dt != 0.0:  # (NaN: the first state; < 0: a driver started again)
             self._last_t = float(state.time_s)
         k = int(out[0])
@@ -211,7 +195,6 @@ class FollowingChecks:
         self._held_from = np.where(at_band & begin, q_meas, self._held_from)
         held[:] = np.where(at_band, np.where(begin, 1, held + 1), 0)
         k = int(np.argmax(held))
-        self.longest_held_s = max(self.longest_held_s, held[k] * self.dt_s)
         if held[k] * self.dt_s > NOT_FOLLOWING_S + 1e-9:
             raise NotFollowing(self.joint_names[k],
                                f"held {self.band_rad} rad from its measured position for "
@@ -219,8 +202,7 @@ class FollowingChecks:
 
     def clear_held(self) -> None:
         """No joint at the band this period."""
-        if self.longest_held_s:
-            self._held[:] = 0
+        self._held[:] = 0
 
 
 def torso_height_bounds_m(model) -> tuple[float, float]:

@@ -249,11 +249,6 @@ class SoftErrorLimiter(Module):
         """Finite-difference velocity of the last command (rad/s)."""
         return (self.q1 - self.q2) / self.dt_s
 
-    @property
-    def longest_held_s(self) -> float:
-        """The run's longest hold of a joint at the tracking band (s)."""
-        return self.checks.longest_held_s
-
     def update(self, q_rad: np.ndarray, state: RobotState, cycle: Cycle) -> np.ndarray:
         self.checks.measured(state, self.q1, cycle.t_s)  # (the command the state followed)
         out = self.step(q_rad, state.q_rad, state.dq_rad_s, BRAKE_FLAG in cycle.flags)

@@ -60,7 +60,7 @@ from hubo_cli.estimation.keys import (
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel
 from hubo_cli.pin_robot import load_pin_robot
-from hubo_cli.state import GRAVITY_M_S2, RobotState
+from hubo_cli.state import RobotState
 
 K_ZMP = 0.2          # hrpsys k_tpcc_p (1/s)
 K_COM = 4.0          # hrpsys k_tpcc_x (1/s)
@@ -130,7 +130,7 @@ class Stabilizer(Module):
         self._data = self._robot.model.createData()
         self._q = np.zeros(self._robot.model.nq)
         self._sole_ids = [self._robot.frame_id(sole) for _, _, sole in LEGS]
-        self._weight_n = float(pin.computeTotalMass(self._robot.model)) * GRAVITY_M_S2
+        self._weight_n = self._robot.weight_n
         self._loaded_n = model.estimation.body_on_soles_weight_fraction * self._weight_n
         self._legs = {leg: Limb(model, leg) for leg, _, _ in LEGS}
         self._slices = {leg: model.limb_slice(leg) for leg, _, _ in LEGS}

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-import pinocchio as pin
-
 from hubo_cli.estimation.attitude import AttitudeObserver, attitude_params
 from hubo_cli.estimation.base import FloatingBase
 from hubo_cli.estimation.centre_of_mass import CentreOfMass
@@ -14,7 +12,6 @@ from hubo_cli.estimation.estimator import Estimator
 from hubo_cli.estimation.plausibility import SensorPlausibility
 from hubo_cli.estimation.wrenches import RemoveForceOffset
 from hubo_cli.model import RobotModel
-from hubo_cli.state import GRAVITY_M_S2
 
 
 def build_estimator(model: RobotModel, tools: Mapping[str, str] | None = None,
@@ -41,7 +38,7 @@ def build_estimator(model: RobotModel, tools: Mapping[str, str] | None = None,
     dt_s = model.control_period_s if period_s is None else float(period_s)
     attitude = attitude_params(model)
     com = CentreOfMass(model, dt_s, drill=drill)
-    weight_n = float(pin.computeTotalMass(com.robot.model)) * GRAVITY_M_S2
+    weight_n = com.robot.weight_n
     return Estimator([
         AttitudeObserver(attitude, dt_s, model),
         RemoveForceOffset(model, attitude.accel_reject_m_s2, drill=drill, period_s=dt_s,

@@ -36,7 +36,6 @@ from hubo_cli.kinematics.dh import kernel_array, mul4
 from hubo_cli.kinematics.limb import IKResult, Limb
 from hubo_cli.model import ARMS, LEGS, RobotModel
 from hubo_cli.posture import home_posture
-from hubo_cli.state import GRAVITY_M_S2
 
 
 @dataclass(frozen=True)
@@ -122,9 +121,7 @@ class WholeBody:
             # floating, the torso at the origin: a fixed base would leave the torso's mass out
             self._pin = load_pin_robot(model, floating=True, urdf_path=urdf)
             self._pin_data = self._pin.model.createData()
-            import pinocchio
-
-            self._weight_n = float(pinocchio.computeTotalMass(self._pin.model)) * GRAVITY_M_S2
+            self._weight_n = self._pin.weight_n
             # how far the balance point moves per metre of waist shift (the legs' own mass
             # moves less than the torso's): about 0.7, measured once at the home posture
             moved = [self._solve({}, None, None, s, None).balance_error_m for s in (0.0, 0.01)]

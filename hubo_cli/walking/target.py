@@ -611,7 +611,7 @@ class WalkTarget(Target):
         self.goal = Stance(self.start.x_m + c * forward - s * left,
                            self.start.y_m + s * forward + c * left, self.start.yaw_rad + turn)
         self._plan(self.q_start, t_s)
-        self._weight_n = float(pin.computeTotalMass(self.body.robot.model)) * GRAVITY_M_S2
+        self._weight_n = self.body.robot.weight_n
 
     def _plan(self, q_rad: np.ndarray, t_s: float) -> None:
         """Plan the walk from where the estimate puts the feet now (the stance frame moves
