@@ -13,6 +13,7 @@ from hubo_cli.drivers.ideal import IdealDriver
 from hubo_cli.estimation.build import build_estimator
 from hubo_cli.estimation.plausibility import (
     IMU_FROZEN_PERIODS,
+    IMU_LEGS_MAX_DEG,
     SOLES_MAX_WEIGHTS,
     SOLES_OVER_S,
     WRIST_FLAT_PERIODS,
@@ -118,3 +119,32 @@ def test_a_dead_wrist_sensor_is_refused_at_the_start_and_a_fault_while_its_arm_m
         WRIST_FLAT_PERIODS + 10  # flat while the arm stands still: no evidence
     with pytest.raises(SensorFault, match="right-wrist .* while its arm moved"):
         _estimate(_states(WRIST_FLAT_PERIODS + 10, ft=_wrist_zero(5), dq_rad_s=_arm_moving))
+
+
+def _pitched(deg: float):
+    """The accelerometer (and the reported orientation) of an IMU pitched ``deg`` on a level
+    robot (the review's FAULT=imu_bias)."""
+    a = np.radians(deg)
+    quat = np.array([np.cos(a / 2), 0.0, np.sin(a / 2), 0.0])
+
+    def change(k, s):
+        return np.array([-np.sin(a), 0.0, np.cos(a)]) * 9.80665, quat
+    return change
+
+
+def _imu(deg: float):
+    return {"imu_accel_m_s2": lambda k, s: _pitched(deg)(k, s)[0],
+            "imu_quat_wxyz": lambda k, s: _pitched(deg)(k, s)[1]}
+
+
+def test_an_imu_crooked_against_the_loaded_legs_is_refused_at_the_start():
+    """Review 17: an IMU pitched 5 deg stopped a walk at 0.06 s on the capture point, the IMU
+    unnamed. With both soles loaded it is refused before anything moves, the angles named; a
+    tilt within IMU_LEGS_MAX_DEG (healthy starts read 0.55 deg at most: a perturbed floor) is
+    none, and soles that carry nothing (a robot hanging in its gantry) judge nothing."""
+    with pytest.raises(SensorFault, match=r"IMU reads the torso at roll 0.0 deg, pitch 5.0 deg.*"
+                                          r"5.0 deg apart .*before anything moved") as info:
+        _estimate(_states(2, **_imu(5.0)))
+    assert info.value.exit_code == 3 and "\n" not in str(info.value)
+    assert _estimate(_states(20, **_imu(IMU_LEGS_MAX_DEG - 0.5))) == 20
+    assert _estimate(_states(2, **_imu(5.0), ft=_soles(0.0, 0))) == 2

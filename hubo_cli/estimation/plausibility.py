@@ -15,7 +15,13 @@ Checks (each bound measured on healthy runs, docs/history/safety.md, round 17):
 - the soles' F_z together over :data:`SOLES_MAX_WEIGHTS` times the robot's weight for longer
   than :data:`SOLES_OVER_S` (a landing's impact is shorter);
 - a wrist sensor bit-identical for :data:`WRIST_FLAT_PERIODS` periods while its arm moves, or
-  reading exactly 0 in every component at the start.
+  reading exactly 0 in every component at the start;
+- at the start, with both soles loaded (each carrying :data:`SOLE_LOADED_WEIGHTS` of the
+  robot's weight at least), the IMU's vertical (its accelerometer's gravity, as the attitude
+  starts from it) more than :data:`IMU_LEGS_MAX_DEG` from the legs' (the soles' normal through
+  the measured joints' kinematics): an IMU mounted crooked or miscalibrated (round 18; the
+  estimate would start tilted by the difference and the capture point stop the run at once,
+  without naming the IMU).
 
 Not a check: an estimated fall while the soles still carry the robot. A real fall does that (the
 push-wall robot tipping over its toes read 291 N of 380 N at 30 deg); a joint encoder that lies
@@ -27,10 +33,13 @@ driver's and a hardware dry run's echo (zero force and a level, still IMU) are n
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from hubo_cli.dataflow import Store
 from hubo_cli.errors import DeviceError
+from hubo_cli.estimation.keys import T_TORSO_SOLES
 from hubo_cli.estimation.observer import Observer
 from hubo_cli.model import ARMS, RobotModel
 from hubo_cli.state import ANKLE_SENSORS, RobotState
@@ -41,6 +50,14 @@ SOLES_OVER_S = 0.1       # ... for longer than this (s)
 WRIST_FLAT_PERIODS = 40  # 0.2 s of its arm moving
 ARM_MOVING_RAD_S = 0.02  # an arm moves: one of its joints measured at least this fast
 WRISTS = ("right-wrist", "left-wrist")
+# The IMU's vertical and the legs' at the start, both soles loaded, at most this far apart
+# (deg). Healthy starts (round 18; walk, sim, the six tasks and both sample replays, nominal and
+# perturbed seeds, both code paths; docs/history/safety.md) read 0.004 deg nominal and up to
+# 0.55 deg perturbed: the perturbed floor's tilt (up to 0.5 deg), which gravity sees and the
+# soles do not, plus the accelerometer's calibration (0.04 deg) and noise. The review's IMU
+# pitched 5 deg reads 5.0
+IMU_LEGS_MAX_DEG = 2.0
+SOLE_LOADED_WEIGHTS = 0.25  # a sole loaded: its F_z at least this many robot weights
 
 
 class SensorFault(DeviceError):
@@ -64,7 +81,7 @@ class SensorPlausibility(Observer):
     """
 
     name = "sensor-plausibility"
-    reads = ()
+    reads = (T_TORSO_SOLES,)
 
     def __init__(self, model: RobotModel, weight_n: float, period_s: float,
                  measured: bool = True) -> None:
@@ -90,7 +107,34 @@ class SensorPlausibility(Observer):
                 self._raise(f"the {wrist} force-torque sensor reads exactly 0 in every "
                             "component at the start (a hand weighs something): refused "
                             "before anything moved")
+        self._imu_against_legs(state, store)
         self.update(state, store)
+
+    def _imu_against_legs(self, state: RobotState, store: Store) -> None:
+        """Refuse a start whose IMU's vertical is more than IMU_LEGS_MAX_DEG from the legs'
+        with both soles loaded (module docstring); nothing is judged otherwise (a robot
+        hanging in its gantry, joints or readings not finite)."""
+        T_torso_soles = store.get(T_TORSO_SOLES)
+        accel = np.asarray(state.imu_accel_m_s2, dtype=float)
+        soles_n = [float(np.asarray(state.ft.get(s, np.zeros(6)), dtype=float)[2])
+                   for s in ANKLE_SENSORS]
+        if T_torso_soles is None or not (np.all(np.isfinite(accel))
+                                         and np.linalg.norm(accel) > 0.0) \
+                or not min(soles_n) >= SOLE_LOADED_WEIGHTS * self.weight_n:
+            return
+        legs = np.asarray(T_torso_soles)[:, :3, 2].sum(axis=0)
+        legs /= np.linalg.norm(legs)
+        imu = accel / np.linalg.norm(accel)
+        apart_deg = math.degrees(math.acos(min(1.0, float(legs @ imu))))
+        if apart_deg > IMU_LEGS_MAX_DEG:
+            (imu_roll, imu_pitch), (legs_roll, legs_pitch) = _roll_pitch_deg(imu), \
+                _roll_pitch_deg(legs)
+            self._raise(f"the IMU reads the torso at roll {imu_roll:.1f} deg, pitch "
+                        f"{imu_pitch:.1f} deg, the legs' kinematics with both soles loaded at "
+                        f"roll {legs_roll:.1f}, pitch {legs_pitch:.1f}: {apart_deg:.1f} deg "
+                        f"apart (at most {IMU_LEGS_MAX_DEG:g} deg): refused before anything moved",
+                        hint="check the IMU's mounting and calibration (a level robot reads "
+                             "level), then start the run again")
 
     def update(self, state: RobotState, store: Store) -> None:
         if not self.measured or self.fault is not None:
@@ -130,3 +174,9 @@ class SensorPlausibility(Observer):
     def _raise(self, message: str, hint: str = "") -> None:
         self.fault = SensorFault(message, hint)
         raise self.fault
+
+
+def _roll_pitch_deg(up) -> tuple[float, float]:
+    """The torso's roll and pitch (deg) for the world's vertical ``up`` in its axes."""
+    return (round(math.degrees(math.atan2(up[1], up[2])), 1) + 0.0,  # (never "-0.0")
+            round(math.degrees(math.atan2(-up[0], math.hypot(up[1], up[2]))), 1) + 0.0)
