@@ -29,6 +29,14 @@ is :mod:`hubo_cli.control.following`'s (a measured jump, a joint that does not f
 
 Only a driver whose sensors are measured (``Driver.sensors_measured``) is checked: the ideal
 driver's and a hardware dry run's echo (zero force and a level, still IMU) are not sensors.
+
+The estimate's other check, the torso's height over the floor, lives in
+:mod:`hubo_cli.control.following`, not here, because it differs in both respects that matter:
+it holds for every driver (it judges the estimate built on the joints, which every driver
+reports, made-up sensors or not; noisy encoders carried it to 9.16 m), and it brakes the run at
+once, a walk too (a walk's stance stop steps on the estimate that check found wrong). Here a
+walk finishes its step into a stance: the faults below leave the joints, and so the step's
+placement, sound; and a driver whose sensors are made up is not judged.
 """
 
 from __future__ import annotations
