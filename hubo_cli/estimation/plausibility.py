@@ -16,6 +16,12 @@ Checks (each bound measured on healthy runs, docs/history/safety.md, round 17):
   than :data:`SOLES_OVER_S` (a landing's impact is shorter);
 - a wrist sensor bit-identical for :data:`WRIST_FLAT_PERIODS` periods while its arm moves, or
   reading exactly 0 in every component at the start;
+- a wrist sensor whose reading, the weight of the hand and its tool removed (as the run
+  declares the tool: :mod:`hubo_cli.estimation.wrenches`), averages more than
+  :data:`WRIST_START_MAX_N` along its z over the run's first :data:`WRIST_START_PERIODS`
+  periods, while the hands touch nothing yet: an offset, a wrong tool in the task file (the
+  drill declared and not held weighs 5.2 N), or the other wrist's sensor (round 18; averaged,
+  because one reading's noise alone is 1 N);
 - at the start, with both soles loaded (each carrying :data:`SOLE_LOADED_WEIGHTS` of the
   robot's weight at least), the IMU's vertical (its accelerometer's gravity, as the attitude
   starts from it) more than :data:`IMU_LEGS_MAX_DEG` from the legs' (the soles' normal through
@@ -47,7 +53,7 @@ import numpy as np
 
 from hubo_cli.dataflow import Store
 from hubo_cli.errors import DeviceError
-from hubo_cli.estimation.keys import T_TORSO_SOLES
+from hubo_cli.estimation.keys import T_TORSO_SOLES, WRENCHES
 from hubo_cli.estimation.observer import Observer
 from hubo_cli.model import ARMS, RobotModel
 from hubo_cli.state import ANKLE_SENSORS, RobotState
@@ -66,6 +72,12 @@ WRISTS = ("right-wrist", "left-wrist")
 # pitched 5 deg reads 5.0
 IMU_LEGS_MAX_DEG = 2.0
 SOLE_LOADED_WEIGHTS = 0.25  # a sole loaded: its F_z at least this many robot weights
+# A wrist's compensated F_z, averaged over the run's first WRIST_START_PERIODS periods (0.1 s),
+# at most this far from 0 (N). Healthy starts (round 18; the same runs as IMU_LEGS_MAX_DEG)
+# averaged 0.02 N nominal and up to WRIST_HEALTHY_N perturbed: the hand's and the drill's masses
+# drawn 10 % off (0.8 N with the drill) and the sensor's noise (1 N a reading, 0.22 N averaged)
+WRIST_START_MAX_N = 2.5
+WRIST_START_PERIODS = 20
 
 
 class SensorFault(DeviceError):
@@ -89,7 +101,7 @@ class SensorPlausibility(Observer):
     """
 
     name = "sensor-plausibility"
-    reads = (T_TORSO_SOLES,)
+    reads = (T_TORSO_SOLES, WRENCHES)
 
     def __init__(self, model: RobotModel, weight_n: float, period_s: float,
                  measured: bool = True) -> None:
@@ -107,6 +119,8 @@ class SensorPlausibility(Observer):
         self._wrist = dict.fromkeys(WRISTS)
         self._wrist_flat = dict.fromkeys(WRISTS, 0)
         self._soles_over = 0  # periods in a row over the limit
+        self._periods = 0  # periods judged since the reset
+        self._wrist_sums = np.zeros((2, len(WRISTS)))  # per wrist: compensated F_z, raw F_z
         if not self.measured:
             return
         for wrist in WRISTS:
@@ -162,6 +176,9 @@ class SensorPlausibility(Observer):
                         f"({soles_n / self.weight_n:.1f} times the robot's "
                         f"{self.weight_n:.0f} N) for {self._soles_over * self.period_s:.3f} s "
                         f"at t = {state.time_s:.2f} s")
+        self._periods += 1
+        if self._periods <= WRIST_START_PERIODS:
+            self._wrist_start(state, store)
         dq = np.abs(np.asarray(state.dq_rad_s, dtype=float))
         for wrist, arm in self._arms.items():
             reading = state.ft.get(wrist)
@@ -178,6 +195,32 @@ class SensorPlausibility(Observer):
                     self._raise(f"the {wrist} force-torque sensor read the same values to "
                                 f"the last bit for {self._wrist_flat[wrist]} periods while "
                                 f"its arm moved, at t = {state.time_s:.2f} s: dead")
+
+    def _wrist_start(self, state: RobotState, store: Store) -> None:
+        """Sum each wrist's compensated and raw F_z over the first WRIST_START_PERIODS
+        periods; at the last, fault a wrist whose compensated mean is beyond
+        WRIST_START_MAX_N (module docstring)."""
+        wrenches = store.get(WRENCHES)
+        for k, wrist in enumerate(WRISTS):
+            reading = state.ft.get(wrist)
+            if wrenches is None or reading is None:
+                self._wrist_sums[:, k] = np.nan  # not judged
+                continue
+            self._wrist_sums[0, k] += float(wrenches[wrist][2])
+            self._wrist_sums[1, k] += float(np.asarray(reading, dtype=float)[2])
+        if self._periods < WRIST_START_PERIODS:
+            return
+        compensated, raw = self._wrist_sums / WRIST_START_PERIODS
+        for k, wrist in enumerate(WRISTS):
+            if abs(compensated[k]) > WRIST_START_MAX_N:  # (NaN: not judged)
+                self._raise(f"the {wrist} force-torque sensor read {raw[k]:.1f} N along its z "
+                            f"over the first {WRIST_START_PERIODS * self.period_s:.2f} s, where "
+                            f"the hand and its tool as the run declares it weigh "
+                            f"{raw[k] - compensated[k]:.1f} N: {abs(compensated[k]):.1f} N apart "
+                            f"(at most {WRIST_START_MAX_N:g} N) at t = {state.time_s:.2f} s",
+                            hint="check the tool the task file declares ([stance] tool) against "
+                                 "the hand's, the sensor's zero and which wrist it is wired "
+                                 "to, then start the run again")
 
     def _raise(self, message: str, hint: str = "") -> None:
         self.fault = SensorFault(message, hint)
