@@ -9,45 +9,11 @@ import functools
 import json
 
 import numpy as np
+from task_files import short_cut
 
 from hubo_cli.tasks.runner import PATH_MISS_RMS_MM, path_outcome
 
-SHORT_CUT = """\
-name = "short-cut"
-description = "Raise the drill, drill in, cut 20 mm, pull out"
-
-[stance]
-wall_distance_mm = "auto"
-centre_mm = "auto"
-arm = "right"
-tool = "drill"
-
-[[steps]]
-kind = "move"
-name = "raise the drill"
-depth_mm = -50.0
-duration_s = 1.0
-
-[[steps]]
-kind = "plunge"
-name = "drill in"
-depth_mm = 2.5
-speed_mm_s = 50.0
-
-[[steps]]
-kind = "follow"
-name = "cut"
-path = "polyline"
-points_mm = [[10.0, 0.0], [-10.0, 0.0]]
-speed_mm_s = 20.0
-accel_mm_s2 = 100.0
-
-[[steps]]
-kind = "retract"
-name = "pull out"
-depth_mm = -50.0
-speed_mm_s = 50.0
-"""
+SHORT_CUT = short_cut()
 
 
 def test_the_check_measures_across_the_bit_under_force_control():
