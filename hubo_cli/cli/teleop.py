@@ -38,7 +38,7 @@ ABSURD_ERROR_MM = 100.0  # an RMS error above this means the hand never followed
 # A hand whose position RMS over the time its goal was reachable (summary reach's
 # reachable_position_rms_mm) exceeds this did not follow the operator. Healthy spread (every
 # figure the same to 5e-12 mm on both code paths, AVX-512 / portable): the shipped samples
-# 1.3-7.1 mm; the 60 generated streams of tests/test_teleop_streams.py at most 29.1 mm at
+# 1.3-6.5 mm; the 60 generated streams of tests/test_teleop_streams.py at most 29.1 mm at
 # 0.25 m/s and 44.7 mm at 0.6 m/s (faster than the arm's joints follow); the bound is 1.2x the
 # latter (docs/history/teleop.md, "Round 18: the verdict over reachable time")
 FOLLOW_BOUND_MM = 55.0
