@@ -49,6 +49,45 @@ def test_without_libach_the_hardware_driver_says_what_to_install(tmp_path):
     assert "Traceback" not in result.output
 
 
+def test_a_json_command_ending_in_a_device_error_prints_one_json_document(tmp_path):
+    """--json: the error that ends the command before any summary is one JSON document on
+    stdout (its line and hint still on stderr), with the documented exit code. (``hubo
+    teleop --replay`` with --json does the same, measured by hand: its imports cost about
+    20 s in a fresh worker.)"""
+    task = tmp_path / "short.toml"
+    task.write_text(SHORT_TASK)
+    result = _run(["task", "run", str(task), "--driver", "hardware", "--arm", "--json",
+                   "--out", str(tmp_path / "run")],
+                  env={"HUBO_LIBACH": str(tmp_path / "missing-libach.so")})
+    assert result.exit_code == 3, result.output
+    document = json.loads(result.stdout)
+    assert document["exit_code"] == 3 and "libach is not available" in document["error"]
+    assert "--dry-run" in document["hint"] and "libach is not available" in result.stderr
+
+
+def test_a_task_run_ending_in_a_device_failure_prints_its_summary_as_json(capsys):
+    """A run whose loop ended in a device failure (summary.json written) prints its summary
+    with the failure under --json, then exits with the failure's code (main printed nothing)."""
+    import click
+
+    from hubo_cli.cli.task import _finish
+    from hubo_cli.errors import DeviceError
+
+    class Loop:
+        ended = "device"
+
+        def failure(self, run_dir):
+            return DeviceError("the robot's state stopped at 1.10 s")
+
+    done = type("Done", (), {"loop": Loop(), "run_dir": Path("runs/x"),
+                             "summary": {"ended": "device", "completed": False}})()
+    with click.Context(main) as ctx, pytest.raises(DeviceError):
+        _finish(ctx, done, True, lambda: None)
+    document = json.loads(capsys.readouterr().out)
+    assert document["ended"] == "device" and document["exit_code"] == 3
+    assert document["failure"] == "the robot's state stopped at 1.10 s"
+
+
 @pytest.mark.parametrize("daemon", ["fake-daemon", "sim-daemon"])
 def test_without_libach_the_daemons_say_so_and_offer_no_dry_run(tmp_path, daemon):
     """The stand-in daemons have no --dry-run: their hint does not offer one."""

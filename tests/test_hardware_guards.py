@@ -374,6 +374,68 @@ def test_state_age_and_round_trip_are_logged_and_summarised(tmp_path):
     assert summary["hw_ref_mode"] == "direct"
 
 
+def _aged(driver, clock, age_s) -> None:
+    """The driver's source on the wall clock, each state ``age_s(n)`` old when read (period
+    n); the clock advances a period a step."""
+    driver.source.wall_clock = True
+    advance, count = driver.source.advance, {"n": 0}
+
+    def timed(ref_rad, mode):
+        count["n"] += 1
+        clock.t_s += PERIOD
+        frame = advance(ref_rad, mode)
+        frame.time_s = clock.t_s - age_s(count["n"])
+        return frame
+
+    driver.source.advance = timed
+
+
+def _steps(driver, periods: int):
+    """Step the driver; the periods' flags and the trip that ended it (or None)."""
+    from hubo_cli.errors import DeviceError
+
+    flags = []
+    for _ in range(periods):
+        try:
+            flags.append(driver.step().flags)
+        except DeviceError as exc:
+            return flags, exc
+    return flags, None
+
+
+def test_a_state_that_keeps_coming_late_is_a_device_fault(tmp_path):
+    """Fresh states 150 ms old (each one's time against this computer's clock): servo-off and
+    a device fault (exit 3) after 0.1 s of them, one line with the age. Healthy timing (the
+    simulated daemon's largest single age, 68 ms, every 10th state; 95 ms throughout) and
+    another computer's clock (achd: an hour apart) go on."""
+    from hubo_cli.drivers.state_age import StateTooOld
+
+    clock = _Clock()
+    with _driver(tmp_path, clock=clock) as driver:
+        driver.start()
+        # from period 40 the delay grows 3 ms a period (the state's time still advances: no
+        # stale state) to 150 ms; over 100 ms from period 72, 0.1 s of the daemon's time later
+        # (its states 2 ms apart, then 5 ms) the trip
+        _aged(driver, clock, lambda n: min(0.150, 0.004 + 0.003 * max(0, n - 40)))
+        flags, trip = _steps(driver, 300)
+        summary = driver.summary_values()
+    assert isinstance(trip, StateTooOld) and trip.exit_code == 3 and "\n" not in str(trip)
+    assert "150 ms old" in str(trip) and not any("stale-state" in f for f in flags)
+    assert 72 + 20 <= len(flags) <= 72 + 50, len(flags)
+    assert driver.servo_off and summary["hw_trip"] == "StateTooOld"
+    assert summary["hw_state_age_checked"] is True
+    for age_s in (lambda n: 0.068 if n % 10 == 0 else 0.005, lambda n: 0.095,
+                  lambda n: -3600.0 if n < 100 else 3600.0):
+        clock = _Clock()
+        with _driver(tmp_path, clock=clock) as driver:
+            driver.start()
+            _aged(driver, clock, age_s)
+            flags, trip = _steps(driver, 200)
+            checked = driver.summary_values()["hw_state_age_checked"]
+        assert trip is None and len(flags) == 200 and not driver.servo_off
+        assert checked is (age_s(1) > -1.0)  # off for another computer's clock
+
+
 # ---------------------------------------------------------------- through real ach channels
 AVAILABLE, WHERE = libach_status()
 

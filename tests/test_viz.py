@@ -3,6 +3,7 @@ tool and torso, a video decodes to the asked frames, and the Rerun and MCAP expo
 
 import dataclasses
 import json
+import math
 import os
 import re
 import subprocess
@@ -235,15 +236,53 @@ def _rrd_print(rerun: Path, rrd: Path) -> str:
                           text=True, timeout=120).stdout
 
 
+JSON_TYPES = {"number": (int, float), "integer": (int,), "string": (str,), "boolean": (bool,),
+              "object": (dict,), "array": (list,), "null": (type(None),)}
+
+
+def _schema_problems(value, schema: dict, where: str = "") -> list[str]:
+    """Where ``value`` breaks ``schema`` (the JSON schema keywords the exports use: type, a
+    type list, properties, required, items); empty when it holds. jsonschema is not a
+    dependency of the project."""
+    kinds = schema.get("type")
+    kinds = [kinds] if isinstance(kinds, str) else kinds
+    if kinds is not None and not any(
+            isinstance(value, JSON_TYPES[k]) and not (isinstance(value, bool) and k != "boolean")
+            and not (k == "integer" and isinstance(value, float)) for k in kinds):
+        return [f"{where or 'message'}: {value!r} is not {kinds}"]
+    problems = []
+    if isinstance(value, dict):
+        problems += [f"{where}.{k} missing" for k in schema.get("required", ()) if k not in value]
+        for key, sub in schema.get("properties", {}).items():
+            if key in value:
+                problems += _schema_problems(value[key], sub, f"{where}.{key}")
+    if isinstance(value, list) and "items" in schema:
+        for i, item in enumerate(value):
+            problems += _schema_problems(item, schema["items"], f"{where}[{i}]")
+    return problems
+
+
+def test_the_schema_check_finds_a_null_number():
+    """The check the export test uses: a null against "number" is a problem, a missing field
+    or a value of a listed type is not."""
+    schema = {"type": "object", "properties": {"a": {"type": "number"},
+                                               "b": {"type": ["number", "null"]}}}
+    assert _schema_problems({"a": None}, schema) == [".a: None is not ['number']"]
+    assert _schema_problems({"b": None}, schema) == _schema_problems({"a": 1}, schema) == []
+    assert _schema_problems({"a": True}, schema) != []
+
+
 def _read_mcap(path: Path) -> dict:
     """Everything the ``mcap`` reader gives back: channels by topic (schema name, message
     encoding, log times, raw messages), attachments and metadata records."""
     from mcap.reader import make_reader
 
-    out = {"topics": {}, "attachments": {}, "metadata": {}}
+    out = {"topics": {}, "attachments": {}, "metadata": {}, "schemas": {}}
     with open(path, "rb") as f:
         reader = make_reader(f)
         for schema, channel, message in reader.iter_messages():
+            if schema.encoding == "jsonschema":
+                out["schemas"][channel.topic] = schema.data
             entry = out["topics"].setdefault(channel.topic, {
                 "schema": schema.name, "encoding": channel.message_encoding, "times": [],
                 "data": []})
@@ -353,7 +392,13 @@ def test_export_rrd_verifies_with_blueprint_and_mcap_reads_back(scene, run_dir, 
     assert meta["hubo_cli_version"] == hubo_cli.__version__ and meta["periods"] == str(len(scene))
     metrics = [json.loads(m) for m in topics["/metrics"]["data"]]
     assert all(isinstance(m["status_code"], int) and m["status"] for m in metrics)
-    torque = [m["wrist_torque_nm"] for m in metrics]
+    # every JSON message holds to its channel's declared schema (the run has periods without
+    # a value: those fields are left out, never null against "number")
+    for topic in ("/robot_description", "/metrics", "/safety"):
+        schema = json.loads(read["schemas"][topic])
+        for data in topics[topic]["data"]:
+            assert _schema_problems(json.loads(data), schema) == [], (topic, data)
+    torque = [m.get("wrist_torque_nm", math.nan) for m in metrics]
     assert np.allclose(np.array(torque, dtype=float), scene.log["task_wrist_torque_nm"]
                        if "task_wrist_torque_nm" in scene.log.columns
                        else scene.log["wrist_torque_nm"], equal_nan=True)
@@ -366,7 +411,8 @@ def test_export_rrd_verifies_with_blueprint_and_mcap_reads_back(scene, run_dir, 
     panels = layout["configById"]
     plotted = [p["value"] for c in panels.values() for p in c.get("paths", [])]
     assert len(plotted) >= 5 and all(p.split(".")[0] in topics for p in plotted)
-    first = {"/metrics": metrics[0], "/safety": json.loads(topics["/safety"]["data"][0])}
+    first = {"/metrics": json.loads(read["schemas"]["/metrics"])["properties"],
+             "/safety": json.loads(topics["/safety"]["data"][0])}
     assert all(p.split(".", 1)[1] in first[p.split(".")[0]] for p in plotted)
     assert panels["RosOut!hubo-events"]["topicToRender"] in topics
     three_d = panels["3D!hubo"]["topics"]

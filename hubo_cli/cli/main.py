@@ -113,10 +113,24 @@ def report_error(exc: HuboError) -> None:
         click.echo(f"hint: {exc.hint}", err=True)
 
 
+def _json_error(ctx: click.Context, message: str, exit_code: int, hint: str = "") -> None:
+    """A command asked for ``--json`` that ends in an error before printing its document
+    prints one saying so (stdout gone: nothing, as for any output)."""
+    from hubo_cli.cli.output import print_json_error
+
+    with contextlib.suppress(OSError, ValueError):
+        print_json_error(ctx, message, exit_code, hint)
+
+
 def with_exit_codes(command: click.Command) -> click.Command:
     """Give a command (and a group's registered subcommands) the exit codes as its epilog."""
+    from hubo_cli.cli.output import note_json
+
     if not command.epilog:
         command.epilog = EXIT_CODES
+    for param in command.params:  # an error ending a --json command prints JSON too
+        if param.name == "as_json" and param.callback is None:
+            param.callback = note_json
     if isinstance(command, click.Group):
         for sub in command.commands.values():
             with_exit_codes(sub)
@@ -150,32 +164,39 @@ class LazyGroup(click.Group):
                 return super().invoke(ctx)
         except HuboError as exc:
             report_error(exc)
+            _json_error(ctx, str(exc), exc.exit_code, exc.hint)
             ctx.exit(exc.exit_code)
         except KeyboardInterrupt as exc:
+            said = "interrupted" + (f" ({exc.cause})" if isinstance(exc, Terminated) else "")
             with contextlib.suppress(OSError):  # (SIGHUP: the terminal may be gone)
-                click.echo("interrupted" + (f" ({exc.cause})" if isinstance(exc, Terminated)
-                                            else ""), err=True)
+                click.echo(said, err=True)
+                _json_error(ctx, said, 130)
             ctx.exit(130)
         except MemoryError:
-            click.secho("error: out of memory: an input asks for far more than the machine "
-                        "holds", fg="red", err=True)
+            said = "out of memory: an input asks for far more than the machine holds"
+            click.secho(f"error: {said}", fg="red", err=True)
+            _json_error(ctx, said, 2)
             ctx.exit(2)
         except OSError as exc:
             where = f" ({exc.filename})" if exc.filename else ""
             click.secho(f"error: {exc.strerror or exc}{where}", fg="red", err=True)
             if exc.errno in DISK_FULL:  # the disk is the device in trouble, not the input
-                click.echo("hint: free space on that disk or write elsewhere", err=True)
+                hint = "free space on that disk or write elsewhere"
+                click.echo(f"hint: {hint}", err=True)
+                _json_error(ctx, f"{exc.strerror or exc}{where}", 3, hint)
                 ctx.exit(3)
+            _json_error(ctx, f"{exc.strerror or exc}{where}", 2)
             ctx.exit(2)
         except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
             raise
         except Exception as exc:  # noqa: BLE001 (a bug: say so on one line, never a traceback)
             if os.environ.get("HUBO_DEBUG"):
                 raise
-            click.secho(f"error: internal error ({type(exc).__name__}: {exc})", fg="red",
-                        err=True)
-            click.echo("hint: please report this with the command line; HUBO_DEBUG=1 shows "
-                       "the traceback", err=True)
+            said = f"internal error ({type(exc).__name__}: {exc})"
+            click.secho(f"error: {said}", fg="red", err=True)
+            hint = "please report this with the command line; HUBO_DEBUG=1 shows the traceback"
+            click.echo(f"hint: {hint}", err=True)
+            _json_error(ctx, said, 1, hint)
             ctx.exit(1)
         finally:
             if late is not None and late.cause is not None:

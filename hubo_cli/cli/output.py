@@ -21,9 +21,32 @@ console = Console(highlight=False, soft_wrap=True)
 err_console = Console(stderr=True, highlight=False, soft_wrap=True)
 
 
+JSON_WANTED, JSON_PRINTED = "hubo.json_wanted", "hubo.json_printed"  # keys of click's ctx.meta
+
+
 def print_json(data: dict) -> None:
-    """Print one JSON object on stdout (numpy values converted, non-finite as null)."""
+    """Print one JSON object on stdout (numpy values converted, non-finite as null); the
+    command's context notes it, so an error after it prints no second document."""
     click.echo(json.dumps(_jsonable(data), indent=2))
+    ctx = click.get_current_context(silent=True)
+    if ctx is not None:
+        ctx.meta[JSON_PRINTED] = True
+
+
+def note_json(ctx: click.Context, param: click.Parameter, value: bool) -> bool:
+    """``--json``'s callback: notes in the context's meta (shared by the group and its
+    subcommands) that the command was asked for JSON, so that an error ending it prints its
+    JSON document too (:func:`print_json_error`)."""
+    if value:
+        ctx.meta[JSON_WANTED] = True
+    return value
+
+
+def print_json_error(ctx: click.Context, message: str, exit_code: int, hint: str = "") -> None:
+    """The one JSON document of a command asked for ``--json`` that ends in an error before it
+    printed one (the error's line and hint still go to stderr)."""
+    if ctx.meta.get(JSON_WANTED) and not ctx.meta.get(JSON_PRINTED):
+        print_json({"error": message, "hint": hint, "exit_code": exit_code})
 
 
 def exit_if_interrupted(summary: dict) -> None:

@@ -339,11 +339,13 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, st
 def _finish(ctx: click.Context, done, as_json: bool, printer) -> None:
     loop = done.loop
     failure = loop.failure(done.run_dir)
+    if as_json:  # the summary, also when the run ended in a device or log failure
+        print_json({"run_dir": str(done.run_dir), **done.summary}
+                   | ({} if failure is None else {"failure": str(failure),
+                                                  "exit_code": failure.exit_code}))
     if failure is not None:
         raise failure
-    if as_json:
-        print_json({"run_dir": str(done.run_dir), **done.summary})
-    else:
+    if not as_json:
         printer()
     report_interrupt_stop(done.summary)
     report_path_miss(done.summary)

@@ -44,6 +44,9 @@ Start-up and safety, enforced here whatever the layers above do:
   :meth:`step` raises
   :class:`~hubo_cli.drivers.stale_state.StateLost` (exit 3), which ends the run (see
   :mod:`hubo_cli.drivers.stale_state`);
+- fresh states that keep coming late (each one's ``time`` against this computer's clock older
+  than 0.1 s for 0.1 s, :mod:`hubo_cli.drivers.state_age`) latch servo-off like the checks
+  above and end the run (exit 3, :class:`~hubo_cli.drivers.state_age.StateTooOld`);
 - any exception inside ends in a hold (the last reference keeps being sent, flag ``fault``,
   :attr:`fault_message`), never a crash. Malformed commands (wrong shape, unknown joint name)
   are the caller's error: refused with :class:`~hubo_cli.errors.ConfigError`, nothing sent.
@@ -86,6 +89,7 @@ from hubo_cli.drivers.servo_guard import (
     guard_parameters,
 )
 from hubo_cli.drivers.stale_state import StaleStateBrake
+from hubo_cli.drivers.state_age import StateAgeGuard
 from hubo_cli.errors import ConfigError, DeviceError, SafetyError, quoted
 from hubo_cli.model import RobotModel
 from hubo_cli.posture import home_posture
@@ -255,6 +259,7 @@ class HardwareDriver(Driver):
                                          guards["sole_unloaded_n"],
                                          guards["sole_unloaded_grace_s"],
                                          int(guards["sole_force_window_periods"]))
+        self.state_age = StateAgeGuard(ach_state)
         self.thermal = ThermalLimiter(self.joint_names, self.ach_index,
                                       guards["motor_warning_temperature_c"],
                                       guards["motor_max_temperature_c"])
@@ -499,9 +504,10 @@ class HardwareDriver(Driver):
 
     def summary_values(self) -> dict[str, object]:
         """The run's hubo-ach mode, the state's age and the reference-to-state round trip
-        (median, p99, max in ms; None without a measure), the largest servo error (rad), the
-        periods slowed by hot motors, the hottest motor (joint and degrees C; None without a
-        temperature) and the trip that ended the run (if any)."""
+        (median, p99, max in ms; None without a measure), whether the state's age was judged
+        (``hw_state_age_checked``: False on a simulated clock or another computer's), the
+        largest servo error (rad), the periods slowed by hot motors, the hottest motor (joint
+        and degrees C; None without a temperature) and the trip that ended the run (if any)."""
         def stats(values_s: array) -> dict[str, float | None]:
             x = np.frombuffer(values_s, dtype=float) * 1e3
             x = x[np.isfinite(x)]
@@ -512,6 +518,7 @@ class HardwareDriver(Driver):
 
         return {"hw_ref_mode": REF_NAMES[self.ref_mode],
                 "hw_state_age_ms": stats(self._ages_s),
+                "hw_state_age_checked": bool(self.state_age.judged),
                 "hw_round_trip_ms": stats(self._round_trips_s),
                 "hw_max_servo_error_rad": round(self._max_servo_error_rad, 4),
                 "hw_thermal_limited_periods": self._thermal_periods,
@@ -608,7 +615,11 @@ class HardwareDriver(Driver):
         if self._put_s is not None:  # no fresh state answered this period's reference
             self._round_trip_s = float("nan")
         if self.source.wall_clock:
-            self._ages_s.append(self.clock() - self._frame.time_s)
+            age_s = self.clock() - self._frame.time_s
+            self._ages_s.append(age_s)
+            if self._stale == 0:  # a fresh state this period: is it late? (exit 3)
+                self._guard(self.state_age.check(age_s, self._frame.time_s - self._t0),
+                            "state-late")
         if self.thermal.limiting:
             self._thermal_periods += 1
 

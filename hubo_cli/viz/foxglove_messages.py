@@ -11,7 +11,7 @@ one layout (:data:`LAYOUT_PATH`) shows a recorded run and a live one alike:
 * ``/scene`` (``foxglove.SceneUpdate``): the walls, the goal and measured tool paths and the
   hole, in ``world``;
 * ``/metrics`` (JSON, ``hubo.Metrics``): the scalar series (:data:`~hubo_cli.viz.scene.SERIES`,
-  null where there is no value) and ``status`` (its label);
+  left out where there is no value) and ``status`` (its label);
 * ``/events`` (``foxglove.Log``): e-stop latched and released, each change of status;
 * ``/safety`` (JSON, ``hubo.Safety``): the safety state, from the period's flags.
 
@@ -52,8 +52,10 @@ SAFETY_SCHEMA = {"title": "hubo.Safety", "type": "object",
 
 
 def metrics_schema() -> dict:
-    """``/metrics``' JSON schema: one plain type a field (Foxglove reads no type lists; a
-    value may still be null)."""
+    """``/metrics``' JSON schema: one plain type a field, none required. Foxglove's JSON schema
+    parser (``parseJsonSchema``) refuses a type list (``["number", "null"]``), ``"null"`` and
+    a field without a type, so a value the run does not have is left out of the message
+    (:func:`metrics_message`), never sent as null."""
     properties = {name: {"type": "number"} for name in SERIES}
     properties["status_code"] = {"type": "integer"}
     properties["status"] = {"type": "string"}
@@ -205,12 +207,13 @@ def scene_update(fm, walls: Iterable[dict], goal_world_m: np.ndarray,
 
 
 def metrics_message(values: Sequence[float], labels: dict[int, str]) -> dict:
-    """One ``/metrics`` message from the values of :data:`SERIES` in order (NaN: no value,
-    null in JSON) and the status labels by code."""
-    message = {n: (v if math.isfinite(v) else None) for n, v in zip(SERIES, values, strict=True)}
-    code = message["status_code"] = None if message["status_code"] is None else int(
-        message["status_code"])
-    message["status"] = None if code is None else labels.get(code, f"code {code}")
+    """One ``/metrics`` message from the values of :data:`SERIES` in order and the status
+    labels by code. A field without a value (NaN) is left out: the schema's types
+    (:func:`metrics_schema`) hold for every field present."""
+    message = {n: v for n, v in zip(SERIES, values, strict=True) if math.isfinite(v)}
+    if "status_code" in message:
+        code = message["status_code"] = int(message["status_code"])
+        message["status"] = labels.get(code, f"code {code}")
     return message
 
 

@@ -14,8 +14,9 @@ live server's (:mod:`hubo_cli.viz.foxglove_messages` builds both):
   tool paths and the hole (drawn on the wall's face on the robot's side), in ``world``;
 * ``/metrics`` (JSON, ``hubo.Metrics``, each period): the run's scalar series
   (:func:`~hubo_cli.viz.scene.time_series`: ``error_mm``, ``wrist_torque_nm``, ``cp_margin_mm``,
-  ``torso_pitch_deg``, ``status_code``; every field in every message, null where the run has
-  no value) and ``status`` (its label), for Foxglove's plots;
+  ``torso_pitch_deg``, ``status_code``; a field is left out of a message where the run has no
+  value at that period, as Foxglove reads no nullable type) and ``status`` (its label), for
+  Foxglove's plots;
 * ``/events`` (``foxglove.Log``): e-stop latched and released, and each change of status;
 * ``/safety`` (JSON, ``hubo.Safety``, each period): which stop acts (e-stop, collision, stale
   state or input, servos off, joint limit), from the period's flags.
