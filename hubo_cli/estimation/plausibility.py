@@ -8,14 +8,25 @@ loop stops as it does after Ctrl-C (a walk finishes its step into a double-suppo
 other run brakes to rest), and a sensor already dead at the start refuses the run before
 anything moves.
 
-Checks (each bound measured on healthy runs, docs/history/safety.md, round 17):
+Checks (each bound measured on healthy runs, docs/history/safety.md, rounds 17 and 18), over
+fresh states only (a state whose time advances: the hardware driver repeats the last one when
+the daemon publishes nothing new, and such a gap is the stale-state check's,
+:mod:`hubo_cli.drivers.stale_state`):
 
-- the IMU (orientation, gyro and accelerometer together) bit-identical for
-  :data:`IMU_FROZEN_PERIODS` periods in a row (a real IMU has noise; the simulator's moves);
+- the IMU (orientation, gyro and accelerometer together) bit-identical over the last
+  :data:`IMU_FROZEN_STATES` fresh states while the legs' kinematics turned the torso at least
+  :data:`TORSO_TURNED_RAD` over them (on a sole loaded in both states, taken as still on the
+  floor). A still torso may read the same to the last bit (a quantised IMU without noise), a
+  moving one cannot; a walk's torso turns 0.4 deg in 10 states (median), a standing echo
+  robot's at most 0.013 deg;
 - the soles' F_z together over :data:`SOLES_MAX_WEIGHTS` times the robot's weight for longer
   than :data:`SOLES_OVER_S` (a landing's impact is shorter);
-- a wrist sensor bit-identical for :data:`WRIST_FLAT_PERIODS` periods while its arm moves, or
-  reading exactly 0 in every component at the start.
+- a wrist sensor bit-identical for :data:`WRIST_FLAT_STATES` fresh states while its arm moves
+  (one of its joints at least :data:`ARM_MOVING_RAD_S` fast between fresh states, from their
+  positions: a daemon may leave the velocities 0), or reading exactly 0 in every component
+  at the start (a dead channel, or a sensor nulled with the hand on: the estimate removes
+  the hand's weight from the reading, :mod:`hubo_cli.estimation.wrenches`, so it needs the
+  sensor as it reads with nothing removed).
 
 Not a check: an estimated fall while the soles still carry the robot. A real fall does that (the
 push-wall robot tipping over its toes read 291 N of 380 N at 30 deg); a joint encoder that lies
