@@ -276,6 +276,13 @@ ROWS = 0.004 + np.arange(120) / 120.0  # 1 s of a station at 120 Hz, as recorded
     (lambda p: _timed_pose_log(p, np.r_[ROWS[:60], ROWS[60:] - 0.5]), None,
      r"line 62: t_s 0.004 s is earlier than the row before it \(0.4956"),  # was re-sorted
     (lambda p: _timed_pose_log(p, np.zeros(3)), None, "every row has the same time"),
+    # round 18: one station's rows at one time reach the robot as one instant; 30 in a row (a
+    # late serial read's burst, as a decoded capture stamps it) replay as recorded, 31 do not
+    # (the review's log with 3 s of rows at t = 1.0 s replayed 1 s, exit 0)
+    (lambda p: _timed_pose_log(p, np.r_[ROWS[:40], np.full(30, ROWS[40]), ROWS[70:]]), 0.004,
+     None),
+    (lambda p: _timed_pose_log(p, np.r_[ROWS[:40], np.full(31, ROWS[40]), ROWS[71:]]), None,
+     r"lines 42-72: station 1's rows all have t_s 0.3373\d* s \(31 in a row"),
     # a raw capture agrees
     (lambda p: _timed_capture(p, lambda k, t: 1764500000.0 + t), 0.0, None),
     (lambda p: _timed_capture(p, lambda k, t: t - 100.0), 0.0, None),

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from task_files import raise_and_hold
+from task_files import DRILL_STANCE, raise_and_hold
 
 from hubo_cli.cli.main import main
 from hubo_cli.control.log import load_log
@@ -29,7 +29,7 @@ SHM = Path("/dev/shm")
 MODEL = load_model()
 
 # raise the drill, hold it: a task of about 4 s
-SHORT_TASK = raise_and_hold("short-move", 0.2, stance='arm = "right"\ntool = "drill"\n')
+SHORT_TASK = raise_and_hold("short-move", 0.2, stance=DRILL_STANCE)
 
 
 def _run(args: list[str], env: dict | None = None):

@@ -11,6 +11,7 @@ import dataclasses
 import numpy as np
 import pytest
 from control_support import Recorder, assert_within_limits, ideal
+from task_files import DRILL_STANCE, raise_and_hold
 
 from hubo_cli.control.following import STILL_S
 from hubo_cli.control.limiter import NOT_FOLLOWING_S, TRACKING_ERROR_LIMIT_RAD
@@ -101,28 +102,8 @@ def test_refwait_kept_set_trips_after_its_bound(model, tmp_path):
         assert driver.read().time_s == pytest.approx(0.8 + REF_WAIT_MAX_S, abs=0.02)
 
 
-MOVE_AND_HOLD = """\
-name = "move-and-hold"
-description = "Move the drill 150 mm sideways, then hold it"
-
-[stance]
-wall_distance_mm = "auto"
-centre_mm = "auto"
-arm = "right"
-tool = "drill"
-
-[[steps]]
-kind = "move"
-name = "move the drill"
-depth_mm = -50.0
-to_mm = [-150.0, 100.0]
-duration_s = 1.0
-
-[[steps]]
-kind = "wait"
-name = "hold"
-duration_s = 1.5
-"""
+# the drill moved 150 mm sideways in 1 s, then held
+MOVE_AND_HOLD = raise_and_hold("move-and-hold", 1.5, stance=DRILL_STANCE, to_mm=(-150.0, 100.0))
 
 
 @pytest.mark.parametrize("ref_wait", [False, True], ids=["frozen", "refwait"])

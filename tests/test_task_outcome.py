@@ -5,48 +5,15 @@ arm, a miscalibrated encoder) said "completed", exit 0."""
 
 from __future__ import annotations
 
+import functools
 import json
 
 import numpy as np
+from task_files import short_cut
 
 from hubo_cli.tasks.runner import PATH_MISS_RMS_MM, path_outcome
 
-SHORT_CUT = """\
-name = "short-cut"
-description = "Raise the drill, drill in, cut 20 mm, pull out"
-
-[stance]
-wall_distance_mm = "auto"
-centre_mm = "auto"
-arm = "right"
-tool = "drill"
-
-[[steps]]
-kind = "move"
-name = "raise the drill"
-depth_mm = -50.0
-duration_s = 1.0
-
-[[steps]]
-kind = "plunge"
-name = "drill in"
-depth_mm = 2.5
-speed_mm_s = 50.0
-
-[[steps]]
-kind = "follow"
-name = "cut"
-path = "polyline"
-points_mm = [[10.0, 0.0], [-10.0, 0.0]]
-speed_mm_s = 20.0
-accel_mm_s2 = 100.0
-
-[[steps]]
-kind = "retract"
-name = "pull out"
-depth_mm = -50.0
-speed_mm_s = 50.0
-"""
+SHORT_CUT = short_cut()
 
 
 def test_the_check_measures_across_the_bit_under_force_control():
@@ -64,12 +31,30 @@ def test_the_check_measures_across_the_bit_under_force_control():
 SAG_END_S = 7.5  # the cut is over by then (36.6 mm RMS either way); the settle then ends at once
 
 
+class _WaitingClock:
+    """The control loop's clock for a run that need not wait: time moves only when the loop
+    waits for its next period (the hardware driver's run goes at wall-clock pace; its dry
+    run's echo keeps its own time and never waits)."""
+
+    def __init__(self) -> None:
+        self.now_s = 0.0
+
+    def __call__(self) -> float:
+        return self.now_s
+
+    def sleep(self, seconds: float) -> None:
+        self.now_s += seconds
+
+
 def test_a_robot_that_follows_but_misses_the_path_does_not_complete(tmp_path, monkeypatch):
     """The hardware dry run's echo with the right elbow measured 0.1 rad beyond every command
     once the drill is up (under the 0.18 rad tracking band: no device fault): exit 1, the
-    outcome line, summary ``completed: false`` (main: completed, exit 0, 36.6 mm RMS)."""
+    outcome line, summary ``completed: false`` (main: completed, exit 0, 36.6 mm RMS). The
+    loop's waits for its periods are on an injected clock (about 8 s of the wall clock
+    otherwise: the hardware driver runs at wall-clock pace)."""
     from click.testing import CliRunner
 
+    from hubo_cli import session
     from hubo_cli.cli.main import main
     from hubo_cli.drivers import hardware, hubo_ach_io
     from hubo_cli.model import load_model
@@ -86,6 +71,9 @@ def test_a_robot_that_follows_but_misses_the_path_does_not_complete(tmp_path, mo
             return frame
 
     monkeypatch.setattr(hardware, "EchoSource", Sagging)
+    clock = _WaitingClock()
+    monkeypatch.setattr(session, "ControlLoop", functools.partial(
+        session.ControlLoop, clock=clock, sleep=clock.sleep))
     task, run = tmp_path / "short.toml", tmp_path / "run"
     task.write_text(SHORT_CUT)
     result = CliRunner().invoke(main, ["task", "run", str(task), "--driver", "hardware",

@@ -71,3 +71,15 @@ def test_ctrl_c_stops_cleanly(tmp_path, monkeypatch):
     assert result.exit_code == 130
     assert result.output.strip() == "interrupted"
     assert not (tmp_path / "run").exists()  # nothing half-written
+
+
+def test_reversed_range_is_a_usage_error(tmp_path):
+    """--x-range 650 300 (or a reversed --z-range) is refused as click refuses a bad value
+    (exit 2, one error line, nothing computed), never swapped silently."""
+    for option, values in (("--x-range", ("650", "300")), ("--z-range", ("100", "-100"))):
+        out = tmp_path / option.strip("-")
+        result = run("workspace-map", option, *values, "--resolution", "20", "--out", str(out))
+        assert result.exit_code == 2, result.output
+        errors = [line for line in result.output.splitlines() if line.startswith("Error")]
+        assert len(errors) == 1 and f"'{option}'" in errors[0] and "reversed" in errors[0]
+        assert not out.exists()

@@ -9,6 +9,15 @@ import click
 from hubo_cli.cli.output import console, err_console, fmt_q, print_json
 
 
+def _ordered_range(ctx, param, value):
+    """A range option's A B as given, A <= B (A A for one value); reversed is a usage error
+    (click's exit 2), never swapped silently."""
+    if value is not None and value[0] > value[1]:
+        raise click.BadParameter(f"{value[0]:g} {value[1]:g} is reversed: give the smaller "
+                                 f"value first ({value[1]:g} {value[0]:g})")
+    return value
+
+
 def _progress_bar():
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
@@ -68,9 +77,11 @@ def _print_map(wmap, paper_pts) -> None:
 @click.option("--resolution", type=float, default=5.0, show_default=True, metavar="MM",
               help="Grid step in x, y and z (mm); the grid has at most 20 million points.")
 @click.option("--x-range", nargs=2, type=float, default=(300.0, 650.0), show_default=True,
-              metavar="A B", help="Wall distances from the neck to search (mm, within ±1000: the "
-                                    "arms reach 630 at most); A A for one.")
+              metavar="A B", callback=_ordered_range,
+              help="Wall distances from the neck to search (mm, within ±1000: the arms reach "
+                   "630 at most); A A for one.")
 @click.option("--z-range", nargs=2, type=float, default=None, metavar="A B",
+              callback=_ordered_range,
               help="Heights above the neck to search (mm, within ±1000); A A pins the segment "
                    "to one height. "
                    "Default: every height the arm reaches.")

@@ -15,7 +15,9 @@ brakes the command to rest from the last one), in one place:
   estimate built on it runs away): :class:`ImplausibleMeasurement`;
 - the estimate: a torso estimated more than :data:`TORSO_HEIGHT_MARGIN_M` beyond the heights a
   robot on the floor can hold (under the floor, or above its straight legs' reach):
-  :class:`ImplausibleMeasurement`, raised before any module acts on it.
+  :class:`ImplausibleMeasurement`, raised before any module acts on it. (The checks on the
+  sensors' readings are :mod:`hubo_cli.estimation.plausibility`'s: measured drivers only, and a
+  walk steps into its stance; its docstring says why the two are not one.)
 
 The bounds are healthy runs' figures with a margin (docs/history/safety.md, rounds 16 and 17).
 """

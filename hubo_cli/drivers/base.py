@@ -142,13 +142,16 @@ class Driver(ABC):
         name: the registry name.
         real_time: the driver moves a real robot (or feeds a process that does), so the loop
             must run at wall-clock pace whatever the caller asked for.
+        log_columns: numbers the driver adds to every log row (see :meth:`log_values`).
+
+    Attributes (what the driver's sensors are: a class's default, which a driver whose
+    answer depends on how it was opened, as the hardware driver's dry run, makes a property):
         accel_measured: the state's ``imu_accel_m_s2`` is a measured specific force (False:
             rebuilt from the tilt, it reads rest whatever the motion, and the estimate
             removes no inertia from the wrists' readings).
         sensors_measured: the state's IMU and force sensors are measured, so a reading no
             working sensor gives is a fault (:mod:`hubo_cli.estimation.plausibility`); False:
             they are made up (the ideal driver, a hardware dry run's echo) and not checked.
-        log_columns: numbers the driver adds to every log row (see :meth:`log_values`).
 
     Args:
         model: the robot model (joint names and limits).
@@ -156,7 +159,7 @@ class Driver(ABC):
 
     name = "abstract"
     real_time: ClassVar[bool] = False
-    accel_measured: ClassVar[bool] = True
+    accel_measured: bool = True
     sensors_measured: bool = True
     log_columns: tuple[str, ...] = ()
 

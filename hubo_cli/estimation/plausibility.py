@@ -27,6 +27,18 @@ the daemon publishes nothing new, and such a gap is the stale-state check's,
   at the start (a dead channel, or a sensor nulled with the hand on: the estimate removes
   the hand's weight from the reading, :mod:`hubo_cli.estimation.wrenches`, so it needs the
   sensor as it reads with nothing removed).
+- a wrist sensor whose reading, the weight of the hand and its tool removed (as the run
+  declares the tool: :mod:`hubo_cli.estimation.wrenches`), averages more than
+  :data:`WRIST_START_MAX_N` along its z over the run's first :data:`WRIST_START_PERIODS`
+  periods, while the hands touch nothing yet: an offset, a wrong tool in the task file (the
+  drill declared and not held weighs 5.2 N), or the other wrist's sensor (round 18; averaged,
+  because one reading's noise alone is 1 N);
+- at the start, with both soles loaded (each carrying :data:`SOLE_LOADED_WEIGHTS` of the
+  robot's weight at least), the IMU's vertical (its accelerometer's gravity, as the attitude
+  starts from it) more than :data:`IMU_LEGS_MAX_DEG` from the legs' (the soles' normal through
+  the measured joints' kinematics): an IMU mounted crooked or miscalibrated (round 18; the
+  estimate would start tilted by the difference and the capture point stop the run at once,
+  without naming the IMU).
 
 Not a check: an estimated fall while the soles still carry the robot. A real fall does that (the
 push-wall robot tipping over its toes read 291 N of 380 N at 30 deg); a joint encoder that lies
@@ -34,17 +46,26 @@ is :mod:`hubo_cli.control.following`'s (a measured jump, a joint that does not f
 
 Only a driver whose sensors are measured (``Driver.sensors_measured``) is checked: the ideal
 driver's and a hardware dry run's echo (zero force and a level, still IMU) are not sensors.
+
+The estimate's other check, the torso's height over the floor, lives in
+:mod:`hubo_cli.control.following`, not here, because it differs in both respects that matter:
+it holds for every driver (it judges the estimate built on the joints, which every driver
+reports, made-up sensors or not; noisy encoders carried it to 9.16 m), and it brakes the run at
+once, a walk too (a walk's stance stop steps on the estimate that check found wrong). Here a
+walk finishes its step into a stance: the faults below leave the joints, and so the step's
+placement, sound; and a driver whose sensors are made up is not judged.
 """
 
 from __future__ import annotations
 
+import math
 from collections import deque
 
 import numpy as np
 
 from hubo_cli.dataflow import Store
 from hubo_cli.errors import DeviceError
-from hubo_cli.estimation.keys import CONTACT, T_TORSO_SOLES
+from hubo_cli.estimation.keys import CONTACT, T_TORSO_SOLES, WRENCHES
 from hubo_cli.estimation.observer import Observer
 from hubo_cli.model import ARMS, RobotModel
 from hubo_cli.state import ANKLE_SENSORS, RobotState
@@ -56,6 +77,23 @@ SOLES_OVER_S = 0.1       # ... for longer than this (s)
 WRIST_FLAT_STATES = 40   # fresh states (0.2 s) of its arm moving
 ARM_MOVING_RAD_S = 0.02  # an arm moves: one of its joints this fast between fresh states
 WRISTS = ("right-wrist", "left-wrist")
+# The IMU's vertical and the legs' at the start, both soles loaded, at most this far apart
+# (deg). Healthy starts (round 18; walk, sim, the six tasks and both sample replays, nominal and
+# perturbed seeds, both code paths; docs/history/safety.md) read 0.006 deg nominal and up to
+# 0.54 deg perturbed (0.55 from the IMU's reported orientation, hubo-ach's source): the
+# perturbed floor's tilt (up to 0.5 deg), which gravity sees and the soles do not, and the
+# sensor's calibration and noise. A walk with its IMU pitched 1 deg walked as a healthy one,
+# 1.5 deg slowed (8 steps, 20 mm off), 2 deg stopped at 0.15 s on the capture point and the
+# review's 5 deg at 0.06 s, the IMU unnamed
+IMU_LEGS_MAX_DEG = 1.5
+SOLE_LOADED_WEIGHTS = 0.25  # a sole loaded: its F_z at least this many robot weights
+# A wrist's compensated F_z, averaged over the run's first WRIST_START_PERIODS periods (0.1 s),
+# at most this far from 0 (N). Healthy starts (round 18; the same runs as IMU_LEGS_MAX_DEG)
+# averaged 0.02 N nominal and up to 0.92 N perturbed (single readings 3.7 N): the masses of the
+# hand and the drill drawn 10 % off (0.8 N with the drill), the noise (1 N a reading, 0.22 N
+# averaged). The drill declared and not held reads 5.2 N
+WRIST_START_MAX_N = 2.5
+WRIST_START_PERIODS = 20
 
 
 class SensorFault(DeviceError):
@@ -79,8 +117,7 @@ class SensorPlausibility(Observer):
     """
 
     name = "sensor-plausibility"
-    reads = (CONTACT,)
-    follows = (T_TORSO_SOLES,)  # the legs' kinematics (without them no turn is seen)
+    reads = (T_TORSO_SOLES, WRENCHES, CONTACT)
 
     def __init__(self, model: RobotModel, weight_n: float, period_s: float,
                  measured: bool = True) -> None:
@@ -104,6 +141,8 @@ class SensorPlausibility(Observer):
         self._wrist = dict.fromkeys(WRISTS)
         self._wrist_flat = dict.fromkeys(WRISTS, 0)
         self._soles_over = 0  # periods in a row over the limit
+        self._periods = 0  # periods judged since the reset
+        self._wrist_sums = np.zeros((2, len(WRISTS)))  # per wrist: compensated F_z, raw F_z
         if not self.measured:
             return
         for wrist in WRISTS:
@@ -117,12 +156,42 @@ class SensorPlausibility(Observer):
                             "hardware fake-daemon pass --echo-sensors)",
                             hint="check the sensor's cable and power, or how it was nulled, "
                                  "then start the run again")
+        self._imu_against_legs(state, store)
         self.update(state, store)
+
+    def _imu_against_legs(self, state: RobotState, store: Store) -> None:
+        """Refuse a start whose IMU's vertical is more than IMU_LEGS_MAX_DEG from the legs'
+        with both soles loaded (module docstring); nothing is judged otherwise (a robot
+        hanging in its gantry, joints or readings not finite)."""
+        T_torso_soles = store.get(T_TORSO_SOLES)
+        accel = np.asarray(state.imu_accel_m_s2, dtype=float)
+        soles_n = [float(np.asarray(state.ft.get(s, np.zeros(6)), dtype=float)[2])
+                   for s in ANKLE_SENSORS]
+        if T_torso_soles is None or not (np.all(np.isfinite(accel))
+                                         and np.linalg.norm(accel) > 0.0) \
+                or not min(soles_n) >= SOLE_LOADED_WEIGHTS * self.weight_n:
+            return
+        legs = np.asarray(T_torso_soles)[:, :3, 2].sum(axis=0)
+        legs /= np.linalg.norm(legs)
+        imu = accel / np.linalg.norm(accel)
+        apart_deg = math.degrees(math.acos(min(1.0, float(legs @ imu))))
+        if apart_deg > IMU_LEGS_MAX_DEG:
+            (imu_roll, imu_pitch), (legs_roll, legs_pitch) = _roll_pitch_deg(imu), \
+                _roll_pitch_deg(legs)
+            self._raise(f"the IMU reads the torso at roll {imu_roll:.1f} deg, pitch "
+                        f"{imu_pitch:.1f} deg, the legs' kinematics with both soles loaded at "
+                        f"roll {legs_roll:.1f}, pitch {legs_pitch:.1f}: {apart_deg:.1f} deg "
+                        f"apart (at most {IMU_LEGS_MAX_DEG:g} deg): refused before anything moved",
+                        hint="check the IMU's mounting and calibration (a level robot reads "
+                             "level), then start the run again")
 
     def update(self, state: RobotState, store: Store) -> None:
         if not self.measured or self.fault is not None:
             return
         self._soles(state)
+        self._periods += 1
+        if self._periods <= WRIST_START_PERIODS:  # (every period: a repeat weighs the same)
+            self._wrist_start(state, store)
         fresh = self._t_s is None or state.time_s > self._t_s
         if not fresh:  # the same state again: a gap is the stale-state check's
             return
@@ -193,6 +262,32 @@ class SensorPlausibility(Observer):
                                 f"the last bit for {self._wrist_flat[wrist]} states while "
                                 f"its arm moved, at t = {state.time_s:.2f} s: dead")
 
+    def _wrist_start(self, state: RobotState, store: Store) -> None:
+        """Sum each wrist's compensated and raw F_z over the first WRIST_START_PERIODS
+        periods; at the last, fault a wrist whose compensated mean is beyond
+        WRIST_START_MAX_N (module docstring)."""
+        wrenches = store.get(WRENCHES)
+        for k, wrist in enumerate(WRISTS):
+            reading = state.ft.get(wrist)
+            if wrenches is None or reading is None:
+                self._wrist_sums[:, k] = np.nan  # not judged
+                continue
+            self._wrist_sums[0, k] += float(wrenches[wrist][2])
+            self._wrist_sums[1, k] += float(np.asarray(reading, dtype=float)[2])
+        if self._periods < WRIST_START_PERIODS:
+            return
+        compensated, raw = self._wrist_sums / WRIST_START_PERIODS
+        for k, wrist in enumerate(WRISTS):
+            if abs(compensated[k]) > WRIST_START_MAX_N:  # (NaN: not judged)
+                self._raise(f"the {wrist} force-torque sensor read {raw[k]:.1f} N along its z "
+                            f"over the first {WRIST_START_PERIODS * self.period_s:.2f} s, where "
+                            f"the hand and its tool as the run declares it weigh "
+                            f"{raw[k] - compensated[k]:.1f} N: {abs(compensated[k]):.1f} N apart "
+                            f"(at most {WRIST_START_MAX_N:g} N) at t = {state.time_s:.2f} s",
+                            hint="check the tool the task file declares ([stance] tool) against "
+                                 "the hand's, the sensor's zero and which wrist it is wired "
+                                 "to, then start the run again")
+
     def _raise(self, message: str, hint: str = "") -> None:
         self.fault = SensorFault(message, hint)
         raise self.fault
@@ -201,3 +296,9 @@ class SensorPlausibility(Observer):
 def _angle_rad(R: np.ndarray) -> float:
     """The angle of the rotation ``R`` (rad)."""
     return float(np.arccos(np.clip(0.5 * (np.trace(R) - 1.0), -1.0, 1.0)))
+
+
+def _roll_pitch_deg(up) -> tuple[float, float]:
+    """The torso's roll and pitch (deg) for the world's vertical ``up`` in its axes."""
+    return (round(math.degrees(math.atan2(up[1], up[2])), 1) + 0.0,  # (never "-0.0")
+            round(math.degrees(math.atan2(-up[0], math.hypot(up[1], up[2]))), 1) + 0.0)

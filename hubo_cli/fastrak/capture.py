@@ -67,6 +67,11 @@ TIME_RESOLUTION_S = 1e-3
 # more records a second than any tracker sends (a FASTRAK 120, a generated stream 240 a hand):
 # times squeezed together (6 s of motion in 1.4 us) are garbled
 MAX_RECORDS_PER_S = 10_000.0
+# a pose log's station may repeat its time in this many rows in a row (a serial read that
+# delivered several of its records at once: a decoded capture stamps each with the read's time);
+# more are refused: 0.25 s of a 120 Hz tracker's records (the teleop's stale-input timeout)
+# delivered as one instant, their motion lost (the review's log: 3 s of rows at t = 1.0 s)
+MAX_SAME_TIME_ROWS = 30
 _STATUS_TEXT = STATUS_OK_CHARS.decode("ascii")  # a pose log's status: a record's own
 POSE_LOG_COLUMNS = ("t_s", "station", "x_m", "y_m", "z_m", "qw", "qx", "qy", "qz", "status")
 RECORD_RATE_HZ = 120.0
@@ -639,7 +644,28 @@ def parse_pose_log(text: str, where: str = "pose log") -> RecordBatch:
                          hint="a pose log's rows are in time order, as recorded; two "
                               "recordings are two files")
     batch.t_s = recording_times(batch.t_s, where)
+    _check_repeated_times(batch, lines, where)
     return batch
+
+
+def _check_repeated_times(batch: RecordBatch, lines: list[tuple[int, str]], where: str) -> None:
+    """Refuse a station whose time repeats in more than :data:`MAX_SAME_TIME_ROWS` of its rows
+    in a row (``lines``: the numbered lines, header first)."""
+    for s in np.unique(batch.station):
+        rows = np.flatnonzero(batch.station == s)
+        same = np.diff(batch.t_s[rows]) == 0.0  # row k + 1 has row k's time
+        count = np.cumsum(same)
+        repeats = count - np.maximum.accumulate(np.where(same, 0, count))  # in a row, to k
+        over = np.flatnonzero(repeats >= MAX_SAME_TIME_ROWS)
+        if over.size:
+            k = int(over[0]) + 1  # the first row too many, and the run's first
+            first, last = lines[rows[k - MAX_SAME_TIME_ROWS] + 1][0], lines[rows[k] + 1][0]
+            raise InputError(f"{where}: lines {first}-{last}: station {s}'s rows all have t_s "
+                             f"{batch.t_s[rows[k]]:g} s ({MAX_SAME_TIME_ROWS + 1} in a row; a "
+                             f"tracker sends {MAX_SAME_TIME_ROWS} in 0.25 s): their motion "
+                             "would replay as one instant",
+                             hint="each row's t_s is the time its record was received; fix "
+                                  "the times or cut those rows")
 
 
 def _csv_rows(lines: list[tuple[int, str]], where: str):

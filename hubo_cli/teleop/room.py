@@ -191,6 +191,23 @@ class CollisionRoom:
             self._last_key, self._last = key, (c.distance_m, c.pair)
         return self._last
 
+    def _own_closest(self, q_rad: np.ndarray, arm: str, d: float, pair: tuple[str, str]
+                     ) -> tuple[float, tuple[str, str]]:
+        """``_distance(q_rad, arm=arm)`` right after ``_distance(q_rad)`` gave ``d`` and
+        ``pair``. Where that pair is one the arm moves, it is the answer: the second check
+        would bound or reuse every pair as the first left it (the same joints and band: each
+        pair's distance computed or reused there is its anchor now, the others' bounds are
+        the same numbers) and take the first smallest of the arm's pairs, which the first
+        smallest of all is. It still counts as a check (the call's budget as before); the
+        checker only skips its own bookkeeping of which pairs coal has active."""
+        if not self._arm_pairs[arm][self._pair_index[pair]]:
+            return self._distance(q_rad, arm=arm)
+        key = (q_rad.tobytes(), NEAR_M, arm)
+        if key != self._last_key:
+            self._checks_left -= 1
+            self._last_key, self._last = key, (d, pair)
+        return self._last
+
     def clears(self, q_rad: np.ndarray) -> bool:
         """``q_rad`` (24 joints, rad) keeps the room (the check :meth:`keep` makes first)."""
         return self._distance(np.asarray(q_rad, dtype=float), near_m=0.0)[0] >= self.room_m
@@ -283,7 +300,7 @@ class CollisionRoom:
             # the arm's own pairs (the others it cannot change: the other arm's elbow deep in
             # the torso leaves every step of this arm's search the same clearance and a zero
             # gradient)
-            d_arm, pair_arm = self._distance(q, arm=arm)
+            d_arm, pair_arm = self._own_closest(q, arm, d, pair_prev)
             reach, T_goal = goals[arm]
             T_goal = np.ascontiguousarray(T_goal, float)
             moved.add(arm)
