@@ -461,6 +461,49 @@ def test_a_phase_that_stops_itself_is_asked_to_after_ctrl_c_or_a_log_failure(mod
     _assert_smooth_end(model, robot, q0)
 
 
+@pytest.mark.parametrize(("event", "presses"), [("sensor fault", 1), ("log failure", 2)])
+def test_ctrl_c_during_a_faults_stance_stop_lets_it_stand_and_twice_brakes(model, tmp_path,
+                                                                          event, presses):
+    """The log fails (or a sensor fault is raised) at 0.2 s: the phase stops itself; Ctrl-C
+    at 0.3 s: the stop goes on to the stance and the error names both; a second Ctrl-C at 0.4
+    s brakes, as during an interrupt's stance (round 18; main braked at the first, mid-step:
+    the review's walk left on one foot after a stuck IMU's stance stop and a Ctrl-C)."""
+    from hubo_cli.estimation.build import build_estimator
+    from hubo_cli.estimation.plausibility import SensorFault
+
+    robot = ideal(model)
+    q0 = robot.read().q_rad.copy()
+    target = _Stepping(q0, interrupts_s=(0.3, 0.4)[:presses],
+                       fail_log_s=0.2 if event == "log failure" else None)
+    estimator = None
+    if event == "sensor fault":  # the estimation layer finds one at 0.2 s
+        estimator = build_estimator(model, sensors_measured=False)
+        update = estimator.update
+
+        def failing(state):
+            update(state)
+            if abs(state.time_s - 0.2) < DT / 2:
+                raise SensorFault("the IMU read the same values: frozen")
+        estimator.update = failing
+    loop = ControlLoop(robot, build_pipeline(model, ("estop", "limiter")), target,
+                       log_path=tmp_path, estimator=estimator)
+    target.loop = loop
+    result = loop.run(5.0)
+    first = {"log failure": ("log-error", "cannot write the log"),
+             "sensor fault": ("device", "the IMU read the same values: frozen")}[event]
+    assert result.ended == first[0]  # the first event stays the run's end
+    assert result.error.startswith(first[1])
+    assert result.error.endswith("; interrupted (Ctrl-C)" if presses == 1
+                                 else "; interrupted (Ctrl-C); second interrupt (Ctrl-C)")
+    if presses == 1:
+        assert result.interrupt_stop == "stood"  # (main: "braked: Ctrl-C while standing up")
+        assert result.t_end_s == pytest.approx(target.stopped_s + 0.8 + 0.5, abs=0.011)
+    else:
+        assert result.interrupt_stop == "braked: a second interrupt (Ctrl-C)"
+        assert result.interrupt_stop_s == pytest.approx(0.2, abs=0.011)
+    _assert_smooth_end(model, robot, q0)
+
+
 def test_a_full_disk_during_an_interrupts_stance_says_both_and_exits_as_interrupted(model,
                                                                                    tmp_path):
     """Ctrl-C at 0.1 s, then the log fails at 0.2 s while the phase finishes its stop: the

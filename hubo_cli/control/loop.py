@@ -41,7 +41,9 @@ no longer written after a failure, until the stopper holds that stance, within t
 ``within_s`` plus :data:`STANCE_SPARE_S` (:attr:`LoopResult.interrupt_stop` says how it went).
 A second Ctrl-C, the bound running out or a stopper that does not latch falls back to the
 brake; a second signal of another kind (SIGTERM, SIGHUP, SIGQUIT: nobody insisting) is said
-in ``error`` and the stop goes on.
+in ``error`` and the stop goes on. A stance stop that a sensor fault or a log failure began
+counts interrupts the same way: the first is said in ``error`` (after the fault, which stays
+the run's end) and the stop goes on; the second brakes.
 The loop never raises for these; :class:`LoopResult` says how it ended.
 """
 
@@ -429,6 +431,9 @@ class ControlLoop:
         ended, error, exc = "finished", "", None
         t_s = 0.0
         stance: _StanceStop | None = None  # a phase stopping itself after an interrupt
+        # (or a sensor fault, a log failure): the first interrupt lets it go on, the second
+        # brakes (raised as KeyboardInterrupt, or noted where a callback swallowed it)
+        interrupted = False
         log_failed = False
         held = False  # the driver failed: it stopped (or holds) by itself, no brake of ours
         try:
@@ -449,14 +454,18 @@ class ControlLoop:
                 t_s = self.period * self.dt_s
                 if interrupt_pending() is not None:  # noted (or swallowed): act on it now
                     cause = take_interrupt()
-                    if stance is not None:  # (a log failure's stance: a second event)
+                    if stance is not None and interrupted:  # the second: the brake
                         stance.end(f"braked: {cause} while standing up", t_s)
                         error = _joined(error, f"interrupted ({cause})")
                         break
-                    ended, error = "interrupted", f"interrupted ({cause})"
-                    stance = self._stance_stop(t_s)
-                    if stance is None:
-                        break
+                    interrupted = True
+                    if stance is not None:  # a fault's or a log failure's stance goes on
+                        error = _joined(error, f"interrupted ({cause})")
+                    else:
+                        ended, error = "interrupted", f"interrupted ({cause})"
+                        stance = self._stance_stop(t_s)
+                        if stance is None:
+                            break
                 late_s = self._pace(1.0 if stance is not None else 0.0)
                 cycle = Cycle(t_s, self.dt_s, store=self.store)
                 started = self.clock()

@@ -8,14 +8,25 @@ loop stops as it does after Ctrl-C (a walk finishes its step into a double-suppo
 other run brakes to rest), and a sensor already dead at the start refuses the run before
 anything moves.
 
-Checks (each bound measured on healthy runs, docs/history/safety.md, round 17):
+Checks (each bound measured on healthy runs, docs/history/safety.md, rounds 17 and 18), over
+fresh states only (a state whose time advances: the hardware driver repeats the last one when
+the daemon publishes nothing new, and such a gap is the stale-state check's,
+:mod:`hubo_cli.drivers.stale_state`):
 
-- the IMU (orientation, gyro and accelerometer together) bit-identical for
-  :data:`IMU_FROZEN_PERIODS` periods in a row (a real IMU has noise; the simulator's moves);
+- the IMU (orientation, gyro and accelerometer together) bit-identical over the last
+  :data:`IMU_FROZEN_STATES` fresh states while the legs' kinematics turned the torso at least
+  :data:`TORSO_TURNED_RAD` over them (on a sole loaded in both states, taken as still on the
+  floor). A still torso may read the same to the last bit (a quantised IMU without noise), a
+  moving one cannot; a walk's torso turns 0.4 deg in 10 states (median), a standing echo
+  robot's at most 0.013 deg;
 - the soles' F_z together over :data:`SOLES_MAX_WEIGHTS` times the robot's weight for longer
   than :data:`SOLES_OVER_S` (a landing's impact is shorter);
-- a wrist sensor bit-identical for :data:`WRIST_FLAT_PERIODS` periods while its arm moves, or
-  reading exactly 0 in every component at the start;
+- a wrist sensor bit-identical for :data:`WRIST_FLAT_STATES` fresh states while its arm moves
+  (one of its joints at least :data:`ARM_MOVING_RAD_S` fast between fresh states, from their
+  positions: a daemon may leave the velocities 0), or reading exactly 0 in every component
+  at the start (a dead channel, or a sensor nulled with the hand on: the estimate removes
+  the hand's weight from the reading, :mod:`hubo_cli.estimation.wrenches`, so it needs the
+  sensor as it reads with nothing removed).
 - a wrist sensor whose reading, the weight of the hand and its tool removed (as the run
   declares the tool: :mod:`hubo_cli.estimation.wrenches`), averages more than
   :data:`WRIST_START_MAX_N` along its z over the run's first :data:`WRIST_START_PERIODS`
@@ -48,21 +59,23 @@ placement, sound; and a driver whose sensors are made up is not judged.
 from __future__ import annotations
 
 import math
+from collections import deque
 
 import numpy as np
 
 from hubo_cli.dataflow import Store
 from hubo_cli.errors import DeviceError
-from hubo_cli.estimation.keys import T_TORSO_SOLES, WRENCHES
+from hubo_cli.estimation.keys import CONTACT, T_TORSO_SOLES, WRENCHES
 from hubo_cli.estimation.observer import Observer
 from hubo_cli.model import ARMS, RobotModel
 from hubo_cli.state import ANKLE_SENSORS, RobotState
 
-IMU_FROZEN_PERIODS = 10  # 50 ms; healthy runs: 0 (bit-identical for no period in a row)
+IMU_FROZEN_STATES = 10  # fresh states in a row bit-identical (50 ms at the state's rate) ...
+TORSO_TURNED_RAD = 1e-3  # ... over which the legs turned the torso this much (0.06 deg)
 SOLES_MAX_WEIGHTS = 2.5  # the soles' F_z together, in robot weights ...
 SOLES_OVER_S = 0.1       # ... for longer than this (s)
-WRIST_FLAT_PERIODS = 40  # 0.2 s of its arm moving
-ARM_MOVING_RAD_S = 0.02  # an arm moves: one of its joints measured at least this fast
+WRIST_FLAT_STATES = 40   # fresh states (0.2 s) of its arm moving
+ARM_MOVING_RAD_S = 0.02  # an arm moves: one of its joints this fast between fresh states
 WRISTS = ("right-wrist", "left-wrist")
 # The IMU's vertical and the legs' at the start, both soles loaded, at most this far apart
 # (deg). Healthy starts (round 18; walk, sim, the six tasks and both sample replays, nominal and
@@ -104,7 +117,7 @@ class SensorPlausibility(Observer):
     """
 
     name = "sensor-plausibility"
-    reads = (T_TORSO_SOLES, WRENCHES)
+    reads = (T_TORSO_SOLES, WRENCHES, CONTACT)
 
     def __init__(self, model: RobotModel, weight_n: float, period_s: float,
                  measured: bool = True) -> None:
@@ -117,8 +130,14 @@ class SensorPlausibility(Observer):
 
     def reset(self, state: RobotState, store: Store) -> None:
         self.fault = None
+        self._t_s = None  # the last fresh state's time (s)
+        self._q = None  # its joints (rad)
         self._imu = None
-        self._imu_same = 0
+        self._imu_same = 0  # fresh states in a row with the IMU bit-identical
+        self._legs = None  # the last fresh state's R_torso_sole (2, 3, 3) and contact
+        self._contact = (False, False)
+        self._R_turned = np.eye(3)  # the torso's turn on the legs since the first fresh state
+        self._turns = deque(maxlen=IMU_FROZEN_STATES + 1)  # ... at the last fresh states
         self._wrist = dict.fromkeys(WRISTS)
         self._wrist_flat = dict.fromkeys(WRISTS, 0)
         self._soles_over = 0  # periods in a row over the limit
@@ -130,8 +149,13 @@ class SensorPlausibility(Observer):
             reading = state.ft.get(wrist)
             if reading is not None and not np.any(np.asarray(reading, dtype=float)):
                 self._raise(f"the {wrist} force-torque sensor reads exactly 0 in every "
-                            "component at the start (a hand weighs something): refused "
-                            "before anything moved")
+                            "component at the start: refused before anything moved (a dead "
+                            "channel reads so, and so does a sensor nulled with the hand on: "
+                            "the estimate removes the hand's weight itself, so null the wrist "
+                            "sensors with nothing beyond them or not at all; against hubo "
+                            "hardware fake-daemon pass --echo-sensors)",
+                            hint="check the sensor's cable and power, or how it was nulled, "
+                                 "then start the run again")
         self._imu_against_legs(state, store)
         self.update(state, store)
 
@@ -164,13 +188,21 @@ class SensorPlausibility(Observer):
     def update(self, state: RobotState, store: Store) -> None:
         if not self.measured or self.fault is not None:
             return
-        imu = np.concatenate([state.imu_quat_wxyz, state.imu_gyro_rad_s, state.imu_accel_m_s2])
-        same = self._imu is not None and np.array_equal(imu, self._imu)
-        self._imu, self._imu_same = imu, self._imu_same + 1 if same else 0
-        if self._imu_same >= IMU_FROZEN_PERIODS:
-            self._raise(f"the IMU read the same values to the last bit for {self._imu_same} "
-                        f"periods ({self._imu_same * self.period_s:.3f} s) at t = "
-                        f"{state.time_s:.2f} s: frozen")
+        self._soles(state)
+        self._periods += 1
+        if self._periods <= WRIST_START_PERIODS:  # (every period: a repeat weighs the same)
+            self._wrist_start(state, store)
+        fresh = self._t_s is None or state.time_s > self._t_s
+        if not fresh:  # the same state again: a gap is the stale-state check's
+            return
+        q = np.asarray(state.q_rad, dtype=float)
+        dt_s = None if self._t_s is None else state.time_s - self._t_s
+        self._frozen_imu(state, store)
+        if dt_s is not None:
+            self._dead_wrists(state, np.abs(q - self._q) / dt_s)
+        self._t_s, self._q = state.time_s, q.copy()
+
+    def _soles(self, state: RobotState) -> None:
         soles_n = sum(float(state.ft[s][2]) for s in ANKLE_SENSORS if s in state.ft)
         over = soles_n > SOLES_MAX_WEIGHTS * self.weight_n
         self._soles_over = self._soles_over + 1 if over else 0
@@ -179,10 +211,41 @@ class SensorPlausibility(Observer):
                         f"({soles_n / self.weight_n:.1f} times the robot's "
                         f"{self.weight_n:.0f} N) for {self._soles_over * self.period_s:.3f} s "
                         f"at t = {state.time_s:.2f} s")
-        self._periods += 1
-        if self._periods <= WRIST_START_PERIODS:
-            self._wrist_start(state, store)
-        dq = np.abs(np.asarray(state.dq_rad_s, dtype=float))
+
+    def _frozen_imu(self, state: RobotState, store: Store) -> None:
+        """The IMU bit-identical over the last IMU_FROZEN_STATES fresh states while the legs
+        turned the torso TORSO_TURNED_RAD over them (a still or slowly leaning torso may read
+        the same: a quantised IMU without noise)."""
+        self._turn_on_legs(store)
+        self._turns.append(self._R_turned.copy())
+        imu = np.concatenate([state.imu_quat_wxyz, state.imu_gyro_rad_s, state.imu_accel_m_s2])
+        same = self._imu is not None and np.array_equal(imu, self._imu)
+        self._imu, self._imu_same = imu, self._imu_same + 1 if same else 0
+        if self._imu_same < IMU_FROZEN_STATES:
+            return
+        turned_rad = _angle_rad(self._turns[0].T @ self._turns[-1])
+        if turned_rad >= TORSO_TURNED_RAD:
+            self._raise(f"the IMU read the same values to the last bit for {self._imu_same} "
+                        f"states, the last {IMU_FROZEN_STATES} while the legs turned the torso "
+                        f"{np.degrees(turned_rad):.2f} deg, at t = {state.time_s:.2f} s: frozen")
+
+    def _turn_on_legs(self, store: Store) -> None:
+        """Add the torso's turn since the last fresh state on a sole loaded in both (the sole
+        taken as still on the floor; none loaded in both, or no legs: no turn seen)."""
+        T_torso_soles = store.get(T_TORSO_SOLES)
+        contact = tuple(store.get(CONTACT, (False, False)))
+        legs = None if T_torso_soles is None else np.array(T_torso_soles)[:, :3, :3]
+        if legs is not None and self._legs is not None:
+            for k in (0, 1):
+                if contact[k] and self._contact[k]:
+                    # R_world_torso' = R_world_torso R_torso_sole R_torso_sole'^T (sole still)
+                    self._R_turned = self._R_turned @ self._legs[k] @ legs[k].T
+                    break
+        self._legs, self._contact = legs, contact
+
+    def _dead_wrists(self, state: RobotState, speed_rad_s: np.ndarray) -> None:
+        """A wrist sensor bit-identical for WRIST_FLAT_STATES fresh states while its arm moved
+        (from the joints' positions: a daemon's velocities may read 0)."""
         for wrist, arm in self._arms.items():
             reading = state.ft.get(wrist)
             if reading is None:
@@ -192,11 +255,11 @@ class SensorPlausibility(Observer):
             self._wrist[wrist] = reading.copy()
             if not flat:
                 self._wrist_flat[wrist] = 0
-            elif np.max(dq[arm]) >= ARM_MOVING_RAD_S:
+            elif np.max(speed_rad_s[arm]) >= ARM_MOVING_RAD_S:
                 self._wrist_flat[wrist] += 1
-                if self._wrist_flat[wrist] >= WRIST_FLAT_PERIODS:
+                if self._wrist_flat[wrist] >= WRIST_FLAT_STATES:
                     self._raise(f"the {wrist} force-torque sensor read the same values to "
-                                f"the last bit for {self._wrist_flat[wrist]} periods while "
+                                f"the last bit for {self._wrist_flat[wrist]} states while "
                                 f"its arm moved, at t = {state.time_s:.2f} s: dead")
 
     def _wrist_start(self, state: RobotState, store: Store) -> None:
@@ -228,6 +291,11 @@ class SensorPlausibility(Observer):
     def _raise(self, message: str, hint: str = "") -> None:
         self.fault = SensorFault(message, hint)
         raise self.fault
+
+
+def _angle_rad(R: np.ndarray) -> float:
+    """The angle of the rotation ``R`` (rad)."""
+    return float(np.arccos(np.clip(0.5 * (np.trace(R) - 1.0), -1.0, 1.0)))
 
 
 def _roll_pitch_deg(up) -> tuple[float, float]:
