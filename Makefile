@@ -27,11 +27,14 @@ unexport PYTHONDONTWRITEBYTECODE
 # on their first import and keeps them (above).
 # In two steps: the project with its own dependencies ($(CORE), all that `make warm` needs),
 # then the extras by the project's name (the installed project is not built again), which
-# .ci/run installs while `make warm` compiles.
+# .ci/run installs while `make warm` compiles. Of the extras' packages the warm-up's runs
+# import pyarrow (a log's Parquet file takes its schema from it when it is there) and,
+# through it, typing-extensions: those two come first, so that no run imports them half
+# installed.
 $(CORE): pyproject.toml $(LOCK)
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --no-compile -c $(LOCK) --upgrade pip
-	$(BIN)/python -m pip install --quiet --no-compile -c $(LOCK) -e .
+	$(BIN)/python -m pip install --quiet --no-compile -c $(LOCK) -e . pyarrow typing-extensions
 	@touch $(CORE)
 
 $(STAMP): $(CORE)
