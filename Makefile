@@ -3,6 +3,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
+CORE   := $(VENV)/.core-stamp
 
 .PHONY: run test test-portable warm bench lint docs clean
 
@@ -24,10 +25,20 @@ unexport PYTHONDONTWRITEBYTECODE
 # compiling every installed module to bytecode (--no-compile): pip compiled all 9,000 of
 # them in one process (about 20 s of CPU of its 48); Python compiles those a command imports
 # on their first import and keeps them (above).
-$(STAMP): pyproject.toml $(LOCK)
+# In two steps: the project with its own dependencies ($(CORE), all that `make warm` needs),
+# then the extras by the project's name (the installed project is not built again), which
+# .ci/run installs while `make warm` compiles. Of the extras' packages the warm-up's runs
+# import pyarrow (a log's Parquet file takes its schema from it when it is there) and,
+# through it, typing-extensions: those two come first, so that no run imports them half
+# installed.
+$(CORE): pyproject.toml $(LOCK)
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --no-compile -c $(LOCK) --upgrade pip
-	$(BIN)/python -m pip install --quiet --no-compile -c $(LOCK) -e '.[$(EXTRAS)]'
+	$(BIN)/python -m pip install --quiet --no-compile -c $(LOCK) -e . pyarrow typing-extensions
+	@touch $(CORE)
+
+$(STAMP): $(CORE)
+	$(BIN)/python -m pip install --quiet --no-compile -c $(LOCK) 'hubo-cli[$(EXTRAS)]'
 	@touch $(STAMP)
 
 # Resolves the newest versions pyproject.toml allows in a scratch virtualenv and writes them
@@ -71,7 +82,7 @@ test-portable: $(STAMP)
 # Compiles the kernels of both code paths into their caches at once, one process each
 # (tests/warm_kernels.py; the two caches stay apart): .ci/run's step before the two test runs,
 # which then only load them. Each path alone compiles in about 60 s of CPU on a cold cache.
-warm: $(STAMP)
+warm: $(CORE)
 	$(BIN)/python tests/warm_kernels.py arms legs & pid=$$!; \
 	$(PORTABLE_ENV) $(BIN)/python tests/warm_kernels.py arms legs; portable=$$?; \
 	wait $$pid && exit $$portable
