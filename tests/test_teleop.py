@@ -236,7 +236,8 @@ def test_drill_mode_places_the_wall_at_the_bit_and_holds_the_flutes_in_it(drill_
 
 def _verdict(reach: dict[str, tuple[float, float]], overall_mm: float = 96.0):
     """``hubo teleop``'s verdict (its exit code, its line on stderr) on a finished run whose
-    hands had these (reachable share, position RMS over that time in mm)."""
+    hands had these (share of the time reachable and followed live, position RMS over that
+    time in mm)."""
     from types import SimpleNamespace
 
     from hubo_cli.cli.teleop import _report
@@ -244,7 +245,7 @@ def _verdict(reach: dict[str, tuple[float, float]], overall_mm: float = 96.0):
     summary = {"estop_events": [], "error": "", "samples_used": 1920, "samples_rejected": 0,
                "rms_error_mm": dict.fromkeys(reach, overall_mm), "stale_input": None,
                "interrupt_stop": None,
-               "reach": {arm: {"reachable_share": share, "reachable_position_rms_mm": rms}
+               "reach": {arm: {"followed_share": share, "followed_position_rms_mm": rms}
                          for arm, (share, rms) in reach.items()}}
     run = SimpleNamespace(summary=summary, run_dir=Path("runs/x"),
                           loop=SimpleNamespace(exception=None, ok=True, ended="done"))
@@ -255,14 +256,15 @@ def _verdict(reach: dict[str, tuple[float, float]], overall_mm: float = 96.0):
     return 0
 
 
-def test_hands_that_did_not_follow_their_reachable_goals_fail_the_run(capsys):
+def test_hands_that_did_not_follow_their_reachable_goals_are_said(capsys):
     """The review's both-hands stream (60 deg turns, 25 cm reach; 96 / 98 mm RMS overall, under
     the 100 mm that says the robot never moved, and 46 / 60 mm over the 33 / 30 % of the time
-    the goals were reachable): exit 1 naming the right hand and its figure (main: exit 0, no
-    line). A hand at the healthy streams' worst (44.7 mm, 0.6 m/s) and the shipped samples'
-    (7 mm) passes."""
-    assert _verdict({"left-arm": (0.327, 46.1), "right-arm": (0.304, 59.9)}) == 1
+    the goals were reachable): one warning line naming the right hand and its figure (main: no
+    line; exit 0 stays, FOLLOW_BOUND_MM says why). A hand at the healthy streams' worst (44.7
+    mm, 0.6 m/s) and the shipped samples' (7 mm) has no line."""
+    assert _verdict({"left-arm": (0.327, 46.1), "right-arm": (0.304, 59.9)}) == 0
     err = capsys.readouterr().err
     assert "right-arm hand missed" in err and "60 mm RMS" in err and "30%" in err
     assert _verdict({"left-arm": (1.0, 44.7), "right-arm": (0.9, 7.1)}, overall_mm=44.7) == 0
+    assert "missed" not in capsys.readouterr().err
     assert _verdict({"left-arm": (0.0, None)}, overall_mm=50.0) == 0  # never reachable

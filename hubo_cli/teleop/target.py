@@ -293,6 +293,9 @@ class TeleopTarget(Target):
         self.last_sample_s: dict[str, float] = {}
         self.errors_m: dict[str, list[float]] = {arm: [] for arm in self.arms}
         self.reachable: dict[str, list[bool]] = {arm: [] for arm in self.arms}
+        # per period: the hand meant to follow its goal (input live, not held for a re-centre,
+        # clutch released); a held hand's distance to the goal is no miss
+        self.meant_to_follow: dict[str, list[bool]] = {arm: [] for arm in self.arms}
         self.world_errors_m: dict[str, list[float]] = {arm: [] for arm in self.arms}
         self.max_tilt_rad = 0.0
         self.paths: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {a: [] for a in self.arms}
@@ -817,13 +820,17 @@ class TeleopTarget(Target):
         (``collision_room_s``), the largest excursion (hand to the nearest goal sample within
         +-1 s), and the share of the time the goal was reachable (``reachable_share``) with
         the position and orientation RMS and the largest excursion over that time (None when
-        it never was).
+        it never was), and the share of the time the goal was reachable while the hand was
+        meant to follow it (``followed_share``: input live, not held for a re-centre, clutch
+        released) with the position RMS over that time (``followed_position_rms_mm``: what
+        the replay's verdict judges).
         """
         report = {}
         for arm, hand in self.hands.items():
             pos = np.asarray(self.errors_m[arm])
             rot = np.asarray(self.rotation_errors_rad[arm])
             ok = np.asarray(self.reachable[arm], dtype=bool)
+            followed = ok & np.asarray(self.meant_to_follow[arm], dtype=bool)
             excursion = excursions_m(np.asarray(self.path_times_s[arm]),
                                      np.array([g for g, _ in self.paths[arm]]).reshape(-1, 3),
                                      np.array([a for _, a in self.paths[arm]]).reshape(-1, 3))
@@ -833,6 +840,9 @@ class TeleopTarget(Target):
                 if ok.any() else None,
                 "reachable_orientation_rms_deg": float(np.degrees(np.sqrt(np.mean(rot[ok]**2))))
                 if ok.any() else None,
+                "followed_share": float(followed.mean()) if len(followed) else None,
+                "followed_position_rms_mm": float(np.sqrt(np.mean(pos[followed]**2)) * 1000)
+                if followed.any() else None,
                 "position_rms_mm": float(np.sqrt(np.mean(pos**2)) * 1000) if len(pos) else None,
                 "orientation_rms_deg": float(np.degrees(np.sqrt(np.mean(rot**2))))
                 if len(rot) else None,
@@ -885,6 +895,8 @@ class TeleopTarget(Target):
             if world:
                 self.errors_m[arm].append(error)
                 self.reachable[arm].append(hand.reachable)
+                self.meant_to_follow[arm].append(
+                    not (hand.stale or hand.lost or hand.needs_clutch or hand.clutched))
                 self.rotation_errors_rad[arm].append(rot_error)
                 self.path_times_s[arm].append(t_s)
                 self.paths[arm].append((goal_m.copy(), actual.copy()))
