@@ -404,8 +404,7 @@ class ReferenceTarget(target_module.TeleopTarget):
             if world:
                 self.errors_m[arm].append(error)
                 self.reachable[arm].append(hand.reachable)
-                self.meant_to_follow[arm].append(
-                    not (hand.stale or hand.lost or hand.needs_clutch or hand.clutched))
+                self.meant_to_follow[arm].append(not hand.held)
                 self.rotation_errors_rad[arm].append(rot_error)
                 self.path_times_s[arm].append(t_s)
                 self.paths[arm].append((goal_m.copy(), actual.copy()))

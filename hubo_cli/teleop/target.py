@@ -162,6 +162,12 @@ class HandTrack:
         """The goal is out of reach: the hand is held at the nearest reachable pose."""
         return self.missing_m is not None
 
+    @property
+    def held(self) -> bool:
+        """The hand holds by design: its input stale, waiting for the operator's re-centre,
+        or clutched (its distance to the goal is then no miss)."""
+        return self.stale or self.lost or self.needs_clutch or self.clutched
+
 
 @dataclass
 class Keys:
@@ -471,7 +477,7 @@ class TeleopTarget(Target):
         the straight elbow)."""
         hand = self.hands[arm]
         return (self.phase == "operate" and hand.reachable and not hand.at_limit
-                and not (hand.stale or hand.lost or hand.needs_clutch or hand.clutched)
+                and not hand.held
                 and hand.branch_move is None and (hand.speed_scale >= 1.0 or hand.returning)
                 and (self.room is None or arm not in self.room.moved))
 
@@ -895,8 +901,7 @@ class TeleopTarget(Target):
             if world:
                 self.errors_m[arm].append(error)
                 self.reachable[arm].append(hand.reachable)
-                self.meant_to_follow[arm].append(
-                    not (hand.stale or hand.lost or hand.needs_clutch or hand.clutched))
+                self.meant_to_follow[arm].append(not hand.held)
                 self.rotation_errors_rad[arm].append(rot_error)
                 self.path_times_s[arm].append(t_s)
                 self.paths[arm].append((goal_m.copy(), actual.copy()))
