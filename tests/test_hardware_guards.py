@@ -407,7 +407,7 @@ def test_a_state_that_keeps_coming_late_is_a_device_fault(tmp_path):
     """Fresh states 150 ms old (each one's time against this computer's clock): servo-off and
     a device fault (exit 3) after 0.1 s of them, one line with the age. Healthy timing (the
     simulated daemon's largest single age, 68 ms, every 10th state; 95 ms throughout) and
-    another computer's clock (achd: an hour apart) go on."""
+    another computer's clock (achd: an hour behind, 9 s ahead) go on, judged."""
     from hubo_cli.drivers.state_age import StateTooOld
 
     clock = _Clock()
@@ -420,12 +420,12 @@ def test_a_state_that_keeps_coming_late_is_a_device_fault(tmp_path):
         flags, trip = _steps(driver, 300)
         summary = driver.summary_values()
     assert isinstance(trip, StateTooOld) and trip.exit_code == 3 and "\n" not in str(trip)
-    assert "150 ms old" in str(trip) and not any("stale-state" in f for f in flags)
+    assert "146 ms late (150 ms old" in str(trip) and not any("stale-state" in f for f in flags)
     assert 72 + 20 <= len(flags) <= 72 + 50, len(flags)
     assert driver.servo_off and summary["hw_trip"] == "StateTooOld"
     assert summary["hw_state_age_checked"] is True
     for age_s in (lambda n: 0.068 if n % 10 == 0 else 0.005, lambda n: 0.095,
-                  lambda n: -3600.0 if n < 100 else 3600.0):
+                  lambda n: -3600.0, lambda n: 9.0 + 0.001 * (n % 3)):
         clock = _Clock()
         with _driver(tmp_path, clock=clock) as driver:
             driver.start()
@@ -433,7 +433,43 @@ def test_a_state_that_keeps_coming_late_is_a_device_fault(tmp_path):
             flags, trip = _steps(driver, 200)
             checked = driver.summary_values()["hw_state_age_checked"]
         assert trip is None and len(flags) == 200 and not driver.servo_off
-        assert checked is (age_s(1) > -1.0)  # off for another computer's clock
+        assert checked is True
+
+
+
+def test_the_state_age_is_judged_whatever_the_two_clocks_differ_by():
+    """Review 19: through achd the state's age is the two computers' CLOCK_MONOTONIC
+    difference plus the latency. Healthy 200 Hz states (2-8 ms latency, also in bursts of 8
+    every 40 ms, and a 100 Hz daemon) from a computer 0.5, 2, 9 or -3 s apart go on (main
+    tripped at 0.1 s, or at -3 s never judged); on top of any difference, a stream that falls
+    behind (3 ms a period from 1 s) trips 0.1 s after it is 0.1 s late, and a daemon lagging
+    0.2 s from 2 s on."""
+    from hubo_cli.drivers.state_age import StateAgeGuard
+
+    rng = np.random.default_rng(19)
+    for offset_s in (0.0, -3.0, 0.5, 2.0, 9.0, 3600.0):
+        for pattern in ("200Hz", "burst", "100Hz", "behind", "lag"):
+            guard = StateAgeGuard("hubo-state")
+            trip_s = None
+            for k in range(1200):
+                t_s = k * (0.01 if pattern == "100Hz" else 0.005)
+                age_s = offset_s + rng.uniform(0.002, 0.008)
+                if pattern == "burst":
+                    age_s += 0.040 - (k % 8) * 0.005
+                if pattern == "behind":
+                    age_s += 0.003 * max(0, k - 200)
+                if pattern == "lag" and t_s >= 2.0:
+                    age_s += 0.2
+                if guard.check(age_s, t_s) is not None:
+                    trip_s = t_s
+                    break
+            assert guard.judged is True
+            if pattern == "behind":  # 0.1 s late (beyond the quickest, 2 ms) at 1.17 s
+                assert trip_s is not None and 1.26 <= trip_s <= 1.30, (offset_s, trip_s)
+            elif pattern == "lag":
+                assert trip_s is not None and 2.10 <= trip_s <= 2.11, (offset_s, trip_s)
+            else:
+                assert trip_s is None, (offset_s, pattern, trip_s)
 
 
 # ---------------------------------------------------------------- through real ach channels

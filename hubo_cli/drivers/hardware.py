@@ -63,6 +63,7 @@ by :meth:`HardwareDriver.summary_values`.
 from __future__ import annotations
 
 import contextlib
+import math
 import time
 from array import array
 from collections.abc import Callable
@@ -505,7 +506,8 @@ class HardwareDriver(Driver):
     def summary_values(self) -> dict[str, object]:
         """The run's hubo-ach mode, the state's age and the reference-to-state round trip
         (median, p99, max in ms; None without a measure), whether the state's age was judged
-        (``hw_state_age_checked``: False on a simulated clock or another computer's), the
+        (``hw_state_age_checked``: False on a simulated clock; ``hw_state_age_baseline_ms``: the
+        smallest recent age it is judged against, :mod:`hubo_cli.drivers.state_age`), the
         largest servo error (rad), the periods slowed by hot motors, the hottest motor (joint
         and degrees C; None without a temperature) and the trip that ended the run (if any)."""
         def stats(values_s: array) -> dict[str, float | None]:
@@ -519,6 +521,9 @@ class HardwareDriver(Driver):
         return {"hw_ref_mode": REF_NAMES[self.ref_mode],
                 "hw_state_age_ms": stats(self._ages_s),
                 "hw_state_age_checked": bool(self.state_age.judged),
+                "hw_state_age_baseline_ms": (round(1e3 * self.state_age.baseline_s, 3)
+                                             if math.isfinite(self.state_age.baseline_s)
+                                             else None),
                 "hw_round_trip_ms": stats(self._round_trips_s),
                 "hw_max_servo_error_rad": round(self._max_servo_error_rad, 4),
                 "hw_thermal_limited_periods": self._thermal_periods,
