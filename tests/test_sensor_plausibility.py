@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import dataclasses
+import re
 
 import numpy as np
 import pytest
@@ -80,9 +81,9 @@ def _states(n: int, **change):
         yield s
 
 
-def _estimate(states) -> int:
+def _estimate(states, tools=None) -> int:
     """Periods the estimator took before a SensorFault (raises it with the count in a note)."""
-    estimator = build_estimator(MODEL, sensors_measured=True)
+    estimator = build_estimator(MODEL, tools, sensors_measured=True)
     for k, state in enumerate(states):
         if k == 0:
             estimator.reset(state)
@@ -184,6 +185,7 @@ def _arm_moving(k, s):
 def test_a_dead_wrist_sensor_is_refused_at_the_start_and_a_fault_while_its_arm_moves():
     with pytest.raises(SensorFault, match="right-wrist .* at the start") as refused:
         _estimate(_states(2, ft=_wrist_zero(0)))
+    assert refused.value.exit_code == 4  # refused, nothing moved (round 19: was 3)
     for named in ("dead channel", "nulled with the hand on", "--echo-sensors"):
         assert named in str(refused.value)  # (round 18: the causes and the fix in one line)
     assert _estimate(_states(WRIST_FLAT_STATES + 10, ft=_wrist_zero(5))) == \
@@ -222,12 +224,24 @@ def test_an_imu_crooked_against_the_loaded_legs_is_refused_at_the_start():
     """Review 17: an IMU pitched 5 deg stopped a walk at 0.06 s on the capture point, the IMU
     unnamed. With both soles loaded it is refused before anything moves, the angles named; a
     tilt within IMU_LEGS_MAX_DEG (healthy starts read 0.55 deg at most: a perturbed floor) is
-    none, and soles that carry nothing (a robot hanging in its gantry) judge nothing."""
+    none, and soles that carry nothing (a robot hanging in its gantry) judge nothing. Review 19:
+    a floor tilted 1.6 deg (the legs tilted against gravity, the same difference; a walk across
+    it completes) was refused, exit 3, the IMU blamed: it runs; beyond the bound the line names
+    both causes, a refusal's exit 4."""
     with pytest.raises(SensorFault, match=r"IMU reads the torso at roll 0.0 deg, pitch 5.0 deg.*"
-                                          r"5.0 deg apart .*before anything moved") as info:
+                                          r"5.0 deg apart .*the floor is tilted by 5.0 deg or the "
+                                          r"IMU is mis-mounted; refused before anything "
+                                          r"moved") as info:
         _estimate(_states(2, **_imu(5.0)))
-    assert info.value.exit_code == 3 and "\n" not in str(info.value)
+    assert info.value.exit_code == 4 and "\n" not in str(info.value)
+    assert "level" in info.value.hint and "mounting" in info.value.hint
     assert _estimate(_states(20, **_imu(IMU_LEGS_MAX_DEG - 0.5))) == 20
+    rolled = {"imu_accel_m_s2": lambda k, s: np.array([0.0, np.sin(np.radians(1.6)),
+                                                       np.cos(np.radians(1.6))]) * 9.80665}
+    assert _estimate(_states(20, **rolled)) == 20  # the review's 1.6 deg cross-slope: it walks
+    with pytest.raises(SensorFault, match=r"pitch 1.6 deg.*at most 1.65 deg in roll, 1.4 in "
+                                          r"pitch"):  # up or down that slope a walk stops at once
+        _estimate(_states(2, **_imu(1.6)))
     assert _estimate(_states(2, **_imu(5.0), ft=_soles(0.0, 0))) == 2
 
 
@@ -256,3 +270,12 @@ def test_a_wrist_reading_far_from_its_load_at_the_start_is_a_fault():
     assert info.value.exit_code == 3 and "\n" not in str(info.value)
     assert _estimate(_states(n, ft=_wrist_fz(WRIST_START_MAX_N - 0.8, noise_n=1.0))) == n
     assert _estimate(_states(n, ft=_wrist_fz(-(WRIST_START_MAX_N - 0.8), noise_n=1.0))) == n
+    # review 19: the hint named "[stance] tool" for a drill heavier or lighter than the robot
+    # file's mass_kg; it names the mass, where it is set and by how much it reads off
+    drill = {"right-arm": "drill"}
+    with pytest.raises(SensorFault, match=r"right-wrist .* the hand and the drill as the run "
+                                          r"declares it weigh") as info:
+        _estimate(_states(n), drill)  # the drill declared, the hand alone on the sensor
+    assert re.search(r"a drill 0\.[0-9]+ kg lighter .* \[tools.drill\] mass_kg = 0.6 kg .*"
+                     r"make_urdf", info.value.hint), info.value.hint
+    assert "[stance] tool" in info.value.hint  # (and the other causes)

@@ -46,5 +46,6 @@ def build_estimator(model: RobotModel, tools: Mapping[str, str] | None = None,
         ContactObserver(model.estimation, dt_s),
         FloatingBase(model),
         com,
-        SensorPlausibility(model, weight_n, dt_s, measured=sensors_measured),
+        SensorPlausibility(model, weight_n, dt_s, measured=sensors_measured,
+                           drill_kg=model.drill.mass_kg if drill else None),
     ])
