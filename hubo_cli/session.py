@@ -110,6 +110,7 @@ class RunSetup:
     command: str
     model: RobotModel
     tools: Mapping[str, str] = field(default_factory=dict)
+    tool_mass_kg: float | None = None  # the drill as weighed (None: the robot file's)
     driver: str = "sim"
     driver_options: Mapping[str, object] = field(default_factory=dict)
     safety: SafetyProfile = field(default_factory=SafetyProfile)
@@ -254,7 +255,8 @@ def _run_in(setup: RunSetup, target: Target, on_start, speed: float | None,
                                estimator=build_estimator(setup.model, setup.tools,
                                                          driver.period_s,
                                                          driver.accel_measured,
-                                                         driver.sensors_measured))
+                                                         driver.sensors_measured,
+                                                         setup.tool_mass_kg))
             # the target may act on the scene, never read it (issue 33)
             target.attach(None if world is None else SceneActions(world), modules,
                           loop.target_store)

@@ -66,6 +66,10 @@ def test_set_reaches_a_stance_field_by_its_dotted_name():
     assert spec.overridden == {"stance.start_mm": [-1000, 0]}
     assert format_override(spec.overridden["stance.start_mm"]) == "[-1000,0]"
     assert load_task("cut-rectangle").stance.start_m is None
+    # review 19: the drill as weighed (kg), which the wrist's force estimate removes
+    spec = load_task("cut-rectangle", dict([parse_override("stance.tool_mass_kg=0.9")]))
+    assert spec.stance.tool_mass_kg == 0.9
+    assert load_task("cut-rectangle").stance.tool_mass_kg is None
 
 
 @pytest.mark.parametrize("text, message", [
@@ -74,6 +78,8 @@ def test_set_reaches_a_stance_field_by_its_dotted_name():
     ("stance.start_mm=behind", "start_mm"),
     ("steps.depth_mm=3", "only fields of"),
     ("stance.start=[1, 2]", "unknown field"),
+    ("stance.tool_mass_kg=0", "tool_mass_kg"),
+    ("stance.tool_mass_kg=30", "tool_mass_kg"),
 ])
 def test_set_of_a_bad_field_is_refused(text, message):
     with pytest.raises(ConfigError, match=message):

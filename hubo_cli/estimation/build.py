@@ -16,7 +16,8 @@ from hubo_cli.model import RobotModel
 
 def build_estimator(model: RobotModel, tools: Mapping[str, str] | None = None,
                     period_s: float | None = None, accel_measured: bool = True,
-                    sensors_measured: bool = False) -> Estimator:
+                    sensors_measured: bool = False,
+                    tool_mass_kg: float | None = None) -> Estimator:
     """The estimation layer of a run: attitude (gyro, accelerometer and the legs' tilt),
     compensated wrenches (weight, and the hands' inertia), contact, floating base
     and soles, centre of mass with the capture point and the ZMP, then the sensors'
@@ -35,6 +36,7 @@ def build_estimator(model: RobotModel, tools: Mapping[str, str] | None = None,
     """
     tools = tools or {}
     drill = tools.get("right-arm") == "drill"
+    drill_kg = model.drill.mass_kg if tool_mass_kg is None else float(tool_mass_kg)
     dt_s = model.control_period_s if period_s is None else float(period_s)
     attitude = attitude_params(model)
     com = CentreOfMass(model, dt_s, drill=drill)
@@ -42,10 +44,10 @@ def build_estimator(model: RobotModel, tools: Mapping[str, str] | None = None,
     return Estimator([
         AttitudeObserver(attitude, dt_s, model),
         RemoveForceOffset(model, attitude.accel_reject_m_s2, drill=drill, period_s=dt_s,
-                          accel_measured=accel_measured),
+                          accel_measured=accel_measured, drill_kg=drill_kg),
         ContactObserver(model.estimation, dt_s),
         FloatingBase(model),
         com,
         SensorPlausibility(model, weight_n, dt_s, measured=sensors_measured,
-                           drill_kg=model.drill.mass_kg if drill else None),
+                           drill_kg=drill_kg if drill else None),
     ])

@@ -326,10 +326,10 @@ class SensorPlausibility(Observer):
         if self.drill_kg is None or wrist != "right-wrist":
             return f"check {check}, then start the run again"
         heavier = "heavier" if apart_n > 0 else "lighter"
-        return (f"a drill {abs(apart_n) / 9.80665:.2f} kg {heavier} (along the sensor's z) than "
-                f"the robot file's [tools.drill] mass_kg = {self.drill_kg:g} kg reads so: weigh "
-                "it, set mass_kg there and write the URDF again (python tools/make_urdf.py); "
-                f"else check {check}, then start the run again")
+        return (f"a drill about {abs(apart_n) / 9.80665:.2f} kg {heavier} (along the sensor's "
+                f"z) than the {self.drill_kg:g} kg the run declares reads so: weigh it and give "
+                "its mass in the task file's [stance] tool_mass_kg or with --set "
+                f"stance.tool_mass_kg=KG; else check {check}, then start the run again")
 
     def _raise(self, message: str, hint: str = "", refuse: bool = False) -> None:
         self.fault = (SensorRefusal if refuse else SensorFault)(message, hint)

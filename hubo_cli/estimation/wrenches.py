@@ -288,6 +288,8 @@ class RemoveForceOffset(Observer):
         drill: the right hand holds the drill (its mass is beyond the right wrist sensor).
         period_s: the control period (s; default the model's), over which the rate is
             differenced.
+        drill_kg: the drill's mass (kg) when it differs from the robot file's (a task's
+            ``tool_mass_kg``); the right wrist's load is the hand and a drill of this mass.
     """
 
     name = "remove-force-offset"
@@ -295,8 +297,11 @@ class RemoveForceOffset(Observer):
     writes = (WRENCHES,)
 
     def __init__(self, model: RobotModel, accel_rest_m_s2: float, drill: bool = False,
-                 period_s: float | None = None, accel_measured: bool = True) -> None:
+                 period_s: float | None = None, accel_measured: bool = True,
+                 drill_kg: float | None = None) -> None:
         self.mass_kg, self.com_sensor_m = sensor_loads(model, drill)
+        if drill and drill_kg is not None and drill_kg != model.drill.mass_kg:
+            self._weigh_drill(model, float(drill_kg))
         self._chains = sensor_chains(model)
         self._measured = measured_mask()
         # the wrists: the hand's (and the tool's) inertia removed too, where the driver
@@ -317,6 +322,17 @@ class RemoveForceOffset(Observer):
         self._joints = len(model.joint_names)
         self._update(np.zeros(self._joints), np.array([1.0, 0.0, 0.0, 0.0]), self._nan3,
                      self._zero3, self._zero3)
+
+    def _weigh_drill(self, model: RobotModel, drill_kg: float) -> None:
+        """The right wrist's load with the drill weighing ``drill_kg``: the drill's share of
+        the drill URDF's load (the load less the hand's) scaled to that mass, its centre where
+        it was."""
+        k = FT_SENSORS.index("right-wrist")
+        hand_kg, hand_com = sensor_loads(model, False)
+        drill_com = ((self.mass_kg[k] * self.com_sensor_m[k] - hand_kg[k] * hand_com[k])
+                     / (self.mass_kg[k] - hand_kg[k]))
+        self.mass_kg[k] = hand_kg[k] + drill_kg
+        self.com_sensor_m[k] = (hand_kg[k] * hand_com[k] + drill_kg * drill_com) / self.mass_kg[k]
 
     def reset(self, state: RobotState, store: Store) -> None:
         self._last = np.zeros((len(FT_SENSORS), 6))

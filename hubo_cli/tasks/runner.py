@@ -105,7 +105,7 @@ def task_setup(plan: Plan, *, driver: str = "sim", out: str | Path | None = None
     safety = spec.safety
     return RunSetup(
         command=f"task-{spec.name}", model=plan.body.model,
-        tools=plan.body.tools, driver=driver,
+        tools=plan.body.tools, tool_mass_kg=spec.stance.tool_mass_kg, driver=driver,
         driver_options=dict(driver_options or {}),
         safety=SafetyProfile(sources=tuple(safety.estop_sources),
                              revert_s=safety.revert_s, stop_s=safety.stop_s,

@@ -87,6 +87,7 @@ EXPERIMENTS = ("push-wall", "turn-valve", "push-door")
 # reaches further than about 0.6 m from its shoulder, so no path spans more than LENGTH_MAX_MM;
 # its 1 rad/s joints move the tool at about 0.5 m/s at most; steps and stops are short.
 LENGTH_MAX_MM = 1000.0       # sizes, positions and depths in the wall frame (mm)
+TOOL_MASS_MAX_KG = 3.0  # a tool's mass: the arm's payload (Hubo 2+'s hand lifts about 2 kg)
 TOOL_SPEED_MAX_MM_S = 500.0  # tool speed: the arm's 1 rad/s joints at its 0.5 m reach
 # the slowest tool speed: at 0.1 mm/s a task's whole 30 minutes (PLAN_MAX_S) cover 180 mm, the
 # shipped tasks' 500 mm cut alone takes 83 minutes; the paper's operator cut at about 10 mm/s
@@ -113,6 +114,8 @@ class Stance:
         arm: ``right`` or ``left``; tool: the arm's tool (``drill``, ``hand``).
         start_m: (x, y) of where the robot starts, in the working stance's frame (m; x
             forward, y left); None = it starts on the working stance.
+        tool_mass_kg: the drill as weighed (kg; ``tool_mass_kg``); None = the robot file's
+            ``[tools.drill] mass_kg``. The wrist's force estimate removes this weight.
     """
 
     wall_distance_m: float | None
@@ -120,6 +123,7 @@ class Stance:
     arm: str = "right"
     tool: str = "drill"
     start_m: tuple[float, float] | None = None
+    tool_mass_kg: float | None = None
 
     @property
     def limb(self) -> str:
@@ -525,6 +529,11 @@ class _Loader:
         if tool == "drill" and arm != "right":
             raise self.fail(t.key("tool"), "the drill is mounted on the right hand",
                             hint='use arm = "right" or tool = "hand"')
+        tool_mass = t.number("tool_mass_kg", positive=True, maximum=TOOL_MASS_MAX_KG,
+                             default=None)
+        if tool_mass is not None and tool != "drill":
+            raise self.fail(t.key("tool_mass_kg"), "is the drill's mass; the hand holds none",
+                            hint='use tool = "drill" or leave tool_mass_kg out')
         start = t.value("start_mm", default=None)
         if start is not None and not (_is_point(start)
                                       and math.hypot(*start) <= START_MAX_MM):
@@ -534,7 +543,8 @@ class _Loader:
         t.finish()
         return Stance(None if distance is None else distance / 1000,
                       None if centre is None else (centre[0] / 1000, centre[1] / 1000), arm, tool,
-                      None if start is None else (start[0] / 1000, start[1] / 1000))
+                      None if start is None else (start[0] / 1000, start[1] / 1000),
+                      tool_mass)
 
     def _scene(self, t: _Table) -> Scene:
         wall = t.table("wall")
