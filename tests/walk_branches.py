@@ -155,8 +155,14 @@ def _continue_in_own_folder(log, trunk_dir: Path) -> None:
     still open in the trunk), a copy of it takes its place, and the loop's log writes on in
     that copy's files (the trunk's stay as they were at the fork, for its later branches)."""
     import fcntl
+    import io
     import mmap
 
+    handles = sorted(name for name, value in vars(log).items()
+                     if isinstance(value, (io.IOBase, mmap.mmap)) or name.endswith("_fd"))
+    if handles != ["_flags_fd", "_map", "_rows_file"]:  # (a change to PeriodLog: follow it)
+        raise RuntimeError(f"the log holds {handles} open; this helper continues "
+                           "_flags_fd, _map and _rows_file alone")
     held = trunk_dir.with_name("trunk.held")
     os.rename(trunk_dir, held)
     shutil.copytree(held, trunk_dir)
