@@ -431,6 +431,7 @@ def test_a_walks_summary_fields_are_written_once(tmp_path, model):
 
 @pytest.mark.physical
 @pytest.mark.slow
+@pytest.mark.xdist_group("pushed_walks")  # one worker walks the trunk once
 def test_a_stop_late_in_a_swing_comes_to_rest_in_the_held_stance(pushed_walks):
     """hubo walk --to 1.0 0 0 stopped by the operator 0.52 s into the third step's 0.7 s swing
     (tools/walk_disturbances.py's seed 8): the step lands and the stance comes to rest. With
@@ -475,6 +476,7 @@ def test_hubo_walk_refuses_a_bad_disturbance_clearly(tmp_path, args, words):
 
 @pytest.mark.physical
 @pytest.mark.slow
+@pytest.mark.xdist_group("pushed_walks")  # one worker walks the trunk once
 def test_a_push_from_the_front_is_caught_by_the_capture_point_stop(pushed_walks):
     """hubo walk --to 1.0 0 0 --push 100 --push-direction backward --push-at 4.84 (seed 1 of
     tools/walk_disturbances.py): the push comes in a double support; the capture point moves
@@ -491,6 +493,7 @@ def test_a_push_from_the_front_is_caught_by_the_capture_point_stop(pushed_walks)
 @pytest.mark.physical
 @pytest.mark.slow
 @pytest.mark.parametrize("at_s", [1.88999, 5.26526])  # tools/walk_disturbances.py seeds 11 and 16
+@pytest.mark.xdist_group("pushed_walks")  # one worker walks the trunk once
 def test_a_push_from_the_front_mid_walk_moves_the_landing_at_once(pushed_walks, at_s):
     """hubo walk --to 1.0 0 0 pushed from the front (100 N, 0.2 s) in the first step's
     double support (seed 11) and in the fifth step's swing (seed 16): the capture point moves
@@ -508,6 +511,7 @@ def test_a_push_from_the_front_mid_walk_moves_the_landing_at_once(pushed_walks, 
 
 @pytest.mark.physical
 @pytest.mark.slow
+@pytest.mark.xdist_group("pushed_walks")  # one worker walks the trunk once
 def test_a_push_from_the_front_early_in_a_swing_puts_the_rear_foot_back_down(pushed_walks):
     """hubo walk --to 1.0 0 0 pushed from the front (100 N, 0.2 s) at 1.900 s, as the rear
     (right) foot lifts off for the first step (seed 11's moment 10 ms later): the landing that
@@ -531,6 +535,7 @@ def test_a_push_from_the_front_early_in_a_swing_puts_the_rear_foot_back_down(pus
 
 @pytest.mark.physical
 @pytest.mark.slow
+@pytest.mark.xdist_group("pushed_walks")  # one worker walks the trunk once
 def test_a_side_push_that_puts_the_swing_foot_down_ends_the_swing_there(pushed_walks):
     """hubo walk --to 1.0 0 0 pushed 100 N for 0.2 s from the left in the fourth step's
     swing (right foot swinging; seed 19 of tools/walk_disturbances.py): the swing foot is
@@ -570,6 +575,7 @@ def test_a_side_push_that_puts_the_swing_foot_down_ends_the_swing_there(pushed_w
 
 @pytest.mark.physical
 @pytest.mark.slow
+@pytest.mark.xdist_group("pushed_walks")  # one worker walks the trunk once
 def test_a_swing_foot_carried_back_by_a_tipping_body_still_lands_flat(pushed_walks):
     """hubo walk --to 1.0 0 0 pushed from the front (100 N, 0.2 s) in the last step's swing,
     right foot in the air (seed 4 of tools/walk_disturbances.py): the body tips back over the
@@ -824,6 +830,7 @@ def test_a_landing_moved_mid_swing_keeps_the_monitors_support_on_the_floor(model
 
 @pytest.mark.physical
 @pytest.mark.slow
+@pytest.mark.xdist_group("pushed_walks")  # one worker walks the trunk once
 def test_a_foot_does_not_lift_off_while_the_robot_bounces(pushed_walks):
     """hubo walk --to 1.0 0 0 pushed 100 N for 0.2 s from the right in the third step's swing
     (seed 20 of tools/walk_disturbances.py): the left foot lands hard and the robot bounces,
@@ -847,6 +854,7 @@ def test_a_foot_does_not_lift_off_while_the_robot_bounces(pushed_walks):
 
 @pytest.mark.physical
 @pytest.mark.slow
+@pytest.mark.xdist_group("pushed_walks")  # one worker walks the trunk once
 def test_a_landing_waits_for_its_foot_after_a_push_just_before_it(pushed_walks):
     """hubo walk --to 1.0 0 0 pushed from the front (100 N, 0.2 s) at 7.559 s, 0.01 s before
     the left foot's landing (seed 13 of tools/walk_disturbances.py): the body tips back onto
