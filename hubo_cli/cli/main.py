@@ -107,8 +107,15 @@ def say_now(line: str) -> None:
 
 
 def report_error(exc: HuboError) -> None:
-    """Print a library error on one line (plus its hint) on stderr."""
+    """Print a library error on one line (plus its hint) on stderr; what else its run saw
+    (``exc.events``) on one line each, in the order it happened."""
+    said = str(exc)
+    mine = exc.events.index(said) if said in exc.events else 0
+    for event in exc.events[:mine]:
+        click.echo(f"first: {event}", err=True)
     click.secho(f"error: {exc}", fg="red", err=True)
+    for event in exc.events[mine + 1:]:
+        click.echo(f"then: {event}", err=True)
     if exc.hint:
         click.echo(f"hint: {exc.hint}", err=True)
 
