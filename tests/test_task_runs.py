@@ -275,7 +275,7 @@ def test_a_cut_faster_than_the_arm_follows_is_refused_with_the_speed_it_follows(
     """cut-slot at 150 mm/s: its arm, within the joints' limits, would lag 52 mm RMS behind
     the path (main ran it: a wrist-torque stop mid-cut); refused in pre-flight (exit 4,
     nothing moved) on one line naming the cut, the speed asked, the lag and the speed the arm
-    follows (54 mm/s, measured to pass pre-flight), and the fix."""
+    follows (53 mm/s, measured to pass pre-flight), and the fix."""
     out = tmp_path / "run"
     result = CliRunner().invoke(main, ["task", "cut-slot", "--set", "speed_mm_s=150",
                                        "--out", str(out)])
