@@ -14,6 +14,11 @@ through the simulated daemon": the simulated daemon on this 2-core machine at lo
 median 0.4-5.5 ms, p99 8.9-33.9 ms, the largest single state 68.4 ms; the limit is 1.5 times
 that single largest, and it must hold for 20 periods in a row, which no healthy run came near.
 
+The simulated driver applies the same check to its states' time against the simulator's
+clock (:class:`~hubo_cli.drivers.sim.SimDriver`): the two are one clock, so a simulated state
+is never old unless the code that measures it is wrong (review 18's delayed state, round 19);
+its bound is half a period (:data:`hubo_cli.drivers.sim.STATE_LATE_S`), for the same 0.1 s.
+
 Through ``achd`` (the daemon on another computer) the two clocks differ and the age means
 nothing: a first state whose age is beyond :data:`CLOCKS_DIFFER_S` either way turns the check
 off for the run (:attr:`StateAgeGuard.judged` False, the summary's ``hw_state_age_checked``).
@@ -28,17 +33,20 @@ STATE_AGE_FOR_S = 0.1  # ... for this long of the daemon's time (20 periods)
 CLOCKS_DIFFER_S = 10.0  # a first state this far from now: another computer's clock (achd)
 
 
+DAEMON_HINT = ("check hubo-daemon's load and priority on the robot's computer, then start the "
+               "run again")
+
+
 class StateTooOld(DeviceError):
     """hubo-daemon's states arrive, but late: the robot is controlled on an old picture."""
 
     def __init__(self, channel: str, age_s: float, limit_s: float, for_s: float,
-                 t_s: float) -> None:
+                 t_s: float, clock: str = "this computer's clock",
+                 hint: str = DAEMON_HINT) -> None:
         super().__init__(f"{channel}'s states are {1e3 * age_s:.0f} ms old (its time against "
-                         f"this computer's clock; older than {1e3 * limit_s:.0f} ms for "
-                         f"{for_s:.2f} s) at t = {t_s:.2f} s: the robot is controlled on where "
-                         "it was; it holds its last reference",
-                         hint="check hubo-daemon's load and priority on the robot's computer, "
-                              "then start the run again")
+                         f"{clock}; older than {1e3 * limit_s:.0f} ms for {for_s:.2f} s) at "
+                         f"t = {t_s:.2f} s: the robot is controlled on where it was; it holds "
+                         "its last reference", hint=hint)
         self.age_s = age_s
 
 
@@ -49,11 +57,14 @@ class StateAgeGuard:
     Args:
         channel: the state channel's name (for the message).
         limit_s, for_s: see :data:`STATE_AGE_LIMIT_S`, :data:`STATE_AGE_FOR_S`.
+        clock, hint: what the age is measured against and what to check (for the message).
     """
 
     def __init__(self, channel: str, limit_s: float = STATE_AGE_LIMIT_S,
-                 for_s: float = STATE_AGE_FOR_S) -> None:
+                 for_s: float = STATE_AGE_FOR_S, clock: str = "this computer's clock",
+                 hint: str = DAEMON_HINT) -> None:
         self.channel, self.limit_s, self.for_s = channel, float(limit_s), float(for_s)
+        self.clock, self.hint = clock, hint
         self.judged: bool | None = None  # None until the first state: then whether clocks agree
         self._old_since_s: float | None = None
 
@@ -68,5 +79,6 @@ class StateAgeGuard:
         if self._old_since_s is None:
             self._old_since_s = t_s
         if t_s - self._old_since_s >= self.for_s:
-            return StateTooOld(self.channel, age_s, self.limit_s, self.for_s, t_s)
+            return StateTooOld(self.channel, age_s, self.limit_s, self.for_s, t_s, self.clock,
+                               self.hint)
         return None
