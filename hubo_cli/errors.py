@@ -25,9 +25,15 @@ class HuboError(Exception):
     Args:
         message: one line saying what went wrong.
         hint: one line saying how to fix it (may be empty).
+
+    Attributes:
+        events: when the run this error ended also saw others (Ctrl-C during a sensor fault's
+            stance stop), every message in the order it happened, this error's among them;
+            () otherwise.
     """
 
     exit_code = 1
+    events: tuple[str, ...] = ()
 
     def __init__(self, message: str, hint: str = "") -> None:
         super().__init__(message)

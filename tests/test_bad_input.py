@@ -353,18 +353,20 @@ def test_run_folder_reused_only_by_the_same_command(tmp_path):
     assert (first / MARKER).read_text().strip() == "teleop"
 
 
+def _commands(argv=(), command=main, ctx=None):
+    """Every command's words down the ``hubo`` tree (the group's first), with its command."""
+    ctx = ctx or click.Context(main, info_name="hubo")
+    yield list(argv), command
+    if isinstance(command, click.Group):
+        for name in command.list_commands(ctx):
+            sub = command.get_command(ctx, name)
+            yield from _commands([*argv, name], sub, click.Context(sub, info_name=name))
+
+
 def test_every_help_lists_the_exit_codes_and_teleop_the_keys():
     runner = CliRunner()
-
-    def helps(argv, command, ctx):
-        yield argv
-        if isinstance(command, click.Group):
-            for name in command.list_commands(ctx):
-                sub = command.get_command(ctx, name)
-                yield from helps(argv + [name], sub, click.Context(sub, info_name=name))
-
     seen = 0
-    for argv in helps([], main, click.Context(main, info_name="hubo")):
+    for argv, _ in _commands():
         result = runner.invoke(main, [*argv, "--help"])
         assert result.exit_code == 0, argv
         assert "Exit codes:" in result.output and "4 refused for safety" in result.output, argv
@@ -373,6 +375,34 @@ def test_every_help_lists_the_exit_codes_and_teleop_the_keys():
     keys = runner.invoke(main, ["teleop", "--help"]).output
     for key in ("space", "release", "re-centre", "q, Esc"):
         assert key in keys
+
+
+def test_a_usage_error_of_a_json_command_is_one_json_document():
+    """With --json, click's usage errors (an unknown option, a value missing or of the wrong
+    type, a bad choice) print one JSON document on stdout with exit code 2, as every other way
+    a command ends; --help still prints its text (exit 0)."""
+    runner = CliRunner()
+    with_json = [argv for argv, command in _commands()
+                 if any(p.name == "as_json" for p in command.params)]
+    assert len(with_json) >= 10
+    for argv in with_json:
+        result = runner.invoke(main, [*argv, "--json", "--bogus"], prog_name="hubo")
+        assert result.exit_code == 2, argv
+        document = json.loads(result.stdout)
+        assert document["exit_code"] == 2 and "--bogus" in document["error"], argv
+        assert document["hint"] == f"see 'hubo {' '.join(argv)} -h'", argv
+        assert document["error"].splitlines()[0] in result.stderr, argv  # said there too
+    for args, said in ((["walk", "--json", "--to", "1"], "'--to' requires 3 arguments"),
+                       (["teleop", "--json", "--scale", "x"], "'x' is not a valid float"),
+                       (["walk", "--to", "1", "0", "0", "--gait", "bogus", "--json"], "bogus"),
+                       (["walk", "--json"], "Missing option '--to'")):
+        result = runner.invoke(main, args)
+        assert result.exit_code == 2 and said in json.loads(result.stdout)["error"], args
+    for args in (["walk", "--bogus", "--", "--json"], ["walk", "--bogus"]):  # not asked for
+        result = runner.invoke(main, args)
+        assert result.exit_code == 2 and result.stdout == "", args
+    result = runner.invoke(main, ["walk", "--json", "--help"], prog_name="hubo")
+    assert result.exit_code == 0 and result.stdout.startswith("Usage: hubo walk")
 
 
 @pytest.mark.slow

@@ -463,7 +463,8 @@ def test_a_phase_that_stops_itself_is_asked_to_after_ctrl_c_or_a_log_failure(mod
 
 @pytest.mark.parametrize(("event", "presses"), [("sensor fault", 1), ("log failure", 2)])
 def test_ctrl_c_during_a_faults_stance_stop_lets_it_stand_and_twice_brakes(model, tmp_path,
-                                                                          event, presses):
+                                                                          event, presses,
+                                                                          capsys):
     """The log fails (or a sensor fault is raised) at 0.2 s: the phase stops itself; Ctrl-C
     at 0.3 s: the stop goes on to the stance and the error names both; a second Ctrl-C at 0.4
     s brakes, as during an interrupt's stance (round 18; main braked at the first, mid-step:
@@ -502,6 +503,23 @@ def test_ctrl_c_during_a_faults_stance_stop_lets_it_stand_and_twice_brakes(model
         assert result.interrupt_stop == "braked: a second interrupt (Ctrl-C)"
         assert result.interrupt_stop_s == pytest.approx(0.2, abs=0.011)
     _assert_smooth_end(model, robot, q0)
+    if event == "sensor fault":  # stderr names both, in order, one line each (round 19;
+        # main: the fault alone)
+        from hubo_cli.cli.main import report_error
+        from hubo_cli.cli.output import exit_if_interrupted
+
+        assert result.said == (first[1], "interrupted (Ctrl-C)")
+        report_error(result.failure(tmp_path))
+        lines = capsys.readouterr().err.splitlines()
+        assert lines[:2] == [f"error: {first[1]}", "then: interrupted (Ctrl-C)"]
+        assert lines[2].startswith("hint: ") and len(lines) == 3
+        # the other order (Ctrl-C, then the fault in its stance stop): exit 130, both said
+        fault = SensorFault(first[1])
+        fault.events = ("interrupted (Ctrl-C)", first[1])
+        with pytest.raises(SystemExit, match="130"):
+            exit_if_interrupted({"ended": "interrupted", "interrupt_stop": "stood"}, fault)
+        assert capsys.readouterr().err.splitlines() == ["interrupted (Ctrl-C)",
+                                                        f"then: {first[1]}"]
 
 
 def test_a_full_disk_during_an_interrupts_stance_says_both_and_exits_as_interrupted(model,

@@ -2,6 +2,8 @@
 paper's accuracy, and a cut too fast for the wrist is stopped and backed out of the wall."""
 
 import json
+import math
+import re
 
 import numpy as np
 import pytest
@@ -269,6 +271,25 @@ def test_too_fast_for_the_legs_is_refused_with_a_hint(tmp_path):
     assert "--speed" in result.output
 
 
+def test_a_cut_faster_than_the_arm_follows_is_refused_with_the_speed_it_follows(tmp_path):
+    """cut-slot at 150 mm/s: its arm, within the joints' limits, would lag 52 mm RMS behind
+    the path (main ran it: a wrist-torque stop mid-cut); refused in pre-flight (exit 4,
+    nothing moved) on one line naming the cut, the speed asked, the lag and the speed the arm
+    follows (53 mm/s, measured to pass pre-flight), and the fix."""
+    out = tmp_path / "run"
+    result = CliRunner().invoke(main, ["task", "cut-slot", "--set", "speed_mm_s=150",
+                                       "--out", str(out)])
+    assert result.exit_code == 4, result.output
+    said = re.search(r"refused in pre-flight, nothing moved: step 3 'cut' \(follow\) at 150 "
+                     r"mm/s: the arm, within its joints' limits, would lag (\d+) mm RMS behind "
+                     r"the path \(\d+ mm at most; a cut may miss 20\); it follows about (\d+) "
+                     r"mm/s", result.output)
+    assert said, result.output
+    assert 35 < int(said.group(1)) < 80 and 30 < int(said.group(2)) < 80
+    assert "hint: cut at " in result.output and "speed_mm_s" in result.output
+    assert not out.exists()
+
+
 # Not marked physical: this run is the same on both code paths to 1e-9 (round 18, AVX-512 /
 # portable: every asserted figure within 1.6e-11 relative, the largest difference the torso
 # tilt's, 0.26716276609 deg on both; the 5621 logged periods within the log's ten digits), so
@@ -329,7 +350,8 @@ def test_a_small_rectangle_is_cut_accurately_with_a_full_run_folder(tmp_path):
     pytest.param((), id="nominal"),
     pytest.param(("--perturb", "1"), id="perturb-1", marks=pytest.mark.physical)])
 def test_cutting_too_fast_trips_the_wrist_torque_stop_which_relieves_the_wrist(tmp_path,
-                                                                              perturb):
+                                                                              perturb,
+                                                                              monkeypatch):
     """`hubo task cut-slot --set speed_mm_s=150` (issue 32, case 3): the wrist-torque stop
     latches in the cut, brakes at the emergency limits and backs the bit 5 mm out of the wall,
     then holds. Before: eq. 15's revert under the arms' trajectory limits ran the bit on 53 mm
@@ -347,6 +369,9 @@ def test_cutting_too_fast_trips_the_wrist_torque_stop_which_relieves_the_wrist(t
     out = tmp_path / "run"
     slow = load_task("cut-slot")
     assert slow.parameters["speed_mm_s"] == 10.0
+    # pre-flight refuses this cut since round 19 (the arm would lag 52 mm RMS behind it):
+    # the stop is tested on it with that check off
+    monkeypatch.setattr("hubo_cli.tasks.cut_lag.LAG_LIMIT_RMS_MM", math.inf)
     result = _invoke("cut-slot", "--set", "speed_mm_s=150", *perturb, "--out", str(out))
     assert result.exit_code == 1, result.output              # ran, but did not complete
     s = json.loads((out / "summary.json").read_text())

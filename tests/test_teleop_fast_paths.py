@@ -402,13 +402,7 @@ class ReferenceTarget(target_module.TeleopTarget):
             x, y, z = goal_m
             info.update(zip(names[6:], (x, y, z, error, rot_error), strict=True))
             if world:
-                self.errors_m[arm].append(error)
-                self.reachable[arm].append(hand.reachable)
-                self.meant_to_follow[arm].append(not hand.held)
-                self.rotation_errors_rad[arm].append(rot_error)
-                self.path_times_s[arm].append(t_s)
-                self.paths[arm].append((goal_m.copy(), actual.copy()))
-                self.world_errors_m[arm].append(world_error)
+                self._record(arm, t_s, hand, goal_m, actual, error, rot_error, world_error)
         self.max_tilt_rad = max(self.max_tilt_rad,
                                 float(numpy_tilt_rad(self.store[QUAT_WORLD_TORSO])))
 

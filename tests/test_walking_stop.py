@@ -310,6 +310,61 @@ def test_later_footsteps_move_with_the_landing(walk_pattern):
         assert (after.x_m - before.x_m, after.y_m - before.y_m) == pytest.approx((0.03, -0.02))
 
 
+BACKWARD, RIGHTWARD, LEFTWARD = (-1.0, 0.0, 0.0), (0.0, -1.0, 0.0), (0.0, 1.0, 0.0)
+# The simulated walks the tests below push or stop: name -> (goal, the disturbance as
+# Disturbance's at_s, push_n, direction, stop; the test that reads it). Walks to the same goal
+# are the same walk until their disturbance: the pushed_walks fixture walks them together.
+PUSHED_WALKS = {
+    "stop at 3.418": ((1.0, 0.0, 0.0), (3.418, 0.0, (1.0, 0.0, 0.0), True),
+                      "test_a_stop_late_in_a_swing_comes_to_rest_in_the_held_stance"),
+    "front 4.841": ((1.0, 0.0, 0.0), (4.841, 100.0, BACKWARD),
+                    "test_a_push_from_the_front_is_caught_by_the_capture_point_stop"),
+    **{f"front {at_s}": ((1.0, 0.0, 0.0), (at_s, 100.0, BACKWARD),
+                         f"test_a_push_from_the_front_mid_walk_moves_the_landing_at_once[{at_s}]")
+       for at_s in (1.88999, 5.26526)},
+    "front 1.9": ((1.0, 0.0, 0.0), (1.900, 100.0, BACKWARD),
+                  "test_a_push_from_the_front_early_in_a_swing_puts_the_rear_foot_back_down"),
+    "from the left 4.13692": (
+        (1.0, 0.0, 0.0), (4.13692, 100.0, RIGHTWARD),
+        "test_a_side_push_that_puts_the_swing_foot_down_ends_the_swing_there"),
+    "front 8.16153": ((1.0, 0.0, 0.0), (8.16153, 100.0, BACKWARD),
+                      "test_a_swing_foot_carried_back_by_a_tipping_body_still_lands_flat"),
+    "from the right 3.05658": ((1.0, 0.0, 0.0), (3.05658, 100.0, LEFTWARD),
+                               "test_a_foot_does_not_lift_off_while_the_robot_bounces"),
+    "front 7.558941": ((1.0, 0.0, 0.0), (7.558941, 100.0, BACKWARD),
+                       "test_a_landing_waits_for_its_foot_after_a_push_just_before_it"),
+}
+
+
+@pytest.fixture(scope="module")
+def pushed_walks(request, tmp_path_factory):
+    """``pushed_walks(name)``: the WalkResult of ``walk(model, goal, out=...,
+    disturbances=[Disturbance(...)])`` for PUSHED_WALKS[name]. The walks to a goal are walked
+    together the first time one of them is asked for (those of the selected tests): they share
+    their first seconds, up to each one's disturbance (tests/walk_branches.py; each continued
+    walk is the fresh walk, its log and summary the same: docs/history/
+    performance-latest-round.md, round 19)."""
+    from walk_branches import branched_walks
+
+    from hubo_cli.experiments.walk import Disturbance
+
+    selected = {item.name for item in request.session.items if item.module is request.module}
+    results = {}
+
+    def walked(name: str):
+        if name not in results:
+            goal = PUSHED_WALKS[name][0]
+            together = {other: [Disturbance(*disturbance)]
+                        for other, (to, disturbance, test) in PUSHED_WALKS.items()
+                        if to == goal and (test in selected or other == name)}
+            results.update(branched_walks(goal, together, tmp_path_factory.mktemp("pushed")))
+        if isinstance(results[name], BaseException):
+            raise results[name]
+        return results[name]
+
+    return walked
+
+
 @pytest.mark.physical
 @pytest.mark.slow
 def test_ctrl_c_in_mid_swing_ends_standing_as_the_operators_stop(tmp_path, model, monkeypatch):
@@ -376,16 +431,15 @@ def test_a_walks_summary_fields_are_written_once(tmp_path, model):
 
 @pytest.mark.physical
 @pytest.mark.slow
-def test_a_stop_late_in_a_swing_comes_to_rest_in_the_held_stance(tmp_path, model):
+@pytest.mark.xdist_group("pushed_walks")  # one worker walks the trunk once
+def test_a_stop_late_in_a_swing_comes_to_rest_in_the_held_stance(pushed_walks):
     """hubo walk --to 1.0 0 0 stopped by the operator 0.52 s into the third step's 0.7 s swing
     (tools/walk_disturbances.py's seed 8): the step lands and the stance comes to rest. With
     the stabilizer's torso offset still integrating the CoM's error after the stop, the robot
     rocked on its sole edges and was still rocking when the run ended 1 s into the hold."""
     from hubo_cli.control.log import load_log
-    from hubo_cli.experiments.walk import Disturbance, walk
 
-    result = walk(model, (1.0, 0.0, 0.0), out=tmp_path / "run",
-                  disturbances=[Disturbance(3.418, stop=True)])
+    result = pushed_walks("stop at 3.418")
     assert result.fell is False and result.stood is True
     log = load_log(result.run_dir / "log.parquet")
     rows = np.isfinite(np.asarray(log["estop_mode_code"], dtype=float))
@@ -422,14 +476,12 @@ def test_hubo_walk_refuses_a_bad_disturbance_clearly(tmp_path, args, words):
 
 @pytest.mark.physical
 @pytest.mark.slow
-def test_a_push_from_the_front_is_caught_by_the_capture_point_stop(tmp_path, model):
+@pytest.mark.xdist_group("pushed_walks")  # one worker walks the trunk once
+def test_a_push_from_the_front_is_caught_by_the_capture_point_stop(pushed_walks):
     """hubo walk --to 1.0 0 0 --push 100 --push-direction backward --push-at 4.84 (seed 1 of
     tools/walk_disturbances.py): the push comes in a double support; the capture point moves
     the next landing back, its monitor stops the walk, the step finishes and the robot stands."""
-    from hubo_cli.experiments.walk import Disturbance, walk
-
-    result = walk(model, (1.0, 0.0, 0.0), out=tmp_path / "run",
-                  disturbances=[Disturbance(4.841, 100.0, (-1.0, 0.0, 0.0))])
+    result = pushed_walks("front 4.841")
     summary = json.loads((result.run_dir / "summary.json").read_text())
     assert result.fell is False and result.stood is True
     assert summary["estop_events"][0]["sources"] == ["capture-point"]
@@ -441,16 +493,14 @@ def test_a_push_from_the_front_is_caught_by_the_capture_point_stop(tmp_path, mod
 @pytest.mark.physical
 @pytest.mark.slow
 @pytest.mark.parametrize("at_s", [1.88999, 5.26526])  # tools/walk_disturbances.py seeds 11 and 16
-def test_a_push_from_the_front_mid_walk_moves_the_landing_at_once(tmp_path, model, at_s):
+@pytest.mark.xdist_group("pushed_walks")  # one worker walks the trunk once
+def test_a_push_from_the_front_mid_walk_moves_the_landing_at_once(pushed_walks, at_s):
     """hubo walk --to 1.0 0 0 pushed from the front (100 N, 0.2 s) in the first step's
     double support (seed 11) and in the fifth step's swing (seed 16): the capture point moves
     the landing from the period it is decided in, the walk stops and stands. Both fell while
     the re-plan took effect 0.2-0.4 s late (the first shift then came 0.57 s after the push on
     seed 11, none on seed 16)."""
-    from hubo_cli.experiments.walk import Disturbance, walk
-
-    result = walk(model, (1.0, 0.0, 0.0), out=tmp_path / "run",
-                  disturbances=[Disturbance(at_s, 100.0, (-1.0, 0.0, 0.0))])
+    result = pushed_walks(f"front {at_s}")
     summary = json.loads((result.run_dir / "summary.json").read_text())
     assert result.fell is False and result.stood is True
     assert result.shifts >= 1
@@ -461,18 +511,17 @@ def test_a_push_from_the_front_mid_walk_moves_the_landing_at_once(tmp_path, mode
 
 @pytest.mark.physical
 @pytest.mark.slow
-def test_a_push_from_the_front_early_in_a_swing_puts_the_rear_foot_back_down(tmp_path, model):
+@pytest.mark.xdist_group("pushed_walks")  # one worker walks the trunk once
+def test_a_push_from_the_front_early_in_a_swing_puts_the_rear_foot_back_down(pushed_walks):
     """hubo walk --to 1.0 0 0 pushed from the front (100 N, 0.2 s) at 1.900 s, as the rear
     (right) foot lifts off for the first step (seed 11's moment 10 ms later): the landing that
     would capture the body lies behind that foot, so its swing is abandoned and the foot put
     back down where it is; the walk stops and stands. Swinging on (main before round 9) it
     fell (docs/history/walking.md, round 9)."""
     from hubo_cli.control.log import load_log
-    from hubo_cli.experiments.walk import Disturbance, walk
 
     at_s = 1.900
-    result = walk(model, (1.0, 0.0, 0.0), out=tmp_path / "run",
-                  disturbances=[Disturbance(at_s, 100.0, (-1.0, 0.0, 0.0))])
+    result = pushed_walks("front 1.9")
     assert result.fell is False and result.stood is True
     log = load_log(result.run_dir / "log.parquet")
     t_s = np.asarray(log["t_s"], dtype=float)
@@ -486,7 +535,8 @@ def test_a_push_from_the_front_early_in_a_swing_puts_the_rear_foot_back_down(tmp
 
 @pytest.mark.physical
 @pytest.mark.slow
-def test_a_side_push_that_puts_the_swing_foot_down_ends_the_swing_there(tmp_path, model):
+@pytest.mark.xdist_group("pushed_walks")  # one worker walks the trunk once
+def test_a_side_push_that_puts_the_swing_foot_down_ends_the_swing_there(pushed_walks):
     """hubo walk --to 1.0 0 0 pushed 100 N for 0.2 s from the left in the fourth step's
     swing (right foot swinging; seed 19 of tools/walk_disturbances.py): the swing foot is
     pushed onto the floor 0.17 s later; the swing ends there (the estimate's sole loaded, the
@@ -499,11 +549,9 @@ def test_a_side_push_that_puts_the_swing_foot_down_ends_the_swing_there(tmp_path
     with round 15's hop wait (that landing's foot off the floor again, the weight transfer
     held 0.025-0.05 s) the walk goes on to its goal unstopped."""
     from hubo_cli.control.log import load_log
-    from hubo_cli.experiments.walk import Disturbance, walk
 
     at_s = 4.13692
-    result = walk(model, (1.0, 0.0, 0.0), out=tmp_path / "run",
-                  disturbances=[Disturbance(at_s, 100.0, (0.0, -1.0, 0.0))])
+    result = pushed_walks("from the left 4.13692")
     summary = json.loads((result.run_dir / "summary.json").read_text())
     assert result.fell is False and (result.stood is True or result.stopped_s is None)
     assert result.touchdowns_early >= 1
@@ -527,7 +575,8 @@ def test_a_side_push_that_puts_the_swing_foot_down_ends_the_swing_there(tmp_path
 
 @pytest.mark.physical
 @pytest.mark.slow
-def test_a_swing_foot_carried_back_by_a_tipping_body_still_lands_flat(tmp_path, model):
+@pytest.mark.xdist_group("pushed_walks")  # one worker walks the trunk once
+def test_a_swing_foot_carried_back_by_a_tipping_body_still_lands_flat(pushed_walks):
     """hubo walk --to 1.0 0 0 pushed from the front (100 N, 0.2 s) in the last step's swing,
     right foot in the air (seed 4 of tools/walk_disturbances.py): the body tips back over the
     stance heel. The swing leg is pitched at its hip against the torso's estimated pitch, so
@@ -537,11 +586,9 @@ def test_a_swing_foot_carried_back_by_a_tipping_body_still_lands_flat(tmp_path, 
     torso at its planned pitch (held, the turn held the torso 0.16 rad back and the left sole
     7.6 deg toe-up on its heel to the end)."""
     from hubo_cli.control.log import load_log
-    from hubo_cli.experiments.walk import Disturbance, walk
 
     at_s = 8.16153
-    result = walk(model, (1.0, 0.0, 0.0), out=tmp_path / "run",
-                  disturbances=[Disturbance(at_s, 100.0, (-1.0, 0.0, 0.0))])
+    result = pushed_walks("front 8.16153")
     summary = json.loads((result.run_dir / "summary.json").read_text())
     assert result.fell is False and result.stood is True
     # measured max tilt 15.1 deg (AVX-512) and 15.0 (portable path); a fall: 30; bound 25
@@ -783,7 +830,8 @@ def test_a_landing_moved_mid_swing_keeps_the_monitors_support_on_the_floor(model
 
 @pytest.mark.physical
 @pytest.mark.slow
-def test_a_foot_does_not_lift_off_while_the_robot_bounces(tmp_path, model):
+@pytest.mark.xdist_group("pushed_walks")  # one worker walks the trunk once
+def test_a_foot_does_not_lift_off_while_the_robot_bounces(pushed_walks):
     """hubo walk --to 1.0 0 0 pushed 100 N for 0.2 s from the right in the third step's swing
     (seed 20 of tools/walk_disturbances.py): the left foot lands hard and the robot bounces,
     its ankle sensors reading a median 33-37 N of its 380 N (both CPU paths) over the 0.1 s
@@ -792,10 +840,7 @@ def test_a_foot_does_not_lift_off_while_the_robot_bounces(tmp_path, model):
     at that lift-off (65 ms) until the soles carry the body again; the capture-point monitor
     stops the walk and it stands. Since round 15 the timeline may wait earlier, at the hop
     itself (:meth:`WalkTarget._unloaded_landing`)."""
-    from hubo_cli.experiments.walk import Disturbance, walk
-
-    result = walk(model, (1.0, 0.0, 0.0), out=tmp_path / "run",
-                  disturbances=[Disturbance(3.05658, 100.0, (0.0, 1.0, 0.0))])
+    result = pushed_walks("from the right 3.05658")
     summary = json.loads((result.run_dir / "summary.json").read_text())
     # since round 15 the hop after that landing waits first (a landing wait) and the lift-off
     # need not
@@ -809,7 +854,8 @@ def test_a_foot_does_not_lift_off_while_the_robot_bounces(tmp_path, model):
 
 @pytest.mark.physical
 @pytest.mark.slow
-def test_a_landing_waits_for_its_foot_after_a_push_just_before_it(tmp_path, model):
+@pytest.mark.xdist_group("pushed_walks")  # one worker walks the trunk once
+def test_a_landing_waits_for_its_foot_after_a_push_just_before_it(pushed_walks):
     """hubo walk --to 1.0 0 0 pushed from the front (100 N, 0.2 s) at 7.559 s, 0.01 s before
     the left foot's landing (seed 13 of tools/walk_disturbances.py): the body tips back onto
     the right sole and the landed foot bounces off the floor. The monitor stops the walk and
@@ -817,10 +863,7 @@ def test_a_landing_waits_for_its_foot_after_a_push_just_before_it(tmp_path, mode
     stands. Played
     on, the transfer moved the ZMP reference onto the foot in the air and the robot rolled
     over its outer edge (main before round 10: fell, stop 7.845 s)."""
-    from hubo_cli.experiments.walk import Disturbance, walk
-
-    result = walk(model, (1.0, 0.0, 0.0), out=tmp_path / "run",
-                  disturbances=[Disturbance(7.558941, 100.0, (-1.0, 0.0, 0.0))])
+    result = pushed_walks("front 7.558941")
     summary = json.loads((result.run_dir / "summary.json").read_text())
     assert result.landing_waits >= 1
     assert result.fell is False and result.stood is True

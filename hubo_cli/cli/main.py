@@ -107,8 +107,15 @@ def say_now(line: str) -> None:
 
 
 def report_error(exc: HuboError) -> None:
-    """Print a library error on one line (plus its hint) on stderr."""
+    """Print a library error on one line (plus its hint) on stderr; what else its run saw
+    (``exc.events``) on one line each, in the order it happened."""
+    said = str(exc)
+    mine = exc.events.index(said) if said in exc.events else 0
+    for event in exc.events[:mine]:
+        click.echo(f"first: {event}", err=True)
     click.secho(f"error: {exc}", fg="red", err=True)
+    for event in exc.events[mine + 1:]:
+        click.echo(f"then: {event}", err=True)
     if exc.hint:
         click.echo(f"hint: {exc.hint}", err=True)
 
@@ -120,6 +127,30 @@ def _json_error(ctx: click.Context, message: str, exit_code: int, hint: str = ""
 
     with contextlib.suppress(OSError, ValueError):
         print_json_error(ctx, message, exit_code, hint)
+
+
+def _named_command(ctx: click.Context, args: list[str]) -> tuple[click.Command, str]:
+    """The (sub)command a command line names, from the group of ``ctx`` down, and its path
+    (``hubo hardware fake-daemon``)."""
+    command, path = ctx.command, ctx.command_path
+    for word in args:
+        if not isinstance(command, click.Group):
+            break
+        if not word.startswith("-"):
+            sub = command.get_command(ctx, word)
+            if sub is None:
+                break
+            command, path = sub, f"{path} {word}"
+    return command, path
+
+
+def _usage_hint(exc: click.ClickException, ctx: click.Context) -> str:
+    """What click's usage error tells the reader to do next: see the command's help."""
+    if not isinstance(exc, click.UsageError):
+        return ""
+    path = (exc.ctx.command_path if exc.ctx is not None
+            else _named_command(ctx, ctx.meta.get(ARGS, []))[1])
+    return f"see '{path} -h'"
 
 
 def with_exit_codes(command: click.Command) -> click.Command:
@@ -137,8 +168,35 @@ def with_exit_codes(command: click.Command) -> click.Command:
     return command
 
 
+ARGS = "hubo.args"  # key of click's ctx.meta: the command line after ``hubo``
+
+
+def json_asked(exc: click.ClickException, ctx: click.Context) -> bool:
+    """Whether the command a click error ends asked for ``--json``: noted by its callback, or,
+    for an error while its command line was parsed (before any callback ran: an unknown
+    option, a missing or bad value), a ``--json`` flag on that line (before a ``--``) of a
+    command that has one."""
+    from hubo_cli.cli.output import JSON_WANTED
+
+    if ctx.meta.get(JSON_WANTED):
+        return True
+    args = ctx.meta.get(ARGS, [])
+    command = exc.ctx.command if getattr(exc, "ctx", None) is not None else None
+    if command is None:  # (click's parser leaves some out: "--to requires 3 arguments")
+        command = _named_command(ctx, args)[0]
+    if not any(p.name == "as_json" for p in command.params):
+        return False
+    if "--json" in args[:args.index("--") if "--" in args else len(args)]:
+        ctx.meta[JSON_WANTED] = True  # as its callback would have
+    return bool(ctx.meta.get(JSON_WANTED))
+
+
 class LazyGroup(click.Group):
     """A click group whose subcommands are imported when used (fast ``--help``)."""
+
+    def resolve_command(self, ctx: click.Context, args: list[str]):
+        ctx.meta.setdefault(ARGS, list(args))  # the outermost group's: the whole command line
+        return super().resolve_command(ctx, args)
 
     def list_commands(self, ctx: click.Context) -> list[str]:
         return sorted(COMMANDS)
@@ -187,7 +245,11 @@ class LazyGroup(click.Group):
                 ctx.exit(3)
             _json_error(ctx, f"{exc.strerror or exc}{where}", 2)
             ctx.exit(2)
-        except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
+        except click.ClickException as exc:  # click says it on stderr (usage errors: exit 2)
+            if json_asked(exc, ctx):
+                _json_error(ctx, exc.format_message(), exc.exit_code, _usage_hint(exc, ctx))
+            raise
+        except (click.exceptions.Exit, click.exceptions.Abort):  # --help, --version: text
             raise
         except Exception as exc:  # noqa: BLE001 (a bug: say so on one line, never a traceback)
             if os.environ.get("HUBO_DEBUG"):

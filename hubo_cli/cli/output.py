@@ -49,11 +49,17 @@ def print_json_error(ctx: click.Context, message: str, exit_code: int, hint: str
         print_json({"error": message, "hint": hint, "exit_code": exit_code})
 
 
-def exit_if_interrupted(summary: dict) -> None:
+def exit_if_interrupted(summary: dict, failure: Exception | None = None) -> None:
     """Exit 130 after a run that Ctrl-C or SIGTERM ended (its summary already printed); one
-    line on stderr when a walk's stop after it fell back to the brake."""
+    line on stderr when a walk's stop after it fell back to the brake, and, when a sensor
+    fault or another error came during its stance stop (``failure``'s ``events``), one line
+    each for the interrupt and what came after it, in order."""
     report_interrupt_stop(summary)
     if summary.get("ended") == "interrupted":
+        events = getattr(failure, "events", ())
+        for i, event in enumerate(events):
+            err_console.print(event if i == 0 else f"then: {event}", soft_wrap=True,
+                              markup=False, highlight=False)
         raise SystemExit(130)
 
 

@@ -107,7 +107,7 @@ def sim(duration: float, push: float, push_direction: str, balance: str, no_bala
         print_json(summary)
     else:
         _print(summary, result, options, push_direction, run_dir)
-    exit_if_interrupted(summary)
+    exit_if_interrupted(summary, result.failure)
     if result.failure is not None:  # e.g. the robot's state lost: exit 3, the robot braked
         raise result.failure
 

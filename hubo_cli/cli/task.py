@@ -23,6 +23,7 @@ from hubo_cli.cli.output import (
     print_json,
     print_run_folder,
     report_interrupt_stop,
+    warn,
 )
 from hubo_cli.control.operator import KEYS_HELP
 from hubo_cli.control.stop_choice import SOFT_SOURCES, TASK_SOURCES, check_walk_stops
@@ -302,6 +303,9 @@ def _run_in(ctx: click.Context, spec, run_dir, *, driver: str, options: dict, st
         plan = check_task(spec)
     if not plan.preflight.ok:
         _refuse(ctx, plan, as_json)
+    if not as_json:
+        for line in plan.preflight.warnings:  # a move or plunge the joints lag behind
+            warn(line)
     state: dict = {}
 
     def on_start(target, loop) -> None:
@@ -381,13 +385,20 @@ def _refuse(ctx: click.Context, plan, as_json: bool) -> None:
                                 "kind": m.step.kind, "t_s": m.t_s,
                                 "point_mm": m.point_W_m * 1000,
                                 "miss_mm": None if m.miss_m is None else m.miss_m * 1000,
-                                "legs_too_slow": m.legs_lag} for m in worst]})
+                                "legs_too_slow": m.legs_lag} for m in worst],
+                    "lagging": [{"step": c.step.name, "number": c.step.number,
+                                 "speed_mm_s": c.step.speed_m_s * 1000,
+                                 "lag_rms_mm": c.rms_m * 1000, "lag_max_mm": c.max_m * 1000,
+                                 "possible_mm_s": c.possible_m_s * 1000}
+                                for c in plan.preflight.lagging]})
         ctx.exit(SafetyError.exit_code)
-    err_console.print("pre-flight: these steps leave the robot's reach (the farthest pose of "
-                      "each)")
+    if worst:
+        err_console.print("pre-flight: these steps leave the robot's reach (the farthest pose "
+                          "of each)")
     for miss in worst:
         err_console.print(f"  {miss.message()}")
     raise preflight_refusal(plan)
+
 
 
 PHASE_WORDS = {"raise": "raising the tool", "run": "running", "settle": "settling",

@@ -153,7 +153,7 @@ def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | No
         warn(f"the walk ended before {event.at_s:g} s: its {'push' if event.push_n else 'stop'}"
              f" there never came (use --{'push' if event.push_n else 'stop'}-at within the "
              f"walk's {result.walking_s:.1f} s)")
-    exit_if_interrupted(fields)
+    exit_if_interrupted(fields, result.failure)
     if result.failure is not None:  # e.g. the robot's state lost: exit 3, the robot braked
         raise result.failure
     if result.fell or result.fell_truth or result.stopped_s is not None:  # fell, or stopped

@@ -124,7 +124,10 @@ class LoopResult:
             ``log-error`` (the log could not be written: a full disk).
         periods: control periods run (the smooth stop included).
         t_end_s: loop time at the end (s).
-        error: one line describing the error or interruption, "" otherwise.
+        error: one line describing the error or interruption, "" otherwise: ``said`` joined
+            with ``; ``.
+        said: what ended or interrupted the run, in the order it happened (a sensor fault,
+            then the Ctrl-C during its stance stop), one message each; () when nothing did.
         stop_periods: periods spent in the final smooth stop.
         status_counts: status label -> number of periods.
         flag_counts: flag -> number of periods it was raised in (e.g. ``collision``).
@@ -156,6 +159,7 @@ class LoopResult:
     periods: int
     t_end_s: float
     error: str = ""
+    said: tuple[str, ...] = ()
     stop_periods: int = 0
     status_counts: dict[str, int] = field(default_factory=dict)
     flag_counts: dict[str, int] = field(default_factory=dict)
@@ -184,10 +188,12 @@ class LoopResult:
 
     def failure(self, run_dir: Path) -> HuboError | None:
         """The error a command ends with after this run (its summary written): the driver's or
-        a module's own (a lost robot state is a DeviceError, exit 3), or one line for a part
-        that failed inside; None when the run ended without one (done, finished,
-        interrupted)."""
+        a module's own (a lost robot state is a DeviceError, exit 3), with its ``events``
+        when something else came too (:attr:`said`: e.g. Ctrl-C during a sensor fault's
+        stance stop), or one line for a part that failed inside; None when the run ended
+        without one (done, finished, interrupted)."""
         if isinstance(self.exception, HuboError):
+            self.exception.events = self.said if len(self.said) > 1 else ()
             return self.exception
         if self.ended in ("module-error", "target-error", "estimation-error", "driver-error"):
             return HuboError(f"the run stopped early: {self.error}",
@@ -211,11 +217,6 @@ def _merge_info(info: dict, pressed: dict) -> dict:
     if "estop" in info and "estop" in pressed:
         merged["estop"] = (*_as_requests(info["estop"]), *_as_requests(pressed["estop"]))
     return merged
-
-
-def _joined(error: str, more: str) -> str:
-    """``error`` with ``more`` said after it (``; ``), or ``more`` alone."""
-    return f"{error}; {more}" if error else more
 
 
 @dataclass
@@ -428,7 +429,8 @@ class ControlLoop:
         if self.log_path is not None:
             self.log = PeriodLog(self.log_path, driver.joint_names, self._extra_columns(),
                                  model=driver.model)
-        ended, error, exc = "finished", "", None
+        ended, exc = "finished", None
+        said: list[str] = []  # what ended or interrupted the run, in order (``error``)
         t_s = 0.0
         stance: _StanceStop | None = None  # a phase stopping itself after an interrupt
         # (or a sensor fault, a log failure): the first interrupt lets it go on, the second
@@ -444,7 +446,7 @@ class ControlLoop:
                     self.estimator.reset(state)
                 except SensorFault as err:
                     refused = err
-                    ended, error, exc = "device", str(err), err
+                    ended, said[:], exc = "device", [str(err)], err
             q0 = np.array(state.q_rad, dtype=float)
             self._cmd = self._cmd_prev = self._cmd_prev2 = q0
             for m, view in zip(self.modules, self._views, strict=True):
@@ -456,13 +458,13 @@ class ControlLoop:
                     cause = take_interrupt()
                     if stance is not None and interrupted:  # the second: the brake
                         stance.end(f"braked: {cause} while standing up", t_s)
-                        error = _joined(error, f"interrupted ({cause})")
+                        said.append(f"interrupted ({cause})")
                         break
                     interrupted = True
                     if stance is not None:  # a fault's or a log failure's stance goes on
-                        error = _joined(error, f"interrupted ({cause})")
+                        said.append(f"interrupted ({cause})")
                     else:
-                        ended, error = "interrupted", f"interrupted ({cause})"
+                        ended, said[:] = "interrupted", [f"interrupted ({cause})"]
                         stance = self._stance_stop(t_s)
                         if stance is None:
                             break
@@ -493,8 +495,8 @@ class ControlLoop:
                     # (a module that finds the robot not following: device trouble, braked)
                     ended = "device" if isinstance(err, DeviceError) else f"{stage}-error"
                     # a library error is already a message for the user; anything else is a bug
-                    error = str(err) if isinstance(err, HuboError) else (
-                        f"{type(err).__name__} in {stage}: {err}")
+                    said[:] = [str(err) if isinstance(err, HuboError) else (
+                        f"{type(err).__name__} in {stage}: {err}")]
                     exc = err
                     break
                 if not all_finite(np.ascontiguousarray(q, dtype=float)):
@@ -507,7 +509,7 @@ class ControlLoop:
                     state = driver.step()
                 except Exception as err:  # noqa: BLE001
                     ended = "device" if isinstance(err, DeviceError) else "driver-error"
-                    error, exc = f"{type(err).__name__}: {err}", err
+                    said[:], exc = [f"{type(err).__name__}: {err}"], err
                     driver.stop()
                     held = True  # (the driver braked and holds by itself)
                     break
@@ -520,17 +522,17 @@ class ControlLoop:
                     except SensorFault as err:  # (raised once: the estimate is whole)
                         exc = exc or err
                         if stance is not None:  # already stopping in a stance: said too
-                            error = _joined(error, str(err))
+                            said.append(str(err))
                         else:  # a walk stops in a stance as after Ctrl-C, the rest brakes
-                            ended, error = "device", str(err)
+                            ended, said[:] = "device", [str(err)]
                             stance = self._stance_stop(t_s)
                             if stance is None:
                                 break
                     except Exception as err:  # noqa: BLE001 (ends in a smooth stop)
                         ended = "device" if isinstance(err, DeviceError) else "estimation-error"
                         exc = err
-                        error = str(err) if isinstance(err, HuboError) else (
-                            f"{type(err).__name__} in estimation: {err}")
+                        said[:] = [str(err) if isinstance(err, HuboError) else (
+                            f"{type(err).__name__} in estimation: {err}")]
                         break
                 self._remember(np.array(q, dtype=float))
                 self.target.robot_flags = state.flags
@@ -550,9 +552,9 @@ class ControlLoop:
                 if self.log is not None and self.log.error and not log_failed:
                     log_failed = True  # control goes on without the log (a full disk)
                     if stance is not None:
-                        error = _joined(error, self.log.error)
+                        said.append(self.log.error)
                     else:
-                        ended, error = "log-error", self.log.error
+                        ended, said[:] = "log-error", [self.log.error]
                         stance = self._stance_stop(t_s)
                         if stance is None:
                             break
@@ -566,14 +568,14 @@ class ControlLoop:
                     break
             if interrupt_pending() is not None and ended in ("finished", "done"):
                 # noted in the last period: the run ends interrupted (nothing more to do)
-                ended, error = "interrupted", f"interrupted ({take_interrupt()})"
+                ended, said[:] = "interrupted", [f"interrupted ({take_interrupt()})"]
         except KeyboardInterrupt as err:
             cause = interrupt_cause(err)
             if stance is not None:
                 stance.end(f"braked: a second interrupt ({cause})", self.period * self.dt_s)
-                error = _joined(error, f"second interrupt ({cause})")
+                said.append(f"second interrupt ({cause})")
             else:
-                ended, error = "interrupted", f"interrupted ({cause})"
+                ended, said[:] = "interrupted", [f"interrupted ({cause})"]
             exc = err
             self._count_a_logged_period()
         if stance is not None and not stance.outcome:  # an error ended it
@@ -584,25 +586,26 @@ class ControlLoop:
                 self._smooth_stop()
         except KeyboardInterrupt:
             self._count_a_logged_period()
-            error = _joined(error, "second Ctrl-C: stopped without the ramp")
+            said.append("second Ctrl-C: stopped without the ramp")
             if ended in ("finished", "done"):
                 ended = "interrupted"
         finally:
             meanwhile = loop_given_back(handlers)  # (signals after the first, not Ctrl-C)
             if meanwhile:
-                error = _joined(error, f"{', '.join(meanwhile)} during the stop, which went on")
+                said.append(f"{', '.join(meanwhile)} during the stop, which went on")
             loop_ended()  # an interrupt from here on waits until the run's files are whole
             driver.stop()
             if self.log is not None:
                 self.log.close()
                 if self.log.error and not log_failed:  # the CSV at close (said once)
-                    error = _joined(error, self.log.error)
+                    said.append(self.log.error)
                     if ended in ("finished", "done"):
                         ended = "log-error"
         self.module_status = self._published()
         dropped = self.period - self.log.rows if self.log is not None and self.log.error else 0
         return LoopResult(
-            ended=ended, periods=self.period, t_end_s=self.period * self.dt_s, error=error,
+            ended=ended, periods=self.period, t_end_s=self.period * self.dt_s,
+            error="; ".join(said), said=tuple(said),
             stop_periods=self.period - stopping_from, status_counts=dict(self._statuses),
             flag_counts=dict(self._flags),
             safety_events=[(m.name, e.t_s, e.kind, e.sources) for m in self.modules

@@ -178,17 +178,19 @@ class HardwareDriver(Driver):
 
     name = "hardware"
     real_time = True
+    log_columns = ("hw_ref_seq", "hw_state_time_s", "hw_state_age_periods", "hw_ref_mode",
+                   "hw_state_age_ms", "hw_round_trip_ms", "hw_servo_error_rad",
+                   "hw_thermal_scale", "hw_max_motor_temp_c")
+    # what its sensors are (the driver contract's facts: Driver's Attributes), together
     accel_measured = False  # hubo-ach's body IMU reports tilt: accel_from_tilt reads rest
 
     @property
     def sensors_measured(self) -> bool:
         """The robot's sensors through hubo-ach; a dry run's echo reads no force and a level,
         still IMU (:mod:`hubo_cli.estimation.plausibility` cannot check it, and the force
-        stops never see a force there)."""
+        stops never see a force there): a property, its answer depends on how the driver was
+        opened."""
         return self.sink_kind == "ach" and not self.echo_sensors
-    log_columns = ("hw_ref_seq", "hw_state_time_s", "hw_state_age_periods", "hw_ref_mode",
-                   "hw_state_age_ms", "hw_round_trip_ms", "hw_servo_error_rad",
-                   "hw_thermal_scale", "hw_max_motor_temp_c")
 
     def __init__(self, model: RobotModel, armed: bool = False, sink: str = "ach",
                  sink_path: str | Path | None = None, ach_ref: str = hubo_ach.CHAN_REF,

@@ -14,8 +14,15 @@ through the simulated daemon": the simulated daemon on this 2-core machine at lo
 median 0.4-5.5 ms, p99 8.9-33.9 ms, the largest single state 68.4 ms; the limit is 1.5 times
 that single largest, and it must hold for 20 periods in a row, which no healthy run came near.
 
-The two clocks need not be one. Through ``achd`` (the daemon on another computer, e.g. Hubo's
-body and vision computers powered up seconds apart) each state's age is the two
+The simulated driver applies the same check to its states' time against the simulator's
+clock (:class:`~hubo_cli.drivers.sim.SimDriver`): the two are one clock (``one_clock``: judged
+against 0, so a lag from the first state is seen too), so a simulated state is never old unless
+the code that measures it is wrong (review 18's delayed state, round 19); its bound is half a
+period (:data:`hubo_cli.drivers.sim.STATE_LATE_S`), for the same 0.1 s.
+
+On the robot the two clocks need not be one. Through ``achd`` (the daemon on another
+computer, e.g. Hubo's body and vision computers powered up seconds apart) each state's age is the
+two
 ``CLOCK_MONOTONIC``'s difference plus the transport's latency, and the difference is unknown
 (review 19: a healthy robot 0.5-9 s apart tripped at 0.1 s, one -3 s apart was never judged).
 So an age is judged against the smallest age of the last :data:`BASELINE_BLOCK_S` to twice that
@@ -44,19 +51,23 @@ STATE_AGE_FOR_S = 0.1  # ... for this long of the daemon's time (20 periods)
 BASELINE_BLOCK_S = 30.0
 
 
+DAEMON_HINT = ("check hubo-daemon's load and priority on the robot's computer, then start the "
+               "run again")
+
+
 class StateTooOld(DeviceError):
     """hubo-daemon's states arrive, but late: the robot is controlled on an old picture."""
 
     def __init__(self, channel: str, age_s: float, limit_s: float, for_s: float,
-                 t_s: float, baseline_s: float = 0.0) -> None:
-        super().__init__(f"{channel}'s states are {1e3 * (age_s - baseline_s):.0f} ms late "
-                         f"({1e3 * age_s:.0f} ms old against this computer's clock, the "
-                         f"quickest of the last states {1e3 * baseline_s:.0f} ms; later than "
-                         f"that by over {1e3 * limit_s:.0f} ms for {for_s:.2f} s) at "
-                         f"t = {t_s:.2f} s: the robot is controlled on where it was; it holds "
-                         "its last reference",
-                         hint="check hubo-daemon's load and priority on the robot's computer, "
-                              "then start the run again")
+                 t_s: float, baseline_s: float = 0.0, clock: str = "this computer's clock",
+                 hint: str = DAEMON_HINT) -> None:
+        how = (f"{1e3 * (age_s - baseline_s):.0f} ms late ({1e3 * age_s:.0f} ms old against "
+               f"{clock}, the quickest of the last states {1e3 * baseline_s:.0f} ms; later than "
+               f"that by over" if baseline_s else
+               f"{1e3 * age_s:.0f} ms old (its time against {clock}; older than")
+        super().__init__(f"{channel}'s states are {how} {1e3 * limit_s:.0f} ms for "
+                         f"{for_s:.2f} s) at t = {t_s:.2f} s: the robot is controlled on where "
+                         "it was; it holds its last reference", hint=hint)
         self.age_s, self.baseline_s = age_s, baseline_s
 
 
@@ -68,11 +79,16 @@ class StateAgeGuard:
     Args:
         channel: the state channel's name (for the message).
         limit_s, for_s: see :data:`STATE_AGE_LIMIT_S`, :data:`STATE_AGE_FOR_S`.
+        clock, hint: what the age is measured against and what to check (for the message).
+        one_clock: the states' time and the age's clock are one (the simulator): the age is
+            judged against 0, not against the smallest recent one.
     """
 
     def __init__(self, channel: str, limit_s: float = STATE_AGE_LIMIT_S,
-                 for_s: float = STATE_AGE_FOR_S) -> None:
+                 for_s: float = STATE_AGE_FOR_S, clock: str = "this computer's clock",
+                 hint: str = DAEMON_HINT, one_clock: bool = False) -> None:
         self.channel, self.limit_s, self.for_s = channel, float(limit_s), float(for_s)
+        self.clock, self.hint, self.one_clock = clock, hint, one_clock
         self.judged: bool | None = None  # None before the first state; True once a trip could be
         self.baseline_s = float("nan")  # the smallest age of the window (s)
         self._old_since_s: float | None = None
@@ -87,7 +103,7 @@ class StateAgeGuard:
             start_s, least_s, last_s = t_s, float("inf"), least_s
         least_s = min(least_s, age_s)
         self._block = start_s, least_s, last_s
-        self.baseline_s = min(least_s, last_s)
+        self.baseline_s = 0.0 if self.one_clock else min(least_s, last_s)
         if self._first_s is None:
             self._first_s = t_s
         self.judged = t_s - self._first_s >= self.for_s
@@ -98,5 +114,5 @@ class StateAgeGuard:
             self._old_since_s = t_s
         if t_s - self._old_since_s >= self.for_s:
             return StateTooOld(self.channel, age_s, self.limit_s, self.for_s, t_s,
-                               self.baseline_s)
+                               self.baseline_s, self.clock, self.hint)
         return None

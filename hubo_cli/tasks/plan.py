@@ -27,8 +27,11 @@ from hubo_cli.errors import ConfigError
 from hubo_cli.kinematics.interpolate import PoseSegment, segment_duration, trapezoid_timing
 from hubo_cli.kinematics.wholebody import LiftFilter, WholeBody
 from hubo_cli.model import RobotModel
+from hubo_cli.motion.limits import JointLimits
 from hubo_cli.posture import home_posture
+from hubo_cli.tasks.cut_lag import CutLag, lagging_cuts
 from hubo_cli.tasks.spec import Step, TaskSpec
+from hubo_cli.tasks.too_fast import TooFast, too_fast_steps
 
 EDGE_NONE, EDGE_HORIZONTAL, EDGE_VERTICAL = 0, 1, 2
 EDGE_NAMES = {EDGE_HORIZONTAL: "horizontal", EDGE_VERTICAL: "vertical"}
@@ -114,20 +117,29 @@ class Miss:
 
 @dataclass
 class Preflight:
-    """Pre-flight's verdict: ``ok`` when every pose of every step is exactly reachable.
+    """Pre-flight's verdict: ``ok`` when every pose of every step is exactly reachable and the
+    arm follows every cut (``lagging``: the cuts it would lag behind by more than a cut may
+    miss, :mod:`hubo_cli.tasks.cut_lag`).
 
-    ``warnings`` name steps whose joint targets move faster or accelerate harder than the
-    joints' limits: the pipeline keeps the robot within its limits, so it lags behind the path
-    there (larger tracking error), but nothing unsafe is commanded.
+    ``too_fast`` names the steps whose joint targets move faster or accelerate harder than the
+    joints' limits (:mod:`hubo_cli.tasks.too_fast`): the pipeline keeps the robot within them,
+    so it lags behind the path there (``warnings``), but nothing unsafe is commanded.
     """
 
     misses: list[Miss]
     checked_poses: int
-    warnings: list[str] = field(default_factory=list)
+    too_fast: list[TooFast] = field(default_factory=list)
+    lagging: list[CutLag] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
-        return not self.misses
+        return not self.misses and not self.lagging
+
+    @property
+    def warnings(self) -> list[str]:
+        """The steps that ask more than the joints' limits, one line each."""
+        return [f"{t.message()}: the robot will lag behind the path there"
+                for t in self.too_fast]
 
     def worst_per_step(self) -> list[Miss]:
         """One miss per failing step: the farthest out."""
@@ -525,7 +537,11 @@ def make_plan(spec: TaskSpec, model: RobotModel, placement: Placement | None = N
             step_index[i] = piece.step
             cutting[i] = piece.cutting
             edge[i] = piece.edge
-    warnings = _limit_warnings(spec, model, q, step_index, dt)
+    too_fast = too_fast_steps(spec, model, q, step_index, goal, dt, CUT_ACCEL_M_S2)
+    arm = model.limb_slice(limb)
+    lagging = lagging_cuts(spec.steps, body.arms[limb],
+                           JointLimits.from_model(model).subset(np.arange(arm.start, arm.stop)),
+                           q[:, arm], goal, step_index, dt, CUT_ACCEL_M_S2)
     thrust = _ramped(np.array([spec.steps[k].thrust_n for k in step_index]),
                      int(round(FORCE_RAMP_S / dt)))
     step_times = [(0.0, 0.0)]
@@ -534,7 +550,7 @@ def make_plan(spec: TaskSpec, model: RobotModel, placement: Placement | None = N
         step_times.append((float(starts[mine[0]]), float(starts[mine[-1] + 1])) if mine
                           else (step_times[-1][1],) * 2)
     return Plan(spec, placement, dt, first.q_rad, T_first, t, step_index, goal, q, cutting, edge,
-                step_times, Preflight(misses, n + 1, warnings), body, thrust)
+                step_times, Preflight(misses, n + 1, too_fast, lagging), body, thrust)
 
 
 def _ramped(values: np.ndarray, periods: int) -> np.ndarray:
@@ -544,27 +560,6 @@ def _ramped(values: np.ndarray, periods: int) -> np.ndarray:
         return values.astype(float)
     padded = np.concatenate([np.zeros(periods - 1), values]).astype(float)
     return np.convolve(padded, np.ones(periods) / periods, mode="valid")
-
-
-def _limit_warnings(spec: TaskSpec, model: RobotModel, q: np.ndarray, step_index: np.ndarray,
-                    dt: float) -> list[str]:
-    """Steps whose joint targets exceed a velocity or acceleration limit (10 % tolerance)."""
-    if len(q) < 3:
-        return []
-    v = np.abs(np.diff(q, axis=0)) / dt / model.velocity_rad_s
-    a = np.abs(np.diff(q, 2, axis=0)) / dt**2 / model.acceleration_rad_s2
-    out = []
-    for k, step in enumerate(spec.steps):
-        rows = np.nonzero(step_index[1:-1] == k)[0]
-        if not len(rows):
-            continue
-        for what, ratio in (("velocity", v[rows]), ("acceleration", a[rows])):
-            worst = np.unravel_index(np.argmax(ratio), ratio.shape)
-            if ratio[worst] > 1.1:
-                out.append(f"{step.label} needs {model.joint_names[worst[1]]} at "
-                           f"{ratio[worst]:.0%} of its {what} limit: the robot will lag behind "
-                           "the path there")
-    return out
 
 
 def _reachable(body: WholeBody, limb: str, T: np.ndarray, lift_m: float | None = None,

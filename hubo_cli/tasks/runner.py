@@ -68,7 +68,13 @@ def check_task(spec: TaskSpec, model: RobotModel | None = None) -> Plan:
 def preflight_refusal(plan: Plan) -> SafetyError:
     """The error a plan that failed pre-flight is refused with (exit 4, nothing moved): its
     farthest miss, and what to change (cut more slowly when the legs lag, else a smaller path
-    or another stance). ``hubo task run`` and a sweep's row say the same."""
+    or another stance); or, all within reach, its first cut faster than the arm follows: its
+    speed, the bit's lag and the speed the arm follows. ``hubo task run`` and a
+    sweep's row say the same."""
+    if not plan.preflight.misses:  # within reach, but a cut faster than the arm follows
+        lagging = plan.preflight.lagging[0]
+        return SafetyError(f"{shown_name(plan.spec.name)} refused in pre-flight, nothing "
+                           f"moved: {lagging.message()}", hint=lagging.fix())
     worst = plan.preflight.worst_per_step()
     farthest = max(worst, key=lambda m: -1.0 if m.miss_m is None else m.miss_m)
     legs = any(m.legs_lag for m in worst)

@@ -899,15 +899,22 @@ class TeleopTarget(Target):
             info[names[6]], info[names[7]], info[names[8]] = goal_m.tolist()
             info[names[9]], info[names[10]] = error, rot_error
             if world:
-                self.errors_m[arm].append(error)
-                self.reachable[arm].append(hand.reachable)
-                self.meant_to_follow[arm].append(not hand.held)
-                self.rotation_errors_rad[arm].append(rot_error)
-                self.path_times_s[arm].append(t_s)
-                self.paths[arm].append((goal_m.copy(), actual.copy()))
-                self.world_errors_m[arm].append(world_error)
+                self._record(arm, t_s, hand, goal_m, actual, error, rot_error, world_error)
         self.max_tilt_rad = max(self.max_tilt_rad, tilt_rad(kernel_array(
             self.store[QUAT_WORLD_TORSO])))
+
+    def _record(self, arm: str, t_s: float, hand, goal_m: np.ndarray, actual_m: np.ndarray,
+                error_m: float, rotation_error_rad: float, world_error_m: float) -> None:
+        """Record one period of ``arm`` following its goal in the world (what the reach and
+        tracking reports read): its errors, whether the goal was reachable and whether the
+        hand was meant to follow it, the time and the goal and actual positions (m)."""
+        self.errors_m[arm].append(error_m)
+        self.reachable[arm].append(hand.reachable)
+        self.meant_to_follow[arm].append(not hand.held)
+        self.rotation_errors_rad[arm].append(rotation_error_rad)
+        self.path_times_s[arm].append(t_s)
+        self.paths[arm].append((goal_m.copy(), actual_m.copy()))
+        self.world_errors_m[arm].append(world_error_m)
 
     def _lift_of(self, q_rad: np.ndarray) -> float:
         """:meth:`WholeBody.lift_of` of a joint vector, remembered for the last few leg
