@@ -28,6 +28,7 @@ from hubo_cli.kinematics.interpolate import PoseSegment, segment_duration, trape
 from hubo_cli.kinematics.wholebody import LiftFilter, WholeBody
 from hubo_cli.model import RobotModel
 from hubo_cli.posture import home_posture
+from hubo_cli.tasks.moves import check_moves
 from hubo_cli.tasks.spec import Step, TaskSpec
 
 EDGE_NONE, EDGE_HORIZONTAL, EDGE_VERTICAL = 0, 1, 2
@@ -478,6 +479,7 @@ def make_plan(spec: TaskSpec, model: RobotModel, placement: Placement | None = N
         placement: where the work is (default: resolved from the task's stance).
     """
     check_duration(spec)  # before the placement: no workspace map for a typo
+    check_moves(spec, model)
     placement = placement or place(spec, model)
     T_S_W = placement.T_S_W()
     limb = spec.stance.limb
