@@ -114,6 +114,8 @@ def test_malformed_task_names_file_line_and_field(tmp_path, old, new, field):
     ("height_mm = 100.0", "height_mm = 5.9", "steps[3].height_mm", "5.9 mm"),
     ("width_mm = 1200.0", "width_mm = 1.2", "scene.wall.width_mm", "1.2 mm"),
     ("height_mm = 2000.0", "height_mm = 2.0", "scene.wall.height_mm", "2 mm"),
+    ('wall_distance_mm = "auto"', "wall_distance_mm = 0.45", "stance.wall_distance_mm",
+     "0.45 mm is below the front of the robot's chest (80 mm)"),
 ])
 def test_a_size_below_physical_sense_asks_for_the_units(tmp_path, old, new, field, value):
     path, _ = _broken(tmp_path, old, new)

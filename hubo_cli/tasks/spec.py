@@ -556,7 +556,12 @@ class _Loader:
                                     f"mm {across})", hint=UNITS_HINT)
 
     def _stance(self, t: _Table) -> Stance:
+        from hubo_cli.urdf import torso_front_m
+
         distance = t.number_or_auto("wall_distance_mm", positive=True, maximum=LENGTH_MAX_MM)
+        if distance is not None:  # a nearer wall passes through the robot's chest
+            self._at_least(t, "wall_distance_mm", distance, 1000 * torso_front_m(),
+                           "the front of the robot's chest")
         centre = t.point_or_auto("centre_mm")
         arm = t.choice("arm", ("right", "left"), default="right")
         tool = t.choice("tool", ("drill", "hand"), default="drill")
