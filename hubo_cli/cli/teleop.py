@@ -49,12 +49,14 @@ ABSURD_ERROR_MM = 100.0  # an RMS error above this means the hand never followed
 # fail such operators' sessions by chance until that is mended
 FOLLOW_BOUND_MM = 55.0
 # The same for the orientation (summary reach's followed_orientation_rms_deg, over the same
-# time), also a warning. Healthy spread: the shipped samples 1.1-3.9 deg; the 60 generated
-# streams at most 6.6 deg (0.25 m/s) and 6.3 deg (0.6 m/s); the bound is 1.5x the worst.
-# Review 19's 120 Hz stream (turns to 50 deg) read 17.3 / 18.9 deg over the 50 / 52 % of the
-# time its hands were followed (26.6 deg over the run), with no word (docs/history/teleop.md,
-# "Round 19: the follow verdict judges the orientation too").
-FOLLOW_BOUND_DEG = 10.0
+# time), also a warning. Healthy spread: the shipped samples 1.1-3.9 deg; the 60 short (1.5 s)
+# generated streams at most 6.6 deg; 6 s generated streams (issue 34's orientation lag) median
+# 7.8 deg, worst 20.7 deg at 0.25 m/s (seeds 5000-5020) and 17.7 deg at 0.6 m/s (5100-5110):
+# the bound is 1.45x that worst. It does not flag review 19's 120 Hz stream (turns to 50 deg:
+# 17.3 / 18.9 deg over the 50 / 52 % of the time its hands were followed), whose figures lie
+# among ordinary streams' (docs/history/teleop.md, "Round 19: the follow verdict judges the
+# orientation too"); it flags a hand that does not turn with the operator at all.
+FOLLOW_BOUND_DEG = 30.0
 EXIT_BAD_INPUT = 2
 
 
