@@ -270,18 +270,15 @@ class ReferenceRoom(CollisionRoom):
     def _distance(self, q_rad, near_m=None, arm=None):  # as before: every pair within NEAR_M
         return super()._distance(q_rad, arm=arm)        # of the room
 
-    def _still(self, arm, q_arm, T_goal):  # as it was
-        rested = self._rested.get(arm)
-        if rested is None or not np.array_equal(rested[1], q_arm):
-            return False
+    def _still(self, rested, T_goal):  # as it was
         T_was = rested[0]
         if np.linalg.norm(T_goal[:3, 3] - T_was[:3, 3]) > room_module.STILL_GOAL_M:
             return False
         cos = (np.trace(T_was[:3, :3].T @ T_goal[:3, :3]) - 1.0) / 2.0
         return bool(cos >= np.cos(room_module.STILL_GOAL_RAD))
 
-    def _clear_search(self, q_prev, q_next, goals, d, pair):  # as it was: q_next checked again
-        q = q_next.copy()                                        # and a still goal too
+    def _clear_search(self, q_prev, q_next, goals, d, pair, rested):  # as it was: q_next
+        q = q_next.copy()                                             # checked again
         d, pair = self._distance(q)
         moved = set()
         for _ in range(len(self.arms)):
@@ -290,17 +287,22 @@ class ReferenceRoom(CollisionRoom):
                 break
             arm = arms[0]
             index = self._index[arm]
-            q[index] = q_prev[index]
-            d, pair = self._distance(q, arm=arm)  # the pairs the arm moves
             reach, T_goal = goals[arm]
             T_goal = np.ascontiguousarray(T_goal, float)
             moved.add(arm)
-            if d >= self.room_m and self._still(arm, q[index], T_goal):
-                self.skipped += 1
-                d, pair = self._distance(q)
-                continue
-            q, d, rested = self._search_arm(q, d, pair, index, reach, T_goal, arm)
-            self._rested[arm] = (T_goal, q[index].copy()) if rested else None
+            if arm in rested and self._still(rested[arm], T_goal):  # the last call's answer
+                q[index] = rested[arm][1]
+                d, pair = self._distance(q, arm=arm)
+                if d >= self.room_m:
+                    self.skipped += 1
+                    self._rested[arm] = rested[arm]
+                    d, pair = self._distance(q)
+                    continue
+            q[index] = q_prev[index]
+            d, pair = self._distance(q, arm=arm)  # the pairs the arm moves
+            q, d, at_rest = self._search_arm(q, d, pair, index, reach, T_goal, arm)
+            if at_rest:
+                self._rested[arm] = (T_goal, q[index].copy())
             d, pair = self._distance(q)
         return q, d, moved
 
@@ -343,10 +345,13 @@ class ReferenceRoom(CollisionRoom):
                 d_try, pair_try = self._distance(q_try, arm=arm)
                 c_try = cost(q_try[index])
                 if d_try >= min(self.room_m, d) and (c_try < c or d < self.room_m <= d_try):
+                    gain = math.sqrt(c) - math.sqrt(c_try)
                     q, d, c, pair = q_try, d_try, c_try, pair_try
                     break
             else:
                 return q, d, True
+            if gain < room_module.REST_M:  # creeping: the call's search ends here
+                break
         return q, d, math.sqrt(c_start) - math.sqrt(c) < room_module.REST_M
 
 
