@@ -1293,9 +1293,11 @@ class WalkTarget(Target):
             self.zmp_periods += 1
             self.zmp_inside_periods += outside <= -ZMP_INSIDE_MARGIN_M
         self.final_feet = {"right": poses[0].copy(), "left": poses[1].copy()}
+        right_down, left_down = self._rows["support"][k]
         store[SUPPORT_PLAN] = SupportPlan(self._support_in_estimate(k)
                                           if self.support_where_standing
-                                          else self._support_poses[k], None)
+                                          else self._support_poses[k], None,
+                                          (not right_down, not left_down))
         q = plan.q_rad[k]
         if self.stabilizer is not None:
             q = self._stabilized(k, q.copy(), zmp if math.isfinite(outside) else None)
