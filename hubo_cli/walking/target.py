@@ -427,6 +427,16 @@ def planned_contacts(gait: Gait) -> list[tuple[Contact | None, Contact | None]]:
     return contacts
 
 
+def _flat_sole(T_world_sole: np.ndarray, floor_z_m: float) -> np.ndarray:
+    """A sole pose laid flat on the floor at ``floor_z_m``: its place and heading kept."""
+    yaw = math.atan2(float(T_world_sole[1, 0]), float(T_world_sole[0, 0]))
+    c, s = math.cos(yaw), math.sin(yaw)
+    T = np.eye(4)
+    T[:2, :2] = ((c, -s), (s, c))
+    T[0, 3], T[1, 3], T[2, 3] = float(T_world_sole[0, 3]), float(T_world_sole[1, 3]), floor_z_m
+    return T
+
+
 def planned_support(gait: Gait, floor_z_m: float | None = None) -> np.ndarray:
     """Per period the soles that carry the robot in this phase of the step, the swing foot at
     its landing place: (n, 2, 4, 4) world poses (right, left), for the capture-point monitor.
@@ -1523,7 +1533,15 @@ class WalkTarget(Target):
         M[:2, :2] = ((c, s), (-s, c))  # the turn back: estimated heading less planned
         M[0, 3] = sole_x - (c * planned_x + s * planned_y)
         M[1, 3] = sole_y - (-s * planned_x + c * planned_y)
-        return M @ self._support_poses[k]
+        laid = M @ self._support_poses[k]
+        # a planned-down sole where the estimate has it (laid flat on the plan's floor): laid
+        # from the anchor alone, the hull jumped at each hand-over of the anchor by the soles'
+        # placement against the plan (87 mm at a fast walk's last landing, a false stop)
+        sensed = self.store[T_WORLD_SOLES]
+        for column, down in enumerate(self._rows["support"][k]):
+            if down:
+                laid[column] = _flat_sole(sensed[column], float(laid[column, 2, 3]))
+        return laid
 
     def _stabilized(self, k: int, q: np.ndarray, zmp: np.ndarray | None) -> np.ndarray:
         """The pattern's joints ``q`` with the stabilizer's corrections (see
