@@ -1526,7 +1526,11 @@ class WalkTarget(Target):
         own: seed 12's was 13 mm outside while its error in the pattern's frame was 12 mm,
         and the monitor stopped it. Off for the normal gait: two 100 N pushes' stops came
         55-435 ms later (the support moved with the pushed stance sole) and those walks fell
-        (docs/history/walking.md, round 13)."""
+        (docs/history/walking.md, round 13). The soles the row has down are laid where the
+        estimate has them (flat, on the plan's floor), the swing foot's landing place from the
+        pattern's frame: a frame laid from the more loaded sole alone moved the whole hull
+        when the other sole took the load (87 mm at a fast walk's last landing, the capture
+        point past its front line, a false stop; round 19)."""
         planned_x, planned_y, sole_x, sole_y, c, s = self._pattern_frame(
             k, ankle_wrenches(self.store))
         M = np.eye(4)
@@ -1534,9 +1538,6 @@ class WalkTarget(Target):
         M[0, 3] = sole_x - (c * planned_x + s * planned_y)
         M[1, 3] = sole_y - (-s * planned_x + c * planned_y)
         laid = M @ self._support_poses[k]
-        # a planned-down sole where the estimate has it (laid flat on the plan's floor): laid
-        # from the anchor alone, the hull jumped at each hand-over of the anchor by the soles'
-        # placement against the plan (87 mm at a fast walk's last landing, a false stop)
         sensed = self.store[T_WORLD_SOLES]
         for column, down in enumerate(self._rows["support"][k]):
             if down:
