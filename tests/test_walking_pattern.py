@@ -5,11 +5,20 @@ import math
 import numpy as np
 import pytest
 
-from hubo_cli.control.capture_point import convex_hull, outside_distance
+from hubo_cli.control.capture_point import CapturePointMonitor, convex_hull, outside_distance
+from hubo_cli.control.phase import SUPPORT_PLAN, SupportPlan
 from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError, InputError
+from hubo_cli.estimation.keys import (
+    CAPTURE_POINT_WORLD,
+    COM_VELOCITY_WORLD,
+    COM_WORLD,
+    CONTACT,
+    T_WORLD_SOLES,
+)
 from hubo_cli.model import load_model
-from hubo_cli.walking.body import WalkingBody, walking_posture
+from hubo_cli.state import RobotState
+from hubo_cli.walking.body import WalkingBody, pose_of_row, walking_posture
 from hubo_cli.walking.footsteps import Footstep, Stance, plan_footsteps, stance_of
 from hubo_cli.walking.gait import cruise_profile, make_gait, smoothstep5, swing_rows
 from hubo_cli.walking.params import walking_params
@@ -173,17 +182,6 @@ def test_capture_point_uses_the_planned_support(walking_model, params):
     """With the left foot in the air (a swing) and the CoM between the feet, the measured
     contacts alone put the CP outside the right sole; the walk's planned support (the swing
     foot counted where it lands, :class:`SupportPlan`) keeps it inside."""
-    from hubo_cli.control.capture_point import CapturePointMonitor
-    from hubo_cli.control.phase import SUPPORT_PLAN, SupportPlan
-    from hubo_cli.estimation.keys import (
-        CAPTURE_POINT_WORLD,
-        COM_VELOCITY_WORLD,
-        COM_WORLD,
-        CONTACT,
-        T_WORLD_SOLES,
-    )
-    from hubo_cli.state import RobotState
-    from hubo_cli.walking.body import pose_of_row
 
     q, _ = walking_posture(walking_model, params.step_width_m, params.crouch_m)
     monitor = CapturePointMonitor(walking_model, walking_model.control_period_s)
@@ -216,18 +214,6 @@ def test_the_monitor_counts_a_swinging_foot_that_still_carries(walking_model, pa
     2 m walks of AVX-512 and portable seed 22 there, and with the stop relaxed neither fell
     (docs/history/walking.md, round 18). Once the estimate has the foot off the floor the
     plan's support alone counts again."""
-    from hubo_cli.control.capture_point import CapturePointMonitor
-    from hubo_cli.control.phase import SUPPORT_PLAN, SupportPlan
-    from hubo_cli.dataflow import Store
-    from hubo_cli.estimation.keys import (
-        CAPTURE_POINT_WORLD,
-        COM_VELOCITY_WORLD,
-        COM_WORLD,
-        CONTACT,
-        T_WORLD_SOLES,
-    )
-    from hubo_cli.state import RobotState
-    from hubo_cli.walking.body import pose_of_row
 
     q, _ = walking_posture(walking_model, params.step_width_m, params.crouch_m)
     monitor = CapturePointMonitor(walking_model, walking_model.control_period_s)
