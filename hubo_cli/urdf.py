@@ -396,11 +396,21 @@ def _sphere(centre, radius: float, colour: str = "joint") -> Shape:
     return Shape("sphere", _trans(*centre), (radius,), colour)
 
 
+# The torso's collision box in N (m): its centre and its size along x, y, z.
+TORSO_BOX_N_M = ((-0.01, 0.0, -0.045), (0.18, 0.30, 0.25))
+
+
+def torso_front_m() -> float:
+    """How far the front of the torso's box lies ahead of the neck, along N's x (m)."""
+    (x, _, _), (depth, _, _) = TORSO_BOX_N_M
+    return x + depth / 2
+
+
 def _collision_shapes(model: RobotModel) -> dict[str, list[Shape]]:
     """Primitive shapes per link, on the zero-pose geometry (N, m)."""
     L = model.lengths_m
     shapes: dict[str, list[Shape]] = {
-        "torso": [_box((-0.01, 0.0, -0.045), (0.18, 0.30, 0.25))],
+        "torso": [_box(*TORSO_BOX_N_M)],
         "pelvis": [_box((-0.01, 0.0, -L["lT"] - 0.05), (0.16, 0.26, 0.12))],
         "head": [_sphere((0.0, 0.0, NECK_ANCHOR_N[2] + 0.08), 0.08, "body")],
     }

@@ -169,6 +169,8 @@ def test_capture_with_garbage_between_chunks_resynchronises(tmp_path):
      "line 3: status '.x00' is not a FASTRAK status"),  # (main: used as a healthy record)
     (b"t_s,station,x_m,y_m,z_m,qw,qx,qy,qz\n0,7,0,0,0,1,0,0,0\n", "station"),
     (b"t_s,station,x_m,y_m,z_m,qw,qx,qy,qz\n0,1,0,0,0,0,0,0,0\n", "zero quaternion"),
+    (b"t_s,station,x_m,y_m,z_m,qw,qx,qy,qz\n0,1,0,0,0,1,0,0,0\n0.1,1,0,0,0,0.2,0,0,0\n",
+     "line 3: the quaternion's norm is 0.2, not 1"),  # review 19: normalised without a word
     (b"t_s,station,x_m,y_m,z_m,qw,qx,qy,qz\n", "no rows"),
     (MAGIC + b"[" * 5000 + b"]" * 5000 + b"\n", "nested too deeply"),  # was RecursionError
 ])
@@ -214,8 +216,8 @@ def test_capture_header_is_one_json_line(tmp_path):
 def test_pose_log_reader_accepts_comments_and_no_status(tmp_path):
     path = tmp_path / "hand.csv"
     path.write_text("# a hand-made log\nt_s,station,x_m,y_m,z_m,qw,qx,qy,qz\n"
-                    "0.0,1,0.1,0.2,0.3,2,0,0,0\n0.5,1,0.1,0.2,0.4,1,0,0,0\n")
-    batch = read_pose_log(path)
+                    "0.0,1,0.1,0.2,0.3,1.04,0,0,0\n0.5,1,0.1,0.2,0.4,1,0,0,0\n")
+    batch = read_pose_log(path)  # a norm within QUAT_NORM_TOL of 1 is a rounded quaternion
     assert len(batch) == 2 and batch.status.tolist() == [32, 32]
     assert batch.t_s.tolist() == [0.0, 0.5]
     np.testing.assert_allclose(batch.quat_wxyz[0], [1, 0, 0, 0])
@@ -224,14 +226,18 @@ def test_pose_log_reader_accepts_comments_and_no_status(tmp_path):
 
 def test_pose_log_with_a_byte_order_mark_and_huge_quaternions(tmp_path):
     """A spreadsheet's "CSV UTF-8" starts with a byte-order mark (it was 'missing column(s)
-    t_s'); a quaternion of components 1e300 is a direction like any other (its squares
-    overflowed: a zero quaternion, then a division by zero, an internal error)."""
+    t_s'); a quaternion of components 1e300 (its squares overflowed: a zero quaternion, then a
+    division by zero, an internal error) is refused by its norm (review 19: norms of 0.2 to 5
+    were normalised without a word), an input error, exit 2."""
     path = tmp_path / "sheet.csv"
     path.write_bytes(b"\xef\xbb\xbft_s,station,x_m,y_m,z_m,qw,qx,qy,qz\n"
-                     b"0.0,1,0.1,0.2,0.3,1e300,0,0,0\n0.5,1,0.1,0.2,0.4,1e308,-1e308,0,0\n")
+                     b"0.0,1,0.1,0.2,0.3,1,0,0,0\n0.5,1,0.1,0.2,0.4,0.5,-0.5,0.5,0.5\n")
     batch = read_pose_log(path)
-    np.testing.assert_allclose(batch.quat_wxyz, [[1, 0, 0, 0], [0.5**0.5, -0.5**0.5, 0, 0]])
     np.testing.assert_allclose(quat_wxyz_to_matrix(batch.quat_wxyz[0]), np.eye(3))
+    path.write_bytes(b"\xef\xbb\xbft_s,station,x_m,y_m,z_m,qw,qx,qy,qz\n"
+                     b"0.0,1,0.1,0.2,0.3,1e300,0,0,0\n0.5,1,0.1,0.2,0.4,1e308,-1e308,0,0\n")
+    with pytest.raises(InputError, match="line 2: the quaternion's norm is inf, not 1"):
+        read_pose_log(path)
     track = PoseTrack([0.0, 1.0], np.zeros((2, 3)), [[1e300, 0, 0, 0], [0, 0, 0, 2]])
     np.testing.assert_allclose(track.quat_wxyz, [[1, 0, 0, 0], [0, 0, 0, 1]])
 

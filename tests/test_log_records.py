@@ -252,6 +252,8 @@ def test_metadata_in_one_rewrite_equals_one_key_at_a_time(tmp_path):
 
 @pytest.mark.parametrize("version,message", [
     (99, "format version 99; this hubo-cli .* reads up to version 2"),  # was read, exit 0
+    (1, "claims format version 1; no hubo-cli wrote a version below 2"),  # review 19: read
+    (-3, "claims format version -3; no hubo-cli wrote a version below 2"),  # without a word
     ("2", "not a period log's sidecar"),
     (True, "not a period log's sidecar"),
 ])
@@ -265,3 +267,24 @@ def test_a_log_of_a_newer_or_unknown_format_is_refused(tmp_path, version, messag
     (tmp_path / META_NAME).write_text("[" * 5000 + "]" * 5000)  # was a RecursionError
     with pytest.raises(InputError, match="not a period log's sidecar"):
         load_log(tmp_path)
+
+
+def test_a_cut_log_says_it_ends_early(tmp_path):
+    """Review 19: a run's log.csv cut to half (no log.parquet) was exported and replayed
+    without a word. The log says how many periods it holds of those its log.json counts, and
+    hubo export / replay say it on a warning line and in their JSON (``periods_expected``)."""
+    from hubo_cli.cli.export import report_cut_short
+
+    _write(tmp_path, _rows(40)).close()
+    whole = load_log(tmp_path)
+    assert whole.periods_expected == 40 and whole.cut_short == ""
+    (tmp_path / PARQUET_NAME).unlink()
+    lines = (tmp_path / LOG_NAME).read_text().splitlines(keepends=True)
+    (tmp_path / LOG_NAME).write_text("".join(lines[:1 + 17]))
+    cut = load_log(tmp_path)
+    assert len(cut) == 17 and cut.cut_short.startswith("the log ends early: 17 of the 40 periods")
+    report: dict = {}
+    report_cut_short(cut, report, as_json=True)
+    assert report == {"periods_expected": 40}
+    report_cut_short(whole, report := {}, as_json=True)
+    assert report == {}

@@ -7,8 +7,10 @@ import pytest
 from click.testing import CliRunner
 
 from hubo_cli.cli.main import main
-from hubo_cli.errors import ConfigError
+from hubo_cli.errors import ConfigError, SafetyError
 from hubo_cli.resources import data_file
+from hubo_cli.tasks.moves import check_moves
+from hubo_cli.tasks.plan import make_plan
 from hubo_cli.tasks.spec import (
     format_override,
     load_task,
@@ -109,6 +111,47 @@ def test_malformed_task_names_file_line_and_field(tmp_path, old, new, field):
     error = caught.value
     assert error.path == str(path) and error.field == field and error.line == line
     assert str(error).startswith(f"{path}:{line}: [{field}]")
+
+
+@pytest.mark.parametrize("old, new, field, value", [
+    # a cut-rectangle written in metres (review 19): each size below what physics allows
+    ("thickness_mm = 5.0", "thickness_mm = 0.005", "scene.wall.thickness_mm", "0.005 mm"),
+    ("width_mm = 150.0 ", "width_mm = 0.15 ", "steps[3].width_mm", "0.15 mm"),
+    ("height_mm = 100.0", "height_mm = 5.9", "steps[3].height_mm", "5.9 mm"),
+    ("width_mm = 1200.0", "width_mm = 1.2", "scene.wall.width_mm", "1.2 mm"),
+    ("height_mm = 2000.0", "height_mm = 2.0", "scene.wall.height_mm", "2 mm"),
+    ('wall_distance_mm = "auto"', "wall_distance_mm = 0.45", "stance.wall_distance_mm",
+     "0.45 mm is below the front of the robot's chest (80 mm)"),
+])
+def test_a_size_below_physical_sense_asks_for_the_units(tmp_path, old, new, field, value):
+    path, _ = _broken(tmp_path, old, new)
+    with pytest.raises(ConfigError) as caught:
+        load_task(path)
+    error = caught.value
+    assert error.field == field and value in str(error)
+    assert error.hint == "units? values are in mm"
+
+
+def test_a_slot_shorter_than_the_bit_asks_for_the_units(tmp_path):
+    path = tmp_path / "slot.toml"
+    path.write_text(data_file("tasks", "cut-slot.toml").read_text().replace(
+        "points_mm = [[150.0, 0.0], [-150.0, 0.0]]", "points_mm = [[0.15, 0.0], [-0.15, 0.0]]"))
+    with pytest.raises(ConfigError, match=r"\[steps\[3\]\.points_mm\] 0\.3 mm is below the bit"):
+        load_task(path)
+
+
+@pytest.mark.parametrize("depth_mm, into_mm", [("2.5", "22.5"), ("-19.0", "1")])
+def test_a_move_into_the_wall_is_refused_before_planning(tmp_path, model, depth_mm, into_mm):
+    # review 19: the approach went straight to the cutting depth (no plunge), ran and completed
+    path, _ = _broken(tmp_path, "depth_mm = -50.0            # 5 cm",
+                      f"depth_mm = {depth_mm}            # 5 cm")
+    with pytest.raises(SafetyError, match=rf"step 1 'raise the drill' \(a move\) takes the "
+                                          rf"bit's tip {into_mm} mm into the wall"):
+        make_plan(load_task(path), model)  # refused before the placement: no workspace map
+    for shipped in task_files():  # a tip on the face (the tests' -20 mm) or before it is fine
+        spec = load_task(shipped)
+        if not spec.experiment:
+            check_moves(spec, model)
 
 
 def test_toml_syntax_error_names_the_line(tmp_path):

@@ -30,6 +30,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from hubo_cli.control.collision import SelfCollisionChecker
 from hubo_cli.control.keys import ARM_TARGET_VELOCITY
 from hubo_cli.estimation.keys import QUAT_WORLD_TORSO
 from hubo_cli.input.operator_stream import StreamSettings
@@ -270,18 +271,15 @@ class ReferenceRoom(CollisionRoom):
     def _distance(self, q_rad, near_m=None, arm=None):  # as before: every pair within NEAR_M
         return super()._distance(q_rad, arm=arm)        # of the room
 
-    def _still(self, arm, q_arm, T_goal):  # as it was
-        rested = self._rested.get(arm)
-        if rested is None or not np.array_equal(rested[1], q_arm):
-            return False
+    def _still(self, rested, T_goal):  # as it was
         T_was = rested[0]
         if np.linalg.norm(T_goal[:3, 3] - T_was[:3, 3]) > room_module.STILL_GOAL_M:
             return False
         cos = (np.trace(T_was[:3, :3].T @ T_goal[:3, :3]) - 1.0) / 2.0
         return bool(cos >= np.cos(room_module.STILL_GOAL_RAD))
 
-    def _clear_search(self, q_prev, q_next, goals, d, pair):  # as it was: q_next checked again
-        q = q_next.copy()                                        # and a still goal too
+    def _clear_search(self, q_prev, q_next, goals, d, pair, rested):  # as it was: q_next
+        q = q_next.copy()                                             # checked again
         d, pair = self._distance(q)
         moved = set()
         for _ in range(len(self.arms)):
@@ -290,17 +288,22 @@ class ReferenceRoom(CollisionRoom):
                 break
             arm = arms[0]
             index = self._index[arm]
-            q[index] = q_prev[index]
-            d, pair = self._distance(q, arm=arm)  # the pairs the arm moves
             reach, T_goal = goals[arm]
             T_goal = np.ascontiguousarray(T_goal, float)
             moved.add(arm)
-            if d >= self.room_m and self._still(arm, q[index], T_goal):
-                self.skipped += 1
-                d, pair = self._distance(q)
-                continue
-            q, d, rested = self._search_arm(q, d, pair, index, reach, T_goal, arm)
-            self._rested[arm] = (T_goal, q[index].copy()) if rested else None
+            if arm in rested and self._still(rested[arm], T_goal):  # the last call's answer
+                q[index] = rested[arm][1]
+                d, pair = self._distance(q, arm=arm)
+                if d >= self.room_m:
+                    self.skipped += 1
+                    self._rested[arm] = rested[arm]
+                    d, pair = self._distance(q)
+                    continue
+            q[index] = q_prev[index]
+            d, pair = self._distance(q, arm=arm)  # the pairs the arm moves
+            q, d, at_rest = self._search_arm(q, d, pair, index, reach, T_goal, arm)
+            if at_rest:
+                self._rested[arm] = (T_goal, q[index].copy())
             d, pair = self._distance(q)
         return q, d, moved
 
@@ -343,10 +346,13 @@ class ReferenceRoom(CollisionRoom):
                 d_try, pair_try = self._distance(q_try, arm=arm)
                 c_try = cost(q_try[index])
                 if d_try >= min(self.room_m, d) and (c_try < c or d < self.room_m <= d_try):
+                    gain = math.sqrt(c) - math.sqrt(c_try)
                     q, d, c, pair = q_try, d_try, c_try, pair_try
                     break
             else:
                 return q, d, True
+            if gain < room_module.REST_M:  # creeping: the call's search ends here
+                break
         return q, d, math.sqrt(c_start) - math.sqrt(c) < room_module.REST_M
 
 
@@ -688,6 +694,9 @@ def test_the_collision_room_gives_the_same_targets_to_the_last_bit(monkeypatch):
     room's repeatable checker makes it exact (the reference checks again)."""
     inputs = []
     keep = CollisionRoom.keep
+    made = {"checks": 0, "gradients": 0}
+    check_near, distance_gradient = (SelfCollisionChecker.check_near,
+                                     SelfCollisionChecker.distance_gradient)
 
     def recorded(self, q_prev, q_next, goals=None, commanded=None):
         # (the search compared below; the lead from the command after it is not mirrored)
@@ -695,9 +704,24 @@ def test_the_collision_room_gives_the_same_targets_to_the_last_bit(monkeypatch):
                        {a: (r, np.array(T)) for a, (r, T) in (goals or {}).items()}))
         return keep(self, q_prev, q_next, goals, commanded)
 
+    def counted(method, key):
+        def call(self, *args, **kwargs):
+            made[key] += 1
+            return method(self, *args, **kwargs)
+        return call
+
     with monkeypatch.context() as patch:
         patch.setattr(CollisionRoom, "keep", recorded)
+        patch.setattr(SelfCollisionChecker, "check_near", counted(check_near, "checks"))
+        patch.setattr(SelfCollisionChecker, "distance_gradient",
+                      counted(distance_gradient, "gradients"))
         follow_generated(3401, StreamSettings(duration_s=4.0, max_speed_m_s=0.25))
+    # the search's work in the stream (round 19): a step cutting the error by less than
+    # REST_M ends a call's search, a still goal takes the pose the last call rested at; the
+    # same on both code paths: 3399 checks and 405 witness gradients in 1199 calls, 643
+    # moving an arm (before: 3824 and 798 in 1191, 635)
+    assert (made["checks"] + made["gradients"]) / len(inputs) < 3.5, (made, len(inputs))
+    assert made["gradients"] < 600, made
 
     class Reference(ReferenceRoom):
         _distance = CollisionRoom._distance
@@ -707,7 +731,7 @@ def test_the_collision_room_gives_the_same_targets_to_the_last_bit(monkeypatch):
     old = Reference(model, arms=("left-arm", "right-arm"))
     for k, (q_prev, q_next, goals) in enumerate(inputs):
         assert np.array_equal(new.keep(q_prev, q_next, goals), old.keep(q_prev, q_next, goals)), k
-    # measured: 1036 calls, 345 of them with a still goal, 668 moving the left arm out of the band
+    # measured: 1199 calls, 401 with a still goal, 643 moving the left arm out of the band
     assert new.skipped > 100 and sum(new.pushed_periods.values()) > 200
 
 

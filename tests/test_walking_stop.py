@@ -1103,6 +1103,35 @@ def test_the_monitors_planned_support_stands_where_the_estimated_soles_stand():
     np.testing.assert_allclose(store[SUPPORT_PLAN].T_world_soles, move @ planned, atol=1e-6)
 
 
+def test_the_monitors_planned_support_does_not_jump_when_the_other_sole_takes_the_load():
+    """Both soles planned down, the estimate's left sole 87 mm behind where the plan has it
+    against the right (a landing short of its place): the planned support has each sole where
+    the estimate has it, whichever carries more. On main it was laid from the more loaded
+    sole alone (the pattern's frame) and moved 87 mm back when the load passed from the left
+    sole to the right (portable seed 22's fast 2 m walk at its last landing: the capture point
+    past the jumped hull's front line, a false stop; docs/history/walking.md, round 19)."""
+    from hubo_cli.control.phase import SUPPORT_PLAN
+    from hubo_cli.estimation.keys import T_WORLD_SOLES
+
+    _, q0, _, target, store = standing_walk((0.3, 0.0, 0.0), None)
+    target.support_where_standing = True  # (the fast gait's)
+    state = RobotState(0.0, q0, np.zeros_like(q0))
+    target(0.0, state)
+    soles = store[T_WORLD_SOLES].copy()
+    soles[1, 0, 3] -= 0.087
+    store[T_WORLD_SOLES] = soles
+    supports = []
+    for k, loads_n in enumerate(((100.0, 300.0), (300.0, 100.0)), start=1):
+        store[WRENCHES] = store[WRENCHES] | {
+            sensor: np.array([0.0, 0.0, fz_n, 0.0, 0.0, 0.0])
+            for sensor, fz_n in zip(ANKLE_SENSORS, loads_n, strict=True)}
+        target(k * DT, state)
+        assert all(target._rows["support"][target.k - 1])  # both planned down
+        supports.append(store[SUPPORT_PLAN].T_world_soles.copy())
+    np.testing.assert_allclose(supports[1], supports[0], atol=1e-9)
+    np.testing.assert_allclose(supports[1][:, :2, 3], soles[:, :2, 3], atol=1e-9)
+
+
 @pytest.mark.parametrize("error_m", [0.05, 0.15])
 def test_a_pushed_landing_that_bounces_while_walking_stops_the_walk(error_m):
     """A walk nobody stopped: its landed (right) foot reads 0 N in the double supports, the

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import click
 
+from hubo_cli.cli.export import report_cut_short
 from hubo_cli.cli.options import force_option
 from hubo_cli.cli.output import console, err_console, print_json
 from hubo_cli.viz.camera import DEFAULT_PRESET, PRESETS
@@ -31,11 +32,12 @@ def parse_size(text: str) -> tuple[int, int]:
 
 
 def make_video(run_dir, out=None, *, speed=None, camera=DEFAULT_PRESET, size="640x480",
-               start_s=None, end_s=None, quiet=False):
+               start_s=None, end_s=None, quiet=False, scene=None):
     """Render a run's video (``out``, an :class:`~hubo_cli.outputs.OutputFile`, or
     RUN/video.mp4) under a temporary name, renamed when complete, with a progress bar on a
     terminal's stderr (elsewhere a line at the start and at each quarter, unless ``quiet``:
-    --json); returns the :class:`~hubo_cli.viz.video.VideoResult`."""
+    --json); ``scene``: the run's, if already loaded; returns the
+    :class:`~hubo_cli.viz.video.VideoResult`."""
     import dataclasses
 
     from hubo_cli.outputs import replacing
@@ -43,7 +45,7 @@ def make_video(run_dir, out=None, *, speed=None, camera=DEFAULT_PRESET, size="64
     from hubo_cli.viz.video import render_video
 
     width, height = parse_size(size)
-    scene = load_scene(run_dir)
+    scene = scene or load_scene(run_dir)
     path = out.path if out is not None else scene.run_dir / "video.mp4"
     target = out.writing() if out is not None else replacing(path)
     with contextlib.ExitStack() as stack:
@@ -126,13 +128,18 @@ def replay(run, gui, video, speed, camera, size, start_s, end_s, force, as_json)
                          hint="e.g. hubo replay RUN --video run.mp4")
     check_speed(speed)  # before any work: the window and the video pace by it
     report: dict = {"run_dir": str(run)}
+    out = None
     if video is not None:
         out = OutputFile(video, option="--video", inputs=(run,), force=force)
         if out.path.suffix.lower() != ".mp4":  # ffmpeg picks its format by the name
             raise InputError(f"--video {video}: the video is an MP4 file, its name must end "
                              "in .mp4", hint=f"e.g. --video {out.path.with_suffix('.mp4').name}")
+    scene = load_scene(run)
+    report["periods"] = len(scene)
+    report_cut_short(scene.log, report, as_json)
+    if out is not None:
         result = make_video(run, out, speed=speed, camera=camera, size=size, start_s=start_s,
-                            end_s=end_s, quiet=as_json)
+                            end_s=end_s, quiet=as_json, scene=scene)
         report["video"] = {"path": str(result.path), "frames": result.frames,
                            "width": result.width, "height": result.height,
                            "speed": result.speed, "run_s": result.run_s,
@@ -143,7 +150,6 @@ def replay(run, gui, video, speed, camera, size, start_s, end_s, force, as_json)
         from hubo_cli.viz.camera import camera_for
         from hubo_cli.viz.replay import KinematicReplay
 
-        scene = load_scene(run)
         with KinematicReplay(scene, gui=True) as window:
             view = camera_for(camera, scene.focus_world_m(), scene.working_arm)
             report["periods_shown"] = window.play(speed or 1.0, view)

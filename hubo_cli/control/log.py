@@ -597,6 +597,8 @@ class LogData:
         hubo_cli_version: the hubo-cli that wrote the log (None, likewise).
         unfinished: "" for a finished log; for a killed run's records that could not be
             made into its CSV (a read-only folder), one line saying so and why.
+        periods_expected: the periods the run logged, from the sidecar (None without one);
+            more than were read when the log file was cut (:attr:`cut_short`).
     """
 
     columns: dict[str, np.ndarray]
@@ -606,12 +608,23 @@ class LogData:
     started_utc: str | None = None
     hubo_cli_version: str | None = None
     unfinished: str = ""
+    periods_expected: int | None = None
 
     def __getitem__(self, name: str) -> np.ndarray:
         return self.columns[name]
 
     def __len__(self) -> int:
         return len(self.columns["t_s"])
+
+    @property
+    def cut_short(self) -> str:
+        """"" for a whole log; else one line saying it ends early: the periods read and the
+        periods its sidecar says the run logged (a log.csv cut after the run, no log.parquet)."""
+        if self.periods_expected is None or len(self) >= self.periods_expected:
+            return ""
+        return (f"the log ends early: {len(self)} of the {self.periods_expected} periods the "
+                f"run logged (its log.json); what follows shows the first "
+                f"{len(self) / self.periods_expected:.0%}")
 
     def joints(self, kind: str) -> np.ndarray:
         """An (N, joints) array of ``target``, ``cmd`` or ``q`` values (rad)."""
@@ -676,8 +689,10 @@ def load_log(path: str | Path) -> LogData:
                          hint="give a run folder as hubo wrote it (a damaged log.parquet can be "
                               "removed: the log is then read from log.csv)") from None
     joints = tuple(n[4:-4] for n in frame.columns if n.startswith("cmd_") and n.endswith("_rad"))
+    rows = sidecar.get("rows")
     return LogData(columns, flags, joints, sidecar.get("metadata", {}),
-                   sidecar.get("started_utc"), sidecar.get("hubo_cli_version"))
+                   sidecar.get("started_utc"), sidecar.get("hubo_cli_version"),
+                   periods_expected=rows if isinstance(rows, int) and rows > 0 else None)
 
 
 def _unfinished_log(csv_path: Path, meta_path: Path, reason: str) -> LogData:
@@ -718,6 +733,11 @@ def _read_sidecar(path: Path) -> dict:
                          f"({__version__}) reads up to version {FORMAT_VERSION}",
                          hint="upgrade hubo-cli to read it (hubo-cli "
                               f"{sidecar.get('hubo_cli_version', '?')} wrote it)")
+    if version < FORMAT_VERSION:  # the first format hubo-cli wrote is FORMAT_VERSION's
+        raise InputError(f"{path}: the log claims format version {version}; no hubo-cli wrote "
+                         f"a version below {FORMAT_VERSION}, the one this hubo-cli "
+                         f"({__version__}) reads", hint="give a run folder as hubo wrote it (or "
+                         "remove log.json to read the log without its metadata)")
     return sidecar
 
 

@@ -112,10 +112,15 @@ class SupportPlan:
             phase of the step (a swing foot at its landing place), on the floor.
         margin_m: the capture-point monitor shrinks their hull by this much (m; None: by
             its own margin).
+        swinging: (right, left) True for a sole the plan has off the floor in this period
+            (counted at its landing place): while the soles' sensors still read it carrying
+            (the estimate's contact), the monitor also judges the capture point against it
+            where it stands.
     """
 
     T_world_soles: np.ndarray
     margin_m: float | None = None
+    swinging: tuple[bool, bool] = (False, False)
 
 
 SUPPORT_PLAN = Key("support_plan", object,

@@ -56,6 +56,12 @@ MAX_RECORDING_BYTES = 256 << 20
 FIRST_BYTES = 1 << 20
 MAX_LINE_BYTES = 65536  # no line of a pose log comes near this
 MAX_CHUNK_GAP_S = 3600.0  # chunks an hour apart are a garbled time, not a recording
+# A pose log's quaternion whose norm departs from 1 by more than this is not a quaternion (the
+# columns hold something else, or the file is garbled): refused, naming its line. The shipped
+# samples' norms depart by at most 6e-8 (written with 7 decimals); a tracker's ASCII output
+# keeps four decimals (the wire parser allows 0.02, records.Plausibility.unit_norm_tol); 0.1
+# leaves room for a hand-written file at two decimals (0.71, 0.71: 1.004).
+QUAT_NORM_TOL = 0.1
 # a recording whose first time is before 0 or after this (a clock's epoch, a time of day, rows
 # cut from the middle of a recording) is counted from its first sample, so it replays from its
 # start; one that starts within it keeps its times (a live capture's first chunk comes a few
@@ -626,6 +632,13 @@ def parse_pose_log(text: str, where: str = "pose log") -> RecordBatch:
         bad = int(np.flatnonzero(norm < 1e-6)[0])
         raise InputError(f"{where}: line {lines[bad + 1][0]}: zero quaternion",
                          hint="qw,qx,qy,qz must be a unit quaternion (scalar first)")
+    far = np.abs(norm - 1.0) > QUAT_NORM_TOL
+    if far.any():
+        bad = int(np.flatnonzero(far)[0])
+        raise InputError(f"{where}: line {lines[bad + 1][0]}: the quaternion's norm is "
+                         f"{norm[bad]:.3g}, not 1 (within {QUAT_NORM_TOL:g}); {int(far.sum())} "
+                         f"of the {len(norm)} rows are so", hint="qw,qx,qy,qz must be a unit "
+                         "quaternion (scalar first): are these columns a quaternion?")
     batch = RecordBatch(station=station, status=status, position_m=values[:, 2:5].copy(),
                         quat_wxyz=unit, stylus=np.full(len(station), -1, np.int8),
                         offset=np.zeros(len(station), dtype=np.int64), t_s=values[:, 0].copy())

@@ -30,6 +30,7 @@ from hubo_cli.model import RobotModel
 from hubo_cli.motion.limits import JointLimits
 from hubo_cli.posture import home_posture
 from hubo_cli.tasks.cut_lag import CutLag, lagging_cuts
+from hubo_cli.tasks.moves import check_moves
 from hubo_cli.tasks.spec import Step, TaskSpec
 from hubo_cli.tasks.too_fast import TooFast, too_fast_steps
 
@@ -490,6 +491,7 @@ def make_plan(spec: TaskSpec, model: RobotModel, placement: Placement | None = N
         placement: where the work is (default: resolved from the task's stance).
     """
     check_duration(spec)  # before the placement: no workspace map for a typo
+    check_moves(spec, model)
     placement = placement or place(spec, model)
     T_S_W = placement.T_S_W()
     limb = spec.stance.limb

@@ -101,6 +101,12 @@ THRUST_MAX_N = 15.0          # the impedance spring's 500 N/m over its 30 mm off
 MISPLACED_MAX_MM = 100.0     # a wall misjudged by more is not a recognition error to test
 MAX_TASK_BYTES = 1 << 20      # a task file is a few kB of TOML
 START_MAX_MM = 10000.0       # a walk to the working stance (``hubo walk``'s longest goal)
+# Lower bounds, where physics gives one (a value below is most often a size written in metres):
+# a drilled hole or slot is at least the bit's diameter across (the robot file's bit_radius_m),
+# and a wall thinner than WALL_THICKNESS_MIN_MM is a sheet of paper, not cardboard to drill
+# (single-wall corrugated board is 1 to 7 mm; the shipped tasks' is 5 mm).
+WALL_THICKNESS_MIN_MM = 0.5
+UNITS_HINT = "units? values are in mm"
 
 
 # ---------------------------------------------------------------------------- the objects
@@ -409,6 +415,7 @@ class _Loader:
         self.overrides = {k: v for k, v in overrides.items() if "." not in k}
         self.fields_set = {k: v for k, v in overrides.items() if "." in k}
         self.origin: dict[str, str] = {}  # field -> parameter it came from
+        self.tool = "drill"
 
     # ------------------------------------------------------------------ errors
     def fail(self, field_path: str, message: str, hint: str = "") -> ConfigError:
@@ -420,6 +427,22 @@ class _Loader:
             message += f" (from parameter {parameter}, {source})"
         return ConfigError(message, path=str(self.path), line=field_line(self.text, field_path),
                            field=field_path, hint=hint)
+
+    def _at_least(self, t: _Table, name: str, value_mm: float, minimum_mm: float,
+                  what: str) -> float:
+        """``value_mm``, refused below the physical ``minimum_mm`` (exit 2, the units hint)."""
+        if value_mm < minimum_mm:
+            raise self.fail(t.key(name), f"{quoted(value_mm)} mm is below {what} "
+                            f"({minimum_mm:g} mm)", hint=UNITS_HINT)
+        return value_mm
+
+    def _bit_mm(self) -> float | None:
+        """The drill bit's diameter (mm, the robot file's); None for a task with the hand."""
+        if self.tool != "drill":
+            return None
+        from hubo_cli.model import load_model
+
+        return 2000.0 * load_model().drill.bit_radius_m
 
     # ------------------------------------------------------------------ parameters
     def _parameters(self) -> tuple[dict, dict]:
@@ -517,12 +540,32 @@ class _Loader:
         scene = self._scene(table.table("scene"))
         safety = self._safety(table.table("safety"))
         steps = self._steps(table.list_of_tables("steps"))
+        self._paths_fit(scene, steps)
         table.finish()
         return TaskSpec(name, description, self.path, params, defaults, stance, scene, safety,
                         steps, fields_set=dict(self.fields_set), text=self.text)
 
+    def _paths_fit(self, scene: Scene, steps: tuple[Step, ...]) -> None:
+        """Each path's extent fits on the wall (its width, and its height from the floor)."""
+        for step in steps:
+            if not step.points_m:
+                continue
+            ys, zs = zip(*step.points_m, strict=True)
+            for name, size_m, extent_m, across in (
+                    ("width_mm", scene.wall_width_m, max(ys) - min(ys), "across"),
+                    ("height_mm", scene.wall_height_m, max(zs) - min(zs), "high")):
+                if size_m < extent_m:
+                    raise self.fail(f"scene.wall.{name}", f"{size_m * 1000:g} mm is less "
+                                    f"than the path of {step.label} ({extent_m * 1000:g} "
+                                    f"mm {across})", hint=UNITS_HINT)
+
     def _stance(self, t: _Table) -> Stance:
+        from hubo_cli.urdf import torso_front_m
+
         distance = t.number_or_auto("wall_distance_mm", positive=True, maximum=LENGTH_MAX_MM)
+        if distance is not None:  # a nearer wall passes through the robot's chest
+            self._at_least(t, "wall_distance_mm", distance, 1000 * torso_front_m(),
+                           "the front of the robot's chest")
         centre = t.point_or_auto("centre_mm")
         arm = t.choice("arm", ("right", "left"), default="right")
         tool = t.choice("tool", ("drill", "hand"), default="drill")
@@ -534,6 +577,7 @@ class _Loader:
         if tool_mass is not None and tool != "drill":
             raise self.fail(t.key("tool_mass_kg"), "is the drill's mass; the hand holds none",
                             hint='use tool = "drill" or leave tool_mass_kg out')
+        self.tool = tool  # the steps' lower bounds depend on it
         start = t.value("start_mm", default=None)
         if start is not None and not (_is_point(start)
                                       and math.hypot(*start) <= START_MAX_MM):
@@ -555,8 +599,11 @@ class _Loader:
                                      default=d.wall_width_m * 1000) / 1000,
             wall_height_m=wall.number("height_mm", positive=True, maximum=WALL_MAX_MM,
                                       default=d.wall_height_m * 1000) / 1000,
-            wall_thickness_m=wall.number("thickness_mm", positive=True, maximum=LENGTH_MAX_MM,
-                                         default=d.wall_thickness_m * 1000) / 1000,
+            wall_thickness_m=self._at_least(
+                wall, "thickness_mm", wall.number("thickness_mm", positive=True,
+                                                  maximum=LENGTH_MAX_MM,
+                                                  default=d.wall_thickness_m * 1000),
+                WALL_THICKNESS_MIN_MM, "the thinnest cardboard") / 1000,
             cutting=CuttingModel(**{
                 f.name: cutting.number(f.name, minimum=0.0, positive=f.metadata["positive"],
                                        maximum=f.metadata["maximum"],
@@ -668,14 +715,24 @@ class _Loader:
         accel = t.number("accel_mm_s2", positive=True, maximum=TOOL_ACCEL_MAX_MM_S2,
                          default=None)
         accel = None if accel is None else accel / 1000
+        bit_mm = self._bit_mm()
         if path == "polyline":
             points = t.points("points_mm")
+            if bit_mm is not None:
+                self._at_least(t, "points_mm", sum(math.dist(a, b) for a, b in
+                                                   zip(points[:-1], points[1:], strict=True)),
+                               bit_mm, "the bit's diameter: the path's length")
             return Step(kind, name, number, points_m=tuple((y / 1000, z / 1000)
                                                            for y, z in points),
                         speed_m_s=speed, accel_m_s2=accel, path=path,
                         thrust_n=self._thrust(t))
-        width = t.number("width_mm", positive=True, maximum=LENGTH_MAX_MM) / 1000
-        height = t.number("height_mm", positive=True, maximum=LENGTH_MAX_MM) / 1000
+        width = t.number("width_mm", positive=True, maximum=LENGTH_MAX_MM)
+        height = t.number("height_mm", positive=True, maximum=LENGTH_MAX_MM)
+        if bit_mm is not None:
+            for key, value in (("width_mm", width), ("height_mm", height)):
+                self._at_least(t, key, value, bit_mm, "the bit's diameter: no hole is that "
+                               "small")
+        width, height = width / 1000, height / 1000
         centre = t.point("centre_mm", default=(0.0, 0.0))
         start = t.choice("start", tuple(CORNERS), default="upper-left")
         direction = t.choice("direction", ("ccw", "cw"), default="ccw")

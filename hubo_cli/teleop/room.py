@@ -36,11 +36,16 @@ Distances are the checker's :meth:`~hubo_cli.control.collision.SelfCollisionChec
 (exact near the room, Lipschitz lower bounds for the pairs far from it, which it does not
 compute), from a repeatable checker: the same joints give the same distances, whatever was
 computed before (so the same joints and band asked again in a row are not checked again).
-An arm whose clear search came to rest (no step left that helps, or its weighted error
-falling by less than ``REST_M`` in a call: creeping along the body) is not
-searched again while its goal stays within ``STILL_GOAL_M`` and ``STILL_GOAL_RAD`` of that goal
-and its last target (its own pairs) is still clear; that period takes the check of the last
-target it made.
+A search step that cuts the weighted error by less than ``REST_M`` ends the call's search (it
+goes on from the arm's last target the next period): where the first step cut it by more,
+each later step of the call cut it by 0.023 mm (median; 0.12 mm at the 90th percentile) on
+generated seeds 3401 and 3402, against 0.85 mm for a first step, so a call takes one or two
+steps where it took ``SEARCH_STEPS``. A
+call whose search cut the error by less than ``REST_M`` in all came to rest (no step left that
+helps, or creeping along the body); the next call, if its goal is within ``STILL_GOAL_M`` and
+``STILL_GOAL_RAD`` of that goal, takes the pose it rested at again when that pose (its own
+pairs) still keeps the room: one check instead of a search, and the lead below goes on
+toward it.
 
 An arm the search moves, given its commanded joints (the trajectory generator's, lagging
 behind the target at the joints' speed limits), gets a target at most ``LEAD_RAD`` (0.05 rad,
@@ -156,7 +161,8 @@ class CollisionRoom:
         self._pair_arms: dict[tuple[str, str], tuple[str, ...]] = {}
         self.pushed_periods = dict.fromkeys(self.arms, 0)
         self.moved: set[str] = set()  # the arms the last call moved
-        self._rested: dict[str, tuple | None] = {}  # arm -> (goal, joints) a search rested at
+        # arm -> (goal, joints) the last call's search of the arm came to rest at
+        self._rested: dict[str, tuple] = {}
         self.skipped = 0  # clear searches skipped: the goal still where one came to rest
         self.last_clearance_m = np.inf
         self._last_key: tuple | None = None  # _distance's last check: (joints' bytes, near_m)
@@ -227,6 +233,7 @@ class CollisionRoom:
         self._checks_left = MAX_CHECKS
         self._short = False
         self.searched = {}
+        last_rests, self._rested = self._rested, {}
         d, pair = self._distance(q_next, near_m=0.0)
         if d >= self.room_m:
             self.last_clearance_m = d
@@ -234,11 +241,12 @@ class CollisionRoom:
             return q_next
         if goals:
             q, d_q, moved = self._clear_search(np.asarray(q_prev_rad, dtype=float), q_next, goals,
-                                               d, pair)
+                                               d, pair, last_rests)
             if d_q >= self.room_m:
                 if commanded:
                     q, d_q = self._led_from_command(q, d_q, moved, commanded)
                 return self._done(q, d_q, moved)
+            self._rested = {}
         q = q_next.copy()
         moved = set()
         for _ in range(NEWTON_STEPS):
@@ -282,7 +290,8 @@ class CollisionRoom:
         return self._done(q, self._distance(q)[0], moved)
 
     def _clear_search(self, q_prev: np.ndarray, q_next: np.ndarray, goals: dict, d: float,
-                      pair: tuple[str, str]) -> tuple[np.ndarray, float, set[str]]:
+                      pair: tuple[str, str], last_rests: dict
+                      ) -> tuple[np.ndarray, float, set[str]]:
         """The arms in the band (``q_next``'s closest pair ``pair`` at ``d`` < room, exact):
         from their last targets toward their goals, clear of the body (see the module
         docstring). Returns (joints, their clearance, the arms moved)."""
@@ -295,21 +304,30 @@ class CollisionRoom:
                 break
             arm = arms[0]
             index, sl = self._index[arm], self._slices[arm]
+            reach, T_goal = goals[arm]
+            T_goal = np.ascontiguousarray(T_goal, float)
+            moved.add(arm)
+            rested = last_rests.get(arm)  # (goal, pose) the last call's search rested at
+            if rested is not None and goal_within(rested[0], T_goal, STILL_GOAL_M,
+                                                  _STILL_GOAL_COS):
+                # the goal still where it was: the last call's answer, if it keeps the room
+                # (one check; the legs and the other arm may have moved)
+                q[sl] = rested[1]
+                d, pair_prev = self._distance(q)
+                if self._own_closest(q, arm, d, pair_prev)[0] >= self.room_m:
+                    self.skipped += 1
+                    self._rested[arm] = rested
+                    pair = pair_prev  # the check just made (repeatable: the same a second time)
+                    continue
             q[sl] = q_prev[sl]
             d, pair_prev = self._distance(q)
             # the arm's own pairs (the others it cannot change: the other arm's elbow deep in
             # the torso leaves every step of this arm's search the same clearance and a zero
             # gradient)
             d_arm, pair_arm = self._own_closest(q, arm, d, pair_prev)
-            reach, T_goal = goals[arm]
-            T_goal = np.ascontiguousarray(T_goal, float)
-            moved.add(arm)
-            if d_arm >= self.room_m and self._still(arm, q[sl], T_goal):
-                self.skipped += 1
-                pair = pair_prev  # the check just made (repeatable: the same a second time)
-                continue
-            q, d, rested = self._search_arm(q, d_arm, pair_arm, index, reach, T_goal, arm)
-            self._rested[arm] = (T_goal, q[sl].copy()) if rested else None
+            q, d, at_rest = self._search_arm(q, d_arm, pair_arm, index, reach, T_goal, arm)
+            if at_rest:
+                self._rested[arm] = (T_goal, q[sl].copy())
             d, pair = self._distance(q)
         return q, d, moved
 
@@ -335,15 +353,6 @@ class CollisionRoom:
                 q, d = q_led, d_led
                 self.led += 1
         return q, d
-
-    def _still(self, arm: str, q_arm: np.ndarray, T_goal: np.ndarray) -> bool:
-        """The arm's last search came to rest at ``q_arm`` for a goal within STILL_GOAL_M and
-        STILL_GOAL_RAD of ``T_goal``: searching again would find the same pose."""
-        rested = self._rested.get(arm)
-        # np.array_equal's value without its wrapper
-        if rested is None or not (rested[1] == q_arm).all():
-            return False
-        return goal_within(rested[0], T_goal, STILL_GOAL_M, _STILL_GOAL_COS)
 
     def _gradient(self, q: np.ndarray, d: float, pair: tuple[str, str],
                   index: np.ndarray, arm: str | None = None) -> np.ndarray:
@@ -427,10 +436,13 @@ class CollisionRoom:
                 c_try = weighted_error(q_try[first:first + 6], base, offset, alpha, a, dd, end,
                                        T_goal, _W, T, J, e)
                 if c_try < c or d < self.room_m <= d_try:
+                    gain = math.sqrt(c) - math.sqrt(c_try)
                     q, d, c, pair = q_try, d_try, c_try, pair_try
                     break
             else:
                 return q, d, True
+            if gain < REST_M:  # creeping: the call's search ends here (at rest if this was
+                break          # its first step)
         # creeping along the body (its weighted error falling by less than REST_M a call):
         # at rest too
         return q, d, math.sqrt(c_start) - math.sqrt(c) < REST_M

@@ -427,6 +427,16 @@ def planned_contacts(gait: Gait) -> list[tuple[Contact | None, Contact | None]]:
     return contacts
 
 
+def _flat_sole(T_world_sole: np.ndarray, floor_z_m: float) -> np.ndarray:
+    """A sole pose laid flat on the floor at ``floor_z_m``: its place and heading kept."""
+    yaw = math.atan2(float(T_world_sole[1, 0]), float(T_world_sole[0, 0]))
+    c, s = math.cos(yaw), math.sin(yaw)
+    T = np.eye(4)
+    T[:2, :2] = ((c, -s), (s, c))
+    T[0, 3], T[1, 3], T[2, 3] = float(T_world_sole[0, 3]), float(T_world_sole[1, 3]), floor_z_m
+    return T
+
+
 def planned_support(gait: Gait, floor_z_m: float | None = None) -> np.ndarray:
     """Per period the soles that carry the robot in this phase of the step, the swing foot at
     its landing place: (n, 2, 4, 4) world poses (right, left), for the capture-point monitor.
@@ -1293,9 +1303,11 @@ class WalkTarget(Target):
             self.zmp_periods += 1
             self.zmp_inside_periods += outside <= -ZMP_INSIDE_MARGIN_M
         self.final_feet = {"right": poses[0].copy(), "left": poses[1].copy()}
+        right_down, left_down = self._rows["support"][k]
         store[SUPPORT_PLAN] = SupportPlan(self._support_in_estimate(k)
                                           if self.support_where_standing
-                                          else self._support_poses[k], None)
+                                          else self._support_poses[k], None,
+                                          (not right_down, not left_down))
         q = plan.q_rad[k]
         if self.stabilizer is not None:
             q = self._stabilized(k, q.copy(), zmp if math.isfinite(outside) else None)
@@ -1514,14 +1526,23 @@ class WalkTarget(Target):
         own: seed 12's was 13 mm outside while its error in the pattern's frame was 12 mm,
         and the monitor stopped it. Off for the normal gait: two 100 N pushes' stops came
         55-435 ms later (the support moved with the pushed stance sole) and those walks fell
-        (docs/history/walking.md, round 13)."""
+        (docs/history/walking.md, round 13). The soles the row has down are laid where the
+        estimate has them (flat, on the plan's floor), the swing foot's landing place from the
+        pattern's frame: a frame laid from the more loaded sole alone moved the whole hull
+        when the other sole took the load (87 mm at a fast walk's last landing, the capture
+        point past its front line, a false stop; round 19)."""
         planned_x, planned_y, sole_x, sole_y, c, s = self._pattern_frame(
             k, ankle_wrenches(self.store))
         M = np.eye(4)
         M[:2, :2] = ((c, s), (-s, c))  # the turn back: estimated heading less planned
         M[0, 3] = sole_x - (c * planned_x + s * planned_y)
         M[1, 3] = sole_y - (-s * planned_x + c * planned_y)
-        return M @ self._support_poses[k]
+        laid = M @ self._support_poses[k]
+        sensed = self.store[T_WORLD_SOLES]
+        for column, down in enumerate(self._rows["support"][k]):
+            if down:
+                laid[column] = _flat_sole(sensed[column], float(laid[column, 2, 3]))
+        return laid
 
     def _stabilized(self, k: int, q: np.ndarray, zmp: np.ndarray | None) -> np.ndarray:
         """The pattern's joints ``q`` with the stabilizer's corrections (see
