@@ -21,9 +21,8 @@ the code that measures it is wrong (review 18's delayed state, round 19); its bo
 period (:data:`hubo_cli.drivers.sim.STATE_LATE_S`), for the same 0.1 s.
 
 On the robot the two clocks need not be one. Through ``achd`` (the daemon on another
-computer, e.g. Hubo's body and vision computers powered up seconds apart) each state's age is the
-two
-``CLOCK_MONOTONIC``'s difference plus the transport's latency, and the difference is unknown
+computer, e.g. Hubo's body and vision computers powered up seconds apart) each state's age is
+the two ``CLOCK_MONOTONIC``'s difference plus the transport's latency, and the difference is unknown
 (review 19: a healthy robot 0.5-9 s apart tripped at 0.1 s, one -3 s apart was never judged).
 So an age is judged against the smallest age of the last :data:`BASELINE_BLOCK_S` to twice that
 of the daemon's time: that smallest age is the clocks' difference plus the quickest state's
