@@ -27,7 +27,7 @@ def test_every_command_has_help():
 def test_fk_json_matches_library():
     result = run("fk", "right-arm", *PAPER_Q, "--tool", "drill", "--json")
     assert result.exit_code == 0
-    data = json.loads(result.output)
+    data = json.loads(result.stdout)
     T = np.array(data["T"])
     assert np.allclose(T, get_limb("right-arm", "drill").fk(np.array(PAPER_Q, float)))
     assert data["position_mm"][0] == pytest.approx(484.0, abs=0.1)
@@ -54,7 +54,7 @@ def test_ik_round_trip_and_all_candidates():
     result = run("ik", "right-arm", "--xyz", "484", "-170", "75", "--rpy", "0", "0", "0",
                  "--tool", "drill", "--all", "--json")
     assert result.exit_code == 0
-    data = json.loads(result.output)
+    data = json.loads(result.stdout)
     assert data["status"] == "exact" and len(data["candidates"]) == 8
     T = get_limb("right-arm", "drill").fk(np.array(data["q_rad"]))
     assert np.allclose(T[:3, 3], [0.484, -0.170, 0.075], atol=1e-9)
@@ -64,7 +64,7 @@ def test_ik_matrix_and_prev():
     T = get_limb("right-arm", "hand").fk(np.array(PAPER_Q, float))
     result = run("ik", "right-arm", "--matrix", *map(str, T.ravel()), "--prev", *PAPER_Q,
                  "--json")
-    data = json.loads(result.output)
+    data = json.loads(result.stdout)
     assert np.allclose(data["q_rad"], np.array(PAPER_Q, float), atol=1e-9)
 
 

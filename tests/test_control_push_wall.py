@@ -71,7 +71,7 @@ def test_cli_push_wall_left(tmp_path):
     result = CliRunner().invoke(main, ["task", "push-wall", "--direction", "left", "--json",
                                        "--out", str(out)])
     assert result.exit_code == 0, result.output
-    summary = json.loads(result.output)
+    summary = json.loads(result.stdout)
     assert summary["direction"] == "left" and summary["estop"] == "on"
     assert not summary["fell"] and not summary["tipped"]  # on both code paths
     assert summary["t_emergency_s"] is not None  # 1.38 s on both code paths

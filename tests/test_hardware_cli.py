@@ -155,7 +155,7 @@ def test_a_live_session_on_the_hardware_driver_runs_in_real_time(tmp_path):
     finally:
         emu.close()
     assert result.exit_code == 0, result.output
-    summary = json.loads(result.output)
+    summary = json.loads(result.stdout)
     assert summary["speed"] == 1.0
     frames = (run / "hubo-ref.bin").stat().st_size // 462
     loop_s = frames * MODEL.control_period_s
@@ -193,7 +193,7 @@ def test_a_task_closes_the_loop_through_the_fake_daemon(tmp_path):
         daemon.send_signal(signal.SIGTERM)
         out, err = daemon.communicate(timeout=20)
     assert result.exit_code == 0, result.output
-    summary = json.loads(result.output)
+    summary = json.loads(result.stdout)
     assert summary["completed"] and summary["driver"] == "hardware"
     stats = json.loads(out)
     assert daemon.returncode == 0, err

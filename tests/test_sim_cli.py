@@ -57,7 +57,7 @@ def test_push_direction_reaches_the_run_and_a_bad_one_is_refused(tmp_path):
                                        "--push-direction", "right", "--json", "--out",
                                        str(tmp_path / "run")])
     assert result.exit_code == 0, result.output
-    assert json.loads(result.output)["push_direction"] == [0.0, -1.0, 0.0]
+    assert json.loads(result.stdout)["push_direction"] == [0.0, -1.0, 0.0]
     bad = CliRunner().invoke(main, ["sim", "--push", "60", "--push-direction", "up",
                                     "--out", str(tmp_path / "bad")])
     assert bad.exit_code == 2

@@ -174,7 +174,7 @@ def test_cli_sweep_writes_the_table(tmp_path):
     result = CliRunner().invoke(main, ["sweep", "sim", "--seeds", "3", "--set", "duration=0.4",
                                        "--workers", "0", "--out", str(tmp_path), "--json"])
     assert result.exit_code in (0, 1), result.output
-    report = json.loads(result.output)
+    report = json.loads(result.stdout)
     assert report["jobs"] == 1 and report["rows"][0]["seed"] == 3
     assert (tmp_path / "sweep.csv").exists()
     refused = CliRunner().invoke(main, ["sweep", "no-such-task", "--out", str(tmp_path / "x")])
@@ -255,7 +255,7 @@ def test_a_run_refused_in_preflight_is_the_row_hubo_task_run_says(tmp_path):
                                        "--set", "width_mm=20", "--set", "height_mm=20",
                                        "--workers", "0", "--out", str(out), "--json"])
     assert result.exit_code == 4, result.output
-    (row,) = json.loads(result.output)["rows"]
+    (row,) = json.loads(result.stdout)["rows"]
     assert (row["ended"], row["exit_code"], row["run_dir"]) == ("refused", 4, "")
     assert row["error"].startswith("cut-rectangle refused in pre-flight, nothing moved: step ")
     assert sorted(p.name for p in out.iterdir()) == [".hubo-run", "sweep.csv", "sweep.png"]

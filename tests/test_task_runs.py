@@ -305,7 +305,7 @@ def test_a_small_rectangle_is_cut_accurately_with_a_full_run_folder(tmp_path):
     result = _invoke("cut-rectangle", "--width", "40", "--height", "30", "--no-estop",
                      "--out", str(out), "--json")
     assert result.exit_code == 0, result.output
-    s = json.loads(result.output)
+    s = json.loads(result.stdout)
     assert s["completed"] is True and s["estop"] is None and not s["estop_events"]
     # measured on both code paths (AVX-512 / portable, equal to 1e-12): tilt 0.27 deg (bound
     # 11x), bit RMS 1.61 mm (1.9x), max 4.93 mm (1.5x), horizontal torque mean 0.178 N m (3.6x

@@ -766,7 +766,7 @@ def test_the_two_hand_sample_keeps_up_with_the_operator(tmp_path):
                                        str(data_file("trajectories", "two-hand-free.fastrak")),
                                        "--out", str(tmp_path / "run"), "--json"])
     assert result.exit_code == 0, result.output
-    s = json.loads(result.output)
+    s = json.loads(result.stdout)
     assert s["ended"] == "done" and not s["estop_events"] and not s["collision_holds"]
     assert s["collision_periods"] == 0
     assert set(s["rms_error_mm"]) == {"right-arm", "left-arm"}

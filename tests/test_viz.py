@@ -354,7 +354,7 @@ def test_export_rrd_verifies_with_blueprint_and_mcap_reads_back(scene, run_dir, 
     result = CliRunner().invoke(main, ["export", str(run_dir), "--rrd", str(rrd), "--mcap",
                                        str(mcap), "--json"])
     assert result.exit_code == 0, result.output
-    report = json.loads(result.output)
+    report = json.loads(result.stdout)
     assert report["rrd"]["joints"] == 24 and report["mcap"]["layout"] == str(LAYOUT_PATH)
     printed = _rrd_print(rerun, rrd)
     for entity in ("/transforms/torso", "/transforms/joints/RSY", "/plots/wrist_torque_nm",
@@ -566,7 +566,7 @@ def test_replay_command_writes_the_video_it_reports(run_dir, tmp_path):
     result = CliRunner().invoke(main, ["replay", str(run_dir), "--video", str(out), "--size",
                                        "96x64", "--speed", "4", "--camera", "side", "--json"])
     assert result.exit_code == 0, result.output
-    video = json.loads(result.output)["video"]
+    video = json.loads(result.stdout)["video"]
     run_s = len(load_log(run_dir)) * 0.005
     assert video["frames"] == round(run_s * 30 / 4)
     assert (video["width"], video["height"]) == (96, 64)

@@ -90,7 +90,7 @@ def test_sim_step_stands_still_without_a_push(tmp_path):
     result = CliRunner().invoke(main, ["sim", "--duration", "1", "--step", "--json",
                                        "--out", str(tmp_path / "run")])
     assert result.exit_code == 0, result.output
-    fields = json.loads(result.output)
+    fields = json.loads(result.stdout)
     assert fields["fell"] is False  # and no step, on both code paths (AVX-512 / portable)
     assert fields["capture_step"] == {"stepped": False, "trigger_s": None, "steps": 0,
                                       "start_feet": [], "stood_s": None, "stop_s": None,

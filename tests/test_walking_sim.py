@@ -24,7 +24,7 @@ def short_walk(tmp_path_factory):
 def test_walk_prints_its_figures(short_walk):
     result, _ = short_walk
     assert result.exit_code == 0, result.output
-    fields = json.loads(result.output)
+    fields = json.loads(result.stdout)
     for key in ("fell", "final_error_mm", "final_error_deg", "steps", "average_speed_m_s",
                 "zmp_inside_fraction"):
         assert key in fields
@@ -132,7 +132,7 @@ def test_perturbed_walk_lands_its_steps_where_planned(tmp_path, seed):
     result = CliRunner().invoke(main, ["walk", "--to", "1.0", "0", "0", "--perturb", str(seed),
                                        "--corrections", "0", "--json", "--out", str(out)])
     assert result.exit_code == 0, result.output
-    fields = json.loads(result.output)
+    fields = json.loads(result.stdout)
     assert fields["fell"] is False
     assert fields["steps"] == 8
     # against the truth: since the floating base keeps its gyro turn's pivot continuous

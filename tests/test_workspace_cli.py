@@ -44,7 +44,7 @@ def test_json_both_arms(tmp_path):
     result = run("workspace-map", "--arm", "both", "--resolution", "25", "--no-refine",
                  "--limits", "team-code", "--out", str(tmp_path), "--json")
     assert result.exit_code == 0, result.output
-    data = json.loads(result.output)
+    data = json.loads(result.stdout)
     assert data["arm"] == "both" and set(data["arms"]) == {"right", "left"}
     right, left = data["arms"]["right"], data["arms"]["left"]
     # team-code limits are mirror-symmetric: same widths, mirrored ends
