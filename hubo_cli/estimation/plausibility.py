@@ -187,7 +187,6 @@ class SensorPlausibility(Observer):
         self._periods = 0  # periods judged since the reset
         self._wrist_sums = np.zeros((2, len(WRISTS)))  # per wrist: compensated F_z, raw F_z
         self._still = _StillWindow()
-        self._tilt_start_deg = (0.0, 0.0)  # the IMU's roll, pitch less the legs' at the start
         self.imu_legs_max_deg = 0.0  # the largest angle a still window read (a measurement)
         if not self.measured:
             return
@@ -224,7 +223,6 @@ class SensorPlausibility(Observer):
         apart_deg = math.degrees(math.acos(min(1.0, float(legs @ imu))))
         (imu_roll, imu_pitch), (legs_roll, legs_pitch) = _roll_pitch_deg(imu, digits=None), \
             _roll_pitch_deg(legs, digits=None)
-        self._tilt_start_deg = (imu_roll - legs_roll, imu_pitch - legs_pitch)  # floor or mount
         if math.hypot((imu_roll - legs_roll) / IMU_LEGS_MAX_ROLL_DEG,
                       (imu_pitch - legs_pitch) / IMU_LEGS_MAX_PITCH_DEG) > 1.0:
             (imu_roll, imu_pitch), (legs_roll, legs_pitch) = _roll_pitch_deg(imu), \
@@ -281,15 +279,8 @@ class SensorPlausibility(Observer):
         apart_deg = self._still.add((ax / accel_n, ay / accel_n, az / accel_n), T_torso_soles)
         if apart_deg is None:
             return
-        # against the start's difference (a floor's tilt or the IMU's mounting stays; round 19:
-        # a 1.6 deg floor, which the start check lets walk, stopped here at 0.25 s)
-        (imu_roll, imu_pitch), (legs_roll, legs_pitch) = (
-            _roll_pitch_deg(v, digits=None) for v in self._still.verticals)
-        start_roll, start_pitch = self._tilt_start_deg
-        moved_deg = math.hypot(imu_roll - legs_roll - start_roll,
-                               imu_pitch - legs_pitch - start_pitch)
-        self.imu_legs_max_deg = max(self.imu_legs_max_deg, moved_deg)
-        if moved_deg > IMU_LEGS_RUNNING_MAX_DEG:
+        self.imu_legs_max_deg = max(self.imu_legs_max_deg, apart_deg)
+        if apart_deg > IMU_LEGS_RUNNING_MAX_DEG:
             imu, legs = self._still.verticals
             (imu_roll, imu_pitch), (legs_roll, legs_pitch) = _roll_pitch_deg(imu), \
                 _roll_pitch_deg(legs)
@@ -297,10 +288,8 @@ class SensorPlausibility(Observer):
                         f"at t = {state.time_s:.2f} s, the IMU read the torso at roll "
                         f"{imu_roll:.1f} deg, pitch {imu_pitch:.1f} deg, the legs' kinematics "
                         f"at roll {legs_roll:.1f}, pitch {legs_pitch:.1f}: {apart_deg:.1f} deg "
-                        f"apart ({moved_deg:.1f} deg from the start's "
-                        f"{math.hypot(start_roll, start_pitch):.1f}; at most "
-                        f"{IMU_LEGS_RUNNING_MAX_DEG:g} deg): the IMU drifted or tilted since "
-                        "the start",
+                        f"apart (at most {IMU_LEGS_RUNNING_MAX_DEG:g} deg): the IMU drifted "
+                        "or tilted since the start",
                         hint="check the IMU's mounting and calibration, then start the run "
                              "again")
 
