@@ -29,7 +29,12 @@ from hubo_cli.motion.tracker import JointTracker
 from hubo_cli.tasks.spec import Step
 
 DECIMATION = 5  # the follower runs every 5th period (25 ms)
-LAG_LIMIT_RMS_MM = 20.0  # = the outcome check's PATH_MISS_RMS_MM (tasks.runner)
+# A cut whose bit misses its path by more than this (RMS over the cut, mm) does not complete:
+# the outcome check's limit (tasks.runner's PATH_MISS_RMS_MM) and pre-flight's. Healthy runs
+# measured 1.2-2.4 mm (every shipped cut, perturbed robots, force control with the wall 15 mm
+# off, each balancer, the hardware dry run; docs/history/safety.md, round 17); not a task
+# file's setting.
+LAG_LIMIT_RMS_MM = 20.0
 SUGGESTED_SHARE = 0.8  # the speed suggested lags at most this share of the limit
 
 
