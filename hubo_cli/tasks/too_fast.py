@@ -61,24 +61,27 @@ class TooFast:
         need = (f"needs {self.joint} at {self.ratio:.0%} of its {self.what} limit")
         if self.asked is None or self.possible is None:
             return f"{self.step.label} ({self.step.kind}) {need}"
-        unit, setting = (("mm/s", "speed_mm_s") if self.quantity == "speed"
-                         else ("mm/s^2", "accel_mm_s2"))
-        return (f"{self.step.label} ({self.step.kind}) at {_mm(self.asked)} {unit} {need}: "
-                f"the arm follows about {_mm(self.possible)} {unit} or less "
+        unit, setting = self._unit_setting()
+        return (f"{self.step.label} ({self.step.kind}) at {mm_text(self.asked)} {unit} {need}: "
+                f"the arm follows about {mm_text(self.possible)} {unit} or less "
                 f"(the step's {setting}, estimated from the plan)")
 
     def fix(self) -> str:
         """What to change in the task (a hint)."""
         if self.possible is None:
             return "make the step slower"
-        unit, setting = (("mm/s", "speed_mm_s") if self.quantity == "speed"
-                         else ("mm/s^2", "accel_mm_s2"))
+        unit, setting = self._unit_setting()
         shortcut = " (--speed for the shipped cuts)" if self.quantity == "speed" else ""
-        return (f"set the step's {setting} to {_mm(self.possible)} {unit} or less{shortcut}; "
+        return (f"set the step's {setting} to {mm_text(self.possible)} {unit} or less{shortcut}; "
                 "pre-flight checks again")
 
+    def _unit_setting(self) -> tuple[str, str]:
+        """The unit of ``asked`` and ``possible`` and the step's setting they are."""
+        return (("mm/s", "speed_mm_s") if self.quantity == "speed"
+                else ("mm/s^2", "accel_mm_s2"))
 
-def _mm(value_m: float) -> str:
+
+def mm_text(value_m: float) -> str:
     """Metres (per second, per second squared) as millimetres: 2 significant digits below
     10, else whole."""
     mm = value_m * 1000
