@@ -42,8 +42,9 @@ the daemon publishes nothing new, and such a gap is the stale-state check's,
   by the difference and the capture point stop the run at once, without naming the IMU; round
   19: the message names both, the bound is the tilt a walk is run on).
 - after the start, the same comparison whenever the robot stands still on both loaded soles
-  for :data:`STILL_STATES` fresh states, the two verticals averaged over them, more than
-  :data:`IMU_LEGS_RUNNING_MAX_DEG` apart: an IMU that drifts or reads a tilt since the start
+  for :data:`STILL_STATES` fresh states, the two verticals averaged over them, their roll and
+  pitch difference moved more than :data:`IMU_LEGS_RUNNING_MAX_DEG` from the start's (a
+  floor's tilt or the IMU's mounting stays): an IMU that drifts or reads a tilt since the start
   (round 19; while the robot moves, its accelerometer reads its motion as well as gravity).
 
 Not a check: an estimated fall while the soles still carry the robot. A real fall does that (the
@@ -113,7 +114,7 @@ SOLE_LOADED_WEIGHTS = 0.25  # a sole loaded: its F_z at least this many robot we
 # cut-slot, teleop replays, nominal and perturbed; the review's real-sensor dry runs with noise
 # and 0.01-0.1 deg quantisation) read at most 0.90 deg over 2-173 windows a run (sim
 # --perturb 3, whose floor tilts 0.01 deg: the simulated soles' contact, not the floor), 13
-# perturbed standing seeds 0.07-0.90; the start check's 1.5 deg keeps a 0.6 deg margin (an IMU
+# perturbed standing seeds 0.07-0.90; the bound's 1.5 deg keeps a 0.6 deg margin (an IMU
 # pitched 1 deg is no fault, 3 deg is: sim at 1.24 s, a walk once it stands)
 STILL_STATES = 50  # 0.25 s
 STILL_GYRO_RAD_S = 0.05
@@ -261,9 +262,9 @@ class SensorPlausibility(Observer):
 
     def _imu_tilt_while_still(self, state: RobotState, store: Store) -> None:
         """Each window of STILL_STATES fresh states standing still on both loaded soles: the
-        IMU's mean vertical against the legs' more than IMU_LEGS_RUNNING_MAX_DEG apart is a
-        fault (module docstring); a state not still starts the window again. (Scalar
-        arithmetic: it runs every fresh state.)"""
+        IMU's mean vertical against the legs' moved more than IMU_LEGS_RUNNING_MAX_DEG from the
+        start's difference is a fault (module docstring); a state not still starts the window
+        again. (Scalar arithmetic: it runs every fresh state.)"""
         T_torso_soles = store.get(T_TORSO_SOLES)
         ax, ay, az = state.imu_accel_m_s2.tolist()
         gx, gy, gz = state.imu_gyro_rad_s.tolist()
