@@ -6,8 +6,8 @@ acceleration (finite differences over the control period) can be compared with i
 The pipeline keeps the robot within them whatever the plan says, so a step over them makes the
 robot lag behind its path there: pre-flight says so in a warning. How far behind is
 :mod:`hubo_cli.tasks.cut_lag`'s to measure (a cut too far behind is refused): a limit exceeded
-for a period or two costs nothing (cut-rectangle's corners speeding up at 2,000 mm/s^2 ask 16
-times an acceleration limit at 10 mm/s, and the bit followed within 1.3 mm RMS).
+for a period or two costs nothing (cut_lag's docstring has the measurement: cut-rectangle's
+corners).
 
 What the step can do instead scales from what it asks: a joint's velocity grows with the
 tool's speed; its acceleration with the tool's own (in the ramps at each corner of a cut) plus
