@@ -273,7 +273,7 @@ def test_a_cut_log_says_it_ends_early(tmp_path):
     """Review 19: a run's log.csv cut to half (no log.parquet) was exported and replayed
     without a word. The log says how many periods it holds of those its log.json counts, and
     hubo export / replay say it on a warning line and in their JSON (``periods_expected``)."""
-    from hubo_cli.cli.export import report_cut_short
+    from hubo_cli.cli.output import report_cut_short
 
     _write(tmp_path, _rows(40)).close()
     whole = load_log(tmp_path)

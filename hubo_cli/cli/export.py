@@ -8,16 +8,7 @@ import click
 from rich.markup import escape
 
 from hubo_cli.cli.options import force_option
-from hubo_cli.cli.output import busy, console, err_console, print_json, warn
-
-
-def report_cut_short(log, report: dict, as_json: bool) -> None:
-    """A log cut short (fewer periods than its log.json says the run logged): the warning
-    line on stderr and ``periods_expected`` in the JSON report; nothing for a whole log."""
-    if log.cut_short:
-        report["periods_expected"] = log.periods_expected
-        if not as_json:
-            warn(log.cut_short)
+from hubo_cli.cli.output import busy, console, err_console, print_json, report_cut_short
 
 
 @click.command("export")

@@ -44,6 +44,7 @@ EXIT_CODES = ("Exit codes: 0 success, 1 other error or a run that did not comple
 
 
 DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
+ARGS = "hubo.args"  # key of click's ctx.meta: the command line after ``hubo``
 
 
 def replace_unencodable_output() -> None:
@@ -166,9 +167,6 @@ def with_exit_codes(command: click.Command) -> click.Command:
         for sub in command.commands.values():
             with_exit_codes(sub)
     return command
-
-
-ARGS = "hubo.args"  # key of click's ctx.meta: the command line after ``hubo``
 
 
 def json_asked(exc: click.ClickException, ctx: click.Context) -> bool:

@@ -102,6 +102,15 @@ def warn(message: str) -> None:
     err_console.print(f"[yellow]warning:[/] {message}")
 
 
+def report_cut_short(log, report: dict, as_json: bool) -> None:
+    """A log cut short (fewer periods than its log.json says the run logged): the warning
+    line on stderr and ``periods_expected`` in the JSON report; nothing for a whole log."""
+    if log.cut_short:
+        report["periods_expected"] = log.periods_expected
+        if not as_json:
+            warn(log.cut_short)
+
+
 def interactive() -> bool:
     """True when stdout is a terminal (progress bars and live views are shown)."""
     return sys.stdout.isatty()

@@ -7,9 +7,8 @@ from pathlib import Path
 
 import click
 
-from hubo_cli.cli.export import report_cut_short
 from hubo_cli.cli.options import force_option
-from hubo_cli.cli.output import console, err_console, print_json
+from hubo_cli.cli.output import console, err_console, print_json, report_cut_short
 from hubo_cli.viz.camera import DEFAULT_PRESET, PRESETS
 
 

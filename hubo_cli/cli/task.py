@@ -400,7 +400,6 @@ def _refuse(ctx: click.Context, plan, as_json: bool) -> None:
     raise preflight_refusal(plan)
 
 
-
 PHASE_WORDS = {"raise": "raising the tool", "run": "running", "settle": "settling",
                "stopped": "[bold red]EMERGENCY STOP: reverted and holding[/]"}
 

@@ -470,13 +470,13 @@ def not_followed(summary: dict) -> list[str]:
     orientation RMS above :data:`FOLLOW_BOUND_DEG` (none, one or both)."""
     lines = []
     reach = summary.get("reach", {})
-    for key, bound, unit in (("followed_position_rms_mm", FOLLOW_BOUND_MM, "mm"),
-                             ("followed_orientation_rms_deg", FOLLOW_BOUND_DEG, "deg")):
-        hands = [(r[key], arm, r["followed_share"]) for arm, r in reach.items()
-                 if r.get(key) is not None]
-        if hands and max(hands)[0] > bound:
-            rms, arm, share = max(hands)
-            what = "the operator's goals" if unit == "mm" else "the operator's turn of the hand"
+    for key, bound, unit, what in (
+            ("followed_position_rms_mm", FOLLOW_BOUND_MM, "mm", "the operator's goals"),
+            ("followed_orientation_rms_deg", FOLLOW_BOUND_DEG, "deg",
+             "the operator's turn of the hand")):
+        rms, arm, share = max(((r[key], arm, r["followed_share"]) for arm, r in reach.items()
+                               if r.get(key) is not None), default=(None, None, None))
+        if rms is not None and rms > bound:
             lines.append(f"the {arm} hand missed {what} by {rms:.0f} {unit} RMS over the "
                          f"{share:.0%} of the time they were reachable and followed live "
                          f"(bound {bound:.0f} {unit}): it did not follow")

@@ -53,6 +53,7 @@ from hubo_cli.estimation.keys import (
     CONTACT,
     T_WORLD_SOLES,
 )
+from hubo_cli.geometry import pose_laid_flat
 from hubo_cli.model import RobotModel
 from hubo_cli.pin_robot import PinRobot, load_pin_robot
 from hubo_cli.state import RobotState
@@ -350,15 +351,8 @@ class CapturePointMonitor(Module):
         poses = np.array(plan.T_world_soles, dtype=float)
         estimated = store[T_WORLD_SOLES]
         for side in range(2):
-            if not swinging[side]:
-                continue
-            T = estimated[side]
-            yaw = math.atan2(T[1, 0], T[0, 0])
-            flat = np.eye(4)
-            flat[:2, :2] = ((math.cos(yaw), -math.sin(yaw)), (math.sin(yaw), math.cos(yaw)))
-            flat[:2, 3] = T[:2, 3]
-            flat[2, 3] = poses[1 - side][2, 3]  # the plan's floor
-            poses[side] = flat
+            if swinging[side]:  # on the plan's floor
+                poses[side] = pose_laid_flat(estimated[side], poses[1 - side][2, 3])
         outside, _ = _support(poses, True, True, self._corners, self.cp_m, self._margin_used_m,
                               self.corner_tolerance_m, np.zeros(4), np.empty((2, 4, 4)))
         return outside

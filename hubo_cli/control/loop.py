@@ -446,7 +446,7 @@ class ControlLoop:
                     self.estimator.reset(state)
                 except SensorFault as err:
                     refused = err
-                    ended, said[:], exc = "device", [str(err)], err
+                    ended, said, exc = "device", [str(err)], err
             q0 = np.array(state.q_rad, dtype=float)
             self._cmd = self._cmd_prev = self._cmd_prev2 = q0
             for m, view in zip(self.modules, self._views, strict=True):
@@ -464,7 +464,7 @@ class ControlLoop:
                     if stance is not None:  # a fault's or a log failure's stance goes on
                         said.append(f"interrupted ({cause})")
                     else:
-                        ended, said[:] = "interrupted", [f"interrupted ({cause})"]
+                        ended, said = "interrupted", [f"interrupted ({cause})"]
                         stance = self._stance_stop(t_s)
                         if stance is None:
                             break
@@ -495,7 +495,7 @@ class ControlLoop:
                     # (a module that finds the robot not following: device trouble, braked)
                     ended = "device" if isinstance(err, DeviceError) else f"{stage}-error"
                     # a library error is already a message for the user; anything else is a bug
-                    said[:] = [str(err) if isinstance(err, HuboError) else (
+                    said = [str(err) if isinstance(err, HuboError) else (
                         f"{type(err).__name__} in {stage}: {err}")]
                     exc = err
                     break
@@ -509,7 +509,7 @@ class ControlLoop:
                     state = driver.step()
                 except Exception as err:  # noqa: BLE001
                     ended = "device" if isinstance(err, DeviceError) else "driver-error"
-                    said[:], exc = [f"{type(err).__name__}: {err}"], err
+                    said, exc = [f"{type(err).__name__}: {err}"], err
                     driver.stop()
                     held = True  # (the driver braked and holds by itself)
                     break
@@ -524,14 +524,14 @@ class ControlLoop:
                         if stance is not None:  # already stopping in a stance: said too
                             said.append(str(err))
                         else:  # a walk stops in a stance as after Ctrl-C, the rest brakes
-                            ended, said[:] = "device", [str(err)]
+                            ended, said = "device", [str(err)]
                             stance = self._stance_stop(t_s)
                             if stance is None:
                                 break
                     except Exception as err:  # noqa: BLE001 (ends in a smooth stop)
                         ended = "device" if isinstance(err, DeviceError) else "estimation-error"
                         exc = err
-                        said[:] = [str(err) if isinstance(err, HuboError) else (
+                        said = [str(err) if isinstance(err, HuboError) else (
                             f"{type(err).__name__} in estimation: {err}")]
                         break
                 self._remember(np.array(q, dtype=float))
@@ -554,7 +554,7 @@ class ControlLoop:
                     if stance is not None:
                         said.append(self.log.error)
                     else:
-                        ended, said[:] = "log-error", [self.log.error]
+                        ended, said = "log-error", [self.log.error]
                         stance = self._stance_stop(t_s)
                         if stance is None:
                             break
@@ -568,14 +568,14 @@ class ControlLoop:
                     break
             if interrupt_pending() is not None and ended in ("finished", "done"):
                 # noted in the last period: the run ends interrupted (nothing more to do)
-                ended, said[:] = "interrupted", [f"interrupted ({take_interrupt()})"]
+                ended, said = "interrupted", [f"interrupted ({take_interrupt()})"]
         except KeyboardInterrupt as err:
             cause = interrupt_cause(err)
             if stance is not None:
                 stance.end(f"braked: a second interrupt ({cause})", self.period * self.dt_s)
                 said.append(f"second interrupt ({cause})")
             else:
-                ended, said[:] = "interrupted", [f"interrupted ({cause})"]
+                ended, said = "interrupted", [f"interrupted ({cause})"]
             exc = err
             self._count_a_logged_period()
         if stance is not None and not stance.outcome:  # an error ended it

@@ -147,9 +147,9 @@ from hubo_cli.state import (
 from hubo_cli.urdf import DRILL_FRAME, PHYSICS_DRILL_URDF, PHYSICS_URDF, link_frames
 
 # A simulated state is measured at the simulator's time, its age 0 to the last bit: older than
-# half a period for the hardware check's 0.1 s (:mod:`hubo_cli.drivers.state_age`) is a fault of
-# the code that measures it (review 18's delayed state, 100 ms: a capture-point stop nothing
-# explained, which the hardware's 100 ms bound would not have caught either)
+# half a period for 0.1 s, the hardware check's span (:mod:`hubo_cli.drivers.state_age`), is a
+# fault of the code that measures it (review 18's delayed state, 100 ms: a capture-point stop
+# nothing explained, which the hardware's 100 ms bound would not have caught either)
 STATE_LATE_S = 0.0025
 HAND_FRAMES = {"right-wrist": ("RWP_link", "right_hand"), "left-wrist": ("LWP_link", "left_hand")}
 HAND_LINK_OF = {frame: link for link, frame in HAND_FRAMES.values()}

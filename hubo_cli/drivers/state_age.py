@@ -49,7 +49,6 @@ STATE_AGE_FOR_S = 0.1  # ... for this long of the daemon's time (20 periods)
 # apart 0.1 ms/s at most)
 BASELINE_BLOCK_S = 30.0
 
-
 DAEMON_HINT = ("check hubo-daemon's load and priority on the robot's computer, then start the "
                "run again")
 

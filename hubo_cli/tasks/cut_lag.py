@@ -17,7 +17,6 @@ and 40 mm/s 3.0, 5.2 and 7.7 (9.1 with 2,000 mm/s^2 corners); cut-slot at 100 an
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,9 +26,15 @@ from hubo_cli.kinematics.limb import Limb
 from hubo_cli.motion.limits import JointLimits
 from hubo_cli.motion.tracker import JointTracker
 from hubo_cli.tasks.spec import Step
+from hubo_cli.tasks.too_fast import mm_text
 
 DECIMATION = 5  # the follower runs every 5th period (25 ms)
-LAG_LIMIT_RMS_MM = 20.0  # = the outcome check's PATH_MISS_RMS_MM (tasks.runner)
+# A cut whose bit misses its path by more than this (RMS over the cut, mm) does not complete:
+# the outcome check's limit (tasks.runner's PATH_MISS_RMS_MM) and pre-flight's. Healthy runs
+# measured 1.2-2.4 mm (every shipped cut, perturbed robots, force control with the wall 15 mm
+# off, each balancer, the hardware dry run; docs/history/safety.md, round 17); not a task
+# file's setting.
+LAG_LIMIT_RMS_MM = 20.0
 SUGGESTED_SHARE = 0.8  # the speed suggested lags at most this share of the limit
 
 
@@ -52,20 +57,15 @@ class CutLag:
 
     def message(self) -> str:
         """One line: the cut, its speed, the lag, and the speed the arm follows."""
-        return (f"{self.step.label} ({self.step.kind}) at {_mm(self.step.speed_m_s)} mm/s: "
+        return (f"{self.step.label} ({self.step.kind}) at {mm_text(self.step.speed_m_s)} mm/s: "
                 f"the arm, within its joints' limits, would lag {self.rms_m * 1000:.0f} mm RMS "
                 f"behind the path ({self.max_m * 1000:.0f} mm at most; a cut may miss "
-                f"{LAG_LIMIT_RMS_MM:g}); it follows about {_mm(self.possible_m_s)} mm/s")
+                f"{LAG_LIMIT_RMS_MM:g}); it follows about {mm_text(self.possible_m_s)} mm/s")
 
     def fix(self) -> str:
         """What to change (a hint)."""
-        return (f"cut at {_mm(self.possible_m_s)} mm/s or less: the step's speed_mm_s "
+        return (f"cut at {mm_text(self.possible_m_s)} mm/s or less: the step's speed_mm_s "
                 "(--speed for the shipped cuts)")
-
-
-def _mm(value_m: float) -> str:
-    mm = value_m * 1000
-    return f"{mm:.2g}" if mm < 10 else f"{math.floor(mm):.0f}"
 
 
 def lagging_cuts(steps: tuple[Step, ...] | list[Step], arm: Limb, limits: JointLimits,

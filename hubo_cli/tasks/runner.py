@@ -31,6 +31,7 @@ from hubo_cli.model import RobotModel, load_model
 from hubo_cli.posture import home_posture
 from hubo_cli.runs import shown_name
 from hubo_cli.session import RunObserver, RunResult, RunSetup, run, settled_objects
+from hubo_cli.tasks.cut_lag import LAG_LIMIT_RMS_MM
 from hubo_cli.tasks.phases import SETTLE_TIMEOUT_S
 from hubo_cli.tasks.plan import EDGE_NAMES, Plan, make_plan
 from hubo_cli.tasks.spec import TaskSpec, format_override
@@ -40,10 +41,9 @@ PAPER_TORQUE_NM = {"horizontal": {"mean": 0.14, "max": 0.23},
                    "vertical": {"mean": 0.15, "max": 0.35}}
 PAPER_RMS_ERROR_MM = 17.0
 # The outcome check: a cut whose measured bit missed its path by more than this (RMS over the
-# cut, mm) did not complete, however the loop ended. Healthy runs measured 1.2-2.4 mm (every
-# shipped cut, perturbed robots, force control with the wall 15 mm off, each balancer, the
-# hardware dry run; docs/history/safety.md, round 17); not a task file's setting.
-PATH_MISS_RMS_MM = 20.0
+# cut, mm) did not complete, however the loop ended; pre-flight refuses a cut the arm would lag
+# behind by as much (the figure and its measurements are held in tasks.cut_lag).
+PATH_MISS_RMS_MM = LAG_LIMIT_RMS_MM
 
 
 @dataclass

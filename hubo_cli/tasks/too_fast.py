@@ -6,8 +6,8 @@ acceleration (finite differences over the control period) can be compared with i
 The pipeline keeps the robot within them whatever the plan says, so a step over them makes the
 robot lag behind its path there: pre-flight says so in a warning. How far behind is
 :mod:`hubo_cli.tasks.cut_lag`'s to measure (a cut too far behind is refused): a limit exceeded
-for a period or two costs nothing (cut-rectangle's corners speeding up at 2,000 mm/s^2 ask 16
-times an acceleration limit at 10 mm/s, and the bit followed within 1.3 mm RMS).
+for a period or two costs nothing (cut_lag's docstring has the measurement: cut-rectangle's
+corners).
 
 What the step can do instead scales from what it asks: a joint's velocity grows with the
 tool's speed; its acceleration with the tool's own (in the ramps at each corner of a cut) plus
@@ -61,24 +61,27 @@ class TooFast:
         need = (f"needs {self.joint} at {self.ratio:.0%} of its {self.what} limit")
         if self.asked is None or self.possible is None:
             return f"{self.step.label} ({self.step.kind}) {need}"
-        unit, setting = (("mm/s", "speed_mm_s") if self.quantity == "speed"
-                         else ("mm/s^2", "accel_mm_s2"))
-        return (f"{self.step.label} ({self.step.kind}) at {_mm(self.asked)} {unit} {need}: "
-                f"the arm follows about {_mm(self.possible)} {unit} or less "
+        unit, setting = self._unit_setting()
+        return (f"{self.step.label} ({self.step.kind}) at {mm_text(self.asked)} {unit} {need}: "
+                f"the arm follows about {mm_text(self.possible)} {unit} or less "
                 f"(the step's {setting}, estimated from the plan)")
 
     def fix(self) -> str:
         """What to change in the task (a hint)."""
         if self.possible is None:
             return "make the step slower"
-        unit, setting = (("mm/s", "speed_mm_s") if self.quantity == "speed"
-                         else ("mm/s^2", "accel_mm_s2"))
+        unit, setting = self._unit_setting()
         shortcut = " (--speed for the shipped cuts)" if self.quantity == "speed" else ""
-        return (f"set the step's {setting} to {_mm(self.possible)} {unit} or less{shortcut}; "
+        return (f"set the step's {setting} to {mm_text(self.possible)} {unit} or less{shortcut}; "
                 "pre-flight checks again")
 
+    def _unit_setting(self) -> tuple[str, str]:
+        """The unit of ``asked`` and ``possible`` and the step's setting they are."""
+        return (("mm/s", "speed_mm_s") if self.quantity == "speed"
+                else ("mm/s^2", "accel_mm_s2"))
 
-def _mm(value_m: float) -> str:
+
+def mm_text(value_m: float) -> str:
     """Metres (per second, per second squared) as millimetres: 2 significant digits below
     10, else whole."""
     mm = value_m * 1000

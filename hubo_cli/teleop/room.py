@@ -40,12 +40,11 @@ A search step that cuts the weighted error by less than ``REST_M`` ends the call
 goes on from the arm's last target the next period): where the first step cut it by more,
 each later step of the call cut it by 0.023 mm (median; 0.12 mm at the 90th percentile) on
 generated seeds 3401 and 3402, against 0.85 mm for a first step, so a call takes one or two
-steps where it took ``SEARCH_STEPS``. A
-call whose search cut the error by less than ``REST_M`` in all came to rest (no step left that
-helps, or creeping along the body); the next call, if its goal is within ``STILL_GOAL_M`` and
-``STILL_GOAL_RAD`` of that goal, takes the pose it rested at again when that pose (its own
-pairs) still keeps the room: one check instead of a search, and the lead below goes on
-toward it.
+steps where it took ``SEARCH_STEPS``. A call whose search cut the error by less than
+``REST_M`` in all came to rest (no step left that helps, or creeping along the body); the next
+call, if its goal is within ``STILL_GOAL_M`` and ``STILL_GOAL_RAD`` of that goal, takes the
+pose it rested at again when that pose (its own pairs) still keeps the room: one check instead
+of a search, and the lead below goes on toward it.
 
 An arm the search moves, given its commanded joints (the trajectory generator's, lagging
 behind the target at the joints' speed limits), gets a target at most ``LEAD_RAD`` (0.05 rad,

@@ -96,7 +96,7 @@ from hubo_cli.estimation.keys import (
     ZMP_WORLD,
 )
 from hubo_cli.falls import has_fallen
-from hubo_cli.geometry import tilt_rad_of_z_axis
+from hubo_cli.geometry import pose_laid_flat, tilt_rad_of_z_axis
 from hubo_cli.kinematics.choice import CAPPED, EXACT, solve_limb
 from hubo_cli.kinematics.dh import JIT, TRUE
 from hubo_cli.model import RobotModel
@@ -425,16 +425,6 @@ def planned_contacts(gait: Gait) -> list[tuple[Contact | None, Contact | None]]:
                                     float(plan.pivot_m[k, column]) if rolling else None))
         contacts.append(tuple(pair))
     return contacts
-
-
-def _flat_sole(T_world_sole: np.ndarray, floor_z_m: float) -> np.ndarray:
-    """A sole pose laid flat on the floor at ``floor_z_m``: its place and heading kept."""
-    yaw = math.atan2(float(T_world_sole[1, 0]), float(T_world_sole[0, 0]))
-    c, s = math.cos(yaw), math.sin(yaw)
-    T = np.eye(4)
-    T[:2, :2] = ((c, -s), (s, c))
-    T[0, 3], T[1, 3], T[2, 3] = float(T_world_sole[0, 3]), float(T_world_sole[1, 3]), floor_z_m
-    return T
 
 
 def planned_support(gait: Gait, floor_z_m: float | None = None) -> np.ndarray:
@@ -1541,7 +1531,7 @@ class WalkTarget(Target):
         sensed = self.store[T_WORLD_SOLES]
         for column, down in enumerate(self._rows["support"][k]):
             if down:
-                laid[column] = _flat_sole(sensed[column], float(laid[column, 2, 3]))
+                laid[column] = pose_laid_flat(sensed[column], float(laid[column, 2, 3]))
         return laid
 
     def _stabilized(self, k: int, q: np.ndarray, zmp: np.ndarray | None) -> np.ndarray:
