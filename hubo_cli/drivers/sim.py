@@ -150,7 +150,7 @@ from hubo_cli.urdf import DRILL_FRAME, PHYSICS_DRILL_URDF, PHYSICS_URDF, link_fr
 # half a period for 0.1 s, the hardware check's span (:mod:`hubo_cli.drivers.state_age`), is a
 # fault of the code that measures it (review 18's delayed state, 100 ms: a capture-point stop
 # nothing explained, which the hardware's 100 ms bound would not have caught either)
-STATE_LATE_S = 0.0025
+STATE_LATE_PERIODS = 0.5
 HAND_FRAMES = {"right-wrist": ("RWP_link", "right_hand"), "left-wrist": ("LWP_link", "left_hand")}
 HAND_LINK_OF = {frame: link for link, frame in HAND_FRAMES.values()}
 SOLE_FRAMES = {"right-ankle": ("RAR_link", "right_sole"), "left-ankle": ("LAR_link", "left_sole")}
@@ -506,7 +506,8 @@ class SimDriver(Driver, SimulatedWorld):
         self._imu_last: tuple[tuple, tuple] | None = None  # last (v_world, R_world_torso rows)
         self._max_tilt_deg = 0.0
         self._delay: CommandDelay | None = None
-        self._state_age = StateAgeGuard("the simulator", limit_s=STATE_LATE_S,
+        self._state_age = StateAgeGuard("the simulator",
+                                        limit_s=STATE_LATE_PERIODS * self.period_s,
                                         clock="the simulator's clock",
                                         hint="a simulated state is measured when it is made: "
                                              "report this with the command line",

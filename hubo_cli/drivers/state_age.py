@@ -18,7 +18,7 @@ The simulated driver applies the same check to its states' time against the simu
 clock (:class:`~hubo_cli.drivers.sim.SimDriver`): the two are one clock (``one_clock``: judged
 against 0, so a lag from the first state is seen too), so a simulated state is never old unless
 the code that measures it is wrong (review 18's delayed state, round 19); its bound is half a
-period (:data:`hubo_cli.drivers.sim.STATE_LATE_S`), for the same 0.1 s.
+period (:data:`hubo_cli.drivers.sim.STATE_LATE_PERIODS`), for the same 0.1 s.
 
 On the robot the two clocks need not be one. Through ``achd`` (the daemon on another
 computer, e.g. Hubo's body and vision computers powered up seconds apart) each state's age is
