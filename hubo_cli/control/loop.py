@@ -193,7 +193,6 @@ class LoopResult:
         stance stop), or one line for a part that failed inside; None when the run ended
         without one (done, finished, interrupted)."""
         if isinstance(self.exception, HuboError):
-            self.exception.events = self.said if len(self.said) > 1 else ()
             return self.exception
         if self.ended in ("module-error", "target-error", "estimation-error", "driver-error"):
             return HuboError(f"the run stopped early: {self.error}",
@@ -603,6 +602,8 @@ class ControlLoop:
                         ended = "log-error"
         self.module_status = self._published()
         dropped = self.period - self.log.rows if self.log is not None and self.log.error else 0
+        if isinstance(exc, HuboError):  # what else the run saw goes with its error
+            exc.events = tuple(said) if len(said) > 1 else ()
         return LoopResult(
             ended=ended, periods=self.period, t_end_s=self.period * self.dt_s,
             error="; ".join(said), said=tuple(said),
