@@ -258,7 +258,7 @@ def _imu_after(from_k: int, deg_per_state: float, cap_deg: float):
 
 def test_an_imu_that_tilts_or_drifts_after_the_start_is_a_fault_once_still_on_both_feet():
     """Review 18: after the start nothing compared the IMU with the legs. Standing still on
-    both loaded soles, an IMU that reads a constant 3 deg from 0.1 s on, or drifts 1 deg/s, is
+    both loaded flat soles, an IMU that reads a constant 3 deg from 0.1 s on, or drifts 1 deg/s, is
     a fault within a window or two of STILL_STATES past the bound, the angles named; 1 deg
     (inside IMU_LEGS_RUNNING_MAX_DEG) is none, nor is anything while the torso turns on the
     legs (not still)."""

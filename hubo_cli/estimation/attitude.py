@@ -685,10 +685,10 @@ class AttitudeObserver(Observer):
         """The legs' kinematics of this period's joints into ``T_TORSO_SOLES`` (a new array;
         None when they are not finite) and, with ``measure``, per sole (right, left): 1 and its
         normal in the torso axes when it lies flat on the floor, else 0 (which ones into
-        ``SOLES_FLAT``). Flat: in contact and
-        pressing ``legs_min_fz_n`` with its centre of pressure ``legs_cop_margin_m`` inside
-        its outline, as the last period's estimate has them (the contact and the wrenches come
-        after the attitude in the period: a sole on its edge would say the floor tilts).
+        ``SOLES_FLAT``). Flat: in contact and pressing ``legs_min_fz_n`` with its centre of
+        pressure ``legs_cop_margin_m`` inside its outline, as the last period's estimate has
+        them (the contact and the wrenches come after the attitude in the period: a sole on
+        its edge would say the floor tilts).
         Returns whether the legs were solved (never without them) and the measurement."""
         legs = self._legs_tilt
         legs[0, 0] = legs[1, 0] = 0.0
