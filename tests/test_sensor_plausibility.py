@@ -15,8 +15,10 @@ from hubo_cli.estimation.build import build_estimator
 from hubo_cli.estimation.plausibility import (
     IMU_FROZEN_STATES,
     IMU_LEGS_MAX_DEG,
+    IMU_LEGS_RUNNING_MAX_DEG,
     SOLES_MAX_WEIGHTS,
     SOLES_OVER_S,
+    STILL_STATES,
     TORSO_TURNED_RAD,
     WRIST_FLAT_STATES,
     WRIST_START_MAX_N,
@@ -243,6 +245,73 @@ def test_an_imu_crooked_against_the_loaded_legs_is_refused_at_the_start():
                                           r"pitch"):  # up or down that slope a walk stops at once
         _estimate(_states(2, **_imu(1.6)))
     assert _estimate(_states(2, **_imu(5.0), ft=_soles(0.0, 0))) == 2
+
+
+def _imu_after(from_k: int, deg_per_state: float, cap_deg: float):
+    """The IMU level until ``from_k``, then pitching by ``deg_per_state`` each state up to
+    ``cap_deg`` (a step to a constant tilt when it is as large; a slow drift when small)."""
+    def deg(k):
+        return 0.0 if k < from_k else min(cap_deg, deg_per_state * (k - from_k + 1))
+    return {"imu_accel_m_s2": lambda k, s: _pitched(deg(k))(k, s)[0],
+            "imu_quat_wxyz": lambda k, s: _pitched(deg(k))(k, s)[1]}
+
+
+def test_an_imu_that_tilts_or_drifts_after_the_start_is_a_fault_once_still_on_both_feet():
+    """Review 18: after the start nothing compared the IMU with the legs. Standing still on
+    both loaded flat soles, an IMU that reads a constant 3 deg from 0.1 s on, or drifts 1 deg/s, is
+    a fault within a window or two of STILL_STATES past the bound, the angles named; 1 deg
+    (inside IMU_LEGS_RUNNING_MAX_DEG) is none, nor is anything while the torso turns on the
+    legs (not still)."""
+    n, tilt_k = 5 * STILL_STATES, STILL_STATES  # the tilt from the second window on
+    with pytest.raises(SensorFault, match=r"standing still on both soles flat for 0.25 s at t = .*"
+                                          r"pitch 3.0 deg, the legs' kinematics at roll 0.0, "
+                                          r"pitch 0.0: 3.0 deg apart .*drifted or tilted") as info:
+        _estimate(_states(n, **_imu_after(tilt_k, 3.0, 3.0)))
+    assert info.value.exit_code == 3 and "\n" not in str(info.value)
+    assert 0.45 < _fault_time_s(info.value) < 0.55  # at the end of the second window
+    with pytest.raises(SensorFault, match="drifted or tilted") as info:  # 1 deg/s
+        _estimate(_states(tilt_k + 2000, **_imu_after(tilt_k, 1.0 * DT, 90.0)))
+    past_s = tilt_k * DT + IMU_LEGS_RUNNING_MAX_DEG  # its mean past the bound by one window
+    assert past_s < _fault_time_s(info.value) <= past_s + 2.5 * STILL_STATES * DT
+    assert _estimate(_states(n, **_imu_after(tilt_k, 1.0, 1.0))) == n
+    assert _estimate(_states(n, **_imu_after(tilt_k, 3.0, 3.0),
+                             q_rad=_ankles_turning(0.1))) == n
+    # round 19: a floor tilted 1.6 deg across (the IMU's vertical 1.6 deg from the legs' from
+    # the start on, which the start check lets walk) is no drift: judged against the start's
+    rolled = {"imu_accel_m_s2": lambda k, s: np.array([0.0, np.sin(np.radians(1.6)),
+                                                       np.cos(np.radians(1.6))]) * 9.80665}
+    assert _estimate(_states(n, **rolled)) == n
+
+
+def _soles_pressing_at(x_m: float):
+    """Both ankles' readings with their soles' centre of pressure ``x_m`` forward of the
+    ankle (their load as it was)."""
+    def change(k, s):
+        ft = dict(s.ft)
+        for sensor in ("right-ankle", "left-ankle"):
+            fz = float(ft[sensor][2])
+            ft[sensor] = np.array([0.0, 0.0, fz, 0.0, -x_m * fz, 0.0])
+        return ft
+    return change
+
+
+def test_the_running_imu_check_judges_only_soles_that_lie_flat():
+    """Round 19's merge: the running check stopped the push-wall's emergency revert on a true
+    IMU. The robot leant on its soles' toe edges, both loaded and still, and the legs'
+    kinematics (which take each sole flat) did not see the lean. An IMU 3 deg from the legs
+    while the soles press 5 mm inside their toe edge (the attitude's legs measurement takes a
+    sole as flat 15 mm inside) is not judged; pressing 10 cm further back, it is a fault."""
+    n, tilt_k = 5 * STILL_STATES, STILL_STATES
+    toe_m = float(MODEL.feet.sole_corners_m()[:, 0].max())
+    assert _estimate(_states(n, **_imu_after(tilt_k, 3.0, 3.0),
+                             ft=_soles_pressing_at(toe_m - 0.005))) == n
+    with pytest.raises(SensorFault, match="drifted or tilted"):
+        _estimate(_states(n, **_imu_after(tilt_k, 3.0, 3.0),
+                          ft=_soles_pressing_at(toe_m - 0.105)))
+
+
+def _fault_time_s(fault: SensorFault) -> float:
+    return float(re.search(r"at t = ([0-9.]+) s", str(fault)).group(1))
 
 
 def _wrist_fz(added_n: float, noise_n: float = 0.0):

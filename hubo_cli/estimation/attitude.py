@@ -73,6 +73,7 @@ from hubo_cli.estimation.keys import (
     IMU_REJECTED,
     OMEGA_TORSO,
     QUAT_WORLD_TORSO,
+    SOLES_FLAT,
     T_TORSO_SOLES,
     WRENCHES,
 )
@@ -607,7 +608,8 @@ class AttitudeObserver(Observer):
         self._T_torso_soles = np.tile(np.eye(4), (2, 1, 1))
         self._legs_tilt = np.zeros((2, 4))
         if model is not None:  # the outline less the margin, where the sole is flat
-            self.writes = (*AttitudeObserver.writes, T_TORSO_SOLES)  # the legs, for the base too
+            # the legs, for the base too; which soles lie flat, for the IMU's running check
+            self.writes = (*AttitudeObserver.writes, T_TORSO_SOLES, SOLES_FLAT)
             corners, margin = model.feet.sole_corners_m(), params.legs_cop_margin_m
             self._inside = (float(corners[:, 0].min()) + margin,
                             float(corners[:, 0].max()) - margin,
@@ -682,10 +684,11 @@ class AttitudeObserver(Observer):
                           measure: bool = True) -> tuple[bool, np.ndarray]:
         """The legs' kinematics of this period's joints into ``T_TORSO_SOLES`` (a new array;
         None when they are not finite) and, with ``measure``, per sole (right, left): 1 and its
-        normal in the torso axes when it lies flat on the floor, else 0. Flat: in contact and
-        pressing ``legs_min_fz_n`` with its centre of pressure ``legs_cop_margin_m`` inside
-        its outline, as the last period's estimate has them (the contact and the wrenches come
-        after the attitude in the period: a sole on its edge would say the floor tilts).
+        normal in the torso axes when it lies flat on the floor, else 0 (which ones into
+        ``SOLES_FLAT``). Flat: in contact and pressing ``legs_min_fz_n`` with its centre of
+        pressure ``legs_cop_margin_m`` inside its outline, as the last period's estimate has
+        them (the contact and the wrenches come after the attitude in the period: a sole on
+        its edge would say the floor tilts).
         Returns whether the legs were solved (never without them) and the measurement."""
         legs = self._legs_tilt
         legs[0, 0] = legs[1, 0] = 0.0
@@ -708,6 +711,7 @@ class AttitudeObserver(Observer):
             if solved == 2:
                 self.legs_periods += 1
         store[T_TORSO_SOLES] = T_torso_soles if solved else None
+        store[SOLES_FLAT] = (bool(legs[0, 0]), bool(legs[1, 0]))
         return bool(solved), legs
 
     def _write(self, store: Store, code: int) -> None:

@@ -37,6 +37,11 @@ T_TORSO_SOLES = Key("T_torso_soles", np.ndarray,
                     "(2, 4, 4): right and left sole poses in the torso frame (m), the legs' "
                     "forward kinematics of this period's joints (None when they are not "
                     "finite): worked out once a period for the layer's observers")
+SOLES_FLAT = Key("soles_flat", tuple,
+                 "(right, left): the sole lies flat on the floor, as the attitude's legs "
+                 "measurement judges it (in contact, pressing legs_min_fz_n with its centre of "
+                 "pressure legs_cop_margin_m inside its outline; the last period's contact and "
+                 "wrenches)")
 COM_WORLD = Key("com_world_m", np.ndarray, "centre of mass in the world (3, m)")
 COM_VELOCITY_WORLD = Key("com_velocity_world_m_s", np.ndarray,
                          "centre-of-mass velocity in the world (3, m/s), filtered")
