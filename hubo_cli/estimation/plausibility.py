@@ -40,7 +40,16 @@ the daemon publishes nothing new, and such a gap is the stale-state check's,
   the measured joints' kinematics): a floor tilted that much or an IMU mounted crooked or
   miscalibrated, which one state cannot tell apart (round 18; the estimate would start tilted
   by the difference and the capture point stop the run at once, without naming the IMU; round
-  19: the message names both, the bound is the tilt a walk is run on).
+  19: the message names both, the bound is the tilt a walk is run on);
+- an ankle sensor wired wrong (round 20): its F_z, the foot's weight removed, below
+  -:data:`SOLE_PULL_MAX_WEIGHTS` of the robot's weight (the floor pushes a sole, it cannot pull
+  it: the sign of F_z flipped), or the centre of pressure it gives its sole more than
+  :data:`COP_OFF_SOLE_M` outside the sole's outline while it carries
+  :data:`SOLE_LOADED_WEIGHTS` of the robot's weight (no force on a sole acts outside it: the
+  sensor turned about its z, a moment's sign flipped), at the start (refused) or for longer
+  than :data:`SOLE_WIRING_OVER_S` later. Sensors swapped
+  between the feet, and a moment flipped or a sensor turned while the centre of pressure stays
+  near the ankle, give readings a working pair gives (docs/history/safety.md, round 20).
 
 Not a check: an estimated fall while the soles still carry the robot. A real fall does that (the
 push-wall robot tipping over its toes read 291 N of 380 N at 30 deg); a joint encoder that lies
@@ -107,6 +116,17 @@ SOLE_LOADED_WEIGHTS = 0.25  # a sole loaded: its F_z at least this many robot we
 # averaged). The drill declared and not held reads 5.2 N
 WRIST_START_MAX_N = 2.5
 WRIST_START_PERIODS = 20
+# An ankle sensor wired wrong (round 20, docs/history/safety.md; healthy walks, stands, pushes,
+# the push-wall and the tasks, nominal and perturbed, both code paths). The floor's push on a
+# sole, its foot's weight removed, read at least -29 N (a foot landing after a side push); F_z's
+# sign flipped reads minus the sole's load, -140 N or less on a standing robot:
+SOLE_PULL_MAX_WEIGHTS = 0.25
+# A sole's centre of pressure from its sensor read at most 8.8 mm outside the sole while it
+# carried SOLE_LOADED_WEIGHTS (20.5 mm for a period with 50 N: a lighter sole is not judged);
+# a sensor turned 180 deg about its z puts a toe-loaded sole's 40 mm beyond its heel, turned 90
+# deg 65 mm beside it
+COP_OFF_SOLE_M = 0.02
+SOLE_WIRING_OVER_S = 0.05  # either for longer than this (s) after the start
 
 
 class SensorFault(DeviceError):
@@ -149,6 +169,8 @@ class SensorPlausibility(Observer):
         self.measured = measured
         self._arms = {wrist: model.limb_slice(arm) for wrist, arm in zip(WRISTS, ARMS,
                                                                           strict=True)}
+        corners = model.feet.sole_corners_m()
+        self._sole_lo, self._sole_hi = corners[:, :2].min(axis=0), corners[:, :2].max(axis=0)
         self.fault: SensorFault | None = None
 
     def reset(self, state: RobotState, store: Store) -> None:
@@ -164,6 +186,7 @@ class SensorPlausibility(Observer):
         self._wrist = dict.fromkeys(WRISTS)
         self._wrist_flat = dict.fromkeys(WRISTS, 0)
         self._soles_over = 0  # periods in a row over the limit
+        self._wiring_over = 0  # periods in a row an ankle sensor read as wired wrong
         self._periods = 0  # periods judged since the reset
         self._wrist_sums = np.zeros((2, len(WRISTS)))  # per wrist: compensated F_z, raw F_z
         if not self.measured:
@@ -180,6 +203,7 @@ class SensorPlausibility(Observer):
                             hint="check the sensor's cable and power, or how it was nulled, "
                                  "then start the run again", refuse=True)
         self._imu_against_legs(state, store)
+        self._ankle_wiring(state, store, start=True)
         self.update(state, store)
 
     def _imu_against_legs(self, state: RobotState, store: Store) -> None:
@@ -221,6 +245,7 @@ class SensorPlausibility(Observer):
         if not self.measured or self.fault is not None:
             return
         self._soles(state)
+        self._ankle_wiring(state, store)
         self._periods += 1
         if self._periods <= WRIST_START_PERIODS:  # (every period: a repeat weighs the same)
             self._wrist_start(state, store)
@@ -243,6 +268,50 @@ class SensorPlausibility(Observer):
                         f"({soles_n / self.weight_n:.1f} times the robot's "
                         f"{self.weight_n:.0f} N) for {self._soles_over * self.period_s:.3f} s "
                         f"at t = {state.time_s:.2f} s")
+
+    def _ankle_wiring(self, state: RobotState, store: Store, start: bool = False) -> None:
+        """An ankle sensor whose F_z pulls its sole or whose centre of pressure lies off its
+        sole (module docstring): refused at the start, a fault once it lasts longer than
+        SOLE_WIRING_OVER_S."""
+        wrenches = store.get(WRENCHES)
+        if wrenches is None:
+            return
+        wrong = None
+        for sensor in ANKLE_SENSORS:
+            w = np.asarray(wrenches[sensor], dtype=float)
+            fz_n = float(w[2])
+            if fz_n < -SOLE_PULL_MAX_WEIGHTS * self.weight_n:
+                wrong = (sensor, f"F_z {fz_n:.0f} N, its foot's weight removed (the floor "
+                                 "pushes a sole, it cannot pull it: at least "
+                                 f"{-SOLE_PULL_MAX_WEIGHTS * self.weight_n:.0f} N)",
+                         "its F_z's sign is flipped")
+                break
+            if not fz_n >= SOLE_LOADED_WEIGHTS * self.weight_n:
+                continue
+            cop_m = np.array([-w[4], w[3]]) / fz_n
+            off_m = float(np.max(np.maximum(self._sole_lo - cop_m, cop_m - self._sole_hi)))
+            if off_m > COP_OFF_SOLE_M:
+                (x0, y0), (x1, y1) = self._sole_lo * 1000, self._sole_hi * 1000
+                wrong = (sensor, f"its sole's centre of pressure at x {round(cop_m[0] * 1000)}, y "
+                                 f"{round(cop_m[1] * 1000)} mm while the sole carries {fz_n:.0f} "
+                                 f"N: {off_m * 1000:.0f} mm outside the sole (x {x0:.0f} to "
+                                 f"{x1:.0f}, y {y0:.0f} to {y1:.0f} mm; at most "
+                                 f"{COP_OFF_SOLE_M * 1000:.0f} mm: no force on a sole acts "
+                                 "outside it)",
+                         "it is turned about its z (mounted 90 or 180 deg off) or the sign of "
+                         "its m_x or m_y is flipped")
+                break
+        self._wiring_over = self._wiring_over + 1 if wrong else 0
+        if wrong is None or not (start or self._wiring_over * self.period_s
+                                 > SOLE_WIRING_OVER_S + 1e-9):
+            return
+        sensor, reading, cause = wrong
+        when = ", at the start: refused before anything moved" if start else (
+            f" for {self._wiring_over * self.period_s:.3f} s at t = {state.time_s:.2f} s")
+        self._raise(f"the {sensor} force-torque sensor reads {reading}{when}",
+                    hint=f"{cause}, or the ankle sensors are wired to the wrong channels: check "
+                         f"the {sensor} sensor's mounting, its cable and hubo-daemon's channel "
+                         "and sign settings for it, then start the run again", refuse=start)
 
     def _frozen_imu(self, state: RobotState, store: Store) -> None:
         """The IMU bit-identical over the last IMU_FROZEN_STATES fresh states while the legs
