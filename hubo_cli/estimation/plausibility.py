@@ -46,10 +46,13 @@ the daemon publishes nothing new, and such a gap is the stale-state check's,
   it: the sign of F_z flipped), or the centre of pressure it gives its sole more than
   :data:`COP_OFF_SOLE_M` outside the sole's outline while it carries
   :data:`SOLE_LOADED_WEIGHTS` of the robot's weight (no force on a sole acts outside it: the
-  sensor turned about its z, a moment's sign flipped), at the start (refused) or for longer
-  than :data:`SOLE_WIRING_OVER_S` later. Sensors swapped
-  between the feet, and a moment flipped or a sensor turned while the centre of pressure stays
-  near the ankle, give readings a working pair gives (docs/history/safety.md, round 20).
+  sensor turned about its z, a moment's sign flipped), or a sole read carrying
+  :data:`SOLE_CARRIES_WEIGHTS` of the weight more than :data:`SOLE_UNDER_M` above one read in
+  the air (the estimate stands the robot on the sole its sensor loads; on a flat floor the
+  other cannot lie under it: the sensors swapped between the feet, seen once a foot lifts), at
+  the start (refused) or for longer than :data:`SOLE_WIRING_OVER_S` later. Swapped sensors
+  before a foot lifts, and a moment flipped or a sensor turned while the centre of pressure
+  stays near the ankle, read as a working pair does (docs/history/safety.md, round 20).
 
 Not a check: an estimated fall while the soles still carry the robot. A real fall does that (the
 push-wall robot tipping over its toes read 291 N of 380 N at 30 deg); a joint encoder that lies
@@ -76,7 +79,7 @@ import numpy as np
 
 from hubo_cli.dataflow import Store
 from hubo_cli.errors import DeviceError
-from hubo_cli.estimation.keys import CONTACT, T_TORSO_SOLES, WRENCHES
+from hubo_cli.estimation.keys import CONTACT, T_TORSO_SOLES, T_WORLD_SOLES, WRENCHES
 from hubo_cli.estimation.observer import Observer
 from hubo_cli.model import ARMS, RobotModel
 from hubo_cli.state import ANKLE_SENSORS, RobotState
@@ -126,6 +129,13 @@ SOLE_PULL_MAX_WEIGHTS = 0.25
 # a sensor turned 180 deg about its z puts a toe-loaded sole's 40 mm beyond its heel, turned 90
 # deg 65 mm beside it
 COP_OFF_SOLE_M = 0.02
+# A sole read carrying SOLE_CARRIES_WEIGHTS of the weight lay at most 2.7 mm above one read as
+# in the air (below SOLE_IN_AIR_WEIGHTS) in the estimate (the floor flat; its tilt on a
+# perturbed robot, 0.5 deg at most, is 2 mm over the 0.24 m between the soles); swapped
+# sensors, the estimate stands the robot on its lifted foot: up to 50-90 mm
+SOLE_UNDER_M = 0.02
+SOLE_CARRIES_WEIGHTS = 0.5
+SOLE_IN_AIR_WEIGHTS = 0.1
 SOLE_WIRING_OVER_S = 0.05  # either for longer than this (s) after the start
 
 
@@ -159,7 +169,7 @@ class SensorPlausibility(Observer):
     """
 
     name = "sensor-plausibility"
-    reads = (T_TORSO_SOLES, WRENCHES, CONTACT)
+    reads = (T_TORSO_SOLES, T_WORLD_SOLES, WRENCHES, CONTACT)
 
     def __init__(self, model: RobotModel, weight_n: float, period_s: float,
                  measured: bool = True, drill_kg: float | None = None) -> None:
@@ -271,8 +281,8 @@ class SensorPlausibility(Observer):
 
     def _ankle_wiring(self, state: RobotState, store: Store, start: bool = False) -> None:
         """An ankle sensor whose F_z pulls its sole or whose centre of pressure lies off its
-        sole (module docstring): refused at the start, a fault once it lasts longer than
-        SOLE_WIRING_OVER_S."""
+        sole, or the two swapped (module docstring): refused at the start, a fault once it
+        lasts longer than SOLE_WIRING_OVER_S."""
         wrenches = store.get(WRENCHES)
         if wrenches is None:
             return
@@ -301,6 +311,7 @@ class SensorPlausibility(Observer):
                          "it is turned about its z (mounted 90 or 180 deg off) or the sign of "
                          "its m_x or m_y is flipped")
                 break
+        wrong = wrong or self._ankles_swapped(store, wrenches)
         self._wiring_over = self._wiring_over + 1 if wrong else 0
         if wrong is None or not (start or self._wiring_over * self.period_s
                                  > SOLE_WIRING_OVER_S + 1e-9):
@@ -312,6 +323,27 @@ class SensorPlausibility(Observer):
                     hint=f"{cause}, or the ankle sensors are wired to the wrong channels: check "
                          f"the {sensor} sensor's mounting, its cable and hubo-daemon's channel "
                          "and sign settings for it, then start the run again", refuse=start)
+
+    def _ankles_swapped(self, store: Store, wrenches: dict) -> tuple[str, str, str] | None:
+        """A sole read carrying SOLE_CARRIES_WEIGHTS of the robot more than SOLE_UNDER_M above
+        one read as in the air (below SOLE_IN_AIR_WEIGHTS): the estimate stands the robot on the
+        sole its sensor loads, so the other one is under the floor (module docstring)."""
+        T_world_soles = store.get(T_WORLD_SOLES)
+        if T_world_soles is None:
+            return None
+        z_m = np.asarray(T_world_soles, dtype=float)[:, 2, 3]
+        fz_n = [float(wrenches[sensor][2]) for sensor in ANKLE_SENSORS]
+        for k, other in ((0, 1), (1, 0)):
+            below_m = z_m[k] - z_m[other]
+            if fz_n[k] > SOLE_CARRIES_WEIGHTS * self.weight_n and \
+                    fz_n[other] < SOLE_IN_AIR_WEIGHTS * self.weight_n and below_m > SOLE_UNDER_M:
+                return (ANKLE_SENSORS[k], f"F_z {fz_n[k]:.0f} N while the {ANKLE_SENSORS[other]} "
+                                          f"sensor reads {fz_n[other]:.0f} N, its sole "
+                                          f"{below_m * 1000:.0f} mm lower (at most "
+                                          f"{SOLE_UNDER_M * 1000:.0f} mm: the sole carrying the "
+                                          "robot is on the floor, the other cannot be under it)",
+                        "the two ankle sensors are swapped between the feet")
+        return None
 
     def _frozen_imu(self, state: RobotState, store: Store) -> None:
         """The IMU bit-identical over the last IMU_FROZEN_STATES fresh states while the legs
