@@ -124,12 +124,12 @@ WRIST_START_PERIODS = 20
 # sole, its foot's weight removed, read at least -29 N (a foot landing after a side push); F_z's
 # sign flipped reads minus the sole's load, -140 N or less on a standing robot:
 SOLE_PULL_MAX_WEIGHTS = 0.25
-# A sole's centre of pressure from its sensor read at most 8.8 mm outside the sole while it
-# carried SOLE_LOADED_WEIGHTS (20.5 mm for a period with 50 N: a lighter sole is not judged);
-# a sensor turned 180 deg about its z puts a toe-loaded sole's 40 mm beyond its heel, turned 90
-# deg 65 mm beside it
+# A sole's centre of pressure from its sensor read at most 15.4 mm outside the sole for a
+# period while it carried SOLE_LOADED_WEIGHTS (a 100 N push mid-walk), 0.6 mm held over 0.055
+# s (20.5 mm for a period with 50 N: a lighter sole is not judged); a sensor turned 180 deg
+# about its z puts a toe-loaded sole's 40 mm beyond its heel, turned 90 deg 65 mm beside it
 COP_OFF_SOLE_M = 0.02
-# A sole read carrying SOLE_CARRIES_WEIGHTS of the weight lay at most 2.7 mm above one read as
+# A sole read carrying SOLE_CARRIES_WEIGHTS of the weight lay at most 5.0 mm above one read as
 # in the air (below SOLE_IN_AIR_WEIGHTS) in the estimate (the floor flat; its tilt on a
 # perturbed robot, 0.5 deg at most, is 2 mm over the 0.24 m between the soles); swapped
 # sensors, the estimate stands the robot on its lifted foot: up to 50-90 mm
