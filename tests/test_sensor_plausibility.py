@@ -13,9 +13,12 @@ from hubo_cli.control.loop import ControlLoop
 from hubo_cli.drivers.ideal import IdealDriver
 from hubo_cli.estimation.build import build_estimator
 from hubo_cli.estimation.plausibility import (
+    COP_OFF_SOLE_M,
     IMU_FROZEN_STATES,
     IMU_LEGS_MAX_DEG,
     IMU_LEGS_RUNNING_MAX_DEG,
+    SOLE_LOADED_WEIGHTS,
+    SOLE_WIRING_OVER_S,
     SOLES_MAX_WEIGHTS,
     SOLES_OVER_S,
     STILL_STATES,
@@ -351,3 +354,137 @@ def test_a_wrist_reading_far_from_its_load_at_the_start_is_a_fault():
     assert "[stance] tool" in info.value.hint  # (and the other causes)
     # the drill's mass as the task gives it reaches the estimate: a drill of 0.05 kg is 0.5 N
     assert _estimate(_states(n), drill, tool_mass_kg=0.05) == n
+
+
+def _ankle(sensor: str, rewire, from_k: int = 0, cop_x_m: float | None = None,
+           fz_n: float | None = None):
+    """The ``sensor``'s reading from state ``from_k`` on: its centre of pressure moved to
+    ``cop_x_m`` forward and its F_z set to ``fz_n`` (None: as the ideal robot reads), then
+    ``rewire`` applied (the sensor wired so)."""
+    def change(k, s):
+        ft = dict(s.ft)
+        if k >= from_k:
+            w = np.array(ft[sensor], dtype=float)
+            w[2] = w[2] if fz_n is None else fz_n
+            if cop_x_m is not None:
+                w[3], w[4] = 0.0, -cop_x_m * w[2]
+            ft[sensor] = rewire(w)
+        return ft
+    return change
+
+
+def _turned(deg: float):
+    """A wrench as a sensor turned ``deg`` about its z reads it."""
+    a = np.radians(deg)
+    R = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+    return lambda w: np.concatenate([R.T @ w[:3], R.T @ w[3:]])
+
+
+def _flipped(component: int):
+    def rewire(w):
+        w = w.copy()
+        w[component] *= -1.0
+        return w
+    return rewire
+
+
+def _same(w):
+    return w
+
+
+def test_an_ankle_sensor_whose_fz_sign_is_flipped_is_refused_at_the_start():
+    """Round 20 (review 19's wiring): F_z's sign flipped on one ankle reads minus its load
+    (-167 N on the ideal robot, its foot's weight removed); a stand ran on and a walk stopped
+    after 1 s unnamed. The floor cannot pull a sole: refused before anything moved, the sensor
+    and the sign named; flipped later, a fault once it lasts SOLE_WIRING_OVER_S; a landing
+    foot's -29 N (the least healthy runs read) is none."""
+    with pytest.raises(SensorFault, match=r"^the right-ankle force-torque sensor reads F_z "
+                                          r"-16[0-9] N, .*, at the start: refused before anything "
+                                          r"moved$") as info:
+        _estimate(_states(2, ft=_ankle("right-ankle", _flipped(2))))
+    assert info.value.exit_code == 4 and "F_z's sign is flipped" in info.value.hint
+    lasts = int(round(SOLE_WIRING_OVER_S / DT)) + 1
+    with pytest.raises(SensorFault, match=r"left-ankle .* F_z -16[0-9] N.* for 0.055 s at t = "
+                                          r"0.10 s") as info:
+        _estimate(_states(60, ft=_ankle("left-ankle", _flipped(2), from_k=10)))
+    assert info.value.exit_code == 3
+    assert _estimate(_states(60, ft=_ankle("left-ankle", _same, from_k=10, fz_n=-17.0))) == 60
+    # flipped for SOLE_WIRING_OVER_S exactly: none yet
+    assert _estimate(_states(10 + lasts - 1, ft=_ankle("left-ankle", _flipped(2),
+                                                       from_k=10))) == 10 + lasts - 1
+
+
+def test_an_ankle_sensor_turned_about_its_z_is_a_fault_once_the_sole_rolls_off_its_middle():
+    """Round 20: an ankle sensor turned 90 or 180 deg about its z moves its sole's centre of
+    pressure around the ankle: a walk with the right one turned 180 deg fell at 0.86 s, 90 deg
+    at 2.0 s, neither named. A sole on its toe (x 125 mm, the sole reaches 130) is healthy;
+    turned, its centre of pressure lies off the sole: a fault once that lasts
+    SOLE_WIRING_OVER_S, refused when the start reads so; a sole carrying less than
+    SOLE_LOADED_WEIGHTS of the robot's weight is not judged."""
+    toe = 0.125
+    assert _estimate(_states(40, ft=_ankle("right-ankle", _same, cop_x_m=toe))) == 40
+    with pytest.raises(SensorFault, match=r"right-ankle .* centre of pressure at x -1[0-9]{2}, "
+                                          r"y 0 mm while the sole carries 1[0-9]{2} N: [0-9]+ mm "
+                                          r"outside the sole \(x -90 to 130, y -65 to 65 mm.* "
+                                          r"for 0.055 s at t = 0.10 s") as info:
+        _estimate(_states(40, ft=_ankle("right-ankle", _turned(180), from_k=10,
+                                        cop_x_m=toe)))
+    assert info.value.exit_code == 3 and "turned about its z" in info.value.hint
+    with pytest.raises(SensorFault, match=r"left-ankle .* at x -?[0-9], y -1[0-9]{2} mm .* "
+                                          r"outside"):
+        _estimate(_states(40, ft=_ankle("left-ankle", _turned(90), from_k=10, cop_x_m=toe)))
+    with pytest.raises(SensorFault, match=r"left-ankle .* at x -?[0-9], y 1[0-9]{2} mm .*"
+                                          r"refused before anything moved") as info:
+        _estimate(_states(2, ft=_ankle("left-ankle", _turned(-90), cop_x_m=toe)))
+    assert info.value.exit_code == 4
+    # a moment's sign flipped: the same, where the sole is asymmetric about the ankle
+    with pytest.raises(SensorFault, match=r"right-ankle .* at x -1[0-9][0-9]"):
+        _estimate(_states(40, ft=_ankle("right-ankle", _flipped(4), from_k=10, cop_x_m=toe)))
+    # a light sole's centre of pressure is not judged (less its foot's 12 N); just inside the
+    # bound is none
+    assert _estimate(_states(40, ft=_ankle("right-ankle", _turned(180), cop_x_m=toe,
+                                           fz_n=SOLE_LOADED_WEIGHTS * 380.0))) == 40
+    inside = 0.09 + COP_OFF_SOLE_M - 0.002
+    assert _estimate(_states(40, ft=_ankle("right-ankle", _turned(180), cop_x_m=inside))) == 40
+
+
+def _left_foot_lifted(rise_rad: float):
+    """The left leg's hip, knee and ankle pitched (-1, 2, -1 times ``rise_rad``, ramped over
+    the first 10 states) so that its sole rises off the floor (the estimate, standing the robot
+    on it, puts the right sole 114 mm lower at 0.4 rad)."""
+    joints = [MODEL.joint_names.index(name) for name in ("LHP", "LKN", "LAP")]
+
+    def change(k, s):
+        q = np.array(s.q_rad, dtype=float)
+        q[joints] += np.array([-1.0, 2.0, -1.0]) * rise_rad * min(1.0, k / 10)
+        return q
+    return change
+
+
+def _on_the_right_foot(swapped: bool):
+    """The right sole carrying the robot (its centre of pressure 20 mm ahead of the ankle),
+    the left reading its foot's weight alone; ``swapped``: each reading on the other's
+    channel."""
+    def change(k, s):
+        ft = dict(s.ft)
+        load = ft["right-ankle"][2] + ft["left-ankle"][2] - 12.0
+        right, left = np.array([0, 0, load, 0, -0.02 * load, 0]), np.array([0, 0, 12.0, 0, 0, 0])
+        ft["right-ankle"], ft["left-ankle"] = (left, right) if swapped else (right, left)
+        return ft
+    return change
+
+
+def test_ankle_sensors_swapped_between_the_feet_are_a_fault_once_a_foot_lifts():
+    """Round 20: the ankle sensors swapped, a walk on seed 1 fell at 1.43 s (main; the nominal
+    robot stopped on the capture point at 0.90 s), nothing named. Standing, the pair reads as a
+    working one; once a foot lifts, the estimate stands the robot on the sole its sensor loads,
+    the lifted one, and the other lies under the floor: a fault once that lasts
+    SOLE_WIRING_OVER_S. The same lift read right is none."""
+    lifted = _left_foot_lifted(0.4)
+    assert _estimate(_states(40, q_rad=lifted, ft=_on_the_right_foot(False))) == 40
+    with pytest.raises(SensorFault, match=r"^the left-ankle force-torque sensor reads F_z "
+                                          r"3[0-9]{2} N while the right-ankle sensor reads "
+                                          r"[0-9]{1,2} N, its sole [0-9]+ mm lower .* for 0.055 "
+                                          r"s at t = 0.[0-9]+ s$") as info:
+        _estimate(_states(40, q_rad=lifted, ft=_on_the_right_foot(True)))
+    assert info.value.exit_code == 3 and "swapped between the feet" in info.value.hint

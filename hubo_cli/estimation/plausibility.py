@@ -40,7 +40,7 @@ the daemon publishes nothing new, and such a gap is the stale-state check's,
   the measured joints' kinematics): a floor tilted that much or an IMU mounted crooked or
   miscalibrated, which one state cannot tell apart (round 18; the estimate would start tilted
   by the difference and the capture point stop the run at once, without naming the IMU; round
-  19: the message names both, the bound is the tilt a walk is run on).
+  19: the message names both, the bound is the tilt a walk is run on);
 - after the start, the same comparison whenever the robot stands still on both loaded soles
   lying flat for :data:`STILL_STATES` fresh states, the two verticals averaged over them,
   their difference more than :data:`IMU_LEGS_RUNNING_MAX_DEG` from the start's: an IMU that
@@ -49,7 +49,19 @@ the daemon publishes nothing new, and such a gap is the stale-state check's,
   (``SOLES_FLAT``: each sole's centre of pressure inside its outline by a margin): a robot
   leaning on its soles' edges tilts where the legs' kinematics, which take each sole flat on
   the floor, do not see it (round 20: round 19's check, judging every loaded sole, stopped
-  the push-wall's emergency revert on a true IMU 2.9 deg from the legs).
+  the push-wall's emergency revert on a true IMU 2.9 deg from the legs);
+- an ankle sensor wired wrong (round 20): its F_z, the foot's weight removed, below
+  -:data:`SOLE_PULL_MAX_WEIGHTS` of the robot's weight (the floor pushes a sole, it cannot pull
+  it: the sign of F_z flipped), or the centre of pressure it gives its sole more than
+  :data:`COP_OFF_SOLE_M` outside the sole's outline while it carries
+  :data:`SOLE_LOADED_WEIGHTS` of the robot's weight (no force on a sole acts outside it: the
+  sensor turned about its z, a moment's sign flipped), or a sole read carrying
+  :data:`SOLE_CARRIES_WEIGHTS` of the weight more than :data:`SOLE_UNDER_M` above one read in
+  the air (the estimate stands the robot on the sole its sensor loads; on a flat floor the
+  other cannot lie under it: the sensors swapped between the feet, seen once a foot lifts), at
+  the start (refused) or for longer than :data:`SOLE_WIRING_OVER_S` later. Swapped sensors
+  before a foot lifts, and a moment flipped or a sensor turned while the centre of pressure
+  stays near the ankle, read as a working pair does (docs/history/safety.md, round 20).
 
 Not a check: an estimated fall while the soles still carry the robot. A real fall does that (the
 push-wall robot tipping over its toes read 291 N of 380 N at 30 deg); a joint encoder that lies
@@ -76,7 +88,13 @@ import numpy as np
 
 from hubo_cli.dataflow import Store
 from hubo_cli.errors import DeviceError
-from hubo_cli.estimation.keys import CONTACT, SOLES_FLAT, T_TORSO_SOLES, WRENCHES
+from hubo_cli.estimation.keys import (
+    CONTACT,
+    SOLES_FLAT,
+    T_TORSO_SOLES,
+    T_WORLD_SOLES,
+    WRENCHES,
+)
 from hubo_cli.estimation.observer import Observer
 from hubo_cli.model import ARMS, RobotModel
 from hubo_cli.state import ANKLE_SENSORS, RobotState
@@ -133,6 +151,24 @@ IMU_LEGS_RUNNING_MAX_DEG = 1.5
 # averaged). The drill declared and not held reads 5.2 N
 WRIST_START_MAX_N = 2.5
 WRIST_START_PERIODS = 20
+# An ankle sensor wired wrong (round 20, docs/history/safety.md; healthy walks, stands, pushes,
+# the push-wall and the tasks, nominal and perturbed, both code paths). The floor's push on a
+# sole, its foot's weight removed, read at least -29 N (a foot landing after a side push); F_z's
+# sign flipped reads minus the sole's load, -140 N or less on a standing robot:
+SOLE_PULL_MAX_WEIGHTS = 0.25
+# A sole's centre of pressure from its sensor read at most 15.4 mm outside the sole for a
+# period while it carried SOLE_LOADED_WEIGHTS (a 100 N push mid-walk), 0.6 mm held over 0.055
+# s (20.5 mm for a period with 50 N: a lighter sole is not judged); a sensor turned 180 deg
+# about its z puts a toe-loaded sole's 40 mm beyond its heel, turned 90 deg 65 mm beside it
+COP_OFF_SOLE_M = 0.02
+# A sole read carrying SOLE_CARRIES_WEIGHTS of the weight lay at most 5.0 mm above one read as
+# in the air (below SOLE_IN_AIR_WEIGHTS) in the estimate (the floor flat; its tilt on a
+# perturbed robot, 0.5 deg at most, is 2 mm over the 0.24 m between the soles); swapped
+# sensors, the estimate stands the robot on its lifted foot: up to 50-90 mm
+SOLE_UNDER_M = 0.02
+SOLE_CARRIES_WEIGHTS = 0.5
+SOLE_IN_AIR_WEIGHTS = 0.1
+SOLE_WIRING_OVER_S = 0.05  # either for longer than this (s) after the start
 
 
 class SensorFault(DeviceError):
@@ -165,7 +201,7 @@ class SensorPlausibility(Observer):
     """
 
     name = "sensor-plausibility"
-    reads = (T_TORSO_SOLES, WRENCHES, CONTACT, SOLES_FLAT)
+    reads = (T_TORSO_SOLES, T_WORLD_SOLES, WRENCHES, CONTACT, SOLES_FLAT)
 
     def __init__(self, model: RobotModel, weight_n: float, period_s: float,
                  measured: bool = True, drill_kg: float | None = None) -> None:
@@ -175,6 +211,8 @@ class SensorPlausibility(Observer):
         self.measured = measured
         self._arms = {wrist: model.limb_slice(arm) for wrist, arm in zip(WRISTS, ARMS,
                                                                           strict=True)}
+        corners = model.feet.sole_corners_m()
+        self._sole_lo, self._sole_hi = corners[:, :2].min(axis=0), corners[:, :2].max(axis=0)
         self.fault: SensorFault | None = None
 
     def reset(self, state: RobotState, store: Store) -> None:
@@ -190,6 +228,7 @@ class SensorPlausibility(Observer):
         self._wrist = dict.fromkeys(WRISTS)
         self._wrist_flat = dict.fromkeys(WRISTS, 0)
         self._soles_over = 0  # periods in a row over the limit
+        self._wiring_over = 0  # periods in a row an ankle sensor read as wired wrong
         self._periods = 0  # periods judged since the reset
         self._wrist_sums = np.zeros((2, len(WRISTS)))  # per wrist: compensated F_z, raw F_z
         self._still = _StillWindow()
@@ -209,6 +248,7 @@ class SensorPlausibility(Observer):
                             hint="check the sensor's cable and power, or how it was nulled, "
                                  "then start the run again", refuse=True)
         self._imu_against_legs(state, store)
+        self._ankle_wiring(state, store, start=True)
         self.update(state, store)
 
     def _imu_against_legs(self, state: RobotState, store: Store) -> None:
@@ -251,6 +291,7 @@ class SensorPlausibility(Observer):
         if not self.measured or self.fault is not None:
             return
         self._soles(state)
+        self._ankle_wiring(state, store)
         self._periods += 1
         if self._periods <= WRIST_START_PERIODS:  # (every period: a repeat weighs the same)
             self._wrist_start(state, store)
@@ -320,6 +361,72 @@ class SensorPlausibility(Observer):
                         f"({soles_n / self.weight_n:.1f} times the robot's "
                         f"{self.weight_n:.0f} N) for {self._soles_over * self.period_s:.3f} s "
                         f"at t = {state.time_s:.2f} s")
+
+    def _ankle_wiring(self, state: RobotState, store: Store, start: bool = False) -> None:
+        """An ankle sensor whose F_z pulls its sole or whose centre of pressure lies off its
+        sole, or the two swapped (module docstring): refused at the start, a fault once it
+        lasts longer than SOLE_WIRING_OVER_S."""
+        wrenches = store.get(WRENCHES)
+        if wrenches is None:
+            return
+        wrong = None
+        for sensor in ANKLE_SENSORS:
+            w = np.asarray(wrenches[sensor], dtype=float)
+            fz_n = float(w[2])
+            if fz_n < -SOLE_PULL_MAX_WEIGHTS * self.weight_n:
+                wrong = (sensor, f"F_z {fz_n:.0f} N, its foot's weight removed (the floor "
+                                 "pushes a sole, it cannot pull it: at least "
+                                 f"{-SOLE_PULL_MAX_WEIGHTS * self.weight_n:.0f} N)",
+                         "its F_z's sign is flipped")
+                break
+            if not fz_n >= SOLE_LOADED_WEIGHTS * self.weight_n:
+                continue
+            cop_m = np.array([-w[4], w[3]]) / fz_n
+            off_m = float(np.max(np.maximum(self._sole_lo - cop_m, cop_m - self._sole_hi)))
+            if off_m > COP_OFF_SOLE_M:
+                (x0, y0), (x1, y1) = self._sole_lo * 1000, self._sole_hi * 1000
+                wrong = (sensor, f"its sole's centre of pressure at x {round(cop_m[0] * 1000)}, y "
+                                 f"{round(cop_m[1] * 1000)} mm while the sole carries {fz_n:.0f} "
+                                 f"N: {off_m * 1000:.0f} mm outside the sole (x {x0:.0f} to "
+                                 f"{x1:.0f}, y {y0:.0f} to {y1:.0f} mm; at most "
+                                 f"{COP_OFF_SOLE_M * 1000:.0f} mm: no force on a sole acts "
+                                 "outside it)",
+                         "it is turned about its z (mounted 90 or 180 deg off) or the sign of "
+                         "its m_x or m_y is flipped")
+                break
+        wrong = wrong or self._ankles_swapped(store, wrenches)
+        self._wiring_over = self._wiring_over + 1 if wrong else 0
+        if wrong is None or not (start or self._wiring_over * self.period_s
+                                 > SOLE_WIRING_OVER_S + 1e-9):
+            return
+        sensor, reading, cause = wrong
+        when = ", at the start: refused before anything moved" if start else (
+            f" for {self._wiring_over * self.period_s:.3f} s at t = {state.time_s:.2f} s")
+        self._raise(f"the {sensor} force-torque sensor reads {reading}{when}",
+                    hint=f"{cause}, or the ankle sensors are wired to the wrong channels: check "
+                         f"the {sensor} sensor's mounting, its cable and hubo-daemon's channel "
+                         "and sign settings for it, then start the run again", refuse=start)
+
+    def _ankles_swapped(self, store: Store, wrenches: dict) -> tuple[str, str, str] | None:
+        """A sole read carrying SOLE_CARRIES_WEIGHTS of the robot more than SOLE_UNDER_M above
+        one read as in the air (below SOLE_IN_AIR_WEIGHTS): the estimate stands the robot on the
+        sole its sensor loads, so the other one is under the floor (module docstring)."""
+        T_world_soles = store.get(T_WORLD_SOLES)
+        if T_world_soles is None:
+            return None
+        z_m = np.asarray(T_world_soles, dtype=float)[:, 2, 3]
+        fz_n = [float(wrenches[sensor][2]) for sensor in ANKLE_SENSORS]
+        for k, other in ((0, 1), (1, 0)):
+            below_m = z_m[k] - z_m[other]
+            if fz_n[k] > SOLE_CARRIES_WEIGHTS * self.weight_n and \
+                    fz_n[other] < SOLE_IN_AIR_WEIGHTS * self.weight_n and below_m > SOLE_UNDER_M:
+                return (ANKLE_SENSORS[k], f"F_z {fz_n[k]:.0f} N while the {ANKLE_SENSORS[other]} "
+                                          f"sensor reads {fz_n[other]:.0f} N, its sole "
+                                          f"{below_m * 1000:.0f} mm lower (at most "
+                                          f"{SOLE_UNDER_M * 1000:.0f} mm: the sole carrying the "
+                                          "robot is on the floor, the other cannot be under it)",
+                        "the two ankle sensors are swapped between the feet")
+        return None
 
     def _frozen_imu(self, state: RobotState, store: Store) -> None:
         """The IMU bit-identical over the last IMU_FROZEN_STATES fresh states while the legs

@@ -1,0 +1,56 @@
+"""Ankle force-torque sensors wired wrong on the simulated robot (round 20, review 19's
+``sensor_lies19.py``): the estimation layer's wiring checks
+(:mod:`hubo_cli.estimation.plausibility`) end the run with the sensor named. Physical tests:
+the sim driver's readings rewired as :mod:`tools.ankle_wiring` does."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from click.testing import CliRunner
+from tool_support import load_tool
+
+from hubo_cli.cli.main import main
+from hubo_cli.drivers.sim import SimDriver
+
+rewire = load_tool("ankle_wiring").rewire
+
+
+def _wired(monkeypatch, kind: str) -> None:
+    measure = SimDriver._measure
+
+    def lying(self):
+        state = measure(self)
+        state.ft.update(rewire(state.ft, kind))
+        return state
+    monkeypatch.setattr(SimDriver, "_measure", lying)
+
+
+@pytest.mark.physical
+def test_a_walk_on_an_ankle_sensor_turned_180_deg_stops_with_the_sensor_named(monkeypatch,
+                                                                              tmp_path):
+    """The right ankle's sensor turned 180 deg about its z: main's walk fell at 0.86 s, the
+    capture point's stop unable to stand it (exit 1), the sensor unnamed. Its sole's centre of
+    pressure reads behind the heel as the first weight shift loads the toe: a device fault at
+    0.12 s, the walk ending standing (nothing stepped yet)."""
+    _wired(monkeypatch, "rot180-right")
+    result = CliRunner().invoke(main, ["walk", "--to", "0.6", "0", "0",
+                                       "--out", str(tmp_path / "w")])
+    assert result.exit_code == 3, result.output
+    assert "the right-ankle force-torque sensor reads its sole's centre of pressure at x" \
+        in result.output and "turned about its z" in result.output
+    summary = json.loads((tmp_path / "w" / "summary.json").read_text())
+    assert summary["fell"] is False and summary["steps"] == 0, summary
+
+
+@pytest.mark.physical
+def test_a_stand_on_an_ankle_sensor_reading_fz_flipped_is_refused(monkeypatch, tmp_path):
+    """The right ankle's F_z with its sign flipped: main's stand ran its 1 s and exited 0
+    (a walk stopped after 1 s, 'the ankle force sensors read -136 N together', the sensor
+    unnamed). Refused before anything moved, exit 4."""
+    _wired(monkeypatch, "flip-fz-right")
+    result = CliRunner().invoke(main, ["sim", "--duration", "1", "--out", str(tmp_path / "s")])
+    assert result.exit_code == 4, result.output
+    assert "the right-ankle force-torque sensor reads F_z -1" in result.output
+    assert "refused before anything moved" in result.output and "sign" in result.output
