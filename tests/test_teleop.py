@@ -141,6 +141,39 @@ def test_a_one_second_gap_holds_smoothly(tmp_path):
     assert run.summary["max_joint_velocity_ratio"] <= 1.0 + 1e-9
 
 
+# Not marked physical: the ideal driver, as the gap's test above.
+@pytest.mark.slow
+def test_a_tracker_that_jumps_and_stays_there_is_stale_input(tmp_path):
+    # review 20: the right hand's station reads 0.2 m further forward from 1 s on (a hemisphere
+    # flip, a knocked sensor). Each such pose is a jump the mapper rejects; on main the hand
+    # held its last goal for the rest of the replay, every later pose rejected, and the run
+    # ended exit 0 without a word ("followed" 100 %, 2.4 mm RMS). Now poses that keep coming
+    # unusable for the stale timeout are stale input: said, then the replay re-centres
+    text = data_file("trajectories", "two-hand-free.csv").read_text().splitlines()
+    rows = [text[0]]
+    for line in text[1:]:
+        f = line.split(",")
+        if float(f[0]) > 3.0:
+            break
+        if f[1] == "1" and float(f[0]) >= 1.0:
+            f[2] = f"{float(f[2]) + 0.2:.6f}"
+        rows.append(",".join(f))
+    src = tmp_path / "jump.csv"
+    src.write_text("\n".join(rows) + "\n")
+    run = run_teleop(TeleopSettings(replay=src, driver="ideal", out=tmp_path / "run"))
+    stale = run.summary["stale_input"]
+    assert run.summary["ended"] == "done" and stale is not None
+    # flagged once the poses were unusable for the 0.25 s timeout (as a silent tracker is),
+    # until the next pose re-centres: a span of a few periods, 1.25 s into the stream (the
+    # approach takes the first 2.09 s of the target's clock on the ideal driver)
+    assert stale["spans"] == 1 and stale["longest_s"] < 0.05
+    assert 3.3 <= stale["longest_from_s"] <= 3.4
+    # then re-centred: only the station's 16 poses of the timeout (60 Hz) were rejected, the
+    # rest used (main: every one of its 120 poses after the jump)
+    assert run.summary["samples_rejected"] <= 20
+    assert _max_step_ratio(run.run_dir) <= 1.0 + 1e-9
+
+
 @pytest.mark.slow
 def test_garbage_bytes_give_the_same_path(tmp_path):
     clean_src = _first_seconds(RECTANGLE, tmp_path, 3.0)  # 360 chunks: 9 bursts of noise

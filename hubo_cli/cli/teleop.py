@@ -386,8 +386,8 @@ def report_stale_input(summary: dict) -> None:
     err_console.print(f"[yellow]input stale for {stale['total_s']:.2f} s[/] in "
                       f"{stale['spans']} span{'s' if stale['spans'] > 1 else ''} (the longest "
                       f"{stale['longest_s']:.2f} s from t = {stale['longest_from_s']:.2f} s): "
-                      f"nothing usable came from {escape(summary['input'])} then (silent or "
-                      "garbled) and the hands held", soft_wrap=True)
+                      f"nothing usable came from {escape(summary['input'])} then (silent, "
+                      "garbled or jumping away) and the hands held", soft_wrap=True)
 
 
 def _report(run, as_json: bool, video: bool = False) -> None:

@@ -347,9 +347,9 @@ def _reached_exactly(body: WholeBody, path: PosePath, samples: int = 12) -> bool
 
 def stale_spans(log, t_origin_s: float = 0.0) -> dict | None:
     """How long a driven hand's input was stale (flag ``stale-input``: nothing usable came,
-    a silent or garbled tracker, a gap in a recording) while the hands held: the total, the
-    spans and the longest one, on the target's clock (the run's less ``t_origin_s``; s); None
-    when it never was."""
+    a silent or garbled tracker, poses that each jump away, a gap in a recording) while the
+    hands held: the total, the spans and the longest one, on the target's clock (the run's
+    less ``t_origin_s``; s); None when it never was."""
     stale = np.array(["stale-input" in f for f in log.flags], dtype=bool)
     if not stale.any():
         return None
