@@ -169,7 +169,7 @@ def test_a_tracker_that_jumps_and_stays_there_is_stale_input(tmp_path):
     assert stale["spans"] == 1 and stale["longest_s"] < 0.05
     assert 3.3 <= stale["longest_from_s"] <= 3.4
     # then re-centred: only the station's 16 poses of the timeout (60 Hz) were rejected, the
-    # rest used (main: every one of its 120 poses after the jump)
+    # rest used (on main every one of its 120 poses after the jump would be)
     assert run.summary["samples_rejected"] <= 20
     assert _max_step_ratio(run.run_dir) <= 1.0 + 1e-9
 
