@@ -41,8 +41,7 @@ def check_moves(spec: TaskSpec, model: RobotModel) -> None:
              if front_m > 0 else "")
     depth_m = None  # where the steps so far left the tool (None: free air, the start)
     for step in spec.steps:
-        if step.kind == "move" and depth_m is not None \
-                and depth_m + front_m > TOUCH_TOLERANCE_M:
+        if step.kind == "move" and depth_m is not None and depth_m + front_m > TOUCH_TOLERANCE_M:
             raise SafetyError(
                 f"{spec.path}: {step.label} (a move) starts with {tool} "
                 f"{(depth_m + front_m) * 1000:g} mm in the wall (the steps before leave it at "
@@ -57,5 +56,5 @@ def check_moves(spec: TaskSpec, model: RobotModel) -> None:
                 f"{step.depth_m * 1000:g}{reach}); a move does not cut",
                 hint=f"end the move at depth_mm = {-front_m * 1000:g} or less and go in with a "
                      "plunge step")
-        if step.kind in ("move", "plunge", "retract"):
+        if step.depth_m is not None:  # a move, plunge or retract ends there; the others stay
             depth_m = step.depth_m
