@@ -171,6 +171,7 @@ def test_a_tracker_that_jumps_and_stays_there_is_stale_input(tmp_path):
     # then re-centred: only the station's 16 poses of the timeout (60 Hz) were rejected, the
     # rest used (on main every one of its 120 poses after the jump would be)
     assert run.summary["samples_rejected"] <= 20
+    assert run.summary["arms_without_usable_input"] == []  # it had some before the jump
     assert _max_step_ratio(run.run_dir) <= 1.0 + 1e-9
 
 
@@ -267,15 +268,18 @@ def test_drill_mode_places_the_wall_at_the_bit_and_holds_the_flutes_in_it(drill_
         np.sqrt(np.mean(np.square(world_m))) * 1000)
 
 
-def _verdict(reach: dict[str, tuple[float, float]], overall_mm: float = 96.0):
+def _verdict(reach: dict[str, tuple[float, float]], overall_mm: float = 96.0,
+             without_input: tuple[str, ...] = ()):
     """``hubo teleop``'s verdict (its exit code, its line on stderr) on a finished run whose
     hands had these (share of the time reachable and followed live, position RMS over that
-    time in mm, optionally the orientation RMS over it in deg)."""
+    time in mm, optionally the orientation RMS over it in deg); ``without_input``: the arms
+    none of whose poses was usable."""
     from types import SimpleNamespace
 
     from hubo_cli.cli.teleop import _report
 
     summary = {"estop_events": [], "error": "", "samples_used": 1920, "samples_rejected": 0,
+               "arms_without_usable_input": list(without_input),
                "rms_error_mm": dict.fromkeys(reach, overall_mm), "stale_input": None,
                "interrupt_stop": None,
                "reach": {arm: {"followed_share": figures[0],
@@ -289,6 +293,16 @@ def _verdict(reach: dict[str, tuple[float, float]], overall_mm: float = 96.0):
     except SystemExit as exc:
         return exc.code
     return 0
+
+
+def test_an_arm_whose_poses_were_none_usable_is_bad_input(capsys):
+    # review 20's status_x_right_all.csv: station 1 reported out of its envelope ('x') in every
+    # pose of a 4 s two-hand stream; the right arm never moved, the left followed, and main
+    # ended exit 0 without a word (the "no operator input" check counts both hands together)
+    assert _verdict({"left-arm": (1.0, 7.9)}, 7.9, without_input=("right-arm",)) == 2
+    err = capsys.readouterr().err
+    assert "the right-arm never moved: its station's poses came and not one was usable" in err
+    assert _verdict({"left-arm": (1.0, 7.9), "right-arm": (1.0, 7.9)}, 7.9) == 0
 
 
 def test_hands_that_did_not_follow_their_reachable_goals_are_said(capsys):

@@ -405,6 +405,12 @@ def summarise(settings: TeleopSettings, target: TeleopTarget, done: RunResult,
         if target.operate_call_s else {"median": None, "p99": None, "cpu_median": None},
         "samples_used": target.samples_used,
         "samples_rejected": target.mapper.rejected,
+        # driven arms whose hand's poses came and not one was usable (each with a status
+        # letter, or each a jump): they never moved
+        "arms_without_usable_input": [
+            arm for hand, arm in target.mapper.config.hand_arm.items()
+            if arm in target.hands and source.last_seen_s(hand) is not None
+            and hand not in target.last_sample_s],
         "input_stats": source.stats(),
         "stale_input": stale_spans(done.log, t_origin_s),
         "input_info": source.info,
