@@ -451,14 +451,14 @@ def _report(run, as_json: bool, video: bool = False) -> None:
     if used == 0:
         warn("no operator input reached the robot (no pose of a driven hand was usable)")
         raise SystemExit(EXIT_BAD_INPUT)
+    if rejected > MOSTLY_REJECTED * (used + rejected):
+        warn(f"{rejected} of {used + rejected} samples were rejected (jumps or bad values): "
+             "the errors above describe what was left, not the recording")
+        raise SystemExit(EXIT_BAD_INPUT)
     for arm in summary["arms_without_usable_input"]:
         warn(f"the {arm} never moved: its station's poses came and not one was usable (each "
              "with a status letter or each a jump)")
     if summary["arms_without_usable_input"]:
-        raise SystemExit(EXIT_BAD_INPUT)
-    if rejected > MOSTLY_REJECTED * (used + rejected):
-        warn(f"{rejected} of {used + rejected} samples were rejected (jumps or bad values): "
-             "the errors above describe what was left, not the recording")
         raise SystemExit(EXIT_BAD_INPUT)
     worst = max(summary["rms_error_mm"].values(), default=0.0)
     if worst > ABSURD_ERROR_MM:
