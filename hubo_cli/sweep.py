@@ -426,7 +426,8 @@ def check_jobs(jobs: Sequence[Job]) -> None:
         try:
             check_standing_args(float(params["duration"]), float(params["push"]))
         except InputError as exc:
-            raise InputError(f"--set: sim's {exc}", hint="e.g. --set push=0,30") from None
+            example = "duration=5" if exc.message.startswith("duration") else "push=0,30"
+            raise InputError(f"--set: sim's {exc}", hint=f"e.g. --set {example}") from None
 
 
 def _check_task(spec) -> None:

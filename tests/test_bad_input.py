@@ -139,6 +139,9 @@ CASES = {
                          "refused in pre-flight"),
     "workspace-out-proc": (lambda d: ["workspace-map", "--out", "/proc/hubo-no-such/run"], 2,
                            "cannot create the run folder"),
+    # review 20: a stand shorter than one control period rounded to no period: internal error
+    "sim-duration-1e-300": (lambda d: ["sim", "--duration", "1e-300", "--out",
+                                       str(d / "short-run")], 2, "one control period"),
     "sim-out-under-file": (lambda d: ["sim", "--duration", "0.1", "--out",
                                       str(d / "f.txt" / "sub")], 2, "is a file"),
     "teleop-out-under-file": (lambda d: ["teleop", "--replay", str(_short_log(d / "s.csv")),

@@ -193,6 +193,7 @@ def _hostile_sweeps() -> dict[str, list[str]]:
         "push-garbage": ["sim", "--set", f"push={garbage}"],
         "duration--0": ["sim", "--set", "duration=-0"],
         "duration-overflow": ["sim", "--set", "duration=1e400"],
+        "duration-under-a-period": ["sim", "--set", "duration=1e-300"],  # review 20
         "empty-value": ["sim", "--set", "push=1,,2"], "empty-set": ["sim", "--set", "push="],
         "no-name": ["sim", "--set", "=1"], "no-equals": ["sim", "--set", "push"],
         "unknown-parameter": ["sim", "--set", "speed=1"],

@@ -154,6 +154,33 @@ def test_a_move_into_the_wall_is_refused_before_planning(tmp_path, model, depth_
             check_moves(spec, model)
 
 
+@pytest.mark.parametrize("retract_to_mm, refused", [(None, True), ("-19.0", True),
+                                                     ("-20.0", False)])
+def test_a_move_out_of_the_wall_is_refused_before_planning(tmp_path, model, retract_to_mm,
+                                                           refused):
+    # review 20 (/tmp/review20/cases/tasks/move_while_in.toml): after the cut, a move slid the
+    # bit 300 mm sideways out of the cardboard in 1 s (its goal at depth -25 mm, outside) and
+    # main planned it: a move that starts in the wall cuts at a transfer's speed
+    slide = ('[[steps]]\nkind = "move"\nname = "slide"\nto_mm = [300.0, 0.0]\n'
+             'depth_mm = -25.0\nduration_s = 1.0\n\n')
+    if retract_to_mm is not None:  # pull out along the bit first, to the given depth
+        slide = ('[[steps]]\nkind = "retract"\nname = "out"\ndepth_mm = '
+                 f'{retract_to_mm}\nspeed_mm_s = 20.0\n\n') + slide
+    path = tmp_path / "slide.toml"
+    path.write_text(RECTANGLE.read_text().replace('[[steps]]\nkind = "retract"',
+                                                  slide + '[[steps]]\nkind = "retract"', 1))
+    spec = load_task(path)
+    if not refused:
+        check_moves(spec, model)
+        return
+    left_mm = "2.5" if retract_to_mm is None else retract_to_mm.removesuffix(".0")
+    with pytest.raises(SafetyError) as caught:
+        make_plan(spec, model)  # refused before the placement: no workspace map
+    assert (f"'slide' (a move) starts with the bit's tip {float(left_mm) + 20:g} mm in the "
+            f"wall (the steps before leave it at depth_mm = {left_mm}") in str(caught.value)
+    assert caught.value.hint == "pull out first with a retract step to depth_mm = -20 or less"
+
+
 def test_toml_syntax_error_names_the_line(tmp_path):
     path, line = _broken(tmp_path, "height_mm = 100.0", "height_mm = = 100")
     with pytest.raises(ConfigError) as caught:

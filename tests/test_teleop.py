@@ -141,6 +141,40 @@ def test_a_one_second_gap_holds_smoothly(tmp_path):
     assert run.summary["max_joint_velocity_ratio"] <= 1.0 + 1e-9
 
 
+# Not marked physical: the ideal driver, as the gap's test above.
+@pytest.mark.slow
+def test_a_tracker_that_jumps_and_stays_there_is_stale_input(tmp_path):
+    # review 20: the right hand's station reads 0.2 m further forward from 1 s on (a hemisphere
+    # flip, a knocked sensor). Each such pose is a jump the mapper rejects; on main the hand
+    # held its last goal for the rest of the replay, every later pose rejected, and the run
+    # ended exit 0 without a word ("followed" 100 %, 2.4 mm RMS). Now poses that keep coming
+    # unusable for the stale timeout are stale input: said, then the replay re-centres
+    text = data_file("trajectories", "two-hand-free.csv").read_text().splitlines()
+    rows = [text[0]]
+    for line in text[1:]:
+        f = line.split(",")
+        if float(f[0]) > 3.0:
+            break
+        if f[1] == "1" and float(f[0]) >= 1.0:
+            f[2] = f"{float(f[2]) + 0.2:.6f}"
+        rows.append(",".join(f))
+    src = tmp_path / "jump.csv"
+    src.write_text("\n".join(rows) + "\n")
+    run = run_teleop(TeleopSettings(replay=src, driver="ideal", out=tmp_path / "run"))
+    stale = run.summary["stale_input"]
+    assert run.summary["ended"] == "done" and stale is not None
+    # flagged once the poses were unusable for the 0.25 s timeout (as a silent tracker is),
+    # until the next pose re-centres: a span of a few periods, 1.25 s into the stream (the
+    # approach takes the first 2.09 s of the target's clock on the ideal driver)
+    assert stale["spans"] == 1 and stale["longest_s"] < 0.05
+    assert 3.3 <= stale["longest_from_s"] <= 3.4
+    # then re-centred: only the station's 16 poses of the timeout (60 Hz) were rejected, the
+    # rest used (on main every one of its 120 poses after the jump would be)
+    assert run.summary["samples_rejected"] <= 20
+    assert run.summary["arms_without_usable_input"] == []  # it had some before the jump
+    assert _max_step_ratio(run.run_dir) <= 1.0 + 1e-9
+
+
 @pytest.mark.slow
 def test_garbage_bytes_give_the_same_path(tmp_path):
     clean_src = _first_seconds(RECTANGLE, tmp_path, 3.0)  # 360 chunks: 9 bursts of noise
@@ -234,15 +268,18 @@ def test_drill_mode_places_the_wall_at_the_bit_and_holds_the_flutes_in_it(drill_
         np.sqrt(np.mean(np.square(world_m))) * 1000)
 
 
-def _verdict(reach: dict[str, tuple[float, float]], overall_mm: float = 96.0):
+def _verdict(reach: dict[str, tuple[float, float]], overall_mm: float = 96.0,
+             without_input: tuple[str, ...] = ()):
     """``hubo teleop``'s verdict (its exit code, its line on stderr) on a finished run whose
     hands had these (share of the time reachable and followed live, position RMS over that
-    time in mm, optionally the orientation RMS over it in deg)."""
+    time in mm, optionally the orientation RMS over it in deg); ``without_input``: the arms
+    none of whose poses was usable."""
     from types import SimpleNamespace
 
     from hubo_cli.cli.teleop import _report
 
     summary = {"estop_events": [], "error": "", "samples_used": 1920, "samples_rejected": 0,
+               "arms_without_usable_input": list(without_input),
                "rms_error_mm": dict.fromkeys(reach, overall_mm), "stale_input": None,
                "interrupt_stop": None,
                "reach": {arm: {"followed_share": figures[0],
@@ -256,6 +293,16 @@ def _verdict(reach: dict[str, tuple[float, float]], overall_mm: float = 96.0):
     except SystemExit as exc:
         return exc.code
     return 0
+
+
+def test_an_arm_whose_poses_were_none_usable_is_bad_input(capsys):
+    # review 20's status_x_right_all.csv: station 1 reported out of its envelope ('x') in every
+    # pose of a 4 s two-hand stream; the right arm never moved, the left followed, and main
+    # ended exit 0 without a word (the "no operator input" check counts both hands together)
+    assert _verdict({"left-arm": (1.0, 7.9)}, 7.9, without_input=("right-arm",)) == 2
+    err = capsys.readouterr().err
+    assert "the right-arm never moved: its station's poses came and not one was usable" in err
+    assert _verdict({"left-arm": (1.0, 7.9), "right-arm": (1.0, 7.9)}, 7.9) == 0
 
 
 def test_hands_that_did_not_follow_their_reachable_goals_are_said(capsys):

@@ -386,8 +386,8 @@ def report_stale_input(summary: dict) -> None:
     err_console.print(f"[yellow]input stale for {stale['total_s']:.2f} s[/] in "
                       f"{stale['spans']} span{'s' if stale['spans'] > 1 else ''} (the longest "
                       f"{stale['longest_s']:.2f} s from t = {stale['longest_from_s']:.2f} s): "
-                      f"nothing usable came from {escape(summary['input'])} then (silent or "
-                      "garbled) and the hands held", soft_wrap=True)
+                      f"nothing usable came from {escape(summary['input'])} then (silent, "
+                      "garbled or jumping away) and the hands held", soft_wrap=True)
 
 
 def _report(run, as_json: bool, video: bool = False) -> None:
@@ -454,6 +454,11 @@ def _report(run, as_json: bool, video: bool = False) -> None:
     if rejected > MOSTLY_REJECTED * (used + rejected):
         warn(f"{rejected} of {used + rejected} samples were rejected (jumps or bad values): "
              "the errors above describe what was left, not the recording")
+        raise SystemExit(EXIT_BAD_INPUT)
+    for arm in summary["arms_without_usable_input"]:
+        warn(f"the {arm} never moved: its station's poses came and not one was usable (each "
+             "with a status letter or each a jump)")
+    if summary["arms_without_usable_input"]:
         raise SystemExit(EXIT_BAD_INPUT)
     worst = max(summary["rms_error_mm"].values(), default=0.0)
     if worst > ABSURD_ERROR_MM:

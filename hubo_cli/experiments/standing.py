@@ -135,10 +135,15 @@ MAX_PUSH_N = 10_000.0  # N; 0.2 s of far less throws the robot, more is a typing
 
 
 def check_standing_args(duration_s: float, push_n: float) -> None:
-    """Raise InputError unless 0 < duration_s <= 3600 (s) and 0 <= push_n <= MAX_PUSH_N."""
-    if not (math.isfinite(duration_s) and 0 < duration_s <= 3600):
-        raise InputError(f"duration must be in (0, 3600] s, got {duration_s}",
-                         hint="e.g. --duration 5")
+    """Raise InputError unless one control period <= duration_s <= 3600 (s; a shorter stand
+    rounds to no period at all, which review 20's ``--duration 1e-300`` made an internal error)
+    and 0 <= push_n <= MAX_PUSH_N."""
+    from hubo_cli.model import load_model
+
+    period_s = load_model().control_period_s
+    if not (math.isfinite(duration_s) and period_s <= duration_s <= 3600):
+        raise InputError(f"duration must be in [{period_s:g}, 3600] s (one control period to "
+                         f"an hour), got {duration_s:g}", hint="e.g. --duration 5")
     if not (math.isfinite(push_n) and 0 <= push_n <= MAX_PUSH_N):
         raise InputError(f"push must be a force of 0 to {MAX_PUSH_N:g} N, got {push_n}",
                          hint="e.g. --push 30")

@@ -347,9 +347,9 @@ def _reached_exactly(body: WholeBody, path: PosePath, samples: int = 12) -> bool
 
 def stale_spans(log, t_origin_s: float = 0.0) -> dict | None:
     """How long a driven hand's input was stale (flag ``stale-input``: nothing usable came,
-    a silent or garbled tracker, a gap in a recording) while the hands held: the total, the
-    spans and the longest one, on the target's clock (the run's less ``t_origin_s``; s); None
-    when it never was."""
+    a silent or garbled tracker, poses that each jump away, a gap in a recording) while the
+    hands held: the total, the spans and the longest one, on the target's clock (the run's
+    less ``t_origin_s``; s); None when it never was."""
     stale = np.array(["stale-input" in f for f in log.flags], dtype=bool)
     if not stale.any():
         return None
@@ -405,6 +405,12 @@ def summarise(settings: TeleopSettings, target: TeleopTarget, done: RunResult,
         if target.operate_call_s else {"median": None, "p99": None, "cpu_median": None},
         "samples_used": target.samples_used,
         "samples_rejected": target.mapper.rejected,
+        # driven arms whose hand's poses came and not one was usable (each with a status
+        # letter, or each a jump): they never moved
+        "arms_without_usable_input": [
+            arm for hand, arm in target.mapper.config.hand_arm.items()
+            if arm in target.hands and source.last_seen_s(hand) is not None
+            and hand not in target.last_sample_s],
         "input_stats": source.stats(),
         "stale_input": stale_spans(done.log, t_origin_s),
         "input_info": source.info,

@@ -296,6 +296,7 @@ class TeleopTarget(Target):
         self.operate_call_s: list[float] = []  # this target's own time per operating period
         self.operate_cpu_s: list[float] = []  # and its thread's CPU time
         self.samples_used = 0
+        # hand -> the sample time of its newest usable pose (followed, or held by the clutch)
         self.last_sample_s: dict[str, float] = {}
         self.errors_m: dict[str, list[float]] = {arm: [] for arm in self.arms}
         self.reachable: dict[str, list[bool]] = {arm: [] for arm in self.arms}
@@ -561,6 +562,7 @@ class TeleopTarget(Target):
             hand = self.hands[arm]
             if not sample.engaged:  # the operator holds the clutch: hold, re-centre on release
                 hand.clutched = True
+                self.last_sample_s[sample.hand] = sample.t_s
                 continue
             if hand.clutched:
                 hand.clutched = False
@@ -588,7 +590,8 @@ class TeleopTarget(Target):
         for hand_name, arm in self.mapper.config.hand_arm.items():
             if arm in self.hands:
                 hand = self.hands[arm]
-                stale = self.source.is_stale(hand_name, t_src, self.stale_timeout_s)
+                stale = (self.source.is_stale(hand_name, t_src, self.stale_timeout_s)
+                         or (not hand.needs_clutch and self._unusable(hand_name)))
                 hand.stale = stale and self.mapper.is_calibrated(hand_name)
                 if hand.stale:
                     hand.lost = True
@@ -607,6 +610,16 @@ class TeleopTarget(Target):
             else:
                 self._solve_on_branches(t_s, lift, branch_key)
         return flags
+
+    def _unusable(self, hand_name: str) -> bool:
+        """Poses of ``hand_name`` keep coming but none was usable (each unreliable, or a jump
+        the mapper rejects) for longer than the stale timeout, by their own times: a tracker
+        that lies from some moment on (a hemisphere flip, a knocked sensor) is as stale as a
+        silent one, and not a hand that holds its goal without a word."""
+        seen_s = self.source.last_seen_s(hand_name)
+        used_s = self.last_sample_s.get(hand_name)
+        return seen_s is not None and used_s is not None and seen_s - used_s > \
+            self.stale_timeout_s
 
     def settle_step(self, t_s: float, state) -> bool:
         """One period of the settling after a replay; True once the robot is still at its
