@@ -293,19 +293,34 @@ def test_hands_that_did_not_turn_with_their_reachable_goals_are_said(capsys):
     assert "missed" not in capsys.readouterr().err
 
 
-def test_the_followed_orientation_is_over_the_followed_periods_only():
+def test_the_followed_orientation_is_over_the_followed_periods_only(model):
     """summary reach's followed_orientation_rms_deg: the orientation error's RMS over the
-    periods the goal was reachable and the hand meant to follow (none: None)."""
-    from types import SimpleNamespace
+    periods the goal was reachable and the hand meant to follow (none: None), as a teleop
+    target's reach report gives it from the periods it recorded."""
+    from hubo_cli.input.device import HandPose, RecordedInput
+    from hubo_cli.posture import home_posture
+    from hubo_cli.teleop.mapping import HandMapper
+    from hubo_cli.teleop.session import approach_paths, prepare
+    from hubo_cli.teleop.target import TeleopTarget
 
-    from hubo_cli.teleop.followed import followed_orientation_rms_deg
-
-    target = SimpleNamespace(rotation_errors_rad={"right-arm": np.radians([3.0, 4.0, 50.0, 60.0]),
-                                                  "left-arm": [0.1]},
-                             reachable={"right-arm": [True, True, False, True],
-                                        "left-arm": [False]},
-                             meant_to_follow={"right-arm": [True, True, True, False],
-                                              "left-arm": [True]})
-    assert followed_orientation_rms_deg(target, "right-arm") == pytest.approx(
+    _, body, mapping, scene = prepare(TeleopSettings(generate_seed=0), model)
+    poses = [HandPose(hand, np.eye(4), 0.0) for hand in ("left", "right")]
+    with RecordedInput(poses, {"kind": "test"}) as device:
+        target = TeleopTarget(model, device, HandMapper(mapping), body,
+                              approach_paths(body, mapping.hand_arm.values(), scene),
+                              home_posture(model))
+    periods = {  # arm: (orientation error deg, goal reachable, clutch held) per period
+        "right-arm": [(3.0, True, False), (4.0, True, False), (50.0, False, False),
+                      (60.0, True, True)],
+        "left-arm": [(5.7, False, False)]}
+    for arm, records in periods.items():
+        hand = target.hands[arm]
+        for i, (error_deg, hand.reachable, hand.clutched) in enumerate(records):
+            target._record(arm, 0.005 * i, hand, np.zeros(3), np.zeros(3), 0.0,
+                           np.radians(error_deg), 0.0)
+    report = target.reach_report()
+    assert report["right-arm"]["followed_orientation_rms_deg"] == pytest.approx(
         np.sqrt((9 + 16) / 2))
-    assert followed_orientation_rms_deg(target, "left-arm") is None
+    assert report["right-arm"]["reachable_orientation_rms_deg"] == pytest.approx(
+        np.sqrt((9 + 16 + 3600) / 3))  # the clutched period counts there, not here
+    assert report["left-arm"]["followed_orientation_rms_deg"] is None
