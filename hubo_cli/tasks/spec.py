@@ -447,13 +447,10 @@ class _Loader:
         return value_mm
 
     def _model(self) -> RobotModel:
-        """The robot the task will run on (the shipped robot file's unless given), loaded
-        when first asked."""
-        if self._robot is None:
-            from hubo_cli.model import load_model
+        """The robot the task will run on: the one given, else the shipped robot file's."""
+        from hubo_cli.model import load_model
 
-            self._robot = load_model()
-        return self._robot
+        return load_model() if self._robot is None else self._robot
 
     def _bit_mm(self) -> float | None:
         """The drill bit's diameter (mm, the robot file's); None for a task with the hand."""
