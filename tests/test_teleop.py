@@ -318,7 +318,8 @@ def test_the_followed_orientation_is_over_the_followed_periods_only(model):
         "left-arm": [(5.7, False, False)]}
     for arm, records in periods.items():
         hand = target.hands[arm]
-        for i, (error_deg, hand.reachable, hand.clutched) in enumerate(records):
+        for i, (error_deg, reachable, clutched) in enumerate(records):
+            hand.reachable, hand.clutched = reachable, clutched
             target._record(arm, 0.005 * i, hand, np.zeros(3), np.zeros(3), 0.0,
                            np.radians(error_deg), 0.0)
     report = target.reach_report()
