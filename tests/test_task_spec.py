@@ -5,6 +5,7 @@ import threading
 
 import pytest
 from click.testing import CliRunner
+from robot_file_support import robot_file_with
 
 from hubo_cli.cli.main import main
 from hubo_cli.errors import ConfigError, SafetyError
@@ -138,6 +139,37 @@ def test_a_slot_shorter_than_the_bit_asks_for_the_units(tmp_path):
         "points_mm = [[150.0, 0.0], [-150.0, 0.0]]", "points_mm = [[0.15, 0.0], [-0.15, 0.0]]"))
     with pytest.raises(ConfigError, match=r"\[steps\[3\]\.points_mm\] 0\.3 mm is below the bit"):
         load_task(path)
+
+
+def _robot_with(model, folder, table, key, value):
+    """The robot file with ``[table] key = value``, loaded (each in its own folder:
+    load_model keeps what it read by path)."""
+    from hubo_cli.model import load_model
+
+    folder.mkdir()
+    return load_model(path=robot_file_with(model, folder, table, key, value))
+
+
+def test_the_bounds_are_the_robot_files_the_task_runs_on(tmp_path, model):
+    """The drill bit's diameter and the stop settings a task is judged against are those of
+    the robot it runs on, not the shipped robot file's (main judged every task against the
+    shipped 6 mm bit and 1.21 N m limit, whatever robot it was loaded for)."""
+    small = {"width_mm": 15.0, "height_mm": 15.0}
+    load_task("cut-rectangle", small, model=model)  # the shipped bit: 6 mm
+    big_bit = _robot_with(model, tmp_path / "big", "tools.drill", "bit_radius_m", "0.01")
+    with pytest.raises(ConfigError, match=r"\[steps\[3\]\.width_mm\] 15\.0 mm is below the bit's "
+                                          r"diameter: no hole is that small \(20 mm\)"):
+        load_task("cut-rectangle", small, model=big_bit)
+    thin_bit = _robot_with(model, tmp_path / "thin", "tools.drill", "bit_radius_m", "0.001")
+    with pytest.raises(ConfigError, match=r"4\.0 mm is below the bit's diameter.*\(6 mm\)"):
+        load_task("cut-rectangle", {"width_mm": 4.0}, model=model)
+    spec = load_task("cut-rectangle", {"width_mm": 4.0}, model=thin_bit)
+    assert next(s for s in spec.steps if s.kind == "follow").shape["width_m"] == 0.004
+    path, _ = _broken(tmp_path, "wrist_torque_limit_nm = 1.21", "wrist_torque_limit_nm = 1.1")
+    load_task(path, model=model)  # a task may lower the robot's 1.21 N m
+    weak = _robot_with(model, tmp_path / "weak", "safety", "wrist_torque_limit_nm", "1.0")
+    with pytest.raises(ConfigError, match=r"1\.1 N m is above the robot file's limit of 1\.0"):
+        load_task(path, model=weak)
 
 
 @pytest.mark.parametrize("depth_mm, into_mm", [("2.5", "22.5"), ("-19.0", "1")])

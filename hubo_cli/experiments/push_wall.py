@@ -283,6 +283,8 @@ def plot_cp_error(log: LogData, summary: dict, path: str | Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from hubo_cli.plots import STOP_COLOUR, shade_emergency_stop
+
     axis = summary["cp_error_axis"]
     t = log["t_s"]
     error_mm = log[f"cp_error_{axis}_m"] * 1000
@@ -294,18 +296,11 @@ def plot_cp_error(log: LogData, summary: dict, path: str | Path) -> Path:
     fig, (ax, ax_flag, ax_tilt) = plt.subplots(
         3, 1, figsize=(8.0, 7.6), dpi=120, sharex=True,
         gridspec_kw={"height_ratios": [2.2, 1.1, 1.0]})
-    active = (log["estop_mode_code"] > 0.5 if "estop_mode_code" in log.columns
-              else np.zeros(len(t), dtype=bool))
     push_start = summary["push_start_s"]
     for a in (ax, ax_flag, ax_tilt):
         a.axvspan(push_start, push_start + summary["push_s"], color="#e6e6e6", lw=0,
                   label="commanded push" if a is ax else None)
-        if active.any():
-            a.fill_between(t, 0, 1, where=active, transform=a.get_xaxis_transform(),
-                           color="#f7b6d2", alpha=0.55, lw=0,
-                           label="emergency stop (revert, hold)" if a is ax else None)
-        if summary.get("t_emergency_s") is not None:
-            a.axvline(summary["t_emergency_s"], color="#c2188b", lw=1.0)
+        shade_emergency_stop(a, log, summary, label=a is ax)
         a.grid(alpha=0.3)
     ax.plot(t, low_mm, "--", color="#1f77b4", lw=1.3, label="threshold: sole edge - 3 cm")
     ax.plot(t, high_mm, "--", color="#1f77b4", lw=1.3)
@@ -313,7 +308,7 @@ def plot_cp_error(log: LogData, summary: dict, path: str | Path) -> Path:
     if summary.get("t_emergency_s") is not None:
         ax.annotate(f"emergency flag {summary['t_emergency_s']:.2f} s",
                     (summary["t_emergency_s"], 0.03), xycoords=("data", "axes fraction"),
-                    xytext=(5, 0), textcoords="offset points", color="#c2188b", fontsize=9)
+                    xytext=(5, 0), textcoords="offset points", color=STOP_COLOUR, fontsize=9)
     finite = np.isfinite(error_mm) & np.isfinite(low_mm) & np.isfinite(high_mm)
     if finite.any():  # show the thresholds well; a fall's huge error runs off the top
         threshold_span = float(np.max(np.abs(np.concatenate([low_mm[finite], high_mm[finite]]))))

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+STOP_COLOUR = "#c2188b"  # emergency stops, in every plot
+STOP_SHADE = "#f7b6d2"  # the periods the emergency stopper reverted or held
+
 
 def save_figure(fig, path: str | Path, **savefig_options) -> Path:
     """Write a figure already laid out (``fig.tight_layout()``) to ``path`` and close it.
@@ -20,3 +23,20 @@ def save_figure(fig, path: str | Path, **savefig_options) -> Path:
     fig.savefig(path, **savefig_options)
     plt.close(fig)
     return path
+
+
+def shade_emergency_stop(ax, log, summary: dict, label: bool) -> None:
+    """On ``ax`` (time on x): the periods the emergency stopper reverted or held (the log's
+    ``estop_mode_code``) shaded, labelled when ``label``, and the time the stop was flagged
+    (the summary's ``t_emergency_s``) a line."""
+    import numpy as np
+
+    t = log["t_s"]
+    active = (log["estop_mode_code"] > 0.5 if "estop_mode_code" in log.columns
+              else np.zeros(len(t), dtype=bool))
+    if active.any():
+        ax.fill_between(t, 0, 1, where=active, transform=ax.get_xaxis_transform(),
+                        color=STOP_SHADE, alpha=0.55, lw=0,
+                        label="emergency stop (revert, hold)" if label else None)
+    if summary.get("t_emergency_s") is not None:
+        ax.axvline(summary["t_emergency_s"], color=STOP_COLOUR, lw=1.0)

@@ -13,7 +13,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from hubo_cli.falls import FALL_TILT_DEG  # noqa: E402
-from hubo_cli.plots import save_figure  # noqa: E402
+from hubo_cli.plots import save_figure, shade_emergency_stop  # noqa: E402
 
 AXIS_COLOURS = {"x": "#d62728", "y": "#ff7f0e"}
 
@@ -33,15 +33,8 @@ def plot_manipulation(log, summary: dict, path: str | Path) -> Path:
     t = log["t_s"]
     fig, (ax_cp, ax_f, ax_a) = plt.subplots(3, 1, figsize=(8.0, 7.6), dpi=120, sharex=True,
                                             gridspec_kw={"height_ratios": [2.0, 1.5, 1.1]})
-    active = (log["estop_mode_code"] > 0.5 if "estop_mode_code" in log.columns
-              else np.zeros(len(t), dtype=bool))
     for a in (ax_cp, ax_f, ax_a):
-        if active.any():
-            a.fill_between(t, 0, 1, where=active, transform=a.get_xaxis_transform(),
-                           color="#f7b6d2", alpha=0.55, lw=0,
-                           label="emergency stop (revert, hold)" if a is ax_cp else None)
-        if summary.get("t_emergency_s") is not None:
-            a.axvline(summary["t_emergency_s"], color="#c2188b", lw=1.0)
+        shade_emergency_stop(a, log, summary, label=a is ax_cp)
         a.grid(alpha=0.3)
     span = 50.0
     for axis, colour in AXIS_COLOURS.items():

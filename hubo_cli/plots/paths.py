@@ -10,14 +10,13 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from hubo_cli.plots import save_figure  # noqa: E402
+from hubo_cli.plots import STOP_COLOUR, save_figure  # noqa: E402
 
 AXES = {"x": 0, "y": 1, "z": 2}
 
 
 MIN_SPAN_MM = 20.0  # a path smaller than this is drawn on axes this wide, marked "did not move"
 ARROWS = 6  # direction-of-travel arrows along the commanded path
-STOP_COLOUR = "#c2188b"  # emergency stops (the wrist-torque plot's colour)
 HOLE_COLOUR = "#8c564b"
 
 

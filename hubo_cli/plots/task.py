@@ -10,7 +10,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from hubo_cli.plots import save_figure  # noqa: E402
+from hubo_cli.plots import STOP_COLOUR, save_figure  # noqa: E402
 
 EDGE_COLOURS = {1: ("#c6dbef", "horizontal edge"), 2: ("#fdd0a2", "vertical edge")}
 
@@ -40,7 +40,7 @@ def plot_wrist_torque(log, path: str | Path, *, limit_nm: float, title: str = ""
     ax.plot(t, torque, color="#1f77b4", lw=1.0, label="wrist bending moment |(my, mz)|")
     ax.axhline(limit_nm, color="#d62728", ls="--", lw=1.3, label=f"limit {limit_nm:g} N m")
     for i, t_stop in enumerate(stop_times_s):
-        ax.axvline(t_stop, color="#c2188b", lw=1.2,
+        ax.axvline(t_stop, color=STOP_COLOUR, lw=1.2,
                    label="emergency stop" if i == 0 else None)
     finite = np.asarray(torque, dtype=float)
     finite = finite[np.isfinite(finite)]  # (none during a walk: no wrist reading yet)

@@ -60,7 +60,9 @@ def check_task(spec: TaskSpec, model: RobotModel | None = None) -> Plan:
     """Pre-flight: lay the task out and solve every period; nothing moves.
 
     Returns the plan; ``plan.preflight.ok`` says whether every pose is reachable, and
-    ``plan.preflight.worst_per_step()`` what misses and by how much.
+    ``plan.preflight.worst_per_step()`` what misses and by how much. A ``model`` other than
+    the shipped robot file's wants the task loaded for it too (``load_task(..., model=)``:
+    its bit and stop settings bound the task's).
     """
     return make_plan(spec, model or load_model())
 

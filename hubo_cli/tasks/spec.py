@@ -70,6 +70,7 @@ import stat
 import tomllib
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from hubo_cli.control.stop_choice import SOFT_SOURCES, TASK_SOURCES, stops_words
 from hubo_cli.errors import ConfigError, quoted
@@ -77,6 +78,9 @@ from hubo_cli.resources import data_dir
 from hubo_cli.scene import CuttingModel
 from hubo_cli.streams import open_nonblocking, reader_of
 from hubo_cli.tasks.toml_lines import field_line
+
+if TYPE_CHECKING:
+    from hubo_cli.model import RobotModel
 
 STEP_KINDS = ("move", "plunge", "follow", "retract", "wait")
 ESTOP_SOURCES = SOFT_SOURCES
@@ -282,14 +286,16 @@ def find_task(name_or_path: str | Path) -> Path:
 
 
 def load_task(name_or_path: str | Path, overrides: dict | None = None, *,
-              sources_on_command_line: bool = False) -> TaskSpec:
-    """Read, check and resolve a task file (:func:`read_task`, then :func:`parse_task`).
+              sources_on_command_line: bool = False,
+              model: RobotModel | None = None) -> TaskSpec:
+    """Read, check and resolve a task file (:func:`read_task`, then :func:`parse_task`) for
+    the robot ``model`` the task will run on (default: the shipped robot file's).
 
     Raises:
         ConfigError: the file is missing or malformed (file, line, field and a hint).
     """
     return parse_task(*read_task(name_or_path), overrides,
-                      sources_on_command_line=sources_on_command_line)
+                      sources_on_command_line=sources_on_command_line, model=model)
 
 
 def read_task(name_or_path: str | Path) -> tuple[Path, str]:
@@ -324,7 +330,8 @@ def read_task(name_or_path: str | Path) -> tuple[Path, str]:
 
 
 def parse_task(path: Path, text: str, overrides: dict | None = None, *,
-               sources_on_command_line: bool = False) -> TaskSpec:
+               sources_on_command_line: bool = False,
+               model: RobotModel | None = None) -> TaskSpec:
     """Check and resolve a task file's text (read by :func:`read_task` from ``path``, which
     errors name).
 
@@ -335,6 +342,8 @@ def parse_task(path: Path, text: str, overrides: dict | None = None, *,
         sources_on_command_line: ``--estop-sources`` or ``--no-estop`` chooses the run's stop
             sources, so the file's list may lack some (a task file as run records them so);
             the run keeps the command line's, removing sources from the task's baseline.
+        model: the robot the task will run on, whose file bounds the task's (the drill bit's
+            diameter, the stop settings); default: the shipped robot file's.
 
     Raises:
         ConfigError: the text is malformed (file, line, field and a hint).
@@ -356,7 +365,7 @@ def parse_task(path: Path, text: str, overrides: dict | None = None, *,
     except ValueError:  # Python reads no integer of more than 4300 digits
         raise ConfigError("not valid TOML: an integer too long to read", path=str(path),
                           hint="a task file's numbers are a few digits long") from None
-    return _Loader(path, text, data, overrides or {}, sources_on_command_line).task()
+    return _Loader(path, text, data, overrides or {}, sources_on_command_line, model).task()
 
 
 FIELD_TABLES = ("stance", "scene", "safety")  # what a dotted ``--set`` name may reach
@@ -407,8 +416,9 @@ class _Loader:
     """Checks one parsed file field by field, so each error can point at its line."""
 
     def __init__(self, path: Path, text: str, data: dict, overrides: dict,
-                 sources_on_command_line: bool = False) -> None:
+                 sources_on_command_line: bool = False, model: RobotModel | None = None) -> None:
         self.path = path
+        self._robot = model
         self.sources_on_command_line = sources_on_command_line
         self.text = text
         self.data = data
@@ -436,13 +446,17 @@ class _Loader:
                             f"({minimum_mm:g} mm)", hint=UNITS_HINT)
         return value_mm
 
+    def _model(self) -> RobotModel:
+        """The robot the task will run on: the one given, else the shipped robot file's."""
+        from hubo_cli.model import load_model
+
+        return load_model() if self._robot is None else self._robot
+
     def _bit_mm(self) -> float | None:
         """The drill bit's diameter (mm, the robot file's); None for a task with the hand."""
         if self.tool != "drill":
             return None
-        from hubo_cli.model import load_model
-
-        return 2000.0 * load_model().drill.bit_radius_m
+        return 2000.0 * self._model().drill.bit_radius_m
 
     # ------------------------------------------------------------------ parameters
     def _parameters(self) -> tuple[dict, dict]:
@@ -620,8 +634,6 @@ class _Loader:
         """The file's stop settings, which may only tighten the robot's (more sources, a
         lower wrist-torque limit): removing a stop is the command line's choice alone
         (:mod:`hubo_cli.control.stop_choice`)."""
-        from hubo_cli.model import load_model
-
         d = Safety()
         sources = t.value("estop_sources", default=list(d.estop_sources))
         if not isinstance(sources, list) or any(s not in ESTOP_SOURCES for s in sources):
@@ -636,7 +648,7 @@ class _Loader:
                             hint=f"to run without the {stops_words(missing)}, say so on "
                                  f"hubo task's command line: --estop-sources {kept} (a "
                                  f"sweep keeps every stop)")
-        robot = load_model().safety
+        robot = self._model().safety
         # field, unit, sense bound, its robot file key (the most a task may give), words
         at_most = (("wrist_torque_limit_nm", "N m", WRIST_TORQUE_MAX_NM, "wrist_torque_limit_nm",
                     "limit", "lower it"),

@@ -25,7 +25,6 @@ from hubo_cli.plots.paths import plot_path_comparison
 from hubo_cli.posture import home_posture
 from hubo_cli.scene import WallPlacement, WallSize
 from hubo_cli.session import RunObserver, RunResult, RunSetup, run
-from hubo_cli.teleop.followed import reach_summary
 from hubo_cli.teleop.mapping import HandMapper, MappingConfig
 from hubo_cli.teleop.target import TeleopTarget
 from hubo_cli.urdf import DRILL_FRAME, tool_frame
@@ -396,7 +395,7 @@ def summarise(settings: TeleopSettings, target: TeleopTarget, done: RunResult,
                                for arm, e in target.world_errors_m.items() if e},
         "max_torso_tilt_deg": float(np.degrees(target.max_tilt_rad)),
         "ik_status_counts": {arm: h.ik_counts for arm, h in target.hands.items()},
-        "reach": reach_summary(target),
+        "reach": target.reach_report(),
         "latency_ms": {"median": float(np.median(latencies)) if len(latencies) else None,
                        "p99": float(np.percentile(latencies, 99)) if len(latencies) else None},
         "target_us": {"median": float(np.median(target.operate_call_s) * 1e6),

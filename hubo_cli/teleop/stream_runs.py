@@ -17,7 +17,6 @@ import numpy as np
 
 from hubo_cli.control.module import Module
 from hubo_cli.input.operator_stream import StreamSettings
-from hubo_cli.teleop.followed import reach_summary
 
 if TYPE_CHECKING:
     from hubo_cli.teleop.session import TeleopSettings
@@ -169,7 +168,7 @@ def follow_generated(seed: int, settings: StreamSettings, observe=None) -> Strea
             source, TeleopSettings(generate_seed=seed, stream=settings), settings.duration_s,
             observe)
     operate = np.asarray(target.operate_call_s) * 1e6
-    return StreamRun(seed, settings.max_speed_m_s, reach_summary(target),
+    return StreamRun(seed, settings.max_speed_m_s, target.reach_report(),
                      commands.limit_excess_rad, commands.finite, commands.max_step_ratio,
                      ended, wall_s,
                      {"median": float(np.median(operate)) if len(operate) else None,

@@ -841,8 +841,9 @@ class TeleopTarget(Target):
         the position and orientation RMS and the largest excursion over that time (None when
         it never was), and the share of the time the goal was reachable while the hand was
         meant to follow it (``followed_share``: input live, not held for a re-centre, clutch
-        released) with the position RMS over that time (``followed_position_rms_mm``: what
-        the replay's verdict judges).
+        released) with the position and orientation RMS over that time
+        (``followed_position_rms_mm``, ``followed_orientation_rms_deg``: what the replay's
+        verdict judges).
         """
         report = {}
         for arm, hand in self.hands.items():
@@ -872,6 +873,8 @@ class TeleopTarget(Target):
                 "max_excursion_mm": float(np.max(excursion, initial=0.0)) * 1000,
                 "reachable_max_excursion_mm": float(np.max(excursion[ok])) * 1000
                 if ok.any() else None,
+                "followed_orientation_rms_deg":
+                float(np.degrees(np.sqrt(np.mean(rot[followed]**2)))) if followed.any() else None,
             }
         return report
 
