@@ -201,20 +201,19 @@ class SelfCollisionChecker:
     when they move, every pair is computed in one pass as before.
 
     Repeatable distances (``repeatable=True``): pinocchio's distance requests start each pair's
-    GJK from its last answer (``enable_cached_gjk_guess``), so a distance computed a second time
-    at the same joints differs within GJK's tolerance (1e-6 m; by 3e-9 m median on drawn
+    GJK from its last answer (``enable_cached_gjk_guess``), so a distance computed a second
+    time at the same joints differs within GJK's tolerance (1e-6 m; by 3e-9 m median on drawn
     postures), depending on what was computed before. Started from coal's fixed default guess
-    instead, a pair's distance depends only on its placements, and :meth:`check_near` takes
-    the distance of a pair whose joints (those with a rate for it) are exactly those of its last
+    instead, a pair's distance depends only on its placements, and :meth:`check_near` takes the
+    distance of a pair whose joints (those with a rate for it) are exactly those of its last
     computed distance, or (every joint that moves one of its shapes exactly: pinocchio places a
     shape from its own chain's joints only) of the one before, without computing it again: the
     same number by construction (a posture the teleop's collision room returns to every other
     check, a still goal's, or an arm back at its last target after the legs and the other arm
-    moved, costs nothing the second time); the one before bounds
-    the pair too. Beyond the band a pair reports a lower bound, which depends on what was
-    computed before (the room's searches take it as such). The
-    pipeline's detector keeps the cached guess (its results as they were); the teleop's
-    collision room uses the repeatable checker.
+    moved, costs nothing the second time); the one before bounds the pair too. Beyond the band
+    a pair reports a lower bound, which depends on what was computed before (the room's
+    searches take it as such). The pipeline's detector keeps the cached guess (its results as
+    they were); the teleop's collision room uses the repeatable checker.
 
     Args:
         model: the robot model.
