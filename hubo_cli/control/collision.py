@@ -269,7 +269,7 @@ class SelfCollisionChecker:
         self._legs_pair = np.array([moved_by_legs[p.first] or moved_by_legs[p.second]
                                     for p in geom.collisionPairs], dtype=bool)
         self.rate_m_rad = self._pair_rates()
-        self.support = self._pair_support()
+        self.shape_joints = self._pair_shape_joints()
         # check_near's bounds: each pair's last computed distance and the joints it was
         # computed at (-inf: none yet)
         self.anchor_q = np.zeros((len(self.pair_names), len(self.robot.q_index)))
@@ -350,18 +350,18 @@ class SelfCollisionChecker:
                     rates[k, i] = reach[shape, i]
         return rates
 
-    def _pair_support(self) -> np.ndarray:
+    def _pair_shape_joints(self) -> np.ndarray:
         """Which joints move each pair's shapes, either or both: (pairs, joints), bool. A
         pair's distance, as coal computes it, depends on those joints only."""
         pmodel, geom = self.robot.model, self.geom
         column = {int(qi): i for i, qi in enumerate(self.robot.q_index)}
-        support = np.zeros((len(geom.collisionPairs), len(self.robot.q_index)), dtype=bool)
+        joints = np.zeros((len(geom.collisionPairs), len(self.robot.q_index)), dtype=bool)
         for k, pair in enumerate(geom.collisionPairs):
             for shape in (pair.first, pair.second):
                 for j in pmodel.supports[geom.geometryObjects[shape].parentJoint]:
                     if j > 0 and pmodel.joints[j].idx_q in column:
-                        support[k, column[pmodel.joints[j].idx_q]] = True
-        return support
+                        joints[k, column[pmodel.joints[j].idx_q]] = True
+        return joints
 
     def pair_distances_m(self) -> np.ndarray:
         """Each pair's distance (m) at the posture of the last :meth:`check`, or a lower bound of
@@ -456,7 +456,7 @@ class SelfCollisionChecker:
         bounds, listed, data = self._bounds_m, self._listed, self._near_data
         n_changed, n_near, best = _pair_bounds(q_rad, self.anchor_q, self.anchor_m,
                                                self.earlier_q, self.earlier_m, self.rate_m_rad,
-                                               self.support, band_m, self.repeatable, bounds,
+                                               self.shape_joints, band_m, self.repeatable, bounds,
                                                self._near, listed, self._every_pair
                                                if pairs is None else pairs)
         if n_changed:  # the near pairs are the active ones of data
@@ -484,7 +484,7 @@ class SelfCollisionChecker:
         if not self.pair_names:
             return np.inf
         return _bound_near(q_rad, self.anchor_q, self.anchor_m, self.earlier_q, self.earlier_m,
-                           self.rate_m_rad, self.support, band_m, self.repeatable,
+                           self.rate_m_rad, self.shape_joints, band_m, self.repeatable,
                            self._every_pair if pairs is None else pairs)
 
     def _closest(self, data: pin.GeometryData) -> tuple[float, int]:
@@ -563,13 +563,13 @@ def _lower_bound(q_in, ahead, q0, d0, rate):
 
 
 @nb.njit(cache=True, nogil=True)
-def _pair_bound(p, q, q0, d0, q1, d1, rate, support, band_m, reuse):
+def _pair_bound(p, q, q0, d0, q1, d1, rate, shape_joints, band_m, reuse):
     """Pair ``p``'s Lipschitz lower bound at ``q`` (m) from its distance ``d0[p]`` at ``q0[p]``:
     (bound, moved, earlier). ``moved``: its distance must be computed if the bound is within
     ``band_m``. With ``reuse``, a pair whose joints with a rate are exactly ``q0[p]``'s has not
     moved (its bound is its distance), and a pair that would be near counts its earlier
     distance ``d1[p]`` at ``q1[p]`` too: the bound is the larger of the two, and where every
-    joint that moves one of its shapes (``support[p]``) is exactly ``q1[p]``'s the bound is
+    joint that moves one of its shapes (``shape_joints[p]``) is exactly ``q1[p]``'s the bound is
     ``d1[p]``, not moved, and ``earlier`` True."""
     bound = d0[p]
     moved = not reuse or d0[p] == -np.inf
@@ -587,7 +587,7 @@ def _pair_bound(p, q, q0, d0, q1, d1, rate, support, band_m, reuse):
             # both shapes leaves the distance but not its last bits; the others leave the
             # shapes' placements to the last bit (pinocchio places a link from its own
             # chain's joints only), so coal would compute the same number
-            moved_1 = moved_1 or (support[p, j] and q[j] != q1[p, j])
+            moved_1 = moved_1 or (shape_joints[p, j] and q[j] != q1[p, j])
         if not moved_1:
             return d1[p], False, True
         if earlier > bound:
@@ -596,7 +596,7 @@ def _pair_bound(p, q, q0, d0, q1, d1, rate, support, band_m, reuse):
 
 
 @nb.njit(cache=True, nogil=True)
-def _pair_bounds(q, q0, d0, q1, d1, rate, support, band_m, reuse, bounds, near, changed,
+def _pair_bounds(q, q0, d0, q1, d1, rate, shape_joints, band_m, reuse, bounds, near, changed,
                  taken):
     """Each pair's bound at ``q`` (:func:`_pair_bound`, m, to ``bounds``); ``near`` set to the
     pairs that moved with a bound at most ``band_m``, listing in ``changed`` first the pairs
@@ -613,7 +613,8 @@ def _pair_bounds(q, q0, d0, q1, d1, rate, support, band_m, reuse, bounds, near, 
                 changed[n_changed] = p
                 n_changed += 1
             continue
-        bound, moved, earlier = _pair_bound(p, q, q0, d0, q1, d1, rate, support, band_m, reuse)
+        bound, moved, earlier = _pair_bound(p, q, q0, d0, q1, d1, rate, shape_joints, band_m,
+                                            reuse)
         if earlier:  # the earlier joints: the earlier distance, now the last used
             for j in range(q.shape[0]):
                 q0[p, j], q1[p, j] = q1[p, j], q0[p, j]
@@ -635,7 +636,7 @@ def _pair_bounds(q, q0, d0, q1, d1, rate, support, band_m, reuse, bounds, near, 
 
 
 @nb.njit(cache=True, nogil=True)
-def _bound_near(q, q0, d0, q1, d1, rate, support, band_m, reuse, taken):
+def _bound_near(q, q0, d0, q1, d1, rate, shape_joints, band_m, reuse, taken):
     """:func:`_pair_bounds`'s bounds at ``q`` (of the pairs ``taken``) without writing
     anything: their smallest, or NaN as soon as a pair would be computed (moved, its bound at
     most ``band_m``)."""
@@ -643,7 +644,7 @@ def _bound_near(q, q0, d0, q1, d1, rate, support, band_m, reuse, taken):
     for p in range(d0.shape[0]):
         if not taken[p]:
             continue
-        bound, moved, _ = _pair_bound(p, q, q0, d0, q1, d1, rate, support, band_m, reuse)
+        bound, moved, _ = _pair_bound(p, q, q0, d0, q1, d1, rate, shape_joints, band_m, reuse)
         if moved and bound <= band_m:
             return np.nan
         if bound < best:
