@@ -374,6 +374,47 @@ def test_a_repeatable_checker_takes_the_posture_before_again(model):
     assert again > 30  # the one-distance checker did compute pairs again
 
 
+def test_the_posture_before_is_a_pairs_own_joints(model):
+    """A pair's posture before is matched on the joints that move its shapes only: the right
+    arm back at its joints before after the legs and the left arm moved (the teleop room's
+    search starts so from the arm's last target, every period) computes none of the right
+    arm's pairs the legs and the left arm do not move, and the check is what a checker that
+    computes every pair gives, to the last bit (pinocchio places a shape from its own chain's
+    joints only)."""
+    rng = np.random.default_rng(47)
+    lower, upper = model.lower_rad, model.upper_rad
+    right = model.limb_slice("right-arm")
+    checker = SelfCollisionChecker(model, drill=True, repeatable=True)
+    exact = SelfCollisionChecker(model, drill=True, repeatable=True)
+    rate = checker.rate_m_rad
+    own = rate[:, right].max(axis=1) > 0.0  # the pairs the right arm moves
+    reused = 0
+    for _ in range(30):
+        a = home_posture(model)
+        a[right] = rng.uniform(lower[right], upper[right])
+        b = a.copy()
+        b[right] += rng.uniform(-0.3, 0.3, 6)
+        c = np.clip(a + rng.uniform(-0.05, 0.05, len(a)), lower, upper)
+        c[right] = a[right]  # the legs and the left arm moved, the right arm back at a
+        checker.check_near(a, 0.065, own)
+        near_at_a = checker._near.copy()  # computed at a
+        checker.check_near(b, 0.065, own)
+        near_at_b = checker._near.copy()  # ... and at b: a's distance is the one before
+        got = checker.check_near(c, 0.065, own)
+        # (the joints a pair shares with the right arm's shapes stand: its rates tell)
+        moved = ((rate > 0.0) & (c != a)).any(axis=1)
+        assert not (checker._near & own & ~moved & near_at_a).any()
+        reused += int((own & ~moved & near_at_a & near_at_b).sum())
+        exact.check(c)
+        distances = np.where(own, exact.pair_distances_m(), np.inf)
+        if distances.min() <= 0.065:  # (beyond the band: a lower bound, from earlier checks)
+            best = int(np.argmin(distances))
+            assert (got.distance_m, got.pair) == (distances[best], exact.pair_names[best])
+        else:
+            assert got.distance_m > 0.065
+    assert reused > 200  # the case was met (measured: 410 pairs)
+
+
 def test_bound_near_is_check_near_where_it_would_compute_no_pair(model):
     """bound_near (the teleop room's finite differences ask it first) gives check_near's
     distance to the last bit wherever check_near would compute no pair, and NaN exactly where

@@ -201,18 +201,19 @@ class SelfCollisionChecker:
     when they move, every pair is computed in one pass as before.
 
     Repeatable distances (``repeatable=True``): pinocchio's distance requests start each pair's
-    GJK from its last answer (``enable_cached_gjk_guess``), so a distance computed a second time
-    at the same joints differs within GJK's tolerance (1e-6 m; by 3e-9 m median on drawn
+    GJK from its last answer (``enable_cached_gjk_guess``), so a distance computed a second
+    time at the same joints differs within GJK's tolerance (1e-6 m; by 3e-9 m median on drawn
     postures), depending on what was computed before. Started from coal's fixed default guess
-    instead, a pair's distance depends only on its placements, and :meth:`check_near` takes
-    the distance of a pair whose joints (those with a rate for it) are exactly those of its last
-    computed distance, or (all its joints exactly) of the one before, without computing it
-    again: the same number by construction (a posture the teleop's collision room returns to
-    every other check, a still goal's, costs nothing the second time); the one before bounds
-    the pair too. Beyond the band a pair reports a lower bound, which depends on what was
-    computed before (the room's searches take it as such). The
-    pipeline's detector keeps the cached guess (its results as they were); the teleop's
-    collision room uses the repeatable checker.
+    instead, a pair's distance depends only on its placements, and :meth:`check_near` takes the
+    distance of a pair whose joints (those with a rate for it) are exactly those of its last
+    computed distance, or (every joint that moves one of its shapes exactly: pinocchio places a
+    shape from its own chain's joints only) of the one before, without computing it again: the
+    same number by construction (a posture the teleop's collision room returns to every other
+    check, a still goal's, or an arm back at its last target after the legs and the other arm
+    moved, costs nothing the second time); the one before bounds the pair too. Beyond the band
+    a pair reports a lower bound, which depends on what was computed before (the room's
+    searches take it as such). The pipeline's detector keeps the cached guess (its results as
+    they were); the teleop's collision room uses the repeatable checker.
 
     Args:
         model: the robot model.
@@ -268,6 +269,7 @@ class SelfCollisionChecker:
         self._legs_pair = np.array([moved_by_legs[p.first] or moved_by_legs[p.second]
                                     for p in geom.collisionPairs], dtype=bool)
         self.rate_m_rad = self._pair_rates()
+        self.shape_joints = self._pair_shape_joints()
         # check_near's bounds: each pair's last computed distance and the joints it was
         # computed at (-inf: none yet)
         self.anchor_q = np.zeros((len(self.pair_names), len(self.robot.q_index)))
@@ -347,6 +349,19 @@ class SelfCollisionChecker:
                           if j > 0 and pmodel.joints[j].idx_q in column):
                     rates[k, i] = reach[shape, i]
         return rates
+
+    def _pair_shape_joints(self) -> np.ndarray:
+        """Which joints move each pair's shapes, either or both: (pairs, joints), bool. A
+        pair's distance, as coal computes it, depends on those joints only."""
+        pmodel, geom = self.robot.model, self.geom
+        column = {int(qi): i for i, qi in enumerate(self.robot.q_index)}
+        joints = np.zeros((len(geom.collisionPairs), len(self.robot.q_index)), dtype=bool)
+        for k, pair in enumerate(geom.collisionPairs):
+            for shape in (pair.first, pair.second):
+                for j in pmodel.supports[geom.geometryObjects[shape].parentJoint]:
+                    if j > 0 and pmodel.joints[j].idx_q in column:
+                        joints[k, column[pmodel.joints[j].idx_q]] = True
+        return joints
 
     def pair_distances_m(self) -> np.ndarray:
         """Each pair's distance (m) at the posture of the last :meth:`check`, or a lower bound of
@@ -441,9 +456,9 @@ class SelfCollisionChecker:
         bounds, listed, data = self._bounds_m, self._listed, self._near_data
         n_changed, n_near, best = _pair_bounds(q_rad, self.anchor_q, self.anchor_m,
                                                self.earlier_q, self.earlier_m, self.rate_m_rad,
-                                               band_m, self.repeatable, bounds, self._near,
-                                               listed, self._every_pair if pairs is None
-                                               else pairs)
+                                               self.shape_joints, band_m, self.repeatable, bounds,
+                                               self._near, listed, self._every_pair
+                                               if pairs is None else pairs)
         if n_changed:  # the near pairs are the active ones of data
             near = self._near
             for p in listed[:n_changed].tolist():
@@ -469,7 +484,7 @@ class SelfCollisionChecker:
         if not self.pair_names:
             return np.inf
         return _bound_near(q_rad, self.anchor_q, self.anchor_m, self.earlier_q, self.earlier_m,
-                           self.rate_m_rad, band_m, self.repeatable,
+                           self.rate_m_rad, self.shape_joints, band_m, self.repeatable,
                            self._every_pair if pairs is None else pairs)
 
     def _closest(self, data: pin.GeometryData) -> tuple[float, int]:
@@ -548,13 +563,14 @@ def _lower_bound(q_in, ahead, q0, d0, rate):
 
 
 @nb.njit(cache=True, nogil=True)
-def _pair_bound(p, q, q0, d0, q1, d1, rate, band_m, reuse):
+def _pair_bound(p, q, q0, d0, q1, d1, rate, shape_joints, band_m, reuse):
     """Pair ``p``'s Lipschitz lower bound at ``q`` (m) from its distance ``d0[p]`` at ``q0[p]``:
     (bound, moved, earlier). ``moved``: its distance must be computed if the bound is within
     ``band_m``. With ``reuse``, a pair whose joints with a rate are exactly ``q0[p]``'s has not
     moved (its bound is its distance), and a pair that would be near counts its earlier
     distance ``d1[p]`` at ``q1[p]`` too: the bound is the larger of the two, and where every
-    joint is exactly ``q1[p]``'s the bound is ``d1[p]``, not moved, and ``earlier`` True."""
+    joint that moves one of its shapes (``shape_joints[p]``) is exactly ``q1[p]``'s the bound is
+    ``d1[p]``, not moved, and ``earlier`` True."""
     bound = d0[p]
     moved = not reuse or d0[p] == -np.inf
     for j in range(q.shape[0]):
@@ -567,9 +583,11 @@ def _pair_bound(p, q, q0, d0, q1, d1, rate, band_m, reuse):
         for j in range(q.shape[0]):
             if rate[p, j] > 0.0:
                 earlier -= rate[p, j] * abs(q[j] - q1[p, j])
-            # every joint, not only those with a rate: a joint moving both shapes leaves
-            # the distance but not its last bits (the earlier posture's taken only whole)
-            moved_1 = moved_1 or q[j] != q1[p, j]
+            # every joint that moves a shape, not only those with a rate: a joint moving
+            # both shapes leaves the distance but not its last bits; the others leave the
+            # shapes' placements to the last bit (pinocchio places a link from its own
+            # chain's joints only), so coal would compute the same number
+            moved_1 = moved_1 or (shape_joints[p, j] and q[j] != q1[p, j])
         if not moved_1:
             return d1[p], False, True
         if earlier > bound:
@@ -578,7 +596,8 @@ def _pair_bound(p, q, q0, d0, q1, d1, rate, band_m, reuse):
 
 
 @nb.njit(cache=True, nogil=True)
-def _pair_bounds(q, q0, d0, q1, d1, rate, band_m, reuse, bounds, near, changed, taken):
+def _pair_bounds(q, q0, d0, q1, d1, rate, shape_joints, band_m, reuse, bounds, near, changed,
+                 taken):
     """Each pair's bound at ``q`` (:func:`_pair_bound`, m, to ``bounds``); ``near`` set to the
     pairs that moved with a bound at most ``band_m``, listing in ``changed`` first the pairs
     whose entry changed, then the near pairs. Returns (how many changed, how many are near,
@@ -594,7 +613,8 @@ def _pair_bounds(q, q0, d0, q1, d1, rate, band_m, reuse, bounds, near, changed, 
                 changed[n_changed] = p
                 n_changed += 1
             continue
-        bound, moved, earlier = _pair_bound(p, q, q0, d0, q1, d1, rate, band_m, reuse)
+        bound, moved, earlier = _pair_bound(p, q, q0, d0, q1, d1, rate, shape_joints, band_m,
+                                            reuse)
         if earlier:  # the earlier joints: the earlier distance, now the last used
             for j in range(q.shape[0]):
                 q0[p, j], q1[p, j] = q1[p, j], q0[p, j]
@@ -616,7 +636,7 @@ def _pair_bounds(q, q0, d0, q1, d1, rate, band_m, reuse, bounds, near, changed, 
 
 
 @nb.njit(cache=True, nogil=True)
-def _bound_near(q, q0, d0, q1, d1, rate, band_m, reuse, taken):
+def _bound_near(q, q0, d0, q1, d1, rate, shape_joints, band_m, reuse, taken):
     """:func:`_pair_bounds`'s bounds at ``q`` (of the pairs ``taken``) without writing
     anything: their smallest, or NaN as soon as a pair would be computed (moved, its bound at
     most ``band_m``)."""
@@ -624,7 +644,7 @@ def _bound_near(q, q0, d0, q1, d1, rate, band_m, reuse, taken):
     for p in range(d0.shape[0]):
         if not taken[p]:
             continue
-        bound, moved, _ = _pair_bound(p, q, q0, d0, q1, d1, rate, band_m, reuse)
+        bound, moved, _ = _pair_bound(p, q, q0, d0, q1, d1, rate, shape_joints, band_m, reuse)
         if moved and bound <= band_m:
             return np.nan
         if bound < best:
@@ -706,7 +726,8 @@ class CollisionDetector(Module):
         _lower_bound(*np.zeros((2, self.limits.size)), np.zeros((1, self.limits.size)),
                      np.zeros(1), np.zeros((1, self.limits.size)))
         anchors = (np.zeros((1, self.limits.size)), np.zeros(1)) * 2
-        _pair_bounds(np.zeros(self.limits.size), *anchors, np.zeros((1, self.limits.size)), 0.0,
+        _pair_bounds(np.zeros(self.limits.size), *anchors, np.zeros((1, self.limits.size)),
+                     np.zeros((1, self.limits.size), dtype=bool), 0.0,
                      False, np.zeros(1), np.zeros(1, dtype=bool), np.zeros(2, dtype=np.int64),
                      np.ones(1, dtype=bool))
         _take_near(np.zeros(self.limits.size), np.zeros(1, dtype=np.int64), np.zeros(1),
