@@ -310,14 +310,16 @@ def test_a_swing_leg_is_pitched_against_the_torsos_pitch_and_holds_on_the_floor(
     assert q[left] - pattern[left] == pytest.approx(LEVEL_MAX_RAD, abs=1e-12)
 
 
-def test_the_fast_gaits_torso_offset_holds_from_its_last_lift_off():
+def test_the_fast_gaits_torso_offset_only_returns_from_its_last_lift_off():
     """A fast walk played offline, the estimate on the pattern but its CoM 1 mm ahead of the
-    plan's: the torso offset's CoM feedback integrates that error (back at k_com x 1 mm/s)
-    up to the last step's lift-off and holds from there (the normal gait's from its settle,
-    test_walking_stop). Integrating through that last single support, the offset swung the
-    torso back at its largest rate while the body rocked forward on the stance toe, and the
-    body rocked back onto the rear heel at the last landing (perturbed seeds 15 and 22,
-    AVX-512: the capture-point monitor stopped both; docs/history/walking.md, round 20)."""
+    plan's: the torso offset's CoM feedback integrates that error (back at k_com x 1 mm/s) up
+    to the last step's lift-off; from there it moves only toward zero: held against the same
+    error, and with the CoM 10 mm behind the plan's it comes forward to zero and stops there
+    (the normal gait's goes on integrating up to its settle, test_walking_stop). Integrating
+    through that last single support, the offset swung the torso from ahead to 16-28 mm back
+    while the body rocked forward on the stance toe, and the body rocked back onto the rear
+    heel at the last landing (perturbed seeds 15 and 22, AVX-512: the capture-point monitor
+    stopped both; docs/history/walking.md, round 20)."""
     from hubo_cli.estimation.keys import (
         CAPTURE_POINT_WORLD,
         COM_VELOCITY_WORLD,
@@ -331,20 +333,28 @@ def test_the_fast_gaits_torso_offset_holds_from_its_last_lift_off():
     state = RobotState(0.0, q0, np.zeros_like(q0),
                        ft={name: wrench_at(0.0, 0.0, 190.0) for name in ANKLE_SENSORS})
     target(0.0, state)  # the plan
-    lift_off, settle = target._offset_hold_k, target._settle_k
+    lift_off, settle = target._offset_return_k, target._settle_k
+    assert 0 < lift_off < settle - 100
     offsets = []
     for k in range(1, settle):
-        j = target.k  # (= k) the estimate where the pattern is, its CoM 1 mm ahead
+        j = target.k  # (= k) the estimate where the pattern is, its CoM ahead or behind
         store[T_WORLD_SOLES] = poses_of_rows(np.array([target._rows[side][j]
                                                        for side in ("right", "left")]))
         store[CONTACT] = tuple(target._rows["support"][j])
-        store[COM_WORLD] = np.asarray(target._rows["plan_com"][j]) + (0.001, 0.0, 0.0)
+        ahead_m = 0.001 if j < lift_off + 20 else -0.01
+        store[COM_WORLD] = np.asarray(target._rows["plan_com"][j]) + (ahead_m, 0.0, 0.0)
         store[ZMP_WORLD] = np.asarray(target._rows["zmp_ref"][j])
         store[CAPTURE_POINT_WORLD] = target.gait.com.com_m[j] \
             + target.gait.com.com_velocity_m_s[j] / target._omega
         target(k * DT, state)
         offsets.append(float(target.torso_offset.offset_m[0]))  # after row j = k
-    assert 0 < lift_off < settle
     back = StabilizerGains().k_com * 0.001 * DT  # m a period
+    offsets = np.array(offsets)
     assert np.diff(offsets[:lift_off - 1]) == pytest.approx(-back, rel=0.1)  # rows 1 .. lift-off
-    assert np.all(np.diff(offsets[lift_off - 2:]) == 0.0)  # from the lift-off's row on
+    assert np.all(np.diff(offsets[lift_off - 2:lift_off + 19]) == 0.0)  # held
+    returning = np.diff(offsets[lift_off + 18:])
+    forward = returning[returning > 0]
+    assert forward[:-1] == pytest.approx(10 * back, rel=0.1)  # the last: up to zero
+    assert offsets[lift_off + 18] + forward.sum() == pytest.approx(0.0, abs=1e-15)
+    assert len(forward) < len(returning) and np.all(offsets[lift_off + 18:] <= 0.0)
+    assert offsets[-1] == 0.0

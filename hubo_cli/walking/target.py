@@ -39,9 +39,10 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
   step's landing on (the pattern's settle) the stabilizer's torso offset holds, as in
   ``stopping``: integrating there, it wound up and kept the soles' loads chattering until the
   next plan's start (docs/history/walking.md, "The walk's own settle"). In a gait of short
-  steps (the fast gait) it holds from the last step's lift-off: integrating through that
-  single support, it swung the torso back while the body rocked forward on the stance toe, and
-  the body rocked back onto the rear heel at the last landing (round 20). A foot lifts off only
+  steps (the fast gait) it only returns toward zero from the last step's lift-off, never past
+  it: integrating through that single support, it swung the torso from ahead to 16-28 mm back
+  at its largest rate while the body rocked forward on the stance toe, and the body rocked
+  back onto the rear heel at the last landing (round 20). A foot lifts off only
   while the ankles' sensors read the soles carrying the body (LIFTOFF_MIN_LOAD); a landing
   that bounced the robot into the air makes the timeline wait at the lift-off
   (:meth:`WalkTarget._unloaded_liftoff`), at most LIFTOFF_WAIT_MAX_S. At the lift-off of
@@ -747,10 +748,11 @@ class WalkTarget(Target):
         new["_landing"] = np.minimum.accumulate(both[::-1])[::-1][:n].tolist()
         moving = np.nonzero(whole.step_index >= 0)[0]
         new["_settle_k"] = int(moving[-1]) + 1 if len(moving) else 0  # the pattern's settle
-        # the stabilizer's torso offset holds from here (:meth:`_stabilized`): the settle, or
-        # in a gait of short steps (which answers no pushes: the fast gait) the last step's
-        # lift-off (see the module docstring)
-        new["_offset_hold_k"] = new["_settle_k"] if self.params.answers_pushes or not len(moving) \
+        # from here to the settle the stabilizer's torso offset only returns toward zero
+        # (:meth:`_stabilized`): in a gait of short steps (which answers no pushes: the fast
+        # gait) from the last step's lift-off; none in the others
+        new["_offset_return_k"] = new["_settle_k"] \
+            if self.params.answers_pushes or not len(moving) \
             else int(np.argmax(whole.step_index == whole.step_index[moving[-1]]))
         return new
 
@@ -1548,10 +1550,10 @@ class WalkTarget(Target):
         rows = self._rows
         wrenches = ankle_wrenches(self.store)
         com = self._in_pattern(k, wrenches, self.store[COM_WORLD])
-        # settling, stopping and (the fast gait) the last step: it holds (see the module
-        # docstring)
-        if self.phase == "walk" and k < self._offset_hold_k:
-            self.torso_offset.update(zmp, rows["zmp_ref"][k], com, rows["plan_com"][k])
+        if self.phase == "walk" and k < self._settle_k:  # settling, stopping: it holds (see
+            # the module docstring); the fast gait's last step: it only returns
+            self.torso_offset.update(zmp, rows["zmp_ref"][k], com, rows["plan_com"][k],
+                                     returning=k >= self._offset_return_k)
         offset_x, offset_y = self.torso_offset.offset_m.tolist()
         cop_refs = [None, None]
         if self.lip is not None:  # eq. 8 and 9-14: the soles' reference CoPs for their dampers
