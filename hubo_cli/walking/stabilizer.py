@@ -169,9 +169,11 @@ class TorsoOffset:
         self.offset_m[:] = 0.0
 
     def update(self, zmp_m: np.ndarray | None, zmp_ref_m: np.ndarray, com_m: np.ndarray,
-               com_ref_m: np.ndarray, returning: bool = False) -> np.ndarray:
-        """One period; ``zmp_m`` None (no sole loaded) leaves the ZMP term out. ``returning``:
-        each of x and y moves only toward zero, never away from it or past it."""
+               com_ref_m: np.ndarray, chased_m_s: np.ndarray | None = None) -> np.ndarray:
+        """One period; ``zmp_m`` None (no sole loaded) leaves the ZMP term out.
+        ``chased_m_s``: the CoM's velocity less the plan's (x, y; m/s); where given, x and y
+        each hold rather than move the way it already goes (the offset would chase a body that
+        already comes back; NaN: no hold)."""
         g = self.gains
         rate_x = -g.k_com * (float(com_m[0]) - float(com_ref_m[0]))
         rate_y = -g.k_com * (float(com_m[1]) - float(com_ref_m[1]))
@@ -188,10 +190,10 @@ class TorsoOffset:
         size = math.hypot(x, y)
         if size > g.max_offset_m:
             x, y = x * (g.max_offset_m / size), y * (g.max_offset_m / size)
-        if returning:
+        if chased_m_s is not None:
             x0, y0 = self.offset_m.tolist()
-            x = min(max(x, min(x0, 0.0)), max(x0, 0.0))
-            y = min(max(y, min(y0, 0.0)), max(y0, 0.0))
+            x = x0 if (x - x0) * float(chased_m_s[0]) > 0 else x
+            y = y0 if (y - y0) * float(chased_m_s[1]) > 0 else y
         self.offset_m = np.array((x, y))
         return self.offset_m
 
