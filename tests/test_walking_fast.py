@@ -14,13 +14,11 @@ from hubo_cli.model import load_model
 @pytest.mark.slow
 def test_the_fast_gait_walks_two_metres_without_a_fall_or_a_stop(tmp_path):
     """The nominal robot walks 2 m in the fast gait without a fall, a stop or a moved landing,
-    its commands within the walking set's 2.6 rad/s. Measured (round 20, the torso offset held
-    through the last step): 12 steps at 0.209 m/s on both code paths, 6.1 mm / 0.40 deg
-    (AVX-512) and 8.5 mm / 0.34 deg (portable) off the goal; before it the portable path's
-    estimate ended the 12 steps 8 mm or more off, a correction took 2 more (0.152 m/s) and the
-    truth ended 14.3 mm off (AVX-512: 11.4 mm). Bound 25 mm: 1.7x the largest of these (a
-    correction may still walk: the soles' twist, which the estimate does not see). The speed
-    is the plan's unless a correction walks: 0.209 m/s for the 12 steps
+    its commands within the walking set's 2.6 rad/s. Measured: on AVX-512 12 steps at 0.209
+    m/s, 11.4 mm / 0.71 deg off the goal; on the portable path the estimate ended the 12 steps
+    8 mm or more off, a correction took 2 more (0.152 m/s) and the truth ended 14.3 mm / 0.78 deg
+    off (the soles' twist, which the estimate does not see). Bound 25 mm: 1.7x the larger. The
+    speed is the plan's unless a correction walks: 0.209 m/s for the 12 steps
     (tests/test_walking_pattern.py)."""
     from hubo_cli.experiments.walk import walk
 
@@ -41,9 +39,7 @@ def test_the_fast_gait_walks_on_after_the_capture_point_moved_a_landing(tmp_path
     lay on the estimated floor (the re-planned pattern's first row has the swing foot up and
     the monitor dropped its landing), the capture-point monitor stopped this walk at 8.99 s.
     Measured: the capture point came within 32.5 mm (AVX-512) and 32.4 mm (portable path) of
-    the planned support's shrunk edge, never outside (with the fast gait's torso offset held
-    through the last step, round 20: 50.9 and 53.5 mm; 9 and 2 moved landings); bound 21 mm =
-    the closer / 1.5."""
+    the planned support's shrunk edge, never outside; bound 21 mm = the closer / 1.5."""
     from hubo_cli.control.log import load_log
     from hubo_cli.experiments.walk import walk
 

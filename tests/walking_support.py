@@ -72,14 +72,14 @@ class StandingWalk(NamedTuple):
     store: Store
 
 
-def standing_walk(goal_m, stabilizer: StabilizerGains | None, gait: str = "normal",
+def standing_walk(goal_m, stabilizer: StabilizerGains | None,
                   **store_options) -> StandingWalk:
     """The target of a walk to ``goal_m`` (forward, left, turn) without corrections, with
     ``stabilizer``'s gains (None: none), on the as-built model with the walking limits and its
-    ``gait``'s walking parameters, attached to the estimate of its start posture standing
-    still (:func:`standing_store` with ``store_options``), not yet run."""
+    walking parameters, attached to the estimate of its start posture standing still
+    (:func:`standing_store` with ``store_options``), not yet run."""
     model = load_model("as-built", "walking")
-    params = walking_params(model, gait)
+    params = walking_params(model)
     q_start, T_world_neck = walking_posture(model, params.step_width_m, params.crouch_m)
     target = WalkTarget(model, params, goal_m, q_start, T_world_neck, corrections=0,
                         stabilizer=stabilizer)

@@ -169,11 +169,8 @@ class TorsoOffset:
         self.offset_m[:] = 0.0
 
     def update(self, zmp_m: np.ndarray | None, zmp_ref_m: np.ndarray, com_m: np.ndarray,
-               com_ref_m: np.ndarray, chased_m_s: np.ndarray | None = None) -> np.ndarray:
-        """One period; ``zmp_m`` None (no sole loaded) leaves the ZMP term out.
-        ``chased_m_s``: the CoM's velocity less the plan's (x, y; m/s); where given, x and y
-        each hold rather than move the way it already goes (the offset would chase a body that
-        already comes back; NaN: no hold)."""
+               com_ref_m: np.ndarray) -> np.ndarray:
+        """One period; ``zmp_m`` None (no sole loaded) leaves the ZMP term out."""
         g = self.gains
         rate_x = -g.k_com * (float(com_m[0]) - float(com_ref_m[0]))
         rate_y = -g.k_com * (float(com_m[1]) - float(com_ref_m[1]))
@@ -190,10 +187,6 @@ class TorsoOffset:
         size = math.hypot(x, y)
         if size > g.max_offset_m:
             x, y = x * (g.max_offset_m / size), y * (g.max_offset_m / size)
-        if chased_m_s is not None:
-            x0, y0 = self.offset_m.tolist()
-            x = x0 if (x - x0) * float(chased_m_s[0]) > 0 else x
-            y = y0 if (y - y0) * float(chased_m_s[1]) > 0 else y
         self.offset_m = np.array((x, y))
         return self.offset_m
 

@@ -38,12 +38,7 @@ Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
   holds meanwhile). From the last
   step's landing on (the pattern's settle) the stabilizer's torso offset holds, as in
   ``stopping``: integrating there, it wound up and kept the soles' loads chattering until the
-  next plan's start (docs/history/walking.md, "The walk's own settle"). In a gait of short
-  steps (the fast gait), from the last step's lift-off on, it holds where it would move the way
-  the estimated CoM's velocity already runs from the plan's: integrating the CoM's error through
-  that single support, it swung the torso from ahead to 16-28 mm back at its largest rate
-  while the body, rocked forward on the stance toe, already came back, and the body rocked
-  back onto the rear heel at the last landing (round 20). A foot lifts off only
+  next plan's start (docs/history/walking.md, "The walk's own settle"). A foot lifts off only
   while the ankles' sensors read the soles carrying the body (LIFTOFF_MIN_LOAD); a landing
   that bounced the robot into the air makes the timeline wait at the lift-off
   (:meth:`WalkTarget._unloaded_liftoff`), at most LIFTOFF_WAIT_MAX_S. At the lift-off of
@@ -749,12 +744,6 @@ class WalkTarget(Target):
         new["_landing"] = np.minimum.accumulate(both[::-1])[::-1][:n].tolist()
         moving = np.nonzero(whole.step_index >= 0)[0]
         new["_settle_k"] = int(moving[-1]) + 1 if len(moving) else 0  # the pattern's settle
-        # from here to the settle the stabilizer's torso offset does not chase the CoM's
-        # velocity error (:meth:`_stabilized`): in a gait of short steps (which answers no
-        # pushes: the fast gait) from the last step's lift-off; never in the others
-        new["_offset_damped_k"] = new["_settle_k"] \
-            if self.params.answers_pushes or not len(moving) \
-            else int(np.argmax(whole.step_index == whole.step_index[moving[-1]]))
         return new
 
     def _install(self, new: dict, t_s: float) -> None:
@@ -1552,10 +1541,8 @@ class WalkTarget(Target):
         wrenches = ankle_wrenches(self.store)
         com = self._in_pattern(k, wrenches, self.store[COM_WORLD])
         if self.phase == "walk" and k < self._settle_k:  # settling, stopping: it holds (see
-            # the module docstring); the fast gait's last step: it does not chase
-            self.torso_offset.update(zmp, rows["zmp_ref"][k], com, rows["plan_com"][k],
-                                     self._com_velocity_error(k, wrenches)
-                                     if k >= self._offset_damped_k else None)
+            # the module docstring)
+            self.torso_offset.update(zmp, rows["zmp_ref"][k], com, rows["plan_com"][k])
         offset_x, offset_y = self.torso_offset.offset_m.tolist()
         cop_refs = [None, None]
         if self.lip is not None:  # eq. 8 and 9-14: the soles' reference CoPs for their dampers
@@ -1582,14 +1569,6 @@ class WalkTarget(Target):
         self._level_swing(rows["support"][k], q, float(torso_error[1]))
         self._momentum(k, q)
         return q
-
-    def _com_velocity_error(self, k: int, wrenches: np.ndarray) -> np.ndarray:
-        """The estimated CoM's horizontal velocity less the plan's at row ``k``, in the
-        pattern's frame (x, y; m/s; turned as :meth:`_in_pattern` turns a point)."""
-        *_, c, s = self._pattern_frame(k, wrenches)
-        vx, vy = (float(v) for v in self.store[COM_VELOCITY_WORLD][:2])
-        ref_x, ref_y = self._rows["com_velocity_ref"][k][:2]
-        return np.array((c * vx - s * vy - ref_x, s * vx + c * vy - ref_y))
 
     def _caught(self, k: int) -> bool:
         """A swing foot turned beyond REACH_STOP_RAD against the body's roll over the stance
