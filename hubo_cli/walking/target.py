@@ -227,6 +227,13 @@ CP_ABANDON_FRACTION = 0.5  # [chosen] ... a swing is abandoned for it only this 
 REAIM_STEPS = 4        # [chosen] the plan's last this many steps are re-aimed at their lift-offs
                        # from the estimated stance foot (:meth:`WalkTarget._reaim`)
 REAIM_STEP_M = 0.015   # [chosen] a re-aim changes a swing's travel by at most this much
+REAIM_MOVED_STEPS = 2  # [chosen] in a plan whose landings the capture point moved (the fast
+                       # gait's), only the last this many steps are re-aimed, and at the goal
+REAIM_LAST_M = 0.06    # [chosen] the fast gait's last step (beside the stance foot: half the
+                       # other steps' travel) changes its travel by up to this much at a re-aim
+REAIM_LAST_FLOOR_M = ARRIVED_M / 2  # [chosen] ... and is re-aimed for a stance that would end
+                       # this far off (its landing misses by a few mm of its own: AVX-512 seed
+                       # 10, predicted 5.6 mm, ended 8.0 mm off and walked a correction)
 CP_GAIN_MAX = 1.0      # [chosen] the error's growth by the landing counted at most this much
                        # (exp(omega t) is 17 at a swing's start: a 1 cm error of the estimate's
                        # capture point moved the landing by 17 cm; 3x stepped too far back
@@ -505,6 +512,9 @@ class WalkTarget(Target):
         # (:meth:`_support_in_estimate`) for the gaits that do not answer pushes (the fast
         # gait, whose stance soles slip round); the pushed gaits' where the pattern put it
         self.support_where_standing = not params.answers_pushes
+        # the same gaits' plans the capture point moved are re-aimed at the goal in their last
+        # steps (:meth:`_reaim`); a pushed gait's move answers a push, left to the correction
+        self.reaim_moved = not params.answers_pushes
         self.toe_heel = toe_heel
         self.lip_feedback = lip_feedback and stabilizer is not None
         self.lip: LipStabilizer | None = None
@@ -653,6 +663,7 @@ class WalkTarget(Target):
         self._reaimed = -1
         self._reaimed_m = {side: np.zeros(2) for side in SIDES}
         self._moves_before = self.shifts + self.touchdowns_early  # (:meth:`_reaim`)
+        self._aims = {side: _final_place(steps, feet[side], side) for side in SIDES}
         # what the plan was made from, for re-planning it in motion (:meth:`_replan`)
         self._basis = ((feet["right"], feet["left"]), list(steps), sole_z, com_world[:2].copy())
         self._row0 = 0  # the pattern's first period on the plan's timeline
@@ -1077,20 +1088,36 @@ class WalkTarget(Target):
         the steps stay within the gait's limits (else the change along the walk is halved,
         twice at most, or left out), and a plan whose steps are not within them (an
         approach's closing steps to a stance narrower than the gait's) is not re-aimed.
-        Not in a plan whose landings the capture point
-        or a push has moved (seed 11 of the fast 2 m walks fell after 2 re-aims among 23 such
-        moves; it stood stopped without them), nor while the capture point is off the
-        pattern's by what moves a landing (CP_MARGIN_M and CP_REPLAN_M): the correction after
-        the pattern acts then. Re-planned as those moves are (:meth:`_replan`): the swing foot
-        moves onto its new path by its landing, the CoM continues."""
+        Not while the capture point is off the pattern's by what moves a landing (CP_MARGIN_M
+        and CP_REPLAN_M; but see the fast gait's last step below): the correction after the
+        pattern acts then.
+
+        A plan whose landings the capture point or a push has moved: in a gait that answers
+        pushes it is not re-aimed (a push's answer is not pulled back; round 9: seed 11 of the
+        fast 2 m walks fell after 2 re-aims among 23 such moves, re-aimed at each of the last 4
+        lift-offs); in the fast gait (:attr:`reaim_moved`), whose moves follow its own
+        capture point's lag, only its last REAIM_MOVED_STEPS steps are, at the goal: each
+        foot's final place off the plan's first (:meth:`_off_aim`) stands for what re-aims
+        moved it. There the last step (beside the stance foot) moves by up to REAIM_LAST_M,
+        for a stance that would end REAIM_LAST_FLOOR_M off, whatever the capture point's
+        error (the capture point still moves its landing as it swings: at the fast gait's
+        last lift-off the estimated one ran 44-51 mm ahead of the pattern's in AVX-512 walks
+        1 and 15 and portable 12, whose plans ended 15-27 mm short and walked a correction,
+        docs/history/walking.md, round 20). Re-planned as the capture
+        point's moves are (:meth:`_replan`): the swing foot moves onto its new path by its
+        landing, the CoM continues."""
         k, cart = self.k, self._cart
         if self.toe_heel is not None or k + 1 >= cart.n or not cart.support[k].all() \
-                or cart.support[k + 1].all() \
-                or self.shifts + self.touchdowns_early > self._moves_before:
+                or cart.support[k + 1].all():
             return
         step, steps = int(cart.step_index[k + 1]), self._basis[1]
-        if step < max(len(steps) - REAIM_STEPS, 0) or step == self._reaimed or not np.all(
-                np.abs(self._capture_point_error(k)) <= CP_MARGIN_M + CP_REPLAN_M):
+        moved_plan = self.shifts + self.touchdowns_early > self._moves_before
+        if moved_plan and not self.reaim_moved:
+            return
+        last = REAIM_MOVED_STEPS if moved_plan else REAIM_STEPS
+        last_step = self.reaim_moved and step == len(steps) - 1
+        if step < max(len(steps) - last, 0) or step == self._reaimed or not (last_step or np.all(
+                np.abs(self._capture_point_error(k)) <= CP_MARGIN_M + CP_REPLAN_M)):
             return
         self._reaimed = step
         column = 0 if cart.support[k + 1, 0] else 1
@@ -1098,9 +1125,11 @@ class WalkTarget(Target):
         x, y, _, yaw = cart.feet[side][k].tolist()
         stance = footstep_of(side, self.store[T_WORLD_SOLES][column])
         drift = np.array([x - stance.x_m, y - stance.y_m])  # the pattern's sole less the
-        reaimed = self._reaimed_m                             # estimate's
+        # estimate's; each foot's final place off the goal's in the plan (moved: the capture
+        # point's moves too, taken back)
+        reaimed = self._off_aim(steps) if moved_plan else self._reaimed_m
         ending_m = float(np.hypot(*(drift - (reaimed["right"] + reaimed["left"]) / 2)))
-        if not ending_m >= ARRIVED_M:  # (no estimate of the sole: NaN, nothing moves)
+        if not ending_m >= (REAIM_LAST_FLOOR_M if last_step else ARRIVED_M):  # (NaN: no sole)
             return  # the stance would end where no correction walks
         finals = {}
         for foot in SIDES:
@@ -1114,7 +1143,8 @@ class WalkTarget(Target):
         changes = {}
         for mine, d in finals.values():
             n = len(mine)
-            d = d * min(1.0, REAIM_STEP_M * n / max(float(np.hypot(*d)), 1e-12))
+            most_m = REAIM_LAST_M if last_step else REAIM_STEP_M * n
+            d = d * min(1.0, most_m / max(float(np.hypot(*d)), 1e-12))
             changes.update({j: d * (i + 1) / n for i, j in enumerate(mine)})
         feet = [Footstep(foot, *cart.feet[foot][k][[0, 1, 3]].tolist()) for foot in SIDES]
         if not within_limits(steps[step:], *feet, self.params):
@@ -1141,6 +1171,12 @@ class WalkTarget(Target):
                                            moved[mine[-1]].y_m - steps[mine[-1]].y_m])
 
         self._replan(moved, t_s, done=done)
+
+    def _off_aim(self, steps: list[Footstep]) -> dict[str, np.ndarray]:
+        """Each foot's final place in ``steps`` (its last landing, else where the plan
+        started it) less its final place in the plan as made (:meth:`_plan`): world x, y (m)."""
+        return {side: _final_place(steps, self._basis[0][column], side) - self._aims[side]
+                for column, side in enumerate(SIDES)}
 
     def _touched_early(self, k: int, step: int, support: list[bool], t_s: float) -> bool:
         """A swing foot down early (pushed onto the floor): the estimate has its sole in
@@ -1669,6 +1705,13 @@ class WalkTarget(Target):
         if not self.final_feet:
             return math.nan, math.nan
         return stance_error(self.final_feet, self.goal)
+
+
+def _final_place(steps: list[Footstep], start: Footstep, side: str) -> np.ndarray:
+    """Where ``side``'s foot ends in ``steps`` (world x, y; m): its last landing, else
+    ``start``."""
+    place = next((step for step in reversed(steps) if step.side == side), start)
+    return np.array([place.x_m, place.y_m])
 
 
 def stance_error(T_world_soles: dict[str, np.ndarray], goal: Stance) -> tuple[float, float]:
