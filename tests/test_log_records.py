@@ -285,6 +285,6 @@ def test_a_cut_log_says_it_ends_early(tmp_path):
     assert len(cut) == 17 and cut.cut_short.startswith("the log ends early: 17 of the 40 periods")
     report: dict = {}
     report_log_warnings(cut, report, as_json=True)
-    assert report == {"periods_expected": 40}
+    assert report["periods_expected"] == 40
     report_log_warnings(whole, report := {}, as_json=True)
-    assert report == {}
+    assert "periods_expected" not in report  # (its odd measured joints are log_suspect)
