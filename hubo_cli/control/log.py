@@ -703,10 +703,10 @@ def load_log(path: str | Path) -> LogData:
 def _checked(log: LogData, sidecar: dict, meta_path: Path) -> LogData:
     """``log`` once it is a run's (:mod:`hubo_cli.control.log_checks`), its suspect values
     said and the impossible positions among them made unknown."""
+    check_sidecar(sidecar, log.joint_names, meta_path)
     if "t_s" in log.columns:
         check_times(log.columns["t_s"], meta_path.parent)
         log.suspect = suspect_values(log.columns, log.joint_names)
-    check_sidecar(sidecar, log.joint_names, meta_path)
     return log
 
 

@@ -34,7 +34,7 @@ def check_times(t_s: np.ndarray, source) -> None:
     bad = ~(np.isfinite(t_s) & (np.abs(t_s) < MAX_LOG_TIME_S))
     if bad.any():
         raise InputError(f"the log in {source} has times (t_s) that are not finite or beyond "
-                         f"{MAX_LOG_TIME_S:.0e} s (from row {_first(bad)})", hint=_HINT)
+                         f"{MAX_LOG_TIME_S:.0e} s (from row {int(np.argmax(bad)) + 1})", hint=_HINT)
     if len(t_s) < 2:
         return
     step_s = np.diff(t_s)
@@ -99,10 +99,6 @@ def suspect_values(columns: dict[str, np.ndarray], joints: tuple[str, ...]) -> l
                      f" {'is' if len(named) == 1 else 'are'} not a number in {_rows(rows, t_s)}: "
                      "unknown there in what follows")
     return lines
-
-
-def _first(mask: np.ndarray) -> int:
-    return int(np.argmax(mask)) + 1
 
 
 def _listed(names) -> str:
