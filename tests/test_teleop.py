@@ -11,7 +11,7 @@ from hubo_cli.control.log import load_log
 from hubo_cli.fastrak.capture import capture_bytes, parse_capture, read_recording_bytes
 from hubo_cli.model import load_model
 from hubo_cli.resources import data_file
-from hubo_cli.teleop.session import TeleopSettings, run_teleop
+from hubo_cli.teleop.session import TeleopSettings, run_teleop, stale_spans
 
 RECTANGLE = data_file("trajectories", "drill-rectangle.fastrak")
 
@@ -140,8 +140,37 @@ def test_a_one_second_gap_holds_smoothly(tmp_path):
     assert run.summary["ended"] == "done"
     # ~1 s flagged stale: 153 periods on both code paths (AVX-512 / portable), 1.5x the bound
     assert run.summary["status_counts"].get("stale input", 0) > 100
+    # review 20: the reported span is the time the hand held, the 1 s gap (the flag's 0.765 s
+    # and the 0.25 s timeout before it: 1.015 s; main said 0.77 s)
+    stale = run.summary["stale_input"]
+    assert stale["spans"] == 1 and 0.95 <= stale["longest_s"] == stale["total_s"] <= 1.05
     assert _max_step_ratio(run.run_dir) <= 1.0 + 1e-9
     assert run.summary["max_joint_velocity_ratio"] <= 1.0 + 1e-9
+
+
+def test_a_stale_span_counts_the_hold_before_its_flag():
+    """Review 20: the flag rises the stale timeout after the hand's last usable pose, so a
+    span of flags understated the hold by the timeout ("input stale for 0.01 s" after a
+    tracker jumped away). Spans start the timeout earlier, never before the log or the end of
+    the span before."""
+    class Log:
+        def __init__(self, stale_rows):
+            self.flags = [["stale-input"] if k in stale_rows else [] for k in range(200)]
+            self.t = np.arange(200) * 0.005 + 2.0
+
+        def __getitem__(self, name):
+            return self.t
+
+    # flagged from row 10 (0.05 s after the log's start: clamped there) for 20 rows, and from
+    # row 100 for 2 rows (0.25 s before it the hand held)
+    spans = stale_spans(Log(set(range(10, 30)) | {100, 101}), t_origin_s=1.0, timeout_s=0.25)
+    assert spans["spans"] == 2 and spans["longest_s"] == pytest.approx(0.26)
+    assert spans["longest_from_s"] == pytest.approx(1.25)  # row 50 on the target's clock
+    assert spans["total_s"] == pytest.approx(0.26 + 0.15)
+    # a span that starts just after another: from the end of the one before
+    spans = stale_spans(Log(set(range(10, 30)) | {35}), timeout_s=0.25)
+    assert spans["total_s"] == pytest.approx(0.15 + 0.03)
+    assert spans["longest_s"] == pytest.approx(0.15) and spans["longest_from_s"] == 2.0
 
 
 # Not marked physical: the ideal driver, as the gap's test above.
@@ -169,8 +198,10 @@ def test_a_tracker_that_jumps_and_stays_there_is_stale_input(tmp_path):
     # flagged once the poses were unusable for the 0.25 s timeout (as a silent tracker is),
     # until the next pose re-centres: a span of a few periods, 1.25 s into the stream (the
     # approach takes the first 2.09 s of the target's clock on the ideal driver)
-    assert stale["spans"] == 1 and stale["longest_s"] < 0.05
-    assert 3.3 <= stale["longest_from_s"] <= 3.4
+    # the span is the time the hand held: from its last usable pose (the 0.25 s timeout
+    # before the flag) to the re-centre (main said 0.01 s from 3.34 s)
+    assert stale["spans"] == 1 and 0.25 <= stale["longest_s"] < 0.30
+    assert 3.05 <= stale["longest_from_s"] <= 3.15
     # then re-centred: only the station's 16 poses of the timeout (60 Hz) were rejected, the
     # rest used (on main every one of its 120 poses after the jump would be)
     assert run.summary["samples_rejected"] <= 20

@@ -8,7 +8,7 @@ import click
 from rich.markup import escape
 
 from hubo_cli.cli.options import force_option
-from hubo_cli.cli.output import busy, console, err_console, print_json, report_cut_short
+from hubo_cli.cli.output import busy, console, err_console, print_json, report_log_warnings
 
 
 @click.command("export")
@@ -46,7 +46,7 @@ def export(run, rrd, mcap, force, as_json) -> None:
         report["log_unfinished"] = scene.log.unfinished
         if not as_json:
             err_console.print(escape(scene.log.unfinished), soft_wrap=True)
-    report_cut_short(scene.log, report, as_json)
+    report_log_warnings(scene.log, report, as_json)
     if rrd_out is not None:
         from hubo_cli.viz.rerun_export import export_rrd
 

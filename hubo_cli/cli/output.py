@@ -102,13 +102,18 @@ def warn(message: str) -> None:
     err_console.print(f"[yellow]warning:[/] {message}")
 
 
-def report_cut_short(log, report: dict, as_json: bool) -> None:
-    """A log cut short (fewer periods than its log.json says the run logged): the warning
-    line on stderr and ``periods_expected`` in the JSON report; nothing for a whole log."""
+def report_log_warnings(log, report: dict, as_json: bool) -> None:
+    """What is wrong in a log that was still read: cut short (fewer periods than its log.json
+    says the run logged: ``periods_expected``) and values the robot cannot have logged
+    (``log_suspect``, one line each naming the rows); warning lines on stderr and fields in
+    the JSON report, nothing for a sound log."""
     if log.cut_short:
         report["periods_expected"] = log.periods_expected
-        if not as_json:
-            warn(log.cut_short)
+    if log.suspect:
+        report["log_suspect"] = list(log.suspect)
+    if not as_json:
+        for line in ([log.cut_short] if log.cut_short else []) + log.suspect:
+            warn(line)
 
 
 def interactive() -> bool:

@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from hubo_cli.cli.options import force_option
-from hubo_cli.cli.output import console, err_console, print_json, report_cut_short
+from hubo_cli.cli.output import console, err_console, print_json, report_log_warnings
 from hubo_cli.viz.camera import DEFAULT_PRESET, PRESETS
 
 
@@ -135,7 +135,7 @@ def replay(run, gui, video, speed, camera, size, start_s, end_s, force, as_json)
                              "in .mp4", hint=f"e.g. --video {out.path.with_suffix('.mp4').name}")
     scene = load_scene(run)
     report["periods"] = len(scene)
-    report_cut_short(scene.log, report, as_json)
+    report_log_warnings(scene.log, report, as_json)
     if out is not None:
         result = make_video(run, out, speed=speed, camera=camera, size=size, start_s=start_s,
                             end_s=end_s, quiet=as_json, scene=scene)

@@ -68,6 +68,7 @@ from pathlib import Path
 import numpy as np
 
 from hubo_cli import __version__
+from hubo_cli.control.log_checks import check_sidecar, check_times, suspect_values
 from hubo_cli.control.log_kernels import pose_row
 from hubo_cli.control.log_parquet import write_log_parquet
 from hubo_cli.control.status import Status
@@ -599,6 +600,8 @@ class LogData:
             made into its CSV (a read-only folder), one line saying so and why.
         periods_expected: the periods the run logged, from the sidecar (None without one);
             more than were read when the log file was cut (:attr:`cut_short`).
+        suspect: one line per kind of value the robot cannot have logged, naming its rows
+            (made unknown where it was a position; :mod:`hubo_cli.control.log_checks`).
     """
 
     columns: dict[str, np.ndarray]
@@ -609,6 +612,7 @@ class LogData:
     hubo_cli_version: str | None = None
     unfinished: str = ""
     periods_expected: int | None = None
+    suspect: list[str] = field(default_factory=list)
 
     def __getitem__(self, name: str) -> np.ndarray:
         return self.columns[name]
@@ -690,9 +694,20 @@ def load_log(path: str | Path) -> LogData:
                               "removed: the log is then read from log.csv)") from None
     joints = tuple(n[4:-4] for n in frame.columns if n.startswith("cmd_") and n.endswith("_rad"))
     rows = sidecar.get("rows")
-    return LogData(columns, flags, joints, sidecar.get("metadata", {}),
-                   sidecar.get("started_utc"), sidecar.get("hubo_cli_version"),
-                   periods_expected=rows if isinstance(rows, int) and rows > 0 else None)
+    return _checked(LogData(columns, flags, joints, sidecar.get("metadata", {}),
+                            sidecar.get("started_utc"), sidecar.get("hubo_cli_version"),
+                            periods_expected=rows if isinstance(rows, int) and rows > 0
+                            else None), sidecar, meta_path)
+
+
+def _checked(log: LogData, sidecar: dict, meta_path: Path) -> LogData:
+    """``log`` once it is a run's (:mod:`hubo_cli.control.log_checks`), its suspect values
+    said and the impossible positions among them made unknown."""
+    check_sidecar(sidecar, log.joint_names, meta_path)
+    if "t_s" in log.columns:
+        check_times(log.columns["t_s"], meta_path.parent)
+        log.suspect = suspect_values(log.columns, log.joint_names)
+    return log
 
 
 def _unfinished_log(csv_path: Path, meta_path: Path, reason: str) -> LogData:
@@ -703,11 +718,11 @@ def _unfinished_log(csv_path: Path, meta_path: Path, reason: str) -> LogData:
     names = [n for n in layout["columns"] if n != "flags"]
     columns = {name: table[:, i] for i, name in enumerate(names)}
     joints = tuple(n[4:-4] for n in names if n.startswith("cmd_") and n.endswith("_rad"))
-    return LogData(columns, [t.split(";") if t else [] for t in flag_texts], joints,
-                   sidecar.get("metadata", {}), sidecar.get("started_utc"),
-                   sidecar.get("hubo_cli_version"),
-                   unfinished=f"{csv_path.parent}: its log was read from log.rows, not made "
-                              f"into log.csv ({reason})")
+    return _checked(LogData(columns, [t.split(";") if t else [] for t in flag_texts], joints,
+                            sidecar.get("metadata", {}), sidecar.get("started_utc"),
+                            sidecar.get("hubo_cli_version"),
+                            unfinished=f"{csv_path.parent}: its log was read from log.rows, "
+                                       f"not made into log.csv ({reason})"), sidecar, meta_path)
 
 
 def _read_sidecar(path: Path) -> dict:

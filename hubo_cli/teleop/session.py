@@ -344,11 +344,14 @@ def _reached_exactly(body: WholeBody, path: PosePath, samples: int = 12) -> bool
     return True
 
 
-def stale_spans(log, t_origin_s: float = 0.0) -> dict | None:
+def stale_spans(log, t_origin_s: float = 0.0, timeout_s: float = 0.0) -> dict | None:
     """How long a driven hand's input was stale (flag ``stale-input``: nothing usable came,
     a silent or garbled tracker, poses that each jump away, a gap in a recording) while the
     hands held: the total, the spans and the longest one, on the target's clock (the run's
-    less ``t_origin_s``; s); None when it never was."""
+    less ``t_origin_s``; s); None when it never was. The flag rises ``timeout_s`` (the stale
+    timeout) after the hand's last usable pose, and the hand held its goal from that pose on:
+    each span starts that much earlier (not before the log's start or the span before it), so
+    that it is the time the hand was held, not the time beyond the timeout."""
     stale = np.array(["stale-input" in f for f in log.flags], dtype=bool)
     if not stale.any():
         return None
@@ -356,10 +359,12 @@ def stale_spans(log, t_origin_s: float = 0.0) -> dict | None:
     dt_s = float(np.median(np.diff(t_s))) if len(t_s) > 1 else 0.0
     edges = np.diff(np.concatenate([[0], stale.astype(np.int8), [0]]))
     starts, ends = np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]
-    lengths_s = (ends - starts) * dt_s
+    earliest = np.concatenate([[0], ends[:-1]])  # the log's start, else the span before's end
+    starts_s = np.maximum(t_s[starts] - timeout_s, t_s[earliest])
+    lengths_s = (ends - starts) * dt_s + (t_s[starts] - starts_s)
     longest = int(np.argmax(lengths_s))
-    return {"total_s": float(stale.sum() * dt_s), "spans": len(starts),
-            "longest_s": float(lengths_s[longest]), "longest_from_s": float(t_s[starts[longest]])}
+    return {"total_s": float(lengths_s.sum()), "spans": len(starts),
+            "longest_s": float(lengths_s[longest]), "longest_from_s": float(starts_s[longest])}
 
 
 def summarise(settings: TeleopSettings, target: TeleopTarget, done: RunResult,
@@ -411,7 +416,7 @@ def summarise(settings: TeleopSettings, target: TeleopTarget, done: RunResult,
             if arm in target.hands and source.last_seen_s(hand) is not None
             and hand not in target.last_sample_s],
         "input_stats": source.stats(),
-        "stale_input": stale_spans(done.log, t_origin_s),
+        "stale_input": stale_spans(done.log, t_origin_s, target.stale_timeout_s),
         "input_info": source.info,
         "scene": target.scene,
     }

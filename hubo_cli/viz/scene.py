@@ -38,7 +38,6 @@ QUIET_STATUSES = frozenset({Status.OK, Status.SLOWING, Status.HOLDING, Status.JO
 HOLE_FACE_OFFSET_M = 0.001  # the hole drawn this far in front of the wall's face
 START_FROM_LOG = "log"  # RunScene.start_source when the log says when the run started
 LATEST_START_NS = 2 ** 62  # a start time after this (year 2116) is not believed
-MAX_LOG_TIME_S = 1e8  # a log's times beyond this (3 years) are not a run's
 HAND_FRAME = {"right-arm": "right_hand", "left-arm": "left_hand"}
 
 
@@ -423,10 +422,6 @@ def load_scene(run: str | Path, model: RobotModel | None = None) -> RunScene:
     log = load_log(path)
     if len(log) == 0:
         raise InputError(f"the log in {run_dir} has no periods", hint="replay a run that ran")
-    t_s = log["t_s"]
-    if not np.all(np.isfinite(t_s) & (np.abs(t_s) < MAX_LOG_TIME_S)):
-        raise InputError(f"the log in {run_dir} has times (t_s) that are not finite or beyond "
-                         f"{MAX_LOG_TIME_S:.0e} s", hint="give a run folder as hubo wrote it")
     model = model or load_model()
     if tuple(log.joint_names) != tuple(model.joint_names):
         raise InputError(f"the log's joints ({len(log.joint_names)}) are not the model's",
