@@ -537,3 +537,13 @@ def test_a_push_after_the_walk_ends_is_named(tmp_path, monkeypatch):
     result = CliRunner().invoke(main, ["walk", "--to", "0.3", "0", "0", "--push", "50",
                                        "--push-at", "2", "--out", str(tmp_path / "v")])
     assert "never came" not in result.output
+
+
+def test_a_walk_on_the_ideal_driver_is_refused_in_one_line():
+    """The ideal driver has no floor (it stands the robot on its lower sole): every walk on
+    it stopped on the capture point at 1.08 s, exit 1 (review 20). Refused before anything
+    runs, exit 2, naming the drivers that walk."""
+    result = CliRunner().invoke(main, ["walk", "--to", "0.001", "0", "0", "--driver", "ideal"])
+    assert result.exit_code == 2, result.output
+    assert "the ideal driver has none" in result.output and "--driver sim" in result.output
+    assert "Traceback" not in result.output

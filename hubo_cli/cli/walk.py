@@ -89,12 +89,13 @@ def walk(goal: tuple[float, float, float], corrections: int, toe_heel: bool | No
     from hubo_cli.cli.keys import announce_keys, operator_keys
     from hubo_cli.control.stop_choice import SOFT_SOURCES, check_walk_stops
     from hubo_cli.experiments.standing import PUSH_DIRECTIONS
-    from hubo_cli.experiments.walk import check_disturbances, check_goal
+    from hubo_cli.experiments.walk import check_disturbances, check_goal, check_walk_driver
     from hubo_cli.experiments.walk import walk as walk_to
     from hubo_cli.model import load_model
     from hubo_cli.runs import reserved_run_dir
 
     check_goal(goal)
+    check_walk_driver(driver)
     disturbances = check_disturbances(push_n, PUSH_DIRECTIONS[push_direction], push_at_s,
                                       stop_at_s, driver)
     options = driver_options(driver, armed, **hardware, quiet=as_json)

@@ -139,6 +139,18 @@ def check_goal(goal: tuple[float, float, float]) -> None:
                          hint="walk there in shorter legs")
 
 
+def check_walk_driver(driver: str) -> None:
+    """Raise InputError for the ideal driver: it has no floor. It stands the robot on
+    whichever sole is lower in the torso's frame, and a walk's weight shift (the torso leaning
+    0.14 rad) makes that the lifting foot at lift-off: every walk on it, 1 mm or 1 m, stopped
+    on the capture point at 1.08 s (round 20, docs/history/safety.md)."""
+    if driver == "ideal":
+        raise InputError("a walk needs a floor: the ideal driver has none (it stands the robot "
+                         "on its lower sole, the lifting one once the weight shifts)",
+                         hint="walk on the simulator (--driver sim) or the robot "
+                              "(--driver hardware)")
+
+
 @dataclass(frozen=True)
 class Disturbance:
     """What happens to a walk at ``at_s`` (loop time, s): a push on the torso of ``push_n``
