@@ -62,9 +62,8 @@ def test_drill_rectangle_on_the_simulated_robot(drill_rectangle_run):
     # 4.44 while the drill goal traced the hand's tremor, 9946bec); it was 5.1 mm on most
     # runs, but 7.4 mm after a 1e-12 change of one time constant (the feet slip sideways on
     # some runs, which no measurement on the robot sees, and the torso estimate assumes they
-    # stand still). The
-    # test below asserts the world error of the operation's first 2 s to 6 mm; this bound
-    # leaves room for that chaos (11.5 mm is 1.55x the 7.4 mm).
+    # stand still). The test below asserts the world error of the operation's first 2 s to
+    # 6 mm; this bound leaves room for that chaos (11.5 mm is 1.55x the 7.4 mm).
     assert s["rms_error_mm"]["right-arm"] < 11.5
     # the wrist's bending moment, the drill's weight removed (what the 1.21 N m stop reads):
     # the bit goes in along its axis, crosses the cardboard no faster than the drill mode's

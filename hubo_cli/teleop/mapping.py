@@ -37,10 +37,9 @@ MAX_OPERATOR_RANGE_M = 100.0  # a tracker reads a few metres; far beyond is garb
 # drill mode: the speed-bounded goal follows the operator's path through points at least
 # PATH_STEP_M apart (a corner is cut by at most about that), at most MAX_PENDING of them ahead
 # (1 m of path at least, 40 s at 25 mm/s; beyond, the oldest is dropped: a chord across two
-# points). The step is over the hand's tremor and the tracker's noise (the shipped drill
-# recording: 0.7 mm about its smoothed path, at 60 Hz): points 2 mm apart drew that zigzag,
-# which the goal then traced at the bound (1.6-2.3x the line's length on a line with 1 mm of
-# noise), and the drill replay's wrist peaked at 0.91 N m instead of 0.71 (round 20)
+# points). The step is over the hand's tremor and the tracker's noise (0.7 mm in the shipped
+# drill recording): points 2 mm apart drew them as a zigzag that the goal traced at the bound
+# (docs/history/teleop.md, round 20)
 PATH_STEP_M = 0.005
 MAX_PENDING = 200
 
