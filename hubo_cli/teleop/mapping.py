@@ -35,10 +35,12 @@ from hubo_cli.teleop.target_kernels import free_goal, operator_pose_plausible
 MODES = ("free", "drill")
 MAX_OPERATOR_RANGE_M = 100.0  # a tracker reads a few metres; far beyond is garbage
 # drill mode: the speed-bounded goal follows the operator's path through points at least
-# PATH_STEP_M apart (a tracker's noise draws no path; a corner is cut by at most about that),
-# at most MAX_PENDING of them ahead (0.4 m of path at least, 16 s at 25 mm/s; beyond, the
-# oldest is dropped: a chord across two points)
-PATH_STEP_M = 0.002
+# PATH_STEP_M apart (a corner is cut by at most about that), at most MAX_PENDING of them ahead
+# (1 m of path at least, 40 s at 25 mm/s; beyond, the oldest is dropped: a chord across two
+# points). The step is over the hand's tremor and the tracker's noise (0.7 mm in the shipped
+# drill recording): points 2 mm apart drew them as a zigzag that the goal traced at the bound
+# (docs/history/teleop.md, round 20)
+PATH_STEP_M = 0.005
 MAX_PENDING = 200
 
 
