@@ -461,14 +461,15 @@ def _left_foot_lifted(rise_rad: float):
     return change
 
 
-def _on_the_right_foot(swapped: bool):
-    """The right sole carrying the robot (its centre of pressure 20 mm ahead of the ankle),
-    the left reading its foot's weight alone; ``swapped``: each reading on the other's
+def _on_the_right_foot(swapped: bool, cop_x_m: float = 0.02):
+    """The right sole carrying the robot (its centre of pressure ``cop_x_m`` ahead of the
+    ankle), the left reading its foot's weight alone; ``swapped``: each reading on the other's
     channel."""
     def change(k, s):
         ft = dict(s.ft)
         load = ft["right-ankle"][2] + ft["left-ankle"][2] - 12.0
-        right, left = np.array([0, 0, load, 0, -0.02 * load, 0]), np.array([0, 0, 12.0, 0, 0, 0])
+        right = np.array([0, 0, load, 0, -cop_x_m * load, 0])
+        left = np.array([0, 0, 12.0, 0, 0, 0])
         ft["right-ankle"], ft["left-ankle"] = (left, right) if swapped else (right, left)
         return ft
     return change
@@ -488,3 +489,20 @@ def test_ankle_sensors_swapped_between_the_feet_are_a_fault_once_a_foot_lifts():
                                           r"s at t = 0.[0-9]+ s$") as info:
         _estimate(_states(40, q_rad=lifted, ft=_on_the_right_foot(True)))
     assert info.value.exit_code == 3 and "swapped between the feet" in info.value.hint
+
+
+def test_a_sole_rolled_on_its_edge_over_the_other_foot_is_not_read_as_swapped_sensors():
+    """Round 20's audit: after a backward capture step (sim --step --push 90 backward, seeds
+    54 and 61-68), healthy robots rock from sole to sole, the loaded one rolled on its heel's
+    edge (its centre of pressure within 1 mm of the outline); the estimate takes it flat, so
+    the other foot, just off the floor, lies 21-43 mm under it, and 12 of 22 runs stopped on
+    "swapped". A sole that does not lie flat (SOLES_FLAT) is not judged; flat, the same
+    reading is the fault (the swap is still seen while its centre of pressure is inside)."""
+    lowered = _left_foot_lifted(-0.2)  # the left sole 24 mm below the right
+    heel = -0.088  # 2 mm inside the heel's edge (x -90 mm), 13 mm short of flat's 15
+    assert _estimate(_states(40, q_rad=lowered, ft=_on_the_right_foot(False, heel))) == 40
+    with pytest.raises(SensorFault, match=r"^the right-ankle force-torque sensor reads F_z "
+                                          r"3[0-9]{2} N while the left-ankle sensor reads "
+                                          r"[0-9]{1,2} N, its sole [0-9]+ mm lower .* for 0.055 "
+                                          r"s at t = 0.[0-9]+ s$"):
+        _estimate(_states(40, q_rad=lowered, ft=_on_the_right_foot(False)))

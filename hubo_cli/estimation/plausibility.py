@@ -58,7 +58,9 @@ the daemon publishes nothing new, and such a gap is the stale-state check's,
   sensor turned about its z, a moment's sign flipped), or a sole read carrying
   :data:`SOLE_CARRIES_WEIGHTS` of the weight more than :data:`SOLE_UNDER_M` above one read in
   the air (the estimate stands the robot on the sole its sensor loads; on a flat floor the
-  other cannot lie under it: the sensors swapped between the feet, seen once a foot lifts), at
+  other cannot lie under it: the sensors swapped between the feet, seen once a foot lifts;
+  judged while the loaded sole lies flat, ``SOLES_FLAT``, as the running IMU check: a healthy
+  robot rocking on a sole's edge after a capture step put the other 43 mm under it), at
   the start (refused) or for longer than :data:`SOLE_WIRING_OVER_S` later. Swapped sensors
   before a foot lifts, and a moment flipped or a sensor turned while the centre of pressure
   stays near the ankle, read as a working pair does (docs/history/safety.md, round 20).
@@ -164,7 +166,10 @@ COP_OFF_SOLE_M = 0.02
 # A sole read carrying SOLE_CARRIES_WEIGHTS of the weight lay at most 5.0 mm above one read as
 # in the air (below SOLE_IN_AIR_WEIGHTS) in the estimate (the floor flat; its tilt on a
 # perturbed robot, 0.5 deg at most, is 2 mm over the 0.24 m between the soles); swapped
-# sensors, the estimate stands the robot on its lifted foot: up to 50-90 mm
+# sensors, the estimate stands the robot on its lifted foot: up to 50-90 mm. Judged only while
+# the loaded sole lies flat (SOLES_FLAT): rolled on its edge after a backward capture step
+# (sim --step, round 20's audit), a healthy robot read 21-43 mm and stopped on it (12 of 22
+# seeds)
 SOLE_UNDER_M = 0.02
 SOLE_CARRIES_WEIGHTS = 0.5
 SOLE_IN_AIR_WEIGHTS = 0.1
@@ -408,17 +413,21 @@ class SensorPlausibility(Observer):
                          "and sign settings for it, then start the run again", refuse=start)
 
     def _ankles_swapped(self, store: Store, wrenches: dict) -> tuple[str, str, str] | None:
-        """A sole read carrying SOLE_CARRIES_WEIGHTS of the robot more than SOLE_UNDER_M above
-        one read as in the air (below SOLE_IN_AIR_WEIGHTS): the estimate stands the robot on the
-        sole its sensor loads, so the other one is under the floor (module docstring)."""
+        """A sole read carrying SOLE_CARRIES_WEIGHTS of the robot, lying flat (SOLES_FLAT), more
+        than SOLE_UNDER_M above one read as in the air (below SOLE_IN_AIR_WEIGHTS): the estimate
+        stands the robot on the sole its sensor loads, so the other one is under the floor
+        (module docstring). A sole rolled onto its edge is not judged: the estimate takes it flat
+        on the floor, and the other foot, just off the floor, then lies under it (round 20's
+        audit: up to 43 mm on healthy robots rocking after a capture step)."""
         T_world_soles = store.get(T_WORLD_SOLES)
         if T_world_soles is None:
             return None
         z_m = np.asarray(T_world_soles, dtype=float)[:, 2, 3]
         fz_n = [float(wrenches[sensor][2]) for sensor in ANKLE_SENSORS]
+        flat = tuple(store.get(SOLES_FLAT, (False, False)))
         for k, other in ((0, 1), (1, 0)):
             below_m = z_m[k] - z_m[other]
-            if fz_n[k] > SOLE_CARRIES_WEIGHTS * self.weight_n and \
+            if flat[k] and fz_n[k] > SOLE_CARRIES_WEIGHTS * self.weight_n and \
                     fz_n[other] < SOLE_IN_AIR_WEIGHTS * self.weight_n and below_m > SOLE_UNDER_M:
                 return (ANKLE_SENSORS[k], f"F_z {fz_n[k]:.0f} N while the {ANKLE_SENSORS[other]} "
                                           f"sensor reads {fz_n[other]:.0f} N, its sole "
