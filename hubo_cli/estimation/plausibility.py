@@ -59,7 +59,9 @@ the daemon publishes nothing new, and such a gap is the stale-state check's,
   :data:`SOLE_CARRIES_WEIGHTS` of the weight more than :data:`SOLE_UNDER_M` above one read in
   the air (the estimate stands the robot on the sole its sensor loads; on a flat floor the
   other cannot lie under it: the sensors swapped between the feet, seen once a foot lifts), at
-  the start (refused) or for longer than :data:`SOLE_WIRING_OVER_S` later. Swapped sensors
+  the start (refused) or for longer than :data:`SOLE_WIRING_OVER_S` later
+  (:data:`SOLE_SWAPPED_OVER_S` for a sole under the other: a healthy robot rocking on a sole's
+  edge reads so for a moment, as the estimate takes that sole flat). Swapped sensors
   before a foot lifts, and a moment flipped or a sensor turned while the centre of pressure
   stays near the ankle, read as a working pair does (docs/history/safety.md, round 20).
 
@@ -169,6 +171,12 @@ SOLE_UNDER_M = 0.02
 SOLE_CARRIES_WEIGHTS = 0.5
 SOLE_IN_AIR_WEIGHTS = 0.1
 SOLE_WIRING_OVER_S = 0.05  # either for longer than this (s) after the start
+# ... and a sole under the other for longer than this (s): rocking from sole to sole after a
+# backward capture step (sim --step pushed 90 or 105 N backward, round 20's audit), healthy
+# robots read the loaded sole, rolled on its edge and taken flat by the estimate, 21-43 mm
+# above the other for up to 0.105 s in a row (11 of 22 runs stopped on SOLE_WIRING_OVER_S);
+# swapped sensors on walks read so for 0.245 s (seed 1) to 0.76-0.83 s (nominal) in a row
+SOLE_SWAPPED_OVER_S = 0.15
 
 
 class SensorFault(DeviceError):
@@ -229,6 +237,7 @@ class SensorPlausibility(Observer):
         self._wrist_flat = dict.fromkeys(WRISTS, 0)
         self._soles_over = 0  # periods in a row over the limit
         self._wiring_over = 0  # periods in a row an ankle sensor read as wired wrong
+        self._swapped_over = 0  # ... the two read as swapped
         self._periods = 0  # periods judged since the reset
         self._wrist_sums = np.zeros((2, len(WRISTS)))  # per wrist: compensated F_z, raw F_z
         self._still = _StillWindow()
@@ -365,7 +374,7 @@ class SensorPlausibility(Observer):
     def _ankle_wiring(self, state: RobotState, store: Store, start: bool = False) -> None:
         """An ankle sensor whose F_z pulls its sole or whose centre of pressure lies off its
         sole, or the two swapped (module docstring): refused at the start, a fault once it
-        lasts longer than SOLE_WIRING_OVER_S."""
+        lasts longer than SOLE_WIRING_OVER_S (swapped: SOLE_SWAPPED_OVER_S)."""
         wrenches = store.get(WRENCHES)
         if wrenches is None:
             return
@@ -394,14 +403,18 @@ class SensorPlausibility(Observer):
                          "it is turned about its z (mounted 90 or 180 deg off) or the sign of "
                          "its m_x or m_y is flipped")
                 break
-        wrong = wrong or self._ankles_swapped(store, wrenches)
+        swapped = self._ankles_swapped(store, wrenches)
         self._wiring_over = self._wiring_over + 1 if wrong else 0
-        if wrong is None or not (start or self._wiring_over * self.period_s
-                                 > SOLE_WIRING_OVER_S + 1e-9):
+        self._swapped_over = self._swapped_over + 1 if swapped else 0
+        for found, over, over_s in ((wrong, self._wiring_over, SOLE_WIRING_OVER_S),
+                                    (swapped, self._swapped_over, SOLE_SWAPPED_OVER_S)):
+            if found is not None and (start or over * self.period_s > over_s + 1e-9):
+                break
+        else:
             return
-        sensor, reading, cause = wrong
+        sensor, reading, cause = found
         when = ", at the start: refused before anything moved" if start else (
-            f" for {self._wiring_over * self.period_s:.3f} s at t = {state.time_s:.2f} s")
+            f" for {over * self.period_s:.3f} s at t = {state.time_s:.2f} s")
         self._raise(f"the {sensor} force-torque sensor reads {reading}{when}",
                     hint=f"{cause}, or the ankle sensors are wired to the wrong channels: check "
                          f"the {sensor} sensor's mounting, its cable and hubo-daemon's channel "
