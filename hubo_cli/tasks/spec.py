@@ -38,7 +38,9 @@ the step runner, :mod:`hubo_cli.tasks.runner`) or ``experiment`` (a built-in pro
       ``follow``), ``depth_mm`` from the wall face (negative: in front of it), taking
       ``duration_s`` or at ``speed_mm_s``. The first step must be a move; it runs in joint space
       from the start posture and the wall appears once the robot holds the tool there.
-    - ``plunge``: straight along the bit to ``depth_mm`` at ``speed_mm_s``.
+    - ``plunge``: straight along the bit to ``depth_mm`` at ``speed_mm_s``; with the drill
+      (and for a ``retract``) at most the drill body's distance behind the bit's middle less
+      the impedance's ``max_offset_m`` (60 mm on the shipped robot).
     - ``follow``: cut along a path in the wall plane at ``speed_mm_s`` (speeding up and slowing
       down at each corner at ``accel_mm_s2``, default 50): ``path = "rectangle"``
       (``width_mm``, ``height_mm``, ``centre_mm`` = [y, z], ``start`` = ``upper-left`` |
