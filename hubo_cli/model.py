@@ -70,6 +70,11 @@ class DrillShape:
         """Where the bit ends, ahead of its middle (m)."""
         return self.bit_half_length_m
 
+    @property
+    def bit_out_m(self) -> float:
+        """The bit's length out of the chuck: from the body's front to its tip (m)."""
+        return self.bit_tip_m - self.body_front_m
+
 
 @dataclass(frozen=True)
 class FootShape:

@@ -3,6 +3,7 @@
 import os
 import threading
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 from robot_file_support import robot_file_with
@@ -300,3 +301,62 @@ def test_a_task_fifo_nobody_writes_is_refused_within_its_wait(tmp_path, monkeypa
     assert time.monotonic() - started < 3.0
     assert len(raised) == 1 and isinstance(raised[0], InputError), raised
     assert "nothing arrived from" in str(raised[0]) and "silent.toml" in str(raised[0])
+
+
+@pytest.mark.parametrize("body_front, deepest_mm", [(None, 60.0), ("-0.125", 95.0)])
+def test_a_plunge_deeper_than_the_bit_allows_is_refused_at_load(tmp_path, model, body_front,
+                                                               deepest_mm):
+    """Review 20: a plunge was bounded by the file's 1000 mm alone (150 mm was refused only by
+    the arm's reach). The drill's body meets the wall face at depth -body_front_m; the hand
+    may yield 30 mm (max_offset_m) further along the bit under a thrust."""
+    robot = model
+    if body_front is not None:  # a longer bit: 145 mm out of the chuck
+        robot = _robot_with(model, tmp_path / "long", "tools.drill", "body_front_m", body_front)
+    assert deepest_mm == pytest.approx(-1000 * robot.drill.body_front_m
+                                       - 1000 * robot.raw_impedance["max_offset_m"])
+    plunge = "depth_mm = 2.5              # the middle of the bit"
+    inside, _ = _broken(tmp_path, plunge, f"depth_mm = {deepest_mm - 0.01}  #")
+    assert load_task(inside, model=robot).steps[1].depth_m == pytest.approx(deepest_mm / 1000
+                                                                            - 1e-5)
+    beyond, line = _broken(tmp_path, plunge, f"depth_mm = {deepest_mm + 0.01}  #")
+    with pytest.raises(ConfigError) as caught:
+        load_task(beyond, model=robot)
+    error = caught.value
+    assert error.field == "steps[2].depth_mm" and error.line == line
+    assert (f"step 2 'drill in' (a plunge) to depth_mm = {deepest_mm + 0.01:g} is deeper than "
+            f"the bit allows: at most depth_mm = {deepest_mm:g}") in str(error)
+    assert error.hint.startswith(f"plunge to depth_mm = {deepest_mm:g} or less")
+    # a retract that goes in instead of out is bounded the same
+    retract = tmp_path / "retract.toml"
+    retract.write_text(RECTANGLE.read_text().replace(
+        "depth_mm = -50.0\nspeed_mm_s = 20.0",
+        f"depth_mm = {deepest_mm + 0.01}\nspeed_mm_s = 20.0"))
+    with pytest.raises(ConfigError, match=r"step 4 'pull out' \(a retract\) to depth_mm"):
+        load_task(retract, model=robot)
+
+
+def test_generated_plunges_are_refused_exactly_past_the_bit(tmp_path, model, rng):
+    """Task files written from random depths and bits (beyond the shipped tasks' 2.5 mm),
+    each judged against the bound worked out here; the command line's exit code is 2."""
+    robots = {front: _robot_with(model, tmp_path / f"r{i}", "tools.drill", "body_front_m",
+                                 repr(front)) for i, front in enumerate((-0.06, -0.09, -0.2))}
+    text = RECTANGLE.read_text()
+    refused = []
+    for i in range(24):
+        front = list(robots)[i % 3]
+        depth_mm = float(np.round(rng.uniform(-40.0, 250.0), 3))
+        path = tmp_path / f"plunge_{i}.toml"
+        path.write_text(text.replace("depth_mm = 2.5 ", f"depth_mm = {depth_mm!r} ", 1))
+        refused.append(depth_mm > -1000 * front - 30.0)
+        if not refused[-1]:
+            assert load_task(path, model=robots[front]).steps[1].depth_m == depth_mm / 1000
+        else:
+            with pytest.raises(ConfigError, match="deeper than the bit allows"):
+                load_task(path, model=robots[front])
+    assert 6 <= sum(refused) <= 18  # both sides drawn
+    path.write_text(text.replace("depth_mm = 2.5 ", "depth_mm = 150.0 ", 1))
+    result = CliRunner().invoke(main, ["task", "show", str(path)])
+    assert result.exit_code == 2 and "at most depth_mm = 60 " in result.output
+    no_yield = _robot_with(model, tmp_path / "text", "impedance", "max_offset_m", '"30 mm"')
+    with pytest.raises(ConfigError, match=r"\[impedance\] needs a number max_offset_m"):
+        load_task(path, model=no_yield)

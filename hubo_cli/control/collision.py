@@ -379,9 +379,8 @@ class SelfCollisionChecker:
         R = rpy_to_matrix(0.0, np.pi / 2, 0.0)
         body_mid = drill.body_front_m - drill.body_length_m / 2
         bit_mid = (drill.body_front_m + drill.bit_tip_m) / 2
-        bit_length = drill.bit_tip_m - drill.body_front_m
         parts = [("drill_0", coal.Capsule(drill.body_radius_m, drill.body_length_m), body_mid),
-                 ("drill_1", coal.Capsule(drill.bit_radius_m, bit_length), bit_mid)]
+                 ("drill_1", coal.Capsule(drill.bit_radius_m, drill.bit_out_m), bit_mid)]
         for name, shape, x in parts:
             placement = frame.placement * pin.SE3(R, np.array([x, 0.0, 0.0]))
             obj = pin.GeometryObject(name, frame.parentJoint, placement, shape)

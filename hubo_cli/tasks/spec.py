@@ -38,7 +38,9 @@ the step runner, :mod:`hubo_cli.tasks.runner`) or ``experiment`` (a built-in pro
       ``follow``), ``depth_mm`` from the wall face (negative: in front of it), taking
       ``duration_s`` or at ``speed_mm_s``. The first step must be a move; it runs in joint space
       from the start posture and the wall appears once the robot holds the tool there.
-    - ``plunge``: straight along the bit to ``depth_mm`` at ``speed_mm_s``.
+    - ``plunge``: straight along the bit to ``depth_mm`` at ``speed_mm_s``; with the drill
+      (and for a ``retract``) at most the drill body's distance behind the bit's middle less
+      the impedance's ``max_offset_m`` (60 mm on the shipped robot).
     - ``follow``: cut along a path in the wall plane at ``speed_mm_s`` (speeding up and slowing
       down at each corner at ``accel_mm_s2``, default 50): ``path = "rectangle"``
       (``width_mm``, ``height_mm``, ``centre_mm`` = [y, z], ``start`` = ``upper-left`` |
@@ -702,11 +704,37 @@ class _Loader:
                     depth_m=depth / 1000, speed_m_s=speed, duration_s=duration)
 
     def _retract(self, t: _Table, kind: str, name: str, number: int) -> Step:
-        return Step(kind, name, number,
-                    depth_m=t.number("depth_mm", minimum=-LENGTH_MAX_MM,
-                                     maximum=LENGTH_MAX_MM) / 1000,
+        depth = t.number("depth_mm", minimum=-LENGTH_MAX_MM, maximum=LENGTH_MAX_MM)
+        self._within_bit(t, f"step {number} {quoted(name)} (a {kind})", kind, depth)
+        return Step(kind, name, number, depth_m=depth / 1000,
                     speed_m_s=t.number("speed_mm_s", minimum=TOOL_SPEED_MIN_MM_S,
                                        maximum=TOOL_SPEED_MAX_MM_S) / 1000)
+
+    def _within_bit(self, t: _Table, label: str, kind: str, depth_mm: float) -> None:
+        """Refuse a plunge or retract deeper than the drill's bit allows (exit 2): past
+        ``depth_max_mm`` the drill's body would come nearer the wall face than the hand may
+        yield along the bit under a thrust (the robot file's ``[impedance] max_offset_m``)."""
+        if self.tool != "drill":
+            return
+        model = self._model()
+        drill = model.drill
+        try:
+            yield_mm = 1000.0 * float(model.raw_impedance["max_offset_m"])
+        except (KeyError, TypeError, ValueError):
+            raise ConfigError("[impedance] needs a number max_offset_m", path=str(model.source),
+                              hint="the most the hand leaves its reference (m), e.g. 0.03"
+                              ) from None
+        face_mm = -1000.0 * drill.body_front_m  # the depth at which the body meets the face
+        depth_max_mm = round(face_mm - yield_mm, 6)
+        if depth_mm > depth_max_mm:
+            raise self.fail(t.key("depth_mm"), f"{label} to depth_mm = {depth_mm:g} is deeper "
+                            f"than the bit allows: at most depth_mm = {depth_max_mm:g} (the "
+                            f"drill's body meets the wall face at {face_mm:g}: the bit's "
+                            f"{1000 * drill.bit_out_m:g} mm out of the chuck less the "
+                            f"{1000 * drill.bit_tip_m:g} mm past its middle; less the "
+                            f"{yield_mm:g} mm the hand may yield along the bit under a thrust)",
+                            hint=f"{kind} to depth_mm = {depth_max_mm:g} or less, or fit a "
+                                 "longer bit (the robot file's [tools.drill] body_front_m)")
 
     def _plunge(self, t: _Table, kind: str, name: str, number: int) -> Step:
         return replace(self._retract(t, kind, name, number), thrust_n=self._thrust(t))
