@@ -1,6 +1,6 @@
 """The benchmarks themselves run: `make bench` is how issues' figures are measured, and a
 benchmark that wraps a private method breaks silently when that method's signature changes
-(round 21: the standing bench's clock broke with the loop's pacing signature in round 11 and
+(round 21: the standing bench's clock broke with the loop's pacing call in round 15 and
 ended `make bench` at its [standing] section, hiding every later module's figures)."""
 
 from __future__ import annotations
