@@ -21,6 +21,7 @@ def main(argv: list[str]) -> int:
         rows.append((name, text, unit, note))
         print(f"  {name:<58} {text:>12} {unit:<14} {note}", flush=True)
 
+    failed: list[str] = []
     modules = sorted(m.name for m in pkgutil.iter_modules(bench_pkg.__path__)
                      if not m.name.startswith("_"))
     for name in modules:
@@ -28,8 +29,15 @@ def main(argv: list[str]) -> int:
             continue
         print(f"[{name}]", flush=True)
         t0 = time.perf_counter()
-        importlib.import_module(f"hubo_cli.bench.{name}").run(report)
+        try:
+            importlib.import_module(f"hubo_cli.bench.{name}").run(report)
+        except Exception as error:  # one module's failure must not hide the others' figures
+            failed.append(name)
+            print(f"  failed: {type(error).__name__}: {error}", flush=True)
         print(f"  ({time.perf_counter() - t0:.1f} s)", flush=True)
+    if failed:
+        print(f"bench: {len(failed)} module(s) failed: {', '.join(failed)}", file=sys.stderr)
+        return 1
     return 0
 
 

@@ -48,12 +48,12 @@ def _period_clock(marks: list[tuple[float, ...]]):
     pace = ControlLoop._pace
     spent = [0.0, 0.0, 0]
 
-    def marked(loop):
+    def marked(loop, *args, **kwargs):
         driver = loop.driver
         if not isinstance(driver._p, _TimedPhysics):
             driver._p = _TimedPhysics(driver._p, spent)
         marks.append((time.perf_counter(), time.thread_time(), *spent))
-        return pace(loop)
+        return pace(loop, *args, **kwargs)
 
     ControlLoop._pace = marked
     try:
