@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import atexit
 import contextlib
-import errno
 import gc
 import importlib
 import io
@@ -18,6 +17,7 @@ import click
 from hubo_cli import __version__
 from hubo_cli.errors import HuboError, Terminated
 from hubo_cli.interrupts import INTERRUPT_SIGNALS, catching_interrupts, run_files
+from hubo_cli.outputs import DISK_FULL
 
 # command name -> "module:attribute" (modules are imported only when the command runs)
 COMMANDS = {
@@ -43,7 +43,6 @@ EXIT_CODES = ("Exit codes: 0 success, 1 other error or a run that did not comple
               "5 no IK solution, 130 interrupted (Ctrl-C, SIGTERM, SIGHUP or SIGQUIT).")
 
 
-DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
 ARGS = "hubo.args"  # key of click's ctx.meta: the command line after ``hubo``
 
 

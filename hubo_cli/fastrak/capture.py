@@ -43,6 +43,7 @@ from hubo_cli.fastrak.records import (
 from hubo_cli.fastrak.source import PoseSample, ReplaySource, SourceStats, batch_samples
 from hubo_cli.fastrak.track import PoseTrack
 from hubo_cli.geometry import matrix_to_quat_wxyz, unit_quats
+from hubo_cli.outputs import write_error
 from hubo_cli.streams import open_nonblocking, reader_of
 
 MAGIC = b"FASTRAK-CAPTURE 1\n"
@@ -570,8 +571,7 @@ def write_pose_log(path: str | Path, records: RecordBatch | Iterable[PoseSample]
     try:
         path.write_text(pose_log_text(batch), encoding="utf-8")
     except OSError as exc:
-        raise InputError(f"cannot write {path}: {exc.strerror}",
-                         hint="choose a writable output path") from None
+        raise write_error(path, exc, hint="choose a writable output path") from None
     return path
 
 
