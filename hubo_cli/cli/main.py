@@ -183,8 +183,17 @@ def json_asked(exc: click.ClickException, ctx: click.Context) -> bool:
         command = _named_command(ctx, args)[0]
     if not any(p.name == "as_json" for p in command.params):
         return False
+    return _json_on_line(ctx)
+
+
+def _json_on_line(ctx: click.Context) -> bool:
+    """A ``--json`` flag on the command line (before a ``--``), noted as its callback would
+    note it: for an error before the callback ran."""
+    from hubo_cli.cli.output import JSON_WANTED
+
+    args = ctx.meta.get(ARGS, [])
     if "--json" in args[:args.index("--") if "--" in args else len(args)]:
-        ctx.meta[JSON_WANTED] = True  # as its callback would have
+        ctx.meta[JSON_WANTED] = True
     return bool(ctx.meta.get(JSON_WANTED))
 
 
@@ -225,6 +234,7 @@ class LazyGroup(click.Group):
             said = "interrupted" + (f" ({exc.cause})" if isinstance(exc, Terminated) else "")
             with contextlib.suppress(OSError):  # (SIGHUP: the terminal may be gone)
                 click.echo(said, err=True)
+                _json_on_line(ctx)  # interrupted before its callback ran: while importing
                 _json_error(ctx, said, 130)
             ctx.exit(130)
         except MemoryError:
