@@ -240,6 +240,27 @@ def test_a_dead_ankle_sensor_is_refused_at_the_start_and_a_fault_once_it_lasts(s
     alive = {"ft": lambda k, s: {**s.ft, sensor: np.array([0, 0, 0, 0, 0, 1e-12])}}
     assert _estimate(_states(30, **alive)) == 30
 
+
+def test_a_dead_accelerometer_is_refused_at_the_start_and_a_fault_after_10_states():
+    """Review 21: the simulator's accelerometer reading (0, 0, 0) from 1 s of a 4 s stand and
+    of a 0.6 m walk: both exited 0 (the attitude on the gyro alone; the running IMU check
+    skips a zero vector). Refused at the start (exit 4), later a fault after
+    IMU_FROZEN_STATES fresh states (exit 3)."""
+    def dead(from_k):
+        return {"imu_accel_m_s2": lambda k, s: np.zeros(3) if k >= from_k else
+                s.imu_accel_m_s2}
+
+    with pytest.raises(SensorFault, match="accelerometer reads exactly 0 in every component "
+                                          "at the start: refused") as info:
+        _estimate(_states(2, **dead(0)))
+    assert info.value.exit_code == 4
+    assert _estimate(_states(10 + IMU_FROZEN_STATES - 1, **dead(10))) == \
+        10 + IMU_FROZEN_STATES - 1
+    with pytest.raises(SensorFault, match=f"for {IMU_FROZEN_STATES} states at t = 0.10 s: a "
+                                          "dead channel") as info:
+        _estimate(_states(10 + IMU_FROZEN_STATES + 5, **dead(10)))
+    assert info.value.exit_code == 3
+
 def _pitched(deg: float):
     """The accelerometer (and the reported orientation) of an IMU pitched ``deg`` on a level
     robot (the review's FAULT=imu_bias)."""
