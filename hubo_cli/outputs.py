@@ -28,6 +28,7 @@ RUN_FOLDER_FILES = (".hubo-run", "summary.json", "log.json")
 
 # a writer that fails with less than this free beside its file ran out of space
 NEARLY_FULL_BYTES = 4 * 1024 * 1024
+DISK_FULL = (errno.ENOSPC, errno.EDQUOT)  # the disk is the device in trouble (exit 3)
 
 _UMASK = os.umask(0o022)
 os.umask(_UMASK)
@@ -237,6 +238,20 @@ def _rename(temporary: Path, path: Path, *, clobber: bool) -> None:
     except OSError as exc:
         raise InputError(f"cannot write {path}: {exc.strerror or exc}",
                          hint="free disk space or choose a writable path") from None
+
+
+def write_error(path: str | Path, exc: OSError, hint: str) -> Exception:
+    """The error to raise when writing ``path`` failed with ``exc``: a full disk stays an
+    OSError naming ``path`` (the command line's exit 3, "free space on that disk"; a writer
+    that gives no errno, as polars, is judged by the space left there), anything else an
+    InputError with the system's reason and ``hint`` (exit 2)."""
+    if exc.errno in DISK_FULL:
+        return OSError(exc.errno, exc.strerror, str(path))
+    if exc.errno is None:
+        failure = writer_failure(path, "the writer", exc)
+        if isinstance(failure, OSError):
+            return failure
+    return InputError(f"cannot write {path}: {exc.strerror or exc}", hint=hint)
 
 
 def writer_failure(path: str | Path, writer: str, exc: BaseException) -> Exception:

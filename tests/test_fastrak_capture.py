@@ -23,6 +23,7 @@ from hubo_cli.fastrak.opener import open_source
 from hubo_cli.fastrak.source import PoseSample, ReplaySource
 from hubo_cli.fastrak.track import PoseTrack
 from hubo_cli.geometry import quat_wxyz_to_matrix
+from hubo_cli.resources import data_file
 
 
 def two_hand_tracks(duration_s=2.0):
@@ -242,6 +243,32 @@ def test_pose_log_with_a_byte_order_mark_and_huge_quaternions(tmp_path):
     np.testing.assert_allclose(track.quat_wxyz, [[1, 0, 0, 0], [0, 0, 0, 1]])
 
 
+
+@pytest.mark.parametrize("scale, unit", [(100, "cm"), (1000, "mm")])
+def test_a_pose_log_in_centimetres_or_millimetres_is_refused_naming_the_units(tmp_path, scale,
+                                                                              unit):
+    """Review 21: the shipped sample's first 3 s written in centimetres drove both arms to
+    their reach limits for 8 s (ideal driver) and ended "202 of 360 samples were rejected",
+    exit 2; in millimetres "no operator input". A pose beyond the FASTRAK's 3 m (the live
+    reader drops such a record as garbled) is refused at load, the line and the units named;
+    the shipped samples reach 0.65 m, generated streams (seeds 0-12345 at 2 m/s) 0.65 m. A
+    far pose among sound ones (x = 1e6 m from 1 s: main replayed it, re-centred on it) too."""
+    sample = read_pose_log(data_file("trajectories", "two-hand-free.csv"))
+    rows = "".join(f"{float(t)!r},{st},{x * scale!r},{y * scale!r},{z * scale!r},1,0,0,0\n"
+                   for t, st, (x, y, z) in zip(sample.t_s[:40], sample.station[:40].tolist(),
+                                               sample.position_m[:40].tolist(), strict=True))
+    path = tmp_path / f"{unit}.csv"
+    path.write_text("t_s,station,x_m,y_m,z_m,qw,qx,qy,qz\n" + rows)
+    with pytest.raises(InputError, match=r"line 2: a pose at \[.*\] m, beyond a FASTRAK's 3 m; "
+                                         r"40 of the 40 rows") as refused:
+        read_pose_log(path)
+    assert "centimetres or millimetres" in refused.value.hint
+    path.write_text("t_s,station,x_m,y_m,z_m,qw,qx,qy,qz\n0,1,0.3,0,0,1,0,0,0\n"
+                    "0.01,1,2.99,0,-3,1,0,0,0\n0.02,1,1e6,0,0,1,0,0,0\n")
+    with pytest.raises(InputError, match=r"line 4: a pose at \[1000000.0, 0.0, 0.0\] m.* 1 of "
+                                         r"the 3 rows"):
+        read_pose_log(path)
+
 def test_replay_ignores_live_port_options(tmp_path):
     path = write_capture(tmp_path / "c.fastrak", two_hand_tracks(0.2))
     with open_source(replay=path, port=None, baud=9600, fmt="ascii", units="in") as src:
@@ -318,6 +345,7 @@ def test_the_emulator_refuses_a_recording_no_tracker_could_send(tmp_path):
     lines = path.read_text().splitlines()
     lines[40] = lines[40].replace("0.1,0.2", "1e300,0.2", 1)
     path.write_text("\n".join(lines) + "\n")
-    with pytest.raises(InputError, match=r"station 1 at t_s 0.329 s .* beyond a FASTRAK's 3 m"):
+    with pytest.raises(InputError, match=r"line 41: a pose at \[1e\+300, 0.2, 0.3\] m, beyond a "
+                                         r"FASTRAK's 3 m; 1 of the 120 rows"):
         RecordedMotion.from_file(path)
     assert RecordedMotion.from_file(_timed_pose_log(tmp_path / "ok.csv", ROWS)).stations == (1,)

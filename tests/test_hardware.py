@@ -466,3 +466,14 @@ def test_the_stale_brake_from_any_motion_stays_within_the_limits(tmp_path, seed)
     held_s = (periods - cruise - 20) * PERIOD
     assert STALE_GRACE_S - 2 * PERIOD <= held_s <= max(STALE_GRACE_S, stop_s) + 3 * PERIOD
     assert not info.value.back
+
+
+def test_the_summary_says_whether_the_daemons_sensors_were_judged(tmp_path):
+    """Review 21: with --json the warning that --echo-sensors (or a dry run) turns the sensor
+    checks off and leaves the force stops reading no force is not said; the summary says it,
+    for the robot's channels as well as a dry run's file."""
+    assert HardwareDriver(MODEL).summary_values()["hw_sensors_checked"] is True
+    assert HardwareDriver(MODEL, echo_sensors=True).summary_values()["hw_sensors_checked"] \
+        is False
+    dry = HardwareDriver(MODEL, armed=True, sink="file", sink_path=tmp_path / "hubo-ref.bin")
+    assert dry.summary_values()["hw_sensors_checked"] is False

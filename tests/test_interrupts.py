@@ -152,3 +152,31 @@ def test_ctrl_z_is_refused_while_a_loop_runs(default_actions):
             loop_given_back(handlers)
         assert signal.getsignal(signal.SIGTSTP) is signal.SIG_DFL
     assert said == [interrupts.REFUSED_STOP]
+
+
+@pytest.mark.parametrize("argv", [["sim", "--json", "--duration", "1"],
+                                  ["task", "cut-rectangle", "--json"]])
+def test_an_interrupt_while_the_command_loads_still_gives_the_json_document(monkeypatch, argv):
+    """Review 21: SIGTERM 3.1 s and 7.1 s into `hubo sim --duration 3 --json` on a loaded
+    machine (the command's module still importing, its --json not yet parsed) ended exit 130
+    with "interrupted (SIGTERM)" on stderr and nothing on stdout; a script reading the one
+    JSON document got none."""
+    import importlib
+    import json
+
+    from click.testing import CliRunner
+
+    from hubo_cli.cli import main as cli_main
+
+    real = importlib.import_module
+
+    def interrupted(name, *args, **kwargs):
+        if name.startswith("hubo_cli.cli.") and name != "hubo_cli.cli.output":
+            raise Terminated("SIGTERM")
+        return real(name, *args, **kwargs)
+
+    monkeypatch.setattr(cli_main.importlib, "import_module", interrupted)
+    result = CliRunner().invoke(cli_main.main, argv)
+    assert result.exit_code == 130
+    assert json.loads(result.stdout) == {"error": "interrupted (SIGTERM)", "hint": "",
+                                         "exit_code": 130}

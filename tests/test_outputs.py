@@ -523,3 +523,70 @@ def test_a_writer_that_stops_is_a_full_disk_or_one_line(tmp_path, monkeypatch, e
     # message: 13,830 for a 20 mm cut) and as before afterwards
     assert quiet == [True, True] or exporter == "rerun_export"
     assert logging.getLogger("foxglove").level == logging.NOTSET
+
+
+def _fill_then_fail(path, *args, **kwargs):
+    """A writer on a full disk: part of the file, then ENOSPC (as the OS says it)."""
+    with open(path, "wb") as f:
+        f.write(b"half a fi")
+    raise OSError(errno.ENOSPC, "No space left on device", str(path))
+
+
+@pytest.mark.parametrize("case", ["ik-batch", "input-generate", "fastrak-decode"])
+def test_an_output_on_a_full_disk_is_the_device_exit_3_and_leaves_no_file(tmp_path, monkeypatch,
+                                                                          case):
+    """Review 21: on a full 2 MB tmpfs, ``hubo ik --batch --out`` said "cannot write ...: None"
+    and the pose-log writers (``input generate``, ``fastrak decode``) "choose a writable
+    output path", each exit 2 (bad input); a full disk is the device's trouble, exit 3 with
+    the disk's hint, as a run, an export and the workspace map say it, and no part is left."""
+    import shutil
+
+    import polars as pl
+
+    out = tmp_path / "out.csv"
+    if case == "ik-batch":  # polars gives the OS's words and no errno
+        batch = tmp_path / "batch.csv"
+        batch.write_text("T00,T01,T02,T03,T10,T11,T12,T13,T20,T21,T22,T23,T30,T31,T32,T33\n"
+                         "1,0,0,0.3,0,1,0,-0.2,0,0,1,-0.2,0,0,0,1\n")
+
+        def polars_full(self, path, *args, **kwargs):
+            Path(path).write_bytes(b"line,q1")
+            raise OSError("No space left on device (os error 28)")
+
+        usage = shutil.disk_usage(tmp_path)
+        monkeypatch.setattr(shutil, "disk_usage", lambda path: usage._replace(free=1000))
+        monkeypatch.setattr(pl.DataFrame, "write_csv", polars_full)
+        argv = ["ik", "right-arm", "--batch", str(batch), "--out", str(out)]
+    else:
+        monkeypatch.setattr(Path, "write_text", _fill_then_fail)
+        argv = (["input", "generate", "3", "--duration", "1", "--out", str(out)]
+                if case == "input-generate" else
+                ["fastrak", "decode", str(data_file("trajectories", "two-hand-free.fastrak")),
+                 "--out", str(out)])
+    for json_flag in ([], ["--json"]):
+        result = CliRunner().invoke(main, argv + json_flag)
+        assert result.exit_code == 3, result.output
+        assert f"error: No space left on device ({out})" in result.output
+        assert "hint: free space on that disk or write elsewhere" in result.output
+        assert "Traceback" not in result.output
+        assert sorted(p.name for p in tmp_path.iterdir()) == (["batch.csv"] if case == "ik-batch"
+                                                               else [])
+
+
+def test_a_workspace_map_on_a_full_disk_leaves_no_part_of_its_file(tmp_path, monkeypatch):
+    """Review 21: ``hubo workspace-map --out`` on a full tmpfs ended exit 3 and left its run
+    folder with an empty workspace.npz; the file is now written through a temporary name."""
+    from types import SimpleNamespace
+
+    from hubo_cli.workspace import files
+
+    monkeypatch.setattr(files, "_per_x", lambda m: {})
+    monkeypatch.setattr(np, "savez_compressed", _fill_then_fail)
+    grid = SimpleNamespace(x_m=np.zeros(1), y_m=np.zeros(1), z_m=np.zeros(1))
+    one = SimpleNamespace(arm="right", R_N_E=np.eye(3), grid=grid, masks=np.zeros(1),
+                          reachable=np.zeros(1))
+    with pytest.raises(OSError) as full:
+        files.save_npz([one], tmp_path / "workspace.npz")
+    assert full.value.errno == errno.ENOSPC and full.value.filename == str(
+        tmp_path / "workspace.npz")
+    assert list(tmp_path.iterdir()) == []

@@ -210,6 +210,57 @@ def test_a_dead_wrist_sensor_is_refused_at_the_start_and_a_fault_while_its_arm_m
                           dq_rad_s=lambda k, s: np.zeros(len(MODEL.joint_names))))
 
 
+
+def _ankle_dead(sensor: str, from_k: int):
+    def change(k, s):
+        ft = dict(s.ft)
+        if k >= from_k:
+            ft[sensor] = np.zeros(6)
+        return ft
+    return change
+
+
+@pytest.mark.parametrize("sensor", ["right-ankle", "left-ankle"])
+def test_a_dead_ankle_sensor_is_refused_at_the_start_and_a_fault_once_it_lasts(sensor):
+    """Review 21: the right ankle's six channels reading 0 from 1 s of a 4 s stand (the
+    simulator, nominal robot) ran to its end, "stood 4.00 s, fell no", exit 0; the estimate
+    took that foot off the floor. Dead at the start: refused (exit 4); dead later: a fault
+    once it lasts SOLE_WIRING_OVER_S of fresh states, not sooner."""
+    with pytest.raises(SensorFault, match=f"the {sensor} force-torque sensor reads exactly 0 "
+                                          r"in every component, at the start: refused") as info:
+        _estimate(_states(2, ft=_ankle_dead(sensor, 0)))
+    assert info.value.exit_code == 4 and "dead channel" in str(info.value)
+    held = round(SOLE_WIRING_OVER_S / DT)  # periods it may read 0 and pass
+    assert _estimate(_states(10 + held, ft=_ankle_dead(sensor, 10))) == 10 + held
+    with pytest.raises(SensorFault, match=f"the {sensor} .* exactly 0 in every component for "
+                                          r"0.055 s at t = 0.10 s: a dead channel") as info:
+        _estimate(_states(10 + held + 5, ft=_ankle_dead(sensor, 10)))
+    assert info.value.exit_code == 3
+    # one channel alive (any bit) is no dead sensor
+    alive = {"ft": lambda k, s: {**s.ft, sensor: np.array([0, 0, 0, 0, 0, 1e-12])}}
+    assert _estimate(_states(30, **alive)) == 30
+
+
+def test_a_dead_accelerometer_is_refused_at_the_start_and_a_fault_after_10_states():
+    """Review 21: the simulator's accelerometer reading (0, 0, 0) from 1 s of a 4 s stand and
+    of a 0.6 m walk: both exited 0 (the attitude on the gyro alone; the running IMU check
+    skips a zero vector). Refused at the start (exit 4), later a fault after
+    IMU_FROZEN_STATES fresh states (exit 3)."""
+    def dead(from_k):
+        return {"imu_accel_m_s2": lambda k, s: np.zeros(3) if k >= from_k else
+                s.imu_accel_m_s2}
+
+    with pytest.raises(SensorFault, match="accelerometer reads exactly 0 in every component "
+                                          "at the start: refused") as info:
+        _estimate(_states(2, **dead(0)))
+    assert info.value.exit_code == 4
+    assert _estimate(_states(10 + IMU_FROZEN_STATES - 1, **dead(10))) == \
+        10 + IMU_FROZEN_STATES - 1
+    with pytest.raises(SensorFault, match=f"for {IMU_FROZEN_STATES} states at t = 0.10 s: a "
+                                          "dead channel") as info:
+        _estimate(_states(10 + IMU_FROZEN_STATES + 5, **dead(10)))
+    assert info.value.exit_code == 3
+
 def _pitched(deg: float):
     """The accelerometer (and the reported orientation) of an IMU pitched ``deg`` on a level
     robot (the review's FAULT=imu_bias)."""
@@ -248,7 +299,8 @@ def test_an_imu_crooked_against_the_loaded_legs_is_refused_at_the_start():
     with pytest.raises(SensorFault, match=r"pitch 1.6 deg.*at most 1.65 deg in roll, 1.4 in "
                                           r"pitch"):  # up or down that slope a walk stops at once
         _estimate(_states(2, **_imu(1.6)))
-    assert _estimate(_states(2, **_imu(5.0), ft=_soles(0.0, 0))) == 2
+    # (a hanging foot reads its weight and noise, never exactly 0: round 21's dead channel)
+    assert _estimate(_states(2, **_imu(5.0), ft=_soles(1.0, 0))) == 2
 
 
 def _imu_after(from_k: int, deg_per_state: float, cap_deg: float):

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import atexit
 import contextlib
-import errno
 import gc
 import importlib
 import io
@@ -18,6 +17,7 @@ import click
 from hubo_cli import __version__
 from hubo_cli.errors import HuboError, Terminated
 from hubo_cli.interrupts import INTERRUPT_SIGNALS, catching_interrupts, run_files
+from hubo_cli.outputs import DISK_FULL
 
 # command name -> "module:attribute" (modules are imported only when the command runs)
 COMMANDS = {
@@ -43,7 +43,6 @@ EXIT_CODES = ("Exit codes: 0 success, 1 other error or a run that did not comple
               "5 no IK solution, 130 interrupted (Ctrl-C, SIGTERM, SIGHUP or SIGQUIT).")
 
 
-DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
 ARGS = "hubo.args"  # key of click's ctx.meta: the command line after ``hubo``
 
 
@@ -184,8 +183,17 @@ def json_asked(exc: click.ClickException, ctx: click.Context) -> bool:
         command = _named_command(ctx, args)[0]
     if not any(p.name == "as_json" for p in command.params):
         return False
+    return _json_on_line(ctx)
+
+
+def _json_on_line(ctx: click.Context) -> bool:
+    """A ``--json`` flag on the command line (before a ``--``), noted as its callback would
+    note it: for an error before the callback ran."""
+    from hubo_cli.cli.output import JSON_WANTED
+
+    args = ctx.meta.get(ARGS, [])
     if "--json" in args[:args.index("--") if "--" in args else len(args)]:
-        ctx.meta[JSON_WANTED] = True  # as its callback would have
+        ctx.meta[JSON_WANTED] = True
     return bool(ctx.meta.get(JSON_WANTED))
 
 
@@ -226,6 +234,7 @@ class LazyGroup(click.Group):
             said = "interrupted" + (f" ({exc.cause})" if isinstance(exc, Terminated) else "")
             with contextlib.suppress(OSError):  # (SIGHUP: the terminal may be gone)
                 click.echo(said, err=True)
+                _json_on_line(ctx)  # interrupted before its callback ran: while importing
                 _json_error(ctx, said, 130)
             ctx.exit(130)
         except MemoryError:

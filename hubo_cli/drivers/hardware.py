@@ -511,7 +511,10 @@ class HardwareDriver(Driver):
         (``hw_state_age_checked``: False on a simulated clock; ``hw_state_age_baseline_ms``: the
         smallest recent age it is judged against, :mod:`hubo_cli.drivers.state_age`), the
         largest servo error (rad), the periods slowed by hot motors, the hottest motor (joint
-        and degrees C; None without a temperature) and the trip that ended the run (if any)."""
+        and degrees C; None without a temperature), the trip that ended the run (if any) and
+        whether the daemon's sensors were judged (``hw_sensors_checked``: False on a dry run
+        or with ``--echo-sensors``, whose warning ``--json`` leaves out: the sensor checks
+        were off and the force stops read no force)."""
         def stats(values_s: array) -> dict[str, float | None]:
             x = np.frombuffer(values_s, dtype=float) * 1e3
             x = x[np.isfinite(x)]
@@ -530,7 +533,8 @@ class HardwareDriver(Driver):
                 "hw_max_servo_error_rad": round(self._max_servo_error_rad, 4),
                 "hw_thermal_limited_periods": self._thermal_periods,
                 "hw_hottest_motor": self._hottest_motor(),
-                "hw_trip": None if self.trip is None else type(self.trip).__name__}
+                "hw_trip": None if self.trip is None else type(self.trip).__name__,
+                "hw_sensors_checked": bool(self.sensors_measured)}
 
     def _hottest_motor(self) -> dict | None:
         """The run's hottest motor: joint and degrees C (None: unreadable, NaN in the state)."""

@@ -64,6 +64,18 @@ the daemon publishes nothing new, and such a gap is the stale-state check's,
   edge reads so for a moment, as the estimate takes that sole flat). Swapped sensors
   before a foot lifts, and a moment flipped or a sensor turned while the centre of pressure
   stays near the ankle, read as a working pair does (docs/history/safety.md, round 20).
+- an ankle sensor reading exactly 0 in every component (a dead channel, as the wrists' check
+  above; round 21): at the start (refused) or for longer than :data:`SOLE_WIRING_OVER_S` of
+  fresh states later. A working sensor never does: its noise, and the foot beyond it weighs
+  something even in the air (the simulated sensors' smallest largest component on healthy
+  walks is in docs/history/safety.md, round 21). The estimate read such a foot as off the
+  floor: a stand on a dead right ankle ran its 4 s and exited 0 (review 21).
+- the accelerometer reading exactly 0 in every component (a dead channel: a working one reads
+  gravity, and a robot on its feet is never in free fall) at the start (refused) or for
+  :data:`IMU_FROZEN_STATES` fresh states later: the attitude ran on the gyro alone and the
+  running IMU check, which skips a zero vector, never judged it (review 21: a stand and a walk
+  on it exited 0). The hardware driver's accelerometer is hubo-ach's tilt made a vector, never
+  0; a dead tilt is the frozen IMU above.
 
 Not a check: an estimated fall while the soles still carry the robot. A real fall does that (the
 push-wall robot tipping over its toes read 291 N of 380 N at 30 deg); a joint encoder that lies
@@ -237,6 +249,8 @@ class SensorPlausibility(Observer):
         self._wrist_flat = dict.fromkeys(WRISTS, 0)
         self._soles_over = 0  # periods in a row over the limit
         self._wiring_over = 0  # periods in a row an ankle sensor read as wired wrong
+        self._ankle_dead = dict.fromkeys(ANKLE_SENSORS, 0)  # fresh states in a row all 0
+        self._accel_dead = 0  # fresh states in a row with the accelerometer all 0
         self._swapped_over = 0  # ... the two read as swapped
         self._periods = 0  # periods judged since the reset
         self._wrist_sums = np.zeros((2, len(WRISTS)))  # per wrist: compensated F_z, raw F_z
@@ -256,6 +270,8 @@ class SensorPlausibility(Observer):
                             "hardware fake-daemon pass --echo-sensors)",
                             hint="check the sensor's cable and power, or how it was nulled, "
                                  "then start the run again", refuse=True)
+        self._dead_ankles(state, start=True)
+        self._dead_accelerometer(state, start=True)
         self._imu_against_legs(state, store)
         self._ankle_wiring(state, store, start=True)
         self.update(state, store)
@@ -309,6 +325,8 @@ class SensorPlausibility(Observer):
             return
         q = np.asarray(state.q_rad, dtype=float)
         dt_s = None if self._t_s is None else state.time_s - self._t_s
+        self._dead_ankles(state)
+        self._dead_accelerometer(state)
         self._frozen_imu(state, store)
         self._imu_tilt_while_still(state, store)
         if dt_s is not None:
@@ -419,6 +437,37 @@ class SensorPlausibility(Observer):
                     hint=f"{cause}, or the ankle sensors are wired to the wrong channels: check "
                          f"the {sensor} sensor's mounting, its cable and hubo-daemon's channel "
                          "and sign settings for it, then start the run again", refuse=start)
+
+    def _dead_ankles(self, state: RobotState, start: bool = False) -> None:
+        """An ankle sensor reading exactly 0 in every component: refused at the start, a fault
+        once it lasts longer than SOLE_WIRING_OVER_S of fresh states (module docstring)."""
+        for sensor in ANKLE_SENSORS:
+            reading = state.ft.get(sensor)
+            dead = reading is not None and not np.any(np.asarray(reading, dtype=float))
+            self._ankle_dead[sensor] = self._ankle_dead[sensor] + 1 if dead else 0
+            held_s = self._ankle_dead[sensor] * self.period_s
+            if dead and (start or held_s > SOLE_WIRING_OVER_S + 1e-9):
+                when = (", at the start: refused before anything moved" if start else
+                        f" for {held_s:.3f} s at t = {state.time_s:.2f} s")
+                self._raise(f"the {sensor} force-torque sensor reads exactly 0 in every "
+                            f"component{when}: a dead channel (a working sensor's noise and "
+                            "the foot beyond it never read so; the estimate takes that foot "
+                            "off the floor)",
+                            hint=f"check the {sensor} sensor's cable and power and "
+                                 "hubo-daemon's channel for it, then start the run again",
+                            refuse=start)
+
+    def _dead_accelerometer(self, state: RobotState, start: bool = False) -> None:
+        """The accelerometer reading exactly 0 in every component: refused at the start, a
+        fault after IMU_FROZEN_STATES fresh states (module docstring)."""
+        dead = not np.any(np.asarray(state.imu_accel_m_s2, dtype=float))
+        self._accel_dead = self._accel_dead + 1 if dead else 0
+        if dead and (start or self._accel_dead >= IMU_FROZEN_STATES):
+            when = (" at the start: refused before anything moved" if start else
+                    f" for {self._accel_dead} states at t = {state.time_s:.2f} s")
+            self._raise(f"the IMU's accelerometer reads exactly 0 in every component{when}: a "
+                        "dead channel (a working one reads gravity on a robot that stands or "
+                        "walks)", refuse=start)
 
     def _ankles_swapped(self, store: Store, wrenches: dict) -> tuple[str, str, str] | None:
         """A sole read carrying SOLE_CARRIES_WEIGHTS of the robot more than SOLE_UNDER_M above

@@ -43,6 +43,7 @@ from hubo_cli.fastrak.records import (
 from hubo_cli.fastrak.source import PoseSample, ReplaySource, SourceStats, batch_samples
 from hubo_cli.fastrak.track import PoseTrack
 from hubo_cli.geometry import matrix_to_quat_wxyz, unit_quats
+from hubo_cli.outputs import write_error
 from hubo_cli.streams import open_nonblocking, reader_of
 
 MAGIC = b"FASTRAK-CAPTURE 1\n"
@@ -570,8 +571,7 @@ def write_pose_log(path: str | Path, records: RecordBatch | Iterable[PoseSample]
     try:
         path.write_text(pose_log_text(batch), encoding="utf-8")
     except OSError as exc:
-        raise InputError(f"cannot write {path}: {exc.strerror}",
-                         hint="choose a writable output path") from None
+        raise write_error(path, exc, hint="choose a writable output path") from None
     return path
 
 
@@ -583,7 +583,8 @@ def parse_pose_log(text: str, where: str = "pose log") -> RecordBatch:
     after :data:`MAX_START_S` are counted from the first row (see :func:`recording_times`).
 
     Raises:
-        InputError: missing columns or a row that is not numbers, with its line number.
+        InputError: missing columns, a row that is not numbers, a position beyond the
+            tracker's range or a quaternion that is not one, with its line number.
     """
     text = text.removeprefix("\ufeff")  # the byte-order mark some Windows programs write
     lines = [(i + 1, line) for i, line in enumerate(text.splitlines())
@@ -632,6 +633,17 @@ def parse_pose_log(text: str, where: str = "pose log") -> RecordBatch:
         bad = int(np.flatnonzero(norm < 1e-6)[0])
         raise InputError(f"{where}: line {lines[bad + 1][0]}: zero quaternion",
                          hint="qw,qx,qy,qz must be a unit quaternion (scalar first)")
+    # a pose beyond the tracker's range (review 21: a log written in centimetres drove both
+    # arms to their reach limits for 8 s; the live reader drops such records as garbled)
+    reach_m = DEFAULT_PLAUSIBILITY.max_position_m
+    far = np.abs(values[:, 2:5]).max(axis=1) > reach_m
+    if far.any():
+        bad = int(np.flatnonzero(far)[0])
+        raise InputError(f"{where}: line {lines[bad + 1][0]}: a pose at "
+                         f"{quoted(values[bad, 2:5].tolist())} m, beyond a FASTRAK's "
+                         f"{reach_m:g} m; {int(far.sum())} of the {len(far)} rows are so",
+                         hint="x_m, y_m, z_m are metres: was the file written in centimetres or "
+                              "millimetres? divide them by 100 or 1000")
     far = np.abs(norm - 1.0) > QUAT_NORM_TOL
     if far.any():
         bad = int(np.flatnonzero(far)[0])

@@ -24,9 +24,9 @@ from collections import deque
 
 import numpy as np
 
-from hubo_cli.errors import DeviceError, InputError, quoted
+from hubo_cli.errors import DeviceError, InputError
 from hubo_cli.fastrak.capture import RECORD_RATE_HZ, load_recording
-from hubo_cli.fastrak.records import DEFAULT_PLAUSIBILITY, encode_record, make_layout
+from hubo_cli.fastrak.records import encode_record, make_layout
 from hubo_cli.fastrak.track import PoseTrack
 from hubo_cli.geometry import fastrak_euler_deg_to_quat_wxyz
 
@@ -77,17 +77,10 @@ class RecordedMotion:
 
         Raises:
             InputError: a position a tracker could not send (beyond its range, which a
-                binary record would carry as infinity).
+                binary record would carry as infinity): refused by the loader
+                (:func:`~hubo_cli.fastrak.capture.parse_pose_log`).
         """
         batch = load_recording(path).batch
-        far = np.abs(batch.position_m).max(axis=1) > DEFAULT_PLAUSIBILITY.max_position_m
-        if far.any():
-            i = int(np.flatnonzero(far)[0])
-            raise InputError(f"{path}: station {batch.station[i]} at t_s {batch.t_s[i]:.3f} s "
-                             f"is at {quoted(batch.position_m[i].tolist())} m, beyond a "
-                             f"FASTRAK's {DEFAULT_PLAUSIBILITY.max_position_m:g} m",
-                             hint="the emulator sends only what a tracker could; fix or cut "
-                                  "those rows")
         tracks = {}
         for s in sorted(set(batch.station.tolist())):
             sel = batch.station == s

@@ -30,7 +30,7 @@ from hubo_cli.kinematics.choice import STATUS_NAMES
 from hubo_cli.kinematics.dh import JIT
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.kinematics.poses import MAX_INPUT_MAGNITUDE
-from hubo_cli.outputs import OutputFile
+from hubo_cli.outputs import OutputFile, write_error
 
 POSE_COLUMNS = [f"T{i}{j}" for i in range(4) for j in range(4)]
 PREV_COLUMNS = [f"qprev{k}" for k in range(1, 7)]
@@ -217,6 +217,5 @@ def _write(path: Path, out_path: Path, q, status, pos_err, rot_err) -> None:
                 "rot_err_rad": pl.Series(rot_err, nan_to_null=True)}
     try:
         pl.DataFrame(columns).write_csv(path)
-    except OSError as exc:
-        raise InputError(f"cannot write {out_path}: {exc.strerror}",
-                         hint="check the path of --out") from None
+    except OSError as exc:  # polars gives no errno: a full disk is told by the space left
+        raise write_error(out_path, exc, hint="check the path of --out") from None

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hubo_cli.outputs import replacing
 from hubo_cli.workspace.maps import PAPER_BEST, WorkspaceMap
 
 
@@ -58,7 +59,8 @@ def save_npz(maps: list[WorkspaceMap], path: str | Path) -> Path:
                        p + "masks": m.masks, p + "reachable": m.reachable})
         arrays.update({p + k: v for k, v in _per_x(m).items()})
     path = Path(path)
-    np.savez_compressed(path, **arrays)
+    with replacing(path) as temporary:  # a full disk leaves no part of it
+        np.savez_compressed(temporary, **arrays)
     return path
 
 
