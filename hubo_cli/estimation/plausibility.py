@@ -187,11 +187,12 @@ SOLE_SWAPPED_OVER_S = 0.15
 # carrying less than SOLE_IN_AIR_WEIGHTS of the weight: the estimate then holds no sole to the
 # floor, and takes the anchor up where its sole comes down), both soles estimated more than
 # SOLES_SUNK_M under that floor (round 21, docs/history/safety.md). Healthy walks, pushes and
-# tasks, both code paths, read 0.46 mm at most (a door pushed on seed 55, the wrist
+# tasks, both code paths, read 0.61 mm at most (a door pushed on seed 55, the wrist
 # overloaded, bounced and sank 2.9 mm after its first bounce, which is not judged); swapped
 # sensors, the estimate stands the robot on the foot that rises as the walk's first weight
-# shift rocks it from sole to sole, and each rock carries the estimate down: 2 mm by 0.47-0.66
-# s, 5-40 mm later
+# shift rocks it from sole to sole, and each rock carries the estimate down: past 2 mm by
+# 0.47-0.68 s (the first lift-off at 0.9 s; the fast gait's at 0.55 s, seen at 0.51 s), 5-40 mm
+# later
 SOLES_SUNK_M = 0.002
 SOLE_STEPPED_M = 0.03
 
@@ -257,7 +258,7 @@ class SensorPlausibility(Observer):
         self._swapped_over = 0  # ... the two read as swapped
         self._sunk_over = 0  # ... both soles under the floor before a step
         self._soles_start_xy = None  # where the estimate put the soles at the start (m) ...
-        self._stepped = False  # ... and one has left it since (a step) or both bounced
+        self._judge_sunk = True  # ... until one leaves it (a step) or both bounce
         self._periods = 0  # periods judged since the reset
         self._wrist_sums = np.zeros((2, len(WRISTS)))  # per wrist: compensated F_z, raw F_z
         self._still = _StillWindow()
@@ -472,11 +473,11 @@ class SensorPlausibility(Observer):
         estimate's height float). (Scalar arithmetic: it runs every period while the robot
         stands.)"""
         T_world_soles = store.get(T_WORLD_SOLES)
-        if T_world_soles is None or self._stepped:
+        if T_world_soles is None or not self._judge_sunk:
             return None
         fz_n = [float(wrenches[sensor][2]) for sensor in ANKLE_SENSORS]
         if not fz_n[0] + fz_n[1] >= SOLE_IN_AIR_WEIGHTS * self.weight_n:
-            self._stepped = True
+            self._judge_sunk = False
             return None
         (rx, ry, rz), (lx, ly, lz) = np.asarray(T_world_soles)[:, :3, 3].tolist()
         if self._soles_start_xy is None:
@@ -484,13 +485,13 @@ class SensorPlausibility(Observer):
         rx0, ry0, lx0, ly0 = self._soles_start_xy
         if not (math.hypot(rx - rx0, ry - ry0) <= SOLE_STEPPED_M
                 and math.hypot(lx - lx0, ly - ly0) <= SOLE_STEPPED_M):
-            self._stepped = True  # (or not finite)
+            self._judge_sunk = False  # (or not finite)
             return None
         if not (rz < -SOLES_SUNK_M and lz < -SOLES_SUNK_M):
             return None
         return ("right-ankle", f"F_z {fz_n[0]:.0f} N and the left-ankle sensor {fz_n[1]:.0f} N, "
                                "which stand the robot on soles "
-                               f"{-rz * 1000:.0f} mm (right) and {-lz * 1000:.0f} mm (left) "
+                               f"{-rz * 1000:.1f} mm (right) and {-lz * 1000:.1f} mm (left) "
                                "under the floor it started on, before a step (at most "
                                f"{SOLES_SUNK_M * 1000:.0f} mm: the estimate stands the robot on "
                                "the sole its sensor loads, and a foot that rises as the robot "
