@@ -54,3 +54,22 @@ def test_a_stand_on_an_ankle_sensor_reading_fz_flipped_is_refused(monkeypatch, t
     assert result.exit_code == 4, result.output
     assert "the right-ankle force-torque sensor reads F_z -1" in result.output
     assert "refused before anything moved" in result.output and "sign" in result.output
+
+
+@pytest.mark.physical
+def test_a_walk_on_swapped_ankle_sensors_stops_before_a_foot_lifts(monkeypatch, tmp_path):
+    """The two ankle sensors swapped, perturbation seed 1: main's walk fell (round 20's check
+    named the swap at 1.41 s, once a foot had lifted). The walk's first weight shift rocks the
+    robot from sole to sole, and the estimate, standing it on the sole its sensor loads, sinks
+    both soles under the floor: a device fault at 0.61 s (both code paths), before the first
+    lift-off (0.9 s), the robot standing."""
+    _wired(monkeypatch, "swap")
+    result = CliRunner().invoke(main, ["walk", "--to", "0.6", "0", "0", "--perturb", "1",
+                                       "--out", str(tmp_path / "w")])
+    assert result.exit_code == 3, result.output
+    assert "under the floor it started on, before a step" in result.output
+    assert "swapped between the feet" in result.output
+    summary = json.loads((tmp_path / "w" / "summary.json").read_text())
+    assert summary["steps"] == 0 and summary["stood"] is True, summary
+    assert summary["fell"] is False and summary["fell_truth"] is False, summary
+    assert summary["stopped_s"] < 0.85, summary

@@ -566,3 +566,52 @@ def test_a_foot_under_the_loaded_sole_for_a_rock_is_not_read_as_swapped_sensors(
                                           r"[0-9]{1,2} N, its sole 2[0-9] mm lower .* for 0.155 s "
                                           r"at t = 0.20 s$"):
         _estimate(_states(60, q_rad=lowered_for(held + 1), ft=on_the_right))
+
+
+def _rocking(swapped: bool, rise_rad: float = 0.09, bounce_at: int = -1):
+    """A rock: the right foot rises 12 mm (its hip, knee and ankle pitched -1, 2, -1 times
+    ``rise_rad`` over states 10-29) and comes down again (states 40-59) while the left sole
+    carries the robot, the right reading its foot's weight alone. ``swapped``: the readings a
+    swapped pair gives as the robot rolls from sole to sole: the load read on the rising right
+    foot (states 0-34), then on the left while the right is still up (from state 35).
+    ``bounce_at``: in that state both feet hang, both soles carrying nothing."""
+    joints = [MODEL.joint_names.index(name) for name in ("RHP", "RKN", "RAP")]
+
+    def q_rad(k, s):
+        q = np.array(s.q_rad, dtype=float)
+        up = min(1.0, max(0.0, (k - 10) / 20)) - min(1.0, max(0.0, (k - 40) / 20))
+        q[joints] += np.array([-1.0, 2.0, -1.0]) * rise_rad * up
+        return q
+
+    def ft(k, s):
+        ft = dict(s.ft)
+        load = ft["right-ankle"][2] + ft["left-ankle"][2] - 12.0
+        loaded, light = np.array([0, 0, load, 0, -0.02 * load, 0]), np.array([0, 0, 12.0, 0, 0, 0])
+        on_right = swapped and k < 35
+        ft["right-ankle"], ft["left-ankle"] = (loaded, light) if on_right else (light, loaded)
+        if k == bounce_at:  # (a sensor under a hanging foot reads minus its weight)
+            ft["right-ankle"] = ft["left-ankle"] = np.array([0, 0, -12.0, 0, 0, 0])
+        return ft
+    return {"q_rad": q_rad, "ft": ft}
+
+
+def test_both_soles_sinking_under_the_floor_before_a_step_are_swapped_sensors():
+    """Round 21: the ankle sensors swapped, a walk's first weight shift rocks the robot from
+    sole to sole before a foot lifts, and the estimate stands it on the sole its sensor loads:
+    a foot that rises while read loaded, the load then read on the other one, carries the
+    estimate down, both soles under the floor the robot started on (2 mm by 0.47-0.68 s,
+    before the first lift-off; healthy walks, pushes and tasks 0.61 mm at most). Round 20's
+    rule saw the swap only once a foot had lifted (1.27-1.45 s; seed 1 fell). The rock read as
+    it happens is none; read so, a fault once both soles lie SOLES_SUNK_M under for
+    SOLE_WIRING_OVER_S; after a bounce (both soles light: the estimate lets its height float,
+    and a door pushed on seed 55, bouncing, sank 2.9 mm), not judged."""
+    assert _estimate(_states(90, **_rocking(False))) == 90
+    assert _estimate(_states(90, **_rocking(True, bounce_at=5))) == 90
+    with pytest.raises(SensorFault, match=r"^the right-ankle force-torque sensor reads F_z "
+                                          r"[0-9]{1,2} N and the left-ankle sensor 3[0-9]{2} N, "
+                                          r"which stand the robot on soles [0-9.]+ mm \(right\) "
+                                          r"and [0-9.]+ mm \(left\) under the floor it started "
+                                          r"on, before a step .* for 0.055 s at t = 0.[0-9]+ s$"
+                       ) as info:
+        _estimate(_states(90, **_rocking(True)))
+    assert info.value.exit_code == 3 and "swapped between the feet" in info.value.hint

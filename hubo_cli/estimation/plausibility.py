@@ -61,9 +61,14 @@ the daemon publishes nothing new, and such a gap is the stale-state check's,
   other cannot lie under it: the sensors swapped between the feet, seen once a foot lifts), at
   the start (refused) or for longer than :data:`SOLE_WIRING_OVER_S` later
   (:data:`SOLE_SWAPPED_OVER_S` for a sole under the other: a healthy robot rocking on a sole's
-  edge reads so for a moment, as the estimate takes that sole flat). Swapped sensors
-  before a foot lifts, and a moment flipped or a sensor turned while the centre of pressure
-  stays near the ankle, read as a working pair does (docs/history/safety.md, round 20).
+  edge reads so for a moment, as the estimate takes that sole flat); or, before a step or a
+  bounce, both soles more than :data:`SOLES_SUNK_M` under the floor the robot started on for
+  longer than :data:`SOLE_WIRING_OVER_S` (the sensors swapped before a foot lifts: a walk's
+  first weight shift rocks the robot from sole to sole, and standing it on the sole its sensor
+  loads, the rising one, each rock carries the estimate down; round 21). A moment flipped or a
+  sensor turned while the centre of pressure stays near the ankle, and swapped sensors on a
+  robot that stands without rocking, read as a working pair does (docs/history/safety.md,
+  rounds 20 and 21).
 - an ankle sensor reading exactly 0 in every component (a dead channel, as the wrists' check
   above; round 21): at the start (refused) or for longer than :data:`SOLE_WIRING_OVER_S` of
   fresh states later. A working sensor never does: its noise, and the foot beyond it weighs
@@ -189,6 +194,19 @@ SOLE_WIRING_OVER_S = 0.05  # either for longer than this (s) after the start
 # above the other for up to 0.105 s in a row (11 of 22 runs stopped on SOLE_WIRING_OVER_S);
 # swapped sensors on walks read so for 0.245 s (seed 1) to 0.76-0.83 s (nominal) in a row
 SOLE_SWAPPED_OVER_S = 0.15
+# Before a step (each sole within SOLE_STEPPED_M of where the estimate put it at the start: the
+# floor under both is the one the robot started on) and before a bounce (the soles together
+# carrying less than SOLE_IN_AIR_WEIGHTS of the weight: the estimate then holds no sole to the
+# floor, and takes the anchor up where its sole comes down), both soles estimated more than
+# SOLES_SUNK_M under that floor (round 21, docs/history/safety.md). Healthy walks, pushes and
+# tasks, both code paths, read 0.61 mm at most (a door pushed on seed 55, the wrist
+# overloaded, bounced and sank 2.9 mm after its first bounce, which is not judged); swapped
+# sensors, the estimate stands the robot on the foot that rises as the walk's first weight
+# shift rocks it from sole to sole, and each rock carries the estimate down: past 2 mm by
+# 0.47-0.68 s (the first lift-off at 0.9 s; the fast gait's at 0.55 s, seen at 0.51 s), 5-40 mm
+# later
+SOLES_SUNK_M = 0.002
+SOLE_STEPPED_M = 0.03
 
 
 class SensorFault(DeviceError):
@@ -252,6 +270,9 @@ class SensorPlausibility(Observer):
         self._ankle_dead = dict.fromkeys(ANKLE_SENSORS, 0)  # fresh states in a row all 0
         self._accel_dead = 0  # fresh states in a row with the accelerometer all 0
         self._swapped_over = 0  # ... the two read as swapped
+        self._sunk_over = 0  # ... both soles under the floor before a step
+        self._soles_start_xy = None  # where the estimate put the soles at the start (m) ...
+        self._judge_sunk = True  # ... until one leaves it (a step) or both bounce
         self._periods = 0  # periods judged since the reset
         self._wrist_sums = np.zeros((2, len(WRISTS)))  # per wrist: compensated F_z, raw F_z
         self._still = _StillWindow()
@@ -422,10 +443,13 @@ class SensorPlausibility(Observer):
                          "its m_x or m_y is flipped")
                 break
         swapped = self._ankles_swapped(store, wrenches)
+        sunk = self._soles_sunk(store, wrenches)
         self._wiring_over = self._wiring_over + 1 if wrong else 0
         self._swapped_over = self._swapped_over + 1 if swapped else 0
+        self._sunk_over = self._sunk_over + 1 if sunk else 0
         for found, over, over_s in ((wrong, self._wiring_over, SOLE_WIRING_OVER_S),
-                                    (swapped, self._swapped_over, SOLE_SWAPPED_OVER_S)):
+                                    (swapped, self._swapped_over, SOLE_SWAPPED_OVER_S),
+                                    (sunk, self._sunk_over, SOLE_WIRING_OVER_S)):
             if found is not None and (start or over * self.period_s > over_s + 1e-9):
                 break
         else:
@@ -489,6 +513,39 @@ class SensorPlausibility(Observer):
                                           "robot is on the floor, the other cannot be under it)",
                         "the two ankle sensors are swapped between the feet")
         return None
+
+    def _soles_sunk(self, store: Store, wrenches: dict) -> tuple[str, str, str] | None:
+        """Before a step (each sole within SOLE_STEPPED_M of its place at the start) or a bounce
+        (the soles together under SOLE_IN_AIR_WEIGHTS), both soles more than SOLES_SUNK_M under
+        the floor: the estimate stood the robot on a rising foot (module docstring). After
+        either, never again judged (the floor there may lie elsewhere; a bounce lets the
+        estimate's height float). (Scalar arithmetic: it runs every period while the robot
+        stands.)"""
+        T_world_soles = store.get(T_WORLD_SOLES)
+        if T_world_soles is None or not self._judge_sunk:
+            return None
+        fz_n = [float(wrenches[sensor][2]) for sensor in ANKLE_SENSORS]
+        if not fz_n[0] + fz_n[1] >= SOLE_IN_AIR_WEIGHTS * self.weight_n:
+            self._judge_sunk = False
+            return None
+        (rx, ry, rz), (lx, ly, lz) = np.asarray(T_world_soles)[:, :3, 3].tolist()
+        if self._soles_start_xy is None:
+            self._soles_start_xy = (rx, ry, lx, ly)
+        rx0, ry0, lx0, ly0 = self._soles_start_xy
+        if not (math.hypot(rx - rx0, ry - ry0) <= SOLE_STEPPED_M
+                and math.hypot(lx - lx0, ly - ly0) <= SOLE_STEPPED_M):
+            self._judge_sunk = False  # (or not finite)
+            return None
+        if not (rz < -SOLES_SUNK_M and lz < -SOLES_SUNK_M):
+            return None
+        return ("right-ankle", f"F_z {fz_n[0]:.0f} N and the left-ankle sensor {fz_n[1]:.0f} N, "
+                               "which stand the robot on soles "
+                               f"{-rz * 1000:.1f} mm (right) and {-lz * 1000:.1f} mm (left) "
+                               "under the floor it started on, before a step (at most "
+                               f"{SOLES_SUNK_M * 1000:.0f} mm: the estimate stands the robot on "
+                               "the sole its sensor loads, and a foot that rises as the robot "
+                               "rocks carries it down)",
+                "the two ankle sensors are swapped between the feet")
 
     def _frozen_imu(self, state: RobotState, store: Store) -> None:
         """The IMU bit-identical over the last IMU_FROZEN_STATES fresh states while the legs
