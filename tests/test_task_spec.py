@@ -362,7 +362,8 @@ def test_generated_plunges_are_refused_exactly_past_the_bit(tmp_path, model, rng
         load_task(path, model=no_yield)
 
 
-def _hand_front_mm(model) -> float:
+@pytest.fixture(scope="module")
+def hand_front_mm(model) -> float:
     """How far the hand's front lies past the hand point along the hand frame's x (mm), worked
     out here from the URDF's collision box as pinocchio places it and the arm's DH forward
     kinematics, in an arbitrary pose."""
@@ -403,13 +404,13 @@ def _hand_task(path, depth_mm, thrust_n=0.0, retract_mm=-50.0, arm="right"):
 
 
 @pytest.mark.parametrize("thrust_n, arm", [(0.0, "right"), (3.0, "left")])
-def test_a_hand_plunge_past_the_wall_face_is_refused_at_load(tmp_path, model, thrust_n, arm):
+def test_a_hand_plunge_past_the_wall_face_is_refused_at_load(tmp_path, model, hand_front_mm,
+                                                              thrust_n, arm):
     """Review 21: a task with the hand had no plunge bound (the drill's alone): 60 mm planned
     and ran into the wall until the wrist-torque stop. The hand's front meets the face at
     depth -14.35 mm; pressing is a thrust's, not the plan's."""
-    front_mm = _hand_front_mm(model)
-    assert front_mm == pytest.approx(14.35)
-    deepest_mm = round(-front_mm, 6)
+    assert hand_front_mm == pytest.approx(14.35)
+    deepest_mm = round(-hand_front_mm, 6)
     inside = _hand_task(tmp_path / "inside.toml", deepest_mm - 0.01, thrust_n, arm=arm)
     assert load_task(inside, model=model).steps[1].depth_m == pytest.approx(
         deepest_mm / 1000 - 1e-5)
@@ -434,18 +435,18 @@ def test_a_hand_plunge_past_the_wall_face_is_refused_at_load(tmp_path, model, th
         load_task(retract, model=model)
 
 
-def test_generated_hand_plunges_are_refused_exactly_past_the_face(tmp_path, model):
+def test_generated_hand_plunges_are_refused_exactly_past_the_face(tmp_path, model,
+                                                                  hand_front_mm):
     """Task files with the hand written from random depths, thrusts and arms, each judged
     against the bound worked out here; review 21's 60 mm through the command line exits 2."""
     rng = np.random.default_rng(2121)
-    front_mm = _hand_front_mm(model)
     refused = []
     for i in range(30):
         depth_mm = float(np.round(rng.uniform(-45.0, 15.0), 3))
         thrust_n = float(np.round(rng.uniform(0.5, 15.0), 1)) if rng.random() < 0.5 else 0.0
         path = _hand_task(tmp_path / f"hand_{i}.toml", depth_mm, thrust_n,
                           arm=("right", "left")[i % 2])
-        refused.append(depth_mm > -front_mm)
+        refused.append(depth_mm > -hand_front_mm)
         if not refused[-1]:
             assert load_task(path, model=model).steps[1].depth_m == depth_mm / 1000
         else:
