@@ -406,6 +406,19 @@ def torso_front_m() -> float:
     return x + depth / 2
 
 
+# The hand's collision box (palm and fingers): its centre this far past the wrist pitch axis
+# along the forearm, and its size across the forearm (x, y at the zero pose) and along it (m).
+HAND_BOX_CENTRE_M = 0.07
+HAND_BOX_SIZE_M = (0.08, 0.04, 0.13)
+
+
+def hand_front_m(model: RobotModel) -> float:
+    """How far the hand's front face (its collision box's end) lies past the hand point along
+    the forearm, the hand frame's x (m; 14.35 mm as built): the box ends 0.135 m past the
+    wrist pitch axis, the hand point lA4 past it."""
+    return HAND_BOX_CENTRE_M + HAND_BOX_SIZE_M[2] / 2 - model.lengths_m["lA4"]
+
+
 def _collision_shapes(model: RobotModel) -> dict[str, list[Shape]]:
     """Primitive shapes per link, on the zero-pose geometry (N, m)."""
     L = model.lengths_m
@@ -425,7 +438,7 @@ def _collision_shapes(model: RobotModel) -> dict[str, list[Shape]]:
             shapes[f"{j[3]}_link"] = [_sphere((0, y, elbow), 0.04)]
             shapes[f"{j[4]}_link"] = [_segment((0, y, elbow - 0.045), (0, y, wrist + 0.03),
                                                0.04)]
-            shapes[f"{j[5]}_link"] = [_box((0, y, wrist - 0.07), (0.08, 0.04, 0.13))]
+            shapes[f"{j[5]}_link"] = [_box((0, y, wrist - HAND_BOX_CENTRE_M), HAND_BOX_SIZE_M)]
         else:
             hip = -L["lT"] - L["lL2"]
             knee, ankle = hip - L["lL3"], hip - L["lL3"] - L["lL4"]

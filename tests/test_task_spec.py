@@ -360,3 +360,116 @@ def test_generated_plunges_are_refused_exactly_past_the_bit(tmp_path, model, rng
     no_yield = _robot_with(model, tmp_path / "text", "impedance", "max_offset_m", '"30 mm"')
     with pytest.raises(ConfigError, match=r"\[impedance\] needs a number max_offset_m"):
         load_task(path, model=no_yield)
+
+
+@pytest.fixture(scope="module")
+def hand_front_mm(model) -> float:
+    """How far the hand's front lies past the hand point along the hand frame's x (mm), worked
+    out here from the URDF's collision box as pinocchio places it and the arm's DH forward
+    kinematics, in an arbitrary pose."""
+    import pinocchio as pin
+
+    from hubo_cli.kinematics.limb import Limb
+    from hubo_cli.pin_robot import load_pin_robot
+    from hubo_cli.posture import home_posture
+
+    robot = load_pin_robot(model)
+    geom = pin.buildGeomFromUrdf(robot.model, str(robot.urdf_path), pin.GeometryType.COLLISION)
+    q = home_posture(model)
+    arm = model.limb_slice("right-arm")
+    q[arm] = [-0.5, -0.3, 0.2, -1.2, 0.3, 0.4]
+    geom_data = pin.GeometryData(geom)
+    pin.updateGeometryPlacements(robot.model, robot.model.createData(), geom, geom_data,
+                                 robot.configuration(q))
+    index = geom.getGeometryId("RWP_link_0")
+    half = np.asarray(geom.geometryObjects[index].geometry.halfSide)
+    box = geom_data.oMg[index]
+    corners_N = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
+                         ) * half @ box.rotation.T + box.translation
+    T_N_hand = Limb(model, "right-arm", "hand").fk(q[arm])
+    return 1000 * float(((corners_N - T_N_hand[:3, 3]) @ T_N_hand[:3, :3])[:, 0].max())
+
+
+def _hand_task(path, depth_mm, thrust_n=0.0, retract_mm=-50.0, arm="right"):
+    """cut-rectangle with the hand on ``arm``: its plunge to ``depth_mm`` (pressing
+    ``thrust_n``), its retract to ``retract_mm``."""
+    thrust = f"\nthrust_n = {thrust_n!r}" if thrust_n else ""
+    text = (RECTANGLE.read_text().replace('tool = "drill"', 'tool = "hand"', 1)
+            .replace('arm = "right"', f'arm = "{arm}"', 1)
+            .replace("depth_mm = 2.5 ", f"depth_mm = {depth_mm!r}{thrust}  #", 1)
+            .replace("depth_mm = -50.0\nspeed_mm_s = 20.0",
+                     f"depth_mm = {retract_mm!r}\nspeed_mm_s = 20.0", 1))
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("thrust_n, arm", [(0.0, "right"), (3.0, "left")])
+def test_a_hand_plunge_past_the_wall_face_is_refused_at_load(tmp_path, model, hand_front_mm,
+                                                              thrust_n, arm):
+    """Review 21: a task with the hand had no plunge bound (the drill's alone): 60 mm planned
+    and ran into the wall until the wrist-torque stop. The hand's front meets the face at
+    depth -14.35 mm; pressing is a thrust's, not the plan's."""
+    assert hand_front_mm == pytest.approx(14.35)
+    deepest_mm = round(-hand_front_mm, 6)
+    inside = _hand_task(tmp_path / "inside.toml", deepest_mm - 0.01, thrust_n, arm=arm)
+    assert load_task(inside, model=model).steps[1].depth_m == pytest.approx(
+        deepest_mm / 1000 - 1e-5)
+    beyond = _hand_task(tmp_path / "beyond.toml", deepest_mm + 0.01, thrust_n, arm=arm)
+    with pytest.raises(ConfigError) as caught:
+        load_task(beyond, model=model)
+    error = caught.value
+    assert error.field == "steps[2].depth_mm" and error.line == field_line(
+        beyond.read_text(), "steps[2].depth_mm")
+    assert (f"step 2 'drill in' (a plunge) to depth_mm = {deepest_mm + 0.01:g} is deeper than "
+            f"the hand allows: at most depth_mm = {deepest_mm:g} (the hand's front, 14.35 mm "
+            "ahead of the hand point, meets the wall face there") in str(error)
+    assert "bit" not in str(error) and "bit" not in error.hint
+    assert error.hint == (f"plunge to depth_mm = {deepest_mm:g} or less; to press on the wall, "
+                          "give the plunge a thrust_n (N): the hand presses with it wherever "
+                          "the face is, up to 30 mm past its plan")
+    # a retract that goes in instead of out is bounded the same
+    retract = _hand_task(tmp_path / "retract.toml", deepest_mm - 0.01, thrust_n,
+                         retract_mm=deepest_mm + 0.01, arm=arm)
+    with pytest.raises(ConfigError, match=r"step 4 'pull out' \(a retract\) to depth_mm .* "
+                                          "deeper than the hand allows"):
+        load_task(retract, model=model)
+
+
+def test_generated_hand_plunges_are_refused_exactly_past_the_face(tmp_path, model,
+                                                                  hand_front_mm):
+    """Task files with the hand written from random depths, thrusts and arms, each judged
+    against the bound worked out here; review 21's 60 mm through the command line exits 2."""
+    rng = np.random.default_rng(2121)
+    refused = []
+    for i in range(30):
+        depth_mm = float(np.round(rng.uniform(-45.0, 15.0), 3))
+        thrust_n = float(np.round(rng.uniform(0.5, 15.0), 1)) if rng.random() < 0.5 else 0.0
+        path = _hand_task(tmp_path / f"hand_{i}.toml", depth_mm, thrust_n,
+                          arm=("right", "left")[i % 2])
+        refused.append(depth_mm > -hand_front_mm)
+        if not refused[-1]:
+            assert load_task(path, model=model).steps[1].depth_m == depth_mm / 1000
+        else:
+            with pytest.raises(ConfigError, match="deeper than the hand allows"):
+                load_task(path, model=model)
+    assert 8 <= sum(refused) <= 22  # both sides drawn
+    result = CliRunner().invoke(main, ["task", "show", str(_hand_task(path, 60.0))])
+    assert result.exit_code == 2 and "at most depth_mm = -14.35 " in result.output
+
+
+@pytest.mark.parametrize("depth_mm, refused", [(-14.34, True), (-14.35, False)])
+def test_a_hand_move_is_refused_once_its_front_passes_the_face(tmp_path, model, depth_mm,
+                                                               refused):
+    """A move stops with the hand's front (14.35 mm past the hand point) on the face at most;
+    main took the hand point for its front."""
+    path = _hand_task(tmp_path / "move.toml", -20.0)
+    path.write_text(path.read_text().replace("depth_mm = -50.0            # 5 cm",
+                                             f"depth_mm = {depth_mm}  #", 1))
+    spec = load_task(path)
+    if not refused:
+        check_moves(spec, model)
+        return
+    with pytest.raises(SafetyError, match=r"step 1 'raise the drill' \(a move\) takes the hand "
+                                          r"0\.01 mm into the wall \(depth_mm = -14\.34: its "
+                                          r"front reaches 14\.35 mm past the hand point\)"):
+        check_moves(spec, model)

@@ -16,14 +16,16 @@ from __future__ import annotations
 from hubo_cli.errors import SafetyError
 from hubo_cli.model import RobotModel
 from hubo_cli.tasks.spec import TaskSpec
+from hubo_cli.urdf import hand_front_m
 
 TOUCH_TOLERANCE_M = 1e-6  # a tip exactly on the face (depth_mm = -20 with the drill) is outside
 
 
 def tool_front_m(spec: TaskSpec, model: RobotModel) -> float:
     """How far the tool reaches past its depth reference along the bit (m): the drill's flutes
-    end ``bit_tip_m`` ahead of the bit's middle; the hand's point is its front."""
-    return model.drill.bit_tip_m if spec.stance.tool == "drill" else 0.0
+    end ``bit_tip_m`` ahead of the bit's middle; the hand's front face
+    :func:`~hubo_cli.urdf.hand_front_m` ahead of the hand point."""
+    return model.drill.bit_tip_m if spec.stance.tool == "drill" else hand_front_m(model)
 
 
 def check_moves(spec: TaskSpec, model: RobotModel) -> None:
@@ -36,9 +38,10 @@ def check_moves(spec: TaskSpec, model: RobotModel) -> None:
         SafetyError: the first such move, named, with its depth and how far the tool is in.
     """
     front_m = tool_front_m(spec, model)
-    tool = "the bit's tip" if spec.stance.tool == "drill" else "the hand"
-    reach = (f": the flutes reach {front_m * 1000:g} mm past the bit's middle"
-             if front_m > 0 else "")
+    tool, reach = (("the bit's tip", "the flutes reach {:g} mm past the bit's middle")
+                   if spec.stance.tool == "drill" else
+                   ("the hand", "its front reaches {:g} mm past the hand point"))
+    reach = ": " + reach.format(front_m * 1000)
     depth_m = None  # where the steps so far left the tool (None: free air, the start)
     for step in spec.steps:
         if step.kind == "move" and depth_m is not None and depth_m + front_m > TOUCH_TOLERANCE_M:

@@ -40,7 +40,8 @@ the step runner, :mod:`hubo_cli.tasks.runner`) or ``experiment`` (a built-in pro
       from the start posture and the wall appears once the robot holds the tool there.
     - ``plunge``: straight along the bit to ``depth_mm`` at ``speed_mm_s``; with the drill
       (and for a ``retract``) at most the drill body's distance behind the bit's middle less
-      the impedance's ``max_offset_m`` (60 mm on the shipped robot).
+      the impedance's ``max_offset_m`` (60 mm on the shipped robot); with the hand, at most
+      where its front meets the face (-14.35 mm: it cuts nothing; ``thrust_n`` presses).
     - ``follow``: cut along a path in the wall plane at ``speed_mm_s`` (speeding up and slowing
       down at each corner at ``accel_mm_s2``, default 50): ``path = "rectangle"``
       (``width_mm``, ``height_mm``, ``centre_mm`` = [y, z], ``start`` = ``upper-left`` |
@@ -705,36 +706,56 @@ class _Loader:
 
     def _retract(self, t: _Table, kind: str, name: str, number: int) -> Step:
         depth = t.number("depth_mm", minimum=-LENGTH_MAX_MM, maximum=LENGTH_MAX_MM)
-        self._within_bit(t, f"step {number} {quoted(name)} (a {kind})", kind, depth)
+        self._within_tool(t, f"step {number} {quoted(name)} (a {kind})", kind, depth)
         return Step(kind, name, number, depth_m=depth / 1000,
                     speed_m_s=t.number("speed_mm_s", minimum=TOOL_SPEED_MIN_MM_S,
                                        maximum=TOOL_SPEED_MAX_MM_S) / 1000)
 
-    def _within_bit(self, t: _Table, label: str, kind: str, depth_mm: float) -> None:
-        """Refuse a plunge or retract deeper than the drill's bit allows (exit 2): past
-        ``depth_max_mm`` the drill's body would come nearer the wall face than the hand may
-        yield along the bit under a thrust (the robot file's ``[impedance] max_offset_m``)."""
-        if self.tool != "drill":
-            return
+    def _within_tool(self, t: _Table, label: str, kind: str, depth_mm: float) -> None:
+        """Refuse a plunge or retract deeper than the task's tool allows (exit 2), judged
+        against the robot file the task runs on.
+
+        The drill's bit cuts through the wall: past ``depth_max_mm`` its body would come
+        nearer the wall face than the hand may yield along the bit under a thrust (the robot
+        file's ``[impedance] max_offset_m``). The hand cuts nothing: its front
+        (:func:`~hubo_cli.urdf.hand_front_m` ahead of the hand point) stops on the face.
+        Planned past it, a position-only hand pushes the arm's stiffness into the wall (review
+        21's 60 mm plunge latched the wrist-torque stop on contact); a hand pressing with a
+        thrust meets the face wherever it is (force tracking carries it up to that same yield
+        past its plan), and a plan past the face only spends the yield kept for a wall nearer
+        than planned.
+        """
+        from hubo_cli.urdf import hand_front_m
+
         model = self._model()
-        drill = model.drill
         try:
             yield_mm = 1000.0 * float(model.raw_impedance["max_offset_m"])
         except (KeyError, TypeError, ValueError):
             raise ConfigError("[impedance] needs a number max_offset_m", path=str(model.source),
                               hint="the most the hand leaves its reference (m), e.g. 0.03"
                               ) from None
-        face_mm = -1000.0 * drill.body_front_m  # the depth at which the body meets the face
-        depth_max_mm = round(face_mm - yield_mm, 6)
+        if self.tool == "drill":
+            drill = model.drill
+            face_mm = -1000.0 * drill.body_front_m  # the depth at which the body meets the face
+            depth_max_mm = round(face_mm - yield_mm, 6)
+            why = (f"the drill's body meets the wall face at {face_mm:g}: the bit's "
+                   f"{1000 * drill.bit_out_m:g} mm out of the chuck less the "
+                   f"{1000 * drill.bit_tip_m:g} mm past its middle; less the {yield_mm:g} mm the "
+                   "hand may yield along the bit under a thrust")
+            tool, remedy = "the bit", (", or fit a longer bit (the robot file's "
+                                       "[tools.drill] body_front_m)")
+        else:
+            front_mm = 1000.0 * hand_front_m(model)
+            depth_max_mm = round(-front_mm, 6)
+            why = (f"the hand's front, {front_mm:g} mm ahead of the hand point, meets the wall "
+                   "face there; the hand cuts nothing")
+            tool, remedy = "the hand", (f"; to press on the wall, give the plunge a thrust_n "
+                                        f"(N): the hand presses with it wherever the face is, "
+                                        f"up to {yield_mm:g} mm past its plan")
         if depth_mm > depth_max_mm:
             raise self.fail(t.key("depth_mm"), f"{label} to depth_mm = {depth_mm:g} is deeper "
-                            f"than the bit allows: at most depth_mm = {depth_max_mm:g} (the "
-                            f"drill's body meets the wall face at {face_mm:g}: the bit's "
-                            f"{1000 * drill.bit_out_m:g} mm out of the chuck less the "
-                            f"{1000 * drill.bit_tip_m:g} mm past its middle; less the "
-                            f"{yield_mm:g} mm the hand may yield along the bit under a thrust)",
-                            hint=f"{kind} to depth_mm = {depth_max_mm:g} or less, or fit a "
-                                 "longer bit (the robot file's [tools.drill] body_front_m)")
+                            f"than {tool} allows: at most depth_mm = {depth_max_mm:g} ({why})",
+                            hint=f"{kind} to depth_mm = {depth_max_mm:g} or less{remedy}")
 
     def _plunge(self, t: _Table, kind: str, name: str, number: int) -> Step:
         return replace(self._retract(t, kind, name, number), thrust_n=self._thrust(t))
