@@ -31,8 +31,8 @@ def test_opposite_steps_cost_what_full_acceleration_from_rest_leaves():
     them apart until the parting holds the joint at rest on the shared goal (any other shared
     state helps one branch as much as it hurts the other) and then accelerates at the limit:
     on the nodes the relaxation lets the joint reach a H^2 m (m + 1) / 2 after m nodes, so the
-    floor is sum over m of (0.2 - a H^2 m (m + 1) / 2)^2 on each branch, the min-max the same.
-    Without the shared past (each branch's start free) the floor would be 0."""
+    floor is sum over m of (0.2 - a H^2 m (m + 1) / 2)^2 on each branch, the min-max the same
+    (never above it: a bound)."""
     tool = load_tool("causal_pair_floor")
     m = np.arange(1, 13)
     closed_form = float(np.sum((0.2 - A * H**2 * m * (m + 1) / 2) ** 2))

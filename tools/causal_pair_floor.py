@@ -44,7 +44,9 @@ Three floors per pair: position alone (m), orientation alone (rad), and the weig
 a run has its weighted mean at most 2 (10 mm)^2, so a weighted floor above that says no causal
 controller meets both targets on A and on B.
 
-    python tools/causal_pair_floor.py [--streams 50] [--seeds 1634:25] [--post 0.5] [--pre 0.3]
+    python tools/causal_pair_floor.py [--streams 50 | --seeds 1634:25] [--first SEED,SEED,...]
+
+(Measured in round 21, docs/history/teleop.md: too weak to decide issue 34's figure.)
 """
 
 from __future__ import annotations
