@@ -196,8 +196,8 @@ def _in_box(p, settings, inward) -> bool:
 
 def twins(hand: str, seed: int, settings: StreamSettings):
     """The hand's stream of ``seed`` and its twins: (stream, [(label, parting time (s),
-    twin stream), ...]), one twin per alternative at each move that starts at rest-free
-    moments within the box (moves of the clutch or beyond reach are left out). A twin whose
+    twin stream), ...]), one twin per alternative at each engaged move from a point of the
+    gesture box to another (the clutch's and the beyond-reach strokes left out). A twin whose
     past differs from the stream's (the speed stretch) is left out."""
     n = int(settings.duration_s * RATE_HZ) + 1
     rng = np.random.default_rng([int(seed), ("right", "left").index(hand)])
