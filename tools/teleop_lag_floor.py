@@ -178,12 +178,15 @@ def joint_speed_per_rate(arm: str, directions: int = 20000) -> dict[str, np.ndar
             "move": np.abs(J_inv[:, :3] @ axes).max(axis=0)}
 
 
-def generated_goals(seed: int, settings) -> tuple[dict, dict]:
-    """One generated stream followed by ``stream_runs.follow_generated``: the run's reach
-    figures per arm, and per arm (times (s), the exact IK of the operator's goal on the arm's
-    branch (N x 6 rad), where the goal was reachable in the run and exactly so unsmoothed)."""
+def generated_goals(seed: int, settings, source=None) -> tuple[dict, dict]:
+    """One generated stream followed by ``stream_runs.follow_generated`` (or ``source``, an
+    input device standing for it, by ``follow_input``): the run's reach figures per arm (with
+    ``reachable_periods``, how many periods its reachable RMS is over), and per arm (times (s),
+    the exact IK of the operator's goal on the arm's branch (N x 6 rad), where the goal was
+    reachable in the run and exactly so unsmoothed)."""
     from hubo_cli.kinematics.arm_reach import ArmReach
-    from hubo_cli.teleop.stream_runs import follow_generated
+    from hubo_cli.teleop.session import TeleopSettings
+    from hubo_cli.teleop.stream_runs import follow_generated, follow_input
     from hubo_cli.teleop.target import REACHABLE_POSITION_M, REACHABLE_ROTATION_RAD
 
     periods = []
@@ -198,8 +201,16 @@ def generated_goals(seed: int, settings) -> tuple[dict, dict]:
                                     target.q_target[target.slices[arm]].copy())
                               for arm in target.arms}, lift, target))
 
-    run = follow_generated(seed, settings, observe)
+    if source is None:
+        hands = follow_generated(seed, settings, observe).hands
+    else:
+        with source:
+            followed = follow_input(source, TeleopSettings(generate_seed=seed, stream=settings),
+                                    settings.duration_s, observe)[0]
+        hands = followed.reach_report()
     target = periods[0][3]
+    for arm in target.arms:
+        hands[arm]["reachable_periods"] = int(np.sum(target.reachable[arm]))
     out = {}
     for arm in target.arms:
         reach = ArmReach(target.body.arms[arm], target.reach_settings)
@@ -219,7 +230,7 @@ def generated_goals(seed: int, settings) -> tuple[dict, dict]:
             ok.append(reachable and result.position_error_m <= REACHABLE_POSITION_M
                       and result.rotation_error_rad <= REACHABLE_ROTATION_RAD)
         out[arm] = (np.array(t), np.array(q), np.array(ok, dtype=bool))
-    return run.hands, out
+    return hands, out
 
 
 def generated_floors(count: int, speed_m_s: float, duration_s: float, accel: float | None,

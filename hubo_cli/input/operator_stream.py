@@ -192,6 +192,18 @@ def hand_stream(hand: str, seed: int, settings: StreamSettings | None = None) ->
     rng = np.random.default_rng([int(seed), ("right", "left").index(hand)])
     n = int(s.duration_s * RATE_HZ) + 1
     offset_m, rotvec, engaged = _Gestures(hand, s, rng).build(n)
+    return finish_stream(hand, s, rng, offset_m, rotvec, engaged)
+
+
+def finish_stream(hand: str, settings: StreamSettings, rng: np.random.Generator,
+                  offset_m: np.ndarray, rotvec: np.ndarray, engaged: np.ndarray) -> HandStream:
+    """A hand's gestures (N x 3 offsets from the start in O, N x 3 rotation vectors, N engaged
+    flags on the record rate's grid) made a stream: the wander, tremor and turn noise drawn
+    from ``rng`` added, the turns kept within the limit and the whole slowed where it exceeds
+    the speed cap (the module docstring). :func:`hand_stream` calls it after the gestures have
+    drawn from ``rng``; a tool that edits a stream's gestures calls it with ``rng`` in that
+    state (the same noise)."""
+    s, n = settings, len(offset_m)
     t = np.arange(n) / RATE_HZ
     offset_m = (offset_m + _band_noise(rng, t, (0.05, 0.5), s.wander_mm / 1000)
                 + _band_noise(rng, t, (8.0, 12.0), s.tremor_mm / 1000))
