@@ -1,7 +1,7 @@
 """Ankle force-torque sensors wired wrong on the simulated robot (round 20, review 19's
 ``sensor_lies19.py``): the estimation layer's wiring checks
-(:mod:`hubo_cli.estimation.plausibility`) end the run with the sensor named. Physical tests:
-the sim driver's readings rewired as :mod:`tools.ankle_wiring` does."""
+(:mod:`hubo_cli.estimation.sensor_checks.ankle_wiring`) end the run with the sensor named.
+Physical tests: the sim driver's readings rewired as :mod:`tools.ankle_wiring` does."""
 
 from __future__ import annotations
 
