@@ -14,17 +14,11 @@ from tool_support import load_tool
 from hubo_cli.cli.main import main
 from hubo_cli.drivers.sim import SimDriver
 
-rewire = load_tool("ankle_wiring").rewire
+rewired = load_tool("ankle_wiring").rewired
 
 
 def _wired(monkeypatch, kind: str) -> None:
-    measure = SimDriver._measure
-
-    def lying(self):
-        state = measure(self)
-        state.ft.update(rewire(state.ft, kind))
-        return state
-    monkeypatch.setattr(SimDriver, "_measure", lying)
+    monkeypatch.setattr(SimDriver, "_measure", rewired(SimDriver._measure, kind))
 
 
 @pytest.mark.physical

@@ -55,16 +55,18 @@ def rewire(ft: dict, kind: str) -> dict:
     return ft
 
 
-def main() -> None:
-    out, argv = sys.argv[1], sys.argv[2:]
-    kind = os.environ.get("LIE", "none")
-    measure = sim.SimDriver._measure
-
+def rewired(measure, kind: str):
+    """The sim driver's ``_measure`` with its ankle readings rewired per ``kind``."""
     def lying(self):
         state = measure(self)
         state.ft.update(rewire(state.ft, kind))
         return state
-    sim.SimDriver._measure = lying
+    return lying
+
+
+def main() -> None:
+    out, argv = sys.argv[1], sys.argv[2:]
+    sim.SimDriver._measure = rewired(sim.SimDriver._measure, os.environ.get("LIE", "none"))
     rows = []
     update = est.Estimator.update
 
