@@ -180,6 +180,10 @@ class RobotModel:
         names = tuple(j for limb in LIMB_NAMES for j in self.limbs[limb].joints)
         object.__setattr__(self, "joint_names", names)
 
+    def with_limits(self, limits: str) -> RobotModel:
+        """The same robot (this file, this parameter set) with the joint-limit set ``limits``."""
+        return load_model(self.params_name, limits, self.source)
+
     def limb(self, name: str) -> LimbSpec:
         """Return one limb's spec; the error lists the limbs that exist."""
         try:
@@ -356,17 +360,26 @@ def _estimation(raw: dict, path: Path) -> EstimationConfig:
     return EstimationConfig(**values)
 
 
-@cache
 def load_model(params: str = "as-built", limits: str = "table4",
                path: Path | None = None) -> RobotModel:
-    """Load the HUBO 2+ model.
+    """Load the HUBO 2+ model (once per file, parameter set and limit set: the shipped file
+    named or not is the same model).
 
     Args:
         params: kinematic parameter set, ``as-built`` (default) or ``table1``.
         limits: ``table4`` (the paper's Table IV) or ``team-code`` (arm joint 5 >= -2.0 rad).
         path: robot TOML file; defaults to the shipped ``robots/hubo2plus/hubo2plus.toml``.
     """
-    path = path or data_file("robots", "hubo2plus/hubo2plus.toml")
+    return _load_model(params, limits, path or _shipped_file())
+
+
+@cache
+def _shipped_file() -> Path:
+    return data_file("robots", "hubo2plus/hubo2plus.toml")
+
+
+@cache
+def _load_model(params: str, limits: str, path: Path) -> RobotModel:
     raw = _read_toml(path)
     sets = raw.get("params", {})
     if params not in sets:

@@ -407,6 +407,7 @@ def check_jobs(jobs: Sequence[Job]) -> None:
             unknown ``sim`` parameter or a bad value of one (InputError).
     """
     from hubo_cli.experiments.standing import check_standing_args
+    from hubo_cli.model import load_model
 
     combinations = {(j.command, repr(j.parameters)): j for j in jobs}
     for job in combinations.values():
@@ -424,7 +425,8 @@ def check_jobs(jobs: Sequence[Job]) -> None:
                                  hint="e.g. --set push=0,30")
         params = SIM_PARAMETERS | dict(parameters)
         try:
-            check_standing_args(float(params["duration"]), float(params["push"]))
+            check_standing_args(float(params["duration"]), float(params["push"]),
+                                load_model())  # the robot _run_sim stands
         except InputError as exc:
             example = "duration=5" if exc.message.startswith("duration") else "push=0,30"
             raise InputError(f"--set: sim's {exc}", hint=f"e.g. --set {example}") from None

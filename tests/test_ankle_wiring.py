@@ -1,7 +1,7 @@
 """Ankle force-torque sensors wired wrong on the simulated robot (round 20, review 19's
 ``sensor_lies19.py``): the estimation layer's wiring checks
-(:mod:`hubo_cli.estimation.plausibility`) end the run with the sensor named. Physical tests:
-the sim driver's readings rewired as :mod:`tools.ankle_wiring` does."""
+(:mod:`hubo_cli.estimation.sensor_checks.ankle_wiring`) end the run with the sensor named.
+Physical tests: the sim driver's readings rewired as :mod:`tools.ankle_wiring` does."""
 
 from __future__ import annotations
 
@@ -14,17 +14,11 @@ from tool_support import load_tool
 from hubo_cli.cli.main import main
 from hubo_cli.drivers.sim import SimDriver
 
-rewire = load_tool("ankle_wiring").rewire
+rewired = load_tool("ankle_wiring").rewired
 
 
 def _wired(monkeypatch, kind: str) -> None:
-    measure = SimDriver._measure
-
-    def lying(self):
-        state = measure(self)
-        state.ft.update(rewire(state.ft, kind))
-        return state
-    monkeypatch.setattr(SimDriver, "_measure", lying)
+    monkeypatch.setattr(SimDriver, "_measure", rewired(SimDriver._measure, kind))
 
 
 @pytest.mark.physical

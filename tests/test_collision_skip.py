@@ -339,23 +339,34 @@ def test_a_checker_without_pairs_skips_nothing(model):
     assert checker.check(home_posture(model)).distance_m == np.inf
 
 
-def test_a_repeatable_checker_takes_the_posture_before_again(model):
+@pytest.fixture
+def right_arm_moves(model):
+    """The right arm's moves from a drawn posture (the rest at home) by up to 0.3 rad a joint:
+    ``right_arm_moves(rng)`` yields 30 pairs (a, b), drawn from ``rng`` as the loop asks for
+    them (a test may draw from ``rng`` between them)."""
+    lower, upper = model.lower_rad, model.upper_rad
+    right = model.limb_slice("right-arm")
+
+    def moves(rng):
+        for _ in range(30):
+            a = home_posture(model)
+            a[right] = rng.uniform(lower[right], upper[right])
+            b = a.copy()
+            b[right] += rng.uniform(-0.3, 0.3, 6)
+            yield a, b
+    return moves
+
+
+def test_a_repeatable_checker_takes_the_posture_before_again(model, right_arm_moves):
     """A repeatable checker keeps each pair's two last distances: going back to the posture
     before (a still goal's, every other check in the teleop's collision room) computes no pair
     and gives the same closest pair to the last bit, and a posture near either one computes
     only the pairs near the band; the checker that keeps one (the pipeline's) computes them
     again."""
-    rng = np.random.default_rng(41)
-    lower, upper = model.lower_rad, model.upper_rad
-    arm = model.limb_slice("right-arm")
     keeps_two = SelfCollisionChecker(model, drill=True, repeatable=True)
     keeps_one = SelfCollisionChecker(model, drill=True)
     again = 0
-    for _ in range(30):
-        a = home_posture(model)
-        a[arm] = rng.uniform(lower[arm], upper[arm])
-        b = a.copy()
-        b[arm] += rng.uniform(-0.3, 0.3, 6)
+    for a, b in right_arm_moves(np.random.default_rng(41)):
         first = keeps_two.check_near(a, 0.065)
         keeps_two.check_near(b, 0.065)
         back = keeps_two.check_near(a, 0.065)
@@ -374,7 +385,7 @@ def test_a_repeatable_checker_takes_the_posture_before_again(model):
     assert again > 30  # the one-distance checker did compute pairs again
 
 
-def test_the_posture_before_is_a_pairs_own_joints(model):
+def test_the_posture_before_is_a_pairs_own_joints(model, right_arm_moves):
     """A pair's posture before is matched on the joints that move its shapes only: the right
     arm back at its joints before after the legs and the left arm moved (the teleop room's
     search starts so from the arm's last target, every period) computes none of the right
@@ -389,11 +400,7 @@ def test_the_posture_before_is_a_pairs_own_joints(model):
     rate = checker.rate_m_rad
     own = rate[:, right].max(axis=1) > 0.0  # the pairs the right arm moves
     reused = 0
-    for _ in range(30):
-        a = home_posture(model)
-        a[right] = rng.uniform(lower[right], upper[right])
-        b = a.copy()
-        b[right] += rng.uniform(-0.3, 0.3, 6)
+    for a, b in right_arm_moves(rng):
         c = np.clip(a + rng.uniform(-0.05, 0.05, len(a)), lower, upper)
         c[right] = a[right]  # the legs and the left arm moved, the right arm back at a
         checker.check_near(a, 0.065, own)

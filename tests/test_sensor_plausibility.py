@@ -12,22 +12,21 @@ import pytest
 from hubo_cli.control.loop import ControlLoop
 from hubo_cli.drivers.ideal import IdealDriver
 from hubo_cli.estimation.build import build_estimator
-from hubo_cli.estimation.plausibility import (
+from hubo_cli.estimation.plausibility import SensorFault
+from hubo_cli.estimation.sensor_checks.ankle_wiring import (
     COP_OFF_SOLE_M,
-    IMU_FROZEN_STATES,
-    IMU_LEGS_MAX_DEG,
-    IMU_LEGS_RUNNING_MAX_DEG,
-    SOLE_LOADED_WEIGHTS,
     SOLE_SWAPPED_OVER_S,
     SOLE_WIRING_OVER_S,
-    SOLES_MAX_WEIGHTS,
-    SOLES_OVER_S,
-    STILL_STATES,
-    TORSO_TURNED_RAD,
+)
+from hubo_cli.estimation.sensor_checks.imu_frozen import IMU_FROZEN_STATES, TORSO_TURNED_RAD
+from hubo_cli.estimation.sensor_checks.imu_tilt import IMU_LEGS_MAX_DEG, IMU_LEGS_RUNNING_MAX_DEG
+from hubo_cli.estimation.sensor_checks.legs import SOLE_LOADED_WEIGHTS
+from hubo_cli.estimation.sensor_checks.soles_overload import SOLES_MAX_WEIGHTS, SOLES_OVER_S
+from hubo_cli.estimation.sensor_checks.still_window import STILL_STATES
+from hubo_cli.estimation.sensor_checks.wrists import (
     WRIST_FLAT_STATES,
     WRIST_START_MAX_N,
     WRIST_START_PERIODS,
-    SensorFault,
 )
 from hubo_cli.model import load_model
 

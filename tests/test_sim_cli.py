@@ -115,3 +115,35 @@ def test_a_limit_set_the_options_cannot_run_on_is_refused_before_the_run(tmp_pat
         assert result.exit_code == 2, result.output
         assert "limit" in result.output
         assert not (tmp_path / "run").exists()
+
+
+def test_a_stand_is_judged_against_the_robot_it_runs_on(model, tmp_path):
+    """Round 21: the shortest stand is one period of the robot the run stands, not of the
+    shipped file (main read ``load_model()``'s 5 ms whatever robot ran); a robot file's model
+    keeps its file through another limit set (``stand`` and ``walk_to`` reload with one)."""
+    from robot_file_support import robot_file_with
+
+    from hubo_cli.errors import InputError
+    from hubo_cli.experiments.standing import check_standing_args, stand
+    from hubo_cli.model import load_model
+
+    for period_s in (0.002, 0.0125, 0.04):  # the bound is each robot's own period
+        folder = tmp_path / str(period_s)
+        folder.mkdir()
+        robot = load_model(path=robot_file_with(model, folder, "robot", "control_period_s",
+                                                str(period_s)))
+        check_standing_args(period_s, 0.0, robot)
+        with pytest.raises(InputError, match=rf"\[{period_s:g}, 3600\]"):
+            check_standing_args(period_s * (1 - 1e-9), 0.0, robot)
+    slow = load_model(path=robot_file_with(model, tmp_path, "robot", "control_period_s", "0.01"))
+    assert slow.control_period_s == 0.01 and model.control_period_s == 0.005
+    check_standing_args(0.007, 0.0, model)  # more than the shipped robot's period
+    with pytest.raises(InputError, match=r"duration must be in \[0.01, 3600\] s"):
+        check_standing_args(0.007, 0.0, slow)
+    with pytest.raises(InputError, match=r"\[0.01, 3600\]"):  # before anything runs
+        stand(slow, 0.007, out=tmp_path / "run")
+    assert not (tmp_path / "run").exists()
+    walking = slow.with_limits("walking")
+    assert walking.source == slow.source and walking.control_period_s == 0.01
+    assert walking.limits_name == "walking" and walking is slow.with_limits("walking")
+    assert model.with_limits("table4") is load_model()  # the shipped file, named or not

@@ -5,11 +5,11 @@
 runs ``hubo ARGS`` in this process with the sim driver's ankle readings rewired as KIND says
 (``none``, ``swap``: each foot's reading given as the other's; ``rot90-right``, ``rot180-left``
 ...: that sensor turned about its z; ``flip-fz-right``, ``flip-mx-left`` ...: that component's
-sign flipped), and saves what the estimate saw each period (the bounds of the wiring checks in
-:mod:`hubo_cli.estimation.plausibility`, docs/history/safety.md round 20) to OUT.npy, one row a
-period: time (s), CoM (3, m), its velocity (3, m/s), ZMP (2, m), contact (right, left), the
-soles' poses (2 x 3 x 4, the rows of T_world_sole), the right and left ankles' compensated
-wrenches (6 each). ``STOP_AT``: the run ends once it reaches S seconds.
+sign flipped), and saves what the estimate saw each period (the bounds of the wiring checks
+in :mod:`hubo_cli.estimation.sensor_checks.ankle_wiring`, docs/history/safety.md round 20) to
+OUT.npy, one row a period: time (s), CoM (3, m), its velocity (3, m/s), ZMP (2, m), contact
+(right, left), the soles' poses (2 x 3 x 4, the rows of T_world_sole), the right and left
+ankles' compensated wrenches (6 each). ``STOP_AT``: the run ends once it reaches S seconds.
 """
 
 from __future__ import annotations
@@ -55,16 +55,18 @@ def rewire(ft: dict, kind: str) -> dict:
     return ft
 
 
-def main() -> None:
-    out, argv = sys.argv[1], sys.argv[2:]
-    kind = os.environ.get("LIE", "none")
-    measure = sim.SimDriver._measure
-
+def rewired(measure, kind: str):
+    """The sim driver's ``_measure`` with its ankle readings rewired per ``kind``."""
     def lying(self):
         state = measure(self)
         state.ft.update(rewire(state.ft, kind))
         return state
-    sim.SimDriver._measure = lying
+    return lying
+
+
+def main() -> None:
+    out, argv = sys.argv[1], sys.argv[2:]
+    sim.SimDriver._measure = rewired(sim.SimDriver._measure, os.environ.get("LIE", "none"))
     rows = []
     update = est.Estimator.update
 

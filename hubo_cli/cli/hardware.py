@@ -327,11 +327,10 @@ def sim_daemon(ach_ref: str, ach_state: str, duration: float | None, as_json: bo
 def _posture(model, name: str):
     """The limb joints of a --posture (rad): the walking start, or a standing run's."""
     if name == "walking":
-        from hubo_cli.model import load_model
         from hubo_cli.walking.body import walking_posture
         from hubo_cli.walking.params import walking_params
 
-        walking_model = load_model(model.params_name, "walking")
+        walking_model = model.with_limits("walking")
         params = walking_params(walking_model)
         return walking_posture(walking_model, params.step_width_m, params.crouch_m)[0]
     from hubo_cli.experiments.standing import posture_of

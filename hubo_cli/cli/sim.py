@@ -78,7 +78,8 @@ def sim(duration: float, push: float, push_direction: str, balance: str, no_bala
     from hubo_cli.model import load_model
     from hubo_cli.runs import reserved_run_dir
 
-    check_standing_args(duration, push)  # before any notice about the stop sources
+    # before any notice about the stop sources (the control period is the robot file's)
+    check_standing_args(duration, push, load_model())
     driver_settings = driver_options(driver, armed, **hardware, quiet=as_json)
     if push and driver != "sim":
         raise InputError(f"--push needs the simulator; the {driver} driver's robot is pushed "

@@ -134,13 +134,11 @@ def posture_of(model: RobotModel, name: str) -> np.ndarray:
 MAX_PUSH_N = 10_000.0  # N; 0.2 s of far less throws the robot, more is a typing error
 
 
-def check_standing_args(duration_s: float, push_n: float) -> None:
-    """Raise InputError unless one control period <= duration_s <= 3600 (s; a shorter stand
-    rounds to no period at all, which review 20's ``--duration 1e-300`` made an internal error)
-    and 0 <= push_n <= MAX_PUSH_N."""
-    from hubo_cli.model import load_model
-
-    period_s = load_model().control_period_s
+def check_standing_args(duration_s: float, push_n: float, model: RobotModel) -> None:
+    """Raise InputError unless one of ``model``'s control periods <= duration_s <= 3600 (s; a
+    shorter stand rounds to no period at all, which review 20's ``--duration 1e-300`` made an
+    internal error) and 0 <= push_n <= MAX_PUSH_N. ``model``: the robot the stand runs on."""
+    period_s = model.control_period_s
     if not (math.isfinite(duration_s) and period_s <= duration_s <= 3600):
         raise InputError(f"duration must be in [{period_s:g}, 3600] s (one control period to "
                          f"an hour), got {duration_s:g}", hint="e.g. --duration 5")
@@ -275,8 +273,8 @@ def standing_options(duration_s: float = 5.0, push_n: float = 0.0, *,
     need the robot file's ``walking`` limit set (legs fast enough to step and to bow the
     trunk); otherwise the run stands on ``default_limit_set`` (Table IV's, as published).
     ``limit_set`` names the set explicitly (``--limits``); one those options cannot run on is
-    a ConfigError."""
-    check_standing_args(duration_s, push_n)
+    a ConfigError. The duration and the push are not checked here: the robot the run stands
+    on judges them (:func:`check_standing_args`, which the CLI and :func:`stand` call first)."""
     direction = np.asarray(push_direction, dtype=float)
     if direction.shape != (3,) or not np.all(np.isfinite(direction)) or not direction.any():
         raise InputError(f"the push direction must be a non-zero 3-vector, got {push_direction}",
@@ -356,6 +354,7 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
             whatever pushes it, the simulated daemon's ``--push``), and the robot must stand
             in the posture the run holds (``posture``; the simulated daemon's ``--posture``).
     """
+    check_standing_args(duration_s, push_n, model)
     options = standing_options(duration_s, push_n, balance=balance_mode if balance else "off",
                                step=step, hip_strategy=hip_strategy,
                                default_limit_set=model.limits_name, stops=stops,
@@ -363,9 +362,7 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
                                push_duration_s=push_duration_s, perturb_seed=perturb_seed,
                                driver=driver, driver_options=driver_options)
     if model.limits_name != options.safety.limit_set:
-        from hubo_cli.model import load_model
-
-        model = load_model(model.params_name, options.safety.limit_set)
+        model = model.with_limits(options.safety.limit_set)
     return run_standing(model, options, gui=gui, out=out, operator=operator, live=live)
 
 
@@ -373,7 +370,8 @@ def run_standing(model: RobotModel, options: StandingOptions, *, gui: bool = Fal
                  out: str | Path | None = None, operator: OperatorKeys | None = None,
                  live: RunObserver | None = None) -> StandingResult:
     """Run the standing experiment ``options`` describe on ``model``, which must carry the
-    options' limit set (:class:`~hubo_cli.session.RunSetup` refuses another)."""
+    options' limit set (:class:`~hubo_cli.session.RunSetup` refuses another) and whose
+    control period the options' duration was checked against (:func:`check_standing_args`)."""
     safety = options.safety
     posture = options.posture
     q_home = posture_of(model, posture)

@@ -257,9 +257,7 @@ def walk(model: RobotModel, goal: tuple[float, float, float], *,
             (:func:`~hubo_cli.walking.params.gait_names`: ``normal``, ``fast``).
     """
     check_goal(goal)
-    from hubo_cli.model import load_model
-
-    walking_model = load_model(model.params_name, "walking")
+    walking_model = model.with_limits("walking")
     if params is not None and gait != DEFAULT_GAIT:
         raise InputError(f"the gait {quoted(gait)} and given parameters: one or the other",
                          hint="pass the gait's parameters changed with params.with_changes")

@@ -1,0 +1,200 @@
+"""An ankle force-torque sensor wired wrong (round 20, docs/history/safety.md):
+
+- its F_z, the foot's weight removed, below -:data:`SOLE_PULL_MAX_WEIGHTS` of the robot's
+  weight (the floor pushes a sole, it cannot pull it: the sign of F_z flipped);
+- the centre of pressure it gives its sole more than :data:`COP_OFF_SOLE_M` outside the sole's
+  outline while it carries :data:`~.legs.SOLE_LOADED_WEIGHTS` of the robot's weight (no force
+  on a sole acts outside it: the sensor turned about its z, a moment's sign flipped);
+- a sole read carrying :data:`SOLE_CARRIES_WEIGHTS` of the weight more than
+  :data:`SOLE_UNDER_M` above one read in the air (the estimate stands the robot on the sole its
+  sensor loads; on a flat floor the other cannot lie under it: the sensors swapped between the
+  feet, seen once a foot lifts);
+
+at the start (refused) or for longer than :data:`SOLE_WIRING_OVER_S` later
+(:data:`SOLE_SWAPPED_OVER_S` for a sole under the other: a healthy robot rocking on a sole's
+edge reads so for a moment, as the estimate takes that sole flat); or, before a step or a
+bounce, both soles more than :data:`SOLES_SUNK_M` under the floor the robot started on for
+longer than :data:`SOLE_WIRING_OVER_S` (the sensors swapped before a foot lifts: a walk's first
+weight shift rocks the robot from sole to sole, and standing it on the sole its sensor loads,
+the rising one, each rock carries the estimate down; round 21). A moment flipped or a sensor
+turned while the centre of pressure stays near the ankle, and swapped sensors on a robot that
+stands without rocking, read as a working pair does (docs/history/safety.md, rounds 20 and 21).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from hubo_cli.dataflow import Store
+from hubo_cli.estimation.keys import T_WORLD_SOLES, WRENCHES
+from hubo_cli.estimation.sensor_checks.faults import sensor_fault
+from hubo_cli.estimation.sensor_checks.legs import SOLE_LOADED_WEIGHTS
+from hubo_cli.model import FootShape
+from hubo_cli.state import ANKLE_SENSORS, RobotState
+
+# Healthy walks, stands, pushes, the push-wall and the tasks, nominal and perturbed, both code
+# paths (round 20). The floor's push on a sole, its foot's weight removed, read at least -29 N
+# (a foot landing after a side push); F_z's sign flipped reads minus the sole's load, -140 N or
+# less on a standing robot:
+SOLE_PULL_MAX_WEIGHTS = 0.25
+# A sole's centre of pressure from its sensor read at most 15.4 mm outside the sole for a
+# period while it carried SOLE_LOADED_WEIGHTS (a 100 N push mid-walk), 0.6 mm held over 0.055
+# s (20.5 mm for a period with 50 N: a lighter sole is not judged); a sensor turned 180 deg
+# about its z puts a toe-loaded sole's 40 mm beyond its heel, turned 90 deg 65 mm beside it
+COP_OFF_SOLE_M = 0.02
+# A sole read carrying SOLE_CARRIES_WEIGHTS of the weight lay at most 5.0 mm above one read as
+# in the air (below SOLE_IN_AIR_WEIGHTS) in the estimate (the floor flat; its tilt on a
+# perturbed robot, 0.5 deg at most, is 2 mm over the 0.24 m between the soles); swapped
+# sensors, the estimate stands the robot on its lifted foot: up to 50-90 mm
+SOLE_UNDER_M = 0.02
+SOLE_CARRIES_WEIGHTS = 0.5
+SOLE_IN_AIR_WEIGHTS = 0.1
+SOLE_WIRING_OVER_S = 0.05  # either for longer than this (s) after the start
+# ... and a sole under the other for longer than this (s): rocking from sole to sole after a
+# backward capture step (sim --step pushed 90 or 105 N backward, round 20's audit), healthy
+# robots read the loaded sole, rolled on its edge and taken flat by the estimate, 21-43 mm
+# above the other for up to 0.105 s in a row (11 of 22 runs stopped on SOLE_WIRING_OVER_S);
+# swapped sensors on walks read so for 0.245 s (seed 1) to 0.76-0.83 s (nominal) in a row
+SOLE_SWAPPED_OVER_S = 0.15
+# Before a step (each sole within SOLE_STEPPED_M of where the estimate put it at the start: the
+# floor under both is the one the robot started on) and before a bounce (the soles together
+# carrying less than SOLE_IN_AIR_WEIGHTS of the weight: the estimate then holds no sole to the
+# floor, and takes the anchor up where its sole comes down), both soles estimated more than
+# SOLES_SUNK_M under that floor (round 21, docs/history/safety.md). Healthy walks, pushes and
+# tasks, both code paths, read 0.61 mm at most (a door pushed on seed 55, the wrist
+# overloaded, bounced and sank 2.9 mm after its first bounce, which is not judged); swapped
+# sensors, the estimate stands the robot on the foot that rises as the walk's first weight
+# shift rocks it from sole to sole, and each rock carries the estimate down: past 2 mm by
+# 0.47-0.68 s (the first lift-off at 0.9 s; the fast gait's at 0.55 s, seen at 0.51 s), 5-40 mm
+# later
+SOLES_SUNK_M = 0.002
+SOLE_STEPPED_M = 0.03
+
+
+class AnkleWiring:
+    """Judges every period, fresh or repeated (module docstring).
+
+    Args:
+        weight_n: the robot's weight (N), its tools included.
+        period_s: the control period (s).
+        feet: the soles' outline (:class:`~hubo_cli.model.FootShape`).
+    """
+
+    def __init__(self, weight_n: float, period_s: float, feet: FootShape) -> None:
+        self.weight_n, self.period_s = weight_n, period_s
+        corners = feet.sole_corners_m()
+        self._sole_lo, self._sole_hi = corners[:, :2].min(axis=0), corners[:, :2].max(axis=0)
+        self._wiring_over = 0  # periods in a row an ankle sensor read as wired wrong
+        self._swapped_over = 0  # ... the two read as swapped
+        self._sunk_over = 0  # ... both soles under the floor before a step
+        self._soles_start_xy = None  # where the estimate put the soles at the start (m) ...
+        self._judge_sunk = True  # ... until one leaves it (a step) or both bounce
+
+    def update(self, state: RobotState, store: Store, start: bool = False) -> None:
+        """An ankle sensor whose F_z pulls its sole or whose centre of pressure lies off its
+        sole, or the two swapped: refused at the ``start``, a fault once it lasts longer than
+        SOLE_WIRING_OVER_S (swapped: SOLE_SWAPPED_OVER_S)."""
+        wrenches = store.get(WRENCHES)
+        if wrenches is None:
+            return
+        wrong = None
+        for sensor in ANKLE_SENSORS:
+            w = np.asarray(wrenches[sensor], dtype=float)
+            fz_n = float(w[2])
+            if fz_n < -SOLE_PULL_MAX_WEIGHTS * self.weight_n:
+                wrong = (sensor, f"F_z {fz_n:.0f} N, its foot's weight removed (the floor "
+                                 "pushes a sole, it cannot pull it: at least "
+                                 f"{-SOLE_PULL_MAX_WEIGHTS * self.weight_n:.0f} N)",
+                         "its F_z's sign is flipped")
+                break
+            if not fz_n >= SOLE_LOADED_WEIGHTS * self.weight_n:
+                continue
+            cop_m = np.array([-w[4], w[3]]) / fz_n
+            off_m = float(np.max(np.maximum(self._sole_lo - cop_m, cop_m - self._sole_hi)))
+            if off_m > COP_OFF_SOLE_M:
+                (x0, y0), (x1, y1) = self._sole_lo * 1000, self._sole_hi * 1000
+                wrong = (sensor, f"its sole's centre of pressure at x {round(cop_m[0] * 1000)}, y "
+                                 f"{round(cop_m[1] * 1000)} mm while the sole carries {fz_n:.0f} "
+                                 f"N: {off_m * 1000:.0f} mm outside the sole (x {x0:.0f} to "
+                                 f"{x1:.0f}, y {y0:.0f} to {y1:.0f} mm; at most "
+                                 f"{COP_OFF_SOLE_M * 1000:.0f} mm: no force on a sole acts "
+                                 "outside it)",
+                         "it is turned about its z (mounted 90 or 180 deg off) or the sign of "
+                         "its m_x or m_y is flipped")
+                break
+        swapped = self._swapped(store, wrenches)
+        sunk = self._soles_sunk(store, wrenches)
+        self._wiring_over = self._wiring_over + 1 if wrong else 0
+        self._swapped_over = self._swapped_over + 1 if swapped else 0
+        self._sunk_over = self._sunk_over + 1 if sunk else 0
+        for found, over, over_s in ((wrong, self._wiring_over, SOLE_WIRING_OVER_S),
+                                    (swapped, self._swapped_over, SOLE_SWAPPED_OVER_S),
+                                    (sunk, self._sunk_over, SOLE_WIRING_OVER_S)):
+            if found is not None and (start or over * self.period_s > over_s + 1e-9):
+                break
+        else:
+            return
+        sensor, reading, cause = found
+        when = ", at the start: refused before anything moved" if start else (
+            f" for {over * self.period_s:.3f} s at t = {state.time_s:.2f} s")
+        raise sensor_fault(f"the {sensor} force-torque sensor reads {reading}{when}",
+                           hint=f"{cause}, or the ankle sensors are wired to the wrong channels: "
+                                f"check the {sensor} sensor's mounting, its cable and "
+                                "hubo-daemon's channel and sign settings for it, then start the "
+                                "run again", refuse=start)
+
+    def _swapped(self, store: Store, wrenches: dict) -> tuple[str, str, str] | None:
+        """A sole read carrying SOLE_CARRIES_WEIGHTS of the robot more than SOLE_UNDER_M above
+        one read as in the air (below SOLE_IN_AIR_WEIGHTS): the estimate stands the robot on the
+        sole its sensor loads, so the other one is under the floor."""
+        T_world_soles = store.get(T_WORLD_SOLES)
+        if T_world_soles is None:
+            return None
+        z_m = np.asarray(T_world_soles, dtype=float)[:, 2, 3]
+        fz_n = [float(wrenches[sensor][2]) for sensor in ANKLE_SENSORS]
+        for k, other in ((0, 1), (1, 0)):
+            below_m = z_m[k] - z_m[other]
+            if fz_n[k] > SOLE_CARRIES_WEIGHTS * self.weight_n and \
+                    fz_n[other] < SOLE_IN_AIR_WEIGHTS * self.weight_n and below_m > SOLE_UNDER_M:
+                return (ANKLE_SENSORS[k], f"F_z {fz_n[k]:.0f} N while the {ANKLE_SENSORS[other]} "
+                                          f"sensor reads {fz_n[other]:.0f} N, its sole "
+                                          f"{below_m * 1000:.0f} mm lower (at most "
+                                          f"{SOLE_UNDER_M * 1000:.0f} mm: the sole carrying the "
+                                          "robot is on the floor, the other cannot be under it)",
+                        "the two ankle sensors are swapped between the feet")
+        return None
+
+    def _soles_sunk(self, store: Store, wrenches: dict) -> tuple[str, str, str] | None:
+        """Before a step (each sole within SOLE_STEPPED_M of its place at the start) or a bounce
+        (the soles together under SOLE_IN_AIR_WEIGHTS), both soles more than SOLES_SUNK_M under
+        the floor: the estimate stood the robot on a rising foot (module docstring). After
+        either, never again judged (the floor there may lie elsewhere; a bounce lets the
+        estimate's height float). (Scalar arithmetic: it runs every period while the robot
+        stands.)"""
+        T_world_soles = store.get(T_WORLD_SOLES)
+        if T_world_soles is None or not self._judge_sunk:
+            return None
+        fz_n = [float(wrenches[sensor][2]) for sensor in ANKLE_SENSORS]
+        if not fz_n[0] + fz_n[1] >= SOLE_IN_AIR_WEIGHTS * self.weight_n:
+            self._judge_sunk = False
+            return None
+        (rx, ry, rz), (lx, ly, lz) = np.asarray(T_world_soles)[:, :3, 3].tolist()
+        if self._soles_start_xy is None:
+            self._soles_start_xy = (rx, ry, lx, ly)
+        rx0, ry0, lx0, ly0 = self._soles_start_xy
+        if not (math.hypot(rx - rx0, ry - ry0) <= SOLE_STEPPED_M
+                and math.hypot(lx - lx0, ly - ly0) <= SOLE_STEPPED_M):
+            self._judge_sunk = False  # (or not finite)
+            return None
+        if not (rz < -SOLES_SUNK_M and lz < -SOLES_SUNK_M):
+            return None
+        return ("right-ankle", f"F_z {fz_n[0]:.0f} N and the left-ankle sensor {fz_n[1]:.0f} N, "
+                               "which stand the robot on soles "
+                               f"{-rz * 1000:.1f} mm (right) and {-lz * 1000:.1f} mm (left) "
+                               "under the floor it started on, before a step (at most "
+                               f"{SOLES_SUNK_M * 1000:.0f} mm: the estimate stands the robot on "
+                               "the sole its sensor loads, and a foot that rises as the robot "
+                               "rocks carries it down)",
+                "the two ankle sensors are swapped between the feet")
