@@ -69,6 +69,19 @@ def test_a_walk_ends_on_the_stance_at_the_task_width(model, params):
     assert target.wall_x_m == pytest.approx(0.4 + 0.47)
 
 
+def test_a_walk_first_keeps_the_robot_file_it_runs_on(model, tmp_path):
+    """Round 21: walk_first reloaded the walking limit set from the shipped file's parameter
+    set by name, so a run on another robot file walked the shipped robot's model."""
+    from robot_file_support import robot_file_with
+
+    robot = load_model(path=robot_file_with(model, tmp_path, "robot", "control_period_s",
+                                            "0.01"))
+    _, walking_model, _, _ = walk_first(robot, hold(robot), (-0.4, 0.1), home_posture(robot),
+                                        0.47)
+    assert walking_model.source == robot.source and walking_model.limits_name == "walking"
+    assert walking_model.control_period_s == 0.01
+
+
 def test_a_start_beyond_the_wall_is_refused(model):
     with pytest.raises(InputError, match="wall"):
         walk_first(model, hold(model), (0.6, 0.0), home_posture(model), 0.47)

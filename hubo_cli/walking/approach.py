@@ -48,7 +48,7 @@ from hubo_cli.dataflow import Store
 from hubo_cli.errors import InputError
 from hubo_cli.estimation.keys import T_WORLD_TORSO
 from hubo_cli.kinematics.limb import Limb
-from hubo_cli.model import LEGS, RobotModel, load_model
+from hubo_cli.model import LEGS, RobotModel
 from hubo_cli.pin_robot import load_pin_robot
 from hubo_cli.posture import home_posture
 from hubo_cli.scene import SceneActions
@@ -322,7 +322,7 @@ def walk_first(model: RobotModel, then: Target, start_m: tuple[float, float],
     if not (math.isfinite(x) and math.isfinite(y)):
         raise InputError(f"the start must be finite numbers, got {start_m}",
                          hint="e.g. 1 m behind the working stance: [-1000, 0] mm")
-    walking_model = load_model(model.params_name, "walking")
+    walking_model = model.with_limits("walking")
     params = params or walking_params(walking_model)
     q_start, T_world_neck = walking_posture(walking_model, params.step_width_m, params.crouch_m)
     width = stance_width_m(model, q_then_rad)
