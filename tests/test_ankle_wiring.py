@@ -73,8 +73,8 @@ def test_a_walk_on_swapped_ankle_sensors_stops_before_a_foot_lifts(monkeypatch, 
 @pytest.mark.physical
 def test_a_stand_on_an_ankle_sensor_at_half_gain_is_a_fault_once_still(monkeypatch, tmp_path):
     """Review 21: the right ankle's sensor at half gain: main's stand (and walk) exited 0.
-    Standing still for a window, the soles read together 0.75 of the weight above them (at
-    most 0.05 off healthy): a device fault at the end of the first window, both sensors named."""
+    Standing still for a window, the soles read together 0.75 of the weight above them (healthy
+    runs 0.04 off at most): a device fault at the end of the first window, both sensors named."""
     _wired(monkeypatch, "half-right")
     result = CliRunner().invoke(main, ["sim", "--duration", "1", "--out", str(tmp_path / "s")])
     assert result.exit_code == 3, result.output

@@ -114,8 +114,8 @@ class SensorPlausibility(Observer):
         self._tilt = ImuTilt(self.weight_n, self.period_s)
         # (not while the right hand holds the drill: a cut's bit in the wall carried up to
         # 0.14 of the weight with every joint still, its wrist reading 1 N; round 21)
-        self._weight = None if self.drill_kg is not None else SolesWeight(self.model, self.weight_n,
-                                                                     self.period_s)
+        self._weight = (None if self.drill_kg is not None
+                        else SolesWeight(self.model, self.weight_n, self.period_s))
         self._dead = DeadChannels(self.period_s)
         if not self.measured:
             return

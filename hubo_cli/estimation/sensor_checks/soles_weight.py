@@ -28,14 +28,12 @@ class SolesWeight:
 
     Attributes:
         carried_n: the weight above the ankle sensors (N).
-        max_off: the largest |sum / carried_n - 1| a still window read (a measurement).
     """
 
     def __init__(self, model: RobotModel, weight_n: float, period_s: float) -> None:
         feet_kg = sum(sensor_loads(model, False)[0][FT_SENSORS.index(s)] for s in ANKLE_SENSORS)
         self.carried_n = weight_n - feet_kg * GRAVITY_M_S2
         self.period_s = period_s
-        self.max_off = 0.0
         self._still = StillWindow(whole_body=True)
 
     def update(self, state: RobotState, store: Store) -> None:
@@ -45,7 +43,6 @@ class SolesWeight:
             return
         right_n, left_n = self._still.soles_fz_n
         share = (right_n + left_n) / self.carried_n
-        self.max_off = max(self.max_off, abs(share - 1.0))
         if abs(share - 1.0) > SOLES_WEIGHT_MAX_OFF:
             raise sensor_fault(
                 f"standing still for {STILL_STATES * self.period_s:.2f} s at t = "

@@ -7,7 +7,7 @@ the torso on the legs moved less than :data:`STILL_TORSO_M` and turned less than
 :data:`STILL_TURN_RAD` over the window: its mean acceleration is then gravity's to 0.02 m/s^2.
 The soles' weight check (:mod:`.soles_weight`) judges a window of the whole robot still
 (``whole_body``: every joint slower than :data:`STILL_JOINT_RAD_S` too, arms moving shift the
-soles' load by up to 0.165 of the weight) however its soles are loaded (an ankle sensor
+soles' load by up to 0.17 of the weight) however its soles are loaded (an ankle sensor
 reading low unloads its sole)."""
 
 from __future__ import annotations
