@@ -3,10 +3,8 @@ still (:mod:`.still_window` with ``whole_body``: arms moving shift the soles' lo
 sensor reading low unloads its sole, so the soles' load is not asked): more than
 :data:`SOLES_WEIGHT_MAX_OFF` of the weight above the sensors (the robot's less the feet below
 them, which do not load them) off it is a sensor at the wrong gain, or frozen since the load
-changed (round 21: the right ankle's at half gain stood and walked, exit 0), or a robot file
-whose masses are not the robot's (the openHubo model's 38.75 kg; a robot heavier by a tenth
-trips it, and its balance runs on the wrong mass too). The sum cannot say which sensor: the
-message gives both. Not judged while the right hand holds the drill (the
+changed (round 21: the right ankle's at half gain stood and walked, exit 0). The sum cannot say
+which sensor: the message gives both. Not judged while the right hand holds the drill (the
 observer's choice, :mod:`hubo_cli.estimation.plausibility`)."""
 
 from __future__ import annotations
@@ -52,6 +50,5 @@ class SolesWeight:
                 f"{right_n:.0f} N and the left-ankle sensor {left_n:.0f} N: together {share:.2f} "
                 f"of the {self.carried_n:.0f} N the robot weighs above them (within "
                 f"{SOLES_WEIGHT_MAX_OFF:g} of it): one of them reads wrong (its gain, or frozen)",
-                hint="check both ankle sensors' calibration (gain) and cables, and that the robot "
-                     f"file's masses are the robot's ({self.carried_n:.0f} N above the sensors: "
-                     "the balance uses them too), then start the run again")
+                hint="check both ankle sensors' calibration (gain) and cables, then start the "
+                     "run again")
