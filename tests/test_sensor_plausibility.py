@@ -22,7 +22,6 @@ from hubo_cli.estimation.sensor_checks.imu_frozen import IMU_FROZEN_STATES, TORS
 from hubo_cli.estimation.sensor_checks.imu_tilt import IMU_LEGS_MAX_DEG, IMU_LEGS_RUNNING_MAX_DEG
 from hubo_cli.estimation.sensor_checks.legs import SOLE_LOADED_WEIGHTS
 from hubo_cli.estimation.sensor_checks.soles_overload import SOLES_MAX_WEIGHTS, SOLES_OVER_S
-from hubo_cli.estimation.sensor_checks.soles_weight import SOLES_WEIGHT_MAX_OFF
 from hubo_cli.estimation.sensor_checks.still_window import STILL_STATES
 from hubo_cli.estimation.sensor_checks.wrists import (
     WRIST_FLAT_STATES,
@@ -165,9 +164,8 @@ def test_soles_reading_far_over_the_weight_longer_than_an_impact_are_a_fault():
     assert _estimate(_states(periods + 10, ft=_soles(900.0, 10))) == periods + 10
     with pytest.raises(SensorFault, match="ankle force sensors read 1800 N"):
         _estimate(_states(periods + 12, ft=_soles(900.0, 10)))
-    low = 0.45 * SOLES_MAX_WEIGHTS * 380.0  # just under the limit, each sole (for less than
-    n = STILL_STATES - 1  # a still window: the soles' weight check judges the sum over one)
-    assert _estimate(_states(n, ft=_soles(low, 10))) == n
+    low = 0.45 * SOLES_MAX_WEIGHTS * 380.0  # just under the limit, each sole
+    assert _estimate(_states(100, ft=_soles(low, 10))) == 100
 
 
 def _wrist_zero(from_k: int):
@@ -462,8 +460,7 @@ def test_an_ankle_sensor_whose_fz_sign_is_flipped_is_refused_at_the_start():
                                           r"0.10 s") as info:
         _estimate(_states(60, ft=_ankle("left-ankle", _flipped(2), from_k=10)))
     assert info.value.exit_code == 3
-    n = STILL_STATES - 1  # (one still window would be the soles' weight check's)
-    assert _estimate(_states(n, ft=_ankle("left-ankle", _same, from_k=10, fz_n=-17.0))) == n
+    assert _estimate(_states(60, ft=_ankle("left-ankle", _same, from_k=10, fz_n=-17.0))) == 60
     # flipped for SOLE_WIRING_OVER_S exactly: none yet
     assert _estimate(_states(10 + lasts - 1, ft=_ankle("left-ankle", _flipped(2),
                                                        from_k=10))) == 10 + lasts - 1
@@ -617,36 +614,3 @@ def test_both_soles_sinking_under_the_floor_before_a_step_are_swapped_sensors():
                        ) as info:
         _estimate(_states(90, **_rocking(True)))
     assert info.value.exit_code == 3 and "swapped between the feet" in info.value.hint
-
-
-def _ankle_gain(sensor: str, gain: float, from_k: int):
-    """The ``sensor``'s six channels times ``gain`` from state ``from_k`` on."""
-    def change(k, s):
-        ft = dict(s.ft)
-        if k >= from_k:
-            ft[sensor] = gain * np.asarray(ft[sensor], dtype=float)
-        return ft
-    return change
-
-
-def test_an_ankle_sensor_at_the_wrong_gain_is_a_fault_once_standing_still():
-    """Review 21: the right ankle's sensor at half gain stood and walked, exit 0. Standing
-    still, the soles' F_z together against the weight above the sensors (the ideal robot's
-    380 N less its feet's 24 N): half gain on either sensor, or 1.5 times, is a fault at the
-    end of the first still window after it, both sensors named; a gain inside
-    SOLES_WEIGHT_MAX_OFF is none, nor is anything while the torso turns on the legs."""
-    n = 4 * STILL_STATES
-    for sensor, gain, reads in (("right-ankle", 0.5, r"together 0\.7\d"),
-                                ("left-ankle", 0.5, r"together 0\.7\d"),
-                                ("right-ankle", 1.5, r"together 1\.2\d")):
-        with pytest.raises(SensorFault, match=r"^standing still for 0.25 s at t = 0.49 s, the "
-                                              r"right-ankle force-torque sensor read F_z \d+ N "
-                                              r"and the left-ankle sensor \d+ N: " + reads +
-                                              r" of the 356 N the robot weighs above them") as info:
-            _estimate(_states(n, ft=_ankle_gain(sensor, gain, STILL_STATES)))
-        assert info.value.exit_code == 3 and "gain" in info.value.hint
-    # a sole carries about half the weight: its gain off by twice the bound, less a margin
-    inside = 1.0 - 1.8 * SOLES_WEIGHT_MAX_OFF
-    assert _estimate(_states(n, ft=_ankle_gain("right-ankle", inside, STILL_STATES))) == n
-    assert _estimate(_states(n, ft=_ankle_gain("right-ankle", 0.5, STILL_STATES),
-                             q_rad=_ankles_turning(0.1))) == n

@@ -5,9 +5,8 @@
 runs ``hubo ARGS`` in this process with the sim driver's ankle readings rewired as KIND says
 (``none``, ``swap``: each foot's reading given as the other's; ``rot90-right``, ``rot180-left``
 ...: that sensor turned about its z; ``flip-fz-right``, ``flip-mx-left`` ...: that component's
-sign flipped; ``half-right``, ``half-left``: that sensor at half gain), and saves what the
-estimate saw each period (the bounds of the wiring checks in
-:mod:`hubo_cli.estimation.sensor_checks.ankle_wiring`, docs/history/safety.md round 20) to
+sign flipped), and saves what the estimate saw each period (the bounds of the wiring checks
+in :mod:`hubo_cli.estimation.sensor_checks.ankle_wiring`, docs/history/safety.md round 20) to
 OUT.npy, one row a period: time (s), CoM (3, m), its velocity (3, m/s), ZMP (2, m), contact
 (right, left), the soles' poses (2 x 3 x 4, the rows of T_world_sole), the right and left
 ankles' compensated wrenches (6 each). ``STOP_AT``: the run ends once it reaches S seconds.
@@ -46,9 +45,7 @@ def rewire(ft: dict, kind: str) -> dict:
     what, side = kind.rsplit("-", 1)
     sensor = f"{side}-ankle"
     w = np.array(ft[sensor], dtype=float)
-    if what == "half":
-        w *= 0.5
-    elif what.startswith("rot"):
+    if what.startswith("rot"):
         a = np.radians(float(what[3:]))
         R = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
         w = np.concatenate([R.T @ w[:3], R.T @ w[3:]])  # the frame turned by a about z

@@ -22,9 +22,8 @@ Checks, in the order they judge a period:
   exactly 0 (:mod:`~hubo_cli.estimation.sensor_checks.dead_channels`), the IMU frozen while
   the legs turn the torso (:mod:`~hubo_cli.estimation.sensor_checks.imu_frozen`), the IMU's
   vertical against the legs' while standing still
-  (:mod:`~hubo_cli.estimation.sensor_checks.imu_tilt`), the soles' F_z against the weight
-  while standing still (:mod:`~hubo_cli.estimation.sensor_checks.soles_weight`), a wrist
-  sensor flat while its arm moves;
+  (:mod:`~hubo_cli.estimation.sensor_checks.imu_tilt`), a wrist sensor flat while its arm
+  moves;
 - at the start, before the first period (refused): a wrist sensor reading exactly 0, an ankle
   sensor or the accelerometer reading exactly 0, the IMU's vertical against the legs', the
   ankle sensors wired wrong.
@@ -64,7 +63,6 @@ from hubo_cli.estimation.sensor_checks.faults import SensorFault, SensorRefusal
 from hubo_cli.estimation.sensor_checks.imu_frozen import FrozenImu
 from hubo_cli.estimation.sensor_checks.imu_tilt import ImuTilt
 from hubo_cli.estimation.sensor_checks.soles_overload import SolesOverload
-from hubo_cli.estimation.sensor_checks.soles_weight import SolesWeight
 from hubo_cli.estimation.sensor_checks.wrists import WristChecks
 from hubo_cli.model import RobotModel
 from hubo_cli.state import RobotState
@@ -112,10 +110,6 @@ class SensorPlausibility(Observer):
         self._wrists = WristChecks(self.model, self.period_s, self.drill_kg)
         self._frozen = FrozenImu()
         self._tilt = ImuTilt(self.weight_n, self.period_s)
-        # (not while the right hand holds the drill: a cut's bit in the wall carried up to
-        # 0.14 of the weight with every joint still, its wrist reading 1 N; round 21)
-        self._weight = (None if self.drill_kg is not None
-                        else SolesWeight(self.model, self.weight_n, self.period_s))
         self._dead = DeadChannels(self.period_s)
         if not self.measured:
             return
@@ -150,8 +144,6 @@ class SensorPlausibility(Observer):
         self._dead.update(state)
         self._frozen.update(state, store)
         self._tilt.update(state, store)
-        if self._weight is not None:
-            self._weight.update(state, store)
         if dt_s is not None:
             self._wrists.update_dead(state, np.abs(q - self._q) / dt_s)
         self._t_s, self._q = state.time_s, q.copy()
