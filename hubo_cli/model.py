@@ -258,6 +258,17 @@ class RobotModel:
         return _read_toml(self.source).get("impedance", {})
 
     @property
+    def impedance_max_offset_m(self) -> float:
+        """The most the hand leaves its reference under the impedance (m; ``[impedance]
+        max_offset_m``): the controller's clamp, and the yield a task's plunge keeps."""
+        try:
+            return float(self.raw_impedance["max_offset_m"])
+        except (KeyError, TypeError, ValueError):
+            raise ConfigError("[impedance] needs a number max_offset_m", path=str(self.source),
+                              hint="the most the hand leaves its reference (m), e.g. 0.03"
+                              ) from None
+
+    @property
     def raw_estimation(self) -> dict:
         """The robot file's ``[estimation]`` table (read by :mod:`hubo_cli.estimation`)."""
         return _read_toml(self.source).get("estimation", {})

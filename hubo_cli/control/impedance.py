@@ -464,9 +464,9 @@ class ImpedanceController(Module):
             np.array(defaults[n] if given is None else given, dtype=float)
             for n, given in (("M", M), ("D", D), ("K", K)))
         _check_gains(self.M, self.D, self.K)
+        self.max_offset_m = (model.impedance_max_offset_m if max_offset_m is None
+                             else float(max_offset_m))
         try:
-            self.max_offset_m = float(raw["max_offset_m"] if max_offset_m is None
-                                      else max_offset_m)
             self.max_rotation_rad = float(raw["max_rotation_rad"] if max_rotation_rad is None
                                           else max_rotation_rad)
             self.release_s = float(raw["release_s"] if release_s is None else release_s)
@@ -474,8 +474,8 @@ class ImpedanceController(Module):
                 raw["force_tracking_m_per_n_s"] if force_tracking_m_per_n_s is None
                 else force_tracking_m_per_n_s)
         except (KeyError, TypeError, ValueError) as exc:
-            raise ConfigError("[impedance] needs numbers max_offset_m, max_rotation_rad, "
-                              "release_s and force_tracking_m_per_n_s", path=str(model.source),
+            raise ConfigError("[impedance] needs numbers max_rotation_rad, release_s and "
+                              "force_tracking_m_per_n_s", path=str(model.source),
                               hint=str(exc)) from None
         if not (self.max_offset_m >= 0 and self.max_rotation_rad >= 0 and self.release_s >= 0
                 and self.force_tracking_m_per_n_s >= 0

@@ -728,12 +728,7 @@ class _Loader:
         from hubo_cli.urdf import hand_front_m
 
         model = self._model()
-        try:
-            yield_mm = 1000.0 * float(model.raw_impedance["max_offset_m"])
-        except (KeyError, TypeError, ValueError):
-            raise ConfigError("[impedance] needs a number max_offset_m", path=str(model.source),
-                              hint="the most the hand leaves its reference (m), e.g. 0.03"
-                              ) from None
+        yield_mm = 1000.0 * model.impedance_max_offset_m
         if self.tool == "drill":
             drill = model.drill
             face_mm = -1000.0 * drill.body_front_m  # the depth at which the body meets the face
