@@ -150,8 +150,9 @@ class AnkleWiring:
         sensor, reading, cause = found
         when = ", at the start: refused before anything moved" if start else (
             f" for {over * self.period_s:.3f} s at t = {state.time_s:.2f} s")
-        tilted = self._flat_sole_tilted(store, wrenches) if found is not wrong else None
-        if tilted is not None:  # the heights read through an attitude in doubt
+        # (the two swap rules read the soles' heights through the attitude; the others do not)
+        tilted = None if found is wrong else self._flat_sole_tilted(store, wrenches)
+        if tilted is not None:
             raise sensor_fault(
                 f"the {sensor} force-torque sensor reads {reading}{when}; but the estimate "
                 f"tilts the {tilted[0]} sole {tilted[1]:.1f} deg while its centre of pressure "
