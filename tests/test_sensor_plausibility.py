@@ -623,7 +623,7 @@ def test_a_sole_under_the_other_through_an_attitude_off_the_legs_names_the_imu_n
     reads -1 rad/s about x from the second state, the sensors read right, the left foot a few
     mm up: the right sole, flat by its centre of pressure, tilts 16 deg in the estimate when
     the left lies 20 mm under it, and the fault names the IMU (healthy walks and pushes tilted a
-    flat loaded sole 0.74 deg at most, round 22)."""
+    flat loaded sole 0.71 deg at most, round 22)."""
     def gyro(k, s):
         return np.array([-1.0, 0.0, 0.0]) if k >= 1 else s.imu_gyro_rad_s
 

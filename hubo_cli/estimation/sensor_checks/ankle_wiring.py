@@ -78,9 +78,10 @@ SOLE_STEPPED_M = 0.03
 # more, flat on the floor (SOLES_FLAT: its centre of pressure inside it), tilted more than this
 # (deg) in the estimate says the attitude is off the legs, and the fault names the IMU (round 22,
 # docs/history/safety.md). Healthy walks and pushes, both code paths, tilted a flat loaded sole
-# 0.74 deg at most, swapped sensors' walks as much; the gyro frozen from 1 s of a 0.6 m walk
-# tilted it 13.4-13.7 deg when the swap rule fired (a sole 56 mm under the other). An attitude
-# off by less than 6 deg cannot put a sole 20 mm under the other 0.18 m beside it
+# 0.71 deg at most (a gyro biased 0.2 rad/s included), swapped sensors' walks 0.74 before their
+# fault; the gyro frozen from 1 s of a 0.6 m walk tilted it 13.4-13.7 deg when the swap rule
+# fired (a sole 56 mm under the other). An attitude off by less than 6 deg cannot put a sole
+# 20 mm under the other 0.18 m beside it
 SOLE_FLAT_TILT_MAX_DEG = 5.0
 
 
