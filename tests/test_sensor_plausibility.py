@@ -614,3 +614,27 @@ def test_both_soles_sinking_under_the_floor_before_a_step_are_swapped_sensors():
                        ) as info:
         _estimate(_states(90, **_rocking(True)))
     assert info.value.exit_code == 3 and "swapped between the feet" in info.value.hint
+
+
+def test_a_sole_under_the_other_through_an_attitude_off_the_legs_names_the_imu_not_a_swap():
+    """Review 21: the gyro frozen at 0.079 rad/s from 1 s of a 0.6 m walk tilted the attitude
+    13.7 deg by 2.18 s; standing the loaded sole on the floor through it, the estimate put the
+    other 56 mm lower, and the run stopped blaming the ankle sensors as swapped. Here the gyro
+    reads -1 rad/s about x from the second state, the sensors read right, the left foot a few
+    mm up: the right sole, flat by its centre of pressure, tilts 16 deg in the estimate when
+    the left lies 20 mm under it, and the fault names the IMU (healthy walks and pushes tilted a
+    flat loaded sole 0.71 deg at most, round 22)."""
+    def gyro(k, s):
+        return np.array([-1.0, 0.0, 0.0]) if k >= 1 else s.imu_gyro_rad_s
+
+    with pytest.raises(SensorFault, match=r"^the right-ankle force-torque sensor reads F_z "
+                                          r"3[0-9]{2} N while the left-ankle sensor reads "
+                                          r"[0-9]{1,2} N, its sole [0-9]+ mm lower .*; but the "
+                                          r"estimate tilts the right sole 1[0-9].[0-9] deg while "
+                                          r"its centre of pressure says it lies flat on the floor "
+                                          r"\(at most 5 deg\): the IMU's attitude disagrees with "
+                                          r"the legs, so the soles' heights do not show the ankle "
+                                          r"sensors swapped$") as info:
+        _estimate(_states(100, q_rad=_left_foot_lifted(0.05), ft=_on_the_right_foot(False),
+                          imu_gyro_rad_s=gyro))
+    assert info.value.exit_code == 3 and info.value.hint.startswith("the IMU reads wrong")

@@ -16,7 +16,10 @@ edge reads so for a moment, as the estimate takes that sole flat); or, before a 
 bounce, both soles more than :data:`SOLES_SUNK_M` under the floor the robot started on for
 longer than :data:`SOLE_WIRING_OVER_S` (the sensors swapped before a foot lifts: a walk's first
 weight shift rocks the robot from sole to sole, and standing it on the sole its sensor loads,
-the rising one, each rock carries the estimate down; round 21). A moment flipped or a sensor
+the rising one, each rock carries the estimate down; round 21). Both read the soles' heights
+through the estimated attitude: when the sole carrying more lies flat yet tilted more than
+:data:`SOLE_FLAT_TILT_MAX_DEG` in the estimate, the fault names the IMU's attitude instead of
+a swap (round 22: a gyro frozen mid-walk read as swapped sensors). A moment flipped or a sensor
 turned while the centre of pressure stays near the ankle, and swapped sensors on a robot that
 stands without rocking, read as a working pair does (docs/history/safety.md, rounds 20 and 21).
 """
@@ -28,7 +31,7 @@ import math
 import numpy as np
 
 from hubo_cli.dataflow import Store
-from hubo_cli.estimation.keys import T_WORLD_SOLES, WRENCHES
+from hubo_cli.estimation.keys import SOLES_FLAT, T_WORLD_SOLES, WRENCHES
 from hubo_cli.estimation.sensor_checks.faults import sensor_fault
 from hubo_cli.estimation.sensor_checks.legs import SOLE_LOADED_WEIGHTS
 from hubo_cli.model import FootShape
@@ -71,6 +74,15 @@ SOLE_SWAPPED_OVER_S = 0.15
 # later
 SOLES_SUNK_M = 0.002
 SOLE_STEPPED_M = 0.03
+# Both swap rules above read the soles' heights through the estimated attitude: the sole carrying
+# more, flat on the floor (SOLES_FLAT: its centre of pressure inside it), tilted more than this
+# (deg) in the estimate says the attitude is off the legs, and the fault names the IMU (round 22,
+# docs/history/safety.md). Healthy walks and pushes, both code paths, tilted a flat loaded sole
+# 0.71 deg at most (a gyro biased 0.2 rad/s included), swapped sensors' walks 0.74 before their
+# fault; the gyro frozen from 1 s of a 0.6 m walk tilted it 13.4-13.7 deg when the swap rule
+# fired (a sole 56 mm under the other). An attitude off by less than 6 deg cannot put a sole
+# 20 mm under the other 0.18 m beside it
+SOLE_FLAT_TILT_MAX_DEG = 5.0
 
 
 class AnkleWiring:
@@ -139,11 +151,35 @@ class AnkleWiring:
         sensor, reading, cause = found
         when = ", at the start: refused before anything moved" if start else (
             f" for {over * self.period_s:.3f} s at t = {state.time_s:.2f} s")
+        # (the two swap rules read the soles' heights through the attitude; the others do not)
+        tilted = None if found is wrong else self._flat_sole_tilted(store, wrenches)
+        if tilted is not None:
+            raise sensor_fault(
+                f"the {sensor} force-torque sensor reads {reading}{when}; but the estimate "
+                f"tilts the {tilted[0]} sole {tilted[1]:.1f} deg while its centre of pressure "
+                "says it lies flat on the floor (at most "
+                f"{SOLE_FLAT_TILT_MAX_DEG:g} deg): the IMU's attitude disagrees with the legs, "
+                "so the soles' heights do not show the ankle sensors swapped",
+                hint="the IMU reads wrong (its gyro frozen or biased), or the ankle sensors are "
+                     "swapped between the feet: check the IMU's reading in hubo-daemon first, "
+                     "then the ankle sensors' cables and channels, then start the run again",
+                refuse=start)
         raise sensor_fault(f"the {sensor} force-torque sensor reads {reading}{when}",
                            hint=f"{cause}, or the ankle sensors are wired to the wrong channels: "
                                 f"check the {sensor} sensor's mounting, its cable and "
                                 "hubo-daemon's channel and sign settings for it, then start the "
                                 "run again", refuse=start)
+
+    def _flat_sole_tilted(self, store: Store, wrenches: dict) -> tuple[str, float] | None:
+        """The sole carrying more (compensated F_z) that lies flat (SOLES_FLAT) yet is tilted
+        more than SOLE_FLAT_TILT_MAX_DEG in the estimate: ("right"/"left", its tilt in deg),
+        else None."""
+        k = int(float(wrenches[ANKLE_SENSORS[1]][2]) > float(wrenches[ANKLE_SENSORS[0]][2]))
+        if not store.get(SOLES_FLAT, (False, False))[k]:
+            return None
+        up = float(np.asarray(store[T_WORLD_SOLES], dtype=float)[k, 2, 2])
+        tilt_deg = math.degrees(math.acos(max(-1.0, min(1.0, up))))
+        return (("right", "left")[k], tilt_deg) if tilt_deg > SOLE_FLAT_TILT_MAX_DEG else None
 
     def _swapped(self, store: Store, wrenches: dict) -> tuple[str, str, str] | None:
         """A sole read carrying SOLE_CARRIES_WEIGHTS of the robot more than SOLE_UNDER_M above
