@@ -355,6 +355,7 @@ def _check_robot(raw: dict, path: Path, lengths: dict, limbs: dict) -> None:
     - every length of the parameter set: a positive number (mm);
     - ``[safety]``: each of SAFETY_KEYS a positive number (the stops compare against them),
       the wrist torque limit and the stop's times at most SAFETY_MAX;
+    - the hand's and the drill's frame angles within a turn; hubo-ach's start delay and filter;
     - the joints: 24 different names, each with its own hubo-ach index (an integer below
       ``joint_count``): two joints with one name or one index command one motor twice and
       another never."""
@@ -379,7 +380,19 @@ def _check_robot(raw: dict, path: Path, lengths: dict, limbs: dict) -> None:
     if twice:
         raise ConfigError(f"joint {', '.join(twice)} named in more than one place",
                           path=str(path), field="limbs", hint="each joint once, in one limb")
+    tools = raw.get("tools", {})
+    for tool, key in (("hand", "rx_rad"), ("drill", "phi_rad")):
+        angle = tools.get(tool, {}).get(key)
+        if isinstance(angle, bool) or not isinstance(angle, int | float) or not (
+                abs(angle) <= JOINT_LIMIT_MAX_RAD):
+            raise ConfigError(f"must be an angle within a turn (rad), got {quoted(angle)}",
+                              path=str(path), field=f"tools.{tool}.{key}")
     ach = raw.get("hubo_ach", {})
+    _positive(ach.get("startup_ref_delay_s"), path, "hubo_ach.startup_ref_delay_s")
+    taps = ach.get("ref_filter_length")
+    if isinstance(taps, bool) or not isinstance(taps, int) or taps < 1:
+        raise ConfigError(f"must be a whole number of taps, got {quoted(taps)}",
+                          path=str(path), field="hubo_ach.ref_filter_length")
     index, count = ach.get("index", {}), ach.get("joint_count")
     for n in names:
         i = index.get(n)
@@ -406,7 +419,8 @@ def _shape(kind, raw: dict, table: str, path: Path):
             raise ConfigError("missing key", path=str(path), field=f"{table}.{f.name}")
         value = spec[f.name]
         sign = -1.0 if f.name == "body_front_m" else 1.0
-        if isinstance(value, bool) or not isinstance(value, int | float) or not sign * value > 0:
+        if isinstance(value, bool) or not isinstance(value, int | float) or not (
+                math.isfinite(value) and sign * value > 0):  # infinite feet: no support edge
             raise ConfigError(f"must be a {'negative' if sign < 0 else 'positive'} number, "
                               f"got {quoted(value)}", path=str(path), field=f"{table}.{f.name}")
         values[f.name] = float(value)

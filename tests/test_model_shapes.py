@@ -95,7 +95,11 @@ GENERATED = ([("robot", "control_period_s", v) for v in HOSTILE + ("0.2",)]
                                                 "estop_brake_acceleration_rad_s2",
                                                 "estop_brake_jerk_rad_s3") for v in HOSTILE]
              + [("safety", "wrist_torque_limit_nm", "50.5"), ("safety", "estop_revert_s", "6"),
-                ("safety", "estop_stop_s", "1e9"), ("limbs.right-arm", "velocity_rad_s", "true")])
+                ("safety", "estop_stop_s", "1e9"), ("limbs.right-arm", "velocity_rad_s", "true"),
+                ("feet", "length_m", "inf"), ("tools.drill", "mass_kg", "inf"),
+                ("tools.hand", "rx_rad", "nan"), ("tools.drill", "phi_rad", "inf"),
+                ("hubo_ach", "startup_ref_delay_s", "nan"), ("hubo_ach", "ref_filter_length",
+                                                              "40.5")])
 
 
 @pytest.mark.parametrize("table,key,value", GENERATED,
@@ -108,6 +112,15 @@ def test_a_robot_file_value_without_physical_sense_is_refused_at_load(tmp_path, 
     with pytest.raises(ConfigError) as info:
         load_model(path=robot_file_with(MODEL, tmp_path, table, key, value))
     assert info.value.field == f"{table}.{key.strip()}".replace("params.as-built", "params")
+
+
+def test_a_hardware_guard_in_words_is_the_files_error_not_a_traceback(tmp_path):
+    from hubo_cli.drivers.servo_guard import guard_parameters
+
+    bad = load_model(path=robot_file_with(MODEL, tmp_path, "hardware_guards",
+                                          "sole_force_max_n", '"2000 N"'))
+    with pytest.raises(ConfigError, match="hardware_guards"):
+        guard_parameters(bad)
 
 
 @pytest.mark.parametrize("case", sorted(SHIPPED_LINES))
