@@ -22,7 +22,7 @@ LEGS = ("right-leg", "left-leg")
 LIMB_NAMES = ARMS + LEGS
 TOOL_NAMES = ("none", "hand", "drill")
 # The robot file's bounds that are not facts of the robot (review 22: they were read unchecked)
-JOINT_LIMIT_MAX_RAD = 2 * math.pi  # a revolute joint's limit past a full turn is not radians
+FULL_TURN_RAD = 2 * math.pi  # a joint limit or a tool angle past a full turn is not radians
 MAX_CONTROL_PERIOD_S = 0.1  # 10 Hz; hubo-ach's loop is 200 Hz, the tests' robots 25 to 500 Hz
 SAFETY_KEYS = ("wrist_torque_limit_nm", "ik_hold_distance_m", "estop_revert_s", "estop_stop_s",
                "estop_brake_acceleration_rad_s2", "estop_brake_jerk_rad_s3")
@@ -328,8 +328,8 @@ def _limb(name: str, raw: dict, override: dict | None, path: Path) -> LimbSpec:
             lower <= upper):  # a NaN limit compares false: no limit at all (review 22)
         raise ConfigError("needs six joints with lower <= upper limits", path=str(path),
                           field=f"limbs.{name}")
-    if not np.all(np.abs(np.concatenate([lower, upper])) <= JOINT_LIMIT_MAX_RAD):
-        raise ConfigError(f"a limit beyond +-{JOINT_LIMIT_MAX_RAD:.4g} rad (a full turn) or "
+    if not np.all(np.abs(np.concatenate([lower, upper])) <= FULL_TURN_RAD):
+        raise ConfigError(f"a limit beyond +-{FULL_TURN_RAD:.4g} rad (a full turn) or "
                           f"not finite: {lower.tolist()} .. {upper.tolist()}", path=str(path),
                           field=f"limbs.{name}", hint="limits are radians (Table IV's)")
     for key in ("velocity_rad_s", "acceleration_rad_s2", "jerk_rad_s3"):
@@ -384,7 +384,7 @@ def _check_robot(raw: dict, path: Path, lengths: dict, limbs: dict) -> None:
     for tool, key in (("hand", "rx_rad"), ("drill", "phi_rad")):
         angle = tools.get(tool, {}).get(key)
         if isinstance(angle, bool) or not isinstance(angle, int | float) or not (
-                abs(angle) <= JOINT_LIMIT_MAX_RAD):
+                abs(angle) <= FULL_TURN_RAD):
             raise ConfigError(f"must be an angle within a turn (rad), got {quoted(angle)}",
                               path=str(path), field=f"tools.{tool}.{key}")
     ach = raw.get("hubo_ach", {})

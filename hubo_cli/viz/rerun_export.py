@@ -84,9 +84,9 @@ def export_rrd(scene: RunScene, out: str | Path) -> RrdResult:
     except RuntimeError as exc:  # the SDK's file writer stopped (a full disk, say)
         raise writer_failure(out, "the Rerun writer", exc) from None
     finally:
-        # the stream lets go of its file before the caller removes it (review 22: on a full
-        # disk the SDK's file sink, flushed again at the interpreter's exit, left an empty
-        # temporary file behind, and at times hung the exit for good, deaf to SIGTERM)
+        # the stream lets go of its file before the caller removes it (review 22: after a
+        # failed write the SDK's sink, flushed again at the interpreter's exit, made the
+        # removed temporary file again, empty)
         with contextlib.suppress(Exception):
             rec.disconnect()
 
