@@ -26,6 +26,7 @@ def test_json_report_on_a_clean_stdout(tmp_path):
     assert 0 <= report["max_tilt_deg"] < 2 and report["realtime_factor"] > 0
     assert (out / "snapshot.png").read_bytes()[:4] == b"\x89PNG"
     assert json.loads((out / "summary.json").read_text())["push_n"] == 0.0
+    assert report["push_direction"] == [1.0, 0.0, 0.0]  # the default, as the summary gives it
     # the limit set the options decided, and why, in the report too (not only in words)
     assert report["limit_set"] == "walking"
     assert report["limit_set_reason"] == "the hip strategy needs its legs' speed"
