@@ -21,6 +21,16 @@ ARMS = ("right-arm", "left-arm")
 LEGS = ("right-leg", "left-leg")
 LIMB_NAMES = ARMS + LEGS
 TOOL_NAMES = ("none", "hand", "drill")
+# The robot file's bounds that are not facts of the robot (review 22: they were read unchecked)
+FULL_TURN_RAD = 2 * math.pi  # a joint limit or a tool angle past a full turn is not radians
+MAX_CONTROL_PERIOD_S = 0.1  # 10 Hz; hubo-ach's loop is 200 Hz, the tests' robots 25 to 500 Hz
+SAFETY_KEYS = ("wrist_torque_limit_nm", "ik_hold_distance_m", "estop_revert_s", "estop_stop_s",
+               "estop_brake_acceleration_rad_s2", "estop_brake_jerk_rad_s3")
+# the most the robot file's [safety] (and so a task file, which may only lower them) may give
+STOP_MAX_S = 5.0             # T1 and T2 of the emergency stopper (paper: 0.5 s)
+WRIST_TORQUE_MAX_NM = 50.0   # beyond it the wrist-torque stop is no stop on Hubo's wrists
+SAFETY_MAX = {"wrist_torque_limit_nm": WRIST_TORQUE_MAX_NM, "estop_revert_s": STOP_MAX_S,
+              "estop_stop_s": STOP_MAX_S}
 
 
 @dataclass(frozen=True)
@@ -314,15 +324,87 @@ def _limb(name: str, raw: dict, override: dict | None, path: Path) -> LimbSpec:
     except (TypeError, ValueError) as exc:
         raise ConfigError(f"not a number or a list of numbers: {exc}", path=str(path),
                           field=f"limbs.{name}") from None
-    if len(joints) != 6 or lower.shape != (6,) or upper.shape != (6,) or np.any(lower > upper):
+    if len(joints) != 6 or lower.shape != (6,) or upper.shape != (6,) or not np.all(
+            lower <= upper):  # a NaN limit compares false: no limit at all (review 22)
         raise ConfigError("needs six joints with lower <= upper limits", path=str(path),
                           field=f"limbs.{name}")
+    if not np.all(np.abs(np.concatenate([lower, upper])) <= FULL_TURN_RAD):
+        raise ConfigError(f"a limit beyond +-{FULL_TURN_RAD:.4g} rad (a full turn) or "
+                          f"not finite: {lower.tolist()} .. {upper.tolist()}", path=str(path),
+                          field=f"limbs.{name}", hint="limits are radians (Table IV's)")
     for key in ("velocity_rad_s", "acceleration_rad_s2", "jerk_rad_s3"):
-        value = float(spec[key])
-        if not (math.isfinite(value) and value > 0.0):  # the trackers divide by them
-            raise ConfigError(f"must be a positive number, got {value}", path=str(path),
-                              field=f"limbs.{name}.{key}")
+        _positive(spec[key], path, f"limbs.{name}.{key}")  # the trackers divide by them
     return limb
+
+
+def _positive(value, path: Path, field: str) -> float:
+    """``value`` as a float if it is a finite positive number (a bool, a text or a NaN is not)."""
+    if isinstance(value, bool) or not isinstance(value, int | float) or not (
+            math.isfinite(value) and value > 0):
+        raise ConfigError(f"must be a positive number, got {quoted(value)}", path=str(path),
+                          field=field)
+    return float(value)
+
+
+def _check_robot(raw: dict, path: Path, lengths: dict, limbs: dict) -> None:
+    """What the rest of the robot file must hold before any part of hubo-cli reads it (review
+    22: a NaN, a text or a missing key here was taken as it came, and a NaN wrist torque limit
+    is a stop that never trips):
+
+    - the control period: a positive number of at most MAX_CONTROL_PERIOD_S;
+    - every length of the parameter set: a positive number (mm);
+    - ``[safety]``: each of SAFETY_KEYS a positive number (the stops compare against them),
+      the wrist torque limit and the stop's times at most SAFETY_MAX;
+    - the hand's and the drill's frame angles within a turn; hubo-ach's start delay and filter;
+    - the joints: 24 different names, each with its own hubo-ach index (an integer below
+      ``joint_count``): two joints with one name or one index command one motor twice and
+      another never."""
+    period = _positive(raw["robot"].get("control_period_s"), path, "robot.control_period_s")
+    if period > MAX_CONTROL_PERIOD_S:
+        raise ConfigError(f"must be at most {MAX_CONTROL_PERIOD_S} s, got {period:g}",
+                          path=str(path), field="robot.control_period_s",
+                          hint="seconds: hubo-ach's loop is 0.005 (200 Hz)")
+    for key, value in lengths.items():
+        _positive(value, path, f"params.{key}")
+    safety = raw.get("safety", {})
+    for key in SAFETY_KEYS:
+        if key not in safety:
+            raise ConfigError("missing key", path=str(path), field=f"safety.{key}")
+        value = _positive(safety[key], path, f"safety.{key}")
+        most = SAFETY_MAX.get(key)
+        if most is not None and value > most:
+            raise ConfigError(f"must be at most {most:g}, got {value:g}", path=str(path),
+                              field=f"safety.{key}", hint="a larger value is no stop on Hubo")
+    names = [n for limb in limbs.values() for n in limb.joints]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise ConfigError(f"joint {', '.join(twice)} named in more than one place",
+                          path=str(path), field="limbs", hint="each joint once, in one limb")
+    tools = raw.get("tools", {})
+    for tool, key in (("hand", "rx_rad"), ("drill", "phi_rad")):
+        angle = tools.get(tool, {}).get(key)
+        if isinstance(angle, bool) or not isinstance(angle, int | float) or not (
+                abs(angle) <= FULL_TURN_RAD):
+            raise ConfigError(f"must be an angle within a turn (rad), got {quoted(angle)}",
+                              path=str(path), field=f"tools.{tool}.{key}")
+    ach = raw.get("hubo_ach", {})
+    _positive(ach.get("startup_ref_delay_s"), path, "hubo_ach.startup_ref_delay_s")
+    taps = ach.get("ref_filter_length")
+    if isinstance(taps, bool) or not isinstance(taps, int) or taps < 1:
+        raise ConfigError(f"must be a whole number of taps, got {quoted(taps)}",
+                          path=str(path), field="hubo_ach.ref_filter_length")
+    index, count = ach.get("index", {}), ach.get("joint_count")
+    for n in names:
+        i = index.get(n)
+        if isinstance(i, bool) or not isinstance(i, int) or not (
+                isinstance(count, int) and 0 <= i < count):
+            raise ConfigError(f"joint {n} needs an integer index below joint_count "
+                              f"({quoted(count)}), got {quoted(i)}", path=str(path),
+                              field="hubo_ach.index")
+    shared = sorted({n for n in names if [index[m] for m in names].count(index[n]) > 1})
+    if shared:
+        raise ConfigError(f"joints {', '.join(shared)} share a hubo-ach index", path=str(path),
+                          field="hubo_ach.index", hint="each joint its own index (hubo.h)")
 
 
 def _shape(kind, raw: dict, table: str, path: Path):
@@ -337,7 +419,8 @@ def _shape(kind, raw: dict, table: str, path: Path):
             raise ConfigError("missing key", path=str(path), field=f"{table}.{f.name}")
         value = spec[f.name]
         sign = -1.0 if f.name == "body_front_m" else 1.0
-        if isinstance(value, bool) or not isinstance(value, int | float) or not sign * value > 0:
+        if isinstance(value, bool) or not isinstance(value, int | float) or not (
+                math.isfinite(value) and sign * value > 0):  # infinite feet: no support edge
             raise ConfigError(f"must be a {'negative' if sign < 0 else 'positive'} number, "
                               f"got {quoted(value)}", path=str(path), field=f"{table}.{f.name}")
         values[f.name] = float(value)
@@ -401,8 +484,9 @@ def _load_model(params: str, limits: str, path: Path) -> RobotModel:
         raise ConfigError(f"unknown limit set {quoted(limits)}", path=str(path),
                           hint=f"use one of table4, {', '.join(limit_sets)}")
     overrides = limit_sets.get(limits, {})
-    lengths_m = {k: float(v) / 1000.0 for k, v in sets[params].items()}
     limbs = {n: _limb(n, raw["limbs"][n], overrides.get(n), path) for n in LIMB_NAMES}
+    _check_robot(raw, path, sets[params], limbs)
+    lengths_m = {k: float(v) / 1000.0 for k, v in sets[params].items()}
     return RobotModel(params_name=params, limits_name=limits, lengths_m=lengths_m, limbs=limbs,
                       tools=raw["tools"], hubo_ach=raw["hubo_ach"], safety=raw["safety"],
                       control_period_s=float(raw["robot"]["control_period_s"]), source=path,

@@ -254,18 +254,29 @@ def write_error(path: str | Path, exc: OSError, hint: str) -> Exception:
     return InputError(f"cannot write {path}: {exc.strerror or exc}", hint=hint)
 
 
+def nearly_full(folder: str | Path) -> bool:
+    """Less than :data:`NEARLY_FULL_BYTES` free in ``folder`` (False when it cannot be told)."""
+    try:
+        return shutil.disk_usage(folder).free < NEARLY_FULL_BYTES
+    except OSError:
+        return False
+
+
+def require_room(path: str | Path) -> None:
+    """Raise the disk's ENOSPC for ``path`` before a writer that cannot fail cleanly starts on
+    a nearly full disk (review 22: Rerun's ``save`` there hung at times in its native code,
+    deaf to SIGTERM and Ctrl-C, and left its temporary file)."""
+    if nearly_full(Path(path).parent):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+
+
 def writer_failure(path: str | Path, writer: str, exc: BaseException) -> Exception:
     """The error to raise when a library's writer (ffmpeg, Rerun, MCAP) failed writing
     ``path`` with ``exc``, which says only that it stopped (a broken pipe, a writer thread
     gone): a full disk (less than :data:`NEARLY_FULL_BYTES` free there) is an OSError
     ENOSPC, which the command line reports as the device in trouble (exit 3); anything else
     one line naming the file and the writer (exit 1)."""
-    folder = Path(path).parent
-    try:
-        free = shutil.disk_usage(folder).free
-    except OSError:
-        free = None
-    if free is not None and free < NEARLY_FULL_BYTES:
+    if nearly_full(Path(path).parent):
         return OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
     reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
     return HuboError(f"cannot write {path}: {writer} stopped ({reason})",

@@ -188,7 +188,9 @@ def parse_sets(sets: Sequence[str]) -> dict[str, list[object]]:
     such as ``[a,b]`` or text).
 
     Raises:
-        InputError: not NAME=VALUES, or an empty value.
+        InputError: not NAME=VALUES, an empty value, or a name given twice (review 22: the
+            last ``--set`` of a name replaced the first without a word; ``hubo task`` refuses
+            it too).
     """
     from hubo_cli.tasks.spec import parse_override
 
@@ -199,6 +201,9 @@ def parse_sets(sets: Sequence[str]) -> dict[str, list[object]]:
         if not sep or not name.strip() or not all(item.strip() for item in items):
             raise InputError(f"--set {quoted(text)} is not NAME=V1,V2,... (no empty value)",
                              hint="e.g. --set speed_mm_s=10,20,40")
+        if name.strip() in values:
+            raise InputError(f"--set {name.strip()} is given twice",
+                             hint=f"give all its values in one: --set {name.strip()}=V1,V2,...")
         values[name.strip()] = [parse_override(f"{name}={v}")[1] for v in items]
     return values
 

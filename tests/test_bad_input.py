@@ -219,6 +219,8 @@ CASES = {
                                                         str(_short_log(d / "s.csv")),
                                                         "--reconnect-timeout", "1"],
                                              2, "applies to a live tracker"),
+    "teleop-baud-on-a-replay": (lambda d: ["teleop", "--replay", str(_short_log(d / "s.csv")),
+                                           "--baud", "9600"], 2, "applies to a live tracker"),
     "teleop-clutch-negative": (lambda d: ["teleop", "--replay", str(_short_log(d / "s.csv")),
                                           "--clutch", "-1"], 2, "not a time"),
     "teleop-baud-negative": (lambda d: ["teleop", "--port", "/dev/null", "--baud", "-5"], 2,

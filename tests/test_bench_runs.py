@@ -47,3 +47,11 @@ def test_a_failing_bench_module_is_reported_and_the_others_still_run(monkeypatch
     assert ran == ["fine"]
     assert "failed: TypeError: a wrapped signature changed" in out
     assert "1 module(s) failed: aaa" in err
+
+
+def test_an_unknown_bench_module_is_refused_not_a_silent_pass(capsys):
+    """Review 22: `make bench BENCH=walkng` (or `--help`) ran no module and exited 0."""
+    assert bench_main.main(["walkng"]) == 2
+    assert bench_main.main(["--help"]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and "bench: no module walkng; the modules: " in err and "walking" in err

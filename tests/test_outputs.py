@@ -590,3 +590,23 @@ def test_a_workspace_map_on_a_full_disk_leaves_no_part_of_its_file(tmp_path, mon
     assert full.value.errno == errno.ENOSPC and full.value.filename == str(
         tmp_path / "workspace.npz")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_rerun_recording_is_not_started_on_a_nearly_full_disk(tmp_path, monkeypatch):
+    """Review 22: on a full disk Rerun's own save at times never returned (its native code,
+    deaf to SIGTERM and Ctrl-C: `hubo export RUN --rrd` hung until SIGKILL) and left its
+    temporary file; the disk's ENOSPC is now raised before the SDK is touched."""
+    import shutil
+
+    from hubo_cli.viz import rerun_export
+
+    def untouched(*args):
+        raise AssertionError("the SDK was started")
+
+    monkeypatch.setattr(rerun_export, "require", untouched)
+    usage = shutil.disk_usage(tmp_path)
+    monkeypatch.setattr(shutil, "disk_usage", lambda path: usage._replace(free=4 * 2**20 - 1))
+    with pytest.raises(OSError) as full:
+        rerun_export.export_rrd(None, tmp_path / "x.rrd")
+    assert full.value.errno == errno.ENOSPC and full.value.filename == str(tmp_path / "x.rrd")
+    assert list(tmp_path.iterdir()) == []

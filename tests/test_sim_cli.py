@@ -16,7 +16,7 @@ from hubo_cli.cli.main import main
 def test_json_report_on_a_clean_stdout(tmp_path):
     out = tmp_path / "run"
     done = subprocess.run([sys.executable, "-m", "hubo_cli.cli.main", "sim", "--duration", "0.3",
-                           "--push", "30", "--json", "--out", str(out)],
+                           "--json", "--out", str(out)],
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     report = json.loads(done.stdout)  # nothing but the JSON object on stdout
@@ -25,7 +25,8 @@ def test_json_report_on_a_clean_stdout(tmp_path):
     # tilt 0.010 deg on both code paths (AVX-512 / portable): 190x under the bound
     assert 0 <= report["max_tilt_deg"] < 2 and report["realtime_factor"] > 0
     assert (out / "snapshot.png").read_bytes()[:4] == b"\x89PNG"
-    assert json.loads((out / "summary.json").read_text())["push_n"] == 30.0
+    assert json.loads((out / "summary.json").read_text())["push_n"] == 0.0
+    assert report["push_direction"] == [1.0, 0.0, 0.0]  # the default, as the summary gives it
     # the limit set the options decided, and why, in the report too (not only in words)
     assert report["limit_set"] == "walking"
     assert report["limit_set_reason"] == "the hip strategy needs its legs' speed"
@@ -50,18 +51,47 @@ def test_bad_duration_is_an_input_error(tmp_path):
     assert "duration" in result.output
 
 
-def test_push_direction_reaches_the_run_and_a_bad_one_is_refused(tmp_path):
-    # the push comes at 1 s, after this short run: only the wiring is under test here (the
-    # pushes themselves are in test_balance_default.py)
-    result = CliRunner().invoke(main, ["sim", "--duration", "0.1", "--push", "60",
-                                       "--push-direction", "right", "--json", "--out",
+def test_push_direction_reaches_the_run_and_a_bad_one_is_refused(tmp_path, monkeypatch):
+    # only the wiring is under test here (the pushes themselves are in
+    # test_balance_default.py): the run is replaced by a look at the push it was given
+    import hubo_cli.session as session
+
+    pushes = []
+
+    def run_in(setup, target, *args):
+        pushes.append((target.push_world_n.tolist(), target.push_at_s))
+        raise SystemExit(0)
+
+    monkeypatch.setattr(session, "_run_in", run_in)
+    result = CliRunner().invoke(main, ["sim", "--duration", "1.2", "--push", "60",
+                                       "--push-direction", "right", "--out",
                                        str(tmp_path / "run")])
     assert result.exit_code == 0, result.output
-    assert json.loads(result.stdout)["push_direction"] == [0.0, -1.0, 0.0]
+    assert pushes == [([0.0, -60.0, 0.0], 1.0)]
     bad = CliRunner().invoke(main, ["sim", "--push", "60", "--push-direction", "up",
                                     "--out", str(tmp_path / "bad")])
     assert bad.exit_code == 2
     assert "push-direction" in bad.output
+
+
+@pytest.mark.parametrize("command", [["sim", "--duration", "1.19", "--push", "60"],
+                                     ["sim", "--duration", "0.5", "--push", "100", "--json"],
+                                     ["sweep", "sim", "--set", "duration=2,0.5", "--set",
+                                      "push=100", "--seeds", "0", "--workers", "0"]])
+def test_a_stand_that_ends_before_its_push_is_refused(tmp_path, command):
+    """Review 22: `hubo sim --duration 0.5 --push 100` said "push 100 N forward for 0.2 s at
+    t = 1 s ... fell no", exit 0: the stand had ended before the push came. The push (1 s for
+    0.2 s) must end within the stand; nothing runs before the refusal."""
+    from hubo_cli.experiments.standing import check_standing_args
+    from hubo_cli.model import load_model
+
+    result = CliRunner().invoke(main, [*command, "--out", str(tmp_path / "run")])
+    assert result.exit_code == 2, result.output
+    assert "ends before the push does" in result.output
+    assert not (tmp_path / "run").exists()
+    check_standing_args(1.2, 60.0, load_model())  # the push ends with the stand: it is felt
+    check_standing_args(0.5, 0.0, load_model())  # no push, no bound
+    check_standing_args(0.5, 60.0, load_model(), push_at_s=0.2, push_duration_s=0.3)
 
 
 def test_the_push_directions_offered_are_the_ones_the_experiment_knows():

@@ -197,6 +197,10 @@ def _hostile_sweeps() -> dict[str, list[str]]:
         "empty-value": ["sim", "--set", "push=1,,2"], "empty-set": ["sim", "--set", "push="],
         "no-name": ["sim", "--set", "=1"], "no-equals": ["sim", "--set", "push"],
         "unknown-parameter": ["sim", "--set", "speed=1"],
+        # review 22: the second --set of a name replaced the first without a word
+        "set-twice": ["sim", "--set", "duration=1", "--set", "duration=2"],
+        "task-set-twice": ["cut-slot", "--set", "speed_mm_s=10", "--set", "speed_mm_s=10"],
+        "push-after-the-stand": ["sim", "--set", "duration=5,0.5", "--set", "push=60"],
         "task-nan-second": ["cut-slot", "--set", "speed_mm_s=10,nan"],
         "task-unknown": ["cut-slot", "--set", "no_such=1"],
         "unknown-command": ["no-such-task"],

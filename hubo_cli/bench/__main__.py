@@ -24,6 +24,11 @@ def main(argv: list[str]) -> int:
     failed: list[str] = []
     modules = sorted(m.name for m in pkgutil.iter_modules(bench_pkg.__path__)
                      if not m.name.startswith("_"))
+    unknown = sorted(only - set(modules))
+    if unknown:  # review 22: `make bench BENCH=walkng` ran nothing and exited 0
+        print(f"bench: no module {', '.join(unknown)}; the modules: {', '.join(modules)}",
+              file=sys.stderr)
+        return 2
     for name in modules:
         if (only and name not in only) or (not only and name in ON_REQUEST):
             continue

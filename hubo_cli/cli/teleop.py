@@ -251,10 +251,12 @@ def teleop(replay, port, generate_seed, max_speed, reconnect_timeout, baud, driv
                              hint="give seconds from the replay's start, e.g. --clutch 12.5")
     if clutch_at and port is not None:
         raise InputError("--clutch times apply to replays", hint="live, press c to re-centre")
-    if port is None and click.get_current_context().get_parameter_source(
-            "reconnect_timeout") is click.core.ParameterSource.COMMANDLINE:
-        raise InputError("--reconnect-timeout applies to a live tracker (--port)",
-                         hint="leave it out for a replay or a generated stream")
+    given = click.get_current_context().get_parameter_source
+    for option, name in (("--reconnect-timeout", "reconnect_timeout"), ("--baud", "baud")):
+        if port is None and given(name) is click.core.ParameterSource.COMMANDLINE:
+            # review 22: a replay's --baud was taken and ignored without a word
+            raise InputError(f"{option} applies to a live tracker (--port)",
+                             hint="leave it out for a replay or a generated stream")
     if not (math.isfinite(scale) and 0 < scale <= 10):
         raise InputError(f"--scale {scale:g} must be in (0, 10]", hint="e.g. --scale 1")
     if wall_distance is not None and mode != "drill":

@@ -23,6 +23,7 @@ the run with it.
 
 from __future__ import annotations
 
+import math
 from collections import deque
 
 import numpy as np
@@ -82,7 +83,9 @@ def guard_parameters(model) -> dict[str, float]:
     if missing:
         raise ConfigError(f"the robot file's [hardware_guards] lacks {', '.join(missing)}",
                           path=str(model.source))
-    p = {n: float(raw[n]) for n in names}
+    numbers = all(isinstance(raw[n], int | float) and not isinstance(raw[n], bool)
+                  for n in names)  # a text here was a ValueError's traceback (review 22)
+    p = {n: float(raw[n]) if numbers else math.nan for n in names}
     if not (all(np.isfinite(v) for v in p.values()) and p["servo_error_limit_rad"] > 0
             and p["servo_error_window_periods"] >= 1 and p["sole_force_window_periods"] >= 1
             and 0 < p["sole_unloaded_n"] < p["sole_standing_min_n"] < p["sole_force_max_n"]

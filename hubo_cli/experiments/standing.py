@@ -132,12 +132,17 @@ def posture_of(model: RobotModel, name: str) -> np.ndarray:
 
 
 MAX_PUSH_N = 10_000.0  # N; 0.2 s of far less throws the robot, more is a typing error
+PUSH_AT_S, PUSH_DURATION_S = 1.0, 0.2  # hubo sim's push: 1 s into the stand, for 0.2 s
 
 
-def check_standing_args(duration_s: float, push_n: float, model: RobotModel) -> None:
+def check_standing_args(duration_s: float, push_n: float, model: RobotModel, *,
+                        push_at_s: float = PUSH_AT_S,
+                        push_duration_s: float = PUSH_DURATION_S) -> None:
     """Raise InputError unless one of ``model``'s control periods <= duration_s <= 3600 (s; a
     shorter stand rounds to no period at all, which review 20's ``--duration 1e-300`` made an
-    internal error) and 0 <= push_n <= MAX_PUSH_N. ``model``: the robot the stand runs on."""
+    internal error), 0 <= push_n <= MAX_PUSH_N, and a push ends within the stand (review 22:
+    ``hubo sim --duration 0.5 --push 100`` reported the push and "fell no", exit 0, though the
+    stand ended before it). ``model``: the robot the stand runs on."""
     period_s = model.control_period_s
     if not (math.isfinite(duration_s) and period_s <= duration_s <= 3600):
         raise InputError(f"duration must be in [{period_s:g}, 3600] s (one control period to "
@@ -145,6 +150,13 @@ def check_standing_args(duration_s: float, push_n: float, model: RobotModel) -> 
     if not (math.isfinite(push_n) and 0 <= push_n <= MAX_PUSH_N):
         raise InputError(f"push must be a force of 0 to {MAX_PUSH_N:g} N, got {push_n}",
                          hint="e.g. --push 30")
+    push_end_s = push_at_s + push_duration_s
+    if push_n > 0 and duration_s < push_end_s:
+        raise InputError(f"duration {duration_s:g} s ends before the push does ({push_n:g} N "
+                         f"from {push_at_s:g} s for {push_duration_s:g} s): the stand would "
+                         "be reported as standing a push it never felt",
+                         hint=f"stand at least {push_end_s:g} s, e.g. --duration 5, or leave "
+                              "out the push")
 
 
 class StandTarget(Target):
@@ -263,7 +275,7 @@ def standing_options(duration_s: float = 5.0, push_n: float = 0.0, *,
                      balance: str = "default", step: bool = False, hip_strategy: bool = True,
                      limit_set: str | None = None, default_limit_set: str = "table4",
                      stops: ActiveStops | None = None, push_direction=(1.0, 0.0, 0.0),
-                     push_at_s: float = 1.0, push_duration_s: float = 0.2,
+                     push_at_s: float = PUSH_AT_S, push_duration_s: float = PUSH_DURATION_S,
                      perturb_seed: int | None = None, driver: str = "sim",
                      driver_options: Mapping[str, object] | None = None) -> StandingOptions:
     """The standing run's options, every choice made here once.
@@ -306,7 +318,8 @@ def standing_options(duration_s: float = 5.0, push_n: float = 0.0, *,
 
 
 def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
-          balance: bool = True, *, push_at_s: float = 1.0, push_duration_s: float = 0.2,
+          balance: bool = True, *, push_at_s: float = PUSH_AT_S,
+          push_duration_s: float = PUSH_DURATION_S,
           push_direction=(1.0, 0.0, 0.0), gui: bool = False, out: str | Path | None = None,
           stops: ActiveStops | None = None, perturb_seed: int | None = None,
           balance_mode: str = "default", step: bool = False,
@@ -354,7 +367,8 @@ def stand(model: RobotModel, duration_s: float = 5.0, push_n: float = 0.0,
             whatever pushes it, the simulated daemon's ``--push``), and the robot must stand
             in the posture the run holds (``posture``; the simulated daemon's ``--posture``).
     """
-    check_standing_args(duration_s, push_n, model)
+    check_standing_args(duration_s, push_n, model, push_at_s=push_at_s,
+                        push_duration_s=push_duration_s)
     options = standing_options(duration_s, push_n, balance=balance_mode if balance else "off",
                                step=step, hip_strategy=hip_strategy,
                                default_limit_set=model.limits_name, stops=stops,

@@ -77,6 +77,7 @@ from typing import TYPE_CHECKING
 
 from hubo_cli.control.stop_choice import SOFT_SOURCES, TASK_SOURCES, stops_words
 from hubo_cli.errors import ConfigError, quoted
+from hubo_cli.model import STOP_MAX_S, WRIST_TORQUE_MAX_NM
 from hubo_cli.resources import data_dir
 from hubo_cli.scene import CuttingModel
 from hubo_cli.streams import open_nonblocking, reader_of
@@ -101,8 +102,6 @@ TOOL_SPEED_MAX_MM_S = 500.0  # tool speed: the arm's 1 rad/s joints at its 0.5 m
 TOOL_SPEED_MIN_MM_S = 0.1
 TOOL_ACCEL_MAX_MM_S2 = 2000.0
 STEP_MAX_S = 600.0           # one move or wait
-STOP_MAX_S = 5.0             # T1 and T2 of the emergency stopper (paper: 0.5 s)
-WRIST_TORQUE_MAX_NM = 50.0
 WALL_MAX_MM = 10000.0
 THRUST_MAX_N = 15.0          # the impedance spring's 500 N/m over its 30 mm offset limit
 MISPLACED_MAX_MM = 100.0     # a wall misjudged by more is not a recognition error to test

@@ -21,13 +21,14 @@ grouping series of one unit, and the event log. Open it with ``rerun FILE.rrd``.
 
 from __future__ import annotations
 
+import contextlib
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from hubo_cli.outputs import writer_failure
+from hubo_cli.outputs import require_room, writer_failure
 from hubo_cli.viz.camera import DEFAULT_PRESET, camera_for
 from hubo_cli.viz.deps import require
 from hubo_cli.viz.replay import ACTUAL_RGB, GOAL_RGB, HOLE_RGB, WALL_RGBA, quat_xyzw
@@ -67,25 +68,33 @@ def export_rrd(scene: RunScene, out: str | Path) -> RrdResult:
 
     Raises:
         MissingOptionalDependency: rerun-sdk is not installed.
-        OSError: ENOSPC, the disk is full (see :func:`hubo_cli.outputs.writer_failure`).
+        OSError: ENOSPC, the disk is full, before the SDK starts (its save hung at times on a
+            full disk) or while it writes (see :func:`hubo_cli.outputs.writer_failure`).
         HuboError: the SDK's writer stopped otherwise.
     """
-    rr = require("rerun", "the Rerun recording")
-    try:
-        return _write_rrd(rr, scene, out)
-    except RuntimeError as exc:  # the SDK's file writer stopped (a full disk, say)
-        raise writer_failure(out, "the Rerun writer", exc) from None
-
-
-def _write_rrd(rr, scene: RunScene, out: str | Path) -> RrdResult:
-    from rerun.urdf import UrdfTree
-
-    started = time.perf_counter()
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
+    require_room(out)
+    rr = require("rerun", "the Rerun recording")
     # its name and start time are the run's (not the export's, which the SDK would send)
     rec = rr.RecordingStream(APPLICATION_ID, recording_id=scene.run_dir.name,
                              send_properties=False)
+    try:
+        return _write_rrd(rr, rec, scene, out)
+    except RuntimeError as exc:  # the SDK's file writer stopped (a full disk, say)
+        raise writer_failure(out, "the Rerun writer", exc) from None
+    finally:
+        # the stream lets go of its file before the caller removes it (review 22: after a
+        # failed write the SDK's sink, flushed again at the interpreter's exit, made the
+        # removed temporary file again, empty)
+        with contextlib.suppress(Exception):
+            rec.disconnect()
+
+
+def _write_rrd(rr, rec, scene: RunScene, out: Path) -> RrdResult:
+    from rerun.urdf import UrdfTree
+
+    started = time.perf_counter()
     rec.save(str(out), default_blueprint=blueprint(rr, scene))
     rec.send_recording_name(scene.run_dir.name)
     rec.send_recording_start_time_nanos(scene.start_utc_ns)
@@ -119,7 +128,6 @@ def _write_rrd(rr, scene: RunScene, out: str | Path) -> RrdResult:
                      rr.TextLog.columns(text=[text for _, _, text in happened],
                                         level=[TEXT_LOG_LEVEL[level] for _, level, _ in happened]))
     rec.flush()
-    rec.disconnect()
     return RrdResult(out, len(scene), animated, names, time.perf_counter() - started)
 
 
