@@ -78,3 +78,18 @@ def test_a_landed_leg_gives_its_turn_back_and_an_unloaded_one_holds_it():
     assert reach.angle_rad[1] == pytest.approx(0.1 - REACH_RETURN_RAD_S * DT)
     reach.reset()
     assert not np.any(reach.angle_rad) and not reach.tipped
+
+
+def test_the_right_legs_turn_stops_the_walk_past_its_bound_as_the_left_ones():
+    """The right leg swinging over the left stance sole turns the other way (its angle < 0):
+    beyond REACH_STOP_RAD it is tipped all the same, and an angle unknown (NaN) turns it."""
+    reach = FloorReach(HALF_WIDTH_M, DT)
+    left_stance = ((False, True), (False, True))
+    soles = np.stack([_sole(-0.12), _sole(0.12)])
+    while reach.angle_rad[0] >= -REACH_STOP_RAD:
+        assert not reach.tipped
+        reach.update(-1.0, *left_stance)
+    assert reach.tipped and reach.turns(soles) is not None
+    reach.reset()
+    reach.angle_rad[0] = math.nan
+    assert reach.turns(soles) is not None

@@ -1,5 +1,7 @@
 """The walking stabilizer's feedback laws and the second preview stage (no simulator)."""
 
+import math
+
 import numpy as np
 import pytest
 from walking_support import standing_walk, wrench_at
@@ -120,6 +122,8 @@ def test_a_zmp_between_the_soles_lies_inside_their_hull():
     assert zmp_outside_m(zmp, poses, CORNERS, (True, True)) == pytest.approx(-0.11, abs=1e-12)
     assert zmp_outside_m(zmp, poses, CORNERS, (False, False)) == float("inf")
     assert zmp_outside_m(np.full(2, np.nan), poses, CORNERS, (True, True)) == float("inf")
+    for half_known in ((1.0, np.nan), (np.nan, -0.06), (np.inf, -0.06)):  # one axis unknown
+        assert zmp_outside_m(np.array(half_known), poses, CORNERS, (True, False)) == math.inf
 
 
 def test_one_sole_in_contact_measures_against_its_own_outline():

@@ -95,13 +95,15 @@ class FloorReach:
                                       REACH_MAX_RAD)
                 self.angle_rad[column] = angle + min(max(wanted - angle, -step), step)
             # (on the floor, the other one swinging; no estimate of the torso: it holds)
-        self.tipped = self.tipped or bool(np.any(np.abs(self.angle_rad) > REACH_STOP_RAD))
+        right, left = self.angle_rad.tolist()  # (plain floats: numpy's reductions cost more)
+        self.tipped = self.tipped or abs(right) > REACH_STOP_RAD or abs(left) > REACH_STOP_RAD
 
     def turns(self, T_neck_soles: np.ndarray) -> np.ndarray | None:
         """The transforms (2 x 4 x 4, in the torso's frame) to apply to the sole goals
         ``T_neck_soles`` (right, left) this period: each leg's turn taken back out about the
         other sole's outer edge, along that sole's x axis; None when neither leg is turned."""
-        if not np.any(self.angle_rad):
+        right, left = self.angle_rad.tolist()
+        if not (right or left):
             return None
         out = np.empty((2, 4, 4))
         for column in range(2):

@@ -159,6 +159,9 @@ LEG_CAPPED_RAD = 1e-3  # reaches it: each hip yaw stands at its limit, 0, while 
                        # after a few steps) cap it; taking only exact solutions, the correction
                        # stayed zero from the first capped period on while the offset grew
 SIDES = ("right", "left")  # the estimate's order of the feet (and of ANKLE_SENSORS)
+# each sole's Fig. 4 log columns (:meth:`WalkTarget._toe_heel_info`), right then left
+_TOE_HEEL_COLUMNS = tuple((f"walk.{side}_cop_ref_m", f"walk.{side}_angle_ref_rad",
+                           f"walk.{side}_cop_m", f"walk.{side}_angle_rad") for side in SIDES)
 WALK_PHASES = ("walk", "stopping", "stood")
 STOOD_S = 1.0          # [chosen] a stopped walk holds its stance this long, then ends
 WALK_STOP_SPARE_S = 1.0  # [chosen] the stopper's deadline: the stop's pattern and this much
@@ -262,7 +265,8 @@ def zmp_outside_m(zmp_m: np.ndarray, poses: np.ndarray, corners_m: np.ndarray,
                   contact: tuple[bool, bool]) -> float:
     """How far the ZMP ``zmp_m`` (world x, y) lies outside the convex hull of the soles in
     ``contact`` (m; <= 0 inside; inf with none in contact or a non-finite ZMP)."""
-    if not (contact[0] or contact[1]) or not np.all(np.isfinite(zmp_m[:2])):
+    if not (contact[0] or contact[1]) or not (math.isfinite(zmp_m[0])
+                                              and math.isfinite(zmp_m[1])):
         return math.inf
     return _hull_outside(np.ascontiguousarray(poses, dtype=float), corners_m,
                          np.array(contact, dtype=np.bool_),
@@ -949,7 +953,9 @@ class WalkTarget(Target):
         if self._touched_early(k, step, support, t_s):
             return
         self._cp_error = self._capture_point_error(k)
-        if step < 0 or (support[0] and support[1]) or not np.all(np.isfinite(self._cp_error)):
+        error_x, error_y = self._cp_error.tolist()
+        if step < 0 or (support[0] and support[1]) or not (math.isfinite(error_x)
+                                                          and math.isfinite(error_y)):
             return  # (no estimate of the capture point: nothing moves)
         period = gait.period_s
         remaining_s = (self._landing[k] - k) * period
@@ -1107,8 +1113,8 @@ class WalkTarget(Target):
         point's moves are (:meth:`_replan`): the swing foot moves onto its new path by its
         landing, the CoM continues."""
         k, cart = self.k, self._cart
-        if self.toe_heel is not None or k + 1 >= cart.n or not cart.support[k].all() \
-                or cart.support[k + 1].all():
+        if self.toe_heel is not None or k + 1 >= cart.n or not all(cart.support[k].tolist()) \
+                or all(cart.support[k + 1].tolist()):
             return
         step, steps = int(cart.step_index[k + 1]), self._basis[1]
         moved_plan = self.shifts + self.touchdowns_early > self._moves_before
@@ -1481,16 +1487,13 @@ class WalkTarget(Target):
         info = {}
         wrenches = ankle_wrenches(self.store)
         plan = self.gait.toe_heel
-        for column, side in enumerate(SIDES):
-            fx, fy, fz, mx, my, mz = wrenches[column].tolist()
-            T = poses[column]
-            info[f"walk.{side}_cop_ref_m"] = (math.nan if plan is None
-                                              else float(plan.cop_offset_m[k, column]))
-            info[f"walk.{side}_angle_ref_rad"] = (math.nan if plan is None
-                                                  else float(plan.foot_angle_rad[k, column]))
-            info[f"walk.{side}_cop_m"] = (-my / fz if fz > self.model.estimation
-                                          .sole_damping_min_fz_n else math.nan)
-            info[f"walk.{side}_angle_rad"] = math.asin(max(-1.0, min(1.0, -float(T[2, 0]))))
+        for column, (cop_ref, angle_ref, cop, angle) in enumerate(_TOE_HEEL_COLUMNS):
+            fz, my = float(wrenches[column, 2]), float(wrenches[column, 4])
+            info[cop_ref] = math.nan if plan is None else float(plan.cop_offset_m[k, column])
+            info[angle_ref] = (math.nan if plan is None
+                               else float(plan.foot_angle_rad[k, column]))
+            info[cop] = -my / fz if fz > self.model.estimation.sole_damping_min_fz_n else math.nan
+            info[angle] = math.asin(max(-1.0, min(1.0, -float(poses[column][2, 0]))))
         command = self.lip.zmp_command_m if self.lip is not None else (math.nan, math.nan)
         info["walk.zmp_command_x_m"], info["walk.zmp_command_y_m"] = (float(v) for v in command)
         return info
@@ -1521,11 +1524,10 @@ class WalkTarget(Target):
         sole's planned place (x, y), its estimated place (x, y), and the cosine and sine of its
         planned heading less its estimated one (see :meth:`_in_pattern`)."""
         right_down, left_down = self._rows["support"][k]
-        ranks = {"right": (right_down, float(wrenches[0, 2])),
-                 "left": (left_down, float(wrenches[1, 2]))}
-        side = "left" if ranks["left"] > ranks["right"] else "right"
-        sole = self.store[T_WORLD_SOLES][SIDES.index(side)]
-        planned_x, planned_y, _, planned_yaw = (float(v) for v in self._rows[side][k])
+        column = 1 if (left_down, float(wrenches[1, 2])) > (right_down, float(wrenches[0, 2])) \
+            else 0
+        sole = self.store[T_WORLD_SOLES][column]
+        planned_x, planned_y, _, planned_yaw = self._rows[SIDES[column]][k]  # (floats)
         turn = planned_yaw - math.atan2(float(sole[1, 0]), float(sole[0, 0]))
         return (planned_x, planned_y, float(sole[0, 3]), float(sole[1, 3]), math.cos(turn),
                 math.sin(turn))
