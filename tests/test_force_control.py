@@ -493,6 +493,34 @@ def test_the_task_target_writes_the_plans_force_and_measures_the_thrust(model, t
     assert plain.writes == (WRIST_RELIEF,) and HAND_WRENCH_PLAN not in plain.store
 
 
+def test_the_task_target_measures_the_hands_thrust_too(model, tmp_path):
+    """The hand's point is the wrist sensor's origin, where the moments cannot place a force
+    (main: a NaN thrust, so a hand task's summary had no thrust and the waist never leaned
+    into the force the hand met): f_z alone, taken to lie along the bit, as the hand's force
+    tracking takes it. A 5 N push back along the bit is a 5 N thrust."""
+    from hubo_cli.tasks.target import TaskTarget
+
+    path = _task(tmp_path, PRESS.replace("depth_mm = 2.5", "depth_mm = -15.0"))
+    with open(path, encoding="utf-8") as f:
+        text = f.read().replace("[stance]\n", '[stance]\ntool = "hand"\n', 1)
+    with open(path, "w", encoding="utf-8") as f:
+        f.write(text)
+    plan = make_plan(load_task(path), model)
+    assert plan.spec.stance.tool == "hand"
+    target = TaskTarget(plan, correction=False)
+    target.attach(None, [], Store())
+    sl = model.limb_slice(ARM)
+    q = plan.q_first_rad.copy()
+    R_N_H = Limb(model, ARM, "hand").fk(q[sl])[:3, :3]
+    store = target.store
+    store[WRENCHES] = {"right-wrist": _hubo_reading(R_N_H, np.array([-5.0, 0.0, 0.0]))}
+    store[QUAT_WORLD_TORSO] = np.array([1.0, 0.0, 0.0, 0.0])
+    store[T_WORLD_TORSO] = np.eye(4)
+    store[T_WORLD_SOLES] = np.stack([np.eye(4), np.eye(4)])
+    _, info = target(0.0, RobotState(0.0, q, np.full(len(q), 0.1)))
+    assert info["thrust_n"] == pytest.approx(5.0, abs=1e-6)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("misplaced_mm", [
     # the portable code path gives the same to 6e-5 N (below): it checks the far wall only
