@@ -30,6 +30,8 @@ advances at ``|F_ref| force_tracking_m_per_n_s``, toward the surface. The centre
 offset (eq. 3 with K (x - c)), clamped with it, and decays back to zero (time constant
 ``release_s``) once the reference force is zero. ``axes`` leaves some axes stiff: the input on
 the others is dropped (the drill yields along its bit only, and tracks the path across it).
+A hand holding no contact tool meets rigid faces: its offset's rate and its centre's step
+toward the surface are capped at ``APPROACH_M_S`` (the plan's own speed comes on top).
 
 Force input: the estimate's wrist wrenches (``WRENCHES``: the hand's and the tool's weight
 removed, hrpsys RemoveForceOffset; read through
