@@ -674,7 +674,8 @@ class ImpedanceController(Module):
                         wrench_S = h.wrench_contact
                     h.centre_last_m[:] = h.centre_m
                     self._track_force(h, wrench_S)
-                    if not h.has_contact:  # a hand: toward a face at most APPROACH_M_S itself
+                    capped = not h.has_contact and bool(h.wrench_ref_N[:3].any())
+                    if capped:  # a hand pressing: toward the face at most APPROACH_M_S itself
                         cap_toward(h.centre_m, h.centre_last_m, h.wrench_ref_N, self.axes_mask,
                                    APPROACH_M_S * self.dt_s)
                         h.wrench_ref_eff_N[:] = h.wrench_ref_N - self.K[:, :3] @ h.centre_m
@@ -683,7 +684,7 @@ class ImpedanceController(Module):
                     stepped = all_finite(h.s_next)
                     if stepped:  # else (overflow) the offset is held
                         h.s, h.s_next = h.s_next, h.s
-                        if not h.has_contact:
+                        if capped:
                             cap_toward(h.s[6:9], ZERO3, h.wrench_ref_N, self.axes_mask,
                                        APPROACH_M_S)
                     else:
