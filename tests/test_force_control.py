@@ -168,6 +168,30 @@ def test_force_tracking_holds_the_thrust_wherever_the_wall_is(model, seed):
     assert position[-1, 0] == pytest.approx(wall + thrust / stiffness, abs=5e-5)
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_a_hand_approaches_a_face_at_most_4_mm_s_of_its_own(model, seed):
+    """Round 22: a hand pressing with a thrust reached a rigid face at 20-24 mm/s (the spring's
+    give to the thrust, the force tracking's 2 mm/s per N and the plan's plunge together) and
+    tripped the wrist-torque stop on contact. The impedance now moves a hand toward the face
+    at most APPROACH_M_S (4 mm/s) of its own, the spring's centre alike; the force still
+    settles on the reference. Walls 2-18 mm ahead, thrusts 1-15 N, faces of 2-100 kN/m
+    (random; seeds 200-207 seen): at most 4.15-4.55 mm/s before the touch (the offset's rate
+    capped each period, its acceleration within one on top; main: 12.6-36.9 mm/s), bound
+    5 mm/s; 0.001-0.072 N off the reference after 12 s (main: up to 0.17 N, the stiff faces
+    settling slowly), bound 0.25 N."""
+    from hubo_cli.control.impedance import APPROACH_M_S
+
+    assert APPROACH_M_S == 0.004
+    rng = np.random.default_rng(200 + seed)
+    wall = rng.uniform(0.002, 0.018)
+    thrust, stiffness = rng.uniform(1.0, 15.0), rng.uniform(2e3, 1e5)
+    force, position, _ = _press_run(model, wall, thrust, stiffness, seconds=12.0)
+    touch = int(np.argmax(force < 0))
+    assert touch > 0
+    assert np.diff(position[:touch, 0]).max() / DT <= 0.005
+    assert abs(force[-1] + thrust) < 0.25
+
+
 def test_force_tracking_stops_at_the_offset_limit(model):
     """A wall beyond the 30 mm offset limit: the hand advances to the limit and no further,
     flagged, never touching it."""
@@ -491,6 +515,34 @@ def test_the_task_target_writes_the_plans_force_and_measures_the_thrust(model, t
         plain.store[key] = store[key]
     plain(0.0, state)
     assert plain.writes == (WRIST_RELIEF,) and HAND_WRENCH_PLAN not in plain.store
+
+
+def test_the_task_target_measures_the_hands_thrust_too(model, tmp_path):
+    """The hand's point is the wrist sensor's origin, where the moments cannot place a force
+    (main: a NaN thrust, so a hand task's summary had no thrust and the waist never leaned
+    into the force the hand met): f_z alone, taken to lie along the bit, as the hand's force
+    tracking takes it. A 5 N push back along the bit is a 5 N thrust."""
+    from hubo_cli.tasks.target import TaskTarget
+
+    path = _task(tmp_path, PRESS.replace("depth_mm = 2.5", "depth_mm = -15.0"))
+    with open(path, encoding="utf-8") as f:
+        text = f.read().replace("[stance]\n", '[stance]\ntool = "hand"\n', 1)
+    with open(path, "w", encoding="utf-8") as f:
+        f.write(text)
+    plan = make_plan(load_task(path), model)
+    assert plan.spec.stance.tool == "hand"
+    target = TaskTarget(plan, correction=False)
+    target.attach(None, [], Store())
+    sl = model.limb_slice(ARM)
+    q = plan.q_first_rad.copy()
+    R_N_H = Limb(model, ARM, "hand").fk(q[sl])[:3, :3]
+    store = target.store
+    store[WRENCHES] = {"right-wrist": _hubo_reading(R_N_H, np.array([-5.0, 0.0, 0.0]))}
+    store[QUAT_WORLD_TORSO] = np.array([1.0, 0.0, 0.0, 0.0])
+    store[T_WORLD_TORSO] = np.eye(4)
+    store[T_WORLD_SOLES] = np.stack([np.eye(4), np.eye(4)])
+    _, info = target(0.0, RobotState(0.0, q, np.full(len(q), 0.1)))
+    assert info["thrust_n"] == pytest.approx(5.0, abs=1e-6)
 
 
 @pytest.mark.slow

@@ -473,3 +473,23 @@ def test_a_hand_move_is_refused_once_its_front_passes_the_face(tmp_path, model, 
                                           r"0\.01 mm into the wall \(depth_mm = -14\.34: its "
                                           r"front reaches 14\.35 mm past the hand point\)"):
         check_moves(spec, model)
+
+
+def test_the_load_and_the_move_bounds_read_one_hand_front(tmp_path, model, monkeypatch):
+    """The hand's front has one home (hubo_cli.tasks.tool.tool_front_m): a hand 10 mm longer
+    moves both the loader's plunge bound and the planner's move bound 10 mm back (main worked
+    it out in the loader and in moves.py apart: the move kept the built hand's 14.35 mm)."""
+    import hubo_cli.urdf
+    from hubo_cli.tasks.tool import tool_front_m
+
+    assert tool_front_m("drill", model) == model.drill.bit_tip_m
+    built_m = tool_front_m("hand", model)
+    monkeypatch.setattr(hubo_cli.urdf, "hand_front_m", lambda _: built_m + 0.010)
+    assert tool_front_m("hand", model) == pytest.approx(0.02435)
+    with pytest.raises(ConfigError, match="at most depth_mm = -24.35 "):
+        load_task(_hand_task(tmp_path / "plunge.toml", -20.0), model=model)
+    path = _hand_task(tmp_path / "move.toml", -30.0)
+    path.write_text(path.read_text().replace("depth_mm = -50.0            # 5 cm",
+                                             "depth_mm = -20.0  #", 1))
+    with pytest.raises(SafetyError, match=r"takes the hand 4\.35 mm into the wall"):
+        check_moves(load_task(path, model=model), model)

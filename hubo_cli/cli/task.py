@@ -360,16 +360,20 @@ def _finish(ctx: click.Context, done, as_json: bool, printer) -> None:
 
 
 def report_path_miss(summary: dict) -> None:
-    """One line on stderr when the outcome check failed the cut: the measured bit's miss,
-    the limit and what to check (the run exits 1, not completed)."""
+    """One line on stderr when the outcome check failed the cut: the measured tool point's
+    miss (the drill's bit, the hand), the limit and what to check (the run exits 1, not
+    completed)."""
+    from hubo_cli.tasks.tool import tool_point
+
     outcome = summary.get("path_outcome")
     if (not outcome or not outcome["missed"] or summary["estop"] or summary["ended"] != "done"
             or summary.get("finished_by_operator")):
         return  # (a run stopped otherwise says why already)
-    err_console.print(f"[red]not completed:[/] the measured bit missed its path by "
+    point = tool_point(summary["tool"])
+    err_console.print(f"[red]not completed:[/] the measured {point} missed its path by "
                       f"{outcome['path_rms_mm']:.1f} mm RMS while cutting (limit "
                       f"{outcome['limit_mm']:g} mm): check that the joints follow (log.csv's "
-                      "tracking-error flag), the tool's mounting and what pushed the bit",
+                      f"tracking-error flag), the tool's mounting and what pushed the {point}",
                       soft_wrap=True)
 
 
@@ -406,11 +410,14 @@ PHASE_WORDS = {"raise": "raising the tool", "run": "running", "settle": "settlin
 
 def _progress_line(target, panel) -> str:
     """One plain line of progress (piped output): step, progress, error, safety state."""
+    from hubo_cli.tasks.tool import tool_point
+
     plan = target.plan
     step = plan.spec.steps[min(target.step, len(plan.spec.steps) - 1)]
     phase = "EMERGENCY STOP" if target.phase == "stopped" else target.phase
     return (f"{shown_name(plan.spec.name)}: {phase}, step {step.number}/{len(plan.spec.steps)} "
-            f"'{shown_name(step.name)}' {target.step_fraction(target.step):.0%}, bit error "
+            f"'{shown_name(step.name)}' {target.step_fraction(target.step):.0%}, "
+            f"{tool_point(plan.spec.stance.tool)} error "
             f"{target.error_m * 1000:.1f} mm, wrist {target.torque_nm:.2f} N m | "
             f"{panel.words()}")
 
@@ -418,6 +425,8 @@ def _progress_line(target, panel) -> str:
 def _view(target, panel, keys: bool = False) -> Group:
     """The live view: one progress bar per step, the safety state, error and wrist torque;
     the operator's keys when there are (a terminal)."""
+    from hubo_cli.tasks.tool import tool_point
+
     plan = target.plan
     safety = panel()
     status = PHASE_WORDS[target.phase]
@@ -436,18 +445,21 @@ def _view(target, panel, keys: bool = False) -> Group:
                       f"{fraction:4.0%}")
     limit = plan.spec.safety.wrist_torque_limit_nm
     colour = "red" if target.torque_nm > limit else "green"
-    table.caption = (f"bit error {target.error_m * 1000:5.1f} mm   wrist torque "
+    table.caption = (f"{tool_point(plan.spec.stance.tool)} error "
+                     f"{target.error_m * 1000:5.1f} mm   wrist torque "
                      f"[{colour}]{target.torque_nm:.2f}[/] / {limit:g} N m")
     return Group(safety, table)  # the safety state first: never the part a short screen cuts
 
 
 def _print_cut(summary: dict, run_dir) -> None:
     from hubo_cli.cli.safety_view import balance_summary_line
+    from hubo_cli.tasks.tool import tool_point
 
+    point = tool_point(summary["tool"])
     stance = summary["stance"]
     missed = (summary.get("path_outcome") or {}).get("missed")
     why = ("emergency stop" if summary["estop"] else "finished by the operator: q"
-           if summary.get("finished_by_operator") else "the bit missed its path"
+           if summary.get("finished_by_operator") else f"the {point} missed its path"
            if missed and summary["ended"] == "done" else summary["ended"])
     outcome = "completed" if summary["completed"] else f"[red]did not complete[/] ({why})"
     console.print(f"{escape(shown_name(summary['task']))} {outcome} after "
@@ -458,7 +470,7 @@ def _print_cut(summary: dict, run_dir) -> None:
                   f"{stance['centre_mm'][0]:+.0f} z {stance['centre_mm'][1]:+.0f} mm")
     if summary["rms_error_mm"] is not None:
         hole = summary.get("hole_rms_error_mm")
-        console.print(f"  bit error   {summary['rms_error_mm']:.1f} mm rms, "
+        console.print(f"  {point + ' error':<12}{summary['rms_error_mm']:.1f} mm rms, "
                       f"{summary['max_error_mm']:.1f} mm max while cutting (paper: "
                       f"{summary['paper_rms_error_mm']:g} mm)"
                       + (f"; hole in the wall {hole:.1f} mm rms" if hole is not None else ""))
@@ -478,15 +490,19 @@ def _print_cut(summary: dict, run_dir) -> None:
     if stop is None:
         console.print("  e-stop      none")
     else:
-        console.print(f"  e-stop      {_stop_words(stop)}", soft_wrap=True)
+        console.print(f"  e-stop      {_stop_words(stop, summary['tool'])}", soft_wrap=True)
     console.print(f"  velocity    {summary['max_joint_velocity_ratio']:.0%} of the limit at most")
     console.print(f"  balance     {balance_summary_line(summary)}", soft_wrap=True)
     print_run_folder(run_dir, summary["files"], width=12, indent="  ")
 
 
-def _stop_words(stop: dict) -> str:
+def _stop_words(stop: dict, tool: str) -> str:
     """The e-stop line of the text summary: what latched it, what the stopper did, and the
-    wrist torque and bit travel after the latch apart from those before it."""
+    wrist torque and the travel of the ``tool``'s point (the drill's bit, the hand) after the
+    latch apart from those before it."""
+    from hubo_cli.tasks.tool import tool_point, travel_keys
+
+    point, (along, into, _) = tool_point(tool), travel_keys(tool)
     before = stop["wrist_torque_nm"]
     where = f"step '{stop['step']}'" if stop["step"] is not None else "the approach"
     words = (f"[red]{', '.join(stop['sources'])}[/] at {stop['t_s']:.2f} s in {where}"
@@ -496,7 +512,7 @@ def _stop_words(stop: dict) -> str:
     elif stop["reverted_to_t_s"] is not None:
         words += f"reverted to the command of {stop['reverted_to_t_s']:.2f} s"
     elif stop["retreat_mm"] is not None:
-        words += f"braked and backed the bit {stop['retreat_mm']:.0f} mm out of the wall"
+        words += f"braked and backed the {point} {stop['retreat_mm']:.0f} mm out of the wall"
     else:
         words += "braked"
     if stop["held"]:
@@ -505,9 +521,9 @@ def _stop_words(stop: dict) -> str:
     after = stop["wrist_torque_after_nm"]
     if after is not None:
         words += f"; after the latch: wrist {after:.2f} N m max"
-        if stop["bit_along_wall_mm"] is not None:
-            words += (f", bit {stop['bit_along_wall_mm']:.1f} mm along the wall, "
-                      f"{stop['bit_into_wall_mm']:.1f} mm into it")
+        if stop[along] is not None:
+            words += (f", {point} {stop[along]:.1f} mm along the wall, "
+                      f"{stop[into]:.1f} mm into it")
     return words
 
 

@@ -30,6 +30,8 @@ advances at ``|F_ref| force_tracking_m_per_n_s``, toward the surface. The centre
 offset (eq. 3 with K (x - c)), clamped with it, and decays back to zero (time constant
 ``release_s``) once the reference force is zero. ``axes`` leaves some axes stiff: the input on
 the others is dropped (the drill yields along its bit only, and tracks the path across it).
+A hand holding no contact tool meets rigid faces: its offset's rate and its centre's step
+toward the surface are capped at ``APPROACH_M_S`` (the plan's own speed comes on top).
 
 Force input: the estimate's wrist wrenches (``WRENCHES``: the hand's and the tool's weight
 removed, hrpsys RemoveForceOffset; read through
@@ -111,9 +113,15 @@ from hubo_cli.motion.limits import all_finite, hold_nan
 from hubo_cli.state import RobotState, T_frame_sensor
 
 HAND_SENSORS = {"right-arm": "right-wrist", "left-arm": "left-wrist"}
+# A hand (no contact tool) pressing with a reference force moves toward the surface at most
+# this fast on its own (the spring's give to the reference and the force tracking's advance
+# together; the plan's own speed comes on top): it meets a rigid face, with no give but the
+# arm's (docs/history/manipulation.md, round 22)
+APPROACH_M_S = 0.004
 CONTACT_TOOLS = ("drill",)  # tools whose force acts at their frame's origin (the bit)
 T_HAND_SENSOR = T_frame_sensor("right-wrist")  # the wrist sensors' axes in the hand frame
 MODES = ("on", "release", "off")
+ZERO3 = np.zeros(3)
 MODE_CODE = {name: i for i, name in enumerate(MODES)}
 LIMIT_FLAG, BAD_FLAG, UNREACHABLE_FLAG, RELEASE_FLAG = (
     "impedance-limit", "impedance-bad-wrench", "impedance-unreachable", "impedance-release")
@@ -382,6 +390,22 @@ def track_force(centre, wrench_ref_N, wrench_S, T_H_S, T_N_H, measured, mask, K,
                                                  + K[r, 2] * centre[2])
 
 
+@nb.njit(**JIT)
+def cap_toward(v, v_last, wrench_ref_N, mask, most) -> None:
+    """Cap the change of ``v`` (3, N axes) since ``v_last`` toward the surface, along
+    n = -F_ref / |F_ref| (masked axes), at ``most``: the part beyond it is taken off along n
+    (with ``v_last`` zero, ``v`` itself: a rate)."""
+    size = math.sqrt(wrench_ref_N[0] ** 2 + wrench_ref_N[1] ** 2 + wrench_ref_N[2] ** 2)
+    if not size > 0.0:
+        return
+    toward = 0.0
+    for i in range(3):
+        toward -= (v[i] - v_last[i]) * wrench_ref_N[i] / size * mask[i]
+    if toward > most:
+        for i in range(3):
+            v[i] += (toward - most) * wrench_ref_N[i] / size * mask[i]
+
+
 class _Hand:
     """One hand's state: the limb, its joints' slice, sensor, s = [x, x'], the reference
     wrench and the joint offset last applied."""
@@ -404,6 +428,7 @@ class _Hand:
         self.has_contact = False  # ... if eq. 3 and force tracking read the force there
         self.wrench_contact = np.zeros(6)  # this period's reading with the force at that point
         self.dq_rad = np.zeros(6)
+        self.centre_last_m = np.zeros(3)  # the spring's centre last period
         self.held = False  # last period's offset was held (unreachable or at its limit)
         self.T_N_H = np.empty((4, 4))
         self.release_from = np.zeros(6)
@@ -571,6 +596,7 @@ class ImpedanceController(Module):
                         self.measured_force, self.axes_mask, self.K, 1e-9, 0.0, 1.0,
                         has_contact, h.wrench_ref_eff_N.copy())
         contact_wrench(np.zeros(6), np.ones(3), self.measured_force, np.zeros(6))
+        cap_toward(np.zeros(3), ZERO3, np.ones(6), self.axes_mask, 1.0)
         offset_joints(np.zeros(6), *h.ik, np.zeros(6), np.zeros(6))
         retreat_offset(np.zeros(6), h.limb.chain, h.ik[-1], 0.5, np.zeros(6), np.zeros(6))
         all_finite(scratch)
@@ -646,12 +672,21 @@ class ImpedanceController(Module):
                         contact_wrench(wrench_S, h.contact_S_m, self.measured_force,
                                        h.wrench_contact)
                         wrench_S = h.wrench_contact
+                    h.centre_last_m[:] = h.centre_m
                     self._track_force(h, wrench_S)
+                    capped = not h.has_contact and bool(h.wrench_ref_N[:3].any())
+                    if capped:  # a hand pressing: toward the face at most APPROACH_M_S itself
+                        cap_toward(h.centre_m, h.centre_last_m, h.wrench_ref_N, self.axes_mask,
+                                   APPROACH_M_S * self.dt_s)
+                        h.wrench_ref_eff_N[:] = h.wrench_ref_N - self.K[:, :3] @ h.centre_m
                     advance(h.s, self.Ad, self.Bd, wrench_S, self.T_hand_sensor,
                             h.T_N_H[:3, :3], h.wrench_ref_eff_N, self.axes_mask, h.s_next)
                     stepped = all_finite(h.s_next)
                     if stepped:  # else (overflow) the offset is held
                         h.s, h.s_next = h.s_next, h.s
+                        if capped:
+                            cap_toward(h.s[6:9], ZERO3, h.wrench_ref_N, self.axes_mask,
+                                       APPROACH_M_S)
                     else:
                         cycle.flags.add(BAD_FLAG)
                     if clamp_offset(h.s, self.max_offset_m, self.max_rotation_rad):

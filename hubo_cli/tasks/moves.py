@@ -16,16 +16,9 @@ from __future__ import annotations
 from hubo_cli.errors import SafetyError
 from hubo_cli.model import RobotModel
 from hubo_cli.tasks.spec import TaskSpec
-from hubo_cli.urdf import hand_front_m
+from hubo_cli.tasks.tool import tool_front_m
 
 TOUCH_TOLERANCE_M = 1e-6  # a tip exactly on the face (depth_mm = -20 with the drill) is outside
-
-
-def tool_front_m(spec: TaskSpec, model: RobotModel) -> float:
-    """How far the tool reaches past its depth reference along the bit (m): the drill's flutes
-    end ``bit_tip_m`` ahead of the bit's middle; the hand's front face
-    :func:`~hubo_cli.urdf.hand_front_m` ahead of the hand point."""
-    return model.drill.bit_tip_m if spec.stance.tool == "drill" else hand_front_m(model)
 
 
 def check_moves(spec: TaskSpec, model: RobotModel) -> None:
@@ -37,7 +30,7 @@ def check_moves(spec: TaskSpec, model: RobotModel) -> None:
     Raises:
         SafetyError: the first such move, named, with its depth and how far the tool is in.
     """
-    front_m = tool_front_m(spec, model)
+    front_m = tool_front_m(spec.stance.tool, model)
     tool, reach = (("the bit's tip", "the flutes reach {:g} mm past the bit's middle")
                    if spec.stance.tool == "drill" else
                    ("the hand", "its front reaches {:g} mm past the hand point"))

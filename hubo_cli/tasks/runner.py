@@ -4,7 +4,8 @@ folder.
 ``check_task`` lays the task out and checks every pose (no driver is touched); ``run_task``
 runs a checked plan and writes ``runs/<time>-task-<name>/``: ``log.csv`` (every period),
 ``summary.json``, ``task.toml`` (the file as run, with the parameters used, to run it again),
-``path.png`` (commanded vs actual bit path in the wall plane, the paper's Fig. 5),
+``path.png`` (commanded vs actual path of the tool's point, the drill's bit or the hand, in the
+wall plane, the paper's Fig. 5),
 ``wrist_torque.png`` and ``snapshot.png`` (the scene at the end, simulation only).
 Experiment tasks (``experiment = "push-wall"``, ``"turn-valve"``, ``"push-door"``) run their
 built-in procedure instead.
@@ -36,6 +37,7 @@ from hubo_cli.tasks.phases import SETTLE_TIMEOUT_S
 from hubo_cli.tasks.plan import EDGE_NAMES, Plan, make_plan
 from hubo_cli.tasks.spec import TaskSpec, format_override
 from hubo_cli.tasks.target import TaskTarget
+from hubo_cli.tasks.tool import tool_point, travel_keys
 
 PAPER_TORQUE_NM = {"horizontal": {"mean": 0.14, "max": 0.23},
                    "vertical": {"mean": 0.15, "max": 0.35}}
@@ -273,12 +275,15 @@ def _nanmax(values) -> float | None:
 
 
 def _travel_after(log, plan: Plan, before: np.ndarray) -> dict:
-    """How far the bit moved after a stop (mm): the largest distance in the wall plane (y, z)
-    from where it was in the stop's period, and the furthest into the wall (x) and out of it.
-    Where the log has the torso's world pose (simulation) the bit is the measured arm's forward
-    kinematics through it (the world, where the wall stands); else as the robot measured it
-    in S. ``before`` masks the periods up to the stop."""
-    none = {"bit_along_wall_mm": None, "bit_into_wall_mm": None, "bit_out_of_wall_mm": None}
+    """How far the tool's point (the drill's bit, the hand) moved after a stop (mm): the
+    largest distance in the wall plane (y, z) from where it was in the stop's period, and the
+    furthest into the wall (x) and out of it, keyed by :func:`~hubo_cli.tasks.tool.travel_keys`
+    (``bit_along_wall_mm``, ...). Where the log has the torso's world pose (simulation) the
+    point is the measured arm's forward kinematics through it (the world, where the wall
+    stands); else as the robot measured it in S. ``before`` masks the periods up to the
+    stop."""
+    keys = travel_keys(plan.spec.stance.tool)
+    none = dict.fromkeys(keys)
     if not before.any() or before.all():
         return none
     limb = plan.spec.stance.limb
@@ -291,9 +296,9 @@ def _travel_after(log, plan: Plan, before: np.ndarray) -> dict:
     moved = moved[np.isfinite(moved).all(axis=1)]
     if not len(moved):
         return none
-    return {"bit_along_wall_mm": float(np.hypot(moved[:, 1], moved[:, 2]).max()),
-            "bit_into_wall_mm": float(max(moved[:, 0].max(), 0.0)),
-            "bit_out_of_wall_mm": float(max(-moved[:, 0].min(), 0.0))}
+    return dict(zip(keys, (float(np.hypot(moved[:, 1], moved[:, 2]).max()),
+                           float(max(moved[:, 0].max(), 0.0)),
+                           float(max(-moved[:, 0].min(), 0.0))), strict=True))
 
 
 def _plane_rms_mm(goal_m: np.ndarray, actual_m: np.ndarray) -> float | None:
@@ -385,6 +390,7 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult, t_origin_s: float
     from hubo_cli.plots.task import plot_wrist_torque
 
     spec, result, log, run_dir = plan.spec, done.loop, done.log, done.run_dir
+    point = tool_point(spec.stance.tool)
     limit = spec.safety.wrist_torque_limit_nm
     goal = np.array(target.cut_goal_m).reshape(-1, 3)
     actual = np.array(target.cut_actual_m).reshape(-1, 3)
@@ -405,10 +411,11 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult, t_origin_s: float
         rms = float(np.sqrt(np.mean(errors**2)) * 1000)
         plot_path_comparison(goal - T_S_W[:3, 3], actual - T_S_W[:3, 3], run_dir / "path.png",
                              plane="yz", frame="the wall frame",
-                             title=f"{_title_name(spec.name)}: commanded vs actual drill bit while "
-                                   "cutting",
+                             title=f"{_title_name(spec.name)}: commanded vs actual {point} "
+                                   "while cutting",
                              rms_error_mm=rms,
-                             actual_label="bit measured (arm FK through the torso estimate)",
+                             actual_label=f"{point} measured (arm FK through the torso "
+                                          "estimate)",
                              hole_m=_hole_in_wall_frame(log, offset_world_m, T_S_W),
                              hole_rms_error_mm=hole_rms,
                              stops_m=_cut_at(target, [e[1] - t_origin_s for e in stops],
@@ -446,6 +453,7 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult, t_origin_s: float
     return {
         "task": spec.name,
         "task_file": str(spec.path),
+        "tool": spec.stance.tool,
         "parameters": spec.parameters,
         "completed": completed,
         "path_outcome": outcome,
@@ -457,11 +465,11 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult, t_origin_s: float
         "rms_error_mm": float(np.sqrt(np.mean(errors**2)) * 1000) if len(errors) else None,
         "max_error_mm": float(errors.max() * 1000) if len(errors) else None,
         "error_measured_by": "forward kinematics of the measured arm through the measured "
-                             "torso pose (leg encoders and IMU): the bit position in S, "
-                             "against the commanded bit position of the same period",
+                             f"torso pose (leg encoders and IMU): the {point} position in S, "
+                             f"against the commanded {point} position of the same period",
         "hole_rms_error_mm": hole_rms,
-        "hole_error_measured_by": "the bit's world position (simulation) in the wall plane, "
-                                  "relative to where it stood when the wall was placed",
+        "hole_error_measured_by": f"the {point}'s world position (simulation) in the wall "
+                                  "plane, relative to where it stood when the wall was placed",
         "cut_samples": len(goal),
         "wrist_torque_nm": torque_stats | {
             "limit": limit,

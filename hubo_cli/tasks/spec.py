@@ -82,6 +82,7 @@ from hubo_cli.resources import data_dir
 from hubo_cli.scene import CuttingModel
 from hubo_cli.streams import open_nonblocking, reader_of
 from hubo_cli.tasks.toml_lines import field_line
+from hubo_cli.tasks.tool import tool_front_m
 
 if TYPE_CHECKING:
     from hubo_cli.model import RobotModel
@@ -717,15 +718,13 @@ class _Loader:
         The drill's bit cuts through the wall: past ``depth_max_mm`` its body would come
         nearer the wall face than the hand may yield along the bit under a thrust (the robot
         file's ``[impedance] max_offset_m``). The hand cuts nothing: its front
-        (:func:`~hubo_cli.urdf.hand_front_m` ahead of the hand point) stops on the face.
+        (:func:`~hubo_cli.tasks.tool.tool_front_m` ahead of the hand point) stops on the face.
         Planned past it, a position-only hand pushes the arm's stiffness into the wall (review
         21's 60 mm plunge latched the wrist-torque stop on contact); a hand pressing with a
         thrust meets the face wherever it is (force tracking carries it up to that same yield
         past its plan), and a plan past the face only spends the yield kept for a wall nearer
         than planned.
         """
-        from hubo_cli.urdf import hand_front_m
-
         model = self._model()
         yield_mm = 1000.0 * model.impedance_max_offset_m
         if self.tool == "drill":
@@ -739,7 +738,7 @@ class _Loader:
             tool, remedy = "the bit", (", or fit a longer bit (the robot file's "
                                        "[tools.drill] body_front_m)")
         else:
-            front_mm = 1000.0 * hand_front_m(model)
+            front_mm = 1000.0 * tool_front_m(self.tool, model)
             depth_max_mm = round(-front_mm, 6)
             why = (f"the hand's front, {front_mm:g} mm ahead of the hand point, meets the wall "
                    "face there; the hand cuts nothing")

@@ -58,6 +58,7 @@ from hubo_cli.control.phase import Phases
 from hubo_cli.control.reference_force import ReferenceForceUpdater
 from hubo_cli.control.target import Target
 from hubo_cli.control.wrench import (
+    ALONG_MIN,
     HAND_WRENCH_PLAN,
     force_at_point,
     measured_hand_wrench,
@@ -335,6 +336,11 @@ class TaskTarget(Target):
                           @ self.R_hand_sensor)
             along = float(R_S_sensor @ force_at_point(wrench, self.tool_point_S_m)
                           @ self.bit_S)
+            axis = float(R_S_sensor[:, 2] @ self.bit_S)  # the forearm's along the bit
+            if math.isnan(along) and axis * axis >= ALONG_MIN:
+                # a point on the sensor (the hand): its moments cannot place the force, so
+                # f_z alone, taken to lie along the bit (as the hand's force tracking takes it)
+                along = float(wrench[2]) / axis
         force_S = along * self.bit_S
         self.thrust_n = -along
         info["thrust_n"] = self.thrust_n
