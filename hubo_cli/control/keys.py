@@ -42,9 +42,3 @@ ARM_TARGET_VELOCITY = Key(
     "arrives at its target with this period (the goal's own or its prediction's, feed-forward; "
     "absent: zero); "
     "written by the teleoperation target, followed by otg (groups limbs)")
-ARM_PLANNED_VELOCITY = Key(
-    "arm_planned_velocity", dict,
-    "arm -> the velocity (rad/s, its joints) the trajectory generator's tracker of that arm "
-    "follows this period through ruckig's velocity interface instead of the position target "
-    "(the teleop target's whole-arm plan, hubo_cli.teleop.plan; absent: the position target); "
-    "written by the teleoperation target, followed by otg (groups limbs)")

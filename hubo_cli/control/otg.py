@@ -25,12 +25,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
-from hubo_cli.control.keys import (
-    ARM_PLANNED_VELOCITY,
-    ARM_SYNC,
-    ARM_TARGET_VELOCITY,
-    TRACKER_STATES,
-)
+from hubo_cli.control.keys import ARM_SYNC, ARM_TARGET_VELOCITY, TRACKER_STATES
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.dataflow import Store
 from hubo_cli.errors import ConfigError, quoted
@@ -178,8 +173,7 @@ class TrajectoryGenerator(Module):
                          for i in self._index]
         self._single = len(self.trackers) == 1
         if groups == "limbs":
-            self.writes = (TRACKER_STATES,)
-            self.follows = (ARM_SYNC, ARM_TARGET_VELOCITY, ARM_PLANNED_VELOCITY)
+            self.writes, self.follows = (TRACKER_STATES,), (ARM_SYNC, ARM_TARGET_VELOCITY)
         self._q = np.zeros(self.limits.size)
         self._fault = False
         self.errors = 0
@@ -218,23 +212,20 @@ class TrajectoryGenerator(Module):
             self._q[index] = tracker.brake()
         return self._q.copy()
 
-    def _track(self, target: np.ndarray, velocities: dict | None = None,
-               planned: dict | None = None) -> tuple[np.ndarray, bool]:
+    def _track(self, target: np.ndarray, velocities: dict | None = None
+               ) -> tuple[np.ndarray, bool]:
         """One period toward ``target`` (with ``velocities``: group -> the velocity that group
-        arrives with, rad/s; default zero; ``planned``: group -> the velocity that group
-        follows instead of its target); returns (sample, whether any group's ruckig
+        arrives with, rad/s; default zero); returns (sample, whether any group's ruckig
         failed)."""
         if self._single:
             tracker = self.trackers[0]
             return tracker.track(target), bool(tracker.error)
         failed = False
-        velocities, planned = velocities or {}, planned or {}
+        velocities = velocities or {}
         for name, index, tracker in zip(self.group_names, self._index, self.trackers,
                                         strict=True):
-            v_planned = planned.get(name)
-            self._q[index] = (  # a failing group brakes already
-                tracker.track(target[index], target_v_rad_s=velocities.get(name))
-                if v_planned is None else tracker.track_velocity(v_planned))
+            self._q[index] = tracker.track(target[index],  # a failing group brakes already
+                                           target_v_rad_s=velocities.get(name))
             failed = failed or bool(tracker.error)
         return self._q.copy(), failed
 
@@ -243,15 +234,14 @@ class TrajectoryGenerator(Module):
             return self._update(q_rad, cycle)
         for group, synchronization in (cycle.store.get(ARM_SYNC) or {}).items():
             self.synchronize(synchronization, groups=(group,))
-        q = self._update(q_rad, cycle, cycle.store.get(ARM_TARGET_VELOCITY),
-                         cycle.store.get(ARM_PLANNED_VELOCITY))
+        q = self._update(q_rad, cycle, cycle.store.get(ARM_TARGET_VELOCITY))
         cycle.store[TRACKER_STATES] = {
             name: TrackerState(t.limits, self.dt_s, t.q.copy(), t.v.copy(), t.a.copy())
             for name, t in zip(self.group_names, self.trackers, strict=True)}
         return q
 
-    def _update(self, q_rad: np.ndarray, cycle: Cycle, velocities: dict | None = None,
-                planned: dict | None = None) -> np.ndarray:
+    def _update(self, q_rad: np.ndarray, cycle: Cycle, velocities: dict | None = None
+                ) -> np.ndarray:
         stale = self.input.take(q_rad, cycle)
         cycle.info["otg_error_flag"] = 0.0
         if stale:
@@ -262,7 +252,7 @@ class TrajectoryGenerator(Module):
             if self.at_rest:
                 self._fault = False
             return q
-        q, failed = self._track(self.input.target, velocities, planned)
+        q, failed = self._track(self.input.target, velocities)
         if failed:
             self.errors += 1
             self._fault = True

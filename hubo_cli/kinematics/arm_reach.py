@@ -73,9 +73,6 @@ class ReachSettings:
             not reachable, so the hand slides along the band instead of tripping a collision
             hold (:class:`hubo_cli.teleop.room.CollisionRoom`; the default is the band and
             5 mm for the command's braking look-ahead).
-        whole_arm_plan: while the arm follows its goal freely, its joints follow a
-            receding-horizon plan of their accelerations through the trajectory generator's
-            velocity interface (:mod:`hubo_cli.teleop.plan`) instead of a position target.
     """
 
     mode: str = "nearest"
@@ -90,7 +87,6 @@ class ReachSettings:
     branch_move_fraction: float = 0.25
     singularity: SingularityScale = SingularityScale()
     collision_room_m: float = 0.015
-    whole_arm_plan: bool = False
 
     @classmethod
     def for_mode(cls, teleop_mode: str, **changes) -> ReachSettings:

@@ -238,30 +238,6 @@ class JointTracker:
         self.error = message
         return out
 
-    def track_velocity(self, target_v_rad_s: np.ndarray) -> np.ndarray:
-        """Advance one period toward the velocity ``target_v_rad_s`` (rad/s, clipped as
-        ``track`` clips a target velocity; ruckig's velocity interface, each joint on its own,
-        jerk and acceleration limited; no position target: the caller keeps the joints within
-        their position limits). Returns the new sample (rad); on a ruckig error it brakes."""
-        self._rest = None
-        inp = self._inp
-        if self._mode != "planned":
-            inp.control_interface = ControlInterface.Velocity
-            inp.synchronization = Synchronization.No
-            inp.target_acceleration = self._zeros
-            inp.minimum_duration = None
-            self._mode = "planned"
-        self._set_current()
-        inp.target_velocity = self._target_velocity(target_v_rad_s)
-        self._target_v_zero = False
-        if self._run():
-            self.error = ""
-            return self.q
-        message = self.error
-        out = self.brake()
-        self.error = message
-        return out
-
     def _target_velocity(self, target_v_rad_s: np.ndarray) -> np.ndarray:
         v = np.asarray(target_v_rad_s, dtype=float)
         if not all_finite(v):

@@ -60,12 +60,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hubo_cli.control.keys import (
-    ARM_PLANNED_VELOCITY,
-    ARM_SYNC,
-    ARM_TARGET_VELOCITY,
-    TRACKER_STATES,
-)
+from hubo_cli.control.keys import ARM_SYNC, ARM_TARGET_VELOCITY, TRACKER_STATES
 from hubo_cli.control.phase import Phases
 from hubo_cli.control.target import Target
 from hubo_cli.dataflow import Store
@@ -83,7 +78,6 @@ from hubo_cli.model import ARMS, RobotModel
 from hubo_cli.motion.limits import JointLimits
 from hubo_cli.motion.tracker import JointTracker
 from hubo_cli.scene import SceneActions, WallPlacement
-from hubo_cli.teleop import plan as arm_plan
 from hubo_cli.teleop.lead import DECAY_S, GoalVelocity, tracking_target
 from hubo_cli.teleop.mapping import HandMapper
 from hubo_cli.teleop.phases import PHASES, Approach, Operate, Settle
@@ -222,8 +216,8 @@ class TeleopTarget(Target):
     """
 
     reads = (QUAT_WORLD_TORSO, T_WORLD_TORSO, T_WORLD_SOLES)
-    writes = (ARM_SYNC, ARM_TARGET_VELOCITY, ARM_PLANNED_VELOCITY)  # each arm's
-    # synchronization, its goal's velocity and its plan's, for otg (groups limbs)
+    writes = (ARM_SYNC, ARM_TARGET_VELOCITY)  # each arm's synchronization and its goal's
+    # velocity, for otg (groups limbs)
     previous = (TRACKER_STATES,)  # otg's trackers after last period
 
     def __init__(self, model: RobotModel, source: InputDevice, mapper: HandMapper,
@@ -280,9 +274,6 @@ class TeleopTarget(Target):
         self._trackers: dict[str, JointTracker] | None = None
         self._goal_velocity: dict[str, GoalVelocity] = {}  # and the goals' velocities
         self._decay_s: dict[str, np.ndarray] = {}  # and DECAY_S per joint, for tracking_target
-        self._plans: dict[str, arm_plan.ArmPlan] = {}  # whole_arm_plan: each arm's plan
-        self._R_goal: dict[str, np.ndarray] = {}  # and its goal's unfiltered orientation in N
-        self.planned_periods: dict[str, int] = {}  # operating periods each arm was planned
         self._conditions: dict[str, tuple] = {}  # arm -> the last (joints' bytes, condition
         # number)s
         if self.reach_settings.mode == "nearest" and self.reach_settings.collision_room_m > 0:
@@ -436,30 +427,12 @@ class TeleopTarget(Target):
         if self._trackers is None:
             return
         states, synchronization, velocity = self.store[TRACKER_STATES], {}, {}
-        planned = {}
         for arm in self.arms:
             tracker, now = self._trackers[arm], states[arm]
             tracker.reset(now.q_rad, now.v_rad_s, now.a_rad_s2)
             target = self.q_out[self.slices[arm]]
             following = self._following(arm)
             v_goal = self._goal_velocity[arm].update(target, following)
-            plan, weight, v_plan = self._plans.get(arm), 0.0, None
-            if plan is not None:
-                hand = self.hands[arm]
-                lag_m = (0.0 if hand.goal_m is None or hand.actual_m is None
-                         else math.sqrt(((hand.goal_m - hand.actual_m)**2).sum()))
-                weight = arm_plan.plan_share(max_abs_difference(target, now.q_rad), lag_m) \
-                    if following and arm in self._R_goal else 0.0
-                if weight > 0.0:
-                    v_plan = plan.velocity(now.q_rad, now.v_rad_s, now.a_rad_s2, target,
-                                           v_goal, self._R_goal[arm])
-                    self.planned_periods[arm] = self.planned_periods.get(arm, 0) + 1
-                    if weight >= 1.0:
-                        planned[arm], velocity[arm] = v_plan, v_goal
-                        synchronization[arm] = OPERATE_SYNCHRONIZATION
-                        continue
-                else:
-                    plan.reset()
             hand = self.hands.get(arm)
             decay = self._decay_s[arm]  # DECAY_S; a returning hand far behind: the goal's own
             # decay (reach_lead)
@@ -486,14 +459,8 @@ class TeleopTarget(Target):
                     or self.swing_m(arm, tracker, target, velocity[arm]) > SWING_M):
                 sync = "phase"
             synchronization[arm] = sync
-            if v_plan is not None:  # handing over: the plan's velocity blended with the
-                # position interface's after this period
-                tracker.set_synchronization(sync)
-                tracker.track(target, target_v_rad_s=velocity[arm])
-                planned[arm] = weight * v_plan + (1.0 - weight) * tracker.v
         self.store[ARM_SYNC] = synchronization
         self.store[ARM_TARGET_VELOCITY] = velocity
-        self.store[ARM_PLANNED_VELOCITY] = planned
 
     def _traded_clear(self, arm: str, q_arm_rad: np.ndarray) -> bool:
         """The arm's traded target keeps the collision room (checked as the room checks the
@@ -566,11 +533,6 @@ class TeleopTarget(Target):
                                    for arm in self.arms}
             self._decay_s = {arm: np.full(states[arm].limits.size, DECAY_S)  # (read only)
                              for arm in self.arms}
-            if self.reach_settings.whole_arm_plan:
-                self._plans = {arm: arm_plan.ArmPlan(self._chains[arm],
-                                                     states[arm].limits.acceleration_rad_s2,
-                                                     states[arm].limits.jerk_rad_s3)
-                               for arm in self.arms}
         for arm, reach in self.reach.items():
             reach.start(self.q_target[self.slices[arm]])
 
@@ -688,7 +650,6 @@ class TeleopTarget(Target):
                                       and (self.room is None or arm not in self.room.moved))
             self._t_solved_s[arm] = t_s
             T_N_goal[2, 3] -= lift_m
-            self._R_goal[arm] = T_S_goal[:3, :3]  # the operator's orientation (N turns as S)
             solved[arm] = (reach, T_N_goal)
             q_arm = np.empty(6)
             code, position_error_m, rotation_error_rad = reach.solve_into(T_N_goal, q_now, q_arm)
