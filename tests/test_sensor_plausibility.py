@@ -1,4 +1,4 @@
-"""Sensors that lie without being NaN (review 17): the estimation layer's plausibility checks
+"""Sensors that lie, NaN included (reviews 17, 22): the estimation layer's plausibility checks
 (:mod:`hubo_cli.estimation.plausibility`) and the control loop's device fault on them."""
 
 from __future__ import annotations
@@ -638,3 +638,80 @@ def test_a_sole_under_the_other_through_an_attitude_off_the_legs_names_the_imu_n
         _estimate(_states(100, q_rad=_left_foot_lifted(0.05), ft=_on_the_right_foot(False),
                           imu_gyro_rad_s=gyro))
     assert info.value.exit_code == 3 and info.value.hint.startswith("the IMU reads wrong")
+
+
+NON_FINITE = {  # reading -> (field, change, the name the fault gives)
+    "knee encoder": ("q_rad", lambda s, x: _set(s.q_rad, MODEL.joint_names.index("RKN"), x),
+                     "RKN joint's encoder (position)"),
+    "hip velocity": ("dq_rad_s", lambda s, x: _set(s.dq_rad_s, MODEL.joint_names.index("LHP"),
+                                                    x), "LHP joint's encoder (velocity)"),
+    "quaternion": ("imu_quat_wxyz", lambda s, x: _set(s.imu_quat_wxyz, 0, x),
+                   "IMU's quaternion"),
+    "gyro": ("imu_gyro_rad_s", lambda s, x: _set(s.imu_gyro_rad_s, 1, x), "IMU's gyro"),
+    "accelerometer": ("imu_accel_m_s2", lambda s, x: _set(s.imu_accel_m_s2, 2, x),
+                      "IMU's accelerometer"),
+    "ankle": ("ft", lambda s, x: {**s.ft, "left-ankle": _set(s.ft["left-ankle"], 2, x)},
+              "left-ankle force-torque sensor"),
+    "wrist": ("ft", lambda s, x: {**s.ft, "right-wrist": _set(s.ft["right-wrist"], 4, x)},
+              "right-wrist force-torque sensor"),
+}
+
+
+def _set(values, k: int, x: float) -> np.ndarray:
+    out = np.array(values, dtype=float)
+    out[k] = x
+    return out
+
+
+@pytest.mark.parametrize("reading", list(NON_FINITE))
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_a_reading_that_is_not_a_number_is_refused_at_the_start_and_a_fault_at_once(reading,
+                                                                                      bad):
+    """Review 22: the simulated robot with a NaN ankle sensor, accelerometer, gyro, quaternion
+    or knee encoder stood to exit 0 (every bound compares false with NaN). Now refused at the
+    start (exit 4) and a fault the first period later (exit 3), naming the reading."""
+    field, change, name = NON_FINITE[reading]
+
+    def from_k(k0):
+        return {field: lambda k, s: change(s, bad) if k >= k0 else getattr(s, field)}
+
+    with pytest.raises(SensorFault, match=re.escape(f"the {name} read {bad} at the start: "
+                                                    "refused")) as info:
+        _estimate(_states(2, **from_k(0)))
+    assert info.value.exit_code == 4
+    with pytest.raises(SensorFault, match=re.escape(f"the {name} read {bad} at t = 0.050 s")) \
+            as info:
+        _estimate(_states(20, **from_k(10)))
+    assert info.value.exit_code == 3
+    assert _estimate(_states(20, **from_k(20))) == 20  # finite until then: no fault
+
+
+class NanKnee(MeasuredIdeal):
+    """The measured ideal robot whose right knee encoder reads NaN from 0.05 s."""
+
+    def step(self):
+        state = super().step()
+        if state.time_s < 0.05 - 1e-9:
+            return state
+        return dataclasses.replace(state, q_rad=_set(state.q_rad,
+                                                      MODEL.joint_names.index("RKN"), np.nan))
+
+
+def test_a_nan_encoder_ends_the_run_as_a_device_fault_with_every_command_finite():
+    """In the control loop: the NaN knee encoder's period ends the run (exit 3), braked, and
+    no command sent to the robot has a NaN."""
+    sent = []
+
+    class Recording(NanKnee):
+        def send(self, q_cmd):
+            sent.append(np.array(q_cmd, dtype=float))
+            return super().send(q_cmd)
+
+    loop = ControlLoop(Recording(MODEL), [], lambda t_s, state: (None, {}),
+                       estimator=build_estimator(MODEL, sensors_measured=True))
+    loop.driver.start()
+    result = loop.run(0.5)
+    assert result.ended == "device" and isinstance(result.exception, SensorFault)
+    assert "RKN joint's encoder (position) read nan at t = 0.050 s" in result.error
+    assert result.exception.exit_code == 3 and result.t_end_s < 0.05  # its period not run
+    assert sent and all(np.isfinite(q).all() for q in sent)

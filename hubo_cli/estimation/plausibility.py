@@ -1,19 +1,21 @@
-"""Sensors that lie without being NaN: the one observer of the plausibility checks on the
+"""Sensors that lie (NaN included): the one observer of the plausibility checks on the
 readings (each check its own module in :mod:`hubo_cli.estimation.sensor_checks`, with its
 bounds and the healthy runs they were measured on, docs/history/safety.md rounds 17-20).
 
 A sensor can fail and keep reporting finite numbers: an IMU whose values stop changing, force
 sensors that read far more than the robot weighs, a wrist sensor that reads flat (a dead
-channel reads 0 to the last bit) while its arm moves. The controllers
-act on these readings, so each is a device fault (:class:`SensorFault`, exit 3): the control
-loop stops as it does after Ctrl-C (a walk finishes its step into a double-support stance, any
-other run brakes to rest), and a sensor already dead at the start refuses the run before
+channel reads 0 to the last bit) while its arm moves; or report NaN, which every bound lets
+through (a comparison with NaN is false). The controllers act on these readings, so each is a
+device fault (:class:`SensorFault`, exit 3): the control loop stops as it does after Ctrl-C (a
+walk finishes its step into a double-support stance, any other run brakes to rest), and a
+sensor already dead at the start refuses the run before
 anything moves (:class:`SensorRefusal`, exit 4, as the other refusals with nothing moved).
 
 Checks, in the order they judge a period:
 
-- every period (a repeated state weighs the same): the soles' load over the robot's weight
-  (:mod:`~hubo_cli.estimation.sensor_checks.soles_overload`), the ankle sensors wired wrong
+- every period (a repeated state weighs the same): a reading that is not a finite number
+  (:mod:`~hubo_cli.estimation.sensor_checks.non_finite`), the soles' load over the robot's
+  weight (:mod:`~hubo_cli.estimation.sensor_checks.soles_overload`), the ankle sensors wired wrong
   (:mod:`~hubo_cli.estimation.sensor_checks.ankle_wiring`), the wrists' mean load over the
   first periods (:mod:`~hubo_cli.estimation.sensor_checks.wrists`);
 - over fresh states only (a state whose time advances: the hardware driver repeats the last
@@ -24,9 +26,9 @@ Checks, in the order they judge a period:
   vertical against the legs' while standing still
   (:mod:`~hubo_cli.estimation.sensor_checks.imu_tilt`), a wrist sensor flat while its arm
   moves;
-- at the start, before the first period (refused): a wrist sensor reading exactly 0, an ankle
-  sensor or the accelerometer reading exactly 0, the IMU's vertical against the legs', the
-  ankle sensors wired wrong.
+- at the start, before the first period (refused): a reading that is not a finite number, a
+  wrist sensor reading exactly 0, an ankle sensor or the accelerometer reading exactly 0, the
+  IMU's vertical against the legs', the ankle sensors wired wrong.
 
 Not a check: an estimated fall while the soles still carry the robot. A real fall does that (the
 push-wall robot tipping over its toes read 291 N of 380 N at 30 deg); a joint encoder that lies
@@ -62,6 +64,7 @@ from hubo_cli.estimation.sensor_checks.dead_channels import DeadChannels
 from hubo_cli.estimation.sensor_checks.faults import SensorFault, SensorRefusal
 from hubo_cli.estimation.sensor_checks.imu_frozen import FrozenImu
 from hubo_cli.estimation.sensor_checks.imu_tilt import ImuTilt
+from hubo_cli.estimation.sensor_checks.non_finite import check_finite
 from hubo_cli.estimation.sensor_checks.soles_overload import SolesOverload
 from hubo_cli.estimation.sensor_checks.wrists import WristChecks
 from hubo_cli.model import RobotModel
@@ -114,6 +117,7 @@ class SensorPlausibility(Observer):
         if not self.measured:
             return
         try:
+            check_finite(state, self.model.joint_names, start=True)
             self._wrists.start(state)
             self._dead.update(state, start=True)
             self._tilt.start(state, store)
@@ -133,6 +137,7 @@ class SensorPlausibility(Observer):
             raise
 
     def _judge(self, state: RobotState, store: Store) -> None:
+        check_finite(state, self.model.joint_names)
         self._soles.update(state)
         self._wiring.update(state, store)
         self._wrists.update_start(state, store)

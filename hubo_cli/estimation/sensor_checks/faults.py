@@ -7,7 +7,7 @@ from hubo_cli.errors import DeviceError
 
 
 class SensorFault(DeviceError):
-    """A sensor reads finite values no working sensor reads (see
+    """A sensor reads values no working sensor reads (see
     :mod:`hubo_cli.estimation.plausibility`)."""
 
     def __init__(self, message: str, hint: str = "") -> None:
