@@ -60,8 +60,8 @@ def row(**changes) -> dict:
     ({}, tool.STANDING),
     ({"fell": True, "stood": False, "both_feet_down": False}, tool.FELL),
     ({"stopped_s": None}, tool.WALKED_ON),
+    ({"held": False}, tool.STANDING),  # the walk stopped itself (2 m walk, pushed seed 4)
     ({"both_feet_down": False}, tool.STOPPED_OTHER),
-    ({"held": False}, tool.STOPPED_OTHER),
     ({"stood": False}, tool.STOPPED_OTHER),
 ])
 def test_a_runs_outcome(changes, outcome):

@@ -68,13 +68,14 @@ def draw(model, seed: int, distance_m: float, directions: list[str],
 
 def outcome_of(row: dict) -> str:
     """A run's outcome: fell; stopped and standing in double support (stood, both feet down
-    over its last 0.5 s, the soft stopper holding); walked on (never stopped); or stopped
-    otherwise (a sole still lifting at the end, or the stop not holding)."""
+    over its last 0.5 s; the soft stopper holds unless the walk stopped itself, as after a
+    landing that bounced: ``held`` is the row's own field); walked on (never stopped); or
+    stopped otherwise (a sole still lifting at the end, or a stop that did not stand)."""
     if row["fell"]:
         return FELL
     if row["stopped_s"] is None:
         return WALKED_ON
-    if row["stood"] and row["both_feet_down"] and row["held"]:
+    if row["stood"] and row["both_feet_down"]:
         return STANDING
     return STOPPED_OTHER
 
