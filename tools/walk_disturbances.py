@@ -2,17 +2,19 @@
 
     python tools/walk_disturbances.py stop --seeds 1-20 [--source operator|capture-point]
     python tools/walk_disturbances.py push --seeds 1-20 --force 100 --directions left,right,backward
+    python tools/walk_disturbances.py push --seeds 1-20 --distance 2.0 --table
 
 Each seed draws a moment uniformly over the walk's steps (from the first step's lift-off to the
 last one's landing) and, for pushes, a direction from ``--directions``; the walk
-(``hubo walk --to DISTANCE 0 0`` through the full pipeline) then runs with the operator's stop
-(``stop``), with a 0.2 s push on the torso (``push``), or, ``stop --source capture-point``, with
-a push of ``--force`` (default 100 N) left to the capture-point monitor to stop it: the same
-runs as ``push`` with the same seeds and directions.
+(``hubo walk --to DISTANCE 0 0 [--gait GAIT]`` through the full pipeline) then runs with the
+operator's stop (``stop``), with a 0.2 s push on the torso (``push``), or, ``stop --source
+capture-point``, with a push of ``--force`` (default 100 N) left to the capture-point monitor to
+stop it: the same runs as ``push`` with the same seeds and directions.
 One JSON line per run (seed, moment, the walk's phase at it, direction, fell, stopped, stood,
 both feet down over the run's last 0.5 s, the soft stopper holding at the end, footstep changes,
 e-stop events, max tilt, the torso's true tilt in the run's last period and its largest over
-the last 0.5 s), then a summary line.
+the last 0.5 s, the outcome), then a summary line; ``--table`` then prints the runs as a
+Markdown table (seed, moment, outcome, largest tilt).
 Run folders go under ``--out``.
 """
 
@@ -31,7 +33,14 @@ from hubo_cli.control.log import load_log
 from hubo_cli.experiments.standing import PUSH_DIRECTIONS
 from hubo_cli.experiments.walk import Disturbance, walk
 from hubo_cli.model import load_model
-from hubo_cli.walking.params import walking_params
+from hubo_cli.walking.footsteps import Stance, step_count
+from hubo_cli.walking.params import DEFAULT_GAIT, walking_params
+
+# a run's outcome (:func:`outcome_of`)
+STANDING = "standing in double support"
+FELL = "fell"
+WALKED_ON = "walked on"
+STOPPED_OTHER = "stopped other"
 
 
 def seeds_of(text: str) -> list[int]:
@@ -42,17 +51,47 @@ def seeds_of(text: str) -> list[int]:
     return [int(v) for v in text.split(",")]
 
 
-def draw(model, seed: int, distance_m: float, directions: list[str]) -> tuple[float, str]:
+def draw(model, seed: int, distance_m: float, directions: list[str],
+         gait: str = DEFAULT_GAIT) -> tuple[float, str]:
     """Seed ``seed``'s moment (loop time, s), uniform over the steps of a walk of
-    ``distance_m`` (as plan_footsteps gives them: from the first lift-off, after start_s and
-    one double support, to the last landing), and its push direction from ``directions``."""
-    params = walking_params(load_model(model.params_name, "walking"))
-    n_steps = 2 * int(np.ceil(distance_m / params.max_step_forward_m / 2 + 0.5))
+    ``distance_m`` in ``gait`` (as plan_footsteps counts them: from the first lift-off, after
+    start_s and one double support, to the last landing), and its push direction from
+    ``directions``."""
+    params = walking_params(model.with_limits("walking"), gait)
+    n_steps = step_count(Stance(0.0, 0.0, 0.0), Stance(distance_m, 0.0, 0.0), params)
     first_s = params.start_s + params.double_support_s
     last_s = first_s + n_steps * params.step_s - params.double_support_s
     rng = np.random.default_rng(seed)
     at_s = float(rng.uniform(first_s, last_s))
     return at_s, directions[int(rng.integers(len(directions)))]
+
+
+def outcome_of(row: dict) -> str:
+    """A run's outcome: fell; stopped and standing in double support (stood, both feet down
+    over its last 0.5 s; the soft stopper holds unless the walk stopped itself, as after a
+    landing that bounced: ``held`` is the row's own field); walked on (never stopped); or
+    stopped otherwise (a sole still lifting at the end, or a stop that did not stand)."""
+    if row["fell"]:
+        return FELL
+    if row["stopped_s"] is None:
+        return WALKED_ON
+    if row["stood"] and row["both_feet_down"]:
+        return STANDING
+    return STOPPED_OTHER
+
+
+def table(rows: list[dict]) -> str:
+    """The runs as a Markdown table: seed, moment, the walk's phase then, the push's
+    direction, outcome, stop time, largest tilt and the largest over the last 0.5 s (deg)."""
+    lines = ["| seed | moment (s) | walk at the moment | push | outcome | stopped at (s) "
+             "| largest tilt (deg) | over the last 0.5 s (deg) |",
+             "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        stopped = "-" if r["stopped_s"] is None else f"{r['stopped_s']:.3f}"
+        lines.append(f"| {r['seed']} | {r['at_s']:.3f} | {r['phase']} | {r['direction'] or '-'} "
+                     f"| {r['outcome']} | {stopped} | {r['max_torso_tilt_deg']:.1f} "
+                     f"| {r['end_max_tilt_deg']:.2f} |")
+    return "\n".join(lines)
 
 
 def phase_at(log, at_s: float) -> str:
@@ -78,19 +117,22 @@ def main() -> int:
     parser.add_argument("--directions", default="left,right,backward",
                         help="push directions drawn from (forward, backward, left, right)")
     parser.add_argument("--source", choices=("operator", "capture-point"), default="operator")
+    parser.add_argument("--gait", default=DEFAULT_GAIT, help="the robot file's gait")
+    parser.add_argument("--table", action="store_true",
+                        help="print the runs as a Markdown table at the end")
     parser.add_argument("--out", default="/tmp/walk_disturbances")
     args = parser.parse_args()
     model = load_model()
     directions = args.directions.split(",")
     results = []
     for seed in seeds_of(args.seeds):
-        at_s, direction = draw(model, seed, args.distance, directions)
+        at_s, direction = draw(model, seed, args.distance, directions, args.gait)
         if args.kind == "stop" and args.source == "operator":
             events = [Disturbance(at_s, stop=True)]
         else:
             events = [Disturbance(at_s, args.force, PUSH_DIRECTIONS[direction])]
         result = walk(model, (args.distance, 0.0, 0.0), out=Path(args.out) / f"{args.kind}-{seed}",
-                      disturbances=events)
+                      disturbances=events, gait=args.gait)
         summary = json.loads((result.run_dir / "summary.json").read_text())
         log = load_log(result.run_dir / "log.parquet")
         mode = np.asarray(log["estop_mode_code"], dtype=float)
@@ -112,12 +154,18 @@ def main() -> int:
                "final_tilt_deg": round(float(end_tilt_deg[-1]), 2),
                "end_max_tilt_deg": round(float(end_tilt_deg.max()), 2),
                "final_error_mm": result.final_error_mm}
+        row["outcome"] = outcome_of(row)
         results.append(row)
         print(json.dumps(row), flush=True)
     falls = sum(r["fell"] for r in results)
     print(json.dumps({"kind": args.kind, "source": args.source, "force_n": args.force,
+                      "distance_m": args.distance, "gait": args.gait,
                       "runs": len(results), "falls": falls,
-                      "stood": sum(bool(r["stood"]) for r in results)}), flush=True)
+                      "stood": sum(bool(r["stood"]) for r in results),
+                      "standing_in_double_support": sum(r["outcome"] == STANDING
+                                                        for r in results)}), flush=True)
+    if args.table:
+        print(table(results), flush=True)
     return 0
 
 

@@ -579,6 +579,8 @@ class WalkTarget(Target):
         self._landing_made = False  # ... that long: made (no more waits)
         self._pushed_down = False  # the swing ending was pushed onto the floor early
         self._landing_pushed_down = False  # ... the last landing was: watched till lift-off
+        self._put_down = False  # a swing abandoned: its foot put down from the air
+        self._landing_put_down = False  # ... the last landing was: it never waits
         xs, ys = self.corners[:, 0], self.corners[:, 1]
         box = (float(xs.min()), float(xs.max()), float(ys.min()), float(ys.max()))
         if stabilizer is not None:
@@ -1052,6 +1054,7 @@ class WalkTarget(Target):
                                self.model.feet.width_m, self.params.step_width_m)
         here = Footstep(side, here.x_m, here.y_m, yaw)
 
+        self._put_down = True  # (till its landing is played: _unloaded_landing)
         self._move_landing(step, here, base, t_s, skip=self._landing[k] - k)
         return True
 
@@ -1435,7 +1438,12 @@ class WalkTarget(Target):
         0.1 s, then the other one, trailing and lengthened by the pattern's weight transfer,
         struck the floor and the robot hopped off both soles; played on, the transfer went on
         in the air, the next lift-off came 20 ms after the body came down, rolling over the
-        landed sole's outer edge, and it fell (docs/history/walking.md, round 15)."""
+        landed sole's outer edge, and it fell (docs/history/walking.md, round 15). The
+        landing of a swing abandoned in the air (:meth:`_abandoned`) never waits: its foot has
+        not reached the floor, and the timeline held at that landing's first row held the foot
+        in the air while the body tipped back over the stance heel (the 2 m walk's seed 1 of
+        tools/walk_disturbances.py, pushed from the front 36 ms after a lift-off, fell;
+        docs/history/walking.md, round 22)."""
         if not self.landing_wait or not all(self._rows["support"][k]):
             self._landed = None  # (a single support: the landing is past)
             return False
@@ -1447,8 +1455,10 @@ class WalkTarget(Target):
             self._landed = 0 if not played[0] else 1
             self._landing_waited_s = self._landing_carried_s = 0.0
             self._landing_made, self._landing_pushed_down = False, self._pushed_down
-            self._pushed_down = False
-        if self._landed is None or self._landing_waited_s >= LANDING_WAIT_MAX_S:
+            self._landing_put_down = self._put_down
+            self._pushed_down = self._put_down = False
+        if self._landed is None or self._landing_waited_s >= LANDING_WAIT_MAX_S \
+                or self._landing_put_down:
             return False
         if not soles_fz_n[self._landed] < self.model.estimation.swing_touchdown_n:
             self._landing_carried_s += self.gait.period_s
