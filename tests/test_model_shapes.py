@@ -123,6 +123,29 @@ def test_a_hardware_guard_in_words_is_the_files_error_not_a_traceback(tmp_path):
         guard_parameters(bad)
 
 
+@pytest.mark.parametrize("key", ["servo_error_limit_rad", "servo_error_window_periods",
+                                 "sole_force_max_n", "sole_force_window_periods",
+                                 "sole_unloaded_grace_s", "motor_max_temperature_c"])
+def test_a_hardware_guard_beyond_any_hubo_is_refused(tmp_path, key):
+    """Review 22 left the guards' values unbounded: a sole force limit of 1e9 N, a servo error
+    of 100 rad or a motor limit of 1e6 C loaded, each a guard switched off in all but name.
+    Each is now refused at its ceiling's first step beyond (GUARD_MAX), naming its field; the
+    shipped values and the ceilings themselves load."""
+    from hubo_cli.drivers.servo_guard import GUARD_MAX, guard_parameters
+
+    most = GUARD_MAX[key]
+    def guards(value, folder):
+        (tmp_path / folder).mkdir()
+        return guard_parameters(load_model(path=robot_file_with(
+            MODEL, tmp_path / folder, "hardware_guards", key, repr(value))))
+
+    assert guards(most, "at")[key] == most
+    with pytest.raises(ConfigError, match="no guard on Hubo") as info:
+        guards(most * 1.01 if isinstance(most, float) else most + 1, "beyond")
+    assert info.value.field == f"hardware_guards.{key}"
+    assert guard_parameters(MODEL)[key] <= most  # the shipped file
+
+
 @pytest.mark.parametrize("case", sorted(SHIPPED_LINES))
 def test_robot_file_limits_and_joints_that_cannot_be_the_robots_are_refused(tmp_path, case):
     """A NaN or infinite joint limit was no limit (NaN compares false: the lower <= upper check

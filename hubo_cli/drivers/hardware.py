@@ -84,6 +84,7 @@ from hubo_cli.drivers.hubo_ach_io import (
     StateSource,
 )
 from hubo_cli.drivers.servo_guard import (
+    GUARD_MAX,
     ServoErrorGuard,
     SoleForceGuard,
     ThermalLimiter,
@@ -250,8 +251,10 @@ class HardwareDriver(Driver):
                                      float(stale_grace_s), clock or self._source_clock_s)
         guards = guard_parameters(model)
         if servo_error_limit_rad is not None:
-            if not servo_error_limit_rad > 0:
-                raise ConfigError(f"servo_error_limit_rad {servo_error_limit_rad} must be > 0")
+            most = GUARD_MAX["servo_error_limit_rad"]
+            if not 0 < servo_error_limit_rad <= most:
+                raise ConfigError(f"servo_error_limit_rad {servo_error_limit_rad} must be > 0 "
+                                  f"and at most {most:g}")
             guards["servo_error_limit_rad"] = float(servo_error_limit_rad)
         self.servo_guard = ServoErrorGuard(self.joint_names, self.ach_index,
                                            guards["servo_error_limit_rad"],
