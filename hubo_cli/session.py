@@ -22,8 +22,7 @@ same way for all of them:
 from __future__ import annotations
 
 import contextlib
-import gc
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -189,24 +188,6 @@ class RunResult:
         self.summary.update(fields)
         write_json(self.run_dir / SUMMARY_NAME, self.summary)
         return self.summary
-
-
-@contextlib.contextmanager
-def settled_objects() -> Iterator[None]:
-    """Keep the objects that exist now (imported libraries, models, the plan: over 100,000)
-    out of the garbage collector's full scans until the block ends (``gc.freeze``). A run
-    makes few long-lived objects, but reading its log back and drawing its plots make many
-    small ones, and each full scan those set off went through every settled object again
-    (about 0.1 s each). Nothing is kept longer: objects still go when their last reference
-    does, and the frozen ones return to the collector afterwards. Nested blocks freeze once."""
-    if gc.get_freeze_count():
-        yield
-        return
-    gc.freeze()
-    try:
-        yield
-    finally:
-        gc.unfreeze()
 
 
 def run(setup: RunSetup, target: Target,

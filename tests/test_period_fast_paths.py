@@ -11,11 +11,11 @@ import numpy as np
 
 from hubo_cli.control.balance import FEET, _follow_offsets
 from hubo_cli.control.log import PeriodLog, load_log, pose_columns, rotation_from_rpy
+from hubo_cli.control.settled import settled_objects
 from hubo_cli.geometry import rpy_to_matrix
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import load_model
 from hubo_cli.posture import home_posture
-from hubo_cli.session import settled_objects
 from hubo_cli.state import RobotState, Truth
 
 
@@ -94,4 +94,26 @@ def test_settled_objects_undoes_its_freeze():
         with settled_objects():  # nested: frozen once
             inner = gc.get_freeze_count()
         assert gc.get_freeze_count() == inner
+    assert gc.get_freeze_count() == before
+
+
+def test_the_control_loop_runs_with_the_settled_objects_frozen():
+    """A full collection scanning the process's settled objects stalled a walk's period for
+    38-43 ms (eight periods without a command; round 23): every control loop now runs with
+    the objects that existed before it frozen, and gives them back to the collector after."""
+    from hubo_cli.control.loop import ControlLoop
+    from hubo_cli.drivers.ideal import IdealDriver
+
+    model = load_model()
+    frozen = []
+
+    def target(t_s, state):
+        frozen.append(gc.get_freeze_count())
+        return None, {}
+
+    before = gc.get_freeze_count()
+    loop = ControlLoop(IdealDriver(model), [], target)
+    loop.driver.start()
+    assert loop.run(0.05).ended == "finished"
+    assert frozen and min(frozen) > before
     assert gc.get_freeze_count() == before

@@ -67,6 +67,7 @@ from hubo_cli.control.log import LOG_NAME, PeriodLog
 from hubo_cli.control.module import Cycle, Module
 from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.phase import PHASE_STOP, PhaseStop
+from hubo_cli.control.settled import settled_objects
 from hubo_cli.control.status import Status, status_from_flags
 from hubo_cli.control.stop_choice import STOP_SOURCE
 from hubo_cli.control.target import Target, TargetOutput, as_target
@@ -410,7 +411,8 @@ class ControlLoop:
         """
         handlers = loop_taking()  # the first interrupt is noted, acted on between periods
         try:
-            return self._run(duration_s, handlers)
+            with settled_objects():  # no full collection's scan of them stalls a period
+                return self._run(duration_s, handlers)
         finally:
             loop_given_back(handlers)
 

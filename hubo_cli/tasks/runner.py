@@ -25,13 +25,14 @@ from hubo_cli.control.estop import RELIEVE_SOURCES
 from hubo_cli.control.loop import LoopResult
 from hubo_cli.control.operator import OperatorKeys
 from hubo_cli.control.pipeline import SafetyProfile
+from hubo_cli.control.settled import settled_objects
 from hubo_cli.control.stop_choice import STOP_SOURCE, ActiveStops
 from hubo_cli.errors import InputError, SafetyError, quoted
 from hubo_cli.interrupts import run_files
 from hubo_cli.model import RobotModel, load_model
 from hubo_cli.posture import home_posture
 from hubo_cli.runs import shown_name
-from hubo_cli.session import RunObserver, RunResult, RunSetup, run, settled_objects
+from hubo_cli.session import RunObserver, RunResult, RunSetup, run
 from hubo_cli.tasks.cut_lag import LAG_LIMIT_RMS_MM
 from hubo_cli.tasks.phases import SETTLE_TIMEOUT_S
 from hubo_cli.tasks.plan import EDGE_NAMES, Plan, make_plan
