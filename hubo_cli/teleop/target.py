@@ -335,7 +335,7 @@ class TeleopTarget(Target):
         operator_pose_plausible(_EYE4, 1.0)
         tilt_rad(np.array([1.0, 0.0, 0.0, 0.0]))
         max_abs_difference(zeros, zeros)
-        free_goal(_EYE4, _EYE4, _EYE4, _EYE4, 1.0, 1.0, np.empty((4, 4)))
+        free_goal(_EYE4, _EYE4, _EYE4, _EYE4, 1.0, 1.0, 0.5, np.empty((4, 4)))
         pose_error(_EYE4, _EYE4)  # a moved arm's clear pose
         invert4(_EYE4, np.empty((4, 4)))  # the measured torso's stance, placed once
         mul4(_EYE4, _EYE4, np.empty((4, 4)))  # the legs' goals (WholeBody.legs_at)
