@@ -59,9 +59,9 @@ class MappingConfig:
         max_turn_rad: free mode: a sample that turns the goal further than this from the
             previous goal's orientation is implausible too, and ignored. 60 deg between two
             poses of one station: a hand turning 3,600 deg/s at the FASTRAK's 60 Hz a station
-            (two stations), still 480 deg/s for a tracker sending 8 a second; the shipped recordings
-            turn at most 0.38 deg between poses (23 deg/s), the generated streams under 40
-            deg/s (review 23: a station turned 180 deg in one record and kept so was followed,
+            (two stations), still 480 deg/s for a tracker sending 8 a second; the shipped
+            recordings turn at most 0.38 deg between poses (23 deg/s), the generated streams
+            0.46 deg (review 23: a station turned 180 deg in one record and kept so was followed,
             the wrist turning as fast as its limits let it, exit 0 without a word).
         wall_speed_m_s: drill mode: the goal's largest speed across the wall (by the samples'
             times). The cardboard drags the bit across (80 N s/m and 0.5 N in the default
