@@ -372,3 +372,22 @@ def test_a_unit_that_answers_but_sends_no_valid_record_is_lost(fault):
     finally:
         src.close()
         emu.close()
+
+
+def test_a_unit_without_an_active_station_is_named_with_a_hint_the_command_has(monkeypatch):
+    """Review 23: `hubo teleop --port` on a unit reporting no active station said "enable one
+    with --stations 1", an option teleop does not have (`hubo record` has it)."""
+    def no_station(self, command):
+        if command[:1] == b"l" and b"," not in command:
+            return b"21l0000\r\n"
+        return EmulatedFastrak._terminated(self, command)
+
+    monkeypatch.setattr(EmulatedFastrak, "_terminated", no_station, raising=True)
+    emu = make_emulator(stations=1).start()
+    try:
+        with pytest.raises(DeviceError, match="reports no active station") as info:
+            open_source(port=emu.port_name, **FAST)
+        assert "hubo record --stations 1" in info.value.hint
+        assert "or enable one with --stations" not in info.value.hint
+    finally:
+        emu.close()

@@ -270,8 +270,9 @@ class FastrakReader(PoseSource):
             stations = tuple(sorted(active))
         if not stations:
             raise DeviceError(f"the FASTRAK on {self.port} reports no active station",
-                              hint="plug a receiver into station 1, or enable one with "
-                                   "--stations 1")
+                              hint="plug a receiver into station 1 (a unit saved with its "
+                                   "stations switched off: `hubo record --stations 1` enables "
+                                   "one; teleop takes the active ones)")
         if self.stations and stations != self.stations:
             raise DeviceError(f"after reconnecting, {self.port} reports stations "
                               f"{list(stations)} instead of {list(self.stations)}",
