@@ -349,3 +349,24 @@ def test_the_emulator_refuses_a_recording_no_tracker_could_send(tmp_path):
                                          r"FASTRAK's 3 m; 1 of the 120 rows"):
         RecordedMotion.from_file(path)
     assert RecordedMotion.from_file(_timed_pose_log(tmp_path / "ok.csv", ROWS)).stations == (1,)
+
+
+@pytest.mark.parametrize("separator", ["\u2028", "\x0c", "\x85", "\x1e"])
+def test_a_comment_line_stays_a_comment_whatever_unicode_it_holds(tmp_path, separator):
+    """Review 23: lines were split with str.splitlines, which also ends a line at a form feed,
+    U+0085, U+2028 and others: the rest of a comment line after one was read as a pose row
+    (here a pose 0.5 m off among the sample's) and later lines were numbered unlike an
+    editor's. Now only CR LF, LF and CR end a line."""
+    lines = data_file("trajectories", "two-hand-free.csv").read_text().splitlines()[:41]
+    far = lines[20].split(",")
+    far[2] = f"{float(far[2]) + 0.5:.6f}"
+    text = "\n".join(lines[:20] + ["# a note" + separator + ",".join(far)] + lines[20:]) + "\n"
+    path = tmp_path / "comment.csv"
+    path.write_text(text, encoding="utf-8")
+    batch = read_pose_log(path)
+    assert len(batch) == 40
+    assert np.abs(batch.position_m[:, 0]).max() < 0.4
+    bad = text.replace(lines[30], lines[30].replace(",", ";", 1))
+    path.write_text(bad, encoding="utf-8")
+    with pytest.raises(InputError, match="line 32: "):  # the editor's line: header 1, rows 2-
+        read_pose_log(path)

@@ -326,3 +326,68 @@ def test_capture_write_failure_is_reported(tmp_path, monkeypatch):
         src.close()
     finally:
         emu.close()
+
+
+def test_a_live_tracker_without_a_mapped_station_is_refused():
+    """Review 23: a tracker with a receiver at station 1 only, under the default map (station 2
+    drives the left arm), ran with the left arm never moving and exit 0 without a word; a
+    recording without a mapped station is refused. Now refused before anything moves, the
+    port closed."""
+    from hubo_cli.input.fastrak import FastrakInput
+
+    emu = make_emulator(stations=1).start()
+    try:
+        src = open_source(port=emu.port_name, **FAST)
+        with pytest.raises(DeviceError, match="no receiver at station 2") as info:
+            FastrakInput(src)
+        assert "--map 1=left-arm" in info.value.hint and "left-arm" in str(info.value)
+        assert not src.alive
+        with open_source(port=emu.port_name, **FAST) as again:
+            assert FastrakInput(again, {1: "right-arm"}).hands == ("right",)
+    finally:
+        emu.close()
+
+
+@pytest.mark.parametrize("fault", ["no-records", "noise-only"])
+def test_a_unit_that_answers_but_sends_no_valid_record_is_lost(fault):
+    """Review 23: a unit that answers its commands but streams nothing was "reconnected" after
+    each silence (the probe answered) and one that streams only noise never counted as
+    silent: the hands held for good and a run never ended (exit 0 at its duration). Now a
+    reconnection counts once a record came, and garbage alone is silence: after the reconnect
+    timeout the reader's DeviceError ends the run (exit 3)."""
+    emu = make_emulator(stations=1).start()
+    src = open_source(port=emu.port_name, silence_timeout_s=0.2, reconnect_timeout_s=0.4,
+                      probe_timeout_s=0.2, first_record_timeout_s=0.2, **FAST)
+    try:
+        assert collect(src, 3)
+        noise = bytes(range(256)).replace(b"0", b"")  # no record header can start in it
+        emu.device.next_record = (lambda t_s: b"") if fault == "no-records" else (
+            lambda t_s: noise[:40])
+        with pytest.raises(DeviceError, match="reconnecting failed") as info:
+            deadline = time.monotonic() + DEADLINE_S
+            while time.monotonic() < deadline:
+                src.read_until(0.0)
+                time.sleep(0.01)
+        assert "no valid record" in str(info.value) and src.stats.reconnects == 0
+    finally:
+        src.close()
+        emu.close()
+
+
+def test_a_unit_without_an_active_station_is_named_with_a_hint_the_command_has(monkeypatch):
+    """Review 23: `hubo teleop --port` on a unit reporting no active station said "enable one
+    with --stations 1", an option teleop does not have (`hubo record` has it)."""
+    def no_station(self, command):
+        if command[:1] == b"l" and b"," not in command:
+            return b"21l0000\r\n"
+        return EmulatedFastrak._terminated(self, command)
+
+    monkeypatch.setattr(EmulatedFastrak, "_terminated", no_station, raising=True)
+    emu = make_emulator(stations=1).start()
+    try:
+        with pytest.raises(DeviceError, match="reports no active station") as info:
+            open_source(port=emu.port_name, **FAST)
+        assert "hubo record --stations 1" in info.value.hint
+        assert "or enable one with --stations" not in info.value.hint
+    finally:
+        emu.close()

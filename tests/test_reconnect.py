@@ -98,14 +98,17 @@ def test_hands_hold_after_input_loss_until_the_operator_recentres(model):
 
 
 def _close_once_running(emu, run_dir) -> threading.Thread:
-    """Close the emulator (for good) once the run's loop stores its log and the tracker has
-    streamed 1 s of records: the tracker goes away during the run, however slow the start."""
+    """Close the emulator (for good) once the run's loop stores its log, the tracker has
+    streamed 1 s of records and the operator has taken over (the approach lasts 2.1 s; the
+    poses queued before the take-over are not followed): the tracker goes away while the
+    hands follow it, however slow the start."""
 
     def close() -> None:
         deadline = time.monotonic() + 2 * DEADLINE_S
         while time.monotonic() < deadline and not (
                 emu.records_sent >= 120 and (run_dir / "log.rows").exists()):
             time.sleep(0.05)
+        time.sleep(2.5)
         emu.close()
 
     watcher = threading.Thread(target=close, daemon=True)

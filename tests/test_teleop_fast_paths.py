@@ -239,7 +239,9 @@ class NumpyMapper(HandMapper):
         T_goal[:3, :3] = T_O[:3, :3] @ ref.T_O_ref[:3, :3].T @ ref.T_S_hand0[:3, :3]
         T_goal[:3, 3] = ref.T_S_hand0[:3, 3] + delta_S
         step = T_goal[:3, 3] - ref.last_mapped[:3, 3]
-        if np.linalg.norm(step) > self.config.max_step_m:
+        turn_cos = (np.trace(ref.last_mapped[:3, :3].T @ T_goal[:3, :3]) - 1.0) / 2.0
+        if (np.linalg.norm(step) > self.config.max_step_m
+                or turn_cos < np.cos(self.config.max_turn_rad)):
             self.rejected += 1
             return None
         ref.last_mapped = T_goal.copy()

@@ -158,6 +158,33 @@ def test_glitches_are_rejected():
     assert mapper.goal("right", sensor(0.01, 0, 0), 0.03, T_HAND0) is not None
 
 
+@pytest.mark.parametrize("turn_deg,taken", [(59.0, True), (61.0, False), (90.0, False),
+                                             (180.0, False)])
+def test_a_pose_turned_beyond_60_deg_from_the_last_is_a_glitch(turn_deg, taken):
+    """Review 23: a station turned 180 deg in one record (and kept so) was followed, the wrist
+    turning as fast as its limits let it. A turn beyond 60 deg between two poses is rejected as
+    a position jump is, about any axis, from the last pose taken; drill mode ignores the
+    orientation."""
+    for axis in range(3):
+        angles = [0.0, 0.0, 0.0]
+        angles[axis] = np.radians(turn_deg)
+        mapper = HandMapper(MappingConfig())
+        mapper.goal("right", sensor(0.3, 0.1, -0.2, 0.2, 0.1, 0.3), 0.0, T_HAND0)
+        turned = sensor(0.3, 0.1, -0.2, 0.2, 0.1, 0.3) @ make_transform(
+            rpy_to_matrix(*angles), [0, 0, 0])
+        goal = mapper.goal("right", turned, 0.01, T_HAND0)
+        assert (goal is not None) == taken, axis
+        assert mapper.rejected == (0 if taken else 1)
+        # held: the next pose near the last one taken is followed again
+        assert mapper.goal("right", sensor(0.3, 0.1, -0.2, 0.2, 0.1, 0.3), 0.02,
+                           T_HAND0) is not None
+    drill = HandMapper(MappingConfig(mode="drill"))
+    drill.goal("right", sensor(0, 0, 0), 0.0, T_HAND0)
+    assert drill.goal("right", sensor(0, 0, 0, np.pi, 0, 0), 0.01, T_HAND0) is not None
+    with pytest.raises(ConfigError):
+        MappingConfig(max_turn_rad=float("nan"))
+
+
 def test_clutch_recenters_without_moving_the_goal():
     mapper = HandMapper(MappingConfig())
     mapper.goal("right", sensor(0, 0, 0), 0.0, T_HAND0)

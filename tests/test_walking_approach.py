@@ -150,6 +150,26 @@ def test_teleop_refuses_a_bad_walk_start():
 
 
 @pytest.mark.parametrize("command", [
+    ["teleop", "--replay", "trajectories/drill-rectangle.csv", "--walk-from", "-0.6", "0"],
+    ["task", "run", "cut-rectangle", "--set", "stance.start_mm=[-600,0]"],
+])
+def test_a_walk_first_on_the_ideal_driver_is_refused_as_hubo_walk_is(tmp_path, command):
+    """Review 23: `hubo walk --driver ideal` is refused (the ideal driver has no floor: every
+    walk on it stopped at its first step), but `teleop --walk-from` on it walked one step,
+    stopped 205 mm short and ended exit 2 "no operator input", and a task walking to its
+    stance was not refused either. Now both exit 2 with hubo walk's line, nothing run."""
+    from click.testing import CliRunner
+
+    from hubo_cli.cli.main import main
+
+    result = CliRunner().invoke(main, [*command, "--driver", "ideal",
+                                       "--out", str(tmp_path / "run")])
+    assert result.exit_code == 2, result.output
+    assert "error: a walk needs a floor: the ideal driver has none" in result.output
+    assert "Traceback" not in result.output and not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("command", [
     ["walk", "--to", "1", "0", "0", "--no-estop"],
     ["walk", "--to", "1", "0", "0", "--estop-sources", "capture-point"],
     ["walk", "--to", "1", "0", "0", "--estop-sources", "none"],

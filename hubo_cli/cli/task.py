@@ -281,6 +281,9 @@ def _run(name: str, overrides: dict, *, driver: str, armed: bool, no_estop: bool
                          estop_sources=estop_sources,
                          accept_reduced_safety=accept_reduced_safety, quiet=as_json)
     if spec.stance.start_m is not None:
+        from hubo_cli.experiments.walk import check_walk_driver
+
+        check_walk_driver(driver)  # review 23: as hubo walk does (the ideal driver has no floor)
         check_walk_stops(stops, "a task that walks to its stance first")
     with (reserved_run_dir(f"task-{spec.name}", out) as run_dir,
           live_server(live, live_host, live_port, quiet=as_json) as server):

@@ -184,7 +184,8 @@ def _view(target, panel) -> Group:
                    "reach limit and another branch reaches the goal; otherwise only on key b.")
 @click.option("--walk-from", "walk_from", type=float, nargs=2, default=None, metavar="X Y",
               help="Start this far (m, x forward, y left) from the working stance and walk "
-                   "there before the operator takes over (on the estimate: any driver).")
+                   "there before the operator takes over (on the estimate; the simulator or the "
+                   "robot: the ideal driver has no floor).")
 @robot_run_options("teleop")
 @click.option("--video", is_flag=True,
               help="After the run, render video.mp4 from its log (needs hubo-cli[viz]).")
@@ -270,6 +271,9 @@ def teleop(replay, port, generate_seed, max_speed, reconnect_timeout, baud, driv
     stops = active_stops(SOFT_SOURCES, driver, no_estop=no_estop, estop_sources=estop_sources,
                          accept_reduced_safety=accept_reduced_safety, quiet=as_json)
     if walk_from is not None:
+        from hubo_cli.experiments.walk import check_walk_driver
+
+        check_walk_driver(driver)  # review 23: it walked one step on the ideal driver
         check_walk_stops(stops, "--walk-from (a walk)")
     settings = TeleopSettings(
         replay=replay, port=port, generate_seed=generate_seed, stream=stream, driver=driver,

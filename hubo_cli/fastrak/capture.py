@@ -21,6 +21,7 @@ import io
 import json
 import math
 import os
+import re
 import struct
 import time
 from collections.abc import Iterable
@@ -80,6 +81,7 @@ MAX_RECORDS_PER_S = 10_000.0
 # delivered as one instant, their motion lost (the review's log: 3 s of rows at t = 1.0 s)
 MAX_SAME_TIME_ROWS = 30
 _STATUS_TEXT = STATUS_OK_CHARS.decode("ascii")  # a pose log's status: a record's own
+LINE_ENDS = re.compile(r"\r\n|\r|\n")  # a pose log's line ends (a CSV file's)
 POSE_LOG_COLUMNS = ("t_s", "station", "x_m", "y_m", "z_m", "qw", "qx", "qy", "qz", "status")
 RECORD_RATE_HZ = 120.0
 """Records per second the device emits in continuous mode, shared by the enabled stations."""
@@ -587,7 +589,10 @@ def parse_pose_log(text: str, where: str = "pose log") -> RecordBatch:
             tracker's range or a quaternion that is not one, with its line number.
     """
     text = text.removeprefix("\ufeff")  # the byte-order mark some Windows programs write
-    lines = [(i + 1, line) for i, line in enumerate(text.splitlines())
+    # lines end at CR LF, LF or CR only: str.splitlines also ends them at a form feed, U+0085,
+    # U+2028 and others, which made the rest of a comment line a pose row (review 23) and
+    # numbered the lines unlike an editor
+    lines = [(i + 1, line) for i, line in enumerate(LINE_ENDS.split(text))
              if line.strip() and not line.lstrip().startswith("#")]
     if not lines:
         raise InputError(f"{where} is empty", hint="a pose log starts with the header line "

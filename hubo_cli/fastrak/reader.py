@@ -8,9 +8,10 @@ first valid record, so a silent or misconfigured unit fails at once with a clear
 
 A background thread reads the port, stamps each read with its receive time, feeds the
 resynchronising parser, writes the raw capture if one was asked for, and queues the samples.
-A read error (unplugged adapter, closed pty), or silence for ``silence_timeout_s``, closes the
-port and reconnects with exponential backoff; after ``reconnect_timeout_s`` without success (or
-at once when ``reconnect=False``) the next ``read_until`` raises :class:`DeviceError`.
+A read error (unplugged adapter, closed pty), or no valid record for ``silence_timeout_s``
+(silence or garbage alike), closes the port and reconnects with exponential backoff, a
+reconnection counting once a record came; after ``reconnect_timeout_s`` without success (or at
+once when ``reconnect=False``) the next ``read_until`` raises :class:`DeviceError`.
 """
 
 from __future__ import annotations
@@ -76,7 +77,8 @@ class FastrakReader(PoseSource):
         settle_s: wait after ``c`` before flushing (a record in flight must finish).
         probe_timeout_s: how long to wait for each reply (``S``, ``l``).
         first_record_timeout_s: how long to wait for the first record after ``C``.
-        silence_timeout_s: no byte for this long counts as a lost connection.
+        silence_timeout_s: no valid record for this long (silence, or bytes that are none)
+            counts as a lost connection; a reconnection counts once a record came.
         reconnect_timeout_s: give up reconnecting after this long.
         read_timeout_s: serial read timeout (bounds how long the reader thread blocks).
         command_gap_s: pause between configuration commands.
@@ -143,7 +145,7 @@ class FastrakReader(PoseSource):
             if self._writer is not None:
                 self._writer.close()
             raise
-        self._last_byte_s = self._looked_at_s = self.now_s()
+        self._last_record_s = self._looked_at_s = self.now_s()
         self._thread = threading.Thread(target=self._run, name=f"fastrak:{port}", daemon=True)
         self._thread.start()
 
@@ -268,8 +270,9 @@ class FastrakReader(PoseSource):
             stations = tuple(sorted(active))
         if not stations:
             raise DeviceError(f"the FASTRAK on {self.port} reports no active station",
-                              hint="plug a receiver into station 1, or enable one with "
-                                   "--stations 1")
+                              hint="plug a receiver into station 1 (a unit saved with its "
+                                   "stations switched off: `hubo record --stations 1` enables "
+                                   "one; teleop takes the active ones)")
         if self.stations and stations != self.stations:
             raise DeviceError(f"after reconnecting, {self.port} reports stations "
                               f"{list(stations)} instead of {list(self.stations)}",
@@ -294,12 +297,19 @@ class FastrakReader(PoseSource):
         self._send(ser, b"C")
 
     def _wait_first_record(self) -> None:
+        """Wait for a valid record on the port just configured (at the start, and after each
+        reconnection: a unit that answers its commands but sends no record is not back).
+
+        Raises:
+            DeviceError: no valid record within ``first_record_timeout_s``.
+        """
+        before = self.stats.good_records
         deadline = time.monotonic() + self.first_record_timeout_s
         while time.monotonic() < deadline:
             data = self._ser.read(max(1, self._ser.in_waiting))
             if data:
                 self._ingest(data, self.now_s())
-                if self.stats.good_records:
+                if self.stats.good_records > before:
                     return
         raise DeviceError(f"the FASTRAK on {self.port} answered but sent no valid record in "
                           f"{self.first_record_timeout_s:g} s",
@@ -308,7 +318,8 @@ class FastrakReader(PoseSource):
 
     # -- streaming --------------------------------------------------------------------------
 
-    def _ingest(self, data: bytes, t_s: float) -> None:
+    def _ingest(self, data: bytes, t_s: float) -> int:
+        """Parse, queue and capture the bytes of one read; returns the valid records in them."""
         batch, bad = self._parser.feed(data, t_s)
         samples = batch_samples(batch)
         with self._lock:
@@ -316,6 +327,7 @@ class FastrakReader(PoseSource):
             self.stats.add(batch, bad, len(data))
         if self._writer is not None:
             self._writer.write(t_s, data)
+        return len(samples)
 
     def _run(self) -> None:
         try:
@@ -339,12 +351,14 @@ class FastrakReader(PoseSource):
                     return
                 continue
             now = self.now_s()
-            if data:
-                self._last_byte_s = now
-                self._ingest(data, now)
+            if data and self._ingest(data, now):
+                self._last_record_s = now
             self._looked_at_s = now  # after the samples are queued: they count as seen
-            if not data and now - self._last_byte_s > self.silence_timeout_s:
-                if not self._recover(f"no data for {self.silence_timeout_s:g} s"):
+            if now - self._last_record_s > self.silence_timeout_s:
+                # silent, or only garbage (a unit at another baud rate, a broken line): the
+                # connection is set up again, as at the start (review 23: a unit sending
+                # only noise held the hands for good, the run never ending)
+                if not self._recover(f"no valid record for {self.silence_timeout_s:g} s"):
                     return
 
     def _fail(self, error: DeviceError | InputError) -> None:
@@ -353,6 +367,10 @@ class FastrakReader(PoseSource):
 
     def _recover(self, reason: str) -> bool:
         """Reconnect with backoff; False (and an error for read_until) if that is not possible."""
+        import termios
+
+        import serial
+
         self._looked_at_s = -math.inf  # not looking: judged by the caller's clock
         self._close_port()
         if not self.reconnect:
@@ -383,9 +401,17 @@ class FastrakReader(PoseSource):
             self._ser = ser
             lost = self._parser.reset()
             with self._lock:
-                self.stats.reconnects += 1
                 self.stats.bad_bytes += lost
-            self._last_byte_s = self.now_s()
+            try:  # back once a record comes (review 23: a unit answering its commands and
+                # sending no record was "reconnected" each second, the run never ending)
+                self._wait_first_record()
+            except (DeviceError, serial.SerialException, OSError, termios.error) as exc:
+                last = str(exc)
+                self._close_port()
+                continue
+            with self._lock:
+                self.stats.reconnects += 1
+            self._last_record_s = self.now_s()
             return True
         return False
 

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hubo_cli.errors import InputError, quoted
+from hubo_cli.errors import DeviceError, InputError, quoted
 from hubo_cli.fastrak.source import PoseSample, PoseSource
 from hubo_cli.input.device import HAND_OF_ARM, HandPose, InputDevice
 from hubo_cli.model import ARMS
@@ -79,6 +79,26 @@ def check_stations_present(station_arm: dict[int, str], available, where: str) -
                               f"{have[0] if have else 1}={station_arm[missing[0]]}")
 
 
+def check_live_stations(station_arm: dict[int, str], active, port) -> None:
+    """Every mapped station must be one the live tracker reports active (the reader enables
+    those and takes records of no other): an arm mapped to a station without a receiver would
+    never move, the run ending without a word (review 23; a recording is refused the same way
+    by :func:`check_stations_present`).
+
+    Raises:
+        DeviceError: naming the missing station and the stations the tracker has.
+    """
+    have = sorted(int(s) for s in active)
+    missing = [s for s in sorted(station_arm) if s not in have]
+    if missing:
+        s = missing[0]
+        raise DeviceError(f"the FASTRAK on {port} reports no receiver at station {s} (mapped "
+                          f"to the {station_arm[s]}); its active station(s): "
+                          f"{', '.join(map(str, have)) or 'none'}",
+                          hint=f"plug a receiver into station {s}, or map the stations it has, "
+                               f"e.g. --map {have[0] if have else 1}={station_arm[s]}")
+
+
 def operator_pose(T_K_sensor: np.ndarray, R_operator_tracker: np.ndarray = R_OPERATOR_TRACKER
                   ) -> np.ndarray:
     """The hand's pose in O for a sensor pose in the tracker frame (see the module docstring)."""
@@ -114,13 +134,15 @@ class FastrakInput(InputDevice):
         super().__init__()
         self.source = source
         station_arm = check_station_map(dict(station_arm or DEFAULT_STATION_ARM))
-        if not source.live:
-            where = source.info.get("path", "the recording")
-            try:
+        try:
+            if not source.live:
+                where = source.info.get("path", "the recording")
                 check_stations_present(station_arm, source.stations, str(where))
-            except InputError:
-                source.close()
-                raise
+            else:
+                check_live_stations(station_arm, source.stations, source.info.get("port"))
+        except (InputError, DeviceError):
+            source.close()
+            raise
         self.station_hand = {s: HAND_OF_ARM[arm] for s, arm in station_arm.items()}
         self.hands = tuple(h for h in ("right", "left") if h in self.station_hand.values())
         self.R_operator_tracker = np.asarray(R_operator_tracker, dtype=float)

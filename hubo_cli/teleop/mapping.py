@@ -56,6 +56,13 @@ class MappingConfig:
         wall_distance_m: drill mode: the wall plane's x in the stance frame.
         max_step_m: a sample that moves the goal further than this from the previous goal is
             implausible (tracker glitch) and ignored.
+        max_turn_rad: free mode: a sample that turns the goal further than this from the
+            previous goal's orientation is implausible too, and ignored. 60 deg between two
+            poses of one station: a hand turning 3,600 deg/s at the FASTRAK's 60 Hz a station
+            (two stations), still 480 deg/s for a tracker sending 8 a second; the shipped
+            recordings turn at most 0.38 deg between poses (23 deg/s), the generated streams
+            0.46 deg (review 23: a station turned 180 deg in one record and kept so was followed,
+            the wrist turning as fast as its limits let it, exit 0 without a word).
         wall_speed_m_s: drill mode: the goal's largest speed across the wall (by the samples'
             times). The cardboard drags the bit across (80 N s/m and 0.5 N in the default
             cutting model) about 0.2 m from the wrist sensor: the drill replay's wrist moment
@@ -68,6 +75,7 @@ class MappingConfig:
     mode: str = "free"
     wall_distance_m: float = 0.484
     max_step_m: float = 0.15
+    max_turn_rad: float = math.pi / 3
     wall_speed_m_s: float = 0.025
 
     def __post_init__(self) -> None:
@@ -75,6 +83,9 @@ class MappingConfig:
             raise ConfigError(f"unknown teleop mode {quoted(self.mode)}", hint="use free or drill")
         if not (np.isfinite(self.scale) and 0 < self.scale <= 10):
             raise ConfigError(f"scale {self.scale} is not in (0, 10]", hint="use e.g. --scale 1")
+        if not (np.isfinite(self.max_turn_rad) and 0 < self.max_turn_rad < math.pi):
+            raise ConfigError(f"the largest turn between two poses {self.max_turn_rad} rad is "
+                              "not in (0, pi)", hint="use e.g. pi / 3 (60 deg)")
         if not (np.isfinite(self.wall_speed_m_s) and self.wall_speed_m_s > 0):
             raise ConfigError(f"the drill's speed across the wall {self.wall_speed_m_s} m/s is "
                               "not a positive number", hint="use e.g. 0.025")
@@ -142,7 +153,7 @@ class HandMapper:
              T_S_hand_now: np.ndarray) -> HandGoal | None:
         """The robot hand's goal for one operator pose, or None if the hand drives no arm or the
         pose is implausible (non-finite, beyond ``MAX_OPERATOR_RANGE_M``, or a jump larger than
-        ``max_step_m``).
+        ``max_step_m``; in free mode also a turn larger than ``max_turn_rad``).
 
         Args:
             hand: ``right`` or ``left``.
@@ -167,7 +178,8 @@ class HandMapper:
         if self.config.mode != "drill":  # one compiled call: the same arithmetic as below
             T_goal = np.empty((4, 4))
             if not free_goal(T_O, ref.T_O_ref, ref.T_S_hand0, ref.last_mapped,
-                             self.config.scale, self.config.max_step_m, T_goal):
+                             self.config.scale, self.config.max_step_m,
+                             math.cos(self.config.max_turn_rad), T_goal):
                 self.rejected += 1
                 return None
             ref.last_mapped = T_goal.copy()

@@ -335,7 +335,7 @@ class TeleopTarget(Target):
         operator_pose_plausible(_EYE4, 1.0)
         tilt_rad(np.array([1.0, 0.0, 0.0, 0.0]))
         max_abs_difference(zeros, zeros)
-        free_goal(_EYE4, _EYE4, _EYE4, _EYE4, 1.0, 1.0, np.empty((4, 4)))
+        free_goal(_EYE4, _EYE4, _EYE4, _EYE4, 1.0, 1.0, 0.5, np.empty((4, 4)))
         pose_error(_EYE4, _EYE4)  # a moved arm's clear pose
         invert4(_EYE4, np.empty((4, 4)))  # the measured torso's stance, placed once
         mul4(_EYE4, _EYE4, np.empty((4, 4)))  # the legs' goals (WholeBody.legs_at)
@@ -525,6 +525,13 @@ class TeleopTarget(Target):
         store's TRACKER_STATES) with its goal-velocity estimate, each reach search started
         from the arm's joint target."""
         self.t_operate_s = t_s
+        if self.live:
+            # a live device queued every pose since it opened (the start-up, the approach, a
+            # walk): the operator's motion before he took over is no command. Dropped here, so
+            # the first pose after the take-over calibrates (review 23: the oldest queued pose
+            # calibrated and the rest were followed in the first period, the goals stepping
+            # some 100 mm in one period on the emulator's circling hands)
+            self.source.read_until(self._source_time(t_s))
         states = self.store.get(TRACKER_STATES)  # the arms' trackers, with their own
         if states is not None and all(arm in states for arm in self.arms):
             self._trackers = {arm: JointTracker(states[arm].limits, states[arm].dt_s)

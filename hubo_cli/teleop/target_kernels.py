@@ -83,26 +83,29 @@ def operator_pose_plausible(T_O, max_range_m):
 
 
 @nb.njit(**JIT)
-def free_goal(T_O, T_O_ref, T_S_hand0, last_mapped, scale, max_step_m, T_goal):
+def free_goal(T_O, T_O_ref, T_S_hand0, last_mapped, scale, max_step_m, min_turn_cos, T_goal):
     """The free mode's hand goal into ``T_goal`` (4x4): the orientation (R_now R_ref^T)
     R_hand0, the position p_hand0 + scale (p_now - p_ref). Returns whether it lies within
-    ``max_step_m`` of ``last_mapped``'s position."""
+    ``max_step_m`` of ``last_mapped``'s position and turns from ``last_mapped``'s orientation
+    by an angle whose cosine is at least ``min_turn_cos``."""
     A = np.empty((3, 3))
     for i in range(3):
         for j in range(3):
             A[i, j] = (T_O[i, 0] * T_O_ref[j, 0] + T_O[i, 1] * T_O_ref[j, 1]
                        + T_O[i, 2] * T_O_ref[j, 2])
     step2 = 0.0
+    trace = 0.0
     for i in range(3):
         for j in range(3):
             T_goal[i, j] = (A[i, 0] * T_S_hand0[0, j] + A[i, 1] * T_S_hand0[1, j]
                             + A[i, 2] * T_S_hand0[2, j])
+            trace += T_goal[i, j] * last_mapped[i, j]  # trace(R_last^T R_goal)
         T_goal[i, 3] = T_S_hand0[i, 3] + scale * (T_O[i, 3] - T_O_ref[i, 3])
         step = T_goal[i, 3] - last_mapped[i, 3]
         step2 += step * step
         T_goal[3, i] = 0.0
     T_goal[3, 3] = 1.0
-    return math.sqrt(step2) <= max_step_m
+    return math.sqrt(step2) <= max_step_m and (trace - 1.0) / 2.0 >= min_turn_cos
 
 
 @nb.njit(**JIT)
