@@ -42,6 +42,7 @@ def check_finite(state: RobotState, joint_names: tuple[str, ...], start: bool = 
     k = int(np.flatnonzero(~np.isfinite(values))[0])
     when = ("at the start: refused before anything moved" if start else
             f"at t = {state.time_s:.3f} s")
-    raise sensor_fault(f"the {name.format(joint_names[k] if '{}' in name else '')} read "
+    joint = joint_names[k] if k < len(joint_names) else f"#{k}"
+    raise sensor_fault(f"the {name.format(joint)} read "
                        f"{values[k]} {when}: a reading that is not a number (no bound or "
                        "estimate can judge it)", refuse=start)
