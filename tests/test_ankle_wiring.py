@@ -55,13 +55,16 @@ def test_a_walk_on_swapped_ankle_sensors_stops_before_a_foot_lifts(monkeypatch, 
     """The two ankle sensors swapped, perturbation seed 1: main's walk fell (round 20's check
     named the swap at 1.41 s, once a foot had lifted). The walk's first weight shift rocks the
     robot from sole to sole, and the estimate, standing it on the sole its sensor loads, sinks
-    both soles under the floor: a device fault at 0.61 s (both code paths), before the first
-    lift-off (0.9 s), the robot standing."""
+    a sole that stays down: round 21 saw both soles under the floor (0.61 s); with the ankle
+    sensors reading the period's mean (round 23) the robot rocks less, both soles pass 2 mm
+    under only at 0.88-0.90 s, but both loaded, the left sinks 1.5 mm under the right since
+    the start by 0.335 s (both code paths): a device fault before the first lift-off (0.9 s),
+    the robot standing."""
     _wired(monkeypatch, "swap")
     result = CliRunner().invoke(main, ["walk", "--to", "0.6", "0", "0", "--perturb", "1",
                                        "--out", str(tmp_path / "w")])
     assert result.exit_code == 3, result.output
-    assert "under the floor it started on, before a step" in result.output
+    assert "under the right one since the start, before a step" in result.output
     assert "swapped between the feet" in result.output
     summary = json.loads((tmp_path / "w" / "summary.json").read_text())
     assert summary["steps"] == 0 and summary["stood"] is True, summary

@@ -567,13 +567,15 @@ def test_a_foot_under_the_loaded_sole_for_a_rock_is_not_read_as_swapped_sensors(
         _estimate(_states(60, q_rad=lowered_for(held + 1), ft=on_the_right))
 
 
-def _rocking(swapped: bool, rise_rad: float = 0.09, bounce_at: int = -1):
+def _rocking(swapped: bool, rise_rad: float = 0.09, bounce_at: int = -1,
+             shared: float = 0.0):
     """A rock: the right foot rises 12 mm (its hip, knee and ankle pitched -1, 2, -1 times
     ``rise_rad`` over states 10-29) and comes down again (states 40-59) while the left sole
     carries the robot, the right reading its foot's weight alone. ``swapped``: the readings a
     swapped pair gives as the robot rolls from sole to sole: the load read on the rising right
     foot (states 0-34), then on the left while the right is still up (from state 35).
-    ``bounce_at``: in that state both feet hang, both soles carrying nothing."""
+    ``bounce_at``: in that state both feet hang, both soles carrying nothing. ``shared``: the
+    share of the load read on the lighter sole besides its foot's weight (both soles loaded)."""
     joints = [MODEL.joint_names.index(name) for name in ("RHP", "RKN", "RAP")]
 
     def q_rad(k, s):
@@ -585,7 +587,9 @@ def _rocking(swapped: bool, rise_rad: float = 0.09, bounce_at: int = -1):
     def ft(k, s):
         ft = dict(s.ft)
         load = ft["right-ankle"][2] + ft["left-ankle"][2] - 12.0
-        loaded, light = np.array([0, 0, load, 0, -0.02 * load, 0]), np.array([0, 0, 12.0, 0, 0, 0])
+        heavy_n, light_n = (1.0 - shared) * load, 12.0 + shared * load
+        loaded = np.array([0, 0, heavy_n, 0, -0.02 * heavy_n, 0])
+        light = np.array([0, 0, light_n, 0, -0.02 * shared * load, 0])
         on_right = swapped and k < 35
         ft["right-ankle"], ft["left-ankle"] = (loaded, light) if on_right else (light, loaded)
         if k == bounce_at:  # (a sensor under a hanging foot reads minus its weight)
@@ -613,6 +617,28 @@ def test_both_soles_sinking_under_the_floor_before_a_step_are_swapped_sensors():
                                           r"on, before a step .* for 0.055 s at t = 0.[0-9]+ s$"
                        ) as info:
         _estimate(_states(90, **_rocking(True)))
+    assert info.value.exit_code == 3 and "swapped between the feet" in info.value.hint
+
+
+def test_a_loaded_sole_sinking_under_the_other_before_a_step_is_swapped_sensors():
+    """Round 23: with the ankle sensors reading the period's mean, a swapped pair's walk rocks
+    less before its first lift-off, both soles carrying weight, and the estimate, standing the
+    robot on the rising foot, carries the other sole down alone (seed 1: 3.5 mm under at 0.6 s,
+    the rising one 0.3 mm; both past 2 mm only at 0.88-0.90 s, the first lift-off at 0.9 s).
+    Here the right foot rises 4 mm: read so (the rising foot reading its own weight), none;
+    read as a swapped pair gives it, the load on the rising foot and 0.3 of it on the other,
+    the left sole sinks under the right one since the start, both loaded: a fault once it lies
+    SOLE_SUNK_UNDER_OTHER_M under for SOLE_WIRING_OVER_S (healthy walks, pushes and tasks
+    0.50 mm at most: a loaded sole stays on the floor)."""
+    rock = {"rise_rad": 0.03, "shared": 0.3}
+    assert _estimate(_states(90, **_rocking(False, rise_rad=0.03))) == 90
+    with pytest.raises(SensorFault, match=r"^the right-ankle force-torque sensor reads F_z "
+                                          r"[0-9]{3} N and the left-ankle sensor [0-9]{2,3} N, "
+                                          r"both soles on the floor, which sink the left sole "
+                                          r"[0-9.]+ mm under the right one since the start, "
+                                          r"before a step .* for 0.055 s at t = 0.[0-9]+ s$"
+                       ) as info:
+        _estimate(_states(90, **_rocking(True, **rock)))
     assert info.value.exit_code == 3 and "swapped between the feet" in info.value.hint
 
 

@@ -62,12 +62,17 @@ def test_a_60_n_push_is_the_same_at_400_hz(model):
     print("push: to peak", d_tilt[:peak].max(), 1e3 * d_com[:peak].max(), "all", d_tilt.max(),
           1e3 * d_com.max(), "peaks", tilt_old.max(), tilt_new.max())
     assert tilt_old.max() < 30 and tilt_new.max() < 30  # same outcome: standing
-    # through the push and the peak of the lean the runs agree as closely as standing (measured
-    # 0.064 deg and 0.60 mm on both code paths, AVX-512 / portable: 1.6x and 3.3x; the peaks
-    # 2.6 deg, 12x under the 30; their difference 0.013 deg, 23x)
-    assert d_tilt[:peak].max() < 0.1 and d_com[:peak].max() < 0.002
+    # through the push and the peak of the lean: the ankle sensors read the mean of the
+    # period's physics steps (an F/T board's anti-aliasing filter), at both rates the floor's
+    # impulse over the same 5 ms (docs/history/walking.md, round 8's "(b)" and round 23): the
+    # two physics rates' own difference, measured 0.175 deg and 1.93 mm on both code paths
+    # (AVX-512 / portable; 7 % of the lean; the 1 kHz run's last step alone read 0.064 deg, a
+    # biased reading agreeing by chance): bounds 1.54x and 1.55x. The peaks 2.3 / 2.5 deg, 12x
+    # under the 30
+    assert d_tilt[:peak].max() < 0.27 and d_com[:peak].max() < 0.003
     # after it the feet rock on their edges, a motion the former settings do not resolve either:
-    # against 0.5 ms steps with 100 iterations they differ by about 1 deg (docs/profile.md)
+    # against 0.5 ms steps with 100 iterations they differ by about 1 deg (docs/profile.md);
+    # the peaks apart 0.198 deg with the mean reading, both code paths (1.5x)
     assert abs(tilt_new.max() - tilt_old.max()) < 0.3
 
 

@@ -44,7 +44,12 @@ def _reference_wrench(rows, T_world_sensor, extra=None, extra_moment=None) -> np
 
 
 class _ReferenceSimDriver(SimDriver):
-    """The simulated robot measuring as before the speed work (main 0f41291)."""
+    """The simulated robot measuring as before the speed work (main 0f41291), its ankle
+    sensors reading the mean of their wrenches over the period's physics steps (round 23)."""
+
+    def _keep_rows(self) -> None:
+        """Each earlier physics step's contacts, whole, for the ankles' mean."""
+        self._reference_steps = [*getattr(self, "_reference_steps", []), self._contact_rows()]
 
     def _measure(self) -> RobotState:
         p, cid = self._p, self._cid
@@ -61,13 +66,18 @@ class _ReferenceSimDriver(SimDriver):
             self._robot, self._sensor_link_ids, computeLinkVelocity=1,
             computeForwardKinematics=1, physicsClientId=cid)
         contacts = self._contact_rows()
+        steps, self._reference_steps = [*getattr(self, "_reference_steps", []), contacts], []
         ft, contact, filtered = {}, [False, False], self._fz_filtered_n
         for k, (sensor, link_id, k_state, rows_link_sensor, ankle, _,
                 mass) in enumerate(self._sensor_table):
             T_link_sensor = np.vstack((np.reshape(rows_link_sensor, (3, 4)), (0, 0, 0, 1)))
             ls = link_states[k_state]
             T_world_sensor = _pose(ls[4], ls[5]) @ T_link_sensor
-            wrench = _reference_wrench(contacts.get(link_id, []), T_world_sensor)
+            if ankle is None:
+                wrench = _reference_wrench(contacts.get(link_id, []), T_world_sensor)
+            else:  # the mean over the period's physics steps
+                wrench = np.mean([_reference_wrench(step.get(link_id, []), T_world_sensor)
+                                  for step in steps], axis=0)
             previous, self._sensor_velocity[k] = self._sensor_velocity[k], ls[6]
             a = np.zeros(3) if previous is None else \
                 (np.array(ls[6]) - np.array(previous)) / self.period_s

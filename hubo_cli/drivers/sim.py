@@ -489,7 +489,8 @@ class SimDriver(Driver, SimulatedWorld):
         self._objects: dict[str, HingedBody] = {}
         self._pending_objects: dict[str, Valve | Door] = {}
         self._grips: dict[str, Grip] = {}  # hand frame -> its grip
-        self._earlier_hand_rows: dict[int, list[tuple]] = {}  # see _hand_rows
+        self._earlier_rows: dict[int, list[tuple]] = {}  # see _period_rows
+        self._earlier_steps = 0  # the physics steps kept in _earlier_rows this period
         self._pushes: list[_Push] = []
         self._state: RobotState | None = None
         self._cmd = np.zeros(len(self.joint_names))
@@ -585,6 +586,8 @@ class SimDriver(Driver, SimulatedWorld):
         self._idx = [joints[n] for n in self.joint_names]
         self._wrist_link = self._links["RWP_link"]  # the drill's
         self._hand_link_ids = [self._links[link] for link, _ in HAND_FRAMES.values()]
+        self._ankle_link_ids = frozenset(self._links[SENSOR_FRAMES[s][0]] for s in FT_SENSORS
+                                         if s.endswith("ankle"))
         self._sensor_link_ids = [self._links[n] for n in SENSOR_LINKS]
         # per F/T sensor, in FT_SENSORS order: its link's index in PyBullet and in the sensor
         # links' batch, the link-to-sensor pose (its first three rows, flat), which ankle (0,
@@ -698,7 +701,8 @@ class SimDriver(Driver, SimulatedWorld):
         self._walls = []
         self._objects = {}
         self._grips = {}
-        self._earlier_hand_rows = {}
+        self._earlier_rows = {}
+        self._earlier_steps = 0
         self._cut_points = []
         self._pushes = []
         self._stopped = False
@@ -742,8 +746,8 @@ class SimDriver(Driver, SimulatedWorld):
             self._apply_external_forces(self._t + k * self.options.physics_dt_s)
             p.stepSimulation(physicsClientId=cid)
             self._physics_step += 1
-            if self._objects and k < self.substeps - 1:
-                self._keep_hand_rows()
+            if k < self.substeps - 1:
+                self._keep_rows()
         self._physics_wall_s += time.perf_counter() - t0
         self._t += self.period_s
         self._state = self._measure()
@@ -954,25 +958,46 @@ class SimDriver(Driver, SimulatedWorld):
                                                *cp[13]))
         return rows
 
+    def _period_rows(self, link_id: int, rows: list[tuple]) -> list[tuple]:
+        """A link's contact rows averaged over the period's physics steps: this step's
+        ``rows`` and those kept by :meth:`_keep_rows`, their forces scaled by one over the
+        steps' count (the wrench is linear in them, so the sensor reads the steps' mean
+        wrench, about the sensor's pose at the period's end). At :meth:`start` no step was
+        kept: ``rows`` alone, unscaled.
+
+        The ankle sensors always read so, as an F/T board's anti-aliasing filter averages
+        what it samples faster than it reports: the position motors, given a new target every
+        period, press the soles harder in one physics step and less in the other (1.40 / 0.60
+        of the weight while the joints move), and the last step alone read 0.58-1.6 of the
+        weight; the mean is the floor's true push. The contact truth (``_contact_alpha``'s
+        filter) takes the same mean."""
+        earlier = self._earlier_rows.get(link_id, ())
+        share = 1.0 / (1 + self._earlier_steps)
+        if share == 1.0:
+            return list(rows)
+        return [(*r[:6], r[6] * share, r[7] * share, *r[8:11], r[11] * share, *r[12:])
+                for r in (*rows, *earlier)]
+
     def _hand_rows(self, link_id: int, rows: list[tuple]) -> list[tuple]:
         """A hand's rows when the scene has hinged objects: its contacts averaged over the
         period's physics steps (a hand pushing a door slowly meets it in one of the two steps
         and leaves it in the other, 25 N and 0 N: the last step alone read 0 N all along) and
         the force of the grip holding an object (its last step's)."""
-        share = 1.0 / self.substeps
-        earlier = self._earlier_hand_rows.pop(link_id, [])
-        averaged = [(*r[:6], r[6] * share, r[7] * share, *r[8:11], r[11] * share, *r[12:])
-                    for r in (*rows, *earlier)]
-        return averaged + [g.row() for g in self._grips.values()
-                           if g.link == link_id and not g.slipped]
+        return self._period_rows(link_id, rows) + [g.row() for g in self._grips.values()
+                                                   if g.link == link_id and not g.slipped]
 
-    def _keep_hand_rows(self) -> None:
-        """Keep this physics step's hand contacts for the period's average (:meth:`_hand_rows`)."""
-        for link in self._hand_link_ids:
-            self._earlier_hand_rows.setdefault(link, []).extend(
-                (*cp[5], *cp[7], cp[9], cp[10], *cp[11], cp[12], *cp[13])
-                for cp in self._p.getContactPoints(bodyA=self._robot, linkIndexA=link,
-                                                   physicsClientId=self._cid))
+    def _keep_rows(self) -> None:
+        """Keep this physics step's contacts of the feet (and of the hands among hinged
+        objects) for the period's mean (:meth:`_period_rows`): one batched read."""
+        links = self._ankle_link_ids
+        if self._objects:
+            links = links.union(self._hand_link_ids)
+        kept = self._earlier_rows
+        for cp in self._p.getContactPoints(bodyA=self._robot, physicsClientId=self._cid):
+            if cp[3] in links:
+                kept.setdefault(cp[3], []).append(
+                    (*cp[5], *cp[7], cp[9], cp[10], *cp[11], cp[12], *cp[13]))
+        self._earlier_steps += 1
 
     def _measure(self) -> RobotState:
         p, cid = self._p, self._cid
@@ -1001,7 +1026,9 @@ class SimDriver(Driver, SimulatedWorld):
                 force, moment, at = self._cutting_floats
                 extra = (force, at)
             rows = contacts.get(link_id, ())
-            if self._objects and ankle is None:  # a hand among hinged objects
+            if ankle is not None:  # the period's mean (an F/T board's anti-aliasing filter)
+                rows = self._period_rows(link_id, rows)
+            elif self._objects:  # a hand among hinged objects
                 rows = self._hand_rows(link_id, rows)
             ls = link_states[k_state]
             # the body beyond the sensor loads it with its weight and its inertia, m (g - a),
@@ -1019,6 +1046,7 @@ class SimDriver(Driver, SimulatedWorld):
                     filtered[ankle] = fz
                 filtered[ankle] += self._contact_alpha * (fz - filtered[ankle])
                 contact[ankle] = filtered[ankle] > self._contact_threshold_n
+        self._earlier_rows, self._earlier_steps = {}, 0
         self._flags += [grip_flag(frame) for frame in self._grips if self.holding(frame)]
         flags, self._flags = tuple(dict.fromkeys(self._flags)), []
         if self._stopped:

@@ -16,7 +16,9 @@ edge reads so for a moment, as the estimate takes that sole flat); or, before a 
 bounce, both soles more than :data:`SOLES_SUNK_M` under the floor the robot started on for
 longer than :data:`SOLE_WIRING_OVER_S` (the sensors swapped before a foot lifts: a walk's first
 weight shift rocks the robot from sole to sole, and standing it on the sole its sensor loads,
-the rising one, each rock carries the estimate down; round 21). Both read the soles' heights
+the rising one, each rock carries the estimate down; round 21), or one sunk more than
+:data:`SOLE_SUNK_UNDER_OTHER_M` under the other since the start while both carry weight (the
+same, the estimate carrying down only the sole that stays on the floor; round 23). Both read the soles' heights
 through the estimated attitude: when the sole carrying more lies flat yet tilted more than
 :data:`SOLE_FLAT_TILT_MAX_DEG` in the estimate, the fault names the IMU's attitude instead of
 a swap (round 22: a gyro frozen mid-walk read as swapped sensors). A moment flipped or a sensor
@@ -74,6 +76,15 @@ SOLE_SWAPPED_OVER_S = 0.15
 # later
 SOLES_SUNK_M = 0.002
 SOLE_STEPPED_M = 0.03
+# ... and, before a step, both soles carrying at least SOLE_IN_AIR_WEIGHTS of the weight (both
+# on the floor the robot started on) yet one sunk more than this under the other since the start
+# (round 23, docs/history/walking.md: the ankle sensors reading the period's mean, the swapped
+# walks rock less and the estimate sinks the sole that stays down, not both: seed 1's soles 0.3
+# and 3.5 mm under at 0.6 s, past 2 mm together only at 0.83-0.85 s, after its first weight came
+# off a foot). Healthy walks (normal and fast, nominal and seeds 1-10) and stands pushed 90 N
+# forward, backward, left and right, both code paths, held at most 0.32 mm for 0.055 s (seed 5);
+# swapped, seed 1 passed 1.5 mm at 0.335 s on both paths
+SOLE_SUNK_UNDER_OTHER_M = 0.0015
 # Both swap rules above read the soles' heights through the estimated attitude: the sole carrying
 # more, flat on the floor (SOLES_FLAT: its centre of pressure inside it), tilted more than this
 # (deg) in the estimate says the attitude is off the legs, and the fault names the IMU (round 22,
@@ -101,7 +112,7 @@ class AnkleWiring:
         self._wiring_over = 0  # periods in a row an ankle sensor read as wired wrong
         self._swapped_over = 0  # ... the two read as swapped
         self._sunk_over = 0  # ... both soles under the floor before a step
-        self._soles_start_xy = None  # where the estimate put the soles at the start (m) ...
+        self._soles_start = None  # where the estimate put the soles at the start (x, y, z m) ...
         self._judge_sunk = True  # ... until one leaves it (a step) or both bounce
 
     def update(self, state: RobotState, store: Store, start: bool = False) -> None:
@@ -217,15 +228,15 @@ class AnkleWiring:
             self._judge_sunk = False
             return None
         (rx, ry, rz), (lx, ly, lz) = np.asarray(T_world_soles)[:, :3, 3].tolist()
-        if self._soles_start_xy is None:
-            self._soles_start_xy = (rx, ry, lx, ly)
-        rx0, ry0, lx0, ly0 = self._soles_start_xy
+        if self._soles_start is None:
+            self._soles_start = (rx, ry, rz, lx, ly, lz)
+        rx0, ry0, rz0, lx0, ly0, lz0 = self._soles_start
         if not (math.hypot(rx - rx0, ry - ry0) <= SOLE_STEPPED_M
                 and math.hypot(lx - lx0, ly - ly0) <= SOLE_STEPPED_M):
             self._judge_sunk = False  # (or not finite)
             return None
         if not (rz < -SOLES_SUNK_M and lz < -SOLES_SUNK_M):
-            return None
+            return self._sole_under_other(fz_n, rz - rz0, lz - lz0)
         return ("right-ankle", f"F_z {fz_n[0]:.0f} N and the left-ankle sensor {fz_n[1]:.0f} N, "
                                "which stand the robot on soles "
                                f"{-rz * 1000:.1f} mm (right) and {-lz * 1000:.1f} mm (left) "
@@ -233,4 +244,27 @@ class AnkleWiring:
                                f"{SOLES_SUNK_M * 1000:.0f} mm: the estimate stands the robot on "
                                "the sole its sensor loads, and a foot that rises as the robot "
                                "rocks carries it down)",
+                "the two ankle sensors are swapped between the feet")
+
+    def _sole_under_other(self, fz_n: list[float], right_sunk_m: float,
+                          left_sunk_m: float) -> tuple[str, str, str] | None:
+        """Before a step (called by :meth:`_soles_sunk`), both soles carrying at least
+        SOLE_IN_AIR_WEIGHTS of the robot (on the floor the robot started on) and one sunk more
+        than SOLE_SUNK_UNDER_OTHER_M under the other since the start (``right_sunk_m``,
+        ``left_sunk_m``: each sole's height change in the estimate, m): the estimate stood the
+        robot on a rising foot, carrying the other down."""
+        if not min(fz_n) >= SOLE_IN_AIR_WEIGHTS * self.weight_n:
+            return None
+        under_m = left_sunk_m - right_sunk_m  # the left sole's height under the right's
+        if not abs(under_m) > SOLE_SUNK_UNDER_OTHER_M:
+            return None
+        lower, upper = ("left", "right") if under_m < 0 else ("right", "left")
+        return ("right-ankle", f"F_z {fz_n[0]:.0f} N and the left-ankle sensor {fz_n[1]:.0f} N, "
+                               f"both soles on the floor, which sink the {lower} sole "
+                               f"{abs(under_m) * 1000:.1f} mm under the {upper} one since the "
+                               "start, before a step (at most "
+                               f"{SOLE_SUNK_UNDER_OTHER_M * 1000:g} mm: two soles on the floor "
+                               "the robot started on keep their heights; the estimate stands "
+                               "the robot on the sole its sensor loads, and a foot that rises "
+                               "as the robot rocks carries the other down)",
                 "the two ankle sensors are swapped between the feet")
