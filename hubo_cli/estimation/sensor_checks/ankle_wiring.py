@@ -105,7 +105,7 @@ SOLE_SUNK_UNDER_OTHER_M = 0.0015
 AIR_SOLE_UNDER_M = 0.003
 # ... a sole read in the air longer than this (s), then loaded again, is the first landing and
 # closes that window: a walk's lead-in reads a sole in the air for a few periods as its weight
-# shifts (healthy walks up to 0.075 s in a row), a step's swing for 0.5 s or more
+# shifts (healthy walks up to 0.075 s in a row), a step's swing for 0.55-0.65 s (0.22 s pushed)
 FIRST_SWING_MIN_S = 0.2
 # The swap rules above read the soles' heights through the estimated attitude: the sole carrying
 # more, flat on the floor (SOLES_FLAT: its centre of pressure inside it), tilted more than this
