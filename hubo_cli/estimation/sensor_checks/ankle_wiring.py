@@ -18,7 +18,10 @@ longer than :data:`SOLE_WIRING_OVER_S` (the sensors swapped before a foot lifts:
 weight shift rocks the robot from sole to sole, and standing it on the sole its sensor loads,
 the rising one, each rock carries the estimate down; round 21), or one sunk more than
 :data:`SOLE_SUNK_UNDER_OTHER_M` under the other since the start while both carry weight (the
-same, the estimate carrying down only the sole that stays on the floor; round 23). Both read the soles' heights
+same, the estimate carrying down only the sole that stays on the floor; round 23); or, in the
+first swing (until its landing), a sole read in the air more than :data:`AIR_SOLE_UNDER_M` under
+the flat one read loaded for longer than :data:`SOLE_WIRING_OVER_S` (a swapped walk that does
+not rock before its lift-off; round 23, third pass). The swap rules read the soles' heights
 through the estimated attitude: when the sole carrying more lies flat yet tilted more than
 :data:`SOLE_FLAT_TILT_MAX_DEG` in the estimate, the fault names the IMU's attitude instead of
 a swap (round 22: a gyro frozen mid-walk read as swapped sensors). A moment flipped or a sensor
@@ -85,7 +88,26 @@ SOLE_STEPPED_M = 0.03
 # forward, backward, left and right, both code paths, held at most 0.32 mm for 0.055 s (seed 5);
 # swapped, seed 1 passed 1.5 mm at 0.335 s on both paths
 SOLE_SUNK_UNDER_OTHER_M = 0.0015
-# Both swap rules above read the soles' heights through the estimated attitude: the sole carrying
+# In the first swing (once both soles have carried SOLE_IN_AIR_WEIGHTS at once, until the first
+# landing), a sole read in the air (below SOLE_IN_AIR_WEIGHTS) more than this under the one read
+# carrying SOLE_CARRIES_WEIGHTS while that one lies flat (SOLES_FLAT: its centre of pressure
+# inside it) (round 23, third pass, docs/history/walking.md: with the ankle sensors reading the
+# period's mean, a swapped fast-gait walk does not rock before its lift-off, and the rules above
+# see nothing before a step; in the swing the estimate, standing the robot on the rising foot,
+# carries the true stance, read in the air, under it). Healthy first swings, whole (the fast
+# and normal walks on seeds 1-10 and nominal, the 0.6 m walk, walks pushed 100 N in the lead-in
+# and in the first swing forward, backward, left and right at 0.58-1.4 s, toe-heel walks, a
+# task walking to its stance, stands pushed 90-120 N, sim --step), both code paths, held at most
+# 0.74 mm (the 1 m walk on seed 9, portable; 4.1x). Not flat, the loaded sole rolls on its toe
+# or heel as a push in the swing tips the robot, and the estimate, taking it flat, put the
+# healthy swing foot up to 12.8 mm under it before its landing; swapped, the fast gait held 3 mm
+# at 0.69 s (AVX-512; portable, its loaded sole read on its edge, not)
+AIR_SOLE_UNDER_M = 0.003
+# ... a sole read in the air longer than this (s), then loaded again, is the first landing and
+# closes that window: a walk's lead-in reads a sole in the air for a few periods as its weight
+# shifts (healthy walks up to 0.075 s in a row), a step's swing for 0.55-0.65 s (0.22 s pushed)
+FIRST_SWING_MIN_S = 0.2
+# The swap rules above read the soles' heights through the estimated attitude: the sole carrying
 # more, flat on the floor (SOLES_FLAT: its centre of pressure inside it), tilted more than this
 # (deg) in the estimate says the attitude is off the legs, and the fault names the IMU (round 22,
 # docs/history/safety.md). Healthy walks and pushes, both code paths, tilted a flat loaded sole
@@ -114,6 +136,10 @@ class AnkleWiring:
         self._sunk_over = 0  # ... both soles under the floor before a step
         self._soles_start = None  # where the estimate put the soles at the start (x, y, z m) ...
         self._judge_sunk = True  # ... until one leaves it (a step) or both bounce
+        self._air_under_over = 0  # ... the sole read in the air under the loaded one
+        self._stood = False  # both soles have carried SOLE_IN_AIR_WEIGHTS at once
+        self._air_s = [0.0, 0.0]  # each sole read in the air so long in a row (s)
+        self._judge_air = True  # ... until the first landing or a bounce
 
     def update(self, state: RobotState, store: Store, start: bool = False) -> None:
         """An ankle sensor whose F_z pulls its sole or whose centre of pressure lies off its
@@ -149,12 +175,15 @@ class AnkleWiring:
                 break
         swapped = self._swapped(store, wrenches)
         sunk = self._soles_sunk(store, wrenches)
+        air_under = self._air_sole_under(store, wrenches)
         self._wiring_over = self._wiring_over + 1 if wrong else 0
         self._swapped_over = self._swapped_over + 1 if swapped else 0
         self._sunk_over = self._sunk_over + 1 if sunk else 0
+        self._air_under_over = self._air_under_over + 1 if air_under else 0
         for found, over, over_s in ((wrong, self._wiring_over, SOLE_WIRING_OVER_S),
                                     (swapped, self._swapped_over, SOLE_SWAPPED_OVER_S),
-                                    (sunk, self._sunk_over, SOLE_WIRING_OVER_S)):
+                                    (sunk, self._sunk_over, SOLE_WIRING_OVER_S),
+                                    (air_under, self._air_under_over, SOLE_WIRING_OVER_S)):
             if found is not None and (start or over * self.period_s > over_s + 1e-9):
                 break
         else:
@@ -162,7 +191,7 @@ class AnkleWiring:
         sensor, reading, cause = found
         when = ", at the start: refused before anything moved" if start else (
             f" for {over * self.period_s:.3f} s at t = {state.time_s:.2f} s")
-        # (the two swap rules read the soles' heights through the attitude; the others do not)
+        # (the swap rules read the soles' heights through the attitude; the others do not)
         tilted = None if found is wrong else self._flat_sole_tilted(store, wrenches)
         if tilted is not None:
             raise sensor_fault(
@@ -267,4 +296,60 @@ class AnkleWiring:
                                "the robot started on keep their heights; the estimate stands "
                                "the robot on the sole its sensor loads, and a foot that rises "
                                "as the robot rocks carries the other down)",
+                "the two ankle sensors are swapped between the feet")
+
+    def _first_swing_air_sole(self, wrenches: dict) -> int | None:
+        """Follows the first swing as the sensors read it: judged once both soles have carried
+        SOLE_IN_AIR_WEIGHTS of the robot at once (standing) until a sole read in the air (below
+        it) for longer than FIRST_SWING_MIN_S reads load again (the first landing), or both
+        soles together read in the air (a bounce). Returns the sole read in the air while the
+        other carries SOLE_CARRIES_WEIGHTS (0 right, 1 left), else None."""
+        if not self._judge_air:
+            return None
+        fz_n = [float(wrenches[sensor][2]) for sensor in ANKLE_SENSORS]
+        in_air_n = SOLE_IN_AIR_WEIGHTS * self.weight_n
+        self._stood = self._stood or min(fz_n) >= in_air_n
+        if not self._stood:
+            return None
+        if not fz_n[0] + fz_n[1] >= in_air_n:
+            self._judge_air = False  # (a bounce, or not finite)
+            return None
+        for k in (0, 1):
+            if fz_n[k] < in_air_n:
+                self._air_s[k] += self.period_s
+            elif self._air_s[k] > FIRST_SWING_MIN_S + 1e-9:
+                self._judge_air = False  # the first landing
+                return None
+            else:
+                self._air_s[k] = 0.0
+        for k, other in ((0, 1), (1, 0)):
+            if fz_n[k] < in_air_n and fz_n[other] > SOLE_CARRIES_WEIGHTS * self.weight_n:
+                return k
+        return None
+
+    def _air_sole_under(self, store: Store, wrenches: dict) -> tuple[str, str, str] | None:
+        """In the first swing (:meth:`_first_swing_air_sole`), the sole read in the air more
+        than AIR_SOLE_UNDER_M under the one read carrying SOLE_CARRIES_WEIGHTS of the robot
+        while that one lies flat (SOLES_FLAT): the estimate stood the robot on the rising foot
+        (module docstring)."""
+        air = self._first_swing_air_sole(wrenches)
+        T_world_soles = store.get(T_WORLD_SOLES)
+        if air is None or T_world_soles is None:
+            return None
+        loaded = 1 - air
+        if not store.get(SOLES_FLAT, (False, False))[loaded]:
+            return None  # (on its edge, the estimate taking it flat tilts the other's height)
+        fz_n = [float(wrenches[sensor][2]) for sensor in ANKLE_SENSORS]
+        z_m = np.asarray(T_world_soles, dtype=float)[:, 2, 3]
+        under_m = float(z_m[loaded] - z_m[air])
+        if not under_m > AIR_SOLE_UNDER_M:
+            return None
+        sides = ("right", "left")
+        return (ANKLE_SENSORS[loaded],
+                f"F_z {fz_n[loaded]:.0f} N while the {ANKLE_SENSORS[air]} sensor reads "
+                f"{fz_n[air]:.0f} N in the first swing, its sole {under_m * 1000:.1f} mm under "
+                f"the {sides[loaded]} one (at most {AIR_SOLE_UNDER_M * 1000:g} mm: a foot in "
+                "the air does not lie under the sole carrying the robot; the estimate stands the "
+                "robot on the sole its sensor loads, and the foot that rose carries the other "
+                "down)",
                 "the two ankle sensors are swapped between the feet")
