@@ -992,11 +992,9 @@ class SimDriver(Driver, SimulatedWorld):
         links = self._ankle_link_ids
         if self._objects:
             links = links.union(self._hand_link_ids)
-        kept = self._earlier_rows
-        for cp in self._p.getContactPoints(bodyA=self._robot, physicsClientId=self._cid):
-            if cp[3] in links:
-                kept.setdefault(cp[3], []).append(
-                    (*cp[5], *cp[7], cp[9], cp[10], *cp[11], cp[12], *cp[13]))
+        for link, rows in self._contact_rows().items():
+            if link in links:
+                self._earlier_rows.setdefault(link, []).extend(rows)
         self._earlier_steps += 1
 
     def _measure(self) -> RobotState:

@@ -84,9 +84,10 @@ SOLE_STEPPED_M = 0.03
 # (round 23, docs/history/walking.md: the ankle sensors reading the period's mean, the swapped
 # walks rock less and the estimate sinks the sole that stays down, not both: seed 1's soles 0.3
 # and 3.5 mm under at 0.6 s, past 2 mm together only at 0.83-0.85 s, after its first weight came
-# off a foot). Healthy walks (normal and fast, nominal and seeds 1-10) and stands pushed 90 N
-# forward, backward, left and right, both code paths, held at most 0.32 mm for 0.055 s (seed 5);
-# swapped, seed 1 passed 1.5 mm at 0.335 s on both paths
+# off a foot). Healthy runs (walks normal and fast on nominal and seeds 1-10, stands pushed 90 N
+# forward, backward, left and right, pushed walks, tasks; 52 a path), both code paths, held at
+# most 0.50 mm for 0.055 s (a stand pushed 90 N forward, seed 4, portable; 3.0x); swapped, seed
+# 1 passed 1.5 mm at 0.335 s on both paths
 SOLE_SUNK_UNDER_OTHER_M = 0.0015
 # In the first swing (once both soles have carried SOLE_IN_AIR_WEIGHTS at once, until the first
 # landing), a sole read in the air (below SOLE_IN_AIR_WEIGHTS) more than this under the one read
@@ -298,15 +299,15 @@ class AnkleWiring:
                                "as the robot rocks carries the other down)",
                 "the two ankle sensors are swapped between the feet")
 
-    def _first_swing_air_sole(self, wrenches: dict) -> int | None:
-        """Follows the first swing as the sensors read it: judged once both soles have carried
-        SOLE_IN_AIR_WEIGHTS of the robot at once (standing) until a sole read in the air (below
-        it) for longer than FIRST_SWING_MIN_S reads load again (the first landing), or both
-        soles together read in the air (a bounce). Returns the sole read in the air while the
-        other carries SOLE_CARRIES_WEIGHTS (0 right, 1 left), else None."""
+    def _first_swing_air_sole(self, fz_n: list[float]) -> int | None:
+        """Follows the first swing as the ankle sensors' F_z read it (``fz_n``: right, left, N):
+        judged once both soles have carried SOLE_IN_AIR_WEIGHTS of the robot at once (standing)
+        until a sole read in the air (below it) for longer than FIRST_SWING_MIN_S reads load
+        again (the first landing), or both soles together read in the air (a bounce). Returns
+        the sole read in the air while the other carries SOLE_CARRIES_WEIGHTS (0 right, 1
+        left), else None."""
         if not self._judge_air:
             return None
-        fz_n = [float(wrenches[sensor][2]) for sensor in ANKLE_SENSORS]
         in_air_n = SOLE_IN_AIR_WEIGHTS * self.weight_n
         self._stood = self._stood or min(fz_n) >= in_air_n
         if not self._stood:
@@ -332,14 +333,14 @@ class AnkleWiring:
         than AIR_SOLE_UNDER_M under the one read carrying SOLE_CARRIES_WEIGHTS of the robot
         while that one lies flat (SOLES_FLAT): the estimate stood the robot on the rising foot
         (module docstring)."""
-        air = self._first_swing_air_sole(wrenches)
+        fz_n = [float(wrenches[sensor][2]) for sensor in ANKLE_SENSORS]
+        air = self._first_swing_air_sole(fz_n)
         T_world_soles = store.get(T_WORLD_SOLES)
         if air is None or T_world_soles is None:
             return None
         loaded = 1 - air
         if not store.get(SOLES_FLAT, (False, False))[loaded]:
             return None  # (on its edge, the estimate taking it flat tilts the other's height)
-        fz_n = [float(wrenches[sensor][2]) for sensor in ANKLE_SENSORS]
         z_m = np.asarray(T_world_soles, dtype=float)[:, 2, 3]
         under_m = float(z_m[loaded] - z_m[air])
         if not under_m > AIR_SOLE_UNDER_M:
