@@ -1020,12 +1020,43 @@ def test_a_lift_off_onto_a_landed_foot_that_does_not_carry_stops_a_pushed_walk(p
         assert not all(target._played_support)  # the left foot has lifted off
 
 
+def _cart_zmp_y(walk):
+    """``each`` for :func:`_offline_walk`: appends to ``walk`` the played cart-table pattern's
+    lateral ZMP (world y, m) and the step and support of its row."""
+    def each(k, target, before):
+        j = min(target.k, target.gait.n - 1)
+        walk.append((target._cart.com.zmp_m[min(target.k, target._cart.n - 1), 1],
+                     target._rows["step"][j], all(target._rows["support"][j])))
+    return each
+
+
+def test_a_stop_in_mid_swing_lets_the_landing_foot_take_the_weight():
+    """An operator's stop in mid-swing (no push): the foot lands where it was going and takes
+    the weight as walking would before the CoM comes to rest between the feet, so the
+    pattern's ZMP stays where the walk's own goes (over the soles). Offline, a 1 m walk
+    stopped 84 periods into its third step's swing. Before, the stop turned the CoM back at
+    once: the ZMP reference went 384 mm out to the side (261 mm beyond the walk's), and on
+    the simulated robot a 2 m walk's stop tipped over (docs/history/walking.md, round 24)."""
+    walk, stopped = [], []
+    target, _, _ = _offline_walk((1.0, 0.0, 0.0), 4000, each=_cart_zmp_y(walk))
+    third_swing = next(k for k, (_, step, double) in enumerate(walk) if step == 2 and not double)
+    stopped_target, _, _ = _offline_walk((1.0, 0.0, 0.0), 4000, stop_k=third_swing + 84,
+                                         each=_cart_zmp_y(stopped))
+    walk_y_m = max(abs(row[0]) for row in walk)
+    stop_y_m = max(abs(row[0]) for row in stopped)
+    sole_edge_y_m = target.params.step_width_m / 2 + target.model.feet.width_m / 2
+    assert stop_y_m <= walk_y_m + 0.010
+    assert stop_y_m <= sole_edge_y_m - 0.010
+    assert stopped_target.phase == "stood" and len(stopped_target.steps) == 3
+
+
 def test_a_pushed_stops_landing_waits_whichever_pattern_it_lands_in():
     """The landing wait (after a push, once the walk stops) keys on the rows played, not on
     the pattern's own rows: a stop whose rest is installed at the landing's period, and a
     swing foot measured down early (its pattern starts at the landing's double support), wait
     as a landing inside one pattern does. Offline: the landed (right) foot reads 0 N, the
-    capture point 50 mm off the pattern's in double support. Before the review fix the
+    capture point 50 mm off the pattern's from the stop on (a pushed stop: the foot in the
+    air keeps the capture point's landing). Before the review fix the
     landing at a pattern's row 0 did not wait (a stop at period 495 here; an early
     touchdown)."""
     from hubo_cli.walking.target import LANDING_WAIT_MAX_S
@@ -1035,7 +1066,7 @@ def test_a_pushed_stops_landing_waits_whichever_pattern_it_lands_in():
         played = []
         target, _, installs = _offline_walk(
             (0.3, 0.0, 0.0), 3000, stop_k=stop_k, cp_offset_m=(0.0, 0.05),
-            offset_k=(stop_k, 3000), double_only=True, ankles_fz_n=(0.0, 380.0),
+            offset_k=(stop_k, 3000), ankles_fz_n=(0.0, 380.0),
             each=lambda k, target, before, played=played: played.append(
                 all(target._played_support)))
         landing = next(k for k in range(stop_k, len(played)) if played[k] and not played[k - 1])

@@ -923,11 +923,16 @@ class WalkTarget(Target):
         planted = None
         if step >= 0:
             kept = steps[:step + 1]
-            if all(self._rows["support"][k]) and step + 1 < len(steps):
-                # the step has landed and the weight moves onto it: the CoM turns back over
-                # that foot as walking would (a single support's time, the other foot down),
-                # then comes to rest between the feet (turned at once, it tipped the robot
-                # over the new stance foot's outer edge)
+            if step + 1 < len(steps) and (all(self._rows["support"][k])
+                                          or not self._pushed(k)):
+                # the step has landed and the weight moves onto it, or (no push) the foot is
+                # still in the air and will land where planned: the CoM turns back over that
+                # foot as walking would (a single support's time, the other foot down), then
+                # comes to rest between the feet. Turned at once, it tipped the robot over the
+                # new stance foot's outer edge; turned in mid-swing, the CoM reversed over the
+                # stance sole's inner edge and the swing sole struck the floor early (a
+                # portable 2 m walk's stop, seed 20, tilted 20 deg). A pushed walk's stop keeps
+                # the capture point's landing (docs/walking.md)
                 other = steps[step + 1].side
                 x, y, _, yaw = self._rows[other][k]
                 kept = [*kept, Footstep(other, x, y, yaw)]
