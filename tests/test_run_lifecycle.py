@@ -550,12 +550,21 @@ def test_sigterm_ends_a_local_cluster_sweep_within_a_second_or_so(tmp_path):
     out = tmp_path / "sweep"
     process, first = _sweep_running(out, "1-4", 60, 2, 200)
     try:
+        def alive(child, test=lambda child: True) -> bool:
+            # a child may exit between the listing and the question (psutil raises then)
+            try:
+                return (child.is_running() and child.status() != psutil.STATUS_ZOMBIE
+                        and test(child))
+            except psutil.Error:
+                return False
+
         workers = [c for c in psutil.Process(process.pid).children(recursive=True)
-                   if not any("resource_tracker" in part for part in c.cmdline())]
+                   if alive(c, lambda c: not any("resource_tracker" in p for p in c.cmdline()))]
 
         def running() -> list:
-            return [c for c in workers if c.is_running() and c.status() != psutil.STATUS_ZOMBIE]
+            return [c for c in workers if alive(c)]
 
+        assert workers  # (the first run is under way: its worker is there)
         started = time.monotonic()
         process.send_signal(signal.SIGTERM)
         while running() and time.monotonic() - started < 30:
