@@ -338,11 +338,12 @@ def test_the_gaits_are_the_robot_files(walking_model, params, tmp_path):
 
 
 def test_a_gait_answers_pushes_by_its_step_not_its_name(walking_model, tmp_path):
-    """The landing wait, the floor reach and the momentum strategy are on for a gait whose
-    steps last PUSH_RESPONSES_MIN_STEP_S or longer (the normal gait's 1.0 s), off for the fast
-    gait's 0.75 s; a gait added to the robot file gets them by its step; a toe-heel walk has
-    no floor reach and no momentum strategy. A gait without them has its capture-point
-    monitor judge against the soles where the estimate stands them (the same fact)."""
+    """The landing wait while walking, the floor reach and the momentum strategy are on for a
+    gait whose steps last PUSH_RESPONSES_MIN_STEP_S or longer (the normal gait's 1.0 s), off
+    for the fast gait's 0.75 s; a gait added to the robot file gets them by its step; a
+    toe-heel walk has no floor reach and no momentum strategy. Once a walk stops, every
+    flat-foot gait's landings wait. A gait without them has its capture-point monitor judge
+    against the soles where the estimate stands them (the same fact)."""
     from hubo_cli.walking.stabilizer import StabilizerGains
     from hubo_cli.walking.target import WalkTarget
     from hubo_cli.walking.toe_heel import ToeHeelParams
@@ -358,9 +359,9 @@ def test_a_gait_answers_pushes_by_its_step_not_its_name(walking_model, tmp_path)
         q_start, T_world_neck = walking_posture(model, params.step_width_m, params.crouch_m)
         target = WalkTarget(model, params, (1.0, 0.0, 0.0), q_start, T_world_neck,
                             stabilizer=StabilizerGains(), toe_heel=toe_heel)
-        assert params.answers_pushes == target.landing_wait
+        assert target.landing_wait is (params.answers_pushes or toe_heel is None)
         assert target.support_where_standing is not params.answers_pushes
-        return target.landing_wait, target.floor_reach, target.momentum
+        return target.landing_wait_walking, target.floor_reach, target.momentum
 
     on, off = (True, True, True), (False, False, False)
     assert [responses(g) for g in ("normal", "stroll", "quick", "fast")] == [on, on, off, off]

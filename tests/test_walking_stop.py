@@ -667,7 +667,7 @@ REPLAN_REVIEW = (
 
 def _offline_walk(goal_m, periods, stop_k=None, cp_offset_m=(0.0, 0.0), offset_k=(0, 0),
                   each=None, ankles_fz_n=190.0, drift_m=(0.0, 0.0), double_only=False,
-                  contact=None):
+                  contact=None, gait="normal"):
     """A walk's target played offline (no physics): the estimate is where the pattern is
     (its capture point moved by ``cp_offset_m`` over periods ``offset_k``, ``double_only``: in
     its double supports only; after the first plan, its soles and capture point ``drift_m``
@@ -676,7 +676,7 @@ def _offline_walk(goal_m, periods, stop_k=None, cp_offset_m=(0.0, 0.0), offset_k
     left, or ``ankles_fz_n(k, target)`` giving them), the operator's stop from ``stop_k``;
     ``each(k, target, before)`` runs after every period (``before``: the plan and the pending
     re-plan before it). Returns the target, its commands and the periods a new pattern was
-    installed."""
+    installed. ``gait``: the robot file's gait walked."""
     from hubo_cli.estimation.keys import (
         CAPTURE_POINT_WORLD,
         COM_VELOCITY_WORLD,
@@ -685,7 +685,7 @@ def _offline_walk(goal_m, periods, stop_k=None, cp_offset_m=(0.0, 0.0), offset_k
     )
     from hubo_cli.walking.body import poses_of_rows
 
-    _, q0, _, target, store = standing_walk(goal_m, None)
+    _, q0, _, target, store = standing_walk(goal_m, None, gait)
     store[COM_VELOCITY_WORLD] = np.zeros(3)
     fz_of = ankles_fz_n if callable(ankles_fz_n) else None
     fz_n = np.broadcast_to(np.asarray(0.0 if fz_of else ankles_fz_n, dtype=float), (2,))
@@ -1083,6 +1083,22 @@ def test_a_pushed_stops_landing_waits_whichever_pattern_it_lands_in():
         assert target.touchdowns_early == int(early)
         assert target.landing_waits == 1 and target.phase == "stood"
         assert max(waited) == pytest.approx(LANDING_WAIT_MAX_S)
+
+
+def test_the_fast_gaits_landing_waits_once_it_stops_not_while_it_walks():
+    """The fast gait, offline, its right sole reading 0 N and the capture point 50 mm off the
+    pattern's throughout: walking on, no landing or lift-off waits and no stop (its own
+    bounces and lag would set them off: the normal gait under the same readings waits at its
+    first lift-off and stops); stopped in a swing, the landing waits for the foot (before
+    round 24 the fast gait never waited, and a pushed landing bounced between the soles)."""
+    pushed = {"cp_offset_m": (0.0, 0.05), "offset_k": (0, 3000), "ankles_fz_n": (0.0, 380.0),
+              "gait": "fast"}
+    walking, _, _ = _offline_walk((0.6, 0.0, 0.0), 3000, **pushed)
+    assert walking.stopped_s is None and walking.phase == "walk"
+    assert walking.landing_waits == walking.liftoff_waits == 0
+    for stop_k in (300, 330, 360):
+        stopped, _, _ = _offline_walk((0.6, 0.0, 0.0), 3000, stop_k=stop_k, **pushed)
+        assert stopped.landing_waits == 1 and stopped.phase == "stood", stop_k
 
 
 @pytest.mark.parametrize("drift_m", [(0.012, -0.009), (-0.015, 0.006), (0.005, 0.004)])

@@ -22,7 +22,7 @@ from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import RobotModel, load_model
 from hubo_cli.state import FT_SENSORS
 from hubo_cli.walking.body import WalkingBody, walking_posture
-from hubo_cli.walking.params import walking_params
+from hubo_cli.walking.params import DEFAULT_GAIT, walking_params
 from hubo_cli.walking.stabilizer import StabilizerGains
 from hubo_cli.walking.target import WalkTarget
 
@@ -72,14 +72,14 @@ class StandingWalk(NamedTuple):
     store: Store
 
 
-def standing_walk(goal_m, stabilizer: StabilizerGains | None,
+def standing_walk(goal_m, stabilizer: StabilizerGains | None, gait: str = DEFAULT_GAIT,
                   **store_options) -> StandingWalk:
     """The target of a walk to ``goal_m`` (forward, left, turn) without corrections, with
     ``stabilizer``'s gains (None: none), on the as-built model with the walking limits and its
-    walking parameters, attached to the estimate of its start posture standing still
-    (:func:`standing_store` with ``store_options``), not yet run."""
+    ``gait``'s walking parameters, attached to the estimate of its start posture standing
+    still (:func:`standing_store` with ``store_options``), not yet run."""
     model = load_model("as-built", "walking")
-    params = walking_params(model)
+    params = walking_params(model, gait)
     q_start, T_world_neck = walking_posture(model, params.step_width_m, params.crouch_m)
     target = WalkTarget(model, params, goal_m, q_start, T_world_neck, corrections=0,
                         stabilizer=stabilizer)

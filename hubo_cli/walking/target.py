@@ -509,7 +509,10 @@ class WalkTarget(Target):
         # the push responses (:meth:`_unloaded_landing`, :meth:`_reach_floor`, :meth:`_momentum`)
         # by the gait's step (WalkingParams.answers_pushes); the floor reach and the momentum
         # strategy not in toe-heel walks (not measured with them)
-        self.landing_wait = params.answers_pushes
+        # the landing wait once the walk stops for every flat-foot gait; while it walks only
+        # for the pushed gaits (the fast gait's own bounces and capture-point lag set it off)
+        self.landing_wait = params.answers_pushes or toe_heel is None
+        self.landing_wait_walking = params.answers_pushes
         self.floor_reach = params.answers_pushes and toe_heel is None
         self.momentum = params.answers_pushes and toe_heel is None
         # the capture-point monitor's planned support where the estimated soles stand
@@ -1376,6 +1379,15 @@ class WalkTarget(Target):
                 "done": self.fell or self._done(t_s)}
         return q, info
 
+    def _waits(self) -> bool:
+        """The landing wait acts this period (``landing_wait``; while the walk goes on, only
+        ``landing_wait_walking``). The fast gait's landings wait only once it stops: waiting
+        while it walked stopped 14 of 20 unpushed perturbed 2 m walks after 2-11 steps; once
+        stopped, the 100 N pushes' falls went 10 -> 9 of 20 (AVX-512) and 11 -> 10 (portable),
+        no walk fared worse, the unpushed walks the same to the digit
+        (docs/history/walking.md, round 24)."""
+        return self.landing_wait and (self.landing_wait_walking or self.phase != "walk")
+
     def _unloaded_liftoff(self, k: int) -> bool:
         """Row ``k`` has both soles down and the next lifts one, while the soles measured
         carried less than LIFTOFF_MIN_LOAD of the body's weight (their median over the last
@@ -1386,8 +1398,8 @@ class WalkTarget(Target):
         would come down on it from the foot lifted (pushed seed 40 at 80 N: that foot read
         -10 N, the capture point 37 mm off, the left foot lifted and the robot fell). While
         the walk goes on, that wait also stops it (``_bounced``, the operator's stop next
-        period). Off (``landing_wait``) for a gait of short steps, as the fast gait: its
-        landings bounce and its capture point lags the pattern's beyond CP_MARGIN_M
+        period). Off while walking (:meth:`_waits`) for a gait of short steps, as the fast
+        gait: its landings bounce and its capture point lags the pattern's beyond CP_MARGIN_M
         unpushed; waiting there, perturbed robot 11's fast 2 m walk fell (portable path,
         round 17). Unpushed, perturbed robots lift off onto a landed foot
         reading -12 to +52 N at 56 of 160 lift-offs (8 of 20 walks), the capture point then
@@ -1402,7 +1414,7 @@ class WalkTarget(Target):
             return True
         staying_n = self._loads_n[:, int(np.argmax(support[k + 1]))]
         staying_n = staying_n[~np.isnan(staying_n)]
-        unloaded = bool(self.landing_wait and len(staying_n)
+        unloaded = bool(self._waits() and len(staying_n)
                         and np.median(staying_n) < self.model.estimation.swing_touchdown_n
                         and self._pushed(k))
         if unloaded and self.phase == "walk":
@@ -1425,8 +1437,8 @@ class WalkTarget(Target):
         double support keeps the landing; without the sensor (NaN) it never waits. Only once
         the walk stops: waiting while it walked, perturbed robots' unpushed 1 m walks (their
         capture point 20-57 mm off the pattern's, landed feet reading under 60 N now and
-        then) waited 0.3-3 s, one fell and 14 of 20 ended over 10 mm off. Off
-        (``landing_wait``) for a gait of short steps (``WalkingParams.answers_pushes``), as
+        then) waited 0.3-3 s, one fell and 14 of 20 ended over 10 mm off. Off while walking
+        (:meth:`_waits`) for a gait of short steps (``WalkingParams.answers_pushes``), as
         the fast gait: its own landings bounce and its capture point lags the pattern's by
         more than CP_MARGIN_M without a push; waiting at 4-12 of its landings, 3 of 10 of its
         2 m walks fell (docs/history/walking.md, round 10). While the walk goes on, the
@@ -1449,7 +1461,7 @@ class WalkTarget(Target):
         in the air while the body tipped back over the stance heel (the 2 m walk's seed 1 of
         tools/walk_disturbances.py, pushed from the front 36 ms after a lift-off, fell;
         docs/history/walking.md, round 22)."""
-        if not self.landing_wait or not all(self._rows["support"][k]):
+        if not self._waits() or not all(self._rows["support"][k]):
             self._landed = None  # (a single support: the landing is past)
             return False
         played = self._played_support
