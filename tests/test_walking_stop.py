@@ -24,7 +24,7 @@ from hubo_cli.posture import home_posture
 from hubo_cli.state import ANKLE_SENSORS, RobotState
 from hubo_cli.walking.footsteps import Footstep, Stance, plan_footsteps
 from hubo_cli.walking.gait import make_gait
-from hubo_cli.walking.params import walking_params
+from hubo_cli.walking.params import DEFAULT_GAIT, walking_params
 from hubo_cli.walking.replan import (
     CP_GAP_M,
     CP_MAX_SHIFT_M,
@@ -667,7 +667,7 @@ REPLAN_REVIEW = (
 
 def _offline_walk(goal_m, periods, stop_k=None, cp_offset_m=(0.0, 0.0), offset_k=(0, 0),
                   each=None, ankles_fz_n=190.0, drift_m=(0.0, 0.0), double_only=False,
-                  contact=None, gait="normal"):
+                  contact=None, gait=DEFAULT_GAIT):
     """A walk's target played offline (no physics): the estimate is where the pattern is
     (its capture point moved by ``cp_offset_m`` over periods ``offset_k``, ``double_only``: in
     its double supports only; after the first plan, its soles and capture point ``drift_m``
