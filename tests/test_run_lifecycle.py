@@ -550,16 +550,21 @@ def test_sigterm_ends_a_local_cluster_sweep_within_a_second_or_so(tmp_path):
     out = tmp_path / "sweep"
     process, first = _sweep_running(out, "1-4", 60, 2, 200)
     try:
-        def alive(child, test=lambda child: True) -> bool:
-            # a child may exit between the listing and the question (psutil raises then)
+        # (a child may exit between the listing and a question about it: psutil raises then)
+        def alive(child) -> bool:
             try:
-                return (child.is_running() and child.status() != psutil.STATUS_ZOMBIE
-                        and test(child))
+                return child.is_running() and child.status() != psutil.STATUS_ZOMBIE
+            except psutil.Error:
+                return False
+
+        def worker(child) -> bool:
+            try:
+                return not any("resource_tracker" in part for part in child.cmdline())
             except psutil.Error:
                 return False
 
         workers = [c for c in psutil.Process(process.pid).children(recursive=True)
-                   if alive(c, lambda c: not any("resource_tracker" in p for p in c.cmdline()))]
+                   if alive(c) and worker(c)]
 
         def running() -> list:
             return [c for c in workers if alive(c)]

@@ -507,10 +507,9 @@ class WalkTarget(Target):
                  toe_heel: ToeHeelParams | None = None, lip_feedback: bool = False) -> None:
         self.model = model
         # the push responses (:meth:`_unloaded_landing`, :meth:`_reach_floor`, :meth:`_momentum`)
-        # by the gait's step (WalkingParams.answers_pushes); the floor reach and the momentum
-        # strategy not in toe-heel walks (not measured with them)
-        # the landing wait once the walk stops for every flat-foot gait; while it walks only
-        # for the pushed gaits (the fast gait's own bounces and capture-point lag set it off)
+        # by the gait's step (WalkingParams.answers_pushes), except the landing wait once the
+        # walk stops, on for every flat-foot gait (:meth:`_waits`); the floor reach and the
+        # momentum strategy not in toe-heel walks (not measured with them)
         self.landing_wait = params.answers_pushes or toe_heel is None
         self.landing_wait_walking = params.answers_pushes
         self.floor_reach = params.answers_pushes and toe_heel is None
