@@ -15,7 +15,7 @@ from hubo_cli.kinematics.choice import (
 )
 from hubo_cli.kinematics.conditioning import SingularityScale, condition_number
 from hubo_cli.kinematics.reach import branch_box, branch_of, jacobian, nearest_on_branch
-from hubo_cli.teleop.target import max_excursion_m
+from hubo_cli.teleop.target import max_excursion_m, steady_mask
 
 READY_RIGHT = np.array([0.0, -0.15, 0.0, -1.4, 0.0, 0.0])
 MARGINS = np.array([0.1, 0.55, 0.55])
@@ -211,3 +211,16 @@ def test_max_excursion_uses_the_nearest_goal_within_a_second():
     swing = lagging.copy()
     swing[200, 1] = 0.08                        # one 8 cm sideways swing
     assert max_excursion_m(t, goals, swing) == pytest.approx(0.08, abs=1e-9)
+
+
+def test_steady_following_starts_a_second_after_the_goal_comes_back_into_reach():
+    t = np.arange(0.0, 6.0, 0.005)
+    reachable = ~((t >= 2.0) & (t < 3.0))          # out of reach from 2 s to 3 s
+    steady = steady_mask(t, reachable)
+    assert steady[t < 2.0].all()                    # reachable from the start: no return
+    assert not steady[(t >= 2.0) & (t < 3.99)].any()  # out of reach, then the return's second
+    assert steady[t >= 4.0].all()
+    assert steady_mask(t, reachable, return_window_s=0.5)[(t >= 3.5)].all()
+    flicker = reachable & ~np.isclose(t, 4.5)       # one period out of reach again
+    assert not steady_mask(t, flicker)[(t > 4.5) & (t < 5.49)].any()
+    assert steady_mask(t[:0], reachable[:0]).shape == (0,)

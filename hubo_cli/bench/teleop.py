@@ -23,6 +23,7 @@ import numpy as np
 
 from hubo_cli.resources import data_file
 from hubo_cli.teleop.session import TeleopSettings, run_teleop
+from hubo_cli.teleop.target import RETURN_WINDOW_S
 
 # generated streams: (hand speed cap m/s, streams, seconds each); HUBO_BENCH_STREAMS=N changes
 # the count (each stream costs about half its length in wall time on the ideal driver)
@@ -62,6 +63,10 @@ FIGURES = (  # summary key, label, unit, low is bad
     ("reachable_orientation_rms_deg", "orientation RMS over reachable time", "deg", False),
     ("position_rms_mm", "position RMS, all the time", "mm", False),
     ("orientation_rms_deg", "orientation RMS, all the time", "deg", False),
+    ("steady_share", f"steady share of reachable time (> {RETURN_WINDOW_S:g} s after a return)",
+     "", True),
+    ("steady_position_rms_mm", "position RMS, steady", "mm", False),
+    ("steady_orientation_rms_deg", "orientation RMS, steady", "deg", False),
     ("reachable_max_excursion_mm", "largest excursion over reachable time", "mm", False),
     ("max_excursion_mm", "largest excursion, all the time", "mm", False),
     ("collision_room_s", "target kept out of the collision band", "s", False),

@@ -430,6 +430,13 @@ def _report(run, as_json: bool, video: bool = False) -> None:
                             "that time")
                     console.print(f"    goal reachable {r['reachable_share']:.0%} of the "
                                   f"time{over}")
+                if r.get("steady_position_rms_mm") is not None:
+                    from hubo_cli.teleop.target import RETURN_WINDOW_S
+
+                    console.print(f"    steady, {r['steady_share']:.0%} of that time (more than "
+                                  f"{RETURN_WINDOW_S:g} s after the goal came back into reach): "
+                                  f"position {r['steady_position_rms_mm']:.1f} mm rms, orientation "
+                                  f"{r['steady_orientation_rms_deg']:.1f} deg rms")
                 if r.get("followed_orientation_rms_deg") is not None:
                     console.print(f"    followed live {r['followed_share']:.0%} of the time: "
                                   f"position {r['followed_position_rms_mm']:.1f} mm rms, "
