@@ -841,3 +841,25 @@ def test_free_modes_orientation_filter_is_faster_only_while_the_arm_follows_free
     assert lag_deg[True] == pytest.approx(30 * np.exp(-0.5 / FREE_ORIENTATION_TIME_CONSTANT_S),
                                           rel=0.01)
     assert lag_deg[False] == pytest.approx(30 * np.exp(-0.5 / slow), rel=0.01)
+
+
+def test_the_live_views_reachable_share_and_errors_are_the_reports():
+    """The live view's running figures (per hand: the share of the time so far that the goal
+    was reachable, the position and orientation RMS over it) end as the run's report gives
+    them; a generated stream that goes out of reach and back, followed by the target."""
+    from hubo_cli.cli.teleop import _reachable_cell
+    from hubo_cli.input.operator_stream import StreamSettings
+    from hubo_cli.teleop.stream_runs import follow_generated
+
+    seen = {}
+    run = follow_generated(3403, StreamSettings(duration_s=6.0),
+                           observe=lambda target, t_s: seen.setdefault("target", target))
+    hands = seen["target"].hands
+    assert any(0.0 < figures["reachable_share"] < 1.0 for figures in run.hands.values())
+    for arm, figures in run.hands.items():
+        share, position_mm, rotation_deg = hands[arm].reachable_so_far()
+        assert share == pytest.approx(figures["reachable_share"], abs=1e-12)
+        assert position_mm == pytest.approx(figures["reachable_position_rms_mm"], rel=1e-9)
+        assert rotation_deg == pytest.approx(figures["reachable_orientation_rms_deg"], rel=1e-9)
+        assert _reachable_cell(hands[arm]) == (f"{share:.0%}  {position_mm:.1f} mm  "
+                                               f"{rotation_deg:.1f} deg")

@@ -110,16 +110,26 @@ def _reach_cell(hand) -> str:
     return "ok"
 
 
+def _reachable_cell(hand) -> str:
+    """The share of the time so far that the goal was reachable and the errors over it."""
+    so_far = hand.reachable_so_far()
+    if so_far is None:
+        return "-"
+    share, position_mm, rotation_deg = so_far
+    return f"{share:.0%}  {position_mm:.1f} mm  {rotation_deg:.1f} deg"
+
+
 def _view(target, panel) -> Group:
     """The live view: the safety state; per hand goal, actual, position and orientation errors,
-    IK status, reach (limit and direction of the missing part, branch changes, slowing); input
-    and latency."""
+    IK status, reach (limit and direction of the missing part, branch changes, slowing), the
+    share of the time so far the goal was reachable with the RMS errors over it; input and
+    latency."""
     safety = panel()
     from hubo_cli.cli.safety_view import STOPPED_HOW
     phase = "E-STOPPED" if panel.last.estop in STOPPED_HOW else target.phase
     table = Table(title=f"hubo teleop — {phase}   ({KEYS_HELP})", title_justify="left")
     for column in ("hand", "goal (mm)", "actual (mm)", "pos err (mm)", "rot err (deg)", "IK",
-                   "reach", "input"):
+                   "reach", "reachable: share, rms", "input"):
         table.add_column(column)
 
     def mm(p):
@@ -130,7 +140,7 @@ def _view(target, panel) -> Group:
                  if hand.goal_m is not None and hand.actual_m is not None else float("nan"))
         table.add_row(arm, mm(hand.goal_m), mm(hand.actual_m), f"{error:.1f}",
                       f"{np.degrees(hand.rotation_error_rad):.1f}", hand.ik_status,
-                      _reach_cell(hand), "[red]stale[/]" if hand.stale
+                      _reach_cell(hand), _reachable_cell(hand), "[red]stale[/]" if hand.stale
                       else "[yellow]back: press c[/]" if hand.needs_clutch else "ok")
     latency = target.latencies_s[-1] * 1000 if target.latencies_s else float("nan")
     table.caption = (f"samples {target.samples_used}  rejected {target.mapper.rejected}  "

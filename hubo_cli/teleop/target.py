@@ -161,11 +161,25 @@ class HandTrack:
     passed: bool = False  # since then, the goal has passed the hand along its velocity
     behind_m: float = 0.0  # while returning: how far the hand is behind the goal along its
     # velocity (m; last period's positions), 0 when not known
+    operated_periods: int = 0  # periods recorded following the goal in the world (_record)
+    reachable_periods: int = 0  # ... of them with the goal reachable, and over those the sums
+    reachable_sq_position_m2: float = 0.0  # of the squared position error (m^2)
+    reachable_sq_rotation_rad2: float = 0.0  # and of the squared rotation error (rad^2)
 
     @property
     def at_limit(self) -> bool:
         """The goal is out of reach: the hand is held at the nearest reachable pose."""
         return self.missing_m is not None
+
+    def reachable_so_far(self) -> tuple[float, float, float] | None:
+        """The share of the recorded periods whose goal was reachable and the position (mm)
+        and orientation (deg) RMS over them, so far (what the live view shows; the run's
+        report computes the same from the whole record); None before any reachable period."""
+        n = self.reachable_periods
+        if not n:
+            return None
+        return (n / self.operated_periods, math.sqrt(self.reachable_sq_position_m2 / n) * 1000,
+                math.degrees(math.sqrt(self.reachable_sq_rotation_rad2 / n)))
 
     @property
     def held(self) -> bool:
@@ -952,6 +966,11 @@ class TeleopTarget(Target):
         self.path_times_s[arm].append(t_s)
         self.paths[arm].append((goal_m.copy(), actual_m.copy()))
         self.world_errors_m[arm].append(world_error_m)
+        hand.operated_periods += 1
+        if hand.reachable:
+            hand.reachable_periods += 1
+            hand.reachable_sq_position_m2 += error_m * error_m
+            hand.reachable_sq_rotation_rad2 += rotation_error_rad * rotation_error_rad
 
     def _lift_of(self, q_rad: np.ndarray) -> float:
         """:meth:`WholeBody.lift_of` of a joint vector, remembered for the last few leg
