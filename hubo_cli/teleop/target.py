@@ -991,9 +991,8 @@ class TeleopTarget(Target):
 def steady_mask(t_s: np.ndarray, reachable: np.ndarray,
                 return_window_s: float = RETURN_WINDOW_S) -> np.ndarray:
     """Per sample (times ``t_s``, s, ascending; ``reachable`` flags), whether the goal is
-    reachable and has been since more than ``return_window_s`` after it last came back into
-    reach: steady following, not a return (a goal reachable from the first sample on has not
-    returned)."""
+    reachable and came back into reach more than ``return_window_s`` earlier: steady following,
+    not a return (a goal reachable from the first sample on has not returned)."""
     t = np.asarray(t_s, dtype=float)
     ok = np.asarray(reachable, dtype=bool)
     if not len(t):
