@@ -1259,3 +1259,33 @@ def test_a_pushed_landing_that_bounces_while_walking_stops_the_walk(error_m):
     else:
         assert target.liftoff_waits == 1
         assert target.stopped_s is not None and target.phase == "stood"
+
+
+def test_the_stoppers_deadline_covers_a_stop_just_into_a_swing_and_its_landings_waits():
+    """A stop latched in the first period of a swing plays the rest of the swing, the next
+    step planted where the other foot stands and the settle; the deadline the walk gives the
+    stopper (its PHASE_STOP's ``within_s`` the period before) covers that and the most its
+    landings can wait (LANDING_WAIT_MAX_S each), and stays under the stopper's cap. Offline,
+    a 1 m walk. Before round 25 the deadline counted one step: 3.6 s against the 3.5 s played
+    and two landings' waits, and a SIGHUP'd 3 m walk whose landings waited 0.19 s stood 0.08 s
+    late, held where it was."""
+    from hubo_cli.walking.target import LANDING_WAIT_MAX_S
+
+    walk, within = [], {}
+    _offline_walk((1.0, 0.0, 0.0), 4000, each=_cart_zmp_y(walk))
+    third_swing = next(k for k, (_, step, double) in enumerate(walk) if step == 2 and not double)
+    stop_k = third_swing + 1
+    played = []
+
+    def each(k, target, before):
+        if k == stop_k - 1:
+            within["s"] = target.store[PHASE_STOP].within_s
+        played.append((target.phase, all(target._played_support)))
+
+    target, _, _ = _offline_walk((1.0, 0.0, 0.0), 4000, stop_k=stop_k, each=each)
+    stood_k = next(k for k, (phase, _) in enumerate(played) if phase == "stood")
+    landings = sum(1 for k in range(stop_k + 1, stood_k)
+                   if played[k][1] and not played[k - 1][1])
+    assert landings >= 1
+    needed_s = (stood_k - stop_k) * DT + landings * LANDING_WAIT_MAX_S
+    assert needed_s <= within["s"] <= MAX_FINISH_S, (needed_s, within["s"], landings)

@@ -164,7 +164,9 @@ _TOE_HEEL_COLUMNS = tuple((f"walk.{side}_cop_ref_m", f"walk.{side}_angle_ref_rad
                            f"walk.{side}_cop_m", f"walk.{side}_angle_rad") for side in SIDES)
 WALK_PHASES = ("walk", "stopping", "stood")
 STOOD_S = 1.0          # [chosen] a stopped walk holds its stance this long, then ends
-WALK_STOP_SPARE_S = 1.0  # [chosen] the stopper's deadline: the stop's pattern and this much
+WALK_STOP_SPARE_S = 1.0  # [chosen] the stopper's deadline: the stop's pattern at its longest
+# (:meth:`WalkTarget.stop_within_s`) and this much for its landings' waits (two at most, each
+# LANDING_WAIT_MAX_S)
 CP_WINDOW = 0.75       # [chosen] a landing moves only over this first part of its swing
 CP_REPLAN_M = 0.02     # [chosen] a landing moves again once its goal changed by this much
 CP_BLEND_PERIODS = 20  # [chosen] a moved landing's pattern is played at least this long before
@@ -911,6 +913,17 @@ class WalkTarget(Target):
             return
         self._finish_step(t_s)
 
+    def stop_within_s(self) -> float:
+        """How long a stop latched now may take to stand (s; the stopper's deadline): the stop's
+        pattern at its longest, two steps' time (a swing just begun finished, then the next
+        step planted where the other foot stands: :meth:`_finish_step`, the CoM over the
+        landed foot for a single support's time), the settle, and ``WALK_STOP_SPARE_S`` for
+        the landings' waits. Counted with one step (before round 25), a SIGHUP 0.1 s into a
+        swing whose stop waited 0.19 s at its landings stood 0.08 s after the deadline and the
+        stopper held it where it was (``interrupt_stop`` ``held``; docs/history/walking.md,
+        round 25)."""
+        return 2 * self.params.step_s + self.params.settle_s + WALK_STOP_SPARE_S
+
     def _finish_step(self, t_s: float) -> None:
         """Finish the step in progress into a double-support stance from this period on (none
         before the first step; nothing changes once the last one is down); its legs out of
@@ -1301,8 +1314,7 @@ class WalkTarget(Target):
         # how this phase stops: finishing the step (settled once it stands), or by the
         # stopper's own brake when the stop's pattern could not be made
         store[PHASE_STOP] = None if self.stop_failed else PhaseStop(
-            self.phase == "stood",
-            self.params.step_s + self.params.settle_s + WALK_STOP_SPARE_S)
+            self.phase == "stood", self.stop_within_s())
         gait, plan = self.gait, self.plan
         k = min(self.k, gait.n - 1)
         right_fz_n, left_fz_n = (float(state.ft[sensor][2]) if sensor in state.ft else math.nan
