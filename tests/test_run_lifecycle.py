@@ -408,7 +408,7 @@ def test_sigterm_stops_soon_and_reports_the_time_run(tmp_path, args):
     # the wall clock, bounds it (the simulation runs slower than real time on a loaded
     # machine: the log closed 6.35 s after the signal at load 14, round 16): the stance's 5.6
     # s at most (two of the normal gait's 1.0 s steps, a swing and the step a mid-swing stop
-    # plants, its 1.6 s settle, 1 s spare for the landings' waits, 1 s for the stopper's
+    # plants, its 1.6 s settle, 1 s spare for the landing's wait, 1 s for the stopper's
     # brake) and 0.5 s held; measured 2.0-2.5 s of robot time (rounds 15-16), 4.2 s with a
     # stop 0.1 s into a swing (round 25). Its wall-clock bounds only catch a hang.
     assert stopped_s < (30.0 if walking else 1.0), stopped_s

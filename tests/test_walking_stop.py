@@ -1266,9 +1266,9 @@ def test_the_stoppers_deadline_covers_a_stop_just_into_a_swing_and_its_landings_
     step planted where the other foot stands and the settle; the deadline the walk gives the
     stopper (its PHASE_STOP's ``within_s`` the period before) covers that and the most its
     landings can wait (LANDING_WAIT_MAX_S each), and stays under the stopper's cap. Offline,
-    a 1 m walk. Before round 25 the deadline counted one step: 3.6 s against the 3.5 s played
-    and two landings' waits, and a SIGHUP'd 3 m walk whose landings waited 0.19 s stood 0.08 s
-    late, held where it was."""
+    a 1 m walk: 3.6 s played and one landing. Before round 25 the deadline counted one step,
+    3.6 s, with nothing left for the landing's wait, and a SIGHUP'd 3 m walk whose landing
+    waited 0.19 s stood 0.08 s late, held where it was."""
     from hubo_cli.walking.target import LANDING_WAIT_MAX_S
 
     walk, within = [], {}
@@ -1282,7 +1282,7 @@ def test_the_stoppers_deadline_covers_a_stop_just_into_a_swing_and_its_landings_
             within["s"] = target.store[PHASE_STOP].within_s
         played.append((target.phase, all(target._played_support)))
 
-    target, _, _ = _offline_walk((1.0, 0.0, 0.0), 4000, stop_k=stop_k, each=each)
+    _offline_walk((1.0, 0.0, 0.0), 4000, stop_k=stop_k, each=each)
     stood_k = next(k for k, (phase, _) in enumerate(played) if phase == "stood")
     landings = sum(1 for k in range(stop_k + 1, stood_k)
                    if played[k][1] and not played[k - 1][1])

@@ -880,8 +880,9 @@ class TeleopTarget(Target):
             rot = np.asarray(self.rotation_errors_rad[arm])
             ok = np.asarray(self.reachable[arm], dtype=bool)
             followed = ok & np.asarray(self.meant_to_follow[arm], dtype=bool)
-            steady = steady_mask(np.asarray(self.path_times_s[arm]), ok)
-            excursion = excursions_m(np.asarray(self.path_times_s[arm]),
+            t_s = np.asarray(self.path_times_s[arm])
+            steady = steady_mask(t_s, ok)
+            excursion = excursions_m(t_s,
                                      np.array([g for g, _ in self.paths[arm]]).reshape(-1, 3),
                                      np.array([a for _, a in self.paths[arm]]).reshape(-1, 3))
             report[arm] = {

@@ -165,8 +165,8 @@ _TOE_HEEL_COLUMNS = tuple((f"walk.{side}_cop_ref_m", f"walk.{side}_angle_ref_rad
 WALK_PHASES = ("walk", "stopping", "stood")
 STOOD_S = 1.0          # [chosen] a stopped walk holds its stance this long, then ends
 WALK_STOP_SPARE_S = 1.0  # [chosen] the stopper's deadline: the stop's pattern at its longest
-# (:meth:`WalkTarget.stop_within_s`) and this much for its landings' waits (two at most, each
-# LANDING_WAIT_MAX_S)
+# (:meth:`WalkTarget.stop_within_s`) and this much for its landing's wait (LANDING_WAIT_MAX_S;
+# the planted step lifts no foot)
 CP_WINDOW = 0.75       # [chosen] a landing moves only over this first part of its swing
 CP_REPLAN_M = 0.02     # [chosen] a landing moves again once its goal changed by this much
 CP_BLEND_PERIODS = 20  # [chosen] a moved landing's pattern is played at least this long before
@@ -918,7 +918,7 @@ class WalkTarget(Target):
         pattern at its longest, two steps' time (a swing just begun finished, then the next
         step planted where the other foot stands: :meth:`_finish_step`, the CoM over the
         landed foot for a single support's time), the settle, and ``WALK_STOP_SPARE_S`` for
-        the landings' waits. Counted with one step (before round 25), a SIGHUP 0.1 s into a
+        the landing's wait. Counted with one step (before round 25), a SIGHUP 0.1 s into a
         swing whose stop waited 0.19 s at its landings stood 0.08 s after the deadline and the
         stopper held it where it was (``interrupt_stop`` ``held``; docs/history/walking.md,
         round 25)."""
