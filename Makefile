@@ -4,6 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 CORE   := $(VENV)/.core-stamp
+LIBACH := $(VENV)/lib/libach.so
 
 .PHONY: run test test-portable warm bench lint docs clean
 
@@ -37,9 +38,17 @@ $(CORE): pyproject.toml $(LOCK)
 	$(BIN)/python -m pip install --quiet --no-compile -c $(LOCK) -e . pyarrow typing-extensions
 	@touch $(CORE)
 
-$(STAMP): $(CORE)
+$(STAMP): $(CORE) | $(LIBACH)
 	$(BIN)/python -m pip install --quiet --no-compile -c $(LOCK) 'hubo-cli[$(EXTRAS)]'
 	@touch $(STAMP)
+
+# libach, the shared-memory IPC library of hubo-ach's channels, is on no package registry: its
+# source (third_party/ach, golems/ach's BSD library files) is built into the environment, where
+# the hardware driver finds it after HUBO_LIBACH and the loader path (a lab's own libach), so
+# the suite's tests of the real-robot path run everywhere (0.6 s of CPU). Needs a C compiler.
+ACH_DIR := third_party/ach
+$(LIBACH): $(wildcard $(ACH_DIR)/src/*.c $(ACH_DIR)/include/*.h $(ACH_DIR)/include/*/*.h) | $(CORE)
+	$(CC) -O2 -shared -fPIC -I$(ACH_DIR)/include $(ACH_DIR)/src/libach*.c -o $@ -lpthread -lrt
 
 # Resolves the newest versions pyproject.toml allows in a scratch virtualenv and writes them
 # to $(LOCK); run `make test` afterwards and commit the lock file if it passes.
@@ -55,7 +64,7 @@ update-lock:
 run: $(STAMP)
 	$(BIN)/hubo task cut-rectangle --video
 
-test: $(STAMP)
+test: $(STAMP) $(LIBACH)
 	$(BIN)/python -m pytest -q
 
 # The tests that assert a physical outcome (marked `physical`) again on the code paths of a
@@ -76,7 +85,7 @@ PORTABLE_ENV := NPY_DISABLE_CPU_FEATURES="AVX512F AVX512CD AVX512_SKX AVX512_CLX
 # none), so `grep -il physical` finds it.
 PHYSICAL_TESTS = $(shell grep -il physical tests/test_*.py)
 
-test-portable: $(STAMP)
+test-portable: $(STAMP) $(LIBACH)
 	$(PORTABLE_ENV) $(BIN)/python -m pytest -q -m physical $(PHYSICAL_TESTS)
 
 # Compiles the kernels of both code paths into their caches at once, one process each

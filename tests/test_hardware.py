@@ -245,6 +245,32 @@ def test_a_library_that_is_not_libach_is_refused(monkeypatch):
         load_libach()
 
 
+def test_libach_is_taken_from_the_variable_then_the_loader_then_the_environment(
+        tmp_path, monkeypatch):
+    """``HUBO_LIBACH`` first, a lab's libach on the loader path next, the copy ``make`` builds
+    into the environment (``<sys.prefix>/lib/libach.so``) last; none of them: missing, with a
+    hint that names the way to build it."""
+    import ctypes.util
+    import sys
+
+    from hubo_cli.drivers import ach
+
+    own = tmp_path / "env" / "lib" / "libach.so"
+    monkeypatch.setattr(sys, "prefix", str(tmp_path / "env"))
+    monkeypatch.delenv("HUBO_LIBACH", raising=False)
+    monkeypatch.setattr(ctypes.util, "find_library", lambda name: None)
+    with pytest.raises(ach.LibachMissing, match="nor in this environment") as info:
+        ach.load_libach()
+    assert "make" in info.value.hint
+    own.parent.mkdir(parents=True)
+    own.write_bytes(b"")
+    assert ach._libach_path() == str(own)
+    monkeypatch.setattr(ctypes.util, "find_library", lambda name: "/lab/libach.so")
+    assert ach._libach_path() == "/lab/libach.so"
+    monkeypatch.setenv("HUBO_LIBACH", "/mine/libach.so")
+    assert ach._libach_path() == "/mine/libach.so"
+
+
 class _Clock:
     """Wall time advancing one control period per driver step (the daemon's 200 Hz)."""
 

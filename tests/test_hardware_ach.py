@@ -1,6 +1,7 @@
 """The hardware driver on real ach channels, against the fake hubo-daemon (needs libach).
 
-Skipped with the reason when libach cannot be loaded (``HUBO_LIBACH`` or the loader path).
+Skipped with the reason when libach cannot be loaded (``HUBO_LIBACH``, the loader path or the
+environment's copy that ``make`` builds from ``third_party/ach``).
 Every channel is uniquely named and unlinked afterwards.
 """
 

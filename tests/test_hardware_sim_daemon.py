@@ -144,8 +144,9 @@ def test_the_driver_holds_the_simulated_robot_and_a_task_runs_through_it(tmp_pat
     driver holds the robot standing for 3 s, then a short task (raise the drill, hold) with
     ``--driver hardware --arm`` completes (the task's robot holds the drill, so the daemon's
     does: without it the run's start check reads the right wrist 5.1 N lighter than the
-    declared drill and ends with a device error, as it should); stopped with SIGTERM the daemon exits 0, removes its channels
-    and reports every frame 462 bytes, its overruns and its loop times."""
+    declared drill and ends with a device error, as it should); stopped with SIGTERM the
+    daemon exits 0, removes its channels and reports every frame 462 bytes, its overruns and
+    its loop times."""
     tag = f"hubotest-{os.getpid()}-{uuid.uuid4().hex[:8]}"
     ref, state = f"{tag}-ref", f"{tag}-state"
     lib = load_libach()

@@ -1,11 +1,12 @@
 """A ctypes binding to libach, the shared-memory IPC library every hubo-ach client links.
 
-libach (github golems/ach, BSD) is found with ``ctypes.util.find_library("ach")`` or at the path
-in the ``HUBO_LIBACH`` environment variable; without it :func:`load_libach` raises
-:class:`LibachMissing` (a :class:`~hubo_cli.errors.DeviceError`, exit 3) saying how to install
-it. Only the calls a hubo-ach client needs are bound: ``ach_open``, ``ach_put``, ``ach_get``,
-``ach_close``, ``ach_result_to_string``, and ``ach_create`` / ``ach_unlink`` for tests and the
-fake daemon.
+libach (github golems/ach, BSD) is found at the path in the ``HUBO_LIBACH`` environment
+variable, else with ``ctypes.util.find_library("ach")`` (a lab's installed libach), else as
+``<environment>/lib/libach.so`` (``make`` builds it there from ``third_party/ach``); without
+it :func:`load_libach` raises :class:`LibachMissing` (a :class:`~hubo_cli.errors.DeviceError`,
+exit 3) saying how to install it. Only the calls a hubo-ach client needs are bound:
+``ach_open``, ``ach_put``, ``ach_get``, ``ach_close``, ``ach_result_to_string``, and
+``ach_create`` / ``ach_unlink`` for tests and the fake daemon.
 
 Channels live in ``/dev/shm/achshm-<name>``. Timeouts of ``ach_get`` are absolute times on the
 channel's condition-variable clock, ``CLOCK_MONOTONIC`` for every channel created with libach's
@@ -18,6 +19,7 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 import os
+import sys
 import time
 from dataclasses import dataclass
 
@@ -27,7 +29,7 @@ LIBACH_ENV = "HUBO_LIBACH"
 INSTALL_HINT = (
     "install libach (github.com/golems/ach: ./configure && make && sudo make install, or build "
     "src/libach*.c into libach.so) and, if it is not on the loader path, set HUBO_LIBACH to "
-    "its path")
+    "its path (make, in a checkout, builds it into the project's environment)")
 DRY_RUN_HINT = "without a robot use --dry-run"  # the hardware driver's way round it
 
 # enum ach_status (ach/generic.h)
@@ -151,7 +153,8 @@ _LOADED: dict[str, Libach] = {}
 
 
 def load_libach(otherwise: str = "") -> Libach:
-    """Load libach (``HUBO_LIBACH`` if set, else the system's ``libach``), once per path.
+    """Load libach (``HUBO_LIBACH`` if set, else the system's ``libach``, else the one ``make``
+    built into this environment: :func:`_libach_path`), once per path.
 
     Args:
         otherwise: how the caller goes on without libach, added to the hint (the hardware
@@ -160,10 +163,10 @@ def load_libach(otherwise: str = "") -> Libach:
     Raises:
         LibachMissing: no library, or one without libach's functions.
     """
-    path = os.environ.get(LIBACH_ENV) or ctypes.util.find_library("ach")
+    path = _libach_path()
     if not path:
-        raise LibachMissing("libach", "not found on the loader path and HUBO_LIBACH is unset",
-                            otherwise)
+        raise LibachMissing("libach", "not found on the loader path nor in this environment "
+                            "and HUBO_LIBACH is unset", otherwise)
     if path in _LOADED:
         return _LOADED[path]
     try:
@@ -175,6 +178,14 @@ def load_libach(otherwise: str = "") -> Libach:
         raise LibachMissing(path, f"not libach: {exc}", otherwise) from None
     _LOADED[path] = Libach(cdll, path)
     return _LOADED[path]
+
+
+def _libach_path() -> str | None:
+    """Where libach is: ``HUBO_LIBACH``, the loader path's, or the environment's own copy
+    (``make`` builds the vendored source into ``<sys.prefix>/lib``); None if nowhere."""
+    own = os.path.join(sys.prefix, "lib", "libach.so")
+    return (os.environ.get(LIBACH_ENV) or ctypes.util.find_library("ach")
+            or (own if os.path.isfile(own) else None))
 
 
 def libach_status() -> tuple[bool, str]:
