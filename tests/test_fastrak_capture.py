@@ -282,6 +282,44 @@ def _timed_pose_log(path, times):
     return path
 
 
+def _two_station_log(path, t1_s, t2_s):
+    """A pose log of stations 1 and 2, each row's x its station's row number (mm), written
+    row by row in the order of the two lists zipped (station 1's row, then station 2's)."""
+    rows = "".join(f"{float(t)!r},{s},{k / 1000!r},0.2,0.3,1,0,0,0\n"
+                   for k, pair in enumerate(zip(t1_s, t2_s, strict=True))
+                   for s, t in ((1, pair[0]), (2, pair[1])))
+    path.write_text("t_s,station,x_m,y_m,z_m,qw,qx,qy,qz\n" + rows)
+    return path
+
+
+def test_stations_stamped_each_by_itself_are_merged_by_time(tmp_path):
+    """Two stations of a 120 Hz tracker whose rows a recorder stamped each by itself: station
+    2's times up to 6 ms earlier than station 1's row before it (refused as a time going back
+    until round 26). Read merged by time, each station's rows in their own order; a station
+    whose own time goes back, or stations more than 0.05 s apart, are still refused."""
+    rng = np.random.default_rng(26)
+    t1 = ROWS + rng.uniform(0.0, 0.002, len(ROWS))
+    t2 = ROWS + rng.uniform(-0.006, 0.002, len(ROWS))
+    assert (t2 < t1).any()
+    batch = read_pose_log(_two_station_log(tmp_path / "jitter.csv", t1, t2))
+    assert np.all(np.diff(batch.t_s) >= 0.0)
+    shift_s = batch.t_s[0] - min(t1[0], t2[0])  # counted from the first row if before 0
+    for s, times in ((1, t1), (2, t2)):
+        mine = batch.station == s
+        assert batch.t_s[mine] == pytest.approx(times + shift_s, abs=1e-12)
+        assert np.array_equal(batch.position_m[mine, 0], np.arange(len(ROWS)) / 1000)
+    back = t2.copy()
+    back[60] = back[58]  # station 2's row 60 earlier than its row 59
+    with pytest.raises(InputError, match=r"line 123: t_s .* earlier than station 2's row "
+                                         r"before it") as info:
+        read_pose_log(_two_station_log(tmp_path / "back.csv", ROWS, np.r_[ROWS[:1] - 0.004,
+                                                                          back[1:]]))
+    assert "0.05 s of each other" in info.value.hint
+    with pytest.raises(InputError, match=r"line 3: t_s -0.056 s is earlier than the row before "
+                                         r"it \(0.004 s\)"):
+        read_pose_log(_two_station_log(tmp_path / "apart.csv", ROWS, ROWS - 0.06))
+
+
 def _timed_capture(path, retime):
     """A 3 s capture of two stations (9 kB) with its chunk times changed by
     ``retime(k, t_s)``."""

@@ -25,7 +25,7 @@ import re
 import struct
 import time
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -80,6 +80,10 @@ MAX_RECORDS_PER_S = 10_000.0
 # more are refused: 0.25 s of a 120 Hz tracker's records (the teleop's stale-input timeout)
 # delivered as one instant, their motion lost (the review's log: 3 s of rows at t = 1.0 s)
 MAX_SAME_TIME_ROWS = 30
+# a pose log's rows of different stations may be out of time order by this much: each station
+# stamped by itself (two stations of a 120 Hz tracker come 8 ms apart); its rows are merged by
+# time. Further back is a time going backwards (two recordings in one file), refused.
+MAX_STATION_SKEW_S = 0.05
 _STATUS_TEXT = STATUS_OK_CHARS.decode("ascii")  # a pose log's status: a record's own
 LINE_ENDS = re.compile(r"\r\n|\r|\n")  # a pose log's line ends (a CSV file's)
 POSE_LOG_COLUMNS = ("t_s", "station", "x_m", "y_m", "z_m", "qw", "qx", "qy", "qz", "status")
@@ -335,6 +339,33 @@ def parse_capture(blob: bytes, where: str = "capture") -> Capture:
                                   (total - (ends[0] if ends else 0) - 4096, header.baud / 5.0))
     return Capture(header, b"".join(pieces), np.array(ends, dtype=np.int64), chunk_times,
                    truncated)
+
+
+def interleaved_order(t_s: np.ndarray, station: np.ndarray) -> np.ndarray | None:
+    """The rows' order by time, where only rows of different stations are out of time order,
+    and by at most :data:`MAX_STATION_SKEW_S` (a recorder that stamps each station's record
+    with its own clock read, or merges per-station streams); None where the rows are in time
+    order already or a station's own times go backwards or the skew is larger (refused as a
+    time going backwards)."""
+    if len(t_s) < 2 or not (np.diff(t_s) < -1e-9).any():
+        return None
+    if _station_goes_back(t_s, station) is not None:
+        return None
+    if (np.maximum.accumulate(t_s) - t_s).max() > MAX_STATION_SKEW_S:
+        return None
+    return np.argsort(t_s, kind="stable")
+
+
+def _station_goes_back(t_s: np.ndarray, station: np.ndarray) -> tuple[int, int] | None:
+    """The first row (in file order) whose time is earlier than its station's row before it:
+    (that row's index, this row's), or None."""
+    first = None
+    for s in np.unique(station):
+        rows = np.flatnonzero(station == s)
+        back = np.flatnonzero(np.diff(t_s[rows]) < -1e-9)
+        if back.size and (first is None or rows[back[0] + 1] < first[1]):
+            first = (int(rows[back[0]]), int(rows[back[0] + 1]))
+    return first
 
 
 def bad_time_step(step_s):
@@ -659,6 +690,10 @@ def parse_pose_log(text: str, where: str = "pose log") -> RecordBatch:
     batch = RecordBatch(station=station, status=status, position_m=values[:, 2:5].copy(),
                         quat_wxyz=unit, stylus=np.full(len(station), -1, np.int8),
                         offset=np.zeros(len(station), dtype=np.int64), t_s=values[:, 0].copy())
+    order = interleaved_order(batch.t_s, station)
+    if order is not None:  # the stations' rows merged by time (each station's kept in order)
+        batch = RecordBatch(*(getattr(batch, f.name)[order] for f in fields(RecordBatch)))
+        lines = [lines[0], *(lines[1 + int(i)] for i in order)]
     step = np.diff(batch.t_s)
     bad = bad_time_step(step)
     if bad.any():
@@ -669,9 +704,16 @@ def parse_pose_log(text: str, where: str = "pose log") -> RecordBatch:
                              f"{MAX_CHUNK_GAP_S:g} s after the time before it",
                              hint="times must be seconds of one recording, without gaps of "
                                   "hours")
-        raise InputError(f"{where}: line {line}: t_s {t_after:.6g} s is earlier than the row "
+        back = _station_goes_back(batch.t_s, batch.station)
+        whose = "the row"
+        if back is not None and back[1] != i + 1:  # that step is the stations' skew (allowed);
+            i, j = back  # a station's own time goes back further on
+            line, t_before, t_after = lines[j + 1][0], batch.t_s[i], batch.t_s[j]
+            whose = f"station {batch.station[j]}'s row"
+        raise InputError(f"{where}: line {line}: t_s {t_after:.6g} s is earlier than {whose} "
                          f"before it ({t_before:.6g} s)",
-                         hint="a pose log's rows are in time order, as recorded; two "
+                         hint="a pose log's rows are in time order, as recorded (the stations' "
+                              f"rows within {MAX_STATION_SKEW_S:g} s of each other); two "
                               "recordings are two files")
     batch.t_s = recording_times(batch.t_s, where)
     _check_repeated_times(batch, lines, where)
