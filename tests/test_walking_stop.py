@@ -661,8 +661,9 @@ def test_a_sliced_solution_is_the_whole_one(walk_pattern, rows_per_slice):
 REPLAN_REVIEW = (
     "open (review): a re-plan's rest seeded from stale joints kinks at the hand-over (the "
     "limiter clamps it). Iterating the first row's CoM offset until it settles removes the "
-    "kink but flipped the front push caught by the capture-point stop to a fall on the "
-    "portable CPU path; docs/history/walking.md")
+    "kink but flipped a push to a fall on the portable CPU path (round 3: the front push the "
+    "capture-point stop catches; round 26: the 2 m walk's push of seed 20); "
+    "docs/history/walking.md")
 
 
 def _offline_walk(goal_m, periods, stop_k=None, cp_offset_m=(0.0, 0.0), offset_k=(0, 0),
