@@ -6,6 +6,7 @@ ended `make bench` at its [standing] section, hiding every later module's figure
 from __future__ import annotations
 
 import math
+import re
 
 from hubo_cli.bench import __main__ as bench_main
 from hubo_cli.bench import standing
@@ -46,6 +47,8 @@ def test_a_failing_bench_module_is_reported_and_the_others_still_run(monkeypatch
     out, err = capsys.readouterr()
     assert ran == ["fine"]
     assert "failed: TypeError: a wrapped signature changed" in out
+    # each module's footer reads the machine's yardstick around it (round 26)
+    assert len(re.findall(r"the reference loop \d+\.\d ms before, \d+\.\d ms after", out)) == 2
     assert "1 module(s) failed: aaa" in err
 
 
