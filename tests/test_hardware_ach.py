@@ -35,7 +35,8 @@ from hubo_cli.model import load_model
 from hubo_cli.posture import home_posture
 
 AVAILABLE, WHERE = libach_status()
-pytestmark = pytest.mark.skipif(not AVAILABLE, reason=f"needs libach: {WHERE}")
+pytestmark = [pytest.mark.skipif(not AVAILABLE, reason=f"needs libach: {WHERE}"),
+              pytest.mark.realtime]
 
 MODEL = load_model()
 INDEX = MODEL.hubo_ach["index"]

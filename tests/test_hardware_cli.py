@@ -174,6 +174,7 @@ def _wait_for(path: Path, timeout_s: float = 20.0) -> None:
 
 
 @needs_libach
+@pytest.mark.realtime
 def test_a_task_closes_the_loop_through_the_fake_daemon(tmp_path):
     tag = f"hubotest-{os.getpid()}-{uuid.uuid4().hex[:8]}"
     ref, state = f"{tag}-ref", f"{tag}-state"
@@ -252,6 +253,7 @@ def _wait_published(lib, name: str, timeout_s: float = 60.0) -> None:
 
 
 @needs_libach
+@pytest.mark.realtime
 @pytest.mark.parametrize("how", [signal.SIGKILL, signal.SIGTERM], ids=["SIGKILL", "SIGTERM"])
 def test_a_daemon_killed_mid_move_ends_the_run_braked_with_exit_3(tmp_path, how,
                                                                   channel_names):

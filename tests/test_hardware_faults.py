@@ -245,6 +245,7 @@ def _names() -> tuple[str, str]:
 
 
 @needs_libach
+@pytest.mark.realtime
 def test_a_missing_and_a_late_state_show_in_the_drivers_timing():
     """The daemon withholds its state for 0.05 s (under the driver's 0.1 s stale limit), then
     publishes states 0.05 s old for 0.3 s: the driver counts the periods without a fresh
@@ -291,6 +292,7 @@ def _end(process: subprocess.Popen, lib, *names: str) -> dict:
 
 
 @needs_libach
+@pytest.mark.realtime
 def test_a_frozen_joint_in_the_simulated_robot_trips_the_servo_error_within_0_1_s():
     """The simulated daemon freezes REB 0.3 s after the driver's first reference while the
     driver moves REB at 0.8 rad/s (direct references): the run ends with the servo error on
@@ -330,6 +332,7 @@ def test_a_frozen_joint_in_the_simulated_robot_trips_the_servo_error_within_0_1_
 
 
 @needs_libach
+@pytest.mark.realtime
 def test_a_heating_motor_in_the_simulated_robot_is_slowed_then_stopped():
     """The simulated daemon heats REB's motor 40 K/s faster from 0.2 s after the driver's
     first reference while the driver asks REB for 0.8 rad/s: below the warning temperature the

@@ -502,6 +502,7 @@ class _FreezingBody(EchoBody):
 
 
 @pytest.mark.skipif(not AVAILABLE, reason=f"needs libach: {WHERE}")
+@pytest.mark.realtime
 @pytest.mark.parametrize("mode", ["direct", "filtered"])
 def test_a_frozen_joint_behind_a_daemon_trips_within_0_1_s(mode):
     """A daemon on uniquely named ach channels whose REB encoder freezes while the driver

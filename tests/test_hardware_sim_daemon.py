@@ -139,6 +139,7 @@ def _stand(ref: str, state: str, seconds: float) -> None:
 
 
 @needs_libach
+@pytest.mark.realtime
 def test_the_driver_holds_the_simulated_robot_and_a_task_runs_through_it(tmp_path):
     """One sim daemon (``--perturb 7 --drill``) on uniquely named channels: the hardware
     driver holds the robot standing for 3 s, then a short task (raise the drill, hold) with

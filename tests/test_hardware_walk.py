@@ -101,6 +101,7 @@ def _walk(ref: str, state: str, out: Path, goal: str):
 
 
 @needs_libach
+@pytest.mark.realtime
 @pytest.mark.physical
 def test_a_short_walk_through_the_simulated_daemon_arrives_and_a_killed_daemon_ends_the_next(
         tmp_path, channel_names):  # noqa: F811 (the fixture imported above)
