@@ -1,7 +1,7 @@
 """The hardware driver on real ach channels, against the fake hubo-daemon (needs libach).
 
-Skipped with the reason when libach cannot be loaded (``HUBO_LIBACH``, the loader path or the
-environment's copy that ``make`` builds from ``third_party/ach``).
+Skipped with the reason when libach cannot be loaded, and run apart from the other tests
+(``realtime_support``).
 Every channel is uniquely named and unlinked afterwards.
 """
 
@@ -14,13 +14,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from realtime_support import LIBACH_MARKS
 
 from hubo_cli.drivers.ach import (
     ACH_MISSED_FRAME,
     ACH_OK,
     ACH_STALE_FRAMES,
     ACH_TIMEOUT,
-    libach_status,
     load_libach,
 )
 from hubo_cli.drivers.hardware import (
@@ -34,9 +34,7 @@ from hubo_cli.drivers.hubo_ach_daemon import FakeHuboDaemon
 from hubo_cli.model import load_model
 from hubo_cli.posture import home_posture
 
-AVAILABLE, WHERE = libach_status()
-pytestmark = [pytest.mark.skipif(not AVAILABLE, reason=f"needs libach: {WHERE}"),
-              pytest.mark.realtime]
+pytestmark = list(LIBACH_MARKS)
 
 MODEL = load_model()
 INDEX = MODEL.hubo_ach["index"]

@@ -15,16 +15,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from realtime_support import needs_libach
 from task_files import DRILL_STANCE, raise_and_hold
 
 from hubo_cli.cli.main import main
 from hubo_cli.control.log import load_log
-from hubo_cli.drivers.ach import libach_status
 from hubo_cli.drivers.hardware import STALE_AFTER_S, STALE_GRACE_S
 from hubo_cli.model import load_model
 
-AVAILABLE, WHERE = libach_status()
-needs_libach = pytest.mark.skipif(not AVAILABLE, reason=f"needs libach: {WHERE}")
 SHM = Path("/dev/shm")
 MODEL = load_model()
 
@@ -174,7 +172,6 @@ def _wait_for(path: Path, timeout_s: float = 20.0) -> None:
 
 
 @needs_libach
-@pytest.mark.realtime
 def test_a_task_closes_the_loop_through_the_fake_daemon(tmp_path):
     tag = f"hubotest-{os.getpid()}-{uuid.uuid4().hex[:8]}"
     ref, state = f"{tag}-ref", f"{tag}-state"
@@ -253,7 +250,6 @@ def _wait_published(lib, name: str, timeout_s: float = 60.0) -> None:
 
 
 @needs_libach
-@pytest.mark.realtime
 @pytest.mark.parametrize("how", [signal.SIGKILL, signal.SIGTERM], ids=["SIGKILL", "SIGTERM"])
 def test_a_daemon_killed_mid_move_ends_the_run_braked_with_exit_3(tmp_path, how,
                                                                   channel_names):

@@ -19,10 +19,11 @@ import uuid
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from realtime_support import needs_libach
 
 from hubo_cli.cli.main import main
 from hubo_cli.drivers import hubo_ach
-from hubo_cli.drivers.ach import libach_status, load_libach
+from hubo_cli.drivers.ach import load_libach
 from hubo_cli.drivers.hardware import HardwareDriver, hubo_ach_vector
 from hubo_cli.drivers.hubo_ach_daemon import EchoBody, HuboDaemon
 from hubo_cli.drivers.hubo_ach_faults import parse_fault
@@ -34,8 +35,6 @@ from hubo_cli.model import load_model
 from hubo_cli.posture import home_posture
 from tests.test_hardware_cli import _wait_published
 
-AVAILABLE, WHERE = libach_status()
-needs_libach = pytest.mark.skipif(not AVAILABLE, reason=f"needs libach: {WHERE}")
 MODEL = load_model()
 NAMES = MODEL.joint_names
 INDEX = MODEL.hubo_ach["index"]
@@ -245,7 +244,6 @@ def _names() -> tuple[str, str]:
 
 
 @needs_libach
-@pytest.mark.realtime
 def test_a_missing_and_a_late_state_show_in_the_drivers_timing():
     """The daemon withholds its state for 0.05 s (under the driver's 0.1 s stale limit), then
     publishes states 0.05 s old for 0.3 s: the driver counts the periods without a fresh
@@ -292,7 +290,6 @@ def _end(process: subprocess.Popen, lib, *names: str) -> dict:
 
 
 @needs_libach
-@pytest.mark.realtime
 def test_a_frozen_joint_in_the_simulated_robot_trips_the_servo_error_within_0_1_s():
     """The simulated daemon freezes REB 0.3 s after the driver's first reference while the
     driver moves REB at 0.8 rad/s (direct references): the run ends with the servo error on
@@ -332,7 +329,6 @@ def test_a_frozen_joint_in_the_simulated_robot_trips_the_servo_error_within_0_1_
 
 
 @needs_libach
-@pytest.mark.realtime
 def test_a_heating_motor_in_the_simulated_robot_is_slowed_then_stopped():
     """The simulated daemon heats REB's motor 40 K/s faster from 0.2 s after the driver's
     first reference while the driver asks REB for 0.8 rad/s: below the warning temperature the

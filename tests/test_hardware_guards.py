@@ -13,9 +13,9 @@ import uuid
 
 import numpy as np
 import pytest
+from realtime_support import needs_libach
 
 from hubo_cli.drivers import hubo_ach
-from hubo_cli.drivers.ach import libach_status
 from hubo_cli.drivers.hardware import MODE_DIRECT, MODE_FILTERED, HardwareDriver, read_ref_frames
 from hubo_cli.drivers.hubo_ach_daemon import EchoBody
 from hubo_cli.drivers.servo_guard import MotorTooHot, ServoError, SoleForceError
@@ -473,9 +473,6 @@ def test_the_state_age_is_judged_whatever_the_two_clocks_differ_by():
 
 
 # ---------------------------------------------------------------- through real ach channels
-AVAILABLE, WHERE = libach_status()
-
-
 class _FreezingBody(EchoBody):
     """The fake daemon's ideal motors, with REB's encoder frozen once ``freeze`` is set; notes
     the wall time when the motors' reference first leaves the frozen joint by the limit."""
@@ -501,8 +498,7 @@ class _FreezingBody(EchoBody):
         return frame
 
 
-@pytest.mark.skipif(not AVAILABLE, reason=f"needs libach: {WHERE}")
-@pytest.mark.realtime
+@needs_libach
 @pytest.mark.parametrize("mode", ["direct", "filtered"])
 def test_a_frozen_joint_behind_a_daemon_trips_within_0_1_s(mode):
     """A daemon on uniquely named ach channels whose REB encoder freezes while the driver

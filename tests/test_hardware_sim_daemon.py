@@ -20,10 +20,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from realtime_support import needs_libach
 
 from hubo_cli.cli.main import main
 from hubo_cli.drivers import hubo_ach
-from hubo_cli.drivers.ach import libach_status, load_libach
+from hubo_cli.drivers.ach import load_libach
 from hubo_cli.drivers.hardware import hubo_ach_vector
 from hubo_cli.drivers.hubo_ach_daemon import LOOP_BIN_S, DaemonStats
 from hubo_cli.drivers.hubo_ach_sim_body import PhysicsBody
@@ -31,8 +32,6 @@ from hubo_cli.model import load_model
 from hubo_cli.posture import home_posture
 from tests.test_hardware_cli import SHORT_TASK, _wait_published
 
-AVAILABLE, WHERE = libach_status()
-needs_libach = pytest.mark.skipif(not AVAILABLE, reason=f"needs libach: {WHERE}")
 MODEL = load_model()
 INDEX = MODEL.hubo_ach["index"]
 HOME42 = hubo_ach_vector(MODEL, home_posture(MODEL))
@@ -139,7 +138,6 @@ def _stand(ref: str, state: str, seconds: float) -> None:
 
 
 @needs_libach
-@pytest.mark.realtime
 def test_the_driver_holds_the_simulated_robot_and_a_task_runs_through_it(tmp_path):
     """One sim daemon (``--perturb 7 --drill``) on uniquely named channels: the hardware
     driver holds the robot standing for 3 s, then a short task (raise the drill, hold) with

@@ -21,19 +21,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from realtime_support import needs_libach
 from tool_support import load_tool
 
 from hubo_cli.cli.main import main
 from hubo_cli.control.log import load_log
-from hubo_cli.drivers.ach import libach_status
 from hubo_cli.drivers.hubo_ach_faults import PUSH_FOR_S, parse_push
 from hubo_cli.errors import InputError, SafetyError
 from hubo_cli.model import load_model
 from hubo_cli.posture import START_TOLERANCE_RAD, check_stands_in, home_posture
 from tests.test_hardware_cli import _wait_published, channel_names  # noqa: F401
 
-AVAILABLE, WHERE = libach_status()
-needs_libach = pytest.mark.skipif(not AVAILABLE, reason=f"needs libach: {WHERE}")
 MODEL = load_model()
 
 
@@ -101,7 +99,6 @@ def _walk(ref: str, state: str, out: Path, goal: str):
 
 
 @needs_libach
-@pytest.mark.realtime
 @pytest.mark.physical
 def test_a_short_walk_through_the_simulated_daemon_arrives_and_a_killed_daemon_ends_the_next(
         tmp_path, channel_names):  # noqa: F811 (the fixture imported above)
