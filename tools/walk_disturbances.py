@@ -6,10 +6,10 @@
 
 Each seed draws a moment uniformly over the walk's steps (from the first step's lift-off to the
 last one's landing) and, for pushes, a direction from ``--directions``; the walk
-(``hubo walk --to DISTANCE 0 0 [--gait GAIT]`` through the full pipeline) then runs with the
-operator's stop (``stop``), with a 0.2 s push on the torso (``push``), or, ``stop --source
-capture-point``, with a push of ``--force`` (default 100 N) left to the capture-point monitor to
-stop it: the same runs as ``push`` with the same seeds and directions.
+(``hubo walk --to DISTANCE 0 0 [--gait GAIT] [--lip-feedback]`` through the full pipeline)
+then runs with the operator's stop (``stop``), with a 0.2 s push on the torso (``push``), or,
+``stop --source capture-point``, with a push of ``--force`` (default 100 N) left to the
+capture-point monitor to stop it: the same runs as ``push`` with the same seeds and directions.
 One JSON line per run (seed, moment, the walk's phase at it, direction, fell, stopped, stood,
 both feet down over the run's last 0.5 s, the soft stopper holding at the end, footstep changes,
 e-stop events, max tilt, the torso's true tilt in the run's last period and its largest over
@@ -118,6 +118,9 @@ def main() -> int:
                         help="push directions drawn from (forward, backward, left, right)")
     parser.add_argument("--source", choices=("operator", "capture-point"), default="operator")
     parser.add_argument("--gait", default=DEFAULT_GAIT, help="the robot file's gait")
+    parser.add_argument("--lip-feedback", action="store_true",
+                        help="the Stabilizer's LIP feedback and force distribution "
+                             "(hubo walk --lip-feedback)")
     parser.add_argument("--table", action="store_true",
                         help="print the runs as a Markdown table at the end")
     parser.add_argument("--out", default="/tmp/walk_disturbances")
@@ -132,7 +135,7 @@ def main() -> int:
         else:
             events = [Disturbance(at_s, args.force, PUSH_DIRECTIONS[direction])]
         result = walk(model, (args.distance, 0.0, 0.0), out=Path(args.out) / f"{args.kind}-{seed}",
-                      disturbances=events, gait=args.gait)
+                      disturbances=events, gait=args.gait, lip_feedback=args.lip_feedback)
         summary = json.loads((result.run_dir / "summary.json").read_text())
         log = load_log(result.run_dir / "log.parquet")
         mode = np.asarray(log["estop_mode_code"], dtype=float)
@@ -160,6 +163,7 @@ def main() -> int:
     falls = sum(r["fell"] for r in results)
     print(json.dumps({"kind": args.kind, "source": args.source, "force_n": args.force,
                       "distance_m": args.distance, "gait": args.gait,
+                      "lip_feedback": args.lip_feedback,
                       "runs": len(results), "falls": falls,
                       "stood": sum(bool(r["stood"]) for r in results),
                       "standing_in_double_support": sum(r["outcome"] == STANDING

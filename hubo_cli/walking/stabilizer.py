@@ -56,6 +56,14 @@ class StabilizerGains:
             sole's x and y axes (N m s/rad). 60 / 120: walking 0.3 m sideways the ZMP stayed
             inside the soles in contact in every period, against 98.9 % with the former
             300 / 600 (one run each; 1 m forward and the turning walk: 100 % with both).
+        reference_damping_roll_nm_s_rad, reference_damping_pitch_nm_s_rad: D while the sole
+            tracks a reference CoP (the LIP feedback's force distribution, :class:`LipStabilizer`;
+            the damper then acts everywhere on the sole, not only near its edges). 300 / 600:
+            with 60 / 120 the two soles of a double support rocked the weight between them
+            (one sole 430 N, the other -10 N, and back, every 0.15 s) on perturbed robots
+            (sensor noise, command delay), and 22 of 40 random perturbed walks stopped at a
+            lift-off wait, one fell; with 300 / 600 1 of 60 stopped, none fell
+            (docs/history/stabilizer.md, round 27).
         time_constant_s: T, the leak back to the pattern of a loaded sole (s).
         swing_time_constant_s: the same for an unloaded sole (s).
         max_sole_rad: bound on each sole rotation (rad).
@@ -72,6 +80,8 @@ class StabilizerGains:
 
     damping_roll_nm_s_rad: float = 60.0
     damping_pitch_nm_s_rad: float = 120.0
+    reference_damping_roll_nm_s_rad: float = 300.0
+    reference_damping_pitch_nm_s_rad: float = 600.0
     time_constant_s: float = 1.5
     swing_time_constant_s: float = 0.1
     max_sole_rad: float = 0.1
@@ -117,8 +127,11 @@ class SoleDamper:
                               hint="lower edge_margin_m")
         self.safe = (x0 + m, x1 - m, y0 + m, y1 - m)
         self.dt_s = float(dt_s)
-        self._damping_roll = float(gains.damping_roll_nm_s_rad)
-        self._damping_pitch = float(gains.damping_pitch_nm_s_rad)
+        # (roll, pitch) D: without a reference CoP, with one
+        self._damping = ((float(gains.damping_roll_nm_s_rad),
+                          float(gains.damping_pitch_nm_s_rad)),
+                         (float(gains.reference_damping_roll_nm_s_rad),
+                          float(gains.reference_damping_pitch_nm_s_rad)))
         self.delta_rad = np.zeros(2)
 
     def reset(self) -> None:
@@ -141,9 +154,9 @@ class SoleDamper:
                 py = min(max(mx / fz, y0), y1)
             else:
                 px, py = cop_ref_m
-            rate_roll = (mx - fz * py) / max(self._damping_roll, 1e-9) - roll / g.time_constant_s
-            rate_pitch = ((my + fz * px) / max(self._damping_pitch, 1e-9)
-                          - pitch / g.time_constant_s)
+            d_roll, d_pitch = self._damping[cop_ref_m is not None]
+            rate_roll = (mx - fz * py) / max(d_roll, 1e-9) - roll / g.time_constant_s
+            rate_pitch = (my + fz * px) / max(d_pitch, 1e-9) - pitch / g.time_constant_s
         else:
             leak = max(g.swing_time_constant_s, self.dt_s)
             rate_roll, rate_pitch = -roll / leak, -pitch / leak
