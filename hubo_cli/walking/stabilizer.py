@@ -62,7 +62,7 @@ class StabilizerGains:
             with 60 / 120 the two soles of a double support rocked the weight between them
             (one sole 430 N, the other -10 N, and back, every 0.15 s) on perturbed robots
             (sensor noise, command delay), and 22 of 40 random perturbed walks stopped at a
-            lift-off wait, one fell; with 300 / 600 1 of 60 stopped, none fell
+            lift-off wait, one fell; with 300 / 600 2 of 60 stopped (standing), none fell
             (docs/history/stabilizer.md, round 27).
         time_constant_s: T, the leak back to the pattern of a loaded sole (s).
         swing_time_constant_s: the same for an unloaded sole (s).
