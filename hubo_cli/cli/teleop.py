@@ -488,10 +488,8 @@ def _report(run, as_json: bool, video: bool = False) -> None:
              "with a status letter or each a jump)")
     if summary["arms_without_usable_input"]:
         raise SystemExit(EXIT_BAD_INPUT)
-    worst, arm = max(((r["followed_position_rms_mm"], arm)
-                      for arm, r in summary.get("reach", {}).items()
-                      if r.get("followed_position_rms_mm") is not None), default=(0.0, None))
-    if worst > ABSURD_ERROR_MM:
+    worst, arm, _ = worst_followed(summary, "followed_position_rms_mm")
+    if worst is not None and worst > ABSURD_ERROR_MM:
         warn(f"the {arm} hand missed the operator's goals by {worst:.0f} mm RMS over the time "
              "they were reachable: the robot did not follow")
         raise SystemExit(EXIT_NOT_COMPLETED)
@@ -499,18 +497,24 @@ def _report(run, as_json: bool, video: bool = False) -> None:
         warn(line)
 
 
+def worst_followed(summary: dict, key: str) -> tuple:
+    """(figure, arm, followed share) of the hand whose summary ``reach`` figure ``key`` is the
+    largest; (None, None, None) when no hand has it (none was followed)."""
+    return max(((r[key], arm, r["followed_share"])
+                for arm, r in summary.get("reach", {}).items() if r.get(key) is not None),
+               default=(None, None, None))
+
+
 def not_followed(summary: dict) -> list[str]:
     """The lines saying which hand did not follow its reachable goals: the worst one by its
     position RMS over that time above :data:`FOLLOW_BOUND_MM`, and the worst one by its
     orientation RMS above :data:`FOLLOW_BOUND_DEG` (none, one or both)."""
     lines = []
-    reach = summary.get("reach", {})
     for key, bound, unit, what in (
             ("followed_position_rms_mm", FOLLOW_BOUND_MM, "mm", "the operator's goals"),
             ("followed_orientation_rms_deg", FOLLOW_BOUND_DEG, "deg",
              "the operator's turn of the hand")):
-        rms, arm, share = max(((r[key], arm, r["followed_share"]) for arm, r in reach.items()
-                               if r.get(key) is not None), default=(None, None, None))
+        rms, arm, share = worst_followed(summary, key)
         if rms is not None and rms > bound:
             lines.append(f"the {arm} hand missed {what} by {rms:.0f} {unit} RMS over the "
                          f"{share:.0%} of the time they were reachable and followed live "
