@@ -95,8 +95,7 @@ def _broken(tmp_path, old, new):
     assert old in text
     path = tmp_path / "broken.toml"
     path.write_text(text.replace(old, new, 1))
-    line = next(i for i, row in enumerate(path.read_text().splitlines(), 1) if new in row)
-    return path, line
+    return path, text[:text.index(old)].count("\n") + 1
 
 
 @pytest.mark.parametrize("old, new, field", [
@@ -493,3 +492,76 @@ def test_the_load_and_the_move_bounds_read_one_hand_front(tmp_path, model, monke
                                              "depth_mm = -20.0  #", 1))
     with pytest.raises(SafetyError, match=r"takes the hand 4\.35 mm into the wall"):
         check_moves(load_task(path, model=model), model)
+
+
+PRESS_THEN_SLIDE = ('[[steps]]\nkind = "plunge"\nname = "press"\ndepth_mm = -21.0\n'
+                    'speed_mm_s = 5.0\nthrust_n = 3.0\n\n{between}'
+                    '[[steps]]\nkind = "move"\nname = "slide"\nto_mm = [120.0, 0.0]\n'
+                    'depth_mm = -21.0\nduration_s = 1.0\n\n')
+
+
+@pytest.mark.parametrize("between, refused", [
+    ("", True),  # review 28: the bit yielded 19.9 mm into the cardboard and was dragged
+    ('[[steps]]\nkind = "wait"\nname = "hold"\nduration_s = 1.0\n\n', True),
+    ('[[steps]]\nkind = "plunge"\nname = "ease"\ndepth_mm = -21.0\nspeed_mm_s = 5.0\n\n', False),
+    ('[[steps]]\nkind = "retract"\nname = "out"\ndepth_mm = -30.0\nspeed_mm_s = 20.0\n\n',
+     False)])
+def test_a_move_after_a_press_counts_the_hands_yield(tmp_path, model, between, refused):
+    """A step pressing with a thrust may carry the tool up to the hand's yield (the robot
+    file's 30 mm) past its plan, until a plunge, retract or move without a thrust takes it to a
+    depth again: a move straight after it is refused (main planned it: its plan ends 1 mm
+    before the face)."""
+    path = tmp_path / "press.toml"
+    path.write_text(RECTANGLE.read_text().replace(
+        '[[steps]]\nkind = "plunge"', PRESS_THEN_SLIDE.format(between=between)
+        + '[[steps]]\nkind = "plunge"', 1))
+    spec = load_task(path, model=model)
+    if not refused:
+        check_moves(spec, model)
+        return
+    yield_mm = 1000 * model.impedance_max_offset_m
+    with pytest.raises(SafetyError) as caught:
+        check_moves(spec, model)
+    assert (f"'slide' (a move) starts with the bit's tip up to {yield_mm - 1:g} mm in the wall "
+            f"(the steps before leave it at depth_mm = -21, and a thrust before it may carry it "
+            f"{yield_mm:g} mm past that") in str(caught.value)
+
+
+def test_a_retract_deeper_than_the_tool_is_refused(tmp_path, model):
+    """Review 28: a 'pull out' retract to depth_mm = 50 drove the bit through the wall and
+    the run completed. A retract pulls back: one deeper than where the steps before leave the
+    tool is a contradiction (exit 2); one to the same depth changes nothing and stays."""
+    path, _ = _broken(tmp_path, 'name = "pull out"\ndepth_mm = -50.0',
+                      'name = "pull out"\ndepth_mm = 50.0')
+    with pytest.raises(ConfigError, match=r"step 4 'pull out' \(a retract\) goes deeper, to "
+                                          r"depth_mm = 50, than the steps before leave the bit "
+                                          r"\(depth_mm = 2\.5\)") as caught:
+        check_moves(load_task(path, model=model), model)
+    assert caught.value.exit_code == 2 and caught.value.hint
+    path, _ = _broken(tmp_path, 'name = "pull out"\ndepth_mm = -50.0',
+                      'name = "pull out"\ndepth_mm = 2.5')
+    check_moves(load_task(path, model=model), model)
+
+
+@pytest.mark.parametrize("depth_mm, thrust_n, cutting", [
+    ("2.5", None, True), ("-10.0", None, True),  # review 28: the flutes 10 mm past the face
+    ("-19.0", None, True), ("-20.0", None, False), ("-25.0", "3.0", True)])
+def test_a_follow_cuts_once_the_tools_front_is_past_the_face_or_it_presses(
+        tmp_path, model, depth_mm, thrust_n, cutting):
+    """The plan's cutting periods (the cut's checks and figures) are where the tool's front is
+    past the face (tasks.moves.in_wall, the move check's own rule) or a thrust presses it
+    there; main took the bit's middle past the face, so a slot planned 10 mm before it cut the
+    wall with no path check and no cut figures."""
+    from hubo_cli.tasks.plan import _pieces
+    from hubo_cli.tasks.tool import tool_front_m
+
+    path, _ = _broken(tmp_path, "depth_mm = 2.5 ", f"depth_mm = {depth_mm} ")
+    if thrust_n is not None:
+        path.write_text(path.read_text().replace('path = "rectangle"',
+                                                 f'path = "rectangle"\nthrust_n = {thrust_n}'))
+    spec = load_task(path, model=model)
+    _, pieces = _pieces(spec, np.eye(4), tool_front_m("drill", model))
+    follow = [p for p in pieces if spec.steps[p.step].kind == "follow"]
+    assert follow and all(p.cutting == cutting for p in follow)
+    assert not any(p.cutting for p in pieces if spec.steps[p.step].kind != "follow")
+

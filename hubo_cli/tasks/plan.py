@@ -30,9 +30,10 @@ from hubo_cli.model import RobotModel
 from hubo_cli.motion.limits import JointLimits
 from hubo_cli.posture import home_posture
 from hubo_cli.tasks.cut_lag import CutLag, lagging_cuts
-from hubo_cli.tasks.moves import check_moves
+from hubo_cli.tasks.moves import check_moves, in_wall
 from hubo_cli.tasks.spec import Step, TaskSpec
 from hubo_cli.tasks.too_fast import TooFast, too_fast_steps
+from hubo_cli.tasks.tool import tool_front_m
 
 EDGE_NONE, EDGE_HORIZONTAL, EDGE_VERTICAL = 0, 1, 2
 EDGE_NAMES = {EDGE_HORIZONTAL: "horizontal", EDGE_VERTICAL: "vertical"}
@@ -249,7 +250,7 @@ def place(spec: TaskSpec, model: RobotModel) -> Placement:
     from hubo_cli.workspace.maps import compute_map
 
     stance = spec.stance
-    T_first, pieces = _pieces(spec, np.eye(4))
+    T_first, pieces = _pieces(spec, np.eye(4), tool_front_m(stance.tool, model))
     samples = _sample_positions(T_first, pieces)  # in W: (depth, y, z)
     if presses(spec):  # force control may go find the wall
         pressed = _sample_positions(T_first, [p for p in pieces
@@ -324,7 +325,8 @@ def _with_com_shift(spec: TaskSpec, model: RobotModel, placement: Placement) -> 
     limb = spec.stance.limb
     body = WholeBody(model, {limb: spec.stance.tool}, placement.working_height_m,
                      com_control=True)
-    T_first, pieces = _pieces(spec, placement.T_S_W())
+    T_first, pieces = _pieces(spec, placement.T_S_W(),
+                              tool_front_m(spec.stance.tool, model))
     samples = _sample_positions(T_first, pieces)
     thrust = max(step.thrust_n for step in spec.steps)
     forces = {limb: np.array([-thrust, 0.0, 0.0])} if thrust > 0 else None  # eq. 6
@@ -395,8 +397,13 @@ class _Piece:
     edge: int
 
 
-def _pieces(spec: TaskSpec, T_S_W: np.ndarray) -> tuple[np.ndarray, list[_Piece]]:
-    """The first move's end pose and the Cartesian pieces of the following steps."""
+def _pieces(spec: TaskSpec, T_S_W: np.ndarray, front_m: float
+            ) -> tuple[np.ndarray, list[_Piece]]:
+    """The first move's end pose and the Cartesian pieces of the following steps. A follow
+    cuts when the tool's front (``front_m`` past its depth reference) is past the wall face, or
+    when it presses with a thrust (the hand yields along the bit until the tool meets the
+    face): review 28's slot planned with the bit's middle 10 mm before the face cut the wall
+    with its flutes and ran without a cut's checks."""
     steps = spec.steps
     pieces: list[_Piece] = []
 
@@ -416,7 +423,7 @@ def _pieces(spec: TaskSpec, T_S_W: np.ndarray) -> tuple[np.ndarray, list[_Piece]
             pieces.append(_Piece(PoseSegment(T_now, T_now, step.duration_s), k, False, EDGE_NONE))
             continue
         if step.kind == "follow":
-            cutting = depth > 0
+            cutting = in_wall(depth, front_m) or step.thrust_n > 0
             for a, b in zip(step.points_m[:-1], step.points_m[1:], strict=True):
                 T_a, T_b = tool_pose(T_S_W, *a, depth), tool_pose(T_S_W, *b, depth)
                 if np.linalg.norm(T_now[:3, 3] - T_a[:3, 3]) > 1e-9:  # join the path's start
@@ -468,7 +475,7 @@ def check_duration(spec: TaskSpec) -> float:
     Raises:
         ConfigError: too long; the message names the longest step (exit 2).
     """
-    _, pieces = _pieces(spec, np.eye(4))
+    _, pieces = _pieces(spec, np.eye(4), front_m=0.0)  # durations: no cutting flags read
     total_s = float(sum(p.segment.duration_s for p in pieces))
     if not total_s <= PLAN_MAX_S:
         step_s = np.zeros(len(spec.steps))  # a step's pieces (a rectangle's four sides) summed
@@ -498,7 +505,7 @@ def make_plan(spec: TaskSpec, model: RobotModel, placement: Placement | None = N
     body = WholeBody(model, {limb: spec.stance.tool}, placement.working_height_m)
     shift = placement.shift_m
     dt = model.control_period_s
-    T_first, pieces = _pieces(spec, T_S_W)
+    T_first, pieces = _pieces(spec, T_S_W, tool_front_m(spec.stance.tool, model))
 
     misses: list[Miss] = []
     lift = lift_filter(spec)
