@@ -565,3 +565,35 @@ def test_a_follow_cuts_once_the_tools_front_is_past_the_face_or_it_presses(
     assert follow and all(p.cutting == cutting for p in follow)
     assert not any(p.cutting for p in pieces if spec.steps[p.step].kind != "follow")
 
+
+def test_an_experiment_file_declares_only_what_its_procedure_reads(tmp_path, model):
+    """Review 28: push-door with wrist_torque_limit_nm = 0.1 and a misspelt door_dge ran on
+    the defaults, with no word; estop = "true" (text) was called turning the stopper off."""
+    door = data_file("tasks", "push-door.toml").read_text()
+    for line, message in (
+            ("wrist_torque_limit_nm = 0.1", r"push-door\.toml:\d+: \[parameters\."
+             r"wrist_torque_limit_nm\] the push-door experiment reads no parameter "
+             r"'wrist_torque_limit_nm': setting it would change nothing"),
+            ("door_dge = 30", r"reads no parameter 'door_dge'")):
+        path = tmp_path / "push-door.toml"
+        path.write_text(door.replace("[parameters]\n", f"[parameters]\n{line}\n", 1))
+        with pytest.raises(ConfigError, match=message) as caught:
+            load_task(path, model=model)
+        assert caught.value.hint == "its parameters: door_opens, door_deg, impedance, estop"
+    path.write_text(door.replace("estop = true", 'estop = "true"', 1))
+    with pytest.raises(ConfigError, match="parameter estop must be true or false, got 'true'"):
+        load_task(path, model=model)
+
+
+def test_a_ramp_too_gentle_to_be_a_number_is_refused(tmp_path, model):
+    """Review 28: accel_mm_s2 = 5e-324 passed as positive, became 0 m/s^2 and the planner
+    took its 50 mm/s^2 instead; the gentlest ramp is the slowest speed in a second."""
+    for value, refused in (("5e-324", True), ("0.09", True), ("0.1", False)):
+        path, _ = _broken(tmp_path, 'direction = "ccw"',
+                          f'direction = "ccw"\naccel_mm_s2 = {value}')
+        if not refused:
+            load_task(path, model=model)
+            continue
+        with pytest.raises(ConfigError, match=r"accel_mm_s2\] must be at least 0\.1") as caught:
+            load_task(path, model=model)
+        assert caught.value.hint == "give 0.1 or more"

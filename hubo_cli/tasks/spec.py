@@ -67,6 +67,7 @@ field (``steps[3].speed_mm_s``: steps are numbered from 1, as ``hubo task show``
 
 from __future__ import annotations
 
+import errno
 import math
 import os
 import stat
@@ -91,7 +92,13 @@ STEP_KINDS = ("move", "plunge", "follow", "retract", "wait")
 ESTOP_SOURCES = SOFT_SOURCES
 CORNERS = {"upper-left": (1, 1), "upper-right": (-1, 1), "lower-left": (1, -1),
            "lower-right": (-1, -1)}  # (sign of y, sign of z): the robot's left is +y
-EXPERIMENTS = ("push-wall", "turn-valve", "push-door")
+# The built-in experiments and the parameters each one's procedure reads (tasks.runner and
+# experiments.manipulation read them): a file declaring another would set nothing, unseen
+# (review 28: push-door's wrist_torque_limit_nm = 0.1 and a misspelt door_dge ran as defaults).
+EXPERIMENT_PARAMETERS = {"push-wall": ("direction", "interpolator", "estop"),
+                         "turn-valve": ("seen_offset_mm", "turn_deg", "impedance", "estop"),
+                         "push-door": ("door_opens", "door_deg", "impedance", "estop")}
+EXPERIMENTS = tuple(EXPERIMENT_PARAMETERS)
 # Physical sense, checked at load time (a value beyond these is a typo, not a task): no Hubo arm
 # reaches further than about 0.6 m from its shoulder, so no path spans more than LENGTH_MAX_MM;
 # its 1 rad/s joints move the tool at about 0.5 m/s at most; steps and stops are short.
@@ -102,6 +109,9 @@ TOOL_SPEED_MAX_MM_S = 500.0  # tool speed: the arm's 1 rad/s joints at its 0.5 m
 # shipped tasks' 500 mm cut alone takes 83 minutes; the paper's operator cut at about 10 mm/s
 TOOL_SPEED_MIN_MM_S = 0.1
 TOOL_ACCEL_MAX_MM_S2 = 2000.0
+# and the gentlest ramp: the slowest speed in a second (review 28: 5e-324 mm/s^2 passed as
+# positive, became 0 m/s^2 and the planner took its default instead)
+TOOL_ACCEL_MIN_MM_S2 = TOOL_SPEED_MIN_MM_S
 STEP_MAX_S = 600.0           # one move or wait
 WALL_MAX_MM = 10000.0
 THRUST_MAX_N = 15.0          # the impedance spring's 500 N/m over its 30 mm offset limit
@@ -270,8 +280,10 @@ def find_task(name_or_path: str | Path) -> Path:
     if path.suffix == ".toml" or path.exists():
         try:
             mode = path.stat().st_mode
-        except OSError:
-            raise ConfigError("no such task file", path=str(path),
+        except OSError as exc:
+            why = ("no such task file" if exc.errno == errno.ENOENT
+                   else f"cannot read the task file: {exc.strerror or exc}")
+            raise ConfigError(why, path=str(path),
                               hint="give a .toml file or a shipped task's name (hubo task list)"
                               ) from None
         if not (stat.S_ISREG(mode) or stat.S_ISFIFO(mode)):  # a FIFO is read once
@@ -541,6 +553,20 @@ class _Loader:
             if experiment not in EXPERIMENTS:
                 raise self.fail("experiment", f"unknown experiment {quoted(experiment)}",
                                 hint=f"use one of {', '.join(EXPERIMENTS)}")
+            known = EXPERIMENT_PARAMETERS[experiment]
+            for param in params:
+                if param not in known:
+                    raise ConfigError(f"the {experiment} experiment reads no parameter "
+                                      f"{quoted(param)}: setting it would change nothing",
+                                      path=str(self.path),
+                                      line=field_line(self.text, f"parameters.{param}"),
+                                      field=f"parameters.{param}",
+                                      hint=f"its parameters: {', '.join(known)}")
+            if not isinstance(params.get("estop", True), bool):
+                raise ConfigError(f"parameter estop must be true or false, got "
+                                  f"{quoted(params['estop'])}", path=str(self.path),
+                                  line=field_line(self.text, "parameters.estop"),
+                                  field="parameters.estop", hint="estop = true (a TOML boolean)")
             if params.get("estop", True) is not True:  # only the command line turns it off
                 where = ("set on the command line" if "estop" in self.overrides
                          else "in the task file")
@@ -766,8 +792,8 @@ class _Loader:
         path = t.choice("path", ("rectangle", "polyline"))
         speed = t.number("speed_mm_s", minimum=TOOL_SPEED_MIN_MM_S,
                          maximum=TOOL_SPEED_MAX_MM_S) / 1000
-        accel = t.number("accel_mm_s2", positive=True, maximum=TOOL_ACCEL_MAX_MM_S2,
-                         default=None)
+        accel = t.number("accel_mm_s2", minimum=TOOL_ACCEL_MIN_MM_S2,
+                         maximum=TOOL_ACCEL_MAX_MM_S2, default=None)
         accel = None if accel is None else accel / 1000
         bit_mm = self._bit_mm()
         if path == "polyline":
@@ -851,14 +877,16 @@ class _Table:
     def text(self, name: str, default=...) -> str | None:
         value = self.value(name, default)
         if value is not None and not isinstance(value, str):
-            raise self.loader.fail(self.key(name), f"must be text, got {quoted(value)}")
+            raise self.loader.fail(self.key(name), f"must be text, got {quoted(value)}",
+                                   hint=f'write it in quotes: {name} = "..."')
         return value
 
     def choice(self, name: str, options: tuple[str, ...], default=...) -> str:
         value = self.value(name, default)
         if value not in options:
             raise self.loader.fail(self.key(name), f"must be one of {', '.join(options)}; "
-                                                   f"got {quoted(value)}")
+                                                   f"got {quoted(value)}",
+                                   hint=f'e.g. {name} = "{options[0]}"')
         return value
 
     def number(self, name: str, *, positive: bool = False, minimum: float | None = None,
@@ -868,12 +896,17 @@ class _Table:
             return None
         if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(
                 value):
-            raise self.loader.fail(self.key(name), f"must be a number, got {quoted(value)}")
+            raise self.loader.fail(self.key(name), f"must be a number, got {quoted(value)}",
+                                   hint=f"give a finite number (no quotes): {name} = "
+                                        f"{'1.0' if minimum is None else f'{minimum:g}'}")
         if positive and not value > 0:
-            raise self.loader.fail(self.key(name), f"must be positive, got {quoted(value)}")
+            raise self.loader.fail(self.key(name), f"must be positive, got {quoted(value)}",
+                                   hint="give a number above 0 (sizes, speeds and times are "
+                                        "magnitudes; the signs are in positions and depths)")
         if minimum is not None and value < minimum:
             raise self.loader.fail(self.key(name),
-                                   f"must be at least {minimum:g}, got {quoted(value)}")
+                                   f"must be at least {minimum:g}, got {quoted(value)}",
+                                   hint=f"give {minimum:g} or more")
         if maximum is not None and value > maximum:
             raise self.loader.fail(self.key(name),
                                    f"must be at most {maximum:g}, got {quoted(value)}",
