@@ -7,6 +7,11 @@ did not make. A default folder's name is made safe (:func:`folder_name`: a task 
 ``name`` cannot lead out of ``runs/``). Output files outside run folders go through
 :mod:`hubo_cli.outputs`.
 
+A reused folder loses its previous run's files first (those its ``summary.json`` lists under
+``files``, and the summary itself; :func:`_clear_previous_run`): a plot the new run does not
+draw would otherwise lie beside the new summary (review 28: an e-stopped cut's folder kept
+the completed run's ``path.png``). Files the previous run did not list stay.
+
 A run holds its folder locked while it writes it (``flock`` on the marker, held from
 :func:`make_run_dir` to :func:`release_run_dir`, or the process's end): a second run into the
 same folder is refused before it writes anything, and the first is left alone.
@@ -180,6 +185,25 @@ def _lock(path: Path, command: str) -> None:
         os.close(fd)
         raise
     _LOCKS[path.resolve()] = [fd, 1]
+    _clear_previous_run(path)
+
+
+def _clear_previous_run(path: Path) -> None:
+    """Remove the files of the run that last wrote ``path`` (its summary's ``files`` and the
+    summary), the folder locked for the next; names that are not plain file names in the
+    folder are left alone, and a file that cannot be removed is left to be replaced."""
+    summary = path / "summary.json"
+    try:
+        listed = json.loads(summary.read_text(encoding="utf-8")).get("files", [])
+    except (OSError, ValueError, AttributeError):
+        listed = []
+    names = {"summary.json"} | {name for name in listed if isinstance(name, str)}
+    for name in names:
+        if name in ("", ".", "..", MARKER) or Path(name).name != name:
+            continue
+        with contextlib.suppress(OSError):
+            if (path / name).is_file():
+                (path / name).unlink()
 
 
 def release_run_dir(path: str | Path) -> None:

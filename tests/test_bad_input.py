@@ -360,6 +360,29 @@ def test_run_folder_reused_only_by_the_same_command(tmp_path):
     assert (first / MARKER).read_text().strip() == "teleop"
 
 
+def test_a_reused_run_folder_loses_the_previous_runs_files_and_keeps_the_users(tmp_path):
+    """Review 28: an e-stopped cut run into the folder of a completed one kept its path.png
+    beside the new summary. The previous run's listed files (and its summary) go once the
+    next run holds the folder; a file it did not list, or a path that leads out, stays."""
+    from hubo_cli.runs import release_run_dir
+
+    first = make_run_dir("task-cut", tmp_path / "run")
+    outside = tmp_path / "outside.png"
+    for path in (first / "path.png", first / "notes.txt", outside):
+        path.write_text("kept?")
+    (first / "summary.json").write_text(json.dumps(
+        {"files": ["path.png", "summary.json", "../outside.png", MARKER, 7]}))
+    release_run_dir(first)
+    again = make_run_dir("task-cut", tmp_path / "run")
+    assert sorted(p.name for p in again.iterdir()) == [MARKER, "notes.txt"]
+    assert outside.exists() and (again / MARKER).read_text().strip() == "task-cut"
+    (again / "path.png").write_text("the new run's")
+    assert make_run_dir("task-cut", again) == again  # the same run's second hold clears nothing
+    assert (again / "path.png").exists()
+    release_run_dir(again)
+    release_run_dir(again)
+
+
 def _commands(argv=(), command=main, ctx=None):
     """Every command's words down the ``hubo`` tree (the group's first), with its command."""
     ctx = ctx or click.Context(main, info_name="hubo")

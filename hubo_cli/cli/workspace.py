@@ -133,9 +133,12 @@ def _workspace_map(run, arm, tool, orientation, params, limits, resolution, x_ra
     seconds = time.perf_counter() - t0
     data = summary(maps, seconds)
     save_npz(maps, run / "workspace.npz")
-    write_json(run / "summary.json", data)
-    plots = [plot_fig4(m, run / f"workspace-fig4-{m.arm}.png") for m in maps]
-    plots.append(plot_widths(maps, run / "width-vs-distance.png"))
+    plots = [run / f"workspace-fig4-{m.arm}.png" for m in maps] + [run / "width-vs-distance.png"]
+    data["files"] = ["workspace.npz", "summary.json", *(p.name for p in plots)]
+    write_json(run / "summary.json", data)  # before the plots: a reuse clears what it lists
+    for m, path in zip(maps, plots, strict=False):
+        plot_fig4(m, path)
+    plot_widths(maps, plots[-1])
     if as_json:
         print_json({**data, "run_dir": str(run), "plots": [str(p) for p in plots]})
         return
