@@ -591,6 +591,9 @@ def test_replay_refuses_bad_input_without_a_traceback(run_dir, tmp_path):
     for args in (["replay", str(empty), "--video", "x.mp4"],
                  ["replay", str(run_dir)],
                  ["replay", str(run_dir), "--video", "x.mp4", "--size", "big"],
+                 # review 28: the renderer grew by 300 MB/s, deaf to Ctrl-C
+                 ["replay", str(run_dir), "--video", "x.mp4", "--size", "100000x100000"],
+                 ["replay", str(run_dir), "--video", "x.mp4", "--size", "7682x480"],
                  ["replay", str(run_dir), "--video", "x.mp4", "--speed", "0"],
                  # as teleop's floor (main: ten million frames a second of the run)
                  ["replay", str(run_dir), "--video", "x.mp4", "--speed", "1e-7"],
@@ -599,6 +602,17 @@ def test_replay_refuses_bad_input_without_a_traceback(run_dir, tmp_path):
         result = runner.invoke(main, args)
         assert result.exit_code == 2, (args, result.output)
         assert "Traceback" not in result.output and "error" in result.output.lower()
+
+
+def test_a_picture_is_even_and_from_16_px_to_8k():
+    from hubo_cli.errors import InputError
+    from hubo_cli.viz.camera import IMAGE_MAX_PX, check_image_size
+
+    check_image_size(16, 16)
+    check_image_size(*IMAGE_MAX_PX)
+    for size in ((14, 16), (17, 16), (7682, 480), (640, 4322), (-640, 480)):
+        with pytest.raises(InputError, match="is not usable"):
+            check_image_size(*size)
 
 
 def test_replay_command_writes_the_video_it_reports(run_dir, tmp_path):

@@ -19,14 +19,17 @@ def size_option(function):
 
 
 def parse_size(text: str) -> tuple[int, int]:
-    """``"640x480"`` -> (640, 480); bad text is an input error."""
+    """``"640x480"`` -> (640, 480); bad text or a size no picture is made at is an input
+    error."""
     from hubo_cli.errors import InputError, quoted
+    from hubo_cli.viz.camera import check_image_size
 
     try:
         width, height = (int(v) for v in text.lower().split("x"))
     except ValueError:
         raise InputError(f"bad --size {quoted(text)}",
                          hint="give WIDTHxHEIGHT, e.g. 640x480") from None
+    check_image_size(width, height)  # before the run is read
     return width, height
 
 

@@ -33,6 +33,10 @@ PRESETS = {
 }
 DEFAULT_PRESET = "shoulder"
 FIT_MARGIN_PX = 6  # the fitted box's corners stay this far inside the picture
+# A picture's size: even (H.264's 4:2:0 colour), at least 16 px, at most 8K UHD (review 28: a
+# 100000 x 100000 --size grew the renderer's memory by 300 MB/s until the machine ran out,
+# with Ctrl-C unheard inside PyBullet's renderer)
+IMAGE_MIN_PX, IMAGE_MAX_PX = 16, (7680, 4320)
 
 
 @dataclass(frozen=True)
@@ -95,6 +99,20 @@ class Camera:
         return pixels
 
 
+def check_image_size(width: int, height: int) -> None:
+    """Refuse a picture size no video or snapshot can be made at (see IMAGE_MAX_PX).
+
+    Raises:
+        InputError: odd, below IMAGE_MIN_PX or above IMAGE_MAX_PX.
+    """
+    most_w, most_h = IMAGE_MAX_PX
+    if (width < IMAGE_MIN_PX or height < IMAGE_MIN_PX or width % 2 or height % 2
+            or width > most_w or height > most_h):
+        raise InputError(f"image size {width} x {height} is not usable",
+                         hint=f"give an even width and height from {IMAGE_MIN_PX} to "
+                              f"{most_w} x {most_h} pixels")
+
+
 def camera_for(preset: str, focus_m, working_arm: str = "right-arm", width: int = 640,
                height: int = 480) -> Camera:
     """The camera of a preset looking at ``focus_m`` (see the module docstring).
@@ -105,9 +123,7 @@ def camera_for(preset: str, focus_m, working_arm: str = "right-arm", width: int 
     if preset not in PRESETS:
         raise InputError(f"unknown camera preset {quoted(preset)}",
                          hint=f"use one of {', '.join(PRESETS)}")
-    if width < 16 or height < 16 or width % 2 or height % 2:
-        raise InputError(f"image size {width} x {height} is not usable",
-                         hint="give an even width and height of at least 16 pixels")
+    check_image_size(width, height)
     offset, fov = _offset(preset, working_arm)
     focus = np.asarray(focus_m, dtype=float)
     return Camera(tuple(focus + offset), tuple(focus), fov, int(width), int(height))
