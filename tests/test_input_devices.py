@@ -182,7 +182,12 @@ def test_a_streams_pose_log_replays_as_the_stream(tmp_path):
 
 
 def test_bad_stream_settings_are_one_line_errors():
-    for kwargs in ({"duration_s": 0}, {"duration_s": float("nan")}, {"max_speed_m_s": 0},
-                   {"max_speed_m_s": 50}, {"max_turn_deg": 200}):
+    # review 28: 0.001 s made a one-sample stream and an internal error (no speed to cap)
+    for kwargs in ({"duration_s": 0}, {"duration_s": float("nan")}, {"duration_s": 0.001},
+                   {"duration_s": 0.099}, {"max_speed_m_s": 0}, {"max_speed_m_s": 50},
+                   {"max_turn_deg": 200}):
         with pytest.raises(InputError):
             StreamSettings(**kwargs)
+    for seed in range(5):  # the shortest allowed stream is one
+        for s in operator_stream(seed, StreamSettings(duration_s=0.1, max_speed_m_s=0.01)):
+            assert len(s.t_s) == 13 and s.speed_m_s().max() <= 0.01 * (1 + 1e-6)

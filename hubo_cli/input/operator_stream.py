@@ -45,6 +45,9 @@ from hubo_cli.errors import InputError
 from hubo_cli.geometry import min_jerk
 
 RATE_HZ = 120.0  # a FASTRAK's record rate, shared by the hands
+# a stream has a speed from its second sample (review 28: --duration 0.001 made one sample and
+# an internal error); the shortest is 0.1 s, 13 samples, and the longest an hour
+STREAM_MIN_S, STREAM_MAX_S = 0.1, 3600.0
 # where each hand starts in O (the mapping is relative: only the motion matters)
 START_M = {"right": np.array([0.30, -0.20, -0.10]), "left": np.array([0.30, 0.20, -0.10])}
 ACCURACY_SPEED_M_S = 0.25  # the accuracy test
@@ -82,9 +85,10 @@ class StreamSettings:
     tremor_mm: float = 0.3
 
     def __post_init__(self) -> None:
-        if not (np.isfinite(self.duration_s) and 0 < self.duration_s <= 3600):
-            raise InputError(f"stream duration {self.duration_s:g} s is not in (0, 3600]",
-                             hint="e.g. --duration 30")
+        if not (np.isfinite(self.duration_s)
+                and STREAM_MIN_S <= self.duration_s <= STREAM_MAX_S):
+            raise InputError(f"stream duration {self.duration_s:g} s is not in "
+                             f"[{STREAM_MIN_S:g}, {STREAM_MAX_S:g}]", hint="e.g. --duration 30")
         if not (np.isfinite(self.max_speed_m_s) and 0.01 <= self.max_speed_m_s <= 2.0):
             raise InputError(f"hand speed cap {self.max_speed_m_s:g} m/s is not in [0.01, 2]",
                              hint="e.g. --max-speed 0.25 (accuracy) or 0.6 (swing)")
