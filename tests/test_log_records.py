@@ -229,6 +229,49 @@ def test_not_a_record_file_is_refused(tmp_path):
         read_rows(tmp_path / ROWS_NAME, tmp_path / FLAGS_NAME)
 
 
+def _killed_run(folder: Path, rows: int = 40) -> None:
+    """A run folder as a killed run leaves it: the records and their flags, no CSV."""
+    log = _write(folder, _rows(rows))
+    log._map.close()
+    log._rows_file.close()  # the process's end releases the writer's lock
+
+
+def test_damaged_records_are_a_one_line_input_error(tmp_path):
+    """Review 28: a killed run's log.rows with a damaged header or a record's flags index
+    beyond log.flags, or log.flags gone, ended in an internal error. Each byte of the header
+    and the records' flags indices is damaged in turn (and random bytes): load_log either
+    reads the run or says the records are damaged (exit 2), never another error."""
+    rng = np.random.default_rng(28)
+    folder = tmp_path / "run"
+    folder.mkdir()
+    _killed_run(folder)
+    whole = (folder / ROWS_NAME).read_bytes()
+    flags = (folder / FLAGS_NAME).read_bytes()
+    n_head = int.from_bytes(whole[24:28], "little")
+    spots = [*range(16, 28 + n_head), *rng.integers(0, len(whole), 40).tolist()]
+    refused = 0
+    for k, at in enumerate(spots):
+        case = tmp_path / f"case{k}"
+        case.mkdir()
+        damaged = bytearray(whole)
+        damaged[at] ^= 1 << int(rng.integers(0, 8)) if k % 2 else 0xFF
+        (case / ROWS_NAME).write_bytes(bytes(damaged))
+        (case / FLAGS_NAME).write_bytes(flags)
+        try:
+            load_log(case)
+        except InputError as exc:
+            refused += 1
+            assert exc.hint and "\n" not in str(exc)
+    assert refused >= 20  # the header's damage is seen
+    (folder / FLAGS_NAME).unlink()
+    with pytest.raises(InputError, match="log.flags is missing") as caught:
+        load_log(folder)
+    assert caught.value.hint and (folder / ROWS_NAME).exists()
+    (folder / FLAGS_NAME).write_bytes(flags[:len(flags) // 2])  # records past its lines
+    with pytest.raises(InputError, match=r"log\.rows is damaged: a record's flags"):
+        load_log(folder)
+
+
 def test_metadata_in_one_rewrite_equals_one_key_at_a_time(tmp_path):
     one, many = tmp_path / "one", tmp_path / "many"
     items = {"scene": {"hole_world_m": [np.array([0.1, -0.2, 1e-7]), [1.0, math.nan, 3]],

@@ -60,6 +60,7 @@ import json
 import math
 import mmap
 import os
+import re
 import struct
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
@@ -479,23 +480,63 @@ def read_rows(rows_path: str | Path, flags_path: str | Path) -> tuple[dict, np.n
     """The records of a ``log.rows`` file and its ``log.flags``: the layout (``columns``,
     ``joints``, ``poses``, ``extras``), the numbers (rows x columns but the flags, float64)
     and each row's flags text. Only the records the file counts are read (one being written
-    when the process died is not counted)."""
+    when the process died is not counted).
+
+    Raises:
+        InputError: not a record file, a damaged one (its header, layout or a record's flags
+            index; review 28: an internal error), or its ``log.flags`` missing or damaged.
+    """
     data = Path(rows_path).read_bytes()
     if not data.startswith(ROWS_MAGIC):
         raise InputError(f"{rows_path} is not a period log's record file",
                          hint="give a run folder written by hubo, or remove the file")
-    count, n_head = struct.unpack_from("<QI", data, _COUNT_AT)
-    layout = json.loads(data[_HEAD_AT + 4:_HEAD_AT + 4 + n_head])
-    data_at = -(-(_HEAD_AT + 4 + n_head) // 8) * 8
-    width = len(layout["columns"])
-    count = min(count, (len(data) - data_at) // (8 * width))
-    table = np.frombuffer(data, dtype="<f8", count=count * width,
-                          offset=data_at).reshape(count, width)
-    text = Path(flags_path).read_text(encoding="utf-8")
-    # a line cut short by a failed write is not used by any record
-    texts = [json.loads(line) for line in text[:text.rfind("\n") + 1].splitlines()]
-    flags = [texts[i] for i in table[:, 0].astype(int).tolist()]
+    try:
+        text = Path(flags_path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError(f"{flags_path} is missing: the flags of {rows_path}'s records are "
+                         "lost", hint=_DAMAGED_RECORDS_HINT) from None
+    try:
+        count, n_head = struct.unpack_from("<QI", data, _COUNT_AT)
+        layout = json.loads(data[_HEAD_AT + 4:_HEAD_AT + 4 + n_head])
+        _check_layout(layout)
+        data_at = -(-(_HEAD_AT + 4 + n_head) // 8) * 8
+        width = len(layout["columns"])
+        count = max(0, min(count, (len(data) - data_at) // (8 * width)))
+        table = np.frombuffer(data, dtype="<f8", count=count * width,
+                              offset=data_at).reshape(count, width)
+        # a line cut short by a failed write is not used by any record
+        texts = [json.loads(line) for line in text[:text.rfind("\n") + 1].splitlines()]
+        index = table[:, 0]
+        if not np.all((index >= 0) & (index < len(texts)) & (index == np.round(index))):
+            raise ValueError("a record's flags are not in log.flags")
+        flags = [texts[i] for i in index.astype(int).tolist()]
+        if not all(isinstance(f, str) for f in flags):
+            raise ValueError("log.flags holds a line that is not text")
+    except (struct.error, ValueError, KeyError, TypeError, IndexError, ZeroDivisionError,
+            RecursionError) as exc:
+        raise InputError(f"{rows_path} is damaged: {str(exc)[:120] or type(exc).__name__}",
+                         hint=_DAMAGED_RECORDS_HINT) from None
     return layout, table[:, 1:].astype(float), flags
+
+
+_COLUMN_NAME = re.compile(r'[^\s,"]+')  # what a CSV header holds unquoted
+
+
+def _check_layout(layout) -> None:
+    """Raise ValueError unless ``layout`` is one a :class:`PeriodLog` writes: unique plain
+    column names, ``flags`` sixth, and as many numbers as its joints, poses and extras."""
+    columns = layout.get("columns") if isinstance(layout, dict) else None
+    counts = [layout.get(k) for k in ("joints", "poses", "extras")] if columns else []
+    if not (isinstance(columns, list) and all(isinstance(n, int) and not isinstance(n, bool)
+                                               and n >= 0 for n in counts)
+            and all(isinstance(c, str) and _COLUMN_NAME.fullmatch(c) for c in columns)
+            and len(set(columns)) == len(columns) and columns[:6] == list(FIXED_COLUMNS)
+            and len(columns) == 6 + 3 * counts[0] + counts[1] + counts[2]):
+        raise ValueError("its layout is not a period log's")
+
+
+_DAMAGED_RECORDS_HINT = ("the run's records cannot be made into its log; keep the folder as it "
+                         "is for inspection, or give another run")
 
 
 def _csv_from_rows(rows_path: Path, flags_path: Path, csv_path: Path) -> int:
