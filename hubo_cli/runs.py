@@ -194,6 +194,8 @@ def _clear_previous_run(path: Path) -> None:
     folder are left alone, and a file that cannot be removed is left to be replaced."""
     summary = path / "summary.json"
     try:
+        if not summary.is_file():  # (a FIFO there would hold the run)
+            raise OSError
         listed = json.loads(summary.read_text(encoding="utf-8")).get("files", [])
     except (OSError, ValueError, AttributeError):
         listed = []

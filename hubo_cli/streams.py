@@ -33,6 +33,26 @@ def reader_of(fd: int, path: str | Path):
     return lambda size: read_stream(fd, size, Path(path))
 
 
+def refuse_special_files(*paths: str | Path) -> None:
+    """Refuse a FIFO, device or folder where a run folder holds its own files (a log, its
+    sidecar, a summary): a blocking read of one would hold the command where neither Ctrl-C
+    nor SIGTERM reaches it (review 28: a FIFO as log.parquet held hubo export for ever). A
+    path that does not exist is left to the caller.
+
+    Raises:
+        InputError: the first such path.
+    """
+    for path in paths:
+        try:
+            mode = os.stat(path).st_mode
+        except OSError:
+            continue
+        if not S_ISREG(mode):
+            raise InputError(f"{path} is not a plain file (a FIFO, device or folder)",
+                             hint="a run folder's files are the ones hubo wrote: give the "
+                                  "folder as it was written")
+
+
 def read_stream(fd: int, size: int, path: Path) -> bytes:
     """Up to ``size`` bytes of a FIFO or device (fewer only at its end), waiting at most
     :data:`STREAM_WAIT_S` for each chunk.

@@ -272,6 +272,21 @@ def test_damaged_records_are_a_one_line_input_error(tmp_path):
         load_log(folder)
 
 
+@pytest.mark.parametrize("name", [LOG_NAME, META_NAME, PARQUET_NAME, ROWS_NAME, FLAGS_NAME])
+def test_a_fifo_in_place_of_a_log_file_is_refused_not_waited_on(tmp_path, name):
+    """Review 28: a FIFO as log.parquet held hubo export for ever, deaf to SIGTERM (a
+    blocking read in the Parquet reader). Any of a run folder's log files that is not a plain
+    file is refused at once (exit 2)."""
+    if name in (ROWS_NAME, FLAGS_NAME):
+        _killed_run(tmp_path)
+    else:
+        _write(tmp_path, _rows(10)).close()
+    (tmp_path / name).unlink()
+    os.mkfifo(tmp_path / name)
+    with pytest.raises(InputError, match=f"{name} is not a plain file"):
+        load_log(tmp_path)
+
+
 def test_metadata_in_one_rewrite_equals_one_key_at_a_time(tmp_path):
     one, many = tmp_path / "one", tmp_path / "many"
     items = {"scene": {"hole_world_m": [np.array([0.1, -0.2, 1e-7]), [1.0, math.nan, 3]],

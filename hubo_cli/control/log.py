@@ -75,6 +75,7 @@ from hubo_cli.control.log_parquet import write_log_parquet
 from hubo_cli.control.status import Status
 from hubo_cli.errors import DeviceError, InputError
 from hubo_cli.runs import _jsonable
+from hubo_cli.streams import refuse_special_files
 
 try:  # POSIX: a live log's records are locked by their writer
     import fcntl
@@ -715,6 +716,7 @@ def load_log(path: str | Path) -> LogData:
 
     path = Path(path)
     csv_path, meta_path, parquet_path = log_paths(path)
+    refuse_special_files(csv_path, meta_path, parquet_path, *_record_paths(csv_path))
     try:
         recover_log(path)
     except OSError as exc:

@@ -29,6 +29,7 @@ from hubo_cli.errors import InputError, quoted
 from hubo_cli.geometry import quat_wxyz_to_matrix
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import ARMS, LEGS, RobotModel, load_model
+from hubo_cli.streams import refuse_special_files
 
 ARM_SUFFIX = {"right-arm": "_r", "left-arm": "_l"}
 # the run's scalar series (time_series), in the order exports show them
@@ -237,8 +238,9 @@ def run_metadata(scene: RunScene) -> dict[str, str]:
     readable one), the periods, the duration, the URDF and the run folder."""
     log = scene.log
     try:
+        refuse_special_files(scene.run_dir / "summary.json")  # (load_log checked the log's)
         summary = json.loads((scene.run_dir / "summary.json").read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError):
+    except (OSError, UnicodeDecodeError, ValueError, InputError):
         summary = {}
     if not isinstance(summary, dict):
         summary = {}
