@@ -124,6 +124,7 @@ START_MAX_MM = 10000.0       # a walk to the working stance (``hubo walk``'s lon
 # (single-wall corrugated board is 1 to 7 mm; the shipped tasks' is 5 mm).
 WALL_THICKNESS_MIN_MM = 0.5
 UNITS_HINT = "units? values are in mm"
+_NO_ESTOP_HINT = "to run without the stopper, say so on the command line: --no-estop"
 
 
 # ---------------------------------------------------------------------------- the objects
@@ -566,16 +567,15 @@ class _Loader:
                 raise ConfigError(f"parameter estop must be true or false, got "
                                   f"{quoted(params['estop'])}", path=str(self.path),
                                   line=field_line(self.text, "parameters.estop"),
-                                  field="parameters.estop", hint="estop = true (a TOML boolean)")
+                                  field="parameters.estop", hint=f"estop = true (a TOML "
+                                  f"boolean); {_NO_ESTOP_HINT}")
             if params.get("estop", True) is not True:  # only the command line turns it off
                 where = ("set on the command line" if "estop" in self.overrides
                          else "in the task file")
                 raise ConfigError(f"parameter estop = {format_override(params['estop'])} ({where}) "
                                   "would turn the emergency stopper off", path=str(self.path),
                                   line=field_line(self.text, "parameters.estop"),
-                                  field="parameters.estop",
-                                  hint="leave it true; to run without the stopper, say so on "
-                                       "the command line: --no-estop")
+                                  field="parameters.estop", hint=f"leave it true; {_NO_ESTOP_HINT}")
             table.finish()
             return TaskSpec(name, description, self.path, params, defaults,
                             experiment=experiment, text=self.text)
