@@ -11,7 +11,7 @@ import json
 import numpy as np
 from task_files import short_cut
 
-from hubo_cli.tasks.runner import PATH_MISS_RMS_MM, path_outcome
+from hubo_cli.tasks.runner import CUT_IN_WALL_MIN, PATH_MISS_RMS_MM, path_outcome
 
 SHORT_CUT = short_cut()
 
@@ -84,3 +84,38 @@ def test_a_robot_that_follows_but_misses_the_path_does_not_complete(tmp_path, mo
     outcome = summary["path_outcome"]
     assert outcome["missed"] and outcome["path_rms_mm"] > 1.5 * PATH_MISS_RMS_MM
     assert "the measured bit missed its path by" in result.output
+
+
+def test_the_check_needs_the_flutes_in_the_wall_where_it_is_known():
+    """The share of the cut with the flutes in the wall (``cutting_fraction``, known where the
+    simulator holds the wall; None on a real robot: no check) below CUT_IN_WALL_MIN is a miss
+    of the wall, whatever the path."""
+    goal = np.zeros((50, 3))
+    assert not path_outcome(goal, goal, force=False)["missed_wall"]  # not known
+    assert not path_outcome(goal, goal, force=False, in_wall_fraction=1.0)["missed_wall"]
+    assert not path_outcome(goal, goal, force=False,
+                            in_wall_fraction=CUT_IN_WALL_MIN)["missed_wall"]
+    for fraction in (0.0, CUT_IN_WALL_MIN - 0.01, float("nan")):
+        assert path_outcome(goal, goal, force=False, in_wall_fraction=fraction)["missed_wall"]
+
+
+def test_a_cut_that_never_touches_the_wall_does_not_complete(tmp_path):
+    """Review 28: the wall 30 mm farther than the file plans (the bit's middle 2.5 mm past
+    the planned face is 27.5 mm short of the real one, the flutes 7.5 mm short: a geometric
+    margin no floating-point spread reaches) cut nothing and main said completed, exit 0.
+    Now exit 1, the outcome line, ``completed: false``."""
+    from click.testing import CliRunner
+
+    from hubo_cli.cli.main import main
+
+    task, run = tmp_path / "short.toml", tmp_path / "run"
+    task.write_text(SHORT_CUT)
+    result = CliRunner().invoke(main, ["task", "run", str(task), "--out", str(run),
+                                       "--set", "scene.wall.misplaced_mm=30"])
+    summary = json.loads((run / "summary.json").read_text())
+    assert result.exit_code == 1, result.output
+    assert summary["ended"] == "done" and summary["completed"] is False
+    outcome = summary["path_outcome"]
+    assert outcome["missed_wall"] and not outcome["missed"]
+    assert summary["cutting_fraction"] <= 0.05
+    assert "flutes were in the wall 0% of the cut" in " ".join(result.output.split())

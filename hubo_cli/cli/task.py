@@ -369,15 +369,22 @@ def report_path_miss(summary: dict) -> None:
     from hubo_cli.tasks.tool import tool_point
 
     outcome = summary.get("path_outcome")
-    if (not outcome or not outcome["missed"] or summary["estop"] or summary["ended"] != "done"
+    if (not outcome or summary["estop"] or summary["ended"] != "done"
             or summary.get("finished_by_operator")):
         return  # (a run stopped otherwise says why already)
     point = tool_point(summary["tool"])
-    err_console.print(f"[red]not completed:[/] the measured {point} missed its path by "
-                      f"{outcome['path_rms_mm']:.1f} mm RMS while cutting (limit "
-                      f"{outcome['limit_mm']:g} mm): check that the joints follow (log.csv's "
-                      f"tracking-error flag), the tool's mounting and what pushed the {point}",
-                      soft_wrap=True)
+    if outcome["missed"]:
+        err_console.print(f"[red]not completed:[/] the measured {point} missed its path by "
+                          f"{outcome['path_rms_mm']:.1f} mm RMS while cutting (limit "
+                          f"{outcome['limit_mm']:g} mm): check that the joints follow "
+                          f"(log.csv's tracking-error flag), the tool's mounting and what "
+                          f"pushed the {point}", soft_wrap=True)
+    if outcome.get("missed_wall"):
+        err_console.print(f"[red]not completed:[/] the {point}'s flutes were in the wall "
+                          f"{outcome['in_wall_fraction']:.0%} of the cut (at least "
+                          f"{outcome['in_wall_min']:.0%} cuts a hole): check where the wall "
+                          "is against the task's wall_distance_mm, or cut under force control "
+                          "(a plunge with thrust_n finds the face)", soft_wrap=True)
 
 
 def _refuse(ctx: click.Context, plan, as_json: bool) -> None:
@@ -460,9 +467,11 @@ def _print_cut(summary: dict, run_dir) -> None:
 
     point = tool_point(summary["tool"])
     stance = summary["stance"]
-    missed = (summary.get("path_outcome") or {}).get("missed")
+    check = summary.get("path_outcome") or {}
+    missed = ("its path" if check.get("missed") else "the wall" if check.get("missed_wall")
+              else None)
     why = ("emergency stop" if summary["estop"] else "finished by the operator: q"
-           if summary.get("finished_by_operator") else f"the {point} missed its path"
+           if summary.get("finished_by_operator") else f"the {point} missed {missed}"
            if missed and summary["ended"] == "done" else summary["ended"])
     outcome = "completed" if summary["completed"] else f"[red]did not complete[/] ({why})"
     console.print(f"{escape(shown_name(summary['task']))} {outcome} after "
@@ -476,7 +485,8 @@ def _print_cut(summary: dict, run_dir) -> None:
         console.print(f"  {point + ' error':<12}{summary['rms_error_mm']:.1f} mm rms, "
                       f"{summary['max_error_mm']:.1f} mm max while cutting (paper: "
                       f"{summary['paper_rms_error_mm']:g} mm)"
-                      + (f"; hole in the wall {hole:.1f} mm rms" if hole is not None else ""))
+                      + (f"; hole in the wall {hole:.1f} mm rms"
+                         if hole is not None and not check.get("missed_wall") else ""))
     torque = summary["wrist_torque_nm"]
     parts = [f"{edge} {torque[edge]['mean']:.2f} mean / {torque[edge]['max']:.2f} max"
              for edge in ("horizontal", "vertical") if torque[edge]["samples"]]

@@ -47,6 +47,11 @@ PAPER_RMS_ERROR_MM = 17.0
 # cut, mm) did not complete, however the loop ended; pre-flight refuses a cut the arm would lag
 # behind by as much (the figure and its measurements are held in tasks.cut_lag).
 PATH_MISS_RMS_MM = LAG_LIMIT_RMS_MM
+# ... and a drilling cut whose flutes were in the wall for less than this share of it
+# (``cutting_fraction``, where the simulator knows the wall) cut no closed hole: review 28's
+# wall 30 mm farther than planned was never touched (0 %) and the cut said completed. Healthy
+# cuts measure 1.0 (see docs/tasks.md, the outcome check).
+CUT_IN_WALL_MIN = 0.95
 
 
 @dataclass
@@ -359,17 +364,23 @@ def _hole_in_wall_frame(log, offset_world_m: np.ndarray | None,
     return np.asarray(points, dtype=float) - offset_world_m - T_S_W[:3, 3]
 
 
-def path_outcome(goal_m: np.ndarray, actual_m: np.ndarray, force: bool) -> dict | None:
+def path_outcome(goal_m: np.ndarray, actual_m: np.ndarray, force: bool,
+                 in_wall_fraction: float | None = None) -> dict | None:
     """The outcome check of a cut (None without cut periods): the measured bit's RMS distance
     from the commanded one over the cut (mm; under force control across the bit only, in the
-    wall plane: along it the bit yields to hold its thrust), the limit and whether it missed."""
+    wall plane: along it the bit yields to hold its thrust), the limit and whether it missed;
+    and, given the share of the cut with the flutes in the wall (the run's
+    ``cutting_fraction``; None: not known, a real wall), whether the cut missed the wall."""
     if not len(goal_m):
         return None
     d = (goal_m - actual_m)[:, 1:] if force else goal_m - actual_m
     rms_mm = float(np.sqrt(np.mean(np.sum(d**2, axis=1))) * 1000)
     return {"path_rms_mm": rms_mm, "limit_mm": PATH_MISS_RMS_MM,
             "measured": "in the wall plane (force control)" if force else "3-D",
-            "missed": not rms_mm <= PATH_MISS_RMS_MM}
+            "missed": not rms_mm <= PATH_MISS_RMS_MM,
+            "in_wall_fraction": in_wall_fraction, "in_wall_min": CUT_IN_WALL_MIN,
+            "missed_wall": in_wall_fraction is not None
+            and not in_wall_fraction >= CUT_IN_WALL_MIN}
 
 
 def estop_latches(result: LoopResult) -> list:
@@ -402,10 +413,10 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult, t_origin_s: float
     torque_stats = {name: _stats(torque[edge == code]) for code, name in EDGE_NAMES.items()}
     all_torque = log["task_wrist_torque_nm"]
     stops = estop_latches(result)
-    outcome = path_outcome(goal, actual, plan.has_force)
-    # after a stop: only if resumed; a bit that missed its path did not complete either
+    outcome = path_outcome(goal, actual, plan.has_force, done.summary.get("cutting_fraction"))
+    # after a stop: only if resumed; a bit that missed its path or the wall did not complete
     completed = (result.ok and target.phase == "settle"
-                 and not (outcome is not None and outcome["missed"]))
+                 and not (outcome is not None and (outcome["missed"] or outcome["missed_wall"])))
     T_S_W = plan.placement.T_S_W()
     hole_rms = _plane_rms_mm(goal, world)
     if len(goal):
