@@ -144,6 +144,9 @@ CASES = {
     # review 20: a stand shorter than one control period rounded to no period: internal error
     "sim-duration-1e-300": (lambda d: ["sim", "--duration", "1e-300", "--out",
                                        str(d / "short-run")], 2, "one control period"),
+    # round 30: an unknown --limits was "the hip strategy needs the 'walking' set, not 'nope'"
+    "sim-limits-unknown": (lambda d: ["sim", "--limits", "nope", "--out", str(d / "lim")], 2,
+                           "unknown limit set 'nope'"),
     "sim-out-under-file": (lambda d: ["sim", "--duration", "0.1", "--out",
                                       str(d / "f.txt" / "sub")], 2, "is a file"),
     "teleop-out-under-file": (lambda d: ["teleop", "--replay", str(_short_log(d / "s.csv")),

@@ -22,7 +22,7 @@ from hubo_cli.errors import ConfigError, HuboError, InputError, quoted
 from hubo_cli.estimation.keys import CONTACT, T_WORLD_SOLES, T_WORLD_TORSO, WRENCHES
 from hubo_cli.falls import has_fallen
 from hubo_cli.geometry import tilt_rad_of_matrix
-from hubo_cli.model import RobotModel
+from hubo_cli.model import RobotModel, load_model
 from hubo_cli.posture import check_stands_in, home_posture
 from hubo_cli.scene import SceneActions
 from hubo_cli.session import RunObserver, RunResult, RunSetup, run
@@ -296,6 +296,8 @@ def standing_options(duration_s: float = 5.0, push_n: float = 0.0, *,
     default = safety.balance and safety.balance_mode == "default"
     hip = hip_strategy and not step and default
     needs = "stepping (--step)" if step else "the hip strategy" if hip else None
+    if limit_set is not None:
+        load_model(limits=limit_set)  # an unknown set is named as such, with the known ones
     if needs is None:
         chosen = limit_set or default_limit_set
         reason = ("named by --limits" if limit_set
