@@ -852,12 +852,10 @@ METRIC_NOTES = {
 
 def plot_sweep(rows: Sequence[Row], path: str | Path) -> Path:
     """Outcome against the parameters (:func:`sweep_figure`) as a PNG."""
-    import matplotlib.pyplot as plt
+    from hubo_cli.plots import save_figure
 
     fig = sweep_figure(rows)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return Path(path)
+    return save_figure(fig, path, dpi=110)
 
 
 def sweep_figure(rows: Sequence[Row]):

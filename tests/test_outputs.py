@@ -610,3 +610,29 @@ def test_a_rerun_recording_is_not_started_on_a_nearly_full_disk(tmp_path, monkey
         rerun_export.export_rrd(None, tmp_path / "x.rrd")
     assert full.value.errno == errno.ENOSPC and full.value.filename == str(tmp_path / "x.rrd")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_plot_on_a_full_disk_names_its_file(tmp_path):
+    """Round 30: ``hubo workspace-map`` on a full 200 kB tmpfs said "No space left on device"
+    naming no file (matplotlib's own OSError, injected here as it raised it); every plot is now
+    written through ``save_figure``, whose failed write names the plot (a full disk: exit 3's
+    OSError) or is one input error."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from hubo_cli.plots import save_figure
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    fig = plt.figure()
+    fig.savefig = full
+    with pytest.raises(OSError) as raised:
+        save_figure(fig, tmp_path / "plot.png")
+    assert raised.value.errno == errno.ENOSPC
+    assert raised.value.filename == str(tmp_path / "plot.png")
+    with pytest.raises(InputError, match="cannot write .*no-such-folder/plot.png"):
+        save_figure(plt.figure(), tmp_path / "no-such-folder" / "plot.png")
+    assert plt.get_fignums() == []  # closed either way

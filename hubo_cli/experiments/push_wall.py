@@ -283,7 +283,7 @@ def plot_cp_error(log: LogData, summary: dict, path: str | Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from hubo_cli.plots import STOP_COLOUR, shade_emergency_stop
+    from hubo_cli.plots import STOP_COLOUR, save_figure, shade_emergency_stop
 
     axis = summary["cp_error_axis"]
     t = log["t_s"]
@@ -346,7 +346,4 @@ def plot_cp_error(log: LogData, summary: dict, path: str | Path) -> Path:
     ax_tilt.legend(loc="upper left", fontsize=8, framealpha=0.9, ncol=4)
     fig.align_ylabels()
     fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)

@@ -14,14 +14,21 @@ def save_figure(fig, path: str | Path, **savefig_options) -> Path:
     ``tight_layout`` leaves matplotlib's inert layout engine on the figure, and ``savefig`` draws
     a figure with any engine once more, without rendering, before the draw it renders: the
     whole layout (ticks, texts, the legend's best place) computed twice. Saved without the
-    engine it is drawn once, to the same pixels.
+    engine it is drawn once, to the same pixels. A write that fails is
+    :func:`hubo_cli.outputs.write_error`'s error, naming ``path``.
     """
     import matplotlib.pyplot as plt
 
+    from hubo_cli.outputs import write_error
+
     fig.set_layout_engine(None)
     path = Path(path)
-    fig.savefig(path, **savefig_options)
-    plt.close(fig)
+    try:
+        fig.savefig(path, **savefig_options)
+    except OSError as exc:  # a full disk names the file (exit 3), anything else is exit 2
+        raise write_error(path, exc, hint="check the run folder's path") from None
+    finally:
+        plt.close(fig)
     return path
 
 

@@ -12,6 +12,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from hubo_cli.plots import save_figure  # noqa: E402
+
 SIDES = ("right", "left")
 COLOURS = {"right": "#1f77b4", "left": "#ff7f0e"}
 
@@ -60,6 +62,4 @@ def plot_toe_heel(t_s: np.ndarray, columns: dict[str, np.ndarray], path: str | P
     if title:
         fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-    return Path(path)
+    return save_figure(fig, path)

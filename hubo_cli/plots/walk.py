@@ -13,6 +13,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.patches import Polygon  # noqa: E402
 
+from hubo_cli.plots import save_figure  # noqa: E402
+
 
 def plot_walk(footprints: list[dict], corners_m: np.ndarray, com_ref_m: np.ndarray,
               com_m: np.ndarray, zmp_ref_m: np.ndarray, zmp_m: np.ndarray,
@@ -52,6 +54,4 @@ def plot_walk(footprints: list[dict], corners_m: np.ndarray, com_ref_m: np.ndarr
     ax.legend(loc="best", fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-    return Path(path)
+    return save_figure(fig, path)

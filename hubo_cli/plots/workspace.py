@@ -15,6 +15,7 @@ import numpy as np  # noqa: E402
 from matplotlib.colors import ListedColormap  # noqa: E402
 from matplotlib.patches import Patch, Rectangle  # noqa: E402
 
+from hubo_cli.plots import save_figure  # noqa: E402
 from hubo_cli.workspace import PAPER_BEST, WorkspaceMap  # noqa: E402
 from hubo_cli.workspace.grid import reach_sphere  # noqa: E402
 
@@ -97,9 +98,7 @@ def plot_fig4(wmap: WorkspaceMap, path: str | Path) -> Path:
                  f"{w.width_m * mm:.1f} mm at x = {w.wall_distance_m * mm:.1f} mm, "
                  f"z = {w.z_m * mm:.1f} mm{paper_note}", fontsize=10)
     fig.tight_layout(rect=(0, 0.11, 1, 0.96))
-    path = Path(path)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    path = save_figure(fig, path, dpi=110)
     return path
 
 
@@ -131,7 +130,5 @@ def plot_widths(maps: list[WorkspaceMap], path: str | Path) -> Path:
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    path = save_figure(fig, path, dpi=110)
     return path
