@@ -190,6 +190,9 @@ CASES = {
         d / "n.csv", lambda k, t: 1.0 + t * 1e-7))], 2, "249 records within"),
     "teleop-replay-empty": (lambda d: ["teleop", "--replay", ""], 2, "no recording given"),
     "task-run-empty": (lambda d: ["task", "run", ""], 2, "no task given"),
+    "teleop-port-empty": (lambda d: ["teleop", "--port", ""], 2, "no serial port given"),
+    "record-port-empty": (lambda d: ["record", "--port", "", "--out",
+                                     str(d / "c.fastrak")], 2, "no serial port given"),
     "teleop-clutch-after-the-end": (lambda d: ["teleop", "--replay", str(_short_log(
         d / "s.csv")), "--clutch", "1e308"], 2, "after the replay's end"),
     "teleop-map-5": (lambda d: ["teleop", "--replay", str(_short_log(d / "s.csv")),

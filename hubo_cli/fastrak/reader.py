@@ -95,6 +95,10 @@ class FastrakReader(PoseSource):
                  command_gap_s: float = 0.02,
                  plausibility: Plausibility = DEFAULT_PLAUSIBILITY) -> None:
         super().__init__()
+        if not str(port).strip():  # (pyserial opens no port and says "no such file")
+            raise InputError("no serial port given (an empty name)",
+                             hint="give the FASTRAK's device, e.g. /dev/ttyUSB0, or "
+                                  f"{EMULATE_HINT}")
         self.layout = make_layout(fmt, output_list)
         if units not in UNIT_SCALE_M:
             raise InputError(f"unknown units {units!r}", hint="use cm or in")
