@@ -440,6 +440,16 @@ def test_the_plan_ramps_the_thrust_and_only_a_thrust_asks_for_force(model, tmp_p
                          model).has_force
 
 
+def test_a_drill_pressed_with_no_depth_guide_is_warned_of(model, tmp_path):
+    """Round 30: generated force cuts with no depth guide drove the bit 25-30 mm through the
+    wall (the flutes in it 15-80 % of the cut), with no word before the run."""
+    unguided = make_plan(load_task(_task(tmp_path, PRESS)), model).preflight
+    assert unguided.unguided == (4.0, model.impedance_max_offset_m)
+    assert any("no depth guide" in line and "4 N" in line for line in unguided.warnings)
+    guided = load_task(_task(tmp_path, PRESS, "[scene.cutting]\nguide_depth_m = 0.0025"))
+    assert make_plan(guided, model).preflight.unguided is None
+
+
 def test_ramped_spreads_each_change():
     out = _ramped(np.array([0.0, 0, 3, 3, 3, 3, 0, 0, 0, 0]), 2)
     assert np.allclose(out, [0, 0, 1.5, 3, 3, 3, 1.5, 0, 0, 0])

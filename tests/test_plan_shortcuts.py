@@ -36,7 +36,7 @@ def test_a_plans_legs_are_those_of_a_fresh_solve_every_period(model, task):
     spec = load_task(task)
     plan = make_plan(spec, model)
     body, shift, limb = plan.body, plan.placement.shift_m, plan.spec.stance.limb
-    assert plan.preflight.ok
+    assert plan.preflight.ok and plan.preflight.unguided is None  # (the force cut's guide)
     lift = lift_filter(spec)
     lift.reset(body.lift_for({limb: plan.T_first_S}))  # as make_plan runs it
     q_prev, lift_prev, level = plan.q_first_rad, None, 0

@@ -380,11 +380,14 @@ def report_path_miss(summary: dict) -> None:
                           f"(log.csv's tracking-error flag), the tool's mounting and what "
                           f"pushed the {point}", soft_wrap=True)
     if outcome.get("missed_wall"):
+        fix = ("check that the drill's depth guide rests on the face (scene.cutting."
+               "guide_depth_m): with none, the thrust drives the bit through the wall"
+               if outcome["force_control"] else "check where the wall is against the task's "
+               "wall_distance_mm, or cut under force control (a plunge with thrust_n and the "
+               "drill's depth guide finds the face)")
         err_console.print(f"[red]not completed:[/] the {point}'s flutes were in the wall "
                           f"{outcome['in_wall_fraction']:.0%} of the cut (at least "
-                          f"{outcome['in_wall_min']:.0%} cuts a hole): check where the wall "
-                          "is against the task's wall_distance_mm, or cut under force control "
-                          "(a plunge with thrust_n finds the face)", soft_wrap=True)
+                          f"{outcome['in_wall_min']:.0%} cuts a hole): {fix}", soft_wrap=True)
 
 
 def _refuse(ctx: click.Context, plan, as_json: bool) -> None:

@@ -126,12 +126,18 @@ class Preflight:
     ``too_fast`` names the steps whose joint targets move faster or accelerate harder than the
     joints' limits (:mod:`hubo_cli.tasks.too_fast`): the pipeline keeps the robot within them,
     so it lags behind the path there (``warnings``), but nothing unsafe is commanded.
+
+    ``unguided`` (a warning too): a drill that presses (``thrust_n``) with no depth guide on
+    its bit (``scene.cutting.guide_depth_m``) to rest on the face, so the thrust drives the
+    bit through the wall as far as the hand yields; ``unguided[0]`` the largest thrust (N),
+    ``unguided[1]`` the yield (m).
     """
 
     misses: list[Miss]
     checked_poses: int
     too_fast: list[TooFast] = field(default_factory=list)
     lagging: list[CutLag] = field(default_factory=list)
+    unguided: tuple[float, float] | None = None
 
     @property
     def ok(self) -> bool:
@@ -139,9 +145,17 @@ class Preflight:
 
     @property
     def warnings(self) -> list[str]:
-        """The steps that ask more than the joints' limits, one line each."""
-        return [f"{t.message()}: the robot will lag behind the path there"
-                for t in self.too_fast]
+        """The steps that ask more than the joints' limits, and a drill pressed with no depth
+        guide, one line each."""
+        lines = [f"{t.message()}: the robot will lag behind the path there"
+                 for t in self.too_fast]
+        if self.unguided is not None:
+            thrust_n, yield_m = self.unguided
+            lines.append(f"the drill presses with {thrust_n:g} N (thrust_n) but its bit has no "
+                         "depth guide (scene.cutting.guide_depth_m) to rest on the face: the "
+                         f"thrust drives it through the wall, up to {yield_m * 1000:g} mm past "
+                         "the plan, and the cut may miss the wall")
+        return lines
 
     def worst_per_step(self) -> list[Miss]:
         """One miss per failing step: the farthest out."""
@@ -553,13 +567,16 @@ def make_plan(spec: TaskSpec, model: RobotModel, placement: Placement | None = N
                            q[:, arm], goal, step_index, dt, CUT_ACCEL_M_S2)
     thrust = _ramped(np.array([spec.steps[k].thrust_n for k in step_index]),
                      int(round(FORCE_RAMP_S / dt)))
+    pressed_n = max(step.thrust_n for step in spec.steps)
+    unguided = ((pressed_n, model.impedance_max_offset_m) if spec.stance.tool == "drill"
+                and pressed_n > 0.0 and spec.scene.cutting.guide_depth_m <= 0.0 else None)
     step_times = [(0.0, 0.0)]
     for k in range(1, len(spec.steps)):
         mine = [j for j, p in enumerate(pieces) if p.step == k]
         step_times.append((float(starts[mine[0]]), float(starts[mine[-1] + 1])) if mine
                           else (step_times[-1][1],) * 2)
     return Plan(spec, placement, dt, first.q_rad, T_first, t, step_index, goal, q, cutting, edge,
-                step_times, Preflight(misses, n + 1, too_fast, lagging), body, thrust)
+                step_times, Preflight(misses, n + 1, too_fast, lagging, unguided), body, thrust)
 
 
 def _ramped(values: np.ndarray, periods: int) -> np.ndarray:

@@ -377,6 +377,7 @@ def path_outcome(goal_m: np.ndarray, actual_m: np.ndarray, force: bool,
     rms_mm = float(np.sqrt(np.mean(np.sum(d**2, axis=1))) * 1000)
     return {"path_rms_mm": rms_mm, "limit_mm": PATH_MISS_RMS_MM,
             "measured": "in the wall plane (force control)" if force else "3-D",
+            "force_control": force,
             "missed": not rms_mm <= PATH_MISS_RMS_MM,
             "in_wall_fraction": in_wall_fraction, "in_wall_min": CUT_IN_WALL_MIN,
             "missed_wall": in_wall_fraction is not None
