@@ -231,7 +231,13 @@ def test_stale_state_on_the_channels_brakes_holds_and_ends_even_if_it_comes_back
     speed = np.abs(np.diff(refs))
     onset = next(i for i, f in enumerate(flags) if "stale-state" in f)
     assert np.all(np.diff(speed[onset + 1:]) <= 1e-12)  # only slowing down, then held
-    assert np.all(speed[-20:] == 0.0)
+    # at rest, then held to the end. How many periods are held depends on the machine's
+    # timing (the grace is wall-clock time, and periods stretch while the driver waits for
+    # the state): 19 or 20 in 9 runs here (round 30), and a clean clone's CI failed when it
+    # asked for 20. So it asks for a few of them, not a count
+    held = speed[onset + 1:] == 0.0
+    assert held.any() and held[int(np.argmax(held)):].all()
+    assert len(held) - int(np.argmax(held)) >= 5
     assert abs(refs[-1] - q[REB]) > 0.1  # the commands went on; the robot did not follow
     assert not _shm_files(*channels)
 
