@@ -448,6 +448,12 @@ def test_a_drill_pressed_with_no_depth_guide_is_warned_of(model, tmp_path):
     assert any("no depth guide" in line and "4 N" in line for line in unguided.warnings)
     guided = load_task(_task(tmp_path, PRESS, "[scene.cutting]\nguide_depth_m = 0.0025"))
     assert make_plan(guided, model).preflight.unguided is None
+    # the run folder keeps what was said before the run (a --json run prints no warning)
+    from hubo_cli.tasks.runner import run_task
+
+    s = run_task(make_plan(load_task(_task(tmp_path, PRESS)), model), driver="ideal",
+                 out=tmp_path / "run").summary
+    assert s["preflight_warnings"] == unguided.warnings
 
 
 def test_ramped_spreads_each_change():
@@ -577,7 +583,7 @@ def test_the_cut_holds_its_thrust_on_a_misplaced_wall(model, tmp_path, misplaced
     spec = load_task("cut-rectangle-force", {"misplaced_mm": misplaced_mm, "width_mm": 45.0,
                                              "height_mm": 30.0})
     s = run_task(check_task(spec, model), out=tmp_path).summary
-    assert s["completed"] and not s["estop_events"]
+    assert s["completed"] and not s["estop_events"] and s["preflight_warnings"] == []
     assert s["hole_rms_error_mm"] <= 3.0
     thrust = s["thrust_n"]
     assert thrust["force_control"] and thrust["reference_mean"] == pytest.approx(3.0)

@@ -470,6 +470,7 @@ def summarise(plan: Plan, target: TaskTarget, done: RunResult, t_origin_s: float
         "parameters": spec.parameters,
         "completed": completed,
         "path_outcome": outcome,
+        "preflight_warnings": plan.preflight.warnings,  # (printed before the run, not in --json)
         "stance": plan.placement.to_json(),
         "steps": [{"name": s.name, "kind": s.kind, "description": s.describe(),
                    "done": completed or (target.step_stopped is not None
