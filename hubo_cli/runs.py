@@ -193,10 +193,9 @@ def _clear_previous_run(path: Path) -> None:
     summary), the folder locked for the next; names that are not plain file names in the
     folder are left alone, and a file that cannot be removed is left to be replaced."""
     summary = path / "summary.json"
-    try:
-        if not summary.is_file():  # (a FIFO there would hold the run)
-            raise OSError
-        listed = json.loads(summary.read_text(encoding="utf-8")).get("files", [])
+    try:  # only a plain file is read (a FIFO there would hold the run)
+        listed = (json.loads(summary.read_text(encoding="utf-8")).get("files", [])
+                  if summary.is_file() else [])
     except (OSError, ValueError, AttributeError):
         listed = []
     names = {"summary.json"} | {name for name in listed if isinstance(name, str)}

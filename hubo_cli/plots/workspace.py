@@ -98,8 +98,7 @@ def plot_fig4(wmap: WorkspaceMap, path: str | Path) -> Path:
                  f"{w.width_m * mm:.1f} mm at x = {w.wall_distance_m * mm:.1f} mm, "
                  f"z = {w.z_m * mm:.1f} mm{paper_note}", fontsize=10)
     fig.tight_layout(rect=(0, 0.11, 1, 0.96))
-    path = save_figure(fig, path, dpi=110)
-    return path
+    return save_figure(fig, path, dpi=110)
 
 
 def plot_widths(maps: list[WorkspaceMap], path: str | Path) -> Path:
@@ -130,5 +129,4 @@ def plot_widths(maps: list[WorkspaceMap], path: str | Path) -> Path:
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    path = save_figure(fig, path, dpi=110)
-    return path
+    return save_figure(fig, path, dpi=110)

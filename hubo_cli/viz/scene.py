@@ -29,7 +29,6 @@ from hubo_cli.errors import InputError, quoted
 from hubo_cli.geometry import quat_wxyz_to_matrix
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import ARMS, LEGS, RobotModel, load_model
-from hubo_cli.streams import refuse_special_files
 
 ARM_SUFFIX = {"right-arm": "_r", "left-arm": "_l"}
 # the run's scalar series (time_series), in the order exports show them
@@ -237,10 +236,10 @@ def run_metadata(scene: RunScene) -> dict[str, str]:
     command, driver and perturbation seed (from ``summary.json`` where the run folder has a
     readable one), the periods, the duration, the URDF and the run folder."""
     log = scene.log
-    try:
-        refuse_special_files(scene.run_dir / "summary.json")  # (load_log checked the log's)
-        summary = json.loads((scene.run_dir / "summary.json").read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError, InputError):
+    path = scene.run_dir / "summary.json"
+    try:  # only a plain file is read (a FIFO there would hold the export for ever)
+        summary = json.loads(path.read_text(encoding="utf-8")) if path.is_file() else {}
+    except (OSError, UnicodeDecodeError, ValueError):
         summary = {}
     if not isinstance(summary, dict):
         summary = {}
