@@ -259,3 +259,31 @@ def test_left_over_channels_are_taken_over_and_removed(channels, posture):
         assert info.value.exit_code == 3
         assert _shm_files(*channels) and daemon.stats.error == ""
     assert not _shm_files(*channels)
+
+
+def test_a_late_period_is_stamped_when_it_was_due_not_when_it_ran(channels, posture):
+    """Round 30: a CI run's sim daemon, one period late, ran the next at once to catch up and
+    stamped each state when it ran: two states 2 ms apart a whole 5 ms body step apart, which
+    the driver read as a joint at 5.4 rad/s ("implausible measurement"). Each state is stamped
+    with its period's scheduled start, so no two are closer in time than the body stepped."""
+    from hubo_cli.drivers.hubo_ach_daemon import EchoBody
+
+    stamps = []
+
+    class SlowOnce(EchoBody):
+        def advance(self, *args):
+            super().advance(*args)
+            if len(stamps) == 5:
+                time.sleep(0.008)  # late by 3 ms of a 5 ms period: the next runs at once
+
+        def state(self, time_s):
+            stamps.append(time_s)
+            return super().state(time_s)
+
+    lib = load_libach()
+    with FakeHuboDaemon(lib, posture, *channels) as daemon:
+        daemon.body = SlowOnce(posture)
+        stamps.clear()  # (the state published on opening)
+        daemon.run(duration_s=0.1)
+    steps_s = np.diff(stamps)
+    assert len(steps_s) > 10 and steps_s.min() >= daemon.period_s - 1e-9, steps_s

@@ -5,9 +5,13 @@ One daemon contract (:class:`HuboDaemon`), two bodies behind it. Every 5 ms
 put on ``hubo-ref`` since its last period, checks each is exactly ``sizeof(hubo_ref_t)``
 (hubo-daemon exits on a mismatch; this one stops and records why), hands the newest to its body
 and publishes the body's ``hubo_state`` with ``time`` = ``CLOCK_MONOTONIC`` seconds, as
-hubo-daemon does. The bodies: :class:`EchoBody` (``hubo hardware fake-daemon``) puts the joints
-at hubo-daemon's reference filter output (mode 0, ``HUBO_REF_FILTER_LENGTH`` 40; mode 1 direct),
-an ideal motor, with a level IMU and zero wrenches;
+hubo-daemon does: the period's scheduled start, so that two states are as far apart in
+``time`` as the body stepped between them (a late period run at once to catch up, stamped when
+it ran, showed a sim daemon's joint moving 2.5 times as fast as it did: round 30, an
+"implausible measurement" in CI). The bodies: :class:`EchoBody` (``hubo hardware
+fake-daemon``) puts the joints at hubo-daemon's reference filter output (mode 0,
+``HUBO_REF_FILTER_LENGTH`` 40; mode 1 direct), an ideal motor, with a level IMU and zero
+wrenches;
 :class:`~hubo_cli.drivers.hubo_ach_sim_body.PhysicsBody` (``hubo hardware sim-daemon``) drives
 the simulated robot's motors with that filter output and publishes what the simulator measures.
 A controller talking to either closes its loop through real ach channels.
@@ -254,7 +258,7 @@ class HuboDaemon:
         end_s = None if duration_s is None else next_s + duration_s
         while not self._stop.is_set() and (end_s is None or next_s < end_s):
             began_s = time.monotonic()
-            self.period()
+            self.period(next_s)
             if stats.error:
                 break
             done_s = time.monotonic()
@@ -270,9 +274,10 @@ class HuboDaemon:
                     next_s = done_s  # re-anchor rather than burst
         return stats
 
-    def period(self) -> None:
-        """One daemon period: read the references, advance the body, publish the state. A failure
-        stops the daemon with :attr:`DaemonStats.error` set (as hubo-daemon exits)."""
+    def period(self, time_s: float | None = None) -> None:
+        """One daemon period: read the references, advance the body, publish the state stamped
+        ``time_s`` (``CLOCK_MONOTONIC`` s; None: now). A failure stops the daemon with
+        :attr:`DaemonStats.error` set (as hubo-daemon exits)."""
         try:
             self._read_refs()
         except AchError as exc:
@@ -281,7 +286,7 @@ class HuboDaemon:
             return
         self._begin_faults()
         self.body.advance(self._ref, self._mode, self.period_s)
-        self._publish()
+        self._publish(time_s)
         self.stats.periods += 1
         if self._ref_periods is not None:
             self._ref_periods += 1
@@ -392,8 +397,9 @@ class HuboDaemon:
             self._scheduled.remove(item)
             item[1]()
 
-    def _publish(self) -> None:
-        data = hubo_ach.encode_state(self.body.state(time.clock_gettime(time.CLOCK_MONOTONIC)))
+    def _publish(self, time_s: float | None = None) -> None:
+        data = hubo_ach.encode_state(self.body.state(
+            time.clock_gettime(time.CLOCK_MONOTONIC) if time_s is None else time_s))
         self._history.append(data)
         t_s = self.fault_time_s()
         if t_s is not None:
