@@ -10,6 +10,15 @@ driver's stale-state brake: it sits below both the pipeline and the drivers.
 A tracker resting on its target (its last sample at rest, where ruckig returned its input
 unchanged) asked for the same target again returns that sample without asking ruckig: ruckig
 would return it again (a standing robot's every period).
+
+Phase synchronisation stretches every joint's profile to the slowest joint's duration. For a
+joint that has (almost) nothing to do, ruckig may meet that duration with a swing away and
+back: a knee 5e-12 rad from its target with 1e-10 rad/s left over, stretched to an arm's 35 ms,
+swung 3.9 mrad out (jerk 15000 rad/s^3 allows it), in the period a task's arm began to move. A
+joint of a new synchronised plan that leaves the stretch between its position and its target
+by more than its stopping distance (:func:`stopping_distance_bound_rad`) and
+SWING_TOLERANCE_RAD is taken out of the synchronisation for that target, on its own
+time-optimal plan (:meth:`JointTracker._unswung`).
 """
 
 from __future__ import annotations
@@ -34,6 +43,7 @@ from hubo_cli.errors import ConfigError, quoted
 from hubo_cli.motion.limits import TARGET_SPEED_SHARE, JointLimits, all_finite
 
 SYNCHRONIZATIONS = {"phase": Synchronization.Phase, "none": Synchronization.No}
+SWING_TOLERANCE_RAD = 1e-5  # a synchronised joint may leave its way by this beyond its stop
 
 
 class JointTracker:
@@ -71,6 +81,9 @@ class JointTracker:
         self._v_clipped = np.empty(n)  # preview's target velocity
         _clipped_velocity(self._zeros, self._v_min, self._v_max, self._v_clipped)  # compiled
         # (or loaded) now, not in a period
+        self._swung = np.empty(n, dtype=np.bool_)
+        _swung(self._zeros, self._zeros, self._zeros, self._zeros, self._zeros, self._zeros,
+               limits.acceleration_rad_s2, limits.jerk_rad_s3, 0.0, self._swung)  # the same
         self._a_max = limits.acceleration_rad_s2  # an acceleration reset() takes is clipped
         self._a_min = -self._a_max
         self.q = np.zeros(n)
@@ -86,6 +99,7 @@ class JointTracker:
         # (target, minimum duration) of the last ``track`` when it left ruckig's input as it
         # found it, at rest at a sample that stays put (see :meth:`_resting`); None otherwise
         self._rest: tuple[list[float], float | None, np.ndarray] | None = None
+        self._per_dof = False  # ruckig's input takes some joints out of the synchronisation
 
     def reset(self, q_rad, v_rad_s=None, a_rad_s2=None) -> None:
         """Start from position ``q_rad`` with the given velocity and acceleration (default 0).
@@ -113,6 +127,12 @@ class JointTracker:
         self._rest = None
         if self._mode == "position":
             self._inp.synchronization = self._sync
+            self._synchronize_all()
+
+    def _synchronize_all(self) -> None:
+        if self._per_dof:
+            self._inp.per_dof_synchronization = None
+            self._per_dof = False
 
     def preview(self, target_rad: np.ndarray, synchronization: str, samples: int,
                 target_v_rad_s: np.ndarray | None = None) -> np.ndarray:
@@ -215,8 +235,11 @@ class JointTracker:
             inp.control_interface = ControlInterface.Position
             inp.synchronization = self._sync
             inp.target_acceleration = self._zeros
+            self._synchronize_all()
             self._mode = "position"
         self._set_current()
+        if self._per_dof and target != inp.target_position:
+            self._synchronize_all()  # a new target: every joint synchronised again
         inp.target_position = target
         if target_v_rad_s is None:
             if not self._target_v_zero:
@@ -228,7 +251,8 @@ class JointTracker:
         inp.minimum_duration = min_duration_s
         q_before = self.q  # ruckig's current state is (q, v, a), set above or passed on
         resting = target_v_rad_s is None and self._resting()
-        if self._run():
+        state = (q_before, self.v, self.a)
+        if self._run() and self._unswung(state, target):
             self.error = ""
             self._rest = ((target, min_duration_s, self.q.copy()) if resting and self._resting()
                           and self.q.tolist() == q_before.tolist() else None)
@@ -237,6 +261,29 @@ class JointTracker:
         out = self.brake()
         self.error = message
         return out
+
+    def _unswung(self, state: tuple[np.ndarray, np.ndarray, np.ndarray],
+                 target: list[float]) -> bool:
+        """After a new synchronised plan from ``state`` (q, v, a): take the joints it swings
+        beyond their way (see the module docstring) out of the synchronisation and plan again
+        from ``state``. Returns whether the sample stands (the plan again failing is a ruckig
+        error, as ``_run``'s)."""
+        if self._sync == Synchronization.No or not self._out.new_calculation:
+            return True
+        q, v, a = state
+        extrema = self._out.trajectory.position_extrema
+        low = np.fromiter((e.min for e in extrema), float, len(target))
+        high = np.fromiter((e.max for e in extrema), float, len(target))
+        swung = self._swung
+        if not _swung(low, high, q, np.asarray(target), v, a, self.limits.acceleration_rad_s2,
+                      self.limits.jerk_rad_s3, SWING_TOLERANCE_RAD, swung):
+            return True
+        inp = self._inp
+        inp.per_dof_synchronization = [Synchronization.No if s else self._sync
+                                       for s in swung.tolist()]
+        self._per_dof = True
+        inp.current_position, inp.current_velocity, inp.current_acceleration = q, v, a
+        return self._run()
 
     def _target_velocity(self, target_v_rad_s: np.ndarray) -> np.ndarray:
         v = np.asarray(target_v_rad_s, dtype=float)
@@ -252,6 +299,7 @@ class JointTracker:
         if self._mode != "velocity":
             inp.control_interface = ControlInterface.Velocity
             inp.synchronization = Synchronization.No
+            self._synchronize_all()
             inp.target_velocity = self._zeros
             self._target_v_zero = True
             inp.target_acceleration = self._zeros
@@ -269,6 +317,32 @@ class JointTracker:
     def at_rest(self) -> bool:
         """Velocity and acceleration are (numerically) zero."""
         return bool(np.all(np.abs(self.v) < 1e-9) and np.all(np.abs(self.a) < 1e-9))
+
+
+def stopping_distance_bound_rad(v_rad_s, a_rad_s2, a_max_rad_s2, j_max_rad_s3):
+    """An upper bound (rad) of how far a joint at velocity ``v_rad_s`` and acceleration
+    ``a_rad_s2`` travels while it stops under its acceleration and jerk limits: its
+    acceleration ramps to zero (|a| / j), then it brakes, the acceleration ramping up to at most
+    the limit and down again (|v| / a_max + 2 a_max / j), all at the largest speed reached."""
+    v_peak = abs(v_rad_s) + a_rad_s2 * a_rad_s2 / (2.0 * j_max_rad_s3)
+    return v_peak * (abs(a_rad_s2) / j_max_rad_s3 + v_peak / a_max_rad_s2
+                     + 2.0 * a_max_rad_s2 / j_max_rad_s3)
+
+
+_stopping_distance = nb.njit(cache=True, nogil=True)(stopping_distance_bound_rad)
+
+
+@nb.njit(cache=True, nogil=True)
+def _swung(low, high, q, target, v, a, a_max, j_max, tolerance, out):
+    """``out``: the joints whose plan (its extrema ``low``, ``high``) leaves the stretch between
+    ``q`` and ``target`` by more than their stopping distance and ``tolerance`` (rad). Returns
+    whether any does."""
+    any_swung = False
+    for i in range(q.shape[0]):
+        beyond = max(min(q[i], target[i]) - low[i], high[i] - max(q[i], target[i]))
+        out[i] = beyond > _stopping_distance(v[i], a[i], a_max[i], j_max[i]) + tolerance
+        any_swung = any_swung or out[i]
+    return any_swung
 
 
 @nb.njit(cache=True, nogil=True)
