@@ -33,7 +33,14 @@ from hubo_cli.kinematics.limb import Limb
 from hubo_cli.posture import home_posture
 from hubo_cli.scene import CuttingModel
 from hubo_cli.state import RobotState, T_frame_sensor
-from hubo_cli.tasks.plan import FORCE_RAMP_S, Placement, _ramped, _with_com_shift, make_plan
+from hubo_cli.tasks.plan import (
+    FORCE_RAMP_S,
+    Placement,
+    UnguidedPress,
+    _ramped,
+    _with_com_shift,
+    make_plan,
+)
 from hubo_cli.tasks.spec import load_task
 
 DT = 0.005
@@ -444,7 +451,7 @@ def test_a_drill_pressed_with_no_depth_guide_is_warned_of(model, tmp_path):
     """Round 30: generated force cuts with no depth guide drove the bit 25-30 mm through the
     wall (the flutes in it 15-80 % of the cut), with no word before the run."""
     unguided = make_plan(load_task(_task(tmp_path, PRESS)), model).preflight
-    assert unguided.unguided == (4.0, model.impedance_max_offset_m)
+    assert unguided.unguided == UnguidedPress(4.0, model.impedance_max_offset_m)
     assert any("no depth guide" in line and "4 N" in line for line in unguided.warnings)
     guided = load_task(_task(tmp_path, PRESS, "[scene.cutting]\nguide_depth_m = 0.0025"))
     assert make_plan(guided, model).preflight.unguided is None

@@ -117,6 +117,21 @@ class Miss:
                 f"reach by {self.miss_m * 1000:.0f} mm")
 
 
+@dataclass(frozen=True)
+class UnguidedPress:
+    """A drill that presses with no depth guide on its bit: its largest thrust and how far the
+    hand yields (the most the thrust can drive the bit past the plan)."""
+
+    thrust_n: float
+    yield_m: float
+
+    def message(self) -> str:
+        return (f"the drill presses with {self.thrust_n:g} N (thrust_n) but its bit has no "
+                "depth guide (scene.cutting.guide_depth_m) to rest on the face: the thrust "
+                f"drives it through the wall, up to {self.yield_m * 1000:g} mm past the plan, "
+                "and the cut may miss the wall")
+
+
 @dataclass
 class Preflight:
     """Pre-flight's verdict: ``ok`` when every pose of every step is exactly reachable and the
@@ -129,15 +144,14 @@ class Preflight:
 
     ``unguided`` (a warning too): a drill that presses (``thrust_n``) with no depth guide on
     its bit (``scene.cutting.guide_depth_m``) to rest on the face, so the thrust drives the
-    bit through the wall as far as the hand yields; ``unguided[0]`` the largest thrust (N),
-    ``unguided[1]`` the yield (m).
+    bit through the wall as far as the hand yields.
     """
 
     misses: list[Miss]
     checked_poses: int
     too_fast: list[TooFast] = field(default_factory=list)
     lagging: list[CutLag] = field(default_factory=list)
-    unguided: tuple[float, float] | None = None
+    unguided: UnguidedPress | None = None
 
     @property
     def ok(self) -> bool:
@@ -150,11 +164,7 @@ class Preflight:
         lines = [f"{t.message()}: the robot will lag behind the path there"
                  for t in self.too_fast]
         if self.unguided is not None:
-            thrust_n, yield_m = self.unguided
-            lines.append(f"the drill presses with {thrust_n:g} N (thrust_n) but its bit has no "
-                         "depth guide (scene.cutting.guide_depth_m) to rest on the face: the "
-                         f"thrust drives it through the wall, up to {yield_m * 1000:g} mm past "
-                         "the plan, and the cut may miss the wall")
+            lines.append(self.unguided.message())
         return lines
 
     def worst_per_step(self) -> list[Miss]:
@@ -568,8 +578,9 @@ def make_plan(spec: TaskSpec, model: RobotModel, placement: Placement | None = N
     thrust = _ramped(np.array([spec.steps[k].thrust_n for k in step_index]),
                      int(round(FORCE_RAMP_S / dt)))
     pressed_n = max(step.thrust_n for step in spec.steps)
-    unguided = ((pressed_n, model.impedance_max_offset_m) if spec.stance.tool == "drill"
-                and pressed_n > 0.0 and spec.scene.cutting.guide_depth_m <= 0.0 else None)
+    guided = spec.scene.cutting.guide_depth_m > 0.0
+    unguided = (UnguidedPress(pressed_n, model.impedance_max_offset_m)
+                if spec.stance.tool == "drill" and pressed_n > 0.0 and not guided else None)
     step_times = [(0.0, 0.0)]
     for k in range(1, len(spec.steps)):
         mine = [j for j, p in enumerate(pieces) if p.step == k]
