@@ -83,7 +83,7 @@ class JointTracker:
         # (or loaded) now, not in a period
         self._swung = np.empty(n, dtype=np.bool_)
         _swung(self._zeros, self._zeros, self._zeros, self._zeros, self._zeros, self._zeros,
-               limits.acceleration_rad_s2, limits.jerk_rad_s3, 0.0, self._swung)  # the same
+               np.ones(n), np.ones(n), 0.0, self._swung)  # the same
         self._a_max = limits.acceleration_rad_s2  # an acceleration reset() takes is clipped
         self._a_min = -self._a_max
         self.q = np.zeros(n)
@@ -329,10 +329,13 @@ def stopping_distance_bound_rad(v_rad_s, a_rad_s2, a_max_rad_s2, j_max_rad_s3):
                      + 2.0 * a_max_rad_s2 / j_max_rad_s3)
 
 
-_stopping_distance = nb.njit(cache=True, nogil=True)(stopping_distance_bound_rad)
+# (numpy's error model: a zero limit, which ruckig refuses anyway, divides to inf or NaN and
+# flags nothing, where Python's would raise)
+_stopping_distance = nb.njit(cache=True, nogil=True, error_model="numpy")(
+    stopping_distance_bound_rad)
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def _swung(low, high, q, target, v, a, a_max, j_max, tolerance, out):
     """``out``: the joints whose plan (its extrema ``low``, ``high``) leaves the stretch between
     ``q`` and ``target`` by more than their stopping distance and ``tolerance`` (rad). Returns
