@@ -9,8 +9,9 @@ plans (:data:`~hubo_cli.control.phase.SUPPORT_PLAN`) through the store.
 Its phases (``walk.phase_code``, :data:`WALK_PHASES`):
 
 * ``walk``: the pattern. While a foot swings (up to CP_WINDOW of its single support), the
-  estimated capture point's error from the pattern's beyond a margin, as it will have grown by
-  the landing (exp(omega t), at most CP_GAIN_MAX), moves that landing and every later footstep
+  estimated capture point's error from the pattern's (as it was before that swing's moves)
+  beyond a margin, as it will have grown by the landing (exp(omega t), at most CP_GAIN_MAX),
+  moves that landing further (never back, in that swing) and every later footstep
   (:func:`~hubo_cli.walking.replan.shifted_landing`: hrpsys AutoBalancer's footstep
   modification, within step limits, never across the stance leg); the pattern is re-planned
   (:func:`~hubo_cli.walking.replan.pattern_from`) from the period it is decided in, its first
@@ -242,7 +243,21 @@ REAIM_LAST_FLOOR_M = ARRIVED_M / 2  # [chosen] ... and is re-aimed for a stance 
 CP_GAIN_MAX = 1.0      # [chosen] the error's growth by the landing counted at most this much
                        # (exp(omega t) is 17 at a swing's start: a 1 cm error of the estimate's
                        # capture point moved the landing by 17 cm; 3x stepped too far back
-                       # after a backward push, and the robot fell forward)
+                       # after a backward push, and the robot fell forward). The error is the
+                       # one against the pattern before the swing's moves, and a move is not
+                       # turned back in its swing (round 32): measured against the re-planned
+                       # pattern, whose capture point the move itself carries toward the
+                       # robot's, the error shrank and turned, and so did the moves (portable
+                       # robot 21's fast walk, one swing: +11, -13, -35 mm; it fell)
+
+
+def _not_turned_back(wanted_m: np.ndarray, applied_m: np.ndarray) -> np.ndarray:
+    """A landing's shift as the capture point asks for it now (``wanted_m``), kept on each
+    axis (world x, y; m) the swing's earlier moves (``applied_m``) shifted it along from
+    shrinking back or turning: only moved further that way."""
+    direction = np.sign(applied_m)
+    return np.where(direction != 0.0,
+                    direction * np.maximum(direction * wanted_m, np.abs(applied_m)), wanted_m)
 
 
 def estimated_feet(store: Store) -> dict[str, Footstep]:
@@ -563,6 +578,8 @@ class WalkTarget(Target):
                                                 # moved so far by re-aims (world x, y; m)
         self._moves_before = 0  # landings moved by the capture point or a push before the plan
         self._shift = (-1, np.zeros(2), None)  # (step, shift applied, steps before it)
+        self._ref_moved = (-1, 0, np.zeros((1, 2)))  # (step, its first row on the plan's
+        # timeline, the pattern's capture point moved by its landing's moves from there; m)
         self._cp_error = np.full(2, math.nan)
         self._pending = None  # a re-plan's rest being computed (_replan)
         self._prefix = None  # a re-plan's first rows being solved (_replan)
@@ -935,6 +952,7 @@ class WalkTarget(Target):
         # a landing the capture point moved keeps its shift (and the steps it shifted from)
         self._shift = ((step, applied, base[:step + 1]) if shifted_step == step >= 0
                        else (-1, np.zeros(2), None))
+        self._ref_moved = (-1, 0, np.zeros((1, 2)))  # (the stop's pattern is the reference)
         planted = None
         if step >= 0:
             kept = steps[:step + 1]
@@ -986,8 +1004,12 @@ class WalkTarget(Target):
         shifted_step, applied, base = self._shift
         if shifted_step != step:
             shifted_step, applied, base = step, np.zeros(2), list(self._basis[1])
-        excess = np.sign(self._cp_error) * np.maximum(np.abs(self._cp_error) - CP_MARGIN_M, 0.0)
-        wanted = excess * min(math.exp(self._omega * remaining_s), CP_GAIN_MAX)
+        # the error against the pattern before this landing's moves, from whose steps
+        # ``applied`` is measured (see CP_GAIN_MAX)
+        error = self._cp_error + self._ref_moved_at(step, k)
+        excess = np.sign(error) * np.maximum(np.abs(error) - CP_MARGIN_M, 0.0)
+        wanted = _not_turned_back(excess * min(math.exp(self._omega * remaining_s),
+                                               CP_GAIN_MAX), applied)
         stance_side = "right" if support[0] else "left"
         x, y, _, yaw = rows[stance_side][k]
         stance = Footstep(stance_side, x, y, yaw)
@@ -1085,15 +1107,50 @@ class WalkTarget(Target):
         playing stands) it counts as a landing moved by the capture point, or as a swing ended
         where the foot ``touched`` down early, and the move is kept for the step's later
         moves (``_shift``)."""
+        old_cart, old_k, old_row = self._cart, self.k, self._row0 + self.k
+
         def done() -> None:
             if touched:
                 self.touchdowns_early += 1
             else:
                 self.shifts += 1
+                self._moved_ref(step, old_cart, old_k, old_row)
             self._shift = (step, np.array([landing.x_m - base[step].x_m,
                                            landing.y_m - base[step].y_m]), base)
 
         self._replan(shift_steps(base, step, landing), t_s, done=done, **replan)
+
+    def _moved_ref(self, step: int, old_cart: Gait, old_k: int, old_row: int) -> None:
+        """Add how far the re-plan just installed moved the pattern's capture point (its
+        cart-table CoM plus velocity over omega, the new less ``old_cart``, whose row
+        ``old_k`` was the plan's row ``old_row``; the multi-body correction is continued
+        alike, :func:`~hubo_cli.walking.replan.continued_fix`) to step ``step``'s record, up to
+        its landing."""
+        new, old, omega = self._cart.com, old_cart.com, self._omega
+        first_old = old_k + self._row0 - old_row  # (a swing abandoned skips rows)
+        # (a re-plan's cart has its CoM path only over its first rows: held from the last)
+        n = min(self._landing[0] + 1, len(new.com_m), len(old.com_m) - first_old)
+        if n <= 0:
+            return
+        moved = ((new.com_m[:n] + new.com_velocity_m_s[:n] / omega)
+                 - (old.com_m[first_old:first_old + n]
+                    + old.com_velocity_m_s[first_old:first_old + n] / omega))
+        recorded, first, total = self._ref_moved
+        if recorded != step:
+            first, total = self._row0, np.zeros((1, 2))
+        start = self._row0 - first
+        total = np.vstack([total, np.repeat(total[-1:], max(start + n - len(total), 0), axis=0)])
+        total[start:start + n] += moved
+        total[start + n:] += moved[-1]
+        self._ref_moved = (step, first, total)
+
+    def _ref_moved_at(self, step: int, k: int) -> np.ndarray:
+        """How far step ``step``'s landing moves have moved the pattern's capture point at
+        period ``k`` (world x, y; m; :meth:`_moved_ref`)."""
+        recorded, first, moved = self._ref_moved
+        if recorded != step:
+            return np.zeros(2)
+        return moved[min(max(self._row0 + k - first, 0), len(moved) - 1)]
 
     def _reaim(self, t_s: float) -> None:
         """At the lift-off of each of the plan's last REAIM_STEPS steps (both soles down, the
