@@ -689,6 +689,10 @@ class WalkTarget(Target):
                 gait, lead, T_world_neck[:3, :3], self.params.lean_rad_per_m))
         self._reaimed = -1
         self._reaimed_m = {side: np.zeros(2) for side in SIDES}
+        # a new plan (a correction's) counts its steps from 0 again: the last plan's landing
+        # moves (their steps, shifts and record) are not its own
+        self._shift = (-1, np.zeros(2), None)
+        self._ref_moved = (-1, 0, np.zeros((1, 2)))
         self._moves_before = self.shifts + self.touchdowns_early  # (:meth:`_reaim`)
         self._aims = {side: _final_place(steps, feet[side], side) for side in SIDES}
         # what the plan was made from, for re-planning it in motion (:meth:`_replan`)
