@@ -60,7 +60,12 @@ def test_the_lipschitz_bound_never_exceeds_the_exact_distance(model, drill):
         size = rng.choice([0.001, 0.02, 0.1, 0.6])
         q_in, ahead = (np.clip(q0 + moved * rng.uniform(-size, size, q0.size), lower, upper)
                        for _ in range(2))
-        near_m, _, far_m, _ = _lower_bound(q_in, ahead, np.tile(q0, (len(d0), 1)), d0, rate)
+        near_m, _, far_m, _ = _lower_bound(q_in, ahead, np.tile(q0, (len(d0), 1)), d0,
+                                           anchor.pair_joints, anchor.pair_rates)
+        # the kernel loops over each pair's own joints: every joint with a rate, in order
+        bound_in = [d0[p] - sum(rate[p, j] * abs(q_in[j] - q0[j])
+                                for j in np.flatnonzero(rate[p] > 0.0)) for p in range(len(d0))]
+        assert near_m == pytest.approx(min(bound_in), abs=1e-12)
         reach = np.maximum(np.abs(q_in - q0), np.abs(ahead - q0))
         corners = [q0 + reach * rng.choice([-1.0, 1.0], q0.size) for _ in range(2)]
         way = [q_in + s * (ahead - q_in) for s in (0.25, 0.5, 1.0)]

@@ -270,6 +270,7 @@ class SelfCollisionChecker:
                                     for p in geom.collisionPairs], dtype=bool)
         self.rate_m_rad = self._pair_rates()
         self.shape_joints = self._pair_shape_joints()
+        self.pair_joints, self.pair_rates = _joint_lists(self.shape_joints, self.rate_m_rad)
         # check_near's bounds: each pair's last computed distance and the joints it was
         # computed at (-inf: none yet)
         self.anchor_q = np.zeros((len(self.pair_names), len(self.robot.q_index)))
@@ -454,8 +455,8 @@ class SelfCollisionChecker:
             return Clearance(np.inf, ("", ""))
         bounds, listed, data = self._bounds_m, self._listed, self._near_data
         n_changed, n_near, best = _pair_bounds(q_rad, self.anchor_q, self.anchor_m,
-                                               self.earlier_q, self.earlier_m, self.rate_m_rad,
-                                               self.shape_joints, band_m, self.repeatable, bounds,
+                                               self.earlier_q, self.earlier_m, self.pair_joints,
+                                               self.pair_rates, band_m, self.repeatable, bounds,
                                                self._near, listed, self._every_pair
                                                if pairs is None else pairs)
         if n_changed:  # the near pairs are the active ones of data
@@ -483,7 +484,7 @@ class SelfCollisionChecker:
         if not self.pair_names:
             return np.inf
         return _bound_near(q_rad, self.anchor_q, self.anchor_m, self.earlier_q, self.earlier_m,
-                           self.rate_m_rad, self.shape_joints, band_m, self.repeatable,
+                           self.pair_joints, self.pair_rates, band_m, self.repeatable,
                            self._every_pair if pairs is None else pairs)
 
     def _closest(self, data: pin.GeometryData) -> tuple[float, int]:
@@ -495,6 +496,24 @@ class SelfCollisionChecker:
         if best >= len(self.pair_names):
             return np.inf, best
         return float(data.distanceResults[best].min_distance), best
+
+
+def _joint_lists(shape_joints: np.ndarray, rate_m_rad: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Per pair, the joints that move one of its shapes (``shape_joints``, pairs x joints), in
+    increasing order and -1 after the last, and their rates (``rate_m_rad``; 0 for a joint
+    moving both shapes): the bound kernels loop over these few (about 7 of the 24), adding
+    the same terms in the same order as over every joint with a rate."""
+    width = max(1, int(shape_joints.sum(axis=1).max(initial=0)))
+    joints = np.full((len(shape_joints), width), -1, dtype=np.int64)
+    rates = np.zeros((len(shape_joints), width))
+    for p, row in enumerate(shape_joints):
+        listed = np.flatnonzero(row)
+        joints[p, :len(listed)] = listed
+        rates[p, :len(listed)] = rate_m_rad[p, listed]
+    if np.any((rate_m_rad > 0.0) & ~shape_joints):
+        raise ValueError("a joint with a rate moves neither shape of its pair")
+    return joints, rates
 
 
 @nb.njit(cache=True, nogil=True)
@@ -540,20 +559,23 @@ def _input_ahead(q_rad, last_in, w_last, dt_s, lower, upper, amax, jmax, q_in, w
 
 
 @nb.njit(cache=True, nogil=True)
-def _lower_bound(q_in, ahead, q0, d0, rate):
+def _lower_bound(q_in, ahead, q0, d0, joints, rates):
     """The smallest Lipschitz lower bound of the pairs' distances (m) at ``q_in`` and over the
     box of postures whose every joint lies within its larger offset from pair p's ``q0[p]`` at
     ``q_in`` or ``ahead`` (which holds the way from one to the other), from the distances
-    ``d0[p]`` at ``q0[p]`` and the rates of :meth:`SelfCollisionChecker._pair_rates`:
-    (at_input, pair, box, pair)."""
+    ``d0[p]`` at ``q0[p]`` and the rates of :meth:`SelfCollisionChecker._pair_rates` (as
+    :func:`_joint_lists` lists them): (at_input, pair, box, pair)."""
     best_in, pair_in, best_box, pair_box = np.inf, 0, np.inf, 0
     for p in range(d0.shape[0]):
         near, far = d0[p], d0[p]
-        for j in range(q_in.shape[0]):
-            if rate[p, j] > 0.0:
+        for k in range(joints.shape[1]):
+            j = joints[p, k]
+            if j < 0:
+                break
+            if rates[p, k] > 0.0:
                 a = abs(q_in[j] - q0[p, j])
-                near -= rate[p, j] * a
-                far -= rate[p, j] * max(a, abs(ahead[j] - q0[p, j]))
+                near -= rates[p, k] * a
+                far -= rates[p, k] * max(a, abs(ahead[j] - q0[p, j]))
         if near < best_in:
             best_in, pair_in = near, p
         if far < best_box:
@@ -562,66 +584,85 @@ def _lower_bound(q_in, ahead, q0, d0, rate):
 
 
 @nb.njit(cache=True, nogil=True)
-def _pair_bound(p, q, q0, d0, q1, d1, rate, shape_joints, band_m, reuse):
-    """Pair ``p``'s Lipschitz lower bound at ``q`` (m) from its distance ``d0[p]`` at ``q0[p]``:
-    (bound, moved, earlier). ``moved``: its distance must be computed if the bound is within
+def _pair_bound_each(q, q0, d0, q1, d1, joints, rates, band_m, reuse, taken):
+    """Each pair's Lipschitz lower bound at ``q`` (m) from its distance ``d0[p]`` at ``q0[p]``:
+    arrays (bound, moved, earlier), inf / False / False for a pair not ``taken``.
+    ``joints[p]``, ``rates[p]``: the joints that move one of its shapes and their rates
+    (:func:`_joint_lists`). ``moved``: its distance must be computed if the bound is within
     ``band_m``. With ``reuse``, a pair whose joints with a rate are exactly ``q0[p]``'s has not
     moved (its bound is its distance), and a pair that would be near counts its earlier
     distance ``d1[p]`` at ``q1[p]`` too: the bound is the larger of the two, and where every
-    joint that moves one of its shapes (``shape_joints[p]``) is exactly ``q1[p]``'s the bound is
-    ``d1[p]``, not moved, and ``earlier`` True."""
-    bound = d0[p]
-    moved = not reuse or d0[p] == -np.inf
-    for j in range(q.shape[0]):
-        if rate[p, j] > 0.0:
-            bound -= rate[p, j] * abs(q[j] - q0[p, j])
-            moved = moved or q[j] != q0[p, j]
-    if moved and reuse and bound <= band_m and d1[p] != -np.inf:
-        earlier = d1[p]
-        moved_1 = False
-        for j in range(q.shape[0]):
-            if rate[p, j] > 0.0:
-                earlier -= rate[p, j] * abs(q[j] - q1[p, j])
-            # every joint that moves a shape, not only those with a rate: a joint moving
-            # both shapes leaves the distance but not its last bits; the others leave the
-            # shapes' placements to the last bit (pinocchio places a link from its own
-            # chain's joints only), so coal would compute the same number
-            moved_1 = moved_1 or (shape_joints[p, j] and q[j] != q1[p, j])
-        if not moved_1:
-            return d1[p], False, True
-        if earlier > bound:
-            bound = earlier
-    return bound, moved, False
+    joint that moves one of its shapes is exactly ``q1[p]``'s the bound is ``d1[p]``, not
+    moved, and ``earlier`` True. Every pair in one loop: a compiled call per pair cost ten
+    times its arithmetic (each array argument's reference count taken and given back)."""
+    n = d0.shape[0]
+    bounds = np.full(n, np.inf)
+    moved_each = np.zeros(n, dtype=np.bool_)
+    earlier_each = np.zeros(n, dtype=np.bool_)
+    for p in range(n):
+        if not taken[p]:
+            continue
+        bound = d0[p]
+        moved = not reuse or d0[p] == -np.inf
+        for k in range(joints.shape[1]):
+            j = joints[p, k]
+            if j < 0:
+                break
+            if rates[p, k] > 0.0:
+                bound -= rates[p, k] * abs(q[j] - q0[p, j])
+                moved = moved or q[j] != q0[p, j]
+        if moved and reuse and bound <= band_m and d1[p] != -np.inf:
+            earlier = d1[p]
+            moved_1 = False
+            for k in range(joints.shape[1]):
+                j = joints[p, k]
+                if j < 0:
+                    break
+                if rates[p, k] > 0.0:
+                    earlier -= rates[p, k] * abs(q[j] - q1[p, j])
+                # every joint that moves a shape, not only those with a rate: a joint moving
+                # both shapes leaves the distance but not its last bits; the others leave the
+                # shapes' placements to the last bit (pinocchio places a link from its own
+                # chain's joints only), so coal would compute the same number
+                moved_1 = moved_1 or q[j] != q1[p, j]
+            if not moved_1:
+                bound, moved = d1[p], False
+                earlier_each[p] = True
+            elif earlier > bound:
+                bound = earlier
+        bounds[p] = bound
+        moved_each[p] = moved
+    return bounds, moved_each, earlier_each
 
 
 @nb.njit(cache=True, nogil=True)
-def _pair_bounds(q, q0, d0, q1, d1, rate, shape_joints, band_m, reuse, bounds, near, changed,
+def _pair_bounds(q, q0, d0, q1, d1, joints, rates, band_m, reuse, bounds, near, changed,
                  taken):
-    """Each pair's bound at ``q`` (:func:`_pair_bound`, m, to ``bounds``); ``near`` set to the
-    pairs that moved with a bound at most ``band_m``, listing in ``changed`` first the pairs
-    whose entry changed, then the near pairs. Returns (how many changed, how many are near,
-    the pair of the smallest bound). A pair at its earlier joints swaps its two distances
-    (``q0``, ``d0`` stay the last one used). Only the pairs ``taken`` count: the others are
-    neither bounded nor computed (their entry of ``bounds`` inf, their anchors untouched)."""
+    """Each pair's bound at ``q`` (:func:`_pair_bound_each`, m, to ``bounds``); ``near`` set
+    to the pairs that moved with a bound at most ``band_m``, listing in ``changed`` first the
+    pairs whose entry changed, then the near pairs. Returns (how many changed, how many are
+    near, the pair of the smallest bound). A pair at its earlier joints swaps its two
+    distances (``q0``, ``d0`` stay the last one used). Only the pairs ``taken`` count: the
+    others are neither bounded nor computed (their entry of ``bounds`` inf, their anchors
+    untouched)."""
+    each, moved, earlier = _pair_bound_each(q, q0, d0, q1, d1, joints, rates, band_m, reuse,
+                                            taken)
     n_changed, best = 0, 0
     for p in range(d0.shape[0]):
+        bounds[p] = each[p]
         if not taken[p]:
-            bounds[p] = np.inf
             if near[p]:
                 near[p] = False
                 changed[n_changed] = p
                 n_changed += 1
             continue
-        bound, moved, earlier = _pair_bound(p, q, q0, d0, q1, d1, rate, shape_joints, band_m,
-                                            reuse)
-        if earlier:  # the earlier joints: the earlier distance, now the last used
+        if earlier[p]:  # the earlier joints: the earlier distance, now the last used
             for j in range(q.shape[0]):
                 q0[p, j], q1[p, j] = q1[p, j], q0[p, j]
             d0[p], d1[p] = d1[p], d0[p]
-        bounds[p] = bound
-        if bound < bounds[best]:
+        if each[p] < bounds[best]:
             best = p
-        compute = moved and bound <= band_m
+        compute = moved[p] and each[p] <= band_m
         if compute != near[p]:
             near[p] = compute
             changed[n_changed] = p
@@ -635,19 +676,17 @@ def _pair_bounds(q, q0, d0, q1, d1, rate, shape_joints, band_m, reuse, bounds, n
 
 
 @nb.njit(cache=True, nogil=True)
-def _bound_near(q, q0, d0, q1, d1, rate, shape_joints, band_m, reuse, taken):
+def _bound_near(q, q0, d0, q1, d1, joints, rates, band_m, reuse, taken):
     """:func:`_pair_bounds`'s bounds at ``q`` (of the pairs ``taken``) without writing
-    anything: their smallest, or NaN as soon as a pair would be computed (moved, its bound at
+    anything: their smallest, or NaN where a pair would be computed (moved, its bound at
     most ``band_m``)."""
+    each, moved, _ = _pair_bound_each(q, q0, d0, q1, d1, joints, rates, band_m, reuse, taken)
     best = np.inf
     for p in range(d0.shape[0]):
-        if not taken[p]:
-            continue
-        bound, moved, _ = _pair_bound(p, q, q0, d0, q1, d1, rate, shape_joints, band_m, reuse)
-        if moved and bound <= band_m:
+        if moved[p] and each[p] <= band_m:
             return np.nan
-        if bound < best:
-            best = bound
+        if each[p] < best:
+            best = each[p]
     return best
 
 
@@ -722,11 +761,12 @@ class CollisionDetector(Module):
         _input_ahead(*np.zeros((3, self.limits.size)), self.dt_s, self.limits.lower_rad,
                      self.limits.upper_rad, self.limits.acceleration_rad_s2,
                      self.limits.jerk_rad_s3, *np.zeros((3, self.limits.size)))
+        lists = _joint_lists(np.ones((1, self.limits.size), dtype=bool),
+                             np.ones((1, self.limits.size)))
         _lower_bound(*np.zeros((2, self.limits.size)), np.zeros((1, self.limits.size)),
-                     np.zeros(1), np.zeros((1, self.limits.size)))
+                     np.zeros(1), *lists)
         anchors = (np.zeros((1, self.limits.size)), np.zeros(1)) * 2
-        _pair_bounds(np.zeros(self.limits.size), *anchors, np.zeros((1, self.limits.size)),
-                     np.zeros((1, self.limits.size), dtype=bool), 0.0,
+        _pair_bounds(np.zeros(self.limits.size), *anchors, *lists, 0.0,
                      False, np.zeros(1), np.zeros(1, dtype=bool), np.zeros(2, dtype=np.int64),
                      np.ones(1, dtype=bool))
         _take_near(np.zeros(self.limits.size), np.zeros(1, dtype=np.int64), np.zeros(1),
@@ -805,7 +845,8 @@ class CollisionDetector(Module):
         if self.mode == "safe" and self.skip:
             near_m, near, far_m, far = _lower_bound(q_in, ahead, self.checker.anchor_q,
                                                     self.checker.anchor_m,
-                                                    self.checker.rate_m_rad)
+                                                    self.checker.pair_joints,
+                                                    self.checker.pair_rates)
             if far_m > self.band_m:  # no posture checked this period can come within the band
                 names = self.checker.pair_names
                 at_input = Clearance(near_m, names[near])
