@@ -49,6 +49,11 @@ def test_the_lipschitz_bound_never_exceeds_the_exact_distance(model, drill):
     rate = anchor.rate_m_rad
     assert (rate >= 0).all() and rate.shape == (len(anchor.pair_names), len(lower))
     assert rate[:, legs].any() and rate[:, right].any()  # thighs move with the legs
+    # the kernels' lists: every joint with a rate, in order (each moves one of its pair's shapes)
+    for p in range(len(rate)):
+        listed = anchor.pair_joints[p][anchor.pair_joints[p] >= 0]
+        assert (np.diff(listed) > 0).all() and set(np.flatnonzero(rate[p] > 0.0)) <= set(listed)
+        assert (anchor.pair_rates[p, :len(listed)] == rate[p, listed]).all()
     tightest_m = np.inf
     for k in range(60):
         q0 = rng.uniform(lower, upper)

@@ -503,7 +503,8 @@ def _joint_lists(shape_joints: np.ndarray, rate_m_rad: np.ndarray
     """Per pair, the joints that move one of its shapes (``shape_joints``, pairs x joints), in
     increasing order and -1 after the last, and their rates (``rate_m_rad``; 0 for a joint
     moving both shapes): the bound kernels loop over these few (about 7 of the 24), adding
-    the same terms in the same order as over every joint with a rate."""
+    the same terms in the same order as over every joint with a rate (a joint with a rate
+    moves one of the pair's shapes: its rate comes from that shape's chain)."""
     width = max(1, int(shape_joints.sum(axis=1).max(initial=0)))
     joints = np.full((len(shape_joints), width), -1, dtype=np.int64)
     rates = np.zeros((len(shape_joints), width))
@@ -511,8 +512,6 @@ def _joint_lists(shape_joints: np.ndarray, rate_m_rad: np.ndarray
         listed = np.flatnonzero(row)
         joints[p, :len(listed)] = listed
         rates[p, :len(listed)] = rate_m_rad[p, listed]
-    if np.any((rate_m_rad > 0.0) & ~shape_joints):
-        raise ValueError("a joint with a rate moves neither shape of its pair")
     return joints, rates
 
 
