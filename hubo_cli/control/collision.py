@@ -269,8 +269,8 @@ class SelfCollisionChecker:
         self._legs_pair = np.array([moved_by_legs[p.first] or moved_by_legs[p.second]
                                     for p in geom.collisionPairs], dtype=bool)
         self.rate_m_rad = self._pair_rates()
-        self.shape_joints = self._pair_shape_joints()
-        self.pair_joints, self.pair_rates = _joint_lists(self.shape_joints, self.rate_m_rad)
+        self.pair_joints, self.pair_rates = _joint_lists(self._pair_shape_joints(),
+                                                         self.rate_m_rad)
         # check_near's bounds: each pair's last computed distance and the joints it was
         # computed at (-inf: none yet)
         self.anchor_q = np.zeros((len(self.pair_names), len(self.robot.q_index)))

@@ -251,6 +251,12 @@ CP_GAIN_MAX = 1.0      # [chosen] the error's growth by the landing counted at m
                        # robot 21's fast walk, one swing: +11, -13, -35 mm; it fell)
 
 
+# no landing moved yet: (step, shift applied, steps before it) and (step, its first row on the
+# plan's timeline, the pattern's capture point moved by its landing's moves from there; m)
+_NO_SHIFT = (-1, np.zeros(2), None)
+_NO_REF_MOVE = (-1, 0, np.zeros((1, 2)))  # (neither array is written into: both are replaced)
+
+
 def _not_turned_back(wanted_m: np.ndarray, applied_m: np.ndarray) -> np.ndarray:
     """A landing's shift as the capture point asks for it now (``wanted_m``), kept on each
     axis (world x, y; m) the swing's earlier moves (``applied_m``) shifted it along from
@@ -577,9 +583,8 @@ class WalkTarget(Target):
         self._reaimed_m = {side: np.zeros(2) for side in SIDES}  # each foot's last landing
                                                 # moved so far by re-aims (world x, y; m)
         self._moves_before = 0  # landings moved by the capture point or a push before the plan
-        self._shift = (-1, np.zeros(2), None)  # (step, shift applied, steps before it)
-        self._ref_moved = (-1, 0, np.zeros((1, 2)))  # (step, its first row on the plan's
-        # timeline, the pattern's capture point moved by its landing's moves from there; m)
+        self._shift = _NO_SHIFT  # the capture point's landing moves (_NO_SHIFT's comment)
+        self._ref_moved = _NO_REF_MOVE
         self._cp_error = np.full(2, math.nan)
         self._pending = None  # a re-plan's rest being computed (_replan)
         self._prefix = None  # a re-plan's first rows being solved (_replan)
@@ -691,8 +696,7 @@ class WalkTarget(Target):
         self._reaimed_m = {side: np.zeros(2) for side in SIDES}
         # a new plan (a correction's) counts its steps from 0 again: the last plan's landing
         # moves (their steps, shifts and record) are not its own
-        self._shift = (-1, np.zeros(2), None)
-        self._ref_moved = (-1, 0, np.zeros((1, 2)))
+        self._shift, self._ref_moved = _NO_SHIFT, _NO_REF_MOVE
         self._moves_before = self.shifts + self.touchdowns_early  # (:meth:`_reaim`)
         self._aims = {side: _final_place(steps, feet[side], side) for side in SIDES}
         # what the plan was made from, for re-planning it in motion (:meth:`_replan`)
@@ -955,8 +959,8 @@ class WalkTarget(Target):
         shifted_step, applied, base = self._shift
         # a landing the capture point moved keeps its shift (and the steps it shifted from)
         self._shift = ((step, applied, base[:step + 1]) if shifted_step == step >= 0
-                       else (-1, np.zeros(2), None))
-        self._ref_moved = (-1, 0, np.zeros((1, 2)))  # (the stop's pattern is the reference)
+                       else _NO_SHIFT)
+        self._ref_moved = _NO_REF_MOVE  # (the stop's pattern is the reference)
         planted = None
         if step >= 0:
             kept = steps[:step + 1]
@@ -1118,13 +1122,13 @@ class WalkTarget(Target):
                 self.touchdowns_early += 1
             else:
                 self.shifts += 1
-                self._moved_ref(step, old_cart, old_k, old_row)
+                self._record_ref_move(step, old_cart, old_k, old_row)
             self._shift = (step, np.array([landing.x_m - base[step].x_m,
                                            landing.y_m - base[step].y_m]), base)
 
         self._replan(shift_steps(base, step, landing), t_s, done=done, **replan)
 
-    def _moved_ref(self, step: int, old_cart: Gait, old_k: int, old_row: int) -> None:
+    def _record_ref_move(self, step: int, old_cart: Gait, old_k: int, old_row: int) -> None:
         """Add how far the re-plan just installed moved the pattern's capture point (its
         cart-table CoM plus velocity over omega, the new less ``old_cart``, whose row
         ``old_k`` was the plan's row ``old_row``; the multi-body correction is continued
@@ -1150,7 +1154,7 @@ class WalkTarget(Target):
 
     def _ref_moved_at(self, step: int, k: int) -> np.ndarray:
         """How far step ``step``'s landing moves have moved the pattern's capture point at
-        period ``k`` (world x, y; m; :meth:`_moved_ref`)."""
+        period ``k`` (world x, y; m; :meth:`_record_ref_move`)."""
         recorded, first, moved = self._ref_moved
         if recorded != step:
             return np.zeros(2)
