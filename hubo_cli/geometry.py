@@ -1,5 +1,5 @@
-"""Rotations, tilt, a pose laid flat and the minimum-jerk profile: the one home of the geometry
-hubo-cli shares.
+"""Rotations, tilt, poses laid flat or inverted and the minimum-jerk profile: the one home
+of the geometry hubo-cli shares.
 
 Conventions:
     Quaternions: the function names say the order. ``wxyz`` (scalar first) is the project's
@@ -447,6 +447,17 @@ def pose_laid_flat(T_world_frame: np.ndarray, z_m: float = 0.0) -> np.ndarray:
     c, s = math.cos(heading), math.sin(heading)
     return np.array([[c, -s, 0.0, T[0, 3]], [s, c, 0.0, T[1, 3]], [0.0, 0.0, 1.0, z_m],
                      [0.0, 0.0, 0.0, 1.0]])
+
+
+def rigid_inverse(T: np.ndarray) -> np.ndarray:
+    """The inverse of rigid transforms (4x4, or a stack of them: ... x 4 x 4): [R^T, -R^T p]."""
+    T = np.asarray(T, dtype=float)
+    R_t = np.swapaxes(T[..., :3, :3], -1, -2)
+    out = np.zeros(T.shape)
+    out[..., :3, :3] = R_t
+    out[..., :3, 3] = -(R_t @ T[..., :3, 3, None])[..., 0]
+    out[..., 3, 3] = 1.0
+    return out
 
 
 # ------------------------------------------------------------------------------- tilt

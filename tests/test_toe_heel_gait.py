@@ -13,7 +13,7 @@ from hubo_cli.walking.body import WalkingBody, pose_of_row, walking_posture
 from hubo_cli.walking.footsteps import Footstep, Stance, plan_footsteps
 from hubo_cli.walking.gait import make_gait
 from hubo_cli.walking.stabilizer import LipStabilizer, SoleDamper, StabilizerGains
-from hubo_cli.walking.target import planned_contacts
+from hubo_cli.walking.support import planned_contacts
 from hubo_cli.walking.toe_heel import ToeHeelParams, sole_edges_m
 
 

@@ -440,11 +440,12 @@ def test_a_fifth_of_a_metre_a_second_needs_the_swing_to_cruise(walking_model, pa
 
 
 def test_a_correction_starts_where_the_legs_hold_the_soles(params):
-    """A correction's pattern (:func:`hubo_cli.walking.target._blend_from_held`) starts at the
+    """A correction's pattern (:func:`hubo_cli.walking.lead_in.blend_from_held`) starts at the
     soles the legs hold and reaches the estimated ones, which it was planned from, by the first
     lift-off, without a jump; the swings are left as planned. Held soles drawn 5-20 mm and
     0.5-3 deg off, the first row moves at most a period's share of the quintic."""
-    from hubo_cli.walking.target import SIDES, _blend_from_held
+    from hubo_cli.walking.lead_in import blend_from_held
+    from hubo_cli.walking.support import SIDES
 
     right, left = start_feet(params)
     steps = plan_footsteps(right, left, Stance(0.1, 0.03, 0.0), params)
@@ -459,7 +460,7 @@ def test_a_correction_starts_where_the_legs_hold_the_soles(params):
             c, s = math.cos(foot.yaw_rad + turn), math.sin(foot.yaw_rad + turn)
             held[column, :2, :2] = [[c, -s], [s, c]]
             held[column, :3, 3] = (foot.x_m + off[0], foot.y_m + off[1], -0.008 + off[2])
-        lead = _blend_from_held(gait, held)
+        lead = blend_from_held(gait, held)
         assert lead == np.flatnonzero(~gait.support.all(axis=1))[0]
         first = smoothstep5(1.0 / lead)
         for column, side in enumerate(SIDES):

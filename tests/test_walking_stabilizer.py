@@ -8,7 +8,7 @@ from walking_support import standing_walk, wrench_at
 
 from hubo_cli.errors import ConfigError
 from hubo_cli.estimation.keys import CONTACT, T_WORLD_SOLES, T_WORLD_TORSO
-from hubo_cli.geometry import quat_wxyz_to_matrix
+from hubo_cli.geometry import quat_wxyz_to_matrix, rigid_inverse
 from hubo_cli.kinematics.limb import Limb
 from hubo_cli.model import load_model
 from hubo_cli.state import RobotState
@@ -17,7 +17,7 @@ from hubo_cli.walking.footsteps import Footstep, Stance, plan_footsteps
 from hubo_cli.walking.gait import make_gait
 from hubo_cli.walking.params import walking_params
 from hubo_cli.walking.stabilizer import SoleDamper, StabilizerGains, TorsoOffset, Touchdown
-from hubo_cli.walking.target import rigid_inverse, zmp_outside_m
+from hubo_cli.walking.support import zmp_outside_m
 
 DT = 0.005
 SOLE = (-0.09, 0.13, -0.065, 0.065)  # the sole box in its own frame (m)
@@ -219,7 +219,7 @@ def test_a_correction_starts_from_the_joints_last_sent_while_the_legs_correction
 @pytest.mark.parametrize("stop_after", [1, 10, 60])  # periods into the 0.55 s lead-in
 def test_a_stop_in_a_corrections_lead_in_keeps_the_held_soles_moving_smoothly(stop_after):
     """A correction's pattern starts where the legs hold the soles and moves them onto the
-    estimated ones over its lead-in (:func:`hubo_cli.walking.target._blend_from_held`); a stop
+    estimated ones over its lead-in (:func:`hubo_cli.walking.lead_in.blend_from_held`); a stop
     in that lead-in re-plans a stance where the feet are. It continues from the soles as they
     are held then, onto the estimate over HELD_BLEND_ROWS: re-planned from the estimate alone,
     the legs jumped 3.3-4.2 deg in one period (the estimated soles 8.7 mm low, the drift the

@@ -192,7 +192,7 @@ def test_a_pattern_replanned_mid_swing_plans_its_support_on_the_floor(walk_patte
     the capture-point monitor's planned support still has both soles on the floor the plan
     was made on (it drops a sole 5 mm above the other; with the first row's height the swing
     foot's landing was dropped and the monitor stopped fast walks whose landing moved)."""
-    from hubo_cli.walking.target import planned_support
+    from hubo_cli.walking.support import planned_support
 
     params, walking, start, steps, gait = walk_pattern
     swinging = np.nonzero(~gait.support.all(axis=1))[0]

@@ -31,7 +31,8 @@ from hubo_cli.walking.body import SIDE_LEG, walking_posture
 from hubo_cli.walking.footsteps import Stance, stance_of
 from hubo_cli.walking.params import DEFAULT_GAIT, WalkingParams, walking_params
 from hubo_cli.walking.stabilizer import StabilizerGains
-from hubo_cli.walking.target import WalkTarget, footstep_of
+from hubo_cli.walking.support import footstep_of
+from hubo_cli.walking.target import WalkTarget
 from hubo_cli.walking.toe_heel import ToeHeelParams
 
 MAX_GOAL_M = 10.0

@@ -38,7 +38,7 @@ from hubo_cli.walking.footsteps import SIDE_SIGN, Footstep, stance_of, wrap_angl
 from hubo_cli.walking.gait import SWING_MOVE, Gait, make_gait, smoothstep5
 from hubo_cli.walking.preview import CoMPath
 from hubo_cli.walking.stabilizer import SoleDamper, StabilizerGains
-from hubo_cli.walking.target import SIDES, ankle_wrenches, estimated_feet, planned_support
+from hubo_cli.walking.support import SIDES, ankle_wrenches, estimated_feet, planned_support
 
 if TYPE_CHECKING:
     from hubo_cli.walking.capture_step import CaptureStepper
@@ -321,9 +321,10 @@ class PatternPhase(CapturePhase):
     the monitor watches the pattern's support, where the estimate has the feet now."""
 
     def follow(self, rest: Gait) -> None:
-        """The stepper plays ``rest`` from now: with its support (:func:`planned_support`)
-        and the inverse of the landed foot's planned sole at its start, constant while it
-        plays (:meth:`planned_soles` moves the plan by it every period)."""
+        """The stepper plays ``rest`` from now: with its support
+        (:func:`~hubo_cli.walking.support.planned_support`) and the inverse of the landed
+        foot's planned sole at its start, constant while it plays (:meth:`planned_soles`
+        moves the plan by it every period)."""
         s = self.stepper
         s.rest = rest
         s.rest_support = planned_support(rest)

@@ -139,7 +139,7 @@ from hubo_cli.walking.footsteps import SIDE_SIGN, Footstep
 from hubo_cli.walking.gait import Gait, smoothstep5
 from hubo_cli.walking.params import WalkingParams
 from hubo_cli.walking.preview import CoMPath
-from hubo_cli.walking.target import SIDES, ankle_wrenches, zmp_outside_m
+from hubo_cli.walking.support import SIDES, ankle_wrenches, zmp_outside_m
 
 REST_TAU_S = 0.1         # [chosen] the lunge's rest point follows the measured CP this fast
 REST_BACK_FRACTION = 0.5  # [chosen] ... held no further back than this part of the way from
@@ -198,7 +198,7 @@ class CaptureStepper(Target):
         self.body: WalkingBody | None = None
         self.rest: Gait | None = None  # the catch and the return step, planned at touch-down
         # (PatternPhase.follow) its support per period ((n, 2, 4, 4) world poses, right and
-        # left: target.planned_support) and the inverse of the landed sole's planned pose
+        # left: support.planned_support) and the inverse of the landed sole's planned pose
         self.rest_support: np.ndarray | None = None
         self.T_landed_plan_world: np.ndarray | None = None
         self.k = 0  # the pattern's period

@@ -78,7 +78,7 @@ class Gait:
         torso_lead_rad: a correction's lead-in (its first rows, fewer than n): the torso turned
             further by these rotation vectors (rows of 3, rad, in the torso's frame), from
             where the estimated torso stood onto the pattern's own lean and heading
-            (:func:`~hubo_cli.walking.target._blend_from_held`); None: no lead-in.
+            (:func:`~hubo_cli.walking.lead_in.blend_from_held`); None: no lead-in.
     """
 
     period_s: float

@@ -147,7 +147,7 @@ def pattern_from(current: Gait, k: int, row: int, start: tuple[Footstep, Footste
                 n = min(TOUCH_BLEND_ROWS, len(support))
             elif np.max(np.abs(feet[side][0] - now)) > HELD_TOLERANCE:
                 # down now and then, held elsewhere than the new pattern has it (a correction's
-                # lead-in, :func:`~hubo_cli.walking.target._blend_from_held`, not yet done):
+                # lead-in, :func:`~hubo_cli.walking.lead_in.blend_from_held`, not yet done):
                 # onto it over its stance's rows before a lift-off, at most HELD_BLEND_ROWS
                 lifted = np.nonzero(~support[:, column])[0]
                 n = min(int(lifted[0]) if len(lifted) else len(support), HELD_BLEND_ROWS)

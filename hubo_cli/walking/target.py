@@ -78,12 +78,11 @@ import numba as nb
 import numpy as np
 import pinocchio as pin
 
-from hubo_cli.control.capture_point import convex_hull, outside_distance
 from hubo_cli.control.keys import STOP_MODE
 from hubo_cli.control.lip_feedback import LipFeedback
 from hubo_cli.control.phase import PHASE_STOP, SUPPORT_PLAN, PhaseStop, SupportPlan
 from hubo_cli.control.target import Target, TargetOutput
-from hubo_cli.control.wrench_distribution import Contact, WrenchDistributor
+from hubo_cli.control.wrench_distribution import WrenchDistributor
 from hubo_cli.dataflow import Store
 from hubo_cli.errors import DeviceError, InputError
 from hubo_cli.estimation.keys import (
@@ -97,7 +96,7 @@ from hubo_cli.estimation.keys import (
     ZMP_WORLD,
 )
 from hubo_cli.falls import has_fallen
-from hubo_cli.geometry import pose_laid_flat, tilt_rad_of_z_axis
+from hubo_cli.geometry import pose_laid_flat, rigid_inverse, tilt_rad_of_z_axis
 from hubo_cli.kinematics.choice import CAPPED, EXACT, solve_limb
 from hubo_cli.kinematics.dh import JIT, TRUE
 from hubo_cli.model import RobotModel
@@ -120,9 +119,9 @@ from hubo_cli.walking.footsteps import (
     plan_footsteps,
     stance_of,
     within_limits,
-    wrap_angle,
 )
-from hubo_cli.walking.gait import Gait, make_gait, smoothstep5
+from hubo_cli.walking.gait import Gait, make_gait
+from hubo_cli.walking.lead_in import blend_from_held, levelled, torso_lead
 from hubo_cli.walking.momentum import MomentumStrategy
 from hubo_cli.walking.params import WalkingParams
 from hubo_cli.walking.replan import (
@@ -145,6 +144,15 @@ from hubo_cli.walking.stabilizer import (
     TorsoOffset,
     Touchdown,
 )
+from hubo_cli.walking.support import (
+    SIDES,
+    ankle_wrenches,
+    estimated_feet,
+    footstep_of,
+    planned_contacts,
+    planned_support,
+    zmp_outside_m,
+)
 from hubo_cli.walking.toe_heel import ToeHeelParams, ankle_offset
 
 ARRIVED_M = 0.008                  # closer than this to the goal stance needs no correction
@@ -159,7 +167,6 @@ LEG_CAPPED_RAD = 1e-3  # reaches it: each hip yaw stands at its limit, 0, while 
                        # ahead, and feet toed in by microradians (as the simulator reads them
                        # after a few steps) cap it; taking only exact solutions, the correction
                        # stayed zero from the first capped period on while the offset grew
-SIDES = ("right", "left")  # the estimate's order of the feet (and of ANKLE_SENSORS)
 # each sole's Fig. 4 log columns (:meth:`WalkTarget._toe_heel_info`), right then left
 _TOE_HEEL_COLUMNS = tuple((f"walk.{side}_cop_ref_m", f"walk.{side}_angle_ref_rad",
                            f"walk.{side}_cop_m", f"walk.{side}_angle_rad") for side in SIDES)
@@ -266,56 +273,6 @@ def _not_turned_back(wanted_m: np.ndarray, applied_m: np.ndarray) -> np.ndarray:
                     direction * np.maximum(direction * wanted_m, np.abs(applied_m)), wanted_m)
 
 
-def estimated_feet(store: Store) -> dict[str, Footstep]:
-    """The footsteps the estimate's soles stand on (right, left)."""
-    poses = store[T_WORLD_SOLES]
-    return {side: footstep_of(side, poses[k]) for k, side in enumerate(SIDES)}
-
-
-def ankle_wrenches(store: Store) -> np.ndarray:
-    """The ankles' compensated wrenches (2 x 6: right, left; sole frame, N and N m)."""
-    wrenches = store[WRENCHES]
-    return np.array([wrenches[sensor] for sensor in ANKLE_SENSORS], dtype=float)
-
-
-def footstep_of(side: str, T_world_sole: np.ndarray) -> Footstep:
-    """The footstep a sole's world pose (4x4) stands on."""
-    return Footstep(side, float(T_world_sole[0, 3]), float(T_world_sole[1, 3]),
-                    math.atan2(T_world_sole[1, 0], T_world_sole[0, 0]))
-
-
-def zmp_outside_m(zmp_m: np.ndarray, poses: np.ndarray, corners_m: np.ndarray,
-                  contact: tuple[bool, bool]) -> float:
-    """How far the ZMP ``zmp_m`` (world x, y) lies outside the convex hull of the soles in
-    ``contact`` (m; <= 0 inside; inf with none in contact or a non-finite ZMP)."""
-    if not (contact[0] or contact[1]) or not (math.isfinite(zmp_m[0])
-                                              and math.isfinite(zmp_m[1])):
-        return math.inf
-    return _hull_outside(np.ascontiguousarray(poses, dtype=float), corners_m,
-                         np.array(contact, dtype=np.bool_),
-                         np.ascontiguousarray(zmp_m[:2], dtype=float))
-
-
-@nb.njit(cache=True, nogil=True)
-def _hull_outside(poses, corners, contact, point):
-    """How far ``point`` lies outside the hull of the soles in ``contact`` (one sole: its own
-    outline, corners in order)."""
-    points = np.empty((poses.shape[0] * corners.shape[0], 2))
-    n = loaded = 0
-    for s in range(poses.shape[0]):
-        if not contact[s]:
-            continue
-        T = poses[s]
-        for c in range(corners.shape[0]):
-            points[n, 0] = corners[c, 0] * T[0, 0] + corners[c, 1] * T[0, 1] + T[0, 3]
-            points[n, 1] = corners[c, 0] * T[1, 0] + corners[c, 1] * T[1, 1] + T[1, 3]
-            n += 1
-        loaded += 1
-    if loaded == 1:
-        return outside_distance(points[:n], point)
-    return outside_distance(convex_hull(points[:n]), point)
-
-
 @nb.njit(**JIT)
 def _correct_legs(T_neck_soles, R_neck_world, offset_x, offset_y, lift_right, lift_left, q,
                   deltas, right, left, step_rad, turns):
@@ -372,116 +329,6 @@ def _correct_leg(T_neck_goal, leg, q, delta, step_rad):
                 delta[j] = solved[j] - part[j]
     for j in range(6):
         part[j] += delta[j]
-
-
-def rigid_inverse(T: np.ndarray) -> np.ndarray:
-    """The inverse of rigid transforms (4x4, or a stack of them: ... x 4 x 4): [R^T, -R^T p]."""
-    T = np.asarray(T, dtype=float)
-    R_t = np.swapaxes(T[..., :3, :3], -1, -2)
-    out = np.zeros(T.shape)
-    out[..., :3, :3] = R_t
-    out[..., :3, 3] = -(R_t @ T[..., :3, 3, None])[..., 0]
-    out[..., 3, 3] = 1.0
-    return out
-
-
-def _blend_from_held(gait: Gait, T_world_held: np.ndarray) -> int:
-    """Start a correction's pattern where the legs hold the soles (``T_world_held``, right
-    and left, placed by the estimated torso), moving them onto the estimated soles it was
-    planned from over its lead-in (the rows before the first lift-off; the quintic), in
-    place. Planned from the estimated soles alone, the legs reached 8.7 mm lower and 18 mm
-    wider at once: the knees' targets stepped 3-7 deg and the robot hopped (docs/history/
-    walking.md, round 7). Returns the number of lead-in rows."""
-    lifted = np.flatnonzero(~gait.support.all(axis=1))
-    lead = int(lifted[0]) if len(lifted) else gait.n
-    s = smoothstep5((np.arange(lead) + 1.0) / lead)[:, None]
-    for column, side in enumerate(SIDES):
-        T = T_world_held[column]
-        held = np.array([T[0, 3], T[1, 3], T[2, 3], math.atan2(T[1, 0], T[0, 0])])
-        rows = gait.feet[side]
-        aimed = rows[lead - 1].copy() if lead else held
-        held[3] = aimed[3] + wrap_angle(held[3] - aimed[3])
-        rows[:lead] = held + s * (aimed - held)
-    return lead
-
-
-def _levelled(R_world_neck: np.ndarray, R_neck_soles: np.ndarray) -> np.ndarray:
-    """The torso's orientation that sets both soles (``R_neck_soles``, right and left, as the
-    legs hold them) flat on the floor, each at the heading ``R_world_neck`` (the estimate) gives
-    it; their mean. The pattern's soles are flat: from the estimated torso's tilt, the ankles'
-    targets stepped by it at a correction's start (10-25 mrad; docs/history/walking.md,
-    round 14)."""
-    each = []
-    for R_neck_sole in R_neck_soles:
-        R = R_world_neck @ R_neck_sole
-        each.append(pin.rpy.rpyToMatrix(0.0, 0.0, math.atan2(R[1, 0], R[0, 0])) @ R_neck_sole.T)
-    return each[0] @ pin.exp3(0.5 * pin.log3(each[0].T @ each[1]))
-
-
-def _torso_lead(gait: Gait, lead: int, R_world_held: np.ndarray,
-                lean_rad_per_m: float) -> np.ndarray:
-    """A correction's lead-in's torso turn (:attr:`Gait.torso_lead_rad`, ``lead`` rows):
-    from the estimated torso ``R_world_held`` the legs hold the soles from onto the pattern's
-    own heading and lean (:func:`~hubo_cli.walking.body.lean_rad`), on the soles' quintic.
-    The pattern's first torso leans toward the estimated CoM, which the stabilizer's torso
-    offset had moved sideways (2 rad/m x 23 mm: 46 mrad of roll where the robot stood
-    upright); started there, the legs' targets jumped (docs/history/walking.md, round 14)."""
-    right, left = gait.feet["right"][0], gait.feet["left"][0]
-    yaw = right[3] + wrap_angle(left[3] - right[3]) / 2
-    c, s = math.cos(yaw), math.sin(yaw)
-    com = gait.com.com_m[0]
-    sideways = -s * (com[0] - (right[0] + left[0]) / 2) + c * (com[1] - (right[1] + left[1]) / 2)
-    R_pattern = pin.rpy.rpyToMatrix(-lean_rad_per_m * sideways, 0.0, yaw)
-    turn = pin.log3(R_pattern.T @ R_world_held)
-    s = smoothstep5((np.arange(lead) + 1.0) / lead)[:, None]
-    return (1.0 - s) * turn
-
-
-def planned_contacts(gait: Gait) -> list[tuple[Contact | None, Contact | None]]:
-    """Per period the soles the pattern has on the ground as the force distribution takes
-    them (right, left; None in the air): where the footstep stands, its reference CoP (the
-    toe-heel plan's; flat feet: the sole's origin) and, rolling on its toe or heel, that
-    edge."""
-    plan = gait.toe_heel
-    contacts = []
-    for k in range(gait.n):
-        pair = []
-        for column, side in enumerate(SIDES):
-            if not gait.support[k, column]:
-                pair.append(None)
-            elif plan is None:
-                x, y, _, yaw = gait.feet[side][k].tolist()
-                pair.append(Contact((x, y), yaw))
-            else:
-                x, y, yaw = plan.foot_pose[k, column].tolist()
-                rolling = plan.foot_angle_rad[k, column] != 0.0
-                pair.append(Contact((x, y), yaw, tuple(plan.cop_m[k, column].tolist()),
-                                    float(plan.pivot_m[k, column]) if rolling else None))
-        contacts.append(tuple(pair))
-    return contacts
-
-
-def planned_support(gait: Gait, floor_z_m: float | None = None) -> np.ndarray:
-    """Per period the soles that carry the robot in this phase of the step, the swing foot at
-    its landing place: (n, 2, 4, 4) world poses (right, left), for the capture-point monitor.
-
-    Every sole lies on the floor at ``floor_z_m`` (the estimated sole height the plan was made
-    from; None: each sole's height in the pattern's first row, a pattern that starts standing).
-    A pattern re-planned mid-swing starts with the swing foot 15-19 mm up: at that height the
-    monitor would drop its landing place as a lifted sole and judge the capture point against
-    the stance sole alone."""
-    poses = np.empty((gait.n, 2, 4, 4))
-    index = np.arange(gait.n)
-    for column, side in enumerate(("right", "left")):
-        rows = gait.feet[side].copy()
-        # a swing phase ends with the foot down: each swinging period takes the row where the
-        # swing ends (the next period on the ground; the last row if none)
-        down = np.where(gait.support[:, column], index, gait.n - 1)
-        landing = np.minimum.accumulate(down[::-1])[::-1]
-        rows = rows[np.where(gait.support[:, column], index, landing)]
-        rows[:, 2] = gait.feet[side][0, 2] if floor_z_m is None else floor_z_m
-        poses[:, column] = poses_of_rows(rows)
-    return poses
 
 
 class WalkTarget(Target):
@@ -679,7 +526,7 @@ class WalkTarget(Target):
             # they missed what the legs' correction had reached (it lags, LEG_STEP_RAD)
             goals = np.stack([body.legs[SIDE_LEG[side]].fk(
                 self._sent_q[body.slices[SIDE_LEG[side]]]) for side in SIDES])
-            T_world_neck[:3, :3] = _levelled(T_world_neck[:3, :3], goals[:, :3, :3])
+            T_world_neck[:3, :3] = levelled(T_world_neck[:3, :3], goals[:, :3, :3])
         sole_z = float(store[T_WORLD_SOLES][0, 2, 3])
         com = body.com_in_neck(q_rad)
         com_world = T_world_neck[:3, :3] @ com + T_world_neck[:3, 3]
@@ -689,8 +536,8 @@ class WalkTarget(Target):
                          toe_heel=self.toe_heel, sole=self.model.feet)
         held = goals is not None and gait.toe_heel is None
         if held:  # a correction: its lead-in moves the soles from where the legs hold them
-            lead = _blend_from_held(gait, T_world_neck @ goals)
-            gait = replace(gait, torso_lead_rad=_torso_lead(
+            lead = blend_from_held(gait, T_world_neck @ goals)
+            gait = replace(gait, torso_lead_rad=torso_lead(
                 gait, lead, T_world_neck[:3, :3], self.params.lean_rad_per_m))
         self._reaimed = -1
         self._reaimed_m = {side: np.zeros(2) for side in SIDES}
@@ -1648,20 +1495,20 @@ class WalkTarget(Target):
         return planned_x + c * dx - s * dy, planned_y + s * dx + c * dy
 
     def _support_in_estimate(self, k: int) -> np.ndarray:
-        """Row ``k``'s planned support (:func:`planned_support`) placed in the estimate's frame
-        as :meth:`_in_pattern` reads the pattern's (its inverse): the capture-point monitor
-        judges the estimated capture point against the soles where the robot stands (with
-        ``support_where_standing``; else where the pattern put them). Laid where the pattern
-        put them, fast walks whose stance soles had slipped round by degrees (seen by the
-        gyro) and walked on turned had their capture points judged against soles off their
-        own: seed 12's was 13 mm outside while its error in the pattern's frame was 12 mm,
-        and the monitor stopped it. Off for the normal gait: two 100 N pushes' stops came
-        55-435 ms later (the support moved with the pushed stance sole) and those walks fell
-        (docs/history/walking.md, round 13). The soles the row has down are laid where the
-        estimate has them (flat, on the plan's floor), the swing foot's landing place from the
-        pattern's frame: a frame laid from the more loaded sole alone moved the whole hull
-        when the other sole took the load (87 mm at a fast walk's last landing, the capture
-        point past its front line, a false stop; round 19)."""
+        """Row ``k``'s planned support (:func:`~hubo_cli.walking.support.planned_support`)
+        placed in the estimate's frame as :meth:`_in_pattern` reads the pattern's (its
+        inverse): the capture-point monitor judges the estimated capture point against the
+        soles where the robot stands (with ``support_where_standing``; else where the pattern
+        put them). Laid where the pattern put them, fast walks whose stance soles had slipped
+        round by degrees (seen by the gyro) and walked on turned had their capture points
+        judged against soles off their own: seed 12's was 13 mm outside while its error in the
+        pattern's frame was 12 mm, and the monitor stopped it. Off for the normal gait: two 100
+        N pushes' stops came 55-435 ms later (the support moved with the pushed stance sole)
+        and those walks fell (docs/history/walking.md, round 13). The soles the row has down
+        are laid where the estimate has them (flat, on the plan's floor), the swing foot's
+        landing place from the pattern's frame: a frame laid from the more loaded sole alone
+        moved the whole hull when the other sole took the load (87 mm at a fast walk's last
+        landing, the capture point past its front line, a false stop; round 19)."""
         planned_x, planned_y, sole_x, sole_y, c, s = self._pattern_frame(
             k, ankle_wrenches(self.store))
         M = np.eye(4)
