@@ -15,7 +15,7 @@ from hubo_cli.kinematics.choice import (
 )
 from hubo_cli.kinematics.conditioning import SingularityScale, condition_number
 from hubo_cli.kinematics.reach import branch_box, branch_of, jacobian, nearest_on_branch
-from hubo_cli.teleop.target import max_excursion_m, steady_mask
+from hubo_cli.teleop.hand_report import max_excursion_m, steady_mask
 
 READY_RIGHT = np.array([0.0, -0.15, 0.0, -1.4, 0.0, 0.0])
 MARGINS = np.array([0.1, 0.55, 0.55])

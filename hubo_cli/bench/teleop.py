@@ -22,8 +22,8 @@ from pathlib import Path
 import numpy as np
 
 from hubo_cli.resources import data_file
+from hubo_cli.teleop.hand_report import RETURN_WINDOW_S
 from hubo_cli.teleop.session import TeleopSettings, run_teleop
-from hubo_cli.teleop.target import RETURN_WINDOW_S
 
 # generated streams: (hand speed cap m/s, streams, seconds each); HUBO_BENCH_STREAMS=N changes
 # the count (each stream costs about half its length in wall time on the ideal driver)

@@ -446,7 +446,7 @@ def _report(run, as_json: bool, video: bool = False) -> None:
                     console.print(f"    goal reachable {r['reachable_share']:.0%} of the "
                                   f"time{over}")
                 if r.get("steady_position_rms_mm") is not None:
-                    from hubo_cli.teleop.target import RETURN_WINDOW_S
+                    from hubo_cli.teleop.hand_report import RETURN_WINDOW_S
 
                     console.print(f"    steady, {r['steady_share']:.0%} of that time (more than "
                                   f"{RETURN_WINDOW_S:g} s after the goal came back into reach): "

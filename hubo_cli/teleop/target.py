@@ -78,6 +78,7 @@ from hubo_cli.model import ARMS, RobotModel
 from hubo_cli.motion.limits import JointLimits
 from hubo_cli.motion.tracker import JointTracker
 from hubo_cli.scene import SceneActions, WallPlacement
+from hubo_cli.teleop.hand_report import hand_report
 from hubo_cli.teleop.lead import DECAY_S, GoalVelocity, tracking_target
 from hubo_cli.teleop.mapping import HandMapper
 from hubo_cli.teleop.phases import PHASES, Approach, Operate, Settle
@@ -105,12 +106,6 @@ _STATUS_CODE = {name: code for code, name in enumerate(STATUS_NAMES)}  # the log
 _EYE4 = np.eye(4)  # read only
 REST_RADIUS_M = 0.005  # a goal that stays within this for REST_S is at rest
 REST_S = 0.5
-EXCURSION_WINDOW_S = 1.0  # max_excursion_mm: nearest goal sample within +-this
-# the first this long after a goal comes back into reach is its return; the rest of the reachable
-# time is steady following (reach_report's steady_* figures): on generated 20 s streams the
-# return's second holds 57-68 % of the reachable time's squared position error in 26-29 % of
-# the time (docs/history/teleop.md, round 25)
-RETURN_WINDOW_S = 1.0
 # while operating, each arm joint of the trajectory generator tracks its target on its own
 # (ruckig without synchronisation: on the two-hand sample 6.8 / 6.9 mm RMS against 8.0 / 8.2 mm
 # with phase-synchronised arms), unless the hand would swing more than SWING_M off the straight
@@ -860,59 +855,18 @@ class TeleopTarget(Target):
         return kappa
 
     def reach_report(self) -> dict[str, dict]:
-        """Per hand, while operating: position and orientation RMS, time at the reach limit,
-        branch changes, time its target was kept out of the collision band
-        (``collision_room_s``), the largest excursion (hand to the nearest goal sample within
-        +-1 s), and the share of the time the goal was reachable (``reachable_share``) with
-        the position and orientation RMS and the largest excursion over that time (None when
-        it never was), and the share of the time the goal was reachable while the hand was
-        meant to follow it (``followed_share``: input live, not held for a re-centre, clutch
-        released) with the position and orientation RMS over that time
-        (``followed_position_rms_mm``, ``followed_orientation_rms_deg``: what the replay's
-        verdict judges), and the share of the reachable time that is steady following, more
-        than ``RETURN_WINDOW_S`` after the goal last came back into reach (``steady_share``),
-        with the position and orientation RMS over it (``steady_position_rms_mm``,
-        ``steady_orientation_rms_deg``; :func:`steady_mask`).
-        """
-        report = {}
-        for arm, hand in self.hands.items():
-            pos = np.asarray(self.errors_m[arm])
-            rot = np.asarray(self.rotation_errors_rad[arm])
-            ok = np.asarray(self.reachable[arm], dtype=bool)
-            followed = ok & np.asarray(self.meant_to_follow[arm], dtype=bool)
-            t_s = np.asarray(self.path_times_s[arm])
-            steady = steady_mask(t_s, ok)
-            excursion = excursions_m(t_s,
-                                     np.array([g for g, _ in self.paths[arm]]).reshape(-1, 3),
-                                     np.array([a for _, a in self.paths[arm]]).reshape(-1, 3))
-            report[arm] = {
-                "reachable_share": float(ok.mean()) if len(ok) else None,
-                "reachable_position_rms_mm": float(np.sqrt(np.mean(pos[ok]**2)) * 1000)
-                if ok.any() else None,
-                "reachable_orientation_rms_deg": float(np.degrees(np.sqrt(np.mean(rot[ok]**2))))
-                if ok.any() else None,
-                "followed_share": float(followed.mean()) if len(followed) else None,
-                "followed_position_rms_mm": float(np.sqrt(np.mean(pos[followed]**2)) * 1000)
-                if followed.any() else None,
-                "position_rms_mm": float(np.sqrt(np.mean(pos**2)) * 1000) if len(pos) else None,
-                "orientation_rms_deg": float(np.degrees(np.sqrt(np.mean(rot**2))))
-                if len(rot) else None,
-                "at_limit_s": hand.at_limit_periods * self.dt_guard_s,
-                "branch_changes": hand.branch_changes,
-                "collision_room_s": 0.0 if self.room is None
-                else self.room.pushed_periods.get(arm, 0) * self.dt_guard_s,
-                "max_excursion_mm": float(np.max(excursion, initial=0.0)) * 1000,
-                "reachable_max_excursion_mm": float(np.max(excursion[ok])) * 1000
-                if ok.any() else None,
-                "followed_orientation_rms_deg":
-                float(np.degrees(np.sqrt(np.mean(rot[followed]**2)))) if followed.any() else None,
-                "steady_share": float(steady.sum() / ok.sum()) if ok.any() else None,
-                "steady_position_rms_mm": float(np.sqrt(np.mean(pos[steady]**2)) * 1000)
-                if steady.any() else None,
-                "steady_orientation_rms_deg": float(np.degrees(np.sqrt(np.mean(rot[steady]**2))))
-                if steady.any() else None,
-            }
-        return report
+        """Per hand, while operating, :func:`~hubo_cli.teleop.hand_report.hand_report` of its
+        record: the errors over the whole time, the reachable, followed and steady time, the
+        excursions, the time at the reach limit, the branch changes and the time its target
+        was kept out of the collision band."""
+        return {arm: hand_report(
+            self.path_times_s[arm], self.paths[arm], self.errors_m[arm],
+            self.rotation_errors_rad[arm], self.reachable[arm], self.meant_to_follow[arm],
+            at_limit_s=hand.at_limit_periods * self.dt_guard_s,
+            branch_changes=hand.branch_changes,
+            collision_room_s=0.0 if self.room is None
+            else self.room.pushed_periods.get(arm, 0) * self.dt_guard_s)
+            for arm, hand in self.hands.items()}
 
     def _measure(self, t_s: float, state, info: dict) -> None:
         phase = self.phase
@@ -987,50 +941,3 @@ class TeleopTarget(Target):
     def hand_of(self, arm: str) -> str:
         """The operator's hand that drives ``arm``."""
         return self._hand_of[arm]
-
-
-def steady_mask(t_s: np.ndarray, reachable: np.ndarray,
-                return_window_s: float = RETURN_WINDOW_S) -> np.ndarray:
-    """Per sample (times ``t_s``, s, ascending; ``reachable`` flags), whether the goal is
-    reachable and came back into reach more than ``return_window_s`` earlier: steady following,
-    not a return (a goal reachable from the first sample on has not returned)."""
-    t = np.asarray(t_s, dtype=float)
-    ok = np.asarray(reachable, dtype=bool)
-    if not len(t):
-        return np.zeros(0, dtype=bool)
-    out_t = np.where(ok, -np.inf, t)  # the time of each sample out of reach
-    last_out_s = np.maximum.accumulate(out_t)  # ... of the last one up to each sample
-    return ok & (t - last_out_s > return_window_s)
-
-
-def max_excursion_m(t_s: np.ndarray, goals_m: np.ndarray, actual_m: np.ndarray,
-                    window_s: float = EXCURSION_WINDOW_S) -> float:
-    """The largest distance (m) from the hand to the nearest goal sample within +-window_s.
-
-    Args:
-        t_s: sample times (N,), increasing.
-        goals_m, actual_m: goal and hand positions (N x 3) at those times.
-    """
-    return float(np.max(excursions_m(t_s, goals_m, actual_m, window_s), initial=0.0))
-
-
-def excursions_m(t_s: np.ndarray, goals_m: np.ndarray, actual_m: np.ndarray,
-                 window_s: float = EXCURSION_WINDOW_S) -> np.ndarray:
-    """Per sample, the distance (m) from the hand to the nearest goal sample within +-window_s
-    ((N,); see :func:`max_excursion_m`)."""
-    if len(t_s) == 0:
-        return np.zeros(0)
-    nearest = np.full(len(t_s), np.inf)
-    lo = np.searchsorted(t_s, t_s - window_s, side="left")
-    hi = np.searchsorted(t_s, t_s + window_s, side="right")
-    for k in range(int(np.max(np.arange(len(t_s)) - lo)) + 1):  # goal k samples earlier
-        idx = np.arange(len(t_s)) - k
-        ok = idx >= lo
-        d = np.linalg.norm(actual_m[ok] - goals_m[idx[ok]], axis=1)
-        nearest[ok] = np.minimum(nearest[ok], d)
-    for k in range(1, int(np.max(hi - np.arange(len(t_s)))) + 1):  # goal k samples later
-        idx = np.arange(len(t_s)) + k
-        ok = idx < hi
-        d = np.linalg.norm(actual_m[ok] - goals_m[idx[ok]], axis=1)
-        nearest[ok] = np.minimum(nearest[ok], d)
-    return nearest
