@@ -1,5 +1,5 @@
 """How well a hand followed its operator: the figures of one arm's record while operating
-(the reach report of ``hubo teleop``'s summary, the live view's and the bench's).
+(the ``reach`` figures of ``hubo teleop``'s summary, which the bench and the tests read).
 
 A record is per control period: the time, the goal's and the hand's positions (S, m), the
 position and rotation errors, whether the goal was reachable (the reach search's nearest pose

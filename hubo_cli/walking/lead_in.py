@@ -51,7 +51,7 @@ def levelled(R_world_neck: np.ndarray, R_neck_soles: np.ndarray) -> np.ndarray:
 
 
 def torso_lead(gait: Gait, lead: int, R_world_held: np.ndarray,
-                lean_rad_per_m: float) -> np.ndarray:
+               lean_rad_per_m: float) -> np.ndarray:
     """A correction's lead-in's torso turn (:attr:`Gait.torso_lead_rad`, ``lead`` rows):
     from the estimated torso ``R_world_held`` the legs hold the soles from onto the pattern's
     own heading and lean (:func:`~hubo_cli.walking.body.lean_rad`), on the soles' quintic.
