@@ -567,6 +567,8 @@ if not hasattr(versions, "real_get_package_info"):  # a preload may run more tha
 '''
 
 
+# distributed's own warning about the mismatch this test makes on purpose (the refusal is ours)
+@pytest.mark.filterwarnings("ignore:Mismatched versions found")
 def test_a_worker_of_another_version_is_refused_before_any_run(tmp_path):
     """A real worker process that reports another hubo-cli: one line, exit 2, nothing ran."""
     from distributed import LocalCluster
