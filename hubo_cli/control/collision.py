@@ -611,6 +611,8 @@ def _pair_bound_each(q, q0, d0, q1, d1, joints, rates, band_m, reuse, taken):
                 bound -= rates[p, k] * abs(q[j] - q0[p, j])
                 moved = moved or q[j] != q0[p, j]
         if moved and reuse and bound <= band_m and d1[p] != -np.inf:
+            # (the loop above again, for the earlier distance, written out: a compiled helper
+            # for both, even inline="always", took _bound_near from 1.7 to 4.5 us)
             earlier = d1[p]
             moved_1 = False
             for k in range(joints.shape[1]):
