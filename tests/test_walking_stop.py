@@ -335,6 +335,8 @@ PUSHED_WALKS = {
                              "test_a_foot_does_not_lift_off_while_the_robot_bounces"),
     "front 7.558941": ((1.0, 0.0, 0.0), (7.558941, 100.0, BACKWARD),
                        "test_a_landing_waits_for_its_foot_after_a_push_just_before_it"),
+    "2 m front 1.075": ((2.0, 0.0, 0.0), (1.075, 100.0, BACKWARD),
+                        "test_a_stops_last_landing_after_a_push_from_the_front_holds_the_capture_point"),
 }
 
 
@@ -509,6 +511,32 @@ def test_a_push_from_the_front_mid_walk_moves_the_landing_at_once(pushed_walks, 
     # measured max tilt 12.2 / 11.1 deg (AVX-512); the 10 caught pushes of the 20-seed sweep
     # peaked at 10.5-16.1 deg: bound 25 deg = 1.55x the sweep's worst (a fall: 30)
     assert summary["max_torso_tilt_deg"] < 25.0
+
+
+@pytest.mark.physical
+@pytest.mark.slow
+@pytest.mark.xdist_group("pushed_walks")  # one worker walks the trunk once
+def test_a_stops_last_landing_after_a_push_from_the_front_holds_the_capture_point(pushed_walks):
+    """hubo walk --to 2.0 0 0 pushed from the front (100 N, 0.2 s) at 1.075 s, in the first
+    step's swing (tools/walk_disturbances.py's seed 53): the monitor stops the walk past the
+    point where the swing is abandoned, and the landing is taken back to where its heel lies
+    behind the capture point. Moved by the error alone (main before round 36) it landed
+    beside the stance foot, the capture point 60-80 mm behind both heels, and the robot
+    tipped over backward a second later."""
+    from hubo_cli.control.log import load_log
+
+    result = pushed_walks("2 m front 1.075")
+    summary = json.loads((result.run_dir / "summary.json").read_text())
+    assert result.fell is False and result.stood is True
+    # the stop's landing: measured 67 mm behind the stance foot on both CPU paths (3 mm
+    # ahead before); bound 30 mm behind
+    assert [step["x_m"] for step in result.footsteps] == [pytest.approx(-0.067, abs=0.037)]
+    log = load_log(result.run_dir / "log.parquet")
+    # standing, the capture point inside the monitor's polygon over the run's last 0.5 s
+    # (measured at most 62 mm inside; main before round 36: 60-300 mm outside, falling)
+    assert np.nanmax(np.asarray(log["cp_outside_m"], dtype=float)[-100:]) < 0.0
+    # measured max tilt 12.5 deg (AVX-512), bound 19 deg = 1.5x (a fall: 30)
+    assert summary["max_torso_tilt_deg"] < 19.0
 
 
 @pytest.mark.physical

@@ -871,6 +871,7 @@ class WalkTarget(Target):
         self._shift = (shifted_step, applied, base)
         if self._abandoned(k, step, stance, base, remaining_s, t_s):
             return
+        wanted = self._back_to_capture(k, stance, base[step], remaining_s, wanted)
         if (not np.any(excess) and not np.any(applied)) or \
                 float(np.hypot(*(wanted - applied))) < CP_REPLAN_M:
             return
@@ -916,6 +917,28 @@ class WalkTarget(Target):
         now_s = TOUCH_BLEND_ROWS * self.gait.period_s
         return (landing_cp_x - CP_CAPTURE_MARGIN_M - heel_m,
                 zmp_x + (cp_x - zmp_x) * math.exp(self._omega * now_s))
+
+    def _back_to_capture(self, k: int, stance: Footstep, planned: Footstep, remaining_s: float,
+                         wanted: np.ndarray) -> np.ndarray:
+        """The landing's move ``wanted`` (world x, y from ``planned``, m), taken back along the
+        stance sole's heading as far as the landing that captures the body
+        (:meth:`_capture_landing`) once the walk is stopping after a push from the front: the
+        stop's stance is the last, so its polygon has to hold the capture point, which the
+        error's move (hrpsys's rule, made for a walk that steps on) does not place. A swing
+        past CP_ABANDON_FRACTION that lands where that rule put it left the capture point
+        56-66 mm behind both heels, and the robot tipped over backward a second later (2 m
+        walks pushed 100 N, seeds 50, 53 and 59; docs/history/walking.md, round 36).
+        Unchanged while walking, or without such a push."""
+        if self.phase != "stopping":
+            return wanted
+        landing_x, _ = self._capture_landing(k, stance, remaining_s)
+        if not math.isfinite(landing_x):
+            return wanted
+        heading = np.array((math.cos(stance.yaw_rad), math.sin(stance.yaw_rad)))
+        planned_x = float(heading @ np.array((planned.x_m - stance.x_m,
+                                              planned.y_m - stance.y_m)))
+        back = landing_x - planned_x - float(heading @ wanted)
+        return wanted + min(back, 0.0) * heading
 
     def _abandoned(self, k: int, step: int, stance: Footstep, base: list[Footstep],
                    remaining_s: float, t_s: float) -> bool:
